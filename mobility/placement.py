@@ -1,0 +1,58 @@
+"""Initial placement of robots: uniform, grid, or read from a CSV file of ``x_m,y_m`` rows."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from netsim.errors import ConfigError
+
+
+def uniform(rng: np.random.Generator, n: int, side_m: float) -> np.ndarray:
+    return rng.uniform(0.0, side_m, size=(n, 2))
+
+
+def grid(n: int, side_m: float) -> np.ndarray:
+    """Robots at the centres of the cells of a ``k x k`` grid, ``k = ceil(sqrt(n))``,
+    filled row by row."""
+    k = math.ceil(math.sqrt(n))
+    cell = side_m / k
+    idx = np.arange(n)
+    return np.column_stack(((idx % k + 0.5) * cell, (idx // k + 0.5) * cell))
+
+
+def from_csv(path: str, n: int, side_m: float) -> np.ndarray:
+    key = "world.placement"
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(key, path, 'must be "uniform", "grid" or the path of an existing CSV file')
+    try:
+        df = pd.read_csv(p)
+    except Exception as exc:  # pandas raises several parser errors; all mean a bad file
+        raise ConfigError(key, path, f"is not a readable CSV file ({exc})") from None
+    if list(df.columns[:2]) != ["x_m", "y_m"] or len(df.columns) != 2:
+        raise ConfigError(key, path, f"must have exactly the columns x_m,y_m (found {list(df.columns)})")
+    if len(df) != n:
+        raise ConfigError(key, path, f"has {len(df)} rows but world.n_robots = {n}")
+    try:
+        xy = df.to_numpy(dtype=float)
+    except ValueError:
+        raise ConfigError(key, path, "has values that are not numbers") from None
+    if not np.isfinite(xy).all():
+        raise ConfigError(key, path, "has missing, NaN or infinite values")
+    if (xy < 0).any() or (xy > side_m).any():
+        raise ConfigError(key, path, f"has positions outside the area [0, {side_m}] (world.side_m)")
+    return xy
+
+
+def initial_positions(sim) -> np.ndarray:
+    """The placement the configuration asks for."""
+    w = sim.config.world
+    if w.placement == "uniform":
+        return uniform(sim.streams.get("placement"), w.n_robots, w.side_m)
+    if w.placement == "grid":
+        return grid(w.n_robots, w.side_m)
+    return from_csv(w.placement, w.n_robots, w.side_m)

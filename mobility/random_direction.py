@@ -1,0 +1,72 @@
+"""Random direction: robots keep a uniformly random heading and speed.
+
+In a bounded square a robot travels until it reaches the border, pauses ``pause_s``, and
+leaves in a new direction drawn uniformly among those pointing back inside. On a torus
+(``world.torus = true``) there is no border: a robot keeps its heading for
+``turn_interval_s`` (``inf``: for ever, the constant-velocity model whose link durations
+have a closed form, VALIDATION.md item 6), then draws a new one.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mobility.placement import initial_positions
+from netsim.errors import ConfigError
+
+
+def _time_to_border(p: np.ndarray, v: np.ndarray, side: float) -> float:
+    times = []
+    for k in range(2):
+        if v[k] > 0:
+            times.append((side - p[k]) / v[k])
+        elif v[k] < 0:
+            times.append(-p[k] / v[k])
+    return max(0.0, min(times)) if times else math.inf
+
+
+def _inward_heading(rng, p: np.ndarray, side: float) -> np.ndarray:
+    """A uniform heading, mirrored so that it does not point out of the square."""
+    theta = rng.uniform(0.0, 2 * math.pi)
+    u = np.array([math.cos(theta), math.sin(theta)])
+    for k in range(2):
+        if (p[k] <= 0.0 and u[k] < 0) or (p[k] >= side and u[k] > 0):
+            u[k] = -u[k]
+    return u
+
+
+def direction_robot(sim, i: int, rng: np.random.Generator):
+    env, st = sim.env, sim.state
+    m, side = sim.config.mobility, sim.config.world.side_m
+    while True:
+        speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
+        here = st.positions_at(env.now, [i])[0]
+        if st.torus:
+            theta = rng.uniform(0.0, 2 * math.pi)
+            st.set_leg(i, env.now, (speed * math.cos(theta), speed * math.sin(theta)))
+            if math.isinf(m.turn_interval_s):
+                return
+            yield env.timeout(m.turn_interval_s)
+            continue
+        v = speed * _inward_heading(rng, here, side)
+        travel = _time_to_border(here, v, side)
+        if speed <= 0 or math.isinf(travel):
+            st.set_leg(i, env.now, (0.0, 0.0))
+            return
+        st.set_leg(i, env.now, v)
+        yield env.timeout(travel)
+        # Land exactly on the border, not a rounding error outside it.
+        st.arrive(i, env.now, np.clip(here + v * travel, 0.0, side), log=m.pause_s > 0)
+        if m.pause_s > 0:
+            yield env.timeout(m.pause_s)
+
+
+def install(sim) -> None:
+    m = sim.config.mobility
+    if m.speed_max_mps <= 0:
+        raise ConfigError("mobility.speed_max_mps", m.speed_max_mps, "must be > 0 for random direction")
+    sim.state.place(initial_positions(sim))
+    for i in range(sim.config.world.n_robots):
+        sim.env.process(direction_robot(sim, i, sim.streams.get("mobility", i)))

@@ -1,0 +1,162 @@
+"""Random waypoint (paper section 1.1; MODEL.md section 2).
+
+Each robot picks a destination uniformly in the square and a speed uniform on
+``[speed_min_mps, speed_max_mps]``, travels there in a straight line, pauses ``pause_s``,
+and repeats; robots are independent. A leg costs two kernel events (arrival, end of
+pause) and nothing in between: positions are exact at any time from the leg.
+
+Started from a uniform placement, the model is not in its stationary regime: robots
+bunch toward the centre and the average speed falls over time (to zero when
+``speed_min_mps = 0``; Yoon, Liu and Noble 2003). The default is therefore Navidi and
+Camp's stationary start ("perfect simulation", IEEE TMC 2004): at t = 0 positions, speeds
+and pauses already follow the stationary distribution, so measurements need no warm-up.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+
+from mobility.placement import initial_positions
+from netsim.errors import ConfigError
+
+# Mean distance between two uniform points of the unit square (VALIDATION.md item 2).
+MEAN_LEG_UNIT_SQUARE = (2 + math.sqrt(2) + 5 * math.log(1 + math.sqrt(2))) / 15
+
+
+class Start(NamedTuple):
+    """Where each robot is at t = 0 and what it is doing."""
+
+    position_m: np.ndarray  # (n, 2)
+    destination_m: np.ndarray  # (n, 2); equal to position for paused robots
+    speed_mps: np.ndarray  # (n,); 0 for paused robots
+    pause_left_s: np.ndarray  # (n,); residual pause, 0 for moving robots
+
+
+def mean_inverse_speed(v_min: float, v_max: float) -> float:
+    """``E[1/V]`` for V uniform on ``[v_min, v_max]`` (infinite when ``v_min = 0``)."""
+    if v_min == v_max:
+        return 1.0 / v_max
+    if v_min == 0:
+        return math.inf
+    return math.log(v_max / v_min) / (v_max - v_min)
+
+
+def paused_fraction(side_m: float, v_min: float, v_max: float, pause_s: float) -> float:
+    """Long-run fraction of time a robot is paused: ``E[T_p] / (E[T_p] + E[L] E[1/V])``."""
+    if pause_s == 0:
+        return 0.0
+    return pause_s / (pause_s + MEAN_LEG_UNIT_SQUARE * side_m * mean_inverse_speed(v_min, v_max))
+
+
+def stationary_start(rng: np.random.Generator, n: int, side_m: float, v_min: float, v_max: float, pause_s: float) -> Start:
+    """Draw the state of ``n`` robots from the stationary distribution (Navidi and Camp).
+
+    With probability ``p_p`` a robot is paused at a uniform point with a residual pause
+    uniform on ``(0, pause_s)``. Otherwise it is on a leg drawn with probability
+    proportional to its length (two uniform points, accepted with probability
+    ``|P2 - P1| / diagonal``), at a uniform point of it, heading to P2, with speed
+    ``v_min (v_max / v_min)^U`` (the speed density ``1 / (v ln(v_max / v_min))``).
+    """
+    if v_max <= 0:
+        raise ConfigError("mobility.speed_max_mps", v_max, "must be > 0 for random waypoint")
+    if v_min <= 0:
+        raise ConfigError(
+            "mobility.speed_min_mps",
+            v_min,
+            "must be > 0 with stationary_start = true (with 0 there is no stationary "
+            "regime: the average speed decays to zero); set it > 0 or stationary_start = false",
+        )
+    p_pause = paused_fraction(side_m, v_min, v_max, pause_s)
+    paused = rng.random(n) < p_pause
+    moving = np.flatnonzero(~paused)
+    pos = np.empty((n, 2))
+    dest = np.empty((n, 2))
+    speed = np.zeros(n)
+    pause_left = np.zeros(n)
+
+    k = int(paused.sum())
+    pos[paused] = rng.uniform(0, side_m, (k, 2))
+    dest[paused] = pos[paused]
+    pause_left[paused] = rng.uniform(0, pause_s, k) if k else 0.0
+
+    m = len(moving)
+    diagonal = side_m * math.sqrt(2)
+    starts, ends = [], []
+    need = m
+    while need > 0:
+        batch = max(2 * need, 16)
+        p1 = rng.uniform(0, side_m, (batch, 2))
+        p2 = rng.uniform(0, side_m, (batch, 2))
+        accept = rng.random(batch) * diagonal < np.hypot(*(p2 - p1).T)
+        starts.append(p1[accept][:need])
+        ends.append(p2[accept][:need])
+        need -= int(min(accept.sum(), need))
+    p1 = np.concatenate(starts) if starts else np.empty((0, 2))
+    p2 = np.concatenate(ends) if ends else np.empty((0, 2))
+    frac = rng.random(m)
+    pos[moving] = p1 + frac[:, None] * (p2 - p1)
+    dest[moving] = p2
+    u = rng.random(m)
+    speed[moving] = v_max if v_min == v_max else v_min * (v_max / v_min) ** u
+    return Start(pos, dest, speed, pause_left)
+
+
+def _fresh_start(positions: np.ndarray) -> Start:
+    n = len(positions)
+    return Start(positions, positions.copy(), np.zeros(n), np.zeros(n))
+
+
+def waypoint_robot(sim, i: int, start: Start, rng: np.random.Generator):
+    """The life of robot ``i``: legs and pauses, forever."""
+    env, st = sim.env, sim.state
+    m = sim.config.mobility
+    side = sim.config.world.side_m
+    if start.pause_left_s[i] > 0:
+        yield env.timeout(start.pause_left_s[i])
+    elif start.speed_mps[i] > 0:
+        dest = start.destination_m[i]
+        yield env.timeout(st.head_to(i, env.now, dest, start.speed_mps[i]))
+        st.arrive(i, env.now, dest, log=m.pause_s > 0)
+        if m.pause_s > 0:
+            yield env.timeout(m.pause_s)
+    while True:
+        dest = rng.uniform(0.0, side, 2)
+        speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
+        if speed <= 0.0:
+            st.set_leg(i, env.now, (0.0, 0.0))
+            return  # a speed of exactly zero: the robot never arrives
+        yield env.timeout(st.head_to(i, env.now, dest, speed))
+        st.arrive(i, env.now, dest, log=m.pause_s > 0)
+        if m.pause_s > 0:
+            yield env.timeout(m.pause_s)
+
+
+def install(sim) -> None:
+    cfg = sim.config
+    m, w = cfg.mobility, cfg.world
+    if m.speed_max_mps <= 0:
+        raise ConfigError("mobility.speed_max_mps", m.speed_max_mps, "must be > 0 for random waypoint")
+    if m.stationary_start:
+        if w.placement != "uniform":
+            raise ConfigError(
+                "world.placement",
+                w.placement,
+                "cannot be combined with mobility.stationary_start = true (the stationary "
+                "start draws positions itself); set stationary_start = false",
+            )
+        start = stationary_start(sim.streams.get("mobility.start"), w.n_robots, w.side_m, m.speed_min_mps, m.speed_max_mps, m.pause_s)
+    else:
+        if m.speed_min_mps == 0:
+            warnings.warn(
+                "mobility.speed_min_mps = 0 without a stationary start: the average speed of "
+                "random waypoint decays toward zero over the run (Yoon, Liu and Noble 2003)",
+                stacklevel=2,
+            )
+        start = _fresh_start(initial_positions(sim))
+    sim.state.place(start.position_m)
+    for i in range(w.n_robots):
+        sim.env.process(waypoint_robot(sim, i, start, sim.streams.get("mobility", i)))

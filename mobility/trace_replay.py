@@ -1,0 +1,63 @@
+"""Replay of an ns-2 movement file (ns-2 ``setdest``, BonnMotion's ns-2 export, or
+``netsim scenario generate``), with the semantics of ns-3's ``Ns2MobilityHelper``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from netsim import ns2
+from netsim.errors import ConfigError, NetsimInputError
+
+
+def load(sim) -> ns2.Scenario:
+    cfg = sim.config
+    try:
+        scen = ns2.read(cfg.mobility.trace_file)
+    except NetsimInputError as exc:
+        raise ConfigError("mobility.trace_file", cfg.mobility.trace_file, str(exc)) from None
+    if scen.n_robots != cfg.world.n_robots:
+        raise ConfigError(
+            "world.n_robots", cfg.world.n_robots, f"must equal the {scen.n_robots} nodes of {cfg.mobility.trace_file}"
+        )
+    side = cfg.world.side_m
+    xy = np.concatenate([scen.initial_m.ravel(), scen.commands[["x_m", "y_m"]].to_numpy().ravel()])
+    xy = xy[~np.isnan(xy)]
+    if len(xy) and (xy.min() < 0 or xy.max() > side):
+        raise ConfigError(
+            "world.side_m", side, f"is smaller than the area of {cfg.mobility.trace_file} (coordinates up to {xy.max():g})"
+        )
+    return scen
+
+
+def replay(sim, scen: ns2.Scenario):
+    """One process walks the commands in time order; arrivals are timed per robot."""
+    env, st = sim.env, sim.state
+    generation = np.zeros(st.n, dtype=np.int64)
+
+    def stop_on_arrival(i, gen, dest):
+        def stop(_event):
+            if generation[i] == gen:
+                st.arrive(i, env.now, dest)
+        return stop
+
+    for t, i, kind, x, y, speed in scen.commands.itertuples(index=False):
+        if t > env.now:
+            yield env.timeout(t - env.now)
+        generation[i] += 1
+        if kind == "setdest":
+            dest = np.array([x, y])
+            travel = st.head_to(i, env.now, dest, speed)
+            if travel > 0:
+                env.timeout(travel).callbacks.append(stop_on_arrival(i, int(generation[i]), dest))
+        else:
+            here = st.positions_at(env.now, [i])[0]
+            new = np.array([here[0] if math.isnan(x) else x, here[1] if math.isnan(y) else y])
+            st.set_leg(i, env.now, (0.0, 0.0), start_m=new)
+
+
+def install(sim) -> None:
+    scen = load(sim)
+    sim.state.place(scen.initial_m)
+    sim.env.process(replay(sim, scen))

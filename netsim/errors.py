@@ -1,0 +1,19 @@
+"""Errors that reach users. The CLI turns these into one line and exit status 2."""
+
+
+class NetsimInputError(Exception):
+    """Bad input from the user: a configuration value, a file, a command-line option."""
+
+
+class ConfigError(NetsimInputError):
+    """A configuration value that is not allowed.
+
+    The message names the key, the value given and what is allowed, so the user can fix
+    the file without reading code.
+    """
+
+    def __init__(self, key: str, value: object, allowed: str):
+        self.key = key
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f"{key} = {value!r}: {allowed}")

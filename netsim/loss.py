@@ -1,0 +1,78 @@
+"""Reception loss models: small callables ``survives(sender, receivers, distances_m) -> mask``.
+
+Each model draws from the channel's own random stream. A model with nothing to draw
+(zero loss) draws nothing, so that turning loss off does not shift other draws.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class BernoulliLoss:
+    """Each reception is lost independently with probability ``p``."""
+
+    def __init__(self, p: float, rng: np.random.Generator):
+        self.p = float(p)
+        self.rng = rng
+
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+        if self.p == 0.0:
+            return np.ones(len(receivers), dtype=bool)
+        return self.rng.random(len(receivers)) >= self.p
+
+
+class DistanceLoss:
+    """Reception probability ``(1 - p) (1 - (d / r)^k)`` for a sender of range ``r``.
+
+    Certain (but for ``p``) next to the sender, falling smoothly to zero at the edge of
+    the range; ``k`` sets how sharp the edge is (large ``k``: nearly a unit disk).
+    """
+
+    def __init__(self, p: float, exponent: float, range_m: np.ndarray, rng: np.random.Generator):
+        self.p = float(p)
+        self.exponent = float(exponent)
+        self.range_m = range_m
+        self.rng = rng
+
+    def __call__(self, sender, receivers, distances_m):
+        ratio = distances_m / self.range_m[sender]
+        p_receive = (1.0 - self.p) * (1.0 - ratio**self.exponent)
+        return self.rng.random(len(receivers)) < p_receive
+
+
+class GilbertElliottLoss:
+    """Bursty loss: a two-state Markov chain per directed link (sender, receiver).
+
+    The chain steps once per transmission on its link: first the state moves
+    (good -> bad with ``p_gb``, bad -> good with ``p_bg``), then the reception is lost
+    with the state's loss probability. A link's first transmission draws its state from
+    the chain's stationary distribution, so there is no warm-up.
+    """
+
+    def __init__(self, p_gb, p_bg, loss_good, loss_bad, n: int, rng: np.random.Generator):
+        self.p_gb, self.p_bg = float(p_gb), float(p_bg)
+        self.loss = np.array([loss_good, loss_bad], dtype=float)
+        total = self.p_gb + self.p_bg
+        self.p_bad_stationary = self.p_gb / total if total > 0 else 0.0
+        self.n = int(n)
+        self.rng = rng
+        self._bad: dict[int, bool] = {}
+
+    def __call__(self, sender, receivers, distances_m):
+        k = len(receivers)
+        u = self.rng.random((k, 2))
+        keep = np.empty(k, dtype=bool)
+        bad_states = self._bad
+        for j, r in enumerate(receivers.tolist()):
+            key = sender * self.n + r
+            bad = bad_states.get(key)
+            if bad is None:
+                bad = u[j, 0] < self.p_bad_stationary
+            elif bad:
+                bad = not (u[j, 0] < self.p_bg)
+            else:
+                bad = u[j, 0] < self.p_gb
+            bad_states[key] = bad
+            keep[j] = u[j, 1] >= self.loss[int(bad)]
+        return keep

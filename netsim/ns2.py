@@ -1,0 +1,141 @@
+"""The ns-2 movement-scenario format, as written by ns-2's ``setdest`` and BonnMotion.
+
+::
+
+    $node_(0) set X_ 120.5
+    $node_(0) set Y_ 33.0
+    $node_(0) set Z_ 0.0
+    $ns_ at 2.0 "$node_(0) setdest 400.0 250.0 3.5"
+
+Semantics (as ns-2 and ns-3's ``Ns2MobilityHelper``): ``setdest X Y S`` at time T makes
+the node leave its current position at T in a straight line toward (X, Y) at S m/s and
+stop on arrival; a later ``setdest`` replaces the current one from wherever the node is.
+``$ns_ at T "$node_(i) set X_ x"`` moves the node to x at T and stops it. ``$god_`` lines
+(setdest's hop counts), ``Z_`` and comments are ignored.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from netsim.errors import NetsimInputError
+
+_NUM = r"([-+0-9.eEinfa]+)"
+_INIT = re.compile(r"^\$node_\((\d+)\)\s+set\s+([XYZ])_\s+" + _NUM + r"\s*$")
+_SETDEST = re.compile(
+    r'^\$ns_\s+at\s+' + _NUM + r'\s+"\$node_\((\d+)\)\s+setdest\s+' + _NUM + r"\s+" + _NUM + r"\s+" + _NUM + r'\s*"\s*$'
+)
+_SETPOS = re.compile(r'^\$ns_\s+at\s+' + _NUM + r'\s+"\$node_\((\d+)\)\s+set\s+([XYZ])_\s+' + _NUM + r'\s*"\s*$')
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A parsed movement file: initial positions and time-ordered commands.
+
+    ``commands`` has columns ``t_s, robot, kind ("setdest" | "set"), x_m, y_m, speed_mps``;
+    for ``set`` rows, the coordinate not set is NaN.
+    """
+
+    initial_m: np.ndarray
+    commands: pd.DataFrame
+
+    @property
+    def n_robots(self) -> int:
+        return len(self.initial_m)
+
+
+def _number(text: str, path, lineno: int, what: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise NetsimInputError(f"{path}:{lineno}: {what} {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise NetsimInputError(f"{path}:{lineno}: {what} {text!r} must be finite")
+    return v
+
+
+def read(path: str | Path) -> Scenario:
+    """Parse an ns-2 movement file; raise :class:`NetsimInputError` naming the bad line."""
+    path = Path(path)
+    if not path.is_file():
+        raise NetsimInputError(f"mobility.trace_file = {str(path)!r}: no such file")
+    initial: dict[int, dict[str, float]] = {}
+    rows = []
+    try:
+        lines = path.read_text().splitlines()
+    except UnicodeDecodeError:
+        raise NetsimInputError(f"{path}: not a text file") from None
+    for lineno, raw in enumerate(lines, 1):
+        line = raw.strip()
+        if not line or line.startswith("#") or "$god_" in line:
+            continue
+        if m := _INIT.match(line):
+            node, axis = int(m[1]), m[2]
+            initial.setdefault(node, {})[axis] = _number(m[3], path, lineno, f"{axis}_")
+        elif m := _SETDEST.match(line):
+            t = _number(m[1], path, lineno, "time")
+            x, y, s = (_number(m[k], path, lineno, w) for k, w in ((3, "X"), (4, "Y"), (5, "speed")))
+            if t < 0 or s < 0:
+                raise NetsimInputError(f"{path}:{lineno}: negative time or speed in {line!r}")
+            rows.append((t, int(m[2]), "setdest", x, y, s, lineno))
+        elif m := _SETPOS.match(line):
+            t = _number(m[1], path, lineno, "time")
+            if t < 0:
+                raise NetsimInputError(f"{path}:{lineno}: negative time in {line!r}")
+            v = _number(m[4], path, lineno, f"{m[3]}_")
+            if m[3] == "Z":
+                continue
+            x, y = (v, math.nan) if m[3] == "X" else (math.nan, v)
+            rows.append((t, int(m[2]), "set", x, y, 0.0, lineno))
+        else:
+            raise NetsimInputError(f"{path}:{lineno}: not an ns-2 movement command: {line!r}")
+    if not initial:
+        raise NetsimInputError(f"{path}: no initial positions ($node_(i) set X_ ...)")
+    n = max(initial) + 1
+    missing = [i for i in range(n) if "X" not in initial.get(i, {}) or "Y" not in initial.get(i, {})]
+    if missing:
+        raise NetsimInputError(f"{path}: node(s) {missing[:5]} have no initial X_ and Y_")
+    commands = pd.DataFrame(rows, columns=["t_s", "robot", "kind", "x_m", "y_m", "speed_mps", "line"])
+    if len(commands) and commands["robot"].max() >= n:
+        bad = int(commands.loc[commands["robot"] >= n, "line"].iloc[0])
+        raise NetsimInputError(f"{path}:{bad}: node without an initial position")
+    commands = commands.sort_values(["t_s", "line"], kind="stable").drop(columns="line").reset_index(drop=True)
+    init = np.array([[initial[i]["X"], initial[i]["Y"]] for i in range(n)])
+    return Scenario(init, commands)
+
+
+def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float, header: str = "") -> None:
+    """Write legs (as :meth:`RobotState.legs` gives) as an ns-2 movement file.
+
+    Each moving leg becomes a ``setdest`` toward where the leg ends (the start of the
+    robot's next leg, or its position at ``duration_s``). Numbers are written with
+    Python's shortest round-trip ``repr``, so a replay reproduces the positions.
+    """
+    lines = [f"# {line}" for line in header.splitlines()]
+    legs = legs.sort_values(["robot", "t_s"], kind="stable")
+    t = legs["t_s"].to_numpy(float)
+    robot = legs["robot"].to_numpy(np.int64)
+    p = legs[["x_m", "y_m"]].to_numpy(float)
+    v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
+    for i in range(n_robots):
+        first = np.searchsorted(robot, i)
+        x, y = p[first]
+        lines += [f"$node_({i}) set X_ {x!r}", f"$node_({i}) set Y_ {y!r}", f"$node_({i}) set Z_ 0.0"]
+    events = []
+    for k in range(len(t)):
+        speed = math.hypot(v[k, 0], v[k, 1])
+        if speed == 0.0 or t[k] >= duration_s:
+            continue
+        last = k + 1 >= len(t) or robot[k + 1] != robot[k]
+        t_end = duration_s if last else min(t[k + 1], duration_s)
+        dest = p[k] + v[k] * (t_end - t[k])
+        events.append((t[k], int(robot[k]), f'$ns_ at {t[k]!r} "$node_({robot[k]}) setdest {dest[0]!r} {dest[1]!r} {speed!r}"'))
+    events.sort(key=lambda e: (e[0], e[1]))
+    lines += [e[2] for e in events]
+    Path(path).write_text("\n".join(lines) + "\n")

@@ -1,0 +1,136 @@
+"""The global robot state (paper section 1.2), held as numpy arrays, one row per robot.
+
+Motion is piecewise linear: each robot is on a *leg* that started at ``t0_s[i]`` from
+``origin_m[i]`` with velocity ``velocity_mps[i]``, so its position at any time ``t`` on
+that leg is ``origin + velocity * (t - t0)``, exactly, without stepping (as ns-3's
+constant-velocity helper). Models change course with :meth:`RobotState.set_leg`; every
+leg is logged, which is what exact link events and ns-2 export are computed from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+# Roles, in the paper's terms: gamma (undecided), beta (member), alpha (leader).
+UNDECIDED, MEMBER, LEADER = 0, 1, 2
+ROLE_NAMES = ("gamma", "beta", "alpha")
+
+NO_LEADER = -1
+
+
+class RobotState:
+    """Positions, velocities, roles and leaders of ``n`` robots.
+
+    Parameters
+    ----------
+    n : number of robots.
+    side_m : side of the square area.
+    range_m : communication range of each robot (scalar or one per robot).
+    torus : when true, positions wrap around the borders and distances are taken on the
+        torus (minimum image).
+    """
+
+    def __init__(self, n: int, side_m: float, range_m, torus: bool = False):
+        self.n = int(n)
+        self.side_m = float(side_m)
+        self.torus = bool(torus)
+        self.range_m = np.broadcast_to(np.asarray(range_m, dtype=float), (self.n,)).copy()
+        self.origin_m = np.zeros((self.n, 2))
+        self.velocity_mps = np.zeros((self.n, 2))
+        self.t0_s = np.zeros(self.n)
+        self.role = np.full(self.n, UNDECIDED, dtype=np.int8)
+        self.leader = np.full(self.n, NO_LEADER, dtype=np.int64)
+        self.alive = np.ones(self.n, dtype=bool)
+        # Highest speed any robot has had since the spatial index last reset it: bounds how
+        # far anyone can have moved since then.
+        self.speed_high_water_mps = 0.0
+        # Bumped when a robot jumps (a trace's "set X_" at t > 0): the index must rebuild.
+        self.jumps = 0
+        self._legs: list[tuple] = []
+
+    # -- positions -------------------------------------------------------------------
+    def positions_at(self, t: float, idx=None) -> np.ndarray:
+        """Positions at time ``t`` (all robots, or rows ``idx``), shape ``(k, 2)``.
+
+        ``t`` must not be before the start of a robot's current leg.
+        """
+        if idx is None:
+            p = self.origin_m + self.velocity_mps * (t - self.t0_s)[:, None]
+        else:
+            p = self.origin_m[idx] + self.velocity_mps[idx] * (t - self.t0_s[idx])[..., None]
+        if self.torus:
+            p = np.mod(p, self.side_m)
+        return p
+
+    def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Vectors from positions ``b`` to ``a``; the shortest image on a torus."""
+        d = a - b
+        if self.torus:
+            d -= self.side_m * np.round(d / self.side_m)
+        return d
+
+    # -- motion ----------------------------------------------------------------------
+    def place(self, positions_m: np.ndarray) -> None:
+        """Initial positions at t = 0, everyone at rest."""
+        positions_m = np.asarray(positions_m, dtype=float)
+        if positions_m.shape != (self.n, 2):
+            raise ValueError(f"expected positions of shape ({self.n}, 2), got {positions_m.shape}")
+        self.origin_m[:] = positions_m
+        self.velocity_mps[:] = 0.0
+        self.t0_s[:] = 0.0
+        self._legs = [(0.0, i, x, y, 0.0, 0.0) for i, (x, y) in enumerate(positions_m.tolist())]
+
+    def set_leg(self, i: int, t: float, velocity_mps, start_m=None) -> None:
+        """Robot ``i`` starts a new straight leg at time ``t`` with ``velocity_mps``.
+
+        The leg starts where the robot is (continuous motion) unless ``start_m`` is given,
+        which is a jump.
+        """
+        if start_m is None:
+            start = self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i])
+        else:
+            start = np.asarray(start_m, dtype=float)
+            self.jumps += 1
+        vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
+        self.origin_m[i] = start
+        self.velocity_mps[i] = (vx, vy)
+        self.t0_s[i] = t
+        speed = (vx * vx + vy * vy) ** 0.5
+        if speed > self.speed_high_water_mps:
+            self.speed_high_water_mps = speed
+        self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy))
+
+    def head_to(self, i: int, t: float, dest_m, speed_mps: float) -> float:
+        """Move ``i`` in a straight line toward ``dest_m`` at ``speed_mps``.
+
+        Returns the travel time (0 when already there or when the speed is 0, in which
+        case the robot stops).
+        """
+        here = self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i])
+        delta = np.asarray(dest_m, dtype=float) - here
+        dist = float(np.hypot(delta[0], delta[1]))
+        if dist == 0.0 or speed_mps <= 0.0:
+            self.set_leg(i, t, (0.0, 0.0))
+            return 0.0
+        self.set_leg(i, t, delta * (speed_mps / dist))
+        return dist / speed_mps
+
+    def arrive(self, i: int, t: float, dest_m, log: bool = True) -> None:
+        """Stop ``i`` exactly at ``dest_m`` (removes rounding from the leg's end).
+
+        ``log=False`` when the robot leaves again at the same instant: the stop would be
+        a leg of zero length.
+        """
+        self.origin_m[i] = dest_m
+        self.velocity_mps[i] = 0.0
+        self.t0_s[i] = t
+        if log:
+            self._legs.append((float(t), int(i), float(dest_m[0]), float(dest_m[1]), 0.0, 0.0))
+
+    # -- log -------------------------------------------------------------------------
+    def legs(self) -> pd.DataFrame:
+        """Every leg: ``t_s, robot, x_m, y_m, vx_mps, vy_mps`` (unwrapped positions)."""
+        cols = ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"]
+        df = pd.DataFrame(self._legs, columns=cols)
+        return df.sort_values(["robot", "t_s"], kind="stable").reset_index(drop=True)

@@ -1,0 +1,72 @@
+"""Deadline timers with O(1) restart, for many robots at once.
+
+SimPy timeouts cannot be cancelled. A timer here is a deadline in an array; restarting
+it writes the array (vectorised over any set of robots) and schedules nothing, unless
+the new deadline is earlier than the pending kernel event. When the pending event fires
+it compares with the current deadline: if the deadline moved later, it re-arms itself
+there; if it was cancelled, it does nothing; otherwise the timer expires. So a timer
+restarted on every Ack costs one array write per Ack and at most one kernel event per
+``tau``.
+
+Timer events run at NORMAL priority; message deliveries run at URGENT priority, so an
+Ack that arrives at the same instant as a deadline is processed first and counts.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+import simpy
+from simpy.events import NORMAL
+
+
+class DeadlineTimers:
+    """``n`` one-shot timers; ``on_expire(i, now)`` is called when timer ``i`` expires."""
+
+    def __init__(self, env: simpy.Environment, n: int, on_expire: Callable[[int, float], None]):
+        self.env = env
+        self.on_expire = on_expire
+        self.deadline_s = np.full(n, np.inf)
+        # Time of the kernel event armed for each timer (inf: none), and a generation
+        # number so that superseded events recognise themselves.
+        self._armed_s = np.full(n, np.inf)
+        self._generation = np.zeros(n, dtype=np.int64)
+
+    def restart(self, idx, deadline_s) -> None:
+        """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
+        idx = np.atleast_1d(np.asarray(idx, dtype=np.int64))
+        deadline = np.broadcast_to(np.asarray(deadline_s, dtype=float), idx.shape)
+        self.deadline_s[idx] = deadline
+        early = deadline < self._armed_s[idx]
+        if early.any():
+            for i, d in zip(idx[early].tolist(), deadline[early].tolist()):
+                self._arm(i, d)
+
+    def cancel(self, idx) -> None:
+        self.deadline_s[idx] = np.inf
+
+    def active(self, i: int) -> bool:
+        return bool(np.isfinite(self.deadline_s[i]))
+
+    def _arm(self, i: int, at_s: float) -> None:
+        self._generation[i] += 1
+        self._armed_s[i] = at_s
+        gen = int(self._generation[i])
+        ev = simpy.Event(self.env)
+        ev._ok = True
+        ev._value = None
+        ev.callbacks.append(lambda _e, i=i, gen=gen: self._fire(i, gen))
+        self.env.schedule(ev, NORMAL, max(0.0, at_s - self.env.now))
+
+    def _fire(self, i: int, gen: int) -> None:
+        if gen != self._generation[i]:
+            return
+        self._armed_s[i] = np.inf
+        deadline = self.deadline_s[i]
+        now = self.env.now
+        if deadline <= now:
+            self.deadline_s[i] = np.inf
+            self.on_expire(i, now)
+        elif np.isfinite(deadline):
+            self._arm(i, float(deadline))

@@ -1,0 +1,74 @@
+"""Topology snapshots as networkx graphs, for analysis (never for the inner loop)."""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+from scipy.spatial import cKDTree
+
+from netsim.state import ROLE_NAMES, RobotState
+
+
+def geometric_edges(positions_m: np.ndarray, range_m, side_m: float | None = None, directed: bool = False):
+    """Pairs of robots in range, with distances.
+
+    Undirected (default): ``(i, j, d)`` with ``i < j`` and ``d <= min(r_i, r_j)``, the
+    links on which both robots hear each other. Directed: ``(i, j, d)`` for every
+    ordered pair with ``d <= r_i`` (i reaches j). ``side_m`` set: distances on a torus.
+
+    Notes
+    -----
+    A KD-tree finds the candidate pairs within the largest range: ``O(N log N + E)``.
+
+    >>> geometric_edges(np.array([[0., 0.], [3., 4.], [20., 0.]]), 5.0)
+    [(0, 1, 5.0)]
+    """
+    positions_m = np.asarray(positions_m, dtype=float)
+    n = len(positions_m)
+    ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))
+    if n < 2:
+        return []
+    if side_m is not None:
+        pts = np.mod(positions_m, side_m)
+        pts = np.where(pts >= side_m, 0.0, pts)
+        tree = cKDTree(pts, boxsize=side_m)
+    else:
+        tree = cKDTree(positions_m)
+    pairs = tree.query_pairs(float(ranges.max()), output_type="ndarray")
+    if len(pairs) == 0:
+        return []
+    i, j = pairs[:, 0], pairs[:, 1]
+    d = positions_m[i] - positions_m[j]
+    if side_m is not None:
+        d -= side_m * np.round(d / side_m)
+    dist = np.hypot(d[:, 0], d[:, 1])
+    if not directed:
+        lo, hi = np.minimum(i, j), np.maximum(i, j)
+        keep = dist <= np.minimum(ranges[i], ranges[j])
+        return sorted(zip(lo[keep].tolist(), hi[keep].tolist(), dist[keep].tolist()))
+    out = []
+    for a, b in ((i, j), (j, i)):
+        keep = dist <= ranges[a]
+        out += zip(a[keep].tolist(), b[keep].tolist(), dist[keep].tolist())
+    return sorted(out)
+
+
+def snapshot(state: RobotState, t: float, directed: bool = False) -> nx.Graph:
+    """The true unit-disk network at time ``t``.
+
+    Nodes carry ``pos`` (x, y), ``role`` ("alpha", "beta", "gamma") and ``leader``;
+    edges carry ``distance``. Positions are those at ``t``; roles and leaders are the
+    current ones, so take the snapshot while the run is at ``t`` for a consistent picture.
+    With ``directed=True`` the graph is a DiGraph with an edge i -> j when j is within
+    i's range (one-way links appear once).
+    """
+    pos = state.positions_at(t)
+    g = nx.DiGraph() if directed else nx.Graph()
+    for i in range(state.n):
+        g.add_node(
+            i, pos=(float(pos[i, 0]), float(pos[i, 1])), role=ROLE_NAMES[state.role[i]], leader=int(state.leader[i])
+        )
+    side = state.side_m if state.torus else None
+    for i, j, d in geometric_edges(pos, state.range_m, side, directed):
+        g.add_edge(i, j, distance=d)
+    return g

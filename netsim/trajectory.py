@@ -1,0 +1,71 @@
+"""Trajectories from the leg log: where every robot was at any time, exactly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+
+class LegTable:
+    """The leg log as flat arrays, with each robot's legs contiguous and time-ordered."""
+
+    def __init__(self, legs: pd.DataFrame, n: int):
+        legs = legs.sort_values(["robot", "t_s"], kind="stable")
+        self.t = legs["t_s"].to_numpy(float)
+        self.p = legs[["x_m", "y_m"]].to_numpy(float)
+        self.v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
+        robots = legs["robot"].to_numpy(np.int64)
+        self.first = np.searchsorted(robots, np.arange(n), "left")
+        self.end = np.searchsorted(robots, np.arange(n), "right")
+        if np.any(self.end == self.first):
+            raise ValueError("every robot needs at least one leg (its initial position)")
+        self.cur = self.first.copy()
+
+    def advance(self, t: float) -> None:
+        """Make ``cur`` the leg of each robot that is current at time ``t``."""
+        while True:
+            nxt = self.cur + 1
+            move = nxt < self.end
+            move[move] &= self.t[nxt[move]] <= t
+            if not move.any():
+                return
+            self.cur[move] += 1
+
+    def at(self, legs: np.ndarray, t: float) -> np.ndarray:
+        return self.p[legs] + self.v[legs] * (t - self.t[legs])[:, None]
+
+    def changes_in(self, a: float, b: float) -> np.ndarray:
+        """Robots that start a new leg in (a, b)."""
+        nxt = self.cur + 1
+        has = nxt < self.end
+        has[has] &= self.t[nxt[has]] < b
+        return has
+
+    def breakpoints(self, i: int, a: float, b: float) -> list[float]:
+        lo = self.cur[i] + 1
+        ts = self.t[lo : self.end[i]]
+        return ts[ts < b].tolist()
+
+    def leg_at(self, i: int, t: float) -> int:
+        lo, hi = self.first[i], self.end[i]
+        return lo + int(np.searchsorted(self.t[lo:hi], t, "right")) - 1
+
+
+def sample_positions(legs: pd.DataFrame, n: int, times_s, side_m=None, torus=False) -> pd.DataFrame:
+    """Positions of every robot at each of ``times_s`` (ascending): ``t_s, robot, x_m, y_m``."""
+    table = LegTable(legs, n)
+    times_s = np.asarray(times_s, dtype=float)
+    xy = np.empty((len(times_s), n, 2))
+    for k, t in enumerate(times_s.tolist()):
+        table.advance(t)
+        xy[k] = table.at(table.cur, t)
+    if torus:
+        xy = np.mod(xy, side_m)
+    return pd.DataFrame(
+        {
+            "t_s": np.repeat(times_s, n),
+            "robot": np.tile(np.arange(n, dtype=np.int64), len(times_s)),
+            "x_m": xy[:, :, 0].ravel(),
+            "y_m": xy[:, :, 1].ravel(),
+        }
+    )

@@ -1,0 +1,101 @@
+"""The Ack beacon (MODEL.md section 4): every robot broadcasts an Ack every ``t`` seconds.
+
+Each robot starts at a random phase, uniform on ``[0, t)``, and each period is
+``t + U(-jitter, +jitter)``. An Ack carries the sender's id, role, leader, a sequence
+number, its position, its group size, and the ids it has heard within ``tau`` (so that a
+receiver can tell a two-way link from a one-way one).
+
+Receivers record the Ack in their neighbour table. Protocols built on the beacon (the
+clustering) subscribe to :attr:`AckBeacon.listeners` and see every delivery, in bulk.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from protocols.neighbours import NeighbourTable
+
+
+class Ack(NamedTuple):
+    sender: int
+    role: int
+    leader: int
+    seq: int
+    x_m: float
+    y_m: float
+    group_size: int
+    heard: np.ndarray  # ids the sender has heard within tau, ascending
+    resign: bool = False
+
+
+# listener(now, ack, receivers, hears_me)
+AckListener = Callable[[float, Ack, np.ndarray, np.ndarray], None]
+
+
+def ack_beacon(sim, i: int, period_s: float, jitter_s: float, phase_s: float, rng: np.random.Generator, send):
+    """Robot ``i``'s beacon: first Ack at ``phase_s``, then one every period."""
+    yield sim.env.timeout(phase_s)
+    while True:
+        send(i)
+        step = period_s + (rng.uniform(-jitter_s, jitter_s) if jitter_s > 0 else 0.0)
+        yield sim.env.timeout(step)
+
+
+class AckBeacon:
+    """Ack beacons and neighbour tables of all robots."""
+
+    def __init__(self, sim):
+        p = sim.config.protocol
+        self.sim = sim
+        self.period_s = p.ack_period_s
+        self.table = NeighbourTable(sim.state.n, p.tau_s)
+        self.seq = np.zeros(sim.state.n, dtype=np.int64)
+        # Robots the protocol above counts as members of each robot's group (1: alone).
+        self.group_size = np.ones(sim.state.n, dtype=np.int64)
+        # Leaders that announce they are giving up leadership set this for their next Ack.
+        self.resign_pending = np.zeros(sim.state.n, dtype=bool)
+        self.listeners: list[AckListener] = []
+
+    def start(self) -> None:
+        sim = self.sim
+        p = sim.config.protocol
+        phases = sim.streams.get("ack.phase").uniform(0.0, p.ack_period_s, sim.state.n)
+        jitter_rng = sim.streams.get("ack.jitter")
+        for i in range(sim.state.n):
+            sim.env.process(ack_beacon(sim, i, p.ack_period_s, p.ack_jitter_s, phases[i], jitter_rng, self.send))
+        sim.trace.add_frame("acks", lambda: sim.channel.frame("ack"))
+
+    def make_ack(self, i: int) -> Ack:
+        now = self.sim.env.now
+        st = self.sim.state
+        pos = st.positions_at(now, [i])[0]
+        self.seq[i] += 1
+        resign = bool(self.resign_pending[i])
+        self.resign_pending[i] = False
+        return Ack(
+            i, int(st.role[i]), int(st.leader[i]), int(self.seq[i]), float(pos[0]), float(pos[1]),
+            int(self.group_size[i]), self.table.live_ids(now, i), resign,
+        )
+
+    def send(self, i: int) -> None:
+        if not self.sim.state.alive[i]:
+            return
+        self.sim.channel.broadcast(i, self.make_ack(i), self.deliver, kind="ack")
+
+    def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
+        now = self.sim.env.now
+        hears_me = np.isin(receivers, ack.heard, assume_unique=True)
+        self.table.update(
+            now, sender, receivers, hears_me,
+            {"seq": ack.seq, "role": ack.role, "leader": ack.leader, "x_m": ack.x_m, "y_m": ack.y_m, "group_size": ack.group_size},
+        )
+        for listener in self.listeners:
+            listener(now, ack, receivers, hears_me)
+
+
+def install(sim) -> AckBeacon:
+    beacon = AckBeacon(sim)
+    beacon.start()
+    return beacon
