@@ -109,7 +109,7 @@ class Channel:
             np.add.at(c.dropped[1], receivers[~alive], 1)
             receivers, dist = receivers[alive], dist[alive]
         keep = self.survives(sender, receivers, dist)
-        if not keep.all():
+        if keep is not None and not keep.all():
             np.add.at(c.dropped[0], receivers[~keep], 1)
             receivers = receivers[keep]
         if len(receivers) == 0:

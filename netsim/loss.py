@@ -1,5 +1,6 @@
 """Reception loss models: small callables ``survives(sender, receivers, distances_m) -> mask``.
 
+A model returns a boolean mask of the receptions that survive, or None when all do.
 Each model draws from the channel's own random stream. A model with nothing to draw
 (zero loss) draws nothing, so that turning loss off does not shift other draws.
 """
@@ -18,7 +19,7 @@ class BernoulliLoss:
 
     def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
         if self.p == 0.0:
-            return np.ones(len(receivers), dtype=bool)
+            return None
         return self.rng.random(len(receivers)) >= self.p
 
 

@@ -39,6 +39,9 @@ class RobotState:
         self.origin_m = np.zeros((self.n, 2))
         self.velocity_mps = np.zeros((self.n, 2))
         self.t0_s = np.zeros(self.n)
+        # The same memory seen as complex numbers x + iy (a view: always in step).
+        self.origin_c = self.origin_m.view(np.complex128)[:, 0]
+        self.velocity_c = self.velocity_mps.view(np.complex128)[:, 0]
         self.role = np.full(self.n, UNDECIDED, dtype=np.int8)
         self.leader = np.full(self.n, NO_LEADER, dtype=np.int64)
         self.alive = np.ones(self.n, dtype=bool)
@@ -62,6 +65,15 @@ class RobotState:
         if self.torus:
             p = np.mod(p, self.side_m)
         return p
+
+    def position(self, i: int, t: float) -> tuple[float, float]:
+        """Position of robot ``i`` at ``t`` as two floats (the per-message fast path)."""
+        dt = t - self.t0_s[i]
+        x = float(self.origin_m[i, 0] + self.velocity_mps[i, 0] * dt)
+        y = float(self.origin_m[i, 1] + self.velocity_mps[i, 1] * dt)
+        if self.torus:
+            x, y = x % self.side_m, y % self.side_m
+        return x, y
 
     def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vectors from positions ``b`` to ``a``; the shortest image on a torus."""

@@ -15,7 +15,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from protocols.neighbours import NeighbourTable
+from protocols.neighbours import NeighbourTable, ack_record
 
 
 class Ack(NamedTuple):
@@ -28,6 +28,7 @@ class Ack(NamedTuple):
     group_size: int
     heard: np.ndarray  # ids the sender has heard within tau, ascending
     resign: bool = False
+    record: np.ndarray | None = None  # the fields packed for neighbour tables
 
 
 # listener(now, ack, receivers, hears_me)
@@ -70,13 +71,14 @@ class AckBeacon:
     def make_ack(self, i: int) -> Ack:
         now = self.sim.env.now
         st = self.sim.state
-        pos = st.positions_at(now, [i])[0]
+        x, y = st.position(i, now)
         self.seq[i] += 1
         resign = bool(self.resign_pending[i])
         self.resign_pending[i] = False
+        seq, role, leader, size = int(self.seq[i]), int(st.role[i]), int(st.leader[i]), int(self.group_size[i])
         return Ack(
-            i, int(st.role[i]), int(st.leader[i]), int(self.seq[i]), float(pos[0]), float(pos[1]),
-            int(self.group_size[i]), self.table.live_ids(now, i), resign,
+            i, role, leader, seq, x, y, size, self.table.live_ids(now, i), resign,
+            ack_record(seq, role, leader, x, y, size),
         )
 
     def send(self, i: int) -> None:
@@ -86,11 +88,13 @@ class AckBeacon:
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
         now = self.sim.env.now
-        hears_me = np.isin(receivers, ack.heard, assume_unique=True)
-        self.table.update(
-            now, sender, receivers, hears_me,
-            {"seq": ack.seq, "role": ack.role, "leader": ack.leader, "x_m": ack.x_m, "y_m": ack.y_m, "group_size": ack.group_size},
-        )
+        heard = ack.heard
+        if len(heard):
+            at = np.minimum(np.searchsorted(heard, receivers), len(heard) - 1)
+            hears_me = heard[at] == receivers
+        else:
+            hears_me = np.zeros(len(receivers), dtype=bool)
+        self.table.update(now, sender, receivers, hears_me, ack.record)
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
 

@@ -1,14 +1,14 @@
 """Each robot's neighbour table, for all robots at once.
 
 Row ``i`` holds what robot ``i`` learnt from the Acks it heard: for each neighbour, the
-time of its last Ack, when the entry became live, and the Ack's fields. An entry is live
-while its last Ack is younger than ``tau`` (``now - last < tau``); at exactly ``tau`` it has
-expired.
+time of its last Ack, when the entry became live, whether the neighbour hears ``i``, and
+the Ack's fields. An entry is live while its last Ack is younger than ``tau``
+(``now - last < tau``); at exactly ``tau`` it has expired.
 
-The table is a fixed number of slots per robot (numpy arrays of shape ``(n, slots)``),
-doubled when a robot hears more neighbours than it has slots; an expired slot is reused.
-A delivery to ``k`` receivers updates their rows in a handful of array operations,
-without a Python loop over receivers.
+The table is a fixed number of slots per robot, doubled when a robot hears more
+neighbours than it has slots; an expired slot is reused. The fields of a slot are packed
+in one float64 record (integers up to 2^53 are exact), so that a delivery to ``k``
+receivers is one gather and one scatter of ``k`` records, with no Python loop.
 """
 
 from __future__ import annotations
@@ -17,23 +17,32 @@ import numpy as np
 
 EMPTY = -1
 
+# Columns of the packed record.
+LAST_HEARD, LIVE_SINCE, HEARS_ME, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE = range(9)
+ACK_FIELDS = ("seq", "role", "leader", "x_m", "y_m", "group_size")
+_EMPTY_RECORD = np.array([-np.inf, np.inf, 0, 0, 0, EMPTY, 0, 0, 0], dtype=float)
+
 
 class NeighbourTable:
-    FIELDS = ("seq", "role", "leader", "x_m", "y_m", "group_size")
+    FIELDS = ACK_FIELDS
 
     def __init__(self, n: int, tau_s: float, slots: int = 16):
         self.n = n
         self.tau_s = float(tau_s)
         self.id = np.full((n, slots), EMPTY, dtype=np.int64)
-        self.last_heard_s = np.full((n, slots), -np.inf)
-        self.live_since_s = np.full((n, slots), np.inf)
-        self.hears_me = np.zeros((n, slots), dtype=bool)
-        self.seq = np.zeros((n, slots), dtype=np.int64)
-        self.role = np.zeros((n, slots), dtype=np.int8)
-        self.leader = np.full((n, slots), EMPTY, dtype=np.int64)
-        self.x_m = np.zeros((n, slots))
-        self.y_m = np.zeros((n, slots))
-        self.group_size = np.zeros((n, slots), dtype=np.int64)
+        self.data = np.broadcast_to(_EMPTY_RECORD, (n, slots, len(_EMPTY_RECORD))).copy()
+        self._records = self.data.reshape(-1, len(_EMPTY_RECORD))
+
+    # Views of single columns, for reading.
+    last_heard_s = property(lambda self: self.data[:, :, LAST_HEARD])
+    live_since_s = property(lambda self: self.data[:, :, LIVE_SINCE])
+    hears_me = property(lambda self: self.data[:, :, HEARS_ME] != 0)
+    seq = property(lambda self: self.data[:, :, SEQ].astype(np.int64))
+    role = property(lambda self: self.data[:, :, ROLE].astype(np.int8))
+    leader = property(lambda self: self.data[:, :, LEADER].astype(np.int64))
+    x_m = property(lambda self: self.data[:, :, X])
+    y_m = property(lambda self: self.data[:, :, Y])
+    group_size = property(lambda self: self.data[:, :, GROUP_SIZE].astype(np.int64))
 
     @property
     def slots(self) -> int:
@@ -41,44 +50,53 @@ class NeighbourTable:
 
     def _grow(self) -> None:
         k = self.slots
-        for name, fill in (
-            ("id", EMPTY), ("last_heard_s", -np.inf), ("live_since_s", np.inf), ("hears_me", False),
-            ("seq", 0), ("role", 0), ("leader", EMPTY), ("x_m", 0.0), ("y_m", 0.0), ("group_size", 0),
-        ):
-            old = getattr(self, name)
-            new = np.full((self.n, 2 * k), fill, dtype=old.dtype)
-            new[:, :k] = old
-            setattr(self, name, new)
+        ids = np.full((self.n, 2 * k), EMPTY, dtype=np.int64)
+        ids[:, :k] = self.id
+        data = np.broadcast_to(_EMPTY_RECORD, (self.n, 2 * k, len(_EMPTY_RECORD))).copy()
+        data[:, :k] = self.data
+        self.id, self.data = ids, data
+        self._records = data.reshape(-1, len(_EMPTY_RECORD))
 
-    def update(self, now: float, sender: int, receivers: np.ndarray, hears_me: np.ndarray, fields: dict) -> None:
+    def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
+        return (self.id[rows] == EMPTY) | (now - self.data[rows, :, LAST_HEARD] >= self.tau_s)
+
+    def update(self, now: float, sender: int, receivers: np.ndarray, hears_me: np.ndarray, record: np.ndarray) -> None:
         """Record an Ack from ``sender`` heard by every robot in ``receivers`` at ``now``.
 
-        ``hears_me[k]`` says whether ``receivers[k]`` was among the ids the Ack carried.
+        ``hears_me[k]`` says whether ``receivers[k]`` was among the ids the Ack carried;
+        ``record`` is the Ack's packed record (see :func:`ack_record`).
         """
-        rows = self.id[receivers]
-        hit = rows == sender
-        found = hit.any(axis=1)
-        slot = hit.argmax(axis=1)
+        slots = self.id.shape[1]
+        flat = receivers * slots + (self.id.take(receivers, axis=0) == sender).argmax(axis=1)
+        found = self.id.ravel().take(flat) == sender
         if not found.all():
-            new = ~found
-            r_new = receivers[new]
-            free = (self.id[r_new] == EMPTY) | (now - self.last_heard_s[r_new] >= self.tau_s)
-            while not free.any(axis=1).all():
-                self._grow()
-                free = (self.id[r_new] == EMPTY) | (now - self.last_heard_s[r_new] >= self.tau_s)
-            slot[new] = free.argmax(axis=1)
-        was_live = now - self.last_heard_s[receivers, slot] < self.tau_s
-        was_live &= self.id[receivers, slot] == sender
-        self.id[receivers, slot] = sender
-        self.live_since_s[receivers, slot] = np.where(was_live, self.live_since_s[receivers, slot], now)
-        self.last_heard_s[receivers, slot] = now
-        self.hears_me[receivers, slot] = hears_me
-        for name in self.FIELDS:
-            getattr(self, name)[receivers, slot] = fields[name]
+            flat = self._place(now, sender, receivers, flat, found)
+        # Flat indices into the (n * slots, fields) records: cheaper than 2-D indexing.
+        records = self._records
+        old = records.take(flat, axis=0)
+        rec = np.empty_like(old)
+        rec[:] = record
+        rec[:, LAST_HEARD] = now
+        rec[:, LIVE_SINCE] = np.where(found & (now - old[:, LAST_HEARD] < self.tau_s), old[:, LIVE_SINCE], now)
+        rec[:, HEARS_ME] = hears_me
+        records[flat] = rec
+
+    def _place(self, now, sender, receivers, flat, found):
+        """Give ``sender`` a slot in the rows of the receivers that have none for it."""
+        new = ~found
+        r_new = receivers[new]
+        free = self._free_slots(now, r_new)
+        while not free.any(axis=1).all():
+            self._grow()
+            free = self._free_slots(now, r_new)
+        slot = free.argmax(axis=1)
+        self.id[r_new, slot] = sender
+        flat = receivers * self.slots + (self.id.take(receivers, axis=0) == sender).argmax(axis=1)
+        return flat
 
     def live_mask(self, now: float, i=None) -> np.ndarray:
         """Which slots hold live entries (all rows, or row ``i``)."""
-        last = self.last_heard_s if i is None else self.last_heard_s[i]
+        last = self.data[:, :, LAST_HEARD] if i is None else self.data[i, :, LAST_HEARD]
         return now - last < self.tau_s
 
     def live_ids(self, now: float, i: int) -> np.ndarray:
@@ -93,3 +111,10 @@ class NeighbourTable:
     def degree(self, now: float) -> np.ndarray:
         """Number of live neighbours of every robot."""
         return self.live_mask(now).sum(axis=1)
+
+
+def ack_record(seq, role, leader, x_m, y_m, group_size) -> np.ndarray:
+    """The packed record of an Ack's fields (time and link columns are filled on update)."""
+    rec = _EMPTY_RECORD.copy()
+    rec[SEQ], rec[ROLE], rec[LEADER], rec[X], rec[Y], rec[GROUP_SIZE] = seq, role, leader, x_m, y_m, group_size
+    return rec

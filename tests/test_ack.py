@@ -1,0 +1,130 @@
+"""The Ack beacon and neighbour tables (MODEL.md section 4; VALIDATION.md item 8)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from netsim.run import build
+from protocols.neighbours import NeighbourTable, ack_record
+from tests.conftest import make_config
+
+
+def _static(positions, duration=20.0, **protocol):
+    n = len(positions)
+    cfg = make_config(duration_s=duration, world={"n_robots": n, "side_m": 10_000.0}, mobility={"model": "static"},
+                      channel={"range_m": 10.0}, protocol={"model": "ack", **protocol})
+    sim = build(cfg)
+    sim.state.place(np.asarray(positions, dtype=float))
+    return sim
+
+
+def test_every_robot_sends_one_ack_per_period():
+    sim = _static([[0, 0], [5, 0], [100, 0]], duration=50.0, ack_jitter_s=0.0)
+    sim.run()
+    sent = sim.channel.counters_for("ack").sent
+    assert sent.tolist() in ([50, 50, 50],) or set(sent.tolist()) <= {49, 50}
+
+
+def test_ack_carries_its_fields():
+    sim = _static([[0, 0], [5, 0]], ack_jitter_s=0.0)
+    beacon = sim.models["protocol"]
+    seen = []
+    beacon.listeners.append(lambda now, ack, receivers, hears_me: seen.append((ack, receivers.tolist(), hears_me.tolist())))
+    sim.run(until_s=5.0)
+    from_0 = [s for s in seen if s[0].sender == 0]
+    assert [a.seq for a, _, _ in from_0] == list(range(1, len(from_0) + 1))
+    ack, receivers, _ = from_0[-1]
+    assert (ack.x_m, ack.y_m) == (0.0, 0.0) and receivers == [1]
+    assert (ack.role, ack.leader, ack.group_size) == (0, -1, 1)
+    assert ack.heard.tolist() == [1]
+    assert from_0[-1][2] == [True]
+
+
+def test_neighbour_entry_lives_for_tau_after_the_last_ack():
+    sim = _static([[0, 0], [5, 0]], ack_jitter_s=0.0)
+    sim.run(until_s=4.0)
+    table = sim.models["protocol"].table
+    slot = table.entry(1, 0)
+    last = table.last_heard_s[1, slot]
+    assert table.live_mask(last + 2.999, 1)[slot]
+    assert not table.live_mask(last + 3.0, 1)[slot]
+
+
+def test_one_way_link_is_not_reported_as_heard():
+    """With unequal ranges, j's Ack lists only the ids j heard: i learns the link is one-way."""
+    cfg = make_config(duration_s=10.0, world={"n_robots": 2, "side_m": 1000.0}, mobility={"model": "static"},
+                      channel={"range_m": [15.0, 5.0]}, protocol={"model": "ack"})
+    sim = build(cfg)
+    sim.state.place(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    sim.run()
+    table = sim.models["protocol"].table
+    slot = table.entry(1, 0)
+    assert slot is not None and not table.hears_me[1, slot]  # 1 hears 0, 0 does not hear 1
+    assert table.entry(0, 1) is None
+
+
+def test_two_way_link_is_reported_as_heard():
+    sim = _static([[0, 0], [5, 0]], ack_jitter_s=0.0)
+    sim.run(until_s=5.0)
+    t = sim.models["protocol"].table
+    assert t.hears_me[0, t.entry(0, 1)] and t.hears_me[1, t.entry(1, 0)]
+
+
+def test_table_grows_beyond_its_initial_slots():
+    table = NeighbourTable(40, tau_s=3.0, slots=2)
+    fields = ack_record(0, 0, -1, 0.0, 0.0, 1)
+    for s in range(1, 40):
+        table.update(1.0, s, np.array([0]), np.array([True]), fields)
+    assert table.slots >= 39
+    assert table.live_ids(1.5, 0).tolist() == list(range(1, 40))
+
+
+def test_expired_slot_is_reused_and_live_since_restarts():
+    table = NeighbourTable(3, tau_s=3.0, slots=1)
+    fields = ack_record(0, 0, -1, 0.0, 0.0, 1)
+    table.update(0.0, 1, np.array([0]), np.array([True]), fields)
+    table.update(2.0, 1, np.array([0]), np.array([True]), fields)
+    assert table.live_since_s[0, 0] == 0.0
+    table.update(10.0, 2, np.array([0]), np.array([True]), fields)  # 1 expired: slot reused
+    assert table.slots == 1 and table.id[0, 0] == 2 and table.live_since_s[0, 0] == 10.0
+
+
+@pytest.mark.parametrize("p", [0.0, 0.3])
+def test_discovery_delay_of_a_new_link(p):
+    """Item 8: a link that appears at a random beacon phase is discovered after
+    T_b / 2 + T_b p / (1 - p) on average."""
+    pairs, period = 1500, 1.0
+    n = 2 * pairs
+    pos = np.zeros((n, 2))
+    pos[:pairs, 0] = np.arange(pairs) * 100.0
+    pos[pairs:, 0] = np.arange(pairs) * 100.0
+    pos[pairs:, 1] = 5000.0  # far away until t0
+    cfg = make_config(seed=8, duration_s=40.0, world={"n_robots": n, "side_m": 200_000.0}, mobility={"model": "static"},
+                      channel={"range_m": 10.0, "loss_probability": p, "latency_s": 0.0},
+                      protocol={"model": "ack", "ack_period_s": period, "ack_jitter_s": 0.0, "tau_s": 3.0},
+                      output={"position_interval_s": 0.0})
+    sim = build(cfg)
+    sim.state.place(pos)
+    t0 = 10.0
+    first = np.full(n, np.nan)
+
+    def listen(now, ack, receivers, hears_me):
+        if ack.sender < pairs:
+            r = receivers[receivers == ack.sender + pairs]
+            new = r[np.isnan(first[r])]
+            first[new] = now
+
+    def arrive():
+        yield sim.env.timeout(t0)
+        for k in range(pairs):
+            sim.state.set_leg(pairs + k, t0, (0.0, 0.0), start_m=(k * 100.0, 5.0))
+
+    sim.models["protocol"].listeners.append(listen)
+    sim.env.process(arrive())
+    sim.run()
+    delay = first[pairs:] - t0
+    assert not np.isnan(delay).any()
+    theory = period / 2 + period * p / (1 - p)
+    se = delay.std() / math.sqrt(pairs)
+    assert abs(delay.mean() - theory) < 4 * se

@@ -1,0 +1,141 @@
+"""The channel: who receives, when, what is lost, and how it is counted."""
+
+import math
+
+import numpy as np
+import pytest
+
+from netsim.channel import DROP_CAUSES
+from netsim.loss import DistanceLoss, GilbertElliottLoss
+from netsim.run import build
+from netsim.sim import Simulation
+from tests.conftest import make_config
+
+
+def _static_sim(positions, ranges=10.0, **channel):
+    n = len(positions)
+    cfg = make_config(world={"n_robots": n, "side_m": 1000.0}, mobility={"model": "static"},
+                      channel={"range_m": ranges if np.isscalar(ranges) else list(ranges), **channel},
+                      protocol={"model": "none"})
+    sim = build(cfg)
+    sim.state.place(np.asarray(positions, dtype=float))
+    return sim
+
+
+def test_broadcast_reaches_exactly_the_robots_in_range_at_send_time():
+    sim = _static_sim([[0, 0], [10, 0], [10.0001, 0], [0, 9.99], [500, 500]])
+    got = []
+    sim.channel.broadcast(0, "hello", lambda s, r, p: got.append((sim.env.now, s, r.tolist(), p)))
+    sim.env.run(until=1)
+    assert got == [(pytest.approx(0.001), 0, [1, 3], "hello")]
+
+
+def test_receivers_are_decided_at_send_time():
+    """A robot that leaves the range while the message is in flight still receives it."""
+    sim = _static_sim([[0, 0], [9, 0]], latency_s=0.5)
+    got = []
+    sim.channel.broadcast(0, None, lambda s, r, p: got.extend(r.tolist()))
+    sim.state.set_leg(1, 0.0, (100.0, 0.0))  # gone from range in 0.01 s
+    sim.env.run(until=1)
+    assert got == [1]
+
+
+def test_one_delivery_event_per_broadcast_without_jitter():
+    sim = _static_sim([[0, 0]] + [[1 + i * 0.1, 0] for i in range(20)])
+    sim.channel.broadcast(0, None, lambda s, r, p: None)
+    assert len(sim.env._queue) == 1
+
+
+def test_jitter_delays_each_reception_within_bounds():
+    sim = _static_sim([[0, 0]] + [[1, 0]] * 50, latency_s=0.01, latency_jitter_s=0.02)
+    times = []
+    sim.channel.broadcast(0, None, lambda s, r, p: times.append(sim.env.now))
+    sim.env.run(until=1)
+    assert len(times) == 50
+    assert min(times) >= 0.01 and max(times) <= 0.03 and len(set(times)) > 40
+
+
+def test_unequal_ranges_give_one_way_links():
+    sim = _static_sim([[0, 0], [10, 0]], ranges=[15.0, 5.0])
+    heard = []
+    sim.channel.broadcast(0, None, lambda s, r, p: heard.append((s, r.tolist())))
+    sim.channel.broadcast(1, None, lambda s, r, p: heard.append((s, r.tolist())))
+    sim.env.run(until=1)
+    assert heard == [(0, [1])]
+
+
+def test_unicast_out_of_range_is_a_counted_drop():
+    sim = _static_sim([[0, 0], [50, 0], [5, 0]])
+    assert not sim.channel.unicast(0, 1, None, lambda *a: None)
+    assert sim.channel.unicast(0, 2, None, lambda *a: None)
+    sim.env.run(until=1)
+    c = sim.channel.counters_for("data")
+    assert c.sent[0] == 2
+    assert c.dropped[DROP_CAUSES.index("out_of_range"), 1] == 1
+    assert c.received.tolist() == [0, 0, 1]
+
+
+def test_switched_off_robot_is_a_counted_drop():
+    sim = _static_sim([[0, 0], [5, 0], [6, 0]])
+    sim.state.alive[2] = False
+    got = []
+    sim.channel.broadcast(0, None, lambda s, r, p: got.extend(r.tolist()))
+    sim.env.run(until=1)
+    assert got == [1]
+    assert sim.channel.counters_for("ack").dropped[DROP_CAUSES.index("not_alive"), 2] == 1
+
+
+def test_bernoulli_loss_counts_add_up():
+    """Item 10 in the small: sent receptions = received + dropped, and the loss rate is p."""
+    sim = _static_sim([[0, 0]] + [[1, 0]] * 100, loss_probability=0.3)
+    for _ in range(100):
+        sim.channel.broadcast(0, None, lambda *a: None)
+    sim.env.run(until=1)
+    c = sim.channel.counters_for("ack")
+    total = c.received.sum() + c.dropped[0].sum()
+    assert total == 100 * 100
+    assert c.dropped[0].sum() / total == pytest.approx(0.3, abs=4 * math.sqrt(0.21 / total))
+
+
+def test_distance_loss_follows_its_law():
+    rng = np.random.default_rng(1)
+    model = DistanceLoss(0.1, 2.0, np.array([10.0]), rng)
+    for d in (0.0, 5.0, 9.0):
+        keep = model(0, np.zeros(50_000, dtype=np.int64), np.full(50_000, d))
+        p = 0.9 * (1 - (d / 10) ** 2)
+        assert keep.mean() == pytest.approx(p, abs=4 * math.sqrt(p * (1 - p) / 50_000) + 1e-9)
+
+
+def test_gilbert_elliott_loss_is_bursty_with_the_right_mean():
+    """Long-run loss = pi_bad * loss_bad + pi_good * loss_good; losses cluster."""
+    model = GilbertElliottLoss(0.05, 0.25, 0.0, 1.0, 2, np.random.default_rng(2))
+    keep = np.array([model(0, np.array([1]), np.array([1.0]))[0] for _ in range(100_000)])
+    lost = ~keep
+    pi_bad = 0.05 / 0.30
+    assert lost.mean() == pytest.approx(pi_bad, abs=0.01)
+    after_loss = lost[1:][lost[:-1]].mean()
+    assert after_loss == pytest.approx(0.75, abs=0.02)  # stays bad with 1 - p_bg
+    assert after_loss > 3 * lost.mean()
+
+
+def test_observed_delivery_ratio_in_a_run():
+    """Item 10: over all in-range pairs, the fraction of Ack receptions delivered is 1 - p,
+    within its binomial confidence interval."""
+    p = 0.25
+    cfg = make_config(seed=3, duration_s=60.0, world={"n_robots": 60, "side_m": 400.0},
+                      channel={"loss_probability": p, "range_m": 100.0}, output={"position_interval_s": 0.0})
+    sim = build(cfg)
+    sim.run()
+    c = sim.channel.counters_for("ack")
+    received, lost = c.received.sum(), c.dropped[0].sum()
+    n = received + lost
+    assert n > 10_000
+    assert received / n == pytest.approx(1 - p, abs=4 * math.sqrt(p * (1 - p) / n))
+
+
+def test_loss_off_draws_nothing():
+    """Turning loss off must not consume random numbers (other draws stay put)."""
+    sim = Simulation(make_config(world={"n_robots": 2}))
+    before = sim.channel.survives.rng.bit_generator.state
+    assert sim.channel.survives(0, np.array([1]), np.array([1.0])) is None
+    assert sim.channel.survives.rng.bit_generator.state == before

@@ -1,0 +1,72 @@
+"""Deadline timers: exact expiry, O(1) restart, and the tie rule."""
+
+import numpy as np
+import simpy
+from simpy.events import URGENT
+
+from netsim.timers import DeadlineTimers
+
+
+def test_timer_expires_exactly_at_its_deadline():
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 2, lambda i, now: fired.append((i, now)))
+    timers.restart(0, 3.25)
+    env.run(until=10)
+    assert fired == [(0, 3.25)]
+
+
+def test_restart_moves_the_deadline_and_costs_no_kernel_event():
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 1, lambda i, now: fired.append(now))
+    timers.restart(0, 3.0)
+    for k in range(1000):
+        timers.restart(0, 3.0 + k * 0.001)
+    assert len(env._queue) == 1  # still the one event armed at 3.0
+    env.run(until=10)
+    assert fired == [3.999]
+
+
+def test_restart_to_an_earlier_deadline_fires_early_and_once():
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 1, lambda i, now: fired.append(now))
+    timers.restart(0, 5.0)
+    timers.restart(0, 2.0)
+    env.run(until=10)
+    assert fired == [2.0]
+
+
+def test_cancelled_timer_does_not_fire():
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 1, lambda i, now: fired.append(now))
+    timers.restart(0, 1.0)
+    timers.cancel(0)
+    env.run(until=10)
+    assert fired == []
+
+
+def test_vectorised_restart_of_many_timers():
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 100, lambda i, now: fired.append((i, now)))
+    timers.restart(np.arange(100), np.arange(100) * 0.5 + 1.0)
+    env.run(until=100)
+    assert fired == [(i, i * 0.5 + 1.0) for i in range(100)]
+
+
+def test_message_at_the_deadline_instant_counts():
+    """MODEL.md 4.2: an Ack that arrives at the same instant as a deadline is processed
+    first, even when it was scheduled after the timer's event."""
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 1, lambda i, now: fired.append(now))
+    timers.restart(0, 3.0)
+    ev = simpy.Event(env)
+    ev._ok, ev._value = True, None
+    ev.callbacks.append(lambda _e: timers.restart(0, env.now + 3.0))
+    env.schedule(ev, URGENT, 3.0)
+    env.run(until=10)
+    assert fired == [6.0]
