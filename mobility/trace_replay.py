@@ -16,7 +16,7 @@ def load(sim) -> ns2.Scenario:
     try:
         scen = ns2.read(cfg.mobility.trace_file)
     except NetsimInputError as exc:
-        raise ConfigError("mobility.trace_file", cfg.mobility.trace_file, str(exc)) from None
+        raise NetsimInputError(f"mobility.trace_file: {exc}") from None
     if scen.n_robots != cfg.world.n_robots:
         raise ConfigError(
             "world.n_robots", cfg.world.n_robots, f"must equal the {scen.n_robots} nodes of {cfg.mobility.trace_file}"

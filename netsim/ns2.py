@@ -64,7 +64,7 @@ def read(path: str | Path) -> Scenario:
     """Parse an ns-2 movement file; raise :class:`NetsimInputError` naming the bad line."""
     path = Path(path)
     if not path.is_file():
-        raise NetsimInputError(f"mobility.trace_file = {str(path)!r}: no such file")
+        raise NetsimInputError(f"{str(path)!r}: no such file")
     initial: dict[int, dict[str, float]] = {}
     rows = []
     try:
@@ -125,7 +125,7 @@ def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float
     v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
     for i in range(n_robots):
         first = np.searchsorted(robot, i)
-        x, y = p[first]
+        x, y = p[first].tolist()
         lines += [f"$node_({i}) set X_ {x!r}", f"$node_({i}) set Y_ {y!r}", f"$node_({i}) set Z_ 0.0"]
     events = []
     for k in range(len(t)):
@@ -134,8 +134,9 @@ def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float
             continue
         last = k + 1 >= len(t) or robot[k + 1] != robot[k]
         t_end = duration_s if last else min(t[k + 1], duration_s)
-        dest = p[k] + v[k] * (t_end - t[k])
-        events.append((t[k], int(robot[k]), f'$ns_ at {t[k]!r} "$node_({robot[k]}) setdest {dest[0]!r} {dest[1]!r} {speed!r}"'))
+        dx, dy = (p[k] + v[k] * (t_end - t[k])).tolist()
+        tk, rk = float(t[k]), int(robot[k])
+        events.append((tk, rk, f'$ns_ at {tk!r} "$node_({rk}) setdest {dx!r} {dy!r} {speed!r}"'))
     events.sort(key=lambda e: (e[0], e[1]))
     lines += [e[2] for e in events]
     Path(path).write_text("\n".join(lines) + "\n")

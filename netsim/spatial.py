@@ -1,12 +1,13 @@
-"""Who is within range of a robot now: exact answers from a KD-tree built a while ago.
+"""Who is within range of a robot now: exact answers from a neighbour list built earlier.
 
-Rebuilding a tree for every transmission would cost O(N log N) each. Instead the tree
-holds positions at ``t_build``; since then no robot has moved more than
-``s = speed_high_water * (t - t_build)``, so every robot in range ``r`` of the sender now
-lies within ``r + s`` of the sender's current position in the tree. The candidates are
-then filtered on their exact current positions (the Verlet-list idea of molecular
-dynamics). The tree is rebuilt when ``s`` exceeds a slack (default a fifth of the largest
-range: a rebuild costs O(N log N) once, a larger slack costs more candidates per query).
+Rebuilding a spatial index for every transmission would cost O(N log N) each. Instead,
+at ``t_build`` a KD-tree lists, for every robot, the robots within ``R + 2 s`` of it (a
+Verlet list, as in molecular dynamics), where ``R`` is the largest range and ``s`` a
+slack. Until some robot could have moved more than ``s`` since then
+(``speed_high_water * (t - t_build) > s``), every robot in range of ``i`` now is on ``i``'s
+list, so a query is a slice of the list filtered on exact current positions. Rebuilding
+costs O(N log N) every ``s / v_max`` seconds; a larger slack means fewer rebuilds and
+longer lists. The default slack is a fifth of the largest range.
 """
 
 from __future__ import annotations
@@ -16,13 +17,12 @@ from scipy.spatial import cKDTree
 
 from netsim.state import RobotState
 
+_NONE = np.empty(0, dtype=np.int64)
+_NO_DISTANCE = np.empty(0)
+
 
 def _wrap(d: np.ndarray, side: float) -> np.ndarray:
     return (d.real - side * np.round(d.real / side)) + 1j * (d.imag - side * np.round(d.imag / side))
-
-
-_NONE = np.empty(0, dtype=np.int64)
-_NO_DISTANCE = np.empty(0)
 
 
 class RangeIndex:
@@ -30,10 +30,12 @@ class RangeIndex:
 
     def __init__(self, state: RobotState, slack_m: float | None = None):
         self.state = state
-        self.slack_m = float(slack_m) if slack_m is not None else 0.2 * float(state.range_m.max())
-        self._tree: cKDTree | None = None
+        self.reach_m = float(state.range_m.max()) if state.n else 0.0
+        self.slack_m = float(slack_m) if slack_m is not None else 0.2 * self.reach_m
         self._t_build = -np.inf
         self._jumps = -1
+        self._indptr = np.zeros(state.n + 1, dtype=np.int64)
+        self._indices = _NONE
         self.rebuilds = 0
 
     def _build(self, t: float) -> None:
@@ -42,9 +44,16 @@ class RangeIndex:
         if st.torus:
             # cKDTree's periodic box wants coordinates in [0, side).
             pos = np.where(pos >= st.side_m, 0.0, pos)
-            self._tree = cKDTree(pos, boxsize=st.side_m)
+            tree = cKDTree(pos, boxsize=st.side_m)
         else:
-            self._tree = cKDTree(pos)
+            tree = cKDTree(pos)
+        pairs = tree.query_pairs(self.reach_m + 2 * self.slack_m, output_type="ndarray")
+        rows = np.concatenate([pairs[:, 0], pairs[:, 1]])
+        cols = np.concatenate([pairs[:, 1], pairs[:, 0]])
+        order = np.lexsort((cols, rows))
+        self._indices = cols[order].astype(np.int64)
+        self._indptr = np.zeros(st.n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(rows, minlength=st.n), out=self._indptr[1:])
         self._t_build = t
         self._jumps = st.jumps
         speeds = np.hypot(st.velocity_mps[:, 0], st.velocity_mps[:, 1])
@@ -58,23 +67,19 @@ class RangeIndex:
         """
         st = self.state
         r = float(st.range_m[i]) if radius_m is None else float(radius_m)
-        if self._tree is None or st.jumps != self._jumps or t < self._t_build:
+        if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
             self._build(t)
-        drift = st.speed_high_water_mps * (t - self._t_build)
-        if drift > self.slack_m:
-            self._build(t)
-            drift = 0.0
-        x, y = st.position(i, t)
-        cand = self._tree.query_ball_point((x, y), r + drift)
-        if len(cand) <= 1:
+        if r > self.reach_m:
+            cand = np.delete(np.arange(st.n), i)
+        else:
+            cand = self._indices[self._indptr[i] : self._indptr[i + 1]]
+        if len(cand) == 0:
             return _NONE, _NO_DISTANCE
-        cand = np.array(cand, dtype=np.int64)
-        cand.sort()
+        x, y = st.position(i, t)
         # Complex views of the (n, 2) arrays: one operation per step instead of two.
         d = st.origin_c.take(cand) + st.velocity_c.take(cand) * (t - st.t0_s.take(cand)) - complex(x, y)
         if st.torus:
             d = _wrap(d, st.side_m)
         dist2 = d.real * d.real + d.imag * d.imag
         keep = dist2 <= r * r
-        keep[np.searchsorted(cand, i)] = False
         return cand[keep], np.sqrt(dist2[keep])

@@ -90,7 +90,7 @@ class AckBeacon:
         now = self.sim.env.now
         heard = ack.heard
         if len(heard):
-            at = np.minimum(np.searchsorted(heard, receivers), len(heard) - 1)
+            at = np.minimum(heard.searchsorted(receivers), len(heard) - 1)
             hears_me = heard[at] == receivers
         else:
             hears_me = np.zeros(len(receivers), dtype=bool)

@@ -1,0 +1,126 @@
+"""Every configuration error: one clear line naming key, value and what is allowed;
+exit status 2; no traceback; nothing written to the output directory."""
+
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from netsim import config as cfgmod
+from netsim.cli import main
+from netsim.errors import ConfigError
+
+
+@pytest.mark.parametrize(
+    "override, key, words",
+    [
+        ("channel.range_m=-5", "channel.range_m", "> 0"),
+        ("world.n_robots=0", "world.n_robots", "> 0"),
+        ("protocol.tau_s=1.0", "protocol.tau_s", "greater than protocol.ack_period_s"),
+        ("mobility.speed_min_mps=6", "mobility.speed_min_mps", "must not exceed"),
+        ("channel.latency_s=nan", "channel.latency_s", "NaN"),
+        ("world.n_robotz=5", "world.n_robotz", "unknown key"),
+        ("colour=5", "colour", "unknown key"),
+        ("world.n_robots=2.5", "world.n_robots", "integer"),
+        ("world.torus=1", "world.torus", "true or false"),
+        ("channel.loss_probability=1.5", "channel.loss_probability", "probability"),
+        ("channel.loss_model=rayleigh", "channel.loss_model", "one of"),
+        ("protocol.ack_jitter_s=0.6", "protocol.ack_jitter_s", "half"),
+        ("channel.range_m=[1.0, 2.0]", "channel.range_m", "one range per robot"),
+        ("mobility.model=trace", "mobility.trace_file", "must name a file"),
+        ("duration_s=inf", "duration_s", "finite"),
+    ],
+)
+def test_bad_value_names_key_value_and_rule(override, key, words):
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, [override])
+    assert err.value.key == key
+    assert words in str(err.value)
+
+
+def test_config_file_values_and_overrides(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text("seed = 4\n[world]\nn_robots = 7\n[mobility]\nspeed_max_mps = 3\n")
+    c = cfgmod.load(f, ["mobility.speed_max_mps=10", "world.placement=grid"])
+    assert (c.seed, c.world.n_robots, c.mobility.speed_max_mps, c.world.placement) == (4, 7, 10.0, "grid")
+
+
+def test_resolved_config_round_trips():
+    c = cfgmod.load(None, ["channel.range_m=[10.0, 20.0]", "world.n_robots=2", "mobility.turn_interval_s=inf"])
+    import tomli_w
+    import tomllib
+
+    again = cfgmod.from_dict(tomllib.loads(tomli_w.dumps(cfgmod.to_dict(c))))
+    assert again == c
+
+
+def _cli(tmp_path, capsys, *args):
+    code = main(["run", "--quiet", "--out", str(tmp_path / "out"), *args])
+    err = capsys.readouterr().err
+    return code, err
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--set", "channel.range_m=-5"], "channel.range_m = -5.0"),
+        (["--set", "world.n_robots=0"], "world.n_robots = 0"),
+        (["--set", "protocol.tau_s=0.5"], "protocol.tau_s = 0.5"),
+        (["--set", "mobility.speed_min_mps=9"], "mobility.speed_min_mps = 9.0"),
+        (["--set", "channel.range_m=nan"], "channel.range_m = nan"),
+        (["--set", "world.sides=3"], "world.sides"),
+        (["--set", "mobility.model=trace", "--set", "mobility.trace_file=/nonexistent/x.tcl"], "no such file"),
+        (["--set", "world.placement=/nonexistent/p.csv", "--set", "mobility.stationary_start=false"], "world.placement"),
+        (["--set", "mobility.model=warp"], "mobility.model = 'warp'"),
+        (["/nonexistent/scenario.toml"], "no such file"),
+    ],
+)
+def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args, fragment):
+    code, err = _cli(tmp_path, capsys, *args)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("netsim: error: ") and fragment in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_malformed_files(tmp_path, capsys):
+    bad_toml = tmp_path / "bad.toml"
+    bad_toml.write_text("[world\nn_robots = 3")
+    code, err = _cli(tmp_path, capsys, str(bad_toml))
+    assert code == 2 and "not valid TOML" in err
+
+    trace = tmp_path / "t.tcl"
+    trace.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\nthis is not ns-2\n")
+    code, err = _cli(tmp_path, capsys, "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}",
+                     "--set", "world.n_robots=1")
+    assert code == 2 and "t.tcl:3" in err
+
+    csv = tmp_path / "p.csv"
+    csv.write_text("x_m,y_m\n1,2\nthree,4\n")
+    code, err = _cli(tmp_path, capsys, "--set", f"world.placement={csv}", "--set", "world.n_robots=2",
+                     "--set", "mobility.stationary_start=false")
+    assert code == 2 and "not numbers" in err
+
+    csv.write_text("x_m,y_m\n1,2\n")
+    code, err = _cli(tmp_path, capsys, "--set", f"world.placement={csv}", "--set", "world.n_robots=2",
+                     "--set", "mobility.stationary_start=false")
+    assert code == 2 and "1 rows but world.n_robots = 2" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_placement_conflicting_with_stationary_start(tmp_path, capsys):
+    code, err = _cli(tmp_path, capsys, "--set", "world.placement=grid")
+    assert code == 2 and "stationary_start" in err
+
+
+def test_console_script_gives_no_traceback(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "netsim.cli", "run", "--set", "world.n_robots=-1", "--out", str(tmp_path / "o")],
+        capture_output=True, text=True,
+    )
+    assert out.returncode == 2
+    assert "Traceback" not in out.stderr
+    assert out.stderr.strip() == textwrap.dedent(
+        "netsim: error: world.n_robots = -1: must be > 0 (number of robots N)"
+    )

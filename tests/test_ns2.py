@@ -1,0 +1,114 @@
+"""ns-2 movement files: generate, parse (setdest, BonnMotion), replay exactly."""
+
+import numpy as np
+import pytest
+
+from netsim import ns2
+from netsim.cli import main
+from netsim.errors import NetsimInputError
+from netsim.run import build
+from netsim.trajectory import sample_positions
+from tests.conftest import make_config
+
+SETDEST_SAMPLE = """\
+#
+# nodes: 2, pause: 2.00, max speed: 5.00, max x: 100.00, max y: 100.00
+#
+$node_(0) set X_ 10.000000000000
+$node_(0) set Y_ 20.000000000000
+$node_(0) set Z_ 0.000000000000
+$node_(1) set X_ 50.000000000000
+$node_(1) set Y_ 50.000000000000
+$node_(1) set Z_ 0.000000000000
+$god_ set-dist 0 1 1
+$ns_ at 2.000000000000 "$node_(0) setdest 40.000000000000 60.000000000000 5.000000000000"
+$ns_ at 3.500000000000 "$god_ set-dist 0 1 2"
+$ns_ at 4.000000000000 "$node_(1) setdest 50.000000000000 90.000000000000 2.000000000000"
+$ns_ at 5.0 "$node_(0) setdest 10.0 20.0 1.0"
+$ns_ at 30.0 "$node_(1) set X_ 5.0"
+"""
+
+
+def test_parse_setdest_file(tmp_path):
+    f = tmp_path / "s.tcl"
+    f.write_text(SETDEST_SAMPLE)
+    scen = ns2.read(f)
+    assert scen.n_robots == 2
+    assert scen.initial_m.tolist() == [[10.0, 20.0], [50.0, 50.0]]
+    assert scen.commands.kind.tolist() == ["setdest", "setdest", "setdest", "set"]
+
+
+def test_replay_follows_ns2_semantics(tmp_path):
+    """setdest leaves from where the node is, stops on arrival, a new setdest replaces the
+    old one mid-way; set X_ at T moves the node and stops it."""
+    f = tmp_path / "s.tcl"
+    f.write_text(SETDEST_SAMPLE)
+    cfg = make_config(duration_s=60.0, world={"n_robots": 2, "side_m": 100.0},
+                      mobility={"model": "trace", "trace_file": str(f)}, protocol={"model": "none"})
+    sim = build(cfg)
+    sim.run()
+    st = sim.state
+    pos = lambda t: sample_positions(st.legs(), 2, [t])[["x_m", "y_m"]].to_numpy()
+    # Node 0: at t = 5 it has covered 15 m of the 50 m toward (40, 60) (direction (0.6, 0.8)).
+    p5 = np.array([10 + 0.6 * 15, 20 + 0.8 * 15])
+    assert pos(5.0)[0] == pytest.approx(p5)
+    back = np.linalg.norm(p5 - [10, 20])  # then back to (10, 20) at 1 m/s, arriving at 5 + 15
+    assert pos(5.0 + back / 2)[0] == pytest.approx((p5 + [10, 20]) / 2)
+    assert pos(40.0)[0] == pytest.approx([10, 20])
+    # Node 1: leaves at 4, arrives at (50, 90) at 24, jumps to x = 5 at 30.
+    assert pos(24.0)[1] == pytest.approx([50, 90])
+    assert pos(29.0)[1] == pytest.approx([50, 90])
+    assert pos(31.0)[1] == pytest.approx([5, 90])
+
+
+def test_generated_scenario_replays_to_the_same_positions(tmp_path):
+    """`netsim scenario generate` then model = "trace" reproduces the generator's motion."""
+    f = tmp_path / "scen.tcl"
+    assert main(["scenario", "generate", "--n", "20", "--side", "500", "--speed-min", "0.5", "--speed-max", "5",
+                 "--pause", "2", "--duration", "300", "--seed", "3", "-o", str(f)]) == 0
+    text = f.read_text()
+    assert "$node_(19) set X_" in text and "setdest" in text
+    gen = make_config(seed=3, duration_s=300.0, world={"n_robots": 20, "side_m": 500.0},
+                      mobility={"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0}, protocol={"model": "none"})
+    original = build(gen)
+    original.run()
+    replay = build(make_config(duration_s=300.0, world={"n_robots": 20, "side_m": 500.0},
+                               mobility={"model": "trace", "trace_file": str(f)}, protocol={"model": "none"}))
+    replay.run()
+    times = np.linspace(0, 299.9, 700)
+    a = sample_positions(original.state.legs(), 20, times)[["x_m", "y_m"]].to_numpy()
+    b = sample_positions(replay.state.legs(), 20, times)[["x_m", "y_m"]].to_numpy()
+    assert np.abs(a - b).max() < 1e-6
+
+
+def test_bonnmotion_style_file_is_read(tmp_path):
+    f = tmp_path / "bm.ns_movements"
+    f.write_text('$node_(0) set X_ 1.5\n$node_(0) set Y_ 2.5\n$ns_ at 0.0 "$node_(0) setdest 11.5 2.5 1.0"\n')
+    scen = ns2.read(f)
+    assert scen.commands.iloc[0].tolist()[:2] == [0.0, 0]
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("$node_(0) set X_ 1\n", "no initial X_ and Y_"),
+        ('$node_(0) set X_ 1\n$node_(0) set Y_ 1\n$ns_ at -1 "$node_(0) setdest 1 1 1"\n', ":3: negative"),
+        ('$node_(0) set X_ 1\n$node_(0) set Y_ 1\n$ns_ at 1 "$node_(3) setdest 1 1 1"\n', ":3: node without"),
+        ("$node_(0) set X_ abc\n", ":1:"),
+        ("hello\n", ":1: not an ns-2 movement command"),
+        ("", "no initial positions"),
+    ],
+)
+def test_malformed_files_name_the_line(tmp_path, text, words):
+    f = tmp_path / "bad.tcl"
+    f.write_text(text)
+    with pytest.raises(NetsimInputError, match=words):
+        ns2.read(f)
+
+
+def test_trace_node_count_must_match(tmp_path, capsys):
+    f = tmp_path / "s.tcl"
+    f.write_text(SETDEST_SAMPLE)
+    code = main(["run", "--quiet", "--out", str(tmp_path / "o"), "--set", "mobility.model=trace",
+                 "--set", f"mobility.trace_file={f}", "--set", "world.n_robots=3"])
+    assert code == 2 and "world.n_robots = 3" in capsys.readouterr().err
