@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -96,11 +95,7 @@ def cmd_scenario_generate(args) -> int:
 
 
 def cmd_config(args) -> int:
-    import tomli_w
-
-    for key, default, doc in cfgmod.describe():
-        print(f"# {key}: {doc}")
-    print(tomli_w.dumps(cfgmod.to_dict(cfgmod.Config())))
+    print(cfgmod.commented_toml(), end="")
     return 0
 
 

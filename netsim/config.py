@@ -80,7 +80,9 @@ class ChannelConfig:
     )
     latency_s: float = _param(0.001, _non_negative, "fixed delay of every transmission, s")
     latency_jitter_s: float = _param(0.0, _non_negative, "extra delay uniform on [0, jitter], s")
-    loss_model: str = _param("bernoulli", _one_of("bernoulli", "distance", "gilbert_elliott"))
+    loss_model: str = _param(
+        "bernoulli", _one_of("bernoulli", "distance", "gilbert_elliott"), "loss model: bernoulli, distance or gilbert_elliott"
+    )
     loss_probability: float = _param(
         0.0, _probability, "Bernoulli loss per reception (also the floor of 'distance')"
     )
@@ -333,6 +335,24 @@ def load(path: str | Path | None = None, overrides: list[str] = ()) -> Config:
     for text in overrides:
         raw = merge(raw, parse_override(text))
     return from_dict(raw)
+
+
+def commented_toml(config: "Config | None" = None) -> str:
+    """The configuration as a TOML file with every key explained, ready to edit."""
+    import tomli_w
+
+    config = config or Config()
+    tree = to_dict(config)
+    out = []
+    for f in dataclasses.fields(Config):
+        if f.name in _SECTION_CLASSES:
+            continue
+        out += [f"# {f.metadata.get('doc', '')}", tomli_w.dumps({f.name: tree[f.name]}).strip()]
+    for section, cls in _SECTION_CLASSES.items():
+        out += ["", f"[{section}]"]
+        for g in dataclasses.fields(cls):
+            out += [f"# {g.metadata.get('doc', '')}", tomli_w.dumps({g.name: tree[section][g.name]}).strip()]
+    return "\n".join(out) + "\n"
 
 
 def describe() -> list[tuple[str, object, str]]:

@@ -10,6 +10,8 @@ the packages that build on it.
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 from importlib.metadata import entry_points
 from typing import Any, Callable, Protocol
 
@@ -24,6 +26,18 @@ class Plugin(Protocol):
     def __call__(self, sim: Any) -> object | None: ...
 
 
+def _import_user_module(name: str):
+    """Import ``name``; a module in the current directory counts, as with ``python -m``
+    (a console script's import path does not include it)."""
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        if exc.name != name.split(".")[0] or os.getcwd() in sys.path:
+            raise
+        sys.path.insert(0, os.getcwd())
+        return importlib.import_module(name)
+
+
 def available(group: str) -> list[str]:
     return sorted(ep.name for ep in entry_points(group=group))
 
@@ -33,7 +47,7 @@ def resolve(group: str, name: str, key: str) -> Callable:
     if ":" in name:
         module_name, _, attr = name.partition(":")
         try:
-            obj = importlib.import_module(module_name)
+            obj = _import_user_module(module_name)
             for part in attr.split("."):
                 obj = getattr(obj, part)
         except (ImportError, AttributeError) as exc:
