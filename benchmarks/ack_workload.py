@@ -40,16 +40,23 @@ def run_netsim(n: int, protocol: str) -> dict:
     from netsim.config import from_dict
     from netsim.run import build
 
-    cfg = from_dict({
-        "seed": 1, "duration_s": DURATION_S,
-        "world": {"n_robots": n, "side_m": side_for(n)},
-        # Uniform placement at rest, as the hand-written baseline starts: the same workload.
-        "mobility": {"speed_min_mps": SPEED_MIN, "speed_max_mps": SPEED_MAX, "pause_s": PAUSE,
-                     "stationary_start": False},
-        "channel": {"range_m": RANGE_M, "latency_s": LATENCY_S},
-        "protocol": {"model": protocol, "ack_period_s": 1.0, "ack_jitter_s": 0.05, "tau_s": 3.0},
-        "output": {"position_interval_s": 0.0},
-    })
+    cfg = from_dict(
+        {
+            "seed": 1,
+            "duration_s": DURATION_S,
+            "world": {"n_robots": n, "side_m": side_for(n)},
+            # Uniform placement at rest, as the hand-written baseline starts: the same workload.
+            "mobility": {
+                "speed_min_mps": SPEED_MIN,
+                "speed_max_mps": SPEED_MAX,
+                "pause_s": PAUSE,
+                "stationary_start": False,
+            },
+            "channel": {"range_m": RANGE_M, "latency_s": LATENCY_S},
+            "protocol": {"model": protocol, "ack_period_s": 1.0, "ack_jitter_s": 0.05, "tau_s": 3.0},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
     start = time.perf_counter()
     sim = build(cfg)
     sim.run()
@@ -137,15 +144,22 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, nargs="+", default=[100, 1000, 10_000])
     p.add_argument("--protocol", nargs="+", default=["ack"], help="netsim protocol stacks to measure")
-    p.add_argument("--handwritten-max-n", type=int, default=1000,
-                   help="skip the O(N^2) hand-written baseline above this N (default 1000)")
+    p.add_argument(
+        "--handwritten-max-n",
+        type=int,
+        default=1000,
+        help="skip the O(N^2) hand-written baseline above this N (default 1000)",
+    )
     p.add_argument("--child", help=argparse.SUPPRESS)
     args = p.parse_args()
     if args.child:
         args.case = args.child
         child(args)
         return
-    header = f"{'case':<14}{'N':>8}{'side m':>9}{'wall s':>10}{'receptions':>13}{'recv/wall s':>14}{'peak MiB':>10}{'speed-up':>10}"
+    header = (
+        f"{'case':<14}{'N':>8}{'side m':>9}{'wall s':>10}{'receptions':>13}"
+        f"{'recv/wall s':>14}{'peak MiB':>10}{'speed-up':>10}"
+    )
     print(header)
     print("-" * len(header))
     for n in args.n:
@@ -160,8 +174,10 @@ def main() -> None:
             ratio = ""
             if base and case != "handwritten":
                 ratio = f"{rate / (base['receptions'] / base['wall_s']):.1f}x"
-            print(f"{case:<14}{n:>8}{side_for(n):>9.0f}{r['wall_s']:>10.2f}{r['receptions']:>13,}{rate:>14,.0f}"
-                  f"{r['peak_mib']:>10.0f}{ratio:>10}")
+            print(
+                f"{case:<14}{n:>8}{side_for(n):>9.0f}{r['wall_s']:>10.2f}{r['receptions']:>13,}{rate:>14,.0f}"
+                f"{r['peak_mib']:>10.0f}{ratio:>10}"
+            )
         if not base:
             print(f"{'handwritten':<14}{n:>8}   skipped (O(N^2) scan; above --handwritten-max-n)")
         sys.stdout.flush()

@@ -52,7 +52,9 @@ def paused_fraction(side_m: float, v_min: float, v_max: float, pause_s: float) -
     return pause_s / (pause_s + MEAN_LEG_UNIT_SQUARE * side_m * mean_inverse_speed(v_min, v_max))
 
 
-def stationary_start(rng: np.random.Generator, n: int, side_m: float, v_min: float, v_max: float, pause_s: float) -> Start:
+def stationary_start(
+    rng: np.random.Generator, n: int, side_m: float, v_min: float, v_max: float, pause_s: float
+) -> Start:
     """Draw the state of ``n`` robots from the stationary distribution (Navidi and Camp).
 
     With probability ``p_p`` a robot is paused at a uniform point with a residual pause
@@ -148,7 +150,9 @@ def install(sim) -> None:
                 "cannot be combined with mobility.stationary_start = true (the stationary "
                 "start draws positions itself); set stationary_start = false",
             )
-        start = stationary_start(sim.streams.get("mobility.start"), w.n_robots, w.side_m, m.speed_min_mps, m.speed_max_mps, m.pause_s)
+        start = stationary_start(
+            sim.streams.get("mobility.start"), w.n_robots, w.side_m, m.speed_min_mps, m.speed_max_mps, m.pause_s
+        )
     else:
         if m.speed_min_mps == 0:
             warnings.warn(

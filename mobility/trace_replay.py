@@ -26,7 +26,9 @@ def load(sim) -> ns2.Scenario:
     xy = xy[~np.isnan(xy)]
     if len(xy) and (xy.min() < 0 or xy.max() > side):
         raise ConfigError(
-            "world.side_m", side, f"is smaller than the area of {cfg.mobility.trace_file} (coordinates up to {xy.max():g})"
+            "world.side_m",
+            side,
+            f"is smaller than the area of {cfg.mobility.trace_file} (coordinates up to {xy.max():g})",
         )
     return scen
 
@@ -40,6 +42,7 @@ def replay(sim, scen: ns2.Scenario):
         def stop(_event):
             if generation[i] == gen:
                 st.arrive(i, env.now, dest)
+
         return stop
 
     for t, i, kind, x, y, speed in scen.commands.itertuples(index=False):

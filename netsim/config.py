@@ -10,9 +10,10 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from netsim.errors import ConfigError
 
@@ -54,9 +55,7 @@ def _param(default, check: Check = _any, doc: str = ""):
 class WorldConfig:
     n_robots: int = _param(50, _positive, "number of robots N")
     side_m: float = _param(1000.0, _positive, "side of the square area A, metres")
-    placement: str = _param(
-        "uniform", _any, '"uniform", "grid", or a path to a CSV file with columns x_m,y_m'
-    )
+    placement: str = _param("uniform", _any, '"uniform", "grid", or a path to a CSV file with columns x_m,y_m')
     torus: bool = _param(False, _any, "wrap the area's borders (distances taken on a torus)")
 
 
@@ -68,9 +67,7 @@ class MobilityConfig:
     pause_s: float = _param(2.0, _non_negative, "pause at each waypoint, s")
     stationary_start: bool = _param(True, _any, "start in the stationary regime (no warm-up)")
     trace_file: str = _param("", _any, "ns-2 movement file replayed by model = 'trace'")
-    turn_interval_s: float = _param(
-        math.inf, _positive, "random direction on a torus: time between turns (inf: never)"
-    )
+    turn_interval_s: float = _param(math.inf, _positive, "random direction on a torus: time between turns (inf: never)")
 
 
 @dataclass(frozen=True)
@@ -81,11 +78,11 @@ class ChannelConfig:
     latency_s: float = _param(0.001, _non_negative, "fixed delay of every transmission, s")
     latency_jitter_s: float = _param(0.0, _non_negative, "extra delay uniform on [0, jitter], s")
     loss_model: str = _param(
-        "bernoulli", _one_of("bernoulli", "distance", "gilbert_elliott"), "loss model: bernoulli, distance or gilbert_elliott"
+        "bernoulli",
+        _one_of("bernoulli", "distance", "gilbert_elliott"),
+        "loss model: bernoulli, distance or gilbert_elliott",
     )
-    loss_probability: float = _param(
-        0.0, _probability, "Bernoulli loss per reception (also the floor of 'distance')"
-    )
+    loss_probability: float = _param(0.0, _probability, "Bernoulli loss per reception (also the floor of 'distance')")
     loss_distance_exponent: float = _param(
         4.0, _positive, "'distance': reception probability (1 - p)(1 - (d / r)^exponent)"
     )
@@ -118,7 +115,7 @@ class Config:
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
-    def replace(self, **sections) -> "Config":
+    def replace(self, **sections) -> Config:
         """A copy with whole sections or top-level values replaced (validated again)."""
         return from_dict(merge(to_dict(self), to_dict_partial(sections)))
 
@@ -167,9 +164,7 @@ def _build_section(cls, raw: dict, prefix: str):
     names = {f.name: f for f in dataclasses.fields(cls)}
     for key in raw:
         if key not in names:
-            raise ConfigError(
-                f"{prefix}.{key}", raw[key], "unknown key; allowed: " + ", ".join(sorted(names))
-            )
+            raise ConfigError(f"{prefix}.{key}", raw[key], "unknown key; allowed: " + ", ".join(sorted(names)))
     values = {}
     for name, f in names.items():
         key = f"{prefix}.{name}" if prefix else name
@@ -236,9 +231,7 @@ def _check_across(c: Config) -> None:
             raise ConfigError(f"mobility.{key}", getattr(m, key), "must be finite")
     p = c.protocol
     if not p.tau_s > p.ack_period_s:
-        raise ConfigError(
-            "protocol.tau_s", p.tau_s, f"must be greater than protocol.ack_period_s = {p.ack_period_s}"
-        )
+        raise ConfigError("protocol.tau_s", p.tau_s, f"must be greater than protocol.ack_period_s = {p.ack_period_s}")
     if not p.ack_jitter_s < p.ack_period_s / 2:
         raise ConfigError(
             "protocol.ack_jitter_s",
@@ -259,9 +252,7 @@ def _check_across(c: Config) -> None:
         if not math.isfinite(getattr(ch, key)):
             raise ConfigError(f"channel.{key}", getattr(ch, key), "must be finite")
     if c.world.torus and c.world.side_m <= 2 * max(c.ranges_m()):
-        raise ConfigError(
-            "world.side_m", c.world.side_m, "on a torus must exceed twice the largest range_m"
-        )
+        raise ConfigError("world.side_m", c.world.side_m, "on a torus must exceed twice the largest range_m")
     if m.model == "trace" and not m.trace_file:
         raise ConfigError("mobility.trace_file", m.trace_file, "must name a file when model = 'trace'")
 
@@ -337,7 +328,7 @@ def load(path: str | Path | None = None, overrides: list[str] = ()) -> Config:
     return from_dict(raw)
 
 
-def commented_toml(config: "Config | None" = None) -> str:
+def commented_toml(config: Config | None = None) -> str:
     """The configuration as a TOML file with every key explained, ready to edit."""
     import tomli_w
 

@@ -93,18 +93,25 @@ def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, tor
             changing = L.changes_in(start, stop)
             simple = ~(changing[i] | changing[j])
             _solve_piece(
-                d0[simple], L.v[L.cur[i[simple]]] - L.v[L.cur[j[simple]]], radius[simple],
-                start, stop - start, i[simple], j[simple], emit,
+                d0[simple],
+                L.v[L.cur[i[simple]]] - L.v[L.cur[j[simple]]],
+                radius[simple],
+                start,
+                stop - start,
+                i[simple],
+                j[simple],
+                emit,
             )
-            for a, b, r, d in zip(i[~simple].tolist(), j[~simple].tolist(), radius[~simple].tolist(), d0[~simple]):
+            for a, b, r in zip(i[~simple].tolist(), j[~simple].tolist(), radius[~simple].tolist()):
                 cuts = sorted(set([start] + L.breakpoints(a, start, stop) + L.breakpoints(b, start, stop)))
                 cuts.append(stop)
                 for s, e in zip(cuts[:-1], cuts[1:]):
                     la, lb = L.leg_at(a, s), L.leg_at(b, s)
                     pa, pb = L.at(np.array([la]), s), L.at(np.array([lb]), s)
                     dd = minimum_image(pa - pb)
-                    _solve_piece(dd, (L.v[la] - L.v[lb])[None, :], np.array([r]), s, e - s,
-                                 np.array([a]), np.array([b]), emit)
+                    _solve_piece(
+                        dd, (L.v[la] - L.v[lb])[None, :], np.array([r]), s, e - s, np.array([a]), np.array([b]), emit
+                    )
         first = False
         if stop >= duration_s:
             break
@@ -135,7 +142,9 @@ def link_lifetimes(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, 
     # Up events sort before down events at the same instant: a link that comes up at a
     # window's end and is re-found at the next window's start stays one lifetime.
     ev = ev.sort_values(["a", "b", "t", "k"], ascending=[True, True, True, False], kind="stable")
-    same_pair = (ev["a"].to_numpy()[1:] == ev["a"].to_numpy()[:-1]) & (ev["b"].to_numpy()[1:] == ev["b"].to_numpy()[:-1])
+    same_pair = (ev["a"].to_numpy()[1:] == ev["a"].to_numpy()[:-1]) & (
+        ev["b"].to_numpy()[1:] == ev["b"].to_numpy()[:-1]
+    )
     kinds = ev["k"].to_numpy()
     prev_kind = np.r_[-1, np.where(same_pair, kinds[:-1], -1)]
     # Each pair starts down; keep only the events that change its state.

@@ -29,9 +29,9 @@ from netsim.errors import NetsimInputError
 _NUM = r"([-+0-9.eEinfa]+)"
 _INIT = re.compile(r"^\$node_\((\d+)\)\s+set\s+([XYZ])_\s+" + _NUM + r"\s*$")
 _SETDEST = re.compile(
-    r'^\$ns_\s+at\s+' + _NUM + r'\s+"\$node_\((\d+)\)\s+setdest\s+' + _NUM + r"\s+" + _NUM + r"\s+" + _NUM + r'\s*"\s*$'
+    r"^\$ns_\s+at\s+" + _NUM + r'\s+"\$node_\((\d+)\)\s+setdest\s+' + _NUM + r"\s+" + _NUM + r"\s+" + _NUM + r'\s*"\s*$'
 )
-_SETPOS = re.compile(r'^\$ns_\s+at\s+' + _NUM + r'\s+"\$node_\((\d+)\)\s+set\s+([XYZ])_\s+' + _NUM + r'\s*"\s*$')
+_SETPOS = re.compile(r"^\$ns_\s+at\s+" + _NUM + r'\s+"\$node_\((\d+)\)\s+set\s+([XYZ])_\s+' + _NUM + r'\s*"\s*$')
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,9 @@ def _plain(value):
     return value
 
 
-def write_run(out_dir: str | Path, config: Config, frames: dict[str, pd.DataFrame], summary: dict, manifest: dict) -> list[Path]:
+def write_run(
+    out_dir: str | Path, config: Config, frames: dict[str, pd.DataFrame], summary: dict, manifest: dict
+) -> list[Path]:
     """Write ``config.toml``, ``manifest.json``, ``summary.json`` and one Parquet file per table."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

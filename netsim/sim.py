@@ -41,8 +41,12 @@ class Simulation:
         self.trace = Trace()
         ch = config.channel
         self.channel = Channel(
-            self.env, self.state, make_loss(config, self.streams, self.state),
-            ch.latency_s, ch.latency_jitter_s, self.streams.get("channel.latency"),
+            self.env,
+            self.state,
+            make_loss(config, self.streams, self.state),
+            ch.latency_s,
+            ch.latency_jitter_s,
+            self.streams.get("channel.latency"),
         )
         self.models: dict[str, object] = {}
 
@@ -58,8 +62,13 @@ class Simulation:
         """
         until = self.config.duration_s if until_s is None else float(until_s)
         start = self.env.now
-        with tqdm(total=round(until - start, 6), unit="sim s", disable=not progress, leave=False,
-                  bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]") as bar:
+        with tqdm(
+            total=round(until - start, 6),
+            unit="sim s",
+            disable=not progress,
+            leave=False,
+            bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]",
+        ) as bar:
             for k in range(1, steps + 1):
                 t = start + (until - start) * k / steps
                 if t > self.env.now:

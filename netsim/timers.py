@@ -14,7 +14,7 @@ Ack that arrives at the same instant as a deadline is processed first and counts
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import simpy

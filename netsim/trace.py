@@ -8,7 +8,8 @@ to records as they happen subscribes a callback (a trace source, as ns-3's
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import pandas as pd
 

@@ -11,7 +11,8 @@ clustering) subscribe to :attr:`AckBeacon.listeners` and see every delivery, in 
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -77,7 +78,15 @@ class AckBeacon:
         self.resign_pending[i] = False
         seq, role, leader, size = int(self.seq[i]), int(st.role[i]), int(st.leader[i]), int(self.group_size[i])
         return Ack(
-            i, role, leader, seq, x, y, size, self.table.live_ids(now, i), resign,
+            i,
+            role,
+            leader,
+            seq,
+            x,
+            y,
+            size,
+            self.table.live_ids(now, i),
+            resign,
             ack_record(seq, role, leader, x, y, size),
         )
 

@@ -12,8 +12,13 @@ from tests.conftest import make_config
 
 def _static(positions, duration=20.0, **protocol):
     n = len(positions)
-    cfg = make_config(duration_s=duration, world={"n_robots": n, "side_m": 10_000.0}, mobility={"model": "static"},
-                      channel={"range_m": 10.0}, protocol={"model": "ack", **protocol})
+    cfg = make_config(
+        duration_s=duration,
+        world={"n_robots": n, "side_m": 10_000.0},
+        mobility={"model": "static"},
+        channel={"range_m": 10.0},
+        protocol={"model": "ack", **protocol},
+    )
     sim = build(cfg)
     sim.state.place(np.asarray(positions, dtype=float))
     return sim
@@ -30,7 +35,9 @@ def test_ack_carries_its_fields():
     sim = _static([[0, 0], [5, 0]], ack_jitter_s=0.0)
     beacon = sim.models["protocol"]
     seen = []
-    beacon.listeners.append(lambda now, ack, receivers, hears_me: seen.append((ack, receivers.tolist(), hears_me.tolist())))
+    beacon.listeners.append(
+        lambda now, ack, receivers, hears_me: seen.append((ack, receivers.tolist(), hears_me.tolist()))
+    )
     sim.run(until_s=5.0)
     from_0 = [s for s in seen if s[0].sender == 0]
     assert [a.seq for a, _, _ in from_0] == list(range(1, len(from_0) + 1))
@@ -53,8 +60,13 @@ def test_neighbour_entry_lives_for_tau_after_the_last_ack():
 
 def test_one_way_link_is_not_reported_as_heard():
     """With unequal ranges, j's Ack lists only the ids j heard: i learns the link is one-way."""
-    cfg = make_config(duration_s=10.0, world={"n_robots": 2, "side_m": 1000.0}, mobility={"model": "static"},
-                      channel={"range_m": [15.0, 5.0]}, protocol={"model": "ack"})
+    cfg = make_config(
+        duration_s=10.0,
+        world={"n_robots": 2, "side_m": 1000.0},
+        mobility={"model": "static"},
+        channel={"range_m": [15.0, 5.0]},
+        protocol={"model": "ack"},
+    )
     sim = build(cfg)
     sim.state.place(np.array([[0.0, 0.0], [10.0, 0.0]]))
     sim.run()
@@ -100,10 +112,15 @@ def test_discovery_delay_of_a_new_link(p):
     pos[:pairs, 0] = np.arange(pairs) * 100.0
     pos[pairs:, 0] = np.arange(pairs) * 100.0
     pos[pairs:, 1] = 5000.0  # far away until t0
-    cfg = make_config(seed=8, duration_s=40.0, world={"n_robots": n, "side_m": 200_000.0}, mobility={"model": "static"},
-                      channel={"range_m": 10.0, "loss_probability": p, "latency_s": 0.0},
-                      protocol={"model": "ack", "ack_period_s": period, "ack_jitter_s": 0.0, "tau_s": 3.0},
-                      output={"position_interval_s": 0.0})
+    cfg = make_config(
+        seed=8,
+        duration_s=40.0,
+        world={"n_robots": n, "side_m": 200_000.0},
+        mobility={"model": "static"},
+        channel={"range_m": 10.0, "loss_probability": p, "latency_s": 0.0},
+        protocol={"model": "ack", "ack_period_s": period, "ack_jitter_s": 0.0, "tau_s": 3.0},
+        output={"position_interval_s": 0.0},
+    )
     sim = build(cfg)
     sim.state.place(pos)
     t0 = 10.0

@@ -14,9 +14,12 @@ from tests.conftest import make_config
 
 def _static_sim(positions, ranges=10.0, **channel):
     n = len(positions)
-    cfg = make_config(world={"n_robots": n, "side_m": 1000.0}, mobility={"model": "static"},
-                      channel={"range_m": ranges if np.isscalar(ranges) else list(ranges), **channel},
-                      protocol={"model": "none"})
+    cfg = make_config(
+        world={"n_robots": n, "side_m": 1000.0},
+        mobility={"model": "static"},
+        channel={"range_m": ranges if np.isscalar(ranges) else list(ranges), **channel},
+        protocol={"model": "none"},
+    )
     sim = build(cfg)
     sim.state.place(np.asarray(positions, dtype=float))
     return sim
@@ -122,8 +125,13 @@ def test_observed_delivery_ratio_in_a_run():
     """Item 10: over all in-range pairs, the fraction of Ack receptions delivered is 1 - p,
     within its binomial confidence interval."""
     p = 0.25
-    cfg = make_config(seed=3, duration_s=60.0, world={"n_robots": 60, "side_m": 400.0},
-                      channel={"loss_probability": p, "range_m": 100.0}, output={"position_interval_s": 0.0})
+    cfg = make_config(
+        seed=3,
+        duration_s=60.0,
+        world={"n_robots": 60, "side_m": 400.0},
+        channel={"loss_probability": p, "range_m": 100.0},
+        output={"position_interval_s": 0.0},
+    )
     sim = build(cfg)
     sim.run()
     c = sim.channel.counters_for("ack")

@@ -48,8 +48,9 @@ def test_config_file_values_and_overrides(tmp_path):
 
 def test_resolved_config_round_trips():
     c = cfgmod.load(None, ["channel.range_m=[10.0, 20.0]", "world.n_robots=2", "mobility.turn_interval_s=inf"])
-    import tomli_w
     import tomllib
+
+    import tomli_w
 
     again = cfgmod.from_dict(tomllib.loads(tomli_w.dumps(cfgmod.to_dict(c))))
     assert again == c
@@ -71,7 +72,10 @@ def _cli(tmp_path, capsys, *args):
         (["--set", "channel.range_m=nan"], "channel.range_m = nan"),
         (["--set", "world.sides=3"], "world.sides"),
         (["--set", "mobility.model=trace", "--set", "mobility.trace_file=/nonexistent/x.tcl"], "no such file"),
-        (["--set", "world.placement=/nonexistent/p.csv", "--set", "mobility.stationary_start=false"], "world.placement"),
+        (
+            ["--set", "world.placement=/nonexistent/p.csv", "--set", "mobility.stationary_start=false"],
+            "world.placement",
+        ),
         (["--set", "mobility.model=warp"], "mobility.model = 'warp'"),
         (["/nonexistent/scenario.toml"], "no such file"),
     ],
@@ -92,19 +96,43 @@ def test_cli_malformed_files(tmp_path, capsys):
 
     trace = tmp_path / "t.tcl"
     trace.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\nthis is not ns-2\n")
-    code, err = _cli(tmp_path, capsys, "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}",
-                     "--set", "world.n_robots=1")
+    code, err = _cli(
+        tmp_path,
+        capsys,
+        "--set",
+        "mobility.model=trace",
+        "--set",
+        f"mobility.trace_file={trace}",
+        "--set",
+        "world.n_robots=1",
+    )
     assert code == 2 and "t.tcl:3" in err
 
     csv = tmp_path / "p.csv"
     csv.write_text("x_m,y_m\n1,2\nthree,4\n")
-    code, err = _cli(tmp_path, capsys, "--set", f"world.placement={csv}", "--set", "world.n_robots=2",
-                     "--set", "mobility.stationary_start=false")
+    code, err = _cli(
+        tmp_path,
+        capsys,
+        "--set",
+        f"world.placement={csv}",
+        "--set",
+        "world.n_robots=2",
+        "--set",
+        "mobility.stationary_start=false",
+    )
     assert code == 2 and "not numbers" in err
 
     csv.write_text("x_m,y_m\n1,2\n")
-    code, err = _cli(tmp_path, capsys, "--set", f"world.placement={csv}", "--set", "world.n_robots=2",
-                     "--set", "mobility.stationary_start=false")
+    code, err = _cli(
+        tmp_path,
+        capsys,
+        "--set",
+        f"world.placement={csv}",
+        "--set",
+        "world.n_robots=2",
+        "--set",
+        "mobility.stationary_start=false",
+    )
     assert code == 2 and "1 rows but world.n_robots = 2" in err
     assert not (tmp_path / "out").exists()
 
@@ -117,10 +145,9 @@ def test_placement_conflicting_with_stationary_start(tmp_path, capsys):
 def test_console_script_gives_no_traceback(tmp_path):
     out = subprocess.run(
         [sys.executable, "-m", "netsim.cli", "run", "--set", "world.n_robots=-1", "--out", str(tmp_path / "o")],
-        capture_output=True, text=True,
+        capture_output=True,
+        text=True,
     )
     assert out.returncode == 2
     assert "Traceback" not in out.stderr
-    assert out.stderr.strip() == textwrap.dedent(
-        "netsim: error: world.n_robots = -1: must be > 0 (number of robots N)"
-    )
+    assert out.stderr.strip() == textwrap.dedent("netsim: error: world.n_robots = -1: must be > 0 (number of robots N)")

@@ -58,11 +58,13 @@ def test_link_times_are_exact_for_crossing_robots():
 
 def test_link_times_exact_across_course_changes():
     """Item 7: times stay exact when a robot changes course inside the range."""
-    legs = _legs([
-        (0.0, 0, 0.0, 0.0, 0.0, 0.0),
-        (0.0, 1, -10.0, 0.0, 1.0, 0.0),  # reaches x = -5 at t = 5: link up
-        (7.0, 1, -3.0, 0.0, 0.0, 1.0),  # turns north at (-3, 0); leaves when y = 4 at t = 11
-    ])
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, -10.0, 0.0, 1.0, 0.0),  # reaches x = -5 at t = 5: link up
+            (7.0, 1, -3.0, 0.0, 0.0, 1.0),  # turns north at (-3, 0); leaves when y = 4 at t = 11
+        ]
+    )
     links = link_lifetimes(legs, 5.0, 30.0)
     assert list(links.t_up_s) == [pytest.approx(5.0, abs=1e-9)]
     assert list(links.t_down_s) == [pytest.approx(11.0, abs=1e-9)]
@@ -72,14 +74,20 @@ def test_link_times_exact_across_course_changes():
 def test_link_times_independent_of_window_and_match_brute_force(seed):
     """Item 7: random trajectories; every event agrees with a dense brute-force check,
     and every computed up/down time has its pair at distance R to 1e-6 m."""
-    cfg = make_config(seed=seed, duration_s=120.0, world={"n_robots": 30, "side_m": 200.0},
-                      channel={"range_m": 40.0}, mobility={"speed_min_mps": 1.0, "speed_max_mps": 8.0, "pause_s": 1.0},
-                      protocol={"model": "none"})
+    cfg = make_config(
+        seed=seed,
+        duration_s=120.0,
+        world={"n_robots": 30, "side_m": 200.0},
+        channel={"range_m": 40.0},
+        mobility={"speed_min_mps": 1.0, "speed_max_mps": 8.0, "pause_s": 1.0},
+        protocol={"model": "none"},
+    )
     sim = build(cfg)
     sim.run()
     legs = sim.state.legs()
     links = link_lifetimes(legs, 40.0, 120.0)
     from netsim.trajectory import sample_positions
+
     for row in links.itertuples():
         for t, censored in ((row.t_up_s, row.censored_start), (row.t_down_s, row.censored_end)):
             if censored:
@@ -98,12 +106,14 @@ def test_link_times_independent_of_window_and_match_brute_force(seed):
 
 def test_censoring_flags():
     """Links up at the start or the end are censored and flagged as such."""
-    legs = _legs([
-        (0.0, 0, 0.0, 0.0, 0.0, 0.0),
-        (0.0, 1, 1.0, 0.0, 1.0, 0.0),  # in range at t = 0, leaves at t = 4
-        (0.0, 2, -10.0, 0.0, 0.0, 0.0),  # static, out of range of 0 ...
-        (6.0, 2, -10.0, 0.0, 1.0, 0.0),  # ... until it moves in at t = 11 and stays
-    ])
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 1.0, 0.0, 1.0, 0.0),  # in range at t = 0, leaves at t = 4
+            (0.0, 2, -10.0, 0.0, 0.0, 0.0),  # static, out of range of 0 ...
+            (6.0, 2, -10.0, 0.0, 1.0, 0.0),  # ... until it moves in at t = 11 and stays
+        ]
+    )
     links = link_lifetimes(legs, 5.0, 20.0).set_index(["a", "b"])
     start = links.loc[(0, 1)]
     assert (start.t_up_s, start.t_down_s) == (0.0, pytest.approx(4.0))
@@ -121,10 +131,15 @@ def test_link_duration_on_torus_matches_closed_form():
     averaged (censoring beyond the run end is rare: P(T > 500 s) ~ 1e-3).
     """
     R, v, T = 10.0, 1.0, 1000.0
-    cfg = make_config(seed=11, duration_s=T, world={"n_robots": 200, "side_m": 200.0, "torus": True},
-                      channel={"range_m": R},
-                      mobility={"model": "random_direction", "speed_min_mps": v, "speed_max_mps": v},
-                      protocol={"model": "none"}, output={"position_interval_s": 0.0})
+    cfg = make_config(
+        seed=11,
+        duration_s=T,
+        world={"n_robots": 200, "side_m": 200.0, "torus": True},
+        channel={"range_m": R},
+        mobility={"model": "random_direction", "speed_min_mps": v, "speed_max_mps": v},
+        protocol={"model": "none"},
+        output={"position_interval_s": 0.0},
+    )
     sim = build(cfg)
     sim.run()
     links = collect(sim)["links"]

@@ -43,8 +43,12 @@ def test_replay_follows_ns2_semantics(tmp_path):
     old one mid-way; set X_ at T moves the node and stops it."""
     f = tmp_path / "s.tcl"
     f.write_text(SETDEST_SAMPLE)
-    cfg = make_config(duration_s=60.0, world={"n_robots": 2, "side_m": 100.0},
-                      mobility={"model": "trace", "trace_file": str(f)}, protocol={"model": "none"})
+    cfg = make_config(
+        duration_s=60.0,
+        world={"n_robots": 2, "side_m": 100.0},
+        mobility={"model": "trace", "trace_file": str(f)},
+        protocol={"model": "none"},
+    )
     sim = build(cfg)
     sim.run()
     st = sim.state
@@ -64,16 +68,50 @@ def test_replay_follows_ns2_semantics(tmp_path):
 def test_generated_scenario_replays_to_the_same_positions(tmp_path):
     """`netsim scenario generate` then model = "trace" reproduces the generator's motion."""
     f = tmp_path / "scen.tcl"
-    assert main(["scenario", "generate", "--n", "20", "--side", "500", "--speed-min", "0.5", "--speed-max", "5",
-                 "--pause", "2", "--duration", "300", "--seed", "3", "-o", str(f)]) == 0
+    assert (
+        main(
+            [
+                "scenario",
+                "generate",
+                "--n",
+                "20",
+                "--side",
+                "500",
+                "--speed-min",
+                "0.5",
+                "--speed-max",
+                "5",
+                "--pause",
+                "2",
+                "--duration",
+                "300",
+                "--seed",
+                "3",
+                "-o",
+                str(f),
+            ]
+        )
+        == 0
+    )
     text = f.read_text()
     assert "$node_(19) set X_" in text and "setdest" in text
-    gen = make_config(seed=3, duration_s=300.0, world={"n_robots": 20, "side_m": 500.0},
-                      mobility={"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0}, protocol={"model": "none"})
+    gen = make_config(
+        seed=3,
+        duration_s=300.0,
+        world={"n_robots": 20, "side_m": 500.0},
+        mobility={"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0},
+        protocol={"model": "none"},
+    )
     original = build(gen)
     original.run()
-    replay = build(make_config(duration_s=300.0, world={"n_robots": 20, "side_m": 500.0},
-                               mobility={"model": "trace", "trace_file": str(f)}, protocol={"model": "none"}))
+    replay = build(
+        make_config(
+            duration_s=300.0,
+            world={"n_robots": 20, "side_m": 500.0},
+            mobility={"model": "trace", "trace_file": str(f)},
+            protocol={"model": "none"},
+        )
+    )
     replay.run()
     times = np.linspace(0, 299.9, 700)
     a = sample_positions(original.state.legs(), 20, times)[["x_m", "y_m"]].to_numpy()
@@ -109,6 +147,18 @@ def test_malformed_files_name_the_line(tmp_path, text, words):
 def test_trace_node_count_must_match(tmp_path, capsys):
     f = tmp_path / "s.tcl"
     f.write_text(SETDEST_SAMPLE)
-    code = main(["run", "--quiet", "--out", str(tmp_path / "o"), "--set", "mobility.model=trace",
-                 "--set", f"mobility.trace_file={f}", "--set", "world.n_robots=3"])
+    code = main(
+        [
+            "run",
+            "--quiet",
+            "--out",
+            str(tmp_path / "o"),
+            "--set",
+            "mobility.model=trace",
+            "--set",
+            f"mobility.trace_file={f}",
+            "--set",
+            "world.n_robots=3",
+        ]
+    )
     assert code == 2 and "world.n_robots = 3" in capsys.readouterr().err

@@ -40,8 +40,24 @@ def test_user_mobility_model_from_the_current_directory(tmp_path):
     if not script.exists():
         pytest.skip("the netsim console script is not installed next to this Python")
     out = tmp_path / "out"
-    run = subprocess.run([str(script), "run", "--quiet", "--out", str(out), "--set", "mobility.model=mymodels_readme:circle",
-                          "--set", "duration_s=5", "--set", "world.n_robots=12"], cwd=tmp_path, capture_output=True, text=True)
+    run = subprocess.run(
+        [
+            str(script),
+            "run",
+            "--quiet",
+            "--out",
+            str(out),
+            "--set",
+            "mobility.model=mymodels_readme:circle",
+            "--set",
+            "duration_s=5",
+            "--set",
+            "world.n_robots=12",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
     assert run.returncode == 0, run.stderr
     pos = pd.read_parquet(out / "positions.parquet")
     r = ((pos.x_m - 500) ** 2 + (pos.y_m - 500) ** 2) ** 0.5

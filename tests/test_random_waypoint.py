@@ -8,9 +8,9 @@ import pytest
 
 from mobility.random_waypoint import MEAN_LEG_UNIT_SQUARE, paused_fraction, stationary_start
 from netsim.errors import ConfigError
+from netsim.run import build
 from netsim.trajectory import sample_positions
 from tests.conftest import make_config, rwp_density
-from netsim.run import build
 
 
 def test_mean_leg_constant():
@@ -78,8 +78,11 @@ def test_time_average_speed_over_a_run(pause_s):
     average speed does not drift (first half equals second half within noise)."""
     side, vmin, vmax, n, T = 200.0, 1.0, 4.0, 400, 600.0
     cfg = make_config(
-        seed=5, duration_s=T, world={"n_robots": n, "side_m": side},
-        mobility={"speed_min_mps": vmin, "speed_max_mps": vmax, "pause_s": pause_s}, protocol={"model": "none"},
+        seed=5,
+        duration_s=T,
+        world={"n_robots": n, "side_m": side},
+        mobility={"speed_min_mps": vmin, "speed_max_mps": vmax, "pause_s": pause_s},
+        protocol={"model": "none"},
     )
     sim = build(cfg)
     sim.run()
@@ -92,7 +95,7 @@ def test_time_average_speed_over_a_run(pause_s):
     per_robot = step.mean(axis=0)
     se = per_robot.std() / math.sqrt(n)
     assert abs(per_robot.mean() - theory) < 4 * se
-    first, second = step[: int(T / 2)].mean(axis=0), step[int(T / 2):].mean(axis=0)
+    first, second = step[: int(T / 2)].mean(axis=0), step[int(T / 2) :].mean(axis=0)
     assert abs(first.mean() - second.mean()) < 4 * math.sqrt(2) * se
 
 
@@ -100,8 +103,11 @@ def test_mean_leg_length_in_a_run():
     """Item 2: legs drawn during a run average 0.521405 a."""
     side, n = 100.0, 300
     cfg = make_config(
-        seed=6, duration_s=2000.0, world={"n_robots": n, "side_m": side},
-        mobility={"speed_min_mps": 2.0, "speed_max_mps": 5.0, "pause_s": 0.0}, protocol={"model": "none"},
+        seed=6,
+        duration_s=2000.0,
+        world={"n_robots": n, "side_m": side},
+        mobility={"speed_min_mps": 2.0, "speed_max_mps": 5.0, "pause_s": 0.0},
+        protocol={"model": "none"},
     )
     sim = build(cfg)
     sim.run()
@@ -124,8 +130,11 @@ def test_positions_stay_stationary_during_a_run():
     """Item 3 over time: the spatial density at t = 300 s equals the stationary one."""
     n, side = 20_000, 1.0
     cfg = make_config(
-        seed=7, duration_s=301.0, world={"n_robots": n, "side_m": side},
-        mobility={"speed_min_mps": 0.01, "speed_max_mps": 0.05, "pause_s": 0.0}, protocol={"model": "none"},
+        seed=7,
+        duration_s=301.0,
+        world={"n_robots": n, "side_m": side},
+        mobility={"speed_min_mps": 0.01, "speed_max_mps": 0.05, "pause_s": 0.0},
+        protocol={"model": "none"},
     )
     sim = build(cfg)
     sim.run()

@@ -33,8 +33,20 @@ def test_other_seed_gives_other_results(tmp_path):
 
 def test_protocol_parameters_leave_positions_unchanged(tmp_path):
     a = _run(tmp_path, "a", "--seed", "7")
-    b = _run(tmp_path, "b", "--seed", "7", "--set", "protocol.ack_period_s=0.5", "--set", "protocol.tau_s=2",
-             "--set", "channel.loss_probability=0.4", "--set", "channel.latency_jitter_s=0.01")
+    b = _run(
+        tmp_path,
+        "b",
+        "--seed",
+        "7",
+        "--set",
+        "protocol.ack_period_s=0.5",
+        "--set",
+        "protocol.tau_s=2",
+        "--set",
+        "channel.loss_probability=0.4",
+        "--set",
+        "channel.latency_jitter_s=0.01",
+    )
     assert (a / "positions.parquet").read_bytes() == (b / "positions.parquet").read_bytes()
     assert not pd.read_parquet(a / "acks.parquet").equals(pd.read_parquet(b / "acks.parquet"))
 
@@ -42,8 +54,15 @@ def test_protocol_parameters_leave_positions_unchanged(tmp_path):
 def test_output_directory_contents_and_schema(tmp_path):
     out = _run(tmp_path, "a")
     names = {p.name for p in out.iterdir()}
-    assert names == {"config.toml", "manifest.json", "summary.json", "positions.parquet", "links.parquet",
-                     "acks.parquet", "roles.parquet"}
+    assert names == {
+        "config.toml",
+        "manifest.json",
+        "summary.json",
+        "positions.parquet",
+        "links.parquet",
+        "acks.parquet",
+        "roles.parquet",
+    }
     assert list(pd.read_parquet(out / "positions.parquet").columns) == ["t_s", "robot", "x_m", "y_m"]
     links = pd.read_parquet(out / "links.parquet")
     assert list(links.columns)[:5] == ["a", "b", "t_up_s", "t_down_s", "censored"]

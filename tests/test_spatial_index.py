@@ -10,9 +10,14 @@ from tests.conftest import make_config
 @pytest.mark.parametrize("torus", [False, True])
 def test_index_matches_brute_force_over_a_run(torus):
     model = "random_direction" if torus else "random_waypoint"
-    cfg = make_config(seed=4, duration_s=200.0, world={"n_robots": 80, "side_m": 300.0, "torus": torus},
-                      channel={"range_m": 40.0}, mobility={"model": model, "speed_min_mps": 1.0, "speed_max_mps": 10.0},
-                      protocol={"model": "none"})
+    cfg = make_config(
+        seed=4,
+        duration_s=200.0,
+        world={"n_robots": 80, "side_m": 300.0, "torus": torus},
+        channel={"range_m": 40.0},
+        mobility={"model": model, "speed_min_mps": 1.0, "speed_max_mps": 10.0},
+        protocol={"model": "none"},
+    )
     sim = build(cfg)
     st, index = sim.state, sim.channel.index
     rng = np.random.default_rng(0)
