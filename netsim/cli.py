@@ -53,9 +53,8 @@ def cmd_run(args) -> int:
     out = Path(args.out)
     written = write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
     if not args.quiet:
-        print(
-            f"netsim run: {config.world.n_robots} robots, {config.duration_s:g} s simulated in {result.wall_s:.2f} s wall"
-        )
+        n, duration = config.world.n_robots, config.duration_s
+        print(f"netsim run: {n} robots, {duration:g} s simulated in {result.wall_s:.2f} s wall")
         print(summary_table(result.summary))
         print(f"results: {out}/ ({', '.join(p.name for p in written)})")
     return 0
