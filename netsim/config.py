@@ -97,7 +97,27 @@ class ProtocolConfig:
     model: str = _param("ack", _any, "protocol stack, by plugin name")
     ack_period_s: float = _param(1.0, _positive, "Ack period t, s")
     ack_jitter_s: float = _param(0.05, _non_negative, "each period is t + U(-jitter, +jitter), s")
-    tau_s: float = _param(3.0, _positive, "liveness timeout tau, s")
+    tau_s: float = _param(3.0, _positive, "liveness timeout tau, s (default 3 ack periods)")
+    join_policy: str = _param(
+        "nearest", _one_of("nearest", "first_heard", "lowest_id"), "rule 2: which leader an undecided robot joins"
+    )
+    merge_policy: str = _param(
+        "smaller_group_yields",
+        _one_of("smaller_group_yields", "lowest_id_wins", "highest_degree_wins"),
+        "rule 5: which of two neighbouring leaders yields",
+    )
+    merge_delay_s: float = _param(
+        2.0, _non_negative, "rule 5: how long two leaders must be linked, s (default 2 periods)"
+    )
+    election_policy: str = _param(
+        "lowest_id", _one_of("lowest_id", "highest_degree", "none"), "rule 6: who replaces a lost leader"
+    )
+    routing: str = _param("backbone", _one_of("backbone", "oracle"), "message relaying: backbone flooding or oracle")
+    distributed_gateways: bool = _param(
+        True, _any, "members next to a member of another group relay too (keeps flooding connected)"
+    )
+    message_ttl: int = _param(32, _positive, "hops a relayed message may take")
+    message_rate_hz: float = _param(0.0, _non_negative, "messages sent per second, network-wide (random pairs)")
 
 
 @dataclass(frozen=True)
@@ -208,6 +228,12 @@ def from_dict(raw: dict) -> Config:
         else:
             allowed = sorted(list(top) + list(_SECTION_CLASSES))
             raise ConfigError(key, value, "unknown key; allowed: " + ", ".join(allowed))
+    protocol_raw = raw.get("protocol", {})
+    if "protocol" in values:
+        period = values["protocol"].ack_period_s
+        scaled = {k: m * period for k, m in (("tau_s", 3.0), ("merge_delay_s", 2.0)) if k not in protocol_raw}
+        if scaled:
+            values["protocol"] = dataclasses.replace(values["protocol"], **scaled)
     config = Config(**values)
     _check_across(config)
     return config

@@ -73,7 +73,7 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
     received, lost = int(acks["received"].sum()), int(acks["dropped_loss"].sum())
     legs = sim.state.legs()
     distance = _distance_travelled(legs, duration)
-    return {
+    summary = {
         "robots": n,
         "duration_s": duration,
         "seed": cfg.seed,
@@ -91,6 +91,12 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
         "mean_degree": float(2 * life.sum() / (n * duration)) if duration > 0 else math.nan,
         "mean_speed_mps": float(distance.sum() / (n * duration)) if duration > 0 else math.nan,
     }
+    for model in sim.models.values():
+        # A model may add its own figures: summary(frames, duration_s) -> dict.
+        extra = getattr(model, "summary", None)
+        if callable(extra):
+            summary.update(extra(frames, duration))
+    return summary
 
 
 def _distance_travelled(legs: pd.DataFrame, until_s: float) -> np.ndarray:

@@ -59,35 +59,36 @@ class AckBeacon:
         # Leaders that announce they are giving up leadership set this for their next Ack.
         self.resign_pending = np.zeros(sim.state.n, dtype=bool)
         self.listeners: list[AckListener] = []
+        # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
+        self.before_send: list[Callable[[int, float], None]] = []
+        self.phase_s = np.zeros(sim.state.n)
 
-    def start(self) -> None:
+    def start(self, phase_s=None) -> None:
+        """Start every robot's beacon; ``phase_s`` (one per robot) overrides the random phases."""
         sim = self.sim
         p = sim.config.protocol
-        phases = sim.streams.get("ack.phase").uniform(0.0, p.ack_period_s, sim.state.n)
+        if phase_s is None:
+            self.phase_s = sim.streams.get("ack.phase").uniform(0.0, p.ack_period_s, sim.state.n)
+        else:
+            self.phase_s = np.asarray(phase_s, dtype=float)
         jitter_rng = sim.streams.get("ack.jitter")
         for i in range(sim.state.n):
-            sim.env.process(ack_beacon(sim, i, p.ack_period_s, p.ack_jitter_s, phases[i], jitter_rng, self.send))
+            sim.env.process(ack_beacon(sim, i, p.ack_period_s, p.ack_jitter_s, self.phase_s[i], jitter_rng, self.send))
         sim.trace.add_frame("acks", lambda: sim.channel.frame("ack"))
 
     def make_ack(self, i: int) -> Ack:
         now = self.sim.env.now
+        for hook in self.before_send:
+            hook(i, now)
         st = self.sim.state
         x, y = st.position(i, now)
         self.seq[i] += 1
         resign = bool(self.resign_pending[i])
         self.resign_pending[i] = False
         seq, role, leader, size = int(self.seq[i]), int(st.role[i]), int(st.leader[i]), int(self.group_size[i])
+        heard = self.table.live_ids(now, i)
         return Ack(
-            i,
-            role,
-            leader,
-            seq,
-            x,
-            y,
-            size,
-            self.table.live_ids(now, i),
-            resign,
-            ack_record(seq, role, leader, x, y, size),
+            i, role, leader, seq, x, y, size, heard, resign, ack_record(seq, role, leader, x, y, size, len(heard))
         )
 
     def send(self, i: int) -> None:

@@ -17,10 +17,11 @@ import numpy as np
 
 EMPTY = -1
 
-# Columns of the packed record.
-LAST_HEARD, LIVE_SINCE, HEARS_ME, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE = range(9)
-ACK_FIELDS = ("seq", "role", "leader", "x_m", "y_m", "group_size")
-_EMPTY_RECORD = np.array([-np.inf, np.inf, 0, 0, 0, EMPTY, 0, 0, 0], dtype=float)
+# Columns of the packed record. BIDIR_SINCE: since when the neighbour has continuously
+# listed us in its Acks (the link is known two-way); inf while it does not.
+LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE = range(11)
+ACK_FIELDS = ("seq", "role", "leader", "x_m", "y_m", "group_size", "degree")
+_EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0], dtype=float)
 
 
 class NeighbourTable:
@@ -43,6 +44,8 @@ class NeighbourTable:
     x_m = property(lambda self: self.data[:, :, X])
     y_m = property(lambda self: self.data[:, :, Y])
     group_size = property(lambda self: self.data[:, :, GROUP_SIZE].astype(np.int64))
+    degree = property(lambda self: self.data[:, :, DEGREE].astype(np.int64))
+    bidir_since_s = property(lambda self: self.data[:, :, BIDIR_SINCE])
 
     @property
     def slots(self) -> int:
@@ -77,8 +80,11 @@ class NeighbourTable:
         rec = np.empty_like(old)
         rec[:] = record
         rec[:, LAST_HEARD] = now
-        rec[:, LIVE_SINCE] = np.where(found & (now - old[:, LAST_HEARD] < self.tau_s), old[:, LIVE_SINCE], now)
+        was_live = found & (now - old[:, LAST_HEARD] < self.tau_s)
+        rec[:, LIVE_SINCE] = np.where(was_live, old[:, LIVE_SINCE], now)
         rec[:, HEARS_ME] = hears_me
+        still_two_way = was_live & (old[:, HEARS_ME] != 0)
+        rec[:, BIDIR_SINCE] = np.where(hears_me, np.where(still_two_way, old[:, BIDIR_SINCE], now), np.inf)
         records[flat] = rec
 
     def _place(self, now, sender, receivers, flat, found):
@@ -113,8 +119,9 @@ class NeighbourTable:
         return self.live_mask(now).sum(axis=1)
 
 
-def ack_record(seq, role, leader, x_m, y_m, group_size) -> np.ndarray:
+def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0) -> np.ndarray:
     """The packed record of an Ack's fields (time and link columns are filled on update)."""
     rec = _EMPTY_RECORD.copy()
-    rec[SEQ], rec[ROLE], rec[LEADER], rec[X], rec[Y], rec[GROUP_SIZE] = seq, role, leader, x_m, y_m, group_size
+    rec[SEQ], rec[ROLE], rec[LEADER], rec[X], rec[Y] = seq, role, leader, x_m, y_m
+    rec[GROUP_SIZE], rec[DEGREE] = group_size, degree
     return rec

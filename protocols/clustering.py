@@ -1,0 +1,289 @@
+"""The clustering protocol of Cai, Ren and Zou (2009), MODEL.md section 4.2.
+
+Roles: leader ``alpha``, member ``beta``, undecided ``gamma``. From their Acks alone the
+robots build a two-level network:
+
+1. Every robot starts ``gamma`` and beacons (its clock starts at its first Ack).
+2. A ``gamma`` robot that hears an ``alpha`` over a two-way link joins a leader and
+   becomes ``beta`` (join policy: nearest known leader, ties to the lowest id).
+3. A ``beta`` robot that hears no Ack from its leader for ``tau`` becomes ``gamma``.
+4. A ``gamma`` robot that hears no ``alpha`` for ``tau`` becomes ``alpha``.
+5. Two ``alpha`` robots whose two-way link has lasted ``merge_delay`` merge: by the merge
+   policy one yields and joins the other; its next Ack carries a resign flag and its
+   members re-affiliate at once.
+6. A robot whose leader timed out (or resigned) joins another known leader if it can;
+   otherwise, if it has the highest priority among the live neighbours that had the same
+   leader (lowest id by default; vacuously when there are none), it becomes ``alpha`` at
+   once; otherwise it stays ``gamma`` (and rule 2 or 4 follows).
+
+The decisions are pure functions of small values (:func:`choose_leader`,
+:func:`merge_loser`, :func:`elected`, :data:`TRANSITIONS`), testable without the kernel;
+:class:`Clustering` is the runner that feeds them from Ack deliveries and timers.
+
+Timers are exact: a member's deadline is ``tau`` after the last two-way Ack from its
+leader; an undecided robot's is ``tau`` after it became undecided or last heard a leader
+over a two-way link (one-way links are not links). Deliveries precede timers due at the
+same instant, so an Ack arriving exactly at a deadline counts.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from netsim.state import LEADER, MEMBER, NO_LEADER, ROLE_NAMES, UNDECIDED
+from netsim.timers import DeadlineTimers
+from netsim.trace import RoleChange
+from protocols.ack import Ack, AckBeacon
+from protocols.neighbours import BIDIR_SINCE, DEGREE, GROUP_SIZE, HEARS_ME, LAST_HEARD, ROLE, X, Y
+from protocols.neighbours import LEADER as LEADER_FIELD
+
+# Causes recorded in roles.parquet, named after the rule that fired.
+START = "rule1_start"
+JOIN = "rule2_join"
+LEADER_LOST = "rule3_leader_lost"
+NO_LEADER_HEARD = "rule4_no_leader"
+MERGE_YIELD = "rule5_merge_yield"
+LEADER_RESIGNED = "rule5_leader_resigned"
+ELECTED = "rule6_elected"
+
+# The state machine: (role, event) -> (new role, cause).
+TRANSITIONS = {
+    (UNDECIDED, "leader_heard"): (MEMBER, JOIN),
+    (MEMBER, "leader_timeout"): (UNDECIDED, LEADER_LOST),
+    (MEMBER, "leader_resigned"): (UNDECIDED, LEADER_RESIGNED),
+    (UNDECIDED, "no_leader_timeout"): (LEADER, NO_LEADER_HEARD),
+    (LEADER, "merge_lost"): (MEMBER, MERGE_YIELD),
+    (UNDECIDED, "elected"): (LEADER, ELECTED),
+}
+
+
+def transition(role: int, event: str) -> tuple[int, str]:
+    """The role after ``event`` and the rule that fired; KeyError if the event does not
+    apply to the role."""
+    return TRANSITIONS[(role, event)]
+
+
+class Candidate(NamedTuple):
+    """A robot as another sees it in its neighbour table."""
+
+    id: int
+    distance_m: float = 0.0
+    group_size: int = 1
+    degree: int = 0
+
+
+def choose_leader(policy: str, candidates: list[Candidate], first_heard: int | None = None) -> int:
+    """Rule 2: which of the candidate leaders to join.
+
+    ``nearest`` (ties to the lowest id), ``lowest_id``, or ``first_heard`` (the leader
+    whose Ack triggered the join; the nearest when there is none).
+
+    >>> choose_leader("nearest", [Candidate(4, 10.0), Candidate(2, 10.0), Candidate(7, 3.0)])
+    7
+    >>> choose_leader("lowest_id", [Candidate(4, 10.0), Candidate(2, 12.0)])
+    2
+    """
+    if not candidates:
+        raise ValueError("no candidate leader")
+    if policy == "first_heard" and first_heard is not None and any(c.id == first_heard for c in candidates):
+        return first_heard
+    if policy == "lowest_id":
+        return min(c.id for c in candidates)
+    return min(candidates, key=lambda c: (c.distance_m, c.id)).id
+
+
+def merge_loser(policy: str, a: Candidate, b: Candidate) -> int:
+    """Rule 5: the id of the leader that yields when leaders ``a`` and ``b`` merge.
+
+    ``smaller_group_yields`` (ties: the higher id yields), ``lowest_id_wins``,
+    ``highest_degree_wins`` (ties: the higher id yields).
+
+    >>> merge_loser("smaller_group_yields", Candidate(1, group_size=2), Candidate(5, group_size=4))
+    1
+    >>> merge_loser("smaller_group_yields", Candidate(1, group_size=3), Candidate(5, group_size=3))
+    5
+    """
+    if policy == "lowest_id_wins":
+        return max(a.id, b.id)
+    key = (lambda c: (c.degree, -c.id)) if policy == "highest_degree_wins" else (lambda c: (c.group_size, -c.id))
+    return a.id if key(a) < key(b) else b.id
+
+
+def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
+    """Rule 6: whether ``me`` takes over among the former members ``rivals`` it can hear.
+
+    ``lowest_id`` (the default priority), ``highest_degree`` (ties to the lowest id), or
+    ``none`` (no election: wait for rule 2 or 4).
+
+    >>> elected("lowest_id", Candidate(3), [Candidate(5), Candidate(8)])
+    True
+    >>> elected("lowest_id", Candidate(3), [Candidate(2)])
+    False
+    """
+    if policy == "none":
+        return False
+    if policy == "highest_degree":
+        return all((me.degree, -me.id) > (r.degree, -r.id) for r in rivals)
+    return all(me.id < r.id for r in rivals)
+
+
+class Clustering:
+    """Runs rules 1-6 for all robots on top of an :class:`AckBeacon`."""
+
+    def __init__(self, sim, beacon: AckBeacon):
+        p = sim.config.protocol
+        self.sim = sim
+        self.beacon = beacon
+        self.table = beacon.table
+        self.tau_s = p.tau_s
+        self.merge_delay_s = p.merge_delay_s
+        self.join_policy, self.merge_policy, self.election_policy = p.join_policy, p.merge_policy, p.election_policy
+        st = sim.state
+        # With equal ranges hearing an Ack implies the link is two-way (MODEL.md 4.1).
+        self.symmetric = bool(np.all(st.range_m == st.range_m[0])) if st.n else True
+        self.timers = DeadlineTimers(sim.env, st.n, self._expire)
+        self.role_changes = np.zeros(st.n, dtype=np.int64)
+        sim.trace.declare("roles", RoleChange)
+        beacon.listeners.append(self.on_ack)
+        beacon.before_send.append(self._refresh_group_size)
+
+    def start(self) -> None:
+        st, now = self.sim.state, self.sim.env.now
+        st.role[:] = UNDECIDED
+        st.leader[:] = NO_LEADER
+        for i in range(st.n):
+            self.sim.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START))
+        self.timers.restart(np.arange(st.n), self.beacon.phase_s + self.tau_s)
+
+    # -- what a robot knows --------------------------------------------------------------
+    def _two_way(self, i: int, now: float) -> np.ndarray:
+        """Mask of i's slots holding live neighbours over a two-way link."""
+        live = self.table.live_mask(now, i)
+        if self.symmetric:
+            return live
+        return live & (self.table.data[i, :, HEARS_ME] != 0)
+
+    def known_leaders(self, i: int, now: float, exclude: int = NO_LEADER) -> list[Candidate]:
+        """Live two-way neighbours of ``i`` whose last Ack said they were leaders."""
+        rows = self.table.data[i]
+        mask = self._two_way(i, now) & (rows[:, ROLE] == LEADER) & (self.table.id[i] != exclude)
+        if not mask.any():
+            return []
+        x, y = self.sim.state.position(i, now)
+        ids = self.table.id[i][mask]
+        dist = np.hypot(rows[mask, X] - x, rows[mask, Y] - y)
+        return [Candidate(int(j), float(d)) for j, d in zip(ids.tolist(), dist.tolist())]
+
+    def group_size(self, i: int, now: float) -> int:
+        """1 + the live two-way neighbours whose last Ack named ``i`` as their leader."""
+        rows = self.table.data[i]
+        members = self._two_way(i, now) & (rows[:, ROLE] == MEMBER) & (rows[:, LEADER_FIELD] == i)
+        return 1 + int(members.sum())
+
+    def groups(self, now: float) -> list[set[int]]:
+        """The groups (leader ids) each robot belongs to now: a leader its own; a member
+        its leader's and, if it is a gateway, those of the other leaders it has a live
+        two-way link with; an undecided robot none."""
+        st = self.sim.state
+        out = []
+        for i in range(st.n):
+            if st.role[i] == LEADER:
+                out.append({i})
+            elif st.role[i] == MEMBER:
+                out.append({int(st.leader[i])} | {c.id for c in self.known_leaders(i, now)})
+            else:
+                out.append(set())
+        return out
+
+    def borders_other_group(self, i: int, now: float) -> bool:
+        """Whether member ``i`` has a live two-way neighbour in another group (a leader other
+        than its own, or a member of another leader): a gateway or a distributed gateway."""
+        rows = self.table.data[i]
+        own = self.sim.state.leader[i]
+        other = self._two_way(i, now) & (rows[:, ROLE] != UNDECIDED) & (rows[:, LEADER_FIELD] != own)
+        return bool(other.any())
+
+    def gateways(self, now: float) -> np.ndarray:
+        """Ids of the members that belong to two groups or more."""
+        return np.array([i for i, g in enumerate(self.groups(now)) if len(g) > 1], dtype=np.int64)
+
+    def _refresh_group_size(self, i: int, now: float) -> None:
+        self.beacon.group_size[i] = self.group_size(i, now) if self.sim.state.role[i] == LEADER else 1
+
+    # -- transitions ---------------------------------------------------------------------
+    def _set(self, i: int, event: str, leader: int, now: float) -> None:
+        st = self.sim.state
+        role, cause = transition(int(st.role[i]), event)
+        st.role[i] = role
+        st.leader[i] = leader
+        self.role_changes[i] += 1
+        self.sim.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[role], leader, cause))
+
+    def _join(self, i: int, now: float, first_heard: int | None = None, exclude: int = NO_LEADER) -> bool:
+        """Rule 2 for robot ``i`` (undecided) from what its table knows; False if no leader is known."""
+        candidates = self.known_leaders(i, now, exclude)
+        if not candidates:
+            return False
+        leader = choose_leader(self.join_policy, candidates, first_heard)
+        self._set(i, "leader_heard", leader, now)
+        slot = self.table.entry(i, leader)
+        self.timers.restart(i, self.table.data[i, slot, LAST_HEARD] + self.tau_s)
+        return True
+
+    def _leader_gone(self, i: int, now: float, event: str) -> None:
+        """Rules 3 and 6: ``i`` lost its leader (timeout or resignation)."""
+        old = int(self.sim.state.leader[i])
+        self._set(i, event, NO_LEADER, now)
+        if self._join(i, now, exclude=old):
+            return
+        rows = self.table.data[i]
+        mates = self._two_way(i, now) & (rows[:, LEADER_FIELD] == old) & (rows[:, ROLE] == MEMBER)
+        ids = self.table.id[i][mates]
+        rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids.tolist(), rows[mates, DEGREE].tolist())]
+        me = Candidate(i, degree=int(self._two_way(i, now).sum()))
+        if elected(self.election_policy, me, rivals):
+            self._set(i, "elected", i, now)
+            self.timers.cancel(i)
+        else:
+            self.timers.restart(i, now + self.tau_s)
+
+    def _expire(self, i: int, now: float) -> None:
+        role = self.sim.state.role[i]
+        if role == MEMBER:
+            self._leader_gone(i, now, "leader_timeout")
+        elif role == UNDECIDED:
+            self._set(i, "no_leader_timeout", i, now)
+
+    def on_ack(self, now: float, ack: Ack, receivers: np.ndarray, hears_me: np.ndarray) -> None:
+        st = self.sim.state
+        role = st.role[receivers]
+        two_way = hears_me | self.symmetric
+        mine = (role == MEMBER) & (st.leader[receivers] == ack.sender)
+        if ack.role != LEADER or ack.resign:
+            for r in receivers[mine].tolist():
+                self._leader_gone(r, now, "leader_resigned")
+            return
+        self.timers.restart(receivers[mine & two_way], now + self.tau_s)
+        for r in receivers[(role == UNDECIDED) & two_way].tolist():
+            self._join(r, now, first_heard=ack.sender)
+        for r in receivers[(role == LEADER) & two_way].tolist():
+            self._maybe_merge(r, ack, now)
+
+    def _maybe_merge(self, r: int, ack: Ack, now: float) -> None:
+        slot = self.table.entry(r, ack.sender)
+        since = self.table.data[r, slot, BIDIR_SINCE] if not self.symmetric else self.table.live_since_s[r, slot]
+        if now - since < self.merge_delay_s:
+            return
+        me = Candidate(r, group_size=self.group_size(r, now), degree=int(self._two_way(r, now).sum()))
+        other = Candidate(ack.sender, group_size=ack.group_size, degree=int(self.table.data[r, slot, DEGREE]))
+        if merge_loser(self.merge_policy, me, other) == r:
+            self._set(r, "merge_lost", ack.sender, now)
+            self.beacon.resign_pending[r] = True
+            self.timers.restart(r, now + self.tau_s)
+
+    # -- for outputs ---------------------------------------------------------------------
+    @property
+    def group_size_column(self) -> int:
+        return GROUP_SIZE

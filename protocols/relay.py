@@ -1,0 +1,172 @@
+"""Multi-hop messages between any two robots (MODEL.md section 4.3).
+
+``backbone`` (default): the source broadcasts the message; every leader and gateway that
+receives it for the first time rebroadcasts it once, with the TTL decreased; ordinary
+members only listen. Leaders and gateways alone do not always connect: two groups may
+touch only through two of their members, neither of which hears the other's leader. With
+``protocol.distributed_gateways`` (the default) such members relay too, so that on a
+connected, static, loss-free network every message arrives; set it to false for the
+strict leaders-and-gateways backbone. ``oracle``: the message goes hop by hop along a shortest path of
+the true topology, recomputed by each holder at the moment it forwards (a baseline no
+real robot could run). Either way each message records whether it arrived, after how
+many hops and how long, and how many transmissions it cost in all.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import shortest_path
+
+from netsim.state import LEADER, MEMBER
+from netsim.topology import geometric_edges
+
+
+class Message(NamedTuple):
+    id: int
+    src: int
+    dst: int
+    ttl: int
+    hops: int  # transmissions on the path so far, including the one that carries it
+
+
+class Outcome(NamedTuple):
+    msg_id: int
+    src: int
+    dst: int
+    routing: str
+    t_sent_s: float
+    delivered: bool
+    t_delivered_s: float
+    hops: int
+    latency_s: float
+    transmissions: int
+    shortest_hops: float  # on the true topology at send time (inf: no path)
+
+
+def hop_distances(state, now: float, node: int, towards: bool = False) -> np.ndarray:
+    """Hops from ``node`` to every robot over the true directed unit-disk links now
+    (``towards=True``: from every robot to ``node``, a search on the reversed links)."""
+    edges = geometric_edges(state.positions_at(now), state.range_m, state.side_m if state.torus else None, True)
+    n = state.n
+    if edges:
+        a, b = np.array([e[0] for e in edges]), np.array([e[1] for e in edges])
+        graph = csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
+    else:
+        graph = csr_matrix((n, n))
+    return shortest_path(graph.T if towards else graph, indices=node, unweighted=True, directed=True)
+
+
+class Relay:
+    """Sends messages and keeps their outcomes."""
+
+    def __init__(self, sim, clustering):
+        p = sim.config.protocol
+        self.sim = sim
+        self.clustering = clustering
+        self.routing = p.routing
+        self.ttl = p.message_ttl
+        self.distributed_gateways = p.distributed_gateways
+        self._outcomes: dict[int, dict] = {}
+        self._seen: dict[int, set[int]] = {}
+        self._next_id = 0
+
+    def send(self, src: int, dst: int) -> int:
+        """Send a message from ``src`` to ``dst`` now; returns its id."""
+        st, now = self.sim.state, self.sim.env.now
+        if not (0 <= src < st.n and 0 <= dst < st.n) or src == dst:
+            raise ValueError(f"need two different robots in [0, {st.n}), got src={src}, dst={dst}")
+        mid = self._next_id
+        self._next_id += 1
+        self._outcomes[mid] = {
+            "msg_id": mid,
+            "src": src,
+            "dst": dst,
+            "routing": self.routing,
+            "t_sent_s": now,
+            "delivered": False,
+            "t_delivered_s": np.nan,
+            "hops": 0,
+            "latency_s": np.nan,
+            "transmissions": 0,
+            "shortest_hops": float(hop_distances(st, now, src)[dst]),
+        }
+        self._seen[mid] = {src}
+        msg = Message(mid, src, dst, self.ttl, 1)
+        if self.routing == "oracle":
+            self._forward_oracle(src, msg)
+        else:
+            self._broadcast(src, msg)
+        return mid
+
+    # -- backbone flooding -------------------------------------------------------------
+    def _broadcast(self, sender: int, msg: Message) -> None:
+        self._outcomes[msg.id]["transmissions"] += 1
+        self.sim.channel.broadcast(sender, msg, self._on_flood, kind="data")
+
+    def _relays(self, receivers: np.ndarray, now: float) -> np.ndarray:
+        st = self.sim.state
+        role = st.role[receivers]
+        backbone = role == LEADER
+        cl = self.clustering
+        for k in np.flatnonzero(role == MEMBER).tolist():
+            r = int(receivers[k])
+            if self.distributed_gateways:
+                backbone[k] = cl.borders_other_group(r, now)
+            else:
+                backbone[k] = len(cl.known_leaders(r, now, exclude=int(st.leader[r]))) > 0
+        return receivers[backbone]
+
+    def _on_flood(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
+        now = self.sim.env.now
+        seen = self._seen[msg.id]
+        fresh = [r for r in receivers.tolist() if r not in seen]
+        seen.update(fresh)
+        if msg.dst in fresh:
+            self._delivered(msg, now)
+        if msg.ttl <= 1:
+            return
+        nxt = msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1)
+        for r in self._relays(np.array(fresh, dtype=np.int64), now).tolist():
+            if r != msg.dst:
+                self._broadcast(r, nxt)
+
+    # -- oracle shortest path ----------------------------------------------------------
+    def _forward_oracle(self, holder: int, msg: Message) -> None:
+        st, now = self.sim.state, self.sim.env.now
+        to_dst = hop_distances(st, now, msg.dst, towards=True)
+        nbrs, _ = self.sim.channel.in_range(holder)
+        if len(nbrs) == 0 or not np.isfinite(to_dst[nbrs]).any():
+            return  # no route now: the message is lost
+        # The next hop: the neighbour fewest hops from the destination (lowest id on ties).
+        nxt = int(nbrs[int(np.argmin(to_dst[nbrs]))])
+        self._outcomes[msg.id]["transmissions"] += 1
+        self.sim.channel.unicast(holder, nxt, msg, self._on_oracle, kind="data")
+
+    def _on_oracle(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
+        holder = int(receivers[0])
+        if holder == msg.dst:
+            self._delivered(msg, self.sim.env.now)
+        elif msg.ttl > 1:
+            self._forward_oracle(holder, msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1))
+
+    def _delivered(self, msg: Message, now: float) -> None:
+        out = self._outcomes[msg.id]
+        if not out["delivered"]:
+            out.update(delivered=True, t_delivered_s=now, hops=msg.hops, latency_s=now - out["t_sent_s"])
+
+    def outcomes(self) -> list[Outcome]:
+        return [Outcome(**o) for o in self._outcomes.values()]
+
+
+def traffic(sim, relay: Relay, rate_hz: float):
+    """Messages between uniformly random pairs, as a Poisson process of ``rate_hz``."""
+    rng = sim.streams.get("traffic")
+    n = sim.state.n
+    while True:
+        yield sim.env.timeout(rng.exponential(1.0 / rate_hz))
+        src = int(rng.integers(n))
+        dst = int(rng.integers(n - 1))
+        relay.send(src, dst + (dst >= src))

@@ -1,0 +1,213 @@
+"""The full protocol stack as one plugin (``protocol.model = "clustering"``): Ack beacon,
+neighbour tables, clustering (rules 1-6), relaying, leader commands, and what they
+record: ``roles``, ``groups``, ``beliefs`` and ``messages`` tables and summary figures."""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from netsim.state import LEADER, MEMBER, ROLE_NAMES
+from netsim.topology import geometric_edges
+from protocols.ack import AckBeacon
+from protocols.clustering import Clustering
+from protocols.relay import Outcome, Relay, traffic
+
+
+class Command(NamedTuple):
+    leader: int
+    seq: int
+    payload: object
+
+
+class Stack:
+    def __init__(self, sim):
+        self.sim = sim
+        self.beacon = AckBeacon(sim)
+        self.table = self.beacon.table
+        self.clustering = Clustering(sim, self.beacon)
+        self.relay = Relay(sim, self.clustering)
+        n = sim.state.n
+        # Leader commands: each member keeps the latest command of its current leader.
+        self.command: list[Command | None] = [None] * n
+        self._command_seq = np.zeros(n, dtype=np.int64)
+        self.on_command: list[Callable[[int, Command], None]] = []
+        self._groups: list[tuple] = []
+        self._beliefs: list[pd.DataFrame] = []
+
+    def start(self, phase_s=None) -> None:
+        sim = self.sim
+        self.beacon.start(phase_s)
+        self.clustering.start()
+        p = sim.config.protocol
+        if p.message_rate_hz > 0:
+            sim.env.process(traffic(sim, self.relay, p.message_rate_hz))
+        interval = sim.config.output.position_interval_s or p.ack_period_s
+        sim.env.process(self._sampler(interval))
+        sim.trace.add_frame("messages", self.messages_frame)
+        sim.trace.add_frame("groups", self.groups_frame)
+        sim.trace.add_frame(
+            "beliefs",
+            lambda: (
+                pd.concat(self._beliefs, ignore_index=True) if self._beliefs else pd.DataFrame(columns=BELIEF_COLUMNS)
+            ),
+        )
+
+    # -- leader commands ---------------------------------------------------------------
+    def send_command(self, leader: int, payload) -> None:
+        """Leader ``leader`` broadcasts a command; its members (and only they) adopt it."""
+        self._command_seq[leader] += 1
+        cmd = Command(leader, int(self._command_seq[leader]), payload)
+        self.sim.channel.broadcast(leader, cmd, self._on_command, kind="command")
+
+    def _on_command(self, sender: int, receivers: np.ndarray, cmd: Command) -> None:
+        st = self.sim.state
+        for r in receivers[(st.role[receivers] == MEMBER) & (st.leader[receivers] == sender)].tolist():
+            old = self.command[r]
+            if old is None or old.leader != cmd.leader or old.seq < cmd.seq:
+                self.command[r] = cmd
+                for fn in self.on_command:
+                    fn(r, cmd)
+
+    # -- ground truth beside belief ----------------------------------------------------
+    def belief_vs_truth(self, now: float) -> pd.DataFrame:
+        """Per robot: its role and leader, whether the leader is truly in two-way range,
+        how many neighbours it believes live and how many it truly has, and how many of
+        its beliefs are stale (believed live, out of range) or missing (in range, not
+        believed)."""
+        st, n = self.sim.state, self.sim.state.n
+        edges = geometric_edges(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
+        a = np.array([e[0] for e in edges], dtype=np.int64)
+        b = np.array([e[1] for e in edges], dtype=np.int64)
+        true_keys = np.sort(np.concatenate([a * n + b, b * n + a]))
+        live = self.table.live_mask(now)
+        rows = np.nonzero(live)[0]
+        believed_keys = rows * n + self.table.id[live]
+        believed_true = np.isin(believed_keys, true_keys)
+        true_count = np.bincount(np.concatenate([a, b]), minlength=n)
+        believed = np.bincount(rows, minlength=n)
+        stale = np.bincount(rows[~believed_true], minlength=n)
+        leader = st.leader.copy()
+        has = (st.role == MEMBER) & (leader >= 0)
+        in_range = np.zeros(n, dtype=bool)
+        in_range[has] = np.isin(np.arange(n)[has] * n + leader[has], true_keys)
+        return pd.DataFrame(
+            {
+                "t_s": now,
+                "robot": np.arange(n),
+                "role": [ROLE_NAMES[r] for r in st.role],
+                "leader": leader,
+                "leader_in_range": in_range | (st.role == LEADER),
+                "believed_neighbours": believed,
+                "true_neighbours": true_count,
+                "stale_neighbours": stale,
+                "missing_neighbours": true_count - (believed - stale),
+            }
+        )
+
+    def _sampler(self, interval: float):
+        env = self.sim.env
+        while True:
+            now = env.now
+            for i, groups in enumerate(self.clustering.groups(now)):
+                leader = int(self.sim.state.leader[i])
+                for g in sorted(groups):
+                    self._groups.append((now, i, g, g == leader))
+            self._beliefs.append(self.belief_vs_truth(now))
+            yield env.timeout(interval)
+
+    # -- outputs -----------------------------------------------------------------------
+    def messages_frame(self) -> pd.DataFrame:
+        return pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
+
+    def groups_frame(self) -> pd.DataFrame:
+        return pd.DataFrame(self._groups, columns=["t_s", "robot", "group", "primary"])
+
+    def summary(self, frames: dict[str, pd.DataFrame], duration_s: float) -> dict:
+        n = self.sim.state.n
+        roles = frames["roles"]
+        out = leader_statistics(roles, n, duration_s)
+        groups = frames["groups"]
+        if len(groups):
+            per_robot = groups.groupby(["t_s", "robot"]).size()
+            gw = (per_robot > 1).groupby(level="t_s").sum()
+            out["gateways_mean"] = float(gw.mean())
+        acks = self.sim.channel.counters_for("ack").sent.sum()
+        data = self.sim.channel.counters_for("data").sent.sum()
+        out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
+        out["relays_per_robot_per_s"] = float(data / (n * duration_s)) if duration_s else math.nan
+        msgs = frames["messages"]
+        out["messages"] = len(msgs)
+        out["message_delivery_ratio"] = float(msgs["delivered"].mean()) if len(msgs) else math.nan
+        return out
+
+
+BELIEF_COLUMNS = [
+    "t_s",
+    "robot",
+    "role",
+    "leader",
+    "leader_in_range",
+    "believed_neighbours",
+    "true_neighbours",
+    "stale_neighbours",
+    "missing_neighbours",
+]
+
+
+def leader_statistics(roles: pd.DataFrame, n: int, duration_s: float) -> dict:
+    """Time-weighted mean number of leaders, role changes per robot per minute, and mean
+    leader tenure, from the role-change records (a level statistic: exact, not sampled).
+
+    Tenures still running at the end are cut there, so ``mean_leader_tenure_s`` is a
+    lower bound when some are; ``leader_tenures_complete`` says how many ended.
+    """
+    if duration_s <= 0 or roles.empty:
+        return {
+            "leaders_time_mean": math.nan,
+            "role_changes_per_robot_per_min": math.nan,
+            "mean_leader_tenure_s": math.nan,
+            "leader_tenures_complete": 0,
+        }
+    r = roles.reset_index(drop=True)
+    r["order"] = np.arange(len(r))
+    r = r.sort_values(["robot", "t_s", "order"], kind="stable")
+    is_leader = (r["role"] == "alpha").to_numpy()
+    robot = r["robot"].to_numpy()
+    same = np.r_[False, robot[1:] == robot[:-1]]
+    was_leader = np.r_[False, is_leader[:-1]] & same
+    delta = is_leader.astype(int) - was_leader.astype(int)
+    t = r["t_s"].to_numpy(float)
+    order = np.argsort(t, kind="stable")
+    t_sorted, level = t[order], np.cumsum(delta[order])
+    spans = np.diff(np.r_[t_sorted, duration_s])
+    leaders_mean = float((level * spans).sum() / duration_s)
+    changes = int((r["cause"] != "rule1_start").sum())
+    starts = t[is_leader & ~was_leader]
+    start_robot = robot[is_leader & ~was_leader]
+    ends_mask = ~is_leader & was_leader
+    ends, end_robot = t[ends_mask], robot[ends_mask]
+    tenures, complete = [], 0
+    for rb in np.unique(start_robot):
+        s, e = starts[start_robot == rb], ends[end_robot == rb]
+        for k, t0 in enumerate(s):
+            if k < len(e):
+                tenures.append(e[k] - t0)
+                complete += 1
+            else:
+                tenures.append(duration_s - t0)
+    return {
+        "leaders_time_mean": leaders_mean,
+        "role_changes_per_robot_per_min": changes / (n * duration_s / 60.0),
+        "mean_leader_tenure_s": float(np.mean(tenures)) if tenures else math.nan,
+        "leader_tenures_complete": complete,
+    }
+
+
+def install(sim) -> Stack:
+    stack = Stack(sim)
+    stack.start()
+    return stack
