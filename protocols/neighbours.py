@@ -44,7 +44,7 @@ class NeighbourTable:
     x_m = property(lambda self: self.data[:, :, X])
     y_m = property(lambda self: self.data[:, :, Y])
     group_size = property(lambda self: self.data[:, :, GROUP_SIZE].astype(np.int64))
-    degree = property(lambda self: self.data[:, :, DEGREE].astype(np.int64))
+    ack_degree = property(lambda self: self.data[:, :, DEGREE].astype(np.int64))
     bidir_since_s = property(lambda self: self.data[:, :, BIDIR_SINCE])
 
     @property

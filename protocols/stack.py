@@ -5,7 +5,8 @@ record: ``roles``, ``groups``, ``beliefs`` and ``messages`` tables and summary f
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
