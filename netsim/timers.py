@@ -18,7 +18,20 @@ from collections.abc import Callable
 
 import numpy as np
 import simpy
-from simpy.events import NORMAL
+from simpy.events import NORMAL, URGENT
+
+
+def urgent_timeout(env: simpy.Environment, delay_s: float) -> simpy.Event:
+    """A timeout that runs before NORMAL events due at the same instant.
+
+    Transmissions use it so that, even with zero latency, an Ack sent at the instant of a
+    deadline is sent and delivered before the deadline is looked at.
+    """
+    ev = simpy.Event(env)
+    ev._ok = True
+    ev._value = None
+    env.schedule(ev, URGENT, delay_s)
+    return ev
 
 
 class DeadlineTimers:
@@ -42,6 +55,13 @@ class DeadlineTimers:
         if early.any():
             for i, d in zip(idx[early].tolist(), deadline[early].tolist()):
                 self._arm(i, d)
+
+    def expire_if_due(self, i: int) -> None:
+        """Expire timer ``i`` now if its deadline has come, ahead of its kernel event
+        (which then finds nothing to do)."""
+        if self.deadline_s[i] <= self.env.now:
+            self.deadline_s[i] = np.inf
+            self.on_expire(i, self.env.now)
 
     def cancel(self, idx) -> None:
         self.deadline_s[idx] = np.inf

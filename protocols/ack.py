@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from netsim.timers import urgent_timeout
 from protocols.neighbours import NeighbourTable, ack_record
 
 
@@ -38,11 +39,11 @@ AckListener = Callable[[float, Ack, np.ndarray, np.ndarray], None]
 
 def ack_beacon(sim, i: int, period_s: float, jitter_s: float, phase_s: float, rng: np.random.Generator, send):
     """Robot ``i``'s beacon: first Ack at ``phase_s``, then one every period."""
-    yield sim.env.timeout(phase_s)
+    yield urgent_timeout(sim.env, phase_s)
     while True:
         send(i)
         step = period_s + (rng.uniform(-jitter_s, jitter_s) if jitter_s > 0 else 0.0)
-        yield sim.env.timeout(step)
+        yield urgent_timeout(sim.env, step)
 
 
 class AckBeacon:

@@ -23,7 +23,9 @@ The decisions are pure functions of small values (:func:`choose_leader`,
 Timers are exact: a member's deadline is ``tau`` after the last two-way Ack from its
 leader; an undecided robot's is ``tau`` after it became undecided or last heard a leader
 over a two-way link (one-way links are not links). Deliveries precede timers due at the
-same instant, so an Ack arriving exactly at a deadline counts.
+same instant, so an Ack arriving exactly at a deadline counts, and so do Acks sent at
+that instant (sends too run ahead of timers); but a robot's own deadline due at the
+instant of its own Ack is applied before the Ack is built, so the Ack tells the new role.
 """
 
 from __future__ import annotations
@@ -147,7 +149,7 @@ class Clustering:
         self.role_changes = np.zeros(st.n, dtype=np.int64)
         sim.trace.declare("roles", RoleChange)
         beacon.listeners.append(self.on_ack)
-        beacon.before_send.append(self._refresh_group_size)
+        beacon.before_send.append(self._before_ack)
 
     def start(self) -> None:
         st, now = self.sim.state, self.sim.env.now
@@ -209,7 +211,10 @@ class Clustering:
         """Ids of the members that belong to two groups or more."""
         return np.array([i for i, g in enumerate(self.groups(now)) if len(g) > 1], dtype=np.int64)
 
-    def _refresh_group_size(self, i: int, now: float) -> None:
+    def _before_ack(self, i: int, now: float) -> None:
+        # A robot's own deadline due at the instant of its Ack is applied first, so that
+        # the Ack tells its new role (sends run ahead of timers, see the module notes).
+        self.timers.expire_if_due(i)
         self.beacon.group_size[i] = self.group_size(i, now) if self.sim.state.role[i] == LEADER else 1
 
     # -- transitions ---------------------------------------------------------------------
