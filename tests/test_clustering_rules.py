@@ -18,12 +18,16 @@ TAU, PERIOD, LATENCY = 3.0, 1.0, 0.001
 
 def scripted(positions, phases, range_m=10.0, latency_s=LATENCY, **protocol):
     n = len(positions)
-    cfg = from_dict({
-        "duration_s": 100.0, "world": {"n_robots": n, "side_m": 10_000.0}, "mobility": {"model": "static"},
-        "channel": {"range_m": range_m, "latency_s": latency_s},
-        "protocol": {"model": "clustering", "ack_period_s": PERIOD, "ack_jitter_s": 0.0, "tau_s": TAU, **protocol},
-        "output": {"position_interval_s": 0.0},
-    })
+    cfg = from_dict(
+        {
+            "duration_s": 100.0,
+            "world": {"n_robots": n, "side_m": 10_000.0},
+            "mobility": {"model": "static"},
+            "channel": {"range_m": range_m, "latency_s": latency_s},
+            "protocol": {"model": "clustering", "ack_period_s": PERIOD, "ack_jitter_s": 0.0, "tau_s": TAU, **protocol},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
     sim = Simulation(cfg)
     sim.state.place(np.asarray(positions, dtype=float))
     stack = Stack(sim)
@@ -119,6 +123,7 @@ def test_ack_at_the_deadline_instant_counts():
     at t and t + 2 = its deadline (tau = 2 periods): that Ack is processed first, counts,
     and the member never times out."""
     sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.5, 0.75], tau_s=2.0, latency_s=0.0)
+
     def every_other(sender, receivers, distances):
         odd = sim.env.now > 5 and int(round(sim.env.now - 0.5)) % 2 == 1
         return np.zeros(len(receivers), dtype=bool) if sender == 0 and odd else None

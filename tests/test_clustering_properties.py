@@ -1,0 +1,263 @@
+"""Clustering under loss and on random deployments (VALIDATION.md items 9 and 13), relaying,
+leader commands, and the ground-truth view."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from netsim.config import from_dict
+from netsim.run import build, collect
+from netsim.sim import Simulation
+from netsim.state import LEADER, MEMBER, UNDECIDED
+from netsim.topology import geometric_edges
+from protocols.stack import Stack
+
+
+def static_run(positions, duration=40.0, seed=1, range_m=10.0, run=True, phase_s=None, **protocol):
+    n = len(positions)
+    cfg = from_dict(
+        {
+            "seed": seed,
+            "duration_s": duration,
+            "world": {"n_robots": n, "side_m": 1e6},
+            "mobility": {"model": "static"},
+            "channel": {"range_m": range_m},
+            "protocol": {"model": "clustering", **protocol},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
+    sim = Simulation(cfg)
+    sim.state.place(np.asarray(positions, dtype=float))
+    stack = Stack(sim)
+    stack.start(phase_s)
+    if run:
+        sim.run()
+    return sim, stack
+
+
+def check_independent_dominating(sim, range_m):
+    st = sim.state
+    edges = geometric_edges(st.positions_at(sim.now), range_m)
+    nbr = {(a, b) for a, b, _ in edges} | {(b, a) for a, b, _ in edges}
+    leaders = set(np.flatnonzero(st.role == LEADER).tolist())
+    assert not any(a in leaders and b in leaders for a, b, _ in edges), "two leaders in range"
+    assert (st.role != UNDECIDED).all(), "a robot stayed undecided"
+    for i in np.flatnonzero(st.role == MEMBER).tolist():
+        assert st.leader[i] in leaders and (i, int(st.leader[i])) in nbr, f"member {i} not next to a leader"
+
+
+@pytest.mark.parametrize("n", [20, 80, 250])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_static_deployment_converges_to_independent_dominating_leaders(n, seed):
+    """Item 13: no loss, static: leaders form an independent dominating set, nobody undecided."""
+    side = 10.0 * math.sqrt(n * math.pi / 6)  # mean degree about 6
+    pos = np.random.default_rng(seed).uniform(0, side, (n, 2))
+    sim, _ = static_run(pos, seed=seed)
+    check_independent_dominating(sim, 10.0)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(min_value=2, max_value=40), st.floats(min_value=5.0, max_value=40.0), st.integers(0, 2**31 - 1))
+def test_property_random_static_topologies(n, side, seed):
+    """Hypothesis: on any static topology the invariants of item 13 hold at the end, and at
+    every sampled instant no member's leader is missing from its live neighbours."""
+    pos = np.random.default_rng(seed).uniform(0, side, (n, 2))
+    sim, stack = static_run(pos, duration=30.0, seed=seed % 1000, run=False)
+    violations = []
+
+    def watch():
+        rng = np.random.default_rng(seed)
+        while True:
+            yield sim.env.timeout(rng.uniform(0.05, 0.5))
+            st = sim.state
+            for i in np.flatnonzero(st.role == MEMBER).tolist():
+                if st.leader[i] not in stack.table.live_ids(sim.now, i):
+                    violations.append((sim.now, i))
+
+    sim.env.process(watch())
+    sim.run()
+    assert violations == []
+    check_independent_dominating(sim, 10.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("p, tau_s, k", [(0.3, 2.5, 2), (0.5, 3.5, 3)])
+def test_spurious_timeouts_under_loss(p, tau_s, k):
+    """Item 9: a member falsely loses its (static, in range) leader after (1 - p^k) /
+    ((1 - p) p^k) of the leader's Acks on average, k = Ack instants inside the tau window.
+
+    Pairs far apart from each other; for each, the leader's Acks are counted from the one
+    that made the robot a member to its first rule-3 timeout."""
+    pairs = 400
+    pos = np.zeros((2 * pairs, 2))
+    pos[0::2, 0] = pos[1::2, 0] = np.arange(pairs) * 100.0
+    pos[1::2, 1] = 5.0
+    cfg = from_dict(
+        {
+            "seed": 9,
+            "duration_s": 200.0,
+            "world": {"n_robots": 2 * pairs, "side_m": 1e6},
+            "mobility": {"model": "static"},
+            "channel": {"range_m": 10.0, "loss_probability": p},
+            "protocol": {"model": "clustering", "ack_jitter_s": 0.0, "tau_s": tau_s, "election_policy": "none"},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
+    sim = Simulation(cfg)
+    sim.state.place(pos)
+    stack = Stack(sim)
+    stack.start()
+    sim.run()
+    roles = sim.trace.frame("roles")
+    phase = stack.beacon.phase_s
+    counts = []
+    for robot in range(2 * pairs):
+        rec = roles[roles.robot == robot]
+        joins = rec[rec.role == "beta"]
+        if joins.empty:
+            continue
+        t_join, leader = joins.t_s.iloc[0], int(joins.leader.iloc[0])
+        lost = rec[(rec.cause == "rule3_leader_lost") & (rec.t_s > t_join)]
+        if lost.empty:
+            continue
+        # The leader's sends are at phase + j (no jitter); the joining Ack was sent at
+        # t_join - latency; the timeout comes tau after the last Ack heard.
+        latency = cfg.channel.latency_s
+        first = math.floor(t_join - latency - phase[leader] + 1e-9) + 1
+        last = math.floor(lost.t_s.iloc[0] - latency - phase[leader] + 1e-9)
+        counts.append(last - first + 1)
+    theory = (1 - p**k) / ((1 - p) * p**k)
+    counts = np.array(counts)
+    assert len(counts) > 300
+    assert counts.min() >= k
+    se = counts.std() / math.sqrt(len(counts))
+    assert abs(counts.mean() - theory) < 4 * se
+
+
+def connected_positions(n, seed, side):
+    rng = np.random.default_rng(seed)
+    while True:
+        pos = rng.uniform(0, side, (n, 2))
+        import networkx as nx
+
+        g = nx.Graph()
+        g.add_nodes_from(range(n))
+        g.add_edges_from((a, b) for a, b, _ in geometric_edges(pos, 10.0))
+        if nx.is_connected(g):
+            return pos
+
+
+@pytest.mark.parametrize("routing", ["backbone", "oracle"])
+def test_every_message_arrives_on_a_static_connected_lossless_network(routing):
+    pos = connected_positions(60, 4, 45.0)
+    sim, stack = static_run(pos, duration=60.0, run=False, routing=routing)
+    sim.run(until_s=20.0)
+    ids = []
+
+    def sender():
+        rng = np.random.default_rng(0)
+        for _ in range(40):
+            src, dst = rng.choice(60, 2, replace=False)
+            ids.append(stack.relay.send(int(src), int(dst)))
+            yield sim.env.timeout(0.5)
+
+    sim.env.process(sender())
+    sim.run()
+    msgs = stack.messages_frame()
+    assert len(msgs) == 40 and msgs.delivered.all()
+    assert (msgs.hops >= msgs.shortest_hops).all()
+    if routing == "oracle":
+        assert (msgs.hops == msgs.shortest_hops).all()
+        assert (msgs.transmissions == msgs.hops).all()
+    assert (msgs.latency_s > 0).all()
+
+
+def test_strict_backbone_can_miss_what_distributed_gateways_reach():
+    """Two groups that touch only through two members: leaders and gateways alone do not
+    connect them."""
+    # Leader 0 with member 1; leader 3 with member 2; only 1 and 2 hear each other.
+    pos = [[0, 0], [9, 0], [18, 0], [27, 0]]
+    for distributed, expect in ((True, True), (False, False)):
+        sim, stack = static_run(
+            pos, duration=30.0, run=False, phase_s=[0.1, 0.5, 0.6, 0.2], distributed_gateways=distributed
+        )
+        sim.run(until_s=15.0)
+        assert sim.state.role.tolist() in ([LEADER, MEMBER, MEMBER, LEADER],)
+        stack.relay.send(0, 3)
+        sim.run()
+        assert bool(stack.messages_frame().delivered.iloc[0]) is expect
+
+
+def test_delivery_ratio_falls_with_loss():
+    pos = connected_positions(60, 5, 45.0)
+    ratios = []
+    for p in (0.0, 0.5):
+        sim, stack = static_run(pos, duration=80.0, run=False)
+        sim.channel.survives.p = p  # lossless formation first, then loss for the messages
+        sim.run(until_s=20.0)
+        rng = np.random.default_rng(1)
+        for _ in range(60):
+            src, dst = rng.choice(60, 2, replace=False)
+            stack.relay.send(int(src), int(dst))
+            sim.run(until_s=sim.now + 0.5)
+        sim.run()
+        ratios.append(stack.messages_frame().delivered.mean())
+    assert ratios[0] == 1.0 and ratios[1] < 0.95
+
+
+def test_members_execute_their_own_leaders_latest_command():
+    pos = [[0, 0], [5, 0], [5, 4], [40, 0], [45, 0]]
+    sim, stack = static_run(pos, duration=20.0, run=False)
+    sim.run(until_s=10.0)
+    leaders = np.flatnonzero(sim.state.role == LEADER).tolist()
+    assert len(leaders) == 2
+    executed = []
+    stack.on_command.append(lambda r, cmd: executed.append((r, cmd.payload)))
+    a, b = leaders
+    stack.send_command(a, "hold")
+    stack.send_command(b, "spread")
+    sim.run(until_s=11.0)
+    stack.send_command(a, "go north")
+    sim.run()
+    members_a = np.flatnonzero((sim.state.role == MEMBER) & (sim.state.leader == a)).tolist()
+    members_b = np.flatnonzero((sim.state.role == MEMBER) & (sim.state.leader == b)).tolist()
+    assert members_a and members_b
+    for r in members_a:
+        assert stack.command[r].payload == "go north"
+    for r in members_b:
+        assert stack.command[r].payload == "spread"
+    assert {r for r, _ in executed} == set(members_a) | set(members_b)
+
+
+def test_belief_vs_truth_shows_staleness():
+    """After a robot leaves, its former neighbours still believe in it until tau passes."""
+    sim, stack = static_run([[0, 0], [5, 0], [0, 5]], duration=30.0, run=False)
+    sim.run(until_s=10.0)
+    sim.state.set_leg(2, sim.now, (0.0, 0.0), start_m=(500.0, 500.0))
+    sim.run(until_s=10.5)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    assert view.loc[0, "stale_neighbours"] == 1 and view.loc[0, "true_neighbours"] == 1
+    sim.run(until_s=14.0)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    assert view.loc[0, "stale_neighbours"] == 0 and view.loc[2, "true_neighbours"] == 0
+
+
+def test_run_outputs_for_clustering(tmp_path):
+    cfg = from_dict(
+        {
+            "seed": 3,
+            "duration_s": 60.0,
+            "world": {"n_robots": 40, "side_m": 500.0},
+            "protocol": {"model": "clustering", "message_rate_hz": 1.0},
+        }
+    )
+    sim = build(cfg)
+    sim.run()
+    frames = collect(sim)
+    for name in ("roles", "groups", "messages", "beliefs"):
+        assert not frames[name].empty, name
+    assert {"msg_id", "src", "dst", "delivered", "hops", "latency_s", "transmissions"} <= set(frames["messages"])
+    assert set(frames["roles"].cause) >= {"rule1_start", "rule4_no_leader", "rule2_join"}
