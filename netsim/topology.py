@@ -9,25 +9,23 @@ from scipy.spatial import cKDTree
 from netsim.state import ROLE_NAMES, RobotState
 
 
-def geometric_edges(positions_m: np.ndarray, range_m, side_m: float | None = None, directed: bool = False):
-    """Pairs of robots in range, with distances.
+def geometric_pairs(positions_m: np.ndarray, range_m, side_m: float | None = None, directed: bool = False):
+    """Pairs of robots in range as arrays ``(i, j, distance_m)``, sorted by ``(i, j)``.
 
-    Undirected (default): ``(i, j, d)`` with ``i < j`` and ``d <= min(r_i, r_j)``, the
-    links on which both robots hear each other. Directed: ``(i, j, d)`` for every
-    ordered pair with ``d <= r_i`` (i reaches j). ``side_m`` set: distances on a torus.
+    Undirected (default): ``i < j`` and ``d <= min(r_i, r_j)``, the links on which both
+    robots hear each other. Directed: every ordered pair with ``d <= r_i`` (i reaches j).
+    ``side_m`` set: distances on a torus.
 
     Notes
     -----
     A KD-tree finds the candidate pairs within the largest range: ``O(N log N + E)``.
-
-    >>> geometric_edges(np.array([[0., 0.], [3., 4.], [20., 0.]]), 5.0)
-    [(0, 1, 5.0)]
     """
     positions_m = np.asarray(positions_m, dtype=float)
     n = len(positions_m)
     ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))
+    empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
     if n < 2:
-        return []
+        return empty
     if side_m is not None:
         pts = np.mod(positions_m, side_m)
         pts = np.where(pts >= side_m, 0.0, pts)
@@ -36,21 +34,34 @@ def geometric_edges(positions_m: np.ndarray, range_m, side_m: float | None = Non
         tree = cKDTree(positions_m)
     pairs = tree.query_pairs(float(ranges.max()), output_type="ndarray")
     if len(pairs) == 0:
-        return []
-    i, j = pairs[:, 0], pairs[:, 1]
+        return empty
+    i, j = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
     d = positions_m[i] - positions_m[j]
     if side_m is not None:
         d -= side_m * np.round(d / side_m)
     dist = np.hypot(d[:, 0], d[:, 1])
-    if not directed:
-        lo, hi = np.minimum(i, j), np.maximum(i, j)
+    if directed:
+        fwd, back = dist <= ranges[i], dist <= ranges[j]
+        i, j, dist = (
+            np.concatenate([i[fwd], j[back]]),
+            np.concatenate([j[fwd], i[back]]),
+            np.concatenate([dist[fwd], dist[back]]),
+        )
+    else:
         keep = dist <= np.minimum(ranges[i], ranges[j])
-        return sorted(zip(lo[keep].tolist(), hi[keep].tolist(), dist[keep].tolist()))
-    out = []
-    for a, b in ((i, j), (j, i)):
-        keep = dist <= ranges[a]
-        out += zip(a[keep].tolist(), b[keep].tolist(), dist[keep].tolist())
-    return sorted(out)
+        i, j, dist = i[keep], j[keep], dist[keep]
+    order = np.lexsort((j, i))
+    return i[order], j[order], dist[order]
+
+
+def geometric_edges(positions_m: np.ndarray, range_m, side_m: float | None = None, directed: bool = False):
+    """:func:`geometric_pairs` as a list of ``(i, j, distance_m)`` tuples.
+
+    >>> geometric_edges(np.array([[0., 0.], [3., 4.], [20., 0.]]), 5.0)
+    [(0, 1, 5.0)]
+    """
+    i, j, d = geometric_pairs(positions_m, range_m, side_m, directed)
+    return list(zip(i.tolist(), j.tolist(), d.tolist()))
 
 
 def snapshot(state: RobotState, t: float, directed: bool = False) -> nx.Graph:
@@ -69,6 +80,6 @@ def snapshot(state: RobotState, t: float, directed: bool = False) -> nx.Graph:
             i, pos=(float(pos[i, 0]), float(pos[i, 1])), role=ROLE_NAMES[state.role[i]], leader=int(state.leader[i])
         )
     side = state.side_m if state.torus else None
-    for i, j, d in geometric_edges(pos, state.range_m, side, directed):
-        g.add_edge(i, j, distance=d)
+    i, j, d = geometric_pairs(pos, state.range_m, side, directed)
+    g.add_weighted_edges_from(zip(i.tolist(), j.tolist(), d.tolist()), weight="distance")
     return g

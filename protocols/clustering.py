@@ -184,19 +184,36 @@ class Clustering:
         members = self._two_way(i, now) & (rows[:, ROLE] == MEMBER) & (rows[:, LEADER_FIELD] == i)
         return 1 + int(members.sum())
 
-    def groups(self, now: float) -> list[set[int]]:
-        """The groups (leader ids) each robot belongs to now: a leader its own; a member
-        its leader's and, if it is a gateway, those of the other leaders it has a live
-        two-way link with; an undecided robot none."""
+    def membership(self, now: float):
+        """Group membership of every robot now, as arrays ``(robot, group, primary)``.
+
+        A leader is in its own group; a member in its leader's (primary) and, if it is a
+        gateway, in those of the other leaders it has a live two-way link with; an
+        undecided robot in none. One vectorised pass over all neighbour tables.
+        """
         st = self.sim.state
-        out = []
-        for i in range(st.n):
-            if st.role[i] == LEADER:
-                out.append({i})
-            elif st.role[i] == MEMBER:
-                out.append({int(st.leader[i])} | {c.id for c in self.known_leaders(i, now)})
-            else:
-                out.append(set())
+        live = self.table.live_mask(now)
+        if not self.symmetric:
+            live &= self.table.data[:, :, HEARS_ME] != 0
+        heard_leader = live & (self.table.data[:, :, ROLE] == LEADER)
+        rows, slots = np.nonzero(heard_leader)
+        other = self.table.id[rows, slots]
+        member = st.role[rows] == MEMBER
+        rows, other = rows[member], other[member]
+        secondary = other != st.leader[rows]
+        leaders = np.flatnonzero(st.role == LEADER)
+        members = np.flatnonzero(st.role == MEMBER)
+        robot = np.concatenate([leaders, members, rows[secondary]])
+        group = np.concatenate([leaders, st.leader[members], other[secondary]])
+        primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
+        order = np.lexsort((~primary, group, robot))
+        return robot[order], group[order], primary[order]
+
+    def groups(self, now: float) -> list[set[int]]:
+        """The groups (leader ids) each robot belongs to now (see :meth:`membership`)."""
+        out: list[set[int]] = [set() for _ in range(self.sim.state.n)]
+        for r, g, _ in zip(*(a.tolist() for a in self.membership(now))):
+            out[r].add(g)
         return out
 
     def borders_other_group(self, i: int, now: float) -> bool:
@@ -209,7 +226,8 @@ class Clustering:
 
     def gateways(self, now: float) -> np.ndarray:
         """Ids of the members that belong to two groups or more."""
-        return np.array([i for i, g in enumerate(self.groups(now)) if len(g) > 1], dtype=np.int64)
+        robot, _, _ = self.membership(now)
+        return np.flatnonzero(np.bincount(robot, minlength=self.sim.state.n) > 1)
 
     def _before_ack(self, i: int, now: float) -> None:
         # A robot's own deadline due at the instant of its Ack is applied first, so that

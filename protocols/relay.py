@@ -21,7 +21,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from netsim.state import LEADER, MEMBER
-from netsim.topology import geometric_edges
+from netsim.topology import geometric_pairs
 
 
 class Message(NamedTuple):
@@ -49,13 +49,9 @@ class Outcome(NamedTuple):
 def hop_distances(state, now: float, node: int, towards: bool = False) -> np.ndarray:
     """Hops from ``node`` to every robot over the true directed unit-disk links now
     (``towards=True``: from every robot to ``node``, a search on the reversed links)."""
-    edges = geometric_edges(state.positions_at(now), state.range_m, state.side_m if state.torus else None, True)
+    a, b, _ = geometric_pairs(state.positions_at(now), state.range_m, state.side_m if state.torus else None, True)
     n = state.n
-    if edges:
-        a, b = np.array([e[0] for e in edges]), np.array([e[1] for e in edges])
-        graph = csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
-    else:
-        graph = csr_matrix((n, n))
+    graph = csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
     return shortest_path(graph.T if towards else graph, indices=node, unweighted=True, directed=True)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.state import LEADER, MEMBER, ROLE_NAMES
-from netsim.topology import geometric_edges
+from netsim.topology import geometric_pairs
 from protocols.ack import AckBeacon
 from protocols.clustering import Clustering
 from protocols.relay import Outcome, Relay, traffic
@@ -36,7 +36,7 @@ class Stack:
         self.command: list[Command | None] = [None] * n
         self._command_seq = np.zeros(n, dtype=np.int64)
         self.on_command: list[Callable[[int, Command], None]] = []
-        self._groups: list[tuple] = []
+        self._groups: list[pd.DataFrame] = []
         self._beliefs: list[pd.DataFrame] = []
 
     def start(self, phase_s=None) -> None:
@@ -80,9 +80,7 @@ class Stack:
         its beliefs are stale (believed live, out of range) or missing (in range, not
         believed)."""
         st, n = self.sim.state, self.sim.state.n
-        edges = geometric_edges(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
-        a = np.array([e[0] for e in edges], dtype=np.int64)
-        b = np.array([e[1] for e in edges], dtype=np.int64)
+        a, b, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
         true_keys = np.sort(np.concatenate([a * n + b, b * n + a]))
         live = self.table.live_mask(now)
         rows = np.nonzero(live)[0]
@@ -113,10 +111,8 @@ class Stack:
         env = self.sim.env
         while True:
             now = env.now
-            for i, groups in enumerate(self.clustering.groups(now)):
-                leader = int(self.sim.state.leader[i])
-                for g in sorted(groups):
-                    self._groups.append((now, i, g, g == leader))
+            robot, group, primary = self.clustering.membership(now)
+            self._groups.append(pd.DataFrame({"t_s": now, "robot": robot, "group": group, "primary": primary}))
             self._beliefs.append(self.belief_vs_truth(now))
             yield env.timeout(interval)
 
@@ -125,7 +121,9 @@ class Stack:
         return pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
 
     def groups_frame(self) -> pd.DataFrame:
-        return pd.DataFrame(self._groups, columns=["t_s", "robot", "group", "primary"])
+        if not self._groups:
+            return pd.DataFrame(columns=["t_s", "robot", "group", "primary"])
+        return pd.concat(self._groups, ignore_index=True)
 
     def summary(self, frames: dict[str, pd.DataFrame], duration_s: float) -> dict:
         n = self.sim.state.n

@@ -218,7 +218,7 @@ def test_gateway_belongs_to_two_groups():
 
 # -- the pure decisions ------------------------------------------------------------------
 def test_transition_table_names_a_rule_for_every_change():
-    for (role, event), (new, cause) in TRANSITIONS.items():
+    for (role, _event), (new, cause) in TRANSITIONS.items():
         assert new != role and cause.startswith("rule")
     with pytest.raises(KeyError):
         transition(LEADER, "leader_heard")
