@@ -94,7 +94,7 @@ class ChannelConfig:
 
 @dataclass(frozen=True)
 class ProtocolConfig:
-    model: str = _param("ack", _any, "protocol stack, by plugin name")
+    model: str = _param("clustering", _any, "protocol stack, by plugin name ('ack': beacons only)")
     ack_period_s: float = _param(1.0, _positive, "Ack period t, s")
     ack_jitter_s: float = _param(0.05, _non_negative, "each period is t + U(-jitter, +jitter), s")
     tau_s: float = _param(3.0, _positive, "liveness timeout tau, s (default 3 ack periods)")
@@ -117,7 +117,7 @@ class ProtocolConfig:
         True, _any, "members next to a member of another group relay too (keeps flooding connected)"
     )
     message_ttl: int = _param(32, _positive, "hops a relayed message may take")
-    message_rate_hz: float = _param(0.0, _non_negative, "messages sent per second, network-wide (random pairs)")
+    message_rate_hz: float = _param(0.2, _non_negative, "messages sent per second, network-wide (random pairs)")
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ def static_run(positions, duration=40.0, seed=1, range_m=10.0, run=True, phase_s
             "world": {"n_robots": n, "side_m": 1e6},
             "mobility": {"model": "static"},
             "channel": {"range_m": range_m},
-            "protocol": {"model": "clustering", **protocol},
+            "protocol": {"model": "clustering", "message_rate_hz": 0.0, **protocol},
             "output": {"position_interval_s": 0.0},
         }
     )

@@ -17,7 +17,7 @@ def _run(tmp_path, name, *extra):
 
 def test_same_seed_gives_identical_files(tmp_path):
     a, b = _run(tmp_path, "a", "--seed", "7"), _run(tmp_path, "b", "--seed", "7")
-    for name in ("positions", "links", "acks", "roles"):
+    for name in ("positions", "links", "acks", "roles", "groups", "messages", "beliefs"):
         assert (a / f"{name}.parquet").read_bytes() == (b / f"{name}.parquet").read_bytes(), name
     assert (a / "config.toml").read_text() == (b / "config.toml").read_text()
     sa, sb = json.loads((a / "summary.json").read_text()), json.loads((b / "summary.json").read_text())
@@ -62,6 +62,9 @@ def test_output_directory_contents_and_schema(tmp_path):
         "links.parquet",
         "acks.parquet",
         "roles.parquet",
+        "groups.parquet",
+        "messages.parquet",
+        "beliefs.parquet",
     }
     assert list(pd.read_parquet(out / "positions.parquet").columns) == ["t_s", "robot", "x_m", "y_m"]
     links = pd.read_parquet(out / "links.parquet")
