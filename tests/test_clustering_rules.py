@@ -25,13 +25,13 @@ def scripted(positions, phases, range_m=10.0, latency_s=LATENCY, **protocol):
             "mobility": {"model": "static"},
             "channel": {"range_m": range_m, "latency_s": latency_s},
             "protocol": {
-            "model": "clustering",
-            "ack_period_s": PERIOD,
-            "ack_jitter_s": 0.0,
-            "tau_s": TAU,
-            "message_rate_hz": 0.0,
-            **protocol,
-        },
+                "model": "clustering",
+                "ack_period_s": PERIOD,
+                "ack_jitter_s": 0.0,
+                "tau_s": TAU,
+                "message_rate_hz": 0.0,
+                **protocol,
+            },
             "output": {"position_interval_s": 0.0},
         }
     )

@@ -108,32 +108,25 @@ def test_cli_malformed_files(tmp_path, capsys):
     )
     assert code == 2 and "t.tcl:3" in err
 
-    csv = tmp_path / "p.csv"
-    csv.write_text("x_m,y_m\n1,2\nthree,4\n")
-    code, err = _cli(
-        tmp_path,
-        capsys,
-        "--set",
-        f"world.placement={csv}",
-        "--set",
-        "world.n_robots=2",
-        "--set",
-        "mobility.stationary_start=false",
-    )
-    assert code == 2 and "not numbers" in err
+    assert not (tmp_path / "out").exists()
 
-    csv.write_text("x_m,y_m\n1,2\n")
-    code, err = _cli(
-        tmp_path,
-        capsys,
-        "--set",
-        f"world.placement={csv}",
-        "--set",
-        "world.n_robots=2",
-        "--set",
-        "mobility.stationary_start=false",
-    )
-    assert code == 2 and "1 rows but world.n_robots = 2" in err
+
+@pytest.mark.parametrize(
+    "rows, words",
+    [
+        ("x_m,y_m\n1,2\nthree,4\n", "not numbers"),
+        ("x_m,y_m\n1,2\n", "1 rows but world.n_robots = 2"),
+        ("x,y\n1,2\n3,4\n", "columns x_m,y_m"),
+        ("x_m,y_m\n1,2\n3,5000\n", "outside the area"),
+        ("x_m,y_m\n1,2\n3,\n", "missing"),
+    ],
+)
+def test_cli_malformed_placement_file(tmp_path, capsys, rows, words):
+    csv = tmp_path / "p.csv"
+    csv.write_text(rows)
+    placement = ["--set", f"world.placement={csv}", "--set", "world.n_robots=2"]
+    code, err = _cli(tmp_path, capsys, *placement, "--set", "mobility.stationary_start=false")
+    assert code == 2 and words in err
     assert not (tmp_path / "out").exists()
 
 
