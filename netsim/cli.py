@@ -5,6 +5,8 @@
     results to DIR (default ``./netsim-out``).
 ``netsim scenario generate --n N --side M ... -o FILE``
     Write a random waypoint movement scenario in the ns-2 format.
+``netsim sweep SWEEP.toml [--workers N | --scheduler tcp://host:port] [--out DIR]``
+    Run a parameter sweep; started again, it skips the runs already done.
 ``netsim config``
     Print the default configuration, every key with its meaning.
 
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -95,6 +98,20 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    from netsim import sweep as sweepmod
+
+    sweep = sweepmod.load_file(args.sweep)
+    if args.workers is not None and args.workers < 1:
+        raise NetsimInputError(f"--workers {args.workers}: must be at least 1")
+    out = Path(args.out) if args.out else Path("sweep-out") / sweep.name
+    workers = args.workers or (os.cpu_count() or 1)
+    report = sweepmod.run_sweep(sweep, out, workers=workers, scheduler=args.scheduler, progress=not args.no_progress)
+    print(report.text())
+    print(f"results: {out}/ (load with netsim.sweep.load({str(out)!r}))")
+    return 1 if report.failed else 0
+
+
 def cmd_config(args) -> int:
     print(cfgmod.commented_toml(), end="")
     return 0
@@ -126,6 +143,14 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--no-stationary-start", action="store_true", help="start from uniform positions at rest")
     g.add_argument("-o", "--output", required=True, help="file to write")
     g.set_defaults(func=cmd_scenario_generate)
+
+    w = sub.add_parser("sweep", help="run a parameter sweep (resumable; local pool or Dask cluster)")
+    w.add_argument("sweep", help="sweep file (TOML)")
+    w.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    w.add_argument("--scheduler", help="address of a running Dask scheduler, e.g. tcp://host:8786")
+    w.add_argument("--out", help="sweep directory (default: ./sweep-out/<name>)")
+    w.add_argument("--no-progress", action="store_true", help="no progress bar")
+    w.set_defaults(func=cmd_sweep)
 
     c = sub.add_parser("config", help="print the default configuration with every key explained")
     c.set_defaults(func=cmd_config)

@@ -1,0 +1,404 @@
+"""Parameter sweeps: many runs of one base scenario, resumable, on a local process pool or
+a Dask cluster.
+
+A sweep file (TOML)::
+
+    name = "speed"
+    replications = 5
+    tables = ["links"]                 # per-run tables to keep besides the metrics
+    [base]                             # any scenario keys, as in `netsim run` files
+    duration_s = 300.0
+    [base.world]
+    n_robots = 50
+    [grid]                             # every combination of these values ...
+    "mobility.speed_max_mps" = [1.0, 5.0, 10.0]
+    "mobility.pause_s" = [0.0, 30.0]
+    [random]                           # ... or random points in ranges (not both)
+    samples = 20
+    seed = 1
+    [random.ranges]
+    "channel.loss_probability" = [0.0, 0.5]
+
+Each run is a point and a replication index; its id is a hash of its fully resolved
+configuration and replication, so the same run has the same id in every sweep that
+contains it. Replications keep the seed and advance the run number of the random
+streams. Every finished run is written atomically to ``runs/<id>.parquet`` (one row:
+every parameter, the seed, the replication, every summary metric), with its kept tables
+under ``tables/<table>/<id>.parquet``; a run that raises is written to
+``failed/<id>.json`` with its error, and the sweep goes on. Started again, a sweep skips
+the runs already in ``runs/`` and retries the failed ones.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import os
+import signal
+import sys
+import tempfile
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+import tomllib
+
+from netsim import config as cfgmod
+from netsim.errors import ConfigError, NetsimInputError
+
+SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
+KNOWN_TABLES = {"positions", "links", "acks", "roles", "groups", "messages", "beliefs"}
+
+
+@dataclass(frozen=True)
+class Run:
+    run_id: str
+    point: dict  # the swept values, by dotted key
+    replication: int
+    config: dict  # the fully resolved configuration, as a nested dict
+
+
+@dataclass(frozen=True)
+class Sweep:
+    name: str
+    replications: int
+    tables: tuple[str, ...]
+    base: dict
+    points: tuple[dict, ...]
+
+    def runs(self) -> list[Run]:
+        out = []
+        for point in self.points:
+            tree = self.base
+            for key, value in point.items():
+                tree = cfgmod.merge(tree, _nest(key, value))
+            try:
+                resolved = cfgmod.to_dict(cfgmod.from_dict(tree))
+            except ConfigError as exc:
+                raise NetsimInputError(f"sweep point {point}: {exc}") from None
+            for rep in range(self.replications):
+                out.append(Run(run_id(resolved, rep), point, rep, resolved))
+        return out
+
+
+def _nest(dotted: str, value) -> dict:
+    tree: dict = {}
+    node = tree
+    parts = dotted.split(".")
+    for part in parts[:-1]:
+        node = node.setdefault(part, {})
+    node[parts[-1]] = value
+    return tree
+
+
+def run_id(resolved_config: dict, replication: int) -> str:
+    """Content address of a run: its resolved configuration and replication index."""
+    text = json.dumps({"config": resolved_config, "replication": replication}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _err(what: str) -> NetsimInputError:
+    return NetsimInputError(f"sweep file: {what}")
+
+
+def parse(tree: dict, where: Path | None = None) -> Sweep:
+    """Validate a sweep description (as loaded from TOML)."""
+    unknown = set(tree) - SWEEP_KEYS
+    if unknown:
+        raise _err(f"unknown key(s) {sorted(unknown)}; allowed: {sorted(SWEEP_KEYS)}")
+    name = tree.get("name", "sweep")
+    if not isinstance(name, str) or not name or "/" in name:
+        raise _err(f"name = {name!r}: must be a non-empty string without '/'")
+    reps = tree.get("replications", 1)
+    if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
+        raise _err(f"replications = {reps!r}: must be an integer >= 1")
+    tables = tree.get("tables", [])
+    if not isinstance(tables, list) or any(t not in KNOWN_TABLES for t in tables):
+        raise _err(f"tables = {tables!r}: must be a list drawn from {sorted(KNOWN_TABLES)}")
+    base = tree.get("base", {})
+    if "base_file" in tree:
+        path = Path(tree["base_file"])
+        if where is not None and not path.is_absolute():
+            path = where.parent / path
+        if not path.is_file():
+            raise _err(f"base_file = {str(path)!r}: no such file")
+        base = cfgmod.merge(tomllib.loads(path.read_text()), base)
+    if not isinstance(base, dict):
+        raise _err("[base] must be a table of scenario keys")
+    try:
+        cfgmod.from_dict(base)
+    except ConfigError as exc:
+        raise _err(f"[base] {exc}") from None
+    if ("grid" in tree) == ("random" in tree):
+        raise _err("give exactly one of [grid] and [random]")
+    points = _grid(tree["grid"]) if "grid" in tree else _random(tree["random"])
+    return Sweep(name, reps, tuple(tables), base, tuple(points))
+
+
+def _check_key(key: str) -> None:
+    known = {k for k, _, _ in cfgmod.describe()}
+    if key not in known:
+        raise _err(f"{key!r} is not a configuration key (see `netsim config`)")
+
+
+def _grid(grid) -> list[dict]:
+    if not isinstance(grid, dict) or not grid:
+        raise _err("[grid] must map configuration keys to lists of values")
+    for key, values in grid.items():
+        _check_key(key)
+        if not isinstance(values, list) or not values:
+            raise _err(f"[grid] {key} = {values!r}: must be a non-empty list")
+    keys = list(grid)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
+
+
+def _random(spec) -> list[dict]:
+    if not isinstance(spec, dict):
+        raise _err("[random] must be a table")
+    unknown = set(spec) - {"samples", "seed", "ranges"}
+    if unknown:
+        raise _err(f"[random] unknown key(s) {sorted(unknown)}; allowed: samples, seed, ranges")
+    samples, seed, ranges = spec.get("samples"), spec.get("seed", 0), spec.get("ranges")
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise _err(f"[random] samples = {samples!r}: must be an integer >= 1")
+    if not isinstance(ranges, dict) or not ranges:
+        raise _err("[random.ranges] must map configuration keys to [low, high]")
+    rng = np.random.default_rng(seed)
+    columns = {}
+    for key, bounds in ranges.items():
+        _check_key(key)
+        if not (isinstance(bounds, list) and len(bounds) == 2 and all(isinstance(b, (int, float)) for b in bounds)):
+            raise _err(f"[random.ranges] {key} = {bounds!r}: must be [low, high]")
+        lo, hi = bounds
+        if not lo <= hi:
+            raise _err(f"[random.ranges] {key} = {bounds!r}: low must not exceed high")
+        if all(isinstance(b, int) and not isinstance(b, bool) for b in bounds):
+            columns[key] = rng.integers(lo, hi + 1, samples).tolist()
+        else:
+            columns[key] = rng.uniform(lo, hi, samples).tolist()
+    return [{k: columns[k][i] for k in columns} for i in range(samples)]
+
+
+def load_file(path: str | Path) -> Sweep:
+    p = Path(path)
+    if not p.is_file():
+        raise _err(f"{str(p)!r}: no such file")
+    try:
+        tree = tomllib.loads(p.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise _err(f"{str(p)!r} is not valid TOML: {exc}") from None
+    return parse(tree, p)
+
+
+# -- one run -------------------------------------------------------------------------------
+def flatten(tree: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in tree.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = str(v) if isinstance(v, list) else v
+    return out
+
+
+def execute_run(run: Run, tables: tuple[str, ...] = ()) -> dict:
+    """Run one point (in whatever process or machine): returns its row and kept tables."""
+    from netsim.run import execute
+
+    result = execute(cfgmod.from_dict(run.config), run=run.replication)
+    row = {"run_id": run.run_id, "replication": run.replication, **flatten(run.config)}
+    for key, value in result.summary.items():
+        if key not in ("seed", "mobility", "protocol", "robots", "duration_s"):
+            row[key] = value
+    return {"row": row, "tables": {t: result.frames[t] for t in tables if t in result.frames}}
+
+
+def _die_with_parent() -> None:
+    """Pool initializer: on Linux, a worker is killed when the sweep process dies, so a
+    killed sweep leaves no orphaned workers behind."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        pr_set_pdeathsig = 1
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
+
+
+def _safe_execute(run: Run, tables) -> dict:
+    try:
+        return {"ok": True, **execute_run(run, tables)}
+    except Exception as exc:  # a failing run must not stop the sweep
+        return {"ok": False, "error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+
+
+# -- persistence ---------------------------------------------------------------------------
+def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def done_ids(out_dir: Path) -> set[str]:
+    return {p.stem for p in (out_dir / "runs").glob("*.parquet")}
+
+
+def _record(out_dir: Path, run: Run, outcome: dict) -> None:
+    if outcome["ok"]:
+        for name, frame in outcome["tables"].items():
+            frame = frame.assign(run_id=run.run_id)
+            _atomic_write(
+                out_dir / "tables" / name / f"{run.run_id}.parquet", lambda p, f=frame: f.to_parquet(p, index=False)
+            )
+        row = pd.DataFrame([outcome["row"]])
+        _atomic_write(out_dir / "runs" / f"{run.run_id}.parquet", lambda p: row.to_parquet(p, index=False))
+        (out_dir / "failed" / f"{run.run_id}.json").unlink(missing_ok=True)
+    else:
+        info = {
+            "run_id": run.run_id,
+            "point": run.point,
+            "replication": run.replication,
+            "error": outcome["error"],
+            "traceback": outcome["traceback"],
+        }
+        _atomic_write(
+            out_dir / "failed" / f"{run.run_id}.json", lambda p: p.write_text(json.dumps(info, indent=2, default=str))
+        )
+
+
+@dataclass
+class Report:
+    total: int
+    skipped: int
+    done: int
+    failed: list[dict]
+
+    def text(self) -> str:
+        lines = [f"{self.total} runs: {self.skipped} already done, {self.done} done now, {len(self.failed)} failed"]
+        for f in self.failed:
+            lines.append(f"  failed {f['run_id']} {f['point']} replication {f['replication']}: {f['error']}")
+        return "\n".join(lines)
+
+
+def run_sweep(
+    sweep: Sweep, out_dir: str | Path, workers: int = 1, scheduler: str | None = None, progress: bool = True
+) -> Report:
+    """Run every run of ``sweep`` not yet done in ``out_dir``; returns a report."""
+    from tqdm.auto import tqdm
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = sweep.runs()
+    ids = [r.run_id for r in runs]
+    if len(set(ids)) != len(ids):
+        raise _err("two points resolve to the same configuration (duplicate values in [grid]?)")
+    (out / "sweep.json").write_text(
+        json.dumps(
+            {
+                "name": sweep.name,
+                "replications": sweep.replications,
+                "tables": list(sweep.tables),
+                "base": sweep.base,
+                "points": list(sweep.points),
+            },
+            indent=2,
+            default=str,
+        )
+    )
+    finished = done_ids(out)
+    todo = [r for r in runs if r.run_id not in finished]
+    failed: list[dict] = []
+    bar = tqdm(total=len(runs), initial=len(runs) - len(todo), unit="run", desc=sweep.name, disable=not progress)
+
+    def account(run: Run, outcome: dict) -> None:
+        _record(out, run, outcome)
+        if not outcome["ok"]:
+            failed.append(
+                {"run_id": run.run_id, "point": run.point, "replication": run.replication, "error": outcome["error"]}
+            )
+        bar.update(1)
+        bar.set_postfix(failed=len(failed), remaining=bar.total - bar.n)
+
+    if scheduler:
+        _run_dask(todo, sweep.tables, scheduler, account)
+    elif workers <= 1:
+        for run in todo:
+            account(run, _safe_execute(run, sweep.tables))
+    else:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent) as pool:
+            futures = {pool.submit(_safe_execute, run, sweep.tables): run for run in todo}
+            for fut in as_completed(futures):
+                account(futures[fut], fut.result())
+    bar.close()
+    return Report(len(runs), len(runs) - len(todo), len(todo) - len(failed), failed)
+
+
+def _run_dask(todo: list[Run], tables, scheduler, account) -> None:
+    from distributed import Client, as_completed
+
+    client = scheduler if not isinstance(scheduler, str) else Client(scheduler)
+    try:
+        futures = {client.submit(_safe_execute, run, tables, pure=False): run for run in todo}
+        for fut in as_completed(futures):
+            account(futures[fut], fut.result())
+    finally:
+        if isinstance(scheduler, str):
+            client.close()
+
+
+# -- results -------------------------------------------------------------------------------
+def load(out_dir: str | Path) -> pd.DataFrame:
+    """Every finished run of a sweep as one tidy frame, one row per run, sorted by run id."""
+    files = sorted((Path(out_dir) / "runs").glob("*.parquet"))
+    if not files:
+        return pd.DataFrame()
+    return (
+        pd.concat([pd.read_parquet(f) for f in files], ignore_index=True).sort_values("run_id").reset_index(drop=True)
+    )
+
+
+def load_table(out_dir: str | Path, table: str) -> pd.DataFrame:
+    """A kept per-run table of every finished run, with its ``run_id``."""
+    files = sorted((Path(out_dir) / "tables" / table).glob("*.parquet"))
+    if not files:
+        return pd.DataFrame()
+    return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+
+
+def aggregate(df: pd.DataFrame, by: list[str], metrics: list[str], level: float = 0.95) -> pd.DataFrame:
+    """Mean, standard deviation, count and Student-t confidence interval of each metric over
+    the replications of each group."""
+    from scipy import stats
+
+    rows = []
+    for key, g in df.groupby(by, sort=True):
+        key = key if isinstance(key, tuple) else (key,)
+        row = dict(zip(by, key))
+        for m in metrics:
+            v = g[m].dropna().to_numpy(float)
+            n = len(v)
+            mean = float(v.mean()) if n else float("nan")
+            sd = float(v.std(ddof=1)) if n > 1 else float("nan")
+            half = float(stats.t.ppf(0.5 + level / 2, n - 1) * sd / np.sqrt(n)) if n > 1 else float("nan")
+            row.update(
+                {
+                    f"{m}_mean": mean,
+                    f"{m}_std": sd,
+                    f"{m}_n": n,
+                    f"{m}_ci_low": mean - half,
+                    f"{m}_ci_high": mean + half,
+                }
+            )
+        rows.append(row)
+    return pd.DataFrame(rows)

@@ -1,0 +1,211 @@
+"""Sweeps: grid and random points, content-addressed runs, local pool and Dask give the
+same frames, resuming after a kill, failures recorded, bad sweep files."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from netsim import sweep as sweepmod
+from netsim.errors import NetsimInputError
+
+BASE = {
+    "duration_s": 20.0,
+    "world": {"n_robots": 12, "side_m": 300.0},
+    "protocol": {"model": "clustering"},
+    "output": {"position_interval_s": 0.0},
+}
+
+
+def small_sweep(**extra):
+    tree = {
+        "name": "t",
+        "replications": 2,
+        "tables": ["links"],
+        "base": BASE,
+        "grid": {"mobility.speed_max_mps": [2.0, 6.0], "channel.loss_probability": [0.0, 0.2]},
+    }
+    tree.update(extra)
+    return sweepmod.parse(tree)
+
+
+def metrics_frame(out):
+    return sweepmod.load(out).drop(columns=["wall_s"])
+
+
+def test_grid_expands_every_combination_with_replications():
+    runs = small_sweep().runs()
+    assert len(runs) == 2 * 2 * 2
+    assert len({r.run_id for r in runs}) == 8
+    assert {r.replication for r in runs} == {0, 1}
+    # The id is a content address: the same run gets the same id in another sweep.
+    again = small_sweep(name="other").runs()
+    assert [r.run_id for r in runs] == [r.run_id for r in again]
+
+
+def test_random_points_are_reproducible_and_keep_integers():
+    tree = {
+        "base": BASE,
+        "random": {
+            "samples": 5,
+            "seed": 3,
+            "ranges": {"world.n_robots": [5, 9], "channel.loss_probability": [0.0, 0.5]},
+        },
+    }
+    a, b = sweepmod.parse(tree).points, sweepmod.parse(tree).points
+    assert a == b and len(a) == 5
+    assert all(isinstance(p["world.n_robots"], int) and 5 <= p["world.n_robots"] <= 9 for p in a)
+    assert all(0.0 <= p["channel.loss_probability"] <= 0.5 for p in a)
+
+
+def test_local_pool_and_dask_give_identical_frames(tmp_path):
+    from distributed import Client, LocalCluster
+
+    sweep = small_sweep()
+    local = sweepmod.run_sweep(sweep, tmp_path / "local", workers=2, progress=False)
+    assert local.done == 8 and not local.failed
+    with LocalCluster(n_workers=2, processes=False, dashboard_address=None) as cluster, Client(cluster) as client:
+        remote = sweepmod.run_sweep(sweep, tmp_path / "dask", scheduler=client, progress=False)
+    assert remote.done == 8
+    a, b = metrics_frame(tmp_path / "local"), metrics_frame(tmp_path / "dask")
+    pd.testing.assert_frame_equal(a, b)
+    assert {
+        "mobility.speed_max_mps",
+        "channel.loss_probability",
+        "seed",
+        "replication",
+        "run_id",
+        "acks_received",
+        "leaders_time_mean",
+    } <= set(a.columns)
+    links_a = sweepmod.load_table(tmp_path / "local", "links").sort_values(["run_id", "t_up_s", "a", "b"])
+    links_b = sweepmod.load_table(tmp_path / "dask", "links").sort_values(["run_id", "t_up_s", "a", "b"])
+    pd.testing.assert_frame_equal(links_a.reset_index(drop=True), links_b.reset_index(drop=True))
+
+
+def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
+    """The sweep process is killed (SIGKILL, by one of its pool's runs) half-way; started again
+    it skips the finished runs and ends with each run exactly once, as an uninterrupted
+    sweep would."""
+    (tmp_path / "killer.py").write_text(
+        textwrap.dedent("""
+        import os, signal
+        from pathlib import Path
+        from netsim import plugins
+
+        MARK = Path(__file__).with_name("killed.marker")
+
+        def install(sim):
+            if sim.config.world.n_robots == 7 and not MARK.exists():
+                MARK.write_text("killed once")
+                os.kill(os.getppid(), signal.SIGKILL)
+            return plugins.resolve(plugins.MOBILITY, "static", "mobility.model")(sim)
+    """)
+    )
+    (tmp_path / "s.toml").write_text(
+        textwrap.dedent("""
+        name = "killed"
+        replications = 1
+        [base]
+        duration_s = 10.0
+        [base.mobility]
+        model = "killer:install"
+        [base.output]
+        position_interval_s = 0.0
+        [grid]
+        "world.n_robots" = [4, 5, 6, 7, 8, 9]
+    """)
+    )
+    cmd = [
+        str(Path(sys.executable).parent / "netsim"),
+        "sweep",
+        "s.toml",
+        "--workers",
+        "2",
+        "--out",
+        "out",
+        "--no-progress",
+    ]
+    if not Path(cmd[0]).exists():
+        pytest.skip("the netsim console script is not installed next to this Python")
+    with open(tmp_path / "first.log", "w") as log:
+        first = subprocess.Popen(cmd, cwd=tmp_path, stdout=log, stderr=log, start_new_session=True)
+        code = first.wait(timeout=300)
+    try:
+        os.killpg(first.pid, signal.SIGKILL)  # anything the killed sweep left behind
+    except ProcessLookupError:
+        pass
+    assert code == -9  # killed
+    done_before = sweepmod.done_ids(tmp_path / "out")
+    assert 0 < len(done_before) < 6
+    second = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    assert second.returncode == 0, second.stderr
+    assert f"{len(done_before)} already done" in second.stdout
+    runs = sweepmod.load(tmp_path / "out")
+    assert len(runs) == 6 and runs.run_id.is_unique
+    assert sorted(runs["world.n_robots"]) == [4, 5, 6, 7, 8, 9]
+    clean = subprocess.run(cmd[:-3] + ["--out", "clean", "--no-progress"], cwd=tmp_path, capture_output=True, text=True)
+    assert clean.returncode == 0
+    pd.testing.assert_frame_equal(metrics_frame(tmp_path / "out"), metrics_frame(tmp_path / "clean"))
+
+
+def test_a_failing_run_is_recorded_and_the_others_finish(tmp_path):
+    sweep = sweepmod.parse(
+        {
+            "name": "f",
+            "base": BASE,
+            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": ["/nonexistent/scenario.tcl"]},
+        }
+    )
+    report = sweepmod.run_sweep(sweep, tmp_path, workers=1, progress=False)
+    assert report.done == 1 and len(report.failed) == 1
+    failed = json.loads(next((tmp_path / "failed").glob("*.json")).read_text())
+    assert "no such file" in failed["error"] and failed["point"]["mobility.model"] == "trace"
+    assert "failed" in report.text() and "no such file" in report.text()
+    assert len(sweepmod.load(tmp_path)) == 1
+
+
+def test_aggregate_gives_means_and_t_intervals():
+    df = pd.DataFrame({"v": [1, 1, 1, 2, 2, 2], "m": [1.0, 2.0, 3.0, 10.0, 10.0, 10.0]})
+    agg = sweepmod.aggregate(df, ["v"], ["m"]).set_index("v")
+    assert agg.loc[1, "m_mean"] == 2.0 and agg.loc[1, "m_n"] == 3
+    half = 4.302652729911275 * 1.0 / 3**0.5  # t(0.975, 2) * sd / sqrt(n)
+    assert agg.loc[1, "m_ci_high"] == pytest.approx(2.0 + half)
+    assert agg.loc[2, "m_ci_low"] == pytest.approx(10.0)
+
+
+@pytest.mark.parametrize(
+    "tree, words",
+    [
+        ({"base": BASE, "grid": {"mobility.speed_max_mps": [1.0]}, "colour": 1}, "unknown key"),
+        ({"base": BASE}, "exactly one of [grid] and [random]"),
+        ({"base": BASE, "grid": {"mobility.speed_max_mps": 3.0}}, "non-empty list"),
+        ({"base": BASE, "grid": {"mobility.top_speed": [1.0]}}, "not a configuration key"),
+        ({"base": BASE, "grid": {"world.n_robots": [1]}, "replications": 0}, "replications"),
+        ({"base": BASE, "grid": {"channel.range_m": [-1.0]}}, "sweep point"),
+        ({"base": {"world": {"n_robots": -3}}, "grid": {"seed": [1]}}, "[base] world.n_robots"),
+        ({"base": BASE, "random": {"samples": 3, "ranges": {"seed": [5, 1]}}}, "low must not exceed"),
+        ({"base": BASE, "grid": {"seed": [1]}, "tables": ["everything"]}, "tables"),
+    ],
+)
+def test_bad_sweep_files(tree, words):
+    with pytest.raises(NetsimInputError, match=words.replace("[", r"\[").replace("]", r"\]")):
+        sweep = sweepmod.parse(tree)
+        sweep.runs()
+
+
+def test_cli_bad_sweep_file_exits_2(tmp_path, capsys):
+    from netsim.cli import main
+
+    f = tmp_path / "s.toml"
+    f.write_text("[grid]\nnot_a_key = [1]\n")
+    assert main(["sweep", str(f), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("netsim: error: sweep file:")
+    assert not (tmp_path / "o").exists()
