@@ -38,14 +38,14 @@ import os
 import signal
 import sys
 import tempfile
+import tomllib
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pandas as pd
-import tomllib
 
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
