@@ -150,3 +150,33 @@ def torus_link_duration_mean(range_m: float, speed_mps: float) -> float:
     """Mean link lifetime for robots moving at the same constant speed in uniform random
     directions on a torus: ``pi^2 R / (8 v)`` (VALIDATION.md item 6)."""
     return math.pi**2 * range_m / (8.0 * speed_mps)
+
+
+def acks_until_leader_loss(roles: pd.DataFrame, tau_s: float, period_s: float) -> np.ndarray:
+    """For each robot that became a member, the number of its leader's Acks from the one
+    it joined on to its first rule-3 timeout: the trials until ``k`` consecutive losses
+    (VALIDATION.md item 9). Assumes static robots and periodic Acks without jitter, so
+    that every leader loss is spurious and the timeout comes ``tau`` after the last Ack
+    heard: the count is ``floor((t_timeout - t_join - tau) / period) + k``, with ``k`` the
+    number of Ack instants strictly inside the ``tau`` window."""
+    k = spurious_timeout_window(tau_s, period_s)
+    counts = []
+    for _, rec in roles.groupby("robot"):
+        joins = rec[rec["role"] == "beta"]
+        if joins.empty:
+            continue
+        t_join = joins["t_s"].iloc[0]
+        lost = rec[(rec["cause"] == "rule3_leader_lost") & (rec["t_s"] > t_join)]
+        if len(lost):
+            counts.append(math.floor((lost["t_s"].iloc[0] - t_join - tau_s) / period_s + 1e-9) + k)
+    return np.array(counts, dtype=float)
+
+
+def spurious_timeout_window(tau_s: float, period_s: float) -> int:
+    """``k``: Ack instants strictly inside a window of ``tau`` after an Ack."""
+    return math.ceil(tau_s / period_s - 1e-9) - 1
+
+
+def expected_acks_until_spurious_timeout(p: float, k: int) -> float:
+    """``(1 - p^k) / ((1 - p) p^k)``: mean Acks until ``k`` consecutive losses."""
+    return (1 - p**k) / ((1 - p) * p**k)

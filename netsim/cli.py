@@ -7,6 +7,8 @@
     Write a random waypoint movement scenario in the ns-2 format.
 ``netsim sweep SWEEP.toml [--workers N | --scheduler tcp://host:port] [--out DIR]``
     Run a parameter sweep; started again, it skips the runs already done.
+``netsim validate``
+    Check the model against closed-form results; exit status 1 if any check fails.
 ``netsim config``
     Print the default configuration, every key with its meaning.
 
@@ -112,6 +114,16 @@ def cmd_sweep(args) -> int:
     return 1 if report.failed else 0
 
 
+def cmd_validate(args) -> int:
+    from netsim import validate
+
+    results = validate.run_all(progress=not args.no_progress)
+    print(validate.table(results))
+    failed = [c for c in results if not c.passed]
+    print(f"{len(results) - len(failed)} of {len(results)} checks passed")
+    return 1 if failed else 0
+
+
 def cmd_config(args) -> int:
     print(cfgmod.commented_toml(), end="")
     return 0
@@ -151,6 +163,10 @@ def parser() -> argparse.ArgumentParser:
     w.add_argument("--out", help="sweep directory (default: ./sweep-out/<name>)")
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
     w.set_defaults(func=cmd_sweep)
+
+    v = sub.add_parser("validate", help="check the model against the closed-form results of VALIDATION.md")
+    v.add_argument("--no-progress", action="store_true", help="no progress bar")
+    v.set_defaults(func=cmd_validate)
 
     c = sub.add_parser("config", help="print the default configuration with every key explained")
     c.set_defaults(func=cmd_config)

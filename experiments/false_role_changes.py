@@ -1,0 +1,135 @@
+"""False role changes against loss and ``tau / ack_period`` (VALIDATION.md item 9).
+
+Pairs of static robots, far from each other, each pair a leader and its member, so that
+every leader loss is false: the member times out only when ``k`` consecutive Acks of its
+leader are lost (``k`` = Ack instants strictly inside the ``tau`` window). A sweep of
+``channel.loss_probability`` x ``protocol.tau_s`` (Ack period 1 s, no jitter) measures the
+leader's Acks until the first false timeout, against the theory
+``(1 - p^k) / ((1 - p) p^k)``, and the false role changes per robot per minute.
+
+Writes ``false_role_changes.csv`` and ``false_role_changes.png``.
+
+    python experiments/false_role_changes.py
+    python experiments/false_role_changes.py --losses 0.2 0.4 0.6 --taus 1.5 2.5 3.5 --pairs 300
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from netsim import analysis  # noqa: E402
+from netsim import sweep as sweepmod  # noqa: E402
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--pairs", type=int, default=200)
+    p.add_argument("--losses", type=float, nargs="+", default=[0.2, 0.3, 0.4, 0.5, 0.6])
+    p.add_argument("--taus", type=float, nargs="+", default=[1.5, 2.5, 3.5], help="tau in Ack periods (1 s)")
+    p.add_argument("--duration", type=float, default=300.0)
+    p.add_argument("--reps", type=int, default=1)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--scheduler")
+    p.add_argument("--out", default="experiments-out/false_role_changes")
+    args = p.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    pos = np.zeros((2 * args.pairs, 2))
+    pos[0::2, 0] = pos[1::2, 0] = np.arange(args.pairs) * 100.0
+    pos[1::2, 1] = 5.0
+    placement = out / "pairs.csv"
+    pd.DataFrame(pos, columns=["x_m", "y_m"]).to_csv(placement, index=False)
+    sweep = sweepmod.parse(
+        {
+            "name": "false_role_changes",
+            "replications": args.reps,
+            "tables": ["roles"],
+            "base": {
+                "seed": args.seed,
+                "duration_s": args.duration,
+                "world": {
+                    "n_robots": 2 * args.pairs,
+                    "side_m": 100.0 * args.pairs,
+                    "placement": str(placement.resolve()),
+                },
+                "mobility": {"model": "static"},
+                "channel": {"range_m": 10.0},
+                "protocol": {
+                    "model": "clustering",
+                    "ack_period_s": 1.0,
+                    "ack_jitter_s": 0.0,
+                    "election_policy": "none",
+                    "message_rate_hz": 0.0,
+                },
+                "output": {"position_interval_s": 0.0},
+            },
+            "grid": {"channel.loss_probability": args.losses, "protocol.tau_s": args.taus},
+        }
+    )
+    print(sweepmod.run_sweep(sweep, out / "sweep", workers=args.workers, scheduler=args.scheduler).text())
+    runs = sweepmod.load(out / "sweep")
+    roles = sweepmod.load_table(out / "sweep", "roles")
+    rows = []
+    for (loss, tau), g in runs.groupby(["channel.loss_probability", "protocol.tau_s"]):
+        r = roles[roles.run_id.isin(g.run_id)]
+        counts = np.concatenate([analysis.acks_until_leader_loss(rr, tau, 1.0) for _, rr in r.groupby("run_id")])
+        k = analysis.spurious_timeout_window(tau, 1.0)
+        false_changes = (r.cause == "rule3_leader_lost").sum() / (len(g) * 2 * args.pairs * args.duration / 60)
+        rows.append(
+            {
+                "loss_probability": loss,
+                "tau_over_period": tau,
+                "k": k,
+                "pairs_measured": len(counts),
+                "acks_until_false_loss": counts.mean() if len(counts) else np.nan,
+                "ci95": 1.96 * counts.std() / np.sqrt(len(counts)) if len(counts) > 1 else np.nan,
+                "theory": analysis.expected_acks_until_spurious_timeout(loss, k),
+                "false_leader_losses_per_robot_per_min": false_changes,
+            }
+        )
+    df = pd.DataFrame(rows)
+    df.to_csv(out / "false_role_changes.csv", index=False)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    ps = np.linspace(min(args.losses), max(args.losses), 100)
+    for tau, g in df.groupby("tau_over_period"):
+        k = int(g.k.iloc[0])
+        line = left.errorbar(
+            g.loss_probability,
+            g.acks_until_false_loss,
+            yerr=g.ci95,
+            fmt="o",
+            capsize=3,
+            label=f"tau = {tau:g} t (k = {k})",
+        )
+        left.plot(ps, analysis.expected_acks_until_spurious_timeout(ps, k), "--", color=line[0].get_color())
+        right.plot(g.loss_probability, g.false_leader_losses_per_robot_per_min, "o-", label=f"tau = {tau:g} t")
+    left.set(
+        xlabel="loss probability p",
+        ylabel="leader Acks until a false leader loss",
+        yscale="log",
+        title="measured (95 % CI) and theory (dashed)",
+    )
+    left.legend()
+    right.set(
+        xlabel="loss probability p",
+        ylabel="false leader losses per robot per minute",
+        title=f"{args.pairs} static leader-member pairs",
+    )
+    right.legend()
+    fig.savefig(out / "false_role_changes.png", dpi=120)
+    print(df.round(3).to_string(index=False))
+    print(f"wrote {out / 'false_role_changes.csv'} and {out / 'false_role_changes.png'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,128 @@
+"""Link lifetime against speed and pause, with censoring handled (Kaplan-Meier).
+
+Two sweeps on ``netsim.sweep``:
+
+- random waypoint, maximum speed x pause (speeds uniform on ``[spread v, v]``): mean
+  (restricted) and median link lifetime with 95 % confidence intervals;
+- random direction on a torus at constant speed, where the closed form of VALIDATION.md
+  item 6, ``pi^2 R / (8 v)``, applies and is drawn as the theory line.
+
+Writes ``link_lifetime.csv`` (one row per model, speed and pause) and
+``link_lifetime.png`` (left: survival curves at each speed, no pause; right: mean
+lifetime against speed, with the theory line).
+
+    python experiments/link_lifetime.py
+    python experiments/link_lifetime.py --speeds 1 2 5 10 --pauses 0 20 --reps 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from netsim import analysis  # noqa: E402
+from netsim import sweep as sweepmod  # noqa: E402
+
+
+def run(name, base, grid, reps, out, args):
+    sweep = sweepmod.parse({"name": name, "replications": reps, "tables": ["links"], "base": base, "grid": grid})
+    print(sweepmod.run_sweep(sweep, out / name, workers=args.workers, scheduler=args.scheduler).text())
+    return sweepmod.load(out / name), sweepmod.load_table(out / name, "links")
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--n", type=int, default=100)
+    p.add_argument("--side", type=float, default=1000.0)
+    p.add_argument("--range", type=float, default=100.0)
+    p.add_argument("--duration", type=float, default=600.0)
+    p.add_argument("--speeds", type=float, nargs="+", default=[1.0, 2.0, 5.0, 10.0])
+    p.add_argument("--pauses", type=float, nargs="+", default=[0.0, 30.0])
+    p.add_argument("--spread", type=float, default=0.5, help="random waypoint speeds uniform on [spread v, v]")
+    p.add_argument("--reps", type=int, default=2)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--scheduler")
+    p.add_argument("--out", default="experiments-out/link_lifetime")
+    args = p.parse_args(argv)
+    out = Path(args.out)
+    common = {
+        "seed": args.seed,
+        "duration_s": args.duration,
+        "channel": {"range_m": args.range},
+        "protocol": {"model": "none"},
+        "output": {"position_interval_s": 0.0},
+    }
+    rows, curves = [], {}
+    for v in args.speeds:
+        base = {
+            **common,
+            "world": {"n_robots": args.n, "side_m": args.side},
+            "mobility": {"speed_min_mps": args.spread * v, "speed_max_mps": v},
+        }
+        runs, links = run(f"rwp_v{v:g}", base, {"mobility.pause_s": args.pauses}, args.reps, out, args)
+        for pause, g in analysis.compare_lifetimes(runs, links, ["mobility.pause_s"]).groupby("mobility.pause_s"):
+            rows.append({"model": "random_waypoint", "speed_mps": v, "pause_s": pause, **g.iloc[0].to_dict()})
+        chosen = runs[runs["mobility.pause_s"] == args.pauses[0]].run_id
+        ld = analysis.link_durations(links[links.run_id.isin(chosen)])
+        curves[v] = analysis.kaplan_meier(ld.duration_s, ld.observed)
+        torus = {
+            **common,
+            "world": {"n_robots": args.n, "side_m": args.side, "torus": True},
+            "mobility": {"model": "random_direction", "speed_min_mps": v, "speed_max_mps": v},
+        }
+        runs, links = run(f"torus_v{v:g}", torus, {"mobility.pause_s": [0.0]}, args.reps, out, args)
+        summary = analysis.compare_lifetimes(runs, links, ["mobility.pause_s"]).iloc[0].to_dict()
+        rows.append(
+            {
+                "model": "random_direction_torus",
+                "speed_mps": v,
+                "pause_s": 0.0,
+                **summary,
+                "theory_mean_s": analysis.torus_link_duration_mean(args.range, v),
+            }
+        )
+    df = pd.DataFrame(rows).drop(columns=["mobility.pause_s"])
+    df.to_csv(out / "link_lifetime.csv", index=False)
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    for v, km in curves.items():
+        left.step(km.t_s, km.survival, where="post", label=f"v_max {v:g} m/s")
+        left.fill_between(km.t_s, km.ci_low, km.ci_high, step="post", alpha=0.2)
+    left.set(
+        xlabel="link lifetime (s)",
+        ylabel="survival P(T > t)",
+        xscale="log",
+        title=f"random waypoint, pause {args.pauses[0]:g} s (Kaplan-Meier, 95 % CI)",
+    )
+    left.legend()
+    for (model, pause), g in df.groupby(["model", "pause_s"]):
+        err = [g.mean_s - g.mean_ci_low_s, g.mean_ci_high_s - g.mean_s]
+        right.errorbar(g.speed_mps, g.mean_s, yerr=err, marker="o", capsize=3, label=f"{model}, pause {pause:g} s")
+    vs = np.linspace(min(args.speeds), max(args.speeds), 100)
+    right.plot(
+        vs, [analysis.torus_link_duration_mean(args.range, v) for v in vs], "k--", label="theory, torus: pi^2 R / (8 v)"
+    )
+    right.set(
+        xlabel="speed (m/s)",
+        ylabel="mean link lifetime, restricted to the run (s)",
+        xscale="log",
+        yscale="log",
+        title=f"{args.n} robots, range {args.range:g} m",
+    )
+    right.legend(fontsize=8)
+    fig.savefig(out / "link_lifetime.png", dpi=120)
+    print(df[["model", "speed_mps", "pause_s", "links", "mean_s", "median_s"]].round(2).to_string(index=False))
+    print(f"wrote {out / 'link_lifetime.csv'} and {out / 'link_lifetime.png'}")
+
+
+if __name__ == "__main__":
+    main()

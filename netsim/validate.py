@@ -1,0 +1,436 @@
+"""``netsim validate``: the closed-form results of VALIDATION.md, checked on real runs.
+
+Each check builds runs from configurations (models by name, as ``netsim run`` does),
+measures from their outputs, and compares with theory within a stated tolerance: four
+standard errors for statistical checks unless said otherwise. The same results are
+tested, at other sizes and seeds, by the test suite.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from netsim import analysis
+from netsim.config import from_dict
+from netsim.links import link_lifetimes
+from netsim.run import build, collect
+from netsim.topology import geometric_pairs
+
+MEAN_LEG_UNIT_SQUARE = (2 + math.sqrt(2) + 5 * math.log(1 + math.sqrt(2))) / 15
+
+
+@dataclass
+class Check:
+    item: str
+    result: str
+    theory: float
+    measured: float
+    tolerance: float
+    unit: str = ""
+
+    @property
+    def passed(self) -> bool:
+        return bool(abs(self.measured - self.theory) <= self.tolerance)
+
+
+def _config(**tree):
+    tree.setdefault("output", {"position_interval_s": 0.0})
+    tree.setdefault("protocol", {"model": "none"})
+    return from_dict(tree)
+
+
+def rwp_density(x: float, y: float) -> float:
+    """Exact stationary density of random waypoint on the unit square (Hyytiä et al. 2006)."""
+    from scipy import integrate
+
+    def border(phi):
+        c, s = math.cos(phi), math.sin(phi)
+        ts = [
+            t
+            for t in (
+                (1 - x) / c if c > 0 else None,
+                -x / c if c < 0 else None,
+                (1 - y) / s if s > 0 else None,
+                -y / s if s < 0 else None,
+            )
+            if t is not None
+        ]
+        return min(ts)
+
+    corners = sorted(math.atan2(cy - y, cx - x) % math.pi for cx in (0, 1) for cy in (0, 1))
+    value = integrate.quad(
+        lambda p: (lambda a, b: a * b * (a + b))(border(p), border(p + math.pi)), 0, math.pi, points=corners, limit=200
+    )[0]
+    return value / MEAN_LEG_UNIT_SQUARE
+
+
+def _leg_stats(legs: pd.DataFrame):
+    t, r = legs["t_s"].to_numpy(), legs["robot"].to_numpy()
+    same = r[1:] == r[:-1]
+    speed = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()[:-1]
+    first = np.r_[True, r[1:-1] != r[:-2]]
+    lengths = (speed * np.diff(t))[same & ~first & (speed > 0)]
+    return lengths
+
+
+def check_rwp() -> list[Check]:
+    side, vmin, vmax, n, T = 200.0, 1.0, 4.0, 400, 600.0
+    out = []
+    for pause in (0.0, 20.0):
+        sim = build(
+            _config(
+                seed=5,
+                duration_s=T,
+                world={"n_robots": n, "side_m": side},
+                mobility={"speed_min_mps": vmin, "speed_max_mps": vmax, "pause_s": pause},
+            )
+        )
+        sim.run()
+        legs = sim.state.legs()
+        from netsim.run import _distance_travelled
+
+        per_robot = _distance_travelled(legs, T) / T
+        EL, EinvV = MEAN_LEG_UNIT_SQUARE * side, math.log(vmax / vmin) / (vmax - vmin)
+        out.append(
+            Check(
+                "1",
+                f"RWP time-average speed, pause {pause:g} s",
+                EL / (EL * EinvV + pause),
+                per_robot.mean(),
+                4 * per_robot.std() / math.sqrt(n),
+                "m/s",
+            )
+        )
+    # Many legs per robot: the unfinished last leg (length-biased, left out) must not matter.
+    side = 100.0
+    sim = build(
+        _config(
+            seed=6,
+            duration_s=2000.0,
+            world={"n_robots": 300, "side_m": side},
+            mobility={"speed_min_mps": 2.0, "speed_max_mps": 5.0, "pause_s": 0.0},
+        )
+    )
+    sim.run()
+    lengths = _leg_stats(sim.state.legs())
+    out.append(
+        Check(
+            "2",
+            "RWP mean leg length",
+            MEAN_LEG_UNIT_SQUARE * side,
+            lengths.mean(),
+            4 * lengths.std() / math.sqrt(len(lengths)),
+            "m",
+        )
+    )
+    return out
+
+
+def check_stationary_start() -> list[Check]:
+    n, h = 100_000, 0.05
+    sim = build(
+        _config(
+            seed=3,
+            duration_s=1.0,
+            world={"n_robots": n, "side_m": 1.0},
+            mobility={"speed_min_mps": 0.01, "speed_max_mps": 0.05, "pause_s": 0.0},
+        )
+    )
+    sim.env.run(until=1e-9)  # the robots' processes set their first legs at t = 0
+    p = sim.state.positions_at(0.0)
+    out = []
+    for pt in ((0.5, 0.5), (0.1, 0.1)):
+        offsets = (np.arange(5) + 0.5) / 5 * h - h / 2
+        mass = np.mean([rwp_density(pt[0] + dx, pt[1] + dy) for dx in offsets for dy in offsets]) * h * h
+        count = int(((np.abs(p[:, 0] - pt[0]) < h / 2) & (np.abs(p[:, 1] - pt[1]) < h / 2)).sum())
+        out.append(
+            Check(
+                "3, 4",
+                f"RWP stationary density at t = 0 near {pt}",
+                mass / h**2,
+                count / (n * h * h),
+                4 * math.sqrt(n * mass) / (n * h * h),
+                "per unit area",
+            )
+        )
+    speeds = np.hypot(*sim.state.velocity_mps.T)
+    out.append(
+        Check(
+            "1, 4",
+            "stationary start mean speed [0.01, 0.05]",
+            0.04 / math.log(5),
+            speeds.mean(),
+            4 * speeds.std() / math.sqrt(n),
+            "m/s",
+        )
+    )
+    return out
+
+
+def check_unit_disk() -> list[Check]:
+    rng = np.random.default_rng(1)
+    pos = rng.uniform(0, 100, (400, 2))
+    i, j, _ = geometric_pairs(pos, 12.0)
+    d = np.hypot(*(pos[:, None, :] - pos[None, :, :]).transpose(2, 0, 1))
+    truth = {(a, b) for a, b in zip(*np.nonzero(np.triu(d <= 12.0, 1)))}
+    wrong = len(truth ^ set(zip(i.tolist(), j.tolist())))
+    return [Check("5", "unit disk: linked iff distance <= R (pairs wrong)", 0.0, float(wrong), 0.0)]
+
+
+def check_torus_links() -> list[Check]:
+    R, v, T = 10.0, 1.0, 1000.0
+    sim = build(
+        _config(
+            seed=11,
+            duration_s=T,
+            world={"n_robots": 200, "side_m": 200.0, "torus": True},
+            channel={"range_m": R},
+            mobility={"model": "random_direction", "speed_min_mps": v, "speed_max_mps": v},
+        )
+    )
+    sim.run()
+    links = collect(sim)["links"]
+    born = links[(links.t_up_s > 0) & (links.t_up_s < T / 2)]
+    theory = math.pi**2 * R / (8 * v)
+    return [
+        Check(
+            "6",
+            "link duration, torus, equal speeds: pi^2 R / (8 v) (5 %)",
+            theory,
+            float((born.t_down_s - born.t_up_s).mean()),
+            0.05 * theory,
+            "s",
+        )
+    ]
+
+
+def check_exact_links() -> list[Check]:
+    legs = pd.DataFrame(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, -20.0, 3.0, 2.0, 0.0),
+            (0.0, 2, 100.0, 0.0, 0.0, 0.0),
+            (5.0, 2, 100.0, 0.0, -1.3, 0.7),
+        ],
+        columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"],
+    )
+    links = link_lifetimes(legs, 5.0, 40.0)
+    row = links[(links.a == 0) & (links.b == 1)].iloc[0]
+    err = max(abs(row.t_up_s - 8.0), abs(row.t_down_s - 12.0))
+    return [Check("7", "link up/down times solve |dp + dv t| = R (error)", 0.0, float(err), 1e-9, "s")]
+
+
+def check_discovery_delay() -> list[Check]:
+    pairs, p = 1000, 0.3
+    n = 2 * pairs
+    sim = build(
+        _config(
+            seed=8,
+            duration_s=40.0,
+            world={"n_robots": n, "side_m": 200_000.0},
+            mobility={"model": "static"},
+            channel={"range_m": 10.0, "loss_probability": p, "latency_s": 0.0},
+            protocol={"model": "ack", "ack_jitter_s": 0.0},
+        )
+    )
+    pos = np.zeros((n, 2))
+    pos[:, 0] = np.tile(np.arange(pairs) * 100.0, 2)
+    pos[pairs:, 1] = 5000.0
+    sim.state.place(pos)
+    first = np.full(n, np.nan)
+
+    def listen(now, ack, receivers, hears_me):
+        if ack.sender < pairs:
+            r = receivers[receivers == ack.sender + pairs]
+            first[r[np.isnan(first[r])]] = now
+
+    def arrive():
+        yield sim.env.timeout(10.0)
+        for k in range(pairs):
+            sim.state.set_leg(pairs + k, 10.0, (0.0, 0.0), start_m=(k * 100.0, 5.0))
+
+    sim.models["protocol"].listeners.append(listen)
+    sim.env.process(arrive())
+    sim.run()
+    delay = first[pairs:] - 10.0
+    return [
+        Check(
+            "8",
+            f"discovery delay T/2 + T p / (1 - p), p = {p}",
+            0.5 + p / (1 - p),
+            float(np.nanmean(delay)),
+            4 * float(np.nanstd(delay)) / math.sqrt(pairs),
+            "s",
+        )
+    ]
+
+
+def check_spurious_timeouts() -> list[Check]:
+    pairs, p, tau, k = 400, 0.3, 2.5, 2
+    pos = np.zeros((2 * pairs, 2))
+    pos[0::2, 0] = pos[1::2, 0] = np.arange(pairs) * 100.0
+    pos[1::2, 1] = 5.0
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "pairs.csv"
+        pd.DataFrame(pos, columns=["x_m", "y_m"]).to_csv(csv, index=False)
+        sim = build(
+            _config(
+                seed=9,
+                duration_s=200.0,
+                world={"n_robots": 2 * pairs, "side_m": 1e5, "placement": str(csv)},
+                mobility={"model": "static"},
+                channel={"range_m": 10.0, "loss_probability": p},
+                protocol={
+                    "model": "clustering",
+                    "ack_jitter_s": 0.0,
+                    "tau_s": tau,
+                    "election_policy": "none",
+                    "message_rate_hz": 0.0,
+                },
+            )
+        )
+        sim.run()
+    counts = analysis.acks_until_leader_loss(sim.trace.frame("roles"), tau, 1.0)
+    theory = analysis.expected_acks_until_spurious_timeout(p, k)
+    return [
+        Check(
+            "9",
+            f"Acks until a spurious timeout, p = {p}, k = {k}",
+            theory,
+            counts.mean(),
+            4 * counts.std() / math.sqrt(len(counts)),
+            "Acks",
+        )
+    ]
+
+
+def check_delivery_ratio() -> list[Check]:
+    p = 0.25
+    sim = build(
+        _config(
+            seed=3,
+            duration_s=60.0,
+            world={"n_robots": 60, "side_m": 400.0},
+            channel={"loss_probability": p, "range_m": 100.0},
+            protocol={"model": "ack"},
+        )
+    )
+    sim.run()
+    acks = collect(sim)["acks"]
+    received, lost = acks.received.sum(), acks.dropped_loss.sum()
+    n = received + lost
+    return [Check("10", f"delivered fraction of Acks, loss {p}", 1 - p, received / n, 4 * math.sqrt(p * (1 - p) / n))]
+
+
+def check_random_geometric() -> list[Check]:
+    n, r, reps = 100, 0.1, 300
+    degrees = []
+    for rep in range(reps):
+        sim = build(
+            _config(seed=1, world={"n_robots": n, "side_m": 1.0}, mobility={"model": "static"}, channel={"range_m": r}),
+            run=rep,
+        )
+        degrees.append(2 * len(geometric_pairs(sim.state.positions_at(0.0), r)[0]) / n)
+    theory = (n - 1) * (math.pi * r**2 - 8 * r**3 / 3 + r**4 / 2)
+    out = [
+        Check(
+            "11",
+            "mean degree, unit square with border",
+            theory,
+            float(np.mean(degrees)),
+            4 * float(np.std(degrees)) / math.sqrt(reps),
+        )
+    ]
+    n, r, reps = 50, 0.16, 600
+    ok = 0
+    for rep in range(reps):
+        sim = build(
+            _config(
+                seed=2,
+                world={"n_robots": n, "side_m": 1.0, "torus": True},
+                mobility={"model": "static"},
+                channel={"range_m": r},
+            ),
+            run=rep,
+        )
+        i, j, _ = geometric_pairs(sim.state.positions_at(0.0), r, side_m=1.0)
+        ok += bool(np.bincount(np.r_[i, j], minlength=n).min() >= 1)
+    theory = (1 - (1 - math.pi * r**2) ** (n - 1)) ** n
+    out.append(
+        Check("12", "P(no isolated robot), torus", theory, ok / reps, 4 * math.sqrt(theory * (1 - theory) / reps))
+    )
+    return out
+
+
+def check_clustering_invariants() -> list[Check]:
+    bad = 0
+    for seed in (1, 2, 3):
+        n = 150
+        side = 10.0 * math.sqrt(n * math.pi / 6)
+        sim = build(
+            _config(
+                seed=seed,
+                duration_s=40.0,
+                world={"n_robots": n, "side_m": side},
+                mobility={"model": "static", "stationary_start": False},
+                channel={"range_m": 10.0},
+                protocol={"model": "clustering", "message_rate_hz": 0.0},
+            )
+        )
+        sim.run()
+        st = sim.state
+        i, j, _ = geometric_pairs(st.positions_at(sim.now), 10.0)
+        linked = set(zip(i.tolist(), j.tolist())) | set(zip(j.tolist(), i.tolist()))
+        leader = st.role == 2
+        bad += int((leader[i] & leader[j]).sum()) + int((st.role == 0).sum())
+        bad += sum((m, int(st.leader[m])) not in linked for m in np.flatnonzero(st.role == 1).tolist())
+    return [Check("13", "leaders independent and dominating, none undecided (violations)", 0.0, float(bad), 0.0)]
+
+
+CHECKS: list[Callable[[], list[Check]]] = [
+    check_rwp,
+    check_stationary_start,
+    check_unit_disk,
+    check_torus_links,
+    check_exact_links,
+    check_discovery_delay,
+    check_spurious_timeouts,
+    check_delivery_ratio,
+    check_random_geometric,
+    check_clustering_invariants,
+]
+
+
+def run_all(progress: bool = True) -> list[Check]:
+    from tqdm.auto import tqdm
+
+    results = []
+    for check in tqdm(CHECKS, desc="validate", unit="check", disable=not progress, leave=False):
+        results.extend(check())
+    return results
+
+
+def table(results: list[Check]) -> str:
+    rows = [("item", "result", "theory", "measured", "tolerance", "pass")]
+    for c in results:
+        rows.append(
+            (
+                c.item,
+                c.result,
+                f"{c.theory:.6g}",
+                f"{c.measured:.6g}",
+                f"± {c.tolerance:.3g}",
+                "yes" if c.passed else "NO",
+            )
+        )
+    widths = [max(len(r[k]) for r in rows) for k in range(6)]
+    lines = ["  ".join(cell.ljust(w) for cell, w in zip(r, widths)) for r in rows]
+    lines.insert(1, "-" * len(lines[0]))
+    return "\n".join(lines)

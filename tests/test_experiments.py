@@ -1,0 +1,44 @@
+"""Each experiment script runs end to end at a tiny size and writes its CSV and PNG."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize(
+    "script, args, csv",
+    [
+        (
+            "cluster_stability.py",
+            ["--reps", "2", "--speeds", "1", "8", "--pauses", "0", "--duration", "40", "--n", "20"],
+            "cluster_stability.csv",
+        ),
+        (
+            "link_lifetime.py",
+            ["--speeds", "2", "--pauses", "0", "--reps", "1", "--duration", "100", "--n", "40"],
+            "link_lifetime.csv",
+        ),
+        (
+            "false_role_changes.py",
+            ["--pairs", "30", "--losses", "0.5", "--taus", "1.5", "--duration", "60"],
+            "false_role_changes.csv",
+        ),
+    ],
+)
+def test_experiment_writes_csv_and_png(tmp_path, script, args, csv):
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / script), *args, "--workers", "1", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    df = pd.read_csv(tmp_path / csv)
+    assert len(df) >= 1 and not df.isna().all(axis=None)
+    png = tmp_path / csv.replace(".csv", ".png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
