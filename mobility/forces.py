@@ -1,0 +1,79 @@
+"""Virtual-force laws between leaders (paper section 1.4; MODEL.md section 5).
+
+A leader ``i`` feels from each neighbouring leader ``j`` at distance ``d < 2 r_c`` a force
+along the line from ``j`` to ``i`` of signed magnitude ``f(d)`` (positive: repulsive, away
+from ``j``), and nothing from leaders ``2 r_c`` or more away. The target spacing is
+``sqrt(3) r_c``: the hexagonal lattice of disks of radius ``r_c`` covers the plane with the
+least overlap, and a gateway at the midpoint of two leaders keeps them connected.
+
+- ``spring`` (default): ``k (sqrt(3) r_c - d)``: repulsive when closer than the target,
+  attractive between the target and ``2 r_c``, zero at the target.
+- ``repulsion`` (the paper's law): ``k (sqrt(3) r_c - d)`` when closer than the target,
+  zero beyond; leaders only push apart, and stop when the target spacing is reached.
+- ``inverse_square`` (after Zou and Chakrabarty's virtual force algorithm):
+  ``k r_c^2 (1 / d^2 - 1 / (sqrt(3) r_c)^2)``: strong repulsion at short range, a weak pull
+  between the target and ``2 r_c``, zero at the target.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+SQRT3 = math.sqrt(3.0)
+
+
+def spring(d, range_m: float, gain: float):
+    d = np.asarray(d, dtype=float)
+    return np.where(d < 2 * range_m, gain * (SQRT3 * range_m - d), 0.0)
+
+
+def repulsion(d, range_m: float, gain: float):
+    d = np.asarray(d, dtype=float)
+    return np.where(d < SQRT3 * range_m, gain * (SQRT3 * range_m - d), 0.0)
+
+
+def inverse_square(d, range_m: float, gain: float):
+    d = np.maximum(np.asarray(d, dtype=float), 1e-9)
+    target = SQRT3 * range_m
+    return np.where(d < 2 * range_m, gain * range_m**2 * (1 / d**2 - 1 / target**2), 0.0)
+
+
+LAWS = {"spring": spring, "repulsion": repulsion, "inverse_square": inverse_square}
+
+
+def pair_force(p_i, p_j, law, range_m: float, gain: float) -> np.ndarray:
+    """The force on ``i`` from ``j`` (a 2-vector)."""
+    delta = np.asarray(p_i, dtype=float) - np.asarray(p_j, dtype=float)
+    d = float(np.hypot(*delta))
+    if d == 0.0:
+        return np.zeros(2)
+    return float(law(d, range_m, gain)) * delta / d
+
+
+def resultant(p_i, neighbours_m, law, range_m: float, gain: float) -> np.ndarray:
+    """Sum of the forces on a leader at ``p_i`` from leaders at ``neighbours_m`` (k, 2)."""
+    nb = np.asarray(neighbours_m, dtype=float).reshape(-1, 2)
+    if len(nb) == 0:
+        return np.zeros(2)
+    delta = np.asarray(p_i, dtype=float) - nb
+    d = np.hypot(delta[:, 0], delta[:, 1])
+    ok = d > 0
+    mag = law(d[ok], range_m, gain)
+    return (mag[:, None] * delta[ok] / d[ok, None]).sum(axis=0)
+
+
+def border_force(p, side_m: float, range_m: float, gain: float) -> np.ndarray:
+    """Push back from the borders of the square: ``k (m - distance)`` inward within a margin
+    ``m = sqrt(3) r_c / 2`` of a border (half the target spacing: a leader there covers up
+    to the border with the least waste)."""
+    margin = SQRT3 * range_m / 2
+    p = np.asarray(p, dtype=float)
+    f = np.zeros(2)
+    for k in range(2):
+        if p[k] < margin:
+            f[k] += gain * (margin - p[k])
+        if side_m - p[k] < margin:
+            f[k] -= gain * (margin - (side_m - p[k]))
+    return f
