@@ -95,14 +95,20 @@ def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
     sweep would."""
     (tmp_path / "killer.py").write_text(
         textwrap.dedent("""
-        import os, signal
+        import os, signal, time
         from pathlib import Path
         from netsim import plugins
 
         MARK = Path(__file__).with_name("killed.marker")
+        RUNS = Path(__file__).with_name("out") / "runs"
 
         def install(sim):
             if sim.config.world.n_robots == 7 and not MARK.exists():
+                # Kill only once another run is safely on disk (the other worker's).
+                for _ in range(600):
+                    if any(RUNS.glob("*.parquet")):
+                        break
+                    time.sleep(0.1)
                 MARK.write_text("killed once")
                 os.kill(os.getppid(), signal.SIGKILL)
             return plugins.resolve(plugins.MOBILITY, "static", "mobility.model")(sim)
