@@ -329,9 +329,14 @@ def parse_override(text: str) -> dict:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw.strip()
+    return nest(key, value)
+
+
+def nest(dotted_key: str, value) -> dict:
+    """``nest("a.b.c", 1) == {"a": {"b": {"c": 1}}}``."""
     tree: dict = {}
     node = tree
-    parts = key.split(".")
+    parts = dotted_key.split(".")
     for part in parts[:-1]:
         node = node.setdefault(part, {})
     node[parts[-1]] = value

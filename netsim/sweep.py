@@ -75,7 +75,7 @@ class Sweep:
         for point in self.points:
             tree = self.base
             for key, value in point.items():
-                tree = cfgmod.merge(tree, _nest(key, value))
+                tree = cfgmod.merge(tree, cfgmod.nest(key, value))
             try:
                 resolved = cfgmod.to_dict(cfgmod.from_dict(tree))
             except ConfigError as exc:
@@ -83,16 +83,6 @@ class Sweep:
             for rep in range(self.replications):
                 out.append(Run(run_id(resolved, rep), point, rep, resolved))
         return out
-
-
-def _nest(dotted: str, value) -> dict:
-    tree: dict = {}
-    node = tree
-    parts = dotted.split(".")
-    for part in parts[:-1]:
-        node = node.setdefault(part, {})
-    node[parts[-1]] = value
-    return tree
 
 
 def run_id(resolved_config: dict, replication: int) -> str:
