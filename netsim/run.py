@@ -72,7 +72,7 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
     done = ~links["censored"]
     received, lost = int(acks["received"].sum()), int(acks["dropped_loss"].sum())
     legs = sim.state.legs()
-    distance = _distance_travelled(legs, duration)
+    distance = distance_travelled(legs, duration)
     summary = {
         "robots": n,
         "duration_s": duration,
@@ -99,7 +99,7 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
     return summary
 
 
-def _distance_travelled(legs: pd.DataFrame, until_s: float) -> np.ndarray:
+def distance_travelled(legs: pd.DataFrame, until_s: float) -> np.ndarray:
     """Distance each robot covered in ``[0, until_s]``."""
     legs = legs.sort_values(["robot", "t_s"], kind="stable")
     t = legs["t_s"].to_numpy(float)

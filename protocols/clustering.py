@@ -38,7 +38,7 @@ from netsim.state import LEADER, MEMBER, NO_LEADER, ROLE_NAMES, UNDECIDED
 from netsim.timers import DeadlineTimers
 from netsim.trace import RoleChange
 from protocols.ack import Ack, AckBeacon
-from protocols.neighbours import BIDIR_SINCE, DEGREE, GROUP_SIZE, HEARS_ME, LAST_HEARD, ROLE, X, Y
+from protocols.neighbours import BIDIR_SINCE, DEGREE, HEARS_ME, LAST_HEARD, ROLE, X, Y
 from protocols.neighbours import LEADER as LEADER_FIELD
 
 # Causes recorded in roles.parquet, named after the rule that fired.
@@ -305,8 +305,3 @@ class Clustering:
             self._set(r, "merge_lost", ack.sender, now)
             self.beacon.resign_pending[r] = True
             self.timers.restart(r, now + self.tau_s)
-
-    # -- for outputs ---------------------------------------------------------------------
-    @property
-    def group_size_column(self) -> int:
-        return GROUP_SIZE

@@ -9,6 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from netsim.config import from_dict
+from netsim.coverage import components
 from netsim.run import build, collect
 from netsim.sim import Simulation
 from netsim.state import LEADER, MEMBER, UNDECIDED
@@ -141,12 +142,7 @@ def connected_positions(n, seed, side):
     rng = np.random.default_rng(seed)
     while True:
         pos = rng.uniform(0, side, (n, 2))
-        import networkx as nx
-
-        g = nx.Graph()
-        g.add_nodes_from(range(n))
-        g.add_edges_from((a, b) for a, b, _ in geometric_edges(pos, 10.0))
-        if nx.is_connected(g):
+        if len(set(components(pos, 10.0))) == 1:
             return pos
 
 

@@ -10,6 +10,7 @@ from mobility.random_waypoint import MEAN_LEG_UNIT_SQUARE, paused_fraction, stat
 from netsim.errors import ConfigError
 from netsim.run import build
 from netsim.trajectory import sample_positions
+from netsim.validate import completed_leg_lengths
 from tests.conftest import make_config, rwp_density
 
 
@@ -111,16 +112,7 @@ def test_mean_leg_length_in_a_run():
     )
     sim = build(cfg)
     sim.run()
-    legs = sim.state.legs()
-    # A leg's length is its speed times the time to the robot's next leg; the first leg
-    # (length-biased by the stationary start) and the unfinished last one are excluded.
-    t = legs["t_s"].to_numpy()
-    r = legs["robot"].to_numpy()
-    same = r[1:] == r[:-1]
-    dur = np.diff(t)[same]
-    speed = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()[:-1][same]
-    first = np.r_[True, r[1:-1] != r[:-2]][: len(same)][same]
-    lengths = (speed * dur)[~first & (speed > 0)]
+    lengths = completed_leg_lengths(sim.state.legs())
     assert len(lengths) > 2000
     se = lengths.std() / math.sqrt(len(lengths))
     assert abs(lengths.mean() - MEAN_LEG_UNIT_SQUARE * side) < 4 * se
