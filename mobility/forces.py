@@ -11,7 +11,7 @@ least overlap, and a gateway at the midpoint of two leaders keeps them connected
 - ``repulsion`` (the paper's law): ``k (sqrt(3) r_c - d)`` when closer than the target,
   zero beyond; leaders only push apart, and stop when the target spacing is reached.
 - ``inverse_square`` (after Zou and Chakrabarty's virtual force algorithm):
-  ``k r_c^2 (1 / d^2 - 1 / (sqrt(3) r_c)^2)``: strong repulsion at short range, a weak pull
+  ``k r_c^3 (1 / d^2 - 1 / (sqrt(3) r_c)^2)`` (in metres, as the others): strong repulsion at short range, a weak pull
   between the target and ``2 r_c``, zero at the target.
 """
 
@@ -37,7 +37,7 @@ def repulsion(d, range_m: float, gain: float):
 def inverse_square(d, range_m: float, gain: float):
     d = np.maximum(np.asarray(d, dtype=float), 1e-9)
     target = SQRT3 * range_m
-    return np.where(d < 2 * range_m, gain * range_m**2 * (1 / d**2 - 1 / target**2), 0.0)
+    return np.where(d < 2 * range_m, gain * range_m**3 * (1 / d**2 - 1 / target**2), 0.0)
 
 
 LAWS = {"spring": spring, "repulsion": repulsion, "inverse_square": inverse_square}

@@ -1,4 +1,5 @@
-"""Initial placement of robots: uniform, grid, or read from a CSV file of ``x_m,y_m`` rows."""
+"""Initial placement of robots: uniform, grid, centre (uniform in a central square, a dense
+start for coverage), or read from a CSV file of ``x_m,y_m`` rows."""
 
 from __future__ import annotations
 
@@ -15,6 +16,12 @@ def uniform(rng: np.random.Generator, n: int, side_m: float) -> np.ndarray:
     return rng.uniform(0.0, side_m, size=(n, 2))
 
 
+def centre(rng: np.random.Generator, n: int, side_m: float, centre_side_m: float) -> np.ndarray:
+    """Uniform in the square of side ``centre_side_m`` at the middle of the area."""
+    low = (side_m - centre_side_m) / 2
+    return low + rng.uniform(0.0, centre_side_m, size=(n, 2))
+
+
 def grid(n: int, side_m: float) -> np.ndarray:
     """Robots at the centres of the cells of a ``k x k`` grid, ``k = ceil(sqrt(n))``,
     filled row by row."""
@@ -28,7 +35,7 @@ def from_csv(path: str, n: int, side_m: float) -> np.ndarray:
     key = "world.placement"
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(key, path, 'must be "uniform", "grid" or the path of an existing CSV file')
+        raise ConfigError(key, path, 'must be "uniform", "grid", "centre" or the path of an existing CSV file')
     try:
         df = pd.read_csv(p)
     except Exception as exc:  # pandas raises several parser errors; all mean a bad file
@@ -55,4 +62,6 @@ def initial_positions(sim) -> np.ndarray:
         return uniform(sim.streams.get("placement"), w.n_robots, w.side_m)
     if w.placement == "grid":
         return grid(w.n_robots, w.side_m)
+    if w.placement == "centre":
+        return centre(sim.streams.get("placement"), w.n_robots, w.side_m, w.centre_side_m)
     return from_csv(w.placement, w.n_robots, w.side_m)

@@ -55,7 +55,10 @@ def _param(default, check: Check = _any, doc: str = ""):
 class WorldConfig:
     n_robots: int = _param(50, _positive, "number of robots N")
     side_m: float = _param(1000.0, _positive, "side of the square area A, metres")
-    placement: str = _param("uniform", _any, '"uniform", "grid", or a path to a CSV file with columns x_m,y_m')
+    placement: str = _param(
+        "uniform", _any, '"uniform", "grid", "centre", or a path to a CSV file with columns x_m,y_m'
+    )
+    centre_side_m: float = _param(250.0, _positive, 'placement = "centre": side of the central square, metres')
     torus: bool = _param(False, _any, "wrap the area's borders (distances taken on a torus)")
 
 
@@ -121,6 +124,38 @@ class ProtocolConfig:
 
 
 @dataclass(frozen=True)
+class CoverageConfig:
+    enabled: bool = _param(False, _any, "leaders spread out by virtual forces (needs mobility.model = 'static')")
+    law: str = _param(
+        "spring", _one_of("spring", "repulsion", "inverse_square"), "force law between neighbouring leaders"
+    )
+    knowledge: str = _param(
+        "acks", _one_of("acks", "global"), "leaders' positions: as heard in Acks (stale), or the true ones"
+    )
+    control_period_s: float = _param(1.0, _positive, "time between control steps, s (also for control.controllers)")
+    start_s: float = _param(10.0, _non_negative, "first control step, s (after the groups have formed)")
+    gain: float = _param(0.1, _positive, "a leader's velocity is gain x resultant force, 1/s (forces in metres)")
+    speed_max_mps: float = _param(2.0, _positive, "speed cap of every controlled robot, m/s")
+    margin_m: float = _param(1.0, _non_negative, "kept links stay this far inside the range, m")
+    stop_speed_mps: float = _param(0.02, _non_negative, "a leader whose force asks for less than this holds, m/s")
+    stop_hold_s: float = _param(20.0, _positive, "control ends once every leader has held this long, s")
+    radius_m: float = _param(0.0, _non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
+    metrics_interval_s: float = _param(5.0, _positive, "coverage metrics sampling interval, s")
+    grid_cells: int = _param(200, _positive, "covered fraction: grid cells per side (error bound reported)")
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    controllers: tuple[str, ...] = field(
+        default=(),
+        metadata={"check": _any, "doc": "user controllers and hooks, by plugin name or 'package.module:function'"},
+    )
+    options: dict = field(
+        default_factory=dict, metadata={"check": _any, "doc": "free table of options for user controllers"}
+    )
+
+
+@dataclass(frozen=True)
 class OutputConfig:
     position_interval_s: float = _param(1.0, _non_negative, "positions sampling interval (0: off)")
 
@@ -133,6 +168,8 @@ class Config:
     mobility: MobilityConfig = field(default_factory=MobilityConfig)
     channel: ChannelConfig = field(default_factory=ChannelConfig)
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
+    coverage: CoverageConfig = field(default_factory=CoverageConfig)
+    control: ControlConfig = field(default_factory=ControlConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def replace(self, **sections) -> Config:
@@ -152,6 +189,8 @@ _SECTION_CLASSES = {
     "mobility": MobilityConfig,
     "channel": ChannelConfig,
     "protocol": ProtocolConfig,
+    "coverage": CoverageConfig,
+    "control": ControlConfig,
     "output": OutputConfig,
 }
 
@@ -196,6 +235,14 @@ def _build_section(cls, raw: dict, prefix: str):
             for i, v in enumerate(value):
                 if not (v > 0 and math.isfinite(v)):
                     raise ConfigError(f"{key}[{i}]", v, "must be a finite number > 0 (metres)")
+        elif key == "control.controllers":
+            if not isinstance(value, list):
+                raise ConfigError(key, value, "must be a list of plugin names")
+            value = tuple(_coerce(f"{key}[{i}]", v, "") for i, v in enumerate(value))
+        elif key == "control.options":
+            if not isinstance(value, dict):
+                raise ConfigError(key, value, "must be a table ([control.options])")
+            value = dict(value)
         else:
             value = _coerce(key, value, f.default)
             problem = f.metadata["check"](value)
@@ -279,6 +326,32 @@ def _check_across(c: Config) -> None:
             raise ConfigError(f"channel.{key}", getattr(ch, key), "must be finite")
     if c.world.torus and c.world.side_m <= 2 * max(c.ranges_m()):
         raise ConfigError("world.side_m", c.world.side_m, "on a torus must exceed twice the largest range_m")
+    if c.world.placement == "centre" and c.world.centre_side_m > c.world.side_m:
+        raise ConfigError(
+            "world.centre_side_m", c.world.centre_side_m, f"must not exceed world.side_m = {c.world.side_m}"
+        )
+    cov = c.coverage
+    if cov.enabled and m.model != "static":
+        raise ConfigError(
+            "coverage.enabled",
+            True,
+            f"needs mobility.model = 'static' (the controller moves the robots), not {m.model!r}",
+        )
+    lead = ch.latency_s + ch.latency_jitter_s
+    if (cov.enabled or c.control.controllers) and not cov.control_period_s > lead:
+        raise ConfigError(
+            "coverage.control_period_s",
+            cov.control_period_s,
+            f"must exceed the channel's largest delay (latency_s + latency_jitter_s = {lead})",
+        )
+    if cov.enabled and c.world.torus:
+        raise ConfigError("coverage.enabled", True, "is for a bounded area; set world.torus = false")
+    if cov.enabled and c.protocol.model in ("none", "ack"):
+        raise ConfigError(
+            "coverage.enabled",
+            True,
+            f"needs a protocol that forms groups (protocol.model = 'clustering'), not {c.protocol.model!r}",
+        )
     if m.model == "trace" and not m.trace_file:
         raise ConfigError("mobility.trace_file", m.trace_file, "must name a file when model = 'trace'")
 
@@ -370,11 +443,18 @@ def commented_toml(config: Config | None = None) -> str:
         if f.name in _SECTION_CLASSES:
             continue
         out += [f"# {f.metadata.get('doc', '')}", tomli_w.dumps({f.name: tree[f.name]}).strip()]
+    tables = []
     for section, cls in _SECTION_CLASSES.items():
         out += ["", f"[{section}]"]
         for g in dataclasses.fields(cls):
-            out += [f"# {g.metadata.get('doc', '')}", tomli_w.dumps({g.name: tree[section][g.name]}).strip()]
-    return "\n".join(out) + "\n"
+            value = tree[section][g.name]
+            if isinstance(value, dict):
+                # A sub-table cannot sit among the section's keys: it goes at the end.
+                tables += ["", f"# {g.metadata.get('doc', '')}", f"[{section}.{g.name}]"]
+                tables += [tomli_w.dumps(value).strip()] if value else []
+                continue
+            out += [f"# {g.metadata.get('doc', '')}", tomli_w.dumps({g.name: value}).strip()]
+    return "\n".join(out + tables) + "\n"
 
 
 def describe() -> list[tuple[str, object, str]]:
@@ -383,7 +463,8 @@ def describe() -> list[tuple[str, object, str]]:
     for f in dataclasses.fields(Config):
         if f.name in _SECTION_CLASSES:
             for g in dataclasses.fields(_SECTION_CLASSES[f.name]):
-                rows.append((f"{f.name}.{g.name}", g.default, g.metadata.get("doc", "")))
+                default = g.default if g.default is not dataclasses.MISSING else g.default_factory()
+                rows.append((f"{f.name}.{g.name}", default, g.metadata.get("doc", "")))
         else:
             rows.append((f.name, f.default, f.metadata.get("doc", "")))
     return rows

@@ -55,13 +55,12 @@ def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, tor
     window = duration_s if v_max == 0 else max(0.5 * float(ranges.min()) / v_max, 1e-6)
     box = float(side_m) if torus else None
 
-    out_t, out_a, out_b, out_k = [], [], [], []
+    out: list[tuple[np.ndarray, ...]] = []
 
     def emit(t, a, b, k):
-        out_t.append(t)
-        out_a.append(a)
-        out_b.append(b)
-        out_k.append(k)
+        out.append(
+            (np.asarray(t, float), np.asarray(a, np.int64), np.asarray(b, np.int64), np.full(len(a), k, np.int8))
+        )
 
     def minimum_image(d):
         if torus:
@@ -88,8 +87,7 @@ def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, tor
             d0 = minimum_image(pos[i] - pos[j])
             if first:
                 up = np.einsum("ij,ij->i", d0, d0) <= radius * radius
-                for a, b in zip(i[up].tolist(), j[up].tolist()):
-                    emit(0.0, a, b, 1)
+                emit(np.zeros(int(up.sum())), i[up], j[up], 1)
             changing = L.changes_in(start, stop)
             simple = ~(changing[i] | changing[j])
             _solve_piece(
@@ -102,21 +100,56 @@ def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, tor
                 j[simple],
                 emit,
             )
-            for a, b, r in zip(i[~simple].tolist(), j[~simple].tolist(), radius[~simple].tolist()):
-                cuts = sorted(set([start] + L.breakpoints(a, start, stop) + L.breakpoints(b, start, stop)))
-                cuts.append(stop)
-                for s, e in zip(cuts[:-1], cuts[1:]):
-                    la, lb = L.leg_at(a, s), L.leg_at(b, s)
-                    pa, pb = L.at(np.array([la]), s), L.at(np.array([lb]), s)
-                    dd = minimum_image(pa - pb)
-                    _solve_piece(
-                        dd, (L.v[la] - L.v[lb])[None, :], np.array([r]), s, e - s, np.array([a]), np.array([b]), emit
-                    )
+            if (~simple).any():
+                _solve_changing(L, i[~simple], j[~simple], radius[~simple], start, stop, minimum_image, emit)
         first = False
         if stop >= duration_s:
             break
         start = stop
-    return (np.array(out_t, float), np.array(out_a, np.int64), np.array(out_b, np.int64), np.array(out_k, np.int8))
+    if not out:
+        return np.empty(0), np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int8)
+    t, a, b, k = (np.concatenate(col) for col in zip(*out))
+    return t, a, b, k
+
+
+def _solve_changing(L: LegTable, a, b, radius, start: float, stop: float, minimum_image, emit) -> None:
+    """Pairs where a robot changes course within ``[start, stop)``: cut each pair's window
+    at both robots' course changes and solve every piece, all pairs in one pass."""
+    n_pairs = len(a)
+    # Each robot's course changes in the window are its legs cur+1 .. cur+count.
+    count = np.zeros(len(L.cur), dtype=np.int64)
+    for r in np.unique(np.concatenate([a, b])).tolist():
+        lo = L.cur[r] + 1
+        count[r] = int(np.searchsorted(L.t[lo : L.end[r]], stop, "left"))
+    pid = np.arange(n_pairs)
+    parts_p, parts_leg, parts_from = [pid], [np.full(n_pairs, -1)], [np.zeros(n_pairs, np.int8)]
+    for robot, tag in ((a, 1), (b, 2)):
+        c = count[robot]
+        p = np.repeat(pid, c)
+        offset = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        parts_p.append(p)
+        parts_leg.append(L.cur[robot][p] + 1 + offset)
+        parts_from.append(np.full(len(p), tag, np.int8))
+    p = np.concatenate(parts_p)
+    leg = np.concatenate(parts_leg)
+    frm = np.concatenate(parts_from)
+    t = np.where(leg >= 0, L.t[np.maximum(leg, 0)], start)
+    order = np.lexsort((t, p))
+    p, t, frm = p[order], t[order], frm[order]
+    group_start = np.searchsorted(p, pid)
+    # Legs of a and b current on each piece: how many of their changes came so far.
+    ca = np.cumsum(frm == 1)
+    cb = np.cumsum(frm == 2)
+    ca -= np.repeat(ca[group_start] - (frm[group_start] == 1), np.diff(np.r_[group_start, len(p)]))
+    cb -= np.repeat(cb[group_start] - (frm[group_start] == 2), np.diff(np.r_[group_start, len(p)]))
+    # Changes at the same instant make one cut: keep the last, which has seen them all.
+    last = np.r_[(p[1:] != p[:-1]) | (t[1:] != t[:-1]), True]
+    p, t, ca, cb = p[last], t[last], ca[last], cb[last]
+    end = np.where(np.r_[p[1:] == p[:-1], False], np.r_[t[1:], stop], stop)
+    la, lb = L.cur[a[p]] + ca, L.cur[b[p]] + cb
+    pa = L.p[la] + L.v[la] * (t - L.t[la])[:, None]
+    pb = L.p[lb] + L.v[lb] * (t - L.t[lb])[:, None]
+    _solve_piece(minimum_image(pa - pb), L.v[la] - L.v[lb], radius[p], t, end - t, a[p], b[p], emit)
 
 
 def _solve_piece(d, w, radius, t_start, length, a, b, emit):
@@ -125,14 +158,12 @@ def _solve_piece(d, w, radius, t_start, length, a, b, emit):
     t_in, t_out = _roots(d, w, radius)
     # A crossing on a window's edge is looked for by both windows, with a little slack,
     # so that rounding cannot hide it from both; the duplicate is dropped later.
+    length = np.broadcast_to(length, t_in.shape)
+    t_start = np.broadcast_to(t_start, t_in.shape)
     enter = (t_in >= -_EDGE_S) & (t_in <= length + _EDGE_S)
     leave = (t_out >= -_EDGE_S) & (t_out <= length + _EDGE_S)
-    t_in = t_start + np.clip(t_in[enter], 0.0, length)
-    t_out = t_start + np.clip(t_out[leave], 0.0, length)
-    for t, x, y in zip(t_in.tolist(), a[enter].tolist(), b[enter].tolist()):
-        emit(t, x, y, 1)
-    for t, x, y in zip(t_out.tolist(), a[leave].tolist(), b[leave].tolist()):
-        emit(t, x, y, -1)
+    emit(t_start[enter] + np.clip(t_in[enter], 0.0, length[enter]), a[enter], b[enter], 1)
+    emit(t_start[leave] + np.clip(t_out[leave], 0.0, length[leave]), a[leave], b[leave], -1)
 
 
 def link_lifetimes(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, torus=False) -> pd.DataFrame:

@@ -15,6 +15,7 @@ import pandas as pd
 
 from netsim import plugins
 from netsim.config import Config
+from netsim.control import control_loop
 from netsim.links import link_lifetimes
 from netsim.sim import Simulation
 from netsim.trace import RoleChange
@@ -30,6 +31,14 @@ def build(config: Config, run: int = 0) -> Simulation:
     if config.protocol.model != "none":
         protocol = plugins.resolve(plugins.PROTOCOLS, config.protocol.model, "protocol.model")
         sim.models["protocol"] = protocol(sim)
+    if config.coverage.enabled:
+        coverage = plugins.resolve(plugins.CONTROLLERS, "coverage", "coverage.enabled")
+        sim.models["coverage"] = coverage(sim)
+    for name in config.control.controllers:
+        factory = plugins.resolve(plugins.CONTROLLERS, name, "control.controllers")
+        controller = factory(sim)
+        if callable(controller):
+            control_loop(sim).add(controller)
     return sim
 
 

@@ -15,6 +15,7 @@ from netsim.state import LEADER, MEMBER, ROLE_NAMES
 from netsim.topology import geometric_pairs
 from protocols.ack import AckBeacon
 from protocols.clustering import Clustering
+from protocols.neighbours import LAST_HEARD, ROLE, X, Y
 from protocols.relay import Outcome, Relay, traffic
 
 
@@ -72,6 +73,25 @@ class Stack:
                 self.command[r] = cmd
                 for fn in self.on_command:
                     fn(r, cmd)
+
+    # -- what leaders know of each other (for coverage controllers) ------------------
+    def heard_leaders(self, leader: int, now: float) -> tuple[np.ndarray, np.ndarray]:
+        """The other leaders ``leader`` knows of and their last-heard positions: those it
+        hears itself and those its live neighbours hear (a gateway's Ack reports them),
+        the freshest report of each. Positions are as old as the Ack they came in."""
+        table = self.table
+        live = table.live_mask(now, leader)
+        rows = [leader] + table.id[leader][live].tolist()
+        ids = table.id[rows]
+        data = table.data[rows]
+        mask = (now - data[:, :, LAST_HEARD] < table.tau_s) & (data[:, :, ROLE] == LEADER) & (ids != leader)
+        if not mask.any():
+            return np.empty(0, dtype=np.int64), np.empty((0, 2))
+        found, rec = ids[mask], data[mask]
+        order = np.lexsort((-rec[:, LAST_HEARD], found))
+        found, rec = found[order], rec[order]
+        first = np.r_[True, found[1:] != found[:-1]]
+        return found[first], rec[first][:, [X, Y]]
 
     # -- ground truth beside belief ----------------------------------------------------
     def belief_vs_truth(self, now: float) -> pd.DataFrame:

@@ -1,0 +1,66 @@
+"""Two example controllers for the control loop (:mod:`netsim.control`), one of each kind.
+
+A controller plugin is a factory ``factory(sim) -> controller``; the controller is called
+once per control step with a :class:`~netsim.control.ControlStep`. Name them in the
+configuration::
+
+    [control]
+    controllers = ["avoid_collisions", "log_separation"]   # or "mypackage.mymodule:factory"
+
+    [control.options]
+    min_separation_m = 2.0
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from netsim.control import ControlStep
+
+
+def _min_separation_m(step: ControlStep) -> float:
+    return float(step.options.get("min_separation_m", 1.0))
+
+
+def avoid_collisions(sim):
+    """A simple collision avoidance: a robot whose planned step would end within
+    ``min_separation_m`` of where another robot's step ends holds its position instead.
+
+    Runs among the user controllers (before the coverage controller secures the plan, so
+    with coverage on it stops leaders, and their members stop with them). Holding is
+    always safe for connectivity."""
+
+    def controller(step: ControlStep) -> None:
+        sep = _min_separation_m(step)
+        for _ in range(3):  # a robot that holds can stop another: settle in a few passes
+            end = step.positions_m + step.velocity_mps * step.period_s
+            moving = np.hypot(*step.velocity_mps.T) > 0
+            pairs = cKDTree(end).query_pairs(sep, output_type="ndarray")
+            if len(pairs) == 0:
+                return
+            i, j = pairs[:, 0], pairs[:, 1]
+            stop = np.unique(np.concatenate([i[moving[i]], j[moving[j]]]))
+            if len(stop) == 0:
+                return
+            step.velocity_mps[stop] = 0.0
+
+    return controller
+
+
+def log_separation(sim):
+    """A logging hook: records, at every control step, the smallest distance between two
+    robots and how many pairs are closer than ``min_separation_m``, in a table
+    ``separation`` (``separation.parquet``)."""
+
+    def hook(step: ControlStep) -> None:
+        sep = _min_separation_m(step)
+        tree = cKDTree(step.positions_m)
+        d, _ = tree.query(step.positions_m, k=2)
+        step.record(
+            "separation",
+            min_distance_m=float(d[:, 1].min()),
+            pairs_closer_than_min=int(len(tree.query_pairs(sep))),
+        )
+
+    return hook
