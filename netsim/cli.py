@@ -9,6 +9,10 @@
     Run a parameter sweep; started again, it skips the runs already done.
 ``netsim validate``
     Check the model against closed-form results; exit status 1 if any check fails.
+``netsim figures [RUN_DIR] [--config FILE] [--set KEY=VALUE ...] [--out DIR]``
+    Draw the paper's Figs. 6-8 (initial deployment, leaders' paths, final deployment with
+    coverage disks) from a run directory; without one, first run the built-in coverage
+    scenario (or FILE) into DIR.
 ``netsim config``
     Print the default configuration, every key with its meaning.
 
@@ -124,6 +128,28 @@ def cmd_validate(args) -> int:
     return 1 if failed else 0
 
 
+def cmd_figures(args) -> int:
+    from netsim import figures
+    from netsim.output import manifest, write_run
+    from netsim.run import execute
+
+    if args.run_dir:
+        if args.config or args.set:
+            raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
+        paths = figures.draw(args.run_dir, args.out)
+    else:
+        out = Path(args.out or "netsim-figures")
+        overrides = ([] if args.config else figures.COVERAGE_SCENARIO) + list(args.set or [])
+        config = cfgmod.load(args.config, overrides)
+        result = execute(config, progress=not args.no_progress)
+        write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
+        print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
+        paths = figures.draw(out)
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
 def cmd_config(args) -> int:
     print(cfgmod.commented_toml(), end="")
     return 0
@@ -167,6 +193,14 @@ def parser() -> argparse.ArgumentParser:
     v = sub.add_parser("validate", help="check the model against the closed-form results of VALIDATION.md")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
     v.set_defaults(func=cmd_validate)
+
+    f = sub.add_parser("figures", help="draw the paper's Figs. 6-8 (runs the coverage scenario if no run given)")
+    f.add_argument("run_dir", nargs="?", help="a run's output directory (default: run the coverage scenario)")
+    f.add_argument("--config", help="scenario file to run instead of the built-in coverage scenario")
+    f.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
+    f.add_argument("--out", help="where to write (default: RUN_DIR, or ./netsim-figures)")
+    f.add_argument("--no-progress", action="store_true", help="no progress bar")
+    f.set_defaults(func=cmd_figures)
 
     c = sub.add_parser("config", help="print the default configuration with every key explained")
     c.set_defaults(func=cmd_config)

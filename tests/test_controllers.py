@@ -1,0 +1,78 @@
+"""The controller interface (the paper's reserved interfaces) and its two shipped
+examples: a collision-avoidance controller and a logging hook."""
+
+import numpy as np
+import pytest
+
+from netsim import config
+from netsim.errors import ConfigError, NetsimInputError
+from netsim.run import execute
+
+
+def head_on(sim):
+    """A user controller: every robot heads for the middle of the area at 2 m/s."""
+
+    def controller(step):
+        to_centre = step.side_m / 2 - step.positions_m
+        dist = np.hypot(*to_centre.T)
+        moving = dist > 1e-9
+        step.velocity_mps[moving] = 2.0 * to_centre[moving] / dist[moving, None]
+        step.velocity_mps[~moving] = 0.0
+
+    return controller
+
+
+def two_robots(tmp_path, controllers, mobility="static"):
+    csv = tmp_path / "two.csv"
+    csv.write_text("x_m,y_m\n100,500\n900,500\n")
+    return config.load(
+        None,
+        [
+            "world.n_robots=2",
+            f'world.placement="{csv}"',
+            f'mobility.model="{mobility}"',
+            "mobility.stationary_start=false",
+            'protocol.model="none"',
+            "duration_s=300",
+            "coverage.start_s=0",
+            f"control.controllers={controllers!r}".replace("'", '"'),
+            "control.options={min_separation_m=5.0}",
+        ],
+    )
+
+
+def test_avoid_collisions_stops_robots_short_of_the_minimum_separation(tmp_path):
+    r = execute(two_robots(tmp_path, ["tests.test_controllers:head_on", "avoid_collisions", "log_separation"]))
+    sep = r.frames["separation"]
+    assert len(sep) >= 290
+    assert sep["min_distance_m"].min() >= 5.0
+    assert sep["min_distance_m"].iloc[-1] < 10.0  # they did come close
+    assert (sep["pairs_closer_than_min"] == 0).all()
+
+
+def test_without_avoidance_the_same_robots_come_closer(tmp_path):
+    r = execute(two_robots(tmp_path, ["tests.test_controllers:head_on", "log_separation"]))
+    assert r.frames["separation"]["min_distance_m"].min() < 5.0
+
+
+def test_logging_hook_observes_any_mobility_model(tmp_path):
+    r = execute(two_robots(tmp_path, ["log_separation"], mobility="random_waypoint"))
+    sep = r.frames["separation"]
+    pos = r.frames["positions"]
+    assert len(sep) >= 290
+    # The logged metric is the true distance (positions sampled at the same instants).
+    at = pos[pos["t_s"] == 100.0].sort_values("robot")[["x_m", "y_m"]].to_numpy()
+    row = sep.iloc[(sep["t_s"] - 100.0).abs().argmin()]
+    assert row["t_s"] == pytest.approx(100.001)
+    assert row["min_distance_m"] == pytest.approx(np.hypot(*(at[0] - at[1])), abs=0.05)
+
+
+def test_a_controller_may_not_fight_the_mobility_model(tmp_path):
+    with pytest.raises(NetsimInputError, match="mobility.model = 'static'"):
+        execute(two_robots(tmp_path, ["tests.test_controllers:head_on"], mobility="random_waypoint"))
+
+
+def test_unknown_controller_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError) as err:
+        execute(two_robots(tmp_path, ["steer_by_magic"]))
+    assert err.value.key == "control.controllers"
