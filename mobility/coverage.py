@@ -384,6 +384,7 @@ class CoverageController:
         return {
             "coverage_law": self.cfg.law,
             "coverage_knowledge": self.cfg.knowledge,
+            "leaders_final": last["leaders"],
             "covered_fraction_leaders_start": start["covered_fraction_leaders"] if start else math.nan,
             "covered_fraction_leaders_final": last["covered_fraction_leaders"],
             "covered_fraction_all_start": start["covered_fraction_all"] if start else math.nan,

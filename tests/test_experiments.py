@@ -28,6 +28,11 @@ ROOT = Path(__file__).resolve().parents[1]
             ["--pairs", "30", "--losses", "0.5", "--taus", "1.5", "--duration", "60"],
             "false_role_changes.csv",
         ),
+        (
+            "coverage_vs_n.py",
+            ["--n", "20", "30", "--laws", "spring", "--reps", "2", "--duration", "60"],
+            "coverage_vs_n.csv",
+        ),
     ],
 )
 def test_experiment_writes_csv_and_png(tmp_path, script, args, csv):
