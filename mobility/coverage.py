@@ -374,6 +374,11 @@ class CoverageController:
     def coverage_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.samples)
 
+    def travel_frame(self) -> pd.DataFrame:
+        """Distance each robot travelled over the run (the energy it spent moving)."""
+        st = self.sim.state
+        return pd.DataFrame({"robot": np.arange(st.n), "distance_m": distance_travelled(st.legs(), self.sim.env.now)})
+
     def control_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.steps, columns=list(StepRecord._fields))
 
@@ -427,4 +432,5 @@ def install(sim) -> CoverageController:
     sim.env.process(ctl._mark_start())
     sim.trace.add_frame("coverage", ctl.coverage_frame)
     sim.trace.add_frame("control", ctl.control_frame)
+    sim.trace.add_frame("travel", ctl.travel_frame)
     return ctl

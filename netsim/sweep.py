@@ -51,7 +51,7 @@ from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
 
 SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
-KNOWN_TABLES = {"positions", "links", "acks", "roles", "groups", "messages", "beliefs", "coverage", "control"}
+KNOWN_TABLES = {"positions", "links", "acks", "roles", "groups", "messages", "beliefs", "coverage", "control", "travel"}
 
 
 @dataclass(frozen=True)

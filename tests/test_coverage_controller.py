@@ -202,6 +202,8 @@ def test_coverage_metrics_are_sampled_over_time():
     assert expected <= set(cov.columns)
     assert cov["t_s"].diff().dropna().eq(5.0).all()
     assert cov["distance_mean_m"].is_monotonic_increasing
+    travel = r.frames["travel"]
+    assert len(travel) == 40 and travel["distance_m"].mean() == pytest.approx(r.summary["distance_mean_m"])
 
 
 def test_same_seed_same_coverage_trace():
@@ -249,3 +251,24 @@ def test_figures_of_a_directory_that_is_no_run_is_a_clear_error(tmp_path, capsys
 
     assert main(["figures", str(tmp_path)]) == 2
     assert "not a run directory" in capsys.readouterr().err
+
+
+def test_leaders_hear_of_leaders_beyond_range_through_their_gateways(tmp_path, build_sim):
+    """Knowledge "acks": two leaders 1.7 r_c apart cannot hear each other, but each learns
+    the other's position from the gateway between them; a leader 3 r_c away stays unknown."""
+    csv = tmp_path / "line.csv"
+    csv.write_text("x_m,y_m\n100,500\n185,500\n270,500\n600,500\n")
+    sim = build_sim(
+        world={"n_robots": 4, "placement": str(csv)},
+        mobility={"model": "static"},
+        channel={"range_m": 100.0},
+        protocol={"message_rate_hz": 0.0, "join_policy": "lowest_id"},
+    )
+    sim.run(until_s=20.0)
+    role = sim.state.role.tolist()
+    assert role == [LEADER, MEMBER, LEADER, LEADER]
+    ids, xy = sim.models["protocol"].heard_leaders(0, sim.now)
+    assert ids.tolist() == [2]
+    assert xy[0] == pytest.approx([270.0, 500.0])
+    ids3, _ = sim.models["protocol"].heard_leaders(3, sim.now)
+    assert ids3.tolist() == []
