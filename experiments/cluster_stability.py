@@ -17,7 +17,6 @@ Killed, it resumes where it stopped: finished runs are kept in ``--out/sweep``.
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import matplotlib
@@ -66,11 +65,7 @@ def main(argv=None) -> None:
     p.add_argument("--speed-min", type=float, default=0.5)
     p.add_argument("--speeds", type=float, nargs="+", default=[1.0, 2.5, 5.0, 10.0, 20.0], help="speed_max values")
     p.add_argument("--pauses", type=float, nargs="+", default=[0.0, 30.0])
-    p.add_argument("--reps", type=int, default=5, help="replications per point")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--scheduler", help="Dask scheduler address, instead of local workers")
-    p.add_argument("--out", default="experiments-out/cluster_stability", help="output directory")
+    sweepmod.add_runner_arguments(p, "cluster_stability", reps=5)
     args = p.parse_args(argv)
     if any(v < args.speed_min for v in args.speeds):
         p.error("every --speeds value must be at least --speed-min")

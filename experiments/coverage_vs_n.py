@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 from pathlib import Path
 
 import matplotlib
@@ -88,11 +87,7 @@ def main(argv=None) -> None:
     p.add_argument("--range", type=float, default=100.0, help="communication range r_c, m")
     p.add_argument("--duration", type=float, default=300.0, help="simulated seconds per run")
     p.add_argument("--knowledge", default="acks", choices=["acks", "global"])
-    p.add_argument("--reps", type=int, default=3, help="replications per point")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--scheduler", help="Dask scheduler address, instead of local workers")
-    p.add_argument("--out", default="experiments-out/coverage_vs_n", help="output directory")
+    sweepmod.add_runner_arguments(p, "coverage_vs_n", reps=3)
     args = p.parse_args(argv)
     sweep = sweepmod.parse(
         {

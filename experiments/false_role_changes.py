@@ -16,7 +16,6 @@ Writes ``false_role_changes.csv`` and ``false_role_changes.png``.
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import matplotlib
@@ -36,11 +35,7 @@ def main(argv=None) -> None:
     p.add_argument("--losses", type=float, nargs="+", default=[0.2, 0.3, 0.4, 0.5, 0.6])
     p.add_argument("--taus", type=float, nargs="+", default=[1.5, 2.5, 3.5], help="tau in Ack periods (1 s)")
     p.add_argument("--duration", type=float, default=300.0)
-    p.add_argument("--reps", type=int, default=1)
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--scheduler")
-    p.add_argument("--out", default="experiments-out/false_role_changes")
+    sweepmod.add_runner_arguments(p, "false_role_changes", reps=1)
     args = p.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,6 @@ lifetime against speed, with the theory line).
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import matplotlib
@@ -47,11 +46,7 @@ def main(argv=None) -> None:
     p.add_argument("--speeds", type=float, nargs="+", default=[1.0, 2.0, 5.0, 10.0])
     p.add_argument("--pauses", type=float, nargs="+", default=[0.0, 30.0])
     p.add_argument("--spread", type=float, default=0.5, help="random waypoint speeds uniform on [spread v, v]")
-    p.add_argument("--reps", type=int, default=2)
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--scheduler")
-    p.add_argument("--out", default="experiments-out/link_lifetime")
+    sweepmod.add_runner_arguments(p, "link_lifetime", reps=2)
     args = p.parse_args(argv)
     out = Path(args.out)
     common = {

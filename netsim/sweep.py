@@ -348,6 +348,16 @@ def _run_dask(todo: list[Run], tables, scheduler, account) -> None:
 
 
 # -- results -------------------------------------------------------------------------------
+def add_runner_arguments(parser, name: str, reps: int) -> None:
+    """The options every sweep script shares: ``--reps``, ``--seed``, ``--workers``,
+    ``--scheduler`` and ``--out`` (default ``experiments-out/<name>``)."""
+    parser.add_argument("--reps", type=int, default=reps, help="replications per point")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")
+    parser.add_argument("--scheduler", help="Dask scheduler address, instead of local workers")
+    parser.add_argument("--out", default=f"experiments-out/{name}", help="output directory")
+
+
 def load(out_dir: str | Path) -> pd.DataFrame:
     """Every finished run of a sweep as one tidy frame, one row per run, sorted by run id."""
     files = sorted((Path(out_dir) / "runs").glob("*.parquet"))
