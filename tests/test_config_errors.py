@@ -144,3 +144,11 @@ def test_console_script_gives_no_traceback(tmp_path):
     assert out.returncode == 2
     assert "Traceback" not in out.stderr
     assert out.stderr.strip() == textwrap.dedent("netsim: error: world.n_robots = -1: must be > 0 (number of robots N)")
+
+
+def test_printed_configuration_loads_back_unchanged(tmp_path):
+    """`netsim config` writes a file that loads to the same configuration, sub-tables included."""
+    c = cfgmod.load(None, ['control.controllers=["log_separation"]', "control.options={min_separation_m=2.5}"])
+    path = tmp_path / "c.toml"
+    path.write_text(cfgmod.commented_toml(c))
+    assert cfgmod.load(path) == c
