@@ -268,7 +268,8 @@ class CoverageController:
         self.commander = np.full(sim.state.n, -1)
         self.steps: list[StepRecord] = []
         self.samples: list[dict] = []
-        self._wished = np.zeros((sim.state.n, 2))
+        self._max_wish = 0.0
+        self.sample_at_start: dict | None = None
 
     # -- the two stages of a step --------------------------------------------------
     def propose(self, step: ControlStep) -> None:
@@ -286,8 +287,6 @@ class CoverageController:
         wished[quiet] = 0.0
         step.velocity_mps[:] = 0.0
         step.velocity_mps[leaders] = wished
-        self._wished[:] = 0.0
-        self._wished[leaders] = wished
         qs = self.quiet_since[leaders]
         self.quiet_since[:] = np.nan
         self.quiet_since[leaders] = np.where(quiet, np.where(np.isnan(qs), now, qs), np.nan)
@@ -405,8 +404,6 @@ class CoverageController:
             "control_steps": len(steps),
             "control_settled_s": self.settled_s,
         }
-
-    sample_at_start: dict | None = None
 
     def _mark_start(self):
         yield self.sim.env.timeout(self.cfg.start_s)

@@ -101,9 +101,6 @@ class ControlLoop:
         """End the loop after the current step (the robots stop where they are)."""
         self.stopped = True
 
-    def frames(self) -> dict[str, pd.DataFrame]:
-        return {name: pd.DataFrame(rows) for name, rows in self.records.items()}
-
     def _register(self, table: str) -> None:
         if table not in self.sim.trace.names():
             self.sim.trace.add_frame(table, lambda: pd.DataFrame(self.records.get(table, [])))
