@@ -232,8 +232,8 @@ def wished_velocities(
     out = np.zeros((len(leaders), 2))
     for k, (i, nb) in enumerate(zip(leaders.tolist(), neighbours)):
         p = pos_now[i]
-        near = nb[np.hypot(*(nb - p).T) < 2 * range_m] if len(nb) else nb
-        out[k] = resultant(p, near, law, range_m, gain) + border_force(p, side_m, range_m, gain)
+        # Every law is zero from 2 r_c on, so farther leaders need no filtering here.
+        out[k] = resultant(p, nb, law, range_m, gain) + border_force(p, side_m, range_m, gain)
     return out
 
 

@@ -87,6 +87,7 @@ class ControlLoop:
         # Called as fn(step) at t_s, after commands have arrived, before velocities apply.
         self.before_apply: list[Controller] = []
         self.records: dict[str, list[dict]] = {}
+        self._registered: set[str] = set()
         self.steps = 0
         self.stopped = False
         self._process = None
@@ -102,7 +103,8 @@ class ControlLoop:
         self.stopped = True
 
     def _register(self, table: str) -> None:
-        if table not in self.sim.trace.names():
+        if table not in self._registered:
+            self._registered.add(table)
             self.sim.trace.add_frame(table, lambda: pd.DataFrame(self.records.get(table, [])))
 
     def _run(self):

@@ -49,12 +49,17 @@ def _read(run_dir: Path):
     return config, positions, roles, groups
 
 
+def _sample_time(frame: pd.DataFrame, t: float) -> float:
+    """The sampling instant of ``frame`` at or just after ``t`` (the last one if none)."""
+    times = np.sort(frame["t_s"].unique())
+    return float(times[min(int(np.searchsorted(times, t - 1e-9)), len(times) - 1)])
+
+
 def _at(positions: pd.DataFrame, t: float) -> tuple[float, np.ndarray]:
-    """The sample at or just after ``t`` (the last one if none): time and (N, 2) positions."""
-    times = np.sort(positions["t_s"].unique())
-    k = min(int(np.searchsorted(times, t - 1e-9)), len(times) - 1)
-    snap = positions[positions["t_s"] == times[k]].sort_values("robot")
-    return float(times[k]), snap[["x_m", "y_m"]].to_numpy()
+    """The positions sample at or just after ``t``: its time and (N, 2) positions."""
+    when = _sample_time(positions, t)
+    snap = positions[positions["t_s"] == when].sort_values("robot")
+    return when, snap[["x_m", "y_m"]].to_numpy()
 
 
 def _roles_at(roles: pd.DataFrame, n: int, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -72,9 +77,7 @@ def _gateways_at(groups: pd.DataFrame | None, n: int, t: float) -> np.ndarray:
     out = np.zeros(n, bool)
     if groups is None or groups.empty:
         return out
-    times = np.sort(groups["t_s"].unique())
-    k = min(int(np.searchsorted(times, t - 1e-9)), len(times) - 1)
-    g = groups[groups["t_s"] == times[k]]
+    g = groups[groups["t_s"] == _sample_time(groups, t)]
     counts = g.groupby("robot").size()
     out[counts[counts > 1].index.to_numpy()] = True
     return out
