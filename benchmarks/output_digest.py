@@ -1,0 +1,156 @@
+"""Fingerprints of every output table over a set of scenarios: the before/after check of a
+change that must not change behaviour (a refactor, a speed-up, a new model whose default
+must reproduce today's runs).
+
+Each scenario is small (30 robots, 60 simulated seconds) and the set covers every mobility
+model, protocol, policy, loss model and controller. For each scenario the script runs it,
+converts every output table to Parquet in memory and records the SHA-256 of its bytes
+(with pandas' metadata: a changed dtype or column order changes the digest too). The run's
+wall time and the package versions are not part of the fingerprint.
+
+    python benchmarks/output_digest.py --write digests.json     # before the change
+    python benchmarks/output_digest.py --check digests.json     # after: prints a table
+    python benchmarks/output_digest.py --list                   # the scenarios
+
+``--check`` exits with status 1 if any table differs, and names the tables that do.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import io
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+BASE = ["world.n_robots=30", "duration_s=60", "world.side_m=500", "channel.range_m=120"]
+COVERAGE = [
+    "world.n_robots=30",
+    "duration_s=80",
+    "world.side_m=800",
+    "world.placement=centre",
+    "world.centre_side_m=200",
+    "mobility.model=static",
+    "channel.range_m=100",
+    "coverage.enabled=true",
+    "protocol.message_rate_hz=0",
+]
+
+SCENARIOS: dict[str, list[str]] = {
+    "rwp_clustering": [],
+    "rwp_fresh_start": ["mobility.stationary_start=false", "world.placement=grid"],
+    "rwp_ack_only": ["protocol.model=ack"],
+    "rwp_no_protocol": ["protocol.model=none"],
+    "random_direction": ["mobility.model=random_direction", "mobility.pause_s=1"],
+    "random_direction_torus": [
+        "mobility.model=random_direction",
+        "world.torus=true",
+        "mobility.turn_interval_s=7",
+    ],
+    "static_grid": ["mobility.model=static", "world.placement=grid"],
+    "trace_replay": ["mobility.model=trace", "mobility.trace_file={trace}"],
+    "join_first_heard": ["protocol.join_policy=first_heard"],
+    "join_lowest_id": ["protocol.join_policy=lowest_id"],
+    "merge_lowest_id": ["protocol.merge_policy=lowest_id_wins"],
+    "merge_highest_degree": ["protocol.merge_policy=highest_degree_wins"],
+    "election_degree": ["protocol.election_policy=highest_degree"],
+    "election_none": ["protocol.election_policy=none"],
+    "oracle_routing": ["protocol.routing=oracle", "protocol.message_rate_hz=1"],
+    "strict_backbone": ["protocol.distributed_gateways=false", "protocol.message_rate_hz=1"],
+    "bernoulli_loss_jitter": ["channel.loss_probability=0.2", "channel.latency_jitter_s=0.01"],
+    "distance_loss": ["channel.loss_model=distance", "channel.loss_probability=0.05"],
+    "gilbert_elliott": ["channel.loss_model=gilbert_elliott"],
+    "unequal_ranges": ["channel.range_m=[{ranges}]"],
+    "coverage_spring": COVERAGE,
+    "coverage_repulsion_global": COVERAGE + ["coverage.law=repulsion", "coverage.knowledge=global"],
+    "coverage_inverse_square": COVERAGE + ["coverage.law=inverse_square"],
+    "controllers": COVERAGE + ['control.controllers=["avoid_collisions", "log_separation"]'],
+}
+
+
+def _trace_file(directory: Path) -> Path:
+    from netsim.cli import main
+
+    path = directory / "trace.tcl"
+    if not path.exists():
+        args = "--n 30 --side 500 --speed-min 1 --speed-max 4 --pause 1 --duration 60 --seed 4"
+        main(["scenario", "generate", *args.split(), "-o", str(path)])
+    return path
+
+
+def overrides(name: str, directory: Path) -> list[str]:
+    out = []
+    for text in BASE + SCENARIOS[name]:
+        if "{trace}" in text:
+            text = text.format(trace=_trace_file(directory))
+        if "{ranges}" in text:
+            text = text.format(ranges=", ".join(str(80.0 + 3 * (i % 20)) for i in range(30)))
+        out.append(text)
+    return out
+
+
+def digest(name: str, directory: Path) -> dict[str, str]:
+    """SHA-256 of each output table of scenario ``name``, and of its summary (minus wall time)."""
+    from netsim import load
+    from netsim.run import execute
+
+    result = execute(load(None, overrides(name, directory)))
+    out = {}
+    for table, frame in sorted(result.frames.items()):
+        buf = io.BytesIO()
+        frame.to_parquet(buf, index=False)
+        out[table] = hashlib.sha256(buf.getvalue()).hexdigest()[:16]
+    summary = {k: v for k, v in result.summary.items() if k != "wall_s"}
+    out["summary"] = hashlib.sha256(json.dumps(summary, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--write", metavar="FILE", help="write the digests of every scenario to FILE")
+    g.add_argument("--check", metavar="FILE", help="compare with FILE; exit 1 on any difference")
+    g.add_argument("--list", action="store_true", help="list the scenarios and their overrides")
+    p.add_argument("--only", nargs="*", help="scenarios to run (default: all)")
+    args = p.parse_args(argv)
+    names = args.only or list(SCENARIOS)
+    with tempfile.TemporaryDirectory() as tmp:
+        directory = Path(tmp)
+        if args.list:
+            for name in names:
+                print(name, " ".join(overrides(name, directory)))
+            return 0
+        got = {}
+        for name in names:
+            got[name] = digest(name, directory)
+            print(f"{name:<28} {len(got[name])} tables", file=sys.stderr)
+    if args.write:
+        Path(args.write).write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")
+        print(f"wrote {args.write}: {len(got)} scenarios")
+        return 0
+    want = json.loads(Path(args.check).read_text())
+    differ = 0
+    print(f"{'scenario':<28} {'table':<12} result")
+    for name in names:
+        old, new = want.get(name, {}), got[name]
+        for table in sorted(set(old) | set(new)):
+            if old.get(table) == new.get(table):
+                status = "same"
+            elif table not in old:
+                status = "new table"
+            elif table not in new:
+                status = "MISSING"
+                differ += 1
+            else:
+                status = "DIFFERENT"
+                differ += 1
+            if status != "same":
+                print(f"{name:<28} {table:<12} {status}")
+    print(f"{len(names)} scenarios: {'identical' if not differ else f'{differ} tables differ'}")
+    return 1 if differ else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
