@@ -333,3 +333,43 @@ def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
 
     assert all(c == wall for c in colours_at(305.0))
     assert not any(c == wall for c in colours_at(200.0))
+
+
+# -- the command, without a browser ------------------------------------------------------
+def test_view_writes_one_self_contained_file(moving_run, tmp_path, capsys):
+    """`netsim view RUN --out FILE`: one file, no external script, style or image, and the
+    same run gives the same bytes."""
+    out = tmp_path / "sub" / "replay.html"
+    assert main(["view", str(moving_run), "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    text = out.read_text()
+    assert out.read_bytes() == (moving_run / "view.html").read_bytes()
+    low = text.lower()
+    for needle in ("<script src", "<link", "http://", "https://", "@import", "url("):
+        assert needle not in low, needle
+    assert list(tmp_path.rglob("*")) == [tmp_path / "sub", out]  # no temporary left behind
+
+
+@pytest.mark.parametrize(
+    "setup, message",
+    [
+        (lambda d: None, "no such run directory"),
+        (lambda d: d.mkdir(), "not a run directory (no config.toml)"),
+    ],
+)
+def test_view_of_a_bad_directory_is_a_one_line_error(tmp_path, capsys, setup, message):
+    run = tmp_path / "run"
+    setup(run)
+    assert main(["view", str(run), "--out", str(tmp_path / "v.html")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and message in err and err.count("\n") == 1
+    assert not (tmp_path / "v.html").exists()
+
+
+def test_view_needs_legs_or_positions(moving_run, tmp_path, capsys):
+    run = tmp_path / "bare"
+    run.mkdir()
+    shutil.copy(moving_run / "config.toml", run)
+    assert main(["view", str(run)]) == 2
+    assert "no legs.parquet and no sampled positions.parquet" in capsys.readouterr().err
+    assert list(run.iterdir()) == [run / "config.toml"]
