@@ -13,7 +13,7 @@ What is packed (``N`` robots):
   end stays up through the last instant);
 - ``roles``: every role change in order; ``groups``: the gateways' memberships per sample;
   ``beliefs``: believed, true, stale and missing neighbours of every robot per sample;
-- ``messages`` and ``hops``: every relayed message and every reception of it;
+- ``messages`` and ``hops``: every relayed message and each robot's first reception of it;
 - the strip chart's series (:func:`series`) and, when the run has a map, its occupancy grid
   (:class:`MapGrid`).
 """
@@ -80,7 +80,7 @@ class Blob:
 
     def encoded(self) -> str:
         # mtime=0: the same run gives the same page, byte for byte.
-        return base64.b64encode(gzip.compress(b"".join(self.parts), compresslevel=9, mtime=0)).decode("ascii")
+        return base64.b64encode(gzip.compress(b"".join(self.parts), compresslevel=6, mtime=0)).decode("ascii")
 
 
 def _small_uint(values: np.ndarray) -> str:
@@ -173,6 +173,16 @@ def series(
         ratio = np.cumsum(m["delivered"].to_numpy(bool)) / np.arange(1, len(m) + 1)
         add("delivered", "messages delivered (of those sent so far)", t, ratio, "step", "fraction")
     return out
+
+
+def first_receptions(hops: pd.DataFrame, messages: pd.DataFrame) -> pd.DataFrame:
+    """Each robot's first reception of each message (the source's excluded), sorted by
+    the time its transmission was sent: the tree along which the message spread. The
+    page draws these; the repeats (a robot hearing a copy it already has) would only bury
+    it, many times over in a dense flood."""
+    h = hops.sort_values("t_received_s", kind="stable").drop_duplicates(["msg_id", "receiver"])
+    src = messages.set_index("msg_id")["src"].reindex(h["msg_id"]).to_numpy()
+    return h[h["receiver"].to_numpy() != src].sort_values(["t_sent_s", "t_received_s"], kind="stable")
 
 
 def _motion(run_dir: Path, n: int, blob: Blob) -> str:
@@ -275,9 +285,8 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     hops = _read(run_dir, "hops")
     has_hops = has_messages and hops is not None and len(hops) > 0
     if has_hops:
-        # msg_id indexes the messages arrays: ids run 0, 1, 2, ... in sending order.
-        h = hops.sort_values(["t_sent_s", "t_received_s"], kind="stable")
-        blob.add("hop_msg", h["msg_id"], "<i4")
+        h = first_receptions(hops, messages)
+        blob.add("hop_msg", h["msg_id"], "<i4")  # indexes the messages arrays (ids 0, 1, ... in order)
         blob.add("hop_n", h["hop"], "<i4")
         blob.add("hop_sender", h["sender"], "<i4")
         blob.add("hop_receiver", h["receiver"], "<i4")

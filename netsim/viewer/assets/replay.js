@@ -487,27 +487,27 @@
 
   const TRAIL_LEVELS = 6;
   function drawHops(t) {
-    const trail = parseFloat(ui.trail.value);
+    const trail = parseFloat(ui.trail.value), w = trail / TRAIL_LEVELS;
     const ts = A.hop_t_sent, tr = A.hop_t_received;
-    const hi = lastAtOrBefore(ts, t) + 1;
-    const lo = lastAtOrBefore(ts, t - trail, 0, hi) + 1;
-    if (hi <= lo) return;
     ctx.strokeStyle = MESSAGE;
-    ctx.lineWidth = 2;
+    ctx.lineWidth = 1;
+    // Sorted by sending time, so each age band (fading with age) is one contiguous run.
     for (let level = 0; level < TRAIL_LEVELS; level++) {
+      const hi = lastAtOrBefore(ts, t - level * w) + 1;
+      const lo = lastAtOrBefore(ts, t - (level + 1) * w, 0, hi) + 1;
+      if (hi <= lo) continue;
       ctx.globalAlpha = 1 - level / TRAIL_LEVELS;
       ctx.beginPath();
       for (let k = lo; k < hi; k++) {
-        const age = t - ts[k];
-        if (Math.min(TRAIL_LEVELS - 1, Math.floor((age / trail) * TRAIL_LEVELS)) !== level) continue;
         // A transmission in flight is drawn as far as it has come.
-        const f = tr[k] > ts[k] ? Math.min(1, age / (tr[k] - ts[k])) : 1;
+        const f = tr[k] > ts[k] ? Math.min(1, (t - ts[k]) / (tr[k] - ts[k])) : 1;
         segment(A.hop_sender[k], A.hop_receiver[k], f);
-        drawn.hops++;
       }
       ctx.stroke();
+      drawn.hops += hi - lo;
     }
     ctx.globalAlpha = 1;
+    ctx.lineWidth = 2;
     // The messages' sources and destinations: rings (filled when it arrived).
     const mt = A.msg_t;
     const mhi = lastAtOrBefore(mt, t) + 1;
