@@ -279,6 +279,8 @@ def test_one_robot_run(tmp_path, open_page):
 
 
 def test_torus_positions_wrap(tmp_path, open_page):
+    """On a torus the drawn positions wrap into the square (this run has no protocol:
+    no roles, no messages)."""
     run = _run(
         tmp_path / "torus",
         "world.n_robots=15",
@@ -289,6 +291,7 @@ def test_torus_positions_wrap(tmp_path, open_page):
         "mobility.speed_max_mps=10",
         "channel.range_m=80",
         "duration_s=60",
+        'protocol.model="none"',
     )
     page = open_page(run / "view.html")
     for t in (33.3, 59.0):

@@ -326,7 +326,13 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         "protocol": config.protocol.model,
         "mobility": config.mobility.model,
         "seed": config.seed,
-        "has": {"groups": has_groups, "beliefs": has_beliefs, "messages": has_messages, "hops": has_hops},
+        "has": {
+            "roles": not roles.empty,
+            "groups": has_groups,
+            "beliefs": has_beliefs,
+            "messages": has_messages,
+            "hops": has_hops,
+        },
         "scenario": {
             "n_robots": n,
             "speed_min_mps": config.mobility.speed_min_mps,
@@ -337,11 +343,13 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
             "mobility": config.mobility.model,
             "seed": config.seed,
         },
-        "summary": {k: v for k, v in summary.items() if isinstance(v, int | float | str) and v == v and v is not None},
+        # Plain figures only; JSON has no NaN or infinity.
+        "summary": {
+            k: v for k, v in summary.items() if isinstance(v, str) or (isinstance(v, int | float) and math.isfinite(v))
+        },
         "palette": palette.as_dict(),
         "series": chart,
         "map": map_meta,
         "arrays": blob.index,
     }
-    meta["summary"] = {k: v for k, v in meta["summary"].items() if not (isinstance(v, float) and math.isinf(v))}
     return {"meta": meta, "blob": blob.encoded()}

@@ -9,6 +9,8 @@
   const GAMMA = 0, BETA = 1, ALPHA = 2;
   const SERIES_COLOURS = ["#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#ff7f0e", "#17becf", "#8c564b"];
   const MESSAGE = "#e6007e";
+  // A run without the clustering protocol has no roles: its robots are plain dots.
+  const NO_ROLES = !META.has.roles;
   const view = (window.netsimView = { ready: false, error: null });
 
   const CTORS = { f64: Float64Array, f32: Float32Array, i32: Int32Array, i16: Int16Array, u16: Uint16Array, u8: Uint8Array, i8: Int8Array };
@@ -402,7 +404,7 @@
 
     const r = robotRadius();
     // Members: dots in their group's colour.
-    bucketRobots((i) => model.role[i] === BETA && !model.gateway[i]);
+    bucketRobots(NO_ROLES ? () => true : (i) => model.role[i] === BETA && !model.gateway[i]);
     for (let b = 0; b < NB; b++) {
       if (bucketStart[b] === bucketStart[b + 1]) continue;
       ctx.fillStyle = bucketColour(b);
@@ -419,7 +421,7 @@
     ctx.lineWidth = 1.5;
     ctx.beginPath();
     for (let i = 0; i < n; i++) {
-      if (model.role[i] !== GAMMA) continue;
+      if (NO_ROLES || model.role[i] !== GAMMA) continue;
       const X = SX(x[i]), Y = SY(y[i]);
       ctx.moveTo(X - r, Y - r);
       ctx.lineTo(X + r, Y + r);
@@ -554,9 +556,9 @@
       return;
     }
     const shape = model.shape(i);
-    const lines = [`robot ${i}: ${PAL.labels[shape]}`];
+    const lines = [NO_ROLES ? `robot ${i}` : `robot ${i}: ${PAL.labels[shape]}`];
     const leader = model.role[i] === ALPHA ? i : model.leader[i];
-    lines.push(`leader ${leader >= 0 ? leader : "none"}`);
+    if (!NO_ROLES) lines.push(`leader ${leader >= 0 ? leader : "none"}`);
     const groups = model.groupsOf(i);
     if (groups.length) lines.push(`groups ${groups.join(", ")}`);
     lines.push(`position (${model.x[i].toFixed(1)}, ${model.y[i].toFixed(1)}) m`);
@@ -677,11 +679,9 @@
     }
     const comps = model.components();
     view.components = comps;
-    const lines = [
-      `t = ${t.toFixed(2)} s`,
-      `leaders ${leaders}, members ${members} (gateways ${gateways}), undecided ${undecided}`,
-      `links up ${model.nActive}, components ${comps}`,
-    ];
+    const lines = [`t = ${t.toFixed(2)} s`];
+    if (!NO_ROLES) lines.push(`leaders ${leaders}, members ${members} (gateways ${gateways}), undecided ${undecided}`);
+    lines.push(`links up ${model.nActive}, components ${comps}`);
     if (META.has.messages) {
       const sent = lastAtOrBefore(A.msg_t, t) + 1;
       let arrived = 0;
@@ -774,6 +774,8 @@
     rows.push(`<div><svg width="16" height="16"><path d="M1 8H15" stroke="${PAL.link}" stroke-width="2"/></svg>link</div>`);
     rows.push(`<div><svg width="16" height="16"><path d="M1 8H15" stroke="${MESSAGE}" stroke-width="2"/></svg>relayed message (source ring, destination dashed)</div>`);
     rows.push(`<div>colour: the group (its leader)</div>`);
+    const esc = (text) => String(text).replace(/[&<>"]/g, (c) => `&#${c.charCodeAt(0)};`);
+    if (NO_ROLES) rows.splice(0, 4, `<div>no roles: protocol "${esc(META.protocol)}"</div>`);
     box.innerHTML = rows.join("");
   }
 
