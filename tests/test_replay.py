@@ -381,3 +381,18 @@ def test_view_needs_legs_or_positions(moving_run, tmp_path, capsys):
     assert main(["view", str(run)]) == 2
     assert "no legs.parquet and no sampled positions.parquet" in capsys.readouterr().err
     assert list(run.iterdir()) == [run / "config.toml"]
+
+
+def test_the_form_shows_the_command_for_another_scenario(moving_run, open_page):
+    """The paper's workflow from the page: N, speeds, duration, range and seed give the
+    `netsim run` command, starting from the run's own configuration."""
+    page = open_page(moving_run / "view.html")
+    page.page.click("#workflow summary")
+    command = page.page.inner_text("#command")
+    assert command.startswith("netsim run moving/config.toml")
+    assert "--set world.n_robots=40" in command and "--set channel.range_m=130" in command
+    page.page.fill("#form input[name=n_robots]", "120")
+    page.page.fill("#form input[name=speed_max_mps]", "2.5")
+    command = page.page.inner_text("#command")
+    assert "--set world.n_robots=120" in command and "--set mobility.speed_max_mps=2.5" in command
+    assert "--seed 3" in command and command.rstrip().endswith("--view")
