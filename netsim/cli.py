@@ -13,6 +13,8 @@
     Draw the paper's Figs. 6-8 (initial deployment, leaders' paths, final deployment with
     coverage disks) from a run directory; without one, first run the built-in coverage
     scenario (or FILE) into DIR.
+``netsim view RUN_DIR [--out FILE.html]``
+    Write the replay of a run: one self-contained HTML file (default RUN_DIR/view.html).
 ``netsim config``
     Print the default configuration, every key with its meaning.
 
@@ -61,6 +63,10 @@ def cmd_run(args) -> int:
     result = execute(config, progress=not args.quiet and not args.no_progress)
     out = Path(args.out)
     written = write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
+    if args.view:
+        from netsim import viewer
+
+        written.append(viewer.write(out))
     if not args.quiet:
         n, duration = config.world.n_robots, config.duration_s
         print(f"netsim run: {n} robots, {duration:g} s simulated in {result.wall_s:.2f} s wall")
@@ -150,6 +156,14 @@ def cmd_figures(args) -> int:
     return 0
 
 
+def cmd_view(args) -> int:
+    from netsim import viewer
+
+    path = viewer.write(args.run_dir, args.out)
+    print(f"wrote {path} ({path.stat().st_size / 2**20:.2f} MiB): open it in a browser")
+    return 0
+
+
 def cmd_config(args) -> int:
     print(cfgmod.commented_toml(), end="")
     return 0
@@ -166,6 +180,7 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default="netsim-out", help="output directory (default: ./netsim-out)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    r.add_argument("--view", action="store_true", help="also write the replay, DIR/view.html (see netsim view)")
     r.set_defaults(func=cmd_run)
 
     s = sub.add_parser("scenario", help="movement scenario files")
@@ -201,6 +216,11 @@ def parser() -> argparse.ArgumentParser:
     f.add_argument("--out", help="where to write (default: RUN_DIR, or ./netsim-figures)")
     f.add_argument("--no-progress", action="store_true", help="no progress bar")
     f.set_defaults(func=cmd_figures)
+
+    vw = sub.add_parser("view", help="write an interactive replay of a run: one self-contained HTML file")
+    vw.add_argument("run_dir", help="a run's output directory")
+    vw.add_argument("--out", help="file to write (default: RUN_DIR/view.html)")
+    vw.set_defaults(func=cmd_view)
 
     c = sub.add_parser("config", help="print the default configuration with every key explained")
     c.set_defaults(func=cmd_config)

@@ -67,6 +67,8 @@ def collect(sim: Simulation) -> dict[str, pd.DataFrame]:
     frames = sim.trace.frames()
     frames["positions"] = sample_positions(legs, sim.state.n, position_times(cfg), side, torus)
     frames["links"] = link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus)
+    # Every course change: trajectories are exact from these (positions unwrapped on a torus).
+    frames["legs"] = legs
     if "acks" not in frames:
         frames["acks"] = sim.channel.frame("ack")
     return frames

@@ -9,7 +9,8 @@ connected, static, loss-free network every message arrives; set it to false for 
 strict leaders-and-gateways backbone. ``oracle``: the message goes hop by hop along a shortest path of
 the true topology, recomputed by each holder at the moment it forwards (a baseline no
 real robot could run). Either way each message records whether it arrived, after how
-many hops and how long, and how many transmissions it cost in all.
+many hops and how long, and how many transmissions it cost in all, and every reception
+of every transmission is kept (:meth:`Relay.hops_frame`, the ``hops`` table).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import pandas as pd
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
@@ -30,6 +32,10 @@ class Message(NamedTuple):
     dst: int
     ttl: int
     hops: int  # transmissions on the path so far, including the one that carries it
+    t_tx_s: float = 0.0  # when the transmission that carries it was sent
+
+
+HOP_COLUMNS = ["msg_id", "hop", "sender", "receiver", "t_sent_s", "t_received_s"]
 
 
 class Outcome(NamedTuple):
@@ -68,6 +74,8 @@ class Relay:
         self._outcomes: dict[int, dict] = {}
         self._seen: dict[int, set[int]] = {}
         self._next_id = 0
+        # One entry per delivery event: (msg_id, hop, sender, t_sent_s, t_received_s, receivers).
+        self._hops: list[tuple] = []
 
     def send(self, src: int, dst: int) -> int:
         """Send a message from ``src`` to ``dst`` now; returns its id."""
@@ -100,7 +108,7 @@ class Relay:
     # -- backbone flooding -------------------------------------------------------------
     def _broadcast(self, sender: int, msg: Message) -> None:
         self._outcomes[msg.id]["transmissions"] += 1
-        self.sim.channel.broadcast(sender, msg, self._on_flood, kind="data")
+        self.sim.channel.broadcast(sender, msg._replace(t_tx_s=self.sim.env.now), self._on_flood, kind="data")
 
     def _relays(self, receivers: np.ndarray, now: float) -> np.ndarray:
         st = self.sim.state
@@ -117,6 +125,7 @@ class Relay:
 
     def _on_flood(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
         now = self.sim.env.now
+        self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, now, receivers))
         seen = self._seen[msg.id]
         fresh = [r for r in receivers.tolist() if r not in seen]
         seen.update(fresh)
@@ -139,9 +148,10 @@ class Relay:
         # The next hop: the neighbour fewest hops from the destination (lowest id on ties).
         nxt = int(nbrs[int(np.argmin(to_dst[nbrs]))])
         self._outcomes[msg.id]["transmissions"] += 1
-        self.sim.channel.unicast(holder, nxt, msg, self._on_oracle, kind="data")
+        self.sim.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind="data")
 
     def _on_oracle(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
+        self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, self.sim.env.now, receivers))
         holder = int(receivers[0])
         if holder == msg.dst:
             self._delivered(msg, self.sim.env.now)
@@ -155,6 +165,27 @@ class Relay:
 
     def outcomes(self) -> list[Outcome]:
         return [Outcome(**o) for o in self._outcomes.values()]
+
+    def hops_frame(self) -> pd.DataFrame:
+        """Every reception of every transmission of every message, in order of reception:
+        ``msg_id, hop, sender, receiver, t_sent_s, t_received_s``; ``hop`` counts the
+        transmissions on the path up to and including this one (1: from the source).
+        Receptions the channel dropped are not there; repeats (a robot hearing a message it
+        already has) are."""
+        if not self._hops:
+            return pd.DataFrame({c: np.empty(0, np.float64 if c.startswith("t_") else np.int64) for c in HOP_COLUMNS})
+        sizes = np.array([len(h[5]) for h in self._hops])
+        cols = list(zip(*self._hops))
+        return pd.DataFrame(
+            {
+                "msg_id": np.repeat(np.array(cols[0], dtype=np.int64), sizes),
+                "hop": np.repeat(np.array(cols[1], dtype=np.int64), sizes),
+                "sender": np.repeat(np.array(cols[2], dtype=np.int64), sizes),
+                "receiver": np.concatenate(cols[5]).astype(np.int64),
+                "t_sent_s": np.repeat(np.array(cols[3], dtype=float), sizes),
+                "t_received_s": np.repeat(np.array(cols[4], dtype=float), sizes),
+            }
+        )
 
 
 def traffic(sim, relay: Relay, rate_hz: float):

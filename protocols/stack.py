@@ -1,6 +1,6 @@
 """The full protocol stack as one plugin (``protocol.model = "clustering"``): Ack beacon,
 neighbour tables, clustering (rules 1-6), relaying, leader commands, and what they
-record: ``roles``, ``groups``, ``beliefs`` and ``messages`` tables and summary figures."""
+record: ``roles``, ``groups``, ``beliefs``, ``messages`` and ``hops`` tables and summary figures."""
 
 from __future__ import annotations
 
@@ -50,6 +50,7 @@ class Stack:
         interval = sim.config.output.position_interval_s or p.ack_period_s
         sim.env.process(self._sampler(interval))
         sim.trace.add_frame("messages", self.messages_frame)
+        sim.trace.add_frame("hops", self.relay.hops_frame)
         sim.trace.add_frame("groups", self.groups_frame)
         sim.trace.add_frame(
             "beliefs",

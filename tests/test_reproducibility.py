@@ -17,7 +17,7 @@ def _run(tmp_path, name, *extra):
 
 def test_same_seed_gives_identical_files(tmp_path):
     a, b = _run(tmp_path, "a", "--seed", "7"), _run(tmp_path, "b", "--seed", "7")
-    for name in ("positions", "links", "acks", "roles", "groups", "messages", "beliefs"):
+    for name in ("positions", "links", "acks", "roles", "groups", "messages", "beliefs", "legs", "hops"):
         assert (a / f"{name}.parquet").read_bytes() == (b / f"{name}.parquet").read_bytes(), name
     assert (a / "config.toml").read_text() == (b / "config.toml").read_text()
     sa, sb = json.loads((a / "summary.json").read_text()), json.loads((b / "summary.json").read_text())
@@ -65,6 +65,8 @@ def test_output_directory_contents_and_schema(tmp_path):
         "groups.parquet",
         "messages.parquet",
         "beliefs.parquet",
+        "legs.parquet",
+        "hops.parquet",
     }
     assert list(pd.read_parquet(out / "positions.parquet").columns) == ["t_s", "robot", "x_m", "y_m"]
     links = pd.read_parquet(out / "links.parquet")
@@ -73,6 +75,10 @@ def test_output_directory_contents_and_schema(tmp_path):
     acks = pd.read_parquet(out / "acks.parquet")
     assert {"robot", "sent", "received", "dropped_loss"} <= set(acks.columns)
     assert list(pd.read_parquet(out / "roles.parquet").columns) == ["t_s", "robot", "role", "leader", "cause"]
+    legs = pd.read_parquet(out / "legs.parquet")
+    assert list(legs.columns) == ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"]
+    hops = pd.read_parquet(out / "hops.parquet")
+    assert list(hops.columns) == ["msg_id", "hop", "sender", "receiver", "t_sent_s", "t_received_s"]
     pos = pd.read_parquet(out / "positions.parquet")
     assert sorted(pos.t_s.unique()) == [float(t) for t in range(61)]
     manifest = json.loads((out / "manifest.json").read_text())

@@ -1,0 +1,64 @@
+"""The replay of a run in a browser (``netsim view``): one self-contained HTML file.
+
+The page (``assets/``: markup, style and script, all inlined) draws the robots on a
+canvas at their exact positions at the cursor, with roles, groups, links, relayed
+messages, coverage disks and a strip chart, from the arrays :func:`data.pack` makes of
+the run directory. It loads nothing from anywhere: it opens from disk, can be mailed,
+and the same run gives the same file byte for byte.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+import re
+import tempfile
+from importlib import resources
+from pathlib import Path
+
+from netsim.viewer.data import MapGrid, pack
+
+__all__ = ["MapGrid", "page", "write"]
+
+
+def _asset(name: str) -> str:
+    return resources.files("netsim.viewer").joinpath("assets", name).read_text(encoding="utf-8")
+
+
+def _script_safe(text: str) -> str:
+    # Inside <script>, "</" could end the element early.
+    return text.replace("</", "<\\/")
+
+
+def page(run_dir: str | Path, map_grid: MapGrid | None = None) -> str:
+    """The replay page of the run in ``run_dir``, as one string of HTML."""
+    data = pack(run_dir, map_grid)
+    meta = data["meta"]
+    parts = {
+        "__TITLE__": html.escape(f"netsim replay: {meta['title']}"),
+        "/*__STYLE__*/": _asset("replay.css"),
+        "__META__": _script_safe(json.dumps(meta, separators=(",", ":"), allow_nan=False)),
+        "__BLOB__": data["blob"],
+        "/*__SCRIPT__*/": _script_safe(_asset("replay.js")),
+    }
+    # One pass, so that no inserted text is itself searched for placeholders.
+    pattern = re.compile("|".join(re.escape(k) for k in parts))
+    return pattern.sub(lambda m: parts[m.group(0)], _asset("page.html"))
+
+
+def write(run_dir: str | Path, out: str | Path | None = None, map_grid: MapGrid | None = None) -> Path:
+    """Write the replay of ``run_dir`` to ``out`` (default ``run_dir/view.html``)."""
+    target = Path(out) if out is not None else Path(run_dir) / "view.html"
+    text = page(run_dir, map_grid)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target

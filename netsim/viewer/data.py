@@ -1,0 +1,355 @@
+"""A run directory packed for the replay page: a small JSON header and one binary blob.
+
+The blob is every array the page needs, little-endian, each aligned to 8 bytes,
+concatenated, gzip-compressed and base64-encoded; the header names each array's type,
+offset and length. The page decompresses it with the browser's own ``DecompressionStream``
+and reads the arrays as typed arrays without copying.
+
+What is packed (``N`` robots):
+
+- motion: ``legs.parquet`` when the run has it (exact: the page evaluates each robot's
+  leg at the cursor), else ``positions.parquet`` (interpolated linearly between samples);
+- ``links``: every link lifetime, sorted by the time it came up (a link still up at the
+  end stays up through the last instant);
+- ``roles``: every role change in order; ``groups``: the gateways' memberships per sample;
+  ``beliefs``: believed, true, stale and missing neighbours of every robot per sample;
+- ``messages`` and ``hops``: every relayed message and each robot's first reception of it;
+- the strip chart's series (:func:`series`) and, when the run has a map, its occupancy grid
+  (:class:`MapGrid`).
+"""
+
+from __future__ import annotations
+
+import base64
+import gzip
+import json
+import math
+import tomllib
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+from netsim import config as cfgmod
+from netsim import palette
+from netsim.errors import NetsimInputError
+
+ROLE_CODES = {"gamma": 0, "beta": 1, "alpha": 2}
+# Points of the sampled chart series (components of the network).
+CHART_POINTS = 600
+
+
+class MapGrid(NamedTuple):
+    """An occupancy grid drawn under the robots: ``occupied[row, col]`` is true for a wall,
+    row 0 at the bottom (``y = origin_m[1]``), cells ``resolution_m`` wide (the ROS
+    ``map_server`` convention once its image is flipped upside down)."""
+
+    occupied: np.ndarray
+    resolution_m: float
+    origin_m: tuple[float, float]
+
+
+class Blob:
+    """Arrays laid end to end, each 8-byte aligned, and their index for the page."""
+
+    CODES = {
+        np.dtype("<f8"): "f64",
+        np.dtype("<f4"): "f32",
+        np.dtype("<i4"): "i32",
+        np.dtype("<i2"): "i16",
+        np.dtype("<u2"): "u16",
+        np.dtype("u1"): "u8",
+        np.dtype("i1"): "i8",
+    }
+
+    def __init__(self):
+        self.parts: list[bytes] = []
+        self.index: dict[str, list] = {}
+        self.size = 0
+
+    def add(self, name: str, values, dtype: str) -> None:
+        arr = np.ascontiguousarray(np.asarray(values).ravel(), dtype=np.dtype(dtype).newbyteorder("<"))
+        raw = arr.tobytes()
+        self.index[name] = [self.CODES[arr.dtype], self.size, int(arr.size)]
+        pad = -len(raw) % 8
+        self.parts.append(raw + b"\0" * pad)
+        self.size += len(raw) + pad
+
+    def encoded(self) -> str:
+        # mtime=0: the same run gives the same page, byte for byte.
+        return base64.b64encode(gzip.compress(b"".join(self.parts), compresslevel=6, mtime=0)).decode("ascii")
+
+
+def _small_uint(values: np.ndarray) -> str:
+    return "<u2" if values.size == 0 or int(values.max()) < 2**16 else "<i4"
+
+
+def _read(run_dir: Path, name: str) -> pd.DataFrame | None:
+    path = run_dir / f"{name}.parquet"
+    return pd.read_parquet(path) if path.is_file() else None
+
+
+def load_config(run_dir: Path) -> cfgmod.Config:
+    path = run_dir / "config.toml"
+    if not path.is_file():
+        raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml)")
+    return cfgmod.from_dict(tomllib.loads(path.read_text()))
+
+
+def links_up(links: pd.DataFrame, t: float) -> np.ndarray:
+    """Mask of the link lifetimes up at ``t``: ``t_up <= t < t_down``, and through the
+    last instant for a link still up at the end of the run."""
+    end = links["t_down_s"].to_numpy(float)
+    end = np.where(links["censored_end"].to_numpy(bool), np.inf, end)
+    return (links["t_up_s"].to_numpy(float) <= t) & (t < end)
+
+
+def components_series(links: pd.DataFrame, n: int, times: np.ndarray) -> np.ndarray:
+    """Connected components of the network at each of ``times``."""
+    a, b = links["a"].to_numpy(np.int64), links["b"].to_numpy(np.int64)
+    out = np.empty(len(times), dtype=np.int64)
+    for k, t in enumerate(times.tolist()):
+        up = links_up(links, t)
+        graph = csr_matrix((np.ones(int(up.sum())), (a[up], b[up])), shape=(n, n))
+        out[k] = connected_components(graph, directed=False)[0]
+    return out
+
+
+def leaders_series(roles: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """The number of leaders after each role change (a step function, exact)."""
+    if roles.empty:
+        return np.zeros(1), np.zeros(1)
+    r = roles.reset_index(drop=True)
+    is_leader = (r["role"] == "alpha").to_numpy()
+    robot = r["robot"].to_numpy(np.int64)
+    was = np.zeros(int(robot.max()) + 1, dtype=bool)
+    delta = np.empty(len(r), dtype=np.int64)
+    for k, (i, now) in enumerate(zip(robot.tolist(), is_leader.tolist())):
+        delta[k] = int(now) - int(was[i])
+        was[i] = now
+    return r["t_s"].to_numpy(float), np.cumsum(delta)
+
+
+def series(
+    config: cfgmod.Config,
+    links: pd.DataFrame,
+    roles: pd.DataFrame,
+    beliefs: pd.DataFrame | None,
+    messages: pd.DataFrame | None,
+    coverage: pd.DataFrame | None,
+    blob: Blob,
+) -> list[dict]:
+    """The strip chart: what each series is, and its arrays in ``blob``."""
+    n, duration = config.world.n_robots, config.duration_s
+    out = []
+
+    def add(name, label, t, v, kind, axis):
+        blob.add(f"s_{name}_t", t, "<f8")
+        blob.add(f"s_{name}_v", v, "<f8")
+        out.append({"name": name, "label": label, "kind": kind, "axis": axis})
+
+    if config.protocol.model == "clustering" and not roles.empty:
+        add("leaders", "leaders", *leaders_series(roles), "step", "count")
+    times = np.linspace(0.0, duration, CHART_POINTS + 1)
+    add("components", "components", times, components_series(links, n, times), "sample", "count")
+    if coverage is not None and len(coverage):
+        t = coverage["t_s"].to_numpy(float)
+        for who, label in (("leaders", "leaders' disks"), ("all", "all robots' disks")):
+            v = coverage[f"covered_fraction_{who}"]
+            add(f"covered_{who}", f"covered fraction ({label})", t, v, "line", "fraction")
+    if beliefs is not None and len(beliefs):
+        per = beliefs.groupby("t_s")[["true_neighbours", "missing_neighbours"]].sum()
+        true = per["true_neighbours"].to_numpy(float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            known = np.where(true > 0, 1.0 - per["missing_neighbours"].to_numpy(float) / true, np.nan)
+        label = "true links believed (Ack-driven neighbour tables)"
+        add("believed", label, per.index.to_numpy(float), known, "line", "fraction")
+    if messages is not None and len(messages):
+        m = messages.sort_values("msg_id", kind="stable")
+        t = m["t_sent_s"].to_numpy(float)
+        ratio = np.cumsum(m["delivered"].to_numpy(bool)) / np.arange(1, len(m) + 1)
+        add("delivered", "messages delivered (of those sent so far)", t, ratio, "step", "fraction")
+    return out
+
+
+def first_receptions(hops: pd.DataFrame, messages: pd.DataFrame) -> pd.DataFrame:
+    """Each robot's first reception of each message (the source's excluded), sorted by
+    the time its transmission was sent: the tree along which the message spread. The
+    page draws these; the repeats (a robot hearing a copy it already has) would only bury
+    it, many times over in a dense flood."""
+    h = hops.sort_values("t_received_s", kind="stable").drop_duplicates(["msg_id", "receiver"])
+    src = messages.set_index("msg_id")["src"].reindex(h["msg_id"]).to_numpy()
+    return h[h["receiver"].to_numpy() != src].sort_values(["t_sent_s", "t_received_s"], kind="stable")
+
+
+def _motion(run_dir: Path, n: int, blob: Blob) -> str:
+    legs = _read(run_dir, "legs")
+    if legs is not None and len(legs):
+        legs = legs.sort_values(["robot", "t_s"], kind="stable")
+        robot = legs["robot"].to_numpy(np.int64)
+        first = np.searchsorted(robot, np.arange(n + 1), "left")
+        if np.any(first[1:] == first[:-1]):
+            raise NetsimInputError(f"{run_dir}/legs.parquet: some robot has no leg")
+        blob.add("legs_first", first, "<i4")
+        for col, name in (("t_s", "t"), ("x_m", "x"), ("y_m", "y"), ("vx_mps", "vx"), ("vy_mps", "vy")):
+            blob.add(f"legs_{name}", legs[col], "<f8")
+        return "legs"
+    pos = _read(run_dir, "positions")
+    if pos is None or pos.empty:
+        raise NetsimInputError(f"{run_dir}: no legs.parquet and no sampled positions.parquet to draw robots from")
+    pos = pos.sort_values(["t_s", "robot"], kind="stable")
+    times = np.unique(pos["t_s"].to_numpy(float))
+    if len(pos) != len(times) * n:
+        raise NetsimInputError(f"{run_dir}/positions.parquet: expected {n} robots at every sample")
+    blob.add("pos_t", times, "<f8")
+    blob.add("pos_xy", pos[["x_m", "y_m"]].to_numpy(), "<f4")
+    return "positions"
+
+
+def _empty_links() -> pd.DataFrame:
+    return pd.DataFrame(
+        {"a": np.empty(0, np.int64), "b": np.empty(0, np.int64), "t_up_s": np.empty(0), "t_down_s": np.empty(0)}
+        | {"censored_end": np.empty(0, bool)}
+    )
+
+
+def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
+    """Everything the page shows of the run in ``run_dir``: ``{"meta": ..., "blob": ...}``."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise NetsimInputError(f"{run_dir}: no such run directory")
+    config = load_config(run_dir)
+    n, duration = config.world.n_robots, config.duration_s
+    blob = Blob()
+    motion = _motion(run_dir, n, blob)
+
+    ranges = np.broadcast_to(np.asarray(config.ranges_m(), float), (n,))
+    blob.add("range_m", ranges, "<f8")
+
+    links = _read(run_dir, "links")
+    links = _empty_links() if links is None or links.empty else links.sort_values("t_up_s", kind="stable")
+    blob.add("link_a", links["a"], "<i4")
+    blob.add("link_b", links["b"], "<i4")
+    blob.add("link_up", links["t_up_s"], "<f8")
+    blob.add("link_down", np.where(links["censored_end"].to_numpy(bool), np.inf, links["t_down_s"]), "<f8")
+
+    roles = _read(run_dir, "roles")
+    if roles is None:
+        roles = pd.DataFrame({"t_s": [], "robot": [], "role": [], "leader": []})
+    roles = roles.sort_values("t_s", kind="stable")
+    blob.add("role_t", roles["t_s"], "<f8")
+    blob.add("role_robot", roles["robot"], "<i4")
+    blob.add("role_code", roles["role"].map(ROLE_CODES).fillna(0), "i1")
+    blob.add("role_leader", roles["leader"], "<i4")
+    ranks = palette.group_ranks(roles.loc[roles["role"] == "alpha", "robot"])
+    colour_of = np.full(n, -1)
+    colour_of[list(ranks)] = list(ranks.values())
+    blob.add("colour_of", colour_of, "<i2")
+
+    groups = _read(run_dir, "groups")
+    has_groups = groups is not None and len(groups) > 0
+    if has_groups:
+        times = np.unique(groups["t_s"].to_numpy(float))
+        count = groups.groupby(["t_s", "robot"])["group"].transform("size")
+        gw = groups[count > 1].sort_values(["t_s", "robot", "group"], kind="stable")
+        blob.add("grp_t", times, "<f8")
+        blob.add("grp_first", np.searchsorted(gw["t_s"].to_numpy(float), np.r_[times, np.inf], "left"), "<i4")
+        blob.add("grp_robot", gw["robot"], "<i4")
+        blob.add("grp_group", gw["group"], "<i4")
+
+    beliefs = _read(run_dir, "beliefs")
+    has_beliefs = beliefs is not None and len(beliefs) > 0
+    if has_beliefs:
+        b = beliefs.sort_values(["t_s", "robot"], kind="stable")
+        times = np.unique(b["t_s"].to_numpy(float))
+        if len(b) != len(times) * n:
+            raise NetsimInputError(f"{run_dir}/beliefs.parquet: expected {n} robots at every sample")
+        blob.add("bel_t", times, "<f8")
+        for col in ("believed", "true", "stale", "missing"):
+            v = b[f"{col}_neighbours"].to_numpy(np.int64)
+            blob.add(f"bel_{col}", v, _small_uint(v))
+        blob.add("bel_leader_in_range", b["leader_in_range"].to_numpy(bool), "u1")
+
+    messages = _read(run_dir, "messages")
+    has_messages = messages is not None and len(messages) > 0
+    if has_messages:
+        m = messages.sort_values("msg_id", kind="stable")
+        blob.add("msg_src", m["src"], "<i4")
+        blob.add("msg_dst", m["dst"], "<i4")
+        blob.add("msg_t", m["t_sent_s"], "<f8")
+        blob.add("msg_delivered", m["delivered"].to_numpy(bool), "u1")
+        blob.add("msg_t_delivered", m["t_delivered_s"].astype(float), "<f8")
+    hops = _read(run_dir, "hops")
+    has_hops = has_messages and hops is not None and len(hops) > 0
+    if has_hops:
+        h = first_receptions(hops, messages)
+        blob.add("hop_msg", h["msg_id"], "<i4")  # indexes the messages arrays (ids 0, 1, ... in order)
+        blob.add("hop_n", h["hop"], "<i4")
+        blob.add("hop_sender", h["sender"], "<i4")
+        blob.add("hop_receiver", h["receiver"], "<i4")
+        blob.add("hop_t_sent", h["t_sent_s"], "<f8")
+        blob.add("hop_t_received", h["t_received_s"], "<f8")
+
+    coverage = _read(run_dir, "coverage")
+    chart = series(config, links, roles, beliefs if has_beliefs else None, messages, coverage, blob)
+
+    map_meta = None
+    if map_grid is not None:
+        occ = np.asarray(map_grid.occupied, dtype=bool)
+        if occ.ndim != 2:
+            raise ValueError(f"an occupancy grid has two dimensions, got shape {occ.shape}")
+        blob.add("map_occupied", occ, "u1")
+        map_meta = {
+            "width": int(occ.shape[1]),
+            "height": int(occ.shape[0]),
+            "resolution_m": float(map_grid.resolution_m),
+            "origin_m": [float(map_grid.origin_m[0]), float(map_grid.origin_m[1])],
+        }
+
+    summary_path = run_dir / "summary.json"
+    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    interval = config.output.position_interval_s
+    meta = {
+        "format": 1,
+        "title": run_dir.resolve().name,
+        "n": n,
+        "side_m": config.world.side_m,
+        "torus": config.world.torus,
+        "duration_s": duration,
+        "step_s": interval if interval > 0 else config.protocol.ack_period_s,
+        "motion": motion,
+        "coverage_radius_m": config.coverage.radius_m or float(ranges.min()),
+        "coverage": bool(config.coverage.enabled),
+        "protocol": config.protocol.model,
+        "mobility": config.mobility.model,
+        "seed": config.seed,
+        "has": {
+            "roles": not roles.empty,
+            "groups": has_groups,
+            "beliefs": has_beliefs,
+            "messages": has_messages,
+            "hops": has_hops,
+        },
+        "scenario": {
+            "n_robots": n,
+            "speed_min_mps": config.mobility.speed_min_mps,
+            "speed_max_mps": config.mobility.speed_max_mps,
+            "duration_s": duration,
+            "range_m": float(ranges.min()) if np.all(ranges == ranges[0]) else [float(r) for r in ranges],
+            "side_m": config.world.side_m,
+            "mobility": config.mobility.model,
+            "seed": config.seed,
+        },
+        # Plain figures only; JSON has no NaN or infinity.
+        "summary": {
+            k: v for k, v in summary.items() if isinstance(v, str) or (isinstance(v, int | float) and math.isfinite(v))
+        },
+        "palette": palette.as_dict(),
+        "series": chart,
+        "map": map_meta,
+        "arrays": blob.index,
+    }
+    return {"meta": meta, "blob": blob.encoded()}

@@ -1,0 +1,398 @@
+"""The replay page (``netsim view``), opened from disk in a real browser (the system's
+headless Chromium, through playwright) with every network request blocked: what it draws
+at the cursor must be what the run's Parquet files say."""
+
+import io
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from netsim import palette, viewer
+from netsim.cli import main
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+def _run(out: Path, *sets: str) -> Path:
+    args = ["run", "--out", str(out), "--quiet", "--view"]
+    for s in sets:
+        args += ["--set", s]
+    assert main(args) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not Path(CHROMIUM).is_file():
+        if os.environ.get("CI"):
+            pytest.fail(f"{CHROMIUM} is missing: .ci/run installs Debian's chromium package")
+        pytest.skip(f"no {CHROMIUM} (apt-get install chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+class Page:
+    """A replay page with its console errors and every request it attempted."""
+
+    def __init__(self, browser, html: Path):
+        self.url = html.resolve().as_uri()
+        self.page = browser.new_page(viewport={"width": 1100, "height": 800})
+        self.page.set_default_timeout(15000)
+        self.errors: list[str] = []
+        self.requests: list[str] = []
+        self.page.on("console", lambda m: self.errors.append(m.text) if m.type == "error" else None)
+        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
+        self.page.route("**/*", self._route)
+        self.page.goto(self.url)
+        self.wait_for("window.netsimView && (window.netsimView.ready || window.netsimView.error)")
+        assert self.js("netsimView.error") is None
+
+    def _route(self, route):
+        self.requests.append(route.request.url)
+        if route.request.url == self.url:
+            route.continue_()
+        else:
+            route.abort()
+
+    def js(self, expr: str):
+        return self.page.evaluate(expr)
+
+    def wait_for(self, condition: str):
+        """Until ``condition`` holds, checked every animation frame (the page's policy
+        forbids the string evaluation of playwright's own waiting)."""
+        check = f"const check = () => ({condition}) ? done() : requestAnimationFrame(check)"
+        self.page.evaluate(f"new Promise(done => {{ {check}; check(); }})")
+
+    def close(self):
+        assert self.errors == []
+        assert self.requests == [self.url], "the page must load nothing but itself"
+        self.page.close()
+
+
+@pytest.fixture
+def open_page(browser):
+    pages = []
+
+    def _open(html: Path) -> Page:
+        pages.append(Page(browser, html))
+        return pages[-1]
+
+    yield _open
+    for p in pages:
+        p.close()
+
+
+# -- the truth, from the Parquet files ---------------------------------------------------
+def positions_at(run: Path, n: int, t: float, side: float | None = None) -> np.ndarray:
+    legs = pd.read_parquet(run / "legs.parquet").sort_values(["robot", "t_s"], kind="stable")
+    cur = legs[legs["t_s"] <= t].groupby("robot").tail(1).set_index("robot").sort_index()
+    assert list(cur.index) == list(range(n))
+    xy = cur[["x_m", "y_m"]].to_numpy() + cur[["vx_mps", "vy_mps"]].to_numpy() * (t - cur[["t_s"]].to_numpy())
+    return np.mod(xy, side) if side else xy
+
+
+def roles_at(run: Path, n: int, t: float) -> list[str]:
+    roles = pd.read_parquet(run / "roles.parquet").sort_values("t_s", kind="stable")
+    last = roles[roles["t_s"] <= t].groupby("robot").tail(1)
+    out = ["gamma"] * n
+    for r in last.itertuples():
+        out[r.robot] = r.role
+    return out
+
+
+def links_at(run: Path, t: float) -> set[tuple[int, int]]:
+    links = pd.read_parquet(run / "links.parquet")
+    up = links[(links["t_up_s"] <= t) & ((t < links["t_down_s"]) | links["censored_end"])]
+    return set(zip(up["a"].tolist(), up["b"].tolist()))
+
+
+def gateways_at(run: Path, t: float) -> set[int]:
+    groups = pd.read_parquet(run / "groups.parquet")
+    sample = groups[groups["t_s"] == groups.loc[groups["t_s"] <= t, "t_s"].max()]
+    counts = sample.groupby("robot").size()
+    return set(counts[counts > 1].index.tolist())
+
+
+def assert_matches(page: Page, run: Path, n: int, t: float, side: float | None = None):
+    """What the page draws at ``t`` is what the files say."""
+    assert page.js(f"netsimView.seek({t!r})") == t
+    drawn = np.array(page.js("netsimView.positions()"))
+    np.testing.assert_allclose(drawn, positions_at(run, n, t, side), rtol=0, atol=1e-9)
+    assert page.js("netsimView.roles()") == roles_at(run, n, t)
+    truth = links_at(run, t)
+    assert page.js("netsimView.linksDrawn") == len(truth)
+    assert {tuple(p) for p in page.js("netsimView.links()")} == truth
+
+
+@pytest.fixture(scope="module")
+def moving_run(tmp_path_factory):
+    """40 robots, random waypoint, clustering, a message a second."""
+    out = tmp_path_factory.mktemp("replay") / "moving"
+    return _run(
+        out,
+        "seed=3",
+        "duration_s=60",
+        "world.n_robots=40",
+        "world.side_m=600",
+        "channel.range_m=130",
+        "protocol.message_rate_hz=1.0",
+    )
+
+
+# -- tests ---------------------------------------------------------------------------------
+def test_drawn_positions_roles_and_links_equal_the_files(moving_run, open_page):
+    """After seeking, forward and back, the page's robots sit at the exact positions of
+    their legs, with the roles of roles.parquet, and it draws the links up at that instant."""
+    page = open_page(moving_run / "view.html")
+    for t in (0.0, 4.25, 17.3, 42.0001, 59.9, 11.5):  # the last one seeks backwards
+        assert_matches(page, moving_run, 40, t)
+
+
+def test_gateways_are_drawn_from_the_groups_sample(moving_run, open_page):
+    """A member in two groups at the last groups sample is drawn as a gateway."""
+    page = open_page(moving_run / "view.html")
+    found = 0
+    for t in (20.5, 40.5):
+        page.js(f"netsimView.seek({t})")
+        shapes, roles = page.js("netsimView.shapes()"), roles_at(moving_run, 40, t)
+        expected = {i for i in gateways_at(moving_run, t) if roles[i] == "beta"}
+        assert {i for i, s in enumerate(shapes) if s == "gateway"} == expected
+        found += len(expected)
+    assert found > 0
+
+
+def test_play_advances_time(moving_run, open_page):
+    page = open_page(moving_run / "view.html")
+    page.js("netsimView.seek(10)")
+    page.js("netsimView.play()")
+    page.wait_for("netsimView.t > 10.5")
+    page.js("netsimView.pause()")
+    t = page.js("netsimView.t")
+    assert page.js("netsimView.playing") is False
+    # What was drawn while playing is the run at that instant too.
+    np.testing.assert_allclose(np.array(page.js("netsimView.positions()")), positions_at(moving_run, 40, t), atol=1e-9)
+
+
+def test_relayed_messages_are_drawn_as_they_hop(moving_run, open_page):
+    """Within the message trail, one segment per robot's first reception of a message
+    (hops.parquet, less the repeats and the source hearing its own message again)."""
+    page = open_page(moving_run / "view.html")
+    hops = pd.read_parquet(moving_run / "hops.parquet")
+    src = pd.read_parquet(moving_run / "messages.parquet").set_index("msg_id")["src"]
+    first = hops.sort_values("t_received_s").groupby(["msg_id", "receiver"]).head(1)
+    first = first[first["receiver"].to_numpy() != src.loc[first["msg_id"]].to_numpy()]
+    assert len(first) < len(hops)
+    page.page.select_option("#trail", "2")
+    for t in (float(hops["t_sent_s"].iloc[len(hops) // 2]) + 0.5, 30.0, 55.0):
+        page.js(f"netsimView.seek({t})")
+        expected = int(((first["t_sent_s"] <= t) & (first["t_sent_s"] > t - 2)).sum())
+        assert page.js("netsimView.hopsDrawn") == expected
+    assert expected > 0
+
+
+def test_screenshot_is_not_blank(moving_run, open_page):
+    from PIL import Image
+
+    page = open_page(moving_run / "view.html")
+    page.js("netsimView.seek(30)")
+    png = page.page.locator("#field").screenshot()
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).reshape(-1, 3)
+    colours = {tuple(c) for c in np.unique(img, axis=0).tolist()}
+    group = {tuple(int(h[k : k + 2], 16) for k in (1, 3, 5)) for h in palette.GROUP_COLOURS}
+    assert (img != 255).any(axis=1).mean() > 0.005  # something is drawn
+    assert colours & group  # in the groups' colours
+
+
+def test_hover_shows_id_role_leader_and_neighbours(moving_run, open_page):
+    page = open_page(moving_run / "view.html")
+    t = 30.0
+    page.js(f"netsimView.seek({t})")
+    roles = roles_at(moving_run, 40, t)
+    i = roles.index("beta")
+    x, y = page.js(f"netsimView.screenOf({i})")
+    box = page.page.locator("#field").bounding_box()
+    page.page.mouse.move(box["x"] + x, box["y"] + y)
+    page.wait_for("netsimView.tooltip() !== ''")
+    tip = page.js("netsimView.tooltip()")
+    true_nbrs = sorted(b if a == i else a for a, b in links_at(moving_run, t) if i in (a, b))
+    leader = page.js("netsimView.leaders()")[i]
+    assert tip.startswith(f"robot {i}: ")
+    assert f"leader {leader}" in tip
+    assert f"true neighbours now: {len(true_nbrs)}" in tip
+    assert "believed at t = 30 s:" in tip
+
+
+def test_coverage_run(tmp_path, open_page):
+    """A coverage run: leaders move under the control loop, the chart has the covered
+    fraction, and the coverage disks are drawn on demand."""
+    run = _run(
+        tmp_path / "cov",
+        "world.n_robots=30",
+        'world.placement="centre"',
+        "world.centre_side_m=250",
+        'mobility.model="static"',
+        "channel.range_m=100",
+        "coverage.enabled=true",
+        "duration_s=40",
+    )
+    page = open_page(run / "view.html")
+    series = page.js("JSON.parse(document.getElementById('netsim-meta').text).series")
+    assert "covered_leaders" in [s["name"] for s in series]
+    for t in (5.0, 25.5, 40.0):
+        assert_matches(page, run, 30, t)
+    legs = pd.read_parquet(run / "legs.parquet")
+    assert (legs["t_s"] > 10).any()  # robots did move under control
+
+    def ink(disks: str) -> int:
+        page.page.select_option("#disks", disks)
+        page.js("netsimView.seek(25.5)")
+        img = np.asarray(__import__("PIL.Image").Image.open(io.BytesIO(page.page.locator("#field").screenshot())))
+        return int((img[..., :3] != 255).any(axis=-1).sum())
+
+    assert ink("leaders") > 2 * ink("off")
+
+
+def test_one_robot_run(tmp_path, open_page):
+    """One robot (and no message traffic: there is nobody to send to)."""
+    run = _run(tmp_path / "one", "world.n_robots=1", "protocol.message_rate_hz=0", "duration_s=20")
+    page = open_page(run / "view.html")
+    for t in (0.0, 3.3, 20.0):
+        assert_matches(page, run, 1, t)
+    assert page.js("netsimView.roles()") == ["alpha"]
+
+
+def test_torus_positions_wrap(tmp_path, open_page):
+    """On a torus the drawn positions wrap into the square (this run has no protocol:
+    no roles, no messages)."""
+    run = _run(
+        tmp_path / "torus",
+        "world.n_robots=15",
+        "world.side_m=400",
+        "world.torus=true",
+        'mobility.model="random_direction"',
+        "mobility.speed_min_mps=8",
+        "mobility.speed_max_mps=10",
+        "channel.range_m=80",
+        "duration_s=60",
+        'protocol.model="none"',
+    )
+    page = open_page(run / "view.html")
+    for t in (33.3, 59.0):
+        assert_matches(page, run, 15, t, side=400.0)
+        drawn = np.array(page.js("netsimView.positions()"))
+        assert ((drawn >= 0) & (drawn < 400)).all()
+
+
+def test_older_run_without_legs_uses_the_sampled_positions(moving_run, tmp_path, open_page):
+    old = tmp_path / "old"
+    shutil.copytree(moving_run, old)
+    (old / "legs.parquet").unlink()
+    (old / "view.html").unlink()
+    assert main(["view", str(old)]) == 0
+    page = open_page(old / "view.html")
+    pos = pd.read_parquet(old / "positions.parquet")
+    page.js("netsimView.seek(12)")
+    sample = pos[pos["t_s"] == 12.0].sort_values("robot")[["x_m", "y_m"]].to_numpy()
+    # Sampled positions travel as 32-bit floats: a few micrometres.
+    np.testing.assert_allclose(np.array(page.js("netsimView.positions()")), sample, atol=1e-3)
+
+
+def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
+    """The map slot: an occupancy grid's occupied cells are drawn in the wall colour."""
+    occupied = np.zeros((60, 60), dtype=bool)
+    occupied[:, 30] = True  # a wall down the middle: x in [300, 310) m
+    html = viewer.write(moving_run, tmp_path / "map.html", viewer.MapGrid(occupied, 10.0, (0.0, 0.0)))
+    page = open_page(html)
+    page.page.uncheck("#show-links")
+    page.page.uncheck("#show-hops")
+    page.js("netsimView.seek(0)")
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(page.page.locator("#field").screenshot())).convert("RGB"))
+    wall = tuple(int(palette.WALL[k : k + 2], 16) for k in (1, 3, 5))
+    robots = np.array(page.js("netsimView.positions()"))
+
+    def colours_at(x_m: float) -> list[tuple]:
+        # Points along a vertical line, away from every robot (robots are drawn on top).
+        ys = [y for y in np.arange(20.0, 600.0, 20.0) if np.hypot(*(robots - [x_m, y]).T).min() > 25]
+        assert len(ys) > 5
+        out = []
+        for y in ys:
+            sx, sy = page.js(f"netsimView.toScreen({x_m}, {y})")
+            out.append(tuple(img[round(sy), round(sx)].tolist()))
+        return out
+
+    assert all(c == wall for c in colours_at(305.0))
+    assert not any(c == wall for c in colours_at(200.0))
+
+
+# -- the command, without a browser ------------------------------------------------------
+def test_view_writes_one_self_contained_file(moving_run, tmp_path, capsys):
+    """`netsim view RUN --out FILE`: one file, no external script, style or image, and the
+    same run gives the same bytes."""
+    out = tmp_path / "sub" / "replay.html"
+    assert main(["view", str(moving_run), "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    text = out.read_text()
+    assert out.read_bytes() == (moving_run / "view.html").read_bytes()
+    low = text.lower()
+    for needle in ("<script src", "<link", "http://", "https://", "@import", "url("):
+        assert needle not in low, needle
+    assert list(tmp_path.rglob("*")) == [tmp_path / "sub", out]  # no temporary left behind
+
+
+@pytest.mark.parametrize(
+    "setup, message",
+    [
+        (lambda d: None, "no such run directory"),
+        (lambda d: d.mkdir(), "not a run directory (no config.toml)"),
+    ],
+)
+def test_view_of_a_bad_directory_is_a_one_line_error(tmp_path, capsys, setup, message):
+    run = tmp_path / "run"
+    setup(run)
+    assert main(["view", str(run), "--out", str(tmp_path / "v.html")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and message in err and err.count("\n") == 1
+    assert not (tmp_path / "v.html").exists()
+
+
+def test_view_needs_legs_or_positions(moving_run, tmp_path, capsys):
+    run = tmp_path / "bare"
+    run.mkdir()
+    shutil.copy(moving_run / "config.toml", run)
+    assert main(["view", str(run)]) == 2
+    assert "no legs.parquet and no sampled positions.parquet" in capsys.readouterr().err
+    assert list(run.iterdir()) == [run / "config.toml"]
+
+
+def test_the_form_shows_the_command_for_another_scenario(moving_run, open_page):
+    """The paper's workflow from the page: N, speeds, duration, range and seed give the
+    `netsim run` command, starting from the run's own configuration."""
+    page = open_page(moving_run / "view.html")
+    page.page.click("#workflow summary")
+    command = page.page.inner_text("#command")
+    assert command.startswith("netsim run moving/config.toml")
+    assert "--set world.n_robots=40" in command and "--set channel.range_m=130" in command
+    page.page.fill("#form input[name=n_robots]", "120")
+    page.page.fill("#form input[name=speed_max_mps]", "2.5")
+    command = page.page.inner_text("#command")
+    assert "--set world.n_robots=120" in command and "--set mobility.speed_max_mps=2.5" in command
+    assert "--seed 3" in command and command.rstrip().endswith("--view")
