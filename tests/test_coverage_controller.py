@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from mobility.coverage import plan_step
+from mobility.bridges import plan_follow
+from mobility.steps import StepLimits
 from netsim import config
 from netsim.coverage import components
 from netsim.errors import ConfigError
@@ -52,7 +53,7 @@ def test_plan_keeps_the_network_connected_throughout_the_step(seed):
     before = n_components(pos)
     wish = rng.normal(0, 3.0, size=(n, 2))
     # Steps of up to 40 m (0.4 r_c): long enough that unchecked wishes break links.
-    plan = plan_step(pos, role, leader, wish, 20.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(20.0, RC, 1.0, 2.0, 1000.0))
     for f in np.linspace(0, 1, 21):
         assert n_components(pos + plan.velocity_mps * 20.0 * f) <= before
     members = (role == MEMBER) & (np.hypot(*(pos - pos[np.maximum(leader, 0)]).T) <= RC)
@@ -68,7 +69,7 @@ def test_members_follow_their_leader_rigidly():
     role = np.array([LEADER, MEMBER, MEMBER], dtype=np.int8)
     leader = np.array([0, 0, 0])
     wish = np.array([[1.0, 0.5], [0, 0], [0, 0]])
-    plan = plan_step(pos, role, leader, wish, 1.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.velocity_mps[1] == pytest.approx(wish[0])
     assert plan.velocity_mps[2] == pytest.approx(wish[0])
     assert plan.commander.tolist() == [-1, 0, 0]
@@ -81,7 +82,7 @@ def test_gateway_rides_toward_the_middle_of_the_lens():
     role = np.array([LEADER, LEADER, MEMBER], dtype=np.int8)
     leader = np.array([0, 1, 0])
     wish = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, 0.0]])
-    plan = plan_step(pos, role, leader, wish, 1.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.velocity_mps[2, 0] > 0  # toward x = 460
     end = pos + plan.velocity_mps
     assert np.hypot(*(end[2] - end[0])) <= RC and np.hypot(*(end[2] - end[1])) <= RC
@@ -94,7 +95,7 @@ def test_leader_holds_rather_than_break_its_only_bridge():
     role = np.array([LEADER, MEMBER, MEMBER, LEADER], dtype=np.int8)
     leader = np.array([0, 0, 3, 3])
     wish = np.array([[-2.0, 0.0], [0, 0], [0, 0], [2.0, 0.0]])
-    plan = plan_step(pos, role, leader, wish, 1.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.held[0] and plan.held[3]
     end = pos + plan.velocity_mps
     assert np.hypot(*(end[2] - end[1])) <= RC
@@ -104,7 +105,8 @@ def test_groups_stay_inside_the_area():
     """A leader pushed toward the border stops where its farthest member reaches it."""
     pos = np.array([[60.0, 500.0], [5.0, 500.0]])
     role = np.array([LEADER, MEMBER], dtype=np.int8)
-    plan = plan_step(pos, role, np.array([0, 0]), np.array([[-2.0, 0.0], [0, 0]]), 10.0, RC, 1.0, 2.0, 1000.0)
+    wish = np.array([[-2.0, 0.0], [0, 0]])
+    plan = plan_follow(pos, role, np.array([0, 0]), wish, StepLimits(10.0, RC, 1.0, 2.0, 1000.0))
     end = pos + plan.velocity_mps * 10.0
     assert (end >= 0).all() and end[1, 0] == pytest.approx(0.0, abs=1e-6)
 
@@ -122,6 +124,7 @@ def coverage_run(n, seed, **extra):
         "channel.range_m=100",
         "coverage.enabled=true",
         "protocol.message_rate_hz=0",
+        'coverage.members="follow"',
         "duration_s=260",
         f"seed={seed}",
         "output.position_interval_s=0",
