@@ -15,8 +15,9 @@ the team connected.
   along a taut link that scaling the step down would forbid), and the step is then cut
   exactly where the segment from its position first leaves a disk or the area.
 - A taut link would only block: the outer robot of a chain wants out while the inner
-  ones, pushed evenly from all sides, stay. So a robot pulled away from a neighbour along
-  a taut link passes the pull on to it (:func:`pass_on_pulls`), and the chain follows.
+  ones, pushed evenly from all sides, stay. So a robot that wants to move away from a
+  neighbour along a kept link by more than the link's slack allows passes the excess on
+  to it as a pull (:func:`pass_on_pulls`), and the chain follows.
 - Every robot moves in a straight line over the step, so a link within range at both
   ends of the step is within range throughout (:mod:`mobility.steps`): on a loss-free
   channel, the number of components never grows at any instant.
@@ -84,30 +85,37 @@ def link_disks(pos: np.ndarray, mobile: np.ndarray, i: np.ndarray, j: np.ndarray
 
 
 def pass_on_pulls(
-    pos: np.ndarray, wish: np.ndarray, mobile: np.ndarray, i: np.ndarray, j: np.ndarray, d: np.ndarray, taut_m: float
+    pos: np.ndarray,
+    wish_mps: np.ndarray,
+    mobile: np.ndarray,
+    link: tuple[np.ndarray, np.ndarray, np.ndarray],
+    limit_m: np.ndarray,
+    period_s: float,
 ) -> np.ndarray:
-    """Wishes with the pulls of taut links added: a robot that wants to move away from a
-    neighbour along a kept link longer than ``taut_m`` pulls that neighbour after it
-    (the component of its wish along the link), and so on for :data:`TENSION_HOPS` links.
+    """Wishes with the pulls along kept links added. A robot that wants to move away from
+    a neighbour along a kept link ``(i, j, length)`` by more than its half of the link's
+    slack (``(limit - length) / 2``) pulls the neighbour after it with the excess, which
+    that neighbour passes on likewise, for :data:`TENSION_HOPS` links.
 
     Without this a taut link only blocks: the outer robot of a chain wants out, the inner
     ones are pushed evenly from all sides and stay, and the team stops growing long before
     its forces are spent.
 
-    >>> pos = np.array([[0.0, 0.0], [99.0, 0.0]])
-    >>> pass_on_pulls(pos, np.array([[0.0, 0.0], [1.0, 1.0]]), np.array([True, True]),
-    ...               np.array([0]), np.array([1]), np.array([99.0]), 97.0)
-    array([[1., 0.],
-           [1., 1.]])
+    >>> pos = np.array([[0.0, 0.0], [98.0, 0.0]])
+    >>> link = (np.array([0]), np.array([1]), np.array([98.0]))
+    >>> pass_on_pulls(pos, np.array([[0.0, 0.0], [2.0, 1.0]]), np.array([True, True]), link, np.array([99.0]), 1.0)
+    array([[1.5, 0. ],
+           [2. , 1. ]])
     """
-    taut = (d > taut_m) & mobile[i] & mobile[j]
-    i, j, d = i[taut], j[taut], d[taut]
-    along = (pos[j] - pos[i]) / d[:, None]  # unit vectors from i to j
-    total = np.where(mobile[:, None], wish, 0.0)
+    i, j, d = link
+    both = mobile[i] & mobile[j]
+    i, j, d, slack = i[both], j[both], d[both], ((limit_m - d) / (2 * period_s))[both]
+    along = (pos[j] - pos[i]) / np.maximum(d, 1e-12)[:, None]  # unit vectors from i to j
+    total = np.where(mobile[:, None], wish_mps, 0.0)
     pull = total.copy()
     for _ in range(TENSION_HOPS):
-        away_from_i = np.maximum(np.einsum("ij,ij->i", pull[j], along), 0.0)
-        away_from_j = np.maximum(-np.einsum("ij,ij->i", pull[i], along), 0.0)
+        away_from_i = np.maximum(np.einsum("ij,ij->i", pull[j], along) - slack, 0.0)
+        away_from_j = np.maximum(-np.einsum("ij,ij->i", pull[i], along) - slack, 0.0)
         nxt = np.zeros_like(pull)
         np.add.at(nxt, i, away_from_i[:, None] * along)
         np.add.at(nxt, j, -away_from_j[:, None] * along)
@@ -153,7 +161,7 @@ def plan_spread(
     centre = np.concatenate([centre, pos[movers]])
     radius = np.concatenate([radius, np.full(len(movers), limits.reach_m)])
 
-    wanted = pass_on_pulls(pos, desired_mps, mobile, i, j, d, limits.keep_m - limits.reach_m)
+    wanted = pass_on_pulls(pos, desired_mps, mobile, (i, j, d), np.maximum(limits.keep_m, d), limits.period_s)
     wish = np.zeros((n, 2))
     wish[movers] = cap_length(wanted[movers] * limits.period_s, limits.reach_m)
     end = project_into(pos + wish, robot, centre, radius, limits.side_m)

@@ -2,6 +2,7 @@
 one step, and whole runs from dense random static deployments."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -209,6 +210,20 @@ def test_coverage_metrics_are_sampled_over_time():
     assert len(travel) == 40 and travel["distance_m"].mean() == pytest.approx(r.summary["distance_mean_m"])
 
 
+def test_follow_mode_reproduces_the_paper_faithful_controller():
+    """``coverage.members = "follow"`` moves every robot exactly as the controller did
+    before spreading members existed: final positions and number of legs of each robot
+    of a lossy 30-robot run, recorded from that version (commit deb6747) in
+    ``tests/data/follow_reference.csv``."""
+    import pandas as pd
+
+    ref = pd.read_csv(Path(__file__).parent / "data" / "follow_reference.csv")
+    r = coverage_run(30, 7, **{"world.centre_side_m": 210, "duration_s": 120, "channel.loss_probability": 0.1})
+    legs = r.sim.state.legs()
+    assert legs.groupby("robot").size().tolist() == ref["legs"].tolist()
+    assert r.sim.state.positions_at(120.0) == pytest.approx(ref[["x_m", "y_m"]].to_numpy(), abs=1e-9)
+
+
 def test_same_seed_same_coverage_trace():
     a, b = coverage_run(30, 7), coverage_run(30, 7)
     assert a.sim.state.legs().equals(b.sim.state.legs())
@@ -223,6 +238,13 @@ def test_same_seed_same_coverage_trace():
         (["coverage.enabled=true", 'mobility.model="static"', "channel.latency_s=2.0"], "coverage.control_period_s"),
         (['coverage.law="magnetic"'], "coverage.law"),
         (['coverage.knowledge="oracle"'], "coverage.knowledge"),
+        (['coverage.members="lead"'], "coverage.members"),
+        (['coverage.area_method="monte_carlo"'], "coverage.area_method"),
+        (["coverage.stop_gain=-0.1"], "coverage.stop_gain"),
+        (
+            ["coverage.enabled=true", 'mobility.model="static"', "coverage.metrics_interval_s=30"],
+            "coverage.metrics_interval_s",
+        ),
         (["coverage.gain=0"], "coverage.gain"),
         (['control.controllers="avoid_collisions"'], "control.controllers"),
         (["control.options=3"], "control.options"),
