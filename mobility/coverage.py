@@ -1,6 +1,62 @@
-"""Connected coverage by virtual forces (paper section 1.4; MODEL.md section 5).
+"""Connected coverage by virtual forces (paper section 1.4; MODEL.md section 5): the
+controller plugin ``coverage``.
 
-DESIGN (to be written)
+Why the whole team must spread
+------------------------------
+A connected team of N robots with disks of radius ``r`` covers at most ``U(N) = r^2 (pi +
+1.9132 (N - 1))`` (:func:`netsim.coverage.connected_coverage_bound`): each robot but the
+first adds at most a disk minus the lens it must share with a neighbour in range. Dense
+arrangements fall far short of it: a connected hexagonal lattice of all robots (spacing
+``r``) covers ``0.866 r^2`` per robot, 45 % of the ``1.913 r^2`` the bound allows; leaders
+on the ``sqrt(3) r`` hexagon with one gateway per edge, the paper's picture, about ``0.65
+r^2``. So the paper's controller, where members follow their leader rigidly, covers what
+the groups formed at the start happen to span (a quarter of the area in the built-in
+scenario). To cover more, every robot must spread into a sparse, tree-like net in which
+most robots keep one or two neighbours near full range and stay well away from the rest.
+
+The architecture (MODEL.md section 5)
+-------------------------------------
+- Leaders decide. Each control period a leader computes, for itself and for each member
+  whose Acks it hears, the virtual force (:mod:`mobility.forces`, the configured law,
+  plus the border's push) from the robots that robot knows of: those it hears and those
+  they hear, at the positions last heard (an Ack carries its sender's table; a member's
+  Ack brings its knowledge to its leader). The relation is symmetric (i knows j if and
+  only if j knows i), as it must be: with one-sided knowledge the forces are not
+  reciprocal and the team drifts for ever. ``knowledge = "global"``: the true positions of
+  every robot closer than ``2 r_c``, for comparison.
+- Members move only by their leader's commands, sent over the channel; a member that
+  misses its command holds for that step.
+- The step is made safe for connectivity by :func:`mobility.spread.plan_spread`: a
+  minimum spanning forest of the network is kept, each end of a kept link ending the step
+  within its half of the link's allowed length (module notes there). Because each end
+  keeps to its own half, a robot that holds instead of moving never breaks a kept link:
+  the network stays connected at every instant even when commands are lost.
+- The hierarchy adapts. A member that its forces carry beyond its leader's range is
+  released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
+  3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
+  another ``tau`` (rule 4), and from then on it moves again, by its own decisions or its
+  new leader's. So groups split as the team spreads, the inverse of rule 5's merge (which
+  still joins groups whose leaders come within range). When control stops, the
+  clustering settles on the still network: leaders independent, every member in range of
+  its leader.
+
+Stopping: in ``"spread"`` control ends once the covered fraction of ``min(1, U(N) / A)``
+(the coverage samples) has risen less than ``stop_gain`` over ``stop_hold_s``, or no robot
+has moved faster than ``stop_speed_mps`` for ``stop_hold_s``. (Under the Ack-based
+knowledge the net keeps creeping at a few centimetres per second long after it has
+stopped gaining area; a motion-only rule would not end.)
+
+``members = "follow"`` keeps the paper's controller, for comparison: forces among leaders
+only (the leaders they hear and those their neighbours hear), members translating
+rigidly with their leader, and the bridges between groups kept by
+:func:`mobility.bridges.plan_follow`; its stopping rule: every leader's force has asked
+for less than ``stop_speed_mps`` for ``stop_hold_s``. Under loss a member that misses a
+command can break a bridge there: connectivity is measured, not guaranteed.
+
+What is not distributed: each step's plan is computed in one pass for the whole team (the
+spanning forest over the whole network; a robot's limits then use only the current
+positions of its kept neighbours). A deployment would build the forest with a
+distributed minimum spanning tree algorithm and exchange the kept links in the Acks.
 """
 
 from __future__ import annotations
