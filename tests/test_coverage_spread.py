@@ -236,3 +236,9 @@ def test_global_knowledge_spreads_too():
     r = spread_run(30, 6, 800.0, duration=200, **{"coverage.knowledge": "global"})
     assert (r.frames["control"]["components"] == 1).all()
     assert r.summary["covered_fraction_all_final"] > 2 * r.summary["covered_fraction_all_start"]
+
+
+def test_same_seed_same_spread():
+    a, b = (spread_run(20, 7, 600.0, duration=60) for _ in range(2))
+    assert a.sim.state.legs().equals(b.sim.state.legs())
+    assert a.frames["coverage"].equals(b.frames["coverage"])
