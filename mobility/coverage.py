@@ -1,36 +1,62 @@
-"""Connected coverage by virtual forces among leaders (paper section 1.4; MODEL.md section 5).
+"""Connected coverage by virtual forces (paper section 1.4; MODEL.md section 5): the
+controller plugin ``coverage``.
 
-Every control period each leader computes the resultant of the forces from the
-neighbouring leaders it knows of (see :mod:`mobility.forces`) and the border's push, and
-asks for the velocity ``gain x force``, capped at ``speed_max_mps`` (below
-``stop_speed_mps`` it holds). Its members follow its commands. The plan is then made safe
-for connectivity by :func:`plan_step`:
+Why the whole team must spread
+------------------------------
+A connected team of N robots with disks of radius ``r`` covers at most ``U(N) = r^2 (pi +
+1.9132 (N - 1))`` (:func:`netsim.coverage.connected_coverage_bound`): each robot but the
+first adds at most a disk minus the lens it must share with a neighbour in range. Dense
+arrangements fall far short of it: a connected hexagonal lattice of all robots (spacing
+``r``) covers ``0.866 r^2`` per robot, 45 % of the ``1.913 r^2`` the bound allows; leaders
+on the ``sqrt(3) r`` hexagon with one gateway per edge, the paper's picture, about ``0.65
+r^2``. So the paper's controller, where members follow their leader rigidly, covers what
+the groups formed at the start happen to span (a quarter of the area in the built-in
+scenario). To cover more, every robot must spread into a sparse, tree-like net in which
+most robots keep one or two neighbours near full range and stay well away from the rest.
 
-- the groups are the nodes of a graph whose edges are the links between groups: a
-  *gateway* (a member in range of another leader, i.e. in the lens the two leaders' disks
-  share) or a member-to-member link; a minimum spanning forest of that graph, preferring
-  gateways, is the set of bridges to keep;
-- a bridging gateway rides toward the centroid of the leaders it bridges (their planned
-  positions), as far as it can while staying within ``r_c - margin`` of each; every other
-  member translates with its leader, so it stays in its leader's range;
-- each leader shortens its own step, and holds its position if it must, so that at the
-  end of the step it is still within ``r_c - margin`` of the gateways it relies on
-  (where they are now, which is where a gateway that cannot move stays), and the
-  member-to-member bridges stay within range (each side keeps to its half);
-- every robot moves in a straight line over the step and the distance between two robots
-  moving in straight lines over the same interval is a convex function of time, so a
-  kept link that holds at both ends of the step holds throughout it.
+The architecture (MODEL.md section 5)
+-------------------------------------
+- Leaders decide. Each control period a leader computes, for itself and for each member
+  whose Acks it hears, the virtual force (:mod:`mobility.forces`, the configured law,
+  plus the border's push) from the robots that robot knows of: those it hears and those
+  they hear, at the positions last heard (an Ack carries its sender's table; a member's
+  Ack brings its knowledge to its leader). The relation is symmetric (i knows j if and
+  only if j knows i), as it must be: with one-sided knowledge the forces are not
+  reciprocal and the team drifts for ever. ``knowledge = "global"``: the true positions of
+  every robot closer than ``2 r_c``, for comparison.
+- Members move only by their leader's commands, sent over the channel; a member that
+  misses its command holds for that step.
+- The step is made safe for connectivity by :func:`mobility.spread.plan_spread`: a
+  minimum spanning forest of the network is kept, each end of a kept link ending the step
+  within its half of the link's allowed length (module notes there). Because each end
+  keeps to its own half, a robot that holds instead of moving never breaks a kept link:
+  the network stays connected at every instant even when commands are lost.
+- The hierarchy adapts. A member that its forces carry beyond its leader's range is
+  released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
+  3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
+  another ``tau`` (rule 4), and from then on it moves again, by its own decisions or its
+  new leader's. So groups split as the team spreads, the inverse of rule 5's merge (which
+  still joins groups whose leaders come within range). When control stops, the
+  clustering settles on the still network: leaders independent, every member in range of
+  its leader.
 
-So with a loss-free channel a network that is connected when control starts stays
-connected at every instant, and the number of components never grows. Under loss a
-member that misses its leader's command holds its position, and connectivity is measured
-rather than guaranteed.
+Stopping: in ``"spread"`` control ends once the covered fraction of ``min(1, U(N) / A)``
+(the coverage samples) has risen less than ``stop_gain`` over ``stop_hold_s``, or no robot
+has moved faster than ``stop_speed_mps`` for ``stop_hold_s``. (Under the Ack-based
+knowledge the net keeps creeping at a few centimetres per second long after it has
+stopped gaining area; a motion-only rule would not end.)
 
-Leaders learn of the other leaders from Acks (``knowledge = "acks"``): the leaders they
-hear themselves and those their neighbours hear (as a gateway's Ack would report them),
-at the positions last heard, so up to about an Ack period stale; or from the true
-positions (``"global"``), for comparison. The connectivity rules use the positions of the
-leader's own members and gateways, which it knows exactly: they move only as it commands.
+``members = "follow"`` keeps the paper's controller, for comparison: forces among leaders
+only (the leaders they hear and those their neighbours hear), members translating
+rigidly with their leader, and the bridges between groups kept by
+:func:`mobility.bridges.plan_follow`; its stopping rule: every leader's force has asked
+for less than ``stop_speed_mps`` for ``stop_hold_s``. Under loss a member that misses a
+command can break a bridge there: connectivity is measured, not guaranteed.
+
+What is not distributed: each step's plan is computed in one pass for the whole team (the
+spanning forest over the whole network; a robot's limits then use only the current
+positions of its kept neighbours). A deployment would build the forest with a
+distributed minimum spanning tree algorithm and exchange the kept links in the Acks.
 """
 
 from __future__ import annotations
@@ -40,182 +66,20 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import minimum_spanning_tree
 from scipy.spatial import cKDTree
 
-from mobility.forces import LAWS, SQRT3, border_force, resultant
+from mobility.bridges import plan_follow
+from mobility.forces import LAWS, SQRT3, border_force, border_forces, pair_resultants, resultant
+from mobility.spread import plan_spread
+from mobility.steps import Plan, StepLimits
 from netsim import coverage as metrics
 from netsim.control import ControlStep, GroupView, control_loop
 from netsim.errors import ConfigError
-from netsim.run import distance_travelled
 from netsim.state import LEADER, MEMBER
 from netsim.topology import geometric_pairs
+from netsim.trajectory import distance_travelled
 
-# Weights of the candidate bridges: any gateway is preferred to any member-to-member link.
-_GATEWAY_WEIGHT, _LINK_WEIGHT = 1e-3, 1.0
-# Steps are cut a hair short of a constraint's boundary, against rounding.
-_SAFETY = 1.0 - 1e-9
-
-
-class Plan(NamedTuple):
-    velocity_mps: np.ndarray  # (N, 2) over the step
-    commander: np.ndarray  # leader whose command a robot needs to move (-1: none)
-    held: np.ndarray  # leaders whose step was shortened for connectivity
-    bridges: int  # kept bridges between groups
-
-
-def _step_limit(offset: np.ndarray, radius: np.ndarray, move: np.ndarray) -> np.ndarray:
-    """Largest ``s`` in [0, 1] with ``|offset + s move| <= radius``, row-wise (``|offset|
-    <= radius`` holds: standing still is always allowed)."""
-    a = np.einsum("ij,ij->i", move, move)
-    b = np.einsum("ij,ij->i", offset, move)
-    c = np.einsum("ij,ij->i", offset, offset) - radius**2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (-b + np.sqrt(np.maximum(b * b - a * c, 0.0))) / a
-    s = np.where(a > 0, s, 1.0)
-    return np.clip(s * _SAFETY, 0.0, 1.0)
-
-
-def _box_limit(pos: np.ndarray, move: np.ndarray, side_m: float) -> np.ndarray:
-    """Largest ``s`` in [0, 1] keeping ``pos + s move`` inside the square, row-wise."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        hi = np.where(move > 0, (side_m - pos) / move, np.where(move < 0, -pos / move, np.inf))
-    return np.clip(hi.min(axis=1) * _SAFETY, 0.0, 1.0)
-
-
-def plan_step(
-    pos: np.ndarray,
-    role: np.ndarray,
-    leader: np.ndarray,
-    desired_mps: np.ndarray,
-    period_s: float,
-    range_m: float,
-    margin_m: float,
-    speed_max_mps: float,
-    side_m: float,
-) -> Plan:
-    """Velocities for one control step that keep every bridge between groups (module notes).
-
-    ``desired_mps`` holds the leaders' wished velocities (other rows are ignored). The
-    result moves leaders along their wish, shortened where a bridge or the area's border
-    requires; members with their leader; bridging gateways toward the middle of the
-    leaders they bridge; undecided robots not at all.
-    """
-    n = len(pos)
-    ids = np.arange(n)
-    keep_m = range_m - margin_m
-    is_leader = role == LEADER
-    lead = np.where((role == MEMBER) & (leader >= 0), leader, ids)
-    to_leader = np.hypot(*(pos - pos[lead]).T)
-    follows = (role == MEMBER) & (leader >= 0) & is_leader[lead] & (to_leader <= range_m)
-    # Each robot's group: its own id for a leader; its leader's for a member in range of
-    # it; for anyone else (undecided, or a member cut off from its leader) a group of its own.
-    group = np.where(follows, lead, ids)
-    mobile = is_leader | follows
-
-    a, b, d = geometric_pairs(pos, range_m)
-    cross = group[a] != group[b]
-    a, b, d = a[cross], b[cross], d[cross]
-    # Candidate bridges: gateway (member x in range of the other group's leader) or link.
-    gw_a = follows[a] & is_leader[b]
-    gw_b = follows[b] & is_leader[a]
-    cand_u = np.concatenate([a[gw_a], b[gw_b], a])
-    cand_v = np.concatenate([b[gw_a], a[gw_b], b])
-    is_gw = np.concatenate([np.ones(int(gw_a.sum() + gw_b.sum()), bool), np.zeros(len(a), bool)])
-    mid = 0.5 * (pos[group[cand_u]] + pos[group[cand_v]])
-    weight = np.where(
-        is_gw,
-        _GATEWAY_WEIGHT * (1.0 + np.hypot(*(pos[cand_u] - mid).T) / range_m),
-        _LINK_WEIGHT + np.concatenate([d[gw_a], d[gw_b], d]) / range_m,
-    )
-    ga, gb = group[cand_u], group[cand_v]
-    key = np.minimum(ga, gb) * n + np.maximum(ga, gb)
-    order = np.lexsort((weight, key))
-    first = order[np.r_[True, key[order][1:] != key[order][:-1]]] if len(order) else order
-    tree = minimum_spanning_tree(
-        coo_matrix((weight[first], (np.minimum(ga, gb)[first], np.maximum(ga, gb)[first])), shape=(n, n)).tocsr()
-    ).tocoo()
-    kept_key = np.minimum(tree.row, tree.col) * n + np.maximum(tree.row, tree.col)
-    chosen = first[np.isin(key[first], kept_key)]
-    gw_edges = chosen[is_gw[chosen]]
-    link_edges = chosen[~is_gw[chosen]]
-
-    # Bridging gateways and the leaders each one must stay with (its own and the others).
-    gw_robot = cand_u[gw_edges]
-    bridging = np.zeros(n, bool)
-    bridging[gw_robot] = True
-    pinned = ~mobile
-    link_u, link_v = cand_u[link_edges], cand_v[link_edges]
-    # A bridging gateway that is also the end of a member-to-member bridge stays put.
-    pinned[link_u[bridging[link_u]]] = True
-    pinned[link_v[bridging[link_v]]] = True
-    rigid = mobile & ~bridging & ~pinned
-    gw_pairs_robot = np.concatenate([gw_robot, np.unique(gw_robot)])
-    gw_pairs_leader = np.concatenate([cand_v[gw_edges], group[np.unique(gw_robot)]])
-
-    # Leaders' wished steps, capped.
-    move = np.zeros((n, 2))
-    move[is_leader] = desired_mps[is_leader] * period_s
-    length = np.hypot(*move.T)
-    cap = speed_max_mps * period_s
-    over = length > cap
-    move[over] *= (cap / length[over])[:, None]
-
-    # Constraints on leaders' steps: |offset + s move_k| <= radius.
-    rows_k, rows_off, rows_r = [], [], []
-    off = pos[gw_pairs_leader] - pos[gw_pairs_robot]
-    rows_k.append(gw_pairs_leader)
-    rows_off.append(off)
-    rows_r.append(np.maximum(keep_m, np.hypot(*off.T)))
-    both = rigid[link_u] & rigid[link_v]
-    m = 0.5 * (pos[link_u] + pos[link_v])
-    for x, y in ((link_u, link_v), (link_v, link_u)):
-        half = both
-        alone = rigid[x] & ~rigid[y]
-        centre = np.where(half[:, None], m, pos[y])
-        sel = half | alone
-        o = pos[x[sel]] - centre[sel]
-        rows_k.append(group[x[sel]])
-        rows_off.append(o)
-        rows_r.append(np.maximum(np.where(half[sel], keep_m / 2, keep_m), np.hypot(*o.T)))
-    k = np.concatenate(rows_k).astype(np.int64)
-    s = np.ones(n)
-    if len(k):
-        np.minimum.at(s, k, _step_limit(np.concatenate(rows_off), np.concatenate(rows_r), move[k]))
-    # Members translate with their leader: the whole group stays inside the area.
-    r_idx = np.flatnonzero(rigid)
-    np.minimum.at(s, group[r_idx], _box_limit(pos[r_idx], move[group[r_idx]], side_m))
-    wished = np.hypot(*move.T) > 0
-    held = is_leader & wished & (s < _SAFETY)
-    move *= s[:, None]
-
-    step = np.zeros((n, 2))
-    step[rigid] = move[group[rigid]]
-    # Gateways: toward the centroid of their leaders' planned positions.
-    gw = np.flatnonzero(bridging & ~pinned)
-    if len(gw):
-        planned = pos[gw_pairs_leader] + move[gw_pairs_leader]
-        cnt = np.bincount(gw_pairs_robot, minlength=n)
-        cx = np.bincount(gw_pairs_robot, weights=planned[:, 0], minlength=n)
-        cy = np.bincount(gw_pairs_robot, weights=planned[:, 1], minlength=n)
-        target = np.column_stack([cx[gw] / cnt[gw], cy[gw] / cnt[gw]])
-        want = target - pos[gw]
-        length = np.hypot(*want.T)
-        over = length > cap
-        want[over] *= (cap / length[over])[:, None]
-        full = np.zeros((n, 2))
-        full[gw] = want
-        o = pos[gw_pairs_robot] - planned
-        lim = _step_limit(o, np.maximum(keep_m, np.hypot(*o.T)), full[gw_pairs_robot])
-        sg = np.ones(n)
-        np.minimum.at(sg, gw_pairs_robot, lim)
-        sg[gw] = np.minimum(sg[gw], _box_limit(pos[gw], want, side_m))
-        step[gw] = want * sg[gw, None]
-    velocity = step / period_s
-    moving = np.hypot(*velocity.T) > 0
-    commander = np.where(moving & ~is_leader, group, -1)
-    return Plan(velocity, commander, held, len(chosen))
+# -- what the leaders wish ----------------------------------------------------------------
 
 
 def wished_velocities(
@@ -244,6 +108,30 @@ def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> lis
     return [lp[[j for j in js if j != k]] for k, js in enumerate(tree.query_ball_point(lp, 2 * range_m))]
 
 
+def group_of(role: np.ndarray, leader: np.ndarray) -> np.ndarray:
+    """The leader whose decisions each robot carries out: its own id for a leader, its
+    leader's for a member, -1 for anyone else."""
+    ids = np.arange(len(role))
+    return np.where(role == LEADER, ids, np.where((role == MEMBER) & (leader >= 0), leader, -1))
+
+
+def sources_true(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs ``(robot, true position of another robot closer than 2 r_c)``: the forces'
+    sources with ``knowledge = "global"``."""
+    a, b, _ = geometric_pairs(pos, 2 * range_m)
+    return np.r_[a, b], pos[np.r_[b, a]]
+
+
+def spreading_forces(
+    pos: np.ndarray, target: np.ndarray, source_xy: np.ndarray, law_name: str, range_m: float, gain: float, side_m
+) -> np.ndarray:
+    """``gain x (resultant + border push)`` on every robot (rows of robots without
+    sources are the border push alone), from the pairs ``(target, source position)``."""
+    n = len(pos)
+    f = pair_resultants(n, target, pos[target] - source_xy, LAWS[law_name], range_m, gain)
+    return f + border_forces(pos, side_m, range_m, gain)
+
+
 class StepRecord(NamedTuple):
     t_s: float
     leaders: int
@@ -252,6 +140,8 @@ class StepRecord(NamedTuple):
     bridges: int
     components: int
     max_wished_speed_mps: float
+    moving_robots: int
+    held_robots: int
 
 
 class CoverageController:
@@ -261,19 +151,35 @@ class CoverageController:
         self.sim = sim
         self.view = view
         self.cfg = sim.config.coverage
-        self.range_m = float(np.min(sim.state.range_m))
-        self.quiet_since = np.full(sim.state.n, np.nan)
+        st = sim.state
+        self.range_m = float(np.min(st.range_m))
+        self.radius_m = self.cfg.radius_m or self.range_m
+        self.limits = StepLimits(
+            self.cfg.control_period_s, self.range_m, self.cfg.margin_m, self.cfg.speed_max_mps, st.side_m
+        )
+        self.quiet_since = np.full(st.n, np.nan)
+        self.all_quiet_since = math.nan
         self.settled_s = math.nan
-        self.got_command = np.zeros(sim.state.n, bool)
-        self.commander = np.full(sim.state.n, -1)
+        self.got_command = np.zeros(st.n, bool)
+        self.commander = np.full(st.n, -1)
         self.steps: list[StepRecord] = []
         self.samples: list[dict] = []
         self._max_wish = 0.0
         self.sample_at_start: dict | None = None
+        # Odometer: distance per robot up to odo_t_s, and the speeds since.
+        self.odometer_m = np.zeros(st.n)
+        self.odo_t_s = 0.0
+        self.speed_mps = np.zeros(st.n)
 
     # -- the two stages of a step --------------------------------------------------
     def propose(self, step: ControlStep) -> None:
-        """Order 0: each leader's wished velocity from the forces it knows of."""
+        """Order 0: the wished velocities from the forces the leaders know of."""
+        if self.cfg.members == "follow":
+            self._propose_follow(step)
+        else:
+            self._propose_spread(step)
+
+    def _propose_follow(self, step: ControlStep) -> None:
         now = self.sim.env.now
         leaders = np.flatnonzero(step.role == LEADER)
         pos_now = self.sim.state.positions_at(now)
@@ -295,36 +201,77 @@ class CoverageController:
             control_loop(self.sim).stop()
         self._max_wish = float(speed.max()) if len(speed) else 0.0
 
-    def secure(self, step: ControlStep) -> None:
-        """Order 100: make the plan keep every bridge; leaders send their commands."""
+    def _propose_spread(self, step: ControlStep) -> None:
+        now = self.sim.env.now
         c = self.cfg
-        plan = plan_step(
-            step.positions_m,
-            step.role,
-            step.leader,
-            step.velocity_mps,
-            step.period_s,
-            self.range_m,
-            c.margin_m,
-            c.speed_max_mps,
-            step.side_m,
-        )
+        pos_now = self.sim.state.positions_at(now)
+        group = group_of(step.role, step.leader)
+        if c.knowledge == "global" or self.view is None:
+            target, source_xy = sources_true(pos_now, self.range_m)
+        else:
+            target, _, source_xy = self.view.neighbourhood(now)
+        wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, step.side_m)
+        wished[group < 0] = 0.0
+        speed = np.hypot(*wished.T)
+        wished[speed < c.stop_speed_mps] = 0.0
+        step.velocity_mps[:] = wished
+        self._max_wish = float(speed[group >= 0].max()) if (group >= 0).any() else 0.0
+
+    def secure(self, step: ControlStep) -> None:
+        """Order 100: make the plan keep the network connected; leaders send their commands."""
+        if self.cfg.members == "follow":
+            plan = plan_follow(step.positions_m, step.role, step.leader, step.velocity_mps, self.limits)
+        else:
+            plan = self._plan_spread(step)
         step.velocity_mps[:] = plan.velocity_mps
         self.commander = plan.commander
         self.got_command[:] = False
         for leader in np.unique(plan.commander[plan.commander >= 0]).tolist():
             self.sim.channel.broadcast(leader, step.t_s, self._deliver, kind="command")
+        self._record(step, plan)
+        if self.cfg.members == "spread":
+            self._stopping_rule(plan)
+
+    def _plan_spread(self, step: ControlStep) -> Plan:
+        """Leaders move; a member moves if it can hear its leader's command now."""
+        role, leader = step.role, step.leader
+        pos_now = self.sim.state.positions_at(self.sim.env.now)
+        is_leader = role == LEADER
+        member = (role == MEMBER) & (leader >= 0)
+        lead = np.where(member, leader, 0)
+        reach = np.hypot(*(pos_now - pos_now[lead]).T) <= self.sim.state.range_m[lead]
+        commandable = member & is_leader[lead] & reach
+        mobile = is_leader | commandable
+        commander_of = np.where(commandable, leader, -1)
+        return plan_spread(step.positions_m, mobile, commander_of, step.velocity_mps, self.limits)
+
+    def _stopping_rule(self, plan: Plan) -> None:
+        """Control ends once no robot has moved faster than ``stop_speed_mps`` for ``stop_hold_s``."""
+        now = self.sim.env.now
+        if np.hypot(*plan.velocity_mps.T).max(initial=0.0) >= self.cfg.stop_speed_mps:
+            self.all_quiet_since = math.nan
+            return
+        if math.isnan(self.all_quiet_since):
+            self.all_quiet_since = now
+        if now - self.all_quiet_since >= self.cfg.stop_hold_s:
+            self.settled_s = now
+            control_loop(self.sim).stop()
+
+    def _record(self, step: ControlStep, plan: Plan) -> None:
         comps = metrics.components(step.positions_m, self.range_m)
         leaders = step.role == LEADER
+        moving = np.hypot(*plan.velocity_mps.T) > 0
         self.steps.append(
             StepRecord(
                 step.t_s,
                 int(leaders.sum()),
-                int((np.hypot(*plan.velocity_mps[leaders].T) > 0).sum()),
-                int(plan.held.sum()),
+                int(moving[leaders].sum()),
+                int(plan.held[leaders].sum()),
                 plan.bridges,
                 int(comps.max() + 1) if len(comps) else 0,
                 self._max_wish,
+                int(moving.sum()),
+                int(plan.held.sum()),
             )
         )
 
@@ -335,18 +282,29 @@ class CoverageController:
         """At the step's start: a robot that did not hear its leader's command holds."""
         missed = (self.commander >= 0) & ~self.got_command
         step.velocity_mps[missed] = 0.0
+        self._odometer_to(step.t_s)
+        self.speed_mps = np.hypot(*step.velocity_mps.T)
 
     # -- metrics over time -----------------------------------------------------------
+    def _odometer_to(self, t: float) -> None:
+        self.odometer_m += self.speed_mps * (t - self.odo_t_s)
+        self.odo_t_s = t
+
+    def _covered(self, centres: np.ndarray) -> tuple[float, float]:
+        if self.cfg.area_method == "grid":
+            return metrics.covered_fraction(centres, self.radius_m, self.limits.side_m, self.cfg.grid_cells)
+        return metrics.covered_fraction_exact(centres, self.radius_m, self.limits.side_m)
+
     def sample(self, t: float) -> dict:
-        st, c = self.sim.state, self.cfg
+        st = self.sim.state
         pos = st.positions_at(t)
-        radius = c.radius_m or self.range_m
         leaders = pos[st.role == LEADER]
-        cov_l, err_l = metrics.covered_fraction(leaders, radius, st.side_m, c.grid_cells)
-        cov_a, err_a = metrics.covered_fraction(pos, radius, st.side_m, c.grid_cells)
+        cov_l, err_l = self._covered(leaders)
+        cov_a, err_a = self._covered(pos)
+        bound = metrics.bound_fraction(st.n, self.radius_m, st.side_m, self.range_m)
         comps = metrics.components(pos, self.range_m)
         spacing = metrics.nearest_spacing(leaders)
-        travelled = distance_travelled(st.legs(), t)
+        travelled = self.odometer_m + self.speed_mps * (t - self.odo_t_s)
         return {
             "t_s": t,
             "leaders": len(leaders),
@@ -354,6 +312,8 @@ class CoverageController:
             "covered_fraction_all": cov_a,
             "covered_error_bound_leaders": err_l,
             "covered_error_bound_all": err_a,
+            "coverage_bound": bound,
+            "covered_of_bound_all": cov_a / bound if bound > 0 else math.nan,
             "components": int(comps.max() + 1),
             "connected": bool(comps.max() == 0),
             "spacing_median_ratio": float(np.median(spacing) / (SQRT3 * self.range_m))
@@ -367,7 +327,21 @@ class CoverageController:
         env = self.sim.env
         while True:
             self.samples.append(self.sample(env.now))
+            if self.cfg.members == "spread":
+                self._coverage_stopping_rule()
             yield env.timeout(self.cfg.metrics_interval_s)
+
+    def _coverage_stopping_rule(self) -> None:
+        """Spread: control ends once the covered fraction of ``min(1, U(N) / A)`` has not
+        risen ``stop_gain`` above its value ``stop_hold_s`` ago (the team stopped spreading)."""
+        c, now = self.cfg, self.sim.env.now
+        loop = control_loop(self.sim)
+        if loop.stopped or c.stop_gain <= 0 or now < c.start_s + c.stop_hold_s - 1e-9:
+            return
+        window = [s["covered_of_bound_all"] for s in self.samples if s["t_s"] >= now - c.stop_hold_s - 1e-9]
+        if len(window) > 1 and max(window[1:]) - window[0] < c.stop_gain:
+            self.settled_s = now
+            loop.stop()
 
     # -- outputs -----------------------------------------------------------------------
     def coverage_frame(self) -> pd.DataFrame:
@@ -385,22 +359,28 @@ class CoverageController:
         last = self.sample(duration_s)
         steps = self.control_frame()
         start = self.sample_at_start
+        travel = frames["travel"]["distance_m"] if "travel" in frames else pd.Series(dtype=float)
         return {
             "coverage_law": self.cfg.law,
             "coverage_knowledge": self.cfg.knowledge,
+            "coverage_members": self.cfg.members,
             "leaders_final": last["leaders"],
             "covered_fraction_leaders_start": start["covered_fraction_leaders"] if start else math.nan,
             "covered_fraction_leaders_final": last["covered_fraction_leaders"],
             "covered_fraction_all_start": start["covered_fraction_all"] if start else math.nan,
             "covered_fraction_all_final": last["covered_fraction_all"],
             "covered_error_bound_all": last["covered_error_bound_all"],
+            "coverage_bound": last["coverage_bound"],
+            "covered_of_bound_all_start": start["covered_of_bound_all"] if start else math.nan,
+            "covered_of_bound_all_final": last["covered_of_bound_all"],
             "components_start": start["components"] if start else math.nan,
             "components_final": last["components"],
             "components_max_during_control": int(steps["components"].max()) if len(steps) else math.nan,
             "connected_final": last["connected"],
             "spacing_median_ratio_final": last["spacing_median_ratio"],
             "hexagonality_final": last["hexagonality"],
-            "distance_mean_m": last["distance_mean_m"],
+            "distance_mean_m": float(travel.mean()) if len(travel) else last["distance_mean_m"],
+            "distance_max_m": float(travel.max()) if len(travel) else math.nan,
             "control_steps": len(steps),
             "control_settled_s": self.settled_s,
         }
@@ -413,11 +393,12 @@ class CoverageController:
 def install(sim) -> CoverageController:
     """The ``coverage`` controller plugin: wires the protocol's view into the control loop."""
     view = sim.models.get("protocol")
-    if sim.config.coverage.knowledge == "acks" and not callable(getattr(view, "heard_leaders", None)):
+    wants = "heard_leaders" if sim.config.coverage.members == "follow" else "neighbourhood"
+    if sim.config.coverage.knowledge == "acks" and not callable(getattr(view, wants, None)):
         raise ConfigError(
             "coverage.knowledge",
             "acks",
-            f"needs a protocol that tells which leaders were heard (protocol.model = 'clustering'), "
+            f"needs a protocol that tells what the leaders heard (protocol.model = 'clustering'), "
             f"not {sim.config.protocol.model!r}",
         )
     ctl = CoverageController(sim, view)

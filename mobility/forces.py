@@ -77,3 +77,22 @@ def border_force(p, side_m: float, range_m: float, gain: float) -> np.ndarray:
         if side_m - p[k] < margin:
             f[k] -= gain * (margin - (side_m - p[k]))
     return f
+
+
+def pair_resultants(n: int, target: np.ndarray, delta: np.ndarray, law, range_m: float, gain: float) -> np.ndarray:
+    """Resultant forces on ``n`` robots from pairs: row ``k`` is the force on robot
+    ``target[k]`` from a robot at ``delta[k]`` (its position minus the other's) away.
+    Pairs at distance 0 push nowhere."""
+    d = np.hypot(*np.asarray(delta, dtype=float).reshape(-1, 2).T)
+    ok = d > 0
+    mag = law(d[ok], range_m, gain) / d[ok]
+    fx = np.bincount(target[ok], weights=mag * delta[ok, 0], minlength=n)
+    fy = np.bincount(target[ok], weights=mag * delta[ok, 1], minlength=n)
+    return np.column_stack([fx, fy])
+
+
+def border_forces(p: np.ndarray, side_m: float, range_m: float, gain: float) -> np.ndarray:
+    """:func:`border_force` for every row of ``p`` (k, 2) at once."""
+    margin = SQRT3 * range_m / 2
+    p = np.asarray(p, dtype=float).reshape(-1, 2)
+    return gain * (np.clip(margin - p, 0.0, None) - np.clip(margin - (side_m - p), 0.0, None))

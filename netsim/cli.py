@@ -9,10 +9,10 @@
     Run a parameter sweep; started again, it skips the runs already done.
 ``netsim validate``
     Check the model against closed-form results; exit status 1 if any check fails.
-``netsim figures [RUN_DIR] [--config FILE] [--set KEY=VALUE ...] [--out DIR]``
-    Draw the paper's Figs. 6-8 (initial deployment, leaders' paths, final deployment with
-    coverage disks) from a run directory; without one, first run the built-in coverage
-    scenario (or FILE) into DIR.
+``netsim figures [RUN_DIR] [--config FILE] [--set KEY=VALUE ...] [--out DIR] [--at T]``
+    Draw the paper's Figs. 6-8 (deployment at T, every robot's path, final deployment with
+    every robot's coverage disk) from a run directory; without one, first run the built-in
+    coverage scenario (or FILE) into DIR.
 ``netsim view RUN_DIR [--out FILE.html]``
     Write the replay of a run: one self-contained HTML file (default RUN_DIR/view.html).
 ``netsim config``
@@ -142,17 +142,21 @@ def cmd_figures(args) -> int:
     if args.run_dir:
         if args.config or args.set:
             raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
-        paths = figures.draw(args.run_dir, args.out)
+        drawn = figures.draw(args.run_dir, args.out, at_s=args.at)
     else:
         out = Path(args.out or "netsim-figures")
         overrides = ([] if args.config else figures.COVERAGE_SCENARIO) + list(args.set or [])
         config = cfgmod.load(args.config, overrides)
+        if args.at is not None and not 0 <= args.at <= config.duration_s:
+            raise NetsimInputError(
+                f"--at = {args.at:g}: must be a time between 0 and duration_s = {config.duration_s:g} s"
+            )
         result = execute(config, progress=not args.no_progress)
         write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
         print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
-        paths = figures.draw(out)
-    for p in paths:
-        print(f"wrote {p}")
+        drawn = figures.draw(out, at_s=args.at)
+    for d in drawn:
+        print(f"wrote {d.path}" + (f" ({d.note})" if d.note else ""))
     return 0
 
 
@@ -214,6 +218,9 @@ def parser() -> argparse.ArgumentParser:
     f.add_argument("--config", help="scenario file to run instead of the built-in coverage scenario")
     f.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     f.add_argument("--out", help="where to write (default: RUN_DIR, or ./netsim-figures)")
+    f.add_argument(
+        "--at", type=float, metavar="T", help="time of the deployment figure, Fig. 6, s (default: when control starts)"
+    )
     f.add_argument("--no-progress", action="store_true", help="no progress bar")
     f.set_defaults(func=cmd_figures)
 

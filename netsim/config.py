@@ -125,7 +125,12 @@ class ProtocolConfig:
 
 @dataclass(frozen=True)
 class CoverageConfig:
-    enabled: bool = _param(False, _any, "leaders spread out by virtual forces (needs mobility.model = 'static')")
+    enabled: bool = _param(False, _any, "the team spreads out by virtual forces (needs mobility.model = 'static')")
+    members: str = _param(
+        "spread",
+        _one_of("spread", "follow"),
+        "'spread': every robot is pushed apart, a spanning forest kept; 'follow': members follow their leader",
+    )
     law: str = _param(
         "spring", _one_of("spring", "repulsion", "inverse_square"), "force law between neighbouring leaders"
     )
@@ -139,9 +144,15 @@ class CoverageConfig:
     margin_m: float = _param(1.0, _non_negative, "kept links stay this far inside the range, m")
     stop_speed_mps: float = _param(0.02, _non_negative, "a leader whose force asks for less than this holds, m/s")
     stop_hold_s: float = _param(20.0, _positive, "control ends once every leader has held this long, s")
+    stop_gain: float = _param(
+        0.002, _non_negative, "spread: control ends once coverage gains less than this in stop_hold_s (0: off)"
+    )
     radius_m: float = _param(0.0, _non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
     metrics_interval_s: float = _param(5.0, _positive, "coverage metrics sampling interval, s")
-    grid_cells: int = _param(200, _positive, "covered fraction: grid cells per side (error bound reported)")
+    area_method: str = _param(
+        "exact", _one_of("exact", "grid"), "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"
+    )
+    grid_cells: int = _param(200, _positive, "area_method = 'grid': grid cells per side (error bound reported)")
 
 
 @dataclass(frozen=True)
@@ -343,6 +354,12 @@ def _check_across(c: Config) -> None:
             "coverage.control_period_s",
             cov.control_period_s,
             f"must exceed the channel's largest delay (latency_s + latency_jitter_s = {lead})",
+        )
+    if cov.enabled and cov.members == "spread" and cov.metrics_interval_s > cov.stop_hold_s:
+        raise ConfigError(
+            "coverage.metrics_interval_s",
+            cov.metrics_interval_s,
+            f"must not exceed coverage.stop_hold_s = {cov.stop_hold_s} (the stopping rule compares samples)",
         )
     if cov.enabled and c.world.torus:
         raise ConfigError("coverage.enabled", True, "is for a bounded area; set world.torus = false")

@@ -32,11 +32,16 @@ from netsim.errors import NetsimInputError
 
 class GroupView(Protocol):
     """What a protocol that forms groups tells the controllers (implemented by the
-    clustering stack): the leaders' positions a leader has heard of in Acks, directly or
-    relayed by its neighbours."""
+    clustering stack): the positions a leader has heard of in Acks, directly or relayed
+    by its neighbours."""
 
     def heard_leaders(self, leader: int, now: float) -> tuple[np.ndarray, np.ndarray]:
         """Ids and last-heard positions ``(k, 2)`` of the other leaders ``leader`` knows."""
+        ...
+
+    def neighbourhood(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What every robot knows of those around it (those it hears and those they
+        hear): arrays ``(robot, other, last-heard position of other (k, 2))``."""
         ...
 
 

@@ -1,7 +1,13 @@
 """Coverage and connectivity metrics: pure functions of positions.
 
-- :func:`covered_fraction`: the fraction of the square covered by the union of disks, by
-  a grid of sample points, with a stated bound on its error;
+- :func:`covered_fraction_exact`: the fraction of the square covered by the union of
+  disks, from the areas of two polygon unions that bracket it (below: every disk replaced
+  by its inscribed regular polygon; above: by its circumscribed one), with the bracket's
+  half-width as a rigorous error bound (about 1e-3 of the area or less);
+- :func:`covered_fraction`: the same by a grid of sample points (a cheap estimate), with a
+  rigorous bound on its error;
+- :func:`connected_coverage_bound`: ``U(N)``, the most that ``N`` robots whose network is
+  connected can cover (VALIDATION.md item 16);
 - :func:`components`: connected components of the unit-disk network;
 - :func:`nearest_spacing`: each leader's distance to its nearest leader;
 - :func:`hexagonality`: the bond-orientational order parameter psi_6 (1 on a perfect
@@ -24,14 +30,106 @@ from netsim.topology import geometric_pairs
 KERSHNER_DENSITY = 2 * math.pi / (3 * math.sqrt(3))
 # Area shared by two disks of radius r whose centres are sqrt(3) r apart, over r^2.
 LENS_AREA_AT_HEX_SPACING = math.pi / 3 - math.sqrt(3) / 2
+# Area shared by two disks of radius r whose centres are r apart, over r^2 (1.2284).
+LENS_AREA_AT_RANGE = 2 * math.pi / 3 - math.sqrt(3) / 2
+# What each robot after the first adds at most to a connected team's covered area, over
+# r^2: a disk minus the least it can share with a neighbour in range (1.9132).
+CONNECTED_AREA_PER_ROBOT = math.pi - LENS_AREA_AT_RANGE
+# Vertices of the regular polygons that bracket each disk (shapely: 4 x quad_segs).
+QUAD_SEGS = 16
+
+
+def lens_area(radius_m: float, distance_m: float) -> float:
+    """Area shared by two disks of radius ``radius_m`` whose centres are ``distance_m`` apart.
+
+    >>> round(lens_area(1.0, 1.0), 4), lens_area(1.0, 2.0)
+    (1.2284, 0.0)
+    """
+    r, d = radius_m, min(distance_m, 2 * radius_m)
+    return 2 * r * r * math.acos(d / (2 * r)) - 0.5 * d * math.sqrt(4 * r * r - d * d)
+
+
+def connected_coverage_bound(n: int, radius_m: float, range_m: float | None = None) -> float:
+    """``U(N) = r^2 (pi + 1.9132 (N - 1))``, m^2: the most that ``n`` disks of radius
+    ``radius_m`` can cover when their centres form a connected network of range
+    ``range_m`` (default: the radius; VALIDATION.md item 16).
+
+    Order the robots from a root so that each has an earlier neighbour within range; each
+    new disk shares with that neighbour's at least the lens at distance ``range_m``. A
+    straight chain at spacing ``r`` reaches the bound exactly.
+
+    >>> round(connected_coverage_bound(2, 1.0), 4)
+    5.0548
+    >>> connected_coverage_bound(0, 1.0)
+    0.0
+    """
+    if n <= 0:
+        return 0.0
+    reach = radius_m if range_m is None else range_m
+    disk = math.pi * radius_m**2
+    return disk + (disk - lens_area(radius_m, reach)) * (n - 1)
+
+
+def bound_fraction(n: int, radius_m: float, side_m: float, range_m: float | None = None) -> float:
+    """``min(1, U(N) / A)``: the largest fraction of the square a connected team can cover."""
+    return min(1.0, connected_coverage_bound(n, radius_m, range_m) / side_m**2)
+
+
+def union_area_bracket(centres_m, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS):
+    """Area (m^2) of the union of the disks clipped to the ``side_m`` square, bracketed:
+    ``(lower, upper)`` from the unions of the inscribed and the circumscribed regular
+    polygons with ``4 quad_segs`` vertices (each polygon inside, resp. around, its disk,
+    so the unions are too). Computed with shapely (GEOS).
+
+    >>> lo, hi = union_area_bracket([[50.0, 50.0]], 10.0, 100.0)
+    >>> lo < math.pi * 100 < hi and hi - lo < 0.8
+    True
+    """
+    import shapely
+
+    centres = np.asarray(centres_m, dtype=float).reshape(-1, 2)
+    if len(centres) == 0:
+        return 0.0, 0.0
+    box = shapely.box(0.0, 0.0, side_m, side_m)
+    points = shapely.points(centres)
+    vertices = 4 * quad_segs
+    areas = []
+    for r in (radius_m, radius_m / math.cos(math.pi / vertices)):
+        union = shapely.union_all(shapely.buffer(points, r, quad_segs=quad_segs))
+        areas.append(float(shapely.intersection(union, box).area))
+    return areas[0], areas[1]
+
+
+def covered_fraction_exact(centres_m, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS):
+    """Fraction of the ``side_m`` square within ``radius_m`` of some centre: ``(fraction,
+    error_bound)``, the true fraction being within ``error_bound`` of ``fraction``.
+
+    From :func:`union_area_bracket` ``[lower, upper]``. A polygon's shortfall along the
+    union's boundary is about twice the circumscribed polygon's excess (``r^2 theta^3 /
+    12`` against ``r^2 theta^3 / 24`` per side of angle ``theta``), so ``(lower + 2 upper)
+    / 3`` is nearly exact; the error bound is its distance to the farther end of the
+    bracket, which is rigorous.
+
+    >>> f, err = covered_fraction_exact([[50.0, 50.0]], 10.0, 100.0)
+    >>> abs(f - math.pi / 100) < 1e-6 and err < 6e-5
+    True
+    """
+    lower, upper = union_area_bracket(centres_m, radius_m, side_m, quad_segs)
+    area = side_m**2
+    value = (lower + 2.0 * upper) / 3.0
+    return value / area, max(value - lower, upper - value) / area
 
 
 def covered_fraction(centres_m, radius_m: float, side_m: float, cells: int = 500, torus: bool = False):
-    """Fraction of the ``side_m`` square within ``radius_m`` of some centre.
+    """Fraction of the ``side_m`` square within ``radius_m`` of some centre, estimated on
+    a ``cells x cells`` grid of cell centres (cheap; :func:`covered_fraction_exact` is
+    exact). Returns ``(fraction, error_bound)``.
 
-    Estimated on a ``cells x cells`` grid of cell centres. Returns ``(fraction,
-    error_bound)``: only cells cut by a circle can be misclassified, so the error is at
-    most ``n 2 pi r sqrt(2) h / side^2`` with ``h`` the cell size (a bound, usually loose).
+    The bound is rigorous: a cell can be misclassified only if the union's boundary
+    crosses it, i.e. only if its centre is within ``h / sqrt(2)`` (``h``: the cell size)
+    of the boundary of the nearest disk; those cells, counted, bound the error. It is
+    about ``sqrt(2) L h / A`` for a union of perimeter ``L``; the actual error is usually
+    far smaller (misclassifications cancel).
 
     >>> round(covered_fraction([[50.0, 50.0]], 10.0, 100.0)[0], 3)
     0.031
@@ -47,10 +145,11 @@ def covered_fraction(centres_m, radius_m: float, side_m: float, cells: int = 500
         tree = cKDTree(np.mod(centres, side_m) % side_m, boxsize=side_m)
     else:
         tree = cKDTree(centres)
-    dist, _ = tree.query(points, distance_upper_bound=radius_m)
+    half_diagonal = h / math.sqrt(2)
+    dist, _ = tree.query(points, distance_upper_bound=radius_m + half_diagonal)
     fraction = float(np.mean(dist <= radius_m))
-    bound = min(1.0, len(centres) * 2 * math.pi * radius_m * math.sqrt(2) * h / side_m**2)
-    return fraction, bound
+    uncertain = np.abs(dist - radius_m) <= half_diagonal
+    return fraction, float(np.mean(uncertain))
 
 
 def random_coverage(n: int, radius_m: float, area_m2: float) -> float:

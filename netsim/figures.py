@@ -1,9 +1,20 @@
 """The paper's figures, drawn from a run's output directory (``netsim figures``).
 
-- ``fig6_initial_deployment.png``: robots when control starts (after group formation):
-  leaders, members coloured by group, gateways, undecided robots, and the links;
-- ``fig7_leader_paths.png``: the leaders' force-driven paths, start to end;
-- ``fig8_final_deployment.png``: the final deployment with the leaders' coverage disks.
+- ``fig6_initial_deployment.png``: the deployment at one instant (by default when
+  coverage control starts, after the groups have formed; any time with ``--at``):
+  leaders, members in their group's colour, gateways (filled with their own group's
+  colour, edged with the other group's), undecided robots, and the links;
+- ``fig7_leader_paths.png``: every robot's path from that instant to the end, framed to
+  the team's extent; the paths of the robots that lead a group at the end are drawn
+  thick (any mobility model: for random waypoint these are the waypoint legs);
+- ``fig8_final_deployment.png``: the final deployment with every robot's coverage disk,
+  and the covered fraction of the area (exact) beside the most a connected team can
+  cover, ``min(1, U(N) / A)``.
+
+Colours and markers come from :mod:`netsim.style`; groups that could touch never share a
+colour. Legends sit outside the axes. When a figure cannot show something (no groups yet,
+no coverage disks, nobody moved) :func:`draw` says so in a note beside the file, and the
+figure shows what there is.
 
 Only the run's files are read (``config.toml``, ``positions.parquet``, ``roles.parquet``,
 ``groups.parquet`` when there), so figures can be redrawn from old results.
@@ -11,18 +22,22 @@ Only the run's files are read (``config.toml``, ``positions.parquet``, ``roles.p
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from netsim import config as cfgmod
+from netsim import coverage as metrics
+from netsim import style
 from netsim.errors import NetsimInputError
 from netsim.topology import geometric_pairs
 
 # The built-in coverage scenario: a dense random start in the middle of the area, as the
-# paper's Fig. 6, then the leaders spread out.
+# paper's Fig. 6, then the team spreads out.
 COVERAGE_SCENARIO = [
     "world.n_robots=60",
     "world.side_m=1000",
@@ -31,11 +46,31 @@ COVERAGE_SCENARIO = [
     'mobility.model="static"',
     "channel.range_m=100",
     "coverage.enabled=true",
-    "duration_s=300",
+    "duration_s=400",
 ]
 
 
-def _read(run_dir: Path):
+class Run(NamedTuple):
+    config: cfgmod.Config
+    positions: pd.DataFrame
+    roles: pd.DataFrame
+    groups: pd.DataFrame | None
+
+
+class Snapshot(NamedTuple):
+    t_s: float
+    pos: np.ndarray  # (N, 2)
+    role: np.ndarray  # "alpha" | "beta" | "gamma"
+    leader: np.ndarray
+    other_group: np.ndarray  # a gateway's other group (-1: not a gateway)
+
+
+class Drawn(NamedTuple):
+    path: Path
+    note: str  # what the figure could not show ("" if nothing)
+
+
+def read_run(run_dir: Path) -> Run:
     needed = ["config.toml", "positions.parquet", "roles.parquet"]
     missing = [f for f in needed if not (run_dir / f).is_file()]
     if missing:
@@ -46,7 +81,7 @@ def _read(run_dir: Path):
         raise NetsimInputError(f"{run_dir}: positions were not sampled (output.position_interval_s = 0)")
     roles = pd.read_parquet(run_dir / "roles.parquet")
     groups = pd.read_parquet(run_dir / "groups.parquet") if (run_dir / "groups.parquet").is_file() else None
-    return config, positions, roles, groups
+    return Run(config, positions, roles, groups)
 
 
 def _sample_time(frame: pd.DataFrame, t: float) -> float:
@@ -55,65 +90,180 @@ def _sample_time(frame: pd.DataFrame, t: float) -> float:
     return float(times[min(int(np.searchsorted(times, t - 1e-9)), len(times) - 1)])
 
 
-def _at(positions: pd.DataFrame, t: float) -> tuple[float, np.ndarray]:
-    """The positions sample at or just after ``t``: its time and (N, 2) positions."""
-    when = _sample_time(positions, t)
-    snap = positions[positions["t_s"] == when].sort_values("robot")
-    return when, snap[["x_m", "y_m"]].to_numpy()
-
-
-def _roles_at(roles: pd.DataFrame, n: int, t: float) -> tuple[np.ndarray, np.ndarray]:
-    r = roles[roles["t_s"] <= t + 1e-9].reset_index(drop=True)
+def snapshot(run: Run, t: float) -> Snapshot:
+    """Positions, roles and gateways at the positions sample at or just after ``t``."""
+    n = run.config.world.n_robots
+    when = _sample_time(run.positions, t)
+    snap = run.positions[run.positions["t_s"] == when].sort_values("robot")
+    r = run.roles[run.roles["t_s"] <= when + 1e-9].reset_index(drop=True)
     r["order"] = np.arange(len(r))
     last = r.sort_values(["robot", "t_s", "order"]).groupby("robot").tail(1)
     role = np.full(n, "gamma", dtype=object)
     leader = np.full(n, -1)
     role[last["robot"].to_numpy()] = last["role"].to_numpy()
     leader[last["robot"].to_numpy()] = last["leader"].to_numpy()
-    return role, leader
+    other = np.full(n, -1)
+    if run.groups is not None and not run.groups.empty:
+        g = run.groups[(run.groups["t_s"] == _sample_time(run.groups, when)) & ~run.groups["primary"]]
+        other[g["robot"].to_numpy()] = g["group"].to_numpy()
+    return Snapshot(when, snap[["x_m", "y_m"]].to_numpy(), role, leader, other)
 
 
-def _gateways_at(groups: pd.DataFrame | None, n: int, t: float) -> np.ndarray:
-    out = np.zeros(n, bool)
-    if groups is None or groups.empty:
-        return out
-    g = groups[groups["t_s"] == _sample_time(groups, t)]
-    counts = g.groupby("robot").size()
-    out[counts[counts > 1].index.to_numpy()] = True
-    return out
+def colours_of(snap: Snapshot, range_m: float) -> dict[int, str]:
+    leaders = np.flatnonzero(snap.role == "alpha")
+    return style.group_colours(leaders, snap.pos[leaders], range_m)
 
 
-def _deployment(ax, pos, role, leader, gateway, range_m, side_m, colours, disks_m=0.0):
+def _colour(colours: dict[int, str], leader: int) -> str:
+    return colours.get(int(leader), style.NO_GROUP)
+
+
+def draw_deployment(ax, snap: Snapshot, colours: dict[int, str], range_m: float, disks_m: float = 0.0) -> None:
+    """Links, (disks,) members, gateways, undecided robots and leaders, with a legend."""
     import matplotlib.patches as mpatches
+    from matplotlib.collections import LineCollection, PatchCollection
 
+    pos, role = snap.pos, snap.role
     a, b, _ = geometric_pairs(pos, range_m)
-    for i, j in zip(a.tolist(), b.tolist()):
-        ax.plot(*pos[[i, j]].T, color="0.8", lw=0.5, zorder=1)
-    is_leader = role == "alpha"
+    ax.add_collection(LineCollection(np.stack([pos[a], pos[b]], axis=1), colors=style.LINK, lw=0.5, zorder=1))
+    group_of = np.where(role == "alpha", np.arange(len(pos)), snap.leader)
     if disks_m > 0:
-        for i in np.flatnonzero(is_leader).tolist():
-            ax.add_patch(mpatches.Circle(pos[i], disks_m, color=colours(i), alpha=0.15, lw=0, zorder=0))
+        disks = [mpatches.Circle(p, disks_m) for p in pos]
+        face = [_colour(colours, g) for g in group_of]
+        ax.add_collection(PatchCollection(disks, facecolors=face, edgecolors="none", alpha=0.12, zorder=0))
+    s = style.ROLE_STYLE
+    gateway = (role == "beta") & (snap.other_group >= 0)
     members = np.flatnonzero((role == "beta") & ~gateway)
-    ax.scatter(*pos[members].T, s=12, c=[colours(int(leader[m])) for m in members], zorder=2, label="member (beta)")
-    gw = np.flatnonzero((role == "beta") & gateway)
+    if len(members):
+        ax.scatter(
+            *pos[members].T,
+            s=s["beta"]["size"],
+            marker=s["beta"]["marker"],
+            c=[_colour(colours, snap.leader[m]) for m in members],
+            zorder=2,
+            label=s["beta"]["label"],
+        )
+    gw = np.flatnonzero(gateway)
     if len(gw):
-        ax.scatter(*pos[gw].T, s=30, marker="s", facecolors="none", edgecolors="k", lw=0.8, zorder=3, label="gateway")
+        ax.scatter(
+            *pos[gw].T,
+            s=s["gateway"]["size"],
+            marker=s["gateway"]["marker"],
+            c=[_colour(colours, snap.leader[g]) for g in gw],
+            edgecolors=[_colour(colours, snap.other_group[g]) for g in gw],
+            linewidths=1.8,
+            zorder=3,
+            label=s["gateway"]["label"],
+        )
     und = np.flatnonzero(role == "gamma")
     if len(und):
-        ax.scatter(*pos[und].T, s=14, marker="x", c="0.4", zorder=2, label="undecided (gamma)")
-    lead = np.flatnonzero(is_leader)
-    ax.scatter(
-        *pos[lead].T, s=90, marker="^", c=[colours(i) for i in lead], edgecolors="k", zorder=4, label="leader (alpha)"
-    )
-    ax.set_xlim(0, side_m)
-    ax.set_ylim(0, side_m)
+        ax.scatter(
+            *pos[und].T,
+            s=s["gamma"]["size"],
+            marker=s["gamma"]["marker"],
+            c=style.NO_GROUP,
+            zorder=2,
+            label=s["gamma"]["label"],
+        )
+    lead = np.flatnonzero(role == "alpha")
+    if len(lead):
+        ax.scatter(
+            *pos[lead].T,
+            s=s["alpha"]["size"],
+            marker=s["alpha"]["marker"],
+            c=[_colour(colours, i) for i in lead],
+            edgecolors=s["alpha"]["edge"],
+            zorder=4,
+            label=s["alpha"]["label"],
+        )
+
+
+def _axes(ax, xlim, ylim, side_m: float) -> None:
+    ax.set_xlim(*xlim)
+    ax.set_ylim(*ylim)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
+    # The border of the area, where it is in view.
+    ax.plot([0, side_m, side_m, 0, 0], [0, 0, side_m, side_m, 0], color="0.3", lw=0.8, zorder=0)
 
 
-def draw(run_dir: str | Path, out_dir: str | Path | None = None) -> list[Path]:
-    """Draw Figs. 6-8 of the paper from the run in ``run_dir``; returns the PNG paths."""
+def _legend_outside(ax, **kw) -> None:
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, **kw)
+
+
+def _extent(xy: np.ndarray, margin_m: float, side_m: float):
+    lo = np.maximum(xy.min(axis=0) - margin_m, -0.02 * side_m)
+    hi = np.minimum(xy.max(axis=0) + margin_m, 1.02 * side_m)
+    # A square frame: the same scale on both axes.
+    half = max(hi - lo) / 2
+    mid = (lo + hi) / 2
+    return (mid[0] - half, mid[0] + half), (mid[1] - half, mid[1] + half)
+
+
+def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[int, str], range_m: float) -> str:
+    """Every robot's path over ``[t0, t1]``, in its final group's colour; the final
+    leaders' paths thick. Returns a note if nobody moved."""
+    from matplotlib.collections import LineCollection
+
+    p = run.positions[(run.positions["t_s"] >= t0 - 1e-9) & (run.positions["t_s"] <= t1 + 1e-9)]
+    p = p.sort_values(["robot", "t_s"])
+    n = run.config.world.n_robots
+    xy = p[["x_m", "y_m"]].to_numpy().reshape(n, -1, 2)
+    group_of = np.where(end.role == "alpha", np.arange(n), end.leader)
+    colour = [_colour(colours, g) for g in group_of]
+    lead = end.role == "alpha"
+    ax.add_collection(
+        LineCollection(
+            list(xy[~lead]),
+            colors=[c for c, ld in zip(colour, lead) if not ld],
+            lw=0.8,
+            alpha=0.7,
+            zorder=1,
+            label="path of a robot",
+        )
+    )
+    ax.add_collection(
+        LineCollection(
+            list(xy[lead]),
+            colors=[c for c, ld in zip(colour, lead) if ld],
+            lw=2.2,
+            zorder=2,
+            label="path of a robot leading at the end",
+        )
+    )
+    ax.scatter(*xy[:, 0].T, s=10, facecolors="none", edgecolors="0.35", lw=0.6, zorder=3, label=f"at {t0:g} s")
+    s = style.ROLE_STYLE
+    ax.scatter(
+        *xy[~lead, -1].T,
+        s=s["beta"]["size"],
+        c=[c for c, ld in zip(colour, lead) if not ld],
+        zorder=4,
+        label=f"at {t1:g} s",
+    )
+    ax.scatter(
+        *xy[lead, -1].T,
+        s=s["alpha"]["size"],
+        marker=s["alpha"]["marker"],
+        c=[c for c, ld in zip(colour, lead) if ld],
+        edgecolors="k",
+        zorder=5,
+        label=f"leader at {t1:g} s",
+    )
+    travelled = np.hypot(*np.diff(xy, axis=1).transpose(2, 0, 1)).sum(axis=1)
+    xlim, ylim = _extent(xy.reshape(-1, 2), range_m, run.config.world.side_m)
+    _axes(ax, xlim, ylim, run.config.world.side_m)
+    if travelled.max(initial=0.0) == 0.0:
+        return f"nobody moved between {t0:g} s and {t1:g} s"
+    return ""
+
+
+def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | None = None) -> list[Drawn]:
+    """Draw Figs. 6-8 of the paper from the run in ``run_dir``; ``at_s``: the instant of
+    Fig. 6 (default: when coverage control starts, or the first sample). Returns each
+    PNG written with a note on what it could not show."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -121,54 +271,69 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None) -> list[Path]:
 
     run_dir = Path(run_dir)
     out = Path(out_dir) if out_dir else run_dir
-    out.mkdir(parents=True, exist_ok=True)
-    config, positions, roles, groups = _read(run_dir)
-    n = config.world.n_robots
+    run = read_run(run_dir)
+    config = run.config
+    n, side = config.world.n_robots, config.world.side_m
     range_m = float(min(config.ranges_m()))
-    side = config.world.side_m
-    cmap = plt.get_cmap("tab20")
-    # One colour per group, in order of the leaders' ids (ids themselves would collide).
-    rank = {int(j): k for k, j in enumerate(np.unique(roles.loc[roles["role"] == "alpha", "robot"]))}
-    colours = lambda i: cmap(rank.get(int(i), 0) % 20) if i >= 0 else "0.5"
-    start_s = config.coverage.start_s if config.coverage.enabled else float(positions["t_s"].min())
-    t0, pos0 = _at(positions, start_s)
-    role0, leader0 = _roles_at(roles, n, t0)
-    t1, pos1 = _at(positions, float(positions["t_s"].max()))
-    role1, leader1 = _roles_at(roles, n, t1)
-    written = []
+    first, last = float(run.positions["t_s"].min()), float(run.positions["t_s"].max())
+    if at_s is None:
+        at_s = config.coverage.start_s if config.coverage.enabled else first
+    elif not (first - 1e-9 <= at_s <= last + 1e-9 and math.isfinite(at_s)):
+        raise NetsimInputError(
+            f"--at = {at_s:g}: must be a time between {first:g} and {last:g} s (the positions sampled)"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    start, end = snapshot(run, at_s), snapshot(run, last)
+    drawn = []
 
-    fig, ax = plt.subplots(figsize=(7, 7))
-    _deployment(ax, pos0, role0, leader0, _gateways_at(groups, n, t0), range_m, side, colours)
-    groups_n = int((role0 == "alpha").sum())
-    ax.set_title(f"Fig. 6  Initial deployment at t = {t0:g} s: {n} robots, {groups_n} groups")
-    ax.legend(loc="upper right", fontsize=8)
-    written.append(out / "fig6_initial_deployment.png")
-    fig.savefig(written[-1], dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(8.6, 7))
+    colours0 = colours_of(start, range_m)
+    draw_deployment(ax, start, colours0, range_m)
+    _axes(ax, (0, side), (0, side), side)
+    groups_n = int((start.role == "alpha").sum())
+    ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
+    _legend_outside(ax)
+    note = ""
+    if config.protocol.model == "none":
+        note = "no roles: the run had protocol.model = 'none'"
+    elif groups_n == 0:
+        tau = config.protocol.tau_s
+        note = (
+            f"no groups yet at t = {start.t_s:g} s: every robot is undecided "
+            f"(groups form after tau = {tau:g} s; see --at)"
+        )
+    drawn.append(_save(fig, out / "fig6_initial_deployment.png", note))
 
-    fig, ax = plt.subplots(figsize=(7, 7))
-    path = positions[positions["t_s"] >= t0].sort_values(["robot", "t_s"])
-    for i in np.flatnonzero(role0 == "alpha").tolist():
-        p = path[path["robot"] == i]
-        ax.plot(p["x_m"], p["y_m"], color=colours(i), lw=1.5)
-        ax.scatter(p["x_m"].iloc[0], p["y_m"].iloc[0], s=25, color=colours(i), marker="o", edgecolors="k", zorder=3)
-        ax.scatter(p["x_m"].iloc[-1], p["y_m"].iloc[-1], s=80, color=colours(i), marker="^", edgecolors="k", zorder=3)
-    ax.set_xlim(0, side)
-    ax.set_ylim(0, side)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title(f"Fig. 7  Leaders' paths under the virtual forces, {t0:g} s to {t1:g} s (o start, ^ end)")
-    written.append(out / "fig7_leader_paths.png")
-    fig.savefig(written[-1], dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(8.6, 7))
+    colours1 = colours_of(end, range_m)
+    note = draw_paths(ax, run, start.t_s, end.t_s, end, colours1, range_m)
+    ax.set_title(f"Fig. 7  Paths of all {n} robots, {start.t_s:g} s to {end.t_s:g} s")
+    _legend_outside(ax)
+    drawn.append(_save(fig, out / "fig7_leader_paths.png", note))
 
-    fig, ax = plt.subplots(figsize=(7, 7))
-    radius = config.coverage.radius_m or range_m
-    _deployment(ax, pos1, role1, leader1, _gateways_at(groups, n, t1), range_m, side, colours, disks_m=radius)
-    ax.set_title(f"Fig. 8  Final deployment at t = {t1:g} s with coverage disks (r = {radius:g} m)")
-    ax.legend(loc="upper right", fontsize=8)
-    written.append(out / "fig8_final_deployment.png")
-    fig.savefig(written[-1], dpi=120, bbox_inches="tight")
+    fig, ax = plt.subplots(figsize=(8.6, 7))
+    radius = (config.coverage.radius_m or range_m) if config.coverage.enabled else 0.0
+    draw_deployment(ax, end, colours1, range_m, disks_m=radius)
+    _axes(ax, (0, side), (0, side), side)
+    if radius > 0:
+        covered, err = metrics.covered_fraction_exact(end.pos, radius, side)
+        bound = metrics.bound_fraction(n, radius, side, range_m)
+        ax.set_title(
+            f"Fig. 8  Deployment at t = {end.t_s:g} s with every robot's disk (r = {radius:g} m):\n"
+            f"{100 * covered:.1f} % of the area covered; a connected team covers at most {100 * bound:.0f} %"
+        )
+        note = ""
+    else:
+        ax.set_title(f"Fig. 8  Deployment at t = {end.t_s:g} s")
+        note = "no coverage disks: the run had coverage.enabled = false"
+    _legend_outside(ax)
+    drawn.append(_save(fig, out / "fig8_final_deployment.png", note))
+    return drawn
+
+
+def _save(fig, path: Path, note: str) -> Drawn:
+    import matplotlib.pyplot as plt
+
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
-    return written
+    return Drawn(path, note)

@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from scipy.sparse import csr_matrix
 
 from netsim.state import LEADER, MEMBER, ROLE_NAMES
 from netsim.topology import geometric_pairs
@@ -93,6 +94,28 @@ class Stack:
         found, rec = found[order], rec[order]
         first = np.r_[True, found[1:] != found[:-1]]
         return found[first], rec[first][:, [X, Y]]
+
+    def neighbourhood(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What every robot knows of the robots around it from Acks: arrays ``(robot,
+        other, position (k, 2))``, one row per robot ``other`` that ``robot`` hears or that
+        a robot it hears hears (an Ack carries the positions in its sender's table). The
+        relation is symmetric, as the forces built on it must be. A position is the one in
+        ``other``'s latest Ack heard by anyone (all robots that heard that Ack hold it)."""
+        table, n = self.table, self.sim.state.n
+        live = table.live_mask(now)
+        rows, slots = np.nonzero(live)
+        heard = table.id[rows, slots]
+        hears = csr_matrix((np.ones(len(rows)), (rows, heard)), shape=(n, n))
+        known = (hears + hears @ hears).tocoo()
+        other = known.row != known.col
+        robot, other = known.row[other].astype(np.int64), known.col[other].astype(np.int64)
+        last = table.data[rows, slots, LAST_HEARD]
+        order = np.lexsort((-last, heard))
+        freshest = order[np.r_[True, heard[order][1:] != heard[order][:-1]]] if len(order) else order
+        xy = np.zeros((n, 2))
+        xy[heard[freshest]] = table.data[rows[freshest], slots[freshest]][:, [X, Y]]
+        order = np.lexsort((other, robot))
+        return robot[order], other[order], xy[other[order]]
 
     # -- ground truth beside belief ----------------------------------------------------
     def belief_vs_truth(self, now: float) -> pd.DataFrame:

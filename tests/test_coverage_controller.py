@@ -2,11 +2,13 @@
 one step, and whole runs from dense random static deployments."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mobility.coverage import plan_step
+from mobility.bridges import plan_follow
+from mobility.steps import StepLimits
 from netsim import config
 from netsim.coverage import components
 from netsim.errors import ConfigError
@@ -52,7 +54,7 @@ def test_plan_keeps_the_network_connected_throughout_the_step(seed):
     before = n_components(pos)
     wish = rng.normal(0, 3.0, size=(n, 2))
     # Steps of up to 40 m (0.4 r_c): long enough that unchecked wishes break links.
-    plan = plan_step(pos, role, leader, wish, 20.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(20.0, RC, 1.0, 2.0, 1000.0))
     for f in np.linspace(0, 1, 21):
         assert n_components(pos + plan.velocity_mps * 20.0 * f) <= before
     members = (role == MEMBER) & (np.hypot(*(pos - pos[np.maximum(leader, 0)]).T) <= RC)
@@ -68,7 +70,7 @@ def test_members_follow_their_leader_rigidly():
     role = np.array([LEADER, MEMBER, MEMBER], dtype=np.int8)
     leader = np.array([0, 0, 0])
     wish = np.array([[1.0, 0.5], [0, 0], [0, 0]])
-    plan = plan_step(pos, role, leader, wish, 1.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.velocity_mps[1] == pytest.approx(wish[0])
     assert plan.velocity_mps[2] == pytest.approx(wish[0])
     assert plan.commander.tolist() == [-1, 0, 0]
@@ -81,7 +83,7 @@ def test_gateway_rides_toward_the_middle_of_the_lens():
     role = np.array([LEADER, LEADER, MEMBER], dtype=np.int8)
     leader = np.array([0, 1, 0])
     wish = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, 0.0]])
-    plan = plan_step(pos, role, leader, wish, 1.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.velocity_mps[2, 0] > 0  # toward x = 460
     end = pos + plan.velocity_mps
     assert np.hypot(*(end[2] - end[0])) <= RC and np.hypot(*(end[2] - end[1])) <= RC
@@ -94,7 +96,7 @@ def test_leader_holds_rather_than_break_its_only_bridge():
     role = np.array([LEADER, MEMBER, MEMBER, LEADER], dtype=np.int8)
     leader = np.array([0, 0, 3, 3])
     wish = np.array([[-2.0, 0.0], [0, 0], [0, 0], [2.0, 0.0]])
-    plan = plan_step(pos, role, leader, wish, 1.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.held[0] and plan.held[3]
     end = pos + plan.velocity_mps
     assert np.hypot(*(end[2] - end[1])) <= RC
@@ -104,7 +106,8 @@ def test_groups_stay_inside_the_area():
     """A leader pushed toward the border stops where its farthest member reaches it."""
     pos = np.array([[60.0, 500.0], [5.0, 500.0]])
     role = np.array([LEADER, MEMBER], dtype=np.int8)
-    plan = plan_step(pos, role, np.array([0, 0]), np.array([[-2.0, 0.0], [0, 0]]), 10.0, RC, 1.0, 2.0, 1000.0)
+    wish = np.array([[-2.0, 0.0], [0, 0]])
+    plan = plan_follow(pos, role, np.array([0, 0]), wish, StepLimits(10.0, RC, 1.0, 2.0, 1000.0))
     end = pos + plan.velocity_mps * 10.0
     assert (end >= 0).all() and end[1, 0] == pytest.approx(0.0, abs=1e-6)
 
@@ -122,6 +125,7 @@ def coverage_run(n, seed, **extra):
         "channel.range_m=100",
         "coverage.enabled=true",
         "protocol.message_rate_hz=0",
+        'coverage.members="follow"',
         "duration_s=260",
         f"seed={seed}",
         "output.position_interval_s=0",
@@ -206,6 +210,20 @@ def test_coverage_metrics_are_sampled_over_time():
     assert len(travel) == 40 and travel["distance_m"].mean() == pytest.approx(r.summary["distance_mean_m"])
 
 
+def test_follow_mode_reproduces_the_paper_faithful_controller():
+    """``coverage.members = "follow"`` moves every robot exactly as the controller did
+    before spreading members existed: final positions and number of legs of each robot
+    of a lossy 30-robot run, recorded from that version (commit deb6747) in
+    ``tests/data/follow_reference.csv``."""
+    import pandas as pd
+
+    ref = pd.read_csv(Path(__file__).parent / "data" / "follow_reference.csv")
+    r = coverage_run(30, 7, **{"world.centre_side_m": 210, "duration_s": 120, "channel.loss_probability": 0.1})
+    legs = r.sim.state.legs()
+    assert legs.groupby("robot").size().tolist() == ref["legs"].tolist()
+    assert r.sim.state.positions_at(120.0) == pytest.approx(ref[["x_m", "y_m"]].to_numpy(), abs=1e-9)
+
+
 def test_same_seed_same_coverage_trace():
     a, b = coverage_run(30, 7), coverage_run(30, 7)
     assert a.sim.state.legs().equals(b.sim.state.legs())
@@ -220,6 +238,13 @@ def test_same_seed_same_coverage_trace():
         (["coverage.enabled=true", 'mobility.model="static"', "channel.latency_s=2.0"], "coverage.control_period_s"),
         (['coverage.law="magnetic"'], "coverage.law"),
         (['coverage.knowledge="oracle"'], "coverage.knowledge"),
+        (['coverage.members="lead"'], "coverage.members"),
+        (['coverage.area_method="monte_carlo"'], "coverage.area_method"),
+        (["coverage.stop_gain=-0.1"], "coverage.stop_gain"),
+        (
+            ["coverage.enabled=true", 'mobility.model="static"', "coverage.metrics_interval_s=30"],
+            "coverage.metrics_interval_s",
+        ),
         (["coverage.gain=0"], "coverage.gain"),
         (['control.controllers="avoid_collisions"'], "control.controllers"),
         (["control.options=3"], "control.options"),

@@ -4,22 +4,36 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 
 from netsim.coverage import (
+    CONNECTED_AREA_PER_ROBOT,
     KERSHNER_DENSITY,
     LENS_AREA_AT_HEX_SPACING,
+    LENS_AREA_AT_RANGE,
+    bound_fraction,
     components,
+    connected_coverage_bound,
     covered_fraction,
+    covered_fraction_exact,
     hex_lattice,
     hexagonality,
+    lens_area,
     nearest_spacing,
     random_coverage,
+    union_area_bracket,
 )
 
 
 def test_reference_constants():
     assert KERSHNER_DENSITY == pytest.approx(1.2092, abs=1e-4)
     assert LENS_AREA_AT_HEX_SPACING == pytest.approx(0.1812, abs=1e-4)
+    assert LENS_AREA_AT_RANGE == pytest.approx(1.2284, abs=1e-4)
+    assert CONNECTED_AREA_PER_ROBOT == pytest.approx(1.9132, abs=1e-4)
+    assert lens_area(1.0, math.sqrt(3)) == pytest.approx(LENS_AREA_AT_HEX_SPACING)
+    assert lens_area(1.0, 1.0) == pytest.approx(LENS_AREA_AT_RANGE)
 
 
 def test_hexagonal_lattice_covers_everything_with_kershner_density():
@@ -83,3 +97,114 @@ def test_components_and_random_hexagonality():
     assert len(set(labels)) == 2 and labels[0] == labels[2] != labels[3] == labels[4]
     random_pts = np.random.default_rng(1).uniform(0, 300, (300, 2))
     assert hexagonality(random_pts, 30.0) < 0.5
+
+
+# -- the exact covered fraction -----------------------------------------------------------
+
+
+def test_exact_covered_fraction_against_monte_carlo():
+    """Random disks, some cut by the border: the exact fraction against 400 000 uniform
+    points (standard error about 8e-4; tolerance four of them plus the stated bound)."""
+    rng = np.random.default_rng(21)
+    side, r = 1000.0, 80.0
+    centres = rng.uniform(0, side, (40, 2))
+    exact, err = covered_fraction_exact(centres, r, side)
+    assert err < 2e-3
+    points = rng.uniform(0, side, (400_000, 2))
+    d, _ = cKDTree(centres).query(points)
+    mc = float(np.mean(d <= r))
+    assert 0.3 < exact < 0.8
+    assert exact == pytest.approx(mc, abs=4 * math.sqrt(mc * (1 - mc) / len(points)) + err)
+
+
+def test_exact_covered_fraction_brackets_the_truth():
+    """One disk: the bracket holds pi r^2, and the estimate is far closer than its bound."""
+    lower, upper = union_area_bracket([[500.0, 500.0]], 100.0, 1000.0)
+    assert lower < math.pi * 100.0**2 < upper
+    f, err = covered_fraction_exact([[500.0, 500.0]], 100.0, 1000.0)
+    assert abs(f - math.pi / 100) < err / 10
+    # A disk cut in half by the border.
+    f, err = covered_fraction_exact([[0.0, 500.0]], 100.0, 1000.0)
+    assert abs(f - math.pi / 200) <= err
+
+
+def test_exact_union_of_a_hexagonal_flower_and_the_hexagonal_cell():
+    """Item 14: a disk and its six neighbours sqrt(3) r away overlap in twelve lenses of
+    0.1812 r^2 and nowhere three at once; the centre disk's cell (its own area plus half of
+    each lens it shares) is the hexagon (3 sqrt 3 / 2) r^2."""
+    r, c = 10.0, np.array([50.0, 50.0])
+    ring = c + math.sqrt(3) * r * np.array([[math.cos(k * math.pi / 3), math.sin(k * math.pi / 3)] for k in range(6)])
+    flower, err7 = covered_fraction_exact(np.vstack([c, ring]), r, 100.0)
+    petals, err6 = covered_fraction_exact(ring, r, 100.0)
+    area = 100.0**2
+    lens = LENS_AREA_AT_HEX_SPACING * r**2
+    assert flower * area == pytest.approx(7 * math.pi * r**2 - 12 * lens, abs=err7 * area)
+    cell = (flower - petals) * area + 3 * lens
+    assert cell == pytest.approx(1.5 * math.sqrt(3) * r**2, abs=(err7 + err6) * area)
+
+
+def test_hexagonal_lattice_covers_a_window_exactly():
+    """Item 14: disks on the triangular lattice of spacing sqrt(3) r leave nothing uncovered."""
+    r = 10.0
+    lattice = hex_lattice(30, 30, math.sqrt(3) * r, origin=(-2 * r, -2 * r))
+    f, err = covered_fraction_exact(lattice, r, 300.0)
+    assert f == pytest.approx(1.0, abs=err) and err < 1e-3
+
+
+def test_grid_estimate_is_within_its_stated_bound_of_the_exact_fraction():
+    rng = np.random.default_rng(5)
+    for n in (5, 30, 100):
+        centres = rng.uniform(0, 1000, (n, 2))
+        exact, err = covered_fraction_exact(centres, 70.0, 1000.0)
+        grid, bound = covered_fraction(centres, 70.0, 1000.0, cells=200)
+        assert abs(grid - exact) <= bound + err
+        assert bound < 0.2
+
+
+# -- how far a connected team can spread (item 16) ------------------------------------------
+
+
+def test_connected_coverage_bound_closed_form():
+    r = 100.0
+    assert connected_coverage_bound(1, r) == pytest.approx(math.pi * r**2)
+    assert connected_coverage_bound(60, r) == pytest.approx(r**2 * (math.pi + 1.9132 * 59), rel=1e-4)
+    assert bound_fraction(60, r, 1000.0) == 1.0
+    assert bound_fraction(100, r, 2500.0) == pytest.approx(connected_coverage_bound(100, r) / 2500.0**2)
+
+
+def test_a_straight_chain_at_full_range_reaches_the_bound():
+    r, n = 10.0, 12
+    chain = np.column_stack([50.0 + r * np.arange(n), np.full(n, 100.0)])
+    lower, upper = union_area_bracket(chain, r, 300.0)
+    assert lower <= connected_coverage_bound(n, r) <= upper
+
+
+def connected_deployment(seed: int, n: int, r: float) -> np.ndarray:
+    """Each robot placed within r of an earlier one (often at exactly r, the worst case)."""
+    rng = np.random.default_rng(seed)
+    pos = [np.array([0.0, 0.0])]
+    for _ in range(n - 1):
+        parent = pos[rng.integers(len(pos))]
+        dist = r if rng.random() < 0.5 else rng.uniform(0.2 * r, r)
+        angle = rng.uniform(0, 2 * math.pi)
+        pos.append(parent + dist * np.array([math.cos(angle), math.sin(angle)]))
+    return np.array(pos)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 40))
+def test_property_no_connected_deployment_covers_more_than_the_bound(seed, n):
+    """Item 16: whatever the connected deployment, its disks cover at most U(N) (the lower
+    end of the exact bracket, which the true area is above)."""
+    r = 10.0
+    pos = connected_deployment(seed, n, r)
+    assert components(pos, r + 1e-9).max() == 0
+    side = 4 * r * n
+    lower, _ = union_area_bracket(pos + side / 2, r, side)
+    assert lower <= connected_coverage_bound(n, r)
+
+
+def test_a_disconnected_pair_can_exceed_the_bound():
+    """The bound needs connectivity: two disks far apart cover 2 pi r^2 > U(2)."""
+    lower, _ = union_area_bracket([[20.0, 20.0], [80.0, 80.0]], 10.0, 100.0)
+    assert lower > connected_coverage_bound(2, 10.0)

@@ -1,0 +1,181 @@
+"""The spreading plan (``coverage.members = "spread"``): every robot that can move goes as
+near as it can to where its forces push it, while a spanning forest of the network keeps
+the team connected.
+
+- The kept links are a minimum spanning forest of the current network (all robots, range
+  ``r_c``): it has as many components as the network, and its links are the shortest, so
+  the stretched links are the ones let go. It is chosen afresh every step.
+- Each kept link ``(i, j)`` of length ``d`` may end the step at most ``R = max(r_c -
+  margin, d)`` long. If both ends move, each keeps to its half: it ends within ``R / 2``
+  of the link's midpoint now. If only ``i`` moves, ``i`` ends within ``R`` of ``j``.
+- So each moving robot has a few disks to end in (one per kept link, and its reach,
+  ``speed_max x period``, around where it is) and the area. Where it is now lies in all
+  of them, so standing still is always allowed. Its wished end point is brought into
+  their intersection by cyclic projection (a few rounds; this keeps the sliding motion
+  along a taut link that scaling the step down would forbid), and the step is then cut
+  exactly where the segment from its position first leaves a disk or the area.
+- A taut link would only block: the outer robot of a chain wants out while the inner
+  ones, pushed evenly from all sides, stay. So a robot that wants to move away from a
+  neighbour along a kept link by more than the link's slack allows passes the excess on
+  to it as a pull (:func:`pass_on_pulls`), and the chain follows.
+- Every robot moves in a straight line over the step, so a link within range at both
+  ends of the step is within range throughout (:mod:`mobility.steps`): on a loss-free
+  channel, the number of components never grows at any instant.
+
+Who may move is the caller's: leaders, and members that can hear their leader's command.
+Everyone else (undecided robots, members out of their leader's range) holds, and the
+links to them are kept from the moving end alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import minimum_spanning_tree
+
+from mobility.steps import Plan, StepLimits, box_limit, cap_length, step_limit
+from netsim.topology import geometric_pairs
+
+# Rounds of cyclic projection onto a robot's disks; the exact cut after them makes any
+# number safe, more only bring the end point nearer the best one.
+PROJECTION_ROUNDS = 8
+# How many links a pull travels along taut links in one step.
+TENSION_HOPS = 3
+
+
+def spanning_forest(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A minimum spanning forest (by length) of the network of range ``range_m``:
+    arrays ``(i, j, distance_m)`` of its links.
+
+    >>> i, j, d = spanning_forest(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.5], [9.0, 9.0]]), 2.0)
+    >>> sorted(zip(i.tolist(), j.tolist()))
+    [(0, 1), (0, 2)]
+    """
+    n = len(pos)
+    a, b, d = geometric_pairs(pos, range_m)
+    if len(a) == 0:
+        return a, b, d
+    # scipy drops zero weights (robots at one spot); every spanning tree of a component
+    # has the same number of links, so a constant shift leaves the choice unchanged.
+    graph = coo_matrix((d + range_m, (a, b)), shape=(n, n)).tocsr()
+    tree = minimum_spanning_tree(graph).tocoo()
+    i, j = np.minimum(tree.row, tree.col).astype(np.int64), np.maximum(tree.row, tree.col).astype(np.int64)
+    order = np.lexsort((j, i))
+    i, j = i[order], j[order]
+    return i, j, np.hypot(*(pos[i] - pos[j]).T)
+
+
+def link_disks(pos: np.ndarray, mobile: np.ndarray, i: np.ndarray, j: np.ndarray, d: np.ndarray, keep_m: float):
+    """The disk each moving end of each kept link must end the step in: arrays
+    ``(robot, centre (k, 2), radius)`` (module notes)."""
+    limit = np.maximum(keep_m, d)
+    mid = 0.5 * (pos[i] + pos[j])
+    robots, centres, radii = [], [], []
+    for x, y in ((i, j), (j, i)):
+        sel = mobile[x]
+        both = mobile[y[sel]]
+        centre = np.where(both[:, None], mid[sel], pos[y[sel]])
+        radius = np.where(both, limit[sel] / 2, limit[sel])
+        # Never smaller than the distance now (rounding): standing still stays allowed.
+        radius = np.maximum(radius, np.hypot(*(pos[x[sel]] - centre).T))
+        robots.append(x[sel])
+        centres.append(centre)
+        radii.append(radius)
+    return np.concatenate(robots), np.concatenate(centres).reshape(-1, 2), np.concatenate(radii)
+
+
+def pass_on_pulls(
+    pos: np.ndarray,
+    wish_mps: np.ndarray,
+    mobile: np.ndarray,
+    link: tuple[np.ndarray, np.ndarray, np.ndarray],
+    limit_m: np.ndarray,
+    period_s: float,
+) -> np.ndarray:
+    """Wishes with the pulls along kept links added. A robot that wants to move away from
+    a neighbour along a kept link ``(i, j, length)`` by more than its half of the link's
+    slack (``(limit - length) / 2``) pulls the neighbour after it with the excess, which
+    that neighbour passes on likewise, for :data:`TENSION_HOPS` links.
+
+    Without this a taut link only blocks: the outer robot of a chain wants out, the inner
+    ones are pushed evenly from all sides and stay, and the team stops growing long before
+    its forces are spent.
+
+    >>> pos = np.array([[0.0, 0.0], [98.0, 0.0]])
+    >>> link = (np.array([0]), np.array([1]), np.array([98.0]))
+    >>> pass_on_pulls(pos, np.array([[0.0, 0.0], [2.0, 1.0]]), np.array([True, True]), link, np.array([99.0]), 1.0)
+    array([[1.5, 0. ],
+           [2. , 1. ]])
+    """
+    i, j, d = link
+    both = mobile[i] & mobile[j]
+    i, j, d, slack = i[both], j[both], d[both], ((limit_m - d) / (2 * period_s))[both]
+    along = (pos[j] - pos[i]) / np.maximum(d, 1e-12)[:, None]  # unit vectors from i to j
+    total = np.where(mobile[:, None], wish_mps, 0.0)
+    pull = total.copy()
+    for _ in range(TENSION_HOPS):
+        away_from_i = np.maximum(np.einsum("ij,ij->i", pull[j], along) - slack, 0.0)
+        away_from_j = np.maximum(-np.einsum("ij,ij->i", pull[i], along) - slack, 0.0)
+        nxt = np.zeros_like(pull)
+        np.add.at(nxt, i, away_from_i[:, None] * along)
+        np.add.at(nxt, j, -away_from_j[:, None] * along)
+        total += nxt
+        pull = nxt
+    return total
+
+
+def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radius: np.ndarray, side_m: float):
+    """Cyclic projection of each robot's ``target`` onto its disks and the square, in
+    place, :data:`PROJECTION_ROUNDS` rounds. A robot's disks are the rows of ``robot``
+    naming it; each round projects onto them one at a time, then onto the square."""
+    order = np.argsort(robot, kind="stable")
+    robot, centre, radius = robot[order], centre[order], radius[order]
+    first = np.r_[0, np.flatnonzero(robot[1:] != robot[:-1]) + 1] if len(robot) else np.empty(0, np.int64)
+    rank = np.arange(len(robot)) - np.repeat(first, np.diff(np.r_[first, len(robot)]))
+    layers = [np.flatnonzero(rank == k) for k in range(int(rank.max()) + 1 if len(rank) else 0)]
+    for _ in range(PROJECTION_ROUNDS):
+        for rows in layers:
+            x = robot[rows]
+            off = target[x] - centre[rows]
+            dist = np.hypot(*off.T)
+            out = dist > radius[rows]
+            target[x[out]] = centre[rows[out]] + off[out] * (radius[rows[out]] / dist[out])[:, None]
+        np.clip(target, 0.0, side_m, out=target)
+    return target
+
+
+def plan_spread(
+    pos: np.ndarray, mobile: np.ndarray, commander_of: np.ndarray, desired_mps: np.ndarray, limits: StepLimits
+) -> Plan:
+    """Velocities for one control step (module notes).
+
+    ``mobile``: who may move; ``commander_of``: for each robot, whose command it needs to
+    move (-1: its own decision, as a leader); ``desired_mps``: the wished velocities (rows
+    of robots that may not move are ignored).
+    """
+    n = len(pos)
+    movers = np.flatnonzero(mobile)
+    i, j, d = spanning_forest(pos, limits.range_m)
+    robot, centre, radius = link_disks(pos, mobile, i, j, d, limits.keep_m)
+    robot = np.concatenate([robot, movers])
+    centre = np.concatenate([centre, pos[movers]])
+    radius = np.concatenate([radius, np.full(len(movers), limits.reach_m)])
+
+    wanted = pass_on_pulls(pos, desired_mps, mobile, (i, j, d), np.maximum(limits.keep_m, d), limits.period_s)
+    wish = np.zeros((n, 2))
+    wish[movers] = cap_length(wanted[movers] * limits.period_s, limits.reach_m)
+    end = project_into(pos + wish, robot, centre, radius, limits.side_m)
+    move = end - pos
+    move[~mobile] = 0.0
+    s = np.ones(n)
+    if len(robot):
+        np.minimum.at(s, robot, step_limit(pos[robot] - centre, radius, move[robot]))
+    s = np.minimum(s, box_limit(pos, move, limits.side_m))
+    move *= s[:, None]
+
+    wished = np.hypot(*wish.T)
+    held = mobile & (wished > 0) & (np.hypot(*(move - wish).T) > 1e-9 * limits.range_m)
+    velocity = move / limits.period_s
+    moving = np.hypot(*velocity.T) > 0
+    commander = np.where(moving, commander_of, -1)
+    return Plan(velocity, commander, held, len(i))

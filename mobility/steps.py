@@ -1,0 +1,84 @@
+"""What every coverage plan shares: the limits of one control step, the plan it returns,
+and the geometry of shortening a straight step so that it ends inside a disk or the area.
+
+Both plans (:mod:`mobility.bridges`, :mod:`mobility.spread`) rest on one fact: over a
+step every robot moves in a straight line at constant speed, so the distance between two
+robots is a convex function of time; a link within range at both ends of the step is
+within range throughout it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+# Steps are cut a hair short of a constraint's boundary, against rounding.
+SAFETY = 1.0 - 1e-9
+
+
+@dataclass(frozen=True)
+class StepLimits:
+    """The physical limits of one control step.
+
+    period_s : duration of the step.
+    range_m : communication range ``r_c`` (the smallest, with unequal ranges).
+    margin_m : kept links end the step at most ``range_m - margin_m`` long (unless longer
+        already, then no longer than they are).
+    speed_max_mps : speed cap of every robot.
+    side_m : side of the square area; every robot stays inside it.
+    """
+
+    period_s: float
+    range_m: float
+    margin_m: float
+    speed_max_mps: float
+    side_m: float
+
+    @property
+    def keep_m(self) -> float:
+        return self.range_m - self.margin_m
+
+    @property
+    def reach_m(self) -> float:
+        """The longest step a robot can take."""
+        return self.speed_max_mps * self.period_s
+
+
+class Plan(NamedTuple):
+    velocity_mps: np.ndarray  # (N, 2) over the step
+    commander: np.ndarray  # leader whose command a robot needs to move (-1: none)
+    held: np.ndarray  # robots whose step was shortened for connectivity or the border
+    bridges: int  # kept links (follow: between groups; spread: of the spanning forest)
+
+
+def step_limit(offset: np.ndarray, radius: np.ndarray, move: np.ndarray) -> np.ndarray:
+    """Largest ``s`` in [0, 1] with ``|offset + s move| <= radius``, row-wise (``|offset|
+    <= radius`` holds: standing still is always allowed).
+
+    >>> step_limit(np.array([[0.0, 0.0]]), np.array([1.0]), np.array([[4.0, 0.0]])).round(6)
+    array([0.25])
+    """
+    a = np.einsum("ij,ij->i", move, move)
+    b = np.einsum("ij,ij->i", offset, move)
+    c = np.einsum("ij,ij->i", offset, offset) - radius**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (-b + np.sqrt(np.maximum(b * b - a * c, 0.0))) / a
+    s = np.where(a > 0, s, 1.0)
+    return np.clip(s * SAFETY, 0.0, 1.0)
+
+
+def box_limit(pos: np.ndarray, move: np.ndarray, side_m: float) -> np.ndarray:
+    """Largest ``s`` in [0, 1] keeping ``pos + s move`` inside the square, row-wise."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hi = np.where(move > 0, (side_m - pos) / move, np.where(move < 0, -pos / move, np.inf))
+    return np.clip(hi.min(axis=1) * SAFETY, 0.0, 1.0)
+
+
+def cap_length(move: np.ndarray, cap_m: float) -> np.ndarray:
+    """``move`` with every row longer than ``cap_m`` shortened to ``cap_m`` (in place)."""
+    length = np.hypot(*move.T)
+    over = length > cap_m
+    move[over] *= (cap_m / length[over])[:, None]
+    return move

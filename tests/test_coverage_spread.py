@@ -1,0 +1,244 @@
+"""Spread mode (``coverage.members = "spread"``): every robot is pushed apart by the forces
+its leader computes, a spanning forest of the network is kept, the hierarchy adapts."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mobility.spread import pass_on_pulls, plan_spread, spanning_forest
+from mobility.steps import StepLimits
+from netsim import config
+from netsim.coverage import components
+from netsim.run import execute
+from netsim.state import LEADER, MEMBER, UNDECIDED
+from netsim.topology import geometric_pairs
+
+RC = 100.0
+
+
+def n_components(pos):
+    return int(components(pos, RC).max() + 1)
+
+
+def random_team(seed):
+    """A dense random team: leaders, members joined to their nearest leader (a few to a
+    farther one, possibly out of range, as a released member is), undecided robots; and
+    who may move, as the controller decides."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(20, 80))
+    pos = rng.uniform(300, 300 + rng.uniform(150, 400), size=(n, 2))
+    role = np.full(n, MEMBER, dtype=np.int8)
+    leaders = []
+    for i in range(n):
+        if all(np.hypot(*(pos[i] - pos[j])) > RC for j in leaders):
+            leaders.append(i)
+    leaders = np.array(leaders)
+    role[leaders] = LEADER
+    role[rng.choice(np.flatnonzero(role == MEMBER), 2, replace=False)] = UNDECIDED
+    nearest = leaders[np.argmin(np.hypot(*(pos[:, None, :] - pos[leaders][None]).transpose(2, 0, 1)), axis=1)]
+    leader = np.where(rng.random(n) < 0.15, rng.choice(leaders, n), nearest)
+    leader = np.where(role == MEMBER, leader, -1)
+    in_range = np.hypot(*(pos - pos[np.maximum(leader, 0)]).T) <= RC
+    commandable = (role == MEMBER) & in_range
+    mobile = (role == LEADER) | commandable
+    return rng, pos, mobile, np.where(commandable, leader, -1)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_plan_keeps_the_network_connected_throughout_the_step_whoever_holds(seed):
+    """Every kept link is in range at both ends of the step, so at every instant of it
+    (checked at 21 instants); and still when any of the commanded robots holds instead
+    (a missed command), since each end of a link keeps to its own half."""
+    rng, pos, mobile, commander_of = random_team(seed)
+    before = n_components(pos)
+    wish = rng.normal(0, 3.0, size=(len(pos), 2))
+    limits = StepLimits(20.0, RC, 1.0, 2.0, 1000.0)  # steps of 40 m: unchecked, they break links
+    plan = plan_spread(pos, mobile, commander_of, wish, limits)
+    assert (np.hypot(*plan.velocity_mps.T) > 0).sum() > len(pos) // 3
+    holds = rng.random(len(pos)) < 0.3
+    for velocity in (plan.velocity_mps, np.where(holds[:, None], 0.0, plan.velocity_mps)):
+        for f in np.linspace(0, 1, 21):
+            assert n_components(pos + velocity * 20.0 * f) <= before
+    end = pos + plan.velocity_mps * 20.0
+    assert (np.hypot(*plan.velocity_mps.T) <= 2.0 + 1e-9).all()
+    assert ((end >= 0) & (end <= 1000.0)).all()
+    assert (plan.velocity_mps[~mobile] == 0).all()
+    moving = np.hypot(*plan.velocity_mps.T) > 0
+    assert (plan.commander[moving] == commander_of[moving]).all() and (plan.commander[~moving] == -1).all()
+
+
+def test_spanning_forest_has_the_components_of_the_network():
+    rng = np.random.default_rng(3)
+    pos = rng.uniform(0, 600, size=(150, 2))
+    i, j, d = spanning_forest(pos, RC)
+    labels = components(pos, RC)
+    assert len(i) == len(pos) - (labels.max() + 1)
+    assert (d <= RC).all() and (labels[i] == labels[j]).all()
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    forest = coo_matrix((np.ones(len(i)), (i, j)), shape=(len(pos), len(pos)))
+    assert connected_components(forest, directed=False)[0] == labels.max() + 1
+
+
+def test_a_robot_on_a_taut_link_slides_along_it():
+    """Pushed half along a taut link, half across it, a robot still moves (across), and
+    the link stays in range: its step is projected into the allowed disk, not scaled
+    down to nothing."""
+    pos = np.array([[500.0, 500.0], [599.0, 500.0]])
+    mobile = np.array([False, True])
+    wish = np.array([[0.0, 0.0], [1.0, 1.0]])
+    plan = plan_spread(pos, mobile, np.array([-1, 0]), wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
+    v = plan.velocity_mps[1]
+    assert v[1] > 0.9 and plan.held[1]
+    assert np.hypot(*(pos[1] + v - pos[0])) <= 99.0 + 1e-9
+
+
+def test_both_ends_of_a_link_keep_to_their_half():
+    """Two moving robots 98 m apart, both pushed apart: each gains half the slack."""
+    pos = np.array([[500.0, 500.0], [598.0, 500.0]])
+    wish = np.array([[-2.0, 0.0], [2.0, 0.0]])
+    plan = plan_spread(pos, np.array([True, True]), np.array([-1, -1]), wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
+    assert plan.velocity_mps[:, 0] == pytest.approx([-0.5, 0.5], abs=1e-6)
+
+
+def test_robots_stay_inside_the_area():
+    pos = np.array([[3.0, 500.0]])
+    wish = np.array([[-2.0, 1.0]])
+    plan = plan_spread(pos, np.array([True]), np.array([-1]), wish, StepLimits(5.0, RC, 1.0, 2.0, 1000.0))
+    end = pos + plan.velocity_mps * 5.0
+    assert end[0, 0] == pytest.approx(0.0, abs=1e-6) and end[0, 1] > 500.0
+
+
+def test_pulls_travel_along_taut_links():
+    """A chain of three taut links: the last robot's outward wish reaches the first in
+    three hops; a link with slack passes on only what the slack cannot absorb; a push
+    toward a neighbour is no pull."""
+    pos = np.array([[0.0, 0.0], [99.0, 0.0], [198.0, 0.0], [297.0, 0.0]])
+    link = (np.array([0, 1, 2]), np.array([1, 2, 3]), np.full(3, 99.0))
+    wish = np.array([[0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 0.0]])
+    mobile = np.ones(4, bool)
+    out = pass_on_pulls(pos, wish, mobile, link, np.full(3, 99.0), 1.0)
+    assert out[:, 0] == pytest.approx([1.0, 1.0, 1.0, 1.0])
+    slack = pass_on_pulls(pos, wish, mobile, link, np.array([99.0, 99.0, 99.8]), 1.0)
+    assert slack[:, 0] == pytest.approx([0.6, 0.6, 0.6, 1.0])
+    inward = pass_on_pulls(pos, -wish, mobile, link, np.full(3, 99.0), 1.0)
+    assert inward[:, 0] == pytest.approx([0.0, 0.0, 0.0, -1.0])
+    held = pass_on_pulls(pos, wish, np.array([True, True, False, True]), link, np.full(3, 99.0), 1.0)
+    assert held[:, 0] == pytest.approx([0.0, 0.0, 0.0, 1.0])
+
+
+def test_leaders_know_their_two_hop_neighbourhood_from_acks(build_sim):
+    """On a static loss-free network, after a few Ack periods, what every robot knows is
+    exactly who it hears and who they hear (a symmetric relation), at their positions."""
+    sim = build_sim(
+        world={"n_robots": 40, "side_m": 500.0},
+        mobility={"model": "static"},
+        channel={"range_m": 100.0},
+        protocol={"message_rate_hz": 0.0},
+    )
+    sim.run(until_s=8.0)
+    robot, other, xy = sim.models["protocol"].neighbourhood(sim.now)
+    pos = sim.state.positions_at(sim.now)
+    n = len(pos)
+    a, b, _ = geometric_pairs(pos, 100.0)
+    hears = np.zeros((n, n), bool)
+    hears[a, b] = hears[b, a] = True
+    expected = hears | (hears.astype(int) @ hears.astype(int) > 0)
+    np.fill_diagonal(expected, False)
+    known = np.zeros((n, n), bool)
+    known[robot, other] = True
+    assert (known == expected).all() and (known == known.T).all()
+    assert xy == pytest.approx(pos[other])
+
+
+# -- whole runs ------------------------------------------------------------------------
+
+
+def spread_run(n, seed, side, duration=700, **extra):
+    overrides = [
+        f"world.n_robots={n}",
+        f"world.side_m={side}",
+        'world.placement="centre"',
+        f"world.centre_side_m={150 + 2 * n}",
+        'mobility.model="static"',
+        "channel.range_m=100",
+        "coverage.enabled=true",
+        "protocol.message_rate_hz=0",
+        f"duration_s={duration}",
+        f"seed={seed}",
+        "output.position_interval_s=0",
+    ] + [f"{k}={v!r}".replace("'", '"') for k, v in extra.items()]
+    return execute(config.load(None, overrides))
+
+
+def assert_settled_hierarchy(sim):
+    """Leaders independent (no two in range), every member in range of a leader it
+    follows, nobody undecided (VALIDATION.md item 13, after the team has stopped)."""
+    st = sim.state
+    pos = st.positions_at(sim.now)
+    a, b, _ = geometric_pairs(pos, RC)
+    lead = st.role == LEADER
+    assert not (lead[a] & lead[b]).any()
+    members = np.flatnonzero(st.role == MEMBER)
+    assert lead[st.leader[members]].all()
+    assert (np.hypot(*(pos[members] - pos[st.leader[members]]).T) <= RC).all()
+    assert not (st.role == UNDECIDED).any()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n,seed,side", [(30, 1, 800.0), (60, 2, 1000.0), (100, 3, 1500.0)])
+def test_the_whole_team_spreads_and_stays_connected(n, seed, side):
+    """From a dense start: the disks of all robots end covering at least 60 % of the most
+    a connected team can cover, min(1, U(N)/A); one component at every control step and
+    at the end; control settles and the hierarchy then settles too."""
+    r = spread_run(n, seed, side)
+    s = r.summary
+    assert s["components_start"] == 1
+    assert s["covered_of_bound_all_final"] >= 0.6
+    assert s["covered_fraction_all_final"] > 2 * s["covered_fraction_all_start"]
+    assert (r.frames["control"]["components"] == 1).all() and r.frames["coverage"]["connected"].all()
+    assert s["components_final"] == 1
+    assert math.isfinite(s["control_settled_s"]) and s["control_settled_s"] < 700 - 30
+    assert s["leaders_final"] > 2 * r.frames["control"]["leaders"].iloc[0]  # groups split as the team spreads
+    assert_settled_hierarchy(r.sim)
+
+
+def test_under_loss_members_that_miss_a_command_hold_and_no_link_is_lost():
+    """With 30 % of receptions lost, commands are missed (those members hold); each end
+    of a kept link keeps to its own half, so the network stays in one component."""
+    r = spread_run(40, 4, 1000.0, duration=150, **{"channel.loss_probability": 0.3})
+    cmd = r.sim.channel.counters_for("command")
+    assert cmd.sent.sum() > 0 and cmd.dropped[0].sum() > 0
+    assert r.summary["components_start"] == 1
+    assert (r.frames["control"]["components"] == 1).all() and r.frames["coverage"]["connected"].all()
+    assert r.summary["covered_fraction_all_final"] > 1.5 * r.summary["covered_fraction_all_start"]
+
+
+def test_control_stops_when_coverage_stops_growing():
+    """The stopping rule: over the last stop_hold_s the covered fraction of the bound rose
+    less than stop_gain; then nobody moves."""
+    r = spread_run(30, 5, 800.0, duration=600, **{"coverage.stop_gain": 0.01})
+    settled = r.summary["control_settled_s"]
+    assert math.isfinite(settled) and settled < 600
+    cov = r.frames["coverage"].set_index("t_s")["covered_of_bound_all"]
+    window = cov[(cov.index >= settled - 20.0 - 1e-9) & (cov.index <= settled + 1e-9)]
+    assert window.iloc[1:].max() - window.iloc[0] < 0.01
+    earlier = cov[(cov.index >= settled - 40.0 - 1e-9) & (cov.index <= settled - 20.0 + 1e-9)]
+    assert earlier.iloc[1:].max() - earlier.iloc[0] >= 0.01
+    legs = r.sim.state.legs()
+    assert legs[legs["t_s"] > settled + 1.5].empty
+    assert r.frames["coverage"]["distance_mean_m"].iloc[-1] == pytest.approx(r.frames["travel"]["distance_m"].mean())
+
+
+def test_global_knowledge_spreads_too():
+    r = spread_run(30, 6, 800.0, duration=200, **{"coverage.knowledge": "global"})
+    assert (r.frames["control"]["components"] == 1).all()
+    assert r.summary["covered_fraction_all_final"] > 2 * r.summary["covered_fraction_all_start"]
+
+
+def test_same_seed_same_spread():
+    a, b = (spread_run(20, 7, 600.0, duration=60) for _ in range(2))
+    assert a.sim.state.legs().equals(b.sim.state.legs())
+    assert a.frames["coverage"].equals(b.frames["coverage"])

@@ -1,0 +1,88 @@
+"""``netsim figures`` on runs of any kind, and the shared colours of groups."""
+
+import numpy as np
+import pytest
+
+from netsim import style
+from netsim.cli import main
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def waypoint_run(tmp_path_factory):
+    """A short random waypoint run without coverage."""
+    out = tmp_path_factory.mktemp("rwp")
+    assert (
+        main(
+            [
+                "run",
+                "--quiet",
+                "--no-progress",
+                "--out",
+                str(out),
+                "--set",
+                "world.n_robots=20",
+                "--set",
+                "duration_s=40",
+            ]
+        )
+        == 0
+    )
+    return out
+
+
+def test_figures_of_a_run_without_coverage_say_what_they_cannot_show(waypoint_run, tmp_path, capsys):
+    """Paths are drawn for any mobility model; at t = 0 nobody has a group yet, and a run
+    without coverage has no coverage disks: each is said in one line."""
+    assert main(["figures", str(waypoint_run), "--out", str(tmp_path), "--at", "0"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 3
+    assert "fig6" in lines[0] and "every robot is undecided" in lines[0]
+    assert lines[1].endswith("fig7_leader_paths.png")
+    assert "no coverage disks" in lines[2]
+    for name in ("fig6_initial_deployment.png", "fig7_leader_paths.png", "fig8_final_deployment.png"):
+        assert (tmp_path / name).read_bytes()[:8] == PNG
+
+
+def test_figures_at_a_chosen_time(waypoint_run, tmp_path, capsys):
+    assert main(["figures", str(waypoint_run), "--out", str(tmp_path), "--at", "20"]) == 0
+    assert "undecided" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("at", ["-1", "41", "nan"])
+def test_figures_at_a_time_outside_the_run_is_an_error_and_writes_nothing(waypoint_run, tmp_path, capsys, at):
+    out = tmp_path / "figs"
+    assert main(["figures", str(waypoint_run), "--out", str(out), "--at", at]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: --at") and "between 0 and 40" in err
+    assert not out.exists()
+
+
+def test_figures_scenario_rejects_a_time_beyond_its_duration_before_running(tmp_path, capsys):
+    assert main(["figures", "--out", str(tmp_path / "f"), "--set", "duration_s=30", "--at", "31"]) == 2
+    assert "duration_s = 30" in capsys.readouterr().err
+    assert not (tmp_path / "f").exists()
+
+
+def test_neighbouring_groups_never_share_a_colour():
+    """300 groups, far more than colours: any two leaders that could have touching groups
+    differ; the same leaders get the same colours again."""
+    rng = np.random.default_rng(8)
+    leaders = rng.permutation(1000)[:300]
+    xy = rng.uniform(0, 5000, (300, 2))
+    colours = style.group_colours(leaders, xy, 100.0)
+    assert colours == style.group_colours(leaders, xy, 100.0)
+    assert set(colours.values()) <= set(style.GROUP_PALETTE)
+    d = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
+    i, j = np.nonzero(np.triu(d < style.NEIGHBOUR_RANGES * 100.0, 1))
+    assert len(i) > 300
+    assert all(colours[int(leaders[a])] != colours[int(leaders[b])] for a, b in zip(i, j))
+
+
+def test_style_is_plain_values_for_other_viewers():
+    import json
+
+    data = json.loads(json.dumps(style.as_json()))
+    assert data["roles"]["alpha"]["marker"] == "^" and len(data["group_palette"]) == len(set(style.GROUP_PALETTE))
+    assert style.NO_GROUP not in style.GROUP_PALETTE
