@@ -60,6 +60,70 @@ def test_static_deployment_converges_to_independent_dominating_leaders(n, seed):
     check_independent_dominating(sim, 10.0)
 
 
+def settled_run(seed, n=60, latency_s=1.3, latency_jitter_s=0.0, unequal=True, duration=100.0, **protocol):
+    """A static loss-free run; returns the role changes after its first 60 s, and the pairs
+    of robots that are each a member of the other at the end."""
+    rng = np.random.default_rng(seed + 1000)
+    side = 10.0 * math.sqrt(n * math.pi / 6)
+    cfg = from_dict(
+        {
+            "seed": seed,
+            "duration_s": duration,
+            "world": {"n_robots": n, "side_m": side},
+            "mobility": {"model": "static", "stationary_start": False},
+            "channel": {
+                "range_m": rng.uniform(8.0, 16.0, n).tolist() if unequal else 10.0,
+                "latency_s": latency_s,
+                "latency_jitter_s": latency_jitter_s,
+            },
+            "protocol": {"model": "clustering", "message_rate_hz": 0.0, **protocol},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
+    sim = build(cfg)
+    sim.run()
+    roles = sim.trace.frame("roles")
+    st = sim.state
+    mutual = [
+        (i, int(st.leader[i]))
+        for i in np.flatnonzero(st.role == MEMBER).tolist()
+        if st.role[st.leader[i]] == MEMBER and st.leader[st.leader[i]] == i
+    ]
+    return roles[roles.t_s > 60.0], mutual
+
+
+@pytest.mark.parametrize("seed", [4, 8])
+def test_merging_settles_with_latency_above_the_ack_period(seed):
+    """Latency 1.3 s (above the 1 s Ack period), unequal ranges, static, no loss: leaders
+    may yield to each other on stale group sizes, but after a transient nothing changes
+    any more, and no two robots end as members of each other."""
+    late, mutual = settled_run(seed)
+    assert late.empty, late.to_string()
+    assert mutual == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "latency_s, latency_jitter_s, unequal, policy",
+    [
+        (0.0, 0.0, False, "smaller_group_yields"),
+        (0.4, 0.0, True, "smaller_group_yields"),
+        (1.3, 0.0, True, "highest_degree_wins"),
+        (2.7, 0.0, True, "smaller_group_yields"),
+        (0.3, 1.5, True, "smaller_group_yields"),
+        (1.3, 1.5, False, "highest_degree_wins"),
+        (2.0, 0.8, True, "lowest_id_wins"),
+    ],
+)
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_merging_settles_for_every_latency_jitter_and_range_mix(seed, latency_s, latency_jitter_s, unequal, policy):
+    late, mutual = settled_run(
+        seed, latency_s=latency_s, latency_jitter_s=latency_jitter_s, unequal=unequal, merge_policy=policy
+    )
+    assert late.empty, late.to_string()
+    assert mutual == []
+
+
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(min_value=2, max_value=40), st.floats(min_value=5.0, max_value=40.0), st.integers(0, 2**31 - 1))
 def test_property_random_static_topologies(n, side, seed):
