@@ -296,6 +296,8 @@ def test_belief_vs_truth_shows_staleness():
     """After a robot leaves, its former neighbours still believe in it until tau passes."""
     sim, stack = static_run([[0, 0], [5, 0], [0, 5]], duration=30.0, run=False)
     sim.run(until_s=10.0)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    assert (view.role == "beta").sum() == 2 and view.leader_in_range.all()
     sim.state.set_leg(2, sim.now, (0.0, 0.0), start_m=(500.0, 500.0))
     sim.run(until_s=10.5)
     view = stack.belief_vs_truth(sim.now).set_index("robot")
@@ -303,6 +305,22 @@ def test_belief_vs_truth_shows_staleness():
     sim.run(until_s=14.0)
     view = stack.belief_vs_truth(sim.now).set_index("robot")
     assert view.loc[0, "stale_neighbours"] == 0 and view.loc[2, "true_neighbours"] == 0
+
+
+def test_belief_vs_truth_is_per_direction():
+    """Robot 0 (range 5 m) hears robot 1 (range 15 m) 10 m away; 1 cannot hear 0. That 0
+    believes 1 live is true (1's Acks reach 0), not stale; 1 has nothing to believe."""
+    sim, stack = static_run([[0, 0], [10, 0], [0, 40]], duration=20.0, range_m=[5.0, 15.0, 50.0], run=False)
+    sim.run(until_s=5.0)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    # 0 hears 1 and 2 (40 m, within 2's range); 1 hears 2 (41 m); 2 hears nobody.
+    cols = ["believed_neighbours", "true_neighbours", "stale_neighbours", "missing_neighbours"]
+    assert view[cols].values.tolist() == [[2, 2, 0, 0], [1, 1, 0, 0], [0, 0, 0, 0]]
+    # Robot 2 jumps away: 0 and 1 still believe in it (stale) until tau passes.
+    sim.state.set_leg(2, sim.now, (0.0, 0.0), start_m=(500.0, 500.0))
+    sim.run(until_s=5.5)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    assert view[cols].values.tolist() == [[2, 1, 1, 0], [1, 0, 1, 0], [0, 0, 0, 0]]
 
 
 def test_run_outputs_for_clustering(tmp_path):
