@@ -101,7 +101,7 @@ def read(path: str | Path) -> Scenario:
     commands = pd.DataFrame(rows, columns=["t_s", "robot", "kind", "x_m", "y_m", "speed_mps", "line"])
     ids = list(initial) + commands["robot"].tolist()
     if not ids:
-        raise NetsimInputError(f"{path}: no nodes ($node_(i) set X_ ... or $ns_ at T \"$node_(i) ...\")")
+        raise NetsimInputError(f'{path}: no nodes ($node_(i) set X_ ... or $ns_ at T "$node_(i) ...")')
     n = max(ids) + 1
     missing = [i for i in range(n) if "X" not in initial.get(i, {}) or "Y" not in initial.get(i, {})]
     if missing:

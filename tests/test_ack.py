@@ -25,10 +25,15 @@ def _static(positions, duration=20.0, **protocol):
 
 
 def test_every_robot_sends_one_ack_per_period():
+    """Without jitter, Acks leave at phase + k t exactly: 50 in 50 s from phases in [0, 1)."""
     sim = _static([[0, 0], [5, 0], [100, 0]], duration=50.0, ack_jitter_s=0.0)
+    sent_at = []
+    sim.models["protocol"].listeners.append(lambda now, ack, rec, hm: sent_at.append((ack.sender, ack.seq, now)))
     sim.run()
-    sent = sim.channel.counters_for("ack").sent
-    assert sent.tolist() in ([50, 50, 50],) or set(sent.tolist()) <= {49, 50}
+    assert sim.channel.counters_for("ack").sent.tolist() == [50, 50, 50]
+    phase = sim.models["protocol"].phase_s
+    for sender, seq, now in sent_at:  # delivered 1 ms (the latency) after phase + (seq - 1) t
+        assert now == pytest.approx(phase[sender] + (seq - 1) + 0.001, abs=1e-9)
 
 
 def test_ack_carries_its_fields():

@@ -10,6 +10,7 @@ from netsim.links import link_lifetimes
 from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.topology import geometric_edges, snapshot
+from netsim.validate import brute_force_mismatches, random_legs
 from tests.conftest import make_config
 
 
@@ -86,6 +87,10 @@ def test_link_times_independent_of_window_and_match_brute_force(seed):
     sim.run()
     legs = sim.state.legs()
     links = link_lifetimes(legs, 40.0, 120.0)
+    for window_s in (0.37, 20.0, 120.0):  # the default is 0.5 R / v_max = 2.5 s
+        other = link_lifetimes(legs, 40.0, 120.0, window_s=window_s)
+        assert other[["a", "b"]].equals(links[["a", "b"]])
+        assert np.abs(other[["t_up_s", "t_down_s"]].to_numpy() - links[["t_up_s", "t_down_s"]].to_numpy()).max() < 1e-9
     from netsim.trajectory import sample_positions
 
     for row in links.itertuples():
@@ -229,42 +234,6 @@ def test_small_torus_every_image_counts():
     assert got == [[0.0, pytest.approx(4.0)], [pytest.approx(9.0), pytest.approx(29.0)], [pytest.approx(34.0), 40.0]]
 
 
-def _random_legs(rng, n, duration, side, speed, jump_rate, torus):
-    """Random piecewise-linear trajectories: course changes at random instants, some of
-    them jumps to a uniform position."""
-    rows = []
-    for r in range(n):
-        t, p = 0.0, rng.uniform(0, side, 2)
-        while t < duration:
-            v = rng.normal(0, speed, 2)
-            rows.append((t, r, p[0], p[1], v[0], v[1]))
-            dt = rng.exponential(duration / 6)
-            t += dt
-            p = p + v * dt
-            if rng.random() < jump_rate:
-                p = rng.uniform(0, side, 2)
-            elif not torus:
-                p = np.clip(p, 0, side)  # a jump back inside as well
-    return _legs(rows)
-
-
-def _brute_force_mismatches(legs, links, n, ranges, times, side=None):
-    from netsim.trajectory import sample_positions
-
-    pos = sample_positions(legs, n, times)[["x_m", "y_m"]].to_numpy().reshape(len(times), n, 2)
-    radius = np.minimum(ranges[:, None], ranges[None, :])
-    wrong = 0
-    for k, t in enumerate(times):
-        d = pos[k][:, None, :] - pos[k][None, :, :]
-        if side is not None:
-            d -= side * np.round(d / side)
-        linked = np.hypot(d[..., 0], d[..., 1]) <= radius
-        truth = {(a, b) for a, b in zip(*np.nonzero(np.triu(linked, 1)))}
-        live = links[(links.t_up_s <= t) & (links.t_down_s > t)]
-        wrong += len(truth ^ set(zip(live.a, live.b)))
-    return wrong
-
-
 @pytest.mark.parametrize(
     "seed, side, torus, window_s",
     [(1, 60.0, False, None), (2, 60.0, False, 0.7), (3, 41.0, True, None), (4, 41.0, True, 3.0), (5, 80.0, True, 0.2)],
@@ -276,10 +245,10 @@ def test_jumps_and_tori_match_brute_force_for_any_window(seed, side, torus, wind
     rng = np.random.default_rng(seed)
     n, duration = 12, 60.0
     ranges = rng.uniform(12.0, 20.0, n)
-    legs = _random_legs(rng, n, duration, side, 3.0, 0.3, torus)
+    legs = random_legs(rng, n, duration, side, 3.0, jump_rate=0.3)
     links = link_lifetimes(legs, ranges, duration, side_m=side, torus=torus, window_s=window_s)
     reference = link_lifetimes(legs, ranges, duration, side_m=side, torus=torus)
     assert len(links) == len(reference)
     assert np.abs(links[["t_up_s", "t_down_s"]].to_numpy() - reference[["t_up_s", "t_down_s"]].to_numpy()).max() < 1e-9
     times = np.sort(rng.uniform(0, duration, 1500))
-    assert _brute_force_mismatches(legs, links, n, ranges, times, side if torus else None) == 0
+    assert brute_force_mismatches(legs, links, ranges, times, side if torus else None) == 0
