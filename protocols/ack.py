@@ -124,6 +124,9 @@ class AckBeacon:
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
 
+    def summary(self, frames, duration_s: float) -> dict:
+        return {"acks_overtaken": int(self.stale_acks)}
+
 
 def install(sim) -> AckBeacon:
     beacon = AckBeacon(sim)

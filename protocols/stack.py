@@ -164,6 +164,7 @@ class Stack:
         acks = self.sim.channel.counters_for("ack").sent.sum()
         data = self.sim.channel.counters_for("data").sent.sum()
         out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
+        out.update(self.beacon.summary(frames, duration_s))
         out["relays_per_robot_per_s"] = float(data / (n * duration_s)) if duration_s else math.nan
         msgs = frames["messages"]
         out["messages"] = len(msgs)

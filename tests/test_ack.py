@@ -220,3 +220,4 @@ def test_reordered_acks_never_roll_tables_back():
     assert overtaken > 20  # the jitter did reorder Acks ...
     assert rolled_back == []  # ... and no table or listener went back
     assert beacon.stale_acks == overtaken
+    assert beacon.summary({}, 40.0) == {"acks_overtaken": overtaken}

@@ -161,6 +161,8 @@ def test_ack_at_the_deadline_instant_counts(phases, causes, times):
     rec = records(sim, 1)
     assert rec.cause.tolist() == causes
     assert rec.t_s.tolist() == times
+    # An Ack exactly tau after the previous one continues the entry: live without a break.
+    assert stack.table.live_since_s[1, stack.table.entry(1, 0)] < 7.0
     assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
     assert sim.state.role.tolist() == [LEADER, MEMBER]
 
