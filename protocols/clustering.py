@@ -320,7 +320,7 @@ class Clustering:
 
     def _maybe_merge(self, r: int, ack: Ack, now: float) -> None:
         if self.beacon.role_sent[r] != LEADER:
-            return  # the other has not heard from r as a leader yet
+            return  # r has not announced itself as a leader yet: its figures are not a leader's
         slot = self.table.entry(r, ack.sender)
         rows = self.table.data[r, slot]
         linked = rows[BIDIR_SINCE] if not self.symmetric else rows[LIVE_SINCE]

@@ -87,7 +87,7 @@ def test_link_times_independent_of_window_and_match_brute_force(seed):
     sim.run()
     legs = sim.state.legs()
     links = link_lifetimes(legs, 40.0, 120.0)
-    for window_s in (0.37, 20.0, 120.0):  # the default is 0.5 R / v_max = 2.5 s
+    for window_s in (0.37, 20.0):  # the default is 0.5 R / v_max = 2.5 s
         other = link_lifetimes(legs, 40.0, 120.0, window_s=window_s)
         assert other[["a", "b"]].equals(links[["a", "b"]])
         assert np.abs(other[["t_up_s", "t_down_s"]].to_numpy() - links[["t_up_s", "t_down_s"]].to_numpy()).max() < 1e-9
