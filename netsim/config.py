@@ -314,6 +314,7 @@ def _check_across(c: Config) -> None:
         if not math.isfinite(getattr(m, key)):
             raise ConfigError(f"mobility.{key}", getattr(m, key), "must be finite")
     p = c.protocol
+    ch = c.channel
     if not p.tau_s > p.ack_period_s:
         raise ConfigError("protocol.tau_s", p.tau_s, f"must be greater than protocol.ack_period_s = {p.ack_period_s}")
     if not p.ack_jitter_s < p.ack_period_s / 2:
@@ -322,7 +323,16 @@ def _check_across(c: Config) -> None:
             p.ack_jitter_s,
             f"must be less than half of protocol.ack_period_s = {p.ack_period_s}",
         )
-    ch = c.channel
+    # Without any loss two Acks of a neighbour can be up to period + jitter + latency jitter
+    # apart: a tau no longer than that times neighbours out for nothing.
+    gap = p.ack_period_s + p.ack_jitter_s + ch.latency_jitter_s
+    if p.model != "none" and not p.tau_s > gap:
+        raise ConfigError(
+            "protocol.tau_s",
+            p.tau_s,
+            "must be greater than protocol.ack_period_s + protocol.ack_jitter_s + channel.latency_jitter_s"
+            f" = {gap:g}, the longest gap between two Acks without loss",
+        )
     if isinstance(ch.range_m, tuple):
         if len(ch.range_m) != c.world.n_robots:
             raise ConfigError(

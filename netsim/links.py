@@ -6,10 +6,18 @@ and goes down at the roots of ``|w|^2 t^2 + 2 (d.w) t + |d|^2 - R^2 = 0``. Nothi
 sampled: the times are as exact as floating point allows, whatever the output interval.
 
 The run is cut into windows short enough that no robot moves more than half a range in
-one; the candidate pairs of a window are those within ``R_max + 2 v_max W`` at its start
-(no other pair can meet during it), found with a KD-tree. Pairs whose robots keep their
-legs through the window are solved in one vectorised step; pairs where a robot changes
-course are solved leg piece by leg piece.
+one, and at every jump (a leg that does not start where the previous one ended: a trace's
+``set X_``, or any model that places a robot); the candidate pairs of a window are those
+within ``R_max + 2 v_max W`` at its start (no other pair can meet during it), found with a
+KD-tree. Pairs whose robots keep their legs through the window are solved in one
+vectorised step; pairs where a robot changes course are solved leg piece by leg piece.
+At a jump the links of the robots that jumped are judged afresh on their new positions:
+a link opens or closes at the jump instant exactly.
+
+On a torus every image of the other robot counts, not only the nearest one at the start
+of a piece: with a side below about ``4 R`` another image can come into range within a
+piece. The images whose disks the relative path can reach are each solved; as the side
+exceeds ``2 R`` their disks are disjoint, so the union of their intervals is the link's.
 
 A link up at t = 0 or still up at the end is censored; ``censored`` is true for both,
 ``censored_start`` and ``censored_end`` say which.
@@ -24,6 +32,10 @@ from scipy.spatial import cKDTree
 from netsim.trajectory import LegTable
 
 _EDGE_S = 1e-10
+
+# Order of events at the same instant for one pair: a crossing at the end of a piece, then
+# the state set at a jump (or at t = 0), then a crossing at the start of the next piece.
+_PHASE_END, _PHASE_STATE, _PHASE_START = 0, 1, 2
 
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
 
@@ -45,49 +57,90 @@ def _roots(d: np.ndarray, w: np.ndarray, radius: np.ndarray):
     return np.fmin(r1, r2), np.fmax(r1, r2)
 
 
-def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, torus=False):
-    """Up (+1) and down (-1) events of every link, as arrays ``(t, a, b, kind)``."""
+def _wrap(d: np.ndarray, box: float | None) -> np.ndarray:
+    return d if box is None else d - box * np.round(d / box)
+
+
+def _tree(pos: np.ndarray, box: float | None) -> cKDTree:
+    return cKDTree(_in_box(pos, box), boxsize=box) if box is not None else cKDTree(pos)
+
+
+def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Legs that start away from where the robot was (a jump), as ``(t, robot)``.
+
+    A leg is a jump when its start differs from the previous leg's position at that time
+    by more than rounding (on a torus, by more than a whole number of sides).
+    """
+    robot = np.repeat(np.arange(len(L.first)), L.end - L.first)
+    same = np.r_[False, robot[1:] == robot[:-1]]
+    k = np.flatnonzero(same)
+    prev = k - 1
+    reached = L.p[prev] + L.v[prev] * (L.t[k] - L.t[prev])[:, None]
+    gap = _wrap(L.p[k] - reached, box)
+    scale = 1.0 + np.abs(L.p[k]).max(axis=1) + np.abs(reached).max(axis=1)
+    jump = np.hypot(gap[:, 0], gap[:, 1]) > 1e-9 * scale
+    return L.t[k[jump]], robot[k[jump]]
+
+
+def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, torus=False, window_s=None):
+    """Up (+1) and down (-1) events of every link, as arrays ``(t, a, b, kind, phase)``.
+
+    ``phase`` orders events of a pair at the same instant (see ``_PHASE_*``). ``window_s``
+    overrides the solver's window (the results do not depend on it).
+    """
     n = len(np.atleast_1d(range_m)) if np.ndim(range_m) else int(legs["robot"].max()) + 1
     ranges = np.broadcast_to(np.asarray(range_m, float), (n,))
     L = LegTable(legs, n)
     v_max = float(np.hypot(L.v[:, 0], L.v[:, 1]).max()) if len(L.v) else 0.0
     r_max = float(ranges.max())
-    window = duration_s if v_max == 0 else max(0.5 * float(ranges.min()) / v_max, 1e-6)
+    if window_s is not None:
+        window = float(window_s)
+    else:
+        window = duration_s if v_max == 0 else max(0.5 * float(ranges.min()) / v_max, 1e-6)
     box = float(side_m) if torus else None
+    jt, jr = jump_times(L, box)
+    inside = (jt > 0) & (jt < duration_s)
+    jt, jr = jt[inside], jr[inside]
+    order = np.argsort(jt, kind="stable")
+    jt, jr = jt[order], jr[order]
+    cuts = np.unique(jt)
 
     out: list[tuple[np.ndarray, ...]] = []
 
-    def emit(t, a, b, k):
+    def emit(t, a, b, k, phase):
+        a = np.asarray(a, np.int64)
         out.append(
-            (np.asarray(t, float), np.asarray(a, np.int64), np.asarray(b, np.int64), np.full(len(a), k, np.int8))
+            (
+                np.asarray(t, float),
+                a,
+                np.asarray(b, np.int64),
+                np.full(len(a), k, np.int8),
+                np.broadcast_to(np.asarray(phase, np.int8), a.shape),
+            )
         )
-
-    def minimum_image(d):
-        if torus:
-            d = d - box * np.round(d / box)
-        return d
 
     start = 0.0
     first = True
     while start < duration_s or first:
         stop = min(start + window, duration_s)
+        nxt = int(np.searchsorted(cuts, start, "right"))
+        if nxt < len(cuts):
+            stop = min(stop, float(cuts[nxt]))
         L.advance(start)
         pos = L.at(L.cur, start)
+        if not first and nxt > 0 and cuts[nxt - 1] == start:
+            _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit)
         reach = r_max + 2.0 * v_max * (stop - start)
-        if torus:
-            tree = cKDTree(np.mod(pos, box) % box, boxsize=box)
-        else:
-            tree = cKDTree(pos)
-        pairs = tree.query_pairs(reach, output_type="ndarray")
+        pairs = _tree(pos, box).query_pairs(reach, output_type="ndarray")
         if len(pairs):
             i, j = pairs[:, 0], pairs[:, 1]
             swap = i > j
             i, j = np.where(swap, j, i), np.where(swap, i, j)
             radius = np.minimum(ranges[i], ranges[j])
-            d0 = minimum_image(pos[i] - pos[j])
+            d0 = _wrap(pos[i] - pos[j], box)
             if first:
                 up = np.einsum("ij,ij->i", d0, d0) <= radius * radius
-                emit(np.zeros(int(up.sum())), i[up], j[up], 1)
+                emit(np.zeros(int(up.sum())), i[up], j[up], 1, _PHASE_STATE)
             changing = L.changes_in(start, stop)
             simple = ~(changing[i] | changing[j])
             _solve_piece(
@@ -99,20 +152,61 @@ def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, tor
                 i[simple],
                 j[simple],
                 emit,
+                box,
             )
             if (~simple).any():
-                _solve_changing(L, i[~simple], j[~simple], radius[~simple], start, stop, minimum_image, emit)
+                _solve_changing(L, i[~simple], j[~simple], radius[~simple], start, stop, box, emit)
         first = False
         if stop >= duration_s:
             break
         start = stop
     if not out:
-        return np.empty(0), np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int8)
-    t, a, b, k = (np.concatenate(col) for col in zip(*out))
-    return t, a, b, k
+        empty = np.empty(0, np.int64)
+        return np.empty(0), empty, empty, np.empty(0, np.int8), np.empty(0, np.int8)
+    return tuple(np.concatenate(col) for col in zip(*out))
 
 
-def _solve_changing(L: LegTable, a, b, radius, start: float, stop: float, minimum_image, emit) -> None:
+def _in_box(pos: np.ndarray, box: float | None) -> np.ndarray:
+    if box is None:
+        return pos
+    # cKDTree's periodic box wants coordinates in [0, box).
+    pos = np.mod(pos, box)
+    return np.where(pos >= box, 0.0, pos)
+
+
+def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None):
+    """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (``j`` may be ``who[k]``)."""
+    pts = _in_box(pos, box)
+    tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
+    near = tree.query_ball_point(pts[who], r)
+    counts = np.fromiter((len(x) for x in near), np.int64, len(near))
+    b = np.concatenate([np.asarray(x, np.int64) for x in near]) if counts.sum() else np.empty(0, np.int64)
+    return np.repeat(who, counts), b
+
+
+def _jump_state(L: LegTable, jumpers: np.ndarray, t: float, pos: np.ndarray, ranges, r_max: float, box, emit):
+    """At a jump instant ``t``, set the state of every link of the robots that jumped: up if
+    in range on the new positions ``pos``, down if it was in range on the old ones (events
+    that change nothing are dropped later)."""
+    jumpers = np.unique(jumpers)
+    before = pos.copy()
+    for r in jumpers.tolist():  # the leg that was current just before t
+        lo, hi = L.first[r], L.end[r]
+        leg = max(lo, lo + int(np.searchsorted(L.t[lo:hi], t, "left")) - 1)
+        before[r] = L.p[leg] + L.v[leg] * (t - L.t[leg])
+    a1, b1 = _near(before, jumpers, r_max, box)
+    a2, b2 = _near(pos, jumpers, r_max, box)
+    a, b = np.r_[a1, a2], np.r_[b1, b2]
+    keep = a != b
+    a, b = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
+    d = _wrap(pos[a] - pos[b], box)
+    radius = np.minimum(ranges[a], ranges[b])
+    up = np.einsum("ij,ij->i", d, d) <= radius * radius
+    emit(np.full(int(up.sum()), t), a[up], b[up], 1, _PHASE_STATE)
+    emit(np.full(int((~up).sum()), t), a[~up], b[~up], -1, _PHASE_STATE)
+
+
+def _solve_changing(L: LegTable, a, b, radius, start: float, stop: float, box, emit) -> None:
     """Pairs where a robot changes course within ``[start, stop)``: cut each pair's window
     at both robots' course changes and solve every piece, all pairs in one pass."""
     n_pairs = len(a)
@@ -149,30 +243,55 @@ def _solve_changing(L: LegTable, a, b, radius, start: float, stop: float, minimu
     la, lb = L.cur[a[p]] + ca, L.cur[b[p]] + cb
     pa = L.p[la] + L.v[la] * (t - L.t[la])[:, None]
     pb = L.p[lb] + L.v[lb] * (t - L.t[lb])[:, None]
-    _solve_piece(minimum_image(pa - pb), L.v[la] - L.v[lb], radius[p], t, end - t, a[p], b[p], emit)
+    _solve_piece(_wrap(pa - pb, box), L.v[la] - L.v[lb], radius[p], t, end - t, a[p], b[p], emit, box)
 
 
-def _solve_piece(d, w, radius, t_start, length, a, b, emit):
+def _solve_piece(d, w, radius, t_start, length, a, b, emit, box=None):
+    """Crossings of pairs at relative position ``d + w t`` over ``[0, length]`` from
+    ``t_start``; on a torus, of every image the path can reach (``d`` the nearest one)."""
+    if len(d) == 0:
+        return
+    length = np.broadcast_to(np.asarray(length, float), (len(d),))
+    t_start = np.broadcast_to(np.asarray(t_start, float), (len(d),))
+    if box is None:
+        _solve_image(d, w, radius, t_start, length, a, b, emit)
+        return
+    # An image k is reachable when |d - box k| <= R + |w| length; with d the nearest image,
+    # |k_x|, |k_y| <= 1/2 + (R + |w| length) / box.
+    reach = radius + np.hypot(w[:, 0], w[:, 1]) * length
+    K = int(np.floor(0.5 + float(reach.max()) / box))
+    for kx in range(-K, K + 1):
+        for ky in range(-K, K + 1):
+            dk = d - box * np.array([kx, ky], float)
+            sel = slice(None) if kx == ky == 0 else np.hypot(dk[:, 0], dk[:, 1]) <= reach * (1 + 1e-9)
+            _solve_image(dk[sel], w[sel], radius[sel], t_start[sel], length[sel], a[sel], b[sel], emit)
+
+
+def _solve_image(d, w, radius, t_start, length, a, b, emit):
     if len(d) == 0:
         return
     t_in, t_out = _roots(d, w, radius)
-    # A crossing on a window's edge is looked for by both windows, with a little slack,
-    # so that rounding cannot hide it from both; the duplicate is dropped later.
-    length = np.broadcast_to(length, t_in.shape)
-    t_start = np.broadcast_to(t_start, t_in.shape)
-    enter = (t_in >= -_EDGE_S) & (t_in <= length + _EDGE_S)
-    leave = (t_out >= -_EDGE_S) & (t_out <= length + _EDGE_S)
-    emit(t_start[enter] + np.clip(t_in[enter], 0.0, length[enter]), a[enter], b[enter], 1)
-    emit(t_start[leave] + np.clip(t_out[leave], 0.0, length[leave]), a[leave], b[leave], -1)
+    # A crossing on a piece's edge is looked for by both pieces, with a little slack, so
+    # that rounding cannot hide it from both; the duplicate is dropped later. A crossing
+    # near a piece's start sorts after one near the previous piece's end at the same
+    # instant (and after the state set at a jump there).
+    for rel, kind in ((t_in, 1), (t_out, -1)):
+        hit = (rel >= -_EDGE_S) & (rel <= length + _EDGE_S)
+        at = np.clip(rel[hit], 0.0, length[hit])
+        phase = np.where(at <= 0.5 * length[hit], _PHASE_START, _PHASE_END)
+        emit(t_start[hit] + at, a[hit], b[hit], kind, phase)
 
 
-def link_lifetimes(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, torus=False) -> pd.DataFrame:
+def link_lifetimes(
+    legs: pd.DataFrame, range_m, duration_s: float, side_m=None, torus=False, window_s=None
+) -> pd.DataFrame:
     """One row per link lifetime: ``a, b`` (a < b), ``t_up_s, t_down_s, censored, ...``."""
-    t, a, b, k = link_events(legs, range_m, duration_s, side_m, torus)
-    ev = pd.DataFrame({"a": a, "b": b, "t": t, "k": k})
-    # Up events sort before down events at the same instant: a link that comes up at a
-    # window's end and is re-found at the next window's start stays one lifetime.
-    ev = ev.sort_values(["a", "b", "t", "k"], ascending=[True, True, True, False], kind="stable")
+    t, a, b, k, phase = link_events(legs, range_m, duration_s, side_m, torus, window_s)
+    ev = pd.DataFrame({"a": a, "b": b, "t": t, "phase": phase, "k": k})
+    # At one instant a pair's events run by phase (a piece's end, a jump, the next piece's
+    # start), ups before downs within a phase: a link that comes up at a window's end and
+    # is re-found at the next window's start stays one lifetime.
+    ev = ev.sort_values(["a", "b", "t", "phase", "k"], ascending=[True, True, True, True, False], kind="stable")
     same_pair = (ev["a"].to_numpy()[1:] == ev["a"].to_numpy()[:-1]) & (
         ev["b"].to_numpy()[1:] == ev["b"].to_numpy()[:-1]
     )

@@ -11,13 +11,16 @@ Semantics (as ns-2 and ns-3's ``Ns2MobilityHelper``): ``setdest X Y S`` at time 
 the node leave its current position at T in a straight line toward (X, Y) at S m/s and
 stop on arrival; a later ``setdest`` replaces the current one from wherever the node is.
 ``$ns_ at T "$node_(i) set X_ x"`` moves the node to x at T and stops it. ``$god_`` lines
-(setdest's hop counts), ``Z_`` and comments are ignored.
+(setdest's hop counts), ``Z_`` and comments are ignored. The nodes are 0 to the highest id
+the file names; as in ns-3, a coordinate a node is never given (no ``$node_(i) set X_``)
+is 0, and a warning names those nodes.
 """
 
 from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -95,18 +98,21 @@ def read(path: str | Path) -> Scenario:
             rows.append((t, int(m[2]), "set", x, y, 0.0, lineno))
         else:
             raise NetsimInputError(f"{path}:{lineno}: not an ns-2 movement command: {line!r}")
-    if not initial:
-        raise NetsimInputError(f"{path}: no initial positions ($node_(i) set X_ ...)")
-    n = max(initial) + 1
+    commands = pd.DataFrame(rows, columns=["t_s", "robot", "kind", "x_m", "y_m", "speed_mps", "line"])
+    ids = list(initial) + commands["robot"].tolist()
+    if not ids:
+        raise NetsimInputError(f'{path}: no nodes ($node_(i) set X_ ... or $ns_ at T "$node_(i) ...")')
+    n = max(ids) + 1
     missing = [i for i in range(n) if "X" not in initial.get(i, {}) or "Y" not in initial.get(i, {})]
     if missing:
-        raise NetsimInputError(f"{path}: node(s) {missing[:5]} have no initial X_ and Y_")
-    commands = pd.DataFrame(rows, columns=["t_s", "robot", "kind", "x_m", "y_m", "speed_mps", "line"])
-    if len(commands) and commands["robot"].max() >= n:
-        bad = int(commands.loc[commands["robot"] >= n, "line"].iloc[0])
-        raise NetsimInputError(f"{path}:{bad}: node without an initial position")
+        more = f" and {len(missing) - 10} more" if len(missing) > 10 else ""
+        warnings.warn(
+            f"{path}: node(s) {missing[:10]}{more} have no initial X_ or Y_: they start at 0 on that axis,"
+            " as in ns-3's Ns2MobilityHelper",
+            stacklevel=2,
+        )
     commands = commands.sort_values(["t_s", "line"], kind="stable").drop(columns="line").reset_index(drop=True)
-    init = np.array([[initial[i]["X"], initial[i]["Y"]] for i in range(n)])
+    init = np.array([[initial.get(i, {}).get(axis, 0.0) for axis in "XY"] for i in range(n)])
     return Scenario(init, commands)
 
 

@@ -56,13 +56,6 @@ class DeadlineTimers:
             for i, d in zip(idx[early].tolist(), deadline[early].tolist()):
                 self._arm(i, d)
 
-    def expire_if_due(self, i: int) -> None:
-        """Expire timer ``i`` now if its deadline has come, ahead of its kernel event
-        (which then finds nothing to do)."""
-        if self.deadline_s[i] <= self.env.now:
-            self.deadline_s[i] = np.inf
-            self.on_expire(i, self.env.now)
-
     def cancel(self, idx) -> None:
         self.deadline_s[idx] = np.inf
 

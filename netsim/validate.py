@@ -211,20 +211,130 @@ def check_torus_links() -> list[Check]:
     ]
 
 
+def random_legs(rng: np.random.Generator, n: int, duration_s: float, side_m: float, speed_mps: float, jump_rate=0.0):
+    """Random piecewise-linear trajectories as a leg log: course changes at exponential
+    intervals (mean ``duration_s / 6``), Gaussian velocities; with ``jump_rate``, that
+    fraction of the changes are jumps to a uniform position."""
+    rows = []
+    for r in range(n):
+        t, p = 0.0, rng.uniform(0, side_m, 2)
+        while t < duration_s:
+            v = rng.normal(0, speed_mps, 2)
+            rows.append((t, r, p[0], p[1], v[0], v[1]))
+            dt = rng.exponential(duration_s / 6)
+            t += dt
+            p = rng.uniform(0, side_m, 2) if rng.random() < jump_rate else p + v * dt
+    return pd.DataFrame(rows, columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"])
+
+
+def brute_force_mismatches(legs: pd.DataFrame, links: pd.DataFrame, ranges, times, side_m=None) -> int:
+    """Pairs on which ``links`` and the distances sampled at ``times`` disagree (linked iff
+    ``d <= min(r_a, r_b)``, on a torus by the nearest image), summed over the instants."""
+    from netsim.trajectory import sample_positions
+
+    ranges = np.asarray(ranges, float)
+    n = len(ranges)
+    times = np.sort(np.asarray(times, float))
+    pos = sample_positions(legs, n, times)[["x_m", "y_m"]].to_numpy().reshape(len(times), n, 2)
+    radius = np.minimum(ranges[:, None], ranges[None, :])
+    a, b, up, down = (links[c].to_numpy() for c in ("a", "b", "t_up_s", "t_down_s"))
+    wrong = 0
+    for k, t in enumerate(times.tolist()):
+        d = pos[k][:, None, :] - pos[k][None, :, :]
+        if side_m is not None:
+            d -= side_m * np.round(d / side_m)
+        truth = np.triu(np.hypot(d[..., 0], d[..., 1]) <= radius, 1)
+        claimed = np.zeros((n, n), bool)
+        live = (up <= t) & (down > t)
+        claimed[a[live], b[live]] = True
+        wrong += int((truth ^ claimed).sum())
+    return wrong
+
+
 def check_exact_links() -> list[Check]:
-    legs = pd.DataFrame(
-        [
-            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
-            (0.0, 1, -20.0, 3.0, 2.0, 0.0),
-            (0.0, 2, 100.0, 0.0, 0.0, 0.0),
-            (5.0, 2, 100.0, 0.0, -1.3, 0.7),
-        ],
-        columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"],
+    """Item 7 on random trajectories, against brute force: plain, with jumps (sampled also
+    just before and after every jump), and on the smallest torus allowed (side just above
+    twice the range, where other images come into range within a piece)."""
+    from netsim.links import jump_times
+    from netsim.trajectory import LegTable
+
+    out = []
+    sim = build(
+        _config(
+            seed=4,
+            duration_s=120.0,
+            world={"n_robots": 30, "side_m": 200.0},
+            channel={"range_m": 40.0},
+            mobility={"speed_min_mps": 1.0, "speed_max_mps": 8.0, "pause_s": 1.0},
+        )
     )
-    links = link_lifetimes(legs, 5.0, 40.0)
-    row = links[(links.a == 0) & (links.b == 1)].iloc[0]
-    err = max(abs(row.t_up_s - 8.0), abs(row.t_down_s - 12.0))
-    return [Check("7", "link up/down times solve |dp + dv t| = R (error)", 0.0, float(err), 1e-9, "s")]
+    sim.run()
+    legs = sim.state.legs()
+    links = link_lifetimes(legs, 40.0, 120.0)
+    # Time error of every up/down time: its distance error over the pair's radial speed.
+    errors = []
+    table = LegTable(legs, 30)
+    for col, flag in (("t_up_s", "censored_start"), ("t_down_s", "censored_end")):
+        done = links[~links[flag]]
+        for t, a, b in zip(done[col].tolist(), done["a"].tolist(), done["b"].tolist()):
+            la, lb = table.leg_at(a, t), table.leg_at(b, t)
+            d = table.p[la] + table.v[la] * (t - table.t[la]) - table.p[lb] - table.v[lb] * (t - table.t[lb])
+            dist = math.hypot(*d)
+            radial = abs(float(np.dot(d, table.v[la] - table.v[lb]))) / dist
+            if radial > 0.01:  # a grazing pass has no well-defined time error
+                errors.append(abs(dist - 40.0) / radial)
+    out.append(
+        Check(
+            "7",
+            f"link times solve |dp + dv t| = R, {len(errors)} random events (max error)",
+            0.0,
+            max(errors),
+            1e-9,
+            "s",
+        )
+    )
+    times = np.sort(np.random.default_rng(4).uniform(0, 120.0, 2000))
+    out.append(
+        Check(
+            "7",
+            "link events vs brute force, 30 robots (pairs wrong at 2,000 instants)",
+            0.0,
+            float(brute_force_mismatches(legs, links, np.full(30, 40.0), times)),
+            0.0,
+        )
+    )
+    rng = np.random.default_rng(7)
+    n, duration, side = 20, 60.0, 80.0
+    ranges = rng.uniform(10.0, 20.0, n)
+    legs = random_legs(rng, n, duration, side, 3.0, jump_rate=0.4)
+    links = link_lifetimes(legs, ranges, duration)
+    jt, _ = jump_times(LegTable(legs, n))
+    jt = jt[(jt > 0) & (jt < duration)]
+    times = np.sort(np.r_[rng.uniform(0, duration, 2000), jt - 1e-7, jt + 1e-7])
+    out.append(
+        Check(
+            "7",
+            f"link events under {len(jt)} jumps vs brute force, also 1e-7 s around each (pairs wrong)",
+            0.0,
+            float(brute_force_mismatches(legs, links, ranges, times)),
+            0.0,
+        )
+    )
+    r, side = 10.0, 20.0 * (1 + 1e-6)
+    legs = random_legs(rng, n, duration, side, 3.0)
+    links = link_lifetimes(legs, r, duration, side_m=side, torus=True)
+    times = np.sort(rng.uniform(0, duration, 2000))
+    wrong = brute_force_mismatches(legs, links, np.full(n, r), times, side_m=side)
+    out.append(
+        Check(
+            "7",
+            f"link events on the smallest torus (side 2 r + {side - 2 * r:.0e} m) vs brute force (pairs wrong)",
+            0.0,
+            float(wrong),
+            0.0,
+        )
+    )
+    return out
 
 
 def check_discovery_delay() -> list[Check]:

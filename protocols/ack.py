@@ -2,11 +2,15 @@
 
 Each robot starts at a random phase, uniform on ``[0, t)``, and each period is
 ``t + U(-jitter, +jitter)``. An Ack carries the sender's id, role, leader, a sequence
-number, its position, its group size, and the ids it has heard within ``tau`` (so that a
+number, its position, its group size, its degree (live neighbours that list it in their
+own Acks: two-way links only), and the ids it has heard within ``tau`` (so that a
 receiver can tell a two-way link from a one-way one).
 
 Receivers record the Ack in their neighbour table. Protocols built on the beacon (the
-clustering) subscribe to :attr:`AckBeacon.listeners` and see every delivery, in bulk.
+clustering) subscribe to :attr:`AckBeacon.listeners` and see every delivery, in bulk. With
+latency jitter an Ack can be overtaken by the sender's next one: a receiver that already
+holds a newer Ack from that sender ignores the older (the table keeps the newest, the
+listeners are not told; :attr:`AckBeacon.stale_acks` counts them).
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from netsim.timers import urgent_timeout
-from protocols.neighbours import NeighbourTable, ack_record
+from protocols.neighbours import HEARS_ME, NeighbourTable, ack_record
 
 
 class Ack(NamedTuple):
@@ -57,12 +61,17 @@ class AckBeacon:
         self.seq = np.zeros(sim.state.n, dtype=np.int64)
         # Robots the protocol above counts as members of each robot's group (1: alone).
         self.group_size = np.ones(sim.state.n, dtype=np.int64)
+        # What each robot announced in its last Ack: its role and two-way degree.
+        self.role_sent = np.full(sim.state.n, -1, dtype=np.int64)
+        self.degree_sent = np.zeros(sim.state.n, dtype=np.int64)
         # Leaders that announce they are giving up leadership set this for their next Ack.
         self.resign_pending = np.zeros(sim.state.n, dtype=bool)
         self.listeners: list[AckListener] = []
         # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
         self.before_send: list[Callable[[int, float], None]] = []
         self.phase_s = np.zeros(sim.state.n)
+        # Receptions ignored because a newer Ack of the same sender had arrived first.
+        self.stale_acks = 0
 
     def start(self, phase_s=None) -> None:
         """Start every robot's beacon; ``phase_s`` (one per robot) overrides the random phases."""
@@ -87,10 +96,11 @@ class AckBeacon:
         resign = bool(self.resign_pending[i])
         self.resign_pending[i] = False
         seq, role, leader, size = int(self.seq[i]), int(st.role[i]), int(st.leader[i]), int(self.group_size[i])
-        heard = self.table.live_ids(now, i)
-        return Ack(
-            i, role, leader, seq, x, y, size, heard, resign, ack_record(seq, role, leader, x, y, size, len(heard))
-        )
+        live = self.table.live_mask(now, i)
+        heard = np.sort(self.table.id[i][live])
+        degree = int((live & (self.table.data[i, :, HEARS_ME] != 0)).sum())
+        self.role_sent[i], self.degree_sent[i] = role, degree
+        return Ack(i, role, leader, seq, x, y, size, heard, resign, ack_record(seq, role, leader, x, y, size, degree))
 
     def send(self, i: int) -> None:
         if not self.sim.state.alive[i]:
@@ -105,9 +115,17 @@ class AckBeacon:
             hears_me = heard[at] == receivers
         else:
             hears_me = np.zeros(len(receivers), dtype=bool)
-        self.table.update(now, sender, receivers, hears_me, ack.record)
+        fresh = self.table.update(now, sender, receivers, hears_me, ack.record)
+        if not fresh.all():
+            self.stale_acks += int((~fresh).sum())
+            receivers, hears_me = receivers[fresh], hears_me[fresh]
+            if len(receivers) == 0:
+                return
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
+
+    def summary(self, frames, duration_s: float) -> dict:
+        return {"acks_overtaken": int(self.stale_acks)}
 
 
 def install(sim) -> AckBeacon:

@@ -8,9 +8,14 @@ robots build a two-level network:
    becomes ``beta`` (join policy: nearest known leader, ties to the lowest id).
 3. A ``beta`` robot that hears no Ack from its leader for ``tau`` becomes ``gamma``.
 4. A ``gamma`` robot that hears no ``alpha`` for ``tau`` becomes ``alpha``.
-5. Two ``alpha`` robots whose two-way link has lasted ``merge_delay`` merge: by the merge
-   policy one yields and joins the other; its next Ack carries a resign flag and its
-   members re-affiliate at once.
+5. Two ``alpha`` robots merge once each has been ``alpha`` over their two-way link for
+   ``merge_delay`` (counted from the latest of: the link known two-way, the other's Acks
+   saying ``alpha``, and its own leadership): by the merge policy one yields and joins the
+   other; its next Ack carries a resign flag and its members re-affiliate at once. The
+   policy compares what both leaders announced in their Acks (group size, two-way
+   degree), so both reach the same verdict from the same information once it has
+   travelled; if stale information still makes each yield to the other, the lower id
+   takes the lead back on hearing it and the other stays its member.
 6. A robot whose leader timed out (or resigned) joins another known leader if it can;
    otherwise, if it has the highest priority among the live neighbours that had the same
    leader (lowest id by default; vacuously when there are none), it becomes ``alpha`` at
@@ -38,7 +43,7 @@ from netsim.state import LEADER, MEMBER, NO_LEADER, ROLE_NAMES, UNDECIDED
 from netsim.timers import DeadlineTimers
 from netsim.trace import RoleChange
 from protocols.ack import Ack, AckBeacon
-from protocols.neighbours import BIDIR_SINCE, DEGREE, HEARS_ME, LAST_HEARD, ROLE, X, Y
+from protocols.neighbours import BIDIR_SINCE, DEGREE, HEARS_ME, LAST_HEARD, LIVE_SINCE, ROLE, ROLE_SINCE, X, Y
 from protocols.neighbours import LEADER as LEADER_FIELD
 
 # Causes recorded in roles.parquet, named after the rule that fired.
@@ -49,6 +54,7 @@ NO_LEADER_HEARD = "rule4_no_leader"
 MERGE_YIELD = "rule5_merge_yield"
 LEADER_RESIGNED = "rule5_leader_resigned"
 ELECTED = "rule6_elected"
+MUTUAL_YIELD = "rule5_mutual_yield"
 
 # The state machine: (role, event) -> (new role, cause).
 TRANSITIONS = {
@@ -58,6 +64,7 @@ TRANSITIONS = {
     (UNDECIDED, "no_leader_timeout"): (LEADER, NO_LEADER_HEARD),
     (LEADER, "merge_lost"): (MEMBER, MERGE_YIELD),
     (UNDECIDED, "elected"): (LEADER, ELECTED),
+    (MEMBER, "mutual_yield"): (LEADER, MUTUAL_YIELD),
 }
 
 
@@ -147,6 +154,8 @@ class Clustering:
         self.symmetric = bool(np.all(st.range_m == st.range_m[0])) if st.n else True
         self.timers = DeadlineTimers(sim.env, st.n, self._expire)
         self.role_changes = np.zeros(st.n, dtype=np.int64)
+        # When each robot last became a leader (inf: it is not one).
+        self.leader_since = np.full(st.n, np.inf)
         sim.trace.declare("roles", RoleChange)
         beacon.listeners.append(self.on_ack)
         beacon.before_send.append(self._before_ack)
@@ -230,9 +239,6 @@ class Clustering:
         return np.flatnonzero(np.bincount(robot, minlength=self.sim.state.n) > 1)
 
     def _before_ack(self, i: int, now: float) -> None:
-        # A robot's own deadline due at the instant of its Ack is applied first, so that
-        # the Ack tells its new role (sends run ahead of timers, see the module notes).
-        self.timers.expire_if_due(i)
         self.beacon.group_size[i] = self.group_size(i, now) if self.sim.state.role[i] == LEADER else 1
 
     # -- transitions ---------------------------------------------------------------------
@@ -241,6 +247,7 @@ class Clustering:
         role, cause = transition(int(st.role[i]), event)
         st.role[i] = role
         st.leader[i] = leader
+        self.leader_since[i] = now if role == LEADER else np.inf
         self.role_changes[i] += 1
         self.sim.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[role], leader, cause))
 
@@ -265,7 +272,9 @@ class Clustering:
         mates = self._two_way(i, now) & (rows[:, LEADER_FIELD] == old) & (rows[:, ROLE] == MEMBER)
         ids = self.table.id[i][mates]
         rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids.tolist(), rows[mates, DEGREE].tolist())]
-        me = Candidate(i, degree=int(self._two_way(i, now).sum()))
+        # Like with like: my degree as I announced it, beside theirs as they announced them
+        # (all counted before the leader was lost).
+        me = Candidate(i, degree=int(self.beacon.degree_sent[i]))
         if elected(self.election_policy, me, rivals):
             self._set(i, "elected", i, now)
             self.timers.cancel(i)
@@ -285,8 +294,12 @@ class Clustering:
         two_way = hears_me | self.symmetric
         mine = (role == MEMBER) & (st.leader[receivers] == ack.sender)
         if ack.role != LEADER or ack.resign:
-            for r in receivers[mine].tolist():
-                self._leader_gone(r, now, "leader_resigned")
+            for k in np.flatnonzero(mine).tolist():
+                r = int(receivers[k])
+                if ack.role == MEMBER and ack.leader == r:
+                    self._mutual_yield(r, ack.sender, now, bool(two_way[k]))
+                else:
+                    self._leader_gone(r, now, "leader_resigned")
             return
         self.timers.restart(receivers[mine & two_way], now + self.tau_s)
         for r in receivers[(role == UNDECIDED) & two_way].tolist():
@@ -294,13 +307,29 @@ class Clustering:
         for r in receivers[(role == LEADER) & two_way].tolist():
             self._maybe_merge(r, ack, now)
 
+    def _mutual_yield(self, r: int, other: int, now: float, two_way: bool) -> None:
+        """``r`` yielded to ``other``, which (on older news) yielded to ``r``: the lower id
+        takes the lead back, the other stays its member."""
+        if r < other:
+            self._set(r, "mutual_yield", r, now)
+            self.beacon.resign_pending[r] = False
+            self.timers.cancel(r)
+        elif two_way:
+            # The other is about to lead again: its Ack shows the link alive meanwhile.
+            self.timers.restart(r, now + self.tau_s)
+
     def _maybe_merge(self, r: int, ack: Ack, now: float) -> None:
+        if self.beacon.role_sent[r] != LEADER:
+            return  # r has not announced itself as a leader yet: its figures are not a leader's
         slot = self.table.entry(r, ack.sender)
-        since = self.table.data[r, slot, BIDIR_SINCE] if not self.symmetric else self.table.live_since_s[r, slot]
+        rows = self.table.data[r, slot]
+        linked = rows[BIDIR_SINCE] if not self.symmetric else rows[LIVE_SINCE]
+        since = max(linked, rows[ROLE_SINCE], self.leader_since[r])
         if now - since < self.merge_delay_s:
             return
-        me = Candidate(r, group_size=self.group_size(r, now), degree=int(self._two_way(r, now).sum()))
-        other = Candidate(ack.sender, group_size=ack.group_size, degree=int(self.table.data[r, slot, DEGREE]))
+        # What each announced in its last Ack: the same kind of information on both sides.
+        me = Candidate(r, group_size=int(self.beacon.group_size[r]), degree=int(self.beacon.degree_sent[r]))
+        other = Candidate(ack.sender, group_size=ack.group_size, degree=int(rows[DEGREE]))
         if merge_loser(self.merge_policy, me, other) == r:
             self._set(r, "merge_lost", ack.sender, now)
             self.beacon.resign_pending[r] = True

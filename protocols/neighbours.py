@@ -3,7 +3,10 @@
 Row ``i`` holds what robot ``i`` learnt from the Acks it heard: for each neighbour, the
 time of its last Ack, when the entry became live, whether the neighbour hears ``i``, and
 the Ack's fields. An entry is live while its last Ack is younger than ``tau``
-(``now - last < tau``); at exactly ``tau`` it has expired.
+(``now - last < tau``); at exactly ``tau`` it has expired, but an Ack that arrives at that
+very instant continues it (arrivals come before deadlines: the entry keeps its
+``live_since`` and two-way start). An Ack older (by sequence number) than the one an
+entry holds, overtaken in flight by a newer one, is ignored.
 
 The table is a fixed number of slots per robot, doubled when a robot hears more
 neighbours than it has slots; an expired slot is reused. The fields of a slot are packed
@@ -18,10 +21,11 @@ import numpy as np
 EMPTY = -1
 
 # Columns of the packed record. BIDIR_SINCE: since when the neighbour has continuously
-# listed us in its Acks (the link is known two-way); inf while it does not.
-LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE = range(11)
+# listed us in its Acks (the link is known two-way); inf while it does not. ROLE_SINCE:
+# since when the live entry's Acks have continuously told the role they tell now.
+LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
 ACK_FIELDS = ("seq", "role", "leader", "x_m", "y_m", "group_size", "degree")
-_EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0], dtype=float)
+_EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf], dtype=float)
 
 
 class NeighbourTable:
@@ -46,6 +50,7 @@ class NeighbourTable:
     group_size = property(lambda self: self.data[:, :, GROUP_SIZE].astype(np.int64))
     ack_degree = property(lambda self: self.data[:, :, DEGREE].astype(np.int64))
     bidir_since_s = property(lambda self: self.data[:, :, BIDIR_SINCE])
+    role_since_s = property(lambda self: self.data[:, :, ROLE_SINCE])
 
     @property
     def slots(self) -> int:
@@ -61,13 +66,15 @@ class NeighbourTable:
         self._records = data.reshape(-1, len(_EMPTY_RECORD))
 
     def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
-        return (self.id[rows] == EMPTY) | (now - self.data[rows, :, LAST_HEARD] >= self.tau_s)
+        # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
+        return (self.id[rows] == EMPTY) | (now - self.data[rows, :, LAST_HEARD] > self.tau_s)
 
-    def update(self, now: float, sender: int, receivers: np.ndarray, hears_me: np.ndarray, record: np.ndarray) -> None:
+    def update(self, now: float, sender: int, receivers: np.ndarray, hears_me: np.ndarray, record: np.ndarray):
         """Record an Ack from ``sender`` heard by every robot in ``receivers`` at ``now``.
 
         ``hears_me[k]`` says whether ``receivers[k]`` was among the ids the Ack carried;
-        ``record`` is the Ack's packed record (see :func:`ack_record`).
+        ``record`` is the Ack's packed record (see :func:`ack_record`). Returns, per
+        receiver, whether the Ack was taken (False: an older Ack than the entry's newest).
         """
         slots = self.id.shape[1]
         flat = receivers * slots + (self.id.take(receivers, axis=0) == sender).argmax(axis=1)
@@ -77,15 +84,21 @@ class NeighbourTable:
         # Flat indices into the (n * slots, fields) records: cheaper than 2-D indexing.
         records = self._records
         old = records.take(flat, axis=0)
+        fresh = ~found | (old[:, SEQ] <= record[SEQ])
+        if not fresh.all():
+            flat, old, found, hears_me = flat[fresh], old[fresh], found[fresh], hears_me[fresh]
         rec = np.empty_like(old)
         rec[:] = record
         rec[:, LAST_HEARD] = now
-        was_live = found & (now - old[:, LAST_HEARD] < self.tau_s)
+        was_live = found & (now - old[:, LAST_HEARD] <= self.tau_s)
         rec[:, LIVE_SINCE] = np.where(was_live, old[:, LIVE_SINCE], now)
         rec[:, HEARS_ME] = hears_me
         still_two_way = was_live & (old[:, HEARS_ME] != 0)
         rec[:, BIDIR_SINCE] = np.where(hears_me, np.where(still_two_way, old[:, BIDIR_SINCE], now), np.inf)
+        same_role = was_live & (old[:, ROLE] == record[ROLE])
+        rec[:, ROLE_SINCE] = np.where(same_role, old[:, ROLE_SINCE], now)
         records[flat] = rec
+        return fresh
 
     def _place(self, now, sender, receivers, flat, found):
         """Give ``sender`` a slot in the rows of the receivers that have none for it."""

@@ -122,21 +122,28 @@ class Stack:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
         how many neighbours it believes live and how many it truly has, and how many of
         its beliefs are stale (believed live, out of range) or missing (in range, not
-        believed)."""
+        believed).
+
+        Truth is per direction, as beliefs are: ``i`` believes ``j`` live when it holds a
+        live Ack of ``j``, and that is true when ``j``'s transmissions reach ``i`` now
+        (``|p_i - p_j| <= r_j``), whether or not ``i`` reaches ``j``. A member's leader is
+        in range when the link is two-way (``<= min(r_i, r_j)``), as a member needs.
+        """
         st, n = self.sim.state, self.sim.state.n
-        a, b, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
-        true_keys = np.sort(np.concatenate([a * n + b, b * n + a]))
+        src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
+        # receiver * n + sender, for every sender whose transmissions reach the receiver.
+        heard_keys = np.sort(dst * n + src)
         live = self.table.live_mask(now)
         rows = np.nonzero(live)[0]
         believed_keys = rows * n + self.table.id[live]
-        believed_true = np.isin(believed_keys, true_keys)
-        true_count = np.bincount(np.concatenate([a, b]), minlength=n)
+        believed_true = np.isin(believed_keys, heard_keys)
+        true_count = np.bincount(dst, minlength=n)
         believed = np.bincount(rows, minlength=n)
         stale = np.bincount(rows[~believed_true], minlength=n)
         leader = st.leader.copy()
-        has = (st.role == MEMBER) & (leader >= 0)
+        has = np.flatnonzero((st.role == MEMBER) & (leader >= 0))
         in_range = np.zeros(n, dtype=bool)
-        in_range[has] = np.isin(np.arange(n)[has] * n + leader[has], true_keys)
+        in_range[has] = np.isin(has * n + leader[has], heard_keys) & np.isin(leader[has] * n + has, heard_keys)
         return pd.DataFrame(
             {
                 "t_s": now,
@@ -181,6 +188,7 @@ class Stack:
         acks = self.sim.channel.counters_for("ack").sent.sum()
         data = self.sim.channel.counters_for("data").sent.sum()
         out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
+        out.update(self.beacon.summary(frames, duration_s))
         out["relays_per_robot_per_s"] = float(data / (n * duration_s)) if duration_s else math.nan
         msgs = frames["messages"]
         out["messages"] = len(msgs)

@@ -25,10 +25,15 @@ def _static(positions, duration=20.0, **protocol):
 
 
 def test_every_robot_sends_one_ack_per_period():
+    """Without jitter, Acks leave at phase + k t exactly: 50 in 50 s from phases in [0, 1)."""
     sim = _static([[0, 0], [5, 0], [100, 0]], duration=50.0, ack_jitter_s=0.0)
+    sent_at = []
+    sim.models["protocol"].listeners.append(lambda now, ack, rec, hm: sent_at.append((ack.sender, ack.seq, now)))
     sim.run()
-    sent = sim.channel.counters_for("ack").sent
-    assert sent.tolist() in ([50, 50, 50],) or set(sent.tolist()) <= {49, 50}
+    assert sim.channel.counters_for("ack").sent.tolist() == [50, 50, 50]
+    phase = sim.models["protocol"].phase_s
+    for sender, seq, now in sent_at:  # delivered 1 ms (the latency) after phase + (seq - 1) t
+        assert now == pytest.approx(phase[sender] + (seq - 1) + 0.001, abs=1e-9)
 
 
 def test_ack_carries_its_fields():
@@ -145,3 +150,74 @@ def test_discovery_delay_of_a_new_link(p):
     theory = period / 2 + period * p / (1 - p)
     se = delay.std() / math.sqrt(pairs)
     assert abs(delay.mean() - theory) < 4 * se
+
+
+def test_an_ack_exactly_tau_after_the_last_keeps_the_entry_live():
+    """An Ack arriving at the instant the entry expires counts: the entry stays live
+    (``live_since`` and the two-way start are kept), and the slot is not reused then."""
+    table = NeighbourTable(3, tau_s=3.0, slots=1)
+    fields = ack_record(1, 0, -1, 0.0, 0.0, 1)
+    table.update(0.0, 1, np.array([0]), np.array([True]), fields)
+    table.update(3.0, 2, np.array([0]), np.array([True]), fields)  # another sender, same instant
+    table.update(3.0, 1, np.array([0]), np.array([True]), ack_record(2, 0, -1, 0.0, 0.0, 1))
+    slot = table.entry(0, 1)
+    assert table.live_since_s[0, slot] == 0.0 and table.bidir_since_s[0, slot] == 0.0
+    assert table.live_mask(5.9, 0)[slot]
+
+
+def test_an_older_ack_does_not_roll_the_entry_back():
+    """Acks overtaken by newer ones (latency jitter above the period) are ignored: the
+    entry keeps the newest Ack's fields and time."""
+    table = NeighbourTable(2, tau_s=3.0)
+    fresh = table.update(1.0, 1, np.array([0]), np.array([True]), ack_record(7, 2, 1, 5.0, 6.0, 4))
+    stale = table.update(1.5, 1, np.array([0]), np.array([False]), ack_record(6, 0, -1, 1.0, 2.0, 1))
+    assert fresh.tolist() == [True] and stale.tolist() == [False]
+    slot = table.entry(0, 1)
+    assert (table.seq[0, slot], table.role[0, slot], table.leader[0, slot], table.group_size[0, slot]) == (7, 2, 1, 4)
+    assert table.last_heard_s[0, slot] == 1.0 and table.hears_me[0, slot]
+
+
+def test_reordered_acks_never_roll_tables_back():
+    """Latency jitter of 2.5 periods reorders Acks: what a table holds for a sender, and
+    what the protocol above is told, only ever moves to newer sequence numbers."""
+    cfg = make_config(
+        seed=4,
+        duration_s=40.0,
+        world={"n_robots": 4, "side_m": 1000.0},
+        mobility={"model": "static"},
+        channel={"range_m": 10.0, "latency_jitter_s": 2.5},
+        protocol={"model": "ack", "tau_s": 4.0},
+    )
+    sim = build(cfg)
+    sim.state.place(np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 5.0], [5.0, 5.0]]))
+    beacon = sim.models["protocol"]
+    told, held, arrivals = {}, {}, []
+    rolled_back = []
+
+    def listen(now, ack, receivers, hears_me):
+        for r in receivers.tolist():
+            if told.get((r, ack.sender), 0) > ack.seq:
+                rolled_back.append(("told", now, r, ack.sender))
+            told[(r, ack.sender)] = ack.seq
+            slot = beacon.table.entry(r, ack.sender)
+            if held.get((r, ack.sender), 0) > beacon.table.seq[r, slot]:
+                rolled_back.append(("held", now, r, ack.sender))
+            held[(r, ack.sender)] = beacon.table.seq[r, slot]
+
+    deliver = beacon.deliver
+
+    def counting(sender, receivers, ack):
+        arrivals.append((ack.seq, sender, int(receivers[0])))
+        deliver(sender, receivers, ack)
+
+    beacon.deliver = counting
+    beacon.listeners.append(listen)
+    sim.run()
+    newest, overtaken = {}, 0
+    for seq, s, r in arrivals:
+        overtaken += newest.get((r, s), 0) > seq
+        newest[(r, s)] = max(newest.get((r, s), 0), seq)
+    assert overtaken > 20  # the jitter did reorder Acks ...
+    assert rolled_back == []  # ... and no table or listener went back
+    assert beacon.stale_acks == overtaken
+    assert beacon.summary({}, 40.0) == {"acks_overtaken": overtaken}

@@ -60,6 +60,70 @@ def test_static_deployment_converges_to_independent_dominating_leaders(n, seed):
     check_independent_dominating(sim, 10.0)
 
 
+def settled_run(seed, n=60, latency_s=1.3, latency_jitter_s=0.0, unequal=True, duration=100.0, **protocol):
+    """A static loss-free run; returns the role changes after its first 60 s, and the pairs
+    of robots that are each a member of the other at the end."""
+    rng = np.random.default_rng(seed + 1000)
+    side = 10.0 * math.sqrt(n * math.pi / 6)
+    cfg = from_dict(
+        {
+            "seed": seed,
+            "duration_s": duration,
+            "world": {"n_robots": n, "side_m": side},
+            "mobility": {"model": "static", "stationary_start": False},
+            "channel": {
+                "range_m": rng.uniform(8.0, 16.0, n).tolist() if unequal else 10.0,
+                "latency_s": latency_s,
+                "latency_jitter_s": latency_jitter_s,
+            },
+            "protocol": {"model": "clustering", "message_rate_hz": 0.0, **protocol},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
+    sim = build(cfg)
+    sim.run()
+    roles = sim.trace.frame("roles")
+    st = sim.state
+    mutual = [
+        (i, int(st.leader[i]))
+        for i in np.flatnonzero(st.role == MEMBER).tolist()
+        if st.role[st.leader[i]] == MEMBER and st.leader[st.leader[i]] == i
+    ]
+    return roles[roles.t_s > 60.0], mutual
+
+
+@pytest.mark.parametrize("seed", [4, 8])
+def test_merging_settles_with_latency_above_the_ack_period(seed):
+    """Latency 1.3 s (above the 1 s Ack period), unequal ranges, static, no loss: leaders
+    may yield to each other on stale group sizes, but after a transient nothing changes
+    any more, and no two robots end as members of each other."""
+    late, mutual = settled_run(seed)
+    assert late.empty, late.to_string()
+    assert mutual == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "latency_s, latency_jitter_s, unequal, policy",
+    [
+        (0.0, 0.0, False, "smaller_group_yields"),
+        (0.4, 0.0, True, "smaller_group_yields"),
+        (1.3, 0.0, True, "highest_degree_wins"),
+        (2.7, 0.0, True, "smaller_group_yields"),
+        (0.3, 1.5, True, "smaller_group_yields"),
+        (1.3, 1.5, False, "highest_degree_wins"),
+        (2.0, 0.8, True, "lowest_id_wins"),
+    ],
+)
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_merging_settles_for_every_latency_jitter_and_range_mix(seed, latency_s, latency_jitter_s, unequal, policy):
+    late, mutual = settled_run(
+        seed, latency_s=latency_s, latency_jitter_s=latency_jitter_s, unequal=unequal, merge_policy=policy
+    )
+    assert late.empty, late.to_string()
+    assert mutual == []
+
+
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(min_value=2, max_value=40), st.floats(min_value=5.0, max_value=40.0), st.integers(0, 2**31 - 1))
 def test_property_random_static_topologies(n, side, seed):
@@ -232,6 +296,8 @@ def test_belief_vs_truth_shows_staleness():
     """After a robot leaves, its former neighbours still believe in it until tau passes."""
     sim, stack = static_run([[0, 0], [5, 0], [0, 5]], duration=30.0, run=False)
     sim.run(until_s=10.0)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    assert (view.role == "beta").sum() == 2 and view.leader_in_range.all()
     sim.state.set_leg(2, sim.now, (0.0, 0.0), start_m=(500.0, 500.0))
     sim.run(until_s=10.5)
     view = stack.belief_vs_truth(sim.now).set_index("robot")
@@ -239,6 +305,22 @@ def test_belief_vs_truth_shows_staleness():
     sim.run(until_s=14.0)
     view = stack.belief_vs_truth(sim.now).set_index("robot")
     assert view.loc[0, "stale_neighbours"] == 0 and view.loc[2, "true_neighbours"] == 0
+
+
+def test_belief_vs_truth_is_per_direction():
+    """Robot 0 (range 5 m) hears robot 1 (range 15 m) 10 m away; 1 cannot hear 0. That 0
+    believes 1 live is true (1's Acks reach 0), not stale; 1 has nothing to believe."""
+    sim, stack = static_run([[0, 0], [10, 0], [0, 40]], duration=20.0, range_m=[5.0, 15.0, 50.0], run=False)
+    sim.run(until_s=5.0)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    # 0 hears 1 and 2 (40 m, within 2's range); 1 hears 2 (41 m); 2 hears nobody.
+    cols = ["believed_neighbours", "true_neighbours", "stale_neighbours", "missing_neighbours"]
+    assert view[cols].values.tolist() == [[2, 2, 0, 0], [1, 1, 0, 0], [0, 0, 0, 0]]
+    # Robot 2 jumps away: 0 and 1 still believe in it (stale) until tau passes.
+    sim.state.set_leg(2, sim.now, (0.0, 0.0), start_m=(500.0, 500.0))
+    sim.run(until_s=5.5)
+    view = stack.belief_vs_truth(sim.now).set_index("robot")
+    assert view[cols].values.tolist() == [[2, 1, 1, 0], [1, 0, 1, 0], [0, 0, 0, 0]]
 
 
 def test_run_outputs_for_clustering(tmp_path):

@@ -1,7 +1,11 @@
 """One test per clustering rule (MODEL.md 4.2), on small scripted topologies.
 
 Robots are static unless a test moves them; loss is off, jitter is off and beacon phases
-are set by hand, so every event time is known.
+are set by hand, so every event time is known. A phase above the Ack period is a robot
+switched on later. A robot that becomes a leader at the instant of its own Ack sends that
+Ack with its old role (deadlines come after every message of their instant), so its
+first Ack as a leader comes one period later: a robot that is to join it must have
+started more than a period after it.
 """
 
 import numpy as np
@@ -87,15 +91,18 @@ def test_rule4_undecided_robot_that_hears_no_leader_becomes_leader_after_tau():
 
 
 def test_rule2_undecided_robot_joins_the_leader_it_hears():
-    """Robot 1 hears robot 0's first Ack as alpha and joins before its own timeout."""
-    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.1, 0.6])
+    """Robot 1, switched on 1.5 s after robot 0, hears robot 0's first Ack as alpha and
+    joins before its own timeout."""
+    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.1, 1.6])
     sim.run(until_s=10)
     assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
     joined = records(sim, 1)
     assert joined.cause.tolist() == ["rule2_join"]
     assert (joined.role[0], joined.leader[0]) == ("beta", 0)
-    # It joined on the first Ack robot 0 sent as a leader (sent at 3.1, delivered 1 ms later).
-    assert joined.t_s[0] == pytest.approx(3.1 + LATENCY, abs=1e-12)
+    # Robot 0 became alpha at 3.1, after its Ack of that instant; it joined on the first
+    # Ack robot 0 sent as a leader (sent at 4.1, delivered 1 ms later).
+    assert records(sim, 0).t_s[0] == pytest.approx(3.1, abs=1e-12)
+    assert joined.t_s[0] == pytest.approx(4.1 + LATENCY, abs=1e-12)
     assert (sim.state.role == [LEADER, MEMBER]).all()
 
 
@@ -104,7 +111,7 @@ def test_rule2_join_policy_chooses_among_known_leaders(policy, expected):
     """Member 3 of leader 2 also hears leaders 0 (10 m away) and 1 (8 m away); when 2
     leaves, it joins the leader its policy picks, at once."""
     pos = [[18, 0], [0, 0], [8, -9], [8, 0]]  # ids: 0 = B (far), 1 = A (near), 2 = X, 3 = m
-    sim, stack, deliveries = scripted(pos, [0.6, 0.3, 0.0, 0.9], join_policy=policy)
+    sim, stack, deliveries = scripted(pos, [0.6, 0.3, 0.0, 1.9], join_policy=policy)
     move_away(sim, 2, 10.0)
     sim.run(until_s=20)
     rec = records(sim, 3)
@@ -114,7 +121,7 @@ def test_rule2_join_policy_chooses_among_known_leaders(policy, expected):
 
 
 def test_rule3_member_whose_leader_leaves_becomes_undecided_exactly_tau_after_last_ack():
-    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.1, 0.6], election_policy="none")
+    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.1, 1.6], election_policy="none")
     move_away(sim, 0, 10.0)
     sim.run(until_s=30)
     rec = records(sim, 1)
@@ -125,21 +132,39 @@ def test_rule3_member_whose_leader_leaves_becomes_undecided_exactly_tau_after_la
     assert rec.t_s[2] == last + 2 * TAU  # then rule 4, tau later
 
 
-def test_ack_at_the_deadline_instant_counts():
+@pytest.mark.parametrize(
+    "phases, causes, times",
+    [
+        ([0.5, 1.75], ["rule2_join"], [3.5]),
+        # Robot 1's deadlines all fall at the instant of its own Ack as well.
+        ([0.5, 1.5], ["rule2_join"], [3.5]),
+        # Equal phases: neither hears a leader before its deadline; both become leaders at
+        # 2.5, first hear each other as leaders at 3.5 (their first Acks as leaders), and
+        # merge merge_delay (2 s) after that, not at once.
+        ([0.5, 0.5], ["rule4_no_leader", "rule5_merge_yield"], [2.5, 5.5]),
+    ],
+)
+def test_ack_at_the_deadline_instant_counts(phases, causes, times):
     """With no latency and every other Ack of the leader lost, the member hears its leader
     at t and t + 2 = its deadline (tau = 2 periods): that Ack is processed first, counts,
-    and the member never times out."""
-    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.5, 0.75], tau_s=2.0, latency_s=0.0)
+    and the member never times out, even when its own Ack is due at the same instant."""
+    sim, stack, deliveries = scripted([[0, 0], [5, 0]], phases, tau_s=2.0, latency_s=0.0)
 
     def every_other(sender, receivers, distances):
-        odd = sim.env.now > 5 and int(round(sim.env.now - 0.5)) % 2 == 1
+        odd = sim.env.now > 7 and int(round(sim.env.now - 0.5)) % 2 == 1
         return np.zeros(len(receivers), dtype=bool) if sender == 0 and odd else None
 
     sim.channel.survives = every_other
     sim.run(until_s=30)
-    heard = sorted(t for t, s, rec in deliveries if s == 0 and 1 in rec and t > 6)
+    heard = sorted(t for t, s, rec in deliveries if s == 0 and 1 in rec and t > 8)
     assert np.diff(heard).min() == 2.0  # the gaps are exactly tau
-    assert records(sim, 1).cause.tolist() == ["rule2_join"]
+    rec = records(sim, 1)
+    assert rec.cause.tolist() == causes
+    assert rec.t_s.tolist() == times
+    # An Ack exactly tau after the previous one continues the entry: live without a break.
+    assert stack.table.live_since_s[1, stack.table.entry(1, 0)] < 7.0
+    assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
+    assert sim.state.role.tolist() == [LEADER, MEMBER]
 
 
 def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():
@@ -171,11 +196,15 @@ def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():
     assert sim.state.leader.tolist() == [0, 0, 0, 0, 0]
 
 
-@pytest.mark.parametrize("policy, winner", [("lowest_id_wins", 0), ("highest_degree_wins", 3)])
+@pytest.mark.parametrize(
+    "policy, winner", [("lowest_id_wins", 0), ("highest_degree_wins", 3), ("smaller_group_yields", 3)]
+)
 def test_rule5_merge_policies(policy, winner):
-    """Leaders 0 (alone) and 3 (with two members) meet: the policy decides who stays."""
+    """Leaders 0 (alone) and 3 (with two members) meet: the policy decides who stays; the
+    loser yields once, merge_delay after both were leaders over the two-way link, and the
+    winner never changes role."""
     pos = [[0, 0], [200, 0], [300, 0], [100, 0], [103, 0], [100, 3]]
-    sim, stack, deliveries = scripted(pos, [0.1, 0.9, 0.95, 0.2, 0.5, 0.6], merge_policy=policy)
+    sim, stack, deliveries = scripted(pos, [0.1, 0.9, 0.95, 0.2, 1.5, 1.6], merge_policy=policy)
 
     def bring():
         yield sim.env.timeout(10.0)
@@ -186,14 +215,93 @@ def test_rule5_merge_policies(policy, winner):
     sim.run(until_s=30)
     assert sim.state.role[winner] == LEADER
     loser = 3 if winner == 0 else 0
-    assert records(sim, loser).cause.iloc[-1] in ("rule5_merge_yield", "rule2_join")
+    assert records(sim, loser).cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
+    assert records(sim, winner).cause.tolist() == ["rule4_no_leader"]
     assert sim.state.leader[loser] == winner
+    # Both leaders since t < 5; the two-way link exists from the second Ack across it.
+    across = sorted(t for t, s, rec in deliveries if t > 10 and s in (0, 3) and ({0, 3} - {s}) <= rec)
+    two_way = next(t for t in across if any(u < t for u in across if u > 10))
+    t_yield = records(sim, loser).t_s.iloc[-1]
+    assert two_way + 2.0 - PERIOD <= t_yield < two_way + 2.0 + PERIOD + LATENCY
 
 
-def test_rule6_group_that_lost_its_leader_elects_the_lowest_id():
-    """Leader 0 leaves; its members 1 and 2 time out together; 1 (lowest id) becomes
-    alpha at once and 2 joins it on hearing it."""
-    sim, stack, deliveries = scripted([[0, 0], [5, 0], [5, 4]], [0.1, 0.5, 0.7])
+def test_rule5_highest_degree_counts_two_way_links_on_both_sides():
+    """Leader 1 hears three robots that cannot hear it (their range is 30 m, its 10 m):
+    one-way links. Counted in its degree they would make it look busier than leader 0.
+    Both leaders compare the same thing (two-way degrees, as each announced): 0 has 3
+    (members 2, 3 and leader 1), 1 has 2 (member 4 and leader 0), so 1 yields, and only 1."""
+    far = 100.0
+    pos = [[0, 0], [far + 8, 0], [-5, 0], [-5, 3], [far + 12, 0], [far + 33, 0], [far + 33, 2], [far + 33, -2]]
+    ranges = [10.0] * 5 + [30.0] * 3
+    sim, stack, deliveries = scripted(
+        pos, [0.1, 0.2, 1.5, 1.6, 1.7, 0.3, 1.8, 1.9], range_m=ranges, merge_policy="highest_degree_wins"
+    )
+
+    def bring():
+        yield sim.env.timeout(10.0)
+        for k in (1, 4, 5, 6, 7):
+            p = sim.state.positions_at(10.0, [k])[0]
+            sim.state.set_leg(k, 10.0, (0.0, 0.0), start_m=(p[0] - far, p[1]))
+
+    sim.env.process(bring())
+    sim.run(until_s=30)
+    assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
+    assert records(sim, 1).cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
+    assert sim.state.leader[[1, 2, 3]].tolist() == [0, 0, 0]
+
+
+def test_rule5_leaders_that_yield_to_each_other_settle_on_the_lower_id(monkeypatch):
+    """With latency 1.3 s each leader decides on news more than a period old; when that
+    makes both yield (forced here: each believes it loses), the lower id takes the lead
+    back on hearing the other's yield, the higher stays its member, and nothing changes
+    after that."""
+    import protocols.clustering as clustering
+
+    monkeypatch.setattr(clustering, "merge_loser", lambda policy, me, other: me.id)
+    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.1, 0.2], latency_s=1.3)
+    sim.run(until_s=60)
+    r0, r1 = records(sim, 0), records(sim, 1)
+    assert r0.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield", "rule5_mutual_yield"]
+    assert r1.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
+    # Each yields before the other's yield reaches it; 0 resumes on hearing 1's.
+    assert r1.t_s[1] < r0.t_s[1] < r1.t_s[1] + 1.3
+    assert r0.t_s[2] == pytest.approx(min(t for t, s, rec in deliveries if s == 1 and t > r1.t_s[1] + 1.3))
+    assert sim.state.role.tolist() == [LEADER, MEMBER] and sim.state.leader.tolist() == [0, 0]
+
+
+def test_an_overtaken_ack_does_not_undo_a_resignation():
+    """Leader 0 yields to leader 2 and its member 1 (which hears no other leader, and
+    holds no election) becomes undecided; an older Ack of 0, overtaken in flight, then
+    arrives at 1: it is ignored, so 1 does not join the leader that resigned."""
+    pos = [[0, 0], [-8, 0], [100, 0], [104, 3], [104, -3]]
+    sim, stack, deliveries = scripted(pos, [0.1, 1.5, 0.2, 1.6, 1.7], election_policy="none")
+    old = []
+    stack.beacon.listeners.append(lambda now, ack, rec, hm: old.append(ack) if ack.sender == 0 and now < 10 else None)
+
+    def bring():
+        yield sim.env.timeout(10.0)
+        for k, p in zip((2, 3, 4), ((8.0, 0.0), (12.0, 3.0), (12.0, -3.0))):
+            sim.state.set_leg(k, 10.0, (0.0, 0.0), start_m=p)
+
+    sim.env.process(bring())
+    sim.run(until_s=15.0)
+    assert records(sim, 0).cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
+    assert records(sim, 1).cause.tolist() == ["rule2_join", "rule5_leader_resigned"]
+    assert old[-1].role == LEADER and not old[-1].resign
+    stack.beacon.deliver(0, np.array([1]), old[-1])
+    assert sim.state.role[1] == UNDECIDED
+    assert stack.beacon.stale_acks == 1
+    sim.run(until_s=16.0)
+    assert records(sim, 1).cause.tolist() == ["rule2_join", "rule5_leader_resigned"]
+
+
+@pytest.mark.parametrize("policy", ["lowest_id", "highest_degree"])
+def test_rule6_group_that_lost_its_leader_elects_the_lowest_id(policy):
+    """Leader 0 leaves; its members 1 and 2 time out together; 1 (lowest id; with
+    highest_degree, a tie: both announced 2 neighbours) becomes alpha at once and 2 joins
+    it on hearing it. Each compares what it announced itself with what the other announced,
+    both counting the leader they had."""
+    sim, stack, deliveries = scripted([[0, 0], [5, 0], [5, 4]], [0.1, 1.5, 1.7], election_policy=policy)
     move_away(sim, 0, 10.0)
     sim.run(until_s=30)
     r1, r2 = records(sim, 1), records(sim, 2)

@@ -18,6 +18,9 @@ from netsim.errors import ConfigError
         ("channel.range_m=-5", "channel.range_m", "> 0"),
         ("world.n_robots=0", "world.n_robots", "> 0"),
         ("protocol.tau_s=1.0", "protocol.tau_s", "greater than protocol.ack_period_s"),
+        # The longest gap between two Acks without loss is period + jitter + latency jitter.
+        ("protocol.tau_s=1.01", "protocol.tau_s", "protocol.ack_jitter_s + channel.latency_jitter_s = 1.05"),
+        ("channel.latency_jitter_s=2.5", "protocol.tau_s", "= 3.55"),
         ("mobility.speed_min_mps=6", "mobility.speed_min_mps", "must not exceed"),
         ("channel.latency_s=nan", "channel.latency_s", "NaN"),
         ("world.n_robotz=5", "world.n_robotz", "unknown key"),
@@ -68,6 +71,7 @@ def _cli(tmp_path, capsys, *args):
         (["--set", "channel.range_m=-5"], "channel.range_m = -5.0"),
         (["--set", "world.n_robots=0"], "world.n_robots = 0"),
         (["--set", "protocol.tau_s=0.5"], "protocol.tau_s = 0.5"),
+        (["--set", "protocol.tau_s=1.04"], "protocol.tau_s = 1.04: must be greater than protocol.ack_period_s"),
         (["--set", "mobility.speed_min_mps=9"], "mobility.speed_min_mps = 9.0"),
         (["--set", "channel.range_m=nan"], "channel.range_m = nan"),
         (["--set", "world.sides=3"], "world.sides"),

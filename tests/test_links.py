@@ -10,6 +10,7 @@ from netsim.links import link_lifetimes
 from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.topology import geometric_edges, snapshot
+from netsim.validate import brute_force_mismatches, random_legs
 from tests.conftest import make_config
 
 
@@ -86,6 +87,10 @@ def test_link_times_independent_of_window_and_match_brute_force(seed):
     sim.run()
     legs = sim.state.legs()
     links = link_lifetimes(legs, 40.0, 120.0)
+    for window_s in (0.37, 20.0):  # the default is 0.5 R / v_max = 2.5 s
+        other = link_lifetimes(legs, 40.0, 120.0, window_s=window_s)
+        assert other[["a", "b"]].equals(links[["a", "b"]])
+        assert np.abs(other[["t_up_s", "t_down_s"]].to_numpy() - links[["t_up_s", "t_down_s"]].to_numpy()).max() < 1e-9
     from netsim.trajectory import sample_positions
 
     for row in links.itertuples():
@@ -150,3 +155,100 @@ def test_link_duration_on_torus_matches_closed_form():
     assert len(dur) > 3000
     # The duration has a heavy (log-divergent variance) tail: allow 5 %.
     assert dur.mean() == pytest.approx(theory, rel=0.05)
+
+
+# -- jumps: a robot placed somewhere else at T (a trace's "set X_", any model's start_m) ----
+def test_jump_into_range_opens_the_link_at_the_jump_instant():
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 50.0, 0.0, 0.0, 0.0),
+            (5.0, 1, 3.0, 0.0, 0.0, 0.0),  # jumps into range at 5 ...
+            (12.0, 1, 100.0, 0.0, 0.0, 0.0),  # ... and out again at 12
+        ]
+    )
+    links = link_lifetimes(legs, 5.0, 20.0)
+    assert links[["a", "b", "t_up_s", "t_down_s"]].values.tolist() == [[0, 1, 5.0, 12.0]]
+    assert not links.censored.any()
+
+
+def test_jump_apart_closes_the_link_at_the_jump_instant():
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 1.0, 0.0, 0.5, 0.0),  # in range, drifting: leaves by motion at t = 8
+            (7.0, 1, 40.0, 0.0, -1.0, 0.0),  # jumps away at 7; drives back in range at 42
+        ]
+    )
+    links = link_lifetimes(legs, 5.0, 50.0)
+    assert links[["t_up_s", "t_down_s"]].values.tolist() == [[0.0, 7.0], [pytest.approx(42.0), 50.0]]
+    assert links.censored_start.tolist() == [True, False] and links.censored_end.tolist() == [False, True]
+
+
+def test_jump_within_range_and_simultaneous_jumps():
+    """A jump from in range to in range changes nothing; two robots that jump at the same
+    instant are judged on both new positions."""
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 2.0, 0.0, 0.0, 0.0),
+            (3.0, 1, 0.0, 4.0, 0.0, 0.0),  # still in range: the lifetime goes on
+            (6.0, 0, 100.0, 0.0, 0.0, 0.0),  # both jump at 6, together: still linked
+            (6.0, 1, 103.0, 0.0, 0.0, 0.0),
+            (9.0, 0, 200.0, 0.0, 0.0, 0.0),  # both jump at 9, apart
+            (9.0, 1, 300.0, 0.0, 0.0, 0.0),
+        ]
+    )
+    links = link_lifetimes(legs, 5.0, 20.0)
+    assert links[["t_up_s", "t_down_s"]].values.tolist() == [[0.0, 9.0]]
+
+
+def test_trace_jump_opens_and_closes_links_in_links_parquet(tmp_path):
+    """ns-2 ``set X_`` at T: the link appears in the run's links table from T exactly."""
+    f = tmp_path / "jump.tcl"
+    f.write_text(
+        "$node_(0) set X_ 10.0\n$node_(0) set Y_ 10.0\n$node_(1) set X_ 90.0\n$node_(1) set Y_ 10.0\n"
+        '$ns_ at 4.25 "$node_(1) set X_ 15.0"\n$ns_ at 9.5 "$node_(1) set Y_ 80.0"\n'
+    )
+    cfg = make_config(
+        duration_s=15.0,
+        world={"n_robots": 2, "side_m": 100.0},
+        mobility={"model": "trace", "trace_file": str(f)},
+        channel={"range_m": 20.0},
+        protocol={"model": "ack", "ack_jitter_s": 0.0},
+    )
+    sim = build(cfg)
+    sim.run()
+    frames = collect(sim)
+    assert frames["links"][["t_up_s", "t_down_s"]].values.tolist() == [[4.25, 9.5]]
+    assert (frames["acks"].received > 0).all()
+
+
+# -- small tori: another image of a robot can come into range within a piece ----------------
+def test_small_torus_every_image_counts():
+    """250 m torus, r = 100 m: a robot 60 m away moving away at 10 m/s leaves at 4 s, comes
+    back in range round the torus at 9 s, passes, leaves at 29 s, and is back at 34 s."""
+    legs = _legs([(0.0, 0, 0.0, 0.0, 0.0, 0.0), (0.0, 1, 60.0, 0.0, 10.0, 0.0)])
+    links = link_lifetimes(legs, 100.0, 40.0, side_m=250.0, torus=True)
+    got = links[["t_up_s", "t_down_s"]].values.tolist()
+    assert got == [[0.0, pytest.approx(4.0)], [pytest.approx(9.0), pytest.approx(29.0)], [pytest.approx(34.0), 40.0]]
+
+
+@pytest.mark.parametrize(
+    "seed, side, torus, window_s",
+    [(1, 60.0, False, None), (2, 60.0, False, 0.7), (3, 41.0, True, None), (4, 41.0, True, 3.0), (5, 80.0, True, 0.2)],
+)
+def test_jumps_and_tori_match_brute_force_for_any_window(seed, side, torus, window_s):
+    """Random trajectories with jumps, unequal ranges, bounded or toroidal (down to a side
+    just above twice the largest range): linked at an instant iff some lifetime covers it,
+    whatever the solver's window."""
+    rng = np.random.default_rng(seed)
+    n, duration = 12, 60.0
+    ranges = rng.uniform(12.0, 20.0, n)
+    legs = random_legs(rng, n, duration, side, 3.0, jump_rate=0.3)
+    links = link_lifetimes(legs, ranges, duration, side_m=side, torus=torus, window_s=window_s)
+    reference = link_lifetimes(legs, ranges, duration, side_m=side, torus=torus)
+    assert len(links) == len(reference)
+    assert np.abs(links[["t_up_s", "t_down_s"]].to_numpy() - reference[["t_up_s", "t_down_s"]].to_numpy()).max() < 1e-9
+    times = np.sort(rng.uniform(0, duration, 1500))
+    assert brute_force_mismatches(legs, links, ranges, times, side if torus else None) == 0

@@ -129,12 +129,11 @@ def test_bonnmotion_style_file_is_read(tmp_path):
 @pytest.mark.parametrize(
     "text, words",
     [
-        ("$node_(0) set X_ 1\n", "no initial X_ and Y_"),
         ('$node_(0) set X_ 1\n$node_(0) set Y_ 1\n$ns_ at -1 "$node_(0) setdest 1 1 1"\n', ":3: negative"),
-        ('$node_(0) set X_ 1\n$node_(0) set Y_ 1\n$ns_ at 1 "$node_(3) setdest 1 1 1"\n', ":3: node without"),
         ("$node_(0) set X_ abc\n", ":1:"),
         ("hello\n", ":1: not an ns-2 movement command"),
-        ("", "no initial positions"),
+        ("", "no nodes"),
+        ("# only a comment\n", "no nodes"),
     ],
 )
 def test_malformed_files_name_the_line(tmp_path, text, words):
@@ -142,6 +141,44 @@ def test_malformed_files_name_the_line(tmp_path, text, words):
     f.write_text(text)
     with pytest.raises(NetsimInputError, match=words):
         ns2.read(f)
+
+
+def test_nodes_without_an_initial_position_start_at_the_origin_as_in_ns3(tmp_path):
+    """As ns-3's Ns2MobilityHelper: a coordinate never set is 0, with one warning naming
+    the nodes; a node that appears only in commands counts."""
+    f = tmp_path / "partial.tcl"
+    f.write_text(
+        "$node_(0) set X_ 5.0\n$node_(0) set Y_ 6.0\n$node_(1) set X_ 7.0\n"
+        '$ns_ at 1.0 "$node_(3) setdest 10.0 0.0 2.0"\n'
+    )
+    with pytest.warns(UserWarning, match=r"node\(s\) \[1, 2, 3\] .* start at 0") as caught:
+        scen = ns2.read(f)
+    assert len(caught) == 1
+    assert scen.n_robots == 4
+    assert scen.initial_m.tolist() == [[5.0, 6.0], [7.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
+    cfg = make_config(
+        duration_s=10.0,
+        world={"n_robots": 4, "side_m": 100.0},
+        mobility={"model": "trace", "trace_file": str(f)},
+        protocol={"model": "none"},
+    )
+    with pytest.warns(UserWarning):
+        sim = build(cfg)
+    sim.run()
+    pos = sample_positions(sim.state.legs(), 4, [0.0, 3.0, 9.0])[["x_m", "y_m"]].to_numpy().reshape(3, 4, 2)
+    assert pos[0, 3].tolist() == [0.0, 0.0] and pos[1, 3].tolist() == [4.0, 0.0] and pos[2, 3].tolist() == [10.0, 0.0]
+
+
+def test_cli_warns_in_one_line_for_nodes_without_a_position(tmp_path, capsys):
+    f = tmp_path / "partial.tcl"
+    f.write_text('$node_(0) set X_ 5.0\n$node_(0) set Y_ 6.0\n$ns_ at 1.0 "$node_(1) setdest 10.0 0.0 2.0"\n')
+    code = main(
+        ["run", "--quiet", "--out", str(tmp_path / "o"), "--set", "mobility.model=trace"]
+        + ["--set", f"mobility.trace_file={f}", "--set", "world.n_robots=2", "--set", "duration_s=5"]
+    )
+    err = capsys.readouterr().err.splitlines()
+    assert code == 0
+    assert len(err) == 1 and err[0].startswith("netsim: warning: ") and "node(s) [1]" in err[0]
 
 
 def test_trace_node_count_must_match(tmp_path, capsys):
