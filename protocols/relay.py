@@ -158,9 +158,13 @@ class Relay:
 
 
 def traffic(sim, relay: Relay, rate_hz: float):
-    """Messages between uniformly random pairs, as a Poisson process of ``rate_hz``."""
+    """Messages between uniformly random pairs, as a Poisson process of ``rate_hz``.
+
+    A team of one robot has no pair to send to: it sends nothing (and draws nothing)."""
     rng = sim.streams.get("traffic")
     n = sim.state.n
+    if n < 2:
+        return
     while True:
         yield sim.env.timeout(rng.exponential(1.0 / rate_hz))
         src = int(rng.integers(n))
