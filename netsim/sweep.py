@@ -175,8 +175,12 @@ def _random(spec) -> list[dict]:
     columns = {}
     for key, bounds in ranges.items():
         _check_key(key)
-        if not (isinstance(bounds, list) and len(bounds) == 2 and all(isinstance(b, (int, float)) for b in bounds)):
-            raise _err(f"[random.ranges] {key} = {bounds!r}: must be [low, high]")
+        if not (
+            isinstance(bounds, list)
+            and len(bounds) == 2
+            and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds)
+        ):
+            raise _err(f"[random.ranges] {key} = {bounds!r}: must be [low, high] (two numbers)")
         lo, hi = bounds
         if not lo <= hi:
             raise _err(f"[random.ranges] {key} = {bounds!r}: low must not exceed high")
@@ -185,8 +189,8 @@ def _random(spec) -> list[dict]:
                 raise _err(f"[random.ranges] {key} = {bounds!r}: integers must lie within 64 bits")
             columns[key] = rng.integers(lo, hi + 1, samples).tolist()
         else:
-            if not all(math.isfinite(b) for b in bounds) or not math.isfinite(hi - lo):
-                raise _err(f"[random.ranges] {key} = {bounds!r}: low and high must be finite")
+            if not all(-1e308 <= b <= 1e308 for b in bounds) or not math.isfinite(hi - lo):
+                raise _err(f"[random.ranges] {key} = {bounds!r}: low and high must be finite (within ±1e308)")
             columns[key] = rng.uniform(lo, hi, samples).tolist()
     return [{k: columns[k][i] for k in columns} for i in range(samples)]
 
