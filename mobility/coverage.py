@@ -1,4 +1,4 @@
-"""Connected coverage by virtual forces among leaders (paper section 1.4; MODEL.md section 5).
+"""Connected coverage by virtual forces among leaders (paper section 1.4; docs/model.md section 5).
 
 Every control period each leader computes the resultant of the forces from the
 neighbouring leaders it knows of (see :mod:`mobility.forces`) and the border's push, and

@@ -231,7 +231,7 @@ def parser() -> argparse.ArgumentParser:
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
     w.set_defaults(func=cmd_sweep)
 
-    v = sub.add_parser("validate", help="check the model against the closed-form results of VALIDATION.md")
+    v = sub.add_parser("validate", help="check the model against the closed-form results of docs/validation.md")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
     v.set_defaults(func=cmd_validate)
 

@@ -1,4 +1,4 @@
-"""``netsim validate``: the closed-form results of VALIDATION.md, checked on real runs.
+"""``netsim validate``: the closed-form results of docs/validation.md, checked on real runs.
 
 Each check builds runs from configurations (models by name, as ``netsim run`` does),
 measures from their outputs, and compares with theory within a stated tolerance: four

@@ -1,4 +1,4 @@
-"""Multi-hop messages between any two robots (MODEL.md section 4.3).
+"""Multi-hop messages between any two robots (docs/model.md section 4.3).
 
 ``backbone`` (default): the source broadcasts the message; every leader and gateway that
 receives it for the first time rebroadcasts it once, with the TTL decreased; ordinary
