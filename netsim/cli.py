@@ -16,7 +16,8 @@
 ``netsim config``
     Print the default configuration, every key with its meaning.
 
-Bad input gives one line on standard error and exit status 2.
+Bad input gives one line on standard error and exit status 2, and writes nothing; output
+paths and the scheduler are checked before any simulation starts.
 """
 
 from __future__ import annotations
@@ -198,7 +199,12 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("config", nargs="?", help="TOML scenario file (default: the built-in scenario)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     r.add_argument("--seed", type=int, help="seed of every random stream (same as --set seed=N)")
-    r.add_argument("--out", default="netsim-out", help="output directory (default: ./netsim-out)")
+    r.add_argument(
+        "--out",
+        default="netsim-out",
+        help="output directory (default: ./netsim-out); an earlier run there is replaced as a whole, "
+        "a non-empty directory that holds no run is refused",
+    )
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
     r.set_defaults(func=cmd_run)
@@ -221,7 +227,7 @@ def parser() -> argparse.ArgumentParser:
     w.add_argument("sweep", help="sweep file (TOML)")
     w.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
     w.add_argument("--scheduler", help="address of a running Dask scheduler, e.g. tcp://host:8786")
-    w.add_argument("--out", help="sweep directory (default: ./sweep-out/<name>)")
+    w.add_argument("--out", help="sweep directory (default: ./sweep-out/<name>); a sweep's directory is resumed")
     w.add_argument(
         "--connect-timeout",
         type=float,

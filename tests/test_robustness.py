@@ -74,6 +74,27 @@ def test_out_that_is_or_lies_under_a_file_is_refused_before_simulating(
     refused(capfd, code, before, tmp_path, words, out)
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["sweep", "s.toml", "--out", "afile/o"],
+        ["sweep", "s.toml", "--out", "afile"],
+        ["figures", "--out", "afile"],
+        ["figures", "rundir", "--out", "afile/figs"],
+    ],
+    ids=["sweep-under-file", "sweep-file", "figures-file", "figures-of-run-under-file"],
+)
+def test_every_command_that_writes_checks_its_output_first(tmp_path, capfd, monkeypatch, no_simulation, args):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "s.toml").write_text(SWEEP)
+    (tmp_path / "rundir").mkdir()
+    (tmp_path / "rundir" / "config.toml").write_text("")
+    monkeypatch.setattr(sweepmod, "_safe_execute", lambda *a: pytest.fail("a sweep run started"))
+    before = tree(tmp_path)
+    refused(capfd, main(args), before, tmp_path, "afile")
+
+
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc, where no directory can be made")
 def test_out_that_cannot_be_created_is_refused_before_simulating(tmp_path, capfd, no_simulation):
     before = tree(tmp_path)
