@@ -122,6 +122,36 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Ite
     failed command leaves nothing behind.
     """
     out = Path(path)
+    try:
+        missing = _missing_dirs(out, option)
+        if kind == "run":
+            check_run_dir(out, option)
+        elif kind == "sweep":
+            check_sweep_dir(out, option)
+    except OSError as exc:  # e.g. a parent we may not look into
+        raise _unwritable(option, out, f"cannot be used ({exc.strerror or exc})") from None
+    created: list[Path] = []
+    doing = "cannot be created"
+    try:
+        for d in reversed(missing):
+            d.mkdir()
+            created.append(d)
+        doing = "cannot be written"
+        fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX, dir=out)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        _remove_empty(created)
+        raise _unwritable(option, out, f"{doing} ({exc.strerror or exc})") from None
+    try:
+        yield out
+    except BaseException:
+        _remove_empty(created)
+        raise
+
+
+def _missing_dirs(out: Path, option: str) -> list[Path]:
+    """The directories to create for ``out``, deepest first; refuse files in the way."""
     if out.is_symlink() and not out.exists():
         raise _unwritable(option, out, "is a broken symbolic link")
     if out.exists() and not out.is_dir():
@@ -133,26 +163,7 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Ite
         probe = probe.parent
     if probe.exists() and not probe.is_dir():
         raise _unwritable(option, out, f"cannot be created: {probe} is a file")
-    if kind == "run":
-        check_run_dir(out, option)
-    elif kind == "sweep":
-        check_sweep_dir(out, option)
-    created: list[Path] = []
-    try:
-        for d in reversed(missing):
-            d.mkdir()
-            created.append(d)
-        fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX, dir=out)
-        os.close(fd)
-        os.unlink(tmp)
-    except OSError as exc:
-        _remove_empty(created)
-        raise _unwritable(option, out, f"cannot be written ({exc.strerror or exc})") from None
-    try:
-        yield out
-    except BaseException:
-        _remove_empty(created)
-        raise
+    return missing
 
 
 def _remove_empty(created: list[Path]) -> None:
