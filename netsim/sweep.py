@@ -191,7 +191,8 @@ def _random(spec) -> list[dict]:
         else:
             if not all(-1e308 <= b <= 1e308 for b in bounds) or not math.isfinite(hi - lo):
                 raise _err(f"[random.ranges] {key} = {bounds!r}: low and high must be finite (within ±1e308)")
-            columns[key] = rng.uniform(lo, hi, samples).tolist()
+            # Equal bounds (0.0 and -0.0 included, which numpy's uniform refuses) fix the value.
+            columns[key] = [float(lo)] * samples if lo == hi else rng.uniform(lo, hi, samples).tolist()
     return [{k: columns[k][i] for k in columns} for i in range(samples)]
 
 

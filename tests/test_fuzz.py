@@ -412,7 +412,24 @@ def check_sweep_tree(tree):
     check_sweep_runs(sweep)
 
 
-RANGE_EDGES = [0, 1, -1, 2**63, -(2**63) - 1, 10**400, 0.5, math.inf, -math.inf, math.nan, 1e308, -1e308, True, "a"]
+RANGE_EDGES = [
+    0,
+    1,
+    -1,
+    2**63,
+    -(2**63) - 1,
+    10**400,
+    0.5,
+    0.0,
+    -0.0,
+    math.inf,
+    -math.inf,
+    math.nan,
+    1e308,
+    -1e308,
+    True,
+    "a",
+]
 
 
 @pytest.mark.parametrize("low", RANGE_EDGES, ids=repr)
