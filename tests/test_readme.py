@@ -11,8 +11,9 @@ reader following it would:
   that name (a TOML file must load as a scenario or a sweep); other ``python`` blocks run.
 
 Commands that would take minutes run with reduced parameters, by the explicit mapping
-``REDUCED`` below (README line -> what runs instead, and why); every other command runs
-exactly as written. Two checks keep the mapping honest: every entry must still match a
+``REDUCED`` below (README line -> what runs instead, and why), and every ``netsim run``
+that does not set ``duration_s`` simulates 60 s instead of the default 300 (``SHORTER``);
+every other command runs exactly as written. Two checks keep the mapping honest: every entry must still match a
 README line, and the commands table's synopses must name only options the CLI has, each
 command with a runnable example. The experiment scripts of the Experiments table run in
 ``tests/test_experiments.py`` (at tiny sizes); this test checks that each is there.
@@ -69,6 +70,9 @@ REDUCED = {
         "4 runs of 5 simulated seconds instead of 200 of 150",
     ),
 }
+
+# Appended to a `netsim run` command that does not set the simulated time.
+SHORTER = " --set duration_s=60"
 
 # Files the README defines, reduced the same way: file -> {dotted key: value}.
 REDUCED_FILES = {
@@ -152,6 +156,8 @@ def test_every_readme_command_runs(tmp_path, monkeypatch):
                     if run == "@validate":
                         run_validate_quickly(monkeypatch)
                     else:
+                        if re.search(r"\bnetsim run\b", run) and "duration_s=" not in run:
+                            run += SHORTER
                         done = shell(run.format(scheduler=cluster.scheduler_address), env)
                         assert done.returncode == 0, f"{command}\n{done.stderr[-3000:]}"
                     ran.append(command)
