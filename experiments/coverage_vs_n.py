@@ -6,7 +6,7 @@ a dense random static deployment in the middle of the area (``world.placement =
 dense, about 20 neighbours per robot, at every N), forms groups, then spreads by virtual
 forces (``coverage.members``, ``"spread"`` by default) until the stopping rule ends
 control. The area is large enough that a connected team cannot cover it all: the bound
-``U(N) = r^2 (pi + 1.9132 (N - 1))`` (VALIDATION.md item 16) stays below ``A``. Writes to
+``U(N) = r^2 (pi + 1.9132 (N - 1))`` (docs/validation.md item 16) stays below ``A``. Writes to
 ``--out``:
 
 - ``coverage_vs_n.csv``: per point, the mean, standard deviation and 95 % confidence

@@ -1,4 +1,4 @@
-"""False role changes against loss and ``tau / ack_period`` (VALIDATION.md item 9).
+"""False role changes against loss and ``tau / ack_period`` (docs/validation.md item 9).
 
 Pairs of static robots, far from each other, each pair a leader and its member, so that
 every leader loss is false: the member times out only when ``k`` consecutive Acks of its

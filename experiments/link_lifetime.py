@@ -4,7 +4,7 @@ Two sweeps on ``netsim.sweep``:
 
 - random waypoint, maximum speed x pause (speeds uniform on ``[spread v, v]``): mean
   (restricted) and median link lifetime with 95 % confidence intervals;
-- random direction on a torus at constant speed, where the closed form of VALIDATION.md
+- random direction on a torus at constant speed, where the closed form of docs/validation.md
   item 6, ``pi^2 R / (8 v)``, applies and is drawn as the theory line.
 
 Writes ``link_lifetime.csv`` (one row per model, speed and pause) and

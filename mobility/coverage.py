@@ -1,4 +1,4 @@
-"""Connected coverage by virtual forces (paper section 1.4; MODEL.md section 5): the
+"""Connected coverage by virtual forces (paper section 1.4; docs/model.md section 5): the
 controller plugin ``coverage``.
 
 Why the whole team must spread
@@ -14,7 +14,7 @@ the groups formed at the start happen to span (a quarter of the area in the buil
 scenario). To cover more, every robot must spread into a sparse, tree-like net in which
 most robots keep one or two neighbours near full range and stay well away from the rest.
 
-The architecture (MODEL.md section 5)
+The architecture (docs/model.md section 5)
 -------------------------------------
 - Leaders decide. Each control period a leader computes, for itself and for each member
   whose Acks it hears, the virtual force (:mod:`mobility.forces`, the configured law,

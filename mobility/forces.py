@@ -1,4 +1,4 @@
-"""Virtual-force laws between leaders (paper section 1.4; MODEL.md section 5).
+"""Virtual-force laws between leaders (paper section 1.4; docs/model.md section 5).
 
 A leader ``i`` feels from each neighbouring leader ``j`` at distance ``d < 2 r_c`` a force
 along the line from ``j`` to ``i`` of signed magnitude ``f(d)`` (positive: repulsive, away

@@ -4,7 +4,7 @@ In a bounded square a robot travels until it reaches the border, pauses ``pause_
 leaves in a new direction drawn uniformly among those pointing back inside. On a torus
 (``world.torus = true``) there is no border: a robot keeps its heading for
 ``turn_interval_s`` (``inf``: for ever, the constant-velocity model whose link durations
-have a closed form, VALIDATION.md item 6), then draws a new one.
+have a closed form, docs/validation.md item 6), then draws a new one.
 """
 
 from __future__ import annotations

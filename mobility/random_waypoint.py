@@ -1,4 +1,4 @@
-"""Random waypoint (paper section 1.1; MODEL.md section 2).
+"""Random waypoint (paper section 1.1; docs/model.md section 2).
 
 Each robot picks a destination uniformly in the square and a speed uniform on
 ``[speed_min_mps, speed_max_mps]``, travels there in a straight line, pauses ``pause_s``,
@@ -23,7 +23,7 @@ import numpy as np
 from mobility.placement import initial_positions
 from netsim.errors import ConfigError
 
-# Mean distance between two uniform points of the unit square (VALIDATION.md item 2).
+# Mean distance between two uniform points of the unit square (docs/validation.md item 2).
 MEAN_LEG_UNIT_SQUARE = (2 + math.sqrt(2) + 5 * math.log(1 + math.sqrt(2))) / 15
 
 

@@ -14,7 +14,7 @@ from netsim.errors import ConfigError, NetsimInputError
 def load(sim) -> ns2.Scenario:
     cfg = sim.config
     try:
-        scen = ns2.read(cfg.mobility.trace_file)
+        scen = ns2.read(cfg.mobility.trace_file, cfg.world.n_robots)
     except NetsimInputError as exc:
         raise NetsimInputError(f"mobility.trace_file: {exc}") from None
     if scen.n_robots != cfg.world.n_robots:

@@ -148,14 +148,14 @@ def compare_lifetimes(runs: pd.DataFrame, links: pd.DataFrame, by: list[str]) ->
 
 def torus_link_duration_mean(range_m: float, speed_mps: float) -> float:
     """Mean link lifetime for robots moving at the same constant speed in uniform random
-    directions on a torus: ``pi^2 R / (8 v)`` (VALIDATION.md item 6)."""
+    directions on a torus: ``pi^2 R / (8 v)`` (docs/validation.md item 6)."""
     return math.pi**2 * range_m / (8.0 * speed_mps)
 
 
 def acks_until_leader_loss(roles: pd.DataFrame, tau_s: float, period_s: float) -> np.ndarray:
     """For each robot that became a member, the number of its leader's Acks from the one
     it joined on to its first rule-3 timeout: the trials until ``k`` consecutive losses
-    (VALIDATION.md item 9). Assumes static robots and periodic Acks without jitter, so
+    (docs/validation.md item 9). Assumes static robots and periodic Acks without jitter, so
     that every leader loss is spurious and the timeout comes ``tau`` after the last Ack
     heard: the count is ``floor((t_timeout - t_join - tau) / period) + k``, with ``k`` the
     number of Ack instants strictly inside the ``tau`` window."""

@@ -18,7 +18,8 @@
 ``netsim config``
     Print the default configuration, every key with its meaning.
 
-Bad input gives one line on standard error and exit status 2.
+Bad input gives one line on standard error and exit status 2, and writes nothing; output
+paths and the scheduler are checked before any simulation starts.
 """
 
 from __future__ import annotations
@@ -53,20 +54,20 @@ def summary_table(summary: dict) -> str:
 
 
 def cmd_run(args) -> int:
-    from netsim.output import manifest, write_run
+    from netsim.output import claim_dir, manifest, write_run
     from netsim.run import execute
 
     overrides = list(args.set or [])
     if args.seed is not None:
         overrides.append(f"seed={args.seed}")
     config = cfgmod.load(args.config, overrides)
-    result = execute(config, progress=not args.quiet and not args.no_progress)
-    out = Path(args.out)
-    written = write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
-    if args.view:
-        from netsim import viewer
+    with claim_dir(args.out, "--out", kind="run") as out:
+        result = execute(config, progress=not args.quiet and not args.no_progress)
+        written = write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
+        if args.view:
+            from netsim import viewer
 
-        written.append(viewer.write(out))
+            written.append(viewer.write(out))
     if not args.quiet:
         n, duration = config.world.n_robots, config.duration_s
         print(f"netsim run: {n} robots, {duration:g} s simulated in {result.wall_s:.2f} s wall")
@@ -92,6 +93,8 @@ def cmd_scenario_generate(args) -> int:
         "protocol": {"model": "none"},
     }
     config = cfgmod.from_dict(tree)
+    out = Path(args.output)
+    check_out_file(out, "-o")
     sim = build(config)
     sim.run()
     header = (
@@ -99,7 +102,6 @@ def cmd_scenario_generate(args) -> int:
         f"speed: [{args.speed_min}, {args.speed_max}] m/s, pause: {args.pause} s, "
         f"duration: {args.duration} s, seed: {args.seed}, stationary start: {not args.no_stationary_start}"
     )
-    out = Path(args.output)
     tmp = out.with_name(f".{out.name}.tmp")
     try:
         ns2.write(tmp, sim.state.legs(), config.world.n_robots, config.duration_s, header)
@@ -110,6 +112,25 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
+def check_out_file(path: Path, option: str) -> None:
+    """Refuse, before any work, a file that could not be written: its directory must exist
+    and be writable, and the path must not be a directory."""
+    import tempfile
+
+    if path.is_dir():
+        raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
+    parent = path.parent
+    if not parent.is_dir():
+        what = "is a file" if parent.exists() else "does not exist"
+        raise NetsimInputError(f"{option} {path}: the directory {parent} {what}")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", dir=parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise NetsimInputError(f"{option} {path}: cannot write in {parent} ({exc.strerror or exc})") from None
+
+
 def cmd_sweep(args) -> int:
     from netsim import sweep as sweepmod
 
@@ -118,7 +139,16 @@ def cmd_sweep(args) -> int:
         raise NetsimInputError(f"--workers {args.workers}: must be at least 1")
     out = Path(args.out) if args.out else Path("sweep-out") / sweep.name
     workers = args.workers or (os.cpu_count() or 1)
-    report = sweepmod.run_sweep(sweep, out, workers=workers, scheduler=args.scheduler, progress=not args.no_progress)
+    if args.connect_timeout is not None and not args.connect_timeout > 0:
+        raise NetsimInputError(f"--connect-timeout {args.connect_timeout}: must be > 0 seconds")
+    report = sweepmod.run_sweep(
+        sweep,
+        out,
+        workers=workers,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+        connect_timeout_s=args.connect_timeout or sweepmod.CONNECT_TIMEOUT_S,
+    )
     print(report.text())
     print(f"results: {out}/ (load with netsim.sweep.load({str(out)!r}))")
     return 1 if report.failed else 0
@@ -136,25 +166,31 @@ def cmd_validate(args) -> int:
 
 def cmd_figures(args) -> int:
     from netsim import figures
-    from netsim.output import manifest, write_run
+    from netsim.output import claim_dir, is_run_dir, manifest, write_run
     from netsim.run import execute
 
     if args.run_dir:
         if args.config or args.set:
             raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
-        drawn = figures.draw(args.run_dir, args.out, at_s=args.at)
+        run_dir = Path(args.run_dir)
+        if not run_dir.is_dir():
+            raise NetsimInputError(f"{run_dir}: no such run directory (the --out of a `netsim run`)")
+        if not (run_dir / "config.toml").is_file() and not is_run_dir(run_dir):
+            raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml or manifest.json)")
+        with claim_dir(args.out or run_dir, "--out") as out:
+            drawn = figures.draw(run_dir, out, at_s=args.at)
     else:
-        out = Path(args.out or "netsim-figures")
         overrides = ([] if args.config else figures.COVERAGE_SCENARIO) + list(args.set or [])
         config = cfgmod.load(args.config, overrides)
         if args.at is not None and not 0 <= args.at <= config.duration_s:
             raise NetsimInputError(
                 f"--at = {args.at:g}: must be a time between 0 and duration_s = {config.duration_s:g} s"
             )
-        result = execute(config, progress=not args.no_progress)
-        write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
-        print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
-        drawn = figures.draw(out, at_s=args.at)
+        with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
+            result = execute(config, progress=not args.no_progress)
+            write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
+            print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
+            drawn = figures.draw(out, at_s=args.at)
     for d in drawn:
         print(f"wrote {d.path}" + (f" ({d.note})" if d.note else ""))
     return 0
@@ -181,7 +217,12 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("config", nargs="?", help="TOML scenario file (default: the built-in scenario)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     r.add_argument("--seed", type=int, help="seed of every random stream (same as --set seed=N)")
-    r.add_argument("--out", default="netsim-out", help="output directory (default: ./netsim-out)")
+    r.add_argument(
+        "--out",
+        default="netsim-out",
+        help="output directory (default: ./netsim-out); an earlier run there is replaced as a whole, "
+        "a non-empty directory that holds no run is refused",
+    )
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
     r.add_argument("--view", action="store_true", help="also write the replay, DIR/view.html (see netsim view)")
@@ -205,11 +246,17 @@ def parser() -> argparse.ArgumentParser:
     w.add_argument("sweep", help="sweep file (TOML)")
     w.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
     w.add_argument("--scheduler", help="address of a running Dask scheduler, e.g. tcp://host:8786")
-    w.add_argument("--out", help="sweep directory (default: ./sweep-out/<name>)")
+    w.add_argument("--out", help="sweep directory (default: ./sweep-out/<name>); a sweep's directory is resumed")
+    w.add_argument(
+        "--connect-timeout",
+        type=float,
+        metavar="S",
+        help="with --scheduler: how long to try to reach the scheduler, s (default: 10)",
+    )
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
     w.set_defaults(func=cmd_sweep)
 
-    v = sub.add_parser("validate", help="check the model against the closed-form results of VALIDATION.md")
+    v = sub.add_parser("validate", help="check the model against the closed-form results of docs/validation.md")
     v.add_argument("--no-progress", action="store_true", help="no progress bar")
     v.set_defaults(func=cmd_validate)
 

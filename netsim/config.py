@@ -219,7 +219,10 @@ def _coerce(key: str, value, default):
     if isinstance(default, float):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(key, value, "must be a number")
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:
+            raise ConfigError(key, value, "is too large for a number") from None
         if math.isnan(value):
             raise ConfigError(key, value, "must be a number, not NaN")
         return value
@@ -268,6 +271,10 @@ def _unit_hint(f) -> str:
     return f" ({doc})" if doc else ""
 
 
+# Keys whose default follows protocol.ack_period_s, as a multiple of it.
+DERIVED_FROM_ACK_PERIOD = {"tau_s": 3.0, "merge_delay_s": 2.0}
+
+
 def from_dict(raw: dict) -> Config:
     """Build and validate a :class:`Config` from a nested dict (as TOML gives)."""
     if not isinstance(raw, dict):
@@ -289,7 +296,7 @@ def from_dict(raw: dict) -> Config:
     protocol_raw = raw.get("protocol", {})
     if "protocol" in values:
         period = values["protocol"].ack_period_s
-        scaled = {k: m * period for k, m in (("tau_s", 3.0), ("merge_delay_s", 2.0)) if k not in protocol_raw}
+        scaled = {k: m * period for k, m in DERIVED_FROM_ACK_PERIOD.items() if k not in protocol_raw}
         if scaled:
             values["protocol"] = dataclasses.replace(values["protocol"], **scaled)
     config = Config(**values)
@@ -345,7 +352,7 @@ def _check_across(c: Config) -> None:
     for key in ("latency_s", "latency_jitter_s"):
         if not math.isfinite(getattr(ch, key)):
             raise ConfigError(f"channel.{key}", getattr(ch, key), "must be finite")
-    if c.world.torus and c.world.side_m <= 2 * max(c.ranges_m()):
+    if c.world.torus and c.world.side_m <= 2 * (max(ch.range_m) if isinstance(ch.range_m, tuple) else ch.range_m):
         raise ConfigError("world.side_m", c.world.side_m, "on a torus must exceed twice the largest range_m")
     if c.world.placement == "centre" and c.world.centre_side_m > c.world.side_m:
         raise ConfigError(
@@ -415,9 +422,10 @@ def merge(base: dict, extra: dict) -> dict:
 def parse_override(text: str) -> dict:
     """Turn ``"mobility.speed_max_mps=10"`` into ``{"mobility": {"speed_max_mps": 10}}``.
 
-    The value is read as a TOML value (numbers, booleans, quoted strings, lists, ``inf``);
-    anything that is not valid TOML is taken as a bare string, so ``--set
-    world.placement=grid`` works without quotes.
+    The value is read as a TOML value (numbers, booleans, quoted strings, lists, inline
+    tables, ``inf``); a bare word that is not valid TOML is taken as a string, so ``--set
+    world.placement=grid`` works without quotes. A value that starts like a list, a table
+    or a quoted string but does not parse is an error, not a string.
     """
     if "=" not in text:
         raise ConfigError("--set", text, "must look like section.key=value")
@@ -425,11 +433,23 @@ def parse_override(text: str) -> dict:
     key = key.strip()
     if not key or any(not part for part in key.split(".")):
         raise ConfigError("--set", text, "must look like section.key=value")
+    raw = raw.strip()
     try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw.strip()
+        parsed = tomllib.loads(f"v = {raw}")
+    except tomllib.TOMLDecodeError as exc:
+        parsed = exc
+    if isinstance(parsed, dict) and list(parsed) == ["v"] and "\n" not in raw and "\r" not in raw:
+        value = parsed["v"]
+    elif raw[:1] in _TOML_OPENERS or "\n" in raw or "\r" in raw:
+        what = _TOML_OPENERS.get(raw[:1], "value")
+        why = f" ({parsed})" if isinstance(parsed, Exception) else ""
+        raise ConfigError(key, raw, f"is not a valid TOML {what}{why}")
+    else:
+        value = raw
     return nest(key, value)
+
+
+_TOML_OPENERS = {"[": "list", "{": "inline table", '"': "string", "'": "string"}
 
 
 def nest(dotted_key: str, value) -> dict:
@@ -480,7 +500,17 @@ def commented_toml(config: Config | None = None) -> str:
                 tables += ["", f"# {g.metadata.get('doc', '')}", f"[{section}.{g.name}]"]
                 tables += [tomli_w.dumps(value).strip()] if value else []
                 continue
-            out += [f"# {g.metadata.get('doc', '')}", tomli_w.dumps({g.name: value}).strip()]
+            line = tomli_w.dumps({g.name: value}).strip()
+            factor = DERIVED_FROM_ACK_PERIOD.get(g.name) if section == "protocol" else None
+            if factor is not None and value == factor * tree["protocol"]["ack_period_s"]:
+                # Written as the rule, not a number, so that it follows an edited ack_period_s.
+                out += [
+                    f"# {g.metadata.get('doc', '')}",
+                    f"# default: {factor:g} x ack_period_s; uncomment to fix it",
+                    f"# {line}",
+                ]
+                continue
+            out += [f"# {g.metadata.get('doc', '')}", line]
     return "\n".join(out + tables) + "\n"
 
 

@@ -7,7 +7,7 @@
 - :func:`covered_fraction`: the same by a grid of sample points (a cheap estimate), with a
   rigorous bound on its error;
 - :func:`connected_coverage_bound`: ``U(N)``, the most that ``N`` robots whose network is
-  connected can cover (VALIDATION.md item 16);
+  connected can cover (docs/validation.md item 16);
 - :func:`components`: connected components of the unit-disk network;
 - :func:`nearest_spacing`: each leader's distance to its nearest leader;
 - :func:`hexagonality`: the bond-orientational order parameter psi_6 (1 on a perfect
@@ -52,7 +52,7 @@ def lens_area(radius_m: float, distance_m: float) -> float:
 def connected_coverage_bound(n: int, radius_m: float, range_m: float | None = None) -> float:
     """``U(N) = r^2 (pi + 1.9132 (N - 1))``, m^2: the most that ``n`` disks of radius
     ``radius_m`` can cover when their centres form a connected network of range
-    ``range_m`` (default: the radius; VALIDATION.md item 16).
+    ``range_m`` (default: the radius; docs/validation.md item 16).
 
     Order the robots from a root so that each has an earlier neighbour within range; each
     new disk shares with that neighbour's at least the lens at distance ``range_m``. A

@@ -63,8 +63,11 @@ def _number(text: str, path, lineno: int, what: str) -> float:
     return v
 
 
-def read(path: str | Path) -> Scenario:
-    """Parse an ns-2 movement file; raise :class:`NetsimInputError` naming the bad line."""
+def read(path: str | Path, n_robots: int | None = None) -> Scenario:
+    """Parse an ns-2 movement file; raise :class:`NetsimInputError` naming the bad line.
+
+    With ``n_robots``, a node numbered ``n_robots`` or above is an error naming it (nodes
+    are numbered from 0), rather than a gap in the initial positions."""
     path = Path(path)
     if not path.is_file():
         raise NetsimInputError(f"{str(path)!r}: no such file")
@@ -74,19 +77,31 @@ def read(path: str | Path) -> Scenario:
         lines = path.read_text().splitlines()
     except UnicodeDecodeError:
         raise NetsimInputError(f"{path}: not a text file") from None
+
+    def node_id(text: str, lineno: int) -> int:
+        if len(text) > 9:
+            raise NetsimInputError(f"{path}:{lineno}: node number {text[:20]} is too large")
+        node = int(text)
+        if n_robots is not None and node >= n_robots:
+            raise NetsimInputError(
+                f"{path}:{lineno}: node {node} is beyond world.n_robots = {n_robots} "
+                f"(nodes are numbered 0 to {n_robots - 1})"
+            )
+        return node
+
     for lineno, raw in enumerate(lines, 1):
         line = raw.strip()
         if not line or line.startswith("#") or "$god_" in line:
             continue
         if m := _INIT.match(line):
-            node, axis = int(m[1]), m[2]
+            node, axis = node_id(m[1], lineno), m[2]
             initial.setdefault(node, {})[axis] = _number(m[3], path, lineno, f"{axis}_")
         elif m := _SETDEST.match(line):
             t = _number(m[1], path, lineno, "time")
             x, y, s = (_number(m[k], path, lineno, w) for k, w in ((3, "X"), (4, "Y"), (5, "speed")))
             if t < 0 or s < 0:
                 raise NetsimInputError(f"{path}:{lineno}: negative time or speed in {line!r}")
-            rows.append((t, int(m[2]), "setdest", x, y, s, lineno))
+            rows.append((t, node_id(m[2], lineno), "setdest", x, y, s, lineno))
         elif m := _SETPOS.match(line):
             t = _number(m[1], path, lineno, "time")
             if t < 0:
@@ -95,7 +110,7 @@ def read(path: str | Path) -> Scenario:
             if m[3] == "Z":
                 continue
             x, y = (v, math.nan) if m[3] == "X" else (math.nan, v)
-            rows.append((t, int(m[2]), "set", x, y, 0.0, lineno))
+            rows.append((t, node_id(m[2], lineno), "set", x, y, 0.0, lineno))
         else:
             raise NetsimInputError(f"{path}:{lineno}: not an ns-2 movement command: {line!r}")
     commands = pd.DataFrame(rows, columns=["t_s", "robot", "kind", "x_m", "y_m", "speed_mps", "line"])
@@ -103,11 +118,19 @@ def read(path: str | Path) -> Scenario:
     if not ids:
         raise NetsimInputError(f'{path}: no nodes ($node_(i) set X_ ... or $ns_ at T "$node_(i) ...")')
     n = max(ids) + 1
-    missing = [i for i in range(n) if "X" not in initial.get(i, {}) or "Y" not in initial.get(i, {})]
-    if missing:
-        more = f" and {len(missing) - 10} more" if len(missing) > 10 else ""
+    # Count the nodes lacking a coordinate without walking range(n): a stray huge node
+    # number must not make the check itself enormous.
+    complete = sum(1 for xy in initial.values() if "X" in xy and "Y" in xy)
+    if complete < n:
+        first = []
+        for i in range(n):
+            if "X" not in initial.get(i, {}) or "Y" not in initial.get(i, {}):
+                first.append(i)
+                if len(first) == 10:
+                    break
+        more = f" and {n - complete - len(first)} more" if n - complete > len(first) else ""
         warnings.warn(
-            f"{path}: node(s) {missing[:10]}{more} have no initial X_ or Y_: they start at 0 on that axis,"
+            f"{path}: node(s) {first}{more} have no initial X_ or Y_: they start at 0 on that axis,"
             " as in ns-3's Ns2MobilityHelper",
             stacklevel=2,
         )

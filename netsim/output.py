@@ -1,8 +1,16 @@
-"""The output directory of a run, written so that nothing is ever half-written.
+"""Output directories: checked before any work, written so that nothing is ever half-written.
 
-Every file is first written into a private temporary directory inside the output
-directory and then moved into place with an atomic rename; if anything fails on the way
-the temporary directory is removed and the files already there are left as they were.
+:func:`claim_dir` makes sure a directory can take results *before* a simulation starts
+(it is not a file, does not lie under a file, can be created and written), and removes
+what it created if the work then fails, so a failed command leaves nothing behind.
+
+A run's directory holds that run's files and nothing else. :func:`write_run` first writes
+every file into a private temporary directory inside the output directory; then, if the
+directory holds an earlier run (it has a ``manifest.json``), that run's files are removed
+(``manifest.json`` first, so a directory with a manifest always holds one complete run);
+then the new files are moved into place with atomic renames, ``manifest.json`` last. A
+non-empty directory that holds no run is refused: netsim never mixes its tables with
+files it did not write.
 """
 
 from __future__ import annotations
@@ -13,6 +21,8 @@ import platform
 import shutil
 import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
 
@@ -20,6 +30,7 @@ import pandas as pd
 import tomli_w
 
 from netsim.config import Config, to_dict
+from netsim.errors import NetsimInputError
 
 TABLES = ("positions", "links", "acks", "roles")
 
@@ -41,26 +52,157 @@ def _plain(value):
     return value
 
 
+TMP_PREFIX = ".netsim-tmp-"
+RUN_FILES = ("config.toml", "manifest.json", "summary.json", "view.html")
+
+
+def is_run_dir(path: str | Path) -> bool:
+    """A directory written by :func:`write_run` (it has a ``manifest.json``)."""
+    return (Path(path) / "manifest.json").is_file()
+
+
+def earlier_run_files(out: Path) -> list[Path]:
+    """The files of the run already in ``out``: ``config.toml``, ``manifest.json``,
+    ``summary.json``, the tables (``*.parquet``), the replay (``view.html``) and the figures
+    drawn from them (``fig*.png``). Empty when ``out`` holds no run."""
+    if not is_run_dir(out):
+        return []
+    return sorted(p for p in out.iterdir() if p.is_file() and _is_run_file(p.name))
+
+
+def _is_run_file(name: str) -> bool:
+    # A figure drawn from the earlier run is stale with it.
+    return name in RUN_FILES or name.endswith(".parquet") or (name.startswith("fig") and name.endswith(".png"))
+
+
+def _foreign_entries(out: Path) -> list[str]:
+    return sorted(p.name for p in out.iterdir() if not p.name.startswith(TMP_PREFIX))
+
+
+def check_run_dir(path: str | Path, option: str = "--out") -> None:
+    """Refuse a directory that is neither new, nor empty, nor an earlier run's."""
+    out = Path(path)
+    if out.is_dir() and not is_run_dir(out):
+        entries = _foreign_entries(out)
+        if entries:
+            shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+            raise NetsimInputError(
+                f"{option} {out}: the directory is not empty ({shown}) and holds no netsim run (no manifest.json); "
+                "give a new or empty directory (a directory holding an earlier run is replaced as a whole)"
+            )
+
+
+def check_sweep_dir(path: str | Path, option: str = "--out") -> None:
+    """Refuse a non-empty directory that is not a sweep's (it has no ``sweep.json``)."""
+    out = Path(path)
+    if out.is_dir() and not (out / "sweep.json").is_file():
+        entries = _foreign_entries(out)
+        if entries:
+            shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+            raise NetsimInputError(
+                f"{option} {out}: the directory is not empty ({shown}) and holds no sweep (no sweep.json); "
+                "give a new or empty directory, or the directory of the same sweep to resume it"
+            )
+
+
+def _unwritable(option: str, path: Path, why: str) -> NetsimInputError:
+    return NetsimInputError(f"{option} {path}: {why}")
+
+
+@contextmanager
+def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Iterator[Path]:
+    """Make sure ``path`` can take results before the work starts; undo on failure.
+
+    The directory (and any missing parents) is created and a probe file written and
+    removed in it, so every reason it could not take the results (a file in the way, no
+    permission, a read-only file system) shows now, as a :class:`NetsimInputError`,
+    instead of after the work. ``kind = "run"`` also refuses a non-empty directory that
+    holds no run (:func:`check_run_dir`), ``"sweep"`` one that holds no sweep. If the
+    body raises, the directories created here are removed again (when empty), so a
+    failed command leaves nothing behind.
+    """
+    out = Path(path)
+    try:
+        missing = _missing_dirs(out, option)
+        if kind == "run":
+            check_run_dir(out, option)
+        elif kind == "sweep":
+            check_sweep_dir(out, option)
+    except OSError as exc:  # e.g. a parent we may not look into
+        raise _unwritable(option, out, f"cannot be used ({exc.strerror or exc})") from None
+    created: list[Path] = []
+    doing = "cannot be created"
+    try:
+        for d in reversed(missing):
+            d.mkdir()
+            created.append(d)
+        doing = "cannot be written"
+        fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX, dir=out)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        _remove_empty(created)
+        raise _unwritable(option, out, f"{doing} ({exc.strerror or exc})") from None
+    try:
+        yield out
+    except BaseException:
+        _remove_empty(created)
+        raise
+
+
+def _missing_dirs(out: Path, option: str) -> list[Path]:
+    """The directories to create for ``out``, deepest first; refuse files in the way."""
+    if out.is_symlink() and not out.exists():
+        raise _unwritable(option, out, "is a broken symbolic link")
+    if out.exists() and not out.is_dir():
+        raise _unwritable(option, out, "is a file, not a directory")
+    missing = []
+    probe = out
+    while not probe.exists() and not probe.is_symlink() and probe != probe.parent:
+        missing.append(probe)
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        raise _unwritable(option, out, f"cannot be created: {probe} is a file")
+    return missing
+
+
+def _remove_empty(created: list[Path]) -> None:
+    for d in reversed(created):
+        try:
+            d.rmdir()
+        except OSError:
+            return  # not empty (or gone): leave it and its parents
+
+
 def write_run(
     out_dir: str | Path, config: Config, frames: dict[str, pd.DataFrame], summary: dict, manifest: dict
 ) -> list[Path]:
-    """Write ``config.toml``, ``manifest.json``, ``summary.json`` and one Parquet file per table."""
+    """Write ``config.toml``, ``manifest.json``, ``summary.json`` and one Parquet file per
+    table, replacing the earlier run's files if ``out_dir`` holds one."""
     out = Path(out_dir)
+    check_run_dir(out)
     out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".netsim-tmp-", dir=out))
+    tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=out))
     written = []
     try:
         (tmp / "config.toml").write_text(tomli_w.dumps(to_dict(config)))
-        (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")
         (tmp / "summary.json").write_text(json.dumps({k: _plain(v) for k, v in summary.items()}, indent=2) + "\n")
         for name, frame in frames.items():
             frame.to_parquet(tmp / f"{name}.parquet", index=False)
-        for f in sorted(tmp.iterdir()):
+        (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")
+        # The earlier run goes as a whole, its manifest first: a directory with a manifest
+        # always holds one complete run, and never tables of two runs side by side.
+        old = earlier_run_files(out)
+        (out / "manifest.json").unlink(missing_ok=True)
+        for f in old:
+            f.unlink(missing_ok=True)
+        new = sorted(tmp.iterdir(), key=lambda f: (f.name == "manifest.json", f.name))
+        for f in new:
             os.replace(f, out / f.name)
             written.append(out / f.name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return written
+    return sorted(written)
 
 
 def manifest(config: Config, run: int, wall_s: float, argv=None) -> dict:

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import simpy
-from tqdm.auto import tqdm
 
 from netsim.channel import Channel
 from netsim.config import Config
 from netsim.loss import BernoulliLoss, DistanceLoss, GilbertElliottLoss
+from netsim.progress import progress_bar
 from netsim.rng import Streams
 from netsim.state import RobotState
 from netsim.trace import Trace
@@ -62,10 +62,11 @@ class Simulation:
         """
         until = self.config.duration_s if until_s is None else float(until_s)
         start = self.env.now
-        with tqdm(
-            total=round(until - start, 6),
-            unit="sim s",
-            disable=not progress,
+        with progress_bar(
+            round(until - start, 6),
+            "netsim run",
+            "sim s",
+            enabled=progress,
             leave=False,
             bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]",
         ) as bar:

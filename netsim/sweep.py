@@ -34,10 +34,11 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import math
 import os
+import secrets
 import signal
 import sys
-import tempfile
 import tomllib
 import traceback
 from collections.abc import Callable
@@ -50,6 +51,7 @@ import pandas as pd
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
 
+MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
 SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
 KNOWN_TABLES = {"positions", "links", "acks", "roles", "groups", "messages", "beliefs", "coverage", "control", "travel"}
 
@@ -101,24 +103,29 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
     if unknown:
         raise _err(f"unknown key(s) {sorted(unknown)}; allowed: {sorted(SWEEP_KEYS)}")
     name = tree.get("name", "sweep")
-    if not isinstance(name, str) or not name or "/" in name:
-        raise _err(f"name = {name!r}: must be a non-empty string without '/'")
+    if not isinstance(name, str) or not name or any(c in name for c in "/\\\0") or name in (".", ".."):
+        raise _err(f"name = {name!r}: must be a non-empty string without '/', '\\' or NUL, not '.' or '..'")
     reps = tree.get("replications", 1)
     if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
         raise _err(f"replications = {reps!r}: must be an integer >= 1")
     tables = tree.get("tables", [])
-    if not isinstance(tables, list) or any(t not in KNOWN_TABLES for t in tables):
+    if not isinstance(tables, list) or any(not isinstance(t, str) or t not in KNOWN_TABLES for t in tables):
         raise _err(f"tables = {tables!r}: must be a list drawn from {sorted(KNOWN_TABLES)}")
     base = tree.get("base", {})
+    if not isinstance(base, dict):
+        raise _err("[base] must be a table of scenario keys")
     if "base_file" in tree:
+        if not isinstance(tree["base_file"], str) or "\0" in tree["base_file"]:
+            raise _err(f"base_file = {tree['base_file']!r}: must be the path of a TOML scenario file")
         path = Path(tree["base_file"])
         if where is not None and not path.is_absolute():
             path = where.parent / path
         if not path.is_file():
             raise _err(f"base_file = {str(path)!r}: no such file")
-        base = cfgmod.merge(tomllib.loads(path.read_text()), base)
-    if not isinstance(base, dict):
-        raise _err("[base] must be a table of scenario keys")
+        try:
+            base = cfgmod.merge(tomllib.loads(path.read_text()), base)
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise _err(f"base_file = {str(path)!r} is not valid TOML: {exc}") from None
     try:
         cfgmod.from_dict(base)
     except ConfigError as exc:
@@ -126,6 +133,8 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
     if ("grid" in tree) == ("random" in tree):
         raise _err("give exactly one of [grid] and [random]")
     points = _grid(tree["grid"]) if "grid" in tree else _random(tree["random"])
+    if len(points) * reps > MAX_RUNS:
+        raise _err(f"{len(points):,} points x {reps:,} replications: at most {MAX_RUNS:,} runs in one sweep")
     return Sweep(name, reps, tuple(tables), base, tuple(points))
 
 
@@ -143,6 +152,9 @@ def _grid(grid) -> list[dict]:
         if not isinstance(values, list) or not values:
             raise _err(f"[grid] {key} = {values!r}: must be a non-empty list")
     keys = list(grid)
+    size = math.prod(len(grid[k]) for k in keys)
+    if size > MAX_RUNS:
+        raise _err(f"[grid] has {size:,} points; at most {MAX_RUNS:,} runs are allowed in one sweep")
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
 
 
@@ -153,23 +165,34 @@ def _random(spec) -> list[dict]:
     if unknown:
         raise _err(f"[random] unknown key(s) {sorted(unknown)}; allowed: samples, seed, ranges")
     samples, seed, ranges = spec.get("samples"), spec.get("seed", 0), spec.get("ranges")
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
-        raise _err(f"[random] samples = {samples!r}: must be an integer >= 1")
+    if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= MAX_RUNS:
+        raise _err(f"[random] samples = {samples!r}: must be an integer from 1 to {MAX_RUNS:,}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise _err(f"[random] seed = {seed!r}: must be an integer >= 0")
     if not isinstance(ranges, dict) or not ranges:
         raise _err("[random.ranges] must map configuration keys to [low, high]")
     rng = np.random.default_rng(seed)
     columns = {}
     for key, bounds in ranges.items():
         _check_key(key)
-        if not (isinstance(bounds, list) and len(bounds) == 2 and all(isinstance(b, (int, float)) for b in bounds)):
-            raise _err(f"[random.ranges] {key} = {bounds!r}: must be [low, high]")
+        if not (
+            isinstance(bounds, list)
+            and len(bounds) == 2
+            and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds)
+        ):
+            raise _err(f"[random.ranges] {key} = {bounds!r}: must be [low, high] (two numbers)")
         lo, hi = bounds
         if not lo <= hi:
             raise _err(f"[random.ranges] {key} = {bounds!r}: low must not exceed high")
         if all(isinstance(b, int) and not isinstance(b, bool) for b in bounds):
+            if not -(2**63) <= lo <= hi < 2**63 - 1:
+                raise _err(f"[random.ranges] {key} = {bounds!r}: integers must lie within 64 bits")
             columns[key] = rng.integers(lo, hi + 1, samples).tolist()
         else:
-            columns[key] = rng.uniform(lo, hi, samples).tolist()
+            if not all(-1e308 <= b <= 1e308 for b in bounds) or not math.isfinite(hi - lo):
+                raise _err(f"[random.ranges] {key} = {bounds!r}: low and high must be finite (within ±1e308)")
+            # Equal bounds (0.0 and -0.0 included, which numpy's uniform refuses) fix the value.
+            columns[key] = [float(lo)] * samples if lo == hi else rng.uniform(lo, hi, samples).tolist()
     return [{k: columns[k][i] for k in columns} for i in range(samples)]
 
 
@@ -227,15 +250,16 @@ def _safe_execute(run: Run, tables) -> dict:
 
 # -- persistence ---------------------------------------------------------------------------
 def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """Write through a temporary file beside ``path`` and rename it into place. The
+    temporary file is created by ``write`` itself, so it gets the mode every other output
+    gets (from the umask), not the private 0600 of :func:`tempfile.mkstemp`."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(6)}.tmp")
     try:
-        write(Path(tmp))
+        write(tmp)
         os.replace(tmp, path)
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        tmp.unlink(missing_ok=True)
 
 
 def done_ids(out_dir: Path) -> set[str]:
@@ -279,72 +303,108 @@ class Report:
         return "\n".join(lines)
 
 
-def run_sweep(
-    sweep: Sweep, out_dir: str | Path, workers: int = 1, scheduler: str | None = None, progress: bool = True
-) -> Report:
-    """Run every run of ``sweep`` not yet done in ``out_dir``; returns a report."""
-    from tqdm.auto import tqdm
+CONNECT_TIMEOUT_S = 10.0
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+
+def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S):
+    """A Dask client of the scheduler at ``address``, or a one-line
+    :class:`NetsimInputError` after at most ``timeout_s`` seconds."""
+    from distributed import Client
+    from distributed.comm import parse_address
+
+    hint = "expected the address of a running Dask scheduler, e.g. tcp://host:8786"
+    try:
+        _, location = parse_address(address)
+        if ":" not in location:
+            raise ValueError("no port")
+    except (ValueError, TypeError):
+        raise NetsimInputError(f"--scheduler {address!r}: not a scheduler address; {hint}") from None
+    try:
+        return Client(address, timeout=timeout_s)
+    except (OSError, TimeoutError, ValueError) as exc:
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise NetsimInputError(
+            f"--scheduler {address}: no Dask scheduler answered within {timeout_s:g} s "
+            f"(connect timeout; --connect-timeout to change it): {why}"
+        ) from None
+
+
+def run_sweep(
+    sweep: Sweep,
+    out_dir: str | Path,
+    workers: int = 1,
+    scheduler=None,
+    progress: bool = True,
+    connect_timeout_s: float = CONNECT_TIMEOUT_S,
+) -> Report:
+    """Run every run of ``sweep`` not yet done in ``out_dir``; returns a report.
+
+    ``scheduler`` is the address of a running Dask scheduler or a ``distributed.Client``.
+    Everything that can be checked is checked before anything is written: the runs, the
+    output directory, the scheduler."""
+    from netsim.output import claim_dir
+    from netsim.progress import progress_bar
+
     runs = sweep.runs()
     ids = [r.run_id for r in runs]
     if len(set(ids)) != len(ids):
         raise _err("two points resolve to the same configuration (duplicate values in [grid]?)")
-    (out / "sweep.json").write_text(
-        json.dumps(
-            {
+    with claim_dir(out_dir, "--out", kind="sweep") as out:
+        client = connect(scheduler, connect_timeout_s) if isinstance(scheduler, str) else scheduler
+        try:
+            description = {
                 "name": sweep.name,
                 "replications": sweep.replications,
                 "tables": list(sweep.tables),
                 "base": sweep.base,
                 "points": list(sweep.points),
-            },
-            indent=2,
-            default=str,
-        )
-    )
-    finished = done_ids(out)
-    todo = [r for r in runs if r.run_id not in finished]
-    failed: list[dict] = []
-    bar = tqdm(total=len(runs), initial=len(runs) - len(todo), unit="run", desc=sweep.name, disable=not progress)
+            }
+            _atomic_write(out / "sweep.json", lambda p: p.write_text(json.dumps(description, indent=2, default=str)))
+            finished = done_ids(out)
+            todo = [r for r in runs if r.run_id not in finished]
+            failed: list[dict] = []
+            bar = progress_bar(len(runs), sweep.name, "run", enabled=progress, initial=len(runs) - len(todo), lines=10)
 
-    def account(run: Run, outcome: dict) -> None:
-        _record(out, run, outcome)
-        if not outcome["ok"]:
-            failed.append(
-                {"run_id": run.run_id, "point": run.point, "replication": run.replication, "error": outcome["error"]}
-            )
-        bar.update(1)
-        bar.set_postfix(failed=len(failed), remaining=bar.total - bar.n)
+            def account(run: Run, outcome: dict) -> None:
+                _record(out, run, outcome)
+                if not outcome["ok"]:
+                    failed.append(
+                        {
+                            "run_id": run.run_id,
+                            "point": run.point,
+                            "replication": run.replication,
+                            "error": outcome["error"],
+                        }
+                    )
+                # One refresh per run: the postfix waits for the update.
+                bar.set_postfix(failed=len(failed), remaining=bar.total - bar.n - 1, refresh=False)
+                bar.update(1)
 
-    if scheduler:
-        _run_dask(todo, sweep.tables, scheduler, account)
-    elif workers <= 1:
-        for run in todo:
-            account(run, _safe_execute(run, sweep.tables))
-    else:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+            if client is not None:
+                _run_dask(todo, sweep.tables, client, account)
+            elif workers <= 1:
+                for run in todo:
+                    account(run, _safe_execute(run, sweep.tables))
+            else:
+                from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent) as pool:
-            futures = {pool.submit(_safe_execute, run, sweep.tables): run for run in todo}
-            for fut in as_completed(futures):
-                account(futures[fut], fut.result())
-    bar.close()
+                with ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent) as pool:
+                    futures = {pool.submit(_safe_execute, run, sweep.tables): run for run in todo}
+                    for fut in as_completed(futures):
+                        account(futures[fut], fut.result())
+            bar.close()
+        finally:
+            if isinstance(scheduler, str) and client is not None:
+                client.close()
     return Report(len(runs), len(runs) - len(todo), len(todo) - len(failed), failed)
 
 
-def _run_dask(todo: list[Run], tables, scheduler, account) -> None:
-    from distributed import Client, as_completed
+def _run_dask(todo: list[Run], tables, client, account) -> None:
+    from distributed import as_completed
 
-    client = scheduler if not isinstance(scheduler, str) else Client(scheduler)
-    try:
-        futures = {client.submit(_safe_execute, run, tables, pure=False): run for run in todo}
-        for fut in as_completed(futures):
-            account(futures[fut], fut.result())
-    finally:
-        if isinstance(scheduler, str):
-            client.close()
+    futures = {client.submit(_safe_execute, run, tables, pure=False): run for run in todo}
+    for fut in as_completed(futures):
+        account(futures[fut], fut.result())
 
 
 # -- results -------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""``netsim validate``: the closed-form results of VALIDATION.md, checked on real runs.
+"""``netsim validate``: the closed-form results of docs/validation.md, checked on real runs.
 
 Each check builds runs from configurations (models by name, as ``netsim run`` does),
 measures from their outputs, and compares with theory within a stated tolerance: four
@@ -519,11 +519,13 @@ CHECKS: list[Callable[[], list[Check]]] = [
 
 
 def run_all(progress: bool = True) -> list[Check]:
-    from tqdm.auto import tqdm
+    from netsim.progress import progress_bar
 
     results = []
-    for check in tqdm(CHECKS, desc="validate", unit="check", disable=not progress, leave=False):
-        results.extend(check())
+    with progress_bar(len(CHECKS), "netsim validate", "check", enabled=progress, lines=5, leave=False) as bar:
+        for check in CHECKS:
+            results.extend(check())
+            bar.update(1)
     return results
 
 

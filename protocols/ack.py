@@ -1,4 +1,4 @@
-"""The Ack beacon (MODEL.md section 4): every robot broadcasts an Ack every ``t`` seconds.
+"""The Ack beacon (docs/model.md section 4): every robot broadcasts an Ack every ``t`` seconds.
 
 Each robot starts at a random phase, uniform on ``[0, t)``, and each period is
 ``t + U(-jitter, +jitter)``. An Ack carries the sender's id, role, leader, a sequence

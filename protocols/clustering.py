@@ -1,4 +1,4 @@
-"""The clustering protocol of Cai, Ren and Zou (2009), MODEL.md section 4.2.
+"""The clustering protocol of Cai, Ren and Zou (2009), docs/model.md section 4.2.
 
 Roles: leader ``alpha``, member ``beta``, undecided ``gamma``. From their Acks alone the
 robots build a two-level network:
@@ -150,7 +150,7 @@ class Clustering:
         self.merge_delay_s = p.merge_delay_s
         self.join_policy, self.merge_policy, self.election_policy = p.join_policy, p.merge_policy, p.election_policy
         st = sim.state
-        # With equal ranges hearing an Ack implies the link is two-way (MODEL.md 4.1).
+        # With equal ranges hearing an Ack implies the link is two-way (docs/model.md 4.1).
         self.symmetric = bool(np.all(st.range_m == st.range_m[0])) if st.n else True
         self.timers = DeadlineTimers(sim.env, st.n, self._expire)
         self.role_changes = np.zeros(st.n, dtype=np.int64)

@@ -1,4 +1,4 @@
-"""Multi-hop messages between any two robots (MODEL.md section 4.3).
+"""Multi-hop messages between any two robots (docs/model.md section 4.3).
 
 ``backbone`` (default): the source broadcasts the message; every leader and gateway that
 receives it for the first time rebroadcasts it once, with the TTL decreased; ordinary
@@ -189,9 +189,13 @@ class Relay:
 
 
 def traffic(sim, relay: Relay, rate_hz: float):
-    """Messages between uniformly random pairs, as a Poisson process of ``rate_hz``."""
+    """Messages between uniformly random pairs, as a Poisson process of ``rate_hz``.
+
+    A team of one robot has no pair to send to: it sends nothing (and draws nothing)."""
     rng = sim.streams.get("traffic")
     n = sim.state.n
+    if n < 2:
+        return
     while True:
         yield sim.env.timeout(rng.exponential(1.0 / rate_hz))
         src = int(rng.integers(n))

@@ -1,4 +1,4 @@
-"""The Ack beacon and neighbour tables (MODEL.md section 4; VALIDATION.md item 8)."""
+"""The Ack beacon and neighbour tables (docs/model.md section 4; docs/validation.md item 8)."""
 
 import math
 

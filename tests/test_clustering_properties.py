@@ -1,4 +1,4 @@
-"""Clustering under loss and on random deployments (VALIDATION.md items 9 and 13), relaying,
+"""Clustering under loss and on random deployments (docs/validation.md items 9 and 13), relaying,
 leader commands, and the ground-truth view."""
 
 import math

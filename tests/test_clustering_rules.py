@@ -1,4 +1,4 @@
-"""One test per clustering rule (MODEL.md 4.2), on small scripted topologies.
+"""One test per clustering rule (docs/model.md 4.2), on small scripted topologies.
 
 Robots are static unless a test moves them; loss is off, jitter is off and beacon phases
 are set by hand, so every event time is known. A phase above the Ack period is a robot

@@ -1,4 +1,4 @@
-"""The virtual-force coverage controller (MODEL.md section 5): the bridge-keeping plan of
+"""The virtual-force coverage controller (docs/model.md section 5): the bridge-keeping plan of
 one step, and whole runs from dense random static deployments."""
 
 import math

@@ -1,4 +1,4 @@
-"""The coverage metric itself (VALIDATION.md items 14 and 15)."""
+"""The coverage metric itself (docs/validation.md items 14 and 15)."""
 
 import math
 

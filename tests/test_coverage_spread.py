@@ -175,7 +175,7 @@ def spread_run(n, seed, side, duration=700, **extra):
 
 def assert_settled_hierarchy(sim):
     """Leaders independent (no two in range), every member in range of a leader it
-    follows, nobody undecided (VALIDATION.md item 13, after the team has stopped)."""
+    follows, nobody undecided (docs/validation.md item 13, after the team has stopped)."""
     st = sim.state
     pos = st.positions_at(sim.now)
     a, b, _ = geometric_pairs(pos, RC)

@@ -1,4 +1,4 @@
-"""Links: unit disk, exact up/down times, censoring, link durations (VALIDATION.md 5-7)."""
+"""Links: unit disk, exact up/down times, censoring, link durations (docs/validation.md 5-7)."""
 
 import math
 

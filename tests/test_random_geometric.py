@@ -1,4 +1,4 @@
-"""Static uniform deployments against random geometric graph results (VALIDATION.md 11-12)."""
+"""Static uniform deployments against random geometric graph results (docs/validation.md 11-12)."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""Random waypoint against closed forms (VALIDATION.md items 1-4)."""
+"""Random waypoint against closed forms (docs/validation.md items 1-4)."""
 
 import math
 import warnings

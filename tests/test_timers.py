@@ -58,7 +58,7 @@ def test_vectorised_restart_of_many_timers():
 
 
 def test_message_at_the_deadline_instant_counts():
-    """MODEL.md 4.2: an Ack that arrives at the same instant as a deadline is processed
+    """docs/model.md 4.2: an Ack that arrives at the same instant as a deadline is processed
     first, even when it was scheduled after the timer's event."""
     env = simpy.Environment()
     fired = []

@@ -1,0 +1,95 @@
+"""Progress reports that suit where they are read.
+
+On a terminal, a tqdm bar. Anywhere else (standard error redirected to a log file, a
+batch job, a pipe) a bar's carriage-return redraws are noise, so a few plain lines are
+written instead: one each time another ``1 / lines`` of the work is done, e.g.::
+
+    netsim run: 25% (75/300 sim s), 1.4 s elapsed
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+
+def progress_bar(
+    total: float,
+    desc: str,
+    unit: str,
+    enabled: bool = True,
+    initial: float = 0,
+    lines: int = 4,
+    stream=None,
+    tty: bool | None = None,
+    **tqdm_options,
+):
+    """A progress reporter with tqdm's ``update``, ``set_postfix``, ``close``, ``n`` and
+    ``total``, usable as a context manager. ``tty`` forces the choice (default: whether
+    ``stream``, standard error by default, is a terminal)."""
+    stream = sys.stderr if stream is None else stream
+    if not enabled:
+        return _Silent(total, initial)
+    if tty is None:
+        isatty = getattr(stream, "isatty", None)
+        tty = bool(isatty and isatty())
+    if tty:
+        from tqdm.auto import tqdm
+
+        return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=stream, **tqdm_options)
+    return PlainLines(total, desc, unit, initial, lines, stream)
+
+
+class _Silent:
+    def __init__(self, total, initial=0):
+        self.total, self.n = total, initial
+
+    def update(self, n=1):
+        self.n += n
+
+    def set_postfix(self, refresh=True, **values):
+        pass
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class PlainLines(_Silent):
+    """Progress as a few whole lines, for log files: at most ``lines`` of them, each when
+    the next ``1 / lines`` of the work is done."""
+
+    def __init__(self, total, desc, unit, initial=0, lines=4, stream=None):
+        super().__init__(total, initial)
+        self.desc, self.unit, self.lines = desc, unit, max(1, int(lines))
+        self.stream = sys.stderr if stream is None else stream
+        self.start = time.perf_counter()
+        self.postfix = ""
+        self.reported = self._step()
+
+    def _step(self) -> int:
+        if not self.total or self.total <= 0:
+            return self.lines
+        return min(self.lines, int(self.lines * self.n / self.total + 1e-9))
+
+    def set_postfix(self, refresh=True, **values):
+        self.postfix = ", ".join(f"{k} {v}" for k, v in values.items())
+
+    def update(self, n=1):
+        self.n += n
+        step = self._step()
+        if step > self.reported:
+            self.reported = step
+            pct = 100 * self.n / self.total
+            elapsed = time.perf_counter() - self.start
+            extra = f", {self.postfix}" if self.postfix else ""
+            print(
+                f"{self.desc}: {pct:.0f}% ({self.n:g}/{self.total:g} {self.unit}){extra}, {elapsed:.1f} s elapsed",
+                file=self.stream,
+                flush=True,
+            )

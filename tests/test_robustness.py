@@ -1,0 +1,398 @@
+"""Bad input is refused before any work and leaves nothing behind; no stale or half-made
+output; progress reports suit a log file.
+
+Every CLI refusal is checked the same way: exit status 2, exactly one line on standard
+error (captured at the file-descriptor level, so a library's log line would show),
+starting ``netsim: error:``, no traceback, and the directory tree unchanged.
+"""
+
+import io
+import json
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from netsim import config as cfgmod
+from netsim import run as runmod
+from netsim import sweep as sweepmod
+from netsim.cli import main
+from netsim.output import claim_dir
+from netsim.progress import PlainLines, progress_bar
+
+SMALL = ["--set", "world.n_robots=5", "--set", "duration_s=5", "--set", "world.side_m=200"]
+
+
+def tree(root: Path) -> dict:
+    """Every path under ``root`` with its size (directories: None)."""
+    return {str(p.relative_to(root)): (None if p.is_dir() else p.stat().st_size) for p in sorted(Path(root).rglob("*"))}
+
+
+def refused(capfd, code, before, root, *fragments):
+    """The CLI refused: exit 2, one line, no traceback, nothing written under ``root``."""
+    out, err = capfd.readouterr()
+    lines = err.strip().splitlines()
+    assert code == 2, err
+    assert len(lines) == 1, err
+    assert lines[0].startswith("netsim: error: ")
+    assert "Traceback" not in err
+    for f in fragments:
+        assert f in lines[0], lines[0]
+    assert tree(root) == before, "something was written"
+    return lines[0]
+
+
+@pytest.fixture
+def no_simulation(monkeypatch):
+    """Fail the test if a simulation starts: a refusal must come before the work."""
+
+    def execute(*a, **k):
+        raise AssertionError("the simulation ran before the output directory was checked")
+
+    monkeypatch.setattr(runmod, "execute", execute)
+
+
+# -- the output directory is checked before simulating --------------------------------------
+@pytest.mark.parametrize(
+    "make, out, words",
+    [
+        (lambda d: (d / "afile").write_text("x"), "afile", "is a file, not a directory"),
+        (lambda d: (d / "afile").write_text("x"), "afile/sub/run", "cannot be created"),
+    ],
+)
+def test_out_that_is_or_lies_under_a_file_is_refused_before_simulating(
+    tmp_path, capfd, monkeypatch, no_simulation, make, out, words
+):
+    monkeypatch.chdir(tmp_path)
+    make(tmp_path)
+    before = tree(tmp_path)
+    code = main(["run", "--out", out, *SMALL])
+    refused(capfd, code, before, tmp_path, words, out)
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["sweep", "s.toml", "--out", "afile/o"],
+        ["sweep", "s.toml", "--out", "afile"],
+        ["figures", "--out", "afile"],
+        ["figures", "rundir", "--out", "afile/figs"],
+    ],
+    ids=["sweep-under-file", "sweep-file", "figures-file", "figures-of-run-under-file"],
+)
+def test_every_command_that_writes_checks_its_output_first(tmp_path, capfd, monkeypatch, no_simulation, args):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "s.toml").write_text(SWEEP)
+    (tmp_path / "rundir").mkdir()
+    (tmp_path / "rundir" / "config.toml").write_text("")
+    monkeypatch.setattr(sweepmod, "_safe_execute", lambda *a: pytest.fail("a sweep run started"))
+    before = tree(tmp_path)
+    refused(capfd, main(args), before, tmp_path, "afile")
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc, where no directory can be made")
+def test_out_that_cannot_be_created_is_refused_before_simulating(tmp_path, capfd, no_simulation):
+    before = tree(tmp_path)
+    code = main(["run", "--out", "/proc/netsim-test/out", *SMALL])
+    refused(capfd, code, before, tmp_path, "/proc/netsim-test/out", "cannot be created")
+
+
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="permissions do not bind root")
+def test_out_in_a_read_only_directory_is_refused_before_simulating(tmp_path, capfd, no_simulation):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        before = tree(tmp_path)
+        code = main(["run", "--out", str(ro / "out"), *SMALL])
+        refused(capfd, code, before, tmp_path, "cannot be created")
+    finally:
+        ro.chmod(0o700)
+
+
+def test_claim_dir_removes_what_it_created_when_the_work_fails(tmp_path):
+    with pytest.raises(RuntimeError), claim_dir(tmp_path / "a" / "b" / "c"):
+        raise RuntimeError("the work failed")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failing_run_leaves_no_output_directory(tmp_path, capfd):
+    """A configuration error found only when the run is built (the stationary start draws
+    its own positions) still leaves nothing."""
+    before = tree(tmp_path)
+    code = main(["run", "--out", str(tmp_path / "a" / "out"), *SMALL, "--set", "world.placement=grid"])
+    refused(capfd, code, before, tmp_path, "stationary_start")
+
+
+@pytest.mark.parametrize(
+    "output, words",
+    [("missing_dir/s.tcl", "the directory missing_dir does not exist"), (".", "is a directory")],
+)
+def test_scenario_generate_refuses_an_unwritable_file_before_simulating(tmp_path, capfd, monkeypatch, output, words):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(runmod, "build", lambda *a, **k: pytest.fail("simulated before checking -o"))
+    before = tree(tmp_path)
+    code = main(
+        ["scenario", "generate", "--n", "3", "--side", "100", "--speed-max", "2", "--duration", "5"]
+        + [
+            "-o",
+            output,
+        ]
+    )
+    refused(capfd, code, before, tmp_path, words)
+
+
+# -- a team of one ------------------------------------------------------------------------
+@pytest.mark.parametrize("routing", ["backbone", "oracle"])
+def test_a_team_of_one_robot_runs_and_sends_no_messages(tmp_path, capfd, routing):
+    code = main(
+        ["run", "--quiet", "--out", str(tmp_path / "o"), "--set", "world.n_robots=1"]
+        + [
+            "--set",
+            "duration_s=60",
+            "--set",
+            "protocol.message_rate_hz=5",
+            "--set",
+            f"protocol.routing={routing}",
+        ]
+    )
+    assert code == 0, capfd.readouterr().err
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["messages"] == 0 and summary["robots"] == 1
+    assert pd.read_parquet(tmp_path / "o" / "roles.parquet")["role"].iloc[-1] == "alpha"
+
+
+# -- sweeps: the scheduler and the axes are checked before anything is written -------------
+SWEEP = """
+name = "s"
+[base]
+duration_s = 5.0
+[base.world]
+n_robots = 3
+[grid]
+seed = [1, 2]
+"""
+
+
+@pytest.mark.parametrize(
+    "address, words",
+    [
+        ("notanaddress", "not a scheduler address"),
+        ("tcp://127.0.0.1:1", "no Dask scheduler answered within 0.5 s"),
+    ],
+)
+@pytest.mark.parametrize("out_exists", [False, True])
+def test_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, capfd, address, words, out_exists):
+    (tmp_path / "s.toml").write_text(SWEEP)
+    out = tmp_path / "out"
+    if out_exists:
+        out.mkdir()
+    before = tree(tmp_path)
+    code = main(
+        ["sweep", str(tmp_path / "s.toml"), "--out", str(out), "--scheduler", address]
+        + [
+            "--connect-timeout",
+            "0.5",
+        ]
+    )
+    refused(capfd, code, before, tmp_path, words, address)
+    assert not (out / "sweep.json").exists()
+
+
+def test_scheduler_refusal_from_the_console_script_is_one_line(tmp_path):
+    """As a user sees it: a separate process, its whole standard error."""
+    (tmp_path / "s.toml").write_text(SWEEP)
+    cmd = [sys.executable, "-m", "netsim.cli", "sweep", "s.toml", "--scheduler", "tcp://127.0.0.1:1"]
+    run = subprocess.run(cmd + ["--connect-timeout", "0.5"], cwd=tmp_path, capture_output=True, text=True)
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines() == [
+        "netsim: error: --scheduler tcp://127.0.0.1:1: no Dask scheduler answered within 0.5 s (connect timeout; "
+        "--connect-timeout to change it): Timed out trying to connect to tcp://127.0.0.1:1 after 0.5 s"
+    ]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_bad_sweep_axis_value_writes_nothing(tmp_path, capfd, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.toml").write_text('name = "bad"\n[grid]\n"channel.range_m" = [100.0, -1.0]\n')
+    before = tree(tmp_path)
+    code = main(["sweep", "bad.toml"])
+    refused(capfd, code, before, tmp_path, "channel.range_m = -1.0")
+    assert not (tmp_path / "sweep-out").exists()
+
+
+def test_sweep_refuses_a_directory_that_holds_something_else(tmp_path, capfd):
+    (tmp_path / "s.toml").write_text(SWEEP)
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "notes.txt").write_text("mine")
+    before = tree(tmp_path)
+    code = main(["sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--workers", "1"])
+    refused(capfd, code, before, tmp_path, "holds no sweep", "notes.txt")
+
+
+def test_sweep_results_follow_the_umask(tmp_path):
+    """runs/, tables/ and failed/ are as readable as every other output (not 0600)."""
+    sweep = sweepmod.parse(
+        {
+            "name": "m",
+            "tables": ["links"],
+            "base": {"duration_s": 5.0, "world": {"n_robots": 3}, "output": {"position_interval_s": 0.0}},
+            # The trace run fails (no such file) and is recorded under failed/.
+            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": ["/nonexistent/t.tcl"]},
+        }
+    )
+    old = os.umask(0o022)
+    try:
+        report = sweepmod.run_sweep(sweep, tmp_path / "o", workers=1, progress=False)
+    finally:
+        os.umask(old)
+    assert report.done == 1 and len(report.failed) == 1
+    files = [p for p in (tmp_path / "o").rglob("*") if p.is_file()]
+    kinds = {p.relative_to(tmp_path / "o").parts[0] for p in files}
+    assert kinds == {"runs", "tables", "failed", "sweep.json"}
+    for p in files:
+        assert stat.S_IMODE(p.stat().st_mode) == 0o644, p
+
+
+# -- traces, --set values ----------------------------------------------------------------
+def test_trace_node_beyond_n_robots_is_named(tmp_path, capfd):
+    trace = tmp_path / "t.tcl"
+    trace.write_text("".join(f"$node_({i}) set X_ 1.0\n$node_({i}) set Y_ 2.0\n" for i in (0, 1, 9)))
+    before = tree(tmp_path)
+    code = main(
+        ["run", "--out", str(tmp_path / "o"), "--set", "mobility.model=trace"]
+        + [
+            "--set",
+            f"mobility.trace_file={trace}",
+            "--set",
+            "world.n_robots=2",
+        ]
+    )
+    refused(capfd, code, before, tmp_path, "t.tcl:5: node 9 is beyond world.n_robots = 2")
+
+
+@pytest.mark.parametrize(
+    "value, what",
+    [
+        ("[100.0, 150.0", "list"),
+        ("[100.0, 150.0]]", "list"),
+        ("{min_separation_m = 2", "inline table"),
+        ('"grid', "string"),
+        ("'grid", "string"),
+    ],
+)
+def test_malformed_set_value_is_named_not_taken_as_a_string(tmp_path, capfd, value, what):
+    key = "control.options" if value.startswith("{") else "channel.range_m"
+    before = tree(tmp_path)
+    code = main(["run", "--out", str(tmp_path / "o"), "--set", f"{key}={value}"])
+    refused(capfd, code, before, tmp_path, f"{key} = ", f"is not a valid TOML {what}")
+
+
+def test_bare_words_are_still_strings():
+    assert cfgmod.parse_override("world.placement=grid") == {"world": {"placement": "grid"}}
+    assert cfgmod.parse_override("mobility.model=mymodels:circle") == {"mobility": {"model": "mymodels:circle"}}
+
+
+# -- no stale output -----------------------------------------------------------------------
+COVERAGE_RUN = SMALL + ["--set", "mobility.model=static", "--set", "coverage.enabled=true"]
+
+
+def test_a_run_replaces_the_earlier_run_in_its_directory(tmp_path, capfd):
+    out = tmp_path / "o"
+    assert main(["run", "--quiet", "--out", str(out), *COVERAGE_RUN]) == 0
+    assert {"coverage.parquet", "control.parquet", "travel.parquet"} <= {p.name for p in out.iterdir()}
+    (out / "fig6_initial_deployment.png").write_bytes(b"drawn from the first run")
+    (out / "notes.txt").write_text("the user's own")
+    assert main(["run", "--quiet", "--out", str(out), *SMALL, "--set", "protocol.model=ack"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert not names & {"coverage.parquet", "control.parquet", "travel.parquet", "groups.parquet"}
+    assert "fig6_initial_deployment.png" not in names
+    assert "notes.txt" in names  # not netsim's: left alone
+    assert cfgmod.load(out / "config.toml").protocol.model == "ack"
+    assert not [n for n in names if n.startswith(".")]
+
+
+def test_a_non_empty_directory_that_holds_no_run_is_refused(tmp_path, capfd, no_simulation):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "coverage.parquet").write_bytes(b"not from netsim")
+    before = tree(tmp_path)
+    code = main(["run", "--out", str(out), *SMALL])
+    refused(capfd, code, before, tmp_path, "holds no netsim run", "new or empty directory")
+
+
+def test_figures_of_a_missing_run_directory_create_nothing(tmp_path, capfd, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    before = tree(tmp_path)
+    refused(capfd, main(["figures", "nothere"]), before, tmp_path, "nothere")
+    (tmp_path / "empty").mkdir()
+    before = tree(tmp_path)
+    refused(capfd, main(["figures", "empty", "--out", "figs"]), before, tmp_path, "not a run directory")
+
+
+# -- the printed configuration -------------------------------------------------------------
+def test_printed_configuration_derives_tau_and_merge_delay_from_the_ack_period(tmp_path, capsys):
+    assert main(["config"]) == 0
+    text = capsys.readouterr().out
+    edited = text.replace("\nack_period_s = 1.0\n", "\nack_period_s = 5.0\n")
+    assert edited != text
+    (tmp_path / "c.toml").write_text(edited)
+    c = cfgmod.load(tmp_path / "c.toml")
+    assert (c.protocol.ack_period_s, c.protocol.tau_s, c.protocol.merge_delay_s) == (5.0, 15.0, 10.0)
+    assert cfgmod.load(None, ["protocol.ack_period_s=5"]) == c
+
+
+# -- progress in a log file ----------------------------------------------------------------
+def test_progress_in_a_log_file_is_a_few_plain_lines():
+    log = io.StringIO()  # not a terminal
+    sim = runmod.build(cfgmod.from_dict({"duration_s": 40.0, "world": {"n_robots": 5}}))
+    bar = progress_bar(40.0, "netsim run", "sim s", stream=log)
+    assert isinstance(bar, PlainLines)
+    with bar:
+        for k in range(1, 201):
+            sim.run(until_s=40.0 * k / 200)
+            bar.update(sim.now - bar.n)
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue()
+    assert [line.split(": ")[1].split("%")[0] for line in lines] == ["25", "50", "75", "100"]
+
+
+def test_simulation_progress_goes_to_standard_error_as_lines_when_not_a_terminal(tmp_path):
+    run = subprocess.run(
+        [sys.executable, "-m", "netsim.cli", "run", "--out", "o", *SMALL, "--set", "duration_s=100"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0
+    assert "\r" not in run.stderr
+    assert len(run.stderr.splitlines()) == 4 and run.stderr.splitlines()[-1].startswith("netsim run: 100% (100/100")
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_sweep_bar_redraws_once_per_run(tmp_path, monkeypatch):
+    import netsim.progress
+
+    term = _Terminal()
+    real = netsim.progress.progress_bar
+    # Every refresh drawn (no rate limit), to a terminal: what is left is the calls themselves.
+    monkeypatch.setattr(
+        netsim.progress,
+        "progress_bar",
+        lambda *a, **k: real(*a, **{**k, "stream": term, "mininterval": 0, "miniters": 1}),
+    )
+    sweep = sweepmod.parse(
+        {"name": "bar", "base": {"duration_s": 2.0, "world": {"n_robots": 3}}, "grid": {"seed": [1, 2, 3, 4]}}
+    )
+    sweepmod.run_sweep(sweep, tmp_path / "o", workers=1)
+    draws = term.getvalue().count("\r")
+    assert 4 <= draws <= 4 + 2  # one per run, plus the first and last draw
