@@ -3,10 +3,12 @@ change that must not change behaviour (a refactor, a speed-up, a new model whose
 must reproduce today's runs).
 
 Each scenario is small (30 robots, 60 simulated seconds) and the set covers every mobility
-model, protocol, policy, loss model and controller. For each scenario the script runs it,
-converts every output table to Parquet in memory and records the SHA-256 of its bytes
-(with pandas' metadata: a changed dtype or column order changes the digest too). The run's
-wall time and the package versions are not part of the fingerprint.
+model, placement, protocol, policy, loss model, coverage mode (spread and follow, exact and
+grid area) and controller, and every table (the replay's ``legs`` and ``hops`` included).
+For each scenario the script runs it, converts every output table to Parquet in memory
+and records the SHA-256 of its bytes (with pandas' metadata: a changed dtype or column
+order changes the digest too). The run's wall time and the package versions are not part
+of the fingerprint.
 
     python benchmarks/output_digest.py --write digests.json     # before the change
     python benchmarks/output_digest.py --check digests.json     # after: prints a table
@@ -66,7 +68,16 @@ SCENARIOS: dict[str, list[str]] = {
     "coverage_spring": COVERAGE,
     "coverage_repulsion_global": COVERAGE + ["coverage.law=repulsion", "coverage.knowledge=global"],
     "coverage_inverse_square": COVERAGE + ["coverage.law=inverse_square"],
+    "coverage_grid_area": COVERAGE + ["coverage.area_method=grid", "coverage.grid_cells=100"],
+    "coverage_follow": COVERAGE + ["coverage.members=follow"],
+    "coverage_follow_global": COVERAGE
+    + ["coverage.members=follow", "coverage.knowledge=global", "coverage.law=repulsion"],
     "controllers": COVERAGE + ['control.controllers=["avoid_collisions", "log_separation"]'],
+    "hooks_without_coverage": ['control.controllers=["log_separation"]', "control.options={min_separation_m = 5.0}"],
+    "overtaken_acks": ["channel.latency_jitter_s=1.5", "protocol.tau_s=4", "protocol.message_rate_hz=1"],
+    "placement_centre_rwp": ["mobility.stationary_start=false", "world.placement=centre", "world.centre_side_m=200"],
+    "placement_csv": ["mobility.model=static", "world.placement={csv}"],
+    "no_positions_sampled": ["output.position_interval_s=0"],
 }
 
 
@@ -80,11 +91,21 @@ def _trace_file(directory: Path) -> Path:
     return path
 
 
+def _csv_file(directory: Path) -> Path:
+    path = directory / "placement.csv"
+    if not path.exists():
+        rows = [f"{50.0 + 13.0 * (i % 6) + i:.1f},{40.0 + 11.0 * (i // 6):.1f}" for i in range(30)]
+        path.write_text("x_m,y_m\n" + "\n".join(rows) + "\n")
+    return path
+
+
 def overrides(name: str, directory: Path) -> list[str]:
     out = []
     for text in BASE + SCENARIOS[name]:
         if "{trace}" in text:
             text = text.format(trace=_trace_file(directory))
+        if "{csv}" in text:
+            text = text.format(csv=_csv_file(directory))
         if "{ranges}" in text:
             text = text.format(ranges=", ".join(str(80.0 + 3 * (i % 20)) for i in range(30)))
         out.append(text)
