@@ -63,11 +63,17 @@ def _number(text: str, path, lineno: int, what: str) -> float:
     return v
 
 
+# Without world.n_robots the team is 0 to the highest node the file names: a bound on that
+# number keeps a stray huge one from asking for gigabytes of positions.
+MAX_INFERRED_NODES = 1_000_000
+
+
 def read(path: str | Path, n_robots: int | None = None) -> Scenario:
     """Parse an ns-2 movement file; raise :class:`NetsimInputError` naming the bad line.
 
     With ``n_robots``, a node numbered ``n_robots`` or above is an error naming it (nodes
-    are numbered from 0), rather than a gap in the initial positions."""
+    are numbered from 0), rather than a gap in the initial positions. Without it, the team
+    is 0 to the highest node named, at most :data:`MAX_INFERRED_NODES` nodes."""
     path = Path(path)
     if not path.is_file():
         raise NetsimInputError(f"{str(path)!r}: no such file")
@@ -86,6 +92,11 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
             raise NetsimInputError(
                 f"{path}:{lineno}: node {node} is beyond world.n_robots = {n_robots} "
                 f"(nodes are numbered 0 to {n_robots - 1})"
+            )
+        if n_robots is None and node >= MAX_INFERRED_NODES:
+            raise NetsimInputError(
+                f"{path}:{lineno}: node {node} is beyond the {MAX_INFERRED_NODES:,} nodes a file may name "
+                "when the number of robots is not given"
             )
         return node
 

@@ -290,10 +290,13 @@ def test_fuzz_trace_thoroughly(text, n_robots):
 
 
 def test_a_huge_node_number_is_refused_at_once():
-    """A stray huge node number must not make the parser walk every number below it."""
+    """A stray huge node number must not make the parser walk (or allocate positions for)
+    every number below it: with the team size given, or without it."""
     path = write("huge.tcl", "$node_(0) set X_ 1\n$node_(0) set Y_ 1\n$node_(999999999) set X_ 1\n")
-    with pytest.raises(NetsimInputError, match=r"node\(s\) \[1, 2"):
+    with pytest.raises(NetsimInputError, match=r":3: node 999999999 is beyond the 1,000,000 nodes"):
         ns2.read(path)
+    with pytest.raises(NetsimInputError, match=r":3: node 999999999 is beyond world.n_robots = 2"):
+        ns2.read(path, 2)
 
 
 # -- the placement CSV reader --------------------------------------------------------------
