@@ -25,7 +25,7 @@ import math
 import time
 
 from netsim import config as cfgmod
-from netsim import coverage as metrics
+from netsim import metrics as metrics
 from netsim.control import control_loop
 from netsim.run import build
 

@@ -82,7 +82,7 @@ SCENARIOS: dict[str, list[str]] = {
 
 
 def _trace_file(directory: Path) -> Path:
-    from netsim.cli import main
+    from netsim.tools.cli import main
 
     path = directory / "trace.tcl"
     if not path.exists():

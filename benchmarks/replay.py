@@ -37,7 +37,7 @@ ARGS = [
 
 
 def simulate(n: int, duration: float, out: Path) -> float:
-    from netsim.cli import main
+    from netsim.tools.cli import main
 
     side = 100.0 * math.sqrt(n * math.pi / 10.0)
     start = time.perf_counter()
@@ -116,7 +116,7 @@ def main() -> int:
     p.add_argument("--hide", nargs="*", default=[], choices=["links", "hops"], help="layers to switch off")
     args = p.parse_args()
 
-    from netsim import viewer
+    from netsim.tools import viewer
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.run:

@@ -16,7 +16,7 @@ import argparse
 import tempfile
 import time
 
-from netsim import sweep as sweepmod
+from netsim.tools import sweep as sweepmod
 
 
 def main() -> None:

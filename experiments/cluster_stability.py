@@ -1,7 +1,7 @@
 """Cluster stability against speed and pause: how many leaders, how often roles change,
 how long a leader lasts.
 
-A sweep (``netsim.sweep``) of ``mobility.speed_max_mps`` x ``mobility.pause_s`` for a fixed
+A sweep (``netsim.tools.sweep``) of ``mobility.speed_max_mps`` x ``mobility.pause_s`` for a fixed
 number of robots and range, with replications, writes to ``--out``:
 
 - ``cluster_stability.csv``: per point, each metric's mean, standard deviation and 95 %
@@ -24,7 +24,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from netsim import sweep as sweepmod  # noqa: E402
+from netsim.tools import sweep as sweepmod  # noqa: E402
 
 METRICS = {
     "leaders_time_mean": "leaders (time-weighted mean)",

@@ -1,6 +1,6 @@
 """Connected coverage against the number of robots and the force law.
 
-A sweep (``netsim.sweep``) of ``world.n_robots`` x ``coverage.law``: every run starts from
+A sweep (``netsim.tools.sweep``) of ``world.n_robots`` x ``coverage.law``: every run starts from
 a dense random static deployment in the middle of the area (``world.placement =
 "centre"``, a square of side ``start_spacing x sqrt(N)``, so that the start is equally
 dense, about 20 neighbours per robot, at every N), forms groups, then spreads by virtual
@@ -39,8 +39,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from netsim import coverage as metrics  # noqa: E402
-from netsim import sweep as sweepmod  # noqa: E402
+from netsim import metrics  # noqa: E402
+from netsim.tools import sweep as sweepmod  # noqa: E402
 
 METRICS = [
     "covered_fraction_all_final",

@@ -1,6 +1,6 @@
 """Link lifetime against speed and pause, with censoring handled (Kaplan-Meier).
 
-Two sweeps on ``netsim.sweep``:
+Two sweeps on ``netsim.tools.sweep``:
 
 - random waypoint, maximum speed x pause (speeds uniform on ``[spread v, v]``): mean
   (restricted) and median link lifetime with 95 % confidence intervals;
@@ -27,8 +27,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from netsim import analysis  # noqa: E402
-from netsim import sweep as sweepmod  # noqa: E402
+from netsim.tools import analysis  # noqa: E402
+from netsim.tools import sweep as sweepmod  # noqa: E402
 
 
 def run(name, base, grid, reps, out, args):

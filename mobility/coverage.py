@@ -4,7 +4,7 @@ controller plugin ``coverage``.
 Why the whole team must spread
 ------------------------------
 A connected team of N robots with disks of radius ``r`` covers at most ``U(N) = r^2 (pi +
-1.9132 (N - 1))`` (:func:`netsim.coverage.connected_coverage_bound`): each robot but the
+1.9132 (N - 1))`` (:func:`netsim.metrics.connected_coverage_bound`): each robot but the
 first adds at most a disk minus the lens it must share with a neighbour in range. Dense
 arrangements fall far short of it: a connected hexagonal lattice of all robots (spacing
 ``r``) covers ``0.866 r^2`` per robot, 45 % of the ``1.913 r^2`` the bound allows; leaders
@@ -72,7 +72,7 @@ from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, border_force, border_forces, pair_resultants, resultant
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
-from netsim import coverage as metrics
+from netsim import metrics
 from netsim.control import ControlStep, GroupView, control_loop
 from netsim.errors import ConfigError
 from netsim.state import LEADER, MEMBER

@@ -22,9 +22,7 @@ import numpy as np
 
 from mobility.placement import initial_positions
 from netsim.errors import ConfigError
-
-# Mean distance between two uniform points of the unit square (docs/validation.md item 2).
-MEAN_LEG_UNIT_SQUARE = (2 + math.sqrt(2) + 5 * math.log(1 + math.sqrt(2))) / 15
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE
 
 
 class Start(NamedTuple):

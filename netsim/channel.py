@@ -23,8 +23,8 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 import simpy
-from simpy.events import URGENT
 
+from netsim.events import URGENT, scheduled_event
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
 
@@ -127,11 +127,7 @@ class Channel:
             c.received[receivers] += 1
             deliver(sender, receivers, payload)
 
-        ev = simpy.Event(self.env)
-        ev._ok = True
-        ev._value = None
-        ev.callbacks.append(arrive)
-        self.env.schedule(ev, URGENT, delay)
+        scheduled_event(self.env, delay, URGENT, arrive)
 
     def frame(self, kind: str) -> pd.DataFrame:
         return self.counters_for(kind).frame()

@@ -32,10 +32,6 @@ def _probability(v):
     return None if 0 <= v <= 1 else "must be a probability in [0, 1]"
 
 
-def _probability_below_one(v):
-    return None if 0 <= v < 1 else "must be a probability in [0, 1)"
-
-
 def _one_of(*names: str) -> Check:
     def check(v):
         return None if v in names else "must be one of " + ", ".join(repr(n) for n in names)

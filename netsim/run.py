@@ -16,7 +16,7 @@ import pandas as pd
 from netsim import plugins
 from netsim.config import Config
 from netsim.control import control_loop
-from netsim.links import link_lifetimes
+from netsim.lifetimes import link_lifetimes
 from netsim.sim import Simulation
 from netsim.trace import RoleChange
 from netsim.trajectory import distance_travelled, sample_positions

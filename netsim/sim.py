@@ -34,7 +34,6 @@ class Simulation:
 
     def __init__(self, config: Config, run: int = 0):
         self.config = config
-        self.run_index = int(run)
         self.env = simpy.Environment()
         self.streams = Streams(config.seed, run)
         self.state = RobotState(config.world.n_robots, config.world.side_m, config.ranges_m(), config.world.torus)

@@ -18,7 +18,8 @@ from collections.abc import Callable
 
 import numpy as np
 import simpy
-from simpy.events import NORMAL, URGENT
+
+from netsim.events import NORMAL, URGENT, scheduled_event
 
 
 def urgent_timeout(env: simpy.Environment, delay_s: float) -> simpy.Event:
@@ -27,11 +28,7 @@ def urgent_timeout(env: simpy.Environment, delay_s: float) -> simpy.Event:
     Transmissions use it so that, even with zero latency, an Ack sent at the instant of a
     deadline is sent and delivered before the deadline is looked at.
     """
-    ev = simpy.Event(env)
-    ev._ok = True
-    ev._value = None
-    env.schedule(ev, URGENT, delay_s)
-    return ev
+    return scheduled_event(env, delay_s, URGENT)
 
 
 class DeadlineTimers:
@@ -59,18 +56,11 @@ class DeadlineTimers:
     def cancel(self, idx) -> None:
         self.deadline_s[idx] = np.inf
 
-    def active(self, i: int) -> bool:
-        return bool(np.isfinite(self.deadline_s[i]))
-
     def _arm(self, i: int, at_s: float) -> None:
         self._generation[i] += 1
         self._armed_s[i] = at_s
         gen = int(self._generation[i])
-        ev = simpy.Event(self.env)
-        ev._ok = True
-        ev._value = None
-        ev.callbacks.append(lambda _e, i=i, gen=gen: self._fire(i, gen))
-        self.env.schedule(ev, NORMAL, max(0.0, at_s - self.env.now))
+        scheduled_event(self.env, max(0.0, at_s - self.env.now), NORMAL, lambda _e, i=i, gen=gen: self._fire(i, gen))
 
     def _fire(self, i: int, gen: int) -> None:
         if gen != self._generation[i]:

@@ -1,9 +1,8 @@
 """The run's record: typed tables that become pandas DataFrames once, at the end.
 
-Components append typed records (named tuples) to named tables; whoever wants to react
-to records as they happen subscribes a callback (a trace source, as ns-3's
-``TracedCallback``). Components whose output is a summary rather than a stream of records
-(counters, say) register a function that builds their frame at the end.
+Components append typed records (named tuples) to named tables. Components whose output
+is a summary rather than a stream of records (counters, say) register a function that
+builds their frame at the end.
 """
 
 from __future__ import annotations
@@ -25,7 +24,6 @@ class RoleChange(NamedTuple):
 class Trace:
     def __init__(self):
         self._records: dict[str, tuple[type, list]] = {}
-        self._subscribers: dict[str, list[Callable]] = {}
         self._frame_builders: dict[str, Callable[[], pd.DataFrame]] = {}
 
     def declare(self, name: str, record_type: type) -> None:
@@ -38,19 +36,10 @@ class Trace:
             self.declare(name, type(record))
             rows = self._records[name]
         rows[1].append(record)
-        for fn in self._subscribers.get(name, ()):
-            fn(record)
-
-    def subscribe(self, name: str, fn: Callable) -> None:
-        """Call ``fn(record)`` on every record emitted to ``name``."""
-        self._subscribers.setdefault(name, []).append(fn)
 
     def add_frame(self, name: str, build: Callable[[], pd.DataFrame]) -> None:
         """Register a table computed at the end of the run."""
         self._frame_builders[name] = build
-
-    def records(self, name: str) -> list:
-        return self._records.get(name, (None, []))[1]
 
     def frame(self, name: str) -> pd.DataFrame:
         if name in self._frame_builders:

@@ -41,12 +41,8 @@ class LegTable:
         has[has] &= self.t[nxt[has]] < b
         return has
 
-    def breakpoints(self, i: int, a: float, b: float) -> list[float]:
-        lo = self.cur[i] + 1
-        ts = self.t[lo : self.end[i]]
-        return ts[ts < b].tolist()
-
     def leg_at(self, i: int, t: float) -> int:
+        """Index of robot ``i``'s leg current at ``t``."""
         lo, hi = self.first[i], self.end[i]
         return lo + int(np.searchsorted(self.t[lo:hi], t, "right")) - 1
 

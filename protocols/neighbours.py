@@ -24,13 +24,10 @@ EMPTY = -1
 # listed us in its Acks (the link is known two-way); inf while it does not. ROLE_SINCE:
 # since when the live entry's Acks have continuously told the role they tell now.
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
-ACK_FIELDS = ("seq", "role", "leader", "x_m", "y_m", "group_size", "degree")
 _EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf], dtype=float)
 
 
 class NeighbourTable:
-    FIELDS = ACK_FIELDS
-
     def __init__(self, n: int, tau_s: float, slots: int = 16):
         self.n = n
         self.tau_s = float(tau_s)
@@ -126,10 +123,6 @@ class NeighbourTable:
         """The slot of ``j`` in ``i``'s row, or None."""
         s = np.flatnonzero(self.id[i] == j)
         return int(s[0]) if len(s) else None
-
-    def degree(self, now: float) -> np.ndarray:
-        """Number of live neighbours of every robot."""
-        return self.live_mask(now).sum(axis=1)
 
 
 def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0) -> np.ndarray:

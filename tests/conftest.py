@@ -3,7 +3,7 @@ import pytest
 
 from netsim import config as cfgmod
 from netsim.run import build
-from netsim.validate import rwp_density  # noqa: F401  (used by the tests)
+from netsim.tools.validate import rwp_density  # noqa: F401  (used by the tests)
 
 
 def make_config(**tree):

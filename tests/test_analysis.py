@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.analysis import kaplan_meier, lifetime_summary, link_durations, median, restricted_mean
+from netsim.tools.analysis import kaplan_meier, lifetime_summary, link_durations, median, restricted_mean
 
 
 def test_kaplan_meier_hand_computed_example():

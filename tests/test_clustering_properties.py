@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from netsim.config import from_dict
-from netsim.coverage import components
+from netsim.metrics import components
 from netsim.run import build, collect
 from netsim.sim import Simulation
 from netsim.state import LEADER, MEMBER, UNDECIDED

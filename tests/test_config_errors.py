@@ -8,8 +8,8 @@ import textwrap
 import pytest
 
 from netsim import config as cfgmod
-from netsim.cli import main
 from netsim.errors import ConfigError
+from netsim.tools.cli import main
 
 
 @pytest.mark.parametrize(
@@ -141,7 +141,7 @@ def test_placement_conflicting_with_stationary_start(tmp_path, capsys):
 
 def test_console_script_gives_no_traceback(tmp_path):
     out = subprocess.run(
-        [sys.executable, "-m", "netsim.cli", "run", "--set", "world.n_robots=-1", "--out", str(tmp_path / "o")],
+        [sys.executable, "-m", "netsim.tools.cli", "run", "--set", "world.n_robots=-1", "--out", str(tmp_path / "o")],
         capture_output=True,
         text=True,
     )

@@ -10,8 +10,8 @@ import pytest
 from mobility.bridges import plan_follow
 from mobility.steps import StepLimits
 from netsim import config
-from netsim.coverage import components
 from netsim.errors import ConfigError
+from netsim.metrics import components
 from netsim.run import execute
 from netsim.state import LEADER, MEMBER, UNDECIDED
 
@@ -264,7 +264,7 @@ def test_bad_coverage_configuration_names_the_key(overrides, key):
 
 
 def test_figures_command_runs_the_coverage_scenario_and_draws_three_pngs(tmp_path):
-    from netsim.cli import main
+    from netsim.tools.cli import main
 
     out = tmp_path / "figs"
     code = main(["figures", "--out", str(out), "--no-progress", "--set", "world.n_robots=30", "--set", "duration_s=60"])
@@ -278,7 +278,7 @@ def test_figures_command_runs_the_coverage_scenario_and_draws_three_pngs(tmp_pat
 
 
 def test_figures_of_a_directory_that_is_no_run_is_a_clear_error(tmp_path, capsys):
-    from netsim.cli import main
+    from netsim.tools.cli import main
 
     assert main(["figures", str(tmp_path)]) == 2
     assert "not a run directory" in capsys.readouterr().err

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from netsim.coverage import (
+from netsim.metrics import (
     CONNECTED_AREA_PER_ROBOT,
     KERSHNER_DENSITY,
     LENS_AREA_AT_HEX_SPACING,

@@ -9,7 +9,7 @@ import pytest
 from mobility.spread import pass_on_pulls, plan_spread, spanning_forest
 from mobility.steps import StepLimits
 from netsim import config
-from netsim.coverage import components
+from netsim.metrics import components
 from netsim.run import execute
 from netsim.state import LEADER, MEMBER, UNDECIDED
 from netsim.topology import geometric_pairs

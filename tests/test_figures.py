@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from netsim import style
-from netsim.cli import main
+from netsim.tools import style
+from netsim.tools.cli import main
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -22,9 +22,9 @@ from hypothesis import strategies as st
 from mobility import placement
 from netsim import config as cfgmod
 from netsim import ns2
-from netsim import sweep as sweepmod
 from netsim.config import Config
 from netsim.errors import NetsimInputError
+from netsim.tools import sweep as sweepmod
 
 QUICK = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 THOROUGH = settings(max_examples=800, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -6,11 +6,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.links import link_lifetimes
+from netsim.lifetimes import link_lifetimes
 from netsim.run import build, collect
 from netsim.state import RobotState
+from netsim.tools.validate import brute_force_mismatches, random_legs
 from netsim.topology import geometric_edges, snapshot
-from netsim.validate import brute_force_mismatches, random_legs
 from tests.conftest import make_config
 
 

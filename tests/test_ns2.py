@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from netsim import ns2
-from netsim.cli import main
 from netsim.errors import NetsimInputError
 from netsim.run import build
+from netsim.tools.cli import main
 from netsim.trajectory import sample_positions
 from tests.conftest import make_config
 

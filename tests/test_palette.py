@@ -1,6 +1,6 @@
 """The colours and symbols the figures and the replay share."""
 
-from netsim import palette
+from netsim.tools import palette
 
 
 def test_group_colours_are_matplotlibs_tab20():

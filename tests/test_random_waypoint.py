@@ -6,11 +6,12 @@ import warnings
 import numpy as np
 import pytest
 
-from mobility.random_waypoint import MEAN_LEG_UNIT_SQUARE, paused_fraction, stationary_start
+from mobility.random_waypoint import paused_fraction, stationary_start
 from netsim.errors import ConfigError
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE
 from netsim.run import build
+from netsim.tools.validate import completed_leg_lengths
 from netsim.trajectory import sample_positions
-from netsim.validate import completed_leg_lengths
 from tests.conftest import make_config, rwp_density
 
 

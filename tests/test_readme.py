@@ -32,9 +32,9 @@ from pathlib import Path
 import pytest
 
 from netsim import config as cfgmod
-from netsim import sweep as sweepmod
-from netsim import validate
-from netsim.cli import main, parser
+from netsim.tools import sweep as sweepmod
+from netsim.tools import validate
+from netsim.tools.cli import main, parser
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()

@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim import palette, viewer
-from netsim.cli import main
+from netsim.tools import palette, viewer
+from netsim.tools.cli import main
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [

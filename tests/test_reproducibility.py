@@ -4,7 +4,7 @@ import json
 
 import pandas as pd
 
-from netsim.cli import main
+from netsim.tools.cli import main
 
 SMALL = ["--set", "world.n_robots=25", "--set", "duration_s=60", "--set", "channel.loss_probability=0.1", "--quiet"]
 

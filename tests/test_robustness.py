@@ -19,10 +19,10 @@ import pytest
 
 from netsim import config as cfgmod
 from netsim import run as runmod
-from netsim import sweep as sweepmod
-from netsim.cli import main
-from netsim.output import claim_dir
 from netsim.progress import PlainLines, progress_bar
+from netsim.tools import sweep as sweepmod
+from netsim.tools.cli import main
+from netsim.tools.output import claim_dir
 
 SMALL = ["--set", "world.n_robots=5", "--set", "duration_s=5", "--set", "world.side_m=200"]
 
@@ -207,7 +207,7 @@ def test_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, capfd, a
 def test_scheduler_refusal_from_the_console_script_is_one_line(tmp_path):
     """As a user sees it: a separate process, its whole standard error."""
     (tmp_path / "s.toml").write_text(SWEEP)
-    cmd = [sys.executable, "-m", "netsim.cli", "sweep", "s.toml", "--scheduler", "tcp://127.0.0.1:1"]
+    cmd = [sys.executable, "-m", "netsim.tools.cli", "sweep", "s.toml", "--scheduler", "tcp://127.0.0.1:1"]
     run = subprocess.run(cmd + ["--connect-timeout", "0.5"], cwd=tmp_path, capture_output=True, text=True)
     assert run.returncode == 2
     assert run.stderr.strip().splitlines() == [
@@ -364,7 +364,7 @@ def test_progress_in_a_log_file_is_a_few_plain_lines():
 
 def test_simulation_progress_goes_to_standard_error_as_lines_when_not_a_terminal(tmp_path):
     run = subprocess.run(
-        [sys.executable, "-m", "netsim.cli", "run", "--out", "o", *SMALL, "--set", "duration_s=100"],
+        [sys.executable, "-m", "netsim.tools.cli", "run", "--out", "o", *SMALL, "--set", "duration_s=100"],
         cwd=tmp_path,
         capture_output=True,
         text=True,

@@ -12,8 +12,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from netsim import sweep as sweepmod
 from netsim.errors import NetsimInputError
+from netsim.tools import sweep as sweepmod
 
 BASE = {
     "duration_s": 20.0,
@@ -207,7 +207,7 @@ def test_bad_sweep_files(tree, words):
 
 
 def test_cli_bad_sweep_file_exits_2(tmp_path, capsys):
-    from netsim.cli import main
+    from netsim.tools.cli import main
 
     f = tmp_path / "s.toml"
     f.write_text("[grid]\nnot_a_key = [1]\n")

@@ -2,8 +2,8 @@
 
 import numpy as np
 import simpy
-from simpy.events import URGENT
 
+from netsim.events import URGENT, scheduled_event
 from netsim.timers import DeadlineTimers
 
 
@@ -64,9 +64,6 @@ def test_message_at_the_deadline_instant_counts():
     fired = []
     timers = DeadlineTimers(env, 1, lambda i, now: fired.append(now))
     timers.restart(0, 3.0)
-    ev = simpy.Event(env)
-    ev._ok, ev._value = True, None
-    ev.callbacks.append(lambda _e: timers.restart(0, env.now + 3.0))
-    env.schedule(ev, URGENT, 3.0)
+    scheduled_event(env, 3.0, URGENT, lambda _e: timers.restart(0, env.now + 3.0))
     env.run(until=10)
     assert fired == [6.0]

@@ -2,9 +2,9 @@
 
 import pytest
 
-from netsim import validate
-from netsim.analysis import expected_acks_until_spurious_timeout, spurious_timeout_window
-from netsim.cli import main
+from netsim.tools import validate
+from netsim.tools.analysis import expected_acks_until_spurious_timeout, spurious_timeout_window
+from netsim.tools.cli import main
 
 
 def test_exit_status_follows_the_checks(monkeypatch, capsys):

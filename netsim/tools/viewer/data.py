@@ -34,8 +34,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from netsim import config as cfgmod
-from netsim import palette
 from netsim.errors import NetsimInputError
+from netsim.tools import palette
 
 ROLE_CODES = {"gamma": 0, "beta": 1, "alpha": 2}
 # Points of the sampled chart series (components of the network).

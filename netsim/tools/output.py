@@ -32,8 +32,6 @@ import tomli_w
 from netsim.config import Config, to_dict
 from netsim.errors import NetsimInputError
 
-TABLES = ("positions", "links", "acks", "roles")
-
 
 def versions() -> dict[str, str]:
     out = {"python": platform.python_version()}

@@ -1,4 +1,4 @@
-// netsim replay: draws a run at the cursor from the arrays packed by netsim/viewer/data.py.
+// netsim replay: draws a run at the cursor from the arrays packed by netsim/tools/viewer/data.py.
 // Per frame the work is O(N + links up + changes since the last frame): positions come
 // from each robot's current leg, roles and links from sweeps over their change events.
 "use strict";

@@ -136,7 +136,7 @@ def lifetime_summary(links: pd.DataFrame, level: float = 0.95) -> dict:
 
 def compare_lifetimes(runs: pd.DataFrame, links: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     """Lifetime summary per parameter combination across a sweep: ``runs`` is
-    :func:`netsim.sweep.load`, ``links`` is :func:`netsim.sweep.load_table` of ``links``;
+    :func:`netsim.tools.sweep.load`, ``links`` is :func:`netsim.tools.sweep.load_table` of ``links``;
     replications are pooled."""
     joined = links.merge(runs[["run_id", *by]], on="run_id")
     rows = []

@@ -25,6 +25,9 @@ from scipy.spatial import cKDTree
 
 from netsim.topology import geometric_pairs
 
+# Mean distance between two uniform points of the unit square (docs/validation.md item 2):
+# the mean leg of random waypoint on a square of side a is this times a.
+MEAN_LEG_UNIT_SQUARE = (2 + math.sqrt(2) + 5 * math.log(1 + math.sqrt(2))) / 15
 # Kershner (1939): the least density of a covering of the plane by equal disks, reached
 # by centres on a triangular lattice of spacing sqrt(3) r.
 KERSHNER_DENSITY = 2 * math.pi / (3 * math.sqrt(3))

@@ -54,8 +54,8 @@ def summary_table(summary: dict) -> str:
 
 
 def cmd_run(args) -> int:
-    from netsim.output import claim_dir, manifest, write_run
     from netsim.run import execute
+    from netsim.tools.output import claim_dir, manifest, write_run
 
     overrides = list(args.set or [])
     if args.seed is not None:
@@ -65,7 +65,7 @@ def cmd_run(args) -> int:
         result = execute(config, progress=not args.quiet and not args.no_progress)
         written = write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
         if args.view:
-            from netsim import viewer
+            from netsim.tools import viewer
 
             written.append(viewer.write(out))
     if not args.quiet:
@@ -132,7 +132,7 @@ def check_out_file(path: Path, option: str) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from netsim import sweep as sweepmod
+    from netsim.tools import sweep as sweepmod
 
     sweep = sweepmod.load_file(args.sweep)
     if args.workers is not None and args.workers < 1:
@@ -150,12 +150,12 @@ def cmd_sweep(args) -> int:
         connect_timeout_s=args.connect_timeout or sweepmod.CONNECT_TIMEOUT_S,
     )
     print(report.text())
-    print(f"results: {out}/ (load with netsim.sweep.load({str(out)!r}))")
+    print(f"results: {out}/ (load with netsim.tools.sweep.load({str(out)!r}))")
     return 1 if report.failed else 0
 
 
 def cmd_validate(args) -> int:
-    from netsim import validate
+    from netsim.tools import validate
 
     results = validate.run_all(progress=not args.no_progress)
     print(validate.table(results))
@@ -165,9 +165,9 @@ def cmd_validate(args) -> int:
 
 
 def cmd_figures(args) -> int:
-    from netsim import figures
-    from netsim.output import claim_dir, is_run_dir, manifest, write_run
     from netsim.run import execute
+    from netsim.tools import figures
+    from netsim.tools.output import claim_dir, is_run_dir, manifest, write_run
 
     if args.run_dir:
         if args.config or args.set:
@@ -197,7 +197,7 @@ def cmd_figures(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from netsim import viewer
+    from netsim.tools import viewer
 
     path = viewer.write(args.run_dir, args.out)
     print(f"wrote {path} ({path.stat().st_size / 2**20:.2f} MiB): open it in a browser")

@@ -11,7 +11,7 @@
   and the covered fraction of the area (exact) beside the most a connected team can
   cover, ``min(1, U(N) / A)``.
 
-Colours and markers come from :mod:`netsim.style`; groups that could touch never share a
+Colours and markers come from :mod:`netsim.tools.style`; groups that could touch never share a
 colour. Legends sit outside the axes. When a figure cannot show something (no groups yet,
 no coverage disks, nobody moved) :func:`draw` says so in a note beside the file, and the
 figure shows what there is.
@@ -31,9 +31,9 @@ import numpy as np
 import pandas as pd
 
 from netsim import config as cfgmod
-from netsim import coverage as metrics
-from netsim import style
+from netsim import metrics
 from netsim.errors import NetsimInputError
+from netsim.tools import style
 from netsim.topology import geometric_pairs
 
 # The built-in coverage scenario: a dense random start in the middle of the area, as the

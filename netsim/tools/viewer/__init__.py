@@ -17,13 +17,13 @@ import tempfile
 from importlib import resources
 from pathlib import Path
 
-from netsim.viewer.data import MapGrid, pack
+from netsim.tools.viewer.data import MapGrid, pack
 
 __all__ = ["MapGrid", "page", "write"]
 
 
 def _asset(name: str) -> str:
-    return resources.files("netsim.viewer").joinpath("assets", name).read_text(encoding="utf-8")
+    return resources.files("netsim.tools.viewer").joinpath("assets", name).read_text(encoding="utf-8")
 
 
 def _script_safe(text: str) -> str:

@@ -17,13 +17,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from netsim import analysis
 from netsim.config import from_dict
-from netsim.links import link_lifetimes
+from netsim.lifetimes import link_lifetimes
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE
 from netsim.run import build, collect, distance_travelled
+from netsim.tools import analysis
 from netsim.topology import geometric_pairs
-
-MEAN_LEG_UNIT_SQUARE = (2 + math.sqrt(2) + 5 * math.log(1 + math.sqrt(2))) / 15
 
 
 @dataclass
@@ -255,7 +254,7 @@ def check_exact_links() -> list[Check]:
     """Item 7 on random trajectories, against brute force: plain, with jumps (sampled also
     just before and after every jump), and on the smallest torus allowed (side just above
     twice the range, where other images come into range within a piece)."""
-    from netsim.links import jump_times
+    from netsim.lifetimes import jump_times
     from netsim.trajectory import LegTable
 
     out = []

@@ -342,8 +342,8 @@ def run_sweep(
     ``scheduler`` is the address of a running Dask scheduler or a ``distributed.Client``.
     Everything that can be checked is checked before anything is written: the runs, the
     output directory, the scheduler."""
-    from netsim.output import claim_dir
     from netsim.progress import progress_bar
+    from netsim.tools.output import claim_dir
 
     runs = sweep.runs()
     ids = [r.run_id for r in runs]
