@@ -27,7 +27,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree
 
 from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
-from netsim.state import LEADER, MEMBER
+from netsim.groups import in_a_group, leads_itself
 from netsim.topology import geometric_pairs
 
 # Weights of the candidate bridges: any gateway is preferred to any member-to-member link.
@@ -49,14 +49,16 @@ class Bridges(NamedTuple):
     count: int  # bridges kept
 
 
-def groups_of(pos: np.ndarray, role: np.ndarray, leader: np.ndarray, range_m: float) -> Groups:
-    """Each robot's group: a leader's own id; a member's leader if in range of it; anyone
-    else (undecided, or a member cut off from its leader) a group of its own."""
+def groups_of(pos: np.ndarray, leader: np.ndarray, range_m: float) -> Groups:
+    """Each robot's group, from each robot's leader (:mod:`netsim.groups`): a leader's own
+    id; a member's leader if in range of it; anyone else (undecided, or a member cut off
+    from its leader) a group of its own."""
     ids = np.arange(len(pos))
-    is_leader = role == LEADER
-    lead = np.where((role == MEMBER) & (leader >= 0), leader, ids)
+    is_leader = leads_itself(leader)
+    member = in_a_group(leader)
+    lead = np.where(member, leader, ids)
     to_leader = np.hypot(*(pos - pos[lead]).T)
-    follows = (role == MEMBER) & (leader >= 0) & is_leader[lead] & (to_leader <= range_m)
+    follows = member & is_leader[lead] & (to_leader <= range_m)
     return Groups(np.where(follows, lead, ids), is_leader, follows)
 
 
@@ -156,9 +158,7 @@ def gateway_steps(pos: np.ndarray, move: np.ndarray, gw: np.ndarray, br: Bridges
     return want * sg[gw, None]
 
 
-def plan_follow(
-    pos: np.ndarray, role: np.ndarray, leader: np.ndarray, desired_mps: np.ndarray, limits: StepLimits
-) -> Plan:
+def plan_follow(pos: np.ndarray, leader: np.ndarray, desired_mps: np.ndarray, limits: StepLimits) -> Plan:
     """Velocities for one control step that keep every bridge between groups (module notes).
 
     ``desired_mps`` holds the leaders' wished velocities (other rows are ignored). The
@@ -167,7 +167,7 @@ def plan_follow(
     leaders they bridge; undecided robots not at all.
     """
     n = len(pos)
-    g = groups_of(pos, role, leader, limits.range_m)
+    g = groups_of(pos, leader, limits.range_m)
     br = bridges_to_keep(pos, g, limits.range_m)
     mobile = g.is_leader | g.follows
     pinned = ~mobile

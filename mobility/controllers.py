@@ -1,8 +1,9 @@
 """Two example controllers for the control loop (:mod:`netsim.control`), one of each kind.
 
-A controller plugin is a factory ``factory(sim) -> controller``; the controller is called
-once per control step with a :class:`~netsim.control.ControlStep`. Name them in the
-configuration::
+A controller plugin builds a controller (``build(params, parts) -> controller``); the
+controller is called once per control step with a :class:`~netsim.control.ControlStep`.
+These two have no parameters of their own and read ``[control.options]``. Name them in
+the configuration::
 
     [control]
     controllers = ["avoid_collisions", "log_separation"]   # or "mypackage.mymodule:factory"
@@ -17,13 +18,15 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from netsim.control import ControlStep
+from netsim.params import NoParams
+from netsim.plugins import Parts, PluginSpec
 
 
 def _min_separation_m(step: ControlStep) -> float:
     return float(step.options.get("min_separation_m", 1.0))
 
 
-def avoid_collisions(sim):
+def avoid_collisions(params: NoParams, parts: Parts):
     """A simple collision avoidance: a robot whose planned step would end within
     ``min_separation_m`` of where another robot's step ends holds its position instead.
 
@@ -48,7 +51,7 @@ def avoid_collisions(sim):
     return controller
 
 
-def log_separation(sim):
+def log_separation(params: NoParams, parts: Parts):
     """A logging hook: records, at every control step, the smallest distance between two
     robots and how many pairs are closer than ``min_separation_m``, in a table
     ``separation`` (``separation.parquet``)."""
@@ -64,3 +67,11 @@ def log_separation(sim):
         )
 
     return hook
+
+
+AVOID_COLLISIONS = PluginSpec(Params=NoParams, build=avoid_collisions)
+LOG_SEPARATION = PluginSpec(
+    Params=NoParams,
+    build=log_separation,
+    tables={"separation": {"t_s": "float64", "min_distance_m": "float64", "pairs_closer_than_min": "int64"}},
+)

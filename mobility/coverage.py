@@ -62,6 +62,9 @@ distributed minimum spanning tree algorithm and exchange the kept links in the A
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import StrEnum
 from typing import NamedTuple
 
 import numpy as np
@@ -69,15 +72,107 @@ import pandas as pd
 from scipy.spatial import cKDTree
 
 from mobility.bridges import plan_follow
-from mobility.forces import LAWS, SQRT3, border_force, border_forces, pair_resultants, resultant
+from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
-from netsim.control import ControlStep, GroupView, control_loop
+from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
-from netsim.state import LEADER, MEMBER
+from netsim.groups import GroupView, in_a_group, leads_itself
+from netsim.params import Params, non_negative, param, positive
+from netsim.plugins import Parts, PluginSpec
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
+
+
+class Members(StrEnum):
+    """How members move: spread (pushed apart, every robot) or follow (the paper's)."""
+
+    SPREAD = "spread"
+    FOLLOW = "follow"
+
+
+class Knowledge(StrEnum):
+    """Where the positions the forces use come from."""
+
+    ACKS = "acks"
+    GLOBAL = "global"
+
+
+class AreaMethod(StrEnum):
+    """How the covered fraction is computed over time."""
+
+    EXACT = "exact"
+    GRID = "grid"
+
+
+@dataclass(frozen=True)
+class CoverageParams(Params):
+    """The coverage controller's section, ``[coverage]`` (it also sets the control loop's
+    period and first step, for every controller)."""
+
+    section = "coverage"
+    enabled: bool = param(False, None, "the team spreads out by virtual forces (needs mobility.model = 'static')")
+    members: Members = param(
+        Members.SPREAD,
+        None,
+        "'spread': every robot is pushed apart, a spanning forest kept; 'follow': members follow their leader",
+    )
+    law: Law = param(Law.SPRING, None, "force law between neighbouring leaders")
+    knowledge: Knowledge = param(Knowledge.ACKS, None, "leaders' positions: as heard in Acks (stale), or the true ones")
+    control_period_s: float = param(1.0, positive, "time between control steps, s (also for control.controllers)")
+    start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
+    gain: float = param(0.1, positive, "a leader's velocity is gain x resultant force, 1/s (forces in metres)")
+    speed_max_mps: float = param(2.0, positive, "speed cap of every controlled robot, m/s")
+    margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")
+    stop_speed_mps: float = param(0.02, non_negative, "a leader whose force asks for less than this holds, m/s")
+    stop_hold_s: float = param(20.0, positive, "control ends once every leader has held this long, s")
+    stop_gain: float = param(
+        0.002, non_negative, "spread: control ends once coverage gains less than this in stop_hold_s (0: off)"
+    )
+    radius_m: float = param(0.0, non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
+    metrics_interval_s: float = param(5.0, positive, "coverage metrics sampling interval, s")
+    area_method: AreaMethod = param(
+        AreaMethod.EXACT, None, "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"
+    )
+    grid_cells: int = param(200, positive, "area_method = 'grid': grid cells per side (error bound reported)")
+
+    def check(self) -> None:
+        if self.enabled and self.members is Members.SPREAD and self.metrics_interval_s > self.stop_hold_s:
+            raise ConfigError(
+                "coverage.metrics_interval_s",
+                self.metrics_interval_s,
+                f"must not exceed coverage.stop_hold_s = {self.stop_hold_s} (the stopping rule compares samples)",
+            )
+
+
+def check(params: CoverageParams, config) -> None:
+    """The rules that tie ``[coverage]`` to the other sections."""
+    ch = config.channel
+    lead = ch.latency_s + ch.latency_jitter_s
+    if (params.enabled or config.control.controllers) and not params.control_period_s > lead:
+        raise ConfigError(
+            "coverage.control_period_s",
+            params.control_period_s,
+            f"must exceed the channel's largest delay (latency_s + latency_jitter_s = {lead})",
+        )
+    if not params.enabled:
+        return
+    if config.mobility.plugin.moves_robots:
+        raise ConfigError(
+            "coverage.enabled",
+            True,
+            f"needs mobility.model = 'static' (the controller moves the robots), not {config.mobility.model!r}",
+        )
+    if config.world.torus:
+        raise ConfigError("coverage.enabled", True, "is for a bounded area; set world.torus = false")
+    if not config.protocol.plugin.forms_groups:
+        raise ConfigError(
+            "coverage.enabled",
+            True,
+            f"needs a protocol that forms groups (protocol.model = 'clustering'), not {config.protocol.model!r}",
+        )
+
 
 # -- what the leaders wish ----------------------------------------------------------------
 
@@ -106,13 +201,6 @@ def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> lis
     lp = pos[leaders]
     tree = cKDTree(lp)
     return [lp[[j for j in js if j != k]] for k, js in enumerate(tree.query_ball_point(lp, 2 * range_m))]
-
-
-def group_of(role: np.ndarray, leader: np.ndarray) -> np.ndarray:
-    """The leader whose decisions each robot carries out: its own id for a leader, its
-    leader's for a member, -1 for anyone else."""
-    ids = np.arange(len(role))
-    return np.where(role == LEADER, ids, np.where((role == MEMBER) & (leader >= 0), leader, -1))
 
 
 def sources_true(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -145,13 +233,19 @@ class StepRecord(NamedTuple):
 
 
 class CoverageController:
-    """The coverage controller of one run: proposes, then secures, each control step."""
+    """The coverage controller of one run: proposes, then secures, each control step.
 
-    def __init__(self, sim, view: GroupView | None):
-        self.sim = sim
-        self.view = view
-        self.cfg = sim.config.coverage
-        st = sim.state
+    It works with the run's robots, channel (commands), control loop (``parts.control``)
+    and the protocol's view of the groups (``parts.groups``)."""
+
+    def __init__(self, params: CoverageParams, parts: Parts):
+        if parts.control is None or parts.groups is None:
+            raise ValueError("the coverage controller needs the control loop and the protocol's groups")
+        self.env, self.state, self.channel = parts.env, parts.state, parts.channel
+        self.loop: ControlLoop = parts.control
+        self.view: GroupView = parts.groups
+        self.cfg = params
+        st = parts.state
         self.range_m = float(np.min(st.range_m))
         self.radius_m = self.cfg.radius_m or self.range_m
         self.limits = StepLimits(
@@ -174,16 +268,16 @@ class CoverageController:
     # -- the two stages of a step --------------------------------------------------
     def propose(self, step: ControlStep) -> None:
         """Order 0: the wished velocities from the forces the leaders know of."""
-        if self.cfg.members == "follow":
+        if self.cfg.members is Members.FOLLOW:
             self._propose_follow(step)
         else:
             self._propose_spread(step)
 
     def _propose_follow(self, step: ControlStep) -> None:
-        now = self.sim.env.now
-        leaders = np.flatnonzero(step.role == LEADER)
-        pos_now = self.sim.state.positions_at(now)
-        if self.cfg.knowledge == "global" or self.view is None:
+        now = self.env.now
+        leaders = np.flatnonzero(leads_itself(step.leader))
+        pos_now = self.state.positions_at(now)
+        if self.cfg.knowledge is Knowledge.GLOBAL:
             neighbours = true_neighbours(pos_now, leaders, self.range_m) if len(leaders) else []
         else:
             neighbours = [self.view.heard_leaders(i, now)[1] for i in leaders.tolist()]
@@ -198,15 +292,16 @@ class CoverageController:
         self.quiet_since[leaders] = np.where(quiet, np.where(np.isnan(qs), now, qs), np.nan)
         if len(leaders) and quiet.all() and now - np.nanmax(self.quiet_since[leaders]) >= self.cfg.stop_hold_s:
             self.settled_s = now
-            control_loop(self.sim).stop()
+            self.loop.stop()
         self._max_wish = float(speed.max()) if len(speed) else 0.0
 
     def _propose_spread(self, step: ControlStep) -> None:
-        now = self.sim.env.now
+        now = self.env.now
         c = self.cfg
-        pos_now = self.sim.state.positions_at(now)
-        group = group_of(step.role, step.leader)
-        if c.knowledge == "global" or self.view is None:
+        pos_now = self.state.positions_at(now)
+        # The leader whose decisions each robot carries out (-1: none).
+        group = step.leader
+        if c.knowledge is Knowledge.GLOBAL:
             target, source_xy = sources_true(pos_now, self.range_m)
         else:
             target, _, source_xy = self.view.neighbourhood(now)
@@ -219,27 +314,27 @@ class CoverageController:
 
     def secure(self, step: ControlStep) -> None:
         """Order 100: make the plan keep the network connected; leaders send their commands."""
-        if self.cfg.members == "follow":
-            plan = plan_follow(step.positions_m, step.role, step.leader, step.velocity_mps, self.limits)
+        if self.cfg.members is Members.FOLLOW:
+            plan = plan_follow(step.positions_m, step.leader, step.velocity_mps, self.limits)
         else:
             plan = self._plan_spread(step)
         step.velocity_mps[:] = plan.velocity_mps
         self.commander = plan.commander
         self.got_command[:] = False
         for leader in np.unique(plan.commander[plan.commander >= 0]).tolist():
-            self.sim.channel.broadcast(leader, step.t_s, self._deliver, kind="command")
+            self.channel.broadcast(leader, step.t_s, self._deliver, kind="command")
         self._record(step, plan)
-        if self.cfg.members == "spread":
+        if self.cfg.members is Members.SPREAD:
             self._stopping_rule(plan)
 
     def _plan_spread(self, step: ControlStep) -> Plan:
         """Leaders move; a member moves if it can hear its leader's command now."""
-        role, leader = step.role, step.leader
-        pos_now = self.sim.state.positions_at(self.sim.env.now)
-        is_leader = role == LEADER
-        member = (role == MEMBER) & (leader >= 0)
+        leader = step.leader
+        pos_now = self.state.positions_at(self.env.now)
+        is_leader = leads_itself(leader)
+        member = in_a_group(leader)
         lead = np.where(member, leader, 0)
-        reach = np.hypot(*(pos_now - pos_now[lead]).T) <= self.sim.state.range_m[lead]
+        reach = np.hypot(*(pos_now - pos_now[lead]).T) <= self.state.range_m[lead]
         commandable = member & is_leader[lead] & reach
         mobile = is_leader | commandable
         commander_of = np.where(commandable, leader, -1)
@@ -247,7 +342,7 @@ class CoverageController:
 
     def _stopping_rule(self, plan: Plan) -> None:
         """Control ends once no robot has moved faster than ``stop_speed_mps`` for ``stop_hold_s``."""
-        now = self.sim.env.now
+        now = self.env.now
         if np.hypot(*plan.velocity_mps.T).max(initial=0.0) >= self.cfg.stop_speed_mps:
             self.all_quiet_since = math.nan
             return
@@ -255,11 +350,11 @@ class CoverageController:
             self.all_quiet_since = now
         if now - self.all_quiet_since >= self.cfg.stop_hold_s:
             self.settled_s = now
-            control_loop(self.sim).stop()
+            self.loop.stop()
 
     def _record(self, step: ControlStep, plan: Plan) -> None:
         comps = metrics.components(step.positions_m, self.range_m)
-        leaders = step.role == LEADER
+        leaders = leads_itself(step.leader)
         moving = np.hypot(*plan.velocity_mps.T) > 0
         self.steps.append(
             StepRecord(
@@ -291,14 +386,14 @@ class CoverageController:
         self.odo_t_s = t
 
     def _covered(self, centres: np.ndarray) -> tuple[float, float]:
-        if self.cfg.area_method == "grid":
+        if self.cfg.area_method is AreaMethod.GRID:
             return metrics.covered_fraction(centres, self.radius_m, self.limits.side_m, self.cfg.grid_cells)
         return metrics.covered_fraction_exact(centres, self.radius_m, self.limits.side_m)
 
     def sample(self, t: float) -> dict:
-        st = self.sim.state
+        st = self.state
         pos = st.positions_at(t)
-        leaders = pos[st.role == LEADER]
+        leaders = pos[leads_itself(self.view.leader)]
         cov_l, err_l = self._covered(leaders)
         cov_a, err_a = self._covered(pos)
         bound = metrics.bound_fraction(st.n, self.radius_m, st.side_m, self.range_m)
@@ -324,18 +419,18 @@ class CoverageController:
         }
 
     def sampler(self):
-        env = self.sim.env
+        env = self.env
         while True:
             self.samples.append(self.sample(env.now))
-            if self.cfg.members == "spread":
+            if self.cfg.members is Members.SPREAD:
                 self._coverage_stopping_rule()
             yield env.timeout(self.cfg.metrics_interval_s)
 
     def _coverage_stopping_rule(self) -> None:
         """Spread: control ends once the covered fraction of ``min(1, U(N) / A)`` has not
         risen ``stop_gain`` above its value ``stop_hold_s`` ago (the team stopped spreading)."""
-        c, now = self.cfg, self.sim.env.now
-        loop = control_loop(self.sim)
+        c, now = self.cfg, self.env.now
+        loop = self.loop
         if loop.stopped or c.stop_gain <= 0 or now < c.start_s + c.stop_hold_s - 1e-9:
             return
         window = [s["covered_of_bound_all"] for s in self.samples if s["t_s"] >= now - c.stop_hold_s - 1e-9]
@@ -349,21 +444,21 @@ class CoverageController:
 
     def travel_frame(self) -> pd.DataFrame:
         """Distance each robot travelled over the run (the energy it spent moving)."""
-        st = self.sim.state
-        return pd.DataFrame({"robot": np.arange(st.n), "distance_m": distance_travelled(st.legs(), self.sim.env.now)})
+        st = self.state
+        return pd.DataFrame({"robot": np.arange(st.n), "distance_m": distance_travelled(st.legs(), self.env.now)})
 
     def control_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.steps, columns=list(StepRecord._fields))
 
-    def summary(self, frames: dict[str, pd.DataFrame], duration_s: float) -> dict:
+    def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         last = self.sample(duration_s)
         steps = self.control_frame()
         start = self.sample_at_start
         travel = frames["travel"]["distance_m"] if "travel" in frames else pd.Series(dtype=float)
         return {
-            "coverage_law": self.cfg.law,
-            "coverage_knowledge": self.cfg.knowledge,
-            "coverage_members": self.cfg.members,
+            "coverage_law": str(self.cfg.law),
+            "coverage_knowledge": str(self.cfg.knowledge),
+            "coverage_members": str(self.cfg.members),
             "leaders_final": last["leaders"],
             "covered_fraction_leaders_start": start["covered_fraction_leaders"] if start else math.nan,
             "covered_fraction_leaders_final": last["covered_fraction_leaders"],
@@ -386,29 +481,52 @@ class CoverageController:
         }
 
     def _mark_start(self):
-        yield self.sim.env.timeout(self.cfg.start_s)
-        self.sample_at_start = self.sample(self.sim.env.now)
+        yield self.env.timeout(self.cfg.start_s)
+        self.sample_at_start = self.sample(self.env.now)
 
 
-def install(sim) -> CoverageController:
-    """The ``coverage`` controller plugin: wires the protocol's view into the control loop."""
-    view = sim.models.get("protocol")
-    wants = "heard_leaders" if sim.config.coverage.members == "follow" else "neighbourhood"
-    if sim.config.coverage.knowledge == "acks" and not callable(getattr(view, wants, None)):
-        raise ConfigError(
-            "coverage.knowledge",
-            "acks",
-            f"needs a protocol that tells what the leaders heard (protocol.model = 'clustering'), "
-            f"not {sim.config.protocol.model!r}",
-        )
-    ctl = CoverageController(sim, view)
-    loop = control_loop(sim)
-    loop.add(ctl.propose, order=0)
-    loop.add(ctl.secure, order=100)
-    loop.before_apply.append(ctl.obey)
-    sim.env.process(ctl.sampler())
-    sim.env.process(ctl._mark_start())
-    sim.trace.add_frame("coverage", ctl.coverage_frame)
-    sim.trace.add_frame("control", ctl.control_frame)
-    sim.trace.add_frame("travel", ctl.travel_frame)
+def build(params: CoverageParams, parts: Parts) -> CoverageController:
+    """The controller, in the control loop: it proposes first (order 0) and secures the
+    plan last (order 100), user controllers run in between."""
+    ctl = CoverageController(params, parts)
+    ctl.loop.add(ctl.propose, order=0)
+    ctl.loop.add(ctl.secure, order=100)
+    ctl.loop.before_apply.append(ctl.obey)
+    parts.env.process(ctl.sampler())
+    parts.env.process(ctl._mark_start())
+    parts.trace.add_frame("coverage", ctl.coverage_frame)
+    parts.trace.add_frame("control", ctl.control_frame)
+    parts.trace.add_frame("travel", ctl.travel_frame)
     return ctl
+
+
+COVERAGE_SCHEMA = {
+    "t_s": "float64",
+    "leaders": "int64",
+    "covered_fraction_leaders": "float64",
+    "covered_fraction_all": "float64",
+    "covered_error_bound_leaders": "float64",
+    "covered_error_bound_all": "float64",
+    "coverage_bound": "float64",
+    "covered_of_bound_all": "float64",
+    "components": "int64",
+    "connected": "bool",
+    "spacing_median_ratio": "float64",
+    "hexagonality": "float64",
+    "distance_mean_m": "float64",
+}
+CONTROL_SCHEMA = {
+    name: ("float64" if name in ("t_s", "max_wished_speed_mps") else "int64") for name in StepRecord._fields
+}
+
+PLUGIN = PluginSpec(
+    Params=CoverageParams,
+    build=build,
+    check=check,
+    tables={
+        "coverage": COVERAGE_SCHEMA,
+        "control": CONTROL_SCHEMA,
+        "travel": {"robot": "int64", "distance_m": "float64"},
+    },
+    timing=lambda params: (params.control_period_s, params.start_s),
+)

@@ -18,6 +18,7 @@ least overlap, and a gateway at the midpoint of two leaders keeps them connected
 from __future__ import annotations
 
 import math
+from enum import StrEnum
 
 import numpy as np
 
@@ -40,7 +41,15 @@ def inverse_square(d, range_m: float, gain: float):
     return np.where(d < 2 * range_m, gain * range_m**3 * (1 / d**2 - 1 / target**2), 0.0)
 
 
-LAWS = {"spring": spring, "repulsion": repulsion, "inverse_square": inverse_square}
+class Law(StrEnum):
+    """The force laws (module notes)."""
+
+    SPRING = "spring"
+    REPULSION = "repulsion"
+    INVERSE_SQUARE = "inverse_square"
+
+
+LAWS = {Law.SPRING: spring, Law.REPULSION: repulsion, Law.INVERSE_SQUARE: inverse_square}
 
 
 def pair_force(p_i, p_j, law, range_m: float, gain: float) -> np.ndarray:

@@ -10,11 +10,29 @@ have a closed form, docs/validation.md item 6), then draws a new one.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
+import simpy
 
-from mobility.placement import initial_positions
+from mobility.speeds import SpeedParams
 from netsim.errors import ConfigError
+from netsim.params import param, positive
+from netsim.placement import initial_positions
+from netsim.plugins import Parts, PluginSpec
+from netsim.state import RobotState
+
+
+@dataclass(frozen=True)
+class RandomDirectionParams(SpeedParams):
+    """Random direction's keys of ``[mobility]``."""
+
+    turn_interval_s: float = param(math.inf, positive, "random direction on a torus: time between turns (inf: never)")
+
+
+def check(params: RandomDirectionParams, config) -> None:
+    if params.speed_max_mps <= 0:
+        raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for random direction")
 
 
 def _time_to_border(p: np.ndarray, v: np.ndarray, side: float) -> float:
@@ -37,9 +55,9 @@ def _inward_heading(rng, p: np.ndarray, side: float) -> np.ndarray:
     return u
 
 
-def direction_robot(sim, i: int, rng: np.random.Generator):
-    env, st = sim.env, sim.state
-    m, side = sim.config.mobility, sim.config.world.side_m
+def direction_robot(
+    env: simpy.Environment, st: RobotState, m: RandomDirectionParams, side: float, i: int, rng: np.random.Generator
+):
     while True:
         speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
         here = st.positions_at(env.now, [i])[0]
@@ -63,10 +81,11 @@ def direction_robot(sim, i: int, rng: np.random.Generator):
             yield env.timeout(m.pause_s)
 
 
-def install(sim) -> None:
-    m = sim.config.mobility
-    if m.speed_max_mps <= 0:
-        raise ConfigError("mobility.speed_max_mps", m.speed_max_mps, "must be > 0 for random direction")
-    sim.state.place(initial_positions(sim))
-    for i in range(sim.config.world.n_robots):
-        sim.env.process(direction_robot(sim, i, sim.streams.get("mobility", i)))
+def build(m: RandomDirectionParams, parts: Parts) -> None:
+    w = parts.world
+    parts.state.place(initial_positions(w, parts.streams))
+    for i in range(w.n_robots):
+        parts.env.process(direction_robot(parts.env, parts.state, m, w.side_m, i, parts.streams.get("mobility", i)))
+
+
+PLUGIN = PluginSpec(Params=RandomDirectionParams, build=build, check=check)

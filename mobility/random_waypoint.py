@@ -16,13 +16,48 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+import simpy
 
-from mobility.placement import initial_positions
+from mobility.speeds import SpeedParams
 from netsim.errors import ConfigError
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE
+from netsim.params import param
+from netsim.placement import initial_positions
+from netsim.plugins import Parts, PluginSpec
+from netsim.state import RobotState
+
+
+@dataclass(frozen=True)
+class RandomWaypointParams(SpeedParams):
+    """Random waypoint's keys of ``[mobility]``."""
+
+    stationary_start: bool = param(True, None, "start in the stationary regime (no warm-up)")
+
+
+def check(params: RandomWaypointParams, config) -> None:
+    """Random waypoint needs a speed above 0; its stationary start draws positions itself
+    and has no stationary regime with ``speed_min_mps = 0``."""
+    if params.speed_max_mps <= 0:
+        raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for random waypoint")
+    if params.stationary_start:
+        if config.world.placement != "uniform":
+            raise ConfigError(
+                "world.placement",
+                config.world.placement,
+                "cannot be combined with mobility.stationary_start = true (the stationary "
+                "start draws positions itself); set stationary_start = false",
+            )
+        if params.speed_min_mps <= 0:
+            raise ConfigError(
+                "mobility.speed_min_mps",
+                params.speed_min_mps,
+                "must be > 0 with stationary_start = true (with 0 there is no stationary "
+                "regime: the average speed decays to zero); set it > 0 or stationary_start = false",
+            )
 
 
 class Start(NamedTuple):
@@ -110,11 +145,16 @@ def _fresh_start(positions: np.ndarray) -> Start:
     return Start(positions, positions.copy(), np.zeros(n), np.zeros(n))
 
 
-def waypoint_robot(sim, i: int, start: Start, rng: np.random.Generator):
+def waypoint_robot(
+    env: simpy.Environment,
+    st: RobotState,
+    m: RandomWaypointParams,
+    side: float,
+    i: int,
+    start: Start,
+    rng: np.random.Generator,
+):
     """The life of robot ``i``: legs and pauses, forever."""
-    env, st = sim.env, sim.state
-    m = sim.config.mobility
-    side = sim.config.world.side_m
     if start.pause_left_s[i] > 0:
         yield env.timeout(start.pause_left_s[i])
     elif start.speed_mps[i] > 0:
@@ -135,21 +175,11 @@ def waypoint_robot(sim, i: int, start: Start, rng: np.random.Generator):
             yield env.timeout(m.pause_s)
 
 
-def install(sim) -> None:
-    cfg = sim.config
-    m, w = cfg.mobility, cfg.world
-    if m.speed_max_mps <= 0:
-        raise ConfigError("mobility.speed_max_mps", m.speed_max_mps, "must be > 0 for random waypoint")
+def build(m: RandomWaypointParams, parts: Parts) -> None:
+    w = parts.world
     if m.stationary_start:
-        if w.placement != "uniform":
-            raise ConfigError(
-                "world.placement",
-                w.placement,
-                "cannot be combined with mobility.stationary_start = true (the stationary "
-                "start draws positions itself); set stationary_start = false",
-            )
         start = stationary_start(
-            sim.streams.get("mobility.start"), w.n_robots, w.side_m, m.speed_min_mps, m.speed_max_mps, m.pause_s
+            parts.streams.get("mobility.start"), w.n_robots, w.side_m, m.speed_min_mps, m.speed_max_mps, m.pause_s
         )
     else:
         if m.speed_min_mps == 0:
@@ -158,7 +188,12 @@ def install(sim) -> None:
                 "random waypoint decays toward zero over the run (Yoon, Liu and Noble 2003)",
                 stacklevel=2,
             )
-        start = _fresh_start(initial_positions(sim))
-    sim.state.place(start.position_m)
+        start = _fresh_start(initial_positions(w, parts.streams))
+    parts.state.place(start.position_m)
     for i in range(w.n_robots):
-        sim.env.process(waypoint_robot(sim, i, start, sim.streams.get("mobility", i)))
+        parts.env.process(
+            waypoint_robot(parts.env, parts.state, m, w.side_m, i, start, parts.streams.get("mobility", i))
+        )
+
+
+PLUGIN = PluginSpec(Params=RandomWaypointParams, build=build, check=check, default=True)

@@ -1,7 +1,13 @@
-"""Robots that do not move."""
+"""Robots that do not move by themselves: they stay where they are placed, unless
+controllers move them (the coverage controller does)."""
 
-from mobility.placement import initial_positions
+from netsim.params import NoParams
+from netsim.placement import initial_positions
+from netsim.plugins import Parts, PluginSpec
 
 
-def install(sim) -> None:
-    sim.state.place(initial_positions(sim))
+def build(params: NoParams, parts: Parts) -> None:
+    parts.state.place(initial_positions(parts.world, parts.streams))
+
+
+PLUGIN = PluginSpec(Params=NoParams, build=build, moves_robots=False)

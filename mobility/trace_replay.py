@@ -4,38 +4,54 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
+import simpy
 
 from netsim import ns2
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.params import Params, param
+from netsim.plugins import Parts, PluginSpec
+from netsim.state import RobotState
 
 
-def load(sim) -> ns2.Scenario:
-    cfg = sim.config
+@dataclass(frozen=True)
+class TraceParams(Params):
+    """The trace replay's keys of ``[mobility]``."""
+
+    section = "mobility"
+    trace_file: str = param("", None, "ns-2 movement file replayed by model = 'trace'")
+
+    def check(self) -> None:
+        if not self.trace_file:
+            raise ConfigError("mobility.trace_file", self.trace_file, "must name a file when model = 'trace'")
+
+
+def load(params: TraceParams, world) -> ns2.Scenario:
+    """The scenario of ``params.trace_file``, checked against the world's size."""
     try:
-        scen = ns2.read(cfg.mobility.trace_file, cfg.world.n_robots)
+        scen = ns2.read(params.trace_file, world.n_robots)
     except NetsimInputError as exc:
         raise NetsimInputError(f"mobility.trace_file: {exc}") from None
-    if scen.n_robots != cfg.world.n_robots:
+    if scen.n_robots != world.n_robots:
         raise ConfigError(
-            "world.n_robots", cfg.world.n_robots, f"must equal the {scen.n_robots} nodes of {cfg.mobility.trace_file}"
+            "world.n_robots", world.n_robots, f"must equal the {scen.n_robots} nodes of {params.trace_file}"
         )
-    side = cfg.world.side_m
+    side = world.side_m
     xy = np.concatenate([scen.initial_m.ravel(), scen.commands[["x_m", "y_m"]].to_numpy().ravel()])
     xy = xy[~np.isnan(xy)]
     if len(xy) and (xy.min() < 0 or xy.max() > side):
         raise ConfigError(
             "world.side_m",
             side,
-            f"is smaller than the area of {cfg.mobility.trace_file} (coordinates up to {xy.max():g})",
+            f"is smaller than the area of {params.trace_file} (coordinates up to {xy.max():g})",
         )
     return scen
 
 
-def replay(sim, scen: ns2.Scenario):
+def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario):
     """One process walks the commands in time order; arrivals are timed per robot."""
-    env, st = sim.env, sim.state
     generation = np.zeros(st.n, dtype=np.int64)
 
     def stop_on_arrival(i, gen, dest):
@@ -60,7 +76,10 @@ def replay(sim, scen: ns2.Scenario):
             st.set_leg(i, env.now, (0.0, 0.0), start_m=new)
 
 
-def install(sim) -> None:
-    scen = load(sim)
-    sim.state.place(scen.initial_m)
-    sim.env.process(replay(sim, scen))
+def build(params: TraceParams, parts: Parts) -> None:
+    scen = load(params, parts.world)
+    parts.state.place(scen.initial_m)
+    parts.env.process(replay(parts.env, parts.state, scen))
+
+
+PLUGIN = PluginSpec(Params=TraceParams, build=build)

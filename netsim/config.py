@@ -1,8 +1,17 @@
 """Run configuration: TOML files, ``--set`` overrides, validation.
 
-A configuration is a tree of small frozen dataclasses. Every value is checked when it is
-loaded; a bad one raises :class:`~netsim.errors.ConfigError` naming the key, the value
-and what is allowed. Unknown keys are rejected, so a typo never passes silently.
+A configuration is a tree of small frozen dataclasses (:mod:`netsim.params`), one per
+section. The engine owns ``seed``, ``duration_s`` and the sections ``[world]``,
+``[channel]``, ``[control]`` and ``[output]``; each model owns its keys: ``[mobility]`` is
+``model`` and the chosen mobility model's own keys, ``[protocol]`` likewise, the channel's
+``loss_model`` picks a loss model whose keys join ``[channel]``, and a controller may own a
+section of its own (the coverage controller's ``[coverage]``, or a user's). Every value is
+checked when the configuration is made, however it is made; a bad one raises
+:class:`~netsim.errors.ConfigError` naming the key, the value and what is allowed. A key
+that no model knows is an error, so a typo never passes silently; a key of another model
+of the same section (``mobility.trace_file`` with random waypoint) is accepted and ignored
+with a one-line warning (:class:`ConfigWarning`), and the resolved configuration holds only
+the keys that apply.
 """
 
 from __future__ import annotations
@@ -10,180 +19,259 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
-from collections.abc import Callable
+import warnings
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
+from netsim import plugins
 from netsim.errors import ConfigError
-
-Check = Callable[[Any], "str | None"]
-
-
-def _positive(v):
-    return None if v > 0 else "must be > 0"
-
-
-def _non_negative(v):
-    return None if v >= 0 else "must be >= 0"
-
-
-def _probability(v):
-    return None if 0 <= v <= 1 else "must be a probability in [0, 1]"
-
-
-def _one_of(*names: str) -> Check:
-    def check(v):
-        return None if v in names else "must be one of " + ", ".join(repr(n) for n in names)
-
-    return check
+from netsim.loss import LOSS_MODELS
+from netsim.params import (
+    NoParams,
+    Params,
+    coerce_value,
+    finite,
+    names,
+    non_negative,
+    param,
+    plain,
+    positive,
+)
+from netsim.params import (
+    describe as describe_params,
+)
 
 
-def _any(v):
-    return None
+class ConfigWarning(UserWarning):
+    """A key that is accepted but not used (it belongs to another model)."""
 
 
-def _param(default, check: Check = _any, doc: str = ""):
-    return field(default=default, metadata={"check": check, "doc": doc})
+# -- the engine's sections -------------------------------------------------------------------
+@dataclass(frozen=True)
+class WorldParams(Params):
+    section = "world"
+    n_robots: int = param(50, positive, "number of robots N")
+    side_m: float = param(1000.0, finite(positive), "side of the square area A, metres")
+    placement: str = param("uniform", None, '"uniform", "grid", "centre", or a path to a CSV file with columns x_m,y_m')
+    centre_side_m: float = param(250.0, positive, 'placement = "centre": side of the central square, metres')
+    torus: bool = param(False, None, "wrap the area's borders (distances taken on a torus)")
+
+    def check(self) -> None:
+        if self.placement == "centre" and self.centre_side_m > self.side_m:
+            raise ConfigError(
+                "world.centre_side_m", self.centre_side_m, f"must not exceed world.side_m = {self.side_m}"
+            )
+
+
+def _ranges(key: str, value: Any) -> float | tuple[float, ...]:
+    if isinstance(value, list | tuple):
+        out = tuple(coerce_value(f"{key}[{i}]", v, float) for i, v in enumerate(value))
+        for i, v in enumerate(out):
+            if not (v > 0 and math.isfinite(v)):
+                raise ConfigError(f"{key}[{i}]", v, "must be a finite number > 0 (metres)")
+        return out
+    r = coerce_value(key, value, float)
+    if not (r > 0 and math.isfinite(r)):
+        raise ConfigError(key, r, "must be a finite number > 0 (metres)")
+    return r
+
+
+def _loss_model(key: str, value: Any) -> str:
+    if not isinstance(value, str) or value not in LOSS_MODELS:
+        raise ConfigError(key, value, "must be one of " + ", ".join(repr(n) for n in LOSS_MODELS))
+    return value
 
 
 @dataclass(frozen=True)
-class WorldConfig:
-    n_robots: int = _param(50, _positive, "number of robots N")
-    side_m: float = _param(1000.0, _positive, "side of the square area A, metres")
-    placement: str = _param(
-        "uniform", _any, '"uniform", "grid", "centre", or a path to a CSV file with columns x_m,y_m'
+class ChannelParams(Params):
+    """The channel's own keys, and ``loss``: the parameters of the loss model that
+    ``loss_model`` names, whose keys are keys of ``[channel]`` too (read through:
+    ``channel.loss_probability``)."""
+
+    section = "channel"
+    range_m: float | tuple[float, ...] = param(
+        150.0, None, "communication range r_c in metres, or a list of one range per robot", coerce=_ranges
     )
-    centre_side_m: float = _param(250.0, _positive, 'placement = "centre": side of the central square, metres')
-    torus: bool = _param(False, _any, "wrap the area's borders (distances taken on a torus)")
+    latency_s: float = param(0.001, finite(non_negative), "fixed delay of every transmission, s")
+    latency_jitter_s: float = param(0.0, finite(non_negative), "extra delay uniform on [0, jitter], s")
+    loss_model: str = param("bernoulli", None, "loss model: " + ", ".join(LOSS_MODELS), coerce=_loss_model)
+    loss: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        wanted = LOSS_MODELS[self.loss_model].Params
+        if self.loss is None:
+            object.__setattr__(self, "loss", wanted())
+        elif type(self.loss) is not wanted:
+            raise ConfigError(
+                "channel.loss_model",
+                self.loss_model,
+                f"has parameters {wanted.__name__}, not {type(self.loss).__name__}",
+            )
+
+    def __getattr__(self, name: str) -> Any:
+        loss = self.__dict__.get("loss")
+        if loss is None or name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(loss, name)
+
+
+def _controllers(key: str, value: Any) -> tuple[str, ...]:
+    if not isinstance(value, list | tuple):
+        raise ConfigError(key, value, "must be a list of plugin names")
+    return tuple(coerce_value(f"{key}[{i}]", v, str) for i, v in enumerate(value))
+
+
+def _options(key: str, value: Any) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(key, value, "must be a table ([control.options])")
+    return dict(value)
 
 
 @dataclass(frozen=True)
-class MobilityConfig:
-    model: str = _param("random_waypoint", _any, "mobility model, by plugin name")
-    speed_min_mps: float = _param(0.5, _non_negative, "minimum speed, m/s")
-    speed_max_mps: float = _param(5.0, _non_negative, "maximum speed, m/s")
-    pause_s: float = _param(2.0, _non_negative, "pause at each waypoint, s")
-    stationary_start: bool = _param(True, _any, "start in the stationary regime (no warm-up)")
-    trace_file: str = _param("", _any, "ns-2 movement file replayed by model = 'trace'")
-    turn_interval_s: float = _param(math.inf, _positive, "random direction on a torus: time between turns (inf: never)")
-
-
-@dataclass(frozen=True)
-class ChannelConfig:
-    range_m: float | tuple[float, ...] = _param(
-        150.0, _any, "communication range r_c in metres, or a list of one range per robot"
+class ControlParams(Params):
+    section = "control"
+    controllers: tuple[str, ...] = param(
+        (), None, "user controllers and hooks, by plugin name or 'package.module:attr'", coerce=_controllers
     )
-    latency_s: float = _param(0.001, _non_negative, "fixed delay of every transmission, s")
-    latency_jitter_s: float = _param(0.0, _non_negative, "extra delay uniform on [0, jitter], s")
-    loss_model: str = _param(
-        "bernoulli",
-        _one_of("bernoulli", "distance", "gilbert_elliott"),
-        "loss model: bernoulli, distance or gilbert_elliott",
-    )
-    loss_probability: float = _param(0.0, _probability, "Bernoulli loss per reception (also the floor of 'distance')")
-    loss_distance_exponent: float = _param(
-        4.0, _positive, "'distance': reception probability (1 - p)(1 - (d / r)^exponent)"
-    )
-    ge_p_good_to_bad: float = _param(0.05, _probability, "Gilbert-Elliott: P(good -> bad)")
-    ge_p_bad_to_good: float = _param(0.5, _probability, "Gilbert-Elliott: P(bad -> good)")
-    ge_loss_good: float = _param(0.0, _probability, "Gilbert-Elliott: loss in the good state")
-    ge_loss_bad: float = _param(1.0, _probability, "Gilbert-Elliott: loss in the bad state")
-
-
-@dataclass(frozen=True)
-class ProtocolConfig:
-    model: str = _param("clustering", _any, "protocol stack, by plugin name ('ack': beacons only)")
-    ack_period_s: float = _param(1.0, _positive, "Ack period t, s")
-    ack_jitter_s: float = _param(0.05, _non_negative, "each period is t + U(-jitter, +jitter), s")
-    tau_s: float = _param(3.0, _positive, "liveness timeout tau, s (default 3 ack periods)")
-    join_policy: str = _param(
-        "nearest", _one_of("nearest", "first_heard", "lowest_id"), "rule 2: which leader an undecided robot joins"
-    )
-    merge_policy: str = _param(
-        "smaller_group_yields",
-        _one_of("smaller_group_yields", "lowest_id_wins", "highest_degree_wins"),
-        "rule 5: which of two neighbouring leaders yields",
-    )
-    merge_delay_s: float = _param(
-        2.0, _non_negative, "rule 5: how long two leaders must be linked, s (default 2 periods)"
-    )
-    election_policy: str = _param(
-        "lowest_id", _one_of("lowest_id", "highest_degree", "none"), "rule 6: who replaces a lost leader"
-    )
-    routing: str = _param("backbone", _one_of("backbone", "oracle"), "message relaying: backbone flooding or oracle")
-    distributed_gateways: bool = _param(
-        True, _any, "members next to a member of another group relay too (keeps flooding connected)"
-    )
-    message_ttl: int = _param(32, _positive, "hops a relayed message may take")
-    message_rate_hz: float = _param(0.2, _non_negative, "messages sent per second, network-wide (random pairs)")
-
-
-@dataclass(frozen=True)
-class CoverageConfig:
-    enabled: bool = _param(False, _any, "the team spreads out by virtual forces (needs mobility.model = 'static')")
-    members: str = _param(
-        "spread",
-        _one_of("spread", "follow"),
-        "'spread': every robot is pushed apart, a spanning forest kept; 'follow': members follow their leader",
-    )
-    law: str = _param(
-        "spring", _one_of("spring", "repulsion", "inverse_square"), "force law between neighbouring leaders"
-    )
-    knowledge: str = _param(
-        "acks", _one_of("acks", "global"), "leaders' positions: as heard in Acks (stale), or the true ones"
-    )
-    control_period_s: float = _param(1.0, _positive, "time between control steps, s (also for control.controllers)")
-    start_s: float = _param(10.0, _non_negative, "first control step, s (after the groups have formed)")
-    gain: float = _param(0.1, _positive, "a leader's velocity is gain x resultant force, 1/s (forces in metres)")
-    speed_max_mps: float = _param(2.0, _positive, "speed cap of every controlled robot, m/s")
-    margin_m: float = _param(1.0, _non_negative, "kept links stay this far inside the range, m")
-    stop_speed_mps: float = _param(0.02, _non_negative, "a leader whose force asks for less than this holds, m/s")
-    stop_hold_s: float = _param(20.0, _positive, "control ends once every leader has held this long, s")
-    stop_gain: float = _param(
-        0.002, _non_negative, "spread: control ends once coverage gains less than this in stop_hold_s (0: off)"
-    )
-    radius_m: float = _param(0.0, _non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
-    metrics_interval_s: float = _param(5.0, _positive, "coverage metrics sampling interval, s")
-    area_method: str = _param(
-        "exact", _one_of("exact", "grid"), "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"
-    )
-    grid_cells: int = _param(200, _positive, "area_method = 'grid': grid cells per side (error bound reported)")
-
-
-@dataclass(frozen=True)
-class ControlConfig:
-    controllers: tuple[str, ...] = field(
-        default=(),
-        metadata={"check": _any, "doc": "user controllers and hooks, by plugin name or 'package.module:function'"},
-    )
-    options: dict = field(
-        default_factory=dict, metadata={"check": _any, "doc": "free table of options for user controllers"}
+    options: dict = param(
+        None, None, "free table of options for user controllers", coerce=_options, default_factory=dict
     )
 
 
 @dataclass(frozen=True)
-class OutputConfig:
-    position_interval_s: float = _param(1.0, _non_negative, "positions sampling interval (0: off)")
+class OutputParams(Params):
+    section = "output"
+    position_interval_s: float = param(1.0, finite(non_negative), "positions sampling interval (0: off)")
+
+
+# -- sections that name a model ------------------------------------------------------------
+@dataclass(frozen=True)
+class ModelSection:
+    """A section that names a model (``model``) and holds that model's own parameters
+    (``params``); the parameters read through (``config.mobility.speed_max_mps``)."""
+
+    group: ClassVar[str] = ""
+    section: ClassVar[str] = ""
+    model: str = ""  # "": the group's default model
+    params: Params = None  # type: ignore[assignment]  # None: the model's defaults
+
+    def __post_init__(self) -> None:
+        key = f"{self.section}.model"
+        model = self.model or plugins.default_name(self.group)
+        if not isinstance(model, str):
+            raise ConfigError(key, model, "must be a string")
+        plugin = plugins.resolve(self.group, model, key)
+        object.__setattr__(self, "model", model)
+        object.__setattr__(self, "_plugin", plugin)
+        if self.params is None:
+            object.__setattr__(self, "params", plugin.Params())
+        elif type(self.params) is not plugin.Params:
+            raise ConfigError(key, model, f"has parameters {plugin.Params.__name__}, not {type(self.params).__name__}")
+
+    @property
+    def plugin(self) -> Any:
+        """The model's plugin."""
+        return self.__dict__["_plugin"]
+
+    def __getattr__(self, name: str) -> Any:
+        params = self.__dict__.get("params")
+        if params is None or name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(params, name)
 
 
 @dataclass(frozen=True)
-class Config:
-    seed: int = _param(1, _non_negative, "seed of every random stream")
-    duration_s: float = _param(300.0, _positive, "simulated time, s")
-    world: WorldConfig = field(default_factory=WorldConfig)
-    mobility: MobilityConfig = field(default_factory=MobilityConfig)
-    channel: ChannelConfig = field(default_factory=ChannelConfig)
-    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
-    coverage: CoverageConfig = field(default_factory=CoverageConfig)
-    control: ControlConfig = field(default_factory=ControlConfig)
-    output: OutputConfig = field(default_factory=OutputConfig)
+class MobilitySection(ModelSection):
+    group = plugins.MOBILITY
+    section = "mobility"
 
-    def replace(self, **sections) -> Config:
-        """A copy with whole sections or top-level values replaced (validated again)."""
-        return from_dict(merge(to_dict(self), to_dict_partial(sections)))
 
-    def ranges_m(self):
+@dataclass(frozen=True)
+class ProtocolSection(ModelSection):
+    group = plugins.PROTOCOLS
+    section = "protocol"
+
+
+def _nested(cls: type) -> Any:
+    return field(default_factory=cls, metadata={"nested": True})
+
+
+ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "control", "output")
+
+
+@dataclass(frozen=True)
+class Config(Params):
+    """A whole run's configuration. ``sections`` holds the sections that controllers own
+    (``[coverage]``, or a user's), read as attributes (``config.coverage``)."""
+
+    seed: int = param(1, non_negative, "seed of every random stream")
+    duration_s: float = param(300.0, finite(positive), "simulated time, s")
+    world: WorldParams = _nested(WorldParams)
+    mobility: MobilitySection = _nested(MobilitySection)
+    channel: ChannelParams = _nested(ChannelParams)
+    protocol: ProtocolSection = _nested(ProtocolSection)
+    control: ControlParams = _nested(ControlParams)
+    output: OutputParams = _nested(OutputParams)
+    sections: Mapping[str, Params] = field(default_factory=dict, metadata={"nested": True})
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if not f.metadata.get("nested"):
+                object.__setattr__(self, f.name, self._valid(f, value))
+            elif f.name != "sections" and not isinstance(value, f.default_factory):  # type: ignore[arg-type]
+                raise ConfigError(f.name, value, f"must be a {f.default_factory.__name__}")  # type: ignore[union-attr]
+        object.__setattr__(self, "_derived", frozenset())
+        object.__setattr__(self, "sections", _sections(self.control, dict(self.sections)))
+        self.check()
+
+    def __getattr__(self, name: str) -> Any:
+        sections = self.__dict__.get("sections")
+        if sections is None or name.startswith("_") or name not in sections:
+            raise AttributeError(name)
+        return sections[name]
+
+    def check(self) -> None:
+        """Rules across sections: the engine's, then each model's own (:meth:`Plugin.check`)."""
+        ranges = self.channel.range_m
+        if isinstance(ranges, tuple) and len(ranges) != self.world.n_robots:
+            raise ConfigError(
+                "channel.range_m",
+                f"<list of {len(ranges)}>",
+                f"a list must have one range per robot (world.n_robots = {self.world.n_robots})",
+            )
+        if self.world.torus and self.world.side_m <= 2 * max(self.ranges_m(), default=0.0):
+            raise ConfigError("world.side_m", self.world.side_m, "on a torus must exceed twice the largest range_m")
+        for plugin, params in self.models():
+            plugin.check(params, self)
+
+    def models(self) -> list[tuple[Any, Params]]:
+        """``(plugin, params)`` of every model of the run with a section: the mobility model,
+        the protocol, and the controllers that own a section."""
+        out = [(self.mobility.plugin, self.mobility.params), (self.protocol.plugin, self.protocol.params)]
+        owners = section_owners(self.control)
+        out += [(owners[name], params) for name, params in self.sections.items()]
+        return out
+
+    def replace(self, **changes: Any) -> Config:
+        """A copy with whole sections or top-level values replaced (as dicts or objects), and
+        validated again; defaults derived from other keys (``tau_s``) are derived again
+        unless given. A section whose ``model`` changes starts from that model's defaults."""
+        tree = to_dict(self, derived=False)
+        for key, value in changes.items():
+            value = _as_tree(value)
+            if isinstance(value, dict) and isinstance(getattr(self, key, None), ModelSection):
+                if value.get("model", tree[key]["model"]) != tree[key]["model"]:
+                    tree[key] = {}
+            tree[key] = (
+                merge(tree[key], value) if isinstance(value, dict) and isinstance(tree.get(key), dict) else value
+            )
+        return from_dict(tree)
+
+    def ranges_m(self) -> tuple[float, ...]:
         """Per-robot ranges as a tuple of floats, one per robot."""
         r = self.channel.range_m
         if isinstance(r, tuple):
@@ -191,217 +279,203 @@ class Config:
         return (float(r),) * self.world.n_robots
 
 
-_SECTION_CLASSES = {
-    "world": WorldConfig,
-    "mobility": MobilityConfig,
-    "channel": ChannelConfig,
-    "protocol": ProtocolConfig,
-    "coverage": CoverageConfig,
-    "control": ControlConfig,
-    "output": OutputConfig,
-}
+# -- the controllers' sections -------------------------------------------------------------
+def _enabled_by_section(plugin: Any) -> bool:
+    return "enabled" in names(plugin.Params)
 
 
-def _coerce(key: str, value, default):
-    """Check ``value`` has the type of ``default``; ints are accepted for floats."""
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise ConfigError(key, value, "must be true or false")
-        return value
-    if isinstance(default, int):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(key, value, "must be an integer")
-        return value
-    if isinstance(default, float):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(key, value, "must be a number")
-        try:
-            value = float(value)
-        except OverflowError:
-            raise ConfigError(key, value, "is too large for a number") from None
-        if math.isnan(value):
-            raise ConfigError(key, value, "must be a number, not NaN")
-        return value
-    if not isinstance(value, str):
-        raise ConfigError(key, value, "must be a string")
-    return value
-
-
-def _build_section(cls, raw: dict, prefix: str):
-    if not isinstance(raw, dict):
-        raise ConfigError(prefix, raw, "must be a table ([" + prefix + "])")
-    names = {f.name: f for f in dataclasses.fields(cls)}
-    for key in raw:
-        if key not in names:
-            raise ConfigError(f"{prefix}.{key}", raw[key], "unknown key; allowed: " + ", ".join(sorted(names)))
-    values = {}
-    for name, f in names.items():
-        key = f"{prefix}.{name}" if prefix else name
-        if name not in raw:
+def section_owners(control: ControlParams) -> dict[str, Any]:
+    """The plugins that own a section, by section name: every registered controller that
+    does (switched on by its ``enabled`` key), then the controllers ``control.controllers``
+    names that do."""
+    owners: dict[str, Any] = {}
+    candidates = list(plugins.registered(plugins.CONTROLLERS).items())
+    registered = {id(p) for _, p in candidates}
+    for k, name in enumerate(control.controllers):
+        key = f"control.controllers[{k}]"
+        plugin = plugins.resolve(plugins.CONTROLLERS, name, key)
+        if id(plugin) in registered and plugin.Params.section and _enabled_by_section(plugin):
+            section = plugin.Params.section
+            raise ConfigError(key, name, f"is switched on by {section}.enabled = true, not listed here")
+        candidates.append((name, plugin))
+    for name, plugin in candidates:
+        section = plugin.Params.section
+        if not section:
             continue
-        value = raw[name]
-        if key == "channel.range_m" and isinstance(value, list):
-            value = tuple(_coerce(f"{key}[{i}]", v, 1.0) for i, v in enumerate(value))
-            for i, v in enumerate(value):
-                if not (v > 0 and math.isfinite(v)):
-                    raise ConfigError(f"{key}[{i}]", v, "must be a finite number > 0 (metres)")
-        elif key == "control.controllers":
-            if not isinstance(value, list):
-                raise ConfigError(key, value, "must be a list of plugin names")
-            value = tuple(_coerce(f"{key}[{i}]", v, "") for i, v in enumerate(value))
-        elif key == "control.options":
-            if not isinstance(value, dict):
-                raise ConfigError(key, value, "must be a table ([control.options])")
-            value = dict(value)
-        else:
-            value = _coerce(key, value, f.default)
-            problem = f.metadata["check"](value)
-            if problem:
-                raise ConfigError(key, value, problem + _unit_hint(f))
-        values[name] = value
-    return cls(**values)
+        if section in ENGINE_SECTIONS or section in ("seed", "duration_s") or hasattr(Config, section):
+            raise ConfigError("control.controllers", name, f"declares the section [{section}], a name the engine uses")
+        other = owners.get(section)
+        if other is not None and other is not plugin:
+            raise ConfigError("control.controllers", name, f"declares the section [{section}], as another plugin does")
+        owners[section] = plugin
+    return owners
 
 
-def _unit_hint(f) -> str:
-    doc = f.metadata.get("doc", "")
-    return f" ({doc})" if doc else ""
-
-
-# Keys whose default follows protocol.ack_period_s, as a multiple of it.
-DERIVED_FROM_ACK_PERIOD = {"tau_s": 3.0, "merge_delay_s": 2.0}
-
-
-def from_dict(raw: dict) -> Config:
-    """Build and validate a :class:`Config` from a nested dict (as TOML gives)."""
-    if not isinstance(raw, dict):
-        raise ConfigError("<config>", raw, "must be a table")
-    top = {f.name: f for f in dataclasses.fields(Config) if f.name not in _SECTION_CLASSES}
-    values: dict[str, Any] = {}
-    for key, value in raw.items():
-        if key in _SECTION_CLASSES:
-            values[key] = _build_section(_SECTION_CLASSES[key], value, key)
-        elif key in top:
-            v = _coerce(key, value, top[key].default)
-            problem = top[key].metadata["check"](v)
-            if problem:
-                raise ConfigError(key, v, problem + _unit_hint(top[key]))
-            values[key] = v
-        else:
-            allowed = sorted(list(top) + list(_SECTION_CLASSES))
-            raise ConfigError(key, value, "unknown key; allowed: " + ", ".join(allowed))
-    protocol_raw = raw.get("protocol", {})
-    if "protocol" in values:
-        period = values["protocol"].ack_period_s
-        scaled = {k: m * period for k, m in DERIVED_FROM_ACK_PERIOD.items() if k not in protocol_raw}
-        if scaled:
-            values["protocol"] = dataclasses.replace(values["protocol"], **scaled)
-    config = Config(**values)
-    _check_across(config)
-    return config
-
-
-def _check_across(c: Config) -> None:
-    """Rules that tie several keys together."""
-    if not math.isfinite(c.duration_s):
-        raise ConfigError("duration_s", c.duration_s, "must be finite")
-    if not math.isfinite(c.world.side_m):
-        raise ConfigError("world.side_m", c.world.side_m, "must be finite")
-    m = c.mobility
-    if m.speed_min_mps > m.speed_max_mps:
-        raise ConfigError(
-            "mobility.speed_min_mps",
-            m.speed_min_mps,
-            f"must not exceed mobility.speed_max_mps = {m.speed_max_mps}",
-        )
-    for key in ("speed_max_mps", "pause_s"):
-        if not math.isfinite(getattr(m, key)):
-            raise ConfigError(f"mobility.{key}", getattr(m, key), "must be finite")
-    p = c.protocol
-    ch = c.channel
-    if not p.tau_s > p.ack_period_s:
-        raise ConfigError("protocol.tau_s", p.tau_s, f"must be greater than protocol.ack_period_s = {p.ack_period_s}")
-    if not p.ack_jitter_s < p.ack_period_s / 2:
-        raise ConfigError(
-            "protocol.ack_jitter_s",
-            p.ack_jitter_s,
-            f"must be less than half of protocol.ack_period_s = {p.ack_period_s}",
-        )
-    # Without any loss two Acks of a neighbour can be up to period + jitter + latency jitter
-    # apart: a tau no longer than that times neighbours out for nothing.
-    gap = p.ack_period_s + p.ack_jitter_s + ch.latency_jitter_s
-    if p.model != "none" and not p.tau_s > gap:
-        raise ConfigError(
-            "protocol.tau_s",
-            p.tau_s,
-            "must be greater than protocol.ack_period_s + protocol.ack_jitter_s + channel.latency_jitter_s"
-            f" = {gap:g}, the longest gap between two Acks without loss",
-        )
-    if isinstance(ch.range_m, tuple):
-        if len(ch.range_m) != c.world.n_robots:
-            raise ConfigError(
-                "channel.range_m",
-                f"<list of {len(ch.range_m)}>",
-                f"a list must have one range per robot (world.n_robots = {c.world.n_robots})",
-            )
-    elif not (ch.range_m > 0 and math.isfinite(ch.range_m)):
-        raise ConfigError("channel.range_m", ch.range_m, "must be a finite number > 0 (metres)")
-    for key in ("latency_s", "latency_jitter_s"):
-        if not math.isfinite(getattr(ch, key)):
-            raise ConfigError(f"channel.{key}", getattr(ch, key), "must be finite")
-    if c.world.torus and c.world.side_m <= 2 * (max(ch.range_m) if isinstance(ch.range_m, tuple) else ch.range_m):
-        raise ConfigError("world.side_m", c.world.side_m, "on a torus must exceed twice the largest range_m")
-    if c.world.placement == "centre" and c.world.centre_side_m > c.world.side_m:
-        raise ConfigError(
-            "world.centre_side_m", c.world.centre_side_m, f"must not exceed world.side_m = {c.world.side_m}"
-        )
-    cov = c.coverage
-    if cov.enabled and m.model != "static":
-        raise ConfigError(
-            "coverage.enabled",
-            True,
-            f"needs mobility.model = 'static' (the controller moves the robots), not {m.model!r}",
-        )
-    lead = ch.latency_s + ch.latency_jitter_s
-    if (cov.enabled or c.control.controllers) and not cov.control_period_s > lead:
-        raise ConfigError(
-            "coverage.control_period_s",
-            cov.control_period_s,
-            f"must exceed the channel's largest delay (latency_s + latency_jitter_s = {lead})",
-        )
-    if cov.enabled and cov.members == "spread" and cov.metrics_interval_s > cov.stop_hold_s:
-        raise ConfigError(
-            "coverage.metrics_interval_s",
-            cov.metrics_interval_s,
-            f"must not exceed coverage.stop_hold_s = {cov.stop_hold_s} (the stopping rule compares samples)",
-        )
-    if cov.enabled and c.world.torus:
-        raise ConfigError("coverage.enabled", True, "is for a bounded area; set world.torus = false")
-    if cov.enabled and c.protocol.model in ("none", "ack"):
-        raise ConfigError(
-            "coverage.enabled",
-            True,
-            f"needs a protocol that forms groups (protocol.model = 'clustering'), not {c.protocol.model!r}",
-        )
-    if m.model == "trace" and not m.trace_file:
-        raise ConfigError("mobility.trace_file", m.trace_file, "must name a file when model = 'trace'")
-
-
-def to_dict(config) -> dict:
-    """The configuration as a nested dict of plain TOML values."""
+def _sections(control: ControlParams, given: dict[str, Any]) -> dict[str, Params]:
+    owners = section_owners(control)
+    for name in given:
+        if name not in owners:
+            raise ConfigError(name, given[name], "no active plugin owns this section")
     out = {}
-    for f in dataclasses.fields(config):
-        v = getattr(config, f.name)
-        if dataclasses.is_dataclass(v):
-            out[f.name] = to_dict(v)
-        elif isinstance(v, tuple):
-            out[f.name] = list(v)
-        else:
-            out[f.name] = v
+    for name, plugin in owners.items():
+        params = given.get(name)
+        if params is None:
+            params = plugin.Params()
+        elif type(params) is not plugin.Params:
+            raise ConfigError(name, params, f"must be {plugin.Params.__name__}")
+        out[name] = params
     return out
 
 
-def to_dict_partial(values: dict) -> dict:
-    return {k: (to_dict(v) if dataclasses.is_dataclass(v) else v) for k, v in values.items()}
+def controllers(config: Config) -> list[tuple[str, Any, Params]]:
+    """The controllers a run builds, in order, as ``(name, plugin, params)``: the registered
+    controllers whose section has an ``enabled`` key, when it is true; then those
+    ``control.controllers`` names."""
+    out = []
+    for plugin in plugins.registered(plugins.CONTROLLERS).values():
+        section = plugin.Params.section
+        if section and _enabled_by_section(plugin) and config.sections[section].enabled:  # type: ignore[attr-defined]
+            out.append((section, plugin, config.sections[section]))
+    for k, name in enumerate(config.control.controllers):
+        plugin = plugins.resolve(plugins.CONTROLLERS, name, f"control.controllers[{k}]")
+        section = plugin.Params.section
+        out.append((name, plugin, config.sections[section] if section else plugin.Params()))
+    return out
+
+
+# -- from TOML -------------------------------------------------------------------------------
+def _table(raw: Mapping, name: str) -> dict:
+    value = raw.get(name, {})
+    if not isinstance(value, dict):
+        raise ConfigError(name, value, f"must be a table ([{name}])")
+    return value
+
+
+def _unknown(key: str, value: Any, allowed: Iterable[str]) -> ConfigError:
+    return ConfigError(key, value, "unknown key; allowed: " + ", ".join(sorted(allowed)))
+
+
+def _plain_section(cls: type[Params], raw: dict) -> Params:
+    allowed = names(cls)
+    for key in raw:
+        if key not in allowed:
+            raise _unknown(f"{cls.section}.{key}", raw[key], allowed)
+    return cls(**raw)
+
+
+def _other_keys(group_params: Mapping[str, type[Params]], chosen: str) -> dict[str, list[str]]:
+    """Key -> the other models of the section that have it."""
+    out: dict[str, list[str]] = {}
+    for name, cls in group_params.items():
+        if name != chosen:
+            for key in names(cls):
+                out.setdefault(key, []).append(name)
+    return out
+
+
+def _split(section: str, raw: dict, own: list[str], chosen: str, params_cls: type, others: dict) -> dict:
+    """The keys of ``raw`` that ``params_cls`` takes; keys of another model are dropped with
+    a warning; any other key is an error."""
+    mine = names(params_cls)
+    taken, ignored = {}, []
+    for key, value in raw.items():
+        if key in own:
+            continue
+        if key in mine:
+            taken[key] = value
+        elif key in others:
+            ignored.append(key)
+        else:
+            raise _unknown(f"{section}.{key}", value, own + mine)
+    if ignored:
+        which = ", ".join(f"{section}.{k}" for k in ignored)
+        warnings.warn(
+            f"{which}: not used by {chosen!r} (a key of {', '.join(sorted({m for k in ignored for m in others[k]}))});"
+            " ignored",
+            ConfigWarning,
+            stacklevel=4,
+        )
+    return taken
+
+
+def _model_section(cls: type[ModelSection], raw: dict) -> ModelSection:
+    key = f"{cls.section}.model"
+    model = raw["model"] if "model" in raw else plugins.default_name(cls.group)
+    if not isinstance(model, str):
+        raise ConfigError(key, model, "must be a string")
+    plugin = plugins.resolve(cls.group, model, key)
+    group = {name: p.Params for name, p in plugins.registered(cls.group).items()}
+    taken = _split(cls.section, raw, ["model"], model, plugin.Params, _other_keys(group, model))
+    return cls(model, plugin.Params(**taken))
+
+
+def _channel_section(raw: dict) -> ChannelParams:
+    own = [n for n in names(ChannelParams)]
+    chosen = _loss_model("channel.loss_model", raw.get("loss_model", ChannelParams.loss_model))
+    params_cls = LOSS_MODELS[chosen].Params
+    group = {name: m.Params for name, m in LOSS_MODELS.items()}
+    taken = _split("channel", raw, own, chosen, params_cls, _other_keys(group, chosen))
+    values = {k: raw[k] for k in own if k in raw}
+    return ChannelParams(**values, loss=params_cls(**taken))
+
+
+def from_dict(raw: Mapping) -> Config:
+    """Build and validate a :class:`Config` from a nested dict (as TOML gives)."""
+    if not isinstance(raw, dict):
+        raise ConfigError("<config>", raw, "must be a table")
+    control = _plain_section(ControlParams, _table(raw, "control"))
+    assert isinstance(control, ControlParams)
+    owners = section_owners(control)
+    allowed = ["seed", "duration_s", *ENGINE_SECTIONS, *owners]
+    for key, value in raw.items():
+        if key not in allowed:
+            raise _unknown(key, value, allowed)
+    values: dict[str, Any] = {k: raw[k] for k in ("seed", "duration_s") if k in raw}
+    values["world"] = _plain_section(WorldParams, _table(raw, "world"))
+    values["mobility"] = _model_section(MobilitySection, _table(raw, "mobility"))
+    values["channel"] = _channel_section(_table(raw, "channel"))
+    values["protocol"] = _model_section(ProtocolSection, _table(raw, "protocol"))
+    values["control"] = control
+    values["output"] = _plain_section(OutputParams, _table(raw, "output"))
+    values["sections"] = {name: _plain_section(plugin.Params, _table(raw, name)) for name, plugin in owners.items()}
+    return Config(**values)
+
+
+# -- to TOML ---------------------------------------------------------------------------------
+def _params_dict(params: Params, derived: bool) -> dict:
+    out = {k: plain(v) for k, v in params.items(derived)}
+    return out
+
+
+def section_dict(value: Any, derived: bool = True) -> dict:
+    """One section as a dict of plain TOML values."""
+    if isinstance(value, ModelSection):
+        return {"model": value.model, **_params_dict(value.params, derived)}
+    if isinstance(value, ChannelParams):
+        own = _params_dict(value, derived)
+        return {**own, **_params_dict(value.loss, derived)}
+    return _params_dict(value, derived)
+
+
+def to_dict(config: Config, derived: bool = True) -> dict:
+    """The configuration as a nested dict of plain TOML values, sections in order; without
+    the values derived from other keys if ``derived`` is false."""
+    out: dict[str, Any] = {"seed": config.seed, "duration_s": config.duration_s}
+    for name in ("world", "mobility", "channel", "protocol"):
+        out[name] = section_dict(getattr(config, name), derived)
+    for name, params in config.sections.items():
+        out[name] = section_dict(params, derived)
+    for name in ("control", "output"):
+        out[name] = section_dict(getattr(config, name), derived)
+    return out
+
+
+def _as_tree(value: Any) -> Any:
+    if isinstance(value, Config):
+        return to_dict(value, derived=False)
+    if isinstance(value, ModelSection | Params):
+        return section_dict(value, derived=False)
+    return value
 
 
 def merge(base: dict, extra: dict) -> dict:
@@ -431,7 +505,7 @@ def parse_override(text: str) -> dict:
         raise ConfigError("--set", text, "must look like section.key=value")
     raw = raw.strip()
     try:
-        parsed = tomllib.loads(f"v = {raw}")
+        parsed: Any = tomllib.loads(f"v = {raw}")
     except tomllib.TOMLDecodeError as exc:
         parsed = exc
     if isinstance(parsed, dict) and list(parsed) == ["v"] and "\n" not in raw and "\r" not in raw:
@@ -459,7 +533,7 @@ def nest(dotted_key: str, value) -> dict:
     return tree
 
 
-def load(path: str | Path | None = None, overrides: list[str] = ()) -> Config:
+def load(path: str | Path | None = None, overrides: Iterable[str] = ()) -> Config:
     """Load a TOML file (or the built-in default scenario when ``path`` is None)."""
     raw: dict = {}
     if path is not None:
@@ -475,49 +549,134 @@ def load(path: str | Path | None = None, overrides: list[str] = ()) -> Config:
     return from_dict(raw)
 
 
+# -- documentation ---------------------------------------------------------------------------
+def _section_rows(section: str, value: Any) -> list[tuple[str, Any, str, bool]]:
+    """(key, value, meaning, derived) of every key of one section of a configuration."""
+    rows = []
+    if isinstance(value, ModelSection):
+        rows.append(("model", value.model, f"{section} model, by plugin name (or 'package.module:attr')", False))
+        params: list[Params] = [value.params]
+    elif isinstance(value, ChannelParams):
+        params = [value, value.loss]
+    else:
+        params = [value]
+    for p in params:
+        docs = {name: doc for name, _, doc, _ in describe_params(type(p))}
+        for name, v in p.items():
+            rows.append((name, plain(v), docs[name], name in p.derived))
+    return rows
+
+
+def _rule(params_cls: type, name: str) -> str:
+    return next(rule for key, _, _, rule in describe_params(params_cls) if key == name)
+
+
+def _other_models(section: str) -> list[tuple[str, str, Any, str]]:
+    """(model, key, default, meaning) of the keys of the models a section could name but
+    does not by default: the other registered mobility models, protocols, loss models."""
+    if section in ("mobility", "protocol"):
+        group = plugins.MOBILITY if section == "mobility" else plugins.PROTOCOLS
+        models = {name: p.Params for name, p in plugins.registered(group).items()}
+    elif section == "channel":
+        models = {name: m.Params for name, m in LOSS_MODELS.items()}
+    else:
+        return []
+    return [(model, k, d, doc) for model, cls in models.items() for k, d, doc, _ in describe_params(cls)]
+
+
 def commented_toml(config: Config | None = None) -> str:
-    """The configuration as a TOML file with every key explained, ready to edit."""
+    """The configuration as a TOML file with every key explained, ready to edit. Defaults
+    derived from another key are written as the rule, commented out; the keys of the models
+    the file does not choose follow each section, commented out."""
     import tomli_w
 
     config = config or Config()
+    out = [
+        f"# {Config.__dataclass_fields__['seed'].metadata['doc']}",
+        tomli_w.dumps({"seed": config.seed}).strip(),
+        f"# {Config.__dataclass_fields__['duration_s'].metadata['doc']}",
+        tomli_w.dumps({"duration_s": config.duration_s}).strip(),
+    ]
+    tables: list[str] = []
     tree = to_dict(config)
-    out = []
-    for f in dataclasses.fields(Config):
-        if f.name in _SECTION_CLASSES:
+    for section in tree:
+        if section in ("seed", "duration_s"):
             continue
-        out += [f"# {f.metadata.get('doc', '')}", tomli_w.dumps({f.name: tree[f.name]}).strip()]
-    tables = []
-    for section, cls in _SECTION_CLASSES.items():
+        value = getattr(config, section)
         out += ["", f"[{section}]"]
-        for g in dataclasses.fields(cls):
-            value = tree[section][g.name]
-            if isinstance(value, dict):
+        used = set()
+        owners = (
+            [value.params]
+            if isinstance(value, ModelSection)
+            else [value] + ([value.loss] if isinstance(value, ChannelParams) else [])
+        )
+        for key, v, doc, is_derived in _section_rows(section, value):
+            used.add(key)
+            if isinstance(v, dict):
                 # A sub-table cannot sit among the section's keys: it goes at the end.
-                tables += ["", f"# {g.metadata.get('doc', '')}", f"[{section}.{g.name}]"]
-                tables += [tomli_w.dumps(value).strip()] if value else []
+                tables += ["", f"# {doc}", f"[{section}.{key}]"]
+                tables += [tomli_w.dumps(v).strip()] if v else []
                 continue
-            line = tomli_w.dumps({g.name: value}).strip()
-            factor = DERIVED_FROM_ACK_PERIOD.get(g.name) if section == "protocol" else None
-            if factor is not None and value == factor * tree["protocol"]["ack_period_s"]:
-                # Written as the rule, not a number, so that it follows an edited ack_period_s.
-                out += [
-                    f"# {g.metadata.get('doc', '')}",
-                    f"# default: {factor:g} x ack_period_s; uncomment to fix it",
-                    f"# {line}",
-                ]
+            line = tomli_w.dumps({key: v}).strip()
+            if is_derived:
+                # Written as the rule, not a number, so that it follows the key it derives from.
+                rule = next(_rule(type(p), key) for p in owners if key in names(type(p)))
+                out += [f"# {doc}", f"# default: {rule}; uncomment to fix it", f"# {line}"]
                 continue
-            out += [f"# {g.metadata.get('doc', '')}", line]
+            out += [f"# {doc}", line]
+        others = [row for row in _other_models(section) if row[1] not in used]
+        if others:
+            what = "loss models, used when loss_model" if section == "channel" else f"{section} models, used when model"
+            out += ["", f"# keys of the other {what} names one of them:"]
+            for model, key, default, doc in others:
+                shown = tomli_w.dumps({key: plain(default)}).strip() if default is not None else f"{key} = ..."
+                out.append(f"# {shown}    # ({model}) {doc}")
     return "\n".join(out + tables) + "\n"
 
 
-def describe() -> list[tuple[str, object, str]]:
-    """(key, default, meaning) for every configuration key, for documentation."""
-    rows = []
-    for f in dataclasses.fields(Config):
-        if f.name in _SECTION_CLASSES:
-            for g in dataclasses.fields(_SECTION_CLASSES[f.name]):
-                default = g.default if g.default is not dataclasses.MISSING else g.default_factory()
-                rows.append((f"{f.name}.{g.name}", default, g.metadata.get("doc", "")))
-        else:
-            rows.append((f.name, f.default, f.metadata.get("doc", "")))
+def describe(config: Config | None = None) -> list[tuple[str, object, str]]:
+    """(key, default, meaning) of every key of ``config`` (default: the built-in one)."""
+    config = config or Config()
+    rows: list[tuple[str, object, str]] = [
+        ("seed", config.seed, Config.__dataclass_fields__["seed"].metadata["doc"]),
+        ("duration_s", config.duration_s, Config.__dataclass_fields__["duration_s"].metadata["doc"]),
+    ]
+    for section in to_dict(config):
+        if section in ("seed", "duration_s"):
+            continue
+        rows += [(f"{section}.{k}", v, doc) for k, v, doc, _ in _section_rows(section, getattr(config, section))]
     return rows
+
+
+def all_keys(config: Config | None = None) -> list[str]:
+    """Every key a configuration may set: those of ``config`` and the keys of every
+    registered model of its sections."""
+    keys = [k for k, _, _ in describe(config)]
+    for section in ("mobility", "channel", "protocol"):
+        keys += [f"{section}.{k}" for _, k, _, _ in _other_models(section)]
+    return list(dict.fromkeys(keys))
+
+
+__all__ = [
+    "ChannelParams",
+    "Config",
+    "ConfigWarning",
+    "ControlParams",
+    "MobilitySection",
+    "ModelSection",
+    "NoParams",
+    "OutputParams",
+    "ProtocolSection",
+    "WorldParams",
+    "all_keys",
+    "commented_toml",
+    "controllers",
+    "describe",
+    "from_dict",
+    "load",
+    "merge",
+    "nest",
+    "parse_override",
+    "section_owners",
+    "to_dict",
+]

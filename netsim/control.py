@@ -1,6 +1,7 @@
 """The control loop: the paper's "reserved interface" for robots' own control algorithms.
 
-Every ``coverage.control_period_s`` the loop asks a chain of *controllers* what velocity
+Every control period (``coverage.control_period_s``: the coverage controller's section sets
+the loop's period and first step) the loop asks a chain of *controllers* what velocity
 each robot should have over the next period. A controller is a plain callable
 ``controller(step: ControlStep) -> None`` that reads the step and may change
 ``step.velocity_mps`` in place, or record its own rows with :meth:`ControlStep.record`
@@ -13,36 +14,27 @@ is the channel's largest delay, so that a command broadcast at ``t_k`` reaches i
 receivers before they are to act on it. Positions in the step are those at ``t_k + lead``
 (known exactly: every robot is on a straight leg until then).
 
-Only robots the loop controls may change velocity: with ``mobility.model = "static"``
-every robot; with another mobility model the loop observes only (hooks), and a changed
-velocity raises an error rather than silently fighting the mobility model.
+Only robots the loop controls may change velocity: with a mobility model that leaves the
+robots where they are (``mobility.model = "static"``) every robot; with another mobility
+model the loop observes only (hooks), and a changed velocity raises an error rather than
+silently fighting the mobility model.
+
+Roles come from the protocol's :class:`~netsim.groups.GroupView`, when it forms groups.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 import pandas as pd
+import simpy
 
 from netsim.errors import NetsimInputError
-
-
-class GroupView(Protocol):
-    """What a protocol that forms groups tells the controllers (implemented by the
-    clustering stack): the positions a leader has heard of in Acks, directly or relayed
-    by its neighbours."""
-
-    def heard_leaders(self, leader: int, now: float) -> tuple[np.ndarray, np.ndarray]:
-        """Ids and last-heard positions ``(k, 2)`` of the other leaders ``leader`` knows."""
-        ...
-
-    def neighbourhood(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """What every robot knows of those around it (those it hears and those they
-        hear): arrays ``(robot, other, last-heard position of other (k, 2))``."""
-        ...
+from netsim.groups import GroupView
+from netsim.state import RobotState
+from netsim.trace import Trace
 
 
 @dataclass
@@ -55,7 +47,10 @@ class ControlStep:
     period_s : how long they hold (until the next step).
     positions_m : ``(N, 2)`` positions at ``t_s``.
     velocity_mps : ``(N, 2)`` velocities over ``[t_s, t_s + period_s]``; change in place.
-    role, leader : each robot's role (0 gamma, 1 beta, 2 alpha) and leader id.
+    role, leader : each robot's role code and leader (its own id for a leader, -1 for
+        none), from the protocol (all 0 and -1 when it forms no groups).
+    role_names : the label of each role code (``("gamma", "beta", "alpha")`` with the
+        clustering protocol; empty when the protocol forms no groups).
     range_m : ``(N,)`` communication ranges.
     side_m : side of the square area.
     options : the ``[control.options]`` table.
@@ -70,6 +65,7 @@ class ControlStep:
     range_m: np.ndarray
     side_m: float
     options: dict
+    role_names: tuple[str, ...] = ()
     _records: dict[str, list[dict]] = field(default_factory=dict, repr=False)
 
     def record(self, table: str, **values) -> None:
@@ -81,13 +77,38 @@ Controller = Callable[[ControlStep], None]
 
 
 class ControlLoop:
-    def __init__(self, sim, period_s: float, start_s: float, controls_motion: bool):
-        self.sim = sim
+    """The control loop of one run.
+
+    Parameters
+    ----------
+    env, state, trace : the run's kernel, robots and record.
+    period_s, start_s : time between steps, and the first step.
+    lead_s : the channel's largest delay (a step takes effect that long after it is decided).
+    moved_by : None when the loop moves the robots; otherwise what does (``"mobility.model
+        = 'random_waypoint'"``), for the error when a controller changes a velocity.
+    groups : the protocol's view of the groups, if it forms any.
+    options : the ``[control.options]`` table.
+    """
+
+    def __init__(
+        self,
+        env: simpy.Environment,
+        state: RobotState,
+        trace: Trace,
+        period_s: float,
+        start_s: float,
+        lead_s: float,
+        moved_by: str | None = None,
+        groups: GroupView | None = None,
+        options: dict | None = None,
+    ):
+        self.env, self.state, self.trace = env, state, trace
         self.period_s = float(period_s)
         self.start_s = float(start_s)
-        self.controls_motion = controls_motion
-        ch = sim.config.channel
-        self.lead_s = ch.latency_s + ch.latency_jitter_s
+        self.lead_s = float(lead_s)
+        self.moved_by = moved_by
+        self.groups = groups
+        self.options = options if options is not None else {}
         self._controllers: list[tuple[int, int, Controller]] = []
         # Called as fn(step) at t_s, after commands have arrived, before velocities apply.
         self.before_apply: list[Controller] = []
@@ -101,7 +122,7 @@ class ControlLoop:
         self._controllers.append((order, len(self._controllers), controller))
         self._controllers.sort(key=lambda c: c[:2])
         if self._process is None:
-            self._process = self.sim.env.process(self._run())
+            self._process = self.env.process(self._run())
 
     def stop(self) -> None:
         """End the loop after the current step (the robots stop where they are)."""
@@ -110,24 +131,32 @@ class ControlLoop:
     def _register(self, table: str) -> None:
         if table not in self._registered:
             self._registered.add(table)
-            self.sim.trace.add_frame(table, lambda: pd.DataFrame(self.records.get(table, [])))
+            self.trace.add_frame(table, lambda: pd.DataFrame(self.records.get(table, [])))
+
+    def _roles(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        if self.groups is None:
+            n = self.state.n
+            return np.zeros(n, dtype=np.int8), np.full(n, -1, dtype=np.int64), ()
+        return self.groups.role.copy(), self.groups.leader.copy(), tuple(self.groups.role_names)
 
     def _run(self):
-        env, st = self.sim.env, self.sim.state
+        env, st = self.env, self.state
         yield env.timeout(self.start_s)
         while True:
             t_s = env.now + self.lead_s
             current = st.velocity_mps.copy()
+            role, leader, role_names = self._roles()
             step = ControlStep(
                 t_s=t_s,
                 period_s=self.period_s,
                 positions_m=st.positions_at(t_s),
                 velocity_mps=current.copy(),
-                role=st.role.copy(),
-                leader=st.leader.copy(),
+                role=role,
+                leader=leader,
                 range_m=st.range_m,
                 side_m=st.side_m,
-                options=self.sim.config.control.options,
+                options=self.options,
+                role_names=role_names,
                 _records=self.records,
             )
             if self.stopped:
@@ -154,22 +183,12 @@ class ControlLoop:
         changed = np.flatnonzero((step.velocity_mps != current).any(axis=1))
         if len(changed) == 0:
             return
-        if not self.controls_motion:
+        if self.moved_by is not None:
             raise NetsimInputError(
                 f"a controller changed the velocity of robot {int(changed[0])}, but robots move by "
-                f"mobility.model = {self.sim.config.mobility.model!r}; controllers may move robots only "
-                "with mobility.model = 'static'"
+                f"{self.moved_by}; controllers may move robots only with a mobility model that "
+                "leaves them where they are (mobility.model = 'static')"
             )
-        st, now = self.sim.state, self.sim.env.now
+        st, now = self.state, self.env.now
         for i, v in zip(changed.tolist(), step.velocity_mps[changed].tolist()):
             st.set_leg(i, now, v)
-
-
-def control_loop(sim) -> ControlLoop:
-    """The run's control loop (created on first use)."""
-    loop = sim.models.get("control")
-    if loop is None:
-        cov = sim.config.coverage
-        loop = ControlLoop(sim, cov.control_period_s, cov.start_s, sim.config.mobility.model == "static")
-        sim.models["control"] = loop
-    return loop

@@ -3,11 +3,20 @@
 A model returns a boolean mask of the receptions that survive, or None when all do.
 Each model draws from the channel's own random stream. A model with nothing to draw
 (zero loss) draws nothing, so that turning loss off does not shift other draws.
+
+:data:`LOSS_MODELS` is the table ``channel.loss_model`` chooses from: each entry has its
+parameters (keys of ``[channel]``) and makes the callable.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
 import numpy as np
+
+from netsim.params import Params, param, positive, probability
 
 
 class BernoulliLoss:
@@ -77,3 +86,51 @@ class GilbertElliottLoss:
             bad_states[key] = bad
             keep[j] = u[j, 1] >= self.loss[int(bad)]
         return keep
+
+
+@dataclass(frozen=True)
+class BernoulliParams(Params):
+    section = "channel"
+    loss_probability: float = param(0.0, probability, "Bernoulli loss per reception (also the floor of 'distance')")
+
+
+@dataclass(frozen=True)
+class DistanceParams(Params):
+    section = "channel"
+    loss_probability: float = param(0.0, probability, "loss per reception next to the sender")
+    loss_distance_exponent: float = param(
+        4.0, positive, "'distance': reception probability (1 - p)(1 - (d / r)^exponent)"
+    )
+
+
+@dataclass(frozen=True)
+class GilbertElliottParams(Params):
+    section = "channel"
+    ge_p_good_to_bad: float = param(0.05, probability, "Gilbert-Elliott: P(good -> bad)")
+    ge_p_bad_to_good: float = param(0.5, probability, "Gilbert-Elliott: P(bad -> good)")
+    ge_loss_good: float = param(0.0, probability, "Gilbert-Elliott: loss in the good state")
+    ge_loss_bad: float = param(1.0, probability, "Gilbert-Elliott: loss in the bad state")
+
+
+Survives = Callable[[int, np.ndarray, np.ndarray], "np.ndarray | None"]
+
+
+class LossModel(NamedTuple):
+    """A loss model: its parameters, and ``make(params, range_m, rng) -> survives``."""
+
+    Params: type[Params]
+    make: Callable[[Any, np.ndarray, np.random.Generator], Survives]
+
+
+LOSS_MODELS: dict[str, LossModel] = {
+    "bernoulli": LossModel(BernoulliParams, lambda p, range_m, rng: BernoulliLoss(p.loss_probability, rng)),
+    "distance": LossModel(
+        DistanceParams, lambda p, range_m, rng: DistanceLoss(p.loss_probability, p.loss_distance_exponent, range_m, rng)
+    ),
+    "gilbert_elliott": LossModel(
+        GilbertElliottParams,
+        lambda p, range_m, rng: GilbertElliottLoss(
+            p.ge_p_good_to_bad, p.ge_p_bad_to_good, p.ge_loss_good, p.ge_loss_bad, len(range_m), rng
+        ),
+    ),
+}

@@ -1,10 +1,20 @@
 """Models found by name: the paper's "reserved interfaces" for users' own algorithms.
 
-A plugin is a callable ``install(sim) -> object | None`` that sets up its processes on a
-:class:`~netsim.sim.Simulation`. Built-in ones are entry points in ``pyproject.toml``
-(groups ``netsim.mobility``, ``netsim.protocols``, ``netsim.controllers``); a user's own is
-named ``"package.module:function"`` in the configuration. So the engine never imports
-the packages that build on it.
+A model (a mobility model, a protocol, a controller) is a *plugin*: an object that
+declares its parameters (a :class:`~netsim.params.Params` dataclass: its own keys of its
+configuration section, validated when made), the output tables it writes (with their
+columns), the rules that tie its keys to other sections (:meth:`Plugin.check`), and how it
+is built from its parameters and the parts of the run it works with (:class:`Parts`).
+:class:`PluginSpec` spells one out. A built component that adds figures to a run's summary
+implements :class:`Reports`.
+
+Built-in plugins are entry points in ``pyproject.toml`` (groups ``netsim.mobility``,
+``netsim.protocols``, ``netsim.controllers``), each naming a plugin object
+(``mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
+the configuration. So the engine never imports the packages that build on it, and names
+none of their models. A plain function ``install(sim)`` (the older form) still works as a
+plugin without parameters or tables: it is called with the whole
+:class:`~netsim.sim.Simulation`.
 """
 
 from __future__ import annotations
@@ -12,19 +22,130 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import cache
 from importlib.metadata import entry_points
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, runtime_checkable
+
+import simpy
 
 from netsim.errors import ConfigError
+from netsim.params import NoParams, Params
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from netsim.channel import Channel
+    from netsim.control import ControlLoop
+    from netsim.groups import GroupView
+    from netsim.rng import Streams
+    from netsim.state import RobotState
+    from netsim.trace import Trace
 
 MOBILITY = "netsim.mobility"
 PROTOCOLS = "netsim.protocols"
 CONTROLLERS = "netsim.controllers"
 
+# A table's columns and their dtypes (numpy names; "object" for strings).
+Schema = Mapping[str, str]
+
+
+class RoleLabels(NamedTuple):
+    """How a protocol's roles are written in ``roles.parquet``: the role labels, and the
+    cause recorded when a member loses its leader by timeout. Tools that read finished
+    runs get them from the run's protocol plugin, never from literals."""
+
+    leader: str
+    member: str
+    undecided: str
+    leader_lost: str
+
+
+@dataclass(frozen=True)
+class Parts:
+    """What a model is built with: the run's core, the world, and for controllers the
+    control loop and the protocol's view of the groups (None without groups)."""
+
+    env: simpy.Environment
+    state: RobotState
+    channel: Channel
+    trace: Trace
+    streams: Streams
+    world: Any  # netsim.config.WorldParams
+    duration_s: float
+    output: Any  # netsim.config.OutputParams
+    control: ControlLoop | None = None
+    groups: GroupView | None = None
+
 
 class Plugin(Protocol):
-    def __call__(self, sim: Any) -> object | None: ...
+    """A model: its own parameters, its tables, its rules across sections, how it is built."""
+
+    Params: type[Params]  # a frozen dataclass: the model's own keys of its section
+    tables: Mapping[str, Schema]  # output tables it writes, with their columns
+
+    def check(self, params: Any, config: Any) -> None:
+        """Rules between the model's keys and other sections of ``config`` (ConfigError)."""
+        ...
+
+    def build(self, params: Any, parts: Parts) -> object:
+        """The model's component for one run, its processes started."""
+        ...
+
+
+@runtime_checkable
+class Reports(Protocol):
+    """A built component that adds its own figures to the run's summary."""
+
+    def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict: ...
+
+
+def _no_check(params: Any, config: Any) -> None:
+    return None
+
+
+@dataclass(frozen=True)
+class PluginSpec:
+    """A plugin spelled out (see :class:`Plugin`); the flags say what other models and the
+    engine may rely on."""
+
+    Params: type[Params]
+    build: Callable[[Any, Parts], object]
+    tables: Mapping[str, Schema] = field(default_factory=dict)
+    check: Callable[[Any, Any], None] = _no_check
+    # The model used when the configuration names none of its group.
+    default: bool = False
+    # Mobility: whether the model moves the robots (False: controllers may move them).
+    moves_robots: bool = True
+    # Protocols: whether the component forms groups (is a GroupView), and how its roles
+    # are written in roles.parquet.
+    forms_groups: bool = False
+    role_labels: RoleLabels | None = None
+    # Controllers with a section: ``timing(params) -> (period_s, start_s)`` of the control
+    # loop, if the section sets it.
+    timing: Callable[[Any], tuple[float, float]] | None = None
+
+
+@dataclass(frozen=True)
+class LegacyPlugin:
+    """A plain function ``install(sim)`` used as a plugin (the older form): no parameters,
+    no tables; :func:`netsim.run.build` calls it with the whole Simulation."""
+
+    install: Callable[[Any], object]
+    Params: type[Params] = NoParams
+    tables: Mapping[str, Schema] = field(default_factory=dict)
+    default: bool = False
+    moves_robots: bool = True
+    forms_groups: bool = False
+    role_labels: RoleLabels | None = None
+    timing: Callable[[Any], tuple[float, float]] | None = None
+
+    def check(self, params: Any, config: Any) -> None:
+        return None
+
+    def build(self, params: Any, parts: Parts) -> object:
+        raise TypeError("a plain install(sim) function is called with the Simulation (netsim.run.build)")
 
 
 def _import_user_module(name: str):
@@ -39,25 +160,81 @@ def _import_user_module(name: str):
         return importlib.import_module(name)
 
 
+@cache
+def _entry_points(group: str) -> tuple:
+    # Read once per process: entry points do not change while it runs.
+    return tuple(entry_points(group=group))
+
+
 def available(group: str) -> list[str]:
-    return sorted(ep.name for ep in entry_points(group=group))
+    """Names of the registered plugins of ``group``."""
+    return sorted(ep.name for ep in _entry_points(group))
 
 
-def resolve(group: str, name: str, key: str) -> Callable:
-    """The plugin ``name`` of ``group``; ``key`` is the configuration key, for errors."""
+_MEMBERS = ("Params", "tables", "check", "build")
+
+
+@cache
+def _plugin(group: str, name: str) -> PluginSpec | LegacyPlugin:
+    """The plugin ``name`` of ``group`` as a PluginSpec (an object with the members of
+    :class:`Plugin` is wrapped in one, a plain function in a LegacyPlugin)."""
+    obj = _load(group, name)
+    if isinstance(obj, PluginSpec | LegacyPlugin):
+        return obj
+    if all(hasattr(obj, m) for m in _MEMBERS):
+        return PluginSpec(Params=obj.Params, build=obj.build, tables=obj.tables, check=obj.check)
+    if callable(obj):
+        return LegacyPlugin(obj)
+    raise TypeError("is not a netsim plugin (a PluginSpec, or an object with " + ", ".join(_MEMBERS) + ")")
+
+
+def _load(group: str, name: str) -> Any:
     if ":" in name:
         module_name, _, attr = name.partition(":")
-        try:
-            obj = _import_user_module(module_name)
-            for part in attr.split("."):
-                obj = getattr(obj, part)
-        except (ImportError, AttributeError) as exc:
-            raise ConfigError(key, name, f"cannot be loaded ({exc})") from None
-        if not callable(obj):
-            raise ConfigError(key, name, "is not callable")
+        obj = _import_user_module(module_name)
+        for part in attr.split("."):
+            obj = getattr(obj, part)
         return obj
-    found = [ep for ep in entry_points(group=group) if ep.name == name]
+    found = [ep for ep in _entry_points(group) if ep.name == name]
     if not found:
-        choices = ", ".join(repr(n) for n in available(group)) or "none installed"
-        raise ConfigError(key, name, f"unknown; choose one of {choices}, or 'package.module:function'")
+        raise LookupError(name)
     return found[0].load()
+
+
+def resolve(group: str, name: str, key: str) -> Any:
+    """The plugin ``name`` of ``group``; ``key`` is the configuration key, for errors."""
+    if not isinstance(name, str) or not name:
+        raise ConfigError(key, name, "must be the name of a plugin (a non-empty string)")
+    try:
+        return _plugin(group, name)
+    except LookupError:
+        choices = ", ".join(repr(n) for n in available(group)) or "none installed"
+        raise ConfigError(key, name, f"unknown; choose one of {choices}, or 'package.module:attr'") from None
+    except TypeError as exc:
+        raise ConfigError(key, name, str(exc)) from None
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise ConfigError(key, name, f"cannot be loaded ({exc})") from None
+
+
+def registered(group: str) -> dict[str, Any]:
+    """Every registered plugin of ``group`` that loads, by name."""
+    return dict(_registered(group))
+
+
+@cache
+def _registered(group: str) -> dict[str, Any]:
+    out = {}
+    for name in available(group):
+        try:
+            out[name] = resolve(group, name, group)
+        except ConfigError:
+            continue  # a broken third-party plugin must not stop runs that do not use it
+    return out
+
+
+def default_name(group: str) -> str:
+    """The registered plugin of ``group`` that declares itself the default."""
+    names = [name for name, p in registered(group).items() if p.default]
+    if len(names) != 1:
+        raise ConfigError(group, names, "exactly one registered plugin must declare itself the default")
+    return names[0]

@@ -1,45 +1,138 @@
 """Build a run from a configuration, execute it, and collect its results.
 
-The builder knows models only by name (plugins), so ``netsim/`` imports neither
-``mobility/`` nor ``protocols/``.
+:func:`build` is the only reader of the configuration: it makes the run's core (kernel,
+robots, channel with its loss model, trace, random streams), then each model from its own
+section, handing it what it works with (:class:`~netsim.plugins.Parts`): the mobility
+model, the protocol, and the controllers, which also get the control loop and the
+protocol's view of the groups. Models are plugins known by name, so ``netsim/`` imports
+neither ``mobility/`` nor ``protocols/``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
+import simpy
 
-from netsim import plugins
+from netsim import config as cfgmod
+from netsim.channel import Channel
 from netsim.config import Config
-from netsim.control import control_loop
+from netsim.control import ControlLoop
+from netsim.errors import ConfigError
+from netsim.groups import GroupView
 from netsim.lifetimes import link_lifetimes
+from netsim.loss import LOSS_MODELS
+from netsim.params import Params
+from netsim.plugins import LegacyPlugin, Parts, Reports, Schema
+from netsim.rng import Streams
 from netsim.sim import Simulation
-from netsim.trace import RoleChange
+from netsim.state import RobotState
+from netsim.trace import Trace
 from netsim.trajectory import distance_travelled, sample_positions
+
+# The tables every run writes, whatever its models (theirs are declared by their plugins).
+ENGINE_TABLES: dict[str, Schema] = {
+    "positions": {"t_s": "float64", "robot": "int64", "x_m": "float64", "y_m": "float64"},
+    "links": {
+        "a": "int64",
+        "b": "int64",
+        "t_up_s": "float64",
+        "t_down_s": "float64",
+        "censored": "bool",
+        "censored_start": "bool",
+        "censored_end": "bool",
+    },
+    "legs": {
+        "t_s": "float64",
+        "robot": "int64",
+        "x_m": "float64",
+        "y_m": "float64",
+        "vx_mps": "float64",
+        "vy_mps": "float64",
+    },
+}
+
+
+def simulation(config: Config, run: int = 0) -> Simulation:
+    """The core of a run with no model yet: kernel, robots (none placed), the channel and
+    its loss model (``[channel]``), the trace and the random streams of ``(seed, run)``."""
+    env = simpy.Environment()
+    streams = Streams(config.seed, run)
+    w = config.world
+    state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus)
+    ch = config.channel
+    survives = LOSS_MODELS[ch.loss_model].make(ch.loss, state.range_m, streams.get("channel.loss"))
+    channel = Channel(env, state, survives, ch.latency_s, ch.latency_jitter_s, streams.get("channel.latency"))
+    parts = Parts(env, state, channel, Trace(), streams, w, config.duration_s, config.output)
+    return Simulation(parts, config, run)
+
+
+def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
+    if isinstance(plugin, LegacyPlugin):
+        component = plugin.install(sim)
+    else:
+        component = plugin.build(params, parts)
+    sim.add_model(name, component)
+    return component
+
+
+def control_timing(config: Config) -> tuple[float, float]:
+    """The control loop's period and first step, from the section that sets them."""
+    for name, plugin in cfgmod.section_owners(config.control).items():
+        if plugin.timing is not None:
+            return plugin.timing(config.sections[name])
+    raise ConfigError(
+        "control.controllers", list(config.control.controllers), "no installed plugin sets the control loop's period"
+    )
 
 
 def build(config: Config, run: int = 0) -> Simulation:
-    """A :class:`Simulation` with the configured mobility model and protocol installed."""
-    sim = Simulation(config, run)
-    sim.trace.declare("roles", RoleChange)
-    mobility = plugins.resolve(plugins.MOBILITY, config.mobility.model, "mobility.model")
-    sim.models["mobility"] = mobility(sim)
-    if config.protocol.model != "none":
-        protocol = plugins.resolve(plugins.PROTOCOLS, config.protocol.model, "protocol.model")
-        sim.models["protocol"] = protocol(sim)
-    if config.coverage.enabled:
-        coverage = plugins.resolve(plugins.CONTROLLERS, "coverage", "coverage.enabled")
-        sim.models["coverage"] = coverage(sim)
-    for name in config.control.controllers:
-        factory = plugins.resolve(plugins.CONTROLLERS, name, "control.controllers")
-        controller = factory(sim)
-        if callable(controller):
-            control_loop(sim).add(controller)
+    """A :class:`Simulation` with every model of ``config`` built from its own section:
+    the mobility model, the protocol, then the controllers (module notes)."""
+    sim = simulation(config, run)
+    parts = sim.parts
+    _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
+    protocol = _build_model(sim, "protocol", config.protocol.plugin, config.protocol.params, parts)
+    sim.groups = protocol if isinstance(protocol, GroupView) else None
+    chosen = cfgmod.controllers(config)
+    if chosen:
+        period_s, start_s = control_timing(config)
+        mobility = config.mobility
+        loop = ControlLoop(
+            sim.env,
+            sim.state,
+            sim.trace,
+            period_s,
+            start_s,
+            lead_s=sim.channel.latency_s + sim.channel.latency_jitter_s,
+            moved_by=f"mobility.model = {mobility.model!r}" if mobility.plugin.moves_robots else None,
+            groups=sim.groups,
+            options=config.control.options,
+        )
+        sim.add_model("control", loop)
+        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups)
+        for name, plugin, params in chosen:
+            component = _build_model(sim, name, plugin, params, with_loop)
+            if callable(component):
+                loop.add(component)
     return sim
+
+
+def tables(config: Config) -> dict[str, Schema]:
+    """Every table a run of ``config`` writes, with its columns: the engine's, and those its
+    models declare."""
+    out = dict(ENGINE_TABLES)
+    out.update(config.mobility.plugin.tables)
+    out.update(config.protocol.plugin.tables)
+    for _, plugin, _ in cfgmod.controllers(config):
+        out.update(plugin.tables)
+    return out
 
 
 @dataclass
@@ -50,51 +143,43 @@ class RunResult:
     wall_s: float
 
 
-def position_times(config: Config) -> np.ndarray:
-    dt = config.output.position_interval_s
-    if dt <= 0:
+def position_times(interval_s: float, duration_s: float) -> np.ndarray:
+    """Sampling instants of ``positions.parquet``: every ``interval_s`` from 0 to the end."""
+    if interval_s <= 0:
         return np.empty(0)
     # The small tolerance keeps the last sample when duration is a multiple of dt.
-    k = int(math.floor(config.duration_s / dt + 1e-9))
-    return np.arange(k + 1) * dt
+    k = int(math.floor(duration_s / interval_s + 1e-9))
+    return np.arange(k + 1) * interval_s
 
 
 def collect(sim: Simulation) -> dict[str, pd.DataFrame]:
     """Every output table of a finished run."""
-    cfg = sim.config
     legs = sim.state.legs()
-    side, torus = cfg.world.side_m, cfg.world.torus
+    side, torus = sim.state.side_m, sim.state.torus
     frames = sim.trace.frames()
-    frames["positions"] = sample_positions(legs, sim.state.n, position_times(cfg), side, torus)
+    times = position_times(sim.parts.output.position_interval_s, sim.duration_s)
+    frames["positions"] = sample_positions(legs, sim.state.n, times, side, torus)
     frames["links"] = link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus)
     # Every course change: trajectories are exact from these (positions unwrapped on a torus).
     frames["legs"] = legs
-    if "acks" not in frames:
-        frames["acks"] = sim.channel.frame("ack")
     return frames
 
 
 def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -> dict:
-    cfg = sim.config
+    """The run's figures: the engine's (motion and links), then each model's own."""
     n, duration = sim.state.n, sim.env.now
     links = frames["links"]
-    acks = frames["acks"]
     life = links["t_down_s"] - links["t_up_s"]
     done = ~links["censored"]
-    received, lost = int(acks["received"].sum()), int(acks["dropped_loss"].sum())
-    legs = sim.state.legs()
-    distance = distance_travelled(legs, duration)
+    distance = distance_travelled(sim.state.legs(), duration)
+    config = sim.config
     summary = {
         "robots": n,
         "duration_s": duration,
-        "seed": cfg.seed,
-        "mobility": cfg.mobility.model,
-        "protocol": cfg.protocol.model,
+        "seed": sim.streams.seed,
+        "mobility": config.mobility.model if config is not None else "",
+        "protocol": config.protocol.model if config is not None else "",
         "wall_s": round(wall_s, 3),
-        "acks_sent": int(acks["sent"].sum()),
-        "acks_received": received,
-        "acks_dropped_loss": lost,
-        "ack_delivery_ratio": received / (received + lost) if received + lost else math.nan,
         "link_lifetimes": len(links),
         "link_lifetimes_complete": int(done.sum()),
         "mean_link_duration_s": float(life[done].mean()) if done.any() else math.nan,
@@ -102,11 +187,9 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
         "mean_degree": float(2 * life.sum() / (n * duration)) if duration > 0 else math.nan,
         "mean_speed_mps": float(distance.sum() / (n * duration)) if duration > 0 else math.nan,
     }
-    for model in sim.models.values():
-        # A model may add its own figures: summary(frames, duration_s) -> dict.
-        extra = getattr(model, "summary", None)
-        if callable(extra):
-            summary.update(extra(frames, duration))
+    for component in sim.models.values():
+        if isinstance(component, Reports):
+            summary.update(component.summary(frames, duration))
     return summary
 
 

@@ -1,53 +1,45 @@
-"""The simulation object: a SimPy environment with the robots, the channel and the trace."""
+"""The simulation object: the run's core (SimPy environment, robots, channel, trace,
+random streams) and a record of the models built on it."""
 
 from __future__ import annotations
 
-import simpy
+from types import MappingProxyType
+from typing import Any
 
-from netsim.channel import Channel
-from netsim.config import Config
-from netsim.loss import BernoulliLoss, DistanceLoss, GilbertElliottLoss
+from netsim.groups import GroupView
+from netsim.plugins import Parts
 from netsim.progress import progress_bar
-from netsim.rng import Streams
-from netsim.state import RobotState
-from netsim.trace import Trace
-
-
-def make_loss(config: Config, streams: Streams, state: RobotState):
-    ch = config.channel
-    rng = streams.get("channel.loss")
-    if ch.loss_model == "distance":
-        return DistanceLoss(ch.loss_probability, ch.loss_distance_exponent, state.range_m, rng)
-    if ch.loss_model == "gilbert_elliott":
-        return GilbertElliottLoss(
-            ch.ge_p_good_to_bad, ch.ge_p_bad_to_good, ch.ge_loss_good, ch.ge_loss_bad, state.n, rng
-        )
-    return BernoulliLoss(ch.loss_probability, rng)
 
 
 class Simulation:
     """One run: ``env`` (SimPy), ``state`` (robots), ``channel``, ``trace``, ``streams``.
 
-    Models are installed on it by :func:`netsim.run.build` (or by hand, in tests and
-    scripts) and keep what they return in :attr:`models`.
+    Made by :func:`netsim.run.simulation` (the core alone) or :func:`netsim.run.build`
+    (with every model). :attr:`models` records the components built, by name (read-only:
+    components receive their collaborators when they are built, and never look each other
+    up); :attr:`groups` is the protocol's view of the groups, if it forms any;
+    :attr:`config` is the configuration it was built from.
     """
 
-    def __init__(self, config: Config, run: int = 0):
+    def __init__(self, parts: Parts, config: Any = None, run: int = 0):
+        self.parts = parts
+        self.env = parts.env
+        self.state = parts.state
+        self.channel = parts.channel
+        self.trace = parts.trace
+        self.streams = parts.streams
+        self.duration_s = float(parts.duration_s)
         self.config = config
-        self.env = simpy.Environment()
-        self.streams = Streams(config.seed, run)
-        self.state = RobotState(config.world.n_robots, config.world.side_m, config.ranges_m(), config.world.torus)
-        self.trace = Trace()
-        ch = config.channel
-        self.channel = Channel(
-            self.env,
-            self.state,
-            make_loss(config, self.streams, self.state),
-            ch.latency_s,
-            ch.latency_jitter_s,
-            self.streams.get("channel.latency"),
-        )
-        self.models: dict[str, object] = {}
+        self.groups: GroupView | None = None
+        self._models: dict[str, object] = {}
+
+    @property
+    def models(self) -> MappingProxyType:
+        return MappingProxyType(self._models)
+
+    def add_model(self, name: str, component: object) -> None:
+        """Record a built component under ``name``."""
+        self._models[name] = component
 
     @property
     def now(self) -> float:
@@ -59,7 +51,7 @@ class Simulation:
         Events due exactly at ``until_s`` are not processed (SimPy's convention); every
         output is computed for the interval ``[0, until_s]`` from exact trajectories.
         """
-        until = self.config.duration_s if until_s is None else float(until_s)
+        until = self.duration_s if until_s is None else float(until_s)
         start = self.env.now
         with progress_bar(
             round(until - start, 6),

@@ -12,15 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-# Roles, in the paper's terms: gamma (undecided), beta (member), alpha (leader).
-UNDECIDED, MEMBER, LEADER = 0, 1, 2
-ROLE_NAMES = ("gamma", "beta", "alpha")
-
-NO_LEADER = -1
-
 
 class RobotState:
-    """Positions, velocities, roles and leaders of ``n`` robots.
+    """Positions, velocities and ranges of ``n`` robots (roles are the protocol's).
 
     Parameters
     ----------
@@ -42,8 +36,6 @@ class RobotState:
         # The same memory seen as complex numbers x + iy (a view: always in step).
         self.origin_c = self.origin_m.view(np.complex128)[:, 0]
         self.velocity_c = self.velocity_mps.view(np.complex128)[:, 0]
-        self.role = np.full(self.n, UNDECIDED, dtype=np.int8)
-        self.leader = np.full(self.n, NO_LEADER, dtype=np.int64)
         self.alive = np.ones(self.n, dtype=bool)
         # Highest speed any robot has had since the spatial index last reset it: bounds how
         # far anyone can have moved since then.

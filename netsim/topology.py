@@ -6,7 +6,8 @@ import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
 
-from netsim.state import ROLE_NAMES, RobotState
+from netsim.groups import GroupView
+from netsim.state import RobotState
 
 
 def geometric_pairs(positions_m: np.ndarray, range_m, side_m: float | None = None, directed: bool = False):
@@ -64,21 +65,23 @@ def geometric_edges(positions_m: np.ndarray, range_m, side_m: float | None = Non
     return list(zip(i.tolist(), j.tolist(), d.tolist()))
 
 
-def snapshot(state: RobotState, t: float, directed: bool = False) -> nx.Graph:
+def snapshot(state: RobotState, t: float, directed: bool = False, groups: GroupView | None = None) -> nx.Graph:
     """The true unit-disk network at time ``t``.
 
-    Nodes carry ``pos`` (x, y), ``role`` ("alpha", "beta", "gamma") and ``leader``;
-    edges carry ``distance``. Positions are those at ``t``; roles and leaders are the
-    current ones, so take the snapshot while the run is at ``t`` for a consistent picture.
-    With ``directed=True`` the graph is a DiGraph with an edge i -> j when j is within
-    i's range (one-way links appear once).
+    Nodes carry ``pos`` (x, y) and, with the protocol's ``groups`` (``sim.groups``),
+    ``role`` (its label, as "alpha", "beta", "gamma") and ``leader``; edges carry
+    ``distance``. Positions are those at ``t``; roles and leaders are the current ones, so
+    take the snapshot while the run is at ``t`` for a consistent picture. With
+    ``directed=True`` the graph is a DiGraph with an edge i -> j when j is within i's
+    range (one-way links appear once).
     """
     pos = state.positions_at(t)
     g = nx.DiGraph() if directed else nx.Graph()
     for i in range(state.n):
-        g.add_node(
-            i, pos=(float(pos[i, 0]), float(pos[i, 1])), role=ROLE_NAMES[state.role[i]], leader=int(state.leader[i])
-        )
+        g.add_node(i, pos=(float(pos[i, 0]), float(pos[i, 1])))
+    if groups is not None:
+        for i, (code, leader) in enumerate(zip(groups.role.tolist(), groups.leader.tolist())):
+            g.nodes[i].update(role=groups.role_names[code], leader=int(leader))
     side = state.side_m if state.torus else None
     i, j, d = geometric_pairs(pos, state.range_m, side, directed)
     g.add_weighted_edges_from(zip(i.tolist(), j.tolist(), d.tolist()), weight="distance")

@@ -8,17 +8,8 @@ builds their frame at the end.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
 
 import pandas as pd
-
-
-class RoleChange(NamedTuple):
-    t_s: float
-    robot: int
-    role: str
-    leader: int
-    cause: str
 
 
 class Trace:

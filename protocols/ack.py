@@ -15,13 +15,85 @@ listeners are not told; :attr:`AckBeacon.stale_acks` counts them).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+import pandas as pd
+import simpy
 
+from netsim.errors import ConfigError
+from netsim.params import Params, finite, non_negative, param, positive
+from netsim.plugins import Parts, PluginSpec
 from netsim.timers import urgent_timeout
 from protocols.neighbours import HEARS_ME, NeighbourTable, ack_record
+from protocols.roles import ROLES_SCHEMA, Roles, declare_roles
+
+
+@dataclass(frozen=True)
+class AckParams(Params):
+    """The Ack beacon's keys of ``[protocol]``."""
+
+    section = "protocol"
+    ack_period_s: float = param(1.0, finite(positive), "Ack period t, s")
+    ack_jitter_s: float = param(0.05, non_negative, "each period is t + U(-jitter, +jitter), s")
+    tau_s: float = param(
+        None,
+        positive,
+        "liveness timeout tau, s",
+        kind=float,
+        derive=lambda p: 3.0 * p.ack_period_s,
+        rule="3 x ack_period_s",
+    )
+
+    def check(self) -> None:
+        if not self.tau_s > self.ack_period_s:
+            raise ConfigError(
+                "protocol.tau_s", self.tau_s, f"must be greater than protocol.ack_period_s = {self.ack_period_s}"
+            )
+        if not self.ack_jitter_s < self.ack_period_s / 2:
+            raise ConfigError(
+                "protocol.ack_jitter_s",
+                self.ack_jitter_s,
+                f"must be less than half of protocol.ack_period_s = {self.ack_period_s}",
+            )
+
+
+def check_tau(params: AckParams, config) -> None:
+    """Without any loss two Acks of a neighbour can be up to period + jitter + latency
+    jitter apart: a tau no longer than that times neighbours out for nothing."""
+    gap = params.ack_period_s + params.ack_jitter_s + config.channel.latency_jitter_s
+    if not params.tau_s > gap:
+        raise ConfigError(
+            "protocol.tau_s",
+            params.tau_s,
+            "must be greater than protocol.ack_period_s + protocol.ack_jitter_s + channel.latency_jitter_s"
+            f" = {gap:g}, the longest gap between two Acks without loss",
+        )
+
+
+ACKS_SCHEMA = {
+    "robot": "int64",
+    "sent": "int64",
+    "received": "int64",
+    "dropped_loss": "int64",
+    "dropped_not_alive": "int64",
+    "dropped_out_of_range": "int64",
+}
+
+
+def ack_figures(frames: Mapping[str, pd.DataFrame]) -> dict:
+    """Acks sent, received, lost, and the delivery ratio, from the ``acks`` table."""
+    acks = frames["acks"]
+    received, lost = int(acks["received"].sum()), int(acks["dropped_loss"].sum())
+    return {
+        "acks_sent": int(acks["sent"].sum()),
+        "acks_received": received,
+        "acks_dropped_loss": lost,
+        "ack_delivery_ratio": received / (received + lost) if received + lost else math.nan,
+    }
 
 
 class Ack(NamedTuple):
@@ -41,61 +113,70 @@ class Ack(NamedTuple):
 AckListener = Callable[[float, Ack, np.ndarray, np.ndarray], None]
 
 
-def ack_beacon(sim, i: int, period_s: float, jitter_s: float, phase_s: float, rng: np.random.Generator, send):
+def ack_beacon(
+    env: simpy.Environment, i: int, period_s: float, jitter_s: float, phase_s: float, rng: np.random.Generator, send
+):
     """Robot ``i``'s beacon: first Ack at ``phase_s``, then one every period."""
-    yield urgent_timeout(sim.env, phase_s)
+    yield urgent_timeout(env, phase_s)
     while True:
         send(i)
         step = period_s + (rng.uniform(-jitter_s, jitter_s) if jitter_s > 0 else 0.0)
-        yield urgent_timeout(sim.env, step)
+        yield urgent_timeout(env, step)
 
 
 class AckBeacon:
-    """Ack beacons and neighbour tables of all robots."""
+    """Ack beacons and neighbour tables of all robots; ``roles``: the roles and leaders the
+    Acks announce (the clustering's; all undecided without it)."""
 
-    def __init__(self, sim):
-        p = sim.config.protocol
-        self.sim = sim
-        self.period_s = p.ack_period_s
-        self.table = NeighbourTable(sim.state.n, p.tau_s)
-        self.seq = np.zeros(sim.state.n, dtype=np.int64)
+    def __init__(self, params: AckParams, parts: Parts, roles: Roles | None = None):
+        n = parts.state.n
+        self.params = params
+        self.env, self.state, self.channel = parts.env, parts.state, parts.channel
+        self.streams, self.trace = parts.streams, parts.trace
+        self.roles = roles if roles is not None else Roles(n)
+        self.period_s = params.ack_period_s
+        self.table = NeighbourTable(n, params.tau_s)
+        self.seq = np.zeros(n, dtype=np.int64)
         # Robots the protocol above counts as members of each robot's group (1: alone).
-        self.group_size = np.ones(sim.state.n, dtype=np.int64)
+        self.group_size = np.ones(n, dtype=np.int64)
         # What each robot announced in its last Ack: its role and two-way degree.
-        self.role_sent = np.full(sim.state.n, -1, dtype=np.int64)
-        self.degree_sent = np.zeros(sim.state.n, dtype=np.int64)
+        self.role_sent = np.full(n, -1, dtype=np.int64)
+        self.degree_sent = np.zeros(n, dtype=np.int64)
         # Leaders that announce they are giving up leadership set this for their next Ack.
-        self.resign_pending = np.zeros(sim.state.n, dtype=bool)
+        self.resign_pending = np.zeros(n, dtype=bool)
         self.listeners: list[AckListener] = []
         # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
         self.before_send: list[Callable[[int, float], None]] = []
-        self.phase_s = np.zeros(sim.state.n)
+        self.phase_s = np.zeros(n)
         # Receptions ignored because a newer Ack of the same sender had arrived first.
         self.stale_acks = 0
 
     def start(self, phase_s=None) -> None:
         """Start every robot's beacon; ``phase_s`` (one per robot) overrides the random phases."""
-        sim = self.sim
-        p = sim.config.protocol
+        p, n = self.params, self.state.n
         if phase_s is None:
-            self.phase_s = sim.streams.get("ack.phase").uniform(0.0, p.ack_period_s, sim.state.n)
+            self.phase_s = self.streams.get("ack.phase").uniform(0.0, p.ack_period_s, n)
         else:
             self.phase_s = np.asarray(phase_s, dtype=float)
-        jitter_rng = sim.streams.get("ack.jitter")
-        for i in range(sim.state.n):
-            sim.env.process(ack_beacon(sim, i, p.ack_period_s, p.ack_jitter_s, self.phase_s[i], jitter_rng, self.send))
-        sim.trace.add_frame("acks", lambda: sim.channel.frame("ack"))
+        jitter_rng = self.streams.get("ack.jitter")
+        for i in range(n):
+            self.env.process(
+                ack_beacon(self.env, i, p.ack_period_s, p.ack_jitter_s, self.phase_s[i], jitter_rng, self.send)
+            )
+        channel = self.channel
+        self.trace.add_frame("acks", lambda: channel.frame("ack"))
 
     def make_ack(self, i: int) -> Ack:
-        now = self.sim.env.now
+        now = self.env.now
         for hook in self.before_send:
             hook(i, now)
-        st = self.sim.state
+        st = self.state
         x, y = st.position(i, now)
         self.seq[i] += 1
         resign = bool(self.resign_pending[i])
         self.resign_pending[i] = False
-        seq, role, leader, size = int(self.seq[i]), int(st.role[i]), int(st.leader[i]), int(self.group_size[i])
+        roles = self.roles
+        seq, role, leader, size = int(self.seq[i]), int(roles.role[i]), int(roles.leader[i]), int(self.group_size[i])
         live = self.table.live_mask(now, i)
         heard = np.sort(self.table.id[i][live])
         degree = int((live & (self.table.data[i, :, HEARS_ME] != 0)).sum())
@@ -103,12 +184,12 @@ class AckBeacon:
         return Ack(i, role, leader, seq, x, y, size, heard, resign, ack_record(seq, role, leader, x, y, size, degree))
 
     def send(self, i: int) -> None:
-        if not self.sim.state.alive[i]:
+        if not self.state.alive[i]:
             return
-        self.sim.channel.broadcast(i, self.make_ack(i), self.deliver, kind="ack")
+        self.channel.broadcast(i, self.make_ack(i), self.deliver, kind="ack")
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
-        now = self.sim.env.now
+        now = self.env.now
         heard = ack.heard
         if len(heard):
             at = np.minimum(heard.searchsorted(receivers), len(heard) - 1)
@@ -124,11 +205,16 @@ class AckBeacon:
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
 
-    def summary(self, frames, duration_s: float) -> dict:
-        return {"acks_overtaken": int(self.stale_acks)}
+    def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
+        return {**ack_figures(frames), "acks_overtaken": int(self.stale_acks)}
 
 
-def install(sim) -> AckBeacon:
-    beacon = AckBeacon(sim)
+def build(params: AckParams, parts: Parts) -> AckBeacon:
+    """``protocol.model = "ack"``: beacons and neighbour tables alone (nobody takes a role)."""
+    declare_roles(parts.trace)
+    beacon = AckBeacon(params, parts)
     beacon.start()
     return beacon
+
+
+PLUGIN = PluginSpec(Params=AckParams, build=build, check=check_tau, tables={"roles": ROLES_SCHEMA, "acks": ACKS_SCHEMA})

@@ -35,21 +35,22 @@ instant of its own Ack is applied before the Ack is built, so the Ack tells the 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from enum import StrEnum
 from typing import NamedTuple
 
 import numpy as np
 
-from netsim.state import LEADER, MEMBER, NO_LEADER, ROLE_NAMES, UNDECIDED
+from netsim.plugins import Parts
 from netsim.timers import DeadlineTimers
-from netsim.trace import RoleChange
 from protocols.ack import Ack, AckBeacon
 from protocols.neighbours import BIDIR_SINCE, DEGREE, HEARS_ME, LAST_HEARD, LIVE_SINCE, ROLE, ROLE_SINCE, X, Y
 from protocols.neighbours import LEADER as LEADER_FIELD
+from protocols.roles import LEADER, LEADER_LOST, MEMBER, NO_LEADER, ROLE_NAMES, UNDECIDED, RoleChange, declare_roles
 
 # Causes recorded in roles.parquet, named after the rule that fired.
 START = "rule1_start"
 JOIN = "rule2_join"
-LEADER_LOST = "rule3_leader_lost"
 NO_LEADER_HEARD = "rule4_no_leader"
 MERGE_YIELD = "rule5_merge_yield"
 LEADER_RESIGNED = "rule5_leader_resigned"
@@ -83,90 +84,145 @@ class Candidate(NamedTuple):
     degree: int = 0
 
 
+class JoinPolicy(StrEnum):
+    """Rule 2: which known leader an undecided robot joins."""
+
+    NEAREST = "nearest"
+    FIRST_HEARD = "first_heard"
+    LOWEST_ID = "lowest_id"
+
+
+class MergePolicy(StrEnum):
+    """Rule 5: which of two neighbouring leaders yields."""
+
+    SMALLER_GROUP_YIELDS = "smaller_group_yields"
+    LOWEST_ID_WINS = "lowest_id_wins"
+    HIGHEST_DEGREE_WINS = "highest_degree_wins"
+
+
+class ElectionPolicy(StrEnum):
+    """Rule 6: who replaces a lost leader among its former members."""
+
+    LOWEST_ID = "lowest_id"
+    HIGHEST_DEGREE = "highest_degree"
+    NONE = "none"
+
+
+def _nearest(candidates: list[Candidate], first_heard: int | None) -> int:
+    return min(candidates, key=lambda c: (c.distance_m, c.id)).id
+
+
+def _first_heard(candidates: list[Candidate], first_heard: int | None) -> int:
+    if first_heard is not None and any(c.id == first_heard for c in candidates):
+        return first_heard
+    return _nearest(candidates, first_heard)
+
+
+JOIN: dict[JoinPolicy, Callable[[list[Candidate], int | None], int]] = {
+    JoinPolicy.NEAREST: _nearest,
+    JoinPolicy.FIRST_HEARD: _first_heard,
+    JoinPolicy.LOWEST_ID: lambda candidates, first_heard: min(c.id for c in candidates),
+}
+
+
 def choose_leader(policy: str, candidates: list[Candidate], first_heard: int | None = None) -> int:
     """Rule 2: which of the candidate leaders to join.
 
     ``nearest`` (ties to the lowest id), ``lowest_id``, or ``first_heard`` (the leader
-    whose Ack triggered the join; the nearest when there is none).
+    whose Ack triggered the join; the nearest when there is none). An unknown policy is
+    a ValueError.
 
     >>> choose_leader("nearest", [Candidate(4, 10.0), Candidate(2, 10.0), Candidate(7, 3.0)])
     7
     >>> choose_leader("lowest_id", [Candidate(4, 10.0), Candidate(2, 12.0)])
     2
     """
+    rule = JOIN[JoinPolicy(policy)]
     if not candidates:
         raise ValueError("no candidate leader")
-    if policy == "first_heard" and first_heard is not None and any(c.id == first_heard for c in candidates):
-        return first_heard
-    if policy == "lowest_id":
-        return min(c.id for c in candidates)
-    return min(candidates, key=lambda c: (c.distance_m, c.id)).id
+    return rule(candidates, first_heard)
+
+
+# Rule 5: the order in which leaders win (the larger key wins; on equal keys, the higher
+# id yields).
+MERGE_KEY: dict[MergePolicy, Callable[[Candidate], tuple]] = {
+    MergePolicy.SMALLER_GROUP_YIELDS: lambda c: (c.group_size, -c.id),
+    MergePolicy.LOWEST_ID_WINS: lambda c: (-c.id,),
+    MergePolicy.HIGHEST_DEGREE_WINS: lambda c: (c.degree, -c.id),
+}
 
 
 def merge_loser(policy: str, a: Candidate, b: Candidate) -> int:
     """Rule 5: the id of the leader that yields when leaders ``a`` and ``b`` merge.
 
     ``smaller_group_yields`` (ties: the higher id yields), ``lowest_id_wins``,
-    ``highest_degree_wins`` (ties: the higher id yields).
+    ``highest_degree_wins`` (ties: the higher id yields). An unknown policy is a ValueError.
 
     >>> merge_loser("smaller_group_yields", Candidate(1, group_size=2), Candidate(5, group_size=4))
     1
     >>> merge_loser("smaller_group_yields", Candidate(1, group_size=3), Candidate(5, group_size=3))
     5
     """
-    if policy == "lowest_id_wins":
-        return max(a.id, b.id)
-    key = (lambda c: (c.degree, -c.id)) if policy == "highest_degree_wins" else (lambda c: (c.group_size, -c.id))
+    key = MERGE_KEY[MergePolicy(policy)]
     return a.id if key(a) < key(b) else b.id
+
+
+ELECTION: dict[ElectionPolicy, Callable[[Candidate, list[Candidate]], bool]] = {
+    ElectionPolicy.LOWEST_ID: lambda me, rivals: all(me.id < r.id for r in rivals),
+    ElectionPolicy.HIGHEST_DEGREE: lambda me, rivals: all((me.degree, -me.id) > (r.degree, -r.id) for r in rivals),
+    ElectionPolicy.NONE: lambda me, rivals: False,
+}
 
 
 def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
     """Rule 6: whether ``me`` takes over among the former members ``rivals`` it can hear.
 
     ``lowest_id`` (the default priority), ``highest_degree`` (ties to the lowest id), or
-    ``none`` (no election: wait for rule 2 or 4).
+    ``none`` (no election: wait for rule 2 or 4). An unknown policy is a ValueError.
 
     >>> elected("lowest_id", Candidate(3), [Candidate(5), Candidate(8)])
     True
     >>> elected("lowest_id", Candidate(3), [Candidate(2)])
     False
     """
-    if policy == "none":
-        return False
-    if policy == "highest_degree":
-        return all((me.degree, -me.id) > (r.degree, -r.id) for r in rivals)
-    return all(me.id < r.id for r in rivals)
+    return ELECTION[ElectionPolicy(policy)](me, rivals)
 
 
 class Clustering:
-    """Runs rules 1-6 for all robots on top of an :class:`AckBeacon`."""
+    """Runs rules 1-6 for all robots on top of an :class:`AckBeacon`, writing their roles
+    in ``roles`` (the beacon's, which its Acks announce).
 
-    def __init__(self, sim, beacon: AckBeacon):
-        p = sim.config.protocol
-        self.sim = sim
+    ``params`` holds ``tau_s``, ``merge_delay_s`` and the three policies (the clustering
+    protocol's parameters, :class:`protocols.stack.ClusteringParams`)."""
+
+    def __init__(self, params, parts: Parts, beacon: AckBeacon):
+        self.env, self.state, self.trace = parts.env, parts.state, parts.trace
         self.beacon = beacon
+        self.roles = beacon.roles
         self.table = beacon.table
-        self.tau_s = p.tau_s
-        self.merge_delay_s = p.merge_delay_s
-        self.join_policy, self.merge_policy, self.election_policy = p.join_policy, p.merge_policy, p.election_policy
-        st = sim.state
+        self.tau_s = params.tau_s
+        self.merge_delay_s = params.merge_delay_s
+        self.join_policy = JoinPolicy(params.join_policy)
+        self.merge_policy = MergePolicy(params.merge_policy)
+        self.election_policy = ElectionPolicy(params.election_policy)
+        st = parts.state
         # With equal ranges hearing an Ack implies the link is two-way (docs/model.md 4.1).
         self.symmetric = bool(np.all(st.range_m == st.range_m[0])) if st.n else True
-        self.timers = DeadlineTimers(sim.env, st.n, self._expire)
+        self.timers = DeadlineTimers(parts.env, st.n, self._expire)
         self.role_changes = np.zeros(st.n, dtype=np.int64)
         # When each robot last became a leader (inf: it is not one).
         self.leader_since = np.full(st.n, np.inf)
-        sim.trace.declare("roles", RoleChange)
+        declare_roles(parts.trace)
         beacon.listeners.append(self.on_ack)
         beacon.before_send.append(self._before_ack)
 
     def start(self) -> None:
-        st, now = self.sim.state, self.sim.env.now
-        st.role[:] = UNDECIDED
-        st.leader[:] = NO_LEADER
-        for i in range(st.n):
-            self.sim.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START))
-        self.timers.restart(np.arange(st.n), self.beacon.phase_s + self.tau_s)
+        roles, now = self.roles, self.env.now
+        roles.role[:] = UNDECIDED
+        roles.leader[:] = NO_LEADER
+        for i in range(self.state.n):
+            self.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START))
+        self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
 
     # -- what a robot knows --------------------------------------------------------------
     def _two_way(self, i: int, now: float) -> np.ndarray:
@@ -182,7 +238,7 @@ class Clustering:
         mask = self._two_way(i, now) & (rows[:, ROLE] == LEADER) & (self.table.id[i] != exclude)
         if not mask.any():
             return []
-        x, y = self.sim.state.position(i, now)
+        x, y = self.state.position(i, now)
         ids = self.table.id[i][mask]
         dist = np.hypot(rows[mask, X] - x, rows[mask, Y] - y)
         return [Candidate(int(j), float(d)) for j, d in zip(ids.tolist(), dist.tolist())]
@@ -200,7 +256,7 @@ class Clustering:
         gateway, in those of the other leaders it has a live two-way link with; an
         undecided robot in none. One vectorised pass over all neighbour tables.
         """
-        st = self.sim.state
+        st = self.roles
         live = self.table.live_mask(now)
         if not self.symmetric:
             live &= self.table.data[:, :, HEARS_ME] != 0
@@ -220,7 +276,7 @@ class Clustering:
 
     def groups(self, now: float) -> list[set[int]]:
         """The groups (leader ids) each robot belongs to now (see :meth:`membership`)."""
-        out: list[set[int]] = [set() for _ in range(self.sim.state.n)]
+        out: list[set[int]] = [set() for _ in range(self.state.n)]
         for r, g, _ in zip(*(a.tolist() for a in self.membership(now))):
             out[r].add(g)
         return out
@@ -229,27 +285,27 @@ class Clustering:
         """Whether member ``i`` has a live two-way neighbour in another group (a leader other
         than its own, or a member of another leader): a gateway or a distributed gateway."""
         rows = self.table.data[i]
-        own = self.sim.state.leader[i]
+        own = self.roles.leader[i]
         other = self._two_way(i, now) & (rows[:, ROLE] != UNDECIDED) & (rows[:, LEADER_FIELD] != own)
         return bool(other.any())
 
     def gateways(self, now: float) -> np.ndarray:
         """Ids of the members that belong to two groups or more."""
         robot, _, _ = self.membership(now)
-        return np.flatnonzero(np.bincount(robot, minlength=self.sim.state.n) > 1)
+        return np.flatnonzero(np.bincount(robot, minlength=self.state.n) > 1)
 
     def _before_ack(self, i: int, now: float) -> None:
-        self.beacon.group_size[i] = self.group_size(i, now) if self.sim.state.role[i] == LEADER else 1
+        self.beacon.group_size[i] = self.group_size(i, now) if self.roles.role[i] == LEADER else 1
 
     # -- transitions ---------------------------------------------------------------------
     def _set(self, i: int, event: str, leader: int, now: float) -> None:
-        st = self.sim.state
+        st = self.roles
         role, cause = transition(int(st.role[i]), event)
         st.role[i] = role
         st.leader[i] = leader
         self.leader_since[i] = now if role == LEADER else np.inf
         self.role_changes[i] += 1
-        self.sim.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[role], leader, cause))
+        self.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[role], leader, cause))
 
     def _join(self, i: int, now: float, first_heard: int | None = None, exclude: int = NO_LEADER) -> bool:
         """Rule 2 for robot ``i`` (undecided) from what its table knows; False if no leader is known."""
@@ -264,7 +320,7 @@ class Clustering:
 
     def _leader_gone(self, i: int, now: float, event: str) -> None:
         """Rules 3 and 6: ``i`` lost its leader (timeout or resignation)."""
-        old = int(self.sim.state.leader[i])
+        old = int(self.roles.leader[i])
         self._set(i, event, NO_LEADER, now)
         if self._join(i, now, exclude=old):
             return
@@ -282,14 +338,14 @@ class Clustering:
             self.timers.restart(i, now + self.tau_s)
 
     def _expire(self, i: int, now: float) -> None:
-        role = self.sim.state.role[i]
+        role = self.roles.role[i]
         if role == MEMBER:
             self._leader_gone(i, now, "leader_timeout")
         elif role == UNDECIDED:
             self._set(i, "no_leader_timeout", i, now)
 
     def on_ack(self, now: float, ack: Ack, receivers: np.ndarray, hears_me: np.ndarray) -> None:
-        st = self.sim.state
+        st = self.roles
         role = st.role[receivers]
         two_way = hears_me | self.symmetric
         mine = (role == MEMBER) & (st.leader[receivers] == ack.sender)

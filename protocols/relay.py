@@ -15,15 +15,26 @@ of every transmission is kept (:meth:`Relay.hops_frame`, the ``hops`` table).
 
 from __future__ import annotations
 
+from enum import StrEnum
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+import simpy
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from netsim.state import LEADER, MEMBER
+from netsim.plugins import Parts
+from netsim.rng import Streams
 from netsim.topology import geometric_pairs
+from protocols.roles import LEADER, MEMBER
+
+
+class Routing(StrEnum):
+    """How relayed messages travel."""
+
+    BACKBONE = "backbone"  # flooding over leaders and gateways
+    ORACLE = "oracle"  # shortest paths on the true topology
 
 
 class Message(NamedTuple):
@@ -36,6 +47,20 @@ class Message(NamedTuple):
 
 
 HOP_COLUMNS = ["msg_id", "hop", "sender", "receiver", "t_sent_s", "t_received_s"]
+HOPS_SCHEMA = {c: ("float64" if c.startswith("t_") else "int64") for c in HOP_COLUMNS}
+MESSAGES_SCHEMA = {
+    "msg_id": "int64",
+    "src": "int64",
+    "dst": "int64",
+    "routing": "object",
+    "t_sent_s": "float64",
+    "delivered": "bool",
+    "t_delivered_s": "float64",
+    "hops": "int64",
+    "latency_s": "float64",
+    "transmissions": "int64",
+    "shortest_hops": "float64",
+}
 
 
 class Outcome(NamedTuple):
@@ -62,15 +87,16 @@ def hop_distances(state, now: float, node: int, towards: bool = False) -> np.nda
 
 
 class Relay:
-    """Sends messages and keeps their outcomes."""
+    """Sends messages and keeps their outcomes. ``params`` holds ``routing``,
+    ``message_ttl`` and ``distributed_gateways`` (the clustering protocol's parameters)."""
 
-    def __init__(self, sim, clustering):
-        p = sim.config.protocol
-        self.sim = sim
+    def __init__(self, params, parts: Parts, clustering):
+        self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.clustering = clustering
-        self.routing = p.routing
-        self.ttl = p.message_ttl
-        self.distributed_gateways = p.distributed_gateways
+        self.roles = clustering.roles
+        self.routing = Routing(params.routing)
+        self.ttl = params.message_ttl
+        self.distributed_gateways = params.distributed_gateways
         self._outcomes: dict[int, dict] = {}
         self._seen: dict[int, set[int]] = {}
         self._next_id = 0
@@ -79,7 +105,7 @@ class Relay:
 
     def send(self, src: int, dst: int) -> int:
         """Send a message from ``src`` to ``dst`` now; returns its id."""
-        st, now = self.sim.state, self.sim.env.now
+        st, now = self.state, self.env.now
         if not (0 <= src < st.n and 0 <= dst < st.n) or src == dst:
             raise ValueError(f"need two different robots in [0, {st.n}), got src={src}, dst={dst}")
         mid = self._next_id
@@ -88,7 +114,7 @@ class Relay:
             "msg_id": mid,
             "src": src,
             "dst": dst,
-            "routing": self.routing,
+            "routing": str(self.routing),
             "t_sent_s": now,
             "delivered": False,
             "t_delivered_s": np.nan,
@@ -99,7 +125,7 @@ class Relay:
         }
         self._seen[mid] = {src}
         msg = Message(mid, src, dst, self.ttl, 1)
-        if self.routing == "oracle":
+        if self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
         else:
             self._broadcast(src, msg)
@@ -108,10 +134,10 @@ class Relay:
     # -- backbone flooding -------------------------------------------------------------
     def _broadcast(self, sender: int, msg: Message) -> None:
         self._outcomes[msg.id]["transmissions"] += 1
-        self.sim.channel.broadcast(sender, msg._replace(t_tx_s=self.sim.env.now), self._on_flood, kind="data")
+        self.channel.broadcast(sender, msg._replace(t_tx_s=self.env.now), self._on_flood, kind="data")
 
     def _relays(self, receivers: np.ndarray, now: float) -> np.ndarray:
-        st = self.sim.state
+        st = self.roles
         role = st.role[receivers]
         backbone = role == LEADER
         cl = self.clustering
@@ -124,7 +150,7 @@ class Relay:
         return receivers[backbone]
 
     def _on_flood(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
-        now = self.sim.env.now
+        now = self.env.now
         self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, now, receivers))
         seen = self._seen[msg.id]
         fresh = [r for r in receivers.tolist() if r not in seen]
@@ -140,21 +166,21 @@ class Relay:
 
     # -- oracle shortest path ----------------------------------------------------------
     def _forward_oracle(self, holder: int, msg: Message) -> None:
-        st, now = self.sim.state, self.sim.env.now
+        st, now = self.state, self.env.now
         to_dst = hop_distances(st, now, msg.dst, towards=True)
-        nbrs, _ = self.sim.channel.in_range(holder)
+        nbrs, _ = self.channel.in_range(holder)
         if len(nbrs) == 0 or not np.isfinite(to_dst[nbrs]).any():
             return  # no route now: the message is lost
         # The next hop: the neighbour fewest hops from the destination (lowest id on ties).
         nxt = int(nbrs[int(np.argmin(to_dst[nbrs]))])
         self._outcomes[msg.id]["transmissions"] += 1
-        self.sim.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind="data")
+        self.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind="data")
 
     def _on_oracle(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
-        self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, self.sim.env.now, receivers))
+        self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, self.env.now, receivers))
         holder = int(receivers[0])
         if holder == msg.dst:
-            self._delivered(msg, self.sim.env.now)
+            self._delivered(msg, self.env.now)
         elif msg.ttl > 1:
             self._forward_oracle(holder, msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1))
 
@@ -188,16 +214,16 @@ class Relay:
         )
 
 
-def traffic(sim, relay: Relay, rate_hz: float):
-    """Messages between uniformly random pairs, as a Poisson process of ``rate_hz``.
+def traffic(env: simpy.Environment, streams: Streams, n: int, relay: Relay, rate_hz: float):
+    """Messages between uniformly random pairs of the ``n`` robots, as a Poisson process of
+    ``rate_hz``.
 
     A team of one robot has no pair to send to: it sends nothing (and draws nothing)."""
-    rng = sim.streams.get("traffic")
-    n = sim.state.n
+    rng = streams.get("traffic")
     if n < 2:
         return
     while True:
-        yield sim.env.timeout(rng.exponential(1.0 / rate_hz))
+        yield env.timeout(rng.exponential(1.0 / rate_hz))
         src = int(rng.integers(n))
         dst = int(rng.integers(n - 1))
         relay.send(src, dst + (dst >= src))

@@ -5,19 +5,48 @@ record: ``roles``, ``groups``, ``beliefs``, ``messages`` and ``hops`` tables and
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 from scipy.sparse import csr_matrix
 
-from netsim.state import LEADER, MEMBER, ROLE_NAMES
+from netsim.params import non_negative, param, positive
+from netsim.plugins import Parts, PluginSpec
 from netsim.topology import geometric_pairs
-from protocols.ack import AckBeacon
-from protocols.clustering import Clustering
+from protocols.ack import ACKS_SCHEMA, AckBeacon, AckParams, check_tau
+from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from protocols.neighbours import LAST_HEARD, ROLE, X, Y
-from protocols.relay import Outcome, Relay, traffic
+from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
+from protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
+
+
+@dataclass(frozen=True)
+class ClusteringParams(AckParams):
+    """The clustering protocol's keys of ``[protocol]``: the Ack beacon's, the rules'
+    policies and timing, and relaying."""
+
+    join_policy: JoinPolicy = param(JoinPolicy.NEAREST, None, "rule 2: which leader an undecided robot joins")
+    merge_policy: MergePolicy = param(
+        MergePolicy.SMALLER_GROUP_YIELDS, None, "rule 5: which of two neighbouring leaders yields"
+    )
+    merge_delay_s: float = param(
+        None,
+        non_negative,
+        "rule 5: how long two leaders must be linked, s",
+        kind=float,
+        derive=lambda p: 2.0 * p.ack_period_s,
+        rule="2 x ack_period_s",
+    )
+    election_policy: ElectionPolicy = param(ElectionPolicy.LOWEST_ID, None, "rule 6: who replaces a lost leader")
+    routing: Routing = param(Routing.BACKBONE, None, "message relaying: backbone flooding or oracle")
+    distributed_gateways: bool = param(
+        True, None, "members next to a member of another group relay too (keeps flooding connected)"
+    )
+    message_ttl: int = param(32, positive, "hops a relayed message may take")
+    message_rate_hz: float = param(0.2, non_negative, "messages sent per second, network-wide (random pairs)")
 
 
 class Command(NamedTuple):
@@ -27,13 +56,20 @@ class Command(NamedTuple):
 
 
 class Stack:
-    def __init__(self, sim):
-        self.sim = sim
-        self.beacon = AckBeacon(sim)
+    """The clustering protocol of one run; its groups as a :class:`~netsim.groups.GroupView`."""
+
+    role_names = ROLE_NAMES
+
+    def __init__(self, params: ClusteringParams, parts: Parts):
+        self.params = params
+        self.env, self.state, self.channel = parts.env, parts.state, parts.channel
+        self.streams, self.trace, self.output = parts.streams, parts.trace, parts.output
+        self.beacon = AckBeacon(params, parts)
+        self.roles = self.beacon.roles
         self.table = self.beacon.table
-        self.clustering = Clustering(sim, self.beacon)
-        self.relay = Relay(sim, self.clustering)
-        n = sim.state.n
+        self.clustering = Clustering(params, parts, self.beacon)
+        self.relay = Relay(params, parts, self.clustering)
+        n = parts.state.n
         # Leader commands: each member keeps the latest command of its current leader.
         self.command: list[Command | None] = [None] * n
         self._command_seq = np.zeros(n, dtype=np.int64)
@@ -41,19 +77,30 @@ class Stack:
         self._groups: list[pd.DataFrame] = []
         self._beliefs: list[pd.DataFrame] = []
 
+    # -- the groups, for the rest of the run ------------------------------------------
+    @property
+    def role(self) -> np.ndarray:
+        """Each robot's role code now (``role_names[code]``: its label)."""
+        return self.roles.role
+
+    @property
+    def leader(self) -> np.ndarray:
+        """Each robot's leader now: its own id for a leader, -1 for none."""
+        return self.roles.leader
+
     def start(self, phase_s=None) -> None:
-        sim = self.sim
+        """Start beacons, rules, traffic and sampling; ``phase_s`` overrides the Ack phases."""
         self.beacon.start(phase_s)
         self.clustering.start()
-        p = sim.config.protocol
+        p = self.params
         if p.message_rate_hz > 0:
-            sim.env.process(traffic(sim, self.relay, p.message_rate_hz))
-        interval = sim.config.output.position_interval_s or p.ack_period_s
-        sim.env.process(self._sampler(interval))
-        sim.trace.add_frame("messages", self.messages_frame)
-        sim.trace.add_frame("hops", self.relay.hops_frame)
-        sim.trace.add_frame("groups", self.groups_frame)
-        sim.trace.add_frame(
+            self.env.process(traffic(self.env, self.streams, self.state.n, self.relay, p.message_rate_hz))
+        interval = self.output.position_interval_s or p.ack_period_s
+        self.env.process(self._sampler(interval))
+        self.trace.add_frame("messages", self.messages_frame)
+        self.trace.add_frame("hops", self.relay.hops_frame)
+        self.trace.add_frame("groups", self.groups_frame)
+        self.trace.add_frame(
             "beliefs",
             lambda: (
                 pd.concat(self._beliefs, ignore_index=True) if self._beliefs else pd.DataFrame(columns=BELIEF_COLUMNS)
@@ -65,10 +112,10 @@ class Stack:
         """Leader ``leader`` broadcasts a command; its members (and only they) adopt it."""
         self._command_seq[leader] += 1
         cmd = Command(leader, int(self._command_seq[leader]), payload)
-        self.sim.channel.broadcast(leader, cmd, self._on_command, kind="command")
+        self.channel.broadcast(leader, cmd, self._on_command, kind="command")
 
     def _on_command(self, sender: int, receivers: np.ndarray, cmd: Command) -> None:
-        st = self.sim.state
+        st = self.roles
         for r in receivers[(st.role[receivers] == MEMBER) & (st.leader[receivers] == sender)].tolist():
             old = self.command[r]
             if old is None or old.leader != cmd.leader or old.seq < cmd.seq:
@@ -101,7 +148,7 @@ class Stack:
         a robot it hears hears (an Ack carries the positions in its sender's table). The
         relation is symmetric, as the forces built on it must be. A position is the one in
         ``other``'s latest Ack heard by anyone (all robots that heard that Ack hold it)."""
-        table, n = self.table, self.sim.state.n
+        table, n = self.table, self.state.n
         live = table.live_mask(now)
         rows, slots = np.nonzero(live)
         heard = table.id[rows, slots]
@@ -129,7 +176,8 @@ class Stack:
         (``|p_i - p_j| <= r_j``), whether or not ``i`` reaches ``j``. A member's leader is
         in range when the link is two-way (``<= min(r_i, r_j)``), as a member needs.
         """
-        st, n = self.sim.state, self.sim.state.n
+        st, n = self.state, self.state.n
+        roles = self.roles
         src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
         # receiver * n + sender, for every sender whose transmissions reach the receiver.
         heard_keys = np.sort(dst * n + src)
@@ -140,17 +188,17 @@ class Stack:
         true_count = np.bincount(dst, minlength=n)
         believed = np.bincount(rows, minlength=n)
         stale = np.bincount(rows[~believed_true], minlength=n)
-        leader = st.leader.copy()
-        has = np.flatnonzero((st.role == MEMBER) & (leader >= 0))
+        leader = roles.leader.copy()
+        has = np.flatnonzero((roles.role == MEMBER) & (leader >= 0))
         in_range = np.zeros(n, dtype=bool)
         in_range[has] = np.isin(has * n + leader[has], heard_keys) & np.isin(leader[has] * n + has, heard_keys)
         return pd.DataFrame(
             {
                 "t_s": now,
                 "robot": np.arange(n),
-                "role": [ROLE_NAMES[r] for r in st.role],
+                "role": [ROLE_NAMES[r] for r in roles.role],
                 "leader": leader,
-                "leader_in_range": in_range | (st.role == LEADER),
+                "leader_in_range": in_range | (roles.role == LEADER),
                 "believed_neighbours": believed,
                 "true_neighbours": true_count,
                 "stale_neighbours": stale,
@@ -159,7 +207,7 @@ class Stack:
         )
 
     def _sampler(self, interval: float):
-        env = self.sim.env
+        env = self.env
         while True:
             now = env.now
             robot, group, primary = self.clustering.membership(now)
@@ -176,8 +224,8 @@ class Stack:
             return pd.DataFrame(columns=["t_s", "robot", "group", "primary"])
         return pd.concat(self._groups, ignore_index=True)
 
-    def summary(self, frames: dict[str, pd.DataFrame], duration_s: float) -> dict:
-        n = self.sim.state.n
+    def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
+        n = self.state.n
         roles = frames["roles"]
         out = leader_statistics(roles, n, duration_s)
         groups = frames["groups"]
@@ -185,8 +233,8 @@ class Stack:
             per_robot = groups.groupby(["t_s", "robot"]).size()
             gw = (per_robot > 1).groupby(level="t_s").sum()
             out["gateways_mean"] = float(gw.mean())
-        acks = self.sim.channel.counters_for("ack").sent.sum()
-        data = self.sim.channel.counters_for("data").sent.sum()
+        acks = self.channel.counters_for("ack").sent.sum()
+        data = self.channel.counters_for("data").sent.sum()
         out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
         out.update(self.beacon.summary(frames, duration_s))
         out["relays_per_robot_per_s"] = float(data / (n * duration_s)) if duration_s else math.nan
@@ -226,7 +274,7 @@ def leader_statistics(roles: pd.DataFrame, n: int, duration_s: float) -> dict:
     r = roles.reset_index(drop=True)
     r["order"] = np.arange(len(r))
     r = r.sort_values(["robot", "t_s", "order"], kind="stable")
-    is_leader = (r["role"] == "alpha").to_numpy()
+    is_leader = (r["role"] == LABELS.leader).to_numpy()
     robot = r["robot"].to_numpy()
     same = np.r_[False, robot[1:] == robot[:-1]]
     was_leader = np.r_[False, is_leader[:-1]] & same
@@ -258,7 +306,39 @@ def leader_statistics(roles: pd.DataFrame, n: int, duration_s: float) -> dict:
     }
 
 
-def install(sim) -> Stack:
-    stack = Stack(sim)
+BELIEFS_SCHEMA = {
+    "t_s": "float64",
+    "robot": "int64",
+    "role": "object",
+    "leader": "int64",
+    "leader_in_range": "bool",
+    "believed_neighbours": "int64",
+    "true_neighbours": "int64",
+    "stale_neighbours": "int64",
+    "missing_neighbours": "int64",
+}
+GROUPS_SCHEMA = {"t_s": "float64", "robot": "int64", "group": "int64", "primary": "bool"}
+
+
+def build(params: ClusteringParams, parts: Parts) -> Stack:
+    stack = Stack(params, parts)
     stack.start()
     return stack
+
+
+PLUGIN = PluginSpec(
+    Params=ClusteringParams,
+    build=build,
+    check=check_tau,
+    tables={
+        "roles": ROLES_SCHEMA,
+        "acks": ACKS_SCHEMA,
+        "groups": GROUPS_SCHEMA,
+        "beliefs": BELIEFS_SCHEMA,
+        "messages": MESSAGES_SCHEMA,
+        "hops": HOPS_SCHEMA,
+    },
+    default=True,
+    forms_groups=True,
+    role_labels=LABELS,
+)

@@ -7,7 +7,7 @@ import pytest
 
 from netsim.run import build
 from protocols.neighbours import NeighbourTable, ack_record
-from tests.conftest import make_config
+from tests.fixtures import make_config
 
 
 def _static(positions, duration=20.0, **protocol):
@@ -220,4 +220,4 @@ def test_reordered_acks_never_roll_tables_back():
     assert overtaken > 20  # the jitter did reorder Acks ...
     assert rolled_back == []  # ... and no table or listener went back
     assert beacon.stale_acks == overtaken
-    assert beacon.summary({}, 40.0) == {"acks_overtaken": overtaken}
+    assert beacon.summary({"acks": sim.channel.frame("ack")}, 40.0)["acks_overtaken"] == overtaken

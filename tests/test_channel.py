@@ -9,7 +9,7 @@ from netsim.channel import DROP_CAUSES
 from netsim.loss import DistanceLoss, GilbertElliottLoss
 from netsim.run import build
 from netsim.sim import Simulation
-from tests.conftest import make_config
+from tests.fixtures import make_config
 
 
 def _static_sim(positions, ranges=10.0, **channel):

@@ -11,37 +11,22 @@ from hypothesis import strategies as st
 from netsim.config import from_dict
 from netsim.metrics import components
 from netsim.run import build, collect
-from netsim.sim import Simulation
-from netsim.state import LEADER, MEMBER, UNDECIDED
 from netsim.topology import geometric_edges
-from protocols.stack import Stack
+from protocols.roles import LEADER, MEMBER, UNDECIDED
+from tests.fixtures import clustering
 
 
 def static_run(positions, duration=40.0, seed=1, range_m=10.0, run=True, phase_s=None, **protocol):
-    n = len(positions)
-    cfg = from_dict(
-        {
-            "seed": seed,
-            "duration_s": duration,
-            "world": {"n_robots": n, "side_m": 1e6},
-            "mobility": {"model": "static"},
-            "channel": {"range_m": range_m},
-            "protocol": {"model": "clustering", "message_rate_hz": 0.0, **protocol},
-            "output": {"position_interval_s": 0.0},
-        }
-    )
-    sim = Simulation(cfg)
-    sim.state.place(np.asarray(positions, dtype=float))
-    stack = Stack(sim)
-    stack.start(phase_s)
+    core = {"duration_s": duration, "seed": seed, "range_m": range_m}
+    sim, stack = clustering(positions, phase_s, core=core, **protocol)
     if run:
         sim.run()
     return sim, stack
 
 
 def check_independent_dominating(sim, range_m):
-    st = sim.state
-    edges = geometric_edges(st.positions_at(sim.now), range_m)
+    st = sim.groups
+    edges = geometric_edges(sim.state.positions_at(sim.now), range_m)
     nbr = {(a, b) for a, b, _ in edges} | {(b, a) for a, b, _ in edges}
     leaders = set(np.flatnonzero(st.role == LEADER).tolist())
     assert not any(a in leaders and b in leaders for a, b, _ in edges), "two leaders in range"
@@ -70,7 +55,7 @@ def settled_run(seed, n=60, latency_s=1.3, latency_jitter_s=0.0, unequal=True, d
             "seed": seed,
             "duration_s": duration,
             "world": {"n_robots": n, "side_m": side},
-            "mobility": {"model": "static", "stationary_start": False},
+            "mobility": {"model": "static"},
             "channel": {
                 "range_m": rng.uniform(8.0, 16.0, n).tolist() if unequal else 10.0,
                 "latency_s": latency_s,
@@ -83,7 +68,7 @@ def settled_run(seed, n=60, latency_s=1.3, latency_jitter_s=0.0, unequal=True, d
     sim = build(cfg)
     sim.run()
     roles = sim.trace.frame("roles")
-    st = sim.state
+    st = sim.groups
     mutual = [
         (i, int(st.leader[i]))
         for i in np.flatnonzero(st.role == MEMBER).tolist()
@@ -137,7 +122,7 @@ def test_property_random_static_topologies(n, side, seed):
         rng = np.random.default_rng(seed)
         while True:
             yield sim.env.timeout(rng.uniform(0.05, 0.5))
-            st = sim.state
+            st = stack
             for i in np.flatnonzero(st.role == MEMBER).tolist():
                 if st.leader[i] not in stack.table.live_ids(sim.now, i):
                     violations.append((sim.now, i))
@@ -160,21 +145,9 @@ def test_spurious_timeouts_under_loss(p, tau_s, k):
     pos = np.zeros((2 * pairs, 2))
     pos[0::2, 0] = pos[1::2, 0] = np.arange(pairs) * 100.0
     pos[1::2, 1] = 5.0
-    cfg = from_dict(
-        {
-            "seed": 9,
-            "duration_s": 200.0,
-            "world": {"n_robots": 2 * pairs, "side_m": 1e6},
-            "mobility": {"model": "static"},
-            "channel": {"range_m": 10.0, "loss_probability": p},
-            "protocol": {"model": "clustering", "ack_jitter_s": 0.0, "tau_s": tau_s, "election_policy": "none"},
-            "output": {"position_interval_s": 0.0},
-        }
-    )
-    sim = Simulation(cfg)
-    sim.state.place(pos)
-    stack = Stack(sim)
-    stack.start()
+    core = {"seed": 9, "duration_s": 200.0, "loss_probability": p}
+    protocol = {"ack_jitter_s": 0.0, "tau_s": tau_s, "election_policy": "none", "message_rate_hz": 0.2}
+    sim, stack = clustering(pos, core=core, **protocol)
     sim.run()
     roles = sim.trace.frame("roles")
     phase = stack.beacon.phase_s
@@ -190,7 +163,7 @@ def test_spurious_timeouts_under_loss(p, tau_s, k):
             continue
         # The leader's sends are at phase + j (no jitter); the joining Ack was sent at
         # t_join - latency; the timeout comes tau after the last Ack heard.
-        latency = cfg.channel.latency_s
+        latency = sim.channel.latency_s
         first = math.floor(t_join - latency - phase[leader] + 1e-9) + 1
         last = math.floor(lost.t_s.iloc[0] - latency - phase[leader] + 1e-9)
         counts.append(last - first + 1)
@@ -245,7 +218,7 @@ def test_strict_backbone_can_miss_what_distributed_gateways_reach():
             pos, duration=30.0, run=False, phase_s=[0.1, 0.5, 0.6, 0.2], distributed_gateways=distributed
         )
         sim.run(until_s=15.0)
-        assert sim.state.role.tolist() in ([LEADER, MEMBER, MEMBER, LEADER],)
+        assert stack.role.tolist() in ([LEADER, MEMBER, MEMBER, LEADER],)
         stack.relay.send(0, 3)
         sim.run()
         assert bool(stack.messages_frame().delivered.iloc[0]) is expect
@@ -272,7 +245,7 @@ def test_members_execute_their_own_leaders_latest_command():
     pos = [[0, 0], [5, 0], [5, 4], [40, 0], [45, 0]]
     sim, stack = static_run(pos, duration=20.0, run=False)
     sim.run(until_s=10.0)
-    leaders = np.flatnonzero(sim.state.role == LEADER).tolist()
+    leaders = np.flatnonzero(stack.role == LEADER).tolist()
     assert len(leaders) == 2
     executed = []
     stack.on_command.append(lambda r, cmd: executed.append((r, cmd.payload)))
@@ -282,8 +255,8 @@ def test_members_execute_their_own_leaders_latest_command():
     sim.run(until_s=11.0)
     stack.send_command(a, "go north")
     sim.run()
-    members_a = np.flatnonzero((sim.state.role == MEMBER) & (sim.state.leader == a)).tolist()
-    members_b = np.flatnonzero((sim.state.role == MEMBER) & (sim.state.leader == b)).tolist()
+    members_a = np.flatnonzero((stack.role == MEMBER) & (stack.leader == a)).tolist()
+    members_b = np.flatnonzero((stack.role == MEMBER) & (stack.leader == b)).tolist()
     assert members_a and members_b
     for r in members_a:
         assert stack.command[r].payload == "go north"

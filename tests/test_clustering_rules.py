@@ -11,38 +11,17 @@ started more than a period after it.
 import numpy as np
 import pytest
 
-from netsim.config import from_dict
-from netsim.sim import Simulation
-from netsim.state import LEADER, MEMBER, UNDECIDED
 from protocols.clustering import TRANSITIONS, Candidate, choose_leader, elected, merge_loser, transition
-from protocols.stack import Stack
+from protocols.roles import LEADER, MEMBER, UNDECIDED
+from tests.fixtures import clustering
 
 TAU, PERIOD, LATENCY = 3.0, 1.0, 0.001
 
 
 def scripted(positions, phases, range_m=10.0, latency_s=LATENCY, **protocol):
-    n = len(positions)
-    cfg = from_dict(
-        {
-            "duration_s": 100.0,
-            "world": {"n_robots": n, "side_m": 10_000.0},
-            "mobility": {"model": "static"},
-            "channel": {"range_m": range_m, "latency_s": latency_s},
-            "protocol": {
-                "model": "clustering",
-                "ack_period_s": PERIOD,
-                "ack_jitter_s": 0.0,
-                "tau_s": TAU,
-                "message_rate_hz": 0.0,
-                **protocol,
-            },
-            "output": {"position_interval_s": 0.0},
-        }
-    )
-    sim = Simulation(cfg)
-    sim.state.place(np.asarray(positions, dtype=float))
-    stack = Stack(sim)
-    stack.start(phase_s=phases)
+    core = {"range_m": range_m, "latency_s": latency_s, "side_m": 10_000.0}
+    timing = {"ack_period_s": PERIOD, "ack_jitter_s": 0.0, "tau_s": TAU}
+    sim, stack = clustering(positions, phases, core=core, **{**timing, **protocol})
     deliveries = []  # (t, sender, receivers) of every Ack
     stack.beacon.listeners.append(lambda now, ack, rec, hm: deliveries.append((now, ack.sender, set(rec.tolist()))))
     return sim, stack, deliveries
@@ -75,7 +54,7 @@ def test_rule1_every_robot_starts_undecided_and_beacons():
     start = roles(sim)
     assert (start.cause == "rule1_start").sum() == 3
     assert set(start[start.cause == "rule1_start"].role) == {"gamma"}
-    assert (sim.state.role == UNDECIDED).all()
+    assert (stack.role == UNDECIDED).all()
     assert sim.channel.counters_for("ack").sent.tolist() == [3, 3, 3]
 
 
@@ -103,7 +82,7 @@ def test_rule2_undecided_robot_joins_the_leader_it_hears():
     # Ack robot 0 sent as a leader (sent at 4.1, delivered 1 ms later).
     assert records(sim, 0).t_s[0] == pytest.approx(3.1, abs=1e-12)
     assert joined.t_s[0] == pytest.approx(4.1 + LATENCY, abs=1e-12)
-    assert (sim.state.role == [LEADER, MEMBER]).all()
+    assert (stack.role == [LEADER, MEMBER]).all()
 
 
 @pytest.mark.parametrize("policy, expected", [("nearest", 1), ("lowest_id", 0)])
@@ -164,7 +143,7 @@ def test_ack_at_the_deadline_instant_counts(phases, causes, times):
     # An Ack exactly tau after the previous one continues the entry: live without a break.
     assert stack.table.live_since_s[1, stack.table.entry(1, 0)] < 7.0
     assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
-    assert sim.state.role.tolist() == [LEADER, MEMBER]
+    assert stack.role.tolist() == [LEADER, MEMBER]
 
 
 def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():
@@ -180,7 +159,7 @@ def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():
 
     sim.env.process(bring())
     sim.run(until_s=30)
-    assert sim.state.role.tolist()[:3] == [LEADER, MEMBER, MEMBER]
+    assert stack.role.tolist()[:3] == [LEADER, MEMBER, MEMBER]
     yield_rec = records(sim, 3)
     assert yield_rec.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
     assert yield_rec.leader[1] == 0
@@ -193,7 +172,7 @@ def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():
     # Robot 4 heard 3's resign Ack: its first Ack after yielding.
     assert resign_heard == pytest.approx(min(t for t, s, r in deliveries if s == 3 and t > yield_rec.t_s[1]))
     assert member.leader.iloc[-1] == 0 and member.t_s.iloc[-1] == resign_heard
-    assert sim.state.leader.tolist() == [0, 0, 0, 0, 0]
+    assert stack.leader.tolist() == [0, 0, 0, 0, 0]
 
 
 @pytest.mark.parametrize(
@@ -213,11 +192,11 @@ def test_rule5_merge_policies(policy, winner):
 
     sim.env.process(bring())
     sim.run(until_s=30)
-    assert sim.state.role[winner] == LEADER
+    assert stack.role[winner] == LEADER
     loser = 3 if winner == 0 else 0
     assert records(sim, loser).cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
     assert records(sim, winner).cause.tolist() == ["rule4_no_leader"]
-    assert sim.state.leader[loser] == winner
+    assert stack.leader[loser] == winner
     # Both leaders since t < 5; the two-way link exists from the second Ack across it.
     across = sorted(t for t, s, rec in deliveries if t > 10 and s in (0, 3) and ({0, 3} - {s}) <= rec)
     two_way = next(t for t in across if any(u < t for u in across if u > 10))
@@ -247,7 +226,7 @@ def test_rule5_highest_degree_counts_two_way_links_on_both_sides():
     sim.run(until_s=30)
     assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
     assert records(sim, 1).cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
-    assert sim.state.leader[[1, 2, 3]].tolist() == [0, 0, 0]
+    assert stack.leader[[1, 2, 3]].tolist() == [0, 0, 0]
 
 
 def test_rule5_leaders_that_yield_to_each_other_settle_on_the_lower_id(monkeypatch):
@@ -266,7 +245,7 @@ def test_rule5_leaders_that_yield_to_each_other_settle_on_the_lower_id(monkeypat
     # Each yields before the other's yield reaches it; 0 resumes on hearing 1's.
     assert r1.t_s[1] < r0.t_s[1] < r1.t_s[1] + 1.3
     assert r0.t_s[2] == pytest.approx(min(t for t, s, rec in deliveries if s == 1 and t > r1.t_s[1] + 1.3))
-    assert sim.state.role.tolist() == [LEADER, MEMBER] and sim.state.leader.tolist() == [0, 0]
+    assert stack.role.tolist() == [LEADER, MEMBER] and stack.leader.tolist() == [0, 0]
 
 
 def test_an_overtaken_ack_does_not_undo_a_resignation():
@@ -289,7 +268,7 @@ def test_an_overtaken_ack_does_not_undo_a_resignation():
     assert records(sim, 1).cause.tolist() == ["rule2_join", "rule5_leader_resigned"]
     assert old[-1].role == LEADER and not old[-1].resign
     stack.beacon.deliver(0, np.array([1]), old[-1])
-    assert sim.state.role[1] == UNDECIDED
+    assert stack.role[1] == UNDECIDED
     assert stack.beacon.stale_acks == 1
     sim.run(until_s=16.0)
     assert records(sim, 1).cause.tolist() == ["rule2_join", "rule5_leader_resigned"]
@@ -317,7 +296,7 @@ def test_one_way_link_is_never_joined():
     """With unequal ranges robot 1 hears leader 0 but 0 cannot hear 1: 1 must not join."""
     sim, stack, deliveries = scripted([[0, 0], [10, 0]], [0.1, 0.6], range_m=[15.0, 5.0])
     sim.run(until_s=20)
-    assert sim.state.role.tolist() == [LEADER, LEADER]
+    assert stack.role.tolist() == [LEADER, LEADER]
     assert records(sim, 1).cause.tolist() == ["rule4_no_leader"]
 
 
@@ -326,7 +305,7 @@ def test_gateway_belongs_to_two_groups():
     sim, stack, deliveries = scripted([[0, 0], [18, 0], [9, 0]], [0.1, 0.2, 0.9])
     sim.run(until_s=10)
     cl = stack.clustering
-    assert sim.state.role.tolist() == [LEADER, LEADER, MEMBER]
+    assert stack.role.tolist() == [LEADER, LEADER, MEMBER]
     assert cl.groups(sim.now) == [{0}, {1}, {0, 1}]
     assert cl.gateways(sim.now).tolist() == [2]
 

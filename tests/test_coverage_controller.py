@@ -13,7 +13,7 @@ from netsim import config
 from netsim.errors import ConfigError
 from netsim.metrics import components
 from netsim.run import execute
-from netsim.state import LEADER, MEMBER, UNDECIDED
+from protocols.roles import LEADER, MEMBER, UNDECIDED
 
 RC = 100.0
 SQRT3 = math.sqrt(3.0)
@@ -54,7 +54,7 @@ def test_plan_keeps_the_network_connected_throughout_the_step(seed):
     before = n_components(pos)
     wish = rng.normal(0, 3.0, size=(n, 2))
     # Steps of up to 40 m (0.4 r_c): long enough that unchecked wishes break links.
-    plan = plan_follow(pos, role, leader, wish, StepLimits(20.0, RC, 1.0, 2.0, 1000.0))
+    plan = plan_follow(pos, leader, wish, StepLimits(20.0, RC, 1.0, 2.0, 1000.0))
     for f in np.linspace(0, 1, 21):
         assert n_components(pos + plan.velocity_mps * 20.0 * f) <= before
     members = (role == MEMBER) & (np.hypot(*(pos - pos[np.maximum(leader, 0)]).T) <= RC)
@@ -70,7 +70,7 @@ def test_members_follow_their_leader_rigidly():
     role = np.array([LEADER, MEMBER, MEMBER], dtype=np.int8)
     leader = np.array([0, 0, 0])
     wish = np.array([[1.0, 0.5], [0, 0], [0, 0]])
-    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
+    plan = plan_follow(pos, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.velocity_mps[1] == pytest.approx(wish[0])
     assert plan.velocity_mps[2] == pytest.approx(wish[0])
     assert plan.commander.tolist() == [-1, 0, 0]
@@ -83,7 +83,7 @@ def test_gateway_rides_toward_the_middle_of_the_lens():
     role = np.array([LEADER, LEADER, MEMBER], dtype=np.int8)
     leader = np.array([0, 1, 0])
     wish = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, 0.0]])
-    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
+    plan = plan_follow(pos, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.velocity_mps[2, 0] > 0  # toward x = 460
     end = pos + plan.velocity_mps
     assert np.hypot(*(end[2] - end[0])) <= RC and np.hypot(*(end[2] - end[1])) <= RC
@@ -96,7 +96,7 @@ def test_leader_holds_rather_than_break_its_only_bridge():
     role = np.array([LEADER, MEMBER, MEMBER, LEADER], dtype=np.int8)
     leader = np.array([0, 0, 3, 3])
     wish = np.array([[-2.0, 0.0], [0, 0], [0, 0], [2.0, 0.0]])
-    plan = plan_follow(pos, role, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
+    plan = plan_follow(pos, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
     assert plan.held[0] and plan.held[3]
     end = pos + plan.velocity_mps
     assert np.hypot(*(end[2] - end[1])) <= RC
@@ -107,7 +107,7 @@ def test_groups_stay_inside_the_area():
     pos = np.array([[60.0, 500.0], [5.0, 500.0]])
     role = np.array([LEADER, MEMBER], dtype=np.int8)
     wish = np.array([[-2.0, 0.0], [0, 0]])
-    plan = plan_follow(pos, role, np.array([0, 0]), wish, StepLimits(10.0, RC, 1.0, 2.0, 1000.0))
+    plan = plan_follow(pos, np.array([0, 0]), wish, StepLimits(10.0, RC, 1.0, 2.0, 1000.0))
     end = pos + plan.velocity_mps * 10.0
     assert (end >= 0).all() and end[1, 0] == pytest.approx(0.0, abs=1e-6)
 
@@ -223,7 +223,7 @@ def test_follow_mode_reproduces_the_paper_faithful_controller(seed):
     pos = rng.uniform(300, 300 + rng.uniform(150, 400), size=(n, 2))
     role, leader = greedy_groups(pos, RC, undecided=set(rng.choice(n, 2, replace=False).tolist()))
     wish = rng.normal(0, 3.0, size=(n, 2))
-    plan = plan_follow(pos, role, leader, wish, StepLimits(20.0, RC, 1.0, 2.0, 1000.0))
+    plan = plan_follow(pos, leader, wish, StepLimits(20.0, RC, 1.0, 2.0, 1000.0))
     assert np.array_equal(plan.velocity_mps, ref[f"v{seed}"])
     assert np.array_equal(plan.commander, ref[f"c{seed}"])
     assert np.array_equal(plan.held, ref[f"h{seed}"])
@@ -296,10 +296,10 @@ def test_leaders_hear_of_leaders_beyond_range_through_their_gateways(tmp_path, b
         protocol={"message_rate_hz": 0.0, "join_policy": "lowest_id"},
     )
     sim.run(until_s=20.0)
-    role = sim.state.role.tolist()
+    role = sim.groups.role.tolist()
     assert role == [LEADER, MEMBER, LEADER, LEADER]
-    ids, xy = sim.models["protocol"].heard_leaders(0, sim.now)
+    ids, xy = sim.groups.heard_leaders(0, sim.now)
     assert ids.tolist() == [2]
     assert xy[0] == pytest.approx([270.0, 500.0])
-    ids3, _ = sim.models["protocol"].heard_leaders(3, sim.now)
+    ids3, _ = sim.groups.heard_leaders(3, sim.now)
     assert ids3.tolist() == []

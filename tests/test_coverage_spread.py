@@ -11,8 +11,8 @@ from mobility.steps import StepLimits
 from netsim import config
 from netsim.metrics import components
 from netsim.run import execute
-from netsim.state import LEADER, MEMBER, UNDECIDED
 from netsim.topology import geometric_pairs
+from protocols.roles import LEADER, MEMBER, UNDECIDED
 
 RC = 100.0
 
@@ -139,7 +139,7 @@ def test_leaders_know_their_two_hop_neighbourhood_from_acks(build_sim):
         protocol={"message_rate_hz": 0.0},
     )
     sim.run(until_s=8.0)
-    robot, other, xy = sim.models["protocol"].neighbourhood(sim.now)
+    robot, other, xy = sim.groups.neighbourhood(sim.now)
     pos = sim.state.positions_at(sim.now)
     n = len(pos)
     a, b, _ = geometric_pairs(pos, 100.0)
@@ -176,8 +176,8 @@ def spread_run(n, seed, side, duration=700, **extra):
 def assert_settled_hierarchy(sim):
     """Leaders independent (no two in range), every member in range of a leader it
     follows, nobody undecided (docs/validation.md item 13, after the team has stopped)."""
-    st = sim.state
-    pos = st.positions_at(sim.now)
+    st = sim.groups
+    pos = sim.state.positions_at(sim.now)
     a, b, _ = geometric_pairs(pos, RC)
     lead = st.role == LEADER
     assert not (lead[a] & lead[b]).any()

@@ -19,9 +19,8 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mobility import placement
 from netsim import config as cfgmod
-from netsim import ns2
+from netsim import ns2, placement
 from netsim.config import Config
 from netsim.errors import NetsimInputError
 from netsim.tools import sweep as sweepmod

@@ -11,7 +11,7 @@ from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.tools.validate import brute_force_mismatches, random_legs
 from netsim.topology import geometric_edges, snapshot
-from tests.conftest import make_config
+from tests.fixtures import make_config
 
 
 def _legs(rows):

@@ -8,7 +8,7 @@ from netsim.errors import NetsimInputError
 from netsim.run import build
 from netsim.tools.cli import main
 from netsim.trajectory import sample_positions
-from tests.conftest import make_config
+from tests.fixtures import make_config
 
 SETDEST_SAMPLE = """\
 #

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from mobility.placement import uniform
+from netsim.placement import uniform
 from netsim.topology import geometric_edges
 
 

@@ -12,7 +12,7 @@ from netsim.metrics import MEAN_LEG_UNIT_SQUARE
 from netsim.run import build
 from netsim.tools.validate import completed_leg_lengths
 from netsim.trajectory import sample_positions
-from tests.conftest import make_config, rwp_density
+from tests.fixtures import make_config, rwp_density
 
 
 def test_mean_leg_constant():

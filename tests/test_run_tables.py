@@ -7,7 +7,7 @@ import pytest
 
 from netsim.run import execute
 from netsim.trajectory import sample_positions
-from tests.conftest import make_config
+from tests.fixtures import make_config
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from netsim.run import build
-from tests.conftest import make_config
+from tests.fixtures import make_config
 
 
 @pytest.mark.parametrize("torus", [False, True])

@@ -14,6 +14,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from netsim.plugins import RoleLabels
+
 
 def link_durations(links: pd.DataFrame) -> pd.DataFrame:
     """Lifetimes of the links born during the run: ``duration_s`` and ``observed`` (False
@@ -152,21 +154,22 @@ def torus_link_duration_mean(range_m: float, speed_mps: float) -> float:
     return math.pi**2 * range_m / (8.0 * speed_mps)
 
 
-def acks_until_leader_loss(roles: pd.DataFrame, tau_s: float, period_s: float) -> np.ndarray:
+def acks_until_leader_loss(roles: pd.DataFrame, tau_s: float, period_s: float, labels: RoleLabels) -> np.ndarray:
     """For each robot that became a member, the number of its leader's Acks from the one
     it joined on to its first rule-3 timeout: the trials until ``k`` consecutive losses
     (docs/validation.md item 9). Assumes static robots and periodic Acks without jitter, so
     that every leader loss is spurious and the timeout comes ``tau`` after the last Ack
     heard: the count is ``floor((t_timeout - t_join - tau) / period) + k``, with ``k`` the
-    number of Ack instants strictly inside the ``tau`` window."""
+    number of Ack instants strictly inside the ``tau`` window. ``labels``: how the run's
+    protocol writes roles and the leader's loss (its plugin's ``role_labels``)."""
     k = spurious_timeout_window(tau_s, period_s)
     counts = []
     for _, rec in roles.groupby("robot"):
-        joins = rec[rec["role"] == "beta"]
+        joins = rec[rec["role"] == labels.member]
         if joins.empty:
             continue
         t_join = joins["t_s"].iloc[0]
-        lost = rec[(rec["cause"] == "rule3_leader_lost") & (rec["t_s"] > t_join)]
+        lost = rec[(rec["cause"] == labels.leader_lost) & (rec["t_s"] > t_join)]
         if len(lost):
             counts.append(math.floor((lost["t_s"].iloc[0] - t_join - tau_s) / period_s + 1e-9) + k)
     return np.array(counts, dtype=float)

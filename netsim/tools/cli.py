@@ -15,8 +15,9 @@
     coverage scenario (or FILE) into DIR.
 ``netsim view RUN_DIR [--out FILE.html]``
     Write the replay of a run: one self-contained HTML file (default RUN_DIR/view.html).
-``netsim config``
-    Print the default configuration, every key with its meaning.
+``netsim config [CONFIG] [--set KEY=VALUE ...]``
+    Print the configuration (the built-in default, or CONFIG with the overrides), every
+    key with its meaning, the sections of the controllers it names included.
 
 Bad input gives one line on standard error and exit status 2, and writes nothing; output
 paths and the scheduler are checked before any simulation starts.
@@ -205,7 +206,8 @@ def cmd_view(args) -> int:
 
 
 def cmd_config(args) -> int:
-    print(cfgmod.commented_toml(), end="")
+    config = cfgmod.load(args.config, list(args.set or [])) if args.config or args.set else None
+    print(cfgmod.commented_toml(config), end="")
     return 0
 
 
@@ -276,7 +278,11 @@ def parser() -> argparse.ArgumentParser:
     vw.add_argument("--out", help="file to write (default: RUN_DIR/view.html)")
     vw.set_defaults(func=cmd_view)
 
-    c = sub.add_parser("config", help="print the default configuration with every key explained")
+    c = sub.add_parser(
+        "config", help="print the configuration (the default, or a file with overrides) with every key explained"
+    )
+    c.add_argument("config", nargs="?", help="TOML scenario file (default: the built-in scenario)")
+    c.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     c.set_defaults(func=cmd_config)
     return p
 

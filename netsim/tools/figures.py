@@ -275,9 +275,12 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     config = run.config
     n, side = config.world.n_robots, config.world.side_m
     range_m = float(min(config.ranges_m()))
+    # Keys of the run's models, where they have them.
+    tree = cfgmod.to_dict(config)
+    protocol, cover = tree["protocol"], tree.get("coverage", {})
     first, last = float(run.positions["t_s"].min()), float(run.positions["t_s"].max())
     if at_s is None:
-        at_s = config.coverage.start_s if config.coverage.enabled else first
+        at_s = cover["start_s"] if cover.get("enabled") else first
     elif not (first - 1e-9 <= at_s <= last + 1e-9 and math.isfinite(at_s)):
         raise NetsimInputError(
             f"--at = {at_s:g}: must be a time between {first:g} and {last:g} s (the positions sampled)"
@@ -294,10 +297,10 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
     _legend_outside(ax)
     note = ""
-    if config.protocol.model == "none":
-        note = "no roles: the run had protocol.model = 'none'"
+    if config.protocol.plugin.role_labels is None:
+        note = f"no roles: the run had protocol.model = {config.protocol.model!r}"
     elif groups_n == 0:
-        tau = config.protocol.tau_s
+        tau = protocol["tau_s"]
         note = (
             f"no groups yet at t = {start.t_s:g} s: every robot is undecided "
             f"(groups form after tau = {tau:g} s; see --at)"
@@ -312,7 +315,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     drawn.append(_save(fig, out / "fig7_leader_paths.png", note))
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
-    radius = (config.coverage.radius_m or range_m) if config.coverage.enabled else 0.0
+    radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
     draw_deployment(ax, end, colours1, range_m, disks_m=radius)
     _axes(ax, (0, side), (0, side), side)
     if radius > 0:

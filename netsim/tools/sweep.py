@@ -41,6 +41,7 @@ import signal
 import sys
 import tomllib
 import traceback
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,7 +54,6 @@ from netsim.errors import ConfigError, NetsimInputError
 
 MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
 SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
-KNOWN_TABLES = {"positions", "links", "acks", "roles", "groups", "messages", "beliefs", "coverage", "control", "travel"}
 
 
 @dataclass(frozen=True)
@@ -73,17 +73,24 @@ class Sweep:
     points: tuple[dict, ...]
 
     def runs(self) -> list[Run]:
+        """Every run, each point's configuration resolved and checked."""
         out = []
-        for point in self.points:
-            tree = self.base
-            for key, value in point.items():
-                tree = cfgmod.merge(tree, cfgmod.nest(key, value))
-            try:
-                resolved = cfgmod.to_dict(cfgmod.from_dict(tree))
-            except ConfigError as exc:
-                raise NetsimInputError(f"sweep point {point}: {exc}") from None
-            for rep in range(self.replications):
-                out.append(Run(run_id(resolved, rep), point, rep, resolved))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", cfgmod.ConfigWarning)
+            for point in self.points:
+                tree = self.base
+                for key, value in point.items():
+                    tree = cfgmod.merge(tree, cfgmod.nest(key, value))
+                try:
+                    config = cfgmod.from_dict(tree)
+                except ConfigError as exc:
+                    raise NetsimInputError(f"sweep point {point}: {exc}") from None
+                resolved = cfgmod.to_dict(config)
+                for rep in range(self.replications):
+                    out.append(Run(run_id(resolved, rep), point, rep, resolved))
+        # The keys a point's model does not use: said once, not once per point.
+        for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, cfgmod.ConfigWarning)):
+            warnings.warn(message, cfgmod.ConfigWarning, stacklevel=2)
         return out
 
 
@@ -109,8 +116,8 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
     if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
         raise _err(f"replications = {reps!r}: must be an integer >= 1")
     tables = tree.get("tables", [])
-    if not isinstance(tables, list) or any(not isinstance(t, str) or t not in KNOWN_TABLES for t in tables):
-        raise _err(f"tables = {tables!r}: must be a list drawn from {sorted(KNOWN_TABLES)}")
+    if not isinstance(tables, list) or any(not isinstance(t, str) for t in tables):
+        raise _err(f"tables = {tables!r}: must be a list of table names")
     base = tree.get("base", {})
     if not isinstance(base, dict):
         raise _err("[base] must be a table of scenario keys")
@@ -127,28 +134,45 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise _err(f"base_file = {str(path)!r} is not valid TOML: {exc}") from None
     try:
-        cfgmod.from_dict(base)
+        base_config = cfgmod.from_dict(base)
     except ConfigError as exc:
         raise _err(f"[base] {exc}") from None
     if ("grid" in tree) == ("random" in tree):
         raise _err("give exactly one of [grid] and [random]")
-    points = _grid(tree["grid"]) if "grid" in tree else _random(tree["random"])
+    writable = known_tables(base_config)
+    if any(t not in writable for t in tables):
+        raise _err(f"tables = {tables!r}: must be a list drawn from {sorted(writable)}")
+    known = set(cfgmod.all_keys(base_config))
+    points = _grid(tree["grid"], known) if "grid" in tree else _random(tree["random"], known)
     if len(points) * reps > MAX_RUNS:
         raise _err(f"{len(points):,} points x {reps:,} replications: at most {MAX_RUNS:,} runs in one sweep")
     return Sweep(name, reps, tuple(tables), base, tuple(points))
 
 
-def _check_key(key: str) -> None:
-    known = {k for k, _, _ in cfgmod.describe()}
+def known_tables(base: cfgmod.Config) -> set[str]:
+    """The tables a sweep on ``base`` may keep: those its runs write (the engine's and its
+    models', a user's controller's included), and those of every registered model, which
+    an axis may switch on."""
+    from netsim import plugins
+    from netsim.run import tables
+
+    out = set(tables(base))
+    for group in (plugins.MOBILITY, plugins.PROTOCOLS, plugins.CONTROLLERS):
+        for plugin in plugins.registered(group).values():
+            out.update(plugin.tables)
+    return out
+
+
+def _check_key(key: str, known: set[str]) -> None:
     if key not in known:
         raise _err(f"{key!r} is not a configuration key (see `netsim config`)")
 
 
-def _grid(grid) -> list[dict]:
+def _grid(grid, known: set[str]) -> list[dict]:
     if not isinstance(grid, dict) or not grid:
         raise _err("[grid] must map configuration keys to lists of values")
     for key, values in grid.items():
-        _check_key(key)
+        _check_key(key, known)
         if not isinstance(values, list) or not values:
             raise _err(f"[grid] {key} = {values!r}: must be a non-empty list")
     keys = list(grid)
@@ -158,7 +182,7 @@ def _grid(grid) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
 
 
-def _random(spec) -> list[dict]:
+def _random(spec, known: set[str]) -> list[dict]:
     if not isinstance(spec, dict):
         raise _err("[random] must be a table")
     unknown = set(spec) - {"samples", "seed", "ranges"}
@@ -174,7 +198,7 @@ def _random(spec) -> list[dict]:
     rng = np.random.default_rng(seed)
     columns = {}
     for key, bounds in ranges.items():
-        _check_key(key)
+        _check_key(key, known)
         if not (
             isinstance(bounds, list)
             and len(bounds) == 2

@@ -18,11 +18,13 @@ import numpy as np
 import pandas as pd
 
 from netsim.config import from_dict
+from netsim.groups import in_a_group, leads_itself
 from netsim.lifetimes import link_lifetimes
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE
-from netsim.run import build, collect, distance_travelled
+from netsim.run import build, collect
 from netsim.tools import analysis
 from netsim.topology import geometric_pairs
+from netsim.trajectory import distance_travelled
 
 
 @dataclass
@@ -365,7 +367,7 @@ def check_discovery_delay() -> list[Check]:
         for k in range(pairs):
             sim.state.set_leg(pairs + k, 10.0, (0.0, 0.0), start_m=(k * 100.0, 5.0))
 
-    sim.models["protocol"].listeners.append(listen)
+    sim.models["protocol"].listeners.append(listen)  # the Ack beacon, built from protocol.model = "ack"
     sim.env.process(arrive())
     sim.run()
     delay = first[pairs:] - 10.0
@@ -406,7 +408,8 @@ def check_spurious_timeouts() -> list[Check]:
             )
         )
         sim.run()
-    counts = analysis.acks_until_leader_loss(sim.trace.frame("roles"), tau, 1.0)
+    labels = sim.config.protocol.plugin.role_labels
+    counts = analysis.acks_until_leader_loss(sim.trace.frame("roles"), tau, 1.0, labels)
     theory = analysis.expected_acks_until_spurious_timeout(p, k)
     return [
         Check(
@@ -488,18 +491,18 @@ def check_clustering_invariants() -> list[Check]:
                 seed=seed,
                 duration_s=40.0,
                 world={"n_robots": n, "side_m": side},
-                mobility={"model": "static", "stationary_start": False},
+                mobility={"model": "static"},
                 channel={"range_m": 10.0},
                 protocol={"model": "clustering", "message_rate_hz": 0.0},
             )
         )
         sim.run()
-        st = sim.state
-        i, j, _ = geometric_pairs(st.positions_at(sim.now), 10.0)
+        i, j, _ = geometric_pairs(sim.state.positions_at(sim.now), 10.0)
         linked = set(zip(i.tolist(), j.tolist())) | set(zip(j.tolist(), i.tolist()))
-        leader = st.role == 2
-        bad += int((leader[i] & leader[j]).sum()) + int((st.role == 0).sum())
-        bad += sum((m, int(st.leader[m])) not in linked for m in np.flatnonzero(st.role == 1).tolist())
+        leader = sim.groups.leader  # each robot's leader: its own id for a leader, -1 for none
+        is_leader = leads_itself(leader)
+        bad += int((is_leader[i] & is_leader[j]).sum()) + int((leader < 0).sum())
+        bad += sum((m, int(leader[m])) not in linked for m in np.flatnonzero(in_a_group(leader)).tolist())
     return [Check("13", "leaders independent and dominating, none undecided (violations)", 0.0, float(bad), 0.0)]
 
 

@@ -35,9 +35,15 @@ from scipy.sparse.csgraph import connected_components
 
 from netsim import config as cfgmod
 from netsim.errors import NetsimInputError
+from netsim.plugins import RoleLabels
 from netsim.tools import palette
 
-ROLE_CODES = {"gamma": 0, "beta": 1, "alpha": 2}
+
+def role_codes(labels: RoleLabels | None) -> dict[str, int]:
+    """The page's role codes (0 undecided, 1 member, 2 leader) of the run's role labels."""
+    return {} if labels is None else {labels.undecided: 0, labels.member: 1, labels.leader: 2}
+
+
 # Points of the sampled chart series (components of the network).
 CHART_POINTS = 600
 
@@ -118,12 +124,12 @@ def components_series(links: pd.DataFrame, n: int, times: np.ndarray) -> np.ndar
     return out
 
 
-def leaders_series(roles: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+def leaders_series(roles: pd.DataFrame, leader_label: str) -> tuple[np.ndarray, np.ndarray]:
     """The number of leaders after each role change (a step function, exact)."""
     if roles.empty:
         return np.zeros(1), np.zeros(1)
     r = roles.reset_index(drop=True)
-    is_leader = (r["role"] == "alpha").to_numpy()
+    is_leader = (r["role"] == leader_label).to_numpy()
     robot = r["robot"].to_numpy(np.int64)
     was = np.zeros(int(robot.max()) + 1, dtype=bool)
     delta = np.empty(len(r), dtype=np.int64)
@@ -141,6 +147,7 @@ def series(
     messages: pd.DataFrame | None,
     coverage: pd.DataFrame | None,
     blob: Blob,
+    labels: RoleLabels | None = None,
 ) -> list[dict]:
     """The strip chart: what each series is, and its arrays in ``blob``."""
     n, duration = config.world.n_robots, config.duration_s
@@ -151,8 +158,8 @@ def series(
         blob.add(f"s_{name}_v", v, "<f8")
         out.append({"name": name, "label": label, "kind": kind, "axis": axis})
 
-    if config.protocol.model == "clustering" and not roles.empty:
-        add("leaders", "leaders", *leaders_series(roles), "step", "count")
+    if labels is not None and not roles.empty:
+        add("leaders", "leaders", *leaders_series(roles, labels.leader), "step", "count")
     times = np.linspace(0.0, duration, CHART_POINTS + 1)
     add("components", "components", times, components_series(links, n, times), "sample", "count")
     if coverage is not None and len(coverage):
@@ -242,9 +249,10 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     roles = roles.sort_values("t_s", kind="stable")
     blob.add("role_t", roles["t_s"], "<f8")
     blob.add("role_robot", roles["robot"], "<i4")
-    blob.add("role_code", roles["role"].map(ROLE_CODES).fillna(0), "i1")
+    labels = config.protocol.plugin.role_labels
+    blob.add("role_code", roles["role"].map(role_codes(labels)).fillna(0), "i1")
     blob.add("role_leader", roles["leader"], "<i4")
-    ranks = palette.group_ranks(roles.loc[roles["role"] == "alpha", "robot"])
+    ranks = palette.group_ranks(roles.loc[roles["role"] == (labels.leader if labels else None), "robot"])
     colour_of = np.full(n, -1)
     colour_of[list(ranks)] = list(ranks.values())
     blob.add("colour_of", colour_of, "<i2")
@@ -294,7 +302,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         blob.add("hop_t_received", h["t_received_s"], "<f8")
 
     coverage = _read(run_dir, "coverage")
-    chart = series(config, links, roles, beliefs if has_beliefs else None, messages, coverage, blob)
+    chart = series(config, links, roles, beliefs if has_beliefs else None, messages, coverage, blob, labels)
 
     map_meta = None
     if map_grid is not None:
@@ -312,6 +320,9 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     summary_path = run_dir / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
     interval = config.output.position_interval_s
+    # Keys of the run's models, where they have them.
+    tree = cfgmod.to_dict(config)
+    mobility, protocol, cover = tree["mobility"], tree["protocol"], tree.get("coverage", {})
     meta = {
         "format": 1,
         "title": run_dir.resolve().name,
@@ -319,10 +330,10 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         "side_m": config.world.side_m,
         "torus": config.world.torus,
         "duration_s": duration,
-        "step_s": interval if interval > 0 else config.protocol.ack_period_s,
+        "step_s": interval if interval > 0 else protocol.get("ack_period_s", 1.0),
         "motion": motion,
-        "coverage_radius_m": config.coverage.radius_m or float(ranges.min()),
-        "coverage": bool(config.coverage.enabled),
+        "coverage_radius_m": cover.get("radius_m", 0.0) or float(ranges.min()),
+        "coverage": bool(cover.get("enabled", False)),
         "protocol": config.protocol.model,
         "mobility": config.mobility.model,
         "seed": config.seed,
@@ -335,8 +346,8 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         },
         "scenario": {
             "n_robots": n,
-            "speed_min_mps": config.mobility.speed_min_mps,
-            "speed_max_mps": config.mobility.speed_max_mps,
+            "speed_min_mps": mobility.get("speed_min_mps"),
+            "speed_max_mps": mobility.get("speed_max_mps"),
             "duration_s": duration,
             "range_m": float(ranges.min()) if np.all(ranges == ranges[0]) else [float(r) for r in ranges],
             "side_m": config.world.side_m,

@@ -1,15 +1,19 @@
-"""Initial placement of robots: uniform, grid, centre (uniform in a central square, a dense
-start for coverage), or read from a CSV file of ``x_m,y_m`` rows."""
+"""Initial placement of robots (``world.placement``): uniform, grid, centre (uniform in a
+central square, a dense start for coverage), or read from a CSV file of ``x_m,y_m`` rows.
+Mobility models start from :func:`initial_positions`."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from netsim.errors import ConfigError
+from netsim.rng import Streams
 
 
 def uniform(rng: np.random.Generator, n: int, side_m: float) -> np.ndarray:
@@ -55,13 +59,18 @@ def from_csv(path: str, n: int, side_m: float) -> np.ndarray:
     return xy
 
 
-def initial_positions(sim) -> np.ndarray:
-    """The placement the configuration asks for."""
-    w = sim.config.world
-    if w.placement == "uniform":
-        return uniform(sim.streams.get("placement"), w.n_robots, w.side_m)
-    if w.placement == "grid":
-        return grid(w.n_robots, w.side_m)
-    if w.placement == "centre":
-        return centre(sim.streams.get("placement"), w.n_robots, w.side_m, w.centre_side_m)
-    return from_csv(w.placement, w.n_robots, w.side_m)
+# The placements by name; any other value of world.placement is the path of a CSV file.
+PLACEMENTS: dict[str, Callable[[Any, Streams], np.ndarray]] = {
+    "uniform": lambda w, streams: uniform(streams.get("placement"), w.n_robots, w.side_m),
+    "grid": lambda w, streams: grid(w.n_robots, w.side_m),
+    "centre": lambda w, streams: centre(streams.get("placement"), w.n_robots, w.side_m, w.centre_side_m),
+}
+
+
+def initial_positions(world, streams: Streams) -> np.ndarray:
+    """The placement ``world.placement`` names (``world``: the world's parameters), its
+    random draws from the stream ``"placement"``."""
+    place = PLACEMENTS.get(world.placement)
+    if place is None:
+        return from_csv(world.placement, world.n_robots, world.side_m)
+    return place(world, streams)

@@ -1,0 +1,221 @@
+"""Parameters: small frozen dataclasses, validated when they are made.
+
+Every part of a run that has parameters (the world, the channel, each model) declares them
+as a frozen dataclass derived from :class:`Params`, one field per configuration key, each
+made with :func:`param` (its default, a check and its meaning with the unit). However the
+object is made (from a file, from ``--set`` or in Python), ``__post_init__`` coerces each
+value as TOML gives it (an integer is accepted for a float, a name for a choice), checks
+it, derives the defaults that follow another key (``tau_s = 3 ack_period_s``) and checks
+the rules between the section's keys. A bad value raises :class:`~netsim.errors.ConfigError`
+naming the key (``section.name``), the value and what is allowed.
+
+>>> from dataclasses import dataclass
+>>> @dataclass(frozen=True)
+... class Beacon(Params):
+...     section = "beacon"
+...     period_s: float = param(1.0, positive, "period, s")
+...     timeout_s: float = param(None, positive, "timeout, s", kind=float,
+...                              derive=lambda p: 3 * p.period_s, rule="3 x period_s")
+>>> Beacon(period_s=2).timeout_s
+6.0
+>>> Beacon(period_s=2).replace(period_s=5).timeout_s
+15.0
+>>> Beacon(period_s=-1)
+Traceback (most recent call last):
+...
+netsim.errors.ConfigError: beacon.period_s = -1.0: must be > 0 (period, s)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from netsim.errors import ConfigError
+
+Check = Callable[[Any], "str | None"]
+Coerce = Callable[[str, Any], Any]
+
+
+def positive(v) -> str | None:
+    return None if v > 0 else "must be > 0"
+
+
+def non_negative(v) -> str | None:
+    return None if v >= 0 else "must be >= 0"
+
+
+def probability(v) -> str | None:
+    return None if 0 <= v <= 1 else "must be a probability in [0, 1]"
+
+
+def finite(check: Check) -> Check:
+    """``check``, and finite."""
+
+    def both(v):
+        return check(v) or (None if math.isfinite(v) else "must be finite")
+
+    return both
+
+
+def param(
+    default: Any,
+    check: Check | None = None,
+    doc: str = "",
+    *,
+    kind: type | None = None,
+    coerce: Coerce | None = None,
+    derive: Callable[[Any], Any] | None = None,
+    rule: str = "",
+    default_factory: Callable[[], Any] | None = None,
+) -> Any:
+    """A configuration key: its ``default``, a ``check`` (returns what is wrong, or None),
+    its meaning ``doc`` (with the unit). The value's type is that of the default unless
+    ``kind`` says otherwise; ``coerce(key, value)`` replaces the standard coercion;
+    ``derive(params)`` gives the default from the other values when none is given (None),
+    and ``rule`` says how, in words (``"3 x ack_period_s"``)."""
+    meta = {"check": check, "doc": doc, "kind": kind, "coerce": coerce, "derive": derive, "rule": rule}
+    if default_factory is not None:
+        return field(default_factory=default_factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def coerce_value(key: str, value: Any, kind: type) -> Any:
+    """``value`` as ``kind`` (bool, int, float, str or a str enum), or ConfigError."""
+    if kind is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(key, value, "must be true or false")
+        return value
+    if kind is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(key, value, "must be an integer")
+        return value
+    if kind is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(key, value, "must be a number")
+        try:
+            value = float(value)
+        except OverflowError:
+            raise ConfigError(key, value, "is too large for a number") from None
+        if math.isnan(value):
+            raise ConfigError(key, value, "must be a number, not NaN")
+        return value
+    if isinstance(kind, type) and issubclass(kind, enum.Enum):
+        if isinstance(value, kind):
+            return value
+        allowed = "must be one of " + ", ".join(repr(m.value) for m in kind)
+        if not isinstance(value, str):
+            raise ConfigError(key, value, allowed)
+        try:
+            return kind(value)
+        except ValueError:
+            raise ConfigError(key, value, allowed) from None
+    if not isinstance(value, str):
+        raise ConfigError(key, value, "must be a string")
+    return value
+
+
+@dataclass(frozen=True)
+class Params:
+    """Base of every parameter dataclass (module notes). ``section`` names its
+    configuration table; :meth:`check` holds the rules between its own keys."""
+
+    section: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        derived = []
+        for f in _keys(type(self)):
+            value = getattr(self, f.name)
+            if value is None and f.metadata.get("derive") is not None:
+                derived.append(f)
+                continue
+            object.__setattr__(self, f.name, self._valid(f, value))
+        for f in derived:
+            object.__setattr__(self, f.name, self._valid(f, f.metadata["derive"](self)))
+        object.__setattr__(self, "_derived", frozenset(f.name for f in derived))
+        self.check()
+
+    def _valid(self, f: dataclasses.Field, value: Any) -> Any:
+        key = self.key(f.name)
+        meta = f.metadata
+        if meta.get("coerce") is not None:
+            value = meta["coerce"](key, value)
+        else:
+            kind = meta.get("kind") or type(f.default if f.default is not dataclasses.MISSING else value)
+            value = coerce_value(key, value, kind)
+        check = meta.get("check")
+        problem = check(value) if check is not None else None
+        if problem:
+            doc = meta.get("doc", "")
+            raise ConfigError(key, value, problem + (f" ({doc})" if doc else ""))
+        return value
+
+    def check(self) -> None:
+        """Rules between this section's keys (raise ConfigError); none by default."""
+
+    @classmethod
+    def key(cls, name: str) -> str:
+        """The configuration key of field ``name``: ``section.name``."""
+        return f"{cls.section}.{name}" if cls.section else name
+
+    @property
+    def derived(self) -> frozenset[str]:
+        """Fields whose value was derived from the others (not given)."""
+        return self.__dict__.get("_derived", frozenset())
+
+    def replace(self, **changes: Any) -> Params:
+        """A copy with ``changes``; values that were derived are derived again unless given."""
+        values = {name: getattr(self, name) for name in names(type(self)) if name not in self.derived}
+        values.update(changes)
+        return type(self)(**values)
+
+    def items(self, derived: bool = True) -> Iterator[tuple[str, Any]]:
+        """``(name, value)`` of every key; without the derived ones if ``derived`` is false."""
+        for name in names(type(self)):
+            if derived or name not in self.derived:
+                yield name, getattr(self, name)
+
+
+@dataclass(frozen=True)
+class NoParams(Params):
+    """The parameters of a model that has none."""
+
+
+def _keys(cls: type) -> list[dataclasses.Field]:
+    # A nested field holds another Params (a sub-model's), whose keys are its own.
+    return [f for f in dataclasses.fields(cls) if f.init and not f.metadata.get("nested")]
+
+
+def names(cls: type) -> list[str]:
+    """The configuration keys of a Params class, in order."""
+    return [f.name for f in _keys(cls)]
+
+
+def describe(cls: type) -> list[tuple[str, Any, str, str]]:
+    """``(name, default, meaning, rule)`` of every key of a Params class; ``rule`` says how a
+    default derived from other keys is derived ("" for the others)."""
+    out = []
+    for f in _keys(cls):
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            default = f.default_factory()
+        else:
+            default = None
+        out.append((f.name, default, f.metadata.get("doc", ""), f.metadata.get("rule", "")))
+    return out
+
+
+def plain(value: Any) -> Any:
+    """A value as TOML writes it: a choice as its name, a tuple as a list."""
+    if isinstance(value, enum.Enum):
+        return value.value
+    if isinstance(value, tuple):
+        return [plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: plain(v) for k, v in value.items()}
+    return value

@@ -1,0 +1,54 @@
+"""Test helpers (imported by the tests that use them, not by conftest.py): configurations,
+the bare core of a run, and the clustering protocol on scripted static deployments, each
+in one line."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from netsim.config import Config, from_dict
+from netsim.run import simulation
+from netsim.sim import Simulation
+from netsim.tools.validate import rwp_density
+from protocols.stack import ClusteringParams, Stack
+
+__all__ = ["clustering", "make_config", "rwp_density", "static_core"]
+
+
+def make_config(**tree) -> Config:
+    """A validated Config from nested keyword tables, e.g. ``world={"n_robots": 5}``."""
+    return from_dict(tree)
+
+
+def static_core(
+    positions, range_m=10.0, latency_s=0.001, seed=1, duration_s=100.0, side_m=1e6, **channel
+) -> Simulation:
+    """The core of a run (kernel, robots, channel, trace, streams; no model) with the robots
+    standing at ``positions``; ``channel`` adds keys of ``[channel]`` (loss, jitter)."""
+    positions = np.asarray(positions, dtype=float)
+    config = make_config(
+        seed=seed,
+        duration_s=duration_s,
+        world={"n_robots": len(positions), "side_m": side_m},
+        mobility={"model": "static"},
+        channel={"range_m": range_m, "latency_s": latency_s, **channel},
+        protocol={"model": "none"},
+        output={"position_interval_s": 0.0},
+    )
+    sim = simulation(config)
+    sim.state.place(positions)
+    return sim
+
+
+def clustering(positions, phases=None, start=True, core: dict | None = None, **protocol) -> tuple[Simulation, Stack]:
+    """The clustering protocol on robots standing at ``positions``: a :class:`Stack` of
+    ``ClusteringParams(**protocol)`` (no messages unless ``message_rate_hz`` is given) on
+    :func:`static_core` (``core``: its keywords), started with the Ack ``phases`` (random
+    when None) unless ``start`` is false."""
+    sim = static_core(positions, **(core or {}))
+    stack = Stack(ClusteringParams(**{"message_rate_hz": 0.0, **protocol}), sim.parts)
+    sim.add_model("protocol", stack)
+    sim.groups = stack
+    if start:
+        stack.start(phases)
+    return sim, stack
