@@ -38,6 +38,8 @@ def main(argv=None) -> None:
     p.add_argument("--duration", type=float, default=300.0)
     sweepmod.add_runner_arguments(p, "false_role_changes", reps=1)
     args = p.parse_args(argv)
+    # Connect before anything is written: a bad scheduler leaves no output behind.
+    scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     pos = np.zeros((2 * args.pairs, 2))
@@ -72,13 +74,15 @@ def main(argv=None) -> None:
             "grid": {"channel.loss_probability": args.losses, "protocol.tau_s": args.taus},
         }
     )
-    print(sweepmod.run_sweep(sweep, out / "sweep", workers=args.workers, scheduler=args.scheduler).text())
+    print(sweepmod.run_sweep(sweep, out / "sweep", workers=args.workers, scheduler=scheduler).text())
     runs = sweepmod.load(out / "sweep")
     roles = sweepmod.load_table(out / "sweep", "roles")
     rows = []
     for (loss, tau), g in runs.groupby(["channel.loss_probability", "protocol.tau_s"]):
         r = roles[roles.run_id.isin(g.run_id)]
-        counts = np.concatenate([analysis.acks_until_leader_loss(rr, tau, 1.0, LABELS) for _, rr in r.groupby("run_id")])
+        counts = np.concatenate(
+            [analysis.acks_until_leader_loss(rr, tau, 1.0, LABELS) for _, rr in r.groupby("run_id")]
+        )
         k = analysis.spurious_timeout_window(tau, 1.0)
         false_changes = (r.cause == LABELS.leader_lost).sum() / (len(g) * 2 * args.pairs * args.duration / 60)
         rows.append(
@@ -128,4 +132,4 @@ def main(argv=None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sweepmod.run_script(main)

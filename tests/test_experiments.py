@@ -36,6 +36,20 @@ CASES = [
 ]
 
 
+@pytest.mark.parametrize("script", [case[0] for case in CASES])
+def test_a_bad_scheduler_is_one_line_exit_2_nothing_written(tmp_path, script):
+    out = tmp_path / "out"
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / script), "--scheduler", "notanaddress", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "--scheduler 'notanaddress'" in run.stderr
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("script, args, csv", CASES)
 def test_experiment_writes_csv_and_png(tmp_path, script, args, csv):
     run = subprocess.run(

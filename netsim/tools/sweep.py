@@ -442,6 +442,16 @@ def add_runner_arguments(parser, name: str, reps: int) -> None:
     parser.add_argument("--out", default=f"experiments-out/{name}", help="output directory")
 
 
+def run_script(main: Callable[[], object]) -> None:
+    """Run a sweep script's ``main``: bad input (a malformed option, an unreachable
+    scheduler) is one line on stderr and exit status 2, as with ``netsim``."""
+    try:
+        main()
+    except NetsimInputError as exc:
+        print(f"{Path(sys.argv[0]).name}: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
 def load(out_dir: str | Path) -> pd.DataFrame:
     """Every finished run of a sweep as one tidy frame, one row per run, sorted by run id."""
     files = sorted((Path(out_dir) / "runs").glob("*.parquet"))
