@@ -19,6 +19,7 @@ drop cause:
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -31,7 +32,7 @@ from netsim.state import RobotState
 DROP_CAUSES = ("loss", "not_alive", "out_of_range")
 
 # deliver(sender, receivers, payload): called at delivery time with the receiving ids.
-Deliver = Callable[[int, np.ndarray, object], None]
+Deliver = Callable[[int, np.ndarray, Any], None]
 
 
 class Counters:
@@ -76,18 +77,18 @@ class Channel:
             c = self.counters[kind] = Counters(self.state.n)
         return c
 
-    def in_range(self, sender: int):
+    def in_range(self, sender: int) -> tuple[np.ndarray, np.ndarray]:
         """Robots in range of ``sender`` now (ids ascending) and their distances."""
         return self.index.within(self.env.now, sender)
 
-    def broadcast(self, sender: int, payload, deliver: Deliver, kind: str = "ack") -> np.ndarray:
+    def broadcast(self, sender: int, payload: object, deliver: Deliver, kind: str = "ack") -> np.ndarray:
         """Send ``payload`` from ``sender`` to everyone in range; returns the receivers."""
         c = self.counters_for(kind)
         c.sent[sender] += 1
         receivers, dist = self.index.within(self.env.now, sender)
         return self._transmit(sender, receivers, dist, payload, deliver, c)
 
-    def unicast(self, sender: int, dest: int, payload, deliver: Deliver, kind: str = "data") -> bool:
+    def unicast(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str = "data") -> bool:
         """Send ``payload`` to ``dest`` alone; returns whether it will be delivered."""
         c = self.counters_for(kind)
         c.sent[sender] += 1
@@ -101,7 +102,9 @@ class Channel:
         got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c)
         return len(got) == 1
 
-    def _transmit(self, sender, receivers, dist, payload, deliver, c: Counters) -> np.ndarray:
+    def _transmit(
+        self, sender: int, receivers: np.ndarray, dist: np.ndarray, payload: object, deliver: Deliver, c: Counters
+    ) -> np.ndarray:
         if len(receivers) == 0:
             return receivers
         alive = self.state.alive[receivers]
@@ -122,8 +125,10 @@ class Channel:
             self._at(self.latency_s, deliver, sender, receivers, payload, c)
         return receivers
 
-    def _at(self, delay, deliver: Deliver, sender, receivers, payload, c: Counters) -> None:
-        def arrive(_event):
+    def _at(
+        self, delay: float, deliver: Deliver, sender: int, receivers: np.ndarray, payload: object, c: Counters
+    ) -> None:
+        def arrive(_event: simpy.Event) -> None:
             c.received[receivers] += 1
             deliver(sender, receivers, payload)
 

@@ -522,7 +522,7 @@ def parse_override(text: str) -> dict:
 _TOML_OPENERS = {"[": "list", "{": "inline table", '"': "string", "'": "string"}
 
 
-def nest(dotted_key: str, value) -> dict:
+def nest(dotted_key: str, value: Any) -> dict:
     """``nest("a.b.c", 1) == {"a": {"b": {"c": 1}}}``."""
     tree: dict = {}
     node = tree

@@ -24,7 +24,7 @@ Roles come from the protocol's :class:`~netsim.groups.GroupView`, when it forms 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,7 +68,7 @@ class ControlStep:
     role_names: tuple[str, ...] = ()
     _records: dict[str, list[dict]] = field(default_factory=dict, repr=False)
 
-    def record(self, table: str, **values) -> None:
+    def record(self, table: str, **values: object) -> None:
         """Add a row ``{t_s, **values}`` to output table ``table`` (``<table>.parquet``)."""
         self._records.setdefault(table, []).append({"t_s": self.t_s, **values})
 
@@ -139,7 +139,7 @@ class ControlLoop:
             return np.zeros(n, dtype=np.int8), np.full(n, -1, dtype=np.int64), ()
         return self.groups.role.copy(), self.groups.leader.copy(), tuple(self.groups.role_names)
 
-    def _run(self):
+    def _run(self) -> Generator[simpy.Event, object, None]:
         env, st = self.env, self.state
         yield env.timeout(self.start_s)
         while True:

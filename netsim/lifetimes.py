@@ -25,6 +25,8 @@ A link up at t = 0 or still up at the end is censored; ``censored`` is true for 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
@@ -40,7 +42,7 @@ _PHASE_END, _PHASE_STATE, _PHASE_START = 0, 1, 2
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
 
 
-def _roots(d: np.ndarray, w: np.ndarray, radius: np.ndarray):
+def _roots(d: np.ndarray, w: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Entry and exit times (relative) of ``|d + w t| = radius``; NaN when none."""
     A = np.einsum("ij,ij->i", w, w)
     B = 2.0 * np.einsum("ij,ij->i", d, w)
@@ -82,7 +84,14 @@ def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.nd
     return L.t[k[jump]], robot[k[jump]]
 
 
-def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, torus=False, window_s=None):
+def link_events(
+    legs: pd.DataFrame,
+    range_m: float | np.ndarray,
+    duration_s: float,
+    side_m: float | None = None,
+    torus: bool = False,
+    window_s: float | None = None,
+) -> tuple[np.ndarray, ...]:
     """Up (+1) and down (-1) events of every link, as arrays ``(t, a, b, kind, phase)``.
 
     ``phase`` orders events of a pair at the same instant (see ``_PHASE_*``). ``window_s``
@@ -97,7 +106,7 @@ def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, tor
         window = float(window_s)
     else:
         window = duration_s if v_max == 0 else max(0.5 * float(ranges.min()) / v_max, 1e-6)
-    box = float(side_m) if torus else None
+    box = float(side_m) if torus else None  # type: ignore[arg-type]  # side_m is given with torus
     jt, jr = jump_times(L, box)
     inside = (jt > 0) & (jt < duration_s)
     jt, jr = jt[inside], jr[inside]
@@ -107,7 +116,7 @@ def link_events(legs: pd.DataFrame, range_m, duration_s: float, side_m=None, tor
 
     out: list[tuple[np.ndarray, ...]] = []
 
-    def emit(t, a, b, k, phase):
+    def emit(t: np.ndarray, a: np.ndarray, b: np.ndarray, k: int, phase: int | np.ndarray) -> None:
         a = np.asarray(a, np.int64)
         out.append(
             (
@@ -174,7 +183,7 @@ def _in_box(pos: np.ndarray, box: float | None) -> np.ndarray:
     return np.where(pos >= box, 0.0, pos)
 
 
-def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None):
+def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (``j`` may be ``who[k]``)."""
     pts = _in_box(pos, box)
     tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
@@ -184,7 +193,16 @@ def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None):
     return np.repeat(who, counts), b
 
 
-def _jump_state(L: LegTable, jumpers: np.ndarray, t: float, pos: np.ndarray, ranges, r_max: float, box, emit):
+def _jump_state(
+    L: LegTable,
+    jumpers: np.ndarray,
+    t: float,
+    pos: np.ndarray,
+    ranges: np.ndarray,
+    r_max: float,
+    box: float | None,
+    emit: Callable[..., None],
+) -> None:
     """At a jump instant ``t``, set the state of every link of the robots that jumped: up if
     in range on the new positions ``pos``, down if it was in range on the old ones (events
     that change nothing are dropped later)."""
@@ -206,7 +224,16 @@ def _jump_state(L: LegTable, jumpers: np.ndarray, t: float, pos: np.ndarray, ran
     emit(np.full(int((~up).sum()), t), a[~up], b[~up], -1, _PHASE_STATE)
 
 
-def _solve_changing(L: LegTable, a, b, radius, start: float, stop: float, box, emit) -> None:
+def _solve_changing(
+    L: LegTable,
+    a: np.ndarray,
+    b: np.ndarray,
+    radius: np.ndarray,
+    start: float,
+    stop: float,
+    box: float | None,
+    emit: Callable[..., None],
+) -> None:
     """Pairs where a robot changes course within ``[start, stop)``: cut each pair's window
     at both robots' course changes and solve every piece, all pairs in one pass."""
     n_pairs = len(a)
@@ -246,7 +273,17 @@ def _solve_changing(L: LegTable, a, b, radius, start: float, stop: float, box, e
     _solve_piece(_wrap(pa - pb, box), L.v[la] - L.v[lb], radius[p], t, end - t, a[p], b[p], emit, box)
 
 
-def _solve_piece(d, w, radius, t_start, length, a, b, emit, box=None):
+def _solve_piece(
+    d: np.ndarray,
+    w: np.ndarray,
+    radius: np.ndarray,
+    t_start: float | np.ndarray,
+    length: float | np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    emit: Callable[..., None],
+    box: float | None = None,
+) -> None:
     """Crossings of pairs at relative position ``d + w t`` over ``[0, length]`` from
     ``t_start``; on a torus, of every image the path can reach (``d`` the nearest one)."""
     if len(d) == 0:
@@ -267,7 +304,16 @@ def _solve_piece(d, w, radius, t_start, length, a, b, emit, box=None):
             _solve_image(dk[sel], w[sel], radius[sel], t_start[sel], length[sel], a[sel], b[sel], emit)
 
 
-def _solve_image(d, w, radius, t_start, length, a, b, emit):
+def _solve_image(
+    d: np.ndarray,
+    w: np.ndarray,
+    radius: np.ndarray,
+    t_start: np.ndarray,
+    length: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    emit: Callable[..., None],
+) -> None:
     if len(d) == 0:
         return
     t_in, t_out = _roots(d, w, radius)
@@ -283,7 +329,12 @@ def _solve_image(d, w, radius, t_start, length, a, b, emit):
 
 
 def link_lifetimes(
-    legs: pd.DataFrame, range_m, duration_s: float, side_m=None, torus=False, window_s=None
+    legs: pd.DataFrame,
+    range_m: float | np.ndarray,
+    duration_s: float,
+    side_m: float | None = None,
+    torus: bool = False,
+    window_s: float | None = None,
 ) -> pd.DataFrame:
     """One row per link lifetime: ``a, b`` (a < b), ``t_up_s, t_down_s, censored, ...``."""
     t, a, b, k, phase = link_events(legs, range_m, duration_s, side_m, torus, window_s)

@@ -45,7 +45,7 @@ class DistanceLoss:
         self.range_m = range_m
         self.rng = rng
 
-    def __call__(self, sender, receivers, distances_m):
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
         ratio = distances_m / self.range_m[sender]
         p_receive = (1.0 - self.p) * (1.0 - ratio**self.exponent)
         return self.rng.random(len(receivers)) < p_receive
@@ -60,7 +60,7 @@ class GilbertElliottLoss:
     the chain's stationary distribution, so there is no warm-up.
     """
 
-    def __init__(self, p_gb, p_bg, loss_good, loss_bad, n: int, rng: np.random.Generator):
+    def __init__(self, p_gb: float, p_bg: float, loss_good: float, loss_bad: float, n: int, rng: np.random.Generator):
         self.p_gb, self.p_bg = float(p_gb), float(p_bg)
         self.loss = np.array([loss_good, loss_bad], dtype=float)
         total = self.p_gb + self.p_bg
@@ -69,7 +69,7 @@ class GilbertElliottLoss:
         self.rng = rng
         self._bad: dict[int, bool] = {}
 
-    def __call__(self, sender, receivers, distances_m):
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
         k = len(receivers)
         u = self.rng.random((k, 2))
         keep = np.empty(k, dtype=bool)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -78,7 +79,9 @@ def bound_fraction(n: int, radius_m: float, side_m: float, range_m: float | None
     return min(1.0, connected_coverage_bound(n, radius_m, range_m) / side_m**2)
 
 
-def union_area_bracket(centres_m, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS):
+def union_area_bracket(
+    centres_m: npt.ArrayLike, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS
+) -> tuple[float, float]:
     """Area (m^2) of the union of the disks clipped to the ``side_m`` square, bracketed:
     ``(lower, upper)`` from the unions of the inscribed and the circumscribed regular
     polygons with ``4 quad_segs`` vertices (each polygon inside, resp. around, its disk,
@@ -103,7 +106,9 @@ def union_area_bracket(centres_m, radius_m: float, side_m: float, quad_segs: int
     return areas[0], areas[1]
 
 
-def covered_fraction_exact(centres_m, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS):
+def covered_fraction_exact(
+    centres_m: npt.ArrayLike, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS
+) -> tuple[float, float]:
     """Fraction of the ``side_m`` square within ``radius_m`` of some centre: ``(fraction,
     error_bound)``, the true fraction being within ``error_bound`` of ``fraction``.
 
@@ -123,7 +128,9 @@ def covered_fraction_exact(centres_m, radius_m: float, side_m: float, quad_segs:
     return value / area, max(value - lower, upper - value) / area
 
 
-def covered_fraction(centres_m, radius_m: float, side_m: float, cells: int = 500, torus: bool = False):
+def covered_fraction(
+    centres_m: npt.ArrayLike, radius_m: float, side_m: float, cells: int = 500, torus: bool = False
+) -> tuple[float, float]:
     """Fraction of the ``side_m`` square within ``radius_m`` of some centre, estimated on
     a ``cells x cells`` grid of cell centres (cheap; :func:`covered_fraction_exact` is
     exact). Returns ``(fraction, error_bound)``.
@@ -160,7 +167,7 @@ def random_coverage(n: int, radius_m: float, area_m2: float) -> float:
     return 1.0 - (1.0 - math.pi * radius_m**2 / area_m2) ** n
 
 
-def components(positions_m, range_m, side_m: float | None = None) -> np.ndarray:
+def components(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None) -> np.ndarray:
     """Component label of every robot in the two-way unit-disk network."""
     n = len(positions_m)
     i, j, _ = geometric_pairs(positions_m, range_m, side_m)
@@ -168,7 +175,7 @@ def components(positions_m, range_m, side_m: float | None = None) -> np.ndarray:
     return connected_components(graph, directed=False)[1]
 
 
-def nearest_spacing(positions_m) -> np.ndarray:
+def nearest_spacing(positions_m: npt.ArrayLike) -> np.ndarray:
     """Distance from each point to its nearest other point (NaN with fewer than two)."""
     p = np.asarray(positions_m, dtype=float).reshape(-1, 2)
     if len(p) < 2:
@@ -177,7 +184,7 @@ def nearest_spacing(positions_m) -> np.ndarray:
     return d[:, 1]
 
 
-def hexagonality(positions_m, spacing_m: float) -> float:
+def hexagonality(positions_m: npt.ArrayLike, spacing_m: float) -> float:
     """Mean over points of ``|mean_j exp(6 i theta_ij)|``, over the neighbours ``j`` within
     ``1.2 spacing``; points with fewer than two such neighbours are left out. 1 on a
     perfect hexagonal lattice of that spacing."""
@@ -196,7 +203,7 @@ def hexagonality(positions_m, spacing_m: float) -> float:
     return float(np.mean(np.abs(total[ok] / count[ok]))) if ok.any() else float("nan")
 
 
-def hex_lattice(rows: int, cols: int, spacing_m: float, origin=(0.0, 0.0)) -> np.ndarray:
+def hex_lattice(rows: int, cols: int, spacing_m: float, origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """Centres of a triangular lattice (the hexagonal covering) of the given spacing."""
     pts = [
         (origin[0] + c * spacing_m + (r % 2) * spacing_m / 2, origin[1] + r * spacing_m * math.sqrt(3) / 2)

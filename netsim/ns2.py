@@ -53,7 +53,7 @@ class Scenario:
         return len(self.initial_m)
 
 
-def _number(text: str, path, lineno: int, what: str) -> float:
+def _number(text: str, path: str | Path, lineno: int, what: str) -> float:
     try:
         v = float(text)
     except ValueError:

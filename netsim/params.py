@@ -41,22 +41,22 @@ Check = Callable[[Any], "str | None"]
 Coerce = Callable[[str, Any], Any]
 
 
-def positive(v) -> str | None:
+def positive(v: float) -> str | None:
     return None if v > 0 else "must be > 0"
 
 
-def non_negative(v) -> str | None:
+def non_negative(v: float) -> str | None:
     return None if v >= 0 else "must be >= 0"
 
 
-def probability(v) -> str | None:
+def probability(v: float) -> str | None:
     return None if 0 <= v <= 1 else "must be a probability in [0, 1]"
 
 
 def finite(check: Check) -> Check:
     """``check``, and finite."""
 
-    def both(v):
+    def both(v: float) -> str | None:
         return check(v) or (None if math.isfinite(v) else "must be finite")
 
     return both

@@ -7,13 +7,16 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from netsim.errors import ConfigError
 from netsim.rng import Streams
+
+if TYPE_CHECKING:
+    from netsim.config import WorldParams
 
 
 def uniform(rng: np.random.Generator, n: int, side_m: float) -> np.ndarray:
@@ -67,7 +70,7 @@ PLACEMENTS: dict[str, Callable[[Any, Streams], np.ndarray]] = {
 }
 
 
-def initial_positions(world, streams: Streams) -> np.ndarray:
+def initial_positions(world: WorldParams, streams: Streams) -> np.ndarray:
     """The placement ``world.placement`` names (``world``: the world's parameters), its
     random draws from the stream ``"placement"``."""
     place = PLACEMENTS.get(world.placement)

@@ -26,6 +26,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cache
 from importlib.metadata import entry_points
+from types import ModuleType
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, runtime_checkable
 
 import simpy
@@ -148,7 +149,7 @@ class LegacyPlugin:
         raise TypeError("a plain install(sim) function is called with the Simulation (netsim.run.build)")
 
 
-def _import_user_module(name: str):
+def _import_user_module(name: str) -> ModuleType:
     """Import ``name``; a module in the current directory counts, as with ``python -m``
     (a console script's import path does not include it)."""
     try:

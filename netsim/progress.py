@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import TYPE_CHECKING, Any, Self, TextIO
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 
 def progress_bar(
@@ -20,10 +24,10 @@ def progress_bar(
     enabled: bool = True,
     initial: float = 0,
     lines: int = 4,
-    stream=None,
+    stream: TextIO | None = None,
     tty: bool | None = None,
-    **tqdm_options,
-):
+    **tqdm_options: Any,
+) -> tqdm | _Silent:
     """A progress reporter with tqdm's ``update``, ``set_postfix``, ``close``, ``n`` and
     ``total``, usable as a context manager. ``tty`` forces the choice (default: whether
     ``stream``, standard error by default, is a terminal)."""
@@ -41,22 +45,22 @@ def progress_bar(
 
 
 class _Silent:
-    def __init__(self, total, initial=0):
+    def __init__(self, total: float, initial: float = 0) -> None:
         self.total, self.n = total, initial
 
-    def update(self, n=1):
+    def update(self, n: float = 1) -> None:
         self.n += n
 
-    def set_postfix(self, refresh=True, **values):
+    def set_postfix(self, refresh: bool = True, **values: object) -> None:
         pass
 
-    def close(self):
+    def close(self) -> None:
         pass
 
-    def __enter__(self):
+    def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
@@ -64,7 +68,9 @@ class PlainLines(_Silent):
     """Progress as a few whole lines, for log files: at most ``lines`` of them, each when
     the next ``1 / lines`` of the work is done."""
 
-    def __init__(self, total, desc, unit, initial=0, lines=4, stream=None):
+    def __init__(
+        self, total: float, desc: str, unit: str, initial: float = 0, lines: int = 4, stream: TextIO | None = None
+    ) -> None:
         super().__init__(total, initial)
         self.desc, self.unit, self.lines = desc, unit, max(1, int(lines))
         self.stream = sys.stderr if stream is None else stream
@@ -77,10 +83,10 @@ class PlainLines(_Silent):
             return self.lines
         return min(self.lines, int(self.lines * self.n / self.total + 1e-9))
 
-    def set_postfix(self, refresh=True, **values):
+    def set_postfix(self, refresh: bool = True, **values: object) -> None:
         self.postfix = ", ".join(f"{k} {v}" for k, v in values.items())
 
-    def update(self, n=1):
+    def update(self, n: float = 1) -> None:
         self.n += n
         step = self._step()
         if step > self.reported:

@@ -60,7 +60,7 @@ class RangeIndex:
         st.speed_high_water_mps = float(speeds.max()) if st.n else 0.0
         self.rebuilds += 1
 
-    def within(self, t: float, i: int, radius_m: float | None = None):
+    def within(self, t: float, i: int, radius_m: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Robots other than ``i`` within ``radius_m`` (default: i's range) of ``i`` at ``t``.
 
         Returns ``(ids, distances_m)``, ids ascending.

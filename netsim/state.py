@@ -9,6 +9,8 @@ leg is logged, which is what exact link events and ns-2 export are computed from
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pandas as pd
 
@@ -25,7 +27,7 @@ class RobotState:
         torus (minimum image).
     """
 
-    def __init__(self, n: int, side_m: float, range_m, torus: bool = False):
+    def __init__(self, n: int, side_m: float, range_m: float | Sequence[float] | np.ndarray, torus: bool = False):
         self.n = int(n)
         self.side_m = float(side_m)
         self.torus = bool(torus)
@@ -45,7 +47,7 @@ class RobotState:
         self._legs: list[tuple] = []
 
     # -- positions -------------------------------------------------------------------
-    def positions_at(self, t: float, idx=None) -> np.ndarray:
+    def positions_at(self, t: float, idx: int | Sequence[int] | np.ndarray | None = None) -> np.ndarray:
         """Positions at time ``t`` (all robots, or rows ``idx``), shape ``(k, 2)``.
 
         ``t`` must not be before the start of a robot's current leg.
@@ -85,7 +87,13 @@ class RobotState:
         self.t0_s[:] = 0.0
         self._legs = [(0.0, i, x, y, 0.0, 0.0) for i, (x, y) in enumerate(positions_m.tolist())]
 
-    def set_leg(self, i: int, t: float, velocity_mps, start_m=None) -> None:
+    def set_leg(
+        self,
+        i: int,
+        t: float,
+        velocity_mps: Sequence[float] | np.ndarray,
+        start_m: Sequence[float] | np.ndarray | None = None,
+    ) -> None:
         """Robot ``i`` starts a new straight leg at time ``t`` with ``velocity_mps``.
 
         The leg starts where the robot is (continuous motion) unless ``start_m`` is given,
@@ -105,7 +113,7 @@ class RobotState:
             self.speed_high_water_mps = speed
         self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy))
 
-    def head_to(self, i: int, t: float, dest_m, speed_mps: float) -> float:
+    def head_to(self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, speed_mps: float) -> float:
         """Move ``i`` in a straight line toward ``dest_m`` at ``speed_mps``.
 
         Returns the travel time (0 when already there or when the speed is 0, in which
@@ -120,7 +128,7 @@ class RobotState:
         self.set_leg(i, t, delta * (speed_mps / dist))
         return dist / speed_mps
 
-    def arrive(self, i: int, t: float, dest_m, log: bool = True) -> None:
+    def arrive(self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, log: bool = True) -> None:
         """Stop ``i`` exactly at ``dest_m`` (removes rounding from the leg's end).
 
         ``log=False`` when the robot leaves again at the same instant: the stop would be

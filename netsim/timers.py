@@ -43,7 +43,7 @@ class DeadlineTimers:
         self._armed_s = np.full(n, np.inf)
         self._generation = np.zeros(n, dtype=np.int64)
 
-    def restart(self, idx, deadline_s) -> None:
+    def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
         """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
         idx = np.atleast_1d(np.asarray(idx, dtype=np.int64))
         deadline = np.broadcast_to(np.asarray(deadline_s, dtype=float), idx.shape)
@@ -53,7 +53,7 @@ class DeadlineTimers:
             for i, d in zip(idx[early].tolist(), deadline[early].tolist()):
                 self._arm(i, d)
 
-    def cancel(self, idx) -> None:
+    def cancel(self, idx: int | np.ndarray) -> None:
         self.deadline_s[idx] = np.inf
 
     def _arm(self, i: int, at_s: float) -> None:

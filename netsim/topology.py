@@ -10,7 +10,9 @@ from netsim.groups import GroupView
 from netsim.state import RobotState
 
 
-def geometric_pairs(positions_m: np.ndarray, range_m, side_m: float | None = None, directed: bool = False):
+def geometric_pairs(
+    positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None, directed: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pairs of robots in range as arrays ``(i, j, distance_m)``, sorted by ``(i, j)``.
 
     Undirected (default): ``i < j`` and ``d <= min(r_i, r_j)``, the links on which both
@@ -55,7 +57,9 @@ def geometric_pairs(positions_m: np.ndarray, range_m, side_m: float | None = Non
     return i[order], j[order], dist[order]
 
 
-def geometric_edges(positions_m: np.ndarray, range_m, side_m: float | None = None, directed: bool = False):
+def geometric_edges(
+    positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None, directed: bool = False
+) -> list[tuple[int, int, float]]:
     """:func:`geometric_pairs` as a list of ``(i, j, distance_m)`` tuples.
 
     >>> geometric_edges(np.array([[0., 0.], [3., 4.], [20., 0.]]), 5.0)
@@ -83,6 +87,6 @@ def snapshot(state: RobotState, t: float, directed: bool = False, groups: GroupV
         for i, (code, leader) in enumerate(zip(groups.role.tolist(), groups.leader.tolist())):
             g.nodes[i].update(role=groups.role_names[code], leader=int(leader))
     side = state.side_m if state.torus else None
-    i, j, d = geometric_pairs(pos, state.range_m, side, directed)
-    g.add_weighted_edges_from(zip(i.tolist(), j.tolist(), d.tolist()), weight="distance")
+    i, j, d = geometric_pairs(pos, state.range_m, side, directed)  # type: ignore[assignment]  # i: a node id above
+    g.add_weighted_edges_from(zip(i.tolist(), j.tolist(), d.tolist()), weight="distance")  # type: ignore[attr-defined]
     return g

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 
@@ -47,7 +48,9 @@ class LegTable:
         return lo + int(np.searchsorted(self.t[lo:hi], t, "right")) - 1
 
 
-def sample_positions(legs: pd.DataFrame, n: int, times_s, side_m=None, torus=False) -> pd.DataFrame:
+def sample_positions(
+    legs: pd.DataFrame, n: int, times_s: npt.ArrayLike, side_m: float | None = None, torus: bool = False
+) -> pd.DataFrame:
     """Positions of every robot at each of ``times_s`` (ascending): ``t_s, robot, x_m, y_m``."""
     table = LegTable(legs, n)
     times_s = np.asarray(times_s, dtype=float)
@@ -56,7 +59,7 @@ def sample_positions(legs: pd.DataFrame, n: int, times_s, side_m=None, torus=Fal
         table.advance(t)
         xy[k] = table.at(table.cur, t)
     if torus:
-        xy = np.mod(xy, side_m)
+        xy = np.mod(xy, side_m)  # type: ignore[arg-type]  # side_m is given with torus
     return pd.DataFrame(
         {
             "t_s": np.repeat(times_s, n),
