@@ -55,7 +55,7 @@ class Channel:
         self,
         env: simpy.Environment,
         state: RobotState,
-        survives: Callable[[int, np.ndarray, np.ndarray], np.ndarray],
+        survives: Callable[[int, np.ndarray, np.ndarray], np.ndarray | None],
         latency_s: float,
         latency_jitter_s: float = 0.0,
         latency_rng: np.random.Generator | None = None,
@@ -118,6 +118,7 @@ class Channel:
         if len(receivers) == 0:
             return receivers
         if self.latency_jitter_s > 0:
+            assert self.latency_rng is not None  # checked when built
             delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
             for r, delay in zip(receivers.tolist(), delays.tolist()):
                 self._at(delay, deliver, sender, np.array([r]), payload, c)

@@ -116,7 +116,7 @@ class ControlLoop:
         self._registered: set[str] = set()
         self.steps = 0
         self.stopped = False
-        self._process = None
+        self._process: simpy.Process | None = None
 
     def add(self, controller: Controller, order: int = 50) -> None:
         self._controllers.append((order, len(self._controllers), controller))

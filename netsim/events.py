@@ -32,5 +32,5 @@ def scheduled_event(
     ev._value = None
     if callback is not None:
         ev.callbacks.append(callback)
-    env.schedule(ev, priority, delay_s)
+    env.schedule(ev, priority, delay_s)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
     return ev

@@ -26,7 +26,7 @@ class BernoulliLoss:
         self.p = float(p)
         self.rng = rng
 
-    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray | None:
         if self.p == 0.0:
             return None
         return self.rng.random(len(receivers)) >= self.p

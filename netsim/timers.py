@@ -15,6 +15,7 @@ Ack that arrives at the same instant as a deadline is processed first and counts
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 import simpy
@@ -60,7 +61,10 @@ class DeadlineTimers:
         self._generation[i] += 1
         self._armed_s[i] = at_s
         gen = int(self._generation[i])
-        scheduled_event(self.env, max(0.0, at_s - self.env.now), NORMAL, lambda _e, i=i, gen=gen: self._fire(i, gen))
+        scheduled_event(self.env, max(0.0, at_s - self.env.now), NORMAL, partial(self._fire_event, i, gen))
+
+    def _fire_event(self, i: int, gen: int, _event: object) -> None:
+        self._fire(i, gen)
 
     def _fire(self, i: int, gen: int) -> None:
         if gen != self._generation[i]:

@@ -13,7 +13,7 @@ import pandas as pd
 
 
 class Trace:
-    def __init__(self):
+    def __init__(self) -> None:
         self._records: dict[str, tuple[type, list]] = {}
         self._frame_builders: dict[str, Callable[[], pd.DataFrame]] = {}
 
@@ -36,7 +36,7 @@ class Trace:
         if name in self._frame_builders:
             return self._frame_builders[name]()
         record_type, rows = self._records[name]
-        return pd.DataFrame(rows, columns=list(record_type._fields))
+        return pd.DataFrame(rows, columns=list(record_type._fields))  # type: ignore[attr-defined]  # a NamedTuple
 
     def names(self) -> list[str]:
         return sorted(set(self._records) | set(self._frame_builders))

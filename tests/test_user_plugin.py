@@ -49,7 +49,9 @@ def test_the_cli_runs_a_user_plugin_with_its_own_section(tmp_path):
 def test_the_plugin_key_changes_what_it_records(tmp_path):
     counts = []
     for d in (1e-3, 30):
-        code, _, err = cli("run", *SCENARIO, "--set", f"separation.min_distance_m={d}", "--out", tmp_path / str(d), "--quiet")
+        code, _, err = cli(
+            "run", *SCENARIO, "--set", f"separation.min_distance_m={d}", "--out", tmp_path / str(d), "--quiet"
+        )
         assert code == 0, err
         counts.append(pd.read_parquet(tmp_path / str(d) / "too_close.parquet")["pairs"].sum())
     assert counts[0] < counts[1]
