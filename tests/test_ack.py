@@ -108,6 +108,7 @@ def test_expired_slot_is_reused_and_live_since_restarts():
 
 
 @pytest.mark.parametrize("p", [0.0, 0.3])
+@pytest.mark.slow
 def test_discovery_delay_of_a_new_link(p):
     """Item 8: a link that appears at a random beacon phase is discovered after
     T_b / 2 + T_b p / (1 - p) on average."""

@@ -37,6 +37,7 @@ def check_independent_dominating(sim, range_m):
 
 @pytest.mark.parametrize("n", [20, 80, 250])
 @pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.slow
 def test_static_deployment_converges_to_independent_dominating_leaders(n, seed):
     """Item 13: no loss, static: leaders form an independent dominating set, nobody undecided."""
     side = 10.0 * math.sqrt(n * math.pi / 6)  # mean degree about 6
@@ -111,6 +112,7 @@ def test_merging_settles_for_every_latency_jitter_and_range_mix(seed, latency_s,
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(min_value=2, max_value=40), st.floats(min_value=5.0, max_value=40.0), st.integers(0, 2**31 - 1))
+@pytest.mark.slow
 def test_property_random_static_topologies(n, side, seed):
     """Hypothesis: on any static topology the invariants of item 13 hold at the end, and at
     every sampled instant no member's leader is missing from its live neighbours."""
@@ -224,6 +226,7 @@ def test_strict_backbone_can_miss_what_distributed_gateways_reach():
         assert bool(stack.messages_frame().delivered.iloc[0]) is expect
 
 
+@pytest.mark.slow
 def test_delivery_ratio_falls_with_loss():
     pos = connected_positions(60, 5, 45.0)
     ratios = []

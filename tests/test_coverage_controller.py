@@ -158,12 +158,14 @@ def test_alternative_laws_spread_leaders_and_keep_connectivity(law):
     assert s["spacing_median_ratio_final"] >= 0.9
 
 
+@pytest.mark.slow
 def test_global_knowledge_mode_also_converges():
     r = coverage_run(40, 5, **{"coverage.knowledge": "global"})
     assert abs(r.summary["spacing_median_ratio_final"] - 1.0) <= 0.10
     assert (r.frames["control"]["components"] == 1).all()
 
 
+@pytest.mark.slow
 def test_stopping_rule_ends_control_and_robots_stay_still():
     """Once every leader's force has asked for less than stop_speed_mps for stop_hold_s,
     control ends and nobody moves any more."""
@@ -177,6 +179,7 @@ def test_stopping_rule_ends_control_and_robots_stay_still():
     assert (last[["vx_mps", "vy_mps"]] == 0).all().all()
 
 
+@pytest.mark.slow
 def test_members_that_miss_their_command_hold():
     """Commands go over the lossy channel; a member that misses one stays put that step."""
     r = coverage_run(40, 2, **{"channel.loss_probability": 0.3})
@@ -185,6 +188,7 @@ def test_members_that_miss_their_command_hold():
     assert r.summary["covered_fraction_leaders_final"] > r.summary["covered_fraction_leaders_start"]
 
 
+@pytest.mark.slow
 def test_coverage_metrics_are_sampled_over_time():
     r = coverage_run(40, 1)
     cov = r.frames["coverage"]
@@ -226,6 +230,7 @@ def test_follow_mode_reproduces_the_paper_faithful_controller(seed):
     assert plan.bridges == int(ref[f"b{seed}"])
 
 
+@pytest.mark.slow
 def test_same_seed_same_coverage_trace():
     a, b = coverage_run(30, 7), coverage_run(30, 7)
     assert a.sim.state.legs().equals(b.sim.state.legs())
@@ -259,6 +264,7 @@ def test_bad_coverage_configuration_names_the_key(overrides, key):
     assert err.value.key == key
 
 
+@pytest.mark.slow
 def test_figures_command_runs_the_coverage_scenario_and_draws_three_pngs(tmp_path):
     from netsim.tools.cli import main
 

@@ -205,6 +205,7 @@ def test_the_whole_team_spreads_and_stays_connected(n, seed, side):
     assert_settled_hierarchy(r.sim)
 
 
+@pytest.mark.slow
 def test_under_loss_members_that_miss_a_command_hold_and_no_link_is_lost():
     """With 30 % of receptions lost, commands are missed (those members hold); each end
     of a kept link keeps to its own half, so the network stays in one component."""
@@ -216,6 +217,7 @@ def test_under_loss_members_that_miss_a_command_hold_and_no_link_is_lost():
     assert r.summary["covered_fraction_all_final"] > 1.5 * r.summary["covered_fraction_all_start"]
 
 
+@pytest.mark.slow
 def test_control_stops_when_coverage_stops_growing():
     """The stopping rule: over the last stop_hold_s the covered fraction of the bound rose
     less than stop_gain; then nobody moves."""
@@ -232,12 +234,14 @@ def test_control_stops_when_coverage_stops_growing():
     assert r.frames["coverage"]["distance_mean_m"].iloc[-1] == pytest.approx(r.frames["travel"]["distance_m"].mean())
 
 
+@pytest.mark.slow
 def test_global_knowledge_spreads_too():
     r = spread_run(30, 6, 800.0, duration=200, **{"coverage.knowledge": "global"})
     assert (r.frames["control"]["components"] == 1).all()
     assert r.summary["covered_fraction_all_final"] > 2 * r.summary["covered_fraction_all_start"]
 
 
+@pytest.mark.slow
 def test_same_seed_same_spread():
     a, b = (spread_run(20, 7, 600.0, duration=60) for _ in range(2))
     assert a.sim.state.legs().equals(b.sim.state.legs())

@@ -37,6 +37,7 @@ CASES = [
 
 
 @pytest.mark.parametrize("script", [case[0] for case in CASES])
+@pytest.mark.slow
 def test_a_bad_scheduler_is_one_line_exit_2_nothing_written(tmp_path, script):
     out = tmp_path / "out"
     run = subprocess.run(
@@ -51,6 +52,7 @@ def test_a_bad_scheduler_is_one_line_exit_2_nothing_written(tmp_path, script):
 
 
 @pytest.mark.parametrize("script, args, csv", CASES)
+@pytest.mark.slow
 def test_experiment_writes_csv_and_png(tmp_path, script, args, csv):
     run = subprocess.run(
         [sys.executable, str(ROOT / "experiments" / script), *args, "--workers", "1", "--out", str(tmp_path)],

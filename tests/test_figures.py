@@ -32,6 +32,7 @@ def waypoint_run(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_figures_of_a_run_without_coverage_say_what_they_cannot_show(waypoint_run, tmp_path, capsys):
     """Paths are drawn for any mobility model; at t = 0 nobody has a group yet, and a run
     without coverage has no coverage disks: each is said in one line."""
@@ -45,6 +46,7 @@ def test_figures_of_a_run_without_coverage_say_what_they_cannot_show(waypoint_ru
         assert (tmp_path / name).read_bytes()[:8] == PNG
 
 
+@pytest.mark.slow
 def test_figures_at_a_chosen_time(waypoint_run, tmp_path, capsys):
     assert main(["figures", str(waypoint_run), "--out", str(tmp_path), "--at", "20"]) == 0
     assert "undecided" not in capsys.readouterr().out

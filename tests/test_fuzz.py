@@ -176,12 +176,14 @@ def check_config_file(text):
 
 @QUICK
 @given(st.one_of(mutate(CONFIG_SEEDS), st.text(FUZZ_CHARS, max_size=200)))
+@pytest.mark.slow
 def test_fuzz_config_file(text):
     check_config_file(text)
 
 
 @QUICK
 @given(config_trees())
+@pytest.mark.slow
 def test_fuzz_config_tables(tree):
     try:
         text = tomli_w.dumps(tree)
@@ -235,6 +237,7 @@ def check_set(options):
 
 @QUICK
 @given(st.lists(st.one_of(set_options(), st.text(FUZZ_CHARS, max_size=30)), min_size=1, max_size=3))
+@pytest.mark.slow
 def test_fuzz_set_options(options):
     check_set(options)
 
@@ -277,6 +280,7 @@ TRACE_TOKENS = ODD_VALUES + ["$node_(99999)", "$node_(-1)", "$node_(2)", "setdes
 @given(
     st.one_of(mutate(TRACE_SEEDS, TRACE_TOKENS), st.text(FUZZ_CHARS, max_size=120)), st.sampled_from([None, 1, 2, 3])
 )
+@pytest.mark.slow
 def test_fuzz_trace(text, n_robots):
     check_trace(text, n_robots)
 
@@ -320,6 +324,7 @@ CSV_TOKENS = ODD_VALUES + ["x_m", "y_m", "z_m", ",", ";", '"', "\t", "NA", "", "
     st.one_of(mutate(CSV_SEEDS, CSV_TOKENS), st.text(FUZZ_CHARS, max_size=60), st.binary(max_size=60)),
     st.sampled_from([1, 2, 3]),
 )
+@pytest.mark.slow
 def test_fuzz_placement_csv(data, n):
     check_placement(data, n)
 
@@ -448,6 +453,7 @@ def test_random_sweep_with_every_edge_range(low):
 
 @QUICK
 @given(sweep_trees())
+@pytest.mark.slow
 def test_fuzz_sweep_tables(tree):
     check_sweep_tree(tree)
 
@@ -461,6 +467,7 @@ def test_fuzz_sweep_tables_thoroughly(tree):
 
 @QUICK
 @given(st.one_of(mutate(SWEEP_SEEDS, SWEEP_TOKENS), st.text(FUZZ_CHARS, max_size=120)))
+@pytest.mark.slow
 def test_fuzz_sweep_file(text):
     check_sweep(text)
 

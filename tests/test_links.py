@@ -72,6 +72,7 @@ def test_link_times_exact_across_course_changes():
 
 
 @pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.slow
 def test_link_times_independent_of_window_and_match_brute_force(seed):
     """Item 7: random trajectories; every event agrees with a dense brute-force check,
     and every computed up/down time has its pair at distance R to 1e-6 m."""
@@ -238,6 +239,7 @@ def test_small_torus_every_image_counts():
     "seed, side, torus, window_s",
     [(1, 60.0, False, None), (2, 60.0, False, 0.7), (3, 41.0, True, None), (4, 41.0, True, 3.0), (5, 80.0, True, 0.2)],
 )
+@pytest.mark.slow
 def test_jumps_and_tori_match_brute_force_for_any_window(seed, side, torus, window_s):
     """Random trajectories with jumps, unequal ranges, bounded or toroidal (down to a side
     just above twice the largest range): linked at an instant iff some lifetime covers it,

@@ -26,6 +26,7 @@ def test_missing_user_module_is_a_clear_error():
         plugins.resolve(plugins.MOBILITY, "no_such_module_xyz:install", "mobility.model")
 
 
+@pytest.mark.slow
 def test_user_mobility_model_from_the_current_directory(tmp_path):
     """The README's example: a module in the working directory, named on the command line."""
     (tmp_path / "mymodels_readme.py").write_text(

@@ -101,6 +101,7 @@ def test_time_average_speed_over_a_run(pause_s):
     assert abs(first.mean() - second.mean()) < 4 * math.sqrt(2) * se
 
 
+@pytest.mark.slow
 def test_mean_leg_length_in_a_run():
     """Item 2: legs drawn during a run average 0.521405 a."""
     side, n = 100.0, 300
@@ -119,6 +120,7 @@ def test_mean_leg_length_in_a_run():
     assert abs(lengths.mean() - MEAN_LEG_UNIT_SQUARE * side) < 4 * se
 
 
+@pytest.mark.slow
 def test_positions_stay_stationary_during_a_run():
     """Item 3 over time: the spatial density at t = 300 s equals the stationary one."""
     n, side = 20_000, 1.0

@@ -157,6 +157,7 @@ def moving_run(tmp_path_factory):
 
 
 # -- tests ---------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_drawn_positions_roles_and_links_equal_the_files(moving_run, open_page):
     """After seeking, forward and back, the page's robots sit at the exact positions of
     their legs, with the roles of roles.parquet, and it draws the links up at that instant."""
@@ -207,6 +208,7 @@ def test_relayed_messages_are_drawn_as_they_hop(moving_run, open_page):
     assert expected > 0
 
 
+@pytest.mark.slow
 def test_screenshot_is_not_blank(moving_run, open_page):
     from PIL import Image
 
@@ -239,6 +241,7 @@ def test_hover_shows_id_role_leader_and_neighbours(moving_run, open_page):
     assert "believed at t = 30 s:" in tip
 
 
+@pytest.mark.slow
 def test_coverage_run(tmp_path, open_page):
     """A coverage run: leaders move under the control loop, the chart has the covered
     fraction, and the coverage disks are drawn on demand."""
@@ -269,6 +272,7 @@ def test_coverage_run(tmp_path, open_page):
     assert ink("leaders") > 2 * ink("off")
 
 
+@pytest.mark.slow
 def test_one_robot_run(tmp_path, open_page):
     """One robot (and no message traffic: there is nobody to send to)."""
     run = _run(tmp_path / "one", "world.n_robots=1", "protocol.message_rate_hz=0", "duration_s=20")
@@ -278,6 +282,7 @@ def test_one_robot_run(tmp_path, open_page):
     assert page.js("netsimView.roles()") == ["alpha"]
 
 
+@pytest.mark.slow
 def test_torus_positions_wrap(tmp_path, open_page):
     """On a torus the drawn positions wrap into the square (this run has no protocol:
     no roles, no messages)."""
@@ -300,6 +305,7 @@ def test_torus_positions_wrap(tmp_path, open_page):
         assert ((drawn >= 0) & (drawn < 400)).all()
 
 
+@pytest.mark.slow
 def test_older_run_without_legs_uses_the_sampled_positions(moving_run, tmp_path, open_page):
     old = tmp_path / "old"
     shutil.copytree(moving_run, old)
@@ -314,6 +320,7 @@ def test_older_run_without_legs_uses_the_sampled_positions(moving_run, tmp_path,
     np.testing.assert_allclose(np.array(page.js("netsimView.positions()")), sample, atol=1e-3)
 
 
+@pytest.mark.slow
 def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
     """The map slot: an occupancy grid's occupied cells are drawn in the wall colour."""
     occupied = np.zeros((60, 60), dtype=bool)

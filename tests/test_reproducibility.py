@@ -3,6 +3,7 @@
 import json
 
 import pandas as pd
+import pytest
 
 from netsim.tools.cli import main
 
@@ -25,12 +26,14 @@ def test_same_seed_gives_identical_files(tmp_path):
     assert sa == sb
 
 
+@pytest.mark.slow
 def test_other_seed_gives_other_results(tmp_path):
     a, b = _run(tmp_path, "a", "--seed", "7"), _run(tmp_path, "b", "--seed", "8")
     for name in ("positions", "links", "acks"):
         assert not pd.read_parquet(a / f"{name}.parquet").equals(pd.read_parquet(b / f"{name}.parquet")), name
 
 
+@pytest.mark.slow
 def test_protocol_parameters_leave_positions_unchanged(tmp_path):
     a = _run(tmp_path, "a", "--seed", "7")
     b = _run(

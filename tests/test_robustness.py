@@ -204,6 +204,7 @@ def test_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, capfd, a
     assert not (out / "sweep.json").exists()
 
 
+@pytest.mark.slow
 def test_scheduler_refusal_from_the_console_script_is_one_line(tmp_path):
     """As a user sees it: a separate process, its whole standard error."""
     (tmp_path / "s.toml").write_text(SWEEP)
@@ -362,6 +363,7 @@ def test_progress_in_a_log_file_is_a_few_plain_lines():
     assert [line.split(": ")[1].split("%")[0] for line in lines] == ["25", "50", "75", "100"]
 
 
+@pytest.mark.slow
 def test_simulation_progress_goes_to_standard_error_as_lines_when_not_a_terminal(tmp_path):
     run = subprocess.run(
         [sys.executable, "-m", "netsim.tools.cli", "run", "--out", "o", *SMALL, "--set", "duration_s=100"],

@@ -64,6 +64,7 @@ def test_random_points_are_reproducible_and_keep_integers():
     assert all(0.0 <= p["channel.loss_probability"] <= 0.5 for p in a)
 
 
+@pytest.mark.slow
 def test_local_pool_and_dask_give_identical_frames(tmp_path):
     from distributed import Client, LocalCluster
 
@@ -89,6 +90,7 @@ def test_local_pool_and_dask_give_identical_frames(tmp_path):
     pd.testing.assert_frame_equal(links_a.reset_index(drop=True), links_b.reset_index(drop=True))
 
 
+@pytest.mark.slow
 def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
     """The sweep process is killed (SIGKILL, by one of its pool's runs) half-way; started again
     it skips the finished runs and ends with each run exactly once, as an uninterrupted
