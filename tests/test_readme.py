@@ -52,6 +52,22 @@ REDUCED = {
         f"cd {shlex.quote(str(ROOT))} && {PY} -m pytest -q --collect-only -p no:cacheprovider",
         "the suite cannot run itself: it is collected (every test module imports)",
     ),
+    '.venv/bin/python -m pytest -q -m "not slow"   # the quick loop: every test under about a second': (
+        f"cd {shlex.quote(str(ROOT))} && {PY} -m pytest -q -m 'not slow' --collect-only -p no:cacheprovider",
+        "the suite cannot run itself: the quick loop is collected",
+    ),
+    ".venv/bin/ruff check . && .venv/bin/ruff format --check . && .venv/bin/mypy": (
+        f"cd {shlex.quote(str(ROOT))} && {PY} -m ruff check . && {PY} -m ruff format --check . && {PY} -m mypy",
+        "run on the repository (the README is read from there)",
+    ),
+    ".venv/bin/python benchmarks/output_digest.py --write before.json   # before the change": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'output_digest.py'))} --write before.json --only static_grid",
+        "one scenario instead of all",
+    ),
+    ".venv/bin/python benchmarks/output_digest.py --check before.json   # after: identical, or which tables differ": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'output_digest.py'))} --check before.json --only static_grid",
+        "one scenario instead of all",
+    ),
     "netsim figures": (
         "netsim figures --set duration_s=60",
         "the built-in coverage scenario, 60 simulated seconds instead of 300",
