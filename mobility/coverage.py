@@ -118,15 +118,27 @@ class CoverageParams(Params):
         None,
         "'spread': every robot is pushed apart, a spanning forest kept; 'follow': members follow their leader",
     )
-    law: Law = param(Law.SPRING, None, "force law between neighbouring leaders")
-    knowledge: Knowledge = param(Knowledge.ACKS, None, "leaders' positions: as heard in Acks (stale), or the true ones")
+    law: Law = param(Law.SPRING, None, "force law between neighbouring robots (follow: between leaders)")
+    knowledge: Knowledge = param(
+        Knowledge.ACKS, None, "positions the forces use: as heard in Acks (stale), or the true ones"
+    )
     control_period_s: float = param(1.0, positive, "time between control steps, s (also for control.controllers)")
     start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
-    gain: float = param(0.1, positive, "a leader's velocity is gain x resultant force, 1/s (forces in metres)")
+    gain: float = param(
+        0.1,
+        positive,
+        "a controlled robot's velocity (follow: a leader's) is gain x resultant force, 1/s (forces in metres)",
+    )
     speed_max_mps: float = param(2.0, positive, "speed cap of every controlled robot, m/s")
     margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")
-    stop_speed_mps: float = param(0.02, non_negative, "a leader whose force asks for less than this holds, m/s")
-    stop_hold_s: float = param(20.0, positive, "control ends once every leader has held this long, s")
+    stop_speed_mps: float = param(
+        0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
+    )
+    stop_hold_s: float = param(
+        20.0,
+        positive,
+        "stopping rule's window: all leaders held (follow), or too little gain or motion (spread), s",
+    )
     stop_gain: float = param(
         0.002, non_negative, "spread: control ends once coverage gains less than this in stop_hold_s (0: off)"
     )

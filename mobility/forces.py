@@ -1,8 +1,9 @@
-"""Virtual-force laws between leaders (paper section 1.4; docs/model.md section 5).
+"""Virtual-force laws (paper section 1.4; docs/model.md section 5).
 
-A leader ``i`` feels from each neighbouring leader ``j`` at distance ``d < 2 r_c`` a force
-along the line from ``j`` to ``i`` of signed magnitude ``f(d)`` (positive: repulsive, away
-from ``j``), and nothing from leaders ``2 r_c`` or more away. The target spacing is
+A robot ``i`` feels from each neighbouring robot ``j`` at distance ``d < 2 r_c`` (in the
+paper's controller, "follow", leaders only) a force along the line from ``j`` to ``i`` of
+signed magnitude ``f(d)`` (positive: repulsive, away from ``j``), and nothing from robots
+``2 r_c`` or more away. The target spacing is
 ``sqrt(3) r_c``: the hexagonal lattice of disks of radius ``r_c`` covers the plane with the
 least overlap, and a gateway at the midpoint of two leaders keeps them connected.
 

@@ -29,8 +29,7 @@ Timers are exact: a member's deadline is ``tau`` after the last two-way Ack from
 leader; an undecided robot's is ``tau`` after it became undecided or last heard a leader
 over a two-way link (one-way links are not links). Deliveries precede timers due at the
 same instant, so an Ack arriving exactly at a deadline counts, and so do Acks sent at
-that instant (sends too run ahead of timers); but a robot's own deadline due at the
-instant of its own Ack is applied before the Ack is built, so the Ack tells the new role.
+that instant (sends too run ahead of timers), always.
 """
 
 from __future__ import annotations
