@@ -16,7 +16,7 @@ from scipy.sparse import csr_matrix
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import geometric_pairs
-from protocols.ack import ACKS_SCHEMA, AckBeacon, AckParams, check_tau
+from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from protocols.neighbours import LAST_HEARD, ROLE, X, Y
 from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
@@ -333,6 +333,7 @@ PLUGIN = PluginSpec(
     tables={
         "roles": ROLES_SCHEMA,
         "acks": ACKS_SCHEMA,
+        "ack_delivery": ACK_DELIVERY_SCHEMA,
         "groups": GROUPS_SCHEMA,
         "beliefs": BELIEFS_SCHEMA,
         "messages": MESSAGES_SCHEMA,
