@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.tools import palette, viewer
+from netsim.tools import style, viewer
 from netsim.tools.cli import main
 
 CHROMIUM = "/usr/bin/chromium"
@@ -215,7 +215,7 @@ def test_screenshot_is_not_blank(moving_run, open_page):
     png = page.page.locator("#field").screenshot()
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).reshape(-1, 3)
     colours = {tuple(c) for c in np.unique(img, axis=0).tolist()}
-    group = {tuple(int(h[k : k + 2], 16) for k in (1, 3, 5)) for h in palette.GROUP_COLOURS}
+    group = {tuple(int(h[k : k + 2], 16) for k in (1, 3, 5)) for h in style.GROUP_PALETTE}
     assert (img != 255).any(axis=1).mean() > 0.005  # something is drawn
     assert colours & group  # in the groups' colours
 
@@ -326,7 +326,7 @@ def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
     from PIL import Image
 
     img = np.asarray(Image.open(io.BytesIO(page.page.locator("#field").screenshot())).convert("RGB"))
-    wall = tuple(int(palette.WALL[k : k + 2], 16) for k in (1, 3, 5))
+    wall = tuple(int(style.WALL[k : k + 2], 16) for k in (1, 3, 5))
     robots = np.array(page.js("netsimView.positions()"))
 
     def colours_at(x_m: float) -> list[tuple]:
