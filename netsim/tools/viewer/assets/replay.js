@@ -880,7 +880,7 @@
     } else {
       for (const role of ["alpha", "beta", "gateway", "gamma"]) {
         const st = PAL.roles[role];
-        const s = Math.min(6.5, markerSize(role, 3));
+        const s = Math.min(6.5, markerSize(role, 4));
         // The group colours of the legend: the first two of the palette.
         const fill = st.colour === "group" ? GROUPS[0] : st.colour;
         const edge = st.edge === "group" ? GROUPS[1] : st.edge;
@@ -1091,6 +1091,7 @@
       colours: () => Array.from(model.role, (_, i) => fillOf(i)),
       edges: () => Array.from(model.role, (_, i) => edgeOf(i)),
       palette: () => PAL,
+      series: () => Object.fromEntries(META.series.map((s) => [s.name, seriesAt(s, model.t)])),
       stats: () => ({ drawMs: stats.drawMs.slice(), intervals: stats.intervals.slice() }),
     };
     Object.defineProperties(view, Object.getOwnPropertyDescriptors(api));
