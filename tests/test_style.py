@@ -120,3 +120,26 @@ def test_run_colours_match_the_snapshot_rule_for_one_instant():
     slots = style.run_group_slots(roles, pos, "alpha", 100.0)
     once = style.group_colours(list(leaders), [leaders[i] for i in leaders], 100.0)
     assert {i: style.GROUP_PALETTE[s] for i, s in slots.items()} == once
+
+
+def _colour_of(run_dir: Path) -> np.ndarray:
+    import base64
+    import gzip
+
+    packed = viewer.data.pack(run_dir)
+    raw = gzip.decompress(base64.b64decode(packed["blob"]))
+    code, offset, length = packed["meta"]["arrays"]["colour_of"]
+    assert code == "i16"
+    return np.frombuffer(raw, dtype="<i2", count=length, offset=offset)
+
+
+def test_a_run_without_sampled_positions_is_coloured_at_every_ack_period(tmp_path):
+    """Without positions.parquet the replay decides the colours on the legs at every Ack
+    period: the same colours as the same run sampled every Ack period."""
+    base = ["run", "--quiet", "--set", "world.n_robots=30", "--set", "duration_s=20", "--set", "world.side_m=500"]
+    for name, interval in (("none", "0"), ("every", "1.0")):
+        assert main([*base, "--out", str(tmp_path / name), "--set", f"output.position_interval_s={interval}"]) == 0
+    assert not len(pd.read_parquet(tmp_path / "none" / "positions.parquet"))
+    colours = _colour_of(tmp_path / "none")
+    assert (colours >= 0).sum() > 3 and len(set(colours.tolist())) > 3
+    assert colours.tolist() == _colour_of(tmp_path / "every").tolist()
