@@ -235,19 +235,31 @@ def _colouring_positions(run_dir: Path, config: cfgmod.Config) -> pd.DataFrame:
 
 
 def _pack_neighbour_beliefs(run_dir: Path, nb: pd.DataFrame, times: np.ndarray, n: int, blob: Blob) -> None:
-    """Each robot's neighbours at each beliefs sample, by id: ``nb_first[k * n + i]`` is
-    where robot ``i``'s rows of sample ``k`` start; flags 1: believed, 2: in range."""
-    k = np.searchsorted(times, nb["t_s"].to_numpy(float))
-    if len(nb) and (np.any(k >= len(times)) or np.any(times[np.minimum(k, len(times) - 1)] != nb["t_s"].to_numpy())):
+    """Each robot's neighbours by id at the beliefs samples, as runs: robot ``i``'s runs
+    are ``nb_first[i]`` to ``nb_first[i + 1]``, sorted by neighbour, each one neighbour
+    ``nb_id`` with the same flags (1: believed, 2: in range) from sample ``nb_k0`` to
+    ``nb_k1``. A neighbour table changes far less often than it is sampled: runs take a
+    fraction of the space of the rows."""
+    t = nb["t_s"].to_numpy(float)
+    k = np.searchsorted(times, t)
+    if len(nb) and (np.any(k >= len(times)) or np.any(times[np.minimum(k, len(times) - 1)] != t)):
         raise NetsimInputError(f"{run_dir}/neighbour_beliefs.parquet: sampled at other times than beliefs.parquet")
-    key = k * n + nb["robot"].to_numpy(np.int64)
-    order = np.lexsort((nb["neighbour"].to_numpy(np.int64), key))
-    key = key[order]
-    ids = nb["neighbour"].to_numpy(np.int64)[order]
-    flags = nb["believed"].to_numpy(bool)[order] * 1 + nb["in_range"].to_numpy(bool)[order] * 2
-    blob.add("nb_first", np.searchsorted(key, np.arange(len(times) * n + 1), "left"), "<i4")
-    blob.add("nb_id", ids, _small_uint(ids))
-    blob.add("nb_flags", flags, "u1")
+    robot = nb["robot"].to_numpy(np.int64)
+    other = nb["neighbour"].to_numpy(np.int64)
+    flags = nb["believed"].to_numpy(bool) * 1 + nb["in_range"].to_numpy(bool) * 2
+    order = np.lexsort((k, other, robot))
+    robot, other, k, flags = robot[order], other[order], k[order], flags[order]
+    start = np.ones(len(k), dtype=bool)
+    start[1:] = (
+        (robot[1:] != robot[:-1]) | (other[1:] != other[:-1]) | (k[1:] != k[:-1] + 1) | (flags[1:] != flags[:-1])
+    )
+    first = np.flatnonzero(start)
+    last = np.r_[first[1:], len(k)] - 1
+    blob.add("nb_first", np.searchsorted(robot[first], np.arange(n + 1), "left"), "<i4")
+    blob.add("nb_id", other[first], _small_uint(other))
+    blob.add("nb_k0", k[first], _small_uint(k))
+    blob.add("nb_k1", k[last], _small_uint(k))
+    blob.add("nb_flags", flags[first], "u1")
 
 
 def _empty_links() -> pd.DataFrame:

@@ -615,8 +615,8 @@
     const k = lastAtOrBefore(A.bel_t, model.t);
     if (k < 0) return null;
     const out = { t: A.bel_t[k], believed: [], inRange: [], stale: [], missing: [] };
-    const at = k * model.n + i;
-    for (let r = A.nb_first[at]; r < A.nb_first[at + 1]; r++) {
+    for (let r = A.nb_first[i]; r < A.nb_first[i + 1]; r++) {
+      if (A.nb_k0[r] > k || A.nb_k1[r] < k) continue;
       const j = A.nb_id[r], f = A.nb_flags[r];
       if (f & 1) out.believed.push(j);
       if (f & 2) out.inRange.push(j);
