@@ -494,3 +494,21 @@ def test_the_form_shows_the_command_for_another_scenario(moving_run, open_page):
     command = page.page.inner_text("#command")
     assert "--set world.n_robots=120" in command and "--set mobility.speed_max_mps=2.5" in command
     assert "--seed 3" in command and command.rstrip().endswith("--view")
+
+
+def test_a_run_without_roles_is_drawn_as_in_the_figures(tmp_path, open_page):
+    """The Ack beacon alone: no roles, so plain grey dots in both drawings; the chart
+    still has the Ack delivery ratio."""
+    from netsim.tools import figures
+
+    run = _run(tmp_path / "ack", "protocol.model=ack", "world.n_robots=12", "duration_s=20")
+    snap = figures.snapshot(figures.read_run(run), 10.0)
+    assert set(snap.role) == {"none"}
+    page = open_page(run / "view.html")
+    page.js("netsimView.seek(10)")
+    assert page.js("netsimView.shapes()") == ["none"] * 12
+    assert page.js("netsimView.colours()") == [style.ROLE_STYLE["none"]["colour"]] * 12
+    assert page.js("netsimView.edges()") == [""] * 12
+    assert "robot (no roles)" in page.page.locator("#legend").inner_text()
+    d = pd.read_parquet(run / "ack_delivery.parquet")
+    assert page.js("netsimView.series()")["ack_delivery"] == d.loc[d["t_s"] <= 10, "delivery_ratio"].iloc[-1]

@@ -61,7 +61,7 @@ class Run(NamedTuple):
 class Snapshot(NamedTuple):
     t_s: float
     pos: np.ndarray  # (N, 2)
-    role: np.ndarray  # "alpha" | "beta" | "gamma"
+    role: np.ndarray  # "alpha" | "beta" | "gamma"; "none" in a run without roles
     leader: np.ndarray
     other_group: np.ndarray  # a gateway's other group (-1: not a gateway)
 
@@ -99,10 +99,12 @@ def snapshot(run: Run, t: float) -> Snapshot:
     r = run.roles[run.roles["t_s"] <= when + 1e-9].reset_index(drop=True)
     r["order"] = np.arange(len(r))
     last = r.sort_values(["robot", "t_s", "order"]).groupby("robot").tail(1)
-    role = np.full(n, "gamma", dtype=object)
+    role = np.full(n, "gamma" if run.config.protocol.plugin.role_labels else "none", dtype=object)
     leader = np.full(n, -1)
-    role[last["robot"].to_numpy()] = last["role"].to_numpy()
-    leader[last["robot"].to_numpy()] = last["leader"].to_numpy()
+    # (An empty roles table reads back with float columns.)
+    robots = last["robot"].to_numpy(np.int64)
+    role[robots] = last["role"].to_numpy()
+    leader[robots] = last["leader"].to_numpy(np.int64)
     other = np.full(n, -1)
     if run.groups is not None and not run.groups.empty:
         g = style.other_group(run.groups[run.groups["t_s"] == _sample_time(run.groups, when)])
@@ -162,16 +164,17 @@ def draw_deployment(ax, snap: Snapshot, colours: dict[int, str], range_m: float,
             zorder=3,
             label=s["gateway"]["label"],
         )
-    und = np.flatnonzero(role == "gamma")
-    if len(und):
-        ax.scatter(
-            *pos[und].T,
-            s=s["gamma"]["size"],
-            marker=s["gamma"]["marker"],
-            c=s["gamma"]["colour"],
-            zorder=2,
-            label=s["gamma"]["label"],
-        )
+    for plain in ("gamma", "none"):
+        some = np.flatnonzero(role == plain)
+        if len(some):
+            ax.scatter(
+                *pos[some].T,
+                s=s[plain]["size"],
+                marker=s[plain]["marker"],
+                c=s[plain]["colour"],
+                zorder=2,
+                label=s[plain]["label"],
+            )
     lead = np.flatnonzero(role == "alpha")
     if len(lead):
         ax.scatter(
@@ -222,43 +225,39 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
     group_of = np.where(end.role == "alpha", np.arange(n), end.leader)
     colour = [_colour(colours, g) for g in group_of]
     lead = end.role == "alpha"
-    ax.add_collection(
-        LineCollection(
-            list(xy[~lead]),
-            colors=[c for c, ld in zip(colour, lead) if not ld],
-            lw=0.8,
-            alpha=0.7,
-            zorder=1,
-            label="path of a robot",
-        )
-    )
-    ax.add_collection(
-        LineCollection(
-            list(xy[lead]),
-            colors=[c for c, ld in zip(colour, lead) if ld],
-            lw=2.2,
-            zorder=2,
-            label="path of a robot leading at the end",
-        )
-    )
-    ax.scatter(*xy[:, 0].T, s=10, facecolors="none", edgecolors=style.NO_GROUP, lw=0.6, zorder=3, label=f"at {t0:g} s")
     s = style.ROLE_STYLE
-    ax.scatter(
-        *xy[~lead, -1].T,
-        s=s["beta"]["size"],
-        c=[c for c, ld in zip(colour, lead) if not ld],
-        zorder=4,
-        label=f"at {t1:g} s",
-    )
-    ax.scatter(
-        *xy[lead, -1].T,
-        s=s["alpha"]["size"],
-        marker=s["alpha"]["marker"],
-        c=[c for c, ld in zip(colour, lead) if ld],
-        edgecolors=s["alpha"]["edge"],
-        zorder=5,
-        label=f"leader at {t1:g} s",
-    )
+    # Each layer only if it has someone (an empty one breaks the legend).
+    for group, width, what in ((~lead, 0.8, "path of a robot"), (lead, 2.2, "path of a robot leading at the end")):
+        if group.any():
+            ax.add_collection(
+                LineCollection(
+                    list(xy[group]),
+                    colors=[c for c, g in zip(colour, group) if g],
+                    lw=width,
+                    alpha=0.7 if width < 1 else 1.0,
+                    zorder=1 if width < 1 else 2,
+                    label=what,
+                )
+            )
+    ax.scatter(*xy[:, 0].T, s=10, facecolors="none", edgecolors=style.NO_GROUP, lw=0.6, zorder=3, label=f"at {t0:g} s")
+    if (~lead).any():
+        ax.scatter(
+            *xy[~lead, -1].T,
+            s=s["beta"]["size"],
+            c=[c for c, ld in zip(colour, lead) if not ld],
+            zorder=4,
+            label=f"at {t1:g} s",
+        )
+    if lead.any():
+        ax.scatter(
+            *xy[lead, -1].T,
+            s=s["alpha"]["size"],
+            marker=s["alpha"]["marker"],
+            c=[c for c, ld in zip(colour, lead) if ld],
+            edgecolors=s["alpha"]["edge"],
+            zorder=5,
+            label=f"leader at {t1:g} s",
+        )
     travelled = np.hypot(*np.diff(xy, axis=1).transpose(2, 0, 1)).sum(axis=1)
     xlim, ylim = _extent(xy.reshape(-1, 2), range_m, run.config.world.side_m)
     _axes(ax, xlim, ylim, run.config.world.side_m)

@@ -62,6 +62,8 @@ ROLE_STYLE = {
         "edge": "group",
     },
     "gamma": {"marker": "x", "size": 16, "label": "undecided (gamma)", "colour": NO_GROUP, "edge": "none"},
+    # Robots of a run whose protocol gives no roles.
+    "none": {"marker": "o", "size": 14, "label": "robot (no roles)", "colour": NO_GROUP, "edge": "none"},
 }
 
 # Time series (the replay's strip chart), by name: the same quantity, the same colour.

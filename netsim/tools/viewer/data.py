@@ -254,7 +254,7 @@ def _pack_neighbour_beliefs(run_dir: Path, nb: pd.DataFrame, times: np.ndarray, 
         (robot[1:] != robot[:-1]) | (other[1:] != other[:-1]) | (k[1:] != k[:-1] + 1) | (flags[1:] != flags[:-1])
     )
     first = np.flatnonzero(start)
-    last = np.r_[first[1:], len(k)] - 1
+    last = np.r_[first[1:], len(k)][: len(first)] - 1
     blob.add("nb_first", np.searchsorted(robot[first], np.arange(n + 1), "left"), "<i4")
     blob.add("nb_id", other[first], _small_uint(other))
     blob.add("nb_k0", k[first], _small_uint(k))

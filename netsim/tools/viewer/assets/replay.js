@@ -405,20 +405,20 @@
 
   // Fill and edge colours of robot i as drawn ("" for no edge).
   function fillOf(i) {
-    const st = PAL.roles[NO_ROLES ? "beta" : model.shape(i)];
+    const st = PAL.roles[NO_ROLES ? "none" : model.shape(i)];
     if (st.colour !== "group") return st.colour;
     const c = model.colour(i);
     return c < 0 ? PAL.no_group : GROUPS[c];
   }
   function edgeOf(i) {
-    const st = PAL.roles[NO_ROLES ? "beta" : model.shape(i)];
+    const st = PAL.roles[NO_ROLES ? "none" : model.shape(i)];
     if (st.edge === "none" || LINE_MARKERS.has(st.marker)) return "";
     if (st.edge !== "group") return st.edge;
     const c = model.edgeColour(i);
     return c < 0 ? PAL.no_group : GROUPS[c];
   }
 
-  // The robots of one role (all, as members, in a run without roles): shaped, filled and
+  // The robots of one role (all, as "none", in a run without roles): shaped, filled and
   // edged as its style says, one path per colour.
   function drawRole(role, r) {
     const st = PAL.roles[role];
@@ -505,7 +505,7 @@
     if (ui.hops.checked && META.has.hops) drawHops(t);
 
     const r = robotRadius();
-    for (const role of NO_ROLES ? ["beta"] : ["beta", "gamma", "gateway", "alpha"]) drawRole(role, r);
+    for (const role of NO_ROLES ? ["none"] : ["beta", "gamma", "gateway", "alpha"]) drawRole(role, r);
 
     drawn.hovered = mouse.inside && !mouse.drag ? nearest(mouse.x, mouse.y, Math.max(8, 2 * r)) : -1;
     if (drawn.hovered >= 0) {
@@ -873,42 +873,38 @@
       g.stroke();
     };
     const rows = [];
-    if (NO_ROLES) {
-      const div = document.createElement("div");
-      div.textContent = `no roles: protocol "${META.protocol}"`;
-      rows.push(div);
-    } else {
-      for (const role of ["alpha", "beta", "gateway", "gamma"]) {
-        const st = PAL.roles[role];
-        const s = Math.min(6.5, markerSize(role, 4));
-        // The group colours of the legend: the first two of the palette.
-        const fill = st.colour === "group" ? GROUPS[0] : st.colour;
-        const edge = st.edge === "group" ? GROUPS[1] : st.edge;
-        const drawIcon = (g) => {
-          g.beginPath();
-          markerPath(g, st.marker, 8, 8, s);
-          if (LINE_MARKERS.has(st.marker)) {
-            g.strokeStyle = fill;
-            g.lineWidth = 1.5;
-            g.stroke();
-            return;
-          }
-          g.fillStyle = fill;
-          g.fill();
-          if (edge !== "none") {
-            g.strokeStyle = edge;
-            g.lineWidth = st.edge === "group" ? 2 : 1;
-            g.stroke();
-          }
-        };
-        rows.push(row(icon(drawIcon), st.label));
-      }
+    for (const role of NO_ROLES ? ["none"] : ["alpha", "beta", "gateway", "gamma"]) {
+      const st = PAL.roles[role];
+      const s = Math.min(6.5, markerSize(role, 4));
+      // The group colours of the legend: the first two of the palette.
+      const fill = st.colour === "group" ? GROUPS[0] : st.colour;
+      const edge = st.edge === "group" ? GROUPS[1] : st.edge;
+      const drawIcon = (g) => {
+        g.beginPath();
+        markerPath(g, st.marker, 8, 8, s);
+        if (LINE_MARKERS.has(st.marker)) {
+          g.strokeStyle = fill;
+          g.lineWidth = 1.5;
+          g.stroke();
+          return;
+        }
+        g.fillStyle = fill;
+        g.fill();
+        if (edge !== "none") {
+          g.strokeStyle = edge;
+          g.lineWidth = st.edge === "group" ? 2 : 1;
+          g.stroke();
+        }
+      };
+      rows.push(row(icon(drawIcon), NO_ROLES ? `${st.label}: protocol "${META.protocol}"` : st.label));
     }
     rows.push(row(icon(line(PAL.link)), "link"));
-    rows.push(row(icon(line(PAL.message)), "relayed message (source ring, destination dashed)"));
-    const note = document.createElement("div");
-    note.textContent = "colour: the group (its leader), the same for the whole run";
-    rows.push(note);
+    if (META.has.hops) rows.push(row(icon(line(PAL.message)), "relayed message (source ring, destination dashed)"));
+    if (!NO_ROLES) {
+      const note = document.createElement("div");
+      note.textContent = "colour: the group (its leader), the same for the whole run";
+      rows.push(note);
+    }
     box.replaceChildren(...rows);
   }
 
@@ -1078,7 +1074,7 @@
       },
       positions: () => Array.from(model.x, (x, i) => [x, model.y[i]]),
       roles: () => Array.from(model.role, (r) => ROLE_NAMES[r]),
-      shapes: () => Array.from(model.role, (_, i) => model.shape(i)),
+      shapes: () => Array.from(model.role, (_, i) => (NO_ROLES ? "none" : model.shape(i))),
       leaders: () => Array.from(model.leader),
       links: () => Array.from(model.active.subarray(0, model.nActive), (l) => [A.link_a[l], A.link_b[l]]),
       screenOf: (i) => [SX(model.x[i]), SY(model.y[i])],
