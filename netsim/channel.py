@@ -14,12 +14,17 @@ drop cause:
 - ``loss``: the loss model dropped it;
 - ``not_alive``: the receiver was switched off;
 - ``out_of_range``: a unicast whose destination was not in range at send time.
+
+A kind's counts can also be kept over time (:meth:`Channel.bin_by_send_time`): per
+interval of *send* time, so that each bin tells the fate of the transmissions sent in it
+(a reception is counted, on arrival, in the bin its transmission was sent in).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -50,6 +55,58 @@ class Counters:
         return df
 
 
+class SendTimeBins:
+    """Counts of one message kind per interval ``[k dt, (k+1) dt)`` of send time:
+    transmissions sent, receptions attempted (robots alive and in range at send time),
+    received (counted on arrival, in the bin of the send), and dropped by cause."""
+
+    COLUMNS = ("sent", "in_range", "received") + tuple(f"dropped_{c}" for c in DROP_CAUSES)
+    SENT, IN_RANGE, RECEIVED, DROPPED = 0, 1, 2, 3
+
+    def __init__(self, interval_s: float):
+        if not interval_s > 0:
+            raise ValueError(f"a bin interval must be positive, got {interval_s}")
+        self.interval_s = float(interval_s)
+        self.counts = np.zeros((64, len(self.COLUMNS)), dtype=np.int64)
+
+    def bin(self, t: float) -> int:
+        """The bin of time ``t``: the ``k`` with ``k dt <= t < (k+1) dt``, the edges being
+        the products ``k * dt`` (the same floats as the table's ``t_s``)."""
+        dt = self.interval_s
+        k = int(t // dt)
+        if (k + 1) * dt <= t:
+            k += 1
+        elif k * dt > t:
+            k -= 1
+        if k >= len(self.counts):
+            grown = np.zeros((max(2 * len(self.counts), k + 1), len(self.COLUMNS)), dtype=np.int64)
+            grown[: len(self.counts)] = self.counts
+            self.counts = grown
+        return k
+
+    def frame(self, duration_s: float) -> pd.DataFrame:
+        """One row per bin from 0 to ``duration_s`` (bins with nothing sent included)."""
+        used = np.flatnonzero(self.counts.any(axis=1))
+        bins = max(int(math.ceil(duration_s / self.interval_s - 1e-9)), int(used[-1]) + 1 if len(used) else 0)
+        counts = np.zeros((bins, len(self.COLUMNS)), dtype=np.int64)
+        counts[: min(bins, len(self.counts))] = self.counts[:bins]
+        df = pd.DataFrame({"t_s": np.arange(bins) * self.interval_s})
+        for c, name in enumerate(self.COLUMNS):
+            df[name] = counts[:, c]
+        return df
+
+
+class _Bin(NamedTuple):
+    """One bin of a kind's counts (held by index: the array may grow before a reception
+    arrives)."""
+
+    bins: SendTimeBins
+    k: int
+
+    def add(self, column: int, count: int) -> None:
+        self.bins.counts[self.k, column] += count
+
+
 class Channel:
     def __init__(
         self,
@@ -70,12 +127,22 @@ class Channel:
         if self.latency_jitter_s > 0 and latency_rng is None:
             raise ValueError("latency jitter needs a random stream")
         self.counters: dict[str, Counters] = {}
+        self.bins: dict[str, SendTimeBins] = {}
 
     def counters_for(self, kind: str) -> Counters:
         c = self.counters.get(kind)
         if c is None:
             c = self.counters[kind] = Counters(self.state.n)
         return c
+
+    def bin_by_send_time(self, kind: str, interval_s: float) -> SendTimeBins:
+        """Keep the counts of ``kind`` also per ``interval_s`` of send time, from now on."""
+        bins = self.bins.get(kind)
+        if bins is None:
+            bins = self.bins[kind] = SendTimeBins(interval_s)
+        elif bins.interval_s != interval_s:
+            raise ValueError(f"{kind!r} is already binned every {bins.interval_s} s")
+        return bins
 
     def in_range(self, sender: int) -> tuple[np.ndarray, np.ndarray]:
         """Robots in range of ``sender`` now (ids ascending) and their distances."""
@@ -86,34 +153,59 @@ class Channel:
         c = self.counters_for(kind)
         c.sent[sender] += 1
         receivers, dist = self.index.within(self.env.now, sender)
-        return self._transmit(sender, receivers, dist, payload, deliver, c)
+        return self._transmit(sender, receivers, dist, payload, deliver, c, self._bin(kind))
 
     def unicast(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str = "data") -> bool:
         """Send ``payload`` to ``dest`` alone; returns whether it will be delivered."""
         c = self.counters_for(kind)
         c.sent[sender] += 1
+        binned = self._bin(kind)
         st = self.state
         now = self.env.now
         d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [sender]))
         dist = np.hypot(d[:, 0], d[:, 1])
         if dest == sender or dist[0] > st.range_m[sender]:
             c.dropped[DROP_CAUSES.index("out_of_range"), dest] += 1
+            if binned is not None:
+                binned.add(SendTimeBins.DROPPED + DROP_CAUSES.index("out_of_range"), 1)
             return False
-        got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c)
+        got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c, binned)
         return len(got) == 1
 
+    def _bin(self, kind: str) -> _Bin | None:
+        """``kind``'s bin of now, with one more transmission sent (None: not binned)."""
+        bins = self.bins.get(kind)
+        if bins is None:
+            return None
+        at = _Bin(bins, bins.bin(self.env.now))
+        at.add(SendTimeBins.SENT, 1)
+        return at
+
     def _transmit(
-        self, sender: int, receivers: np.ndarray, dist: np.ndarray, payload: object, deliver: Deliver, c: Counters
+        self,
+        sender: int,
+        receivers: np.ndarray,
+        dist: np.ndarray,
+        payload: object,
+        deliver: Deliver,
+        c: Counters,
+        binned: _Bin | None = None,
     ) -> np.ndarray:
         if len(receivers) == 0:
             return receivers
         alive = self.state.alive[receivers]
         if not alive.all():
             np.add.at(c.dropped[1], receivers[~alive], 1)
+            if binned is not None:
+                binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
             receivers, dist = receivers[alive], dist[alive]
+        if binned is not None:
+            binned.add(SendTimeBins.IN_RANGE, len(receivers))
         keep = self.survives(sender, receivers, dist)
         if keep is not None and not keep.all():
             np.add.at(c.dropped[0], receivers[~keep], 1)
+            if binned is not None:
+                binned.add(SendTimeBins.DROPPED, int((~keep).sum()))
             receivers = receivers[keep]
         if len(receivers) == 0:
             return receivers
@@ -121,16 +213,25 @@ class Channel:
             assert self.latency_rng is not None  # checked when built
             delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
             for r, delay in zip(receivers.tolist(), delays.tolist()):
-                self._at(delay, deliver, sender, np.array([r]), payload, c)
+                self._at(delay, deliver, sender, np.array([r]), payload, c, binned)
         else:
-            self._at(self.latency_s, deliver, sender, receivers, payload, c)
+            self._at(self.latency_s, deliver, sender, receivers, payload, c, binned)
         return receivers
 
     def _at(
-        self, delay: float, deliver: Deliver, sender: int, receivers: np.ndarray, payload: object, c: Counters
+        self,
+        delay: float,
+        deliver: Deliver,
+        sender: int,
+        receivers: np.ndarray,
+        payload: object,
+        c: Counters,
+        binned: _Bin | None = None,
     ) -> None:
         def arrive(_event: simpy.Event) -> None:
             c.received[receivers] += 1
+            if binned is not None:
+                binned.add(SendTimeBins.RECEIVED, len(receivers))
             deliver(sender, receivers, payload)
 
         scheduled_event(self.env, delay, URGENT, arrive)

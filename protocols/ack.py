@@ -11,6 +11,13 @@ clustering) subscribe to :attr:`AckBeacon.listeners` and see every delivery, in 
 latency jitter an Ack can be overtaken by the sender's next one: a receiver that already
 holds a newer Ack from that sender ignores the older (the table keeps the newest, the
 listeners are not told; :attr:`AckBeacon.stale_acks` counts them).
+
+The beacon records ``acks`` (per robot, the whole run) and ``ack_delivery``: the Acks'
+fate over time, per interval of send time (``output.position_interval_s``; the Ack
+period when positions are not sampled). The Ack delivery ratio of an interval is
+``received / (received + dropped_loss)``: of the receptions the loss model decided (a
+robot alive and within the sender's range at send time could have received the Ack),
+the share that arrived. Summed over the intervals, the counts are the ``acks`` table's.
 """
 
 from __future__ import annotations
@@ -84,6 +91,33 @@ ACKS_SCHEMA = {
 }
 
 
+ACK_DELIVERY_SCHEMA = {
+    "t_s": "float64",
+    "sent": "int64",
+    "in_range": "int64",
+    "received": "int64",
+    "dropped_loss": "int64",
+    "dropped_not_alive": "int64",
+    "delivery_ratio": "float64",
+}
+
+
+def delivery_ratio(received, dropped_loss):
+    """Acks received over Acks a robot within the sender's range could have received
+    (received or lost on the way; NaN where there were none)."""
+    received = np.asarray(received, dtype=float)
+    decided = received + np.asarray(dropped_loss, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(decided > 0, received / decided, np.nan)
+
+
+def ack_delivery_frame(bins, duration_s: float) -> pd.DataFrame:
+    """The ``ack_delivery`` table of the channel's send-time bins of Acks."""
+    df = bins.frame(duration_s)[[c for c in ACK_DELIVERY_SCHEMA if c != "delivery_ratio"]]
+    df["delivery_ratio"] = delivery_ratio(df["received"], df["dropped_loss"])
+    return df
+
+
 def ack_figures(frames: Mapping[str, pd.DataFrame]) -> dict:
     """Acks sent, received, lost, and the delivery ratio, from the ``acks`` table."""
     acks = frames["acks"]
@@ -133,6 +167,9 @@ class AckBeacon:
         self.params = params
         self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.streams, self.trace = parts.streams, parts.trace
+        self.duration_s = parts.duration_s
+        # The interval of the ack_delivery table: the run's sampling interval.
+        self.series_interval_s = parts.output.position_interval_s or params.ack_period_s
         self.roles = roles if roles is not None else Roles(n)
         self.period_s = params.ack_period_s
         self.table = NeighbourTable(n, params.tau_s)
@@ -165,6 +202,9 @@ class AckBeacon:
             )
         channel = self.channel
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
+        bins = channel.bin_by_send_time("ack", self.series_interval_s)
+        duration = self.duration_s
+        self.trace.add_frame("ack_delivery", lambda: ack_delivery_frame(bins, duration))
 
     def make_ack(self, i: int) -> Ack:
         now = self.env.now
@@ -217,4 +257,9 @@ def build(params: AckParams, parts: Parts) -> AckBeacon:
     return beacon
 
 
-PLUGIN = PluginSpec(Params=AckParams, build=build, check=check_tau, tables={"roles": ROLES_SCHEMA, "acks": ACKS_SCHEMA})
+PLUGIN = PluginSpec(
+    Params=AckParams,
+    build=build,
+    check=check_tau,
+    tables={"roles": ROLES_SCHEMA, "acks": ACKS_SCHEMA, "ack_delivery": ACK_DELIVERY_SCHEMA},
+)

@@ -1,6 +1,7 @@
 """The full protocol stack as one plugin (``protocol.model = "clustering"``): Ack beacon,
 neighbour tables, clustering (rules 1-6), relaying, leader commands, and what they
-record: ``roles``, ``groups``, ``beliefs``, ``messages`` and ``hops`` tables and summary figures."""
+record: ``roles``, ``groups``, ``beliefs`` (and ``neighbour_beliefs``, the ids behind
+them), ``ack_delivery``, ``messages`` and ``hops`` tables and summary figures."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from scipy.sparse import csr_matrix
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import geometric_pairs
-from protocols.ack import ACKS_SCHEMA, AckBeacon, AckParams, check_tau
+from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from protocols.neighbours import LAST_HEARD, ROLE, X, Y
 from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
@@ -76,6 +77,7 @@ class Stack:
         self.on_command: list[Callable[[int, Command], None]] = []
         self._groups: list[pd.DataFrame] = []
         self._beliefs: list[pd.DataFrame] = []
+        self._neighbour_beliefs: list[pd.DataFrame] = []
 
     # -- the groups, for the rest of the run ------------------------------------------
     @property
@@ -106,6 +108,7 @@ class Stack:
                 pd.concat(self._beliefs, ignore_index=True) if self._beliefs else pd.DataFrame(columns=BELIEF_COLUMNS)
             ),
         )
+        self.trace.add_frame("neighbour_beliefs", self.neighbour_beliefs_frame)
 
     # -- leader commands ---------------------------------------------------------------
     def send_command(self, leader: int, payload) -> None:
@@ -165,7 +168,18 @@ class Stack:
         return robot[order], other[order], xy[other[order]]
 
     # -- ground truth beside belief ----------------------------------------------------
-    def belief_vs_truth(self, now: float) -> pd.DataFrame:
+    def _belief_keys(self, now: float) -> tuple[np.ndarray, np.ndarray]:
+        """``robot * n + other`` for every ``other`` that ``robot`` believes live (in table
+        order), and for every ``other`` whose transmissions reach ``robot`` now (sorted)."""
+        st, n = self.state, self.state.n
+        src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
+        # receiver * n + sender, for every sender whose transmissions reach the receiver.
+        heard_keys = np.sort(dst * n + src)
+        live = self.table.live_mask(now)
+        rows = np.nonzero(live)[0]
+        return rows * n + self.table.id[live], heard_keys
+
+    def belief_vs_truth(self, now: float, keys=None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
         how many neighbours it believes live and how many it truly has, and how many of
         its beliefs are stale (believed live, out of range) or missing (in range, not
@@ -176,16 +190,12 @@ class Stack:
         (``|p_i - p_j| <= r_j``), whether or not ``i`` reaches ``j``. A member's leader is
         in range when the link is two-way (``<= min(r_i, r_j)``), as a member needs.
         """
-        st, n = self.state, self.state.n
+        n = self.state.n
         roles = self.roles
-        src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
-        # receiver * n + sender, for every sender whose transmissions reach the receiver.
-        heard_keys = np.sort(dst * n + src)
-        live = self.table.live_mask(now)
-        rows = np.nonzero(live)[0]
-        believed_keys = rows * n + self.table.id[live]
+        believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
+        rows = believed_keys // n
         believed_true = np.isin(believed_keys, heard_keys)
-        true_count = np.bincount(dst, minlength=n)
+        true_count = np.bincount(heard_keys // n, minlength=n)
         believed = np.bincount(rows, minlength=n)
         stale = np.bincount(rows[~believed_true], minlength=n)
         leader = roles.leader.copy()
@@ -206,18 +216,43 @@ class Stack:
             }
         )
 
+    def neighbour_beliefs(self, now: float, keys=None) -> pd.DataFrame:
+        """The ids behind :meth:`belief_vs_truth`'s counts: one row per robot and other
+        robot that it believes live or whose transmissions reach it now, ordered by robot
+        and other; ``believed`` and ``in_range`` say which (stale: believed only; missing:
+        in range only)."""
+        n = self.state.n
+        believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
+        both = np.union1d(believed_keys, heard_keys)
+        return pd.DataFrame(
+            {
+                "t_s": now,
+                "robot": both // n,
+                "neighbour": both % n,
+                "believed": np.isin(both, believed_keys),
+                "in_range": np.isin(both, heard_keys),
+            }
+        )
+
     def _sampler(self, interval: float):
         env = self.env
         while True:
             now = env.now
             robot, group, primary = self.clustering.membership(now)
             self._groups.append(pd.DataFrame({"t_s": now, "robot": robot, "group": group, "primary": primary}))
-            self._beliefs.append(self.belief_vs_truth(now))
+            keys = self._belief_keys(now)
+            self._beliefs.append(self.belief_vs_truth(now, keys))
+            self._neighbour_beliefs.append(self.neighbour_beliefs(now, keys))
             yield env.timeout(interval)
 
     # -- outputs -----------------------------------------------------------------------
     def messages_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
+
+    def neighbour_beliefs_frame(self) -> pd.DataFrame:
+        if not self._neighbour_beliefs:
+            return pd.DataFrame({c: pd.Series(dtype=t) for c, t in NEIGHBOUR_BELIEFS_SCHEMA.items()})
+        return pd.concat(self._neighbour_beliefs, ignore_index=True)
 
     def groups_frame(self) -> pd.DataFrame:
         if not self._groups:
@@ -317,6 +352,13 @@ BELIEFS_SCHEMA = {
     "stale_neighbours": "int64",
     "missing_neighbours": "int64",
 }
+NEIGHBOUR_BELIEFS_SCHEMA = {
+    "t_s": "float64",
+    "robot": "int64",
+    "neighbour": "int64",
+    "believed": "bool",
+    "in_range": "bool",
+}
 GROUPS_SCHEMA = {"t_s": "float64", "robot": "int64", "group": "int64", "primary": "bool"}
 
 
@@ -333,8 +375,10 @@ PLUGIN = PluginSpec(
     tables={
         "roles": ROLES_SCHEMA,
         "acks": ACKS_SCHEMA,
+        "ack_delivery": ACK_DELIVERY_SCHEMA,
         "groups": GROUPS_SCHEMA,
         "beliefs": BELIEFS_SCHEMA,
+        "neighbour_beliefs": NEIGHBOUR_BELIEFS_SCHEMA,
         "messages": MESSAGES_SCHEMA,
         "hops": HOPS_SCHEMA,
     },

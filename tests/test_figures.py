@@ -46,6 +46,16 @@ def test_figures_of_a_run_without_coverage_say_what_they_cannot_show(waypoint_ru
         assert (tmp_path / name).read_bytes()[:8] == PNG
 
 
+def test_figures_of_a_run_without_roles(tmp_path, capsys):
+    """The Ack beacon alone gives no roles: robots are plain dots, and the figures say so."""
+    run = tmp_path / "run"
+    sets = ["protocol.model=ack", "world.n_robots=10", "duration_s=10"]
+    assert main(["run", "--quiet", "--no-progress", "--out", str(run), *[a for s in sets for a in ("--set", s)]]) == 0
+    assert main(["figures", str(run), "--out", str(tmp_path / "f")]) == 0
+    assert "no roles" in capsys.readouterr().out.splitlines()[0]
+    assert (tmp_path / "f" / "fig7_leader_paths.png").read_bytes()[:8] == PNG
+
+
 @pytest.mark.slow
 def test_figures_at_a_chosen_time(waypoint_run, tmp_path, capsys):
     assert main(["figures", str(waypoint_run), "--out", str(tmp_path), "--at", "20"]) == 0

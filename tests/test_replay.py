@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.tools import palette, viewer
+from netsim.tools import style, viewer
 from netsim.tools.cli import main
 
 CHROMIUM = "/usr/bin/chromium"
@@ -143,7 +143,7 @@ def assert_matches(page: Page, run: Path, n: int, t: float, side: float | None =
 
 @pytest.fixture(scope="module")
 def moving_run(tmp_path_factory):
-    """40 robots, random waypoint, clustering, a message a second."""
+    """40 robots, random waypoint, clustering, a message a second, 15 % of receptions lost."""
     out = tmp_path_factory.mktemp("replay") / "moving"
     return _run(
         out,
@@ -153,6 +153,7 @@ def moving_run(tmp_path_factory):
         "world.side_m=600",
         "channel.range_m=130",
         "protocol.message_rate_hz=1.0",
+        "channel.loss_probability=0.15",
     )
 
 
@@ -217,7 +218,7 @@ def test_screenshot_is_not_blank(moving_run, open_page):
     png = page.page.locator("#field").screenshot()
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).reshape(-1, 3)
     colours = {tuple(c) for c in np.unique(img, axis=0).tolist()}
-    group = {tuple(int(h[k : k + 2], 16) for k in (1, 3, 5)) for h in palette.GROUP_COLOURS}
+    group = {tuple(int(h[k : k + 2], 16) for k in (1, 3, 5)) for h in style.GROUP_PALETTE}
     assert (img != 255).any(axis=1).mean() > 0.005  # something is drawn
     assert colours & group  # in the groups' colours
 
@@ -237,8 +238,108 @@ def test_hover_shows_id_role_leader_and_neighbours(moving_run, open_page):
     leader = page.js("netsimView.leaders()")[i]
     assert tip.startswith(f"robot {i}: ")
     assert f"leader {leader}" in tip
-    assert f"true neighbours now: {len(true_nbrs)}" in tip
+    assert f"true neighbours now: {len(true_nbrs)} [{', '.join(map(str, true_nbrs))}]" in tip
     assert "believed at t = 30 s:" in tip
+
+
+def _ids_text(ids) -> str:
+    return f"{len(ids)} [{', '.join(map(str, ids))}]" if len(ids) else "0"
+
+
+@pytest.mark.slow
+def test_hover_shows_believed_and_true_neighbours_by_id(moving_run, open_page):
+    """At the last beliefs sample, every robot's believed and in-range neighbours by id
+    are the table's; hovering a robot with a stale and a missing neighbour lists them."""
+    nb = pd.read_parquet(moving_run / "neighbour_beliefs.parquet")
+    page = open_page(moving_run / "view.html")
+    for t in (12.0, 30.5, 47.25):
+        page.js(f"netsimView.seek({t})")
+        sample = nb[nb["t_s"] == nb.loc[nb["t_s"] <= t, "t_s"].max()]
+        got = page.js("Array.from({length: netsimView.n}, (_, i) => netsimView.neighbourBeliefs(i))")
+        for i, g in enumerate(got):
+            mine = sample[sample["robot"] == i]
+            assert g["t"] == sample["t_s"].iloc[0]
+            assert g["believed"] == mine.loc[mine["believed"], "neighbour"].tolist()
+            assert g["inRange"] == mine.loc[mine["in_range"], "neighbour"].tolist()
+            assert g["stale"] == mine.loc[mine["believed"] & ~mine["in_range"], "neighbour"].tolist()
+            assert g["missing"] == mine.loc[~mine["believed"] & mine["in_range"], "neighbour"].tolist()
+    # A robot whose beliefs differ from the truth both ways, at a sample.
+    differ = nb.assign(stale=nb["believed"] & ~nb["in_range"], missing=nb["in_range"] & ~nb["believed"])
+    per = differ.groupby(["t_s", "robot"])[["stale", "missing"]].sum()
+    t, i = per[(per["stale"] > 0) & (per["missing"] > 0)].index[0]
+    mine = nb[(nb["t_s"] == t) & (nb["robot"] == i)]
+    page.page.uncheck("#show-hops")
+    page.js(f"netsimView.seek({t})")
+    x, y = page.js(f"netsimView.screenOf({i})")
+    box = page.page.locator("#field").bounding_box()
+    page.page.mouse.move(box["x"] + x, box["y"] + y)
+    page.wait_for(f"netsimView.hovered === {i}")
+    tip = page.js("netsimView.tooltip()")
+    believed = mine.loc[mine["believed"], "neighbour"].tolist()
+    in_range = mine.loc[mine["in_range"], "neighbour"].tolist()
+    assert f"believed at t = {t:g} s: {_ids_text(believed)}" in tip
+    assert f"in range then: {_ids_text(in_range)}" in tip
+    assert f"(stale): {_ids_text(sorted(set(believed) - set(in_range)))}" in tip
+    assert f"(missing): {_ids_text(sorted(set(in_range) - set(believed)))}" in tip
+
+
+@pytest.mark.slow
+def test_strip_chart_shows_leaders_components_and_the_ack_delivery_ratio(moving_run, open_page):
+    """At the cursor, the chart's values are the number of leaders drawn, the Ack delivery
+    ratio of the interval of ack_delivery.parquet the cursor is in, and the components of
+    the links up (at its samples)."""
+    d = pd.read_parquet(moving_run / "ack_delivery.parquet")
+    assert (d["delivery_ratio"].iloc[2:] < 1).all()  # the loss shows
+    page = open_page(moving_run / "view.html")
+    names = [s["name"] for s in page.js("JSON.parse(document.getElementById('netsim-meta').text).series")]
+    assert {"leaders", "components", "ack_delivery"} <= set(names)
+    for t in (0.5, 17.3, 30.0, 59.9):
+        page.js(f"netsimView.seek({t})")
+        values = page.js("netsimView.series()")
+        assert values["ack_delivery"] == d.loc[d["t_s"] <= t, "delivery_ratio"].iloc[-1]
+        assert values["leaders"] == page.js("netsimView.roles()").count("alpha")
+    page.js("netsimView.seek(30)")  # a sample of the components series (600 of 60 s)
+    assert page.js("netsimView.series()")["components"] == page.js("netsimView.components")
+    legend = page.page.locator("#chart-legend").inner_text()
+    assert f"Ack delivery ratio: {d.loc[d['t_s'] <= 30, 'delivery_ratio'].iloc[-1]:.3f}" in legend
+
+
+@pytest.mark.slow
+def test_figures_and_replay_colour_every_robot_alike(moving_run, open_page):
+    """At a positions sample, each robot's fill and edge in the replay are what
+    ``netsim figures`` gives it (one colour per group for the whole run, from the same
+    style), and the pixels drawn at the leaders are those colours."""
+    from PIL import Image
+
+    from netsim.tools import figures
+
+    run = figures.read_run(moving_run)
+    colours = figures.run_colours(run)
+    page = open_page(moving_run / "view.html")
+    page.page.uncheck("#show-links")
+    page.page.uncheck("#show-hops")
+    for t in (15.0, 40.0):
+        snap = figures.snapshot(run, t)
+        assert snap.t_s == t
+        page.js(f"netsimView.seek({t})")
+        group = np.where(snap.role == "alpha", np.arange(40), snap.leader)
+        expect_fill = [
+            style.ROLE_STYLE["gamma"]["colour"] if r == "gamma" else colours.get(int(g), style.NO_GROUP)
+            for r, g in zip(snap.role, group)
+        ]
+        gateway = (snap.role == "beta") & (snap.other_group >= 0)
+        expect_edge = [
+            style.ROLE_STYLE["alpha"]["edge"] if r == "alpha" else colours.get(int(o), style.NO_GROUP) if gw else ""
+            for r, o, gw in zip(snap.role, snap.other_group, gateway)
+        ]
+        assert [c.upper() for c in page.js("netsimView.colours()")] == [c.upper() for c in expect_fill]
+        assert [c.upper() for c in page.js("netsimView.edges()")] == [c.upper() for c in expect_edge]
+        assert gateway.any() and len(set(colours.values())) > 3
+        img = np.asarray(Image.open(io.BytesIO(page.page.locator("#field").screenshot())).convert("RGB"))
+        for i in np.flatnonzero(snap.role == "alpha"):
+            x, y = page.js(f"netsimView.screenOf({int(i)})")
+            want = tuple(int(expect_fill[i][k : k + 2], 16) for k in (1, 3, 5))
+            assert tuple(img[int(y), int(x)]) == want
 
 
 @pytest.mark.slow
@@ -333,7 +434,7 @@ def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
     from PIL import Image
 
     img = np.asarray(Image.open(io.BytesIO(page.page.locator("#field").screenshot())).convert("RGB"))
-    wall = tuple(int(palette.WALL[k : k + 2], 16) for k in (1, 3, 5))
+    wall = tuple(int(style.WALL[k : k + 2], 16) for k in (1, 3, 5))
     robots = np.array(page.js("netsimView.positions()"))
 
     def colours_at(x_m: float) -> list[tuple]:
@@ -403,3 +504,21 @@ def test_the_form_shows_the_command_for_another_scenario(moving_run, open_page):
     command = page.page.inner_text("#command")
     assert "--set world.n_robots=120" in command and "--set mobility.speed_max_mps=2.5" in command
     assert "--seed 3" in command and command.rstrip().endswith("--view")
+
+
+def test_a_run_without_roles_is_drawn_as_in_the_figures(tmp_path, open_page):
+    """The Ack beacon alone: no roles, so plain grey dots in both drawings; the chart
+    still has the Ack delivery ratio."""
+    from netsim.tools import figures
+
+    run = _run(tmp_path / "ack", "protocol.model=ack", "world.n_robots=12", "duration_s=20")
+    snap = figures.snapshot(figures.read_run(run), 10.0)
+    assert set(snap.role) == {"none"}
+    page = open_page(run / "view.html")
+    page.js("netsimView.seek(10)")
+    assert page.js("netsimView.shapes()") == ["none"] * 12
+    assert page.js("netsimView.colours()") == [style.ROLE_STYLE["none"]["colour"]] * 12
+    assert page.js("netsimView.edges()") == [""] * 12
+    assert "robot (no roles)" in page.page.locator("#legend").inner_text()
+    d = pd.read_parquet(run / "ack_delivery.parquet")
+    assert page.js("netsimView.series()")["ack_delivery"] == d.loc[d["t_s"] <= 10, "delivery_ratio"].iloc[-1]

@@ -64,10 +64,12 @@ def test_output_directory_contents_and_schema(tmp_path):
         "positions.parquet",
         "links.parquet",
         "acks.parquet",
+        "ack_delivery.parquet",
         "roles.parquet",
         "groups.parquet",
         "messages.parquet",
         "beliefs.parquet",
+        "neighbour_beliefs.parquet",
         "legs.parquet",
         "hops.parquet",
     }

@@ -11,9 +11,10 @@
   and the covered fraction of the area (exact) beside the most a connected team can
   cover, ``min(1, U(N) / A)``.
 
-Colours and markers come from :mod:`netsim.tools.style`; groups that could touch never share a
-colour. Legends sit outside the axes. When a figure cannot show something (no groups yet,
-no coverage disks, nobody moved) :func:`draw` says so in a note beside the file, and the
+Colours and markers come from :mod:`netsim.tools.style`, as in the replay (``netsim view``):
+each group has one colour for the whole run, and groups that could touch never share one.
+Legends sit outside the axes. When a figure cannot show something (no groups yet, no
+coverage disks, nobody moved) :func:`draw` says so in a note beside the file, and the
 figure shows what there is.
 
 Only the run's files are read (``config.toml``, ``positions.parquet``, ``roles.parquet``,
@@ -60,7 +61,7 @@ class Run(NamedTuple):
 class Snapshot(NamedTuple):
     t_s: float
     pos: np.ndarray  # (N, 2)
-    role: np.ndarray  # "alpha" | "beta" | "gamma"
+    role: np.ndarray  # "alpha" | "beta" | "gamma"; "none" in a run without roles
     leader: np.ndarray
     other_group: np.ndarray  # a gateway's other group (-1: not a gateway)
 
@@ -98,20 +99,28 @@ def snapshot(run: Run, t: float) -> Snapshot:
     r = run.roles[run.roles["t_s"] <= when + 1e-9].reset_index(drop=True)
     r["order"] = np.arange(len(r))
     last = r.sort_values(["robot", "t_s", "order"]).groupby("robot").tail(1)
-    role = np.full(n, "gamma", dtype=object)
+    role = np.full(n, "gamma" if run.config.protocol.plugin.role_labels else "none", dtype=object)
     leader = np.full(n, -1)
-    role[last["robot"].to_numpy()] = last["role"].to_numpy()
-    leader[last["robot"].to_numpy()] = last["leader"].to_numpy()
+    # (An empty roles table reads back with float columns.)
+    robots = last["robot"].to_numpy(np.int64)
+    role[robots] = last["role"].to_numpy()
+    leader[robots] = last["leader"].to_numpy(np.int64)
     other = np.full(n, -1)
     if run.groups is not None and not run.groups.empty:
-        g = run.groups[(run.groups["t_s"] == _sample_time(run.groups, when)) & ~run.groups["primary"]]
-        other[g["robot"].to_numpy()] = g["group"].to_numpy()
+        g = style.other_group(run.groups[run.groups["t_s"] == _sample_time(run.groups, when)])
+        other[g.index.to_numpy()] = g.to_numpy()
     return Snapshot(when, snap[["x_m", "y_m"]].to_numpy(), role, leader, other)
 
 
-def colours_of(snap: Snapshot, range_m: float) -> dict[int, str]:
-    leaders = np.flatnonzero(snap.role == "alpha")
-    return style.group_colours(leaders, snap.pos[leaders], range_m)
+def run_colours(run: Run) -> dict[int, str]:
+    """The colour of every group of the run (one for the whole run, as in the replay)."""
+    config = run.config
+    labels = config.protocol.plugin.role_labels
+    if labels is None:
+        return {}
+    side = config.world.side_m if config.world.torus else None
+    slots = style.run_group_slots(run.roles, run.positions, labels.leader, float(min(config.ranges_m())), side)
+    return {leader: style.GROUP_PALETTE[s] for leader, s in slots.items()}
 
 
 def _colour(colours: dict[int, str], leader: int) -> str:
@@ -130,7 +139,7 @@ def draw_deployment(ax, snap: Snapshot, colours: dict[int, str], range_m: float,
     if disks_m > 0:
         disks = [mpatches.Circle(p, disks_m) for p in pos]
         face = [_colour(colours, g) for g in group_of]
-        ax.add_collection(PatchCollection(disks, facecolors=face, edgecolors="none", alpha=0.12, zorder=0))
+        ax.add_collection(PatchCollection(disks, facecolors=face, edgecolors="none", alpha=style.DISK_ALPHA, zorder=0))
     s = style.ROLE_STYLE
     gateway = (role == "beta") & (snap.other_group >= 0)
     members = np.flatnonzero((role == "beta") & ~gateway)
@@ -155,16 +164,17 @@ def draw_deployment(ax, snap: Snapshot, colours: dict[int, str], range_m: float,
             zorder=3,
             label=s["gateway"]["label"],
         )
-    und = np.flatnonzero(role == "gamma")
-    if len(und):
-        ax.scatter(
-            *pos[und].T,
-            s=s["gamma"]["size"],
-            marker=s["gamma"]["marker"],
-            c=style.NO_GROUP,
-            zorder=2,
-            label=s["gamma"]["label"],
-        )
+    for plain in ("gamma", "none"):
+        some = np.flatnonzero(role == plain)
+        if len(some):
+            ax.scatter(
+                *pos[some].T,
+                s=s[plain]["size"],
+                marker=s[plain]["marker"],
+                c=s[plain]["colour"],
+                zorder=2,
+                label=s[plain]["label"],
+            )
     lead = np.flatnonzero(role == "alpha")
     if len(lead):
         ax.scatter(
@@ -185,7 +195,7 @@ def _axes(ax, xlim, ylim, side_m: float) -> None:
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     # The border of the area, where it is in view.
-    ax.plot([0, side_m, side_m, 0, 0], [0, 0, side_m, side_m, 0], color="0.3", lw=0.8, zorder=0)
+    ax.plot([0, side_m, side_m, 0, 0], [0, 0, side_m, side_m, 0], color=style.BORDER, lw=0.8, zorder=0)
 
 
 def _legend_outside(ax, **kw) -> None:
@@ -215,43 +225,39 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
     group_of = np.where(end.role == "alpha", np.arange(n), end.leader)
     colour = [_colour(colours, g) for g in group_of]
     lead = end.role == "alpha"
-    ax.add_collection(
-        LineCollection(
-            list(xy[~lead]),
-            colors=[c for c, ld in zip(colour, lead) if not ld],
-            lw=0.8,
-            alpha=0.7,
-            zorder=1,
-            label="path of a robot",
-        )
-    )
-    ax.add_collection(
-        LineCollection(
-            list(xy[lead]),
-            colors=[c for c, ld in zip(colour, lead) if ld],
-            lw=2.2,
-            zorder=2,
-            label="path of a robot leading at the end",
-        )
-    )
-    ax.scatter(*xy[:, 0].T, s=10, facecolors="none", edgecolors="0.35", lw=0.6, zorder=3, label=f"at {t0:g} s")
     s = style.ROLE_STYLE
-    ax.scatter(
-        *xy[~lead, -1].T,
-        s=s["beta"]["size"],
-        c=[c for c, ld in zip(colour, lead) if not ld],
-        zorder=4,
-        label=f"at {t1:g} s",
-    )
-    ax.scatter(
-        *xy[lead, -1].T,
-        s=s["alpha"]["size"],
-        marker=s["alpha"]["marker"],
-        c=[c for c, ld in zip(colour, lead) if ld],
-        edgecolors="k",
-        zorder=5,
-        label=f"leader at {t1:g} s",
-    )
+    # Each layer only if it has someone (an empty one breaks the legend).
+    for group, width, what in ((~lead, 0.8, "path of a robot"), (lead, 2.2, "path of a robot leading at the end")):
+        if group.any():
+            ax.add_collection(
+                LineCollection(
+                    list(xy[group]),
+                    colors=[c for c, g in zip(colour, group) if g],
+                    lw=width,
+                    alpha=0.7 if width < 1 else 1.0,
+                    zorder=1 if width < 1 else 2,
+                    label=what,
+                )
+            )
+    ax.scatter(*xy[:, 0].T, s=10, facecolors="none", edgecolors=style.NO_GROUP, lw=0.6, zorder=3, label=f"at {t0:g} s")
+    if (~lead).any():
+        ax.scatter(
+            *xy[~lead, -1].T,
+            s=s["beta"]["size"],
+            c=[c for c, ld in zip(colour, lead) if not ld],
+            zorder=4,
+            label=f"at {t1:g} s",
+        )
+    if lead.any():
+        ax.scatter(
+            *xy[lead, -1].T,
+            s=s["alpha"]["size"],
+            marker=s["alpha"]["marker"],
+            c=[c for c, ld in zip(colour, lead) if ld],
+            edgecolors=s["alpha"]["edge"],
+            zorder=5,
+            label=f"leader at {t1:g} s",
+        )
     travelled = np.hypot(*np.diff(xy, axis=1).transpose(2, 0, 1)).sum(axis=1)
     xlim, ylim = _extent(xy.reshape(-1, 2), range_m, run.config.world.side_m)
     _axes(ax, xlim, ylim, run.config.world.side_m)
@@ -290,8 +296,8 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     drawn = []
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
-    colours0 = colours_of(start, range_m)
-    draw_deployment(ax, start, colours0, range_m)
+    colours = run_colours(run)
+    draw_deployment(ax, start, colours, range_m)
     _axes(ax, (0, side), (0, side), side)
     groups_n = int((start.role == "alpha").sum())
     ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
@@ -308,15 +314,14 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     drawn.append(_save(fig, out / "fig6_initial_deployment.png", note))
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
-    colours1 = colours_of(end, range_m)
-    note = draw_paths(ax, run, start.t_s, end.t_s, end, colours1, range_m)
+    note = draw_paths(ax, run, start.t_s, end.t_s, end, colours, range_m)
     ax.set_title(f"Fig. 7  Paths of all {n} robots, {start.t_s:g} s to {end.t_s:g} s")
     _legend_outside(ax)
     drawn.append(_save(fig, out / "fig7_leader_paths.png", note))
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
-    draw_deployment(ax, end, colours1, range_m, disks_m=radius)
+    draw_deployment(ax, end, colours, range_m, disks_m=radius)
     _axes(ax, (0, side), (0, side), side)
     if radius > 0:
         covered, err = metrics.covered_fraction_exact(end.pos, radius, side)

@@ -11,8 +11,10 @@ What is packed (``N`` robots):
   leg at the cursor), else ``positions.parquet`` (interpolated linearly between samples);
 - ``links``: every link lifetime, sorted by the time it came up (a link still up at the
   end stays up through the last instant);
-- ``roles``: every role change in order; ``groups``: the gateways' memberships per sample;
-  ``beliefs``: believed, true, stale and missing neighbours of every robot per sample;
+- ``roles``: every role change in order, and each group's colour for the whole run
+  (:func:`netsim.tools.style.run_group_slots`, as in the figures); ``groups``: the
+  gateways' memberships per sample; ``beliefs``: believed, true, stale and missing
+  neighbours of every robot per sample, and with ``neighbour_beliefs`` their ids;
 - ``messages`` and ``hops``: every relayed message and each robot's first reception of it;
 - the strip chart's series (:func:`series`) and, when the run has a map, its occupancy grid
   (:class:`MapGrid`).
@@ -36,7 +38,8 @@ from scipy.sparse.csgraph import connected_components
 from netsim import config as cfgmod
 from netsim.errors import NetsimInputError
 from netsim.plugins import RoleLabels
-from netsim.tools import palette
+from netsim.tools import style
+from netsim.trajectory import sample_positions
 
 
 def role_codes(labels: RoleLabels | None) -> dict[str, int]:
@@ -143,7 +146,7 @@ def series(
     config: cfgmod.Config,
     links: pd.DataFrame,
     roles: pd.DataFrame,
-    beliefs: pd.DataFrame | None,
+    ack_delivery: pd.DataFrame | None,
     messages: pd.DataFrame | None,
     coverage: pd.DataFrame | None,
     blob: Blob,
@@ -167,13 +170,10 @@ def series(
         for who, label in (("leaders", "leaders' disks"), ("all", "all robots' disks")):
             v = coverage[f"covered_fraction_{who}"]
             add(f"covered_{who}", f"covered fraction ({label})", t, v, "line", "fraction")
-    if beliefs is not None and len(beliefs):
-        per = beliefs.groupby("t_s")[["true_neighbours", "missing_neighbours"]].sum()
-        true = per["true_neighbours"].to_numpy(float)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            known = np.where(true > 0, 1.0 - per["missing_neighbours"].to_numpy(float) / true, np.nan)
-        label = "true links believed (Ack-driven neighbour tables)"
-        add("believed", label, per.index.to_numpy(float), known, "line", "fraction")
+    if ack_delivery is not None and len(ack_delivery):
+        # A step over each interval of send time [t_s, t_s + dt): the ratio of the Acks sent in it.
+        t = ack_delivery["t_s"].to_numpy(float)
+        add("ack_delivery", "Ack delivery ratio", t, ack_delivery["delivery_ratio"], "step", "fraction")
     if messages is not None and len(messages):
         m = messages.sort_values("msg_id", kind="stable")
         t = m["t_sent_s"].to_numpy(float)
@@ -216,6 +216,52 @@ def _motion(run_dir: Path, n: int, blob: Blob) -> str:
     return "positions"
 
 
+def _torus_side(config: cfgmod.Config) -> float | None:
+    return config.world.side_m if config.world.torus else None
+
+
+def _colouring_positions(run_dir: Path, config: cfgmod.Config) -> pd.DataFrame:
+    """The instants the groups' colours are decided at: the sampled positions, as the
+    figures use (the legs at every Ack period when positions were not sampled)."""
+    pos = _read(run_dir, "positions")
+    if pos is not None and len(pos):
+        return pos
+    legs = _read(run_dir, "legs")
+    if legs is None or legs.empty:
+        return pd.DataFrame({"t_s": [], "robot": [], "x_m": [], "y_m": []})
+    step = cfgmod.to_dict(config)["protocol"].get("ack_period_s", 1.0)
+    times = np.arange(int(math.floor(config.duration_s / step + 1e-9)) + 1) * step
+    return sample_positions(legs, config.world.n_robots, times, config.world.side_m, config.world.torus)
+
+
+def _pack_neighbour_beliefs(run_dir: Path, nb: pd.DataFrame, times: np.ndarray, n: int, blob: Blob) -> None:
+    """Each robot's neighbours by id at the beliefs samples, as runs: robot ``i``'s runs
+    are ``nb_first[i]`` to ``nb_first[i + 1]``, sorted by neighbour, each one neighbour
+    ``nb_id`` with the same flags (1: believed, 2: in range) from sample ``nb_k0`` to
+    ``nb_k1``. A neighbour table changes far less often than it is sampled: runs take a
+    fraction of the space of the rows."""
+    t = nb["t_s"].to_numpy(float)
+    k = np.searchsorted(times, t)
+    if len(nb) and (np.any(k >= len(times)) or np.any(times[np.minimum(k, len(times) - 1)] != t)):
+        raise NetsimInputError(f"{run_dir}/neighbour_beliefs.parquet: sampled at other times than beliefs.parquet")
+    robot = nb["robot"].to_numpy(np.int64)
+    other = nb["neighbour"].to_numpy(np.int64)
+    flags = nb["believed"].to_numpy(bool) * 1 + nb["in_range"].to_numpy(bool) * 2
+    order = np.lexsort((k, other, robot))
+    robot, other, k, flags = robot[order], other[order], k[order], flags[order]
+    start = np.ones(len(k), dtype=bool)
+    start[1:] = (
+        (robot[1:] != robot[:-1]) | (other[1:] != other[:-1]) | (k[1:] != k[:-1] + 1) | (flags[1:] != flags[:-1])
+    )
+    first = np.flatnonzero(start)
+    last = np.r_[first[1:], len(k)][: len(first)] - 1
+    blob.add("nb_first", np.searchsorted(robot[first], np.arange(n + 1), "left"), "<i4")
+    blob.add("nb_id", other[first], _small_uint(other))
+    blob.add("nb_k0", k[first], _small_uint(k))
+    blob.add("nb_k1", k[last], _small_uint(k))
+    blob.add("nb_flags", flags[first], "u1")
+
+
 def _empty_links() -> pd.DataFrame:
     return pd.DataFrame(
         {"a": np.empty(0, np.int64), "b": np.empty(0, np.int64), "t_up_s": np.empty(0), "t_down_s": np.empty(0)}
@@ -252,9 +298,12 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     labels = config.protocol.plugin.role_labels
     blob.add("role_code", roles["role"].map(role_codes(labels)).fillna(0), "i1")
     blob.add("role_leader", roles["leader"], "<i4")
-    ranks = palette.group_ranks(roles.loc[roles["role"] == (labels.leader if labels else None), "robot"])
     colour_of = np.full(n, -1)
-    colour_of[list(ranks)] = list(ranks.values())
+    if labels is not None:
+        slots = style.run_group_slots(
+            roles, _colouring_positions(run_dir, config), labels.leader, float(ranges.min()), _torus_side(config)
+        )
+        colour_of[list(slots)] = list(slots.values())
     blob.add("colour_of", colour_of, "<i2")
 
     groups = _read(run_dir, "groups")
@@ -267,19 +316,24 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         blob.add("grp_first", np.searchsorted(gw["t_s"].to_numpy(float), np.r_[times, np.inf], "left"), "<i4")
         blob.add("grp_robot", gw["robot"], "<i4")
         blob.add("grp_group", gw["group"], "<i4")
+        blob.add("grp_primary", gw["primary"].to_numpy(bool), "u1")
 
     beliefs = _read(run_dir, "beliefs")
     has_beliefs = beliefs is not None and len(beliefs) > 0
     if has_beliefs:
         b = beliefs.sort_values(["t_s", "robot"], kind="stable")
-        times = np.unique(b["t_s"].to_numpy(float))
-        if len(b) != len(times) * n:
+        bel_times = np.unique(b["t_s"].to_numpy(float))
+        if len(b) != len(bel_times) * n:
             raise NetsimInputError(f"{run_dir}/beliefs.parquet: expected {n} robots at every sample")
-        blob.add("bel_t", times, "<f8")
+        blob.add("bel_t", bel_times, "<f8")
         for col in ("believed", "true", "stale", "missing"):
             v = b[f"{col}_neighbours"].to_numpy(np.int64)
             blob.add(f"bel_{col}", v, _small_uint(v))
         blob.add("bel_leader_in_range", b["leader_in_range"].to_numpy(bool), "u1")
+    nb = _read(run_dir, "neighbour_beliefs") if has_beliefs else None
+    has_neighbour_beliefs = nb is not None
+    if has_neighbour_beliefs:
+        _pack_neighbour_beliefs(run_dir, nb, bel_times, n, blob)
 
     messages = _read(run_dir, "messages")
     has_messages = messages is not None and len(messages) > 0
@@ -302,7 +356,8 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         blob.add("hop_t_received", h["t_received_s"], "<f8")
 
     coverage = _read(run_dir, "coverage")
-    chart = series(config, links, roles, beliefs if has_beliefs else None, messages, coverage, blob, labels)
+    ack_delivery = _read(run_dir, "ack_delivery")
+    chart = series(config, links, roles, ack_delivery, messages, coverage, blob, labels)
 
     map_meta = None
     if map_grid is not None:
@@ -341,6 +396,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
             "roles": not roles.empty,
             "groups": has_groups,
             "beliefs": has_beliefs,
+            "neighbour_beliefs": has_neighbour_beliefs,
             "messages": has_messages,
             "hops": has_hops,
         },
@@ -358,7 +414,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         "summary": {
             k: v for k, v in summary.items() if isinstance(v, str) or (isinstance(v, int | float) and math.isfinite(v))
         },
-        "palette": palette.as_dict(),
+        "palette": style.as_json(),
         "series": chart,
         "map": map_meta,
         "arrays": blob.index,

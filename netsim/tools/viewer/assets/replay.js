@@ -7,8 +7,10 @@
   const PAL = META.palette;
   const ROLE_NAMES = ["gamma", "beta", "alpha"];
   const GAMMA = 0, BETA = 1, ALPHA = 2;
-  const SERIES_COLOURS = ["#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#ff7f0e", "#17becf", "#8c564b"];
-  const MESSAGE = "#e6007e";
+  // Every colour, marker and size comes from META.palette (netsim/tools/style.py), as in
+  // the figures: none is named here.
+  const GROUPS = PAL.group_palette;
+  const LINE_MARKERS = new Set(["x", "+"]); // drawn as strokes in the fill colour
   // A run without the clustering protocol has no roles: its robots are plain dots.
   const NO_ROLES = !META.has.roles;
   const view = (window.netsimView = { ready: false, error: null });
@@ -71,6 +73,7 @@
       this.upPtr = 0;
       this.downPtr = 0;
       this.gateway = new Uint8Array(n);
+      this.other = new Int32Array(n).fill(-1);
       this.groupSample = -1;
       this.parent = new Int32Array(n);
       this.degree = new Int32Array(n);
@@ -175,12 +178,18 @@
     groups(t) {
       const A = this.A;
       this.gateway.fill(0);
+      this.other.fill(-1);
       this.groupSample = -1;
       if (!META.has.groups) return;
       const k = lastAtOrBefore(A.grp_t, t);
       this.groupSample = k;
       if (k < 0) return;
-      for (let r = A.grp_first[k]; r < A.grp_first[k + 1]; r++) this.gateway[A.grp_robot[r]] = 1;
+      for (let r = A.grp_first[k]; r < A.grp_first[k + 1]; r++) {
+        const i = A.grp_robot[r];
+        this.gateway[i] = 1;
+        // Rows ascend by group: the first other group is the lowest (style.other_group).
+        if (!A.grp_primary[r] && this.other[i] < 0) this.other[i] = A.grp_group[r];
+      }
     }
 
     // Groups of robot i at the last groups sample (its gateway memberships).
@@ -197,11 +206,20 @@
       return ROLE_NAMES[r];
     }
 
-    // Colour index of robot i's group (-1: none).
+    // Palette index of the group led by robot head (-1: none).
+    colourOf(head) {
+      return head >= 0 && head < this.n ? this.A.colour_of[head] : -1;
+    }
+
+    // Palette index of robot i's group (-1: none).
     colour(i) {
       const r = this.role[i];
-      const head = r === ALPHA ? i : r === BETA ? this.leader[i] : -1;
-      return head >= 0 && head < this.n ? this.A.colour_of[head] : -1;
+      return this.colourOf(r === ALPHA ? i : r === BETA ? this.leader[i] : -1);
+    }
+
+    // Palette index of a gateway's other group (-1: none).
+    edgeColour(i) {
+      return this.colourOf(this.other[i]);
     }
 
     components() {
@@ -332,9 +350,9 @@
 
   // Scratch buffers for bucketing robots by colour (counting sort, O(N) a frame).
   let bucketStart = null, bucketOrder = null, colourIdx = null;
-  const NB = PAL.groups.length + 1; // last bucket: no group
+  const NB = GROUPS.length + 1; // last bucket: no group
 
-  function bucketRobots(filter) {
+  function bucketRobots(filter, colourOf = (i) => model.colour(i)) {
     const n = model.n;
     bucketStart.fill(0);
     for (let i = 0; i < n; i++) {
@@ -342,7 +360,7 @@
         colourIdx[i] = -2;
         continue;
       }
-      const c = model.colour(i);
+      const c = colourOf(i);
       colourIdx[i] = c < 0 ? NB - 1 : c;
       bucketStart[colourIdx[i] + 1]++;
     }
@@ -351,8 +369,92 @@
     for (let i = 0; i < n; i++) if (colourIdx[i] >= 0) bucketOrder[fill[colourIdx[i]]++] = i;
   }
 
-  function bucketColour(b) {
-    return b === NB - 1 ? PAL.no_group : PAL.groups[b];
+  function bucketColour(b, none = PAL.no_group) {
+    return b === NB - 1 ? none : GROUPS[b];
+  }
+
+  // Half the size of a marker of a role, for members drawn r pixels in radius: marker
+  // sizes scale as in matplotlib (the size is the area).
+  function markerSize(role, r) {
+    return r * Math.sqrt(PAL.roles[role].size / PAL.roles.beta.size);
+  }
+
+  // A matplotlib marker's shape, centred at (X, Y), s half its size.
+  function markerPath(g, marker, X, Y, s) {
+    if (marker === "^") {
+      g.moveTo(X, Y - s);
+      g.lineTo(X + 0.866 * s, Y + 0.5 * s);
+      g.lineTo(X - 0.866 * s, Y + 0.5 * s);
+      g.closePath();
+    } else if (marker === "s") g.rect(X - s, Y - s, 2 * s, 2 * s);
+    else if (marker === "x") {
+      g.moveTo(X - s, Y - s);
+      g.lineTo(X + s, Y + s);
+      g.moveTo(X - s, Y + s);
+      g.lineTo(X + s, Y - s);
+    } else if (marker === "+") {
+      g.moveTo(X - s, Y);
+      g.lineTo(X + s, Y);
+      g.moveTo(X, Y - s);
+      g.lineTo(X, Y + s);
+    } else {
+      g.moveTo(X + s, Y);
+      g.arc(X, Y, s, 0, 2 * Math.PI);
+    }
+  }
+
+  // Fill and edge colours of robot i as drawn ("" for no edge).
+  function fillOf(i) {
+    const st = PAL.roles[NO_ROLES ? "none" : model.shape(i)];
+    if (st.colour !== "group") return st.colour;
+    const c = model.colour(i);
+    return c < 0 ? PAL.no_group : GROUPS[c];
+  }
+  function edgeOf(i) {
+    const st = PAL.roles[NO_ROLES ? "none" : model.shape(i)];
+    if (st.edge === "none" || LINE_MARKERS.has(st.marker)) return "";
+    if (st.edge !== "group") return st.edge;
+    const c = model.edgeColour(i);
+    return c < 0 ? PAL.no_group : GROUPS[c];
+  }
+
+  // The robots of one role (all, as "none", in a run without roles): shaped, filled and
+  // edged as its style says, one path per colour.
+  function drawRole(role, r) {
+    const st = PAL.roles[role];
+    const s = markerSize(role, r), x = model.x, y = model.y;
+    const mine = NO_ROLES ? () => true : (i) => model.shape(i) === role;
+    const line = LINE_MARKERS.has(st.marker);
+    const fixed = st.colour !== "group";
+    const paths = (colourOf, none, paint) => {
+      bucketRobots(mine, colourOf);
+      for (let b = 0; b < NB; b++) {
+        if (bucketStart[b] === bucketStart[b + 1]) continue;
+        ctx.beginPath();
+        for (let k = bucketStart[b]; k < bucketStart[b + 1]; k++) {
+          const i = bucketOrder[k];
+          markerPath(ctx, st.marker, SX(x[i]), SY(y[i]), s);
+        }
+        paint(bucketColour(b, none));
+      }
+    };
+    ctx.lineWidth = 1.5;
+    paths(fixed ? () => -1 : (i) => model.colour(i), fixed ? st.colour : PAL.no_group, (c) => {
+      if (line) {
+        ctx.strokeStyle = c;
+        ctx.stroke();
+      } else {
+        ctx.fillStyle = c;
+        ctx.fill();
+      }
+    });
+    if (st.edge === "none" || line) return;
+    const byGroup = st.edge === "group";
+    ctx.lineWidth = byGroup ? 2 : 1;
+    paths(byGroup ? (i) => model.edgeColour(i) : () => -1, byGroup ? PAL.no_group : st.edge, (c) => {
+      ctx.strokeStyle = c;
+      ctx.stroke();
+    });
   }
 
   function drawField() {
@@ -360,7 +462,7 @@
     const n = model.n, x = model.x, y = model.y, side = META.side_m, t = model.t;
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     ctx.clearRect(0, 0, cam.w, cam.h);
-    ctx.strokeStyle = "#bbb";
+    ctx.strokeStyle = PAL.border;
     ctx.lineWidth = 1;
     ctx.strokeRect(SX(0), SY(side), side * cam.scale, side * cam.scale);
 
@@ -403,63 +505,12 @@
     if (ui.hops.checked && META.has.hops) drawHops(t);
 
     const r = robotRadius();
-    // Members: dots in their group's colour.
-    bucketRobots(NO_ROLES ? () => true : (i) => model.role[i] === BETA && !model.gateway[i]);
-    for (let b = 0; b < NB; b++) {
-      if (bucketStart[b] === bucketStart[b + 1]) continue;
-      ctx.fillStyle = bucketColour(b);
-      ctx.beginPath();
-      for (let k = bucketStart[b]; k < bucketStart[b + 1]; k++) {
-        const i = bucketOrder[k];
-        ctx.moveTo(SX(x[i]) + r, SY(y[i]));
-        ctx.arc(SX(x[i]), SY(y[i]), r, 0, 2 * Math.PI);
-      }
-      ctx.fill();
-    }
-    // Undecided: grey crosses.
-    ctx.strokeStyle = PAL.undecided;
-    ctx.lineWidth = 1.5;
-    ctx.beginPath();
-    for (let i = 0; i < n; i++) {
-      if (NO_ROLES || model.role[i] !== GAMMA) continue;
-      const X = SX(x[i]), Y = SY(y[i]);
-      ctx.moveTo(X - r, Y - r);
-      ctx.lineTo(X + r, Y + r);
-      ctx.moveTo(X - r, Y + r);
-      ctx.lineTo(X + r, Y - r);
-    }
-    ctx.stroke();
-    // Gateways: open squares, outlined.
-    const g = 1.3 * r;
-    ctx.strokeStyle = PAL.outline;
-    ctx.lineWidth = 1;
-    ctx.beginPath();
-    for (let i = 0; i < n; i++) if (model.role[i] === BETA && model.gateway[i]) ctx.rect(SX(x[i]) - g, SY(y[i]) - g, 2 * g, 2 * g);
-    ctx.stroke();
-    // Leaders: triangles in their group's colour, outlined.
-    const s = 2.2 * r;
-    bucketRobots((i) => model.role[i] === ALPHA);
-    ctx.lineWidth = 1;
-    ctx.strokeStyle = PAL.outline;
-    for (let b = 0; b < NB; b++) {
-      if (bucketStart[b] === bucketStart[b + 1]) continue;
-      ctx.fillStyle = bucketColour(b);
-      ctx.beginPath();
-      for (let k = bucketStart[b]; k < bucketStart[b + 1]; k++) {
-        const i = bucketOrder[k], X = SX(x[i]), Y = SY(y[i]);
-        ctx.moveTo(X, Y - s);
-        ctx.lineTo(X + 0.866 * s, Y + 0.5 * s);
-        ctx.lineTo(X - 0.866 * s, Y + 0.5 * s);
-        ctx.closePath();
-      }
-      ctx.fill();
-      ctx.stroke();
-    }
+    for (const role of NO_ROLES ? ["none"] : ["beta", "gamma", "gateway", "alpha"]) drawRole(role, r);
 
     drawn.hovered = mouse.inside && !mouse.drag ? nearest(mouse.x, mouse.y, Math.max(8, 2 * r)) : -1;
     if (drawn.hovered >= 0) {
       const i = drawn.hovered;
-      ctx.strokeStyle = "#000";
+      ctx.strokeStyle = PAL.outline;
       ctx.lineWidth = 2;
       ctx.beginPath();
       for (const j of model.neighbours(i)) segment(i, j, 1);
@@ -491,7 +542,7 @@
   function drawHops(t) {
     const trail = parseFloat(ui.trail.value), w = trail / TRAIL_LEVELS;
     const ts = A.hop_t_sent, tr = A.hop_t_received;
-    ctx.strokeStyle = MESSAGE;
+    ctx.strokeStyle = PAL.message;
     ctx.lineWidth = 1;
     // Sorted by sending time, so each age band (fading with age) is one contiguous run.
     for (let level = 0; level < TRAIL_LEVELS; level++) {
@@ -527,7 +578,7 @@
       ctx.setLineDash([]);
       if (A.msg_delivered[m] && A.msg_t_delivered[m] <= t) {
         ctx.globalAlpha = 0.35;
-        ctx.fillStyle = MESSAGE;
+        ctx.fillStyle = PAL.message;
         ctx.fill();
         ctx.globalAlpha = 1;
       }
@@ -549,6 +600,32 @@
 
   const fmt = (v, d = 2) => (Number.isInteger(v) ? String(v) : v.toFixed(d));
 
+  // "3 [1, 4, 9]": how many, and which (the first 24).
+  function idList(ids) {
+    if (!ids.length) return "0";
+    const shown = ids.length > 24 ? ids.slice(0, 24).join(", ") + ", …" : ids.join(", ");
+    return `${ids.length} [${shown}]`;
+  }
+
+  // Robot i's neighbours by id at the last beliefs sample at or before the cursor: those
+  // it believed live, those whose transmissions reached it, and the differences (null
+  // without the neighbour_beliefs table or before the first sample).
+  function neighbourBeliefs(i) {
+    if (!META.has.neighbour_beliefs) return null;
+    const k = lastAtOrBefore(A.bel_t, model.t);
+    if (k < 0) return null;
+    const out = { t: A.bel_t[k], believed: [], inRange: [], stale: [], missing: [] };
+    for (let r = A.nb_first[i]; r < A.nb_first[i + 1]; r++) {
+      if (A.nb_k0[r] > k || A.nb_k1[r] < k) continue;
+      const j = A.nb_id[r], f = A.nb_flags[r];
+      if (f & 1) out.believed.push(j);
+      if (f & 2) out.inRange.push(j);
+      if (f === 1) out.stale.push(j);
+      if (f === 2) out.missing.push(j);
+    }
+    return out;
+  }
+
   function updateTip() {
     const i = drawn.hovered;
     if (i < 0) {
@@ -556,20 +633,28 @@
       return;
     }
     const shape = model.shape(i);
-    const lines = [NO_ROLES ? `robot ${i}` : `robot ${i}: ${PAL.labels[shape]}`];
+    const lines = [NO_ROLES ? `robot ${i}` : `robot ${i}: ${PAL.roles[shape].label}`];
     const leader = model.role[i] === ALPHA ? i : model.leader[i];
     if (!NO_ROLES) lines.push(`leader ${leader >= 0 ? leader : "none"}`);
     const groups = model.groupsOf(i);
     if (groups.length) lines.push(`groups ${groups.join(", ")}`);
     lines.push(`position (${model.x[i].toFixed(1)}, ${model.y[i].toFixed(1)}) m`);
     const nb = model.neighbours(i);
-    const shown = nb.length > 24 ? nb.slice(0, 24).join(", ") + ", …" : nb.join(", ");
-    lines.push(`true neighbours now: ${nb.length}${nb.length ? " [" + shown + "]" : ""}`);
+    lines.push(`true neighbours now: ${idList(nb)}`);
     if (META.has.beliefs) {
       const k = lastAtOrBefore(A.bel_t, model.t);
       if (k >= 0) {
         const at = k * model.n + i;
-        lines.push(`believed at t = ${fmt(A.bel_t[k])} s: ${A.bel_believed[at]} (true then ${A.bel_true[at]}, stale ${A.bel_stale[at]}, missing ${A.bel_missing[at]})`);
+        const when = `at t = ${fmt(A.bel_t[k])} s`;
+        const ids = neighbourBeliefs(i);
+        if (ids) {
+          lines.push(`believed ${when}: ${idList(ids.believed)}`);
+          lines.push(`in range then: ${idList(ids.inRange)}`);
+          lines.push(`  believed, not in range (stale): ${idList(ids.stale)}`);
+          lines.push(`  in range, not believed (missing): ${idList(ids.missing)}`);
+        } else {
+          lines.push(`believed ${when}: ${A.bel_believed[at]} (true then ${A.bel_true[at]}, stale ${A.bel_stale[at]}, missing ${A.bel_missing[at]})`);
+        }
         if (model.role[i] === BETA) lines.push(`leader in range then: ${A.bel_leader_in_range[at] ? "yes" : "no"}`);
       }
     }
@@ -602,9 +687,9 @@
     const w = c.width / dpr, h = c.height / dpr, pad = 14;
     const countMax = chartScale();
     const X = (t) => (t / META.duration_s) * w;
-    g.fillStyle = "#fff";
+    g.fillStyle = PAL.chart.background;
     g.fillRect(0, 0, w, h);
-    g.strokeStyle = "#eee";
+    g.strokeStyle = PAL.chart.grid;
     g.lineWidth = 1;
     g.beginPath();
     for (const f of [0, 0.5, 1]) {
@@ -612,16 +697,16 @@
       g.lineTo(w, pad + (1 - f) * (h - 2 * pad));
     }
     g.stroke();
-    g.fillStyle = "#888";
+    g.fillStyle = PAL.chart.text;
     g.font = "10px sans-serif";
     g.fillText(`counts 0–${countMax}`, 4, 10);
     g.textAlign = "right";
     g.fillText("fractions 0–1", w - 4, 10);
-    META.series.forEach((s, idx) => {
+    META.series.forEach((s) => {
       const t = A[`s_${s.name}_t`], v = A[`s_${s.name}_v`];
       const top = s.axis === "count" ? countMax : 1;
       const Y = (val) => pad + (1 - val / top) * (h - 2 * pad);
-      g.strokeStyle = SERIES_COLOURS[idx % SERIES_COLOURS.length];
+      g.strokeStyle = seriesColour(s);
       g.lineWidth = 1.5;
       g.beginPath();
       let started = false;
@@ -652,12 +737,16 @@
     chartCtx.setTransform(dpr, 0, 0, dpr, 0, 0);
     const w = chartCanvas.width / dpr, h = chartCanvas.height / dpr;
     const X = (model.t / META.duration_s) * w;
-    chartCtx.strokeStyle = "#000";
+    chartCtx.strokeStyle = PAL.chart.cursor;
     chartCtx.lineWidth = 1;
     chartCtx.beginPath();
     chartCtx.moveTo(X, 0);
     chartCtx.lineTo(X, h);
     chartCtx.stroke();
+  }
+
+  function seriesColour(s) {
+    return PAL.series[s.name] || PAL.other_series;
   }
 
   function seriesAt(s, t) {
@@ -690,11 +779,11 @@
     }
     ui.now.textContent = lines.join("\n");
     ui.chartLegend.replaceChildren(
-      ...META.series.map((s, idx) => {
+      ...META.series.map((s) => {
         const span = document.createElement("span");
         const key = document.createElement("span");
         key.className = "key";
-        key.style.background = SERIES_COLOURS[idx % SERIES_COLOURS.length];
+        key.style.background = seriesColour(s);
         const v = seriesAt(s, t);
         span.append(key, `${s.label}: ${Number.isFinite(v) ? fmt(v, s.axis === "count" ? 0 : 3) : "–"}`);
         return span;
@@ -764,19 +853,59 @@
 
   function legend() {
     const box = document.getElementById("legend");
-    const items = [
-      ["alpha", `<polygon points="8,2 14,13 2,13" fill="${PAL.groups[0]}" stroke="${PAL.outline}"/>`],
-      ["beta", `<circle cx="8" cy="8" r="4" fill="${PAL.groups[0]}"/>`],
-      ["gateway", `<rect x="3" y="3" width="10" height="10" fill="none" stroke="${PAL.outline}"/>`],
-      ["gamma", `<path d="M4 4L12 12M4 12L12 4" stroke="${PAL.undecided}" stroke-width="1.5"/>`],
-    ];
-    const rows = items.map(([k, svg]) => `<div><svg width="16" height="16">${svg}</svg>${PAL.labels[k]}</div>`);
-    rows.push(`<div><svg width="16" height="16"><path d="M1 8H15" stroke="${PAL.link}" stroke-width="2"/></svg>link</div>`);
-    rows.push(`<div><svg width="16" height="16"><path d="M1 8H15" stroke="${MESSAGE}" stroke-width="2"/></svg>relayed message (source ring, destination dashed)</div>`);
-    rows.push(`<div>colour: the group (its leader)</div>`);
-    const esc = (text) => String(text).replace(/[&<>"]/g, (c) => `&#${c.charCodeAt(0)};`);
-    if (NO_ROLES) rows.splice(0, 4, `<div>no roles: protocol "${esc(META.protocol)}"</div>`);
-    box.innerHTML = rows.join("");
+    const icon = (draw) => {
+      const c = document.createElement("canvas");
+      c.width = c.height = 16;
+      draw(c.getContext("2d"));
+      return c;
+    };
+    const row = (canvas, text) => {
+      const div = document.createElement("div");
+      div.append(canvas, text);
+      return div;
+    };
+    const line = (colour) => (g) => {
+      g.strokeStyle = colour;
+      g.lineWidth = 2;
+      g.beginPath();
+      g.moveTo(1, 8);
+      g.lineTo(15, 8);
+      g.stroke();
+    };
+    const rows = [];
+    for (const role of NO_ROLES ? ["none"] : ["alpha", "beta", "gateway", "gamma"]) {
+      const st = PAL.roles[role];
+      const s = Math.min(6.5, markerSize(role, 4));
+      // The group colours of the legend: the first two of the palette.
+      const fill = st.colour === "group" ? GROUPS[0] : st.colour;
+      const edge = st.edge === "group" ? GROUPS[1] : st.edge;
+      const drawIcon = (g) => {
+        g.beginPath();
+        markerPath(g, st.marker, 8, 8, s);
+        if (LINE_MARKERS.has(st.marker)) {
+          g.strokeStyle = fill;
+          g.lineWidth = 1.5;
+          g.stroke();
+          return;
+        }
+        g.fillStyle = fill;
+        g.fill();
+        if (edge !== "none") {
+          g.strokeStyle = edge;
+          g.lineWidth = st.edge === "group" ? 2 : 1;
+          g.stroke();
+        }
+      };
+      rows.push(row(icon(drawIcon), NO_ROLES ? `${st.label}: protocol "${META.protocol}"` : st.label));
+    }
+    rows.push(row(icon(line(PAL.link)), "link"));
+    if (META.has.hops) rows.push(row(icon(line(PAL.message)), "relayed message (source ring, destination dashed)"));
+    if (!NO_ROLES) {
+      const note = document.createElement("div");
+      note.textContent = "colour: the group (its leader), the same for the whole run";
+      rows.push(note);
+    }
+    box.replaceChildren(...rows);
   }
 
   function workflow() {
@@ -945,12 +1074,20 @@
       },
       positions: () => Array.from(model.x, (x, i) => [x, model.y[i]]),
       roles: () => Array.from(model.role, (r) => ROLE_NAMES[r]),
-      shapes: () => Array.from(model.role, (_, i) => model.shape(i)),
+      shapes: () => Array.from(model.role, (_, i) => (NO_ROLES ? "none" : model.shape(i))),
       leaders: () => Array.from(model.leader),
       links: () => Array.from(model.active.subarray(0, model.nActive), (l) => [A.link_a[l], A.link_b[l]]),
       screenOf: (i) => [SX(model.x[i]), SY(model.y[i])],
       toScreen: (x, y) => [SX(x), SY(y)],
       tooltip: () => (tip.hidden ? "" : tip.textContent),
+      get hovered() {
+        return drawn.hovered;
+      },
+      neighbourBeliefs: (i) => neighbourBeliefs(i),
+      colours: () => Array.from(model.role, (_, i) => fillOf(i)),
+      edges: () => Array.from(model.role, (_, i) => edgeOf(i)),
+      palette: () => PAL,
+      series: () => Object.fromEntries(META.series.map((s) => [s.name, seriesAt(s, model.t)])),
       stats: () => ({ drawMs: stats.drawMs.slice(), intervals: stats.intervals.slice() }),
     };
     Object.defineProperties(view, Object.getOwnPropertyDescriptors(api));

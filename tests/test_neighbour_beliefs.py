@@ -1,0 +1,79 @@
+"""The ``neighbour_beliefs`` table: which robots each robot believes live, beside which
+truly reach it, by id (the ids behind ``beliefs.parquet``'s counts)."""
+
+import pandas as pd
+
+from netsim.run import execute, tables
+from protocols.stack import NEIGHBOUR_BELIEFS_SCHEMA
+from tests.fixtures import clustering, make_config
+
+
+def _ids(frame: pd.DataFrame, robot: int, column: str) -> list[int]:
+    rows = frame[(frame["robot"] == robot) & frame[column]]
+    return rows["neighbour"].tolist()
+
+
+def test_stale_and_true_neighbours_by_id_per_direction():
+    """Robot 0 (range 5 m) hears 1 (range 15 m, 10 m away) and 2 (range 50 m, 40 m away);
+    1 hears 2; 2 hears nobody. When 2 jumps away, 0 and 1 still believe in it: stale,
+    believed but not in range."""
+    sim, stack = clustering([[0, 0], [10, 0], [0, 40]], core={"duration_s": 20.0, "range_m": [5.0, 15.0, 50.0]})
+    sim.run(until_s=5.0)
+    nb = stack.neighbour_beliefs(sim.now)
+    assert nb[["robot", "neighbour", "believed", "in_range"]].values.tolist() == [
+        [0, 1, True, True],
+        [0, 2, True, True],
+        [1, 2, True, True],
+    ]
+    sim.state.set_leg(2, sim.now, (0.0, 0.0), start_m=(500.0, 500.0))
+    sim.run(until_s=5.5)
+    nb = stack.neighbour_beliefs(sim.now)
+    assert _ids(nb, 0, "believed") == [1, 2] and _ids(nb, 0, "in_range") == [1]
+    assert _ids(nb, 1, "believed") == [2] and _ids(nb, 1, "in_range") == []
+    # tau (3 s) after 2's last Ack the stale beliefs have expired.
+    sim.run(until_s=12.0)
+    nb = stack.neighbour_beliefs(sim.now)
+    assert _ids(nb, 0, "believed") == [1] and not (nb["neighbour"] == 2).any()
+
+
+def test_missing_neighbour_by_id():
+    """A robot that arrives in range is truly a neighbour before its first Ack is heard."""
+    sim, stack = clustering([[0, 0], [5, 0], [500, 500]], core={"duration_s": 20.0}, ack_jitter_s=0.0)
+    sim.run(until_s=5.0)
+    sim.state.set_leg(2, sim.now, (0.0, 0.0), start_m=(0.0, 5.0))
+    nb = stack.neighbour_beliefs(sim.now)
+    assert _ids(nb, 0, "in_range") == [1, 2] and _ids(nb, 0, "believed") == [1]
+    assert _ids(nb, 2, "in_range") == [0, 1] and _ids(nb, 2, "believed") == []
+
+
+def test_the_table_adds_up_to_the_beliefs_counts():
+    """Per sample and robot: believed rows = believed_neighbours, in-range rows =
+    true_neighbours, believed only = stale, in range only = missing; on a run with loss,
+    jitter and motion, so that all four happen."""
+    run = execute(
+        make_config(
+            seed=2,
+            duration_s=40.0,
+            world={"n_robots": 30, "side_m": 500.0},
+            channel={"range_m": 120.0, "loss_probability": 0.3},
+            mobility={"speed_max_mps": 10.0},
+            protocol={"message_rate_hz": 0.0},
+        )
+    )
+    nb, beliefs = run.frames["neighbour_beliefs"], run.frames["beliefs"]
+    assert tables(run.sim.config)["neighbour_beliefs"] == NEIGHBOUR_BELIEFS_SCHEMA
+    assert {c: str(t) for c, t in nb.dtypes.items()} == NEIGHBOUR_BELIEFS_SCHEMA
+    per = (
+        nb.assign(
+            stale=nb["believed"] & ~nb["in_range"],
+            missing=nb["in_range"] & ~nb["believed"],
+        )
+        .groupby(["t_s", "robot"])[["believed", "in_range", "stale", "missing"]]
+        .sum()
+    )
+    b = beliefs.set_index(["t_s", "robot"])
+    counts = b[["believed_neighbours", "true_neighbours", "stale_neighbours", "missing_neighbours"]]
+    got = per.reindex(counts.index, fill_value=0).to_numpy()
+    assert (got == counts.to_numpy()).all()
+    assert (counts["stale_neighbours"] > 0).any() and (counts["missing_neighbours"] > 0).any()
+    assert not nb.duplicated(["t_s", "robot", "neighbour"]).any() and (nb["robot"] != nb["neighbour"]).all()
