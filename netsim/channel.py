@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.events import URGENT, scheduled_event
+from netsim.events import URGENT, Delivery, Drop, EventBus, scheduled_event
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
 
@@ -58,6 +58,7 @@ class Channel:
         latency_s: float,
         latency_jitter_s: float = 0.0,
         latency_rng: np.random.Generator | None = None,
+        events: EventBus | None = None,
     ):
         self.env = env
         self.state = state
@@ -69,6 +70,8 @@ class Channel:
         if self.latency_jitter_s > 0 and latency_rng is None:
             raise ValueError("latency jitter needs a random stream")
         self.counters: dict[str, Counters] = {}
+        # The run's bus: "delivery" and "drop" events for whoever subscribes.
+        self.events = events
 
     def counters_for(self, kind: str) -> Counters:
         c = self.counters.get(kind)
@@ -85,7 +88,7 @@ class Channel:
         c = self.counters_for(kind)
         c.sent[sender] += 1
         receivers, dist = self.index.within(self.env.now, sender)
-        return self._transmit(sender, receivers, dist, payload, deliver, c)
+        return self._transmit(sender, receivers, dist, payload, deliver, c, kind)
 
     def unicast(self, sender: int, dest: int, payload, deliver: Deliver, kind: str = "data") -> bool:
         """Send ``payload`` to ``dest`` alone; returns whether it will be delivered."""
@@ -97,34 +100,45 @@ class Channel:
         dist = np.hypot(d[:, 0], d[:, 1])
         if dest == sender or dist[0] > st.range_m[sender]:
             c.dropped[DROP_CAUSES.index("out_of_range"), dest] += 1
+            self._dropped(kind, sender, np.array([dest]), "out_of_range")
             return False
-        got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c)
+        got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c, kind)
         return len(got) == 1
 
-    def _transmit(self, sender, receivers, dist, payload, deliver, c: Counters) -> np.ndarray:
+    def _dropped(self, kind: str, sender: int, receivers: np.ndarray, cause: str) -> None:
+        ev = self.events
+        if ev is not None and ev.wants("drop"):
+            ev.emit("drop", Drop(self.env.now, kind, sender, receivers, cause))
+
+    def _transmit(self, sender, receivers, dist, payload, deliver, c: Counters, kind: str) -> np.ndarray:
         if len(receivers) == 0:
             return receivers
         alive = self.state.alive[receivers]
         if not alive.all():
             np.add.at(c.dropped[1], receivers[~alive], 1)
+            self._dropped(kind, sender, receivers[~alive], "not_alive")
             receivers, dist = receivers[alive], dist[alive]
         keep = self.survives(sender, receivers, dist)
         if keep is not None and not keep.all():
             np.add.at(c.dropped[0], receivers[~keep], 1)
+            self._dropped(kind, sender, receivers[~keep], "loss")
             receivers = receivers[keep]
         if len(receivers) == 0:
             return receivers
         if self.latency_jitter_s > 0:
             delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
             for r, delay in zip(receivers.tolist(), delays.tolist()):
-                self._at(delay, deliver, sender, np.array([r]), payload, c)
+                self._at(delay, deliver, sender, np.array([r]), payload, c, kind)
         else:
-            self._at(self.latency_s, deliver, sender, receivers, payload, c)
+            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind)
         return receivers
 
-    def _at(self, delay, deliver: Deliver, sender, receivers, payload, c: Counters) -> None:
+    def _at(self, delay, deliver: Deliver, sender, receivers, payload, c: Counters, kind: str) -> None:
         def arrive(_event):
             c.received[receivers] += 1
+            ev = self.events
+            if ev is not None and ev.wants("delivery"):
+                ev.emit("delivery", Delivery(self.env.now, kind, sender, receivers, payload))
             deliver(sender, receivers, payload)
 
         scheduled_event(self.env, delay, URGENT, arrive)
