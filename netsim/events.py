@@ -160,6 +160,11 @@ class EventBus:
         """Whether anybody listens to ``name`` (components build payloads only then)."""
         return bool(self._subscribers[name])
 
+    def subscribers(self, name: str) -> list[Callable]:
+        """The functions called on ``name``, in order (the list itself: it follows later
+        subscriptions; for hot loops that call them directly)."""
+        return self._subscribers[name]
+
     def emit(self, name: str, event: object) -> None:
         for fn in self._subscribers[name]:
             fn(event)

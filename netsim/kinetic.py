@@ -40,6 +40,18 @@ from netsim.state import RobotState
 _RESTART = FIRST - 1
 
 
+def _delay_to(now: float, t: float) -> float:
+    """A delay that brings the kernel's clock from ``now`` to ``t`` exactly (``now + (t -
+    now)`` can round to a neighbour of ``t``); the nearest one if none does."""
+    d = max(t - now, 0.0)
+    for _ in range(4):
+        got = now + d
+        if got == t:
+            return d
+        d = max(math.nextafter(d, math.inf if got < t else -math.inf), 0.0)
+    return max(t - now, 0.0)
+
+
 class RuntimeLinks:
     """Exact link events of one run, solved while it goes (module notes).
 
@@ -90,7 +102,7 @@ class RuntimeLinks:
         """Apply the queued events due at or before ``t_end`` (the run's end, whose events
         the kernel does not process), without announcing them."""
         while self._heap and self._heap[0][0] <= t_end:
-            self._fire(heapq.heappop(self._heap), announce=False)
+            self._fire(heapq.heappop(self._heap))
 
     def frame(self, t_end: float) -> pd.DataFrame:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
@@ -189,7 +201,7 @@ class RuntimeLinks:
             self._solve(np.arange(m), t, pos)
         if math.isfinite(self._w_end):
             wid = self._wid
-            scheduled_event(self.env, self._w_end - t, _RESTART, lambda _e: self._restart(wid))
+            scheduled_event(self.env, _delay_to(t, self._w_end), _RESTART, lambda _e: self._restart(wid))
         self._arm()
 
     def _restart(self, wid: int) -> None:
@@ -251,36 +263,52 @@ class RuntimeLinks:
     def _arm(self) -> None:
         heap = self._heap
         if heap and heap[0][0] < self._armed_s:
-            self._armed_s = heap[0][0]
-            scheduled_event(self.env, max(heap[0][0] - self.env.now, 0.0), FIRST, self._wake)
+            t = heap[0][0]
+            self._armed_s = t
+            scheduled_event(self.env, _delay_to(self.env.now, t), FIRST, lambda _e: self._wake(t))
 
-    def _wake(self, _event=None) -> None:
-        now = self.env.now
+    def _wake(self, now: float) -> None:
+        # ``now`` is the instant this wake was armed for (the kernel's clock equals it
+        # unless no delay lands on it exactly; then it is within a rounding step).
         if now >= self._armed_s:
             self._armed_s = math.inf
-        heap = self._heap
+        heap, gen, up, ended = self._heap, self._gen, self.up, self.ended
+        bus = self.events
+        on_up = bus.subscribers("link_up") if bus is not None else []
+        on_down = bus.subscribers("link_down") if bus is not None else []
+        pop = heapq.heappop
+        # The hot loop of the runtime links: _fire inlined.
         while heap and heap[0][0] <= now:
-            self._fire(heapq.heappop(heap))
-            heap = self._heap  # a subscriber's course change may have started a window
+            t, a, b, _phase, negk, _seq, idx, g = pop(heap)
+            if idx >= 0 and gen[idx] != g:
+                continue  # solved again since (a course change)
+            key = (a, b)
+            if negk < 0:
+                if key in up:
+                    continue
+                up[key] = t
+                if on_up:
+                    event = LinkUp(t, a, b)
+                    for fn in on_up:
+                        fn(event)
+            else:
+                t_up = up.pop(key, None)
+                if t_up is None:
+                    continue
+                ended.append((a, b, t_up, t))
+                if on_down:
+                    event = LinkDown(t, a, b, t_up)
+                    for fn in on_down:
+                        fn(event)
         self._arm()
 
-    def _fire(self, row: tuple, announce: bool = True) -> None:
-        t, a, b, _phase, negk, _seq, idx, gen = row
-        if idx >= 0 and self._gen[idx] != gen:
-            return  # solved again since (a course change)
+    def _fire(self, row: tuple) -> None:
+        """Apply one queued event without announcing it (the run's end)."""
+        t, a, b, _phase, negk, _seq, idx, g = row
+        if idx >= 0 and self._gen[idx] != g:
+            return
         key = (a, b)
-        if negk < 0:  # up
-            if key in self.up:
-                return
-            self.up[key] = t
-            ev = self.events
-            if announce and ev is not None and ev.wants("link_up"):
-                ev.emit("link_up", LinkUp(t, a, b))
-        else:
-            t_up = self.up.pop(key, None)
-            if t_up is None:
-                return
-            self.ended.append((a, b, t_up, t))
-            ev = self.events
-            if announce and ev is not None and ev.wants("link_down"):
-                ev.emit("link_down", LinkDown(t, a, b, t_up))
+        if negk < 0:
+            self.up.setdefault(key, t)
+        elif key in self.up:
+            self.ended.append((a, b, self.up.pop(key), t))

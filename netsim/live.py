@@ -110,6 +110,7 @@ class LiveTopology:
         self._next_label = n
         self.components = n
         self.largest = 1 if n else 0
+        self.edges = 0  # networkx counts edges in O(N)
         self._t_last = 0.0
         self._area = [0.0, 0.0, 0.0]  # integrals of components, largest, edges
         events.on("link_up", self._on_up)
@@ -122,7 +123,7 @@ class LiveTopology:
             a = self._area
             a[0] += self.components * dt
             a[1] += self.largest * dt
-            a[2] += self.graph.number_of_edges() * dt
+            a[2] += self.edges * dt
             self._t_last = t
 
     def levels(self, t_end: float | None = None) -> dict:
@@ -156,6 +157,7 @@ class LiveTopology:
         self._advance(ev.t_s)
         a, b = ev.a, ev.b
         self.graph.add_edge(a, b, up_since=ev.t_s)
+        self.edges += 1
         la, lb = self._label[a], self._label[b]
         if la == lb:
             return
@@ -175,6 +177,7 @@ class LiveTopology:
         self._advance(ev.t_s)
         a, b = ev.a, ev.b
         self.graph.remove_edge(a, b)
+        self.edges -= 1
         side = self._split_side(a, b)
         if side is None:
             return
