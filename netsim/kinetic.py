@@ -40,18 +40,6 @@ from netsim.state import RobotState
 _RESTART = FIRST - 1
 
 
-def _delay_to(now: float, t: float) -> float:
-    """A delay that brings the kernel's clock from ``now`` to ``t`` exactly (``now + (t -
-    now)`` can round to a neighbour of ``t``); the nearest one if none does."""
-    d = max(t - now, 0.0)
-    for _ in range(4):
-        got = now + d
-        if got == t:
-            return d
-        d = max(math.nextafter(d, math.inf if got < t else -math.inf), 0.0)
-    return max(t - now, 0.0)
-
-
 class RuntimeLinks:
     """Exact link events of one run, solved while it goes (module notes).
 
@@ -201,7 +189,7 @@ class RuntimeLinks:
             self._solve(np.arange(m), t, pos)
         if math.isfinite(self._w_end):
             wid = self._wid
-            scheduled_event(self.env, _delay_to(t, self._w_end), _RESTART, lambda _e: self._restart(wid))
+            scheduled_event(self.env, self._w_end - t, _RESTART, lambda _e: self._restart(wid))
         self._arm()
 
     def _restart(self, wid: int) -> None:
@@ -265,11 +253,12 @@ class RuntimeLinks:
         if heap and heap[0][0] < self._armed_s:
             t = heap[0][0]
             self._armed_s = t
-            scheduled_event(self.env, _delay_to(self.env.now, t), FIRST, lambda _e: self._wake(t))
+            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, lambda _e: self._wake(t))
 
     def _wake(self, now: float) -> None:
-        # ``now`` is the instant this wake was armed for (the kernel's clock equals it
-        # unless no delay lands on it exactly; then it is within a rounding step).
+        # ``now`` is the instant this wake was armed for. The kernel's clock, now + (t -
+        # now), can be a rounding step away from it (no delay lands on some instants), so
+        # the events are taken by their own time, never by the clock's.
         if now >= self._armed_s:
             self._armed_s = math.inf
         heap, gen, up, ended = self._heap, self._gen, self.up, self.ended

@@ -101,7 +101,7 @@ KINDS = ["bounded", "torus", "jumps", "unequal_ranges"]
 
 
 @pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("seed", range(4))
 def test_runtime_links_equal_posthoc_on_random_trajectories(kind, seed):
     sim = _random_case(1000 + 4 * seed + KINDS.index(kind), kind)
     if kind == "jumps":
@@ -481,3 +481,4 @@ def test_link_breaks_hook_counts_breaks_per_robot_per_minute():
     got = table.pivot(index="minute", columns="robot", values="breaks").to_numpy()
     assert got.tolist() == [[1, 1, 0], [1, 0, 1], [1, 0, 1]]
     assert table["t_s"].tolist()[::3] == [0.0, 60.0, 120.0]
+
