@@ -12,6 +12,10 @@ fresh subprocess, the same invocation three ways:
 - ``runtime+live`` (with ``--live``): the same, and the live networkx topology with its
   time-averaged levels.
 
+Printed: wall and CPU time of each case (the CPU time of its process: steadier than the
+wall time on a shared machine) with their ratios to ``post-hoc``, the lifetimes in
+links.parquet, the link events announced, and the load average when the case ended.
+
     python benchmarks/link_events.py                         # N = 1,000 and 10,000, protocols none and ack
     python benchmarks/link_events.py --n 1000 --protocol ack --live
 """
@@ -21,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import subprocess
 import sys
 import time
@@ -50,7 +55,7 @@ def run_case(n: int, protocol: str, mode: str) -> dict:
             "output": {"position_interval_s": 0.0},
         }
     )
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     sim = build(cfg)
     counted = [0]
     if mode != "post-hoc":
@@ -64,9 +69,11 @@ def run_case(n: int, protocol: str, mode: str) -> dict:
     frames = collect(sim)
     wall = time.perf_counter() - start
     summarize(sim, frames, wall)
+    cpu = time.process_time() - cpu
     links = frames["links"]
     return {
         "wall_s": wall,
+        "cpu_s": cpu,
         "lifetimes": len(links),
         "announced": counted[0],
         "windows": sim.links.windows if sim.links is not None else 0,
@@ -85,11 +92,14 @@ def main(argv=None) -> int:
         print(json.dumps(run_case(int(n), protocol, mode)))
         return 0
     modes = ["post-hoc", "runtime"] + (["runtime+live"] if args.live else [])
-    print(f"{'protocol':<9} {'N':>6} {'mode':<13} {'wall s':>8} {'ratio':>6} {'lifetimes':>10} {'announced':>10}")
-    print("-" * 68)
+    print(
+        f"{'protocol':<9} {'N':>6} {'mode':<13} {'wall s':>8} {'ratio':>6} {'CPU s':>8} {'ratio':>6}"
+        f" {'lifetimes':>10} {'announced':>10} {'load':>5}"
+    )
+    print("-" * 90)
     for protocol in args.protocol:
         for n in args.n:
-            base = None
+            base = base_cpu = None
             for mode in modes:
                 out = subprocess.run(
                     [sys.executable, __file__, "--case", f"{n},{protocol},{mode}"],
@@ -99,9 +109,11 @@ def main(argv=None) -> int:
                 )
                 r = json.loads(out.stdout.strip().splitlines()[-1])
                 base = r["wall_s"] if base is None else base
+                base_cpu = r["cpu_s"] if base_cpu is None else base_cpu
                 print(
-                    f"{protocol:<9} {n:>6} {mode:<13} {r['wall_s']:>8.2f} {r['wall_s'] / base:>5.2f}x "
-                    f"{r['lifetimes']:>10,} {r['announced']:>10,}",
+                    f"{protocol:<9} {n:>6} {mode:<13} {r['wall_s']:>8.2f} {r['wall_s'] / base:>5.2f}x"
+                    f" {r['cpu_s']:>8.2f} {r['cpu_s'] / base_cpu:>5.2f}x"
+                    f" {r['lifetimes']:>10,} {r['announced']:>10,} {os.getloadavg()[0]:>5.1f}",
                     flush=True,
                 )
     return 0

@@ -25,7 +25,6 @@ that change the link's state. docs/events.md says what is exact and the order of
 from __future__ import annotations
 
 import heapq
-import itertools
 import math
 
 import numpy as np
@@ -63,7 +62,9 @@ class RuntimeLinks:
         self.windows = 0
         self.resolved_pairs = 0
         self._heap: list[tuple] = []
-        self._seq = itertools.count()
+        self._queue: list[tuple] = []
+        self._qi = 0
+        self._batch: list | None = None
         self._armed_s = math.inf
         self._dirty: set[int] = set()
         self._jumped: set[int] = set()
@@ -89,8 +90,14 @@ class RuntimeLinks:
     def finish(self, t_end: float) -> None:
         """Apply the queued events due at or before ``t_end`` (the run's end, whose events
         the kernel does not process), without announcing them."""
-        while self._heap and self._heap[0][0] <= t_end:
-            self._fire(heapq.heappop(self._heap))
+        for t, a, b, _phase, negk, idx, g in self._take(t_end):
+            if idx >= 0 and self._gen[idx] != g:
+                continue
+            key = (a, b)
+            if negk < 0:
+                self.up.setdefault(key, t)
+            elif key in self.up:
+                self.ended.append((a, b, self.up.pop(key), t))
 
     def frame(self, t_end: float) -> pd.DataFrame:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
@@ -156,7 +163,10 @@ class RuntimeLinks:
         st = self.state
         self.windows += 1
         self._wid += 1
-        self._heap = []  # every queued event is solved again from t
+        # Every queued event is solved again from t; the window's events go into one sorted
+        # list (walked in order), later re-solves into a small heap beside it.
+        self._heap = []
+        self._batch: list | None = []
         speeds = np.hypot(st.velocity_mps[:, 0], st.velocity_mps[:, 1])
         self.v_bound = max(self.v_bound, float(speeds.max()) if st.n else 0.0)
         if self.v_bound > 0:
@@ -187,6 +197,7 @@ class RuntimeLinks:
             self._judge_jumpers(t, pos, jumpers)
         if self.v_bound > 0 and m:
             self._solve(np.arange(m), t, pos)
+        self._sort_batch()
         if math.isfinite(self._w_end):
             wid = self._wid
             scheduled_event(self.env, self._w_end - t, _RESTART, lambda _e: self._restart(wid))
@@ -234,26 +245,68 @@ class RuntimeLinks:
             self._push(t_ev, self._ca[ia], self._cb[ia], kind, phase, ia)
 
     # -- the queue -----------------------------------------------------------------------
+    # An event is the tuple (t, a, b, phase, -kind, idx, gen): tuples sort in the order the
+    # events run (module notes); idx is the candidate pair (-1: a state set at a jump or at
+    # the start, never cancelled), gen its generation when solved.
     def _push(self, t, a, b, kind: int, phase, idx=None) -> None:
-        if len(a) == 0:
-            return
         n = len(a)
-        t_l = np.broadcast_to(np.asarray(t, float), (n,)).tolist()
-        phase_l = np.broadcast_to(np.asarray(phase, np.int64), (n,)).tolist()
-        if idx is None:
-            idx_l, gen_l = [-1] * n, [0] * n
-        else:
-            idx_l, gen_l = idx.tolist(), self._gen[idx].tolist()
-        heap, seq = self._heap, self._seq
-        for row in zip(t_l, a.tolist(), b.tolist(), phase_l, itertools.repeat(-kind), seq, idx_l, gen_l):
+        if n == 0:
+            return
+        cols = (
+            np.broadcast_to(np.asarray(t, float), (n,)),
+            np.asarray(a, np.int64),
+            np.asarray(b, np.int64),
+            np.broadcast_to(np.asarray(phase, np.int64), (n,)),
+            np.full(n, -kind, np.int64),
+            np.full(n, -1, np.int64) if idx is None else idx,
+            np.zeros(n, np.int64) if idx is None else self._gen[idx],
+        )
+        if self._batch is not None:
+            self._batch.append(cols)
+            return
+        heap = self._heap
+        for row in zip(*(c.tolist() for c in cols)):
             heapq.heappush(heap, row)
 
+    def _sort_batch(self) -> None:
+        batch, self._batch = self._batch, None
+        if batch:
+            cols = [np.concatenate(c) for c in zip(*batch)]
+            order = np.lexsort((cols[4], cols[3], cols[2], cols[1], cols[0]))
+            self._queue = list(zip(*(c[order].tolist() for c in cols)))
+        else:
+            self._queue = []
+        self._qi = 0
+
+    def _next_time(self) -> float:
+        t = self._queue[self._qi][0] if self._qi < len(self._queue) else math.inf
+        return min(t, self._heap[0][0]) if self._heap else t
+
     def _arm(self) -> None:
-        heap = self._heap
-        if heap and heap[0][0] < self._armed_s:
-            t = heap[0][0]
+        t = self._next_time()
+        if t < self._armed_s:
             self._armed_s = t
             scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, lambda _e: self._wake(t))
+
+    def _take(self, until: float):
+        """The queued events due at or before ``until``, in order (both sources merged)."""
+        queue, heap = self._queue, self._heap
+        qi, nq = self._qi, len(queue)
+        pop = heapq.heappop
+        while True:
+            if heap and (qi >= nq or heap[0] < queue[qi]):
+                if heap[0][0] > until:
+                    break
+                row = pop(heap)
+            elif qi < nq:
+                row = queue[qi]
+                if row[0] > until:
+                    break
+                qi += 1
+                self._qi = qi
+            else:
+                break
+            yield row
 
     def _wake(self, now: float) -> None:
         # ``now`` is the instant this wake was armed for. The kernel's clock, now + (t -
@@ -261,14 +314,12 @@ class RuntimeLinks:
         # the events are taken by their own time, never by the clock's.
         if now >= self._armed_s:
             self._armed_s = math.inf
-        heap, gen, up, ended = self._heap, self._gen, self.up, self.ended
+        gen, up, ended = self._gen, self.up, self.ended
         bus = self.events
         on_up = bus.subscribers("link_up") if bus is not None else []
         on_down = bus.subscribers("link_down") if bus is not None else []
-        pop = heapq.heappop
-        # The hot loop of the runtime links: _fire inlined.
-        while heap and heap[0][0] <= now:
-            t, a, b, _phase, negk, _seq, idx, g = pop(heap)
+        # The hot loop of the runtime links.
+        for t, a, b, _phase, negk, idx, g in self._take(now):
             if idx >= 0 and gen[idx] != g:
                 continue  # solved again since (a course change)
             key = (a, b)
@@ -290,14 +341,3 @@ class RuntimeLinks:
                     for fn in on_down:
                         fn(event)
         self._arm()
-
-    def _fire(self, row: tuple) -> None:
-        """Apply one queued event without announcing it (the run's end)."""
-        t, a, b, _phase, negk, _seq, idx, g = row
-        if idx >= 0 and self._gen[idx] != g:
-            return
-        key = (a, b)
-        if negk < 0:
-            self.up.setdefault(key, t)
-        elif key in self.up:
-            self.ended.append((a, b, self.up.pop(key), t))

@@ -482,3 +482,38 @@ def test_link_breaks_hook_counts_breaks_per_robot_per_minute():
     assert got.tolist() == [[1, 1, 0], [1, 0, 1], [1, 0, 1]]
     assert table["t_s"].tolist()[::3] == [0.0, 60.0, 120.0]
 
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--set", "events.runtime_links=maybe"], "events.runtime_links = 'maybe': must be one of 'auto', 'on', 'off'"),
+        (["--set", 'events.hooks=["nope"]'], "events.hooks[0] = 'nope': unknown"),
+        (["--set", "events.live_topology=true", "--set", "events.runtime_links=off"], "events.live_topology"),
+    ],
+)
+def test_cli_bad_events_keys_exit_2_with_one_line(tmp_path, capsys, args, fragment):
+    from netsim.tools.cli import main
+
+    code = main(["run", "--quiet", "--out", str(tmp_path / "out"), *args])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(lines) == 1 and lines[0].startswith("netsim: error: ") and fragment in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_run_with_the_hook_writes_its_table_and_the_levels(tmp_path):
+    import json
+
+    from netsim.tools.cli import main
+
+    out = tmp_path / "out"
+    args = ["--set", "world.n_robots=20", "--set", "duration_s=90", "--set", "protocol.model=none"]
+    args += ["--set", 'events.hooks=["link_breaks"]', "--set", "events.live_topology=true"]
+    assert main(["run", "--quiet", "--out", str(out), *args]) == 0
+    table = pd.read_parquet(out / "link_breaks.parquet")
+    links = pd.read_parquet(out / "links.parquet")
+    assert len(table) == 20 * 2
+    assert table["breaks"].sum() == 2 * (~links["censored_end"]).sum()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["time_mean_degree"] == pytest.approx(summary["mean_degree"], rel=1e-9)
+    assert "link_breaks_per_robot_per_minute" in summary
