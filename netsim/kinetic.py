@@ -60,7 +60,6 @@ class RuntimeLinks:
         self.started = False
         self.v_bound = 0.0
         self.windows = 0
-        self.resolved_pairs = 0
         self._heap: list[tuple] = []
         self._queue: list[tuple] = []
         self._qi = 0
@@ -239,7 +238,6 @@ class RuntimeLinks:
             if len(ia):
                 found.append((np.asarray(t_ev, float), np.asarray(ia, np.int64), kind, np.asarray(phase)))
 
-        self.resolved_pairs += len(idx)
         _solve_piece(d0, w, self._cr[idx], t, self._w_end - t, idx, idx, emit, self.box)
         for t_ev, ia, kind, phase in found:
             self._push(t_ev, self._ca[ia], self._cb[ia], kind, phase, ia)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from types import MappingProxyType
 from typing import Any
 
+from netsim.errors import ConfigError
 from netsim.events import LINK_EVENTS, EventBus
 from netsim.groups import GroupView
 from netsim.kinetic import RuntimeLinks
@@ -82,7 +83,9 @@ class Simulation:
         if self.links is None and (self.runtime_links == "on" or (self.runtime_links == "auto" and wanted)):
             self.link_events()
         if self.links is None and wanted:
-            raise RuntimeError("events.runtime_links = 'off', yet something subscribed to link events")
+            raise ConfigError(
+                "events.runtime_links", "off", "something subscribes to link events (a hook?): set it to 'auto' or 'on'"
+            )
         self.events.link_events_on = self.links is not None
         self.events.started = True
 

@@ -355,7 +355,7 @@ def test_runtime_links_off_refuses_link_subscribers():
     sim = _core(2, 10.0, 10.0, runtime_links="off")
     sim.state.place([[0, 0], [5, 0]])
     sim.events.on("link_up", lambda ev: None)
-    with pytest.raises(RuntimeError, match="runtime_links = 'off'"):
+    with pytest.raises(ConfigError, match="events.runtime_links = 'off'"):
         sim.run()
 
 
@@ -489,6 +489,7 @@ def test_link_breaks_hook_counts_breaks_per_robot_per_minute():
         (["--set", "events.runtime_links=maybe"], "events.runtime_links = 'maybe': must be one of 'auto', 'on', 'off'"),
         (["--set", 'events.hooks=["nope"]'], "events.hooks[0] = 'nope': unknown"),
         (["--set", "events.live_topology=true", "--set", "events.runtime_links=off"], "events.live_topology"),
+        (["--set", 'events.hooks=["link_breaks"]', "--set", "events.runtime_links=off"], "events.runtime_links"),
     ],
 )
 def test_cli_bad_events_keys_exit_2_with_one_line(tmp_path, capsys, args, fragment):
