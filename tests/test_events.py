@@ -518,3 +518,38 @@ def test_cli_run_with_the_hook_writes_its_table_and_the_levels(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["time_mean_degree"] == pytest.approx(summary["mean_degree"], rel=1e-9)
     assert "link_breaks_per_robot_per_minute" in summary
+
+
+def test_the_live_graph_equals_the_snapshot_on_a_torus_with_unequal_ranges():
+    ranges = ", ".join(str(70.0 + 7 * (i % 6)) for i in range(30))
+    config = load(
+        None,
+        [
+            "world.n_robots=30",
+            "duration_s=100",
+            "world.side_m=300",
+            "world.torus=true",
+            "mobility.model=random_direction",
+            "mobility.turn_interval_s=5",
+            f"channel.range_m=[{ranges}]",
+            "protocol.model=none",
+        ],
+    )
+    sim = build(config)
+    live = sim.live_topology()
+    wrong, seen = [], []
+
+    def compare():
+        for t in np.sort(np.random.default_rng(8).uniform(0.0, 100.0, 30)).tolist():
+            yield sim.env.timeout(t - sim.env.now)
+            g = snapshot(sim.state, sim.now)
+            seen.append(g.number_of_edges())
+            if set(g.edges) != set(live.graph.edges):
+                wrong.append(t)
+            if any(live.graph.nodes[i]["pos"] != g.nodes[i]["pos"] for i in g.nodes):
+                wrong.append(t)
+
+    sim.env.process(compare())
+    sim.run()
+    assert wrong == []
+    assert min(seen) > 10
