@@ -13,8 +13,11 @@ of the fingerprint.
     python benchmarks/output_digest.py --write digests.json     # before the change
     python benchmarks/output_digest.py --check digests.json     # after: prints a table
     python benchmarks/output_digest.py --list                   # the scenarios
+    python benchmarks/output_digest.py --check digests.json --ignore legs.cause
 
 ``--check`` exits with status 1 if any table differs, and names the tables that do.
+``--ignore TABLE.COLUMN`` (repeatable) fingerprints a table without one of its columns:
+the check of a change that adds a column and must leave everything else as it was.
 """
 
 from __future__ import annotations
@@ -112,14 +115,17 @@ def overrides(name: str, directory: Path) -> list[str]:
     return out
 
 
-def digest(name: str, directory: Path) -> dict[str, str]:
-    """SHA-256 of each output table of scenario ``name``, and of its summary (minus wall time)."""
+def digest(name: str, directory: Path, ignore: tuple[str, ...] = ()) -> dict[str, str]:
+    """SHA-256 of each output table of scenario ``name``, and of its summary (minus wall
+    time); ``ignore`` lists ``table.column`` names left out of the fingerprint."""
     from netsim import load
     from netsim.run import execute
 
     result = execute(load(None, overrides(name, directory)))
     out = {}
     for table, frame in sorted(result.frames.items()):
+        dropped = [c.partition(".")[2] for c in ignore if c.partition(".")[0] == table]
+        frame = frame.drop(columns=[c for c in dropped if c in frame.columns])
         buf = io.BytesIO()
         frame.to_parquet(buf, index=False)
         out[table] = hashlib.sha256(buf.getvalue()).hexdigest()[:16]
@@ -135,6 +141,9 @@ def main(argv=None) -> int:
     g.add_argument("--check", metavar="FILE", help="compare with FILE; exit 1 on any difference")
     g.add_argument("--list", action="store_true", help="list the scenarios and their overrides")
     p.add_argument("--only", nargs="*", help="scenarios to run (default: all)")
+    p.add_argument(
+        "--ignore", action="append", default=[], metavar="TABLE.COLUMN", help="leave a column out of the fingerprints"
+    )
     args = p.parse_args(argv)
     names = args.only or list(SCENARIOS)
     with tempfile.TemporaryDirectory() as tmp:
@@ -145,7 +154,7 @@ def main(argv=None) -> int:
             return 0
         got = {}
         for name in names:
-            got[name] = digest(name, directory)
+            got[name] = digest(name, directory, tuple(args.ignore))
             print(f"{name:<28} {len(got[name])} tables", file=sys.stderr)
     if args.write:
         Path(args.write).write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")

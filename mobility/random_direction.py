@@ -58,27 +58,31 @@ def _inward_heading(rng, p: np.ndarray, side: float) -> np.ndarray:
 def direction_robot(
     env: simpy.Environment, st: RobotState, m: RandomDirectionParams, side: float, i: int, rng: np.random.Generator
 ):
+    cause = "start"
     while True:
         speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
         here = st.positions_at(env.now, [i])[0]
         if st.torus:
             theta = rng.uniform(0.0, 2 * math.pi)
-            st.set_leg(i, env.now, (speed * math.cos(theta), speed * math.sin(theta)))
+            st.set_leg(i, env.now, (speed * math.cos(theta), speed * math.sin(theta)), cause=cause)
             if math.isinf(m.turn_interval_s):
                 return
             yield env.timeout(m.turn_interval_s)
+            cause = "turn"
             continue
         v = speed * _inward_heading(rng, here, side)
         travel = _time_to_border(here, v, side)
         if speed <= 0 or math.isinf(travel):
-            st.set_leg(i, env.now, (0.0, 0.0))
+            st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
             return
-        st.set_leg(i, env.now, v)
+        st.set_leg(i, env.now, v, cause=cause)
         yield env.timeout(travel)
         # Land exactly on the border, not a rounding error outside it.
-        st.arrive(i, env.now, np.clip(here + v * travel, 0.0, side), log=m.pause_s > 0)
+        st.arrive(i, env.now, np.clip(here + v * travel, 0.0, side), log=m.pause_s > 0, cause="border")
+        cause = "border"
         if m.pause_s > 0:
             yield env.timeout(m.pause_s)
+            cause = "pause_end"
 
 
 def build(m: RandomDirectionParams, parts: Parts) -> None:

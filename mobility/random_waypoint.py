@@ -155,24 +155,31 @@ def waypoint_robot(
     rng: np.random.Generator,
 ):
     """The life of robot ``i``: legs and pauses, forever."""
+    # Why the next leg starts: the start, the end of a pause, or (no pause) the waypoint.
+    cause = "start"
     if start.pause_left_s[i] > 0:
         yield env.timeout(start.pause_left_s[i])
+        cause = "pause_end"
     elif start.speed_mps[i] > 0:
         dest = start.destination_m[i]
-        yield env.timeout(st.head_to(i, env.now, dest, start.speed_mps[i]))
+        yield env.timeout(st.head_to(i, env.now, dest, start.speed_mps[i], cause))
         st.arrive(i, env.now, dest, log=m.pause_s > 0)
+        cause = "waypoint"
         if m.pause_s > 0:
             yield env.timeout(m.pause_s)
+            cause = "pause_end"
     while True:
         dest = rng.uniform(0.0, side, 2)
         speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
         if speed <= 0.0:
-            st.set_leg(i, env.now, (0.0, 0.0))
+            st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
             return  # a speed of exactly zero: the robot never arrives
-        yield env.timeout(st.head_to(i, env.now, dest, speed))
+        yield env.timeout(st.head_to(i, env.now, dest, speed, cause))
         st.arrive(i, env.now, dest, log=m.pause_s > 0)
+        cause = "waypoint"
         if m.pause_s > 0:
             yield env.timeout(m.pause_s)
+            cause = "pause_end"
 
 
 def build(m: RandomWaypointParams, parts: Parts) -> None:

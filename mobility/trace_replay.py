@@ -67,13 +67,13 @@ def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario):
         generation[i] += 1
         if kind == "setdest":
             dest = np.array([x, y])
-            travel = st.head_to(i, env.now, dest, speed)
+            travel = st.head_to(i, env.now, dest, speed, "trace")
             if travel > 0:
                 env.timeout(travel).callbacks.append(stop_on_arrival(i, int(generation[i]), dest))
         else:
             here = st.positions_at(env.now, [i])[0]
             new = np.array([here[0] if math.isnan(x) else x, here[1] if math.isnan(y) else y])
-            st.set_leg(i, env.now, (0.0, 0.0), start_m=new)
+            st.set_leg(i, env.now, (0.0, 0.0), start_m=new, cause="jump")
 
 
 def build(params: TraceParams, parts: Parts) -> None:

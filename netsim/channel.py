@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.events import URGENT, scheduled_event
+from netsim.events import URGENT, Delivery, Drop, EventBus, scheduled_event
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
 
@@ -116,6 +116,7 @@ class Channel:
         latency_s: float,
         latency_jitter_s: float = 0.0,
         latency_rng: np.random.Generator | None = None,
+        events: EventBus | None = None,
     ):
         self.env = env
         self.state = state
@@ -128,6 +129,8 @@ class Channel:
             raise ValueError("latency jitter needs a random stream")
         self.counters: dict[str, Counters] = {}
         self.bins: dict[str, SendTimeBins] = {}
+        # The run's bus: "delivery" and "drop" events for whoever subscribes.
+        self.events = events
 
     def counters_for(self, kind: str) -> Counters:
         c = self.counters.get(kind)
@@ -153,7 +156,7 @@ class Channel:
         c = self.counters_for(kind)
         c.sent[sender] += 1
         receivers, dist = self.index.within(self.env.now, sender)
-        return self._transmit(sender, receivers, dist, payload, deliver, c, self._bin(kind))
+        return self._transmit(sender, receivers, dist, payload, deliver, c, kind, self._bin(kind))
 
     def unicast(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str = "data") -> bool:
         """Send ``payload`` to ``dest`` alone; returns whether it will be delivered."""
@@ -168,8 +171,9 @@ class Channel:
             c.dropped[DROP_CAUSES.index("out_of_range"), dest] += 1
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED + DROP_CAUSES.index("out_of_range"), 1)
+            self._dropped(kind, sender, np.array([dest]), "out_of_range")
             return False
-        got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c, binned)
+        got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c, kind, binned)
         return len(got) == 1
 
     def _bin(self, kind: str) -> _Bin | None:
@@ -181,6 +185,11 @@ class Channel:
         at.add(SendTimeBins.SENT, 1)
         return at
 
+    def _dropped(self, kind: str, sender: int, receivers: np.ndarray, cause: str) -> None:
+        ev = self.events
+        if ev is not None and ev.wants("drop"):
+            ev.emit("drop", Drop(self.env.now, kind, sender, receivers, cause))
+
     def _transmit(
         self,
         sender: int,
@@ -189,6 +198,7 @@ class Channel:
         payload: object,
         deliver: Deliver,
         c: Counters,
+        kind: str,
         binned: _Bin | None = None,
     ) -> np.ndarray:
         if len(receivers) == 0:
@@ -198,6 +208,7 @@ class Channel:
             np.add.at(c.dropped[1], receivers[~alive], 1)
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
+            self._dropped(kind, sender, receivers[~alive], "not_alive")
             receivers, dist = receivers[alive], dist[alive]
         if binned is not None:
             binned.add(SendTimeBins.IN_RANGE, len(receivers))
@@ -206,6 +217,7 @@ class Channel:
             np.add.at(c.dropped[0], receivers[~keep], 1)
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED, int((~keep).sum()))
+            self._dropped(kind, sender, receivers[~keep], "loss")
             receivers = receivers[keep]
         if len(receivers) == 0:
             return receivers
@@ -213,9 +225,9 @@ class Channel:
             assert self.latency_rng is not None  # checked when built
             delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
             for r, delay in zip(receivers.tolist(), delays.tolist()):
-                self._at(delay, deliver, sender, np.array([r]), payload, c, binned)
+                self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned)
         else:
-            self._at(self.latency_s, deliver, sender, receivers, payload, c, binned)
+            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind, binned)
         return receivers
 
     def _at(
@@ -226,12 +238,16 @@ class Channel:
         receivers: np.ndarray,
         payload: object,
         c: Counters,
+        kind: str,
         binned: _Bin | None = None,
     ) -> None:
         def arrive(_event: simpy.Event) -> None:
             c.received[receivers] += 1
             if binned is not None:
                 binned.add(SendTimeBins.RECEIVED, len(receivers))
+            ev = self.events
+            if ev is not None and ev.wants("delivery"):
+                ev.emit("delivery", Delivery(self.env.now, kind, sender, receivers, payload))
             deliver(sender, receivers, payload)
 
         scheduled_event(self.env, delay, URGENT, arrive)

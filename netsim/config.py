@@ -2,7 +2,7 @@
 
 A configuration is a tree of small frozen dataclasses (:mod:`netsim.params`), one per
 section. The engine owns ``seed``, ``duration_s`` and the sections ``[world]``,
-``[channel]``, ``[control]`` and ``[output]``; each model owns its keys: ``[mobility]`` is
+``[channel]``, ``[control]``, ``[events]`` and ``[output]``; each model owns its keys: ``[mobility]`` is
 ``model`` and the chosen mobility model's own keys, ``[protocol]`` likewise, the channel's
 ``loss_model`` picks a loss model whose keys join ``[channel]``, and a controller may own a
 section of its own (the coverage controller's ``[coverage]``, or a user's). Every value is
@@ -141,6 +141,35 @@ class ControlParams(Params):
     )
 
 
+def _runtime_links(key: str, value: Any) -> str:
+    if value not in RUNTIME_LINKS:
+        raise ConfigError(key, value, "must be one of " + ", ".join(repr(v) for v in RUNTIME_LINKS))
+    return value
+
+
+RUNTIME_LINKS = ("auto", "on", "off")
+
+
+@dataclass(frozen=True)
+class EventsParams(Params):
+    """What happens during the run, announced as it happens (docs/events.md)."""
+
+    section = "events"
+    hooks: tuple[str, ...] = param(
+        (), None, "logging and analysis hooks, by plugin name or 'package.module:attr'", coerce=_controllers
+    )
+    runtime_links: str = param(
+        "auto",
+        None,
+        "'auto': link events solved during the run when something subscribes to link_up or link_down"
+        " (else after it); 'on': always; 'off': never (subscribing to them is then an error)",
+        coerce=_runtime_links,
+    )
+    live_topology: bool = param(
+        False, None, "keep a networkx graph of the links current during the run; adds its time-averaged levels"
+    )
+
+
 @dataclass(frozen=True)
 class OutputParams(Params):
     section = "output"
@@ -199,7 +228,7 @@ def _nested(cls: type) -> Any:
     return field(default_factory=cls, metadata={"nested": True})
 
 
-ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "control", "output")
+ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "control", "events", "output")
 
 
 @dataclass(frozen=True)
@@ -214,6 +243,7 @@ class Config(Params):
     channel: ChannelParams = _nested(ChannelParams)
     protocol: ProtocolSection = _nested(ProtocolSection)
     control: ControlParams = _nested(ControlParams)
+    events: EventsParams = _nested(EventsParams)
     output: OutputParams = _nested(OutputParams)
     sections: Mapping[str, Params] = field(default_factory=dict, metadata={"nested": True})
 
@@ -247,6 +277,13 @@ class Config(Params):
             raise ConfigError("world.side_m", self.world.side_m, "on a torus must exceed twice the largest range_m")
         for plugin, params in self.models():
             plugin.check(params, self)
+        for k, name in enumerate(self.events.hooks):
+            hook = plugins.resolve(plugins.HOOKS, name, f"events.hooks[{k}]")
+            if hook.Params.section:
+                raise ConfigError(f"events.hooks[{k}]", name, "a hook cannot own a configuration section")
+            hook.check(hook.Params(), self)
+        if self.events.runtime_links == "off" and self.events.live_topology:
+            raise ConfigError("events.live_topology", True, "needs link events during the run (events.runtime_links)")
 
     def models(self) -> list[tuple[Any, Params]]:
         """``(plugin, params)`` of every model of the run with a section: the mobility model,
@@ -436,6 +473,7 @@ def from_dict(raw: Mapping) -> Config:
     values["channel"] = _channel_section(_table(raw, "channel"))
     values["protocol"] = _model_section(ProtocolSection, _table(raw, "protocol"))
     values["control"] = control
+    values["events"] = _plain_section(EventsParams, _table(raw, "events"))
     values["output"] = _plain_section(OutputParams, _table(raw, "output"))
     values["sections"] = {name: _plain_section(plugin.Params, _table(raw, name)) for name, plugin in owners.items()}
     return Config(**values)
@@ -465,7 +503,7 @@ def to_dict(config: Config, derived: bool = True) -> dict:
         out[name] = section_dict(getattr(config, name), derived)
     for name, params in config.sections.items():
         out[name] = section_dict(params, derived)
-    for name in ("control", "output"):
+    for name in ("control", "events", "output"):
         out[name] = section_dict(getattr(config, name), derived)
     return out
 
@@ -662,6 +700,7 @@ __all__ = [
     "Config",
     "ConfigWarning",
     "ControlParams",
+    "EventsParams",
     "MobilitySection",
     "ModelSection",
     "NoParams",

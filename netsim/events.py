@@ -1,22 +1,57 @@
-"""Kernel events at a chosen priority: the one place that uses SimPy's event internals.
+"""Events: the kernel's priority helper, and the run's event bus for subscribers.
 
-SimPy orders events of the same instant by priority (URGENT before NORMAL), then by the
-order they were scheduled. ``env.timeout(delay)`` always has NORMAL priority; transmissions
-and deliveries must come before the deadlines of their instant (docs/model.md, order of
-simultaneous events), which only ``env.schedule(event, URGENT, delay)`` gives. ``schedule``
-wants an event that has already been given its outcome, and SimPy has no public way to give
-one without scheduling it at once (``succeed()`` does both); so :func:`scheduled_event` sets
-the two attributes ``_ok`` and ``_value`` itself, as SimPy's own ``Timeout.__init__`` does.
+**Kernel.** SimPy orders events of the same instant by priority (URGENT before NORMAL), then
+by the order they were scheduled. ``env.timeout(delay)`` always has NORMAL priority;
+transmissions and deliveries must come before the deadlines of their instant
+(docs/model.md, order of simultaneous events), which only ``env.schedule(event, URGENT,
+delay)`` gives. ``schedule`` wants an event that has already been given its outcome, and
+SimPy has no public way to give one without scheduling it at once (``succeed()`` does
+both); so :func:`scheduled_event` sets the two attributes ``_ok`` and ``_value`` itself, as
+SimPy's own ``Timeout.__init__`` does. Runtime link events use :data:`FIRST`, a priority
+ahead of URGENT: they are delivered before anything else due at their instant.
+
+**Bus.** :class:`EventBus` (``sim.events``) calls users' functions as things happen:
+``sim.events.on("link_down", fn)``. Event names and their payloads (named tuples):
+
+- ``course_change``: :class:`CourseChange` (a leg starts; a row of legs.parquet);
+- ``link_up``: :class:`LinkUp`; ``link_down``: :class:`LinkDown`;
+- ``role_change``: the protocol's record (the clustering protocol's ``RoleChange``:
+  ``t_s, robot, role, leader, cause``, a row of roles.parquet);
+- ``delivery``: :class:`Delivery` (a transmission reaches its receivers);
+- ``drop``: :class:`Drop` (receptions the channel dropped, with the cause).
+
+A component emits an event only when someone listens (:meth:`EventBus.wants`), so an
+unwatched run pays nothing. docs/events.md describes the order of events at one instant.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
+import numpy as np
 import simpy
 from simpy.events import NORMAL, URGENT
 
-__all__ = ["NORMAL", "URGENT", "scheduled_event"]
+__all__ = [
+    "EVENT_NAMES",
+    "FIRST",
+    "LAST",
+    "NORMAL",
+    "URGENT",
+    "CourseChange",
+    "Delivery",
+    "Drop",
+    "EventBus",
+    "LinkDown",
+    "LinkUp",
+    "scheduled_event",
+]
+
+# Ahead of URGENT (0) at the same instant: runtime link events and their bookkeeping.
+FIRST = -1
+# After everything else of an instant (NORMAL is 1): the runtime links' start at t = 0.
+LAST = 2
 
 
 def scheduled_event(
@@ -34,3 +69,102 @@ def scheduled_event(
         ev.callbacks.append(callback)
     env.schedule(ev, priority, delay_s)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
     return ev
+
+
+class CourseChange(NamedTuple):
+    """A robot starts a new straight leg: from ``(x_m, y_m)`` at ``t_s`` with velocity
+    ``(vx_mps, vy_mps)`` (positions unwrapped on a torus); ``cause`` as legs.parquet."""
+
+    t_s: float
+    robot: int
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    cause: str
+
+
+class LinkUp(NamedTuple):
+    """Robots ``a < b`` come within range of each other (``min(r_a, r_b)``) at ``t_s``."""
+
+    t_s: float
+    a: int
+    b: int
+
+
+class LinkDown(NamedTuple):
+    """The link ``a < b``, up since ``up_since_s``, breaks at ``t_s``."""
+
+    t_s: float
+    a: int
+    b: int
+    up_since_s: float
+
+
+class Delivery(NamedTuple):
+    """A transmission of ``kind`` ("ack", "data", ...) from ``sender`` reaches ``receivers``
+    (ids ascending) at ``t_s``; ``payload`` is what was sent."""
+
+    t_s: float
+    kind: str
+    sender: int
+    receivers: np.ndarray
+    payload: object
+
+
+class Drop(NamedTuple):
+    """Receptions of a transmission of ``kind`` from ``sender`` that the channel dropped at
+    send time ``t_s``: ``receivers`` lost it for ``cause`` ("loss", "not_alive",
+    "out_of_range")."""
+
+    t_s: float
+    kind: str
+    sender: int
+    receivers: np.ndarray
+    cause: str
+
+
+EVENT_NAMES = ("course_change", "link_up", "link_down", "role_change", "delivery", "drop")
+LINK_EVENTS = ("link_up", "link_down")
+
+
+class EventBus:
+    """Subscribers by event name; components emit, subscribers are called in the order
+    they subscribed, at the simulated instant of the event (``sim.now``)."""
+
+    def __init__(self) -> None:
+        self._subscribers: dict[str, list[Callable]] = {name: [] for name in EVENT_NAMES}
+        # Set by the run once it has started: link events must be asked for before.
+        self.started = False
+        self.link_events_on = False
+
+    def on(self, name: str, fn: Callable) -> Callable:
+        """Call ``fn(event)`` on every event ``name``; returns ``fn``."""
+        if name not in self._subscribers:
+            raise ValueError(f"unknown event {name!r}; events are " + ", ".join(EVENT_NAMES))
+        if not callable(fn):
+            raise TypeError(f"a subscriber to {name!r} must be callable, not {type(fn).__name__}")
+        if name in LINK_EVENTS and self.started and not self.link_events_on:
+            raise RuntimeError(
+                f"subscribe to {name!r} before the run starts (or set events.runtime_links = 'on'): "
+                "link events are solved during the run only when asked for from the start"
+            )
+        self._subscribers[name].append(fn)
+        return fn
+
+    def off(self, name: str, fn: Callable) -> None:
+        """Stop calling ``fn`` on ``name``."""
+        self._subscribers[name].remove(fn)
+
+    def wants(self, name: str) -> bool:
+        """Whether anybody listens to ``name`` (components build payloads only then)."""
+        return bool(self._subscribers[name])
+
+    def subscribers(self, name: str) -> list[Callable]:
+        """The functions called on ``name``, in order (the list itself: it follows later
+        subscriptions; for hot loops that call them directly)."""
+        return self._subscribers[name]
+
+    def emit(self, name: str, event: object) -> None:
+        for fn in self._subscribers[name]:
+            fn(event)

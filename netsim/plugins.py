@@ -9,7 +9,7 @@ is built from its parameters and the parts of the run it works with (:class:`Par
 implements :class:`Reports`.
 
 Built-in plugins are entry points in ``pyproject.toml`` (groups ``netsim.mobility``,
-``netsim.protocols``, ``netsim.controllers``), each naming a plugin object
+``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``), each naming a plugin object
 (``mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
 the configuration. So the engine never imports the packages that build on it, and names
 none of their models. A plain function ``install(sim)`` (the older form) still works as a
@@ -39,6 +39,7 @@ if TYPE_CHECKING:
 
     from netsim.channel import Channel
     from netsim.control import ControlLoop
+    from netsim.events import EventBus
     from netsim.groups import GroupView
     from netsim.rng import Streams
     from netsim.state import RobotState
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
 MOBILITY = "netsim.mobility"
 PROTOCOLS = "netsim.protocols"
 CONTROLLERS = "netsim.controllers"
+HOOKS = "netsim.hooks"
 
 # A table's columns and their dtypes (numpy names; "object" for strings).
 Schema = Mapping[str, str]
@@ -65,8 +67,9 @@ class RoleLabels(NamedTuple):
 
 @dataclass(frozen=True)
 class Parts:
-    """What a model is built with: the run's core, the world, and for controllers the
-    control loop and the protocol's view of the groups (None without groups)."""
+    """What a model is built with: the run's core, the world, the run's event bus
+    (``events``: subscribe to what happens, as it happens), and for controllers and hooks
+    the control loop and the protocol's view of the groups (None without groups)."""
 
     env: simpy.Environment
     state: RobotState
@@ -78,6 +81,7 @@ class Parts:
     output: Any  # netsim.config.OutputParams
     control: ControlLoop | None = None
     groups: GroupView | None = None
+    events: EventBus | None = None
 
 
 class Plugin(Protocol):

@@ -21,10 +21,12 @@ import pandas as pd
 import simpy
 
 from netsim import config as cfgmod
+from netsim import plugins
 from netsim.channel import Channel
 from netsim.config import Config
 from netsim.control import ControlLoop
 from netsim.errors import ConfigError
+from netsim.events import EventBus
 from netsim.groups import GroupView
 from netsim.lifetimes import link_lifetimes
 from netsim.loss import LOSS_MODELS
@@ -55,22 +57,30 @@ ENGINE_TABLES: dict[str, Schema] = {
         "y_m": "float64",
         "vx_mps": "float64",
         "vy_mps": "float64",
+        "cause": "object",
     },
 }
 
 
 def simulation(config: Config, run: int = 0) -> Simulation:
     """The core of a run with no model yet: kernel, robots (none placed), the channel and
-    its loss model (``[channel]``), the trace and the random streams of ``(seed, run)``."""
+    its loss model (``[channel]``), the trace, the random streams of ``(seed, run)`` and
+    the event bus."""
     env = simpy.Environment()
     streams = Streams(config.seed, run)
     w = config.world
+    events = EventBus()
     state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus)
+    state.events = events
     ch = config.channel
     survives = LOSS_MODELS[ch.loss_model].make(ch.loss, state.range_m, streams.get("channel.loss"))
-    channel = Channel(env, state, survives, ch.latency_s, ch.latency_jitter_s, streams.get("channel.latency"))
-    parts = Parts(env, state, channel, Trace(), streams, w, config.duration_s, config.output)
-    return Simulation(parts, config, run)
+    channel = Channel(
+        env, state, survives, ch.latency_s, ch.latency_jitter_s, streams.get("channel.latency"), events=events
+    )
+    parts = Parts(env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events)
+    sim = Simulation(parts, config, run)
+    sim.runtime_links = config.events.runtime_links
+    return sim
 
 
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
@@ -121,6 +131,15 @@ def build(config: Config, run: int = 0) -> Simulation:
             component = _build_model(sim, name, plugin, params, with_loop)
             if callable(component):
                 loop.add(component)
+    events = config.events
+    if events.live_topology:
+        sim.live_topology()
+    for name in events.hooks:
+        hook = plugins.resolve(plugins.HOOKS, name, "events.hooks")
+        with_groups = dataclasses.replace(sim.parts, groups=sim.groups, control=sim.models.get("control"))
+        _build_model(sim, name, hook, hook.Params(), with_groups)
+    # Link events are solved during the run if asked for now (a hook subscribed) or later,
+    # before the run starts (Simulation.run).
     return sim
 
 
@@ -132,6 +151,8 @@ def tables(config: Config) -> dict[str, Schema]:
     out.update(config.protocol.plugin.tables)
     for _, plugin, _ in cfgmod.controllers(config):
         out.update(plugin.tables)
+    for name in config.events.hooks:
+        out.update(plugins.resolve(plugins.HOOKS, name, "events.hooks").tables)
     return out
 
 
@@ -159,7 +180,12 @@ def collect(sim: Simulation) -> dict[str, pd.DataFrame]:
     frames = sim.trace.frames()
     times = position_times(sim.parts.output.position_interval_s, sim.duration_s)
     frames["positions"] = sample_positions(legs, sim.state.n, times, side, torus)
-    frames["links"] = link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus)
+    if sim.links is not None:
+        # Solved during the run: the record of the link events (docs/events.md).
+        sim.links.finish(sim.env.now)
+        frames["links"] = sim.links.frame(sim.env.now)
+    else:
+        frames["links"] = link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus)
     # Every course change: trajectories are exact from these (positions unwrapped on a torus).
     frames["legs"] = legs
     return frames

@@ -1,24 +1,33 @@
 """The simulation object: the run's core (SimPy environment, robots, channel, trace,
-random streams) and a record of the models built on it."""
+random streams, event bus) and a record of the models built on it."""
 
 from __future__ import annotations
 
 from types import MappingProxyType
 from typing import Any
 
+from netsim.errors import ConfigError
+from netsim.events import LINK_EVENTS, EventBus
 from netsim.groups import GroupView
+from netsim.kinetic import RuntimeLinks
+from netsim.live import LiveTopology
 from netsim.plugins import Parts
 from netsim.progress import progress_bar
 
 
 class Simulation:
-    """One run: ``env`` (SimPy), ``state`` (robots), ``channel``, ``trace``, ``streams``.
+    """One run: ``env`` (SimPy), ``state`` (robots), ``channel``, ``trace``, ``streams``,
+    ``events`` (the bus: ``sim.events.on("link_down", fn)``, docs/events.md).
 
     Made by :func:`netsim.run.simulation` (the core alone) or :func:`netsim.run.build`
     (with every model). :attr:`models` records the components built, by name (read-only:
     components receive their collaborators when they are built, and never look each other
     up); :attr:`groups` is the protocol's view of the groups, if it forms any;
     :attr:`config` is the configuration it was built from.
+
+    Link events are solved during the run (:attr:`links`) when ``runtime_links`` is
+    ``"on"``, or ``"auto"`` (the default) and something subscribed to ``link_up`` or
+    ``link_down`` before the run started; otherwise after it, from the legs.
     """
 
     def __init__(self, parts: Parts, config: Any = None, run: int = 0):
@@ -32,6 +41,10 @@ class Simulation:
         self.config = config
         self.groups: GroupView | None = None
         self._models: dict[str, object] = {}
+        self.events: EventBus = parts.events if parts.events is not None else EventBus()
+        self.runtime_links = "auto"
+        self.links: RuntimeLinks | None = None
+        self._live: LiveTopology | None = None
 
     @property
     def models(self) -> MappingProxyType:
@@ -45,12 +58,45 @@ class Simulation:
     def now(self) -> float:
         return self.env.now
 
+    def link_events(self) -> RuntimeLinks:
+        """The runtime link solver, started at t = 0 (call before the run starts)."""
+        if self.links is None:
+            if self.events.started:
+                raise RuntimeError("link events during the run must be asked for before it starts")
+            if self.runtime_links == "off":
+                raise RuntimeError("events.runtime_links = 'off': no link events during the run")
+            self.links = RuntimeLinks(self.env, self.state, self.events)
+            self.links.start()
+        return self.links
+
+    def live_topology(self) -> LiveTopology:
+        """A networkx graph of the links, kept current during the run (call before it
+        starts); its time-averaged levels join the summary."""
+        if self._live is None:
+            self.link_events()
+            self._live = LiveTopology(self.env, self.state, self.events, self.groups)
+            self.add_model("live_topology", self._live)
+        return self._live
+
+    def _begin(self) -> None:
+        wanted = any(self.events.wants(name) for name in LINK_EVENTS)
+        if self.links is None and (self.runtime_links == "on" or (self.runtime_links == "auto" and wanted)):
+            self.link_events()
+        if self.links is None and wanted:
+            raise ConfigError(
+                "events.runtime_links", "off", "something subscribes to link events (a hook?): set it to 'auto' or 'on'"
+            )
+        self.events.link_events_on = self.links is not None
+        self.events.started = True
+
     def run(self, until_s: float | None = None, progress: bool = False, steps: int = 200) -> None:
         """Advance to ``until_s`` (default: the configured duration).
 
         Events due exactly at ``until_s`` are not processed (SimPy's convention); every
         output is computed for the interval ``[0, until_s]`` from exact trajectories.
         """
+        if not self.events.started:
+            self._begin()
         until = self.duration_s if until_s is None else float(until_s)
         start = self.env.now
         with progress_bar(

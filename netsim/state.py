@@ -4,15 +4,27 @@ Motion is piecewise linear: each robot is on a *leg* that started at ``t0_s[i]``
 ``origin_m[i]`` with velocity ``velocity_mps[i]``, so its position at any time ``t`` on
 that leg is ``origin + velocity * (t - t0)``, exactly, without stepping (as ns-3's
 constant-velocity helper). Models change course with :meth:`RobotState.set_leg`; every
-leg is logged, which is what exact link events and ns-2 export are computed from.
+leg is logged with its cause (:data:`CAUSES`), which is what exact link events and ns-2
+export are computed from. Every change of a robot's leg is also told to the run's
+``watchers`` (the runtime link solver) and, as a ``course_change`` event, to the
+subscribers of the run's event bus.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import pandas as pd
+
+from netsim.events import CourseChange
+
+# Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
+# waypoint (or a trace's destination) reached, the end of a pause, the border reached
+# (random direction), a turn (random direction on a torus), a control command, a trace's
+# ``setdest``, a jump (a leg that starts away from where the robot was).
+CAUSES = ("start", "waypoint", "pause_end", "border", "turn", "command", "trace", "jump")
+LEG_COLUMNS = ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"]
 
 
 class RobotState:
@@ -45,6 +57,10 @@ class RobotState:
         # Bumped when a robot jumps (a trace's "set X_" at t > 0): the index must rebuild.
         self.jumps = 0
         self._legs: list[tuple] = []
+        # Told of every change of a robot's leg as fn(robot, t, jump), logged or not.
+        self.watchers: list[Callable[[int, float, bool], None]] = []
+        # The run's event bus (netsim.events.EventBus), if any: course_change events.
+        self.events = None
 
     # -- positions -------------------------------------------------------------------
     def positions_at(self, t: float, idx: int | Sequence[int] | np.ndarray | None = None) -> np.ndarray:
@@ -78,14 +94,26 @@ class RobotState:
 
     # -- motion ----------------------------------------------------------------------
     def place(self, positions_m: np.ndarray) -> None:
-        """Initial positions at t = 0, everyone at rest."""
+        """Initial positions at t = 0, everyone at rest (cause ``"start"``)."""
         positions_m = np.asarray(positions_m, dtype=float)
         if positions_m.shape != (self.n, 2):
             raise ValueError(f"expected positions of shape ({self.n}, 2), got {positions_m.shape}")
         self.origin_m[:] = positions_m
         self.velocity_mps[:] = 0.0
         self.t0_s[:] = 0.0
-        self._legs = [(0.0, i, x, y, 0.0, 0.0) for i, (x, y) in enumerate(positions_m.tolist())]
+        self._legs = [(0.0, i, x, y, 0.0, 0.0, "start") for i, (x, y) in enumerate(positions_m.tolist())]
+        for w in self.watchers:
+            for i in range(self.n):
+                w(i, 0.0, True)
+
+    def _changed(self, i: int, t: float, jump: bool, cause: str | None) -> None:
+        """Tell the watchers, and the subscribers when the leg is logged (``cause``)."""
+        for w in self.watchers:
+            w(i, t, jump)
+        ev = self.events
+        if cause is not None and ev is not None and ev.wants("course_change"):
+            leg = self._legs[-1]
+            ev.emit("course_change", CourseChange(*leg))
 
     def set_leg(
         self,
@@ -93,17 +121,21 @@ class RobotState:
         t: float,
         velocity_mps: Sequence[float] | np.ndarray,
         start_m: Sequence[float] | np.ndarray | None = None,
+        cause: str | None = None,
     ) -> None:
         """Robot ``i`` starts a new straight leg at time ``t`` with ``velocity_mps``.
 
         The leg starts where the robot is (continuous motion) unless ``start_m`` is given,
-        which is a jump.
+        which is a jump. ``cause`` (one of :data:`CAUSES`) defaults to ``"jump"`` for a jump
+        and ``"command"`` otherwise.
         """
         if start_m is None:
             start = self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i])
         else:
             start = np.asarray(start_m, dtype=float)
             self.jumps += 1
+        if cause is None:
+            cause = "command" if start_m is None else "jump"
         vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
         self.origin_m[i] = start
         self.velocity_mps[i] = (vx, vy)
@@ -111,9 +143,12 @@ class RobotState:
         speed = (vx * vx + vy * vy) ** 0.5
         if speed > self.speed_high_water_mps:
             self.speed_high_water_mps = speed
-        self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy))
+        self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy, cause))
+        self._changed(i, t, start_m is not None, cause)
 
-    def head_to(self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, speed_mps: float) -> float:
+    def head_to(
+        self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, speed_mps: float, cause: str = "command"
+    ) -> float:
         """Move ``i`` in a straight line toward ``dest_m`` at ``speed_mps``.
 
         Returns the travel time (0 when already there or when the speed is 0, in which
@@ -123,26 +158,29 @@ class RobotState:
         delta = np.asarray(dest_m, dtype=float) - here
         dist = float(np.hypot(delta[0], delta[1]))
         if dist == 0.0 or speed_mps <= 0.0:
-            self.set_leg(i, t, (0.0, 0.0))
+            self.set_leg(i, t, (0.0, 0.0), cause=cause)
             return 0.0
-        self.set_leg(i, t, delta * (speed_mps / dist))
+        self.set_leg(i, t, delta * (speed_mps / dist), cause=cause)
         return dist / speed_mps
 
-    def arrive(self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, log: bool = True) -> None:
+    def arrive(
+        self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, log: bool = True, cause: str = "waypoint"
+    ) -> None:
         """Stop ``i`` exactly at ``dest_m`` (removes rounding from the leg's end).
 
         ``log=False`` when the robot leaves again at the same instant: the stop would be
-        a leg of zero length.
+        a leg of zero length (the watchers are still told: the leg changed).
         """
         self.origin_m[i] = dest_m
         self.velocity_mps[i] = 0.0
         self.t0_s[i] = t
         if log:
-            self._legs.append((float(t), int(i), float(dest_m[0]), float(dest_m[1]), 0.0, 0.0))
+            self._legs.append((float(t), int(i), float(dest_m[0]), float(dest_m[1]), 0.0, 0.0, cause))
+        self._changed(i, t, False, cause if log else None)
 
     # -- log -------------------------------------------------------------------------
     def legs(self) -> pd.DataFrame:
-        """Every leg: ``t_s, robot, x_m, y_m, vx_mps, vy_mps`` (unwrapped positions)."""
-        cols = ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"]
-        df = pd.DataFrame(self._legs, columns=cols)
+        """Every leg: ``t_s, robot, x_m, y_m, vx_mps, vy_mps, cause`` (unwrapped positions;
+        ``cause`` one of :data:`CAUSES`)."""
+        df = pd.DataFrame(self._legs, columns=LEG_COLUMNS)
         return df.sort_values(["robot", "t_s"], kind="stable").reset_index(drop=True)

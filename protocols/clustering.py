@@ -196,6 +196,7 @@ class Clustering:
 
     def __init__(self, params, parts: Parts, beacon: AckBeacon):
         self.env, self.state, self.trace = parts.env, parts.state, parts.trace
+        self.events = parts.events
         self.beacon = beacon
         self.roles = beacon.roles
         self.table = beacon.table
@@ -220,7 +221,7 @@ class Clustering:
         roles.role[:] = UNDECIDED
         roles.leader[:] = NO_LEADER
         for i in range(self.state.n):
-            self.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START))
+            self._record(RoleChange(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START))
         self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
 
     # -- what a robot knows --------------------------------------------------------------
@@ -304,7 +305,12 @@ class Clustering:
         st.leader[i] = leader
         self.leader_since[i] = now if role == LEADER else np.inf
         self.role_changes[i] += 1
-        self.trace.emit("roles", RoleChange(now, i, ROLE_NAMES[role], leader, cause))
+        self._record(RoleChange(now, i, ROLE_NAMES[role], leader, cause))
+
+    def _record(self, change: RoleChange) -> None:
+        self.trace.emit("roles", change)
+        if self.events is not None and self.events.wants("role_change"):
+            self.events.emit("role_change", change)
 
     def _join(self, i: int, now: float, first_heard: int | None = None, exclude: int = NO_LEADER) -> bool:
         """Rule 2 for robot ``i`` (undecided) from what its table knows; False if no leader is known."""

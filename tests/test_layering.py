@@ -9,9 +9,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 FORBIDDEN = {
-    "netsim": {"protocols", "mobility", "experiments"},
-    "protocols": {"mobility", "experiments"},
-    "mobility": {"protocols", "experiments"},
+    "netsim": {"protocols", "mobility", "hooks", "experiments"},
+    "protocols": {"mobility", "hooks", "experiments"},
+    "mobility": {"protocols", "hooks", "experiments"},
+    "hooks": {"protocols", "mobility", "experiments"},
     "benchmarks": {"experiments"},
 }
 

@@ -81,6 +81,10 @@ REDUCED = {
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'ack_workload.py'))} --protocol ack clustering --n 100",
         "N = 100 only",
     ),
+    ".venv/bin/python benchmarks/link_events.py --live   # protocols none and ack, N = 1,000 and 10,000": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'link_events.py'))} --live --n 100 --protocol none",
+        "N = 100 and no protocol only",
+    ),
     ".venv/bin/python benchmarks/sweep_runner.py": (
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'sweep_runner.py'))} --runs 4 --duration 5",
         "4 runs of 5 simulated seconds instead of 200 of 150",

@@ -81,7 +81,7 @@ def test_output_directory_contents_and_schema(tmp_path):
     assert {"robot", "sent", "received", "dropped_loss"} <= set(acks.columns)
     assert list(pd.read_parquet(out / "roles.parquet").columns) == ["t_s", "robot", "role", "leader", "cause"]
     legs = pd.read_parquet(out / "legs.parquet")
-    assert list(legs.columns) == ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"]
+    assert list(legs.columns) == ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"]
     hops = pd.read_parquet(out / "hops.parquet")
     assert list(hops.columns) == ["msg_id", "hop", "sender", "receiver", "t_sent_s", "t_received_s"]
     pos = pd.read_parquet(out / "positions.parquet")

@@ -1,0 +1,555 @@
+"""Events as they happen (docs/events.md): course changes with their causes, link up/down
+solved during the run (equal to the post-hoc solver), subscriptions and their order, the
+live topology and its time-averaged levels, the example hook."""
+
+from __future__ import annotations
+
+import math
+
+import networkx as nx
+import numpy as np
+import pandas as pd
+import pytest
+
+from netsim.config import load
+from netsim.errors import ConfigError
+from netsim.events import EVENT_NAMES, URGENT, EventBus, LinkDown, LinkUp, scheduled_event
+from netsim.lifetimes import link_lifetimes
+from netsim.run import build, collect, execute, simulation
+from netsim.state import CAUSES
+from netsim.tools.validate import random_legs
+from netsim.topology import snapshot
+from tests.fixtures import make_config
+
+TOL_S = 1e-9
+
+
+# -- helpers ---------------------------------------------------------------------------------
+def _core(n, ranges, duration_s, side_m=1e6, torus=False, **events):
+    config = make_config(
+        duration_s=duration_s,
+        world={"n_robots": n, "side_m": side_m, "torus": torus},
+        mobility={"model": "static"},
+        channel={"range_m": ranges},
+        protocol={"model": "none"},
+        events=events,
+        output={"position_interval_s": 0.0},
+    )
+    return simulation(config)
+
+
+def _replay(sim, legs: pd.DataFrame) -> None:
+    """Drive the robots of ``sim`` along ``legs`` (first row of each robot: its start);
+    a leg that does not start where the robot is becomes a jump."""
+    legs = legs.sort_values(["t_s", "robot"], kind="stable")
+    first = legs.groupby("robot").head(1).sort_values("robot")
+    st, env = sim.state, sim.env
+    st.place(first[["x_m", "y_m"]].to_numpy())
+    rows = list(legs.itertuples(index=False))
+
+    def drive():
+        for t, r, x, y, vx, vy in ((row.t_s, row.robot, row.x_m, row.y_m, row.vx_mps, row.vy_mps) for row in rows):
+            if t > env.now:
+                yield env.timeout(t - env.now)
+            here = st.origin_m[r] + st.velocity_mps[r] * (t - st.t0_s[r])
+            scale = 1.0 + abs(here).max() + max(abs(x), abs(y))
+            jump = math.hypot(here[0] - x, here[1] - y) > 1e-9 * scale
+            st.set_leg(int(r), t, (vx, vy), start_m=(x, y) if jump else None)
+
+    env.process(drive())
+
+
+def _assert_same_links(runtime: pd.DataFrame, posthoc: pd.DataFrame) -> None:
+    key = ["a", "b", "t_up_s"]
+    r = runtime.sort_values(key, kind="stable").reset_index(drop=True)
+    p = posthoc.sort_values(key, kind="stable").reset_index(drop=True)
+    assert len(r) == len(p)
+    for col in ("a", "b", "censored", "censored_start", "censored_end"):
+        assert (r[col].to_numpy() == p[col].to_numpy()).all(), col
+    for col in ("t_up_s", "t_down_s"):
+        assert np.abs(r[col].to_numpy() - p[col].to_numpy()).max(initial=0.0) <= TOL_S, col
+
+
+def _runtime_vs_posthoc(legs, n, ranges, duration_s, side_m=1e6, torus=False):
+    sim = _core(n, list(ranges), duration_s, side_m, torus, runtime_links="on")
+    _replay(sim, legs)
+    sim.run()
+    frames = collect(sim)
+    assert sim.links is not None
+    posthoc = link_lifetimes(frames["legs"], sim.state.range_m, duration_s, side_m, torus)
+    assert len(posthoc) > 3  # the case has links to compare
+    _assert_same_links(frames["links"], posthoc)
+    return sim
+
+
+# -- runtime link events equal the post-hoc solution -------------------------------------------
+def _random_case(seed: int, kind: str):
+    """Random trajectories (speeds drawn per case) of one of four kinds, and the runtime
+    links compared with the post-hoc ones."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(10, 40))
+    speed = float(rng.uniform(0.5, 6.0))
+    torus = kind == "torus"
+    # The smallest torus allowed: other images come into range within a piece.
+    side = 101.0 if torus else 300.0
+    ranges = rng.uniform(20.0, 80.0, n) if kind == "unequal_ranges" else np.full(n, 50.0)
+    legs = random_legs(rng, n, 60.0, side, speed, jump_rate=0.3 if kind == "jumps" else 0.0)
+    return _runtime_vs_posthoc(legs, n, ranges, 60.0, side if torus else 1e6, torus)
+
+
+KINDS = ["bounded", "torus", "jumps", "unequal_ranges"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("seed", range(4))
+def test_runtime_links_equal_posthoc_on_random_trajectories(kind, seed):
+    sim = _random_case(1000 + 4 * seed + KINDS.index(kind), kind)
+    if kind == "jumps":
+        assert sim.state.jumps > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS)
+def test_runtime_links_equal_posthoc_on_many_random_trajectories(kind):
+    for seed in range(25):
+        _random_case(5000 + 4 * seed + KINDS.index(kind), kind)
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        [],
+        ["mobility.model=random_direction", "mobility.pause_s=1"],
+        ["mobility.model=random_direction", "world.torus=true", "mobility.turn_interval_s=7"],
+        ["channel.range_m=[{}]".format(", ".join(str(60.0 + 5 * (i % 9)) for i in range(30)))],
+    ],
+    ids=["random_waypoint", "random_direction", "torus", "unequal_ranges"],
+)
+def test_runtime_links_equal_posthoc_in_runs(overrides):
+    base = ["world.n_robots=30", "duration_s=120", "world.side_m=500", "channel.range_m=100", "protocol.model=none"]
+    config = load(None, base + overrides + ["events.runtime_links=on"])
+    result = execute(config)
+    st = result.sim.state
+    posthoc = link_lifetimes(result.frames["legs"], st.range_m, 120.0, st.side_m, st.torus)
+    _assert_same_links(result.frames["links"], posthoc)
+
+
+TRACE = """\
+$node_(0) set X_ 10.0
+$node_(0) set Y_ 10.0
+$node_(1) set X_ 200.0
+$node_(1) set Y_ 10.0
+$node_(2) set X_ 100.0
+$node_(2) set Y_ 300.0
+$ns_ at 1.0 "$node_(0) setdest 300.0 20.0 4.0"
+$ns_ at 2.0 "$node_(2) setdest 100.0 0.0 3.0"
+$ns_ at 20.0 "$node_(1) set X_ 80.0"
+$ns_ at 30.0 "$node_(2) set Y_ 15.0"
+$ns_ at 30.0 "$node_(0) set X_ 150.0"
+$ns_ at 40.0 "$node_(1) setdest 390.0 390.0 5.0"
+$ns_ at 50.0 "$node_(2) setdest 120.0 15.0 2.0"
+"""
+
+
+def test_runtime_links_equal_posthoc_on_a_trace_with_jumps(tmp_path):
+    path = tmp_path / "jumps.tcl"
+    path.write_text(TRACE)
+    config = load(
+        None,
+        [
+            "world.n_robots=3",
+            "world.side_m=400",
+            "duration_s=100",
+            "channel.range_m=60",
+            "mobility.model=trace",
+            f"mobility.trace_file={path}",
+            "protocol.model=none",
+            "events.runtime_links=on",
+        ],
+    )
+    result = execute(config)
+    st = result.sim.state
+    assert st.jumps >= 3
+    posthoc = link_lifetimes(result.frames["legs"], st.range_m, 100.0)
+    assert len(posthoc) >= 3
+    _assert_same_links(result.frames["links"], posthoc)
+    legs = result.frames["legs"]
+    assert (legs["cause"] == "jump").sum() == 3
+    assert set(legs["cause"]) == {"start", "trace", "waypoint", "jump"}
+
+
+# -- course changes ----------------------------------------------------------------------------
+def test_legs_record_every_course_change_with_its_cause():
+    result = execute(load(None, ["world.n_robots=20", "duration_s=200", "world.side_m=300", "protocol.model=none"]))
+    legs = result.frames["legs"]
+    assert list(legs.columns) == ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"]
+    assert set(legs["cause"]) <= set(CAUSES)
+    # Random waypoint with a pause: a robot stops at its waypoint, then leaves at the pause's end.
+    assert {"start", "waypoint", "pause_end"} <= set(legs["cause"])
+    moving = np.hypot(legs["vx_mps"], legs["vy_mps"]) > 0
+    assert (~moving[legs["cause"] == "waypoint"]).all()
+    assert moving[legs["cause"] == "pause_end"].all()
+
+
+def test_course_change_events_are_the_legs_as_they_happen():
+    config = load(None, ["world.n_robots=15", "duration_s=150", "world.side_m=300", "protocol.model=none"])
+    sim = build(config)
+    seen = []
+    sim.events.on("course_change", lambda ev: seen.append((sim.now, *ev)))
+    sim.run()
+    legs = collect(sim)["legs"]
+    assert all(now == t_s for now, t_s, *_ in seen)
+    got = pd.DataFrame([s[1:] for s in seen], columns=list(legs.columns))
+    # Every leg but the placements at t = 0 (made before anyone could subscribe).
+    want = legs[~((legs["t_s"] == 0) & (legs["cause"] == "start") & (legs["vx_mps"] == 0) & (legs["vy_mps"] == 0))]
+    key = ["robot", "t_s", "vx_mps"]
+    got = got.sort_values(key, kind="stable").reset_index(drop=True)
+    want = want.sort_values(key, kind="stable").reset_index(drop=True)
+    pd.testing.assert_frame_equal(got, want)
+
+
+def test_control_commands_are_legs_with_cause_command():
+    config = load(
+        None,
+        [
+            "world.n_robots=20",
+            "duration_s=30",
+            "world.side_m=800",
+            "world.placement=centre",
+            "world.centre_side_m=200",
+            "mobility.model=static",
+            "channel.range_m=100",
+            "coverage.enabled=true",
+            "protocol.message_rate_hz=0",
+        ],
+    )
+    legs = execute(config).frames["legs"]
+    later = legs[legs["t_s"] > 0]
+    assert len(later) > 0
+    assert set(later["cause"]) == {"command"}
+
+
+# -- subscriptions and their order -------------------------------------------------------------
+def _scripted(sim, moves):
+    """``moves``: (t, robot, velocity, start or None), applied in order by one process."""
+
+    def drive():
+        for t, r, v, start in moves:
+            if t > sim.env.now:
+                yield sim.env.timeout(t - sim.env.now)
+            sim.state.set_leg(r, t, v, start_m=start)
+
+    sim.env.process(drive())
+
+
+def test_subscribers_see_events_in_time_order_with_the_documented_tie_order():
+    """At one instant link events come first, by (a, b); a jump's link events follow the
+    course change that causes them."""
+    sim = _core(6, 10.0, 60.0)
+    # Pairs (0, 1) and (2, 3) meet at t = 20 exactly and part at t = 40 exactly; robot 5
+    # jumps next to robot 4 at t = 20.
+    sim.state.place([[0, 0], [30, 0], [100, 0], [130, 0], [500, 0], [900, 0]])
+    _scripted(sim, [(0.0, 3, (-1.0, 0.0), None), (0.0, 1, (-1.0, 0.0), None), (20.0, 5, (0.0, 0.0), (505.0, 0.0))])
+    log = []
+    for name in ("link_up", "link_down", "course_change"):
+        sim.events.on(name, lambda ev, name=name: log.append((name, sim.now, ev)))
+
+    def kernel_event(t):
+        yield sim.env.timeout(t)
+        log.append(("kernel", sim.now, None))
+
+    sim.env.process(kernel_event(20.0))
+    sim.env.process(kernel_event(40.0))
+    # An URGENT event (as deliveries are) due at 20, scheduled before any link event.
+    scheduled_event(sim.env, 20.0, URGENT, lambda _e: log.append(("urgent", sim.now, None)))
+    sim.run()
+    times = [t for _, t, _ in log]
+    assert times == sorted(times)
+    at20 = [(name, ev) for name, t, ev in log if t == 20.0]
+    assert at20 == [
+        ("link_up", LinkUp(20.0, 0, 1)),
+        ("link_up", LinkUp(20.0, 2, 3)),
+        ("urgent", None),
+        ("course_change", at20[3][1]),
+        ("link_up", LinkUp(20.0, 4, 5)),
+        ("kernel", None),
+    ]
+    assert at20[3][1].robot == 5 and at20[3][1].cause == "jump"
+    at40 = [(name, ev) for name, t, ev in log if t == 40.0]
+    assert at40 == [
+        ("link_down", LinkDown(40.0, 0, 1, 20.0)),
+        ("link_down", LinkDown(40.0, 2, 3, 20.0)),
+        ("kernel", None),
+    ]
+    assert all(ev.t_s == t for name, t, ev in log if name.startswith("link"))
+
+
+def test_a_subscriber_may_change_course_on_a_link_break():
+    """Stop a robot when its link breaks: the run takes the new leg from that instant."""
+    sim = _core(2, 10.0, 100.0)
+    sim.state.place([[0, 0], [5, 0]])
+    _scripted(sim, [(0.0, 1, (1.0, 0.0), None)])
+
+    def turn_back(ev):
+        sim.state.set_leg(1, ev.t_s, (-1.0, 0.0))
+
+    sim.events.on("link_down", turn_back)
+    ups = []
+    sim.events.on("link_up", ups.append)
+    sim.run()
+    links = collect(sim)["links"]
+    # Out of range at t = 5 (x = 10), back in at once: one lifetime ends at 5, the next starts at 5.
+    assert links["t_down_s"].iloc[0] == pytest.approx(5.0)
+    assert [u.t_s for u in ups] == [0.0, pytest.approx(5.0)]
+    assert links["t_down_s"].iloc[1] == pytest.approx(25.0)
+
+
+def test_role_changes_deliveries_and_drops_are_announced():
+    config = load(None, ["world.n_robots=20", "duration_s=40", "world.side_m=400", "channel.loss_probability=0.2"])
+    sim = build(config)
+    roles, got, lost = [], [], []
+    sim.events.on("role_change", roles.append)
+    sim.events.on("delivery", got.append)
+    sim.events.on("drop", lost.append)
+    sim.run()
+    frames = collect(sim)
+    # Every role change but the initial roles, set when the protocol is built.
+    table = frames["roles"].iloc[20:].reset_index(drop=True)
+    assert (frames["roles"]["t_s"].iloc[:20] == 0).all()
+    pd.testing.assert_frame_equal(pd.DataFrame(roles, columns=list(table.columns)), table)
+    assert len(roles) > 20
+    acks = frames["acks"]
+    assert sum(len(d.receivers) for d in got if d.kind == "ack") == acks["received"].sum()
+    assert sum(len(d.receivers) for d in lost if d.kind == "ack" and d.cause == "loss") == acks["dropped_loss"].sum()
+    assert acks["dropped_loss"].sum() > 0
+
+
+def test_the_bus_rejects_unknown_events_and_late_link_subscriptions():
+    bus = EventBus()
+    with pytest.raises(ValueError, match="unknown event 'link_broke'"):
+        bus.on("link_broke", print)
+    with pytest.raises(TypeError):
+        bus.on("link_up", 3)
+    assert set(EVENT_NAMES) >= {"course_change", "link_up", "link_down", "role_change", "delivery", "drop"}
+    sim = _core(2, 10.0, 10.0)
+    sim.state.place([[0, 0], [5, 0]])
+    sim.run(5.0)
+    with pytest.raises(RuntimeError, match="before the run starts"):
+        sim.events.on("link_down", print)
+    sim.events.on("course_change", print)  # any other event may be subscribed to at any time
+
+
+def test_runtime_links_are_off_unless_someone_subscribes():
+    sim = _core(2, 10.0, 10.0)
+    sim.state.place([[0, 0], [5, 0]])
+    sim.run()
+    assert sim.links is None
+    sim = _core(2, 10.0, 10.0)
+    sim.state.place([[0, 0], [5, 0]])
+    sim.events.on("link_up", lambda ev: None)
+    sim.run()
+    assert sim.links is not None
+
+
+def test_runtime_links_off_refuses_link_subscribers():
+    sim = _core(2, 10.0, 10.0, runtime_links="off")
+    sim.state.place([[0, 0], [5, 0]])
+    sim.events.on("link_up", lambda ev: None)
+    with pytest.raises(ConfigError, match="events.runtime_links = 'off'"):
+        sim.run()
+
+
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("events.runtime_links=sometimes", "events.runtime_links"),
+        ('events.hooks=["no_such_hook"]', "events.hooks[0]"),
+        ("events.hooks=3", "events.hooks"),
+        ("events.live_topology=1", "events.live_topology"),
+        ("events.colour=red", "events.colour"),
+    ],
+)
+def test_bad_events_keys_are_named(override, key):
+    with pytest.raises(ConfigError) as err:
+        load(None, [override])
+    assert str(err.value).startswith(key)
+
+
+def test_live_topology_needs_runtime_links():
+    with pytest.raises(ConfigError, match="events.live_topology"):
+        load(None, ["events.live_topology=true", "events.runtime_links=off"])
+
+
+# -- the live topology -------------------------------------------------------------------------
+def test_the_live_graph_equals_the_snapshot_at_random_instants():
+    config = load(None, ["world.n_robots=40", "duration_s=120", "world.side_m=500", "channel.range_m=110"])
+    sim = build(config)
+    live = sim.live_topology()
+    instants = np.sort(np.random.default_rng(5).uniform(0.0, 120.0, 40))
+    wrong = []
+
+    def compare():
+        for t in instants.tolist():
+            yield sim.env.timeout(t - sim.env.now)
+            g = snapshot(sim.state, sim.now, groups=sim.groups)
+            if set(g.edges) != set(live.graph.edges):
+                wrong.append((t, "edges"))
+            for i in g.nodes:
+                mine = live.graph.nodes[i]
+                if (mine["pos"], mine["role"], mine["leader"]) != (
+                    g.nodes[i]["pos"],
+                    g.nodes[i]["role"],
+                    g.nodes[i]["leader"],
+                ):
+                    wrong.append((t, i))
+            for a, b, since in live.graph.edges(data="up_since"):
+                if not since <= sim.now:
+                    wrong.append((t, a, b))
+
+    sim.env.process(compare())
+    sim.run()
+    assert wrong == []
+    assert live.graph.number_of_edges() > 20
+    assert {"alpha", "beta"} <= {live.graph.nodes[i]["role"] for i in live.graph.nodes}
+
+
+def test_time_weighted_levels_match_brute_force_sampling():
+    config = load(
+        None,
+        [
+            "world.n_robots=40",
+            "duration_s=150",
+            "world.side_m=600",
+            "channel.range_m=90",
+            "protocol.model=none",
+            "events.live_topology=true",
+        ],
+    )
+    result = execute(config)
+    links = result.frames["links"]
+    legs = result.frames["legs"]
+    n, T = 40, 150.0
+    # Brute force: the geometric graph sampled at the midpoint of every interval between
+    # consecutive link events (the graph is constant on each), weighted by its length.
+    from netsim.trajectory import sample_positions
+
+    cuts = np.unique(np.r_[0.0, links["t_up_s"], links["t_down_s"], T])
+    mids = 0.5 * (cuts[:-1] + cuts[1:])
+    pos = sample_positions(legs, n, mids)[["x_m", "y_m"]].to_numpy().reshape(len(mids), n, 2)
+    from netsim.topology import geometric_pairs
+
+    area = np.zeros(3)
+    for k, (lo, hi) in enumerate(zip(cuts[:-1].tolist(), cuts[1:].tolist())):
+        i, j, _ = geometric_pairs(pos[k], 90.0)
+        g = nx.Graph()
+        g.add_nodes_from(range(n))
+        g.add_edges_from(zip(i.tolist(), j.tolist()))
+        comps = [len(c) for c in nx.connected_components(g)]
+        area += np.array([len(comps), max(comps), 2 * g.number_of_edges() / n]) * (hi - lo)
+    want = area / T
+    s = result.summary
+    got = (s["time_mean_components"], s["time_mean_largest_component"], s["time_mean_degree"])
+    assert got == pytest.approx(tuple(want), rel=1e-9)
+    assert s["time_mean_degree"] == pytest.approx(s["mean_degree"], rel=1e-9)
+    assert 1 < want[0] < n and want[1] > 5  # several components, one of them large
+
+
+# -- the example hook --------------------------------------------------------------------------
+def test_link_breaks_hook_counts_breaks_per_robot_per_minute():
+    config = load(
+        None,
+        [
+            "world.n_robots=3",
+            "world.side_m=1000",
+            "duration_s=150",
+            "channel.range_m=10",
+            "mobility.model=static",
+            "protocol.model=none",
+            'events.hooks=["link_breaks"]',
+        ],
+    )
+    sim = build(config)
+    sim.state.place([[0, 0], [30, 0], [0, 100]])
+    # Robot 1 passes robot 0: up at 20, down at 40 (minute 0). Robot 2 passes robot 0
+    # twice: up at 90, down at 110 (minute 1), turns back at 115: up at 120, down at 140
+    # (minute 2).
+    _scripted(sim, [(0.0, 1, (-1.0, 0.0), None), (0.0, 2, (0.0, -1.0), None), (115.0, 2, (0.0, 1.0), None)])
+    sim.run()
+    frames = collect(sim)
+    table = frames["link_breaks"]
+    assert list(table.columns) == ["minute", "t_s", "robot", "breaks"]
+    got = table.pivot(index="minute", columns="robot", values="breaks").to_numpy()
+    assert got.tolist() == [[1, 1, 0], [1, 0, 1], [1, 0, 1]]
+    assert table["t_s"].tolist()[::3] == [0.0, 60.0, 120.0]
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--set", "events.runtime_links=maybe"], "events.runtime_links = 'maybe': must be one of 'auto', 'on', 'off'"),
+        (["--set", 'events.hooks=["nope"]'], "events.hooks[0] = 'nope': unknown"),
+        (["--set", "events.live_topology=true", "--set", "events.runtime_links=off"], "events.live_topology"),
+        (["--set", 'events.hooks=["link_breaks"]', "--set", "events.runtime_links=off"], "events.runtime_links"),
+    ],
+)
+def test_cli_bad_events_keys_exit_2_with_one_line(tmp_path, capsys, args, fragment):
+    from netsim.tools.cli import main
+
+    code = main(["run", "--quiet", "--out", str(tmp_path / "out"), *args])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(lines) == 1 and lines[0].startswith("netsim: error: ") and fragment in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_run_with_the_hook_writes_its_table_and_the_levels(tmp_path):
+    import json
+
+    from netsim.tools.cli import main
+
+    out = tmp_path / "out"
+    args = ["--set", "world.n_robots=20", "--set", "duration_s=90", "--set", "protocol.model=none"]
+    args += ["--set", 'events.hooks=["link_breaks"]', "--set", "events.live_topology=true"]
+    assert main(["run", "--quiet", "--out", str(out), *args]) == 0
+    table = pd.read_parquet(out / "link_breaks.parquet")
+    links = pd.read_parquet(out / "links.parquet")
+    assert len(table) == 20 * 2
+    assert table["breaks"].sum() == 2 * (~links["censored_end"]).sum()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["time_mean_degree"] == pytest.approx(summary["mean_degree"], rel=1e-9)
+    assert "link_breaks_per_robot_per_minute" in summary
+
+
+def test_the_live_graph_equals_the_snapshot_on_a_torus_with_unequal_ranges():
+    ranges = ", ".join(str(70.0 + 7 * (i % 6)) for i in range(30))
+    config = load(
+        None,
+        [
+            "world.n_robots=30",
+            "duration_s=100",
+            "world.side_m=300",
+            "world.torus=true",
+            "mobility.model=random_direction",
+            "mobility.turn_interval_s=5",
+            f"channel.range_m=[{ranges}]",
+            "protocol.model=none",
+        ],
+    )
+    sim = build(config)
+    live = sim.live_topology()
+    wrong, seen = [], []
+
+    def compare():
+        for t in np.sort(np.random.default_rng(8).uniform(0.0, 100.0, 30)).tolist():
+            yield sim.env.timeout(t - sim.env.now)
+            g = snapshot(sim.state, sim.now)
+            seen.append(g.number_of_edges())
+            if set(g.edges) != set(live.graph.edges):
+                wrong.append(t)
+            if any(live.graph.nodes[i]["pos"] != g.nodes[i]["pos"] for i in g.nodes):
+                wrong.append(t)
+
+    sim.env.process(compare())
+    sim.run()
+    assert wrong == []
+    assert min(seen) > 10
