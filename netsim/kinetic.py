@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -80,7 +82,7 @@ class RuntimeLinks:
         """Solve from t = 0, after everything else due at t = 0 (placements, first legs)."""
         scheduled_event(self.env, 0.0, LAST, self._begin)
 
-    def _begin(self, _event=None) -> None:
+    def _begin(self, _event: object = None) -> None:
         self.started = True
         self._dirty.clear()
         self._jumped.clear()
@@ -131,7 +133,7 @@ class RuntimeLinks:
             self._flush_pending = True
             scheduled_event(self.env, 0.0, FIRST, self._flush)
 
-    def _flush(self, _event=None) -> None:
+    def _flush(self, _event: object = None) -> None:
         self._flush_pending = False
         if not self._dirty:
             return
@@ -152,7 +154,7 @@ class RuntimeLinks:
             self._arm()
 
     # -- windows -------------------------------------------------------------------------
-    def _positions(self, t: float, who=None) -> np.ndarray:
+    def _positions(self, t: float, who: np.ndarray | None = None) -> np.ndarray:
         st = self.state
         if who is None:
             return st.origin_m + st.velocity_mps * (t - st.t0_s)[:, None]
@@ -165,7 +167,7 @@ class RuntimeLinks:
         # Every queued event is solved again from t; the window's events go into one sorted
         # list (walked in order), later re-solves into a small heap beside it.
         self._heap = []
-        self._batch: list | None = []
+        self._batch = []
         speeds = np.hypot(st.velocity_mps[:, 0], st.velocity_mps[:, 1])
         self.v_bound = max(self.v_bound, float(speeds.max()) if st.n else 0.0)
         if self.v_bound > 0:
@@ -234,7 +236,7 @@ class RuntimeLinks:
         w = st.velocity_mps[a] - st.velocity_mps[b]
         found: list[tuple] = []
 
-        def emit(t_ev, ia, _ib, kind, phase):
+        def emit(t_ev: Any, ia: Any, _ib: Any, kind: int, phase: Any) -> None:
             if len(ia):
                 found.append((np.asarray(t_ev, float), np.asarray(ia, np.int64), kind, np.asarray(phase)))
 
@@ -246,7 +248,7 @@ class RuntimeLinks:
     # An event is the tuple (t, a, b, phase, -kind, idx, gen): tuples sort in the order the
     # events run (module notes); idx is the candidate pair (-1: a state set at a jump or at
     # the start, never cancelled), gen its generation when solved.
-    def _push(self, t, a, b, kind: int, phase, idx=None) -> None:
+    def _push(self, t: Any, a: Any, b: Any, kind: int, phase: Any, idx: np.ndarray | None = None) -> None:
         n = len(a)
         if n == 0:
             return
@@ -286,7 +288,7 @@ class RuntimeLinks:
             self._armed_s = t
             scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, lambda _e: self._wake(t))
 
-    def _take(self, until: float):
+    def _take(self, until: float) -> Iterator[tuple]:
         """The queued events due at or before ``until``, in order (both sources merged)."""
         queue, heap = self._queue, self._heap
         qi, nq = self._qi, len(queue)
@@ -326,16 +328,16 @@ class RuntimeLinks:
                     continue
                 up[key] = t
                 if on_up:
-                    event = LinkUp(t, a, b)
+                    up_event = LinkUp(t, a, b)
                     for fn in on_up:
-                        fn(event)
+                        fn(up_event)
             else:
                 t_up = up.pop(key, None)
                 if t_up is None:
                     continue
                 ended.append((a, b, t_up, t))
                 if on_down:
-                    event = LinkDown(t, a, b, t_up)
+                    down_event = LinkDown(t, a, b, t_up)
                     for fn in on_down:
-                        fn(event)
+                        fn(down_event)
         self._arm()

@@ -20,6 +20,7 @@ of its own). The averages join the run's summary.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, MutableMapping
+from typing import Any
 
 import networkx as nx
 import simpy
@@ -49,7 +50,7 @@ class _NodeAttrs(MutableMapping):
             return ()
         return ("pos", "role", "leader") if live.groups is not None else ("pos",)
 
-    def __getitem__(self, key):
+    def __getitem__(self, key: str) -> Any:
         live = self._live
         if live is not None:
             if key == "pos":
@@ -62,7 +63,7 @@ class _NodeAttrs(MutableMapping):
                     return int(groups.leader[self._robot])
         return self._own[key]
 
-    def __setitem__(self, key, value) -> None:
+    def __setitem__(self, key: str, value: Any) -> None:
         if key == _BIND:
             self._live, self._robot = value
         elif key in self._computed():
@@ -70,7 +71,7 @@ class _NodeAttrs(MutableMapping):
         else:
             self._own[key] = value
 
-    def __delitem__(self, key) -> None:
+    def __delitem__(self, key: str) -> None:
         del self._own[key]
 
     def __iter__(self) -> Iterator:

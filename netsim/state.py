@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from netsim.events import CourseChange
+from netsim.events import CourseChange, EventBus
 
 # Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
 # waypoint (or a trace's destination) reached, the end of a pause, the border reached
@@ -60,7 +60,7 @@ class RobotState:
         # Told of every change of a robot's leg as fn(robot, t, jump), logged or not.
         self.watchers: list[Callable[[int, float, bool], None]] = []
         # The run's event bus (netsim.events.EventBus), if any: course_change events.
-        self.events = None
+        self.events: EventBus | None = None
 
     # -- positions -------------------------------------------------------------------
     def positions_at(self, t: float, idx: int | Sequence[int] | np.ndarray | None = None) -> np.ndarray:
