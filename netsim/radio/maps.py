@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 
@@ -69,6 +70,11 @@ class OccupancyMap:
     @property
     def shape(self) -> tuple[int, int]:
         return self.occupied.shape
+
+    @cached_property
+    def not_free(self) -> np.ndarray:
+        """Cells robots may not enter (occupied or unknown)."""
+        return np.ascontiguousarray(~self.free)
 
     @property
     def extent_m(self) -> tuple[float, float, float, float]:
