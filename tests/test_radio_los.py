@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from netsim.radio import los
 from netsim.radio.los import first_blocked, line_of_sight, walls_crossed
 from netsim.radio.maps import OccupancyMap
 
@@ -90,8 +91,18 @@ def _random_case(rng, w=23, h=17, k=300, lattice=False):
     return blocked, p, q
 
 
+@pytest.fixture(params=["compiled", "numpy"])
+def implementation(request, monkeypatch):
+    """Run a test with the compiled traversal and with the pure numpy one."""
+    if request.param == "numpy":
+        monkeypatch.setattr(los, "_kernel", lambda: None)
+    elif los._kernel() is None:
+        pytest.skip("numba is not installed")
+    return request.param
+
+
 @pytest.mark.parametrize("lattice", [False, True])
-def test_walls_equal_exact_reference_on_random_maps(lattice):
+def test_walls_equal_exact_reference_on_random_maps(lattice, implementation):
     """Walls and first hits equal a sort-and-midpoint reference, for generic segments and for
     segments with ends on grid lines and vertices (along lines, through corners)."""
     rng = np.random.default_rng(3 if lattice else 4)
@@ -108,7 +119,7 @@ def test_walls_equal_exact_reference_on_random_maps(lattice):
             assert first[n] == pytest.approx(ref_t, abs=1e-12), (p[n], q[n])
 
 
-def test_walls_match_dense_sampling():
+def test_walls_match_dense_sampling(implementation):
     """Dense sampling sees a sub-sequence of the cells (it can step over a corner clip), so it
     never counts more walls, and on random segments it nearly always counts the same."""
     rng = np.random.default_rng(5)
@@ -119,7 +130,19 @@ def test_walls_match_dense_sampling():
     assert (walls == dense).mean() >= 0.97
 
 
-def test_walls_are_symmetric():
+def test_compiled_and_numpy_traversals_agree_exactly():
+    """The compiled loop does the numpy version's arithmetic: identical walls and first hits."""
+    if los._kernel() is None:
+        pytest.skip("numba is not installed")
+    rng = np.random.default_rng(8)
+    for lattice in (False, True, False, True):
+        blocked, p, q = _random_case(rng, k=2000, lattice=lattice)
+        a = los._trace_numpy(blocked, 0.5, (-3.0, 2.0), p * 0.5 - 3.0 + [0, 5], q * 0.5 - 3.0 + [0, 5], True)
+        b = los._trace(blocked, 0.5, (-3.0, 2.0), p * 0.5 - 3.0 + [0, 5], q * 0.5 - 3.0 + [0, 5], True)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def test_walls_are_symmetric(implementation):
     """Reciprocity: the walls between two robots do not depend on who sends."""
     rng = np.random.default_rng(6)
     for lattice in (False, True):
@@ -128,7 +151,7 @@ def test_walls_are_symmetric():
         assert np.array_equal(walls_crossed(m, p, q), walls_crossed(m, q, p))
 
 
-def test_segment_along_a_grid_line_is_in_the_cells_above_it():
+def test_segment_along_a_grid_line_is_in_the_cells_above_it(implementation):
     """A point on a grid line belongs to the cell above (right of) it, and so does a segment."""
     below = np.zeros((4, 6), dtype=bool)
     below[1, 2] = True  # the row under the line y = 2
@@ -146,7 +169,7 @@ def test_segment_along_a_grid_line_is_in_the_cells_above_it():
     assert line_of_sight(_map(right), [[3.0, 0.5]], [[3.0, 3.5]]).tolist() == [False]
 
 
-def test_diagonal_staircase_wall_does_not_leak_at_its_corners():
+def test_diagonal_staircase_wall_does_not_leak_at_its_corners(implementation):
     """A wall of pixels touching only at corners blocks a segment through those corners."""
     stair = np.zeros((6, 6), dtype=bool)
     for c in range(6):
@@ -157,7 +180,7 @@ def test_diagonal_staircase_wall_does_not_leak_at_its_corners():
     assert walls_crossed(m, [[5.5, 5.5]], [[0.5, 0.5]]).tolist() == [1]
 
 
-def test_vertex_with_one_blocked_side_cell_blocks():
+def test_vertex_with_one_blocked_side_cell_blocks(implementation):
     """Through a vertex, any of the four cells around it blocks."""
     one = np.zeros((4, 4), dtype=bool)
     one[1, 2] = True  # beside the diagonal step from (1, 1) to (2, 2)
@@ -167,7 +190,7 @@ def test_vertex_with_one_blocked_side_cell_blocks():
     assert line_of_sight(_map(one), [[0.5 + 1e-6, 0.5]], [[3.5 + 1e-6, 3.5]]).tolist() == [False]
 
 
-def test_each_run_of_occupied_cells_is_one_wall():
+def test_each_run_of_occupied_cells_is_one_wall(implementation):
     """Two walls two cells thick: two walls; a thick wall is one wall; the ends count."""
     g = np.zeros((3, 10), dtype=bool)
     g[:, 2:4] = True
@@ -189,7 +212,7 @@ def test_world_coordinates_use_resolution_and_origin():
     assert walls_crossed(m, [[-0.9, 10.5]], [[0.0, 10.5]]).tolist() == [1]  # x = 0 is in the wall
 
 
-def test_far_edge_belongs_to_last_cell():
+def test_far_edge_belongs_to_last_cell(implementation):
     """A robot exactly on the map's far edge is in the last cell, not off the map."""
     g = np.zeros((2, 2), dtype=bool)
     g[1, 1] = True
@@ -198,7 +221,7 @@ def test_far_edge_belongs_to_last_cell():
     assert walls_crossed(m, [[0.5, 0.5], [0.5, 0.5]], [[2.0, 0.5], [0.5, 0.9]]).tolist() == [0, 0]
 
 
-def test_first_blocked_is_where_the_wall_starts():
+def test_first_blocked_is_where_the_wall_starts(implementation):
     g = np.zeros((1, 10), dtype=bool)
     g[0, 6] = True
     m = _map(g)
@@ -208,6 +231,6 @@ def test_first_blocked_is_where_the_wall_starts():
     assert t[2] == np.inf
 
 
-def test_empty_batch():
+def test_empty_batch(implementation):
     m = _map(np.zeros((2, 2), dtype=bool))
     assert walls_crossed(m, np.empty((0, 2)), np.empty((0, 2))).tolist() == []

@@ -41,7 +41,7 @@ import numpy as np
 VERTEX_TOLERANCE_CELLS = 1e-9
 
 
-def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False):
+def _trace_numpy(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False):
     """Walls crossed by each segment ``p[k] -> q[k]`` (and, with ``first``, the parameter in
     ``[0, 1]`` at which it first meets a blocked cell, ``inf`` if never)."""
     p = np.asarray(p, dtype=float).reshape(-1, 2)
@@ -116,6 +116,47 @@ def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool
     first_t = np.where(start, 0.0, np.inf)
     np.minimum.at(first_t, seg0[hit], t[hit])
     return walls, first_t
+
+
+_KERNEL = []
+
+
+def _kernel():
+    """The compiled traversal (:mod:`netsim.radio._kernels`), or None without numba.
+
+    Imported on first use: numba takes a second to import, which a run without a map
+    should not pay.
+    """
+    if not _KERNEL:
+        try:
+            from netsim.radio._kernels import trace
+        except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
+            trace = None
+        _KERNEL.append(trace)
+    return _KERNEL[0]
+
+
+def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False):
+    kernel = _kernel()
+    if kernel is None:
+        return _trace_numpy(blocked, resolution_m, origin_m, p, q, first)
+    p = np.asarray(p, dtype=float).reshape(-1, 2)
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    origin = np.asarray(origin_m, dtype=float)
+    walls = np.empty(len(p), dtype=np.int64)
+    first_t = np.empty(len(p))
+    h, w = blocked.shape
+    kernel(
+        blocked.ravel(),
+        h,
+        w,
+        (p - origin) / resolution_m,
+        (q - origin) / resolution_m,
+        VERTEX_TOLERANCE_CELLS,
+        walls,
+        first_t,
+    )
+    return (walls, first_t) if first else walls
 
 
 def walls_crossed(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:

@@ -68,6 +68,20 @@ import numpy as np
 from netsim.errors import ConfigError
 from netsim.radio.propagation import TRUNCATION_SIGMAS
 
+_KERNEL = []
+
+
+def _kernel():
+    """The compiled update (:mod:`netsim.radio._kernels`), or None without numba."""
+    if not _KERNEL:
+        try:
+            from netsim.radio._kernels import shadow_step
+        except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
+            shadow_step = None
+        _KERNEL.append(shadow_step)
+    return _KERNEL[0]
+
+
 _SHIFT = np.int64(32)
 _LOW = np.int64((1 << 32) - 1)
 
@@ -138,43 +152,63 @@ class PairShadowing:
         """``X`` (dB, clipped to +-4 sigma) of pairs ``(a[k], b[k])`` at pair travels ``travel_m[k]``.
 
         A pair's travel must not decrease from one look to the next (it is a sum of path
-        lengths); a pair may appear twice in a batch only at the same travel.
+        lengths); a pair may appear twice in a batch (both directions) only at the same
+        travel. One standard normal is drawn per item of the batch; a pair moves on with the
+        draw of its first appearance.
         """
         a = np.asarray(a, dtype=np.int64)
         k = len(a)
         if self.sigma_db == 0.0 or k == 0:
             return np.zeros(k)
         keys = pair_keys(a, b)
-        travel = np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))
-        # Duplicates in a batch (a -> b and b -> a) must share one draw.
+        s_new = self._anchor(np.array(np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))))
+        z = self.rng.standard_normal(k)
+        self.draws += k
+        kernel = _kernel()
+        if kernel is None:
+            x = self._sample_numpy(keys, s_new, z)
+        else:
+            x = np.empty(k)
+            new = np.empty(k, dtype=np.bool_)
+            kernel(self._keys, self._x, self._s, keys, s_new, z, self.sigma_db, self.decorrelation_m, x, new)
+            if new.any():
+                idx = np.flatnonzero(new)
+                uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)
+                fresh = self.sigma_db * z[idx[first]]
+                x[idx] = fresh[inverse]
+                self._insert(uniq, fresh, s_new[idx[first]])
+        return np.clip(x, -self.clip_db, self.clip_db)
+
+    def _insert(self, keys, x, s) -> None:
+        at = np.searchsorted(self._keys, keys)
+        self._keys = np.insert(self._keys, at, keys)
+        self._x = np.insert(self._x, at, x)
+        self._s = np.insert(self._s, at, s)
+
+    def _sample_numpy(self, keys, s_new, z) -> np.ndarray:
+        """What the compiled kernel computes, in numpy operations (the fallback without numba)."""
         order = np.argsort(keys, kind="stable")
         sk = keys[order]
         first = np.r_[True, sk[1:] != sk[:-1]]
         uniq = sk[first]
-        inverse = np.empty(k, dtype=np.int64)
+        inverse = np.empty(len(keys), dtype=np.int64)
         inverse[order] = np.cumsum(first) - 1
-        s_new = self._anchor(travel[order][first])
-
+        lead = order[first]  # each pair's first appearance in the batch
+        zu, su = z[lead], s_new[lead]
         n_old = len(self._keys)
         pos = np.searchsorted(self._keys, uniq)
         found = self._keys[np.minimum(pos, n_old - 1)] == uniq if n_old else np.zeros(len(uniq), dtype=bool)
-        z = self.rng.standard_normal(len(uniq))
-        self.draws += len(uniq)
-        x = self.sigma_db * z
+        x = self.sigma_db * zu
         if found.any():
             at = pos[found]
-            delta = np.maximum(s_new[found] - self._s[at], 0.0)
+            delta = np.maximum(su[found] - self._s[at], 0.0)
             rho = np.exp(-delta / self.decorrelation_m)
-            x[found] = rho * self._x[at] + self.sigma_db * np.sqrt(1.0 - rho * rho) * z[found]
+            x[found] = rho * self._x[at] + self.sigma_db * np.sqrt(1.0 - rho * rho) * zu[found]
             self._x[at] = x[found]
-            self._s[at] = np.maximum(s_new[found], self._s[at])
-        new = ~found
-        if new.any():
-            ins = pos[new]
-            self._keys = np.insert(self._keys, ins, uniq[new])
-            self._x = np.insert(self._x, ins, x[new])
-            self._s = np.insert(self._s, ins, s_new[new])
-        return np.clip(x, -self.clip_db, self.clip_db)[inverse]
+            self._s[at] = np.maximum(su[found], self._s[at])
+        if (~found).any():
+            self._insert(uniq[~found], x[~found], su[~found])
+        return x[inverse]
 
     def forget(self, odometer_m, horizon: float = 20.0) -> int:
         """Drop pairs whose travel since their last look exceeds ``horizon`` ``d_corr``.
