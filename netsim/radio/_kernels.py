@@ -19,8 +19,11 @@ def cell(flat, w, half, pc, sc, p_max, s_max):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace_one(flat, h, w, u0, v0, u1, v1, eps):
-    """Walls crossed by one segment (grid units) and where it first meets a blocked cell."""
+def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
+    """Walls crossed by one segment (grid units) and where it first meets a blocked cell.
+
+    Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
+    """
     i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
     j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
     count = 0
@@ -28,6 +31,8 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps):
     if flat[j0 * w + i0]:
         count = 1
         ft = 0.0
+        if count > limit:
+            return count, ft
     for half in range(2):
         if half == 0:
             P0, S0, P1, S1, p_max, s_max = u0, v0, u1, v1, w - 1, h - 1
@@ -69,6 +74,8 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps):
                 )
             if hit and not before and not (vertex and half == 1):
                 count += 1
+                if count > limit:
+                    return count, min(ft, t)
             if hit and t < ft:
                 ft = t
     return count, ft
@@ -77,7 +84,9 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps):
 @numba.njit(cache=True, nogil=True)
 def trace(flat, h, w, g0, g1, eps, walls, first_t):
     for s in range(g0.shape[0]):
-        walls[s], first_t[s] = trace_one(flat, h, w, g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1], eps)
+        walls[s], first_t[s] = trace_one(
+            flat, h, w, g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1], eps, np.iinfo(np.int64).max
+        )
 
 
 @numba.njit(cache=True, nogil=True)
@@ -165,7 +174,11 @@ def budget_pass(
         if wall_db > 0.0:
             if total > budget_slack:
                 continue
-            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps)
+            # Counting stops two walls past what the margin affords: the pair is then out,
+            # whatever rounding the division made.
+            affordable = (budget_slack - total) / wall_db
+            limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
+            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
             total = total + wall_db * walls
         receivable[m] = tx_dbm - total >= sensitivity_dbm
 
@@ -177,6 +190,6 @@ def disk_pass(d, a, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receiv
         r = range_m[a[m]] if per_robot else range_m[0]
         ok = d[m] <= r
         if ok and use_map:
-            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps)
+            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, 0)
             ok = walls == 0
         receivable[m] = ok
