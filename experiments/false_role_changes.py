@@ -27,6 +27,7 @@ import pandas as pd  # noqa: E402
 
 from netsim.tools import analysis  # noqa: E402
 from netsim.tools import sweep as sweepmod  # noqa: E402
+from protocols.roles import LABELS  # noqa: E402
 
 
 def main(argv=None) -> None:
@@ -77,9 +78,9 @@ def main(argv=None) -> None:
     rows = []
     for (loss, tau), g in runs.groupby(["channel.loss_probability", "protocol.tau_s"]):
         r = roles[roles.run_id.isin(g.run_id)]
-        counts = np.concatenate([analysis.acks_until_leader_loss(rr, tau, 1.0) for _, rr in r.groupby("run_id")])
+        counts = np.concatenate([analysis.acks_until_leader_loss(rr, tau, 1.0, LABELS) for _, rr in r.groupby("run_id")])
         k = analysis.spurious_timeout_window(tau, 1.0)
-        false_changes = (r.cause == "rule3_leader_lost").sum() / (len(g) * 2 * args.pairs * args.duration / 60)
+        false_changes = (r.cause == LABELS.leader_lost).sum() / (len(g) * 2 * args.pairs * args.duration / 60)
         rows.append(
             {
                 "loss_probability": loss,

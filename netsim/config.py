@@ -291,8 +291,8 @@ def section_owners(control: ControlParams) -> dict[str, Any]:
     owners: dict[str, Any] = {}
     candidates = list(plugins.registered(plugins.CONTROLLERS).items())
     registered = {id(p) for _, p in candidates}
-    for k, name in enumerate(control.controllers):
-        key = f"control.controllers[{k}]"
+    for name in control.controllers:
+        key = "control.controllers"
         plugin = plugins.resolve(plugins.CONTROLLERS, name, key)
         if id(plugin) in registered and plugin.Params.section and _enabled_by_section(plugin):
             section = plugin.Params.section
@@ -336,8 +336,8 @@ def controllers(config: Config) -> list[tuple[str, Any, Params]]:
         section = plugin.Params.section
         if section and _enabled_by_section(plugin) and config.sections[section].enabled:  # type: ignore[attr-defined]
             out.append((section, plugin, config.sections[section]))
-    for k, name in enumerate(config.control.controllers):
-        plugin = plugins.resolve(plugins.CONTROLLERS, name, f"control.controllers[{k}]")
+    for name in config.control.controllers:
+        plugin = plugins.resolve(plugins.CONTROLLERS, name, "control.controllers")
         section = plugin.Params.section
         out.append((name, plugin, config.sections[section] if section else plugin.Params()))
     return out

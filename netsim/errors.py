@@ -16,4 +16,6 @@ class ConfigError(NetsimInputError):
         self.key = key
         self.value = value
         self.allowed = allowed
-        super().__init__(f"{key} = {value!r}: {allowed}")
+        # A key read from a file may hold any character: keep the message on one line.
+        shown = key if key.isprintable() else repr(key)
+        super().__init__(f"{shown} = {value!r}: {allowed}")

@@ -129,6 +129,15 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
     if not ids:
         raise NetsimInputError(f'{path}: no nodes ($node_(i) set X_ ... or $ns_ at T "$node_(i) ...")')
     n = max(ids) + 1
+    named = set(ids)
+    if n_robots is None and n - len(named) > max(1000, len(named)):
+        # Without world.n_robots the nodes are 0 to the highest number named: a stray huge
+        # number would make a team of mostly never-named robots.
+        gaps = [i for i in range(12) if i not in named][:10]
+        raise NetsimInputError(
+            f"{path}: node(s) {gaps} ... are never named, up to node {n - 1}: "
+            "number the nodes from 0 without large gaps"
+        )
     # Count the nodes lacking a coordinate without walking range(n): a stray huge node
     # number must not make the check itself enormous.
     complete = sum(1 for xy in initial.values() if "X" in xy and "Y" in xy)

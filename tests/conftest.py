@@ -1,5 +1,14 @@
+import os
+
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# Property tests draw the same examples on every run, so that a red CI always means a
+# change in the code; HYPOTHESIS_PROFILE=explore draws new ones (to hunt for bugs).
+settings.register_profile("deterministic", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 from netsim.run import build
 from tests.fixtures import make_config

@@ -7,8 +7,7 @@ import pytest
 
 from netsim.channel import DROP_CAUSES
 from netsim.loss import DistanceLoss, GilbertElliottLoss
-from netsim.run import build
-from netsim.sim import Simulation
+from netsim.run import build, simulation
 from tests.fixtures import make_config
 
 
@@ -143,7 +142,7 @@ def test_observed_delivery_ratio_in_a_run():
 
 def test_loss_off_draws_nothing():
     """Turning loss off must not consume random numbers (other draws stay put)."""
-    sim = Simulation(make_config(world={"n_robots": 2}))
+    sim = simulation(make_config(world={"n_robots": 2}))
     before = sim.channel.survives.rng.bit_generator.state
     assert sim.channel.survives(0, np.array([1]), np.array([1.0])) is None
     assert sim.channel.survives.rng.bit_generator.state == before

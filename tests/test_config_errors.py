@@ -44,9 +44,15 @@ def test_bad_value_names_key_value_and_rule(override, key, words):
 
 def test_config_file_values_and_overrides(tmp_path):
     f = tmp_path / "s.toml"
-    f.write_text("seed = 4\n[world]\nn_robots = 7\n[mobility]\nspeed_max_mps = 3\n")
+    f.write_text("seed = 4\n[world]\nn_robots = 7\n[mobility]\nspeed_max_mps = 3\nstationary_start = false\n")
     c = cfgmod.load(f, ["mobility.speed_max_mps=10", "world.placement=grid"])
     assert (c.seed, c.world.n_robots, c.mobility.speed_max_mps, c.world.placement) == (4, 7, 10.0, "grid")
+
+
+def test_a_rule_across_sections_is_checked_when_the_configuration_is_loaded():
+    # Random waypoint's stationary start draws positions itself: refused before any run.
+    with pytest.raises(ConfigError, match="world.placement"):
+        cfgmod.load(None, ["world.placement=grid"])
 
 
 def test_resolved_config_round_trips():

@@ -147,9 +147,8 @@ def test_zero_min_speed_without_stationary_start_warns():
 
 
 def test_zero_min_speed_with_stationary_start_is_an_error():
-    cfg = make_config(mobility={"speed_min_mps": 0.0, "stationary_start": True}, world={"n_robots": 3})
     with pytest.raises(ConfigError, match="speed_min_mps"):
-        build(cfg)
+        make_config(mobility={"speed_min_mps": 0.0, "stationary_start": True}, world={"n_robots": 3})
 
 
 def test_robots_stay_in_the_area():

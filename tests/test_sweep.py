@@ -111,7 +111,8 @@ def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
                     time.sleep(0.1)
                 MARK.write_text("killed once")
                 os.kill(os.getppid(), signal.SIGKILL)
-            return plugins.resolve(plugins.MOBILITY, "static", "mobility.model")(sim)
+            static = plugins.resolve(plugins.MOBILITY, "static", "mobility.model")
+            return static.build(static.Params(), sim.parts)
     """)
     )
     (tmp_path / "s.toml").write_text(
