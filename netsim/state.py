@@ -42,6 +42,9 @@ class RobotState:
         self.speed_high_water_mps = 0.0
         # Bumped when a robot jumps (a trace's "set X_" at t > 0): the index must rebuild.
         self.jumps = 0
+        # Path length of each robot up to the start of its current leg (jumps add nothing):
+        # the clock of the radio's shadowing (a pair's travel).
+        self.odometer_m = np.zeros(self.n)
         self._legs: list[tuple] = []
 
     # -- positions -------------------------------------------------------------------
@@ -67,6 +70,16 @@ class RobotState:
             x, y = x % self.side_m, y % self.side_m
         return x, y
 
+    def travelled_m(self, t: float, idx) -> np.ndarray:
+        """Path length of robots ``idx`` from t = 0 to ``t`` (``t`` on their current leg)."""
+        v = self.velocity_mps[idx]
+        return self.odometer_m[idx] + np.hypot(v[..., 0], v[..., 1]) * (t - self.t0_s[idx])
+
+    def _log_travel(self, i: int, t: float) -> None:
+        vx, vy = self.velocity_mps[i]
+        if vx or vy:
+            self.odometer_m[i] += float(np.hypot(vx, vy)) * (t - self.t0_s[i])
+
     def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vectors from positions ``b`` to ``a``; the shortest image on a torus."""
         d = a - b
@@ -83,6 +96,7 @@ class RobotState:
         self.origin_m[:] = positions_m
         self.velocity_mps[:] = 0.0
         self.t0_s[:] = 0.0
+        self.odometer_m[:] = 0.0
         self._legs = [(0.0, i, x, y, 0.0, 0.0) for i, (x, y) in enumerate(positions_m.tolist())]
 
     def set_leg(self, i: int, t: float, velocity_mps, start_m=None) -> None:
@@ -97,6 +111,7 @@ class RobotState:
             start = np.asarray(start_m, dtype=float)
             self.jumps += 1
         vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
+        self._log_travel(i, t)
         self.origin_m[i] = start
         self.velocity_mps[i] = (vx, vy)
         self.t0_s[i] = t
@@ -126,6 +141,7 @@ class RobotState:
         ``log=False`` when the robot leaves again at the same instant: the stop would be
         a leg of zero length.
         """
+        self._log_travel(i, t)
         self.origin_m[i] = dest_m
         self.velocity_mps[i] = 0.0
         self.t0_s[i] = t

@@ -46,7 +46,16 @@ def clearance_field_m(m: OccupancyMap) -> np.ndarray:
 
 
 def _eligible_cells(m: OccupancyMap, side_m: float, clearance_m: float):
-    """Cells a robot may be drawn in, and the rectangle each shares with the area."""
+    """Cells a robot may be drawn in, and the rectangle each shares with the area (computed
+    once per map, area and clearance: waypoints draw from it at every leg)."""
+    cache = m.__dict__.setdefault("_eligible", {})
+    key = (float(side_m), float(clearance_m))
+    if key not in cache:
+        cache[key] = _eligible_cells_now(m, side_m, clearance_m)
+    return cache[key]
+
+
+def _eligible_cells_now(m: OccupancyMap, side_m: float, clearance_m: float):
     ok = m.free.copy()
     if clearance_m > 0:
         # Any point of the cell is then at least clearance_m from any point of a cell that is
@@ -59,18 +68,17 @@ def _eligible_cells(m: OccupancyMap, side_m: float, clearance_m: float):
     y0 = np.maximum(m.origin_m[1] + j * r, 0.0)
     y1 = np.minimum(m.origin_m[1] + (j + 1) * r, side_m)
     keep = (x1 > x0) & (y1 > y0)
-    return x0[keep], x1[keep], y0[keep], y1[keep]
+    x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
+    return x0, x1, y0, y1, np.cumsum((x1 - x0) * (y1 - y0))
 
 
 def sample_free(m: OccupancyMap, rng: np.random.Generator, n: int, side_m: float, clearance_m: float = 0.0):
     """``n`` positions uniform over the free part of ``[0, side_m]^2`` (with ``clearance_m``
     from anything not free, conservatively to within 1.4 cells), shape ``(n, 2)``."""
-    x0, x1, y0, y1 = _eligible_cells(m, side_m, clearance_m)
+    x0, x1, y0, y1, cdf = _eligible_cells(m, side_m, clearance_m)
     if len(x0) == 0:
         extra = f" with a clearance of {clearance_m:g} m" if clearance_m > 0 else ""
         raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area [0, {side_m:g}]^2{extra}")
-    area = (x1 - x0) * (y1 - y0)
-    cdf = np.cumsum(area)
     k = np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"), len(cdf) - 1)
     u = rng.random((n, 2))
     pos = np.column_stack([x0[k] + u[:, 0] * (x1[k] - x0[k]), y0[k] + u[:, 1] * (y1[k] - y0[k])])
@@ -110,8 +118,8 @@ def draw_destinations(
     rng: np.random.Generator,
     here_m,
     side_m: float,
-    batch: int = 16,
-    max_rounds: int = 400,
+    batch: int = 64,
+    max_rounds: int = 100,
 ) -> np.ndarray:
     """A random waypoint for each robot at ``here_m``: uniform over the free space, redrawn
     until the straight leg to it is free (see the module notes). Shape ``(k, 2)``."""

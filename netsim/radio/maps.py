@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from importlib import resources
 from pathlib import Path
 
@@ -304,3 +304,22 @@ def save_map(
         f"free_thresh: {free_thresh:g}\n"
     )
     return path
+
+
+def _stamp(value: str) -> tuple:
+    path = example_path(value) if value in EXAMPLES else Path(value)
+    try:
+        st = path.stat()
+    except OSError:
+        return (value, None, None)
+    return (value, st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=8)
+def _cached(stamp: tuple, key: str) -> OccupancyMap:
+    return load_map(stamp[0], key)
+
+
+def cached_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
+    """:func:`load_map`, read once per file version (a sweep's runs share one map)."""
+    return _cached(_stamp(str(value)), key)

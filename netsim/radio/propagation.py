@@ -40,67 +40,68 @@ from typing import NamedTuple
 import numpy as np
 
 from netsim.errors import ConfigError
+from netsim.params import Params, param
 
 # Shadowing is used clipped to +-4 sigma (its state is not: see netsim.radio.shadowing), so
 # that no pair beyond a finite distance can ever link; the link probability then follows the
 # closed form exactly wherever it lies between 3.2e-5 and 1 - 3.2e-5.
 TRUNCATION_SIGMAS = 4.0
 
-_KEYS = {
-    "tx_power_dbm": "channel.tx_power_dbm",
-    "reference_distance_m": "channel.reference_distance_m",
-    "reference_loss_db": "channel.reference_loss_db",
-    "path_loss_exponent": "channel.path_loss_exponent",
-    "sensitivity_dbm": "channel.sensitivity_dbm",
-    "shadowing_sigma_db": "channel.shadowing_sigma_db",
-    "shadowing_decorrelation_m": "channel.shadowing_decorrelation_m",
-    "wall_loss_db": "channel.wall_loss_db",
-}
 
-
-def _check(key: str, value, low: float, high: float, low_open: bool, unit: str) -> float:
-    """``value`` as a float in ``(low, high]`` / ``[low, high]``, or a ConfigError."""
+def _within(low: float, high: float, low_open: bool, unit: str):
+    """A check: a finite number in ``(low, high]`` (``low_open``) or ``[low, high]``."""
     bracket = "(" if low_open else "["
     allowed = f"must be a finite number in {bracket}{low:g}, {high:g}] ({unit})"
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ConfigError(key, value, allowed)
-    v = float(value)
-    if not math.isfinite(v) or v > high or v < low or (low_open and v == low):
-        raise ConfigError(key, value, allowed)
-    return v
+
+    def check(v: float) -> str | None:
+        ok = math.isfinite(v) and low <= v <= high and not (low_open and v == low)
+        return None if ok else allowed
+
+    return check
 
 
 @dataclass(frozen=True)
-class LogDistanceParams:
-    """Parameters of the log-distance model, with units; validated at construction.
-
-    The bounds refuse what no radio has (a 1 kW robot transmitter, a sensitivity above
-    0 dBm, a negative loss, shadowing beyond 20 dB): a typo rather than a scenario.
+class LogDistanceParams(Params):
+    """Parameters of the log-distance model (keys of ``[channel]``), with units; validated
+    when made. The bounds refuse what no radio has (a 1 kW robot transmitter, a sensitivity
+    above 0 dBm, a negative loss, shadowing beyond 20 dB): a typo rather than a scenario.
     """
 
-    tx_power_dbm: float = 20.0
-    reference_distance_m: float = 1.0
-    reference_loss_db: float = 40.0
-    path_loss_exponent: float = 3.0
-    sensitivity_dbm: float = -80.0
-    shadowing_sigma_db: float = 0.0
-    shadowing_decorrelation_m: float = 10.0
-    wall_loss_db: float = 5.0
+    section = "channel"
+    tx_power_dbm: float = param(20.0, _within(-60.0, 60.0, False, "dBm"), "log_distance: transmit power P_t, dBm")
+    reference_distance_m: float = param(
+        1.0, _within(0.0, 1e6, True, "metres, > 0"), "log_distance: reference distance d0, metres"
+    )
+    reference_loss_db: float = param(
+        40.0,
+        _within(0.0, 200.0, False, "dB"),
+        "log_distance: path loss at d0, dB (free space at 2.4 GHz, 1 m: 40)",
+    )
+    path_loss_exponent: float = param(
+        3.0, _within(0.0, 10.0, True, "> 0; 2 is free space"), "log_distance: path loss exponent n (3-4 indoors)"
+    )
+    sensitivity_dbm: float = param(
+        -80.0, _within(-200.0, 0.0, False, "dBm"), "log_distance: a frame is received when P_r >= sensitivity, dBm"
+    )
+    shadowing_sigma_db: float = param(
+        0.0,
+        _within(0.0, 20.0, False, "dB; 0 turns shadowing off"),
+        "log_distance: shadowing sigma, dB (0: off)",
+    )
+    shadowing_decorrelation_m: float = param(
+        10.0,
+        _within(0.0, 1e6, True, "metres, > 0"),
+        "log_distance: Gudmundson decorrelation distance d_corr, metres of pair travel",
+    )
+    wall_loss_db: float = param(
+        5.0, _within(0.0, 100.0, False, "dB per wall"), "log_distance: loss per wall crossed on a map, dB"
+    )
 
-    def __post_init__(self):
-        k = _KEYS
-        _check(k["tx_power_dbm"], self.tx_power_dbm, -60.0, 60.0, False, "dBm")
-        _check(k["reference_distance_m"], self.reference_distance_m, 0.0, 1e6, True, "metres, > 0")
-        _check(k["reference_loss_db"], self.reference_loss_db, 0.0, 200.0, False, "dB")
-        _check(k["path_loss_exponent"], self.path_loss_exponent, 0.0, 10.0, True, "> 0; 2 is free space")
-        _check(k["sensitivity_dbm"], self.sensitivity_dbm, -200.0, 0.0, False, "dBm")
-        _check(k["shadowing_sigma_db"], self.shadowing_sigma_db, 0.0, 20.0, False, "dB; 0 turns shadowing off")
-        _check(k["shadowing_decorrelation_m"], self.shadowing_decorrelation_m, 0.0, 1e6, True, "metres, > 0")
-        _check(k["wall_loss_db"], self.wall_loss_db, 0.0, 100.0, False, "dB per wall")
+    def check(self) -> None:
         budget = self.tx_power_dbm - self.reference_loss_db - self.sensitivity_dbm
         if budget <= 0:
             raise ConfigError(
-                k["sensitivity_dbm"],
+                "channel.sensitivity_dbm",
                 self.sensitivity_dbm,
                 f"must be below tx_power_dbm - reference_loss_db = {self.tx_power_dbm - self.reference_loss_db:g} dBm "
                 "(otherwise no pair links even at the reference distance)",
