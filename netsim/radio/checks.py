@@ -203,9 +203,9 @@ def check_shadowing_correlation(sigma_db: float = 6.0, decorrelation_m: float = 
 
 
 def wall_test_map(resolution_m: float = 0.25) -> OccupancyMap:
-    """A 40 m x 20 m room cut by three walls at x = 10, 20, 30 m (0.5 m thick); the wall at
+    """A 40 m x 40 m room cut by three walls at x = 10, 20, 30 m (0.5 m thick); the wall at
     x = 20 m has a doorway for y in [2, 4) m."""
-    w, h = int(round(40 / resolution_m)), int(round(20 / resolution_m))
+    w, h = int(round(40 / resolution_m)), int(round(40 / resolution_m))
     occ = np.zeros((h, w), dtype=bool)
     for x in (10.0, 20.0, 30.0):
         c = int(round(x / resolution_m))
