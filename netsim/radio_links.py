@@ -72,6 +72,9 @@ def radio_link_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: fl
     n = len(ranges_m)
     if reception.recorder is not None:
         return recorded_lifetimes(reception.recorder, legs, n, reception.reach_m, duration_s, side_m, torus)
+    if reception.map is None:
+        # Log-distance without shadowing or walls: the unit disk of the implied range, exactly.
+        return link_lifetimes(legs, ranges_m, duration_s, side_m, torus)
     return walled_lifetimes(reception, legs, ranges_m, duration_s)
 
 
@@ -140,11 +143,16 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     def state(a, b, t):
         return _linked(reception, ranges, equal, a, b, positions(L, a, t), positions(L, b, t))
 
-    up = state(a, b, ts)
+    # The first sample is taken just inside the envelope: at its very start the distance is
+    # the range itself, which rounding may put on either side.
+    first = k == 0
+    ts_eval = ts.copy()
+    ts_eval[first] += np.minimum(TOLERANCE_S, 0.5 * step[iv[first]])
+    up = state(a, b, ts_eval)
     # A change between sample j and j + 1 of the same interval: bisect it.
     same = np.r_[iv[1:] == iv[:-1], False]
     chg = np.flatnonzero(same & (up != np.r_[up[1:], False]))
-    lo, hi = ts[chg], ts[chg + 1]
+    lo, hi = ts_eval[chg], ts_eval[chg + 1]
     before = up[chg]
     ca, cb = a[chg], b[chg]
     while len(chg) and np.max(hi - lo) > TOLERANCE_S:
