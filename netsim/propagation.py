@@ -46,7 +46,9 @@ def _log_distance(params: LogDistanceParams, range_m: np.ndarray, occupancy, rng
 
     shadowing = None
     if params.shadowing_sigma_db > 0:
-        shadowing = PairShadowing(params.shadowing_sigma_db, params.shadowing_decorrelation_m, rng)
+        shadowing = PairShadowing(
+            params.shadowing_sigma_db, params.shadowing_decorrelation_m, rng, n_robots=len(range_m)
+        )
     return log_distance(params, shadowing, occupancy)
 
 

@@ -72,8 +72,7 @@ class RobotState:
 
     def travelled_m(self, t: float, idx) -> np.ndarray:
         """Path length of robots ``idx`` from t = 0 to ``t`` (``t`` on their current leg)."""
-        v = self.velocity_mps[idx]
-        return self.odometer_m[idx] + np.hypot(v[..., 0], v[..., 1]) * (t - self.t0_s[idx])
+        return self.odometer_m[idx] + np.abs(self.velocity_c[idx]) * (t - self.t0_s[idx])
 
     def _log_travel(self, i: int, t: float) -> None:
         vx, vy = self.velocity_mps[i]

@@ -157,3 +157,27 @@ def test_compiled_and_numpy_updates_agree(monkeypatch):
     plain, sh2 = run()
     assert np.allclose(compiled, plain, rtol=0, atol=1e-9)
     assert np.array_equal(sh1._keys, sh2._keys) and np.allclose(sh1._x, sh2._x, atol=1e-9)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_pairs_listed_in_advance_give_the_same_values(compiled, monkeypatch):
+    """With every pair's slot made at once (n_robots given) the values are exactly those of
+    the table that grows as pairs are seen, draw for draw."""
+    from netsim.radio import shadowing as sh
+
+    if not compiled:
+        monkeypatch.setattr(sh, "_KERNEL", [None])
+    rng = np.random.default_rng(3)
+    looks = [(rng.integers(0, 40, 25), rng.integers(0, 40, 25)) for _ in range(30)]
+    out = []
+    for n_robots in (None, 40):
+        s = sh.PairShadowing(5.0, 10.0, np.random.default_rng(9), n_robots=n_robots)
+        vals = []
+        for k, (a, b) in enumerate(looks):
+            keep = a != b
+            a, b = a[keep], b[keep]
+            _, first = np.unique(sh.pair_keys(a, b), return_index=True)
+            vals.append(s.sample(a[first], b[first], np.full(len(first), 2.0 * k)))
+        out.append((np.concatenate(vals), len(s)))
+    assert out[1][0].tolist() == out[0][0].tolist()
+    assert out[1][1] == out[0][1]

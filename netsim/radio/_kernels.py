@@ -95,7 +95,8 @@ def shadow_step(table_keys, table_x, table_s, keys, s_new, z, sigma, decorrelati
     n = table_keys.shape[0]
     for m in range(keys.shape[0]):
         pos = np.searchsorted(table_keys, keys[m])
-        if pos < n and table_keys[pos] == keys[m]:
+        # A slot holding NaN is a pair listed in advance but never seen yet.
+        if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
             delta = max(s_new[m] - table_s[pos], 0.0)
             rho = np.exp(-delta / decorrelation_m)
             v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[m]
@@ -159,7 +160,7 @@ def budget_pass(
         total = loss[m]
         if sigma > 0.0:
             pos = np.searchsorted(table_keys, keys[m])
-            if pos < n and table_keys[pos] == keys[m]:
+            if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
                 delta = max(s_new[m] - table_s[pos], 0.0)
                 rho = np.exp(-delta / decorrelation_m)
                 v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[j]

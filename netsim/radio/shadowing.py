@@ -82,6 +82,9 @@ def _kernel():
     return _KERNEL[0]
 
 
+# Above this many robots pairs get slots as they are first seen (see PairShadowing).
+DENSE_MAX_ROBOTS = 3000
+
 _SHIFT = np.int64(32)
 _LOW = np.int64((1 << 32) - 1)
 
@@ -108,9 +111,20 @@ class PairShadowing:
     rng : the component's own generator (e.g. ``sim.streams.get("shadowing")``).
     step_m : 0 to evaluate the process at each look; > 0 for a process piecewise constant
         in travel, changing at multiples of ``step_m`` (see the module notes).
+    n_robots : when given and at most ``DENSE_MAX_ROBOTS``, every pair's slot is made at
+        once (unseen: NaN), so that a pair seen for the first time costs a lookup, not an
+        insertion into the sorted table (which copies it: ruinous when a run of a thousand
+        robots meets new pairs at every transmission). Memory: 24 bytes per pair.
     """
 
-    def __init__(self, sigma_db: float, decorrelation_m: float, rng: np.random.Generator, step_m: float = 0.0):
+    def __init__(
+        self,
+        sigma_db: float,
+        decorrelation_m: float,
+        rng: np.random.Generator,
+        step_m: float = 0.0,
+        n_robots: int | None = None,
+    ):
         if not (np.isfinite(sigma_db) and sigma_db >= 0):
             raise ConfigError("channel.shadowing_sigma_db", sigma_db, "must be a finite number >= 0 (dB)")
         if not (np.isfinite(decorrelation_m) and decorrelation_m > 0):
@@ -125,10 +139,17 @@ class PairShadowing:
         self._keys = np.empty(0, dtype=np.int64)
         self._x = np.empty(0)
         self._s = np.empty(0)
+        self.dense = n_robots is not None and 1 < n_robots <= DENSE_MAX_ROBOTS
+        if self.dense:
+            i, j = np.triu_indices(int(n_robots), 1)
+            self._keys = pair_keys(i, j)  # ascending: i major, j minor
+            self._x = np.full(len(self._keys), np.nan)
+            self._s = np.zeros(len(self._keys))
         self.draws = 0
 
     def __len__(self) -> int:
-        return len(self._keys)
+        """Pairs seen so far (and not forgotten)."""
+        return int(np.count_nonzero(~np.isnan(self._x)))
 
     def _anchor(self, travel_m: np.ndarray) -> np.ndarray:
         if self.step_m > 0:
@@ -143,7 +164,7 @@ class PairShadowing:
         n = len(self._keys)
         if n:
             pos = np.minimum(np.searchsorted(self._keys, keys), n - 1)
-            found = self._keys[pos] == keys
+            found = (self._keys[pos] == keys) & ~np.isnan(self._x[pos])
             x[found] = self._x[pos[found]]
             s[found] = self._s[pos[found]]
         return x, s
@@ -181,6 +202,10 @@ class PairShadowing:
 
     def _insert(self, keys, x, s) -> None:
         at = np.searchsorted(self._keys, keys)
+        if self.dense:
+            self._x[at] = x
+            self._s[at] = s
+            return
         self._keys = np.insert(self._keys, at, keys)
         self._x = np.insert(self._x, at, x)
         self._s = np.insert(self._s, at, s)
@@ -197,7 +222,11 @@ class PairShadowing:
         zu, su = z[lead], s_new[lead]
         n_old = len(self._keys)
         pos = np.searchsorted(self._keys, uniq)
-        found = self._keys[np.minimum(pos, n_old - 1)] == uniq if n_old else np.zeros(len(uniq), dtype=bool)
+        if n_old:
+            at_ = np.minimum(pos, n_old - 1)
+            found = (self._keys[at_] == uniq) & ~np.isnan(self._x[at_])
+        else:
+            found = np.zeros(len(uniq), dtype=bool)
         x = self.sigma_db * zu
         if found.any():
             at = pos[found]
@@ -220,7 +249,10 @@ class PairShadowing:
         odo = np.asarray(odometer_m, dtype=float)
         lo, hi = split_keys(self._keys)
         stale = odo[lo] + odo[hi] - self._s > horizon * self.decorrelation_m
-        if stale.any():
+        stale &= ~np.isnan(self._x)
+        if stale.any() and self.dense:
+            self._x[stale] = np.nan
+        elif stale.any():
             keep = ~stale
             self._keys, self._x, self._s = self._keys[keep], self._x[keep], self._s[keep]
         return int(stale.sum())
