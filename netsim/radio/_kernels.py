@@ -90,11 +90,22 @@ def trace(flat, h, w, g0, g1, eps, walls, first_t):
 
 
 @numba.njit(cache=True, nogil=True)
-def shadow_step(table_keys, table_x, table_s, keys, s_new, z, sigma, decorrelation_m, x, new):
+def slot(table_keys, dense_n, key):
+    """Where ``key`` is (or would go) in the table: computed when every pair of ``dense_n``
+    robots has its slot (keys in ascending order, lower id major), else a binary search."""
+    if dense_n > 0:
+        i = key >> 32
+        j = key & 0xFFFFFFFF
+        return i * dense_n - (i * (i + 1)) // 2 + (j - i - 1)
+    return np.searchsorted(table_keys, key)
+
+
+@numba.njit(cache=True, nogil=True)
+def shadow_step(table_keys, table_x, table_s, keys, s_new, z, sigma, decorrelation_m, x, new, dense_n=0):
     """Move the stored pairs among ``keys`` on to travel ``s_new`` (in place); flag the others."""
     n = table_keys.shape[0]
     for m in range(keys.shape[0]):
-        pos = np.searchsorted(table_keys, keys[m])
+        pos = slot(table_keys, dense_n, keys[m])
         # A slot holding NaN is a pair listed in advance but never seen yet.
         if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
             delta = max(s_new[m] - table_s[pos], 0.0)
@@ -147,6 +158,7 @@ def budget_pass(
     x_new,
     new,
     receivable,
+    dense_n=0,
 ):
     """Shadowing (when sigma > 0) and walls (when wall_db > 0) for the pairs still alive,
     then the decision ``tx - loss >= sensitivity``: the loss chain in one pass."""
@@ -159,7 +171,7 @@ def budget_pass(
             continue
         total = loss[m]
         if sigma > 0.0:
-            pos = np.searchsorted(table_keys, keys[m])
+            pos = slot(table_keys, dense_n, keys[m])
             if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
                 delta = max(s_new[m] - table_s[pos], 0.0)
                 rho = np.exp(-delta / decorrelation_m)

@@ -123,6 +123,7 @@ class CompiledChain:
             loss, alive, keys, s_new, z, sigma, sh.decorrelation_m if sh is not None else 1.0, clip,
             tk, tx, ts, wall_db, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, self.budget_slack,
             self.propagation.tx_power_dbm, self.propagation.sensitivity_dbm, x_new, new, out,
+            sh.dense_n if sh is not None else 0,
         )  # fmt: skip
         if sh is not None and new.any():
             idx = np.flatnonzero(new)

@@ -140,6 +140,8 @@ class PairShadowing:
         self._x = np.empty(0)
         self._s = np.empty(0)
         self.dense = n_robots is not None and 1 < n_robots <= DENSE_MAX_ROBOTS
+        # Robots whose pairs all have slots (their place then computed, not searched); 0: none.
+        self.dense_n = int(n_robots) if self.dense else 0
         if self.dense:
             i, j = np.triu_indices(int(n_robots), 1)
             self._keys = pair_keys(i, j)  # ascending: i major, j minor
@@ -191,7 +193,9 @@ class PairShadowing:
         else:
             x = np.empty(k)
             new = np.empty(k, dtype=np.bool_)
-            kernel(self._keys, self._x, self._s, keys, s_new, z, self.sigma_db, self.decorrelation_m, x, new)
+            kernel(
+                self._keys, self._x, self._s, keys, s_new, z, self.sigma_db, self.decorrelation_m, x, new, self.dense_n
+            )
             if new.any():
                 idx = np.flatnonzero(new)
                 uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)
