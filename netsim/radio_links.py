@@ -39,17 +39,24 @@ TOLERANCE_S = 1e-6
 
 
 def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``."""
-    out = np.empty((len(robots), 2))
-    order = np.argsort(robots, kind="stable")
-    r_sorted = robots[order]
-    bounds = np.searchsorted(r_sorted, np.arange(len(L.first) + 1))
-    for r in np.unique(r_sorted).tolist():
-        sel = order[bounds[r] : bounds[r + 1]]
-        lo, hi = L.first[r], L.end[r]
-        leg = lo + np.maximum(np.searchsorted(L.t[lo:hi], times[sel], "right") - 1, 0)
-        out[sel] = L.p[leg] + L.v[leg] * (times[sel] - L.t[leg])[:, None]
-    return out
+    """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``.
+
+    The queries are merged with the legs (each robot's legs are contiguous and in time
+    order): a query's leg is the last leg of its robot that starts at or before it."""
+    robots = np.asarray(robots, np.int64)
+    times = np.asarray(times, float)
+    leg_robot = np.repeat(np.arange(len(L.first)), L.end - L.first)
+    k, m = len(robots), len(L.t)
+    # Sort legs and queries together by (robot, time), a leg before a query at the same time.
+    key_robot = np.r_[leg_robot, robots]
+    key_t = np.r_[L.t, times]
+    is_query = np.r_[np.zeros(m, np.int8), np.ones(k, np.int8)]
+    order = np.lexsort((is_query, key_t, key_robot))
+    legs_before = np.cumsum(is_query[order] == 0)
+    where = np.empty(m + k, np.int64)
+    where[order] = legs_before - 1
+    leg = np.maximum(where[m:], L.first[robots])
+    return L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None]
 
 
 def _frame(a, b, t_up, t_down, duration_s: float, open_end) -> pd.DataFrame:

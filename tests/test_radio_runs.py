@@ -298,3 +298,22 @@ def test_grid_placement_in_a_wall_is_refused():
 
 def test_example_maps_load_by_name():
     assert load_map("office").shape == (800, 800)
+
+
+def test_positions_at_many_instants_follow_the_legs():
+    """The vectorised lookup of (robot, time) positions used by the walled links solver
+    gives each robot's leg at that time, also exactly at a leg's start."""
+    from netsim.radio_links import positions
+    from netsim.trajectory import LegTable
+
+    rng = np.random.default_rng(1)
+    rows = []
+    for r in range(20):
+        for t in np.sort(np.r_[0.0, rng.uniform(0, 100, rng.integers(0, 8))]):
+            rows.append((t, r, *rng.uniform(0, 50, 2), *rng.uniform(-1, 1, 2)))
+    legs = pd.DataFrame(rows, columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"])
+    L = LegTable(legs, 20)
+    robots, times = rng.integers(0, 20, 3000), rng.uniform(0, 100, 3000)
+    robots[:40], times[:40] = legs.robot.to_numpy()[:40], legs.t_s.to_numpy()[:40]
+    want = np.array([L.p[k] + L.v[k] * (t - L.t[k]) for k, t in ((L.leg_at(r, t), t) for r, t in zip(robots, times))])
+    np.testing.assert_array_equal(positions(L, robots, times), want)

@@ -82,11 +82,10 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace(flat, h, w, g0, g1, eps, walls, first_t):
+def trace(flat, h, w, g0, g1, eps, walls, first_t, limit):
+    """Every segment's walls (counting stops once past ``limit``) and first blocked point."""
     for s in range(g0.shape[0]):
-        walls[s], first_t[s] = trace_one(
-            flat, h, w, g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1], eps, np.iinfo(np.int64).max
-        )
+        walls[s], first_t[s] = trace_one(flat, h, w, g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1], eps, limit)
 
 
 @numba.njit(cache=True, nogil=True)

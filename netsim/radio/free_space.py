@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from netsim.errors import ConfigError
-from netsim.radio.los import first_blocked, walls_crossed
+from netsim.radio.los import first_blocked, line_of_sight
 from netsim.radio.maps import MAP_KEY, OccupancyMap
 
 
@@ -91,7 +91,7 @@ def sample_free(m: OccupancyMap, rng: np.random.Generator, n: int, side_m: float
 
 def legs_free(m: OccupancyMap, starts, ends) -> np.ndarray:
     """Whether each straight leg ``starts[k] -> ends[k]`` stays in free cells all along."""
-    return walls_crossed(m, starts, ends, blocked=m.not_free) == 0
+    return line_of_sight(m, starts, ends, blocked=m.not_free)
 
 
 def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6) -> np.ndarray:

@@ -136,7 +136,12 @@ def _kernel():
     return _KERNEL[0]
 
 
-def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False):
+_NO_LIMIT = np.iinfo(np.int64).max
+
+
+def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False, limit: int = _NO_LIMIT):
+    """``_trace_numpy``, compiled; the compiled loop may stop counting past ``limit`` walls
+    (the count is then ``limit + 1``, the first blocked point still exact)."""
     kernel = _kernel()
     if kernel is None:
         return _trace_numpy(blocked, resolution_m, origin_m, p, q, first)
@@ -155,6 +160,7 @@ def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool
         VERTEX_TOLERANCE_CELLS,
         walls,
         first_t,
+        limit,
     )
     return (walls, first_t) if first else walls
 
@@ -169,8 +175,9 @@ def walls_crossed(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndar
 
 
 def line_of_sight(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:
-    """Whether each segment meets no occupied (or ``blocked``) cell."""
-    return walls_crossed(occupancy, p, q, blocked) == 0
+    """Whether each segment meets no occupied (or ``blocked``) cell (tracing stops at the first)."""
+    grid = occupancy.occupied if blocked is None else blocked
+    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, limit=0) == 0
 
 
 def first_blocked(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:
