@@ -10,8 +10,8 @@ settings.register_profile("deterministic", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
-from netsim.run import build
-from tests.fixtures import make_config
+from netsim.run import build  # noqa: E402  (after the hypothesis profile is loaded)
+from tests.fixtures import make_config  # noqa: E402
 
 
 @pytest.fixture

@@ -67,7 +67,6 @@ def test_plan_keeps_the_network_connected_throughout_the_step(seed):
 def test_members_follow_their_leader_rigidly():
     """A member that is no gateway moves with its leader's velocity."""
     pos = np.array([[500.0, 500.0], [540.0, 500.0], [500.0, 560.0]])
-    role = np.array([LEADER, MEMBER, MEMBER], dtype=np.int8)
     leader = np.array([0, 0, 0])
     wish = np.array([[1.0, 0.5], [0, 0], [0, 0]])
     plan = plan_follow(pos, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
@@ -80,7 +79,6 @@ def test_gateway_rides_toward_the_middle_of_the_lens():
     """Two leaders 1.2 r_c apart pulling apart; their gateway, off-centre, moves toward
     the midpoint of their planned positions and stays in range of both."""
     pos = np.array([[400.0, 500.0], [520.0, 500.0], [430.0, 520.0]])
-    role = np.array([LEADER, LEADER, MEMBER], dtype=np.int8)
     leader = np.array([0, 1, 0])
     wish = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, 0.0]])
     plan = plan_follow(pos, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
@@ -93,7 +91,6 @@ def test_leader_holds_rather_than_break_its_only_bridge():
     """Two groups joined only by a stretched member-to-member link: a leader pulling away
     is held, so the link survives."""
     pos = np.array([[300.0, 500.0], [380.0, 500.0], [479.5, 500.0], [560.0, 500.0]])
-    role = np.array([LEADER, MEMBER, MEMBER, LEADER], dtype=np.int8)
     leader = np.array([0, 0, 3, 3])
     wish = np.array([[-2.0, 0.0], [0, 0], [0, 0], [2.0, 0.0]])
     plan = plan_follow(pos, leader, wish, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
@@ -105,7 +102,6 @@ def test_leader_holds_rather_than_break_its_only_bridge():
 def test_groups_stay_inside_the_area():
     """A leader pushed toward the border stops where its farthest member reaches it."""
     pos = np.array([[60.0, 500.0], [5.0, 500.0]])
-    role = np.array([LEADER, MEMBER], dtype=np.int8)
     wish = np.array([[-2.0, 0.0], [0, 0]])
     plan = plan_follow(pos, np.array([0, 0]), wish, StepLimits(10.0, RC, 1.0, 2.0, 1000.0))
     end = pos + plan.velocity_mps * 10.0

@@ -364,6 +364,7 @@ def check_sweep_runs(sweep):
         assert isinstance(cfgmod.from_dict(run.config), Config)
 
 
+KNOWN_TABLES = sorted(sweepmod.known_tables(cfgmod.from_dict({})))
 AXIS_KEYS = st.one_of(st.sampled_from(KEYS), st.text(FUZZ_CHARS, max_size=8))
 
 
@@ -377,9 +378,7 @@ def sweep_trees(draw):
     if maybe():
         tree["replications"] = draw(st.one_of(st.integers(-2, 4), SCALARS))
     if maybe():
-        tree["tables"] = draw(
-            st.one_of(st.lists(st.one_of(st.sampled_from(sorted(sweepmod.known_tables(cfgmod.from_dict({})))), VALUES)), VALUES)
-        )
+        tree["tables"] = draw(st.one_of(st.lists(st.one_of(st.sampled_from(KNOWN_TABLES), VALUES)), VALUES))
     if maybe():
         tree["base"] = draw(st.one_of(config_trees(), VALUES))
     if maybe():
