@@ -3,8 +3,9 @@ change that must not change behaviour (a refactor, a speed-up, a new model whose
 must reproduce today's runs).
 
 Each scenario is small (30 robots, 60 simulated seconds) and the set covers every mobility
-model, placement, protocol, policy, loss model, coverage mode (spread and follow, exact and
-grid area) and controller, and every table (the replay's ``legs`` and ``hops`` included).
+model, placement, protocol, policy, loss model, propagation model (log-distance, shadowing,
+walls from the office and cave maps), coverage mode (spread and follow, exact and grid
+area) and controller, and every table (the replay's ``legs`` and ``hops`` included).
 For each scenario the script runs it, converts every output table to Parquet in memory
 and records the SHA-256 of its bytes (with pandas' metadata: a changed dtype or column
 order changes the digest too). The run's wall time and the package versions are not part
@@ -42,6 +43,8 @@ COVERAGE = [
     "coverage.enabled=true",
     "protocol.message_rate_hz=0",
 ]
+
+OFFICE = ["world.map=office", "world.side_m=200", "channel.range_m=40", "mobility.stationary_start=false"]
 
 SCENARIOS: dict[str, list[str]] = {
     "rwp_clustering": [],
@@ -81,6 +84,16 @@ SCENARIOS: dict[str, list[str]] = {
     "placement_centre_rwp": ["mobility.stationary_start=false", "world.placement=centre", "world.centre_side_m=200"],
     "placement_csv": ["mobility.model=static", "world.placement={csv}"],
     "no_positions_sampled": ["output.position_interval_s=0"],
+    # The radio (channel.propagation, shadowing, walls from a map).
+    "log_distance": ["channel.propagation=log_distance"],
+    "log_distance_shadowing": ["channel.propagation=log_distance", "channel.shadowing_sigma_db=6"],
+    "office_unit_disk": OFFICE,
+    "office_log_distance_shadowing": OFFICE
+    + ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4", "channel.sensitivity_dbm=-68"],
+    "office_random_direction_log_distance": OFFICE
+    + ["mobility.model=random_direction", "channel.propagation=log_distance", "channel.sensitivity_dbm=-68"],
+    "cave_coverage": COVERAGE
+    + ["world.map=cave", "world.side_m=200", "world.centre_side_m=60", "channel.range_m=30", "duration_s=40"],
 }
 
 

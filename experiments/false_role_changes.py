@@ -80,9 +80,8 @@ def main(argv=None) -> None:
     rows = []
     for (loss, tau), g in runs.groupby(["channel.loss_probability", "protocol.tau_s"]):
         r = roles[roles.run_id.isin(g.run_id)]
-        counts = np.concatenate(
-            [analysis.acks_until_leader_loss(rr, tau, 1.0, LABELS) for _, rr in r.groupby("run_id")]
-        )
+        per_run = [analysis.acks_until_leader_loss(rr, tau, 1.0, LABELS) for _, rr in r.groupby("run_id")]
+        counts = np.concatenate(per_run)
         k = analysis.spurious_timeout_window(tau, 1.0)
         false_changes = (r.cause == LABELS.leader_lost).sum() / (len(g) * 2 * args.pairs * args.duration / 60)
         rows.append(

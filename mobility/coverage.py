@@ -81,6 +81,7 @@ from netsim.errors import ConfigError
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
+from netsim.radio.free_space import obstacle_field, wall_forces
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
 
@@ -276,6 +277,17 @@ class CoverageController:
         self.odometer_m = np.zeros(st.n)
         self.odo_t_s = 0.0
         self.speed_mps = np.zeros(st.n)
+        # On a map, walls push as the area's border does (the control loop also stops any
+        # step short of a wall).
+        self.occupancy = parts.occupancy
+        self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
+
+    def _wall_push(self, pos: np.ndarray) -> np.ndarray:
+        """``gain (m - d)`` away from the nearest wall within ``m = sqrt(3) r_c / 2``, as the border."""
+        if self.occupancy is None or len(pos) == 0:
+            return np.zeros((len(pos), 2))
+        margin = SQRT3 * self.range_m / 2
+        return wall_forces(self.occupancy, self.obstacles, pos, margin, self.cfg.gain)
 
     # -- the two stages of a step --------------------------------------------------
     def propose(self, step: ControlStep) -> None:
@@ -294,6 +306,7 @@ class CoverageController:
         else:
             neighbours = [self.view.heard_leaders(i, now)[1] for i in leaders.tolist()]
         wished = wished_velocities(pos_now, leaders, neighbours, self.cfg.law, self.range_m, self.cfg.gain, step.side_m)
+        wished += self._wall_push(pos_now[leaders])
         speed = np.hypot(*wished.T) if len(leaders) else np.zeros(0)
         quiet = speed < self.cfg.stop_speed_mps
         wished[quiet] = 0.0
@@ -318,6 +331,7 @@ class CoverageController:
         else:
             target, _, source_xy = self.view.neighbourhood(now)
         wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, step.side_m)
+        wished += self._wall_push(pos_now)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0

@@ -5,6 +5,11 @@ leaves in a new direction drawn uniformly among those pointing back inside. On a
 (``world.torus = true``) there is no border: a robot keeps its heading for
 ``turn_interval_s`` (``inf``: for ever, the constant-velocity model whose link durations
 have a closed form, docs/validation.md item 6), then draws a new one.
+
+On a map (``world.map``) a robot starts in a free cell and travels in its heading until the
+border or the first cell that is not free, whichever comes first, stopping just short of it
+(:func:`netsim.radio.free_space.free_fraction`), then pauses and turns. A heading that
+leaves no room to move (facing a wall) is drawn again.
 """
 
 from __future__ import annotations
@@ -20,7 +25,12 @@ from netsim.errors import ConfigError
 from netsim.params import param, positive
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
+from netsim.radio.free_space import free_fraction
 from netsim.state import RobotState
+
+# On a map: headings tried before a robot facing walls gives up, and the shortest leg kept.
+_HEADING_TRIES = 64
+_MIN_LEG_M = 1e-3
 
 
 @dataclass(frozen=True)
@@ -56,7 +66,13 @@ def _inward_heading(rng, p: np.ndarray, side: float) -> np.ndarray:
 
 
 def direction_robot(
-    env: simpy.Environment, st: RobotState, m: RandomDirectionParams, side: float, i: int, rng: np.random.Generator
+    env: simpy.Environment,
+    st: RobotState,
+    m: RandomDirectionParams,
+    side: float,
+    i: int,
+    rng: np.random.Generator,
+    occupancy=None,
 ):
     cause = "start"
     while True:
@@ -72,6 +88,25 @@ def direction_robot(
             continue
         v = speed * _inward_heading(rng, here, side)
         travel = _time_to_border(here, v, side)
+        if occupancy is not None and speed > 0 and not math.isinf(travel):
+            for _ in range(_HEADING_TRIES):
+                f = float(free_fraction(occupancy, here[None], (here + v * travel)[None])[0])
+                if f * travel * speed > _MIN_LEG_M:
+                    break
+                v = speed * _inward_heading(rng, here, side)
+                travel = _time_to_border(here, v, side)
+            else:
+                f = 0.0
+            travel *= f
+            if travel <= 0.0:
+                st.set_leg(i, env.now, (0.0, 0.0))
+                return  # walled in: no heading leads anywhere
+            st.set_leg(i, env.now, v)
+            yield env.timeout(travel)
+            st.arrive(i, env.now, here + v * travel, log=m.pause_s > 0)
+            if m.pause_s > 0:
+                yield env.timeout(m.pause_s)
+            continue
         if speed <= 0 or math.isinf(travel):
             st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
             return
@@ -87,9 +122,10 @@ def direction_robot(
 
 def build(m: RandomDirectionParams, parts: Parts) -> None:
     w = parts.world
-    parts.state.place(initial_positions(w, parts.streams))
+    parts.state.place(initial_positions(w, parts.streams, parts.occupancy))
     for i in range(w.n_robots):
-        parts.env.process(direction_robot(parts.env, parts.state, m, w.side_m, i, parts.streams.get("mobility", i)))
+        rng = parts.streams.get("mobility", i)
+        parts.env.process(direction_robot(parts.env, parts.state, m, w.side_m, i, rng, parts.occupancy))
 
 
-PLUGIN = PluginSpec(Params=RandomDirectionParams, build=build, check=check)
+PLUGIN = PluginSpec(Params=RandomDirectionParams, build=build, check=check, respects_map=True)

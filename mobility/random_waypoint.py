@@ -28,6 +28,7 @@ from netsim.metrics import MEAN_LEG_UNIT_SQUARE
 from netsim.params import param
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
+from netsim.radio.free_space import draw_destinations
 from netsim.state import RobotState
 
 
@@ -43,6 +44,13 @@ def check(params: RandomWaypointParams, config) -> None:
     and has no stationary regime with ``speed_min_mps = 0``."""
     if params.speed_max_mps <= 0:
         raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for random waypoint")
+    if params.stationary_start and config.world.map:
+        raise ConfigError(
+            "mobility.stationary_start",
+            True,
+            "cannot be used on a map (world.map): random waypoint's stationary law there has no closed form; "
+            "set stationary_start = false",
+        )
     if params.stationary_start:
         if config.world.placement != "uniform":
             raise ConfigError(
@@ -153,8 +161,9 @@ def waypoint_robot(
     i: int,
     start: Start,
     rng: np.random.Generator,
+    occupancy=None,
 ):
-    """The life of robot ``i``: legs and pauses, forever."""
+    """The life of robot ``i``: legs and pauses, forever (on a map, legs in free cells)."""
     # Why the next leg starts: the start, the end of a pause, or (no pause) the waypoint.
     cause = "start"
     if start.pause_left_s[i] > 0:
@@ -169,7 +178,10 @@ def waypoint_robot(
             yield env.timeout(m.pause_s)
             cause = "pause_end"
     while True:
-        dest = rng.uniform(0.0, side, 2)
+        if occupancy is None:
+            dest = rng.uniform(0.0, side, 2)
+        else:
+            dest = draw_destinations(occupancy, rng, st.positions_at(env.now, [i]), side)[0]
         speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
         if speed <= 0.0:
             st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
@@ -195,12 +207,14 @@ def build(m: RandomWaypointParams, parts: Parts) -> None:
                 "random waypoint decays toward zero over the run (Yoon, Liu and Noble 2003)",
                 stacklevel=2,
             )
-        start = _fresh_start(initial_positions(w, parts.streams))
+        start = _fresh_start(initial_positions(w, parts.streams, parts.occupancy))
     parts.state.place(start.position_m)
     for i in range(w.n_robots):
         parts.env.process(
-            waypoint_robot(parts.env, parts.state, m, w.side_m, i, start, parts.streams.get("mobility", i))
+            waypoint_robot(
+                parts.env, parts.state, m, w.side_m, i, start, parts.streams.get("mobility", i), parts.occupancy
+            )
         )
 
 
-PLUGIN = PluginSpec(Params=RandomWaypointParams, build=build, check=check, default=True)
+PLUGIN = PluginSpec(Params=RandomWaypointParams, build=build, check=check, default=True, respects_map=True)

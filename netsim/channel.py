@@ -13,7 +13,13 @@ drop cause:
 
 - ``loss``: the loss model dropped it;
 - ``not_alive``: the receiver was switched off;
-- ``out_of_range``: a unicast whose destination was not in range at send time.
+- ``out_of_range``: a unicast whose destination was not in range at send time (under a
+  radio other than the plain unit disk: could not hear it, for walls or shadowing too).
+
+With a radio (:class:`~netsim.reception.Reception`: log-distance path loss, shadowing,
+walls from a map) the receivers are decided by it among the robots within its reach, then
+the loss model drops some: the reception is a chain, propagation, walls, shadowing, loss.
+Without one (the plain unit disk) they are the robots within the sender's range.
 
 A kind's counts can also be kept over time (:meth:`Channel.bin_by_send_time`): per
 interval of *send* time, so that each bin tells the fate of the transmissions sent in it
@@ -116,11 +122,14 @@ class Channel:
         latency_s: float,
         latency_jitter_s: float = 0.0,
         latency_rng: np.random.Generator | None = None,
+        reception: Any = None,
         events: EventBus | None = None,
     ):
         self.env = env
         self.state = state
-        self.index = RangeIndex(state)
+        # The radio (netsim.reception.Reception), None for the plain unit disk.
+        self.reception = reception
+        self.index = RangeIndex(state, reach_m=None if reception is None else reception.reach_m)
         self.survives = survives
         self.latency_s = float(latency_s)
         self.latency_jitter_s = float(latency_jitter_s)
@@ -148,14 +157,25 @@ class Channel:
         return bins
 
     def in_range(self, sender: int) -> tuple[np.ndarray, np.ndarray]:
-        """Robots in range of ``sender`` now (ids ascending) and their distances."""
-        return self.index.within(self.env.now, sender)
+        """Robots that can hear ``sender`` now (ids ascending) and their distances (under a
+        radio with shadowing this looks at the shadowing, as a transmission does)."""
+        return self._hearers(sender)
+
+    def _hearers(self, sender: int) -> tuple[np.ndarray, np.ndarray]:
+        now = self.env.now
+        if self.reception is None:
+            return self.index.within(now, sender)
+        receivers, dist = self.index.within(now, sender, self.reception.reach_m)
+        if len(receivers):
+            keep = self.reception.decide(now, sender, receivers, dist)
+            receivers, dist = receivers[keep], dist[keep]
+        return receivers, dist
 
     def broadcast(self, sender: int, payload: object, deliver: Deliver, kind: str = "ack") -> np.ndarray:
         """Send ``payload`` from ``sender`` to everyone in range; returns the receivers."""
         c = self.counters_for(kind)
         c.sent[sender] += 1
-        receivers, dist = self.index.within(self.env.now, sender)
+        receivers, dist = self._hearers(sender)
         return self._transmit(sender, receivers, dist, payload, deliver, c, kind, self._bin(kind))
 
     def unicast(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str = "data") -> bool:
@@ -167,7 +187,11 @@ class Channel:
         now = self.env.now
         d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [sender]))
         dist = np.hypot(d[:, 0], d[:, 1])
-        if dest == sender or dist[0] > st.range_m[sender]:
+        if self.reception is None:
+            heard = dest != sender and dist[0] <= st.range_m[sender]
+        else:
+            heard = self._hears(sender, dest, dist)
+        if not heard:
             c.dropped[DROP_CAUSES.index("out_of_range"), dest] += 1
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED + DROP_CAUSES.index("out_of_range"), 1)
@@ -175,6 +199,11 @@ class Channel:
             return False
         got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c, kind, binned)
         return len(got) == 1
+
+    def _hears(self, sender: int, dest: int, dist: np.ndarray) -> bool:
+        if dest == sender or dist[0] > self.reception.reach_m:
+            return False
+        return bool(self.reception.decide(self.env.now, sender, np.array([dest]), dist)[0])
 
     def _bin(self, kind: str) -> _Bin | None:
         """``kind``'s bin of now, with one more transmission sent (None: not binned)."""

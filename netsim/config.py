@@ -42,6 +42,7 @@ from netsim.params import (
 from netsim.params import (
     describe as describe_params,
 )
+from netsim.propagation import PROPAGATION_MODELS, propagation_name
 
 
 class ConfigWarning(UserWarning):
@@ -49,6 +50,19 @@ class ConfigWarning(UserWarning):
 
 
 # -- the engine's sections -------------------------------------------------------------------
+def _map_path(key: str, value: Any) -> str:
+    """A map's YAML path made absolute (a run directory's config.toml then finds it from
+    anywhere); an example's name and "" (no map) as given."""
+    from netsim.radio.maps import EXAMPLES
+
+    value = coerce_value(key, value, str)
+    if value == "" or value in EXAMPLES:
+        return value
+    if not value.strip() or not value.isprintable():
+        raise ConfigError(key, value, 'must be the path of a map_server YAML file, "office", "cave", or ""')
+    return str(Path(value).expanduser().absolute())
+
+
 @dataclass(frozen=True)
 class WorldParams(Params):
     section = "world"
@@ -57,6 +71,12 @@ class WorldParams(Params):
     placement: str = param("uniform", None, '"uniform", "grid", "centre", or a path to a CSV file with columns x_m,y_m')
     centre_side_m: float = param(250.0, positive, 'placement = "centre": side of the central square, metres')
     torus: bool = param(False, None, "wrap the area's borders (distances taken on a torus)")
+    map: str = param(
+        "",
+        None,
+        'occupancy map: a ROS map_server YAML file, or "office" / "cave" (shipped examples); "" for open space',
+        coerce=_map_path,
+    )
 
     def check(self) -> None:
         if self.placement == "centre" and self.centre_side_m > self.side_m:
@@ -97,25 +117,36 @@ class ChannelParams(Params):
     latency_s: float = param(0.001, finite(non_negative), "fixed delay of every transmission, s")
     latency_jitter_s: float = param(0.0, finite(non_negative), "extra delay uniform on [0, jitter], s")
     loss_model: str = param("bernoulli", None, "loss model: " + ", ".join(LOSS_MODELS), coerce=_loss_model)
+    propagation: str = param(
+        "unit_disk", None, "propagation model: " + ", ".join(PROPAGATION_MODELS), coerce=propagation_name
+    )
     loss: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
+    radio: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        wanted = LOSS_MODELS[self.loss_model].Params
-        if self.loss is None:
-            object.__setattr__(self, "loss", wanted())
-        elif type(self.loss) is not wanted:
-            raise ConfigError(
-                "channel.loss_model",
-                self.loss_model,
-                f"has parameters {wanted.__name__}, not {type(self.loss).__name__}",
-            )
+        for attr, key, wanted in (
+            ("loss", "channel.loss_model", LOSS_MODELS[self.loss_model].Params),
+            ("radio", "channel.propagation", PROPAGATION_MODELS[self.propagation].Params),
+        ):
+            value = getattr(self, attr)
+            if value is None:
+                object.__setattr__(self, attr, wanted())
+            elif type(value) is not wanted:
+                raise ConfigError(
+                    key,
+                    getattr(self, key.split(".")[1]),
+                    f"has parameters {wanted.__name__}, not {type(value).__name__}",
+                )
 
     def __getattr__(self, name: str) -> Any:
-        loss = self.__dict__.get("loss")
-        if loss is None or name.startswith("_"):
+        if name.startswith("_"):
             raise AttributeError(name)
-        return getattr(loss, name)
+        for sub in ("loss", "radio"):
+            params = self.__dict__.get(sub)
+            if params is not None and name in names(type(params)):
+                return getattr(params, name)
+        raise AttributeError(name)
 
 
 def _controllers(key: str, value: Any) -> tuple[str, ...]:
@@ -275,6 +306,8 @@ class Config(Params):
             )
         if self.world.torus and self.world.side_m <= 2 * max(self.ranges_m(), default=0.0):
             raise ConfigError("world.side_m", self.world.side_m, "on a torus must exceed twice the largest range_m")
+        if self.world.map:
+            _check_map(self)
         for plugin, params in self.models():
             plugin.check(params, self)
         for k, name in enumerate(self.events.hooks):
@@ -284,6 +317,12 @@ class Config(Params):
             hook.check(hook.Params(), self)
         if self.events.runtime_links == "off" and self.events.live_topology:
             raise ConfigError("events.live_topology", True, "needs link events during the run (events.runtime_links)")
+        if self.channel.propagation != "unit_disk" or self.world.map:
+            why = "with a radio (channel.propagation or world.map) links are solved after the run only"
+            if self.events.runtime_links == "on":
+                raise ConfigError("events.runtime_links", "on", why)
+            if self.events.live_topology:
+                raise ConfigError("events.live_topology", True, why)
 
     def models(self) -> list[tuple[Any, Params]]:
         """``(plugin, params)`` of every model of the run with a section: the mobility model,
@@ -310,10 +349,28 @@ class Config(Params):
 
     def ranges_m(self) -> tuple[float, ...]:
         """Per-robot ranges as a tuple of floats, one per robot."""
+        implied = PROPAGATION_MODELS[self.channel.propagation].ranges(self.channel.radio)
+        if implied is not None:
+            return (float(implied),) * self.world.n_robots
         r = self.channel.range_m
         if isinstance(r, tuple):
             return r
         return (float(r),) * self.world.n_robots
+
+
+def _check_map(config: Config) -> None:
+    """The map loads, covers the area, and every model that moves robots keeps them off walls."""
+    from netsim.radio.maps import cached_map
+
+    w = config.world
+    if w.torus:
+        raise ConfigError("world.map", w.map, "cannot be used with world.torus = true (a map does not wrap)")
+    cached_map(w.map).check_area(w.side_m)
+    mobility = config.mobility
+    if mobility.plugin.moves_robots and not getattr(mobility.plugin, "respects_map", False):
+        raise ConfigError(
+            "world.map", w.map, f"mobility.model = {mobility.model!r} cannot keep robots off the map's walls"
+        )
 
 
 # -- the controllers' sections -------------------------------------------------------------
@@ -447,13 +504,30 @@ def _model_section(cls: type[ModelSection], raw: dict) -> ModelSection:
 
 
 def _channel_section(raw: dict) -> ChannelParams:
-    own = [n for n in names(ChannelParams)]
+    """``[channel]``: its own keys, the chosen propagation model's, the chosen loss model's;
+    keys of the models not chosen are ignored with a warning, any other key is an error."""
+    own = names(ChannelParams)
     chosen = _loss_model("channel.loss_model", raw.get("loss_model", ChannelParams.loss_model))
-    params_cls = LOSS_MODELS[chosen].Params
-    group = {name: m.Params for name, m in LOSS_MODELS.items()}
-    taken = _split("channel", raw, own, chosen, params_cls, _other_keys(group, chosen))
-    values = {k: raw[k] for k in own if k in raw}
-    return ChannelParams(**values, loss=params_cls(**taken))
+    loss_cls = LOSS_MODELS[chosen].Params
+    radio = propagation_name("channel.propagation", raw.get("propagation", ChannelParams.propagation))
+    radio_cls = PROPAGATION_MODELS[radio].Params
+    radio_keys = names(radio_cls)
+    other_radio = _other_keys({name: m.Params for name, m in PROPAGATION_MODELS.items()}, radio)
+    ignored = [k for k in raw if k in other_radio and k not in radio_keys]
+    rest = {k: v for k, v in raw.items() if k not in radio_keys and k not in ignored}
+    others = _other_keys({name: m.Params for name, m in LOSS_MODELS.items()}, chosen)
+    taken = _split("channel", rest, own + radio_keys, chosen, loss_cls, others)
+    if radio_keys and "range_m" in raw:
+        ignored.append("range_m")
+    if ignored:
+        warnings.warn(
+            f"{', '.join('channel.' + k for k in ignored)}: not used by channel.propagation = {radio!r}; ignored",
+            ConfigWarning,
+            stacklevel=3,
+        )
+    values = {k: raw[k] for k in own if k in raw and k not in ignored}
+    radio_values = {k: raw[k] for k in radio_keys if k in raw}
+    return ChannelParams(**values, loss=loss_cls(**taken), radio=radio_cls(**radio_values))
 
 
 def from_dict(raw: Mapping) -> Config:
@@ -491,7 +565,9 @@ def section_dict(value: Any, derived: bool = True) -> dict:
         return {"model": value.model, **_params_dict(value.params, derived)}
     if isinstance(value, ChannelParams):
         own = _params_dict(value, derived)
-        return {**own, **_params_dict(value.loss, derived)}
+        if PROPAGATION_MODELS[value.propagation].ranges(value.radio) is not None:
+            del own["range_m"]  # the radio implies the range
+        return {**own, **_params_dict(value.radio, derived), **_params_dict(value.loss, derived)}
     return _params_dict(value, derived)
 
 
@@ -595,7 +671,7 @@ def _section_rows(section: str, value: Any) -> list[tuple[str, Any, str, bool]]:
         rows.append(("model", value.model, f"{section} model, by plugin name (or 'package.module:attr')", False))
         params: list[Params] = [value.params]
     elif isinstance(value, ChannelParams):
-        params = [value, value.loss]
+        params = [value, value.radio, value.loss]
     else:
         params = [value]
     for p in params:
@@ -616,7 +692,8 @@ def _other_models(section: str) -> list[tuple[str, str, Any, str]]:
         group = plugins.MOBILITY if section == "mobility" else plugins.PROTOCOLS
         models = {name: p.Params for name, p in plugins.registered(group).items()}
     elif section == "channel":
-        models = {name: m.Params for name, m in LOSS_MODELS.items()}
+        models = {name: m.Params for name, m in PROPAGATION_MODELS.items()}
+        models.update({name: m.Params for name, m in LOSS_MODELS.items()})
     else:
         return []
     return [(model, k, d, doc) for model, cls in models.items() for k, d, doc, _ in describe_params(cls)]
@@ -646,7 +723,7 @@ def commented_toml(config: Config | None = None) -> str:
         owners = (
             [value.params]
             if isinstance(value, ModelSection)
-            else [value] + ([value.loss] if isinstance(value, ChannelParams) else [])
+            else [value] + ([value.radio, value.loss] if isinstance(value, ChannelParams) else [])
         )
         for key, v, doc, is_derived in _section_rows(section, value):
             used.add(key)
@@ -664,7 +741,11 @@ def commented_toml(config: Config | None = None) -> str:
             out += [f"# {doc}", line]
         others = [row for row in _other_models(section) if row[1] not in used]
         if others:
-            what = "loss models, used when loss_model" if section == "channel" else f"{section} models, used when model"
+            what = (
+                "propagation and loss models, used when propagation or loss_model"
+                if section == "channel"
+                else f"{section} models, used when model"
+            )
             out += ["", f"# keys of the other {what} names one of them:"]
             for model, key, default, doc in others:
                 shown = tomli_w.dumps({key: plain(default)}).strip() if default is not None else f"{key} = ..."

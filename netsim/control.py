@@ -101,6 +101,7 @@ class ControlLoop:
         moved_by: str | None = None,
         groups: GroupView | None = None,
         options: dict | None = None,
+        occupancy=None,
     ):
         self.env, self.state, self.trace = env, state, trace
         self.period_s = float(period_s)
@@ -109,6 +110,8 @@ class ControlLoop:
         self.moved_by = moved_by
         self.groups = groups
         self.options = options if options is not None else {}
+        # The world's map (netsim.radio.maps.OccupancyMap) or None: robots stay in free cells.
+        self.occupancy = occupancy
         self._controllers: list[tuple[int, int, Controller]] = []
         # Called as fn(step) at t_s, after commands have arrived, before velocities apply.
         self.before_apply: list[Controller] = []
@@ -179,7 +182,22 @@ class ControlLoop:
                 return
             yield env.timeout(self.period_s - self.lead_s)
 
+    def _keep_off_walls(self, step: ControlStep) -> None:
+        """On a map, shorten every robot's step so that it ends just short of the first cell
+        that is not free (a controller cannot drive a robot into a wall)."""
+        from netsim.radio.free_space import free_fraction
+
+        v = step.velocity_mps
+        moving = np.flatnonzero((v != 0).any(axis=1))
+        if len(moving) == 0:
+            return
+        here = self.state.positions_at(self.env.now, moving)
+        f = free_fraction(self.occupancy, here, here + v[moving] * self.period_s)
+        v[moving] *= f[:, None]
+
     def _apply(self, step: ControlStep, current: np.ndarray) -> None:
+        if self.occupancy is not None:
+            self._keep_off_walls(step)
         changed = np.flatnonzero((step.velocity_mps != current).any(axis=1))
         if len(changed) == 0:
             return

@@ -70,10 +70,48 @@ PLACEMENTS: dict[str, Callable[[Any, Streams], np.ndarray]] = {
 }
 
 
-def initial_positions(world: WorldParams, streams: Streams) -> np.ndarray:
+def initial_positions(world: WorldParams, streams: Streams, occupancy: Any = None) -> np.ndarray:
     """The placement ``world.placement`` names (``world``: the world's parameters), its
-    random draws from the stream ``"placement"``."""
+    random draws from the stream ``"placement"``. On a map (``occupancy``) robots are placed
+    in free cells only (:func:`on_map`)."""
+    if occupancy is not None:
+        return on_map(world, streams, occupancy)
     place = PLACEMENTS.get(world.placement)
     if place is None:
         return from_csv(world.placement, world.n_robots, world.side_m)
     return place(world, streams)
+
+
+def on_map(world, streams: Streams, occupancy) -> np.ndarray:
+    """Placement on a map: ``uniform`` is uniform over the free part of the area, ``centre``
+    uniform over the free part of the central square; ``grid`` and a CSV file must put every
+    robot in a free cell."""
+    from netsim.radio.free_space import sample_free
+
+    key = "world.placement"
+    n, side = world.n_robots, world.side_m
+    if world.placement == "uniform":
+        return sample_free(occupancy, streams.get("placement"), n, side)
+    if world.placement == "centre":
+        rng = streams.get("placement")
+        low, high = (side - world.centre_side_m) / 2, (side + world.centre_side_m) / 2
+        out = np.empty((0, 2))
+        for _ in range(200):
+            cand = sample_free(occupancy, rng, max(2 * n, 64), side)
+            inside = ((cand >= low) & (cand <= high)).all(axis=1)
+            out = np.concatenate([out, cand[inside]])
+            if len(out) >= n:
+                return out[:n]
+        raise ConfigError(
+            key, world.placement, "the central square (world.centre_side_m) has too little free space on world.map"
+        )
+    xy = grid(n, side) if world.placement == "grid" else from_csv(world.placement, n, side)
+    bad = np.flatnonzero(~occupancy.is_free(xy))
+    if len(bad):
+        x, y = xy[bad[0]]
+        raise ConfigError(
+            key,
+            world.placement,
+            f"puts robot {int(bad[0])} at ({x:g}, {y:g}), not in a free cell of world.map ({len(bad)} robots are not)",
+        )
+    return xy

@@ -82,6 +82,8 @@ class Parts:
     control: ControlLoop | None = None
     groups: GroupView | None = None
     events: EventBus | None = None
+    # The world's occupancy map (netsim.radio.maps.OccupancyMap), None in open space.
+    occupancy: Any = None
 
 
 class Plugin(Protocol):
@@ -121,8 +123,11 @@ class PluginSpec:
     check: Callable[[Any, Any], None] = _no_check
     # The model used when the configuration names none of its group.
     default: bool = False
-    # Mobility: whether the model moves the robots (False: controllers may move them).
+    # Mobility: whether the model moves the robots (False: controllers may move them), and
+    # whether it keeps them in the free cells of a map (world.map): one that moves robots
+    # and does not is refused on a map.
     moves_robots: bool = True
+    respects_map: bool = False
     # Protocols: whether the component forms groups (is a GroupView), and how its roles
     # are written in roles.parquet.
     forms_groups: bool = False
@@ -142,6 +147,7 @@ class LegacyPlugin:
     tables: Mapping[str, Schema] = field(default_factory=dict)
     default: bool = False
     moves_robots: bool = True
+    respects_map: bool = False
     forms_groups: bool = False
     role_labels: RoleLabels | None = None
     timing: Callable[[Any], tuple[float, float]] | None = None

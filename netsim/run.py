@@ -32,6 +32,9 @@ from netsim.lifetimes import link_lifetimes
 from netsim.loss import LOSS_MODELS
 from netsim.params import Params
 from netsim.plugins import LegacyPlugin, Parts, Reports, Schema
+from netsim.propagation import PROPAGATION_MODELS
+from netsim.radio_links import radio_link_lifetimes
+from netsim.reception import Reception
 from netsim.rng import Streams
 from netsim.sim import Simulation
 from netsim.state import RobotState
@@ -74,13 +77,43 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     state.events = events
     ch = config.channel
     survives = LOSS_MODELS[ch.loss_model].make(ch.loss, state.range_m, streams.get("channel.loss"))
+    occupancy = world_map(config)
+    radio = PROPAGATION_MODELS[ch.propagation]
+    propagation = radio.make(ch.radio, state.range_m, occupancy, streams.get("channel.shadowing"))
+    reception = None
+    if propagation is not None:
+        # Random links have no solvable events: the links table records the decisions.
+        reception = Reception(propagation, state, record=radio.shadowed(ch.radio))
     channel = Channel(
-        env, state, survives, ch.latency_s, ch.latency_jitter_s, streams.get("channel.latency"), events=events
+        env,
+        state,
+        survives,
+        ch.latency_s,
+        ch.latency_jitter_s,
+        streams.get("channel.latency"),
+        reception,
+        events=events,
     )
-    parts = Parts(env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events)
+    parts = Parts(
+        env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events, occupancy=occupancy
+    )
     sim = Simulation(parts, config, run)
-    sim.runtime_links = config.events.runtime_links
+    # Under a radio (path loss, shadowing, walls) links are solved after the run only.
+    if reception is None:
+        sim.runtime_links = config.events.runtime_links
+    else:
+        sim.runtime_links = "off"
+        sim.runtime_links_off = "with a radio (channel.propagation or world.map) links are solved after the run only"
     return sim
+
+
+def world_map(config: Config):
+    """The run's occupancy map (``world.map``), None in open space."""
+    if not config.world.map:
+        return None
+    from netsim.radio.maps import cached_map
+
+    return cached_map(config.world.map)
 
 
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
@@ -124,6 +157,7 @@ def build(config: Config, run: int = 0) -> Simulation:
             moved_by=f"mobility.model = {mobility.model!r}" if mobility.plugin.moves_robots else None,
             groups=sim.groups,
             options=config.control.options,
+            occupancy=parts.occupancy,
         )
         sim.add_model("control", loop)
         with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups)
@@ -180,7 +214,10 @@ def collect(sim: Simulation) -> dict[str, pd.DataFrame]:
     frames = sim.trace.frames()
     times = position_times(sim.parts.output.position_interval_s, sim.duration_s)
     frames["positions"] = sample_positions(legs, sim.state.n, times, side, torus)
-    if sim.links is not None:
+    reception = sim.channel.reception
+    if reception is not None:
+        frames["links"] = radio_link_lifetimes(reception, legs, sim.state.range_m, sim.env.now, side, torus)
+    elif sim.links is not None:
         # Solved during the run: the record of the link events (docs/events.md).
         sim.links.finish(sim.env.now)
         frames["links"] = sim.links.frame(sim.env.now)
@@ -213,6 +250,13 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
         "mean_degree": float(2 * life.sum() / (n * duration)) if duration > 0 else math.nan,
         "mean_speed_mps": float(distance.sum() / (n * duration)) if duration > 0 else math.nan,
     }
+    if config is not None and config.channel.propagation != "unit_disk":
+        summary["propagation"] = config.channel.propagation
+        summary["implied_range_m"] = float(sim.state.range_m[0]) if n else math.nan
+    if sim.channel.reception is not None:
+        summary["radio_reach_m"] = sim.channel.reception.reach_m
+    if config is not None and config.world.map:
+        summary["map"] = config.world.map
     for component in sim.models.values():
         if isinstance(component, Reports):
             summary.update(component.summary(frames, duration))

@@ -43,6 +43,8 @@ class Simulation:
         self._models: dict[str, object] = {}
         self.events: EventBus = parts.events if parts.events is not None else EventBus()
         self.runtime_links = "auto"
+        # Why runtime link events are off, when the run's model rules them out.
+        self.runtime_links_off = ""
         self.links: RuntimeLinks | None = None
         self._live: LiveTopology | None = None
 
@@ -83,6 +85,8 @@ class Simulation:
         if self.links is None and (self.runtime_links == "on" or (self.runtime_links == "auto" and wanted)):
             self.link_events()
         if self.links is None and wanted:
+            if self.runtime_links_off:
+                raise ConfigError("events.hooks", "link events", self.runtime_links_off)
             raise ConfigError(
                 "events.runtime_links", "off", "something subscribes to link events (a hook?): set it to 'auto' or 'on'"
             )

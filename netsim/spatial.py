@@ -28,9 +28,10 @@ def _wrap(d: np.ndarray, side: float) -> np.ndarray:
 class RangeIndex:
     """Exact range queries against a :class:`RobotState` at non-decreasing times."""
 
-    def __init__(self, state: RobotState, slack_m: float | None = None):
+    def __init__(self, state: RobotState, slack_m: float | None = None, reach_m: float | None = None):
         self.state = state
-        self.reach_m = float(state.range_m.max()) if state.n else 0.0
+        # The largest radius asked for: the largest range, or the radio's reach.
+        self.reach_m = float(reach_m) if reach_m is not None else float(state.range_m.max()) if state.n else 0.0
         self.slack_m = float(slack_m) if slack_m is not None else 0.2 * self.reach_m
         self._t_build = -np.inf
         self._jumps = -1

@@ -56,6 +56,9 @@ class RobotState:
         self.speed_high_water_mps = 0.0
         # Bumped when a robot jumps (a trace's "set X_" at t > 0): the index must rebuild.
         self.jumps = 0
+        # Path length of each robot up to the start of its current leg (jumps add nothing):
+        # the clock of the radio's shadowing (a pair's travel).
+        self.odometer_m = np.zeros(self.n)
         self._legs: list[tuple] = []
         # Told of every change of a robot's leg as fn(robot, t, jump), logged or not.
         self.watchers: list[Callable[[int, float, bool], None]] = []
@@ -85,6 +88,15 @@ class RobotState:
             x, y = x % self.side_m, y % self.side_m
         return x, y
 
+    def travelled_m(self, t: float, idx) -> np.ndarray:
+        """Path length of robots ``idx`` from t = 0 to ``t`` (``t`` on their current leg)."""
+        return self.odometer_m[idx] + np.abs(self.velocity_c[idx]) * (t - self.t0_s[idx])
+
+    def _log_travel(self, i: int, t: float) -> None:
+        vx, vy = self.velocity_mps[i]
+        if vx or vy:
+            self.odometer_m[i] += float(np.hypot(vx, vy)) * (t - self.t0_s[i])
+
     def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vectors from positions ``b`` to ``a``; the shortest image on a torus."""
         d = a - b
@@ -101,6 +113,7 @@ class RobotState:
         self.origin_m[:] = positions_m
         self.velocity_mps[:] = 0.0
         self.t0_s[:] = 0.0
+        self.odometer_m[:] = 0.0
         self._legs = [(0.0, i, x, y, 0.0, 0.0, "start") for i, (x, y) in enumerate(positions_m.tolist())]
         for w in self.watchers:
             for i in range(self.n):
@@ -137,6 +150,7 @@ class RobotState:
         if cause is None:
             cause = "command" if start_m is None else "jump"
         vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
+        self._log_travel(i, t)
         self.origin_m[i] = start
         self.velocity_mps[i] = (vx, vy)
         self.t0_s[i] = t
@@ -171,6 +185,7 @@ class RobotState:
         ``log=False`` when the robot leaves again at the same instant: the stop would be
         a leg of zero length (the watchers are still told: the leg changed).
         """
+        self._log_travel(i, t)
         self.origin_m[i] = dest_m
         self.velocity_mps[i] = 0.0
         self.t0_s[i] = t

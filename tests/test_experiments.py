@@ -33,6 +33,11 @@ CASES = [
         ["--n", "20", "30", "--laws", "spring", "--reps", "2", "--duration", "60"],
         "coverage_vs_n.csv",
     ),
+    (
+        "walls_and_shadowing.py",
+        ["--reps", "2", "--sigmas", "0", "6", "--duration", "30", "--n", "15"],
+        "walls_and_shadowing.csv",
+    ),
 ]
 
 

@@ -98,3 +98,26 @@ def test_style_is_plain_values_for_other_viewers():
     data = json.loads(json.dumps(style.as_json()))
     assert data["roles"]["alpha"]["marker"] == "^" and len(data["group_palette"]) == len(set(style.GROUP_PALETTE))
     assert style.NO_GROUP not in style.GROUP_PALETTE
+
+
+def test_figures_draw_the_map_under_the_robots(tmp_path, capsys):
+    """A run on the office map: every figure shows its walls (the wall grey), and a run in
+    open space has none of that grey."""
+    from PIL import Image
+
+    def grey_pixels(run_args, out):
+        assert main(["run", "--quiet", "--no-progress", "--out", str(out), *run_args]) == 0
+        assert main(["figures", str(out), "--out", str(out / "figs")]) == 0
+        counts = []
+        for name in ("fig6_initial_deployment.png", "fig7_leader_paths.png", "fig8_final_deployment.png"):
+            img = np.asarray(Image.open(out / "figs" / name).convert("RGB")).astype(int)
+            counts.append(int((np.abs(img - 89) <= 2).all(axis=-1).sum()))
+        return counts
+
+    common = ["--set", "world.n_robots=15", "--set", "duration_s=20", "--set", "world.side_m=100"]
+    on_map = grey_pixels(
+        [*common, "--set", "world.map=office", "--set", "mobility.stationary_start=false"], tmp_path / "map"
+    )
+    open_space = grey_pixels(common, tmp_path / "open")
+    # Antialiased text and lines have a few such pixels; walls have thousands.
+    assert min(on_map) > 10 * max(open_space), (on_map, open_space)

@@ -369,6 +369,7 @@ def check_sweep_runs(sweep):
         assert isinstance(cfgmod.from_dict(run.config), Config)
 
 
+KNOWN_TABLES = sorted(sweepmod.known_tables(cfgmod.from_dict({})))
 AXIS_KEYS = st.one_of(st.sampled_from(KEYS), st.text(FUZZ_CHARS, max_size=8))
 
 

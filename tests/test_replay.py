@@ -451,6 +451,58 @@ def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
     assert not any(c == wall for c in colours_at(200.0))
 
 
+def test_walls_of_a_run_with_a_map_are_drawn(tmp_path, open_page):
+    """A run on the office map: the page draws its walls from the run's own world.map, in
+    the wall colour where the map is occupied and not where it is free."""
+    from netsim.radio.maps import cached_map
+
+    run = _run(
+        tmp_path / "office",
+        "world.n_robots=4",
+        "world.side_m=30",
+        'world.map="office"',
+        "mobility.stationary_start=false",
+        "channel.range_m=10",
+        "duration_s=20",
+    )
+    page = open_page(run / "view.html")
+    assert page.js("JSON.parse(document.getElementById('netsim-meta').text).map") is not None
+    page.page.uncheck("#show-links")
+    page.page.uncheck("#show-hops")
+    page.js("netsimView.seek(0)")
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(page.page.locator("#field").screenshot())).convert("RGB"))
+    wall = tuple(int(style.WALL[k : k + 2], 16) for k in (1, 3, 5))
+    robots = np.array(page.js("netsimView.positions()"))
+    m = cached_map("office")
+    # Centres of cells inside a straight run of 3 wall cells, and of 3 x 3 blocks of free
+    # cells, inside the area, away from robots (a 30 m area: a cell is several pixels wide).
+    occ = m.occupied
+    block = occ[1:-1, 1:-1] & ((occ[1:-1, :-2] & occ[1:-1, 2:]) | (occ[:-2, 1:-1] & occ[2:, 1:-1]))
+    free = m.free
+    fblock = free[:-2, :-2] & free[1:-1, 1:-1] & free[2:, 2:] & free[:-2, 2:] & free[2:, :-2]
+    fblock &= free[1:-1, :-2] & free[1:-1, 2:] & free[:-2, 1:-1] & free[2:, 1:-1]
+
+    def points(mask):
+        j, i = np.nonzero(mask)
+        xy = np.column_stack([(i + 1.5) * m.resolution_m, (j + 1.5) * m.resolution_m])
+        keep = (xy > 1).all(axis=1) & (xy < 29).all(axis=1)
+        # Away from the page's scale grid lines (drawn over the walls).
+        keep &= (np.abs(xy - 5.0 * np.round(xy / 5.0)) > 0.3).all(axis=1)
+        xy = xy[keep]
+        xy = xy[np.hypot(*(xy[:, None, :] - robots[None]).transpose(2, 0, 1)).min(axis=1) > 2]
+        return xy[np.random.default_rng(1).choice(len(xy), 40, replace=False)]
+
+    def colour(x, y):
+        sx, sy = page.js(f"netsimView.toScreen({x}, {y})")
+        return tuple(img[round(sy), round(sx)].tolist())
+
+    got = [colour(x, y) for x, y in points(block)]
+    assert all(c == wall for c in got)
+    assert not any(colour(x, y) == wall for x, y in points(fblock))
+
+
 # -- the command, without a browser ------------------------------------------------------
 def test_view_writes_one_self_contained_file(moving_run, tmp_path, capsys):
     """`netsim view RUN --out FILE`: one file, no external script, style or image, and the

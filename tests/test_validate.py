@@ -31,3 +31,26 @@ def test_reference_density_in_validate_matches_published_values():
 def test_spurious_timeout_window_and_expectation():
     assert [spurious_timeout_window(t, 1.0) for t in (1.5, 2.5, 3.0, 3.5)] == [1, 2, 2, 3]
     assert expected_acks_until_spurious_timeout(0.3, 3) == pytest.approx(51.48, abs=0.01)
+
+
+@pytest.mark.parametrize("check", [validate.check_radio_correlation, validate.check_radio_walls])
+def test_radio_quick_checks_pass(check):
+    results = check()
+    assert len(results) >= 3
+    for result in results:
+        assert result.passed, result
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("check", [validate.check_radio_unit_disk, validate.check_radio_link_probability])
+def test_radio_run_checks_pass(check):
+    results = check()
+    assert results
+    for result in results:
+        assert result.passed, result
+
+
+def test_radio_checks_are_in_validate():
+    names = {c.__name__ for c in validate.CHECKS}
+    assert {"check_radio_unit_disk", "check_radio_link_probability", "check_radio_correlation"} <= names
+    assert "check_radio_walls" in names

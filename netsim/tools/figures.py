@@ -266,6 +266,27 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
     return ""
 
 
+def draw_map(ax, occupancy) -> None:
+    """The map under the robots: walls dark grey, unknown cells light grey, free cells blank."""
+    if occupancy is None:
+        return
+    shade = np.zeros((*occupancy.shape, 4))
+    shade[~occupancy.free & ~occupancy.occupied] = (0.85, 0.85, 0.85, 1.0)
+    shade[occupancy.occupied] = (0.35, 0.35, 0.35, 1.0)
+    x0, x1, y0, y1 = occupancy.extent_m
+    # Row 0 of the grid is its bottom: origin="lower".
+    ax.imshow(shade, extent=(x0, x1, y0, y1), origin="lower", interpolation="nearest", zorder=-1)
+
+
+def run_map(config):
+    """The run's occupancy map, or None in open space."""
+    if not config.world.map:
+        return None
+    from netsim.radio.maps import cached_map
+
+    return cached_map(config.world.map)
+
+
 def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | None = None) -> list[Drawn]:
     """Draw Figs. 6-8 of the paper from the run in ``run_dir``; ``at_s``: the instant of
     Fig. 6 (default: when coverage control starts, or the first sample). Returns each
@@ -281,6 +302,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     config = run.config
     n, side = config.world.n_robots, config.world.side_m
     range_m = float(min(config.ranges_m()))
+    occupancy = run_map(config)
     # Keys of the run's models, where they have them.
     tree = cfgmod.to_dict(config)
     protocol, cover = tree["protocol"], tree.get("coverage", {})
@@ -299,6 +321,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     colours = run_colours(run)
     draw_deployment(ax, start, colours, range_m)
     _axes(ax, (0, side), (0, side), side)
+    draw_map(ax, occupancy)
     groups_n = int((start.role == "alpha").sum())
     ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
     _legend_outside(ax)
@@ -315,6 +338,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     note = draw_paths(ax, run, start.t_s, end.t_s, end, colours, range_m)
+    draw_map(ax, occupancy)
     ax.set_title(f"Fig. 7  Paths of all {n} robots, {start.t_s:g} s to {end.t_s:g} s")
     _legend_outside(ax)
     drawn.append(_save(fig, out / "fig7_leader_paths.png", note))
@@ -323,6 +347,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
     draw_deployment(ax, end, colours, range_m, disks_m=radius)
     _axes(ax, (0, side), (0, side), side)
+    draw_map(ax, occupancy)
     if radius > 0:
         covered, err = metrics.covered_fraction_exact(end.pos, radius, side)
         bound = metrics.bound_fraction(n, radius, side, range_m)

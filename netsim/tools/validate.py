@@ -506,6 +506,119 @@ def check_clustering_invariants() -> list[Check]:
     return [Check("13", "leaders independent and dominating, none undecided (violations)", 0.0, float(bad), 0.0)]
 
 
+# -- the radio (channel.propagation, shadowing, walls) --------------------------------------
+def _radio_run(**tree):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = build(_config(**tree))
+    sim.run()
+    return sim, collect(sim)
+
+
+def check_radio_unit_disk() -> list[Check]:
+    """17: log-distance without shadowing links exactly as a unit disk of the implied range:
+    the same links table and the same Ack receptions, on the same moving team."""
+    base = {"seed": 17, "duration_s": 120.0, "world": {"n_robots": 100, "side_m": 800.0}, "protocol": {"model": "ack"}}
+    radio, radio_frames = _radio_run(**base, channel={"propagation": "log_distance"})
+    r = float(radio.state.range_m[0])
+    disk, disk_frames = _radio_run(**base, channel={"range_m": r})
+    a, b = radio_frames["links"], disk_frames["links"]
+    rows = lambda f: set(map(tuple, f[["a", "b", "t_up_s", "t_down_s"]].to_numpy().tolist()))  # noqa: E731
+    wrong = len(rows(a) ^ rows(b))
+    heard = abs(
+        int(radio.channel.counters_for("ack").received.sum()) - int(disk.channel.counters_for("ack").received.sum())
+    )
+    return [
+        Check("17", f"log-distance, no shadowing = unit disk of {r:g} m: link lifetimes that differ", 0.0, wrong, 0.0),
+        Check("17", "log-distance, no shadowing = unit disk: Ack receptions that differ", 0.0, float(heard), 0.0),
+    ]
+
+
+def check_radio_link_probability() -> list[Check]:
+    """18: shadowing sigma on a static uniform deployment: the fraction of pairs the channel
+    links at distance d is Phi((P_t - PL(d) - sensitivity) / sigma), in every distance bin."""
+    from scipy.spatial import cKDTree
+
+    from netsim.radio.checks import Z, link_probability
+    from netsim.radio.propagation import LogDistanceParams, reach_m
+
+    sigma, n, side = 4.0, 1000, 1000.0
+    params = LogDistanceParams(shadowing_sigma_db=sigma)
+    sim, frames = _radio_run(
+        seed=18,
+        duration_s=1.2,
+        world={"n_robots": n, "side_m": side},
+        mobility={"model": "static"},
+        channel={"propagation": "log_distance", "shadowing_sigma_db": sigma},
+        protocol={"model": "ack"},
+    )
+    pos = sim.state.positions_at(0.0)
+    reach = reach_m(params)
+    pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
+    i, j = pairs.min(axis=1), pairs.max(axis=1)
+    links = frames["links"]
+    linked_keys = set((links.a * n + links.b).tolist())
+    linked = np.isin(i * n + j, np.fromiter(linked_keys, np.int64, len(linked_keys)))
+    d = np.hypot(*(pos[i] - pos[j]).T)
+    p = link_probability(d, params)
+    edges = np.linspace(0.0, reach, 11)
+    which = np.clip(np.digitize(d, edges) - 1, 0, 9)
+    out = []
+    for k in range(10):
+        sel = which == k
+        m = int(sel.sum())
+        theory = float(p[sel].mean())
+        se = math.sqrt(float((p[sel] * (1 - p[sel])).sum())) / m
+        out.append(
+            Check(
+                "18",
+                f"shadowing {sigma:g} dB: linked fraction, d in [{edges[k]:.0f}, {edges[k + 1]:.0f}) m ({m} pairs)",
+                theory,
+                float(linked[sel].mean()),
+                Z * se,
+            )
+        )
+    return out
+
+
+def check_radio_correlation() -> list[Check]:
+    """19: a moving pair's shadowing has correlation exp(-delta / d_corr) at travel separation
+    delta, whatever the instants it was looked at in between (the channel's PairShadowing)."""
+    from netsim.radio.checks import check_shadowing_correlation
+
+    return [Check("19", c.result, c.theory, c.measured, c.tolerance, c.unit) for c in check_shadowing_correlation()]
+
+
+def check_radio_walls() -> list[Check]:
+    """20: across a wall two robots do not link under the unit disk, through a doorway they
+    do; under log-distance each wall crossed costs wall_loss_db."""
+    from netsim.radio.checks import check_walls, wall_test_map
+    from netsim.radio.maps import save_map
+
+    m = wall_test_map()
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        path = save_map(Path(tmp) / "walls.yaml", m.occupied, m.free, m.resolution_m)
+        for what, y, expected in (("across a wall", 15.0, 0.0), ("through a doorway", 3.0, 1.0)):
+            csv = Path(tmp) / "pos.csv"
+            pd.DataFrame({"x_m": [15.0, 25.0], "y_m": [y, y]}).to_csv(csv, index=False)
+            sim, frames = _radio_run(
+                duration_s=5.0,
+                world={"n_robots": 2, "side_m": 40.0, "map": str(path), "placement": str(csv)},
+                mobility={"model": "static"},
+                channel={"range_m": 30.0},
+                protocol={"model": "ack"},
+            )
+            heard = int(sim.channel.counters_for("ack").received.sum()) > 0
+            out.append(Check("20", f"unit disk, robots 10 m apart {what}: linked", expected, float(heard), 0.0))
+    for c in check_walls():
+        if c.item == "W3":
+            out.append(Check("20", c.result, c.theory, c.measured, c.tolerance, c.unit))
+    return out
+
+
 CHECKS: list[Callable[[], list[Check]]] = [
     check_rwp,
     check_stationary_start,
@@ -517,6 +630,10 @@ CHECKS: list[Callable[[], list[Check]]] = [
     check_delivery_ratio,
     check_random_geometric,
     check_clustering_invariants,
+    check_radio_unit_disk,
+    check_radio_link_probability,
+    check_radio_correlation,
+    check_radio_walls,
 ]
 
 

@@ -360,6 +360,11 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     chart = series(config, links, roles, ack_delivery, messages, coverage, blob, labels)
 
     map_meta = None
+    if map_grid is None and config.world.map:
+        from netsim.radio.maps import cached_map
+
+        m = cached_map(config.world.map)
+        map_grid = MapGrid(m.occupied, m.resolution_m, m.origin_m)
     if map_grid is not None:
         occ = np.asarray(map_grid.occupied, dtype=bool)
         if occ.ndim != 2:

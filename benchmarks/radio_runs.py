@@ -1,0 +1,114 @@
+"""Benchmark: whole runs with the radio at N = 1,000, against the unit disk, in one invocation.
+
+The workload of ``benchmarks/ack_workload.py``: random waypoint (speeds 0.5-5 m/s, pause 2 s,
+uniform start at rest), Acks at 1 Hz, 100 simulated seconds, mean degree about 10 without
+walls or shadowing. Cases:
+
+- ``unit_disk``: range 100 m on a square of side ``100 sqrt(N pi / 10)`` (the baseline);
+- ``log_distance + shadowing``: the same square, the default radio (implied range 100 m)
+  with shadowing sigma = 4 dB (reach 341 m);
+- ``unit_disk, 200 m square``: the office map's square without the map, range 11.3 m (the
+  same mean degree), for reference;
+- ``office map, log_distance``: that square on the office map, implied range 11.3 m,
+  5 dB per wall (links solved from the map: sampled and bisected, docs/radio.md);
+- ``office map, unit_disk + line of sight``: the same, with the unit disk of 11.3 m.
+
+Each wall time is build + run + collecting the tables (links included), measured in this
+process one after another (numba's compiled code is cached on disk; a warm-up run loads
+it first). Prints a table with each case's ratio to the baseline.
+
+    python benchmarks/radio_runs.py [--n 1000] [--duration 100]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+import warnings
+
+DEGREE = 10.0
+
+
+def config(n: int, duration: float, side: float, channel: dict, world: dict | None = None):
+    from netsim.config import from_dict
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return from_dict(
+            {
+                "seed": 1,
+                "duration_s": duration,
+                "world": {"n_robots": n, "side_m": side, **(world or {})},
+                "mobility": {"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0, "stationary_start": False},
+                "channel": {"latency_s": 0.001, **channel},
+                "protocol": {"model": "ack", "ack_period_s": 1.0, "ack_jitter_s": 0.05, "tau_s": 3.0},
+                "output": {"position_interval_s": 0.0},
+            }
+        )
+
+
+def timed(cfg) -> dict:
+    from netsim.run import build, collect
+
+    start = time.perf_counter()
+    sim = build(cfg)
+    sim.run()
+    t_run = time.perf_counter() - start
+    frames = collect(sim)
+    wall = time.perf_counter() - start
+    acks = sim.channel.counters_for("ack")
+    return {
+        "wall_s": wall,
+        "run_s": t_run,
+        "tables_s": wall - t_run,
+        "receptions": int(acks.received.sum()),
+        "links": len(frames["links"]),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=1000)
+    ap.add_argument("--duration", type=float, default=100.0)
+    args = ap.parse_args()
+    n, T = args.n, args.duration
+    side = 100.0 * math.sqrt(n * math.pi / DEGREE)
+    office_side = 200.0
+    r_office = office_side * math.sqrt(DEGREE / (n * math.pi))
+    # Sensitivity for an implied range of r_office with the other keys at their defaults.
+    sens = 20.0 - 40.0 - 30.0 * math.log10(r_office)
+    cases = [
+        ("unit_disk", config(n, T, side, {"range_m": 100.0})),
+        (
+            "log_distance + shadowing 4 dB",
+            config(n, T, side, {"propagation": "log_distance", "shadowing_sigma_db": 4.0}),
+        ),
+        (f"unit_disk, {office_side:g} m square", config(n, T, office_side, {"range_m": r_office})),
+        (
+            "office map, log_distance",
+            config(n, T, office_side, {"propagation": "log_distance", "sensitivity_dbm": sens}, {"map": "office"}),
+        ),
+        ("office map, unit_disk + line of sight", config(n, T, office_side, {"range_m": r_office}, {"map": "office"})),
+    ]
+    timed(config(50, 5.0, 200.0, {"propagation": "log_distance", "shadowing_sigma_db": 4.0}, {"map": "office"}))
+    timed(config(50, 5.0, 200.0, {"range_m": 20.0}, {"map": "office"}))
+    rows = []
+    for name, cfg in cases:
+        r = timed(cfg)
+        rows.append((name, r))
+        print(f"{name}: {r['wall_s']:.1f} s", flush=True)
+    base = rows[0][1]["wall_s"]
+    print()
+    print(f"N = {n}, {T:g} s simulated; office map: side {office_side:g} m, implied range {r_office:.1f} m")
+    print("| case | wall (s) | run (s) | tables (s) | x unit disk | Ack receptions | link lifetimes |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for name, r in rows:
+        print(
+            f"| {name} | {r['wall_s']:.1f} | {r['run_s']:.1f} | {r['tables_s']:.1f} | {r['wall_s'] / base:.2f} | "
+            f"{r['receptions']:,} | {r['links']:,} |"
+        )
+
+
+if __name__ == "__main__":
+    main()

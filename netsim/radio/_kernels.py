@@ -1,0 +1,207 @@
+"""Compiled (numba) loops behind :mod:`netsim.radio.los` and :mod:`netsim.radio.shadowing`.
+
+Each computes exactly what its numpy counterpart computes, with the same arithmetic, one item
+at a time: for the few tens of pairs a transmission involves, numpy's cost per operation, not
+the arithmetic, is what a call costs. The tests check that both agree exactly.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def cell(flat, w, half, pc, sc, p_max, s_max):
+    pc = min(max(pc, 0), p_max)
+    sc = min(max(sc, 0), s_max)
+    return flat[pc * w + sc] if half == 1 else flat[sc * w + pc]
+
+
+@numba.njit(cache=True, nogil=True)
+def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
+    """Walls crossed by one segment (grid units) and where it first meets a blocked cell.
+
+    Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
+    """
+    i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
+    j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
+    count = 0
+    ft = np.inf
+    if flat[j0 * w + i0]:
+        count = 1
+        ft = 0.0
+        if count > limit:
+            return count, ft
+    for half in range(2):
+        if half == 0:
+            P0, S0, P1, S1, p_max, s_max = u0, v0, u1, v1, w - 1, h - 1
+        else:
+            P0, S0, P1, S1, p_max, s_max = v0, u0, v1, u1, h - 1, w - 1
+        c0 = np.int64(np.floor(P0))
+        c1 = np.int64(np.floor(P1))
+        n = abs(c1 - c0)
+        if n == 0:
+            continue
+        fwd = c1 > c0
+        dp = P1 - P0
+        ds = S1 - S0
+        s0 = np.int64(np.floor(S0))
+        s1 = np.int64(np.floor(S1))
+        s_lo, s_hi = min(s0, s1), max(s0, s1)
+        length = np.hypot(dp, ds) if half == 0 else np.hypot(ds, dp)
+        for a in range(n):
+            line = c0 + a + 1 if fwd else c0 - a
+            t = (line - P0) / dp
+            sc = S0 + t * ds
+            y = np.rint(sc)
+            vertex = abs(sc - y) * abs(dp) <= eps * length and y > s_lo and y <= s_hi
+            p_after = line if fwd else line - 1
+            p_before = line - 1 if fwd else line
+            if vertex:
+                yi = np.int64(y)
+                s_before = yi - 1 if ds > 0 else yi
+                s_after = yi if ds > 0 else yi - 1
+            else:
+                s_before = s_after = min(max(np.int64(np.floor(sc)), s_lo), s_hi)
+            before = cell(flat, w, half, p_before, s_before, p_max, s_max)
+            hit = cell(flat, w, half, p_after, s_after, p_max, s_max)
+            if vertex and half == 0:
+                hit = (
+                    hit
+                    or cell(flat, w, half, p_after, s_before, p_max, s_max)
+                    or cell(flat, w, half, p_before, s_after, p_max, s_max)
+                )
+            if hit and not before and not (vertex and half == 1):
+                count += 1
+                if count > limit:
+                    return count, min(ft, t)
+            if hit and t < ft:
+                ft = t
+    return count, ft
+
+
+@numba.njit(cache=True, nogil=True)
+def trace(flat, h, w, g0, g1, eps, walls, first_t, limit):
+    """Every segment's walls (counting stops once past ``limit``) and first blocked point."""
+    for s in range(g0.shape[0]):
+        walls[s], first_t[s] = trace_one(flat, h, w, g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1], eps, limit)
+
+
+@numba.njit(cache=True, nogil=True)
+def slot(table_keys, dense_n, key):
+    """Where ``key`` is (or would go) in the table: computed when every pair of ``dense_n``
+    robots has its slot (keys in ascending order, lower id major), else a binary search."""
+    if dense_n > 0:
+        i = key >> 32
+        j = key & 0xFFFFFFFF
+        return i * dense_n - (i * (i + 1)) // 2 + (j - i - 1)
+    return np.searchsorted(table_keys, key)
+
+
+@numba.njit(cache=True, nogil=True)
+def shadow_step(table_keys, table_x, table_s, keys, s_new, z, sigma, decorrelation_m, x, new, dense_n=0):
+    """Move the stored pairs among ``keys`` on to travel ``s_new`` (in place); flag the others."""
+    n = table_keys.shape[0]
+    for m in range(keys.shape[0]):
+        pos = slot(table_keys, dense_n, keys[m])
+        # A slot holding NaN is a pair listed in advance but never seen yet.
+        if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
+            delta = max(s_new[m] - table_s[pos], 0.0)
+            rho = np.exp(-delta / decorrelation_m)
+            v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[m]
+            table_x[pos] = v
+            table_s[pos] = max(s_new[m], table_s[pos])
+            x[m] = v
+            new[m] = False
+        else:
+            new[m] = True
+
+
+@numba.njit(cache=True, nogil=True)
+def path_loss_pass(d, d0, pl0, n10, rest_db, budget_slack, loss, alive):
+    """Path loss of each pair, and whether the terms after it could still let it through."""
+    count = 0
+    for m in range(d.shape[0]):
+        loss[m] = 0.0 + (pl0 + n10 * np.log10(max(d[m], d0) / d0))
+        ok = loss[m] + rest_db <= budget_slack
+        alive[m] = ok
+        if ok:
+            count += 1
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def budget_pass(
+    loss,
+    alive,
+    keys,
+    s_new,
+    z,
+    sigma,
+    decorrelation_m,
+    clip_db,
+    table_keys,
+    table_x,
+    table_s,
+    wall_db,
+    flat,
+    h,
+    w,
+    g0,
+    g1,
+    eps,
+    budget_slack,
+    tx_dbm,
+    sensitivity_dbm,
+    x_new,
+    new,
+    receivable,
+    dense_n=0,
+):
+    """Shadowing (when sigma > 0) and walls (when wall_db > 0) for the pairs still alive,
+    then the decision ``tx - loss >= sensitivity``: the loss chain in one pass."""
+    n = table_keys.shape[0]
+    j = 0
+    for m in range(loss.shape[0]):
+        receivable[m] = False
+        new[m] = False
+        if not alive[m]:
+            continue
+        total = loss[m]
+        if sigma > 0.0:
+            pos = slot(table_keys, dense_n, keys[m])
+            if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
+                delta = max(s_new[m] - table_s[pos], 0.0)
+                rho = np.exp(-delta / decorrelation_m)
+                v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[j]
+                table_x[pos] = v
+                table_s[pos] = max(s_new[m], table_s[pos])
+            else:
+                v = sigma * z[j]
+                new[m] = True
+                x_new[m] = v
+            j += 1
+            total = total + min(max(v, -clip_db), clip_db)
+        if wall_db > 0.0:
+            if total > budget_slack:
+                continue
+            # Counting stops two walls past what the margin affords: the pair is then out,
+            # whatever rounding the division made.
+            affordable = (budget_slack - total) / wall_db
+            limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
+            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
+            total = total + wall_db * walls
+        receivable[m] = tx_dbm - total >= sensitivity_dbm
+
+
+@numba.njit(cache=True, nogil=True)
+def disk_pass(d, a, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receivable):
+    """The unit disk (the sender's range), with line of sight on a map."""
+    for m in range(d.shape[0]):
+        r = range_m[a[m]] if per_robot else range_m[0]
+        ok = d[m] <= r
+        if ok and use_map:
+            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, 0)
+            ok = walls == 0
+        receivable[m] = ok

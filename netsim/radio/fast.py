@@ -1,0 +1,134 @@
+"""The loss chains of :mod:`netsim.radio.propagation` compiled into one pass: the channel's hot path.
+
+A transmission asks which of its few tens of candidate receivers can hear it. Through the
+generic chain that costs some fifty numpy operations, whatever the number of pairs; here it
+is two compiled loops and one draw of normals. :class:`CompiledChain` accepts the chains
+that :func:`~netsim.radio.propagation.log_distance` and
+:func:`~netsim.radio.propagation.unit_disk` build and decides exactly as the chain does: the
+same pairs are dropped before shadowing (so the same normals are drawn), the same shadowing
+updates are made, and the same sums are compared with the sensitivity. Pairs in one batch
+must be distinct (a broadcast's receivers are).
+
+Without numba it hands every batch to the generic chain.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from netsim.radio.los import VERTEX_TOLERANCE_CELLS
+from netsim.radio.propagation import (
+    LineOfSightLoss,
+    LogDistanceLoss,
+    Pairs,
+    Propagation,
+    RangeLoss,
+    ShadowingLoss,
+    WallLoss,
+)
+from netsim.radio.shadowing import pair_keys
+
+
+def _kernels():
+    try:
+        from netsim.radio import _kernels
+    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
+        return None
+    return _kernels
+
+
+_NO_GRID = np.zeros(1, dtype=bool)
+_NO_POINTS = np.zeros((1, 2))
+
+
+class CompiledChain:
+    """``receivable(pairs)`` of a :class:`~netsim.radio.propagation.Propagation`, compiled."""
+
+    def __init__(self, propagation: Propagation):
+        self.propagation = propagation
+        self.k = _kernels()
+        terms = list(propagation.chain.terms)
+        kinds = [type(t) for t in terms]
+        self.log = self.shadow = self.walls = self.range = self.sight = None
+        if kinds and kinds[0] is LogDistanceLoss:
+            self.log = terms.pop(0)
+            if terms and isinstance(terms[0], ShadowingLoss):
+                self.shadow = terms.pop(0).shadowing
+            if terms and isinstance(terms[0], WallLoss):
+                self.walls = terms.pop(0)
+        elif kinds and kinds[0] is RangeLoss:
+            self.range = terms.pop(0)
+            if terms and isinstance(terms[0], LineOfSightLoss):
+                self.sight = terms.pop(0)
+        if terms or (self.log is None and self.range is None):
+            raise ValueError(f"no compiled form for the chain {[k.__name__ for k in kinds]}")
+        budget = propagation.tx_power_dbm - propagation.sensitivity_dbm
+        # The chain's own early-drop rule, slack included.
+        self.budget_slack = budget + 1e-9 * (1.0 + abs(budget))
+        occupancy = (self.walls or self.sight).occupancy if (self.walls or self.sight) else None
+        self.occupancy = occupancy
+
+    def _grid(self, pairs: Pairs):
+        m = self.occupancy
+        if m is None:
+            return _NO_GRID, 1, 1, _NO_POINTS, _NO_POINTS
+        origin = np.asarray(m.origin_m)
+        h, w = m.shape
+        g0 = (pairs.pos_a - origin) / m.resolution_m
+        g1 = (pairs.pos_b - origin) / m.resolution_m
+        return m.occupied.ravel(), h, w, g0, g1
+
+    def receivable(self, pairs: Pairs) -> np.ndarray:
+        if self.k is None:
+            return self.propagation.receivable(pairs)
+        kn = len(pairs.a)
+        out = np.empty(kn, dtype=bool)
+        if kn == 0:
+            return out
+        flat, h, w, g0, g1 = self._grid(pairs) if (self.walls or self.sight) else (_NO_GRID, 1, 1, None, None)
+        if self.range is not None:
+            r = np.atleast_1d(self.range.range_m)
+            if g0 is None:
+                g0 = g1 = np.zeros((kn, 2))
+            self.k.disk_pass(
+                pairs.distance_m, pairs.a, r, self.range.range_m.ndim == 1,
+                self.sight is not None, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, out,
+            )  # fmt: skip
+            return out
+        p = self.log.params
+        sh = self.shadow
+        clip = sh.clip_db if sh is not None else 0.0
+        loss = np.empty(kn)
+        alive = np.empty(kn, dtype=bool)
+        count = self.k.path_loss_pass(
+            pairs.distance_m, p.reference_distance_m, p.reference_loss_db, 10.0 * p.path_loss_exponent,
+            -clip, self.budget_slack, loss, alive,
+        )  # fmt: skip
+        if g0 is None:
+            g0 = g1 = np.zeros((kn, 2))
+        if sh is not None and count:
+            keys = pair_keys(pairs.a, pairs.b)
+            travel = np.zeros(kn) if pairs.travel_m is None else np.asarray(pairs.travel_m, dtype=float)
+            s_new = sh._anchor(travel)
+            z = sh.rng.standard_normal(count)
+            sh.draws += count
+            tk, tx, ts, sigma = sh._keys, sh._x, sh._s, sh.sigma_db
+        else:
+            keys, s_new, z = np.zeros(kn, dtype=np.int64), np.zeros(kn), np.zeros(1)
+            tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
+        x_new = np.empty(kn)
+        new = np.empty(kn, dtype=bool)
+        wall_db = self.walls.wall_loss_db if self.walls is not None else 0.0
+        self.k.budget_pass(
+            loss, alive, keys, s_new, z, sigma, sh.decorrelation_m if sh is not None else 1.0, clip,
+            tk, tx, ts, wall_db, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, self.budget_slack,
+            self.propagation.tx_power_dbm, self.propagation.sensitivity_dbm, x_new, new, out,
+            sh.dense_n if sh is not None else 0,
+        )  # fmt: skip
+        if sh is not None and new.any():
+            idx = np.flatnonzero(new)
+            uniq, first = np.unique(keys[idx], return_index=True)
+            if len(uniq) < len(idx):
+                raise ValueError("the pairs of one batch must be distinct")
+            sh._insert(uniq, x_new[idx[first]], s_new[idx[first]])
+        return out

@@ -1,0 +1,177 @@
+"""Where robots may be and go on a map: free cells, free straight legs, a push away from walls.
+
+Robots live in **free** cells only (unknown and occupied cells are off limits), inside the
+area ``[0, side]^2``. The helpers here are what mobility models need to respect a map:
+
+- :func:`sample_free`: positions uniform over the free part of the area (optionally keeping a
+  clearance from anything not free); placement and waypoints draw from it.
+- :func:`legs_free`: whether straight legs stay in free cells all along (exact grid
+  traversal, vectorised over legs, :mod:`netsim.radio.los`).
+- :func:`free_fraction`: how far along a leg a robot can go before it would enter a cell that
+  is not free (random direction: travel until the wall).
+- :func:`draw_destinations`: random waypoint on a map. A destination is drawn uniformly over
+  the free space and kept only when the straight leg to it is free; otherwise another is
+  drawn. So a robot's next waypoint is uniform over the free space *visible* from where it
+  stands. Effect on the stationary distribution: the chain of waypoints is no longer the
+  open-space one (no closed form): robots cross between rooms only along straight lines
+  through doorways, so a room with a small door is entered and left rarely, and time spent in
+  large rooms and long corridors, visible from many places, grows. Robots never cut through
+  walls, and legs stay straight, so link events along them stay exact. (A path planner
+  would keep the destination law uniform at the price of polylines; not done here.)
+- :func:`obstacle_field` and :func:`wall_forces`: a repulsion from walls for virtual-force
+  coverage, ``gain * (margin - d)`` away from the nearest cell that is not free, within
+  ``margin`` of it (``d`` from the grid's distance transform).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from netsim.errors import ConfigError
+from netsim.radio.los import first_blocked, line_of_sight
+from netsim.radio.maps import MAP_KEY, OccupancyMap
+
+
+def clearance_field_m(m: OccupancyMap) -> np.ndarray:
+    """Distance (m) from each cell's centre to the nearest centre of a cell that is not free
+    (0 on such cells; infinite when every cell is free)."""
+    from scipy.ndimage import distance_transform_edt
+
+    if m.free.all():
+        return np.full(m.shape, np.inf)
+    return distance_transform_edt(m.free) * m.resolution_m
+
+
+def _eligible_cells(m: OccupancyMap, side_m: float, clearance_m: float):
+    """Cells a robot may be drawn in, and the rectangle each shares with the area (computed
+    once per map, area and clearance: waypoints draw from it at every leg)."""
+    cache = m.__dict__.setdefault("_eligible", {})
+    key = (float(side_m), float(clearance_m))
+    if key not in cache:
+        cache[key] = _eligible_cells_now(m, side_m, clearance_m)
+    return cache[key]
+
+
+def _eligible_cells_now(m: OccupancyMap, side_m: float, clearance_m: float):
+    ok = m.free.copy()
+    if clearance_m > 0:
+        # Any point of the cell is then at least clearance_m from any point of a cell that is
+        # not free (each point lies within res / sqrt(2) of its cell's centre).
+        ok &= clearance_field_m(m) - math.sqrt(2.0) * m.resolution_m >= clearance_m
+    j, i = np.nonzero(ok)
+    r = m.resolution_m
+    x0 = np.maximum(m.origin_m[0] + i * r, 0.0)
+    x1 = np.minimum(m.origin_m[0] + (i + 1) * r, side_m)
+    y0 = np.maximum(m.origin_m[1] + j * r, 0.0)
+    y1 = np.minimum(m.origin_m[1] + (j + 1) * r, side_m)
+    keep = (x1 > x0) & (y1 > y0)
+    x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
+    return x0, x1, y0, y1, np.cumsum((x1 - x0) * (y1 - y0))
+
+
+def sample_free(m: OccupancyMap, rng: np.random.Generator, n: int, side_m: float, clearance_m: float = 0.0):
+    """``n`` positions uniform over the free part of ``[0, side_m]^2`` (with ``clearance_m``
+    from anything not free, conservatively to within 1.4 cells), shape ``(n, 2)``."""
+    x0, x1, y0, y1, cdf = _eligible_cells(m, side_m, clearance_m)
+    if len(x0) == 0:
+        extra = f" with a clearance of {clearance_m:g} m" if clearance_m > 0 else ""
+        raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area [0, {side_m:g}]^2{extra}")
+    k = np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"), len(cdf) - 1)
+    u = rng.random((n, 2))
+    pos = np.column_stack([x0[k] + u[:, 0] * (x1[k] - x0[k]), y0[k] + u[:, 1] * (y1[k] - y0[k])])
+    # A point drawn on a cell's upper edge by rounding belongs to the next cell: keep it inside.
+    bad = ~m.is_free(pos)
+    if bad.any():
+        pos[bad] = np.column_stack([0.5 * (x0[k[bad]] + x1[k[bad]]), 0.5 * (y0[k[bad]] + y1[k[bad]])])
+    return pos
+
+
+def legs_free(m: OccupancyMap, starts, ends) -> np.ndarray:
+    """Whether each straight leg ``starts[k] -> ends[k]`` stays in free cells all along."""
+    return line_of_sight(m, starts, ends, blocked=m.not_free)
+
+
+def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6) -> np.ndarray:
+    """Fraction ``f`` in ``[0, 1]`` of each leg that a robot can travel in free cells: 1 when
+    the whole leg is free, else it stops ``margin_m`` short of the first cell that is not free
+    (and the leg ``start -> start + f (end - start)`` is free)."""
+    s = np.asarray(starts, dtype=float).reshape(-1, 2)
+    e = np.asarray(ends, dtype=float).reshape(-1, 2)
+    t = first_blocked(m, s, e, blocked=m.not_free)
+    length = np.hypot(*(e - s).T)
+    f = np.where(np.isinf(t), 1.0, np.maximum(t - margin_m / np.maximum(length, 1e-300), 0.0))
+    for _ in range(60):
+        stop = s + f[:, None] * (e - s)
+        bad = (f > 0) & ~legs_free(m, s, stop)
+        if not bad.any():
+            return f
+        f[bad] = np.maximum(f[bad] - 4.0 * margin_m / np.maximum(length[bad], 1e-300), 0.0)
+        margin_m *= 4.0
+    return np.where(legs_free(m, s, s + f[:, None] * (e - s)), f, 0.0)
+
+
+def draw_destinations(
+    m: OccupancyMap,
+    rng: np.random.Generator,
+    here_m,
+    side_m: float,
+    batch: int = 64,
+    max_rounds: int = 100,
+) -> np.ndarray:
+    """A random waypoint for each robot at ``here_m``: uniform over the free space, redrawn
+    until the straight leg to it is free (see the module notes). Shape ``(k, 2)``."""
+    here = np.asarray(here_m, dtype=float).reshape(-1, 2)
+    k = len(here)
+    out = np.empty((k, 2))
+    todo = np.arange(k)
+    for _ in range(max_rounds):
+        if len(todo) == 0:
+            return out
+        cand = sample_free(m, rng, len(todo) * batch, side_m)
+        ok = legs_free(m, np.repeat(here[todo], batch, axis=0), cand).reshape(len(todo), batch)
+        got = ok.any(axis=1)
+        pick = np.argmax(ok, axis=1)
+        out[todo[got]] = cand.reshape(len(todo), batch, 2)[got, pick[got]]
+        todo = todo[~got]
+    if len(todo) == 0:
+        return out
+    x, y = here[todo[0]]
+    raise ConfigError(
+        MAP_KEY,
+        m.source or "<map>",
+        f"a robot at ({x:g}, {y:g}) sees no free destination in {batch * max_rounds} tries: is it walled in?",
+    )
+
+
+@dataclass(frozen=True)
+class ObstacleField:
+    """Distance (m) from each cell to the nearest cell that is not free, and the unit vector
+    pointing away from it (zero where the distance is flat or infinite)."""
+
+    distance_m: np.ndarray  # (H, W)
+    away: np.ndarray  # (H, W, 2)
+
+
+def obstacle_field(m: OccupancyMap) -> ObstacleField:
+    d = clearance_field_m(m)
+    finite = np.where(np.isfinite(d), d, 0.0)
+    gy, gx = np.gradient(finite, m.resolution_m)
+    norm = np.hypot(gx, gy)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        away = np.where(norm[..., None] > 0, np.stack([gx, gy], axis=-1) / norm[..., None], 0.0)
+    return ObstacleField(d, away)
+
+
+def wall_forces(m: OccupancyMap, field: ObstacleField, positions_m, margin_m: float, gain: float) -> np.ndarray:
+    """Push from walls on robots at ``positions_m``: ``gain * (margin_m - d)`` away from the
+    nearest cell that is not free when ``d < margin_m``, as the border force of coverage
+    does for the area's edges. Shape ``(k, 2)``."""
+    i, j = m.cells(positions_m)
+    h, w = m.shape
+    i, j = np.clip(i, 0, w - 1), np.clip(j, 0, h - 1)
+    d = field.distance_m[j, i]
+    push = np.where(d < margin_m, gain * (margin_m - d), 0.0)
+    return push[:, None] * field.away[j, i]

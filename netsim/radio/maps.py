@@ -1,0 +1,325 @@
+"""Occupancy maps in the ROS ``map_server`` format: a YAML file and its PGM or PNG image.
+
+The format a robot team's SLAM already writes (``map_saver``)::
+
+    image: office.pgm          # relative to the YAML file's folder
+    resolution: 0.25           # metres per pixel
+    origin: [0.0, 0.0, 0.0]    # pose (x, y, yaw) of the lower-left pixel's corner
+    negate: 0
+    occupied_thresh: 0.65
+    free_thresh: 0.196
+    mode: trinary              # optional: trinary (default) or scale
+
+Pixels are read exactly as ``map_server`` reads them: the mean of the channels ``c``
+(in ``trinary`` mode an alpha channel is averaged in too; in ``scale`` mode it is not, and a
+fully transparent pixel is unknown), ``p = (255 - c) / 255`` (``p = c / 255`` with
+``negate``); a cell is **occupied** when ``p > occupied_thresh``, **free** when
+``p < free_thresh``, and **unknown** otherwise (``scale`` mode's intermediate values
+count as unknown here). Row 0 of the image is the top of the map: the grid here is flipped
+so that row ``j`` covers ``y`` in ``[oy + j res, oy + (j + 1) res)``, as in ROS's
+``OccupancyGrid``.
+
+What the cells mean in netsim:
+
+- **occupied** cells are walls: under the unit disk they block a link, under log-distance
+  each run of them that a link's line crosses costs ``wall_loss_db``;
+- **unknown** cells do not block radio (only occupied cells are walls) but robots never go
+  there: motion, placement and waypoints use free cells only;
+- a point belongs to the cell ``floor((p - origin) / res)`` (half-open cells, as ROS's
+  ``worldToMap``); a point on the map's far edge belongs to the last cell.
+
+Maps whose origin has a non-zero yaw are refused (rotate the image instead), and so are
+16-bit images and ``mode: raw`` (no thresholds, so no walls).
+
+The simulated area ``[0, side]^2`` must lie inside the map: :meth:`OccupancyMap.check_area`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from netsim.errors import ConfigError
+
+MAP_KEY = "world.map"
+REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+EXAMPLES = ("office", "cave")
+
+
+@dataclass(frozen=True, eq=False)
+class OccupancyMap:
+    """A map's cells, row 0 at the bottom (lowest ``y``), and where they lie in the world."""
+
+    occupied: np.ndarray  # (H, W) bool: walls
+    free: np.ndarray  # (H, W) bool: where robots may be
+    resolution_m: float
+    origin_m: tuple[float, float]
+    source: str = ""
+
+    def __post_init__(self):
+        if self.occupied.shape != self.free.shape or self.occupied.ndim != 2 or self.occupied.size == 0:
+            raise ValueError("occupied and free must be non-empty 2-D arrays of the same shape")
+        if not (math.isfinite(self.resolution_m) and self.resolution_m > 0):
+            raise ValueError("resolution_m must be a finite number > 0")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.occupied.shape
+
+    @cached_property
+    def not_free(self) -> np.ndarray:
+        """Cells robots may not enter (occupied or unknown)."""
+        return np.ascontiguousarray(~self.free)
+
+    @property
+    def extent_m(self) -> tuple[float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max)`` of the map in world coordinates."""
+        h, w = self.shape
+        ox, oy = self.origin_m
+        return ox, ox + w * self.resolution_m, oy, oy + h * self.resolution_m
+
+    def to_grid(self, points_m) -> tuple[np.ndarray, np.ndarray]:
+        """Grid coordinates ``(u, v)`` of points: cell ``(floor(u), floor(v))``, in cell units."""
+        p = np.asarray(points_m, dtype=float).reshape(-1, 2)
+        return (p[:, 0] - self.origin_m[0]) / self.resolution_m, (p[:, 1] - self.origin_m[1]) / self.resolution_m
+
+    def cells(self, points_m) -> tuple[np.ndarray, np.ndarray]:
+        """Column ``i`` and row ``j`` of the cell of each point (far edges in the last cell)."""
+        u, v = self.to_grid(points_m)
+        h, w = self.shape
+        i = np.minimum(np.floor(u), w - 1).astype(np.int64)
+        j = np.minimum(np.floor(v), h - 1).astype(np.int64)
+        return i, j
+
+    def contains(self, points_m) -> np.ndarray:
+        """Whether each point lies on the map (its closed extent)."""
+        u, v = self.to_grid(points_m)
+        h, w = self.shape
+        return (u >= 0) & (u <= w) & (v >= 0) & (v <= h)
+
+    def is_free(self, points_m) -> np.ndarray:
+        """Whether each point lies on the map in a free cell."""
+        inside = self.contains(points_m)
+        i, j = self.cells(points_m)
+        out = np.zeros(len(i), dtype=bool)
+        out[inside] = self.free[j[inside], i[inside]]
+        return out
+
+    def cell_centres_m(self) -> tuple[np.ndarray, np.ndarray]:
+        """World ``x`` of every column's centre and ``y`` of every row's centre."""
+        h, w = self.shape
+        r = self.resolution_m
+        return self.origin_m[0] + (np.arange(w) + 0.5) * r, self.origin_m[1] + (np.arange(h) + 0.5) * r
+
+    def check_area(self, side_m: float, key: str = MAP_KEY) -> None:
+        """Refuse a map that does not cover the area ``[0, side_m]^2`` or has no free cell in it."""
+        x0, x1, y0, y1 = self.extent_m
+        name = self.source or "<map>"
+        w_m, h_m = x1 - x0, y1 - y0
+        tol = 1e-9 * max(1.0, side_m)
+        if w_m < side_m - tol or h_m < side_m - tol:
+            raise ConfigError(
+                key,
+                name,
+                f"covers {w_m:g} m x {h_m:g} m, smaller than the area ({side_m:g} m x {side_m:g} m, world.side_m)",
+            )
+        if x0 > tol or y0 > tol or x1 < side_m - tol or y1 < side_m - tol:
+            raise ConfigError(
+                key,
+                name,
+                f"with origin [{x0:g}, {y0:g}] covers x in [{x0:g}, {x1:g}], y in [{y0:g}, {y1:g}], which does not "
+                f"contain the area [0, {side_m:g}] x [0, {side_m:g}]; the origin must be <= 0 and the map reach "
+                f"world.side_m",
+            )
+        cx, cy = self.cell_centres_m()
+        cols, rows = (cx >= 0) & (cx <= side_m), (cy >= 0) & (cy <= side_m)
+        if not self.free[np.ix_(rows, cols)].any():
+            raise ConfigError(key, name, "has no free cell inside the area [0, world.side_m]^2")
+
+
+def occupancy_from_pixels(
+    pixels: np.ndarray,
+    negate: bool,
+    occupied_thresh: float,
+    free_thresh: float,
+    mode: str = "trinary",
+    has_alpha: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``map_server``'s reading of an 8-bit image ``(H, W)`` or ``(H, W, C)``, top row first.
+
+    Returns ``(occupied, free)`` in image order (row 0 at the top).
+
+    >>> px = np.array([[0, 100, 254]], dtype=np.uint8)
+    >>> occ, free = occupancy_from_pixels(px, False, 0.65, 0.196)
+    >>> occ.tolist(), free.tolist()
+    ([[True, False, False]], [[False, False, True]])
+    """
+    px = np.asarray(pixels)
+    if px.ndim == 2:
+        px = px[:, :, None]
+    c = px.shape[2]
+    # As map_server: trinary mode averages an alpha channel in; scale mode leaves it out (and
+    # makes a transparent pixel unknown, which the thresholds below leave unknown anyway).
+    colour = (px[:, :, : c - 1] if has_alpha and mode != "trinary" else px).astype(float).mean(axis=2)
+    if negate:
+        colour = 255.0 - colour
+    p = (255.0 - colour) / 255.0
+    occupied = p > occupied_thresh
+    free = (p < free_thresh) & ~occupied
+    return occupied, free
+
+
+def _number(key, where, name, value, check, allowed):
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(key, where, f"'{name}: {value!r}' {allowed}")
+    if not (math.isfinite(value) and check(value)):
+        raise ConfigError(key, where, f"'{name}: {value!r}' {allowed}")
+    return float(value)
+
+
+def example_path(name: str) -> Path:
+    """The YAML file of a map shipped with netsim (``"office"`` or ``"cave"``)."""
+    return Path(str(resources.files("netsim.radio").joinpath("example_maps", f"{name}.yaml")))
+
+
+def load_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
+    """Read a ``map_server`` map: the path of its YAML file, or the name of an example map.
+
+    Every problem is a :class:`~netsim.errors.ConfigError` naming ``key`` and ``value``.
+    """
+    import yaml
+    from PIL import Image, UnidentifiedImageError
+
+    where = str(value)
+    path = example_path(where) if where in EXAMPLES else Path(where)
+    if not path.is_file():
+        raise ConfigError(
+            key, where, f"must be the path of a map_server YAML file or one of {', '.join(EXAMPLES)} (no such file)"
+        )
+    try:
+        meta = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(key, where, f"is not valid YAML ({first})") from None
+    if not isinstance(meta, dict):
+        raise ConfigError(key, where, f"must be a YAML mapping with the keys {', '.join(REQUIRED)}")
+    missing = [k for k in REQUIRED if k not in meta]
+    if missing:
+        raise ConfigError(key, where, f"lacks {', '.join(missing)} (a map_server YAML needs {', '.join(REQUIRED)})")
+
+    resolution = _number(key, where, "resolution", meta["resolution"], lambda v: v > 0, "must be a number > 0 (m)")
+    origin = meta["origin"]
+    if (
+        not isinstance(origin, list | tuple)
+        or len(origin) != 3
+        or any(isinstance(o, bool) or not isinstance(o, int | float) or not math.isfinite(o) for o in origin)
+    ):
+        raise ConfigError(key, where, f"'origin: {origin!r}' must be [x, y, yaw], three finite numbers")
+    if origin[2] != 0:
+        raise ConfigError(key, where, f"'origin: {origin!r}': a yaw other than 0 is not supported (rotate the image)")
+    negate = meta["negate"]
+    if negate not in (0, 1) or (not isinstance(negate, bool | int)):
+        raise ConfigError(key, where, f"'negate: {negate!r}' must be 0 or 1")
+    occ_t = _number(
+        key, where, "occupied_thresh", meta["occupied_thresh"], lambda v: 0 <= v <= 1, "must be a number in [0, 1]"
+    )
+    free_t = _number(
+        key, where, "free_thresh", meta["free_thresh"], lambda v: 0 <= v <= 1, "must be a number in [0, 1]"
+    )
+    if free_t > occ_t:
+        raise ConfigError(
+            key, where, f"'free_thresh: {free_t:g}' must not exceed 'occupied_thresh: {occ_t:g}' (bad thresholds)"
+        )
+    mode = meta.get("mode", "trinary")
+    if mode not in ("trinary", "scale"):
+        raise ConfigError(key, where, f"'mode: {mode!r}' must be trinary or scale (raw maps carry no walls)")
+    image = meta["image"]
+    if not isinstance(image, str) or not image:
+        raise ConfigError(key, where, f"'image: {image!r}' must name the map's image file")
+    image_path = Path(image) if Path(image).is_absolute() else path.parent / image
+    if not image_path.is_file():
+        raise ConfigError(key, where, f"'image: {image}': no such file ({image_path})")
+    try:
+        with Image.open(image_path) as img:
+            img.load()
+            pixels, has_alpha = _pixels(img, key, where, image)
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+        raise ConfigError(key, where, f"'image: {image}' is not a readable PGM or PNG image ({exc})") from None
+    occupied, free = occupancy_from_pixels(pixels, bool(negate), occ_t, free_t, mode, has_alpha)
+    # Image row 0 is the top of the map; the grid's row 0 is its bottom (lowest y).
+    return OccupancyMap(
+        np.ascontiguousarray(occupied[::-1]),
+        np.ascontiguousarray(free[::-1]),
+        resolution,
+        (float(origin[0]), float(origin[1])),
+        where,
+    )
+
+
+def _pixels(img, key, where, image) -> tuple[np.ndarray, bool]:
+    mode = img.mode
+    if mode in ("I", "I;16", "I;16B", "I;16L", "F"):
+        raise ConfigError(key, where, f"'image: {image}' has {mode} pixels; save it with 8 bits per channel")
+    if mode == "1":
+        img = img.convert("L")
+    elif mode == "P":
+        img = img.convert("RGBA" if "transparency" in img.info else "RGB")
+    elif mode not in ("L", "LA", "RGB", "RGBA"):
+        img = img.convert("RGB")
+    return np.asarray(img, dtype=np.uint8), img.mode in ("LA", "RGBA")
+
+
+def save_map(
+    path: str | Path,
+    occupied: np.ndarray,
+    free: np.ndarray,
+    resolution_m: float,
+    origin_m=(0.0, 0.0),
+    occupied_thresh: float = 0.65,
+    free_thresh: float = 0.196,
+) -> Path:
+    """Write a map as ``map_saver`` does: a PGM (occupied 0, free 254, unknown 205) and its YAML.
+
+    ``occupied`` and ``free`` are in grid order (row 0 at the bottom). Returns the YAML path.
+    """
+    from PIL import Image
+
+    path = Path(path)
+    px = np.full(occupied.shape, 205, dtype=np.uint8)
+    px[free] = 254
+    px[occupied] = 0
+    image = path.with_suffix(".pgm")
+    Image.fromarray(px[::-1]).save(image)
+    path.write_text(
+        f"image: {image.name}\n"
+        f"resolution: {resolution_m:g}\n"
+        f"origin: [{float(origin_m[0]):g}, {float(origin_m[1]):g}, 0.0]\n"
+        "negate: 0\n"
+        f"occupied_thresh: {occupied_thresh:g}\n"
+        f"free_thresh: {free_thresh:g}\n"
+    )
+    return path
+
+
+def _stamp(value: str) -> tuple:
+    path = example_path(value) if value in EXAMPLES else Path(value)
+    try:
+        st = path.stat()
+    except OSError:
+        return (value, None, None)
+    return (value, st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=8)
+def _cached(stamp: tuple, key: str) -> OccupancyMap:
+    return load_map(stamp[0], key)
+
+
+def cached_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
+    """:func:`load_map`, read once per file version (a sweep's runs share one map)."""
+    return _cached(_stamp(str(value)), key)

@@ -1,0 +1,289 @@
+"""Log-normal shadowing per pair: reciprocal, still while the pair is still, decorrelating with motion.
+
+The model
+---------
+Each unordered pair ``{i, j}`` has its own shadowing ``X_ij`` in dB, Gaussian with mean 0
+and standard deviation ``sigma``, the same in both directions (reciprocity). ``X_ij`` is a
+function of the pair's *travel* ``s_ij(t)``: the sum of the two robots' path lengths since
+t = 0. It is an Ornstein-Uhlenbeck process in ``s`` (Gudmundson's exponential model):
+
+    corr(X(s), X(s + delta)) = exp(-delta / d_corr)
+
+so it is constant while neither robot moves, and forgets as either one travels. Why the sum
+of path lengths and not, say, the change of the pair's geometry: shadowing comes from the
+obstacles around each end of the link; either robot moving among them changes it, even when
+both move in parallel and their separation stays the same. And ``s`` only grows, so the
+process is well defined whatever the order in which it is looked at.
+
+Sampling
+--------
+:class:`PairShadowing` keeps, per pair seen so far, the last value and the travel at which
+it was drawn. Looked at again at travel ``s'``, the pair moves on by the exact conditional
+law of the process, ``X' = rho X + sigma sqrt(1 - rho^2) Z`` with
+``rho = exp(-(s' - s) / d_corr)``, one standard normal ``Z`` per pair from the generator
+handed in. Because the process is Markov, the values seen at any sequence of travels have
+exactly the joint law of the process at those travels: the correlation is
+``exp(-delta / d_corr)`` whatever the schedule (every Ack, every 10 s, or irregular). A
+pair seen for the first time draws from the stationary law ``N(0, sigma^2)``. With
+``sigma = 0`` nothing is drawn at all and the links are exactly the unit disk of the implied
+range.
+
+The value returned is clipped to +-4 sigma (``TRUNCATION_SIGMAS``; the stored state is not
+clipped, so the dynamics stay exact): the neighbour search then has a finite radius, and the
+probability that a pair at distance ``d`` links is exactly
+``Phi((P_t - PL(d) - sensitivity) / sigma)`` wherever that lies in ``[3.2e-5, 1 - 3.2e-5]``
+(0 and 1 outside).
+
+Link events under shadowing
+---------------------------
+Two ways to say when a link is up, with their exactness:
+
+- **Evaluated at each transmission** (``step_m = 0``, the default). ``X`` is drawn where
+  the channel needs it, at send time, for the pairs within reach. Every reception decision
+  is exact for the process above. Between two transmissions of a pair the process is not
+  looked at, so "when did the link come up" has no exact answer, only "which frames got
+  through"; a link table is then a record of receptions (or of decisions at send time).
+- **Piecewise constant in travel** (``step_m > 0``, e.g. ``d_corr / 10``). ``X_ij`` only
+  changes when ``s_ij`` crosses a multiple of ``step_m``; between such steps (and between
+  changes of the walls crossed) a link is the distance threshold
+  :func:`~netsim.radio.propagation.effective_range_m` of the pair's ``X`` and walls, so its up
+  and down times are the roots of the same quadratic as a unit disk's, solved exactly; the
+  step times are exact too (:func:`travel_steps`: ``s_ij`` is piecewise linear in time). The
+  values at consecutive steps are the process sampled every ``step_m``: correlation exactly
+  ``exp(-m step / d_corr)`` at ``m`` steps, and between grid points the linear interpolation
+  of the exponential (at ``step_m = d_corr / 10``, within 0.0012 of ``exp(-delta / d_corr)``).
+  A solver and the channel see the same ``X`` when they ask the same :class:`PairShadowing`
+  in time order (the solver for a time window before the channel sends in it).
+
+Memory: one entry per pair ever looked at (16 bytes of state and a key). :meth:`forget`
+drops pairs that have travelled more than ``horizon`` decorrelation lengths since they were
+last seen (correlation below ``exp(-horizon)``, by default 2e-9): on their next look they
+draw afresh from the stationary law, which is the exact law up to that correlation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from netsim.errors import ConfigError
+from netsim.radio.propagation import TRUNCATION_SIGMAS
+
+_KERNEL = []
+
+
+def _kernel():
+    """The compiled update (:mod:`netsim.radio._kernels`), or None without numba."""
+    if not _KERNEL:
+        try:
+            from netsim.radio._kernels import shadow_step
+        except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
+            shadow_step = None
+        _KERNEL.append(shadow_step)
+    return _KERNEL[0]
+
+
+# Above this many robots pairs get slots as they are first seen (see PairShadowing).
+DENSE_MAX_ROBOTS = 3000
+
+_SHIFT = np.int64(32)
+_LOW = np.int64((1 << 32) - 1)
+
+
+def pair_keys(a, b) -> np.ndarray:
+    """One int64 key per unordered pair: ``min << 32 | max`` (robot ids below 2**31)."""
+    a = np.asarray(a, dtype=np.int64)
+    b = np.asarray(b, dtype=np.int64)
+    return (np.minimum(a, b) << _SHIFT) | np.maximum(a, b)
+
+
+def split_keys(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two robots of each key, lower id first."""
+    return keys >> _SHIFT, keys & _LOW
+
+
+class PairShadowing:
+    """Shadowing of every pair, sampled on demand in non-decreasing travel.
+
+    Parameters
+    ----------
+    sigma_db : standard deviation of ``X`` (dB); 0 turns shadowing off (nothing drawn).
+    decorrelation_m : Gudmundson's decorrelation distance ``d_corr`` (metres of pair travel).
+    rng : the component's own generator (e.g. ``sim.streams.get("shadowing")``).
+    step_m : 0 to evaluate the process at each look; > 0 for a process piecewise constant
+        in travel, changing at multiples of ``step_m`` (see the module notes).
+    n_robots : when given and at most ``DENSE_MAX_ROBOTS``, every pair's slot is made at
+        once (unseen: NaN), so that a pair seen for the first time costs a lookup, not an
+        insertion into the sorted table (which copies it: ruinous when a run of a thousand
+        robots meets new pairs at every transmission). Memory: 24 bytes per pair.
+    """
+
+    def __init__(
+        self,
+        sigma_db: float,
+        decorrelation_m: float,
+        rng: np.random.Generator,
+        step_m: float = 0.0,
+        n_robots: int | None = None,
+    ):
+        if not (np.isfinite(sigma_db) and sigma_db >= 0):
+            raise ConfigError("channel.shadowing_sigma_db", sigma_db, "must be a finite number >= 0 (dB)")
+        if not (np.isfinite(decorrelation_m) and decorrelation_m > 0):
+            raise ConfigError("channel.shadowing_decorrelation_m", decorrelation_m, "must be a finite number > 0 (m)")
+        if not (np.isfinite(step_m) and step_m >= 0):
+            raise ConfigError("channel.shadowing_step_m", step_m, "must be a finite number >= 0 (m)")
+        self.sigma_db = float(sigma_db)
+        self.decorrelation_m = float(decorrelation_m)
+        self.step_m = float(step_m)
+        self.rng = rng
+        self.clip_db = TRUNCATION_SIGMAS * self.sigma_db
+        self._keys = np.empty(0, dtype=np.int64)
+        self._x = np.empty(0)
+        self._s = np.empty(0)
+        self.dense = n_robots is not None and 1 < n_robots <= DENSE_MAX_ROBOTS
+        # Robots whose pairs all have slots (their place then computed, not searched); 0: none.
+        self.dense_n = int(n_robots) if self.dense else 0
+        if self.dense:
+            i, j = np.triu_indices(int(n_robots), 1)
+            self._keys = pair_keys(i, j)  # ascending: i major, j minor
+            self._x = np.full(len(self._keys), np.nan)
+            self._s = np.zeros(len(self._keys))
+        self.draws = 0
+
+    def __len__(self) -> int:
+        """Pairs seen so far (and not forgotten)."""
+        return int(np.count_nonzero(~np.isnan(self._x)))
+
+    def _anchor(self, travel_m: np.ndarray) -> np.ndarray:
+        if self.step_m > 0:
+            return np.floor(travel_m / self.step_m) * self.step_m
+        return travel_m
+
+    def state(self, a, b) -> tuple[np.ndarray, np.ndarray]:
+        """Stored (unclipped) value and anchor travel of each pair; NaN for pairs never seen."""
+        keys = pair_keys(a, b)
+        x = np.full(len(keys), np.nan)
+        s = np.full(len(keys), np.nan)
+        n = len(self._keys)
+        if n:
+            pos = np.minimum(np.searchsorted(self._keys, keys), n - 1)
+            found = (self._keys[pos] == keys) & ~np.isnan(self._x[pos])
+            x[found] = self._x[pos[found]]
+            s[found] = self._s[pos[found]]
+        return x, s
+
+    def sample(self, a, b, travel_m) -> np.ndarray:
+        """``X`` (dB, clipped to +-4 sigma) of pairs ``(a[k], b[k])`` at pair travels ``travel_m[k]``.
+
+        A pair's travel must not decrease from one look to the next (it is a sum of path
+        lengths); a pair may appear twice in a batch (both directions) only at the same
+        travel. One standard normal is drawn per item of the batch; a pair moves on with the
+        draw of its first appearance.
+        """
+        a = np.asarray(a, dtype=np.int64)
+        k = len(a)
+        if self.sigma_db == 0.0 or k == 0:
+            return np.zeros(k)
+        keys = pair_keys(a, b)
+        s_new = self._anchor(np.array(np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))))
+        z = self.rng.standard_normal(k)
+        self.draws += k
+        kernel = _kernel()
+        if kernel is None:
+            x = self._sample_numpy(keys, s_new, z)
+        else:
+            x = np.empty(k)
+            new = np.empty(k, dtype=np.bool_)
+            kernel(
+                self._keys, self._x, self._s, keys, s_new, z, self.sigma_db, self.decorrelation_m, x, new, self.dense_n
+            )
+            if new.any():
+                idx = np.flatnonzero(new)
+                uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)
+                fresh = self.sigma_db * z[idx[first]]
+                x[idx] = fresh[inverse]
+                self._insert(uniq, fresh, s_new[idx[first]])
+        return np.clip(x, -self.clip_db, self.clip_db)
+
+    def _insert(self, keys, x, s) -> None:
+        at = np.searchsorted(self._keys, keys)
+        if self.dense:
+            self._x[at] = x
+            self._s[at] = s
+            return
+        self._keys = np.insert(self._keys, at, keys)
+        self._x = np.insert(self._x, at, x)
+        self._s = np.insert(self._s, at, s)
+
+    def _sample_numpy(self, keys, s_new, z) -> np.ndarray:
+        """What the compiled kernel computes, in numpy operations (the fallback without numba)."""
+        order = np.argsort(keys, kind="stable")
+        sk = keys[order]
+        first = np.r_[True, sk[1:] != sk[:-1]]
+        uniq = sk[first]
+        inverse = np.empty(len(keys), dtype=np.int64)
+        inverse[order] = np.cumsum(first) - 1
+        lead = order[first]  # each pair's first appearance in the batch
+        zu, su = z[lead], s_new[lead]
+        n_old = len(self._keys)
+        pos = np.searchsorted(self._keys, uniq)
+        if n_old:
+            at_ = np.minimum(pos, n_old - 1)
+            found = (self._keys[at_] == uniq) & ~np.isnan(self._x[at_])
+        else:
+            found = np.zeros(len(uniq), dtype=bool)
+        x = self.sigma_db * zu
+        if found.any():
+            at = pos[found]
+            delta = np.maximum(su[found] - self._s[at], 0.0)
+            rho = np.exp(-delta / self.decorrelation_m)
+            x[found] = rho * self._x[at] + self.sigma_db * np.sqrt(1.0 - rho * rho) * zu[found]
+            self._x[at] = x[found]
+            self._s[at] = np.maximum(su[found], self._s[at])
+        if (~found).any():
+            self._insert(uniq[~found], x[~found], su[~found])
+        return x[inverse]
+
+    def forget(self, odometer_m, horizon: float = 20.0) -> int:
+        """Drop pairs whose travel since their last look exceeds ``horizon`` ``d_corr``.
+
+        ``odometer_m`` is every robot's path length now. Returns the number dropped.
+        """
+        if len(self._keys) == 0:
+            return 0
+        odo = np.asarray(odometer_m, dtype=float)
+        lo, hi = split_keys(self._keys)
+        stale = odo[lo] + odo[hi] - self._s > horizon * self.decorrelation_m
+        stale &= ~np.isnan(self._x)
+        if stale.any() and self.dense:
+            self._x[stale] = np.nan
+        elif stale.any():
+            keep = ~stale
+            self._keys, self._x, self._s = self._keys[keep], self._x[keep], self._s[keep]
+        return int(stale.sum())
+
+
+def travel_steps(travel0_m, rate_mps, t0_s, t1_s, step_m: float):
+    """Times in ``(t0, t1]`` at which a pair's travel crosses a multiple of ``step_m``.
+
+    ``travel0_m`` is each pair's travel at ``t0_s`` and ``rate_mps`` the sum of the two
+    robots' speeds (constant while both keep their legs). Returns ``(pair, t_s)`` arrays,
+    grouped by pair in time order: the instants where a piecewise-constant shadowing value
+    changes, between which a link is a fixed distance threshold.
+
+    >>> pair, t = travel_steps([0.5, 3.0], [1.0, 0.0], 0.0, 2.0, 1.0)
+    >>> pair.tolist(), t.tolist()
+    ([0, 0], [0.5, 1.5])
+    """
+    s0 = np.asarray(travel0_m, dtype=float)
+    rate = np.broadcast_to(np.asarray(rate_mps, dtype=float), s0.shape)
+    t0 = np.broadcast_to(np.asarray(t0_s, dtype=float), s0.shape)
+    t1 = np.broadcast_to(np.asarray(t1_s, dtype=float), s0.shape)
+    s1 = s0 + rate * (t1 - t0)
+    first = np.floor(s0 / step_m) + 1
+    last = np.floor(s1 / step_m)
+    n = np.maximum(last - first + 1, 0).astype(np.int64)
+    pair = np.repeat(np.arange(len(s0)), n)
+    offset = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+    level = (first[pair] + offset) * step_m
+    t = t0[pair] + (level - s0[pair]) / rate[pair]
+    return pair, t

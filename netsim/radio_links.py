@@ -1,0 +1,189 @@
+"""Link lifetimes under a radio other than the plain unit disk: walls and shadowing.
+
+How exact they are (docs/radio.md says the same for users):
+
+- **Log-distance without shadowing or walls**: a link is the distance threshold of the
+  implied range, solved exactly by :func:`netsim.lifetimes.link_lifetimes` (never here).
+- **Walls, no shadowing** (unit disk with line of sight, or log-distance with
+  ``wall_loss_db`` per wall): a link can only be up while the two robots are within the
+  radio's largest range, and those intervals are solved exactly first (the *envelope*).
+  Within each, the link's state (range or received power, and the walls crossed) is
+  evaluated at samples no farther apart than ``SAMPLE_M / v_max`` seconds (so that no
+  robot moves more than ``SAMPLE_M`` metres between two), and every change between two
+  samples is located by bisection to ``TOLERANCE_S``. An event time is therefore exact to
+  within ``TOLERANCE_S``; what can be missed is a change of state that is undone before the
+  next sample (the line between two robots sweeping past a pillar or a doorway's edge
+  while they move less than ``SAMPLE_M``). With robots at rest nothing is missed.
+- **Shadowing**: a link is random; its state is only defined where the channel looks at it,
+  at transmissions (:class:`~netsim.reception.LinkRecorder`). A link is up from the first
+  transmission between the two robots (either way) that gets through to the first that
+  does not; it goes down at the latest when the two leave the radio's reach (solved
+  exactly). So up times are send times, exact as the channel decided them, and a link
+  between robots that never transmit is never seen.
+
+Censoring follows :func:`netsim.lifetimes.link_lifetimes`: ``censored_start`` for a link up
+at t = 0, ``censored_end`` for one still up at the end.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from netsim.lifetimes import COLUMNS, link_lifetimes
+from netsim.radio.propagation import Pairs
+from netsim.trajectory import LegTable
+
+SAMPLE_M = 1.0
+TOLERANCE_S = 1e-6
+
+
+def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``.
+
+    The queries are merged with the legs (each robot's legs are contiguous and in time
+    order): a query's leg is the last leg of its robot that starts at or before it."""
+    robots = np.asarray(robots, np.int64)
+    times = np.asarray(times, float)
+    leg_robot = np.repeat(np.arange(len(L.first)), L.end - L.first)
+    k, m = len(robots), len(L.t)
+    # Sort legs and queries together by (robot, time), a leg before a query at the same time.
+    key_robot = np.r_[leg_robot, robots]
+    key_t = np.r_[L.t, times]
+    is_query = np.r_[np.zeros(m, np.int8), np.ones(k, np.int8)]
+    order = np.lexsort((is_query, key_t, key_robot))
+    legs_before = np.cumsum(is_query[order] == 0)
+    where = np.empty(m + k, np.int64)
+    where[order] = legs_before - 1
+    leg = np.maximum(where[m:], L.first[robots])
+    return L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None]
+
+
+def _frame(a, b, t_up, t_down, duration_s: float, open_end) -> pd.DataFrame:
+    out = pd.DataFrame(
+        {
+            "a": np.asarray(a, np.int64),
+            "b": np.asarray(b, np.int64),
+            "t_up_s": np.asarray(t_up, float),
+            "t_down_s": np.asarray(t_down, float),
+        }
+    )
+    out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
+    out["censored_end"] = np.asarray(open_end, bool)
+    out["censored"] = out["censored_start"] | out["censored_end"]
+    return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
+
+
+def radio_link_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float, side_m=None, torus=False):
+    """The links table of a run whose channel decides receptions with ``reception``."""
+    n = len(ranges_m)
+    if reception.recorder is not None:
+        return recorded_lifetimes(reception.recorder, legs, n, reception.reach_m, duration_s, side_m, torus)
+    if reception.map is None:
+        # Log-distance without shadowing or walls: the unit disk of the implied range, exactly.
+        return link_lifetimes(legs, ranges_m, duration_s, side_m, torus)
+    return walled_lifetimes(reception, legs, ranges_m, duration_s)
+
+
+def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float, side_m=None, torus=False):
+    """Decisions of the channel, each interval cut where the pair leaves the reach."""
+    rec = recorder.intervals(duration_s)
+    if len(rec) == 0:
+        return _frame([], [], [], [], duration_s, [])
+    env = link_lifetimes(legs, np.full(n, reach_m), duration_s, side_m, torus)
+    env = env.sort_values("t_up_s", kind="stable")
+    rec = rec.sort_values("t_up_s", kind="stable")
+    # The envelope interval in which each recorded interval began.
+    m = pd.merge_asof(
+        rec,
+        env[["a", "b", "t_up_s", "t_down_s", "censored_end"]].rename(
+            columns={"t_up_s": "env_up", "t_down_s": "env_down", "censored_end": "env_open"}
+        ),
+        left_on="t_up_s",
+        right_on="env_up",
+        by=["a", "b"],
+        direction="backward",
+    )
+    env_down = m["env_down"].to_numpy(float)
+    has_env = ~np.isnan(env_down)
+    t_down = m["t_down_s"].to_numpy(float)
+    cut = has_env & (env_down < t_down)
+    t_down = np.where(cut, env_down, t_down)
+    open_end = np.where(cut, m["env_open"].fillna(False).to_numpy(bool), m["open"].to_numpy(bool))
+    open_end &= t_down >= duration_s
+    return _frame(m["a"], m["b"], m["t_up_s"], t_down, duration_s, open_end)
+
+
+def _linked(reception, ranges: np.ndarray, equal_ranges: bool, a, b, pa, pb) -> np.ndarray:
+    d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
+    chain = reception.compiled
+    up = chain.receivable(Pairs(a, b, pa, pb, d))
+    if not equal_ranges:  # unit disk with unequal ranges: both must hear each other
+        up &= chain.receivable(Pairs(b, a, pb, pa, d))
+    return up
+
+
+def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float) -> pd.DataFrame:
+    """Links on a map without shadowing: sampled within the exact envelope, changes bisected."""
+    ranges = np.asarray(ranges_m, float)
+    n = len(ranges)
+    equal = bool(np.all(ranges == ranges[0])) if n else True
+    outer = float(reception.propagation.range_m) if not np.isfinite(reception.reach_m) else reception.reach_m
+    env = link_lifetimes(legs, np.full(n, outer) if equal else ranges, duration_s)
+    if len(env) == 0:
+        return env
+    L = LegTable(legs, n)
+    v_max = float(np.hypot(L.v[:, 0], L.v[:, 1]).max()) if len(L.v) else 0.0
+    h = SAMPLE_M / v_max if v_max > 0 else np.inf
+    a_env, b_env = env["a"].to_numpy(np.int64), env["b"].to_numpy(np.int64)
+    t0, t1 = env["t_up_s"].to_numpy(float), env["t_down_s"].to_numpy(float)
+    span = t1 - t0
+    count = np.where(np.isfinite(h), np.ceil(span / h), 1).astype(np.int64)
+    count = np.maximum(count, 1)
+    # Samples t0, t0 + step, ... < t1 of each envelope interval (step = span / count <= h).
+    iv = np.repeat(np.arange(len(env)), count)
+    k = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    step = span / count
+    ts = t0[iv] + k * step[iv]
+    a, b = a_env[iv], b_env[iv]
+
+    def state(a, b, t):
+        return _linked(reception, ranges, equal, a, b, positions(L, a, t), positions(L, b, t))
+
+    # The first sample is taken just inside the envelope: at its very start the distance is
+    # the range itself, which rounding may put on either side.
+    first = k == 0
+    ts_eval = ts.copy()
+    ts_eval[first] += np.minimum(TOLERANCE_S, 0.5 * step[iv[first]])
+    up = state(a, b, ts_eval)
+    # A change between sample j and j + 1 of the same interval: bisect it.
+    same = np.r_[iv[1:] == iv[:-1], False]
+    chg = np.flatnonzero(same & (up != np.r_[up[1:], False]))
+    lo, hi = ts_eval[chg], ts_eval[chg + 1]
+    before = up[chg]
+    ca, cb = a[chg], b[chg]
+    while len(chg) and np.max(hi - lo) > TOLERANCE_S:
+        mid = 0.5 * (lo + hi)
+        s = state(ca, cb, mid)
+        moved = s == before
+        lo = np.where(moved, mid, lo)
+        hi = np.where(moved, hi, mid)
+    # Events: the first sample's state at t0, each change at hi, down at t1 if up at the end.
+    last = np.r_[iv[1:] != iv[:-1], True]
+    ev_t = np.r_[ts[k == 0], hi, t1[iv[last]]]
+    ev_iv = np.r_[iv[k == 0], iv[chg], iv[last]]
+    ev_up = np.r_[up[k == 0], ~before, np.zeros(int(last.sum()), bool)]
+    ev_order = np.r_[np.zeros(int((k == 0).sum())), np.ones(len(chg)), np.full(int(last.sum()), 2)]
+    order = np.lexsort((ev_order, ev_t, ev_iv))
+    ev_t, ev_iv, ev_up = ev_t[order], ev_iv[order], ev_up[order]
+    # Keep the events that change the state (each interval starts down).
+    prev = np.r_[False, np.where(ev_iv[1:] == ev_iv[:-1], ev_up[:-1], False)]
+    keep = ev_up != prev
+    ev_t, ev_iv, ev_up = ev_t[keep], ev_iv[keep], ev_up[keep]
+    ups = np.flatnonzero(ev_up)
+    # After filtering, each up is followed by its down in the same interval.
+    downs = ups + 1
+    i = ev_iv[ups]
+    t_down = ev_t[downs]
+    open_end = env["censored_end"].to_numpy(bool)[i] & (t_down >= t1[i])
+    return _frame(a_env[i], b_env[i], ev_t[ups], t_down, duration_s, open_end)

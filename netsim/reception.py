@@ -1,0 +1,90 @@
+"""The radio's reception decision inside the channel, and the record of its decisions.
+
+:class:`Reception` asks a :class:`~netsim.radio.propagation.Propagation` (compiled,
+:class:`~netsim.radio.fast.CompiledChain`) which of a transmission's candidate receivers
+(every robot within the radio's reach) can hear it: path loss or range, then shadowing,
+then walls, each pair dropped as soon as it cannot make it. Shadowing is looked at then,
+at the pair's travel (the sum of both robots' path lengths), from the channel's own
+stream ``channel.shadowing``.
+
+Under shadowing a link has no solvable up and down times (see docs/radio.md): the links
+table is then the record of these decisions (:class:`LinkRecorder`): every decision is
+symmetric (path loss, shadowing and walls are the same both ways, and every robot sends
+with the same power), so each transmission tells the state of the sender's link with each
+robot within reach.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from netsim.radio.fast import CompiledChain
+from netsim.radio.propagation import Pairs, Propagation
+from netsim.state import RobotState
+
+
+class LinkRecorder:
+    """Links as the channel decides them: up from the first transmission between two robots
+    (either way) that gets through, down at the first that does not, or when one of them
+    sends while the other is beyond reach."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.up = np.zeros((n, n), dtype=bool)
+        self._since: dict[tuple[int, int], float] = {}
+        self._rows: list[tuple[int, int, float, float]] = []
+
+    def observe(self, t: float, sender: int, receivers: np.ndarray, linked: np.ndarray) -> None:
+        row = self.up[sender]
+        now = np.zeros(self.n, dtype=bool)
+        now[receivers[linked]] = True
+        changed = np.flatnonzero(row != now)
+        if len(changed) == 0:
+            return
+        for r, is_up in zip(changed.tolist(), now[changed].tolist()):
+            key = (sender, r) if sender < r else (r, sender)
+            if is_up:
+                self._since[key] = t
+            else:
+                self._rows.append((key[0], key[1], self._since.pop(key), t))
+        self.up[sender, changed] = now[changed]
+        self.up[changed, sender] = now[changed]
+
+    def intervals(self, duration_s: float) -> pd.DataFrame:
+        """``a, b, t_up_s, t_down_s, open`` (still up at the end: ``t_down_s`` = duration)."""
+        rows = self._rows + [(a, b, t, duration_s) for (a, b), t in self._since.items()]
+        df = pd.DataFrame(rows, columns=["a", "b", "t_up_s", "t_down_s"])
+        df["open"] = np.r_[np.zeros(len(self._rows), bool), np.ones(len(self._since), bool)]
+        return df.astype({"a": np.int64, "b": np.int64, "t_up_s": float, "t_down_s": float})
+
+
+class Reception:
+    """Which candidate receivers hear a frame, for one run."""
+
+    def __init__(self, propagation: Propagation, state: RobotState, record: bool = False):
+        self.propagation = propagation
+        self.compiled = CompiledChain(propagation)
+        self.state = state
+        self.reach_m = float(propagation.reach_m)
+        self.map = self.compiled.occupancy
+        self.shadowing = self.compiled.shadow
+        self.recorder = LinkRecorder(state.n) if record else None
+
+    def decide(self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+        """Mask of ``receivers`` (at ``distances_m`` from ``sender``) that hear ``sender`` at ``t``."""
+        k = len(receivers)
+        st = self.state
+        a = np.full(k, sender, dtype=np.int64)
+        if self.map is not None:
+            pos_a = np.broadcast_to(st.positions_at(t, [sender]), (k, 2))
+            pos_b = st.positions_at(t, receivers)
+        else:
+            pos_a = pos_b = None
+        travel = None
+        if self.shadowing is not None:
+            travel = st.travelled_m(t, receivers) + float(st.travelled_m(t, [sender])[0])
+        linked = self.compiled.receivable(Pairs(a, receivers, pos_a, pos_b, distances_m, travel))
+        if self.recorder is not None:
+            self.recorder.observe(t, sender, receivers, linked)
+        return linked

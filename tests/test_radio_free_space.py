@@ -1,0 +1,140 @@
+"""Map helpers for mobility: free positions, free legs, waypoints, the push from walls; example maps."""
+
+import numpy as np
+import pytest
+
+from netsim.errors import ConfigError
+from netsim.radio import examples
+from netsim.radio.free_space import (
+    clearance_field_m,
+    draw_destinations,
+    free_fraction,
+    legs_free,
+    obstacle_field,
+    sample_free,
+    wall_forces,
+)
+from netsim.radio.los import walls_crossed
+from netsim.radio.maps import OccupancyMap, load_map
+
+
+def _rooms():
+    """A 20 m x 10 m map, 0.5 m cells: a wall at x = 10 m with a door for y in [4, 6)."""
+    occ = np.zeros((20, 40), dtype=bool)
+    occ[:, 20] = True
+    occ[8:12, 20] = False
+    unknown = np.zeros_like(occ)
+    unknown[0:4, 0:4] = True  # an unexplored corner
+    return OccupancyMap(occ, ~occ & ~unknown, 0.5, (0.0, 0.0), "rooms")
+
+
+def test_sample_free_is_uniform_over_free_cells(rng):
+    """Every draw is free; per-cell counts match the free area (chi-square-like bound)."""
+    m = _rooms()
+    pos = sample_free(m, rng, 40000, 10.0)
+    assert m.is_free(pos).all()
+    assert ((pos >= 0) & (pos <= 10.0)).all()
+    # The area [0, 10]^2 holds 20 x 20 cells of which 16 are unknown: each free cell gets 1/384.
+    i, j = m.cells(pos)
+    counts = np.bincount(j * 40 + i, minlength=800).reshape(20, 40)[:, :20]
+    free_counts = counts[m.free[:, :20]]
+    assert len(free_counts) == 384
+    expected = 40000 / 384
+    assert np.abs(free_counts - expected).max() < 5 * np.sqrt(expected)
+    assert counts[~m.free[:, :20]].sum() == 0
+
+
+def test_sample_free_with_clearance(rng):
+    m = _rooms()
+    pos = sample_free(m, rng, 2000, 20.0, clearance_m=2.0)
+    occ_x = 10.25  # the wall's centre line
+    assert (np.abs(pos[:, 0] - occ_x) >= 2.0).all()
+    with pytest.raises(ConfigError, match="world.map = 'rooms': has no free cell.*clearance of 50 m"):
+        sample_free(m, rng, 1, 20.0, clearance_m=50.0)
+
+
+def test_legs_free_refuses_walls_and_unknown_but_passes_doors():
+    m = _rooms()
+    s = np.array([[5.0, 8.0], [5.0, 5.0], [1.0, 5.0], [5.0, 9.0]])
+    e = np.array([[15.0, 8.0], [15.0, 5.0], [1.0, 1.0], [6.0, 9.5]])
+    assert legs_free(m, s, e).tolist() == [False, True, False, True]
+
+
+def test_free_fraction_stops_short_of_the_wall():
+    m = _rooms()
+    s = np.array([[5.0, 8.0], [5.0, 5.0], [5.0, 8.0]])
+    e = np.array([[15.0, 8.0], [15.0, 5.0], [15.0, 8.0 + 1e-7]])
+    f = free_fraction(m, s, e)
+    assert f[1] == 1.0
+    assert f[0] == pytest.approx(0.5, abs=1e-6) and f[0] < 0.5
+    stop = s + f[:, None] * (e - s)
+    assert legs_free(m, s, stop).all()
+    assert m.is_free(stop).all()
+
+
+def test_destinations_are_free_and_reachable_in_a_straight_line(rng):
+    m = _rooms()
+    here = sample_free(m, rng, 300, 20.0)
+    dest = draw_destinations(m, rng, here, 20.0)
+    assert m.is_free(dest).all()
+    assert legs_free(m, here, dest).all()
+    # Robots do leave their room through the door.
+    assert ((here[:, 0] < 10) & (dest[:, 0] > 10.5)).any()
+
+
+def test_walled_in_robot_is_reported():
+    occ = np.zeros((10, 10), dtype=bool)
+    occ[7:, :] = True
+    occ[9, 9] = False  # a one-cell pocket, walled off from the room below
+    m = OccupancyMap(occ, ~occ, 1.0, (0.0, 0.0), "cells")
+    with pytest.raises(ConfigError, match=r"world.map = 'cells': a robot at \(9.5, 9.5\) sees no free destination"):
+        draw_destinations(m, np.random.default_rng(1), [[9.5, 9.5]], 10.0, batch=2, max_rounds=2)
+
+
+def test_wall_forces_push_away_within_the_margin():
+    m = _rooms()
+    field = obstacle_field(m)
+    f = wall_forces(m, field, [[9.0, 8.0], [11.6, 8.0], [3.0, 8.0]], margin_m=2.0, gain=1.0)
+    assert f[0, 0] < 0 and abs(f[0, 1]) < 1e-9  # left of the wall: pushed left
+    assert f[1, 0] > 0  # right of it: pushed right
+    assert np.array_equal(f[2], [0.0, 0.0])  # beyond the margin: nothing
+    assert abs(f[0, 0]) > abs(wall_forces(m, field, [[8.5, 8.0]], 2.0, 1.0)[0, 0])  # stronger closer
+
+
+def test_clearance_field_is_distance_to_nearest_non_free_cell():
+    m = _rooms()
+    d = clearance_field_m(m)
+    assert d[15, 15] == pytest.approx(2.5)  # 5 cells left of the wall column
+    assert d[10, 15] == pytest.approx(0.5 * np.hypot(5, 2))  # beside the door: to the door's jamb
+    assert d[15, 21] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("name", ["office", "cave"])
+def test_shipped_examples_match_their_generator(name):
+    """The shipped PGMs are what the generator draws (regenerate: python -m netsim.radio.examples)."""
+    occ, free = examples.MAKERS[name]()
+    m = load_map(name)
+    assert m.resolution_m == examples.RESOLUTION_M
+    assert (m.occupied != occ).mean() < 1e-4 and (m.free != free).mean() < 1e-4
+
+
+def test_office_has_rooms_and_doors():
+    """Across a room wall robots have no line of sight; a door lets a straight leg through."""
+    m = load_map("office")
+    # Two rooms side by side (x in [0, 10] and [10, 20], y in [0, 23.5]).
+    assert walls_crossed(m, [[5.0, 10.0]], [[15.0, 10.0]]).tolist() == [1]
+    # From a room through its door (x in [4.25, 5.75]) into the corridor at y = 25.
+    assert legs_free(m, [[5.0, 20.0]], [[5.0, 25.0]]).tolist() == [True]
+    assert legs_free(m, [[2.0, 20.0]], [[2.0, 25.0]]).tolist() == [False]
+    # The free space is one connected region.
+    from scipy.ndimage import label
+
+    assert label(m.free)[1] == 1
+
+
+def test_cave_is_one_connected_tunnel():
+    from scipy.ndimage import label
+
+    m = load_map("cave")
+    assert label(m.free)[1] == 1
+    assert 0.03 < m.free.mean() < 0.2

@@ -1,0 +1,190 @@
+"""Reading ROS map_server maps: pixel semantics, geometry, and every bad input refused in one line."""
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from netsim.errors import ConfigError
+from netsim.radio.maps import EXAMPLES, load_map, occupancy_from_pixels, save_map
+
+YAML = """image: {image}
+resolution: {resolution}
+origin: {origin}
+negate: {negate}
+occupied_thresh: 0.65
+free_thresh: 0.196
+"""
+
+
+def _write(tmp_path, pixels, mode=None, suffix=".pgm", resolution=0.5, origin="[-1.0, -2.0, 0.0]", negate=0, extra=""):
+    img = tmp_path / f"map{suffix}"
+    Image.fromarray(np.asarray(pixels, dtype=np.uint8), mode).save(img)
+    y = tmp_path / "map.yaml"
+    y.write_text(YAML.format(image=img.name, resolution=resolution, origin=origin, negate=negate) + extra)
+    return y
+
+
+def test_trinary_semantics_as_map_server():
+    """p = (255 - v) / 255: occupied if p > occupied_thresh, free if p < free_thresh, else unknown."""
+    v = np.array([[0, 89, 90, 205, 254, 255, 205]], dtype=np.uint8)
+    occ, free = occupancy_from_pixels(v, False, 0.65, 0.196)
+    # p: 1, 0.651, 0.647, 0.196, 0.004, 0, 0.196
+    assert occ.tolist() == [[True, True, False, False, False, False, False]]
+    assert free.tolist() == [[False, False, False, False, True, True, False]]
+
+
+def test_negate_swaps_black_and_white():
+    v = np.array([[0, 255]], dtype=np.uint8)
+    occ, free = occupancy_from_pixels(v, True, 0.65, 0.196)
+    assert occ.tolist() == [[False, True]] and free.tolist() == [[True, False]]
+
+
+def test_colour_channels_are_averaged_and_alpha_too_in_trinary_mode():
+    rgb = np.array([[[0, 0, 255]]], dtype=np.uint8)  # mean 85: p = 0.667 > 0.65
+    assert occupancy_from_pixels(rgb, False, 0.65, 0.196)[0].tolist() == [[True]]
+    rgba = np.array([[[255, 255, 255, 0]]], dtype=np.uint8)  # trinary: mean 191.25 -> p = 0.25
+    occ, free = occupancy_from_pixels(rgba, False, 0.65, 0.196, "trinary", has_alpha=True)
+    assert not occ[0, 0] and not free[0, 0]
+    occ, free = occupancy_from_pixels(rgba, False, 0.65, 0.196, "scale", has_alpha=True)
+    assert free[0, 0]  # scale: alpha left out of the mean
+
+
+def test_loaded_map_geometry(tmp_path):
+    """Image row 0 is the top; origin is the lower-left corner; half-open cells."""
+    px = np.full((4, 6), 254, dtype=np.uint8)
+    px[0, 5] = 0  # top-right pixel
+    px[3, 0] = 0  # bottom-left pixel
+    px[1, 2] = 205  # unknown
+    m = load_map(_write(tmp_path, px))
+    assert m.shape == (4, 6)
+    assert m.extent_m == (-1.0, 2.0, -2.0, 0.0)
+    assert m.occupied[0, 0] and m.occupied[3, 5]
+    assert not m.free[2, 2] and not m.occupied[2, 2]
+    # The bottom-left pixel covers x in [-1, -0.5), y in [-2, -1.5).
+    assert m.is_free([[-0.75, -1.75], [-0.5, -1.75], [1.9, -0.1], [5.0, 5.0]]).tolist() == [False, True, False, False]
+    assert m.cells([[2.0, 0.0]]) == ([5], [3])  # the far corner belongs to the last cell
+
+
+def test_png_and_rgb_images(tmp_path):
+    px = np.zeros((3, 3, 3), dtype=np.uint8) + 254
+    px[1, 1] = 0
+    m = load_map(_write(tmp_path, px, "RGB", ".png"))
+    assert m.occupied.sum() == 1 and m.occupied[1, 1]
+
+
+def test_round_trip_with_save_map(tmp_path):
+    rng = np.random.default_rng(1)
+    occ = rng.random((7, 9)) < 0.3
+    free = ~occ & (rng.random((7, 9)) < 0.8)
+    y = save_map(tmp_path / "m.yaml", occ, free, 0.1, (3.0, 4.0))
+    m = load_map(y)
+    assert np.array_equal(m.occupied, occ) and np.array_equal(m.free, free)
+    assert m.origin_m == (3.0, 4.0) and m.resolution_m == 0.1
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_example_maps_load_by_name(name):
+    m = load_map(name)
+    assert m.extent_m == (0.0, 200.0, 0.0, 200.0)
+    m.check_area(200.0)
+
+
+def _one_line_error(call, *fragments):
+    with pytest.raises(ConfigError) as err:
+        call()
+    msg = str(err.value)
+    assert err.value.key == "world.map"
+    assert msg.startswith("world.map = ")
+    assert "\n" not in msg
+    for f in fragments:
+        assert f in msg, msg
+    return msg
+
+
+def test_missing_file():
+    _one_line_error(lambda: load_map("/no/such/map.yaml"), "/no/such/map.yaml", "no such file")
+
+
+def test_malformed_yaml(tmp_path):
+    y = tmp_path / "bad.yaml"
+    y.write_text("image: [unclosed\n")
+    _one_line_error(lambda: load_map(y), "not valid YAML")
+    y.write_text("- just\n- a list\n")
+    _one_line_error(lambda: load_map(y), "YAML mapping")
+
+
+def test_missing_keys(tmp_path):
+    y = tmp_path / "m.yaml"
+    y.write_text("image: m.pgm\nresolution: 0.1\n")
+    _one_line_error(lambda: load_map(y), "origin", "negate", "occupied_thresh", "free_thresh")
+
+
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"resolution": 0}, "resolution"),
+        ({"resolution": "'fine'"}, "resolution"),
+        ({"resolution": ".nan"}, "resolution"),
+        ({"origin": "[0, 0]"}, "origin"),
+        ({"origin": "[0, 0, 0.5]"}, "yaw"),
+        ({"origin": "[0, .inf, 0]"}, "origin"),
+        ({"negate": 2}, "negate"),
+    ],
+)
+def test_bad_values(tmp_path, kwargs, fragment):
+    y = _write(tmp_path, np.full((4, 4), 254), **kwargs)
+    _one_line_error(lambda: load_map(y), fragment)
+
+
+@pytest.mark.parametrize(
+    "occ, free, fragment",
+    [("0.2", "0.6", "bad thresholds"), ("1.5", "0.1", "occupied_thresh"), ("0.65", "-0.1", "free_thresh")],
+)
+def test_bad_thresholds(tmp_path, occ, free, fragment):
+    y = _write(tmp_path, np.full((4, 4), 254))
+    y.write_text(y.read_text().replace("occupied_thresh: 0.65", f"occupied_thresh: {occ}").replace("0.196", free))
+    _one_line_error(lambda: load_map(y), fragment)
+
+
+def test_raw_mode_refused(tmp_path):
+    y = _write(tmp_path, np.full((4, 4), 254), extra="mode: raw\n")
+    _one_line_error(lambda: load_map(y), "raw")
+
+
+def test_missing_or_unreadable_image(tmp_path):
+    y = _write(tmp_path, np.full((4, 4), 254))
+    (tmp_path / "map.pgm").unlink()
+    _one_line_error(lambda: load_map(y), "map.pgm", "no such file")
+    (tmp_path / "map.pgm").write_bytes(b"P5\n garbage")
+    _one_line_error(lambda: load_map(y), "not a readable")
+
+
+def test_sixteen_bit_image_refused(tmp_path):
+    img = tmp_path / "map.png"
+    Image.fromarray(np.full((4, 4), 60000, dtype=np.uint16)).save(img)
+    y = tmp_path / "map.yaml"
+    y.write_text(YAML.format(image="map.png", resolution=1.0, origin="[0, 0, 0]", negate=0))
+    _one_line_error(lambda: load_map(y), "8 bits")
+
+
+def test_map_smaller_than_the_area(tmp_path):
+    m = load_map(_write(tmp_path, np.full((40, 30), 254), resolution=1.0, origin="[0, 0, 0]"))
+    m.check_area(30.0)
+    _one_line_error(lambda: m.check_area(35.0), "30 m x 40 m", "smaller than the area")
+
+
+def test_origin_putting_the_area_outside_the_map(tmp_path):
+    m = load_map(_write(tmp_path, np.full((50, 50), 254), resolution=1.0, origin="[5, -10, 0]"))
+    _one_line_error(lambda: m.check_area(40.0), "origin [5, -10]", "does not contain the area")
+
+
+def test_area_without_free_cell(tmp_path):
+    m = load_map(_write(tmp_path, np.full((10, 10), 0), resolution=1.0, origin="[0, 0, 0]"))
+    _one_line_error(lambda: m.check_area(10.0), "no free cell")
+
+
+def test_thresholds_are_strict():
+    """At exactly a threshold a cell is unknown: occupied needs p > occupied_thresh, free p < free_thresh."""
+    v = np.array([[205, 155]], dtype=np.uint8)
+    occ, free = occupancy_from_pixels(v, False, (255 - 155) / 255, (255 - 205) / 255)
+    assert occ.tolist() == [[False, False]] and free.tolist() == [[False, False]]

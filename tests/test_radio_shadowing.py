@@ -1,0 +1,183 @@
+"""Pair shadowing: reciprocal, still while still, Gudmundson-correlated in pair travel."""
+
+import math
+
+import numpy as np
+import pytest
+
+from netsim.errors import ConfigError
+from netsim.radio import shadowing
+from netsim.radio.checks import correlation_table
+from netsim.radio.shadowing import PairShadowing, pair_keys, split_keys, travel_steps
+
+
+def _sh(sigma=6.0, dcorr=10.0, seed=1, step=0.0):
+    return PairShadowing(sigma, dcorr, np.random.default_rng(seed), step_m=step)
+
+
+def test_reciprocity():
+    """X_ij = X_ji: the second direction sees the value the first one drew."""
+    sh = _sh()
+    x_ab = sh.sample([3, 7, 2], [5, 1, 9], [0.0, 0.0, 0.0])
+    x_ba = sh.sample([5, 1, 9], [3, 7, 2], [0.0, 0.0, 0.0])
+    assert np.array_equal(x_ab, x_ba)
+    # Both directions in one batch share one draw too.
+    sh2 = _sh(seed=2)
+    both = sh2.sample([3, 5], [5, 3], [1.0, 1.0])
+    assert both[0] == both[1]
+
+
+def test_constant_while_the_pair_stands_still():
+    """Looked at again at the same travel, a pair's shadowing has not changed."""
+    sh = _sh()
+    first = sh.sample(np.arange(50), np.arange(50) + 50, np.full(50, 12.5))
+    for _ in range(3):
+        again = sh.sample(np.arange(50), np.arange(50) + 50, np.full(50, 12.5))
+        assert np.array_equal(first, again)
+
+
+def test_changes_when_the_pair_travels():
+    sh = _sh()
+    first = sh.sample(np.arange(50), np.arange(50) + 50, np.zeros(50))
+    later = sh.sample(np.arange(50), np.arange(50) + 50, np.full(50, 5.0))
+    assert (first != later).all()
+
+
+def test_no_shadowing_draws_nothing():
+    """sigma = 0: zeros, and the generator is not touched."""
+    rng = np.random.default_rng(9)
+    sh = PairShadowing(0.0, 10.0, rng)
+    assert sh.sample([0, 1], [2, 3], [0.0, 4.0]).tolist() == [0.0, 0.0]
+    assert sh.draws == 0 and len(sh) == 0
+    assert rng.random() == np.random.default_rng(9).random()
+
+
+def test_stationary_law_is_normal_sigma(rng):
+    """A pair seen for the first time draws N(0, sigma^2): mean and sd within 4 SE."""
+    sh = PairShadowing(5.0, 10.0, rng)
+    n = 20000
+    x = sh.sample(np.arange(n), np.arange(n) + n, np.zeros(n))
+    assert abs(x.mean()) < 4 * 5.0 / math.sqrt(n)
+    assert abs(x.std() - 5.0) < 4 * 5.0 / math.sqrt(2 * n)
+
+
+def test_clipped_at_four_sigma_but_state_is_not():
+    sh = _sh(sigma=2.0)
+    sh.sample([0], [1], [0.0])
+    sh._x[:] = 30.0
+    assert sh.sample([0], [1], [0.0]).tolist() == [8.0]
+    assert sh.state([0], [1])[0].tolist() == [30.0]
+
+
+def test_correlation_is_exponential_in_travel_whatever_the_schedule():
+    """corr(X(0), X(delta)) = exp(-delta / d_corr), with irregular looks in between."""
+    table = correlation_table(n_pairs=8000, seed=11)
+    assert ((table.correlation >= table.lo) & (table.correlation <= table.hi)).all()
+
+
+def test_stepped_process_correlation_at_multiples_of_the_step():
+    """Piecewise constant in travel: at multiples of the step, still exp(-delta / d_corr)."""
+    table = correlation_table(separations_m=(2.0, 6.0, 14.0), n_pairs=8000, seed=12, step_m=2.0)
+    assert ((table.correlation >= table.lo) & (table.correlation <= table.hi)).all()
+
+
+def test_stepped_process_is_constant_between_steps():
+    sh = _sh(step=2.0)
+    a = sh.sample([0], [1], [0.1])
+    assert sh.sample([0], [1], [1.99]).tolist() == a.tolist()
+    assert sh.sample([0], [1], [2.0]).tolist() != a.tolist()
+
+
+def test_same_seed_same_values():
+    a = _sh(seed=4).sample(np.arange(10), np.arange(10) + 10, np.arange(10.0))
+    b = _sh(seed=4).sample(np.arange(10), np.arange(10) + 10, np.arange(10.0))
+    assert np.array_equal(a, b)
+
+
+def test_forget_drops_only_pairs_decorrelated_by_travel():
+    sh = _sh(dcorr=10.0)
+    sh.sample([0, 2], [1, 3], [0.0, 0.0])
+    odometer = np.array([150.0, 60.0, 1.0, 1.0])  # pair (0,1) travelled 210 m > 20 d_corr
+    assert sh.forget(odometer) == 1
+    x, _ = sh.state([0, 2], [1, 3])
+    assert np.isnan(x[0]) and not np.isnan(x[1])
+
+
+def test_pair_keys_round_trip():
+    a, b = np.array([5, 0, 2**31 - 1]), np.array([3, 9, 7])
+    lo, hi = split_keys(pair_keys(a, b))
+    assert lo.tolist() == [3, 0, 7] and hi.tolist() == [5, 9, 2**31 - 1]
+
+
+def test_travel_steps_are_exact_crossings():
+    pair, t = travel_steps([0.5, 1.0, 7.9], [2.0, 1.0, 0.0], 10.0, 12.0, 1.0)
+    # Pair 0: travel 0.5 -> 4.5, steps at 1, 2, 3, 4; pair 1: 1 -> 3, at 2 and 3 (1 is not after t0).
+    assert pair.tolist() == [0, 0, 0, 0, 1, 1]
+    assert t == pytest.approx([10.25, 10.75, 11.25, 11.75, 11.0, 12.0])
+
+
+@pytest.mark.parametrize(
+    "args, key",
+    [
+        ((-1.0, 10.0), "channel.shadowing_sigma_db"),
+        ((math.nan, 10.0), "channel.shadowing_sigma_db"),
+        ((4.0, 0.0), "channel.shadowing_decorrelation_m"),
+        ((4.0, math.inf), "channel.shadowing_decorrelation_m"),
+    ],
+)
+def test_bad_parameters(args, key):
+    with pytest.raises(ConfigError) as err:
+        PairShadowing(*args, np.random.default_rng(0))
+    assert err.value.key == key
+
+
+def test_compiled_and_numpy_updates_agree(monkeypatch):
+    """Same seed, same batches (new pairs, both directions, repeated looks): the compiled
+    update and the numpy one give the same values (to the last bits of exp)."""
+    if shadowing._kernel() is None:
+        pytest.skip("numba is not installed")
+
+    def run():
+        rng = np.random.default_rng(21)
+        sh = PairShadowing(6.0, 10.0, np.random.default_rng(22))
+        travel = np.zeros(60)
+        out = []
+        for _ in range(40):
+            a = rng.integers(0, 60, 25)
+            b = rng.integers(0, 60, 25)
+            ok = a != b
+            a, b = a[ok], b[ok]
+            a, b = np.r_[a, b[:3]], np.r_[b, a[:3]]  # some pairs in both directions
+            travel += rng.random(60) * rng.integers(0, 2, 60)
+            out.append(sh.sample(a, b, travel[a] + travel[b]))
+        return np.concatenate(out), sh
+
+    compiled, sh1 = run()
+    monkeypatch.setattr(shadowing, "_kernel", lambda: None)
+    plain, sh2 = run()
+    assert np.allclose(compiled, plain, rtol=0, atol=1e-9)
+    assert np.array_equal(sh1._keys, sh2._keys) and np.allclose(sh1._x, sh2._x, atol=1e-9)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_pairs_listed_in_advance_give_the_same_values(compiled, monkeypatch):
+    """With every pair's slot made at once (n_robots given) the values are exactly those of
+    the table that grows as pairs are seen, draw for draw."""
+    from netsim.radio import shadowing as sh
+
+    if not compiled:
+        monkeypatch.setattr(sh, "_KERNEL", [None])
+    rng = np.random.default_rng(3)
+    looks = [(rng.integers(0, 40, 25), rng.integers(0, 40, 25)) for _ in range(30)]
+    out = []
+    for n_robots in (None, 40):
+        s = sh.PairShadowing(5.0, 10.0, np.random.default_rng(9), n_robots=n_robots)
+        vals = []
+        for k, (a, b) in enumerate(looks):
+            keep = a != b
+            a, b = a[keep], b[keep]
+            _, first = np.unique(sh.pair_keys(a, b), return_index=True)
+            vals.append(s.sample(a[first], b[first], np.full(len(first), 2.0 * k)))
+        out.append((np.concatenate(vals), len(s)))
+    assert out[1][0].tolist() == out[0][0].tolist()
+    assert out[1][1] == out[0][1]
