@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -101,8 +102,8 @@ class ControlLoop:
         moved_by: str | None = None,
         groups: GroupView | None = None,
         options: dict | None = None,
-        occupancy=None,
-    ):
+        occupancy: Any = None,
+    ) -> None:
         self.env, self.state, self.trace = env, state, trace
         self.period_s = float(period_s)
         self.start_s = float(start_s)

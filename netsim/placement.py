@@ -82,7 +82,7 @@ def initial_positions(world: WorldParams, streams: Streams, occupancy: Any = Non
     return place(world, streams)
 
 
-def on_map(world, streams: Streams, occupancy) -> np.ndarray:
+def on_map(world: WorldParams, streams: Streams, occupancy: Any) -> np.ndarray:
     """Placement on a map: ``uniform`` is uniform over the free part of the area, ``centre``
     uniform over the free part of the central square; ``grid`` and a CSV file must put every
     robot in a free cell."""

@@ -76,6 +76,8 @@ class Reception:
         k = len(receivers)
         st = self.state
         a = np.full(k, sender, dtype=np.int64)
+        pos_a: np.ndarray | None
+        pos_b: np.ndarray | None
         if self.map is not None:
             pos_a = np.broadcast_to(st.positions_at(t, [sender]), (k, 2))
             pos_b = st.positions_at(t, receivers)

@@ -107,7 +107,7 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     return sim
 
 
-def world_map(config: Config):
+def world_map(config: Config) -> Any:
     """The run's occupancy map (``world.map``), None in open space."""
     if not config.world.map:
         return None

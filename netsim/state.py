@@ -88,7 +88,7 @@ class RobotState:
             x, y = x % self.side_m, y % self.side_m
         return x, y
 
-    def travelled_m(self, t: float, idx) -> np.ndarray:
+    def travelled_m(self, t: float, idx: np.ndarray | Sequence[int]) -> np.ndarray:
         """Path length of robots ``idx`` from t = 0 to ``t`` (``t`` on their current leg)."""
         return self.odometer_m[idx] + np.abs(self.velocity_c[idx]) * (t - self.t0_s[idx])
 

@@ -123,8 +123,8 @@ def cave() -> tuple[np.ndarray, np.ndarray]:
         free |= dist * RESOLUTION_M < radius[jj, ii]
     # Two chambers at the galleries' ends.
     yc, xc = (np.arange(n) + 0.5) * RESOLUTION_M, (np.arange(n) + 0.5) * RESOLUTION_M
-    for (cx, cy), r in ((north[-1], 9.0), (south[-1], 7.0)):
-        free |= (xc[None, :] - cx) ** 2 + (yc[:, None] - cy) ** 2 < r * r
+    for (cx, cy), chamber_m in ((north[-1], 9.0), (south[-1], 7.0)):
+        free |= (xc[None, :] - cx) ** 2 + (yc[:, None] - cy) ** 2 < chamber_m * chamber_m
     t = _px(0.5)
     free[:t, :] = free[-t:, :] = False
     free[:, :t] = free[:, -t:] = False

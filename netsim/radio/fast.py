@@ -65,7 +65,8 @@ class CompiledChain:
         budget = propagation.tx_power_dbm - propagation.sensitivity_dbm
         # The chain's own early-drop rule, slack included.
         self.budget_slack = budget + 1e-9 * (1.0 + abs(budget))
-        occupancy = (self.walls or self.sight).occupancy if (self.walls or self.sight) else None
+        term = self.walls or self.sight
+        occupancy = term.occupancy if term is not None else None
         self.occupancy = occupancy
 
     def _grid(self, pairs: Pairs):
@@ -95,7 +96,7 @@ class CompiledChain:
                 self.sight is not None, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, out,
             )  # fmt: skip
             return out
-        p = self.log.params
+        p = self.log.params  # type: ignore[union-attr]  # compiled only with a log-distance term
         sh = self.shadow
         clip = sh.clip_db if sh is not None else 0.0
         loss = np.empty(kn)

@@ -118,7 +118,7 @@ def _trace_numpy(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first
     return walls, first_t
 
 
-_KERNEL = []
+_KERNEL: list = []
 
 
 def _kernel():

@@ -157,8 +157,8 @@ class Pairs(NamedTuple):
 
     a: np.ndarray
     b: np.ndarray
-    pos_a: np.ndarray
-    pos_b: np.ndarray
+    pos_a: np.ndarray | None  # None: no term needs positions (no map)
+    pos_b: np.ndarray | None
     distance_m: np.ndarray
     travel_m: np.ndarray | None = None
 
@@ -176,7 +176,9 @@ class Pairs(NamedTuple):
 
     def take(self, idx) -> Pairs:
         t = None if self.travel_m is None else self.travel_m[idx]
-        return Pairs(self.a[idx], self.b[idx], self.pos_a[idx], self.pos_b[idx], self.distance_m[idx], t)
+        pa = None if self.pos_a is None else self.pos_a[idx]
+        pb = None if self.pos_b is None else self.pos_b[idx]
+        return Pairs(self.a[idx], self.b[idx], pa, pb, self.distance_m[idx], t)
 
 
 class LogDistanceLoss:

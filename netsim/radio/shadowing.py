@@ -68,7 +68,7 @@ import numpy as np
 from netsim.errors import ConfigError
 from netsim.radio.propagation import TRUNCATION_SIGMAS
 
-_KERNEL = []
+_KERNEL: list = []
 
 
 def _kernel():
@@ -141,9 +141,9 @@ class PairShadowing:
         self._s = np.empty(0)
         self.dense = n_robots is not None and 1 < n_robots <= DENSE_MAX_ROBOTS
         # Robots whose pairs all have slots (their place then computed, not searched); 0: none.
-        self.dense_n = int(n_robots) if self.dense else 0
+        self.dense_n = int(n_robots or 0) if self.dense else 0
         if self.dense:
-            i, j = np.triu_indices(int(n_robots), 1)
+            i, j = np.triu_indices(self.dense_n, 1)
             self._keys = pair_keys(i, j)  # ascending: i major, j minor
             self._x = np.full(len(self._keys), np.nan)
             self._s = np.zeros(len(self._keys))
