@@ -48,7 +48,7 @@ REDUCED = {
         "netsim run",
         "the environment running this test is that install; its netsim runs the default scenario",
     ),
-    '.venv/bin/pip install -e ".[test]" && .venv/bin/python -m pytest -q': (
+    '.venv/bin/pip install -e ".[test]" && .venv/bin/python -m pytest -q -n auto': (
         f"cd {shlex.quote(str(ROOT))} && {PY} -m pytest -q --collect-only -p no:cacheprovider",
         "the suite cannot run itself: it is collected (every test module imports)",
     ),
