@@ -20,8 +20,16 @@ import numpy as np
 import pandas as pd
 
 from netsim.radio.fast import CompiledChain
-from netsim.radio.propagation import Pairs, Propagation
+from netsim.radio.propagation import Propagation
 from netsim.state import RobotState
+
+
+def _link_changes():
+    try:
+        from netsim.radio._kernels import link_changes
+    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
+        return None
+    return link_changes
 
 
 class LinkRecorder:
@@ -34,22 +42,34 @@ class LinkRecorder:
         self.up = np.zeros((n, n), dtype=bool)
         self._since: dict[tuple[int, int], float] = {}
         self._rows: list[tuple[int, int, float, float]] = []
+        self._scratch = np.zeros(n, dtype=bool)
+        self._changed = np.empty(n, dtype=np.int64)
+        self._kernel = _link_changes()
 
     def observe(self, t: float, sender: int, receivers: np.ndarray, linked: np.ndarray) -> None:
-        row = self.up[sender]
-        now = np.zeros(self.n, dtype=bool)
-        now[receivers[linked]] = True
-        changed = np.flatnonzero(row != now)
-        if len(changed) == 0:
+        count = self._changes(sender, receivers, linked)
+        if count == 0:
             return
-        for r, is_up in zip(changed.tolist(), now[changed].tolist()):
+        changed = self._changed[:count]
+        now = ~self.up[sender, changed]
+        for r, is_up in zip(changed.tolist(), now.tolist()):
             key = (sender, r) if sender < r else (r, sender)
             if is_up:
                 self._since[key] = t
             else:
                 self._rows.append((key[0], key[1], self._since.pop(key), t))
-        self.up[sender, changed] = now[changed]
-        self.up[changed, sender] = now[changed]
+        self.up[sender, changed] = now
+        self.up[changed, sender] = now
+
+    def _changes(self, sender: int, receivers: np.ndarray, linked: np.ndarray) -> int:
+        """How many robots' links with ``sender`` this decision changes (ids in ``_changed``)."""
+        if self._kernel is not None:
+            return int(self._kernel(self.up, sender, receivers, linked, self._scratch, self._changed))
+        now = np.zeros(self.n, dtype=bool)
+        now[receivers[linked]] = True
+        changed = np.flatnonzero(self.up[sender] != now)
+        self._changed[: len(changed)] = changed
+        return len(changed)
 
     def intervals(self, duration_s: float) -> pd.DataFrame:
         """``a, b, t_up_s, t_down_s, open`` (still up at the end: ``t_down_s`` = duration)."""
@@ -73,20 +93,7 @@ class Reception:
 
     def decide(self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
         """Mask of ``receivers`` (at ``distances_m`` from ``sender``) that hear ``sender`` at ``t``."""
-        k = len(receivers)
-        st = self.state
-        a = np.full(k, sender, dtype=np.int64)
-        pos_a: np.ndarray | None
-        pos_b: np.ndarray | None
-        if self.map is not None:
-            pos_a = np.broadcast_to(st.positions_at(t, [sender]), (k, 2))
-            pos_b = st.positions_at(t, receivers)
-        else:
-            pos_a = pos_b = None
-        travel = None
-        if self.shadowing is not None:
-            travel = st.travelled_m(t, receivers) + float(st.travelled_m(t, [sender])[0])
-        linked = self.compiled.receivable(Pairs(a, receivers, pos_a, pos_b, distances_m, travel))
+        linked = self.compiled.transmission(self.state, t, sender, receivers, distances_m)
         if self.recorder is not None:
             self.recorder.observe(t, sender, receivers, linked)
         return linked

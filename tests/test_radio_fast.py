@@ -81,3 +81,105 @@ def test_unknown_chain_is_refused():
     sh = PairShadowing(4.0, 10.0, np.random.default_rng(1))
     with pytest.raises(ValueError, match="no compiled form"):
         CompiledChain(Propagation(LossChain(ShadowingLoss(sh)), 0.0, -1.0, 1.0, 1.0))
+
+
+def _moving_state(seed, n=150, side=400.0, legs=4):
+    """Robots on a few legs each, the last ones still running: odometers and leg starts differ."""
+    from netsim.state import RobotState
+
+    rng = np.random.default_rng(seed)
+    st = RobotState(n, side, 100.0)
+    st.place(rng.uniform(0, side, (n, 2)))
+    t = 0.0
+    for _ in range(legs):
+        t += 1.0
+        for i in rng.choice(n, n // 2, replace=False).tolist():
+            st.set_leg(i, t + rng.random(), rng.normal(0, 2.0, 2) * (rng.random() < 0.8))
+    return st, t + 2.0, rng
+
+
+@pytest.mark.parametrize("step_m", [0.0, 0.5])
+def test_pair_clock_kernel_equals_numpy(step_m):
+    from netsim.radio._kernels import pair_clock
+    from netsim.radio.shadowing import pair_keys
+
+    st, t, rng = _moving_state(3)
+    sh = PairShadowing(4.0, 30.0, np.random.default_rng(0), step_m)
+    for sender in rng.choice(st.n, 20, replace=False).tolist():
+        rec = np.delete(np.arange(st.n), sender)
+        travel = st.travelled_m(t, rec) + float(st.travelled_m(t, [sender])[0])
+        keys, clock = np.empty(len(rec), dtype=np.int64), np.empty(len(rec))
+        pair_clock(sender, rec, travel, step_m, keys, clock)
+        assert np.array_equal(clock, sh._anchor(travel))
+        assert np.array_equal(keys, pair_keys(np.full(len(rec), sender), rec))
+    assert np.ptp(st.odometer_m) > 0  # the robots did travel, unequally
+
+
+@pytest.mark.parametrize("with_map", [False, True])
+@pytest.mark.parametrize("dense", [True, False])
+def test_transmission_equals_chain(with_map, dense):
+    """The channel's per-frame call decides, draws and stores exactly as the generic chain."""
+    params = LogDistanceParams(shadowing_sigma_db=6.0, sensitivity_dbm=-70.0, wall_loss_db=4.0)
+    m = load_map("office") if with_map else None
+    st, t, rng = _moving_state(4, n=120, side=SIDE_M if with_map else 400.0)
+    made = []
+    for _ in range(2):
+        sh = PairShadowing(6.0, 30.0, np.random.default_rng(5), 0.0, n_robots=st.n if dense else None)
+        made.append((log_distance(params, sh, m), sh))
+    (generic, sh1), (prop, sh2) = made
+    fast = CompiledChain(prop)
+    heard = 0
+    for sender in rng.choice(st.n, 60).tolist():
+        rec = np.delete(np.arange(st.n), sender)
+        d = st.displacement(st.positions_at(t, rec), st.positions_at(t, [sender]))
+        dist = np.hypot(d[:, 0], d[:, 1])
+        pairs = Pairs(
+            np.full(len(rec), sender),
+            rec,
+            np.broadcast_to(st.positions_at(t, [sender]), (len(rec), 2)),
+            st.positions_at(t, rec),
+            dist,
+            st.travelled_m(t, rec) + float(st.travelled_m(t, [sender])[0]),
+        )
+        a = generic.receivable(pairs)
+        b = fast.transmission(st, t, sender, rec, dist)
+        assert np.array_equal(a, b)
+        heard += int(a.sum())
+        t += 0.25
+    assert 0 < heard < 60 * (st.n - 1)
+    assert sh1.draws == sh2.draws > 0
+    every = np.triu_indices(st.n, 1)
+    assert np.array_equal(sh1.state(*every)[0], sh2.state(*every)[0], equal_nan=True)
+
+
+def test_normals_come_in_stream_order():
+    """Normals handed out in blocks are the stream's, in order, however many each batch asks."""
+    sh = PairShadowing(4.0, 30.0, np.random.default_rng(11))
+    taken = []
+    for k in [3, 0, 5000, 17, 4096, 1]:
+        z = sh.normals(k)[:k].copy()
+        sh.consume(k)
+        taken.append(z)
+    assert np.array_equal(np.concatenate(taken), np.random.default_rng(11).standard_normal(sh.draws))
+
+
+def test_link_changes_kernel_equals_numpy():
+    from netsim.reception import LinkRecorder
+
+    rng = np.random.default_rng(8)
+    n = 40
+    compiled, plain = LinkRecorder(n), LinkRecorder(n)
+    plain._kernel = None
+    assert compiled._kernel is not None
+    t = 0.0
+    for _ in range(400):
+        s = int(rng.integers(n))
+        rec = np.sort(rng.choice(np.delete(np.arange(n), s), int(rng.integers(0, n - 1)), replace=False))
+        linked = rng.random(len(rec)) < 0.6
+        compiled.observe(t, s, rec, linked)
+        plain.observe(t, s, rec, linked)
+        assert np.array_equal(compiled.up, plain.up)
+        t += 0.1
+    a, b = compiled.intervals(t), plain.intervals(t)
+    assert len(a) > 100
+    assert a.equals(b)

@@ -105,8 +105,9 @@ def shadow_step(table_keys, table_x, table_s, keys, s_new, z, sigma, decorrelati
     n = table_keys.shape[0]
     for m in range(keys.shape[0]):
         pos = slot(table_keys, dense_n, keys[m])
-        # A slot holding NaN is a pair listed in advance but never seen yet.
-        if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
+        # A slot holding NaN is a pair listed in advance but never seen yet; with every pair
+        # listed (dense_n > 0) the slot is the pair's, and its key need not be read.
+        if pos < n and (dense_n > 0 or table_keys[pos] == keys[m]) and not np.isnan(table_x[pos]):
             delta = max(s_new[m] - table_s[pos], 0.0)
             rho = np.exp(-delta / decorrelation_m)
             v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[m]
@@ -171,7 +172,7 @@ def budget_pass(
         total = loss[m]
         if sigma > 0.0:
             pos = slot(table_keys, dense_n, keys[m])
-            if pos < n and table_keys[pos] == keys[m] and not np.isnan(table_x[pos]):
+            if pos < n and (dense_n > 0 or table_keys[pos] == keys[m]) and not np.isnan(table_x[pos]):
                 delta = max(s_new[m] - table_s[pos], 0.0)
                 rho = np.exp(-delta / decorrelation_m)
                 v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[j]
@@ -205,3 +206,93 @@ def disk_pass(d, a, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receiv
             walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, 0)
             ok = walls == 0
         receivable[m] = ok
+
+
+@numba.njit(cache=True, nogil=True)
+def pair_clock(sender, receivers, travel, step_m, keys, s_new):
+    """Each pair's key, and its shadowing clock: the pair's travel floored to a multiple of
+    ``step_m`` when ``step_m`` > 0 (:meth:`~netsim.radio.shadowing.PairShadowing._anchor`)."""
+    for m in range(receivers.shape[0]):
+        r = receivers[m]
+        s_new[m] = np.floor(travel[m] / step_m) * step_m if step_m > 0.0 else travel[m]
+        keys[m] = (min(sender, r) << 32) | max(sender, r)
+
+
+@numba.njit(cache=True, nogil=True)
+def link_changes(up, sender, receivers, linked, scratch, changed):
+    """Robots whose link with ``sender`` differs from ``up[sender]`` once this decision is
+    taken (heard: up; otherwise down), written to ``changed``; returns how many.
+    ``scratch`` is all False on entry and on return."""
+    for m in range(receivers.shape[0]):
+        if linked[m]:
+            scratch[receivers[m]] = True
+    count = 0
+    row = up[sender]
+    for j in range(row.shape[0]):
+        if row[j] != scratch[j]:
+            changed[count] = j
+            count += 1
+    for m in range(receivers.shape[0]):
+        scratch[receivers[m]] = False
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def shadowed_frame(
+    sender,
+    receivers,
+    distance_m,
+    travel,
+    step_m,
+    d0,
+    pl0,
+    n10,
+    clip_db,
+    budget_slack,
+    tx_dbm,
+    sensitivity_dbm,
+    sigma,
+    decorrelation_m,
+    table_keys,
+    table_x,
+    table_s,
+    dense_n,
+    normals,
+    wall_db,
+    flat,
+    h,
+    w,
+    g0,
+    g1,
+    eps,
+    keys,
+    s_new,
+    x_new,
+    new,
+    receivable,
+):
+    """One frame under log-distance path loss with shadowing (and walls when ``wall_db`` > 0):
+    :func:`pair_clock`, :func:`path_loss_pass` and :func:`budget_pass` in one call, the
+    normals taken in order from ``normals``. Pairs met for the first time get their slot at
+    once when every pair has one (``dense_n`` > 0); otherwise they are left flagged in ``new``
+    for the caller to insert. Returns the number of normals used."""
+    k = receivers.shape[0]
+    pair_clock(sender, receivers, travel, step_m, keys, s_new)
+    loss = np.empty(k)
+    alive = np.empty(k, dtype=np.bool_)
+    count = path_loss_pass(distance_m, d0, pl0, n10, -clip_db, budget_slack, loss, alive)
+    if count == 0:
+        sigma = 0.0
+    budget_pass(
+        loss, alive, keys, s_new, normals, sigma, decorrelation_m, clip_db, table_keys, table_x, table_s,
+        wall_db, flat, h, w, g0, g1, eps, budget_slack, tx_dbm, sensitivity_dbm, x_new, new, receivable,
+        dense_n,
+    )  # fmt: skip
+    if dense_n > 0:
+        for m in range(k):
+            if new[m]:
+                pos = slot(table_keys, dense_n, keys[m])
+                table_x[pos] = x_new[m]
+                table_s[pos] = s_new[m]
+                new[m] = False
+    return count

@@ -39,6 +39,12 @@ def _kernels():
 
 _NO_GRID = np.zeros(1, dtype=bool)
 _NO_POINTS = np.zeros((1, 2))
+# Stand-ins for the arrays a pass does not read (no walls: no grid points; no shadowing: no
+# keys, travels or draws).
+_NO_POINTS_K = np.zeros((1, 2))
+_NO_KEYS_K = np.zeros(1, dtype=np.int64)
+_NO_TRAVEL_K = np.zeros(1)
+_NO_DRAW = np.zeros(1)
 
 
 class CompiledChain:
@@ -68,6 +74,15 @@ class CompiledChain:
         term = self.walls or self.sight
         occupancy = term.occupancy if term is not None else None
         self.occupancy = occupancy
+        if self.shadow is not None:
+            p = self.log.params  # type: ignore[union-attr]  # shadowing comes after a log-distance term
+            sh = self.shadow
+            # shadowed_frame's arguments from step_m to decorrelation_m: fixed for the run.
+            self._frame_constants = (
+                sh.step_m, p.reference_distance_m, p.reference_loss_db, 10.0 * p.path_loss_exponent, sh.clip_db,
+                self.budget_slack, propagation.tx_power_dbm, propagation.sensitivity_dbm, sh.sigma_db,
+                sh.decorrelation_m,
+            )  # fmt: skip
 
     def _grid(self, pairs: Pairs):
         m = self.occupancy
@@ -82,6 +97,55 @@ class CompiledChain:
     def receivable(self, pairs: Pairs) -> np.ndarray:
         if self.k is None:
             return self.propagation.receivable(pairs)
+        keys = s_new = None
+        if self.shadow is not None and len(pairs.a):
+            keys = pair_keys(pairs.a, pairs.b)
+            travel = np.zeros(len(pairs.a)) if pairs.travel_m is None else np.asarray(pairs.travel_m, dtype=float)
+            s_new = self.shadow._anchor(travel)
+        return self._receivable(pairs, keys, s_new)
+
+    def transmission(self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+        """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (ids, distinct):
+        the channel's per-frame call, under shadowing one compiled call from the pairs' travels."""
+        k = len(receivers)
+        sh = self.shadow
+        if self.k is None or sh is None or k == 0:
+            pairs = self._pairs(state, t, sender, receivers, distances_m)
+            if sh is not None:
+                travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
+                pairs = pairs._replace(travel_m=travel)
+            return self.receivable(pairs)
+        if self.walls is not None:
+            flat, h, w, g0, g1 = self._grid(self._pairs(state, t, sender, receivers, distances_m))
+            wall_db = self.walls.wall_loss_db
+        else:
+            flat, h, w, g0, g1, wall_db = _NO_GRID, 1, 1, _NO_POINTS_K, _NO_POINTS_K, 0.0
+        # The travels in numpy, as everywhere else: a compiled |v| may differ in its last bit.
+        travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
+        keys = np.empty(k, dtype=np.int64)
+        s_new = np.empty(k)
+        x_new = np.empty(k)
+        new = np.empty(k, dtype=bool)
+        out = np.empty(k, dtype=bool)
+        count = self.k.shadowed_frame(
+            sender, receivers, distances_m, travel, *self._frame_constants,
+            sh._keys, sh._x, sh._s, sh.dense_n, sh.normals(k),
+            wall_db, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, keys, s_new, x_new, new, out,
+        )  # fmt: skip
+        sh.consume(count)
+        if not sh.dense and new.any():
+            self._insert_new(keys, x_new, s_new, new)
+        return out
+
+    def _pairs(self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> Pairs:
+        k = len(receivers)
+        a = np.full(k, sender, dtype=np.int64)
+        if self.occupancy is None:
+            return Pairs(a, receivers, None, None, distances_m, None)
+        pos_a = np.broadcast_to(state.positions_at(t, [sender]), (k, 2))
+        return Pairs(a, receivers, pos_a, state.positions_at(t, receivers), distances_m, None)
+
+    def _receivable(self, pairs: Pairs, keys, s_new) -> np.ndarray:
         kn = len(pairs.a)
         out = np.empty(kn, dtype=bool)
         if kn == 0:
@@ -106,16 +170,13 @@ class CompiledChain:
             -clip, self.budget_slack, loss, alive,
         )  # fmt: skip
         if g0 is None:
-            g0 = g1 = np.zeros((kn, 2))
+            g0 = g1 = _NO_POINTS_K
         if sh is not None and count:
-            keys = pair_keys(pairs.a, pairs.b)
-            travel = np.zeros(kn) if pairs.travel_m is None else np.asarray(pairs.travel_m, dtype=float)
-            s_new = sh._anchor(travel)
-            z = sh.rng.standard_normal(count)
-            sh.draws += count
+            z = sh.normals(count)
+            sh.consume(count)
             tk, tx, ts, sigma = sh._keys, sh._x, sh._s, sh.sigma_db
         else:
-            keys, s_new, z = np.zeros(kn, dtype=np.int64), np.zeros(kn), np.zeros(1)
+            keys, s_new, z = _NO_KEYS_K, _NO_TRAVEL_K, _NO_DRAW
             tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
         x_new = np.empty(kn)
         new = np.empty(kn, dtype=bool)
@@ -127,9 +188,12 @@ class CompiledChain:
             sh.dense_n if sh is not None else 0,
         )  # fmt: skip
         if sh is not None and new.any():
-            idx = np.flatnonzero(new)
-            uniq, first = np.unique(keys[idx], return_index=True)
-            if len(uniq) < len(idx):
-                raise ValueError("the pairs of one batch must be distinct")
-            sh._insert(uniq, x_new[idx[first]], s_new[idx[first]])
+            self._insert_new(keys, x_new, s_new, new)
         return out
+
+    def _insert_new(self, keys, x_new, s_new, new) -> None:
+        idx = np.flatnonzero(new)
+        uniq, first = np.unique(keys[idx], return_index=True)
+        if len(uniq) < len(idx):
+            raise ValueError("the pairs of one batch must be distinct")
+        self.shadow._insert(uniq, x_new[idx[first]], s_new[idx[first]])  # type: ignore[union-attr]

@@ -82,6 +82,9 @@ def _kernel():
     return _KERNEL[0]
 
 
+# Standard normals drawn at once (see PairShadowing.normals).
+NORMALS_BLOCK = 4096
+
 # Above this many robots pairs get slots as they are first seen (see PairShadowing).
 DENSE_MAX_ROBOTS = 3000
 
@@ -148,6 +151,25 @@ class PairShadowing:
             self._x = np.full(len(self._keys), np.nan)
             self._s = np.zeros(len(self._keys))
         self.draws = 0
+        # Normals drawn ahead from ``rng`` and handed out in order: the same sequence as
+        # drawing each batch when needed (a Generator's normals do not depend on how many are
+        # asked for at once), one draw call per block instead of one per frame.
+        self._normals = np.empty(0)
+        self._next = 0
+
+    def normals(self, k: int) -> np.ndarray:
+        """At least ``k`` standard normals, the next ones of the stream (not consumed:
+        :meth:`consume` says how many were used)."""
+        if self._next + k > len(self._normals):
+            rest = self._normals[self._next :]
+            self._normals = np.concatenate([rest, self.rng.standard_normal(max(k, NORMALS_BLOCK))])
+            self._next = 0
+        return self._normals[self._next :]
+
+    def consume(self, k: int) -> None:
+        """Mark the next ``k`` normals used."""
+        self._next += k
+        self.draws += k
 
     def __len__(self) -> int:
         """Pairs seen so far (and not forgotten)."""
@@ -185,8 +207,8 @@ class PairShadowing:
             return np.zeros(k)
         keys = pair_keys(a, b)
         s_new = self._anchor(np.array(np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))))
-        z = self.rng.standard_normal(k)
-        self.draws += k
+        z = self.normals(k)[:k]
+        self.consume(k)
         kernel = _kernel()
         if kernel is None:
             x = self._sample_numpy(keys, s_new, z)
