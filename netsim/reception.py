@@ -90,10 +90,18 @@ class Reception:
         self.map = self.compiled.occupancy
         self.shadowing = self.compiled.shadow
         self.recorder = LinkRecorder(state.n) if record else None
+        # Every robot's speed, kept as legs change: the shadowing's clock is the pairs' travel.
+        self.speed_mps = np.abs(state.velocity_c)
+        if self.shadowing is not None:
+            state.watchers.append(self._course_changed)
+
+    def _course_changed(self, robot: int, t: float, jump: bool) -> None:
+        # A one-item slice: numpy's array abs, the one state.travelled_m uses.
+        self.speed_mps[robot] = np.abs(self.state.velocity_c[robot : robot + 1])[0]
 
     def decide(self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
         """Mask of ``receivers`` (at ``distances_m`` from ``sender``) that hear ``sender`` at ``t``."""
-        linked = self.compiled.transmission(self.state, t, sender, receivers, distances_m)
+        linked = self.compiled.transmission(self.state, t, sender, receivers, distances_m, self.speed_mps)
         if self.recorder is not None:
             self.recorder.observe(t, sender, receivers, linked)
         return linked

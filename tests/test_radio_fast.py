@@ -109,7 +109,8 @@ def test_pair_clock_kernel_equals_numpy(step_m):
         rec = np.delete(np.arange(st.n), sender)
         travel = st.travelled_m(t, rec) + float(st.travelled_m(t, [sender])[0])
         keys, clock = np.empty(len(rec), dtype=np.int64), np.empty(len(rec))
-        pair_clock(sender, rec, travel, step_m, keys, clock)
+        speed = np.array([np.abs(st.velocity_c[i : i + 1])[0] for i in range(st.n)])
+        pair_clock(sender, rec, st.odometer_m, speed, st.t0_s, t, step_m, keys, clock)
         assert np.array_equal(clock, sh._anchor(travel))
         assert np.array_equal(keys, pair_keys(np.full(len(rec), sender), rec))
     assert np.ptp(st.odometer_m) > 0  # the robots did travel, unequally
@@ -142,7 +143,7 @@ def test_transmission_equals_chain(with_map, dense):
             st.travelled_m(t, rec) + float(st.travelled_m(t, [sender])[0]),
         )
         a = generic.receivable(pairs)
-        b = fast.transmission(st, t, sender, rec, dist)
+        b = fast.transmission(st, t, sender, rec, dist, np.abs(st.velocity_c))
         assert np.array_equal(a, b)
         heard += int(a.sum())
         t += 0.25

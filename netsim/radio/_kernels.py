@@ -209,12 +209,16 @@ def disk_pass(d, a, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receiv
 
 
 @numba.njit(cache=True, nogil=True)
-def pair_clock(sender, receivers, travel, step_m, keys, s_new):
-    """Each pair's key, and its shadowing clock: the pair's travel floored to a multiple of
-    ``step_m`` when ``step_m`` > 0 (:meth:`~netsim.radio.shadowing.PairShadowing._anchor`)."""
+def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
+    """Each pair's key, and its shadowing clock: the pair's travel at ``t`` (the two robots'
+    :meth:`~netsim.state.RobotState.travelled_m` summed, ``speed`` being ``|v|`` as numpy
+    computes it), floored to a multiple of ``step_m`` when ``step_m`` > 0
+    (:meth:`~netsim.radio.shadowing.PairShadowing._anchor`)."""
+    own = odometer[sender] + speed[sender] * (t - t0[sender])
     for m in range(receivers.shape[0]):
         r = receivers[m]
-        s_new[m] = np.floor(travel[m] / step_m) * step_m if step_m > 0.0 else travel[m]
+        travel = (odometer[r] + speed[r] * (t - t0[r])) + own
+        s_new[m] = np.floor(travel / step_m) * step_m if step_m > 0.0 else travel
         keys[m] = (min(sender, r) << 32) | max(sender, r)
 
 
@@ -242,7 +246,10 @@ def shadowed_frame(
     sender,
     receivers,
     distance_m,
-    travel,
+    odometer,
+    speed,
+    t0,
+    t,
     step_m,
     d0,
     pl0,
@@ -277,7 +284,7 @@ def shadowed_frame(
     once when every pair has one (``dense_n`` > 0); otherwise they are left flagged in ``new``
     for the caller to insert. Returns the number of normals used."""
     k = receivers.shape[0]
-    pair_clock(sender, receivers, travel, step_m, keys, s_new)
+    pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new)
     loss = np.empty(k)
     alive = np.empty(k, dtype=np.bool_)
     count = path_loss_pass(distance_m, d0, pl0, n10, -clip_db, budget_slack, loss, alive)

@@ -104,9 +104,13 @@ class CompiledChain:
             s_new = self.shadow._anchor(travel)
         return self._receivable(pairs, keys, s_new)
 
-    def transmission(self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+    def transmission(
+        self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, speed_mps: np.ndarray
+    ) -> np.ndarray:
         """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (ids, distinct):
-        the channel's per-frame call, under shadowing one compiled call from the pairs' travels."""
+        the channel's per-frame call, under shadowing one compiled call. ``speed_mps``: every
+        robot's ``|v|`` as numpy's ``abs`` gives it (a compiled ``abs`` may differ in the last
+        bit, and the pairs' travels must be exactly those of ``state.travelled_m``)."""
         k = len(receivers)
         sh = self.shadow
         if self.k is None or sh is None or k == 0:
@@ -120,15 +124,13 @@ class CompiledChain:
             wall_db = self.walls.wall_loss_db
         else:
             flat, h, w, g0, g1, wall_db = _NO_GRID, 1, 1, _NO_POINTS_K, _NO_POINTS_K, 0.0
-        # The travels in numpy, as everywhere else: a compiled |v| may differ in its last bit.
-        travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
         keys = np.empty(k, dtype=np.int64)
         s_new = np.empty(k)
         x_new = np.empty(k)
         new = np.empty(k, dtype=bool)
         out = np.empty(k, dtype=bool)
         count = self.k.shadowed_frame(
-            sender, receivers, distances_m, travel, *self._frame_constants,
+            sender, receivers, distances_m, state.odometer_m, speed_mps, state.t0_s, t, *self._frame_constants,
             sh._keys, sh._x, sh._s, sh.dense_n, sh.normals(k),
             wall_db, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, keys, s_new, x_new, new, out,
         )  # fmt: skip
