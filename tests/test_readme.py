@@ -85,6 +85,10 @@ REDUCED = {
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'link_events.py'))} --live --n 100 --protocol none",
         "N = 100 and no protocol only",
     ),
+    ".venv/bin/python benchmarks/radio_runs.py": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'radio_runs.py'))} --n 100 --duration 5",
+        "N = 100, 5 simulated seconds",
+    ),
     ".venv/bin/python benchmarks/sweep_runner.py": (
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'sweep_runner.py'))} --runs 4 --duration 5",
         "4 runs of 5 simulated seconds instead of 200 of 150",
