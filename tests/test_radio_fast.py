@@ -116,17 +116,34 @@ def test_pair_clock_kernel_equals_numpy(step_m):
     assert np.ptp(st.odometer_m) > 0  # the robots did travel, unequally
 
 
-@pytest.mark.parametrize("with_map", [False, True])
+CHAINS = {
+    "shadowing + walls": (6.0, 4.0, True),
+    "shadowing": (6.0, 4.0, False),
+    "walls": (0.0, 4.0, True),
+    "path loss": (0.0, 0.0, False),
+    "unit disk + line of sight": (None, None, True),
+    "unit disk, ranges per robot + line of sight": ("ranges", None, True),
+}
+
+
+@pytest.mark.parametrize("chain", CHAINS)
 @pytest.mark.parametrize("dense", [True, False])
-def test_transmission_equals_chain(with_map, dense):
+def test_transmission_equals_chain(chain, dense):
     """The channel's per-frame call decides, draws and stores exactly as the generic chain."""
-    params = LogDistanceParams(shadowing_sigma_db=6.0, sensitivity_dbm=-70.0, wall_loss_db=4.0)
+    sigma, wall_db, with_map = CHAINS[chain]
     m = load_map("office") if with_map else None
     st, t, rng = _moving_state(4, n=120, side=SIDE_M if with_map else 400.0)
     made = []
     for _ in range(2):
-        sh = PairShadowing(6.0, 30.0, np.random.default_rng(5), 0.0, n_robots=st.n if dense else None)
-        made.append((log_distance(params, sh, m), sh))
+        sh = None
+        if isinstance(sigma, float):
+            params = LogDistanceParams(shadowing_sigma_db=sigma, sensitivity_dbm=-70.0, wall_loss_db=wall_db)
+            if sigma > 0:
+                sh = PairShadowing(sigma, 30.0, np.random.default_rng(5), 0.0, n_robots=st.n if dense else None)
+            made.append((log_distance(params, sh, m), sh))
+        else:
+            ranges = 30.0 if sigma is None else np.linspace(10.0, 60.0, st.n)
+            made.append((unit_disk(ranges, m), None))
     (generic, sh1), (prop, sh2) = made
     fast = CompiledChain(prop)
     heard = 0
@@ -148,9 +165,10 @@ def test_transmission_equals_chain(with_map, dense):
         heard += int(a.sum())
         t += 0.25
     assert 0 < heard < 60 * (st.n - 1)
-    assert sh1.draws == sh2.draws > 0
-    every = np.triu_indices(st.n, 1)
-    assert np.array_equal(sh1.state(*every)[0], sh2.state(*every)[0], equal_nan=True)
+    if sh1 is not None:
+        assert sh1.draws == sh2.draws > 0
+        every = np.triu_indices(st.n, 1)
+        assert np.array_equal(sh1.state(*every)[0], sh2.state(*every)[0], equal_nan=True)
 
 
 def test_normals_come_in_stream_order():

@@ -242,7 +242,24 @@ def link_changes(up, sender, receivers, linked, scratch, changed):
 
 
 @numba.njit(cache=True, nogil=True)
-def shadowed_frame(
+def grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy, res, g0, g1):
+    """Grid coordinates of the sender (every row of ``g0``) and of each receiver (``g1``) at
+    ``t``: the positions of :meth:`~netsim.state.RobotState.positions_at` (plane), the same
+    arithmetic in the same order."""
+    dt = t - t0[sender]
+    u0 = (origin_m[sender, 0] + velocity_mps[sender, 0] * dt - map_ox) / res
+    v0 = (origin_m[sender, 1] + velocity_mps[sender, 1] * dt - map_oy) / res
+    for m in range(receivers.shape[0]):
+        r = receivers[m]
+        dt = t - t0[r]
+        g0[m, 0] = u0
+        g0[m, 1] = v0
+        g1[m, 0] = (origin_m[r, 0] + velocity_mps[r, 0] * dt - map_ox) / res
+        g1[m, 1] = (origin_m[r, 1] + velocity_mps[r, 1] * dt - map_oy) / res
+
+
+@numba.njit(cache=True, nogil=True)
+def log_frame(
     sender,
     receivers,
     distance_m,
@@ -269,8 +286,11 @@ def shadowed_frame(
     flat,
     h,
     w,
-    g0,
-    g1,
+    origin_m,
+    velocity_mps,
+    map_ox,
+    map_oy,
+    res,
     eps,
     keys,
     s_new,
@@ -278,13 +298,21 @@ def shadowed_frame(
     new,
     receivable,
 ):
-    """One frame under log-distance path loss with shadowing (and walls when ``wall_db`` > 0):
-    :func:`pair_clock`, :func:`path_loss_pass` and :func:`budget_pass` in one call, the
-    normals taken in order from ``normals``. Pairs met for the first time get their slot at
-    once when every pair has one (``dense_n`` > 0); otherwise they are left flagged in ``new``
-    for the caller to insert. Returns the number of normals used."""
+    """One frame under log-distance path loss, with shadowing when ``sigma`` > 0 and walls
+    when ``wall_db`` > 0: :func:`pair_clock`, :func:`grid_points`, :func:`path_loss_pass` and
+    :func:`budget_pass` in one call, the normals taken in order from ``normals``. Pairs met
+    for the first time get their slot at once when every pair has one (``dense_n`` > 0);
+    otherwise they are left flagged in ``new`` for the caller to insert. Returns the number
+    of normals used."""
     k = receivers.shape[0]
-    pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new)
+    if sigma > 0.0:
+        pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new)
+    if wall_db > 0.0:
+        g0 = np.empty((k, 2))
+        g1 = np.empty((k, 2))
+        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy, res, g0, g1)
+    else:
+        g0 = g1 = np.zeros((1, 2))
     loss = np.empty(k)
     alive = np.empty(k, dtype=np.bool_)
     count = path_loss_pass(distance_m, d0, pl0, n10, -clip_db, budget_slack, loss, alive)
@@ -295,11 +323,29 @@ def shadowed_frame(
         wall_db, flat, h, w, g0, g1, eps, budget_slack, tx_dbm, sensitivity_dbm, x_new, new, receivable,
         dense_n,
     )  # fmt: skip
-    if dense_n > 0:
+    if dense_n > 0 and sigma > 0.0:
         for m in range(k):
             if new[m]:
                 pos = slot(table_keys, dense_n, keys[m])
                 table_x[pos] = x_new[m]
                 table_s[pos] = s_new[m]
                 new[m] = False
-    return count
+    return count if sigma > 0.0 else 0
+
+
+@numba.njit(cache=True, nogil=True)
+def disk_frame(
+    sender, receivers, distance_m, range_m, per_robot, use_map, flat, h, w, origin_m, velocity_mps, t0, t,
+    map_ox, map_oy, res, eps, receivable,
+):  # fmt: skip
+    """One frame under the unit disk (the sender's range), with line of sight on a map:
+    :func:`grid_points` and :func:`disk_pass` in one call."""
+    k = receivers.shape[0]
+    if use_map:
+        g0 = np.empty((k, 2))
+        g1 = np.empty((k, 2))
+        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy, res, g0, g1)
+    else:
+        g0 = g1 = np.zeros((1, 2))
+    senders = np.full(k, sender, dtype=np.int64)
+    disk_pass(distance_m, senders, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receivable)

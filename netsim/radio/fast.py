@@ -74,14 +74,18 @@ class CompiledChain:
         term = self.walls or self.sight
         occupancy = term.occupancy if term is not None else None
         self.occupancy = occupancy
-        if self.shadow is not None:
-            p = self.log.params  # type: ignore[union-attr]  # shadowing comes after a log-distance term
-            sh = self.shadow
-            # shadowed_frame's arguments from step_m to decorrelation_m: fixed for the run.
+        if self.log is not None:
+            p = self.log.params
+            # (Compared with None: a PairShadowing with no pair seen yet is falsy, it has a length.)
+            step, clip, sigma, dcorr = (
+                (0.0, 0.0, 0.0, 1.0)
+                if self.shadow is None
+                else (self.shadow.step_m, self.shadow.clip_db, self.shadow.sigma_db, self.shadow.decorrelation_m)
+            )
+            # log_frame's arguments from step_m to decorrelation_m: fixed for the run.
             self._frame_constants = (
-                sh.step_m, p.reference_distance_m, p.reference_loss_db, 10.0 * p.path_loss_exponent, sh.clip_db,
-                self.budget_slack, propagation.tx_power_dbm, propagation.sensitivity_dbm, sh.sigma_db,
-                sh.decorrelation_m,
+                step, p.reference_distance_m, p.reference_loss_db, 10.0 * p.path_loss_exponent, clip,
+                self.budget_slack, propagation.tx_power_dbm, propagation.sensitivity_dbm, sigma, dcorr,
             )  # fmt: skip
 
     def _grid(self, pairs: Pairs):
@@ -108,35 +112,51 @@ class CompiledChain:
         self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, speed_mps: np.ndarray
     ) -> np.ndarray:
         """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (ids, distinct):
-        the channel's per-frame call, under shadowing one compiled call. ``speed_mps``: every
-        robot's ``|v|`` as numpy's ``abs`` gives it (a compiled ``abs`` may differ in the last
-        bit, and the pairs' travels must be exactly those of ``state.travelled_m``)."""
+        the channel's per-frame call, one compiled call that also finds the robots' positions
+        on the map and the pairs' travels. ``speed_mps``: every robot's ``|v|`` as numpy's
+        ``abs`` gives it (a compiled ``abs`` may differ in the last bit, and the pairs'
+        travels must be exactly those of ``state.travelled_m``)."""
         k = len(receivers)
         sh = self.shadow
-        if self.k is None or sh is None or k == 0:
+        if self.k is None or k == 0 or state.torus:
             pairs = self._pairs(state, t, sender, receivers, distances_m)
             if sh is not None:
                 travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
                 pairs = pairs._replace(travel_m=travel)
             return self.receivable(pairs)
-        if self.walls is not None:
-            flat, h, w, g0, g1 = self._grid(self._pairs(state, t, sender, receivers, distances_m))
-            wall_db = self.walls.wall_loss_db
+        m = self.occupancy
+        if m is not None:
+            flat, h, w = m.occupied.ravel(), m.shape[0], m.shape[1]
+            ox, oy, res = float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m
         else:
-            flat, h, w, g0, g1, wall_db = _NO_GRID, 1, 1, _NO_POINTS_K, _NO_POINTS_K, 0.0
-        keys = np.empty(k, dtype=np.int64)
-        s_new = np.empty(k)
+            flat, h, w, ox, oy, res = _NO_GRID, 1, 1, 0.0, 0.0, 1.0
+        out = np.empty(k, dtype=bool)
+        if self.range is not None:
+            r = np.atleast_1d(self.range.range_m)
+            self.k.disk_frame(
+                sender, receivers, distances_m, r, self.range.range_m.ndim == 1, self.sight is not None,
+                flat, h, w, state.origin_m, state.velocity_mps, state.t0_s, t, ox, oy, res, VERTEX_TOLERANCE_CELLS, out,
+            )  # fmt: skip
+            return out
+        wall_db = self.walls.wall_loss_db if self.walls is not None else 0.0
+        if sh is not None:
+            keys = np.empty(k, dtype=np.int64)
+            s_new = np.empty(k)
+            tables = (sh._keys, sh._x, sh._s, sh.dense_n, sh.normals(k))
+        else:
+            keys, s_new = _NO_KEYS_K, _NO_TRAVEL_K
+            tables = (_NO_KEYS_K, _NO_TRAVEL_K, _NO_TRAVEL_K, 0, _NO_DRAW)
         x_new = np.empty(k)
         new = np.empty(k, dtype=bool)
-        out = np.empty(k, dtype=bool)
-        count = self.k.shadowed_frame(
+        count = self.k.log_frame(
             sender, receivers, distances_m, state.odometer_m, speed_mps, state.t0_s, t, *self._frame_constants,
-            sh._keys, sh._x, sh._s, sh.dense_n, sh.normals(k),
-            wall_db, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, keys, s_new, x_new, new, out,
+            *tables, wall_db, flat, h, w, state.origin_m, state.velocity_mps, ox, oy, res, VERTEX_TOLERANCE_CELLS,
+            keys, s_new, x_new, new, out,
         )  # fmt: skip
-        sh.consume(count)
-        if not sh.dense and new.any():
-            self._insert_new(keys, x_new, s_new, new)
+        if sh is not None:
+            sh.consume(count)
+            if not sh.dense and new.any():
+                self._insert_new(keys, x_new, s_new, new)
         return out
 
     def _pairs(self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> Pairs:
