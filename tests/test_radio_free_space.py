@@ -138,3 +138,19 @@ def test_cave_is_one_connected_tunnel():
     m = load_map("cave")
     assert label(m.free)[1] == 1
     assert 0.03 < m.free.mean() < 0.2
+
+
+@pytest.mark.parametrize("name", ["office", "cave"])
+def test_compiled_destinations_equal_numpy(name, monkeypatch):
+    """The compiled round draws, checks and picks exactly as sample_free and legs_free do."""
+    pytest.importorskip("numba")
+    from netsim.radio import free_space
+
+    m = load_map(name)
+    here = sample_free(m, np.random.default_rng(3), 200, examples.SIDE_M)
+    rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
+    compiled = draw_destinations(m, rng_a, here, examples.SIDE_M)
+    monkeypatch.setattr(free_space, "_destinations_kernel", lambda: None)
+    plain = draw_destinations(m, rng_b, here, examples.SIDE_M)
+    assert np.array_equal(compiled, plain)
+    assert rng_a.random() == rng_b.random()  # the same draws were made

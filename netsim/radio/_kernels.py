@@ -349,3 +349,56 @@ def disk_frame(
         g0 = g1 = np.zeros((1, 2))
     senders = np.full(k, sender, dtype=np.int64)
     disk_pass(distance_m, senders, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receivable)
+
+
+@numba.njit(cache=True, nogil=True)
+def first_above(cdf, x):
+    """``np.searchsorted(cdf, x, side="right")``: the first index whose value exceeds ``x``."""
+    lo, hi = 0, cdf.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cdf[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@numba.njit(cache=True, nogil=True)
+def free_destinations(
+    cdf, x0, x1, y0, y1, draw_cell, draw_uv, free_flat, not_free_flat, h, w, ox, oy, res, here, batch, eps, out, got
+):
+    """One round of :func:`netsim.radio.free_space.draw_destinations` for robots at ``here``:
+    robot ``k``'s ``batch`` candidates are drawn as ``sample_free`` draws them (a cell by
+    area from ``draw_cell``, a point in it from ``draw_uv``; a point that rounding put outside
+    a free cell moved to its cell's centre), and the first whose straight leg from ``here[k]``
+    stays in free cells is kept (``got[k]``). Legs after the first free one are not traced."""
+    last = cdf.shape[0] - 1
+    total = cdf[last]
+    for k in range(here.shape[0]):
+        got[k] = False
+        hu = (here[k, 0] - ox) / res
+        hv = (here[k, 1] - oy) / res
+        for b in range(batch):
+            c = k * batch + b
+            cell = min(first_above(cdf, draw_cell[c] * total), last)
+            x = x0[cell] + draw_uv[c, 0] * (x1[cell] - x0[cell])
+            y = y0[cell] + draw_uv[c, 1] * (y1[cell] - y0[cell])
+            u = (x - ox) / res
+            v = (y - oy) / res
+            free = False
+            if u >= 0 and u <= w and v >= 0 and v <= h:
+                i = min(np.int64(np.floor(u)), w - 1)
+                j = min(np.int64(np.floor(v)), h - 1)
+                free = free_flat[j * w + i]
+            if not free:
+                x = 0.5 * (x0[cell] + x1[cell])
+                y = 0.5 * (y0[cell] + y1[cell])
+                u = (x - ox) / res
+                v = (y - oy) / res
+            walls, _ = trace_one(not_free_flat, h, w, hu, hv, u, v, eps, 0)
+            if walls == 0:
+                out[k, 0] = x
+                out[k, 1] = y
+                got[k] = True
+                break

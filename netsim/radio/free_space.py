@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from netsim.errors import ConfigError
-from netsim.radio.los import first_blocked, line_of_sight
+from netsim.radio.los import VERTEX_TOLERANCE_CELLS, first_blocked, line_of_sight
 from netsim.radio.maps import MAP_KEY, OccupancyMap
 
 
@@ -127,14 +127,18 @@ def draw_destinations(
     k = len(here)
     out = np.empty((k, 2))
     todo = np.arange(k)
+    kernel = _destinations_kernel()
     for _ in range(max_rounds):
         if len(todo) == 0:
             return out
-        cand = sample_free(m, rng, len(todo) * batch, side_m)
-        ok = legs_free(m, np.repeat(here[todo], batch, axis=0), cand).reshape(len(todo), batch)
-        got = ok.any(axis=1)
-        pick = np.argmax(ok, axis=1)
-        out[todo[got]] = cand.reshape(len(todo), batch, 2)[got, pick[got]]
+        if kernel is None:
+            cand = sample_free(m, rng, len(todo) * batch, side_m)
+            ok = legs_free(m, np.repeat(here[todo], batch, axis=0), cand).reshape(len(todo), batch)
+            got = ok.any(axis=1)
+            pick = np.argmax(ok, axis=1)
+            out[todo[got]] = cand.reshape(len(todo), batch, 2)[got, pick[got]]
+        else:
+            got = _compiled_round(kernel, m, rng, here[todo], side_m, batch, out, todo)
         todo = todo[~got]
     if len(todo) == 0:
         return out
@@ -144,6 +148,34 @@ def draw_destinations(
         m.source or "<map>",
         f"a robot at ({x:g}, {y:g}) sees no free destination in {batch * max_rounds} tries: is it walled in?",
     )
+
+
+def _destinations_kernel():
+    try:
+        from netsim.radio._kernels import free_destinations
+    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
+        return None
+    return free_destinations
+
+
+def _compiled_round(kernel, m: OccupancyMap, rng, here, side_m: float, batch: int, out, todo) -> np.ndarray:
+    """One round of :func:`draw_destinations`, compiled: the same draws from ``rng`` as
+    :func:`sample_free` makes, the same points and legs, the first free leg kept."""
+    x0, x1, y0, y1, cdf = _eligible_cells(m, side_m, 0.0)
+    if len(x0) == 0:
+        raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area [0, {side_m:g}]^2")
+    n = len(here) * batch
+    draw_cell = rng.random(n)
+    draw_uv = rng.random((n, 2))
+    h, w = m.shape
+    picked = np.empty((len(here), 2))
+    got = np.empty(len(here), dtype=bool)
+    kernel(
+        cdf, x0, x1, y0, y1, draw_cell, draw_uv, m.free.ravel(), m.not_free.ravel(), h, w,
+        float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m, here, batch, VERTEX_TOLERANCE_CELLS, picked, got,
+    )  # fmt: skip
+    out[todo[got]] = picked[got]
+    return got
 
 
 @dataclass(frozen=True)
