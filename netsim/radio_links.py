@@ -38,6 +38,14 @@ SAMPLE_M = 1.0
 TOLERANCE_S = 1e-6
 
 
+def _legs_kernel():
+    try:
+        from netsim.radio._kernels import legs_at
+    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
+        return None
+    return legs_at
+
+
 def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``.
 
@@ -45,6 +53,11 @@ def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     order): a query's leg is the last leg of its robot that starts at or before it."""
     robots = np.asarray(robots, np.int64)
     times = np.asarray(times, float)
+    kernel = _legs_kernel()
+    if kernel is not None:
+        leg = np.empty(len(robots), np.int64)
+        kernel(L.first, L.end, L.t, robots, times, leg)
+        return L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None]
     leg_robot = np.repeat(np.arange(len(L.first)), L.end - L.first)
     k, m = len(robots), len(L.t)
     # Sort legs and queries together by (robot, time), a leg before a query at the same time.

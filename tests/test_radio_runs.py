@@ -317,3 +317,27 @@ def test_positions_at_many_instants_follow_the_legs():
     robots[:40], times[:40] = legs.robot.to_numpy()[:40], legs.t_s.to_numpy()[:40]
     want = np.array([L.p[k] + L.v[k] * (t - L.t[k]) for k, t in ((L.leg_at(r, t), t) for r, t in zip(robots, times))])
     np.testing.assert_array_equal(positions(L, robots, times), want)
+
+
+def test_compiled_leg_lookup_equals_merge(monkeypatch):
+    """Positions from the legs: the compiled per-query search finds the merge's legs."""
+    pytest.importorskip("numba")
+    import netsim.radio_links as rl
+    from netsim.state import RobotState
+    from netsim.trajectory import LegTable
+
+    rng = np.random.default_rng(4)
+    st = RobotState(30, 100.0, 10.0)
+    st.place(rng.uniform(0, 100, (30, 2)))
+    for t in np.sort(rng.uniform(0, 50, 200)).tolist():
+        st.set_leg(int(rng.integers(30)), t, rng.normal(0, 1, 2))
+    st.set_leg(3, 50.0, (1.0, 0.0), start_m=(10.0, 10.0))
+    st.set_leg(3, 50.0, (0.0, 1.0), start_m=(20.0, 20.0))  # two jumps at one instant: the later holds
+    L = LegTable(st.legs(), 30)
+    robots = rng.integers(0, 30, 5000)
+    times = np.r_[rng.uniform(0, 60, 4990), np.full(10, 50.0)]
+    robots[-10:] = 3
+    compiled = rl.positions(L, robots, times)
+    monkeypatch.setattr(rl, "_legs_kernel", lambda: None)
+    assert np.array_equal(compiled, rl.positions(L, robots, times))
+    assert np.array_equal(compiled[-1], [20.0, 20.0])
