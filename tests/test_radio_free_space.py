@@ -154,3 +154,18 @@ def test_compiled_destinations_equal_numpy(name, monkeypatch):
     plain = draw_destinations(m, rng_b, here, examples.SIDE_M)
     assert np.array_equal(compiled, plain)
     assert rng_a.random() == rng_b.random()  # the same draws were made
+
+
+def test_first_above_is_searchsorted_right():
+    """The galloping search returns numpy's side="right" index, ties and empty steps included."""
+    pytest.importorskip("numba")
+    from netsim.radio._kernels import first_above
+
+    rng = np.random.default_rng(0)
+    for trial in range(200):
+        n = int(rng.integers(1, 500))
+        steps = rng.choice([0.0, 1.0, 0.5, 3.0], n, p=[0.1, 0.6, 0.2, 0.1]) if trial % 2 else np.full(n, 0.0625)
+        cdf = np.cumsum(steps)
+        xs = np.r_[rng.random(30) * cdf[-1], cdf[rng.integers(0, n, 10)], [0.0, cdf[-1], -1.0, cdf[-1] + 1.0]]
+        for x in xs.tolist():
+            assert first_above(cdf, x) == np.searchsorted(cdf, x, side="right")

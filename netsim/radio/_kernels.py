@@ -353,8 +353,31 @@ def disk_frame(
 
 @numba.njit(cache=True, nogil=True)
 def first_above(cdf, x):
-    """``np.searchsorted(cdf, x, side="right")``: the first index whose value exceeds ``x``."""
-    lo, hi = 0, cdf.shape[0]
+    """``np.searchsorted(cdf, x, side="right")``: the first index whose value exceeds ``x``
+    (``cdf`` non-decreasing). The search starts where ``x`` would fall were the steps equal
+    (on a map, most cells are whole: nearly so) and gallops out from there, so that it
+    touches a few entries of a long table instead of twenty scattered ones."""
+    n = cdf.shape[0]
+    if n == 0:
+        return 0
+    total = cdf[n - 1]
+    guess = n - 1
+    if total > 0.0 and x < total:
+        guess = min(max(np.int64(x / total * n), 0), n - 1)
+    # Bracket [lo, hi): cdf[lo - 1] <= x (or lo = 0) and cdf[hi] > x (or hi = n).
+    step = 1
+    if cdf[guess] <= x:
+        lo, hi = guess + 1, guess + 1
+        while hi < n and cdf[hi] <= x:
+            lo = hi + 1
+            hi = min(hi + step, n)
+            step *= 2
+    else:
+        lo, hi = guess, guess
+        while lo > 0 and cdf[lo - 1] > x:
+            hi = lo - 1
+            lo = max(lo - step, 0)
+            step *= 2
     while lo < hi:
         mid = (lo + hi) // 2
         if cdf[mid] <= x:
