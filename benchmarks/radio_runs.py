@@ -15,7 +15,8 @@ walls or shadowing. Cases:
 
 Each wall time is build + run + collecting the tables (links included), measured in this
 process one after another (numba's compiled code is cached on disk; a warm-up run loads
-it first). Prints a table with each case's ratio to the baseline.
+it first); the process's CPU time beside it, which other jobs on the machine disturb less.
+Prints a table with each case's ratios to the baseline.
 
     python benchmarks/radio_runs.py [--n 1000] [--duration 100]
 """
@@ -52,14 +53,17 @@ def timed(cfg) -> dict:
     from netsim.run import build, collect
 
     start = time.perf_counter()
+    cpu0 = time.process_time()
     sim = build(cfg)
     sim.run()
     t_run = time.perf_counter() - start
     frames = collect(sim)
     wall = time.perf_counter() - start
+    cpu = time.process_time() - cpu0
     acks = sim.channel.counters_for("ack")
     return {
         "wall_s": wall,
+        "cpu_s": cpu,
         "run_s": t_run,
         "tables_s": wall - t_run,
         "receptions": int(acks.received.sum()),
@@ -99,14 +103,18 @@ def main() -> None:
         rows.append((name, r))
         print(f"{name}: {r['wall_s']:.1f} s", flush=True)
     base = rows[0][1]["wall_s"]
+    base_cpu = rows[0][1]["cpu_s"]
     print()
     print(f"N = {n}, {T:g} s simulated; office map: side {office_side:g} m, implied range {r_office:.1f} m")
-    print("| case | wall (s) | run (s) | tables (s) | x unit disk | Ack receptions | link lifetimes |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print(
+        "| case | wall (s) | run (s) | tables (s) | x unit disk | CPU (s) | x unit disk, CPU | Ack receptions "
+        "| link lifetimes |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for name, r in rows:
         print(
             f"| {name} | {r['wall_s']:.1f} | {r['run_s']:.1f} | {r['tables_s']:.1f} | {r['wall_s'] / base:.2f} | "
-            f"{r['receptions']:,} | {r['links']:,} |"
+            f"{r['cpu_s']:.1f} | {r['cpu_s'] / base_cpu:.2f} | {r['receptions']:,} | {r['links']:,} |"
         )
 
 
