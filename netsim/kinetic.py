@@ -33,8 +33,9 @@ import numpy as np
 import pandas as pd
 import simpy
 
+from netsim.crossings import PHASE_STATE, solve_piece, tree, wrap
 from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, scheduled_event
-from netsim.lifetimes import _PHASE_STATE, COLUMNS, _solve_piece, _tree, _wrap
+from netsim.lifetimes import COLUMNS
 from netsim.state import RobotState
 
 # A window's restart comes before the link events of its instant, which it solves again.
@@ -177,7 +178,7 @@ class RuntimeLinks:
             self._w_end = math.inf  # nobody moves: nothing to solve until someone does
             reach = self.r_max
         pos = self._positions(t)
-        pairs = _tree(pos, self.box).query_pairs(reach, output_type="ndarray") if st.n > 1 else np.empty((0, 2))
+        pairs = tree(pos, self.box).query_pairs(reach, output_type="ndarray") if st.n > 1 else np.empty((0, 2))
         pairs = pairs.astype(np.int64, copy=False)
         ca, cb = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
         self._ca, self._cb = ca, cb
@@ -191,9 +192,9 @@ class RuntimeLinks:
         np.cumsum(np.bincount(rows, minlength=st.n), out=self._ptr[1:])
         self._gen = np.zeros(m, np.int64)
         if first:
-            d = _wrap(pos[ca] - pos[cb], self.box)
+            d = wrap(pos[ca] - pos[cb], self.box)
             inside = np.einsum("ij,ij->i", d, d) <= self._cr * self._cr
-            self._push(np.full(int(inside.sum()), t), ca[inside], cb[inside], 1, _PHASE_STATE)
+            self._push(np.full(int(inside.sum()), t), ca[inside], cb[inside], 1, PHASE_STATE)
         if jumpers is not None and len(jumpers):
             self._judge_jumpers(t, pos, jumpers)
         if self.v_bound > 0 and m:
@@ -218,11 +219,11 @@ class RuntimeLinks:
         if old:
             a = np.r_[a, np.array([p[0] for p in old], np.int64)]
             b = np.r_[b, np.array([p[1] for p in old], np.int64)]
-        d = _wrap(pos[a] - pos[b], self.box)
+        d = wrap(pos[a] - pos[b], self.box)
         radius = np.minimum(self.ranges[a], self.ranges[b])
         inside = np.einsum("ij,ij->i", d, d) <= radius * radius
-        self._push(np.full(int(inside.sum()), t), a[inside], b[inside], 1, _PHASE_STATE)
-        self._push(np.full(int((~inside).sum()), t), a[~inside], b[~inside], -1, _PHASE_STATE)
+        self._push(np.full(int(inside.sum()), t), a[inside], b[inside], 1, PHASE_STATE)
+        self._push(np.full(int((~inside).sum()), t), a[~inside], b[~inside], -1, PHASE_STATE)
 
     def _solve(self, idx: np.ndarray, t: float, pos: np.ndarray | None = None) -> None:
         """Queue the crossings of candidate pairs ``idx`` from ``t`` to the window's end."""
@@ -232,7 +233,7 @@ class RuntimeLinks:
             pa, pb = self._positions(t, a), self._positions(t, b)
         else:
             pa, pb = pos[a], pos[b]
-        d0 = _wrap(pa - pb, self.box)
+        d0 = wrap(pa - pb, self.box)
         w = st.velocity_mps[a] - st.velocity_mps[b]
         found: list[tuple] = []
 
@@ -240,7 +241,7 @@ class RuntimeLinks:
             if len(ia):
                 found.append((np.asarray(t_ev, float), np.asarray(ia, np.int64), kind, np.asarray(phase)))
 
-        _solve_piece(d0, w, self._cr[idx], t, self._w_end - t, idx, idx, emit, self.box)
+        solve_piece(d0, w, self._cr[idx], t, self._w_end - t, idx, idx, emit, self.box)
         for t_ev, ia, kind, phase in found:
             self._push(t_ev, self._ca[ia], self._cb[ia], kind, phase, ia)
 

@@ -31,40 +31,10 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
 
+from netsim.crossings import PHASE_STATE, in_box, solve_piece, tree, wrap
 from netsim.trajectory import LegTable
 
-_EDGE_S = 1e-10
-
-# Order of events at the same instant for one pair: a crossing at the end of a piece, then
-# the state set at a jump (or at t = 0), then a crossing at the start of the next piece.
-_PHASE_END, _PHASE_STATE, _PHASE_START = 0, 1, 2
-
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
-
-
-def _roots(d: np.ndarray, w: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Entry and exit times (relative) of ``|d + w t| = radius``; NaN when none."""
-    A = np.einsum("ij,ij->i", w, w)
-    B = 2.0 * np.einsum("ij,ij->i", d, w)
-    C = np.einsum("ij,ij->i", d, d) - radius * radius
-    disc = B * B - 4.0 * A * C
-    ok = (A > 0) & (disc > 0)
-    sq = np.sqrt(np.where(ok, disc, 0.0))
-    # The numerically stable pair of roots: q / A and C / q.
-    q = -0.5 * (B + np.copysign(sq, B))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r1 = np.where(ok, q / np.where(A > 0, A, 1.0), np.nan)
-        r2 = np.where(ok & (q != 0), C / np.where(q != 0, q, 1.0), np.nan)
-    r2 = np.where(ok & (q == 0), -r1, r2)
-    return np.fmin(r1, r2), np.fmax(r1, r2)
-
-
-def _wrap(d: np.ndarray, box: float | None) -> np.ndarray:
-    return d if box is None else d - box * np.round(d / box)
-
-
-def _tree(pos: np.ndarray, box: float | None) -> cKDTree:
-    return cKDTree(_in_box(pos, box), boxsize=box) if box is not None else cKDTree(pos)
 
 
 def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -78,7 +48,7 @@ def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.nd
     k = np.flatnonzero(same)
     prev = k - 1
     reached = L.p[prev] + L.v[prev] * (L.t[k] - L.t[prev])[:, None]
-    gap = _wrap(L.p[k] - reached, box)
+    gap = wrap(L.p[k] - reached, box)
     scale = 1.0 + np.abs(L.p[k]).max(axis=1) + np.abs(reached).max(axis=1)
     jump = np.hypot(gap[:, 0], gap[:, 1]) > 1e-9 * scale
     return L.t[k[jump]], robot[k[jump]]
@@ -140,19 +110,19 @@ def link_events(
         if not first and nxt > 0 and cuts[nxt - 1] == start:
             _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit)
         reach = r_max + 2.0 * v_max * (stop - start)
-        pairs = _tree(pos, box).query_pairs(reach, output_type="ndarray")
+        pairs = tree(pos, box).query_pairs(reach, output_type="ndarray")
         if len(pairs):
             i, j = pairs[:, 0], pairs[:, 1]
             swap = i > j
             i, j = np.where(swap, j, i), np.where(swap, i, j)
             radius = np.minimum(ranges[i], ranges[j])
-            d0 = _wrap(pos[i] - pos[j], box)
+            d0 = wrap(pos[i] - pos[j], box)
             if first:
                 up = np.einsum("ij,ij->i", d0, d0) <= radius * radius
-                emit(np.zeros(int(up.sum())), i[up], j[up], 1, _PHASE_STATE)
+                emit(np.zeros(int(up.sum())), i[up], j[up], 1, PHASE_STATE)
             changing = L.changes_in(start, stop)
             simple = ~(changing[i] | changing[j])
-            _solve_piece(
+            solve_piece(
                 d0[simple],
                 L.v[L.cur[i[simple]]] - L.v[L.cur[j[simple]]],
                 radius[simple],
@@ -175,17 +145,9 @@ def link_events(
     return tuple(np.concatenate(col) for col in zip(*out))
 
 
-def _in_box(pos: np.ndarray, box: float | None) -> np.ndarray:
-    if box is None:
-        return pos
-    # cKDTree's periodic box wants coordinates in [0, box).
-    pos = np.mod(pos, box)
-    return np.where(pos >= box, 0.0, pos)
-
-
 def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (``j`` may be ``who[k]``)."""
-    pts = _in_box(pos, box)
+    pts = in_box(pos, box)
     tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
     near = tree.query_ball_point(pts[who], r)
     counts = np.fromiter((len(x) for x in near), np.int64, len(near))
@@ -217,11 +179,11 @@ def _jump_state(
     a, b = np.r_[a1, a2], np.r_[b1, b2]
     keep = a != b
     a, b = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
-    d = _wrap(pos[a] - pos[b], box)
+    d = wrap(pos[a] - pos[b], box)
     radius = np.minimum(ranges[a], ranges[b])
     up = np.einsum("ij,ij->i", d, d) <= radius * radius
-    emit(np.full(int(up.sum()), t), a[up], b[up], 1, _PHASE_STATE)
-    emit(np.full(int((~up).sum()), t), a[~up], b[~up], -1, _PHASE_STATE)
+    emit(np.full(int(up.sum()), t), a[up], b[up], 1, PHASE_STATE)
+    emit(np.full(int((~up).sum()), t), a[~up], b[~up], -1, PHASE_STATE)
 
 
 def _solve_changing(
@@ -270,62 +232,7 @@ def _solve_changing(
     la, lb = L.cur[a[p]] + ca, L.cur[b[p]] + cb
     pa = L.p[la] + L.v[la] * (t - L.t[la])[:, None]
     pb = L.p[lb] + L.v[lb] * (t - L.t[lb])[:, None]
-    _solve_piece(_wrap(pa - pb, box), L.v[la] - L.v[lb], radius[p], t, end - t, a[p], b[p], emit, box)
-
-
-def _solve_piece(
-    d: np.ndarray,
-    w: np.ndarray,
-    radius: np.ndarray,
-    t_start: float | np.ndarray,
-    length: float | np.ndarray,
-    a: np.ndarray,
-    b: np.ndarray,
-    emit: Callable[..., None],
-    box: float | None = None,
-) -> None:
-    """Crossings of pairs at relative position ``d + w t`` over ``[0, length]`` from
-    ``t_start``; on a torus, of every image the path can reach (``d`` the nearest one)."""
-    if len(d) == 0:
-        return
-    length = np.broadcast_to(np.asarray(length, float), (len(d),))
-    t_start = np.broadcast_to(np.asarray(t_start, float), (len(d),))
-    if box is None:
-        _solve_image(d, w, radius, t_start, length, a, b, emit)
-        return
-    # An image k is reachable when |d - box k| <= R + |w| length; with d the nearest image,
-    # |k_x|, |k_y| <= 1/2 + (R + |w| length) / box.
-    reach = radius + np.hypot(w[:, 0], w[:, 1]) * length
-    K = int(np.floor(0.5 + float(reach.max()) / box))
-    for kx in range(-K, K + 1):
-        for ky in range(-K, K + 1):
-            dk = d - box * np.array([kx, ky], float)
-            sel = slice(None) if kx == ky == 0 else np.hypot(dk[:, 0], dk[:, 1]) <= reach * (1 + 1e-9)
-            _solve_image(dk[sel], w[sel], radius[sel], t_start[sel], length[sel], a[sel], b[sel], emit)
-
-
-def _solve_image(
-    d: np.ndarray,
-    w: np.ndarray,
-    radius: np.ndarray,
-    t_start: np.ndarray,
-    length: np.ndarray,
-    a: np.ndarray,
-    b: np.ndarray,
-    emit: Callable[..., None],
-) -> None:
-    if len(d) == 0:
-        return
-    t_in, t_out = _roots(d, w, radius)
-    # A crossing on a piece's edge is looked for by both pieces, with a little slack, so
-    # that rounding cannot hide it from both; the duplicate is dropped later. A crossing
-    # near a piece's start sorts after one near the previous piece's end at the same
-    # instant (and after the state set at a jump there).
-    for rel, kind in ((t_in, 1), (t_out, -1)):
-        hit = (rel >= -_EDGE_S) & (rel <= length + _EDGE_S)
-        at = np.clip(rel[hit], 0.0, length[hit])
-        phase = np.where(at <= 0.5 * length[hit], _PHASE_START, _PHASE_END)
-        emit(t_start[hit] + at, a[hit], b[hit], kind, phase)
+    solve_piece(wrap(pa - pb, box), L.v[la] - L.v[lb], radius[p], t, end - t, a[p], b[p], emit, box)
 
 
 def link_lifetimes(
