@@ -18,7 +18,10 @@ ahead of URGENT: they are delivered before anything else due at their instant.
 - ``role_change``: the protocol's record (the clustering protocol's ``RoleChange``:
   ``t_s, robot, role, leader, cause``, a row of roles.parquet);
 - ``delivery``: :class:`Delivery` (a transmission reaches its receivers);
-- ``drop``: :class:`Drop` (receptions the channel dropped, with the cause).
+- ``drop``: :class:`Drop` (receptions the channel dropped, with the cause);
+- ``message_delivered``: :class:`MessageDelivered` (a relayed message reaches its
+  destination, end to end); ``message_dropped``: :class:`MessageDropped` (one no copy of
+  which can reach it any more, with the cause).
 
 A component emits an event only when someone listens (:meth:`EventBus.wants`), so an
 unwatched run pays nothing. docs/events.md describes the order of events at one instant.
@@ -45,6 +48,8 @@ __all__ = [
     "EventBus",
     "LinkDown",
     "LinkUp",
+    "MessageDelivered",
+    "MessageDropped",
     "scheduled_event",
 ]
 
@@ -124,7 +129,46 @@ class Drop(NamedTuple):
     cause: str
 
 
-EVENT_NAMES = ("course_change", "link_up", "link_down", "role_change", "delivery", "drop")
+class MessageDelivered(NamedTuple):
+    """Message ``msg_id`` from ``src`` reaches ``dst`` at ``t_s`` (its first copy to arrive),
+    ``hops`` transmissions from the source, ``latency_s`` after it was sent: the row of
+    messages.parquet with ``delivered`` true."""
+
+    t_s: float
+    msg_id: int
+    src: int
+    dst: int
+    hops: int
+    latency_s: float
+
+
+class MessageDropped(NamedTuple):
+    """Message ``msg_id`` from ``src`` to ``dst`` can no longer be delivered, known at ``t_s``.
+    ``cause``: ``"no_route"`` (shortest-path routing found no neighbour leading to ``dst``),
+    ``"lost"`` (the transmission carrying it was not received), ``"ttl"`` (its last copy
+    reached the hop limit), ``"died_out"`` (flooding: the last copy in flight arrived and no
+    robot that got it relays it, or nobody received the source's broadcast). ``hops``:
+    transmissions on the path of the copy that ended it. A message still in flight when the
+    run ends has neither event."""
+
+    t_s: float
+    msg_id: int
+    src: int
+    dst: int
+    hops: int
+    cause: str
+
+
+EVENT_NAMES = (
+    "course_change",
+    "link_up",
+    "link_down",
+    "role_change",
+    "delivery",
+    "drop",
+    "message_delivered",
+    "message_dropped",
+)
 LINK_EVENTS = ("link_up", "link_down")
 
 

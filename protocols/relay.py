@@ -24,6 +24,7 @@ import simpy
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
 from netsim.rng import Streams
 from netsim.topology import geometric_pairs
@@ -100,6 +101,11 @@ class Relay:
         self._outcomes: dict[int, dict] = {}
         self._seen: dict[int, set[int]] = {}
         self._next_id = 0
+        # Per message: arrivals still to come (its copies in flight), and whether a copy was
+        # stopped by the hop limit (for the cause of a drop).
+        self._pending: dict[int, int] = {}
+        self._ttl_cut: set[int] = set()
+        self.events = parts.events
         # One entry per delivery event: (msg_id, hop, sender, t_sent_s, t_received_s, receivers).
         self._hops: list[tuple] = []
 
@@ -124,17 +130,28 @@ class Relay:
             "shortest_hops": float(hop_distances(st, now, src)[dst]),
         }
         self._seen[mid] = {src}
+        self._pending[mid] = 0
         msg = Message(mid, src, dst, self.ttl, 1)
         if self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
         else:
             self._broadcast(src, msg)
+            if self._pending[mid] == 0:
+                self._dropped(msg, now, "died_out")  # nobody received the source's broadcast
         return mid
 
     # -- backbone flooding -------------------------------------------------------------
     def _broadcast(self, sender: int, msg: Message) -> None:
         self._outcomes[msg.id]["transmissions"] += 1
-        self.channel.broadcast(sender, msg._replace(t_tx_s=self.env.now), self._on_flood, kind="data")
+        got = self.channel.broadcast(sender, msg._replace(t_tx_s=self.env.now), self._on_flood, kind="data")
+        self._pending[msg.id] += self._arrivals(len(got))
+
+    def _arrivals(self, receivers: int) -> int:
+        """Delivery callbacks a transmission received by ``receivers`` robots makes: one, or
+        one per receiver when the latency has jitter (channel.py)."""
+        if receivers == 0:
+            return 0
+        return receivers if self.channel.latency_jitter_s > 0 else 1
 
     def _relays(self, receivers: np.ndarray, now: float) -> np.ndarray:
         st = self.roles
@@ -151,6 +168,7 @@ class Relay:
 
     def _on_flood(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
         now = self.env.now
+        self._pending[msg.id] -= 1
         self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, now, receivers))
         seen = self._seen[msg.id]
         fresh = [r for r in receivers.tolist() if r not in seen]
@@ -158,11 +176,15 @@ class Relay:
         if msg.dst in fresh:
             self._delivered(msg, now)
         if msg.ttl <= 1:
-            return
-        nxt = msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1)
-        for r in self._relays(np.array(fresh, dtype=np.int64), now).tolist():
-            if r != msg.dst:
-                self._broadcast(r, nxt)
+            if fresh:
+                self._ttl_cut.add(msg.id)
+        else:
+            nxt = msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1)
+            for r in self._relays(np.array(fresh, dtype=np.int64), now).tolist():
+                if r != msg.dst:
+                    self._broadcast(r, nxt)
+        if self._pending[msg.id] == 0:
+            self._dropped(msg, now, "ttl" if msg.id in self._ttl_cut else "died_out")
 
     # -- oracle shortest path ----------------------------------------------------------
     def _forward_oracle(self, holder: int, msg: Message) -> None:
@@ -170,11 +192,13 @@ class Relay:
         to_dst = hop_distances(st, now, msg.dst, towards=True)
         nbrs, _ = self.channel.in_range(holder)
         if len(nbrs) == 0 or not np.isfinite(to_dst[nbrs]).any():
-            return  # no route now: the message is lost
+            self._dropped(msg, now, "no_route")  # no route now: the message is lost
+            return
         # The next hop: the neighbour fewest hops from the destination (lowest id on ties).
         nxt = int(nbrs[int(np.argmin(to_dst[nbrs]))])
         self._outcomes[msg.id]["transmissions"] += 1
-        self.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind="data")
+        if not self.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind="data"):
+            self._dropped(msg, now, "lost")
 
     def _on_oracle(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
         self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, self.env.now, receivers))
@@ -183,11 +207,26 @@ class Relay:
             self._delivered(msg, self.env.now)
         elif msg.ttl > 1:
             self._forward_oracle(holder, msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1))
+        else:
+            self._dropped(msg, self.env.now, "ttl")
 
     def _delivered(self, msg: Message, now: float) -> None:
         out = self._outcomes[msg.id]
         if not out["delivered"]:
             out.update(delivered=True, t_delivered_s=now, hops=msg.hops, latency_s=now - out["t_sent_s"])
+            ev = self.events
+            if ev is not None and ev.wants("message_delivered"):
+                ev.emit(
+                    "message_delivered", MessageDelivered(now, msg.id, msg.src, msg.dst, msg.hops, out["latency_s"])
+                )
+
+    def _dropped(self, msg: Message, now: float, cause: str) -> None:
+        """No copy of ``msg`` can reach its destination any more (never called once delivered)."""
+        if self._outcomes[msg.id]["delivered"]:
+            return
+        ev = self.events
+        if ev is not None and ev.wants("message_dropped"):
+            ev.emit("message_dropped", MessageDropped(now, msg.id, msg.src, msg.dst, msg.hops, cause))
 
     def outcomes(self) -> list[Outcome]:
         return [Outcome(**o) for o in self._outcomes.values()]

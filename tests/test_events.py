@@ -553,3 +553,47 @@ def test_the_live_graph_equals_the_snapshot_on_a_torus_with_unequal_ranges():
     sim.run()
     assert wrong == []
     assert min(seen) > 10
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["protocol.routing=backbone", "channel.loss_probability=0.3"],
+        ["protocol.routing=backbone", "channel.latency_jitter_s=0.01", "protocol.message_ttl=2"],
+        ["protocol.routing=oracle", "channel.loss_probability=0.3"],
+        ["protocol.routing=oracle", "protocol.message_ttl=2"],
+    ],
+)
+def test_messages_end_to_end_are_announced_once_with_their_outcome(overrides):
+    config = load(
+        None,
+        ["world.n_robots=40", "duration_s=60", "world.side_m=900", "protocol.message_rate_hz=2", *overrides],
+    )
+    sim = build(config)
+    delivered, dropped = [], []
+    sim.events.on("message_delivered", delivered.append)
+    sim.events.on("message_dropped", dropped.append)
+    sim.run()
+    messages = collect(sim)["messages"].set_index("msg_id")
+    ids = [e.msg_id for e in delivered + dropped]
+    assert len(ids) == len(set(ids))  # at most one outcome per message
+    # Every delivered message, and only those, announced as delivered, with its row's figures.
+    got = pd.DataFrame(delivered).set_index("msg_id").sort_index()
+    rows = messages[messages["delivered"]]
+    assert got.index.tolist() == rows.index.tolist()
+    assert (got["t_s"] == rows["t_delivered_s"]).all() and (got["hops"] == rows["hops"]).all()
+    assert (got["latency_s"] == rows["latency_s"]).all()
+    # Dropped: never delivered, known after being sent, for a documented cause.
+    lost = pd.DataFrame(dropped).set_index("msg_id")
+    assert len(lost) > 0 and not messages.loc[lost.index, "delivered"].any()
+    assert (lost["t_s"] >= messages.loc[lost.index, "t_sent_s"]).all()
+    assert set(lost["cause"]) <= {"no_route", "lost", "ttl", "died_out"}
+    # The rest were still on their way when the run ended.
+    silent = messages.index.difference(got.index.union(lost.index))
+    relay = sim.models["protocol"].relay
+    if config.protocol.routing == "backbone":
+        assert all(relay._pending[m] > 0 for m in silent)
+        assert all(relay._pending[m] == 0 for m in lost.index)
+    assert len(silent) < 0.1 * len(messages)
+    times = [e.t_s for e in delivered + dropped]
+    assert len(times) > 20
