@@ -317,8 +317,8 @@ class Config(Params):
             hook.check(hook.Params(), self)
         if self.events.runtime_links == "off" and self.events.live_topology:
             raise ConfigError("events.live_topology", True, "needs link events during the run (events.runtime_links)")
-        if self.channel.propagation != "unit_disk" or self.world.map:
-            why = "with a radio (channel.propagation or world.map) links are solved after the run only"
+        if PROPAGATION_MODELS[self.channel.propagation].shadowed(self.channel.radio) or self.world.map:
+            why = RADIO_LINKS_AFTER_RUN
             if self.events.runtime_links == "on":
                 raise ConfigError("events.runtime_links", "on", why)
             if self.events.live_topology:
@@ -356,6 +356,12 @@ class Config(Params):
         if isinstance(r, tuple):
             return r
         return (float(r),) * self.world.n_robots
+
+
+# Why link events cannot be solved during a run under shadowing or walls (docs/events.md).
+RADIO_LINKS_AFTER_RUN = (
+    "with shadowing (channel.shadowing_sigma_db > 0) or walls (world.map) links are solved after the run only"
+)
 
 
 def _check_map(config: Config) -> None:

@@ -23,7 +23,7 @@ import simpy
 from netsim import config as cfgmod
 from netsim import plugins
 from netsim.channel import Channel
-from netsim.config import Config
+from netsim.config import RADIO_LINKS_AFTER_RUN, Config
 from netsim.control import ControlLoop
 from netsim.errors import ConfigError
 from netsim.events import EventBus
@@ -98,12 +98,14 @@ def simulation(config: Config, run: int = 0) -> Simulation:
         env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events, occupancy=occupancy
     )
     sim = Simulation(parts, config, run)
-    # Under a radio (path loss, shadowing, walls) links are solved after the run only.
-    if reception is None:
+    # Log-distance path loss without shadowing or walls is the unit disk of the implied range
+    # (the robots' range_m): its link events are solved during the run as the unit disk's.
+    # Under shadowing or walls links are solved after the run only.
+    if reception is None or (reception.recorder is None and reception.map is None):
         sim.runtime_links = config.events.runtime_links
     else:
         sim.runtime_links = "off"
-        sim.runtime_links_off = "with a radio (channel.propagation or world.map) links are solved after the run only"
+        sim.runtime_links_off = RADIO_LINKS_AFTER_RUN
     return sim
 
 
@@ -215,12 +217,12 @@ def collect(sim: Simulation) -> dict[str, pd.DataFrame]:
     times = position_times(sim.parts.output.position_interval_s, sim.duration_s)
     frames["positions"] = sample_positions(legs, sim.state.n, times, side, torus)
     reception = sim.channel.reception
-    if reception is not None:
-        frames["links"] = radio_link_lifetimes(reception, legs, sim.state.range_m, sim.env.now, side, torus)
-    elif sim.links is not None:
+    if sim.links is not None:
         # Solved during the run: the record of the link events (docs/events.md).
         sim.links.finish(sim.env.now)
         frames["links"] = sim.links.frame(sim.env.now)
+    elif reception is not None:
+        frames["links"] = radio_link_lifetimes(reception, legs, sim.state.range_m, sim.env.now, side, torus)
     else:
         frames["links"] = link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus)
     # Every course change: trajectories are exact from these (positions unwrapped on a torus).

@@ -597,3 +597,56 @@ def test_messages_end_to_end_are_announced_once_with_their_outcome(overrides):
     assert len(silent) < 0.1 * len(messages)
     times = [e.t_s for e in delivered + dropped]
     assert len(times) > 20
+
+
+def test_runtime_links_under_log_distance_without_shadowing_or_walls():
+    """Path loss alone is the unit disk of the implied range: its link events run live."""
+    base = ["world.n_robots=30", "duration_s=120", "world.side_m=500", "protocol.model=ack"]
+    radio = ["channel.propagation=log_distance", "channel.sensitivity_dbm=-80"]
+    config = load(None, base + radio + ["events.runtime_links=on", "events.live_topology=true"])
+    result = execute(config)
+    assert result.sim.links is not None
+    st = result.sim.state
+    posthoc = link_lifetimes(result.frames["legs"], st.range_m, 120.0, st.side_m, st.torus)
+    assert len(posthoc) > 3
+    _assert_same_links(result.frames["links"], posthoc)
+    # The same run, links solved after it, writes the same receptions.
+    after = execute(load(None, base + radio))
+    assert after.sim.links is None
+    pd.testing.assert_frame_equal(after.frames["acks"], result.frames["acks"])
+
+
+@pytest.mark.parametrize(
+    "radio",
+    [
+        ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4"],
+        ["world.map=office", "world.side_m=200", "channel.range_m=40", "mobility.stationary_start=false"],
+    ],
+    ids=["shadowing", "walls"],
+)
+@pytest.mark.parametrize(
+    "events, key",
+    [
+        (["events.runtime_links=on"], "events.runtime_links"),
+        (["events.live_topology=true"], "events.live_topology"),
+    ],
+)
+def test_runtime_links_are_refused_under_shadowing_or_walls(radio, events, key):
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")) as err:
+        load(None, ["world.n_robots=10", "duration_s=10", *radio, *events])
+    assert "solved after the run only" in str(err.value)
+
+
+def test_a_hook_on_link_events_is_refused_under_shadowing():
+    config = load(
+        None,
+        [
+            "world.n_robots=10",
+            "duration_s=10",
+            "channel.propagation=log_distance",
+            "channel.shadowing_sigma_db=4",
+            'events.hooks=["link_breaks"]',
+        ],
+    )
+    with pytest.raises(ConfigError, match=r"events\.hooks.*solved after the run only"):
+        execute(config)
