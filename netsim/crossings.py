@@ -63,6 +63,7 @@ def solve_piece(
     d: np.ndarray,
     w: np.ndarray,
     radius: np.ndarray,
+    origin: float | np.ndarray,
     t_start: float | np.ndarray,
     length: float | np.ndarray,
     a: np.ndarray,
@@ -70,30 +71,39 @@ def solve_piece(
     emit: Callable[..., None],
     box: float | None = None,
 ) -> None:
-    """Crossings of pairs at relative position ``d + w t`` over ``[0, length]`` from
-    ``t_start``; on a torus, of every image the path can reach (``d`` the nearest one)."""
+    """Crossings within ``[t_start, t_start + length]`` of pairs whose relative position is
+    ``d + w (t - origin)`` (``origin <= t_start``); on a torus, of every image the path can
+    reach (``d`` the nearest one at ``origin``).
+
+    The roots are solved from ``origin``, not from ``t_start``: callers pass the later of the
+    two robots' leg starts, so that a crossing's time depends on the pair's legs alone, not
+    on where a solver's windows happen to fall. The post-hoc and the runtime solver then
+    find the very same floats."""
     if len(d) == 0:
         return
-    length = np.broadcast_to(np.asarray(length, float), (len(d),))
-    t_start = np.broadcast_to(np.asarray(t_start, float), (len(d),))
+    n = len(d)
+    origin = np.broadcast_to(np.asarray(origin, float), (n,))
+    length = np.broadcast_to(np.asarray(length, float), (n,))
+    t_start = np.broadcast_to(np.asarray(t_start, float), (n,))
     if box is None:
-        _solve_image(d, w, radius, t_start, length, a, b, emit)
+        _solve_image(d, w, radius, origin, t_start, length, a, b, emit)
         return
-    # An image k is reachable when |d - box k| <= R + |w| length; with d the nearest image,
-    # |k_x|, |k_y| <= 1/2 + (R + |w| length) / box.
-    reach = radius + np.hypot(w[:, 0], w[:, 1]) * length
+    # An image k is reachable when |d - box k| <= R + |w| span (span: from origin to the end);
+    # with d the nearest image, |k_x|, |k_y| <= 1/2 + (R + |w| span) / box.
+    reach = radius + np.hypot(w[:, 0], w[:, 1]) * (t_start + length - origin)
     K = int(np.floor(0.5 + float(reach.max()) / box))
     for kx in range(-K, K + 1):
         for ky in range(-K, K + 1):
             dk = d - box * np.array([kx, ky], float)
             sel = slice(None) if kx == ky == 0 else np.hypot(dk[:, 0], dk[:, 1]) <= reach * (1 + 1e-9)
-            _solve_image(dk[sel], w[sel], radius[sel], t_start[sel], length[sel], a[sel], b[sel], emit)
+            _solve_image(dk[sel], w[sel], radius[sel], origin[sel], t_start[sel], length[sel], a[sel], b[sel], emit)
 
 
 def _solve_image(
     d: np.ndarray,
     w: np.ndarray,
     radius: np.ndarray,
+    origin: np.ndarray,
     t_start: np.ndarray,
     length: np.ndarray,
     a: np.ndarray,
@@ -103,12 +113,14 @@ def _solve_image(
     if len(d) == 0:
         return
     t_in, t_out = roots(d, w, radius)
+    end = t_start + length
     # A crossing on a piece's edge is looked for by both pieces, with a little slack, so
     # that rounding cannot hide it from both; the duplicate is dropped later. A crossing
     # near a piece's start sorts after one near the previous piece's end at the same
     # instant (and after the state set at a jump there).
     for rel, kind in ((t_in, 1), (t_out, -1)):
-        hit = (rel >= -EDGE_S) & (rel <= length + EDGE_S)
-        at = np.clip(rel[hit], 0.0, length[hit])
-        phase = np.where(at <= 0.5 * length[hit], PHASE_START, PHASE_END)
-        emit(t_start[hit] + at, a[hit], b[hit], kind, phase)
+        at = origin + rel
+        hit = (at >= t_start - EDGE_S) & (at <= end + EDGE_S)
+        t_ev = np.minimum(np.maximum(at[hit], t_start[hit]), end[hit])
+        phase = np.where(t_ev - t_start[hit] <= 0.5 * length[hit], PHASE_START, PHASE_END)
+        emit(t_ev, a[hit], b[hit], kind, phase)

@@ -198,7 +198,7 @@ class RuntimeLinks:
         if jumpers is not None and len(jumpers):
             self._judge_jumpers(t, pos, jumpers)
         if self.v_bound > 0 and m:
-            self._solve(np.arange(m), t, pos)
+            self._solve(np.arange(m), t)
         self._sort_batch()
         if math.isfinite(self._w_end):
             wid = self._wid
@@ -225,14 +225,15 @@ class RuntimeLinks:
         self._push(np.full(int(inside.sum()), t), a[inside], b[inside], 1, PHASE_STATE)
         self._push(np.full(int((~inside).sum()), t), a[~inside], b[~inside], -1, PHASE_STATE)
 
-    def _solve(self, idx: np.ndarray, t: float, pos: np.ndarray | None = None) -> None:
+    def _solve(self, idx: np.ndarray, t: float) -> None:
         """Queue the crossings of candidate pairs ``idx`` from ``t`` to the window's end."""
         st = self.state
         a, b = self._ca[idx], self._cb[idx]
-        if pos is None:
-            pa, pb = self._positions(t, a), self._positions(t, b)
-        else:
-            pa, pb = pos[a], pos[b]
+        # Solved from the later of the two legs' starts, as the post-hoc solver does
+        # (netsim.crossings.solve_piece): the same floats, whatever the windows.
+        origin = np.maximum(st.t0_s[a], st.t0_s[b])
+        pa = st.origin_m[a] + st.velocity_mps[a] * (origin - st.t0_s[a])[:, None]
+        pb = st.origin_m[b] + st.velocity_mps[b] * (origin - st.t0_s[b])[:, None]
         d0 = wrap(pa - pb, self.box)
         w = st.velocity_mps[a] - st.velocity_mps[b]
         found: list[tuple] = []
@@ -241,7 +242,7 @@ class RuntimeLinks:
             if len(ia):
                 found.append((np.asarray(t_ev, float), np.asarray(ia, np.int64), kind, np.asarray(phase)))
 
-        solve_piece(d0, w, self._cr[idx], t, self._w_end - t, idx, idx, emit, self.box)
+        solve_piece(d0, w, self._cr[idx], origin, t, self._w_end - t, idx, idx, emit, self.box)
         for t_ev, ia, kind, phase in found:
             self._push(t_ev, self._ca[ia], self._cb[ia], kind, phase, ia)
 

@@ -116,23 +116,14 @@ def link_events(
             swap = i > j
             i, j = np.where(swap, j, i), np.where(swap, i, j)
             radius = np.minimum(ranges[i], ranges[j])
-            d0 = wrap(pos[i] - pos[j], box)
             if first:
+                d0 = wrap(pos[i] - pos[j], box)
                 up = np.einsum("ij,ij->i", d0, d0) <= radius * radius
                 emit(np.zeros(int(up.sum())), i[up], j[up], 1, PHASE_STATE)
             changing = L.changes_in(start, stop)
             simple = ~(changing[i] | changing[j])
-            solve_piece(
-                d0[simple],
-                L.v[L.cur[i[simple]]] - L.v[L.cur[j[simple]]],
-                radius[simple],
-                start,
-                stop - start,
-                i[simple],
-                j[simple],
-                emit,
-                box,
-            )
+            li, lj = L.cur[i[simple]], L.cur[j[simple]]
+            _solve_legs(L, li, lj, radius[simple], start, stop - start, i[simple], j[simple], emit, box)
             if (~simple).any():
                 _solve_changing(L, i[~simple], j[~simple], radius[~simple], start, stop, box, emit)
         first = False
@@ -230,9 +221,27 @@ def _solve_changing(
     p, t, ca, cb = p[last], t[last], ca[last], cb[last]
     end = np.where(np.r_[p[1:] == p[:-1], False], np.r_[t[1:], stop], stop)
     la, lb = L.cur[a[p]] + ca, L.cur[b[p]] + cb
-    pa = L.p[la] + L.v[la] * (t - L.t[la])[:, None]
-    pb = L.p[lb] + L.v[lb] * (t - L.t[lb])[:, None]
-    solve_piece(wrap(pa - pb, box), L.v[la] - L.v[lb], radius[p], t, end - t, a[p], b[p], emit, box)
+    _solve_legs(L, la, lb, radius[p], t, end - t, a[p], b[p], emit, box)
+
+
+def _solve_legs(
+    L: LegTable,
+    la: np.ndarray,
+    lb: np.ndarray,
+    radius: np.ndarray,
+    t_start: float | np.ndarray,
+    length: float | np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    emit: Callable[..., None],
+    box: float | None,
+) -> None:
+    """Crossings of pairs on legs ``la``, ``lb`` within ``[t_start, t_start + length]``, solved
+    from the later of the two legs' starts (:func:`netsim.crossings.solve_piece`)."""
+    origin = np.maximum(L.t[la], L.t[lb])
+    pa = L.p[la] + L.v[la] * (origin - L.t[la])[:, None]
+    pb = L.p[lb] + L.v[lb] * (origin - L.t[lb])[:, None]
+    solve_piece(wrap(pa - pb, box), L.v[la] - L.v[lb], radius, origin, t_start, length, a, b, emit, box)
 
 
 def link_lifetimes(
