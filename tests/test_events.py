@@ -557,9 +557,12 @@ def test_the_live_graph_equals_the_snapshot_on_a_torus_with_unequal_ranges():
 @pytest.mark.parametrize(
     "overrides",
     [
-        ["protocol.routing=backbone", "channel.loss_probability=0.3"],
-        ["protocol.routing=backbone", "channel.latency_jitter_s=0.01", "protocol.message_ttl=2"],
-        ["protocol.routing=oracle", "channel.loss_probability=0.3"],
+        pytest.param(["protocol.routing=backbone", "channel.loss_probability=0.3"], marks=pytest.mark.slow),
+        pytest.param(
+            ["protocol.routing=backbone", "channel.latency_jitter_s=0.01", "protocol.message_ttl=2"],
+            marks=pytest.mark.slow,
+        ),
+        pytest.param(["protocol.routing=oracle", "channel.loss_probability=0.3"], marks=pytest.mark.slow),
         ["protocol.routing=oracle", "protocol.message_ttl=2"],
     ],
 )
@@ -598,6 +601,7 @@ def test_messages_end_to_end_are_announced_once_with_their_outcome(overrides):
     assert len(times) > 20
 
 
+@pytest.mark.slow
 def test_runtime_links_under_log_distance_without_shadowing_or_walls():
     """Path loss alone is the unit disk of the implied range: its link events run live."""
     base = ["world.n_robots=30", "duration_s=120", "world.side_m=500", "protocol.model=ack"]
