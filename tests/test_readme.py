@@ -85,6 +85,10 @@ REDUCED = {
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'link_events.py'))} --live --n 100 --protocol none",
         "N = 100 and no protocol only",
     ),
+    ".venv/bin/python benchmarks/compare.py --ns3-python .ns3venv/bin/python   # N = 100 and 1,000": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'compare.py'))} --n 20",
+        "N = 20, and no ns-3 (its environment is built apart: benchmarks/ns3_env.sh)",
+    ),
     ".venv/bin/python benchmarks/radio_runs.py": (
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'radio_runs.py'))} --n 100 --duration 5",
         "N = 100, 5 simulated seconds",

@@ -1,0 +1,148 @@
+"""Benchmark: netsim beside the references a user would otherwise pick, in one invocation.
+
+The periodic-beacon workload: N robots, random waypoint with speeds U[1, 5] m/s and a 2 s
+pause, starting uniformly at rest, unit disk of range 100 m on a square whose side gives a
+mean degree of 10, one beacon (Ack) per robot per second, 100 simulated seconds. Cases:
+
+- ``netsim ack``: the whole ``netsim run`` process (import, build, run, writing the tables)
+  with ``protocol.model = "ack"``;
+- ``netsim clustering``: the same with the full clustering protocol (Acks, roles, relaying);
+- ``simpy reference``: ``simpy_reference_beacon.py``, the workload written in plain SimPy as
+  a user writes it (a process per robot for motion and for beacons, an O(N) scan per send,
+  one event per reception); its whole process, and its run alone;
+- ``ns-3 direct``: ``ns3_beacon.py --mode direct`` (ns-3 3.44 through its Python wheel, a C++
+  O(N) scan and one event per reception), only with ``--ns3-python`` (a Python that has
+  ns-3: ``bash benchmarks/ns3_env.sh .ns3venv``); its ``Simulator::Run`` alone, and its whole
+  process (importing ns-3 takes about 13 s).
+
+Every case runs in its own process; peak memory is that process's maximum RSS. The table
+gives wall seconds, receptions per wall second, and each case's wall time over netsim ack's.
+
+    python benchmarks/compare.py                          # N = 100 and 1,000
+    python benchmarks/compare.py --n 100 1000 10000 --reference-max-n 1000
+    python benchmarks/compare.py --ns3-python .ns3venv/bin/python
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RANGE_M, DEGREE, DURATION_S, PERIOD_S = 100.0, 10.0, 100.0, 1.0
+SPEED_MIN, SPEED_MAX, PAUSE_S = 1.0, 5.0, 2.0
+
+
+def side_for(n: int) -> float:
+    return RANGE_M * math.sqrt(n * math.pi / DEGREE)
+
+
+def measured(cmd: list[str]) -> tuple[float, int, str]:
+    """Wall seconds, peak RSS (KiB) and standard output of ``cmd``, run alone in a fresh
+    wrapper process (so that the RSS is that command's)."""
+    wrapper = (
+        "import resource, subprocess, sys, time, json\n"
+        "t = time.perf_counter()\n"
+        "p = subprocess.run(sys.argv[1:], capture_output=True, text=True)\n"
+        "wall = time.perf_counter() - t\n"
+        "sys.stderr.write(p.stderr)\n"
+        "print(json.dumps({'rc': p.returncode, 'wall': wall, "
+        "'rss': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, 'out': p.stdout}))\n"
+    )
+    res = subprocess.run([sys.executable, "-c", wrapper, *cmd], capture_output=True, text=True, check=True)
+    got = json.loads(res.stdout.strip().splitlines()[-1])
+    if got["rc"] != 0:
+        raise SystemExit(f"compare.py: {' '.join(cmd)} failed:\n{res.stderr}")
+    return got["wall"], got["rss"], got["out"]
+
+
+def netsim_case(n: int, protocol: str) -> dict:
+    import pandas as pd
+
+    netsim = str(Path(sys.executable).with_name("netsim"))
+    with tempfile.TemporaryDirectory() as out:
+        sets = {
+            "seed": 1,
+            "duration_s": DURATION_S,
+            "world.n_robots": n,
+            "world.side_m": side_for(n),
+            "channel.range_m": RANGE_M,
+            "mobility.speed_min_mps": SPEED_MIN,
+            "mobility.speed_max_mps": SPEED_MAX,
+            "mobility.pause_s": PAUSE_S,
+            "mobility.stationary_start": "false",
+            "protocol.model": protocol,
+            "protocol.ack_period_s": PERIOD_S,
+            "output.position_interval_s": 0,
+        }
+        cmd = [netsim, "run", "--out", out, "--no-progress", "--quiet"]
+        for key, value in sets.items():
+            cmd += ["--set", f"{key}={value}"]
+        wall, rss, _ = measured(cmd)
+        received = int(pd.read_parquet(os.path.join(out, "acks.parquet"))["received"].sum())
+    return {"wall_s": wall, "run_s": None, "received": received, "rss_kib": rss}
+
+
+def reference_case(n: int) -> dict:
+    cmd = [sys.executable, str(HERE / "simpy_reference_beacon.py"), "--n", str(n), "--sim-time", str(DURATION_S)]
+    cmd += ["--rc", str(RANGE_M), "--period", str(PERIOD_S), "--vmin", str(SPEED_MIN), "--vmax", str(SPEED_MAX)]
+    wall, rss, out = measured(cmd + ["--pause", str(PAUSE_S)])
+    got = json.loads(out.strip().splitlines()[-1])
+    return {"wall_s": wall, "run_s": got["wall_run_s"], "received": got["received"], "rss_kib": rss}
+
+
+def ns3_case(n: int, python: str) -> dict:
+    cmd = [python, str(HERE / "ns3_beacon.py"), "--n", str(n), "--sim-time", str(DURATION_S), "--mode", "direct"]
+    cmd += ["--rc", str(RANGE_M), "--period", str(PERIOD_S), "--vmin", str(SPEED_MIN), "--vmax", str(SPEED_MAX)]
+    wall, rss, out = measured(cmd + ["--pause", str(PAUSE_S)])
+    got = json.loads(out.strip().splitlines()[-1])
+    return {"wall_s": wall, "run_s": got["wall_run_s"], "received": got["received"], "rss_kib": rss}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, nargs="+", default=[100, 1000])
+    ap.add_argument("--reference-max-n", type=int, default=1000, help="largest N for the O(N^2) references")
+    ap.add_argument("--ns3-python", default=None, help="a Python with ns-3 (bash benchmarks/ns3_env.sh .ns3venv)")
+    args = ap.parse_args()
+    if any(n < 2 for n in args.n):
+        ap.error("every --n must be at least 2")
+    if args.ns3_python and not Path(args.ns3_python).exists():
+        ap.error(f"--ns3-python: {args.ns3_python} does not exist")
+    rows = []
+    for n in args.n:
+        cases = [("netsim ack (whole process)", lambda n=n: netsim_case(n, "ack"))]
+        cases.append(("netsim clustering (whole process)", lambda n=n: netsim_case(n, "clustering")))
+        if n <= args.reference_max_n:
+            cases.append(("simpy reference", lambda n=n: reference_case(n)))
+            if args.ns3_python:
+                cases.append(("ns-3 direct", lambda n=n: ns3_case(n, args.ns3_python)))
+        base = None
+        for name, run in cases:
+            start = time.perf_counter()
+            r = run()
+            base = base or r["wall_s"]
+            rows.append((n, name, r, base))
+            print(f"N = {n}: {name}: {r['wall_s']:.1f} s ({time.perf_counter() - start:.1f} s)", file=sys.stderr)
+    print("| N | case | wall s (whole process) | run s | receptions | receptions / wall s | peak MiB | x netsim ack |")
+    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for n, name, r, base in rows:
+        run_s = f"{r['run_s']:.1f}" if r["run_s"] is not None else ""
+        rate = r["received"] / r["wall_s"]
+        print(
+            f"| {n:,} | {name} | {r['wall_s']:.1f} | {run_s} | {r['received']:,} | {rate:,.0f} | "
+            f"{r['rss_kib'] / 1024:.0f} | {r['wall_s'] / base:.2f} |"
+        )
+        if r["run_s"]:
+            print(f"| {n:,} | {name}, run alone | {r['run_s']:.1f} | | | {r['received'] / r['run_s']:,.0f} | | |")
+
+
+if __name__ == "__main__":
+    main()
