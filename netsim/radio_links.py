@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.lifetimes import COLUMNS, link_lifetimes
+from netsim.radio import compiled_kernels
 from netsim.radio.propagation import Pairs
 from netsim.trajectory import LegTable
 
@@ -39,11 +40,8 @@ TOLERANCE_S = 1e-6
 
 
 def _legs_kernel():
-    try:
-        from netsim.radio._kernels import legs_at
-    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
-        return None
-    return legs_at
+    k = compiled_kernels()
+    return None if k is None else k.legs_at
 
 
 def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:

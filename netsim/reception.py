@@ -19,17 +19,15 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from netsim.radio import compiled_kernels
 from netsim.radio.fast import CompiledChain
 from netsim.radio.propagation import Propagation
 from netsim.state import RobotState
 
 
 def _link_changes():
-    try:
-        from netsim.radio._kernels import link_changes
-    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
-        return None
-    return link_changes
+    k = compiled_kernels()
+    return None if k is None else k.link_changes
 
 
 class LinkRecorder:

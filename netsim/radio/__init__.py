@@ -13,3 +13,13 @@
 Nothing here reads a configuration or needs the simulation kernel: each piece takes numpy
 arrays and explicit parameters.
 """
+
+
+def compiled_kernels():
+    """The compiled loops (:mod:`netsim.radio._kernels`), or None where numba is missing
+    (it is a dependency; the numpy paths are kept for exotic platforms)."""
+    try:
+        from netsim.radio import _kernels
+    except ImportError:  # pragma: no cover
+        return None
+    return _kernels

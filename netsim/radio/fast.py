@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from netsim.radio import compiled_kernels
 from netsim.radio.los import VERTEX_TOLERANCE_CELLS
 from netsim.radio.propagation import (
     LineOfSightLoss,
@@ -28,23 +29,12 @@ from netsim.radio.propagation import (
 )
 from netsim.radio.shadowing import pair_keys
 
-
-def _kernels():
-    try:
-        from netsim.radio import _kernels
-    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
-        return None
-    return _kernels
-
-
 _NO_GRID = np.zeros(1, dtype=bool)
-_NO_POINTS = np.zeros((1, 2))
 # Stand-ins for the arrays a pass does not read (no walls: no grid points; no shadowing: no
 # keys, travels or draws).
-_NO_POINTS_K = np.zeros((1, 2))
-_NO_KEYS_K = np.zeros(1, dtype=np.int64)
-_NO_TRAVEL_K = np.zeros(1)
-_NO_DRAW = np.zeros(1)
+_NO_POINTS = np.zeros((1, 2))
+_NO_KEYS = np.zeros(1, dtype=np.int64)
+_NO_FLOATS = np.zeros(1)
 
 
 class CompiledChain:
@@ -52,7 +42,7 @@ class CompiledChain:
 
     def __init__(self, propagation: Propagation):
         self.propagation = propagation
-        self.k = _kernels()
+        self.k = compiled_kernels()
         terms = list(propagation.chain.terms)
         kinds = [type(t) for t in terms]
         self.log = self.shadow = self.walls = self.range = self.sight = None
@@ -144,8 +134,8 @@ class CompiledChain:
             s_new = np.empty(k)
             tables = (sh._keys, sh._x, sh._s, sh.dense_n, sh.normals(k))
         else:
-            keys, s_new = _NO_KEYS_K, _NO_TRAVEL_K
-            tables = (_NO_KEYS_K, _NO_TRAVEL_K, _NO_TRAVEL_K, 0, _NO_DRAW)
+            keys, s_new = _NO_KEYS, _NO_FLOATS
+            tables = (_NO_KEYS, _NO_FLOATS, _NO_FLOATS, 0, _NO_FLOATS)
         x_new = np.empty(k)
         new = np.empty(k, dtype=bool)
         count = self.k.log_frame(
@@ -192,13 +182,13 @@ class CompiledChain:
             -clip, self.budget_slack, loss, alive,
         )  # fmt: skip
         if g0 is None:
-            g0 = g1 = _NO_POINTS_K
+            g0 = g1 = _NO_POINTS
         if sh is not None and count:
             z = sh.normals(count)
             sh.consume(count)
             tk, tx, ts, sigma = sh._keys, sh._x, sh._s, sh.sigma_db
         else:
-            keys, s_new, z = _NO_KEYS_K, _NO_TRAVEL_K, _NO_DRAW
+            keys, s_new, z = _NO_KEYS, _NO_FLOATS, _NO_FLOATS
             tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
         x_new = np.empty(kn)
         new = np.empty(kn, dtype=bool)

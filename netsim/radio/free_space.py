@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from netsim.errors import ConfigError
+from netsim.radio import compiled_kernels
 from netsim.radio.los import VERTEX_TOLERANCE_CELLS, first_blocked, line_of_sight
 from netsim.radio.maps import MAP_KEY, OccupancyMap
 
@@ -151,11 +152,8 @@ def draw_destinations(
 
 
 def _destinations_kernel():
-    try:
-        from netsim.radio._kernels import free_destinations
-    except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
-        return None
-    return free_destinations
+    k = compiled_kernels()
+    return None if k is None else k.free_destinations
 
 
 def _compiled_round(kernel, m: OccupancyMap, rng, here, side_m: float, batch: int, out, todo) -> np.ndarray:
