@@ -47,16 +47,17 @@ Deliver = Callable[[int, np.ndarray, Any], None]
 
 
 class Counters:
-    """Per-robot counts for one message kind."""
+    """Per-robot counts for one message kind (``causes``: the channel's drop causes)."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, causes: tuple[str, ...] = DROP_CAUSES):
+        self.causes = causes
         self.sent = np.zeros(n, dtype=np.int64)
         self.received = np.zeros(n, dtype=np.int64)
-        self.dropped = np.zeros((len(DROP_CAUSES), n), dtype=np.int64)
+        self.dropped = np.zeros((len(causes), n), dtype=np.int64)
 
     def frame(self) -> pd.DataFrame:
         df = pd.DataFrame({"robot": np.arange(len(self.sent)), "sent": self.sent, "received": self.received})
-        for c, cause in enumerate(DROP_CAUSES):
+        for c, cause in enumerate(self.causes):
             df[f"dropped_{cause}"] = self.dropped[c]
         return df
 
@@ -69,11 +70,12 @@ class SendTimeBins:
     COLUMNS = ("sent", "in_range", "received") + tuple(f"dropped_{c}" for c in DROP_CAUSES)
     SENT, IN_RANGE, RECEIVED, DROPPED = 0, 1, 2, 3
 
-    def __init__(self, interval_s: float):
+    def __init__(self, interval_s: float, causes: tuple[str, ...] = DROP_CAUSES):
         if not interval_s > 0:
             raise ValueError(f"a bin interval must be positive, got {interval_s}")
         self.interval_s = float(interval_s)
-        self.counts = np.zeros((64, len(self.COLUMNS)), dtype=np.int64)
+        self.columns = self.COLUMNS[: self.DROPPED] + tuple(f"dropped_{c}" for c in causes)
+        self.counts = np.zeros((64, len(self.columns)), dtype=np.int64)
 
     def bin(self, t: float) -> int:
         """The bin of time ``t``: the ``k`` with ``k dt <= t < (k+1) dt``, the edges being
@@ -85,7 +87,7 @@ class SendTimeBins:
         elif k * dt > t:
             k -= 1
         if k >= len(self.counts):
-            grown = np.zeros((max(2 * len(self.counts), k + 1), len(self.COLUMNS)), dtype=np.int64)
+            grown = np.zeros((max(2 * len(self.counts), k + 1), len(self.columns)), dtype=np.int64)
             grown[: len(self.counts)] = self.counts
             self.counts = grown
         return k
@@ -94,10 +96,10 @@ class SendTimeBins:
         """One row per bin from 0 to ``duration_s`` (bins with nothing sent included)."""
         used = np.flatnonzero(self.counts.any(axis=1))
         bins = max(int(math.ceil(duration_s / self.interval_s - 1e-9)), int(used[-1]) + 1 if len(used) else 0)
-        counts = np.zeros((bins, len(self.COLUMNS)), dtype=np.int64)
+        counts = np.zeros((bins, len(self.columns)), dtype=np.int64)
         counts[: min(bins, len(self.counts))] = self.counts[:bins]
         df = pd.DataFrame({"t_s": np.arange(bins) * self.interval_s})
-        for c, name in enumerate(self.COLUMNS):
+        for c, name in enumerate(self.columns):
             df[name] = counts[:, c]
         return df
 
@@ -140,18 +142,40 @@ class Channel:
         self.bins: dict[str, SendTimeBins] = {}
         # The run's bus: "delivery" and "drop" events for whoever subscribes.
         self.events = events
+        # The shared medium (netsim.radio.mac.Medium), None: infinite capacity, every
+        # transmission decided at send time (the code below, unchanged by a MAC).
+        self.mac: Any = None
+        self.causes = DROP_CAUSES
+        # Bytes of a frame of each kind (set by the protocols; the medium's airtime).
+        self.frame_bytes: dict[str, int] = {}
+        # Kinds whose senders want a delivery with no receivers when nobody got a frame
+        # (under a medium only: receivers are known at the frame's end, not at send time).
+        self.notify_empty: set[str] = set()
+
+    def attach_mac(self, mac: Any) -> None:
+        """Put every transmission from now on through the shared medium ``mac``."""
+        if self.counters or self.bins:
+            raise RuntimeError("attach the medium before anything is sent or counted")
+        self.mac = mac
+        self.causes = mac.causes
+
+    @property
+    def deferred(self) -> bool:
+        """Whether receivers are decided at a frame's end (a medium), not at send time:
+        ``broadcast`` then returns no receivers and ``unicast`` whether the frame was queued."""
+        return self.mac is not None
 
     def counters_for(self, kind: str) -> Counters:
         c = self.counters.get(kind)
         if c is None:
-            c = self.counters[kind] = Counters(self.state.n)
+            c = self.counters[kind] = Counters(self.state.n, self.causes)
         return c
 
     def bin_by_send_time(self, kind: str, interval_s: float) -> SendTimeBins:
         """Keep the counts of ``kind`` also per ``interval_s`` of send time, from now on."""
         bins = self.bins.get(kind)
         if bins is None:
-            bins = self.bins[kind] = SendTimeBins(interval_s)
+            bins = self.bins[kind] = SendTimeBins(interval_s, self.causes)
         elif bins.interval_s != interval_s:
             raise ValueError(f"{kind!r} is already binned every {bins.interval_s} s")
         return bins
@@ -173,6 +197,8 @@ class Channel:
 
     def broadcast(self, sender: int, payload: object, deliver: Deliver, kind: str = "ack") -> np.ndarray:
         """Send ``payload`` from ``sender`` to everyone in range; returns the receivers."""
+        if self.mac is not None:
+            return self.mac.send(sender, -1, payload, deliver, kind)
         c = self.counters_for(kind)
         c.sent[sender] += 1
         receivers, dist = self._hearers(sender)
@@ -180,6 +206,8 @@ class Channel:
 
     def unicast(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str = "data") -> bool:
         """Send ``payload`` to ``dest`` alone; returns whether it will be delivered."""
+        if self.mac is not None:
+            return bool(len(self.mac.send(sender, dest, payload, deliver, kind)))
         c = self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind)
@@ -232,6 +260,22 @@ class Channel:
     ) -> np.ndarray:
         if len(receivers) == 0:
             return receivers
+        receivers, dist = self._decide(sender, receivers, dist, c, kind, binned)
+        if len(receivers) == 0:
+            return receivers
+        if self.latency_jitter_s > 0:
+            assert self.latency_rng is not None  # checked when built
+            delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
+            for r, delay in zip(receivers.tolist(), delays.tolist()):
+                self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned)
+        else:
+            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind, binned)
+        return receivers
+
+    def _decide(
+        self, sender: int, receivers: np.ndarray, dist: np.ndarray, c: Counters, kind: str, binned: _Bin | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The receivers (and distances) alive and spared by the loss model; the others counted."""
         alive = self.state.alive[receivers]
         if not alive.all():
             np.add.at(c.dropped[1], receivers[~alive], 1)
@@ -247,17 +291,8 @@ class Channel:
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED, int((~keep).sum()))
             self._dropped(kind, sender, receivers[~keep], "loss")
-            receivers = receivers[keep]
-        if len(receivers) == 0:
-            return receivers
-        if self.latency_jitter_s > 0:
-            assert self.latency_rng is not None  # checked when built
-            delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
-            for r, delay in zip(receivers.tolist(), delays.tolist()):
-                self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned)
-        else:
-            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind, binned)
-        return receivers
+            receivers, dist = receivers[keep], dist[keep]
+        return receivers, dist
 
     def _at(
         self,

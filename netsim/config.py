@@ -98,6 +98,20 @@ def _ranges(key: str, value: Any) -> float | tuple[float, ...]:
     return r
 
 
+MACS = ("none", "aloha", "csma")
+
+
+def _mac(key: str, value: Any) -> str:
+    if value not in MACS:
+        raise ConfigError(key, value, "must be one of " + ", ".join(repr(m) for m in MACS))
+    return value
+
+
+def _contention_window(v: int) -> str | None:
+    # 802.11's windows are 2^k - 1: doubling keeps that form, (cw + 1) * 2 - 1.
+    return None if v >= 1 and (v + 1) & v == 0 else "must be 2^k - 1 with k >= 1 (1, 3, 7, ..., 1023)"
+
+
 def _loss_model(key: str, value: Any) -> str:
     if not isinstance(value, str) or value not in LOSS_MODELS:
         raise ConfigError(key, value, "must be one of " + ", ".join(repr(n) for n in LOSS_MODELS))
@@ -120,8 +134,39 @@ class ChannelParams(Params):
     propagation: str = param(
         "unit_disk", None, "propagation model: " + ", ".join(PROPAGATION_MODELS), coerce=propagation_name
     )
+    # The shared medium (netsim/radio/mac.py, docs/radio.md); "none" is the channel of
+    # infinite capacity, every other key below is then unused.
+    mac: str = param("none", None, "medium access: 'none' (infinite capacity), 'aloha', 'csma'", coerce=_mac)
+    data_rate_bps: float = param(1e6, finite(positive), "data rate of every frame's payload, bit/s")
+    preamble_s: float = param(192e-6, finite(non_negative), "preamble and PHY header before every frame, s")
+    interference_range_m: float = param(
+        0.0,
+        finite(non_negative),
+        "robots within this distance of a sender are disturbed and sense it busy, m (0: the range;"
+        " log_distance: where the mean received power falls to noise_floor_dbm)",
+    )
+    capture_threshold_db: float = param(10.0, finite(non_negative), "log_distance: SINR a reception needs, dB")
+    noise_floor_dbm: float = param(-95.0, finite(lambda v: None), "log_distance: thermal noise at the receiver, dBm")
+    slot_s: float = param(20e-6, finite(positive), "csma: backoff slot, s")
+    difs_s: float = param(50e-6, finite(non_negative), "csma: idle time sensed before the backoff counts down, s")
+    cw_min: int = param(31, _contention_window, "csma: initial contention window (backoff uniform on 0..cw)")
+    cw_max: int = param(1023, _contention_window, "csma: largest contention window (doubles per failed unicast)")
+    retry_limit: int = param(7, non_negative, "csma: retransmissions of a unicast frame before it is dropped")
+    queue_frames: int = param(16, positive, "frames a robot's queue holds (its frame on the air included)")
     loss: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
     radio: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
+
+    def check(self) -> None:
+        if self.cw_max < self.cw_min:
+            raise ConfigError("channel.cw_max", self.cw_max, f"must be >= channel.cw_min = {self.cw_min}")
+        if self.mac != "none" and self.interference_range_m > 0:
+            largest = max(self.range_m) if isinstance(self.range_m, tuple) else self.range_m
+            if self.propagation == "unit_disk" and self.interference_range_m < largest:
+                raise ConfigError(
+                    "channel.interference_range_m",
+                    self.interference_range_m,
+                    f"must be at least the largest channel.range_m = {largest:g} (or 0: the range)",
+                )
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -137,6 +182,18 @@ class ChannelParams(Params):
                     key,
                     getattr(self, key.split(".")[1]),
                     f"has parameters {wanted.__name__}, not {type(value).__name__}",
+                )
+        radio = self.radio
+        if self.mac != "none" and hasattr(radio, "sensitivity_dbm"):
+            margin = radio.sensitivity_dbm - self.noise_floor_dbm
+            if margin < self.capture_threshold_db:
+                # Else a frame just above the sensitivity fails on noise alone, and the
+                # collision count would include those failures.
+                raise ConfigError(
+                    "channel.noise_floor_dbm",
+                    self.noise_floor_dbm,
+                    f"must be at least channel.capture_threshold_db = {self.capture_threshold_db:g} dB below"
+                    f" channel.sensitivity_dbm = {radio.sensitivity_dbm:g} dBm",
                 )
 
     def __getattr__(self, name: str) -> Any:

@@ -94,6 +94,10 @@ def simulation(config: Config, run: int = 0) -> Simulation:
         reception,
         events=events,
     )
+    if ch.mac != "none":
+        from netsim.radio.mac import Medium
+
+        channel.attach_mac(Medium(channel, ch, streams.get("channel.mac"), ch.radio))
     parts = Parts(
         env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events, occupancy=occupancy
     )
@@ -189,6 +193,11 @@ def tables(config: Config) -> dict[str, Schema]:
         out.update(plugin.tables)
     for name in config.events.hooks:
         out.update(plugins.resolve(plugins.HOOKS, name, "events.hooks").tables)
+    if config.channel.mac != "none":
+        from netsim.radio.mac import MEDIUM_SCHEMA, with_mac_causes
+
+        out = with_mac_causes(out)
+        out["medium"] = MEDIUM_SCHEMA
     return out
 
 
@@ -227,6 +236,8 @@ def collect(sim: Simulation) -> dict[str, pd.DataFrame]:
         frames["links"] = link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus)
     # Every course change: trajectories are exact from these (positions unwrapped on a torus).
     frames["legs"] = legs
+    if sim.channel.mac is not None:
+        frames["medium"] = sim.channel.mac.frame()
     return frames
 
 
@@ -257,6 +268,8 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
         summary["implied_range_m"] = float(sim.state.range_m[0]) if n else math.nan
     if sim.channel.reception is not None:
         summary["radio_reach_m"] = sim.channel.reception.reach_m
+    if sim.channel.mac is not None:
+        summary.update(sim.channel.mac.summary(duration))
     if config is not None and config.world.map:
         summary["map"] = config.world.map
     for component in sim.models.values():

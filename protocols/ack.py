@@ -46,6 +46,7 @@ class AckParams(Params):
     section = "protocol"
     ack_period_s: float = param(1.0, finite(positive), "Ack period t, s")
     ack_jitter_s: float = param(0.05, non_negative, "each period is t + U(-jitter, +jitter), s")
+    ack_bytes: int = param(64, positive, "size of an Ack frame on a shared medium (channel.mac), bytes")
     tau_s: float = param(
         None,
         positive,
@@ -102,6 +103,20 @@ ACK_DELIVERY_SCHEMA = {
 }
 
 
+# Receptions a shared medium (channel.mac) loses on the way, beside the loss model's.
+MAC_RECEPTION_DROPS = ("dropped_collision", "dropped_half_duplex")
+
+
+def lost_on_the_way(df):
+    """Receptions lost after the sender's range decided them: the loss model's, and a shared
+    medium's collisions and half-duplex losses when there is one."""
+    lost = df["dropped_loss"]
+    for col in MAC_RECEPTION_DROPS:
+        if col in df:
+            lost = lost + df[col]
+    return lost
+
+
 def delivery_ratio(received, dropped_loss):
     """Acks received over Acks a robot within the sender's range could have received
     (received or lost on the way; NaN where there were none)."""
@@ -113,21 +128,27 @@ def delivery_ratio(received, dropped_loss):
 
 def ack_delivery_frame(bins, duration_s: float) -> pd.DataFrame:
     """The ``ack_delivery`` table of the channel's send-time bins of Acks."""
-    df = bins.frame(duration_s)[[c for c in ACK_DELIVERY_SCHEMA if c != "delivery_ratio"]]
-    df["delivery_ratio"] = delivery_ratio(df["received"], df["dropped_loss"])
+    full = bins.frame(duration_s)
+    columns = [c for c in ACK_DELIVERY_SCHEMA if c != "delivery_ratio"]
+    df = full[columns + [c for c in MAC_RECEPTION_DROPS if c in full]]
+    df["delivery_ratio"] = delivery_ratio(df["received"], lost_on_the_way(df))
     return df
 
 
 def ack_figures(frames: Mapping[str, pd.DataFrame]) -> dict:
     """Acks sent, received, lost, and the delivery ratio, from the ``acks`` table."""
     acks = frames["acks"]
-    received, lost = int(acks["received"].sum()), int(acks["dropped_loss"].sum())
-    return {
+    received, lost = int(acks["received"].sum()), int(lost_on_the_way(acks).sum())
+    out = {
         "acks_sent": int(acks["sent"].sum()),
         "acks_received": received,
-        "acks_dropped_loss": lost,
+        "acks_dropped_loss": int(acks["dropped_loss"].sum()),
         "ack_delivery_ratio": received / (received + lost) if received + lost else math.nan,
     }
+    for col in MAC_RECEPTION_DROPS:
+        if col in acks:
+            out[f"acks_{col}"] = int(acks[col].sum())
+    return out
 
 
 class Ack(NamedTuple):
@@ -201,6 +222,7 @@ class AckBeacon:
                 ack_beacon(self.env, i, p.ack_period_s, p.ack_jitter_s, self.phase_s[i], jitter_rng, self.send)
             )
         channel = self.channel
+        channel.frame_bytes["ack"] = p.ack_bytes
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
         bins = channel.bin_by_send_time("ack", self.series_interval_s)
         duration = self.duration_s

@@ -106,6 +106,8 @@ class Relay:
         self._pending: dict[int, int] = {}
         self._ttl_cut: set[int] = set()
         self.events = parts.events
+        # Under a shared medium a flood ends when its last frame ends, received or not.
+        self.channel.notify_empty.add("data")
         # One entry per delivery event: (msg_id, hop, sender, t_sent_s, t_received_s, receivers).
         self._hops: list[tuple] = []
 
@@ -149,6 +151,8 @@ class Relay:
     def _arrivals(self, receivers: int) -> int:
         """Delivery callbacks a transmission received by ``receivers`` robots makes: one, or
         one per receiver when the latency has jitter (channel.py)."""
+        if self.channel.deferred:
+            return 1  # a shared medium: one delivery per frame, at its end (maybe to nobody)
         if receivers == 0:
             return 0
         return receivers if self.channel.latency_jitter_s > 0 else 1
@@ -201,6 +205,9 @@ class Relay:
             self._dropped(msg, now, "lost")
 
     def _on_oracle(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
+        if not len(receivers):
+            self._dropped(msg, self.env.now, "lost")  # a shared medium: the frame did not get through
+            return
         self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, self.env.now, receivers))
         holder = int(receivers[0])
         if holder == msg.dst:

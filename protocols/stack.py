@@ -48,6 +48,9 @@ class ClusteringParams(AckParams):
     )
     message_ttl: int = param(32, positive, "hops a relayed message may take")
     message_rate_hz: float = param(0.2, non_negative, "messages sent per second, network-wide (random pairs)")
+    message_bytes: int = param(
+        512, positive, "size of a message (and leader command) frame on a shared medium (channel.mac), bytes"
+    )
 
 
 class Command(NamedTuple):
@@ -93,6 +96,7 @@ class Stack:
     def start(self, phase_s=None) -> None:
         """Start beacons, rules, traffic and sampling; ``phase_s`` overrides the Ack phases."""
         self.beacon.start(phase_s)
+        self.channel.frame_bytes.update(data=self.params.message_bytes, command=self.params.message_bytes)
         self.clustering.start()
         p = self.params
         if p.message_rate_hz > 0:

@@ -54,3 +54,17 @@ def test_radio_checks_are_in_validate():
     names = {c.__name__ for c in validate.CHECKS}
     assert {"check_radio_unit_disk", "check_radio_link_probability", "check_radio_correlation"} <= names
     assert "check_radio_walls" in names
+
+
+def test_medium_checks_are_in_validate():
+    names = {c.__name__ for c in validate.CHECKS}
+    assert {"check_medium", "check_medium_none"} <= names
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("check", [validate.check_medium, validate.check_medium_none])
+def test_medium_checks_pass(check):
+    results = check()
+    assert results
+    for result in results:
+        assert result.passed, result

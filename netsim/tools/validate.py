@@ -619,6 +619,48 @@ def check_radio_walls() -> list[Check]:
     return out
 
 
+# -- the shared medium (channel.mac) ----------------------------------------------------------
+def check_medium() -> list[Check]:
+    """Items 21-24: ALOHA against its closed forms, CSMA against Bianchi, hidden terminals."""
+    from netsim.radio import mac_checks as m
+
+    out = []
+    for item, c in (("21", m.aloha_periodic()), ("22", m.aloha_poisson())):
+        out.append(Check(item, c.item + ": reception success", c.theory, c.measured, c.tolerance))
+    for n in (5, 10, 20, 50):
+        c = m.csma_saturation(n)
+        out.append(Check("23", c.item + ": throughput (share of time)", c.theory, c.measured, c.tolerance))
+    for c in m.hidden_terminals():
+        out.append(Check("24", c.item, c.theory, c.measured, c.tolerance))
+    return out
+
+
+def check_medium_none() -> list[Check]:
+    """Item 25: channel.mac = "none" is the channel without a medium: the same tables, byte
+    for byte, as a run that does not name the key (benchmarks/output_digest.py checks every
+    table of 38 scenarios against the code before the medium existed)."""
+    import hashlib
+    import io
+
+    tree = {"world": {"n_robots": 30, "side_m": 400.0}, "duration_s": 30.0, "channel": {"range_m": 120.0}}
+    digests = []
+    for mac in (None, "none"):
+        t = {k: dict(v) if isinstance(v, dict) else v for k, v in tree.items()}
+        if mac is not None:
+            t["channel"]["mac"] = mac
+        sim = build(_config(**t, protocol={"model": "clustering"}))
+        sim.run()
+        frames = collect(sim)
+        h = hashlib.sha256()
+        for name in sorted(frames):
+            buf = io.BytesIO()
+            frames[name].to_parquet(buf)
+            h.update(buf.getvalue())
+        digests.append(h.hexdigest())
+    same = float(digests[0] == digests[1])
+    return [Check("25", 'channel.mac = "none": every table identical to the default run', 1.0, same, 0.0)]
+
+
 CHECKS: list[Callable[[], list[Check]]] = [
     check_rwp,
     check_stationary_start,
@@ -634,6 +676,8 @@ CHECKS: list[Callable[[], list[Check]]] = [
     check_radio_link_probability,
     check_radio_correlation,
     check_radio_walls,
+    check_medium,
+    check_medium_none,
 ]
 
 

@@ -1,0 +1,461 @@
+"""The shared medium: frames take airtime, overlapping frames collide, CSMA senses and defers.
+
+Under ``channel.mac = "aloha"`` or ``"csma"`` the channel hands every frame to a
+:class:`Medium` (docs/radio.md, "Shared medium"). A frame of ``b`` bytes occupies the medium
+for ``preamble_s + 8 b / data_rate_bps`` from the instant its sender puts it on the air:
+
+- ``aloha``: at once (after the sender's own earlier frames: a radio sends one frame at a time);
+- ``csma``: 802.11 DCF. The robot draws a backoff of ``U{0..cw}`` slots, counts it down
+  while the medium has been idle for ``difs_s``, freezes it while the medium is busy and
+  resumes after ``difs_s`` of idle medium; a failed unicast doubles ``cw`` (up to
+  ``cw_max``) and is sent again, at most ``retry_limit`` times.
+
+The receivers are the robots that hear the sender when the frame starts (range or radio,
+then the loss model), as without a medium; the frame's end decides which of them got it:
+
+- ``half_duplex``: the receiver transmitted during the frame;
+- ``collision``: under the unit disk, another frame whose sender is within
+  ``interference_range_m`` of the receiver overlapped it; under ``log_distance``, the
+  signal-to-interference-plus-noise ratio fell below ``capture_threshold_db`` at some
+  instant of the frame (the stronger frame may survive).
+
+Deliveries happen at the frame's end plus the channel latency, all receivers of a frame
+together (one jitter draw per frame). A robot senses the medium busy while it transmits or
+while a frame whose sender is within ``interference_range_m`` is on the air.
+
+Events are O(1) per frame: its start (CSMA: one kernel event for the earliest pending
+transmission of all robots, recomputed as counters freeze and resume, never one per slot)
+and its end. Each decision is a handful of numpy operations over the robots within
+interference range of the sender.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import simpy
+
+from netsim.channel import DROP_CAUSES, Channel, SendTimeBins
+from netsim.events import URGENT, scheduled_event
+
+# Causes a medium adds: per reception (collision, half_duplex), per frame at its sender's row
+# (queue_full: the queue was full when it was handed over; retry_limit: a unicast that
+# failed every attempt).
+MAC_CAUSES = ("collision", "half_duplex", "queue_full", "retry_limit")
+MAC_DROP_CAUSES = DROP_CAUSES + MAC_CAUSES
+RECEPTION_CAUSES = ("loss", "collision", "half_duplex")
+
+_EMPTY = np.empty(0, dtype=np.int64)
+# Transmit instants computed from the same idle instant and slot count are equal floats;
+# this absorbs the kernel's now + (t - now) rounding.
+_EPS_S = 1e-12
+
+
+def airtime_s(nbytes: int, data_rate_bps: float, preamble_s: float) -> float:
+    """How long a frame of ``nbytes`` occupies the medium, s.
+
+    >>> airtime_s(64, 1e6, 192e-6)
+    0.000704
+    """
+    return preamble_s + nbytes * 8.0 / data_rate_bps
+
+
+class Frame:
+    """One frame handed to the medium, with what its end needs to decide it."""
+
+    __slots__ = (
+        "sender",
+        "dest",
+        "kind",
+        "payload",
+        "deliver",
+        "counters",
+        "binned",
+        "airtime_s",
+        "seq",
+        "receivers",
+        "hd_start",
+        "col_start",
+        "interferers",
+        "power_mw",
+        "signal_mw",
+        "peak_mw",
+    )
+
+    def __init__(self, sender, dest, kind, payload, deliver, counters, binned, airtime):
+        self.sender, self.dest, self.kind, self.payload = sender, dest, kind, payload
+        self.deliver, self.counters, self.binned, self.airtime_s = deliver, counters, binned, airtime
+        self.seq = 0
+        self.receivers = _EMPTY
+        self.hd_start = self.col_start = np.empty(0, dtype=bool)
+        self.interferers = _EMPTY
+        self.power_mw = self.signal_mw = self.peak_mw = np.empty(0)
+
+
+class PowerModel:
+    """Mean received power (log-distance path loss, no shadowing or walls) for SINR sums."""
+
+    def __init__(self, radio: Any, noise_floor_dbm: float, capture_threshold_db: float):
+        self.tx_power_dbm = radio.tx_power_dbm
+        self.d0_m = radio.reference_distance_m
+        self.pl0_db = radio.reference_loss_db
+        self.exponent = radio.path_loss_exponent
+        self.noise_mw = 10.0 ** (noise_floor_dbm / 10.0)
+        self.capture = 10.0 ** (capture_threshold_db / 10.0)
+        # Where the mean received power falls to the noise floor.
+        margin = self.tx_power_dbm - self.pl0_db - noise_floor_dbm
+        self.noise_range_m = float(self.d0_m * 10.0 ** (margin / (10.0 * self.exponent)))
+
+    def received_mw(self, distance_m: np.ndarray) -> np.ndarray:
+        d = np.maximum(distance_m, self.d0_m)
+        return 10.0 ** ((self.tx_power_dbm - self.pl0_db - 10.0 * self.exponent * np.log10(d / self.d0_m)) / 10.0)
+
+
+class Medium:
+    """The shared medium of one run (module notes); ``params``: the ``[channel]`` keys."""
+
+    causes = MAC_DROP_CAUSES
+
+    def __init__(self, channel: Channel, params: Any, rng: np.random.Generator, radio: Any = None):
+        self.channel = channel
+        self.env: simpy.Environment = channel.env
+        self.state = channel.state
+        n = self.state.n
+        self.csma = params.mac == "csma"
+        self.rng = rng
+        self.data_rate_bps = float(params.data_rate_bps)
+        self.preamble_s = float(params.preamble_s)
+        self.slot_s, self.difs_s = float(params.slot_s), float(params.difs_s)
+        self.cw_min, self.cw_max = int(params.cw_min), int(params.cw_max)
+        self.retry_limit, self.queue_frames = int(params.retry_limit), int(params.queue_frames)
+        self.power = None
+        if radio is not None and hasattr(radio, "sensitivity_dbm"):
+            self.power = PowerModel(radio, params.noise_floor_dbm, params.capture_threshold_db)
+        largest = float(self.state.range_m.max()) if n else 0.0
+        default = self.power.noise_range_m if self.power is not None else largest
+        self.interference_range_m = float(params.interference_range_m) or default
+        reach = channel.reception.reach_m if channel.reception is not None else largest
+        # Receivers must be among the robots the frame disturbs: the radius covers both.
+        self.radius_m = max(self.interference_range_m, reach)
+        # Unit disk, one range, interference range = range: the hearers are the disturbed.
+        self.same_as_hearers = (
+            channel.reception is None and self.radius_m == largest and bool((self.state.range_m == largest).all())
+        )
+        if self.same_as_hearers:
+            self.index = channel.index
+        else:
+            from netsim.spatial import RangeIndex
+
+            self.index = RangeIndex(self.state, reach_m=self.radius_m)
+        self.queue: list[deque[Frame]] = [deque() for _ in range(n)]
+        self.transmitting = np.zeros(n, dtype=bool)
+        # Frames of other senders on the air within interference range of each robot.
+        self.cover = np.zeros(n, dtype=np.int64)
+        # Sequence number of the latest frame start that disturbed each robot, and of each
+        # robot's latest own transmission: a frame survives at a receiver when neither
+        # moved past the frame's own number by its end.
+        self.cover_seq = np.zeros(n, dtype=np.int64)
+        self.tx_seq = np.zeros(n, dtype=np.int64)
+        self.load_mw = np.zeros(n)
+        self.on_air: dict[int, Frame] = {}
+        self.seq = 0
+        # CSMA: slots left (-1: nothing to send), instant the count runs from (inf: frozen),
+        # transmit instant (inf: none), contention window and retries of the head frame.
+        self.backoff = np.full(n, -1, dtype=np.int64)
+        self.count_from = np.full(n, math.inf)
+        self.tx_at = np.full(n, math.inf)
+        self.cw = np.full(n, self.cw_min, dtype=np.int64)
+        self.retries = np.zeros(n, dtype=np.int64)
+        self._wake_token = 0
+        self._wake_at = math.inf
+        # Time each robot sensed the medium busy (own transmissions included).
+        self.busy_since = np.zeros(n)
+        self.busy_s = np.zeros(n)
+        self.frames_sent = 0
+        self.attempts = 0
+        self.airtime_total_s = 0.0
+
+    # -- handing frames over ---------------------------------------------------------
+    def send(self, sender: int, dest: int, payload: object, deliver, kind: str) -> np.ndarray:
+        """Queue a frame (``dest`` -1: broadcast); returns ``[sender]`` if queued, else empty."""
+        ch = self.channel
+        c = ch.counters_for(kind)
+        c.sent[sender] += 1
+        binned = ch._bin(kind)
+        nbytes = ch.frame_bytes.get(kind)
+        if nbytes is None:
+            raise ValueError(f"no frame size for messages of kind {kind!r} (channel.frame_bytes)")
+        q = self.queue[sender]
+        if len(q) >= self.queue_frames:
+            self._frame_dropped(sender, kind, c, binned, "queue_full")
+            self._notify(sender, _EMPTY, payload, deliver, kind, c, binned)
+            return _EMPTY
+        airtime = airtime_s(nbytes, self.data_rate_bps, self.preamble_s)
+        frame = Frame(sender, dest, kind, payload, deliver, c, binned, airtime)
+        q.append(frame)
+        if len(q) == 1:
+            self._contend(sender)
+        return np.array([sender])
+
+    def _frame_dropped(self, sender: int, kind: str, c, binned, cause: str) -> None:
+        k = self.causes.index(cause)
+        c.dropped[k, sender] += 1
+        if binned is not None:
+            binned.add(SendTimeBins.DROPPED + k, 1)
+        self.channel._dropped(kind, sender, np.array([sender]), cause)
+
+    def _contend(self, i: int) -> None:
+        """Robot ``i`` has a new head frame: ALOHA sends it now, CSMA draws a backoff."""
+        if not self.csma:
+            if not self.transmitting[i]:
+                self._start(i)
+            return
+        self.backoff[i] = self.rng.integers(self.cw[i] + 1)
+        if self.cover[i] == 0 and not self.transmitting[i]:
+            self.count_from[i] = self.env.now + self.difs_s
+            self.tx_at[i] = self.count_from[i] + self.backoff[i] * self.slot_s
+            self._wake()
+
+    def _wake(self) -> None:
+        """One kernel event, at the earliest transmit instant of all robots."""
+        if not len(self.tx_at):
+            return
+        first = float(self.tx_at.min())
+        if first < self._wake_at:
+            self._wake_at = first
+            self._wake_token += 1
+            token = self._wake_token
+            scheduled_event(self.env, max(first - self.env.now, 0.0), URGENT, lambda _ev: self._on_wake(token))
+
+    def _on_wake(self, token: int) -> None:
+        if token != self._wake_token:
+            return  # superseded by an earlier instant
+        self._wake_at = math.inf
+        now = self.env.now
+        for i in np.flatnonzero(self.tx_at <= now + _EPS_S).tolist():
+            self._start(i)
+        self._wake()
+
+    # -- a frame on the air ------------------------------------------------------------
+    def _start(self, i: int) -> None:
+        ch = self.channel
+        now = self.env.now
+        frame = self.queue[i][0]
+        self.tx_at[i] = math.inf
+        self.backoff[i] = -1
+        self.count_from[i] = math.inf
+        self.seq += 1
+        seq = frame.seq = self.seq
+        self.attempts += 1
+        self.airtime_total_s += frame.airtime_s
+        c = frame.counters
+        if frame.dest < 0:
+            receivers, dist = ch._hearers(i)
+        else:
+            receivers, dist = self._unicast_receiver(i, frame)
+        if self.same_as_hearers and frame.dest < 0:
+            disturbed, ddist = receivers, dist
+        else:
+            disturbed, ddist = self.index.within(now, i, self.radius_m)
+        if len(receivers):
+            receivers, dist = ch._decide(i, receivers, dist, c, frame.kind, frame.binned)
+        frame.receivers = receivers
+        frame.hd_start = self.transmitting[receivers]
+        frame.col_start = self.cover[receivers] > 0
+        frame.interferers = disturbed
+        was_idle = (self.cover[disturbed] == 0) & ~self.transmitting[disturbed]
+        sender_idle = self.cover[i] == 0
+        self.cover[disturbed] += 1
+        self.cover_seq[disturbed] = seq
+        self.transmitting[i] = True
+        self.tx_seq[i] = seq
+        if self.power is not None:
+            frame.power_mw = self.power.received_mw(ddist)
+            self.load_mw[disturbed] += frame.power_mw
+            at = np.searchsorted(disturbed, receivers)
+            frame.signal_mw = frame.power_mw[at]
+            for other in self.on_air.values():
+                other.peak_mw = np.maximum(other.peak_mw, self.load_mw[other.receivers])
+            frame.peak_mw = self.load_mw[receivers]
+            self.on_air[seq] = frame
+        newly = disturbed[was_idle]
+        self.busy_since[newly] = now
+        if sender_idle:
+            self.busy_since[i] = now
+        if self.csma and len(newly):
+            self._freeze(newly, now)
+        scheduled_event(self.env, frame.airtime_s, URGENT, lambda _ev: self._end(frame))
+
+    def _unicast_receiver(self, i: int, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+        ch, st, now = self.channel, self.state, self.env.now
+        dest = frame.dest
+        d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [i]))
+        dist = np.hypot(d[:, 0], d[:, 1])
+        heard = (dest != i and dist[0] <= st.range_m[i]) if ch.reception is None else ch._hears(i, dest, dist)
+        if heard:
+            return np.array([dest]), dist
+        k = self.causes.index("out_of_range")
+        frame.counters.dropped[k, dest] += 1
+        if frame.binned is not None:
+            frame.binned.add(SendTimeBins.DROPPED + k, 1)
+        ch._dropped(frame.kind, i, np.array([dest]), "out_of_range")
+        return _EMPTY, np.empty(0)
+
+    def _freeze(self, robots: np.ndarray, now: float) -> None:
+        """The medium turned busy for ``robots``: those counting down stop, keeping the slots
+        left; those due now transmit anyway (their slot had begun)."""
+        counting = robots[np.isfinite(self.count_from[robots])]
+        if not len(counting):
+            return
+        since = now - self.count_from[counting]
+        elapsed = np.where(since >= 0, np.floor(since / self.slot_s + 1e-6), -1).astype(np.int64)
+        due = elapsed >= self.backoff[counting]
+        stop = counting[~due]
+        el = elapsed[~due]
+        # A busy period counts as one slot of the countdown (802.11: a backoff slot boundary
+        # falls at the end of DIFS; Bianchi's chain decrements at every slot, busy or idle).
+        self.backoff[stop] -= np.where(el >= 0, el + 1, 0)
+        self.count_from[stop] = math.inf
+        self.tx_at[stop] = math.inf
+
+    def _end(self, frame: Frame) -> None:
+        now = self.env.now
+        i, seq = frame.sender, frame.seq
+        disturbed = frame.interferers
+        self.cover[disturbed] -= 1
+        self.transmitting[i] = False
+        rx = frame.receivers
+        hd = frame.hd_start | (self.tx_seq[rx] > seq)
+        if self.power is not None:
+            del self.on_air[seq]
+            self.load_mw[disturbed] -= frame.power_mw
+            quiet = disturbed[self.cover[disturbed] == 0]
+            self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
+            interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
+            col = ~hd & (frame.signal_mw < self.power.capture * (self.power.noise_mw + interference))
+        else:
+            col = ~hd & (frame.col_start | (self.cover_seq[rx] != seq))
+        ok = ~(hd | col)
+        c, binned = frame.counters, frame.binned
+        for cause, lost in (("half_duplex", hd), ("collision", col)):
+            if lost.any():
+                k = self.causes.index(cause)
+                c.dropped[k, rx[lost]] += 1
+                if binned is not None:
+                    binned.add(SendTimeBins.DROPPED + k, int(lost.sum()))
+                self.channel._dropped(frame.kind, i, rx[lost], cause)
+        got = rx[ok]
+        # Who senses the medium idle again.
+        cand = np.append(disturbed, i)
+        idle = (self.cover[cand] == 0) & ~self.transmitting[cand]
+        newly = cand[idle]
+        self.busy_s[newly] += now - self.busy_since[newly]
+        q = self.queue[i]
+        retry = self.csma and frame.dest >= 0 and not len(got) and self.retries[i] < self.retry_limit
+        if retry:
+            self.retries[i] += 1
+            self.cw[i] = min(2 * self.cw[i] + 1, self.cw_max)
+        else:
+            q.popleft()
+            self.frames_sent += 1
+            if frame.dest >= 0 and not len(got) and self.csma:
+                self._frame_dropped(i, frame.kind, c, binned, "retry_limit")
+            self.retries[i] = 0
+            self.cw[i] = self.cw_min
+            self._notify(i, got, frame.payload, frame.deliver, frame.kind, c, binned)
+        if not self.csma:
+            if q:
+                self._start(i)
+            return
+        if q:
+            self.backoff[i] = self.rng.integers(self.cw[i] + 1)
+        resume = newly[self.backoff[newly] >= 0]
+        self.count_from[resume] = now + self.difs_s
+        self.tx_at[resume] = self.count_from[resume] + self.backoff[resume] * self.slot_s
+        self._wake()
+
+    def _notify(self, sender: int, got: np.ndarray, payload, deliver, kind: str, c, binned) -> None:
+        ch = self.channel
+        delay = ch.latency_s
+        if ch.latency_jitter_s > 0:
+            assert ch.latency_rng is not None
+            delay += ch.latency_rng.random() * ch.latency_jitter_s
+        if len(got):
+            ch._at(delay, deliver, sender, got, payload, c, kind, binned)
+        elif kind in ch.notify_empty:
+            scheduled_event(self.env, delay, URGENT, lambda _ev: deliver(sender, _EMPTY, payload))
+
+    # -- what the run reports ------------------------------------------------------------
+    def busy_fraction(self, now: float) -> np.ndarray:
+        """Share of ``[0, now]`` each robot sensed the medium busy (its own frames included)."""
+        busy = self.busy_s.copy()
+        on = (self.cover > 0) | self.transmitting
+        busy[on] += now - self.busy_since[on]
+        return busy / now if now > 0 else np.full(len(busy), math.nan)
+
+    def summary(self, now: float) -> dict:
+        ch = self.channel
+        totals = {cause: 0 for cause in self.causes}
+        received = 0
+        for c in ch.counters.values():
+            received += int(c.received.sum())
+            for k, cause in enumerate(self.causes):
+                totals[cause] += int(c.dropped[k].sum())
+        decided = received + totals["collision"] + totals["half_duplex"]
+        n = self.state.n
+        return {
+            "mac": "csma" if self.csma else "aloha",
+            "mac_frames": self.frames_sent,
+            "mac_transmissions": self.attempts,
+            "mac_airtime_s": self.airtime_total_s,
+            "channel_utilisation": float(self.busy_fraction(now).mean()) if n else math.nan,
+            "collision_ratio": totals["collision"] / decided if decided else math.nan,
+            "receptions_dropped_collision": totals["collision"],
+            "receptions_dropped_half_duplex": totals["half_duplex"],
+            "frames_dropped_queue_full": totals["queue_full"],
+            "frames_dropped_retry_limit": totals["retry_limit"],
+        }
+
+    def frame(self) -> pd.DataFrame:
+        """The ``medium`` table: per message kind and robot, the channel's counts with the
+        medium's causes, and the share of the run the robot sensed the medium busy."""
+        busy = self.busy_fraction(self.env.now)
+        rows = []
+        for kind in sorted(self.channel.counters):
+            df = self.channel.counters[kind].frame()
+            df.insert(0, "kind", kind)
+            rows.append(df)
+        if not rows:
+            return pd.DataFrame({c: pd.Series(dtype=t) for c, t in MEDIUM_SCHEMA.items()})
+        out = pd.concat(rows, ignore_index=True)
+        out["busy_fraction"] = busy[out["robot"].to_numpy()]
+        return out
+
+
+MEDIUM_SCHEMA = {
+    "kind": "object",
+    "robot": "int64",
+    "sent": "int64",
+    "received": "int64",
+    **{f"dropped_{c}": "int64" for c in MAC_DROP_CAUSES},
+    "busy_fraction": "float64",
+}
+
+
+def with_mac_causes(tables: dict) -> dict:
+    """The schemas of ``tables`` with the medium's drop columns after the channel's, in the
+    tables that hold the channel's counts (``acks``, ``ack_delivery``)."""
+    out = dict(tables)
+    for name, extra in (("acks", MAC_CAUSES), ("ack_delivery", ("collision", "half_duplex"))):
+        schema = out.get(name)
+        if schema is None:
+            continue
+        cols = list(schema.items())
+        last = max(k for k, (col, _) in enumerate(cols) if col.startswith("dropped_"))
+        add = [(f"dropped_{c}", "int64") for c in extra]
+        out[name] = dict(cols[: last + 1] + add + cols[last + 1 :])
+    return out

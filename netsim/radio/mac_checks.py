@@ -1,0 +1,252 @@
+"""The shared medium against its closed forms (docs/validation.md, "Shared medium").
+
+Each check drives a :class:`~netsim.radio.mac.Medium` on static robots with a traffic of its
+own (no protocol above), measures, and returns the theory beside it:
+
+- :func:`aloha_periodic`: ALOHA, ``n`` robots in mutual range, one frame of airtime ``T``
+  per period ``t`` each, at independent uniform phases: a reception succeeds with
+  probability ``(1 - 2T/t)^(n - 1)``;
+- :func:`aloha_poisson`: ALOHA, Poisson traffic of load ``G`` (frames per frame time from
+  the ``n - 1`` robots other than the sender): ``e^(-2G)``;
+- :func:`csma_saturation`: CSMA (802.11 DCF, basic access), ``n`` saturated robots sending
+  unicast frames: throughput against :func:`bianchi_throughput`;
+- :func:`hidden_terminals`: A and C out of each other's range, both in range of B, periodic
+  frames under CSMA: B receives A's frames with ALOHA's pair probability ``1 - 2T/t``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import brentq
+
+from netsim.config import from_dict
+
+
+class MacCheck(NamedTuple):
+    item: str
+    theory: float
+    measured: float
+    tolerance: float
+
+
+def medium_run(positions, mac: str, range_m: float = 50.0, seed: int = 1, **channel):
+    """A run of static robots at ``positions`` with no protocol, the medium ``mac``: the
+    :class:`~netsim.sim.Simulation` (drive it with ``sim.channel`` and ``sim.env``)."""
+    from netsim.run import build
+
+    positions = np.asarray(positions, dtype=float)
+    cfg = from_dict(
+        {
+            "seed": seed,
+            "world": {"n_robots": len(positions), "side_m": 10_000.0},
+            "mobility": {"model": "static"},
+            "channel": {"mac": mac, **channel, **({} if "propagation" in channel else {"range_m": range_m})},
+            "protocol": {"model": "none"},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
+    sim = build(cfg)
+    sim.state.place(positions)
+    return sim
+
+
+def cluster(n: int, spread_m: float = 1.0) -> np.ndarray:
+    """``n`` robots on a line ``spread_m`` long: all in mutual range."""
+    return np.column_stack([np.linspace(100.0, 100.0 + spread_m, n), np.full(n, 100.0)])
+
+
+def _reception_success(sim, kind: str) -> tuple[int, int]:
+    """(received, received + lost to the medium) of ``kind``'s frames."""
+    c = sim.channel.counters_for(kind)
+    causes = sim.channel.causes
+    lost = c.dropped[causes.index("collision")] + c.dropped[causes.index("half_duplex")]
+    return int(c.received.sum()), int(c.received.sum() + lost.sum())
+
+
+def periodic_rounds(sim, senders, period_s: float, rounds: int, rng: np.random.Generator, dest: int = -1) -> None:
+    """Schedule ``rounds`` independent rounds: in each, every sender draws a phase uniform on
+    ``[0, t)`` and sends at phase, phase + t, phase + 2t; the middle frames (kind ``"mid"``)
+    are the ones measured (each sees neighbours on both sides, as in a steady state)."""
+    env, ch = sim.env, sim.channel
+    gap = period_s  # long enough for every frame of a round to end before the next starts
+    span = 3 * period_s + gap
+
+    def noop(_s, _r, _p):
+        return None
+
+    def send_at(t: float, i: int, kind: str):
+        def fire(_ev):
+            ch.broadcast(i, None, noop, kind=kind)
+
+        ev = env.timeout(t - env.now)
+        ev.callbacks.append(fire)
+
+    for r in range(rounds):
+        phases = rng.uniform(0.0, period_s, len(senders))
+        for i, ph in zip(senders, phases.tolist()):
+            for k, kind in enumerate(("edge", "mid", "edge")):
+                send_at(r * span + ph + k * period_s, int(i), kind)
+
+
+def _sized(sim, airtime: float, rate_bps: float = 1e6) -> None:
+    """Frames of every kind used here take ``airtime`` (no preamble: set it to 0)."""
+    nbytes = airtime * rate_bps / 8.0
+    if abs(nbytes - round(nbytes)) > 1e-9:
+        raise ValueError(f"airtime {airtime} s is not a whole number of bytes at {rate_bps} bit/s")
+    for kind in ("edge", "mid", "poisson", "sat"):
+        sim.channel.frame_bytes[kind] = int(round(nbytes))
+
+
+def aloha_periodic(n: int = 10, airtime_ratio: float = 0.02, rounds: int = 400, seed: int = 1) -> MacCheck:
+    """ALOHA, periodic frames at uniform phases: success ``(1 - 2T/t)^(n - 1)``."""
+    period = 1.0
+    airtime = airtime_ratio * period
+    sim = medium_run(cluster(n), "aloha", seed=seed, preamble_s=0.0, data_rate_bps=1e6, latency_s=0.0)
+    _sized(sim, airtime)
+    periodic_rounds(sim, range(n), period, rounds, np.random.default_rng(seed))
+    sim.env.run()
+    got, decided = _reception_success(sim, "mid")
+    p = got / decided
+    theory = (1.0 - 2.0 * airtime_ratio) ** (n - 1)
+    return MacCheck(f"ALOHA periodic, n = {n}, T/t = {airtime_ratio}", theory, p, 4.0 * _binomial_se(theory, decided))
+
+
+def aloha_poisson(n: int = 40, load: float = 0.5, frames: int = 20_000, seed: int = 1) -> MacCheck:
+    """ALOHA, Poisson traffic: a reception succeeds with probability ``e^(-2G)``, ``G`` the
+    frames the other ``n - 1`` robots start per frame time."""
+    airtime = 1e-3
+    rate_per_robot = load / ((n - 1) * airtime)
+    duration = frames / (n * rate_per_robot)
+    sim = medium_run(
+        cluster(n), "aloha", seed=seed, preamble_s=0.0, data_rate_bps=1e6, latency_s=0.0, queue_frames=1000
+    )
+    _sized(sim, airtime)
+    rng = np.random.default_rng(seed)
+    env, ch = sim.env, sim.channel
+
+    def noop(_s, _r, _p):
+        return None
+
+    for i in range(n):
+        t = np.cumsum(rng.exponential(1.0 / rate_per_robot, int(duration * rate_per_robot * 1.5) + 20))
+        for when in t[t < duration].tolist():
+            ev = env.timeout(when)
+            ev.callbacks.append(lambda _ev, i=i: ch.broadcast(i, None, noop, kind="poisson"))
+    env.run()
+    got, decided = _reception_success(sim, "poisson")
+    theory = math.exp(-2.0 * load)
+    # A robot's own frames queue behind each other (one radio): its load per frame time is
+    # G / (n - 1), small here; receptions of one frame are correlated (n - 1 receivers),
+    # hence a standard error over frames, not receptions.
+    return MacCheck(
+        f"ALOHA Poisson, G = {load}, n = {n}", theory, got / decided, 4.0 * _binomial_se(theory, decided / (n - 1))
+    )
+
+
+def _binomial_se(p: float, count: float) -> float:
+    return math.sqrt(p * (1.0 - p) / count) if count > 0 else math.inf
+
+
+# -- 802.11 DCF against Bianchi ----------------------------------------------------------
+def bianchi_tau(n: int, w: int, m: int) -> tuple[float, float]:
+    """Bianchi's (2000) fixed point: a station's transmission probability per slot ``tau``
+    and the conditional collision probability ``p``, for ``n`` stations, initial window
+    ``W`` (backoff uniform on ``0..W-1``) and ``m`` doublings."""
+
+    def tau_of(p: float) -> float:
+        if abs(1.0 - 2.0 * p) < 1e-12:
+            p += 1e-9
+        return 2.0 * (1.0 - 2.0 * p) / ((1.0 - 2.0 * p) * (w + 1) + p * w * (1.0 - (2.0 * p) ** m))
+
+    if n == 1:
+        return tau_of(0.0), 0.0
+    p = brentq(lambda p: p - (1.0 - (1.0 - tau_of(p)) ** (n - 1)), 1e-12, 1.0 - 1e-12)
+    return tau_of(p), p
+
+
+def bianchi_throughput(n: int, w: int, m: int, slot_s: float, payload_s: float, ts_s: float, tc_s: float) -> float:
+    """Bianchi's saturation throughput: the share of time spent on payload of successful
+    frames, ``S = Ps Ptr E[P] / ((1 - Ptr) sigma + Ptr Ps Ts + Ptr (1 - Ps) Tc)``."""
+    tau, _ = bianchi_tau(n, w, m)
+    ptr = 1.0 - (1.0 - tau) ** n
+    ps = n * tau * (1.0 - tau) ** (n - 1) / ptr
+    return ps * ptr * payload_s / ((1.0 - ptr) * slot_s + ptr * ps * ts_s + ptr * (1.0 - ps) * tc_s)
+
+
+def csma_saturation(n: int, duration_s: float = 20.0, seed: int = 1, payload_bytes: int = 512) -> MacCheck:
+    """``n`` saturated robots in mutual range, each sending unicast frames to the next one
+    (802.11b-like: 1 Mb/s, slot 20 us, DIFS 50 us, CW 31..1023, preamble 192 us): measured
+    share of time carrying successful payload against Bianchi's, with ``Ts = Tc = preamble
+    + payload + DIFS`` (basic access; the MAC acknowledgement is not put on the air: a
+    sender learns at the frame's end whether it got through)."""
+    rate, slot, difs, pre = 1e6, 20e-6, 50e-6, 192e-6
+    sim = medium_run(
+        cluster(n),
+        "csma",
+        seed=seed,
+        preamble_s=pre,
+        data_rate_bps=rate,
+        slot_s=slot,
+        difs_s=difs,
+        cw_min=31,
+        cw_max=1023,
+        retry_limit=10_000,
+        latency_s=0.0,
+    )
+    sim.channel.frame_bytes["sat"] = payload_bytes
+    sim.channel.notify_empty.add("sat")
+    env, ch = sim.env, sim.channel
+    delivered = [0]
+
+    def done(sender, receivers, _p):
+        if len(receivers):
+            delivered[0] += 1
+        ch.unicast(sender, (sender + 1) % n, None, done, kind="sat")
+
+    for i in range(n):
+        for _ in range(2):  # one on the air, one waiting: never an empty queue
+            ch.unicast(i, (i + 1) % n, None, done, kind="sat")
+    env.run(until=duration_s)
+    payload = payload_bytes * 8.0 / rate
+    measured = delivered[0] * payload / duration_s
+    t = pre + payload + difs
+    theory = bianchi_throughput(n, 32, 5, slot, payload, t, t)
+    return MacCheck(f"CSMA saturation, n = {n}", theory, measured, 0.05 * theory)
+
+
+def hidden_terminals(
+    airtime_ratio: float = 0.05, rounds: int = 1000, seed: int = 1, range_m: float = 50.0
+) -> tuple[MacCheck, MacCheck]:
+    """A, B, C on a line, A and C ``1.8 range`` apart (hidden from each other), B between:
+    under CSMA, B receives A's and C's periodic frames with ALOHA's pair probability
+    ``1 - 2T/t``; with A and B alone nothing is lost."""
+    period = 1.0
+    airtime = airtime_ratio * period
+    out = []
+    for label, xs, theory in (
+        ("hidden terminals A-B-C, CSMA, B's success", [0.0, 0.9 * range_m, 1.8 * range_m], 1 - 2 * airtime_ratio),
+        ("A-B alone, CSMA, B's success", [0.0, 0.9 * range_m], 1.0),
+    ):
+        pos = np.column_stack([np.array(xs) + 100.0, np.full(len(xs), 100.0)])
+        sim = medium_run(pos, "csma", range_m=range_m, seed=seed, preamble_s=0.0, data_rate_bps=1e6, latency_s=0.0)
+        _sized(sim, airtime)
+        senders = [0, 2] if len(xs) == 3 else [0]
+        periodic_rounds(sim, senders, period, rounds, np.random.default_rng(seed))
+        sim.env.run()
+        c, causes = sim.channel.counters_for("mid"), sim.channel.causes
+        got = int(c.received[1])
+        lost = int(c.dropped[causes.index("collision"), 1] + c.dropped[causes.index("half_duplex"), 1])
+        decided = got + lost
+        tol = 4.0 * _binomial_se(theory, decided) if theory < 1 else 0.0
+        out.append(MacCheck(label, theory, got / decided, tol))
+    return out[0], out[1]
+
+
+def run_all() -> list[MacCheck]:
+    checks = [aloha_periodic(), aloha_poisson()]
+    checks += [csma_saturation(n) for n in (5, 10, 20, 50)]
+    checks += list(hidden_terminals())
+    return checks

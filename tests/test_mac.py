@@ -1,0 +1,266 @@
+"""The shared medium (channel.mac): airtime, collisions, half duplex, carrier sense, queues."""
+
+import math
+
+import numpy as np
+import pytest
+
+from netsim.channel import DROP_CAUSES
+from netsim.errors import ConfigError
+from netsim.radio import mac_checks
+from netsim.radio.mac import MAC_DROP_CAUSES, airtime_s
+from netsim.run import execute, tables
+from tests.fixtures import make_config
+
+T = 1e-3  # airtime of the test frames: 125 bytes at 1 Mb/s, no preamble
+
+
+def _medium(xs, mac="aloha", range_m=50.0, **channel):
+    pos = np.column_stack([np.asarray(xs, dtype=float) + 100.0, np.full(len(xs), 100.0)])
+    keys = {"preamble_s": 0.0, "data_rate_bps": 1e6, "latency_s": 0.0, **channel}
+    sim = mac_checks.medium_run(pos, mac, range_m=range_m, **keys)
+    sim.channel.frame_bytes["f"] = 125
+    return sim
+
+
+def _send_at(sim, t, sender, log=None, dest=-1):
+    def deliver(s, r, _p):
+        if log is not None:
+            log.append((sim.env.now, s, r.tolist()))
+
+    ev = sim.env.timeout(t)
+    if dest < 0:
+        ev.callbacks.append(lambda _e: sim.channel.broadcast(sender, None, deliver, kind="f"))
+    else:
+        ev.callbacks.append(lambda _e: sim.channel.unicast(sender, dest, None, deliver, kind="f"))
+
+
+def _dropped(sim, cause, robot=None):
+    c = sim.channel.counters_for("f")
+    row = c.dropped[sim.channel.causes.index(cause)]
+    return int(row.sum() if robot is None else row[robot])
+
+
+def test_airtime_is_bytes_times_eight_over_the_rate_plus_the_preamble():
+    """A frame occupies the medium for preamble + 8 bytes / rate."""
+    assert airtime_s(64, 1e6, 192e-6) == pytest.approx(704e-6)
+    assert airtime_s(1500, 11e6, 0.0) == pytest.approx(1500 * 8 / 11e6)
+
+
+def test_a_frame_is_delivered_at_its_end_plus_the_latency():
+    """Delivery happens at the frame's end (+ latency), to every robot in range."""
+    sim = _medium([0, 10, 20], latency_s=0.002)
+    log = []
+    _send_at(sim, 0.5, 0, log)
+    sim.env.run()
+    assert log == [(pytest.approx(0.5 + T + 0.002), 0, [1, 2])]
+
+
+def test_overlapping_frames_collide_at_a_common_receiver():
+    """Unit disk: a receiver in range of two overlapping transmissions loses both."""
+    sim = _medium([0, 40, 80])  # 0 and 2 out of each other's range, 1 hears both
+    log = []
+    _send_at(sim, 0.0, 0, log)
+    _send_at(sim, T / 2, 2, log)
+    sim.env.run()
+    assert _dropped(sim, "collision", robot=1) == 2
+    assert sim.channel.counters_for("f").received.sum() == 0
+
+
+def test_frames_that_do_not_overlap_both_arrive():
+    """Back to back (the second starts when the first ends) is not an overlap."""
+    sim = _medium([0, 40, 80])
+    _send_at(sim, 0.0, 0)
+    _send_at(sim, T * 1.0001, 2)
+    sim.env.run()
+    assert _dropped(sim, "collision") == 0
+    assert sim.channel.counters_for("f").received[1] == 2
+
+
+def test_a_robot_cannot_receive_while_it_transmits():
+    """Half duplex: a robot that transmits during a frame loses it (cause half_duplex)."""
+    sim = _medium([0, 10])
+    _send_at(sim, 0.0, 0)
+    _send_at(sim, T / 2, 1)
+    sim.env.run()
+    assert _dropped(sim, "half_duplex", robot=1) == 1
+    assert _dropped(sim, "half_duplex", robot=0) == 1
+    assert _dropped(sim, "collision") == 0
+
+
+def test_a_larger_interference_range_disturbs_beyond_the_range():
+    """channel.interference_range_m > range: a sender out of range still collides."""
+    for interference, lost in ((0.0, 0), (100.0, 1)):
+        sim = _medium([0, 40, 120], interference_range_m=interference)  # 2 is 80 m from 1
+        _send_at(sim, 0.0, 0)
+        _send_at(sim, T / 2, 2)
+        sim.env.run()
+        assert _dropped(sim, "collision", robot=1) == lost
+
+
+def test_the_stronger_frame_survives_under_log_distance():
+    """log_distance: reception needs SINR >= capture threshold; the near sender captures."""
+    keys = {"propagation": "log_distance", "capture_threshold_db": 10.0}
+    sim = _medium([0, 5, 90], **keys)  # 1 is 5 m from 0, 85 m from 2
+    _send_at(sim, 0.0, 0)
+    _send_at(sim, T / 2, 2)
+    sim.env.run()
+    c = sim.channel.counters_for("f")
+    assert c.received[1] == 1  # 0's frame, 25 dB above 2's
+    assert _dropped(sim, "collision", robot=1) == 1  # 2's frame
+    # Equal distances: neither captures.
+    sim = _medium([0, 45, 90], **keys)
+    _send_at(sim, 0.0, 0)
+    _send_at(sim, T / 2, 2)
+    sim.env.run()
+    assert _dropped(sim, "collision", robot=1) == 2
+
+
+def test_csma_defers_while_the_medium_is_busy():
+    """CSMA: a robot that senses a frame on the air waits for its end, DIFS and its backoff."""
+    sim = _medium([0, 10, 20], mac="csma")
+    log = []
+    _send_at(sim, 0.0, 0, log)
+    _send_at(sim, T / 2, 1, log)
+    sim.env.run()
+    assert _dropped(sim, "collision") == 0 and _dropped(sim, "half_duplex") == 0
+    (t0, s0, _), (t1, s1, _) = log
+    assert (s0, s1) == (0, 1)
+    start1 = t1 - T
+    assert start1 >= t0 + 50e-6 - 1e-12
+    slots = (start1 - t0 - 50e-6) / 20e-6
+    assert slots == pytest.approx(round(slots), abs=1e-6) and round(slots) <= 31
+
+
+def test_aloha_does_not_defer():
+    """ALOHA transmits at once, busy medium or not."""
+    sim = _medium([0, 10, 20])
+    log = []
+    _send_at(sim, 0.0, 0, log)
+    _send_at(sim, T / 2, 1, log)
+    sim.env.run()
+    assert _dropped(sim, "half_duplex") == 2
+
+
+def test_a_full_queue_drops_the_frame_at_the_sender():
+    """channel.queue_frames bounds a robot's queue; a frame beyond it counts queue_full at its sender's row."""
+    sim = _medium([0, 10], mac="csma", queue_frames=2)
+    for _ in range(3):
+        _send_at(sim, 0.0, 0)
+    sim.env.run()
+    assert _dropped(sim, "queue_full", robot=0) == 1
+    assert sim.channel.counters_for("f").received[1] == 2
+
+
+def test_a_unicast_is_retried_up_to_the_retry_limit():
+    """CSMA: a unicast that fails is sent again, at most retry_limit times, then dropped (retry_limit)."""
+    sim = _medium([0, 10, 200], mac="csma", retry_limit=3)
+    log = []
+    _send_at(sim, 0.0, 0, log, dest=2)  # out of range: every attempt fails
+    sim.channel.notify_empty.add("f")
+    sim.env.run()
+    assert sim.channel.mac.attempts == 4
+    assert _dropped(sim, "out_of_range", robot=2) == 4
+    assert _dropped(sim, "retry_limit", robot=0) == 1
+    assert log and log[0][2] == []
+
+
+def test_a_frame_costs_a_bounded_number_of_kernel_events():
+    """O(1) kernel events per frame, whatever the number of receivers or contenders: at most
+    a wake-up (handing it over can move the earliest transmit instant), its end and its
+    delivery; never one per backoff slot or per contender."""
+    n = 60
+    sim = _medium(np.linspace(0, 10, n), mac="csma")
+    for i in range(n):
+        sim.channel.broadcast(i, None, lambda s, r, p: None, kind="f")
+    steps = 0
+    while sim.env._queue:
+        sim.env.step()
+        steps += 1
+    assert sim.channel.mac.attempts == n
+    assert steps <= 3 * n
+
+
+def test_mac_none_is_the_channel_of_infinite_capacity():
+    """channel.mac = "none": no medium, the channel's own drop causes and tables."""
+    cfg = make_config(channel={"mac": "none"})
+    assert cfg.channel.mac == "none"
+    assert tables(cfg) == tables(make_config())
+    res = execute(make_config(world={"n_robots": 8}, duration_s=5.0, protocol={"model": "ack"}))
+    assert res.sim.channel.mac is None
+    assert list(res.frames["acks"].columns) == ["robot", "sent", "received"] + [f"dropped_{c}" for c in DROP_CAUSES]
+    assert "channel_utilisation" not in res.summary
+
+
+@pytest.mark.parametrize("mac", ["aloha", "csma"])
+def test_the_protocol_runs_on_any_mac(mac):
+    """Clustering and relaying run unchanged on a medium; the tables gain its drop causes."""
+    cfg = make_config(
+        world={"n_robots": 20, "side_m": 300.0},
+        duration_s=20.0,
+        channel={"range_m": 100.0, "mac": mac},
+        protocol={"message_rate_hz": 1.0},
+    )
+    res = execute(cfg)
+    acks = res.frames["acks"]
+    assert list(acks.columns)[3:] == [f"dropped_{c}" for c in MAC_DROP_CAUSES]
+    assert list(res.frames["medium"].columns) == list(tables(cfg)["medium"])
+    assert list(res.frames["ack_delivery"].columns) == list(tables(cfg)["ack_delivery"])
+    s = res.summary
+    assert 0 < s["channel_utilisation"] < 1 and 0 <= s["collision_ratio"] < 1
+    assert s["messages"] > 0 and s["acks_received"] > 0
+    again = execute(cfg)
+    pd_equal = [res.frames[k].equals(again.frames[k]) for k in res.frames]
+    assert all(pd_equal)  # the same seed, the same outputs
+
+
+@pytest.mark.parametrize(
+    ("keys", "bad"),
+    [
+        ({"mac": "tdma"}, "channel.mac"),
+        ({"mac": "csma", "cw_min": 30}, "channel.cw_min"),
+        ({"mac": "csma", "cw_min": 63, "cw_max": 31}, "channel.cw_max"),
+        ({"mac": "csma", "range_m": 100.0, "interference_range_m": 50.0}, "channel.interference_range_m"),
+        ({"mac": "aloha", "propagation": "log_distance", "noise_floor_dbm": -85.0}, "channel.noise_floor_dbm"),
+        ({"mac": "aloha", "data_rate_bps": 0}, "channel.data_rate_bps"),
+    ],
+)
+def test_medium_keys_are_validated(keys, bad):
+    """A bad medium key is an error naming the key."""
+    with pytest.raises(ConfigError, match=bad.replace(".", r"\.")):
+        make_config(channel=keys)
+
+
+def test_aloha_periodic_success_follows_the_closed_form():
+    """ALOHA, periodic frames at random phases: success (1 - 2T/t)^(n-1)."""
+    c = mac_checks.aloha_periodic(n=8, airtime_ratio=0.03, rounds=200, seed=3)
+    assert abs(c.measured - c.theory) <= c.tolerance
+
+
+def test_aloha_poisson_success_follows_the_closed_form():
+    """ALOHA, Poisson load G: success e^(-2G)."""
+    c = mac_checks.aloha_poisson(n=30, load=0.3, frames=8000, seed=4)
+    assert abs(c.measured - c.theory) <= c.tolerance
+
+
+def test_hidden_terminals_lose_like_an_aloha_pair():
+    """Hidden terminals under CSMA: B loses like an ALOHA pair; A-B alone loses nothing."""
+    hidden, alone = mac_checks.hidden_terminals(airtime_ratio=0.05, rounds=500, seed=5)
+    assert abs(hidden.measured - hidden.theory) <= hidden.tolerance
+    assert alone.measured == 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n", [3, 15, 40])
+def test_csma_saturation_throughput_matches_bianchi(n):
+    """802.11 DCF saturation throughput within 5 % of Bianchi's model."""
+    c = mac_checks.csma_saturation(n, duration_s=15.0, seed=7)
+    assert abs(c.measured - c.theory) <= 0.05 * c.theory
+
+
+def test_bianchi_model_limits():
+    """Bianchi's tau: 2/(W+1) for one station; p grows with n."""
+    tau, p = mac_checks.bianchi_tau(1, 32, 5)
+    assert tau == pytest.approx(2 / 33) and p == 0
+    ps = [mac_checks.bianchi_tau(n, 32, 5)[1] for n in (5, 10, 50)]
+    assert ps == sorted(ps) and not any(math.isnan(x) for x in ps)
