@@ -16,10 +16,13 @@ A new window starts early when a robot jumps (its links are then judged afresh o
 position, as the post-hoc solver does) or moves faster than ``v_bound``. So only pairs that
 can meet before the end of the window or their next course change are ever scheduled.
 
-Queued events run from one kernel event per distinct instant, at priority
-:data:`~netsim.events.FIRST` (before anything else due at that instant), in the order
-``(t, a, b)``; for one pair, in the order the post-hoc solver uses, keeping only those
-that change the link's state. docs/events.md says what is exact and the order of events.
+Queued events run at priority :data:`~netsim.events.FIRST` (before anything else due at
+their instant), in the order ``(t, a, b)``; for one pair, in the order the post-hoc solver
+uses, keeping only those that change the link's state. One kernel event wakes the solver
+for the next instant that has events; it goes on to the following instants, moving the
+kernel's clock itself, while the kernel holds nothing that would run before them: the
+order of one kernel event per instant, without paying for one per instant.
+docs/events.md says what is exact and the order of events.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import pandas as pd
 import simpy
 
 from netsim.crossings import PHASE_STATE, solve_piece, tree, wrap
-from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, scheduled_event
+from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, advance_clock, runs_before, scheduled_event
 from netsim.lifetimes import COLUMNS
 from netsim.state import RobotState
 
@@ -76,6 +79,10 @@ class RuntimeLinks:
         self._ca = self._cb = self._ptr = self._idx = np.empty(0, np.int64)
         self._cr = np.empty(0)
         self._gen = np.empty(0, np.int64)
+        # The generations again, as a list: read one at a time by the hot loop.
+        self._gen_now: list[int] = []
+        self._on_up = events.subscribers("link_up") if events is not None else []
+        self._on_down = events.subscribers("link_down") if events is not None else []
         state.watchers.append(self._on_leg)
 
     # -- life cycle ----------------------------------------------------------------------
@@ -151,6 +158,9 @@ class RuntimeLinks:
         idx = np.unique(np.concatenate([self._idx[ptr[r] : ptr[r + 1]] for r in dirty.tolist()]))
         if len(idx):
             self._gen[idx] += 1
+            gen_now = self._gen_now
+            for k in idx.tolist():
+                gen_now[k] += 1
             self._solve(idx, t)
             self._arm()
 
@@ -191,6 +201,7 @@ class RuntimeLinks:
         self._ptr = np.zeros(st.n + 1, np.int64)
         np.cumsum(np.bincount(rows, minlength=st.n), out=self._ptr[1:])
         self._gen = np.zeros(m, np.int64)
+        self._gen_now = [0] * m
         if first:
             d = wrap(pos[ca] - pos[cb], self.box)
             inside = np.einsum("ij,ij->i", d, d) <= self._cr * self._cr
@@ -310,18 +321,48 @@ class RuntimeLinks:
                 break
             yield row
 
-    def _wake(self, now: float) -> None:
-        # ``now`` is the instant this wake was armed for. The kernel's clock, now + (t -
+    def _wake(self, armed_s: float) -> None:
+        # ``armed_s`` is the instant this wake was armed for. The kernel's clock, now + (t -
         # now), can be a rounding step away from it (no delay lands on some instants), so
         # the events are taken by their own time, never by the clock's.
-        if now >= self._armed_s:
+        if armed_s >= self._armed_s:
             self._armed_s = math.inf
-        gen, up, ended = self._gen, self.up, self.ended
-        bus = self.events
-        on_up = bus.subscribers("link_up") if bus is not None else []
-        on_down = bus.subscribers("link_down") if bus is not None else []
-        # The hot loop of the runtime links.
-        for t, a, b, _phase, negk, idx, g in self._take(now):
+        env = self.env
+        until = armed_s
+        while True:
+            self._announce(until)
+            # The next instant is taken in the same wake when the kernel has nothing that
+            # would run before a wake armed for it: the clock is moved there, exactly, and
+            # the order is that of one kernel event per instant, without its cost.
+            until = self._next_time()
+            if until == math.inf or runs_before(env, until, FIRST):
+                break
+            advance_clock(env, until)
+        self._arm()
+
+    def _announce(self, until: float) -> None:
+        """Apply and announce the queued events due at or before ``until``, in order."""
+        queue, heap = self._queue, self._heap
+        qi, nq = self._qi, len(queue)
+        gen, up, ended = self._gen_now, self.up, self.ended
+        on_up, on_down = self._on_up, self._on_down
+        pop = heapq.heappop
+        new = tuple.__new__
+        # The hot loop of the runtime links: the window's sorted list and the heap of
+        # re-solves merged, inline (no generator, no call per event but the subscribers').
+        while True:
+            if heap and (qi >= nq or heap[0] < queue[qi]):
+                if heap[0][0] > until:
+                    break
+                t, a, b, _phase, negk, idx, g = pop(heap)
+            elif qi < nq:
+                row = queue[qi]
+                if row[0] > until:
+                    break
+                qi += 1
+                t, a, b, _phase, negk, idx, g = row
+            else:
+                break
             if idx >= 0 and gen[idx] != g:
                 continue  # solved again since (a course change)
             key = (a, b)
@@ -330,7 +371,7 @@ class RuntimeLinks:
                     continue
                 up[key] = t
                 if on_up:
-                    up_event = LinkUp(t, a, b)
+                    up_event = new(LinkUp, (t, a, b))
                     for fn in on_up:
                         fn(up_event)
             else:
@@ -339,7 +380,7 @@ class RuntimeLinks:
                     continue
                 ended.append((a, b, t_up, t))
                 if on_down:
-                    down_event = LinkDown(t, a, b, t_up)
+                    down_event = new(LinkDown, (t, a, b, t_up))
                     for fn in on_down:
                         fn(down_event)
-        self._arm()
+        self._qi = qi
