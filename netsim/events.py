@@ -55,6 +55,7 @@ __all__ = [
     "MessageDelivered",
     "MessageDropped",
     "advance_clock",
+    "kernel_queue",
     "runs_before",
     "scheduled_event",
 ]
@@ -80,6 +81,12 @@ def scheduled_event(
         ev.callbacks.append(callback)
     env.schedule(ev, priority, delay_s)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
     return ev
+
+
+def kernel_queue(env: simpy.Environment) -> list:
+    """SimPy's queue of scheduled events, a heap of ``(time, priority, id, event)``: read
+    it only (a hot loop's inline form of :func:`runs_before`)."""
+    return env._queue  # type: ignore[attr-defined, no-any-return]
 
 
 def runs_before(env: simpy.Environment, t_s: float, priority: int) -> bool:
