@@ -112,14 +112,36 @@ def _solve_image(
 ) -> None:
     if len(d) == 0:
         return
+    at_in, at_out = crossing_times(d, w, radius, origin)
+    clip_crossings(at_in, at_out, t_start, length, a, b, emit)
+
+
+def crossing_times(
+    d: np.ndarray, w: np.ndarray, radius: np.ndarray, origin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The instants the relative path ``d + w (t - origin)`` enters and leaves the disk of
+    ``radius`` (NaN when it does not cross it): ``origin`` plus the roots."""
     t_in, t_out = roots(d, w, radius)
+    return origin + t_in, origin + t_out
+
+
+def clip_crossings(
+    at_in: np.ndarray,
+    at_out: np.ndarray,
+    t_start: np.ndarray,
+    length: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    emit: Callable[..., None],
+) -> None:
+    """Hand ``emit`` the crossings ``at_in`` (up) and ``at_out`` (down) that fall within
+    ``[t_start, t_start + length]``, with the phase that orders them at a piece's edge."""
     end = t_start + length
     # A crossing on a piece's edge is looked for by both pieces, with a little slack, so
     # that rounding cannot hide it from both; the duplicate is dropped later. A crossing
     # near a piece's start sorts after one near the previous piece's end at the same
     # instant (and after the state set at a jump there).
-    for rel, kind in ((t_in, 1), (t_out, -1)):
-        at = origin + rel
+    for at, kind in ((at_in, 1), (at_out, -1)):
         hit = (at >= t_start - EDGE_S) & (at <= end + EDGE_S)
         t_ev = np.minimum(np.maximum(at[hit], t_start[hit]), end[hit])
         phase = np.where(t_ev - t_start[hit] <= 0.5 * length[hit], PHASE_START, PHASE_END)

@@ -16,25 +16,27 @@ A new window starts early when a robot jumps (its links are then judged afresh o
 position, as the post-hoc solver does) or moves faster than ``v_bound``. So only pairs that
 can meet before the end of the window or their next course change are ever scheduled.
 
-Queued events run from one kernel event per distinct instant, at priority
-:data:`~netsim.events.FIRST` (before anything else due at that instant), in the order
-``(t, a, b)``; for one pair, in the order the post-hoc solver uses, keeping only those
-that change the link's state. docs/events.md says what is exact and the order of events.
+Queued events run at priority :data:`~netsim.events.FIRST` (before anything else due at
+their instant), in the order ``(t, a, b)``; for one pair, in the order the post-hoc solver
+uses, keeping only those that change the link's state. One kernel event wakes the solver
+for the next instant that has events; it goes on to the following instants, moving the
+kernel's clock itself, while the kernel holds nothing that would run before them: the
+order of one kernel event per instant, without paying for one per instant.
+docs/events.md says what is exact and the order of events.
 """
 
 from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.crossings import PHASE_STATE, solve_piece, tree, wrap
-from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, scheduled_event
+from netsim.crossings import PHASE_STATE, clip_crossings, crossing_times, solve_piece, tree, wrap
+from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, advance_clock, kernel_queue, scheduled_event
 from netsim.lifetimes import COLUMNS
 from netsim.state import RobotState
 
@@ -57,14 +59,16 @@ class RuntimeLinks:
         self.r_min = float(self.ranges.min()) if state.n else 0.0
         self.r_max = float(self.ranges.max()) if state.n else 0.0
         self.box = float(state.side_m) if state.torus else None
-        # Links up now: (a, b) -> since when; and every lifetime that ended.
-        self.up: dict[tuple[int, int], float] = {}
-        self.ended: list[tuple[int, int, float, float]] = []
+        # Links up now: key a n + b -> since when; and every lifetime that ended, as columns
+        # a, b, up, down. Plain lists of numbers, as the queue's columns: the collector
+        # never walks them (lists of tuples made it cost a fifth of the runtime links).
+        self.up: dict[int, float] = {}
+        self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         self.started = False
         self.v_bound = 0.0
         self.windows = 0
         self._heap: list[tuple] = []
-        self._queue: list[tuple] = []
+        self._queue: tuple[list, ...] = ([], [], [], [], [], [], [])
         self._qi = 0
         self._batch: list | None = None
         self._armed_s = math.inf
@@ -74,8 +78,18 @@ class RuntimeLinks:
         self._w_end = 0.0
         self._wid = 0
         self._ca = self._cb = self._ptr = self._idx = np.empty(0, np.int64)
+        self._csr_ready = False
         self._cr = np.empty(0)
+        # In the plane, each candidate pair's crossings on its current legs (absolute
+        # instants, NaN: none), by pair key ``a n + b`` (sorted): a pair whose robots keep
+        # their legs into the next window is not solved again.
+        self._keys = np.empty(0, np.int64)
+        self._at_in = self._at_out = np.empty(0)
         self._gen = np.empty(0, np.int64)
+        # The generations again, as a list: read one at a time by the hot loop.
+        self._gen_now: list[int] = []
+        self._on_up = events.subscribers("link_up") if events is not None else []
+        self._on_down = events.subscribers("link_down") if events is not None else []
         state.watchers.append(self._on_leg)
 
     # -- life cycle ----------------------------------------------------------------------
@@ -92,32 +106,24 @@ class RuntimeLinks:
     def finish(self, t_end: float) -> None:
         """Apply the queued events due at or before ``t_end`` (the run's end, whose events
         the kernel does not process), without announcing them."""
-        for t, a, b, _phase, negk, idx, g in self._take(t_end):
-            if idx >= 0 and self._gen[idx] != g:
-                continue
-            key = (a, b)
-            if negk < 0:
-                self.up.setdefault(key, t)
-            elif key in self.up:
-                self.ended.append((a, b, self.up.pop(key), t))
+        self._announce(t_end, quiet=True)
 
     def frame(self, t_end: float) -> pd.DataFrame:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
         censored)."""
-        rows = list(self.ended)
-        still = [(a, b, t_up, t_end) for (a, b), t_up in self.up.items()]
-        a = np.array([r[0] for r in rows + still], np.int64)
-        b = np.array([r[1] for r in rows + still], np.int64)
+        ea, eb, e_up, e_down = self.ended
+        n = max(self.state.n, 1)
+        still = np.fromiter(self.up.keys(), np.int64, len(self.up))
         out = pd.DataFrame(
             {
-                "a": a,
-                "b": b,
-                "t_up_s": np.array([r[2] for r in rows + still], float),
-                "t_down_s": np.array([r[3] for r in rows + still], float),
+                "a": np.r_[np.array(ea, np.int64), still // n],
+                "b": np.r_[np.array(eb, np.int64), still % n],
+                "t_up_s": np.r_[np.array(e_up, float), np.fromiter(self.up.values(), float, len(self.up))],
+                "t_down_s": np.r_[np.array(e_down, float), np.full(len(still), t_end)],
             }
         )
         out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
-        out["censored_end"] = np.r_[np.zeros(len(rows), bool), np.ones(len(still), bool)]
+        out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
         out["censored"] = out["censored_start"] | out["censored_end"]
         return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
 
@@ -145,12 +151,17 @@ class RuntimeLinks:
         self._jumped.clear()
         v = self.state.velocity_mps[dirty]
         if len(jumped) or float(np.hypot(v[:, 0], v[:, 1]).max()) > self.v_bound or t >= self._w_end:
-            self._new_window(t, jumpers=jumped)
+            self._new_window(t, jumpers=jumped, moved=dirty)
             return
+        if not self._csr_ready:
+            self._csr()
         ptr = self._ptr
         idx = np.unique(np.concatenate([self._idx[ptr[r] : ptr[r + 1]] for r in dirty.tolist()]))
         if len(idx):
             self._gen[idx] += 1
+            gen_now = self._gen_now
+            for k in idx.tolist():
+                gen_now[k] += 1
             self._solve(idx, t)
             self._arm()
 
@@ -161,8 +172,13 @@ class RuntimeLinks:
             return st.origin_m + st.velocity_mps * (t - st.t0_s)[:, None]
         return st.origin_m[who] + st.velocity_mps[who] * (t - st.t0_s[who])[:, None]
 
-    def _new_window(self, t: float, first: bool = False, jumpers: np.ndarray | None = None) -> None:
+    def _new_window(
+        self, t: float, first: bool = False, jumpers: np.ndarray | None = None, moved: np.ndarray | None = None
+    ) -> None:
+        """Start a window at ``t``: find its candidate pairs and queue their crossings;
+        ``moved``: robots whose legs changed at ``t`` (their pairs are solved afresh)."""
         st = self.state
+        n = st.n
         self.windows += 1
         self._wid += 1
         # Every queued event is solved again from t; the window's events go into one sorted
@@ -170,7 +186,7 @@ class RuntimeLinks:
         self._heap = []
         self._batch = []
         speeds = np.hypot(st.velocity_mps[:, 0], st.velocity_mps[:, 1])
-        self.v_bound = max(self.v_bound, float(speeds.max()) if st.n else 0.0)
+        self.v_bound = max(self.v_bound, float(speeds.max()) if n else 0.0)
         if self.v_bound > 0:
             self._w_end = t + max(0.5 * self.r_min / self.v_bound, 1e-6)
             reach = self.r_max + 2.0 * self.v_bound * (self._w_end - t)
@@ -178,19 +194,17 @@ class RuntimeLinks:
             self._w_end = math.inf  # nobody moves: nothing to solve until someone does
             reach = self.r_max
         pos = self._positions(t)
-        pairs = tree(pos, self.box).query_pairs(reach, output_type="ndarray") if st.n > 1 else np.empty((0, 2))
+        pairs = tree(pos, self.box).query_pairs(reach, output_type="ndarray") if n > 1 else np.empty((0, 2))
         pairs = pairs.astype(np.int64, copy=False)
-        ca, cb = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+        # Candidate pairs in key order (a n + b, a < b), hence in the order (a, b).
+        keys = np.sort(np.minimum(pairs[:, 0], pairs[:, 1]) * n + np.maximum(pairs[:, 0], pairs[:, 1]))
+        ca, cb = np.divmod(keys, n) if n else (keys, keys)
         self._ca, self._cb = ca, cb
         self._cr = np.minimum(self.ranges[ca], self.ranges[cb])
         m = len(ca)
-        # Each robot's candidate pairs (both ends), as a CSR list.
-        rows = np.concatenate([ca, cb])
-        order = np.argsort(rows, kind="stable")
-        self._idx = np.concatenate([np.arange(m), np.arange(m)])[order]
-        self._ptr = np.zeros(st.n + 1, np.int64)
-        np.cumsum(np.bincount(rows, minlength=st.n), out=self._ptr[1:])
+        self._csr_ready = False
         self._gen = np.zeros(m, np.int64)
+        self._gen_now = [0] * m
         if first:
             d = wrap(pos[ca] - pos[cb], self.box)
             inside = np.einsum("ij,ij->i", d, d) <= self._cr * self._cr
@@ -198,12 +212,52 @@ class RuntimeLinks:
         if jumpers is not None and len(jumpers):
             self._judge_jumpers(t, pos, jumpers)
         if self.v_bound > 0 and m:
-            self._solve(np.arange(m), t)
+            if self.box is None:
+                self._solve_window(t, keys, moved)
+            else:
+                self._solve(np.arange(m), t)
+        else:
+            # Nothing solved: no pair's crossings are known for the next window.
+            self._keys = np.empty(0, np.int64)
+            self._at_in, self._at_out = np.full(m, np.nan), np.full(m, np.nan)
         self._sort_batch()
         if math.isfinite(self._w_end):
             wid = self._wid
             scheduled_event(self.env, self._w_end - t, _RESTART, lambda _e: self._restart(wid))
         self._arm()
+
+    def _solve_window(self, t: float, keys: np.ndarray, moved: np.ndarray | None) -> None:
+        """In the plane: queue the window's crossings of every candidate pair, solving only
+        the pairs whose crossings on their current legs are not known yet."""
+        m = len(keys)
+        old = self._keys
+        known = np.zeros(m, bool)
+        at = np.zeros(m, np.int64)
+        if len(old):
+            at = np.minimum(np.searchsorted(old, keys), len(old) - 1)
+            known = old[at] == keys
+            if moved is not None and len(moved):
+                stale = np.zeros(self.state.n, bool)
+                stale[moved] = True
+                known &= ~(stale[self._ca] | stale[self._cb])
+        at_in, at_out = np.empty(m), np.empty(m)
+        at_in[known] = self._at_in[at[known]]
+        at_out[known] = self._at_out[at[known]]
+        fresh = np.flatnonzero(~known)
+        at_in[fresh], at_out[fresh] = self._crossings(fresh)
+        self._keys, self._at_in, self._at_out = keys, at_in, at_out
+        self._queue_crossings(np.arange(m), t)
+
+    def _csr(self) -> None:
+        """Each robot's candidate pairs (both ends), as a CSR list (built when a course
+        change first needs it in a window)."""
+        m, n = len(self._ca), self.state.n
+        rows = np.concatenate([self._ca, self._cb])
+        order = np.argsort(rows)
+        self._idx = np.where(order < m, order, order - m)
+        self._ptr = np.zeros(n + 1, np.int64)
+        np.cumsum(np.bincount(rows, minlength=n), out=self._ptr[1:])
+        self._csr_ready = True
 
     def _restart(self, wid: int) -> None:
         if wid == self._wid:
@@ -214,11 +268,12 @@ class RuntimeLinks:
         positions, down otherwise (its old links and its new candidates)."""
         mine = np.isin(self._ca, jumpers) | np.isin(self._cb, jumpers)
         a, b = self._ca[mine], self._cb[mine]
-        who = set(jumpers.tolist())
-        old = [(x, y) for (x, y) in self.up if x in who or y in who]
-        if old:
-            a = np.r_[a, np.array([p[0] for p in old], np.int64)]
-            b = np.r_[b, np.array([p[1] for p in old], np.int64)]
+        up = np.fromiter(self.up.keys(), np.int64, len(self.up))
+        n = self.state.n
+        old = up[np.isin(up // n, jumpers) | np.isin(up % n, jumpers)]
+        if len(old):
+            a = np.r_[a, old // n]
+            b = np.r_[b, old % n]
         d = wrap(pos[a] - pos[b], self.box)
         radius = np.minimum(self.ranges[a], self.ranges[b])
         inside = np.einsum("ij,ij->i", d, d) <= radius * radius
@@ -227,15 +282,11 @@ class RuntimeLinks:
 
     def _solve(self, idx: np.ndarray, t: float) -> None:
         """Queue the crossings of candidate pairs ``idx`` from ``t`` to the window's end."""
-        st = self.state
-        a, b = self._ca[idx], self._cb[idx]
-        # Solved from the later of the two legs' starts, as the post-hoc solver does
-        # (netsim.crossings.solve_piece): the same floats, whatever the windows.
-        origin = np.maximum(st.t0_s[a], st.t0_s[b])
-        pa = st.origin_m[a] + st.velocity_mps[a] * (origin - st.t0_s[a])[:, None]
-        pb = st.origin_m[b] + st.velocity_mps[b] * (origin - st.t0_s[b])[:, None]
-        d0 = wrap(pa - pb, self.box)
-        w = st.velocity_mps[a] - st.velocity_mps[b]
+        if self.box is None:
+            self._at_in[idx], self._at_out[idx] = self._crossings(idx)
+            self._queue_crossings(idx, t)
+            return
+        origin, d0, w = self._relative(idx)
         found: list[tuple] = []
 
         def emit(t_ev: Any, ia: Any, _ib: Any, kind: int, phase: Any) -> None:
@@ -246,10 +297,46 @@ class RuntimeLinks:
         for t_ev, ia, kind, phase in found:
             self._push(t_ev, self._ca[ia], self._cb[ia], kind, phase, ia)
 
+    def _relative(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For candidate pairs ``idx``: the later of their two legs' starts, the relative
+        position then (nearest image on a torus) and the relative velocity."""
+        st = self.state
+        a, b = self._ca[idx], self._cb[idx]
+        ta, tb = st.t0_s.take(a), st.t0_s.take(b)
+        va, vb = st.velocity_mps.take(a, axis=0), st.velocity_mps.take(b, axis=0)
+        # Solved from the later of the two legs' starts, as the post-hoc solver does
+        # (netsim.crossings.solve_piece): the same floats, whatever the windows.
+        origin = np.maximum(ta, tb)
+        pa = st.origin_m.take(a, axis=0) + va * (origin - ta)[:, None]
+        pb = st.origin_m.take(b, axis=0) + vb * (origin - tb)[:, None]
+        return origin, wrap(pa - pb, self.box), va - vb
+
+    def _crossings(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """In the plane: the instants candidate pairs ``idx`` enter and leave range on
+        their current legs (NaN: never)."""
+        origin, d0, w = self._relative(idx)
+        return crossing_times(d0, w, self._cr[idx], origin)
+
+    def _queue_crossings(self, idx: np.ndarray, t: float) -> None:
+        """Queue the known crossings of pairs ``idx`` that fall from ``t`` to the window's
+        end, as :func:`netsim.crossings.solve_piece` would find them."""
+        k = len(idx)
+        if k == 0:
+            return
+        ca, cb = self._ca, self._cb
+
+        def emit(t_ev: np.ndarray, ia: np.ndarray, _ib: np.ndarray, kind: int, phase: np.ndarray) -> None:
+            self._push(t_ev, ca[ia], cb[ia], kind, phase, ia)
+
+        t_start = np.broadcast_to(np.float64(t), (k,))
+        length = np.broadcast_to(np.float64(self._w_end - t), (k,))
+        clip_crossings(self._at_in[idx], self._at_out[idx], t_start, length, idx, idx, emit)
+
     # -- the queue -----------------------------------------------------------------------
-    # An event is the tuple (t, a, b, phase, -kind, idx, gen): tuples sort in the order the
-    # events run (module notes); idx is the candidate pair (-1: a state set at a jump or at
-    # the start, never cancelled), gen its generation when solved.
+    # An event is (t, a, b, phase, -kind, idx, gen): in that order events run (module
+    # notes); idx is the candidate pair (-1: a state set at a jump or at the start, never
+    # cancelled), gen its generation when solved. A window's events are sorted columns
+    # (plain lists; their gen is 0), later re-solves tuples in a heap beside them.
     def _push(self, t: Any, a: Any, b: Any, kind: int, phase: Any, idx: np.ndarray | None = None) -> None:
         n = len(a)
         if n == 0:
@@ -261,13 +348,13 @@ class RuntimeLinks:
             np.broadcast_to(np.asarray(phase, np.int64), (n,)),
             np.full(n, -kind, np.int64),
             np.full(n, -1, np.int64) if idx is None else idx,
-            np.zeros(n, np.int64) if idx is None else self._gen[idx],
         )
         if self._batch is not None:
             self._batch.append(cols)
             return
         heap = self._heap
-        for row in zip(*(c.tolist() for c in cols)):
+        gen = np.zeros(n, np.int64) if idx is None else self._gen[idx]
+        for row in zip(*(c.tolist() for c in cols), gen.tolist()):
             heapq.heappush(heap, row)
 
     def _sort_batch(self) -> None:
@@ -275,13 +362,16 @@ class RuntimeLinks:
         if batch:
             cols = [np.concatenate(c) for c in zip(*batch)]
             order = np.lexsort((cols[4], cols[3], cols[2], cols[1], cols[0]))
-            self._queue = list(zip(*(c[order].tolist() for c in cols)))
+            t, a, b = cols[0][order], cols[1][order], cols[2][order]
+            key = a * max(self.state.n, 1) + b
+            self._queue = tuple(c.tolist() for c in (t, a, b, cols[3][order], cols[4][order], cols[5][order], key))
         else:
-            self._queue = []
+            self._queue = ([], [], [], [], [], [], [])
         self._qi = 0
 
     def _next_time(self) -> float:
-        t = self._queue[self._qi][0] if self._qi < len(self._queue) else math.inf
+        qt = self._queue[0]
+        t = qt[self._qi] if self._qi < len(qt) else math.inf
         return min(t, self._heap[0][0]) if self._heap else t
 
     def _arm(self) -> None:
@@ -290,56 +380,84 @@ class RuntimeLinks:
             self._armed_s = t
             scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, lambda _e: self._wake(t))
 
-    def _take(self, until: float) -> Iterator[tuple]:
-        """The queued events due at or before ``until``, in order (both sources merged)."""
-        queue, heap = self._queue, self._heap
-        qi, nq = self._qi, len(queue)
-        pop = heapq.heappop
-        while True:
-            if heap and (qi >= nq or heap[0] < queue[qi]):
-                if heap[0][0] > until:
-                    break
-                row = pop(heap)
-            elif qi < nq:
-                row = queue[qi]
-                if row[0] > until:
-                    break
-                qi += 1
-                self._qi = qi
-            else:
-                break
-            yield row
-
-    def _wake(self, now: float) -> None:
-        # ``now`` is the instant this wake was armed for. The kernel's clock, now + (t -
+    def _wake(self, armed_s: float) -> None:
+        # ``armed_s`` is the instant this wake was armed for. The kernel's clock, now + (t -
         # now), can be a rounding step away from it (no delay lands on some instants), so
         # the events are taken by their own time, never by the clock's.
-        if now >= self._armed_s:
+        if armed_s >= self._armed_s:
             self._armed_s = math.inf
-        gen, up, ended = self._gen, self.up, self.ended
-        bus = self.events
-        on_up = bus.subscribers("link_up") if bus is not None else []
-        on_down = bus.subscribers("link_down") if bus is not None else []
-        # The hot loop of the runtime links.
-        for t, a, b, _phase, negk, idx, g in self._take(now):
-            if idx >= 0 and gen[idx] != g:
-                continue  # solved again since (a course change)
-            key = (a, b)
+        self._announce(armed_s)
+        self._arm()
+
+    def _announce(self, until: float, quiet: bool = False) -> None:
+        """Apply and announce the queued events due at or before ``until``, in order, and
+        those of the following instants while the kernel has nothing that would run before
+        a wake armed for them (:func:`~netsim.events.runs_before`): the clock is moved to
+        each, exactly, and the order is that of one kernel event per instant, without its
+        cost. ``quiet``: the run's end; apply up to ``until`` only, announcing nothing."""
+        qt, qa, qb, qphase, qnegk, qidx, qkey = self._queue
+        heap = self._heap
+        qi, nq = self._qi, len(qt)
+        gen, up = self._gen_now, self.up
+        ea, eb, e_up, e_down = self.ended
+        on_up: list = [] if quiet else self._on_up
+        on_down: list = [] if quiet else self._on_down
+        env = self.env
+        kernel = kernel_queue(env)
+        n = max(self.state.n, 1)
+        pop = heapq.heappop
+        new = tuple.__new__
+        # The hot loop of the runtime links: the window's sorted columns and the heap of
+        # re-solves merged, inline (no call per event but the subscribers').
+        while True:
+            if heap and (
+                qi >= nq
+                or heap[0][0] < qt[qi]
+                or (heap[0][0] == qt[qi] and heap[0] < (qt[qi], qa[qi], qb[qi], qphase[qi], qnegk[qi], qidx[qi], 0))
+            ):
+                t = heap[0][0]
+                from_heap = True
+            elif qi < nq:
+                t = qt[qi]
+                from_heap = False
+            else:
+                break
+            if t > until:
+                # The next instant, in this wake if nothing in the kernel runs before it.
+                if quiet or (kernel and (kernel[0][0] < t or (kernel[0][0] == t and kernel[0][1] <= FIRST))):
+                    break
+                advance_clock(env, t)
+                until = t
+            if from_heap:
+                t, a, b, _phase, negk, idx, g = pop(heap)
+                if idx >= 0 and gen[idx] != g:
+                    continue  # solved again since (a course change)
+                key = a * n + b
+            else:
+                idx = qidx[qi]
+                if idx >= 0 and gen[idx] != 0:
+                    qi += 1
+                    continue
+                a, b, negk, key = qa[qi], qb[qi], qnegk[qi], qkey[qi]
+                qi += 1
             if negk < 0:
                 if key in up:
                     continue
                 up[key] = t
                 if on_up:
-                    up_event = LinkUp(t, a, b)
+                    up_event = new(LinkUp, (t, a, b))
                     for fn in on_up:
                         fn(up_event)
             else:
                 t_up = up.pop(key, None)
                 if t_up is None:
                     continue
-                ended.append((a, b, t_up, t))
+                ea.append(a)
+                eb.append(b)
+                e_up.append(t_up)
+                e_down.append(t)
                 if on_down:
-                    down_event = LinkDown(t, a, b, t_up)
+                    down_event = new(LinkDown, (t, a, b, t_up))
                     for fn in on_down:
                         fn(down_event)
-        self._arm()
+        self._qi = qi

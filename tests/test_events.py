@@ -13,7 +13,7 @@ import pytest
 
 from netsim.config import load
 from netsim.errors import ConfigError
-from netsim.events import EVENT_NAMES, URGENT, EventBus, LinkDown, LinkUp, scheduled_event
+from netsim.events import EVENT_NAMES, NORMAL, URGENT, EventBus, LinkDown, LinkUp, scheduled_event
 from netsim.lifetimes import link_lifetimes
 from netsim.run import build, collect, execute, simulation
 from netsim.state import CAUSES
@@ -281,6 +281,34 @@ def test_subscribers_see_events_in_time_order_with_the_documented_tie_order():
         ("kernel", None),
     ]
     assert all(ev.t_s == t for name, t, ev in log if name.startswith("link"))
+
+
+def test_link_events_of_later_instants_wait_for_kernel_events_due_before_them():
+    """One wake announces the link events of several instants only while the kernel has
+    nothing due before them: a kernel event between two link instants, and one a subscriber
+    schedules, run in time order; every link event sees ``sim.now`` equal to its ``t_s``."""
+    sim = _core(8, 10.0, 60.0)
+    # Pair (2k, 2k + 1) meets at t = 10 + 5k (k = 0..3): the gaps close at 1 m/s.
+    sim.state.place([[0, 0], [20, 0], [100, 0], [125, 0], [200, 0], [230, 0], [300, 0], [335, 0]])
+    _scripted(sim, [(0.0, 2 * k + 1, (-1.0, 0.0), None) for k in range(4)])
+    log = []
+
+    def on_up(ev):
+        log.append(("link_up", sim.now, ev.t_s))
+        if ev.t_s == 10.0:  # a kernel event due between two link instants, scheduled by a subscriber
+            scheduled_event(sim.env, 2.5, NORMAL, lambda _e: log.append(("subscriber's", sim.now, None)))
+
+    sim.events.on("link_up", on_up)
+    scheduled_event(sim.env, 17.5, NORMAL, lambda _e: log.append(("kernel", sim.now, None)))
+    sim.run()
+    assert log == [
+        ("link_up", 10.0, 10.0),
+        ("subscriber's", 12.5, None),
+        ("link_up", 15.0, 15.0),
+        ("kernel", 17.5, None),
+        ("link_up", 20.0, 20.0),
+        ("link_up", 25.0, 25.0),
+    ]
 
 
 def test_a_subscriber_may_change_course_on_a_link_break():
