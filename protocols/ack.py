@@ -35,7 +35,7 @@ from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.timers import urgent_timeout
-from protocols.neighbours import HEARS_ME, NeighbourTable, ack_record
+from protocols.neighbours import NeighbourTable, ack_record
 from protocols.roles import ROLES_SCHEMA, Roles, declare_roles
 
 
@@ -217,9 +217,7 @@ class AckBeacon:
         self.resign_pending[i] = False
         roles = self.roles
         seq, role, leader, size = int(self.seq[i]), int(roles.role[i]), int(roles.leader[i]), int(self.group_size[i])
-        live = self.table.live_mask(now, i)
-        heard = np.sort(self.table.id[i][live])
-        degree = int((live & (self.table.data[i, :, HEARS_ME] != 0)).sum())
+        heard, degree = self.table.heard_and_degree(now, i)
         self.role_sent[i], self.degree_sent[i] = role, degree
         return Ack(i, role, leader, seq, x, y, size, heard, resign, ack_record(seq, role, leader, x, y, size, degree))
 
@@ -230,13 +228,7 @@ class AckBeacon:
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
         now = self.env.now
-        heard = ack.heard
-        if len(heard):
-            at = np.minimum(heard.searchsorted(receivers), len(heard) - 1)
-            hears_me = heard[at] == receivers
-        else:
-            hears_me = np.zeros(len(receivers), dtype=bool)
-        fresh = self.table.update(now, sender, receivers, hears_me, ack.record)
+        fresh, hears_me = self.table.receive(now, sender, receivers, ack.heard, ack.record)
         if not fresh.all():
             self.stale_acks += int((~fresh).sum())
             receivers, hears_me = receivers[fresh], hears_me[fresh]
