@@ -13,8 +13,7 @@ import numpy as np
 
 # The packed record's columns and the empty id (protocols.neighbours; repeated here so
 # that numba sees constants).
-LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE = 0, 1, 2, 3, 4, 5
-ROLE_SINCE = 11
+LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
 EMPTY = -1
 
 
@@ -25,11 +24,12 @@ def receive(ids, records, slots, now, sender, receivers, heard, record, tau_s, f
 
     ``ids`` and ``records`` are the table's flat ``(n * slots)`` ids and ``(n * slots,
     fields)`` records. Fills ``hears_me`` (the receiver is among ``heard``) and ``fresh``
-    (the Ack was taken: not older than the entry's). Returns -1 when done, or the position
-    of the first receiver whose row has no free slot (the table must grow first; the
-    receivers before it are done).
+    (the Ack was taken: not older than the entry's). Returns ``(-1, stale)`` when done,
+    ``stale`` the number of Acks not taken, or ``(k, 0)`` where ``receivers[k]``'s row has
+    no free slot (the table must grow first; the receivers before it are done).
     """
     n_heard = len(heard)
+    stale = 0
     for k in range(start, len(receivers)):
         r = receivers[k]
         at = np.searchsorted(heard, r)
@@ -49,12 +49,13 @@ def receive(ids, records, slots, now, sender, receivers, heard, record, tau_s, f
                     slot = s
                     break
             if slot < 0:
-                return k
+                return k, 0
             ids[base + slot] = sender
         f = base + slot
         old = records[f]
         if found and not old[SEQ] <= record[SEQ]:
             fresh[k] = False
+            stale += 1
             continue
         fresh[k] = True
         was_live = found and now - old[LAST_HEARD] <= tau_s
@@ -71,7 +72,7 @@ def receive(ids, records, slots, now, sender, receivers, heard, record, tau_s, f
         old[HEARS_ME] = 1.0 if hm else 0.0
         old[BIDIR_SINCE] = bidir_since
         old[ROLE_SINCE] = role_since
-    return -1
+    return -1, stale
 
 
 @numba.njit(cache=True, nogil=True)
@@ -88,3 +89,16 @@ def heard_and_degree(ids_row, records_row, now, tau_s):
             if records_row[s, HEARS_ME] != 0:
                 degree += 1
     return np.sort(heard[:k]), degree
+
+
+@numba.njit(cache=True, nogil=True)
+def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, x_m, y_m, group_size):
+    """What a robot's Ack carries, from its row of the table: the ids of the live entries,
+    ascending, and the Ack's packed record (the fields, and the two-way degree: live
+    entries that hear the robot), as :func:`heard_and_degree` and
+    :func:`protocols.neighbours.ack_record`."""
+    heard, degree = heard_and_degree(ids_row, records_row, now, tau_s)
+    record = empty_record.copy()
+    record[SEQ], record[ROLE], record[LEADER], record[X], record[Y] = seq, role, leader, x_m, y_m
+    record[GROUP_SIZE], record[DEGREE] = group_size, degree
+    return heard, record

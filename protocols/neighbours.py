@@ -14,7 +14,7 @@ in one float64 record (integers up to 2^53 are exact), so that a delivery to ``k
 receivers is one gather and one scatter of ``k`` records, with no Python loop.
 
 Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots, :meth:`NeighbourTable.receive` and
-:meth:`NeighbourTable.heard_and_degree` run compiled loops (:mod:`protocols._kernels`) that
+:meth:`NeighbourTable.announce` run compiled loops (:mod:`protocols._kernels`) that
 compute exactly what the numpy code here computes.
 """
 
@@ -108,24 +108,26 @@ class NeighbourTable:
 
     def receive(
         self, now: float, sender: int, receivers: np.ndarray, heard: np.ndarray, record: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, int]:
         """Record an Ack from ``sender`` that carried the ids ``heard`` (ascending), heard by
         every robot in ``receivers`` at ``now``: :meth:`update`, with ``hears_me`` worked
-        out here. Returns ``(fresh, hears_me)``, one flag each per receiver."""
+        out here. Returns ``(fresh, hears_me, stale)``: one flag each per receiver, and how
+        many receivers did not take the Ack (not fresh)."""
         k = self.kernels
         if k is None:
             hears_me = hears(heard, receivers)
-            return self.update(now, sender, receivers, hears_me, record), hears_me
+            fresh = self.update(now, sender, receivers, hears_me, record)
+            return fresh, hears_me, len(fresh) - int(fresh.sum())
         fresh = np.empty(len(receivers), dtype=bool)
         hears_me = np.empty(len(receivers), dtype=bool)
         start = 0
         while True:
-            start = k.receive(
+            start, stale = k.receive(
                 self._ids, self._records, self.slots, float(now), int(sender), receivers, heard, record,
                 self.tau_s, fresh, hears_me, start,
             )  # fmt: skip
             if start < 0:
-                return fresh, hears_me
+                return fresh, hears_me, stale
             self._grow()
 
     def _place(self, now, sender, receivers, flat, found):
@@ -146,15 +148,21 @@ class NeighbourTable:
         last = self.data[:, :, LAST_HEARD] if i is None else self.data[i, :, LAST_HEARD]
         return now - last < self.tau_s
 
-    def heard_and_degree(self, now: float, i: int) -> tuple[np.ndarray, int]:
-        """Ids of ``i``'s live neighbours, ascending, and how many of them hear ``i`` (its
-        two-way degree): what ``i``'s Ack announces."""
+    def announce(
+        self, now: float, i: int, seq: int, role: int, leader: int, x_m: float, y_m: float, group_size: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """What ``i``'s Ack carries: the ids of its live neighbours, ascending, and the Ack's
+        packed record (:func:`ack_record`, with ``i``'s two-way degree: the live neighbours
+        that hear it)."""
         k = self.kernels
         if k is not None:
-            heard, degree = k.heard_and_degree(self.id[i], self.data[i], float(now), self.tau_s)
-            return heard, int(degree)
+            return k.announce(
+                self.id[i], self.data[i], float(now), self.tau_s, _EMPTY_RECORD, seq, role, leader, x_m, y_m,
+                group_size,
+            )  # fmt: skip
         live = self.live_mask(now, i)
-        return np.sort(self.id[i][live]), int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
+        degree = int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
+        return np.sort(self.id[i][live]), ack_record(seq, role, leader, x_m, y_m, group_size, degree)
 
     def live_ids(self, now: float, i: int) -> np.ndarray:
         """Ids of ``i``'s live neighbours, ascending."""

@@ -64,22 +64,24 @@ def _ack_stream(rng, n, calls):
 
 def test_compiled_neighbour_table_equals_numpy():
     """Recording Acks (new entries, renewals, expiry and reuse of slots, overtaken Acks,
-    growth of the table) leaves the same table and flags as the numpy update, and the
-    announced heard ids and degree are the numpy ones."""
+    growth of the table) leaves the same table and flags as the numpy update, and what an
+    Ack announces (heard ids, packed record with the degree) is the numpy one."""
     rng = np.random.default_rng(11)
     n = 12
     compiled, plain = NeighbourTable(n, tau_s=3.0, slots=2), NeighbourTable(n, tau_s=3.0, slots=2)
     compiled.kernels, plain.kernels = table_kernels, None
     stale = 0
     for t, s, receivers, heard, record in _ack_stream(rng, n, 1500):
-        a_fresh, a_hm = compiled.receive(t, s, receivers, heard, record)
-        b_fresh, b_hm = plain.receive(t, s, receivers, heard, record)
+        a_fresh, a_hm, a_stale = compiled.receive(t, s, receivers, heard, record)
+        b_fresh, b_hm, b_stale = plain.receive(t, s, receivers, heard, record)
         assert a_fresh.tolist() == b_fresh.tolist() and a_hm.tolist() == b_hm.tolist()
-        stale += int((~a_fresh).sum())
+        assert a_stale == b_stale == int((~a_fresh).sum())
+        stale += a_stale
         i = int(rng.integers(n))
-        a_heard, a_deg = compiled.heard_and_degree(t, i)
-        b_heard, b_deg = plain.heard_and_degree(t, i)
-        assert a_heard.tolist() == b_heard.tolist() and a_deg == b_deg
+        fields = (int(rng.integers(100)), int(rng.integers(3)), int(rng.integers(-1, n)), *rng.random(2), 4)
+        a_heard, a_record = compiled.announce(t, i, *fields)
+        b_heard, b_record = plain.announce(t, i, *fields)
+        assert a_heard.tolist() == b_heard.tolist() and a_record.tobytes() == b_record.tobytes()
     assert compiled.slots == plain.slots > 2
     assert np.array_equal(compiled.id, plain.id)
     assert compiled.data.tobytes() == plain.data.tobytes()
