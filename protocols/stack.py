@@ -24,6 +24,15 @@ from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routin
 from protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
 
 
+def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
+    """``np.isin(values, pool)`` for a sorted ``pool``, by binary search (np.isin hashes or
+    sorts both arrays on every call)."""
+    if len(pool) == 0:
+        return np.zeros(len(values), dtype=bool)
+    at = np.minimum(pool.searchsorted(values), len(pool) - 1)
+    return pool[at] == values
+
+
 @dataclass(frozen=True)
 class ClusteringParams(AckParams):
     """The clustering protocol's keys of ``[protocol]``: the Ack beacon's, the rules'
@@ -194,14 +203,14 @@ class Stack:
         roles = self.roles
         believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
         rows = believed_keys // n
-        believed_true = np.isin(believed_keys, heard_keys)
+        believed_true = in_sorted(believed_keys, heard_keys)
         true_count = np.bincount(heard_keys // n, minlength=n)
         believed = np.bincount(rows, minlength=n)
         stale = np.bincount(rows[~believed_true], minlength=n)
         leader = roles.leader.copy()
         has = np.flatnonzero((roles.role == MEMBER) & (leader >= 0))
         in_range = np.zeros(n, dtype=bool)
-        in_range[has] = np.isin(has * n + leader[has], heard_keys) & np.isin(leader[has] * n + has, heard_keys)
+        in_range[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
         return pd.DataFrame(
             {
                 "t_s": now,
@@ -223,14 +232,16 @@ class Stack:
         in range only)."""
         n = self.state.n
         believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
-        both = np.union1d(believed_keys, heard_keys)
+        believed_sorted = np.sort(believed_keys)
+        both = np.sort(np.concatenate([believed_sorted, heard_keys]))
+        both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
         return pd.DataFrame(
             {
                 "t_s": now,
                 "robot": both // n,
                 "neighbour": both % n,
-                "believed": np.isin(both, believed_keys),
-                "in_range": np.isin(both, heard_keys),
+                "believed": in_sorted(both, believed_sorted),
+                "in_range": in_sorted(both, heard_keys),
             }
         )
 
