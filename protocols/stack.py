@@ -12,7 +12,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy.sparse import csr_matrix
 
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
@@ -160,6 +159,8 @@ class Stack:
         a robot it hears hears (an Ack carries the positions in its sender's table). The
         relation is symmetric, as the forces built on it must be. A position is the one in
         ``other``'s latest Ack heard by anyone (all robots that heard that Ack hold it)."""
+        from scipy.sparse import csr_matrix  # only coverage controllers ask: not imported by every run
+
         table, n = self.table, self.state.n
         live = table.live_mask(now)
         rows, slots = np.nonzero(live)
