@@ -102,3 +102,38 @@ def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, 
     record[SEQ], record[ROLE], record[LEADER], record[X], record[Y] = seq, role, leader, x_m, y_m
     record[GROUP_SIZE], record[DEGREE] = group_size, degree
     return heard, record
+
+
+# Roles (protocols.roles).
+UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def sort_receivers(role, leader, receivers, hears_me, symmetric, sender):
+    """The receivers of an Ack of ``sender`` by what the clustering does with it, from the
+    roles before it acts: positions (in ``receivers``) of the members of ``sender``'s group;
+    those of them over a two-way link; undecided robots and leaders over a two-way link
+    (:func:`protocols.clustering.sort_receivers`)."""
+    n = len(receivers)
+    mine = np.empty(n, dtype=np.int64)
+    renew = np.empty(n, dtype=np.int64)
+    undecided = np.empty(n, dtype=np.int64)
+    leaders = np.empty(n, dtype=np.int64)
+    a = b = c = d = 0
+    for k in range(n):
+        r = receivers[k]
+        ro = role[r]
+        two_way = symmetric or hears_me[k]
+        if ro == MEMBER and leader[r] == sender:
+            mine[a] = k
+            a += 1
+            if two_way:
+                renew[b] = r
+                b += 1
+        elif two_way and ro == UNDECIDED:
+            undecided[c] = r
+            c += 1
+        elif two_way and ro == LEADER_ROLE:
+            leaders[d] = r
+            d += 1
+    return mine[:a], renew[:b], undecided[:c], leaders[:d]
