@@ -15,12 +15,20 @@ mean degree of 10, one beacon (Ack) per robot per second, 100 simulated seconds.
   ns-3: ``bash benchmarks/ns3_env.sh .ns3venv``); its ``Simulator::Run`` alone, and its whole
   process (importing ns-3 takes about 13 s).
 
-Every case runs in its own process; peak memory is that process's maximum RSS. The table
-gives wall seconds, receptions per wall second, and each case's wall time over netsim ack's.
+Every case runs in its own process; peak memory is that process's maximum RSS, CPU time
+its user + system time (the machine may be shared: CPU time is the steadier figure). The
+table gives wall and CPU seconds, receptions per wall second, peak memory, each case's wall
+time over netsim ack's, and netsim ack's receptions per wall second over the case's (above
+1: netsim's whole process receives more per second). The plain-SimPy reference scans every
+robot on every send (O(N^2)): it runs up to ``--simpy-max-n``; ns-3 up to ``--ns3-max-n``;
+the clustering up to ``--clustering-max-n``.
+
+Then the sweep throughput: ``--sweep-runs`` runs of the default scenario (the clustering
+protocol) with 50 robots for 300 simulated seconds, through ``netsim sweep`` on 2 workers,
+as runs per minute (0 leaves it out).
 
     python benchmarks/compare.py                          # N = 100 and 1,000
-    python benchmarks/compare.py --n 100 1000 10000 --reference-max-n 1000
-    python benchmarks/compare.py --ns3-python .ns3venv/bin/python
+    python benchmarks/compare.py --n 100 1000 10000 100000 --ns3-python .ns3venv/bin/python
 """
 
 from __future__ import annotations
@@ -32,7 +40,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -44,9 +51,9 @@ def side_for(n: int) -> float:
     return RANGE_M * math.sqrt(n * math.pi / DEGREE)
 
 
-def measured(cmd: list[str]) -> tuple[float, int, str]:
-    """Wall seconds, peak RSS (KiB) and standard output of ``cmd``, run alone in a fresh
-    wrapper process (so that the RSS is that command's)."""
+def measured(cmd: list[str]) -> tuple[float, int, str, float]:
+    """Wall seconds, peak RSS (KiB), standard output and CPU seconds of ``cmd``, run alone
+    in a fresh wrapper process (so that the RSS and CPU time are that command's)."""
     wrapper = (
         "import resource, subprocess, sys, time, json\n"
         "t = time.perf_counter()\n"
@@ -54,13 +61,15 @@ def measured(cmd: list[str]) -> tuple[float, int, str]:
         "wall = time.perf_counter() - t\n"
         "sys.stderr.write(p.stderr)\n"
         "print(json.dumps({'rc': p.returncode, 'wall': wall, "
-        "'rss': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, 'out': p.stdout}))\n"
+        "'rss': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, 'out': p.stdout,\n"
+        "'cpu': resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime"
+        " + resource.getrusage(resource.RUSAGE_CHILDREN).ru_stime}))\n"
     )
     res = subprocess.run([sys.executable, "-c", wrapper, *cmd], capture_output=True, text=True, check=True)
     got = json.loads(res.stdout.strip().splitlines()[-1])
     if got["rc"] != 0:
         raise SystemExit(f"compare.py: {' '.join(cmd)} failed:\n{res.stderr}")
-    return got["wall"], got["rss"], got["out"]
+    return got["wall"], got["rss"], got["out"], got["cpu"]
 
 
 def netsim_case(n: int, protocol: str) -> dict:
@@ -85,63 +94,102 @@ def netsim_case(n: int, protocol: str) -> dict:
         cmd = [netsim, "run", "--out", out, "--no-progress", "--quiet"]
         for key, value in sets.items():
             cmd += ["--set", f"{key}={value}"]
-        wall, rss, _ = measured(cmd)
+        wall, rss, _, cpu = measured(cmd)
         received = int(pd.read_parquet(os.path.join(out, "acks.parquet"))["received"].sum())
-    return {"wall_s": wall, "run_s": None, "received": received, "rss_kib": rss}
+    return {"wall_s": wall, "cpu_s": cpu, "run_s": None, "received": received, "rss_kib": rss}
 
 
 def reference_case(n: int) -> dict:
     cmd = [sys.executable, str(HERE / "simpy_reference_beacon.py"), "--n", str(n), "--sim-time", str(DURATION_S)]
     cmd += ["--rc", str(RANGE_M), "--period", str(PERIOD_S), "--vmin", str(SPEED_MIN), "--vmax", str(SPEED_MAX)]
-    wall, rss, out = measured(cmd + ["--pause", str(PAUSE_S)])
+    wall, rss, out, cpu = measured(cmd + ["--pause", str(PAUSE_S)])
     got = json.loads(out.strip().splitlines()[-1])
-    return {"wall_s": wall, "run_s": got["wall_run_s"], "received": got["received"], "rss_kib": rss}
+    return {"wall_s": wall, "cpu_s": cpu, "run_s": got["wall_run_s"], "received": got["received"], "rss_kib": rss}
 
 
 def ns3_case(n: int, python: str) -> dict:
     cmd = [python, str(HERE / "ns3_beacon.py"), "--n", str(n), "--sim-time", str(DURATION_S), "--mode", "direct"]
     cmd += ["--rc", str(RANGE_M), "--period", str(PERIOD_S), "--vmin", str(SPEED_MIN), "--vmax", str(SPEED_MAX)]
-    wall, rss, out = measured(cmd + ["--pause", str(PAUSE_S)])
+    wall, rss, out, cpu = measured(cmd + ["--pause", str(PAUSE_S)])
     got = json.loads(out.strip().splitlines()[-1])
-    return {"wall_s": wall, "run_s": got["wall_run_s"], "received": got["received"], "rss_kib": rss}
+    return {"wall_s": wall, "cpu_s": cpu, "run_s": got["wall_run_s"], "received": got["received"], "rss_kib": rss}
+
+
+def sweep_case(runs: int, workers: int = 2) -> dict:
+    """``runs`` runs of the default scenario with 50 robots for 300 simulated seconds through
+    ``netsim sweep`` on ``workers`` workers: wall seconds and runs per minute."""
+    netsim = str(Path(sys.executable).with_name("netsim"))
+    with tempfile.TemporaryDirectory() as tmp:
+        spec = Path(tmp) / "throughput.toml"
+        spec.write_text(
+            'name = "throughput"\n'
+            f"replications = {runs}\n"
+            "[base]\nduration_s = 300.0\n[base.world]\nn_robots = 50\n"
+            "[base.output]\nposition_interval_s = 0.0\n[grid]\nseed = [1]\n"
+        )
+        cmd = [netsim, "sweep", str(spec), "--workers", str(workers), "--out", str(Path(tmp) / "out"), "--no-progress"]
+        wall, rss, _, cpu = measured(cmd)
+    return {"runs": runs, "workers": workers, "wall_s": wall, "cpu_s": cpu, "per_min": 60.0 * runs / wall}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, nargs="+", default=[100, 1000])
-    ap.add_argument("--reference-max-n", type=int, default=1000, help="largest N for the O(N^2) references")
+    ap.add_argument("--simpy-max-n", type=int, default=1000, help="largest N for the O(N^2) SimPy reference")
+    ap.add_argument("--ns3-max-n", type=int, default=10000, help="largest N for ns-3 (an O(N) scan per send)")
+    ap.add_argument("--clustering-max-n", type=int, default=10000, help="largest N for netsim clustering")
     ap.add_argument("--ns3-python", default=None, help="a Python with ns-3 (bash benchmarks/ns3_env.sh .ns3venv)")
+    ap.add_argument("--sweep-runs", type=int, default=8, help="runs of the sweep throughput case (0: none)")
     args = ap.parse_args()
     if any(n < 2 for n in args.n):
         ap.error("every --n must be at least 2")
     if args.ns3_python and not Path(args.ns3_python).exists():
         ap.error(f"--ns3-python: {args.ns3_python} does not exist")
+    if args.sweep_runs < 0:
+        ap.error("--sweep-runs must be at least 0")
     rows = []
     for n in args.n:
         cases = [("netsim ack (whole process)", lambda n=n: netsim_case(n, "ack"))]
-        cases.append(("netsim clustering (whole process)", lambda n=n: netsim_case(n, "clustering")))
-        if n <= args.reference_max_n:
+        if n <= args.clustering_max_n:
+            cases.append(("netsim clustering (whole process)", lambda n=n: netsim_case(n, "clustering")))
+        if n <= args.simpy_max_n:
             cases.append(("simpy reference", lambda n=n: reference_case(n)))
-            if args.ns3_python:
-                cases.append(("ns-3 direct", lambda n=n: ns3_case(n, args.ns3_python)))
+        if args.ns3_python and n <= args.ns3_max_n:
+            cases.append(("ns-3 direct", lambda n=n: ns3_case(n, args.ns3_python)))
         base = None
         for name, run in cases:
-            start = time.perf_counter()
             r = run()
-            base = base or r["wall_s"]
+            base = base or r
             rows.append((n, name, r, base))
-            print(f"N = {n}: {name}: {r['wall_s']:.1f} s ({time.perf_counter() - start:.1f} s)", file=sys.stderr)
-    print("| N | case | wall s (whole process) | run s | receptions | receptions / wall s | peak MiB | x netsim ack |")
-    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+            print(f"N = {n}: {name}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU", file=sys.stderr)
+    print(
+        "| N | case | wall s | CPU s | run s | receptions | receptions / wall s | peak MiB "
+        "| wall / netsim ack | netsim ack's rate / this |"
+    )
+    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for n, name, r, base in rows:
-        run_s = f"{r['run_s']:.1f}" if r["run_s"] is not None else ""
+        run_s = f"{r['run_s']:.2f}" if r["run_s"] is not None else ""
         rate = r["received"] / r["wall_s"]
+        base_rate = base["received"] / base["wall_s"]
         print(
-            f"| {n:,} | {name} | {r['wall_s']:.1f} | {run_s} | {r['received']:,} | {rate:,.0f} | "
-            f"{r['rss_kib'] / 1024:.0f} | {r['wall_s'] / base:.2f} |"
+            f"| {n:,} | {name} | {r['wall_s']:.2f} | {r['cpu_s']:.2f} | {run_s} | {r['received']:,} | {rate:,.0f} | "
+            f"{r['rss_kib'] / 1024:.0f} | {r['wall_s'] / base['wall_s']:.2f} | {base_rate / rate:.2f} |"
         )
         if r["run_s"]:
-            print(f"| {n:,} | {name}, run alone | {r['run_s']:.1f} | | | {r['received'] / r['run_s']:,.0f} | | |")
+            run_rate = r["received"] / r["run_s"]
+            print(
+                f"| {n:,} | {name}, run alone | {r['run_s']:.2f} | | | | {run_rate:,.0f} | | "
+                f"{r['run_s'] / base['wall_s']:.2f} | {base_rate / run_rate:.2f} |"
+            )
+    if args.sweep_runs:
+        sw = sweep_case(args.sweep_runs)
+        print()
+        print("| sweep | runs | workers | wall s | CPU s | runs / minute |")
+        print("| --- | ---: | ---: | ---: | ---: | ---: |")
+        print(
+            f"| 50 robots, 300 s, clustering | {sw['runs']} | {sw['workers']} | {sw['wall_s']:.1f} | "
+            f"{sw['cpu_s']:.1f} | {sw['per_min']:.1f} |"
+        )
 
 
 if __name__ == "__main__":

@@ -4,15 +4,17 @@ random streams, event bus) and a record of the models built on it."""
 from __future__ import annotations
 
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from netsim.errors import ConfigError
 from netsim.events import LINK_EVENTS, EventBus
 from netsim.groups import GroupView
 from netsim.kinetic import RuntimeLinks
-from netsim.live import LiveTopology
 from netsim.plugins import Parts
 from netsim.progress import progress_bar
+
+if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live graph
+    from netsim.live import LiveTopology
 
 
 class Simulation:
@@ -75,6 +77,8 @@ class Simulation:
         """A networkx graph of the links, kept current during the run (call before it
         starts); its time-averaged levels join the summary."""
         if self._live is None:
+            from netsim.live import LiveTopology
+
             self.link_events()
             self._live = LiveTopology(self.env, self.state, self.events, self.groups)
             self.add_model("live_topology", self._live)

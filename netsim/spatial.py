@@ -8,6 +8,9 @@ slack. Until some robot could have moved more than ``s`` since then
 list, so a query is a slice of the list filtered on exact current positions. Rebuilding
 costs O(N log N) every ``s / v_max`` seconds; a larger slack means fewer rebuilds and
 longer lists. The default slack is a fifth of the largest range.
+
+Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots a query's filter is one compiled loop
+(:func:`netsim._kernels.within`), equal to the numpy filter here.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from netsim.compiled import load
 from netsim.state import RobotState
 
 _NONE = np.empty(0, dtype=np.int64)
@@ -38,6 +42,7 @@ class RangeIndex:
         self._indptr = np.zeros(state.n + 1, dtype=np.int64)
         self._indices = _NONE
         self.rebuilds = 0
+        self.kernels = load("netsim._kernels", state.n)
 
     def _build(self, t: float) -> None:
         st = self.state
@@ -76,6 +81,9 @@ class RangeIndex:
             cand = self._indices[self._indptr[i] : self._indptr[i + 1]]
         if len(cand) == 0:
             return _NONE, _NO_DISTANCE
+        if self.kernels is not None:
+            k = self.kernels
+            return k.within(cand, st.origin_m, st.velocity_mps, st.t0_s, int(i), float(t), r, st.torus, st.side_m)
         x, y = st.position(i, t)
         # Complex views of the (n, 2) arrays: one operation per step instead of two.
         d = st.origin_c.take(cand) + st.velocity_c.take(cand) * (t - st.t0_s.take(cand)) - complex(x, y)

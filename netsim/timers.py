@@ -46,6 +46,19 @@ class DeadlineTimers:
 
     def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
         """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
+        if isinstance(deadline_s, float | int):
+            # One deadline for all (the common case, per Ack): no broadcast array.
+            d = float(deadline_s)
+            if isinstance(idx, int | np.integer):
+                self.deadline_s[idx] = d
+                if d < self._armed_s[idx]:
+                    self._arm(int(idx), d)
+                return
+            idx = np.asarray(idx, dtype=np.int64)
+            self.deadline_s[idx] = d
+            for i in idx[d < self._armed_s[idx]].tolist():
+                self._arm(i, d)
+            return
         idx = np.atleast_1d(np.asarray(idx, dtype=np.int64))
         deadline = np.broadcast_to(np.asarray(deadline_s, dtype=float), idx.shape)
         self.deadline_s[idx] = deadline

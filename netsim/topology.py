@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
-import networkx as nx
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from netsim.groups import GroupView
 from netsim.state import RobotState
+
+if TYPE_CHECKING:  # networkx is imported by the snapshots alone, when asked for
+    import networkx as nx
 
 
 def geometric_pairs(
@@ -80,6 +84,8 @@ def snapshot(state: RobotState, t: float, directed: bool = False, groups: GroupV
     range (one-way links appear once).
     """
     pos = state.positions_at(t)
+    import networkx as nx
+
     g = nx.DiGraph() if directed else nx.Graph()
     for i in range(state.n):
         g.add_node(i, pos=(float(pos[i, 0]), float(pos[i, 1])))

@@ -40,6 +40,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from netsim.compiled import load
 from netsim.plugins import Parts
 from netsim.timers import DeadlineTimers
 from protocols.ack import Ack, AckBeacon
@@ -187,6 +188,24 @@ def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
     return ELECTION[ElectionPolicy(policy)](me, rivals)
 
 
+def sort_receivers(
+    role: np.ndarray, leader: np.ndarray, receivers: np.ndarray, hears_me: np.ndarray, symmetric: bool, sender: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The receivers of an Ack of ``sender`` by what the clustering does with it, from the
+    roles before it acts: positions (in ``receivers``) of the members of ``sender``'s group;
+    those members over a two-way link (their timers restart); undecided robots and leaders
+    over a two-way link (they may join or merge)."""
+    r_role = role[receivers]
+    two_way = hears_me | symmetric
+    mine = (r_role == MEMBER) & (leader[receivers] == sender)
+    return (
+        np.flatnonzero(mine),
+        receivers[mine & two_way],
+        receivers[(r_role == UNDECIDED) & two_way],
+        receivers[(r_role == LEADER) & two_way],
+    )
+
+
 class Clustering:
     """Runs rules 1-6 for all robots on top of an :class:`AckBeacon`, writing their roles
     in ``roles`` (the beacon's, which its Acks announce).
@@ -213,6 +232,8 @@ class Clustering:
         # When each robot last became a leader (inf: it is not one).
         self.leader_since = np.full(st.n, np.inf)
         declare_roles(parts.trace)
+        # The compiled twin of sort_receivers, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self.kernels = load("protocols._kernels", st.n)
         beacon.listeners.append(self.on_ack)
         beacon.before_send.append(self._before_ack)
 
@@ -351,21 +372,28 @@ class Clustering:
 
     def on_ack(self, now: float, ack: Ack, receivers: np.ndarray, hears_me: np.ndarray) -> None:
         st = self.roles
-        role = st.role[receivers]
-        two_way = hears_me | self.symmetric
-        mine = (role == MEMBER) & (st.leader[receivers] == ack.sender)
+        kernels = self.kernels
+        if kernels is not None:
+            mine, renew, undecided, leaders = kernels.sort_receivers(
+                st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender
+            )
+        else:
+            mine, renew, undecided, leaders = sort_receivers(
+                st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender
+            )
         if ack.role != LEADER or ack.resign:
-            for k in np.flatnonzero(mine).tolist():
+            for k in mine.tolist():
                 r = int(receivers[k])
                 if ack.role == MEMBER and ack.leader == r:
-                    self._mutual_yield(r, ack.sender, now, bool(two_way[k]))
+                    self._mutual_yield(r, ack.sender, now, bool(hears_me[k] | self.symmetric))
                 else:
                     self._leader_gone(r, now, "leader_resigned")
             return
-        self.timers.restart(receivers[mine & two_way], now + self.tau_s)
-        for r in receivers[(role == UNDECIDED) & two_way].tolist():
+        if len(renew):
+            self.timers.restart(renew, now + self.tau_s)
+        for r in undecided.tolist():
             self._join(r, now, first_heard=ack.sender)
-        for r in receivers[(role == LEADER) & two_way].tolist():
+        for r in leaders.tolist():
             self._maybe_merge(r, ack, now)
 
     def _mutual_yield(self, r: int, other: int, now: float, two_way: bool) -> None:

@@ -12,11 +12,17 @@ The table is a fixed number of slots per robot, doubled when a robot hears more
 neighbours than it has slots; an expired slot is reused. The fields of a slot are packed
 in one float64 record (integers up to 2^53 are exact), so that a delivery to ``k``
 receivers is one gather and one scatter of ``k`` records, with no Python loop.
+
+Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots, :meth:`NeighbourTable.receive` and
+:meth:`NeighbourTable.announce` run compiled loops (:mod:`protocols._kernels`) that
+compute exactly what the numpy code here computes.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from netsim.compiled import load
 
 EMPTY = -1
 
@@ -34,6 +40,8 @@ class NeighbourTable:
         self.id = np.full((n, slots), EMPTY, dtype=np.int64)
         self.data = np.broadcast_to(_EMPTY_RECORD, (n, slots, len(_EMPTY_RECORD))).copy()
         self._records = self.data.reshape(-1, len(_EMPTY_RECORD))
+        self._ids = self.id.reshape(-1)
+        self.kernels = load("protocols._kernels", n)
 
     # Views of single columns, for reading.
     last_heard_s = property(lambda self: self.data[:, :, LAST_HEARD])
@@ -61,6 +69,7 @@ class NeighbourTable:
         data[:, :k] = self.data
         self.id, self.data = ids, data
         self._records = data.reshape(-1, len(_EMPTY_RECORD))
+        self._ids = ids.reshape(-1)
 
     def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
         # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
@@ -97,6 +106,30 @@ class NeighbourTable:
         records[flat] = rec
         return fresh
 
+    def receive(
+        self, now: float, sender: int, receivers: np.ndarray, heard: np.ndarray, record: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Record an Ack from ``sender`` that carried the ids ``heard`` (ascending), heard by
+        every robot in ``receivers`` at ``now``: :meth:`update`, with ``hears_me`` worked
+        out here. Returns ``(fresh, hears_me, stale)``: one flag each per receiver, and how
+        many receivers did not take the Ack (not fresh)."""
+        k = self.kernels
+        if k is None:
+            hears_me = hears(heard, receivers)
+            fresh = self.update(now, sender, receivers, hears_me, record)
+            return fresh, hears_me, len(fresh) - int(fresh.sum())
+        fresh = np.empty(len(receivers), dtype=bool)
+        hears_me = np.empty(len(receivers), dtype=bool)
+        start = 0
+        while True:
+            start, stale = k.receive(
+                self._ids, self._records, self.slots, float(now), int(sender), receivers, heard, record,
+                self.tau_s, fresh, hears_me, start,
+            )  # fmt: skip
+            if start < 0:
+                return fresh, hears_me, stale
+            self._grow()
+
     def _place(self, now, sender, receivers, flat, found):
         """Give ``sender`` a slot in the rows of the receivers that have none for it."""
         new = ~found
@@ -115,6 +148,22 @@ class NeighbourTable:
         last = self.data[:, :, LAST_HEARD] if i is None else self.data[i, :, LAST_HEARD]
         return now - last < self.tau_s
 
+    def announce(
+        self, now: float, i: int, seq: int, role: int, leader: int, x_m: float, y_m: float, group_size: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """What ``i``'s Ack carries: the ids of its live neighbours, ascending, and the Ack's
+        packed record (:func:`ack_record`, with ``i``'s two-way degree: the live neighbours
+        that hear it)."""
+        k = self.kernels
+        if k is not None:
+            return k.announce(
+                self.id[i], self.data[i], float(now), self.tau_s, _EMPTY_RECORD, seq, role, leader, x_m, y_m,
+                group_size,
+            )  # fmt: skip
+        live = self.live_mask(now, i)
+        degree = int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
+        return np.sort(self.id[i][live]), ack_record(seq, role, leader, x_m, y_m, group_size, degree)
+
     def live_ids(self, now: float, i: int) -> np.ndarray:
         """Ids of ``i``'s live neighbours, ascending."""
         return np.sort(self.id[i][self.live_mask(now, i)])
@@ -123,6 +172,14 @@ class NeighbourTable:
         """The slot of ``j`` in ``i``'s row, or None."""
         s = np.flatnonzero(self.id[i] == j)
         return int(s[0]) if len(s) else None
+
+
+def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
+    """Per receiver, whether it is among the ids ``heard`` (ascending)."""
+    if len(heard) == 0:
+        return np.zeros(len(receivers), dtype=bool)
+    at = np.minimum(heard.searchsorted(receivers), len(heard) - 1)
+    return heard[at] == receivers
 
 
 def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0) -> np.ndarray:

@@ -12,7 +12,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy.sparse import csr_matrix
 
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
@@ -22,6 +21,15 @@ from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePo
 from protocols.neighbours import LAST_HEARD, ROLE, X, Y
 from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
 from protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
+
+
+def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
+    """``np.isin(values, pool)`` for a sorted ``pool``, by binary search (np.isin hashes or
+    sorts both arrays on every call)."""
+    if len(pool) == 0:
+        return np.zeros(len(values), dtype=bool)
+    at = np.minimum(pool.searchsorted(values), len(pool) - 1)
+    return pool[at] == values
 
 
 @dataclass(frozen=True)
@@ -155,6 +163,8 @@ class Stack:
         a robot it hears hears (an Ack carries the positions in its sender's table). The
         relation is symmetric, as the forces built on it must be. A position is the one in
         ``other``'s latest Ack heard by anyone (all robots that heard that Ack hold it)."""
+        from scipy.sparse import csr_matrix  # only coverage controllers ask: not imported by every run
+
         table, n = self.table, self.state.n
         live = table.live_mask(now)
         rows, slots = np.nonzero(live)
@@ -198,14 +208,14 @@ class Stack:
         roles = self.roles
         believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
         rows = believed_keys // n
-        believed_true = np.isin(believed_keys, heard_keys)
+        believed_true = in_sorted(believed_keys, heard_keys)
         true_count = np.bincount(heard_keys // n, minlength=n)
         believed = np.bincount(rows, minlength=n)
         stale = np.bincount(rows[~believed_true], minlength=n)
         leader = roles.leader.copy()
         has = np.flatnonzero((roles.role == MEMBER) & (leader >= 0))
         in_range = np.zeros(n, dtype=bool)
-        in_range[has] = np.isin(has * n + leader[has], heard_keys) & np.isin(leader[has] * n + has, heard_keys)
+        in_range[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
         return pd.DataFrame(
             {
                 "t_s": now,
@@ -227,14 +237,16 @@ class Stack:
         in range only)."""
         n = self.state.n
         believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
-        both = np.union1d(believed_keys, heard_keys)
+        believed_sorted = np.sort(believed_keys)
+        both = np.sort(np.concatenate([believed_sorted, heard_keys]))
+        both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
         return pd.DataFrame(
             {
                 "t_s": now,
                 "robot": both // n,
                 "neighbour": both % n,
-                "believed": np.isin(both, believed_keys),
-                "in_range": np.isin(both, heard_keys),
+                "believed": in_sorted(both, believed_sorted),
+                "in_range": in_sorted(both, heard_keys),
             }
         )
 

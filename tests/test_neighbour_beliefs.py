@@ -1,6 +1,7 @@
 """The ``neighbour_beliefs`` table: which robots each robot believes live, beside which
 truly reach it, by id (the ids behind ``beliefs.parquet``'s counts)."""
 
+import numpy as np
 import pandas as pd
 
 from netsim.run import execute, tables
@@ -77,3 +78,14 @@ def test_the_table_adds_up_to_the_beliefs_counts():
     assert (got == counts.to_numpy()).all()
     assert (counts["stale_neighbours"] > 0).any() and (counts["missing_neighbours"] > 0).any()
     assert not nb.duplicated(["t_s", "robot", "neighbour"]).any() and (nb["robot"] != nb["neighbour"]).all()
+
+
+def test_in_sorted_is_isin():
+    """Membership in a sorted pool by binary search is np.isin, empty pool and ends included."""
+    from protocols.stack import in_sorted
+
+    rng = np.random.default_rng(8)
+    for size in (0, 1, 5, 200):
+        pool = np.sort(rng.choice(1000, size, replace=False)).astype(np.int64)
+        values = rng.integers(-5, 1005, 300)
+        assert in_sorted(values, pool).tolist() == np.isin(values, pool).tolist()

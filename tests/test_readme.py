@@ -85,9 +85,9 @@ REDUCED = {
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'link_events.py'))} --live --n 100 --protocol none",
         "N = 100 and no protocol only",
     ),
-    ".venv/bin/python benchmarks/compare.py --ns3-python .ns3venv/bin/python   # N = 100 and 1,000": (
-        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'compare.py'))} --n 20",
-        "N = 20, and no ns-3 (its environment is built apart: benchmarks/ns3_env.sh)",
+    ".venv/bin/python benchmarks/compare.py --n 100 1000 10000 100000 --ns3-python .ns3venv/bin/python": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'compare.py'))} --n 20 --sweep-runs 1",
+        "N = 20, one sweep run, and no ns-3 (its environment is built apart: benchmarks/ns3_env.sh)",
     ),
     ".venv/bin/python benchmarks/radio_runs.py": (
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'radio_runs.py'))} --n 100 --duration 5",

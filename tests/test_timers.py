@@ -67,3 +67,21 @@ def test_message_at_the_deadline_instant_counts():
     scheduled_event(env, 3.0, URGENT, lambda _e: timers.restart(0, env.now + 3.0))
     env.run(until=10)
     assert fired == [6.0]
+
+
+def test_one_deadline_for_many_timers_is_the_same_as_one_each():
+    """Restarting a set of timers to one shared deadline (int or array ids, earlier or later
+    than what is armed) fires as giving each its own copy of that deadline."""
+    runs = []
+    for shared in (True, False):
+        env = simpy.Environment()
+        fired = []
+        timers = DeadlineTimers(env, 6, lambda i, now, fired=fired: fired.append((i, now)))
+        timers.restart(np.arange(6), 4.0 if shared else np.full(6, 4.0))
+        ids = np.array([1, 3, 5])
+        timers.restart(ids, 2.0 if shared else np.full(3, 2.0))
+        timers.restart(2, 6.5 if shared else np.array([6.5]))
+        timers.restart(np.int64(4), 1.0)
+        env.run(until=10)
+        runs.append(fired)
+    assert runs[0] == runs[1] == [(4, 1.0), (1, 2.0), (3, 2.0), (5, 2.0), (0, 4.0), (2, 6.5)]
