@@ -11,8 +11,12 @@ change is spurious, caused by Acks that did not arrive. Per point: the Ack deliv
 spurious role changes per robot per minute, the time-mean number of leaders, the message
 delivery ratio, the channel utilisation and collision ratio, and the offered Ack load
 ``G = (D + 1) T / t`` (``T``: an Ack's airtime), the share of time the Acks of a robot and
-its neighbours would occupy the medium. A point is marked saturated when CSMA's queues
-overflow (``frames_dropped_queue_full > 0``): the medium cannot carry what is offered.
+its neighbours would occupy the medium, and the carried Ack load ``G x`` the Ack delivery
+ratio. The channel saturates where the carried load stops growing with the offered load:
+for each medium, the points at or beyond the offered load of its largest carried load are
+marked ``saturated`` (dashed line in the figure). Queue overflows are counted too
+(``frames_dropped_queue_full``): broadcast frames, never retried, rarely overflow CSMA's
+queues; they collide instead.
 
 Writes ``ack_congestion.csv`` and ``ack_congestion.png``.
 
@@ -63,7 +67,7 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=80, help="robots")
     p.add_argument("--densities", type=float, nargs="+", default=[10.0, 25.0, 50.0], help="robots in range D")
-    p.add_argument("--periods", type=float, nargs="+", default=[1.0, 0.25, 0.1, 0.05], help="Ack periods t, s")
+    p.add_argument("--periods", type=float, nargs="+", default=[1.0, 0.25, 0.1, 0.05, 0.025], help="Ack periods t, s")
     p.add_argument("--macs", nargs="+", default=list(MACS), choices=MACS)
     p.add_argument("--duration", type=float, default=40.0)
     p.add_argument("--warmup", type=float, default=10.0, help="s before role changes count as spurious")
@@ -133,25 +137,44 @@ def main(argv=None) -> None:
                 row[col + "_ci95"] = 1.96 * values.std() / np.sqrt(len(values)) if len(values) > 1 else np.nan
         rows.append(row)
     df = pd.DataFrame(rows).sort_values(["mac", "offered_ack_load"]).reset_index(drop=True)
-    csma = df[df.mac == "csma"]
-    saturated = csma.loc[csma.frames_dropped_queue_full > 0, "offered_ack_load"]
-    df["saturated"] = df.offered_ack_load >= saturated.min() if len(saturated) else False
+    df["carried_ack_load"] = df.offered_ack_load * df.ack_delivery_ratio
+    knee = {mac: float(g.offered_ack_load[g.carried_ack_load.idxmax()]) for mac, g in df.groupby("mac")}
+    # Without a medium the carried load grows with the offered load: no saturation.
+    df["saturated"] = [
+        mac != "none" and load >= knee[mac] and len(df[df.mac == mac]) > 1
+        for mac, load in zip(df.mac, df.offered_ack_load)
+    ]
     df.to_csv(out / "ack_congestion.csv", index=False)
 
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8), constrained_layout=True)
-    for ax, (metric, label) in zip(axes.flat, METRICS.items()):
-        for mac, g in df.groupby("mac"):
+    panels = {**METRICS, "carried_ack_load": "carried Ack load G x delivery ratio"}
+    fig, axes = plt.subplots(2, 3, figsize=(15, 8), constrained_layout=True)
+    # One colour per medium, one marker per density: along a line only the Ack period changes.
+    colours = {mac: f"C{k}" for k, mac in enumerate(MACS)}
+    markers = dict(zip(sorted(df.robots_in_range.unique()), "osD^v<>p"))
+    panels["channel_utilisation"] = "channel utilisation"
+    for ax, (metric, label) in zip(axes.flat, panels.items()):
+        for (mac, density), g in df.groupby(["mac", "robots_in_range"]):
+            if metric == "channel_utilisation" and mac == "none":
+                continue
+            yerr = g[metric + "_ci95"] if metric + "_ci95" in g else None
             ax.errorbar(
-                g.offered_ack_load, g[metric], yerr=g[metric + "_ci95"], fmt="o-", capsize=3, label=mac, alpha=0.8
+                g.offered_ack_load,
+                g[metric],
+                yerr=yerr,
+                fmt=markers[density] + "-",
+                color=colours[mac],
+                capsize=3,
+                alpha=0.8,
+                label=f"{mac}, D = {density:g}",
             )
-        if len(saturated):
-            ax.axvspan(saturated.min(), df.offered_ack_load.max() * 1.1, color="0.9", zorder=0)
-        ax.axvline(1.0, color="0.5", ls=":", lw=1)
+        for mac in knee:
+            if df[df.mac == mac].saturated.any():
+                ax.axvline(knee[mac], color=colours[mac], ls="--", lw=1)
         ax.set(xscale="log", xlabel="offered Ack load G = (D + 1) T / t", ylabel=label)
-        ax.legend()
+    axes.flat[0].legend(fontsize="small", ncol=2)
     fig.suptitle(
         f"{args.n} static robots, D = {', '.join(f'{d:g}' for d in args.densities)} in range, "
-        f"t = {', '.join(f'{t:g}' for t in args.periods)} s; grey: CSMA queues overflow"
+        f"t = {', '.join(f'{t:g}' for t in args.periods)} s; dashed: saturation (largest carried load)"
     )
     fig.savefig(out / "ack_congestion.png", dpi=120)
     print(df.drop(columns=[c for c in df if c.endswith("_ci95")]).round(3).to_string(index=False))
