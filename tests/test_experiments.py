@@ -38,6 +38,11 @@ CASES = [
         ["--reps", "2", "--sigmas", "0", "6", "--duration", "30", "--n", "15"],
         "walls_and_shadowing.csv",
     ),
+    (
+        "ack_congestion.py",
+        ["--n", "20", "--densities", "8", "--periods", "0.5", "--duration", "15", "--warmup", "5", "--reps", "1"],
+        "ack_congestion.csv",
+    ),
 ]
 
 
