@@ -18,6 +18,7 @@ links.parquet, the link events announced, and the load average when the case end
 
     python benchmarks/link_events.py                         # N = 1,000 and 10,000, protocols none and ack
     python benchmarks/link_events.py --n 1000 --protocol ack --live
+    python benchmarks/link_events.py --n 1000 10000 --protocol none --repeat 5   # modes in turn, median ratios
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -80,11 +82,22 @@ def run_case(n: int, protocol: str, mode: str) -> dict:
     }
 
 
+def _case(n: int, protocol: str, mode: str) -> dict:
+    out = subprocess.run(
+        [sys.executable, __file__, "--case", f"{n},{protocol},{mode}"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, nargs="*", default=[1000, 10000])
     p.add_argument("--protocol", nargs="*", default=["none", "ack"])
     p.add_argument("--live", action="store_true", help="also measure the live topology")
+    p.add_argument("--repeat", type=int, default=1, help="run the modes in turn this many times")
     p.add_argument("--case", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.case:
@@ -99,23 +112,25 @@ def main(argv=None) -> int:
     print("-" * 90)
     for protocol in args.protocol:
         for n in args.n:
-            base = base_cpu = None
-            for mode in modes:
-                out = subprocess.run(
-                    [sys.executable, __file__, "--case", f"{n},{protocol},{mode}"],
-                    capture_output=True,
-                    text=True,
-                    check=True,
-                )
-                r = json.loads(out.stdout.strip().splitlines()[-1])
-                base = r["wall_s"] if base is None else base
-                base_cpu = r["cpu_s"] if base_cpu is None else base_cpu
-                print(
-                    f"{protocol:<9} {n:>6} {mode:<13} {r['wall_s']:>8.2f} {r['wall_s'] / base:>5.2f}x"
-                    f" {r['cpu_s']:>8.2f} {r['cpu_s'] / base_cpu:>5.2f}x"
-                    f" {r['lifetimes']:>10,} {r['announced']:>10,} {os.getloadavg()[0]:>5.1f}",
-                    flush=True,
-                )
+            ratios: dict[str, list[tuple[float, float]]] = {mode: [] for mode in modes}
+            for _turn in range(args.repeat):
+                base = base_cpu = 0.0
+                for mode in modes:
+                    r = _case(n, protocol, mode)
+                    if mode == "post-hoc":
+                        base, base_cpu = r["wall_s"], r["cpu_s"]
+                    ratios[mode].append((r["wall_s"] / base, r["cpu_s"] / base_cpu))
+                    print(
+                        f"{protocol:<9} {n:>6} {mode:<13} {r['wall_s']:>8.2f} {r['wall_s'] / base:>5.2f}x"
+                        f" {r['cpu_s']:>8.2f} {r['cpu_s'] / base_cpu:>5.2f}x"
+                        f" {r['lifetimes']:>10,} {r['announced']:>10,} {os.getloadavg()[0]:>5.1f}",
+                        flush=True,
+                    )
+            if args.repeat > 1:
+                for mode in modes[1:]:
+                    wall = statistics.median(w for w, _ in ratios[mode])
+                    cpu = statistics.median(c for _, c in ratios[mode])
+                    print(f"{protocol:<9} {n:>6} {mode:<13} {'median':>8} {wall:>5.2f}x {'median':>8} {cpu:>5.2f}x")
     return 0
 
 

@@ -374,7 +374,7 @@ class Config(Params):
             hook.check(hook.Params(), self)
         if self.events.runtime_links == "off" and self.events.live_topology:
             raise ConfigError("events.live_topology", True, "needs link events during the run (events.runtime_links)")
-        if PROPAGATION_MODELS[self.channel.propagation].shadowed(self.channel.radio) or self.world.map:
+        if self.world.map:
             why = RADIO_LINKS_AFTER_RUN
             if self.events.runtime_links == "on":
                 raise ConfigError("events.runtime_links", "on", why)
@@ -415,10 +415,8 @@ class Config(Params):
         return (float(r),) * self.world.n_robots
 
 
-# Why link events cannot be solved during a run under shadowing or walls (docs/events.md).
-RADIO_LINKS_AFTER_RUN = (
-    "with shadowing (channel.shadowing_sigma_db > 0) or walls (world.map) links are solved after the run only"
-)
+# Why link events cannot be solved during a run on a map (docs/events.md).
+RADIO_LINKS_AFTER_RUN = "with walls (world.map) links are solved after the run only"
 
 
 def _check_map(config: Config) -> None:

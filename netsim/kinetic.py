@@ -51,11 +51,18 @@ class RuntimeLinks:
     ----------
     env, state : the run's kernel and robots (told of every course change).
     events : the run's bus: ``link_up`` and ``link_down`` are emitted on it.
+    range_m : each robot's range (default: the robots' ``range_m``).
     """
 
-    def __init__(self, env: simpy.Environment, state: RobotState, events: EventBus | None = None):
+    def __init__(
+        self,
+        env: simpy.Environment,
+        state: RobotState,
+        events: EventBus | None = None,
+        range_m: np.ndarray | None = None,
+    ):
         self.env, self.state, self.events = env, state, events
-        self.ranges = state.range_m
+        self.ranges = state.range_m if range_m is None else np.asarray(range_m, float)
         self.r_min = float(self.ranges.min()) if state.n else 0.0
         self.r_max = float(self.ranges.max()) if state.n else 0.0
         self.box = float(state.side_m) if state.torus else None
@@ -88,8 +95,10 @@ class RuntimeLinks:
         self._gen = np.empty(0, np.int64)
         # The generations again, as a list: read one at a time by the hot loop.
         self._gen_now: list[int] = []
-        self._on_up = events.subscribers("link_up") if events is not None else []
-        self._on_down = events.subscribers("link_down") if events is not None else []
+        # Called with each LinkUp / LinkDown: the bus's subscribers, or (no bus) whoever
+        # appends to these lists.
+        self.on_up: list = events.subscribers("link_up") if events is not None else []
+        self.on_down: list = events.subscribers("link_down") if events is not None else []
         state.watchers.append(self._on_leg)
 
     # -- life cycle ----------------------------------------------------------------------
@@ -400,8 +409,8 @@ class RuntimeLinks:
         qi, nq = self._qi, len(qt)
         gen, up = self._gen_now, self.up
         ea, eb, e_up, e_down = self.ended
-        on_up: list = [] if quiet else self._on_up
-        on_down: list = [] if quiet else self._on_down
+        on_up: list = [] if quiet else self.on_up
+        on_down: list = [] if quiet else self.on_down
         env = self.env
         kernel = kernel_queue(env)
         n = max(self.state.n, 1)

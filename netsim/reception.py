@@ -43,6 +43,9 @@ class LinkRecorder:
         self._scratch = np.zeros(n, dtype=bool)
         self._changed = np.empty(n, dtype=np.int64)
         self._kernel = _link_changes()
+        # Called as fn(t, sender, robots, up) with every decision that changes links (lists:
+        # the robots whose link with sender changed, and whether it is now up).
+        self.listeners: list = []
 
     def observe(self, t: float, sender: int, receivers: np.ndarray, linked: np.ndarray) -> None:
         count = self._changes(sender, receivers, linked)
@@ -50,7 +53,10 @@ class LinkRecorder:
             return
         changed = self._changed[:count]
         now = ~self.up[sender, changed]
-        for r, is_up in zip(changed.tolist(), now.tolist()):
+        robots, is_now_up = changed.tolist(), now.tolist()
+        for fn in self.listeners:
+            fn(t, sender, robots, is_now_up)
+        for r, is_up in zip(robots, is_now_up):
             key = (sender, r) if sender < r else (r, sender)
             if is_up:
                 self._since[key] = t

@@ -36,6 +36,7 @@ from netsim.propagation import PROPAGATION_MODELS
 from netsim.radio_links import radio_link_lifetimes
 from netsim.reception import Reception
 from netsim.rng import Streams
+from netsim.shadowed_links import ShadowedLinks
 from netsim.sim import Simulation
 from netsim.state import RobotState
 from netsim.trace import Trace
@@ -104,9 +105,14 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     sim = Simulation(parts, config, run)
     # Log-distance path loss without shadowing or walls is the unit disk of the implied range
     # (the robots' range_m): its link events are solved during the run as the unit disk's.
-    # Under shadowing or walls links are solved after the run only.
-    if reception is None or (reception.recorder is None and reception.map is None):
+    # Under shadowing they are the channel's decisions, cut at the reach (netsim.shadowed_links).
+    # On a map links are solved after the run only.
+    if reception is None or reception.map is None:
         sim.runtime_links = config.events.runtime_links
+        recorder = None if reception is None else reception.recorder
+        if reception is not None and recorder is not None:
+            reach_m = reception.reach_m
+            sim.link_solver = lambda: ShadowedLinks(env, state, events, recorder, reach_m)
     else:
         sim.runtime_links = "off"
         sim.runtime_links_off = RADIO_LINKS_AFTER_RUN

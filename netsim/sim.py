@@ -3,6 +3,7 @@ random streams, event bus) and a record of the models built on it."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
@@ -12,6 +13,7 @@ from netsim.groups import GroupView
 from netsim.kinetic import RuntimeLinks
 from netsim.plugins import Parts
 from netsim.progress import progress_bar
+from netsim.shadowed_links import ShadowedLinks
 
 if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live graph
     from netsim.live import LiveTopology
@@ -47,7 +49,9 @@ class Simulation:
         self.runtime_links = "auto"
         # Why runtime link events are off, when the run's model rules them out.
         self.runtime_links_off = ""
-        self.links: RuntimeLinks | None = None
+        self.links: RuntimeLinks | ShadowedLinks | None = None
+        # Makes the runtime link solver when the radio needs its own (shadowing), else None.
+        self.link_solver: Callable[[], ShadowedLinks] | None = None
         self._live: LiveTopology | None = None
 
     @property
@@ -62,14 +66,17 @@ class Simulation:
     def now(self) -> float:
         return self.env.now
 
-    def link_events(self) -> RuntimeLinks:
+    def link_events(self) -> RuntimeLinks | ShadowedLinks:
         """The runtime link solver, started at t = 0 (call before the run starts)."""
         if self.links is None:
             if self.events.started:
                 raise RuntimeError("link events during the run must be asked for before it starts")
             if self.runtime_links == "off":
                 raise RuntimeError("events.runtime_links = 'off': no link events during the run")
-            self.links = RuntimeLinks(self.env, self.state, self.events)
+            if self.link_solver is not None:
+                self.links = self.link_solver()
+            else:
+                self.links = RuntimeLinks(self.env, self.state, self.events)
             self.links.start()
         return self.links
 

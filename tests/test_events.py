@@ -15,6 +15,7 @@ from netsim.config import load
 from netsim.errors import ConfigError
 from netsim.events import EVENT_NAMES, NORMAL, URGENT, EventBus, LinkDown, LinkUp, scheduled_event
 from netsim.lifetimes import link_lifetimes
+from netsim.radio_links import radio_link_lifetimes
 from netsim.run import build, collect, execute, simulation
 from netsim.state import CAUSES
 from netsim.tools.validate import random_legs
@@ -647,13 +648,109 @@ def test_runtime_links_under_log_distance_without_shadowing_or_walls():
     pd.testing.assert_frame_equal(after.frames["acks"], result.frames["acks"])
 
 
+# Fast robots and rare Acks: many links are cut where the pair leaves the reach (341 m)
+# before the next decision.
+SHADOWED = [
+    "world.n_robots=40",
+    "duration_s=60",
+    "world.side_m=1500",
+    "protocol.model=ack",
+    "protocol.ack_period_s=10",
+    "mobility.speed_min_mps=10",
+    "mobility.speed_max_mps=30",
+    "mobility.stationary_start=false",
+    "channel.propagation=log_distance",
+    "channel.shadowing_sigma_db=4",
+]
+
+
+@pytest.mark.parametrize("torus", [[], ["world.torus=true"]], ids=["plane", "torus"])
+def test_runtime_links_under_shadowing_equal_the_record_after_the_run(torus):
+    """Under shadowing, link events run live: up at the send that brings a link up, down at
+    the send that brings it down or where the pair leaves the reach; their table equals
+    the post-hoc record (radio_links.recorded_lifetimes) bit for bit, and the run's
+    receptions are those of the run that solves links after it."""
+    overrides = SHADOWED + torus
+    sim = build(load(None, overrides))
+    announced = []
+    sim.events.on("link_up", lambda ev: announced.append((sim.now, ev.t_s, "up", ev.a, ev.b)))
+    sim.events.on("link_down", lambda ev: announced.append((sim.now, ev.t_s, "down", ev.a, ev.b)))
+    sim.run()
+    frames = collect(sim)
+    assert sim.links is not None
+    st, reception = sim.state, sim.channel.reception
+    posthoc = radio_link_lifetimes(reception, frames["legs"], st.range_m, 60.0, st.side_m, st.torus)
+    assert len(posthoc) > 50
+    _assert_same_links(frames["links"], posthoc)
+    # Some links were cut where the pair left the reach, before the decision that ended them.
+    decided = reception.recorder.intervals(60.0)
+    cut = frames["links"].merge(decided, on=["a", "b", "t_up_s"], suffixes=("", "_decided"))
+    assert (cut["t_down_s"] < cut["t_down_s_decided"]).sum() >= 5
+    # Announced as they happened, and each lifetime's ends announced.
+    assert all(now == t for now, t, *_ in announced)
+    assert [t for _, t, *_ in announced] == sorted(t for _, t, *_ in announced)
+    links = frames["links"]
+    assert sorted(ev[3:] for ev in announced if ev[2] == "up") == sorted(zip(links["a"], links["b"]))
+    after = execute(load(None, overrides))
+    assert after.sim.links is None
+    pd.testing.assert_frame_equal(after.frames["acks"], frames["acks"])
+    pd.testing.assert_frame_equal(after.frames["links"], frames["links"])
+
+
+def test_a_shadowed_link_decided_at_t0_is_cut_where_the_pair_leaves_the_reach():
+    """A decision at t = 0 comes before the reach's state at t = 0 is set (the solver starts
+    last): the link still ends where the pair leaves the reach, as after the run."""
+    config = make_config(
+        duration_s=30.0,
+        world={"n_robots": 2, "side_m": 1e4},
+        mobility={"model": "static"},
+        channel={"propagation": "log_distance", "shadowing_sigma_db": 4.0},
+        protocol={"model": "none"},
+        events={"runtime_links": "on"},
+        output={"position_interval_s": 0.0},
+    )
+    sim = simulation(config)
+    sim.state.place([[0.0, 0.0], [50.0, 0.0]])
+    _scripted(sim, [(0.0, 1, (20.0, 0.0), None)])
+    sim.env.process(_broadcast_at(sim, 0.0))
+    downs = []
+    sim.events.on("link_down", downs.append)
+    sim.run()
+    frames = collect(sim)
+    reception = sim.channel.reception
+    posthoc = radio_link_lifetimes(reception, frames["legs"], sim.state.range_m, 30.0, sim.state.side_m)
+    _assert_same_links(frames["links"], posthoc)
+    # Up at the broadcast, down where the pair is 341 m apart (not at a decision: there is none).
+    assert frames["links"]["t_up_s"].tolist() == [0.0]
+    assert frames["links"]["t_down_s"].tolist() == [downs[0].t_s]
+    assert downs[0].t_s == pytest.approx((reception.reach_m - 50.0) / 20.0)
+
+
+def _broadcast_at(sim, t):
+    if t > sim.env.now:
+        yield sim.env.timeout(t - sim.env.now)
+    sim.channel.broadcast(0, None, lambda *_: None)
+    yield sim.env.timeout(0)
+
+
+def test_the_live_graph_under_shadowing_holds_the_links_up():
+    """The live topology follows the shadowed link events: at the end its edges are the
+    links still up (censored at the end in links.parquet)."""
+    result = execute(load(None, SHADOWED + ["events.live_topology=true"]))
+    links = result.frames["links"]
+    still = links[links["censored_end"]]
+    graph = result.sim.models["live_topology"].graph
+    assert sorted(graph.edges()) == sorted(zip(still["a"], still["b"]))
+    assert len(still) > 5
+
+
+WALLS = ["world.map=office", "world.side_m=200", "channel.range_m=40", "mobility.stationary_start=false"]
+
+
 @pytest.mark.parametrize(
     "radio",
-    [
-        ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4"],
-        ["world.map=office", "world.side_m=200", "channel.range_m=40", "mobility.stationary_start=false"],
-    ],
-    ids=["shadowing", "walls"],
+    [WALLS, [*WALLS, "channel.propagation=log_distance", "channel.shadowing_sigma_db=4"]],
+    ids=["walls", "walls_and_shadowing"],
 )
 @pytest.mark.parametrize(
     "events, key",
@@ -662,22 +759,13 @@ def test_runtime_links_under_log_distance_without_shadowing_or_walls():
         (["events.live_topology=true"], "events.live_topology"),
     ],
 )
-def test_runtime_links_are_refused_under_shadowing_or_walls(radio, events, key):
+def test_runtime_links_are_refused_on_a_map(radio, events, key):
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")) as err:
         load(None, ["world.n_robots=10", "duration_s=10", *radio, *events])
     assert "solved after the run only" in str(err.value)
 
 
-def test_a_hook_on_link_events_is_refused_under_shadowing():
-    config = load(
-        None,
-        [
-            "world.n_robots=10",
-            "duration_s=10",
-            "channel.propagation=log_distance",
-            "channel.shadowing_sigma_db=4",
-            'events.hooks=["link_breaks"]',
-        ],
-    )
+def test_a_hook_on_link_events_is_refused_on_a_map():
+    config = load(None, ["world.n_robots=10", "duration_s=10", *WALLS, 'events.hooks=["link_breaks"]'])
     with pytest.raises(ConfigError, match=r"events\.hooks.*solved after the run only"):
         execute(config)

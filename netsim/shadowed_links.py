@@ -1,0 +1,145 @@
+"""Link events during the run under shadowing: the channel's decisions, cut where the pair
+leaves the reach.
+
+Under shadowing a link is random and its state exists only where the channel looks at it,
+at transmissions; ``links.parquet`` is the record of the channel's decisions
+(:func:`netsim.radio_links.recorded_lifetimes`, docs/radio.md "Link events"): a link is up
+from the first transmission between the two robots (either way) that gets through, down at
+the first that does not (or when one of them sends while the other is beyond the reach),
+and at the latest at the exact instant the pair leaves the reach of the interval in which
+it came up.
+
+Both ends of that rule can be known as they happen. A decision is made at its send time,
+by :class:`~netsim.reception.LinkRecorder`, which tells :meth:`ShadowedLinks._decided`;
+the reach's exits are the link events of a unit disk of the reach, solved during the run
+by a :class:`~netsim.kinetic.RuntimeLinks` of its own (the *envelope*, announced to nobody
+but this class) with the same arithmetic as the post-hoc solver. So ``link_up`` is
+announced at the send that brings a link up, and ``link_down`` at the send that brings it
+down or at the instant the pair leaves the reach, whichever comes first, and the table of
+these events equals the post-hoc one, bit for bit (tests/test_events.py).
+
+Order at one instant: a reach exit is a runtime link event (before anything else due then,
+docs/events.md); a decision is announced during the transmission that makes it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import simpy
+
+from netsim.events import EventBus, LinkDown, LinkUp
+from netsim.kinetic import RuntimeLinks
+from netsim.lifetimes import COLUMNS
+from netsim.reception import LinkRecorder
+from netsim.state import RobotState
+
+
+class ShadowedLinks:
+    """Exact link events of one run under shadowing, announced as the channel decides them
+    (module notes). The same interface as :class:`~netsim.kinetic.RuntimeLinks`.
+
+    Parameters
+    ----------
+    env, state : the run's kernel and robots.
+    events : the run's bus (``link_up``, ``link_down``).
+    recorder : the reception's :class:`~netsim.reception.LinkRecorder`.
+    reach_m : the radio's reach (no link beyond it).
+    """
+
+    def __init__(
+        self, env: simpy.Environment, state: RobotState, events: EventBus, recorder: LinkRecorder, reach_m: float
+    ):
+        self.env, self.state, self.events = env, state, events
+        self.n = max(state.n, 1)
+        self.envelope = RuntimeLinks(env, state, None, range_m=np.full(state.n, float(reach_m)))
+        self.envelope.on_up.append(self._entered_reach)
+        self.envelope.on_down.append(self._left_reach)
+        recorder.listeners.append(self._decided)
+        # Links up now: key a n + b -> (since when, the start of the reach interval it came
+        # up in; None: the pair was never within the reach by the envelope's account).
+        self.up: dict[int, tuple[float, float | None]] = {}
+        # Each pair's last exit from the reach.
+        self._left: dict[int, float] = {}
+        self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
+        self._on_up = events.subscribers("link_up")
+        self._on_down = events.subscribers("link_down")
+
+    @property
+    def windows(self) -> int:
+        return self.envelope.windows
+
+    def start(self) -> None:
+        self.envelope.start()
+
+    def finish(self, t_end: float) -> None:
+        """The run's end: the envelope's events due by then are applied, not announced."""
+        self.envelope.finish(t_end)
+
+    def _end(self, key: int, t_up: float, t_down: float) -> None:
+        a, b = divmod(key, self.n)
+        ea, eb, e_up, e_down = self.ended
+        ea.append(a)
+        eb.append(b)
+        e_up.append(t_up)
+        e_down.append(t_down)
+        if self._on_down:
+            event = LinkDown(t_down, a, b, t_up)
+            for fn in self._on_down:
+                fn(event)
+
+    def _decided(self, t: float, sender: int, robots: list[int], now_up: list[bool]) -> None:
+        n, up, inside = self.n, self.up, self.envelope.up
+        for r, is_up in zip(robots, now_up):
+            key = sender * n + r if sender < r else r * n + sender
+            if is_up:
+                a, b = divmod(key, n)
+                if self._on_up:
+                    event = LinkUp(t, a, b)
+                    for fn in self._on_up:
+                        fn(event)
+                since = inside.get(key)
+                if since is None and key in self._left:
+                    # Up after the pair left the reach (by rounding, at that very instant):
+                    # cut at once at the exit, as the record is (radio_links.recorded_lifetimes).
+                    self._end(key, t, self._left[key])
+                else:
+                    up[key] = (t, since)
+            elif key in up:
+                self._end(key, up.pop(key)[0], t)
+
+    def _entered_reach(self, event: LinkUp) -> None:
+        # The reach's state at t = 0 is set after everything else due then (the envelope
+        # starts last), so a decision at t = 0 learns its reach interval here.
+        key = event.a * self.n + event.b
+        mine = self.up.get(key)
+        if mine is not None and mine[1] is None and event.t_s <= mine[0]:
+            self.up[key] = (mine[0], event.t_s)
+
+    def _left_reach(self, event: LinkDown) -> None:
+        key = event.a * self.n + event.b
+        self._left[key] = event.t_s
+        mine = self.up.get(key)
+        if mine is not None and mine[1] == event.up_since_s:
+            del self.up[key]
+            self._end(key, mine[0], event.t_s)
+
+    def frame(self, t_end: float) -> pd.DataFrame:
+        """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
+        censored)."""
+        ea, eb, e_up, e_down = self.ended
+        still = np.fromiter(self.up.keys(), np.int64, len(self.up))
+        t_down = np.r_[np.array(e_down, float), np.full(len(still), t_end)]
+        t_up = np.fromiter((v[0] for v in self.up.values()), float, len(still))
+        out = pd.DataFrame(
+            {
+                "a": np.r_[np.array(ea, np.int64), still // self.n],
+                "b": np.r_[np.array(eb, np.int64), still % self.n],
+                "t_up_s": np.r_[np.array(e_up, float), t_up],
+                "t_down_s": t_down,
+            }
+        )
+        out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
+        out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
+        out["censored"] = out["censored_start"] | out["censored_end"]
+        return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
