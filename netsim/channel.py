@@ -21,6 +21,11 @@ walls from a map) the receivers are decided by it among the robots within its re
 the loss model drops some: the reception is a chain, propagation, walls, shadowing, loss.
 Without one (the plain unit disk) they are the robots within the sender's range.
 
+With a shared medium (``channel.mac`` other than ``"none"``: :mod:`netsim.radio.mac`)
+``broadcast`` and ``unicast`` hand the frame to it at once: it decides the receivers when
+the frame goes on the air, the collisions at its end, and adds its own drop causes. Without
+one, the code below runs as it always has.
+
 A kind's counts can also be kept over time (:meth:`Channel.bin_by_send_time`): per
 interval of *send* time, so that each bin tells the fate of the transmissions sent in it
 (a reception is counted, on arrival, in the bin its transmission was sent in).

@@ -218,13 +218,16 @@ class Medium:
         if self.cover[i] == 0 and not self.transmitting[i]:
             self.count_from[i] = self.env.now + self.difs_s
             self.tx_at[i] = self.count_from[i] + self.backoff[i] * self.slot_s
-            self._wake()
+            self._wake(float(self.tx_at[i]))
 
-    def _wake(self) -> None:
-        """One kernel event, at the earliest transmit instant of all robots."""
-        if not len(self.tx_at):
-            return
-        first = float(self.tx_at.min())
+    def _wake(self, first: float | None = None) -> None:
+        """One kernel event, at the earliest transmit instant of all robots.
+
+        The event pending at ``_wake_at`` is never later than the earliest instant: freezing
+        only moves instants later (the event then finds nobody due and looks again), so a
+        change that moves instants earlier need only compare its own (``first``) with it."""
+        if first is None:
+            first = float(self.tx_at.min()) if len(self.tx_at) else math.inf
         if first < self._wake_at:
             self._wake_at = first
             self._wake_token += 1
@@ -374,9 +377,10 @@ class Medium:
         if q:
             self.backoff[i] = self.rng.integers(self.cw[i] + 1)
         resume = newly[self.backoff[newly] >= 0]
-        self.count_from[resume] = now + self.difs_s
-        self.tx_at[resume] = self.count_from[resume] + self.backoff[resume] * self.slot_s
-        self._wake()
+        if len(resume):
+            self.count_from[resume] = now + self.difs_s
+            self.tx_at[resume] = self.count_from[resume] + self.backoff[resume] * self.slot_s
+            self._wake(float(self.tx_at[resume].min()))
 
     def _notify(self, sender: int, got: np.ndarray, payload, deliver, kind: str, c, binned) -> None:
         ch = self.channel
