@@ -15,6 +15,10 @@ to the window's end; their earlier solutions are cancelled (a generation count p
 A new window starts early when a robot jumps (its links are then judged afresh on its new
 position, as the post-hoc solver does) or moves faster than ``v_bound``. So only pairs that
 can meet before the end of the window or their next course change are ever scheduled.
+In the plane a pair's crossing instants depend on its two legs alone (they are solved from
+the later leg start), so a candidate pair whose robots keep their legs into the next
+window keeps the instants already solved, and each window solves only the pairs that are
+new to it or changed course.
 
 Queued events run at priority :data:`~netsim.events.FIRST` (before anything else due at
 their instant), in the order ``(t, a, b)``; for one pair, in the order the post-hoc solver
