@@ -15,6 +15,10 @@ to the window's end; their earlier solutions are cancelled (a generation count p
 A new window starts early when a robot jumps (its links are then judged afresh on its new
 position, as the post-hoc solver does) or moves faster than ``v_bound``. So only pairs that
 can meet before the end of the window or their next course change are ever scheduled.
+In the plane a pair's crossing instants depend on its two legs alone (they are solved from
+the later leg start), so a candidate pair whose robots keep their legs into the next
+window keeps the instants already solved, and each window solves only the pairs that are
+new to it or changed course.
 
 Queued events run at priority :data:`~netsim.events.FIRST` (before anything else due at
 their instant), in the order ``(t, a, b)``; for one pair, in the order the post-hoc solver
@@ -99,6 +103,8 @@ class RuntimeLinks:
         # appends to these lists.
         self.on_up: list = events.subscribers("link_up") if events is not None else []
         self.on_down: list = events.subscribers("link_down") if events is not None else []
+        self._kernel = kernel_queue(env)  # the same list for the whole run (read only)
+        self._n = max(state.n, 1)
         state.watchers.append(self._on_leg)
 
     # -- life cycle ----------------------------------------------------------------------
@@ -384,15 +390,21 @@ class RuntimeLinks:
         return min(t, self._heap[0][0]) if self._heap else t
 
     def _arm(self) -> None:
-        t = self._next_time()
+        # Once per wake, and more often than not per instant when other events interleave:
+        # the next time inline, and the instant armed for as the kernel event's value.
+        qt, qi, heap = self._queue[0], self._qi, self._heap
+        t = qt[qi] if qi < len(qt) else math.inf
+        if heap and heap[0][0] < t:
+            t = heap[0][0]
         if t < self._armed_s:
             self._armed_s = t
-            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, lambda _e: self._wake(t))
+            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake)._value = t
 
-    def _wake(self, armed_s: float) -> None:
-        # ``armed_s`` is the instant this wake was armed for. The kernel's clock, now + (t -
-        # now), can be a rounding step away from it (no delay lands on some instants), so
-        # the events are taken by their own time, never by the clock's.
+    def _wake(self, event: simpy.Event) -> None:
+        # The instant this wake was armed for. The kernel's clock, now + (t - now), can be a
+        # rounding step away from it (no delay lands on some instants), so the events are
+        # taken by their own time, never by the clock's.
+        armed_s = event._value
         if armed_s >= self._armed_s:
             self._armed_s = math.inf
         self._announce(armed_s)
@@ -411,9 +423,7 @@ class RuntimeLinks:
         ea, eb, e_up, e_down = self.ended
         on_up: list = [] if quiet else self.on_up
         on_down: list = [] if quiet else self.on_down
-        env = self.env
-        kernel = kernel_queue(env)
-        n = max(self.state.n, 1)
+        env, kernel, n = self.env, self._kernel, self._n
         pop = heapq.heappop
         new = tuple.__new__
         # The hot loop of the runtime links: the window's sorted columns and the heap of

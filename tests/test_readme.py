@@ -81,9 +81,9 @@ REDUCED = {
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'ack_workload.py'))} --protocol ack clustering --n 100",
         "N = 100 only",
     ),
-    ".venv/bin/python benchmarks/link_events.py --live   # protocols none and ack, N = 1,000 and 10,000": (
-        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'link_events.py'))} --live --n 100 --protocol none",
-        "N = 100 and no protocol only",
+    ".venv/bin/python benchmarks/link_events.py --live --repeat 3   # protocols none and ack, N = 1,000 and 10,000": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'link_events.py'))} --live --n 100 --protocol none --repeat 2",
+        "N = 100, no protocol and two turns only",
     ),
     ".venv/bin/python benchmarks/compare.py --n 100 1000 10000 100000 --ns3-python .ns3venv/bin/python": (
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'compare.py'))} --n 20 --sweep-runs 1",
