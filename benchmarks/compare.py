@@ -73,25 +73,30 @@ def measured(cmd: list[str]) -> tuple[float, int, str, float]:
     return got["wall"], got["rss"], got["out"], got["cpu"]
 
 
+def netsim_settings(n: int, protocol: str, duration_s: float = DURATION_S) -> dict:
+    """The ``netsim run --set`` keys of the workload."""
+    return {
+        "seed": 1,
+        "duration_s": duration_s,
+        "world.n_robots": n,
+        "world.side_m": side_for(n),
+        "channel.range_m": RANGE_M,
+        "mobility.speed_min_mps": SPEED_MIN,
+        "mobility.speed_max_mps": SPEED_MAX,
+        "mobility.pause_s": PAUSE_S,
+        "mobility.stationary_start": "false",
+        "protocol.model": protocol,
+        "protocol.ack_period_s": PERIOD_S,
+        "output.position_interval_s": 0,
+    }
+
+
 def netsim_case(n: int, protocol: str) -> dict:
     import pandas as pd
 
     netsim = str(Path(sys.executable).with_name("netsim"))
     with tempfile.TemporaryDirectory() as out:
-        sets = {
-            "seed": 1,
-            "duration_s": DURATION_S,
-            "world.n_robots": n,
-            "world.side_m": side_for(n),
-            "channel.range_m": RANGE_M,
-            "mobility.speed_min_mps": SPEED_MIN,
-            "mobility.speed_max_mps": SPEED_MAX,
-            "mobility.pause_s": PAUSE_S,
-            "mobility.stationary_start": "false",
-            "protocol.model": protocol,
-            "protocol.ack_period_s": PERIOD_S,
-            "output.position_interval_s": 0,
-        }
+        sets = netsim_settings(n, protocol)
         cmd = [netsim, "run", "--out", out, "--no-progress", "--quiet"]
         for key, value in sets.items():
             cmd += ["--set", f"{key}={value}"]
