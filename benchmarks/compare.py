@@ -23,7 +23,8 @@ time over netsim ack's, and netsim ack's receptions per wall second over the cas
 robot on every send (O(N^2)): it runs up to ``--simpy-max-n``; ns-3 up to ``--ns3-max-n``;
 the clustering up to ``--clustering-max-n``.
 
-Then the sweep throughput: ``--sweep-runs`` runs of the default scenario (the clustering
+Then a small run (``netsim run`` with 10 robots for 30 simulated seconds, three times) and
+the sweep throughput: ``--sweep-runs`` runs of the default scenario (the clustering
 protocol) with 50 robots for 300 simulated seconds, through ``netsim sweep`` on 2 workers,
 as runs per minute (0 leaves it out).
 
@@ -72,25 +73,30 @@ def measured(cmd: list[str]) -> tuple[float, int, str, float]:
     return got["wall"], got["rss"], got["out"], got["cpu"]
 
 
+def netsim_settings(n: int, protocol: str, duration_s: float = DURATION_S) -> dict:
+    """The ``netsim run --set`` keys of the workload."""
+    return {
+        "seed": 1,
+        "duration_s": duration_s,
+        "world.n_robots": n,
+        "world.side_m": side_for(n),
+        "channel.range_m": RANGE_M,
+        "mobility.speed_min_mps": SPEED_MIN,
+        "mobility.speed_max_mps": SPEED_MAX,
+        "mobility.pause_s": PAUSE_S,
+        "mobility.stationary_start": "false",
+        "protocol.model": protocol,
+        "protocol.ack_period_s": PERIOD_S,
+        "output.position_interval_s": 0,
+    }
+
+
 def netsim_case(n: int, protocol: str) -> dict:
     import pandas as pd
 
     netsim = str(Path(sys.executable).with_name("netsim"))
     with tempfile.TemporaryDirectory() as out:
-        sets = {
-            "seed": 1,
-            "duration_s": DURATION_S,
-            "world.n_robots": n,
-            "world.side_m": side_for(n),
-            "channel.range_m": RANGE_M,
-            "mobility.speed_min_mps": SPEED_MIN,
-            "mobility.speed_max_mps": SPEED_MAX,
-            "mobility.pause_s": PAUSE_S,
-            "mobility.stationary_start": "false",
-            "protocol.model": protocol,
-            "protocol.ack_period_s": PERIOD_S,
-            "output.position_interval_s": 0,
-        }
+        sets = netsim_settings(n, protocol)
         cmd = [netsim, "run", "--out", out, "--no-progress", "--quiet"]
         for key, value in sets.items():
             cmd += ["--set", f"{key}={value}"]
@@ -130,6 +136,16 @@ def sweep_case(runs: int, workers: int = 2) -> dict:
         cmd = [netsim, "sweep", str(spec), "--workers", str(workers), "--out", str(Path(tmp) / "out"), "--no-progress"]
         wall, rss, _, cpu = measured(cmd)
     return {"runs": runs, "workers": workers, "wall_s": wall, "cpu_s": cpu, "per_min": 60.0 * runs / wall}
+
+
+def small_case() -> dict:
+    """``netsim run`` with 10 robots for 30 simulated seconds (otherwise the default
+    scenario): the whole process, imports included."""
+    netsim = str(Path(sys.executable).with_name("netsim"))
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [netsim, "run", "--out", out, "--no-progress", "--quiet"]
+        wall, rss, _, cpu = measured(cmd + ["--set", "world.n_robots=10", "--set", "duration_s=30"])
+    return {"wall_s": wall, "cpu_s": cpu, "rss_kib": rss}
 
 
 def main() -> None:
@@ -181,6 +197,12 @@ def main() -> None:
                 f"| {n:,} | {name}, run alone | {r['run_s']:.2f} | | | | {run_rate:,.0f} | | "
                 f"{r['run_s'] / base['wall_s']:.2f} | {base_rate / run_rate:.2f} |"
             )
+    small = [small_case() for _ in range(3)]
+    print()
+    print("| small run: netsim run, 10 robots, 30 s | wall s | CPU s | peak MiB |")
+    print("| --- | ---: | ---: | ---: |")
+    for k, r in enumerate(small, 1):
+        print(f"| run {k} of 3 | {r['wall_s']:.2f} | {r['cpu_s']:.2f} | {r['rss_kib'] / 1024:.0f} |")
     if args.sweep_runs:
         sw = sweep_case(args.sweep_runs)
         print()

@@ -89,6 +89,10 @@ REDUCED = {
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'compare.py'))} --n 20 --sweep-runs 1",
         "N = 20, one sweep run, and no ns-3 (its environment is built apart: benchmarks/ns3_env.sh)",
     ),
+    ".venv/bin/python benchmarks/run_phases.py --n 1000 --protocol ack": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'run_phases.py'))} --n 100 --duration 5",
+        "N = 100, 5 simulated seconds",
+    ),
     ".venv/bin/python benchmarks/radio_runs.py": (
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'radio_runs.py'))} --n 100 --duration 5",
         "N = 100, 5 simulated seconds",
