@@ -156,6 +156,9 @@ class Channel:
         # Kinds whose senders want a delivery with no receivers when nobody got a frame
         # (under a medium only: receivers are known at the frame's end, not at send time).
         self.notify_empty: set[str] = set()
+        # Per kind, called as (payload, cause, receptions) for what a medium loses of a
+        # frame (cause "collision", "half_duplex"; "queue_full", "retry_limit" with 1).
+        self.medium_losses: dict[str, Callable[[object, str, int], None]] = {}
 
     def attach_mac(self, mac: Any) -> None:
         """Put every transmission from now on through the shared medium ``mac``."""

@@ -108,6 +108,11 @@ class Relay:
         self.events = parts.events
         # Under a shared medium a flood ends when its last frame ends, received or not.
         self.channel.notify_empty.add("data")
+        # Per message, what the medium lost of its frames (receptions, or frames for
+        # queue_full and retry_limit), by cause.
+        self.medium_losses: dict[int, dict[str, int]] = {}
+        if self.channel.deferred:
+            self.channel.medium_losses["data"] = self._medium_loss
         # One entry per delivery event: (msg_id, hop, sender, t_sent_s, t_received_s, receivers).
         self._hops: list[tuple] = []
 
@@ -234,6 +239,11 @@ class Relay:
         ev = self.events
         if ev is not None and ev.wants("message_dropped"):
             ev.emit("message_dropped", MessageDropped(now, msg.id, msg.src, msg.dst, msg.hops, cause))
+
+    def _medium_loss(self, msg: object, cause: str, count: int) -> None:
+        assert isinstance(msg, Message)
+        losses = self.medium_losses.setdefault(msg.id, {})
+        losses[cause] = losses.get(cause, 0) + count
 
     def outcomes(self) -> list[Outcome]:
         return [Outcome(**o) for o in self._outcomes.values()]

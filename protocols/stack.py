@@ -15,6 +15,7 @@ import pandas as pd
 
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
+from netsim.radio.mac import MAC_CAUSES
 from netsim.topology import geometric_pairs
 from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
@@ -263,7 +264,14 @@ class Stack:
 
     # -- outputs -----------------------------------------------------------------------
     def messages_frame(self) -> pd.DataFrame:
-        return pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
+        df = pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
+        if self.channel.deferred:
+            # A shared medium: what it lost of each message's frames, by cause.
+            losses = self.relay.medium_losses
+            for cause in MAC_CAUSES:
+                counts = [losses.get(mid, {}).get(cause, 0) for mid in df["msg_id"].tolist()]
+                df[f"dropped_{cause}"] = np.array(counts, dtype=np.int64)
+        return df
 
     def neighbour_beliefs_frame(self) -> pd.DataFrame:
         if not self._neighbour_beliefs:

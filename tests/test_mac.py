@@ -206,6 +206,9 @@ def test_the_protocol_runs_on_any_mac(mac):
     assert list(acks.columns)[3:] == [f"dropped_{c}" for c in MAC_DROP_CAUSES]
     assert list(res.frames["medium"].columns) == list(tables(cfg)["medium"])
     assert list(res.frames["ack_delivery"].columns) == list(tables(cfg)["ack_delivery"])
+    msgs = res.frames["messages"]
+    assert list(msgs.columns) == list(tables(cfg)["messages"])
+    assert msgs[[f"dropped_{c}" for c in MAC_DROP_CAUSES[3:]]].to_numpy().min() >= 0
     s = res.summary
     assert 0 < s["channel_utilisation"] < 1 and 0 <= s["collision_ratio"] < 1
     assert s["messages"] > 0 and s["acks_received"] > 0
@@ -283,5 +286,10 @@ def test_relaying_accounts_for_every_frame_on_a_medium(routing):
     assert (pending >= 0).all()
     msgs = res.frames["messages"]
     assert len(msgs) > 20 and 0 < msgs.delivered.mean() <= 1
+    # What the medium lost of each message's frames, per message, adds up to the data kind's counts.
+    data = res.sim.channel.counters_for("data")
+    for cause in ("collision", "half_duplex"):
+        assert msgs[f"dropped_{cause}"].sum() == data.dropped[res.sim.channel.causes.index(cause)].sum()
+    assert msgs.dropped_collision.sum() + msgs.dropped_half_duplex.sum() > 0
     if routing == "oracle":
         assert res.summary["mac_transmissions"] >= res.summary["mac_frames"]

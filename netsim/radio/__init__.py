@@ -9,6 +9,8 @@
 - :mod:`netsim.radio.free_space`: where robots may be and go on a map;
 - :mod:`netsim.radio.examples`: the example maps shipped with netsim;
 - :mod:`netsim.radio.checks`: the closed-form checks of the radio models.
+- :mod:`netsim.radio.mac`: the shared medium (airtime, collisions, ALOHA, CSMA/DCF);
+- :mod:`netsim.radio.mac_checks`: its closed-form checks (ALOHA, Bianchi, hidden terminals).
 
 Nothing here reads a configuration or needs the simulation kernel: each piece takes numpy
 arrays and explicit parameters.

@@ -191,7 +191,7 @@ class Medium:
             raise ValueError(f"no frame size for messages of kind {kind!r} (channel.frame_bytes)")
         q = self.queue[sender]
         if len(q) >= self.queue_frames:
-            self._frame_dropped(sender, kind, c, binned, "queue_full")
+            self._frame_dropped(sender, kind, c, binned, "queue_full", payload)
             self._notify(sender, _EMPTY, payload, deliver, kind, c, binned)
             return _EMPTY
         airtime = airtime_s(nbytes, self.data_rate_bps, self.preamble_s)
@@ -201,12 +201,18 @@ class Medium:
             self._contend(sender)
         return np.array([sender])
 
-    def _frame_dropped(self, sender: int, kind: str, c, binned, cause: str) -> None:
+    def _frame_dropped(self, sender: int, kind: str, c, binned, cause: str, payload: object) -> None:
         k = self.causes.index(cause)
         c.dropped[k, sender] += 1
         if binned is not None:
             binned.add(SendTimeBins.DROPPED + k, 1)
         self.channel._dropped(kind, sender, np.array([sender]), cause)
+        self._lost(kind, payload, cause, 1)
+
+    def _lost(self, kind: str, payload: object, cause: str, count: int) -> None:
+        tell = self.channel.medium_losses.get(kind)
+        if tell is not None:
+            tell(payload, cause, count)
 
     def _contend(self, i: int) -> None:
         """Robot ``i`` has a new head frame: ALOHA sends it now, CSMA draws a backoff."""
@@ -351,6 +357,7 @@ class Medium:
                 if binned is not None:
                     binned.add(SendTimeBins.DROPPED + k, int(lost.sum()))
                 self.channel._dropped(frame.kind, i, rx[lost], cause)
+                self._lost(frame.kind, frame.payload, cause, int(lost.sum()))
         got = rx[ok]
         # Who senses the medium idle again.
         cand = np.append(disturbed, i)
@@ -366,7 +373,7 @@ class Medium:
             q.popleft()
             self.frames_sent += 1
             if frame.dest >= 0 and not len(got) and self.csma:
-                self._frame_dropped(i, frame.kind, c, binned, "retry_limit")
+                self._frame_dropped(i, frame.kind, c, binned, "retry_limit", frame.payload)
             self.retries[i] = 0
             self.cw[i] = self.cw_min
             self._notify(i, got, frame.payload, frame.deliver, frame.kind, c, binned)
@@ -452,7 +459,8 @@ MEDIUM_SCHEMA = {
 
 def with_mac_causes(tables: dict) -> dict:
     """The schemas of ``tables`` with the medium's drop columns after the channel's, in the
-    tables that hold the channel's counts (``acks``, ``ack_delivery``)."""
+    tables that hold the channel's counts (``acks``, ``ack_delivery``), and at the end of
+    the message outcomes (``messages``)."""
     out = dict(tables)
     for name, extra in (("acks", MAC_CAUSES), ("ack_delivery", ("collision", "half_duplex"))):
         schema = out.get(name)
@@ -462,4 +470,7 @@ def with_mac_causes(tables: dict) -> dict:
         last = max(k for k, (col, _) in enumerate(cols) if col.startswith("dropped_"))
         add = [(f"dropped_{c}", "int64") for c in extra]
         out[name] = dict(cols[: last + 1] + add + cols[last + 1 :])
+    if "messages" in out:
+        # Per message: its frames' receptions lost on the medium, and its frames dropped.
+        out["messages"] = {**out["messages"], **{f"dropped_{c}": "int64" for c in MAC_CAUSES}}
     return out
