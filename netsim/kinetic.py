@@ -384,11 +384,6 @@ class RuntimeLinks:
             self._queue = ([], [], [], [], [], [], [])
         self._qi = 0
 
-    def _next_time(self) -> float:
-        qt = self._queue[0]
-        t = qt[self._qi] if self._qi < len(qt) else math.inf
-        return min(t, self._heap[0][0]) if self._heap else t
-
     def _arm(self) -> None:
         # Once per wake, and more often than not per instant when other events interleave:
         # the next time inline, and the instant armed for as the kernel event's value.
@@ -413,7 +408,7 @@ class RuntimeLinks:
     def _announce(self, until: float, quiet: bool = False) -> None:
         """Apply and announce the queued events due at or before ``until``, in order, and
         those of the following instants while the kernel has nothing that would run before
-        a wake armed for them (:func:`~netsim.events.runs_before`): the clock is moved to
+        a wake armed for them (:func:`~netsim.events.kernel_queue`): the clock is moved to
         each, exactly, and the order is that of one kernel event per instant, without its
         cost. ``quiet``: the run's end; apply up to ``until`` only, announcing nothing."""
         qt, qa, qb, qphase, qnegk, qidx, qkey = self._queue
