@@ -9,7 +9,7 @@ SimPy has no public way to give one without scheduling it at once (``succeed()``
 both); so :func:`scheduled_event` sets the two attributes ``_ok`` and ``_value`` itself, as
 SimPy's own ``Timeout.__init__`` does. Runtime link events use :data:`FIRST`, a priority
 ahead of URGENT: they are delivered before anything else due at their instant.
-:func:`runs_before` and :func:`advance_clock` let one kernel event stand for several
+:func:`kernel_queue` and :func:`advance_clock` let one kernel event stand for several
 consecutive instants of the runtime link events (``netsim.kinetic``): SimPy exposes neither
 the priority of its next event nor a way to move its clock, so they read its queue and set
 its clock (``_queue``, ``_now``) themselves, as its ``step()`` does.
@@ -56,7 +56,6 @@ __all__ = [
     "MessageDropped",
     "advance_clock",
     "kernel_queue",
-    "runs_before",
     "scheduled_event",
 ]
 
@@ -84,25 +83,16 @@ def scheduled_event(
 
 
 def kernel_queue(env: simpy.Environment) -> list:
-    """SimPy's queue of scheduled events, a heap of ``(time, priority, id, event)``: read
-    it only (a hot loop's inline form of :func:`runs_before`)."""
+    """SimPy's queue of scheduled events, a heap of ``(time, priority, id, event)``, to be
+    read only. An event scheduled now at ``(t, priority)`` would run after its head ``(t0,
+    p0, ...)`` when ``t0 < t``, or ``t0 == t`` and ``p0 <= priority`` (at equal priority
+    SimPy runs events in the order they were scheduled)."""
     return env._queue  # type: ignore[attr-defined, no-any-return]
-
-
-def runs_before(env: simpy.Environment, t_s: float, priority: int) -> bool:
-    """Whether the kernel holds an event that runs before one scheduled now at ``t_s`` with
-    ``priority``: one due earlier, or at ``t_s`` with the same or a higher priority (at equal
-    priority SimPy runs events in the order they were scheduled)."""
-    queue = env._queue  # type: ignore[attr-defined]  # SimPy's heap of (time, priority, id, event)
-    if not queue:
-        return False
-    t, p = queue[0][0], queue[0][1]
-    return bool(t < t_s or (t == t_s and p <= priority))
 
 
 def advance_clock(env: simpy.Environment, t_s: float) -> None:
     """Move the kernel's clock forward to ``t_s``, as processing an event due then would;
-    only valid when nothing runs before such an event (:func:`runs_before` is false)."""
+    only valid when nothing in :func:`kernel_queue` would run before such an event."""
     if t_s > env.now:
         env._now = t_s  # type: ignore[attr-defined]
 

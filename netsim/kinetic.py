@@ -88,7 +88,7 @@ class RuntimeLinks:
         self._flush_pending = False
         self._w_end = 0.0
         self._wid = 0
-        self._ca = self._cb = self._ptr = self._idx = np.empty(0, np.int64)
+        self._ca = self._cb = self._ptr_a = self._ptr_b = self._by_b = np.empty(0, np.int64)
         self._csr_ready = False
         self._cr = np.empty(0)
         # In the plane, each candidate pair's crossings on its current legs (absolute
@@ -170,8 +170,8 @@ class RuntimeLinks:
             return
         if not self._csr_ready:
             self._csr()
-        ptr = self._ptr
-        idx = np.unique(np.concatenate([self._idx[ptr[r] : ptr[r + 1]] for r in dirty.tolist()]))
+        pa, pb, by_b = self._ptr_a, self._ptr_b, self._by_b
+        idx = np.unique(np.concatenate([np.r_[pa[r] : pa[r + 1], by_b[pb[r] : pb[r + 1]]] for r in dirty.tolist()]))
         if len(idx):
             self._gen[idx] += 1
             gen_now = self._gen_now
@@ -264,14 +264,15 @@ class RuntimeLinks:
         self._queue_crossings(np.arange(m), t)
 
     def _csr(self) -> None:
-        """Each robot's candidate pairs (both ends), as a CSR list (built when a course
-        change first needs it in a window)."""
-        m, n = len(self._ca), self.state.n
-        rows = np.concatenate([self._ca, self._cb])
-        order = np.argsort(rows)
-        self._idx = np.where(order < m, order, order - m)
-        self._ptr = np.zeros(n + 1, np.int64)
-        np.cumsum(np.bincount(rows, minlength=n), out=self._ptr[1:])
+        """Each robot's candidate pairs, by either end (built when a course change first
+        needs them in a window): pairs are in key order, so those with ``a = r`` are the
+        range ``ptr_a[r] : ptr_a[r + 1]``; those with ``b = r`` are listed by ``by_b``."""
+        n, ca, cb = self.state.n, self._ca, self._cb
+        self._ptr_a = np.searchsorted(ca, np.arange(n + 1))
+        # Any order within a robot will do; numpy sorts 16-bit integers by radix.
+        self._by_b = np.argsort(cb.astype(np.uint16) if n <= 1 << 16 else cb, kind="stable")
+        self._ptr_b = np.zeros(n + 1, np.int64)
+        np.cumsum(np.bincount(cb, minlength=n), out=self._ptr_b[1:])
         self._csr_ready = True
 
     def _restart(self, wid: int) -> None:
@@ -376,18 +377,14 @@ class RuntimeLinks:
         batch, self._batch = self._batch, None
         if batch:
             cols = [np.concatenate(c) for c in zip(*batch)]
-            order = np.lexsort((cols[4], cols[3], cols[2], cols[1], cols[0]))
-            t, a, b = cols[0][order], cols[1][order], cols[2][order]
-            key = a * max(self.state.n, 1) + b
-            self._queue = tuple(c.tolist() for c in (t, a, b, cols[3][order], cols[4][order], cols[5][order], key))
+            t, a, b, phase, negk = cols[:5]
+            key = a * self._n + b
+            # (t, a, b, phase, -kind) as two sort keys: (a, b, phase, -kind) packed in one.
+            order = np.lexsort(((key * 3 + phase) * 2 + (negk > 0), t))
+            self._queue = tuple(c[order].tolist() for c in (t, a, b, phase, negk, cols[5], key))
         else:
             self._queue = ([], [], [], [], [], [], [])
         self._qi = 0
-
-    def _next_time(self) -> float:
-        qt = self._queue[0]
-        t = qt[self._qi] if self._qi < len(qt) else math.inf
-        return min(t, self._heap[0][0]) if self._heap else t
 
     def _arm(self) -> None:
         # Once per wake, and more often than not per instant when other events interleave:
@@ -413,7 +410,7 @@ class RuntimeLinks:
     def _announce(self, until: float, quiet: bool = False) -> None:
         """Apply and announce the queued events due at or before ``until``, in order, and
         those of the following instants while the kernel has nothing that would run before
-        a wake armed for them (:func:`~netsim.events.runs_before`): the clock is moved to
+        a wake armed for them (:func:`~netsim.events.kernel_queue`): the clock is moved to
         each, exactly, and the order is that of one kernel event per instant, without its
         cost. ``quiet``: the run's end; apply up to ``until`` only, announcing nothing."""
         qt, qa, qb, qphase, qnegk, qidx, qkey = self._queue
