@@ -21,7 +21,7 @@ import pandas as pd
 
 from netsim.radio import compiled_kernels
 from netsim.radio.fast import CompiledChain
-from netsim.radio.propagation import Propagation
+from netsim.radio.propagation import Pairs, Propagation
 from netsim.state import RobotState
 
 
@@ -109,3 +109,21 @@ class Reception:
         if self.recorder is not None:
             self.recorder.observe(t, sender, receivers, linked)
         return linked
+
+    def received_dbm(self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+        """Power (dBm) at ``receivers`` of ``sender``'s frame at ``t``, as the decision just
+        made for these pairs saw it: path loss, each pair's shadowing as it stands (no new
+        draw: call it right after :meth:`decide` on the same pairs) and walls. A medium's
+        signal: a frame the radio kept is then at or above the sensitivity."""
+        c = self.compiled
+        if c.log is None:
+            raise ValueError("received power needs a log-distance radio")
+        k = len(receivers)
+        pairs = Pairs(np.full(k, sender, dtype=np.int64), receivers, None, None, distances_m, None)
+        loss = c.log.loss_db(pairs)
+        if c.shadow is not None and c.shadow.sigma_db > 0 and k:
+            x, _ = c.shadow.state(pairs.a, receivers)
+            loss = loss + np.clip(np.nan_to_num(x), -c.shadow.clip_db, c.shadow.clip_db)
+        if c.walls is not None and k:
+            loss = loss + c.walls.loss_db(c._pairs(self.state, t, sender, receivers, distances_m))
+        return self.propagation.tx_power_dbm - loss

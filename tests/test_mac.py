@@ -293,3 +293,21 @@ def test_relaying_accounts_for_every_frame_on_a_medium(routing):
     assert msgs.dropped_collision.sum() + msgs.dropped_half_duplex.sum() > 0
     if routing == "oracle":
         assert res.summary["mac_transmissions"] >= res.summary["mac_frames"]
+
+
+@pytest.mark.parametrize("mac", ["aloha", "csma"])
+def test_a_frame_the_radio_keeps_never_fails_on_noise_alone_under_shadowing(mac):
+    """log_distance with shadowing: the SINR signal is the pair's own received power (path
+    loss + its shadowing), so one sender with no other traffic loses nothing to collisions,
+    also beyond the mean range (where only favourable shadowing lets a frame through)."""
+    angles = np.linspace(0.0, 2 * np.pi, 40, endpoint=False)
+    rings = [np.column_stack([r * np.cos(angles), r * np.sin(angles)]) for r in (150.0, 170.0, 200.0)]
+    pos = np.vstack([[[0.0, 0.0]], *rings]) + 1000.0
+    keys = {"propagation": "log_distance", "shadowing_sigma_db": 6.0, "preamble_s": 0.0, "data_rate_bps": 1e6}
+    sim = mac_checks.medium_run(pos, mac, latency_s=0.0, **keys)
+    sim.channel.frame_bytes["f"] = 125
+    for k in range(3):
+        _send_at(sim, 0.1 * k, 0)
+    sim.env.run()
+    assert sim.channel.counters_for("f").received.sum() > 0
+    assert _dropped(sim, "collision") == 0

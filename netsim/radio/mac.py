@@ -83,6 +83,7 @@ class Frame:
         "interferers",
         "power_mw",
         "signal_mw",
+        "rx_mw",
         "peak_mw",
     )
 
@@ -93,7 +94,7 @@ class Frame:
         self.receivers = _EMPTY
         self.hd_start = self.col_start = np.empty(0, dtype=bool)
         self.interferers = _EMPTY
-        self.power_mw = self.signal_mw = self.peak_mw = np.empty(0)
+        self.power_mw = self.signal_mw = self.rx_mw = self.peak_mw = np.empty(0)
 
 
 class PowerModel:
@@ -136,6 +137,10 @@ class Medium:
         if radio is not None and hasattr(radio, "sensitivity_dbm"):
             self.power = PowerModel(radio, params.noise_floor_dbm, params.capture_threshold_db)
         largest = float(self.state.range_m.max()) if n else 0.0
+        rec = channel.reception
+        # Shadowing or walls: a pair's power differs from the mean one.
+        varies = rec is not None and (rec.shadowing is not None or rec.compiled.walls is not None)
+        self.actual_power = self.power is not None and varies
         default = self.power.noise_range_m if self.power is not None else largest
         self.interference_range_m = float(params.interference_range_m) or default
         reach = channel.reception.reach_m if channel.reception is not None else largest
@@ -286,7 +291,11 @@ class Medium:
             frame.power_mw = self.power.received_mw(ddist)
             self.load_mw[disturbed] += frame.power_mw
             at = np.searchsorted(disturbed, receivers)
-            frame.signal_mw = frame.power_mw[at]
+            frame.signal_mw = frame.rx_mw = frame.power_mw[at]
+            if self.actual_power and len(receivers):
+                # The signal is the power the radio found for each pair (shadowing, walls);
+                # the frame's share of the interference stays the mean (docs/radio.md).
+                frame.rx_mw = 10.0 ** (ch.reception.received_dbm(now, i, receivers, dist) / 10.0)
             for other in self.on_air.values():
                 other.peak_mw = np.maximum(other.peak_mw, self.load_mw[other.receivers])
             frame.peak_mw = self.load_mw[receivers]
@@ -345,7 +354,7 @@ class Medium:
             quiet = disturbed[self.cover[disturbed] == 0]
             self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
             interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
-            col = ~hd & (frame.signal_mw < self.power.capture * (self.power.noise_mw + interference))
+            col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
         else:
             col = ~hd & (frame.col_start | (self.cover_seq[rx] != seq))
         ok = ~(hd | col)
