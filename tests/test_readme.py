@@ -97,6 +97,10 @@ REDUCED = {
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'radio_runs.py'))} --n 100 --duration 5",
         "N = 100, 5 simulated seconds",
     ),
+    ".venv/bin/python benchmarks/mac_workload.py --n 1000 10000 --repeat 2": (
+        f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'mac_workload.py'))} --n 100 --repeat 1 --duration 5",
+        "N = 100, one round, 5 simulated seconds",
+    ),
     ".venv/bin/python benchmarks/sweep_runner.py": (
         f"{PY} {shlex.quote(str(ROOT / 'benchmarks' / 'sweep_runner.py'))} --runs 4 --duration 5",
         "4 runs of 5 simulated seconds instead of 200 of 150",
