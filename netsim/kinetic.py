@@ -71,8 +71,9 @@ class RuntimeLinks:
         self.r_max = float(self.ranges.max()) if state.n else 0.0
         self.box = float(state.side_m) if state.torus else None
         # Links up now: key a n + b -> since when; and every lifetime that ended, as columns
-        # a, b, up, down. Plain lists of numbers, as the queue's columns: the collector
-        # never walks them (lists of tuples made it cost a fifth of the runtime links).
+        # a, b, up, down. Plain lists of numbers, as the queue's columns: the garbage
+        # collector tracks the lists, not the numbers (as lists of tuples it tracked and
+        # walked every row: a fifth of the runtime links' cost).
         self.up: dict[int, float] = {}
         self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         self.started = False
