@@ -43,6 +43,7 @@ from netsim.params import (
     describe as describe_params,
 )
 from netsim.propagation import PROPAGATION_MODELS, propagation_name
+from netsim.radio.propagation import LogDistanceParams, reach_m
 
 
 class ConfigWarning(UserWarning):
@@ -363,6 +364,17 @@ class Config(Params):
             )
         if self.world.torus and self.world.side_m <= 2 * max(self.ranges_m(), default=0.0):
             raise ConfigError("world.side_m", self.world.side_m, "on a torus must exceed twice the largest range_m")
+        radio = self.channel.radio
+        if self.world.torus and isinstance(radio, LogDistanceParams) and radio.shadowing_sigma_db > 0:
+            # The reach's disks around a robot's images must be disjoint, as the range's are:
+            # the cut of a shadowed link where its pair leaves the reach is solved on one image.
+            reach = reach_m(radio)
+            if not self.world.side_m > 2 * reach:
+                raise ConfigError(
+                    "world.side_m",
+                    self.world.side_m,
+                    f"on a torus with shadowing must exceed twice the radio's reach ({reach:.1f} m)",
+                )
         if self.world.map:
             _check_map(self)
         for plugin, params in self.models():

@@ -141,3 +141,16 @@ def test_grid_placement_into_a_wall_is_refused_before_anything_is_written(tmp_pa
         "world.placement",
         "not in a free cell",
     )
+
+
+def test_a_torus_with_shadowing_must_exceed_twice_the_reach(tmp_path, capsys):
+    """On a torus the reach's disks around a robot's images must be disjoint, as the range's
+    are: at 6 dB the default radio reaches 631 m, so a 1,000 m torus is refused, naming the
+    reach, and a 1,300 m one runs."""
+    radio = ["channel.propagation=log_distance", "channel.shadowing_sigma_db=6", "world.torus=true"]
+    check_refused(tmp_path, capsys, radio + ["world.side_m=1000"], "world.side_m", "twice the radio's reach (631")
+    ok = tmp_path / "ok"
+    argv = ["run", "--quiet", "--no-progress", "--out", str(ok)]
+    for o in radio + ["world.side_m=1300", "world.n_robots=5", "duration_s=2"]:
+        argv += ["--set", o]
+    assert main(argv) == 0
