@@ -116,9 +116,25 @@ def test_the_stronger_frame_survives_under_log_distance():
     assert _dropped(sim, "collision", robot=1) == 2
 
 
+class _Draws:
+    """A stand-in for the CSMA stream: hands out the given backoffs in order."""
+
+    def __init__(self, *slots):
+        self.slots = list(slots)
+
+    def integers(self, high):
+        k = self.slots.pop(0)
+        assert 0 <= k < high
+        return k
+
+
+SLOT, DIFS = 20e-6, 50e-6
+
+
 def test_csma_defers_while_the_medium_is_busy():
     """CSMA: a robot that senses a frame on the air waits for its end, DIFS and its backoff."""
     sim = _medium([0, 10, 20], mac="csma")
+    sim.channel.mac.rng = _Draws(0, 5)
     log = []
     _send_at(sim, 0.0, 0, log)
     _send_at(sim, T / 2, 1, log)
@@ -129,7 +145,35 @@ def test_csma_defers_while_the_medium_is_busy():
     start1 = t1 - T
     assert start1 >= t0 + 50e-6 - 1e-12
     slots = (start1 - t0 - 50e-6) / 20e-6
-    assert slots == pytest.approx(round(slots), abs=1e-6) and round(slots) <= 31
+    assert slots == pytest.approx(5, abs=1e-6)  # its whole draw: it never counted before 0's frame
+
+
+@pytest.mark.parametrize(
+    ("b_at", "c_at", "slots_left"),
+    [
+        # C's frame starts 2.5 slots into B's countdown: two idle slots and the busy period
+        # count, B resumes with k - 3.
+        (0.0, 2.5 * SLOT, 7),
+        # C's frame starts during B's DIFS: nothing counted, B resumes with k.
+        (DIFS / 2, 0.0, 10),
+    ],
+)
+def test_csma_freezes_the_backoff_and_resumes_it_after_difs(b_at, c_at, slots_left):
+    """CSMA freeze rule: B (backoff k = 10) counts down after DIFS of idle medium; when C's
+    frame starts, B keeps the slots left minus one for the busy period (none if still in
+    DIFS), and transmits at end_C + DIFS + slots_left slots."""
+    sim = _medium([0, 10], mac="csma", latency_s=0.0)
+    draws = {0: 10, 1: 0}  # B is 0, C is 1 (C sends DIFS after its hand-over)
+    order = sorted(draws, key=lambda r: (b_at, c_at)[r])
+    sim.channel.mac.rng = _Draws(*(draws[r] for r in order))
+    log = []
+    _send_at(sim, b_at, 0, log)
+    _send_at(sim, c_at, 1, log)
+    sim.env.run()
+    (end_c, s_c, _), (end_b, s_b, _) = log
+    assert (s_c, s_b) == (1, 0)
+    assert end_c == pytest.approx(c_at + DIFS + T, abs=1e-12)
+    assert end_b - T == pytest.approx(end_c + DIFS + slots_left * SLOT, abs=1e-12)
 
 
 def test_aloha_does_not_defer():
