@@ -288,10 +288,19 @@ def test_aloha_poisson_success_follows_the_closed_form():
 
 
 def test_hidden_terminals_lose_like_an_aloha_pair():
-    """Hidden terminals under CSMA: B loses like an ALOHA pair; A-B alone loses nothing."""
+    """Hidden terminals under CSMA: B loses like an ALOHA pair; A and B alone, both sending,
+    lose at most the same-slot bound. Under ALOHA the control fails (B's own frames)."""
     hidden, alone = mac_checks.hidden_terminals(airtime_ratio=0.05, rounds=500, seed=5)
     assert abs(hidden.measured - hidden.theory) <= hidden.tolerance
-    assert alone.measured == 1.0
+    assert alone.tolerance < 0.01 and abs(alone.measured - alone.theory) <= alone.tolerance
+    _, aloha = mac_checks.hidden_terminals(airtime_ratio=0.05, rounds=500, seed=5, mac="aloha")
+    assert abs(aloha.measured - aloha.theory) > aloha.tolerance
+    assert aloha.measured == pytest.approx(1 - 2 * 0.05, abs=4 * math.sqrt(0.1 * 0.9 / 500))
+
+
+def test_same_slot_bound():
+    """The control's bound: 2 (DIFS + cw slot) / t / (cw + 1)."""
+    assert mac_checks.same_slot_bound(1.0, 50e-6, 20e-6, 31) == pytest.approx(2 * (50e-6 + 31 * 20e-6) / 32)
 
 
 @pytest.mark.slow
