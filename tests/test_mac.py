@@ -372,3 +372,28 @@ def test_mac_none_reproduces_the_channel_before_the_medium():
     res = execute(from_dict(tree))
     assert res.sim.channel.mac is None
     assert mac_none_mismatches(record, res.frames) == []
+
+
+def test_drop_events_on_a_medium_come_once_per_cause_at_their_instant():
+    """On a medium a drop subscriber sees: collision at the frames' end, for the receiver;
+    queue_full at the hand-over and retry_limit at the last attempt's end, with no receiver
+    (the frame's sender is not a receiver)."""
+    sim = _medium([0, 40, 80, 200], mac="csma", queue_frames=1, retry_limit=0)
+    sim.channel.mac.rng = _Draws(*([0] * 10))
+    drops = []
+    sim.events.on("drop", lambda d: drops.append((d.t_s, d.sender, d.receivers.tolist(), d.cause)))
+    _send_at(sim, 0.0, 0)  # 0 and 2 are hidden from each other: both collide at 1
+    _send_at(sim, 0.0, 2)
+    _send_at(sim, 0.0, 2)  # 2's queue holds one frame
+    _send_at(sim, 0.01, 3, dest=0)  # out of range, no retry
+    sim.env.run()
+    end = round(DIFS + T, 9)
+    assert sorted((round(t, 9), *rest) for t, *rest in drops) == sorted(
+        [
+            (0.0, 2, [], "queue_full"),
+            (end, 0, [1], "collision"),
+            (end, 2, [1], "collision"),
+            (round(0.01 + DIFS, 9), 3, [0], "out_of_range"),
+            (round(0.01 + DIFS + T, 9), 3, [], "retry_limit"),
+        ]
+    )

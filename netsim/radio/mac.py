@@ -211,7 +211,7 @@ class Medium:
         c.dropped[k, sender] += 1
         if binned is not None:
             binned.add(SendTimeBins.DROPPED + k, 1)
-        self.channel._dropped(kind, sender, np.array([sender]), cause)
+        self.channel._dropped(kind, sender, _EMPTY, cause)  # a frame, not a reception: no receiver
 
     def _contend(self, i: int) -> None:
         """Robot ``i`` has a new head frame: ALOHA sends it now, CSMA draws a backoff."""
