@@ -267,12 +267,21 @@ def test_the_protocol_runs_on_any_mac(mac):
         ({"mac": "csma", "range_m": 100.0, "interference_range_m": 50.0}, "channel.interference_range_m"),
         ({"mac": "aloha", "propagation": "log_distance", "noise_floor_dbm": -85.0}, "channel.noise_floor_dbm"),
         ({"mac": "aloha", "data_rate_bps": 0}, "channel.data_rate_bps"),
+        ({"mac": "csma", "propagation": "log_distance", "interference_range_m": 10.0}, "channel.interference_range_m"),
+        ({"mac": "csma", "data_rate_bps": 1.0}, "channel.data_rate_bps"),  # an Ack would take 512 s
     ],
 )
 def test_medium_keys_are_validated(keys, bad):
     """A bad medium key is an error naming the key."""
-    with pytest.raises(ConfigError, match=bad.replace(".", r"\.")):
+    with pytest.raises(ConfigError, match=bad.replace(".", r"\.")) as err:
         make_config(channel=keys)
+    assert err.value.key == bad
+
+
+def test_an_interference_range_of_at_least_the_reach_is_accepted_under_log_distance():
+    """log_distance: interference_range_m may be 0 (the noise-floor distance) or at least the reach."""
+    for r in (0.0, 100.0, 400.0):
+        assert make_config(channel={"mac": "csma", "propagation": "log_distance", "interference_range_m": r})
 
 
 def test_aloha_periodic_success_follows_the_closed_form():
