@@ -184,9 +184,9 @@ class ChannelParams(Params):
                     f"has parameters {wanted.__name__}, not {type(value).__name__}",
                 )
         radio = self.radio
-        if self.mac != "none" and hasattr(radio, "sensitivity_dbm") and self.interference_range_m > 0:
-            from netsim.radio.propagation import reach_m
+        from netsim.radio.propagation import LogDistanceParams, reach_m
 
+        if self.mac != "none" and isinstance(radio, LogDistanceParams) and self.interference_range_m > 0:
             reach = reach_m(radio)
             if self.interference_range_m < reach:
                 raise ConfigError(
