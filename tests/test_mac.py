@@ -252,6 +252,11 @@ def test_the_protocol_runs_on_any_mac(mac):
     assert list(res.frames["ack_delivery"].columns) == list(tables(cfg)["ack_delivery"])
     s = res.summary
     assert 0 < s["channel_utilisation"] < 1 and 0 <= s["collision_ratio"] < 1
+    medium = res.frames["medium"]
+    collided = int(medium["dropped_collision"].sum())
+    decided = collided + int(medium[["received", "dropped_half_duplex"]].sum().sum())
+    assert s["receptions_dropped_collision"] == collided
+    assert s["collision_ratio"] == pytest.approx(collided / decided)
     assert s["messages"] > 0 and s["acks_received"] > 0
     again = execute(cfg)
     pd_equal = [res.frames[k].equals(again.frames[k]) for k in res.frames]
@@ -346,7 +351,12 @@ def test_relaying_accounts_for_every_frame_on_a_medium(routing):
     msgs = res.frames["messages"]
     assert len(msgs) > 20 and 0 < msgs.delivered.mean() <= 1
     if routing == "oracle":
-        assert res.summary["mac_transmissions"] >= res.summary["mac_frames"]
+        # Unicast copies under ALOHA (no retry): each frame has one fate at its one receiver,
+        # and every copy a message counts is a frame of the medium.
+        data = res.frames["medium"].query("kind == 'data'")
+        fates = data["received"].sum() + data[[f"dropped_{c}" for c in MAC_DROP_CAUSES]].sum().sum()
+        assert data["sent"].sum() == fates == msgs["transmissions"].sum()
+        assert res.summary["mac_transmissions"] == res.summary["mac_frames"]
 
 
 @pytest.mark.parametrize("mac", ["aloha", "csma"])
@@ -406,3 +416,61 @@ def test_drop_events_on_a_medium_come_once_per_cause_at_their_instant():
             (round(0.01 + DIFS + T, 9), 3, [], "retry_limit"),
         ]
     )
+
+
+def test_acks_lost_to_a_hidden_jammer_time_the_neighbour_out_at_tau():
+    """Collided Acks are simply not heard: A's Acks all collide at B with a jammer hidden from
+    A, and B's entry for A expires tau_s after the last Ack B received from A."""
+    from netsim.config import from_dict
+    from netsim.run import build
+
+    cfg = from_dict(
+        {
+            "world": {"n_robots": 3, "side_m": 10_000.0},
+            "mobility": {"model": "static"},
+            "channel": {"mac": "aloha", "range_m": 50.0, "latency_s": 0.0},
+            "protocol": {"model": "ack"},
+            "output": {"position_interval_s": 0.0},
+        }
+    )
+    sim = build(cfg)
+    sim.state.place(np.array([[100.0, 100.0], [140.0, 100.0], [180.0, 100.0]]))  # A, B, jammer
+    ch, env = sim.channel, sim.env
+    ch.frame_bytes["jam"] = 1000
+    ch.notify_empty.add("jam")
+
+    def jam(_s, _r, _p):
+        ch.broadcast(2, None, jam, kind="jam")  # the next frame starts as this one ends
+
+    start = 5.0
+    env.timeout(start).callbacks.append(lambda _e: jam(None, None, None))
+    table, tau = sim.models["protocol"].table, cfg.protocol.params.tau_s
+    env.run(until=start)
+    assert 0 in table.live_ids(env.now, 1)
+    last = float(table.last_heard_s[1, table.entry(1, 0)])
+    env.run(until=last + tau - 1e-6)
+    assert 0 in table.live_ids(env.now, 1)
+    env.run(until=last + tau + 1e-6)
+    assert 0 not in table.live_ids(env.now, 1)
+    assert float(table.last_heard_s[1, table.entry(1, 0)]) == last  # nothing heard from A since
+    acks = ch.counters_for("ack")
+    assert acks.dropped[ch.causes.index("collision"), 1] >= 2  # A's Acks at B, jammed
+
+
+def test_coverage_runs_on_csma():
+    """Coverage's leader commands go through the medium like any frame: every frame handed
+    over is sent or dropped at a full queue, and commands are received."""
+    cfg = make_config(
+        world={"n_robots": 30},
+        duration_s=15.0,
+        mobility={"model": "static"},
+        channel={"mac": "csma"},
+        coverage={"enabled": True},
+        output={"position_interval_s": 0.0},
+    )
+    res = execute(cfg)
+    medium, s = res.frames["medium"], res.summary
+    by_kind = medium.groupby("kind")[["sent", "received"]].sum()
+    assert by_kind.loc["command", "sent"] > 0 and by_kind.loc["command", "received"] > 0
+    assert s["mac_frames"] + s["frames_dropped_queue_full"] == medium["sent"].sum()
+    assert len(res.frames["coverage"]) > 0
