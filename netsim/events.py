@@ -139,9 +139,11 @@ class Delivery(NamedTuple):
 
 
 class Drop(NamedTuple):
-    """Receptions of a transmission of ``kind`` from ``sender`` that the channel dropped at
-    send time ``t_s``: ``receivers`` lost it for ``cause`` ("loss", "not_alive",
-    "out_of_range")."""
+    """Receptions of a transmission of ``kind`` from ``sender`` that the channel dropped:
+    ``receivers`` lost it for ``cause`` ("loss", "not_alive", "out_of_range" at send time;
+    under a medium "collision", "half_duplex" at the frame's end), or, with ``receivers``
+    empty, a frame the medium dropped at its sender ("queue_full", "retry_limit";
+    docs/events.md)."""
 
     t_s: float
     kind: str

@@ -81,6 +81,17 @@ def check_tau(params: AckParams, config) -> None:
             "must be greater than protocol.ack_period_s + protocol.ack_jitter_s + channel.latency_jitter_s"
             f" = {gap:g}, the longest gap between two Acks without loss",
         )
+    ch = config.channel
+    if ch.mac != "none":
+        airtime = ch.preamble_s + params.ack_bytes * 8.0 / ch.data_rate_bps
+        if not airtime < params.ack_period_s:
+            # Else a robot's own Acks fill its queue faster than the medium can carry them.
+            raise ConfigError(
+                "channel.data_rate_bps",
+                ch.data_rate_bps,
+                f"gives an Ack (protocol.ack_bytes = {params.ack_bytes}, channel.preamble_s = {ch.preamble_s:g})"
+                f" an airtime of {airtime:g} s: must be shorter than protocol.ack_period_s = {params.ack_period_s:g}",
+            )
 
 
 ACKS_SCHEMA = {

@@ -87,6 +87,56 @@ def _cli(tmp_path, capsys, *args):
             "world.placement",
         ),
         (["--set", "mobility.model=warp"], "mobility.model = 'warp'"),
+        # The shared medium's keys (channel.mac, docs/radio.md).
+        (["--set", "channel.mac=tdma"], "channel.mac = 'tdma'"),
+        (["--set", "channel.mac=csma", "--set", "channel.data_rate_bps=0"], "channel.data_rate_bps = 0.0"),
+        (["--set", "channel.mac=csma", "--set", "channel.preamble_s=-1"], "channel.preamble_s = -1.0"),
+        (
+            ["--set", "channel.mac=csma", "--set", "channel.interference_range_m=-1"],
+            "channel.interference_range_m = -1.0",
+        ),
+        (
+            ["--set", "channel.mac=csma", "--set", "channel.range_m=100", "--set", "channel.interference_range_m=50"],
+            "channel.interference_range_m = 50.0: must be at least the largest channel.range_m",
+        ),
+        (
+            [
+                "--set",
+                "channel.mac=csma",
+                "--set",
+                "channel.propagation=log_distance",
+                "--set",
+                "channel.interference_range_m=10",
+            ],
+            "channel.interference_range_m = 10.0: must be at least the radio's reach",
+        ),
+        (["--set", "channel.mac=csma", "--set", "channel.queue_frames=0"], "channel.queue_frames = 0"),
+        (["--set", "channel.mac=csma", "--set", "channel.slot_s=0"], "channel.slot_s = 0.0"),
+        (["--set", "channel.mac=csma", "--set", "channel.difs_s=-1"], "channel.difs_s = -1.0"),
+        (["--set", "channel.mac=csma", "--set", "channel.retry_limit=-1"], "channel.retry_limit = -1"),
+        (["--set", "channel.mac=csma", "--set", "channel.cw_min=30"], "channel.cw_min = 30"),
+        (["--set", "channel.mac=csma", "--set", "channel.cw_max=15"], "channel.cw_max = 15"),
+        (
+            ["--set", "channel.mac=csma", "--set", "channel.capture_threshold_db=nan"],
+            "channel.capture_threshold_db = nan",
+        ),
+        (
+            [
+                "--set",
+                "channel.mac=aloha",
+                "--set",
+                "channel.propagation=log_distance",
+                "--set",
+                "channel.noise_floor_dbm=-85",
+            ],
+            "channel.noise_floor_dbm = -85.0",
+        ),
+        (["--set", "channel.mac=csma", "--set", "protocol.ack_bytes=0"], "protocol.ack_bytes = 0"),
+        (["--set", "channel.mac=csma", "--set", "protocol.message_bytes=0"], "protocol.message_bytes = 0"),
+        (
+            ["--set", "channel.mac=csma", "--set", "channel.data_rate_bps=1"],
+            "channel.data_rate_bps = 1.0: gives an Ack",
+        ),
         (["/nonexistent/scenario.toml"], "no such file"),
     ],
 )

@@ -211,7 +211,7 @@ class Medium:
         c.dropped[k, sender] += 1
         if binned is not None:
             binned.add(SendTimeBins.DROPPED + k, 1)
-        self.channel._dropped(kind, sender, np.array([sender]), cause)
+        self.channel._dropped(kind, sender, _EMPTY, cause)  # a frame, not a reception: no receiver
         self._lost(kind, payload, cause, 1)
 
     def _lost(self, kind: str, payload: object, cause: str, count: int) -> None:

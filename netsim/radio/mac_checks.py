@@ -11,7 +11,9 @@ own (no protocol above), measures, and returns the theory beside it:
 - :func:`csma_saturation`: CSMA (802.11 DCF, basic access), ``n`` saturated robots sending
   unicast frames: throughput against :func:`bianchi_throughput`;
 - :func:`hidden_terminals`: A and C out of each other's range, both in range of B, periodic
-  frames under CSMA: B receives A's frames with ALOHA's pair probability ``1 - 2T/t``.
+  frames under CSMA: B receives A's frames with ALOHA's pair probability ``1 - 2T/t``;
+  the control, A and B both sending in each other's range, loses at most
+  :func:`same_slot_bound`.
 """
 
 from __future__ import annotations
@@ -218,31 +220,52 @@ def csma_saturation(n: int, duration_s: float = 20.0, seed: int = 1, payload_byt
 
 
 def hidden_terminals(
-    airtime_ratio: float = 0.05, rounds: int = 1000, seed: int = 1, range_m: float = 50.0
+    airtime_ratio: float = 0.05, rounds: int = 1000, seed: int = 1, range_m: float = 50.0, mac: str = "csma"
 ) -> tuple[MacCheck, MacCheck]:
     """A, B, C on a line, A and C ``1.8 range`` apart (hidden from each other), B between:
     under CSMA, B receives A's and C's periodic frames with ALOHA's pair probability
-    ``1 - 2T/t``; with A and B alone nothing is lost."""
+    ``1 - 2T/t``. The control: A and B alone, both sending periodic frames: they hear each
+    other, so B loses A's frames only when both reach the end of their backoff in the same
+    slot (:func:`same_slot_bound`). ``mac``: the medium of both cases (``"aloha"`` makes the
+    control fail: B then loses ``2T/t`` of A's frames to its own)."""
     period = 1.0
     airtime = airtime_ratio * period
     out = []
-    for label, xs, theory in (
-        ("hidden terminals A-B-C, CSMA, B's success", [0.0, 0.9 * range_m, 1.8 * range_m], 1 - 2 * airtime_ratio),
-        ("A-B alone, CSMA, B's success", [0.0, 0.9 * range_m], 1.0),
+    for label, xs, senders in (
+        (f"hidden terminals A-B-C, {mac}, B's success", [0.0, 0.9 * range_m, 1.8 * range_m], [0, 2]),
+        (f"A-B alone, both sending, {mac}, B's success", [0.0, 0.9 * range_m], [0, 1]),
     ):
         pos = np.column_stack([np.array(xs) + 100.0, np.full(len(xs), 100.0)])
-        sim = medium_run(pos, "csma", range_m=range_m, seed=seed, preamble_s=0.0, data_rate_bps=1e6, latency_s=0.0)
+        sim = medium_run(pos, mac, range_m=range_m, seed=seed, preamble_s=0.0, data_rate_bps=1e6, latency_s=0.0)
         _sized(sim, airtime)
-        senders = [0, 2] if len(xs) == 3 else [0]
         periodic_rounds(sim, senders, period, rounds, np.random.default_rng(seed))
         sim.env.run()
         c, causes = sim.channel.counters_for("mid"), sim.channel.causes
         got = int(c.received[1])
         lost = int(c.dropped[causes.index("collision"), 1] + c.dropped[causes.index("half_duplex"), 1])
         decided = got + lost
-        tol = 4.0 * _binomial_se(theory, decided) if theory < 1 else 0.0
+        if len(xs) == 3:
+            theory = 1 - 2 * airtime_ratio
+            tol = 4.0 * _binomial_se(theory, decided)
+        else:
+            m = sim.channel.mac
+            p = same_slot_bound(period, m.difs_s, m.slot_s, m.cw_min)
+            theory = 1.0
+            tol = p + 4.0 * _binomial_se(1.0 - p, decided)
         out.append(MacCheck(label, theory, got / decided, tol))
     return out[0], out[1]
+
+
+def same_slot_bound(period_s: float, difs_s: float, slot_s: float, cw: int) -> float:
+    """Upper bound on the share of A's periodic frames that B, which hears A and sends
+    periodic frames too (one per ``period_s``, independent phases), loses under CSMA.
+
+    B loses a frame of A only if both transmit at once, which needs both counting down at
+    the same time: B's frame handed over within ``difs_s + cw slot_s`` of A's (probability
+    at most ``2 (difs_s + cw slot_s) / period_s``; a frame handed over while the other is on
+    the air defers to its end and the other has nothing left to send), and B's backoff
+    ending in A's slot (at most ``1 / (cw + 1)`` of B's uniform draws)."""
+    return min(1.0, 2.0 * (difs_s + cw * slot_s) / period_s / (cw + 1))
 
 
 def run_all() -> list[MacCheck]:

@@ -1,0 +1,33 @@
+"""The medium's signal power: what the radio found for each pair (docs/radio.md, "Shared medium")."""
+
+import numpy as np
+import pytest
+
+from netsim.radio.examples import SIDE_M
+from netsim.radio.maps import load_map
+from netsim.radio.propagation import LogDistanceParams, log_distance
+from netsim.radio.shadowing import PairShadowing
+from netsim.reception import Reception
+from tests.test_radio_fast import _moving_state
+
+
+@pytest.mark.parametrize(("sigma_db", "wall_db", "with_map"), [(6.0, 4.0, True), (6.0, 0.0, False), (0.0, 4.0, True)])
+def test_received_power_is_at_the_sensitivity_exactly_for_the_pairs_the_radio_keeps(sigma_db, wall_db, with_map):
+    """Reception.received_dbm, right after a decision, is the power that decision compared
+    with the sensitivity (path loss + the pair's shadowing + walls): at or above it for the
+    kept receivers, below it for the others."""
+    params = LogDistanceParams(shadowing_sigma_db=sigma_db, sensitivity_dbm=-70.0, wall_loss_db=wall_db)
+    st, t, rng = _moving_state(4, n=120, side=SIDE_M if with_map else 400.0)
+    sh = PairShadowing(sigma_db, 30.0, np.random.default_rng(5), 0.0, n_robots=st.n) if sigma_db > 0 else None
+    rec = Reception(log_distance(params, sh, load_map("office") if with_map else None), st)
+    kept_total = 0
+    for sender in rng.choice(st.n, 40).tolist():
+        ids = np.delete(np.arange(st.n), sender)
+        d = st.displacement(st.positions_at(t, ids), st.positions_at(t, [sender]))
+        dist = np.hypot(d[:, 0], d[:, 1])
+        kept = rec.decide(t, sender, ids, dist)
+        dbm = rec.received_dbm(t, sender, ids, dist)
+        assert np.array_equal(dbm >= params.sensitivity_dbm, kept)
+        kept_total += int(kept.sum())
+        t += 0.25
+    assert kept_total > 0
