@@ -16,10 +16,11 @@ How exact they are (docs/radio.md says the same for users):
   while they move less than ``SAMPLE_M``). With robots at rest nothing is missed.
 - **Shadowing**: a link is random; its state is only defined where the channel looks at it,
   at transmissions (:class:`~netsim.reception.LinkRecorder`). A link is up from the first
-  transmission between the two robots (either way) that gets through to the first that
-  does not; it goes down at the latest when the two leave the radio's reach (solved
-  exactly). So up times are send times, exact as the channel decided them, and a link
-  between robots that never transmit is never seen.
+  transmission between the two robots (either way) that gets through while it is down to
+  the first that does not; it goes down at the latest when the two leave the reach
+  interval it came up in (solved exactly), and the next transmission that gets through
+  after that cut brings it up again. So up times are send times, exact as the channel
+  decided them, and a link between robots that never transmit is never seen.
 
 Censoring follows :func:`netsim.lifetimes.link_lifetimes`: ``censored_start`` for a link up
 at t = 0, ``censored_end`` for one still up at the end.
@@ -97,32 +98,69 @@ def radio_link_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: fl
 
 
 def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float, side_m=None, torus=False):
-    """Decisions of the channel, each interval cut where the pair leaves the reach."""
+    """Decisions of the channel, cut where the pair leaves the reach.
+
+    Each lifetime starts at a decision that brings the link up, or at a touch
+    (:class:`~netsim.reception.LinkRecorder`) on a link the reach has cut, and ends at the
+    first decision that does not get through or where the pair leaves the reach interval
+    (the envelope's) in which the lifetime began, whichever comes first. A start the
+    envelope puts outside the reach (a decision at the range's edge, by rounding) is cut at
+    once (``t_down_s = t_up_s``)."""
     rec = recorder.intervals(duration_s)
     if len(rec) == 0:
         return _frame([], [], [], [], duration_s, [])
+    touches = recorder.touches()
     env = link_lifetimes(legs, np.full(n, reach_m), duration_s, side_m, torus)
     env = env.sort_values("t_up_s", kind="stable")
-    rec = rec.sort_values("t_up_s", kind="stable")
-    # The envelope interval in which each recorded interval began.
+    # Candidate starts: each recorded interval's, then its touches (kept below when the
+    # link was cut before them).
+    raw = rec.set_index("id")
+    ids = np.r_[rec["id"].to_numpy(np.int64), touches["id"].to_numpy(np.int64)]
+    starts = pd.DataFrame(
+        {
+            "a": np.r_[rec["a"].to_numpy(np.int64), touches["a"].to_numpy(np.int64)],
+            "b": np.r_[rec["b"].to_numpy(np.int64), touches["b"].to_numpy(np.int64)],
+            "t_s": np.r_[rec["t_up_s"].to_numpy(float), touches["t_s"].to_numpy(float)],
+            "first": np.r_[np.ones(len(rec), bool), np.zeros(len(touches), bool)],
+            "id": ids,
+            "end": raw.loc[ids, "t_down_s"].to_numpy(float),
+            "open": raw.loc[ids, "open"].to_numpy(bool),
+        }
+    )
+    starts = starts.sort_values("t_s", kind="stable")
+    # The envelope interval in which each start falls.
     m = pd.merge_asof(
-        rec,
+        starts,
         env[["a", "b", "t_up_s", "t_down_s", "censored_end"]].rename(
             columns={"t_up_s": "env_up", "t_down_s": "env_down", "censored_end": "env_open"}
         ),
-        left_on="t_up_s",
+        left_on="t_s",
         right_on="env_up",
         by=["a", "b"],
         direction="backward",
     )
+    t_up = m["t_s"].to_numpy(float)
     env_down = m["env_down"].to_numpy(float)
     has_env = ~np.isnan(env_down)
-    t_down = m["t_down_s"].to_numpy(float)
-    cut = has_env & (env_down < t_down)
-    t_down = np.where(cut, env_down, t_down)
-    open_end = np.where(cut, m["env_open"].fillna(False).to_numpy(bool), m["open"].to_numpy(bool))
-    open_end &= t_down >= duration_s
-    return _frame(m["a"], m["b"], m["t_up_s"], t_down, duration_s, open_end)
+    end = m["end"].to_numpy(float)
+    # Outside the reach by the envelope's account (its last interval is over): cut at once.
+    outside = has_env & (env_down < t_up)
+    cut = has_env & ~outside & (env_down < end)
+    t_down = np.where(outside, t_up, np.where(cut, env_down, end))
+    open_end = np.where(outside, False, np.where(cut, m["env_open"].fillna(False).to_numpy(bool), m["open"]))
+    open_end = open_end.astype(bool) & (t_down >= duration_s)
+    # A touch opens a lifetime only once the reach has cut the previous one of its interval
+    # (a lifetime the decisions end is over when its interval is).
+    reach_end = np.where(outside, t_up, np.where(has_env & (env_down <= end), env_down, np.inf))
+    order = np.lexsort((~m["first"].to_numpy(bool), t_up, m["id"].to_numpy(np.int64)))
+    keep = np.zeros(len(m), bool)
+    first = m["first"].to_numpy(bool)
+    until = np.inf
+    for k in order.tolist():
+        if first[k] or t_up[k] >= until:
+            keep[k] = True
+            until = reach_end[k]
+    return _frame(m["a"][keep], m["b"][keep], t_up[keep], t_down[keep], duration_s, open_end[keep])
 
 
 def _linked(reception, ranges: np.ndarray, equal_ranges: bool, a, b, pa, pb) -> np.ndarray:

@@ -25,43 +25,78 @@ from netsim.radio.propagation import Pairs, Propagation
 from netsim.state import RobotState
 
 
-def _link_changes():
+def _kernels():
     k = compiled_kernels()
-    return None if k is None else k.link_changes
+    return (None, None) if k is None else (k.link_changes, k.link_touches)
 
 
 class LinkRecorder:
     """Links as the channel decides them: up from the first transmission between two robots
     (either way) that gets through, down at the first that does not, or when one of them
-    sends while the other is beyond reach."""
+    sends while the other is beyond reach.
 
-    def __init__(self, n: int):
+    Besides these changes it keeps *touches*: transmissions that get through on a link
+    already up, where the pair may have left the reach since its last decision (one of the
+    two robots started a leg, or jumped, at or after that decision; on a torus, every one).
+    A link is also cut where the pair leaves the reach, which this record does not know; the
+    first transmission to get through after such a cut opens a new lifetime, and it is
+    always a touch: between two decisions with no course change the distance of the pair
+    is convex in time, so a pair within reach at both cannot have left it in between.
+    :func:`netsim.radio_links.recorded_lifetimes` and
+    :class:`netsim.shadowed_links.ShadowedLinks` apply the cut.
+
+    Parameters
+    ----------
+    n : robots.
+    t0_s : each robot's current leg's start (:attr:`~netsim.state.RobotState.t0_s`, kept
+        current by the state); None: unknown, every success on a link up is a touch.
+    torus : distances on a torus (not convex in time: every success on a link up is a touch).
+    """
+
+    def __init__(self, n: int, t0_s: np.ndarray | None = None, torus: bool = False):
         self.n = n
         self.up = np.zeros((n, n), dtype=bool)
-        self._since: dict[tuple[int, int], float] = {}
-        self._rows: list[tuple[int, int, float, float]] = []
+        # Key -> (since when, the raw interval's id).
+        self._since: dict[tuple[int, int], tuple[float, int]] = {}
+        self._rows: list[tuple[int, int, float, float, int]] = []
+        self._opened = 0
+        self._touches: list[tuple[int, int, float, int]] = []
         self._scratch = np.zeros(n, dtype=bool)
         self._changed = np.empty(n, dtype=np.int64)
-        self._kernel = _link_changes()
-        # Called as fn(t, sender, robots, up) with every decision that changes links (lists:
-        # the robots whose link with sender changed, and whether it is now up).
+        self._touched = np.empty(n, dtype=np.int64)
+        self._t0 = t0_s if t0_s is not None else np.full(n, np.inf)
+        self._every = bool(torus)
+        # Each robot's last send (a decision on all its pairs).
+        self._last_t = np.full(n, -np.inf)
+        self._kernel, self._touch_kernel = _kernels()
+        # Called as fn(t, sender, robots, up, touched) with every decision that changes links
+        # or touches one (lists: the robots whose link with sender changed, whether it is now
+        # up, and the robots touched).
         self.listeners: list = []
 
     def observe(self, t: float, sender: int, receivers: np.ndarray, linked: np.ndarray) -> None:
+        touched_n = self._touches_of(sender, receivers, linked)
+        self._last_t[sender] = t
         count = self._changes(sender, receivers, linked)
-        if count == 0:
+        if count == 0 and touched_n == 0:
             return
         changed = self._changed[:count]
         now = ~self.up[sender, changed]
         robots, is_now_up = changed.tolist(), now.tolist()
+        touched = self._touched[:touched_n].tolist()
         for fn in self.listeners:
-            fn(t, sender, robots, is_now_up)
+            fn(t, sender, robots, is_now_up, touched)
+        for r in touched:
+            key = (sender, r) if sender < r else (r, sender)
+            self._touches.append((key[0], key[1], t, self._since[key][1]))
         for r, is_up in zip(robots, is_now_up):
             key = (sender, r) if sender < r else (r, sender)
             if is_up:
-                self._since[key] = t
+                self._since[key] = (t, self._opened)
+                self._opened += 1
             else:
-                self._rows.append((key[0], key[1], self._since.pop(key), t))
+                since, ident = self._since.pop(key)
+                self._rows.append((key[0], key[1], since, t, ident))
         self.up[sender, changed] = now
         self.up[changed, sender] = now
 
@@ -75,12 +110,32 @@ class LinkRecorder:
         self._changed[: len(changed)] = changed
         return len(changed)
 
+    def _touches_of(self, sender: int, receivers: np.ndarray, linked: np.ndarray) -> int:
+        """How many robots this decision touches (ids in ``_touched``, class notes); before
+        ``_last_t[sender]`` is set to now."""
+        if self._touch_kernel is not None:
+            args = (self.up, sender, receivers, linked, self._t0, self._last_t, self._every, self._touched)
+            return int(self._touch_kernel(*args))
+        heard = receivers[linked]
+        heard = heard[self.up[sender, heard]]
+        p = np.maximum(self._last_t[sender], self._last_t[heard])
+        touched = heard[self._every | (self._t0[sender] >= p) | (self._t0[heard] >= p)]
+        self._touched[: len(touched)] = touched
+        return len(touched)
+
     def intervals(self, duration_s: float) -> pd.DataFrame:
-        """``a, b, t_up_s, t_down_s, open`` (still up at the end: ``t_down_s`` = duration)."""
-        rows = self._rows + [(a, b, t, duration_s) for (a, b), t in self._since.items()]
-        df = pd.DataFrame(rows, columns=["a", "b", "t_up_s", "t_down_s"])
+        """``a, b, t_up_s, t_down_s, open, id`` (still up at the end: ``t_down_s`` =
+        duration): the changes' intervals, before any cut at the reach."""
+        rows = self._rows + [(a, b, t, duration_s, i) for (a, b), (t, i) in self._since.items()]
+        df = pd.DataFrame(rows, columns=["a", "b", "t_up_s", "t_down_s", "id"])
         df["open"] = np.r_[np.zeros(len(self._rows), bool), np.ones(len(self._since), bool)]
-        return df.astype({"a": np.int64, "b": np.int64, "t_up_s": float, "t_down_s": float})
+        types = {"a": np.int64, "b": np.int64, "t_up_s": float, "t_down_s": float, "id": np.int64}
+        return df[["a", "b", "t_up_s", "t_down_s", "open", "id"]].astype(types)
+
+    def touches(self) -> pd.DataFrame:
+        """``a, b, t_s, id``: the touches (class notes), ``id`` the interval they fell in."""
+        df = pd.DataFrame(self._touches, columns=["a", "b", "t_s", "id"])
+        return df.astype({"a": np.int64, "b": np.int64, "t_s": float, "id": np.int64})
 
 
 class Reception:
@@ -93,7 +148,7 @@ class Reception:
         self.reach_m = float(propagation.reach_m)
         self.map = self.compiled.occupancy
         self.shadowing = self.compiled.shadow
-        self.recorder = LinkRecorder(state.n) if record else None
+        self.recorder = LinkRecorder(state.n, state.t0_s, state.torus) if record else None
         # Every robot's speed, kept as legs change: the shadowing's clock is the pairs' travel.
         self.speed_mps = np.abs(state.velocity_c)
         if self.shadowing is not None:

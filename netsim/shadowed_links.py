@@ -4,13 +4,16 @@ leaves the reach.
 Under shadowing a link is random and its state exists only where the channel looks at it,
 at transmissions; ``links.parquet`` is the record of the channel's decisions
 (:func:`netsim.radio_links.recorded_lifetimes`, docs/radio.md "Link events"): a link is up
-from the first transmission between the two robots (either way) that gets through, down at
-the first that does not (or when one of them sends while the other is beyond the reach),
-and at the latest at the exact instant the pair leaves the reach of the interval in which
-it came up.
+from the first transmission between the two robots (either way) that gets through while it
+is down, down at the first that does not (or when one of them sends while the other is
+beyond the reach), and at the latest at the exact instant the pair leaves the reach
+interval in which it came up; after that cut it is down, and the next transmission that
+gets through (a *touch* of the recorder, :class:`~netsim.reception.LinkRecorder`) brings
+it up again.
 
 Both ends of that rule can be known as they happen. A decision is made at its send time,
-by :class:`~netsim.reception.LinkRecorder`, which tells :meth:`ShadowedLinks._decided`;
+by :class:`~netsim.reception.LinkRecorder`, which tells :meth:`ShadowedLinks._decided`
+its changes and touches;
 the reach's exits are the link events of a unit disk of the reach, solved during the run
 by a :class:`~netsim.kinetic.RuntimeLinks` of its own (the *envelope*, announced to nobody
 but this class) with the same arithmetic as the post-hoc solver. So ``link_up`` is
@@ -88,25 +91,33 @@ class ShadowedLinks:
             for fn in self._on_down:
                 fn(event)
 
-    def _decided(self, t: float, sender: int, robots: list[int], now_up: list[bool]) -> None:
-        n, up, inside = self.n, self.up, self.envelope.up
+    def _decided(self, t: float, sender: int, robots: list[int], now_up: list[bool], touched: list[int]) -> None:
+        n, up = self.n, self.up
         for r, is_up in zip(robots, now_up):
             key = sender * n + r if sender < r else r * n + sender
             if is_up:
-                a, b = divmod(key, n)
-                if self._on_up:
-                    event = LinkUp(t, a, b)
-                    for fn in self._on_up:
-                        fn(event)
-                since = inside.get(key)
-                if since is None and key in self._left:
-                    # Up after the pair left the reach (by rounding, at that very instant):
-                    # cut at once at the exit, as the record is (radio_links.recorded_lifetimes).
-                    self._end(key, t, self._left[key])
-                else:
-                    up[key] = (t, since)
+                self._open(key, t)
             elif key in up:
                 self._end(key, up.pop(key)[0], t)
+        # A touch on a link the reach has cut: the first success since, a new lifetime.
+        for r in touched:
+            key = sender * n + r if sender < r else r * n + sender
+            if key not in up:
+                self._open(key, t)
+
+    def _open(self, key: int, t: float) -> None:
+        if self._on_up:
+            a, b = divmod(key, self.n)
+            event = LinkUp(t, a, b)
+            for fn in self._on_up:
+                fn(event)
+        since = self.envelope.up.get(key)
+        if since is None and key in self._left:
+            # Up while the pair is beyond the reach by the envelope's account (by rounding, at
+            # the range's edge): cut at once, as the record is (radio_links.recorded_lifetimes).
+            self._end(key, t, t)
+        else:
+            self.up[key] = (t, since)
 
     def _entered_reach(self, event: LinkUp) -> None:
         # The reach's state at t = 0 is set after everything else due then (the envelope

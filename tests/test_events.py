@@ -769,3 +769,188 @@ def test_a_hook_on_link_events_is_refused_on_a_map():
     config = load(None, ["world.n_robots=10", "duration_s=10", *WALLS, 'events.hooks=["link_breaks"]'])
     with pytest.raises(ConfigError, match=r"events\.hooks.*solved after the run only"):
         execute(config)
+
+
+def _shadowed_pair_run(runtime_links):
+    """Two robots 40 m apart under shadowing (reach 631 m); robot 1 runs out to 640 m and
+    back between t = 2 and 3.2 while nobody sends; 0 sends at t = 1 and 4, 1 at t = 5."""
+    config = make_config(
+        seed=3,
+        duration_s=6.0,
+        world={"n_robots": 2, "side_m": 5000.0},
+        mobility={"model": "static"},
+        channel={"propagation": "log_distance", "shadowing_sigma_db": 6.0},
+        protocol={"model": "none"},
+        events={"runtime_links": runtime_links},
+        output={"position_interval_s": 0.0},
+    )
+    sim = simulation(config)
+    sim.state.place([[1000.0, 1000.0], [1040.0, 1000.0]])
+    _scripted(sim, [(2.0, 1, (1000.0, 0.0), None), (2.6, 1, (-1000.0, 0.0), None), (3.2, 1, (0.0, 0.0), None)])
+    got = []
+
+    def sends():
+        for t, sender in ((1.0, 0), (4.0, 0), (5.0, 1)):
+            yield sim.env.timeout(t - sim.env.now)
+            sim.channel.broadcast(sender, None, lambda s, rr, p: got.append((sim.env.now, s, rr.tolist())))
+
+    sim.env.process(sends())
+    return sim, got
+
+
+@pytest.mark.parametrize("runtime_links", ["on", "off"])
+def test_a_shadowed_link_cut_at_the_reach_comes_back_at_the_next_transmission_that_gets_through(runtime_links):
+    """After the reach cuts a link the pair counts as down: the next transmission between
+    the two that gets through opens a new lifetime (and announces link_up), though no
+    transmission failed in between, at run time and after the run alike."""
+    sim, got = _shadowed_pair_run(runtime_links)
+    ups, downs = [], []
+    if runtime_links == "on":
+        sim.events.on("link_up", ups.append)
+        sim.events.on("link_down", downs.append)
+    sim.run()
+    assert (sim.links is not None) == (runtime_links == "on")
+    assert [(s, rr) for _, s, rr in got] == [(0, [1]), (0, [1]), (1, [0])]  # all delivered
+    frames = collect(sim)
+    links = frames["links"]
+    exit_s = 2.0 + (sim.channel.reception.reach_m - 40.0) / 1000.0
+    assert links["t_up_s"].tolist() == [1.0, 4.0]
+    assert links["t_down_s"].tolist() == [pytest.approx(exit_s), 6.0]
+    assert links["censored_end"].tolist() == [False, True]
+    st = sim.state
+    posthoc = radio_link_lifetimes(sim.channel.reception, frames["legs"], st.range_m, 6.0, st.side_m)
+    _assert_same_links(links, posthoc)
+    if runtime_links == "on":
+        assert [e.t_s for e in ups] == [1.0, 4.0]
+        assert [e.t_s for e in downs] == [links["t_down_s"][0]]
+
+
+def test_a_shadowed_link_up_beyond_the_reach_by_rounding_is_cut_at_once():
+    """A decision that gets through while the envelope has the pair beyond the reach (the
+    range's edge, by rounding) is cut at once, keyed to the envelope's current interval: its
+    lifetime ends where it begins, never at an earlier exit."""
+    sim, _ = _shadowed_pair_run("on")
+    recorder = sim.channel.reception.recorder
+
+    def fake():  # robot 1 is 640 m away at t = 2.6, beyond the reach: a forged success
+        yield sim.env.timeout(2.6)
+        recorder.observe(sim.env.now, 0, np.array([1]), np.array([True]))
+
+    sim.env.process(fake())
+    sim.run()
+    frames = collect(sim)
+    links = frames["links"]
+    assert (links["t_up_s"] <= links["t_down_s"]).all()
+    assert links["t_up_s"].tolist() == [1.0, 2.6, 4.0]
+    assert links["t_down_s"].tolist()[1] == 2.6
+    st = sim.state
+    _assert_same_links(links, radio_link_lifetimes(sim.channel.reception, frames["legs"], st.range_m, 6.0, st.side_m))
+
+
+def _rule_lifetimes(decisions, env: pd.DataFrame, n: int, duration_s: float) -> set:
+    """links.parquet's rule under shadowing from every decision, by brute force: a link is up
+    from a decision that gets through while it is down, to the first that does not or the
+    exit of the reach interval it came up in (an exit before the decisions at its instant);
+    beyond the reach by the envelope's account, it is cut at once."""
+    spans: dict = {}
+    for a, b, u, d in zip(env["a"], env["b"], env["t_up_s"], env["t_down_s"]):
+        spans.setdefault((a, b), []).append((u, d))
+    current: dict = {}  # pair -> (since, cut at)
+    rows = set()
+    for t, sender, receivers, linked in decisions:
+        heard = set(receivers[linked].tolist())
+        for r in range(n):
+            if r == sender:
+                continue
+            key = (min(sender, r), max(sender, r))
+            mine = current.get(key)
+            if mine is not None and mine[1] <= t:
+                rows.add((*key, mine[0], mine[1]))
+                del current[key]
+                mine = None
+            if r in heard and mine is None:
+                before = [s for s in spans.get(key, []) if s[0] <= t]
+                cut = np.inf if not before else max(before[-1][1], t)
+                if cut == t:
+                    rows.add((*key, t, t))
+                else:
+                    current[key] = (t, cut)
+            elif r not in heard and mine is not None:
+                rows.add((*key, mine[0], t))
+                del current[key]
+    for key, (since, cut) in current.items():
+        rows.add((*key, since, min(cut, duration_s)))
+    return rows
+
+
+def _random_shadowed_run(seed: int, torus: bool):
+    """Robots in a cluster under shadowing (reach 631 m) making random excursions beyond the
+    reach and back, sending at random instants: links cut at the reach and coming back."""
+    rng = np.random.default_rng(seed)
+    n, duration_s, side_m = 6, 20.0, 2000.0
+    config = make_config(
+        seed=seed,
+        duration_s=duration_s,
+        world={"n_robots": n, "side_m": side_m, "torus": torus},
+        mobility={"model": "static"},
+        channel={"propagation": "log_distance", "shadowing_sigma_db": 6.0},
+        protocol={"model": "none"},
+        events={"runtime_links": "on"},
+        output={"position_interval_s": 0.0},
+    )
+    sim = simulation(config)
+    sim.state.place(1000.0 + rng.uniform(-100.0, 100.0, (n, 2)))
+    moves = []
+    for r in range(n):
+        t = rng.uniform(0.0, 3.0)
+        while t < duration_s - 2.0:
+            heading = rng.uniform(0.0, 2.0 * np.pi)
+            speed, out_s = rng.uniform(300.0, 800.0), rng.uniform(0.5, 1.5)
+            v = speed * np.array([np.cos(heading), np.sin(heading)])
+            moves += [(t, r, tuple(v), None), (t + out_s, r, tuple(-v), None), (t + 2.0 * out_s, r, (0.0, 0.0), None)]
+            t += 2.0 * out_s + rng.uniform(0.2, 3.0)
+    moves.sort(key=lambda m: m[0])
+    _scripted(sim, moves)
+    sends = sorted(zip(rng.uniform(0.0, duration_s, 8 * n).tolist(), rng.integers(0, n, 8 * n).tolist()))
+
+    def send():
+        for t, sender in sends:
+            yield sim.env.timeout(t - sim.env.now)
+            sim.channel.broadcast(sender, None, lambda *_: None)
+
+    sim.env.process(send())
+    decisions = []
+    recorder = sim.channel.reception.recorder
+    observe = recorder.observe
+
+    def logged(t, sender, receivers, linked):
+        decisions.append((t, sender, receivers.copy(), linked.copy()))
+        observe(t, sender, receivers, linked)
+
+    recorder.observe = logged
+    return sim, decisions
+
+
+@pytest.mark.parametrize("torus", [False, True], ids=["plane", "torus"])
+def test_shadowed_links_follow_the_rule_at_run_time_and_after_on_random_excursions(torus):
+    """On random runs whose links leave the reach and come back between transmissions: every
+    lifetime has t_up_s <= t_down_s, the run-time table equals the post-hoc one bit for bit,
+    and both equal the rule applied by brute force to every decision the channel made."""
+    reopened = 0
+    for seed in range(6):
+        sim, decisions = _random_shadowed_run(seed, torus)
+        sim.run()
+        frames = collect(sim)
+        st, reception = sim.state, sim.channel.reception
+        links = frames["links"]
+        assert (links["t_up_s"] <= links["t_down_s"]).all()
+        posthoc = radio_link_lifetimes(reception, frames["legs"], st.range_m, 20.0, st.side_m, st.torus)
+        _assert_same_links(links, posthoc)
+        env = link_lifetimes(frames["legs"], np.full(st.n, reception.reach_m), 20.0, st.side_m, st.torus)
+        rule = _rule_lifetimes(decisions, env, st.n, 20.0)
+        assert set(zip(links["a"], links["b"], links["t_up_s"], links["t_down_s"])) == rule
+        assert len(rule) == len(links)
+        decided = reception.recorder.intervals(20.0)
+        opened = links.merge(decided[["a", "b", "t_up_s"]], how="left", indicator=True)
+        reopened += int((opened["_merge"] == "left_only").sum())
+    assert reopened >= 5  # lifetimes opened after a cut at the reach, not by a change of decision

@@ -187,11 +187,13 @@ def test_link_changes_kernel_equals_numpy():
 
     rng = np.random.default_rng(8)
     n = 40
-    compiled, plain = LinkRecorder(n), LinkRecorder(n)
-    plain._kernel = None
-    assert compiled._kernel is not None
+    t0 = np.zeros(n)  # legs' starts: some touches, not all
+    compiled, plain = LinkRecorder(n, t0), LinkRecorder(n, t0)
+    plain._kernel = plain._touch_kernel = None
+    assert compiled._kernel is not None and compiled._touch_kernel is not None
     t = 0.0
     for _ in range(400):
+        t0[rng.random(n) < 0.05] = t
         s = int(rng.integers(n))
         rec = np.sort(rng.choice(np.delete(np.arange(n), s), int(rng.integers(0, n - 1)), replace=False))
         linked = rng.random(len(rec)) < 0.6
@@ -202,3 +204,5 @@ def test_link_changes_kernel_equals_numpy():
     a, b = compiled.intervals(t), plain.intervals(t)
     assert len(a) > 100
     assert a.equals(b)
+    touches = compiled.touches()
+    assert 20 < len(touches) and touches.equals(plain.touches())

@@ -242,6 +242,28 @@ def link_changes(up, sender, receivers, linked, scratch, changed):
 
 
 @numba.njit(cache=True, nogil=True)
+def link_touches(up, sender, receivers, linked, t0, last_t, every, touched):
+    """Robots heard by ``sender`` whose link with it is already up and that may have left
+    the reach since the pair's last decision: one of the two started a leg (or jumped) at or
+    after it (``t0``; the last decision is the later of the two robots' last sends,
+    ``last_t``), or ``every``. Written to ``touched``; returns how many."""
+    count = 0
+    own_t0 = t0[sender]
+    own_last = last_t[sender]
+    for m in range(receivers.shape[0]):
+        if not linked[m]:
+            continue
+        r = receivers[m]
+        if not up[sender, r]:
+            continue
+        p = max(own_last, last_t[r])
+        if every or own_t0 >= p or t0[r] >= p:
+            touched[count] = r
+            count += 1
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
 def grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy, res, g0, g1):
     """Grid coordinates of the sender (every row of ``g0``) and of each receiver (``g1``) at
     ``t``: the positions of :meth:`~netsim.state.RobotState.positions_at` (plane), the same
