@@ -239,7 +239,7 @@ class Channel:
     def _hears(self, sender: int, dest: int, dist: np.ndarray) -> bool:
         if dest == sender or dist[0] > self.reception.reach_m:
             return False
-        return bool(self.reception.decide(self.env.now, sender, np.array([dest]), dist)[0])
+        return bool(self.reception.decide(self.env.now, sender, np.array([dest]), dist, every_pair=False)[0])
 
     def _bin(self, kind: str) -> _Bin | None:
         """``kind``'s bin of now, with one more transmission sent (None: not binned)."""

@@ -10,8 +10,8 @@ stream ``channel.shadowing``.
 Under shadowing a link has no solvable up and down times (see docs/radio.md): the links
 table is then the record of these decisions (:class:`LinkRecorder`): every decision is
 symmetric (path loss, shadowing and walls are the same both ways, and every robot sends
-with the same power), so each transmission tells the state of the sender's link with each
-robot within reach.
+with the same power), so each broadcast tells the state of the sender's link with each
+robot within reach, and a unicast that of its own pair alone.
 """
 
 from __future__ import annotations
@@ -100,6 +100,31 @@ class LinkRecorder:
         self.up[sender, changed] = now
         self.up[changed, sender] = now
 
+    def observe_pair(self, t: float, sender: int, dest: int, linked: bool) -> None:
+        """A decision on one pair alone (a unicast): it tells nothing of ``sender``'s other
+        pairs, so only this link may change, and ``sender``'s last decision on all its pairs
+        stays where it was (a touch is then judged from that earlier instant: a touch too
+        many is harmless, it only matters after a cut at the reach)."""
+        up = bool(self.up[sender, dest])
+        p = max(self._last_t[sender], self._last_t[dest])
+        touched = [dest] if linked and up and (self._every or max(self._t0[sender], self._t0[dest]) >= p) else []
+        changed = [dest] if linked != up else []
+        if not changed and not touched:
+            return
+        for fn in self.listeners:
+            fn(t, sender, changed, [linked] * len(changed), touched)
+        key = (sender, dest) if sender < dest else (dest, sender)
+        if touched:
+            self._touches.append((key[0], key[1], t, self._since[key][1]))
+        if changed:
+            if linked:
+                self._since[key] = (t, self._opened)
+                self._opened += 1
+            else:
+                since, ident = self._since.pop(key)
+                self._rows.append((key[0], key[1], since, t, ident))
+            self.up[sender, dest] = self.up[dest, sender] = linked
+
     def _changes(self, sender: int, receivers: np.ndarray, linked: np.ndarray) -> int:
         """How many robots' links with ``sender`` this decision changes (ids in ``_changed``)."""
         if self._kernel is not None:
@@ -158,11 +183,20 @@ class Reception:
         # A one-item slice: numpy's array abs, the one state.travelled_m uses.
         self.speed_mps[robot] = np.abs(self.state.velocity_c[robot : robot + 1])[0]
 
-    def decide(self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
-        """Mask of ``receivers`` (at ``distances_m`` from ``sender``) that hear ``sender`` at ``t``."""
+    def decide(
+        self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, every_pair: bool = True
+    ) -> np.ndarray:
+        """Mask of ``receivers`` (at ``distances_m`` from ``sender``) that hear ``sender`` at
+        ``t``. ``every_pair``: ``receivers`` are all the robots within reach (a broadcast),
+        so the decision tells the state of every link of ``sender``; False: of these pairs
+        alone (a unicast's destination)."""
         linked = self.compiled.transmission(self.state, t, sender, receivers, distances_m, self.speed_mps)
         if self.recorder is not None:
-            self.recorder.observe(t, sender, receivers, linked)
+            if every_pair:
+                self.recorder.observe(t, sender, receivers, linked)
+            else:
+                for r, ok in zip(receivers.tolist(), linked.tolist()):
+                    self.recorder.observe_pair(t, sender, r, bool(ok))
         return linked
 
     def received_dbm(self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:

@@ -954,3 +954,38 @@ def test_shadowed_links_follow_the_rule_at_run_time_and_after_on_random_excursio
         opened = links.merge(decided[["a", "b", "t_up_s"]], how="left", indicator=True)
         reopened += int((opened["_merge"] == "left_only").sum())
     assert reopened >= 5  # lifetimes opened after a cut at the reach, not by a change of decision
+
+
+@pytest.mark.parametrize("runtime_links", ["on", "off"])
+def test_a_unicast_under_shadowing_decides_its_own_link_alone(runtime_links):
+    """A unicast's decision covers the sender's link with its destination only: robot 0's
+    unicast to 1 leaves its link with 2 up (a broadcast, which decides every pair within
+    reach, would have taken it down had 2 not heard it)."""
+    config = make_config(
+        seed=3,
+        duration_s=4.0,
+        world={"n_robots": 3, "side_m": 5000.0},
+        mobility={"model": "static"},
+        channel={"propagation": "log_distance", "shadowing_sigma_db": 6.0},
+        protocol={"model": "none"},
+        events={"runtime_links": runtime_links},
+        output={"position_interval_s": 0.0},
+    )
+    sim = simulation(config)
+    sim.state.place([[1000.0, 1000.0], [1001.0, 1000.0], [1000.0, 1001.0]])
+    got = []
+
+    def sends():
+        yield sim.env.timeout(1.0)
+        sim.channel.broadcast(0, None, lambda s, rr, p: got.append(rr.tolist()))
+        yield sim.env.timeout(1.0)
+        assert sim.channel.unicast(0, 1, None, lambda s, rr, p: got.append(rr.tolist()))
+        yield sim.env.timeout(1.0)
+        sim.channel.broadcast(0, None, lambda s, rr, p: got.append(rr.tolist()))
+
+    sim.env.process(sends())
+    sim.run()
+    assert got == [[1, 2], [1], [1, 2]]
+    links = collect(sim)["links"]
+    rows = sorted(zip(links["a"], links["b"], links["t_up_s"], links["t_down_s"]))
+    assert rows == [(0, 1, 1.0, 4.0), (0, 2, 1.0, 4.0)]
