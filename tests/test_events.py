@@ -771,13 +771,13 @@ def test_a_hook_on_link_events_is_refused_on_a_map():
         execute(config)
 
 
-def _shadowed_pair_run(runtime_links):
-    """Two robots 40 m apart under shadowing (reach 631 m); robot 1 runs out to 640 m and
-    back between t = 2 and 3.2 while nobody sends; 0 sends at t = 1 and 4, 1 at t = 5."""
+def _shadowed_static_run(runtime_links, duration_s, positions):
+    """Robots at rest at ``positions`` on a 5 km square, shadowing at 6 dB (reach 631 m), no
+    protocol: the sends are the test's."""
     config = make_config(
         seed=3,
-        duration_s=6.0,
-        world={"n_robots": 2, "side_m": 5000.0},
+        duration_s=duration_s,
+        world={"n_robots": len(positions), "side_m": 5000.0},
         mobility={"model": "static"},
         channel={"propagation": "log_distance", "shadowing_sigma_db": 6.0},
         protocol={"model": "none"},
@@ -785,7 +785,14 @@ def _shadowed_pair_run(runtime_links):
         output={"position_interval_s": 0.0},
     )
     sim = simulation(config)
-    sim.state.place([[1000.0, 1000.0], [1040.0, 1000.0]])
+    sim.state.place(positions)
+    return sim
+
+
+def _shadowed_pair_run(runtime_links):
+    """Two robots 40 m apart under shadowing (reach 631 m); robot 1 runs out to 640 m and
+    back between t = 2 and 3.2 while nobody sends; 0 sends at t = 1 and 4, 1 at t = 5."""
+    sim = _shadowed_static_run(runtime_links, 6.0, [[1000.0, 1000.0], [1040.0, 1000.0]])
     _scripted(sim, [(2.0, 1, (1000.0, 0.0), None), (2.6, 1, (-1000.0, 0.0), None), (3.2, 1, (0.0, 0.0), None)])
     got = []
 
@@ -961,18 +968,7 @@ def test_a_unicast_under_shadowing_decides_its_own_link_alone(runtime_links):
     """A unicast's decision covers the sender's link with its destination only: robot 0's
     unicast to 1 leaves its link with 2 up (a broadcast, which decides every pair within
     reach, would have taken it down had 2 not heard it)."""
-    config = make_config(
-        seed=3,
-        duration_s=4.0,
-        world={"n_robots": 3, "side_m": 5000.0},
-        mobility={"model": "static"},
-        channel={"propagation": "log_distance", "shadowing_sigma_db": 6.0},
-        protocol={"model": "none"},
-        events={"runtime_links": runtime_links},
-        output={"position_interval_s": 0.0},
-    )
-    sim = simulation(config)
-    sim.state.place([[1000.0, 1000.0], [1001.0, 1000.0], [1000.0, 1001.0]])
+    sim = _shadowed_static_run(runtime_links, 4.0, [[1000.0, 1000.0], [1001.0, 1000.0], [1000.0, 1001.0]])
     got = []
 
     def sends():
