@@ -31,6 +31,7 @@ interference range of the sender.
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections import deque
 from typing import Any
@@ -173,6 +174,9 @@ class Medium:
         self.backoff = np.full(n, -1, dtype=np.int64)
         self.count_from = np.full(n, math.inf)
         self.tx_at = np.full(n, math.inf)
+        # (transmit instant, robot) for every finite instant set, stale ones left in place
+        # (valid while tx_at still holds it): the earliest without an O(N) scan per wake-up.
+        self._due: list[tuple[float, int]] = []
         self.cw = np.full(n, self.cw_min, dtype=np.int64)
         self.retries = np.zeros(n, dtype=np.int64)
         self._wake_token = 0
@@ -229,7 +233,9 @@ class Medium:
         if self.cover[i] == 0 and not self.transmitting[i]:
             self.count_from[i] = self.env.now + self.difs_s
             self.tx_at[i] = self.count_from[i] + self.backoff[i] * self.slot_s
-            self._wake(float(self.tx_at[i]))
+            at = float(self.tx_at[i])
+            heapq.heappush(self._due, (at, i))
+            self._wake(at)
 
     def _wake(self, first: float | None = None) -> None:
         """One kernel event, at the earliest transmit instant of all robots.
@@ -238,7 +244,10 @@ class Medium:
         only moves instants later (the event then finds nobody due and looks again), so a
         change that moves instants earlier need only compare its own (``first``) with it."""
         if first is None:
-            first = float(self.tx_at.min()) if len(self.tx_at) else math.inf
+            due, tx_at = self._due, self.tx_at
+            while due and tx_at[due[0][1]] != due[0][0]:
+                heapq.heappop(due)
+            first = due[0][0] if due else math.inf
         if first < self._wake_at:
             self._wake_at = first
             self._wake_token += 1
@@ -250,7 +259,12 @@ class Medium:
             return  # superseded by an earlier instant
         self._wake_at = math.inf
         now = self.env.now
-        for i in np.flatnonzero(self.tx_at <= now + _EPS_S).tolist():
+        due, tx_at, ready = self._due, self.tx_at, set()
+        while due and due[0][0] <= now + _EPS_S:
+            at, i = heapq.heappop(due)
+            if tx_at[i] == at:
+                ready.add(i)
+        for i in sorted(ready):  # in robot order, as a scan of tx_at would find them
             self._start(i)
         self._wake()
 
@@ -396,6 +410,8 @@ class Medium:
         if len(resume):
             self.count_from[resume] = now + self.difs_s
             self.tx_at[resume] = self.count_from[resume] + self.backoff[resume] * self.slot_s
+            for r, at in zip(resume.tolist(), self.tx_at[resume].tolist()):
+                heapq.heappush(self._due, (at, r))
             self._wake(float(self.tx_at[resume].min()))
 
     def _notify(self, sender: int, got: np.ndarray, payload, deliver, kind: str, c, binned) -> None:
