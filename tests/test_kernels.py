@@ -129,3 +129,65 @@ def test_compiled_sort_receivers_equals_numpy(symmetric):
         assert [x.tolist() for x in a] == [x.tolist() for x in b]
         found += [len(x) > 0 for x in a]
     assert found.min() > 20
+
+
+def test_compiled_frame_end_equals_numpy():
+    """A frame's end under the unit disk (netsim/radio/_mac_kernels.py) leaves the medium's
+    arrays and finds the same half-duplex and collision losses and the same robots newly
+    idle, with the same busy times, as the numpy code of Medium._end."""
+    from netsim.radio import _mac_kernels
+
+    rng = np.random.default_rng(5)
+    n = 60
+    for _ in range(200):
+        cover = rng.integers(1, 3, n)
+        transmitting = rng.random(n) < 0.1
+        tx_seq, cover_seq = rng.integers(0, 12, n), rng.integers(0, 12, n)
+        busy_s, busy_since = rng.random(n), rng.random(n)
+        i = int(rng.integers(n))
+        transmitting[i] = True
+        others = np.delete(np.arange(n), i)
+        disturbed = np.sort(rng.choice(others, int(rng.integers(0, 20)), replace=False))
+        rx = np.sort(rng.choice(disturbed, int(rng.integers(0, len(disturbed) + 1)), replace=False))
+        hd_start, col_start = rng.random(len(rx)) < 0.2, rng.random(len(rx)) < 0.2
+        seq, now = 6, 1.0 + rng.random()
+        # numpy, as in Medium._end
+        c1, t1, b1 = cover.copy(), transmitting.copy(), busy_s.copy()
+        c1[disturbed] -= 1
+        t1[i] = False
+        hd1 = hd_start | (tx_seq[rx] > seq)
+        col1 = ~hd1 & (col_start | (cover_seq[rx] != seq))
+        cand = np.append(disturbed, i)
+        newly1 = cand[(c1[cand] == 0) & ~t1[cand]]
+        b1[newly1] += now - busy_since[newly1]
+        # compiled
+        c2, t2, b2 = cover.copy(), transmitting.copy(), busy_s.copy()
+        hd2, col2, newly2 = np.empty(n, bool), np.empty(n, bool), np.empty(n + 1, np.int64)
+        frame = (disturbed, i, rx, hd_start, col_start, seq, now)
+        m = _mac_kernels.end_unit_disk(c2, t2, tx_seq, cover_seq, b2, busy_since, *frame, hd2, col2, newly2)
+        assert (c1 == c2).all() and (t1 == t2).all() and (b1 == b2).all()
+        assert (hd1 == hd2[: len(rx)]).all() and (col1 == col2[: len(rx)]).all()
+        assert newly1.tolist() == newly2[:m].tolist()
+
+
+def test_medium_runs_equal_with_and_without_compiled_loops(monkeypatch):
+    """A run on a CSMA medium under the unit disk gives the same tables with the compiled
+    frame end as with the numpy code."""
+    from netsim.run import execute
+    from tests.fixtures import make_config
+
+    cfg = make_config(
+        seed=2,
+        duration_s=20.0,
+        world={"n_robots": 40, "side_m": 300.0},
+        channel={"range_m": 80.0, "mac": "csma"},
+        protocol={"ack_period_s": 0.05, "ack_jitter_s": 0.01, "tau_s": 0.5},
+        output={"position_interval_s": 0.0},
+    )
+    frames = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv("NETSIM_COMPILED", flag)
+        frames[flag] = execute(cfg).frames
+    assert frames["1"]["medium"]["dropped_collision"].sum() > 100
+    for name in frames["0"]:
+        assert frames["0"][name].equals(frames["1"][name]), name

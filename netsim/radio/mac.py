@@ -41,6 +41,7 @@ import pandas as pd
 import simpy
 
 from netsim.channel import DROP_CAUSES, Channel, SendTimeBins
+from netsim.compiled import load
 from netsim.events import URGENT, scheduled_event
 
 # Causes a medium adds: per reception (collision, half_duplex), per frame at its sender's row
@@ -174,6 +175,10 @@ class Medium:
         self.backoff = np.full(n, -1, dtype=np.int64)
         self.count_from = np.full(n, math.inf)
         self.tx_at = np.full(n, math.inf)
+        # A frame's end under the unit disk as one compiled call (numpy below for small runs).
+        self._kernels = load("netsim.radio._mac_kernels", n) if self.power is None else None
+        self._hd, self._col = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        self._newly = np.empty(n + 1, dtype=np.int64)
         # (transmit instant, robot) for every finite instant set, stale ones left in place
         # (valid while tx_at still holds it): the earliest without an O(N) scan per wake-up.
         self._due: list[tuple[float, int]] = []
@@ -358,19 +363,27 @@ class Medium:
         now = self.env.now
         i, seq = frame.sender, frame.seq
         disturbed = frame.interferers
-        self.cover[disturbed] -= 1
-        self.transmitting[i] = False
         rx = frame.receivers
-        hd = frame.hd_start | (self.tx_seq[rx] > seq)
-        if self.power is not None:
-            del self.on_air[seq]
-            self.load_mw[disturbed] -= frame.power_mw
-            quiet = disturbed[self.cover[disturbed] == 0]
-            self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
-            interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
-            col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
+        newly = None
+        if self._kernels is not None:
+            args = (self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
+            m = self._kernels.end_unit_disk(
+                *args, disturbed, i, rx, frame.hd_start, frame.col_start, seq, now, self._hd, self._col, self._newly
+            )
+            hd, col, newly = self._hd[: len(rx)], self._col[: len(rx)], self._newly[:m].copy()
         else:
-            col = ~hd & (frame.col_start | (self.cover_seq[rx] != seq))
+            self.cover[disturbed] -= 1
+            self.transmitting[i] = False
+            hd = frame.hd_start | (self.tx_seq[rx] > seq)
+            if self.power is not None:
+                del self.on_air[seq]
+                self.load_mw[disturbed] -= frame.power_mw
+                quiet = disturbed[self.cover[disturbed] == 0]
+                self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
+                interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
+                col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
+            else:
+                col = ~hd & (frame.col_start | (self.cover_seq[rx] != seq))
         ok = ~(hd | col)
         c, binned = frame.counters, frame.binned
         for cause, lost in (("half_duplex", hd), ("collision", col)):
@@ -382,11 +395,12 @@ class Medium:
                 self.channel._dropped(frame.kind, i, rx[lost], cause)
                 self._lost(frame.kind, frame.payload, cause, int(lost.sum()))
         got = rx[ok]
-        # Who senses the medium idle again.
-        cand = np.append(disturbed, i)
-        idle = (self.cover[cand] == 0) & ~self.transmitting[cand]
-        newly = cand[idle]
-        self.busy_s[newly] += now - self.busy_since[newly]
+        if newly is None:
+            # Who senses the medium idle again.
+            cand = np.append(disturbed, i)
+            idle = (self.cover[cand] == 0) & ~self.transmitting[cand]
+            newly = cand[idle]
+            self.busy_s[newly] += now - self.busy_since[newly]
         q = self.queue[i]
         retry = self.csma and frame.dest >= 0 and not len(got) and self.retries[i] < self.retry_limit
         if retry:
