@@ -151,11 +151,15 @@ class _Arrival:
 
     def __call__(self, _event: simpy.Event) -> None:
         receivers = self.receivers
-        self.counters.received[receivers] += 1
+        ch = self.channel
+        k = ch.kernels
+        if k is not None:
+            k.count_each(self.counters.received, receivers)
+        else:
+            self.counters.received[receivers] += 1
         binned = self.binned
         if binned is not None:
             binned.bins.counts[binned.k, SendTimeBins.RECEIVED] += len(receivers)
-        ch = self.channel
         ev = ch.events
         if ev is not None and ev.wants("delivery"):
             ev.emit("delivery", Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload))
@@ -179,6 +183,8 @@ class Channel:
         # The radio (netsim.reception.Reception), None for the plain unit disk.
         self.reception = reception
         self.index = RangeIndex(state, reach_m=None if reception is None else reception.reach_m)
+        # The compiled loops (netsim._kernels) when the run uses them, else None.
+        self.kernels = self.index.kernels
         self.survives = survives
         self.latency_s = float(latency_s)
         self.latency_jitter_s = float(latency_jitter_s)
@@ -332,8 +338,10 @@ class Channel:
         self, sender: int, receivers: np.ndarray, dist: np.ndarray, c: Counters, kind: str, binned: _Bin | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """The receivers (and distances) alive and spared by the loss model; the others counted."""
-        alive = self.state.alive[receivers]
-        if not alive.all():
+        k = self.kernels
+        if k is not None and k.all_set(self.state.alive, receivers):
+            pass  # everyone alive: the common case, checked without a temporary array
+        elif not (alive := self.state.alive[receivers]).all():
             np.add.at(c.dropped[1], receivers[~alive], 1)
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
