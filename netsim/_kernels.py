@@ -38,3 +38,20 @@ def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
             dist[k] = np.sqrt(d2)
             k += 1
     return ids[:k], dist[:k]
+
+
+@numba.njit(cache=True, nogil=True)
+def count_each(counts, ids):
+    """``counts[ids] += 1`` for distinct ``ids`` (the channel's per-robot reception count):
+    for the tens of receivers of one delivery, a loop costs less than numpy's fancy index."""
+    for j in ids:
+        counts[j] += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def all_set(mask, ids):
+    """``mask[ids].all()`` (whether every receiver is alive), without the temporary array."""
+    for j in ids:
+        if not mask[j]:
+            return False
+    return True

@@ -35,13 +35,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.events import URGENT, Delivery, Drop, EventBus, scheduled_event
+from netsim.events import URGENT, Delivery, Drop, EventBus
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
 
@@ -109,15 +109,61 @@ class SendTimeBins:
         return df
 
 
-class _Bin(NamedTuple):
+class _Bin:
     """One bin of a kind's counts (held by index: the array may grow before a reception
     arrives)."""
 
-    bins: SendTimeBins
-    k: int
+    __slots__ = ("bins", "k")
+
+    def __init__(self, bins: SendTimeBins, k: int):
+        self.bins = bins
+        self.k = k
 
     def add(self, column: int, count: int) -> None:
         self.bins.counts[self.k, column] += count
+
+
+class _Arrival:
+    """What a delivery event does on arrival: count the receptions, tell the bus, hand
+    them to the protocol. A slotted record is cheaper than a closure over eight names."""
+
+    __slots__ = ("channel", "deliver", "sender", "receivers", "payload", "counters", "kind", "binned")
+
+    def __init__(
+        self,
+        channel: Channel,
+        deliver: Deliver,
+        sender: int,
+        receivers: np.ndarray,
+        payload: object,
+        counters: Counters,
+        kind: str,
+        binned: _Bin | None,
+    ):
+        self.channel = channel
+        self.deliver = deliver
+        self.sender = sender
+        self.receivers = receivers
+        self.payload = payload
+        self.counters = counters
+        self.kind = kind
+        self.binned = binned
+
+    def __call__(self, _event: simpy.Event) -> None:
+        receivers = self.receivers
+        ch = self.channel
+        k = ch.kernels
+        if k is not None:
+            k.count_each(self.counters.received, receivers)
+        else:
+            self.counters.received[receivers] += 1
+        binned = self.binned
+        if binned is not None:
+            binned.bins.counts[binned.k, SendTimeBins.RECEIVED] += len(receivers)
+        ev = ch.events
+        if ev is not None and ev.wants("delivery"):
+            ev.emit("delivery", Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload))
+        self.deliver(self.sender, receivers, self.payload)
 
 
 class Channel:
@@ -137,6 +183,8 @@ class Channel:
         # The radio (netsim.reception.Reception), None for the plain unit disk.
         self.reception = reception
         self.index = RangeIndex(state, reach_m=None if reception is None else reception.reach_m)
+        # The compiled loops (netsim._kernels) when the run uses them, else None.
+        self.kernels = self.index.kernels
         self.survives = survives
         self.latency_s = float(latency_s)
         self.latency_jitter_s = float(latency_jitter_s)
@@ -207,10 +255,16 @@ class Channel:
         """Send ``payload`` from ``sender`` to everyone in range; returns the receivers."""
         if self.mac is not None:
             return self.mac.send(sender, -1, payload, deliver, kind)
-        c = self.counters_for(kind)
+        c = self.counters.get(kind)
+        if c is None:
+            c = self.counters_for(kind)
         c.sent[sender] += 1
-        receivers, dist = self._hearers(sender)
-        return self._transmit(sender, receivers, dist, payload, deliver, c, kind, self._bin(kind))
+        binned = self._bin(kind) if self.bins else None
+        if self.reception is None:
+            receivers, dist = self.index.within(self.env.now, sender)
+        else:
+            receivers, dist = self._hearers(sender)
+        return self._transmit(sender, receivers, dist, payload, deliver, c, kind, binned)
 
     def unicast(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str = "data") -> bool:
         """Send ``payload`` to ``dest`` alone; returns whether it will be delivered."""
@@ -246,9 +300,9 @@ class Channel:
         bins = self.bins.get(kind)
         if bins is None:
             return None
-        at = _Bin(bins, bins.bin(self.env.now))
-        at.add(SendTimeBins.SENT, 1)
-        return at
+        k = bins.bin(self.env.now)
+        bins.counts[k, SendTimeBins.SENT] += 1
+        return _Bin(bins, k)
 
     def _dropped(self, kind: str, sender: int, receivers: np.ndarray, cause: str) -> None:
         ev = self.events
@@ -284,15 +338,17 @@ class Channel:
         self, sender: int, receivers: np.ndarray, dist: np.ndarray, c: Counters, kind: str, binned: _Bin | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """The receivers (and distances) alive and spared by the loss model; the others counted."""
-        alive = self.state.alive[receivers]
-        if not alive.all():
+        k = self.kernels
+        if k is not None and k.all_set(self.state.alive, receivers):
+            pass  # everyone alive: the common case, checked without a temporary array
+        elif not (alive := self.state.alive[receivers]).all():
             np.add.at(c.dropped[1], receivers[~alive], 1)
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
             self._dropped(kind, sender, receivers[~alive], "not_alive")
             receivers, dist = receivers[alive], dist[alive]
         if binned is not None:
-            binned.add(SendTimeBins.IN_RANGE, len(receivers))
+            binned.bins.counts[binned.k, SendTimeBins.IN_RANGE] += len(receivers)
         keep = self.survives(sender, receivers, dist)
         if keep is not None and not keep.all():
             np.add.at(c.dropped[0], receivers[~keep], 1)
@@ -313,16 +369,12 @@ class Channel:
         kind: str,
         binned: _Bin | None = None,
     ) -> None:
-        def arrive(_event: simpy.Event) -> None:
-            c.received[receivers] += 1
-            if binned is not None:
-                binned.add(SendTimeBins.RECEIVED, len(receivers))
-            ev = self.events
-            if ev is not None and ev.wants("delivery"):
-                ev.emit("delivery", Delivery(self.env.now, kind, sender, receivers, payload))
-            deliver(sender, receivers, payload)
-
-        scheduled_event(self.env, delay, URGENT, arrive)
+        # scheduled_event inlined: one kernel event per delivery, at URGENT priority.
+        ev = simpy.Event(self.env)
+        ev._ok = True
+        ev._value = None
+        ev.callbacks.append(_Arrival(self, deliver, sender, receivers, payload, c, kind, binned))
+        self.env.schedule(ev, URGENT, delay)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
 
     def frame(self, kind: str) -> pd.DataFrame:
         return self.counters_for(kind).frame()

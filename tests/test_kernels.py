@@ -191,3 +191,17 @@ def test_medium_runs_equal_with_and_without_compiled_loops(monkeypatch):
     assert frames["1"]["medium"]["dropped_collision"].sum() > 100
     for name in frames["0"]:
         assert frames["0"][name].equals(frames["1"][name]), name
+
+
+def test_compiled_reception_counts_equal_numpy():
+    """The channel's compiled count of receptions (``count_each``) and alive check
+    (``all_set``) equal numpy's fancy increment and ``mask[ids].all()``."""
+    rng = np.random.default_rng(5)
+    a, b = np.zeros(300, dtype=np.int64), np.zeros(300, dtype=np.int64)
+    for _ in range(200):
+        ids = np.sort(rng.choice(300, int(rng.integers(0, 40)), replace=False)).astype(np.int64)
+        core_kernels.count_each(a, ids)
+        b[ids] += 1
+        mask = rng.random(300) < 0.97
+        assert core_kernels.all_set(mask, ids) == bool(mask[ids].all())
+    assert a.tolist() == b.tolist()
