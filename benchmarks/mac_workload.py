@@ -16,35 +16,22 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import statistics
 import subprocess
 import sys
 import time
 
-RANGE_M = 100.0
-DEGREE = 10.0
-DURATION_S = 100.0
-
-
-def side_for(n: int) -> float:
-    return RANGE_M * math.sqrt(n * math.pi / DEGREE)
+from workload import DURATION_S, workload_config
 
 
 def run_case(n: int, mac: str, duration_s: float) -> dict:
-    from netsim.config import from_dict
     from netsim.run import build, collect, summarize
 
-    cfg = from_dict(
-        {
-            "seed": 1,
-            "duration_s": duration_s,
-            "world": {"n_robots": n, "side_m": side_for(n)},
-            "mobility": {"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0, "stationary_start": False},
-            "channel": {"range_m": RANGE_M, "latency_s": 0.001, "mac": mac},
-            "protocol": {"model": "ack", "ack_period_s": 1.0, "ack_jitter_s": 0.05, "tau_s": 3.0},
-            "output": {"position_interval_s": 0.0},
-        }
+    cfg = workload_config(
+        n,
+        duration_s,
+        channel={"mac": mac},
+        protocol={"model": "ack", "ack_period_s": 1.0, "ack_jitter_s": 0.05, "tau_s": 3.0},
     )
     wall, cpu = time.perf_counter(), time.process_time()
     sim = build(cfg)
