@@ -255,9 +255,7 @@ class Channel:
         """Send ``payload`` from ``sender`` to everyone in range; returns the receivers."""
         if self.mac is not None:
             return self.mac.send(sender, -1, payload, deliver, kind)
-        c = self.counters.get(kind)
-        if c is None:
-            c = self.counters_for(kind)
+        c = self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind) if self.bins else None
         if self.reception is None:
@@ -273,27 +271,34 @@ class Channel:
         c = self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind)
-        st = self.state
-        now = self.env.now
-        d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [sender]))
-        dist = np.hypot(d[:, 0], d[:, 1])
-        if self.reception is None:
-            heard = dest != sender and dist[0] <= st.range_m[sender]
-        else:
-            heard = self._hears(sender, dest, dist)
+        heard, dist = self._unicast_hears(sender, dest)
         if not heard:
-            c.dropped[DROP_CAUSES.index("out_of_range"), dest] += 1
-            if binned is not None:
-                binned.add(SendTimeBins.DROPPED + DROP_CAUSES.index("out_of_range"), 1)
-            self._dropped(kind, sender, np.array([dest]), "out_of_range")
+            self._out_of_range(kind, sender, dest, c, binned)
             return False
         got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c, kind, binned)
         return len(got) == 1
 
-    def _hears(self, sender: int, dest: int, dist: np.ndarray) -> bool:
-        if dest == sender or dist[0] > self.reception.reach_m:
-            return False
-        return bool(self.reception.decide(self.env.now, sender, np.array([dest]), dist, every_pair=False)[0])
+    def _unicast_hears(self, sender: int, dest: int) -> tuple[bool, np.ndarray]:
+        """Whether ``dest`` hears ``sender`` now (range, or the radio deciding this pair
+        alone), and their distance (an array of one)."""
+        st, now = self.state, self.env.now
+        d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [sender]))
+        dist = np.hypot(d[:, 0], d[:, 1])
+        if dest == sender:
+            return False, dist
+        if self.reception is None:
+            return bool(dist[0] <= st.range_m[sender]), dist
+        if dist[0] > self.reception.reach_m:
+            return False, dist
+        return bool(self.reception.decide(now, sender, np.array([dest]), dist, every_pair=False)[0]), dist
+
+    def _out_of_range(self, kind: str, sender: int, dest: int, c: Counters, binned: _Bin | None) -> None:
+        """Count a unicast whose destination could not hear it."""
+        k = self.causes.index("out_of_range")
+        c.dropped[k, dest] += 1
+        if binned is not None:
+            binned.add(SendTimeBins.DROPPED + k, 1)
+        self._dropped(kind, sender, np.array([dest]), "out_of_range")
 
     def _bin(self, kind: str) -> _Bin | None:
         """``kind``'s bin of now, with one more transmission sent (None: not binned)."""
@@ -339,14 +344,15 @@ class Channel:
     ) -> tuple[np.ndarray, np.ndarray]:
         """The receivers (and distances) alive and spared by the loss model; the others counted."""
         k = self.kernels
-        if k is not None and k.all_set(self.state.alive, receivers):
-            pass  # everyone alive: the common case, checked without a temporary array
-        elif not (alive := self.state.alive[receivers]).all():
-            np.add.at(c.dropped[1], receivers[~alive], 1)
-            if binned is not None:
-                binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
-            self._dropped(kind, sender, receivers[~alive], "not_alive")
-            receivers, dist = receivers[alive], dist[alive]
+        # Everyone alive is the common case: the compiled check makes no temporary array.
+        if k is None or not k.all_set(self.state.alive, receivers):
+            alive = self.state.alive[receivers]
+            if not alive.all():
+                np.add.at(c.dropped[1], receivers[~alive], 1)
+                if binned is not None:
+                    binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
+                self._dropped(kind, sender, receivers[~alive], "not_alive")
+                receivers, dist = receivers[alive], dist[alive]
         if binned is not None:
             binned.bins.counts[binned.k, SendTimeBins.IN_RANGE] += len(receivers)
         keep = self.survives(sender, receivers, dist)

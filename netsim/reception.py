@@ -82,8 +82,22 @@ class LinkRecorder:
             return
         changed = self._changed[:count]
         now = ~self.up[sender, changed]
-        robots, is_now_up = changed.tolist(), now.tolist()
-        touched = self._touched[:touched_n].tolist()
+        self._record(t, sender, changed.tolist(), now.tolist(), self._touched[:touched_n].tolist())
+
+    def observe_pair(self, t: float, sender: int, dest: int, linked: bool) -> None:
+        """A decision on one pair alone (a unicast): it tells nothing of ``sender``'s other
+        pairs, so only this link may change, and ``sender``'s last decision on all its pairs
+        stays where it was (a touch is then judged from that earlier instant: a touch too
+        many is harmless, it only matters after a cut at the reach)."""
+        up = bool(self.up[sender, dest])
+        p = max(self._last_t[sender], self._last_t[dest])
+        touched = [dest] if linked and up and (self._every or max(self._t0[sender], self._t0[dest]) >= p) else []
+        changed = [dest] if linked != up else []
+        if changed or touched:
+            self._record(t, sender, changed, [linked] * len(changed), touched)
+
+    def _record(self, t: float, sender: int, robots: list, is_now_up: list, touched: list) -> None:
+        """Tell the listeners, then keep the touches and the links that changed."""
         for fn in self.listeners:
             fn(t, sender, robots, is_now_up, touched)
         for r in touched:
@@ -97,33 +111,8 @@ class LinkRecorder:
             else:
                 since, ident = self._since.pop(key)
                 self._rows.append((key[0], key[1], since, t, ident))
-        self.up[sender, changed] = now
-        self.up[changed, sender] = now
-
-    def observe_pair(self, t: float, sender: int, dest: int, linked: bool) -> None:
-        """A decision on one pair alone (a unicast): it tells nothing of ``sender``'s other
-        pairs, so only this link may change, and ``sender``'s last decision on all its pairs
-        stays where it was (a touch is then judged from that earlier instant: a touch too
-        many is harmless, it only matters after a cut at the reach)."""
-        up = bool(self.up[sender, dest])
-        p = max(self._last_t[sender], self._last_t[dest])
-        touched = [dest] if linked and up and (self._every or max(self._t0[sender], self._t0[dest]) >= p) else []
-        changed = [dest] if linked != up else []
-        if not changed and not touched:
-            return
-        for fn in self.listeners:
-            fn(t, sender, changed, [linked] * len(changed), touched)
-        key = (sender, dest) if sender < dest else (dest, sender)
-        if touched:
-            self._touches.append((key[0], key[1], t, self._since[key][1]))
-        if changed:
-            if linked:
-                self._since[key] = (t, self._opened)
-                self._opened += 1
-            else:
-                since, ident = self._since.pop(key)
-                self._rows.append((key[0], key[1], since, t, ident))
-            self.up[sender, dest] = self.up[dest, sender] = linked
+        self.up[sender, robots] = is_now_up
+        self.up[robots, sender] = is_now_up
 
     def _changes(self, sender: int, receivers: np.ndarray, linked: np.ndarray) -> int:
         """How many robots' links with ``sender`` this decision changes (ids in ``_changed``)."""

@@ -328,18 +328,10 @@ class Medium:
         scheduled_event(self.env, frame.airtime_s, URGENT, lambda _ev: self._end(frame))
 
     def _unicast_receiver(self, i: int, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
-        ch, st, now = self.channel, self.state, self.env.now
-        dest = frame.dest
-        d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [i]))
-        dist = np.hypot(d[:, 0], d[:, 1])
-        heard = (dest != i and dist[0] <= st.range_m[i]) if ch.reception is None else ch._hears(i, dest, dist)
+        heard, dist = self.channel._unicast_hears(i, frame.dest)
         if heard:
-            return np.array([dest]), dist
-        k = self.causes.index("out_of_range")
-        frame.counters.dropped[k, dest] += 1
-        if frame.binned is not None:
-            frame.binned.add(SendTimeBins.DROPPED + k, 1)
-        ch._dropped(frame.kind, i, np.array([dest]), "out_of_range")
+            return np.array([frame.dest]), dist
+        self.channel._out_of_range(frame.kind, i, frame.dest, frame.counters, frame.binned)
         return _EMPTY, np.empty(0)
 
     def _freeze(self, robots: np.ndarray, now: float) -> None:
