@@ -43,6 +43,7 @@ import simpy
 from netsim.channel import DROP_CAUSES, Channel, SendTimeBins
 from netsim.compiled import load
 from netsim.events import URGENT, scheduled_event
+from netsim.spatial import RangeIndex
 
 # Causes a medium adds: per reception (collision, half_duplex), per frame at its sender's row
 # (queue_full: the queue was full when it was handed over; retry_limit: a unicast that
@@ -155,8 +156,6 @@ class Medium:
         if self.same_as_hearers:
             self.index = channel.index
         else:
-            from netsim.spatial import RangeIndex
-
             self.index = RangeIndex(self.state, reach_m=self.radius_m)
         self.queue: list[deque[Frame]] = [deque() for _ in range(n)]
         self.transmitting = np.zeros(n, dtype=bool)
@@ -236,11 +235,17 @@ class Medium:
             return
         self.backoff[i] = self.rng.integers(self.cw[i] + 1)
         if self.cover[i] == 0 and not self.transmitting[i]:
-            self.count_from[i] = self.env.now + self.difs_s
-            self.tx_at[i] = self.count_from[i] + self.backoff[i] * self.slot_s
-            at = float(self.tx_at[i])
-            heapq.heappush(self._due, (at, i))
-            self._wake(at)
+            self._count_down(np.array([i]), self.env.now)
+
+    def _count_down(self, robots: np.ndarray, now: float) -> None:
+        """``robots`` sense the medium idle from ``now``: their backoffs count down after
+        DIFS, and the earliest transmit instant wakes the medium."""
+        self.count_from[robots] = now + self.difs_s
+        self.tx_at[robots] = self.count_from[robots] + self.backoff[robots] * self.slot_s
+        at = self.tx_at[robots].tolist()
+        for r, t in zip(robots.tolist(), at):
+            heapq.heappush(self._due, (t, r))
+        self._wake(min(at))
 
     def _wake(self, first: float | None = None) -> None:
         """One kernel event, at the earliest transmit instant of all robots.
@@ -414,11 +419,7 @@ class Medium:
             self.backoff[i] = self.rng.integers(self.cw[i] + 1)
         resume = newly[self.backoff[newly] >= 0]
         if len(resume):
-            self.count_from[resume] = now + self.difs_s
-            self.tx_at[resume] = self.count_from[resume] + self.backoff[resume] * self.slot_s
-            for r, at in zip(resume.tolist(), self.tx_at[resume].tolist()):
-                heapq.heappush(self._due, (at, r))
-            self._wake(float(self.tx_at[resume].min()))
+            self._count_down(resume, now)
 
     def _notify(self, sender: int, got: np.ndarray, payload, deliver, kind: str, c, binned) -> None:
         ch = self.channel
