@@ -185,8 +185,6 @@ class ChannelParams(Params):
                     f"has parameters {wanted.__name__}, not {type(value).__name__}",
                 )
         radio = self.radio
-        from netsim.radio.propagation import LogDistanceParams, reach_m
-
         if self.mac != "none" and isinstance(radio, LogDistanceParams) and self.interference_range_m > 0:
             reach = reach_m(radio)
             if self.interference_range_m < reach:
@@ -196,7 +194,7 @@ class ChannelParams(Params):
                     f"must be at least the radio's reach = {reach:g} m under log_distance (or 0: where the mean"
                     " power reaches channel.noise_floor_dbm)",
                 )
-        if self.mac != "none" and hasattr(radio, "sensitivity_dbm"):
+        if self.mac != "none" and isinstance(radio, LogDistanceParams):
             margin = radio.sensitivity_dbm - self.noise_floor_dbm
             if margin < self.capture_threshold_db:
                 # Else a frame just above the sensitivity fails on noise alone, and the
