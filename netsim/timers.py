@@ -20,16 +20,7 @@ from functools import partial
 import numpy as np
 import simpy
 
-from netsim.events import NORMAL, URGENT, scheduled_event
-
-
-def urgent_timeout(env: simpy.Environment, delay_s: float) -> simpy.Event:
-    """A timeout that runs before NORMAL events due at the same instant.
-
-    Transmissions use it so that, even with zero latency, an Ack sent at the instant of a
-    deadline is sent and delivered before the deadline is looked at.
-    """
-    return scheduled_event(env, delay_s, URGENT)
+from netsim.events import NORMAL, scheduled_event
 
 
 class DeadlineTimers:
