@@ -23,8 +23,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import minimum_spanning_tree
 
 from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 from netsim.groups import in_a_group, leads_itself
@@ -85,6 +83,9 @@ def bridges_to_keep(pos: np.ndarray, g: Groups, range_m: float) -> Bridges:
     key = np.minimum(ga, gb) * n + np.maximum(ga, gb)
     order = np.lexsort((weight, key))
     first = order[np.r_[True, key[order][1:] != key[order][:-1]]] if len(order) else order
+    from scipy.sparse import coo_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
     tree = minimum_spanning_tree(
         coo_matrix((weight[first], (np.minimum(ga, gb)[first], np.maximum(ga, gb)[first])), shape=(n, n)).tocsr()
     ).tocoo()

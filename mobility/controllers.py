@@ -15,7 +15,6 @@ the configuration::
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from netsim.control import ControlStep
 from netsim.params import NoParams
@@ -35,6 +34,8 @@ def avoid_collisions(params: NoParams, parts: Parts):
     always safe for connectivity."""
 
     def controller(step: ControlStep) -> None:
+        from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
+
         sep = _min_separation_m(step)
         for _ in range(3):  # a robot that holds can stop another: settle in a few passes
             end = step.positions_m + step.velocity_mps * step.period_s
@@ -57,6 +58,8 @@ def log_separation(params: NoParams, parts: Parts):
     ``separation`` (``separation.parquet``)."""
 
     def hook(step: ControlStep) -> None:
+        from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
+
         sep = _min_separation_m(step)
         tree = cKDTree(step.positions_m)
         d, _ = tree.query(step.positions_m, k=2)

@@ -69,7 +69,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy.spatial import cKDTree
 
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
@@ -212,6 +211,8 @@ def wished_velocities(
 def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> list[np.ndarray]:
     """For each leader, the true positions of the other leaders closer than ``2 r_c``."""
     lp = pos[leaders]
+    from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
+
     tree = cKDTree(lp)
     return [lp[[j for j in js if j != k]] for k, js in enumerate(tree.query_ball_point(lp, 2 * range_m))]
 

@@ -30,8 +30,6 @@ links to them are kept from the moving end alone.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import minimum_spanning_tree
 
 from mobility.steps import Plan, StepLimits, box_limit, cap_length, step_limit
 from netsim.topology import geometric_pairs
@@ -57,6 +55,9 @@ def spanning_forest(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.nda
         return a, b, d
     # scipy drops zero weights (robots at one spot); every spanning tree of a component
     # has the same number of links, so a constant shift leaves the choice unchanged.
+    from scipy.sparse import coo_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
     graph = coo_matrix((d + range_m, (a, b)), shape=(n, n)).tocsr()
     tree = minimum_spanning_tree(graph).tocoo()
     i, j = np.minimum(tree.row, tree.col).astype(np.int64), np.maximum(tree.row, tree.col).astype(np.int64)

@@ -55,3 +55,93 @@ def all_set(mask, ids):
         if not mask[j]:
             return False
     return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell_of(v, lo, size, cells):
+    c = int((v - lo) / size)
+    return min(max(c, 0), cells - 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def near_pairs(pos, r, box):
+    """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` of each other (on a torus of
+    side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r``: what
+    ``cKDTree.query_pairs(r)`` finds, and possibly pairs further apart than ``r`` by a
+    relative 1e-9 (a distance at the bound rounds either way; callers filter exactly and
+    ask with a slack, so such pairs change nothing). Rows in no particular order."""
+    n = pos.shape[0]
+    r2 = r * r * (1.0 + 1e-9)
+    # Cells a little wider than r: two points within r are in the same or adjacent cells
+    # whatever the rounding of their cell numbers.
+    wide = r * (1.0 + 1e-6)
+    if box > 0.0:
+        lo_x = lo_y = 0.0
+        cells_x = cells_y = max(int(box // wide), 1)
+        size_x = size_y = box / cells_x
+    else:
+        lo_x, lo_y = pos[:, 0].min(), pos[:, 1].min()
+        span_x, span_y = pos[:, 0].max() - lo_x, pos[:, 1].max() - lo_y
+        # Cells of at least r, and not many more cells than points (sparse, wide layouts).
+        size = max(wide, np.sqrt(max(span_x, 1e-300) * max(span_y, 1e-300) / (4.0 * n + 16.0)), 1e-300)
+        cells_x, cells_y = int(span_x // size) + 1, int(span_y // size) + 1
+        size_x = size_y = size
+    # On a torus of fewer than three cells a side, neighbouring cells repeat: one cell.
+    if box > 0.0 and (cells_x < 3 or cells_y < 3):
+        cells_x = cells_y = 1
+        size_x = size_y = box
+    n_cells = cells_x * cells_y
+    cell = np.empty(n, np.int64)
+    for i in range(n):
+        cell[i] = _cell_of(pos[i, 1], lo_y, size_y, cells_y) * cells_x + _cell_of(pos[i, 0], lo_x, size_x, cells_x)
+    start = np.zeros(n_cells + 1, np.int64)
+    for i in range(n):
+        start[cell[i] + 1] += 1
+    for c in range(n_cells):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    members = np.empty(n, np.int64)
+    for i in range(n):
+        members[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    out_i = np.empty(16 * n + 16, np.int64)
+    out_j = np.empty(16 * n + 16, np.int64)
+    k = 0
+    wrap = box > 0.0 and n_cells > 1
+    for i in range(n):
+        cy, cx = cell[i] // cells_x, cell[i] % cells_x
+        for dy in range(-1, 2):
+            ny = cy + dy
+            if wrap:
+                ny %= cells_y
+            elif ny < 0 or ny >= cells_y:
+                continue
+            for dx in range(-1, 2):
+                nx = cx + dx
+                if wrap:
+                    nx %= cells_x
+                elif nx < 0 or nx >= cells_x:
+                    continue
+                c = ny * cells_x + nx
+                if n_cells == 1 and (dx != 0 or dy != 0):
+                    continue
+                for m in range(start[c], start[c + 1]):
+                    j = members[m]
+                    if j <= i:
+                        continue
+                    ddx = pos[j, 0] - pos[i, 0]
+                    ddy = pos[j, 1] - pos[i, 1]
+                    if box > 0.0:
+                        ddx -= box * np.rint(ddx / box)
+                        ddy -= box * np.rint(ddy / box)
+                    if ddx * ddx + ddy * ddy <= r2:
+                        if k == len(out_i):
+                            out_i = np.concatenate((out_i, np.empty(k, np.int64)))
+                            out_j = np.concatenate((out_j, np.empty(k, np.int64)))
+                        out_i[k] = i
+                        out_j[k] = j
+                        k += 1
+    pairs = np.empty((k, 2), np.int64)
+    pairs[:, 0] = out_i[:k]
+    pairs[:, 1] = out_j[:k]
+    return pairs

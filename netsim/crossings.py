@@ -14,7 +14,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+from netsim.compiled import load
 
 EDGE_S = 1e-10
 
@@ -45,9 +46,22 @@ def wrap(d: np.ndarray, box: float | None) -> np.ndarray:
     return d if box is None else d - box * np.round(d / box)
 
 
-def tree(pos: np.ndarray, box: float | None) -> cKDTree:
-    """A KD-tree of the positions, periodic on a torus of side ``box``."""
-    return cKDTree(in_box(pos, box), boxsize=box) if box is not None else cKDTree(pos)
+def near_pairs(pos: np.ndarray, r: float, box: float | None) -> np.ndarray:
+    """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` (periodic on a torus of side
+    ``box``), as an ``(m, 2)`` array in no particular order: for more than a small run's
+    robots a compiled grid (:func:`netsim._kernels.near_pairs`, which may add pairs further
+    apart than ``r`` by a relative 1e-9: every caller asks with a slack and filters
+    exactly), else a KD-tree (scipy's, imported only then: a large run does without it)."""
+    pts = in_box(pos, box)
+    if len(pts) < 2:
+        return np.empty((0, 2), np.int64)
+    kernels = load("netsim._kernels", len(pts))
+    if kernels is not None and r > 0:
+        return kernels.near_pairs(np.ascontiguousarray(pts, dtype=float), float(r), float(box or 0.0))
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
+    return tree.query_pairs(r, output_type="ndarray").astype(np.int64, copy=False)
 
 
 def in_box(pos: np.ndarray, box: float | None) -> np.ndarray:

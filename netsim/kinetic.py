@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.crossings import PHASE_STATE, clip_crossings, crossing_times, solve_piece, tree, wrap
+from netsim.crossings import PHASE_STATE, clip_crossings, crossing_times, near_pairs, solve_piece, wrap
 from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, advance_clock, kernel_queue, scheduled_event
 from netsim.lifetimes import COLUMNS
 from netsim.state import RobotState
@@ -210,8 +210,7 @@ class RuntimeLinks:
             self._w_end = math.inf  # nobody moves: nothing to solve until someone does
             reach = self.r_max
         pos = self._positions(t)
-        pairs = tree(pos, self.box).query_pairs(reach, output_type="ndarray") if n > 1 else np.empty((0, 2))
-        pairs = pairs.astype(np.int64, copy=False)
+        pairs = near_pairs(pos, reach, self.box)
         # Candidate pairs in key order (a n + b, a < b), hence in the order (a, b).
         keys = np.sort(np.minimum(pairs[:, 0], pairs[:, 1]) * n + np.maximum(pairs[:, 0], pairs[:, 1]))
         ca, cb = np.divmod(keys, n) if n else (keys, keys)

@@ -29,9 +29,8 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
-from scipy.spatial import cKDTree
 
-from netsim.crossings import PHASE_STATE, in_box, solve_piece, tree, wrap
+from netsim.crossings import PHASE_STATE, in_box, near_pairs, solve_piece, wrap
 from netsim.trajectory import LegTable
 
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
@@ -110,7 +109,7 @@ def link_events(
         if not first and nxt > 0 and cuts[nxt - 1] == start:
             _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit)
         reach = r_max + 2.0 * v_max * (stop - start)
-        pairs = tree(pos, box).query_pairs(reach, output_type="ndarray")
+        pairs = near_pairs(pos, reach, box)
         if len(pairs):
             i, j = pairs[:, 0], pairs[:, 1]
             swap = i > j
@@ -138,6 +137,8 @@ def link_events(
 
 def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (``j`` may be ``who[k]``)."""
+    from scipy.spatial import cKDTree  # only runs with jumps ask
+
     pts = in_box(pos, box)
     tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
     near = tree.query_ball_point(pts[who], r)

@@ -20,9 +20,6 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from netsim.topology import geometric_pairs
 
@@ -144,6 +141,8 @@ def covered_fraction(
     >>> round(covered_fraction([[50.0, 50.0]], 10.0, 100.0)[0], 3)
     0.031
     """
+    from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
+
     centres = np.asarray(centres_m, dtype=float).reshape(-1, 2)
     h = side_m / cells
     axis = (np.arange(cells) + 0.5) * h
@@ -171,12 +170,17 @@ def components(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
     """Component label of every robot in the two-way unit-disk network."""
     n = len(positions_m)
     i, j, _ = geometric_pairs(positions_m, range_m, side_m)
+    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import connected_components
+
     graph = csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
     return connected_components(graph, directed=False)[1]
 
 
 def nearest_spacing(positions_m: npt.ArrayLike) -> np.ndarray:
     """Distance from each point to its nearest other point (NaN with fewer than two)."""
+    from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
+
     p = np.asarray(positions_m, dtype=float).reshape(-1, 2)
     if len(p) < 2:
         return np.full(len(p), np.nan)

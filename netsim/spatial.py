@@ -1,7 +1,7 @@
 """Who is within range of a robot now: exact answers from a neighbour list built earlier.
 
 Rebuilding a spatial index for every transmission would cost O(N log N) each. Instead,
-at ``t_build`` a KD-tree lists, for every robot, the robots within ``R + 2 s`` of it (a
+at ``t_build`` a grid of cells (or a KD-tree) lists, for every robot, the robots within ``R + 2 s`` of it (a
 Verlet list, as in molecular dynamics), where ``R`` is the largest range and ``s`` a
 slack. Until some robot could have moved more than ``s`` since then
 (``speed_high_water * (t - t_build) > s``), every robot in range of ``i`` now is on ``i``'s
@@ -16,9 +16,9 @@ Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots a query's filter is one com
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from netsim.compiled import load
+from netsim.crossings import near_pairs
 from netsim.state import RobotState
 
 _NONE = np.empty(0, dtype=np.int64)
@@ -48,13 +48,7 @@ class RangeIndex:
     def _build(self, t: float) -> None:
         st = self.state
         pos = st.positions_at(t)
-        if st.torus:
-            # cKDTree's periodic box wants coordinates in [0, side).
-            pos = np.where(pos >= st.side_m, 0.0, pos)
-            tree = cKDTree(pos, boxsize=st.side_m)
-        else:
-            tree = cKDTree(pos)
-        pairs = tree.query_pairs(self.reach_m + 2 * self.slack_m, output_type="ndarray")
+        pairs = near_pairs(pos, self.reach_m + 2 * self.slack_m, st.side_m if st.torus else None)
         rows = np.concatenate([pairs[:, 0], pairs[:, 1]])
         cols = np.concatenate([pairs[:, 1], pairs[:, 0]])
         order = np.lexsort((cols, rows))

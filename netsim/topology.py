@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from netsim.groups import GroupView
 from netsim.state import RobotState
@@ -27,6 +26,8 @@ def geometric_pairs(
     -----
     A KD-tree finds the candidate pairs within the largest range: ``O(N log N + E)``.
     """
+    from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
+
     positions_m = np.asarray(positions_m, dtype=float)
     n = len(positions_m)
     ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))

@@ -21,8 +21,6 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 import simpy
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import shortest_path
 
 from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
@@ -83,6 +81,9 @@ def hop_distances(state, now: float, node: int, towards: bool = False) -> np.nda
     (``towards=True``: from every robot to ``node``, a search on the reversed links)."""
     a, b, _ = geometric_pairs(state.positions_at(now), state.range_m, state.side_m if state.torus else None, True)
     n = state.n
+    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import shortest_path
+
     graph = csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
     return shortest_path(graph.T if towards else graph, indices=node, unweighted=True, directed=True)
 

@@ -205,3 +205,34 @@ def test_compiled_reception_counts_equal_numpy():
         mask = rng.random(300) < 0.97
         assert core_kernels.all_set(mask, ids) == bool(mask[ids].all())
     assert a.tolist() == b.tolist()
+
+
+@pytest.mark.parametrize("torus", [False, True])
+def test_compiled_near_pairs_finds_every_kd_tree_pair(torus):
+    """The grid's pairs within r are the KD-tree's (every one of them, each once, i < j),
+    plus at most pairs further than r by a relative 1e-9: uniform, clustered and sparse
+    layouts, a torus narrower than three ranges, r larger than the area."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(11)
+    side = 1000.0
+    layouts = [
+        rng.uniform(0, side, (400, 2)),
+        np.concatenate([rng.normal(300, 5, (150, 2)), rng.normal(700, 30, (150, 2))]) % side,
+        rng.uniform(0, side, (30, 2)),
+        np.round(rng.uniform(0, side, (300, 2)) / 50) * 50 % side,  # a lattice: distances exactly r
+    ]
+    for pos in layouts:
+        for r in (50.0, 120.0, 400.0, 2000.0):
+            box = side if torus else None
+            got = core_kernels.near_pairs(pos, r, side if torus else 0.0)
+            tree = cKDTree(pos, boxsize=box) if torus else cKDTree(pos)
+            want = {tuple(p) for p in tree.query_pairs(r, output_type="ndarray").tolist()}
+            found = [tuple(p) for p in got.tolist()]
+            assert len(found) == len(set(found))
+            assert all(i < j for i, j in found)
+            assert want <= set(found)
+            d = pos[got[:, 1]] - pos[got[:, 0]]
+            if torus:
+                d -= side * np.rint(d / side)
+            assert np.all(d[:, 0] ** 2 + d[:, 1] ** 2 <= r * r * (1 + 1e-9))
