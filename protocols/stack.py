@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from netsim.compiled import load
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.radio.mac import MAC_CAUSES
@@ -69,6 +70,24 @@ _ROLE_LABELS = np.array(ROLE_NAMES, dtype=object)
 def beliefs_table(samples: Samples) -> pd.DataFrame:
     """The ``beliefs`` table of samples of :meth:`Stack._belief_columns`."""
     return samples.frame({"role": lambda codes: _ROLE_LABELS[codes].tolist()})
+
+
+def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ascending union of two ascending arrays of distinct keys, and per key whether it
+    is in ``a`` and whether in ``b``."""
+    both = np.sort(np.concatenate([a, b]))
+    both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
+    return both, in_sorted(both, a), in_sorted(both, b)
+
+
+class Beliefs(NamedTuple):
+    """Who believes whom live at one instant, beside the truth: ``robot * n + other`` for
+    every pair where ``robot`` believes ``other`` live or ``other``'s transmissions reach
+    ``robot`` (ascending), and per pair whether it is believed and whether in range."""
+
+    keys: np.ndarray
+    believed: np.ndarray
+    in_range: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -129,6 +148,9 @@ class Stack:
         self._groups = Samples()
         self._beliefs = Samples()
         self._neighbour_beliefs = Samples()
+        kernels = load("protocols._kernels", n)
+        # The compiled twin of union_sorted, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self._union = kernels.union_sorted if kernels is not None else union_sorted
 
     # -- the groups, for the rest of the run ------------------------------------------
     @property
@@ -217,18 +239,19 @@ class Stack:
         return robot[order], other[order], xy[other[order]]
 
     # -- ground truth beside belief ----------------------------------------------------
-    def _belief_keys(self, now: float) -> tuple[np.ndarray, np.ndarray]:
-        """``robot * n + other`` for every ``other`` that ``robot`` believes live (in table
-        order), and for every ``other`` whose transmissions reach ``robot`` now (sorted)."""
+    def _belief_keys(self, now: float) -> Beliefs:
+        """Who believes whom live now, beside the truth: ``robot * n + other`` for every
+        ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
         st, n = self.state, self.state.n
         src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
         # receiver * n + sender, for every sender whose transmissions reach the receiver.
         heard_keys = np.sort(dst * n + src)
         live = self.table.live_mask(now)
         rows = np.nonzero(live)[0]
-        return rows * n + self.table.id[live], heard_keys
+        believed_keys = np.sort(rows * n + self.table.id[live])
+        return Beliefs(*self._union(believed_keys, heard_keys))
 
-    def belief_vs_truth(self, now: float, keys=None) -> pd.DataFrame:
+    def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
         how many neighbours it believes live and how many it truly has, and how many of
         its beliefs are stale (believed live, out of range) or missing (in range, not
@@ -241,16 +264,16 @@ class Stack:
         """
         return beliefs_table(Samples().add(now, self._belief_columns(now, keys)))
 
-    def _belief_columns(self, now: float, keys=None) -> dict[str, np.ndarray]:
+    def _belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
         """:meth:`belief_vs_truth`'s columns but ``t_s``, the roles as codes."""
         n = self.state.n
         roles = self.roles
-        believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
-        rows = believed_keys // n
-        believed_true = in_sorted(believed_keys, heard_keys)
-        true_count = np.bincount(heard_keys // n, minlength=n)
-        believed = np.bincount(rows, minlength=n)
-        stale = np.bincount(rows[~believed_true], minlength=n)
+        b = keys if keys is not None else self._belief_keys(now)
+        rows = b.keys // n
+        believed = np.bincount(rows[b.believed], minlength=n)
+        true_count = np.bincount(rows[b.in_range], minlength=n)
+        stale = np.bincount(rows[b.believed & ~b.in_range], minlength=n)
+        heard_keys = b.keys[b.in_range]
         leader = roles.leader.copy()
         has = np.flatnonzero((roles.role == MEMBER) & (leader >= 0))
         in_range = np.zeros(n, dtype=bool)
@@ -266,25 +289,17 @@ class Stack:
             "missing_neighbours": true_count - (believed - stale),
         }
 
-    def neighbour_beliefs(self, now: float, keys=None) -> pd.DataFrame:
+    def neighbour_beliefs(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """The ids behind :meth:`belief_vs_truth`'s counts: one row per robot and other
         robot that it believes live or whose transmissions reach it now, ordered by robot
         and other; ``believed`` and ``in_range`` say which (stale: believed only; missing:
         in range only)."""
         return Samples().add(now, self._neighbour_belief_columns(now, keys)).frame()
 
-    def _neighbour_belief_columns(self, now: float, keys=None) -> dict[str, np.ndarray]:
+    def _neighbour_belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
         n = self.state.n
-        believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
-        believed_sorted = np.sort(believed_keys)
-        both = np.sort(np.concatenate([believed_sorted, heard_keys]))
-        both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
-        return {
-            "robot": both // n,
-            "neighbour": both % n,
-            "believed": in_sorted(both, believed_sorted),
-            "in_range": in_sorted(both, heard_keys),
-        }
+        b = keys if keys is not None else self._belief_keys(now)
+        return {"robot": b.keys // n, "neighbour": b.keys % n, "believed": b.believed, "in_range": b.in_range}
 
     def _sampler(self, interval: float):
         env = self.env
