@@ -259,6 +259,9 @@ class Clustering:
         self.role_changes = np.zeros(st.n, dtype=np.int64)
         # When each robot last became a leader (inf: it is not one).
         self.leader_since = np.full(st.n, np.inf)
+        # How many members each robot has now: an Ack that does not lead (a member's, an
+        # undecided robot's, a resignation) does something only to its sender's members.
+        self._members_of = [0] * st.n
         declare_roles(parts.trace)
         # The compiled twins of ack_effects and group_size, past
         # netsim.compiled.SMALL_RUN_ROBOTS robots.
@@ -342,7 +345,12 @@ class Clustering:
     # -- transitions ---------------------------------------------------------------------
     def _set(self, i: int, event: str, leader: int, now: float) -> None:
         st = self.roles
-        role, cause = transition(int(st.role[i]), event)
+        old = int(st.role[i])
+        role, cause = transition(old, event)
+        if old == MEMBER:
+            self._members_of[int(st.leader[i])] -= 1
+        if role == MEMBER:
+            self._members_of[leader] += 1
         st.role[i] = role
         st.leader[i] = leader
         self.leader_since[i] = now if role == LEADER else np.inf
@@ -392,8 +400,10 @@ class Clustering:
             self._set(i, "no_leader_timeout", i, now)
 
     def on_ack(self, now: float, ack: Ack, receivers: np.ndarray, hears_me: np.ndarray) -> None:
-        st, timers = self.roles, self.timers
         leads = ack.role == LEADER and not ack.resign
+        if not leads and not self._members_of[ack.sender]:
+            return
+        st, timers = self.roles, self.timers
         renewed_s = now + self.tau_s
         mine, arm, undecided, leaders = self._effects(
             st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender, leads,

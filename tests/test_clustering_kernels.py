@@ -135,3 +135,21 @@ def test_compiled_union_sorted_equals_numpy():
         x, y = kernels.union_sorted(a, b), union_sorted(a, b)
         assert [v.tolist() for v in x] == [v.tolist() for v in y]
         assert x[0].tolist() == sorted(set(a.tolist()) | set(b.tolist()))
+
+
+def test_members_counted_as_roles_change():
+    """The count of each robot's members, which lets the clustering skip the Acks that do
+    not lead when their sender has none, follows every role change: at every second of a
+    run with merges, timeouts and resignations it is the count from the roles."""
+    from tests.fixtures import clustering
+
+    rng = np.random.default_rng(2)
+    sim, stack = clustering(rng.uniform(0, 40, (25, 2)), core={"duration_s": 40.0, "range_m": 12.0})
+    cl = stack.clustering
+    changes = 0
+    for t in range(1, 41):
+        sim.run(until_s=float(t))
+        members = stack.role == MEMBER
+        assert cl._members_of == np.bincount(stack.leader[members], minlength=25).tolist()
+        changes = int(cl.role_changes.sum())
+    assert changes > 25
