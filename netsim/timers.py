@@ -14,13 +14,14 @@ Ack that arrives at the same instant as a deadline is processed first and counts
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from functools import partial
 
 import numpy as np
 import simpy
 
-from netsim.events import NORMAL, scheduled_event
+from netsim.events import NORMAL
 
 
 class DeadlineTimers:
@@ -30,10 +31,11 @@ class DeadlineTimers:
         self.env = env
         self.on_expire = on_expire
         self.deadline_s = np.full(n, np.inf)
-        # Time of the kernel event armed for each timer (inf: none), and a generation
-        # number so that superseded events recognise themselves.
-        self._armed_s = np.full(n, np.inf)
-        self._generation = np.zeros(n, dtype=np.int64)
+        # Time of the kernel event armed for each timer (inf: none; compiled loops that
+        # set deadlines read it, see arm), and a generation number so that superseded
+        # events recognise themselves.
+        self.armed_s = np.full(n, np.inf)
+        self._generation = [0] * n  # read one at a time: a list is cheaper than an array
 
     def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
         """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
@@ -42,42 +44,52 @@ class DeadlineTimers:
             d = float(deadline_s)
             if isinstance(idx, int | np.integer):
                 self.deadline_s[idx] = d
-                if d < self._armed_s[idx]:
+                if d < self.armed_s[idx]:
                     self._arm(int(idx), d)
                 return
             idx = np.asarray(idx, dtype=np.int64)
             self.deadline_s[idx] = d
-            for i in idx[d < self._armed_s[idx]].tolist():
+            for i in idx[d < self.armed_s[idx]].tolist():
                 self._arm(i, d)
             return
         idx = np.atleast_1d(np.asarray(idx, dtype=np.int64))
         deadline = np.broadcast_to(np.asarray(deadline_s, dtype=float), idx.shape)
         self.deadline_s[idx] = deadline
-        early = deadline < self._armed_s[idx]
+        early = deadline < self.armed_s[idx]
         if early.any():
             for i, d in zip(idx[early].tolist(), deadline[early].tolist()):
                 self._arm(i, d)
+
+    def arm(self, idx: np.ndarray, deadline_s: float) -> None:
+        """Schedule the events of timers ``idx`` whose deadlines were set to ``deadline_s``
+        elsewhere (a compiled loop) and fall before their armed events: the second half of
+        :meth:`restart`."""
+        for i in idx.tolist():
+            self._arm(i, deadline_s)
 
     def cancel(self, idx: int | np.ndarray) -> None:
         self.deadline_s[idx] = np.inf
 
     def _arm(self, i: int, at_s: float) -> None:
-        self._generation[i] += 1
-        self._armed_s[i] = at_s
-        gen = int(self._generation[i])
-        scheduled_event(self.env, max(0.0, at_s - self.env.now), NORMAL, partial(self._fire_event, i, gen))
+        gen = self._generation[i] + 1
+        self._generation[i] = gen
+        self.armed_s[i] = at_s
+        # scheduled_event inlined (once per deadline): the same NORMAL event, one call fewer.
+        env = self.env
+        ev = simpy.Event(env)
+        ev._ok = True
+        ev._value = None
+        ev.callbacks.append(partial(self._fire, i, gen))
+        env.schedule(ev, NORMAL, max(0.0, at_s - env.now))  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
 
-    def _fire_event(self, i: int, gen: int, _event: object) -> None:
-        self._fire(i, gen)
-
-    def _fire(self, i: int, gen: int) -> None:
+    def _fire(self, i: int, gen: int, _event: object = None) -> None:
         if gen != self._generation[i]:
             return
-        self._armed_s[i] = np.inf
-        deadline = self.deadline_s[i]
+        self.armed_s[i] = math.inf
+        deadline = float(self.deadline_s[i])
         now = self.env.now
         if deadline <= now:
-            self.deadline_s[i] = np.inf
+            self.deadline_s[i] = math.inf
             self.on_expire(i, now)
-        elif np.isfinite(deadline):
-            self._arm(i, float(deadline))
+        elif deadline != math.inf:
+            self._arm(i, deadline)

@@ -107,16 +107,21 @@ def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, 
 # Roles (protocols.roles).
 UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
+# The clustering's loops (protocols.clustering, relay and stack), each equal to a numpy
+# function there: per Ack, per flooded message and per sample.
+
 
 @numba.njit(cache=True, nogil=True)
-def sort_receivers(role, leader, receivers, hears_me, symmetric, sender):
-    """The receivers of an Ack of ``sender`` by what the clustering does with it, from the
-    roles before it acts: positions (in ``receivers``) of the members of ``sender``'s group;
-    those of them over a two-way link; undecided robots and leaders over a two-way link
-    (:func:`protocols.clustering.sort_receivers`)."""
+def ack_effects(role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s):
+    """What an Ack of ``sender`` does to the clustering, from the roles before it acts
+    (:func:`protocols.clustering.ack_effects`): positions (in ``receivers``) of the members
+    of ``sender``'s group; if it ``leads`` (a leader's Ack, not resigning), their timers
+    over a two-way link set to ``renewed_s`` in ``deadline_s`` and those of them to arm
+    (``renewed_s`` before the event armed in ``armed_s``), and the undecided robots and
+    leaders over a two-way link."""
     n = len(receivers)
     mine = np.empty(n, dtype=np.int64)
-    renew = np.empty(n, dtype=np.int64)
+    arm = np.empty(n, dtype=np.int64)
     undecided = np.empty(n, dtype=np.int64)
     leaders = np.empty(n, dtype=np.int64)
     a = b = c = d = 0
@@ -127,13 +132,86 @@ def sort_receivers(role, leader, receivers, hears_me, symmetric, sender):
         if ro == MEMBER and leader[r] == sender:
             mine[a] = k
             a += 1
-            if two_way:
-                renew[b] = r
-                b += 1
-        elif two_way and ro == UNDECIDED:
+            if leads and two_way:
+                deadline_s[r] = renewed_s
+                if renewed_s < armed_s[r]:
+                    arm[b] = r
+                    b += 1
+        elif leads and two_way and ro == UNDECIDED:
             undecided[c] = r
             c += 1
-        elif two_way and ro == LEADER_ROLE:
+        elif leads and two_way and ro == LEADER_ROLE:
             leaders[d] = r
             d += 1
-    return mine[:a], renew[:b], undecided[:c], leaders[:d]
+    return mine[:a], arm[:b], undecided[:c], leaders[:d]
+
+
+@numba.njit(cache=True, nogil=True)
+def group_size(records_row, now, tau_s, symmetric, i):
+    """1 + the live two-way entries of robot ``i``'s row whose Ack named ``i`` as their
+    leader (:meth:`protocols.clustering.Clustering.group_size`)."""
+    size = 1
+    for s in range(len(records_row)):
+        rec = records_row[s]
+        if now - rec[LAST_HEARD] < tau_s and (symmetric or rec[HEARS_ME] != 0):
+            if rec[ROLE] == MEMBER and rec[LEADER] == i:
+                size += 1
+    return size
+
+
+@numba.njit(cache=True, nogil=True)
+def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distributed_gateways):
+    """The receivers of a flooded message that relay it (:meth:`protocols.relay.Relay._relays`):
+    leaders, and members with a live two-way neighbour in another group (a leader other than
+    their own or, with ``distributed_gateways``, a member of another leader). ``ids`` and
+    ``records`` are the neighbour table's ``(n, slots)`` ids and ``(n, slots, fields)``
+    records."""
+    out = np.empty(len(receivers), dtype=np.int64)
+    m = 0
+    for r in receivers:
+        ro = role[r]
+        relay = ro == LEADER_ROLE
+        if ro == MEMBER:
+            own = leader[r]
+            row = records[r]
+            for s in range(len(row)):
+                rec = row[s]
+                if not now - rec[LAST_HEARD] < tau_s or not (symmetric or rec[HEARS_ME] != 0):
+                    continue
+                if distributed_gateways:
+                    other = rec[ROLE] != UNDECIDED and rec[LEADER] != own
+                else:
+                    other = rec[ROLE] == LEADER_ROLE and ids[r, s] != own
+                if other:
+                    relay = True
+                    break
+        if relay:
+            out[m] = r
+            m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def union_sorted(a, b):
+    """The ascending union of two ascending arrays of distinct keys, and per key whether it
+    is in ``a`` and whether in ``b`` (:func:`protocols.stack.union_sorted`)."""
+    out = np.empty(len(a) + len(b), dtype=np.int64)
+    in_a = np.zeros(len(a) + len(b), dtype=np.bool_)
+    in_b = np.zeros(len(a) + len(b), dtype=np.bool_)
+    i = j = k = 0
+    while i < len(a) or j < len(b):
+        if j == len(b) or (i < len(a) and a[i] < b[j]):
+            out[k] = a[i]
+            in_a[k] = True
+            i += 1
+        elif i == len(a) or b[j] < a[i]:
+            out[k] = b[j]
+            in_b[k] = True
+            j += 1
+        else:
+            out[k] = a[i]
+            in_a[k] = in_b[k] = True
+            i += 1
+            j += 1
+        k += 1
+    return out[:k], in_a[:k], in_b[:k]

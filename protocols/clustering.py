@@ -188,22 +188,50 @@ def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
     return ELECTION[ElectionPolicy(policy)](me, rivals)
 
 
-def sort_receivers(
-    role: np.ndarray, leader: np.ndarray, receivers: np.ndarray, hears_me: np.ndarray, symmetric: bool, sender: int
+_NONE = np.empty(0, dtype=np.int64)
+
+
+def ack_effects(
+    role: np.ndarray,
+    leader: np.ndarray,
+    receivers: np.ndarray,
+    hears_me: np.ndarray,
+    symmetric: bool,
+    sender: int,
+    leads: bool,
+    deadline_s: np.ndarray,
+    armed_s: np.ndarray,
+    renewed_s: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The receivers of an Ack of ``sender`` by what the clustering does with it, from the
-    roles before it acts: positions (in ``receivers``) of the members of ``sender``'s group;
-    those members over a two-way link (their timers restart); undecided robots and leaders
-    over a two-way link (they may join or merge)."""
+    """What an Ack of ``sender`` does, from the roles before it acts: positions (in
+    ``receivers``) of the members of ``sender``'s group; and if the Ack ``leads`` (a
+    leader's, not resigning): those members' timers over a two-way link restart at
+    ``renewed_s`` (written in the timers' ``deadline_s``; returned: those of them whose
+    timers must be armed, ``renewed_s`` before the event in ``armed_s``), and the undecided
+    robots and leaders over a two-way link (they may join or merge)."""
     r_role = role[receivers]
-    two_way = hears_me | symmetric
     mine = (r_role == MEMBER) & (leader[receivers] == sender)
+    if not leads:
+        return np.flatnonzero(mine), _NONE, _NONE, _NONE
+    two_way = hears_me | symmetric
+    renew = receivers[mine & two_way]
+    deadline_s[renew] = renewed_s
     return (
         np.flatnonzero(mine),
-        receivers[mine & two_way],
+        renew[renewed_s < armed_s[renew]],
         receivers[(r_role == UNDECIDED) & two_way],
         receivers[(r_role == LEADER) & two_way],
     )
+
+
+def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, i: int) -> int:
+    """1 + the live two-way entries of robot ``i``'s neighbour table row (its records, as
+    :class:`protocols.neighbours.NeighbourTable` holds them) whose last Ack named ``i`` as
+    their leader."""
+    two_way = now - records_row[:, LAST_HEARD] < tau_s
+    if not symmetric:
+        two_way &= records_row[:, HEARS_ME] != 0
+    return 1 + int((two_way & (records_row[:, ROLE] == MEMBER) & (records_row[:, LEADER_FIELD] == i)).sum())
 
 
 class Clustering:
@@ -231,9 +259,15 @@ class Clustering:
         self.role_changes = np.zeros(st.n, dtype=np.int64)
         # When each robot last became a leader (inf: it is not one).
         self.leader_since = np.full(st.n, np.inf)
+        # How many members each robot has now: an Ack that does not lead (a member's, an
+        # undecided robot's, a resignation) does something only to its sender's members.
+        self._members_of = [0] * st.n
         declare_roles(parts.trace)
-        # The compiled twin of sort_receivers, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        # The compiled twins of ack_effects and group_size, past
+        # netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = load("protocols._kernels", st.n)
+        self._effects = self.kernels.ack_effects if self.kernels is not None else ack_effects
+        self._group_size = self.kernels.group_size if self.kernels is not None else group_size
         beacon.listeners.append(self.on_ack)
         beacon.before_send.append(self._before_ack)
 
@@ -266,9 +300,7 @@ class Clustering:
 
     def group_size(self, i: int, now: float) -> int:
         """1 + the live two-way neighbours whose last Ack named ``i`` as their leader."""
-        rows = self.table.data[i]
-        members = self._two_way(i, now) & (rows[:, ROLE] == MEMBER) & (rows[:, LEADER_FIELD] == i)
-        return 1 + int(members.sum())
+        return int(self._group_size(self.table.data[i], now, self.table.tau_s, self.symmetric, i))
 
     def membership(self, now: float):
         """Group membership of every robot now, as arrays ``(robot, group, primary)``.
@@ -302,14 +334,6 @@ class Clustering:
             out[r].add(g)
         return out
 
-    def borders_other_group(self, i: int, now: float) -> bool:
-        """Whether member ``i`` has a live two-way neighbour in another group (a leader other
-        than its own, or a member of another leader): a gateway or a distributed gateway."""
-        rows = self.table.data[i]
-        own = self.roles.leader[i]
-        other = self._two_way(i, now) & (rows[:, ROLE] != UNDECIDED) & (rows[:, LEADER_FIELD] != own)
-        return bool(other.any())
-
     def gateways(self, now: float) -> np.ndarray:
         """Ids of the members that belong to two groups or more."""
         robot, _, _ = self.membership(now)
@@ -321,7 +345,12 @@ class Clustering:
     # -- transitions ---------------------------------------------------------------------
     def _set(self, i: int, event: str, leader: int, now: float) -> None:
         st = self.roles
-        role, cause = transition(int(st.role[i]), event)
+        old = int(st.role[i])
+        role, cause = transition(old, event)
+        if old == MEMBER:
+            self._members_of[int(st.leader[i])] -= 1
+        if role == MEMBER:
+            self._members_of[leader] += 1
         st.role[i] = role
         st.leader[i] = leader
         self.leader_since[i] = now if role == LEADER else np.inf
@@ -371,17 +400,16 @@ class Clustering:
             self._set(i, "no_leader_timeout", i, now)
 
     def on_ack(self, now: float, ack: Ack, receivers: np.ndarray, hears_me: np.ndarray) -> None:
-        st = self.roles
-        kernels = self.kernels
-        if kernels is not None:
-            mine, renew, undecided, leaders = kernels.sort_receivers(
-                st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender
-            )
-        else:
-            mine, renew, undecided, leaders = sort_receivers(
-                st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender
-            )
-        if ack.role != LEADER or ack.resign:
+        leads = ack.role == LEADER and not ack.resign
+        if not leads and not self._members_of[ack.sender]:
+            return
+        st, timers = self.roles, self.timers
+        renewed_s = now + self.tau_s
+        mine, arm, undecided, leaders = self._effects(
+            st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender, leads,
+            timers.deadline_s, timers.armed_s, renewed_s,
+        )  # fmt: skip
+        if not leads:
             for k in mine.tolist():
                 r = int(receivers[k])
                 if ack.role == MEMBER and ack.leader == r:
@@ -389,8 +417,8 @@ class Clustering:
                 else:
                     self._leader_gone(r, now, "leader_resigned")
             return
-        if len(renew):
-            self.timers.restart(renew, now + self.tau_s)
+        if len(arm):
+            timers.arm(arm, renewed_s)
         for r in undecided.tolist():
             self._join(r, now, first_heard=ack.sender)
         for r in leaders.tolist():

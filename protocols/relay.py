@@ -22,11 +22,14 @@ import numpy as np
 import pandas as pd
 import simpy
 
+from netsim.compiled import load
 from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
 from netsim.rng import Streams
 from netsim.topology import geometric_pairs
-from protocols.roles import LEADER, MEMBER
+from protocols.neighbours import HEARS_ME, LAST_HEARD, ROLE
+from protocols.neighbours import LEADER as LEADER_FIELD
+from protocols.roles import LEADER, MEMBER, UNDECIDED
 
 
 class Routing(StrEnum):
@@ -88,6 +91,35 @@ def hop_distances(state, now: float, node: int, towards: bool = False) -> np.nda
     return shortest_path(graph.T if towards else graph, indices=node, unweighted=True, directed=True)
 
 
+def relays(
+    ids: np.ndarray,
+    records: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    role: np.ndarray,
+    leader: np.ndarray,
+    receivers: np.ndarray,
+    distributed_gateways: bool,
+) -> np.ndarray:
+    """The ``receivers`` of a flooded message that relay it: leaders, and gateways, the
+    members with a live two-way neighbour (in their neighbour tables: ``ids`` and
+    ``records``, as :class:`protocols.neighbours.NeighbourTable` holds them) in another
+    group: a leader other than their own or, with ``distributed_gateways``, a member of
+    another leader."""
+    rows = records[receivers]
+    two_way = now - rows[:, :, LAST_HEARD] < tau_s
+    if not symmetric:
+        two_way &= rows[:, :, HEARS_ME] != 0
+    own = leader[receivers][:, None]
+    if distributed_gateways:
+        other = (rows[:, :, ROLE] != UNDECIDED) & (rows[:, :, LEADER_FIELD] != own)
+    else:
+        other = (rows[:, :, ROLE] == LEADER) & (ids[receivers] != own)
+    r_role = role[receivers]
+    return receivers[(r_role == LEADER) | ((r_role == MEMBER) & (two_way & other).any(axis=1))]
+
+
 class Relay:
     """Sends messages and keeps their outcomes. ``params`` holds ``routing``,
     ``message_ttl`` and ``distributed_gateways`` (the clustering protocol's parameters)."""
@@ -116,6 +148,8 @@ class Relay:
             self.channel.medium_losses["data"] = self._medium_loss
         # One entry per delivery event: (msg_id, hop, sender, t_sent_s, t_received_s, receivers).
         self._hops: list[tuple] = []
+        # The compiled twin of relays, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self.kernels = load("protocols._kernels", parts.state.n)
 
     def send(self, src: int, dst: int) -> int:
         """Send a message from ``src`` to ``dst`` now; returns its id."""
@@ -164,17 +198,12 @@ class Relay:
         return receivers if self.channel.latency_jitter_s > 0 else 1
 
     def _relays(self, receivers: np.ndarray, now: float) -> np.ndarray:
-        st = self.roles
-        role = st.role[receivers]
-        backbone = role == LEADER
         cl = self.clustering
-        for k in np.flatnonzero(role == MEMBER).tolist():
-            r = int(receivers[k])
-            if self.distributed_gateways:
-                backbone[k] = cl.borders_other_group(r, now)
-            else:
-                backbone[k] = len(cl.known_leaders(r, now, exclude=int(st.leader[r]))) > 0
-        return receivers[backbone]
+        table = cl.table
+        return (relays if self.kernels is None else self.kernels.relays)(
+            table.id, table.data, now, table.tau_s, cl.symmetric, self.roles.role, self.roles.leader, receivers,
+            self.distributed_gateways,
+        )  # fmt: skip
 
     def _on_flood(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
         now = self.env.now

@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from netsim.compiled import load
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.radio.mac import MAC_CAUSES
@@ -31,6 +32,62 @@ def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
         return np.zeros(len(values), dtype=bool)
     at = np.minimum(pool.searchsorted(values), len(pool) - 1)
     return pool[at] == values
+
+
+class Samples:
+    """A table sampled during the run: each sample's columns (arrays of one length) and its
+    time ``t_s``, made one DataFrame at the end (a DataFrame per sample costs more than
+    the sample)."""
+
+    def __init__(self) -> None:
+        self.times: list[float] = []
+        self.columns: list[dict[str, np.ndarray]] = []
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def add(self, now: float, columns: dict[str, np.ndarray]) -> Samples:
+        self.times.append(now)
+        self.columns.append(columns)
+        return self
+
+    def frame(self, convert: Mapping[str, Callable[[np.ndarray], object]] | None = None) -> pd.DataFrame:
+        """All samples, in order, as one table: ``t_s`` first, then the columns (each
+        passed through ``convert[name]`` if given)."""
+        names = list(self.columns[0])
+        sizes = [len(c[names[0]]) for c in self.columns]
+        out: dict[str, object] = {"t_s": np.repeat(np.array(self.times, dtype=float), sizes)}
+        for name in names:
+            col = np.concatenate([c[name] for c in self.columns])
+            out[name] = convert[name](col) if convert and name in convert else col
+        return pd.DataFrame(out)
+
+
+# The role labels by code, to turn a column of codes into one of labels.
+_ROLE_LABELS = np.array(ROLE_NAMES, dtype=object)
+
+
+def beliefs_table(samples: Samples) -> pd.DataFrame:
+    """The ``beliefs`` table of samples of :meth:`Stack._belief_columns`."""
+    return samples.frame({"role": lambda codes: _ROLE_LABELS[codes].tolist()})
+
+
+def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ascending union of two ascending arrays of distinct keys, and per key whether it
+    is in ``a`` and whether in ``b``."""
+    both = np.sort(np.concatenate([a, b]))
+    both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
+    return both, in_sorted(both, a), in_sorted(both, b)
+
+
+class Beliefs(NamedTuple):
+    """Who believes whom live at one instant, beside the truth: ``robot * n + other`` for
+    every pair where ``robot`` believes ``other`` live or ``other``'s transmissions reach
+    ``robot`` (ascending), and per pair whether it is believed and whether in range."""
+
+    keys: np.ndarray
+    believed: np.ndarray
+    in_range: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -87,9 +144,13 @@ class Stack:
         self.command: list[Command | None] = [None] * n
         self._command_seq = np.zeros(n, dtype=np.int64)
         self.on_command: list[Callable[[int, Command], None]] = []
-        self._groups: list[pd.DataFrame] = []
-        self._beliefs: list[pd.DataFrame] = []
-        self._neighbour_beliefs: list[pd.DataFrame] = []
+        # The sampled tables, kept as arrays and made tables once, at the end.
+        self._groups = Samples()
+        self._beliefs = Samples()
+        self._neighbour_beliefs = Samples()
+        kernels = load("protocols._kernels", n)
+        # The compiled twin of union_sorted, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self._union = kernels.union_sorted if kernels is not None else union_sorted
 
     # -- the groups, for the rest of the run ------------------------------------------
     @property
@@ -115,12 +176,7 @@ class Stack:
         self.trace.add_frame("messages", self.messages_frame)
         self.trace.add_frame("hops", self.relay.hops_frame)
         self.trace.add_frame("groups", self.groups_frame)
-        self.trace.add_frame(
-            "beliefs",
-            lambda: (
-                pd.concat(self._beliefs, ignore_index=True) if self._beliefs else pd.DataFrame(columns=BELIEF_COLUMNS)
-            ),
-        )
+        self.trace.add_frame("beliefs", self.beliefs_frame)
         self.trace.add_frame("neighbour_beliefs", self.neighbour_beliefs_frame)
 
     # -- leader commands ---------------------------------------------------------------
@@ -183,18 +239,19 @@ class Stack:
         return robot[order], other[order], xy[other[order]]
 
     # -- ground truth beside belief ----------------------------------------------------
-    def _belief_keys(self, now: float) -> tuple[np.ndarray, np.ndarray]:
-        """``robot * n + other`` for every ``other`` that ``robot`` believes live (in table
-        order), and for every ``other`` whose transmissions reach ``robot`` now (sorted)."""
+    def _belief_keys(self, now: float) -> Beliefs:
+        """Who believes whom live now, beside the truth: ``robot * n + other`` for every
+        ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
         st, n = self.state, self.state.n
         src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
         # receiver * n + sender, for every sender whose transmissions reach the receiver.
         heard_keys = np.sort(dst * n + src)
         live = self.table.live_mask(now)
         rows = np.nonzero(live)[0]
-        return rows * n + self.table.id[live], heard_keys
+        believed_keys = np.sort(rows * n + self.table.id[live])
+        return Beliefs(*self._union(believed_keys, heard_keys))
 
-    def belief_vs_truth(self, now: float, keys=None) -> pd.DataFrame:
+    def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
         how many neighbours it believes live and how many it truly has, and how many of
         its beliefs are stale (believed live, out of range) or missing (in range, not
@@ -205,61 +262,54 @@ class Stack:
         (``|p_i - p_j| <= r_j``), whether or not ``i`` reaches ``j``. A member's leader is
         in range when the link is two-way (``<= min(r_i, r_j)``), as a member needs.
         """
+        return beliefs_table(Samples().add(now, self._belief_columns(now, keys)))
+
+    def _belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
+        """:meth:`belief_vs_truth`'s columns but ``t_s``, the roles as codes."""
         n = self.state.n
         roles = self.roles
-        believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
-        rows = believed_keys // n
-        believed_true = in_sorted(believed_keys, heard_keys)
-        true_count = np.bincount(heard_keys // n, minlength=n)
-        believed = np.bincount(rows, minlength=n)
-        stale = np.bincount(rows[~believed_true], minlength=n)
+        b = keys if keys is not None else self._belief_keys(now)
+        rows = b.keys // n
+        believed = np.bincount(rows[b.believed], minlength=n)
+        true_count = np.bincount(rows[b.in_range], minlength=n)
+        stale = np.bincount(rows[b.believed & ~b.in_range], minlength=n)
+        heard_keys = b.keys[b.in_range]
         leader = roles.leader.copy()
         has = np.flatnonzero((roles.role == MEMBER) & (leader >= 0))
         in_range = np.zeros(n, dtype=bool)
         in_range[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
-        return pd.DataFrame(
-            {
-                "t_s": now,
-                "robot": np.arange(n),
-                "role": [ROLE_NAMES[r] for r in roles.role],
-                "leader": leader,
-                "leader_in_range": in_range | (roles.role == LEADER),
-                "believed_neighbours": believed,
-                "true_neighbours": true_count,
-                "stale_neighbours": stale,
-                "missing_neighbours": true_count - (believed - stale),
-            }
-        )
+        return {
+            "robot": np.arange(n),
+            "role": roles.role.copy(),
+            "leader": leader,
+            "leader_in_range": in_range | (roles.role == LEADER),
+            "believed_neighbours": believed,
+            "true_neighbours": true_count,
+            "stale_neighbours": stale,
+            "missing_neighbours": true_count - (believed - stale),
+        }
 
-    def neighbour_beliefs(self, now: float, keys=None) -> pd.DataFrame:
+    def neighbour_beliefs(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """The ids behind :meth:`belief_vs_truth`'s counts: one row per robot and other
         robot that it believes live or whose transmissions reach it now, ordered by robot
         and other; ``believed`` and ``in_range`` say which (stale: believed only; missing:
         in range only)."""
+        return Samples().add(now, self._neighbour_belief_columns(now, keys)).frame()
+
+    def _neighbour_belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
         n = self.state.n
-        believed_keys, heard_keys = keys if keys is not None else self._belief_keys(now)
-        believed_sorted = np.sort(believed_keys)
-        both = np.sort(np.concatenate([believed_sorted, heard_keys]))
-        both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
-        return pd.DataFrame(
-            {
-                "t_s": now,
-                "robot": both // n,
-                "neighbour": both % n,
-                "believed": in_sorted(both, believed_sorted),
-                "in_range": in_sorted(both, heard_keys),
-            }
-        )
+        b = keys if keys is not None else self._belief_keys(now)
+        return {"robot": b.keys // n, "neighbour": b.keys % n, "believed": b.believed, "in_range": b.in_range}
 
     def _sampler(self, interval: float):
         env = self.env
         while True:
             now = env.now
             robot, group, primary = self.clustering.membership(now)
-            self._groups.append(pd.DataFrame({"t_s": now, "robot": robot, "group": group, "primary": primary}))
+            self._groups.add(now, {"robot": robot, "group": group, "primary": primary})
             keys = self._belief_keys(now)
-            self._beliefs.append(self.belief_vs_truth(now, keys))
-            self._neighbour_beliefs.append(self.neighbour_beliefs(now, keys))
+            self._beliefs.add(now, self._belief_columns(now, keys))
+            self._neighbour_beliefs.add(now, self._neighbour_belief_columns(now, keys))
             yield env.timeout(interval)
 
     # -- outputs -----------------------------------------------------------------------
@@ -273,15 +323,20 @@ class Stack:
                 df[f"dropped_{cause}"] = np.array(counts, dtype=np.int64)
         return df
 
+    def beliefs_frame(self) -> pd.DataFrame:
+        if not self._beliefs:
+            return pd.DataFrame(columns=BELIEF_COLUMNS)
+        return beliefs_table(self._beliefs)
+
     def neighbour_beliefs_frame(self) -> pd.DataFrame:
         if not self._neighbour_beliefs:
             return pd.DataFrame({c: pd.Series(dtype=t) for c, t in NEIGHBOUR_BELIEFS_SCHEMA.items()})
-        return pd.concat(self._neighbour_beliefs, ignore_index=True)
+        return self._neighbour_beliefs.frame()
 
     def groups_frame(self) -> pd.DataFrame:
         if not self._groups:
             return pd.DataFrame(columns=["t_s", "robot", "group", "primary"])
-        return pd.concat(self._groups, ignore_index=True)
+        return self._groups.frame()
 
     def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         n = self.state.n

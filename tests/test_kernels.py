@@ -109,28 +109,6 @@ def test_runs_equal_with_and_without_compiled_loops(monkeypatch):
         assert frames["0"][name].equals(frames["1"][name]), name
 
 
-@pytest.mark.parametrize("symmetric", [False, True])
-def test_compiled_sort_receivers_equals_numpy(symmetric):
-    """The clustering's sorting of an Ack's receivers (its group's members, those over a
-    two-way link, undecided robots, leaders) is the numpy one."""
-    from protocols.clustering import sort_receivers
-
-    rng = np.random.default_rng(5)
-    n = 60
-    found = np.zeros(4, dtype=int)
-    for _ in range(300):
-        role = rng.integers(0, 3, n).astype(np.int8)
-        leader = rng.integers(-1, 8, n).astype(np.int64)
-        sender = int(rng.integers(8))
-        receivers = np.sort(rng.choice(np.delete(np.arange(n), sender), int(rng.integers(0, 15)), replace=False))
-        hears_me = rng.random(len(receivers)) < 0.6
-        a = table_kernels.sort_receivers(role, leader, receivers, hears_me, symmetric, sender)
-        b = sort_receivers(role, leader, receivers, hears_me, symmetric, sender)
-        assert [x.tolist() for x in a] == [x.tolist() for x in b]
-        found += [len(x) > 0 for x in a]
-    assert found.min() > 20
-
-
 def test_compiled_frame_end_equals_numpy():
     """A frame's end under the unit disk (netsim/radio/_mac_kernels.py) leaves the medium's
     arrays and finds the same half-duplex and collision losses and the same robots newly

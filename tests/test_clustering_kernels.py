@@ -1,0 +1,155 @@
+"""The clustering's compiled loops (protocols/_kernels.py) compute exactly what their numpy
+twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effects), a
+leader's group size (clustering.group_size), who relays a flooded message
+(relay.relays) and the union of belief keys (stack.union_sorted); and the numpy
+``relays`` keeps the relaying rule."""
+
+import numpy as np
+import pytest
+
+from protocols.clustering import ack_effects, group_size
+from protocols.neighbours import _EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE
+from protocols.relay import relays
+from protocols.roles import LEADER as ALPHA
+from protocols.roles import MEMBER, UNDECIDED
+from protocols.stack import union_sorted
+
+pytest.importorskip("numba")
+
+from protocols import _kernels as kernels  # noqa: E402
+
+TAU_S = 3.0
+
+
+def random_tables(rng, n, slots, now):
+    """Neighbour tables ``(ids, records)`` with random entries: live, expired, exactly tau
+    old (expired), empty; one-way and two-way; any role and leader."""
+    ids = np.where(rng.random((n, slots)) < 0.8, rng.integers(0, n, (n, slots)), -1).astype(np.int64)
+    records = np.broadcast_to(_EMPTY_RECORD, (n, slots, len(_EMPTY_RECORD))).copy()
+    used = ids >= 0
+    records[:, :, LAST_HEARD] = np.where(used, now - rng.choice([0.0, 0.5, 2.9, TAU_S, 4.0], (n, slots)), -np.inf)
+    records[:, :, HEARS_ME] = used & (rng.random((n, slots)) < 0.7)
+    records[:, :, ROLE] = np.where(used, rng.integers(0, 3, (n, slots)), 0)
+    records[:, :, LEADER] = np.where(used, rng.integers(-1, 6, (n, slots)), -1)
+    return ids, records
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_ack_effects_equals_numpy(symmetric):
+    """An Ack's effects (its group's members; for a leading Ack the timers it renews, which
+    of them to arm, the undecided robots and leaders it reaches over two-way links) and
+    the deadlines it writes are the numpy ones."""
+    rng = np.random.default_rng(5)
+    n = 60
+    found = np.zeros(4, dtype=int)
+    for _ in range(400):
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = rng.integers(-1, 8, n).astype(np.int64)
+        sender = int(rng.integers(8))
+        receivers = np.sort(rng.choice(np.delete(np.arange(n), sender), int(rng.integers(0, 15)), replace=False))
+        hears_me = rng.random(len(receivers)) < 0.6
+        leads = bool(rng.random() < 0.7)
+        armed_s = rng.choice([np.inf, 1.0, 4.0, 5.0, 9.0], n)
+        deadline_a = rng.uniform(0.0, 10.0, n)
+        deadline_b = deadline_a.copy()
+        args = (role, leader, receivers, hears_me, symmetric, sender, leads)
+        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0)
+        b = ack_effects(*args, deadline_b, armed_s, 4.0)
+        assert [x.tolist() for x in a] == [x.tolist() for x in b]
+        assert deadline_a.tobytes() == deadline_b.tobytes()
+        found += [len(x) > 0 for x in a]
+    assert found.min() > 20
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_group_size_equals_numpy(symmetric):
+    """A leader's group size from its row of the neighbour table is the numpy count."""
+    rng = np.random.default_rng(7)
+    sizes = []
+    for _ in range(50):
+        now = 10.0
+        ids, records = random_tables(rng, 6, 8, now)
+        for i in range(6):
+            a = kernels.group_size(records[i], now, TAU_S, symmetric, i)
+            b = group_size(records[i], now, TAU_S, symmetric, i)
+            assert a == b
+            sizes.append(b)
+    assert min(sizes) == 1 and max(sizes) > 2
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+@pytest.mark.parametrize("distributed_gateways", [False, True])
+def test_compiled_relays_equals_numpy(symmetric, distributed_gateways):
+    """The receivers of a flooded message that relay it are the numpy ones."""
+    rng = np.random.default_rng(9)
+    relayed = 0
+    for _ in range(100):
+        n, now = 12, 10.0
+        ids, records = random_tables(rng, n, 6, now)
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = rng.integers(-1, 6, n).astype(np.int64)
+        receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
+        args = (ids, records, now, TAU_S, symmetric, role, leader, receivers, distributed_gateways)
+        a, b = kernels.relays(*args), relays(*args)
+        assert a.tolist() == b.tolist()
+        relayed += len(a)
+    assert relayed > 50
+
+
+def test_relays_are_leaders_and_members_next_to_another_group():
+    """Leaders relay; a member relays when a live two-way neighbour is in another group: a
+    member of another leader (distributed gateways) or another leader (strict backbone);
+    undecided robots, one-way and expired neighbours do not count."""
+    now = 10.0
+    # Robot 0: leader. 1: member of 0 hearing a member of leader 5 over a two-way link.
+    # 2: member of 0 hearing leader 5 one way only. 3: member of 0 hearing leader 5 two-way.
+    # 4: member of 0 hearing undecided 7, and 5's member 6 too long ago. 7: undecided.
+    role = np.array([ALPHA, MEMBER, MEMBER, MEMBER, MEMBER, ALPHA, MEMBER, UNDECIDED], dtype=np.int8)
+    leader = np.array([0, 0, 0, 0, 0, 5, 5, -1], dtype=np.int64)
+    ids = np.full((8, 2), -1, dtype=np.int64)
+    records = np.broadcast_to(_EMPTY_RECORD, (8, 2, len(_EMPTY_RECORD))).copy()
+
+    def entry(i, slot, j, heard_s, hears_me):
+        ids[i, slot] = j
+        records[i, slot, [LAST_HEARD, HEARS_ME, ROLE, LEADER]] = [now - heard_s, hears_me, role[j], leader[j]]
+
+    entry(1, 0, 6, 1.0, 1)
+    entry(2, 0, 5, 1.0, 0)
+    entry(3, 0, 5, 1.0, 1)
+    entry(4, 0, 7, 1.0, 1)
+    entry(4, 1, 6, TAU_S, 1)
+    everyone = np.arange(8)
+    for fn in (relays, kernels.relays):
+        assert fn(ids, records, now, TAU_S, False, role, leader, everyone, True).tolist() == [0, 1, 3, 5]
+        assert fn(ids, records, now, TAU_S, True, role, leader, everyone, True).tolist() == [0, 1, 2, 3, 5]
+        assert fn(ids, records, now, TAU_S, False, role, leader, everyone, False).tolist() == [0, 3, 5]
+
+
+def test_compiled_union_sorted_equals_numpy():
+    """The union of two ascending key arrays, with membership flags, is the numpy one,
+    empty arrays included."""
+    rng = np.random.default_rng(13)
+    for _ in range(200):
+        a = np.unique(rng.integers(0, 60, int(rng.integers(0, 30)))).astype(np.int64)
+        b = np.unique(rng.integers(0, 60, int(rng.integers(0, 30)))).astype(np.int64)
+        x, y = kernels.union_sorted(a, b), union_sorted(a, b)
+        assert [v.tolist() for v in x] == [v.tolist() for v in y]
+        assert x[0].tolist() == sorted(set(a.tolist()) | set(b.tolist()))
+
+
+def test_members_counted_as_roles_change():
+    """The count of each robot's members, which lets the clustering skip the Acks that do
+    not lead when their sender has none, follows every role change: at every second of a
+    run with merges, timeouts and resignations it is the count from the roles."""
+    from tests.fixtures import clustering
+
+    rng = np.random.default_rng(2)
+    sim, stack = clustering(rng.uniform(0, 40, (25, 2)), core={"duration_s": 40.0, "range_m": 12.0})
+    cl = stack.clustering
+    changes = 0
+    for t in range(1, 41):
+        sim.run(until_s=float(t))
+        members = stack.role == MEMBER
+        assert cl._members_of == np.bincount(stack.leader[members], minlength=25).tolist()
+        changes = int(cl.role_changes.sum())
+    assert changes > 25
