@@ -295,7 +295,8 @@ class Relay:
                 "receiver": np.concatenate(cols[5]).astype(np.int64),
                 "t_sent_s": np.repeat(np.array(cols[3], dtype=float), sizes),
                 "t_received_s": np.repeat(np.array(cols[4], dtype=float), sizes),
-            }
+            },
+            copy=False,  # new arrays, the table's own
         )
 
 

@@ -60,16 +60,25 @@ class Samples:
         for name in names:
             col = np.concatenate([c[name] for c in self.columns])
             out[name] = convert[name](col) if convert and name in convert else col
-        return pd.DataFrame(out)
+        # The columns are new arrays, the table's own: copying them into blocks would only
+        # cost (more than building them).
+        return pd.DataFrame(out, copy=False)
 
 
-# The role labels by code, to turn a column of codes into one of labels.
-_ROLE_LABELS = np.array(ROLE_NAMES, dtype=object)
+# The role labels by code, in the column pandas makes of a list of labels (its string
+# dtype, object before pandas 3): taking from it turns a column of codes into a column of
+# labels without a Python string per row.
+_ROLE_LABELS = pd.Series(list(ROLE_NAMES)).array
+
+
+def role_labels(codes: np.ndarray):
+    """The column of role labels of a column of role codes."""
+    return _ROLE_LABELS.take(codes.astype(np.int64)) if len(codes) else []
 
 
 def beliefs_table(samples: Samples) -> pd.DataFrame:
     """The ``beliefs`` table of samples of :meth:`Stack._belief_columns`."""
-    return samples.frame({"role": lambda codes: _ROLE_LABELS[codes].tolist()})
+    return samples.frame({"role": role_labels})
 
 
 def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
