@@ -17,7 +17,7 @@ from netsim.compiled import load
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.radio.mac import MAC_CAUSES
-from netsim.topology import geometric_pairs
+from netsim.topology import reach_keys
 from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from protocols.neighbours import LAST_HEARD, ROLE, X, Y
@@ -252,9 +252,8 @@ class Stack:
         """Who believes whom live now, beside the truth: ``robot * n + other`` for every
         ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
         st, n = self.state, self.state.n
-        src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
         # receiver * n + sender, for every sender whose transmissions reach the receiver.
-        heard_keys = np.sort(dst * n + src)
+        heard_keys = reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
         live = self.table.live_mask(now)
         rows = np.nonzero(live)[0]
         believed_keys = np.sort(rows * n + self.table.id[live])
