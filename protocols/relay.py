@@ -172,7 +172,7 @@ class Relay:
         }
         self._seen[mid] = {src}
         self._pending[mid] = 0
-        msg = Message(mid, src, dst, self.ttl, 1)
+        msg = Message(mid, src, dst, self.ttl, 1, now)
         if self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
         else:
@@ -184,7 +184,7 @@ class Relay:
     # -- backbone flooding -------------------------------------------------------------
     def _broadcast(self, sender: int, msg: Message) -> None:
         self._outcomes[msg.id]["transmissions"] += 1
-        got = self.channel.broadcast(sender, msg._replace(t_tx_s=self.env.now), self._on_flood, kind="data")
+        got = self.channel.broadcast(sender, msg, self._on_flood, kind="data")
         self._pending[msg.id] += self._arrivals(len(got))
 
     def _arrivals(self, receivers: int) -> int:
@@ -217,7 +217,8 @@ class Relay:
             if fresh:
                 self._ttl_cut.add(msg.id)
         else:
-            nxt = msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1)
+            # Relayed now, by every robot that relays it.
+            nxt = Message(msg.id, msg.src, msg.dst, msg.ttl - 1, msg.hops + 1, now)
             for r in self._relays(np.array(fresh, dtype=np.int64), now).tolist():
                 if r != msg.dst:
                     self._broadcast(r, nxt)

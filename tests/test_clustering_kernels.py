@@ -1,13 +1,14 @@
 """The clustering's compiled loops (protocols/_kernels.py) compute exactly what their numpy
 twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effects), a
-leader's group size (clustering.group_size), who relays a flooded message
+leader's group size (clustering.group_size), the known leaders and a leader's members in a
+row of the table (clustering.leader_slots, mate_slots), who relays a flooded message
 (relay.relays) and the union of belief keys (stack.union_sorted); and the numpy
 ``relays`` keeps the relaying rule."""
 
 import numpy as np
 import pytest
 
-from protocols.clustering import ack_effects, group_size
+from protocols.clustering import ack_effects, group_size, leader_slots, mate_slots
 from protocols.neighbours import _EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE
 from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
@@ -75,6 +76,26 @@ def test_compiled_group_size_equals_numpy(symmetric):
             assert a == b
             sizes.append(b)
     assert min(sizes) == 1 and max(sizes) > 2
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_leader_and_mate_slots_equal_numpy(symmetric):
+    """The slots of a row's known leaders (but one excluded) and of the members of a given
+    leader (rules 2 and 6) are the numpy ones."""
+    rng = np.random.default_rng(8)
+    found = np.zeros(2, dtype=int)
+    for _ in range(50):
+        now = 10.0
+        ids, records = random_tables(rng, 6, 8, now)
+        for i in range(6):
+            other = int(rng.integers(-1, 6))
+            a = kernels.leader_slots(ids[i], records[i], now, TAU_S, symmetric, other)
+            b = leader_slots(ids[i], records[i], now, TAU_S, symmetric, other)
+            c = kernels.mate_slots(records[i], now, TAU_S, symmetric, other)
+            d = mate_slots(records[i], now, TAU_S, symmetric, other)
+            assert a.tolist() == b.tolist() and c.tolist() == d.tolist()
+            found += [len(a) > 0, len(c) > 0]
+    assert found.min() > 20
 
 
 @pytest.mark.parametrize("symmetric", [False, True])
