@@ -193,6 +193,35 @@ def mate_slots(records_row, now, tau_s, symmetric, leader):
 
 
 @numba.njit(cache=True, nogil=True)
+def membership(ids, records, now, tau_s, symmetric, role, leader):
+    """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
+    robot and group (:func:`protocols.clustering.membership`)."""
+    n, slots = ids.shape
+    robot = np.empty(n * (slots + 1), dtype=np.int64)
+    group = np.empty(n * (slots + 1), dtype=np.int64)
+    primary = np.empty(n * (slots + 1), dtype=np.bool_)
+    groups = np.empty(slots + 1, dtype=np.int64)
+    m = 0
+    for r in range(n):
+        if role[r] == LEADER_ROLE:
+            robot[m], group[m], primary[m] = r, r, True
+            m += 1
+        elif role[r] == MEMBER:
+            own = leader[r]
+            groups[0] = own
+            k = 1
+            for s in range(slots):
+                if _two_way(records[r, s], now, tau_s, symmetric) and records[r, s, ROLE] == LEADER_ROLE:
+                    if ids[r, s] != own:
+                        groups[k] = ids[r, s]
+                        k += 1
+            for g in np.sort(groups[:k]):
+                robot[m], group[m], primary[m] = r, g, g == own
+                m += 1
+    return robot[:m], group[:m], primary[:m]
+
+
+@numba.njit(cache=True, nogil=True)
 def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distributed_gateways):
     """The receivers of a flooded message that relay it (:meth:`protocols.relay.Relay._relays`):
     leaders, and members with a live two-way neighbour in another group (a leader other than
@@ -221,6 +250,23 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
         if relay:
             out[m] = r
             m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def believed_keys(ids, records, now, tau_s):
+    """``robot * n + other`` for every live entry of the ``n`` robots' neighbour tables,
+    ascending (:func:`protocols.stack.believed_keys`)."""
+    n, slots = ids.shape
+    out = np.empty(n * slots, dtype=np.int64)
+    m = 0
+    for r in range(n):
+        start = m
+        for s in range(slots):
+            if now - records[r, s, LAST_HEARD] < tau_s:
+                out[m] = r * n + ids[r, s]
+                m += 1
+        out[start:m].sort()
     return out[:m]
 
 

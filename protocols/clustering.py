@@ -255,6 +255,36 @@ def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: boo
     return np.flatnonzero(mask & (records_row[:, LEADER_FIELD] == leader) & (records_row[:, ROLE] == MEMBER))
 
 
+def membership(
+    ids: np.ndarray,
+    records: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    role: np.ndarray,
+    leader: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
+    robot and group, from the roles and the neighbour tables (``ids``, ``records``):
+    a leader in its own group, a member in its leader's (primary) and in those of the other
+    leaders it knows over a live two-way link."""
+    live = now - records[:, :, LAST_HEARD] < tau_s
+    if not symmetric:
+        live &= records[:, :, HEARS_ME] != 0
+    rows, slots = np.nonzero(live & (records[:, :, ROLE] == LEADER))
+    other = ids[rows, slots]
+    member = role[rows] == MEMBER
+    rows, other = rows[member], other[member]
+    secondary = other != leader[rows]
+    leaders = np.flatnonzero(role == LEADER)
+    members = np.flatnonzero(role == MEMBER)
+    robot = np.concatenate([leaders, members, rows[secondary]])
+    group = np.concatenate([leaders, leader[members], other[secondary]])
+    primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
+    order = np.lexsort((~primary, group, robot))
+    return robot[order], group[order], primary[order]
+
+
 class Clustering:
     """Runs rules 1-6 for all robots on top of an :class:`AckBeacon`, writing their roles
     in ``roles`` (the beacon's, which its Acks announce).
@@ -286,7 +316,8 @@ class Clustering:
         # Whose announced group size may be other than 1 (it last sent an Ack as a leader).
         self._sized = [False] * st.n
         declare_roles(parts.trace)
-        # The compiled twins of ack_effects, group_size, leader_slots and mate_slots, past
+        # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
+        # membership, past
         # netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = load("protocols._kernels", st.n)
         self._effects = self.kernels.ack_effects if self.kernels is not None else ack_effects
@@ -294,6 +325,7 @@ class Clustering:
         self._group_size = k.group_size if k is not None else group_size
         self._leader_slots = k.leader_slots if k is not None else leader_slots
         self._mate_slots = k.mate_slots if k is not None else mate_slots
+        self._membership = k.membership if k is not None else membership
         beacon.listeners.append(self.on_ack)
         beacon.before_send.append(self._before_ack)
 
@@ -326,25 +358,10 @@ class Clustering:
 
         A leader is in its own group; a member in its leader's (primary) and, if it is a
         gateway, in those of the other leaders it has a live two-way link with; an
-        undecided robot in none. One vectorised pass over all neighbour tables.
+        undecided robot in none. One pass over all neighbour tables.
         """
-        st = self.roles
-        live = self.table.live_mask(now)
-        if not self.symmetric:
-            live &= self.table.data[:, :, HEARS_ME] != 0
-        heard_leader = live & (self.table.data[:, :, ROLE] == LEADER)
-        rows, slots = np.nonzero(heard_leader)
-        other = self.table.id[rows, slots]
-        member = st.role[rows] == MEMBER
-        rows, other = rows[member], other[member]
-        secondary = other != st.leader[rows]
-        leaders = np.flatnonzero(st.role == LEADER)
-        members = np.flatnonzero(st.role == MEMBER)
-        robot = np.concatenate([leaders, members, rows[secondary]])
-        group = np.concatenate([leaders, st.leader[members], other[secondary]])
-        primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
-        order = np.lexsort((~primary, group, robot))
-        return robot[order], group[order], primary[order]
+        table, st = self.table, self.roles
+        return self._membership(table.id, table.data, now, table.tau_s, self.symmetric, st.role, st.leader)
 
     def groups(self, now: float) -> list[set[int]]:
         """The groups (leader ids) each robot belongs to now (see :meth:`membership`)."""

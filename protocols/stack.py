@@ -81,6 +81,13 @@ def beliefs_table(samples: Samples) -> pd.DataFrame:
     return samples.frame({"role": role_labels})
 
 
+def believed_keys(ids: np.ndarray, records: np.ndarray, now: float, tau_s: float) -> np.ndarray:
+    """``robot * n + other`` for every live entry of the ``n`` robots' neighbour tables
+    (``ids``, ``records``), ascending: whom each robot believes live."""
+    live = now - records[:, :, LAST_HEARD] < tau_s
+    return np.sort(np.nonzero(live)[0] * len(ids) + ids[live])
+
+
 def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The ascending union of two ascending arrays of distinct keys, and per key whether it
     is in ``a`` and whether in ``b``."""
@@ -158,7 +165,9 @@ class Stack:
         self._beliefs = Samples()
         self._neighbour_beliefs = Samples()
         kernels = load("protocols._kernels", n)
-        # The compiled twin of union_sorted, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        # The compiled twins of believed_keys and union_sorted, past
+        # netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self._believed_keys = kernels.believed_keys if kernels is not None else believed_keys
         self._union = kernels.union_sorted if kernels is not None else union_sorted
 
     # -- the groups, for the rest of the run ------------------------------------------
@@ -251,13 +260,11 @@ class Stack:
     def _belief_keys(self, now: float) -> Beliefs:
         """Who believes whom live now, beside the truth: ``robot * n + other`` for every
         ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
-        st, n = self.state, self.state.n
+        st = self.state
         # receiver * n + sender, for every sender whose transmissions reach the receiver.
         heard_keys = reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
-        live = self.table.live_mask(now)
-        rows = np.nonzero(live)[0]
-        believed_keys = np.sort(rows * n + self.table.id[live])
-        return Beliefs(*self._union(believed_keys, heard_keys))
+        table = self.table
+        return Beliefs(*self._union(self._believed_keys(table.id, table.data, now, table.tau_s), heard_keys))
 
     def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
