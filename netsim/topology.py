@@ -13,6 +13,30 @@ if TYPE_CHECKING:  # networkx is imported by the snapshots alone, when asked for
     import networkx as nx
 
 
+def _candidates(
+    positions_m: np.ndarray, ranges: np.ndarray, side_m: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unordered pairs ``i < j`` a KD-tree finds within the largest range, and their
+    distances (unsorted)."""
+    empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
+    if len(positions_m) < 2:
+        return empty
+    if side_m is not None:
+        pts = np.mod(positions_m, side_m)
+        pts = np.where(pts >= side_m, 0.0, pts)
+        tree = cKDTree(pts, boxsize=side_m)
+    else:
+        tree = cKDTree(positions_m)
+    pairs = tree.query_pairs(float(ranges.max()), output_type="ndarray")
+    if len(pairs) == 0:
+        return empty
+    i, j = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+    d = positions_m[i] - positions_m[j]
+    if side_m is not None:
+        d -= side_m * np.round(d / side_m)
+    return i, j, np.hypot(d[:, 0], d[:, 1])
+
+
 def geometric_pairs(
     positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None, directed: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -31,23 +55,7 @@ def geometric_pairs(
     positions_m = np.asarray(positions_m, dtype=float)
     n = len(positions_m)
     ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))
-    empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
-    if n < 2:
-        return empty
-    if side_m is not None:
-        pts = np.mod(positions_m, side_m)
-        pts = np.where(pts >= side_m, 0.0, pts)
-        tree = cKDTree(pts, boxsize=side_m)
-    else:
-        tree = cKDTree(positions_m)
-    pairs = tree.query_pairs(float(ranges.max()), output_type="ndarray")
-    if len(pairs) == 0:
-        return empty
-    i, j = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
-    d = positions_m[i] - positions_m[j]
-    if side_m is not None:
-        d -= side_m * np.round(d / side_m)
-    dist = np.hypot(d[:, 0], d[:, 1])
+    i, j, dist = _candidates(positions_m, ranges, side_m)
     if directed:
         fwd, back = dist <= ranges[i], dist <= ranges[j]
         i, j, dist = (
@@ -61,6 +69,22 @@ def geometric_pairs(
     # Each pair once: one key per pair orders them as lexsort((j, i)) would, five times faster.
     order = np.argsort(i * n + j)
     return i[order], j[order], dist[order]
+
+
+def reach_keys(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None) -> np.ndarray:
+    """``receiver * n + sender`` for every ordered pair where the sender reaches the
+    receiver (``d <= r_sender``), ascending: :func:`geometric_pairs`'s directed pairs as
+    one sorted key each, without ordering the pairs first.
+
+    >>> reach_keys(np.array([[0., 0.], [3., 4.], [20., 0.]]), np.array([5.0, 4.0, 30.0])).tolist()
+    [2, 3, 5]
+    """
+    positions_m = np.asarray(positions_m, dtype=float)
+    n = len(positions_m)
+    ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))
+    i, j, dist = _candidates(positions_m, ranges, side_m)
+    fwd, back = dist <= ranges[i], dist <= ranges[j]
+    return np.sort(np.concatenate([j[fwd] * n + i[fwd], i[back] * n + j[back]]))
 
 
 def geometric_edges(

@@ -153,10 +153,72 @@ def group_size(records_row, now, tau_s, symmetric, i):
     size = 1
     for s in range(len(records_row)):
         rec = records_row[s]
-        if now - rec[LAST_HEARD] < tau_s and (symmetric or rec[HEARS_ME] != 0):
-            if rec[ROLE] == MEMBER and rec[LEADER] == i:
-                size += 1
+        if _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == MEMBER and rec[LEADER] == i:
+            size += 1
     return size
+
+
+@numba.njit(cache=True, nogil=True)
+def _two_way(rec, now, tau_s, symmetric):
+    """Whether an entry (its record) is a live neighbour over a two-way link."""
+    return now - rec[LAST_HEARD] < tau_s and (symmetric or rec[HEARS_ME] != 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def leader_slots(ids_row, records_row, now, tau_s, symmetric, exclude):
+    """The slots of a row's live two-way neighbours whose last Ack said they were leaders,
+    but ``exclude`` (:func:`protocols.clustering.leader_slots`)."""
+    out = np.empty(len(ids_row), dtype=np.int64)
+    m = 0
+    for s in range(len(ids_row)):
+        rec = records_row[s]
+        if _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == LEADER_ROLE and ids_row[s] != exclude:
+            out[m] = s
+            m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def mate_slots(records_row, now, tau_s, symmetric, leader):
+    """The slots of a row's live two-way neighbours whose last Ack said they were members of
+    ``leader`` (:func:`protocols.clustering.mate_slots`)."""
+    out = np.empty(len(records_row), dtype=np.int64)
+    m = 0
+    for s in range(len(records_row)):
+        rec = records_row[s]
+        if _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == MEMBER and rec[LEADER] == leader:
+            out[m] = s
+            m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def membership(ids, records, now, tau_s, symmetric, role, leader):
+    """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
+    robot and group (:func:`protocols.clustering.membership`)."""
+    n, slots = ids.shape
+    robot = np.empty(n * (slots + 1), dtype=np.int64)
+    group = np.empty(n * (slots + 1), dtype=np.int64)
+    primary = np.empty(n * (slots + 1), dtype=np.bool_)
+    groups = np.empty(slots + 1, dtype=np.int64)
+    m = 0
+    for r in range(n):
+        if role[r] == LEADER_ROLE:
+            robot[m], group[m], primary[m] = r, r, True
+            m += 1
+        elif role[r] == MEMBER:
+            own = leader[r]
+            groups[0] = own
+            k = 1
+            for s in range(slots):
+                if _two_way(records[r, s], now, tau_s, symmetric) and records[r, s, ROLE] == LEADER_ROLE:
+                    if ids[r, s] != own:
+                        groups[k] = ids[r, s]
+                        k += 1
+            for g in np.sort(groups[:k]):
+                robot[m], group[m], primary[m] = r, g, g == own
+                m += 1
+    return robot[:m], group[:m], primary[:m]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -176,7 +238,7 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
             row = records[r]
             for s in range(len(row)):
                 rec = row[s]
-                if not now - rec[LAST_HEARD] < tau_s or not (symmetric or rec[HEARS_ME] != 0):
+                if not _two_way(rec, now, tau_s, symmetric):
                     continue
                 if distributed_gateways:
                     other = rec[ROLE] != UNDECIDED and rec[LEADER] != own
@@ -188,6 +250,23 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
         if relay:
             out[m] = r
             m += 1
+    return out[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def believed_keys(ids, records, now, tau_s):
+    """``robot * n + other`` for every live entry of the ``n`` robots' neighbour tables,
+    ascending (:func:`protocols.stack.believed_keys`)."""
+    n, slots = ids.shape
+    out = np.empty(n * slots, dtype=np.int64)
+    m = 0
+    for r in range(n):
+        start = m
+        for s in range(slots):
+            if now - records[r, s, LAST_HEARD] < tau_s:
+                out[m] = r * n + ids[r, s]
+                m += 1
+        out[start:m].sort()
     return out[:m]
 
 

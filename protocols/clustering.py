@@ -228,10 +228,61 @@ def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: boo
     """1 + the live two-way entries of robot ``i``'s neighbour table row (its records, as
     :class:`protocols.neighbours.NeighbourTable` holds them) whose last Ack named ``i`` as
     their leader."""
+    return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
+
+
+def _two_way(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
+    """Which entries of a row of the neighbour table are live neighbours over a two-way link."""
     two_way = now - records_row[:, LAST_HEARD] < tau_s
     if not symmetric:
         two_way &= records_row[:, HEARS_ME] != 0
-    return 1 + int((two_way & (records_row[:, ROLE] == MEMBER) & (records_row[:, LEADER_FIELD] == i)).sum())
+    return two_way
+
+
+def leader_slots(
+    ids_row: np.ndarray, records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, exclude: int
+) -> np.ndarray:
+    """The slots of a row's live two-way neighbours whose last Ack said they were leaders,
+    but ``exclude``."""
+    mask = _two_way(records_row, now, tau_s, symmetric) & (records_row[:, ROLE] == LEADER) & (ids_row != exclude)
+    return np.flatnonzero(mask)
+
+
+def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, leader: int) -> np.ndarray:
+    """The slots of a row's live two-way neighbours whose last Ack said they were members
+    of ``leader``."""
+    mask = _two_way(records_row, now, tau_s, symmetric)
+    return np.flatnonzero(mask & (records_row[:, LEADER_FIELD] == leader) & (records_row[:, ROLE] == MEMBER))
+
+
+def membership(
+    ids: np.ndarray,
+    records: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    role: np.ndarray,
+    leader: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
+    robot and group, from the roles and the neighbour tables (``ids``, ``records``):
+    a leader in its own group, a member in its leader's (primary) and in those of the other
+    leaders it knows over a live two-way link."""
+    live = now - records[:, :, LAST_HEARD] < tau_s
+    if not symmetric:
+        live &= records[:, :, HEARS_ME] != 0
+    rows, slots = np.nonzero(live & (records[:, :, ROLE] == LEADER))
+    other = ids[rows, slots]
+    member = role[rows] == MEMBER
+    rows, other = rows[member], other[member]
+    secondary = other != leader[rows]
+    leaders = np.flatnonzero(role == LEADER)
+    members = np.flatnonzero(role == MEMBER)
+    robot = np.concatenate([leaders, members, rows[secondary]])
+    group = np.concatenate([leaders, leader[members], other[secondary]])
+    primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
+    order = np.lexsort((~primary, group, robot))
+    return robot[order], group[order], primary[order]
 
 
 class Clustering:
@@ -262,12 +313,19 @@ class Clustering:
         # How many members each robot has now: an Ack that does not lead (a member's, an
         # undecided robot's, a resignation) does something only to its sender's members.
         self._members_of = [0] * st.n
+        # Whose announced group size may be other than 1 (it last sent an Ack as a leader).
+        self._sized = [False] * st.n
         declare_roles(parts.trace)
-        # The compiled twins of ack_effects and group_size, past
+        # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
+        # membership, past
         # netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = load("protocols._kernels", st.n)
         self._effects = self.kernels.ack_effects if self.kernels is not None else ack_effects
-        self._group_size = self.kernels.group_size if self.kernels is not None else group_size
+        k = self.kernels
+        self._group_size = k.group_size if k is not None else group_size
+        self._leader_slots = k.leader_slots if k is not None else leader_slots
+        self._mate_slots = k.mate_slots if k is not None else mate_slots
+        self._membership = k.membership if k is not None else membership
         beacon.listeners.append(self.on_ack)
         beacon.before_send.append(self._before_ack)
 
@@ -280,23 +338,16 @@ class Clustering:
         self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
 
     # -- what a robot knows --------------------------------------------------------------
-    def _two_way(self, i: int, now: float) -> np.ndarray:
-        """Mask of i's slots holding live neighbours over a two-way link."""
-        live = self.table.live_mask(now, i)
-        if self.symmetric:
-            return live
-        return live & (self.table.data[i, :, HEARS_ME] != 0)
-
     def known_leaders(self, i: int, now: float, exclude: int = NO_LEADER) -> list[Candidate]:
         """Live two-way neighbours of ``i`` whose last Ack said they were leaders."""
-        rows = self.table.data[i]
-        mask = self._two_way(i, now) & (rows[:, ROLE] == LEADER) & (self.table.id[i] != exclude)
-        if not mask.any():
+        table = self.table
+        rows, ids = table.data[i], table.id[i]
+        slots = self._leader_slots(ids, rows, now, table.tau_s, self.symmetric, exclude)
+        if not len(slots):
             return []
         x, y = self.state.position(i, now)
-        ids = self.table.id[i][mask]
-        dist = np.hypot(rows[mask, X] - x, rows[mask, Y] - y)
-        return [Candidate(int(j), float(d)) for j, d in zip(ids.tolist(), dist.tolist())]
+        dist = np.hypot(rows[slots, X] - x, rows[slots, Y] - y)
+        return [Candidate(int(j), float(d)) for j, d in zip(ids[slots].tolist(), dist.tolist())]
 
     def group_size(self, i: int, now: float) -> int:
         """1 + the live two-way neighbours whose last Ack named ``i`` as their leader."""
@@ -307,25 +358,10 @@ class Clustering:
 
         A leader is in its own group; a member in its leader's (primary) and, if it is a
         gateway, in those of the other leaders it has a live two-way link with; an
-        undecided robot in none. One vectorised pass over all neighbour tables.
+        undecided robot in none. One pass over all neighbour tables.
         """
-        st = self.roles
-        live = self.table.live_mask(now)
-        if not self.symmetric:
-            live &= self.table.data[:, :, HEARS_ME] != 0
-        heard_leader = live & (self.table.data[:, :, ROLE] == LEADER)
-        rows, slots = np.nonzero(heard_leader)
-        other = self.table.id[rows, slots]
-        member = st.role[rows] == MEMBER
-        rows, other = rows[member], other[member]
-        secondary = other != st.leader[rows]
-        leaders = np.flatnonzero(st.role == LEADER)
-        members = np.flatnonzero(st.role == MEMBER)
-        robot = np.concatenate([leaders, members, rows[secondary]])
-        group = np.concatenate([leaders, st.leader[members], other[secondary]])
-        primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
-        order = np.lexsort((~primary, group, robot))
-        return robot[order], group[order], primary[order]
+        table, st = self.table, self.roles
+        return self._membership(table.id, table.data, now, table.tau_s, self.symmetric, st.role, st.leader)
 
     def groups(self, now: float) -> list[set[int]]:
         """The groups (leader ids) each robot belongs to now (see :meth:`membership`)."""
@@ -340,7 +376,13 @@ class Clustering:
         return np.flatnonzero(np.bincount(robot, minlength=self.state.n) > 1)
 
     def _before_ack(self, i: int, now: float) -> None:
-        self.beacon.group_size[i] = self.group_size(i, now) if self.roles.role[i] == LEADER else 1
+        # A leader announces its group's size, anyone else 1 (written only when it was not).
+        if self.roles.role[i] == LEADER:
+            self.beacon.group_size[i] = self.group_size(i, now)
+            self._sized[i] = True
+        elif self._sized[i]:
+            self.beacon.group_size[i] = 1
+            self._sized[i] = False
 
     # -- transitions ---------------------------------------------------------------------
     def _set(self, i: int, event: str, leader: int, now: float) -> None:
@@ -380,7 +422,7 @@ class Clustering:
         if self._join(i, now, exclude=old):
             return
         rows = self.table.data[i]
-        mates = self._two_way(i, now) & (rows[:, LEADER_FIELD] == old) & (rows[:, ROLE] == MEMBER)
+        mates = self._mate_slots(rows, now, self.table.tau_s, self.symmetric, old)
         ids = self.table.id[i][mates]
         rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids.tolist(), rows[mates, DEGREE].tolist())]
         # Like with like: my degree as I announced it, beside theirs as they announced them

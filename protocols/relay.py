@@ -173,7 +173,7 @@ class Relay:
         }
         self._seen[mid] = {src}
         self._pending[mid] = 0
-        msg = Message(mid, src, dst, self.ttl, 1)
+        msg = Message(mid, src, dst, self.ttl, 1, now)
         if self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
         else:
@@ -185,7 +185,7 @@ class Relay:
     # -- backbone flooding -------------------------------------------------------------
     def _broadcast(self, sender: int, msg: Message) -> None:
         self._outcomes[msg.id]["transmissions"] += 1
-        got = self.channel.broadcast(sender, msg._replace(t_tx_s=self.env.now), self._on_flood, kind="data")
+        got = self.channel.broadcast(sender, msg, self._on_flood, kind="data")
         self._pending[msg.id] += self._arrivals(len(got))
 
     def _arrivals(self, receivers: int) -> int:
@@ -218,7 +218,8 @@ class Relay:
             if fresh:
                 self._ttl_cut.add(msg.id)
         else:
-            nxt = msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1)
+            # Relayed now, by every robot that relays it.
+            nxt = Message(msg.id, msg.src, msg.dst, msg.ttl - 1, msg.hops + 1, now)
             for r in self._relays(np.array(fresh, dtype=np.int64), now).tolist():
                 if r != msg.dst:
                     self._broadcast(r, nxt)
@@ -296,7 +297,8 @@ class Relay:
                 "receiver": np.concatenate(cols[5]).astype(np.int64),
                 "t_sent_s": np.repeat(np.array(cols[3], dtype=float), sizes),
                 "t_received_s": np.repeat(np.array(cols[4], dtype=float), sizes),
-            }
+            },
+            copy=False,  # new arrays, the table's own
         )
 
 

@@ -17,7 +17,7 @@ from netsim.compiled import load
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.radio.mac import MAC_CAUSES
-from netsim.topology import geometric_pairs
+from netsim.topology import reach_keys
 from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from protocols.neighbours import LAST_HEARD, ROLE, X, Y
@@ -60,16 +60,32 @@ class Samples:
         for name in names:
             col = np.concatenate([c[name] for c in self.columns])
             out[name] = convert[name](col) if convert and name in convert else col
-        return pd.DataFrame(out)
+        # The columns are new arrays, the table's own: copying them into blocks would only
+        # cost (more than building them).
+        return pd.DataFrame(out, copy=False)
 
 
-# The role labels by code, to turn a column of codes into one of labels.
-_ROLE_LABELS = np.array(ROLE_NAMES, dtype=object)
+# The role labels by code, in the column pandas makes of a list of labels (its string
+# dtype, object before pandas 3): taking from it turns a column of codes into a column of
+# labels without a Python string per row.
+_ROLE_LABELS = pd.Series(list(ROLE_NAMES)).array
+
+
+def role_labels(codes: np.ndarray):
+    """The column of role labels of a column of role codes."""
+    return _ROLE_LABELS.take(codes.astype(np.int64)) if len(codes) else []
 
 
 def beliefs_table(samples: Samples) -> pd.DataFrame:
     """The ``beliefs`` table of samples of :meth:`Stack._belief_columns`."""
-    return samples.frame({"role": lambda codes: _ROLE_LABELS[codes].tolist()})
+    return samples.frame({"role": role_labels})
+
+
+def believed_keys(ids: np.ndarray, records: np.ndarray, now: float, tau_s: float) -> np.ndarray:
+    """``robot * n + other`` for every live entry of the ``n`` robots' neighbour tables
+    (``ids``, ``records``), ascending: whom each robot believes live."""
+    live = now - records[:, :, LAST_HEARD] < tau_s
+    return np.sort(np.nonzero(live)[0] * len(ids) + ids[live])
 
 
 def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -149,7 +165,9 @@ class Stack:
         self._beliefs = Samples()
         self._neighbour_beliefs = Samples()
         kernels = load("protocols._kernels", n)
-        # The compiled twin of union_sorted, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        # The compiled twins of believed_keys and union_sorted, past
+        # netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self._believed_keys = kernels.believed_keys if kernels is not None else believed_keys
         self._union = kernels.union_sorted if kernels is not None else union_sorted
 
     # -- the groups, for the rest of the run ------------------------------------------
@@ -242,14 +260,11 @@ class Stack:
     def _belief_keys(self, now: float) -> Beliefs:
         """Who believes whom live now, beside the truth: ``robot * n + other`` for every
         ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
-        st, n = self.state, self.state.n
-        src, dst, _ = geometric_pairs(st.positions_at(now), st.range_m, st.side_m if st.torus else None, directed=True)
+        st = self.state
         # receiver * n + sender, for every sender whose transmissions reach the receiver.
-        heard_keys = np.sort(dst * n + src)
-        live = self.table.live_mask(now)
-        rows = np.nonzero(live)[0]
-        believed_keys = np.sort(rows * n + self.table.id[live])
-        return Beliefs(*self._union(believed_keys, heard_keys))
+        heard_keys = reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
+        table = self.table
+        return Beliefs(*self._union(self._believed_keys(table.id, table.data, now, table.tau_s), heard_keys))
 
     def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,

@@ -1,18 +1,20 @@
 """The clustering's compiled loops (protocols/_kernels.py) compute exactly what their numpy
 twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effects), a
-leader's group size (clustering.group_size), who relays a flooded message
-(relay.relays) and the union of belief keys (stack.union_sorted); and the numpy
+leader's group size (clustering.group_size), the known leaders and a leader's members in a
+row of the table (clustering.leader_slots, mate_slots), everyone's groups
+(clustering.membership), who relays a flooded message (relay.relays) and the belief keys
+(stack.believed_keys, union_sorted); and the numpy
 ``relays`` keeps the relaying rule."""
 
 import numpy as np
 import pytest
 
-from protocols.clustering import ack_effects, group_size
+from protocols.clustering import ack_effects, group_size, leader_slots, mate_slots, membership
 from protocols.neighbours import _EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE
 from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
-from protocols.stack import union_sorted
+from protocols.stack import believed_keys, union_sorted
 
 pytest.importorskip("numba")
 
@@ -75,6 +77,26 @@ def test_compiled_group_size_equals_numpy(symmetric):
             assert a == b
             sizes.append(b)
     assert min(sizes) == 1 and max(sizes) > 2
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_leader_and_mate_slots_equal_numpy(symmetric):
+    """The slots of a row's known leaders (but one excluded) and of the members of a given
+    leader (rules 2 and 6) are the numpy ones."""
+    rng = np.random.default_rng(8)
+    found = np.zeros(2, dtype=int)
+    for _ in range(50):
+        now = 10.0
+        ids, records = random_tables(rng, 6, 8, now)
+        for i in range(6):
+            other = int(rng.integers(-1, 6))
+            a = kernels.leader_slots(ids[i], records[i], now, TAU_S, symmetric, other)
+            b = leader_slots(ids[i], records[i], now, TAU_S, symmetric, other)
+            c = kernels.mate_slots(records[i], now, TAU_S, symmetric, other)
+            d = mate_slots(records[i], now, TAU_S, symmetric, other)
+            assert a.tolist() == b.tolist() and c.tolist() == d.tolist()
+            found += [len(a) > 0, len(c) > 0]
+    assert found.min() > 20
 
 
 @pytest.mark.parametrize("symmetric", [False, True])
@@ -153,3 +175,33 @@ def test_members_counted_as_roles_change():
         assert cl._members_of == np.bincount(stack.leader[members], minlength=25).tolist()
         changes = int(cl.role_changes.sum())
     assert changes > 25
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_membership_equals_numpy(symmetric):
+    """Everyone's groups (leaders in their own, members in their leader's and those of the
+    other leaders they know), ordered by robot and group, are the numpy ones."""
+    rng = np.random.default_rng(17)
+    secondary = 0
+    for _ in range(40):
+        n, now = 12, 10.0
+        ids, records = random_tables(rng, n, 6, now)
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = np.where(role == MEMBER, rng.integers(0, 6, n), np.where(role == ALPHA, np.arange(n), -1))
+        args = (ids, records, now, TAU_S, symmetric, role, leader)
+        a, b = kernels.membership(*args), membership(*args)
+        assert [x.tolist() for x in a] == [x.tolist() for x in b]
+        assert [x.dtype for x in a] == [x.dtype for x in b]
+        secondary += int((~a[2]).sum())
+    assert secondary > 20
+
+
+def test_compiled_believed_keys_equal_numpy():
+    """The keys of the live entries of all tables, ascending, are the numpy ones."""
+    rng = np.random.default_rng(19)
+    for _ in range(40):
+        now = 10.0
+        ids, records = random_tables(rng, 12, 6, now)
+        ids = np.where(ids >= 0, 2 * np.argsort(rng.random((12, 6)), axis=1), -1)  # distinct in a row
+        a, b = kernels.believed_keys(ids, records, now, TAU_S), believed_keys(ids, records, now, TAU_S)
+        assert a.tolist() == b.tolist() and len(a) > 10

@@ -34,3 +34,20 @@ def test_no_isolated_robot_on_a_torus():
     theory = (1 - (1 - math.pi * r**2) ** (n - 1)) ** n
     assert 0.2 < theory < 0.9
     assert ok / reps == pytest.approx(theory, abs=4 * math.sqrt(theory * (1 - theory) / reps))
+
+
+@pytest.mark.parametrize("torus", [False, True])
+def test_reach_keys_are_the_directed_pairs(torus):
+    """``reach_keys`` lists ``receiver * n + sender`` for exactly the directed pairs of
+    ``geometric_pairs`` (sender reaches receiver), ascending, with unequal ranges, on the
+    plane and on a torus."""
+    from netsim.topology import geometric_pairs, reach_keys
+
+    rng = np.random.default_rng(4)
+    n, side = 80, 300.0
+    pos = rng.uniform(0, side, (n, 2))
+    ranges = rng.uniform(20.0, 60.0, n)
+    src, dst, _ = geometric_pairs(pos, ranges, side if torus else None, directed=True)
+    keys = reach_keys(pos, ranges, side if torus else None)
+    assert keys.tolist() == sorted((dst * n + src).tolist())
+    assert len(keys) > n
