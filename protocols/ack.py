@@ -30,10 +30,9 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-import simpy
 
 from netsim.errors import ConfigError
-from netsim.events import URGENT, scheduled_event
+from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from protocols.neighbours import DEGREE, NeighbourTable
@@ -238,11 +237,12 @@ class AckBeacon:
             self.phase_s = np.asarray(phase_s, dtype=float)
         self._jitter = Jitter(self.streams.get("ack.jitter"), p.ack_jitter_s) if p.ack_jitter_s > 0 else None
         # Robot i's beacon: first Ack at its phase, then one every period (plus jitter). A
-        # chain of kernel events rather than a process per robot: the same events, without
-        # resuming a generator for each Ack.
+        # chain of callbacks on the channel's agenda (netsim.agenda) rather than a process
+        # per robot: the order of the same events, without a kernel event for each Ack.
         self._ticks = [partial(self._tick, i) for i in range(n)]
+        self._agenda = agenda = self.channel.agenda
         for i in range(n):
-            scheduled_event(self.env, self.phase_s[i], URGENT, self._ticks[i])
+            agenda.at(self.phase_s[i], URGENT, self._ticks[i])
         channel = self.channel
         channel.frame_bytes["ack"] = p.ack_bytes
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
@@ -250,17 +250,11 @@ class AckBeacon:
         duration = self.duration_s
         self.trace.add_frame("ack_delivery", lambda: ack_delivery_frame(bins, duration))
 
-    def _tick(self, i: int, _event: simpy.Event) -> None:
+    def _tick(self, i: int) -> None:
         self.send(i)
         jitter = self._jitter
         step = self.period_s + jitter.draw() if jitter is not None else self.period_s
-        # scheduled_event inlined (once per Ack): the same URGENT event, one call fewer.
-        env = self.env
-        ev = simpy.Event(env)
-        ev._ok = True
-        ev._value = None
-        ev.callbacks.append(self._ticks[i])
-        env.schedule(ev, URGENT, step)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
+        self._agenda.at(step, URGENT, self._ticks[i])
 
     def make_ack(self, i: int) -> Ack:
         now = self.env.now
