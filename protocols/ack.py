@@ -35,6 +35,7 @@ from netsim.errors import ConfigError
 from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
+from protocols.neighbours import _EMPTY_RECORD as EMPTY_RECORD
 from protocols.neighbours import DEGREE, NeighbourTable
 from protocols.roles import ROLES_SCHEMA, Roles, declare_roles
 
@@ -260,6 +261,17 @@ class AckBeacon:
         now = self.env.now
         for hook in self.before_send:
             hook(i, now)
+        table = self.table
+        k = table.kernels
+        if k is not None:
+            # The same work in one compiled call (protocols._kernels.make_ack).
+            st, roles = self.state, self.roles
+            x, y, seq, role, leader, size, resign, heard, record = k.make_ack(
+                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
+                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
+                self.role_sent, self.degree_sent,
+            )  # fmt: skip
+            return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
         x, y = self.state.position(i, now)
         seq = int(self.seq[i]) + 1
         self.seq[i] = seq
@@ -268,7 +280,7 @@ class AckBeacon:
             self.resign_pending[i] = False
         roles = self.roles
         role, leader, size = int(roles.role[i]), int(roles.leader[i]), int(self.group_size[i])
-        heard, record = self.table.announce(now, i, seq, role, leader, x, y, size)
+        heard, record = table.announce(now, i, seq, role, leader, x, y, size)
         self.role_sent[i], self.degree_sent[i] = role, record[DEGREE]
         return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
 
