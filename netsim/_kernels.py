@@ -12,14 +12,21 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
-    """The candidates ``cand`` within ``r`` of robot ``i`` at ``t``, and their distances
-    (:meth:`netsim.spatial.RangeIndex.within` over a candidate list)."""
+def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
+    """Robot ``i``'s position at ``t`` (:meth:`netsim.state.RobotState.position`)."""
     dt = t - t0_s[i]
     x = origin_m[i, 0] + velocity_mps[i, 0] * dt
     y = origin_m[i, 1] + velocity_mps[i, 1] * dt
     if torus:
         x, y = x % side_m, y % side_m
+    return x, y
+
+
+@numba.njit(cache=True, nogil=True)
+def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
+    """The candidates ``cand`` within ``r`` of robot ``i`` at ``t``, and their distances
+    (:meth:`netsim.spatial.RangeIndex.within` over a candidate list)."""
+    x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     r2 = r * r
     ids = np.empty(len(cand), dtype=np.int64)
     dist = np.empty(len(cand))

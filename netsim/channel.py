@@ -41,6 +41,7 @@ import numpy as np
 import pandas as pd
 import simpy
 
+from netsim.agenda import Agenda
 from netsim.events import URGENT, Delivery, Drop, EventBus
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
@@ -149,7 +150,7 @@ class _Arrival:
         self.kind = kind
         self.binned = binned
 
-    def __call__(self, _event: simpy.Event) -> None:
+    def __call__(self) -> None:
         receivers = self.receivers
         ch = self.channel
         k = ch.kernels
@@ -180,6 +181,8 @@ class Channel:
     ):
         self.env = env
         self.state = state
+        # Deliveries, and the callbacks of whoever shares it (the Ack beacons' ticks).
+        self.agenda = Agenda(env)
         # The radio (netsim.reception.Reception), None for the plain unit disk.
         self.reception = reception
         self.index = RangeIndex(state, reach_m=None if reception is None else reception.reach_m)
@@ -375,12 +378,8 @@ class Channel:
         kind: str,
         binned: _Bin | None = None,
     ) -> None:
-        # scheduled_event inlined: one kernel event per delivery, at URGENT priority.
-        ev = simpy.Event(self.env)
-        ev._ok = True
-        ev._value = None
-        ev.callbacks.append(_Arrival(self, deliver, sender, receivers, payload, c, kind, binned))
-        self.env.schedule(ev, URGENT, delay)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
+        # At URGENT priority, on the agenda: where a kernel event scheduled now would run.
+        self.agenda.at(delay, URGENT, _Arrival(self, deliver, sender, receivers, payload, c, kind, binned))
 
     def frame(self, kind: str) -> pd.DataFrame:
         return self.counters_for(kind).frame()

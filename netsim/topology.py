@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from netsim.crossings import near_pairs
 from netsim.groups import GroupView
 from netsim.state import RobotState
 
@@ -16,18 +17,10 @@ if TYPE_CHECKING:  # networkx is imported by the snapshots alone, when asked for
 def _candidates(
     positions_m: np.ndarray, ranges: np.ndarray, side_m: float | None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The unordered pairs ``i < j`` a KD-tree finds within the largest range, and their
-    distances (unsorted)."""
+    """The unordered pairs ``i < j`` within the largest range (a superset: the callers
+    filter on the distances), and their distances (unsorted)."""
     empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
-    if len(positions_m) < 2:
-        return empty
-    if side_m is not None:
-        pts = np.mod(positions_m, side_m)
-        pts = np.where(pts >= side_m, 0.0, pts)
-        tree = cKDTree(pts, boxsize=side_m)
-    else:
-        tree = cKDTree(positions_m)
-    pairs = tree.query_pairs(float(ranges.max()), output_type="ndarray")
+    pairs = near_pairs(positions_m, float(ranges.max()), side_m) if len(positions_m) else np.empty((0, 2), np.int64)
     if len(pairs) == 0:
         return empty
     i, j = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
@@ -48,10 +41,9 @@ def geometric_pairs(
 
     Notes
     -----
-    A KD-tree finds the candidate pairs within the largest range: ``O(N log N + E)``.
+    A grid of cells (or a KD-tree, in small runs) finds the candidate pairs within the largest
+    range: ``O(N + E)``.
     """
-    from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
-
     positions_m = np.asarray(positions_m, dtype=float)
     n = len(positions_m)
     ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))

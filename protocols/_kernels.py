@@ -11,6 +11,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from netsim._kernels import position
+
 # The packed record's columns and the empty id (protocols.neighbours; repeated here so
 # that numba sees constants).
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
@@ -102,6 +104,31 @@ def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, 
     record[SEQ], record[ROLE], record[LEADER], record[X], record[Y] = seq, role, leader, x_m, y_m
     record[GROUP_SIZE], record[DEGREE] = group_size, degree
     return heard, record
+
+
+@numba.njit(cache=True, nogil=True)
+def make_ack(
+    i, now, origin_m, velocity_mps, t0_s, torus, side_m, seq, resign_pending, role, leader, group_size,
+    ids, records, tau_s, empty_record, role_sent, degree_sent,
+):  # fmt: skip
+    """Robot ``i``'s Ack at ``now``, once its hooks have run, as
+    :meth:`protocols.ack.AckBeacon.make_ack` builds it: its position, its next sequence
+    number, the resignation it owes, its role, leader and group size, and what its row of
+    the table (``ids``, ``records``: the table's ``(n, slots)`` arrays) announces
+    (:func:`announce`). Counts the sequence number, clears the resignation and records the
+    role and degree sent, as the numpy code does. Returns the Ack's fields ``(x, y, seq,
+    role, leader, group_size, resign, heard, record)``."""
+    x, y = position(origin_m, velocity_mps, t0_s, i, now, torus, side_m)
+    s = seq[i] + 1
+    seq[i] = s
+    resign = resign_pending[i]
+    if resign:
+        resign_pending[i] = False
+    ro, le, size = np.int64(role[i]), leader[i], group_size[i]
+    heard, record = announce(ids[i], records[i], now, tau_s, empty_record, s, ro, le, x, y, size)
+    role_sent[i] = ro
+    degree_sent[i] = np.int64(record[DEGREE])
+    return x, y, s, ro, le, size, resign, heard, record
 
 
 # Roles (protocols.roles).

@@ -30,12 +30,12 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-import simpy
 
 from netsim.errors import ConfigError
-from netsim.events import URGENT, scheduled_event
+from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
+from protocols.neighbours import _EMPTY_RECORD as EMPTY_RECORD
 from protocols.neighbours import DEGREE, NeighbourTable
 from protocols.roles import ROLES_SCHEMA, Roles, declare_roles
 
@@ -238,11 +238,12 @@ class AckBeacon:
             self.phase_s = np.asarray(phase_s, dtype=float)
         self._jitter = Jitter(self.streams.get("ack.jitter"), p.ack_jitter_s) if p.ack_jitter_s > 0 else None
         # Robot i's beacon: first Ack at its phase, then one every period (plus jitter). A
-        # chain of kernel events rather than a process per robot: the same events, without
-        # resuming a generator for each Ack.
+        # chain of callbacks on the channel's agenda (netsim.agenda) rather than a process
+        # per robot: the order of the same events, without a kernel event for each Ack.
         self._ticks = [partial(self._tick, i) for i in range(n)]
+        self._agenda = agenda = self.channel.agenda
         for i in range(n):
-            scheduled_event(self.env, self.phase_s[i], URGENT, self._ticks[i])
+            agenda.at(self.phase_s[i], URGENT, self._ticks[i])
         channel = self.channel
         channel.frame_bytes["ack"] = p.ack_bytes
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
@@ -250,22 +251,27 @@ class AckBeacon:
         duration = self.duration_s
         self.trace.add_frame("ack_delivery", lambda: ack_delivery_frame(bins, duration))
 
-    def _tick(self, i: int, _event: simpy.Event) -> None:
+    def _tick(self, i: int) -> None:
         self.send(i)
         jitter = self._jitter
         step = self.period_s + jitter.draw() if jitter is not None else self.period_s
-        # scheduled_event inlined (once per Ack): the same URGENT event, one call fewer.
-        env = self.env
-        ev = simpy.Event(env)
-        ev._ok = True
-        ev._value = None
-        ev.callbacks.append(self._ticks[i])
-        env.schedule(ev, URGENT, step)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
+        self._agenda.at(step, URGENT, self._ticks[i])
 
     def make_ack(self, i: int) -> Ack:
         now = self.env.now
         for hook in self.before_send:
             hook(i, now)
+        table = self.table
+        k = table.kernels
+        if k is not None:
+            # The same work in one compiled call (protocols._kernels.make_ack).
+            st, roles = self.state, self.roles
+            x, y, seq, role, leader, size, resign, heard, record = k.make_ack(
+                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
+                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
+                self.role_sent, self.degree_sent,
+            )  # fmt: skip
+            return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
         x, y = self.state.position(i, now)
         seq = int(self.seq[i]) + 1
         self.seq[i] = seq
@@ -274,7 +280,7 @@ class AckBeacon:
             self.resign_pending[i] = False
         roles = self.roles
         role, leader, size = int(roles.role[i]), int(roles.leader[i]), int(self.group_size[i])
-        heard, record = self.table.announce(now, i, seq, role, leader, x, y, size)
+        heard, record = table.announce(now, i, seq, role, leader, x, y, size)
         self.role_sent[i], self.degree_sent[i] = role, record[DEGREE]
         return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
 

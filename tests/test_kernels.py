@@ -7,7 +7,7 @@ import pytest
 
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
-from protocols.neighbours import NeighbourTable, ack_record
+from protocols.neighbours import DEGREE, NeighbourTable, ack_record
 
 pytest.importorskip("numba")
 
@@ -107,6 +107,50 @@ def test_runs_equal_with_and_without_compiled_loops(monkeypatch):
     assert frames["0"].keys() == frames["1"].keys()
     for name in frames["0"]:
         assert frames["0"][name].equals(frames["1"][name]), name
+
+
+def _beacon_after(seconds: float, compiled: bool):
+    """An Ack beacon on 30 robots, some moving, run for ``seconds``: its tables filled."""
+    from protocols.ack import AckBeacon, AckParams
+    from tests.fixtures import static_core
+
+    rng = np.random.default_rng(8)
+    sim = static_core(rng.uniform(0, 60, (30, 2)), range_m=25.0)
+    for i in range(0, 30, 3):
+        sim.state.set_leg(i, 0.0, rng.uniform(-2, 2, 2), cause="command")
+    beacon = AckBeacon(AckParams(), sim.parts)
+    if not compiled:
+        beacon.table.kernels = None
+    beacon.start()
+    sim.run(until_s=seconds)
+    return sim, beacon
+
+
+def test_compiled_make_ack_equals_numpy():
+    """An Ack built in one compiled call (position, sequence number, resignation, role,
+    leader, group size, what the table announces; the sequence number counted, the
+    resignation cleared, the role and degree sent recorded) is the numpy one."""
+    (sim_a, a), (sim_b, b) = _beacon_after(6.0, True), _beacon_after(6.0, False)
+    assert a.table.kernels is not None
+    rng = np.random.default_rng(9)
+    now = sim_a.env.now
+    degrees = []
+    for _ in range(200):
+        i = int(rng.integers(30))
+        role, leader, size, resign = rng.integers(0, 3), rng.integers(-1, 30), rng.integers(1, 9), rng.random() < 0.3
+        for beacon in (a, b):
+            beacon.roles.role[i], beacon.roles.leader[i] = role, leader
+            beacon.group_size[i], beacon.resign_pending[i] = size, resign
+        ack_a, ack_b = a.make_ack(i), b.make_ack(i)
+        assert ack_a._replace(heard=None, record=None) == ack_b._replace(heard=None, record=None)
+        assert [type(x) for x in ack_a] == [type(x) for x in ack_b]
+        assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
+        degrees.append(ack_a.record[DEGREE])
+        now += 0.01
+        sim_a.env._now = sim_b.env._now = now
+    for name in ("seq", "resign_pending", "role_sent", "degree_sent"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert max(degrees) > 3 and a.resign_pending.sum() < 30
 
 
 def test_compiled_frame_end_equals_numpy():

@@ -1,0 +1,95 @@
+"""Plain callbacks run in the kernel's exact order, without a kernel event each.
+
+A SimPy event costs an ``Event`` object, a push on the kernel's heap, a pop and a loop
+over its callbacks. The busiest events of a run, the Ack beacons' ticks and the channel's
+deliveries, need none of that: each is one function called at one instant. An
+:class:`Agenda` keeps them in a heap of its own, keyed ``(t, priority, id)`` as the
+kernel keys its events, with the id drawn from SimPy's own counter at the moment the
+entry is scheduled: every entry gets the key the kernel would have given its event, so
+ties between simultaneous events (same instant, same priority) are broken exactly as
+before, whoever scheduled them.
+
+One kernel event wakes the agenda, queued with the exact key of its head. The kernel runs
+it when everything before that key has run; the agenda then runs its entries in order, moving
+the clock to each, for as long as its head comes before the kernel's next event (the run's
+stop event included), and arms a wake for its new head. The global order is that of one
+kernel event per entry; the kernel sees one event per run of consecutive entries.
+:func:`netsim.events.kernel_queue` and :func:`netsim.events.advance_clock` say why reading
+the kernel's queue and setting its clock is sound (``netsim.kinetic`` does the same for
+the runtime link events).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from heapq import heappop, heappush
+
+import simpy
+
+from netsim.events import kernel_queue
+
+
+class _Wake(simpy.Event):
+    """The kernel event that wakes an agenda. It shares its key with the agenda entry it
+    was armed for; ordered against that entry (the only key it can tie with) it comes after,
+    so that the agenda runs the entry itself rather than wait for its own wake."""
+
+    def __lt__(self, _other: object) -> bool:
+        return False
+
+
+class Agenda:
+    """Callbacks ``fn()`` due at ``(t, priority)``, run in the kernel's order (module notes)."""
+
+    def __init__(self, env: simpy.Environment):
+        self.env = env
+        self._heap: list[tuple] = []
+        # Keys (t, priority, id) of the wakes queued in the kernel and not yet run, a heap.
+        self._wakes: list[tuple] = []
+        self._kernel = kernel_queue(env)  # the same list for the whole run
+        self._ids = env._eid  # type: ignore[attr-defined]  # SimPy's counter of event ids
+        self._running = False
+        self.wakes_run = 0
+
+    def __len__(self) -> int:
+        return len(self._heap)
+
+    def at(self, delay_s: float, priority: int, fn: Callable[[], object]) -> None:
+        """Call ``fn()`` ``delay_s`` from now at ``priority``: where an event scheduled now
+        with ``env.schedule(event, priority, delay_s)`` would run."""
+        entry = (self.env._now + delay_s, priority, next(self._ids), fn)  # type: ignore[attr-defined]
+        heappush(self._heap, entry)
+        wakes = self._wakes
+        if (not wakes or entry < wakes[0]) and not self._running:
+            self._arm(entry)
+
+    def _arm(self, entry: tuple) -> None:
+        t, priority, eid = entry[0], entry[1], entry[2]
+        wake = _Wake(self.env)
+        wake._ok = True
+        wake._value = None
+        wake.callbacks.append(self._run)
+        heappush(self._kernel, (t, priority, eid, wake))
+        heappush(self._wakes, (t, priority, eid))
+
+    def _run(self, _event: simpy.Event) -> None:
+        # Wakes run in key order, and all of them are in _wakes: this one is its head. What
+        # the entries schedule arms no wake: the one armed below, for the new head, is enough.
+        wakes = self._wakes
+        heappop(wakes)
+        self.wakes_run += 1
+        self._running = True
+        heap, kernel, env = self._heap, self._kernel, self.env
+        try:
+            while heap:
+                head = heap[0]
+                if kernel and kernel[0] < head:
+                    break
+                heappop(heap)
+                # As the kernel's step() sets it: the entry's own time, the same float.
+                env._now = head[0]  # type: ignore[attr-defined]
+                head[3]()
+        finally:
+            self._running = False
+            if heap and (not wakes or heap[0] < wakes[0]):
+                self._arm(heap[0])

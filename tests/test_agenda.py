@@ -1,0 +1,165 @@
+"""The agenda (netsim/agenda.py): callbacks run in exactly the order, and at exactly the
+instants, that one kernel event each would give them, ties included."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+import simpy
+
+import netsim.channel
+from netsim.agenda import Agenda
+from netsim.events import FIRST, NORMAL, URGENT, scheduled_event
+from netsim.run import build, collect
+from protocols.ack import AckBeacon, AckParams
+from tests.fixtures import clustering, make_config, static_core
+
+
+class KernelAgenda:
+    """The reference the agenda must equal: one kernel event per entry."""
+
+    def __init__(self, env: simpy.Environment):
+        self.env = env
+
+    def at(self, delay_s, priority, fn):
+        scheduled_event(self.env, delay_s, priority, lambda _event: fn())
+
+
+def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
+    """A random tree of callbacks, some on the agenda and some kernel events, at a few
+    instants and every priority (many ties), each scheduling children of either kind; run
+    in steps (the run's stop events tie with them too). Returns what ran, when, in order."""
+    env = simpy.Environment()
+    agenda = agenda_class(env)
+    rng = np.random.default_rng(seed)
+    log: list[tuple] = []
+    names = iter(range(10**6))
+
+    def plant(depth: int) -> None:
+        name = next(names)
+        delay = float(rng.choice([0.0, 0.0, 0.5, 1.0]))
+        priority = int(rng.choice([FIRST, URGENT, NORMAL]))
+        children = int(rng.integers(0, 3)) if depth < 4 else 0
+
+        def run() -> None:
+            log.append((name, env.now))
+            for _ in range(children):
+                plant(depth + 1)
+
+        if rng.random() < 0.6:
+            agenda.at(delay, priority, run)
+        else:
+            scheduled_event(env, delay, priority, lambda _event: run())
+
+    for _ in range(12):
+        plant(0)
+    for t in stops:
+        env.run(until=t)
+        log.append(("stop", env.now))
+    return log
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_agenda_runs_its_entries_in_the_kernels_order(seed):
+    """Entries and kernel events at the same instants and priorities, scheduled from each
+    other's callbacks, with the run stopped and resumed at their instants: the agenda runs
+    everything in the order, and at the instants, of one kernel event per entry."""
+    reference = _scripted(KernelAgenda, seed)
+    assert len(reference) > 12
+    assert _scripted(Agenda, seed) == reference
+
+
+def test_agenda_wakes_once_for_consecutive_entries():
+    """Entries with nothing in the kernel between them run from one wake, those scheduled
+    from inside an entry (a beacon's next tick) included."""
+    env = simpy.Environment()
+    agenda = Agenda(env)
+    ran = []
+
+    def tick(k: int) -> None:
+        ran.append(k)
+        if k < 99:
+            agenda.at(0.01, URGENT, lambda: tick(k + 1))
+
+    for k in range(0, 100, 10):
+        agenda.at(0.5, URGENT, lambda k=k: ran.append(-k - 1))
+    agenda.at(0.0, URGENT, lambda: tick(0))
+    env.run()
+    assert len(ran) == 110 and sorted(k for k in ran if k >= 0) == list(range(100))
+    # Two: the one armed for 0.5 first stays queued after the one for 0 is armed.
+    assert agenda.wakes_run == 2
+
+
+def _deliveries(sim):
+    log = []
+    sim.events.on("delivery", lambda d: log.append((d.t_s, d.kind, d.sender, d.receivers.tolist())))
+    return log
+
+
+def _ack_only(monkeypatch, agenda_class, jitter_s: float):
+    monkeypatch.setattr(netsim.channel, "Agenda", agenda_class)
+    positions = [[0.0, 0.0], [5.0, 0.0], [0.0, 5.0], [5.0, 5.0], [30.0, 0.0]]
+    sim = static_core(positions, duration_s=20.0, latency_jitter_s=jitter_s)
+    beacon = AckBeacon(AckParams(ack_jitter_s=0.0), sim.parts)
+    sim.add_model("protocol", beacon)
+    log = _deliveries(sim)
+    beacon.start(np.zeros(len(positions)))  # equal phases: every Ack of an instant ties
+    sim.run()
+    return log, beacon.table.data.copy()
+
+
+@pytest.mark.parametrize("jitter_s", [0.0, 0.002])
+def test_acks_with_equal_phases_arrive_in_the_kernels_order(monkeypatch, jitter_s):
+    """Acks without jitter from robots of equal phases (all sent at the same instants, all
+    arriving together) and with latency jitter: deliveries in the same order at the same
+    instants, and the same neighbour tables, as with one kernel event each."""
+    log, table = _ack_only(monkeypatch, Agenda, jitter_s)
+    ref_log, ref_table = _ack_only(monkeypatch, KernelAgenda, jitter_s)
+    assert len(log) > 50
+    assert log == ref_log
+    assert np.array_equal(table, ref_table)
+
+
+def _clustering_run(monkeypatch, agenda_class):
+    monkeypatch.setattr(netsim.channel, "Agenda", agenda_class)
+    positions = [[10.0 * (i % 4), 8.0 * (i // 4)] for i in range(12)]
+    sim, _ = clustering(positions, phases=np.zeros(12), message_rate_hz=1.0, core={"duration_s": 30.0})
+    log = _deliveries(sim)
+    sim.run()
+    return log, collect(sim)
+
+
+def test_a_clustering_run_is_the_same_with_the_agenda(monkeypatch):
+    """The clustering protocol (its listeners schedule timers and messages from inside a
+    delivery), on equal Ack phases: the same deliveries and the same tables as with one
+    kernel event per entry."""
+    log, frames = _clustering_run(monkeypatch, Agenda)
+    ref_log, ref_frames = _clustering_run(monkeypatch, KernelAgenda)
+    assert log == ref_log
+    assert frames.keys() == ref_frames.keys()
+    for name in frames:
+        pd.testing.assert_frame_equal(frames[name], ref_frames[name])
+
+
+def test_a_moving_run_with_loss_and_jitter_is_the_same_with_the_agenda(monkeypatch):
+    """Random waypoint, loss, latency jitter, runtime link events (at FIRST priority),
+    messages: every table as with one kernel event per entry."""
+    config = make_config(
+        duration_s=20.0,
+        world={"n_robots": 25, "side_m": 300.0},
+        channel={"range_m": 90.0, "loss_probability": 0.1, "latency_jitter_s": 0.01},
+        protocol={"message_rate_hz": 1.0},
+        events={"runtime_links": "on"},
+    )
+    out = []
+    for agenda_class in (Agenda, KernelAgenda):
+        monkeypatch.setattr(netsim.channel, "Agenda", agenda_class)
+        sim = build(config)
+        log = _deliveries(sim)
+        sim.run()
+        out.append((log, collect(sim)))
+    (log, frames), (ref_log, ref_frames) = out
+    assert log == ref_log
+    for name in ref_frames:
+        pd.testing.assert_frame_equal(frames[name], ref_frames[name])
