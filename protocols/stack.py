@@ -359,9 +359,7 @@ class Stack:
         out = leader_statistics(roles, n, duration_s)
         groups = frames["groups"]
         if len(groups):
-            per_robot = groups.groupby(["t_s", "robot"]).size()
-            gw = (per_robot > 1).groupby(level="t_s").sum()
-            out["gateways_mean"] = float(gw.mean())
+            out["gateways_mean"] = gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy())
         acks = self.channel.counters_for("ack").sent.sum()
         data = self.channel.counters_for("data").sent.sum()
         out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
@@ -384,6 +382,17 @@ BELIEF_COLUMNS = [
     "stale_neighbours",
     "missing_neighbours",
 ]
+
+
+def gateways_mean(t_s: np.ndarray, robot: np.ndarray) -> float:
+    """The mean number of robots in two groups or more per sample, over the samples of the
+    ``groups`` table with any row (its columns ``t_s`` and ``robot``: samples in time
+    order, each ordered by robot): a robot's rows of one sample are consecutive."""
+    same = (t_s[1:] == t_s[:-1]) & (robot[1:] == robot[:-1])
+    # A gateway's rows after its first: each run of them is one gateway.
+    gateways = int(np.count_nonzero(same[1:] & ~same[:-1])) + int(same[:1].sum())
+    samples = int(np.count_nonzero(t_s[1:] != t_s[:-1])) + 1
+    return gateways / samples
 
 
 def leader_statistics(roles: pd.DataFrame, n: int, duration_s: float) -> dict:

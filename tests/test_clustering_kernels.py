@@ -7,6 +7,7 @@ row of the table (clustering.leader_slots, mate_slots), everyone's groups
 ``relays`` keeps the relaying rule."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from protocols.clustering import ack_effects, group_size, leader_slots, mate_slots, membership
@@ -205,3 +206,22 @@ def test_compiled_believed_keys_equal_numpy():
         ids = np.where(ids >= 0, 2 * np.argsort(rng.random((12, 6)), axis=1), -1)  # distinct in a row
         a, b = kernels.believed_keys(ids, records, now, TAU_S), believed_keys(ids, records, now, TAU_S)
         assert a.tolist() == b.tolist() and len(a) > 10
+
+
+def test_gateways_mean_counts_robots_in_two_groups_per_sample():
+    """``gateways_mean`` (the summary figure) is the mean over the sampled instants of the
+    robots with two rows or more in the ``groups`` table, as a groupby counts them; samples
+    without rows do not count."""
+    from protocols.stack import gateways_mean
+
+    rng = np.random.default_rng(23)
+    for _ in range(30):
+        rows = []
+        for t in rng.choice(np.arange(10.0), int(rng.integers(1, 6)), replace=False).tolist():
+            for r in np.sort(rng.choice(20, int(rng.integers(1, 8)), replace=False)).tolist():
+                rows += [(t, r)] * int(rng.choice([1, 1, 2, 3]))
+        rows.sort(key=lambda x: x[0])
+        groups = pd.DataFrame(rows, columns=["t_s", "robot"])
+        per_robot = groups.groupby(["t_s", "robot"]).size()
+        expected = float((per_robot > 1).groupby(level="t_s").sum().mean())
+        assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy()) == expected
