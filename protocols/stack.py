@@ -16,7 +16,6 @@ import pandas as pd
 from netsim.compiled import load
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from netsim.radio.mac import MAC_CAUSES
 from netsim.topology import reach_keys
 from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
@@ -331,6 +330,8 @@ class Stack:
     def messages_frame(self) -> pd.DataFrame:
         df = pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
         if self.channel.deferred:
+            from netsim.radio.mac import MAC_CAUSES  # a shared medium's module, loaded with it
+
             # A shared medium: what it lost of each message's frames, by cause.
             losses = self.relay.medium_losses
             for cause in MAC_CAUSES:
