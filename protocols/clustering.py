@@ -323,12 +323,10 @@ class Clustering:
         self._sized = [False] * st.n
         declare_roles(parts.trace)
         # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
-        # membership, past
-        # netsim.compiled.SMALL_RUN_ROBOTS robots.
-        self.kernels = load("protocols._kernels", st.n)
-        self._effects = self.kernels.ack_effects if self.kernels is not None else ack_effects
-        self._effects_out = np.empty((4, st.n), dtype=np.int64)
-        k = self.kernels
+        # membership, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self.kernels = k = load("protocols._kernels", st.n)
+        self._effects = k.ack_effects if k is not None else ack_effects
+        self._effects_out = np.empty((4, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
         self._group_size = k.group_size if k is not None else group_size
         self._leader_slots = k.leader_slots if k is not None else leader_slots
         self._mate_slots = k.mate_slots if k is not None else mate_slots
