@@ -139,38 +139,33 @@ UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def ack_effects(role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s):
-    """What an Ack of ``sender`` does to the clustering, from the roles before it acts
-    (:func:`protocols.clustering.ack_effects`): positions (in ``receivers``) of the members
-    of ``sender``'s group; if it ``leads`` (a leader's Ack, not resigning), their timers
-    over a two-way link set to ``renewed_s`` in ``deadline_s`` and those of them to arm
-    (``renewed_s`` before the event armed in ``armed_s``), and the undecided robots and
-    leaders over a two-way link."""
-    n = len(receivers)
-    mine = np.empty(n, dtype=np.int64)
-    arm = np.empty(n, dtype=np.int64)
-    undecided = np.empty(n, dtype=np.int64)
-    leaders = np.empty(n, dtype=np.int64)
+def ack_effects(role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s, out):
+    """What an Ack of ``sender`` does to the clustering, from the roles before it acts, in
+    the four rows of ``out``, and how many of each (:func:`protocols.clustering.ack_effects`):
+    positions (in ``receivers``) of the members of ``sender``'s group; if it ``leads`` (a
+    leader's Ack, not resigning), their timers over a two-way link set to ``renewed_s`` in
+    ``deadline_s`` and those of them to arm (``renewed_s`` before the event armed in
+    ``armed_s``), and the undecided robots and leaders over a two-way link."""
     a = b = c = d = 0
-    for k in range(n):
+    for k in range(len(receivers)):
         r = receivers[k]
         ro = role[r]
         two_way = symmetric or hears_me[k]
         if ro == MEMBER and leader[r] == sender:
-            mine[a] = k
+            out[0, a] = k
             a += 1
             if leads and two_way:
                 deadline_s[r] = renewed_s
                 if renewed_s < armed_s[r]:
-                    arm[b] = r
+                    out[1, b] = r
                     b += 1
         elif leads and two_way and ro == UNDECIDED:
-            undecided[c] = r
+            out[2, c] = r
             c += 1
         elif leads and two_way and ro == LEADER_ROLE:
-            leaders[d] = r
+            out[3, d] = r
             d += 1
-    return mine[:a], arm[:b], undecided[:c], leaders[:d]
+    return a, b, c, d
 
 
 @numba.njit(cache=True, nogil=True)

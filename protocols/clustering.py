@@ -202,26 +202,32 @@ def ack_effects(
     deadline_s: np.ndarray,
     armed_s: np.ndarray,
     renewed_s: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """What an Ack of ``sender`` does, from the roles before it acts: positions (in
-    ``receivers``) of the members of ``sender``'s group; and if the Ack ``leads`` (a
-    leader's, not resigning): those members' timers over a two-way link restart at
-    ``renewed_s`` (written in the timers' ``deadline_s``; returned: those of them whose
-    timers must be armed, ``renewed_s`` before the event in ``armed_s``), and the undecided
-    robots and leaders over a two-way link (they may join or merge)."""
+    out: np.ndarray,
+) -> tuple[int, int, int, int]:
+    """What an Ack of ``sender`` does, from the roles before it acts, in the four rows of
+    ``out`` (each at least as long as ``receivers``; returned: how many of each): positions
+    (in ``receivers``) of the members of ``sender``'s group; and if the Ack ``leads`` (a
+    leader's, not resigning), those members' timers over a two-way link restart at
+    ``renewed_s`` (written in the timers' ``deadline_s``; listed: those of them whose timers
+    must be armed, ``renewed_s`` before the event in ``armed_s``), and the undecided robots
+    and leaders over a two-way link (they may join or merge). Counts and a reused ``out``,
+    not four new arrays: cheaper to hand back from the compiled twin, once per Ack."""
     r_role = role[receivers]
     mine = (r_role == MEMBER) & (leader[receivers] == sender)
-    if not leads:
-        return np.flatnonzero(mine), _NONE, _NONE, _NONE
-    two_way = hears_me | symmetric
-    renew = receivers[mine & two_way]
-    deadline_s[renew] = renewed_s
-    return (
-        np.flatnonzero(mine),
-        renew[renewed_s < armed_s[renew]],
-        receivers[(r_role == UNDECIDED) & two_way],
-        receivers[(r_role == LEADER) & two_way],
-    )
+    found = [np.flatnonzero(mine), _NONE, _NONE, _NONE]
+    if leads:
+        two_way = hears_me | symmetric
+        renew = receivers[mine & two_way]
+        deadline_s[renew] = renewed_s
+        found[1:] = [
+            renew[renewed_s < armed_s[renew]],
+            receivers[(r_role == UNDECIDED) & two_way],
+            receivers[(r_role == LEADER) & two_way],
+        ]
+    for row, ids in zip(out, found):
+        row[: len(ids)] = ids
+    a, b, c, d = (len(ids) for ids in found)
+    return a, b, c, d
 
 
 def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, i: int) -> int:
@@ -317,11 +323,10 @@ class Clustering:
         self._sized = [False] * st.n
         declare_roles(parts.trace)
         # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
-        # membership, past
-        # netsim.compiled.SMALL_RUN_ROBOTS robots.
-        self.kernels = load("protocols._kernels", st.n)
-        self._effects = self.kernels.ack_effects if self.kernels is not None else ack_effects
-        k = self.kernels
+        # membership, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self.kernels = k = load("protocols._kernels", st.n)
+        self._effects = k.ack_effects if k is not None else ack_effects
+        self._effects_out = np.empty((4, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
         self._group_size = k.group_size if k is not None else group_size
         self._leader_slots = k.leader_slots if k is not None else leader_slots
         self._mate_slots = k.mate_slots if k is not None else mate_slots
@@ -445,25 +450,26 @@ class Clustering:
         leads = ack.role == LEADER and not ack.resign
         if not leads and not self._members_of[ack.sender]:
             return
-        st, timers = self.roles, self.timers
+        st, timers, out = self.roles, self.timers, self._effects_out
         renewed_s = now + self.tau_s
-        mine, arm, undecided, leaders = self._effects(
+        a, b, c, d = self._effects(
             st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender, leads,
-            timers.deadline_s, timers.armed_s, renewed_s,
+            timers.deadline_s, timers.armed_s, renewed_s, out,
         )  # fmt: skip
         if not leads:
-            for k in mine.tolist():
+            for k in out[0, :a].tolist():
                 r = int(receivers[k])
                 if ack.role == MEMBER and ack.leader == r:
                     self._mutual_yield(r, ack.sender, now, bool(hears_me[k] | self.symmetric))
                 else:
                     self._leader_gone(r, now, "leader_resigned")
             return
-        if len(arm):
-            timers.arm(arm, renewed_s)
-        for r in undecided.tolist():
+        if b:
+            timers.arm(out[1, :b], renewed_s)
+        undecided, leaders = out[2, :c].tolist(), out[3, :d].tolist()  # out is reused: read it now
+        for r in undecided:
             self._join(r, now, first_heard=ack.sender)
-        for r in leaders.tolist():
+        for r in leaders:
             self._maybe_merge(r, ack, now)
 
     def _mutual_yield(self, r: int, other: int, now: float, two_way: bool) -> None:

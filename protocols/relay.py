@@ -217,7 +217,7 @@ class Relay:
         if msg.ttl <= 1:
             if fresh:
                 self._ttl_cut.add(msg.id)
-        else:
+        elif fresh:
             # Relayed now, by every robot that relays it.
             nxt = Message(msg.id, msg.src, msg.dst, msg.ttl - 1, msg.hops + 1, now)
             for r in self._relays(np.array(fresh, dtype=np.int64), now).tolist():

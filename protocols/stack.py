@@ -16,7 +16,6 @@ import pandas as pd
 from netsim.compiled import load
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from netsim.radio.mac import MAC_CAUSES
 from netsim.topology import reach_keys
 from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
@@ -331,6 +330,8 @@ class Stack:
     def messages_frame(self) -> pd.DataFrame:
         df = pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
         if self.channel.deferred:
+            from netsim.radio.mac import MAC_CAUSES  # a shared medium's module, loaded with it
+
             # A shared medium: what it lost of each message's frames, by cause.
             losses = self.relay.medium_losses
             for cause in MAC_CAUSES:
@@ -359,9 +360,7 @@ class Stack:
         out = leader_statistics(roles, n, duration_s)
         groups = frames["groups"]
         if len(groups):
-            per_robot = groups.groupby(["t_s", "robot"]).size()
-            gw = (per_robot > 1).groupby(level="t_s").sum()
-            out["gateways_mean"] = float(gw.mean())
+            out["gateways_mean"] = gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy())
         acks = self.channel.counters_for("ack").sent.sum()
         data = self.channel.counters_for("data").sent.sum()
         out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
@@ -384,6 +383,17 @@ BELIEF_COLUMNS = [
     "stale_neighbours",
     "missing_neighbours",
 ]
+
+
+def gateways_mean(t_s: np.ndarray, robot: np.ndarray) -> float:
+    """The mean number of robots in two groups or more per sample, over the samples of the
+    ``groups`` table with any row (its columns ``t_s`` and ``robot``: samples in time
+    order, each ordered by robot): a robot's rows of one sample are consecutive."""
+    same = (t_s[1:] == t_s[:-1]) & (robot[1:] == robot[:-1])
+    # A gateway's rows after its first: each run of them is one gateway.
+    gateways = int(np.count_nonzero(same[1:] & ~same[:-1])) + int(same[:1].sum())
+    samples = int(np.count_nonzero(t_s[1:] != t_s[:-1])) + 1
+    return gateways / samples
 
 
 def leader_statistics(roles: pd.DataFrame, n: int, duration_s: float) -> dict:

@@ -7,6 +7,7 @@ row of the table (clustering.leader_slots, mate_slots), everyone's groups
 ``relays`` keeps the relaying rule."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from protocols.clustering import ack_effects, group_size, leader_slots, mate_slots, membership
@@ -55,11 +56,13 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
         deadline_a = rng.uniform(0.0, 10.0, n)
         deadline_b = deadline_a.copy()
         args = (role, leader, receivers, hears_me, symmetric, sender, leads)
-        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0)
-        b = ack_effects(*args, deadline_b, armed_s, 4.0)
-        assert [x.tolist() for x in a] == [x.tolist() for x in b]
+        out_a, out_b = np.full((4, n), -7), np.full((4, n), -7)
+        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0, out_a)
+        b = ack_effects(*args, deadline_b, armed_s, 4.0, out_b)
+        assert a == b
+        assert [row[:k].tolist() for row, k in zip(out_a, a)] == [row[:k].tolist() for row, k in zip(out_b, b)]
         assert deadline_a.tobytes() == deadline_b.tobytes()
-        found += [len(x) > 0 for x in a]
+        found += [k > 0 for k in a]
     assert found.min() > 20
 
 
@@ -205,3 +208,22 @@ def test_compiled_believed_keys_equal_numpy():
         ids = np.where(ids >= 0, 2 * np.argsort(rng.random((12, 6)), axis=1), -1)  # distinct in a row
         a, b = kernels.believed_keys(ids, records, now, TAU_S), believed_keys(ids, records, now, TAU_S)
         assert a.tolist() == b.tolist() and len(a) > 10
+
+
+def test_gateways_mean_counts_robots_in_two_groups_per_sample():
+    """``gateways_mean`` (the summary figure) is the mean over the sampled instants of the
+    robots with two rows or more in the ``groups`` table, as a groupby counts them; samples
+    without rows do not count."""
+    from protocols.stack import gateways_mean
+
+    rng = np.random.default_rng(23)
+    for _ in range(30):
+        rows = []
+        for t in rng.choice(np.arange(10.0), int(rng.integers(1, 6)), replace=False).tolist():
+            for r in np.sort(rng.choice(20, int(rng.integers(1, 8)), replace=False)).tolist():
+                rows += [(t, r)] * int(rng.choice([1, 1, 2, 3]))
+        rows.sort(key=lambda x: x[0])
+        groups = pd.DataFrame(rows, columns=["t_s", "robot"])
+        per_robot = groups.groupby(["t_s", "robot"]).size()
+        expected = float((per_robot > 1).groupby(level="t_s").sum().mean())
+        assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy()) == expected
