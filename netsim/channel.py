@@ -82,6 +82,17 @@ class SendTimeBins:
         self.interval_s = float(interval_s)
         self.columns = self.COLUMNS[: self.DROPPED] + tuple(f"dropped_{c}" for c in causes)
         self.counts = np.zeros((64, len(self.columns)), dtype=np.int64)
+        # The bin last asked for by at(), and its edges: most sends fall in the same bin.
+        self._lo, self._hi, self._last = 0.0, -1.0, _Bin(self, 0)
+
+    def at(self, t: float) -> _Bin:
+        """The bin of time ``t`` (:meth:`bin`), as a :class:`_Bin` (the same object for every
+        ``t`` within one bin: its edges are the same products as :meth:`bin` compares)."""
+        if self._lo <= t < self._hi:
+            return self._last
+        k = self.bin(t)
+        self._lo, self._hi, self._last = k * self.interval_s, (k + 1) * self.interval_s, _Bin(self, k)
+        return self._last
 
     def bin(self, t: float) -> int:
         """The bin of time ``t``: the ``k`` with ``k dt <= t < (k+1) dt``, the edges being
@@ -161,9 +172,11 @@ class _Arrival:
         binned = self.binned
         if binned is not None:
             binned.bins.counts[binned.k, SendTimeBins.RECEIVED] += len(receivers)
-        ev = ch.events
-        if ev is not None and ev.wants("delivery"):
-            ev.emit("delivery", Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload))
+        on_delivery = ch.on_delivery
+        if on_delivery:
+            delivery = Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload)
+            for fn in on_delivery:
+                fn(delivery)
         self.deliver(self.sender, receivers, self.payload)
 
 
@@ -198,6 +211,8 @@ class Channel:
         self.bins: dict[str, SendTimeBins] = {}
         # The run's bus: "delivery" and "drop" events for whoever subscribes.
         self.events = events
+        # Its subscribers to "delivery" (the bus's own list: it follows later subscriptions).
+        self.on_delivery: list[Callable] = events.subscribers("delivery") if events is not None else []
         # The shared medium (netsim.radio.mac.Medium), None: infinite capacity, every
         # transmission decided at send time (the code below, unchanged by a MAC).
         self.mac: Any = None
@@ -258,7 +273,7 @@ class Channel:
         """Send ``payload`` from ``sender`` to everyone in range; returns the receivers."""
         if self.mac is not None:
             return self.mac.send(sender, -1, payload, deliver, kind)
-        c = self.counters_for(kind)
+        c = self.counters.get(kind) or self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind) if self.bins else None
         if self.reception is None:
@@ -308,9 +323,9 @@ class Channel:
         bins = self.bins.get(kind)
         if bins is None:
             return None
-        k = bins.bin(self.env.now)
-        bins.counts[k, SendTimeBins.SENT] += 1
-        return _Bin(bins, k)
+        binned = bins.at(self.env.now)
+        bins.counts[binned.k, SendTimeBins.SENT] += 1
+        return binned
 
     def _dropped(self, kind: str, sender: int, receivers: np.ndarray, cause: str) -> None:
         ev = self.events
