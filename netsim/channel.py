@@ -3,10 +3,12 @@
 A transmission from robot ``i`` at time ``t`` reaches the robots within ``i``'s range at
 ``t`` (so unequal ranges make some links one-way), minus the receptions the loss model
 drops. Receivers are decided at send time, in one numpy operation, and handed to the
-receiving protocol in bulk: with a fixed latency a broadcast costs one kernel event,
+receiving protocol in bulk: with a fixed latency a broadcast costs one delivery event,
 whatever the number of receivers; with jitter every reception has its own event.
 
-Deliveries run at URGENT priority, ahead of timers due at the same instant.
+Deliveries run at URGENT priority, ahead of timers due at the same instant. They are
+entries of the channel's :class:`~netsim.agenda.Agenda` (which the Ack beacons share for
+their ticks): run in exactly the order of one kernel event each, without the cost of one.
 
 Every transmission, reception and drop is counted per robot, per message kind, and per
 drop cause:
