@@ -13,7 +13,9 @@ One kernel event wakes the agenda, queued with the exact key of its head. The ke
 it when everything before that key has run; the agenda then runs its entries in order, moving
 the clock to each, for as long as its head comes before the kernel's next event (the run's
 stop event included), and arms a wake for its new head. The global order is that of one
-kernel event per entry; the kernel sees one event per run of consecutive entries.
+kernel event per entry; the kernel sees one event per run of consecutive entries. (A
+wake stays queued when an earlier entry arms another before it; by its turn its entry may
+have run from that one, and it runs whatever is due then, or nothing.)
 :func:`netsim.events.kernel_queue` and :func:`netsim.events.advance_clock` say why reading
 the kernel's queue and setting its clock is sound (``netsim.kinetic`` does the same for
 the runtime link events).

@@ -3,10 +3,12 @@
 A transmission from robot ``i`` at time ``t`` reaches the robots within ``i``'s range at
 ``t`` (so unequal ranges make some links one-way), minus the receptions the loss model
 drops. Receivers are decided at send time, in one numpy operation, and handed to the
-receiving protocol in bulk: with a fixed latency a broadcast costs one kernel event,
+receiving protocol in bulk: with a fixed latency a broadcast costs one delivery event,
 whatever the number of receivers; with jitter every reception has its own event.
 
-Deliveries run at URGENT priority, ahead of timers due at the same instant.
+Deliveries run at URGENT priority, ahead of timers due at the same instant. They are
+entries of the channel's :class:`~netsim.agenda.Agenda` (which the Ack beacons share for
+their ticks): run in exactly the order of one kernel event each, without the cost of one.
 
 Every transmission, reception and drop is counted per robot, per message kind, and per
 drop cause:
@@ -82,6 +84,17 @@ class SendTimeBins:
         self.interval_s = float(interval_s)
         self.columns = self.COLUMNS[: self.DROPPED] + tuple(f"dropped_{c}" for c in causes)
         self.counts = np.zeros((64, len(self.columns)), dtype=np.int64)
+        # The bin last asked for by at(), and its edges: most sends fall in the same bin.
+        self._lo, self._hi, self._last = 0.0, -1.0, _Bin(self, 0)
+
+    def at(self, t: float) -> _Bin:
+        """The bin of time ``t`` (:meth:`bin`), as a :class:`_Bin` (the same object for every
+        ``t`` within one bin: its edges are the same products as :meth:`bin` compares)."""
+        if self._lo <= t < self._hi:
+            return self._last
+        k = self.bin(t)
+        self._lo, self._hi, self._last = k * self.interval_s, (k + 1) * self.interval_s, _Bin(self, k)
+        return self._last
 
     def bin(self, t: float) -> int:
         """The bin of time ``t``: the ``k`` with ``k dt <= t < (k+1) dt``, the edges being
@@ -161,9 +174,11 @@ class _Arrival:
         binned = self.binned
         if binned is not None:
             binned.bins.counts[binned.k, SendTimeBins.RECEIVED] += len(receivers)
-        ev = ch.events
-        if ev is not None and ev.wants("delivery"):
-            ev.emit("delivery", Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload))
+        on_delivery = ch.on_delivery
+        if on_delivery:
+            delivery = Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload)
+            for fn in on_delivery:
+                fn(delivery)
         self.deliver(self.sender, receivers, self.payload)
 
 
@@ -198,6 +213,8 @@ class Channel:
         self.bins: dict[str, SendTimeBins] = {}
         # The run's bus: "delivery" and "drop" events for whoever subscribes.
         self.events = events
+        # Its subscribers to "delivery" (the bus's own list: it follows later subscriptions).
+        self.on_delivery: list[Callable] = events.subscribers("delivery") if events is not None else []
         # The shared medium (netsim.radio.mac.Medium), None: infinite capacity, every
         # transmission decided at send time (the code below, unchanged by a MAC).
         self.mac: Any = None
@@ -258,7 +275,7 @@ class Channel:
         """Send ``payload`` from ``sender`` to everyone in range; returns the receivers."""
         if self.mac is not None:
             return self.mac.send(sender, -1, payload, deliver, kind)
-        c = self.counters_for(kind)
+        c = self.counters.get(kind) or self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind) if self.bins else None
         if self.reception is None:
@@ -308,9 +325,9 @@ class Channel:
         bins = self.bins.get(kind)
         if bins is None:
             return None
-        k = bins.bin(self.env.now)
-        bins.counts[k, SendTimeBins.SENT] += 1
-        return _Bin(bins, k)
+        binned = bins.at(self.env.now)
+        bins.counts[binned.k, SendTimeBins.SENT] += 1
+        return binned
 
     def _dropped(self, kind: str, sender: int, receivers: np.ndarray, cause: str) -> None:
         ev = self.events

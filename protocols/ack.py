@@ -242,8 +242,11 @@ class AckBeacon:
         # per robot: the order of the same events, without a kernel event for each Ack.
         self._ticks = [partial(self._tick, i) for i in range(n)]
         self._agenda = agenda = self.channel.agenda
+        # As Python floats: the same instants, and the agenda's heap compares floats faster
+        # than numpy scalars (every later tick and delivery time is a sum starting here).
+        phases = self.phase_s.tolist()
         for i in range(n):
-            agenda.at(self.phase_s[i], URGENT, self._ticks[i])
+            agenda.at(phases[i], URGENT, self._ticks[i])
         channel = self.channel
         channel.frame_bytes["ack"] = p.ack_bytes
         self.trace.add_frame("acks", lambda: channel.frame("ack"))

@@ -123,7 +123,7 @@ class NeighbourTable:
         start = 0
         while True:
             start, stale = k.receive(
-                self._ids, self._records, self.slots, float(now), int(sender), receivers, heard, record,
+                self._ids, self._records, self.id.shape[1], now, sender, receivers, heard, record,
                 self.tau_s, fresh, hears_me, start,
             )  # fmt: skip
             if start < 0:

@@ -125,6 +125,22 @@ def test_bins_are_half_open_at_the_tables_times():
         assert edges[k] <= t < edges[k + 1]
 
 
+def test_the_bin_of_the_last_send_is_reused_only_within_its_edges():
+    """The channel's shortcut to the bin of a send (the bin of the last send, while the
+    time stays within its edges) gives the bin of every time, at the edges, going back and
+    after the counts have grown."""
+    bins = SendTimeBins(0.1)
+    edges = np.arange(300) * 0.1
+    rng = np.random.default_rng(2)
+    times = np.r_[
+        edges[:-1], np.nextafter(edges[1:-1], 0), np.sort(rng.uniform(0, 29.8, 500)), rng.uniform(0, 29.8, 50)
+    ]
+    for t in times:
+        t = float(t)
+        assert bins.at(t).k == bins.bin(t)
+        assert bins.at(t) is bins.at(t)
+
+
 @pytest.mark.parametrize("model", ["ack", "clustering"])
 def test_the_protocol_declares_the_table_it_writes(model):
     cfg = make_config(duration_s=5.0, world={"n_robots": 5, "side_m": 200.0}, protocol={"model": model})
