@@ -42,7 +42,7 @@ from netsim.kinetic import RuntimeLinks
 from netsim.lifetimes import COLUMNS
 from netsim.reception import Reception
 from netsim.state import RobotState
-from netsim.wall_samples import SAMPLE_M, Stretches, count_below, envelope_radii
+from netsim.wall_samples import SAMPLE_M, Stretches, bisect, count_below, envelope_radii
 
 # A window's start comes before the link events of its instant (it only queues later ones).
 _RESTART = FIRST - 1
@@ -102,6 +102,10 @@ class WalledLinks:
         self._armed_s = math.inf
         self._w_end = -math.inf
         self._restart_pending = False
+        # Stretches whose samples after the second are still to take, and when the first of
+        # them is due.
+        self._pending: set[int] = set()
+        self._pending_at = math.inf
         self._dirty: set[int] = set()
         self._flush_pending = False
         self._quiet = False
@@ -216,14 +220,56 @@ class WalledLinks:
         self._stretch.put(slots, new)
         for s in slots.tolist():
             self._gen[s] += 1
-        first = new.first_state(self.reception, self.equal, np.arange(len(new)))
-        self.samples += len(new)
-        self._k_next[slots] = 0.0
-        self._s_next[slots] = first
+        # The first sample decides the link now; the second, taken with it, whether the
+        # first step has a change (bisected now: it may be due at once). The later samples
+        # can wait until the second's instant: they are taken then, with every other
+        # stretch's due by then, in one vectorised step.
+        k = len(new)
+        has_step = new.jx >= 1
+        step = np.flatnonzero(has_step)
+        rows = np.r_[np.arange(k), step]
+        ks = np.r_[np.zeros(k, np.int64), np.ones(len(step), np.int64)]
+        both = new.state(self.reception, self.equal, rows, new.sample_time(rows, ks))
+        first = both[:k]
+        second = first.copy()
+        second[step] = both[k:]
+        self.samples += len(rows)
         n = self.n
         for ai, bi, ui, up in zip(a.tolist(), b.tolist(), u.tolist(), first.tolist()):
             self._set(ai * n + bi, ui, up)
-        self._sample(slots)
+        self._k_next[slots] = np.where(has_step, 1.0, 0.0)
+        self._s_next[slots] = np.where(has_step, second, first)
+        chg = np.flatnonzero(has_step & (first != second))
+        if len(chg):
+            lo = new.sample_time(chg, np.zeros(len(chg), np.int64))
+            hi = new.sample_time(chg, np.ones(len(chg), np.int64))
+            t = bisect(lambda sel, tm: new.state(self.reception, self.equal, chg[sel], tm), lo, hi, first[chg])
+            self._queue(slots[chg], t, second[chg])
+        later = slots[has_step & (new.jx > 1)]
+        if len(later):
+            self._pending.update(later.tolist())
+            due = float(new.sample_time(np.flatnonzero(has_step & (new.jx > 1)), np.ones(len(later), np.int64)).min())
+            if due < self._pending_at:
+                self._pending_at = due
+                event = scheduled_event(self.env, max(due - self.env.now, 0.0), _RESTART, self._take_pending)
+                event._value = due
+
+    def _take_pending(self, event: simpy.Event) -> None:
+        # Armed for an instant (the clock may be a rounding step off it); a later one armed
+        # before an earlier took the stretches has nothing to do.
+        if event._value != self._pending_at:
+            return
+        pending = np.fromiter(self._pending, np.int64, len(self._pending))
+        self._pending.clear()
+        self._pending_at = math.inf
+        self._sample(np.sort(pending))
+
+    def _queue(self, slots: np.ndarray, t: np.ndarray, now_up: np.ndarray) -> None:
+        heap, gen, s = self._heap, self._gen, self._stretch
+        for r, ti, up in zip(slots.tolist(), t.tolist(), now_up.tolist()):
+            self._seq += 1
+            heapq.heappush(heap, (ti, int(s.a[r]), int(s.b[r]), self._seq, up, r, gen[r]))
+        self._arm()
 
     def _window(self) -> float:
         if self.window_s is not None:
@@ -247,11 +293,7 @@ class WalledLinks:
             self.samples += int((k1 - k0).sum())
             self._k_next[rows] = k1
             self._s_next[rows] = last
-            heap, gen = self._heap, self._gen
-            for r, ti, up in zip(row.tolist(), t.tolist(), now_up.tolist()):
-                self._seq += 1
-                heapq.heappush(heap, (ti, int(s.a[r]), int(s.b[r]), self._seq, up, r, gen[r]))
-            self._arm()
+            self._queue(row, t, now_up)
         if not self._restart_pending and bool((self._k_next[slots] < s.jx[slots]).any()):
             self._restart_pending = True
             scheduled_event(self.env, max(self._w_end - now, 0.0), _RESTART, self._restart)
