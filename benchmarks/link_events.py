@@ -19,25 +19,54 @@ links.parquet, the link events announced, and the load average when the case end
     python benchmarks/link_events.py                         # N = 1,000 and 10,000, protocols none and ack
     python benchmarks/link_events.py --n 1000 --protocol ack --live
     python benchmarks/link_events.py --n 1000 10000 --protocol none --repeat 5   # modes in turn, median ratios
+    python benchmarks/link_events.py --map office --n 100 1000 --protocol none ack --repeat 3
+
+With ``--map office`` the robots move on the office map (200 m x 200 m), the unit disk with
+line of sight, the range chosen for a mean degree of 10 without walls
+(``200 sqrt(10 / (N pi))``: 11.3 m at N = 1,000): links are sampled between walls
+(docs/radio.md), after the run or during it (netsim/walled_links.py).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
 import sys
 import time
 
-from workload import workload_config
+from workload import DEGREE, workload_config
+
+MAP_SIDE_M = 200.0
 
 
-def run_case(n: int, protocol: str, mode: str) -> dict:
+def config_for(n: int, protocol: str, mode: str, world_map: str):
+    events = {"live_topology": mode == "runtime+live"}
+    if not world_map:
+        return workload_config(n, protocol={"model": protocol}, events=events)
+    from netsim.config import from_dict
+
+    return from_dict(
+        {
+            "seed": 1,
+            "duration_s": 100.0,
+            "world": {"n_robots": n, "side_m": MAP_SIDE_M, "map": world_map},
+            "mobility": {"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0, "stationary_start": False},
+            "channel": {"range_m": MAP_SIDE_M * math.sqrt(DEGREE / (n * math.pi)), "latency_s": 0.001},
+            "protocol": {"model": protocol},
+            "events": events,
+            "output": {"position_interval_s": 0.0},
+        }
+    )
+
+
+def run_case(n: int, protocol: str, mode: str, world_map: str = "") -> dict:
     from netsim.run import build, collect, summarize
 
-    cfg = workload_config(n, protocol={"model": protocol}, events={"live_topology": mode == "runtime+live"})
+    cfg = config_for(n, protocol, mode, world_map)
     start, cpu = time.perf_counter(), time.process_time()
     sim = build(cfg)
     counted = [0]
@@ -63,9 +92,9 @@ def run_case(n: int, protocol: str, mode: str) -> dict:
     }
 
 
-def _case(n: int, protocol: str, mode: str) -> dict:
+def _case(n: int, protocol: str, mode: str, world_map: str) -> dict:
     out = subprocess.run(
-        [sys.executable, __file__, "--case", f"{n},{protocol},{mode}"],
+        [sys.executable, __file__, "--case", f"{n},{protocol},{mode},{world_map}"],
         capture_output=True,
         text=True,
         check=True,
@@ -79,11 +108,12 @@ def main(argv=None) -> int:
     p.add_argument("--protocol", nargs="*", default=["none", "ack"])
     p.add_argument("--live", action="store_true", help="also measure the live topology")
     p.add_argument("--repeat", type=int, default=1, help="run the modes in turn this many times")
+    p.add_argument("--map", default="", help='run on this map ("office"), the unit disk with line of sight')
     p.add_argument("--case", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.case:
-        n, protocol, mode = args.case.split(",")
-        print(json.dumps(run_case(int(n), protocol, mode)))
+        n, protocol, mode, world_map = args.case.split(",")
+        print(json.dumps(run_case(int(n), protocol, mode, world_map)))
         return 0
     modes = ["post-hoc", "runtime"] + (["runtime+live"] if args.live else [])
     print(
@@ -97,7 +127,7 @@ def main(argv=None) -> int:
             for _turn in range(args.repeat):
                 base = base_cpu = 0.0
                 for mode in modes:
-                    r = _case(n, protocol, mode)
+                    r = _case(n, protocol, mode, args.map)
                     if mode == "post-hoc":
                         base, base_cpu = r["wall_s"], r["cpu_s"]
                     ratios[mode].append((r["wall_s"] / base, r["cpu_s"] / base_cpu))

@@ -395,12 +395,6 @@ class Config(Params):
             hook.check(hook.Params(), self)
         if self.events.runtime_links == "off" and self.events.live_topology:
             raise ConfigError("events.live_topology", True, "needs link events during the run (events.runtime_links)")
-        if self.world.map:
-            why = RADIO_LINKS_AFTER_RUN
-            if self.events.runtime_links == "on":
-                raise ConfigError("events.runtime_links", "on", why)
-            if self.events.live_topology:
-                raise ConfigError("events.live_topology", True, why)
 
     def models(self) -> list[tuple[Any, Params]]:
         """``(plugin, params)`` of every model of the run with a section: the mobility model,
@@ -434,10 +428,6 @@ class Config(Params):
         if isinstance(r, tuple):
             return r
         return (float(r),) * self.world.n_robots
-
-
-# Why link events cannot be solved during a run on a map (docs/events.md).
-RADIO_LINKS_AFTER_RUN = "with walls (world.map) links are solved after the run only"
 
 
 def _check_map(config: Config) -> None:

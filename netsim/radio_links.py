@@ -8,12 +8,15 @@ How exact they are (docs/radio.md says the same for users):
   ``wall_loss_db`` per wall): a link can only be up while the two robots are within the
   radio's largest range, and those intervals are solved exactly first (the *envelope*).
   Within each, the link's state (range or received power, and the walls crossed) is
-  evaluated at samples no farther apart than ``SAMPLE_M / v_max`` seconds (so that no
-  robot moves more than ``SAMPLE_M`` metres between two), and every change between two
-  samples is located by bisection to ``TOLERANCE_S``. An event time is therefore exact to
-  within ``TOLERANCE_S``; what can be missed is a change of state that is undone before the
-  next sample (the line between two robots sweeping past a pillar or a doorway's edge
-  while they move less than ``SAMPLE_M``). With robots at rest nothing is missed.
+  sampled along stretches in which both robots keep their legs, at steps from the
+  stretch's start over which neither robot moves more than ``SAMPLE_M``, and every change
+  between two samples is located by bisection to ``TOLERANCE_S``
+  (:mod:`netsim.wall_samples`, shared with the runtime solver
+  :class:`netsim.walled_links.WalledLinks`: the same table, bit for bit). An event time is
+  therefore exact to within ``TOLERANCE_S`` (at the envelope's edges exactly); what can be
+  missed is a change of state that is undone before the next sample (the line between two
+  robots sweeping past a pillar or a doorway's edge while they move less than
+  ``SAMPLE_M``). With robots at rest nothing is missed.
 - **Shadowing**: a link is random; its state is only defined where the channel looks at it,
   at transmissions (:class:`~netsim.reception.LinkRecorder`). A link is up from the first
   transmission between the two robots (either way) that gets through while it is down to
@@ -33,11 +36,8 @@ import pandas as pd
 
 from netsim.lifetimes import COLUMNS, link_lifetimes
 from netsim.radio import compiled_kernels
-from netsim.radio.propagation import Pairs
 from netsim.trajectory import LegTable
-
-SAMPLE_M = 1.0
-TOLERANCE_S = 1e-6
+from netsim.wall_samples import Stretches, count_below, envelope_radii
 
 
 def _legs_kernel():
@@ -45,18 +45,16 @@ def _legs_kernel():
     return None if k is None else k.legs_at
 
 
-def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``.
-
-    The queries are merged with the legs (each robot's legs are contiguous and in time
-    order): a query's leg is the last leg of its robot that starts at or before it."""
+def leg_index(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """The leg of ``robots[k]`` current at ``times[k]``: its last leg that starts at or
+    before it (each robot's legs are contiguous and in time order)."""
     robots = np.asarray(robots, np.int64)
     times = np.asarray(times, float)
     kernel = _legs_kernel()
     if kernel is not None:
         leg = np.empty(len(robots), np.int64)
         kernel(L.first, L.end, L.t, robots, times, leg)
-        return L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None]
+        return leg
     leg_robot = np.repeat(np.arange(len(L.first)), L.end - L.first)
     k, m = len(robots), len(L.t)
     # Sort legs and queries together by (robot, time), a leg before a query at the same time.
@@ -67,7 +65,13 @@ def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     legs_before = np.cumsum(is_query[order] == 0)
     where = np.empty(m + k, np.int64)
     where[order] = legs_before - 1
-    leg = np.maximum(where[m:], L.first[robots])
+    return np.maximum(where[m:], L.first[robots])
+
+
+def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``."""
+    times = np.asarray(times, float)
+    leg = leg_index(L, robots, times)
     return L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None]
 
 
@@ -163,67 +167,52 @@ def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float
     return _frame(m["a"][keep], m["b"][keep], t_up[keep], t_down[keep], duration_s, open_end[keep])
 
 
-def _linked(reception, ranges: np.ndarray, equal_ranges: bool, a, b, pa, pb) -> np.ndarray:
-    d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
-    chain = reception.compiled
-    up = chain.receivable(Pairs(a, b, pa, pb, d))
-    if not equal_ranges:  # unit disk with unequal ranges: both must hear each other
-        up &= chain.receivable(Pairs(b, a, pb, pa, d))
-    return up
-
-
 def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float) -> pd.DataFrame:
-    """Links on a map without shadowing: sampled within the exact envelope, changes bisected."""
-    ranges = np.asarray(ranges_m, float)
-    n = len(ranges)
-    equal = bool(np.all(ranges == ranges[0])) if n else True
-    outer = float(reception.propagation.range_m) if not np.isfinite(reception.reach_m) else reception.reach_m
-    env = link_lifetimes(legs, np.full(n, outer) if equal else ranges, duration_s)
+    """Links on a map without shadowing: sampled along stretches within the exact envelope,
+    changes bisected (:mod:`netsim.wall_samples`); the reference the runtime solver
+    (:class:`netsim.walled_links.WalledLinks`) is tested against."""
+    radii, equal = envelope_radii(reception, ranges_m)
+    n = len(radii)
+    env = link_lifetimes(legs, radii, duration_s)
     if len(env) == 0:
         return env
     L = LegTable(legs, n)
-    v_max = float(np.hypot(L.v[:, 0], L.v[:, 1]).max()) if len(L.v) else 0.0
-    h = SAMPLE_M / v_max if v_max > 0 else np.inf
     a_env, b_env = env["a"].to_numpy(np.int64), env["b"].to_numpy(np.int64)
     t0, t1 = env["t_up_s"].to_numpy(float), env["t_down_s"].to_numpy(float)
-    span = t1 - t0
-    count = np.where(np.isfinite(h), np.ceil(span / h), 1).astype(np.int64)
-    count = np.maximum(count, 1)
-    # Samples t0, t0 + step, ... < t1 of each envelope interval (step = span / count <= h).
-    iv = np.repeat(np.arange(len(env)), count)
-    k = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-    step = span / count
-    ts = t0[iv] + k * step[iv]
+    m = len(env)
+    # Stretch starts: the envelope's start and every leg start of either robot before its end.
+    before_end = np.nextafter(t1, -np.inf)
+    starts_t, starts_iv = [t0], [np.arange(m)]
+    for robot in (a_env, b_env):
+        first = leg_index(L, robot, t0)
+        count = np.maximum(leg_index(L, robot, before_end) - first, 0)
+        iv = np.repeat(np.arange(m), count)
+        offset = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+        starts_t.append(L.t[first[iv] + 1 + offset])
+        starts_iv.append(iv)
+    u, iv = np.concatenate(starts_t), np.concatenate(starts_iv)
+    order = np.lexsort((u, iv))
+    u, iv = u[order], iv[order]
+    keep = np.r_[True, (iv[1:] != iv[:-1]) | (u[1:] != u[:-1])]
+    u, iv = u[keep], iv[keep]
+    e = np.where(np.r_[iv[1:] == iv[:-1], False], np.r_[u[1:], 0.0], t1[iv])
     a, b = a_env[iv], b_env[iv]
-
-    def state(a, b, t):
-        return _linked(reception, ranges, equal, a, b, positions(L, a, t), positions(L, b, t))
-
-    # The first sample is taken just inside the envelope: at its very start the distance is
-    # the range itself, which rounding may put on either side.
-    first = k == 0
-    ts_eval = ts.copy()
-    ts_eval[first] += np.minimum(TOLERANCE_S, 0.5 * step[iv[first]])
-    up = state(a, b, ts_eval)
-    # A change between sample j and j + 1 of the same interval: bisect it.
-    same = np.r_[iv[1:] == iv[:-1], False]
-    chg = np.flatnonzero(same & (up != np.r_[up[1:], False]))
-    lo, hi = ts_eval[chg], ts_eval[chg + 1]
-    before = up[chg]
-    ca, cb = a[chg], b[chg]
-    while len(chg) and np.max(hi - lo) > TOLERANCE_S:
-        mid = 0.5 * (lo + hi)
-        s = state(ca, cb, mid)
-        moved = s == before
-        lo = np.where(moved, mid, lo)
-        hi = np.where(moved, hi, mid)
-    # Events: the first sample's state at t0, each change at hi, down at t1 if up at the end.
-    last = np.r_[iv[1:] != iv[:-1], True]
-    ev_t = np.r_[ts[k == 0], hi, t1[iv[last]]]
-    ev_iv = np.r_[iv[k == 0], iv[chg], iv[last]]
-    ev_up = np.r_[up[k == 0], ~before, np.zeros(int(last.sum()), bool)]
-    ev_order = np.r_[np.zeros(int((k == 0).sum())), np.ones(len(chg)), np.full(int(last.sum()), 2)]
-    order = np.lexsort((ev_order, ev_t, ev_iv))
+    la, lb = leg_index(L, a, u), leg_index(L, b, u)
+    s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]))
+    rows = np.arange(len(s))
+    s0 = s.first_state(reception, equal, rows)
+    k1 = np.minimum(count_below(u, s.h, e), s.jx)
+    row, t_chg, up_chg, _ = s.changes(reception, equal, rows, np.zeros(len(s)), k1, s0)
+    kept = t_chg <= e[row]
+    row, t_chg, up_chg = row[kept], t_chg[kept], up_chg[kept]
+    # Events in their order: by interval, stretch (rows are in time order), then the
+    # stretch's start, its changes in order, and the envelope's end last.
+    ev_iv = np.r_[iv, iv[row], np.arange(m)]
+    ev_row = np.r_[rows, row, np.full(m, len(s))]
+    ev_phase = np.r_[np.zeros(len(s)), np.ones(len(row)), np.full(m, 2)]
+    ev_t = np.r_[u, t_chg, t1]
+    ev_up = np.r_[s0, up_chg, np.zeros(m, bool)]
+    order = np.lexsort((ev_t, ev_phase, ev_row, ev_iv))
     ev_t, ev_iv, ev_up = ev_t[order], ev_iv[order], ev_up[order]
     # Keep the events that change the state (each interval starts down).
     prev = np.r_[False, np.where(ev_iv[1:] == ev_iv[:-1], ev_up[:-1], False)]

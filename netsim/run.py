@@ -23,7 +23,7 @@ import simpy
 from netsim import config as cfgmod
 from netsim import plugins
 from netsim.channel import Channel
-from netsim.config import RADIO_LINKS_AFTER_RUN, Config
+from netsim.config import Config
 from netsim.control import ControlLoop
 from netsim.errors import ConfigError
 from netsim.events import EventBus
@@ -41,6 +41,7 @@ from netsim.sim import Simulation
 from netsim.state import RobotState
 from netsim.trace import Trace
 from netsim.trajectory import distance_travelled, sample_positions
+from netsim.walled_links import WalledLinks
 
 # The tables every run writes, whatever its models (theirs are declared by their plugins).
 ENGINE_TABLES: dict[str, Schema] = {
@@ -105,17 +106,15 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     sim = Simulation(parts, config, run)
     # Log-distance path loss without shadowing or walls is the unit disk of the implied range
     # (the robots' range_m): its link events are solved during the run as the unit disk's.
-    # Under shadowing they are the channel's decisions, cut at the reach (netsim.shadowed_links).
-    # On a map links are solved after the run only.
-    if reception is None or reception.map is None:
-        sim.runtime_links = config.events.runtime_links
-        recorder = None if reception is None else reception.recorder
-        if reception is not None and recorder is not None:
-            reach_m = reception.reach_m
-            sim.link_solver = lambda: ShadowedLinks(env, state, events, recorder, reach_m)
-    else:
-        sim.runtime_links = "off"
-        sim.runtime_links_off = RADIO_LINKS_AFTER_RUN
+    # Under shadowing they are the channel's decisions, cut at the reach (netsim.shadowed_links);
+    # on a map without shadowing, sampled along stretches (netsim.walled_links).
+    sim.runtime_links = config.events.runtime_links
+    if reception is not None and reception.recorder is not None:
+        recorder, reach_m = reception.recorder, reception.reach_m
+        sim.link_solver = lambda: ShadowedLinks(env, state, events, recorder, reach_m)
+    elif reception is not None and reception.map is not None:
+        walled = reception
+        sim.link_solver = lambda: WalledLinks(env, state, events, walled)
     return sim
 
 

@@ -14,6 +14,7 @@ from netsim.kinetic import RuntimeLinks
 from netsim.plugins import Parts
 from netsim.progress import progress_bar
 from netsim.shadowed_links import ShadowedLinks
+from netsim.walled_links import WalledLinks
 
 if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live graph
     from netsim.live import LiveTopology
@@ -47,11 +48,9 @@ class Simulation:
         self._models: dict[str, object] = {}
         self.events: EventBus = parts.events if parts.events is not None else EventBus()
         self.runtime_links = "auto"
-        # Why runtime link events are off, when the run's model rules them out.
-        self.runtime_links_off = ""
-        self.links: RuntimeLinks | ShadowedLinks | None = None
-        # Makes the runtime link solver when the radio needs its own (shadowing), else None.
-        self.link_solver: Callable[[], ShadowedLinks] | None = None
+        self.links: RuntimeLinks | ShadowedLinks | WalledLinks | None = None
+        # Makes the runtime link solver when the radio needs its own (shadowing, walls), else None.
+        self.link_solver: Callable[[], ShadowedLinks | WalledLinks] | None = None
         self._live: LiveTopology | None = None
 
     @property
@@ -66,7 +65,7 @@ class Simulation:
     def now(self) -> float:
         return self.env.now
 
-    def link_events(self) -> RuntimeLinks | ShadowedLinks:
+    def link_events(self) -> RuntimeLinks | ShadowedLinks | WalledLinks:
         """The runtime link solver, started at t = 0 (call before the run starts)."""
         if self.links is None:
             if self.events.started:
@@ -96,8 +95,6 @@ class Simulation:
         if self.links is None and (self.runtime_links == "on" or (self.runtime_links == "auto" and wanted)):
             self.link_events()
         if self.links is None and wanted:
-            if self.runtime_links_off:
-                raise ConfigError("events.hooks", "link events", self.runtime_links_off)
             raise ConfigError(
                 "events.runtime_links", "off", "something subscribes to link events (a hook?): set it to 'auto' or 'on'"
             )

@@ -15,11 +15,13 @@ from netsim.config import load
 from netsim.errors import ConfigError
 from netsim.events import EVENT_NAMES, NORMAL, URGENT, EventBus, LinkDown, LinkUp, scheduled_event
 from netsim.lifetimes import link_lifetimes
+from netsim.radio.maps import save_map
 from netsim.radio_links import radio_link_lifetimes
 from netsim.run import build, collect, execute, simulation
 from netsim.state import CAUSES
 from netsim.tools.validate import random_legs
 from netsim.topology import snapshot
+from netsim.walled_links import WalledLinks
 from tests.fixtures import make_config
 
 
@@ -747,28 +749,195 @@ def test_the_live_graph_under_shadowing_holds_the_links_up():
 WALLS = ["world.map=office", "world.side_m=200", "channel.range_m=40", "mobility.stationary_start=false"]
 
 
+# -- on a map ----------------------------------------------------------------------------------
+def _map_core(n, duration_s, world_map="office", side_m=200.0, **channel):
+    config = make_config(
+        duration_s=duration_s,
+        world={"n_robots": n, "side_m": side_m, "map": world_map},
+        mobility={"model": "static"},
+        channel=channel or {"range_m": 40.0},
+        protocol={"model": "none"},
+        events={"runtime_links": "on"},
+        output={"position_interval_s": 0.0},
+    )
+    return simulation(config)
+
+
+def _walled_runtime_vs_posthoc(sim, duration_s, window_s=None):
+    """Run ``sim`` (links solved during it, on a map), and compare its table with the
+    post-hoc solver's on the legs it ran."""
+    if window_s is not None:
+        env, state, events, reception = sim.env, sim.state, sim.events, sim.channel.reception
+        sim.link_solver = lambda: WalledLinks(env, state, events, reception, window_s=window_s)
+    sim.run()
+    frames = collect(sim)
+    assert isinstance(sim.links, WalledLinks)
+    st = sim.state
+    posthoc = radio_link_lifetimes(sim.channel.reception, frames["legs"], st.range_m, duration_s)
+    _assert_same_links(frames["links"], posthoc)
+    return frames["links"]
+
+
+MAP_KINDS = ["unit_disk", "log_distance", "unequal_ranges", "jumps"]
+
+
+def _random_map_case(seed: int, kind: str, window_s=None):
+    """Random trajectories on the office map (speeds drawn per case; robots cross walls,
+    which the radio does not mind), links solved during the run and after it."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(25, 50))
+    speed = float(rng.uniform(0.5, 4.0))
+    channel = {
+        "unit_disk": {"range_m": 40.0},
+        "log_distance": {"propagation": "log_distance", "sensitivity_dbm": -68.0, "wall_loss_db": 4.0},
+        "unequal_ranges": {"range_m": rng.uniform(20.0, 60.0, n).tolist()},
+        "jumps": {"range_m": 40.0},
+    }[kind]
+    sim = _map_core(n, 40.0, **channel)
+    legs = random_legs(rng, n, 40.0, 200.0, speed, jump_rate=0.3 if kind == "jumps" else 0.0)
+    _replay(sim, legs)
+    links = _walled_runtime_vs_posthoc(sim, 40.0, window_s)
+    assert len(links) > 3  # the case has links to compare
+    if kind == "jumps":
+        assert sim.state.jumps > 0
+    return links
+
+
+@pytest.mark.parametrize("kind", MAP_KINDS)
+def test_runtime_links_on_a_map_equal_posthoc_on_random_trajectories(kind):
+    """On a map, the link events solved during the run make the post-hoc table, bit for bit
+    (both sample each stretch on the same instants)."""
+    _random_map_case(7000 + MAP_KINDS.index(kind), kind)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", MAP_KINDS)
+def test_runtime_links_on_a_map_equal_posthoc_on_many_random_trajectories(kind):
+    for seed in range(12):
+        _random_map_case(7100 + 4 * seed + MAP_KINDS.index(kind), kind)
+
+
+def test_runtime_links_on_a_map_do_not_depend_on_the_sampling_window():
+    """The runtime solver takes its samples a window at a time; the table is the same
+    whatever the window (each stretch's samples are its own)."""
+    tables = [_random_map_case(7050, "unit_disk", window_s=w) for w in (0.05, 0.7, 100.0)]
+    for other in tables[1:]:
+        _assert_same_links(other, tables[0])
+
+
 @pytest.mark.parametrize(
-    "radio",
-    [WALLS, [*WALLS, "channel.propagation=log_distance", "channel.shadowing_sigma_db=4"]],
-    ids=["walls", "walls_and_shadowing"],
-)
-@pytest.mark.parametrize(
-    "events, key",
+    "overrides",
     [
-        (["events.runtime_links=on"], "events.runtime_links"),
-        (["events.live_topology=true"], "events.live_topology"),
+        [],
+        ["mobility.model=random_direction", "channel.propagation=log_distance", "channel.sensitivity_dbm=-68"],
     ],
+    ids=["random_waypoint", "random_direction_log_distance"],
 )
-def test_runtime_links_are_refused_on_a_map(radio, events, key):
-    with pytest.raises(ConfigError, match=key.replace(".", r"\.")) as err:
-        load(None, ["world.n_robots=10", "duration_s=10", *radio, *events])
-    assert "solved after the run only" in str(err.value)
+@pytest.mark.filterwarnings("ignore:.*not used by")
+def test_runtime_links_on_a_map_equal_posthoc_in_runs(overrides):
+    """Runs on a map: the same links table with link events during the run or after it,
+    and the same receptions."""
+    base = ["world.n_robots=30", "duration_s=40", "protocol.model=ack", *WALLS, *overrides]
+    during = execute(load(None, [*base, "events.runtime_links=on"]))
+    assert isinstance(during.sim.links, WalledLinks)
+    after = execute(load(None, base))
+    assert after.sim.links is None
+    assert len(after.frames["links"]) > 20
+    pd.testing.assert_frame_equal(during.frames["links"], after.frames["links"])
+    pd.testing.assert_frame_equal(during.frames["acks"], after.frames["acks"])
 
 
-def test_a_hook_on_link_events_is_refused_on_a_map():
-    config = load(None, ["world.n_robots=10", "duration_s=10", *WALLS, 'events.hooks=["link_breaks"]'])
-    with pytest.raises(ConfigError, match=r"events\.hooks.*solved after the run only"):
-        execute(config)
+def _one_wall_map(tmp_path) -> str:
+    """100 m x 100 m, 1 m cells, a wall along x in [50, 51) m from y = 0 to y = 60 m."""
+    occ = np.zeros((100, 100), bool)
+    occ[:60, 50] = True  # grid order: row j holds y in [j, j + 1)
+    return str(save_map(tmp_path / "wall.yaml", occ, ~occ, 1.0))
+
+
+@pytest.mark.parametrize("runtime_links", ["on", "auto"])
+def test_a_pair_crossing_behind_a_wall_goes_down_at_the_instant_to_the_tolerance(tmp_path, runtime_links):
+    """Robot 0 stands at (45, 70), left of a wall that ends at y = 60; robot 1 walks down
+    x = 55 from y = 80 at 1 m/s. The line between them grazes the wall's corner (51, 60)
+    when robot 1 is at y = 70 - 10 / 0.6, at t = 80 / 3 s: the link goes down then, to
+    within 1e-6 s, announced at that instant, during the run and after it alike."""
+    sim = _map_core(2, 60.0, _one_wall_map(tmp_path), 100.0, range_m=100.0)
+    sim.runtime_links = runtime_links
+    sim.state.place([[45.0, 70.0], [55.0, 80.0]])
+    _scripted(sim, [(0.0, 1, (0.0, -1.0), None)])
+    downs = []
+    if runtime_links == "on":
+        sim.events.on("link_down", lambda ev: downs.append((sim.now, ev)))
+    sim.run()
+    frames = collect(sim)
+    links = frames["links"]
+    assert len(links) == 1 and links["t_up_s"].tolist() == [0.0]
+    assert abs(links["t_down_s"].iloc[0] - 80.0 / 3.0) <= 1e-6
+    posthoc = radio_link_lifetimes(sim.channel.reception, frames["legs"], sim.state.range_m, 60.0)
+    _assert_same_links(links, posthoc)
+    if runtime_links == "on":
+        assert len(downs) == 1 and downs[0][1].t_s == links["t_down_s"].iloc[0]
+        assert downs[0][0] == pytest.approx(downs[0][1].t_s, abs=1e-9)
+
+
+def test_the_live_graph_on_a_map_equals_the_links_and_the_channel_at_random_instants():
+    """On a map the live graph holds, at any instant, the links up in links.parquet; and away
+    from the events by more than the tolerance, the pairs the channel lets through, but for
+    a change in the last step before a course change that the step's next sample (on the
+    legs as they were) did not confirm: it is announced at the course change."""
+    sim = build(load(None, ["world.n_robots=30", "duration_s=40", "protocol.model=none", *WALLS]))
+    live = sim.live_topology()
+    instants = np.sort(np.random.default_rng(8).uniform(0.0, 40.0, 40))
+    seen = []
+
+    def look():
+        for t in instants.tolist():
+            yield sim.env.timeout(t - sim.env.now)
+            heard = set()
+            for r in range(sim.state.n):
+                for other in sim.channel.in_range(r)[0].tolist():
+                    heard.add((min(r, other), max(r, other)))
+            seen.append((sim.now, set(live.graph.edges), heard))
+
+    sim.env.process(look())
+    sim.run()
+    frames = collect(sim)
+    links, legs = frames["links"], frames["legs"]
+    events = np.r_[links["t_up_s"], links["t_down_s"]]
+    compared = late = 0
+    for t, edges, heard in seen:
+        up = links[(links["t_up_s"] <= t) & (t < links["t_down_s"])]
+        assert edges == set(zip(up["a"].tolist(), up["b"].tolist())), t
+        if np.min(np.abs(events - t)) <= 1e-5:
+            continue
+        compared += 1
+        for a, b in edges ^ heard:
+            # The pair's next event is a course change of one of them, within one step (the
+            # robots here move at 0.5 m/s or more: a step is at most 2 s).
+            mine = links[(links["a"] == a) & (links["b"] == b)]
+            after = np.r_[mine["t_up_s"], mine["t_down_s"]]
+            nxt = after[after > t].min()
+            starts = legs[legs["robot"].isin([a, b])]["t_s"].to_numpy()
+            assert nxt in starts and nxt - t <= 2.0, (t, a, b)
+            late += 1
+    assert compared > 30 and len(links) > 20 and late <= 2
+
+
+def test_a_hook_on_link_events_runs_on_a_map_and_sees_them_in_time_order():
+    """The example hook runs on a map: link events during the run, announced in time order
+    at their instants, its table counts the breaks of links.parquet."""
+    config = load(None, ["world.n_robots=30", "duration_s=60", *WALLS, 'events.hooks=["link_breaks"]'])
+    sim = build(config)
+    seen = []
+    sim.events.on("link_up", lambda ev: seen.append((sim.now, ev.t_s)))
+    sim.events.on("link_down", lambda ev: seen.append((sim.now, ev.t_s)))
+    sim.run()
+    frames = collect(sim)
+    assert isinstance(sim.links, WalledLinks)
+    times = [t for _, t in seen]
+    assert times == sorted(times) and len(times) > 20
+    assert all(now == pytest.approx(t, abs=1e-9) for now, t in seen)
+    links = frames["links"]
+    assert frames["link_breaks"]["breaks"].sum() == 2 * int((~links["censored_end"]).sum())
 
 
 def _shadowed_static_run(runtime_links, duration_s, positions):

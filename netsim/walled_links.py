@@ -1,0 +1,348 @@
+"""Link events during the run on a map (walls, no shadowing).
+
+A link on a map is up while the radio says so (range or received power, and the walls
+crossed), which has no closed form along the robots' legs: ``links.parquet`` samples it
+within the exact envelope (the intervals in which the pair is within the radio's largest
+range) along *stretches* whose samples depend only on what is known at their start
+(:mod:`netsim.wall_samples`, the arithmetic shared with the post-hoc solver
+:func:`netsim.radio_links.walled_lifetimes`, which stays the reference). So the same samples
+can be taken as the run goes:
+
+- the envelope is a :class:`~netsim.kinetic.RuntimeLinks` of its own (announced to nobody
+  but this class), solved with the same arithmetic as after the run;
+- where a pair enters it, and at every course change of either robot while it is in it, a
+  stretch starts: its first sample is evaluated at once, and a change from the link's
+  current state is announced at that instant;
+- the stretches' later samples are taken ahead of time, a window at a time (all the pairs
+  in the envelope in one vectorised step), on the legs as they stand; each change between
+  two samples is bisected then, and queued at its instant; a course change cancels the
+  queued changes of its pairs' stretch that fall after it (a generation count per pair);
+- where the pair leaves the envelope the link goes down, exactly.
+
+The table of these events equals the post-hoc one, bit for bit (tests/test_events.py):
+the samples are the same floats whatever the windows, and a change found before a course
+change is kept by both, one after it dropped by both.
+
+Order at one instant: a change between samples, and an envelope's edge, is a runtime link
+event (before anything else due then, docs/events.md); a change at a stretch's start that
+a course change causes is announced right after the course change.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+import pandas as pd
+import simpy
+
+from netsim.events import FIRST, EventBus, LinkDown, LinkUp, scheduled_event
+from netsim.kinetic import RuntimeLinks
+from netsim.lifetimes import COLUMNS
+from netsim.reception import Reception
+from netsim.state import RobotState
+from netsim.wall_samples import SAMPLE_M, Stretches, bisect, count_below, envelope_radii
+
+# A window's start comes before the link events of its instant (it only queues later ones).
+_RESTART = FIRST - 1
+# A window takes this many samples of the fastest robot's pairs (the results do not depend
+# on it; longer windows waste more samples when robots change course).
+WINDOW_SAMPLES = 8
+
+
+class WalledLinks:
+    """Link events of one run on a map, announced as they happen (module notes). The same
+    interface as :class:`~netsim.kinetic.RuntimeLinks`.
+
+    Parameters
+    ----------
+    env, state : the run's kernel and robots.
+    events : the run's bus (``link_up``, ``link_down``).
+    reception : the channel's :class:`~netsim.reception.Reception` (its map and radio).
+    window_s : the length of a sampling window (default: :data:`WINDOW_SAMPLES` samples at
+        the highest speed when it starts); the results do not depend on it.
+    """
+
+    def __init__(
+        self,
+        env: simpy.Environment,
+        state: RobotState,
+        events: EventBus | None,
+        reception: Reception,
+        window_s: float | None = None,
+    ):
+        self.env, self.state, self.reception = env, state, reception
+        self.radii, self.equal = envelope_radii(reception, state.range_m)
+        self.n = max(state.n, 1)
+        self.window_s = window_s
+        self.envelope = RuntimeLinks(env, state, None, range_m=self.radii)
+        self.envelope.on_up.append(self._entered)
+        self.envelope.on_down.append(self._left)
+        state.watchers.append(self._on_leg)
+        self.on_up: list = events.subscribers("link_up") if events is not None else []
+        self.on_down: list = events.subscribers("link_down") if events is not None else []
+        # Links up now (key a n + b -> since when) and the lifetimes that ended.
+        self.up: dict[int, float] = {}
+        self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
+        # One slot per pair in the envelope: its stretch, the next sample interval to take
+        # (k_next) and the state at its first sample, and a generation that cancels the
+        # changes queued for an earlier stretch.
+        self._slot: dict[int, int] = {}
+        self._by_robot: dict[int, set[int]] = {}
+        self._free: list[int] = []
+        self._size = 0
+        self._stretch = Stretches.blank(0)
+        self._k_next = np.zeros(0)
+        self._s_next = np.zeros(0, bool)
+        self._gen: list[int] = []
+        # Queued changes: (t, a, b, seq, up, slot, gen).
+        self._heap: list[tuple] = []
+        self._seq = 0
+        self._armed_s = math.inf
+        self._w_end = -math.inf
+        self._restart_pending = False
+        # Stretches whose samples after the second are still to take, and when the first of
+        # them is due.
+        self._pending: set[int] = set()
+        self._pending_at = math.inf
+        self._dirty: set[int] = set()
+        self._flush_pending = False
+        self._quiet = False
+        self.samples = 0
+
+    @property
+    def windows(self) -> int:
+        return self.envelope.windows
+
+    @property
+    def started(self) -> bool:
+        return self.envelope.started
+
+    def start(self) -> None:
+        self.envelope.start()
+
+    def finish(self, t_end: float) -> None:
+        """The run's end: the changes due by then are applied, not announced."""
+        self.envelope.finish(t_end)
+        self._quiet = True
+        self._announce(t_end)
+
+    # -- the link's state --------------------------------------------------------------
+    def _set(self, key: int, t: float, now_up: bool) -> None:
+        if now_up:
+            if key in self.up:
+                return
+            self.up[key] = t
+            if self.on_up and not self._quiet:
+                event = LinkUp(t, *divmod(key, self.n))
+                for fn in self.on_up:
+                    fn(event)
+            return
+        t_up = self.up.pop(key, None)
+        if t_up is None:
+            return
+        a, b = divmod(key, self.n)
+        ea, eb, e_up, e_down = self.ended
+        ea.append(a)
+        eb.append(b)
+        e_up.append(t_up)
+        e_down.append(t)
+        if self.on_down and not self._quiet:
+            down = LinkDown(t, a, b, t_up)
+            for fn in self.on_down:
+                fn(down)
+
+    # -- the envelope ------------------------------------------------------------------
+    def _entered(self, event: LinkUp) -> None:
+        key = event.a * self.n + event.b
+        if key in self._slot:
+            return
+        if not self._free:
+            self._grow()
+        slot = self._free.pop()
+        self._slot[key] = slot
+        self._by_robot.setdefault(event.a, set()).add(slot)
+        self._by_robot.setdefault(event.b, set()).add(slot)
+        self._stretch.a[slot], self._stretch.b[slot] = event.a, event.b
+        self._start(np.array([slot], np.int64), np.array([event.t_s]))
+
+    def _left(self, event: LinkDown) -> None:
+        key = event.a * self.n + event.b
+        slot = self._slot.pop(key, None)
+        if slot is None:
+            return
+        self._gen[slot] += 1
+        self._by_robot[event.a].discard(slot)
+        self._by_robot[event.b].discard(slot)
+        self._free.append(slot)
+        self._set(key, event.t_s, False)
+
+    def _grow(self) -> None:
+        old = self._size
+        size = max(64, 2 * old)
+        self._stretch = self._stretch.grown(size)
+        self._k_next = np.r_[self._k_next, np.zeros(size - old)]
+        self._s_next = np.r_[self._s_next, np.zeros(size - old, bool)]
+        self._gen += [0] * (size - old)
+        self._free.extend(range(size - 1, old - 1, -1))
+        self._size = size
+
+    # -- course changes ----------------------------------------------------------------
+    def _on_leg(self, i: int, t: float, jump: bool) -> None:
+        if not self._by_robot.get(i):
+            return
+        self._dirty.add(i)
+        if not self._flush_pending:
+            # Once the model has set every leg of this instant.
+            self._flush_pending = True
+            scheduled_event(self.env, 0.0, FIRST, self._flush)
+
+    def _flush(self, _event: object = None) -> None:
+        self._flush_pending = False
+        slots: set[int] = set()
+        for r in self._dirty:
+            slots |= self._by_robot.get(r, set())
+        self._dirty.clear()
+        if slots:
+            idx = np.fromiter(sorted(slots), np.int64, len(slots))
+            st, s = self.state, self._stretch
+            self._start(idx, np.maximum(st.t0_s[s.a[idx]], st.t0_s[s.b[idx]]))
+
+    # -- stretches ---------------------------------------------------------------------
+    def _start(self, slots: np.ndarray, u: np.ndarray) -> None:
+        """New stretches of pairs ``slots`` from ``u`` on the robots' current legs: their
+        first sample decides the link's state now; later ones are taken to the window's end."""
+        st = self.state
+        a, b = self._stretch.a[slots], self._stretch.b[slots]
+        o, v, t0 = st.origin_m, st.velocity_mps, st.t0_s
+        new = Stretches(a, b, u, o[a], v[a], t0[a], o[b], v[b], t0[b], np.minimum(self.radii[a], self.radii[b]))
+        self._stretch.put(slots, new)
+        for s in slots.tolist():
+            self._gen[s] += 1
+        # The first sample decides the link now; the second, taken with it, whether the
+        # first step has a change (bisected now: it may be due at once). The later samples
+        # can wait until the second's instant: they are taken then, with every other
+        # stretch's due by then, in one vectorised step.
+        k = len(new)
+        has_step = new.jx >= 1
+        step = np.flatnonzero(has_step)
+        rows = np.r_[np.arange(k), step]
+        ks = np.r_[np.zeros(k, np.int64), np.ones(len(step), np.int64)]
+        both = new.state(self.reception, self.equal, rows, new.sample_time(rows, ks))
+        first = both[:k]
+        second = first.copy()
+        second[step] = both[k:]
+        self.samples += len(rows)
+        n = self.n
+        for ai, bi, ui, up in zip(a.tolist(), b.tolist(), u.tolist(), first.tolist()):
+            self._set(ai * n + bi, ui, up)
+        self._k_next[slots] = np.where(has_step, 1.0, 0.0)
+        self._s_next[slots] = np.where(has_step, second, first)
+        chg = np.flatnonzero(has_step & (first != second))
+        if len(chg):
+            lo = new.sample_time(chg, np.zeros(len(chg), np.int64))
+            hi = new.sample_time(chg, np.ones(len(chg), np.int64))
+            t = bisect(lambda sel, tm: new.state(self.reception, self.equal, chg[sel], tm), lo, hi, first[chg])
+            self._queue(slots[chg], t, second[chg])
+        later = slots[has_step & (new.jx > 1)]
+        if len(later):
+            self._pending.update(later.tolist())
+            due = float(new.sample_time(np.flatnonzero(has_step & (new.jx > 1)), np.ones(len(later), np.int64)).min())
+            if due < self._pending_at:
+                self._pending_at = due
+                event = scheduled_event(self.env, max(due - self.env.now, 0.0), _RESTART, self._take_pending)
+                event._value = due
+
+    def _take_pending(self, event: simpy.Event) -> None:
+        # Armed for an instant (the clock may be a rounding step off it); a later one armed
+        # before an earlier took the stretches has nothing to do.
+        if event._value != self._pending_at:
+            return
+        pending = np.fromiter(self._pending, np.int64, len(self._pending))
+        self._pending.clear()
+        self._pending_at = math.inf
+        self._sample(np.sort(pending))
+
+    def _queue(self, slots: np.ndarray, t: np.ndarray, now_up: np.ndarray) -> None:
+        heap, gen, s = self._heap, self._gen, self._stretch
+        for r, ti, up in zip(slots.tolist(), t.tolist(), now_up.tolist()):
+            self._seq += 1
+            heapq.heappush(heap, (ti, int(s.a[r]), int(s.b[r]), self._seq, up, r, gen[r]))
+        self._arm()
+
+    def _window(self) -> float:
+        if self.window_s is not None:
+            return float(self.window_s)
+        v = self.state.velocity_mps
+        top = float(np.sqrt((v * v).sum(axis=1).max())) if self.state.n else 0.0
+        return WINDOW_SAMPLES * SAMPLE_M / top if top > 0 else 1.0
+
+    def _sample(self, slots: np.ndarray) -> None:
+        """Take the samples of stretches ``slots`` up to the window's end; queue the changes."""
+        now = self.env.now
+        if not self._restart_pending and self._w_end <= now:
+            self._w_end = now + self._window()
+        s = self._stretch
+        k1 = np.minimum(count_below(s.u[slots], s.h[slots], self._w_end), s.jx[slots])
+        k0 = self._k_next[slots]
+        todo = k0 < k1
+        rows, k0, k1 = slots[todo], k0[todo], k1[todo]
+        if len(rows):
+            row, t, now_up, last = s.changes(self.reception, self.equal, rows, k0, k1, self._s_next[rows])
+            self.samples += int((k1 - k0).sum())
+            self._k_next[rows] = k1
+            self._s_next[rows] = last
+            self._queue(row, t, now_up)
+        if not self._restart_pending and bool((self._k_next[slots] < s.jx[slots]).any()):
+            self._restart_pending = True
+            scheduled_event(self.env, max(self._w_end - now, 0.0), _RESTART, self._restart)
+
+    def _restart(self, _event: object = None) -> None:
+        self._restart_pending = False
+        self._w_end = self.env.now + self._window()
+        live = np.fromiter(self._slot.values(), np.int64, len(self._slot))
+        if len(live):
+            self._sample(live[self._k_next[live] < self._stretch.jx[live]])
+
+    # -- the queue ---------------------------------------------------------------------
+    def _arm(self) -> None:
+        heap = self._heap
+        if heap and heap[0][0] < self._armed_s:
+            t = heap[0][0]
+            self._armed_s = t
+            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake)._value = t
+
+    def _wake(self, event: simpy.Event) -> None:
+        # Taken by the instant armed for, not the clock (which may be a rounding step off).
+        armed_s = event._value
+        if armed_s >= self._armed_s:
+            self._armed_s = math.inf
+        self._announce(armed_s)
+        self._arm()
+
+    def _announce(self, until: float) -> None:
+        heap, gen, n = self._heap, self._gen, self.n
+        while heap and heap[0][0] <= until:
+            t, a, b, _seq, up, slot, g = heapq.heappop(heap)
+            if gen[slot] == g:
+                self._set(a * n + b, t, up)
+
+    def frame(self, t_end: float) -> pd.DataFrame:
+        """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
+        censored)."""
+        ea, eb, e_up, e_down = self.ended
+        n = self.n
+        still = np.fromiter(self.up.keys(), np.int64, len(self.up))
+        out = pd.DataFrame(
+            {
+                "a": np.r_[np.array(ea, np.int64), still // n],
+                "b": np.r_[np.array(eb, np.int64), still % n],
+                "t_up_s": np.r_[np.array(e_up, float), np.fromiter(self.up.values(), float, len(self.up))],
+                "t_down_s": np.r_[np.array(e_down, float), np.full(len(still), t_end)],
+            }
+        )
+        out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
+        out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
+        out["censored"] = out["censored_start"] | out["censored_end"]
+        return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
