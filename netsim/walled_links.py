@@ -173,6 +173,9 @@ class WalledLinks:
         if slot is None:
             return
         self._gen[slot] += 1
+        # No more samples for it (a stretch left waiting for its later samples included).
+        self._k_next[slot] = self._stretch.jx[slot]
+        self._pending.discard(slot)
         self._by_robot[event.a].discard(slot)
         self._by_robot[event.b].discard(slot)
         self._free.append(slot)

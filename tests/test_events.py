@@ -879,6 +879,18 @@ def test_a_pair_crossing_behind_a_wall_goes_down_at_the_instant_to_the_tolerance
         assert downs[0][0] == pytest.approx(downs[0][1].t_s, abs=1e-9)
 
 
+def test_a_pair_that_jumps_out_of_the_envelope_keeps_no_samples(tmp_path):
+    """Robot 1 walks up x = 55 from y = 52, behind the wall: its line of sight to robot 0 at
+    (45, 70) would clear the wall's end at t = 4 / 3 s, but it jumps 56 m away at t = 0.5 s,
+    out of range: its stretch's samples, left to be taken at t = 1 s, are dropped with it
+    (no link comes up), during the run as after it."""
+    sim = _map_core(2, 10.0, _one_wall_map(tmp_path), 100.0, range_m=30.0)
+    sim.state.place([[45.0, 70.0], [55.0, 52.0]])
+    _scripted(sim, [(0.0, 1, (0.0, 1.0), None), (0.5, 1, (0.0, 0.0), (95.0, 95.0))])
+    links = _walled_runtime_vs_posthoc(sim, 10.0)
+    assert len(links) == 0
+
+
 def test_the_live_graph_on_a_map_equals_the_links_and_the_channel_at_random_instants():
     """On a map the live graph holds, at any instant, the links up in links.parquet; and away
     from the events by more than the tolerance, the pairs the channel lets through, but for
