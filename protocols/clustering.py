@@ -383,7 +383,8 @@ class Clustering:
     def _before_ack(self, i: int, now: float) -> None:
         # A leader announces its group's size, anyone else 1 (written only when it was not).
         if self.roles.role[i] == LEADER:
-            self.beacon.group_size[i] = self.group_size(i, now)
+            table = self.table
+            self.beacon.group_size[i] = self._group_size(table.data[i], now, table.tau_s, self.symmetric, i)
             self._sized[i] = True
         elif self._sized[i]:
             self.beacon.group_size[i] = 1
