@@ -83,18 +83,31 @@ class SendTimeBins:
             raise ValueError(f"a bin interval must be positive, got {interval_s}")
         self.interval_s = float(interval_s)
         self.columns = self.COLUMNS[: self.DROPPED] + tuple(f"dropped_{c}" for c in causes)
-        self.counts = np.zeros((64, len(self.columns)), dtype=np.int64)
+        # One list of Python ints per bin, up to the last bin asked for: adding to a count
+        # (a few times per message) costs less than adding to a numpy element.
+        self.rows: list[list[int]] = []
         # The bin last asked for by at(), and its edges: most sends fall in the same bin.
-        self._lo, self._hi, self._last = 0.0, -1.0, _Bin(self, 0)
+        self._lo, self._hi = 0.0, 0.0
+        self._last: _Bin | None = None
+
+    @property
+    def counts(self) -> np.ndarray:
+        """The counts so far, one row per bin (k = 0 up to the last bin asked for)."""
+        out = np.zeros((len(self.rows), len(self.columns)), dtype=np.int64)
+        if self.rows:
+            out[:] = self.rows
+        return out
 
     def at(self, t: float) -> _Bin:
         """The bin of time ``t`` (:meth:`bin`), as a :class:`_Bin` (the same object for every
         ``t`` within one bin: its edges are the same products as :meth:`bin` compares)."""
-        if self._lo <= t < self._hi:
-            return self._last
+        last = self._last
+        if last is not None and self._lo <= t < self._hi:
+            return last
         k = self.bin(t)
-        self._lo, self._hi, self._last = k * self.interval_s, (k + 1) * self.interval_s, _Bin(self, k)
-        return self._last
+        last = _Bin(self, k)
+        self._lo, self._hi, self._last = k * self.interval_s, (k + 1) * self.interval_s, last
+        return last
 
     def bin(self, t: float) -> int:
         """The bin of time ``t``: the ``k`` with ``k dt <= t < (k+1) dt``, the edges being
@@ -105,18 +118,17 @@ class SendTimeBins:
             k += 1
         elif k * dt > t:
             k -= 1
-        if k >= len(self.counts):
-            grown = np.zeros((max(2 * len(self.counts), k + 1), len(self.columns)), dtype=np.int64)
-            grown[: len(self.counts)] = self.counts
-            self.counts = grown
+        while len(self.rows) <= k:
+            self.rows.append([0] * len(self.columns))
         return k
 
     def frame(self, duration_s: float) -> pd.DataFrame:
         """One row per bin from 0 to ``duration_s`` (bins with nothing sent included)."""
-        used = np.flatnonzero(self.counts.any(axis=1))
+        counted = self.counts
+        used = np.flatnonzero(counted.any(axis=1))
         bins = max(int(math.ceil(duration_s / self.interval_s - 1e-9)), int(used[-1]) + 1 if len(used) else 0)
         counts = np.zeros((bins, len(self.columns)), dtype=np.int64)
-        counts[: min(bins, len(self.counts))] = self.counts[:bins]
+        counts[: min(bins, len(counted))] = counted[:bins]
         df = pd.DataFrame({"t_s": np.arange(bins) * self.interval_s})
         for c, name in enumerate(self.columns):
             df[name] = counts[:, c]
@@ -124,17 +136,18 @@ class SendTimeBins:
 
 
 class _Bin:
-    """One bin of a kind's counts (held by index: the array may grow before a reception
-    arrives)."""
+    """One bin of a kind's counts: its index ``k`` and its ``row`` of counts (the list
+    itself, which stays the bin's as later bins are added)."""
 
-    __slots__ = ("bins", "k")
+    __slots__ = ("bins", "k", "row")
 
     def __init__(self, bins: SendTimeBins, k: int):
         self.bins = bins
         self.k = k
+        self.row = bins.rows[k]
 
     def add(self, column: int, count: int) -> None:
-        self.bins.counts[self.k, column] += count
+        self.row[column] += count
 
 
 class _Arrival:
@@ -173,7 +186,7 @@ class _Arrival:
             self.counters.received[receivers] += 1
         binned = self.binned
         if binned is not None:
-            binned.bins.counts[binned.k, SendTimeBins.RECEIVED] += len(receivers)
+            binned.row[SendTimeBins.RECEIVED] += len(receivers)
         on_delivery = ch.on_delivery
         if on_delivery:
             delivery = Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload)
@@ -326,7 +339,7 @@ class Channel:
         if bins is None:
             return None
         binned = bins.at(self.env.now)
-        bins.counts[binned.k, SendTimeBins.SENT] += 1
+        binned.row[SendTimeBins.SENT] += 1
         return binned
 
     def _dropped(self, kind: str, sender: int, receivers: np.ndarray, cause: str) -> None:
@@ -374,7 +387,7 @@ class Channel:
                 self._dropped(kind, sender, receivers[~alive], "not_alive")
                 receivers, dist = receivers[alive], dist[alive]
         if binned is not None:
-            binned.bins.counts[binned.k, SendTimeBins.IN_RANGE] += len(receivers)
+            binned.row[SendTimeBins.IN_RANGE] += len(receivers)
         keep = self.survives(sender, receivers, dist)
         if keep is not None and not keep.all():
             np.add.at(c.dropped[0], receivers[~keep], 1)
