@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import sys
 from types import ModuleType
 
 SMALL_RUN_ROBOTS = 20
@@ -31,6 +32,28 @@ def load(module: str, n_robots: int) -> ModuleType | None:
     if not compiled_wanted(n_robots):
         return None
     try:
+        _numba_without_blas_probe()
         return importlib.import_module(module)
     except ImportError:  # pragma: no cover
         return None
+
+
+def _numba_without_blas_probe() -> None:
+    """Load numba's numpy registry without its probe for scipy's BLAS.
+
+    On its first compile or cache load numba imports ``numba.np.arraymath``, which tries
+    ``import scipy.linalg.cython_blas`` to decide whether its ``np.correlate`` and
+    ``np.convolve`` may call BLAS (else a plain loop, the same results). Importing
+    scipy.linalg costs about 0.1 s, a twentieth of a 1,000-robot run's whole process, and no
+    compiled loop here uses BLAS. So while that module loads, the probe finds nothing; the
+    entry is removed at once, so that scipy.linalg imports as usual afterwards. Where
+    scipy.linalg is already loaded the probe costs nothing and is left alone.
+    """
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return
+    probe = "scipy.linalg.cython_blas"
+    sys.modules[probe] = None  # type: ignore[assignment]  # an import of it now fails at once
+    try:
+        importlib.import_module("numba.np.arraymath")
+    finally:
+        del sys.modules[probe]

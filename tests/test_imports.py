@@ -28,3 +28,26 @@ def _env():
     env = dict(os.environ)
     env.pop("NETSIM_COMPILED", None)
     return env
+
+
+def test_large_run_imports_no_kd_tree_or_scipy_linalg(tmp_path):
+    """``netsim run`` with 60 robots (compiled loops): the candidate pairs come from the
+    compiled grid, so scipy.spatial stays unloaded, and numba's probe for BLAS does not
+    load scipy.linalg; which imports as usual afterwards, with numba's loops still right."""
+    code = (
+        "import sys\n"
+        "from netsim.tools.cli import main\n"
+        "try:\n"
+        f"    main(['run', '--out', {str(tmp_path)!r}, '--no-progress', '--quiet',"
+        " '--set', 'world.n_robots=60', '--set', 'duration_s=5', '--set', 'protocol.model=ack'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print(sorted(m for m in ('numba', 'scipy.spatial', 'scipy.linalg') if m in sys.modules))\n"
+        "import numpy as np, scipy.linalg.cython_blas\n"
+        "from netsim import _kernels\n"
+        "print(_kernels.near_pairs(np.array([[0.0, 0.0], [1.0, 0.0], [5.0, 0.0]]), 2.0, 0.0).tolist())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=_env())
+    loaded, pairs = out.stdout.strip().splitlines()[-2:]
+    assert loaded == "['numba']"
+    assert pairs == "[[0, 1]]"
