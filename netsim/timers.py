@@ -10,6 +10,10 @@ restarted on every Ack costs one array write per Ack and at most one kernel even
 
 Timer events run at NORMAL priority; message deliveries run at URGENT priority, so an
 Ack that arrives at the same instant as a deadline is processed first and counts.
+
+Given an :class:`netsim.agenda.Agenda` (the channel's), a timer's events are entries on it
+rather than kernel events: the same instants in the same order (the agenda keys them as the
+kernel would), without a kernel event each.
 """
 
 from __future__ import annotations
@@ -21,14 +25,18 @@ from functools import partial
 import numpy as np
 import simpy
 
+from netsim.agenda import Agenda
 from netsim.events import NORMAL
 
 
 class DeadlineTimers:
     """``n`` one-shot timers; ``on_expire(i, now)`` is called when timer ``i`` expires."""
 
-    def __init__(self, env: simpy.Environment, n: int, on_expire: Callable[[int, float], None]):
+    def __init__(
+        self, env: simpy.Environment, n: int, on_expire: Callable[[int, float], None], agenda: Agenda | None = None
+    ):
         self.env = env
+        self.agenda = agenda
         self.on_expire = on_expire
         self.deadline_s = np.full(n, np.inf)
         # Time of the kernel event armed for each timer (inf: none; compiled loops that
@@ -74,13 +82,17 @@ class DeadlineTimers:
         gen = self._generation[i] + 1
         self._generation[i] = gen
         self.armed_s[i] = at_s
-        # scheduled_event inlined (once per deadline): the same NORMAL event, one call fewer.
         env = self.env
+        delay = max(0.0, at_s - env.now)
+        if self.agenda is not None:
+            self.agenda.at(delay, NORMAL, partial(self._fire, i, gen))
+            return
+        # scheduled_event inlined (once per deadline): the same NORMAL event, one call fewer.
         ev = simpy.Event(env)
         ev._ok = True
         ev._value = None
         ev.callbacks.append(partial(self._fire, i, gen))
-        env.schedule(ev, NORMAL, max(0.0, at_s - env.now))  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
+        env.schedule(ev, NORMAL, delay)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:
         if gen != self._generation[i]:

@@ -312,7 +312,7 @@ class Clustering:
         st = parts.state
         # With equal ranges hearing an Ack implies the link is two-way (docs/model.md 4.1).
         self.symmetric = bool(np.all(st.range_m == st.range_m[0])) if st.n else True
-        self.timers = DeadlineTimers(parts.env, st.n, self._expire)
+        self.timers = DeadlineTimers(parts.env, st.n, self._expire, parts.channel.agenda)
         self.role_changes = np.zeros(st.n, dtype=np.int64)
         # When each robot last became a leader (inf: it is not one).
         self.leader_since = np.full(st.n, np.inf)
