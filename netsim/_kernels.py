@@ -152,3 +152,27 @@ def near_pairs(pos, r, box):
     pairs[:, 0] = out_i[:k]
     pairs[:, 1] = out_j[:k]
     return pairs
+
+
+@numba.njit(cache=True, nogil=True)
+def neighbour_lists(pairs, n):
+    """Both directions of the ``pairs`` as lists per robot, ascending: ``(indptr,
+    indices)`` with robot ``i``'s neighbours at ``indices[indptr[i]:indptr[i + 1]]``
+    (what :meth:`netsim.spatial.RangeIndex._build` makes with a lexsort)."""
+    indptr = np.zeros(n + 1, np.int64)
+    for k in range(pairs.shape[0]):
+        indptr[pairs[k, 0] + 1] += 1
+        indptr[pairs[k, 1] + 1] += 1
+    for i in range(n):
+        indptr[i + 1] += indptr[i]
+    fill = indptr[:-1].copy()
+    indices = np.empty(indptr[n], np.int64)
+    for k in range(pairs.shape[0]):
+        a, b = pairs[k, 0], pairs[k, 1]
+        indices[fill[a]] = b
+        fill[a] += 1
+        indices[fill[b]] = a
+        fill[b] += 1
+    for i in range(n):
+        indices[indptr[i] : indptr[i + 1]].sort()
+    return indptr, indices

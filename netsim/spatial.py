@@ -29,6 +29,17 @@ def _wrap(d: np.ndarray, side: float) -> np.ndarray:
     return (d.real - side * np.round(d.real / side)) + 1j * (d.imag - side * np.round(d.imag / side))
 
 
+def neighbour_lists(pairs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Both directions of the ``pairs`` as lists per robot, ascending: ``(indptr,
+    indices)``, robot ``i``'s neighbours at ``indices[indptr[i]:indptr[i + 1]]``."""
+    rows = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    cols = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    order = np.lexsort((cols, rows))
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
+    return indptr, cols[order].astype(np.int64)
+
+
 class RangeIndex:
     """Exact range queries against a :class:`RobotState` at non-decreasing times."""
 
@@ -49,12 +60,10 @@ class RangeIndex:
         st = self.state
         pos = st.positions_at(t)
         pairs = near_pairs(pos, self.reach_m + 2 * self.slack_m, st.side_m if st.torus else None)
-        rows = np.concatenate([pairs[:, 0], pairs[:, 1]])
-        cols = np.concatenate([pairs[:, 1], pairs[:, 0]])
-        order = np.lexsort((cols, rows))
-        self._indices = cols[order].astype(np.int64)
-        self._indptr = np.zeros(st.n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(rows, minlength=st.n), out=self._indptr[1:])
+        if self.kernels is not None:
+            self._indptr, self._indices = self.kernels.neighbour_lists(pairs, st.n)
+        else:
+            self._indptr, self._indices = neighbour_lists(pairs, st.n)
         # The same offsets as Python ints: read once per query, cheaper than numpy scalars.
         self._bounds = self._indptr.tolist()
         self._t_build = t

@@ -258,3 +258,21 @@ def test_compiled_near_pairs_finds_every_kd_tree_pair(torus):
             if torus:
                 d -= side * np.rint(d / side)
             assert np.all(d[:, 0] ** 2 + d[:, 1] ** 2 <= r * r * (1 + 1e-9))
+
+
+def test_compiled_neighbour_lists_equal_numpy():
+    """The range index's lists per robot (both directions of each pair, ascending) are the
+    numpy lexsort's, with robots that have no neighbour and pairs in any order."""
+    from netsim.spatial import neighbour_lists
+
+    rng = np.random.default_rng(4)
+    for n in (1, 2, 50, 300):
+        for m in (0, 1, 40, 2000):
+            if n < 2 and m:
+                continue
+            a = rng.integers(0, n, m)
+            b = (a + rng.integers(1, max(n, 2), m)) % n
+            pairs = np.unique(np.column_stack([np.minimum(a, b), np.maximum(a, b)]), axis=0)
+            pairs = pairs[rng.permutation(len(pairs))].astype(np.int64).reshape(-1, 2)
+            got, want = core_kernels.neighbour_lists(pairs, n), neighbour_lists(pairs, n)
+            assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()

@@ -87,32 +87,33 @@ def test_one_deadline_for_many_timers_is_the_same_as_one_each():
     assert runs[0] == runs[1] == [(4, 1.0), (1, 2.0), (3, 2.0), (5, 2.0), (0, 4.0), (2, 6.5)]
 
 
+def _timer_script(on_agenda: bool) -> list:
+    """Restarts, a cancel and kernel events around the deadlines; what happened, in order."""
+    from netsim.agenda import Agenda
+
+    env = simpy.Environment()
+    log: list = []
+    timers = DeadlineTimers(env, 5, lambda i, now: log.append(("expire", i, now)), Agenda(env) if on_agenda else None)
+
+    def at(delay, name):
+        env.timeout(delay).callbacks.append(lambda _e: log.append((name, env.now)))
+
+    at(2.0, "before")
+    timers.restart(np.arange(5), 2.0)
+    at(2.0, "after")
+    timers.restart(np.array([1, 3]), 3.0)  # later: re-armed at 2.0
+    timers.restart(4, 1.0)  # earlier: a new event
+    timers.cancel(0)
+    at(3.0, "between")
+    env.timeout(1.5).callbacks.append(lambda _e: timers.restart(2, 3.0))
+    env.run(until=10)
+    return log
+
+
 def test_timers_on_an_agenda_fire_as_kernel_events():
     """Timers whose events sit on an agenda fire at the same instants, in the same order
     against kernel events of the same instant and priority (scheduled before and after
     them), as timers with a kernel event each."""
-    from netsim.agenda import Agenda
-
-    runs = []
-    for on_agenda in (False, True):
-        env = simpy.Environment()
-        log = []
-        timers = DeadlineTimers(
-            env, 5, lambda i, now: log.append(("expire", i, now)), Agenda(env) if on_agenda else None
-        )
-
-        def at(delay, name):
-            env.timeout(delay).callbacks.append(lambda _e: log.append((name, env.now)))
-
-        at(2.0, "before")
-        timers.restart(np.arange(5), 2.0)
-        at(2.0, "after")
-        timers.restart(np.array([1, 3]), 3.0)  # later: re-armed at 2.0
-        timers.restart(4, 1.0)  # earlier: a new event
-        timers.cancel(0)
-        at(3.0, "between")
-        env.timeout(1.5).callbacks.append(lambda _e: timers.restart(2, 3.0))
-        env.run(until=10)
-        runs.append(log)
-    assert runs[0] == runs[1]
-    assert [e[0] for e in runs[0]].count("expire") == 4
+    kernel, agenda = _timer_script(False), _timer_script(True)
+    assert kernel == agenda
+    assert [e[0] for e in kernel].count("expire") == 4
