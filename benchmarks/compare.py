@@ -26,7 +26,8 @@ the clustering up to ``--clustering-max-n``.
 Then a small run (``netsim run`` with 10 robots for 30 simulated seconds, three times) and
 the sweep throughput: ``--sweep-runs`` runs of the default scenario (the clustering
 protocol) with 50 robots for 300 simulated seconds, through ``netsim sweep`` on 2 workers,
-as runs per minute (0 leaves it out).
+as runs per minute (0 leaves it out). ``--repeat K`` runs each N's cases K times in turn
+(alternated) and gives the median of each figure.
 
     python benchmarks/compare.py                          # N = 100 and 1,000
     python benchmarks/compare.py --n 100 1000 10000 100000 --ns3-python .ns3venv/bin/python
@@ -88,6 +89,21 @@ def netsim_settings(n: int, protocol: str, duration_s: float = DURATION_S) -> di
         "protocol.model": protocol,
         "protocol.ack_period_s": PERIOD_S,
         "output.position_interval_s": 0,
+    }
+
+
+def median_case(runs: list[dict]) -> dict:
+    """One case's figures over its rounds: the median wall, CPU and run seconds, the
+    largest peak memory (the receptions are the same every round)."""
+    import statistics
+
+    run_s = [r["run_s"] for r in runs if r["run_s"] is not None]
+    return {
+        "wall_s": statistics.median(r["wall_s"] for r in runs),
+        "cpu_s": statistics.median(r["cpu_s"] for r in runs),
+        "run_s": statistics.median(run_s) if run_s else None,
+        "received": runs[0]["received"],
+        "rss_kib": max(r["rss_kib"] for r in runs),
     }
 
 
@@ -156,6 +172,9 @@ def main() -> None:
     ap.add_argument("--clustering-max-n", type=int, default=10000, help="largest N for netsim clustering")
     ap.add_argument("--ns3-python", default=None, help="a Python with ns-3 (bash benchmarks/ns3_env.sh .ns3venv)")
     ap.add_argument("--sweep-runs", type=int, default=8, help="runs of the sweep throughput case (0: none)")
+    ap.add_argument(
+        "--repeat", type=int, default=1, help="rounds of each N's cases, alternated; the table gives medians"
+    )
     args = ap.parse_args()
     if any(n < 2 for n in args.n):
         ap.error("every --n must be at least 2")
@@ -163,6 +182,8 @@ def main() -> None:
         ap.error(f"--ns3-python: {args.ns3_python} does not exist")
     if args.sweep_runs < 0:
         ap.error("--sweep-runs must be at least 0")
+    if args.repeat < 1:
+        ap.error("--repeat must be at least 1")
     rows = []
     for n in args.n:
         cases = [("netsim ack (whole process)", lambda n=n: netsim_case(n, "ack"))]
@@ -172,12 +193,19 @@ def main() -> None:
             cases.append(("simpy reference", lambda n=n: reference_case(n)))
         if args.ns3_python and n <= args.ns3_max_n:
             cases.append(("ns-3 direct", lambda n=n: ns3_case(n, args.ns3_python)))
+        # Rounds of all the cases in turn, so that a slow spell of a shared machine falls on
+        # every case alike; each figure is then the median over the rounds.
+        got: dict[str, list[dict]] = {name: [] for name, _ in cases}
+        for _ in range(args.repeat):
+            for name, run in cases:
+                r = run()
+                got[name].append(r)
+                print(f"N = {n}: {name}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU", file=sys.stderr)
         base = None
-        for name, run in cases:
-            r = run()
+        for name, _ in cases:
+            r = median_case(got[name])
             base = base or r
             rows.append((n, name, r, base))
-            print(f"N = {n}: {name}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU", file=sys.stderr)
     print(
         "| N | case | wall s | CPU s | run s | receptions | receptions / wall s | peak MiB "
         "| wall / netsim ack | netsim ack's rate / this |"
