@@ -8,7 +8,7 @@ run's event bus at the instant they happen, and ``links.parquet`` is their recor
 
 The run is cut into windows no longer than half the smallest range over the highest speed
 seen so far (``v_bound``); at a window's start the candidate pairs are those within
-``R_max + 2 v_bound W`` (a KD-tree query; no other pair can meet during the window), and
+``R_max + 2 v_bound W`` (:func:`netsim.crossings.near_pairs`; no other pair can meet during the window), and
 every candidate's crossings within the window are solved in one vectorised step and queued.
 When a robot changes course, only its candidate pairs are solved again from that instant
 to the window's end; their earlier solutions are cancelled (a generation count per pair).

@@ -8,8 +8,8 @@ sampled: the times are as exact as floating point allows, whatever the output in
 The run is cut into windows short enough that no robot moves more than half a range in
 one, and at every jump (a leg that does not start where the previous one ended: a trace's
 ``set X_``, or any model that places a robot); the candidate pairs of a window are those
-within ``R_max + 2 v_max W`` at its start (no other pair can meet during it), found with a
-KD-tree. Pairs whose robots keep their legs through the window are solved in one
+within ``R_max + 2 v_max W`` at its start (no other pair can meet during it), found with
+:func:`netsim.crossings.near_pairs`. Pairs whose robots keep their legs through the window are solved in one
 vectorised step; pairs where a robot changes course are solved leg piece by leg piece.
 At a jump the links of the robots that jumped are judged afresh on their new positions:
 a link opens or closes at the jump instant exactly.

@@ -1,16 +1,17 @@
 """Who is within range of a robot now: exact answers from a neighbour list built earlier.
 
-Rebuilding a spatial index for every transmission would cost O(N log N) each. Instead,
-at ``t_build`` a grid of cells (or a KD-tree) lists, for every robot, the robots within ``R + 2 s`` of it (a
-Verlet list, as in molecular dynamics), where ``R`` is the largest range and ``s`` a
-slack. Until some robot could have moved more than ``s`` since then
-(``speed_high_water * (t - t_build) > s``), every robot in range of ``i`` now is on ``i``'s
-list, so a query is a slice of the list filtered on exact current positions. Rebuilding
-costs O(N log N) every ``s / v_max`` seconds; a larger slack means fewer rebuilds and
-longer lists. The default slack is a fifth of the largest range.
+Rebuilding a spatial index for every transmission would cost O(N) or more each. Instead,
+at ``t_build`` a grid of cells (a KD-tree in small runs; :func:`netsim.crossings.near_pairs`)
+lists, for every robot, the robots within ``R + 2 s`` of it (a Verlet list, as in molecular
+dynamics), where ``R`` is the largest range and ``s`` a slack. Until some robot could
+have moved more than ``s`` since then (``speed_high_water * (t - t_build) > s``), every
+robot in range of ``i`` now is on ``i``'s list, so a query is a slice of the list filtered
+on exact current positions. Rebuilding costs O(N) every ``s / v_max`` seconds; a larger
+slack means fewer rebuilds and longer lists. The default slack is a fifth of the largest range.
 
 Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots a query's filter is one compiled loop
-(:func:`netsim._kernels.within`), equal to the numpy filter here.
+(:func:`netsim._kernels.within`) and the lists are built by one
+(:func:`netsim._kernels.neighbour_lists`), equal to the numpy code here.
 """
 
 from __future__ import annotations
