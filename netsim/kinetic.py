@@ -48,6 +48,26 @@ from netsim.state import RobotState
 _RESTART = FIRST - 1
 
 
+def links_frame(ended: tuple, up: dict, n: int, t_end: float) -> pd.DataFrame:
+    """links.parquet from a live solver's record: ``ended`` the columns ``(a, b, t_up,
+    t_down)`` of the links that went down, ``up`` the links still up (pair key ``a n + b``:
+    since when), which end at ``t_end``, censored."""
+    ea, eb, e_up, e_down = ended
+    still = np.fromiter(up.keys(), np.int64, len(up))
+    out = pd.DataFrame(
+        {
+            "a": np.r_[np.array(ea, np.int64), still // n],
+            "b": np.r_[np.array(eb, np.int64), still % n],
+            "t_up_s": np.r_[np.array(e_up, float), np.fromiter(up.values(), float, len(up))],
+            "t_down_s": np.r_[np.array(e_down, float), np.full(len(still), t_end)],
+        }
+    )
+    out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
+    out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
+    out["censored"] = out["censored_start"] | out["censored_end"]
+    return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
+
+
 class RuntimeLinks:
     """Exact link events of one run, solved while it goes (module notes).
 
@@ -127,21 +147,7 @@ class RuntimeLinks:
     def frame(self, t_end: float) -> pd.DataFrame:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
         censored)."""
-        ea, eb, e_up, e_down = self.ended
-        n = max(self.state.n, 1)
-        still = np.fromiter(self.up.keys(), np.int64, len(self.up))
-        out = pd.DataFrame(
-            {
-                "a": np.r_[np.array(ea, np.int64), still // n],
-                "b": np.r_[np.array(eb, np.int64), still % n],
-                "t_up_s": np.r_[np.array(e_up, float), np.fromiter(self.up.values(), float, len(self.up))],
-                "t_down_s": np.r_[np.array(e_down, float), np.full(len(still), t_end)],
-            }
-        )
-        out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
-        out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
-        out["censored"] = out["censored_start"] | out["censored_end"]
-        return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
+        return links_frame(self.ended, self.up, max(self.state.n, 1), t_end)
 
     # -- course changes ------------------------------------------------------------------
     def _on_leg(self, i: int, t: float, jump: bool) -> None:

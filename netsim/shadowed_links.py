@@ -32,8 +32,7 @@ import pandas as pd
 import simpy
 
 from netsim.events import EventBus, LinkDown, LinkUp
-from netsim.kinetic import RuntimeLinks
-from netsim.lifetimes import COLUMNS
+from netsim.kinetic import RuntimeLinks, links_frame
 from netsim.reception import LinkRecorder
 from netsim.state import RobotState
 
@@ -138,19 +137,4 @@ class ShadowedLinks:
     def frame(self, t_end: float) -> pd.DataFrame:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
         censored)."""
-        ea, eb, e_up, e_down = self.ended
-        still = np.fromiter(self.up.keys(), np.int64, len(self.up))
-        t_down = np.r_[np.array(e_down, float), np.full(len(still), t_end)]
-        t_up = np.fromiter((v[0] for v in self.up.values()), float, len(still))
-        out = pd.DataFrame(
-            {
-                "a": np.r_[np.array(ea, np.int64), still // self.n],
-                "b": np.r_[np.array(eb, np.int64), still % self.n],
-                "t_up_s": np.r_[np.array(e_up, float), t_up],
-                "t_down_s": t_down,
-            }
-        )
-        out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
-        out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
-        out["censored"] = out["censored_start"] | out["censored_end"]
-        return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
+        return links_frame(self.ended, {key: v[0] for key, v in self.up.items()}, self.n, t_end)

@@ -38,8 +38,7 @@ import pandas as pd
 import simpy
 
 from netsim.events import FIRST, EventBus, LinkDown, LinkUp, scheduled_event
-from netsim.kinetic import RuntimeLinks
-from netsim.lifetimes import COLUMNS
+from netsim.kinetic import RuntimeLinks, links_frame
 from netsim.reception import Reception
 from netsim.state import RobotState
 from netsim.wall_samples import SAMPLE_M, Stretches, bisect, count_below, envelope_radii
@@ -334,18 +333,4 @@ class WalledLinks:
     def frame(self, t_end: float) -> pd.DataFrame:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
         censored)."""
-        ea, eb, e_up, e_down = self.ended
-        n = self.n
-        still = np.fromiter(self.up.keys(), np.int64, len(self.up))
-        out = pd.DataFrame(
-            {
-                "a": np.r_[np.array(ea, np.int64), still // n],
-                "b": np.r_[np.array(eb, np.int64), still % n],
-                "t_up_s": np.r_[np.array(e_up, float), np.fromiter(self.up.values(), float, len(self.up))],
-                "t_down_s": np.r_[np.array(e_down, float), np.full(len(still), t_end)],
-            }
-        )
-        out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
-        out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
-        out["censored"] = out["censored_start"] | out["censored_end"]
-        return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
+        return links_frame(self.ended, self.up, self.n, t_end)
