@@ -19,10 +19,18 @@ have run from that one, and it runs whatever is due then, or nothing.)
 :func:`netsim.events.kernel_queue` and :func:`netsim.events.advance_clock` say why reading
 the kernel's queue and setting its clock is sound (``netsim.kinetic`` does the same for
 the runtime link events).
+
+Entries that a caller schedules in key order (the channel's deliveries at its constant
+latency: each at now + the same delay, at the same priority, with a later id) go to a
+plain queue beside the heap (:meth:`Agenda.at_in_order`), which costs an append and a pop
+instead of a heap's log n comparisons; the agenda runs whichever head comes first. An
+entry that would not keep that queue in order goes to the heap instead, so the order never
+rests on the caller.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from heapq import heappop, heappush
 
@@ -46,6 +54,8 @@ class Agenda:
     def __init__(self, env: simpy.Environment):
         self.env = env
         self._heap: list[tuple] = []
+        # Entries scheduled in key order (at_in_order), first due first.
+        self._queue: deque[tuple] = deque()
         # Keys (t, priority, id) of the wakes queued in the kernel and not yet run, a heap.
         self._wakes: list[tuple] = []
         self._kernel = kernel_queue(env)  # the same list for the whole run
@@ -54,7 +64,7 @@ class Agenda:
         self.wakes_run = 0
 
     def __len__(self) -> int:
-        return len(self._heap)
+        return len(self._heap) + len(self._queue)
 
     def at(self, delay_s: float, priority: int, fn: Callable[[], object]) -> None:
         """Call ``fn()`` ``delay_s`` from now at ``priority``: where an event scheduled now
@@ -64,6 +74,25 @@ class Agenda:
         wakes = self._wakes
         if (not wakes or entry < wakes[0]) and not self._running:
             self._arm(entry)
+
+    def at_in_order(self, delay_s: float, priority: int, fn: Callable[[], object]) -> None:
+        """:meth:`at`, for a caller whose entries mostly come in key order (the same delay
+        and priority each time): those are queued, not heaped (module notes)."""
+        entry = (self.env._now + delay_s, priority, next(self._ids), fn)  # type: ignore[attr-defined]
+        queue = self._queue
+        if queue and entry < queue[-1]:
+            heappush(self._heap, entry)
+        else:
+            queue.append(entry)
+        wakes = self._wakes
+        if (not wakes or entry < wakes[0]) and not self._running:
+            self._arm(entry)
+
+    def _head(self) -> tuple | None:
+        heap, queue = self._heap, self._queue
+        if heap:
+            return queue[0] if queue and queue[0] < heap[0] else heap[0]
+        return queue[0] if queue else None
 
     def _arm(self, entry: tuple) -> None:
         t, priority, eid = entry[0], entry[1], entry[2]
@@ -81,17 +110,29 @@ class Agenda:
         heappop(wakes)
         self.wakes_run += 1
         self._running = True
-        heap, kernel, env = self._heap, self._kernel, self.env
+        heap, queue, kernel, env = self._heap, self._queue, self._kernel, self.env
         try:
-            while heap:
-                head = heap[0]
+            while True:
+                if heap:
+                    head = heap[0]
+                    queued = bool(queue) and queue[0] < head
+                    if queued:
+                        head = queue[0]
+                elif queue:
+                    head, queued = queue[0], True
+                else:
+                    break
                 if kernel and kernel[0] < head:
                     break
-                heappop(heap)
+                if queued:
+                    queue.popleft()
+                else:
+                    heappop(heap)
                 # As the kernel's step() sets it: the entry's own time, the same float.
                 env._now = head[0]  # type: ignore[attr-defined]
                 head[3]()
         finally:
             self._running = False
-            if heap and (not wakes or heap[0] < wakes[0]):
-                self._arm(heap[0])
+            first = self._head()
+            if first is not None and (not wakes or first < wakes[0]):
+                self._arm(first)

@@ -409,7 +409,12 @@ class Channel:
         binned: _Bin | None = None,
     ) -> None:
         # At URGENT priority, on the agenda: where a kernel event scheduled now would run.
-        self.agenda.at(delay, URGENT, _Arrival(self, deliver, sender, receivers, payload, c, kind, binned))
+        # Deliveries at the channel's latency come in the order they are due: queued.
+        arrival = _Arrival(self, deliver, sender, receivers, payload, c, kind, binned)
+        if delay == self.latency_s:
+            self.agenda.at_in_order(delay, URGENT, arrival)
+        else:
+            self.agenda.at(delay, URGENT, arrival)
 
     def frame(self, kind: str) -> pd.DataFrame:
         return self.counters_for(kind).frame()

@@ -25,6 +25,8 @@ class KernelAgenda:
     def at(self, delay_s, priority, fn):
         scheduled_event(self.env, delay_s, priority, lambda _event: fn())
 
+    at_in_order = at
+
 
 def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
     """A random tree of callbacks, some on the agenda and some kernel events, at a few
@@ -47,8 +49,12 @@ def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
             for _ in range(children):
                 plant(depth + 1)
 
-        if rng.random() < 0.6:
+        draw = rng.random()
+        if draw < 0.3:
             agenda.at(delay, priority, run)
+        elif draw < 0.6:
+            # Often out of order (random delays and priorities): the heap takes those.
+            agenda.at_in_order(delay, priority, run)
         else:
             scheduled_event(env, delay, priority, lambda _event: run())
 
@@ -62,9 +68,10 @@ def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
 
 @pytest.mark.parametrize("seed", range(40))
 def test_agenda_runs_its_entries_in_the_kernels_order(seed):
-    """Entries and kernel events at the same instants and priorities, scheduled from each
-    other's callbacks, with the run stopped and resumed at their instants: the agenda runs
-    everything in the order, and at the instants, of one kernel event per entry."""
+    """Entries (heaped, or queued in order when they come in order) and kernel events at
+    the same instants and priorities, scheduled from each other's callbacks, with the run
+    stopped and resumed at their instants: the agenda runs everything in the order, and at
+    the instants, of one kernel event per entry."""
     reference = _scripted(KernelAgenda, seed)
     assert len(reference) > 12
     assert _scripted(Agenda, seed) == reference
