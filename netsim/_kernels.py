@@ -73,7 +73,8 @@ def _cell_of(v, lo, size, cells):
 @numba.njit(cache=True, nogil=True)
 def near_pairs(pos, r, box):
     """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` of each other (on a torus of
-    side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r``: what
+    side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r`` (as many as
+    :func:`netsim.crossings.grid_cells` counts: the caller checks they are not too many): what
     ``cKDTree.query_pairs(r)`` finds, and possibly pairs further apart than ``r`` by a
     relative 1e-9 (a distance at the bound rounds either way; callers filter exactly and
     ask with a slack, so such pairs change nothing). Rows in no particular order."""
@@ -89,10 +90,9 @@ def near_pairs(pos, r, box):
     else:
         lo_x, lo_y = pos[:, 0].min(), pos[:, 1].min()
         span_x, span_y = pos[:, 0].max() - lo_x, pos[:, 1].max() - lo_y
-        # Cells of at least r, and not many more cells than points (sparse, wide layouts).
-        size = max(wide, np.sqrt(max(span_x, 1e-300) * max(span_y, 1e-300) / (4.0 * n + 16.0)), 1e-300)
-        cells_x, cells_y = int(span_x // size) + 1, int(span_y // size) + 1
-        size_x = size_y = size
+        # The caller keeps the count of cells in proportion to the points (grid_cells).
+        cells_x, cells_y = int(span_x // wide) + 1, int(span_y // wide) + 1
+        size_x = size_y = wide
     # On a torus of fewer than three cells a side, neighbouring cells repeat: one cell.
     if box > 0.0 and (cells_x < 3 or cells_y < 3):
         cells_x = cells_y = 1

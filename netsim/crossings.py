@@ -46,22 +46,36 @@ def wrap(d: np.ndarray, box: float | None) -> np.ndarray:
     return d if box is None else d - box * np.round(d / box)
 
 
-def near_pairs(pos: np.ndarray, r: float, box: float | None) -> np.ndarray:
-    """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` (periodic on a torus of side
-    ``box``), as an ``(m, 2)`` array in no particular order: for more than a small run's
-    robots a compiled grid (:func:`netsim._kernels.near_pairs`, which may add pairs further
-    apart than ``r`` by a relative 1e-9: every caller asks with a slack and filters
-    exactly), else a KD-tree (scipy's, imported only then: a large run does without it)."""
-    pts = in_box(pos, box)
+def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
+    """Pairs ``(i, j)``, ``i < j``, of positions within ``range_m`` (periodic on a torus of
+    side ``side_m``), as an ``(m, 2)`` array in no particular order: for more than a small
+    run's robots a compiled grid (:func:`netsim._kernels.near_pairs`, which may add pairs
+    further apart than ``range_m`` by a relative 1e-9: every caller asks with a slack and
+    filters exactly), else, or where a grid would need many more cells than there are robots
+    (a few robots far from the others, a line of robots), a KD-tree (scipy's, imported only
+    then: a large run does without it)."""
+    pts = in_box(pos_m, side_m)
     if len(pts) < 2:
         return np.empty((0, 2), np.int64)
+    if not np.isfinite(pts).all():
+        raise ValueError("robot positions must be finite to find the pairs in range")
     kernels = load("netsim._kernels", len(pts))
-    if kernels is not None and r > 0:
-        return kernels.near_pairs(np.ascontiguousarray(pts, dtype=float), float(r), float(box or 0.0))
+    if kernels is not None and range_m > 0 and grid_cells(pts, range_m, side_m) <= 16 * len(pts) + 64:
+        return kernels.near_pairs(np.ascontiguousarray(pts, dtype=float), float(range_m), float(side_m or 0.0))
     from scipy.spatial import cKDTree
 
-    tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
-    return tree.query_pairs(r, output_type="ndarray").astype(np.int64, copy=False)
+    tree = cKDTree(pts, boxsize=side_m) if side_m is not None else cKDTree(pts)
+    return tree.query_pairs(range_m, output_type="ndarray").astype(np.int64, copy=False)
+
+
+def grid_cells(pts: np.ndarray, range_m: float, side_m: float | None) -> float:
+    """How many cells :func:`netsim._kernels.near_pairs` lays over ``pts`` for ``range_m``
+    (cells a little wider than the range, over the torus or the points' bounding box)."""
+    wide = range_m * (1.0 + 1e-6)
+    if side_m is not None:
+        return float(side_m // wide) ** 2
+    span = pts.max(axis=0) - pts.min(axis=0)
+    return float(span[0] // wide + 1) * float(span[1] // wide + 1)
 
 
 def in_box(pos: np.ndarray, box: float | None) -> np.ndarray:

@@ -39,7 +39,7 @@ class DeadlineTimers:
         self.agenda = agenda
         self.on_expire = on_expire
         self.deadline_s = np.full(n, np.inf)
-        # Time of the kernel event armed for each timer (inf: none; compiled loops that
+        # Time of the event (kernel or agenda) armed for each timer (inf: none; compiled loops that
         # set deadlines read it, see arm), and a generation number so that superseded
         # events recognise themselves.
         self.armed_s = np.full(n, np.inf)

@@ -35,8 +35,7 @@ from netsim.errors import ConfigError
 from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from protocols.neighbours import _EMPTY_RECORD as EMPTY_RECORD
-from protocols.neighbours import DEGREE, NeighbourTable
+from protocols.neighbours import DEGREE, EMPTY_RECORD, NeighbourTable
 from protocols.roles import ROLES_SCHEMA, Roles, declare_roles
 
 

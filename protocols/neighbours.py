@@ -30,7 +30,7 @@ EMPTY = -1
 # listed us in its Acks (the link is known two-way); inf while it does not. ROLE_SINCE:
 # since when the live entry's Acks have continuously told the role they tell now.
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
-_EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf], dtype=float)
+EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf], dtype=float)
 
 
 class NeighbourTable:
@@ -38,8 +38,8 @@ class NeighbourTable:
         self.n = n
         self.tau_s = float(tau_s)
         self.id = np.full((n, slots), EMPTY, dtype=np.int64)
-        self.data = np.broadcast_to(_EMPTY_RECORD, (n, slots, len(_EMPTY_RECORD))).copy()
-        self._records = self.data.reshape(-1, len(_EMPTY_RECORD))
+        self.data = np.broadcast_to(EMPTY_RECORD, (n, slots, len(EMPTY_RECORD))).copy()
+        self._records = self.data.reshape(-1, len(EMPTY_RECORD))
         self._ids = self.id.reshape(-1)
         self.kernels = load("protocols._kernels", n)
 
@@ -65,10 +65,10 @@ class NeighbourTable:
         k = self.slots
         ids = np.full((self.n, 2 * k), EMPTY, dtype=np.int64)
         ids[:, :k] = self.id
-        data = np.broadcast_to(_EMPTY_RECORD, (self.n, 2 * k, len(_EMPTY_RECORD))).copy()
+        data = np.broadcast_to(EMPTY_RECORD, (self.n, 2 * k, len(EMPTY_RECORD))).copy()
         data[:, :k] = self.data
         self.id, self.data = ids, data
-        self._records = data.reshape(-1, len(_EMPTY_RECORD))
+        self._records = data.reshape(-1, len(EMPTY_RECORD))
         self._ids = ids.reshape(-1)
 
     def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
@@ -157,7 +157,7 @@ class NeighbourTable:
         k = self.kernels
         if k is not None:
             return k.announce(
-                self.id[i], self.data[i], float(now), self.tau_s, _EMPTY_RECORD, seq, role, leader, x_m, y_m,
+                self.id[i], self.data[i], float(now), self.tau_s, EMPTY_RECORD, seq, role, leader, x_m, y_m,
                 group_size,
             )  # fmt: skip
         live = self.live_mask(now, i)
@@ -184,7 +184,7 @@ def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
 
 def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0) -> np.ndarray:
     """The packed record of an Ack's fields (time and link columns are filled on update)."""
-    rec = _EMPTY_RECORD.copy()
+    rec = EMPTY_RECORD.copy()
     rec[SEQ], rec[ROLE], rec[LEADER], rec[X], rec[Y] = seq, role, leader, x_m, y_m
     rec[GROUP_SIZE], rec[DEGREE] = group_size, degree
     return rec

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from protocols.clustering import ack_effects, group_size, leader_slots, mate_slots, membership
-from protocols.neighbours import _EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE
+from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE
 from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
@@ -28,7 +28,7 @@ def random_tables(rng, n, slots, now):
     """Neighbour tables ``(ids, records)`` with random entries: live, expired, exactly tau
     old (expired), empty; one-way and two-way; any role and leader."""
     ids = np.where(rng.random((n, slots)) < 0.8, rng.integers(0, n, (n, slots)), -1).astype(np.int64)
-    records = np.broadcast_to(_EMPTY_RECORD, (n, slots, len(_EMPTY_RECORD))).copy()
+    records = np.broadcast_to(EMPTY_RECORD, (n, slots, len(EMPTY_RECORD))).copy()
     used = ids >= 0
     records[:, :, LAST_HEARD] = np.where(used, now - rng.choice([0.0, 0.5, 2.9, TAU_S, 4.0], (n, slots)), -np.inf)
     records[:, :, HEARS_ME] = used & (rng.random((n, slots)) < 0.7)
@@ -132,7 +132,7 @@ def test_relays_are_leaders_and_members_next_to_another_group():
     role = np.array([ALPHA, MEMBER, MEMBER, MEMBER, MEMBER, ALPHA, MEMBER, UNDECIDED], dtype=np.int8)
     leader = np.array([0, 0, 0, 0, 0, 5, 5, -1], dtype=np.int64)
     ids = np.full((8, 2), -1, dtype=np.int64)
-    records = np.broadcast_to(_EMPTY_RECORD, (8, 2, len(_EMPTY_RECORD))).copy()
+    records = np.broadcast_to(EMPTY_RECORD, (8, 2, len(EMPTY_RECORD))).copy()
 
     def entry(i, slot, j, heard_s, hears_me):
         ids[i, slot] = j

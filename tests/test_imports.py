@@ -14,8 +14,8 @@ def test_small_run_imports_no_graph_jit_or_plotting(tmp_path):
         "try:\n"
         f"    main(['run', '--out', {str(tmp_path)!r}, '--no-progress', '--quiet',"
         " '--set', 'world.n_robots=10', '--set', 'duration_s=5'])\n"
-        "except SystemExit:\n"
-        "    pass\n"
+        "except SystemExit as exc:\n"
+        "    assert not exc.code, exc.code\n"
         "print(sorted(m for m in ('networkx', 'numba', 'matplotlib') if m in sys.modules))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=_env())
@@ -40,8 +40,8 @@ def test_large_run_imports_no_kd_tree_or_scipy_linalg(tmp_path):
         "try:\n"
         f"    main(['run', '--out', {str(tmp_path)!r}, '--no-progress', '--quiet',"
         " '--set', 'world.n_robots=60', '--set', 'duration_s=5', '--set', 'protocol.model=ack'])\n"
-        "except SystemExit:\n"
-        "    pass\n"
+        "except SystemExit as exc:\n"
+        "    assert not exc.code, exc.code\n"
         "print(sorted(m for m in ('numba', 'scipy.spatial', 'scipy.linalg') if m in sys.modules))\n"
         "import numpy as np, scipy.linalg.cython_blas\n"
         "from netsim import _kernels\n"

@@ -276,3 +276,26 @@ def test_compiled_neighbour_lists_equal_numpy():
             pairs = pairs[rng.permutation(len(pairs))].astype(np.int64).reshape(-1, 2)
             got, want = core_kernels.neighbour_lists(pairs, n), neighbour_lists(pairs, n)
             assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()
+
+
+def test_near_pairs_with_outliers_lines_and_bad_positions():
+    """Candidate pairs where a grid of range-sized cells would need far more cells than
+    robots (a cluster with one robot far away; robots on a long line) are the KD-tree's;
+    positions that are not finite are refused, as the KD-tree refuses them."""
+    from scipy.spatial import cKDTree
+
+    from netsim.crossings import grid_cells, near_pairs
+
+    rng = np.random.default_rng(12)
+    cluster = np.vstack([rng.uniform(0, 1000, (2000, 2)), [[1e6, 1e6]]])
+    line = np.column_stack([np.sort(rng.uniform(0, 1e10, 100)), np.zeros(100)])
+    line[50:60, 0] = line[50, 0] + np.arange(10) * 0.5
+    for pos, r in ((cluster, 10.0), (line, 1.0)):
+        assert grid_cells(pos, r, None) > 16 * len(pos) + 64
+        got = {tuple(p) for p in near_pairs(pos, r, None).tolist()}
+        want = {tuple(p) for p in cKDTree(pos).query_pairs(r, output_type="ndarray").tolist()}
+        assert got == want and len(want) > 10
+    bad = rng.uniform(0, 100, (50, 2))
+    bad[7] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        near_pairs(bad, 10.0, None)
