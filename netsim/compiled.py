@@ -15,6 +15,8 @@ import os
 import sys
 from types import ModuleType
 
+from netsim.gcpause import paused
+
 SMALL_RUN_ROBOTS = 20
 
 
@@ -32,8 +34,9 @@ def load(module: str, n_robots: int) -> ModuleType | None:
     if not compiled_wanted(n_robots):
         return None
     try:
-        _numba_without_blas_probe()
-        return importlib.import_module(module)
+        with paused():  # numba and its registries load without the collector's passes
+            _numba_without_blas_probe()
+            return importlib.import_module(module)
     except ImportError:  # pragma: no cover
         return None
 

@@ -2,6 +2,7 @@
 networkx (the live graph and snapshots) nor numba (the compiled loops pay off past
 netsim.compiled.SMALL_RUN_ROBOTS robots), nor matplotlib."""
 
+import shutil
 import subprocess
 import sys
 
@@ -51,3 +52,33 @@ def test_large_run_imports_no_kd_tree_or_scipy_linalg(tmp_path):
     loaded, pairs = out.stdout.strip().splitlines()[-2:]
     assert loaded == "['numba']"
     assert pairs == "[[0, 1]]"
+
+
+def test_collector_paused_while_loading_and_frozen_only_by_the_command_line(tmp_path):
+    """Importing netsim and loading its compiled loops leave the garbage collector as they
+    found it (on, nothing frozen; off stays off); the command line, whose process is its
+    own, freezes what it has loaded."""
+    code = (
+        "import gc, sys\n"
+        "gc.disable() if sys.argv[1] == 'off' else None\n"
+        "import netsim\n"
+        "from netsim.compiled import load\n"
+        "load('netsim._kernels', 100)\n"
+        "print(gc.isenabled(), gc.get_freeze_count())\n"
+        "from netsim.tools.cli import main\n"
+        "try:\n"
+        f"    main(['run', '--out', {str(tmp_path)!r}, '--no-progress', '--quiet', '--set', 'world.n_robots=30',"
+        " '--set', 'duration_s=2'])\n"
+        "except SystemExit as exc:\n"
+        "    assert not exc.code, exc.code\n"
+        "print(gc.isenabled(), gc.get_freeze_count() > 0)\n"
+    )
+    for state, first in (("on", "True 0"), ("off", "False 0")):
+        out = subprocess.run(
+            [sys.executable, "-c", code, state], capture_output=True, text=True, check=True, env=_env()
+        )
+        library, command_line = out.stdout.strip().splitlines()[-2:]
+        assert library == first
+        assert command_line == f"{state == 'on'} True"
+        shutil.rmtree(tmp_path)
+        tmp_path.mkdir()

@@ -35,6 +35,7 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim import ns2
 from netsim.errors import NetsimInputError
+from netsim.gcpause import own_process
 
 EXIT_INPUT = 2
 
@@ -292,6 +293,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def main(argv=None) -> int:
+    own_process()  # what is loaded stays out of the collector's passes (netsim.gcpause)
     args = parser().parse_args(argv)
     warnings.showwarning = _one_line_warning
     try:
