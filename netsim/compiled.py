@@ -33,6 +33,10 @@ def load(module: str, n_robots: int) -> ModuleType | None:
     (also where numba is missing: it is a dependency, the numpy code is the fallback)."""
     if not compiled_wanted(n_robots):
         return None
+    loaded = sys.modules.get(module)
+    if loaded is not None:
+        # Asked for at every rebuild of the range index: no pause (nor freeze) once loaded.
+        return loaded
     try:
         with paused():  # numba and its registries load without the collector's passes
             _numba_without_blas_probe()

@@ -26,7 +26,7 @@ import numpy as np
 import simpy
 
 from netsim.agenda import Agenda
-from netsim.events import NORMAL
+from netsim.events import NORMAL, scheduled_event
 
 
 class DeadlineTimers:
@@ -82,17 +82,11 @@ class DeadlineTimers:
         gen = self._generation[i] + 1
         self._generation[i] = gen
         self.armed_s[i] = at_s
-        env = self.env
-        delay = max(0.0, at_s - env.now)
+        delay = max(0.0, at_s - self.env.now)
         if self.agenda is not None:
             self.agenda.at(delay, NORMAL, partial(self._fire, i, gen))
-            return
-        # scheduled_event inlined (once per deadline): the same NORMAL event, one call fewer.
-        ev = simpy.Event(env)
-        ev._ok = True
-        ev._value = None
-        ev.callbacks.append(partial(self._fire, i, gen))
-        env.schedule(ev, NORMAL, delay)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
+        else:
+            scheduled_event(self.env, delay, NORMAL, partial(self._fire, i, gen))
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:
         if gen != self._generation[i]:

@@ -23,7 +23,7 @@ def _candidates(
     pairs = near_pairs(positions_m, float(ranges.max()), side_m) if len(positions_m) else np.empty((0, 2), np.int64)
     if len(pairs) == 0:
         return empty
-    i, j = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+    i, j = pairs[:, 0], pairs[:, 1]
     d = positions_m[i] - positions_m[j]
     if side_m is not None:
         d -= side_m * np.round(d / side_m)

@@ -44,7 +44,7 @@ from netsim.compiled import load
 from netsim.plugins import Parts
 from netsim.timers import DeadlineTimers
 from protocols.ack import Ack, AckBeacon
-from protocols.neighbours import BIDIR_SINCE, DEGREE, HEARS_ME, LAST_HEARD, LIVE_SINCE, ROLE, ROLE_SINCE, X, Y
+from protocols.neighbours import BIDIR_SINCE, DEGREE, LAST_HEARD, LIVE_SINCE, ROLE, ROLE_SINCE, X, Y, two_way
 from protocols.neighbours import LEADER as LEADER_FIELD
 from protocols.roles import LEADER, LEADER_LOST, MEMBER, NO_LEADER, ROLE_NAMES, UNDECIDED, RoleChange, declare_roles
 
@@ -216,13 +216,13 @@ def ack_effects(
     mine = (r_role == MEMBER) & (leader[receivers] == sender)
     found = [np.flatnonzero(mine), _NONE, _NONE, _NONE]
     if leads:
-        two_way = hears_me | symmetric
-        renew = receivers[mine & two_way]
+        both_ways = hears_me | symmetric
+        renew = receivers[mine & both_ways]
         deadline_s[renew] = renewed_s
         found[1:] = [
             renew[renewed_s < armed_s[renew]],
-            receivers[(r_role == UNDECIDED) & two_way],
-            receivers[(r_role == LEADER) & two_way],
+            receivers[(r_role == UNDECIDED) & both_ways],
+            receivers[(r_role == LEADER) & both_ways],
         ]
     for row, ids in zip(out, found):
         row[: len(ids)] = ids
@@ -237,27 +237,19 @@ def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: boo
     return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
 
 
-def _two_way(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
-    """Which entries of a row of the neighbour table are live neighbours over a two-way link."""
-    two_way = now - records_row[:, LAST_HEARD] < tau_s
-    if not symmetric:
-        two_way &= records_row[:, HEARS_ME] != 0
-    return two_way
-
-
 def leader_slots(
     ids_row: np.ndarray, records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, exclude: int
 ) -> np.ndarray:
     """The slots of a row's live two-way neighbours whose last Ack said they were leaders,
     but ``exclude``."""
-    mask = _two_way(records_row, now, tau_s, symmetric) & (records_row[:, ROLE] == LEADER) & (ids_row != exclude)
+    mask = two_way(records_row, now, tau_s, symmetric) & (records_row[:, ROLE] == LEADER) & (ids_row != exclude)
     return np.flatnonzero(mask)
 
 
 def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, leader: int) -> np.ndarray:
     """The slots of a row's live two-way neighbours whose last Ack said they were members
     of ``leader``."""
-    mask = _two_way(records_row, now, tau_s, symmetric)
+    mask = two_way(records_row, now, tau_s, symmetric)
     return np.flatnonzero(mask & (records_row[:, LEADER_FIELD] == leader) & (records_row[:, ROLE] == MEMBER))
 
 
@@ -274,10 +266,7 @@ def membership(
     robot and group, from the roles and the neighbour tables (``ids``, ``records``):
     a leader in its own group, a member in its leader's (primary) and in those of the other
     leaders it knows over a live two-way link."""
-    live = now - records[:, :, LAST_HEARD] < tau_s
-    if not symmetric:
-        live &= records[:, :, HEARS_ME] != 0
-    rows, slots = np.nonzero(live & (records[:, :, ROLE] == LEADER))
+    rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, ROLE] == LEADER))
     other = ids[rows, slots]
     member = role[rows] == MEMBER
     rows, other = rows[member], other[member]

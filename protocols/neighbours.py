@@ -174,6 +174,16 @@ class NeighbourTable:
         return int(s[0]) if len(s) else None
 
 
+def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
+    """Which of the table's ``records`` (any leading shape: a row, rows, the whole table)
+    are live neighbours over a two-way link (with equal ranges, ``symmetric``: every live
+    one)."""
+    live = now - records[..., LAST_HEARD] < tau_s
+    if not symmetric:
+        live &= records[..., HEARS_ME] != 0
+    return live
+
+
 def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
     """Per receiver, whether it is among the ids ``heard`` (ascending)."""
     if len(heard) == 0:

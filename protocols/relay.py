@@ -27,8 +27,8 @@ from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
 from netsim.rng import Streams
 from netsim.topology import geometric_pairs
-from protocols.neighbours import HEARS_ME, LAST_HEARD, ROLE
 from protocols.neighbours import LEADER as LEADER_FIELD
+from protocols.neighbours import ROLE, two_way
 from protocols.roles import LEADER, MEMBER, UNDECIDED
 
 
@@ -127,16 +127,14 @@ def relays(
     group: a leader other than their own or, with ``distributed_gateways``, a member of
     another leader."""
     rows = records[receivers]
-    two_way = now - rows[:, :, LAST_HEARD] < tau_s
-    if not symmetric:
-        two_way &= rows[:, :, HEARS_ME] != 0
     own = leader[receivers][:, None]
     if distributed_gateways:
         other = (rows[:, :, ROLE] != UNDECIDED) & (rows[:, :, LEADER_FIELD] != own)
     else:
         other = (rows[:, :, ROLE] == LEADER) & (ids[receivers] != own)
     r_role = role[receivers]
-    return receivers[(r_role == LEADER) | ((r_role == MEMBER) & (two_way & other).any(axis=1))]
+    gateway = (two_way(rows, now, tau_s, symmetric) & other).any(axis=1)
+    return receivers[(r_role == LEADER) | ((r_role == MEMBER) & gateway)]
 
 
 class Relay:
