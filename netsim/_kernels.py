@@ -71,15 +71,12 @@ def _cell_of(v, lo, size, cells):
 
 
 @numba.njit(cache=True, nogil=True)
-def near_pairs(pos, r, box):
-    """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` of each other (on a torus of
-    side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r`` (as many as
-    :func:`netsim.crossings.grid_cells` counts: the caller checks they are not too many): what
-    ``cKDTree.query_pairs(r)`` finds, and possibly pairs further apart than ``r`` by a
-    relative 1e-9 (a distance at the bound rounds either way; callers filter exactly and
-    ask with a slack, so such pairs change nothing). Rows in no particular order."""
+def grid(pos, r, box):
+    """The grid of :func:`near_pairs` over positions ``pos`` (in ``[0, box)`` on a torus of
+    side ``box > 0``): cells no smaller than ``r``, ``cells_x`` by ``cells_y``; each
+    position's cell (row-major), and the positions by cell, ascending within each:
+    ``members[start[c]:start[c + 1]]`` are cell ``c``'s."""
     n = pos.shape[0]
-    r2 = r * r * (1.0 + 1e-9)
     # Cells a little wider than r: two points within r are in the same or adjacent cells
     # whatever the rounding of their cell numbers.
     wide = r * (1.0 + 1e-6)
@@ -111,6 +108,21 @@ def near_pairs(pos, r, box):
     for i in range(n):
         members[fill[cell[i]]] = i
         fill[cell[i]] += 1
+    return cells_x, cells_y, cell, start, members
+
+
+@numba.njit(cache=True, nogil=True)
+def near_pairs(pos, r, box):
+    """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` of each other (on a torus of
+    side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r`` (as many as
+    :func:`netsim.crossings.grid_cells` counts: the caller checks they are not too many): what
+    ``cKDTree.query_pairs(r)`` finds, and possibly pairs further apart than ``r`` by a
+    relative 1e-9 (a distance at the bound rounds either way; callers filter exactly and
+    ask with a slack, so such pairs change nothing). Rows in no particular order."""
+    n = pos.shape[0]
+    r2 = r * r * (1.0 + 1e-9)
+    cells_x, cells_y, cell, start, members = grid(pos, r, box)
+    n_cells = cells_x * cells_y
     out_i = np.empty(16 * n + 16, np.int64)
     out_j = np.empty(16 * n + 16, np.int64)
     k = 0
@@ -176,3 +188,111 @@ def neighbour_lists(pairs, n):
     for i in range(n):
         indices[indptr[i] : indptr[i + 1]].sort()
     return indptr, indices
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_spans(cy, cx, cells_x, cells_y, wrap, spans):
+    """The cells next to cell ``(cy, cx)`` (itself included), as at most six spans
+    ``[lo, hi)`` of consecutive (row-major) cell numbers in ``spans``; how many."""
+    if cells_x * cells_y == 1:
+        spans[0, 0], spans[0, 1] = 0, 1
+        return 1
+    k = 0
+    for dy in range(-1, 2):
+        ny = cy + dy
+        if wrap:
+            ny %= cells_y
+        elif ny < 0 or ny >= cells_y:
+            continue
+        row = ny * cells_x
+        if not wrap:
+            spans[k, 0], spans[k, 1] = row + max(cx - 1, 0), row + min(cx + 1, cells_x - 1) + 1
+            k += 1
+        elif cx == 0:
+            spans[k, 0], spans[k, 1] = row, row + 2
+            spans[k + 1, 0], spans[k + 1, 1] = row + cells_x - 1, row + cells_x
+            k += 2
+        elif cx == cells_x - 1:
+            spans[k, 0], spans[k, 1] = row + cx - 1, row + cx + 1
+            spans[k + 1, 0], spans[k + 1, 1] = row, row + 1
+            k += 2
+        else:
+            spans[k, 0], spans[k, 1] = row + cx - 1, row + cx + 2
+            k += 1
+    return k
+
+
+@numba.njit(cache=True, nogil=True)
+def _sort_small(a, lo, hi):
+    """Sort ``a[lo:hi]`` in place by insertion: for the tens of ids of one robot, numba's
+    sort costs more to call than this costs to run."""
+    for i in range(lo + 1, hi):
+        v = a[i]
+        j = i
+        while j > lo and a[j - 1] > v:
+            a[j] = a[j - 1]
+            j -= 1
+        a[j] = v
+
+
+@numba.njit(cache=True, nogil=True)
+def reach_keys(pos, folded, ranges, box):
+    """``receiver * n + sender`` for every ordered pair where the sender reaches the receiver
+    (``|p_receiver - p_sender| <= ranges[sender]``, on a torus of side ``box`` when ``box >
+    0``), ascending (:func:`netsim.topology.reach_keys`). Candidates from the :func:`grid` of
+    the largest range over the ``folded`` positions (in ``[0, box)`` on a torus, else
+    ``pos``), taken cell by cell from copies of the positions in cell order (a row of three
+    cells' candidates contiguous in memory); distances from ``pos``, as numpy computes them.
+    The caller checks the cells are not too many (:func:`netsim.crossings.grid_cells`)."""
+    n = pos.shape[0]
+    cells_x, cells_y, cell, start, members = grid(folded, ranges.max(), box)
+    n_cells = cells_x * cells_y
+    wrap = box > 0.0 and n_cells > 1
+    px, py, pr = np.empty(n), np.empty(n), np.empty(n)
+    for m in range(n):
+        j = members[m]
+        px[m], py[m], pr[m] = pos[j, 0], pos[j, 1], ranges[j]
+    # Each receiver's senders, ascending, at senders[first[a]:first[a] + count[a]].
+    first = np.zeros(n, np.int64)
+    count = np.zeros(n, np.int64)
+    senders = np.empty(32 * n + 16, np.int64)
+    spans = np.empty((6, 2), np.int64)
+    k = 0
+    for c0 in range(n_cells):
+        if start[c0] == start[c0 + 1]:
+            continue
+        n_spans = _row_spans(c0 // cells_x, c0 % cells_x, cells_x, cells_y, wrap, spans)
+        for am in range(start[c0], start[c0 + 1]):
+            ax, ay = px[am], py[am]
+            k0 = k
+            for sp in range(n_spans):
+                lo, hi = start[spans[sp, 0]], start[spans[sp, 1]]
+                if len(senders) - k < hi - lo:
+                    senders = np.concatenate((senders, np.empty(len(senders) + hi - lo, np.int64)))
+                for m in range(lo, hi):
+                    ddx = ax - px[m]
+                    ddy = ay - py[m]
+                    if box > 0.0:
+                        ddx -= box * np.rint(ddx / box)
+                        ddy -= box * np.rint(ddy / box)
+                    d2, lim = ddx * ddx + ddy * ddy, pr[m]
+                    # The square decides all but a distance within a relative 1e-6 of the
+                    # range, which numpy's hypot decides. No branch on the outcome (a coin
+                    # toss for the processor): every candidate is written, counted if it
+                    # reaches.
+                    hit = (d2 <= lim * lim * (1.0 - 1e-6)) & (m != am)
+                    if (d2 > lim * lim * (1.0 - 1e-6)) & (d2 <= lim * lim * (1.0 + 1e-6)):
+                        hit = np.hypot(ddx, ddy) <= lim
+                    senders[k] = members[m]
+                    k += hit
+            _sort_small(senders, k0, k)
+            a = members[am]
+            first[a], count[a] = k0, k - k0
+    keys = np.empty(k, np.int64)
+    q = 0
+    for a in range(n):
+        base = a * n
+        for t in range(first[a], first[a] + count[a]):
+            keys[q] = base + senders[t]
+            q += 1
+    return keys

@@ -217,12 +217,13 @@ def mate_slots(records_row, now, tau_s, symmetric, leader):
 @numba.njit(cache=True, nogil=True)
 def membership(ids, records, now, tau_s, symmetric, role, leader):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
-    robot and group (:func:`protocols.clustering.membership`)."""
+    robot and group (:func:`protocols.clustering.membership`). A slot's record is read only
+    when its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the
+    records are tens of MB at 10,000 robots, a scan costs the memory it reads."""
     n, slots = ids.shape
     robot = np.empty(n * (slots + 1), dtype=np.int64)
     group = np.empty(n * (slots + 1), dtype=np.int64)
     primary = np.empty(n * (slots + 1), dtype=np.bool_)
-    groups = np.empty(slots + 1, dtype=np.int64)
     m = 0
     for r in range(n):
         if role[r] == LEADER_ROLE:
@@ -230,16 +231,22 @@ def membership(ids, records, now, tau_s, symmetric, role, leader):
             m += 1
         elif role[r] == MEMBER:
             own = leader[r]
-            groups[0] = own
-            k = 1
+            # The robot's groups, ascending, inserted in place (a gateway has two or three).
+            m0 = m
+            group[m] = own
+            m += 1
             for s in range(slots):
-                if _two_way(records[r, s], now, tau_s, symmetric) and records[r, s, ROLE] == LEADER_ROLE:
-                    if ids[r, s] != own:
-                        groups[k] = ids[r, s]
-                        k += 1
-            for g in np.sort(groups[:k]):
-                robot[m], group[m], primary[m] = r, g, g == own
-                m += 1
+                j = ids[r, s]
+                if j != EMPTY and j != own and records[r, s, ROLE] == LEADER_ROLE:
+                    if _two_way(records[r, s], now, tau_s, symmetric):
+                        at = m
+                        while at > m0 and group[at - 1] > j:
+                            group[at] = group[at - 1]
+                            at -= 1
+                        group[at] = j
+                        m += 1
+            for q in range(m0, m):
+                robot[q], primary[q] = r, group[q] == own
     return robot[:m], group[:m], primary[:m]
 
 
@@ -275,44 +282,97 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
     return out[:m]
 
 
+# The once-a-second samples of beliefs beside the truth (protocols.stack): one pass over the
+# neighbour tables, rows as they are laid out, each slot's record read only when its id is
+# not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the (n, slots, fields)
+# records are tens of MB at 10,000 robots, so a scan's cost is the memory it reads.
+
+
 @numba.njit(cache=True, nogil=True)
-def believed_keys(ids, records, now, tau_s):
-    """``robot * n + other`` for every live entry of the ``n`` robots' neighbour tables,
-    ascending (:func:`protocols.stack.believed_keys`)."""
+def belief_rows(ids, records, now, tau_s, heard):
+    """Who believes whom live, beside the truth (:func:`protocols.stack.belief_rows`): per
+    pair ``(robot, neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or
+    ``robot * n + neighbour`` is in ``heard`` (ascending keys), ordered by robot and
+    neighbour, whether believed and whether in range; and where each robot's pairs start
+    (``indptr``, ``n + 1``)."""
     n, slots = ids.shape
-    out = np.empty(n * slots, dtype=np.int64)
-    m = 0
+    size = n * slots + len(heard)
+    robot = np.empty(size, np.int64)
+    neighbour = np.empty(size, np.int64)
+    believed = np.zeros(size, np.bool_)
+    in_range = np.zeros(size, np.bool_)
+    indptr = np.zeros(n + 1, np.int64)
+    live = np.empty(slots, np.int64)
+    k = p = 0
     for r in range(n):
-        start = m
+        m = 0
         for s in range(slots):
-            if now - records[r, s, LAST_HEARD] < tau_s:
-                out[m] = r * n + ids[r, s]
+            j = ids[r, s]
+            if j != EMPTY and now - records[r, s, LAST_HEARD] < tau_s:
+                # Insertion into the row's sorted ids (a dozen or so).
+                at = m
+                while at > 0 and live[at - 1] > j:
+                    live[at] = live[at - 1]
+                    at -= 1
+                live[at] = j
                 m += 1
-        out[start:m].sort()
-    return out[:m]
+        row = live
+        base = r * n
+        end = base + n
+        q = 0
+        while q < m or (p < len(heard) and heard[p] < end):
+            h = heard[p] - base if p < len(heard) and heard[p] < end else n
+            b = row[q] if q < m else n
+            robot[k] = r
+            if b <= h:
+                neighbour[k] = b
+                believed[k] = True
+                q += 1
+            else:
+                neighbour[k] = h
+            if h <= b:
+                in_range[k] = True
+                p += 1
+            k += 1
+        indptr[r + 1] = k
+    return robot[:k], neighbour[:k], believed[:k], in_range[:k], indptr
 
 
 @numba.njit(cache=True, nogil=True)
-def union_sorted(a, b):
-    """The ascending union of two ascending arrays of distinct keys, and per key whether it
-    is in ``a`` and whether in ``b`` (:func:`protocols.stack.union_sorted`)."""
-    out = np.empty(len(a) + len(b), dtype=np.int64)
-    in_a = np.zeros(len(a) + len(b), dtype=np.bool_)
-    in_b = np.zeros(len(a) + len(b), dtype=np.bool_)
-    i = j = k = 0
-    while i < len(a) or j < len(b):
-        if j == len(b) or (i < len(a) and a[i] < b[j]):
-            out[k] = a[i]
-            in_a[k] = True
-            i += 1
-        elif i == len(a) or b[j] < a[i]:
-            out[k] = b[j]
-            in_b[k] = True
-            j += 1
-        else:
-            out[k] = a[i]
-            in_a[k] = in_b[k] = True
-            i += 1
-            j += 1
-        k += 1
-    return out[:k], in_a[:k], in_b[:k]
+def _pair_in_range(neighbour, in_range, indptr, r, j):
+    """Whether robot ``r``'s pairs (of :func:`belief_rows`) hold ``j`` in range."""
+    lo, hi = indptr[r], indptr[r + 1]
+    at = lo + np.searchsorted(neighbour[lo:hi], j)
+    return at < hi and neighbour[at] == j and in_range[at]
+
+
+@numba.njit(cache=True, nogil=True)
+def belief_counts(neighbour, believed, in_range, indptr, role, leader):
+    """Per robot, from its pairs (:func:`belief_rows`): how many neighbours it believes live,
+    how many it truly has, how many beliefs are stale, how many missing, and whether its
+    leader is in two-way range (a leader: yes) (:func:`protocols.stack.belief_counts`)."""
+    n = len(indptr) - 1
+    believed_n = np.zeros(n, np.int64)
+    true_n = np.zeros(n, np.int64)
+    stale_n = np.zeros(n, np.int64)
+    missing_n = np.zeros(n, np.int64)
+    leader_in_range = np.zeros(n, np.bool_)
+    for r in range(n):
+        b = t = s = 0
+        for k in range(indptr[r], indptr[r + 1]):
+            if in_range[k]:
+                t += 1
+                if believed[k]:
+                    b += 1
+            elif believed[k]:
+                b += 1
+                s += 1
+        believed_n[r], true_n[r], stale_n[r], missing_n[r] = b, t, s, t - (b - s)
+        own = leader[r]
+        if role[r] == LEADER_ROLE:
+            leader_in_range[r] = True
+        elif role[r] == MEMBER and own >= 0:
+            leader_in_range[r] = _pair_in_range(neighbour, in_range, indptr, r, own) and _pair_in_range(
+                neighbour, in_range, indptr, own, r
+            )
+    return believed_n, true_n, stale_n, missing_n, leader_in_range

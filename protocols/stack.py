@@ -35,32 +35,62 @@ def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
 
 class Samples:
     """A table sampled during the run: each sample's columns (arrays of one length) and its
-    time ``t_s``, made one DataFrame at the end (a DataFrame per sample costs more than
-    the sample)."""
+    time ``t_s``, written as they come into one buffer per column, so that the table at the
+    end is the buffers' filled part (no concatenation: at 10,000 robots the samples are
+    hundreds of MB, and every fresh page costs a fault).
 
-    def __init__(self) -> None:
+    A buffer holds ``expected`` samples of the first one's rows, with a margin; when short
+    it grows to what the remaining samples need at the current sample's rows, at least
+    double. Capacity never written is never touched, so costs no memory."""
+
+    MARGIN = 1.25
+
+    def __init__(self, expected: int = 1) -> None:
         self.times: list[float] = []
-        self.columns: list[dict[str, np.ndarray]] = []
+        self.sizes: list[int] = []
+        self.expected = max(int(expected), 1)
+        self.rows = 0
+        self._t = np.empty(0)
+        self._buffers: dict[str, np.ndarray] = {}
 
     def __len__(self) -> int:
         return len(self.times)
 
     def add(self, now: float, columns: dict[str, np.ndarray]) -> Samples:
+        m = len(next(iter(columns.values()))) if columns else 0
+        if not self._buffers:
+            self._buffers = {name: np.empty(0, dtype=np.asarray(col).dtype) for name, col in columns.items()}
+        at, end = self.rows, self.rows + m
+        if end > len(self._t):
+            left = max(self.expected - len(self.times), 1)
+            self._grow(max(2 * len(self._t), at + int(self.MARGIN * m * left)))
+        self._t[at:end] = now
+        for name, col in columns.items():
+            self._buffers[name][at:end] = col
         self.times.append(now)
-        self.columns.append(columns)
+        self.sizes.append(m)
+        self.rows = end
         return self
+
+    def _grow(self, capacity: int) -> None:
+        def grown(buf: np.ndarray) -> np.ndarray:
+            new = np.empty(capacity, dtype=buf.dtype)
+            new[: self.rows] = buf[: self.rows]
+            return new
+
+        self._t = grown(self._t)
+        self._buffers = {name: grown(buf) for name, buf in self._buffers.items()}
 
     def frame(self, convert: Mapping[str, Callable[[np.ndarray], object]] | None = None) -> pd.DataFrame:
         """All samples, in order, as one table: ``t_s`` first, then the columns (each
         passed through ``convert[name]`` if given)."""
-        names = list(self.columns[0])
-        sizes = [len(c[names[0]]) for c in self.columns]
-        out: dict[str, object] = {"t_s": np.repeat(np.array(self.times, dtype=float), sizes)}
-        for name in names:
-            col = np.concatenate([c[name] for c in self.columns])
+        rows = self.rows
+        out: dict[str, object] = {"t_s": self._t[:rows]}
+        for name, buf in self._buffers.items():
+            col = buf[:rows]
             out[name] = convert[name](col) if convert and name in convert else col
-        # The columns are new arrays, the table's own: copying them into blocks would only
-        # cost (more than building them).
+        # The columns are the buffers' filled part, never written again (later samples go
+        # after it, or into a grown buffer): copying them into blocks would only cost.
         return pd.DataFrame(out, copy=False)
 
 
@@ -95,14 +125,52 @@ def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     return both, in_sorted(both, a), in_sorted(both, b)
 
 
-class Beliefs(NamedTuple):
-    """Who believes whom live at one instant, beside the truth: ``robot * n + other`` for
-    every pair where ``robot`` believes ``other`` live or ``other``'s transmissions reach
-    ``robot`` (ascending), and per pair whether it is believed and whether in range."""
+def belief_rows(ids: np.ndarray, records: np.ndarray, now: float, tau_s: float, heard: np.ndarray) -> Beliefs:
+    """Who believes whom live at ``now``, beside the truth: one row per pair ``(robot,
+    neighbour)`` where ``robot`` holds a live entry of ``neighbour`` in its table (``ids``,
+    ``records``) or ``robot * n + neighbour`` is among the ascending keys ``heard``
+    (``neighbour``'s transmissions reach ``robot``), ordered by robot and neighbour."""
+    n = len(ids)
+    keys, believed, in_range = union_sorted(believed_keys(ids, records, now, tau_s), heard)
+    robot = keys // n if n else keys
+    return Beliefs(robot, keys % n if n else keys, believed, in_range, robot.searchsorted(np.arange(n + 1)))
 
-    keys: np.ndarray
+
+def belief_counts(
+    neighbour: np.ndarray,
+    believed: np.ndarray,
+    in_range: np.ndarray,
+    indptr: np.ndarray,
+    role: np.ndarray,
+    leader: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per robot, from its rows of :func:`belief_rows` (``indptr``): how many neighbours it
+    believes live, how many it truly has, how many of its beliefs are stale (believed, not
+    in range) and missing (in range, not believed), and whether its leader is in two-way
+    range (a leader's: yes; an undecided robot's: no)."""
+    n = len(indptr) - 1
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    believed_n = np.bincount(rows[believed], minlength=n)
+    true_n = np.bincount(rows[in_range], minlength=n)
+    stale_n = np.bincount(rows[believed & ~in_range], minlength=n)
+    heard_keys = rows[in_range] * n + neighbour[in_range]
+    has = np.flatnonzero((role == MEMBER) & (leader >= 0))
+    in_reach = np.zeros(n, dtype=bool)
+    in_reach[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
+    return believed_n, true_n, stale_n, true_n - (believed_n - stale_n), in_reach | (role == LEADER)
+
+
+class Beliefs(NamedTuple):
+    """Who believes whom live at one instant, beside the truth (:func:`belief_rows`): per
+    pair ``(robot, neighbour)`` where ``robot`` believes ``neighbour`` live or
+    ``neighbour``'s transmissions reach ``robot``, ordered by robot and neighbour, whether
+    it is believed and whether in range; ``indptr``: where each robot's pairs start."""
+
+    robot: np.ndarray
+    neighbour: np.ndarray
     believed: np.ndarray
     in_range: np.ndarray
+    indptr: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -149,6 +217,7 @@ class Stack:
         self.params = params
         self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.streams, self.trace, self.output = parts.streams, parts.trace, parts.output
+        self.duration_s = float(parts.duration_s)
         self.beacon = AckBeacon(params, parts)
         self.roles = self.beacon.roles
         self.table = self.beacon.table
@@ -164,10 +233,10 @@ class Stack:
         self._beliefs = Samples()
         self._neighbour_beliefs = Samples()
         kernels = load("protocols._kernels", n)
-        # The compiled twins of believed_keys and union_sorted, past
+        # The compiled twins of belief_rows and belief_counts, past
         # netsim.compiled.SMALL_RUN_ROBOTS robots.
-        self._believed_keys = kernels.believed_keys if kernels is not None else believed_keys
-        self._union = kernels.union_sorted if kernels is not None else union_sorted
+        self._belief_rows = kernels.belief_rows if kernels is not None else belief_rows
+        self._belief_counts = kernels.belief_counts if kernels is not None else belief_counts
 
     # -- the groups, for the rest of the run ------------------------------------------
     @property
@@ -189,6 +258,9 @@ class Stack:
         if p.message_rate_hz > 0:
             self.env.process(traffic(self.env, self.streams, self.state.n, self.relay, p.message_rate_hz))
         interval = self.output.position_interval_s or p.ack_period_s
+        # Samples at 0, interval, ... before the end: each table's buffers sized for them.
+        expected = int(self.duration_s // interval) + 1 if interval > 0 else 1
+        self._groups, self._beliefs, self._neighbour_beliefs = (Samples(expected) for _ in range(3))
         self.env.process(self._sampler(interval))
         self.trace.add_frame("messages", self.messages_frame)
         self.trace.add_frame("hops", self.relay.hops_frame)
@@ -257,13 +329,13 @@ class Stack:
 
     # -- ground truth beside belief ----------------------------------------------------
     def _belief_keys(self, now: float) -> Beliefs:
-        """Who believes whom live now, beside the truth: ``robot * n + other`` for every
+        """Who believes whom live now, beside the truth (:func:`belief_rows`): every
         ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
         st = self.state
         # receiver * n + sender, for every sender whose transmissions reach the receiver.
         heard_keys = reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
         table = self.table
-        return Beliefs(*self._union(self._believed_keys(table.id, table.data, now, table.tau_s), heard_keys))
+        return Beliefs(*self._belief_rows(table.id, table.data, now, table.tau_s, heard_keys))
 
     def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
@@ -280,27 +352,20 @@ class Stack:
 
     def _belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
         """:meth:`belief_vs_truth`'s columns but ``t_s``, the roles as codes."""
-        n = self.state.n
         roles = self.roles
         b = keys if keys is not None else self._belief_keys(now)
-        rows = b.keys // n
-        believed = np.bincount(rows[b.believed], minlength=n)
-        true_count = np.bincount(rows[b.in_range], minlength=n)
-        stale = np.bincount(rows[b.believed & ~b.in_range], minlength=n)
-        heard_keys = b.keys[b.in_range]
-        leader = roles.leader.copy()
-        has = np.flatnonzero((roles.role == MEMBER) & (leader >= 0))
-        in_range = np.zeros(n, dtype=bool)
-        in_range[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
+        believed, true_count, stale, missing, in_range = self._belief_counts(
+            b.neighbour, b.believed, b.in_range, b.indptr, roles.role, roles.leader
+        )
         return {
-            "robot": np.arange(n),
-            "role": roles.role.copy(),
-            "leader": leader,
-            "leader_in_range": in_range | (roles.role == LEADER),
+            "robot": np.arange(self.state.n),
+            "role": roles.role,
+            "leader": roles.leader,
+            "leader_in_range": in_range,
             "believed_neighbours": believed,
             "true_neighbours": true_count,
             "stale_neighbours": stale,
-            "missing_neighbours": true_count - (believed - stale),
+            "missing_neighbours": missing,
         }
 
     def neighbour_beliefs(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
@@ -311,9 +376,8 @@ class Stack:
         return Samples().add(now, self._neighbour_belief_columns(now, keys)).frame()
 
     def _neighbour_belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
-        n = self.state.n
         b = keys if keys is not None else self._belief_keys(now)
-        return {"robot": b.keys // n, "neighbour": b.keys % n, "believed": b.believed, "in_range": b.in_range}
+        return {"robot": b.robot, "neighbour": b.neighbour, "believed": b.believed, "in_range": b.in_range}
 
     def _sampler(self, interval: float):
         env = self.env

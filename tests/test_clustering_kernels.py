@@ -2,8 +2,8 @@
 twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effects), a
 leader's group size (clustering.group_size), the known leaders and a leader's members in a
 row of the table (clustering.leader_slots, mate_slots), everyone's groups
-(clustering.membership), who relays a flooded message (relay.relays) and the belief keys
-(stack.believed_keys, union_sorted); and the numpy
+(clustering.membership), who relays a flooded message (relay.relays) and the samples of
+beliefs beside the truth (stack.belief_rows, belief_counts); and the numpy
 ``relays`` keeps the relaying rule."""
 
 import numpy as np
@@ -15,7 +15,7 @@ from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROL
 from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
-from protocols.stack import believed_keys, union_sorted
+from protocols.stack import belief_counts, belief_rows, believed_keys
 
 pytest.importorskip("numba")
 
@@ -150,18 +150,6 @@ def test_relays_are_leaders_and_members_next_to_another_group():
         assert fn(ids, records, now, TAU_S, False, role, leader, everyone, False).tolist() == [0, 3, 5]
 
 
-def test_compiled_union_sorted_equals_numpy():
-    """The union of two ascending key arrays, with membership flags, is the numpy one,
-    empty arrays included."""
-    rng = np.random.default_rng(13)
-    for _ in range(200):
-        a = np.unique(rng.integers(0, 60, int(rng.integers(0, 30)))).astype(np.int64)
-        b = np.unique(rng.integers(0, 60, int(rng.integers(0, 30)))).astype(np.int64)
-        x, y = kernels.union_sorted(a, b), union_sorted(a, b)
-        assert [v.tolist() for v in x] == [v.tolist() for v in y]
-        assert x[0].tolist() == sorted(set(a.tolist()) | set(b.tolist()))
-
-
 def test_members_counted_as_roles_change():
     """The count of each robot's members, which lets the clustering skip the Acks that do
     not lead when their sender has none, follows every role change: at every second of a
@@ -199,15 +187,62 @@ def test_compiled_membership_equals_numpy(symmetric):
     assert secondary > 20
 
 
-def test_compiled_believed_keys_equal_numpy():
-    """The keys of the live entries of all tables, ascending, are the numpy ones."""
+def belief_inputs(rng, n, slots, now):
+    """Random tables (ids distinct in a row) and random ascending ``heard`` keys, some of
+    them pairs both ways, some on the tables' live entries."""
+    ids, records = random_tables(rng, n, slots, now)
+    if n:
+        distinct = np.argsort(rng.random((n, max(slots, n))), axis=1)[:, :slots]
+        ids = np.where((ids >= 0) & (distinct < n), distinct, -1)
+        records[ids < 0] = EMPTY_RECORD  # an EMPTY slot holds the empty record (never live)
+    a = rng.integers(0, max(n, 1), int(rng.integers(0, 4 * n + 1)))
+    b = rng.integers(0, max(n, 1), len(a))
+    believed = believed_keys(ids, records, now, TAU_S)
+    keys = np.concatenate([a * n + b, b * n + a, rng.choice(believed, len(believed) // 2) if len(believed) else a])
+    return ids, records, np.unique(keys).astype(np.int64) if n else np.empty(0, np.int64)
+
+
+def test_compiled_belief_rows_equal_numpy():
+    """Who believes whom beside who is in range (the union of the live entries and the
+    heard keys, by robot and neighbour, with the flags and each robot's first row) is the
+    numpy one: no robots, one, no rows, no heard keys, empty tables included."""
     rng = np.random.default_rng(19)
-    for _ in range(40):
+    both = only_heard = only_believed = 0
+    for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (12, 6), (30, 8)] * 8:
         now = 10.0
-        ids, records = random_tables(rng, 12, 6, now)
-        ids = np.where(ids >= 0, 2 * np.argsort(rng.random((12, 6)), axis=1), -1)  # distinct in a row
-        a, b = kernels.believed_keys(ids, records, now, TAU_S), believed_keys(ids, records, now, TAU_S)
-        assert a.tolist() == b.tolist() and len(a) > 10
+        ids, records, heard = belief_inputs(rng, n, slots, now)
+        if rng.random() < 0.1:
+            heard = heard[:0]
+        if rng.random() < 0.1:
+            ids[:] = -1
+            records[:, :, LAST_HEARD] = -np.inf
+        a, b = kernels.belief_rows(ids, records, now, TAU_S, heard), belief_rows(ids, records, now, TAU_S, heard)
+        assert [x.tolist() for x in a] == [x.tolist() for x in b]
+        assert [x.dtype for x in a] == [x.dtype for x in b]
+        both += int((a[2] & a[3]).sum())
+        only_heard += int((~a[2] & a[3]).sum())
+        only_believed += int((a[2] & ~a[3]).sum())
+    assert min(both, only_heard, only_believed) > 50
+
+
+def test_compiled_belief_counts_equal_numpy():
+    """Per robot the believed, true, stale and missing neighbours and whether its leader is
+    in two-way range are the numpy ones (members of leaders in range both ways, one way,
+    not at all; members without a leader; leaders; undecided robots)."""
+    rng = np.random.default_rng(23)
+    in_range = 0
+    for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (30, 8)] * 10:
+        now = 10.0
+        ids, records, heard = belief_inputs(rng, n, slots, now)
+        rows = belief_rows(ids, records, now, TAU_S, heard)
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = np.where(role == MEMBER, rng.integers(-1, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
+        args = (rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
+        a, b = kernels.belief_counts(*args), belief_counts(*args)
+        assert [x.tolist() for x in a] == [x.tolist() for x in b]
+        assert [x.dtype for x in a] == [x.dtype for x in b]
+        in_range += int((a[4] & (role == MEMBER)).sum())
+    assert in_range > 20
 
 
 def test_gateways_mean_counts_robots_in_two_groups_per_sample():

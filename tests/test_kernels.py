@@ -299,3 +299,64 @@ def test_near_pairs_with_outliers_lines_and_bad_positions():
     bad[7] = np.nan
     with pytest.raises(ValueError, match="finite"):
         near_pairs(bad, 10.0, None)
+
+
+def reach_layouts(rng, side):
+    """Positions and per-robot ranges for the reach tests: uniform, clustered, sparse; a
+    lattice (distances exactly a range); pairs a relative 1e-7 and 1e-12 either side of
+    the sender's range; equal and unequal ranges."""
+    lattice = np.round(rng.uniform(0, side, (300, 2)) / 50) * 50 % side
+    base = rng.uniform(100, side - 100, (100, 2))
+    angle = rng.uniform(0, 2 * np.pi, 100)
+    bound = []
+    for eps in (1e-7, -1e-7, 1e-12, -1e-12, 0.0):
+        d = 50.0 * (1 + eps)
+        bound.append(base + d * np.column_stack([np.cos(angle), np.sin(angle)]))
+    yield lattice, np.full(len(lattice), 50.0)
+    pos = np.vstack([base, *bound]) % side
+    yield pos, np.full(len(pos), 50.0)
+    yield pos, rng.choice([50.0, 30.0, 80.0], len(pos))
+    yield rng.uniform(0, side, (400, 2)), rng.uniform(40.0, 160.0, 400)
+    clustered = np.concatenate([rng.normal(300, 5, (150, 2)), rng.normal(700, 30, (150, 2))]) % side
+    yield clustered, np.full(300, 20.0)
+    yield rng.uniform(0, side, (30, 2)), np.full(30, 120.0)
+    yield rng.uniform(0, side, (40, 2)), np.full(40, 2000.0)  # the range larger than the area
+    yield rng.uniform(0, side, (2, 2)), np.full(2, 900.0)
+
+
+@pytest.mark.parametrize("torus", [False, True])
+def test_compiled_reach_keys_equal_numpy(torus):
+    """``receiver * n + sender`` for every sender reaching its receiver, ascending, is the
+    numpy one from the candidate pairs: uniform, clustered, sparse and lattice layouts,
+    distances a hair either side of the range, unequal ranges, a range larger than the
+    area; on a torus also positions outside ``[0, side)`` and a torus narrower than three
+    ranges."""
+    from netsim.crossings import in_box
+    from netsim.topology import reach_keys_of_pairs
+
+    rng = np.random.default_rng(31)
+    side = 1000.0
+    box = side if torus else None
+    hits = 0
+    for pos, ranges in reach_layouts(rng, side):
+        if torus:
+            pos = pos + side * rng.integers(-2, 3, pos.shape)  # unwrapped: the same robots
+        got = core_kernels.reach_keys(pos, in_box(pos, box), ranges, side if torus else 0.0)
+        want = reach_keys_of_pairs(pos, ranges, box)
+        assert got.tolist() == want.tolist()
+        hits += len(want)
+    assert hits > 1000
+
+
+def test_reach_keys_where_the_grid_would_not_fit():
+    """:func:`netsim.topology.reach_keys` takes the candidate pairs where a grid would need
+    far more cells than robots (and for no robot, or one), and agrees with them elsewhere."""
+    from netsim.topology import reach_keys, reach_keys_of_pairs
+
+    rng = np.random.default_rng(32)
+    cluster = np.vstack([rng.uniform(0, 1000, (200, 2)), [[1e6, 1e6]]])
+    spread = rng.uniform(0, 1000, (300, 2))
+    for pos in (cluster, spread, np.empty((0, 2)), np.zeros((1, 2))):
+        ranges = rng.uniform(5.0, 60.0, len(pos))
+        assert reach_keys(pos, ranges).tolist() == reach_keys_of_pairs(pos, ranges, None).tolist()
+    assert len(reach_keys(spread, 60.0)) > 100

@@ -3,6 +3,7 @@ truly reach it, by id (the ids behind ``beliefs.parquet``'s counts)."""
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from netsim.run import execute, tables
 from protocols.stack import NEIGHBOUR_BELIEFS_SCHEMA
@@ -89,3 +90,34 @@ def test_in_sorted_is_isin():
         pool = np.sort(rng.choice(1000, size, replace=False)).astype(np.int64)
         values = rng.integers(-5, 1005, 300)
         assert in_sorted(values, pool).tolist() == np.isin(values, pool).tolist()
+
+
+@pytest.mark.parametrize("expected", [1, 3, 40])
+def test_samples_frame_is_every_sample_in_order(expected):
+    """A sampled table is its samples' columns one after another, each row with its
+    sample's time, dtypes as given: samples with no rows (the first too), buffers grown
+    past their first estimate (``expected`` samples of the first one's rows) or never; a
+    table taken before later samples is unchanged by them."""
+    from protocols.stack import Samples
+
+    rng = np.random.default_rng(41)
+    samples = Samples(expected)
+    times, chunks, early = [], [], None
+    for k in range(30):
+        m = 0 if k in (0, 7) else int(rng.integers(0, 60)) * (1 + k // 10)
+        cols = {
+            "robot": rng.integers(0, 9, m),
+            "flag": rng.random(m) < 0.5,
+            "role": rng.integers(0, 3, m).astype(np.int8),
+        }
+        samples.add(float(k), cols)
+        times.append(np.full(m, float(k)))
+        chunks.append(cols)
+        if k == 12:
+            early, early_copy = samples.frame(), samples.frame().copy()
+    want = pd.DataFrame({"t_s": np.concatenate(times)} | {c: np.concatenate([x[c] for x in chunks]) for c in chunks[0]})
+    got = samples.frame()
+    assert list(got.columns) == ["t_s", "robot", "flag", "role"]
+    assert got.dtypes.tolist() == want.dtypes.tolist()
+    assert got.equals(want) and len(got) > 500
+    assert early.equals(early_copy) and len(early) > 0
