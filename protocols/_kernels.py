@@ -217,37 +217,45 @@ def mate_slots(records_row, now, tau_s, symmetric, leader):
 @numba.njit(cache=True, nogil=True)
 def membership(ids, records, now, tau_s, symmetric, role, leader):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
-    robot and group (:func:`protocols.clustering.membership`). A slot's record is read only
-    when its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the
-    records are tens of MB at 10,000 robots, a scan costs the memory it reads."""
+    robot and group (:func:`protocols.clustering.membership`)."""
     n, slots = ids.shape
     robot = np.empty(n * (slots + 1), dtype=np.int64)
     group = np.empty(n * (slots + 1), dtype=np.int64)
     primary = np.empty(n * (slots + 1), dtype=np.bool_)
     m = 0
     for r in range(n):
-        if role[r] == LEADER_ROLE:
-            robot[m], group[m], primary[m] = r, r, True
-            m += 1
-        elif role[r] == MEMBER:
-            own = leader[r]
-            # The robot's groups, ascending, inserted in place (a gateway has two or three).
-            m0 = m
-            group[m] = own
-            m += 1
-            for s in range(slots):
-                j = ids[r, s]
-                if j != EMPTY and j != own and records[r, s, ROLE] == LEADER_ROLE:
-                    if _two_way(records[r, s], now, tau_s, symmetric):
-                        at = m
-                        while at > m0 and group[at - 1] > j:
-                            group[at] = group[at - 1]
-                            at -= 1
-                        group[at] = j
-                        m += 1
-            for q in range(m0, m):
-                robot[q], primary[q] = r, group[q] == own
+        m = _membership_row(ids[r], records[r], now, tau_s, symmetric, role[r], leader[r], r, robot, group, primary, m)
     return robot[:m], group[:m], primary[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def _membership_row(ids_row, records_row, now, tau_s, symmetric, role, own, r, robot, group, primary, m):
+    """Robot ``r``'s rows of :func:`membership` (``role``, leader ``own``, its row of the
+    tables), written from ``m`` on; returns the next free row. A slot's record is read only
+    when its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the
+    records are tens of MB at 10,000 robots, a scan costs the memory it reads."""
+    if role == LEADER_ROLE:
+        robot[m], group[m], primary[m] = r, r, True
+        return m + 1
+    if role != MEMBER:
+        return m
+    # The robot's groups, ascending, inserted in place (a gateway has two or three).
+    m0 = m
+    group[m] = own
+    m += 1
+    for s in range(len(ids_row)):
+        j = ids_row[s]
+        if j != EMPTY and j != own and records_row[s, ROLE] == LEADER_ROLE:
+            if _two_way(records_row[s], now, tau_s, symmetric):
+                at = m
+                while at > m0 and group[at - 1] > j:
+                    group[at] = group[at - 1]
+                    at -= 1
+                group[at] = j
+                m += 1
+    for q in range(m0, m):
+        robot[q], primary[q] = r, group[q] == own
+    return m
 
 
 @numba.njit(cache=True, nogil=True)
@@ -296,46 +304,84 @@ def belief_rows(ids, records, now, tau_s, heard):
     neighbour, whether believed and whether in range; and where each robot's pairs start
     (``indptr``, ``n + 1``)."""
     n, slots = ids.shape
-    size = n * slots + len(heard)
+    out = _belief_arrays(n, slots, len(heard))
+    live = np.empty(slots, np.int64)
+    k = p = 0
+    for r in range(n):
+        k, p = _belief_row(ids[r], records[r], now, tau_s, heard, r, n, live, out, k, p)
+    return out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4]
+
+
+@numba.njit(cache=True, nogil=True)
+def _belief_arrays(n, slots, n_heard):
+    """The arrays :func:`_belief_row` fills, for at most every slot and every heard key."""
+    size = n * slots + n_heard
     robot = np.empty(size, np.int64)
     neighbour = np.empty(size, np.int64)
     believed = np.zeros(size, np.bool_)
     in_range = np.zeros(size, np.bool_)
     indptr = np.zeros(n + 1, np.int64)
+    return robot, neighbour, believed, in_range, indptr
+
+
+@numba.njit(cache=True, nogil=True)
+def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, out, k, p):
+    """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` from ``k`` on, its
+    heard keys from ``heard[p]`` on; returns the next ``k`` and ``p``. A slot's record is
+    read only when its id is not EMPTY (never live)."""
+    robot, neighbour, believed, in_range, indptr = out
+    m = 0
+    for s in range(len(ids_row)):
+        j = ids_row[s]
+        if j != EMPTY and now - records_row[s, LAST_HEARD] < tau_s:
+            # Insertion into the row's sorted ids (a dozen or so).
+            at = m
+            while at > 0 and live[at - 1] > j:
+                live[at] = live[at - 1]
+                at -= 1
+            live[at] = j
+            m += 1
+    base = r * n
+    end = base + n
+    q = 0
+    while q < m or (p < len(heard) and heard[p] < end):
+        h = heard[p] - base if p < len(heard) and heard[p] < end else n
+        b = live[q] if q < m else n
+        robot[k] = r
+        if b <= h:
+            neighbour[k] = b
+            believed[k] = True
+            q += 1
+        else:
+            neighbour[k] = h
+        if h <= b:
+            in_range[k] = True
+            p += 1
+        k += 1
+    indptr[r + 1] = k
+    return k, p
+
+
+@numba.njit(cache=True, nogil=True)
+def sample_rows(ids, records, now, tau_s, symmetric, role, leader, heard):
+    """:func:`membership` and :func:`belief_rows` in one pass over the tables, each row
+    read from memory once for both: ``(robot, group, primary), (robot, neighbour,
+    believed, in_range, indptr)``."""
+    n, slots = ids.shape
+    g_robot = np.empty(n * (slots + 1), dtype=np.int64)
+    g_group = np.empty(n * (slots + 1), dtype=np.int64)
+    g_primary = np.empty(n * (slots + 1), dtype=np.bool_)
+    out = _belief_arrays(n, slots, len(heard))
     live = np.empty(slots, np.int64)
-    k = p = 0
+    m = k = p = 0
     for r in range(n):
-        m = 0
-        for s in range(slots):
-            j = ids[r, s]
-            if j != EMPTY and now - records[r, s, LAST_HEARD] < tau_s:
-                # Insertion into the row's sorted ids (a dozen or so).
-                at = m
-                while at > 0 and live[at - 1] > j:
-                    live[at] = live[at - 1]
-                    at -= 1
-                live[at] = j
-                m += 1
-        row = live
-        base = r * n
-        end = base + n
-        q = 0
-        while q < m or (p < len(heard) and heard[p] < end):
-            h = heard[p] - base if p < len(heard) and heard[p] < end else n
-            b = row[q] if q < m else n
-            robot[k] = r
-            if b <= h:
-                neighbour[k] = b
-                believed[k] = True
-                q += 1
-            else:
-                neighbour[k] = h
-            if h <= b:
-                in_range[k] = True
-                p += 1
-            k += 1
-        indptr[r + 1] = k
-    return robot[:k], neighbour[:k], believed[:k], in_range[:k], indptr
+        ids_row, records_row = ids[r], records[r]
+        k, p = _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, out, k, p)
+        m = _membership_row(
+            ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
+        )
+    groups = (g_robot[:m], g_group[:m], g_primary[:m])
+    return groups, (out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -6,6 +6,7 @@ them), ``ack_delivery``, ``messages`` and ``hops`` tables and summary figures.""
 from __future__ import annotations
 
 import math
+import mmap
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -18,7 +19,7 @@ from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import reach_keys
 from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
-from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
+from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy, membership
 from protocols.neighbours import LAST_HEARD, ROLE, X, Y
 from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
 from protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
@@ -74,7 +75,7 @@ class Samples:
 
     def _grow(self, capacity: int) -> None:
         def grown(buf: np.ndarray) -> np.ndarray:
-            new = np.empty(capacity, dtype=buf.dtype)
+            new = column_buffer(capacity, buf.dtype)
             new[: self.rows] = buf[: self.rows]
             return new
 
@@ -92,6 +93,21 @@ class Samples:
         # The columns are the buffers' filled part, never written again (later samples go
         # after it, or into a grown buffer): copying them into blocks would only cost.
         return pd.DataFrame(out, copy=False)
+
+
+def column_buffer(capacity: int, dtype: np.dtype) -> np.ndarray:
+    """An empty array of ``capacity`` items of ``dtype`` whose memory is touched only where
+    written, in pages of 4 KiB: numpy asks for huge pages (2 MiB) for large arrays, and where
+    the kernel compacts memory to find one at its first write (transparent huge pages'
+    ``defrag = madvise``, a common default) that took ~5 ms a page in a 10,000-robot run on
+    the benchmark machine, the 512 small pages' faults ~1 ms. Arrays of objects: numpy's."""
+    dtype = np.dtype(dtype)
+    if dtype.hasobject or capacity == 0:
+        return np.empty(capacity, dtype=dtype)
+    memory = mmap.mmap(-1, capacity * dtype.itemsize)
+    if hasattr(mmap, "MADV_NOHUGEPAGE"):  # where huge pages are always used unless refused
+        memory.madvise(mmap.MADV_NOHUGEPAGE)
+    return np.frombuffer(memory, dtype=dtype, count=capacity)
 
 
 # The role labels by code, in the column pandas makes of a list of labels (its string
@@ -158,6 +174,23 @@ def belief_counts(
     in_reach = np.zeros(n, dtype=bool)
     in_reach[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
     return believed_n, true_n, stale_n, true_n - (believed_n - stale_n), in_reach | (role == LEADER)
+
+
+def sample_rows(
+    ids: np.ndarray,
+    records: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    role: np.ndarray,
+    leader: np.ndarray,
+    heard: np.ndarray,
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
+    """What a sample takes from the tables: everyone's groups
+    (:func:`protocols.clustering.membership`) and who believes whom (:func:`belief_rows`);
+    the compiled twin reads the tables once for both."""
+    groups = membership(ids, records, now, tau_s, symmetric, role, leader)
+    return groups, belief_rows(ids, records, now, tau_s, heard)
 
 
 class Beliefs(NamedTuple):
@@ -233,8 +266,9 @@ class Stack:
         self._beliefs = Samples()
         self._neighbour_beliefs = Samples()
         kernels = load("protocols._kernels", n)
-        # The compiled twins of belief_rows and belief_counts, past
+        # The compiled twins of sample_rows, belief_rows and belief_counts, past
         # netsim.compiled.SMALL_RUN_ROBOTS robots.
+        self._sample_rows = kernels.sample_rows if kernels is not None else sample_rows
         self._belief_rows = kernels.belief_rows if kernels is not None else belief_rows
         self._belief_counts = kernels.belief_counts if kernels is not None else belief_counts
 
@@ -328,14 +362,17 @@ class Stack:
         return robot[order], other[order], xy[other[order]]
 
     # -- ground truth beside belief ----------------------------------------------------
+    def _heard_keys(self, now: float) -> np.ndarray:
+        """``receiver * n + sender`` for every sender whose transmissions reach the
+        receiver now, ascending."""
+        st = self.state
+        return reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
+
     def _belief_keys(self, now: float) -> Beliefs:
         """Who believes whom live now, beside the truth (:func:`belief_rows`): every
         ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
-        st = self.state
-        # receiver * n + sender, for every sender whose transmissions reach the receiver.
-        heard_keys = reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
         table = self.table
-        return Beliefs(*self._belief_rows(table.id, table.data, now, table.tau_s, heard_keys))
+        return Beliefs(*self._belief_rows(table.id, table.data, now, table.tau_s, self._heard_keys(now)))
 
     def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
@@ -380,12 +417,15 @@ class Stack:
         return {"robot": b.robot, "neighbour": b.neighbour, "believed": b.believed, "in_range": b.in_range}
 
     def _sampler(self, interval: float):
-        env = self.env
+        env, table, roles = self.env, self.table, self.roles
         while True:
             now = env.now
-            robot, group, primary = self.clustering.membership(now)
+            heard = self._heard_keys(now)
+            (robot, group, primary), rows = self._sample_rows(
+                table.id, table.data, now, table.tau_s, self.clustering.symmetric, roles.role, roles.leader, heard
+            )
             self._groups.add(now, {"robot": robot, "group": group, "primary": primary})
-            keys = self._belief_keys(now)
+            keys = Beliefs(*rows)
             self._beliefs.add(now, self._belief_columns(now, keys))
             self._neighbour_beliefs.add(now, self._neighbour_belief_columns(now, keys))
             yield env.timeout(interval)

@@ -3,7 +3,7 @@ twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effe
 leader's group size (clustering.group_size), the known leaders and a leader's members in a
 row of the table (clustering.leader_slots, mate_slots), everyone's groups
 (clustering.membership), who relays a flooded message (relay.relays) and the samples of
-beliefs beside the truth (stack.belief_rows, belief_counts); and the numpy
+beliefs beside the truth (stack.belief_rows, belief_counts, sample_rows); and the numpy
 ``relays`` keeps the relaying rule."""
 
 import numpy as np
@@ -15,7 +15,7 @@ from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROL
 from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
-from protocols.stack import belief_counts, belief_rows, believed_keys
+from protocols.stack import belief_counts, belief_rows, believed_keys, sample_rows
 
 pytest.importorskip("numba")
 
@@ -223,6 +223,26 @@ def test_compiled_belief_rows_equal_numpy():
         only_heard += int((~a[2] & a[3]).sum())
         only_believed += int((a[2] & ~a[3]).sum())
     assert min(both, only_heard, only_believed) > 50
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_sample_rows_equal_numpy(symmetric):
+    """A sample's one pass over the tables gives everyone's groups and who believes whom
+    as the numpy membership and belief rows do (no robots, one, empty tables included)."""
+    rng = np.random.default_rng(29)
+    gateways = 0
+    for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (30, 8)] * 8:
+        now = 10.0
+        ids, records, heard = belief_inputs(rng, n, slots, now)
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = np.where(role == MEMBER, rng.integers(0, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
+        args = (ids, records, now, TAU_S, symmetric, role, leader, heard)
+        (ga, ra), (gb, rb) = kernels.sample_rows(*args), sample_rows(*args)
+        assert [x.tolist() for x in ga] == [x.tolist() for x in gb]
+        assert [x.tolist() for x in ra] == [x.tolist() for x in rb]
+        assert [x.dtype for x in (*ga, *ra)] == [x.dtype for x in (*gb, *rb)]
+        gateways += int((~ga[2]).sum())
+    assert gateways > 20
 
 
 def test_compiled_belief_counts_equal_numpy():
