@@ -123,43 +123,35 @@ def near_pairs(pos, r, box):
     r2 = r * r * (1.0 + 1e-9)
     cells_x, cells_y, cell, start, members = grid(pos, r, box)
     n_cells = cells_x * cells_y
+    wrap = box > 0.0 and n_cells > 1
+    # The positions in cell order: a row of three cells' candidates contiguous in memory.
+    px, py = np.empty(n), np.empty(n)
+    for m in range(n):
+        px[m], py[m] = pos[members[m], 0], pos[members[m], 1]
     out_i = np.empty(16 * n + 16, np.int64)
     out_j = np.empty(16 * n + 16, np.int64)
+    spans = np.empty((6, 2), np.int64)
     k = 0
-    wrap = box > 0.0 and n_cells > 1
     for i in range(n):
-        cy, cx = cell[i] // cells_x, cell[i] % cells_x
-        for dy in range(-1, 2):
-            ny = cy + dy
-            if wrap:
-                ny %= cells_y
-            elif ny < 0 or ny >= cells_y:
-                continue
-            for dx in range(-1, 2):
-                nx = cx + dx
-                if wrap:
-                    nx %= cells_x
-                elif nx < 0 or nx >= cells_x:
-                    continue
-                c = ny * cells_x + nx
-                if n_cells == 1 and (dx != 0 or dy != 0):
-                    continue
-                for m in range(start[c], start[c + 1]):
-                    j = members[m]
-                    if j <= i:
-                        continue
-                    ddx = pos[j, 0] - pos[i, 0]
-                    ddy = pos[j, 1] - pos[i, 1]
-                    if box > 0.0:
-                        ddx -= box * np.rint(ddx / box)
-                        ddy -= box * np.rint(ddy / box)
-                    if ddx * ddx + ddy * ddy <= r2:
-                        if k == len(out_i):
-                            out_i = np.concatenate((out_i, np.empty(k, np.int64)))
-                            out_j = np.concatenate((out_j, np.empty(k, np.int64)))
-                        out_i[k] = i
-                        out_j[k] = j
-                        k += 1
+        n_spans = _row_spans(cell[i] // cells_x, cell[i] % cells_x, cells_x, cells_y, wrap, spans)
+        xi, yi = pos[i, 0], pos[i, 1]
+        for sp in range(n_spans):
+            lo, hi = start[spans[sp, 0]], start[spans[sp, 1]]
+            if len(out_i) - k < hi - lo:
+                out_i = np.concatenate((out_i, np.empty(len(out_i) + hi - lo, np.int64)))
+                out_j = np.concatenate((out_j, np.empty(len(out_j) + hi - lo, np.int64)))
+            for m in range(lo, hi):
+                j = members[m]
+                ddx = px[m] - xi
+                ddy = py[m] - yi
+                if box > 0.0:
+                    ddx -= box * np.rint(ddx / box)
+                    ddy -= box * np.rint(ddy / box)
+                # No branch on the outcome (a coin toss for the processor): every candidate
+                # is written, counted if it is a pair.
+                out_i[k] = i
+                out_j[k] = j
+                k += (ddx * ddx + ddy * ddy <= r2) & (j > i)
     pairs = np.empty((k, 2), np.int64)
     pairs[:, 0] = out_i[:k]
     pairs[:, 1] = out_j[:k]
@@ -193,7 +185,8 @@ def neighbour_lists(pairs, n):
 @numba.njit(cache=True, nogil=True)
 def _row_spans(cy, cx, cells_x, cells_y, wrap, spans):
     """The cells next to cell ``(cy, cx)`` (itself included), as at most six spans
-    ``[lo, hi)`` of consecutive (row-major) cell numbers in ``spans``; how many."""
+    ``[lo, hi)`` of consecutive (row-major) cell numbers in ``spans``; how many. In the
+    order of ``dy, dx = -1, 0, 1`` (a row's wrapped cell first on its left edge)."""
     if cells_x * cells_y == 1:
         spans[0, 0], spans[0, 1] = 0, 1
         return 1
@@ -209,8 +202,8 @@ def _row_spans(cy, cx, cells_x, cells_y, wrap, spans):
             spans[k, 0], spans[k, 1] = row + max(cx - 1, 0), row + min(cx + 1, cells_x - 1) + 1
             k += 1
         elif cx == 0:
-            spans[k, 0], spans[k, 1] = row, row + 2
-            spans[k + 1, 0], spans[k + 1, 1] = row + cells_x - 1, row + cells_x
+            spans[k, 0], spans[k, 1] = row + cells_x - 1, row + cells_x
+            spans[k + 1, 0], spans[k + 1, 1] = row, row + 2
             k += 2
         elif cx == cells_x - 1:
             spans[k, 0], spans[k, 1] = row + cx - 1, row + cx + 1
