@@ -228,7 +228,7 @@ def membership(ids, records, now, tau_s, symmetric, role, leader):
     return robot[:m], group[:m], primary[:m]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _membership_row(ids_row, records_row, now, tau_s, symmetric, role, own, r, robot, group, primary, m):
     """Robot ``r``'s rows of :func:`membership` (``role``, leader ``own``, its row of the
     tables), written from ``m`` on; returns the next free row. A slot's record is read only
@@ -324,7 +324,7 @@ def _belief_arrays(n, slots, n_heard):
     return robot, neighbour, believed, in_range, indptr
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, out, k, p):
     """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` from ``k`` on, its
     heard keys from ``heard[p]`` on; returns the next ``k`` and ``p``. A slot's record is
