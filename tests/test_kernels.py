@@ -360,3 +360,40 @@ def test_reach_keys_where_the_grid_would_not_fit():
         ranges = rng.uniform(5.0, 60.0, len(pos))
         assert reach_keys(pos, ranges).tolist() == reach_keys_of_pairs(pos, ranges, None).tolist()
     assert len(reach_keys(spread, 60.0)) > 100
+
+
+@pytest.mark.parametrize("torus", [False, True])
+def test_near_pairs_order_is_by_robot_then_cells_then_ids(torus):
+    """The grid's pairs come in one fixed order (the link solvers emit events in it): by
+    robot ``i``, then its cells row by row (``dy, dx = -1, 0, 1``, wrapped on a torus),
+    then the other robot's id in the cell; a layout of one cell and a torus narrower than
+    three cells included."""
+    rng = np.random.default_rng(33)
+    side = 1000.0
+    for n, r in ((300, 50.0), (300, 120.0), (40, 400.0), (60, 2000.0)):
+        pos = rng.uniform(0, side, (n, 2))
+        box = side if torus else 0.0
+        cells_x, cells_y, cell, start, members = core_kernels.grid(pos, r, box)
+        want = []
+        for i in range(n):
+            cy, cx = divmod(int(cell[i]), cells_x)
+            seen = set()
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    ny, nx = cy + dy, cx + dx
+                    if torus:
+                        ny, nx = ny % cells_y, nx % cells_x
+                    elif not (0 <= ny < cells_y and 0 <= nx < cells_x):
+                        continue
+                    c = ny * cells_x + nx
+                    if c in seen:  # one cell (or a torus of one): each cell once
+                        continue
+                    seen.add(c)
+                    for j in members[start[c] : start[c + 1]].tolist():
+                        d = pos[j] - pos[i]
+                        if torus:
+                            d -= box * np.rint(d / box)
+                        if j > i and d[0] * d[0] + d[1] * d[1] <= r * r * (1.0 + 1e-9):
+                            want.append((i, j))
+        got = [tuple(p) for p in core_kernels.near_pairs(pos, r, box).tolist()]
+        assert got == want and len(want) > 20
