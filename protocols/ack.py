@@ -224,6 +224,11 @@ class AckBeacon:
         self.listeners: list[AckListener] = []
         # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
         self.before_send: list[Callable[[int, float], None]] = []
+        # Set by a protocol whose leaders announce their group's size (the clustering) when
+        # the compiled Ack works it out (protocols._kernels.make_sized_ack) in place of a
+        # hook: whose announced size is other than 1, and whether links are symmetric.
+        self.sized: np.ndarray | None = None
+        self.sized_symmetric = True
         self.phase_s = np.zeros(n)
         # Receptions ignored because a newer Ack of the same sender had arrived first.
         self.stale_acks = 0
@@ -267,12 +272,19 @@ class AckBeacon:
         k = table.kernels
         if k is not None:
             # The same work in one compiled call (protocols._kernels.make_ack).
-            st, roles = self.state, self.roles
-            x, y, seq, role, leader, size, resign, heard, record = k.make_ack(
-                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
-                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
-                self.role_sent, self.degree_sent,
-            )  # fmt: skip
+            st, roles, sized = self.state, self.roles, self.sized
+            if sized is None:
+                x, y, seq, role, leader, size, resign, heard, record = k.make_ack(
+                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
+                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
+                    self.role_sent, self.degree_sent,
+                )  # fmt: skip
+            else:
+                x, y, seq, role, leader, size, resign, heard, record = k.make_sized_ack(
+                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
+                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
+                    self.role_sent, self.degree_sent, sized, self.sized_symmetric,
+                )  # fmt: skip
             return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
         x, y = self.state.position(i, now)
         seq = int(self.seq[i]) + 1

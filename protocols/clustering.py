@@ -237,6 +237,27 @@ def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: boo
     return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
 
 
+def announced_size(
+    role: np.ndarray,
+    sizes: np.ndarray,
+    sized: np.ndarray,
+    records_row: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    i: int,
+) -> None:
+    """Before robot ``i``'s Ack: the group size it announces, in ``sizes``: a leader its
+    :func:`group_size`, anyone else 1 (written only when it was not: ``sized`` marks whose
+    size is other than 1)."""
+    if role[i] == LEADER:
+        sizes[i] = group_size(records_row, now, tau_s, symmetric, i)
+        sized[i] = True
+    elif sized[i]:
+        sizes[i] = 1
+        sized[i] = False
+
+
 def leader_slots(
     ids_row: np.ndarray, records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, exclude: int
 ) -> np.ndarray:
@@ -309,7 +330,7 @@ class Clustering:
         # undecided robot's, a resignation) does something only to its sender's members.
         self._members_of = [0] * st.n
         # Whose announced group size may be other than 1 (it last sent an Ack as a leader).
-        self._sized = [False] * st.n
+        self._sized = np.zeros(st.n, dtype=bool)
         declare_roles(parts.trace)
         # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
         # membership, past netsim.compiled.SMALL_RUN_ROBOTS robots.
@@ -321,7 +342,11 @@ class Clustering:
         self._mate_slots = k.mate_slots if k is not None else mate_slots
         self._membership = k.membership if k is not None else membership
         beacon.listeners.append(self.on_ack)
-        beacon.before_send.append(self._before_ack)
+        if beacon.table.kernels is not None:
+            # The hook's work inside the compiled Ack (protocols._kernels.make_sized_ack).
+            beacon.sized, beacon.sized_symmetric = self._sized, self.symmetric
+        else:
+            beacon.before_send.append(self._before_ack)
 
     def start(self) -> None:
         roles, now = self.roles, self.env.now
@@ -370,14 +395,10 @@ class Clustering:
         return np.flatnonzero(np.bincount(robot, minlength=self.state.n) > 1)
 
     def _before_ack(self, i: int, now: float) -> None:
-        # A leader announces its group's size, anyone else 1 (written only when it was not).
-        if self.roles.role[i] == LEADER:
-            table = self.table
-            self.beacon.group_size[i] = self._group_size(table.data[i], now, table.tau_s, self.symmetric, i)
-            self._sized[i] = True
-        elif self._sized[i]:
-            self.beacon.group_size[i] = 1
-            self._sized[i] = False
+        table = self.table
+        announced_size(
+            self.roles.role, self.beacon.group_size, self._sized, table.data[i], now, table.tau_s, self.symmetric, i
+        )
 
     # -- transitions ---------------------------------------------------------------------
     def _set(self, i: int, event: str, leader: int, now: float) -> None:

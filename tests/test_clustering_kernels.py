@@ -227,3 +227,44 @@ def test_gateways_mean_counts_robots_in_two_groups_per_sample():
         per_robot = groups.groupby(["t_s", "robot"]).size()
         expected = float((per_robot > 1).groupby(level="t_s").sum().mean())
         assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy()) == expected
+
+
+def _clustering_after(monkeypatch, seconds: float, compiled: bool):
+    """The clustering on 30 robots within a few ranges of each other, run for ``seconds``:
+    groups formed, tables filled; compiled loops or numpy."""
+    from tests.fixtures import clustering
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
+    rng = np.random.default_rng(8)
+    sim, stack = clustering(rng.uniform(0, 60, (30, 2)), core={"range_m": 25.0})
+    sim.run(until_s=seconds)
+    return sim, stack
+
+
+def test_compiled_sized_ack_equals_numpy(monkeypatch):
+    """An Ack built in one compiled call with the group size its sender announces (a
+    leader's: 1 + its live two-way members; anyone else's 1; make_sized_ack) is the one the
+    numpy hook (clustering.announced_size) and the numpy Ack build, and leaves the same
+    sizes and marks of who is sized."""
+    (sim_a, a), (sim_b, b) = _clustering_after(monkeypatch, 8.0, True), _clustering_after(monkeypatch, 8.0, False)
+    assert a.beacon.sized is not None and b.beacon.sized is None
+    rng = np.random.default_rng(9)
+    now = sim_a.env.now
+    sizes = []
+    for k in range(300):
+        if k == 150:  # the rest as if ranges differed: one-way links do not count
+            a.clustering.symmetric = a.beacon.sized_symmetric = b.clustering.symmetric = False
+        i = int(rng.integers(30))
+        role, leader = rng.choice([UNDECIDED, MEMBER, ALPHA, ALPHA]), rng.integers(-1, 30)
+        for stack in (a, b):
+            stack.roles.role[i], stack.roles.leader[i] = role, leader
+        ack_a, ack_b = a.beacon.make_ack(i), b.beacon.make_ack(i)
+        assert ack_a._replace(heard=None, record=None) == ack_b._replace(heard=None, record=None)
+        assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
+        sizes.append(ack_a.group_size)
+        now += 0.01
+        sim_a.env._now = sim_b.env._now = now
+    for name in ("group_size", "seq", "role_sent", "degree_sent"):
+        assert np.array_equal(getattr(a.beacon, name), getattr(b.beacon, name)), name
+    assert np.array_equal(a.clustering._sized, b.clustering._sized)
+    assert max(sizes) > 3 and sizes.count(1) > 50
