@@ -36,7 +36,7 @@ from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from protocols.neighbours import DEGREE, EMPTY_RECORD, NeighbourTable
-from protocols.roles import ROLES_SCHEMA, Roles, declare_roles
+from protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 
 @dataclass(frozen=True)
@@ -222,6 +222,11 @@ class AckBeacon:
         # Leaders that announce they are giving up leadership set this for their next Ack.
         self.resign_pending = np.zeros(n, dtype=bool)
         self.listeners: list[AckListener] = []
+        # Listeners told, before those, only of the Acks that announce a leader and of those
+        # whose sender is marked (nonzero) in ``watched``: the clustering's (no other Ack
+        # changes anything there; most Acks are neither, and cost no call).
+        self.leader_listeners: list[AckListener] = []
+        self.watched: list[int] = [0] * n
         # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
         self.before_send: list[Callable[[int, float], None]] = []
         # Set by a protocol whose leaders announce their group's size (the clustering) when
@@ -311,6 +316,9 @@ class AckBeacon:
             receivers, hears_me = receivers[fresh], hears_me[fresh]
             if len(receivers) == 0:
                 return
+        if self.leader_listeners and (ack.role == LEADER or self.watched[ack.sender]):
+            for listener in self.leader_listeners:
+                listener(now, ack, receivers, hears_me)
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
 

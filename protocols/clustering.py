@@ -39,6 +39,7 @@ from enum import StrEnum
 from typing import NamedTuple
 
 import numpy as np
+import pandas as pd
 
 from netsim.compiled import load
 from netsim.plugins import Parts
@@ -328,10 +329,16 @@ class Clustering:
         self.leader_since = np.full(st.n, np.inf)
         # How many members each robot has now: an Ack that does not lead (a member's, an
         # undecided robot's, a resignation) does something only to its sender's members.
-        self._members_of = [0] * st.n
+        # The beacon's list: it tells on_ack of no other Ack but a leader's.
+        self._members_of = beacon.watched
         # Whose announced group size may be other than 1 (it last sent an Ack as a leader).
         self._sized = np.zeros(st.n, dtype=bool)
         declare_roles(parts.trace)
+        # The role changes (the roles table), a list per field of RoleChange: a record per
+        # change (10^5 in a 10,000-robot run) would be one more object for the garbage
+        # collector to walk, again and again, until the end.
+        self._changes: tuple[list, list, list, list, list] = ([], [], [], [], [])
+        parts.trace.add_frame("roles", self.roles_frame)
         # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
         # membership, past netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = k = load("protocols._kernels", st.n)
@@ -341,7 +348,7 @@ class Clustering:
         self._leader_slots = k.leader_slots if k is not None else leader_slots
         self._mate_slots = k.mate_slots if k is not None else mate_slots
         self._membership = k.membership if k is not None else membership
-        beacon.listeners.append(self.on_ack)
+        beacon.leader_listeners.append(self.on_ack)
         if beacon.table.kernels is not None:
             # The hook's work inside the compiled Ack (protocols._kernels.make_sized_ack).
             beacon.sized, beacon.sized_symmetric = self._sized, self.symmetric
@@ -353,7 +360,7 @@ class Clustering:
         roles.role[:] = UNDECIDED
         roles.leader[:] = NO_LEADER
         for i in range(self.state.n):
-            self._record(RoleChange(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START))
+            self._record(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START)
         self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
 
     # -- what a robot knows --------------------------------------------------------------
@@ -413,12 +420,17 @@ class Clustering:
         st.leader[i] = leader
         self.leader_since[i] = now if role == LEADER else np.inf
         self.role_changes[i] += 1
-        self._record(RoleChange(now, i, ROLE_NAMES[role], leader, cause))
+        self._record(now, i, ROLE_NAMES[role], leader, cause)
 
-    def _record(self, change: RoleChange) -> None:
-        self.trace.emit("roles", change)
+    def _record(self, t_s: float, robot: int, role: str, leader: int, cause: str) -> None:
+        for column, value in zip(self._changes, (t_s, robot, role, leader, cause)):
+            column.append(value)
         if self.events is not None and self.events.wants("role_change"):
-            self.events.emit("role_change", change)
+            self.events.emit("role_change", RoleChange(t_s, robot, role, leader, cause))
+
+    def roles_frame(self) -> pd.DataFrame:
+        """The ``roles`` table: every role change, in order."""
+        return pd.DataFrame(list(zip(*self._changes)), columns=list(RoleChange._fields))
 
     def _join(self, i: int, now: float, first_heard: int | None = None, exclude: int = NO_LEADER) -> bool:
         """Rule 2 for robot ``i`` (undecided) from what its table knows; False if no leader is known."""
