@@ -44,6 +44,7 @@ class DeadlineTimers:
         # events recognise themselves.
         self.armed_s = np.full(n, np.inf)
         self._generation = [0] * n  # read one at a time: a list is cheaper than an array
+        self._fire_bound = self._fire  # one bound method, not one per arming
 
     def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
         """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
@@ -82,20 +83,24 @@ class DeadlineTimers:
         gen = self._generation[i] + 1
         self._generation[i] = gen
         self.armed_s[i] = at_s
-        delay = max(0.0, at_s - self.env.now)
+        delay = at_s - self.env._now  # type: ignore[attr-defined]  # the clock, without the property
+        if not delay > 0.0:
+            delay = 0.0  # as max(0.0, delay)
         if self.agenda is not None:
-            self.agenda.at(delay, NORMAL, partial(self._fire, i, gen))
+            self.agenda.at(delay, NORMAL, partial(self._fire_bound, i, gen))
         else:
-            scheduled_event(self.env, delay, NORMAL, partial(self._fire, i, gen))
+            scheduled_event(self.env, delay, NORMAL, partial(self._fire_bound, i, gen))
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:
         if gen != self._generation[i]:
             return
-        self.armed_s[i] = math.inf
-        deadline = float(self.deadline_s[i])
-        now = self.env.now
+        deadline = self.deadline_s.item(i)
+        now = self.env._now  # type: ignore[attr-defined]
         if deadline <= now:
+            self.armed_s[i] = math.inf
             self.deadline_s[i] = math.inf
             self.on_expire(i, now)
         elif deadline != math.inf:
-            self._arm(i, deadline)
+            self._arm(i, deadline)  # moved later: armed there (its armed_s written there)
+        else:
+            self.armed_s[i] = math.inf

@@ -152,6 +152,41 @@ def make_sized_ack(
     )  # fmt: skip
 
 
+# Rule 2's join policies (protocols.clustering.JOIN_CODES).
+JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def join_choice(ids_row, records_row, now, tau_s, symmetric, exclude, x_m, y_m, policy, first_heard):
+    """Rule 2 from a row of the table (:func:`protocols.clustering.join_choice`): the leader
+    that a robot at ``(x_m, y_m)`` joins among its live two-way neighbours whose last Ack
+    said they were leaders, but ``exclude``, by the join ``policy`` (its code), and the
+    first slot of that leader in the row; ``(-1, -1)`` when it knows no leader."""
+    best, best_d = -1, np.inf
+    for s in range(len(ids_row)):
+        rec = records_row[s]
+        if not (_two_way(rec, now, tau_s, symmetric) and rec[ROLE] == LEADER_ROLE and ids_row[s] != exclude):
+            continue
+        j = ids_row[s]
+        if policy == JOIN_LOWEST_ID:
+            if best < 0 or j < best:
+                best = j
+            continue
+        if policy == JOIN_FIRST_HEARD and j == first_heard:
+            best = j
+            break
+        d = np.hypot(rec[X] - x_m, rec[Y] - y_m)
+        if best < 0 or d < best_d or (d == best_d and j < best):
+            best, best_d = j, d
+    if best < 0:
+        return -1, -1
+    for s in range(len(ids_row)):
+        rec = records_row[s]
+        if ids_row[s] == best and _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == LEADER_ROLE:
+            return best, s
+    return -1, -1  # not reached: best is one of those slots
+
+
 # Roles (protocols.roles).
 UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 

@@ -126,6 +126,10 @@ JOIN: dict[JoinPolicy, Callable[[list[Candidate], int | None], int]] = {
 }
 
 
+# The join policies' codes in the compiled join_choice (protocols._kernels).
+JOIN_CODES = {JoinPolicy.NEAREST: 0, JoinPolicy.FIRST_HEARD: 1, JoinPolicy.LOWEST_ID: 2}
+
+
 def choose_leader(policy: str, candidates: list[Candidate], first_heard: int | None = None) -> int:
     """Rule 2: which of the candidate leaders to join.
 
@@ -266,6 +270,31 @@ def leader_slots(
     but ``exclude``."""
     mask = two_way(records_row, now, tau_s, symmetric) & (records_row[:, ROLE] == LEADER) & (ids_row != exclude)
     return np.flatnonzero(mask)
+
+
+def join_choice(
+    ids_row: np.ndarray,
+    records_row: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    exclude: int,
+    x_m: float,
+    y_m: float,
+    policy: str,
+    first_heard: int | None,
+) -> tuple[int, int]:
+    """Rule 2 from a row of the table: the leader that a robot at ``(x_m, y_m)`` joins
+    (:func:`choose_leader`) among the live two-way neighbours whose last Ack said they were
+    leaders, but ``exclude`` (:func:`leader_slots`; their distances from the positions their
+    Acks carried), and its first slot in the row; ``(NO_LEADER, -1)`` when there is none."""
+    slots = leader_slots(ids_row, records_row, now, tau_s, symmetric, exclude)
+    if not len(slots):
+        return NO_LEADER, -1
+    dist = np.hypot(records_row[slots, X] - x_m, records_row[slots, Y] - y_m)
+    ids = ids_row[slots].tolist()
+    leader = choose_leader(policy, [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())], first_heard)
+    return leader, int(slots[ids.index(leader)])
 
 
 def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, leader: int) -> np.ndarray:
@@ -429,18 +458,32 @@ class Clustering:
             self.events.emit("role_change", RoleChange(t_s, robot, role, leader, cause))
 
     def roles_frame(self) -> pd.DataFrame:
-        """The ``roles`` table: every role change, in order."""
-        return pd.DataFrame(list(zip(*self._changes)), columns=list(RoleChange._fields))
+        """The ``roles`` table: every role change, in order (the frame the trace makes of its
+        records: columns typed from their values, all ``object`` when there are none)."""
+        if not self._changes[0]:
+            return pd.DataFrame([], columns=list(RoleChange._fields))
+        return pd.DataFrame(dict(zip(RoleChange._fields, self._changes)))
 
     def _join(self, i: int, now: float, first_heard: int | None = None, exclude: int = NO_LEADER) -> bool:
         """Rule 2 for robot ``i`` (undecided) from what its table knows; False if no leader is known."""
-        candidates = self.known_leaders(i, now, exclude)
-        if not candidates:
-            return False
-        leader = choose_leader(self.join_policy, candidates, first_heard)
+        table = self.table
+        k = self.kernels
+        if k is not None:
+            x, y = self.state.position(i, now)
+            leader, slot = k.join_choice(
+                table.id[i], table.data[i], now, table.tau_s, self.symmetric, exclude, x, y,
+                JOIN_CODES[self.join_policy], -2 if first_heard is None else first_heard,
+            )  # fmt: skip
+            if leader < 0:
+                return False
+        else:
+            candidates = self.known_leaders(i, now, exclude)
+            if not candidates:
+                return False
+            leader = choose_leader(self.join_policy, candidates, first_heard)
+            slot = table.entry(i, leader)
         self._set(i, "leader_heard", leader, now)
-        slot = self.table.entry(i, leader)
-        self.timers.restart(i, self.table.data[i, slot, LAST_HEARD] + self.tau_s)
+        self.timers.restart(i, table.data[i, slot, LAST_HEARD] + self.tau_s)
         return True
 
     def _leader_gone(self, i: int, now: float, event: str) -> None:

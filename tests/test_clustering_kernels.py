@@ -10,8 +10,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from protocols.clustering import ack_effects, group_size, leader_slots, mate_slots, membership
-from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE
+from protocols.clustering import (
+    JOIN_CODES,
+    JoinPolicy,
+    ack_effects,
+    group_size,
+    join_choice,
+    leader_slots,
+    mate_slots,
+    membership,
+)
+from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
 from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
@@ -268,3 +277,39 @@ def test_compiled_sized_ack_equals_numpy(monkeypatch):
         assert np.array_equal(getattr(a.beacon, name), getattr(b.beacon, name)), name
     assert np.array_equal(a.clustering._sized, b.clustering._sized)
     assert max(sizes) > 3 and sizes.count(1) > 50
+
+
+@pytest.mark.parametrize("policy", list(JoinPolicy))
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_join_choice_equals_numpy(policy, symmetric):
+    """Rule 2 from a row of the table (the leader joined among the known ones but the one
+    excluded, by each join policy, and its slot) is the numpy choice; ties of distance go
+    to the lowest id as there."""
+    rng = np.random.default_rng(11)
+    now, joined = 10.0, 0
+    for _ in range(60):
+        ids, records = random_tables(rng, 6, 10, now)
+        # Positions on a coarse grid: equal distances (ties) happen.
+        records[:, :, X] = rng.integers(0, 4, (6, 10)).astype(float)
+        records[:, :, Y] = rng.integers(0, 4, (6, 10)).astype(float)
+        for i in range(6):
+            x, y = float(rng.integers(0, 4)), float(rng.integers(0, 4))
+            exclude = int(rng.choice([-1, *ids[i][:3].tolist()]))
+            first = rng.choice([None, *ids[i][:4].tolist()])
+            first = None if first is None else int(first)
+            a = kernels.join_choice(
+                ids[i],
+                records[i],
+                now,
+                TAU_S,
+                symmetric,
+                exclude,
+                x,
+                y,
+                JOIN_CODES[policy],
+                -2 if first is None else first,
+            )
+            b = join_choice(ids[i], records[i], now, TAU_S, symmetric, exclude, x, y, policy, first)
+            assert a == b
+            joined += a[0] >= 0
+    assert joined > 50
