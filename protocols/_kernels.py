@@ -195,13 +195,18 @@ UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def ack_effects(role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s, out):
+def ack_effects(
+    role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s, out,
+    ids, records, now, role_sent, leader_since, merge_delay_s,
+):  # fmt: skip
     """What an Ack of ``sender`` does to the clustering, from the roles before it acts, in
-    the four rows of ``out``, and how many of each (:func:`protocols.clustering.ack_effects`):
+    the rows of ``out``, and how many of the first four (:func:`protocols.clustering.ack_effects`):
     positions (in ``receivers``) of the members of ``sender``'s group; if it ``leads`` (a
     leader's Ack, not resigning), their timers over a two-way link set to ``renewed_s`` in
     ``deadline_s`` and those of them to arm (``renewed_s`` before the event armed in
-    ``armed_s``), and the undecided robots and leaders over a two-way link."""
+    ``armed_s``), the undecided robots over a two-way link, and the leaders over a two-way
+    link that may merge with ``sender`` at ``now`` (and, in row 4, the slot of ``sender`` in
+    their rows of ``ids`` and ``records``)."""
     a = b = c = d = 0
     for k in range(len(receivers)):
         r = receivers[k]
@@ -218,9 +223,21 @@ def ack_effects(role, leader, receivers, hears_me, symmetric, sender, leads, dea
         elif leads and two_way and ro == UNDECIDED:
             out[2, c] = r
             c += 1
-        elif leads and two_way and ro == LEADER_ROLE:
-            out[3, d] = r
-            d += 1
+        elif leads and two_way and ro == LEADER_ROLE and role_sent[r] == LEADER_ROLE:
+            slot = -1
+            for s in range(ids.shape[1]):
+                if ids[r, s] == sender:
+                    slot = s
+                    break
+            if slot < 0:
+                continue
+            rec = records[r, slot]
+            linked = rec[LIVE_SINCE] if symmetric else rec[BIDIR_SINCE]
+            since = max(max(linked, rec[ROLE_SINCE]), leader_since[r])
+            if not now - since < merge_delay_s:
+                out[3, d] = r
+                out[4, d] = slot
+                d += 1
     return a, b, c, d
 
 

@@ -208,30 +208,50 @@ def ack_effects(
     armed_s: np.ndarray,
     renewed_s: float,
     out: np.ndarray,
+    ids: np.ndarray,
+    records: np.ndarray,
+    now: float,
+    role_sent: np.ndarray,
+    leader_since: np.ndarray,
+    merge_delay_s: float,
 ) -> tuple[int, int, int, int]:
-    """What an Ack of ``sender`` does, from the roles before it acts, in the four rows of
-    ``out`` (each at least as long as ``receivers``; returned: how many of each): positions
+    """What an Ack of ``sender`` does, from the roles before it acts, in the rows of ``out``
+    (each at least as long as ``receivers``; returned: how many of the first four): positions
     (in ``receivers``) of the members of ``sender``'s group; and if the Ack ``leads`` (a
     leader's, not resigning), those members' timers over a two-way link restart at
     ``renewed_s`` (written in the timers' ``deadline_s``; listed: those of them whose timers
-    must be armed, ``renewed_s`` before the event in ``armed_s``), and the undecided robots
-    and leaders over a two-way link (they may join or merge). Counts and a reused ``out``,
-    not four new arrays: cheaper to hand back from the compiled twin, once per Ack."""
+    must be armed, ``renewed_s`` before the event in ``armed_s``), the undecided robots over
+    a two-way link (they may join), and the leaders over a two-way link that may merge with
+    ``sender`` now (row 4: the slot of ``sender`` in their rows of the table, ``ids`` and
+    ``records``): those that announced themselves as leaders (``role_sent``) and have been
+    leaders beside ``sender`` for ``merge_delay_s`` at ``now``, counted from the latest of
+    the link known (two-way, or live when links are ``symmetric``), ``sender``'s Acks saying
+    leader, and their own leadership (``leader_since``). Counts and a reused ``out``, not new
+    arrays: cheaper to hand back from the compiled twin, once per Ack."""
     r_role = role[receivers]
     mine = (r_role == MEMBER) & (leader[receivers] == sender)
-    found = [np.flatnonzero(mine), _NONE, _NONE, _NONE]
+    found = [np.flatnonzero(mine), _NONE, _NONE, _NONE, _NONE]
     if leads:
         both_ways = hears_me | symmetric
         renew = receivers[mine & both_ways]
         deadline_s[renew] = renewed_s
+        leaders = receivers[(r_role == LEADER) & both_ways]
+        leaders = leaders[role_sent[leaders] == LEADER]
+        at = ids[leaders] == sender
+        leaders, slots = leaders[at.any(axis=1)], np.argmax(at, axis=1)[at.any(axis=1)]
+        rec = records[leaders, slots]
+        linked = rec[:, LIVE_SINCE] if symmetric else rec[:, BIDIR_SINCE]
+        since = np.maximum(np.maximum(linked, rec[:, ROLE_SINCE]), leader_since[leaders])
+        ready = ~(now - since < merge_delay_s)
         found[1:] = [
             renew[renewed_s < armed_s[renew]],
             receivers[(r_role == UNDECIDED) & both_ways],
-            receivers[(r_role == LEADER) & both_ways],
+            leaders[ready],
+            slots[ready],
         ]
-    for row, ids in zip(out, found):
-        row[: len(ids)] = ids
-    a, b, c, d = (len(ids) for ids in found)
+    for row, found_ids in zip(out, found):
+        row[: len(found_ids)] = found_ids
+    a, b, c, d = (len(found_ids) for found_ids in found[:4])
     return a, b, c, d
 
 
@@ -372,7 +392,7 @@ class Clustering:
         # membership, past netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = k = load("protocols._kernels", st.n)
         self._effects = k.ack_effects if k is not None else ack_effects
-        self._effects_out = np.empty((4, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
+        self._effects_out = np.empty((5, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
         self._group_size = k.group_size if k is not None else group_size
         self._leader_slots = k.leader_slots if k is not None else leader_slots
         self._mate_slots = k.mate_slots if k is not None else mate_slots
@@ -518,9 +538,11 @@ class Clustering:
             return
         st, timers, out = self.roles, self.timers, self._effects_out
         renewed_s = now + self.tau_s
+        table = self.table
         a, b, c, d = self._effects(
             st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender, leads,
             timers.deadline_s, timers.armed_s, renewed_s, out,
+            table.id, table.data, now, self.beacon.role_sent, self.leader_since, self.merge_delay_s,
         )  # fmt: skip
         if not leads:
             for k in out[0, :a].tolist():
@@ -532,11 +554,12 @@ class Clustering:
             return
         if b:
             timers.arm(out[1, :b], renewed_s)
-        undecided, leaders = out[2, :c].tolist(), out[3, :d].tolist()  # out is reused: read it now
+        # out is reused: read it now.
+        undecided, leaders, slots = out[2, :c].tolist(), out[3, :d].tolist(), out[4, :d].tolist()
         for r in undecided:
             self._join(r, now, first_heard=ack.sender)
-        for r in leaders:
-            self._maybe_merge(r, ack, now)
+        for r, slot in zip(leaders, slots):
+            self._merge(r, slot, ack, now)
 
     def _mutual_yield(self, r: int, other: int, now: float, two_way: bool) -> None:
         """``r`` yielded to ``other``, which (on older news) yielded to ``r``: the lower id
@@ -549,15 +572,10 @@ class Clustering:
             # The other is about to lead again: its Ack shows the link alive meanwhile.
             self.timers.restart(r, now + self.tau_s)
 
-    def _maybe_merge(self, r: int, ack: Ack, now: float) -> None:
-        if self.beacon.role_sent[r] != LEADER:
-            return  # r has not announced itself as a leader yet: its figures are not a leader's
-        slot = self.table.entry(r, ack.sender)
+    def _merge(self, r: int, slot: int, ack: Ack, now: float) -> None:
+        """Rule 5 for leader ``r``, which has announced itself as a leader and been one beside
+        the sender of ``ack`` (in ``slot`` of its row) for the merge delay (ack_effects)."""
         rows = self.table.data[r, slot]
-        linked = rows[BIDIR_SINCE] if not self.symmetric else rows[LIVE_SINCE]
-        since = max(linked, rows[ROLE_SINCE], self.leader_since[r])
-        if now - since < self.merge_delay_s:
-            return
         # What each announced in its last Ack: the same kind of information on both sides.
         me = Candidate(r, group_size=int(self.beacon.group_size[r]), degree=int(self.beacon.degree_sent[r]))
         other = Candidate(ack.sender, group_size=ack.group_size, degree=int(rows[DEGREE]))

@@ -49,11 +49,14 @@ def random_tables(rng, n, slots, now):
 @pytest.mark.parametrize("symmetric", [False, True])
 def test_compiled_ack_effects_equals_numpy(symmetric):
     """An Ack's effects (its group's members; for a leading Ack the timers it renews, which
-    of them to arm, the undecided robots and leaders it reaches over two-way links) and
-    the deadlines it writes are the numpy ones."""
+    of them to arm, the undecided robots it reaches over two-way links and the leaders that
+    may merge with its sender now, with the sender's slot in their rows) and the deadlines it
+    writes are the numpy ones."""
+    from protocols.neighbours import BIDIR_SINCE, LIVE_SINCE, ROLE_SINCE
+
     rng = np.random.default_rng(5)
-    n = 60
-    found = np.zeros(4, dtype=int)
+    n, now = 60, 10.0
+    found = np.zeros(5, dtype=int)
     for _ in range(400):
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = rng.integers(-1, 8, n).astype(np.int64)
@@ -64,14 +67,26 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
         armed_s = rng.choice([np.inf, 1.0, 4.0, 5.0, 9.0], n)
         deadline_a = rng.uniform(0.0, 10.0, n)
         deadline_b = deadline_a.copy()
+        ids, records = random_tables(rng, n, 6, now)
+        # The sender has an entry in most receivers' rows (the Ack was just recorded there).
+        has = receivers[rng.random(len(receivers)) < 0.9]
+        ids[has, rng.integers(0, 6, len(has))] = sender
+        for col in (LIVE_SINCE, BIDIR_SINCE, ROLE_SINCE):
+            records[:, :, col] = rng.choice([-np.inf, 2.0, 6.5, 8.0, 9.0, np.inf], (n, 6))
+        role_sent = rng.integers(0, 3, n)
+        leader_since = rng.choice([np.inf, 0.0, 7.0, 8.5], n)
         args = (role, leader, receivers, hears_me, symmetric, sender, leads)
-        out_a, out_b = np.full((4, n), -7), np.full((4, n), -7)
-        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0, out_a)
-        b = ack_effects(*args, deadline_b, armed_s, 4.0, out_b)
+        tables = (ids, records, now, role_sent, leader_since, 1.0)
+        out_a, out_b = np.full((5, n), -7), np.full((5, n), -7)
+        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0, out_a, *tables)
+        b = ack_effects(*args, deadline_b, armed_s, 4.0, out_b, *tables)
         assert a == b
-        assert [row[:k].tolist() for row, k in zip(out_a, a)] == [row[:k].tolist() for row, k in zip(out_b, b)]
+        counts = [*a, a[3]]
+        assert [row[:k].tolist() for row, k in zip(out_a, counts)] == [
+            row[:k].tolist() for row, k in zip(out_b, counts)
+        ]
         assert deadline_a.tobytes() == deadline_b.tobytes()
-        found += [k > 0 for k in a]
+        found += [k > 0 for k in counts]
     assert found.min() > 20
 
 
