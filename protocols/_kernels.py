@@ -187,6 +187,33 @@ def join_choice(ids_row, records_row, now, tau_s, symmetric, exclude, x_m, y_m, 
     return -1, -1  # not reached: best is one of those slots
 
 
+# Rule 6's election policies (protocols.clustering.ELECTION_CODES).
+ELECT_LOWEST_ID, ELECT_HIGHEST_DEGREE, ELECT_NONE = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def elected_in_row(ids_row, records_row, now, tau_s, symmetric, old, i, degree, policy):
+    """Rule 6 from robot ``i``'s row of the table (:func:`protocols.clustering.elected_in_row`):
+    whether ``i``, of announced ``degree``, takes over from its lost leader ``old`` among the
+    live two-way neighbours whose last Ack said they were members of ``old``, by the election
+    ``policy`` (its code)."""
+    if policy == ELECT_NONE:
+        return False
+    for s in range(len(ids_row)):
+        rec = records_row[s]
+        if not (_two_way(rec, now, tau_s, symmetric) and rec[ROLE] == MEMBER and rec[LEADER] == old):
+            continue
+        j = ids_row[s]
+        if policy == ELECT_LOWEST_ID:
+            if not i < j:
+                return False
+        else:
+            d = int(rec[DEGREE])
+            if not (degree > d or (degree == d and i < j)):
+                return False
+    return True
+
+
 # Roles (protocols.roles).
 UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 

@@ -179,6 +179,10 @@ ELECTION: dict[ElectionPolicy, Callable[[Candidate, list[Candidate]], bool]] = {
 }
 
 
+# The election policies' codes in the compiled elected_in_row (protocols._kernels).
+ELECTION_CODES = {ElectionPolicy.LOWEST_ID: 0, ElectionPolicy.HIGHEST_DEGREE: 1, ElectionPolicy.NONE: 2}
+
+
 def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
     """Rule 6: whether ``me`` takes over among the former members ``rivals`` it can hear.
 
@@ -324,6 +328,26 @@ def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: boo
     return np.flatnonzero(mask & (records_row[:, LEADER_FIELD] == leader) & (records_row[:, ROLE] == MEMBER))
 
 
+def elected_in_row(
+    ids_row: np.ndarray,
+    records_row: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    old: int,
+    i: int,
+    degree: int,
+    policy: str,
+) -> bool:
+    """Rule 6 from robot ``i``'s row of the table: whether ``i``, of announced ``degree``,
+    takes over from its lost leader ``old`` (:func:`elected`) among the former members it
+    knows (:func:`mate_slots`), each with the degree its last Ack announced."""
+    mates = mate_slots(records_row, now, tau_s, symmetric, old)
+    ids, degrees = ids_row[mates].tolist(), records_row[mates, DEGREE].tolist()
+    rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids, degrees)]
+    return elected(policy, Candidate(i, degree=degree), rivals)
+
+
 def membership(
     ids: np.ndarray,
     records: np.ndarray,
@@ -388,14 +412,14 @@ class Clustering:
         # collector to walk, again and again, until the end.
         self._changes: tuple[list, list, list, list, list] = ([], [], [], [], [])
         parts.trace.add_frame("roles", self.roles_frame)
-        # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
-        # membership, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        # The compiled twins of ack_effects, group_size, leader_slots and membership (and of
+        # join_choice and elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS
+        # robots.
         self.kernels = k = load("protocols._kernels", st.n)
         self._effects = k.ack_effects if k is not None else ack_effects
         self._effects_out = np.empty((5, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
         self._group_size = k.group_size if k is not None else group_size
         self._leader_slots = k.leader_slots if k is not None else leader_slots
-        self._mate_slots = k.mate_slots if k is not None else mate_slots
         self._membership = k.membership if k is not None else membership
         beacon.leader_listeners.append(self.on_ack)
         if beacon.table.kernels is not None:
@@ -512,14 +536,18 @@ class Clustering:
         self._set(i, event, NO_LEADER, now)
         if self._join(i, now, exclude=old):
             return
-        rows = self.table.data[i]
-        mates = self._mate_slots(rows, now, self.table.tau_s, self.symmetric, old)
-        ids = self.table.id[i][mates]
-        rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids.tolist(), rows[mates, DEGREE].tolist())]
         # Like with like: my degree as I announced it, beside theirs as they announced them
         # (all counted before the leader was lost).
-        me = Candidate(i, degree=int(self.beacon.degree_sent[i]))
-        if elected(self.election_policy, me, rivals):
+        table, degree = self.table, int(self.beacon.degree_sent[i])
+        k = self.kernels
+        if k is not None:
+            code = ELECTION_CODES[self.election_policy]
+            won = k.elected_in_row(table.id[i], table.data[i], now, table.tau_s, self.symmetric, old, i, degree, code)
+        else:
+            won = elected_in_row(
+                table.id[i], table.data[i], now, table.tau_s, self.symmetric, old, i, degree, self.election_policy
+            )
+        if won:
             self._set(i, "elected", i, now)
             self.timers.cancel(i)
         else:

@@ -1,7 +1,9 @@
 """The clustering's compiled loops (protocols/_kernels.py) compute exactly what their numpy
 twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effects), a
-leader's group size (clustering.group_size), the known leaders and a leader's members in a
-row of the table (clustering.leader_slots, mate_slots), everyone's groups
+leader's group size (clustering.group_size) and the Ack announcing it (make_sized_ack), the
+known leaders and a leader's members in a row of the table (clustering.leader_slots,
+mate_slots), rule 2's choice and rule 6's verdict from a row (clustering.join_choice,
+elected_in_row), everyone's groups
 (clustering.membership), who relays a flooded message (relay.relays) and the belief keys
 (stack.believed_keys, union_sorted); and the numpy
 ``relays`` keeps the relaying rule."""
@@ -11,9 +13,12 @@ import pandas as pd
 import pytest
 
 from protocols.clustering import (
+    ELECTION_CODES,
     JOIN_CODES,
+    ElectionPolicy,
     JoinPolicy,
     ack_effects,
+    elected_in_row,
     group_size,
     join_choice,
     leader_slots,
@@ -328,3 +333,28 @@ def test_compiled_join_choice_equals_numpy(policy, symmetric):
             assert a == b
             joined += a[0] >= 0
     assert joined > 50
+
+
+@pytest.mark.parametrize("policy", list(ElectionPolicy))
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_elected_in_row_equals_numpy(policy, symmetric):
+    """Rule 6 from a row of the table (whether a robot takes over among the former members
+    of its lost leader it knows, by each election policy; ties of degree to the lowest id)
+    is the numpy verdict."""
+    from protocols.neighbours import DEGREE
+
+    rng = np.random.default_rng(12)
+    now, verdicts = 10.0, []
+    for _ in range(80):
+        ids, records = random_tables(rng, 8, 6, now)
+        records[:, :, DEGREE] = rng.integers(0, 4, (8, 6))
+        records[:, :, LEADER] = rng.integers(0, 3, (8, 6))  # mates of a few leaders
+        for i in range(8):
+            old, degree = int(rng.integers(0, 3)), int(rng.integers(0, 4))
+            a = kernels.elected_in_row(
+                ids[i], records[i], now, TAU_S, symmetric, old, i, degree, ELECTION_CODES[policy]
+            )
+            b = elected_in_row(ids[i], records[i], now, TAU_S, symmetric, old, i, degree, policy)
+            assert a == b
+            verdicts.append(a)
+    assert policy == ElectionPolicy.NONE or 50 < sum(verdicts) < len(verdicts) - 50
