@@ -75,6 +75,22 @@ class Agenda:
         if (not wakes or entry < wakes[0]) and not self._running:
             self._arm(entry)
 
+    def key(self, delay_s: float, priority: int) -> tuple[float, int, int]:
+        """The key ``(t, priority, id)`` of an entry scheduled now ``delay_s`` ahead (its id
+        drawn now), for :meth:`at_key`."""
+        return (self.env._now + delay_s, priority, next(self._ids))  # type: ignore[attr-defined]
+
+    def at_key(self, key: tuple[float, int, int], fn: Callable[[], object]) -> None:
+        """Call ``fn()`` at ``key``, drawn earlier by :meth:`key`: it runs where an entry
+        scheduled at that moment would have run. For a caller that keeps entries of its own
+        and queues here only the first (:class:`netsim.timers.DeadlineTimers`); a key may be
+        queued only once."""
+        entry = (key[0], key[1], key[2], fn)
+        heappush(self._heap, entry)
+        wakes = self._wakes
+        if (not wakes or entry < wakes[0]) and not self._running:
+            self._arm(entry)
+
     def at_in_order(self, delay_s: float, priority: int, fn: Callable[[], object]) -> None:
         """:meth:`at`, for a caller whose entries mostly come in key order (the same delay
         and priority each time): those are queued, not heaped (module notes)."""

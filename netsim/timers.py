@@ -11,9 +11,14 @@ restarted on every Ack costs one array write per Ack and at most one kernel even
 Timer events run at NORMAL priority; message deliveries run at URGENT priority, so an
 Ack that arrives at the same instant as a deadline is processed first and counts.
 
-Given an :class:`netsim.agenda.Agenda` (the channel's), a timer's events are entries on it
-rather than kernel events: the same instants in the same order (the agenda keys them as the
-kernel would), without a kernel event each.
+Given an :class:`netsim.agenda.Agenda` (the channel's), a timer's events are not kernel
+events: each gets the key the agenda would give it, ``(t, priority, id)``, at the moment it
+is armed, and goes to a heap of the timers' own; the agenda holds one entry, at the key of
+that heap's head, which runs the head. So every event runs exactly where it would have run
+as an entry of the agenda (the same instants, in the same order, ties included), while the
+agenda's heap, which every Ack tick goes through, stays as small as without timers (a heap
+twice the size costs each of its operations more than its one level: more of it is out of
+the cache), and the timers' entries hold no object for the garbage collector.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from functools import partial
+from heapq import heappop, heappush
 
 import numpy as np
 import simpy
@@ -44,6 +50,16 @@ class DeadlineTimers:
         # events recognise themselves.
         self.armed_s = np.full(n, np.inf)
         self._generation = [0] * n  # read one at a time: a list is cheaper than an array
+        self._fire_bound = self._fire  # one bound method, not one per arming
+        # With an agenda that takes keys (module notes): the events, a heap of (t, priority,
+        # id, timer, generation); the key of its head, whose entry on the agenda runs it
+        # (None: the heap is empty); and the keys queued on the agenda and not yet run (one
+        # may have been the head's and be again).
+        self._keyed = agenda is not None and hasattr(agenda, "at_key")
+        self._events: list[tuple[float, int, int, int, int]] = []
+        self._head_key: tuple[float, int, int] | None = None
+        self._queued: set[tuple[float, int, int]] = set()
+        self._run_head_bound = self._run_head
 
     def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
         """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
@@ -82,20 +98,50 @@ class DeadlineTimers:
         gen = self._generation[i] + 1
         self._generation[i] = gen
         self.armed_s[i] = at_s
-        delay = max(0.0, at_s - self.env.now)
-        if self.agenda is not None:
-            self.agenda.at(delay, NORMAL, partial(self._fire, i, gen))
+        delay = at_s - self.env._now  # type: ignore[attr-defined]  # the clock, without the property
+        if not delay > 0.0:
+            delay = 0.0  # as max(0.0, delay)
+        if self._keyed:
+            key = self.agenda.key(delay, NORMAL)  # type: ignore[union-attr]
+            heappush(self._events, (key[0], key[1], key[2], i, gen))
+            head = self._head_key
+            if head is None or key < head:
+                self._queue_head()
+        elif self.agenda is not None:
+            self.agenda.at(delay, NORMAL, partial(self._fire_bound, i, gen))
         else:
-            scheduled_event(self.env, delay, NORMAL, partial(self._fire, i, gen))
+            scheduled_event(self.env, delay, NORMAL, partial(self._fire_bound, i, gen))
+
+    def _queue_head(self) -> None:
+        """Make the head of the events the one the agenda runs next: queue its key there,
+        unless an entry of that key is queued already (it then runs the head again)."""
+        h = self._events[0]
+        key = (h[0], h[1], h[2])
+        self._head_key = key
+        if key not in self._queued:
+            self._queued.add(key)
+            self.agenda.at_key(key, partial(self._run_head_bound, key))  # type: ignore[union-attr]
+
+    def _run_head(self, key: tuple[float, int, int]) -> None:
+        self._queued.discard(key)
+        if key != self._head_key:
+            return  # an earlier event was armed since: its own entry runs it
+        _, _, _, i, gen = heappop(self._events)
+        self._head_key = None
+        self._fire(i, gen)
+        if self._head_key is None and self._events:
+            self._queue_head()
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:
         if gen != self._generation[i]:
             return
-        self.armed_s[i] = math.inf
-        deadline = float(self.deadline_s[i])
-        now = self.env.now
+        deadline = self.deadline_s.item(i)
+        now = self.env._now  # type: ignore[attr-defined]
         if deadline <= now:
+            self.armed_s[i] = math.inf
             self.deadline_s[i] = math.inf
             self.on_expire(i, now)
         elif deadline != math.inf:
-            self._arm(i, deadline)
+            self._arm(i, deadline)  # moved later: armed there (its armed_s written there)
+        else:
+            self.armed_s[i] = math.inf

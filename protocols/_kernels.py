@@ -131,6 +131,89 @@ def make_ack(
     return x, y, s, ro, le, size, resign, heard, record
 
 
+@numba.njit(cache=True, nogil=True)
+def make_sized_ack(
+    i, now, origin_m, velocity_mps, t0_s, torus, side_m, seq, resign_pending, role, leader, sizes,
+    ids, records, tau_s, empty_record, role_sent, degree_sent, sized, symmetric,
+):  # fmt: skip
+    """:func:`make_ack`, after the clustering's hook has set the group size the Ack
+    announces (:func:`protocols.clustering.announced_size`): a leader's is 1 + its live
+    two-way members in its row, anyone else's 1 (``sizes``, written back; ``sized``: whose
+    is other than 1). One call per Ack instead of a Python hook and two compiled calls."""
+    if role[i] == LEADER_ROLE:
+        sizes[i] = group_size(records[i], now, tau_s, symmetric, i)
+        sized[i] = True
+    elif sized[i]:
+        sizes[i] = 1
+        sized[i] = False
+    return make_ack(
+        i, now, origin_m, velocity_mps, t0_s, torus, side_m, seq, resign_pending, role, leader, sizes,
+        ids, records, tau_s, empty_record, role_sent, degree_sent,
+    )  # fmt: skip
+
+
+# Rule 2's join policies (protocols.clustering.JOIN_CODES).
+JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def join_choice(ids_row, records_row, now, tau_s, symmetric, exclude, x_m, y_m, policy, first_heard):
+    """Rule 2 from a row of the table (:func:`protocols.clustering.join_choice`): the leader
+    that a robot at ``(x_m, y_m)`` joins among its live two-way neighbours whose last Ack
+    said they were leaders, but ``exclude``, by the join ``policy`` (its code), and the
+    first slot of that leader in the row; ``(-1, -1)`` when it knows no leader."""
+    best, best_d = -1, np.inf
+    for s in range(len(ids_row)):
+        rec = records_row[s]
+        if not (_two_way(rec, now, tau_s, symmetric) and rec[ROLE] == LEADER_ROLE and ids_row[s] != exclude):
+            continue
+        j = ids_row[s]
+        if policy == JOIN_LOWEST_ID:
+            if best < 0 or j < best:
+                best = j
+            continue
+        if policy == JOIN_FIRST_HEARD and j == first_heard:
+            best = j
+            break
+        d = np.hypot(rec[X] - x_m, rec[Y] - y_m)
+        if best < 0 or d < best_d or (d == best_d and j < best):
+            best, best_d = j, d
+    if best < 0:
+        return -1, -1
+    for s in range(len(ids_row)):
+        rec = records_row[s]
+        if ids_row[s] == best and _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == LEADER_ROLE:
+            return best, s
+    return -1, -1  # not reached: best is one of those slots
+
+
+# Rule 6's election policies (protocols.clustering.ELECTION_CODES).
+ELECT_LOWEST_ID, ELECT_HIGHEST_DEGREE, ELECT_NONE = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def elected_in_row(ids_row, records_row, now, tau_s, symmetric, old, i, degree, policy):
+    """Rule 6 from robot ``i``'s row of the table (:func:`protocols.clustering.elected_in_row`):
+    whether ``i``, of announced ``degree``, takes over from its lost leader ``old`` among the
+    live two-way neighbours whose last Ack said they were members of ``old``, by the election
+    ``policy`` (its code)."""
+    if policy == ELECT_NONE:
+        return False
+    for s in range(len(ids_row)):
+        rec = records_row[s]
+        if not (_two_way(rec, now, tau_s, symmetric) and rec[ROLE] == MEMBER and rec[LEADER] == old):
+            continue
+        j = ids_row[s]
+        if policy == ELECT_LOWEST_ID:
+            if not i < j:
+                return False
+        else:
+            d = int(rec[DEGREE])
+            if not (degree > d or (degree == d and i < j)):
+                return False
+    return True
+
+
 # Roles (protocols.roles).
 UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
@@ -139,13 +222,18 @@ UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def ack_effects(role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s, out):
+def ack_effects(
+    role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s, out,
+    ids, records, now, role_sent, leader_since, merge_delay_s,
+):  # fmt: skip
     """What an Ack of ``sender`` does to the clustering, from the roles before it acts, in
-    the four rows of ``out``, and how many of each (:func:`protocols.clustering.ack_effects`):
+    the rows of ``out``, and how many of the first four (:func:`protocols.clustering.ack_effects`):
     positions (in ``receivers``) of the members of ``sender``'s group; if it ``leads`` (a
     leader's Ack, not resigning), their timers over a two-way link set to ``renewed_s`` in
     ``deadline_s`` and those of them to arm (``renewed_s`` before the event armed in
-    ``armed_s``), and the undecided robots and leaders over a two-way link."""
+    ``armed_s``), the undecided robots over a two-way link, and the leaders over a two-way
+    link that may merge with ``sender`` at ``now`` (and, in row 4, the slot of ``sender`` in
+    their rows of ``ids`` and ``records``)."""
     a = b = c = d = 0
     for k in range(len(receivers)):
         r = receivers[k]
@@ -162,9 +250,21 @@ def ack_effects(role, leader, receivers, hears_me, symmetric, sender, leads, dea
         elif leads and two_way and ro == UNDECIDED:
             out[2, c] = r
             c += 1
-        elif leads and two_way and ro == LEADER_ROLE:
-            out[3, d] = r
-            d += 1
+        elif leads and two_way and ro == LEADER_ROLE and role_sent[r] == LEADER_ROLE:
+            slot = -1
+            for s in range(ids.shape[1]):
+                if ids[r, s] == sender:
+                    slot = s
+                    break
+            if slot < 0:
+                continue
+            rec = records[r, slot]
+            linked = rec[LIVE_SINCE] if symmetric else rec[BIDIR_SINCE]
+            since = max(max(linked, rec[ROLE_SINCE]), leader_since[r])
+            if not now - since < merge_delay_s:
+                out[3, d] = r
+                out[4, d] = slot
+                d += 1
     return a, b, c, d
 
 

@@ -36,7 +36,7 @@ from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from protocols.neighbours import DEGREE, EMPTY_RECORD, NeighbourTable
-from protocols.roles import ROLES_SCHEMA, Roles, declare_roles
+from protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 
 @dataclass(frozen=True)
@@ -222,8 +222,18 @@ class AckBeacon:
         # Leaders that announce they are giving up leadership set this for their next Ack.
         self.resign_pending = np.zeros(n, dtype=bool)
         self.listeners: list[AckListener] = []
+        # Listeners told, before those, only of the Acks that announce a leader and of those
+        # whose sender is marked (nonzero) in ``watched``: the clustering's (no other Ack
+        # changes anything there; most Acks are neither, and cost no call).
+        self.leader_listeners: list[AckListener] = []
+        self.watched: list[int] = [0] * n
         # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
         self.before_send: list[Callable[[int, float], None]] = []
+        # Set by a protocol whose leaders announce their group's size (the clustering) when
+        # the compiled Ack works it out (protocols._kernels.make_sized_ack) in place of a
+        # hook: whose announced size is other than 1, and whether links are symmetric.
+        self.sized: np.ndarray | None = None
+        self.sized_symmetric = True
         self.phase_s = np.zeros(n)
         # Receptions ignored because a newer Ack of the same sender had arrived first.
         self.stale_acks = 0
@@ -267,12 +277,19 @@ class AckBeacon:
         k = table.kernels
         if k is not None:
             # The same work in one compiled call (protocols._kernels.make_ack).
-            st, roles = self.state, self.roles
-            x, y, seq, role, leader, size, resign, heard, record = k.make_ack(
-                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
-                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
-                self.role_sent, self.degree_sent,
-            )  # fmt: skip
+            st, roles, sized = self.state, self.roles, self.sized
+            if sized is None:
+                x, y, seq, role, leader, size, resign, heard, record = k.make_ack(
+                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
+                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
+                    self.role_sent, self.degree_sent,
+                )  # fmt: skip
+            else:
+                x, y, seq, role, leader, size, resign, heard, record = k.make_sized_ack(
+                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
+                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
+                    self.role_sent, self.degree_sent, sized, self.sized_symmetric,
+                )  # fmt: skip
             return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
         x, y = self.state.position(i, now)
         seq = int(self.seq[i]) + 1
@@ -299,6 +316,9 @@ class AckBeacon:
             receivers, hears_me = receivers[fresh], hears_me[fresh]
             if len(receivers) == 0:
                 return
+        if self.leader_listeners and (ack.role == LEADER or self.watched[ack.sender]):
+            for listener in self.leader_listeners:
+                listener(now, ack, receivers, hears_me)
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
 

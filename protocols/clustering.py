@@ -39,6 +39,7 @@ from enum import StrEnum
 from typing import NamedTuple
 
 import numpy as np
+import pandas as pd
 
 from netsim.compiled import load
 from netsim.plugins import Parts
@@ -125,6 +126,10 @@ JOIN: dict[JoinPolicy, Callable[[list[Candidate], int | None], int]] = {
 }
 
 
+# The join policies' codes in the compiled join_choice (protocols._kernels).
+JOIN_CODES = {JoinPolicy.NEAREST: 0, JoinPolicy.FIRST_HEARD: 1, JoinPolicy.LOWEST_ID: 2}
+
+
 def choose_leader(policy: str, candidates: list[Candidate], first_heard: int | None = None) -> int:
     """Rule 2: which of the candidate leaders to join.
 
@@ -174,6 +179,10 @@ ELECTION: dict[ElectionPolicy, Callable[[Candidate, list[Candidate]], bool]] = {
 }
 
 
+# The election policies' codes in the compiled elected_in_row (protocols._kernels).
+ELECTION_CODES = {ElectionPolicy.LOWEST_ID: 0, ElectionPolicy.HIGHEST_DEGREE: 1, ElectionPolicy.NONE: 2}
+
+
 def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
     """Rule 6: whether ``me`` takes over among the former members ``rivals`` it can hear.
 
@@ -203,30 +212,50 @@ def ack_effects(
     armed_s: np.ndarray,
     renewed_s: float,
     out: np.ndarray,
+    ids: np.ndarray,
+    records: np.ndarray,
+    now: float,
+    role_sent: np.ndarray,
+    leader_since: np.ndarray,
+    merge_delay_s: float,
 ) -> tuple[int, int, int, int]:
-    """What an Ack of ``sender`` does, from the roles before it acts, in the four rows of
-    ``out`` (each at least as long as ``receivers``; returned: how many of each): positions
+    """What an Ack of ``sender`` does, from the roles before it acts, in the rows of ``out``
+    (each at least as long as ``receivers``; returned: how many of the first four): positions
     (in ``receivers``) of the members of ``sender``'s group; and if the Ack ``leads`` (a
     leader's, not resigning), those members' timers over a two-way link restart at
     ``renewed_s`` (written in the timers' ``deadline_s``; listed: those of them whose timers
-    must be armed, ``renewed_s`` before the event in ``armed_s``), and the undecided robots
-    and leaders over a two-way link (they may join or merge). Counts and a reused ``out``,
-    not four new arrays: cheaper to hand back from the compiled twin, once per Ack."""
+    must be armed, ``renewed_s`` before the event in ``armed_s``), the undecided robots over
+    a two-way link (they may join), and the leaders over a two-way link that may merge with
+    ``sender`` now (row 4: the slot of ``sender`` in their rows of the table, ``ids`` and
+    ``records``): those that announced themselves as leaders (``role_sent``) and have been
+    leaders beside ``sender`` for ``merge_delay_s`` at ``now``, counted from the latest of
+    the link known (two-way, or live when links are ``symmetric``), ``sender``'s Acks saying
+    leader, and their own leadership (``leader_since``). Counts and a reused ``out``, not new
+    arrays: cheaper to hand back from the compiled twin, once per Ack."""
     r_role = role[receivers]
     mine = (r_role == MEMBER) & (leader[receivers] == sender)
-    found = [np.flatnonzero(mine), _NONE, _NONE, _NONE]
+    found = [np.flatnonzero(mine), _NONE, _NONE, _NONE, _NONE]
     if leads:
         both_ways = hears_me | symmetric
         renew = receivers[mine & both_ways]
         deadline_s[renew] = renewed_s
+        leaders = receivers[(r_role == LEADER) & both_ways]
+        leaders = leaders[role_sent[leaders] == LEADER]
+        at = ids[leaders] == sender
+        leaders, slots = leaders[at.any(axis=1)], np.argmax(at, axis=1)[at.any(axis=1)]
+        rec = records[leaders, slots]
+        linked = rec[:, LIVE_SINCE] if symmetric else rec[:, BIDIR_SINCE]
+        since = np.maximum(np.maximum(linked, rec[:, ROLE_SINCE]), leader_since[leaders])
+        ready = ~(now - since < merge_delay_s)
         found[1:] = [
             renew[renewed_s < armed_s[renew]],
             receivers[(r_role == UNDECIDED) & both_ways],
-            receivers[(r_role == LEADER) & both_ways],
+            leaders[ready],
+            slots[ready],
         ]
-    for row, ids in zip(out, found):
-        row[: len(ids)] = ids
-    a, b, c, d = (len(ids) for ids in found)
+    for row, found_ids in zip(out, found):
+        row[: len(found_ids)] = found_ids
+    a, b, c, d = (len(found_ids) for found_ids in found[:4])
     return a, b, c, d
 
 
@@ -235,6 +264,27 @@ def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: boo
     :class:`protocols.neighbours.NeighbourTable` holds them) whose last Ack named ``i`` as
     their leader."""
     return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
+
+
+def announced_size(
+    role: np.ndarray,
+    sizes: np.ndarray,
+    sized: np.ndarray,
+    records_row: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    i: int,
+) -> None:
+    """Before robot ``i``'s Ack: the group size it announces, in ``sizes``: a leader its
+    :func:`group_size`, anyone else 1 (written only when it was not: ``sized`` marks whose
+    size is other than 1)."""
+    if role[i] == LEADER:
+        sizes[i] = group_size(records_row, now, tau_s, symmetric, i)
+        sized[i] = True
+    elif sized[i]:
+        sizes[i] = 1
+        sized[i] = False
 
 
 def leader_slots(
@@ -246,11 +296,56 @@ def leader_slots(
     return np.flatnonzero(mask)
 
 
+def join_choice(
+    ids_row: np.ndarray,
+    records_row: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    exclude: int,
+    x_m: float,
+    y_m: float,
+    policy: str,
+    first_heard: int | None,
+) -> tuple[int, int]:
+    """Rule 2 from a row of the table: the leader that a robot at ``(x_m, y_m)`` joins
+    (:func:`choose_leader`) among the live two-way neighbours whose last Ack said they were
+    leaders, but ``exclude`` (:func:`leader_slots`; their distances from the positions their
+    Acks carried), and its first slot in the row; ``(NO_LEADER, -1)`` when there is none."""
+    slots = leader_slots(ids_row, records_row, now, tau_s, symmetric, exclude)
+    if not len(slots):
+        return NO_LEADER, -1
+    dist = np.hypot(records_row[slots, X] - x_m, records_row[slots, Y] - y_m)
+    ids = ids_row[slots].tolist()
+    leader = choose_leader(policy, [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())], first_heard)
+    return leader, int(slots[ids.index(leader)])
+
+
 def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, leader: int) -> np.ndarray:
     """The slots of a row's live two-way neighbours whose last Ack said they were members
     of ``leader``."""
     mask = two_way(records_row, now, tau_s, symmetric)
     return np.flatnonzero(mask & (records_row[:, LEADER_FIELD] == leader) & (records_row[:, ROLE] == MEMBER))
+
+
+def elected_in_row(
+    ids_row: np.ndarray,
+    records_row: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    old: int,
+    i: int,
+    degree: int,
+    policy: str,
+) -> bool:
+    """Rule 6 from robot ``i``'s row of the table: whether ``i``, of announced ``degree``,
+    takes over from its lost leader ``old`` (:func:`elected`) among the former members it
+    knows (:func:`mate_slots`), each with the degree its last Ack announced."""
+    mates = mate_slots(records_row, now, tau_s, symmetric, old)
+    ids, degrees = ids_row[mates].tolist(), records_row[mates, DEGREE].tolist()
+    rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids, degrees)]
+    return elected(policy, Candidate(i, degree=degree), rivals)
 
 
 def membership(
@@ -307,28 +402,38 @@ class Clustering:
         self.leader_since = np.full(st.n, np.inf)
         # How many members each robot has now: an Ack that does not lead (a member's, an
         # undecided robot's, a resignation) does something only to its sender's members.
-        self._members_of = [0] * st.n
+        # The beacon's list: it tells on_ack of no other Ack but a leader's.
+        self._members_of = beacon.watched
         # Whose announced group size may be other than 1 (it last sent an Ack as a leader).
-        self._sized = [False] * st.n
+        self._sized = np.zeros(st.n, dtype=bool)
         declare_roles(parts.trace)
-        # The compiled twins of ack_effects, group_size, leader_slots, mate_slots and
-        # membership, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        # The role changes (the roles table), a list per field of RoleChange: a record per
+        # change (10^5 in a 10,000-robot run) would be one more object for the garbage
+        # collector to walk, again and again, until the end.
+        self._changes: tuple[list, list, list, list, list] = ([], [], [], [], [])
+        parts.trace.add_frame("roles", self.roles_frame)
+        # The compiled twins of ack_effects, group_size, leader_slots and membership (and of
+        # join_choice and elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS
+        # robots.
         self.kernels = k = load("protocols._kernels", st.n)
         self._effects = k.ack_effects if k is not None else ack_effects
-        self._effects_out = np.empty((4, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
+        self._effects_out = np.empty((5, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
         self._group_size = k.group_size if k is not None else group_size
         self._leader_slots = k.leader_slots if k is not None else leader_slots
-        self._mate_slots = k.mate_slots if k is not None else mate_slots
         self._membership = k.membership if k is not None else membership
-        beacon.listeners.append(self.on_ack)
-        beacon.before_send.append(self._before_ack)
+        beacon.leader_listeners.append(self.on_ack)
+        if beacon.table.kernels is not None:
+            # The hook's work inside the compiled Ack (protocols._kernels.make_sized_ack).
+            beacon.sized, beacon.sized_symmetric = self._sized, self.symmetric
+        else:
+            beacon.before_send.append(self._before_ack)
 
     def start(self) -> None:
         roles, now = self.roles, self.env.now
         roles.role[:] = UNDECIDED
         roles.leader[:] = NO_LEADER
         for i in range(self.state.n):
-            self._record(RoleChange(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START))
+            self._record(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START)
         self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
 
     # -- what a robot knows --------------------------------------------------------------
@@ -370,14 +475,10 @@ class Clustering:
         return np.flatnonzero(np.bincount(robot, minlength=self.state.n) > 1)
 
     def _before_ack(self, i: int, now: float) -> None:
-        # A leader announces its group's size, anyone else 1 (written only when it was not).
-        if self.roles.role[i] == LEADER:
-            table = self.table
-            self.beacon.group_size[i] = self._group_size(table.data[i], now, table.tau_s, self.symmetric, i)
-            self._sized[i] = True
-        elif self._sized[i]:
-            self.beacon.group_size[i] = 1
-            self._sized[i] = False
+        table = self.table
+        announced_size(
+            self.roles.role, self.beacon.group_size, self._sized, table.data[i], now, table.tau_s, self.symmetric, i
+        )
 
     # -- transitions ---------------------------------------------------------------------
     def _set(self, i: int, event: str, leader: int, now: float) -> None:
@@ -392,22 +493,41 @@ class Clustering:
         st.leader[i] = leader
         self.leader_since[i] = now if role == LEADER else np.inf
         self.role_changes[i] += 1
-        self._record(RoleChange(now, i, ROLE_NAMES[role], leader, cause))
+        self._record(now, i, ROLE_NAMES[role], leader, cause)
 
-    def _record(self, change: RoleChange) -> None:
-        self.trace.emit("roles", change)
+    def _record(self, t_s: float, robot: int, role: str, leader: int, cause: str) -> None:
+        for column, value in zip(self._changes, (t_s, robot, role, leader, cause)):
+            column.append(value)
         if self.events is not None and self.events.wants("role_change"):
-            self.events.emit("role_change", change)
+            self.events.emit("role_change", RoleChange(t_s, robot, role, leader, cause))
+
+    def roles_frame(self) -> pd.DataFrame:
+        """The ``roles`` table: every role change, in order (the frame the trace makes of its
+        records: columns typed from their values, all ``object`` when there are none)."""
+        if not self._changes[0]:
+            return pd.DataFrame([], columns=list(RoleChange._fields))
+        return pd.DataFrame(dict(zip(RoleChange._fields, self._changes)))
 
     def _join(self, i: int, now: float, first_heard: int | None = None, exclude: int = NO_LEADER) -> bool:
         """Rule 2 for robot ``i`` (undecided) from what its table knows; False if no leader is known."""
-        candidates = self.known_leaders(i, now, exclude)
-        if not candidates:
-            return False
-        leader = choose_leader(self.join_policy, candidates, first_heard)
+        table = self.table
+        k = self.kernels
+        if k is not None:
+            x, y = self.state.position(i, now)
+            leader, slot = k.join_choice(
+                table.id[i], table.data[i], now, table.tau_s, self.symmetric, exclude, x, y,
+                JOIN_CODES[self.join_policy], -2 if first_heard is None else first_heard,
+            )  # fmt: skip
+            if leader < 0:
+                return False
+        else:
+            candidates = self.known_leaders(i, now, exclude)
+            if not candidates:
+                return False
+            leader = choose_leader(self.join_policy, candidates, first_heard)
+            slot = table.entry(i, leader)
         self._set(i, "leader_heard", leader, now)
-        slot = self.table.entry(i, leader)
-        self.timers.restart(i, self.table.data[i, slot, LAST_HEARD] + self.tau_s)
+        self.timers.restart(i, table.data[i, slot, LAST_HEARD] + self.tau_s)
         return True
 
     def _leader_gone(self, i: int, now: float, event: str) -> None:
@@ -416,14 +536,18 @@ class Clustering:
         self._set(i, event, NO_LEADER, now)
         if self._join(i, now, exclude=old):
             return
-        rows = self.table.data[i]
-        mates = self._mate_slots(rows, now, self.table.tau_s, self.symmetric, old)
-        ids = self.table.id[i][mates]
-        rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids.tolist(), rows[mates, DEGREE].tolist())]
         # Like with like: my degree as I announced it, beside theirs as they announced them
         # (all counted before the leader was lost).
-        me = Candidate(i, degree=int(self.beacon.degree_sent[i]))
-        if elected(self.election_policy, me, rivals):
+        table, degree = self.table, int(self.beacon.degree_sent[i])
+        k = self.kernels
+        if k is not None:
+            code = ELECTION_CODES[self.election_policy]
+            won = k.elected_in_row(table.id[i], table.data[i], now, table.tau_s, self.symmetric, old, i, degree, code)
+        else:
+            won = elected_in_row(
+                table.id[i], table.data[i], now, table.tau_s, self.symmetric, old, i, degree, self.election_policy
+            )
+        if won:
             self._set(i, "elected", i, now)
             self.timers.cancel(i)
         else:
@@ -442,9 +566,11 @@ class Clustering:
             return
         st, timers, out = self.roles, self.timers, self._effects_out
         renewed_s = now + self.tau_s
+        table = self.table
         a, b, c, d = self._effects(
             st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender, leads,
             timers.deadline_s, timers.armed_s, renewed_s, out,
+            table.id, table.data, now, self.beacon.role_sent, self.leader_since, self.merge_delay_s,
         )  # fmt: skip
         if not leads:
             for k in out[0, :a].tolist():
@@ -456,11 +582,12 @@ class Clustering:
             return
         if b:
             timers.arm(out[1, :b], renewed_s)
-        undecided, leaders = out[2, :c].tolist(), out[3, :d].tolist()  # out is reused: read it now
+        # out is reused: read it now.
+        undecided, leaders, slots = out[2, :c].tolist(), out[3, :d].tolist(), out[4, :d].tolist()
         for r in undecided:
             self._join(r, now, first_heard=ack.sender)
-        for r in leaders:
-            self._maybe_merge(r, ack, now)
+        for r, slot in zip(leaders, slots):
+            self._merge(r, slot, ack, now)
 
     def _mutual_yield(self, r: int, other: int, now: float, two_way: bool) -> None:
         """``r`` yielded to ``other``, which (on older news) yielded to ``r``: the lower id
@@ -473,15 +600,10 @@ class Clustering:
             # The other is about to lead again: its Ack shows the link alive meanwhile.
             self.timers.restart(r, now + self.tau_s)
 
-    def _maybe_merge(self, r: int, ack: Ack, now: float) -> None:
-        if self.beacon.role_sent[r] != LEADER:
-            return  # r has not announced itself as a leader yet: its figures are not a leader's
-        slot = self.table.entry(r, ack.sender)
+    def _merge(self, r: int, slot: int, ack: Ack, now: float) -> None:
+        """Rule 5 for leader ``r``, which has announced itself as a leader and been one beside
+        the sender of ``ack`` (in ``slot`` of its row) for the merge delay (ack_effects)."""
         rows = self.table.data[r, slot]
-        linked = rows[BIDIR_SINCE] if not self.symmetric else rows[LIVE_SINCE]
-        since = max(linked, rows[ROLE_SINCE], self.leader_since[r])
-        if now - since < self.merge_delay_s:
-            return
         # What each announced in its last Ack: the same kind of information on both sides.
         me = Candidate(r, group_size=int(self.beacon.group_size[r]), degree=int(self.beacon.degree_sent[r]))
         other = Candidate(ack.sender, group_size=ack.group_size, degree=int(rows[DEGREE]))

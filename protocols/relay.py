@@ -163,8 +163,11 @@ class Relay:
         self.medium_losses: dict[int, dict[str, int]] = {}
         if self.channel.deferred:
             self.channel.medium_losses["data"] = self._medium_loss
-        # One entry per delivery event: (msg_id, hop, sender, t_sent_s, t_received_s, receivers).
-        self._hops: list[tuple] = []
+        # One entry per delivery event in each column: msg_id, hop, sender, t_sent_s,
+        # t_received_s, and the receivers (an array). Columns, not a tuple per delivery: the
+        # table is built from them at once, and a run's 10^5 deliveries leave no records
+        # for the garbage collector to walk again and again.
+        self._hops: tuple[list, list, list, list, list, list] = ([], [], [], [], [], [])
         # The compiled twin of relays, past netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = load("protocols._kernels", parts.state.n)
 
@@ -225,7 +228,7 @@ class Relay:
     def _on_flood(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
         now = self.env.now
         self._pending[msg.id] -= 1
-        self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, now, receivers))
+        self._hop(msg, sender, now, receivers)
         seen = self._seen[msg.id]
         fresh = [r for r in receivers.tolist() if r not in seen]
         seen.update(fresh)
@@ -261,7 +264,7 @@ class Relay:
         if not len(receivers):
             self._dropped(msg, self.env.now, "lost")  # a shared medium: the frame did not get through
             return
-        self._hops.append((msg.id, msg.hops, sender, msg.t_tx_s, self.env.now, receivers))
+        self._hop(msg, sender, self.env.now, receivers)
         holder = int(receivers[0])
         if holder == msg.dst:
             self._delivered(msg, self.env.now)
@@ -269,6 +272,15 @@ class Relay:
             self._forward_oracle(holder, msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1))
         else:
             self._dropped(msg, self.env.now, "ttl")
+
+    def _hop(self, msg: Message, sender: int, now: float, receivers: np.ndarray) -> None:
+        ids, hops, senders, sent, received, recv = self._hops
+        ids.append(msg.id)
+        hops.append(msg.hops)
+        senders.append(sender)
+        sent.append(msg.t_tx_s)
+        received.append(now)
+        recv.append(receivers)
 
     def _delivered(self, msg: Message, now: float) -> None:
         out = self._outcomes[msg.id]
@@ -302,18 +314,18 @@ class Relay:
         transmissions on the path up to and including this one (1: from the source).
         Receptions the channel dropped are not there; repeats (a robot hearing a message it
         already has) are."""
-        if not self._hops:
+        ids, hops, senders, sent, received, recv = self._hops
+        if not ids:
             return pd.DataFrame({c: np.empty(0, np.float64 if c.startswith("t_") else np.int64) for c in HOP_COLUMNS})
-        sizes = np.array([len(h[5]) for h in self._hops])
-        cols = list(zip(*self._hops))
+        sizes = np.fromiter(map(len, recv), dtype=np.int64, count=len(recv))
         return pd.DataFrame(
             {
-                "msg_id": np.repeat(np.array(cols[0], dtype=np.int64), sizes),
-                "hop": np.repeat(np.array(cols[1], dtype=np.int64), sizes),
-                "sender": np.repeat(np.array(cols[2], dtype=np.int64), sizes),
-                "receiver": np.concatenate(cols[5]).astype(np.int64),
-                "t_sent_s": np.repeat(np.array(cols[3], dtype=float), sizes),
-                "t_received_s": np.repeat(np.array(cols[4], dtype=float), sizes),
+                "msg_id": np.repeat(np.array(ids, dtype=np.int64), sizes),
+                "hop": np.repeat(np.array(hops, dtype=np.int64), sizes),
+                "sender": np.repeat(np.array(senders, dtype=np.int64), sizes),
+                "receiver": np.concatenate(recv).astype(np.int64),
+                "t_sent_s": np.repeat(np.array(sent, dtype=float), sizes),
+                "t_received_s": np.repeat(np.array(received, dtype=float), sizes),
             },
             copy=False,  # new arrays, the table's own
         )

@@ -53,6 +53,27 @@ def test_ack_carries_its_fields():
     assert from_0[-1][2] == [True]
 
 
+def test_leader_listeners_hear_leaders_and_watched_senders_first():
+    """A leader listener is told of exactly the Acks that announce a leader and those of
+    senders marked in ``watched`` (at delivery), before the other listeners."""
+    sim = _static([[0, 0], [5, 0], [0, 5], [5, 5]], ack_jitter_s=0.0)
+    beacon = sim.models["protocol"]
+    beacon.roles.role[1] = 2  # alpha: every Ack of robot 1 announces a leader
+    told, every = [], []
+    beacon.leader_listeners.append(lambda now, ack, rec, hm: told.append((now, ack.sender, len(every))))
+    beacon.listeners.append(lambda now, ack, rec, hm: every.append((now, ack.sender)))
+
+    def mark():
+        yield sim.env.timeout(5.0)
+        beacon.watched[3] = 1
+
+    sim.env.process(mark())
+    sim.run(until_s=10.0)
+    wanted = [(t, s) for t, s in every if s == 1 or (s == 3 and t > 5.0)]
+    assert [(t, s) for t, s, _ in told] == wanted and len(wanted) > 10
+    assert all(every[k] == (t, s) for t, s, k in told)  # told before the others: its record came next
+
+
 def test_neighbour_entry_lives_for_tau_after_the_last_ack():
     sim = _static([[0, 0], [5, 0]], ack_jitter_s=0.0)
     sim.run(until_s=4.0)

@@ -170,3 +170,48 @@ def test_a_moving_run_with_loss_and_jitter_is_the_same_with_the_agenda(monkeypat
     assert log == ref_log
     for name in ref_frames:
         pd.testing.assert_frame_equal(frames[name], ref_frames[name])
+
+
+def _timer_script(agenda_class, seed: int):
+    """Deadline timers restarted, moved earlier and later, and cancelled from entries at a
+    few instants (so that deadlines, and other entries at NORMAL priority, tie), with a
+    log of what ran when."""
+    from netsim.timers import DeadlineTimers
+
+    env = simpy.Environment()
+    agenda = agenda_class(env)
+    rng = np.random.default_rng(seed)
+    log: list[tuple] = []
+    timers = DeadlineTimers(env, 6, lambda i, now: log.append((now, "expire", i)), agenda)
+
+    def act(k: int) -> None:
+        log.append((env.now, "act", k))
+        for _ in range(int(rng.integers(1, 4))):
+            i = int(rng.integers(6))
+            what = rng.random()
+            if what < 0.15:
+                timers.cancel(i)
+            else:
+                timers.restart(i, env.now + 0.25 * int(rng.integers(0, 8)))
+        if k < 150:
+            agenda.at(0.25 * int(rng.integers(0, 3)), int(rng.choice([URGENT, NORMAL])), lambda: act(k + 1))
+            if rng.random() < 0.3:
+                agenda.at(0.25 * int(rng.integers(0, 6)), NORMAL, lambda: log.append((env.now, "mark", k)))
+
+    agenda.at(0.0, URGENT, lambda: act(0))
+    env.run(until=100.0)
+    return log
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_timers_on_the_agenda_expire_in_the_kernels_order(seed):
+    """Timers whose events wait in their own heap behind one agenda entry: every expiry at
+    its instant and in the order of one kernel event per timer event, ties with other
+    entries of the same instant and priority included."""
+    log = _timer_script(Agenda, seed)
+    assert log == _timer_script(KernelAgenda, seed)
+    expiries = [e for e in log if e[1] == "expire"]
+    assert len(expiries) > 30
+    # Ties happened: expiries at the instant of another expiry or mark.
+    instants = [e[0] for e in log if e[1] != "act"]
+    assert len(instants) - len(set(instants)) > 10

@@ -1,17 +1,31 @@
 """The clustering's compiled loops (protocols/_kernels.py) compute exactly what their numpy
 twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effects), a
-leader's group size (clustering.group_size), the known leaders and a leader's members in a
-row of the table (clustering.leader_slots, mate_slots), everyone's groups
-(clustering.membership), who relays a flooded message (relay.relays) and the samples of
-beliefs beside the truth (stack.belief_rows, belief_counts, sample_rows); and the numpy
+leader's group size (clustering.group_size) and the Ack announcing it (make_sized_ack), the
+known leaders and a leader's members in a row of the table (clustering.leader_slots,
+mate_slots), rule 2's choice and rule 6's verdict from a row (clustering.join_choice,
+elected_in_row), everyone's groups (clustering.membership), who relays a flooded message
+(relay.relays) and the samples of beliefs beside the truth (stack.belief_rows,
+belief_counts, sample_rows); and the numpy
 ``relays`` keeps the relaying rule."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from protocols.clustering import ack_effects, group_size, leader_slots, mate_slots, membership
-from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE
+from protocols.clustering import (
+    ELECTION_CODES,
+    JOIN_CODES,
+    ElectionPolicy,
+    JoinPolicy,
+    ack_effects,
+    elected_in_row,
+    group_size,
+    join_choice,
+    leader_slots,
+    mate_slots,
+    membership,
+)
+from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
 from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
@@ -40,11 +54,14 @@ def random_tables(rng, n, slots, now):
 @pytest.mark.parametrize("symmetric", [False, True])
 def test_compiled_ack_effects_equals_numpy(symmetric):
     """An Ack's effects (its group's members; for a leading Ack the timers it renews, which
-    of them to arm, the undecided robots and leaders it reaches over two-way links) and
-    the deadlines it writes are the numpy ones."""
+    of them to arm, the undecided robots it reaches over two-way links and the leaders that
+    may merge with its sender now, with the sender's slot in their rows) and the deadlines it
+    writes are the numpy ones."""
+    from protocols.neighbours import BIDIR_SINCE, LIVE_SINCE, ROLE_SINCE
+
     rng = np.random.default_rng(5)
-    n = 60
-    found = np.zeros(4, dtype=int)
+    n, now = 60, 10.0
+    found = np.zeros(5, dtype=int)
     for _ in range(400):
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = rng.integers(-1, 8, n).astype(np.int64)
@@ -55,14 +72,26 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
         armed_s = rng.choice([np.inf, 1.0, 4.0, 5.0, 9.0], n)
         deadline_a = rng.uniform(0.0, 10.0, n)
         deadline_b = deadline_a.copy()
+        ids, records = random_tables(rng, n, 6, now)
+        # The sender has an entry in most receivers' rows (the Ack was just recorded there).
+        has = receivers[rng.random(len(receivers)) < 0.9]
+        ids[has, rng.integers(0, 6, len(has))] = sender
+        for col in (LIVE_SINCE, BIDIR_SINCE, ROLE_SINCE):
+            records[:, :, col] = rng.choice([-np.inf, 2.0, 6.5, 8.0, 9.0, np.inf], (n, 6))
+        role_sent = rng.integers(0, 3, n)
+        leader_since = rng.choice([np.inf, 0.0, 7.0, 8.5], n)
         args = (role, leader, receivers, hears_me, symmetric, sender, leads)
-        out_a, out_b = np.full((4, n), -7), np.full((4, n), -7)
-        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0, out_a)
-        b = ack_effects(*args, deadline_b, armed_s, 4.0, out_b)
+        tables = (ids, records, now, role_sent, leader_since, 1.0)
+        out_a, out_b = np.full((5, n), -7), np.full((5, n), -7)
+        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0, out_a, *tables)
+        b = ack_effects(*args, deadline_b, armed_s, 4.0, out_b, *tables)
         assert a == b
-        assert [row[:k].tolist() for row, k in zip(out_a, a)] == [row[:k].tolist() for row, k in zip(out_b, b)]
+        counts = [*a, a[3]]
+        assert [row[:k].tolist() for row, k in zip(out_a, counts)] == [
+            row[:k].tolist() for row, k in zip(out_b, counts)
+        ]
         assert deadline_a.tobytes() == deadline_b.tobytes()
-        found += [k > 0 for k in a]
+        found += [k > 0 for k in counts]
     assert found.min() > 20
 
 
@@ -282,3 +311,105 @@ def test_gateways_mean_counts_robots_in_two_groups_per_sample():
         per_robot = groups.groupby(["t_s", "robot"]).size()
         expected = float((per_robot > 1).groupby(level="t_s").sum().mean())
         assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy()) == expected
+
+
+def _clustering_after(monkeypatch, seconds: float, compiled: bool):
+    """The clustering on 30 robots within a few ranges of each other, run for ``seconds``:
+    groups formed, tables filled; compiled loops or numpy."""
+    from tests.fixtures import clustering
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
+    rng = np.random.default_rng(8)
+    sim, stack = clustering(rng.uniform(0, 60, (30, 2)), core={"range_m": 25.0})
+    sim.run(until_s=seconds)
+    return sim, stack
+
+
+def test_compiled_sized_ack_equals_numpy(monkeypatch):
+    """An Ack built in one compiled call with the group size its sender announces (a
+    leader's: 1 + its live two-way members; anyone else's 1; make_sized_ack) is the one the
+    numpy hook (clustering.announced_size) and the numpy Ack build, and leaves the same
+    sizes and marks of who is sized."""
+    (sim_a, a), (sim_b, b) = _clustering_after(monkeypatch, 8.0, True), _clustering_after(monkeypatch, 8.0, False)
+    assert a.beacon.sized is not None and b.beacon.sized is None
+    rng = np.random.default_rng(9)
+    now = sim_a.env.now
+    sizes = []
+    for k in range(300):
+        if k == 150:  # the rest as if ranges differed: one-way links do not count
+            a.clustering.symmetric = a.beacon.sized_symmetric = b.clustering.symmetric = False
+        i = int(rng.integers(30))
+        role, leader = rng.choice([UNDECIDED, MEMBER, ALPHA, ALPHA]), rng.integers(-1, 30)
+        for stack in (a, b):
+            stack.roles.role[i], stack.roles.leader[i] = role, leader
+        ack_a, ack_b = a.beacon.make_ack(i), b.beacon.make_ack(i)
+        assert ack_a._replace(heard=None, record=None) == ack_b._replace(heard=None, record=None)
+        assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
+        sizes.append(ack_a.group_size)
+        now += 0.01
+        sim_a.env._now = sim_b.env._now = now
+    for name in ("group_size", "seq", "role_sent", "degree_sent"):
+        assert np.array_equal(getattr(a.beacon, name), getattr(b.beacon, name)), name
+    assert np.array_equal(a.clustering._sized, b.clustering._sized)
+    assert max(sizes) > 3 and sizes.count(1) > 50
+
+
+@pytest.mark.parametrize("policy", list(JoinPolicy))
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_join_choice_equals_numpy(policy, symmetric):
+    """Rule 2 from a row of the table (the leader joined among the known ones but the one
+    excluded, by each join policy, and its slot) is the numpy choice; ties of distance go
+    to the lowest id as there."""
+    rng = np.random.default_rng(11)
+    now, joined = 10.0, 0
+    for _ in range(60):
+        ids, records = random_tables(rng, 6, 10, now)
+        # Positions on a coarse grid: equal distances (ties) happen.
+        records[:, :, X] = rng.integers(0, 4, (6, 10)).astype(float)
+        records[:, :, Y] = rng.integers(0, 4, (6, 10)).astype(float)
+        for i in range(6):
+            x, y = float(rng.integers(0, 4)), float(rng.integers(0, 4))
+            exclude = int(rng.choice([-1, *ids[i][:3].tolist()]))
+            first = rng.choice([None, *ids[i][:4].tolist()])
+            first = None if first is None else int(first)
+            a = kernels.join_choice(
+                ids[i],
+                records[i],
+                now,
+                TAU_S,
+                symmetric,
+                exclude,
+                x,
+                y,
+                JOIN_CODES[policy],
+                -2 if first is None else first,
+            )
+            b = join_choice(ids[i], records[i], now, TAU_S, symmetric, exclude, x, y, policy, first)
+            assert a == b
+            joined += a[0] >= 0
+    assert joined > 50
+
+
+@pytest.mark.parametrize("policy", list(ElectionPolicy))
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_elected_in_row_equals_numpy(policy, symmetric):
+    """Rule 6 from a row of the table (whether a robot takes over among the former members
+    of its lost leader it knows, by each election policy; ties of degree to the lowest id)
+    is the numpy verdict."""
+    from protocols.neighbours import DEGREE
+
+    rng = np.random.default_rng(12)
+    now, verdicts = 10.0, []
+    for _ in range(80):
+        ids, records = random_tables(rng, 8, 6, now)
+        records[:, :, DEGREE] = rng.integers(0, 4, (8, 6))
+        records[:, :, LEADER] = rng.integers(0, 3, (8, 6))  # mates of a few leaders
+        for i in range(8):
+            old, degree = int(rng.integers(0, 3)), int(rng.integers(0, 4))
+            a = kernels.elected_in_row(
+                ids[i], records[i], now, TAU_S, symmetric, old, i, degree, ELECTION_CODES[policy]
+            )
+            b = elected_in_row(ids[i], records[i], now, TAU_S, symmetric, old, i, degree, policy)
+            assert a == b
+            verdicts.append(a)
+    assert policy == ElectionPolicy.NONE or 50 < sum(verdicts) < len(verdicts) - 50

@@ -338,3 +338,21 @@ def test_election_policies():
     assert elected("lowest_id", Candidate(2), []) is True
     assert elected("none", Candidate(2), []) is False
     assert elected("highest_degree", Candidate(5, degree=4), [Candidate(1, degree=3)]) is True
+
+
+def test_roles_table_is_the_frame_of_its_records():
+    """The roles table kept as columns is the frame a trace makes of RoleChange records:
+    the same values, dtypes and order; all-object columns when there is no change."""
+    import pandas as pd
+
+    from protocols.roles import RoleChange
+
+    sim, stack, _ = scripted([[0, 0], [5, 0], [50, 0]], [0.1, 0.2, 0.3])
+    move_away(sim, 0, 7.0)
+    sim.run(until_s=15.0)
+    records = [RoleChange(*row) for row in zip(*stack.clustering._changes)]
+    expected = pd.DataFrame(records, columns=list(RoleChange._fields))
+    got = roles(sim)
+    assert len(got) > 5 and got.equals(expected) and got.dtypes.tolist() == expected.dtypes.tolist()
+    stack.clustering._changes = ([], [], [], [], [])
+    assert roles(sim).dtypes.tolist() == pd.DataFrame([], columns=list(RoleChange._fields)).dtypes.tolist()
