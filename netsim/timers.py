@@ -13,17 +13,20 @@ Ack that arrives at the same instant as a deadline is processed first and counts
 
 Given an :class:`netsim.agenda.Agenda` (the channel's), a timer's events are not kernel
 events: each gets the key the agenda would give it, ``(t, priority, id)``, at the moment it
-is armed, and goes to a heap of the timers' own; the agenda holds one entry, at the key of
-that heap's head, which runs the head. So every event runs exactly where it would have run
-as an entry of the agenda (the same instants, in the same order, ties included), while the
-agenda's heap, which every Ack tick goes through, stays as small as without timers (a heap
-twice the size costs each of its operations more than its one level: more of it is out of
-the cache), and the timers' entries hold no object for the garbage collector.
+is armed, and goes to a calendar of the timers' own (:class:`Calendar`); the agenda holds
+one entry, at the key of the calendar's first, which runs it. So every event runs exactly
+where it would have run as an entry of the agenda (the same instants, in the same order,
+ties included), while the agenda's heap, which every Ack tick goes through, stays as small
+as without timers. A calendar rather than a heap: timer events are armed a few seconds
+ahead and taken a few thousand a second, so a heap of them is cold by each pop, which then
+walks its whole depth through cache misses; a calendar appends each event to the list of
+its slice of time and sorts a list once, when its slice comes.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import insort
 from collections.abc import Callable
 from functools import partial
 from heapq import heappop, heappush
@@ -33,6 +36,64 @@ import simpy
 
 from netsim.agenda import Agenda
 from netsim.events import NORMAL, scheduled_event
+
+
+class Calendar:
+    """Entries (tuples, ordered by their first items, the first a time) taken in order: the
+    order of a heap of them. Each goes to the list of its slice of ``slice_s`` of time,
+    sorted when its slice comes first (an entry for the slice being taken is inserted in
+    place); a heap of slice numbers finds the next."""
+
+    def __init__(self, slice_s: float = 0.05):
+        self._per_s = 1.0 / slice_s
+        self._slices: dict[int, list] = {}
+        self._numbers: list[int] = []  # a heap of the numbers of the slices in _slices
+        # The slice being taken, sorted, and the position of its first entry not yet taken.
+        self._current: list | None = None
+        self._number = 0
+        self._at = 0
+
+    def push(self, entry: tuple) -> None:
+        # floor(t * per_s) never decreases as t grows (IEEE products are monotonic): the
+        # slices keep the entries' order.
+        k = math.floor(entry[0] * self._per_s)
+        current = self._current
+        if current is not None:
+            if k == self._number:
+                insort(current, entry, lo=self._at)
+                return
+            if k < self._number:
+                # An earlier slice: the current one goes back with what it has left.
+                self._slices[self._number] = current[self._at :]
+                heappush(self._numbers, self._number)
+                self._current = None
+        entries = self._slices.get(k)
+        if entries is None:
+            self._slices[k] = [entry]
+            heappush(self._numbers, k)
+        else:
+            entries.append(entry)
+
+    def first(self) -> tuple | None:
+        """The first entry (None: there is none)."""
+        current = self._current
+        if current is not None and self._at < len(current):
+            return current[self._at]
+        if not self._numbers:
+            self._current = None
+            return None
+        k = heappop(self._numbers)
+        current = self._slices.pop(k)
+        current.sort()
+        self._current, self._number, self._at = current, k, 0
+        return current[0]
+
+    def pop(self) -> tuple:
+        """Take the first entry (there must be one)."""
+        entry = self.first()
+        assert entry is not None
+        self._at += 1
+        return entry
 
 
 class DeadlineTimers:
@@ -51,12 +112,12 @@ class DeadlineTimers:
         self.armed_s = np.full(n, np.inf)
         self._generation = [0] * n  # read one at a time: a list is cheaper than an array
         self._fire_bound = self._fire  # one bound method, not one per arming
-        # With an agenda that takes keys (module notes): the events, a heap of (t, priority,
-        # id, timer, generation); the key of its head, whose entry on the agenda runs it
-        # (None: the heap is empty); and the keys queued on the agenda and not yet run (one
-        # may have been the head's and be again).
+        # With an agenda that takes keys (module notes): the events, (t, priority, id, timer,
+        # generation) in a calendar; the key of its first, whose entry on the agenda runs it
+        # (None: there is none); and the keys queued on the agenda and not yet run (one may
+        # have been the first's and be again).
         self._keyed = agenda is not None and hasattr(agenda, "at_key")
-        self._events: list[tuple[float, int, int, int, int]] = []
+        self._events = Calendar()
         self._head_key: tuple[float, int, int] | None = None
         self._queued: set[tuple[float, int, int]] = set()
         self._run_head_bound = self._run_head
@@ -103,7 +164,7 @@ class DeadlineTimers:
             delay = 0.0  # as max(0.0, delay)
         if self._keyed:
             key = self.agenda.key(delay, NORMAL)  # type: ignore[union-attr]
-            heappush(self._events, (key[0], key[1], key[2], i, gen))
+            self._events.push((key[0], key[1], key[2], i, gen))
             head = self._head_key
             if head is None or key < head:
                 self._queue_head()
@@ -113,9 +174,10 @@ class DeadlineTimers:
             scheduled_event(self.env, delay, NORMAL, partial(self._fire_bound, i, gen))
 
     def _queue_head(self) -> None:
-        """Make the head of the events the one the agenda runs next: queue its key there,
-        unless an entry of that key is queued already (it then runs the head again)."""
-        h = self._events[0]
+        """Make the first of the events the one the agenda runs next: queue its key there,
+        unless an entry of that key is queued already (it then runs the first again)."""
+        h = self._events.first()
+        assert h is not None
         key = (h[0], h[1], h[2])
         self._head_key = key
         if key not in self._queued:
@@ -126,10 +188,10 @@ class DeadlineTimers:
         self._queued.discard(key)
         if key != self._head_key:
             return  # an earlier event was armed since: its own entry runs it
-        _, _, _, i, gen = heappop(self._events)
+        _, _, _, i, gen = self._events.pop()
         self._head_key = None
         self._fire(i, gen)
-        if self._head_key is None and self._events:
+        if self._head_key is None and self._events.first() is not None:
             self._queue_head()
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:

@@ -117,3 +117,34 @@ def test_timers_on_an_agenda_fire_as_kernel_events():
     kernel, agenda = _timer_script(False), _timer_script(True)
     assert kernel == agenda
     assert [e[0] for e in kernel].count("expire") == 4
+
+
+def test_calendar_takes_entries_in_the_order_of_a_heap():
+    """The timers' calendar gives its entries in the order heapq gives them, pushes and
+    takes interleaved: ties of time (broken by the next items), entries for the slice being
+    taken, for earlier slices, far ahead, and after it ran empty."""
+    import heapq
+
+    from netsim.timers import Calendar
+
+    rng = np.random.default_rng(3)
+    for slice_s in (0.05, 1.0):
+        calendar, heap, taken, expected = Calendar(slice_s), [], [], []
+        now, ids = 0.0, 0
+        for _ in range(3000):
+            if rng.random() < 0.55 or not heap:
+                ids += 1
+                t = now + float(rng.choice([0.0, 0.01, 0.02, 0.5, 3.0, rng.uniform(0, 4)]))
+                entry = (t, int(rng.integers(0, 2)), ids)
+                calendar.push(entry)
+                heapq.heappush(heap, entry)
+            else:
+                assert calendar.first() == heap[0]
+                taken.append(calendar.pop())
+                expected.append(heapq.heappop(heap))
+                now = taken[-1][0]
+        while heap:
+            taken.append(calendar.pop())
+            expected.append(heapq.heappop(heap))
+        assert taken == expected and calendar.first() is None
+        assert len({e[0] for e in taken}) < len(taken) - 100  # ties happened
