@@ -2,11 +2,11 @@
 
 SimPy timeouts cannot be cancelled. A timer here is a deadline in an array; restarting
 it writes the array (vectorised over any set of robots) and schedules nothing, unless
-the new deadline is earlier than the pending kernel event. When the pending event fires
-it compares with the current deadline: if the deadline moved later, it re-arms itself
-there; if it was cancelled, it does nothing; otherwise the timer expires. So a timer
-restarted on every Ack costs one array write per Ack and at most one kernel event per
-``tau``.
+the new deadline is earlier than the pending event. When the pending event fires it
+compares with the current deadline: if the deadline moved later, it re-arms itself there;
+if it was cancelled, it does nothing; otherwise the timer expires. So a timer restarted on
+every Ack costs one array write per Ack and at most one event per ``tau`` (a kernel event
+without an agenda; an entry of the timers' calendar with one, below).
 
 Timer events run at NORMAL priority; message deliveries run at URGENT priority, so an
 Ack that arrives at the same instant as a deadline is processed first and counts.

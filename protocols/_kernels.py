@@ -287,34 +287,6 @@ def _two_way(rec, now, tau_s, symmetric):
 
 
 @numba.njit(cache=True, nogil=True)
-def leader_slots(ids_row, records_row, now, tau_s, symmetric, exclude):
-    """The slots of a row's live two-way neighbours whose last Ack said they were leaders,
-    but ``exclude`` (:func:`protocols.clustering.leader_slots`)."""
-    out = np.empty(len(ids_row), dtype=np.int64)
-    m = 0
-    for s in range(len(ids_row)):
-        rec = records_row[s]
-        if _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == LEADER_ROLE and ids_row[s] != exclude:
-            out[m] = s
-            m += 1
-    return out[:m]
-
-
-@numba.njit(cache=True, nogil=True)
-def mate_slots(records_row, now, tau_s, symmetric, leader):
-    """The slots of a row's live two-way neighbours whose last Ack said they were members of
-    ``leader`` (:func:`protocols.clustering.mate_slots`)."""
-    out = np.empty(len(records_row), dtype=np.int64)
-    m = 0
-    for s in range(len(records_row)):
-        rec = records_row[s]
-        if _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == MEMBER and rec[LEADER] == leader:
-            out[m] = s
-            m += 1
-    return out[:m]
-
-
-@numba.njit(cache=True, nogil=True)
 def membership(ids, records, now, tau_s, symmetric, role, leader):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
     robot and group (:func:`protocols.clustering.membership`)."""

@@ -229,11 +229,14 @@ class AckBeacon:
         self.watched: list[int] = [0] * n
         # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
         self.before_send: list[Callable[[int, float], None]] = []
-        # Set by a protocol whose leaders announce their group's size (the clustering) when
-        # the compiled Ack works it out (protocols._kernels.make_sized_ack) in place of a
-        # hook: whose announced size is other than 1, and whether links are symmetric.
+        # Set by a protocol whose leaders announce their group's size (the clustering): whose
+        # announced size is other than 1, whether links are symmetric, and the numpy rule
+        # that sets the size before an Ack. The compiled Ack applies the same rule itself
+        # (protocols._kernels.make_sized_ack); each Ack takes one path or the other, so the
+        # size is set whichever way the table computes.
         self.sized: np.ndarray | None = None
         self.sized_symmetric = True
+        self.size_rule: Callable[[int, float], None] | None = None
         self.phase_s = np.zeros(n)
         # Receptions ignored because a newer Ack of the same sender had arrived first.
         self.stale_acks = 0
@@ -291,6 +294,8 @@ class AckBeacon:
                     self.role_sent, self.degree_sent, sized, self.sized_symmetric,
                 )  # fmt: skip
             return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
+        if self.size_rule is not None:
+            self.size_rule(i, now)
         x, y = self.state.position(i, now)
         seq = int(self.seq[i]) + 1
         self.seq[i] = seq

@@ -412,21 +412,16 @@ class Clustering:
         # collector to walk, again and again, until the end.
         self._changes: tuple[list, list, list, list, list] = ([], [], [], [], [])
         parts.trace.add_frame("roles", self.roles_frame)
-        # The compiled twins of ack_effects, group_size, leader_slots and membership (and of
-        # join_choice and elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS
+        # The compiled twins of ack_effects, group_size and membership (and of join_choice and
+        # elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS
         # robots.
         self.kernels = k = load("protocols._kernels", st.n)
         self._effects = k.ack_effects if k is not None else ack_effects
         self._effects_out = np.empty((5, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
         self._group_size = k.group_size if k is not None else group_size
-        self._leader_slots = k.leader_slots if k is not None else leader_slots
         self._membership = k.membership if k is not None else membership
         beacon.leader_listeners.append(self.on_ack)
-        if beacon.table.kernels is not None:
-            # The hook's work inside the compiled Ack (protocols._kernels.make_sized_ack).
-            beacon.sized, beacon.sized_symmetric = self._sized, self.symmetric
-        else:
-            beacon.before_send.append(self._before_ack)
+        beacon.sized, beacon.sized_symmetric, beacon.size_rule = self._sized, self.symmetric, self._before_ack
 
     def start(self) -> None:
         roles, now = self.roles, self.env.now
@@ -441,7 +436,7 @@ class Clustering:
         """Live two-way neighbours of ``i`` whose last Ack said they were leaders."""
         table = self.table
         rows, ids = table.data[i], table.id[i]
-        slots = self._leader_slots(ids, rows, now, table.tau_s, self.symmetric, exclude)
+        slots = leader_slots(ids, rows, now, table.tau_s, self.symmetric, exclude)
         if not len(slots):
             return []
         x, y = self.state.position(i, now)
@@ -521,11 +516,13 @@ class Clustering:
             if leader < 0:
                 return False
         else:
-            candidates = self.known_leaders(i, now, exclude)
-            if not candidates:
+            x, y = self.state.position(i, now)
+            leader, slot = join_choice(
+                table.id[i], table.data[i], now, table.tau_s, self.symmetric, exclude, x, y, self.join_policy,
+                first_heard,
+            )  # fmt: skip
+            if leader == NO_LEADER:
                 return False
-            leader = choose_leader(self.join_policy, candidates, first_heard)
-            slot = table.entry(i, leader)
         self._set(i, "leader_heard", leader, now)
         self.timers.restart(i, table.data[i, slot, LAST_HEARD] + self.tau_s)
         return True

@@ -1,12 +1,10 @@
 """The clustering's compiled loops (protocols/_kernels.py) compute exactly what their numpy
 twins compute (compared with ``==``): the effects of an Ack (clustering.ack_effects), a
-leader's group size (clustering.group_size) and the Ack announcing it (make_sized_ack), the
-known leaders and a leader's members in a row of the table (clustering.leader_slots,
-mate_slots), rule 2's choice and rule 6's verdict from a row (clustering.join_choice,
-elected_in_row), everyone's groups (clustering.membership), who relays a flooded message
-(relay.relays) and the samples of beliefs beside the truth (stack.belief_rows,
-belief_counts, sample_rows); and the numpy
-``relays`` keeps the relaying rule."""
+leader's group size (clustering.group_size) and the Ack announcing it (make_sized_ack), rule
+2's choice and rule 6's verdict from a row (clustering.join_choice, elected_in_row),
+everyone's groups (clustering.membership), who relays a flooded message (relay.relays) and
+the samples of beliefs beside the truth (stack.belief_rows, belief_counts, sample_rows); and
+the numpy ``relays`` keeps the relaying rule."""
 
 import numpy as np
 import pandas as pd
@@ -21,8 +19,6 @@ from protocols.clustering import (
     elected_in_row,
     group_size,
     join_choice,
-    leader_slots,
-    mate_slots,
     membership,
 )
 from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
@@ -30,6 +26,7 @@ from protocols.relay import relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
 from protocols.stack import belief_counts, belief_rows, believed_keys, sample_rows
+from tests.fixtures import clustering
 
 pytest.importorskip("numba")
 
@@ -109,26 +106,6 @@ def test_compiled_group_size_equals_numpy(symmetric):
             assert a == b
             sizes.append(b)
     assert min(sizes) == 1 and max(sizes) > 2
-
-
-@pytest.mark.parametrize("symmetric", [False, True])
-def test_compiled_leader_and_mate_slots_equal_numpy(symmetric):
-    """The slots of a row's known leaders (but one excluded) and of the members of a given
-    leader (rules 2 and 6) are the numpy ones."""
-    rng = np.random.default_rng(8)
-    found = np.zeros(2, dtype=int)
-    for _ in range(50):
-        now = 10.0
-        ids, records = random_tables(rng, 6, 8, now)
-        for i in range(6):
-            other = int(rng.integers(-1, 6))
-            a = kernels.leader_slots(ids[i], records[i], now, TAU_S, symmetric, other)
-            b = leader_slots(ids[i], records[i], now, TAU_S, symmetric, other)
-            c = kernels.mate_slots(records[i], now, TAU_S, symmetric, other)
-            d = mate_slots(records[i], now, TAU_S, symmetric, other)
-            assert a.tolist() == b.tolist() and c.tolist() == d.tolist()
-            found += [len(a) > 0, len(c) > 0]
-    assert found.min() > 20
 
 
 @pytest.mark.parametrize("symmetric", [False, True])
@@ -331,7 +308,7 @@ def test_compiled_sized_ack_equals_numpy(monkeypatch):
     numpy hook (clustering.announced_size) and the numpy Ack build, and leaves the same
     sizes and marks of who is sized."""
     (sim_a, a), (sim_b, b) = _clustering_after(monkeypatch, 8.0, True), _clustering_after(monkeypatch, 8.0, False)
-    assert a.beacon.sized is not None and b.beacon.sized is None
+    assert a.beacon.table.kernels is not None and b.beacon.table.kernels is None
     rng = np.random.default_rng(9)
     now = sim_a.env.now
     sizes = []
@@ -413,3 +390,19 @@ def test_compiled_elected_in_row_equals_numpy(policy, symmetric):
             assert a == b
             verdicts.append(a)
     assert policy == ElectionPolicy.NONE or 50 < sum(verdicts) < len(verdicts) - 50
+
+
+@pytest.mark.parametrize("numpy_table", [False, True])
+def test_leaders_announce_their_group_size_whichever_path_builds_the_ack(monkeypatch, numpy_table):
+    """A leader's Ack carries its group's size whether the compiled Ack or the numpy one
+    builds it, even if the table changes path after the clustering was set up."""
+    monkeypatch.setenv("NETSIM_COMPILED", "1")
+    rng = np.random.default_rng(8)
+    sim, stack = clustering(rng.uniform(0, 60, (30, 2)), core={"range_m": 25.0})
+    if numpy_table:
+        stack.beacon.table.kernels = None
+    sim.run(until_s=20.0)
+    leaders = np.flatnonzero(stack.roles.role == ALPHA)
+    sizes = [stack.clustering.group_size(int(i), sim.env.now) for i in leaders]
+    assert max(sizes) > 1
+    assert stack.beacon.group_size[leaders].tolist() == sizes
