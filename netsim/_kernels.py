@@ -246,8 +246,8 @@ def reach_keys(pos, folded, ranges, box):
         j = members[m]
         px[m], py[m], pr[m] = pos[j, 0], pos[j, 1], ranges[j]
     # Each receiver's senders, ascending, at senders[first[a]:first[a] + count[a]].
-    first = np.zeros(n, np.int64)
-    count = np.zeros(n, np.int64)
+    first = np.empty(n, np.int64)  # every robot's written: each is a receiver of its cell
+    count = np.empty(n, np.int64)
     senders = np.empty(32 * n + 16, np.int64)
     spans = np.empty((6, 2), np.int64)
     k = 0

@@ -390,8 +390,9 @@ def _belief_arrays(n, slots, n_heard):
     size = n * slots + n_heard
     robot = np.empty(size, np.int64)
     neighbour = np.empty(size, np.int64)
-    believed = np.zeros(size, np.bool_)
-    in_range = np.zeros(size, np.bool_)
+    # Every row up to the last is written (flags too): no need to clear the memory first.
+    believed = np.empty(size, np.bool_)
+    in_range = np.empty(size, np.bool_)
     indptr = np.zeros(n + 1, np.int64)
     return robot, neighbour, believed, in_range, indptr
 
@@ -420,15 +421,11 @@ def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, out, k, p):
         h = heard[p] - base if p < len(heard) and heard[p] < end else n
         b = live[q] if q < m else n
         robot[k] = r
-        if b <= h:
-            neighbour[k] = b
-            believed[k] = True
-            q += 1
-        else:
-            neighbour[k] = h
-        if h <= b:
-            in_range[k] = True
-            p += 1
+        neighbour[k] = min(b, h)
+        believed[k] = b <= h
+        in_range[k] = h <= b
+        q += b <= h
+        p += h <= b
         k += 1
     indptr[r + 1] = k
     return k, p

@@ -48,7 +48,6 @@ class Samples:
 
     def __init__(self, expected: int = 1) -> None:
         self.times: list[float] = []
-        self.sizes: list[int] = []
         self.expected = max(int(expected), 1)
         self.rows = 0
         self._t = np.empty(0)
@@ -69,7 +68,6 @@ class Samples:
         for name, col in columns.items():
             self._buffers[name][at:end] = col
         self.times.append(now)
-        self.sizes.append(m)
         self.rows = end
         return self
 
@@ -388,7 +386,8 @@ class Stack:
         return beliefs_table(Samples().add(now, self._belief_columns(now, keys)))
 
     def _belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
-        """:meth:`belief_vs_truth`'s columns but ``t_s``, the roles as codes."""
+        """:meth:`belief_vs_truth`'s columns but ``t_s``, the roles as codes (the live
+        arrays of roles and leaders: :meth:`Samples.add` copies them)."""
         roles = self.roles
         b = keys if keys is not None else self._belief_keys(now)
         believed, true_count, stale, missing, in_range = self._belief_counts(
