@@ -1,4 +1,6 @@
-"""Compiled (numba) loops of the engine core's hot path: the range query of a transmission.
+"""Compiled (numba) loops of the engine core's hot paths: the range query of a transmission,
+the grid of candidate pairs (range index, link solvers, snapshots) and the pairs in reach of
+a sample.
 
 Each computes exactly what its numpy counterpart computes, with the same arithmetic in the
 same order, one item at a time: for the tens of candidates of one query, numpy's cost per
@@ -118,7 +120,8 @@ def near_pairs(pos, r, box):
     :func:`netsim.crossings.grid_cells` counts: the caller checks they are not too many): what
     ``cKDTree.query_pairs(r)`` finds, and possibly pairs further apart than ``r`` by a
     relative 1e-9 (a distance at the bound rounds either way; callers filter exactly and
-    ask with a slack, so such pairs change nothing). Rows in no particular order."""
+    ask with a slack, so such pairs change nothing). Rows by robot ``i``, then its cells row by
+    row, then the other robot's id in the cell: a fixed order (the link solvers emit in it)."""
     n = pos.shape[0]
     r2 = r * r * (1.0 + 1e-9)
     cells_x, cells_y, cell, start, members = grid(pos, r, box)

@@ -48,7 +48,7 @@ def wrap(d: np.ndarray, box: float | None) -> np.ndarray:
 
 def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
     """Pairs ``(i, j)``, ``i < j``, of positions within ``range_m`` (periodic on a torus of
-    side ``side_m``), as an ``(m, 2)`` array in no particular order: for more than a small
+    side ``side_m``), as an ``(m, 2)`` array (in the grid's fixed order or the KD-tree's): for more than a small
     run's robots a compiled grid (:func:`netsim._kernels.near_pairs`, which may add pairs
     further apart than ``range_m`` by a relative 1e-9: every caller asks with a slack and
     filters exactly), else, or where a grid would need many more cells than there are robots

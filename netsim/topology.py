@@ -21,7 +21,11 @@ def _candidates(
     """The unordered pairs ``i < j`` within the largest range (a superset: the callers
     filter on the distances), and their distances (unsorted)."""
     empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
-    pairs = near_pairs(positions_m, float(ranges.max()), side_m) if len(positions_m) else np.empty((0, 2), np.int64)
+    if not len(positions_m):
+        return empty
+    # Asked with a slack: a pair whose hypot is the range may have a squared distance a hair
+    # above its square, which a KD-tree leaves out; the callers' exact filter decides.
+    pairs = near_pairs(positions_m, float(ranges.max()) * (1.0 + 1e-9), side_m)
     if len(pairs) == 0:
         return empty
     i, j = pairs[:, 0], pairs[:, 1]
@@ -91,13 +95,13 @@ def reach_keys(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
     return reach_keys_of_pairs(positions_m, ranges, side_m)
 
 
-def reach_keys_of_pairs(positions_m: np.ndarray, ranges: np.ndarray, side_m: float | None = None) -> np.ndarray:
+def reach_keys_of_pairs(positions_m: np.ndarray, ranges_m: np.ndarray, side_m: float | None = None) -> np.ndarray:
     """:func:`reach_keys` from the candidate pairs (:func:`netsim.crossings.near_pairs`),
     each pair's two directions filtered and all keys sorted: the numpy twin of the
     compiled pass, and the way where a grid would need too many cells."""
     n = len(positions_m)
-    i, j, dist = _candidates(positions_m, ranges, side_m)
-    fwd, back = dist <= ranges[i], dist <= ranges[j]
+    i, j, dist = _candidates(positions_m, ranges_m, side_m)
+    fwd, back = dist <= ranges_m[i], dist <= ranges_m[j]
     return np.sort(np.concatenate([j[fwd] * n + i[fwd], i[back] * n + j[back]]))
 
 

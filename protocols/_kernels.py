@@ -1,6 +1,9 @@
-"""Compiled (numba) loops of the Ack beacon's hot path: the neighbour tables.
+"""Compiled (numba) loops of the protocols' hot paths: the neighbour tables and the Ack
+(:mod:`protocols.neighbours`, :mod:`protocols.ack`), the clustering's per-Ack rules, relaying
+and once-a-second samples (:mod:`protocols.clustering`, :mod:`protocols.relay`,
+:mod:`protocols.stack`).
 
-Each computes exactly what its numpy counterpart in :mod:`protocols.neighbours` computes,
+Each computes exactly what its numpy counterpart computes,
 receiver by receiver instead of in array operations: for the ten or so receivers of one
 Ack, numpy's cost per operation, not the arithmetic, is what a call costs. The tests check
 that both agree exactly.

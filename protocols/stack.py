@@ -102,7 +102,10 @@ def column_buffer(capacity: int, dtype: np.dtype) -> np.ndarray:
     dtype = np.dtype(dtype)
     if dtype.hasobject or capacity == 0:
         return np.empty(capacity, dtype=dtype)
-    memory = mmap.mmap(-1, capacity * dtype.itemsize)
+    size = capacity * dtype.itemsize
+    # Private: a process forked later (a worker) writes its own copy, never this one.
+    private = getattr(mmap, "MAP_PRIVATE", None)
+    memory = mmap.mmap(-1, size, flags=private | mmap.MAP_ANONYMOUS) if private is not None else mmap.mmap(-1, size)
     if hasattr(mmap, "MADV_NOHUGEPAGE"):  # where huge pages are always used unless refused
         memory.madvise(mmap.MADV_NOHUGEPAGE)
     return np.frombuffer(memory, dtype=dtype, count=capacity)

@@ -348,18 +348,55 @@ def test_compiled_reach_keys_equal_numpy(torus):
     assert hits > 1000
 
 
+def brute_reach_keys(pos: np.ndarray, ranges: np.ndarray) -> list[int]:
+    """``receiver * n + sender`` for every sender within its range of the receiver
+    (``hypot <= r_sender``), every ordered pair tried: the plane's reference."""
+    n = len(pos)
+    d = np.hypot(pos[:, None, 0] - pos[None, :, 0], pos[:, None, 1] - pos[None, :, 1])
+    receiver, sender = np.nonzero((d <= ranges[None, :]) & ~np.eye(n, dtype=bool))
+    return sorted((receiver * n + sender).tolist())
+
+
 def test_reach_keys_where_the_grid_would_not_fit():
-    """:func:`netsim.topology.reach_keys` takes the candidate pairs where a grid would need
-    far more cells than robots (and for no robot, or one), and agrees with them elsewhere."""
-    from netsim.topology import reach_keys, reach_keys_of_pairs
+    """:func:`netsim.topology.reach_keys` is every pair in reach where a grid would need far
+    more cells than robots (the candidate pairs' way), for no robot or one, and elsewhere."""
+    from netsim.topology import reach_keys
 
     rng = np.random.default_rng(32)
     cluster = np.vstack([rng.uniform(0, 1000, (200, 2)), [[1e6, 1e6]]])
     spread = rng.uniform(0, 1000, (300, 2))
     for pos in (cluster, spread, np.empty((0, 2)), np.zeros((1, 2))):
         ranges = rng.uniform(5.0, 60.0, len(pos))
-        assert reach_keys(pos, ranges).tolist() == reach_keys_of_pairs(pos, ranges, None).tolist()
+        assert reach_keys(pos, ranges).tolist() == brute_reach_keys(pos, ranges)
     assert len(reach_keys(spread, 60.0)) > 100
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_reach_keys_at_exactly_the_range_on_every_path(monkeypatch, compiled):
+    """Two robots whose distance (hypot) is exactly the range, its square a hair above the
+    range's: in reach on every path, the compiled grid, the KD-tree of small runs or
+    NETSIM_COMPILED=0, and the candidates of a grid that would not fit."""
+    from netsim.topology import reach_keys, reach_keys_of_pairs
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    rng = np.random.default_rng(5)
+    r = 40.0
+    while True:
+        a = rng.uniform(100, 900, 2)
+        angle = rng.uniform(0, 2 * np.pi)
+        b = a + r * np.array([np.cos(angle), np.sin(angle)])
+        d = a - b
+        if np.hypot(*d) == r and d @ d > r * r:
+            break
+    pair = np.array([a, b])
+    many = np.vstack([pair, rng.uniform(0, 1000, (400, 2))])
+    far = np.vstack([pair, [[1e7, 1e7]]])
+    for pos in (pair, many, far):
+        ranges = np.full(len(pos), r)
+        want = brute_reach_keys(pos, ranges)
+        assert {1, len(pos)} <= set(want)
+        assert reach_keys(pos, r).tolist() == want
+        assert reach_keys_of_pairs(pos, ranges, None).tolist() == want
 
 
 @pytest.mark.parametrize("torus", [False, True])

@@ -1,6 +1,8 @@
 """The ``neighbour_beliefs`` table: which robots each robot believes live, beside which
 truly reach it, by id (the ids behind ``beliefs.parquet``'s counts)."""
 
+import os
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -121,3 +123,22 @@ def test_samples_frame_is_every_sample_in_order(expected):
     assert got.dtypes.tolist() == want.dtypes.tolist()
     assert got.equals(want) and len(got) > 500
     assert early.equals(early_copy) and len(early) > 0
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_sampled_buffers_are_not_shared_with_a_forked_process():
+    """A process forked while a run's samples are held (a sweep's worker, say) writes its
+    own copy of their buffers: the parent's next rows are its own, not the child's."""
+    from protocols.stack import Samples
+
+    samples = Samples(10)
+    samples.add(0.0, {"robot": np.arange(5)})
+    pid = os.fork()
+    if pid == 0:  # the child: a later sample of its own, then gone
+        samples.add(1.0, {"robot": np.full(5, 111)})
+        os._exit(0)
+    os.waitpid(pid, 0)
+    # The parent's buffer beyond its own rows, where the child wrote its copy's.
+    assert 111 not in samples._buffers["robot"].tolist()
+    samples.add(1.0, {"robot": np.full(5, 7)})
+    assert samples.frame()["robot"].tolist() == [0, 1, 2, 3, 4, 7, 7, 7, 7, 7]
