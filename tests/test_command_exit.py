@@ -1,0 +1,48 @@
+"""The ``netsim`` command ends its process at once when main returns (netsim.tools.cli.command):
+nothing it printed or wrote is lost, and its exit code is main's."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+from netsim.tools.cli import main
+
+COMMAND = str(Path(sys.executable).with_name("netsim"))
+# Block-buffered output, as in a user's shell (a test runner may ask for unbuffered).
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+
+
+def test_command_flushes_what_it_printed_through_a_pipe(capsys):
+    """``netsim config`` piped (so stdout is block-buffered) prints all that main prints."""
+    main(["config", "--set", "world.n_robots=12"])
+    expected = capsys.readouterr().out
+    run = subprocess.run([COMMAND, "config", "--set", "world.n_robots=12"], capture_output=True, text=True, env=ENV)
+    assert run.returncode == 0 and len(expected) > 2000
+    assert run.stdout == expected
+
+
+def test_command_run_writes_every_table_and_exits_zero(tmp_path):
+    run = subprocess.run(
+        [COMMAND, "run", "--out", str(tmp_path), "--no-progress", "--set", "world.n_robots=8", "--set", "duration_s=5"],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "manifest.json").exists() and (tmp_path / "summary.json").exists()
+    assert len(pd.read_parquet(tmp_path / "roles.parquet")) >= 8
+
+
+def test_command_exits_with_mains_code_on_bad_input(tmp_path):
+    """A user's error: exit 2, one line, nothing written (as main returns it)."""
+    out = tmp_path / "run"
+    run = subprocess.run(
+        [COMMAND, "run", "--out", str(out), "--no-progress", "--set", "world.n_robots=-3"],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 2
+    assert len(run.stderr.strip().splitlines()) == 1 and run.stderr.startswith("netsim: error:")
+    assert not out.exists()
