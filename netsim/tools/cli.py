@@ -323,8 +323,8 @@ def command() -> None:
         sys.modules["logging"].shutdown()
     import threading
 
-    if threading.active_count() > 1:
-        sys.exit(code)
+    if threading.active_count() > 1 or not isinstance(code, int):
+        sys.exit(code)  # None, a message: sys.exit's own rules
     os._exit(code)
 
 
