@@ -116,6 +116,8 @@ class DeadlineTimers:
         # generation) in a calendar; the key of its first, whose entry on the agenda runs it
         # (None: there is none); and the keys queued on the agenda and not yet run (one may
         # have been the first's and be again).
+        # An agenda that cannot key entries (the tests' reference, a kernel event per entry)
+        # gets an entry per timer event instead.
         self._keyed = agenda is not None and hasattr(agenda, "at_key")
         self._events = Calendar()
         self._head_key: tuple[float, int, int] | None = None

@@ -227,8 +227,6 @@ class AckBeacon:
         # changes anything there; most Acks are neither, and cost no call).
         self.leader_listeners: list[AckListener] = []
         self.watched: list[int] = [0] * n
-        # Called as hook(i, now) just before robot i's Ack is built (to refresh its fields).
-        self.before_send: list[Callable[[int, float], None]] = []
         # Set by a protocol whose leaders announce their group's size (the clustering): whose
         # announced size is other than 1, whether links are symmetric, and the numpy rule
         # that sets the size before an Ack. The compiled Ack applies the same rule itself
@@ -274,8 +272,6 @@ class AckBeacon:
 
     def make_ack(self, i: int) -> Ack:
         now = self.env.now
-        for hook in self.before_send:
-            hook(i, now)
         table = self.table
         k = table.kernels
         if k is not None:

@@ -432,17 +432,6 @@ class Clustering:
         self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
 
     # -- what a robot knows --------------------------------------------------------------
-    def known_leaders(self, i: int, now: float, exclude: int = NO_LEADER) -> list[Candidate]:
-        """Live two-way neighbours of ``i`` whose last Ack said they were leaders."""
-        table = self.table
-        rows, ids = table.data[i], table.id[i]
-        slots = leader_slots(ids, rows, now, table.tau_s, self.symmetric, exclude)
-        if not len(slots):
-            return []
-        x, y = self.state.position(i, now)
-        dist = np.hypot(rows[slots, X] - x, rows[slots, Y] - y)
-        return [Candidate(int(j), float(d)) for j, d in zip(ids[slots].tolist(), dist.tolist())]
-
     def group_size(self, i: int, now: float) -> int:
         """1 + the live two-way neighbours whose last Ack named ``i`` as their leader."""
         return int(self._group_size(self.table.data[i], now, self.table.tau_s, self.symmetric, i))

@@ -262,10 +262,12 @@ class Stack:
         self.command: list[Command | None] = [None] * n
         self._command_seq = np.zeros(n, dtype=np.int64)
         self.on_command: list[Callable[[int, Command], None]] = []
-        # The sampled tables, kept as arrays and made tables once, at the end.
-        self._groups = Samples()
-        self._beliefs = Samples()
-        self._neighbour_beliefs = Samples()
+        # The sampled tables, kept as arrays and made tables once, at the end: samples at 0,
+        # interval, ... before the end, each table's buffers sized for them.
+        self._sample_interval_s = self.output.position_interval_s or params.ack_period_s
+        interval = self._sample_interval_s
+        expected = int(self.duration_s // interval) + 1 if interval > 0 else 1
+        self._groups, self._beliefs, self._neighbour_beliefs = (Samples(expected) for _ in range(3))
         kernels = load("protocols._kernels", n)
         # The compiled twins of sample_rows, belief_rows and belief_counts, past
         # netsim.compiled.SMALL_RUN_ROBOTS robots.
@@ -292,11 +294,7 @@ class Stack:
         p = self.params
         if p.message_rate_hz > 0:
             self.env.process(traffic(self.env, self.streams, self.state.n, self.relay, p.message_rate_hz))
-        interval = self.output.position_interval_s or p.ack_period_s
-        # Samples at 0, interval, ... before the end: each table's buffers sized for them.
-        expected = int(self.duration_s // interval) + 1 if interval > 0 else 1
-        self._groups, self._beliefs, self._neighbour_beliefs = (Samples(expected) for _ in range(3))
-        self.env.process(self._sampler(interval))
+        self.env.process(self._sampler(self._sample_interval_s))
         self.trace.add_frame("messages", self.messages_frame)
         self.trace.add_frame("hops", self.relay.hops_frame)
         self.trace.add_frame("groups", self.groups_frame)
