@@ -50,6 +50,31 @@ def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
 
 
 @numba.njit(cache=True, nogil=True)
+def within_alive(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m, alive):
+    """The candidates ``cand`` within ``r`` of robot ``i`` at ``t`` (as :func:`within`,
+    without the distances), and whether all of them are ``alive``
+    (:meth:`netsim.spatial.RangeIndex.within_alive`)."""
+    x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
+    r2 = r * r
+    ids = np.empty(len(cand), dtype=np.int64)
+    k = 0
+    all_alive = True
+    for j in cand:
+        dtj = t - t0_s[j]
+        dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
+        dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y
+        if torus:
+            dx = dx - side_m * np.rint(dx / side_m)
+            dy = dy - side_m * np.rint(dy / side_m)
+        if dx * dx + dy * dy <= r2:
+            ids[k] = j
+            k += 1
+            if not alive[j]:
+                all_alive = False
+    return ids[:k], all_alive
+
+
+@numba.njit(cache=True, nogil=True)
 def count_each(counts, ids):
     """``counts[ids] += 1`` for distinct ``ids`` (the channel's per-robot reception count):
     for the tens of receivers of one delivery, a loop costs less than numpy's fancy index."""

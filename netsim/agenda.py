@@ -49,7 +49,12 @@ class _Wake(simpy.Event):
 
 
 class Agenda:
-    """Callbacks ``fn()`` due at ``(t, priority)``, run in the kernel's order (module notes)."""
+    """Callbacks ``fn(*args)`` due at ``(t, priority)``, run in the kernel's order (module notes).
+
+    An entry is the tuple ``(t, priority, id, fn, args)``: the arguments ride in it, so that
+    a caller schedules a bound method and its arguments without making an object (a
+    ``partial``, a closure) for each call; the unique id decides every comparison before
+    ``fn``."""
 
     def __init__(self, env: simpy.Environment):
         self.env = env
@@ -66,10 +71,10 @@ class Agenda:
     def __len__(self) -> int:
         return len(self._heap) + len(self._queue)
 
-    def at(self, delay_s: float, priority: int, fn: Callable[[], object]) -> None:
-        """Call ``fn()`` ``delay_s`` from now at ``priority``: where an event scheduled now
-        with ``env.schedule(event, priority, delay_s)`` would run."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn)  # type: ignore[attr-defined]
+    def at(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
+        """Call ``fn(*args)`` ``delay_s`` from now at ``priority``: where an event scheduled
+        now with ``env.schedule(event, priority, delay_s)`` would run."""
+        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
         heappush(self._heap, entry)
         wakes = self._wakes
         if (not wakes or entry < wakes[0]) and not self._running:
@@ -80,21 +85,21 @@ class Agenda:
         drawn now), for :meth:`at_key`."""
         return (self.env._now + delay_s, priority, next(self._ids))  # type: ignore[attr-defined]
 
-    def at_key(self, key: tuple[float, int, int], fn: Callable[[], object]) -> None:
-        """Call ``fn()`` at ``key``, drawn earlier by :meth:`key`: it runs where an entry
+    def at_key(self, key: tuple[float, int, int], fn: Callable[..., object], *args: object) -> None:
+        """Call ``fn(*args)`` at ``key``, drawn earlier by :meth:`key`: it runs where an entry
         scheduled at that moment would have run. For a caller that keeps entries of its own
         and queues here only the first (:class:`netsim.timers.DeadlineTimers`); a key may be
         queued only once."""
-        entry = (key[0], key[1], key[2], fn)
+        entry = (key[0], key[1], key[2], fn, args)
         heappush(self._heap, entry)
         wakes = self._wakes
         if (not wakes or entry < wakes[0]) and not self._running:
             self._arm(entry)
 
-    def at_in_order(self, delay_s: float, priority: int, fn: Callable[[], object]) -> None:
+    def at_in_order(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """:meth:`at`, for a caller whose entries mostly come in key order (the same delay
         and priority each time): those are queued, not heaped (module notes)."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn)  # type: ignore[attr-defined]
+        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
         queue = self._queue
         if queue and entry < queue[-1]:
             heappush(self._heap, entry)
@@ -146,7 +151,7 @@ class Agenda:
                     heappop(heap)
                 # As the kernel's step() sets it: the entry's own time, the same float.
                 env._now = head[0]  # type: ignore[attr-defined]
-                head[3]()
+                head[3](*head[4])
         finally:
             self._running = False
             first = self._head()

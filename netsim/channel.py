@@ -45,6 +45,7 @@ import simpy
 
 from netsim.agenda import Agenda
 from netsim.events import URGENT, Delivery, Drop, EventBus
+from netsim.loss import Survives
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
 
@@ -150,57 +151,12 @@ class _Bin:
         self.row[column] += count
 
 
-class _Arrival:
-    """What a delivery event does on arrival: count the receptions, tell the bus, hand
-    them to the protocol. A slotted record is cheaper than a closure over eight names."""
-
-    __slots__ = ("channel", "deliver", "sender", "receivers", "payload", "counters", "kind", "binned")
-
-    def __init__(
-        self,
-        channel: Channel,
-        deliver: Deliver,
-        sender: int,
-        receivers: np.ndarray,
-        payload: object,
-        counters: Counters,
-        kind: str,
-        binned: _Bin | None,
-    ):
-        self.channel = channel
-        self.deliver = deliver
-        self.sender = sender
-        self.receivers = receivers
-        self.payload = payload
-        self.counters = counters
-        self.kind = kind
-        self.binned = binned
-
-    def __call__(self) -> None:
-        receivers = self.receivers
-        ch = self.channel
-        k = ch.kernels
-        if k is not None:
-            k.count_each(self.counters.received, receivers)
-        else:
-            self.counters.received[receivers] += 1
-        binned = self.binned
-        if binned is not None:
-            binned.row[SendTimeBins.RECEIVED] += len(receivers)
-        on_delivery = ch.on_delivery
-        if on_delivery:
-            delivery = Delivery(ch.env.now, self.kind, self.sender, receivers, self.payload)
-            for fn in on_delivery:
-                fn(delivery)
-        self.deliver(self.sender, receivers, self.payload)
-
-
 class Channel:
     def __init__(
         self,
         env: simpy.Environment,
         state: RobotState,
-        survives: Callable[[int, np.ndarray, np.ndarray], np.ndarray | None],
+        survives: Survives,
         latency_s: float,
         latency_jitter_s: float = 0.0,
         latency_rng: np.random.Generator | None = None,
@@ -217,6 +173,9 @@ class Channel:
         # The compiled loops (netsim._kernels) when the run uses them, else None.
         self.kernels = self.index.kernels
         self.survives = survives
+        # Whether a transmission needs its receivers' distances (else the range query skips
+        # them): for the loss model (a callable without the flag is taken to read them).
+        self._distances = getattr(survives, "uses_distances", True)
         self.latency_s = float(latency_s)
         self.latency_jitter_s = float(latency_jitter_s)
         self.latency_rng = latency_rng
@@ -291,10 +250,15 @@ class Channel:
         c = self.counters.get(kind) or self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind) if self.bins else None
-        if self.reception is None:
+        if self.reception is not None:
+            receivers, dist = self._hearers(sender)
+        elif self._distances:
             receivers, dist = self.index.within(self.env.now, sender)
         else:
-            receivers, dist = self._hearers(sender)
+            # The common case (no radio, a loss model blind to distance): the range query
+            # tells at once whether every receiver is alive, and measures no distance.
+            receivers, all_alive = self.index.within_alive(self.env.now, sender)
+            return self._transmit(sender, receivers, None, payload, deliver, c, kind, binned, all_alive)
         return self._transmit(sender, receivers, dist, payload, deliver, c, kind, binned)
 
     def unicast(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str = "data") -> bool:
@@ -351,16 +315,17 @@ class Channel:
         self,
         sender: int,
         receivers: np.ndarray,
-        dist: np.ndarray,
+        dist: np.ndarray | None,
         payload: object,
         deliver: Deliver,
         c: Counters,
         kind: str,
         binned: _Bin | None = None,
+        all_alive: bool | None = None,
     ) -> np.ndarray:
         if len(receivers) == 0:
             return receivers
-        receivers, dist = self._decide(sender, receivers, dist, c, kind, binned)
+        receivers, dist = self._decide(sender, receivers, dist, c, kind, binned, all_alive)
         if len(receivers) == 0:
             return receivers
         if self.latency_jitter_s > 0:
@@ -369,23 +334,38 @@ class Channel:
             for r, delay in zip(receivers.tolist(), delays.tolist()):
                 self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned)
         else:
-            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind, binned)
+            # _at, inline: once per transmission.
+            self.agenda.at_in_order(
+                self.latency_s, URGENT, self._arrive, deliver, sender, receivers, payload, c, kind, binned
+            )
         return receivers
 
     def _decide(
-        self, sender: int, receivers: np.ndarray, dist: np.ndarray, c: Counters, kind: str, binned: _Bin | None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The receivers (and distances) alive and spared by the loss model; the others counted."""
-        k = self.kernels
-        # Everyone alive is the common case: the compiled check makes no temporary array.
-        if k is None or not k.all_set(self.state.alive, receivers):
+        self,
+        sender: int,
+        receivers: np.ndarray,
+        dist: np.ndarray | None,
+        c: Counters,
+        kind: str,
+        binned: _Bin | None,
+        all_alive: bool | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The receivers (and distances: None when not measured) alive and spared by the loss
+        model; the others counted. ``all_alive``: whether all are alive, if known already."""
+        if all_alive is None:
+            # Everyone alive is the common case: the compiled check makes no temporary array.
+            k = self.kernels
+            all_alive = k is not None and k.all_set(self.state.alive, receivers)
+        if not all_alive:
             alive = self.state.alive[receivers]
             if not alive.all():
                 np.add.at(c.dropped[1], receivers[~alive], 1)
                 if binned is not None:
                     binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
                 self._dropped(kind, sender, receivers[~alive], "not_alive")
-                receivers, dist = receivers[alive], dist[alive]
+                receivers = receivers[alive]
+                if dist is not None:
+                    dist = dist[alive]
         if binned is not None:
             binned.row[SendTimeBins.IN_RANGE] += len(receivers)
         keep = self.survives(sender, receivers, dist)
@@ -394,7 +374,9 @@ class Channel:
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED, int((~keep).sum()))
             self._dropped(kind, sender, receivers[~keep], "loss")
-            receivers, dist = receivers[keep], dist[keep]
+            receivers = receivers[keep]
+            if dist is not None:
+                dist = dist[keep]
         return receivers, dist
 
     def _at(
@@ -410,11 +392,35 @@ class Channel:
     ) -> None:
         # At URGENT priority, on the agenda: where a kernel event scheduled now would run.
         # Deliveries at the channel's latency come in the order they are due: queued.
-        arrival = _Arrival(self, deliver, sender, receivers, payload, c, kind, binned)
         if delay == self.latency_s:
-            self.agenda.at_in_order(delay, URGENT, arrival)
+            self.agenda.at_in_order(delay, URGENT, self._arrive, deliver, sender, receivers, payload, c, kind, binned)
         else:
-            self.agenda.at(delay, URGENT, arrival)
+            self.agenda.at(delay, URGENT, self._arrive, deliver, sender, receivers, payload, c, kind, binned)
+
+    def _arrive(
+        self,
+        deliver: Deliver,
+        sender: int,
+        receivers: np.ndarray,
+        payload: object,
+        counters: Counters,
+        kind: str,
+        binned: _Bin | None,
+    ) -> None:
+        """A delivery's arrival: count the receptions, tell the bus, hand them to the protocol."""
+        k = self.kernels
+        if k is not None:
+            k.count_each(counters.received, receivers)
+        else:
+            counters.received[receivers] += 1
+        if binned is not None:
+            binned.row[SendTimeBins.RECEIVED] += len(receivers)
+        on_delivery = self.on_delivery
+        if on_delivery:
+            delivery = Delivery(self.env.now, kind, sender, receivers, payload)
+            for fn in on_delivery:
+                fn(delivery)
+        deliver(sender, receivers, payload)
 
     def frame(self, kind: str) -> pd.DataFrame:
         return self.counters_for(kind).frame()

@@ -1,8 +1,10 @@
 """Reception loss models: small callables ``survives(sender, receivers, distances_m) -> mask``.
 
 A model returns a boolean mask of the receptions that survive, or None when all do.
-Each model draws from the channel's own random stream. A model with nothing to draw
-(zero loss) draws nothing, so that turning loss off does not shift other draws.
+Its ``uses_distances`` says whether it reads the distances: the channel measures them only
+for a model that does (or a radio), and passes None to one that does not. Each model
+draws from the channel's own random stream. A model with nothing to draw (zero loss)
+draws nothing, so that turning loss off does not shift other draws.
 
 :data:`LOSS_MODELS` is the table ``channel.loss_model`` chooses from: each entry has its
 parameters (keys of ``[channel]``) and makes the callable.
@@ -22,11 +24,13 @@ from netsim.params import Params, param, positive, probability
 class BernoulliLoss:
     """Each reception is lost independently with probability ``p``."""
 
+    uses_distances = False
+
     def __init__(self, p: float, rng: np.random.Generator):
         self.p = float(p)
         self.rng = rng
 
-    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray | None:
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray | None) -> np.ndarray | None:
         if self.p == 0.0:
             return None
         return self.rng.random(len(receivers)) >= self.p
@@ -39,13 +43,16 @@ class DistanceLoss:
     the range; ``k`` sets how sharp the edge is (large ``k``: nearly a unit disk).
     """
 
+    uses_distances = True
+
     def __init__(self, p: float, exponent: float, range_m: np.ndarray, rng: np.random.Generator):
         self.p = float(p)
         self.exponent = float(exponent)
         self.range_m = range_m
         self.rng = rng
 
-    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray | None) -> np.ndarray:
+        assert distances_m is not None  # uses_distances: the channel measures them
         ratio = distances_m / self.range_m[sender]
         p_receive = (1.0 - self.p) * (1.0 - ratio**self.exponent)
         return self.rng.random(len(receivers)) < p_receive
@@ -60,6 +67,8 @@ class GilbertElliottLoss:
     the chain's stationary distribution, so there is no warm-up.
     """
 
+    uses_distances = False
+
     def __init__(self, p_gb: float, p_bg: float, loss_good: float, loss_bad: float, n: int, rng: np.random.Generator):
         self.p_gb, self.p_bg = float(p_gb), float(p_bg)
         self.loss = np.array([loss_good, loss_bad], dtype=float)
@@ -69,7 +78,7 @@ class GilbertElliottLoss:
         self.rng = rng
         self._bad: dict[int, bool] = {}
 
-    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray | None) -> np.ndarray:
         k = len(receivers)
         u = self.rng.random((k, 2))
         keep = np.empty(k, dtype=bool)
@@ -112,7 +121,7 @@ class GilbertElliottParams(Params):
     ge_loss_bad: float = param(1.0, probability, "Gilbert-Elliott: loss in the bad state")
 
 
-Survives = Callable[[int, np.ndarray, np.ndarray], "np.ndarray | None"]
+Survives = Callable[[int, np.ndarray, "np.ndarray | None"], "np.ndarray | None"]
 
 
 class LossModel(NamedTuple):

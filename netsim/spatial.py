@@ -80,17 +80,45 @@ class RangeIndex:
         """
         st = self.state
         r = float(st.range_m[i]) if radius_m is None else float(radius_m)
-        if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
-            self._build(t)
-        if r > self.reach_m:
-            cand = np.delete(np.arange(st.n), i)
-        else:
-            cand = self._indices[self._bounds[i] : self._bounds[i + 1]]
+        cand = self._candidates(t, i, r)
         if len(cand) == 0:
             return _NONE, _NO_DISTANCE
         if self.kernels is not None:
             k = self.kernels
             return k.within(cand, st.origin_m, st.velocity_mps, st.t0_s, int(i), float(t), r, st.torus, st.side_m)
+        cand, dist2 = self._filter(t, i, r, cand)
+        return cand, np.sqrt(dist2)
+
+    def within_alive(self, t: float, i: int) -> tuple[np.ndarray, bool]:
+        """Robots other than ``i`` within ``i``'s range at ``t``, ids ascending (those of
+        :meth:`within`, without their distances), and whether all of them are alive: what
+        a transmission needs when nothing after asks the distances."""
+        st = self.state
+        r = float(st.range_m[i])
+        cand = self._candidates(t, i, r)
+        if len(cand) == 0:
+            return _NONE, True
+        if self.kernels is not None:
+            k = self.kernels
+            return k.within_alive(
+                cand, st.origin_m, st.velocity_mps, st.t0_s, int(i), float(t), r, st.torus, st.side_m, st.alive
+            )
+        ids = self._filter(t, i, r, cand)[0]
+        return ids, bool(st.alive[ids].all())
+
+    def _candidates(self, t: float, i: int, r: float) -> np.ndarray:
+        """The robots that may be within ``r`` of ``i`` at ``t``: its neighbour list (rebuilt
+        first if some robot may have moved past the slack), or all others past the reach."""
+        st = self.state
+        if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
+            self._build(t)
+        if r > self.reach_m:
+            return np.delete(np.arange(st.n), i)
+        return self._indices[self._bounds[i] : self._bounds[i + 1]]
+
+    def _filter(self, t: float, i: int, r: float, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The candidates within ``r`` of ``i`` at ``t`` and their squared distances."""
+        st = self.state
         x, y = st.position(i, t)
         # Complex views of the (n, 2) arrays: one operation per step instead of two.
         d = st.origin_c.take(cand) + st.velocity_c.take(cand) * (t - st.t0_s.take(cand)) - complex(x, y)
@@ -98,4 +126,4 @@ class RangeIndex:
             d = _wrap(d, st.side_m)
         dist2 = d.real * d.real + d.imag * d.imag
         keep = dist2 <= r * r
-        return cand[keep], np.sqrt(dist2[keep])
+        return cand[keep], dist2[keep]

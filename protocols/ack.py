@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from functools import partial
 from typing import NamedTuple
 
 import numpy as np
@@ -250,13 +249,12 @@ class AckBeacon:
         # Robot i's beacon: first Ack at its phase, then one every period (plus jitter). A
         # chain of callbacks on the channel's agenda (netsim.agenda) rather than a process
         # per robot: the order of the same events, without a kernel event for each Ack.
-        self._ticks = [partial(self._tick, i) for i in range(n)]
         self._agenda = agenda = self.channel.agenda
         # As Python floats: the same instants, and the agenda's heap compares floats faster
         # than numpy scalars (every later tick and delivery time is a sum starting here).
         phases = self.phase_s.tolist()
         for i in range(n):
-            agenda.at(phases[i], URGENT, self._ticks[i])
+            agenda.at(phases[i], URGENT, self._tick, i)
         channel = self.channel
         channel.frame_bytes["ack"] = p.ack_bytes
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
@@ -265,10 +263,12 @@ class AckBeacon:
         self.trace.add_frame("ack_delivery", lambda: ack_delivery_frame(bins, duration))
 
     def _tick(self, i: int) -> None:
-        self.send(i)
+        # send(i), inline: once per Ack.
+        if self.state.alive[i]:
+            self.channel.broadcast(i, self.make_ack(i), self.deliver, "ack")
         jitter = self._jitter
         step = self.period_s + jitter.draw() if jitter is not None else self.period_s
-        self._agenda.at(step, URGENT, self._ticks[i])
+        self._agenda.at(step, URGENT, self._tick, i)
 
     def make_ack(self, i: int) -> Ack:
         now = self.env.now
@@ -311,6 +311,10 @@ class AckBeacon:
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
         now = self.env.now
+        if not self.listeners and not self.leader_listeners:
+            # Nobody to tell (the Ack model alone): the table is all there is to update.
+            self.stale_acks += self.table.take(now, sender, receivers, ack.heard, ack.record)
+            return
         fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.heard, ack.record)
         if stale:
             self.stale_acks += stale

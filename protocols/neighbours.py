@@ -42,6 +42,10 @@ class NeighbourTable:
         self._records = self.data.reshape(-1, len(EMPTY_RECORD))
         self._ids = self.id.reshape(-1)
         self.kernels = load("protocols._kernels", n)
+        # The per-receiver flags of the last take(), for a caller that wants none of them
+        # kept: filled in place rather than made for each Ack.
+        self._fresh = np.empty(n, dtype=bool)
+        self._hears_me = np.empty(n, dtype=bool)
 
     # Views of single columns, for reading.
     last_heard_s = property(lambda self: self.data[:, :, LAST_HEARD])
@@ -128,6 +132,22 @@ class NeighbourTable:
             )  # fmt: skip
             if start < 0:
                 return fresh, hears_me, stale
+            self._grow()
+
+    def take(self, now: float, sender: int, receivers: np.ndarray, heard: np.ndarray, record: np.ndarray) -> int:
+        """:meth:`receive`, for a caller that keeps no flag: returns only how many receivers
+        did not take the Ack (not fresh)."""
+        k = self.kernels
+        if k is None:
+            return self.receive(now, sender, receivers, heard, record)[2]
+        start = 0
+        while True:
+            start, stale = k.receive(
+                self._ids, self._records, self.id.shape[1], now, sender, receivers, heard, record,
+                self.tau_s, self._fresh, self._hears_me, start,
+            )  # fmt: skip
+            if start < 0:
+                return stale
             self._grow()
 
     def _place(self, now, sender, receivers, flat, found):

@@ -22,8 +22,8 @@ class KernelAgenda:
     def __init__(self, env: simpy.Environment):
         self.env = env
 
-    def at(self, delay_s, priority, fn):
-        scheduled_event(self.env, delay_s, priority, lambda _event: fn())
+    def at(self, delay_s, priority, fn, *args):
+        scheduled_event(self.env, delay_s, priority, lambda _event: fn(*args))
 
     at_in_order = at
 
@@ -44,19 +44,19 @@ def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
         priority = int(rng.choice([FIRST, URGENT, NORMAL]))
         children = int(rng.integers(0, 3)) if depth < 4 else 0
 
-        def run() -> None:
-            log.append((name, env.now))
+        def run(tag: str, payload: int) -> None:
+            log.append((name, tag, payload, env.now))
             for _ in range(children):
                 plant(depth + 1)
 
         draw = rng.random()
         if draw < 0.3:
-            agenda.at(delay, priority, run)
+            agenda.at(delay, priority, run, "at", name * 7)
         elif draw < 0.6:
             # Often out of order (random delays and priorities): the heap takes those.
-            agenda.at_in_order(delay, priority, run)
+            agenda.at_in_order(delay, priority, run, "at_in_order", name * 7)
         else:
-            scheduled_event(env, delay, priority, lambda _event: run())
+            scheduled_event(env, delay, priority, lambda _event: run("kernel", name * 7))
 
     for _ in range(12):
         plant(0)
@@ -71,7 +71,7 @@ def test_agenda_runs_its_entries_in_the_kernels_order(seed):
     """Entries (heaped, or queued in order when they come in order) and kernel events at
     the same instants and priorities, scheduled from each other's callbacks, with the run
     stopped and resumed at their instants: the agenda runs everything in the order, and at
-    the instants, of one kernel event per entry."""
+    the instants, of one kernel event per entry, each entry with its own arguments."""
     reference = _scripted(KernelAgenda, seed)
     assert len(reference) > 12
     assert _scripted(Agenda, seed) == reference

@@ -45,6 +45,31 @@ def test_compiled_range_query_equals_numpy(torus):
     assert checked > 500
 
 
+@pytest.mark.parametrize("torus", [False, True])
+def test_compiled_range_query_without_distances_equals_numpy(torus):
+    """The query a transmission makes when nothing asks the distances: the same receivers
+    as the query with distances, and whether all are alive, compiled and numpy alike (some
+    robots switched off)."""
+    rng = np.random.default_rng(5)
+    n, side = 200, 400.0
+    st = _moving_state(rng, n, side, torus)
+    compiled, plain = RangeIndex(st), RangeIndex(st)
+    compiled.kernels, plain.kernels = core_kernels, None
+    t, dead_seen = 0.0, 0
+    for _ in range(300):
+        t += float(rng.exponential(0.5))
+        i = int(rng.integers(n))
+        if rng.random() < 0.3:
+            st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
+        st.alive[:] = rng.random(n) > 0.02
+        a_ids, a_alive = compiled.within_alive(t, i)
+        b_ids, b_alive = plain.within_alive(t, i)
+        assert a_ids.tolist() == b_ids.tolist() == plain.within(t, i)[0].tolist()
+        assert a_alive is b_alive is bool(st.alive[a_ids].all())
+        dead_seen += not a_alive
+    assert dead_seen > 10
+
+
 def _ack_stream(rng, n, calls):
     """Random Acks: senders, receivers (distinct, ascending), heard lists, records (some
     sequence numbers going back: Acks overtaken in flight), at times with gaps past tau."""
@@ -70,12 +95,16 @@ def test_compiled_neighbour_table_equals_numpy():
     n = 12
     compiled, plain = NeighbourTable(n, tau_s=3.0, slots=2), NeighbourTable(n, tau_s=3.0, slots=2)
     compiled.kernels, plain.kernels = table_kernels, None
+    # take(): receive() without the flags kept (the Ack model's deliveries), both ways.
+    taken = [NeighbourTable(n, tau_s=3.0, slots=2), NeighbourTable(n, tau_s=3.0, slots=2)]
+    taken[0].kernels, taken[1].kernels = table_kernels, None
     stale = 0
     for t, s, receivers, heard, record in _ack_stream(rng, n, 1500):
         a_fresh, a_hm, a_stale = compiled.receive(t, s, receivers, heard, record)
         b_fresh, b_hm, b_stale = plain.receive(t, s, receivers, heard, record)
         assert a_fresh.tolist() == b_fresh.tolist() and a_hm.tolist() == b_hm.tolist()
         assert a_stale == b_stale == int((~a_fresh).sum())
+        assert [tb.take(t, s, receivers, heard, record) for tb in taken] == [a_stale, a_stale]
         stale += a_stale
         i = int(rng.integers(n))
         fields = (int(rng.integers(100)), int(rng.integers(3)), int(rng.integers(-1, n)), *rng.random(2), 4)
@@ -85,6 +114,8 @@ def test_compiled_neighbour_table_equals_numpy():
     assert compiled.slots == plain.slots > 2
     assert np.array_equal(compiled.id, plain.id)
     assert compiled.data.tobytes() == plain.data.tobytes()
+    for tb in taken:
+        assert np.array_equal(tb.id, plain.id) and tb.data.tobytes() == plain.data.tobytes()
     assert stale > 10
 
 

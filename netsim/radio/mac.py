@@ -300,7 +300,9 @@ class Medium:
         else:
             disturbed, ddist = self.index.within(now, i, self.radius_m)
         if len(receivers):
-            receivers, dist = ch._decide(i, receivers, dist, c, frame.kind, frame.binned)
+            receivers, kept = ch._decide(i, receivers, dist, c, frame.kind, frame.binned)
+            assert kept is not None  # measured distances in, measured distances out
+            dist = kept
         frame.receivers = receivers
         frame.hd_start = self.transmitting[receivers]
         frame.col_start = self.cover[receivers] > 0
