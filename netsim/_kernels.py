@@ -50,16 +50,17 @@ def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
 
 
 @numba.njit(cache=True, nogil=True)
-def within_alive(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m, alive):
-    """The candidates ``cand`` within ``r`` of robot ``i`` at ``t`` (as :func:`within`,
-    without the distances), and whether all of them are ``alive``
-    (:meth:`netsim.spatial.RangeIndex.within_alive`)."""
+def within_alive(cand, lo, hi, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m, alive):
+    """The candidates ``cand[lo:hi]`` within ``r`` of robot ``i`` at ``t`` (as
+    :func:`within`, without the distances), and whether all of them are ``alive``
+    (:meth:`netsim.spatial.RangeIndex.within_alive`). The span is passed, not a slice:
+    making the view would cost the caller more than the loop."""
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     r2 = r * r
-    ids = np.empty(len(cand), dtype=np.int64)
+    ids = np.empty(hi - lo, dtype=np.int64)
     k = 0
     all_alive = True
-    for j in cand:
+    for j in cand[lo:hi]:
         dtj = t - t0_s[j]
         dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
         dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y
@@ -72,14 +73,6 @@ def within_alive(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m, ali
             if not alive[j]:
                 all_alive = False
     return ids[:k], all_alive
-
-
-@numba.njit(cache=True, nogil=True)
-def count_each(counts, ids):
-    """``counts[ids] += 1`` for distinct ``ids`` (the channel's per-robot reception count):
-    for the tens of receivers of one delivery, a loop costs less than numpy's fancy index."""
-    for j in ids:
-        counts[j] += 1
 
 
 @numba.njit(cache=True, nogil=True)

@@ -136,7 +136,7 @@ class Agenda:
             while True:
                 if heap:
                     head = heap[0]
-                    queued = bool(queue) and queue[0] < head
+                    queued = queue and queue[0] < head
                     if queued:
                         head = queue[0]
                 elif queue:

@@ -95,26 +95,32 @@ class RangeIndex:
         a transmission needs when nothing after asks the distances."""
         st = self.state
         r = float(st.range_m[i])
-        cand = self._candidates(t, i, r)
-        if len(cand) == 0:
+        cand, lo, hi = self._candidate_span(t, i, r)
+        if lo == hi:
             return _NONE, True
         if self.kernels is not None:
             k = self.kernels
             return k.within_alive(
-                cand, st.origin_m, st.velocity_mps, st.t0_s, int(i), float(t), r, st.torus, st.side_m, st.alive
+                cand, lo, hi, st.origin_m, st.velocity_mps, st.t0_s, int(i), float(t), r, st.torus, st.side_m, st.alive
             )
-        ids = self._filter(t, i, r, cand)[0]
+        ids = self._filter(t, i, r, cand[lo:hi])[0]
         return ids, bool(st.alive[ids].all())
 
     def _candidates(self, t: float, i: int, r: float) -> np.ndarray:
         """The robots that may be within ``r`` of ``i`` at ``t``: its neighbour list (rebuilt
         first if some robot may have moved past the slack), or all others past the reach."""
+        cand, lo, hi = self._candidate_span(t, i, r)
+        return cand[lo:hi]
+
+    def _candidate_span(self, t: float, i: int, r: float) -> tuple[np.ndarray, int, int]:
+        """:meth:`_candidates` as ``(array, lo, hi)``: they are ``array[lo:hi]``."""
         st = self.state
         if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
             self._build(t)
         if r > self.reach_m:
-            return np.delete(np.arange(st.n), i)
-        return self._indices[self._bounds[i] : self._bounds[i + 1]]
+            return np.delete(np.arange(st.n), i), 0, st.n - 1
+        bounds = self._bounds
+        return self._indices, bounds[i], bounds[i + 1]
 
     def _filter(self, t: float, i: int, r: float, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The candidates within ``r`` of ``i`` at ``t`` and their squared distances."""
