@@ -3,9 +3,7 @@
 Importing the engine and its libraries (numpy, pandas, pyarrow, numba and its registries)
 makes hundreds of thousands of long-lived objects and no garbage, and Python's collector
 walks them again and again as they are made. So the collector is paused while they load
-and resumed as it was (a user who had switched it off keeps it off), with what was made
-meanwhile moved to the oldest generation (``gc.freeze``, ``gc.unfreeze``: no walk), where
-no young collection goes over it again. In a process of its
+and resumed as it was (a user who had switched it off keeps it off). In a process of its
 own (the command line: :func:`own_process`) netsim also freezes what has been loaded
 (``gc.freeze``), so that the collector never walks it again: about 0.1 s of a 1,000-robot
 run's 1.7 s process. A library user's process is left unfrozen.
@@ -36,12 +34,7 @@ def paused() -> Iterator[None]:
     try:
         yield
     finally:
-        gc.freeze()
-        if not _freeze:
-            # Everything made in the block (nearly all of it the libraries' long-lived
-            # objects) goes to the oldest generation at once: else the first young
-            # collection after the block would walk all of it (about 40 ms after importing
-            # the engine).
-            gc.unfreeze()
+        if _freeze:
+            gc.freeze()
         if collecting:
             gc.enable()

@@ -56,17 +56,14 @@ def test_large_run_imports_no_kd_tree_or_scipy_linalg(tmp_path):
 
 def test_collector_paused_while_loading_and_frozen_only_by_the_command_line(tmp_path):
     """Importing netsim and loading its compiled loops leave the garbage collector as they
-    found it (on, nothing frozen; off stays off), with what they loaded in the oldest
-    generation (no young collection walks it); the command line, whose process is its own,
-    freezes what it has loaded."""
+    found it (on, nothing frozen; off stays off); the command line, whose process is its
+    own, freezes what it has loaded."""
     code = (
         "import gc, sys\n"
         "gc.disable() if sys.argv[1] == 'off' else None\n"
         "import netsim\n"
         "from netsim.compiled import load\n"
         "load('netsim._kernels', 100)\n"
-        "young = len(gc.get_objects(0)) + len(gc.get_objects(1))\n"
-        "assert young < len(gc.get_objects()) // 20, (young, len(gc.get_objects()))\n"
         "print(gc.isenabled(), gc.get_freeze_count())\n"
         "from netsim.tools.cli import main\n"
         "try:\n"
