@@ -19,13 +19,14 @@ from netsim._kernels import position
 # The packed record's columns and the empty id (protocols.neighbours; repeated here so
 # that numba sees constants).
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
+FIELDS = 12  # an Ack's record: these fields, then the ids it heard
 EMPTY = -1
 
 
 @numba.njit(cache=True, nogil=True)
-def receive(ids, records, slots, now, sender, receivers, heard, record, tau_s, fresh, hears_me, start):
-    """Record an Ack of ``sender`` (its packed ``record``, the sorted ids it ``heard``) in
-    the rows of ``receivers[start:]`` (:meth:`protocols.neighbours.NeighbourTable.update`).
+def receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, hears_me, start):
+    """Record an Ack of ``sender`` (its packed ``record``: the fields, then the sorted ids it
+    heard) in the rows of ``receivers[start:]`` (:meth:`protocols.neighbours.NeighbourTable.update`).
 
     ``ids`` and ``records`` are the table's flat ``(n * slots)`` ids and ``(n * slots,
     fields)`` records. Fills ``hears_me`` (the receiver is among ``heard``) and ``fresh``
@@ -33,6 +34,7 @@ def receive(ids, records, slots, now, sender, receivers, heard, record, tau_s, f
     ``stale`` the number of Acks not taken, or ``(k, 0)`` where ``receivers[k]``'s row has
     no free slot (the table must grow first; the receivers before it are done).
     """
+    heard = record[FIELDS:]
     n_heard = len(heard)
     stale = 0
     for k in range(start, len(receivers)):
@@ -70,7 +72,7 @@ def receive(ids, records, slots, now, sender, receivers, heard, record, tau_s, f
         else:
             bidir_since = np.inf
         role_since = old[ROLE_SINCE] if was_live and old[ROLE] == record[ROLE] else now
-        for c in range(len(record)):
+        for c in range(FIELDS):
             old[c] = record[c]
         old[LAST_HEARD] = now
         old[LIVE_SINCE] = live_since
@@ -81,32 +83,25 @@ def receive(ids, records, slots, now, sender, receivers, heard, record, tau_s, f
 
 
 @numba.njit(cache=True, nogil=True)
-def heard_and_degree(ids_row, records_row, now, tau_s):
-    """The ids of a row's live entries, ascending, and how many of them hear the row's
-    robot (``np.sort(id[live])`` and ``(live & hears_me).sum()``)."""
-    heard = np.empty(len(ids_row), dtype=np.int64)
+def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, x_m, y_m, group_size):
+    """What a robot's Ack carries, from its row of the table: the Ack's packed record (the
+    fields, with the two-way degree: live entries that hear the robot), then the ids of the
+    live entries, ascending (:func:`protocols.neighbours.ack_record`; ``np.sort(id[live])``
+    and ``(live & hears_me).sum()``). One array: the Ack costs one array, not two."""
+    record = np.empty(FIELDS + len(ids_row))
+    record[:FIELDS] = empty_record
     k = 0
     degree = 0
     for s in range(len(ids_row)):
         if now - records_row[s, LAST_HEARD] < tau_s:
-            heard[k] = ids_row[s]
+            record[FIELDS + k] = ids_row[s]
             k += 1
             if records_row[s, HEARS_ME] != 0:
                 degree += 1
-    return np.sort(heard[:k]), degree
-
-
-@numba.njit(cache=True, nogil=True)
-def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, x_m, y_m, group_size):
-    """What a robot's Ack carries, from its row of the table: the ids of the live entries,
-    ascending, and the Ack's packed record (the fields, and the two-way degree: live
-    entries that hear the robot), as :func:`heard_and_degree` and
-    :func:`protocols.neighbours.ack_record`."""
-    heard, degree = heard_and_degree(ids_row, records_row, now, tau_s)
-    record = empty_record.copy()
+    record[FIELDS : FIELDS + k].sort()
     record[SEQ], record[ROLE], record[LEADER], record[X], record[Y] = seq, role, leader, x_m, y_m
     record[GROUP_SIZE], record[DEGREE] = group_size, degree
-    return heard, record
+    return record[: FIELDS + k]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -119,8 +114,9 @@ def make_ack(
     number, the resignation it owes, its role, leader and group size, and what its row of
     the table (``ids``, ``records``: the table's ``(n, slots)`` arrays) announces
     (:func:`announce`). Counts the sequence number, clears the resignation and records the
-    role and degree sent, as the numpy code does. Returns the Ack's fields ``(x, y, seq,
-    role, leader, group_size, resign, heard, record)``."""
+    role and degree sent, as the numpy code does. Returns the Ack's fields in the order of
+    :class:`protocols.ack.Ack`: ``(i, role, leader, seq, x, y, group_size, resign,
+    record)``."""
     x, y = position(origin_m, velocity_mps, t0_s, i, now, torus, side_m)
     s = seq[i] + 1
     seq[i] = s
@@ -128,10 +124,10 @@ def make_ack(
     if resign:
         resign_pending[i] = False
     ro, le, size = np.int64(role[i]), leader[i], group_size[i]
-    heard, record = announce(ids[i], records[i], now, tau_s, empty_record, s, ro, le, x, y, size)
+    record = announce(ids[i], records[i], now, tau_s, empty_record, s, ro, le, x, y, size)
     role_sent[i] = ro
     degree_sent[i] = np.int64(record[DEGREE])
-    return x, y, s, ro, le, size, resign, heard, record
+    return i, ro, le, s, x, y, size, resign, record
 
 
 @numba.njit(cache=True, nogil=True)

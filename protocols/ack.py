@@ -34,7 +34,7 @@ from netsim.errors import ConfigError
 from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from protocols.neighbours import DEGREE, EMPTY_RECORD, NeighbourTable
+from protocols.neighbours import DEGREE, EMPTY_RECORD, NeighbourTable, heard_in
 from protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 
@@ -169,9 +169,15 @@ class Ack(NamedTuple):
     x_m: float
     y_m: float
     group_size: int
-    heard: np.ndarray  # ids the sender has heard within tau, ascending
-    resign: bool = False
-    record: np.ndarray | None = None  # the fields packed for neighbour tables
+    resign: bool
+    # The fields packed for neighbour tables, then the ids the sender has heard within tau,
+    # ascending (protocols.neighbours.ack_record): one array per Ack.
+    record: np.ndarray
+
+    @property
+    def heard(self) -> np.ndarray:
+        """The ids the sender has heard within tau, ascending."""
+        return heard_in(self.record)
 
 
 # listener(now, ack, receivers, hears_me)
@@ -277,19 +283,18 @@ class AckBeacon:
         if k is not None:
             # The same work in one compiled call (protocols._kernels.make_ack).
             st, roles, sized = self.state, self.roles, self.sized
+            # The kernel returns the Ack's fields in order: made into an Ack with no unpacking.
             if sized is None:
-                x, y, seq, role, leader, size, resign, heard, record = k.make_ack(
+                return Ack._make(k.make_ack(
                     i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
                     roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
                     self.role_sent, self.degree_sent,
-                )  # fmt: skip
-            else:
-                x, y, seq, role, leader, size, resign, heard, record = k.make_sized_ack(
-                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
-                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
-                    self.role_sent, self.degree_sent, sized, self.sized_symmetric,
-                )  # fmt: skip
-            return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
+                ))  # fmt: skip
+            return Ack._make(k.make_sized_ack(
+                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
+                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
+                self.role_sent, self.degree_sent, sized, self.sized_symmetric,
+            ))  # fmt: skip
         if self.size_rule is not None:
             self.size_rule(i, now)
         x, y = self.state.position(i, now)
@@ -300,9 +305,9 @@ class AckBeacon:
             self.resign_pending[i] = False
         roles = self.roles
         role, leader, size = int(roles.role[i]), int(roles.leader[i]), int(self.group_size[i])
-        heard, record = table.announce(now, i, seq, role, leader, x, y, size)
+        record = table.announce(now, i, seq, role, leader, x, y, size)
         self.role_sent[i], self.degree_sent[i] = role, record[DEGREE]
-        return Ack(i, role, leader, seq, x, y, size, heard, resign, record)
+        return Ack(i, role, leader, seq, x, y, size, resign, record)
 
     def send(self, i: int) -> None:
         if not self.state.alive[i]:
@@ -313,9 +318,9 @@ class AckBeacon:
         now = self.env.now
         if not self.listeners and not self.leader_listeners:
             # Nobody to tell (the Ack model alone): the table is all there is to update.
-            self.stale_acks += self.table.take(now, sender, receivers, ack.heard, ack.record)
+            self.stale_acks += self.table.take(now, sender, receivers, ack.record)
             return
-        fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.heard, ack.record)
+        fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.record)
         if stale:
             self.stale_acks += stale
             receivers, hears_me = receivers[fresh], hears_me[fresh]

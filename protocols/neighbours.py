@@ -11,7 +11,9 @@ entry holds, overtaken in flight by a newer one, is ignored.
 The table is a fixed number of slots per robot, doubled when a robot hears more
 neighbours than it has slots; an expired slot is reused. The fields of a slot are packed
 in one float64 record (integers up to 2^53 are exact), so that a delivery to ``k``
-receivers is one gather and one scatter of ``k`` records, with no Python loop.
+receivers is one gather and one scatter of ``k`` records, with no Python loop. An Ack's
+own record (:func:`ack_record`) is the same fields followed by the ids the sender heard,
+ascending: one array per Ack.
 
 Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots, :meth:`NeighbourTable.receive` and
 :meth:`NeighbourTable.announce` run compiled loops (:mod:`protocols._kernels`) that
@@ -31,6 +33,7 @@ EMPTY = -1
 # since when the live entry's Acks have continuously told the role they tell now.
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
 EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf], dtype=float)
+FIELDS = len(EMPTY_RECORD)
 
 
 class NeighbourTable:
@@ -83,8 +86,9 @@ class NeighbourTable:
         """Record an Ack from ``sender`` heard by every robot in ``receivers`` at ``now``.
 
         ``hears_me[k]`` says whether ``receivers[k]`` was among the ids the Ack carried;
-        ``record`` is the Ack's packed record (see :func:`ack_record`). Returns, per
-        receiver, whether the Ack was taken (False: an older Ack than the entry's newest).
+        ``record`` is the Ack's packed record (see :func:`ack_record`; the ids it heard, if
+        it carries them, are not read here). Returns, per receiver, whether the Ack was
+        taken (False: an older Ack than the entry's newest).
         """
         slots = self.id.shape[1]
         flat = receivers * slots + (self.id.take(receivers, axis=0) == sender).argmax(axis=1)
@@ -98,7 +102,7 @@ class NeighbourTable:
         if not fresh.all():
             flat, old, found, hears_me = flat[fresh], old[fresh], found[fresh], hears_me[fresh]
         rec = np.empty_like(old)
-        rec[:] = record
+        rec[:] = record[:FIELDS]
         rec[:, LAST_HEARD] = now
         was_live = found & (now - old[:, LAST_HEARD] <= self.tau_s)
         rec[:, LIVE_SINCE] = np.where(was_live, old[:, LIVE_SINCE], now)
@@ -111,15 +115,15 @@ class NeighbourTable:
         return fresh
 
     def receive(
-        self, now: float, sender: int, receivers: np.ndarray, heard: np.ndarray, record: np.ndarray
+        self, now: float, sender: int, receivers: np.ndarray, record: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, int]:
-        """Record an Ack from ``sender`` that carried the ids ``heard`` (ascending), heard by
-        every robot in ``receivers`` at ``now``: :meth:`update`, with ``hears_me`` worked
-        out here. Returns ``(fresh, hears_me, stale)``: one flag each per receiver, and how
-        many receivers did not take the Ack (not fresh)."""
+        """Record an Ack from ``sender`` (its packed ``record``, with the ids it heard),
+        heard by every robot in ``receivers`` at ``now``: :meth:`update`, with ``hears_me``
+        worked out here. Returns ``(fresh, hears_me, stale)``: one flag each per receiver,
+        and how many receivers did not take the Ack (not fresh)."""
         k = self.kernels
         if k is None:
-            hears_me = hears(heard, receivers)
+            hears_me = hears(record[FIELDS:], receivers)
             fresh = self.update(now, sender, receivers, hears_me, record)
             return fresh, hears_me, len(fresh) - int(fresh.sum())
         fresh = np.empty(len(receivers), dtype=bool)
@@ -127,23 +131,23 @@ class NeighbourTable:
         start = 0
         while True:
             start, stale = k.receive(
-                self._ids, self._records, self.id.shape[1], now, sender, receivers, heard, record,
+                self._ids, self._records, self.id.shape[1], now, sender, receivers, record,
                 self.tau_s, fresh, hears_me, start,
             )  # fmt: skip
             if start < 0:
                 return fresh, hears_me, stale
             self._grow()
 
-    def take(self, now: float, sender: int, receivers: np.ndarray, heard: np.ndarray, record: np.ndarray) -> int:
+    def take(self, now: float, sender: int, receivers: np.ndarray, record: np.ndarray) -> int:
         """:meth:`receive`, for a caller that keeps no flag: returns only how many receivers
         did not take the Ack (not fresh)."""
         k = self.kernels
         if k is None:
-            return self.receive(now, sender, receivers, heard, record)[2]
+            return self.receive(now, sender, receivers, record)[2]
         start = 0
         while True:
             start, stale = k.receive(
-                self._ids, self._records, self.id.shape[1], now, sender, receivers, heard, record,
+                self._ids, self._records, self.id.shape[1], now, sender, receivers, record,
                 self.tau_s, self._fresh, self._hears_me, start,
             )  # fmt: skip
             if start < 0:
@@ -170,10 +174,10 @@ class NeighbourTable:
 
     def announce(
         self, now: float, i: int, seq: int, role: int, leader: int, x_m: float, y_m: float, group_size: int
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """What ``i``'s Ack carries: the ids of its live neighbours, ascending, and the Ack's
-        packed record (:func:`ack_record`, with ``i``'s two-way degree: the live neighbours
-        that hear it)."""
+    ) -> np.ndarray:
+        """What ``i``'s Ack carries: its packed record (:func:`ack_record`, with ``i``'s
+        two-way degree: the live neighbours that hear it), then the ids of its live
+        neighbours, ascending."""
         k = self.kernels
         if k is not None:
             return k.announce(
@@ -182,7 +186,7 @@ class NeighbourTable:
             )  # fmt: skip
         live = self.live_mask(now, i)
         degree = int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
-        return np.sort(self.id[i][live]), ack_record(seq, role, leader, x_m, y_m, group_size, degree)
+        return ack_record(seq, role, leader, x_m, y_m, group_size, degree, np.sort(self.id[i][live]))
 
     def live_ids(self, now: float, i: int) -> np.ndarray:
         """Ids of ``i``'s live neighbours, ascending."""
@@ -205,16 +209,25 @@ def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> n
 
 
 def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
-    """Per receiver, whether it is among the ids ``heard`` (ascending)."""
+    """Per receiver, whether it is among the ids ``heard`` (ascending; ints, or the floats
+    of an Ack's record)."""
     if len(heard) == 0:
         return np.zeros(len(receivers), dtype=bool)
     at = np.minimum(heard.searchsorted(receivers), len(heard) - 1)
     return heard[at] == receivers
 
 
-def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0) -> np.ndarray:
-    """The packed record of an Ack's fields (time and link columns are filled on update)."""
-    rec = EMPTY_RECORD.copy()
+def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0, heard=()) -> np.ndarray:
+    """The packed record of an Ack's fields (time and link columns are filled on update),
+    followed by the ids ``heard`` (ascending) it carries."""
+    rec = np.empty(FIELDS + len(heard))
+    rec[:FIELDS] = EMPTY_RECORD
     rec[SEQ], rec[ROLE], rec[LEADER], rec[X], rec[Y] = seq, role, leader, x_m, y_m
     rec[GROUP_SIZE], rec[DEGREE] = group_size, degree
+    rec[FIELDS:] = heard
     return rec
+
+
+def heard_in(record: np.ndarray) -> np.ndarray:
+    """The ids an Ack's packed ``record`` carries (those its sender heard), ascending."""
+    return record[FIELDS:].astype(np.int64)

@@ -7,7 +7,7 @@ import pytest
 
 from netsim.spatial import RangeIndex
 from netsim.state import RobotState
-from protocols.neighbours import DEGREE, NeighbourTable, ack_record
+from protocols.neighbours import DEGREE, NeighbourTable, ack_record, heard_in
 
 pytest.importorskip("numba")
 
@@ -83,8 +83,8 @@ def _ack_stream(rng, n, calls):
         receivers = np.sort(rng.choice(others, int(rng.integers(0, n - 1)), replace=False)).astype(np.int64)
         heard = np.sort(rng.choice(others, int(rng.integers(0, 8)), replace=False)).astype(np.int64)
         back = int(rng.integers(0, 3)) if rng.random() < 0.1 else 0
-        record = ack_record(seq[s] - back, int(rng.integers(0, 3)), int(rng.integers(-1, n)), *rng.random(2), 3, 2)
-        yield t, s, receivers, heard, record
+        fields = (seq[s] - back, int(rng.integers(0, 3)), int(rng.integers(-1, n)), *rng.random(2), 3, 2)
+        yield t, s, receivers, heard, ack_record(*fields, heard=heard)
 
 
 def test_compiled_neighbour_table_equals_numpy():
@@ -100,17 +100,20 @@ def test_compiled_neighbour_table_equals_numpy():
     taken[0].kernels, taken[1].kernels = table_kernels, None
     stale = 0
     for t, s, receivers, heard, record in _ack_stream(rng, n, 1500):
-        a_fresh, a_hm, a_stale = compiled.receive(t, s, receivers, heard, record)
-        b_fresh, b_hm, b_stale = plain.receive(t, s, receivers, heard, record)
+        a_fresh, a_hm, a_stale = compiled.receive(t, s, receivers, record)
+        b_fresh, b_hm, b_stale = plain.receive(t, s, receivers, record)
         assert a_fresh.tolist() == b_fresh.tolist() and a_hm.tolist() == b_hm.tolist()
+        assert a_hm.tolist() == np.isin(receivers, heard).tolist()
         assert a_stale == b_stale == int((~a_fresh).sum())
-        assert [tb.take(t, s, receivers, heard, record) for tb in taken] == [a_stale, a_stale]
+        assert [tb.take(t, s, receivers, record) for tb in taken] == [a_stale, a_stale]
         stale += a_stale
         i = int(rng.integers(n))
         fields = (int(rng.integers(100)), int(rng.integers(3)), int(rng.integers(-1, n)), *rng.random(2), 4)
-        a_heard, a_record = compiled.announce(t, i, *fields)
-        b_heard, b_record = plain.announce(t, i, *fields)
-        assert a_heard.tolist() == b_heard.tolist() and a_record.tobytes() == b_record.tobytes()
+        a_record = compiled.announce(t, i, *fields)
+        b_record = plain.announce(t, i, *fields)
+        assert a_record.tobytes() == b_record.tobytes()
+        live = plain.live_mask(t, i)
+        assert heard_in(a_record).tolist() == sorted(plain.id[i][live].tolist())
     assert compiled.slots == plain.slots > 2
     assert np.array_equal(compiled.id, plain.id)
     assert compiled.data.tobytes() == plain.data.tobytes()
@@ -173,7 +176,7 @@ def test_compiled_make_ack_equals_numpy():
             beacon.roles.role[i], beacon.roles.leader[i] = role, leader
             beacon.group_size[i], beacon.resign_pending[i] = size, resign
         ack_a, ack_b = a.make_ack(i), b.make_ack(i)
-        assert ack_a._replace(heard=None, record=None) == ack_b._replace(heard=None, record=None)
+        assert ack_a._replace(record=None) == ack_b._replace(record=None)
         assert [type(x) for x in ack_a] == [type(x) for x in ack_b]
         assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
         degrees.append(ack_a.record[DEGREE])
