@@ -76,6 +76,14 @@ def within_alive(cand, lo, hi, origin_m, velocity_mps, t0_s, i, t, r, torus, sid
 
 
 @numba.njit(cache=True, nogil=True)
+def count_each(counts, ids):
+    """``counts[ids] += 1`` for distinct ``ids`` (the channel's per-robot reception count):
+    for the tens of receivers of one delivery, a loop costs less than numpy's fancy index."""
+    for j in ids:
+        counts[j] += 1
+
+
+@numba.njit(cache=True, nogil=True)
 def all_set(mask, ids):
     """``mask[ids].all()`` (whether every receiver is alive), without the temporary array."""
     for j in ids:

@@ -56,35 +56,13 @@ Deliver = Callable[[int, np.ndarray, Any], None]
 
 
 class Counters:
-    """Per-robot counts for one message kind (``causes``: the channel's drop causes).
-
-    Receptions are counted in blocks: each arrival's receivers wait in ``arrived`` (a
-    list append, where adding one to each of ten counts costs a call into numpy or a
-    compiled loop), added together every :attr:`BLOCK` arrivals and whenever
-    :attr:`received` is read."""
-
-    BLOCK = 4096
+    """Per-robot counts for one message kind (``causes``: the channel's drop causes)."""
 
     def __init__(self, n: int, causes: tuple[str, ...] = DROP_CAUSES):
         self.causes = causes
         self.sent = np.zeros(n, dtype=np.int64)
-        self._received = np.zeros(n, dtype=np.int64)
-        self.arrived: list[np.ndarray] = []
+        self.received = np.zeros(n, dtype=np.int64)
         self.dropped = np.zeros((len(causes), n), dtype=np.int64)
-
-    @property
-    def received(self) -> np.ndarray:
-        """Receptions per robot so far."""
-        if self.arrived:
-            self.add_arrived()
-        return self._received
-
-    def add_arrived(self) -> None:
-        """Count the receivers waiting in ``arrived`` (each robot at most once per arrival)."""
-        ids = np.concatenate(self.arrived)
-        self.arrived.clear()
-        if len(ids):
-            self._received += np.bincount(ids.astype(np.int64, copy=False), minlength=len(self._received))
 
     def frame(self) -> pd.DataFrame:
         df = pd.DataFrame({"robot": np.arange(len(self.sent)), "sent": self.sent, "received": self.received})
@@ -430,10 +408,11 @@ class Channel:
         binned: _Bin | None,
     ) -> None:
         """A delivery's arrival: count the receptions, tell the bus, hand them to the protocol."""
-        arrived = counters.arrived
-        arrived.append(receivers)
-        if len(arrived) == Counters.BLOCK:
-            counters.add_arrived()
+        k = self.kernels
+        if k is not None:
+            k.count_each(counters.received, receivers)
+        else:
+            counters.received[receivers] += 1
         if binned is not None:
             binned.row[SendTimeBins.RECEIVED] += len(receivers)
         on_delivery = self.on_delivery

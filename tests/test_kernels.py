@@ -249,46 +249,18 @@ def test_medium_runs_equal_with_and_without_compiled_loops(monkeypatch):
         assert frames["0"][name].equals(frames["1"][name]), name
 
 
-def test_compiled_alive_check_equals_numpy():
-    """The channel's compiled alive check (``all_set``) equals ``mask[ids].all()``."""
+def test_compiled_reception_counts_equal_numpy():
+    """The channel's compiled count of receptions (``count_each``) and alive check
+    (``all_set``) equal numpy's fancy increment and ``mask[ids].all()``."""
     rng = np.random.default_rng(5)
+    a, b = np.zeros(300, dtype=np.int64), np.zeros(300, dtype=np.int64)
     for _ in range(200):
         ids = np.sort(rng.choice(300, int(rng.integers(0, 40)), replace=False)).astype(np.int64)
+        core_kernels.count_each(a, ids)
+        b[ids] += 1
         mask = rng.random(300) < 0.97
         assert core_kernels.all_set(mask, ids) == bool(mask[ids].all())
-
-
-@pytest.mark.parametrize("block", [1, 3, 4096])
-def test_receptions_counted_in_blocks_equal_every_delivery(monkeypatch, block):
-    """The channel counts receptions in blocks of arrivals: read at any moment (within a
-    block, at its end, at the run's end), each robot's count is the number of deliveries
-    that reached it so far."""
-    from netsim.channel import Counters
-    from tests.fixtures import static_core
-
-    monkeypatch.setattr(Counters, "BLOCK", block)
-    rng = np.random.default_rng(2)
-    sim = static_core(rng.uniform(0, 30, (12, 2)), duration_s=5.0)
-    expected = np.zeros(12, dtype=np.int64)
-
-    def delivered(d):
-        expected[d.receivers] += 1
-
-    sim.events.on("delivery", delivered)
-
-    def deliver(sender, receivers, payload):
-        # What the counters say when each arrival reaches the protocol: this one included.
-        assert sim.channel.counters_for("ack").received.tolist() == expected.tolist()
-
-    def sends():
-        for k in range(200):
-            sim.channel.broadcast(k % 12, None, deliver)
-            yield sim.env.timeout(0.02 * (k % 3))
-
-    sim.env.process(sends())
-    sim.env.run(until=5.0)
-    assert expected.sum() > 500
-    assert sim.channel.counters_for("ack").received.tolist() == expected.tolist()
+    assert a.tolist() == b.tolist()
 
 
 @pytest.mark.parametrize("torus", [False, True])
