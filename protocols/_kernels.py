@@ -21,6 +21,11 @@ from netsim._kernels import position
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
 FIELDS = 12  # an Ack's record: these fields, then the ids it heard
 EMPTY = -1
+# protocols.neighbours.EMPTY_RECORD, a constant of the compiled code (not an argument per Ack).
+EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf])
+# Columns of the Ack beacon's per-robot (n, 3) array of what each robot sent last
+# (protocols.ack.AckBeacon.sent): its sequence number, role and two-way degree.
+SEQ_SENT, ROLE_SENT, DEGREE_SENT = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -34,6 +39,20 @@ def receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, h
     ``stale`` the number of Acks not taken, or ``(k, 0)`` where ``receivers[k]``'s row has
     no free slot (the table must grow first; the receivers before it are done).
     """
+    return _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, hears_me, start)
+
+
+@numba.njit(cache=True, nogil=True)
+def take(ids, records, slots, now, sender, receivers, record, tau_s, start):
+    """:func:`receive` without the flags (:meth:`protocols.neighbours.NeighbourTable.take`):
+    two arrays fewer to pass per Ack."""
+    return _receive(ids, records, slots, now, sender, receivers, record, tau_s, None, None, start)
+
+
+@numba.njit(cache=True, nogil=True)
+def _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, hears_me, start):
+    # fresh and hears_me are both arrays or both None (take): the compiler drops the
+    # branches on them in each version.
     heard = record[FIELDS:]
     n_heard = len(heard)
     stale = 0
@@ -41,7 +60,8 @@ def receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, h
         r = receivers[k]
         at = np.searchsorted(heard, r)
         hm = at < n_heard and heard[at] == r
-        hears_me[k] = hm
+        if hears_me is not None:
+            hears_me[k] = hm
         base = r * slots
         slot = -1
         for s in range(slots):
@@ -61,10 +81,12 @@ def receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, h
         f = base + slot
         old = records[f]
         if found and not old[SEQ] <= record[SEQ]:
-            fresh[k] = False
+            if fresh is not None:
+                fresh[k] = False
             stale += 1
             continue
-        fresh[k] = True
+        if fresh is not None:
+            fresh[k] = True
         was_live = found and now - old[LAST_HEARD] <= tau_s
         live_since = old[LIVE_SINCE] if was_live else now
         if hm:
@@ -83,13 +105,13 @@ def receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, h
 
 
 @numba.njit(cache=True, nogil=True)
-def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, x_m, y_m, group_size):
+def announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, group_size):
     """What a robot's Ack carries, from its row of the table: the Ack's packed record (the
     fields, with the two-way degree: live entries that hear the robot), then the ids of the
     live entries, ascending (:func:`protocols.neighbours.ack_record`; ``np.sort(id[live])``
     and ``(live & hears_me).sum()``). One array: the Ack costs one array, not two."""
     record = np.empty(FIELDS + len(ids_row))
-    record[:FIELDS] = empty_record
+    record[:FIELDS] = EMPTY_RECORD
     k = 0
     degree = 0
     for s in range(len(ids_row)):
@@ -106,34 +128,34 @@ def announce(ids_row, records_row, now, tau_s, empty_record, seq, role, leader, 
 
 @numba.njit(cache=True, nogil=True)
 def make_ack(
-    i, now, origin_m, velocity_mps, t0_s, torus, side_m, seq, resign_pending, role, leader, group_size,
-    ids, records, tau_s, empty_record, role_sent, degree_sent,
+    i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, group_size,
+    ids, records, tau_s,
 ):  # fmt: skip
     """Robot ``i``'s Ack at ``now``, once its hooks have run, as
     :meth:`protocols.ack.AckBeacon.make_ack` builds it: its position, its next sequence
     number, the resignation it owes, its role, leader and group size, and what its row of
     the table (``ids``, ``records``: the table's ``(n, slots)`` arrays) announces
     (:func:`announce`). Counts the sequence number, clears the resignation and records the
-    role and degree sent, as the numpy code does. Returns the Ack's fields in the order of
-    :class:`protocols.ack.Ack`: ``(i, role, leader, seq, x, y, group_size, resign,
-    record)``."""
+    role and degree sent (``sent``, the beacon's (n, 3) array), as the numpy code does.
+    Returns the Ack's fields in the order of :class:`protocols.ack.Ack`: ``(i, role,
+    leader, seq, x, y, group_size, resign, record)``."""
     x, y = position(origin_m, velocity_mps, t0_s, i, now, torus, side_m)
-    s = seq[i] + 1
-    seq[i] = s
+    s = sent[i, SEQ_SENT] + 1
+    sent[i, SEQ_SENT] = s
     resign = resign_pending[i]
     if resign:
         resign_pending[i] = False
     ro, le, size = np.int64(role[i]), leader[i], group_size[i]
-    record = announce(ids[i], records[i], now, tau_s, empty_record, s, ro, le, x, y, size)
-    role_sent[i] = ro
-    degree_sent[i] = np.int64(record[DEGREE])
+    record = announce(ids[i], records[i], now, tau_s, s, ro, le, x, y, size)
+    sent[i, ROLE_SENT] = ro
+    sent[i, DEGREE_SENT] = np.int64(record[DEGREE])
     return i, ro, le, s, x, y, size, resign, record
 
 
 @numba.njit(cache=True, nogil=True)
 def make_sized_ack(
-    i, now, origin_m, velocity_mps, t0_s, torus, side_m, seq, resign_pending, role, leader, sizes,
-    ids, records, tau_s, empty_record, role_sent, degree_sent, sized, symmetric,
+    i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, sizes,
+    ids, records, tau_s, sized, symmetric,
 ):  # fmt: skip
     """:func:`make_ack`, after the clustering's hook has set the group size the Ack
     announces (:func:`protocols.clustering.announced_size`): a leader's is 1 + its live
@@ -146,8 +168,8 @@ def make_sized_ack(
         sizes[i] = 1
         sized[i] = False
     return make_ack(
-        i, now, origin_m, velocity_mps, t0_s, torus, side_m, seq, resign_pending, role, leader, sizes,
-        ids, records, tau_s, empty_record, role_sent, degree_sent,
+        i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, sizes,
+        ids, records, tau_s,
     )  # fmt: skip
 
 

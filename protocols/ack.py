@@ -34,7 +34,7 @@ from netsim.errors import ConfigError
 from netsim.events import URGENT
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from protocols.neighbours import DEGREE, EMPTY_RECORD, NeighbourTable, heard_in
+from protocols.neighbours import DEGREE, NeighbourTable, heard_in
 from protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 
@@ -218,12 +218,13 @@ class AckBeacon:
         self.roles = roles if roles is not None else Roles(n)
         self.period_s = params.ack_period_s
         self.table = NeighbourTable(n, params.tau_s)
-        self.seq = np.zeros(n, dtype=np.int64)
+        # What each robot sent in its last Ack: its sequence number, role and two-way degree
+        # (columns of one array: the compiled Ack takes one argument for the three).
+        self.sent = np.zeros((n, 3), dtype=np.int64)
+        self.seq, self.role_sent, self.degree_sent = self.sent[:, 0], self.sent[:, 1], self.sent[:, 2]
+        self.role_sent[:] = -1
         # Robots the protocol above counts as members of each robot's group (1: alone).
         self.group_size = np.ones(n, dtype=np.int64)
-        # What each robot announced in its last Ack: its role and two-way degree.
-        self.role_sent = np.full(n, -1, dtype=np.int64)
-        self.degree_sent = np.zeros(n, dtype=np.int64)
         # Leaders that announce they are giving up leadership set this for their next Ack.
         self.resign_pending = np.zeros(n, dtype=bool)
         self.listeners: list[AckListener] = []
@@ -286,14 +287,13 @@ class AckBeacon:
             # The kernel returns the Ack's fields in order: made into an Ack with no unpacking.
             if sized is None:
                 return Ack._make(k.make_ack(
-                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
-                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
-                    self.role_sent, self.degree_sent,
+                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.sent, self.resign_pending,
+                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s,
                 ))  # fmt: skip
             return Ack._make(k.make_sized_ack(
-                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.seq, self.resign_pending,
-                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, EMPTY_RECORD,
-                self.role_sent, self.degree_sent, sized, self.sized_symmetric,
+                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.sent, self.resign_pending,
+                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, sized,
+                self.sized_symmetric,
             ))  # fmt: skip
         if self.size_rule is not None:
             self.size_rule(i, now)

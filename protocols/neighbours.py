@@ -45,10 +45,6 @@ class NeighbourTable:
         self._records = self.data.reshape(-1, len(EMPTY_RECORD))
         self._ids = self.id.reshape(-1)
         self.kernels = load("protocols._kernels", n)
-        # The per-receiver flags of the last take(), for a caller that wants none of them
-        # kept: filled in place rather than made for each Ack.
-        self._fresh = np.empty(n, dtype=bool)
-        self._hears_me = np.empty(n, dtype=bool)
 
     # Views of single columns, for reading.
     last_heard_s = property(lambda self: self.data[:, :, LAST_HEARD])
@@ -146,10 +142,9 @@ class NeighbourTable:
             return self.receive(now, sender, receivers, record)[2]
         start = 0
         while True:
-            start, stale = k.receive(
-                self._ids, self._records, self.id.shape[1], now, sender, receivers, record,
-                self.tau_s, self._fresh, self._hears_me, start,
-            )  # fmt: skip
+            start, stale = k.take(
+                self._ids, self._records, self.id.shape[1], now, sender, receivers, record, self.tau_s, start
+            )
             if start < 0:
                 return stale
             self._grow()
@@ -180,10 +175,7 @@ class NeighbourTable:
         neighbours, ascending."""
         k = self.kernels
         if k is not None:
-            return k.announce(
-                self.id[i], self.data[i], float(now), self.tau_s, EMPTY_RECORD, seq, role, leader, x_m, y_m,
-                group_size,
-            )  # fmt: skip
+            return k.announce(self.id[i], self.data[i], float(now), self.tau_s, seq, role, leader, x_m, y_m, group_size)
         live = self.live_mask(now, i)
         degree = int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
         return ack_record(seq, role, leader, x_m, y_m, group_size, degree, np.sort(self.id[i][live]))

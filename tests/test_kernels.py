@@ -70,6 +70,13 @@ def test_compiled_range_query_without_distances_equals_numpy(torus):
     assert dead_seen > 10
 
 
+def test_compiled_empty_record_is_the_tables():
+    """The empty record the compiled Ack starts from (a constant there) is the table's."""
+    from protocols.neighbours import EMPTY_RECORD
+
+    assert table_kernels.EMPTY_RECORD.tobytes() == EMPTY_RECORD.tobytes()
+
+
 def _ack_stream(rng, n, calls):
     """Random Acks: senders, receivers (distinct, ascending), heard lists, records (some
     sequence numbers going back: Acks overtaken in flight), at times with gaps past tau."""
