@@ -115,7 +115,9 @@ def announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, grou
     k = 0
     degree = 0
     for s in range(len(ids_row)):
-        if now - records_row[s, LAST_HEARD] < tau_s:
+        # An EMPTY slot holds the empty record, never live: its record is not read (a row's
+        # ids are a few cache lines, its records many).
+        if ids_row[s] != EMPTY and now - records_row[s, LAST_HEARD] < tau_s:
             record[FIELDS + k] = ids_row[s]
             k += 1
             if records_row[s, HEARS_ME] != 0:
