@@ -316,8 +316,10 @@ class AckBeacon:
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
         now = self.env.now
-        if not self.listeners and not self.leader_listeners:
-            # Nobody to tell (the Ack model alone): the table is all there is to update.
+        tell_leader_listeners = self.leader_listeners and (ack.role == LEADER or self.watched[ack.sender])
+        if not tell_leader_listeners and not self.listeners:
+            # Nobody to tell (the Ack model alone; most Acks under the clustering): the table
+            # is all there is to update.
             self.stale_acks += self.table.take(now, sender, receivers, ack.record)
             return
         fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.record)
@@ -326,7 +328,7 @@ class AckBeacon:
             receivers, hears_me = receivers[fresh], hears_me[fresh]
             if len(receivers) == 0:
                 return
-        if self.leader_listeners and (ack.role == LEADER or self.watched[ack.sender]):
+        if tell_leader_listeners:
             for listener in self.leader_listeners:
                 listener(now, ack, receivers, hears_me)
         for listener in self.listeners:
