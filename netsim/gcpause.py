@@ -32,14 +32,15 @@ def own_process() -> None:
 def paused() -> Iterator[None]:
     """Pause the garbage collector for the block; resume it as it was."""
     collecting = gc.isenabled()
-    frozen_before = gc.get_freeze_count()
+    # (Counting the frozen objects walks them all: not in the command line's process.)
+    thaw = not _freeze and gc.get_freeze_count() == 0
     gc.disable()
     try:
         yield
     finally:
         if _freeze:
             gc.freeze()
-        elif frozen_before == 0:
+        elif thaw:
             # What loaded goes straight to the oldest generation, nothing left frozen:
             # otherwise the first allocation after the pause walks all of it as young
             # objects (about 30 ms after importing netsim), and again one generation up.
