@@ -275,24 +275,27 @@ def link_lifetimes(
     # start), ups before downs within a phase: a link that comes up at a window's end and
     # is re-found at the next window's start stays one lifetime. (numpy's lexsort, not a
     # DataFrame's sort and merge: the same order, at a fraction of pandas' cost per call.)
-    order = np.lexsort((-k, phase, t, b, a))
-    a, b, t, k = a[order], b[order], t[order], k[order]
-    same_pair = (a[1:] == a[:-1]) & (b[1:] == b[:-1])
+    # Keys folded for a cheaper sort: a pair (a, b) as one number, ordered as (a, b) is;
+    # a phase and a kind as one, ordered as (phase, ups first) is.
+    pair = a * (int(b.max()) + 1 if len(b) else 1) + b
+    order = np.lexsort((2 * phase.astype(np.int64) + (k < 0), t, pair))
+    a, b, t, k, pair = a[order], b[order], t[order], k[order], pair[order]
+    same_pair = pair[1:] == pair[:-1]
     prev_kind = np.r_[-1, np.where(same_pair, k[:-1], -1)]
     # Each pair starts down; keep only the events that change its state.
     keep = k != prev_kind
-    a, b, t, k = a[keep], b[keep], t[keep], k[keep]
+    a, b, t, k, pair = a[keep], b[keep], t[keep], k[keep], pair[keep]
     # After the filter a pair's events alternate up, down, up, ..., starting with an up:
     # an up is closed by the event right after it if that is the same pair's.
     up = np.flatnonzero(k == 1)
     closed = up + 1 < len(k)
-    closed[closed] = (a[up[closed] + 1] == a[up[closed]]) & (b[up[closed] + 1] == b[up[closed]])
+    closed[closed] = pair[up[closed] + 1] == pair[up[closed]]
     t_up = t[up]
     t_down = np.full(len(up), float(duration_s))
     t_down[closed] = t[up[closed] + 1]
     censored_start = t_up == 0.0
     censored_end = ~closed
-    rows = np.lexsort((b[up], a[up], t_up))
+    rows = np.lexsort((pair[up], t_up))
     return pd.DataFrame(
         {
             "a": a[up][rows],
