@@ -82,3 +82,24 @@ def test_collector_paused_while_loading_and_frozen_only_by_the_command_line(tmp_
         assert command_line == f"{state == 'on'} True"
         shutil.rmtree(tmp_path)
         tmp_path.mkdir()
+
+
+def test_what_netsim_loads_goes_to_the_oldest_generation_unfrozen():
+    """After ``import netsim`` (collector on) what it loaded sits in the collector's oldest
+    generation, not among the young objects that the next pass would walk, and nothing is
+    frozen; where the user had frozen objects, they stay frozen."""
+    code = (
+        "import gc, sys\n"
+        "if sys.argv[1] == 'frozen':\n"
+        "    keep = [[i] for i in range(1000)]\n"
+        "    gc.freeze()\n"
+        "before = gc.get_freeze_count()\n"
+        "import netsim\n"
+        "young = len(gc.get_objects(0)) + len(gc.get_objects(1))\n"
+        "print(gc.isenabled(), (gc.get_freeze_count() > 0) == (before > 0), young < 0.1 * len(gc.get_objects(2)))\n"
+    )
+    for state, want in (("plain", "True True True"), ("frozen", "True True False")):
+        out = subprocess.run(
+            [sys.executable, "-c", code, state], capture_output=True, text=True, check=True, env=_env()
+        )
+        assert out.stdout.strip().splitlines()[-1] == want, state

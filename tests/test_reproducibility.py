@@ -88,3 +88,45 @@ def test_output_directory_contents_and_schema(tmp_path):
     assert sorted(pos.t_s.unique()) == [float(t) for t in range(61)]
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["seed"] == 1 and "numpy" in manifest["versions"]
+
+
+def test_manifest_versions_are_the_installed_distributions():
+    """A manifest names each distribution's installed version, whether its module is loaded
+    (its own ``__version__``) or not (the installed metadata)."""
+    from importlib import metadata
+
+    import pyarrow  # noqa: F401  # loaded, so its __version__ is the one read
+
+    from netsim.tools.output import VERSIONED, versions
+
+    found = versions()
+    for dist in VERSIONED:
+        try:
+            installed = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            installed = "not installed"
+        assert found[dist] == installed, dist
+
+
+@pytest.mark.parametrize("rows", [0, 1, 50])
+def test_tables_are_the_files_pandas_writes(tmp_path, rows):
+    """A run's table is written byte for byte as ``DataFrame.to_parquet(index=False)``
+    writes it (integers, floats, booleans, text; a frame's ``attrs`` kept)."""
+    import numpy as np
+
+    from netsim.tools.output import write_table
+
+    frame = pd.DataFrame(
+        {
+            "robot": np.arange(rows, dtype=np.int64),
+            "t_s": np.linspace(0.0, 1.0, rows),
+            "up": np.arange(rows) % 3 == 0,
+            "cause": pd.Series(["leg", "jump"] * rows, dtype="str")[:rows],
+        },
+        index=np.arange(rows) + 7,
+    )
+    for attrs in ({}, {"source": "test"}):
+        frame.attrs = attrs
+        frame.to_parquet(tmp_path / "pandas.parquet", index=False)
+        write_table(frame, tmp_path / "netsim.parquet")
+        assert (tmp_path / "netsim.parquet").read_bytes() == (tmp_path / "pandas.parquet").read_bytes()
