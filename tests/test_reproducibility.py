@@ -130,3 +130,33 @@ def test_tables_are_the_files_pandas_writes(tmp_path, rows):
         frame.to_parquet(tmp_path / "pandas.parquet", index=False)
         write_table(frame, tmp_path / "netsim.parquet")
         assert (tmp_path / "netsim.parquet").read_bytes() == (tmp_path / "pandas.parquet").read_bytes()
+
+
+def test_tables_written_together_are_the_files_written_one_at_a_time(tmp_path, monkeypatch):
+    """write_run writes its tables a few at a time: every file is the one it writes alone."""
+    from netsim.tools import output
+
+    a = _run(tmp_path, "a", "--seed", "7")
+    monkeypatch.setattr(output, "WRITERS", 1)
+    b = _run(tmp_path, "b", "--seed", "7")
+    tables = sorted(p.name for p in a.glob("*.parquet"))
+    assert len(tables) >= 9 and tables == sorted(p.name for p in b.glob("*.parquet"))
+    for name in tables:
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
+def test_a_table_that_cannot_be_written_leaves_no_run(tmp_path, monkeypatch):
+    """A table whose writing fails (in one of the writing threads) fails the run's writing
+    as a whole: the error reaches the caller and the directory holds no table."""
+    from netsim.tools import output
+
+    def failing(frame, path):
+        if path.name == "groups.parquet":
+            raise OSError("disk full")
+        real(frame, path)
+
+    real = output.write_table
+    monkeypatch.setattr(output, "write_table", failing)
+    with pytest.raises(OSError, match="disk full"):
+        main(["run", "--out", str(tmp_path / "a"), *SMALL])
+    assert not list((tmp_path / "a").glob("*.parquet"))

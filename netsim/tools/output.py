@@ -22,6 +22,7 @@ import shutil
 import sys
 import tempfile
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
@@ -194,6 +195,10 @@ def _remove_empty(created: list[Path]) -> None:
             return  # not empty (or gone): leave it and its parents
 
 
+# Tables written at once by write_run.
+WRITERS = min(4, os.cpu_count() or 1)
+
+
 def write_run(
     out_dir: str | Path, config: Config, frames: dict[str, pd.DataFrame], summary: dict, manifest: dict
 ) -> list[Path]:
@@ -207,8 +212,11 @@ def write_run(
     try:
         (tmp / "config.toml").write_text(tomli_w.dumps(to_dict(config)))
         (tmp / "summary.json").write_text(json.dumps({k: _plain(v) for k, v in summary.items()}, indent=2) + "\n")
-        for name, frame in frames.items():
-            write_table(frame, tmp / f"{name}.parquet")
+        # Written a few at a time: pyarrow encodes and compresses without holding the
+        # interpreter, so the largest tables (the groups and beliefs of a long run) share
+        # the cores. Each file is written as alone.
+        with ThreadPoolExecutor(max_workers=WRITERS) as pool:
+            list(pool.map(lambda item: write_table(item[1], tmp / f"{item[0]}.parquet"), frames.items()))
         (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")
         # The earlier run goes as a whole, its manifest first: a directory with a manifest
         # always holds one complete run, and never tables of two runs side by side.
