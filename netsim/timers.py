@@ -171,7 +171,7 @@ class DeadlineTimers:
             if head is None or key < head:
                 self._queue_head()
         elif self.agenda is not None:
-            self.agenda.at(delay, NORMAL, partial(self._fire_bound, i, gen))
+            self.agenda.at(delay, NORMAL, self._fire_bound, i, gen)
         else:
             scheduled_event(self.env, delay, NORMAL, partial(self._fire_bound, i, gen))
 
@@ -184,7 +184,7 @@ class DeadlineTimers:
         self._head_key = key
         if key not in self._queued:
             self._queued.add(key)
-            self.agenda.at_key(key, partial(self._run_head_bound, key))  # type: ignore[union-attr]
+            self.agenda.at_key(key, self._run_head_bound, key)  # type: ignore[union-attr]
 
     def _run_head(self, key: tuple[float, int, int]) -> None:
         self._queued.discard(key)
