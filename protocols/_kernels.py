@@ -355,7 +355,7 @@ def _membership_row(ids_row, records_row, now, tau_s, symmetric, role, own, r, r
 
 @numba.njit(cache=True, nogil=True)
 def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distributed_gateways):
-    """The receivers of a flooded message that relay it (:meth:`protocols.relay.Relay._relays`):
+    """The receivers of a flooded message that relay it (:func:`protocols.relay.relays`):
     leaders, and members with a live two-way neighbour in another group (a leader other than
     their own or, with ``distributed_gateways``, a member of another leader). ``ids`` and
     ``records`` are the neighbour table's ``(n, slots)`` ids and ``(n, slots, fields)``
@@ -369,6 +369,8 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
             own = leader[r]
             row = records[r]
             for s in range(len(row)):
+                if ids[r, s] == EMPTY:
+                    continue  # the empty record, never live: not read
                 rec = row[s]
                 if not _two_way(rec, now, tau_s, symmetric):
                     continue
@@ -383,6 +385,21 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
             out[m] = r
             m += 1
     return out[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def flood_step(seen, receivers, ids, records, now, tau_s, symmetric, role, leader, distributed_gateways):
+    """A flooded message's copy reaching ``receivers`` (:func:`protocols.relay.flood_step`):
+    those that had not ``seen`` it, marked now, and which of them relay it (:func:`relays`)."""
+    fresh = np.empty(len(receivers), dtype=np.int64)
+    m = 0
+    for r in receivers:
+        if not seen[r]:
+            seen[r] = True
+            fresh[m] = r
+            m += 1
+    fresh = fresh[:m]
+    return fresh, relays(ids, records, now, tau_s, symmetric, role, leader, fresh, distributed_gateways)
 
 
 # The once-a-second samples of beliefs beside the truth (protocols.stack): one pass over the

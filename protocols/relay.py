@@ -137,6 +137,25 @@ def relays(
     return receivers[(r_role == LEADER) | ((r_role == MEMBER) & gateway)]
 
 
+def flood_step(
+    seen: np.ndarray,
+    receivers: np.ndarray,
+    ids: np.ndarray,
+    records: np.ndarray,
+    now: float,
+    tau_s: float,
+    symmetric: bool,
+    role: np.ndarray,
+    leader: np.ndarray,
+    distributed_gateways: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A flooded message's copy reaching ``receivers``: those that had not ``seen`` it
+    (a flag per robot, set for them now), and which of them relay it (:func:`relays`)."""
+    fresh = receivers[~seen[receivers]]
+    seen[fresh] = True
+    return fresh, relays(ids, records, now, tau_s, symmetric, role, leader, fresh, distributed_gateways)
+
+
 class Relay:
     """Sends messages and keeps their outcomes. ``params`` holds ``routing``,
     ``message_ttl`` and ``distributed_gateways`` (the clustering protocol's parameters)."""
@@ -149,7 +168,8 @@ class Relay:
         self.ttl = params.message_ttl
         self.distributed_gateways = params.distributed_gateways
         self._outcomes: dict[int, dict] = {}
-        self._seen: dict[int, set[int]] = {}
+        # Per message whose flood is under way, which robots have had it (a flag each).
+        self._seen: dict[int, np.ndarray] = {}
         self._next_id = 0
         # Per message: arrivals still to come (its copies in flight), and whether a copy was
         # stopped by the hop limit (for the cause of a drop).
@@ -191,15 +211,17 @@ class Relay:
             "transmissions": 0,
             "shortest_hops": float(hop_distances(st, now, src)[dst]),
         }
-        self._seen[mid] = {src}
         self._pending[mid] = 0
         msg = Message(mid, src, dst, self.ttl, 1, now)
         if self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
         else:
+            seen = self._seen[mid] = np.zeros(st.n, dtype=bool)
+            seen[src] = True
             self._broadcast(src, msg)
             if self._pending[mid] == 0:
                 self._dropped(msg, now, "died_out")  # nobody received the source's broadcast
+                del self._seen[mid]
         return mid
 
     # -- backbone flooding -------------------------------------------------------------
@@ -217,34 +239,33 @@ class Relay:
             return 0
         return receivers if self.channel.latency_jitter_s > 0 else 1
 
-    def _relays(self, receivers: np.ndarray, now: float) -> np.ndarray:
-        cl = self.clustering
-        table = cl.table
-        return (relays if self.kernels is None else self.kernels.relays)(
-            table.id, table.data, now, table.tau_s, cl.symmetric, self.roles.role, self.roles.leader, receivers,
-            self.distributed_gateways,
-        )  # fmt: skip
-
     def _on_flood(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
         now = self.env.now
-        self._pending[msg.id] -= 1
+        mid = msg.id
+        self._pending[mid] -= 1
         self._hop(msg, sender, now, receivers)
-        seen = self._seen[msg.id]
-        fresh = [r for r in receivers.tolist() if r not in seen]
-        seen.update(fresh)
-        if msg.dst in fresh:
+        seen = self._seen[mid]
+        had_dst = seen[msg.dst]
+        cl = self.clustering
+        table = cl.table
+        fresh, relaying = (flood_step if self.kernels is None else self.kernels.flood_step)(
+            seen, receivers, table.id, table.data, now, table.tau_s, cl.symmetric, self.roles.role, self.roles.leader,
+            self.distributed_gateways,
+        )  # fmt: skip
+        if not had_dst and seen[msg.dst]:
             self._delivered(msg, now)
         if msg.ttl <= 1:
-            if fresh:
-                self._ttl_cut.add(msg.id)
-        elif fresh:
+            if len(fresh):
+                self._ttl_cut.add(mid)
+        elif len(fresh):
             # Relayed now, by every robot that relays it.
-            nxt = Message(msg.id, msg.src, msg.dst, msg.ttl - 1, msg.hops + 1, now)
-            for r in self._relays(np.array(fresh, dtype=np.int64), now).tolist():
+            nxt = Message(mid, msg.src, msg.dst, msg.ttl - 1, msg.hops + 1, now)
+            for r in relaying.tolist():
                 if r != msg.dst:
                     self._broadcast(r, nxt)
-        if self._pending[msg.id] == 0:
-            self._dropped(msg, now, "ttl" if msg.id in self._ttl_cut else "died_out")
+        if self._pending[mid] == 0:
+            self._dropped(msg, now, "ttl" if mid in self._ttl_cut else "died_out")
+            del self._seen[mid]  # the flood is over: no copy of it is in flight
 
     # -- oracle shortest path ----------------------------------------------------------
     def _forward_oracle(self, holder: int, msg: Message) -> None:

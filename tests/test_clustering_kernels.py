@@ -22,7 +22,7 @@ from protocols.clustering import (
     membership,
 )
 from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
-from protocols.relay import relays
+from protocols.relay import flood_step, relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
 from protocols.stack import belief_counts, belief_rows, believed_keys, sample_rows
@@ -125,6 +125,30 @@ def test_compiled_relays_equals_numpy(symmetric, distributed_gateways):
         assert a.tolist() == b.tolist()
         relayed += len(a)
     assert relayed > 50
+
+
+def test_compiled_flood_step_equals_numpy():
+    """A flood's step (who had not seen the message, marked now; which of them relay it) is
+    the numpy one, the flags left alike."""
+    rng = np.random.default_rng(4)
+    fresh_seen = relayed = 0
+    for _ in range(100):
+        n, now = 12, 10.0
+        ids, records = random_tables(rng, n, 6, now)
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = rng.integers(-1, 6, n).astype(np.int64)
+        seen = rng.random(n) < 0.4
+        receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
+        seen_a, seen_b = seen.copy(), seen.copy()
+        rest = (ids, records, now, TAU_S, bool(rng.random() < 0.5), role, leader, bool(rng.random() < 0.5))
+        fresh_a, relay_a = kernels.flood_step(seen_a, receivers, *rest)
+        fresh_b, relay_b = flood_step(seen_b, receivers, *rest)
+        assert fresh_a.tolist() == fresh_b.tolist() == [r for r in receivers.tolist() if not seen[r]]
+        assert relay_a.tolist() == relay_b.tolist() and seen_a.tolist() == seen_b.tolist()
+        assert seen_a[receivers].all()
+        fresh_seen += len(fresh_a)
+        relayed += len(relay_a)
+    assert fresh_seen > 100 and relayed > 30
 
 
 def test_relays_are_leaders_and_members_next_to_another_group():
