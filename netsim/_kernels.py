@@ -258,6 +258,42 @@ def _sort_small(a, lo, hi):
 
 
 @numba.njit(cache=True, nogil=True)
+def _reaches(ddx, ddy, lim):
+    """Whether a sender at ``(ddx, ddy)`` from a receiver reaches it with range ``lim``: the
+    square decides all but a distance within a relative 1e-6 of the range, which numpy's
+    hypot decides (as :func:`netsim.topology.reach_keys_of_pairs` measures)."""
+    d2 = ddx * ddx + ddy * ddy
+    hit = d2 <= lim * lim * (1.0 - 1e-6)
+    if (d2 > lim * lim * (1.0 - 1e-6)) & (d2 <= lim * lim * (1.0 + 1e-6)):
+        hit = np.hypot(ddx, ddy) <= lim
+    return hit
+
+
+@numba.njit(cache=True, nogil=True)
+def reach_keys_in_lists(pos, ranges, box, indptr, indices):
+    """:func:`reach_keys` with each receiver's candidates from neighbour lists (those of
+    :meth:`netsim.spatial.RangeIndex.lists`: ascending, holding every robot within reach),
+    not from a grid built for the purpose: the same keys, ascending, the same arithmetic."""
+    n = pos.shape[0]
+    keys = np.empty(len(indices), np.int64)
+    q = 0
+    for a in range(n):
+        ax, ay = pos[a, 0], pos[a, 1]
+        base = a * n
+        for t in range(indptr[a], indptr[a + 1]):
+            m = indices[t]
+            ddx = ax - pos[m, 0]
+            ddy = ay - pos[m, 1]
+            if box > 0.0:
+                ddx -= box * np.rint(ddx / box)
+                ddy -= box * np.rint(ddy / box)
+            if _reaches(ddx, ddy, ranges[m]):
+                keys[q] = base + m
+                q += 1
+    return keys[:q]
+
+
+@numba.njit(cache=True, nogil=True)
 def reach_keys(pos, folded, ranges, box):
     """``receiver * n + sender`` for every ordered pair where the sender reaches the receiver
     (``|p_receiver - p_sender| <= ranges[sender]``, on a torus of side ``box`` when ``box >
@@ -297,14 +333,9 @@ def reach_keys(pos, folded, ranges, box):
                     if box > 0.0:
                         ddx -= box * np.rint(ddx / box)
                         ddy -= box * np.rint(ddy / box)
-                    d2, lim = ddx * ddx + ddy * ddy, pr[m]
-                    # The square decides all but a distance within a relative 1e-6 of the
-                    # range, which numpy's hypot decides. No branch on the outcome (a coin
-                    # toss for the processor): every candidate is written, counted if it
-                    # reaches.
-                    hit = (d2 <= lim * lim * (1.0 - 1e-6)) & (m != am)
-                    if (d2 > lim * lim * (1.0 - 1e-6)) & (d2 <= lim * lim * (1.0 + 1e-6)):
-                        hit = np.hypot(ddx, ddy) <= lim
+                    # No branch on the outcome (a coin toss for the processor): every
+                    # candidate is written, counted if it reaches.
+                    hit = _reaches(ddx, ddy, pr[m]) & (m != am)
                     senders[k] = members[m]
                     k += hit
             _sort_small(senders, k0, k)

@@ -106,6 +106,16 @@ class RangeIndex:
         ids = self._filter(t, i, r, cand[lo:hi])[0]
         return ids, bool(st.alive[ids].all())
 
+    def lists(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Every robot's neighbour list, valid at ``t`` (rebuilt first if some robot may
+        have moved past the slack): ``(indptr, indices)``, robot ``i``'s at
+        ``indices[indptr[i]:indptr[i + 1]]``, ascending, holding every robot within the
+        reach of ``i`` at ``t`` (and more)."""
+        st = self.state
+        if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
+            self._build(t)
+        return self._indptr, self._indices
+
     def _candidates(self, t: float, i: int, r: float) -> np.ndarray:
         """The robots that may be within ``r`` of ``i`` at ``t``: its neighbour list (rebuilt
         first if some robot may have moved past the slack), or all others past the reach."""

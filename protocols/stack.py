@@ -365,6 +365,14 @@ class Stack:
         """``receiver * n + sender`` for every sender whose transmissions reach the
         receiver now, ascending."""
         st = self.state
+        index = self.channel.index
+        if self.channel.reception is None and index.kernels is not None:
+            # The channel's neighbour lists hold every robot within the largest range: the
+            # candidates, without a grid built for each sample.
+            indptr, indices = index.lists(now)
+            return index.kernels.reach_keys_in_lists(
+                st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, indptr, indices
+            )
         return reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
 
     def _belief_keys(self, now: float) -> Beliefs:

@@ -389,6 +389,40 @@ def test_compiled_reach_keys_equal_numpy(torus):
     assert hits > 1000
 
 
+@pytest.mark.parametrize("torus", [False, True])
+def test_reach_keys_from_the_range_index_lists_equal_numpy(torus):
+    """The pairs in reach from the range index's neighbour lists (the clustering's samples)
+    are the numpy ones: the layouts above standing still (distances a hair either side of
+    the range, unequal ranges, a range larger than the area), and robots moving, the lists
+    built earlier and still valid."""
+    from netsim.topology import reach_keys_of_pairs
+
+    rng = np.random.default_rng(32)
+    side = 1000.0
+    box = side if torus else None
+    hits = 0
+    for pos, ranges in reach_layouts(rng, side):
+        st = RobotState(len(pos), side, ranges, torus=torus)
+        st.place(pos % side if torus else pos)
+        at = st.positions_at(0.0)
+        got = core_kernels.reach_keys_in_lists(at, st.range_m, side if torus else 0.0, *RangeIndex(st).lists(0.0))
+        assert got.tolist() == reach_keys_of_pairs(at, st.range_m, box).tolist()
+        hits += len(got)
+    st = _moving_state(rng, 300, 600.0, torus)
+    index, t, rebuilds = RangeIndex(st), 0.0, []
+    for _ in range(60):
+        t += float(rng.exponential(0.3))
+        i = int(rng.integers(300))
+        st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
+        at = st.positions_at(t)
+        got = core_kernels.reach_keys_in_lists(at, st.range_m, 600.0 if torus else 0.0, *index.lists(t))
+        assert got.tolist() == reach_keys_of_pairs(at, st.range_m, 600.0 if torus else None).tolist()
+        rebuilds.append(index.rebuilds)
+        hits += len(got)
+    # Rebuilt along the way, and lists built earlier answered later queries.
+    assert hits > 5000 and len(set(rebuilds)) > 3 and any(a == b for a, b in zip(rebuilds, rebuilds[1:]))
+
+
 def brute_reach_keys(pos: np.ndarray, ranges: np.ndarray) -> list[int]:
     """``receiver * n + sender`` for every sender within its range of the receiver
     (``hypot <= r_sender``), every ordered pair tried: the plane's reference."""
