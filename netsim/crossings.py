@@ -48,12 +48,13 @@ def wrap(d: np.ndarray, box: float | None) -> np.ndarray:
 
 def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
     """Pairs ``(i, j)``, ``i < j``, of positions within ``range_m`` (periodic on a torus of
-    side ``side_m``), as an ``(m, 2)`` array (in the grid's fixed order or the KD-tree's): for more than a small
-    run's robots a compiled grid (:func:`netsim._kernels.near_pairs`, which may add pairs
-    further apart than ``range_m`` by a relative 1e-9: every caller asks with a slack and
-    filters exactly), else, or where a grid would need many more cells than there are robots
-    (a few robots far from the others, a line of robots), a KD-tree (scipy's, imported only
-    then: a large run does without it)."""
+    side ``side_m``), as an ``(m, 2)`` array (in the grid's fixed order, the KD-tree's or
+    ``(i, j)``): for more than a small run's robots a compiled grid
+    (:func:`netsim._kernels.near_pairs`, which may add pairs further apart than ``range_m``
+    by a relative 1e-9: every caller asks with a slack and filters exactly), else, or where
+    a grid would need many more cells than there are robots (a few robots far from the
+    others, a line of robots), every pair for up to :data:`ALL_PAIRS_MAX` positions, and a
+    KD-tree for more (scipy's, imported only then: a large run does without it)."""
     pts = in_box(pos_m, side_m)
     if len(pts) < 2:
         return np.empty((0, 2), np.int64)
@@ -62,10 +63,26 @@ def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.nd
     kernels = load("netsim._kernels", len(pts))
     if kernels is not None and range_m > 0 and grid_cells(pts, range_m, side_m) <= 16 * len(pts) + 64:
         return kernels.near_pairs(np.ascontiguousarray(pts, dtype=float), float(range_m), float(side_m or 0.0))
+    if len(pts) <= ALL_PAIRS_MAX:
+        return all_pairs_within(pts, range_m, side_m)
     from scipy.spatial import cKDTree
 
     tree = cKDTree(pts, boxsize=side_m) if side_m is not None else cKDTree(pts)
     return tree.query_pairs(range_m, output_type="ndarray").astype(np.int64, copy=False)
+
+
+# Up to this many positions every pair is looked at: a few thousand distances cost less
+# than importing scipy's KD-tree (about 0.15 s, a third of a small run's process).
+ALL_PAIRS_MAX = 64
+
+
+def all_pairs_within(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
+    """Pairs ``(i, j)``, ``i < j``, within ``range_m`` of each other (periodic on a torus of
+    side ``side_m``), every pair looked at, in the order ``(i, j)``."""
+    i, j = np.triu_indices(len(pos_m), 1)
+    d = wrap(pos_m[i] - pos_m[j], side_m)
+    keep = np.hypot(d[:, 0], d[:, 1]) <= range_m
+    return np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
 
 
 def grid_cells(pts: np.ndarray, range_m: float, side_m: float | None) -> float:

@@ -41,10 +41,11 @@ def paused() -> Iterator[None]:
         if _freeze:
             gc.freeze()
         elif thaw:
-            # What loaded goes straight to the oldest generation, nothing left frozen:
-            # otherwise the first allocation after the pause walks all of it as young
-            # objects (about 30 ms after importing netsim), and again one generation up.
-            # Where the user had frozen objects of their own, unfreezing would thaw them.
+            # What loaded (with every object tracked before) goes straight to the oldest
+            # generation, nothing left frozen: otherwise the first allocation after the
+            # pause walks all of it as young objects (about 30 ms after importing netsim),
+            # and again one generation up; cycles among them are still found by the next
+            # full pass. Where the user had frozen objects, unfreezing would thaw them.
             gc.freeze()
             gc.unfreeze()
         if collecting:

@@ -63,3 +63,13 @@ def test_user_mobility_model_from_the_current_directory(tmp_path):
     pos = pd.read_parquet(out / "positions.parquet")
     r = ((pos.x_m - 500) ** 2 + (pos.y_m - 500) ** 2) ** 0.5
     assert r.to_numpy() == pytest.approx(100.0)
+
+
+def test_each_group_lists_exactly_its_installed_entry_points():
+    """The plugins of a group are its entry points as installed, in their order (read in
+    one pass for all the groups)."""
+    from importlib.metadata import entry_points
+
+    for group in (plugins.MOBILITY, plugins.PROTOCOLS, plugins.CONTROLLERS, plugins.HOOKS, "netsim.none"):
+        assert plugins._entry_points(group) == tuple(entry_points(group=group)), group
+    assert plugins.available(plugins.PROTOCOLS) == ["ack", "clustering", "none"]
