@@ -121,7 +121,7 @@ class DeadlineTimers:
         self._keyed = agenda is not None and hasattr(agenda, "at_key")
         self._events = Calendar()
         self._head_key: tuple[float, int, int] | None = None
-        self._queued: set[tuple[float, int, int]] = set()
+        self._queued: set[int] = set()  # by the keys' ids (unique)
         self._run_head_bound = self._run_head
 
     def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
@@ -182,18 +182,31 @@ class DeadlineTimers:
         assert h is not None
         key = (h[0], h[1], h[2])
         self._head_key = key
-        if key not in self._queued:
-            self._queued.add(key)
+        if h[2] not in self._queued:
+            self._queued.add(h[2])
             self.agenda.at_key(key, self._run_head_bound, key)  # type: ignore[union-attr]
 
     def _run_head(self, key: tuple[float, int, int]) -> None:
-        self._queued.discard(key)
+        self._queued.discard(key[2])
         if key != self._head_key:
             return  # an earlier event was armed since: its own entry runs it
-        _, _, _, i, gen = self._events.pop()
+        events = self._events
+        _, _, _, i, gen = events.pop()
         self._head_key = None
-        self._fire(i, gen)
-        if self._head_key is None and self._events.first() is not None:
+        if gen == self._generation[i]:
+            deadline = self.deadline_s.item(i)
+            now = self.env._now  # type: ignore[attr-defined]
+            if now < deadline < math.inf:
+                # Moved later, nearly every event: armed there (_fire, then _arm, inline; the
+                # head is queued below).
+                gen += 1
+                self._generation[i] = gen
+                self.armed_s[i] = deadline
+                key = self.agenda.key(deadline - now, NORMAL)  # type: ignore[union-attr]
+                events.push((key[0], key[1], key[2], i, gen))
+            else:
+                self._fire(i, gen)
+        if self._head_key is None and events.first() is not None:
             self._queue_head()
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:
