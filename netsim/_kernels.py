@@ -294,6 +294,45 @@ def reach_keys_in_lists(pos, ranges, box, indptr, indices):
 
 
 @numba.njit(cache=True, nogil=True)
+def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
+    """Hops from ``source`` to every robot over the directed links where a sender reaches a
+    receiver (``towards``: from every robot to ``source``), ``inf`` where there is no path: a
+    breadth-first search over the neighbour lists of :meth:`netsim.spatial.RangeIndex.lists`,
+    each link decided as :func:`reach_keys_in_lists` decides it."""
+    n = pos.shape[0]
+    hops = np.full(n, np.inf)
+    hops[source] = 0.0
+    frontier = np.empty(n, np.int64)
+    reached = np.empty(n, np.int64)
+    frontier[0] = source
+    size, level = 1, 0.0
+    while size:
+        level += 1.0
+        found = 0
+        for q in range(size):
+            u = frontier[q]
+            for t in range(indptr[u], indptr[u + 1]):
+                v = indices[t]
+                if hops[v] != np.inf:
+                    continue
+                # The receiver's position minus the sender's, and the sender's range.
+                if towards:
+                    ddx, ddy, lim = pos[u, 0] - pos[v, 0], pos[u, 1] - pos[v, 1], ranges[v]
+                else:
+                    ddx, ddy, lim = pos[v, 0] - pos[u, 0], pos[v, 1] - pos[u, 1], ranges[u]
+                if box > 0.0:
+                    ddx -= box * np.rint(ddx / box)
+                    ddy -= box * np.rint(ddy / box)
+                if _reaches(ddx, ddy, lim):
+                    hops[v] = level
+                    reached[found] = v
+                    found += 1
+        frontier, reached = reached, frontier
+        size = found
+    return hops
+
+
+@numba.njit(cache=True, nogil=True)
 def reach_keys(pos, folded, ranges, box):
     """``receiver * n + sender`` for every ordered pair where the sender reaches the receiver
     (``|p_receiver - p_sender| <= ranges[sender]``, on a torus of side ``box`` when ``box >

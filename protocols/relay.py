@@ -79,10 +79,16 @@ class Outcome(NamedTuple):
     shortest_hops: float  # on the true topology at send time (inf: no path)
 
 
-def hop_distances(state, now: float, node: int, towards: bool = False) -> np.ndarray:
+def hop_distances(state, now: float, node: int, towards: bool = False, index=None) -> np.ndarray:
     """Hops from ``node`` to every robot over the true directed unit-disk links now
     (``towards=True``: from every robot to ``node``, a search on the reversed links), as
-    floats, ``inf`` where there is no path."""
+    floats, ``inf`` where there is no path. Given the channel's range index with its
+    compiled loops (``index``: a unit disk), one compiled search over its neighbour lists
+    (:func:`netsim._kernels.hops_in_lists`, the same links) instead of every pair first."""
+    if index is not None and index.kernels is not None:
+        indptr, indices = index.lists(now)
+        pos, side = state.positions_at(now), state.side_m if state.torus else 0.0
+        return index.kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
     a, b, _ = geometric_pairs(state.positions_at(now), state.range_m, state.side_m if state.torus else None, True)
     return bfs_hops(b, a, state.n, node) if towards else bfs_hops(a, b, state.n, node)
 
@@ -190,6 +196,9 @@ class Relay:
         self._hops: tuple[list, list, list, list, list, list] = ([], [], [], [], [], [])
         # The compiled twin of relays, past netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = load("protocols._kernels", parts.state.n)
+        # The channel's range index, whose neighbour lists the searches for shortest paths
+        # use (a unit disk only: a radio decides its links otherwise).
+        self._index = self.channel.index if self.channel.reception is None else None
 
     def send(self, src: int, dst: int) -> int:
         """Send a message from ``src`` to ``dst`` now; returns its id."""
@@ -209,7 +218,7 @@ class Relay:
             "hops": 0,
             "latency_s": np.nan,
             "transmissions": 0,
-            "shortest_hops": float(hop_distances(st, now, src)[dst]),
+            "shortest_hops": float(hop_distances(st, now, src, index=self._index)[dst]),
         }
         self._pending[mid] = 0
         msg = Message(mid, src, dst, self.ttl, 1, now)
@@ -270,7 +279,7 @@ class Relay:
     # -- oracle shortest path ----------------------------------------------------------
     def _forward_oracle(self, holder: int, msg: Message) -> None:
         st, now = self.state, self.env.now
-        to_dst = hop_distances(st, now, msg.dst, towards=True)
+        to_dst = hop_distances(st, now, msg.dst, towards=True, index=self._index)
         nbrs, _ = self.channel.in_range(holder)
         if len(nbrs) == 0 or not np.isfinite(to_dst[nbrs]).any():
             self._dropped(msg, now, "no_route")  # no route now: the message is lost

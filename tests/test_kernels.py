@@ -423,6 +423,29 @@ def test_reach_keys_from_the_range_index_lists_equal_numpy(torus):
     assert hits > 5000 and len(set(rebuilds)) > 3 and any(a == b for a, b in zip(rebuilds, rebuilds[1:]))
 
 
+@pytest.mark.parametrize("torus", [False, True])
+def test_hops_from_the_range_index_lists_equal_numpy(torus):
+    """Hop distances from a robot (and towards it) searched over the range index's lists are
+    the numpy search's over every pair in reach: unequal ranges (one-way links), robots
+    out of reach of all (inf), moving robots with lists built earlier."""
+    from protocols.relay import hop_distances
+
+    rng = np.random.default_rng(33)
+    st = _moving_state(rng, 250, 900.0, torus)
+    index, t, finite = RangeIndex(st), 0.0, 0
+    for _ in range(40):
+        t += float(rng.exponential(0.5))
+        i = int(rng.integers(250))
+        st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
+        for towards in (False, True):
+            node = int(rng.integers(250))
+            got = hop_distances(st, t, node, towards, index=index)
+            want = hop_distances(st, t, node, towards)
+            assert got.tobytes() == want.tobytes()
+            finite += int(np.isfinite(got).sum())
+    assert 0 < finite < 40 * 2 * 250  # some paths, and some robots out of reach
+
+
 def brute_reach_keys(pos: np.ndarray, ranges: np.ndarray) -> list[int]:
     """``receiver * n + sender`` for every sender within its range of the receiver
     (``hypot <= r_sender``), every ordered pair tried: the plane's reference."""
