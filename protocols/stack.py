@@ -427,7 +427,7 @@ class Stack:
     def _sampler(self, interval: float):
         env, table, roles = self.env, self.table, self.roles
         while True:
-            now = env.now
+            now = float(env.now)  # 0 (an int) at the start: one compiled version, not two
             heard = self._heard_keys(now)
             (robot, group, primary), rows = self._sample_rows(
                 table.id, table.data, now, table.tau_s, self.clustering.symmetric, roles.role, roles.leader, heard
