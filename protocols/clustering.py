@@ -568,6 +568,8 @@ class Clustering:
             return
         if b:
             timers.arm(out[1, :b], renewed_s)
+        if not (c or d):
+            return  # most leaders' Acks: their members' timers renewed, nothing else
         # out is reused: read it now.
         undecided, leaders, slots = out[2, :c].tolist(), out[3, :d].tolist(), out[4, :d].tolist()
         for r in undecided:
