@@ -173,9 +173,6 @@ class Channel:
         # The compiled loops (netsim._kernels) when the run uses them, else None.
         self.kernels = self.index.kernels
         self.survives = survives
-        # Whether a transmission needs its receivers' distances (else the range query skips
-        # them): for the loss model (a callable without the flag is taken to read them).
-        self._distances = getattr(survives, "uses_distances", True)
         self.latency_s = float(latency_s)
         self.latency_jitter_s = float(latency_jitter_s)
         self.latency_rng = latency_rng
@@ -199,6 +196,18 @@ class Channel:
         # Per kind, called as (payload, cause, receptions) for what a medium loses of a
         # frame (cause "collision", "half_duplex"; "queue_full", "retry_limit" with 1).
         self.medium_losses: dict[str, Callable[[object, str, int], None]] = {}
+
+    @property
+    def survives(self) -> Survives:
+        """The loss model (netsim.loss): which receptions survive."""
+        return self._survives
+
+    @survives.setter
+    def survives(self, survives: Survives) -> None:
+        self._survives = survives
+        # Whether a transmission needs its receivers' distances (else the range query skips
+        # them): for the loss model (a callable without the flag is taken to read them).
+        self._distances = getattr(survives, "uses_distances", True)
 
     def attach_mac(self, mac: Any) -> None:
         """Put every transmission from now on through the shared medium ``mac``."""
@@ -368,7 +377,7 @@ class Channel:
                     dist = dist[alive]
         if binned is not None:
             binned.row[SendTimeBins.IN_RANGE] += len(receivers)
-        keep = self.survives(sender, receivers, dist)
+        keep = self._survives(sender, receivers, dist)
         if keep is not None and not keep.all():
             np.add.at(c.dropped[0], receivers[~keep], 1)
             if binned is not None:

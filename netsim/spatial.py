@@ -1,10 +1,11 @@
 """Who is within range of a robot now: exact answers from a neighbour list built earlier.
 
 Rebuilding a spatial index for every transmission would cost O(N) or more each. Instead,
-at ``t_build`` a grid of cells (a KD-tree in small runs; :func:`netsim.crossings.near_pairs`)
+at ``t_build`` a grid of cells (every pair or a KD-tree in small runs; :func:`netsim.crossings.near_pairs`)
 lists, for every robot, the robots within ``R + 2 s`` of it (a Verlet list, as in molecular
 dynamics), where ``R`` is the largest range and ``s`` a slack. Until some robot could
-have moved more than ``s`` since then (``speed_high_water * (t - t_build) > s``), every
+have moved more than ``s`` since then (``speed_high_water * (t - t_build) > s``, the highest
+speed any robot has had in the run), every
 robot in range of ``i`` now is on ``i``'s list, so a query is a slice of the list filtered
 on exact current positions. Rebuilding costs O(N) every ``s / v_max`` seconds; a larger
 slack means fewer rebuilds and longer lists. The default slack is a fifth of the largest range.
@@ -70,7 +71,9 @@ class RangeIndex:
         self._t_build = t
         self._jumps = st.jumps
         speeds = np.hypot(st.velocity_mps[:, 0], st.velocity_mps[:, 1])
-        st.speed_high_water_mps = float(speeds.max()) if st.n else 0.0
+        # Raised, never lowered: another index on the same state (a shared medium's) may have
+        # been built earlier, when some robot was faster than any is now.
+        st.speed_high_water_mps = max(st.speed_high_water_mps, float(speeds.max()) if st.n else 0.0)
         self.rebuilds += 1
 
     def within(self, t: float, i: int, radius_m: float | None = None) -> tuple[np.ndarray, np.ndarray]:

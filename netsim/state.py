@@ -51,8 +51,8 @@ class RobotState:
         self.origin_c = self.origin_m.view(np.complex128)[:, 0]
         self.velocity_c = self.velocity_mps.view(np.complex128)[:, 0]
         self.alive = np.ones(self.n, dtype=bool)
-        # Highest speed any robot has had since the spatial index last reset it: bounds how
-        # far anyone can have moved since then.
+        # Highest speed any robot has had in the run (raised by legs and by the spatial
+        # indexes, never lowered): bounds how far anyone can have moved in any interval.
         self.speed_high_water_mps = 0.0
         # Bumped when a robot jumps (a trace's "set X_" at t > 0): the index must rebuild.
         self.jumps = 0

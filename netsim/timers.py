@@ -114,8 +114,8 @@ class DeadlineTimers:
         self._fire_bound = self._fire  # one bound method, not one per arming
         # With an agenda that takes keys (module notes): the events, (t, priority, id, timer,
         # generation) in a calendar; the key of its first, whose entry on the agenda runs it
-        # (None: there is none); and the keys queued on the agenda and not yet run (one may
-        # have been the first's and be again).
+        # (None: there is none); and the ids of the keys queued on the agenda and not yet run
+        # (one may have been the first's and be again).
         # An agenda that cannot key entries (the tests' reference, a kernel event per entry)
         # gets an entry per timer event instead.
         self._keyed = agenda is not None and hasattr(agenda, "at_key")

@@ -46,7 +46,7 @@ def geometric_pairs(
 
     Notes
     -----
-    A grid of cells (or a KD-tree, in small runs) finds the candidate pairs within the largest
+    A grid of cells (or every pair, or a KD-tree, in small runs) finds the candidate pairs within the largest
     range: ``O(N + E)``.
     """
     positions_m = np.asarray(positions_m, dtype=float)

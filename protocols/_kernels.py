@@ -36,8 +36,9 @@ def receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, h
     ``ids`` and ``records`` are the table's flat ``(n * slots)`` ids and ``(n * slots,
     fields)`` records. Fills ``hears_me`` (the receiver is among ``heard``) and ``fresh``
     (the Ack was taken: not older than the entry's). Returns ``(-1, stale)`` when done,
-    ``stale`` the number of Acks not taken, or ``(k, 0)`` where ``receivers[k]``'s row has
-    no free slot (the table must grow first; the receivers before it are done).
+    ``stale`` the number of receivers from ``start`` on that did not take the Ack, or
+    ``(k, stale)`` where ``receivers[k]``'s row has no free slot (the table must grow first;
+    the receivers before it are done, ``stale`` counting those of them from ``start``).
     """
     return _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, hears_me, start)
 
@@ -76,7 +77,7 @@ def _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, 
                     slot = s
                     break
             if slot < 0:
-                return k, 0
+                return k, stale
             ids[base + slot] = sender
         f = base + slot
         old = records[f]

@@ -270,7 +270,7 @@ class AckBeacon:
         self.trace.add_frame("ack_delivery", lambda: ack_delivery_frame(bins, duration))
 
     def _tick(self, i: int) -> None:
-        # send(i), inline: once per Ack.
+        # Robot i's Ack, if it is on.
         if self.state.alive[i]:
             self.channel.broadcast(i, self.make_ack(i), self.deliver, "ack")
         jitter = self._jitter
@@ -308,11 +308,6 @@ class AckBeacon:
         record = table.announce(now, i, seq, role, leader, x, y, size)
         self.role_sent[i], self.degree_sent[i] = role, record[DEGREE]
         return Ack(i, role, leader, seq, x, y, size, resign, record)
-
-    def send(self, i: int) -> None:
-        if not self.state.alive[i]:
-            return
-        self.channel.broadcast(i, self.make_ack(i), self.deliver, kind="ack")
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
         now = self.env.now

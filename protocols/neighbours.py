@@ -124,12 +124,13 @@ class NeighbourTable:
             return fresh, hears_me, len(fresh) - int(fresh.sum())
         fresh = np.empty(len(receivers), dtype=bool)
         hears_me = np.empty(len(receivers), dtype=bool)
-        start = 0
+        start, stale = 0, 0
         while True:
-            start, stale = k.receive(
+            start, more = k.receive(
                 self._ids, self._records, self.id.shape[1], now, sender, receivers, record,
                 self.tau_s, fresh, hears_me, start,
             )  # fmt: skip
+            stale += more
             if start < 0:
                 return fresh, hears_me, stale
             self._grow()
@@ -140,11 +141,12 @@ class NeighbourTable:
         k = self.kernels
         if k is None:
             return self.receive(now, sender, receivers, record)[2]
-        start = 0
+        start, stale = 0, 0
         while True:
-            start, stale = k.take(
+            start, more = k.take(
                 self._ids, self._records, self.id.shape[1], now, sender, receivers, record, self.tau_s, start
             )
+            stale += more
             if start < 0:
                 return stale
             self._grow()

@@ -8,7 +8,7 @@ import pytest
 from netsim.channel import DROP_CAUSES
 from netsim.loss import DistanceLoss, GilbertElliottLoss
 from netsim.run import build, simulation
-from tests.fixtures import make_config
+from tests.fixtures import make_config, static_core
 
 
 def _static_sim(positions, ranges=10.0, **channel):
@@ -146,3 +146,28 @@ def test_loss_off_draws_nothing():
     before = sim.channel.survives.rng.bit_generator.state
     assert sim.channel.survives(0, np.array([1]), np.array([1.0])) is None
     assert sim.channel.survives.rng.bit_generator.state == before
+
+
+def test_a_loss_model_set_after_the_channel_is_built_gets_the_distances():
+    """The channel measures receivers' distances when its loss model reads them (a callable
+    without ``uses_distances`` is taken to), also for one put in place after it was built;
+    one that says it reads none gets None."""
+    sim = static_core([[0.0, 0.0], [3.0, 0.0], [8.0, 0.0]], range_m=10.0)
+    seen = []
+
+    def near_only(sender, receivers, distances_m):
+        seen.append(distances_m)
+        return distances_m < 5.0
+
+    sim.channel.survives = near_only
+    got = sim.channel.broadcast(0, "x", lambda *a: None, kind="ack")
+    assert got.tolist() == [1] and seen[-1].tolist() == [3.0, 8.0]
+
+    def blind(sender, receivers, distances_m):
+        seen.append(distances_m)
+        return None
+
+    blind.uses_distances = False  # type: ignore[attr-defined]
+    sim.channel.survives = blind
+    assert sim.channel.broadcast(0, "x", lambda *a: None, kind="ack").tolist() == [1, 2]
+    assert seen[-1] is None

@@ -70,6 +70,27 @@ def test_compiled_range_query_without_distances_equals_numpy(torus):
     assert dead_seen > 10
 
 
+def test_overtaken_ack_counted_when_a_later_receivers_row_grows():
+    """An Ack older than a receiver's entry (overtaken in flight) is counted stale, also when
+    a later receiver of the same delivery has no free slot and the table grows midway:
+    compiled (receive and take) and numpy alike."""
+    out = []
+    for kernels in (table_kernels, None):
+        for how in ("receive", "take"):
+            t = NeighbourTable(3, tau_s=10.0, slots=1)
+            t.kernels = kernels
+            t.receive(0.0, 2, np.array([0]), ack_record(5, 0, -1, 0.0, 0.0, 1))  # 0 holds 2's seq 5
+            t.receive(0.0, 0, np.array([1]), ack_record(1, 0, -1, 0.0, 0.0, 1))  # 1's only slot: 0
+            older = ack_record(4, 0, -1, 0.0, 0.0, 1)
+            if how == "receive":
+                fresh, _, stale = t.receive(1.0, 2, np.array([0, 1]), older)
+                assert fresh.tolist() == [False, True]
+            else:
+                stale = t.take(1.0, 2, np.array([0, 1]), older)
+            out.append((stale, t.slots))
+    assert out == [(1, 2)] * 4
+
+
 def test_compiled_empty_record_is_the_tables():
     """The empty record the compiled Ack starts from (a constant there) is the table's."""
     from protocols.neighbours import EMPTY_RECORD

@@ -12,9 +12,11 @@ from netsim.crossings import ALL_PAIRS_MAX, all_pairs_within, near_pairs
 
 @pytest.mark.parametrize("torus", [False, True])
 def test_every_pair_within_range_is_the_kd_tree_pairs(torus):
-    """``all_pairs_within`` finds the KD-tree's pairs within the range, and none further than
-    rounding allows, ordered ``(i, j)`` with ``i < j``; on the plane and on a torus, with
-    positions on a lattice (distances exactly the range) and coincident ones."""
+    """``all_pairs_within`` finds the KD-tree's pairs within the range, but for rounding at
+    the range itself (each rounds a distance its own way: callers ask with slack), ordered
+    ``(i, j)`` with ``i < j``; on the plane and on a torus, with positions on a lattice
+    (distances exactly the range), coincident ones, and a pair whose distance rounds to
+    either side of the range."""
     from scipy.spatial import cKDTree
 
     rng = np.random.default_rng(2)
@@ -24,6 +26,7 @@ def test_every_pair_within_range_is_the_kd_tree_pairs(torus):
         np.round(rng.uniform(0, side, (40, 2)) / 50) * 50 % side,
         np.zeros((5, 2)),
         rng.uniform(0, side, (2, 2)),
+        np.array([[200.0, 200.0], [100.01586481765521, 201.7812107788257]]),  # 100 m, rounding either way
     ]
     for pos in layouts:
         for r in (0.0, 50.0, 120.0, 1000.0):
@@ -32,7 +35,7 @@ def test_every_pair_within_range_is_the_kd_tree_pairs(torus):
             found = [tuple(p) for p in got.tolist()]
             assert found == sorted(found) and all(i < j for i, j in found)
             tree = cKDTree(pos, boxsize=box) if torus else cKDTree(pos)
-            inner = {tuple(p) for p in tree.query_pairs(r, output_type="ndarray").tolist()}
+            inner = {tuple(p) for p in tree.query_pairs(r * (1 - 1e-9), output_type="ndarray").tolist()}
             outer = {tuple(p) for p in tree.query_pairs(r * (1 + 1e-9), output_type="ndarray").tolist()}
             assert inner <= set(found) <= outer
 
@@ -60,3 +63,33 @@ def test_small_run_does_not_import_the_kd_tree(tmp_path):
     env = {k: v for k, v in __import__("os").environ.items() if k != "NETSIM_COMPILED"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
     assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+@pytest.mark.parametrize("finder", ["every pair", "kd-tree", "grid"])
+def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkeypatch, finder):
+    """Two robots standing still at their range, to the last bit either side: the links table
+    has the pair exactly when its squared distance is within the range's square (the state
+    test), whichever way the candidate pairs were found (their finders each round a distance
+    at the range their own way)."""
+    from netsim import crossings
+    from netsim.lifetimes import link_lifetimes
+    from netsim.state import RobotState
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1" if finder == "grid" else "0")
+    if finder == "kd-tree":
+        monkeypatch.setattr(crossings, "ALL_PAIRS_MAX", 0)
+    base = np.array([100.01586481765521, 201.7812107788257])
+    linked = 0
+    for k in range(-3, 4):
+        # k ulps either side of the edge case found in review.
+        other = np.array([np.nextafter(base[0], base[0] + np.sign(k)) if k else base[0], base[1]])
+        for _ in range(abs(k) - 1):
+            other[0] = np.nextafter(other[0], other[0] + np.sign(k))
+        pos = np.array([[200.0, 200.0], other])
+        st = RobotState(2, 1000.0, 100.0)
+        st.place(pos)
+        links = link_lifetimes(st.legs(), st.range_m, 10.0, 1000.0)
+        d = pos[0] - pos[1]
+        assert len(links) == int(d @ d <= 100.0 * 100.0), (k, finder)
+        linked += len(links)
+    assert 0 < linked < 7  # both sides of the edge were tried

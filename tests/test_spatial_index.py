@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from netsim.run import build
+from netsim.spatial import RangeIndex
+from netsim.state import RobotState
 from tests.fixtures import make_config
 
 
@@ -35,3 +37,18 @@ def test_index_matches_brute_force_over_a_run(torus):
         assert got_d == pytest.approx(dist[truth])
         checked += len(truth)
     assert checked > 100 and index.rebuilds > 5
+
+
+def test_two_indexes_on_one_state_each_see_every_robot_in_range():
+    """A second index built later (a shared medium keeps its own) does not make the first
+    trust lists its robots have outrun: robot 1 races towards robot 0, then slows down just
+    before a second index is built; the first index, built before the race, still finds it
+    in range."""
+    st = RobotState(2, 1000.0, 10.0)
+    st.place(np.array([[0.0, 0.0], [30.0, 0.0]]))
+    st.set_leg(1, 0.0, np.array([-40.0, 0.0]), cause="waypoint")
+    first, second = RangeIndex(st, slack_m=2.0), RangeIndex(st, slack_m=2.0)
+    assert first.within(0.0, 0)[0].tolist() == []  # 30 m away: not even on the list
+    st.set_leg(1, 0.5, np.array([-0.1, 0.0]), cause="waypoint")  # 10 m away, now slow
+    second.within(0.5, 0)
+    assert first.within(0.6, 0)[0].tolist() == [1]  # 9.99 m away
