@@ -25,6 +25,20 @@ def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
 
 
 @numba.njit(cache=True, nogil=True)
+def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
+    """Robot ``j``'s position at ``t`` minus ``(x, y)`` (the nearest image on a torus): the
+    range query's arithmetic. The numpy code adds complex numbers: the same products and
+    sums, part by part."""
+    dtj = t - t0_s[j]
+    dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
+    dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y
+    if torus:
+        dx = dx - side_m * np.rint(dx / side_m)
+        dy = dy - side_m * np.rint(dy / side_m)
+    return dx, dy
+
+
+@numba.njit(cache=True, nogil=True)
 def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
     """The candidates ``cand`` within ``r`` of robot ``i`` at ``t``, and their distances
     (:meth:`netsim.spatial.RangeIndex.within` over a candidate list)."""
@@ -34,13 +48,7 @@ def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
     dist = np.empty(len(cand))
     k = 0
     for j in cand:
-        dtj = t - t0_s[j]
-        # The numpy code adds complex numbers: the same products and sums, part by part.
-        dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
-        dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y
-        if torus:
-            dx = dx - side_m * np.rint(dx / side_m)
-            dy = dy - side_m * np.rint(dy / side_m)
+        dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
         d2 = dx * dx + dy * dy
         if d2 <= r2:
             ids[k] = j
@@ -61,12 +69,7 @@ def within_alive(cand, lo, hi, origin_m, velocity_mps, t0_s, i, t, r, torus, sid
     k = 0
     all_alive = True
     for j in cand[lo:hi]:
-        dtj = t - t0_s[j]
-        dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
-        dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y
-        if torus:
-            dx = dx - side_m * np.rint(dx / side_m)
-            dy = dy - side_m * np.rint(dy / side_m)
+        dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
         if dx * dx + dy * dy <= r2:
             ids[k] = j
             k += 1

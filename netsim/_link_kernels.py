@@ -28,6 +28,20 @@ def _dot(x0, x1, y0, y1):
 
 
 @numba.njit(cache=True, nogil=True)
+def _keep(at, start, length, k, pair, times, phase, m):
+    """A crossing of pair ``k`` at ``at``, kept at row ``m`` if it falls in the window
+    ``[start, start + length]`` (give or take the edge tolerance), clipped into it, with its
+    phase; returns the next free row."""
+    end = start + length
+    if at >= start - EDGE_S and at <= end + EDGE_S:
+        t = min(max(at, start), end)
+        pair[m], times[m] = k, t
+        phase[m] = PHASE_START if t - start <= 0.5 * length else PHASE_END
+        return m + 1
+    return m
+
+
+@numba.njit(cache=True, nogil=True)
 def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
     """Crossings of pairs on legs ``la``, ``lb`` (rows of ``leg_t``, ``leg_p``, ``leg_v``)
     with the disk of ``radius`` within ``[t_start, t_start + length]``, solved from the later
@@ -60,18 +74,6 @@ def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
         r2 = c / q if q != 0 else -r1
         lo, hi = min(r1, r2), max(r1, r2)
         start = t_start[k]
-        end = start + length[k]
-        half = 0.5 * length[k]
-        at = origin + lo
-        if at >= start - EDGE_S and at <= end + EDGE_S:
-            t = min(max(at, start), end)
-            in_pair[n_in], in_t[n_in] = k, t
-            in_phase[n_in] = PHASE_START if t - start <= half else PHASE_END
-            n_in += 1
-        at = origin + hi
-        if at >= start - EDGE_S and at <= end + EDGE_S:
-            t = min(max(at, start), end)
-            out_pair[n_out], out_t[n_out] = k, t
-            out_phase[n_out] = PHASE_START if t - start <= half else PHASE_END
-            n_out += 1
+        n_in = _keep(origin + lo, start, length[k], k, in_pair, in_t, in_phase, n_in)
+        n_out = _keep(origin + hi, start, length[k], k, out_pair, out_t, out_phase, n_out)
     return in_pair[:n_in], in_t[:n_in], in_phase[:n_in], out_pair[:n_out], out_t[:n_out], out_phase[:n_out]
