@@ -261,10 +261,14 @@ def _sort_small(a, lo, hi):
 
 
 @numba.njit(cache=True, nogil=True)
-def _reaches(ddx, ddy, lim):
-    """Whether a sender at ``(ddx, ddy)`` from a receiver reaches it with range ``lim``: the
-    square decides all but a distance within a relative 1e-6 of the range, which numpy's
-    hypot decides (as :func:`netsim.topology.reach_keys_of_pairs` measures)."""
+def _reaches(ddx, ddy, lim, box):
+    """Whether a sender at ``(ddx, ddy)`` from a receiver (the nearest image on a torus of
+    side ``box > 0``) reaches it with range ``lim``: the square decides all but a distance
+    within a relative 1e-6 of the range, which numpy's hypot decides (as
+    :func:`netsim.topology.reach_keys_of_pairs` measures)."""
+    if box > 0.0:
+        ddx -= box * np.rint(ddx / box)
+        ddy -= box * np.rint(ddy / box)
     d2 = ddx * ddx + ddy * ddy
     hit = d2 <= lim * lim * (1.0 - 1e-6)
     if (d2 > lim * lim * (1.0 - 1e-6)) & (d2 <= lim * lim * (1.0 + 1e-6)):
@@ -285,12 +289,7 @@ def reach_keys_in_lists(pos, ranges, box, indptr, indices):
         base = a * n
         for t in range(indptr[a], indptr[a + 1]):
             m = indices[t]
-            ddx = ax - pos[m, 0]
-            ddy = ay - pos[m, 1]
-            if box > 0.0:
-                ddx -= box * np.rint(ddx / box)
-                ddy -= box * np.rint(ddy / box)
-            if _reaches(ddx, ddy, ranges[m]):
+            if _reaches(ax - pos[m, 0], ay - pos[m, 1], ranges[m], box):
                 keys[q] = base + m
                 q += 1
     return keys[:q]
@@ -323,10 +322,7 @@ def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
                     ddx, ddy, lim = pos[u, 0] - pos[v, 0], pos[u, 1] - pos[v, 1], ranges[v]
                 else:
                     ddx, ddy, lim = pos[v, 0] - pos[u, 0], pos[v, 1] - pos[u, 1], ranges[u]
-                if box > 0.0:
-                    ddx -= box * np.rint(ddx / box)
-                    ddy -= box * np.rint(ddy / box)
-                if _reaches(ddx, ddy, lim):
+                if _reaches(ddx, ddy, lim, box):
                     hops[v] = level
                     reached[found] = v
                     found += 1
@@ -370,14 +366,9 @@ def reach_keys(pos, folded, ranges, box):
                 if len(senders) - k < hi - lo:
                     senders = np.concatenate((senders, np.empty(len(senders) + hi - lo, np.int64)))
                 for m in range(lo, hi):
-                    ddx = ax - px[m]
-                    ddy = ay - py[m]
-                    if box > 0.0:
-                        ddx -= box * np.rint(ddx / box)
-                        ddy -= box * np.rint(ddy / box)
                     # No branch on the outcome (a coin toss for the processor): every
                     # candidate is written, counted if it reaches.
-                    hit = _reaches(ddx, ddy, pr[m]) & (m != am)
+                    hit = _reaches(ax - px[m], ay - py[m], pr[m], box) & (m != am)
                     senders[k] = members[m]
                     k += hit
             _sort_small(senders, k0, k)

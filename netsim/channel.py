@@ -343,10 +343,7 @@ class Channel:
             for r, delay in zip(receivers.tolist(), delays.tolist()):
                 self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned)
         else:
-            # _at, inline: once per transmission.
-            self.agenda.at_in_order(
-                self.latency_s, URGENT, self._arrive, deliver, sender, receivers, payload, c, kind, binned
-            )
+            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind, binned)
         return receivers
 
     def _decide(

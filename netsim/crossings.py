@@ -50,11 +50,13 @@ def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.nd
     """Pairs ``(i, j)``, ``i < j``, of positions within ``range_m`` (periodic on a torus of
     side ``side_m``), as an ``(m, 2)`` array (in the grid's fixed order, the KD-tree's or
     ``(i, j)``): for more than a small run's robots a compiled grid
-    (:func:`netsim._kernels.near_pairs`, which may add pairs further apart than ``range_m``
-    by a relative 1e-9: every caller asks with a slack and filters exactly), else, or where
-    a grid would need many more cells than there are robots (a few robots far from the
-    others, a line of robots), every pair for up to :data:`ALL_PAIRS_MAX` positions, and a
-    KD-tree for more (scipy's, imported only then: a large run does without it)."""
+    (:func:`netsim._kernels.near_pairs`), else, or where a grid would need many more cells
+    than there are robots (a few robots far from the others, a line of robots), every pair
+    for up to :data:`ALL_PAIRS_MAX` positions, and a KD-tree for more (scipy's, imported
+    only then: a large run does without it). Whichever finds them, pairs further apart than
+    ``range_m`` by up to a relative 1e-9 may be among them: each finder rounds a distance at
+    the range its own way (a hypot, a sum of squares), and a pair exactly at the range must
+    not depend on which (robots standing still at their range); callers filter exactly."""
     pts = in_box(pos_m, side_m)
     if len(pts) < 2:
         return np.empty((0, 2), np.int64)
@@ -63,12 +65,14 @@ def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.nd
     kernels = load("netsim._kernels", len(pts))
     if kernels is not None and range_m > 0 and grid_cells(pts, range_m, side_m) <= 16 * len(pts) + 64:
         return kernels.near_pairs(np.ascontiguousarray(pts, dtype=float), float(range_m), float(side_m or 0.0))
+    # The grid's own slack, for the other finders.
+    reach = range_m * (1.0 + 1e-9)
     if len(pts) <= ALL_PAIRS_MAX:
-        return all_pairs_within(pts, range_m, side_m)
+        return all_pairs_within(pts, reach, side_m)
     from scipy.spatial import cKDTree
 
     tree = cKDTree(pts, boxsize=side_m) if side_m is not None else cKDTree(pts)
-    return tree.query_pairs(range_m, output_type="ndarray").astype(np.int64, copy=False)
+    return tree.query_pairs(reach, output_type="ndarray").astype(np.int64, copy=False)
 
 
 # Up to this many positions every pair is looked at: a few thousand distances cost less

@@ -115,10 +115,7 @@ def link_events(
         pos = L.at(L.cur, start)
         if not first and nxt > 0 and cuts[nxt - 1] == start:
             _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit)
-        # With a relative slack: the pairs' finders (grid, every pair, KD-tree) each round a
-        # distance at the range their own way; the state test below decides (robots that
-        # stand still at exactly their range).
-        reach = (r_max + 2.0 * v_max * (stop - start)) * (1.0 + 1e-9)
+        reach = r_max + 2.0 * v_max * (stop - start)
         pairs = near_pairs(pos, reach, box)
         if len(pairs):
             i, j = pairs[:, 0], pairs[:, 1]

@@ -114,10 +114,15 @@ class RangeIndex:
         have moved past the slack): ``(indptr, indices)``, robot ``i``'s at
         ``indices[indptr[i]:indptr[i + 1]]``, ascending, holding every robot within the
         reach of ``i`` at ``t`` (and more)."""
+        self._refresh(t)
+        return self._indptr, self._indices
+
+    def _refresh(self, t: float) -> None:
+        """Rebuild the lists at ``t`` if some robot may have moved past the slack since they
+        were built (or jumped, or time went back)."""
         st = self.state
         if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
             self._build(t)
-        return self._indptr, self._indices
 
     def _candidates(self, t: float, i: int, r: float) -> np.ndarray:
         """The robots that may be within ``r`` of ``i`` at ``t``: its neighbour list (rebuilt
@@ -127,9 +132,8 @@ class RangeIndex:
 
     def _candidate_span(self, t: float, i: int, r: float) -> tuple[np.ndarray, int, int]:
         """:meth:`_candidates` as ``(array, lo, hi)``: they are ``array[lo:hi]``."""
+        self._refresh(t)
         st = self.state
-        if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
-            self._build(t)
         if r > self.reach_m:
             return np.delete(np.arange(st.n), i), 0, st.n - 1
         bounds = self._bounds

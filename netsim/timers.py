@@ -190,23 +190,10 @@ class DeadlineTimers:
         self._queued.discard(key[2])
         if key != self._head_key:
             return  # an earlier event was armed since: its own entry runs it
-        events = self._events
-        _, _, _, i, gen = events.pop()
+        _, _, _, i, gen = self._events.pop()
         self._head_key = None
-        if gen == self._generation[i]:
-            deadline = self.deadline_s.item(i)
-            now = self.env._now  # type: ignore[attr-defined]
-            if now < deadline < math.inf:
-                # Moved later, nearly every event: armed there (_fire, then _arm, inline; the
-                # head is queued below).
-                gen += 1
-                self._generation[i] = gen
-                self.armed_s[i] = deadline
-                key = self.agenda.key(deadline - now, NORMAL)  # type: ignore[union-attr]
-                events.push((key[0], key[1], key[2], i, gen))
-            else:
-                self._fire(i, gen)
-        if self._head_key is None and events.first() is not None:
+        self._fire(i, gen)
+        if self._head_key is None and self._events.first() is not None:
             self._queue_head()
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:

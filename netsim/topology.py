@@ -23,9 +23,7 @@ def _candidates(
     empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
     if not len(positions_m):
         return empty
-    # Asked with a slack: a pair whose hypot is the range may have a squared distance a hair
-    # above its square, which a KD-tree leaves out; the callers' exact filter decides.
-    pairs = near_pairs(positions_m, float(ranges.max()) * (1.0 + 1e-9), side_m)
+    pairs = near_pairs(positions_m, float(ranges.max()), side_m)
     if len(pairs) == 0:
         return empty
     i, j = pairs[:, 0], pairs[:, 1]

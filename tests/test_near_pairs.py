@@ -66,14 +66,17 @@ def test_small_run_does_not_import_the_kd_tree(tmp_path):
 
 
 @pytest.mark.parametrize("finder", ["every pair", "kd-tree", "grid"])
-def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkeypatch, finder):
+@pytest.mark.parametrize("solved", ["after the run", "during the run"])
+def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkeypatch, finder, solved):
     """Two robots standing still at their range, to the last bit either side: the links table
     has the pair exactly when its squared distance is within the range's square (the state
     test), whichever way the candidate pairs were found (their finders each round a distance
-    at the range their own way)."""
+    at the range their own way), links solved after the run or during it."""
     from netsim import crossings
     from netsim.lifetimes import link_lifetimes
+    from netsim.run import collect, simulation
     from netsim.state import RobotState
+    from tests.fixtures import make_config
 
     monkeypatch.setenv("NETSIM_COMPILED", "1" if finder == "grid" else "0")
     if finder == "kd-tree":
@@ -86,9 +89,24 @@ def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkey
         for _ in range(abs(k) - 1):
             other[0] = np.nextafter(other[0], other[0] + np.sign(k))
         pos = np.array([[200.0, 200.0], other])
-        st = RobotState(2, 1000.0, 100.0)
-        st.place(pos)
-        links = link_lifetimes(st.legs(), st.range_m, 10.0, 1000.0)
+        if solved == "after the run":
+            st = RobotState(2, 1000.0, 100.0)
+            st.place(pos)
+            links = link_lifetimes(st.legs(), st.range_m, 10.0, 1000.0)
+        else:
+            config = make_config(
+                duration_s=10.0,
+                world={"n_robots": 2, "side_m": 1000.0},
+                mobility={"model": "static"},
+                channel={"range_m": 100.0},
+                protocol={"model": "none"},
+                output={"position_interval_s": 0.0},
+                events={"runtime_links": "on"},
+            )
+            sim = simulation(config)
+            sim.state.place(pos)
+            sim.run()
+            links = collect(sim)["links"]
         d = pos[0] - pos[1]
         assert len(links) == int(d @ d <= 100.0 * 100.0), (k, finder)
         linked += len(links)
