@@ -26,6 +26,13 @@ plain queue beside the heap (:meth:`Agenda.at_in_order`), which costs an append 
 instead of a heap's log n comparisons; the agenda runs whichever head comes first. An
 entry that would not keep that queue in order goes to the heap instead, so the order never
 rests on the caller.
+
+One caller may keep its entries in a structure of its own and show the agenda only its
+first (:meth:`Agenda.attach`; :class:`netsim.timers.DeadlineTimers`, whose events are
+armed seconds ahead and taken thousands a second): the agenda runs that source's first
+entry when it comes before the heap's and the queue's heads, so those entries never pass
+through the heap, whose log n steps over cold memory cost more than the entry's own work.
+Keys drawn with :meth:`Agenda.key` order them among all others.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 from heapq import heappop, heappush
+from typing import Protocol
 
 import simpy
 
@@ -46,6 +54,22 @@ class _Wake(simpy.Event):
 
     def __lt__(self, _other: object) -> bool:
         return False
+
+
+class _Side(Protocol):
+    head: tuple | None
+
+    def run_head(self) -> None: ...
+
+
+class _NoSide:
+    head: tuple | None = None
+
+    def run_head(self) -> None:  # pragma: no cover  # its head is always None
+        raise AssertionError("no entries")
+
+
+_NO_SIDE = _NoSide()
 
 
 class Agenda:
@@ -67,6 +91,8 @@ class Agenda:
         self._ids = env._eid  # type: ignore[attr-defined]  # SimPy's counter of event ids
         self._running = False
         self.wakes_run = 0
+        # A source of entries of its own (attach): its ``head`` is its first entry or None.
+        self._side: _Side = _NO_SIDE
 
     def __len__(self) -> int:
         return len(self._heap) + len(self._queue)
@@ -82,16 +108,23 @@ class Agenda:
 
     def key(self, delay_s: float, priority: int) -> tuple[float, int, int]:
         """The key ``(t, priority, id)`` of an entry scheduled now ``delay_s`` ahead (its id
-        drawn now), for :meth:`at_key`."""
+        drawn now), for an attached source's entries (:meth:`attach`)."""
         return (self.env._now + delay_s, priority, next(self._ids))  # type: ignore[attr-defined]
 
-    def at_key(self, key: tuple[float, int, int], fn: Callable[..., object], *args: object) -> None:
-        """Call ``fn(*args)`` at ``key``, drawn earlier by :meth:`key`: it runs where an entry
-        scheduled at that moment would have run. For a caller that keeps entries of its own
-        and queues here only the first (:class:`netsim.timers.DeadlineTimers`); a key may be
-        queued only once."""
-        entry = (key[0], key[1], key[2], fn, args)
-        heappush(self._heap, entry)
+    def attach(self, side: _Side) -> bool:
+        """Run the entries of ``side`` in order with the agenda's own (module notes):
+        ``side.head`` is its first entry, a tuple starting with a key drawn by :meth:`key`
+        (None: it has none), and ``side.run_head()`` takes that entry and runs it (with the
+        clock at its time). ``side`` calls :meth:`side_armed` when its head becomes an
+        earlier entry. One source per agenda: False if one is attached already."""
+        if self._side is not _NO_SIDE:
+            return False
+        self._side = side
+        return True
+
+    def side_armed(self, entry: tuple) -> None:
+        """The attached source's head is now ``entry``, earlier than before: a wake for it
+        if it comes before every queued wake (none while the agenda runs: see _run)."""
         wakes = self._wakes
         if (not wakes or entry < wakes[0]) and not self._running:
             self._arm(entry)
@@ -110,10 +143,15 @@ class Agenda:
             self._arm(entry)
 
     def _head(self) -> tuple | None:
-        heap, queue = self._heap, self._queue
+        heap, queue, first = self._heap, self._queue, self._side.head
+        head: tuple | None
         if heap:
-            return queue[0] if queue and queue[0] < heap[0] else heap[0]
-        return queue[0] if queue else None
+            head = queue[0] if queue and queue[0] < heap[0] else heap[0]
+        else:
+            head = queue[0] if queue else None
+        if first is not None and (head is None or first < head):
+            return first
+        return head
 
     def _arm(self, entry: tuple) -> None:
         t, priority, eid = entry[0], entry[1], entry[2]
@@ -131,7 +169,7 @@ class Agenda:
         heappop(wakes)
         self.wakes_run += 1
         self._running = True
-        heap, queue, kernel, env = self._heap, self._queue, self._kernel, self.env
+        heap, queue, kernel, env, side = self._heap, self._queue, self._kernel, self.env, self._side
         try:
             while True:
                 if heap:
@@ -142,6 +180,15 @@ class Agenda:
                 elif queue:
                     head, queued = queue[0], True
                 else:
+                    head = None
+                first = side.head
+                if first is not None and (head is None or first < head):
+                    if kernel and kernel[0] < first:
+                        break
+                    env._now = first[0]  # type: ignore[attr-defined]
+                    side.run_head()
+                    continue
+                if head is None:
                     break
                 if kernel and kernel[0] < head:
                     break

@@ -13,14 +13,15 @@ Ack that arrives at the same instant as a deadline is processed first and counts
 
 Given an :class:`netsim.agenda.Agenda` (the channel's), a timer's events are not kernel
 events: each gets the key the agenda would give it, ``(t, priority, id)``, at the moment it
-is armed, and goes to a calendar of the timers' own (:class:`Calendar`); the agenda holds
-one entry, at the key of the calendar's first, which runs it. So every event runs exactly
-where it would have run as an entry of the agenda (the same instants, in the same order,
-ties included), while the agenda's heap, which every Ack tick goes through, stays as small
-as without timers. A calendar rather than a heap: timer events are armed a few seconds
-ahead and taken a few thousand a second, so a heap of them is cold by each pop, which then
-walks its whole depth through cache misses; a calendar appends each event to the list of
-its slice of time and sorts a list once, when its slice comes.
+is armed, and goes to a calendar of the timers' own (:class:`Calendar`), attached to the
+agenda (:meth:`netsim.agenda.Agenda.attach`): the agenda runs the calendar's first event
+when it comes before its own entries. So every event runs exactly where it would have run
+as an entry of the agenda (the same instants, in the same order, ties included), while the
+agenda's heap, which every Ack tick goes through, never holds a timer event. A calendar
+rather than a heap: timer events are armed a few seconds ahead and taken a few thousand a
+second, so a heap of them is cold by each pop, which then walks its whole depth through
+cache misses; a calendar appends each event to the list of its slice of time and sorts a
+list once, when its slice comes.
 """
 
 from __future__ import annotations
@@ -112,17 +113,13 @@ class DeadlineTimers:
         self.armed_s = np.full(n, np.inf)
         self._generation = [0] * n  # read one at a time: a list is cheaper than an array
         self._fire_bound = self._fire  # one bound method, not one per arming
-        # With an agenda that takes keys (module notes): the events, (t, priority, id, timer,
-        # generation) in a calendar; the key of its first, whose entry on the agenda runs it
-        # (None: there is none); and the ids of the keys queued on the agenda and not yet run
-        # (one may have been the first's and be again).
-        # An agenda that cannot key entries (the tests' reference, a kernel event per entry)
-        # gets an entry per timer event instead.
-        self._keyed = agenda is not None and hasattr(agenda, "at_key")
+        # With an agenda that takes a source of its own (module notes): the events, (t,
+        # priority, id, timer, generation), in a calendar, and its first (None: there is
+        # none), which the agenda reads. Another agenda (the tests' reference, a kernel event
+        # per entry) gets an entry per timer event instead.
         self._events = Calendar()
-        self._head_key: tuple[float, int, int] | None = None
-        self._queued: set[int] = set()  # by the keys' ids (unique)
-        self._run_head_bound = self._run_head
+        self.head: tuple | None = None
+        self._attached = agenda is not None and hasattr(agenda, "attach") and agenda.attach(self)
 
     def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
         """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
@@ -164,37 +161,26 @@ class DeadlineTimers:
         delay = at_s - self.env._now  # type: ignore[attr-defined]  # the clock, without the property
         if not delay > 0.0:
             delay = 0.0  # as max(0.0, delay)
-        if self._keyed:
-            key = self.agenda.key(delay, NORMAL)  # type: ignore[union-attr]
-            self._events.push((key[0], key[1], key[2], i, gen))
-            head = self._head_key
-            if head is None or key < head:
-                self._queue_head()
+        if self._attached:
+            agenda = self.agenda
+            key = agenda.key(delay, NORMAL)  # type: ignore[union-attr]
+            entry = (key[0], key[1], key[2], i, gen)
+            self._events.push(entry)
+            head = self.head
+            if head is None or entry < head:
+                self.head = entry
+                agenda.side_armed(entry)  # type: ignore[union-attr]
         elif self.agenda is not None:
             self.agenda.at(delay, NORMAL, self._fire_bound, i, gen)
         else:
             scheduled_event(self.env, delay, NORMAL, partial(self._fire_bound, i, gen))
 
-    def _queue_head(self) -> None:
-        """Make the first of the events the one the agenda runs next: queue its key there,
-        unless an entry of that key is queued already (it then runs the first again)."""
-        h = self._events.first()
-        assert h is not None
-        key = (h[0], h[1], h[2])
-        self._head_key = key
-        if h[2] not in self._queued:
-            self._queued.add(h[2])
-            self.agenda.at_key(key, self._run_head_bound, key)  # type: ignore[union-attr]
-
-    def _run_head(self, key: tuple[float, int, int]) -> None:
-        self._queued.discard(key[2])
-        if key != self._head_key:
-            return  # an earlier event was armed since: its own entry runs it
-        _, _, _, i, gen = self._events.pop()
-        self._head_key = None
+    def run_head(self) -> None:
+        """Take the first event and run it (the agenda calls this at its key)."""
+        events = self._events
+        _, _, _, i, gen = events.pop()
+        self.head = events.first()
         self._fire(i, gen)
-        if self._head_key is None and self._events.first() is not None:
-            self._queue_head()
 
     def _fire(self, i: int, gen: int, _event: object = None) -> None:
         if gen != self._generation[i]:

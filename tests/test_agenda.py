@@ -172,21 +172,24 @@ def test_a_moving_run_with_loss_and_jitter_is_the_same_with_the_agenda(monkeypat
         pd.testing.assert_frame_equal(frames[name], ref_frames[name])
 
 
-def _timer_script(agenda_class, seed: int):
-    """Deadline timers restarted, moved earlier and later, and cancelled from entries at a
-    few instants (so that deadlines, and other entries at NORMAL priority, tie), with a
-    log of what ran when."""
+def _timer_script(agenda_class, seed: int, sets: int = 1):
+    """Deadline timers (``sets`` sets of them on one agenda) restarted, moved earlier and
+    later, and cancelled from entries at a few instants (so that deadlines, and other
+    entries at NORMAL priority, tie), with a log of what ran when."""
     from netsim.timers import DeadlineTimers
 
     env = simpy.Environment()
     agenda = agenda_class(env)
     rng = np.random.default_rng(seed)
     log: list[tuple] = []
-    timers = DeadlineTimers(env, 6, lambda i, now: log.append((now, "expire", i)), agenda)
+    all_timers = [
+        DeadlineTimers(env, 6, lambda i, now, s=s: log.append((now, "expire", s, i)), agenda) for s in range(sets)
+    ]
 
     def act(k: int) -> None:
         log.append((env.now, "act", k))
         for _ in range(int(rng.integers(1, 4))):
+            timers = all_timers[int(rng.integers(sets))]
             i = int(rng.integers(6))
             what = rng.random()
             if what < 0.15:
@@ -205,7 +208,7 @@ def _timer_script(agenda_class, seed: int):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_timers_on_the_agenda_expire_in_the_kernels_order(seed):
-    """Timers whose events wait in their own heap behind one agenda entry: every expiry at
+    """Timers whose events wait in a calendar of their own beside the agenda: every expiry at
     its instant and in the order of one kernel event per timer event, ties with other
     entries of the same instant and priority included."""
     log = _timer_script(Agenda, seed)
@@ -215,3 +218,13 @@ def test_timers_on_the_agenda_expire_in_the_kernels_order(seed):
     # Ties happened: expiries at the instant of another expiry or mark.
     instants = [e[0] for e in log if e[1] != "act"]
     assert len(instants) - len(set(instants)) > 10
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_second_set_of_timers_on_one_agenda_expires_in_the_kernels_order(seed):
+    """One set of timers keeps its events beside the agenda's entries; a second set on the
+    same agenda (which takes one such source) gets an entry per event: both in the order
+    of one kernel event per timer event."""
+    log = _timer_script(Agenda, seed, sets=2)
+    assert log == _timer_script(KernelAgenda, seed, sets=2)
+    assert {e[2] for e in log if e[1] == "expire"} == {0, 1}
