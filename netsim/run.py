@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -223,26 +224,35 @@ def position_times(interval_s: float, duration_s: float) -> np.ndarray:
     return np.arange(k + 1) * interval_s
 
 
-def collect(sim: Simulation) -> dict[str, pd.DataFrame]:
-    """Every output table of a finished run."""
+def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None = None) -> dict[str, pd.DataFrame]:
+    """Every output table of a finished run; each is also passed to ``emit(name, table)``
+    as soon as it is made (a writer starts on it while the next is made)."""
+    frames: dict[str, pd.DataFrame] = {}
+
+    def add(name: str, frame: pd.DataFrame) -> None:
+        frames[name] = frame
+        if emit is not None:
+            emit(name, frame)
+
     legs = sim.state.legs()
     side, torus = sim.state.side_m, sim.state.torus
-    frames = sim.trace.frames()
+    for name in sim.trace.names():
+        add(name, sim.trace.frame(name))
     times = position_times(sim.parts.output.position_interval_s, sim.duration_s)
-    frames["positions"] = sample_positions(legs, sim.state.n, times, side, torus)
+    add("positions", sample_positions(legs, sim.state.n, times, side, torus))
     reception = sim.channel.reception
     if sim.links is not None:
         # Solved during the run: the record of the link events (docs/events.md).
         sim.links.finish(sim.env.now)
-        frames["links"] = sim.links.frame(sim.env.now)
+        add("links", sim.links.frame(sim.env.now))
     elif reception is not None:
-        frames["links"] = radio_link_lifetimes(reception, legs, sim.state.range_m, sim.env.now, side, torus)
+        add("links", radio_link_lifetimes(reception, legs, sim.state.range_m, sim.env.now, side, torus))
     else:
-        frames["links"] = link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus)
+        add("links", link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus))
     # Every course change: trajectories are exact from these (positions unwrapped on a torus).
-    frames["legs"] = legs
+    add("legs", legs)
     if sim.channel.mac is not None:
-        frames["medium"] = sim.channel.mac.frame()
+        add("medium", sim.channel.mac.frame())
     return frames
 
 
@@ -283,11 +293,14 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
     return summary
 
 
-def execute(config: Config, run: int = 0, progress: bool = False) -> RunResult:
-    """Build, run and collect, timing the whole."""
+def execute(
+    config: Config, run: int = 0, progress: bool = False, emit: Callable[[str, pd.DataFrame], object] | None = None
+) -> RunResult:
+    """Build, run and collect (each table passed to ``emit`` as it is made: :func:`collect`),
+    timing the whole."""
     start = time.perf_counter()
     sim = build(config, run)
     sim.run(progress=progress)
-    frames = collect(sim)
+    frames = collect(sim, emit)
     wall = time.perf_counter() - start
     return RunResult(sim, frames, summarize(sim, frames, wall), wall)

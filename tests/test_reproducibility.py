@@ -150,13 +150,31 @@ def test_a_table_that_cannot_be_written_leaves_no_run(tmp_path, monkeypatch):
     as a whole: the error reaches the caller and the directory holds no table."""
     from netsim.tools import output
 
-    def failing(frame, path):
+    def failing(table, path):
         if path.name == "groups.parquet":
             raise OSError("disk full")
-        real(frame, path)
+        real(table, path)
 
-    real = output.write_table
-    monkeypatch.setattr(output, "write_table", failing)
+    real = output.write_arrow
+    monkeypatch.setattr(output, "write_arrow", failing)
     with pytest.raises(OSError, match="disk full"):
         main(["run", "--out", str(tmp_path / "a"), *SMALL])
     assert not list((tmp_path / "a").glob("*.parquet"))
+
+
+def test_a_run_that_fails_after_its_first_tables_leaves_nothing(tmp_path, monkeypatch):
+    """Tables are written while the later ones are made: if the run then fails (here, its
+    summary), the tables already written go too, and the directory made for it."""
+    import netsim.run
+
+    def failing(*args, **kwargs):
+        raise RuntimeError("summary failed")
+
+    started = []
+    real = netsim.run.collect
+    monkeypatch.setattr(netsim.run, "collect", lambda sim, emit=None: real(sim, lambda *a: started.append(emit(*a))))
+    monkeypatch.setattr(netsim.run, "summarize", failing)
+    with pytest.raises(RuntimeError, match="summary failed"):
+        main(["run", "--out", str(tmp_path / "a"), *SMALL])
+    assert len(started) >= 9
+    assert not (tmp_path / "a").exists()

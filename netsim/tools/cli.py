@@ -57,15 +57,16 @@ def summary_table(summary: dict) -> str:
 
 def cmd_run(args) -> int:
     from netsim.run import execute
-    from netsim.tools.output import claim_dir, manifest, write_run
+    from netsim.tools.output import RunWriter, claim_dir, manifest
 
     overrides = list(args.set or [])
     if args.seed is not None:
         overrides.append(f"seed={args.seed}")
     config = cfgmod.load(args.config, overrides)
-    with claim_dir(args.out, "--out", kind="run") as out:
-        result = execute(config, progress=not args.quiet and not args.no_progress)
-        written = write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
+    with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
+        # Each table is written as soon as it is made, while the next is made.
+        result = execute(config, progress=not args.quiet and not args.no_progress, emit=writer.table)
+        written = writer.finish(result.summary, manifest(config, 0, result.wall_s))
         if args.view:
             from netsim.tools import viewer
 

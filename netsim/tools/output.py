@@ -22,7 +22,7 @@ import shutil
 import sys
 import tempfile
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
@@ -195,7 +195,7 @@ def _remove_empty(created: list[Path]) -> None:
             return  # not empty (or gone): leave it and its parents
 
 
-# Tables written at once by write_run.
+# Tables written at once by a RunWriter.
 WRITERS = min(4, os.cpu_count() or 1)
 
 
@@ -204,19 +204,55 @@ def write_run(
 ) -> list[Path]:
     """Write ``config.toml``, ``manifest.json``, ``summary.json`` and one Parquet file per
     table, replacing the earlier run's files if ``out_dir`` holds one."""
-    out = Path(out_dir)
-    check_run_dir(out)
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=out))
-    written = []
-    try:
-        (tmp / "config.toml").write_text(tomli_w.dumps(to_dict(config)))
+    with RunWriter(out_dir, config) as writer:
+        for name, frame in frames.items():
+            writer.table(name, frame)
+        return writer.finish(summary, manifest)
+
+
+class RunWriter:
+    """:func:`write_run` in steps, so that tables are written while later ones are being
+    made (:func:`netsim.run.execute`'s ``emit``): ``table`` for each table as it comes,
+    then ``finish``. Used as a context manager: if the body raises, nothing is written.
+
+    The tables are written a few at a time in threads: pyarrow encodes and compresses
+    without holding the interpreter, so the largest tables (the groups and beliefs of a
+    long run) share the cores with each other and with the making of the next. Each file
+    is written as alone."""
+
+    def __init__(self, out_dir: str | Path, config: Config):
+        self.out = Path(out_dir)
+        check_run_dir(self.out)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self._tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=self.out))
+        self._pool = ThreadPoolExecutor(max_workers=WRITERS)
+        self._writes: list[Future] = []
+        (self._tmp / "config.toml").write_text(tomli_w.dumps(to_dict(config)))
+
+    def __enter__(self) -> RunWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        shutil.rmtree(self._tmp, ignore_errors=True)
+
+    def table(self, name: str, frame: pd.DataFrame) -> None:
+        """Start writing the table ``name``. Its Arrow form is made here, at once: a thread
+        then reads nothing of ``frame``, which the caller goes on reading (pandas may
+        rearrange a frame's memory while reading it, so a frame is not shared)."""
+        path = self._tmp / f"{name}.parquet"
+        if frame.attrs:  # no netsim table has any; pandas keeps them in the file
+            frame.to_parquet(path, index=False)
+            return
+        self._writes.append(self._pool.submit(write_arrow, arrow_table(frame), path))
+
+    def finish(self, summary: dict, manifest: dict) -> list[Path]:
+        """Wait for the tables, write the summary and the manifest, and move every file
+        into place (module notes); the paths written."""
+        for write in self._writes:
+            write.result()  # a failed write raises here
+        tmp, out = self._tmp, self.out
         (tmp / "summary.json").write_text(json.dumps({k: _plain(v) for k, v in summary.items()}, indent=2) + "\n")
-        # Written a few at a time: pyarrow encodes and compresses without holding the
-        # interpreter, so the largest tables (the groups and beliefs of a long run) share
-        # the cores. Each file is written as alone.
-        with ThreadPoolExecutor(max_workers=WRITERS) as pool:
-            list(pool.map(lambda item: write_table(item[1], tmp / f"{item[0]}.parquet"), frames.items()))
         (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")
         # The earlier run goes as a whole, its manifest first: a directory with a manifest
         # always holds one complete run, and never tables of two runs side by side.
@@ -225,24 +261,34 @@ def write_run(
         for f in old:
             f.unlink(missing_ok=True)
         new = sorted(tmp.iterdir(), key=lambda f: (f.name == "manifest.json", f.name))
+        written = []
         for f in new:
             os.replace(f, out / f.name)
             written.append(out / f.name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return sorted(written)
+        return sorted(written)
 
 
 def write_table(frame: pd.DataFrame, path: Path) -> None:
     """``frame.to_parquet(path, index=False)``, the same file, written by pyarrow directly:
     pandas' way there costs about 1 ms per table more (its engine lookup and file handle)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     if frame.attrs:  # no netsim table has any; pandas keeps them in the file
         frame.to_parquet(path, index=False)
         return
-    pq.write_table(pa.Table.from_pandas(frame, preserve_index=False), str(path), compression="snappy")
+    write_arrow(arrow_table(frame), path)
+
+
+def arrow_table(frame: pd.DataFrame):
+    """``frame`` as the Arrow table pandas would write (its metadata included)."""
+    import pyarrow as pa
+
+    return pa.Table.from_pandas(frame, preserve_index=False)
+
+
+def write_arrow(table, path: Path) -> None:
+    """Write an Arrow table (of :func:`arrow_table`) as pandas' ``to_parquet`` would."""
+    import pyarrow.parquet as pq
+
+    pq.write_table(table, str(path), compression="snappy")
 
 
 def manifest(config: Config, run: int, wall_s: float, argv=None) -> dict:
