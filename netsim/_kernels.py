@@ -261,7 +261,7 @@ def _sort_small(a, lo, hi):
 
 
 @numba.njit(cache=True, nogil=True)
-def _reaches(ddx, ddy, lim, box):
+def reaches(ddx, ddy, lim, box):
     """Whether a sender at ``(ddx, ddy)`` from a receiver (the nearest image on a torus of
     side ``box > 0``) reaches it with range ``lim``: the square decides all but a distance
     within a relative 1e-6 of the range, which numpy's hypot decides (as
@@ -285,14 +285,20 @@ def reach_keys_in_lists(pos, ranges, box, indptr, indices):
     keys = np.empty(len(indices), np.int64)
     q = 0
     for a in range(n):
-        ax, ay = pos[a, 0], pos[a, 1]
         base = a * n
         for t in range(indptr[a], indptr[a + 1]):
             m = indices[t]
-            if _reaches(ax - pos[m, 0], ay - pos[m, 1], ranges[m], box):
+            if reaches_robot(pos, ranges, box, a, m):
                 keys[q] = base + m
                 q += 1
     return keys[:q]
+
+
+@numba.njit(cache=True, nogil=True)
+def reaches_robot(pos, ranges, box, a, m):
+    """Whether robot ``m``'s transmissions reach robot ``a`` (positions ``pos``, ranges
+    ``ranges``): :func:`reach_keys_in_lists`'s test of one candidate."""
+    return reaches(pos[a, 0] - pos[m, 0], pos[a, 1] - pos[m, 1], ranges[m], box)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -322,7 +328,7 @@ def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
                     ddx, ddy, lim = pos[u, 0] - pos[v, 0], pos[u, 1] - pos[v, 1], ranges[v]
                 else:
                     ddx, ddy, lim = pos[v, 0] - pos[u, 0], pos[v, 1] - pos[u, 1], ranges[u]
-                if _reaches(ddx, ddy, lim, box):
+                if reaches(ddx, ddy, lim, box):
                     hops[v] = level
                     reached[found] = v
                     found += 1
@@ -368,7 +374,7 @@ def reach_keys(pos, folded, ranges, box):
                 for m in range(lo, hi):
                     # No branch on the outcome (a coin toss for the processor): every
                     # candidate is written, counted if it reaches.
-                    hit = _reaches(ax - px[m], ay - py[m], pr[m], box) & (m != am)
+                    hit = reaches(ax - px[m], ay - py[m], pr[m], box) & (m != am)
                     senders[k] = members[m]
                     k += hit
             _sort_small(senders, k0, k)
