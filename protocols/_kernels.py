@@ -569,25 +569,29 @@ def sample_into(
         own = leader[r]
         robot[r], role_out[r], leader_out[r] = r, role[r], own
         believed_n[r], true_n[r], stale_n[r], missing_n[r] = b, t, s, t - (b - s)
-        if role[r] == LEADER_ROLE:
-            leader_in_range[r] = True
-        else:
-            leader_in_range[r] = (
-                role[r] == MEMBER
-                and own >= 0
-                and _hears(pos, ranges, box, near_ptr, near, r, own)
-                and _hears(pos, ranges, box, near_ptr, near, own, r)
-            )
+        in_range = role[r] == LEADER_ROLE
+        if role[r] == MEMBER and own >= 0:
+            # Two-way: the leader among the robots that reach r, r reaching the leader.
+            at = _lower_bound(heard, 0, h, own)
+            if at < h and heard[at] == own:
+                lo, hi = near_ptr[own], near_ptr[own + 1]
+                at = _lower_bound(near, lo, hi, r)
+                in_range = at < hi and near[at] == r and reaches_robot(pos, ranges, box, own, r)
+        leader_in_range[r] = in_range
     return m, k
 
 
-@numba.njit(cache=True, nogil=True)
-def _hears(pos, ranges, box, near_ptr, near, a, j):
-    """Whether robot ``j``'s transmissions reach robot ``a``: ``j`` in ``a``'s neighbour
-    list and within reach (:func:`sample_into`'s truth)."""
-    lo, hi = near_ptr[a], near_ptr[a + 1]
-    at = lo + np.searchsorted(near[lo:hi], j)
-    return at < hi and near[at] == j and reaches_robot(pos, ranges, box, a, j)
+@numba.njit(cache=True, nogil=True, inline="always")
+def _lower_bound(a, lo, hi, x):
+    """The first position in ascending ``a[lo:hi]`` whose item is not below ``x`` (``hi``
+    if none): ``lo + np.searchsorted(a[lo:hi], x)``, without making the view."""
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @numba.njit(cache=True, nogil=True)
