@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from netsim._kernels import position, reaches_robot
+from netsim._kernels import longest_list, position, reaches_robot, senders_in_list
 
 # The packed record's columns and the empty id (protocols.neighbours; repeated here so
 # that numba sees constants).
@@ -547,11 +547,8 @@ def sample_into(
     n, slots = ids.shape
     g_robot, g_group, g_primary = groups
     robot, role_out, leader_out, leader_in_range, believed_n, true_n, stale_n, missing_n = counts
-    degree = 0
-    for r in range(n):
-        degree = max(degree, near_ptr[r + 1] - near_ptr[r])
     live = np.empty(slots, np.int64)
-    heard = np.empty(degree, np.int64)
+    heard = np.empty(longest_list(near_ptr), np.int64)
     m = k = 0
     for r in range(n):
         ids_row, records_row = ids[r], records[r]
@@ -559,12 +556,7 @@ def sample_into(
             ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
         )
         lv = _live_row(ids_row, records_row, now, tau_s, live)
-        h = 0
-        for t in range(near_ptr[r], near_ptr[r + 1]):
-            j = near[t]
-            if reaches_robot(pos, ranges, box, r, j):
-                heard[h] = j
-                h += 1
+        h = senders_in_list(pos, ranges, box, near_ptr, near, r, heard)
         k, b, t, s = _pair_rows(live, lv, heard, h, r, pairs, k)
         own = leader[r]
         robot[r], role_out[r], leader_out[r] = r, role[r], own

@@ -41,8 +41,9 @@ class Samples:
     hundreds of MB, and every fresh page costs a fault).
 
     A buffer holds ``expected`` samples of the first one's rows, with a margin; when short
-    it grows to what the remaining samples need at the current sample's rows, at least
-    double. Capacity never written is never touched, so costs no memory."""
+    it grows to what the remaining samples need at the current sample's rows (a sample
+    written in place, :meth:`reserve`, the latest one's), at least double. Capacity never
+    written is never touched, so costs no memory."""
 
     MARGIN = 1.25
 
