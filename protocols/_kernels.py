@@ -542,8 +542,8 @@ def sample_into(
     ascending, holding every robot within reach), decided as
     :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``, ranges
     ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
-    :func:`belief_counts` of those keys. Nothing is allocated per row or per sample but two
-    rows of scratch: the buffers' pages are written once, and no fresh memory faults in."""
+    :func:`belief_counts` of those keys. Nothing is allocated but two rows of scratch: each
+    row is written once, where the table keeps it."""
     n, slots = ids.shape
     g_robot, g_group, g_primary = groups
     robot, role_out, leader_out, leader_in_range, believed_n, true_n, stale_n, missing_n = counts

@@ -468,8 +468,7 @@ class Stack:
     def _sample_in_place(self, now: float) -> None:
         """:meth:`_sample` by one compiled pass (:func:`protocols._kernels.sample_into`)
         writing straight into the tables' buffers, the truth from the channel's neighbour
-        lists: the same rows, without a sample's worth of fresh arrays (their pages fault in
-        every second) copied once more."""
+        lists: the same rows, without a sample's worth of arrays made and then copied."""
         st, table, roles = self.state, self.table, self.roles
         near_ptr, near = self.channel.index.lists(now)
         n, slots = table.id.shape
