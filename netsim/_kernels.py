@@ -261,19 +261,63 @@ def _sort_small(a, lo, hi):
 
 
 @numba.njit(cache=True, nogil=True)
-def _reaches(ddx, ddy, lim, box):
+def reaches(ddx, ddy, lim, box):
     """Whether a sender at ``(ddx, ddy)`` from a receiver (the nearest image on a torus of
     side ``box > 0``) reaches it with range ``lim``: the square decides all but a distance
     within a relative 1e-6 of the range, which numpy's hypot decides (as
     :func:`netsim.topology.reach_keys_of_pairs` measures)."""
+    ddx, ddy, d2, sure, unsure = _reach_band(ddx, ddy, lim, box)
+    hit = d2 <= sure
+    if (d2 > sure) & (d2 <= unsure):
+        hit = np.hypot(ddx, ddy) <= lim
+    return hit
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _reach_band(ddx, ddy, lim, box):
+    """:func:`reaches`'s arithmetic: the offset (folded to the nearest image on a torus),
+    its square, and the squares up to which it surely reaches and beyond which it surely
+    does not."""
     if box > 0.0:
         ddx -= box * np.rint(ddx / box)
         ddy -= box * np.rint(ddy / box)
-    d2 = ddx * ddx + ddy * ddy
-    hit = d2 <= lim * lim * (1.0 - 1e-6)
-    if (d2 > lim * lim * (1.0 - 1e-6)) & (d2 <= lim * lim * (1.0 + 1e-6)):
-        hit = np.hypot(ddx, ddy) <= lim
-    return hit
+    return ddx, ddy, ddx * ddx + ddy * ddy, lim * lim * (1.0 - 1e-6), lim * lim * (1.0 + 1e-6)
+
+
+@numba.njit(cache=True, nogil=True)
+def reaches_robot(pos, ranges, box, a, m):
+    """Whether robot ``m``'s transmissions reach robot ``a`` (positions ``pos``, ranges
+    ``ranges``): :func:`reach_keys_in_lists`'s test of one candidate."""
+    return reaches(pos[a, 0] - pos[m, 0], pos[a, 1] - pos[m, 1], ranges[m], box)
+
+
+@numba.njit(cache=True, nogil=True)
+def senders_in_list(pos, ranges, box, indptr, indices, a, out):
+    """The robots of ``a``'s neighbour list (``indices[indptr[a]:indptr[a + 1]]``,
+    ascending) whose transmissions reach ``a`` (:func:`reaches_robot`), ascending, in
+    ``out`` (room for the list); how many.
+
+    By the square alone, without a branch on each outcome (a coin toss for the processor,
+    and a branch keeps the compiler from vectorising): every candidate is written, counted
+    if surely in reach. Only a list with a candidate within the band where the square does
+    not decide is gone through again, each candidate by :func:`reaches_robot`."""
+    ax, ay = pos[a, 0], pos[a, 1]
+    h = 0
+    unsure = False
+    for t in range(indptr[a], indptr[a + 1]):
+        m = indices[t]
+        _, _, d2, below, above = _reach_band(ax - pos[m, 0], ay - pos[m, 1], ranges[m], box)
+        out[h] = m
+        h += d2 <= below
+        unsure |= (d2 > below) & (d2 <= above)
+    if unsure:
+        h = 0
+        for t in range(indptr[a], indptr[a + 1]):
+            m = indices[t]
+            if reaches_robot(pos, ranges, box, a, m):
+                out[h] = m
+                h += 1
+    return h
 
 
 @numba.njit(cache=True, nogil=True)
@@ -283,16 +327,23 @@ def reach_keys_in_lists(pos, ranges, box, indptr, indices):
     not from a grid built for the purpose: the same keys, ascending, the same arithmetic."""
     n = pos.shape[0]
     keys = np.empty(len(indices), np.int64)
+    senders = np.empty(longest_list(indptr), np.int64)
     q = 0
     for a in range(n):
-        ax, ay = pos[a, 0], pos[a, 1]
         base = a * n
-        for t in range(indptr[a], indptr[a + 1]):
-            m = indices[t]
-            if _reaches(ax - pos[m, 0], ay - pos[m, 1], ranges[m], box):
-                keys[q] = base + m
-                q += 1
+        for u in range(senders_in_list(pos, ranges, box, indptr, indices, a, senders)):
+            keys[q] = base + senders[u]
+            q += 1
     return keys[:q]
+
+
+@numba.njit(cache=True, nogil=True)
+def longest_list(indptr):
+    """The length of the longest of the lists ``indptr`` delimits."""
+    longest = 0
+    for a in range(len(indptr) - 1):
+        longest = max(longest, indptr[a + 1] - indptr[a])
+    return longest
 
 
 @numba.njit(cache=True, nogil=True)
@@ -322,7 +373,7 @@ def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
                     ddx, ddy, lim = pos[u, 0] - pos[v, 0], pos[u, 1] - pos[v, 1], ranges[v]
                 else:
                     ddx, ddy, lim = pos[v, 0] - pos[u, 0], pos[v, 1] - pos[u, 1], ranges[u]
-                if _reaches(ddx, ddy, lim, box):
+                if reaches(ddx, ddy, lim, box):
                     hops[v] = level
                     reached[found] = v
                     found += 1
@@ -368,7 +419,7 @@ def reach_keys(pos, folded, ranges, box):
                 for m in range(lo, hi):
                     # No branch on the outcome (a coin toss for the processor): every
                     # candidate is written, counted if it reaches.
-                    hit = _reaches(ax - px[m], ay - py[m], pr[m], box) & (m != am)
+                    hit = reaches(ax - px[m], ay - py[m], pr[m], box) & (m != am)
                     senders[k] = members[m]
                     k += hit
             _sort_small(senders, k0, k)

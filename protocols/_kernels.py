@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from netsim._kernels import position
+from netsim._kernels import longest_list, position, reaches_robot, senders_in_list
 
 # The packed record's columns and the empty id (protocols.neighbours; repeated here so
 # that numba sees constants).
@@ -419,9 +419,10 @@ def belief_rows(ids, records, now, tau_s, heard):
     n, slots = ids.shape
     out = _belief_arrays(n, slots, len(heard))
     live = np.empty(slots, np.int64)
+    senders = np.empty(n, np.int64)
     k = p = 0
     for r in range(n):
-        k, p = _belief_row(ids[r], records[r], now, tau_s, heard, r, n, live, out, k, p)
+        k, p = _belief_row(ids[r], records[r], now, tau_s, heard, r, n, live, senders, out, k, p)
     return out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4]
 
 
@@ -439,11 +440,26 @@ def _belief_arrays(n, slots, n_heard):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, out, k, p):
+def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, senders, out, k, p):
     """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` from ``k`` on, its
-    heard keys from ``heard[p]`` on; returns the next ``k`` and ``p``. A slot's record is
-    read only when its id is not EMPTY (never live)."""
-    robot, neighbour, believed, in_range, indptr = out
+    heard keys from ``heard[p]`` on (``senders``: room for ``n`` ids); returns the next
+    ``k`` and ``p``."""
+    m = _live_row(ids_row, records_row, now, tau_s, live)
+    base = r * n
+    h = 0
+    while p < len(heard) and heard[p] < base + n:
+        senders[h] = heard[p] - base
+        h += 1
+        p += 1
+    k, _, _, _ = _pair_rows(live, m, senders, h, r, out[:4], k)
+    out[4][r + 1] = k
+    return k, p
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _live_row(ids_row, records_row, now, tau_s, live):
+    """The ids of the live entries of a robot's row, ascending, in ``live``; how many. A
+    slot's record is read only when its id is not EMPTY (never live)."""
     m = 0
     for s in range(len(ids_row)):
         j = ids_row[s]
@@ -455,21 +471,36 @@ def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, out, k, p):
                 at -= 1
             live[at] = j
             m += 1
-    base = r * n
-    end = base + n
-    q = 0
-    while q < m or (p < len(heard) and heard[p] < end):
-        h = heard[p] - base if p < len(heard) and heard[p] < end else n
-        b = live[q] if q < m else n
+    return m
+
+
+# Above every robot id: where one of two merged lists has ended.
+_PAST_IDS = np.iinfo(np.int64).max
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _pair_rows(live, m, heard, h, r, out, k):
+    """Robot ``r``'s pairs: the union of the ids it believes live (``live[:m]``) and of those
+    whose transmissions reach it (``heard[:h]``), both ascending, written in ``out``
+    ``(robot, neighbour, believed, in_range)`` from row ``k`` on with the flags; returns the
+    next row and how many of the pairs are believed, in range, and believed but not in range
+    (stale)."""
+    robot, neighbour, believed, in_range = out
+    q = u = b_n = t_n = s_n = 0
+    while q < m or u < h:
+        b = live[q] if q < m else _PAST_IDS
+        c = heard[u] if u < h else _PAST_IDS
         robot[k] = r
-        neighbour[k] = min(b, h)
-        believed[k] = b <= h
-        in_range[k] = h <= b
-        q += b <= h
-        p += h <= b
+        neighbour[k] = min(b, c)
+        believed[k] = b <= c
+        in_range[k] = c <= b
+        b_n += b <= c
+        t_n += c <= b
+        s_n += b < c
+        q += b <= c
+        u += c <= b
         k += 1
-    indptr[r + 1] = k
-    return k, p
+    return k, b_n, t_n, s_n
 
 
 @numba.njit(cache=True, nogil=True)
@@ -483,15 +514,76 @@ def sample_rows(ids, records, now, tau_s, symmetric, role, leader, heard):
     g_primary = np.empty(n * (slots + 1), dtype=np.bool_)
     out = _belief_arrays(n, slots, len(heard))
     live = np.empty(slots, np.int64)
+    senders = np.empty(n, np.int64)
     m = k = p = 0
     for r in range(n):
         ids_row, records_row = ids[r], records[r]
-        k, p = _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, out, k, p)
+        k, p = _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, senders, out, k, p)
         m = _membership_row(
             ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
         )
     groups = (g_robot[:m], g_group[:m], g_primary[:m])
     return groups, (out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4])
+
+
+@numba.njit(cache=True, nogil=True)
+def sample_into(
+    ids, records, now, tau_s, symmetric, role, leader, pos, ranges, box, near_ptr, near, groups, pairs, counts,
+):  # fmt: skip
+    """A whole sample in one pass over the tables, written where the caller says (the
+    sampled tables' buffers, from their next free row): everyone's groups
+    (:func:`membership`) in ``groups`` ``(robot, group, primary)``, room for ``n * (slots +
+    1)`` rows; who believes whom beside the truth (:func:`belief_rows`) in ``pairs``
+    ``(robot, neighbour, believed, in_range)``, room for ``n * slots + len(near)`` rows; and
+    per robot ``(robot, role, leader)`` and :func:`belief_counts`'s five columns in the
+    ``n`` rows of ``counts``. Returns the rows written in ``groups`` and in ``pairs``.
+
+    The truth comes from the range index's neighbour lists (``near_ptr``, ``near``:
+    ascending, holding every robot within reach), decided as
+    :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``, ranges
+    ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
+    :func:`belief_counts` of those keys. Nothing is allocated but two rows of scratch: each
+    row is written once, where the table keeps it."""
+    n, slots = ids.shape
+    g_robot, g_group, g_primary = groups
+    robot, role_out, leader_out, leader_in_range, believed_n, true_n, stale_n, missing_n = counts
+    live = np.empty(slots, np.int64)
+    heard = np.empty(longest_list(near_ptr), np.int64)
+    m = k = 0
+    for r in range(n):
+        ids_row, records_row = ids[r], records[r]
+        m = _membership_row(
+            ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
+        )
+        lv = _live_row(ids_row, records_row, now, tau_s, live)
+        h = senders_in_list(pos, ranges, box, near_ptr, near, r, heard)
+        k, b, t, s = _pair_rows(live, lv, heard, h, r, pairs, k)
+        own = leader[r]
+        robot[r], role_out[r], leader_out[r] = r, role[r], own
+        believed_n[r], true_n[r], stale_n[r], missing_n[r] = b, t, s, t - (b - s)
+        in_range = role[r] == LEADER_ROLE
+        if role[r] == MEMBER and own >= 0:
+            # Two-way: the leader among the robots that reach r, r reaching the leader.
+            at = _lower_bound(heard, 0, h, own)
+            if at < h and heard[at] == own:
+                lo, hi = near_ptr[own], near_ptr[own + 1]
+                at = _lower_bound(near, lo, hi, r)
+                in_range = at < hi and near[at] == r and reaches_robot(pos, ranges, box, own, r)
+        leader_in_range[r] = in_range
+    return m, k
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _lower_bound(a, lo, hi, x):
+    """The first position in ascending ``a[lo:hi]`` whose item is not below ``x`` (``hi``
+    if none): ``lo + np.searchsorted(a[lo:hi], x)``, without making the view."""
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @numba.njit(cache=True, nogil=True)

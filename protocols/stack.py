@@ -41,8 +41,9 @@ class Samples:
     hundreds of MB, and every fresh page costs a fault).
 
     A buffer holds ``expected`` samples of the first one's rows, with a margin; when short
-    it grows to what the remaining samples need at the current sample's rows, at least
-    double. Capacity never written is never touched, so costs no memory."""
+    it grows to what the remaining samples need at the current sample's rows (a sample
+    written in place, :meth:`reserve`, the latest one's), at least double. Capacity never
+    written is never touched, so costs no memory."""
 
     MARGIN = 1.25
 
@@ -50,6 +51,7 @@ class Samples:
         self.times: list[float] = []
         self.expected = max(int(expected), 1)
         self.rows = 0
+        self.last_rows = 0  # the latest sample's
         self._t = np.empty(0)
         self._buffers: dict[str, np.ndarray] = {}
 
@@ -58,17 +60,33 @@ class Samples:
 
     def add(self, now: float, columns: dict[str, np.ndarray]) -> Samples:
         m = len(next(iter(columns.values()))) if columns else 0
+        room = self.reserve({name: np.asarray(col).dtype for name, col in columns.items()}, m, m)
+        for name, col in columns.items():
+            room[name][:] = col
+        return self.commit(now, m)
+
+    def reserve(self, dtypes: Mapping[str, np.dtype], rows: int, typical: int) -> dict[str, np.ndarray]:
+        """Room for a sample of at most ``rows`` rows, to be filled and then kept by
+        :meth:`commit`: each column's buffer (``dtypes``, in the table's order: the first
+        sample's make the buffers) from the next free row on, ``rows`` long. When short,
+        the buffers grow to what the remaining samples need at ``typical`` rows each, at
+        least double."""
         if not self._buffers:
-            self._buffers = {name: np.empty(0, dtype=np.asarray(col).dtype) for name, col in columns.items()}
-        at, end = self.rows, self.rows + m
+            self._buffers = {name: np.empty(0, dtype=dtype) for name, dtype in dtypes.items()}
+        at, end = self.rows, self.rows + rows
         if end > len(self._t):
             left = max(self.expected - len(self.times), 1)
-            self._grow(max(2 * len(self._t), at + int(self.MARGIN * m * left)))
+            self._grow(max(2 * len(self._t), end, at + int(self.MARGIN * typical * left)))
+        return {name: buf[at:end] for name, buf in self._buffers.items()}
+
+    def commit(self, now: float, rows: int) -> Samples:
+        """Keep the first ``rows`` rows of the room :meth:`reserve` gave as the sample at
+        ``now``."""
+        at, end = self.rows, self.rows + rows
         self._t[at:end] = now
-        for name, col in columns.items():
-            self._buffers[name][at:end] = col
         self.times.append(now)
         self.rows = end
+        self.last_rows = rows
         return self
 
     def _grow(self, capacity: int) -> None:
@@ -274,6 +292,7 @@ class Stack:
         self._sample_rows = kernels.sample_rows if kernels is not None else sample_rows
         self._belief_rows = kernels.belief_rows if kernels is not None else belief_rows
         self._belief_counts = kernels.belief_counts if kernels is not None else belief_counts
+        self._sample_into = kernels.sample_into if kernels is not None else None
 
     # -- the groups, for the rest of the run ------------------------------------------
     @property
@@ -425,18 +444,57 @@ class Stack:
         return {"robot": b.robot, "neighbour": b.neighbour, "believed": b.believed, "in_range": b.in_range}
 
     def _sampler(self, interval: float):
-        env, table, roles = self.env, self.table, self.roles
+        env, channel = self.env, self.channel
+        # In place where the truth comes from the channel's neighbour lists (as in
+        # _heard_keys) and the loops are compiled.
+        in_place = self._sample_into is not None and channel.reception is None and channel.index.kernels is not None
+        sample = self._sample_in_place if in_place else self._sample
         while True:
-            now = float(env.now)  # 0 (an int) at the start: one compiled version, not two
-            heard = self._heard_keys(now)
-            (robot, group, primary), rows = self._sample_rows(
-                table.id, table.data, now, table.tau_s, self.clustering.symmetric, roles.role, roles.leader, heard
-            )
-            self._groups.add(now, {"robot": robot, "group": group, "primary": primary})
-            keys = Beliefs(*rows)
-            self._beliefs.add(now, self._belief_columns(now, keys))
-            self._neighbour_beliefs.add(now, self._neighbour_belief_columns(now, keys))
+            sample(float(env.now))  # 0 (an int) at the start: one compiled version, not two
             yield env.timeout(interval)
+
+    def _sample(self, now: float) -> None:
+        """One sample of the ``groups``, ``beliefs`` and ``neighbour_beliefs`` tables."""
+        table, roles = self.table, self.roles
+        heard = self._heard_keys(now)
+        (robot, group, primary), rows = self._sample_rows(
+            table.id, table.data, now, table.tau_s, self.clustering.symmetric, roles.role, roles.leader, heard
+        )
+        self._groups.add(now, {"robot": robot, "group": group, "primary": primary})
+        keys = Beliefs(*rows)
+        self._beliefs.add(now, self._belief_columns(now, keys))
+        self._neighbour_beliefs.add(now, self._neighbour_belief_columns(now, keys))
+
+    def _sample_in_place(self, now: float) -> None:
+        """:meth:`_sample` by one compiled pass (:func:`protocols._kernels.sample_into`)
+        writing straight into the tables' buffers, the truth from the channel's neighbour
+        lists: the same rows, without a sample's worth of arrays made and then copied."""
+        st, table, roles = self.state, self.table, self.roles
+        near_ptr, near = self.channel.index.lists(now)
+        n, slots = table.id.shape
+        int64, flag = np.dtype(np.int64), np.dtype(np.bool_)
+        groups = self._groups.reserve(
+            {"robot": int64, "group": int64, "primary": flag}, n * (slots + 1), self._groups.last_rows
+        )
+        pairs = self._neighbour_beliefs.reserve(
+            {"robot": int64, "neighbour": int64, "believed": flag, "in_range": flag},
+            n * slots + len(near),
+            self._neighbour_beliefs.last_rows,
+        )
+        counts = self._beliefs.reserve(
+            {"robot": int64, "role": roles.role.dtype, "leader": roles.leader.dtype, "leader_in_range": flag}
+            | dict.fromkeys(BELIEF_COLUMNS[5:], int64),
+            n,
+            n,
+        )
+        m, k = self._sample_into(
+            table.id, table.data, now, table.tau_s, self.clustering.symmetric, roles.role, roles.leader,
+            st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, near_ptr, near,
+            tuple(groups.values()), tuple(pairs.values()), tuple(counts.values()),
+        )  # fmt: skip
+        self._groups.commit(now, m)
+        self._neighbour_beliefs.commit(now, k)
+        self._beliefs.commit(now, n)
 
     # -- outputs -----------------------------------------------------------------------
     def messages_frame(self) -> pd.DataFrame:

@@ -295,6 +295,78 @@ def test_compiled_belief_counts_equal_numpy():
     assert in_range > 20
 
 
+def reach_tables(rng, n, slots, now, heard):
+    """Neighbour tables whose rows hold (distinct) ids of robots that reach their robot
+    (``heard``: ascending keys), and other ids: entries true and stale, live and expired."""
+    ids, records = random_tables(rng, n, slots, now)
+    senders = np.split(heard % n, np.searchsorted(heard, np.arange(1, n) * n))
+    for r in range(n):
+        near = rng.permutation(senders[r])[: int(rng.integers(0, slots + 1))]
+        row = np.unique(np.concatenate([near, rng.integers(0, n, int(rng.integers(0, 4)))]))[:slots]
+        ids[r] = -1
+        ids[r, rng.permutation(slots)[: len(row)]] = row
+    records[ids < 0] = EMPTY_RECORD
+    return ids, records, senders
+
+
+@pytest.mark.parametrize("torus", [False, True])
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_sample_into_equals_numpy(torus, symmetric):
+    """A sample written in one compiled pass, the truth from the range index's neighbour
+    lists, is the numpy one (membership and belief rows of the keys in reach, then the
+    counts): the groups, who believes whom and the per-robot columns, row for row;
+    distances a hair either side of the range, unequal ranges, members whose leader reaches
+    them both ways, one way, not at all. Nothing is written past the rows it reports."""
+    from netsim.spatial import RangeIndex
+    from netsim.state import RobotState
+    from netsim.topology import reach_keys_of_pairs
+    from tests.test_kernels import reach_layouts
+
+    rng = np.random.default_rng(37)
+    side, now, slots = 1000.0, 10.0, 8
+    lir = 0
+    for pos, ranges in reach_layouts(rng, side):
+        n = len(pos)
+        st = RobotState(n, side, ranges, torus=torus)
+        st.place(pos % side if torus else pos)
+        at = st.positions_at(0.0)
+        near_ptr, near = RangeIndex(st).lists(0.0)
+        heard = reach_keys_of_pairs(at, st.range_m, side if torus else None)
+        ids, records, senders = reach_tables(rng, n, slots, now, heard)
+        role = rng.integers(0, 3, n).astype(np.int8)
+        reaching = [int(rng.choice(s)) if len(s) and rng.random() < 0.8 else int(rng.integers(-1, n)) for s in senders]
+        leader = np.where(role == MEMBER, reaching, np.where(role == ALPHA, np.arange(n), -1)).astype(np.int64)
+        groups = tuple(np.full(n * (slots + 1) + 3, fill, dtype) for fill, dtype in [(-7, np.int64)] * 2 + [(1, bool)])
+        pairs = tuple(
+            np.full(n * slots + len(near) + 3, fill, dtype) for fill, dtype in [(-7, np.int64)] * 2 + [(1, bool)] * 2
+        )
+        counts = tuple(np.full(n, -7, dtype) for dtype in [np.int64, np.int8, np.int64, bool, *[np.int64] * 4])
+        box = side if torus else 0.0
+        args = (ids, records, now, TAU_S, symmetric, role, leader, at, st.range_m, box, near_ptr, near)
+        m, k = kernels.sample_into(*args, groups, pairs, counts)
+        (g_robot, g_group, g_primary), rows = sample_rows(ids, records, now, TAU_S, symmetric, role, leader, heard)
+        want = belief_counts(rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
+        assert [x[:m].tolist() for x in groups] == [g_robot.tolist(), g_group.tolist(), g_primary.tolist()]
+        assert [x[:k].tolist() for x in pairs] == [x.tolist() for x in rows[:4]]
+        believed_n, true_n, stale_n, missing_n, leader_in_range = want
+        expected = [np.arange(n), role, leader, leader_in_range, believed_n, true_n, stale_n, missing_n]
+        assert [x.tolist() for x in counts] == [x.tolist() for x in expected]
+        assert all((x[m:] == x[-1]).all() for x in groups) and all((x[k:] == x[-1]).all() for x in pairs)
+        lir += int((leader_in_range & (role == MEMBER)).sum())
+    assert lir > 50
+
+
+def test_compiled_sampler_tables_equal_numpy(monkeypatch):
+    """A run's sampled tables (groups, beliefs, neighbour_beliefs), written in place by the
+    compiled sample, are the numpy sampler's."""
+    (_, a), (_, b) = _clustering_after(monkeypatch, 12.0, True), _clustering_after(monkeypatch, 12.0, False)
+    assert a._sample_into is not None and a.channel.index.kernels is not None and b._sample_into is None
+    for x, y in [(a.groups_frame(), b.groups_frame()), (a.beliefs_frame(), b.beliefs_frame())]:
+        assert x.equals(y) and len(x) > 300
+    x, y = a.neighbour_beliefs_frame(), b.neighbour_beliefs_frame()
+    assert x.equals(y) and x["believed"].sum() > 300 and x["in_range"].sum() > 300
+
+
 def test_gateways_mean_counts_robots_in_two_groups_per_sample():
     """``gateways_mean`` (the summary figure) is the mean over the sampled instants of the
     robots with two rows or more in the ``groups`` table, as a groupby counts them; samples
