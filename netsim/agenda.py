@@ -27,20 +27,20 @@ instead of a heap's log n comparisons; the agenda runs whichever head comes firs
 entry that would not keep that queue in order goes to the heap instead, so the order never
 rests on the caller.
 
-One caller may keep its entries in a structure of its own and show the agenda only its
-first (:meth:`Agenda.attach`; :class:`netsim.timers.DeadlineTimers`, whose events are
-armed seconds ahead and taken thousands a second): the agenda runs that source's first
-entry when it comes before the heap's and the queue's heads, so those entries never pass
-through the heap, whose log n steps over cold memory cost more than the entry's own work.
-Keys drawn with :meth:`Agenda.key` order them among all others.
+Entries scheduled well ahead and many at a time (the Ack beacons' ticks, a period ahead;
+deadline timers' events, seconds ahead: :meth:`Agenda.ahead`) go to a calendar instead
+(:class:`Calendar`): a list per slice of time, sorted once when its slice comes. At ten
+thousand robots a heap of ticks is cold by each push and pop, which then walk its depth
+through cache misses; a calendar appends to one list and takes from another.
 """
 
 from __future__ import annotations
 
+import math
+from bisect import insort
 from collections import deque
 from collections.abc import Callable
 from heapq import heappop, heappush
-from typing import Protocol
 
 import simpy
 
@@ -54,22 +54,6 @@ class _Wake(simpy.Event):
 
     def __lt__(self, _other: object) -> bool:
         return False
-
-
-class _Side(Protocol):
-    head: tuple | None
-
-    def run_head(self) -> None: ...
-
-
-class _NoSide:
-    head: tuple | None = None
-
-    def run_head(self) -> None:  # pragma: no cover  # its head is always None
-        raise AssertionError("no entries")
-
-
-_NO_SIDE = _NoSide()
 
 
 class Agenda:
@@ -91,11 +75,12 @@ class Agenda:
         self._ids = env._eid  # type: ignore[attr-defined]  # SimPy's counter of event ids
         self._running = False
         self.wakes_run = 0
-        # A source of entries of its own (attach): its ``head`` is its first entry or None.
-        self._side: _Side = _NO_SIDE
+        # Entries scheduled with ahead(), and the first of them (None: there is none).
+        self._calendar = Calendar()
+        self._ahead: tuple | None = None
 
     def __len__(self) -> int:
-        return len(self._heap) + len(self._queue)
+        return len(self._heap) + len(self._queue) + len(self._calendar)
 
     def at(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """Call ``fn(*args)`` ``delay_s`` from now at ``priority``: where an event scheduled
@@ -106,28 +91,17 @@ class Agenda:
         if (not wakes or entry < wakes[0]) and not self._running:
             self._arm(entry)
 
-    def key(self, delay_s: float, priority: int) -> tuple[float, int, int]:
-        """The key ``(t, priority, id)`` of an entry scheduled now ``delay_s`` ahead (its id
-        drawn now), for an attached source's entries (:meth:`attach`)."""
-        return (self.env._now + delay_s, priority, next(self._ids))  # type: ignore[attr-defined]
-
-    def attach(self, side: _Side) -> bool:
-        """Run the entries of ``side`` in order with the agenda's own (module notes):
-        ``side.head`` is its first entry, a tuple starting with a key drawn by :meth:`key`
-        (None: it has none), and ``side.run_head()`` takes that entry and runs it (with the
-        clock at its time). ``side`` calls :meth:`side_armed` when its head becomes an
-        earlier entry. One source per agenda: False if one is attached already."""
-        if self._side is not _NO_SIDE:
-            return False
-        self._side = side
-        return True
-
-    def side_armed(self, entry: tuple) -> None:
-        """The attached source's head is now ``entry``, earlier than before: a wake for it
-        if it comes before every queued wake (none while the agenda runs: see _run)."""
-        wakes = self._wakes
-        if (not wakes or entry < wakes[0]) and not self._running:
-            self._arm(entry)
+    def ahead(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
+        """:meth:`at`, for an entry due well ahead, of a kind scheduled many at a time (a
+        beacon's next tick, a timer's event): it goes to the calendar (module notes)."""
+        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
+        self._calendar.push(entry)
+        first = self._ahead
+        if first is None or entry < first:
+            self._ahead = entry
+            wakes = self._wakes
+            if (not wakes or entry < wakes[0]) and not self._running:
+                self._arm(entry)
 
     def at_in_order(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """:meth:`at`, for a caller whose entries mostly come in key order (the same delay
@@ -143,7 +117,7 @@ class Agenda:
             self._arm(entry)
 
     def _head(self) -> tuple | None:
-        heap, queue, first = self._heap, self._queue, self._side.head
+        heap, queue, first = self._heap, self._queue, self._ahead
         head: tuple | None
         if heap:
             head = queue[0] if queue and queue[0] < heap[0] else heap[0]
@@ -169,7 +143,7 @@ class Agenda:
         heappop(wakes)
         self.wakes_run += 1
         self._running = True
-        heap, queue, kernel, env, side = self._heap, self._queue, self._kernel, self.env, self._side
+        heap, queue, kernel, env, calendar = self._heap, self._queue, self._kernel, self.env, self._calendar
         try:
             while True:
                 if heap:
@@ -181,12 +155,14 @@ class Agenda:
                     head, queued = queue[0], True
                 else:
                     head = None
-                first = side.head
+                first = self._ahead
                 if first is not None and (head is None or first < head):
                     if kernel and kernel[0] < first:
                         break
+                    calendar.pop()
+                    self._ahead = calendar.first()
                     env._now = first[0]  # type: ignore[attr-defined]
-                    side.run_head()
+                    first[3](*first[4])
                     continue
                 if head is None:
                     break
@@ -204,3 +180,67 @@ class Agenda:
             first = self._head()
             if first is not None and (not wakes or first < wakes[0]):
                 self._arm(first)
+
+
+class Calendar:
+    """Entries (tuples, ordered by their first items, the first a time) taken in order: the
+    order of a heap of them. Each goes to the list of its slice of ``slice_s`` of time,
+    sorted when its slice comes first (an entry for the slice being taken is inserted in
+    place); a heap of slice numbers finds the next."""
+
+    def __init__(self, slice_s: float = 0.05):
+        self._per_s = 1.0 / slice_s
+        self._size = 0
+        self._slices: dict[int, list] = {}
+        self._numbers: list[int] = []  # a heap of the numbers of the slices in _slices
+        # The slice being taken, sorted, and the position of its first entry not yet taken.
+        self._current: list | None = None
+        self._number = 0
+        self._at = 0
+
+    def push(self, entry: tuple) -> None:
+        # floor(t * per_s) never decreases as t grows (IEEE products are monotonic): the
+        # slices keep the entries' order.
+        self._size += 1
+        k = math.floor(entry[0] * self._per_s)
+        current = self._current
+        if current is not None:
+            if k == self._number:
+                insort(current, entry, lo=self._at)
+                return
+            if k < self._number:
+                # An earlier slice: the current one goes back with what it has left.
+                self._slices[self._number] = current[self._at :]
+                heappush(self._numbers, self._number)
+                self._current = None
+        entries = self._slices.get(k)
+        if entries is None:
+            self._slices[k] = [entry]
+            heappush(self._numbers, k)
+        else:
+            entries.append(entry)
+
+    def first(self) -> tuple | None:
+        """The first entry (None: there is none)."""
+        current = self._current
+        if current is not None and self._at < len(current):
+            return current[self._at]
+        if not self._numbers:
+            self._current = None
+            return None
+        k = heappop(self._numbers)
+        current = self._slices.pop(k)
+        current.sort()
+        self._current, self._number, self._at = current, k, 0
+        return current[0]
+
+    def pop(self) -> tuple:
+        """Take the first entry (there must be one)."""
+        entry = self.first()
+        assert entry is not None
+        self._at += 1
+        self._size -= 1
+        return entry
+
+    def __len__(self) -> int:
+        return self._size

@@ -26,6 +26,7 @@ class KernelAgenda:
         scheduled_event(self.env, delay_s, priority, lambda _event: fn(*args))
 
     at_in_order = at
+    ahead = at
 
 
 def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
@@ -50,11 +51,13 @@ def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
                 plant(depth + 1)
 
         draw = rng.random()
-        if draw < 0.3:
+        if draw < 0.25:
             agenda.at(delay, priority, run, "at", name * 7)
-        elif draw < 0.6:
+        elif draw < 0.45:
             # Often out of order (random delays and priorities): the heap takes those.
             agenda.at_in_order(delay, priority, run, "at_in_order", name * 7)
+        elif draw < 0.65:
+            agenda.ahead(delay, priority, run, "ahead", name * 7)
         else:
             scheduled_event(env, delay, priority, lambda _event: run("kernel", name * 7))
 
@@ -68,7 +71,8 @@ def _scripted(agenda_class, seed: int, stops=(0.5, 1.0, 1.0 + 1e-9, 2.0, 4.0)):
 
 @pytest.mark.parametrize("seed", range(40))
 def test_agenda_runs_its_entries_in_the_kernels_order(seed):
-    """Entries (heaped, or queued in order when they come in order) and kernel events at
+    """Entries (heaped, queued in order when they come in order, or in the calendar) and
+    kernel events at
     the same instants and priorities, scheduled from each other's callbacks, with the run
     stopped and resumed at their instants: the agenda runs everything in the order, and at
     the instants, of one kernel event per entry, each entry with its own arguments."""
@@ -208,7 +212,7 @@ def _timer_script(agenda_class, seed: int, sets: int = 1):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_timers_on_the_agenda_expire_in_the_kernels_order(seed):
-    """Timers whose events wait in a calendar of their own beside the agenda: every expiry at
+    """Timers whose events wait in the agenda's calendar: every expiry at
     its instant and in the order of one kernel event per timer event, ties with other
     entries of the same instant and priority included."""
     log = _timer_script(Agenda, seed)
@@ -221,10 +225,9 @@ def test_timers_on_the_agenda_expire_in_the_kernels_order(seed):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_a_second_set_of_timers_on_one_agenda_expires_in_the_kernels_order(seed):
-    """One set of timers keeps its events beside the agenda's entries; a second set on the
-    same agenda (which takes one such source) gets an entry per event: both in the order
-    of one kernel event per timer event."""
+def test_two_sets_of_timers_on_one_agenda_expire_in_the_kernels_order(seed):
+    """Two sets of timers whose events share the agenda's calendar: both in the order of
+    one kernel event per timer event."""
     log = _timer_script(Agenda, seed, sets=2)
     assert log == _timer_script(KernelAgenda, seed, sets=2)
     assert {e[2] for e in log if e[1] == "expire"} == {0, 1}

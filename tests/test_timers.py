@@ -125,7 +125,7 @@ def test_calendar_takes_entries_in_the_order_of_a_heap():
     taken, for earlier slices, far ahead, and after it ran empty."""
     import heapq
 
-    from netsim.timers import Calendar
+    from netsim.agenda import Calendar
 
     rng = np.random.default_rng(3)
     for slice_s in (0.05, 1.0):
