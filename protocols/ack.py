@@ -256,10 +256,7 @@ class AckBeacon:
         # Robot i's beacon: first Ack at its phase, then one every period (plus jitter). A
         # chain of callbacks on the channel's agenda (netsim.agenda) rather than a process
         # per robot: the order of the same events, without a kernel event for each Ack.
-        agenda = self.channel.agenda
-        # Each tick schedules the next a period ahead, ten thousand a second at ten thousand
-        # robots: in the agenda's calendar (netsim.agenda), where it has one.
-        self._ahead = getattr(agenda, "ahead", agenda.at)
+        self._agenda = agenda = self.channel.agenda
         # As Python floats: the same instants, and the agenda's heap compares floats faster
         # than numpy scalars (every later tick and delivery time is a sum starting here).
         phases = self.phase_s.tolist()
@@ -278,7 +275,7 @@ class AckBeacon:
             self.channel.broadcast(i, self.make_ack(i), self.deliver, "ack")
         jitter = self._jitter
         step = self.period_s + jitter.draw() if jitter is not None else self.period_s
-        self._ahead(step, URGENT, self._tick, i)
+        self._agenda.at(step, URGENT, self._tick, i)
 
     def make_ack(self, i: int) -> Ack:
         now = self.env.now
