@@ -234,6 +234,9 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
         if emit is not None:
             emit(name, frame)
 
+    clash = sorted(set(sim.trace.names()) & (set(ENGINE_TABLES) | {"medium"}))
+    if clash:
+        raise ValueError(f"a model's table has the name of one the engine writes: {', '.join(clash)}")
     legs = sim.state.legs()
     side, torus = sim.state.side_m, sim.state.torus
     for name in sim.trace.names():

@@ -40,10 +40,11 @@ class Samples:
     end is the buffers' filled part (no concatenation: at 10,000 robots the samples are
     hundreds of MB, and every fresh page costs a fault).
 
-    A buffer holds ``expected`` samples of the first one's rows, with a margin; when short
-    it grows to what the remaining samples need at the current sample's rows (a sample
-    written in place, :meth:`reserve`, the latest one's), at least double. Capacity never
-    written is never touched, so costs no memory."""
+    When short, a buffer grows, at least to double, to what the remaining samples need at a
+    typical sample's rows (the current one's; for a sample written in place,
+    :meth:`reserve`, the latest one's), with a margin, plus the most rows one sample may
+    take: so it grows once or twice in a run. Capacity never written is never touched, so
+    costs no memory."""
 
     MARGIN = 1.25
 
@@ -76,7 +77,7 @@ class Samples:
         at, end = self.rows, self.rows + rows
         if end > len(self._t):
             left = max(self.expected - len(self.times), 1)
-            self._grow(max(2 * len(self._t), end, at + int(self.MARGIN * typical * left)))
+            self._grow(max(2 * len(self._t), at + int(self.MARGIN * typical * left) + rows))
         return {name: buf[at:end] for name, buf in self._buffers.items()}
 
     def commit(self, now: float, rows: int) -> Samples:

@@ -231,3 +231,67 @@ def test_two_sets_of_timers_on_one_agenda_expire_in_the_kernels_order(seed):
     log = _timer_script(Agenda, seed, sets=2)
     assert log == _timer_script(KernelAgenda, seed, sets=2)
     assert {e[2] for e in log if e[1] == "expire"} == {0, 1}
+
+
+def _timers_beside_kernel_events(agenda_class, seed: int, sets: int):
+    """Timers restarted (into the past too) and cancelled from agenda entries and kernel
+    events at every priority, and from their own expiries, with the run stopped and resumed
+    at tie instants: a log of what ran when."""
+    from netsim.timers import DeadlineTimers
+
+    env = simpy.Environment()
+    agenda = agenda_class(env)
+    rng = np.random.default_rng(seed)
+    log: list[tuple] = []
+    timers: list[DeadlineTimers] = []
+
+    def expired(i: int, now: float, s: int) -> None:
+        log.append((now, "expire", s, i))
+        draw = rng.random()
+        if draw < 0.3:
+            timers[int(rng.integers(sets))].restart(int(rng.integers(5)), now + 0.25 * int(rng.integers(0, 3)))
+        elif draw < 0.45:
+            agenda.at(0.0, int(rng.choice([URGENT, NORMAL])), lambda: log.append((env.now, "entry", i)))
+        elif draw < 0.6:
+            scheduled_event(env, 0.0, NORMAL, lambda _e: log.append((env.now, "kernel", i)))
+
+    timers.extend(DeadlineTimers(env, 5, lambda i, now, s=s: expired(i, now, s), agenda) for s in range(sets))
+    names = iter(range(10**6))
+
+    def act(depth: int) -> None:
+        k = next(names)
+        log.append((env.now, "act", k))
+        for _ in range(int(rng.integers(0, 4))):
+            t, i, draw = timers[int(rng.integers(sets))], int(rng.integers(5)), rng.random()
+            if draw < 0.15:
+                t.cancel(i)
+            elif draw < 0.3:
+                t.restart(i, env.now - 0.25)
+            else:
+                t.restart(i, env.now + 0.25 * int(rng.integers(0, 6)))
+        if depth < 60 and k < 400:
+            for _ in range(int(rng.integers(1, 3))):
+                delay, priority = 0.25 * int(rng.integers(0, 3)), int(rng.choice([FIRST, URGENT, NORMAL]))
+                if rng.random() < 0.5:
+                    agenda.at(delay, priority, act, depth + 1)
+                else:
+                    scheduled_event(env, delay, priority, lambda _e, depth=depth: act(depth + 1))
+
+    for _ in range(3):
+        scheduled_event(env, 0.0, NORMAL, lambda _e: act(0))
+        agenda.at(0.0, NORMAL, act, 0)
+    for stop in (0.25, 0.5, 1.0, 1.25, 2.0, 3.0, 5.0, 8.0, 13.0, 40.0):
+        env.run(until=stop)
+        log.append(("stop", env.now))
+    return log
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("sets", [1, 2])
+def test_timers_beside_kernel_events_and_stops_run_in_the_kernels_order(seed, sets):
+    """Timers restarted and cancelled from kernel events as well as agenda entries, and
+    from their expiries, with the run stopped at tie instants: every event in the order of
+    one kernel event per entry."""
+    log = _timers_beside_kernel_events(Agenda, seed, sets)
+    assert log == _timers_beside_kernel_events(KernelAgenda, seed, sets)
+    assert sum(e[1] == "expire" for e in log if len(e) > 2) > 10

@@ -553,3 +553,30 @@ def test_near_pairs_order_is_by_robot_then_cells_then_ids(torus):
                             want.append((i, j))
         got = [tuple(p) for p in core_kernels.near_pairs(pos, r, box).tolist()]
         assert got == want and len(want) > 20
+
+
+@pytest.mark.parametrize("torus", [False, True])
+def test_senders_in_list_equal_numpy(torus):
+    """Per robot, the senders of its neighbour list that reach it (the samples' truth, one
+    robot at a time: ``senders_in_list``, in room for the longest list) are the numpy ones:
+    the reach layouts, distances a hair either side of the range included."""
+    from netsim.topology import reach_keys_of_pairs
+
+    rng = np.random.default_rng(33)
+    side = 1000.0
+    box = side if torus else 0.0
+    hits = 0
+    for pos, ranges in reach_layouts(rng, side):
+        st = RobotState(len(pos), side, ranges, torus=torus)
+        st.place(pos % side if torus else pos)
+        at = st.positions_at(0.0)
+        indptr, indices = RangeIndex(st).lists(0.0)
+        want = reach_keys_of_pairs(at, st.range_m, side if torus else None)
+        n = len(pos)
+        out = np.empty(core_kernels.longest_list(indptr), np.int64)
+        assert len(out) == int(np.diff(indptr).max())
+        for a in range(n):
+            k = core_kernels.senders_in_list(at, st.range_m, box, indptr, indices, a, out)
+            assert out[:k].tolist() == (want[want // n == a] % n).tolist()
+            hits += k
+    assert hits > 1000

@@ -114,7 +114,8 @@ def test_tables_are_the_files_pandas_writes(tmp_path, rows):
     writes it (integers, floats, booleans, text; a frame's ``attrs`` kept)."""
     import numpy as np
 
-    from netsim.tools.output import write_table
+    from netsim.tools.output import write_run, write_table
+    from tests.fixtures import make_config
 
     frame = pd.DataFrame(
         {
@@ -130,6 +131,9 @@ def test_tables_are_the_files_pandas_writes(tmp_path, rows):
         frame.to_parquet(tmp_path / "pandas.parquet", index=False)
         write_table(frame, tmp_path / "netsim.parquet")
         assert (tmp_path / "netsim.parquet").read_bytes() == (tmp_path / "pandas.parquet").read_bytes()
+        # As netsim run writes it: in a writing thread, beside another table.
+        write_run(tmp_path / "run", make_config(), {"other": frame.iloc[::-1], "t": frame}, {}, {})
+        assert (tmp_path / "run" / "t.parquet").read_bytes() == (tmp_path / "pandas.parquet").read_bytes()
 
 
 def test_tables_written_together_are_the_files_written_one_at_a_time(tmp_path, monkeypatch):
@@ -178,3 +182,37 @@ def test_a_run_that_fails_after_its_first_tables_leaves_nothing(tmp_path, monkey
         main(["run", "--out", str(tmp_path / "a"), *SMALL])
     assert len(started) >= 9
     assert not (tmp_path / "a").exists()
+
+
+def test_a_run_whose_first_file_cannot_be_written_leaves_nothing(tmp_path, monkeypatch):
+    """The writer's first file (config.toml, in its temporary directory) failing: the
+    error reaches the caller and neither that directory nor the one made for the run stays."""
+    from netsim.tools import output
+
+    def failing(_tree):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(output.tomli_w, "dumps", failing)
+    with pytest.raises(OSError, match="disk full"):
+        main(["run", "--out", str(tmp_path / "a"), *SMALL])
+    assert not (tmp_path / "a").exists()
+
+
+def test_two_tables_of_one_name_are_refused(tmp_path):
+    """A run never writes two tables to one file: a model's table named like one the engine
+    writes is refused before any is written, and a writer takes each name once."""
+    from netsim.run import build, collect
+    from netsim.tools.output import RunWriter
+    from tests.fixtures import make_config
+
+    sim = build(make_config(duration_s=5.0, world={"n_robots": 5}))
+    sim.run()
+    sim.trace.add_frame("legs", lambda: pd.DataFrame({"t_s": [0.0]}))
+    written = []
+    with pytest.raises(ValueError, match="legs"):
+        collect(sim, lambda name, frame: written.append(name))
+    assert written == []
+    with RunWriter(tmp_path / "b", make_config()) as writer:
+        writer.table("links", pd.DataFrame({"a": [1]}))
+        with pytest.raises(ValueError, match="links"):
+            writer.table("links", pd.DataFrame({"a": [2]}))

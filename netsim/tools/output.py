@@ -214,6 +214,8 @@ class RunWriter:
     """:func:`write_run` in steps, so that tables are written while later ones are being
     made (:func:`netsim.run.execute`'s ``emit``): ``table`` for each table as it comes,
     then ``finish``. Used as a context manager: if the body raises, nothing is written.
+    Its temporary directory is made with the first table, so a run that fails or is
+    killed before it ends leaves none.
 
     The tables are written a few at a time in threads: pyarrow encodes and compresses
     without holding the interpreter, so the largest tables (the groups and beliefs of a
@@ -222,28 +224,44 @@ class RunWriter:
 
     def __init__(self, out_dir: str | Path, config: Config):
         self.out = Path(out_dir)
+        self.config = config
         check_run_dir(self.out)
-        self.out.mkdir(parents=True, exist_ok=True)
-        self._tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=self.out))
-        self._pool = ThreadPoolExecutor(max_workers=WRITERS)
+        self._tmp: Path | None = None
+        self._pool: ThreadPoolExecutor | None = None
+        self._names: set[str] = set()
         self._writes: list[Future] = []
-        (self._tmp / "config.toml").write_text(tomli_w.dumps(to_dict(config)))
 
     def __enter__(self) -> RunWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._pool.shutdown(wait=True, cancel_futures=True)
-        shutil.rmtree(self._tmp, ignore_errors=True)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        if self._tmp is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+
+    def _start(self) -> Path:
+        if self._tmp is None:
+            self.out.mkdir(parents=True, exist_ok=True)
+            self._tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=self.out))
+            self._pool = ThreadPoolExecutor(max_workers=WRITERS)
+            (self._tmp / "config.toml").write_text(tomli_w.dumps(to_dict(self.config)))
+        return self._tmp
 
     def table(self, name: str, frame: pd.DataFrame) -> None:
-        """Start writing the table ``name``. Its Arrow form is made here, at once: a thread
-        then reads nothing of ``frame``, which the caller goes on reading (pandas may
-        rearrange a frame's memory while reading it, so a frame is not shared)."""
-        path = self._tmp / f"{name}.parquet"
-        if frame.attrs:  # no netsim table has any; pandas keeps them in the file
-            frame.to_parquet(path, index=False)
+        """Start writing the table ``name`` (once: a second table of one name is refused).
+
+        Its Arrow form is made here, on the caller's thread: it shares the frame's columns,
+        which nothing writes once a table is made, while pandas may rearrange a frame's own
+        structures when it is read, which a writing thread therefore never does."""
+        if name in self._names:
+            raise ValueError(f"two tables named {name!r} in one run")
+        self._names.add(name)
+        path = self._start() / f"{name}.parquet"
+        if frame.attrs:  # no netsim table has any (write_table: pandas' own writer, at once)
+            write_table(frame, path)
             return
+        assert self._pool is not None
         self._writes.append(self._pool.submit(write_arrow, arrow_table(frame), path))
 
     def finish(self, summary: dict, manifest: dict) -> list[Path]:
@@ -251,7 +269,7 @@ class RunWriter:
         into place (module notes); the paths written."""
         for write in self._writes:
             write.result()  # a failed write raises here
-        tmp, out = self._tmp, self.out
+        tmp, out = self._start(), self.out
         (tmp / "summary.json").write_text(json.dumps({k: _plain(v) for k, v in summary.items()}, indent=2) + "\n")
         (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")
         # The earlier run goes as a whole, its manifest first: a directory with a manifest
