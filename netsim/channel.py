@@ -209,6 +209,13 @@ class Channel:
         # them): for the loss model (a callable without the flag is taken to read them).
         self._distances = getattr(survives, "uses_distances", True)
 
+    @property
+    def reach_lists(self) -> RangeIndex | None:
+        """The range index, where its neighbour lists hold every robot a sender reaches and
+        compiled loops search them: None under a radio (which decides its links otherwise)
+        or in a small run (no compiled loops)."""
+        return self.index if self.reception is None and self.index.kernels is not None else None
+
     def attach_mac(self, mac: Any) -> None:
         """Put every transmission from now on through the shared medium ``mac``."""
         if self.counters or self.bins:

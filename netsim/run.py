@@ -26,7 +26,7 @@ from netsim import plugins
 from netsim.channel import Channel
 from netsim.config import Config
 from netsim.control import ControlLoop
-from netsim.errors import ConfigError
+from netsim.errors import ConfigError, NetsimInputError
 from netsim.events import EventBus
 from netsim.groups import GroupView
 from netsim.lifetimes import link_lifetimes
@@ -236,7 +236,9 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
 
     clash = sorted(set(sim.trace.names()) & (set(ENGINE_TABLES) | {"medium"}))
     if clash:
-        raise ValueError(f"a model's table has the name of one the engine writes: {', '.join(clash)}")
+        raise NetsimInputError(
+            f"a model's table is named like one netsim writes itself ({', '.join(clash)}): rename it in its plugin"
+        )
     legs = sim.state.legs()
     side, torus = sim.state.side_m, sim.state.torus
     for name in sim.trace.names():

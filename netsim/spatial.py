@@ -83,7 +83,8 @@ class RangeIndex:
         """
         st = self.state
         r = float(st.range_m[i]) if radius_m is None else float(radius_m)
-        cand = self._candidates(t, i, r)
+        cand, lo, hi = self._candidate_span(t, i, r)
+        cand = cand[lo:hi]
         if len(cand) == 0:
             return _NONE, _NO_DISTANCE
         if self.kernels is not None:
@@ -124,14 +125,10 @@ class RangeIndex:
         if st.jumps != self._jumps or t < self._t_build or st.speed_high_water_mps * (t - self._t_build) > self.slack_m:
             self._build(t)
 
-    def _candidates(self, t: float, i: int, r: float) -> np.ndarray:
-        """The robots that may be within ``r`` of ``i`` at ``t``: its neighbour list (rebuilt
-        first if some robot may have moved past the slack), or all others past the reach."""
-        cand, lo, hi = self._candidate_span(t, i, r)
-        return cand[lo:hi]
-
     def _candidate_span(self, t: float, i: int, r: float) -> tuple[np.ndarray, int, int]:
-        """:meth:`_candidates` as ``(array, lo, hi)``: they are ``array[lo:hi]``."""
+        """The robots that may be within ``r`` of ``i`` at ``t``, as ``array[lo:hi]`` of the
+        ``(array, lo, hi)`` returned: its neighbour list (rebuilt first if some robot may have
+        moved past the slack), or all others past the reach."""
         self._refresh(t)
         st = self.state
         if r > self.reach_m:

@@ -198,7 +198,7 @@ class Relay:
         self.kernels = load("protocols._kernels", parts.state.n)
         # The channel's range index, whose neighbour lists the searches for shortest paths
         # use (a unit disk only: a radio decides its links otherwise).
-        self._index = self.channel.index if self.channel.reception is None else None
+        self._index = self.channel.reach_lists
 
     def send(self, src: int, dst: int) -> int:
         """Send a message from ``src`` to ``dst`` now; returns its id."""

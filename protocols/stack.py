@@ -385,8 +385,8 @@ class Stack:
         """``receiver * n + sender`` for every sender whose transmissions reach the
         receiver now, ascending."""
         st = self.state
-        index = self.channel.index
-        if self.channel.reception is None and index.kernels is not None:
+        index = self.channel.reach_lists
+        if index is not None:
             # The channel's neighbour lists hold every robot within the largest range: the
             # candidates, without a grid built for each sample.
             indptr, indices = index.lists(now)
@@ -445,10 +445,10 @@ class Stack:
         return {"robot": b.robot, "neighbour": b.neighbour, "believed": b.believed, "in_range": b.in_range}
 
     def _sampler(self, interval: float):
-        env, channel = self.env, self.channel
+        env = self.env
         # In place where the truth comes from the channel's neighbour lists (as in
         # _heard_keys) and the loops are compiled.
-        in_place = self._sample_into is not None and channel.reception is None and channel.index.kernels is not None
+        in_place = self._sample_into is not None and self.channel.reach_lists is not None
         sample = self._sample_in_place if in_place else self._sample
         while True:
             sample(float(env.now))  # 0 (an int) at the start: one compiled version, not two

@@ -21,6 +21,18 @@ def _moving_state(rng, n, side, torus):
     return st
 
 
+def _queries(rng, st, count):
+    """``count`` range queries ``(t, i)`` at increasing times, a third of the robots asked
+    turning onto a new leg first."""
+    t = 0.0
+    for _ in range(count):
+        t += float(rng.exponential(0.5))
+        i = int(rng.integers(st.n))
+        if rng.random() < 0.3:
+            st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
+        yield t, i
+
+
 @pytest.mark.parametrize("torus", [False, True])
 def test_compiled_range_query_equals_numpy(torus):
     """Robots within range of a sender, and their distances, are the numpy query's bit for
@@ -30,12 +42,8 @@ def test_compiled_range_query_equals_numpy(torus):
     st = _moving_state(rng, n, side, torus)
     compiled, plain = RangeIndex(st), RangeIndex(st)
     compiled.kernels, plain.kernels = core_kernels, None
-    t, checked = 0.0, 0
-    for _ in range(300):
-        t += float(rng.exponential(0.5))
-        i = int(rng.integers(n))
-        if rng.random() < 0.3:
-            st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
+    checked = 0
+    for t, i in _queries(rng, st, 300):
         radius = None if rng.random() < 0.8 else float(rng.choice([30.0, 1000.0]))
         a_ids, a_d = compiled.within(t, i, radius)
         b_ids, b_d = plain.within(t, i, radius)
@@ -55,12 +63,8 @@ def test_compiled_range_query_without_distances_equals_numpy(torus):
     st = _moving_state(rng, n, side, torus)
     compiled, plain = RangeIndex(st), RangeIndex(st)
     compiled.kernels, plain.kernels = core_kernels, None
-    t, dead_seen = 0.0, 0
-    for _ in range(300):
-        t += float(rng.exponential(0.5))
-        i = int(rng.integers(n))
-        if rng.random() < 0.3:
-            st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
+    dead_seen = 0
+    for t, i in _queries(rng, st, 300):
         st.alive[:] = rng.random(n) > 0.02
         a_ids, a_alive = compiled.within_alive(t, i)
         b_ids, b_alive = plain.within_alive(t, i)

@@ -201,6 +201,7 @@ def test_a_run_whose_first_file_cannot_be_written_leaves_nothing(tmp_path, monke
 def test_two_tables_of_one_name_are_refused(tmp_path):
     """A run never writes two tables to one file: a model's table named like one the engine
     writes is refused before any is written, and a writer takes each name once."""
+    from netsim.errors import NetsimInputError
     from netsim.run import build, collect
     from netsim.tools.output import RunWriter
     from tests.fixtures import make_config
@@ -209,10 +210,25 @@ def test_two_tables_of_one_name_are_refused(tmp_path):
     sim.run()
     sim.trace.add_frame("legs", lambda: pd.DataFrame({"t_s": [0.0]}))
     written = []
-    with pytest.raises(ValueError, match="legs"):
+    with pytest.raises(NetsimInputError, match="legs"):
         collect(sim, lambda name, frame: written.append(name))
     assert written == []
     with RunWriter(tmp_path / "b", make_config()) as writer:
         writer.table("links", pd.DataFrame({"a": [1]}))
         with pytest.raises(ValueError, match="links"):
             writer.table("links", pd.DataFrame({"a": [2]}))
+
+
+def test_a_plugin_table_named_like_an_engine_table_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
+    """A user's model whose table takes a name netsim writes itself: one line naming it,
+    exit status 2, and no directory left."""
+    (tmp_path / "clashing_model.py").write_text(
+        "import pandas as pd\ndef still(sim):\n    sim.trace.add_frame('links', lambda: pd.DataFrame({'a': [0]}))\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out = tmp_path / "out"
+    code = main(["run", "--out", str(out), "--set", "mobility.model=clashing_model:still", *SMALL])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and "links" in err[0]
+    assert not out.exists()
