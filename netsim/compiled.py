@@ -13,11 +13,17 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+import threading
+from collections.abc import Callable
 from types import ModuleType
+from typing import TypeVar
 
 from netsim.gcpause import paused
 
 SMALL_RUN_ROBOTS = 20
+
+T = TypeVar("T")
+U = TypeVar("U")
 
 
 def compiled_wanted(n_robots: int) -> bool:
@@ -64,3 +70,34 @@ def _numba_without_blas_probe() -> None:
         importlib.import_module("numba.np.arraymath")
     finally:
         del sys.modules[probe]
+
+
+def cores() -> int:
+    """The cores this process may run on."""
+    affinity = getattr(os, "sched_getaffinity", None)
+    return len(affinity(0)) if affinity is not None else os.cpu_count() or 1
+
+
+def side_by_side(first: Callable[[], T], second: Callable[[], U]) -> tuple[T, U]:
+    """``(first(), second())``, ``second`` run in a thread of its own meanwhile: for two
+    compiled loops that release the GIL (``nogil``), each on its own part of the work, on a
+    machine of two cores or more. An exception in either is raised here, once both are
+    done."""
+    box: list = []
+
+    def run() -> None:
+        try:
+            box.append(second())
+        except BaseException as error:  # raised in the caller's thread below
+            box.append(error)
+
+    thread = threading.Thread(target=run, name="netsim-side-by-side")
+    thread.start()
+    try:
+        a = first()
+    finally:
+        thread.join()
+    (b,) = box
+    if isinstance(b, BaseException):
+        raise b
+    return a, b

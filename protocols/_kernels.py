@@ -111,21 +111,36 @@ def announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, grou
     fields, with the two-way degree: live entries that hear the robot), then the ids of the
     live entries, ascending (:func:`protocols.neighbours.ack_record`; ``np.sort(id[live])``
     and ``(live & hears_me).sum()``). One array: the Ack costs one array, not two."""
+    return _announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, group_size, None, True)
+
+
+@numba.njit(cache=True, nogil=True)
+def _announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, group_size, mates_of, symmetric):
+    # mates_of: None, or the robot sending the Ack (the clustering's), whose members are
+    # counted in the same pass over the live entries: a leader announces 1 + those over a
+    # two-way link that named it their leader (group_size), read where the row's lines are
+    # already in cache. The compiler drops the counting where it is None.
     record = np.empty(FIELDS + len(ids_row))
     record[:FIELDS] = EMPTY_RECORD
     k = 0
     degree = 0
+    size = 1
     for s in range(len(ids_row)):
         # An EMPTY slot holds the empty record, never live: its record is not read (a row's
         # ids are a few cache lines, its records many).
         if ids_row[s] != EMPTY and now - records_row[s, LAST_HEARD] < tau_s:
             record[FIELDS + k] = ids_row[s]
             k += 1
-            if records_row[s, HEARS_ME] != 0:
+            hears_me = records_row[s, HEARS_ME] != 0
+            if hears_me:
                 degree += 1
+            if mates_of is not None:
+                if (symmetric or hears_me) and records_row[s, ROLE] == MEMBER and records_row[s, LEADER] == mates_of:
+                    size += 1
     record[FIELDS : FIELDS + k].sort()
     record[SEQ], record[ROLE], record[LEADER], record[X], record[Y] = seq, role, leader, x_m, y_m
-    record[GROUP_SIZE], record[DEGREE] = group_size, degree
+    record[GROUP_SIZE] = size if mates_of is not None and role == LEADER_ROLE else group_size
+    record[DEGREE] = degree
     return record[: FIELDS + k]
 
 
@@ -142,6 +157,18 @@ def make_ack(
     role and degree sent (``sent``, the beacon's (n, 3) array), as the numpy code does.
     Returns the Ack's fields in the order of :class:`protocols.ack.Ack`: ``(i, role,
     leader, seq, x, y, group_size, resign, record)``."""
+    return _make_ack(
+        i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, group_size,
+        ids, records, tau_s, None, True,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def _make_ack(
+    i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, group_size,
+    ids, records, tau_s, mates_of, symmetric,
+):  # fmt: skip
+    # mates_of: as in _announce; the size announced is also written in group_size.
     x, y = position(origin_m, velocity_mps, t0_s, i, now, torus, side_m)
     s = sent[i, SEQ_SENT] + 1
     sent[i, SEQ_SENT] = s
@@ -149,7 +176,10 @@ def make_ack(
     if resign:
         resign_pending[i] = False
     ro, le, size = np.int64(role[i]), leader[i], group_size[i]
-    record = announce(ids[i], records[i], now, tau_s, s, ro, le, x, y, size)
+    record = _announce(ids[i], records[i], now, tau_s, s, ro, le, x, y, size, mates_of, symmetric)
+    if mates_of is not None:
+        size = np.int64(record[GROUP_SIZE])
+        group_size[i] = size
     sent[i, ROLE_SENT] = ro
     sent[i, DEGREE_SENT] = np.int64(record[DEGREE])
     return i, ro, le, s, x, y, size, resign, record
@@ -162,17 +192,20 @@ def make_sized_ack(
 ):  # fmt: skip
     """:func:`make_ack`, after the clustering's hook has set the group size the Ack
     announces (:func:`protocols.clustering.announced_size`): a leader's is 1 + its live
-    two-way members in its row, anyone else's 1 (``sizes``, written back; ``sized``: whose
-    is other than 1). One call per Ack instead of a Python hook and two compiled calls."""
-    if role[i] == LEADER_ROLE:
-        sizes[i] = group_size(records[i], now, tau_s, symmetric, i)
+    two-way members in its row (:func:`group_size`, counted in the pass that makes the
+    Ack), anyone else's 1 (``sizes``, written back; ``sized``: whose is other than 1). One
+    call per Ack instead of a Python hook and two compiled calls."""
+    # The members counted for every Ack, used for a leader's: one call for both cases (two,
+    # one each, cost every Ack a tenth more on the benchmark machine).
+    leads = role[i] == LEADER_ROLE
+    if leads:
         sized[i] = True
     elif sized[i]:
         sizes[i] = 1
         sized[i] = False
-    return make_ack(
+    return _make_ack(
         i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, sizes,
-        ids, records, tau_s,
+        ids, records, tau_s, i, symmetric,
     )  # fmt: skip
 
 
@@ -528,29 +561,31 @@ def sample_rows(ids, records, now, tau_s, symmetric, role, leader, heard):
 
 @numba.njit(cache=True, nogil=True)
 def sample_into(
-    ids, records, now, tau_s, symmetric, role, leader, pos, ranges, box, near_ptr, near, groups, pairs, counts,
+    ids, records, now, tau_s, symmetric, role, leader, pos, ranges, box, near_ptr, near, groups, pairs, counts, lo, hi,
 ):  # fmt: skip
-    """A whole sample in one pass over the tables, written where the caller says (the
-    sampled tables' buffers, from their next free row): everyone's groups
-    (:func:`membership`) in ``groups`` ``(robot, group, primary)``, room for ``n * (slots +
-    1)`` rows; who believes whom beside the truth (:func:`belief_rows`) in ``pairs``
-    ``(robot, neighbour, believed, in_range)``, room for ``n * slots + len(near)`` rows; and
-    per robot ``(robot, role, leader)`` and :func:`belief_counts`'s five columns in the
-    ``n`` rows of ``counts``. Returns the rows written in ``groups`` and in ``pairs``.
+    """A sample of robots ``lo`` to ``hi - 1`` (all: a whole sample) in one pass over their
+    rows of the tables, written where the caller says (the sampled tables' buffers, from
+    their next free row): their groups (:func:`membership`) in ``groups`` ``(robot, group,
+    primary)``, room for ``(hi - lo) * (slots + 1)`` rows; who believes whom beside the
+    truth (:func:`belief_rows`) in ``pairs`` ``(robot, neighbour, believed, in_range)``,
+    room for ``(hi - lo) * slots`` rows plus the length of their neighbour lists; and per
+    robot ``(robot, role, leader)`` and :func:`belief_counts`'s five columns in its row of
+    ``counts`` (``n`` rows). Returns the rows written in ``groups`` and in ``pairs``.
 
     The truth comes from the range index's neighbour lists (``near_ptr``, ``near``:
     ascending, holding every robot within reach), decided as
     :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``, ranges
     ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
     :func:`belief_counts` of those keys. Nothing is allocated but two rows of scratch: each
-    row is written once, where the table keeps it."""
-    n, slots = ids.shape
+    row is written once, where the table keeps it. Two calls, on two parts of the robots,
+    can run in two threads at once (the loop holds no lock)."""
+    slots = ids.shape[1]
     g_robot, g_group, g_primary = groups
     robot, role_out, leader_out, leader_in_range, believed_n, true_n, stale_n, missing_n = counts
     live = np.empty(slots, np.int64)
     heard = np.empty(longest_list(near_ptr), np.int64)
     m = k = 0
-    for r in range(n):
+    for r in range(lo, hi):
         ids_row, records_row = ids[r], records[r]
         m = _membership_row(
             ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
@@ -566,9 +601,9 @@ def sample_into(
             # Two-way: the leader among the robots that reach r, r reaching the leader.
             at = _lower_bound(heard, 0, h, own)
             if at < h and heard[at] == own:
-                lo, hi = near_ptr[own], near_ptr[own + 1]
-                at = _lower_bound(near, lo, hi, r)
-                in_range = at < hi and near[at] == r and reaches_robot(pos, ranges, box, own, r)
+                first, end = near_ptr[own], near_ptr[own + 1]
+                at = _lower_bound(near, first, end, r)
+                in_range = at < end and near[at] == r and reaches_robot(pos, ranges, box, own, r)
         leader_in_range[r] = in_range
     return m, k
 

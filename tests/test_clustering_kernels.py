@@ -21,7 +21,7 @@ from protocols.clustering import (
     join_choice,
     membership,
 )
-from protocols.neighbours import EMPTY_RECORD, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
+from protocols.neighbours import EMPTY_RECORD, GROUP_SIZE, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
 from protocols.relay import flood_step, relays
 from protocols.roles import LEADER as ALPHA
 from protocols.roles import MEMBER, UNDECIDED
@@ -106,6 +106,32 @@ def test_compiled_group_size_equals_numpy(symmetric):
             assert a == b
             sizes.append(b)
     assert min(sizes) == 1 and max(sizes) > 2
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_sized_ack_announces_the_numpy_group_size(symmetric):
+    """The group size an Ack built in one compiled call announces (make_sized_ack counts a
+    leader's members in the pass that makes the Ack) is the numpy group_size of its row for
+    a leader, 1 for anyone else, whatever it announced before; and it is kept in sizes."""
+    rng = np.random.default_rng(17)
+    n, now, announced = 6, 10.0, []
+    origin, velocity, t0 = rng.uniform(0, 50, (n, 2)), np.zeros((n, 2)), np.zeros(n)
+    sent, resign = np.zeros((n, 3), dtype=np.int64), np.zeros(n, dtype=bool)
+    sizes, sized = np.ones(n, dtype=np.int64), np.zeros(n, dtype=bool)
+    for _ in range(60):
+        ids, records = random_tables(rng, n, 8, now)
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = rng.integers(-1, n, n).astype(np.int64)
+        for i in range(n):
+            ack = kernels.make_sized_ack(
+                i, now, origin, velocity, t0, False, 0.0, sent, resign, role, leader, sizes, ids, records, TAU_S,
+                sized, symmetric,
+            )  # fmt: skip
+            want = group_size(records[i], now, TAU_S, symmetric, i) if role[i] == ALPHA else 1
+            assert ack[6] == ack[8][GROUP_SIZE] == sizes[i] == want and sized[i] == (role[i] == ALPHA)
+            announced.append((int(role[i]), want))
+    assert sum(size > 1 for role, size in announced if role == ALPHA) > 10
+    assert any(role != ALPHA and size == 1 for role, size in announced)
 
 
 @pytest.mark.parametrize("symmetric", [False, True])
@@ -343,7 +369,7 @@ def test_compiled_sample_into_equals_numpy(torus, symmetric):
         counts = tuple(np.full(n, -7, dtype) for dtype in [np.int64, np.int8, np.int64, bool, *[np.int64] * 4])
         box = side if torus else 0.0
         args = (ids, records, now, TAU_S, symmetric, role, leader, at, st.range_m, box, near_ptr, near)
-        m, k = kernels.sample_into(*args, groups, pairs, counts)
+        m, k = kernels.sample_into(*args, groups, pairs, counts, 0, n)
         (g_robot, g_group, g_primary), rows = sample_rows(ids, records, now, TAU_S, symmetric, role, leader, heard)
         want = belief_counts(rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
         assert [x[:m].tolist() for x in groups] == [g_robot.tolist(), g_group.tolist(), g_primary.tolist()]
@@ -365,6 +391,21 @@ def test_compiled_sampler_tables_equal_numpy(monkeypatch):
         assert x.equals(y) and len(x) > 300
     x, y = a.neighbour_beliefs_frame(), b.neighbour_beliefs_frame()
     assert x.equals(y) and x["believed"].sum() > 300 and x["in_range"].sum() > 300
+
+
+def test_sample_in_two_halves_equals_one_pass(monkeypatch):
+    """A run's sampled tables taken in two halves at once (two threads, the second's rows
+    moved up after the first's) are those of one pass (the threshold lowered to this small
+    run, two cores assumed whatever the machine has)."""
+    import protocols.stack
+
+    (_, whole) = _clustering_after(monkeypatch, 12.0, True)
+    monkeypatch.setattr(protocols.stack, "SAMPLE_IN_TWO_ROBOTS", 1)
+    monkeypatch.setattr(protocols.stack, "cores", lambda: 2)
+    (_, halves) = _clustering_after(monkeypatch, 12.0, True)
+    for frame in ("groups_frame", "beliefs_frame", "neighbour_beliefs_frame"):
+        a, b = getattr(whole, frame)(), getattr(halves, frame)()
+        assert a.equals(b) and len(a) > 300, frame
 
 
 def test_gateways_mean_counts_robots_in_two_groups_per_sample():
@@ -502,3 +543,21 @@ def test_leaders_announce_their_group_size_whichever_path_builds_the_ack(monkeyp
     sizes = [stack.clustering.group_size(int(i), sim.env.now) for i in leaders]
     assert max(sizes) > 1
     assert stack.beacon.group_size[leaders].tolist() == sizes
+
+
+def test_side_by_side_returns_both_and_raises_either_error():
+    """Two calls side by side (the second in a thread of its own) give both results in
+    order; an error in either is raised in the caller's thread, after both have ended."""
+    from netsim.compiled import side_by_side
+
+    assert side_by_side(lambda: 1, lambda: "two") == (1, "two")
+    ended = []
+
+    def fails():
+        raise ValueError("second")
+
+    with pytest.raises(ValueError, match="second"):
+        side_by_side(lambda: ended.append("first"), fails)
+    with pytest.raises(KeyError):
+        side_by_side(lambda: {}["x"], lambda: ended.append("second"))
+    assert ended == ["first", "second"]
