@@ -326,6 +326,38 @@ def ack_effects(
 
 
 @numba.njit(cache=True, nogil=True)
+def receive_effects(
+    ids, records, slots, now, sender, receivers, record, tau_s, flags, start,
+    role, leader, symmetric, leads, deadline_s, armed_s, renewed_s, out, role_sent, leader_since, merge_delay_s,
+):  # fmt: skip
+    """:func:`receive` then :func:`ack_effects` in one call: an Ack told to the clustering
+    (:meth:`protocols.clustering.Clustering.take`), recorded in the table (flat ``ids`` and
+    ``records``, as for :func:`receive`; ``flags`` rows 0 and 1: ``fresh`` and
+    ``hears_me``) and then acted on by the receivers that took it (written in ``out`` row 5,
+    their ``hears_me`` in ``flags`` row 2; ``out`` rows 0 to 4 as :func:`ack_effects`
+    writes them, positions in row 5). Returns ``(k, stale, kept, a, b, c, d)``: ``k`` and
+    ``stale`` as :func:`receive` returns them (``k >= 0``: the table must grow, then the
+    call be made again from ``k``; nothing acted on yet), ``kept`` the receivers that took
+    the Ack, and :func:`ack_effects`' counts."""
+    k, stale = _receive(ids, records, slots, now, sender, receivers, record, tau_s, flags[0], flags[1], start)
+    if k >= 0:
+        return k, stale, 0, 0, 0, 0, 0
+    kept = 0
+    for j in range(len(receivers)):
+        if flags[0, j]:
+            out[5, kept] = receivers[j]
+            flags[2, kept] = flags[1, j]
+            kept += 1
+    n = len(role)
+    a, b, c, d = ack_effects(
+        role, leader, out[5, :kept], flags[2, :kept], symmetric, sender, leads, deadline_s, armed_s, renewed_s, out,
+        ids.reshape((n, slots)), records.reshape((n, slots, records.shape[1])), now, role_sent, leader_since,
+        merge_delay_s,
+    )  # fmt: skip
+    return k, stale, kept, a, b, c, d
+
+
+@numba.njit(cache=True, nogil=True)
 def group_size(records_row, now, tau_s, symmetric, i):
     """1 + the live two-way entries of robot ``i``'s row whose Ack named ``i`` as their
     leader (:meth:`protocols.clustering.Clustering.group_size`)."""

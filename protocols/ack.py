@@ -233,6 +233,12 @@ class AckBeacon:
         # changes anything there; most Acks are neither, and cost no call).
         self.leader_listeners: list[AckListener] = []
         self.watched: list[int] = [0] * n
+        # Set by the leader listener that can also take the Acks it is told of into the table
+        # (the clustering, compiled): taker(now, ack, receivers) records such an Ack and acts
+        # on it in one compiled call, returning how many receivers did not take it (stale).
+        # Used while that listener is the only one: then table.receive and the listener's
+        # call are the same work, done in two calls.
+        self.taker: Callable[[float, Ack, np.ndarray], int] | None = None
         # Set by a protocol whose leaders announce their group's size (the clustering): whose
         # announced size is other than 1, whether links are symmetric, and the numpy rule
         # that sets the size before an Ack. The compiled Ack applies the same rule itself
@@ -316,6 +322,9 @@ class AckBeacon:
             # Nobody to tell (the Ack model alone; most Acks under the clustering): the table
             # is all there is to update.
             self.stale_acks += self.table.take(now, sender, receivers, ack.record)
+            return
+        if tell_leader_listeners and self.taker is not None and not self.listeners and len(self.leader_listeners) == 1:
+            self.stale_acks += self.taker(now, ack, receivers)
             return
         fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.record)
         if stale:

@@ -417,10 +417,14 @@ class Clustering:
         # robots.
         self.kernels = k = load("protocols._kernels", st.n)
         self._effects = k.ack_effects if k is not None else ack_effects
-        self._effects_out = np.empty((5, st.n), dtype=np.int64)  # ack_effects' lists, per Ack
+        # ack_effects' lists, per Ack (row 5: the receivers that took it, for take_told).
+        self._effects_out = np.empty((6, st.n), dtype=np.int64)
+        self._flags = np.empty((3, st.n), dtype=bool)  # take_told's flags, per Ack
         self._group_size = k.group_size if k is not None else group_size
         self._membership = k.membership if k is not None else membership
         beacon.leader_listeners.append(self.on_ack)
+        if k is not None:
+            beacon.taker = self.take_told
         beacon.sized, beacon.sized_symmetric, beacon.size_rule = self._sized, self.symmetric, self._before_ack
 
     def start(self) -> None:
@@ -558,6 +562,38 @@ class Clustering:
             timers.deadline_s, timers.armed_s, renewed_s, out,
             table.id, table.data, now, self.beacon.role_sent, self.leader_since, self.merge_delay_s,
         )  # fmt: skip
+        self._act(now, ack, leads, receivers, hears_me, renewed_s, a, b, c, d)
+
+    def take_told(self, now: float, ack: Ack, receivers: np.ndarray) -> int:
+        """The beacon's table update and :meth:`on_ack` in one compiled call
+        (:func:`protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
+        many receivers did not take the Ack (stale)."""
+        st, timers, out, flags, table = self.roles, self.timers, self._effects_out, self._flags, self.table
+        leads = ack.role == LEADER and not ack.resign
+        renewed_s = now + self.tau_s
+        start = stale = 0
+        while True:
+            start, more, kept, a, b, c, d = self.kernels.receive_effects(
+                table._ids, table._records, table.id.shape[1], now, ack.sender, receivers, ack.record, table.tau_s,
+                flags, start, st.role, st.leader, self.symmetric, leads, timers.deadline_s, timers.armed_s,
+                renewed_s, out, self.beacon.role_sent, self.leader_since, self.merge_delay_s,
+            )  # fmt: skip
+            stale += more
+            if start < 0:
+                break
+            table._grow()
+        if b or c or d or (a and not leads):  # else nothing left to do (most Acks)
+            # Copies: out and flags are the next Ack's.
+            self._act(now, ack, leads, out[5, :kept].copy(), flags[2, :kept].copy(), renewed_s, a, b, c, d)
+        return stale
+
+    def _act(
+        self, now: float, ack: Ack, leads: bool, receivers: np.ndarray, hears_me: np.ndarray, renewed_s: float,
+        a: int, b: int, c: int, d: int,
+    ) -> None:  # fmt: skip
+        """What an Ack does, from :func:`ack_effects`' lists (in ``_effects_out``, counts
+        ``a`` to ``d``) of its fresh ``receivers``."""
+        out = self._effects_out
         if not leads:
             for k in out[0, :a].tolist():
                 r = int(receivers[k])
@@ -567,7 +603,7 @@ class Clustering:
                     self._leader_gone(r, now, "leader_resigned")
             return
         if b:
-            timers.arm(out[1, :b], renewed_s)
+            self.timers.arm(out[1, :b], renewed_s)
         if not (c or d):
             return  # most leaders' Acks: their members' timers renewed, nothing else
         # out is reused: read it now.

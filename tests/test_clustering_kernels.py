@@ -93,6 +93,80 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
 
 
 @pytest.mark.parametrize("symmetric", [False, True])
+def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
+    """An Ack told to the clustering, recorded in the table and acted on in one compiled call
+    (receive_effects), leaves the table, the deadlines and ack_effects' lists (over the
+    receivers that took it) as the two calls do, one after the other; overtaken Acks
+    (stale) and rows that must grow midway included."""
+    from protocols.neighbours import NeighbourTable
+    from tests.test_kernels import _ack_stream
+
+    rng = np.random.default_rng(23)
+    n = 12
+    one, two = NeighbourTable(n, TAU_S, slots=2), NeighbourTable(n, TAU_S, slots=2)
+    one.kernels = kernels  # 12 robots: a table of so few runs numpy otherwise
+    deadline_one, deadline_two = np.full(n, np.inf), np.full(n, np.inf)
+    out_one, out_two = np.full((5, n), -7), np.full((6, n), -7)
+    flags = np.zeros((3, n), dtype=bool)
+    stale_seen = acted = 0
+    for now, sender, receivers, _, record in _ack_stream(rng, n, 300):
+        role = rng.integers(0, 3, n).astype(np.int8)
+        leader = rng.integers(-1, 4, n).astype(np.int64)
+        leads = bool(rng.random() < 0.7)
+        armed_s = rng.choice([np.inf, now + 1.0, now + 5.0], n)
+        role_sent, leader_since = rng.integers(0, 3, n), rng.choice([np.inf, 0.0, now - 0.5], n)
+        fresh, hears_me, stale = one.receive(now, sender, receivers, record)
+        kept = receivers[fresh]
+        counts = kernels.ack_effects(
+            role, leader, kept, hears_me[fresh], symmetric, sender, leads, deadline_one, armed_s, now + TAU_S,
+            out_one, one.id, one.data, now, role_sent, leader_since, 1.0,
+        )  # fmt: skip
+        start = stale_two = 0
+        while True:
+            start, more, kept_two, *counts_two = kernels.receive_effects(
+                two._ids, two._records, two.slots, now, sender, receivers, record, TAU_S, flags, start, role,
+                leader, symmetric, leads, deadline_two, armed_s, now + TAU_S, out_two, role_sent, leader_since, 1.0,
+            )  # fmt: skip
+            stale_two += more
+            if start < 0:
+                break
+            two._grow()
+        assert (stale_two, kept_two, tuple(counts_two)) == (stale, len(kept), counts)
+        assert out_two[5, :kept_two].tolist() == kept.tolist()
+        assert flags[2, :kept_two].tolist() == hears_me[fresh].tolist()
+        for row, k in zip(range(5), [*counts, counts[3]]):
+            assert out_two[row, :k].tolist() == out_one[row, :k].tolist()
+        assert deadline_two.tobytes() == deadline_one.tobytes()
+        assert two.id.tobytes() == one.id.tobytes() and two.data.tobytes() == one.data.tobytes()
+        stale_seen += stale
+        acted += sum(counts) > 0
+    assert stale_seen > 5 and acted > 50 and one.slots > 2
+
+
+def test_clustering_taking_told_acks_in_one_call_runs_as_in_two():
+    """A run where the clustering takes the Acks it is told of into the table and acts on
+    them in one compiled call (the beacon's taker) has the same roles, groups and tables as
+    one where the table takes them and the clustering is told after (the taker unset)."""
+    from tests.fixtures import clustering
+
+    rng = np.random.default_rng(8)
+    positions = rng.uniform(0, 60, (30, 2))
+    runs = []
+    for taker in (True, False):
+        sim, stack = clustering(positions, start=False, core={"range_m": 25.0})
+        assert stack.beacon.taker is not None
+        if not taker:
+            stack.beacon.taker = None
+        stack.start(np.random.default_rng(3).uniform(0, 1, 30))
+        sim.run(until_s=20.0)
+        runs.append(stack)
+    a, b = runs
+    assert a.clustering.roles_frame().equals(b.clustering.roles_frame()) and len(a.clustering.roles_frame()) > 30
+    assert a.groups_frame().equals(b.groups_frame())
+    assert a.beacon.table.data.tobytes() == b.beacon.table.data.tobytes()
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
 def test_compiled_group_size_equals_numpy(symmetric):
     """A leader's group size from its row of the neighbour table is the numpy count."""
     rng = np.random.default_rng(7)
