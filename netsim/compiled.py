@@ -81,8 +81,8 @@ def cores() -> int:
 def side_by_side(first: Callable[[], T], second: Callable[[], U]) -> tuple[T, U]:
     """``(first(), second())``, ``second`` run in a thread of its own meanwhile: for two
     compiled loops that release the GIL (``nogil``), each on its own part of the work, on a
-    machine of two cores or more. An exception in either is raised here, once both are
-    done."""
+    machine of two cores or more (where no thread can be started, one after the other). An
+    exception in either is raised here, once both are done."""
     box: list = []
 
     def run() -> None:
@@ -92,11 +92,16 @@ def side_by_side(first: Callable[[], T], second: Callable[[], U]) -> tuple[T, U]
             box.append(error)
 
     thread = threading.Thread(target=run, name="netsim-side-by-side")
-    thread.start()
     try:
+        thread.start()
+    except RuntimeError:  # no thread to be had (a limit on threads): one after the other
         a = first()
-    finally:
-        thread.join()
+        run()
+    else:
+        try:
+            a = first()
+        finally:
+            thread.join()
     (b,) = box
     if isinstance(b, BaseException):
         raise b

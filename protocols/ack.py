@@ -233,12 +233,13 @@ class AckBeacon:
         # changes anything there; most Acks are neither, and cost no call).
         self.leader_listeners: list[AckListener] = []
         self.watched: list[int] = [0] * n
-        # Set by the leader listener that can also take the Acks it is told of into the table
-        # (the clustering, compiled): taker(now, ack, receivers) records such an Ack and acts
-        # on it in one compiled call, returning how many receivers did not take it (stale).
-        # Used while that listener is the only one: then table.receive and the listener's
-        # call are the same work, done in two calls.
-        self.taker: Callable[[float, Ack, np.ndarray], int] | None = None
+        # Set by a leader listener that can also take the Acks it is told of into the table
+        # (the clustering, compiled): (that listener, taker), taker(now, ack, receivers)
+        # recording such an Ack and acting on it in one compiled call, returning how many
+        # receivers did not take it (stale). Used while that listener is the only one and
+        # the table runs its compiled loops: then table.receive and the listener's call are
+        # the same work, done in two calls.
+        self.taker: tuple[AckListener, Callable[[float, Ack, np.ndarray], int]] | None = None
         # Set by a protocol whose leaders announce their group's size (the clustering): whose
         # announced size is other than 1, whether links are symmetric, and the numpy rule
         # that sets the size before an Ack. The compiled Ack applies the same rule itself
@@ -323,8 +324,9 @@ class AckBeacon:
             # is all there is to update.
             self.stale_acks += self.table.take(now, sender, receivers, ack.record)
             return
-        if tell_leader_listeners and self.taker is not None and not self.listeners and len(self.leader_listeners) == 1:
-            self.stale_acks += self.taker(now, ack, receivers)
+        taker = self.taker
+        if tell_leader_listeners and taker is not None and self._taker_alone(taker[0]):
+            self.stale_acks += taker[1](now, ack, receivers)
             return
         fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.record)
         if stale:
@@ -337,6 +339,11 @@ class AckBeacon:
                 listener(now, ack, receivers, hears_me)
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
+
+    def _taker_alone(self, listener: AckListener) -> bool:
+        """Whether ``listener`` (a taker's) is the only one, and the table's loops compiled."""
+        leaders = self.leader_listeners
+        return not self.listeners and len(leaders) == 1 and leaders[0] is listener and self.table.kernels is not None
 
     def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         return {**ack_figures(frames), "acks_overtaken": int(self.stale_acks)}

@@ -422,9 +422,10 @@ class Clustering:
         self._flags = np.empty((3, st.n), dtype=bool)  # take_told's flags, per Ack
         self._group_size = k.group_size if k is not None else group_size
         self._membership = k.membership if k is not None else membership
-        beacon.leader_listeners.append(self.on_ack)
+        on_ack = self.on_ack  # one bound method: the beacon knows it by identity
+        beacon.leader_listeners.append(on_ack)
         if k is not None:
-            beacon.taker = self.take_told
+            beacon.taker = (on_ack, self.take_told)
         beacon.sized, beacon.sized_symmetric, beacon.size_rule = self._sized, self.symmetric, self._before_ack
 
     def start(self) -> None:

@@ -152,15 +152,20 @@ def test_clustering_taking_told_acks_in_one_call_runs_as_in_two():
     rng = np.random.default_rng(8)
     positions = rng.uniform(0, 60, (30, 2))
     runs = []
-    for taker in (True, False):
+    calls = []
+    for taker in (True, False, "numpy table"):
         sim, stack = clustering(positions, start=False, core={"range_m": 25.0})
-        assert stack.beacon.taker is not None
-        if not taker:
+        listener, take = stack.beacon.taker
+        stack.beacon.taker = (listener, lambda *args, take=take, run=taker: calls.append(run) or take(*args))
+        if taker is False:
             stack.beacon.taker = None
+        if taker == "numpy table":  # the table's numpy loops: no compiled update either
+            stack.beacon.table.kernels = None
         stack.start(np.random.default_rng(3).uniform(0, 1, 30))
         sim.run(until_s=20.0)
         runs.append(stack)
-    a, b = runs
+    assert calls.count(True) > 100 and set(calls) == {True}
+    a, b, _ = runs
     assert a.clustering.roles_frame().equals(b.clustering.roles_frame()) and len(a.clustering.roles_frame()) > 30
     assert a.groups_frame().equals(b.groups_frame())
     assert a.beacon.table.data.tobytes() == b.beacon.table.data.tobytes()
@@ -476,7 +481,11 @@ def test_sample_in_two_halves_equals_one_pass(monkeypatch):
     (_, whole) = _clustering_after(monkeypatch, 12.0, True)
     monkeypatch.setattr(protocols.stack, "SAMPLE_IN_TWO_ROBOTS", 1)
     monkeypatch.setattr(protocols.stack, "cores", lambda: 2)
+    calls = []
+    both = protocols.stack.side_by_side
+    monkeypatch.setattr(protocols.stack, "side_by_side", lambda *fns: calls.append(1) or both(*fns))
     (_, halves) = _clustering_after(monkeypatch, 12.0, True)
+    assert len(calls) == 12  # a sample a second, from 0 s, before 12 s
     for frame in ("groups_frame", "beliefs_frame", "neighbour_beliefs_frame"):
         a, b = getattr(whole, frame)(), getattr(halves, frame)()
         assert a.equals(b) and len(a) > 300, frame
@@ -635,3 +644,20 @@ def test_side_by_side_returns_both_and_raises_either_error():
     with pytest.raises(KeyError):
         side_by_side(lambda: {}["x"], lambda: ended.append("second"))
     assert ended == ["first", "second"]
+
+
+def test_side_by_side_one_after_the_other_without_a_thread(monkeypatch):
+    """Where no thread can be started (a limit on threads), the two calls run one after the
+    other, in the caller's thread: the same results, the same errors."""
+    import threading
+
+    from netsim.compiled import side_by_side
+
+    def refuse(self):
+        raise RuntimeError("can't start new thread")
+
+    monkeypatch.setattr(threading.Thread, "start", refuse)
+    me = threading.get_ident()
+    assert side_by_side(lambda: threading.get_ident(), lambda: threading.get_ident()) == (me, me)
+    with pytest.raises(ValueError):
+        side_by_side(lambda: 1, lambda: int("x"))
