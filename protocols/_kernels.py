@@ -29,7 +29,7 @@ SEQ_SENT, ROLE_SENT, DEGREE_SENT = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, hears_me, start):
+def receive(ids, records, slots, now, sender, receivers, record, tau_s, start, fresh, hears_me):
     """Record an Ack of ``sender`` (its packed ``record``: the fields, then the sorted ids it
     heard) in the rows of ``receivers[start:]`` (:meth:`protocols.neighbours.NeighbourTable.update`).
 
@@ -327,11 +327,11 @@ def ack_effects(
 
 @numba.njit(cache=True, nogil=True)
 def receive_effects(
-    ids, records, slots, now, sender, receivers, record, tau_s, flags, start,
+    ids, records, slots, now, sender, receivers, record, tau_s, start, flags,
     role, leader, symmetric, leads, deadline_s, armed_s, renewed_s, out, role_sent, leader_since, merge_delay_s,
 ):  # fmt: skip
     """:func:`receive` then :func:`ack_effects` in one call: an Ack told to the clustering
-    (:meth:`protocols.clustering.Clustering.take`), recorded in the table (flat ``ids`` and
+    (:meth:`protocols.clustering.Clustering.take_told`), recorded in the table (flat ``ids`` and
     ``records``, as for :func:`receive`; ``flags`` rows 0 and 1: ``fresh`` and
     ``hears_me``) and then acted on by the receivers that took it (written in ``out`` row 5,
     their ``hears_me`` in ``flags`` row 2; ``out`` rows 0 to 4 as :func:`ack_effects`

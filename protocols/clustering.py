@@ -569,20 +569,14 @@ class Clustering:
         """The beacon's table update and :meth:`on_ack` in one compiled call
         (:func:`protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
         many receivers did not take the Ack (stale)."""
-        st, timers, out, flags, table = self.roles, self.timers, self._effects_out, self._flags, self.table
+        st, timers, out, flags = self.roles, self.timers, self._effects_out, self._flags
         leads = ack.role == LEADER and not ack.resign
         renewed_s = now + self.tau_s
-        start = stale = 0
-        while True:
-            start, more, kept, a, b, c, d = self.kernels.receive_effects(
-                table._ids, table._records, table.id.shape[1], now, ack.sender, receivers, ack.record, table.tau_s,
-                flags, start, st.role, st.leader, self.symmetric, leads, timers.deadline_s, timers.armed_s,
-                renewed_s, out, self.beacon.role_sent, self.leader_since, self.merge_delay_s,
-            )  # fmt: skip
-            stale += more
-            if start < 0:
-                break
-            table._grow()
+        stale, (kept, a, b, c, d) = self.table.take_by(
+            self.kernels.receive_effects, now, ack.sender, receivers, ack.record, flags, st.role, st.leader,
+            self.symmetric, leads, timers.deadline_s, timers.armed_s, renewed_s, out, self.beacon.role_sent,
+            self.leader_since, self.merge_delay_s,
+        )  # fmt: skip
         if b or c or d or (a and not leads):  # else nothing left to do (most Acks)
             # Copies: out and flags are the next Ack's.
             self._act(now, ack, leads, out[5, :kept].copy(), flags[2, :kept].copy(), renewed_s, a, b, c, d)

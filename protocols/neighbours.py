@@ -124,15 +124,24 @@ class NeighbourTable:
             return fresh, hears_me, len(fresh) - int(fresh.sum())
         fresh = np.empty(len(receivers), dtype=bool)
         hears_me = np.empty(len(receivers), dtype=bool)
+        stale, _ = self.take_by(k.receive, now, sender, receivers, record, fresh, hears_me)
+        return fresh, hears_me, stale
+
+    def take_by(self, kernel, now: float, sender: int, receivers: np.ndarray, record: np.ndarray, *more) -> tuple:
+        """Record an Ack as :meth:`receive` does, by a compiled ``kernel`` that takes the
+        table's flat arrays as :func:`protocols._kernels.receive` does and may do more with
+        it: ``kernel(ids, records, slots, now, sender, receivers, record, tau_s, start,
+        *more)`` returns ``(k, stale, *results)``, ``k >= 0`` when ``receivers[k]``'s row
+        must grow first (then it is called again from there). Returns the receivers that did
+        not take the Ack (stale) and the last call's ``results``."""
         start, stale = 0, 0
         while True:
-            start, more = k.receive(
-                self._ids, self._records, self.id.shape[1], now, sender, receivers, record,
-                self.tau_s, fresh, hears_me, start,
-            )  # fmt: skip
-            stale += more
+            start, more_stale, *results = kernel(
+                self._ids, self._records, self.id.shape[1], now, sender, receivers, record, self.tau_s, start, *more
+            )
+            stale += more_stale
             if start < 0:
-                return fresh, hears_me, stale
+                return stale, results
             self._grow()
 
     def take(self, now: float, sender: int, receivers: np.ndarray, record: np.ndarray) -> int:
@@ -141,6 +150,7 @@ class NeighbourTable:
         k = self.kernels
         if k is None:
             return self.receive(now, sender, receivers, record)[2]
+        # take_by's loop, written out: the path of most Acks, with no arguments to gather.
         start, stale = 0, 0
         while True:
             start, more = k.take(

@@ -104,7 +104,7 @@ def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
     rng = np.random.default_rng(23)
     n = 12
     one, two = NeighbourTable(n, TAU_S, slots=2), NeighbourTable(n, TAU_S, slots=2)
-    one.kernels = kernels  # 12 robots: a table of so few runs numpy otherwise
+    one.kernels = two.kernels = kernels  # 12 robots: a table of so few runs numpy otherwise
     deadline_one, deadline_two = np.full(n, np.inf), np.full(n, np.inf)
     out_one, out_two = np.full((5, n), -7), np.full((6, n), -7)
     flags = np.zeros((3, n), dtype=bool)
@@ -121,16 +121,10 @@ def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
             role, leader, kept, hears_me[fresh], symmetric, sender, leads, deadline_one, armed_s, now + TAU_S,
             out_one, one.id, one.data, now, role_sent, leader_since, 1.0,
         )  # fmt: skip
-        start = stale_two = 0
-        while True:
-            start, more, kept_two, *counts_two = kernels.receive_effects(
-                two._ids, two._records, two.slots, now, sender, receivers, record, TAU_S, flags, start, role,
-                leader, symmetric, leads, deadline_two, armed_s, now + TAU_S, out_two, role_sent, leader_since, 1.0,
-            )  # fmt: skip
-            stale_two += more
-            if start < 0:
-                break
-            two._grow()
+        stale_two, (kept_two, *counts_two) = two.take_by(
+            kernels.receive_effects, now, sender, receivers, record, flags, role, leader, symmetric, leads,
+            deadline_two, armed_s, now + TAU_S, out_two, role_sent, leader_since, 1.0,
+        )  # fmt: skip
         assert (stale_two, kept_two, tuple(counts_two)) == (stale, len(kept), counts)
         assert out_two[5, :kept_two].tolist() == kept.tolist()
         assert flags[2, :kept_two].tolist() == hears_me[fresh].tolist()
