@@ -37,10 +37,10 @@ from netsim.params import NoParams, Params
 if TYPE_CHECKING:
     import pandas as pd
 
-    from netsim.channel import Channel
     from netsim.control import ControlLoop
     from netsim.events import EventBus
     from netsim.groups import GroupView
+    from netsim.radio.channel import Channel
     from netsim.rng import Streams
     from netsim.state import RobotState
     from netsim.trace import Trace

@@ -10,11 +10,11 @@ from typing import TYPE_CHECKING, Any
 from netsim.errors import ConfigError
 from netsim.events import LINK_EVENTS, EventBus
 from netsim.groups import GroupView
-from netsim.kinetic import RuntimeLinks
+from netsim.links.kinetic import RuntimeLinks
+from netsim.links.shadowed_links import ShadowedLinks
+from netsim.links.walled_links import WalledLinks
 from netsim.plugins import Parts
 from netsim.progress import progress_bar
-from netsim.shadowed_links import ShadowedLinks
-from netsim.walled_links import WalledLinks
 
 if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live graph
     from netsim.live import LiveTopology

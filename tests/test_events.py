@@ -14,14 +14,14 @@ import pytest
 from netsim.config import load
 from netsim.errors import ConfigError
 from netsim.events import EVENT_NAMES, NORMAL, URGENT, EventBus, LinkDown, LinkUp, scheduled_event
-from netsim.lifetimes import link_lifetimes
+from netsim.links.lifetimes import link_lifetimes
+from netsim.links.radio_links import radio_link_lifetimes
+from netsim.links.walled_links import WalledLinks
 from netsim.radio.maps import save_map
-from netsim.radio_links import radio_link_lifetimes
 from netsim.run import build, collect, execute, simulation
 from netsim.state import CAUSES
 from netsim.tools.validate import random_legs
 from netsim.topology import snapshot
-from netsim.walled_links import WalledLinks
 from tests.fixtures import make_config
 
 
