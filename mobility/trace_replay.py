@@ -89,6 +89,22 @@ def _check_count(n: int, params: TraceParams, world) -> None:
         raise ConfigError("world.n_robots", world.n_robots, f"must equal the {n} nodes of {params.trace_file}")
 
 
+def _positions_reached(scen: ns2.Scenario) -> np.ndarray:
+    """Every place where an ns-2 node stops, is put, or changes course, (k, 2): with the
+    start, the corners of its path (legs are straight in between)."""
+    st = RobotState(scen.n_robots, 1.0, 1.0)
+    st.place(scen.initial_m)
+    corners = []
+    for t, i, kind, x, y in scen.events.itertuples(index=False):
+        corners.append(st.positions_at(t, [i])[0])
+        if kind == "velocity":
+            st.set_leg(i, t, (x, y))
+        else:
+            st.set_leg(i, t, (0.0, 0.0), start_m=(x, y))
+            corners.append(np.array([x, y]))
+    return np.array(corners).reshape(-1, 2)
+
+
 def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
     """The motion of ``params.trace_file``, checked against the world's size."""
     fmt = trace_format(params)
@@ -107,38 +123,21 @@ def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
         raise NetsimInputError(f"mobility.trace_file: {exc}") from None
     _check_count(scen.n_robots, params, world)
     if isinstance(scen, ns2.Scenario):
-        _check_area(
-            np.concatenate([scen.initial_m.ravel(), scen.commands[["x_m", "y_m"]].to_numpy().ravel()]), params, world
-        )
+        _check_area(np.concatenate([scen.initial_m.ravel(), _positions_reached(scen).ravel()]), params, world)
     else:
         _check_area(np.concatenate([scen.x_m, scen.y_m]), params, world)
     return scen
 
 
 def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario):
-    """One process walks the commands in time order; arrivals are timed per robot."""
-    generation = np.zeros(st.n, dtype=np.int64)
-
-    def stop_on_arrival(i, gen, dest):
-        def stop(_event):
-            if generation[i] == gen:
-                st.arrive(i, env.now, dest)
-
-        return stop
-
-    for t, i, kind, x, y, speed in scen.commands.itertuples(index=False):
+    """One process applies the events in time order (:class:`netsim.ns2.Scenario`)."""
+    for t, i, kind, x, y in scen.events.itertuples(index=False):
         if t > env.now:
             yield env.timeout(t - env.now)
-        generation[i] += 1
-        if kind == "setdest":
-            dest = np.array([x, y])
-            travel = st.head_to(i, env.now, dest, speed, "trace")
-            if travel > 0:
-                env.timeout(travel).callbacks.append(stop_on_arrival(i, int(generation[i]), dest))
+        if kind == "velocity":
+            st.set_leg(i, env.now, (x, y), cause="trace")
         else:
-            here = st.positions_at(env.now, [i])[0]
-            new = np.array([here[0] if math.isnan(x) else x, here[1] if math.isnan(y) else y])
-            st.set_leg(i, env.now, (0.0, 0.0), start_m=new, cause="jump")
+            st.set_leg(i, env.now, (0.0, 0.0), start_m=(x, y), cause="jump")
 
 
 def follow(env: simpy.Environment, st: RobotState, wp: Waypoints):
