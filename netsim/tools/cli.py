@@ -15,6 +15,9 @@
     coverage scenario (or FILE) into DIR.
 ``netsim view RUN_DIR [--out FILE.html]``
     Write the replay of a run: one self-contained HTML file (default RUN_DIR/view.html).
+``netsim export RUN_DIR --format bonnmotion|ns2|rosbag2 --out PATH``
+    Write a run's motion (and for rosbag2 its links, roles and messages) in a format robot
+    teams' tools read.
 ``netsim config [CONFIG] [--set KEY=VALUE ...]``
     Print the configuration (the built-in default, or CONFIG with the overrides), every
     key with its meaning, the sections of the controllers it names included.
@@ -207,6 +210,14 @@ def cmd_view(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    from netsim.tools.export import export
+
+    out = export(args.run_dir, args.format, args.out)
+    print(f"wrote {out}")
+    return 0
+
+
 def cmd_config(args) -> int:
     config = cfgmod.load(args.config, list(args.set or [])) if args.config or args.set else None
     print(cfgmod.commented_toml(config), end="")
@@ -279,6 +290,12 @@ def parser() -> argparse.ArgumentParser:
     vw.add_argument("run_dir", help="a run's output directory")
     vw.add_argument("--out", help="file to write (default: RUN_DIR/view.html)")
     vw.set_defaults(func=cmd_view)
+
+    x = sub.add_parser("export", help="write a run in the formats robot teams use (BonnMotion, ns-2, ROS 2 bag)")
+    x.add_argument("run_dir", help="a run's output directory")
+    x.add_argument("--format", required=True, help="bonnmotion, ns2 or rosbag2")
+    x.add_argument("--out", required=True, help="file (bonnmotion: NAME.movements[.gz], ns2) or new folder (rosbag2)")
+    x.set_defaults(func=cmd_export)
 
     c = sub.add_parser(
         "config", help="print the configuration (the default, or a file with overrides) with every key explained"
