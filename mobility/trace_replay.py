@@ -39,7 +39,7 @@ def load(params: TraceParams, world) -> ns2.Scenario:
             "world.n_robots", world.n_robots, f"must equal the {scen.n_robots} nodes of {params.trace_file}"
         )
     side = world.side_m
-    xy = np.concatenate([scen.initial_m.ravel(), scen.commands[["x_m", "y_m"]].to_numpy().ravel()])
+    xy = np.concatenate([scen.initial_m.ravel(), scen.commands[["x_m", "y_m"]].to_numpy(float).ravel()])
     xy = xy[~np.isnan(xy)]
     if len(xy) and (xy.min() < 0 or xy.max() > side):
         raise ConfigError(

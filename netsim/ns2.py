@@ -10,10 +10,11 @@
 Semantics (as ns-2 and ns-3's ``Ns2MobilityHelper``): ``setdest X Y S`` at time T makes
 the node leave its current position at T in a straight line toward (X, Y) at S m/s and
 stop on arrival; a later ``setdest`` replaces the current one from wherever the node is.
-``$ns_ at T "$node_(i) set X_ x"`` moves the node to x at T and stops it. ``$god_`` lines
-(setdest's hop counts), ``Z_`` and comments are ignored. The nodes are 0 to the highest id
-the file names; as in ns-3, a coordinate a node is never given (no ``$node_(i) set X_``)
-is 0, and a warning names those nodes.
+``$ns_ at T "$node_(i) set X_ x"`` moves the node to x at T and stops it. A node no
+command names stands where it starts, so a file of starting positions only (no ``$ns_ at``
+line) is a team at rest. ``$god_`` lines (setdest's hop counts), ``Z_`` and comments are
+ignored. The nodes are 0 to the highest id the file names; as in ns-3, a coordinate a node
+is never given (no ``$node_(i) set X_``) is 0, and a warning names those nodes.
 """
 
 from __future__ import annotations
@@ -35,6 +36,17 @@ _SETDEST = re.compile(
     r"^\$ns_\s+at\s+" + _NUM + r'\s+"\$node_\((\d+)\)\s+setdest\s+' + _NUM + r"\s+" + _NUM + r"\s+" + _NUM + r'\s*"\s*$'
 )
 _SETPOS = re.compile(r"^\$ns_\s+at\s+" + _NUM + r'\s+"\$node_\((\d+)\)\s+set\s+([XYZ])_\s+' + _NUM + r'\s*"\s*$')
+
+
+_COMMAND_DTYPES = {
+    "t_s": "float64",
+    "robot": "int64",
+    "kind": "object",
+    "x_m": "float64",
+    "y_m": "float64",
+    "speed_mps": "float64",
+    "line": "int64",
+}
 
 
 @dataclass(frozen=True)
@@ -124,7 +136,9 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
             rows.append((t, node_id(m[2], lineno), "set", x, y, 0.0, lineno))
         else:
             raise NetsimInputError(f"{path}:{lineno}: not an ns-2 movement command: {line!r}")
-    commands = pd.DataFrame(rows, columns=["t_s", "robot", "kind", "x_m", "y_m", "speed_mps", "line"])
+    # Typed columns: a file of starting positions only has no commands, and an empty
+    # table must still hold numbers (its robots stand still, as in ns-3).
+    commands = pd.DataFrame(rows, columns=list(_COMMAND_DTYPES)).astype(_COMMAND_DTYPES)
     ids = list(initial) + commands["robot"].tolist()
     if not ids:
         raise NetsimInputError(f'{path}: no nodes ($node_(i) set X_ ... or $ns_ at T "$node_(i) ...")')
