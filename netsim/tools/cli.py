@@ -115,14 +115,18 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
-def check_out_file(path: Path, option: str) -> None:
+def check_out_file(path: Path, option: str, make_parents: bool = False) -> None:
     """Refuse, before any work, a file that could not be written: its directory must exist
-    and be writable, and the path must not be a directory."""
+    and be writable, and the path must not be a directory. With ``make_parents`` the
+    directory may be missing, to be made by the writer: then its nearest existing ancestor
+    must be a writable directory."""
     import tempfile
 
     if path.is_dir():
         raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
     parent = path.parent
+    while make_parents and not parent.exists() and not parent.is_symlink() and parent != parent.parent:
+        parent = parent.parent
     if not parent.is_dir():
         what = "is a file" if parent.exists() else "does not exist"
         raise NetsimInputError(f"{option} {path}: the directory {parent} {what}")
@@ -202,6 +206,10 @@ def cmd_figures(args) -> int:
 def cmd_view(args) -> int:
     from netsim.tools import viewer
 
+    if args.out is not None:
+        check_out_file(Path(args.out), "--out", make_parents=True)
+    elif Path(args.run_dir).is_dir():
+        check_out_file(Path(args.run_dir) / "view.html", "the replay")
     path = viewer.write(args.run_dir, args.out)
     print(f"wrote {path} ({path.stat().st_size / 2**20:.2f} MiB): open it in a browser")
     return 0
