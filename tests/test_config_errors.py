@@ -148,6 +148,21 @@ def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("command", ["run", "figures", "config"])
+def test_set_with_a_space_for_the_equals_sign_gives_the_meant_form(tmp_path, capsys, monkeypatch, command):
+    """`--set KEY VALUE` (a space, not `=`) leaves VALUE as the command's file argument:
+    the one-line error says `--set takes KEY=VALUE` and spells what was meant, exit 2,
+    nothing written."""
+    monkeypatch.chdir(tmp_path)
+    code = main([command, "--set", "world.n_robots", "100"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0] == (
+        "netsim: error: --set world.n_robots 100: --set takes KEY=VALUE; did you mean --set world.n_robots=100?"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_cli_malformed_files(tmp_path, capsys):
     bad_toml = tmp_path / "bad.toml"
     bad_toml.write_text("[world\nn_robots = 3")

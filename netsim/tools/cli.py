@@ -55,10 +55,22 @@ def summary_table(summary: dict) -> str:
     return "\n".join(f"  {k:<{width}}  {_format_value(v)}" for k, v in summary.items())
 
 
+def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None:
+    """``--set KEY VALUE`` (a space for the ``=``) leaves VALUE to be read as the command's
+    file or directory argument: when that names nothing, say what was meant."""
+    bare = [o for o in overrides or [] if "=" not in o]
+    if bare and positional is not None and not Path(positional).exists():
+        key = bare[-1]
+        raise NetsimInputError(
+            f"--set {key} {positional}: --set takes KEY=VALUE; did you mean --set {key}={positional}?"
+        )
+
+
 def cmd_run(args) -> int:
     from netsim.run import execute
     from netsim.tools.output import RunWriter, claim_dir, manifest
 
+    check_set_pairs(args.set, args.config)
     overrides = list(args.set or [])
     if args.seed is not None:
         overrides.append(f"seed={args.seed}")
@@ -176,6 +188,7 @@ def cmd_figures(args) -> int:
     from netsim.tools import figures
     from netsim.tools.output import claim_dir, is_run_dir, manifest, write_run
 
+    check_set_pairs(args.set, args.run_dir)
     if args.run_dir:
         if args.config or args.set:
             raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
@@ -216,6 +229,7 @@ def cmd_view(args) -> int:
 
 
 def cmd_config(args) -> int:
+    check_set_pairs(args.set, args.config)
     config = cfgmod.load(args.config, list(args.set or [])) if args.config or args.set else None
     print(cfgmod.commented_toml(config), end="")
     return 0
