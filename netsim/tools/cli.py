@@ -28,13 +28,14 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import sys
 import warnings
 from pathlib import Path
 
 from netsim import config as cfgmod
 from netsim import ns2
-from netsim.errors import NetsimInputError
+from netsim.errors import ConfigError, NetsimInputError
 from netsim.gcpause import own_process
 
 EXIT_INPUT = 2
@@ -91,6 +92,38 @@ def cmd_run(args) -> int:
     return 0
 
 
+# The configuration keys `netsim scenario generate` sets, by the flag that sets each.
+GENERATE_FLAGS = {
+    "world.n_robots": "--n",
+    "world.side_m": "--side",
+    "mobility.speed_min_mps": "--speed-min",
+    "mobility.speed_max_mps": "--speed-max",
+    "mobility.pause_s": "--pause",
+    "mobility.stationary_start": "--no-stationary-start",
+    "duration_s": "--duration",
+    "seed": "--seed",
+}
+
+
+def _flags_in(text: str) -> str:
+    """``text`` with the configuration keys `scenario generate` sets named by their flags."""
+    text = re.sub(r"(?:mobility\.)?stationary_start = false", "--no-stationary-start", text)
+    text = re.sub(r"with (?:mobility\.)?stationary_start = true", "without --no-stationary-start", text)
+    for key, flag in GENERATE_FLAGS.items():
+        if key != "seed":  # "seed" is also a word of the rules' prose
+            text = re.sub(rf"(?<![\w.]){re.escape(key)}(?![\w.])", flag, text)
+    return text
+
+
+def _in_flags(exc: ConfigError) -> NetsimInputError:
+    """A configuration error of `scenario generate` told in the flags the user typed."""
+    flag = GENERATE_FLAGS.get(exc.key)
+    if flag is None:
+        return exc
+    value = not exc.value if flag == "--no-stationary-start" else exc.value
+    return NetsimInputError(f"{flag} {value!r}: {_flags_in(exc.allowed)}")
+
+
 def cmd_scenario_generate(args) -> int:
     from netsim.run import build
 
@@ -107,10 +140,16 @@ def cmd_scenario_generate(args) -> int:
         },
         "protocol": {"model": "none"},
     }
-    config = cfgmod.from_dict(tree)
     out = Path(args.output)
-    check_out_file(out, "-o")
-    sim = build(config)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            config = cfgmod.from_dict(tree)
+            check_out_file(out, "-o")
+            sim = build(config)
+    except ConfigError as exc:
+        raise _in_flags(exc) from None
+    for w in caught:
+        warnings.warn(_flags_in(str(w.message)), w.category, stacklevel=1)
     sim.run()
     header = (
         f"netsim scenario generate: random waypoint, nodes: {args.n}, side: {args.side} m, "
