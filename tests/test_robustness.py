@@ -274,6 +274,26 @@ def test_bad_sweep_axis_value_writes_nothing(tmp_path, capfd, monkeypatch):
     assert not (tmp_path / "sweep-out").exists()
 
 
+def test_a_scenario_file_given_as_a_sweep_says_where_its_keys_go(tmp_path, capfd, monkeypatch):
+    """`netsim sweep scenario.toml`: the one-line error lists the unknown keys and says that
+    a sweep file puts the scenario under [base] (or base_file) and the axes under [grid]
+    or [random]; nothing written."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scenario.toml").write_text("duration_s = 30.0\n[world]\nn_robots = 5\n")
+    before = tree(tmp_path)
+    line = refused(capfd, main(["sweep", "scenario.toml"]), before, tmp_path, "unknown key(s) ['duration_s', 'world']")
+    assert "under [base]" in line and "base_file" in line and "[grid] or [random]" in line
+
+
+def test_an_unknown_key_that_is_not_a_scenario_key_gets_no_base_hint(tmp_path, capfd, monkeypatch):
+    """The [base] hint is for scenario keys only: a plain typo is listed without it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text('nmae = "typo"\n' + SWEEP)
+    before = tree(tmp_path)
+    line = refused(capfd, main(["sweep", "s.toml"]), before, tmp_path, "unknown key(s) ['nmae']")
+    assert "[base]" not in line
+
+
 def test_sweep_refuses_a_directory_that_holds_something_else(tmp_path, capfd):
     (tmp_path / "s.toml").write_text(SWEEP)
     (tmp_path / "out").mkdir()
