@@ -331,7 +331,11 @@ def parser() -> argparse.ArgumentParser:
     f.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     f.add_argument("--out", help="where to write (default: RUN_DIR, or ./netsim-figures)")
     f.add_argument(
-        "--at", type=float, metavar="T", help="time of the deployment figure, Fig. 6, s (default: when control starts)"
+        "--at",
+        type=float,
+        metavar="T",
+        help="time of the deployment figure, Fig. 6, s (default: when coverage control starts; without coverage, "
+        "the first sample with every robot in a group)",
     )
     f.add_argument("--no-progress", action="store_true", help="no progress bar")
     f.set_defaults(func=cmd_figures)
