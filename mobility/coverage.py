@@ -469,7 +469,8 @@ class CoverageController:
     # -- outputs -----------------------------------------------------------------------
     def coverage_frame(self) -> pd.DataFrame:
         # The last sample at the run's end T, once the run has reached it: the sampler's
-        # own event due at T is never processed (events due exactly at the end are not).
+        # next event is due at T or after, and never processed (events due exactly at the
+        # end are not).
         # The sum of many intervals may fall a rounding error short of T: that sample is it.
         end = self.duration_s
         if self.env.now >= end and not (self.samples and self.samples[-1]["t_s"] >= end - 1e-9 * max(1.0, end)):

@@ -466,8 +466,8 @@ class Stack:
 
     def _sample_at_end(self) -> None:
         """The last sample of the sampled tables, at the run's end ``T``, once the run has
-        reached it, so that they end where the run does: the sampler's own event due at
-        ``T`` is never processed (events due exactly at the end are not, SimPy's
+        reached it, so that they end where the run does: the sampler's next event is due at
+        ``T`` or after, and never processed (events due exactly at the end are not, SimPy's
         convention). It sees what every event before ``T`` made."""
         end = self.duration_s
         if self.env.now >= end and not ended_at(self._groups.times, end):
