@@ -1166,3 +1166,17 @@ def test_a_unicast_under_shadowing_decides_its_own_link_alone(runtime_links):
     links = collect(sim)["links"]
     rows = sorted(zip(links["a"], links["b"], links["t_up_s"], links["t_down_s"]))
     assert rows == [(0, 1, 1.0, 4.0), (0, 2, 1.0, 4.0)]
+
+
+def test_snapshot_nodes_carry_role_and_leader_only_with_groups():
+    """`snapshot(state, t)` gives nodes with `pos` only; `snapshot(state, t, groups=sim.groups)`
+    adds each robot's `role` label and `leader`, the protocol's current values."""
+    sim = build(load(None, ["world.n_robots=12", "duration_s=10", "world.side_m=200", "channel.range_m=80"]))
+    sim.run()
+    bare = snapshot(sim.state, sim.now)
+    assert all(set(attrs) == {"pos"} for _, attrs in bare.nodes(data=True))
+    full = snapshot(sim.state, sim.now, groups=sim.groups)
+    for i, attrs in full.nodes(data=True):
+        assert set(attrs) == {"pos", "role", "leader"}
+        assert attrs["role"] == sim.groups.role_names[sim.groups.role[i]] and attrs["leader"] == sim.groups.leader[i]
+    assert {attrs["role"] for _, attrs in full.nodes(data=True)} & {"alpha", "beta"}

@@ -202,3 +202,22 @@ def test_trace_node_count_must_match(tmp_path, capsys):
         ]
     )
     assert code == 2 and "world.n_robots = 3" in capsys.readouterr().err
+
+
+def test_a_file_of_starting_positions_only_gives_robots_that_stand_still(tmp_path):
+    """As ns-3's Ns2MobilityHelper: a file with `$node_(i) set X_ / Y_` lines and no
+    `$ns_ at` line places the robots, which then stand still for the whole run."""
+    f = tmp_path / "start.tcl"
+    f.write_text("$node_(0) set X_ 10.0\n$node_(0) set Y_ 20.0\n$node_(1) set X_ 30.5\n$node_(1) set Y_ 40.0\n")
+    scen = ns2.read(f)
+    assert scen.commands.empty
+    cfg = make_config(
+        duration_s=20.0,
+        world={"n_robots": 2, "side_m": 100.0},
+        mobility={"model": "trace", "trace_file": str(f)},
+        protocol={"model": "none"},
+    )
+    sim = build(cfg)
+    sim.run()
+    pos = sample_positions(sim.state.legs(), 2, [0.0, 7.5, 19.9])[["x_m", "y_m"]].to_numpy().reshape(3, 2, 2)
+    assert (pos == [[10.0, 20.0], [30.5, 40.0]]).all()
