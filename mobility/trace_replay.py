@@ -97,7 +97,7 @@ def _positions_reached(scen: ns2.Scenario) -> np.ndarray:
     corners = []
     for t, i, kind, x, y in scen.events.itertuples(index=False):
         corners.append(st.positions_at(t, [i])[0])
-        if kind == "velocity":
+        if kind != "position":
             st.set_leg(i, t, (x, y))
         else:
             st.set_leg(i, t, (0.0, 0.0), start_m=(x, y))
@@ -136,6 +136,8 @@ def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario):
             yield env.timeout(t - env.now)
         if kind == "velocity":
             st.set_leg(i, env.now, (x, y), cause="trace")
+        elif kind == "stop":
+            st.set_leg(i, env.now, (0.0, 0.0), cause="waypoint")
         else:
             st.set_leg(i, env.now, (0.0, 0.0), start_m=(x, y), cause="jump")
 

@@ -61,8 +61,9 @@ class Scenario:
     nodes' motion, in the order they happen.
 
     ``events`` has columns ``t_s, robot, kind, x_m, y_m``: ``kind`` is ``"velocity"`` (from
-    ``t_s`` on the node moves at ``(x_m, y_m)`` m/s from where it is) or ``"position"`` (the
-    node is put at ``(x_m, y_m)`` and stops).
+    ``t_s`` on the node moves at ``(x_m, y_m)`` m/s from where it is), ``"stop"`` (it
+    arrives where its ``setdest`` was heading, and stops) or ``"position"`` (the node is
+    put at ``(x_m, y_m)`` and stops).
     """
 
     initial_m: np.ndarray
@@ -243,7 +244,7 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
                     v = np.array([(x - new.final[0]) / travel, (y - new.final[1]) / travel])
                     new.velocity = v
                     schedule(t, i, "velocity", v)
-                    new.stop_event = schedule(t + travel, i, "velocity", (0.0, 0.0))
+                    new.stop_event = schedule(t + travel, i, "stop", (0.0, 0.0))
                     new.final = new.final + v * travel
                     new.arrival_s = t + travel
             heading[i] = new

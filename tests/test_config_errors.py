@@ -197,7 +197,7 @@ def test_cli_malformed_files(tmp_path, capsys):
     assert code == 2 and "not valid TOML" in err
 
     trace = tmp_path / "t.tcl"
-    trace.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\nthis is not ns-2\n")
+    trace.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\n$node_(0) set X_ nan\n")
     code, err = _cli(
         tmp_path,
         capsys,
