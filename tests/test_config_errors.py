@@ -52,7 +52,7 @@ def test_config_file_values_and_overrides(tmp_path):
 def test_a_rule_across_sections_is_checked_when_the_configuration_is_loaded():
     # Random waypoint's stationary start draws positions itself: refused before any run.
     with pytest.raises(ConfigError, match="world.placement"):
-        cfgmod.load(None, ["world.placement=grid"])
+        cfgmod.load(None, ["world.placement=grid", "mobility.stationary_start=true"])
 
 
 def test_resolved_config_round_trips():
@@ -233,7 +233,7 @@ def test_cli_malformed_placement_file(tmp_path, capsys, rows, words):
 
 
 def test_placement_conflicting_with_stationary_start(tmp_path, capsys):
-    code, err = _cli(tmp_path, capsys, "--set", "world.placement=grid")
+    code, err = _cli(tmp_path, capsys, "--set", "world.placement=grid", "--set", "mobility.stationary_start=true")
     assert code == 2 and "stationary_start" in err
 
 
