@@ -160,6 +160,31 @@ class RobotState:
         self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy, cause))
         self._changed(i, t, start_m is not None, cause)
 
+    def set_legs(self, idx: np.ndarray, t: float, velocities_mps: np.ndarray, cause: str = "command") -> None:
+        """Robots ``idx`` (distinct) each start a new straight leg at ``t`` from where they
+        are, with the rows of ``velocities_mps``: what :meth:`set_leg` does for each, in
+        order, computed for all at once."""
+        idx = np.asarray(idx, dtype=np.int64)
+        v = np.asarray(velocities_mps, dtype=float).reshape(len(idx), 2)
+        dt = t - self.t0_s[idx]
+        old = self.velocity_mps[idx]
+        start = self.origin_m[idx] + old * dt[:, None]
+        moving = (old != 0).any(axis=1)
+        if moving.any():
+            self.odometer_m[idx[moving]] += np.hypot(old[moving, 0], old[moving, 1]) * dt[moving]
+        self.origin_m[idx] = start
+        self.velocity_mps[idx] = v
+        self.t0_s[idx] = t
+        rows = v.tolist()
+        speed = max((vx * vx + vy * vy) ** 0.5 for vx, vy in rows) if rows else 0.0
+        if speed > self.speed_high_water_mps:
+            self.speed_high_water_mps = speed
+        t = float(t)
+        legs = self._legs
+        for i, (x, y), (vx, vy) in zip(idx.tolist(), start.tolist(), rows):
+            legs.append((t, i, x, y, vx, vy, cause))
+            self._changed(i, t, False, cause)
+
     def head_to(
         self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, speed_mps: float, cause: str = "command"
     ) -> float:
