@@ -120,6 +120,7 @@ def time_to_border(p: np.ndarray, v: np.ndarray, side_m: float) -> np.ndarray:
     >>> time_to_border(np.array([[1.0, 5.0]]), np.array([[-0.5, 0.0]]), 10.0).tolist()
     [2.0]
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(v > 0, (side_m - p) / v, np.where(v < 0, -p / v, math.inf))
+    t = np.full(p.shape, math.inf)
+    np.divide(side_m - p, v, out=t, where=v > 0)
+    np.divide(-p, v, out=t, where=v < 0)
     return np.maximum(t.min(axis=1), 0.0)

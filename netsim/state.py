@@ -180,10 +180,17 @@ class RobotState:
         if speed > self.speed_high_water_mps:
             self.speed_high_water_mps = speed
         t = float(t)
-        legs = self._legs
-        for i, (x, y), (vx, vy) in zip(idx.tolist(), start.tolist(), rows):
-            legs.append((t, i, x, y, vx, vy, cause))
-            self._changed(i, t, False, cause)
+        new = [(t, i, x, y, vx, vy, cause) for i, (x, y), (vx, vy) in zip(idx.tolist(), start.tolist(), rows)]
+        self._legs.extend(new)
+        ev = self.events
+        tell = ev is not None and ev.wants("course_change")
+        if self.watchers or tell:
+            for leg in new:
+                for w in self.watchers:
+                    w(leg[1], t, False)
+                if tell:
+                    assert ev is not None
+                    ev.emit("course_change", CourseChange(*leg))
 
     def head_to(
         self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, speed_mps: float, cause: str = "command"
