@@ -1,6 +1,7 @@
 """Imports flow one way: netsim imports no project package; protocols and mobility never
 import each other; nothing imports experiments; the engine core (``netsim/`` apart from
-``netsim/tools/``) never imports the tools built on it."""
+``netsim/tools/`` and the environments of ``netsim/envs/``) never imports the tools and
+environments built on it."""
 
 import ast
 from pathlib import Path
@@ -36,11 +37,14 @@ def test_imports_flow_one_way(package):
 
 
 def core_files() -> list[Path]:
-    return [f for f in (ROOT / "netsim").rglob("*.py") if "tools" not in f.relative_to(ROOT / "netsim").parts]
+    built_on = {"tools", "envs"}
+    return [f for f in (ROOT / "netsim").rglob("*.py") if not built_on & set(f.relative_to(ROOT / "netsim").parts)]
 
 
 def test_the_core_never_imports_the_tools():
     files = core_files()
     assert len(files) > 10
-    bad = [(f.relative_to(ROOT), m) for f in files for m in _modules(f) if m.startswith("netsim.tools")]
+    bad = [
+        (f.relative_to(ROOT), m) for f in files for m in _modules(f) if m.startswith(("netsim.tools", "netsim.envs"))
+    ]
     assert bad == []
