@@ -219,3 +219,39 @@ def test_covered_fraction_grid_is_the_search_trees():
 
     pos = np.random.default_rng(1).uniform(0.0, 100.0, (12, 2))
     assert measure.covered_fraction_grid(pos, 9.0, 100.0, 80) == covered_fraction(pos, 9.0, 100.0, 80)[0]
+
+
+@pytest.mark.slow
+def test_learn_coverage_example_runs_and_writes_csv_and_png(tmp_path):
+    """experiments/learn_coverage.py runs both policies, prints the covered fraction of the
+    bound each reaches, and writes its CSV and PNG."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pandas as pd
+
+    script = Path(__file__).resolve().parents[1] / "experiments" / "learn_coverage.py"
+    args = ["--n", "6", "--cycles", "6", "--episodes", "1", "--out", str(tmp_path)]
+    run = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "covered_of_bound" in run.stdout and "forces" in run.stdout and "random" in run.stdout
+    table = pd.read_csv(tmp_path / "learn_coverage.csv")
+    assert sorted(table["policy"]) == ["forces", "random"]
+    assert (table["covered_of_bound"] > 0).all()
+    assert (tmp_path / "learn_coverage.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("args", [["--episodes", "0"], ["--n", "0"]])
+def test_learn_coverage_bad_input_is_one_line_exit_2_nothing_written(tmp_path, args):
+    """A bad option of the example: exit status 2, one line on stderr, nothing written."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "experiments" / "learn_coverage.py"
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, str(script), *args, "--out", str(out)], capture_output=True, text=True)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert args[1] in run.stderr
+    assert not out.exists()

@@ -29,7 +29,7 @@ def frame(sim: Simulation, radius_m: float, range_m: float, covered: float, size
     snap = Snapshot(sim.now, pos, role, leader, np.full(n, -1))
     dpi = 100
     fig = Figure(figsize=(size_px / dpi, size_px / dpi), dpi=dpi)
-    ax = fig.add_axes((0.08, 0.08, 0.9, 0.86))
+    ax = fig.add_axes((0.13, 0.1, 0.84, 0.84))
     draw_deployment(ax, snap, colours, range_m, disks_m=radius_m)
     ax.plot([0, side, side, 0, 0], [0, 0, side, side, 0], color=style.BORDER, lw=0.8, zorder=0)
     margin = 0.02 * side
