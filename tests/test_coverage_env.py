@@ -255,3 +255,13 @@ def test_learn_coverage_bad_input_is_one_line_exit_2_nothing_written(tmp_path, a
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
     assert args[1] in run.stderr
     assert not out.exists()
+
+
+def test_extra_configuration_reaches_the_runs_and_is_checked_at_once():
+    """``netsim`` adds keys to every episode's configuration; a bad one is a ConfigError
+    when the environment is made."""
+    env = coverage_v0.parallel_env(**SMALL, netsim={"channel": {"loss_model": "bernoulli", "loss_probability": 0.25}})
+    env.reset(seed=0)
+    assert env.sim.config.channel.loss_probability == 0.25
+    with pytest.raises(ConfigError, match="channel.loss_probabilty"):
+        coverage_v0.parallel_env(**SMALL, netsim={"channel": {"loss_probabilty": 0.25}})

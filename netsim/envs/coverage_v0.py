@@ -101,6 +101,7 @@ class CoverageEnv(ParallelEnv):
         # The compiled twins of the measures (netsim.envs._kernels) from
         # netsim.compiled.SMALL_RUN_ROBOTS robots on, as the runs' own loops.
         self._measures: Any = load("netsim.envs._kernels", p.n_robots) or measure
+        self._config(self._seed)  # a bad key of ``netsim`` is refused now, not at the first reset
 
     # -- spaces: one object per agent for the whole life of the environment ---------------
 
