@@ -97,20 +97,23 @@ def test_observation_holds_neighbours_as_their_acks_told_them():
 def test_reward_is_the_coverage_gain_less_the_component_penalty():
     """reward = C(t) - C(t - step) - penalty x (components of the true network - 1), the
     same for every agent, from the team's positions."""
-    params = {**SMALL, "component_penalty": 0.05, "max_cycles": 8}
+    params = {**SMALL, "placement": "uniform", "component_penalty": 0.05, "max_cycles": 8}
     env = coverage_v0.parallel_env(**params)
     _, infos = env.reset(seed=11)
     before = infos["robot_0"]["positions_m"]
     radius, side = params["range_m"], params["side_m"]
+    split = 0
     for _, rewards, _, _, infos in steps(env, np.random.default_rng(3), 8):
         pos = infos["robot_0"]["positions_m"]
         gain = measure.covered_fraction_grid(pos, radius, side, 100) - measure.covered_fraction_grid(
             before, radius, side, 100
         )
         parts = measure.component_count(pos, params["range_m"])
+        split += parts > 1
         assert len(set(rewards.values())) == 1
         assert rewards["robot_0"] == pytest.approx(gain - 0.05 * (parts - 1), abs=1e-12)
         before = pos
+    assert split  # the penalty was at stake
 
 
 def test_episode_is_truncated_after_max_cycles():

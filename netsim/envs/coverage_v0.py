@@ -78,6 +78,7 @@ class CoverageEnv(ParallelEnv):
         self.netsim = dict(netsim or {})
         self.possible_agents = [f"robot_{i}" for i in range(p.n_robots)]
         self.agents: list[str] = []
+        self._live: set[str] = set()
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
         self.radius_m = p.radius_m or p.range_m
         self.role_names: tuple[str, ...] = ("gamma", "beta", "alpha")
@@ -144,6 +145,7 @@ class CoverageEnv(ParallelEnv):
         if self.sim.groups is not None:
             self.role_names = tuple(self.sim.groups.role_names)
         self.agents = list(self.possible_agents)
+        self._live = set(self.agents)
         self.cycles = 0
         pos = self.sim.positions()
         self.covered = float(self._measures.covered_fraction_grid(pos, self.radius_m, p.side_m, p.grid_cells))
@@ -174,18 +176,17 @@ class CoverageEnv(ParallelEnv):
         truncations = dict.fromkeys(agents, done)
         if done:
             self.agents = []
+            self._live = set()
         return obs, rewards, terminations, truncations, infos
 
     def _checked(self, actions: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         """The robots and velocities of ``actions``, all checked before any is applied."""
-        index, live = self._index, self.agents
-        robots = [index.get(agent, -1) for agent in actions]
-        if len(actions) != len(live) and any(a not in live for a in actions):
+        live = self._live
+        if not live.issuperset(actions):
             agent = next(a for a in actions if a not in live)
             raise CommandError(f"action for {agent!r}: no such agent in this episode ({len(live)} agents)")
-        if min(robots, default=0) < 0:
-            agent = next(a for a in actions if a not in index)
-            raise CommandError(f"action for {agent!r}: no such agent in this episode ({len(live)} agents)")
+        index = self._index
+        robots = [index[agent] for agent in actions]
         try:
             v = np.array(list(actions.values()), dtype=float)
         except (TypeError, ValueError):
