@@ -166,12 +166,19 @@ class Simulation:
         """Advance to ``until_s`` (default: the configured duration).
 
         Events due exactly at ``until_s`` are not processed (SimPy's convention); every
-        output is computed for the interval ``[0, until_s]`` from exact trajectories.
+        output is computed for the interval ``[0, until_s]`` from exact trajectories. With
+        ``progress``, the advance is made in ``steps`` parts, each reported.
         """
         if not self.events.started:
             self._begin()
         until = self.duration_s if until_s is None else float(until_s)
         start = self.env.now
+        if not progress:
+            # In one call: the kernel's run costs a stop event and a return per call, which
+            # for a short advance (a co-simulation's step) is most of its cost.
+            if until > start:
+                self.env.run(until=until)
+            return
         with progress_bar(
             round(until - start, 6),
             "netsim run",
