@@ -227,3 +227,19 @@ def test_same_seed_and_calls_give_the_same_outputs(tmp_path):
     for name in fa:
         pd.testing.assert_frame_equal(fa[name], fb[name], check_exact=True, obj=name)
     assert [a.inbox(i) for i in range(12)] == [b.inbox(i) for i in range(12)]
+
+
+@pytest.mark.slow
+def test_docs_examples_run_and_print_what_they_say(tmp_path, monkeypatch, capsys):
+    """The Python examples of docs/cosim.md run, and print what their comments say."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "cosim.md").read_text()
+    monkeypatch.chdir(tmp_path)
+    for block in re.findall(r"```python\n(.*?)```", text, re.S):
+        exec(compile(block, "docs/cosim.md", "exec"), {})
+    out = capsys.readouterr().out
+    assert "[1 4 5 6 7 8 9]" in out
+    assert "Arrival(t_s=5.002" in out and "payload={'task': 'survey'}" in out
+    assert "LinkDown(t_s=10.106" in out
