@@ -44,7 +44,8 @@ class ExternalDriver:
         self._token = 0  # the pending wake-up's number: an older one is void
 
     def drive(self, robots: np.ndarray, velocities_mps: np.ndarray, now: float) -> None:
-        new = (velocities_mps != self.wished_mps[robots]).any(axis=1)
+        wished = self.wished_mps[robots]
+        new = (velocities_mps[:, 0] != wished[:, 0]) | (velocities_mps[:, 1] != wished[:, 1])
         if not new.all():
             robots, velocities_mps = robots[new], velocities_mps[new]
         if len(robots) == 0:
@@ -72,9 +73,8 @@ class ExternalDriver:
         # On the border (or against a wall) and heading out: it stays where it is.
         stuck = t_stop <= 0.0
         if stuck.any():
-            go = ~stuck
-            st.set_legs(robots[go], now, v[go])
-            st.set_legs(robots[stuck], now, np.zeros((int(stuck.sum()), 2)), cause="border")
+            v = np.where(stuck[:, None], 0.0, v)
+            st.set_legs(robots, now, v, cause=np.where(stuck, "border", "command").tolist())
         else:
             st.set_legs(robots, now, v)
         self.stop_s[robots] = np.where(stuck, np.inf, now + t_stop)

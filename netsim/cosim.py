@@ -91,7 +91,7 @@ def robot_ids(robots: Any, n: int) -> np.ndarray:
     bad = (ids < 0) | (ids >= n)
     if bad.any():
         raise CommandError(f"robots: {int(ids[bad][0])} is no robot; ids are 0 to {n - 1}")
-    if len(np.unique(ids)) != len(ids):
+    if len(ids) > 1 and np.bincount(ids, minlength=n).max() > 1:
         raise CommandError(f"robots = {ids.tolist()}: each robot may be named once")
     return ids
 

@@ -160,27 +160,33 @@ class RobotState:
         self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy, cause))
         self._changed(i, t, start_m is not None, cause)
 
-    def set_legs(self, idx: np.ndarray, t: float, velocities_mps: np.ndarray, cause: str = "command") -> None:
+    def set_legs(
+        self, idx: np.ndarray, t: float, velocities_mps: np.ndarray, cause: str | Sequence[str] = "command"
+    ) -> None:
         """Robots ``idx`` (distinct) each start a new straight leg at ``t`` from where they
         are, with the rows of ``velocities_mps``: what :meth:`set_leg` does for each, in
-        order, computed for all at once."""
+        order, computed for all at once. ``cause``: one for all, or one per robot."""
         idx = np.asarray(idx, dtype=np.int64)
         v = np.asarray(velocities_mps, dtype=float).reshape(len(idx), 2)
+        if len(idx) == 0:
+            return
         dt = t - self.t0_s[idx]
         old = self.velocity_mps[idx]
         start = self.origin_m[idx] + old * dt[:, None]
-        moving = (old != 0).any(axis=1)
+        moving = (old[:, 0] != 0) | (old[:, 1] != 0)
         if moving.any():
             self.odometer_m[idx[moving]] += np.hypot(old[moving, 0], old[moving, 1]) * dt[moving]
         self.origin_m[idx] = start
         self.velocity_mps[idx] = v
         self.t0_s[idx] = t
-        rows = v.tolist()
-        speed = max((vx * vx + vy * vy) ** 0.5 for vx, vy in rows) if rows else 0.0
+        speed = float(np.sqrt(np.max(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])))
         if speed > self.speed_high_water_mps:
             self.speed_high_water_mps = speed
         t = float(t)
-        new = [(t, i, x, y, vx, vy, cause) for i, (x, y), (vx, vy) in zip(idx.tolist(), start.tolist(), rows)]
+        causes = [cause] * len(idx) if isinstance(cause, str) else list(cause)
+        new = [
+            (t, i, x, y, vx, vy, c) for i, (x, y), (vx, vy), c in zip(idx.tolist(), start.tolist(), v.tolist(), causes)
+        ]
         self._legs.extend(new)
         ev = self.events
         tell = ev is not None and ev.wants("course_change")

@@ -243,3 +243,24 @@ def test_docs_examples_run_and_print_what_they_say(tmp_path, monkeypatch, capsys
     assert "[1 4 5 6 7 8 9]" in out
     assert "Arrival(t_s=5.002" in out and "payload={'task': 'survey'}" in out
     assert "LinkDown(t_s=10.106" in out
+
+
+def test_set_legs_is_set_leg_for_each_robot():
+    """RobotState.set_legs gives the state and legs that set_leg gives robot by robot."""
+    from netsim.state import RobotState
+
+    rng = np.random.default_rng(2)
+    states = [RobotState(6, 100.0, 10.0) for _ in range(2)]
+    for st in states:
+        st.place(np.arange(12.0).reshape(6, 2) * 7.0)
+    for t in (1.0, 2.5, 4.0):
+        idx = rng.permutation(6)[:4]
+        v = rng.uniform(-1, 1, (4, 2))
+        v[0] = 0.0
+        states[0].set_legs(idx, t, v, cause=["command", "border", "command", "command"])
+        for i, vi, c in zip(idx, v, ["command", "border", "command", "command"]):
+            states[1].set_leg(int(i), t, vi, cause=c)
+    a, b = states
+    for name in ("origin_m", "velocity_mps", "t0_s", "odometer_m"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    pd.testing.assert_frame_equal(a.legs(), b.legs(), check_exact=True)
