@@ -16,9 +16,9 @@ stop event included), and arms a wake for its new head. The global order is that
 kernel event per entry; the kernel sees one event per run of consecutive entries. (A
 wake stays queued when an earlier entry arms another before it; by its turn its entry may
 have run from that one, and it runs whatever is due then, or nothing.)
-:func:`netsim.events.kernel_queue` and :func:`netsim.events.advance_clock` say why reading
-the kernel's queue and setting its clock is sound (``netsim.kinetic`` does the same for
-the runtime link events).
+:mod:`netsim.simpy_internals` says why reading the kernel's queue and setting its clock is
+sound (``netsim.kinetic`` does the same for the runtime link events), and holds every
+access to SimPy's internals.
 
 Entries that a caller schedules in key order (the channel's deliveries at its constant
 latency: each at now + the same delay, at the same priority, with a later id) go to a
@@ -46,7 +46,8 @@ from heapq import heappop, heappush
 
 import simpy
 
-from netsim.events import kernel_queue
+from netsim.simpy_internals import event_ids, give_outcome, kernel_queue, push, set_now
+from netsim.simpy_internals import now as clock
 
 
 class _Wake(simpy.Event):
@@ -74,7 +75,7 @@ class Agenda:
         # Keys (t, priority, id) of the wakes queued in the kernel and not yet run, a heap.
         self._wakes: list[tuple] = []
         self._kernel = kernel_queue(env)  # the same list for the whole run
-        self._ids = env._eid  # type: ignore[attr-defined]  # SimPy's counter of event ids
+        self._ids = event_ids(env)
         self._running = False
         self.wakes_run = 0
         # Entries scheduled with ahead(), and the first of them (None: there is none).
@@ -87,7 +88,7 @@ class Agenda:
     def at(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """Call ``fn(*args)`` ``delay_s`` from now at ``priority``: where an event scheduled
         now with ``env.schedule(event, priority, delay_s)`` would run."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
+        entry = (clock(self.env) + delay_s, priority, next(self._ids), fn, args)
         heappush(self._heap, entry)
         wakes = self._wakes
         if (not wakes or entry < wakes[0]) and not self._running:
@@ -96,7 +97,7 @@ class Agenda:
     def ahead(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """:meth:`at`, for an entry due well ahead, of a kind scheduled many at a time (a
         timer's event): it goes to the calendar (module notes)."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
+        entry = (clock(self.env) + delay_s, priority, next(self._ids), fn, args)
         self._calendar.push(entry)
         first = self._ahead
         if first is None or entry < first:
@@ -108,7 +109,7 @@ class Agenda:
     def at_in_order(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """:meth:`at`, for a caller whose entries mostly come in key order (the same delay
         and priority each time): those are queued, not heaped (module notes)."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
+        entry = (clock(self.env) + delay_s, priority, next(self._ids), fn, args)
         queue = self._queue
         if queue and entry < queue[-1]:
             heappush(self._heap, entry)
@@ -131,11 +132,9 @@ class Agenda:
 
     def _arm(self, entry: tuple) -> None:
         t, priority, eid = entry[0], entry[1], entry[2]
-        wake = _Wake(self.env)
-        wake._ok = True
-        wake._value = None
+        wake = give_outcome(_Wake(self.env))
         wake.callbacks.append(self._run)
-        heappush(self._kernel, (t, priority, eid, wake))
+        push(self.env, t, priority, eid, wake)
         heappush(self._wakes, (t, priority, eid))
 
     def _run(self, _event: simpy.Event) -> None:
@@ -163,7 +162,7 @@ class Agenda:
                         break
                     calendar.pop()
                     self._ahead = calendar.first()
-                    env._now = first[0]  # type: ignore[attr-defined]
+                    set_now(env, first[0])
                     first[3](*first[4])
                     continue
                 if head is None:
@@ -175,7 +174,7 @@ class Agenda:
                 else:
                     heappop(heap)
                 # As the kernel's step() sets it: the entry's own time, the same float.
-                env._now = head[0]  # type: ignore[attr-defined]
+                set_now(env, head[0])
                 head[3](*head[4])
         finally:
             self._running = False
