@@ -18,8 +18,6 @@ from collections.abc import Callable
 from types import ModuleType
 from typing import TypeVar
 
-from netsim.gcpause import paused
-
 SMALL_RUN_ROBOTS = 20
 
 T = TypeVar("T")
@@ -40,13 +38,11 @@ def load(module: str, n_robots: int) -> ModuleType | None:
     if not compiled_wanted(n_robots):
         return None
     loaded = sys.modules.get(module)
-    if loaded is not None:
-        # Asked for at every rebuild of the range index: no pause (nor freeze) once loaded.
+    if loaded is not None:  # asked for at every rebuild of the range index
         return loaded
     try:
-        with paused():  # numba and its registries load without the collector's passes
-            _numba_without_blas_probe()
-            return importlib.import_module(module)
+        _numba_without_blas_probe()
+        return importlib.import_module(module)
     except ImportError:  # pragma: no cover
         return None
 
