@@ -32,7 +32,7 @@ from netsim.groups import GroupView
 from netsim.lifetimes import link_lifetimes
 from netsim.loss import LOSS_MODELS
 from netsim.params import Params
-from netsim.plugins import LegacyPlugin, Parts, Reports, Schema
+from netsim.plugins import Parts, Reports, Schema
 from netsim.propagation import PROPAGATION_MODELS
 from netsim.radio_links import radio_link_lifetimes
 from netsim.reception import Reception
@@ -129,10 +129,7 @@ def world_map(config: Config) -> Any:
 
 
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
-    if isinstance(plugin, LegacyPlugin):
-        component = plugin.install(sim)
-    else:
-        component = plugin.build(params, parts)
+    component = plugin.build(params, parts)
     sim.add_model(name, component)
     return component
 
