@@ -32,8 +32,7 @@ most of them only to re-arm: :meth:`Agenda.ahead`), go to a calendar instead
 (:class:`Calendar`): a list per slice of time, sorted once when its slice comes. A heap of
 them is cold by each push and pop, which then walk its depth through cache misses; a
 calendar appends to one list and takes from another. (The beacons' ticks stay on the heap:
-tried in the calendar, a run of 100,000 robots went about a fifth slower, its slices of
-thousands of ticks each sorted.)
+in the calendar, a large run's slices would each hold thousands of ticks to sort.)
 """
 
 from __future__ import annotations

@@ -92,8 +92,8 @@ class RuntimeLinks:
         self.box = float(state.side_m) if state.torus else None
         # Links up now: key a n + b -> since when; and every lifetime that ended, as columns
         # a, b, up, down. Plain lists of numbers, as the queue's columns: the garbage
-        # collector tracks the lists, not the numbers (as lists of tuples it tracked and
-        # walked every row: a fifth of the runtime links' cost).
+        # collector tracks the lists, not the numbers (as lists of tuples it would track and
+        # walk every row).
         self.up: dict[int, float] = {}
         self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         self.started = False

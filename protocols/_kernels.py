@@ -196,8 +196,8 @@ def make_sized_ack(
     two-way members in its row (:func:`group_size`, counted in the pass that makes the
     Ack), anyone else's 1 (``sizes``, written back; ``sized``: whose is other than 1). One
     call per Ack instead of a Python hook and two compiled calls."""
-    # The members counted for every Ack, used for a leader's: one call for both cases (two,
-    # one each, cost every Ack a tenth more on the benchmark machine).
+    # The members counted for every Ack, used for a leader's: one call for both cases (a
+    # call for each would cost every Ack a second compiled call).
     leads = role[i] == LEADER_ROLE
     if leads:
         sized[i] = True
