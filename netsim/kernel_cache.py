@@ -18,9 +18,9 @@ the process's numba settings are left as they were.
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import os
+import re
 import sys
 import threading
 from pathlib import Path
@@ -38,22 +38,31 @@ def base_directory() -> Path:
     return Path(cache_home) / "netsim-robots" / "kernels"
 
 
+# Import statements, read by pattern rather than by parsing the module (which costs more
+# than loading its cached code): ``from`` with its dots, module and names (parenthesised
+# over lines, or to the end of the line), and plain ``import``.
+_FROM = re.compile(r"^[ \t]*from[ \t]+(\.*)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n#]*)", re.M)
+_IMPORT = re.compile(r"^[ \t]*import[ \t]+([^\n#]+)", re.M)
+
+
 def imported_modules(source: str, package: str | None) -> list[str]:
     """The modules ``source`` imports from, by absolute name (relative imports resolved
-    against ``package``), in the order written; ``from a import b`` names ``a`` and, where
-    ``b`` is itself a module, ``a.b``."""
+    against ``package``); ``from a import b`` names ``a`` and, where ``b`` is itself a
+    module, ``a.b``. A line of a docstring that reads like an import counts too: it can
+    only add a file to the hash."""
     names: list[str] = []
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.Import):
-            names += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                parts = (package or "").split(".")
-                parts = parts[: len(parts) - node.level + 1]
-                base = ".".join([*parts, base] if base else parts)
-            names.append(base)
-            names += [f"{base}.{alias.name}" for alias in node.names]
+    for dots, module, imported in _FROM.findall(source):
+        base = module
+        if dots:
+            parts = (package or "").split(".")
+            parts = parts[: len(parts) - len(dots) + 1]
+            base = ".".join([*parts, module] if module else parts)
+        names.append(base)
+        for alias in imported.strip("()").split(","):
+            if alias.split():
+                names.append(f"{base}.{alias.split()[0]}")
+    for listed in _IMPORT.findall(source):
+        names += [alias.split()[0] for alias in listed.split(",") if alias.split()]
     return names
 
 
