@@ -9,7 +9,9 @@ same pairs are dropped before shadowing (so the same normals are drawn), the sam
 updates are made, and the same sums are compared with the sensitivity. Pairs in one batch
 must be distinct (a broadcast's receivers are).
 
-Without numba it hands every batch to the generic chain.
+Without numba it hands every batch to the generic chain. A model whose chain has other
+terms brings no compiled path (:attr:`~netsim.radio.propagation.Propagation.fast` is None):
+:class:`GenericChain` evaluates it with numpy, term by term.
 """
 
 from __future__ import annotations
@@ -209,3 +211,33 @@ class CompiledChain:
         if len(uniq) < len(idx):
             raise ValueError("the pairs of one batch must be distinct")
         self.shadow._insert(uniq, x_new[idx[first]], s_new[idx[first]])  # type: ignore[union-attr]
+
+
+class GenericChain:
+    """``receivable(pairs)`` of any :class:`~netsim.radio.propagation.Propagation`, with
+    numpy: the path of a model that brings no compiled one. Every pair carries both
+    robots' positions and their travel (what any term may read); the chain is evaluated as
+    :meth:`~netsim.radio.propagation.LossChain.receivable` does, pairs dropped as soon as
+    they cannot make it."""
+
+    # What the channel and a medium ask of a compiled path: a generic model declares no
+    # map, shadowing, walls or path loss of the built-in kinds.
+    occupancy = shadow = walls = log = None
+
+    def __init__(self, propagation: Propagation):
+        self.propagation = propagation
+
+    def receivable(self, pairs: Pairs) -> np.ndarray:
+        return self.propagation.receivable(pairs)
+
+    def transmission(
+        self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, speed_mps: np.ndarray
+    ) -> np.ndarray:
+        """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (as
+        :meth:`CompiledChain.transmission`)."""
+        k = len(receivers)
+        a = np.full(k, sender, dtype=np.int64)
+        pos_a = np.broadcast_to(state.positions_at(t, [sender]), (k, 2))
+        travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
+        pairs = Pairs(a, receivers, pos_a, state.positions_at(t, receivers), distances_m, travel)
+        return self.propagation.receivable(pairs)
