@@ -165,3 +165,16 @@ def test_a_sweep_varies_the_user_models_keys(tmp_path):
     assert by_height[1.0] < by_height[1.5]
     by_slot = runs.groupby("channel.tdma_slot_s")["tdma_frames"].sum()
     assert by_slot[0.2] < by_slot[0.002]
+
+
+def test_a_user_loss_model_drops_what_it_says():
+    """A user's loss model (tests/loss_plugin.py) is the channel's: receptions beyond its
+    edge are dropped as ``loss``, those within kept, and its key is a key of [channel]."""
+    loss = "tests.loss_plugin:PLUGIN"
+    config = cfgmod.load(None, [*SMALL, f"channel.loss_model={loss}", "channel.edge_fraction=0.5"])
+    assert cfgmod.to_dict(config)["channel"]["edge_fraction"] == 0.5
+    sim = build(config)
+    kept = sim.channel.survives(0, np.array([1, 2, 3]), np.array([10.0, 75.0, 76.0]))
+    assert kept.tolist() == [True, True, False]  # channel.range_m = 150
+    result = execute(config)
+    assert result.summary["acks_dropped_loss"] > 0 and result.summary["acks_received"] > 0
