@@ -213,7 +213,7 @@ def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     """Each pair's key, and its shadowing clock: the pair's travel at ``t`` (the two robots'
     :meth:`~netsim.state.RobotState.travelled_m` summed, ``speed`` being ``|v|`` as numpy
     computes it), floored to a multiple of ``step_m`` when ``step_m`` > 0
-    (:meth:`~netsim.radio.shadowing.PairShadowing._anchor`)."""
+    (:meth:`~netsim.radio.shadowing.PairShadowing.anchor`)."""
     own = odometer[sender] + speed[sender] * (t - t0[sender])
     for m in range(receivers.shape[0]):
         r = receivers[m]

@@ -97,7 +97,7 @@ class CompiledChain:
         if self.shadow is not None and len(pairs.a):
             keys = pair_keys(pairs.a, pairs.b)
             travel = np.zeros(len(pairs.a)) if pairs.travel_m is None else np.asarray(pairs.travel_m, dtype=float)
-            s_new = self.shadow._anchor(travel)
+            s_new = self.shadow.anchor(travel)
         return self._receivable(pairs, keys, s_new)
 
     def transmission(
@@ -134,7 +134,7 @@ class CompiledChain:
         if sh is not None:
             keys = np.empty(k, dtype=np.int64)
             s_new = np.empty(k)
-            tables = (sh._keys, sh._x, sh._s, sh.dense_n, sh.normals(k))
+            tables = (*sh.table(), sh.dense_n, sh.normals(k))
         else:
             keys, s_new = _NO_KEYS, _NO_FLOATS
             tables = (_NO_KEYS, _NO_FLOATS, _NO_FLOATS, 0, _NO_FLOATS)
@@ -188,7 +188,7 @@ class CompiledChain:
         if sh is not None and count:
             z = sh.normals(count)
             sh.consume(count)
-            tk, tx, ts, sigma = sh._keys, sh._x, sh._s, sh.sigma_db
+            (tk, tx, ts), sigma = sh.table(), sh.sigma_db
         else:
             keys, s_new, z = _NO_KEYS, _NO_FLOATS, _NO_FLOATS
             tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
@@ -210,7 +210,7 @@ class CompiledChain:
         uniq, first = np.unique(keys[idx], return_index=True)
         if len(uniq) < len(idx):
             raise ValueError("the pairs of one batch must be distinct")
-        self.shadow._insert(uniq, x_new[idx[first]], s_new[idx[first]])  # type: ignore[union-attr]
+        self.shadow.insert(uniq, x_new[idx[first]], s_new[idx[first]])  # type: ignore[union-attr]
 
 
 class GenericChain:
