@@ -178,3 +178,29 @@ def test_a_user_loss_model_drops_what_it_says():
     assert kept.tolist() == [True, True, False]  # channel.range_m = 150
     result = execute(config)
     assert result.summary["acks_dropped_loss"] > 0 and result.summary["acks_received"] > 0
+
+
+def test_the_engine_compares_against_no_channel_model_name():
+    """No comparison in the engine (netsim/ but its tools) or the protocols names a
+    built-in channel model: what a model does is asked of its declaration, so a user's
+    model is never treated otherwise than a built-in one."""
+    import ast
+    from pathlib import Path
+
+    from netsim import plugins
+    from netsim.radio.models import LOSS, MAC, PROPAGATION
+
+    root = Path(__file__).resolve().parents[1]
+    built_in = {name for group in (PROPAGATION, LOSS, MAC) for name in plugins.available(group)}
+    assert {"unit_disk", "log_distance", "none", "aloha", "csma", "bernoulli"} <= built_in
+    files = [f for f in (root / "netsim").rglob("*.py") if "tools" not in f.parts]
+    files += list((root / "protocols").rglob("*.py"))
+    found = []
+    for f in files:
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.Compare):
+                operands = [node.left, *node.comparators]
+                names = {o.value for o in operands if isinstance(o, ast.Constant) and isinstance(o.value, str)}
+                if names & built_in:
+                    found.append((f.relative_to(root), node.lineno))
+    assert found == []
