@@ -118,12 +118,12 @@ def geometric_edges(
 def snapshot(state: RobotState, t: float, directed: bool = False, groups: GroupView | None = None) -> nx.Graph:
     """The true unit-disk network at time ``t``.
 
-    Nodes carry ``pos`` (x, y) and, with the protocol's ``groups`` (``sim.groups``),
-    ``role`` (its label, as "alpha", "beta", "gamma") and ``leader``; edges carry
-    ``distance``. Positions are those at ``t``; roles and leaders are the current ones, so
-    take the snapshot while the run is at ``t`` for a consistent picture. With
-    ``directed=True`` the graph is a DiGraph with an edge i -> j when j is within i's
-    range (one-way links appear once).
+    Nodes carry ``pos`` (x, y) and, only when given the protocol's ``groups``
+    (``snapshot(sim.state, sim.now, groups=sim.groups)``), ``role`` (its label, as
+    "alpha", "beta", "gamma") and ``leader``; edges carry ``distance``. Positions are
+    those at ``t``; roles and leaders are the current ones, so take the snapshot while the
+    run is at ``t`` for a consistent picture. With ``directed=True`` the graph is a
+    DiGraph with an edge i -> j when j is within i's range (one-way links appear once).
     """
     pos = state.positions_at(t)
     import networkx as nx

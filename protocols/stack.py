@@ -289,10 +289,10 @@ class Stack:
         self._command_seq = np.zeros(n, dtype=np.int64)
         self.on_command: list[Callable[[int, Command], None]] = []
         # The sampled tables, kept as arrays and made tables once, at the end: samples at 0,
-        # interval, ... before the end, each table's buffers sized for them.
+        # interval, ... and at the end, each table's buffers sized for them.
         self._sample_interval_s = self.output.position_interval_s or params.ack_period_s
         interval = self._sample_interval_s
-        expected = int(self.duration_s // interval) + 1 if interval > 0 else 1
+        expected = int(self.duration_s // interval) + 2 if interval > 0 else 1
         self._groups, self._beliefs, self._neighbour_beliefs = (Samples(expected) for _ in range(3))
         kernels = load("protocols._kernels", n)
         # The compiled twins of sample_rows, belief_rows and belief_counts, past
@@ -454,13 +454,24 @@ class Stack:
 
     def _sampler(self, interval: float):
         env = self.env
+        while True:
+            self._take_sample(float(env.now))  # 0 (an int) at the start: one compiled version, not two
+            yield env.timeout(interval)
+
+    def _take_sample(self, now: float) -> None:
         # In place where the truth comes from the channel's neighbour lists (as in
         # _heard_keys) and the loops are compiled.
         in_place = self._sample_into is not None and self.channel.reach_lists is not None
-        sample = self._sample_in_place if in_place else self._sample
-        while True:
-            sample(float(env.now))  # 0 (an int) at the start: one compiled version, not two
-            yield env.timeout(interval)
+        (self._sample_in_place if in_place else self._sample)(now)
+
+    def _sample_at_end(self) -> None:
+        """The last sample of the sampled tables, at the run's end ``T``, once the run has
+        reached it, so that they end where the run does: the sampler's next event is due at
+        ``T`` or after, and never processed (events due exactly at the end are not, SimPy's
+        convention). It sees what every event before ``T`` made."""
+        end = self.duration_s
+        if self.env.now >= end and not ended_at(self._groups.times, end):
+            self._take_sample(end)
 
     def _sample(self, now: float) -> None:
         """One sample of the ``groups``, ``beliefs`` and ``neighbour_beliefs`` tables."""
@@ -535,16 +546,19 @@ class Stack:
         return df
 
     def beliefs_frame(self) -> pd.DataFrame:
+        self._sample_at_end()
         if not self._beliefs:
             return pd.DataFrame(columns=BELIEF_COLUMNS)
         return beliefs_table(self._beliefs)
 
     def neighbour_beliefs_frame(self) -> pd.DataFrame:
+        self._sample_at_end()
         if not self._neighbour_beliefs:
             return pd.DataFrame({c: pd.Series(dtype=t) for c, t in NEIGHBOUR_BELIEFS_SCHEMA.items()})
         return self._neighbour_beliefs.frame()
 
     def groups_frame(self) -> pd.DataFrame:
+        self._sample_at_end()
         if not self._groups:
             return pd.DataFrame(columns=["t_s", "robot", "group", "primary"])
         return self._groups.frame()
@@ -578,6 +592,12 @@ BELIEF_COLUMNS = [
     "stale_neighbours",
     "missing_neighbours",
 ]
+
+
+def ended_at(times: list[float], end_s: float) -> bool:
+    """Whether sampling ``times`` already hold the end ``end_s`` (the sum of many intervals
+    may fall a rounding error short of it)."""
+    return bool(times) and times[-1] >= end_s - 1e-9 * max(1.0, abs(end_s))
 
 
 def gateways_mean(t_s: np.ndarray, robot: np.ndarray) -> float:

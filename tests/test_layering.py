@@ -14,12 +14,13 @@ ROOT = Path(__file__).resolve().parents[1]
 # engine's own modules (netsim/state.py, netsim/config.py, ...) are each a node of their own,
 # so that the radio may use the engine's base (state, events) while the run builder uses
 # the radio, and a cycle through any of them still shows.
-SUBPACKAGES = ("netsim.radio", "netsim.links", "netsim.tools")
+SUBPACKAGES = ("netsim.radio", "netsim.links", "netsim.formats", "netsim.tools")
 ENGINE = {"netsim", *SUBPACKAGES}
 ALLOWED = {
     "netsim": {"netsim", "netsim.radio", "netsim.links"},
     "netsim.radio": {"netsim", "netsim.radio"},
     "netsim.links": {"netsim", "netsim.radio", "netsim.links"},
+    "netsim.formats": {"netsim", "netsim.formats"},
     "netsim.tools": ENGINE,
     "protocols": ENGINE | {"protocols"},
     "mobility": ENGINE | {"mobility"},
