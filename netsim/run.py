@@ -25,6 +25,7 @@ from netsim import config as cfgmod
 from netsim import plugins
 from netsim.config import Config
 from netsim.control import ControlLoop
+from netsim.cosim import Driver, Messenger, NeighbourView
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.events import EventBus
 from netsim.groups import GroupView
@@ -154,13 +155,16 @@ def build(config: Config, run: int = 0) -> Simulation:
     the mobility model, the protocol, then the controllers (module notes)."""
     sim = simulation(config, run)
     parts = sim.parts
-    _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
+    mobility = _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
+    sim.driver = mobility if isinstance(mobility, Driver) else None
     protocol = _build_model(sim, "protocol", config.protocol.plugin, config.protocol.params, parts)
     sim.groups = protocol if isinstance(protocol, GroupView) else None
+    sim.neighbour_view = protocol if isinstance(protocol, NeighbourView) else None
+    sim.messenger = protocol if isinstance(protocol, Messenger) else None
     chosen = cfgmod.controllers(config)
     if chosen:
         period_s, start_s = control_timing(config)
-        mobility = config.mobility
+        moved = config.mobility
         loop = ControlLoop(
             sim.env,
             sim.state,
@@ -168,7 +172,7 @@ def build(config: Config, run: int = 0) -> Simulation:
             period_s,
             start_s,
             lead_s=sim.channel.latency_s + sim.channel.latency_jitter_s,
-            moved_by=f"mobility.model = {mobility.model!r}" if mobility.plugin.moves_robots else None,
+            moved_by=f"mobility.model = {moved.model!r}" if moved.plugin.moves_robots else None,
             groups=sim.groups,
             options=config.control.options,
             occupancy=parts.occupancy,

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import cores, load, side_by_side
+from netsim.cosim import Arrival
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import reach_keys
@@ -344,6 +345,18 @@ class Stack:
                 self.command[r] = cmd
                 for fn in self.on_command:
                     fn(r, cmd)
+
+    # -- driven from outside (netsim.cosim) -------------------------------------------
+    def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
+        return self.table.heard(now)
+
+    def send_message(self, src: int, dst: int, payload: object) -> int:
+        """A message from outside, relayed as the traffic's (:class:`netsim.cosim.Messenger`)."""
+        return self.relay.send(src, dst, payload, carried=True)
+
+    def inbox(self, robot: int) -> list[Arrival]:
+        return self.relay.inbox(robot)
 
     # -- what leaders know of each other (for coverage controllers) ------------------
     def heard_leaders(self, leader: int, now: float) -> tuple[np.ndarray, np.ndarray]:

@@ -14,19 +14,22 @@ ROOT = Path(__file__).resolve().parents[1]
 # engine's own modules (netsim/state.py, netsim/config.py, ...) are each a node of their own,
 # so that the radio may use the engine's base (state, events) while the run builder uses
 # the radio, and a cycle through any of them still shows.
-SUBPACKAGES = ("netsim.radio", "netsim.links", "netsim.formats", "netsim.tools")
-ENGINE = {"netsim", *SUBPACKAGES}
+SUBPACKAGES = ("netsim.radio", "netsim.links", "netsim.formats", "netsim.tools", "netsim.envs")
+# The environments are the other end of the engine: built on it and the tools, used by no model.
+ENGINE = {"netsim", *SUBPACKAGES} - {"netsim.envs"}
 ALLOWED = {
     "netsim": {"netsim", "netsim.radio", "netsim.links"},
     "netsim.radio": {"netsim", "netsim.radio"},
     "netsim.links": {"netsim", "netsim.radio", "netsim.links"},
     "netsim.formats": {"netsim", "netsim.formats"},
     "netsim.tools": ENGINE,
+    # The environments draw frames with the figures' code: built on the tools, like them.
+    "netsim.envs": ENGINE | {"netsim.envs"},
     "protocols": ENGINE | {"protocols"},
     "mobility": ENGINE | {"mobility"},
     "hooks": ENGINE | {"hooks"},
-    "benchmarks": ENGINE | {"protocols", "mobility", "hooks", "benchmarks"},
-    "experiments": ENGINE | {"protocols", "mobility", "hooks", "experiments"},
+    "benchmarks": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "benchmarks"},
+    "experiments": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "experiments"},
 }
 PROJECT = {"netsim", "protocols", "mobility", "hooks", "experiments", "benchmarks"}
 
