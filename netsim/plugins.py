@@ -9,7 +9,8 @@ is built from its parameters and the parts of the run it works with (:class:`Par
 implements :class:`Reports`.
 
 Built-in plugins are entry points in ``pyproject.toml`` (groups ``netsim.mobility``,
-``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``), each naming a plugin object
+``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``, and the channel's models
+``netsim.propagation``, ``netsim.loss``, ``netsim.mac``), each naming a plugin object
 (``mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
 the configuration. So the engine never imports the packages that build on it, and names
 none of their models. A plugin is a :class:`PluginSpec` or an object with its members, and
@@ -33,6 +34,7 @@ import simpy
 
 from netsim.errors import ConfigError
 from netsim.params import Params
+from netsim.radio.models import CHANNEL_GROUPS, wants_members
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -171,10 +173,16 @@ _MEMBERS = ("Params", "tables", "check", "build")
 
 
 @cache
-def _plugin(group: str, name: str) -> PluginSpec:
+def _plugin(group: str, name: str) -> Any:
     """The plugin ``name`` of ``group`` as a PluginSpec (an object with the members of
-    :class:`Plugin` is wrapped in one)."""
+    :class:`Plugin` is wrapped in one); a channel model (:mod:`netsim.radio.models`) as it
+    is, once it has its kind's members."""
     obj = _load(group, name)
+    if group in CHANNEL_GROUPS:
+        wanted = wants_members(group)
+        if not all(hasattr(obj, m) for m in wanted):
+            raise TypeError(f"is not a {CHANNEL_GROUPS[group].__name__} (an object with " + ", ".join(wanted) + ")")
+        return obj
     if isinstance(obj, PluginSpec):
         return obj
     if all(hasattr(obj, m) for m in _MEMBERS):
