@@ -72,6 +72,7 @@ import pandas as pd
 
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
+from mobility.keep import LinkRules
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
@@ -80,7 +81,7 @@ from netsim.errors import ConfigError
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from netsim.radio.free_space import obstacle_field, wall_forces
+from netsim.radio.free_space import free_fraction, obstacle_field, wall_forces
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
 
@@ -131,6 +132,11 @@ class CoverageParams(Params):
     )
     speed_max_mps: float = param(2.0, positive, "speed cap of every controlled robot, m/s")
     margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")
+    fade_margin_db: float = param(
+        8.0,
+        non_negative,
+        "shadowing: kept links keep this much power margin against the change of their shadowing, dB",
+    )
     stop_speed_mps: float = param(
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
     )
@@ -178,6 +184,12 @@ def check(params: CoverageParams, config) -> None:
         )
     if config.world.torus:
         raise ConfigError("coverage.enabled", True, "is for a bounded area; set world.torus = false")
+    if config.events.runtime_links == "off":
+        raise ConfigError(
+            "events.runtime_links",
+            "off",
+            "coverage needs the links as the channel makes them during the run: set it to 'auto' or 'on'",
+        )
     if not config.protocol.plugin.forms_groups:
         raise ConfigError(
             "coverage.enabled",
@@ -258,8 +270,15 @@ class CoverageController:
         self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.loop: ControlLoop = parts.control
         self.view: GroupView = parts.groups
+        if parts.links is None:
+            raise ValueError("the coverage controller needs the run's link state (events.runtime_links)")
         self.cfg = params
         st = parts.state
+        # The links as the channel makes them (those of links.parquet), and what keeps them up.
+        self.link_state = parts.links()
+        self.rules = LinkRules(
+            parts.channel.reception, st, self.link_state, params.margin_m, params.fade_margin_db, parts.occupancy
+        )
         self.range_m = float(np.min(st.range_m))
         self.radius_m = self.cfg.radius_m or self.range_m
         self.limits = StepLimits(
@@ -271,6 +290,7 @@ class CoverageController:
         self.got_command = np.zeros(st.n, bool)
         self.commander = np.full(st.n, -1)
         self.steps: list[StepRecord] = []
+        self._pending: StepRecord | None = None
         self.samples: list[dict] = []
         self._max_wish = 0.0
         self.sample_at_start: dict | None = None
@@ -350,7 +370,7 @@ class CoverageController:
         self.got_command[:] = False
         for leader in np.unique(plan.commander[plan.commander >= 0]).tolist():
             self.channel.broadcast(leader, step.t_s, self._deliver, kind="command")
-        self._record(step, plan)
+        self._pending = self._record(step, plan)
         if self.cfg.members is Members.SPREAD:
             self._stopping_rule(plan)
 
@@ -365,7 +385,27 @@ class CoverageController:
         commandable = member & is_leader[lead] & reach
         mobile = is_leader | commandable
         commander_of = np.where(commandable, leader, -1)
-        return plan_spread(step.positions_m, mobile, commander_of, step.velocity_mps, self.limits)
+        pos = step.positions_m
+        links = self.rules.candidates(pos, step.t_s)
+        plan = plan_spread(pos, mobile, commander_of, step.velocity_mps, self.limits, links)
+        if self.rules.walls is None or plan.kept is None:
+            return plan
+        return self._cut_for_walls(pos, plan, commander_of >= 0, links)
+
+    def _cut_for_walls(self, pos: np.ndarray, plan: Plan, commanded: np.ndarray, links) -> Plan:
+        """On a map: each step ends short of the walls (as the control loop would make it),
+        then is cut before the first instant a kept link would be lost (mobility.keep)."""
+        move = plan.velocity_mps * self.limits.period_s
+        moving = np.flatnonzero((move != 0).any(axis=1))
+        if len(moving) == 0:
+            return plan
+        move[moving] *= free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])[:, None]
+        scale = self.rules.cut_for_walls(pos, move, commanded, links, plan.kept, self.limits.period_s)
+        move *= scale[:, None]
+        velocity = move / self.limits.period_s
+        now_moving = (velocity != 0).any(axis=1)
+        held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & (scale < 1))
+        return plan._replace(velocity_mps=velocity, commander=np.where(now_moving, plan.commander, -1), held=held)
 
     def _stopping_rule(self, plan: Plan) -> None:
         """Control ends once no robot has moved faster than ``stop_speed_mps`` for ``stop_hold_s``."""
@@ -379,29 +419,37 @@ class CoverageController:
             self.settled_s = now
             self.loop.stop()
 
-    def _record(self, step: ControlStep, plan: Plan) -> None:
-        comps = metrics.components(step.positions_m, self.range_m)
+    def _record(self, step: ControlStep, plan: Plan) -> StepRecord:
+        """The step's row, its components counted when the step takes effect (:meth:`obey`)."""
         leaders = leads_itself(step.leader)
         moving = np.hypot(*plan.velocity_mps.T) > 0
-        self.steps.append(
-            StepRecord(
-                step.t_s,
-                int(leaders.sum()),
-                int(moving[leaders].sum()),
-                int(plan.held[leaders].sum()),
-                plan.bridges,
-                int(comps.max() + 1) if len(comps) else 0,
-                self._max_wish,
-                int(moving.sum()),
-                int(plan.held.sum()),
-            )
+        return StepRecord(
+            step.t_s,
+            int(leaders.sum()),
+            int(moving[leaders].sum()),
+            int(plan.held[leaders].sum()),
+            plan.bridges,
+            0,
+            self._max_wish,
+            int(moving.sum()),
+            int(plan.held.sum()),
         )
+
+    def components_now(self) -> int:
+        """Connected components of the network of the links up now, as the channel makes
+        them (the links of links.parquet)."""
+        a, b = self.link_state.up_pairs()
+        comps = metrics.components_of_links(self.state.n, a, b)
+        return int(comps.max() + 1) if len(comps) else 0
 
     def _deliver(self, sender: int, receivers: np.ndarray, _payload) -> None:
         self.got_command[receivers[self.commander[receivers] == sender]] = True
 
     def obey(self, step: ControlStep) -> None:
         """At the step's start: a robot that did not hear its leader's command holds."""
+        if self._pending is not None:
+            self.steps.append(self._pending._replace(components=self.components_now()))
+            self._pending = None
         missed = (self.commander >= 0) & ~self.got_command
         step.velocity_mps[missed] = 0.0
         self._odometer_to(step.t_s)
@@ -424,7 +472,7 @@ class CoverageController:
         cov_l, err_l = self._covered(leaders)
         cov_a, err_a = self._covered(pos)
         bound = metrics.bound_fraction(st.n, self.radius_m, st.side_m, self.range_m)
-        comps = metrics.components(pos, self.range_m)
+        components = self.components_now()
         spacing = metrics.nearest_spacing(leaders)
         travelled = self.odometer_m + self.speed_mps * (t - self.odo_t_s)
         return {
@@ -436,8 +484,8 @@ class CoverageController:
             "covered_error_bound_all": err_a,
             "coverage_bound": bound,
             "covered_of_bound_all": cov_a / bound if bound > 0 else math.nan,
-            "components": int(comps.max() + 1),
-            "connected": bool(comps.max() == 0),
+            "components": components,
+            "connected": components == 1,
             "spacing_median_ratio": float(np.median(spacing) / (SQRT3 * self.range_m))
             if len(leaders) > 1
             else math.nan,

@@ -8,7 +8,8 @@
   rigorous bound on its error;
 - :func:`connected_coverage_bound`: ``U(N)``, the most that ``N`` robots whose network is
   connected can cover (docs/validation.md item 16);
-- :func:`components`: connected components of the unit-disk network;
+- :func:`components`: connected components of the unit-disk network; :func:`components_of_links`:
+  those of any radio's links (a link solver's);
 - :func:`nearest_spacing`: each leader's distance to its nearest leader;
 - :func:`hexagonality`: the bond-orientational order parameter psi_6 (1 on a perfect
   hexagonal lattice, near 0 for a random arrangement).
@@ -174,6 +175,20 @@ def components(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
     from scipy.sparse.csgraph import connected_components
 
     graph = csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Component label of every robot in the network of ``n`` robots whose links are the
+    pairs ``(a[k], b[k])`` (the links a radio makes, as a link solver's ``up_pairs()``).
+
+    >>> components_of_links(4, np.array([0, 2]), np.array([1, 3])).tolist()
+    [0, 0, 1, 1]
+    """
+    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import connected_components
+
+    graph = csr_matrix((np.ones(len(a)), (np.asarray(a, np.int64), np.asarray(b, np.int64))), shape=(n, n))
     return connected_components(graph, directed=False)[1]
 
 
