@@ -78,6 +78,7 @@ from mobility.steps import Plan, StepLimits
 from netsim import metrics
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
+from netsim.events import LAST, scheduled_event
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
@@ -435,6 +436,19 @@ class CoverageController:
             int(plan.held.sum()),
         )
 
+    def _at_end_of_instant(self, fn) -> None:
+        """Call ``fn`` after everything else due now (every transmission and link event of
+        this instant: the links then are those links.parquet has at this instant)."""
+        scheduled_event(self.env, 0.0, LAST, lambda _event: fn())
+
+    def _count_step(self, row: int) -> None:
+        self.steps[row] = self.steps[row]._replace(components=self.components_now())
+
+    def _count_sample(self, sample: dict) -> None:
+        components = self.components_now()
+        sample["components"] = components
+        sample["connected"] = components == 1
+
     def components_now(self) -> int:
         """Connected components of the network of the links up now, as the channel makes
         them (the links of links.parquet)."""
@@ -448,8 +462,10 @@ class CoverageController:
     def obey(self, step: ControlStep) -> None:
         """At the step's start: a robot that did not hear its leader's command holds."""
         if self._pending is not None:
-            self.steps.append(self._pending._replace(components=self.components_now()))
+            self.steps.append(self._pending)
             self._pending = None
+            row = len(self.steps) - 1
+            self._at_end_of_instant(lambda: self._count_step(row))
         missed = (self.commander >= 0) & ~self.got_command
         step.velocity_mps[missed] = 0.0
         self._odometer_to(step.t_s)
@@ -496,7 +512,9 @@ class CoverageController:
     def sampler(self):
         env = self.env
         while True:
-            self.samples.append(self.sample(env.now))
+            sample = self.sample(env.now)
+            self.samples.append(sample)
+            self._at_end_of_instant(lambda sample=sample: self._count_sample(sample))
             if self.cfg.members is Members.SPREAD:
                 self._coverage_stopping_rule()
             yield env.timeout(self.cfg.metrics_interval_s)
@@ -557,7 +575,8 @@ class CoverageController:
 
     def _mark_start(self):
         yield self.env.timeout(self.cfg.start_s)
-        self.sample_at_start = self.sample(self.env.now)
+        self.sample_at_start = start = self.sample(self.env.now)
+        self._at_end_of_instant(lambda: self._count_sample(start))
 
 
 def build(params: CoverageParams, parts: Parts) -> CoverageController:

@@ -234,10 +234,8 @@ class LinkRules:
     def _first_loss(self, pa, va, pb, vb, k, links: Candidates, period_s: float) -> np.ndarray:
         """For each scenario (two robots from ``pa``, ``pb`` at ``va``, ``vb``), the start of
         the first stretch of constant walls in which its link ``k`` is lost (inf: none)."""
-        from netsim.radio.sweep import sweep_walls
-
-        table = sweep_walls(self.walls, pa, va, pb, vb, np.full(len(pa), float(period_s)))
-        pair, t0, t1, walls = _columns(table)
+        table = _sweep(self.walls, pa, va, pb, vb, np.full(len(pa), float(period_s)))
+        pair, t0, t1, walls = (np.asarray(c) for c in (table.pair, table.t0_s, table.t1_s, table.walls))
         # Distance is convex in time: its largest value on a stretch is at an end.
         d0 = np.hypot(*((pa[pair] + va[pair] * t0[:, None]) - (pb[pair] + vb[pair] * t0[:, None])).T)
         d1 = np.hypot(*((pa[pair] + va[pair] * t1[:, None]) - (pb[pair] + vb[pair] * t1[:, None])).T)
@@ -247,11 +245,21 @@ class LinkRules:
         return first
 
 
-def _columns(table) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(pair, t0_s, t1_s, walls)`` of a sweep's table (named columns or a 4-tuple)."""
+def _sweep(occupancy, pa, va, pb, vb, duration_s):
+    """:func:`netsim.radio.sweep.sweep_walls`: the walls crossed between two moving robots,
+    exactly, over the whole step. Where that module is not installed, the walls at the
+    step's two ends only (a stand-in that misses a wall corner swept mid-step)."""
     try:
-        cols = [table[name] for name in ("pair", "t0_s", "t1_s", "walls")]
-    except (TypeError, KeyError, IndexError, ValueError):
-        cols = list(table)
-    pair, t0, t1, walls = (np.asarray(c) for c in cols)
-    return pair.astype(np.int64), t0.astype(float), t1.astype(float), walls.astype(np.int64)
+        from netsim.radio.sweep import sweep_walls
+    except ImportError:
+        from types import SimpleNamespace
+
+        from netsim.radio.los import walls_crossed
+
+        k = len(pa)
+        t1 = np.asarray(duration_s, float)
+        w0 = np.asarray(walls_crossed(occupancy, pa, pb), np.int64)
+        w1 = np.asarray(walls_crossed(occupancy, pa + va * t1[:, None], pb + vb * t1[:, None]), np.int64)
+        pair = np.r_[np.arange(k), np.arange(k)]
+        return SimpleNamespace(pair=pair, t0_s=np.r_[np.zeros(k), t1 * SAFETY], t1_s=np.r_[t1, t1], walls=np.r_[w0, w1])
+    return sweep_walls(occupancy, pa, va, pb, vb, duration_s)
