@@ -1,0 +1,226 @@
+"""Coverage on the radio the robots really have (docs/model.md section 5, "Staying
+connected"; mobility/keep.py): the coverage and control tables count the links of
+links.parquet, and the plan keeps a spanning forest of those links up over every step."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from mobility.keep import FADE_SIGMAS, LinkRules, fade_travel_m
+from mobility.spread import forest_rows
+from mobility.steps import Candidates
+from netsim import config
+from netsim.errors import ConfigError
+from netsim.metrics import components_of_links
+from netsim.radio.propagation import LogDistanceParams, effective_range_m
+from netsim.run import execute
+from netsim.tools.cli import main
+
+COVERAGE = ["mobility.model=static", "coverage.enabled=true", "protocol.message_rate_hz=0", "world.placement=centre"]
+OFFICE = ["world.map=office", "world.side_m=200", "world.n_robots=40", "world.centre_side_m=60", "duration_s=120"]
+RADIOS = {
+    "unit_disk": ["world.n_robots=30", "world.side_m=800", "world.centre_side_m=200", "channel.range_m=100"],
+    "shadowing": [
+        "world.n_robots=40",
+        "world.side_m=1000",
+        "channel.propagation=log_distance",
+        "channel.shadowing_sigma_db=4",
+        "duration_s=200",
+    ],
+    "office_line_of_sight": [*OFFICE, "channel.range_m=30"],
+    "office_wall_loss": [
+        *OFFICE,
+        "channel.propagation=log_distance",
+        "channel.sensitivity_dbm=-68",
+        "channel.wall_loss_db=5",
+    ],
+}
+
+
+def real_components(links, n: int, t: float) -> int:
+    """Components of the links.parquet network at ``t`` (a link is up on ``[t_up, t_down)``)."""
+    up = links[(links["t_up_s"] <= t) & (links["t_down_s"] > t)]
+    return int(components_of_links(n, up["a"].to_numpy(), up["b"].to_numpy()).max() + 1)
+
+
+@pytest.fixture(scope="module", params=list(RADIOS))
+def radio_run(request):
+    cfg = config.load(None, [*COVERAGE, *RADIOS[request.param]])
+    return cfg, execute(cfg)
+
+
+@pytest.mark.slow
+def test_coverage_table_counts_the_links_of_links_parquet(radio_run):
+    """At every sample the coverage table's components (and connected) are those of the
+    links.parquet network; at every step the control table's are too."""
+    cfg, r = radio_run
+    n, links = cfg.world.n_robots, r.frames["links"]
+    cov = r.frames["coverage"]
+    real = [real_components(links, n, t) for t in cov["t_s"]]
+    assert cov["components"].tolist() == real
+    assert cov["connected"].tolist() == [c == 1 for c in real]
+    steps = r.frames["control"]
+    assert len(steps) > 5
+    assert steps["components"].tolist() == [real_components(links, n, t) for t in steps["t_s"]]
+
+
+@pytest.mark.slow
+def test_real_network_never_splits_after_control_starts(radio_run):
+    """From the first control step on, the number of components of the links.parquet
+    network never grows: checked at every link event."""
+    cfg, r = radio_run
+    n, links = cfg.world.n_robots, r.frames["links"]
+    start = cfg.sections["coverage"].start_s
+    events = np.unique(np.r_[links["t_up_s"], links["t_down_s"]])
+    events = events[(events >= start) & (events < cfg.duration_s)]
+    counts = [real_components(links, n, t) for t in [start, *events.tolist()]]
+    assert len(events) > 10
+    assert np.all(np.diff(counts) <= 0), counts
+    # The team did spread.
+    assert r.summary["covered_fraction_all_final"] > 1.2 * r.summary["covered_fraction_all_start"]
+
+
+@pytest.mark.slow
+def test_issue_28_shadowing_reproduction_reports_the_real_network():
+    """The issue's run: 40 robots from the centre of a 1 km square, log-distance with 4 dB
+    shadowing, coverage on. The table said 1 component while links.parquet had up to 18;
+    now it agrees at all 80 samples, and the real network never splits after control starts."""
+    cfg = config.load(
+        None,
+        [
+            *COVERAGE,
+            "world.n_robots=40",
+            "world.side_m=1000",
+            "channel.propagation=log_distance",
+            "channel.shadowing_sigma_db=4",
+            "duration_s=400",
+        ],
+    )
+    r = execute(cfg)
+    links, cov = r.frames["links"], r.frames["coverage"]
+    assert len(cov) == 80
+    assert cov["components"].tolist() == [real_components(links, 40, t) for t in cov["t_s"]]
+    events = np.unique(np.r_[links["t_up_s"], links["t_down_s"]])
+    events = events[(events >= 10.0) & (events < 400.0)]
+    counts = [real_components(links, 40, t) for t in [10.0, *events.tolist()]]
+    assert max(counts) == counts[0] == 1
+
+
+# -- the rules of a kept link -----------------------------------------------------------------
+def test_fade_travel_keeps_the_plausible_change_within_the_budget():
+    """The pair travel allowed is the largest over which the shadowing's drift plus
+    FADE_SIGMAS standard deviations of its change stays within the link's budget."""
+    rng = np.random.default_rng(3)
+    budget = np.r_[rng.uniform(1.0, 15.0, 200), 40.0, 60.0]
+    x = np.r_[rng.uniform(-16.0, 16.0, 200), -16.0, 0.0]
+    sigma, dcorr = 4.0, 10.0
+    travel = fade_travel_m(budget, x, sigma, dcorr)
+
+    def change(delta, x):
+        rho = np.exp(-delta / dcorr)
+        return (1 - rho) * np.maximum(-x, 0) + FADE_SIGMAS * sigma * np.sqrt(1 - rho**2)
+
+    f = np.isfinite(travel)
+    assert f.sum() == 200
+    assert np.allclose(change(travel[f], x[f]), budget[f], atol=1e-6)
+    assert np.all(change(1.01 * travel[f], x[f]) > budget[f])
+    # Inf: even complete decorrelation stays within the budget.
+    assert np.all(change(np.full((~f).sum(), 1e9), x[~f]) <= budget[~f])
+    assert fade_travel_m(np.array([0.0, -1.0]), np.zeros(2), sigma, dcorr).tolist() == [0.0, 0.0]
+
+
+def shadowed_rules(pos, x_db, anchor_m, travelled_m, fade_margin_db=8.0, margin_m=1.0):
+    """LinkRules of a log-distance radio with 4 dB shadowing over the links (0, k), each
+    with its measured shadowing ``x_db`` drawn at pair travel ``anchor_m``."""
+    params = LogDistanceParams(shadowing_sigma_db=4.0)
+    n = len(pos)
+    table = {(0, k): (x_db[k - 1], anchor_m[k - 1]) for k in range(1, n)}
+
+    def state(a, b):
+        xs = [table[(int(p), int(q))] for p, q in zip(a, b)]
+        return np.array([v[0] for v in xs]), np.array([v[1] for v in xs])
+
+    shadow = SimpleNamespace(sigma_db=4.0, clip_db=16.0, decorrelation_m=10.0, state=state)
+    compiled = SimpleNamespace(log=SimpleNamespace(params=params), shadow=shadow, walls=None)
+    reception = SimpleNamespace(compiled=compiled, map=None)
+    robots = SimpleNamespace(
+        range_m=np.full(n, 100.0), travelled_m=lambda t, idx: np.asarray(travelled_m, float)[np.asarray(idx)]
+    )
+    links = SimpleNamespace(up_pairs=lambda: (np.zeros(n - 1, np.int64), np.arange(1, n)))
+    return LinkRules(reception, robots, links, margin_m, fade_margin_db), params
+
+
+def test_a_shadowed_link_ends_the_step_with_the_fade_margin_left():
+    """A strong link (margin above the fade margin) may end the step as long as its margin,
+    with the shadowing measured on it, stays at the fade margin; its pair travel is bounded
+    by fade_travel_m less the travel since the shadowing was measured."""
+    pos = np.array([[0.0, 0.0], [40.0, 0.0]])
+    rules, params = shadowed_rules(pos, x_db=[2.0], anchor_m=[5.0], travelled_m=[3.0, 2.5])
+    c = rules.candidates(pos, 0.0)
+    assert c.keep_m[0] == pytest.approx(float(effective_range_m(params, 2.0 + 8.0)))
+    assert c.travel_m[0] == pytest.approx(float(fade_travel_m(np.array([8.0]), np.array([2.0]), 4.0, 10.0)[0]) - 0.5)
+
+
+def test_a_weak_shadowed_link_does_not_lengthen():
+    """A link whose margin is below the fade margin may not end the step longer than it is,
+    and its travel is bounded by its own margin."""
+    pos = np.array([[0.0, 0.0], [80.0, 0.0]])
+    rules, params = shadowed_rules(pos, x_db=[0.0], anchor_m=[0.0], travelled_m=[0.0, 0.0])
+    c = rules.candidates(pos, 0.0)
+    margin = params.budget_db - 30.0 * np.log10(80.0)
+    assert 0 < margin < 8.0
+    assert c.keep_m[0] == pytest.approx(80.0)
+    assert c.travel_m[0] == pytest.approx(float(fade_travel_m(np.array([margin]), np.zeros(1), 4.0, 10.0)[0]))
+
+
+def test_a_link_within_the_sure_distance_has_no_travel_bound():
+    """Within the distance at which even the worst clipped shadowing (+4 sigma) leaves it
+    up, a link is kept as a disk link: no bound on travel, guaranteed."""
+    pos = np.array([[0.0, 0.0], [20.0, 0.0]])
+    rules, params = shadowed_rules(pos, x_db=[12.0], anchor_m=[0.0], travelled_m=[50.0, 50.0])
+    c = rules.candidates(pos, 0.0)
+    sure = float(effective_range_m(params, 16.0))
+    assert 20.0 < sure
+    assert np.isinf(c.travel_m[0])
+    assert c.keep_m[0] == pytest.approx(sure - 1.0)
+
+
+def test_a_link_the_channel_has_not_up_is_not_a_candidate():
+    """Candidates are the links up now as the channel made them, not the pairs in range:
+    a pair within range whose measured margin is negative is left out."""
+    pos = np.array([[0.0, 0.0], [30.0, 0.0], [90.0, 0.0]])
+    rules, _ = shadowed_rules(pos, x_db=[0.0, 15.0], anchor_m=[0.0, 0.0], travelled_m=[0.0, 0.0, 0.0])
+    c = rules.candidates(pos, 0.0)
+    assert list(zip(c.i.tolist(), c.j.tolist())) == [(0, 1)]
+
+
+def test_the_forest_prefers_the_links_with_the_largest_margin():
+    """Of a triangle, the spanning forest lets go of the link with the least margin (the
+    largest weight), however short it is."""
+    i, j = np.array([0, 0, 1]), np.array([1, 2, 2])
+    d = np.array([10.0, 50.0, 45.0])
+    weight = np.array([9.0, 1.0, 2.0])  # the short link 0-1 is the weakest
+    inf = np.full(3, np.inf)
+    rows = forest_rows(3, Candidates(i, j, d, weight, d, inf, d))
+    assert sorted(rows.tolist()) == [1, 2]
+
+
+# -- bad input ------------------------------------------------------------------------------
+def test_negative_fade_margin_is_one_line_exit_2_nothing_written(tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["run", "--quiet", "--out", str(out), "--set", "coverage.fade_margin_db=-1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("netsim: error: coverage.fade_margin_db = -1"), err
+    assert "\n" not in err
+    assert not out.exists()
+
+
+def test_coverage_needs_link_events_during_the_run():
+    """The controller counts and keeps the links as the channel makes them during the run."""
+    with pytest.raises(ConfigError) as err:
+        config.load(None, [*COVERAGE, "events.runtime_links=off"])
+    assert err.value.key == "events.runtime_links"
