@@ -72,6 +72,9 @@ def test_real_network_never_splits_after_control_starts(radio_run):
     """From the first control step on, the number of components of the links.parquet
     network never grows: checked at every link event."""
     cfg, r = radio_run
+    if cfg.world.map:
+        # Line of sight over the whole step needs the exact sweep of the walls.
+        pytest.importorskip("netsim.radio.sweep")
     n, links = cfg.world.n_robots, r.frames["links"]
     start = cfg.sections["coverage"].start_s
     events = np.unique(np.r_[links["t_up_s"], links["t_down_s"]])
@@ -206,6 +209,41 @@ def test_the_forest_prefers_the_links_with_the_largest_margin():
     inf = np.full(3, np.inf)
     rows = forest_rows(3, Candidates(i, j, d, weight, d, inf, d))
     assert sorted(rows.tolist()) == [1, 2]
+
+
+@pytest.mark.slow
+def test_snapshot_with_the_link_state_has_the_channels_links():
+    """Under shadowing, a snapshot given the run's link state has the links up now (those of
+    the live graph and of links.parquet), where the unit disk of the implied range differs."""
+    from netsim.run import build
+    from netsim.topology import snapshot
+
+    cfg = config.load(
+        None,
+        [
+            "world.n_robots=30",
+            "world.side_m=400",
+            "duration_s=30",
+            "channel.propagation=log_distance",
+            "channel.shadowing_sigma_db=6",
+        ],
+    )
+    sim = build(cfg)
+    live = sim.live_topology()
+    wrong, differs = [], []
+
+    def compare():
+        for t in np.linspace(3.0, 29.0, 14).tolist():
+            yield sim.env.timeout(t - sim.env.now)
+            g = snapshot(sim.state, sim.now, links=sim.links)
+            if set(g.edges) != set(live.graph.edges):
+                wrong.append(t)
+            differs.append(set(g.edges) != set(snapshot(sim.state, sim.now).edges))
+
+    sim.env.process(compare())
+    sim.run()
+    assert wrong == []
+    assert any(differs)
 
 
 # -- bad input ------------------------------------------------------------------------------
