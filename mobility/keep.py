@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mobility.steps import SAFETY, Candidates
+from mobility.steps import Candidates
 from netsim.topology import geometric_pairs
 
 # Standard deviations of the shadowing's change per step that a kept link's budget covers
@@ -48,6 +48,8 @@ from netsim.topology import geometric_pairs
 FADE_SIGMAS = 4.0
 # Rounds of shortening steps on a map before robots whose links still fail are held.
 CUT_ROUNDS = 8
+# A step cut before a kept link's loss ends this far (of the faster robot's path) before it.
+CUT_BACKOFF_M = 0.05
 
 
 def fade_travel_m(budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float) -> np.ndarray:
@@ -114,7 +116,13 @@ class LinkRules:
             # The forest prefers short links; the shift keeps zero lengths (robots at one
             # spot) in the graph.
             return Candidates(i, j, d, d + float(ranges.min()), r - self.margin_m, np.full(len(i), np.inf), r)
-        i, j = self.link_state.up_pairs()
+        if self.shadow is None:
+            # On a map without shadowing a link is a function of the two positions: the
+            # pairs the channel would link at t_s, exactly (links.parquet samples the same
+            # rule along the legs, docs/radio.md).
+            i, j, _ = geometric_pairs(pos, self._largest_range())
+        else:
+            i, j = self.link_state.up_pairs()
         d = np.hypot(*(pos[i] - pos[j]).T) if len(i) else np.zeros(0)
         walls = self._walls_now(pos, i, j)
         if self.log is None:
@@ -124,6 +132,14 @@ class LinkRules:
             i, j, d, r = i[ok], j[ok], d[ok], r[ok]
             return Candidates(i, j, d, d + float(r.max(initial=0.0)), r - self.margin_m, np.full(len(i), np.inf), r)
         return self._power_candidates(pos, t_s, i, j, d, walls)
+
+    def _largest_range(self) -> float:
+        """No pair farther apart links (the range, or the implied range without walls)."""
+        if self.log is None:
+            return float(self.state.range_m.max())
+        from netsim.radio.propagation import implied_range_m
+
+        return implied_range_m(self.log)
 
     def _walls_now(self, pos: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         if self.walls is None or len(i) == 0:
@@ -225,7 +241,11 @@ class LinkRules:
             bad = np.flatnonzero(t_bad < np.inf)
             if len(bad) == 0:
                 return scale
-            cut = np.clip(t_bad[bad] / period_s * SAFETY, 0.0, 1.0) if round_ < CUT_ROUNDS else np.zeros(len(bad))
+            # Stopped short of the loss by CUT_BACKOFF_M of the faster robot's path: a step
+            # ending on the very instant of a loss would lose the link by rounding.
+            fast = np.maximum(np.hypot(*va[bad].T), np.hypot(*vb[bad].T))
+            early = t_bad[bad] - CUT_BACKOFF_M / np.maximum(fast, 1e-12)
+            cut = np.clip(early / period_s, 0.0, 1.0) if round_ < CUT_ROUNDS else np.zeros(len(bad))
             for robots, held in ((a[bad], ha[bad]), (b[bad], hb[bad])):
                 mover = ~held & moving[robots]
                 np.minimum.at(scale, robots[mover], scale[robots[mover]] * cut[mover])
@@ -234,7 +254,11 @@ class LinkRules:
     def _first_loss(self, pa, va, pb, vb, k, links: Candidates, period_s: float) -> np.ndarray:
         """For each scenario (two robots from ``pa``, ``pb`` at ``va``, ``vb``), the start of
         the first stretch of constant walls in which its link ``k`` is lost (inf: none)."""
-        table = _sweep(self.walls, pa, va, pb, vb, np.full(len(pa), float(period_s)))
+        from netsim.radio.sweep import sweep_walls
+
+        # Counts beyond what any link survives are all alike.
+        limit = 0 if self.log is None else int(np.ceil(self.log.budget_db / max(self.wall_loss_db, 1e-9)))
+        table = sweep_walls(self.walls, pa, va, pb, vb, np.full(len(pa), float(period_s)), limit=limit)
         pair, t0, t1, walls = (np.asarray(c) for c in (table.pair, table.t0_s, table.t1_s, table.walls))
         # Distance is convex in time: its largest value on a stretch is at an end.
         d0 = np.hypot(*((pa[pair] + va[pair] * t0[:, None]) - (pb[pair] + vb[pair] * t0[:, None])).T)
@@ -243,23 +267,3 @@ class LinkRules:
         first = np.full(len(pa), np.inf)
         np.minimum.at(first, pair[lost], t0[lost])
         return first
-
-
-def _sweep(occupancy, pa, va, pb, vb, duration_s):
-    """:func:`netsim.radio.sweep.sweep_walls`: the walls crossed between two moving robots,
-    exactly, over the whole step. Where that module is not installed, the walls at the
-    step's two ends only (a stand-in that misses a wall corner swept mid-step)."""
-    try:
-        from netsim.radio.sweep import sweep_walls
-    except ImportError:
-        from types import SimpleNamespace
-
-        from netsim.radio.los import walls_crossed
-
-        k = len(pa)
-        t1 = np.asarray(duration_s, float)
-        w0 = np.asarray(walls_crossed(occupancy, pa, pb), np.int64)
-        w1 = np.asarray(walls_crossed(occupancy, pa + va * t1[:, None], pb + vb * t1[:, None]), np.int64)
-        pair = np.r_[np.arange(k), np.arange(k)]
-        return SimpleNamespace(pair=pair, t0_s=np.r_[np.zeros(k), t1 * SAFETY], t1_s=np.r_[t1, t1], walls=np.r_[w0, w1])
-    return sweep_walls(occupancy, pa, va, pb, vb, duration_s)
