@@ -15,6 +15,7 @@ from mobility.steps import Candidates
 from netsim import config
 from netsim.errors import ConfigError
 from netsim.metrics import components_of_links
+from netsim.radio.los import walls_crossed
 from netsim.radio.propagation import LogDistanceParams, effective_range_m
 from netsim.run import execute
 from netsim.tools.cli import main
@@ -89,7 +90,6 @@ def test_real_network_never_splits_after_control_starts(radio_run):
 def exact_components(cfg, r, times) -> np.ndarray:
     """Components of the network the radio makes on the map at each of ``times``, from the
     exact positions (the legs) and the exact walls crossed."""
-    from netsim.radio.los import walls_crossed
     from netsim.radio.maps import cached_map
     from netsim.radio.propagation import path_loss_db
     from netsim.topology import geometric_pairs
@@ -290,6 +290,65 @@ def test_snapshot_with_the_link_state_has_the_channels_links():
     sim.run()
     assert wrong == []
     assert any(differs)
+
+
+def wall_rules(blocks, resolution_m=0.5, side_m=40.0):
+    """LinkRules of the unit disk (range 30 m) with line of sight on a map whose occupied
+    cells are the rectangles ``blocks`` ((x0, x1, y0, y1), metres)."""
+    from netsim.radio.maps import OccupancyMap
+
+    cells = int(side_m / resolution_m)
+    occupied = np.zeros((cells, cells), bool)
+    for x0, x1, y0, y1 in blocks:
+        rows = slice(int(y0 / resolution_m), int(y1 / resolution_m))
+        occupied[rows, int(x0 / resolution_m) : int(x1 / resolution_m)] = True
+    m = OccupancyMap(occupied, ~occupied, resolution_m, (0.0, 0.0))
+    compiled = SimpleNamespace(log=None, shadow=None, walls=None)
+    robots = SimpleNamespace(range_m=np.full(2, 30.0))
+    return LinkRules(SimpleNamespace(compiled=compiled, map=m), robots, None, 1.0, 8.0), m
+
+
+def one_link(pos):
+    d = np.array([float(np.hypot(*(pos[0] - pos[1])))])
+    return Candidates(np.array([0]), np.array([1]), d, d, np.array([29.0]), np.array([np.inf]), np.array([30.0]))
+
+
+def line_of_sight_throughout(m, pos, move, steps=2001):
+    t = np.linspace(0.0, 1.0, steps)[:, None]
+    return bool((walls_crossed(m, pos[0] + move[0] * t, pos[1] + move[1] * t) == 0).all())
+
+
+def test_a_step_is_cut_before_a_wall_sweeps_between_two_robots():
+    """Two robots translating side by side past a wall keep line of sight at both ends of
+    the step but lose it in between: the step is cut just before the loss (the walls
+    between them are computed over the whole step, not at its ends)."""
+    rules, m = wall_rules([(9.0, 11.0, 10.0, 12.0)])
+    pos = np.array([[5.0, 5.0], [15.0, 5.0]])
+    move = np.array([[0.0, 20.0], [0.0, 20.0]])
+    assert line_of_sight_throughout(m, pos, np.zeros_like(move))
+    assert not line_of_sight_throughout(m, pos, move)
+    assert walls_crossed(m, pos[[0]] + move[[0]], pos[[1]] + move[[1]])[0] == 0  # clear at the end
+    scale = rules.cut_for_walls(pos, move, np.array([False, False]), one_link(pos), np.array([0]), 1.0)
+    assert 0.2 < scale[0] == scale[1] < 0.25
+    assert line_of_sight_throughout(m, pos, move * scale[:, None])
+
+
+def test_a_missed_command_is_checked_too():
+    """A commanded robot may miss its command and hold while its partner moves: the step
+    is cut so that the link keeps line of sight in that case too, even where both moving
+    would keep it."""
+    rules, m = wall_rules([(9.5, 10.0, 8.5, 9.0)])
+    pos = np.array([[0.0, 10.0], [20.0, 10.0]])
+    move = np.array([[0.0, 3.0], [0.0, -3.0]])
+    held_first = move * [[0.0], [1.0]]
+    assert line_of_sight_throughout(m, pos, move)
+    assert not line_of_sight_throughout(m, pos, held_first)
+    commanded = np.array([True, False])
+    scale = rules.cut_for_walls(pos, move, commanded, one_link(pos), np.array([0]), 1.0)
+    assert scale[1] < 1.0
+    cut = move * scale[:, None]
+    assert line_of_sight_throughout(m, pos, cut)
+    assert line_of_sight_throughout(m, pos, cut * [[0.0], [1.0]])
 
 
 # -- bad input ------------------------------------------------------------------------------
