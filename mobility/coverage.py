@@ -27,10 +27,15 @@ The architecture (docs/model.md section 5)
 - Members move only by their leader's commands, sent over the channel; a member that
   misses its command holds for that step.
 - The step is made safe for connectivity by :func:`mobility.spread.plan_spread`: a
-  minimum spanning forest of the network is kept, each end of a kept link ending the step
-  within its half of the link's allowed length (module notes there). Because each end
+  minimum spanning forest of the links up now is kept, each end of a kept link ending the
+  step within its half of the link's allowed length (module notes there). Because each end
   keeps to its own half, a robot that holds instead of moving never breaks a kept link:
   the network stays connected at every instant even when commands are lost.
+- A link is what the channel makes under the run's radio, the same as ``links.parquet``:
+  the controller gets the run's link state when built (``parts.links``), counts the
+  components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
+  them up by the radio's rules (:mod:`mobility.keep`: the disk exactly; shadowing with a
+  fade margin and a bound on travel; walls swept exactly over the step).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
   3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
@@ -55,7 +60,8 @@ command can break a bridge there: connectivity is measured, not guaranteed.
 
 What is not distributed: each step's plan is computed in one pass for the whole team (the
 spanning forest over the whole network; a robot's limits then use only the current
-positions of its kept neighbours). A deployment would build the forest with a
+positions of its kept neighbours, and under shadowing the shadowing measured on those
+links). A deployment would build the forest with a
 distributed minimum spanning tree algorithm and exchange the kept links in the Acks.
 """
 
@@ -277,9 +283,7 @@ class CoverageController:
         st = parts.state
         # The links as the channel makes them (those of links.parquet), and what keeps them up.
         self.link_state = parts.links()
-        self.rules = LinkRules(
-            parts.channel.reception, st, self.link_state, params.margin_m, params.fade_margin_db, parts.occupancy
-        )
+        self.rules = LinkRules(parts.channel.reception, st, self.link_state, params.margin_m, params.fade_margin_db)
         self.range_m = float(np.min(st.range_m))
         self.radius_m = self.cfg.radius_m or self.range_m
         self.limits = StepLimits(

@@ -86,7 +86,7 @@ class LinkRules:
     the plain unit disk), the robots, the run's link state (the links up now, as
     ``links.parquet`` has them) and the plan's margins."""
 
-    def __init__(self, reception, state, link_state, margin_m: float, fade_margin_db: float, occupancy=None):
+    def __init__(self, reception, state, link_state, margin_m: float, fade_margin_db: float):
         self.state = state
         self.link_state = link_state
         self.margin_m = float(margin_m)
@@ -98,7 +98,6 @@ class LinkRules:
             self.shadow = None
         self.walls = reception.map if reception is not None else None
         self.wall_loss_db = compiled.walls.wall_loss_db if compiled is not None and compiled.walls is not None else 0.0
-        self.occupancy = occupancy
 
     @property
     def disk(self) -> bool:

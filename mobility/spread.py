@@ -2,12 +2,16 @@
 near as it can to where its forces push it, while a spanning forest of the network keeps
 the team connected.
 
-- The kept links are a minimum spanning forest of the current network (all robots, range
-  ``r_c``): it has as many components as the network, and its links are the shortest, so
-  the stretched links are the ones let go. It is chosen afresh every step.
-- Each kept link ``(i, j)`` of length ``d`` may end the step at most ``R = max(r_c -
-  margin, d)`` long. If both ends move, each keeps to its half: it ends within ``R / 2``
-  of the link's midpoint now. If only ``i`` moves, ``i`` ends within ``R`` of ``j``.
+- The kept links are a minimum spanning forest of the links up now (the caller's
+  :class:`~mobility.steps.Candidates`, :mod:`mobility.keep`; by default the disk of range
+  ``r_c``): it has as many components as the network, and its links are the strongest
+  (the shortest on a disk), so the stretched links are the ones let go. It is chosen
+  afresh every step.
+- Each kept link ``(i, j)`` of length ``d`` may end the step at most ``R = max(keep, d)``
+  long (on a disk ``keep = r_c - margin``). If both ends move, each keeps to its half: it
+  ends within ``R / 2`` of the link's midpoint now. If only ``i`` moves, ``i`` ends within
+  ``R`` of ``j``. A link whose pair travel is bounded (shadowing) bounds each moving end's
+  step to its share of it (half when both move).
 - So each moving robot has a few disks to end in (one per kept link, and its reach,
   ``speed_max x period``, around where it is) and the area. Where it is now lies in all
   of them, so standing still is always allowed. Its wished end point is brought into
@@ -19,8 +23,9 @@ the team connected.
   neighbour along a kept link by more than the link's slack allows passes the excess on
   to it as a pull (:func:`pass_on_pulls`), and the chain follows.
 - Every robot moves in a straight line over the step, so a link within range at both
-  ends of the step is within range throughout (:mod:`mobility.steps`): on a loss-free
-  channel, the number of components never grows at any instant.
+  ends of the step is within range throughout (:mod:`mobility.steps`): the number of
+  components never grows above its value at the step's start (walls: the caller's
+  exact cut, :meth:`mobility.keep.LinkRules.cut_for_walls`).
 
 Who may move is the caller's: leaders, and members that can hear their leader's command.
 Everyone else (undecided robots, members out of their leader's range) holds, and the
