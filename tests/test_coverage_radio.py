@@ -47,13 +47,14 @@ def real_components(links, n: int, t: float) -> int:
     return int(components_of_links(n, up["a"].to_numpy(), up["b"].to_numpy()).max() + 1)
 
 
-@pytest.fixture(scope="module", params=list(RADIOS))
+@pytest.fixture(scope="module")
 def radio_run(request):
     cfg = config.load(None, [*COVERAGE, *RADIOS[request.param]])
     return cfg, execute(cfg)
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("radio_run", list(RADIOS), indirect=True)
 def test_coverage_table_counts_the_links_of_links_parquet(radio_run):
     """At every sample the coverage table's components (and connected) are those of the
     links.parquet network; at every step the control table's are too."""
@@ -69,13 +70,12 @@ def test_coverage_table_counts_the_links_of_links_parquet(radio_run):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("radio_run", ["unit_disk", "shadowing"], indirect=True)
 def test_real_network_never_splits_after_control_starts(radio_run):
     """From the first control step on, the number of components of the links.parquet
-    network never grows: checked at every link event (a team that starts connected; on a
-    map, where links.parquet is sampled, see the next test)."""
+    network never grows: checked at every link event, for a team that starts connected
+    (on a map, where links.parquet is sampled, the next test checks the exact network)."""
     cfg, r = radio_run
-    if cfg.world.map:
-        pytest.skip("links.parquet on a map is sampled (docs/radio.md): checked on the exact geometry below")
     n, links = cfg.world.n_robots, r.frames["links"]
     start = cfg.sections["coverage"].start_s
     events = np.unique(np.r_[links["t_up_s"], links["t_down_s"]])
@@ -113,14 +113,13 @@ def exact_components(cfg, r, times) -> np.ndarray:
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("radio_run", ["office_line_of_sight", "office_wall_loss"], indirect=True)
 def test_on_a_map_the_network_never_has_more_components_than_at_the_last_step(radio_run):
     """On a map, from the exact geometry (every 0.05 s): the number of components never
     exceeds its value at the start of the latest control step, and never grows from one
     step to the next. (Between steps a link that comes up may merge two components and go
     down again: nothing kept it.)"""
     cfg, r = radio_run
-    if not cfg.world.map:
-        pytest.skip("a map")
     steps = r.frames["control"]["t_s"].to_numpy()
     assert len(steps) > 5
     times = np.arange(steps[0], cfg.duration_s, 0.05)
