@@ -9,7 +9,8 @@
 - :func:`connected_coverage_bound`: ``U(N)``, the most that ``N`` robots whose network is
   connected can cover (docs/validation.md item 16);
 - :func:`components`: connected components of the unit-disk network; :func:`components_of_links`:
-  those of any radio's links (a link solver's);
+  those of any radio's links (a link solver's); :func:`components_in_links_table`: their
+  number over time in a links table (``links.parquet``);
 - :func:`nearest_spacing`: each leader's distance to its nearest leader;
 - :func:`hexagonality`: the bond-orientational order parameter psi_6 (1 on a perfect
   hexagonal lattice, near 0 for a random arrangement).
@@ -190,6 +191,28 @@ def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     graph = csr_matrix((np.ones(len(a)), (np.asarray(a, np.int64), np.asarray(b, np.int64))), shape=(n, n))
     return connected_components(graph, directed=False)[1]
+
+
+def components_in_links_table(links, n: int, times_s: npt.ArrayLike) -> np.ndarray:
+    """Number of connected components, at each of ``times_s``, of the network whose links
+    are the rows of a links table (``links.parquet``: a link is up on ``[t_up_s,
+    t_down_s)``, so at an instant where it goes down and another comes up, the state after
+    both). ``O(E)`` per instant.
+
+    >>> import pandas as pd
+    >>> links = pd.DataFrame({"a": [0, 1], "b": [1, 2], "t_up_s": [0.0, 5.0], "t_down_s": [10.0, 8.0]})
+    >>> components_in_links_table(links, 3, [0.0, 5.0, 8.0, 10.0]).tolist()
+    [2, 1, 2, 3]
+    """
+    a = np.asarray(links["a"], np.int64)
+    b = np.asarray(links["b"], np.int64)
+    up_s = np.asarray(links["t_up_s"], float)
+    down_s = np.asarray(links["t_down_s"], float)
+    out = []
+    for t in np.asarray(times_s, float).reshape(-1).tolist():
+        up = (up_s <= t) & (down_s > t)
+        out.append(int(components_of_links(n, a[up], b[up]).max() + 1) if n else 0)
+    return np.array(out, np.int64)
 
 
 def nearest_spacing(positions_m: npt.ArrayLike) -> np.ndarray:

@@ -14,7 +14,7 @@ from mobility.spread import forest_rows
 from mobility.steps import Candidates
 from netsim import config
 from netsim.errors import ConfigError
-from netsim.metrics import components_of_links
+from netsim.metrics import components_in_links_table, components_of_links
 from netsim.radio.los import walls_crossed
 from netsim.radio.propagation import LogDistanceParams, effective_range_m
 from netsim.run import execute
@@ -43,8 +43,7 @@ RADIOS = {
 
 def real_components(links, n: int, t: float) -> int:
     """Components of the links.parquet network at ``t`` (a link is up on ``[t_up, t_down)``)."""
-    up = links[(links["t_up_s"] <= t) & (links["t_down_s"] > t)]
-    return int(components_of_links(n, up["a"].to_numpy(), up["b"].to_numpy()).max() + 1)
+    return int(components_in_links_table(links, n, [t])[0])
 
 
 @pytest.fixture(scope="module")
