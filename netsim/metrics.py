@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -193,7 +194,7 @@ def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return connected_components(graph, directed=False)[1]
 
 
-def components_in_links_table(links, n: int, times_s: npt.ArrayLike) -> np.ndarray:
+def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.ndarray:
     """Number of connected components, at each of ``times_s``, of the network whose links
     are the rows of a links table (``links.parquet``: a link is up on ``[t_up_s,
     t_down_s)``, so at an instant where it goes down and another comes up, the state after
