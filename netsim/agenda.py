@@ -17,7 +17,7 @@ kernel event per entry; the kernel sees one event per run of consecutive entries
 wake stays queued when an earlier entry arms another before it; by its turn its entry may
 have run from that one, and it runs whatever is due then, or nothing.)
 :func:`netsim.events.kernel_queue` and :func:`netsim.events.advance_clock` say why reading
-the kernel's queue and setting its clock is sound (``netsim.kinetic`` does the same for
+the kernel's queue and setting its clock is sound (``netsim.links.kinetic`` does the same for
 the runtime link events).
 
 Entries that a caller schedules in key order (the channel's deliveries at its constant

@@ -10,7 +10,7 @@ both); so :func:`scheduled_event` sets the two attributes ``_ok`` and ``_value``
 SimPy's own ``Timeout.__init__`` does. Runtime link events use :data:`FIRST`, a priority
 ahead of URGENT: they are delivered before anything else due at their instant.
 :func:`kernel_queue` and :func:`advance_clock` let one kernel event stand for several
-consecutive instants of the runtime link events (``netsim.kinetic``) or several entries of
+consecutive instants of the runtime link events (``netsim.links.kinetic``) or several entries of
 an agenda (``netsim.agenda``: the Ack ticks and deliveries): SimPy exposes neither
 the priority of its next event nor a way to move its clock, so they read its queue and set
 its clock (``_queue``, ``_now``) themselves, as its ``step()`` does.

@@ -38,10 +38,10 @@ if TYPE_CHECKING:
     import numpy as np
     import pandas as pd
 
-    from netsim.channel import Channel
     from netsim.control import ControlLoop
     from netsim.events import EventBus
     from netsim.groups import GroupView
+    from netsim.radio.channel import Channel
     from netsim.rng import Streams
     from netsim.state import RobotState
     from netsim.trace import Trace

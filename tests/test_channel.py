@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from netsim.channel import DROP_CAUSES
-from netsim.loss import DistanceLoss, GilbertElliottLoss
+from netsim.radio.channel import DROP_CAUSES
+from netsim.radio.loss import DistanceLoss, GilbertElliottLoss
 from netsim.run import build, simulation
 from tests.fixtures import make_config, static_core
 

@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from netsim.channel import DROP_CAUSES
 from netsim.errors import ConfigError
-from netsim.radio import mac_checks
+from netsim.radio.channel import DROP_CAUSES
 from netsim.radio.mac import MAC_DROP_CAUSES, airtime_s
 from netsim.run import execute, tables
+from netsim.tools import mac_checks
 from tests.fixtures import make_config
 
 T = 1e-3  # airtime of the test frames: 125 bytes at 1 Mb/s, no preamble

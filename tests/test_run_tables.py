@@ -54,3 +54,45 @@ def test_hops_chain_back_to_the_source(frames):
     assert (when <= later.t_sent_s.to_numpy()).all()
     sent = hops.drop_duplicates(["msg_id", "hop", "sender", "t_sent_s"]).groupby("msg_id").size()
     assert (sent <= msgs.loc[sent.index, "transmissions"]).all()
+
+
+@pytest.mark.parametrize("duration_s", [30.0, 30.5])
+def test_sampled_tables_end_at_the_runs_end(duration_s):
+    """The groups, beliefs, neighbour_beliefs and coverage tables are sampled every
+    interval from 0 and once more at the run's end T, whether or not T is a multiple of
+    the interval; the coverage table's last row is the summary's final values."""
+    cfg = make_config(
+        seed=2,
+        duration_s=duration_s,
+        world={"n_robots": 20, "side_m": 400.0, "placement": "centre", "centre_side_m": 150.0},
+        mobility={"model": "static"},
+        channel={"range_m": 100.0},
+        coverage={"enabled": True, "start_s": 10.0},
+    )
+    res = execute(cfg)
+    for name, interval in (("beliefs", 1.0), ("neighbour_beliefs", 1.0), ("groups", 1.0), ("coverage", 5.0)):
+        times = np.unique(res.frames[name]["t_s"].to_numpy())
+        grid = np.arange(0.0, duration_s - 1e-9, interval)
+        assert times[-1] == duration_s, name
+        assert set(grid[grid >= times[0]]) <= set(times) and len(times) == len(grid[grid >= times[0]]) + 1, name
+    last = res.frames["coverage"].iloc[-1]
+    assert last["covered_fraction_all"] == res.summary["covered_fraction_all_final"]
+    assert last["components"] == res.summary["components_final"]
+
+
+def test_a_sample_the_intervals_bring_to_the_end_is_not_taken_twice():
+    """Sampling every 0.1 s for 1 s gives 11 samples, the last at 1 s: the sum of ten
+    intervals falls a rounding error short of 1 s, and that sample is the last one, not a
+    second sample beside it."""
+    cfg = make_config(
+        seed=1,
+        duration_s=1.0,
+        world={"n_robots": 10, "side_m": 300.0},
+        mobility={"model": "static"},
+        output={"position_interval_s": 0.1},
+        coverage={"enabled": True, "metrics_interval_s": 0.1, "stop_hold_s": 0.5},
+    )
+    frames = execute(cfg).frames
+    for name in ("beliefs", "coverage"):
+        times = np.unique(frames[name]["t_s"].to_numpy())
+        assert len(times) == 11 and times[-1] == pytest.approx(1.0) and np.diff(times).min() > 0.09, name
