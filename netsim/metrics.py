@@ -198,20 +198,25 @@ def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.
     """Number of connected components, at each of ``times_s``, of the network whose links
     are the rows of a links table (``links.parquet``: a link is up on ``[t_up_s,
     t_down_s)``, so at an instant where it goes down and another comes up, the state after
-    both). ``O(E)`` per instant.
+    both; a link still up at the run's end, ``censored_end``, is up at its ``t_down_s``,
+    the end, too). ``O(E)`` per instant.
 
     >>> import pandas as pd
     >>> links = pd.DataFrame({"a": [0, 1], "b": [1, 2], "t_up_s": [0.0, 5.0], "t_down_s": [10.0, 8.0]})
     >>> components_in_links_table(links, 3, [0.0, 5.0, 8.0, 10.0]).tolist()
     [2, 1, 2, 3]
+    >>> links["censored_end"] = [True, False]
+    >>> components_in_links_table(links, 3, [10.0]).tolist()
+    [2]
     """
     a = np.asarray(links["a"], np.int64)
     b = np.asarray(links["b"], np.int64)
     up_s = np.asarray(links["t_up_s"], float)
     down_s = np.asarray(links["t_down_s"], float)
+    open_end = np.asarray(links["censored_end"], bool) if "censored_end" in links else np.zeros(len(a), bool)
     out = []
     for t in np.asarray(times_s, float).reshape(-1).tolist():
-        up = (up_s <= t) & (down_s > t)
+        up = (up_s <= t) & ((down_s > t) | (open_end & (down_s >= t)))
         out.append(int(components_of_links(n, a[up], b[up]).max() + 1) if n else 0)
     return np.array(out, np.int64)
 

@@ -134,7 +134,7 @@ def test_on_a_map_the_network_never_has_more_components_than_at_the_last_step(ra
 def test_issue_28_shadowing_reproduction_reports_the_real_network():
     """The issue's run: 40 robots from the centre of a 1 km square, log-distance with 4 dB
     shadowing, coverage on. The table said 1 component while links.parquet had up to 18;
-    now it agrees at all 80 samples, and the real network never splits after control starts."""
+    now it agrees at every sample, and the real network never splits after control starts."""
     cfg = config.load(
         None,
         [
@@ -148,7 +148,7 @@ def test_issue_28_shadowing_reproduction_reports_the_real_network():
     )
     r = execute(cfg)
     links, cov = r.frames["links"], r.frames["coverage"]
-    assert len(cov) == 80
+    assert len(cov) == 81  # every 5 s from 0 to the end
     assert cov["components"].tolist() == [real_components(links, 40, t) for t in cov["t_s"]]
     events = np.unique(np.r_[links["t_up_s"], links["t_down_s"]])
     events = events[(events >= 10.0) & (events < 400.0)]
