@@ -42,6 +42,7 @@ import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -170,7 +171,7 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
         return v
 
     # The lines understood, in file order: ("init" | "setdest" | "set", lineno, node, values).
-    parsed: list[tuple[str, int, int, tuple]] = []
+    parsed: list[tuple[str, int, int, tuple[Any, ...]]] = []
     for lineno, raw in enumerate(lines, 1):
         w = _tokens(raw)
         if len(w) == 4:
@@ -216,12 +217,12 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
     for kind, _lineno, i, vals in parsed:
         if kind == "init" and vals[0] != "Z_":
             now[i, 0 if vals[0] == "X_" else 1] = vals[1]
-            given.setdefault(i, set()).add(vals[0])
+            given.setdefault(i, set()).add(str(vals[0]))
         if kind == "init":
             heading[i] = _Heading(final=now[i].copy())
     events: list[list] = []  # [t, seq, robot, kind, x, y, cancelled]
 
-    def schedule(t: float, i: int, kind: str, xy) -> int:
+    def schedule(t: float, i: int, kind: str, xy: Any) -> int:
         events.append([t, len(events), i, kind, float(xy[0]), float(xy[1]), False])
         return len(events) - 1
 

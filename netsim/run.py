@@ -34,7 +34,7 @@ from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.shadowed_links import ShadowedLinks
 from netsim.links.walled_links import WalledLinks
 from netsim.params import Params
-from netsim.plugins import LegacyPlugin, Parts, Reports, Schema
+from netsim.plugins import Parts, Reports, Schema
 from netsim.radio.channel import Channel
 from netsim.radio.loss import LOSS_MODELS
 from netsim.radio.propagation_models import PROPAGATION_MODELS
@@ -130,10 +130,7 @@ def world_map(config: Config) -> Any:
 
 
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
-    if isinstance(plugin, LegacyPlugin):
-        component = plugin.install(sim)
-    else:
-        component = plugin.build(params, parts)
+    component = plugin.build(params, parts)
     sim.add_model(name, component)
     return component
 

@@ -125,5 +125,5 @@ def write(path: str | Path, wp: Waypoints, side_m: float, duration_s: float) -> 
     params_path(path).write_text("".join(f"{k}={_plain(v)}\n" for k, v in params.items()))
 
 
-def _plain(v) -> str:
+def _plain(v: object) -> str:
     return repr(v) if isinstance(v, float) and not math.isnan(v) else str(v)

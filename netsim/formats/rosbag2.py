@@ -22,6 +22,7 @@ import json
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -34,13 +35,13 @@ _ROBOT_TOPIC = re.compile(r"^/robot_(\d+)/")
 FRAME = "map"
 
 
-def _typestore():
+def _typestore() -> Any:
     from rosbags.typesys import Stores, get_typestore  # imported when asked: an optional dependency
 
     return get_typestore(Stores.ROS2_HUMBLE)
 
 
-def _robot_topics(connections, topics: Sequence[str], source: str) -> dict[str, int]:
+def _robot_topics(connections: Any, topics: Sequence[str], source: str) -> dict[str, int]:
     """Which topic each robot follows: ``{topic: robot}``."""
     pose_topics = {c.topic: c.msgtype for c in connections if c.msgtype in POSE_TYPES}
     if topics:
@@ -67,9 +68,9 @@ def _robot_topics(connections, topics: Sequence[str], source: str) -> dict[str, 
         raise NetsimInputError(
             f"{source}: robot {i} has several pose topics {sorted(t)}; name one per robot in mobility.topics"
         )
-    missing = sorted(set(range(max(chosen) + 1)) - set(chosen))
-    if missing:
-        raise NetsimInputError(f"{source}: no pose topic for robot(s) {missing[:10]} (robots are numbered from 0)")
+    lacking = sorted(set(range(max(chosen) + 1)) - set(chosen))
+    if lacking:
+        raise NetsimInputError(f"{source}: no pose topic for robot(s) {lacking[:10]} (robots are numbered from 0)")
     return {t[0]: i for i, t in chosen.items()}
 
 
@@ -109,7 +110,7 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
     return Waypoints.of(robots, t, xs, ys, source)
 
 
-def _make(store, typename: str, **given):
+def _make(store: Any, typename: str, **given: Any) -> Any:
     """A message of ``typename`` with the ``given`` fields and zero or empty defaults."""
     from rosbags.typesys.store import Nodetype  # imported when asked: an optional dependency
 
@@ -132,11 +133,11 @@ def _make(store, typename: str, **given):
     return store.types[typename](**kwargs)
 
 
-def _dtype(base: str):
+def _dtype(base: str) -> Any:
     return {"bool": bool, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}.get(base, base)
 
 
-def _stamp(store, t_s: float):
+def _stamp(store: Any, t_s: float) -> Any:
     ns = int(round(t_s * 1e9))
     return _make(store, "builtin_interfaces/msg/Time", sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
@@ -149,17 +150,17 @@ def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
     store = _typestore()
     rows: list[tuple[int, str, str, object]] = []  # (stamp ns, topic, type, message)
 
-    def header(t_s: float):
+    def header(t_s: float) -> Any:
         return _make(store, "std_msgs/msg/Header", stamp=_stamp(store, t_s), frame_id=FRAME)
 
-    def point(x: float, y: float):
+    def point(x: float, y: float) -> Any:
         return _make(store, "geometry_msgs/msg/Point", x=float(x), y=float(y))
 
     def ns(t_s: float) -> int:
         return int(round(t_s * 1e9))
 
     positions = frames["positions"]
-    for t, robot, x, y in positions[["t_s", "robot", "x_m", "y_m"]].itertuples(index=False):
+    for t, robot, x, y in positions[["t_s", "robot", "x_m", "y_m"]].to_numpy().tolist():
         pose = _make(
             store,
             "geometry_msgs/msg/Pose",
@@ -174,6 +175,7 @@ def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
         a, b = links["a"].to_numpy(), links["b"].to_numpy()
         up, down = links["t_up_s"].to_numpy(), links["t_down_s"].to_numpy()
         for t, at in positions.groupby("t_s", sort=True):
+            t = float(t)  # type: ignore[arg-type]  # the group's key: a sampling instant
             xy = dict(zip(at["robot"].tolist(), zip(at["x_m"].tolist(), at["y_m"].tolist())))
             live = (up <= t) & (t < down)
             pts = [point(*xy[int(r)]) for pair in zip(a[live], b[live]) for r in pair if int(r) in xy]
@@ -206,29 +208,18 @@ def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
 
     roles = frames.get("roles")
     if roles is not None:
-        for t, robot, role, leader, cause in roles[["t_s", "robot", "role", "leader", "cause"]].itertuples(index=False):
+        for t, robot, role, leader, cause in (
+            roles[["t_s", "robot", "role", "leader", "cause"]].to_numpy(object).tolist()
+        ):
             text(t, f"/robot_{int(robot)}/role", {"role": str(role), "leader": int(leader), "cause": str(cause)})
     messages = frames.get("messages")
     if messages is not None:
-        for m in messages.itertuples(index=False):
-            text(
-                m.t_sent_s,
-                "/messages",
-                {"event": "sent", "msg_id": int(m.msg_id), "src": int(m.src), "dst": int(m.dst)},
-            )
-            if m.delivered:
-                text(
-                    m.t_delivered_s,
-                    "/messages",
-                    {
-                        "event": "delivered",
-                        "msg_id": int(m.msg_id),
-                        "src": int(m.src),
-                        "dst": int(m.dst),
-                        "hops": int(m.hops),
-                        "latency_s": float(m.latency_s),
-                    },
-                )
+        for m in messages.to_dict("records"):
+            ids = {"msg_id": int(m["msg_id"]), "src": int(m["src"]), "dst": int(m["dst"])}
+            text(float(m["t_sent_s"]), "/messages", {"event": "sent", **ids})
+            if m["delivered"]:
+                extra = {"hops": int(m["hops"]), "latency_s": float(m["latency_s"])}
+                text(float(m["t_delivered_s"]), "/messages", {"event": "delivered", **ids, **extra})
 
     rows.sort(key=lambda r: (r[0], r[1]))
     with Writer(Path(out), version=8) as writer:

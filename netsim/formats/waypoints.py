@@ -9,8 +9,10 @@ the next, and stays at its last one. Two waypoints at one instant are a jump.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from netsim.errors import NetsimInputError
 
@@ -30,7 +32,7 @@ class Waypoints:
         return int(self.robot.max()) + 1 if len(self.robot) else 0
 
     @classmethod
-    def of(cls, robot, t_s, x_m, y_m, source: str) -> Waypoints:
+    def of(cls, robot: Any, t_s: Any, x_m: Any, y_m: Any, source: str) -> Waypoints:
         """Sorted rows; every robot 0..max named at least once, else one line naming ``source``."""
         robot = np.asarray(robot, dtype=np.int64)
         t_s, x_m, y_m = (np.asarray(a, dtype=float) for a in (t_s, x_m, y_m))
@@ -83,7 +85,7 @@ class Waypoints:
         return out
 
 
-def from_legs(legs, n_robots: int, duration_s: float) -> Waypoints:
+def from_legs(legs: pd.DataFrame, n_robots: int, duration_s: float) -> Waypoints:
     """The waypoints of a run's legs (``legs.parquet``): each leg's start, and where each
     robot is at ``duration_s``."""
     legs = legs[legs["t_s"] <= duration_s].sort_values(["robot", "t_s"], kind="stable")
