@@ -105,6 +105,13 @@ def test_leg_lengths_from_third_leave_out_the_first_two_legs_and_late_starts():
     assert lengths.tolist() == [3.0, 4.0] and robots.tolist() == [0, 0]
 
 
+def test_capped_link_duration_is_pi_squared_r_over_8v_without_a_cap_and_less_with_one():
+    """Item 6's theory: the mean of min(T, cap) over links born in steady state is
+    pi^2 R / (8 v) for a cap beyond every duration, and the exact capped value below it."""
+    assert validate.capped_link_duration_s(10.0, 1.0, 1e12) == pytest.approx(math.pi**2 * 10.0 / 8.0, rel=1e-9)
+    assert validate.capped_link_duration_s(10.0, 1.0, 500.0) == pytest.approx(12.2703, abs=1e-4)
+
+
 def test_aloha_periodic_standard_error_matches_the_phases_drawn_directly():
     """Item 21's standard error: the variance of a round's successful frames, as a direct
     draw of the phases gives it (a frame succeeds when no other phase lies within T/t on
