@@ -6,8 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.radio import mac_checks
-from netsim.tools import validate
+from netsim.tools import mac_checks, validate
 from netsim.tools.analysis import expected_acks_until_spurious_timeout, spurious_timeout_window
 from netsim.tools.cli import main
 
