@@ -387,7 +387,7 @@ def interference_sum(
             wrong += ok != ((c, r) in heard)
             differs += ok != (signal >= capture * (noise_mw + strongest))
     check = MacCheck(
-        f"ALOHA, log-distance: receptions against the summed-SINR rule, {interferers} interferers", 0.0, wrong, 0.0
+        f"ALOHA, log-distance, {interferers} interferers: receptions off the summed-SINR rule", 0.0, wrong, 0.0
     )
     return check, cells * rounds, differs
 

@@ -778,7 +778,7 @@ def check_interference_sum(seed: int | None = None) -> list[Check]:
     from netsim.tools import mac_checks as m
 
     c, receptions, differs = m.interference_sum(seed=derive(seed, 1))
-    label = f"{c.item} ({receptions} receptions, {differs} decided otherwise by the strongest alone)"
+    label = f"{c.item} ({differs} of {receptions} otherwise with the strongest alone)"
     return [Check("26", label, c.theory, c.measured, c.tolerance)]
 
 
