@@ -23,6 +23,7 @@ import simpy
 
 from netsim import config as cfgmod
 from netsim import plugins
+from netsim.area import world_bounds
 from netsim.config import Config
 from netsim.control import ControlLoop
 from netsim.cosim import Driver, Messenger, NeighbourView
@@ -77,7 +78,7 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     streams = Streams(config.seed, run)
     w = config.world
     events = EventBus()
-    state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus)
+    state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus, world_bounds(w))
     state.events = events
     ch = config.channel
     survives = LOSS_MODELS[ch.loss_model].make(ch.loss, state.range_m, streams.get("channel.loss"))
