@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import simpy
 
-from netsim.area import Bounds
+from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive, probability
 from netsim.placement import initial_positions
@@ -56,10 +56,13 @@ def check(params: GaussMarkovParams, config) -> None:
         raise ConfigError("mobility.model", "gauss_markov", "moves in a bounded area; set world.torus = false")
 
 
-def _clamped_legs(p: np.ndarray, v: np.ndarray, duration_s: float, area: Bounds) -> list[tuple[float, np.ndarray]]:
+def _clamped_legs(
+    p: np.ndarray, v: np.ndarray, duration_s: float, box: float | Bounds
+) -> list[tuple[float, np.ndarray]]:
     """The legs ``(start offset s, velocity)`` of a robot moving from ``p`` at ``v`` for
-    ``duration_s`` with its position clamped to the area: each coordinate that reaches a
-    border stops there, the other goes on."""
+    ``duration_s`` with its position clamped to the area (Bounds, or the side of the square
+    ``[0, side]^2``): each coordinate that reaches a border stops there, the other goes on."""
+    area = as_bounds(box)
     lo, hi = (area.x_min, area.y_min), (area.x_max, area.y_max)
     legs = [(0.0, v.copy())]
     t, here, vel = 0.0, p.copy(), v.copy()
@@ -81,9 +84,11 @@ def _clamped_legs(p: np.ndarray, v: np.ndarray, duration_s: float, area: Bounds)
 
 
 def gauss_markov_robot(
-    env: simpy.Environment, st: RobotState, m: GaussMarkovParams, area: Bounds, i: int, rng: np.random.Generator
+    env: simpy.Environment, st: RobotState, m: GaussMarkovParams, box: float | Bounds, i: int, rng: np.random.Generator
 ):
-    """The life of robot ``i``: one update every ``update_interval_s``, forever."""
+    """The life of robot ``i`` in the area ``box`` (Bounds, or the side of the square ``[0,
+    side]^2``): one update every ``update_interval_s``, forever."""
+    area = as_bounds(box)
     mean_dir = rng.uniform(0.0, 2 * math.pi)
     speed, direction = m.mean_speed_mps, mean_dir
     keep = math.sqrt(max(0.0, 1.0 - m.alpha * m.alpha))

@@ -840,7 +840,8 @@ def commented_toml(config: Config | None = None) -> str:
             if is_derived:
                 # Written as the rule, not a number, so that it follows the key it derives from.
                 rule = next(_rule(type(p), key) for p in owners if key in names(type(p)))
-                out += [f"# {doc}", f"# default: {rule}; uncomment to fix it", f"# {line}"]
+                out += [f"# {doc}", f"# default: {rule}; uncomment to fix it"]
+                out += [f"# {part}" for part in line.splitlines()]
                 continue
             out += [f"# {doc}", line]
         others = [row for row in _other_models(section) if row[1] not in used]
