@@ -24,7 +24,8 @@ import pandas as pd
 import simpy
 
 from mobility.speeds import SpeedParams
-from netsim.area import Bounds, world_bounds
+from netsim.area import Bounds
+from netsim.config import world_bounds
 from netsim.errors import ConfigError
 from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec

@@ -15,7 +15,7 @@ import numpy as np
 import simpy
 
 from netsim import ns2
-from netsim.area import world_bounds
+from netsim.config import world_bounds
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param

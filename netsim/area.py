@@ -125,15 +125,3 @@ def parse_bounds(key: str, value: Any) -> tuple[float, float, float, float] | st
     if not (x1 > x0 and y1 > y0):
         raise ConfigError(key, list(value), allowed)
     return x0, y0, x1, y1
-
-
-def world_bounds(world: Any) -> Bounds:
-    """The area of a world (``netsim.config.WorldParams``): ``world.bounds_m``, ``"map"``
-    being the whole extent of ``world.map``."""
-    b = world.bounds_m
-    if b == "map":
-        from netsim.radio.maps import cached_map
-
-        x0, x1, y0, y1 = cached_map(world.map).extent_m
-        return Bounds(x0, y0, x1, y1)
-    return Bounds(*(float(v) for v in b))

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from netsim import plugins
-from netsim.area import KEY, Bounds, parse_bounds, world_bounds
+from netsim.area import KEY, Bounds, parse_bounds
 from netsim.errors import ConfigError
 from netsim.params import (
     NoParams,
@@ -457,6 +457,18 @@ class Config(Params):
         if isinstance(r, tuple):
             return r
         return (float(r),) * self.world.n_robots
+
+
+def world_bounds(world: Any) -> Bounds:
+    """The area of a world (``netsim.config.WorldParams``): ``world.bounds_m``, ``"map"``
+    being the whole extent of ``world.map``."""
+    b = world.bounds_m
+    if b == "map":
+        from netsim.radio.maps import cached_map
+
+        x0, x1, y0, y1 = cached_map(world.map).extent_m
+        return Bounds(x0, y0, x1, y1)
+    return Bounds(*(float(v) for v in b))
 
 
 def _check_map(config: Config) -> None:

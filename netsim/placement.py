@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from netsim.area import Bounds, as_bounds, world_bounds
+from netsim.area import Bounds, as_bounds
+from netsim.config import world_bounds
 from netsim.errors import ConfigError
 from netsim.rng import Streams
 

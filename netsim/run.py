@@ -23,8 +23,7 @@ import simpy
 
 from netsim import config as cfgmod
 from netsim import plugins
-from netsim.area import world_bounds
-from netsim.config import Config
+from netsim.config import Config, world_bounds
 from netsim.control import ControlLoop
 from netsim.cosim import Driver, Messenger, NeighbourView
 from netsim.errors import ConfigError, NetsimInputError

@@ -19,7 +19,7 @@ from pathlib import Path
 import pandas as pd
 
 from netsim import ns2
-from netsim.area import world_bounds
+from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.tools.output import is_run_dir
 

@@ -35,7 +35,8 @@ import pandas as pd
 
 from netsim import config as cfgmod
 from netsim import metrics
-from netsim.area import Bounds, world_bounds
+from netsim.area import Bounds
+from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.tools import style
 from netsim.topology import geometric_pairs

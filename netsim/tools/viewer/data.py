@@ -36,7 +36,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from netsim import config as cfgmod
-from netsim.area import world_bounds
+from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.plugins import RoleLabels
 from netsim.tools import style
