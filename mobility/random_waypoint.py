@@ -25,7 +25,7 @@ import simpy
 from mobility.speeds import SpeedParams
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
-from netsim.metrics import MEAN_LEG_UNIT_SQUARE
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.params import param
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
@@ -115,22 +115,6 @@ def paused_fraction(area: float | Bounds, v_min: float, v_max: float, pause_s: f
     b = as_bounds(area)
     leg = MEAN_LEG_UNIT_SQUARE * b.width if b.width == b.height else mean_distance_rectangle(b.width, b.height)
     return pause_s / (pause_s + leg * mean_inverse_speed(v_min, v_max))
-
-
-def mean_distance_rectangle(a: float, b: float) -> float:
-    """Mean distance between two points uniform in an ``a x b`` rectangle (Ghosh 1951):
-    the mean leg of random waypoint there.
-
-    >>> round(mean_distance_rectangle(1.0, 1.0), 6) == round(MEAN_LEG_UNIT_SQUARE, 6)
-    True
-    """
-    d = math.hypot(a, b)
-    return (
-        a**3 / b**2
-        + b**3 / a**2
-        + d * (3 - a**2 / b**2 - b**2 / a**2)
-        + 2.5 * (b**2 / a * math.log((a + d) / b) + a**2 / b * math.log((b + d) / a))
-    ) / 15
 
 
 def stationary_start(

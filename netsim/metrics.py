@@ -41,6 +41,22 @@ CONNECTED_AREA_PER_ROBOT = math.pi - LENS_AREA_AT_RANGE
 QUAD_SEGS = 16
 
 
+def mean_distance_rectangle(a: float, b: float) -> float:
+    """Mean distance between two points uniform in an ``a x b`` rectangle (Ghosh 1951):
+    the mean leg of random waypoint there.
+
+    >>> round(mean_distance_rectangle(1.0, 1.0), 6) == round(MEAN_LEG_UNIT_SQUARE, 6)
+    True
+    """
+    d = math.hypot(a, b)
+    return (
+        a**3 / b**2
+        + b**3 / a**2
+        + d * (3 - a**2 / b**2 - b**2 / a**2)
+        + 2.5 * (b**2 / a * math.log((a + d) / b) + a**2 / b * math.log((b + d) / a))
+    ) / 15
+
+
 def lens_area(radius_m: float, distance_m: float) -> float:
     """Area shared by two disks of radius ``radius_m`` whose centres are ``distance_m`` apart.
 

@@ -8,19 +8,24 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+import simpy
 
 from mobility.forces import SQRT3, border_forces
-from mobility.random_waypoint import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle, stationary_start
+from mobility.gauss_markov import GaussMarkovParams, gauss_markov_robot
+from mobility.random_waypoint import stationary_start
 from mobility.steps import box_limit
 from netsim import load, metrics
 from netsim.area import Bounds
 from netsim.config import world_bounds
 from netsim.formats import bonnmotion
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.placement import initial_positions
 from netsim.radio.maps import save_map
 from netsim.rng import Streams
 from netsim.run import build, collect
+from netsim.state import RobotState
 from netsim.tools.cli import main
+from netsim.tools.validate import rwp_density
 
 # A rectangle across the origin, wider than high, nowhere near [0, side_m]^2.
 RECT = [-300.0, 100.0, 200.0, 400.0]
@@ -178,6 +183,34 @@ def test_every_mobility_model_keeps_robots_in_the_rectangle_and_uses_all_of_it(s
     assert xy[:, 1].min() < 150 and xy[:, 1].max() > 350
 
 
+class _West:
+    """A stand-in random generator for Gauss-Markov: mean direction pi (west), no noise."""
+
+    def uniform(self, lo, hi, size=None):
+        return math.pi
+
+    def standard_normal(self, size):
+        return np.zeros(size)
+
+
+def _gauss_markov_west(x0: float) -> np.ndarray:
+    env = simpy.Environment()
+    st = RobotState(1, 1000.0, 10.0, bounds=Bounds(*RECT))
+    st.place(np.array([[x0, 250.0]]))
+    p = GaussMarkovParams(alpha=0.5, mean_speed_mps=2.0, speed_sigma_mps=0.0, direction_sigma_rad=0.0)
+    env.process(gauss_markov_robot(env, st, p, st.bounds, 0, _West()))
+    env.run(until=10.5)
+    return st.legs()[["vx_mps"]].to_numpy()[1:, 0]
+
+
+def test_gauss_markov_turns_at_the_rectangle_border_not_at_zero():
+    """Heading west, a robot crosses x = 0 inside the rectangle without turning, and turns
+    back east at the rectangle's x_min."""
+    assert np.all(_gauss_markov_west(3.0) < 0)
+    vx = _gauss_markov_west(-297.0)
+    assert vx[0] < 0 and np.all(vx[1:] > 0), vx
+
+
 def test_static_robots_stay_where_placed_in_the_rectangle():
     """Static robots are placed in the rectangle and do not move."""
     legs = _run([f"world.bounds_m={RECT}", "world.n_robots=30", "duration_s=10", "mobility.model=static"])["legs"]
@@ -243,6 +276,20 @@ def test_stationary_start_on_a_rectangle_is_stationary():
         assert np.abs(h0 - h1).max() < 0.035
         assert np.abs(h1 - uniform).max() > 0.04
     assert still0 == pytest.approx(still1, abs=0.04)
+
+
+@pytest.mark.parametrize("pt", [(0.0, 0.5), (-0.9, 0.1), (0.6, 0.8)])
+def test_stationary_start_spatial_density_on_a_rectangle(pt):
+    """Items 3 and 4 on the rectangle ``[-1, 0, 1, 1]``: positions at t = 0 follow Hyytiä
+    et al.'s exact density for a ``2 x 1`` rectangle, shifted to its corner (counts in a
+    0.05 x 0.05 box within 4 Poisson standard deviations of the integrated density)."""
+    n, h = 400_000, 0.05
+    s = stationary_start(np.random.default_rng(3), n, Bounds(-1.0, 0.0, 1.0, 1.0), 0.01, 0.05, 0.0)
+    offsets = (np.arange(5) + 0.5) / 5 * h - h / 2
+    mass = np.mean([rwp_density(pt[0] + 1 + dx, pt[1] + dy, 2.0, 1.0) for dx in offsets for dy in offsets]) * h * h
+    p = s.position_m
+    count = int(((np.abs(p[:, 0] - pt[0]) < h / 2) & (np.abs(p[:, 1] - pt[1]) < h / 2)).sum())
+    assert abs(count - n * mass) < 4 * math.sqrt(n * mass)
 
 
 def test_stationary_start_draws_inside_the_rectangle():
