@@ -12,6 +12,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from netsim import kernel_cache
+
 
 @numba.njit(cache=True, nogil=True)
 def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
@@ -433,3 +435,8 @@ def reach_keys(pos, folded, ranges, box):
             keys[q] = base + senders[t]
             q += 1
     return keys
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -9,12 +9,13 @@ is built from its parameters and the parts of the run it works with (:class:`Par
 implements :class:`Reports`.
 
 Built-in plugins are entry points in ``pyproject.toml`` (groups ``netsim.mobility``,
-``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``), each naming a plugin object
+``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``, and the channel's models
+``netsim.propagation``, ``netsim.loss``, ``netsim.mac``), each naming a plugin object
 (``mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
 the configuration. So the engine never imports the packages that build on it, and names
-none of their models. A plain function ``install(sim)`` (the older form) still works as a
-plugin without parameters or tables: it is called with the whole
-:class:`~netsim.sim.Simulation`.
+none of their models. A plugin is a :class:`PluginSpec` or an object with its members, and
+nothing else: a component is handed its parameters and collaborators when it is built,
+never the whole simulation (docs/plugins.md, "One form of plugin").
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, runtime_checkable
 import simpy
 
 from netsim.errors import ConfigError
-from netsim.params import NoParams, Params
+from netsim.params import Params
+from netsim.radio.models import CHANNEL_GROUPS, wants_members
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -137,28 +139,6 @@ class PluginSpec:
     timing: Callable[[Any], tuple[float, float]] | None = None
 
 
-@dataclass(frozen=True)
-class LegacyPlugin:
-    """A plain function ``install(sim)`` used as a plugin (the older form): no parameters,
-    no tables; :func:`netsim.run.build` calls it with the whole Simulation."""
-
-    install: Callable[[Any], object]
-    Params: type[Params] = NoParams
-    tables: Mapping[str, Schema] = field(default_factory=dict)
-    default: bool = False
-    moves_robots: bool = True
-    respects_map: bool = False
-    forms_groups: bool = False
-    role_labels: RoleLabels | None = None
-    timing: Callable[[Any], tuple[float, float]] | None = None
-
-    def check(self, params: Any, config: Any) -> None:
-        return None
-
-    def build(self, params: Any, parts: Parts) -> object:
-        raise TypeError("a plain install(sim) function is called with the Simulation (netsim.run.build)")
-
-
 def _import_user_module(name: str) -> ModuleType:
     """Import ``name``; a module in the current directory counts, as with ``python -m``
     (a console script's import path does not include it)."""
@@ -180,7 +160,7 @@ def _entry_points(group: str) -> tuple:
 @cache
 def _every_entry_point() -> Any:
     # One reading of every installed distribution's entry points serves all the groups
-    # (a reading per group costs as much as one for all: about 1.5 ms each).
+    # (a reading per group costs as much as one for all).
     return entry_points()
 
 
@@ -193,16 +173,20 @@ _MEMBERS = ("Params", "tables", "check", "build")
 
 
 @cache
-def _plugin(group: str, name: str) -> PluginSpec | LegacyPlugin:
+def _plugin(group: str, name: str) -> Any:
     """The plugin ``name`` of ``group`` as a PluginSpec (an object with the members of
-    :class:`Plugin` is wrapped in one, a plain function in a LegacyPlugin)."""
+    :class:`Plugin` is wrapped in one); a channel model (:mod:`netsim.radio.models`) as it
+    is, once it has its kind's members."""
     obj = _load(group, name)
-    if isinstance(obj, PluginSpec | LegacyPlugin):
+    if group in CHANNEL_GROUPS:
+        wanted = wants_members(group)
+        if not all(hasattr(obj, m) for m in wanted):
+            raise TypeError(f"is not a {CHANNEL_GROUPS[group].__name__} (an object with " + ", ".join(wanted) + ")")
+        return obj
+    if isinstance(obj, PluginSpec):
         return obj
     if all(hasattr(obj, m) for m in _MEMBERS):
         return PluginSpec(Params=obj.Params, build=obj.build, tables=obj.tables, check=obj.check)
-    if callable(obj):
-        return LegacyPlugin(obj)
     raise TypeError("is not a netsim plugin (a PluginSpec, or an object with " + ", ".join(_MEMBERS) + ")")
 
 

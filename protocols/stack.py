@@ -37,8 +37,7 @@ def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
 
 
 # From this many robots on, a compiled sample is taken in two halves at once, in two threads
-# (on two cores or more): a sample of 1,000 robots takes about a millisecond, starting a
-# thread a twentieth of that.
+# (on two cores or more): below it, a sample is too short for a thread's start to pay off.
 SAMPLE_IN_TWO_ROBOTS = 1000
 
 
@@ -124,8 +123,8 @@ def column_buffer(capacity: int, dtype: np.dtype) -> np.ndarray:
     """An empty array of ``capacity`` items of ``dtype`` whose memory is touched only where
     written, in pages of 4 KiB: numpy asks for huge pages (2 MiB) for large arrays, and where
     the kernel compacts memory to find one at its first write (transparent huge pages'
-    ``defrag = madvise``, a common default) that took ~5 ms a page in a 10,000-robot run on
-    the benchmark machine, the 512 small pages' faults ~1 ms. Arrays of objects: numpy's."""
+    ``defrag = madvise``, a common default) can cost far more per huge page than the faults
+    of its 512 small pages. Arrays of objects: numpy's."""
     dtype = np.dtype(dtype)
     if dtype.hasobject or capacity == 0:
         return np.empty(capacity, dtype=dtype)
@@ -551,11 +550,9 @@ class Stack:
     def messages_frame(self) -> pd.DataFrame:
         df = pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
         if self.channel.deferred:
-            from netsim.radio.mac import MAC_CAUSES  # a shared medium's module, loaded with it
-
             # A shared medium: what it lost of each message's frames, by cause.
             losses = self.relay.medium_losses
-            for cause in MAC_CAUSES:
+            for cause in self.channel.medium_causes:
                 counts = [losses.get(mid, {}).get(cause, 0) for mid in df["msg_id"].tolist()]
                 df[f"dropped_{cause}"] = np.array(counts, dtype=np.int64)
         return df

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from netsim.radio.spatial import RangeIndex
+from netsim.simpy_internals import set_now
 from netsim.state import RobotState
 from protocols.neighbours import DEGREE, NeighbourTable, ack_record, heard_in
 
@@ -213,7 +214,8 @@ def test_compiled_make_ack_equals_numpy():
         assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
         degrees.append(ack_a.record[DEGREE])
         now += 0.01
-        sim_a.env._now = sim_b.env._now = now
+        set_now(sim_a.env, now)
+        set_now(sim_b.env, now)
     for name in ("seq", "resign_pending", "role_sent", "degree_sent"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert max(degrees) > 3 and a.resign_pending.sum() < 30

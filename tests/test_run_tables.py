@@ -5,28 +5,36 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.run import execute
-from netsim.trajectory import sample_positions
+from netsim.run import build, execute
 from tests.fixtures import make_config
+
+CONFIG = dict(
+    seed=4,
+    duration_s=40.0,
+    world={"n_robots": 30, "side_m": 500.0},
+    channel={"range_m": 150.0},
+    protocol={"message_rate_hz": 1.0},
+)
 
 
 @pytest.fixture(scope="module")
 def frames():
-    cfg = make_config(
-        seed=4,
-        duration_s=40.0,
-        world={"n_robots": 30, "side_m": 500.0},
-        channel={"range_m": 150.0},
-        protocol={"message_rate_hz": 1.0},
-    )
-    return execute(cfg).frames
+    return execute(make_config(**CONFIG)).frames
 
 
-def test_legs_reproduce_the_sampled_positions(frames):
-    """positions.parquet is the legs evaluated at the sampling instants, exactly."""
+def test_positions_are_where_the_robots_were_during_the_run(frames):
+    """positions.parquet holds, at each sampling instant, the positions the run's own robot
+    state gave at that instant while the run went on (stopped there, not reconstructed
+    from the tables afterwards)."""
     pos = frames["positions"]
-    again = sample_positions(frames["legs"], 30, np.sort(pos["t_s"].unique()))
-    pd.testing.assert_frame_equal(again, pos)
+    times = np.sort(pos["t_s"].unique())
+    assert len(times) == 41
+    sim = build(make_config(**CONFIG))
+    for t in times[::7].tolist():
+        sim.run(until_s=t)
+        row = pos[pos["t_s"] == t].sort_values("robot")
+        live = sim.state.positions_at(t)
+        np.testing.assert_allclose(row[["x_m", "y_m"]].to_numpy(), live, rtol=0, atol=1e-9)
 
 
 def test_every_delivery_is_a_recorded_hop(frames):

@@ -15,6 +15,7 @@ import math
 import numba
 import numpy as np
 
+from netsim import kernel_cache
 from netsim.links.crossings import EDGE_S, PHASE_END, PHASE_START
 
 
@@ -77,3 +78,8 @@ def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
         n_in = _keep(origin + lo, start, length[k], k, in_pair, in_t, in_phase, n_in)
         n_out = _keep(origin + hi, start, length[k], k, out_pair, out_t, out_phase, n_out)
     return in_pair[:n_in], in_t[:n_in], in_phase[:n_in], out_pair[:n_out], out_t[:n_out], out_phase[:n_out]
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import heapq
 import math
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
@@ -93,8 +93,8 @@ class RuntimeLinks:
         self.box = float(state.side_m) if state.torus else None
         # Links up now: key a n + b -> since when; and every lifetime that ended, as columns
         # a, b, up, down. Plain lists of numbers, as the queue's columns: the garbage
-        # collector tracks the lists, not the numbers (as lists of tuples it tracked and
-        # walked every row: a fifth of the runtime links' cost).
+        # collector tracks the lists, not the numbers (as lists of tuples it would track and
+        # walk every row).
         self.up: dict[int, float] = {}
         self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         self.started = False
@@ -402,13 +402,13 @@ class RuntimeLinks:
             t = heap[0][0]
         if t < self._armed_s:
             self._armed_s = t
-            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake)._value = t
+            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake, value=t)
 
     def _wake(self, event: simpy.Event) -> None:
         # The instant this wake was armed for. The kernel's clock, now + (t - now), can be a
         # rounding step away from it (no delay lands on some instants), so the events are
         # taken by their own time, never by the clock's.
-        armed_s = event._value
+        armed_s = cast(float, event.value)
         if armed_s >= self._armed_s:
             self._armed_s = math.inf
         self._announce(armed_s)

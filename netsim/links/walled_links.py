@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -253,13 +254,12 @@ class WalledLinks:
             due = float(new.sample_time(np.flatnonzero(has_step & (new.jx > 1)), np.ones(len(later), np.int64)).min())
             if due < self._pending_at:
                 self._pending_at = due
-                event = scheduled_event(self.env, max(due - self.env.now, 0.0), _RESTART, self._take_pending)
-                event._value = due
+                scheduled_event(self.env, max(due - self.env.now, 0.0), _RESTART, self._take_pending, value=due)
 
     def _take_pending(self, event: simpy.Event) -> None:
         # Armed for an instant (the clock may be a rounding step off it); a later one armed
         # before an earlier took the stretches has nothing to do.
-        if event._value != self._pending_at:
+        if event.value != self._pending_at:
             return
         pending = np.fromiter(self._pending, np.int64, len(self._pending))
         self._pending.clear()
@@ -313,11 +313,11 @@ class WalledLinks:
         if heap and heap[0][0] < self._armed_s:
             t = heap[0][0]
             self._armed_s = t
-            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake)._value = t
+            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake, value=t)
 
     def _wake(self, event: simpy.Event) -> None:
         # Taken by the instant armed for, not the clock (which may be a rounding step off).
-        armed_s = event._value
+        armed_s = cast(float, event.value)
         if armed_s >= self._armed_s:
             self._armed_s = math.inf
         self._announce(armed_s)

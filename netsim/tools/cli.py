@@ -29,6 +29,7 @@ paths and the scheduler are checked before any simulation starts.
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import os
 import re
@@ -39,7 +40,6 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim import ns2
 from netsim.errors import ConfigError, NetsimInputError
-from netsim.gcpause import own_process
 
 EXIT_INPUT = 2
 
@@ -376,7 +376,6 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def main(argv=None) -> int:
-    own_process()  # what is loaded stays out of the collector's passes (netsim.gcpause)
     args = parser().parse_args(argv)
     warnings.showwarning = _one_line_warning
     try:
@@ -390,12 +389,20 @@ def main(argv=None) -> int:
 
 
 def command() -> None:
-    """The ``netsim`` command: :func:`main`, in a process of its own, which then ends at once.
-    By then every table is written and closed; what the interpreter would still do is tear
-    down every object of numpy, pandas and numba one by one (some 60 ms after every run,
-    a tenth of a small run), so the output streams and logs are flushed and the process
-    exits with main's code. If another thread is still running, the process ends the usual
-    way, waiting for it."""
+    """The ``netsim`` command: :func:`main`, in a process of its own. Its two process-wide
+    switches are made here, and nowhere in the library (importing netsim or running a
+    simulation from Python changes neither).
+
+    - What the imports loaded (numpy, pandas, the engine: many long-lived objects, no
+      garbage) is frozen out of the garbage collector's passes (``gc.freeze``), which would
+      otherwise walk it again and again during the run.
+    - When main returns, every table is written and closed; what the interpreter would
+      still do is tear down every object of numpy, pandas and numba one by one, so the
+      output streams and logs are flushed and the process ends at once (``os._exit``) with
+      main's code. If another thread is still running, the process ends the usual way,
+      waiting for it.
+    """
+    gc.freeze()
     code = main()
     for stream in (sys.stdout, sys.stderr):
         try:
