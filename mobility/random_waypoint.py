@@ -1,6 +1,6 @@
 """Random waypoint (paper section 1.1; docs/model.md section 2).
 
-Each robot picks a destination uniformly in the square and a speed uniform on
+Each robot picks a destination uniformly in the area (``world.bounds_m``) and a speed uniform on
 ``[speed_min_mps, speed_max_mps]``, travels there in a straight line, pauses ``pause_s``,
 and repeats; robots are independent. A leg costs two kernel events (arrival, end of
 pause) and nothing in between: positions are exact at any time from the leg.

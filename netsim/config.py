@@ -857,8 +857,11 @@ def commented_toml(config: Config | None = None) -> str:
             if is_derived:
                 # Written as the rule, not a number, so that it follows the key it derives from.
                 rule = next(_rule(type(p), key) for p in owners if key in names(type(p)))
-                out += [f"# {doc}", f"# default: {rule}; uncomment to fix it"]
-                out += [f"# {part}" for part in line.splitlines()]
+                if isinstance(v, list):
+                    # One commented line, not TOML's one line per element.
+                    items = (tomli_w.dumps({key: e}).split("=", 1)[1].strip() for e in v)
+                    line = f"{key} = [{', '.join(items)}]"
+                out += [f"# {doc}", f"# default: {rule}; uncomment to fix it", f"# {line}"]
                 continue
             out += [f"# {doc}", line]
         others = [row for row in _other_models(section) if row[1] not in used]

@@ -31,7 +31,8 @@ What the cells mean in netsim:
 Maps whose origin has a non-zero yaw are refused (rotate the image instead), and so are
 16-bit images and ``mode: raw`` (no thresholds, so no walls).
 
-The simulated area ``[0, side]^2`` must lie inside the map: :meth:`OccupancyMap.check_area`.
+The simulated area (``world.bounds_m``, by default ``[0, side]^2``; ``"map"``: the map's
+whole extent, in its own frame) must lie inside the map: :meth:`OccupancyMap.check_area`.
 """
 
 from __future__ import annotations
