@@ -37,6 +37,7 @@ from netsim.params import Params
 from netsim.radio.models import CHANNEL_GROUPS, wants_members
 
 if TYPE_CHECKING:
+    import numpy as np
     import pandas as pd
 
     from netsim.control import ControlLoop
@@ -86,6 +87,19 @@ class Parts:
     events: EventBus | None = None
     # The world's occupancy map (netsim.radio.maps.OccupancyMap), None in open space.
     occupancy: Any = None
+    # For controllers and hooks: the links as the channel makes them (the same as
+    # links.parquet), solved during the run. Call it while building (it starts the runtime
+    # link solver); None when the run solves no link events during the run.
+    links: Callable[[], LinkState] | None = None
+
+
+class LinkState(Protocol):
+    """The links up now, as the channel makes them under the run's radio (a runtime link
+    solver: :class:`~netsim.kinetic.RuntimeLinks` and its kin)."""
+
+    def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Arrays ``(a, b)``, ``a < b``: the links up now."""
+        ...
 
 
 class Plugin(Protocol):

@@ -175,7 +175,8 @@ def build(config: Config, run: int = 0) -> Simulation:
             occupancy=parts.occupancy,
         )
         sim.add_model("control", loop)
-        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups)
+        links = sim.link_events if sim.runtime_links != "off" else None
+        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links)
         for name, plugin, params in chosen:
             component = _build_model(sim, name, plugin, params, with_loop)
             if callable(component):
@@ -185,7 +186,12 @@ def build(config: Config, run: int = 0) -> Simulation:
         sim.live_topology()
     for name in events.hooks:
         hook = plugins.resolve(plugins.HOOKS, name, "events.hooks")
-        with_groups = dataclasses.replace(sim.parts, groups=sim.groups, control=sim.models.get("control"))
+        with_groups = dataclasses.replace(
+            sim.parts,
+            groups=sim.groups,
+            control=sim.models.get("control"),
+            links=sim.link_events if sim.runtime_links != "off" else None,
+        )
         _build_model(sim, name, hook, hook.Params(), with_groups)
     # Link events are solved during the run if asked for now (a hook subscribed) or later,
     # before the run starts (Simulation.run).
