@@ -30,7 +30,7 @@ from netsim.config import from_dict
 from netsim.errors import NetsimInputError
 from netsim.groups import in_a_group, leads_itself
 from netsim.links.lifetimes import link_lifetimes
-from netsim.metrics import MEAN_LEG_UNIT_SQUARE
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.run import build, collect
 from netsim.tools import analysis
 from netsim.topology import geometric_pairs
@@ -88,8 +88,10 @@ def _config(**tree):
     return from_dict(tree)
 
 
-def rwp_density(x: float, y: float) -> float:
-    """Exact stationary density of random waypoint on the unit square (Hyytiä et al. 2006)."""
+def rwp_density(x: float, y: float, width: float = 1.0, height: float = 1.0) -> float:
+    """Exact stationary density of random waypoint on the ``width x height`` rectangle
+    ``[0, width] x [0, height]`` (Hyytiä et al. 2006): ``f = int_0^pi a b (a + b) dphi /
+    (A^2 E[L])``, ``a`` and ``b`` the distances to the border both ways along ``phi``."""
     from scipy import integrate
 
     def border(phi):
@@ -97,20 +99,22 @@ def rwp_density(x: float, y: float) -> float:
         ts = [
             t
             for t in (
-                (1 - x) / c if c > 0 else None,
+                (width - x) / c if c > 0 else None,
                 -x / c if c < 0 else None,
-                (1 - y) / s if s > 0 else None,
+                (height - y) / s if s > 0 else None,
                 -y / s if s < 0 else None,
             )
             if t is not None
         ]
         return min(ts)
 
-    corners = sorted(math.atan2(cy - y, cx - x) % math.pi for cx in (0, 1) for cy in (0, 1))
+    corners = sorted(math.atan2(cy - y, cx - x) % math.pi for cx in (0, width) for cy in (0, height))
     value = integrate.quad(
         lambda p: (lambda a, b: a * b * (a + b))(border(p), border(p + math.pi)), 0, math.pi, points=corners, limit=200
     )[0]
-    return value / MEAN_LEG_UNIT_SQUARE
+    if width == height == 1.0:
+        return value / MEAN_LEG_UNIT_SQUARE
+    return value / ((width * height) ** 2 * mean_distance_rectangle(width, height))
 
 
 def completed_leg_lengths(legs: pd.DataFrame) -> np.ndarray:
@@ -233,6 +237,31 @@ def check_stationary_start(seed: int | None = None) -> list[Check]:
             "m/s",
         )
     )
+    # A rectangle across the origin (world.bounds_m = [-1, 0, 1, 1]): the same law, shifted and stretched.
+    sim = build(
+        _config(
+            seed=4,
+            duration_s=1.0,
+            world={"n_robots": n, "side_m": 1.0, "bounds_m": [-1.0, 0.0, 1.0, 1.0]},
+            mobility={"speed_min_mps": 0.01, "speed_max_mps": 0.05, "pause_s": 0.0},
+        )
+    )
+    sim.env.run(until=1e-9)
+    p = sim.state.positions_at(0.0)
+    for pt in ((0.0, 0.5), (-0.9, 0.1)):
+        offsets = (np.arange(5) + 0.5) / 5 * h - h / 2
+        mass = np.mean([rwp_density(pt[0] + 1 + dx, pt[1] + dy, 2.0, 1.0) for dx in offsets for dy in offsets]) * h * h
+        count = int(((np.abs(p[:, 0] - pt[0]) < h / 2) & (np.abs(p[:, 1] - pt[1]) < h / 2)).sum())
+        out.append(
+            Check(
+                "3, 4",
+                f"RWP stationary density at t = 0 near {pt}, area [-1, 0, 1, 1]",
+                mass / h**2,
+                count / (n * h * h),
+                4 * math.sqrt(n * mass) / (n * h * h),
+                "per unit area",
+            )
+        )
     return out
 
 
