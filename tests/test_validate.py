@@ -236,3 +236,12 @@ def test_statistical_check_fails_at_most_once_over_20_seeds(entry):
             failed.append((seed, [r for r in rows if not r.passed]))
     assert len(failed) <= 1, failed
     assert len(measured) > 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("check", [validate.check_gauss_markov, validate.check_rpgm])
+def test_mobility_model_checks_pass(check):
+    """Items 28 and 29: Gauss-Markov's speed process and group mobility's radius (each
+    fails with its model broken: alpha squared in the speed update, offsets 10 % too far)."""
+    rows = check()
+    assert rows and all(r.passed for r in rows), [(r.result, r.measured, r.theory) for r in rows]

@@ -866,6 +866,82 @@ def check_medium_none(seed: int | None = None) -> list[Check]:
     return [Check("25", label, 1.0, same, 0.0)]
 
 
+def check_gauss_markov(seed: int | None = None) -> list[Check]:
+    """Item 28: Gauss-Markov speeds at successive updates have mean ``mean_speed_mps`` and
+    lag-one autocorrelation ``alpha``."""
+    alpha, mean, sigma, n, updates, skip = 0.7, 3.0, 0.5, 40, 1500, 20
+    sim = build(
+        _config(
+            seed=derive(seed, 28),
+            duration_s=float(updates),
+            world={"n_robots": n, "side_m": 20000.0},
+            mobility={
+                "model": "gauss_markov",
+                "alpha": alpha,
+                "mean_speed_mps": mean,
+                "speed_sigma_mps": sigma,
+                "direction_sigma_rad": 0.3,
+            },
+        )
+    )
+    sim.run()
+    legs = sim.state.legs()
+    legs = legs[legs["cause"].isin(["start", "turn"])]
+    means, corrs = [], []
+    for _, g in legs.groupby("robot"):
+        # The first updates leave the start at the mean speed: the process is stationary after.
+        s = np.hypot(g["vx_mps"], g["vy_mps"]).to_numpy()[1:][skip:]
+        means.append(s.mean())
+        d = s - s.mean()
+        corrs.append(float((d[:-1] * d[1:]).sum() / (d * d).sum()))
+    means_a, corrs_a = np.array(means), np.array(corrs)
+    k = len(s)
+    return [
+        Check("28", "Gauss-Markov mean speed", mean, means_a.mean(), 4 * means_a.std(ddof=1) / math.sqrt(n), "m/s"),
+        # The lag-one sample autocorrelation of k values is biased by -(1 + 3 alpha) / k.
+        Check(
+            "28",
+            "Gauss-Markov speed lag-one autocorrelation",
+            alpha - (1 + 3 * alpha) / k,
+            corrs_a.mean(),
+            4 * corrs_a.std(ddof=1) / math.sqrt(n),
+        ),
+    ]
+
+
+def check_rpgm(seed: int | None = None) -> list[Check]:
+    """Item 29: every member of a reference point group stays within ``group_radius_m`` of
+    its group's reference point, at every instant (checked where either changes course:
+    both move in straight lines in between, so the distance is convex there)."""
+    from netsim.trajectory import sample_positions
+
+    radius, size, n, T = 40.0, 5, 30, 600.0
+    sim = build(
+        _config(
+            seed=derive(seed, 29),
+            duration_s=T,
+            world={"n_robots": n, "side_m": 800.0},
+            mobility={"model": "rpgm", "group_size": size, "group_radius_m": radius, "pause_s": 2.0},
+        )
+    )
+    sim.run()
+    frames = collect(sim)
+    ref = frames["reference_points"]
+    times = np.unique(np.r_[ref["t_s"].to_numpy(), T])
+    times = times[times <= T]
+    pos = sample_positions(frames["legs"], n, times)
+    farther = 0
+    for g, track in ref.groupby("group"):
+        track = track.drop_duplicates("t_s", keep="last").sort_values("t_s")
+        rx = np.interp(times, track["t_s"], track["x_m"])
+        ry = np.interp(times, track["t_s"], track["y_m"])
+        for i in range(int(g) * size, min((int(g) + 1) * size, n)):
+            at = pos[pos["robot"] == i].sort_values("t_s")
+            d = np.hypot(at["x_m"].to_numpy() - rx, at["y_m"].to_numpy() - ry)
+            farther += int((d > radius * (1 + 1e-9)).sum())
+    return [Check("29", f"RPGM: member-instants farther than {radius:g} m from the reference point", 0, farther, 0)]
+
+
 CHECKS: list[Item] = [
     Item(("1",), check_rwp_speed, statistical=True),
     Item(("2",), check_rwp_leg_length, statistical=True),
@@ -890,6 +966,8 @@ CHECKS: list[Item] = [
     Item(("25",), check_medium_none, statistical=False),
     Item(("26",), check_interference_sum, statistical=False),
     Item(("27",), check_radio_pair_travel, statistical=True),
+    Item(("28",), check_gauss_markov, statistical=True),
+    Item(("29",), check_rpgm, statistical=False),
 ]
 
 
