@@ -942,6 +942,106 @@ def check_rpgm(seed: int | None = None) -> list[Check]:
     return [Check("29", f"RPGM: member-instants farther than {radius:g} m from the reference point", 0, farther, 0)]
 
 
+# -- coverage on the radio the robots have (items 30, 31) ------------------------------------
+# The floors of the covered fraction of min(1, U(N) / A) from a dense start, by plan.
+COVERAGE_FLOOR = {"global": 0.75, "local": 0.60}
+COVERAGE_RADIOS = {
+    "unit disk": ["channel.range_m=100"],
+    "shadowing 4 dB": ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4"],
+    "office, line of sight": ["world.map=office", "world.side_m=200", "channel.range_m=30"],
+    "office, 5 dB a wall": [
+        "world.map=office",
+        "world.side_m=200",
+        "channel.propagation=log_distance",
+        "channel.wall_loss_db=5",
+        "channel.sensitivity_dbm=-64.3",  # an implied range of 30 m
+    ],
+}
+
+
+def coverage_settings(radio: str, plan: str, n: int, loss: float, seed: int, duration_s: float) -> list[str]:
+    """A coverage run from a dense start (a central square of side ``40 sqrt(N)`` m, about
+    twenty neighbours each; 40 m on the office map) on an area large enough that a connected
+    team cannot cover it (``500 sqrt(N)`` m a side in open space)."""
+    on_map = radio.startswith("office")
+    return [
+        f"seed={seed}",
+        f"world.n_robots={n}",
+        f"world.side_m={500 * math.sqrt(n):.1f}",
+        "world.placement=centre",
+        f"world.centre_side_m={40 if on_map else 40 * math.sqrt(n):.1f}",
+        "mobility.model=static",
+        "coverage.enabled=true",
+        f"coverage.plan={plan}",
+        "protocol.message_rate_hz=0",
+        "output.position_interval_s=0",
+        f"channel.loss_probability={loss}",
+        f"duration_s={duration_s}",
+        *COVERAGE_RADIOS[radio],
+    ]
+
+
+def coverage_outcome(frames: dict[str, pd.DataFrame], summary: dict, n: int, start_s: float, end_s: float) -> dict:
+    """What a coverage run showed: the components of the real network (``links.parquet``) at
+    control start and their largest number at any link event after it, whether the
+    coverage table's ``components`` equals that network's at every sample, and the covered
+    fraction of the bound at the end."""
+    from netsim.metrics import components_in_links_table
+
+    links, cov = frames["links"], frames["coverage"]
+    times = np.unique(np.r_[start_s, links["t_up_s"].to_numpy(), links["t_down_s"].to_numpy()])
+    times = times[(times >= start_s) & (times <= end_s)]
+    comps = components_in_links_table(links, n, times)
+    at_samples = components_in_links_table(links, n, cov["t_s"].to_numpy(float))
+    return {
+        "components_at_start": int(comps[0]),
+        "components_max": int(comps.max()),
+        "table_true": bool((cov["components"].to_numpy() == at_samples).all()),
+        "of_bound": float(summary["covered_of_bound_all_final"]),
+    }
+
+
+def coverage_run(radio: str, plan: str, n: int, loss: float, seed: int, duration_s: float) -> dict:
+    """One coverage run (:func:`coverage_settings`) and its outcome (:func:`coverage_outcome`)."""
+    from netsim.config import load
+    from netsim.run import execute
+
+    config = load(None, coverage_settings(radio, plan, n, loss, seed, duration_s))
+    result = execute(config)
+    return coverage_outcome(result.frames, result.summary, n, config.coverage.start_s, duration_s)
+
+
+def check_coverage(seed: int | None = None) -> list[Check]:
+    """Items 30 and 31: under every radio and both plans the real network never has more
+    components after control starts than when it starts, and the coverage table reports
+    it truly (30); on the unit disk at N = 60 each plan covers at least its floor of the
+    bound (31)."""
+    out = []
+    for radio in COVERAGE_RADIOS:
+        for plan in ("global", "local"):
+            n = 40 if radio.startswith("office") else 60
+            o = coverage_run(radio, plan, n, 0.0, derive(seed, 30), 600.0)
+            grew = o["components_max"] - o["components_at_start"]
+            out.append(Check("30", f"coverage, {radio}, {plan}: components above those at control start", 0, grew, 0))
+            out.append(
+                Check("30", f"coverage, {radio}, {plan}: table's components untrue", 0, int(not o["table_true"]), 0)
+            )
+            if radio == "unit disk":
+                floor = COVERAGE_FLOOR[plan]
+                # One-sided: the row passes when the fraction reaches the floor.
+                shown = min(o["of_bound"], 1.0)
+                out.append(
+                    Check(
+                        "31",
+                        f"coverage at N = 60, {plan}: fraction of the bound (at least {floor:g})",
+                        (1.0 + floor) / 2,
+                        shown,
+                        (1.0 - floor) / 2,
+                    )
+                )
+    return out
+
+
 CHECKS: list[Item] = [
     Item(("1",), check_rwp_speed, statistical=True),
     Item(("2",), check_rwp_leg_length, statistical=True),
@@ -968,6 +1068,7 @@ CHECKS: list[Item] = [
     Item(("27",), check_radio_pair_travel, statistical=True),
     Item(("28",), check_gauss_markov, statistical=True),
     Item(("29",), check_rpgm, statistical=False),
+    Item(("30", "31"), check_coverage, statistical=False),
 ]
 
 
