@@ -72,6 +72,7 @@ import pandas as pd
 
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
+from mobility.local import Memory, let_go, plan_local, sources_heard
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
@@ -99,6 +100,14 @@ class Knowledge(StrEnum):
     GLOBAL = "global"
 
 
+class PlanScope(StrEnum):
+    """Who plans each step: one plan for the team from the true positions, or each robot
+    its own from what it heard."""
+
+    GLOBAL = "global"
+    LOCAL = "local"
+
+
 class AreaMethod(StrEnum):
     """How the covered fraction is computed over time."""
 
@@ -121,6 +130,14 @@ class CoverageParams(Params):
     law: Law = param(Law.SPRING, None, "force law between neighbouring robots (follow: between leaders)")
     knowledge: Knowledge = param(
         Knowledge.ACKS, None, "positions the forces use: as heard in Acks (stale), or the true ones"
+    )
+    plan: PlanScope = param(
+        PlanScope.GLOBAL,
+        None,
+        "spread: 'global' (one plan from the true positions) or 'local' (each robot from what it heard)",
+    )
+    release_s: float = param(
+        20.0, positive, "plan = 'local': a robot forgets a robot whose latest Ack it heard was sent this long ago, s"
     )
     control_period_s: float = param(1.0, positive, "time between control steps, s (also for control.controllers)")
     start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
@@ -150,6 +167,12 @@ class CoverageParams(Params):
     grid_cells: int = param(200, positive, "area_method = 'grid': grid cells per side (error bound reported)")
 
     def check(self) -> None:
+        if self.plan is PlanScope.LOCAL and self.knowledge is Knowledge.GLOBAL:
+            raise ConfigError(
+                "coverage.plan", "local", "needs coverage.knowledge = 'acks' (a robot uses only what it heard)"
+            )
+        if self.plan is PlanScope.LOCAL and self.members is Members.FOLLOW:
+            raise ConfigError("coverage.plan", "local", "needs coverage.members = 'spread', not 'follow'")
         if self.enabled and self.members is Members.SPREAD and self.metrics_interval_s > self.stop_hold_s:
             raise ConfigError(
                 "coverage.metrics_interval_s",
@@ -170,6 +193,12 @@ def check(params: CoverageParams, config) -> None:
         )
     if not params.enabled:
         return
+    if params.plan is PlanScope.LOCAL and ch.mac != "none":
+        raise ConfigError(
+            "coverage.plan",
+            "local",
+            f"needs channel.mac = 'none' (its bound on an Ack's age needs a bounded delay), not {ch.mac!r}",
+        )
     if config.mobility.plugin.moves_robots:
         raise ConfigError(
             "coverage.enabled",
@@ -282,6 +311,8 @@ class CoverageController:
         # step short of a wall).
         self.occupancy = parts.occupancy
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
+        # The local plan: what each robot heard (mobility.local).
+        self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:
         """``gain (m - d)`` away from the nearest wall within ``m = sqrt(3) r_c / 2``, as the border."""
@@ -322,6 +353,9 @@ class CoverageController:
         self._max_wish = float(speed.max()) if len(speed) else 0.0
 
     def _propose_spread(self, step: ControlStep) -> None:
+        if self.memory is not None:
+            self._propose_local(step)
+            return
         now = self.env.now
         c = self.cfg
         pos_now = self.state.positions_at(now)
@@ -339,10 +373,35 @@ class CoverageController:
         step.velocity_mps[:] = wished
         self._max_wish = float(speed[group >= 0].max()) if (group >= 0).any() else 0.0
 
+    def _propose_local(self, step: ControlStep) -> None:
+        """Every robot's wish from its own position and the positions it heard."""
+        c, memory = self.cfg, self.memory
+        assert memory is not None
+        robot, other, xy, heard_s = self.view.heard(self.env.now)
+        memory.hear(robot, other, xy, heard_s, self.loop.lead_s)
+        pos = step.positions_m
+        target, source_xy = sources_heard(memory, memory.known(self.env.now, c.release_s), 2 * self.range_m, pos)
+        wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, step.side_m)
+        wished += self._wall_push(pos)
+        speed = np.hypot(*wished.T)
+        wished[speed < c.stop_speed_mps] = 0.0
+        step.velocity_mps[:] = wished
+        self._max_wish = float(speed.max(initial=0.0))
+
+    def _plan_local(self, step: ControlStep) -> Plan:
+        """Each robot keeps what it cannot let go of and answers for those links itself."""
+        memory = self.memory
+        assert memory is not None
+        known = memory.known(self.env.now, self.cfg.release_s)
+        kept = known & ~let_go(step.positions_m, memory, known, step.t_s, self.cfg.speed_max_mps)
+        return plan_local(step.positions_m, step.velocity_mps, memory, kept, step.t_s, self.limits)
+
     def secure(self, step: ControlStep) -> None:
         """Order 100: make the plan keep the network connected; leaders send their commands."""
         if self.cfg.members is Members.FOLLOW:
             plan = plan_follow(step.positions_m, step.leader, step.velocity_mps, self.limits)
+        elif self.memory is not None:
+            plan = self._plan_local(step)
         else:
             plan = self._plan_spread(step)
         step.velocity_mps[:] = plan.velocity_mps
