@@ -72,7 +72,7 @@ import pandas as pd
 
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
-from mobility.local import Memory, let_go, plan_local, sources_heard
+from mobility.local import Memory, let_go, plan_local, pulls, sources_heard
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
@@ -138,6 +138,11 @@ class CoverageParams(Params):
     )
     release_s: float = param(
         20.0, positive, "plan = 'local': a robot forgets a robot whose latest Ack it heard was sent this long ago, s"
+    )
+    band_m: float = param(
+        10.0,
+        positive,
+        "plan = 'local': links are ordered by bands of length this wide, then by their robots' ids, m",
     )
     control_period_s: float = param(1.0, positive, "time between control steps, s (also for control.controllers)")
     start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
@@ -313,6 +318,8 @@ class CoverageController:
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
         # The local plan: what each robot heard (mobility.local).
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
+        self.announced_mps = np.zeros((st.n, 2))
+        self.announced_s = math.inf
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:
         """``gain (m - d)`` away from the nearest wall within ``m = sqrt(3) r_c / 2``, as the border."""
@@ -393,8 +400,13 @@ class CoverageController:
         memory = self.memory
         assert memory is not None
         known = memory.known(self.env.now, self.cfg.release_s)
-        kept = known & ~let_go(step.positions_m, memory, known, step.t_s, self.cfg.speed_max_mps)
-        return plan_local(step.positions_m, step.velocity_mps, memory, kept, step.t_s, self.limits)
+        kept = known & ~let_go(step.positions_m, memory, known, step.t_s, self.cfg.speed_max_mps, self.cfg.band_m)
+        wish = step.velocity_mps + pulls(
+            step.positions_m, memory, kept, self.announced_mps, self.announced_s, step.t_s, self.limits
+        )
+        # What each robot's next Acks announce (mobility.local, rule 4).
+        self.announced_mps, self.announced_s = wish, self.env.now
+        return plan_local(step.positions_m, wish, memory, kept, step.t_s, self.limits)
 
     def secure(self, step: ControlStep) -> None:
         """Order 100: make the plan keep the network connected; leaders send their commands."""

@@ -11,11 +11,14 @@ largest delay). It keeps that after its neighbour table lets the entry expire, f
 The rules, for robot ``i`` deciding the step that runs over ``[t0, t1]`` (``t1 = t0 +
 period``), its own position ``p`` at ``t0`` exact:
 
-1. **Witness.** ``i`` lets go of a remembered robot ``j`` only if it knows a *certified
-   witness* ``w``: a robot both ``i`` and ``j`` remember and that remembers both, with
-   ``|p - q_w| + e_w < |p - q_j| - e_j`` and ``|q_w - q_j| + e_w + e_j < |p - q_j| - e_j``
-   (``e = v (t0 - s)``): whatever the true positions at ``t0``, ``w`` is closer to both
-   ends than they are to each other. Every other remembered robot is *kept*.
+1. **Detour.** ``i`` lets go of a remembered robot ``j`` only if it knows a *certified
+   detour*: a path from ``i`` to ``j`` through robots it remembers, each link of which
+   joins two robots that remember each other and is, whatever the true positions at
+   ``t0``, shorter than the link ``(i, j)``: its longest possible length (``|q_a - q_b| +
+   e_a + e_b``, ``e = v (t0 - s)``; ``|p - q_a| + e_a`` from ``i``) below the shortest
+   possible length of ``(i, j)`` (``|p - q_j| - e_j``). Every other remembered robot is
+   *kept*. (With detours of two links this is the relative neighbourhood graph; with
+   any, the local minimum spanning tree.)
 2. **Leash.** ``i`` ends the step within ``r - margin - v (t1 - s_j)`` of ``q_j`` for
    every kept ``j``; as ``q_j`` is fixed, the distance is convex in time and the radius
    linear, so ``i`` is then within ``r`` of ``j`` at every instant of the step whatever
@@ -24,8 +27,8 @@ period``), its own position ``p`` at ``t0`` exact:
    knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
 
 Why the network never splits: let ``K`` be the links in range at ``t0`` whose ends
-remember each other. A link of ``K`` that some end lets go of has, by rule 1, a witness
-whose two links are in ``K`` and truly shorter; by induction on length (the true lengths
+remember each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
+whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
 that moves keeps it in range (rule 2) and an end that holds does not change it (rule 3),
@@ -41,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from mobility.spread import project_into
-from mobility.steps import Plan, StepLimits, box_limit, cap_length, step_limit
+from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
 
 class Memory:
@@ -67,10 +70,20 @@ class Memory:
         return now_s - self.sent_s < release_s
 
 
-def let_go(pos: np.ndarray, memory: Memory, known: np.ndarray, t0_s: float, speed_mps: float) -> np.ndarray:
-    """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified witness).
+def let_go(
+    pos: np.ndarray, memory: Memory, known: np.ndarray, t0_s: float, speed_mps: float, band_m: float
+) -> np.ndarray:
+    """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
-    ``pos``: every robot's own position at ``t0_s``; ``known``: :meth:`Memory.known`.
+    ``pos``: every robot's own position at ``t0_s``; ``known``: :meth:`Memory.known`;
+    ``band_m``: the width of the length bands of the links' order.
+    Per robot, the bottleneck (minimax) of the links' largest possible ranks over paths
+    to each robot it remembers, by Floyd-Warshall on its neighbourhood, against the
+    smallest possible rank of the direct link.
+
+    Notes
+    -----
+    ``O(k^3)`` per robot with ``k`` remembered robots.
     """
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
@@ -82,15 +95,38 @@ def let_go(pos: np.ndarray, memory: Memory, known: np.ndarray, t0_s: float, spee
         q = memory.xy[i, nb]
         e = speed_mps * np.maximum(t0_s - memory.sent_s[i, nb], 0.0)
         d = np.hypot(*(q - pos[i]).T)
-        shortest = d - e  # the shortest the link to each can be at t0
-        longest = d + e
-        between = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1)) + e[:, None] + e[None, :]
-        # rows: the witness w; columns: the robot j let go of.
-        witness = (longest[:, None] < shortest[None, :]) & (between < shortest[None, :])
-        witness &= mutual[np.ix_(nb, nb)] & known[nb, i][:, None]
-        np.fill_diagonal(witness, False)
-        out[i, nb] = witness.any(axis=0)
+        # Node 0 is i, then its remembered robots; a link counts if its ends remember each
+        # other, at the largest rank it can have at t0.
+        k = len(nb) + 1
+        node = np.r_[i, nb]
+        pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
+        centre = np.zeros((k, k))
+        spread = np.zeros((k, k))
+        centre[1:, 1:] = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
+        spread[1:, 1:] = e[:, None] + e[None, :]
+        centre[0, 1:] = centre[1:, 0] = d
+        spread[0, 1:] = spread[1:, 0] = e
+        largest = link_rank(centre + spread, pair, band_m, n)
+        smallest = link_rank(np.maximum(d - e, 0.0), pair[0, 1:], band_m, n)
+        usable = np.ones((k, k), dtype=bool)
+        usable[1:, 1:] = mutual[np.ix_(nb, nb)]
+        usable[0, 1:] = usable[1:, 0] = known[nb, i]
+        largest = np.where(usable, largest, np.inf)
+        np.fill_diagonal(largest, -np.inf)
+        for m in range(k):
+            np.minimum(largest, np.maximum(largest[:, m : m + 1], largest[m : m + 1, :]), out=largest)
+        out[i, nb] = largest[0, 1:] < smallest
     return out
+
+
+def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> np.ndarray:
+    """A link's place in the order every robot uses: by band of length (``band_m`` wide),
+    then by the pair of ids (``min n + max``); one number, exact in a float.
+
+    >>> link_rank(np.array([5.0, 15.0, 5.0]), np.array([7, 1, 9]), 10.0, 4).tolist()
+    [7.0, 17.0, 9.0]
+    """
+    return np.floor(length_m / band_m) * (n * n) + pair
 
 
 def leash_radius(memory: Memory, t1_s: float, limits: StepLimits) -> np.ndarray:
@@ -106,45 +142,81 @@ def plan_local(
     t0_s: float,
     limits: StepLimits,
 ) -> Plan:
-    """Each robot's step (module notes): its wish, cut to its leashes, its reach and the area.
+    """Each robot's step (module notes): its wish, brought into its leashes, its reach and
+    the area.
 
-    ``kept``: ``(n, n)``, robot ``i`` keeps ``j`` (remembered and not let go of).
+    ``kept``: ``(n, n)``, robot ``i`` keeps ``j`` (remembered and not let go of). A robot
+    inside all its leashes now goes along its projected step as far as it stays inside
+    them; one already outside some (but within what it answers for now) must end inside
+    them, and holds if the projection found no such end.
     """
     n = len(pos)
-    radius = leash_radius(memory, t0_s + limits.period_s, limits)
     robot, other = np.nonzero(kept)
     centre = memory.xy[robot, other]
-    r = radius[robot, other]
-    # Rule 3: a robot farther from a kept robot's last-heard position than its leash holds.
-    too_far = np.zeros(n, dtype=bool)
-    too_far[robot[np.hypot(*(pos[robot] - centre).T) > r]] = True
-    movers = np.flatnonzero(~too_far & (np.hypot(*desired_mps.T) > 0))
+    now_m = leash_radius(memory, t0_s, limits)[robot, other]
+    r = leash_radius(memory, t0_s + limits.period_s, limits)[robot, other]
+    dist = np.hypot(*(pos[robot] - centre).T)
+    # Rule 3: a robot that cannot answer for a kept link now holds.
+    cannot = np.zeros(n, dtype=bool)
+    cannot[robot[dist > now_m]] = True
+    outside = np.zeros(n, dtype=bool)
+    outside[robot[dist > r]] = True
+    wants = np.hypot(*desired_mps.T) > 0
+    movers = np.flatnonzero(~cannot & wants)
     mobile = np.zeros(n, dtype=bool)
     mobile[movers] = True
     sel = mobile[robot]
     robot, centre, r = robot[sel], centre[sel], r[sel]
-    # Standing still is allowed: never a leash shorter than the distance now (rounding).
-    r = np.maximum(r, np.hypot(*(pos[robot] - centre).T))
     robot = np.concatenate([robot, movers])
     centre = np.concatenate([centre, pos[movers]])
     r = np.concatenate([r, np.full(len(movers), limits.reach_m)])
 
     wish = np.zeros((n, 2))
     wish[movers] = cap_length(desired_mps[movers] * limits.period_s, limits.reach_m)
-    end = project_into(pos + wish, robot, centre, r, limits.side_m)
+    end = project_into(pos + wish, robot, centre, r * SAFETY, limits.side_m)
     move = end - pos
     move[~mobile] = 0.0
+    inside = ~outside[robot]
     s = np.ones(n)
     if len(robot):
-        np.minimum.at(s, robot, step_limit(pos[robot] - centre, r, move[robot]))
+        np.minimum.at(s, robot[inside], step_limit(pos[robot[inside]] - centre[inside], r[inside], move[robot[inside]]))
+        missed = np.hypot(*(pos[robot] + move[robot] - centre).T) > r
+        s[robot[~inside & missed]] = 0.0
     s = np.minimum(s, box_limit(pos, move, limits.side_m))
+    s[outside & (s < 1.0)] = 0.0
     move *= s[:, None]
     wished = np.hypot(*wish.T)
-    held = (too_far & (np.hypot(*desired_mps.T) > 0)) | (
-        mobile & (wished > 0) & (np.hypot(*(move - wish).T) > 1e-9 * limits.range_m)
-    )
+    held = (cannot & wants) | (mobile & (wished > 0) & (np.hypot(*(move - wish).T) > 1e-9 * limits.range_m))
     both = kept & kept.T
     return Plan(move / limits.period_s, np.full(n, -1), held, int(np.triu(both, 1).sum()))
+
+
+def pulls(
+    pos: np.ndarray,
+    memory: Memory,
+    kept: np.ndarray,
+    announced_mps: np.ndarray,
+    announced_s: float,
+    t0_s: float,
+    limits: StepLimits,
+) -> np.ndarray:
+    """Rule 4, the pull: each robot's velocity toward the kept robots that announced (in an
+    Ack it heard, sent after ``announced_s``) a wish to move away from it faster than the
+    slack of its leash allows, by the excess.
+
+    Without it a taut link only blocks: the outer robot of a chain wants out, the inner
+    ones are pushed evenly from all sides and stay. A pull travels one link per step.
+    """
+    robot, other = np.nonzero(kept & (memory.sent_s >= announced_s))
+    q = memory.xy[robot, other]
+    off = q - pos[robot]
+    d = np.hypot(*off.T)
+    along = off / np.maximum(d, 1e-12)[:, None]
+    slack = np.maximum(leash_radius(memory, t0_s + limits.period_s, limits)[robot, other] - d, 0.0) / limits.period_s
+    excess = np.maximum(np.einsum("ij,ij->i", announced_mps[other], along) - slack, 0.0)
+    out = np.zeros_like(pos)
+    np.add.at(out, robot, excess[:, None] * along)
+    return out
 
 
 def sources_heard(memory: Memory, known: np.ndarray, reach_m: float, pos: np.ndarray):
