@@ -220,9 +220,27 @@ def pulls(
 
 
 def sources_heard(memory: Memory, known: np.ndarray, reach_m: float, pos: np.ndarray):
-    """Pairs ``(robot, position it last heard of another robot within reach_m)``: the
-    forces' sources in the local plan."""
-    robot, other = np.nonzero(known)
-    xy = memory.xy[robot, other]
-    near = np.hypot(*(xy - pos[robot]).T) < reach_m
-    return robot[near], xy[near]
+    """Pairs ``(robot, position it knows of another robot within reach_m)``: the forces'
+    sources in the local plan. A robot knows the robots it remembers, at the position it
+    heard, and those they remember (their Acks carry their tables), at the freshest
+    position they report."""
+    n = len(pos)
+    robots, xys = [], []
+    for i in range(n):
+        nb = np.flatnonzero(known[i])
+        if len(nb) == 0:
+            continue
+        reported = np.where(known[nb], memory.sent_s[nb], -np.inf)
+        via = nb[reported.argmax(axis=0)]
+        fresh = np.isfinite(reported.max(axis=0))
+        fresh[i] = False
+        xy = memory.xy[via, np.arange(n)]
+        own = known[i]
+        xy[own] = memory.xy[i, own]
+        have = np.flatnonzero(own | fresh)
+        near = have[np.hypot(*(xy[have] - pos[i]).T) < reach_m]
+        robots.append(np.full(len(near), i))
+        xys.append(xy[near])
+    if not robots:
+        return np.empty(0, np.int64), np.empty((0, 2))
+    return np.concatenate(robots), np.concatenate(xys)
