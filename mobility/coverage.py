@@ -400,7 +400,9 @@ class CoverageController:
         memory = self.memory
         assert memory is not None
         known = memory.known(self.env.now, self.cfg.release_s)
-        kept = known & ~let_go(step.positions_m, memory, known, step.t_s, self.cfg.speed_max_mps, self.cfg.band_m)
+        kept = known & ~let_go(
+            step.positions_m, memory, known, step.t_s, self.cfg.speed_max_mps, self.cfg.band_m, self.range_m
+        )
         wish = step.velocity_mps + pulls(
             step.positions_m, memory, kept, self.announced_mps, self.announced_s, step.t_s, self.limits
         )

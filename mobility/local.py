@@ -71,20 +71,23 @@ class Memory:
 
 
 def let_go(
-    pos: np.ndarray, memory: Memory, known: np.ndarray, t0_s: float, speed_mps: float, band_m: float
+    pos: np.ndarray, memory: Memory, known: np.ndarray, t0_s: float, speed_mps: float, band_m: float, range_m: float
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
     ``pos``: every robot's own position at ``t0_s``; ``known``: :meth:`Memory.known`;
-    ``band_m``: the width of the length bands of the links' order.
-    Per robot, the bottleneck (minimax) of the links' largest possible ranks over paths
-    to each robot it remembers, by Floyd-Warshall on its neighbourhood, against the
-    smallest possible rank of the direct link.
+    ``band_m``: the width of the length bands of the links' order. Robot ``i``'s graph:
+    itself, the robots it remembers (at the positions it heard) and those they remember
+    (at the freshest position they report), joined where two remember each other and are
+    surely within ``range_m``, each link at the largest rank it can have at ``t0``. A detour's worst link is the
+    bottleneck of ``i``'s path to ``j`` in a minimum spanning tree of that graph.
 
     Notes
     -----
-    ``O(k^3)`` per robot with ``k`` remembered robots.
+    ``O(k^2)`` per robot with ``k`` robots within two links.
     """
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     mutual = known & known.T
@@ -92,30 +95,38 @@ def let_go(
         nb = np.flatnonzero(known[i])
         if len(nb) < 2:
             continue
-        q = memory.xy[i, nb]
-        e = speed_mps * np.maximum(t0_s - memory.sent_s[i, nb], 0.0)
-        d = np.hypot(*(q - pos[i]).T)
-        # Node 0 is i, then its remembered robots; a link counts if its ends remember each
-        # other, at the largest rank it can have at t0.
-        k = len(nb) + 1
-        node = np.r_[i, nb]
+        reported = np.where(known[nb], memory.sent_s[nb], -np.inf)
+        reported[:, i] = -np.inf
+        reported[:, nb] = -np.inf
+        far = np.flatnonzero(np.isfinite(reported.max(axis=0)))
+        via = nb[reported[:, far].argmax(axis=0)]
+        node = np.r_[i, nb, far]
+        q = np.concatenate([pos[i : i + 1], memory.xy[i, nb], memory.xy[via, far]])
+        sent = np.r_[t0_s, memory.sent_s[i, nb], memory.sent_s[via, far]]
+        e = speed_mps * np.maximum(t0_s - sent, 0.0)
+        centre = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
-        centre = np.zeros((k, k))
-        spread = np.zeros((k, k))
-        centre[1:, 1:] = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
-        spread[1:, 1:] = e[:, None] + e[None, :]
-        centre[0, 1:] = centre[1:, 0] = d
-        spread[0, 1:] = spread[1:, 0] = e
-        largest = link_rank(centre + spread, pair, band_m, n)
-        smallest = link_rank(np.maximum(d - e, 0.0), pair[0, 1:], band_m, n)
-        usable = np.ones((k, k), dtype=bool)
-        usable[1:, 1:] = mutual[np.ix_(nb, nb)]
-        usable[0, 1:] = usable[1:, 0] = known[nb, i]
-        largest = np.where(usable, largest, np.inf)
-        np.fill_diagonal(largest, -np.inf)
-        for m in range(k):
-            np.minimum(largest, np.maximum(largest[:, m : m + 1], largest[m : m + 1, :]), out=largest)
-        out[i, nb] = largest[0, 1:] < smallest
+        longest = centre + e[:, None] + e[None, :]
+        rank = link_rank(longest, pair, band_m, n) + 1.0
+        usable = mutual[np.ix_(node, node)]
+        usable[0, 1 : len(nb) + 1] = True  # i remembers them; whether they remember i is below
+        usable[1 : len(nb) + 1, 0] = known[nb, i]
+        usable[0, 1 : len(nb) + 1] &= known[nb, i]
+        usable &= longest <= range_m
+        tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
+        tree = tree + tree.T
+        order, pred = breadth_first_order(tree, 0, directed=False, return_predecessors=True)
+        worst = np.full(len(node), np.inf)
+        worst[0] = 0.0
+        for v, u in zip(order[1:].tolist(), pred[order[1:]].tolist()):
+            worst[v] = max(worst[u], rank[u, v])
+        smallest = (
+            link_rank(
+                np.maximum(centre[0, 1 : len(nb) + 1] - e[1 : len(nb) + 1], 0.0), pair[0, 1 : len(nb) + 1], band_m, n
+            )
+            + 1.0
+        )
+        out[i, nb] = worst[1 : len(nb) + 1] < smallest
     return out
 
 
