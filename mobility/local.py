@@ -45,6 +45,7 @@ import numpy as np
 
 from mobility.spread import project_into
 from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
+from netsim.compiled import load
 
 
 class Memory:
@@ -79,21 +80,28 @@ def let_go(
     ``band_m``: the width of the length bands of the links' order. Robot ``i``'s graph:
     itself, the robots it remembers (at the positions it heard) and those they remember
     (at the freshest position they report), joined where two remember each other and are
-    surely within ``range_m``, each link at the largest rank it can have at ``t0``. A detour's worst link is the
-    bottleneck of ``i``'s path to ``j`` in a minimum spanning tree of that graph.
+    surely within ``range_m``, each link at the largest rank it can have at ``t0``. A
+    detour's worst link is the bottleneck of ``i``'s path to ``j`` in a minimum spanning
+    tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots the compiled
+    twin (:mod:`mobility._local_kernels`) computes the same.
 
     Notes
     -----
     ``O(k^2)`` per robot with ``k`` robots within two links.
     """
-    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
-
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
+    kernels = load("mobility._local_kernels", n)
+    if kernels is not None:
+        kernels.let_go(pos, memory.xy, memory.sent_s, known, t0_s, speed_mps, band_m, range_m, out)
+        return out
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
     mutual = known & known.T
     for i in range(n):
         nb = np.flatnonzero(known[i])
-        if len(nb) < 2:
+        m = len(nb)
+        if m < 2:
             continue
         reported = np.where(known[nb], memory.sent_s[nb], -np.inf)
         reported[:, i] = -np.inf
@@ -108,25 +116,15 @@ def let_go(
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
         longest = centre + e[:, None] + e[None, :]
         rank = link_rank(longest, pair, band_m, n) + 1.0
-        usable = mutual[np.ix_(node, node)]
-        usable[0, 1 : len(nb) + 1] = True  # i remembers them; whether they remember i is below
-        usable[1 : len(nb) + 1, 0] = known[nb, i]
-        usable[0, 1 : len(nb) + 1] &= known[nb, i]
-        usable &= longest <= range_m
+        usable = mutual[np.ix_(node, node)] & (longest <= range_m)
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
-        tree = tree + tree.T
-        order, pred = breadth_first_order(tree, 0, directed=False, return_predecessors=True)
+        order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
         worst = np.full(len(node), np.inf)
         worst[0] = 0.0
         for v, u in zip(order[1:].tolist(), pred[order[1:]].tolist()):
             worst[v] = max(worst[u], rank[u, v])
-        smallest = (
-            link_rank(
-                np.maximum(centre[0, 1 : len(nb) + 1] - e[1 : len(nb) + 1], 0.0), pair[0, 1 : len(nb) + 1], band_m, n
-            )
-            + 1.0
-        )
-        out[i, nb] = worst[1 : len(nb) + 1] < smallest
+        shortest = np.maximum(centre[0, 1 : m + 1] - e[1 : m + 1], 0.0)
+        out[i, nb] = worst[1 : m + 1] < link_rank(shortest, pair[0, 1 : m + 1], band_m, n) + 1.0
     return out
 
 
