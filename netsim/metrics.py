@@ -177,6 +177,32 @@ def components(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
     return connected_components(graph, directed=False)[1]
 
 
+def components_at_link_events(
+    a: np.ndarray, b: np.ndarray, t_up_s: np.ndarray, t_down_s: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The number of components of the network of ``n`` robots whose links are up over
+    ``[t_up_s, t_down_s)`` (the columns of ``links.parquet``), at every instant a link
+    goes up or down, just after it: arrays ``(t_s, components)``.
+
+    >>> components_at_link_events(np.array([0, 1]), np.array([1, 2]), np.array([0.0, 0.0]), np.array([5.0, 9.0]), 3)
+    (array([0., 5., 9.]), array([1, 2, 3]))
+
+    Notes
+    -----
+    ``O(E)`` per event, ``E`` the links in the table.
+    """
+    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import connected_components
+
+    times = np.unique(np.r_[t_up_s, t_down_s[np.isfinite(t_down_s)]])
+    counts = np.empty(len(times), dtype=np.int64)
+    for k, t in enumerate(times.tolist()):
+        up = (t_up_s <= t) & (t < t_down_s)
+        graph = csr_matrix((np.ones(int(up.sum())), (a[up], b[up])), shape=(n, n))
+        counts[k] = connected_components(graph, directed=False)[0]
+    return times, counts
+
+
 def nearest_spacing(positions_m: npt.ArrayLike) -> np.ndarray:
     """Distance from each point to its nearest other point (NaN with fewer than two)."""
     from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
