@@ -46,7 +46,12 @@ def one_run(plan: str, n: int, loss: float, seed: int, duration_s: float, extra:
     wall = time.perf_counter() - start
     links = result.frames["links"]
     times, counts = components_at_link_events(
-        links["a"].to_numpy(), links["b"].to_numpy(), links["t_up_s"].to_numpy(), links["t_down_s"].to_numpy(), n
+        links["a"].to_numpy(),
+        links["b"].to_numpy(),
+        links["t_up_s"].to_numpy(),
+        links["t_down_s"].to_numpy(),
+        links["censored_end"].to_numpy(),
+        n,
     )
     control_s = cfg.coverage.start_s
     before = counts[times <= control_s]

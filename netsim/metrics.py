@@ -178,14 +178,16 @@ def components(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
 
 
 def components_at_link_events(
-    a: np.ndarray, b: np.ndarray, t_up_s: np.ndarray, t_down_s: np.ndarray, n: int
+    a: np.ndarray, b: np.ndarray, t_up_s: np.ndarray, t_down_s: np.ndarray, censored_end: np.ndarray, n: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """The number of components of the network of ``n`` robots whose links are up over
-    ``[t_up_s, t_down_s)`` (the columns of ``links.parquet``), at every instant a link
-    goes up or down, just after it: arrays ``(t_s, components)``.
+    ``[t_up_s, t_down_s)`` (the columns of ``links.parquet``; a link ``censored_end`` is
+    up until the end), at every instant a link goes up or down, just after it: arrays
+    ``(t_s, components)``.
 
-    >>> components_at_link_events(np.array([0, 1]), np.array([1, 2]), np.array([0.0, 0.0]), np.array([5.0, 9.0]), 3)
-    (array([0., 5., 9.]), array([1, 2, 3]))
+    >>> up, down, cut = np.array([0.0, 0.0]), np.array([5.0, 9.0]), np.array([False, True])
+    >>> components_at_link_events(np.array([0, 1]), np.array([1, 2]), up, down, cut, 3)
+    (array([0., 5.]), array([1, 2]))
 
     Notes
     -----
@@ -194,6 +196,7 @@ def components_at_link_events(
     from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
     from scipy.sparse.csgraph import connected_components
 
+    t_down_s = np.where(censored_end, np.inf, t_down_s)
     times = np.unique(np.r_[t_up_s, t_down_s[np.isfinite(t_down_s)]])
     counts = np.empty(len(times), dtype=np.int64)
     for k, t in enumerate(times.tolist()):
