@@ -143,11 +143,11 @@ def test_leash_keeps_every_kept_robot_in_range_over_the_step_whatever_it_does(se
 def test_leash_lets_a_robot_slide_along_a_taut_link():
     """Rule 2 allows motion along a taut link: the step is projected into the leash, not
     cut to nothing."""
-    pos = np.array([[0.0, 0.0], [95.0, 0.0]])
-    m = all_heard(pos, T0 - 0.1)
+    pos = np.array([[0.0, 0.0], [96.5, 0.0]])
+    m = all_heard(pos, T0 - 0.1)  # leash: 99 - 2 x 1.1 = 96.8 m
     kept = m.known(T0, 20.0)
-    plan = plan_local(pos, np.array([[0.0, 0.0], [1.0, 1.0]]), m, kept, T0, LIMITS)
-    assert plan.velocity_mps[1, 1] > 0.5
+    plan = plan_local(pos, np.array([[0.0, 0.0], [2.0, 2.0]]), m, kept, T0, LIMITS)
+    assert plan.velocity_mps[1, 1] > 1.0
 
 
 # -- rule 3: hold ---------------------------------------------------------------------
