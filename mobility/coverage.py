@@ -85,6 +85,10 @@ from netsim.radio.free_space import obstacle_field, wall_forces
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
 
+# The stopping rule's default windows (coverage.stop_hold_s = 0), s.
+GLOBAL_HOLD_S = 20.0
+LOCAL_HOLD_S = 60.0
+
 
 class Members(StrEnum):
     """How members move: spread (pushed apart, every robot) or follow (the paper's)."""
@@ -157,9 +161,10 @@ class CoverageParams(Params):
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
     )
     stop_hold_s: float = param(
-        20.0,
-        positive,
-        "stopping rule's window: all leaders held (follow), or too little gain or motion (spread), s",
+        0.0,
+        non_negative,
+        "stopping rule's window: all leaders held (follow), or too little gain or motion (spread), s"
+        " (0: 20 s, 60 s with plan = 'local', whose team creeps slower)",
     )
     stop_gain: float = param(
         0.002, non_negative, "spread: control ends once coverage gains less than this in stop_hold_s (0: off)"
@@ -171,6 +176,13 @@ class CoverageParams(Params):
     )
     grid_cells: int = param(200, positive, "area_method = 'grid': grid cells per side (error bound reported)")
 
+    @property
+    def hold_s(self) -> float:
+        """The stopping rule's window (``stop_hold_s``, or its default for the plan)."""
+        if self.stop_hold_s > 0:
+            return self.stop_hold_s
+        return LOCAL_HOLD_S if self.plan is PlanScope.LOCAL else GLOBAL_HOLD_S
+
     def check(self) -> None:
         if self.plan is PlanScope.LOCAL and self.knowledge is Knowledge.GLOBAL:
             raise ConfigError(
@@ -178,11 +190,11 @@ class CoverageParams(Params):
             )
         if self.plan is PlanScope.LOCAL and self.members is Members.FOLLOW:
             raise ConfigError("coverage.plan", "local", "needs coverage.members = 'spread', not 'follow'")
-        if self.enabled and self.members is Members.SPREAD and self.metrics_interval_s > self.stop_hold_s:
+        if self.enabled and self.members is Members.SPREAD and self.metrics_interval_s > self.hold_s:
             raise ConfigError(
                 "coverage.metrics_interval_s",
                 self.metrics_interval_s,
-                f"must not exceed coverage.stop_hold_s = {self.stop_hold_s} (the stopping rule compares samples)",
+                f"must not exceed coverage.stop_hold_s = {self.hold_s} (the stopping rule compares samples)",
             )
 
 
@@ -354,7 +366,7 @@ class CoverageController:
         qs = self.quiet_since[leaders]
         self.quiet_since[:] = np.nan
         self.quiet_since[leaders] = np.where(quiet, np.where(np.isnan(qs), now, qs), np.nan)
-        if len(leaders) and quiet.all() and now - np.nanmax(self.quiet_since[leaders]) >= self.cfg.stop_hold_s:
+        if len(leaders) and quiet.all() and now - np.nanmax(self.quiet_since[leaders]) >= self.cfg.hold_s:
             self.settled_s = now
             self.loop.stop()
         self._max_wish = float(speed.max()) if len(speed) else 0.0
@@ -448,7 +460,7 @@ class CoverageController:
             return
         if math.isnan(self.all_quiet_since):
             self.all_quiet_since = now
-        if now - self.all_quiet_since >= self.cfg.stop_hold_s:
+        if now - self.all_quiet_since >= self.cfg.hold_s:
             self.settled_s = now
             self.loop.stop()
 
@@ -531,9 +543,9 @@ class CoverageController:
         risen ``stop_gain`` above its value ``stop_hold_s`` ago (the team stopped spreading)."""
         c, now = self.cfg, self.env.now
         loop = self.loop
-        if loop.stopped or c.stop_gain <= 0 or now < c.start_s + c.stop_hold_s - 1e-9:
+        if loop.stopped or c.stop_gain <= 0 or now < c.start_s + c.hold_s - 1e-9:
             return
-        window = [s["covered_of_bound_all"] for s in self.samples if s["t_s"] >= now - c.stop_hold_s - 1e-9]
+        window = [s["covered_of_bound_all"] for s in self.samples if s["t_s"] >= now - c.hold_s - 1e-9]
         if len(window) > 1 and max(window[1:]) - window[0] < c.stop_gain:
             self.settled_s = now
             loop.stop()
