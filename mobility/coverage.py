@@ -53,10 +53,12 @@ rigidly with their leader, and the bridges between groups kept by
 for less than ``stop_speed_mps`` for ``stop_hold_s``. Under loss a member that misses a
 command can break a bridge there: connectivity is measured, not guaranteed.
 
-What is not distributed: each step's plan is computed in one pass for the whole team (the
-spanning forest over the whole network; a robot's limits then use only the current
-positions of its kept neighbours). A deployment would build the forest with a
-distributed minimum spanning tree algorithm and exchange the kept links in the Acks.
+What is not distributed (``plan = "global"``, the default): each step's plan is computed
+in one pass for the whole team (the spanning forest over the whole network; a robot's
+limits then use only the current positions of its kept neighbours). With ``plan =
+"local"`` (:mod:`mobility.local`) every robot decides its own step from the Acks it heard,
+keeps the links it cannot certify a detour for, and answers for each against the other
+end's largest motion since its Ack; no command is sent.
 """
 
 from __future__ import annotations
