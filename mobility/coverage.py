@@ -332,6 +332,9 @@ class CoverageController:
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
         # The local plan: what each robot heard (mobility.local).
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
+        self.knows: Memory | None = None  # the memory as of the step being planned
+        # How much earlier than its latest possible sending time an Ack may have left.
+        self.jitter_s = float(parts.channel.latency_jitter_s)
         self.announced_mps = np.zeros((st.n, 2))
         self.announced_s = math.inf
 
@@ -396,12 +399,14 @@ class CoverageController:
 
     def _propose_local(self, step: ControlStep) -> None:
         """Every robot's wish from its own position and the positions it heard."""
-        c, memory = self.cfg, self.memory
+        c, memory, st = self.cfg, self.memory, self.state
         assert memory is not None
         robot, other, xy, heard_s = self.view.heard(self.env.now)
-        memory.hear(robot, other, xy, heard_s, self.loop.lead_s)
+        memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s)
+        self.knows = memory.at(step.t_s, c.speed_max_mps, self.jitter_s)
         pos = step.positions_m
-        target, source_xy = sources_heard(memory, memory.known(self.env.now, c.release_s), 2 * self.range_m, pos)
+        known = memory.known(self.env.now, c.release_s)
+        target, source_xy = sources_heard(self.knows, known, 2 * self.range_m, pos)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, step.side_m)
         wished += self._wall_push(pos)
         speed = np.hypot(*wished.T)
@@ -411,18 +416,16 @@ class CoverageController:
 
     def _plan_local(self, step: ControlStep) -> Plan:
         """Each robot keeps what it cannot let go of and answers for those links itself."""
-        memory = self.memory
-        assert memory is not None
-        known = memory.known(self.env.now, self.cfg.release_s)
-        kept = known & ~let_go(
-            step.positions_m, memory, known, step.t_s, self.cfg.speed_max_mps, self.cfg.band_m, self.range_m
-        )
+        memory, knows, c = self.memory, self.knows, self.cfg
+        assert memory is not None and knows is not None
+        known = memory.known(self.env.now, c.release_s)
+        kept = known & ~let_go(step.positions_m, knows, known, step.t_s, c.speed_max_mps, c.band_m, self.range_m)
         wish = step.velocity_mps + pulls(
-            step.positions_m, memory, kept, self.announced_mps, self.announced_s, step.t_s, self.limits
+            step.positions_m, knows, kept, self.announced_mps, self.announced_s, step.t_s, self.limits, memory.sent_s
         )
         # What each robot's next Acks announce (mobility.local, rule 4).
         self.announced_mps, self.announced_s = wish, self.env.now
-        return plan_local(step.positions_m, wish, memory, kept, step.t_s, self.limits)
+        return plan_local(step.positions_m, wish, knows, kept, step.t_s, self.limits)
 
     def secure(self, step: ControlStep) -> None:
         """Order 100: make the plan keep the network connected; leaders send their commands."""

@@ -50,25 +50,66 @@ from netsim.compiled import load
 
 class Memory:
     """What each robot has heard of each other robot: ``xy[i, j]``, the position in the
-    latest Ack of ``j`` that ``i`` heard, and ``sent_s[i, j]``, the earliest time that Ack
-    can have been sent (``-inf``: never heard)."""
+    latest Ack of ``j`` that ``i`` heard, ``sent_s[i, j]``, the earliest time that Ack can
+    have been sent (``-inf``: never heard), and ``vel[i, j]``, the velocity that Ack
+    carried, which holds until ``until_s[i, j]`` (the sender's leg ends at the next control
+    step; ``until_s = sent_s``: the velocity is not known to hold after the Ack)."""
 
     def __init__(self, n: int):
         self.xy = np.zeros((n, n, 2))
         self.sent_s = np.full((n, n), -np.inf)
+        self.vel = np.zeros((n, n, 2))
+        self.until_s = np.full((n, n), -np.inf)
 
-    def hear(self, robot: np.ndarray, other: np.ndarray, xy: np.ndarray, heard_s: np.ndarray, delay_s: float):
+    def hear(
+        self,
+        robot: np.ndarray,
+        other: np.ndarray,
+        xy: np.ndarray,
+        heard_s: np.ndarray,
+        delay_s: float,
+        leg_velocity_mps: np.ndarray | None = None,
+        leg_start_s: np.ndarray | None = None,
+        leg_until_s: float = -np.inf,
+    ):
         """Take the Acks in the robots' tables (reception times ``heard_s``; an Ack left at
-        most ``delay_s`` before it arrived)."""
+        most ``delay_s`` before it arrived). With ``leg_velocity_mps`` and ``leg_start_s``
+        (each robot's current leg), an Ack sent during its sender's current leg carries
+        that leg's velocity, which holds until ``leg_until_s`` (the next control step)."""
         sent = heard_s - delay_s
         newer = sent > self.sent_s[robot, other]
-        r, o = robot[newer], other[newer]
-        self.sent_s[r, o] = sent[newer]
+        r, o, sent = robot[newer], other[newer], sent[newer]
+        self.sent_s[r, o] = sent
         self.xy[r, o] = xy[newer]
+        if leg_velocity_mps is None or leg_start_s is None:
+            self.vel[r, o] = 0.0
+            self.until_s[r, o] = sent
+            return
+        on_leg = sent >= leg_start_s[o]
+        self.vel[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], 0.0)
+        self.until_s[r, o] = np.where(on_leg, leg_until_s, sent)
 
     def known(self, now_s: float, release_s: float) -> np.ndarray:
         """``(n, n)``: ``i`` remembers ``j`` (heard an Ack of it sent less than ``release_s`` ago)."""
         return now_s - self.sent_s < release_s
+
+    def at(self, t0_s: float, speed_mps: float, jitter_s: float) -> Memory:
+        """What the robots know of each other at ``t0_s``, as a memory of Acks without
+        velocities: each position carried along its known leg to ``t0_s``, and a sending
+        time such that ``speed_mps (t - sent_s)`` bounds the distance to the true position
+        at every ``t >= t0_s`` (the leg's velocity over the send time's uncertainty
+        ``jitter_s``, then the speed cap from where the known leg ends)."""
+        out = Memory(len(self.sent_s))
+        heard = np.isfinite(self.sent_s)
+        with np.errstate(invalid="ignore"):
+            span = np.where(heard, np.clip(np.minimum(t0_s, self.until_s) - self.sent_s, 0.0, None), 0.0)
+        out.xy = self.xy + self.vel * span[..., None]
+        error = np.hypot(self.vel[..., 0], self.vel[..., 1]) * jitter_s
+        error = error + speed_mps * np.maximum(t0_s - np.where(heard, self.until_s, -np.inf), 0.0)
+        with np.errstate(invalid="ignore"):
+            out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)
+        out.until_s = out.sent_s.copy()
+        return out
 
 
 def let_go(
@@ -208,15 +249,18 @@ def pulls(
     announced_s: float,
     t0_s: float,
     limits: StepLimits,
+    sent_s: np.ndarray | None = None,
 ) -> np.ndarray:
     """Rule 4, the pull: each robot's velocity toward the kept robots that announced (in an
     Ack it heard, sent after ``announced_s``) a wish to move away from it faster than the
-    slack of its leash allows, by the excess.
+    slack of its leash allows, by the excess. ``sent_s``: when the Acks were sent (default
+    ``memory.sent_s``; give the raw times when ``memory`` is :meth:`Memory.at`'s).
 
     Without it a taut link only blocks: the outer robot of a chain wants out, the inner
     ones are pushed evenly from all sides and stay. A pull travels one link per step.
     """
-    robot, other = np.nonzero(kept & (memory.sent_s >= announced_s))
+    heard = memory.sent_s if sent_s is None else sent_s
+    robot, other = np.nonzero(kept & (heard >= announced_s))
     q = memory.xy[robot, other]
     off = q - pos[robot]
     d = np.hypot(*off.T)

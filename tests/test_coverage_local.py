@@ -175,6 +175,34 @@ def test_hold_a_robot_forgets_a_robot_not_heard_for_release_s():
     assert not m.known(5.0, 20.0)[1, 0]
 
 
+def test_knowledge_an_ack_carries_its_senders_leg_until_the_next_step():
+    """An Ack sent during its sender's current leg carries the leg's velocity: the position
+    is carried along it to the step's start (exact up to the velocity times the send time's
+    uncertainty); after the leg's end, and for an Ack sent before the leg began, only the
+    speed cap bounds where the sender is."""
+    m = Memory(3)
+    vel = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]])
+    leg_start = np.array([0.0, 9.0, 9.6])
+    m.hear(
+        np.array([0, 0]),
+        np.array([1, 2]),
+        np.array([[10.0, 0.0], [0.0, 10.0]]),
+        np.array([9.5, 9.5]),
+        0.1,
+        vel,
+        leg_start,
+        10.1,
+    )
+    now = m.at(10.1, V, 0.05)
+    assert now.xy[0, 1].tolist() == pytest.approx([10.7, 0.0])  # sent at 9.4 (at the earliest), carried 0.7 s
+    assert V * (10.1 - now.sent_s[0, 1]) == pytest.approx(0.05)  # |v| x jitter
+    assert now.xy[0, 2].tolist() == [0.0, 10.0]  # sent before its leg began
+    assert V * (10.1 - now.sent_s[0, 2]) == pytest.approx(V * 0.7)
+    later = m.at(11.1, V, 0.05)  # the leg may have changed at 10.1
+    assert later.xy[0, 1].tolist() == pytest.approx([10.7, 0.0])
+    assert V * (11.1 - later.sent_s[0, 1]) == pytest.approx(0.05 + V * 1.0)
+
+
 # -- rule 4: pulls ----------------------------------------------------------------------
 
 
