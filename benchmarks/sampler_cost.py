@@ -27,11 +27,11 @@ def main() -> None:
     args = ap.parse_args()
     from compare import netsim_settings
 
-    import netsim.spatial
+    import netsim.radio.spatial
     import protocols.stack
     from netsim.tools import cli
 
-    sampler, lists = protocols.stack.Stack._sampler, netsim.spatial.RangeIndex.lists
+    sampler, lists = protocols.stack.Stack._sampler, netsim.radio.spatial.RangeIndex.lists
     spent = {"wall": 0.0, "cpu": 0.0, "samples": 0, "lists": 0.0, "sampling": False, "faults": 0}
 
     def timed_sampler(self, interval):
@@ -56,7 +56,7 @@ def main() -> None:
         return out
 
     protocols.stack.Stack._sampler = timed_sampler  # type: ignore[method-assign]
-    netsim.spatial.RangeIndex.lists = timed_lists  # type: ignore[method-assign]
+    netsim.radio.spatial.RangeIndex.lists = timed_lists  # type: ignore[method-assign]
     with tempfile.TemporaryDirectory() as out:
         argv = ["run", "--out", out, "--no-progress", "--quiet"]
         for key, value in netsim_settings(args.n, "clustering", args.duration).items():

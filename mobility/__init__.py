@@ -1,1 +1,1 @@
-"""Mobility models for netsim: how robots move. Each model is a plugin (see README)."""
+"""Mobility models for netsim: how robots move. Each model is a plugin (docs/plugins.md)."""

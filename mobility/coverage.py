@@ -320,6 +320,7 @@ class CoverageController:
         self.commander = np.full(st.n, -1)
         self.steps: list[StepRecord] = []
         self.samples: list[dict] = []
+        self.duration_s = float(parts.duration_s)
         self._max_wish = 0.0
         self.sample_at_start: dict | None = None
         # Odometer: distance per robot up to odo_t_s, and the speeds since.
@@ -557,6 +558,13 @@ class CoverageController:
 
     # -- outputs -----------------------------------------------------------------------
     def coverage_frame(self) -> pd.DataFrame:
+        # The last sample at the run's end T, once the run has reached it: the sampler's
+        # next event is due at T or after, and never processed (events due exactly at the
+        # end are not).
+        # The sum of many intervals may fall a rounding error short of T: that sample is it.
+        end = self.duration_s
+        if self.env.now >= end and not (self.samples and self.samples[-1]["t_s"] >= end - 1e-9 * max(1.0, end)):
+            self.samples.append(self.sample(end))
         return pd.DataFrame(self.samples)
 
     def travel_frame(self) -> pd.DataFrame:

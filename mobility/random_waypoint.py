@@ -36,7 +36,27 @@ from netsim.state import RobotState
 class RandomWaypointParams(SpeedParams):
     """Random waypoint's keys of ``[mobility]``."""
 
-    stationary_start: bool = param(True, None, "start in the stationary regime (no warm-up)")
+    stationary_start: bool | str = param(
+        "auto",
+        None,
+        "start in the stationary regime (no warm-up): true, false, or 'auto' (where it can be drawn: "
+        "no map, uniform placement, speed_min_mps > 0)",
+        coerce=lambda key, value: _stationary(key, value),
+    )
+
+
+def _stationary(key: str, value) -> bool | str:
+    if isinstance(value, bool) or value == "auto":
+        return value
+    raise ConfigError(key, value, "must be true, false or 'auto'")
+
+
+def starts_stationary(params: RandomWaypointParams, world) -> bool:
+    """Whether the run starts in the stationary regime: as set, or with ``"auto"`` wherever
+    its law is known (an open square, positions drawn uniformly, a least speed above 0)."""
+    if params.stationary_start != "auto":
+        return bool(params.stationary_start)
+    return not world.map and world.placement == "uniform" and params.speed_min_mps > 0
 
 
 def check(params: RandomWaypointParams, config) -> None:
@@ -44,14 +64,14 @@ def check(params: RandomWaypointParams, config) -> None:
     and has no stationary regime with ``speed_min_mps = 0``."""
     if params.speed_max_mps <= 0:
         raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for random waypoint")
-    if params.stationary_start and config.world.map:
+    if params.stationary_start is True and config.world.map:
         raise ConfigError(
             "mobility.stationary_start",
             True,
             "cannot be used on a map (world.map): random waypoint's stationary law there has no closed form; "
             "set stationary_start = false",
         )
-    if params.stationary_start:
+    if params.stationary_start is True:
         if config.world.placement != "uniform":
             raise ConfigError(
                 "world.placement",
@@ -196,7 +216,7 @@ def waypoint_robot(
 
 def build(m: RandomWaypointParams, parts: Parts) -> None:
     w = parts.world
-    if m.stationary_start:
+    if starts_stationary(m, w):
         start = stationary_start(
             parts.streams.get("mobility.start"), w.n_robots, w.side_m, m.speed_min_mps, m.speed_max_mps, m.pause_s
         )

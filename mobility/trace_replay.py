@@ -1,19 +1,42 @@
-"""Replay of an ns-2 movement file (ns-2 ``setdest``, BonnMotion's ns-2 export, or
-``netsim scenario generate``), with the semantics of ns-3's ``Ns2MobilityHelper``."""
+"""Replay of recorded or generated motion (``mobility.model = "trace"``): an ns-2 movement
+file (ns-2's ``setdest``, BonnMotion's ns-2 export, ``netsim scenario generate``; with the
+semantics of ns-3's ``Ns2MobilityHelper``), a BonnMotion ``.movements`` file, or a ROS 2
+bag of the robots' poses (docs/model.md section 2.2)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import simpy
 
 from netsim import ns2
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param
 from netsim.plugins import Parts, PluginSpec
 from netsim.state import RobotState
+
+
+class TraceFormat(StrEnum):
+    """The format of ``mobility.trace_file``."""
+
+    AUTO = "auto"
+    NS2 = "ns2"
+    BONNMOTION = "bonnmotion"
+    ROSBAG2 = "rosbag2"
+
+
+def _topics(key: str, value: Any) -> tuple[str, ...]:
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, (list, tuple)) or not all(isinstance(t, str) and t for t in value):
+        raise ConfigError(key, value, "must be a list of topic names, robot i following topics[i]")
+    return tuple(value)
 
 
 @dataclass(frozen=True)
@@ -21,65 +44,130 @@ class TraceParams(Params):
     """The trace replay's keys of ``[mobility]``."""
 
     section = "mobility"
-    trace_file: str = param("", None, "ns-2 movement file replayed by model = 'trace'")
+    trace_file: str = param(
+        "", None, "ns-2 or BonnMotion movement file, or rosbag2 folder, replayed by model = 'trace'"
+    )
+    trace_format: TraceFormat = param(
+        TraceFormat.AUTO,
+        None,
+        "'auto' (.movements[.gz]: BonnMotion, a folder: rosbag2, else ns-2), 'ns2', 'bonnmotion', 'rosbag2'",
+    )
+    topics: tuple[str, ...] = param(
+        (), None, "rosbag2: the pose topic of each robot, in order (default: /robot_<i>/...)", coerce=_topics
+    )
 
     def check(self) -> None:
         if not self.trace_file:
             raise ConfigError("mobility.trace_file", self.trace_file, "must name a file when model = 'trace'")
 
 
-def load(params: TraceParams, world) -> ns2.Scenario:
-    """The scenario of ``params.trace_file``, checked against the world's size."""
-    try:
-        scen = ns2.read(params.trace_file, world.n_robots)
-    except NetsimInputError as exc:
-        raise NetsimInputError(f"mobility.trace_file: {exc}") from None
-    if scen.n_robots != world.n_robots:
-        raise ConfigError(
-            "world.n_robots", world.n_robots, f"must equal the {scen.n_robots} nodes of {params.trace_file}"
-        )
+def trace_format(params: TraceParams) -> TraceFormat:
+    """The format of the trace: the one set, or the one its name tells."""
+    if params.trace_format is not TraceFormat.AUTO:
+        return params.trace_format
+    name = params.trace_file
+    if name.endswith((".movements", ".movements.gz")):
+        return TraceFormat.BONNMOTION
+    if Path(name).is_dir():
+        return TraceFormat.ROSBAG2
+    return TraceFormat.NS2
+
+
+def _check_area(points: np.ndarray, params: TraceParams, world) -> None:
+    xy = points[~np.isnan(points)]
     side = world.side_m
-    xy = np.concatenate([scen.initial_m.ravel(), scen.commands[["x_m", "y_m"]].to_numpy().ravel()])
-    xy = xy[~np.isnan(xy)]
     if len(xy) and (xy.min() < 0 or xy.max() > side):
         raise ConfigError(
             "world.side_m",
             side,
-            f"is smaller than the area of {params.trace_file} (coordinates up to {xy.max():g})",
+            f"is smaller than the area of {params.trace_file} (coordinates from {xy.min():g} to {xy.max():g})",
         )
+
+
+def _check_count(n: int, params: TraceParams, world) -> None:
+    if n != world.n_robots:
+        raise ConfigError("world.n_robots", world.n_robots, f"must equal the {n} nodes of {params.trace_file}")
+
+
+def _positions_reached(scen: ns2.Scenario) -> np.ndarray:
+    """Every place where an ns-2 node stops, is put, or changes course, (k, 2): with the
+    start, the corners of its path (legs are straight in between)."""
+    st = RobotState(scen.n_robots, 1.0, 1.0)
+    st.place(scen.initial_m)
+    corners = []
+    for t, i, kind, x, y in scen.events.itertuples(index=False):
+        corners.append(st.positions_at(t, [i])[0])
+        if kind != "position":
+            st.set_leg(i, t, (x, y))
+        else:
+            st.set_leg(i, t, (0.0, 0.0), start_m=(x, y))
+            corners.append(np.array([x, y]))
+    return np.array(corners).reshape(-1, 2)
+
+
+def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
+    """The motion of ``params.trace_file``, checked against the world's size."""
+    fmt = trace_format(params)
+    try:
+        if fmt is TraceFormat.NS2:
+            scen = ns2.read(params.trace_file, world.n_robots)
+        elif fmt is TraceFormat.BONNMOTION:
+            from netsim.formats import bonnmotion
+
+            scen, _params = bonnmotion.read(params.trace_file)
+        else:
+            from netsim.formats import rosbag2
+
+            scen = rosbag2.read(params.trace_file, params.topics)
+    except NetsimInputError as exc:
+        raise NetsimInputError(f"mobility.trace_file: {exc}") from None
+    _check_count(scen.n_robots, params, world)
+    if isinstance(scen, ns2.Scenario):
+        _check_area(np.concatenate([scen.initial_m.ravel(), _positions_reached(scen).ravel()]), params, world)
+    else:
+        _check_area(np.concatenate([scen.x_m, scen.y_m]), params, world)
     return scen
 
 
 def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario):
-    """One process walks the commands in time order; arrivals are timed per robot."""
-    generation = np.zeros(st.n, dtype=np.int64)
-
-    def stop_on_arrival(i, gen, dest):
-        def stop(_event):
-            if generation[i] == gen:
-                st.arrive(i, env.now, dest)
-
-        return stop
-
-    for t, i, kind, x, y, speed in scen.commands.itertuples(index=False):
+    """One process applies the events in time order (:class:`netsim.ns2.Scenario`)."""
+    for t, i, kind, x, y in scen.events.itertuples(index=False):
         if t > env.now:
             yield env.timeout(t - env.now)
-        generation[i] += 1
-        if kind == "setdest":
-            dest = np.array([x, y])
-            travel = st.head_to(i, env.now, dest, speed, "trace")
-            if travel > 0:
-                env.timeout(travel).callbacks.append(stop_on_arrival(i, int(generation[i]), dest))
+        if kind == "velocity":
+            st.set_leg(i, env.now, (x, y), cause="trace")
+        elif kind == "stop":
+            st.set_leg(i, env.now, (0.0, 0.0), cause="waypoint")
         else:
-            here = st.positions_at(env.now, [i])[0]
-            new = np.array([here[0] if math.isnan(x) else x, here[1] if math.isnan(y) else y])
-            st.set_leg(i, env.now, (0.0, 0.0), start_m=new, cause="jump")
+            st.set_leg(i, env.now, (0.0, 0.0), start_m=(x, y), cause="jump")
+
+
+def follow(env: simpy.Environment, st: RobotState, wp: Waypoints):
+    """One process walks every robot's waypoints in time order: at each, the robot is put
+    exactly there (rounding of the leg before removed) and moves on toward the next."""
+    for t, i, x, y, vx, vy in wp.commands():
+        if t > env.now:
+            yield env.timeout(t - env.now)
+        here = st.positions_at(env.now, [i])[0]
+        moving = bool(st.velocity_mps[i].any())
+        if vx == 0.0 and vy == 0.0:
+            if moving or here[0] != x or here[1] != y:
+                st.arrive(i, env.now, np.array([x, y]), cause="trace")
+            continue
+        if math.hypot(here[0] - x, here[1] - y) > 1e-6 * max(1.0, abs(x), abs(y)):
+            st.set_leg(i, env.now, (vx, vy), start_m=(x, y), cause="jump")
+        else:
+            st.arrive(i, env.now, np.array([x, y]), log=False)
+            st.set_leg(i, env.now, (vx, vy), cause="trace")
 
 
 def build(params: TraceParams, parts: Parts) -> None:
     scen = load(params, parts.world)
-    parts.state.place(scen.initial_m)
-    parts.env.process(replay(parts.env, parts.state, scen))
+    parts.state.place(scen.initial_m if isinstance(scen, ns2.Scenario) else scen.initial_m())
+    proc = (
+        replay(parts.env, parts.state, scen) if isinstance(scen, ns2.Scenario) else follow(parts.env, parts.state, scen)
+    )
+    parts.env.process(proc)
 
 
 PLUGIN = PluginSpec(Params=TraceParams, build=build)

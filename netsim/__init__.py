@@ -4,12 +4,9 @@ Engine only: the simulation object, robot state, channel, timers, topology, trac
 configuration. Mobility models and protocols are plugins found by name.
 """
 
-from netsim.gcpause import paused
-
-with paused():  # numpy, pandas and the engine load without the collector's passes
-    from netsim.config import Config, load
-    from netsim.errors import ConfigError, NetsimInputError
-    from netsim.sim import Simulation
+from netsim.config import Config, load
+from netsim.errors import ConfigError, NetsimInputError
+from netsim.sim import Simulation
 
 __all__ = ["Config", "ConfigError", "NetsimInputError", "Simulation", "load"]
 __version__ = "0.1.0"

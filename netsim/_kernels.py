@@ -12,6 +12,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from netsim import kernel_cache
+
 
 @numba.njit(cache=True, nogil=True)
 def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
@@ -41,7 +43,7 @@ def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
 @numba.njit(cache=True, nogil=True)
 def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
     """The candidates ``cand`` within ``r`` of robot ``i`` at ``t``, and their distances
-    (:meth:`netsim.spatial.RangeIndex.within` over a candidate list)."""
+    (:meth:`netsim.radio.spatial.RangeIndex.within` over a candidate list)."""
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     r2 = r * r
     ids = np.empty(len(cand), dtype=np.int64)
@@ -61,7 +63,7 @@ def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
 def within_alive(cand, lo, hi, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m, alive):
     """The candidates ``cand[lo:hi]`` within ``r`` of robot ``i`` at ``t`` (as
     :func:`within`, without the distances), and whether all of them are ``alive``
-    (:meth:`netsim.spatial.RangeIndex.within_alive`). The span is passed, not a slice:
+    (:meth:`netsim.radio.spatial.RangeIndex.within_alive`). The span is passed, not a slice:
     making the view would cost the caller more than the loop."""
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     r2 = r * r
@@ -146,7 +148,7 @@ def grid(pos, r, box):
 def near_pairs(pos, r, box):
     """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` of each other (on a torus of
     side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r`` (as many as
-    :func:`netsim.crossings.grid_cells` counts: the caller checks they are not too many): what
+    :func:`netsim.geometry.grid_cells` counts: the caller checks they are not too many): what
     ``cKDTree.query_pairs(r)`` finds, and possibly pairs further apart than ``r`` by a
     relative 1e-9 (a distance at the bound rounds either way; callers filter exactly and
     ask with a slack, so such pairs change nothing). Rows by robot ``i``, then its cells row by
@@ -194,7 +196,7 @@ def near_pairs(pos, r, box):
 def neighbour_lists(pairs, n):
     """Both directions of the ``pairs`` as lists per robot, ascending: ``(indptr,
     indices)`` with robot ``i``'s neighbours at ``indices[indptr[i]:indptr[i + 1]]``
-    (what :meth:`netsim.spatial.RangeIndex._build` makes with a lexsort)."""
+    (what :meth:`netsim.radio.spatial.RangeIndex._build` makes with a lexsort)."""
     indptr = np.zeros(n + 1, np.int64)
     for k in range(pairs.shape[0]):
         indptr[pairs[k, 0] + 1] += 1
@@ -323,7 +325,7 @@ def senders_in_list(pos, ranges, box, indptr, indices, a, out):
 @numba.njit(cache=True, nogil=True)
 def reach_keys_in_lists(pos, ranges, box, indptr, indices):
     """:func:`reach_keys` with each receiver's candidates from neighbour lists (those of
-    :meth:`netsim.spatial.RangeIndex.lists`: ascending, holding every robot within reach),
+    :meth:`netsim.radio.spatial.RangeIndex.lists`: ascending, holding every robot within reach),
     not from a grid built for the purpose: the same keys, ascending, the same arithmetic."""
     n = pos.shape[0]
     keys = np.empty(len(indices), np.int64)
@@ -350,7 +352,7 @@ def longest_list(indptr):
 def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
     """Hops from ``source`` to every robot over the directed links where a sender reaches a
     receiver (``towards``: from every robot to ``source``), ``inf`` where there is no path: a
-    breadth-first search over the neighbour lists of :meth:`netsim.spatial.RangeIndex.lists`,
+    breadth-first search over the neighbour lists of :meth:`netsim.radio.spatial.RangeIndex.lists`,
     each link decided as :func:`reach_keys_in_lists` decides it."""
     n = pos.shape[0]
     hops = np.full(n, np.inf)
@@ -390,7 +392,7 @@ def reach_keys(pos, folded, ranges, box):
     the largest range over the ``folded`` positions (in ``[0, box)`` on a torus, else
     ``pos``), taken cell by cell from copies of the positions in cell order (a row of three
     cells' candidates contiguous in memory); distances from ``pos``, as numpy computes them.
-    The caller checks the cells are not too many (:func:`netsim.crossings.grid_cells`)."""
+    The caller checks the cells are not too many (:func:`netsim.geometry.grid_cells`)."""
     n = pos.shape[0]
     cells_x, cells_y, cell, start, members = grid(folded, ranges.max(), box)
     n_cells = cells_x * cells_y
@@ -433,3 +435,8 @@ def reach_keys(pos, folded, ranges, box):
             keys[q] = base + senders[t]
             q += 1
     return keys
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -16,9 +16,9 @@ stop event included), and arms a wake for its new head. The global order is that
 kernel event per entry; the kernel sees one event per run of consecutive entries. (A
 wake stays queued when an earlier entry arms another before it; by its turn its entry may
 have run from that one, and it runs whatever is due then, or nothing.)
-:func:`netsim.events.kernel_queue` and :func:`netsim.events.advance_clock` say why reading
-the kernel's queue and setting its clock is sound (``netsim.kinetic`` does the same for
-the runtime link events).
+:mod:`netsim.simpy_internals` says why reading the kernel's queue and setting its clock is
+sound (``netsim.links.kinetic`` does the same for the runtime link events), and holds every
+access to SimPy's internals.
 
 Entries that a caller schedules in key order (the channel's deliveries at its constant
 latency: each at now + the same delay, at the same priority, with a later id) go to a
@@ -32,8 +32,7 @@ most of them only to re-arm: :meth:`Agenda.ahead`), go to a calendar instead
 (:class:`Calendar`): a list per slice of time, sorted once when its slice comes. A heap of
 them is cold by each push and pop, which then walk its depth through cache misses; a
 calendar appends to one list and takes from another. (The beacons' ticks stay on the heap:
-tried in the calendar, a run of 100,000 robots went about a fifth slower, its slices of
-thousands of ticks each sorted.)
+in the calendar, a large run's slices would each hold thousands of ticks to sort.)
 """
 
 from __future__ import annotations
@@ -46,7 +45,8 @@ from heapq import heappop, heappush
 
 import simpy
 
-from netsim.events import kernel_queue
+from netsim.simpy_internals import event_ids, give_outcome, kernel_queue, push, set_now
+from netsim.simpy_internals import now as clock
 
 
 class _Wake(simpy.Event):
@@ -74,7 +74,7 @@ class Agenda:
         # Keys (t, priority, id) of the wakes queued in the kernel and not yet run, a heap.
         self._wakes: list[tuple] = []
         self._kernel = kernel_queue(env)  # the same list for the whole run
-        self._ids = env._eid  # type: ignore[attr-defined]  # SimPy's counter of event ids
+        self._ids = event_ids(env)
         self._running = False
         self.wakes_run = 0
         # Entries scheduled with ahead(), and the first of them (None: there is none).
@@ -87,7 +87,7 @@ class Agenda:
     def at(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """Call ``fn(*args)`` ``delay_s`` from now at ``priority``: where an event scheduled
         now with ``env.schedule(event, priority, delay_s)`` would run."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
+        entry = (clock(self.env) + delay_s, priority, next(self._ids), fn, args)
         heappush(self._heap, entry)
         wakes = self._wakes
         if (not wakes or entry < wakes[0]) and not self._running:
@@ -96,7 +96,7 @@ class Agenda:
     def ahead(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """:meth:`at`, for an entry due well ahead, of a kind scheduled many at a time (a
         timer's event): it goes to the calendar (module notes)."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
+        entry = (clock(self.env) + delay_s, priority, next(self._ids), fn, args)
         self._calendar.push(entry)
         first = self._ahead
         if first is None or entry < first:
@@ -108,7 +108,7 @@ class Agenda:
     def at_in_order(self, delay_s: float, priority: int, fn: Callable[..., object], *args: object) -> None:
         """:meth:`at`, for a caller whose entries mostly come in key order (the same delay
         and priority each time): those are queued, not heaped (module notes)."""
-        entry = (self.env._now + delay_s, priority, next(self._ids), fn, args)  # type: ignore[attr-defined]
+        entry = (clock(self.env) + delay_s, priority, next(self._ids), fn, args)
         queue = self._queue
         if queue and entry < queue[-1]:
             heappush(self._heap, entry)
@@ -131,11 +131,9 @@ class Agenda:
 
     def _arm(self, entry: tuple) -> None:
         t, priority, eid = entry[0], entry[1], entry[2]
-        wake = _Wake(self.env)
-        wake._ok = True
-        wake._value = None
+        wake = give_outcome(_Wake(self.env))
         wake.callbacks.append(self._run)
-        heappush(self._kernel, (t, priority, eid, wake))
+        push(self.env, t, priority, eid, wake)
         heappush(self._wakes, (t, priority, eid))
 
     def _run(self, _event: simpy.Event) -> None:
@@ -163,7 +161,7 @@ class Agenda:
                         break
                     calendar.pop()
                     self._ahead = calendar.first()
-                    env._now = first[0]  # type: ignore[attr-defined]
+                    set_now(env, first[0])
                     first[3](*first[4])
                     continue
                 if head is None:
@@ -175,7 +173,7 @@ class Agenda:
                 else:
                     heappop(heap)
                 # As the kernel's step() sets it: the entry's own time, the same float.
-                env._now = head[0]  # type: ignore[attr-defined]
+                set_now(env, head[0])
                 head[3](*head[4])
         finally:
             self._running = False

@@ -3,7 +3,7 @@
 The per-message work of the channel and the Ack beacon (range queries, neighbour tables)
 has compiled twins of its numpy code; each computes exactly what the numpy code computes
 (tests compare them with ``==``). Importing numba and loading its cached machine code
-costs about 0.4 s, more than a small run's whole simulation, so runs of fewer than
+costs more than a small run's whole simulation, so runs of fewer than
 :data:`SMALL_RUN_ROBOTS` robots keep the numpy code. ``NETSIM_COMPILED=0`` or ``=1`` in the
 environment forces one or the other (for the comparisons; the outputs are the same).
 """
@@ -17,8 +17,6 @@ import threading
 from collections.abc import Callable
 from types import ModuleType
 from typing import TypeVar
-
-from netsim.gcpause import paused
 
 SMALL_RUN_ROBOTS = 20
 
@@ -40,13 +38,11 @@ def load(module: str, n_robots: int) -> ModuleType | None:
     if not compiled_wanted(n_robots):
         return None
     loaded = sys.modules.get(module)
-    if loaded is not None:
-        # Asked for at every rebuild of the range index: no pause (nor freeze) once loaded.
+    if loaded is not None:  # asked for at every rebuild of the range index
         return loaded
     try:
-        with paused():  # numba and its registries load without the collector's passes
-            _numba_without_blas_probe()
-            return importlib.import_module(module)
+        _numba_without_blas_probe()
+        return importlib.import_module(module)
     except ImportError:  # pragma: no cover
         return None
 
@@ -57,8 +53,8 @@ def _numba_without_blas_probe() -> None:
     On its first compile or cache load numba imports ``numba.np.arraymath``, which tries
     ``import scipy.linalg.cython_blas`` to decide whether its ``np.correlate`` and
     ``np.convolve`` may call BLAS (else a plain loop, the same results). Importing
-    scipy.linalg costs about 0.1 s, a twentieth of a 1,000-robot run's whole process, and no
-    compiled loop here uses BLAS. So while that module loads, the probe finds nothing; the
+    scipy.linalg is a noticeable part of a large run's whole process, and no compiled loop
+    here uses BLAS. So while that module loads, the probe finds nothing; the
     entry is removed at once, so that scipy.linalg imports as usual afterwards. Where
     scipy.linalg is already loaded the probe costs nothing and is left alone.
     """

@@ -27,7 +27,6 @@ from typing import Any, ClassVar
 
 from netsim import plugins
 from netsim.errors import ConfigError
-from netsim.loss import LOSS_MODELS
 from netsim.params import (
     NoParams,
     Params,
@@ -42,8 +41,9 @@ from netsim.params import (
 from netsim.params import (
     describe as describe_params,
 )
-from netsim.propagation import PROPAGATION_MODELS, propagation_name
+from netsim.radio.loss import LOSS_MODELS
 from netsim.radio.propagation import LogDistanceParams, reach_m
+from netsim.radio.propagation_models import PROPAGATION_MODELS, propagation_name
 
 
 class ConfigWarning(UserWarning):

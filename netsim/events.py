@@ -4,16 +4,14 @@
 by the order they were scheduled. ``env.timeout(delay)`` always has NORMAL priority;
 transmissions and deliveries must come before the deadlines of their instant
 (docs/model.md, order of simultaneous events), which only ``env.schedule(event, URGENT,
-delay)`` gives. ``schedule`` wants an event that has already been given its outcome, and
-SimPy has no public way to give one without scheduling it at once (``succeed()`` does
-both); so :func:`scheduled_event` sets the two attributes ``_ok`` and ``_value`` itself, as
-SimPy's own ``Timeout.__init__`` does. Runtime link events use :data:`FIRST`, a priority
-ahead of URGENT: they are delivered before anything else due at their instant.
-:func:`kernel_queue` and :func:`advance_clock` let one kernel event stand for several
-consecutive instants of the runtime link events (``netsim.kinetic``) or several entries of
-an agenda (``netsim.agenda``: the Ack ticks and deliveries): SimPy exposes neither
-the priority of its next event nor a way to move its clock, so they read its queue and set
-its clock (``_queue``, ``_now``) themselves, as its ``step()`` does.
+delay)`` gives. ``schedule`` wants an event that has already been given its outcome, which
+SimPy has no public way to give without scheduling it at once: :func:`scheduled_event`
+gives it through :mod:`netsim.simpy_internals`, the one module that touches SimPy's
+internals. Runtime link events use :data:`FIRST`, a priority ahead of URGENT: they are
+delivered before anything else due at their instant. :func:`kernel_queue` and
+:func:`advance_clock` (from :mod:`netsim.simpy_internals`) let one kernel event stand for
+several consecutive instants of the runtime link events (``netsim.links.kinetic``) or several
+entries of an agenda (``netsim.agenda``: the Ack ticks and deliveries).
 
 **Bus.** :class:`EventBus` (``sim.events``) calls users' functions as things happen:
 ``sim.events.on("link_down", fn)``. Event names and their payloads (named tuples):
@@ -40,6 +38,8 @@ from typing import NamedTuple
 import numpy as np
 import simpy
 from simpy.events import NORMAL, URGENT
+
+from netsim.simpy_internals import advance_clock, give_outcome, kernel_queue
 
 __all__ = [
     "EVENT_NAMES",
@@ -71,31 +71,16 @@ def scheduled_event(
     delay_s: float,
     priority: int = NORMAL,
     callback: Callable[[simpy.Event], None] | None = None,
+    value: object = None,
 ) -> simpy.Event:
     """An event that occurs ``delay_s`` from now at ``priority`` (``URGENT`` or ``NORMAL``),
-    calling ``callback(event)`` if given; a process may also ``yield`` it, as a timeout."""
-    ev = simpy.Event(env)
-    ev._ok = True
-    ev._value = None
+    calling ``callback(event)`` if given, with ``event.value`` the ``value`` given; a process
+    may also ``yield`` it, as a timeout."""
+    ev = give_outcome(simpy.Event(env), value)
     if callback is not None:
         ev.callbacks.append(callback)
     env.schedule(ev, priority, delay_s)  # type: ignore[arg-type]  # SimPy types priorities as an IntEnum
     return ev
-
-
-def kernel_queue(env: simpy.Environment) -> list:
-    """SimPy's queue of scheduled events, a heap of ``(time, priority, id, event)``, to be
-    read only. An event scheduled now at ``(t, priority)`` would run after its head ``(t0,
-    p0, ...)`` when ``t0 < t``, or ``t0 == t`` and ``p0 <= priority`` (at equal priority
-    SimPy runs events in the order they were scheduled)."""
-    return env._queue  # type: ignore[attr-defined, no-any-return]
-
-
-def advance_clock(env: simpy.Environment, t_s: float) -> None:
-    """Move the kernel's clock forward to ``t_s``, as processing an event due then would;
-    only valid when nothing in :func:`kernel_queue` would run before such an event."""
-    if t_s > env.now:
-        env._now = t_s  # type: ignore[attr-defined]
 
 
 class CourseChange(NamedTuple):

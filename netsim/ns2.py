@@ -1,4 +1,5 @@
-"""The ns-2 movement-scenario format, as written by ns-2's ``setdest`` and BonnMotion.
+"""The ns-2 movement-scenario format, read as ns-3's ``Ns2MobilityHelper`` reads it, and
+written as ns-2's ``setdest`` writes it.
 
 ::
 
@@ -7,13 +8,31 @@
     $node_(0) set Z_ 0.0
     $ns_ at 2.0 "$node_(0) setdest 400.0 250.0 3.5"
 
-Semantics (as ns-2 and ns-3's ``Ns2MobilityHelper``): ``setdest X Y S`` at time T makes
-the node leave its current position at T in a straight line toward (X, Y) at S m/s and
-stop on arrival; a later ``setdest`` replaces the current one from wherever the node is.
-``$ns_ at T "$node_(i) set X_ x"`` moves the node to x at T and stops it. ``$god_`` lines
-(setdest's hop counts), ``Z_`` and comments are ignored. The nodes are 0 to the highest id
-the file names; as in ns-3, a coordinate a node is never given (no ``$node_(i) set X_``)
-is 0, and a warning names those nodes.
+Reading follows ns-3's helper line for line, so that a file replays to the positions ns-3
+gives (the tests compare with ns-3 itself):
+
+- Everything after a ``#`` is a comment; blanks and ``;`` at a line's ends are dropped. A
+  line is then split on blanks and understood only in one of three shapes (the quotes may
+  touch the last word or stand alone):
+  ``$node_(i) set X_ x`` (also ``Y_``, ``Z_``; an initial position, wherever it stands in
+  the file), ``$ns_ at T "$node_(i) setdest X Y S"`` and ``$ns_ at T "$node_(i) set X_ x"``.
+  Every other line is skipped, as ns-3 skips it: blank and comment lines, ``$god_`` lines
+  (setdest's hop counts: they name no ``(i)``), ``set god_ [God instance]``, any other Tcl
+  of a simulation script, lines with a wrong number of words, a time that is not a number
+  or is negative. ``Z_`` is ignored.
+- ``setdest X Y S`` at ``T``: the node leaves at ``T`` toward ``(X, Y)`` at ``S`` m/s and
+  stops on arrival. A later ``setdest`` starts from where the node is then (if it had not
+  arrived) or from where it was heading. ``S = 0`` stops the node at ``T``; a ``setdest``
+  to where the node already is, or with a negative speed, does nothing.
+- ``set X_ x`` at ``T`` (ns-3's handling, which differs from ns-2's): the coordinate is
+  changed at once, when the file is read, so the node starts there; at ``T`` the node is
+  put at that position again (its other coordinate as it was when the line was read) and
+  stops. A later ``setdest`` leaves from there.
+- Nodes are 0 to the highest id the file names (ns-3 uses the nodes it is given); a node
+  that is never given an initial ``X_`` or ``Y_`` starts at 0 on that axis, and a warning
+  names those nodes. A file with initial positions only is a team standing still. A file
+  with no line understood at all is an error, and so is a non-finite number (ns-3 would
+  move a node to NaN).
 """
 
 from __future__ import annotations
@@ -21,55 +40,103 @@ from __future__ import annotations
 import math
 import re
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
 
-_NUM = r"([-+0-9.eEinfa]+)"
-_INIT = re.compile(r"^\$node_\((\d+)\)\s+set\s+([XYZ])_\s+" + _NUM + r"\s*$")
-_SETDEST = re.compile(
-    r"^\$ns_\s+at\s+" + _NUM + r'\s+"\$node_\((\d+)\)\s+setdest\s+' + _NUM + r"\s+" + _NUM + r"\s+" + _NUM + r'\s*"\s*$'
-)
-_SETPOS = re.compile(r"^\$ns_\s+at\s+" + _NUM + r'\s+"\$node_\((\d+)\)\s+set\s+([XYZ])_\s+' + _NUM + r'\s*"\s*$')
+_NODE = re.compile(r"\(([^()]*)\)")
+_COORDS = ("X_", "Y_", "Z_")
+# Without world.n_robots the team is 0 to the highest node the file names: a bound on that
+# number keeps a stray huge one from asking for gigabytes of positions.
+MAX_INFERRED_NODES = 1_000_000
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """A parsed movement file: initial positions and time-ordered commands.
+    """A parsed movement file: the positions at t = 0 and the events that change the
+    nodes' motion, in the order they happen.
 
-    ``commands`` has columns ``t_s, robot, kind ("setdest" | "set"), x_m, y_m, speed_mps``;
-    for ``set`` rows, the coordinate not set is NaN.
+    ``events`` has columns ``t_s, robot, kind, x_m, y_m``: ``kind`` is ``"velocity"`` (from
+    ``t_s`` on the node moves at ``(x_m, y_m)`` m/s from where it is), ``"stop"`` (it
+    arrives where its ``setdest`` was heading, and stops) or ``"position"`` (the node is
+    put at ``(x_m, y_m)`` and stops).
     """
 
     initial_m: np.ndarray
-    commands: pd.DataFrame
+    events: pd.DataFrame
 
     @property
     def n_robots(self) -> int:
         return len(self.initial_m)
 
 
-def _number(text: str, path: str | Path, lineno: int, what: str) -> float:
+def _strtod(text: str) -> float | None:
+    """The number C's ``strtod`` reads from the whole of ``text``, or None."""
+    t = text.strip()
+    if t != text or not t or "_" in t:
+        return None
     try:
-        v = float(text)
+        return float(t)
     except ValueError:
-        raise NetsimInputError(f"{path}:{lineno}: {what} {text!r} is not a number") from None
-    if not math.isfinite(v):
-        raise NetsimInputError(f"{path}:{lineno}: {what} {text!r} must be finite")
-    return v
+        pass
+    body = t.lstrip("+-")
+    if body[:2].lower() == "0x":
+        try:
+            v = float.fromhex(body)
+        except ValueError:
+            return None
+        return -v if t.startswith("-") else v
+    return None
 
 
-# Without world.n_robots the team is 0 to the highest node the file names: a bound on that
-# number keeps a stray huge one from asking for gigabytes of positions.
-MAX_INFERRED_NODES = 1_000_000
+def _node_id(token: str) -> str | None:
+    """The id between the first ``(`` and the first ``)``, if it is a non-negative integer."""
+    a, b = token.find("("), token.find(")")
+    if a < 0 or b < 0:
+        return None
+    inner = token[a + 1 : b]
+    v = _strtod(inner)
+    return inner if v is not None and "." not in inner and not inner.startswith("-") else None
+
+
+def _tokens(raw: str) -> list[str]:
+    """A line's words as ns-3's helper splits them (module notes)."""
+    line = raw.split("#", 1)[0].lstrip(" \t").rstrip(" \t;")
+    while line and line[-1] in " \t;":
+        line = line[:-1]
+    if _node_id(line) is None:
+        return []
+    words = line.split()
+    if not words:
+        return []
+    if len(words) in (7, 8) and words[-1].endswith('"'):
+        # A quote standing alone here leaves an empty word, and the line is not understood.
+        words[-1] = words[-1][:-1]
+    elif len(words) == 9 and words[-1] == '"':
+        words.pop()
+    return words
+
+
+@dataclass
+class _Heading:
+    """What ns-3's helper remembers of a node's last movement (its DestinationPoint)."""
+
+    start: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    final: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    stop_event: int = -1
+    travel_start_s: float = 0.0
+    arrival_s: float = 0.0
 
 
 def read(path: str | Path, n_robots: int | None = None) -> Scenario:
-    """Parse an ns-2 movement file; raise :class:`NetsimInputError` naming the bad line.
+    """Parse an ns-2 movement file as ns-3 does (module notes); raise
+    :class:`NetsimInputError` naming the line for what cannot be simulated.
 
     With ``n_robots``, a node numbered ``n_robots`` or above is an error naming it (nodes
     are numbered from 0), rather than a gap in the initial positions. Without it, the team
@@ -77,86 +144,134 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
     path = Path(path)
     if not path.is_file():
         raise NetsimInputError(f"{str(path)!r}: no such file")
-    initial: dict[int, dict[str, float]] = {}
-    rows = []
     try:
         lines = path.read_text().splitlines()
     except UnicodeDecodeError:
         raise NetsimInputError(f"{path}: not a text file") from None
 
-    def node_id(text: str, lineno: int) -> int:
+    def node(text: str, lineno: int) -> int:
         if len(text) > 9:
             raise NetsimInputError(f"{path}:{lineno}: node number {text[:20]} is too large")
-        node = int(text)
-        if n_robots is not None and node >= n_robots:
+        i = int(text)
+        if n_robots is not None and i >= n_robots:
             raise NetsimInputError(
-                f"{path}:{lineno}: node {node} is beyond world.n_robots = {n_robots} "
+                f"{path}:{lineno}: node {i} is beyond world.n_robots = {n_robots} "
                 f"(nodes are numbered 0 to {n_robots - 1})"
             )
-        if n_robots is None and node >= MAX_INFERRED_NODES:
+        if n_robots is None and i >= MAX_INFERRED_NODES:
             raise NetsimInputError(
-                f"{path}:{lineno}: node {node} is beyond the {MAX_INFERRED_NODES:,} nodes a file may name "
+                f"{path}:{lineno}: node {i} is beyond the {MAX_INFERRED_NODES:,} nodes a file may name "
                 "when the number of robots is not given"
             )
-        return node
+        return i
 
+    def finite(v: float, lineno: int, what: str) -> float:
+        if not math.isfinite(v):
+            raise NetsimInputError(f"{path}:{lineno}: {what} {v} must be finite")
+        return v
+
+    # The lines understood, in file order: ("init" | "setdest" | "set", lineno, node, values).
+    parsed: list[tuple[str, int, int, tuple[Any, ...]]] = []
     for lineno, raw in enumerate(lines, 1):
-        line = raw.strip()
-        if not line or line.startswith("#") or "$god_" in line:
+        w = _tokens(raw)
+        if len(w) == 4:
+            nid = _node_id(w[0])
+            value = _strtod(w[3])
+            if nid is not None and w[1] == "set" and w[2] in _COORDS and value is not None:
+                parsed.append(("init", lineno, node(nid, lineno), (w[2], finite(value, lineno, w[2]))))
             continue
-        if m := _INIT.match(line):
-            node, axis = node_id(m[1], lineno), m[2]
-            initial.setdefault(node, {})[axis] = _number(m[3], path, lineno, f"{axis}_")
-        elif m := _SETDEST.match(line):
-            t = _number(m[1], path, lineno, "time")
-            x, y, s = (_number(m[k], path, lineno, w) for k, w in ((3, "X"), (4, "Y"), (5, "speed")))
-            if t < 0 or s < 0:
-                raise NetsimInputError(f"{path}:{lineno}: negative time or speed in {line!r}")
-            rows.append((t, node_id(m[2], lineno), "setdest", x, y, s, lineno))
-        elif m := _SETPOS.match(line):
-            t = _number(m[1], path, lineno, "time")
-            if t < 0:
-                raise NetsimInputError(f"{path}:{lineno}: negative time in {line!r}")
-            v = _number(m[4], path, lineno, f"{m[3]}_")
-            if m[3] == "Z":
-                continue
-            x, y = (v, math.nan) if m[3] == "X" else (math.nan, v)
-            rows.append((t, node_id(m[2], lineno), "set", x, y, 0.0, lineno))
-        else:
-            raise NetsimInputError(f"{path}:{lineno}: not an ns-2 movement command: {line!r}")
-    commands = pd.DataFrame(rows, columns=["t_s", "robot", "kind", "x_m", "y_m", "speed_mps", "line"])
-    ids = list(initial) + commands["robot"].tolist()
-    if not ids:
-        raise NetsimInputError(f'{path}: no nodes ($node_(i) set X_ ... or $ns_ at T "$node_(i) ...")')
+        if len(w) not in (7, 8) or w[0] != "$ns_" or w[1] != "at":
+            continue
+        nid = _node_id(w[3])
+        t = _strtod(w[2])
+        if nid is None or t is None or t < 0:
+            continue
+        t = finite(t, lineno, "time")
+        if len(w) == 8 and w[4] == "setdest":
+            xs = [_strtod(v) for v in w[5:8]]
+            if None not in xs:
+                vals = tuple(finite(v, lineno, k) for v, k in zip(xs, ("X", "Y", "speed")))  # type: ignore[arg-type]
+                parsed.append(("setdest", lineno, node(nid, lineno), (t, *vals)))
+        elif len(w) == 7 and w[4] == "set" and w[5] in _COORDS:
+            # ns-3 does not check the value: one that is not a number counts as 0.
+            parsed.append(("set", lineno, node(nid, lineno), (t, w[5], finite(_strtod(w[6]) or 0.0, lineno, w[5]))))
+    if not parsed:
+        raise NetsimInputError(
+            f'{path}: no ns-2 movement line ($node_(i) set X_ x, $ns_ at T "$node_(i) setdest X Y S" '
+            'or $ns_ at T "$node_(i) set X_ x")'
+        )
+    ids = [p[2] for p in parsed]
     n = max(ids) + 1
     named = set(ids)
     if n_robots is None and n - len(named) > max(1000, len(named)):
-        # Without world.n_robots the nodes are 0 to the highest number named: a stray huge
-        # number would make a team of mostly never-named robots.
         gaps = [i for i in range(12) if i not in named][:10]
         raise NetsimInputError(
             f"{path}: node(s) {gaps} ... are never named, up to node {n - 1}: "
             "number the nodes from 0 without large gaps"
         )
-    # Count the nodes lacking a coordinate without walking range(n): a stray huge node
-    # number must not make the check itself enormous.
-    complete = sum(1 for xy in initial.values() if "X" in xy and "Y" in xy)
-    if complete < n:
-        first = []
-        for i in range(n):
-            if "X" not in initial.get(i, {}) or "Y" not in initial.get(i, {}):
-                first.append(i)
-                if len(first) == 10:
-                    break
-        more = f" and {n - complete - len(first)} more" if n - complete > len(first) else ""
+
+    # Where each node is as the file is read (ns-3 moves a node at once for a scheduled set).
+    now = np.zeros((n, 2))
+    given: dict[int, set[str]] = {}
+    heading: dict[int, _Heading] = {}
+    for kind, _lineno, i, vals in parsed:
+        if kind == "init" and vals[0] != "Z_":
+            now[i, 0 if vals[0] == "X_" else 1] = vals[1]
+            given.setdefault(i, set()).add(str(vals[0]))
+        if kind == "init":
+            heading[i] = _Heading(final=now[i].copy())
+    events: list[list] = []  # [t, seq, robot, kind, x, y, cancelled]
+
+    def schedule(t: float, i: int, kind: str, xy: Any) -> int:
+        events.append([t, len(events), i, kind, float(xy[0]), float(xy[1]), False])
+        return len(events) - 1
+
+    for kind, _lineno, i, vals in parsed:
+        if kind == "init":
+            continue
+        h = heading.setdefault(i, _Heading())
+        if kind == "setdest":
+            t, x, y, speed = vals
+            if h.arrival_s > t:
+                h.final = h.start + h.velocity * (t - h.travel_start_s)
+                if h.stop_event >= 0:
+                    events[h.stop_event][6] = True
+            new = _Heading(start=h.final.copy(), final=h.final.copy(), travel_start_s=t, arrival_s=t)
+            if speed == 0:
+                new.stop_event = schedule(t, i, "velocity", (0.0, 0.0))
+            elif speed > 0:
+                travel = math.hypot(x - new.final[0], y - new.final[1]) / speed
+                if travel > 0:
+                    v = np.array([(x - new.final[0]) / travel, (y - new.final[1]) / travel])
+                    new.velocity = v
+                    schedule(t, i, "velocity", v)
+                    new.stop_event = schedule(t + travel, i, "stop", (0.0, 0.0))
+                    new.final = new.final + v * travel
+                    new.arrival_s = t + travel
+            heading[i] = new
+        else:
+            t, coord, value = vals
+            if coord != "Z_":
+                now[i, 0 if coord == "X_" else 1] = value
+            h.final = now[i].copy()
+            schedule(t, i, "position", now[i])
+            if h.arrival_s > t and h.stop_event >= 0:
+                events[h.stop_event][6] = True
+            h.arrival_s = h.travel_start_s = t
+
+    lacking = [i for i in range(n) if not {"X_", "Y_"} <= given.get(i, set())]
+    if lacking:
+        more = f" and {len(lacking) - 10} more" if len(lacking) > 10 else ""
         warnings.warn(
-            f"{path}: node(s) {first}{more} have no initial X_ or Y_: they start at 0 on that axis,"
+            f"{path}: node(s) {lacking[:10]}{more} have no initial X_ or Y_: they start at 0 on that axis,"
             " as in ns-3's Ns2MobilityHelper",
             stacklevel=2,
         )
-    commands = commands.sort_values(["t_s", "line"], kind="stable").drop(columns="line").reset_index(drop=True)
-    init = np.array([[initial.get(i, {}).get(axis, 0.0) for axis in "XY"] for i in range(n)])
-    return Scenario(init, commands)
+    live = sorted((e for e in events if not e[6]), key=lambda e: (e[0], e[1]))
+    frame = pd.DataFrame(
+        [(e[0], e[2], e[3], e[4], e[5]) for e in live], columns=["t_s", "robot", "kind", "x_m", "y_m"]
+    ).astype({"t_s": float, "robot": np.int64, "x_m": float, "y_m": float})
+    return Scenario(now, frame)
 
 
 def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float, header: str = "") -> None:

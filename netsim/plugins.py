@@ -12,9 +12,9 @@ Built-in plugins are entry points in ``pyproject.toml`` (groups ``netsim.mobilit
 ``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``), each naming a plugin object
 (``mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
 the configuration. So the engine never imports the packages that build on it, and names
-none of their models. A plain function ``install(sim)`` (the older form) still works as a
-plugin without parameters or tables: it is called with the whole
-:class:`~netsim.sim.Simulation`.
+none of their models. A plugin is a :class:`PluginSpec` or an object with its members, and
+nothing else: a component is handed its parameters and collaborators when it is built,
+never the whole simulation (docs/plugins.md, "One form of plugin").
 """
 
 from __future__ import annotations
@@ -32,15 +32,15 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, runtime_checkable
 import simpy
 
 from netsim.errors import ConfigError
-from netsim.params import NoParams, Params
+from netsim.params import Params
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from netsim.channel import Channel
     from netsim.control import ControlLoop
     from netsim.events import EventBus
     from netsim.groups import GroupView
+    from netsim.radio.channel import Channel
     from netsim.rng import Streams
     from netsim.state import RobotState
     from netsim.trace import Trace
@@ -137,28 +137,6 @@ class PluginSpec:
     timing: Callable[[Any], tuple[float, float]] | None = None
 
 
-@dataclass(frozen=True)
-class LegacyPlugin:
-    """A plain function ``install(sim)`` used as a plugin (the older form): no parameters,
-    no tables; :func:`netsim.run.build` calls it with the whole Simulation."""
-
-    install: Callable[[Any], object]
-    Params: type[Params] = NoParams
-    tables: Mapping[str, Schema] = field(default_factory=dict)
-    default: bool = False
-    moves_robots: bool = True
-    respects_map: bool = False
-    forms_groups: bool = False
-    role_labels: RoleLabels | None = None
-    timing: Callable[[Any], tuple[float, float]] | None = None
-
-    def check(self, params: Any, config: Any) -> None:
-        return None
-
-    def build(self, params: Any, parts: Parts) -> object:
-        raise TypeError("a plain install(sim) function is called with the Simulation (netsim.run.build)")
-
-
 def _import_user_module(name: str) -> ModuleType:
     """Import ``name``; a module in the current directory counts, as with ``python -m``
     (a console script's import path does not include it)."""
@@ -180,7 +158,7 @@ def _entry_points(group: str) -> tuple:
 @cache
 def _every_entry_point() -> Any:
     # One reading of every installed distribution's entry points serves all the groups
-    # (a reading per group costs as much as one for all: about 1.5 ms each).
+    # (a reading per group costs as much as one for all).
     return entry_points()
 
 
@@ -193,16 +171,14 @@ _MEMBERS = ("Params", "tables", "check", "build")
 
 
 @cache
-def _plugin(group: str, name: str) -> PluginSpec | LegacyPlugin:
+def _plugin(group: str, name: str) -> PluginSpec:
     """The plugin ``name`` of ``group`` as a PluginSpec (an object with the members of
-    :class:`Plugin` is wrapped in one, a plain function in a LegacyPlugin)."""
+    :class:`Plugin` is wrapped in one)."""
     obj = _load(group, name)
-    if isinstance(obj, PluginSpec | LegacyPlugin):
+    if isinstance(obj, PluginSpec):
         return obj
     if all(hasattr(obj, m) for m in _MEMBERS):
         return PluginSpec(Params=obj.Params, build=obj.build, tables=obj.tables, check=obj.check)
-    if callable(obj):
-        return LegacyPlugin(obj)
     raise TypeError("is not a netsim plugin (a PluginSpec, or an object with " + ", ".join(_MEMBERS) + ")")
 
 

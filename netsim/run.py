@@ -23,26 +23,27 @@ import simpy
 
 from netsim import config as cfgmod
 from netsim import plugins
-from netsim.channel import Channel
 from netsim.config import Config
 from netsim.control import ControlLoop
+from netsim.cosim import Driver, Messenger, NeighbourView
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.events import EventBus
 from netsim.groups import GroupView
-from netsim.lifetimes import link_lifetimes
-from netsim.loss import LOSS_MODELS
+from netsim.links.lifetimes import link_lifetimes
+from netsim.links.radio_links import radio_link_lifetimes
+from netsim.links.shadowed_links import ShadowedLinks
+from netsim.links.walled_links import WalledLinks
 from netsim.params import Params
-from netsim.plugins import LegacyPlugin, Parts, Reports, Schema
-from netsim.propagation import PROPAGATION_MODELS
-from netsim.radio_links import radio_link_lifetimes
-from netsim.reception import Reception
+from netsim.plugins import Parts, Reports, Schema
+from netsim.radio.channel import Channel
+from netsim.radio.loss import LOSS_MODELS
+from netsim.radio.propagation_models import PROPAGATION_MODELS
+from netsim.radio.reception import Reception
 from netsim.rng import Streams
-from netsim.shadowed_links import ShadowedLinks
 from netsim.sim import Simulation
 from netsim.state import RobotState
 from netsim.trace import Trace
 from netsim.trajectory import distance_travelled, sample_positions
-from netsim.walled_links import WalledLinks
 
 # The tables every run writes, whatever its models (theirs are declared by their plugins).
 ENGINE_TABLES: dict[str, Schema] = {
@@ -107,8 +108,8 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     sim = Simulation(parts, config, run)
     # Log-distance path loss without shadowing or walls is the unit disk of the implied range
     # (the robots' range_m): its link events are solved during the run as the unit disk's.
-    # Under shadowing they are the channel's decisions, cut at the reach (netsim.shadowed_links);
-    # on a map without shadowing, sampled along stretches (netsim.walled_links).
+    # Under shadowing they are the channel's decisions, cut at the reach (netsim.links.shadowed_links);
+    # on a map without shadowing, sampled along stretches (netsim.links.walled_links).
     sim.runtime_links = config.events.runtime_links
     if reception is not None and reception.recorder is not None:
         recorder, reach_m = reception.recorder, reception.reach_m
@@ -129,10 +130,7 @@ def world_map(config: Config) -> Any:
 
 
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
-    if isinstance(plugin, LegacyPlugin):
-        component = plugin.install(sim)
-    else:
-        component = plugin.build(params, parts)
+    component = plugin.build(params, parts)
     sim.add_model(name, component)
     return component
 
@@ -152,13 +150,16 @@ def build(config: Config, run: int = 0) -> Simulation:
     the mobility model, the protocol, then the controllers (module notes)."""
     sim = simulation(config, run)
     parts = sim.parts
-    _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
+    mobility = _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
+    sim.driver = mobility if isinstance(mobility, Driver) else None
     protocol = _build_model(sim, "protocol", config.protocol.plugin, config.protocol.params, parts)
     sim.groups = protocol if isinstance(protocol, GroupView) else None
+    sim.neighbour_view = protocol if isinstance(protocol, NeighbourView) else None
+    sim.messenger = protocol if isinstance(protocol, Messenger) else None
     chosen = cfgmod.controllers(config)
     if chosen:
         period_s, start_s = control_timing(config)
-        mobility = config.mobility
+        moved = config.mobility
         loop = ControlLoop(
             sim.env,
             sim.state,
@@ -166,7 +167,7 @@ def build(config: Config, run: int = 0) -> Simulation:
             period_s,
             start_s,
             lead_s=sim.channel.latency_s + sim.channel.latency_jitter_s,
-            moved_by=f"mobility.model = {mobility.model!r}" if mobility.plugin.moves_robots else None,
+            moved_by=f"mobility.model = {moved.model!r}" if moved.plugin.moves_robots else None,
             groups=sim.groups,
             options=config.control.options,
             occupancy=parts.occupancy,

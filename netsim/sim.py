@@ -7,14 +7,17 @@ from collections.abc import Callable
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
+from netsim.cosim import Arrival, CommandError, Driver, Messenger, NeighbourView, robot_id, robot_ids, velocities
 from netsim.errors import ConfigError
 from netsim.events import LINK_EVENTS, EventBus
 from netsim.groups import GroupView
-from netsim.kinetic import RuntimeLinks
+from netsim.links.kinetic import RuntimeLinks
+from netsim.links.shadowed_links import ShadowedLinks
+from netsim.links.walled_links import WalledLinks
 from netsim.plugins import Parts
 from netsim.progress import progress_bar
-from netsim.shadowed_links import ShadowedLinks
-from netsim.walled_links import WalledLinks
 
 if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live graph
     from netsim.live import LiveTopology
@@ -29,6 +32,10 @@ class Simulation:
     components receive their collaborators when they are built, and never look each other
     up); :attr:`groups` is the protocol's view of the groups, if it forms any;
     :attr:`config` is the configuration it was built from.
+
+    Driven from outside (docs/cosim.md): :meth:`drive` (with ``mobility.model =
+    "external"``), :meth:`positions`, :meth:`neighbours`, :meth:`send` and :meth:`inbox`,
+    through what the models handed over when they were built (:mod:`netsim.cosim`).
 
     Link events are solved during the run (:attr:`links`) when ``runtime_links`` is
     ``"on"``, or ``"auto"`` (the default) and something subscribed to ``link_up`` or
@@ -52,6 +59,11 @@ class Simulation:
         # Makes the runtime link solver when the radio needs its own (shadowing, walls), else None.
         self.link_solver: Callable[[], ShadowedLinks | WalledLinks] | None = None
         self._live: LiveTopology | None = None
+        # Handed over by the models when built (netsim.cosim): who moves robots as told,
+        # who keeps neighbour tables, who relays messages.
+        self.driver: Driver | None = None
+        self.neighbour_view: NeighbourView | None = None
+        self.messenger: Messenger | None = None
 
     @property
     def models(self) -> MappingProxyType:
@@ -64,6 +76,55 @@ class Simulation:
     @property
     def now(self) -> float:
         return self.env.now
+
+    # -- driven from outside (docs/cosim.md) -----------------------------------------
+    def _model_name(self, section: str) -> str:
+        model = getattr(getattr(self.config, section, None), "model", None)
+        return f"{section}.model = {model!r}" if model is not None else f"this run's {section}"
+
+    def drive(self, robots: Any, velocities_mps: Any) -> None:
+        """From now on ``robots`` (ids) move at ``velocities_mps`` (shape ``(k, 2)``, m/s),
+        the others as before; each is a new straight leg. A robot stops on the area's border
+        or short of a wall (mobility/external.py). Needs ``mobility.model = "external"``."""
+        if self.driver is None:
+            raise CommandError(
+                f"robots move by {self._model_name('mobility')}: sim.drive needs mobility.model = 'external'"
+            )
+        ids = robot_ids(robots, self.state.n)
+        v = velocities(velocities_mps, len(ids))
+        self.driver.drive(ids, v, self.env.now)
+
+    def positions(self) -> np.ndarray:
+        """The robots' positions now, ``(N, 2)`` (a new array)."""
+        return self.state.positions_at(self.env.now)
+
+    def neighbours(self, robot: int) -> np.ndarray:
+        """The robots ``robot`` believes are its neighbours now: the live entries of its
+        neighbour table, ascending ids."""
+        i = robot_id(robot, self.state.n)
+        if self.neighbour_view is None:
+            raise CommandError(f"{self._model_name('protocol')} keeps no neighbour tables")
+        ids = self.neighbour_view.heard(self.env.now)[0][i]
+        return np.sort(ids[ids >= 0])
+
+    def send(self, src: int, dst: int, payload: Any = None) -> int:
+        """Send ``payload`` from ``src`` to ``dst`` now, relayed by the protocol as its own
+        messages are (a row of the ``messages`` table); returns its ``msg_id``."""
+        n = self.state.n
+        s, d = robot_id(src, n, "src"), robot_id(dst, n, "dst")
+        if s == d:
+            raise CommandError(f"src = dst = {s}: a message goes to another robot")
+        if self.messenger is None:
+            raise CommandError(f"{self._model_name('protocol')} relays no messages (the clustering does)")
+        return self.messenger.send_message(s, d, payload)
+
+    def inbox(self, robot: int) -> list[Arrival]:
+        """The messages sent with :meth:`send` that have reached ``robot``, in order of
+        arrival: ``(t_s, src, payload, msg_id)``."""
+        i = robot_id(robot, self.state.n)
+        if self.messenger is None:
+            return []
+        return self.messenger.inbox(i)
 
     def link_events(self) -> RuntimeLinks | ShadowedLinks | WalledLinks:
         """The runtime link solver, started at t = 0 (call before the run starts)."""
@@ -105,12 +166,19 @@ class Simulation:
         """Advance to ``until_s`` (default: the configured duration).
 
         Events due exactly at ``until_s`` are not processed (SimPy's convention); every
-        output is computed for the interval ``[0, until_s]`` from exact trajectories.
+        output is computed for the interval ``[0, until_s]`` from exact trajectories. With
+        ``progress``, the advance is made in ``steps`` parts, each reported.
         """
         if not self.events.started:
             self._begin()
         until = self.duration_s if until_s is None else float(until_s)
         start = self.env.now
+        if not progress:
+            # In one call: the kernel's run costs a stop event and a return per call, which
+            # for a short advance (a co-simulation's step) is most of its cost.
+            if until > start:
+                self.env.run(until=until)
+            return
         with progress_bar(
             round(until - start, 6),
             "netsim run",

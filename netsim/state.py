@@ -160,6 +160,44 @@ class RobotState:
         self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy, cause))
         self._changed(i, t, start_m is not None, cause)
 
+    def set_legs(
+        self, idx: np.ndarray, t: float, velocities_mps: np.ndarray, cause: str | Sequence[str] = "command"
+    ) -> None:
+        """Robots ``idx`` (distinct) each start a new straight leg at ``t`` from where they
+        are, with the rows of ``velocities_mps``: what :meth:`set_leg` does for each, in
+        order, computed for all at once. ``cause``: one for all, or one per robot."""
+        idx = np.asarray(idx, dtype=np.int64)
+        v = np.asarray(velocities_mps, dtype=float).reshape(len(idx), 2)
+        if len(idx) == 0:
+            return
+        dt = t - self.t0_s[idx]
+        old = self.velocity_mps[idx]
+        start = self.origin_m[idx] + old * dt[:, None]
+        moving = (old[:, 0] != 0) | (old[:, 1] != 0)
+        if moving.any():
+            self.odometer_m[idx[moving]] += np.hypot(old[moving, 0], old[moving, 1]) * dt[moving]
+        self.origin_m[idx] = start
+        self.velocity_mps[idx] = v
+        self.t0_s[idx] = t
+        speed = float(np.sqrt(np.max(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])))
+        if speed > self.speed_high_water_mps:
+            self.speed_high_water_mps = speed
+        t = float(t)
+        causes = [cause] * len(idx) if isinstance(cause, str) else list(cause)
+        new = [
+            (t, i, x, y, vx, vy, c) for i, (x, y), (vx, vy), c in zip(idx.tolist(), start.tolist(), v.tolist(), causes)
+        ]
+        self._legs.extend(new)
+        ev = self.events
+        tell = ev is not None and ev.wants("course_change")
+        if self.watchers or tell:
+            for leg in new:
+                for w in self.watchers:
+                    w(leg[1], t, False)
+                if tell:
+                    assert ev is not None
+                    ev.emit("course_change", CourseChange(*leg))
+
     def head_to(
         self, i: int, t: float, dest_m: Sequence[float] | np.ndarray, speed_mps: float, cause: str = "command"
     ) -> float:

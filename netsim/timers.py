@@ -28,6 +28,7 @@ import simpy
 
 from netsim.agenda import Agenda
 from netsim.events import NORMAL, scheduled_event
+from netsim.simpy_internals import now as clock
 
 
 class DeadlineTimers:
@@ -87,7 +88,7 @@ class DeadlineTimers:
         gen = self._generation[i] + 1
         self._generation[i] = gen
         self.armed_s[i] = at_s
-        delay = at_s - self.env._now  # type: ignore[attr-defined]  # the clock, without the property
+        delay = at_s - clock(self.env)
         if not delay > 0.0:
             delay = 0.0  # as max(0.0, delay)
         if self._ahead is not None:
@@ -101,7 +102,7 @@ class DeadlineTimers:
         if gen != self._generation[i]:
             return
         deadline = self.deadline_s.item(i)
-        now = self.env._now  # type: ignore[attr-defined]
+        now = clock(self.env)
         if deadline <= now:
             self.armed_s[i] = math.inf
             self.deadline_s[i] = math.inf

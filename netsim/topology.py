@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from netsim.compiled import load
-from netsim.crossings import grid_cells, in_box, near_pairs
+from netsim.geometry import grid_cells, in_box, near_pairs
 from netsim.groups import GroupView
 from netsim.state import RobotState
 
@@ -94,7 +94,7 @@ def reach_keys(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
 
 
 def reach_keys_of_pairs(positions_m: np.ndarray, ranges_m: np.ndarray, side_m: float | None = None) -> np.ndarray:
-    """:func:`reach_keys` from the candidate pairs (:func:`netsim.crossings.near_pairs`),
+    """:func:`reach_keys` from the candidate pairs (:func:`netsim.geometry.near_pairs`),
     each pair's two directions filtered and all keys sorted: the numpy twin of the
     compiled pass, and the way where a grid would need too many cells."""
     n = len(positions_m)
@@ -118,12 +118,12 @@ def geometric_edges(
 def snapshot(state: RobotState, t: float, directed: bool = False, groups: GroupView | None = None) -> nx.Graph:
     """The true unit-disk network at time ``t``.
 
-    Nodes carry ``pos`` (x, y) and, with the protocol's ``groups`` (``sim.groups``),
-    ``role`` (its label, as "alpha", "beta", "gamma") and ``leader``; edges carry
-    ``distance``. Positions are those at ``t``; roles and leaders are the current ones, so
-    take the snapshot while the run is at ``t`` for a consistent picture. With
-    ``directed=True`` the graph is a DiGraph with an edge i -> j when j is within i's
-    range (one-way links appear once).
+    Nodes carry ``pos`` (x, y) and, only when given the protocol's ``groups``
+    (``snapshot(sim.state, sim.now, groups=sim.groups)``), ``role`` (its label, as
+    "alpha", "beta", "gamma") and ``leader``; edges carry ``distance``. Positions are
+    those at ``t``; roles and leaders are the current ones, so take the snapshot while the
+    run is at ``t`` for a consistent picture. With ``directed=True`` the graph is a
+    DiGraph with an edge i -> j when j is within i's range (one-way links appear once).
     """
     pos = state.positions_at(t)
     import networkx as nx

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from netsim import kernel_cache
 from netsim._kernels import longest_list, position, reaches_robot, senders_in_list
 
 # The packed record's columns and the empty id (protocols.neighbours; repeated here so
@@ -195,8 +196,8 @@ def make_sized_ack(
     two-way members in its row (:func:`group_size`, counted in the pass that makes the
     Ack), anyone else's 1 (``sizes``, written back; ``sized``: whose is other than 1). One
     call per Ack instead of a Python hook and two compiled calls."""
-    # The members counted for every Ack, used for a leader's: one call for both cases (two,
-    # one each, cost every Ack a tenth more on the benchmark machine).
+    # The members counted for every Ack, used for a leader's: one call for both cases (a
+    # call for each would cost every Ack a second compiled call).
     leads = role[i] == LEADER_ROLE
     if leads:
         sized[i] = True
@@ -691,3 +692,8 @@ def belief_counts(neighbour, believed, in_range, indptr, role, leader):
                 neighbour, in_range, indptr, own, r
             )
     return believed_n, true_n, stale_n, missing_n, leader_in_range
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -340,6 +340,10 @@ class AckBeacon:
         for listener in self.listeners:
             listener(now, ack, receivers, hears_me)
 
+    def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
+        return self.table.heard(now)
+
     def _taker_alone(self, listener: AckListener) -> bool:
         """Whether ``listener`` (a taker's) is the only one, and the table's loops compiled."""
         leaders = self.leader_listeners

@@ -179,6 +179,13 @@ class NeighbourTable:
         last = self.data[:, :, LAST_HEARD] if i is None else self.data[i, :, LAST_HEARD]
         return now - last < self.tau_s
 
+    def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every row's live entries now (:class:`netsim.cosim.NeighbourView`): ids ``(n,
+        slots)``, -1 where no live entry; positions told ``(n, slots, 2)``; arrival times of
+        the Acks that told them ``(n, slots)``."""
+        live = self.live_mask(now)
+        return np.where(live, self.id, EMPTY), self.data[:, :, X : Y + 1].copy(), self.data[:, :, LAST_HEARD].copy()
+
     def announce(
         self, now: float, i: int, seq: int, role: int, leader: int, x_m: float, y_m: float, group_size: int
     ) -> np.ndarray:

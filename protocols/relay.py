@@ -23,6 +23,7 @@ import pandas as pd
 import simpy
 
 from netsim.compiled import load
+from netsim.cosim import Arrival
 from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
 from netsim.rng import Streams
@@ -199,9 +200,18 @@ class Relay:
         # The channel's range index, whose neighbour lists the searches for shortest paths
         # use (a unit disk only: a radio decides its links otherwise).
         self._index = self.channel.reach_lists
+        # Messages sent from outside (sim.send): what each carries until it arrives, and
+        # what has arrived at each robot.
+        self._payloads: dict[int, object] = {}
+        self._inboxes: dict[int, list[Arrival]] = {}
 
-    def send(self, src: int, dst: int) -> int:
-        """Send a message from ``src`` to ``dst`` now; returns its id."""
+    def inbox(self, robot: int) -> list[Arrival]:
+        """The messages sent with a payload that have reached ``robot``, in order of arrival."""
+        return list(self._inboxes.get(robot, ()))
+
+    def send(self, src: int, dst: int, payload: object = None, carried: bool = False) -> int:
+        """Send a message from ``src`` to ``dst`` now; returns its id. A message from
+        outside (``carried``, or any ``payload``) is kept in ``dst``'s inbox when it arrives."""
         st, now = self.state, self.env.now
         if not (0 <= src < st.n and 0 <= dst < st.n) or src == dst:
             raise ValueError(f"need two different robots in [0, {st.n}), got src={src}, dst={dst}")
@@ -221,6 +231,8 @@ class Relay:
             "shortest_hops": float(hop_distances(st, now, src, index=self._index)[dst]),
         }
         self._pending[mid] = 0
+        if carried or payload is not None:
+            self._payloads[mid] = payload
         msg = Message(mid, src, dst, self.ttl, 1, now)
         if self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
@@ -316,6 +328,9 @@ class Relay:
         out = self._outcomes[msg.id]
         if not out["delivered"]:
             out.update(delivered=True, t_delivered_s=now, hops=msg.hops, latency_s=now - out["t_sent_s"])
+            if msg.id in self._payloads:
+                arrival = Arrival(now, msg.src, self._payloads.pop(msg.id), msg.id)
+                self._inboxes.setdefault(msg.dst, []).append(arrival)
             ev = self.events
             if ev is not None and ev.wants("message_delivered"):
                 ev.emit(
@@ -326,6 +341,7 @@ class Relay:
         """No copy of ``msg`` can reach its destination any more (never called once delivered)."""
         if self._outcomes[msg.id]["delivered"]:
             return
+        self._payloads.pop(msg.id, None)
         ev = self.events
         if ev is not None and ev.wants("message_dropped"):
             ev.emit("message_dropped", MessageDropped(now, msg.id, msg.src, msg.dst, msg.hops, cause))

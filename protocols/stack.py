@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import cores, load, side_by_side
+from netsim.cosim import Arrival
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import reach_keys
@@ -36,8 +37,7 @@ def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
 
 
 # From this many robots on, a compiled sample is taken in two halves at once, in two threads
-# (on two cores or more): a sample of 1,000 robots takes about a millisecond, starting a
-# thread a twentieth of that.
+# (on two cores or more): below it, a sample is too short for a thread's start to pay off.
 SAMPLE_IN_TWO_ROBOTS = 1000
 
 
@@ -123,8 +123,8 @@ def column_buffer(capacity: int, dtype: np.dtype) -> np.ndarray:
     """An empty array of ``capacity`` items of ``dtype`` whose memory is touched only where
     written, in pages of 4 KiB: numpy asks for huge pages (2 MiB) for large arrays, and where
     the kernel compacts memory to find one at its first write (transparent huge pages'
-    ``defrag = madvise``, a common default) that took ~5 ms a page in a 10,000-robot run on
-    the benchmark machine, the 512 small pages' faults ~1 ms. Arrays of objects: numpy's."""
+    ``defrag = madvise``, a common default) can cost far more per huge page than the faults
+    of its 512 small pages. Arrays of objects: numpy's."""
     dtype = np.dtype(dtype)
     if dtype.hasobject or capacity == 0:
         return np.empty(capacity, dtype=dtype)
@@ -289,10 +289,10 @@ class Stack:
         self._command_seq = np.zeros(n, dtype=np.int64)
         self.on_command: list[Callable[[int, Command], None]] = []
         # The sampled tables, kept as arrays and made tables once, at the end: samples at 0,
-        # interval, ... before the end, each table's buffers sized for them.
+        # interval, ... and at the end, each table's buffers sized for them.
         self._sample_interval_s = self.output.position_interval_s or params.ack_period_s
         interval = self._sample_interval_s
-        expected = int(self.duration_s // interval) + 1 if interval > 0 else 1
+        expected = int(self.duration_s // interval) + 2 if interval > 0 else 1
         self._groups, self._beliefs, self._neighbour_beliefs = (Samples(expected) for _ in range(3))
         kernels = load("protocols._kernels", n)
         # The compiled twins of sample_rows, belief_rows and belief_counts, past
@@ -344,6 +344,18 @@ class Stack:
                 self.command[r] = cmd
                 for fn in self.on_command:
                     fn(r, cmd)
+
+    # -- driven from outside (netsim.cosim) -------------------------------------------
+    def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
+        return self.table.heard(now)
+
+    def send_message(self, src: int, dst: int, payload: object) -> int:
+        """A message from outside, relayed as the traffic's (:class:`netsim.cosim.Messenger`)."""
+        return self.relay.send(src, dst, payload, carried=True)
+
+    def inbox(self, robot: int) -> list[Arrival]:
+        return self.relay.inbox(robot)
 
     # -- what leaders know of each other (for coverage controllers) ------------------
     def heard_leaders(self, leader: int, now: float) -> tuple[np.ndarray, np.ndarray]:
@@ -463,13 +475,24 @@ class Stack:
 
     def _sampler(self, interval: float):
         env = self.env
+        while True:
+            self._take_sample(float(env.now))  # 0 (an int) at the start: one compiled version, not two
+            yield env.timeout(interval)
+
+    def _take_sample(self, now: float) -> None:
         # In place where the truth comes from the channel's neighbour lists (as in
         # _heard_keys) and the loops are compiled.
         in_place = self._sample_into is not None and self.channel.reach_lists is not None
-        sample = self._sample_in_place if in_place else self._sample
-        while True:
-            sample(float(env.now))  # 0 (an int) at the start: one compiled version, not two
-            yield env.timeout(interval)
+        (self._sample_in_place if in_place else self._sample)(now)
+
+    def _sample_at_end(self) -> None:
+        """The last sample of the sampled tables, at the run's end ``T``, once the run has
+        reached it, so that they end where the run does: the sampler's next event is due at
+        ``T`` or after, and never processed (events due exactly at the end are not, SimPy's
+        convention). It sees what every event before ``T`` made."""
+        end = self.duration_s
+        if self.env.now >= end and not ended_at(self._groups.times, end):
+            self._take_sample(end)
 
     def _sample(self, now: float) -> None:
         """One sample of the ``groups``, ``beliefs`` and ``neighbour_beliefs`` tables."""
@@ -546,16 +569,19 @@ class Stack:
         return df
 
     def beliefs_frame(self) -> pd.DataFrame:
+        self._sample_at_end()
         if not self._beliefs:
             return pd.DataFrame(columns=BELIEF_COLUMNS)
         return beliefs_table(self._beliefs)
 
     def neighbour_beliefs_frame(self) -> pd.DataFrame:
+        self._sample_at_end()
         if not self._neighbour_beliefs:
             return pd.DataFrame({c: pd.Series(dtype=t) for c, t in NEIGHBOUR_BELIEFS_SCHEMA.items()})
         return self._neighbour_beliefs.frame()
 
     def groups_frame(self) -> pd.DataFrame:
+        self._sample_at_end()
         if not self._groups:
             return pd.DataFrame(columns=["t_s", "robot", "group", "primary"])
         return self._groups.frame()
@@ -589,6 +615,12 @@ BELIEF_COLUMNS = [
     "stale_neighbours",
     "missing_neighbours",
 ]
+
+
+def ended_at(times: list[float], end_s: float) -> bool:
+    """Whether sampling ``times`` already hold the end ``end_s`` (the sum of many intervals
+    may fall a rounding error short of it)."""
+    return bool(times) and times[-1] >= end_s - 1e-9 * max(1.0, abs(end_s))
 
 
 def gateways_mean(t_s: np.ndarray, robot: np.ndarray) -> float:

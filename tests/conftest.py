@@ -1,15 +1,10 @@
-import hashlib
 import os
 from pathlib import Path
 
-# numba checks a cached loop against its own source file only: a loop that calls one of
-# another module (protocols' kernels call netsim's) would keep the old callee after an
-# edit of that module alone. The tests use a cache of their own per version of every
-# kernel module, so that they always check the code as it is.
+# The compiled kernels' cache of the tests, apart from the user's: netsim.kernel_cache keys
+# it by the kernels' sources under this directory (also for the commands the tests start).
 _ROOT = Path(__file__).resolve().parent.parent
-_KERNELS = sorted(p for d in ("netsim", "protocols", "mobility") for p in (_ROOT / d).rglob("*_kernels.py"))
-_VERSION = hashlib.sha256(b"".join(p.read_bytes() for p in _KERNELS)).hexdigest()[:16]
-os.environ.setdefault("NUMBA_CACHE_DIR", str(_ROOT / ".pytest_cache" / "numba" / _VERSION))
+os.environ.setdefault("NUMBA_CACHE_DIR", str(_ROOT / ".pytest_cache" / "numba"))
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

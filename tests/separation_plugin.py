@@ -1,5 +1,5 @@
 """A user's own controller plugin with its own configuration section, ``[separation]``:
-the example of the README's "Your own model" section, tested end to end by
+the kind of plugin docs/plugins.md shows, tested end to end by
 tests/test_user_plugin.py."""
 
 from dataclasses import dataclass

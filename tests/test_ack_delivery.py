@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from netsim.channel import SendTimeBins
+from netsim.radio.channel import SendTimeBins
 from netsim.run import build, collect, execute, tables
 from protocols.ack import ACK_DELIVERY_SCHEMA, delivery_ratio
 from tests.fixtures import make_config

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 import simpy
 
-import netsim.channel
+import netsim.radio.channel
 from netsim.agenda import Agenda
 from netsim.events import FIRST, NORMAL, URGENT, scheduled_event
 from netsim.run import build, collect
@@ -109,7 +109,7 @@ def _deliveries(sim):
 
 
 def _ack_only(monkeypatch, agenda_class, jitter_s: float):
-    monkeypatch.setattr(netsim.channel, "Agenda", agenda_class)
+    monkeypatch.setattr(netsim.radio.channel, "Agenda", agenda_class)
     positions = [[0.0, 0.0], [5.0, 0.0], [0.0, 5.0], [5.0, 5.0], [30.0, 0.0]]
     sim = static_core(positions, duration_s=20.0, latency_jitter_s=jitter_s)
     beacon = AckBeacon(AckParams(ack_jitter_s=0.0), sim.parts)
@@ -133,7 +133,7 @@ def test_acks_with_equal_phases_arrive_in_the_kernels_order(monkeypatch, jitter_
 
 
 def _clustering_run(monkeypatch, agenda_class):
-    monkeypatch.setattr(netsim.channel, "Agenda", agenda_class)
+    monkeypatch.setattr(netsim.radio.channel, "Agenda", agenda_class)
     positions = [[10.0 * (i % 4), 8.0 * (i // 4)] for i in range(12)]
     sim, _ = clustering(positions, phases=np.zeros(12), message_rate_hz=1.0, core={"duration_s": 30.0})
     log = _deliveries(sim)
@@ -165,7 +165,7 @@ def test_a_moving_run_with_loss_and_jitter_is_the_same_with_the_agenda(monkeypat
     )
     out = []
     for agenda_class in (Agenda, KernelAgenda):
-        monkeypatch.setattr(netsim.channel, "Agenda", agenda_class)
+        monkeypatch.setattr(netsim.radio.channel, "Agenda", agenda_class)
         sim = build(config)
         log = _deliveries(sim)
         sim.run()

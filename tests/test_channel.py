@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from netsim.channel import DROP_CAUSES
-from netsim.loss import DistanceLoss, GilbertElliottLoss
+from netsim.radio.channel import DROP_CAUSES
+from netsim.radio.loss import DistanceLoss, GilbertElliottLoss
 from netsim.run import build, simulation
 from tests.fixtures import make_config, static_core
 
@@ -42,10 +42,15 @@ def test_receivers_are_decided_at_send_time():
     assert got == [1]
 
 
-def test_one_delivery_event_per_broadcast_without_jitter():
+def test_one_delivery_per_broadcast_without_jitter():
+    """Without latency jitter a broadcast is one delivery: one entry scheduled, and the
+    callback called once, with every receiver (not once per receiver)."""
     sim = _static_sim([[0, 0]] + [[1 + i * 0.1, 0] for i in range(20)])
-    sim.channel.broadcast(0, None, lambda s, r, p: None)
-    assert len(sim.env._queue) == 1
+    calls = []
+    sim.channel.broadcast(0, None, lambda s, r, p: calls.append(r.tolist()))
+    assert len(sim.channel.agenda) == 1
+    sim.env.run(until=1)
+    assert calls == [list(range(1, 21))]
 
 
 def test_jitter_delays_each_reception_within_bounds():

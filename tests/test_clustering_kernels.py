@@ -416,7 +416,7 @@ def test_compiled_sample_into_equals_numpy(torus, symmetric):
     counts): the groups, who believes whom and the per-robot columns, row for row;
     distances a hair either side of the range, unequal ranges, members whose leader reaches
     them both ways, one way, not at all. Nothing is written past the rows it reports."""
-    from netsim.spatial import RangeIndex
+    from netsim.radio.spatial import RangeIndex
     from netsim.state import RobotState
     from netsim.topology import reach_keys_of_pairs
     from tests.test_kernels import reach_layouts

@@ -52,7 +52,7 @@ def test_config_file_values_and_overrides(tmp_path):
 def test_a_rule_across_sections_is_checked_when_the_configuration_is_loaded():
     # Random waypoint's stationary start draws positions itself: refused before any run.
     with pytest.raises(ConfigError, match="world.placement"):
-        cfgmod.load(None, ["world.placement=grid"])
+        cfgmod.load(None, ["world.placement=grid", "mobility.stationary_start=true"])
 
 
 def test_resolved_config_round_trips():
@@ -148,6 +148,48 @@ def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("command", ["run", "figures", "config"])
+def test_set_with_a_space_for_the_equals_sign_gives_the_meant_form(tmp_path, capsys, monkeypatch, command):
+    """`--set KEY VALUE` (a space, not `=`) leaves VALUE as the command's file argument:
+    the one-line error says `--set takes KEY=VALUE` and spells what was meant, exit 2,
+    nothing written."""
+    monkeypatch.chdir(tmp_path)
+    code = main([command, "--set", "world.n_robots", "100"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0] == (
+        "netsim: error: --set world.n_robots 100: --set takes KEY=VALUE; did you mean --set world.n_robots=100?"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--n", "0"], "--n 0: must be > 0"),
+        (["--side", "-1"], "--side -1.0: must be > 0"),
+        (["--speed-min", "10"], "--speed-min 10.0: must not exceed --speed-max = 5.0"),
+        (["--speed-max", "nan"], "--speed-max nan: must be a number"),
+        (["--pause", "-1"], "--pause -1.0: must be >= 0"),
+        (["--duration", "0"], "--duration 0.0: must be > 0"),
+        (["--seed", "-1"], "--seed -1: must be >= 0"),
+        (["--speed-min", "0"], "--speed-min 0.0: must be > 0 without --no-stationary-start"),
+    ],
+)
+def test_scenario_generate_errors_name_its_flags(tmp_path, capsys, monkeypatch, flags, message):
+    """`netsim scenario generate` names the flags typed (`--n`, `--speed-max`, ...), not the
+    configuration keys they set; one line, exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    args = {"--n": "5", "--side": "100", "--speed-max": "5", "--duration": "10"}
+    args.update(zip(flags[::2], flags[1::2]))
+    code = main(["scenario", "generate", *[w for kv in args.items() for w in kv], "-o", "s.tcl"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0].startswith(f"netsim: error: {message}"), lines[0]
+    assert not any(key in lines[0] for key in ("world.", "mobility.", "duration_s", "_mps", "stationary_start"))
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_cli_malformed_files(tmp_path, capsys):
     bad_toml = tmp_path / "bad.toml"
     bad_toml.write_text("[world\nn_robots = 3")
@@ -155,7 +197,7 @@ def test_cli_malformed_files(tmp_path, capsys):
     assert code == 2 and "not valid TOML" in err
 
     trace = tmp_path / "t.tcl"
-    trace.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\nthis is not ns-2\n")
+    trace.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\n$node_(0) set X_ nan\n")
     code, err = _cli(
         tmp_path,
         capsys,
@@ -191,7 +233,7 @@ def test_cli_malformed_placement_file(tmp_path, capsys, rows, words):
 
 
 def test_placement_conflicting_with_stationary_start(tmp_path, capsys):
-    code, err = _cli(tmp_path, capsys, "--set", "world.placement=grid")
+    code, err = _cli(tmp_path, capsys, "--set", "world.placement=grid", "--set", "mobility.stationary_start=true")
     assert code == 2 and "stationary_start" in err
 
 

@@ -6,10 +6,12 @@ import pytest
 
 from netsim import config
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.params import NoParams
+from netsim.plugins import PluginSpec
 from netsim.run import execute
 
 
-def head_on(sim):
+def _head_on(params, parts):
     """A user controller: every robot heads for the middle of the area at 2 m/s."""
 
     def controller(step):
@@ -20,6 +22,9 @@ def head_on(sim):
         step.velocity_mps[~moving] = 0.0
 
     return controller
+
+
+HEAD_ON = PluginSpec(Params=NoParams, build=_head_on)
 
 
 def two_robots(tmp_path, controllers, mobility="static"):
@@ -42,7 +47,7 @@ def two_robots(tmp_path, controllers, mobility="static"):
 
 
 def test_avoid_collisions_stops_robots_short_of_the_minimum_separation(tmp_path):
-    r = execute(two_robots(tmp_path, ["tests.test_controllers:head_on", "avoid_collisions", "log_separation"]))
+    r = execute(two_robots(tmp_path, ["tests.test_controllers:HEAD_ON", "avoid_collisions", "log_separation"]))
     sep = r.frames["separation"]
     assert len(sep) >= 290
     assert sep["min_distance_m"].min() >= 5.0
@@ -51,7 +56,7 @@ def test_avoid_collisions_stops_robots_short_of_the_minimum_separation(tmp_path)
 
 
 def test_without_avoidance_the_same_robots_come_closer(tmp_path):
-    r = execute(two_robots(tmp_path, ["tests.test_controllers:head_on", "log_separation"]))
+    r = execute(two_robots(tmp_path, ["tests.test_controllers:HEAD_ON", "log_separation"]))
     assert r.frames["separation"]["min_distance_m"].min() < 5.0
 
 
@@ -69,7 +74,7 @@ def test_logging_hook_observes_any_mobility_model(tmp_path):
 
 def test_a_controller_may_not_fight_the_mobility_model(tmp_path):
     with pytest.raises(NetsimInputError, match="mobility.model = 'static'"):
-        execute(two_robots(tmp_path, ["tests.test_controllers:head_on"], mobility="random_waypoint"))
+        execute(two_robots(tmp_path, ["tests.test_controllers:HEAD_ON"], mobility="random_waypoint"))
 
 
 def test_unknown_controller_is_a_config_error(tmp_path):

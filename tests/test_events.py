@@ -14,14 +14,14 @@ import pytest
 from netsim.config import load
 from netsim.errors import ConfigError
 from netsim.events import EVENT_NAMES, NORMAL, URGENT, EventBus, LinkDown, LinkUp, scheduled_event
-from netsim.lifetimes import link_lifetimes
+from netsim.links.lifetimes import link_lifetimes
+from netsim.links.radio_links import radio_link_lifetimes
+from netsim.links.walled_links import WalledLinks
 from netsim.radio.maps import save_map
-from netsim.radio_links import radio_link_lifetimes
 from netsim.run import build, collect, execute, simulation
 from netsim.state import CAUSES
 from netsim.tools.validate import random_legs
 from netsim.topology import snapshot
-from netsim.walled_links import WalledLinks
 from tests.fixtures import make_config
 
 
@@ -146,7 +146,7 @@ $node_(2) set Y_ 300.0
 $ns_ at 1.0 "$node_(0) setdest 300.0 20.0 4.0"
 $ns_ at 2.0 "$node_(2) setdest 100.0 0.0 3.0"
 $ns_ at 20.0 "$node_(1) set X_ 80.0"
-$ns_ at 30.0 "$node_(2) set Y_ 15.0"
+$ns_ at 30.0 "$node_(2) set Y_ 250.0"
 $ns_ at 30.0 "$node_(0) set X_ 150.0"
 $ns_ at 40.0 "$node_(1) setdest 390.0 390.0 5.0"
 $ns_ at 50.0 "$node_(2) setdest 120.0 15.0 2.0"
@@ -161,8 +161,8 @@ def test_runtime_links_equal_posthoc_on_a_trace_with_jumps(tmp_path):
         [
             "world.n_robots=3",
             "world.side_m=400",
-            "duration_s=100",
-            "channel.range_m=60",
+            "duration_s=200",
+            "channel.range_m=150",
             "mobility.model=trace",
             f"mobility.trace_file={path}",
             "protocol.model=none",
@@ -172,7 +172,7 @@ def test_runtime_links_equal_posthoc_on_a_trace_with_jumps(tmp_path):
     result = execute(config)
     st = result.sim.state
     assert st.jumps >= 3
-    posthoc = link_lifetimes(result.frames["legs"], st.range_m, 100.0)
+    posthoc = link_lifetimes(result.frames["legs"], st.range_m, 200.0)
     assert len(posthoc) >= 3
     _assert_same_links(result.frames["links"], posthoc)
     legs = result.frames["legs"]
@@ -1166,3 +1166,17 @@ def test_a_unicast_under_shadowing_decides_its_own_link_alone(runtime_links):
     links = collect(sim)["links"]
     rows = sorted(zip(links["a"], links["b"], links["t_up_s"], links["t_down_s"]))
     assert rows == [(0, 1, 1.0, 4.0), (0, 2, 1.0, 4.0)]
+
+
+def test_snapshot_nodes_carry_role_and_leader_only_with_groups():
+    """`snapshot(state, t)` gives nodes with `pos` only; `snapshot(state, t, groups=sim.groups)`
+    adds each robot's `role` label and `leader`, the protocol's current values."""
+    sim = build(load(None, ["world.n_robots=12", "duration_s=10", "world.side_m=200", "channel.range_m=80"]))
+    sim.run()
+    bare = snapshot(sim.state, sim.now)
+    assert all(set(attrs) == {"pos"} for _, attrs in bare.nodes(data=True))
+    full = snapshot(sim.state, sim.now, groups=sim.groups)
+    for i, attrs in full.nodes(data=True):
+        assert set(attrs) == {"pos", "role", "leader"}
+        assert attrs["role"] == sim.groups.role_names[sim.groups.role[i]] and attrs["leader"] == sim.groups.leader[i]
+    assert {attrs["role"] for _, attrs in full.nodes(data=True)} & {"alpha", "beta"}

@@ -10,8 +10,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-# The README's experiment commands are run here, at these sizes (tests/test_readme.py
-# checks that every experiment the README names is in this list).
+# The experiment commands of docs/experiments.md are run here, at these sizes (tests/test_readme.py
+# checks that every experiment that page names is in this list).
 CASES = [
     (
         "cluster_stability.py",

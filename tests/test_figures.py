@@ -46,6 +46,34 @@ def test_figures_of_a_run_without_coverage_say_what_they_cannot_show(waypoint_ru
         assert (tmp_path / name).read_bytes()[:8] == PNG
 
 
+@pytest.mark.slow
+def test_figures_of_a_run_without_coverage_draw_fig6_when_every_robot_is_in_a_group(waypoint_run, tmp_path, capsys):
+    """Without coverage (no control start to draw at), Fig. 6 is drawn at the first sample
+    at which every robot is in a group, and the line written says which time that is."""
+    from netsim.tools import figures
+
+    assert main(["figures", str(waypoint_run), "--out", str(tmp_path)]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    run = figures.read_run(waypoint_run)
+    times = np.sort(run.positions["t_s"].unique())
+    undecided = [int((figures.snapshot(run, t).role == "gamma").sum()) for t in times]
+    k = undecided.index(0)
+    assert k > 0 and undecided[k - 1] > 0
+    assert "fig6" in first and f"drawn at t = {times[k]:g} s" in first and "undecided" not in first
+
+
+def test_undecided_robots_are_counted_as_the_figures_read_the_roles(waypoint_run):
+    """The count of undecided robots at each sample equals the undecided robots of
+    :func:`figures.snapshot` there (a robot's last role record at or before the sample)."""
+    from netsim.tools import figures
+
+    run = figures.read_run(waypoint_run)
+    times = np.sort(run.positions["t_s"].unique())
+    counted = figures.undecided_at(run, times)
+    assert counted.tolist() == [int((figures.snapshot(run, t).role == "gamma").sum()) for t in times]
+    assert counted[0] == 20 and counted.min() == 0
+
+
 def test_figures_of_a_run_without_roles(tmp_path, capsys):
     """The Ack beacon alone gives no roles: robots are plain dots, and the figures say so."""
     run = tmp_path / "run"

@@ -269,8 +269,9 @@ def check_trace(text, n_robots):
         return
     assert scen.initial_m.shape == (scen.n_robots, 2) and np.isfinite(scen.initial_m).all()
     assert n_robots is None or scen.n_robots <= n_robots
-    assert (scen.commands["robot"] < scen.n_robots).all()
-    assert scen.commands["t_s"].is_monotonic_increasing
+    assert (scen.events["robot"] < scen.n_robots).all()
+    assert scen.events["t_s"].is_monotonic_increasing
+    assert np.isfinite(scen.events[["x_m", "y_m"]].to_numpy()).all()
 
 
 TRACE_TOKENS = ODD_VALUES + ["$node_(99999)", "$node_(-1)", "$node_(2)", "setdest", "set", "X_", "Y_", '"', "$ns_"]

@@ -54,52 +54,47 @@ def test_large_run_imports_no_kd_tree_or_scipy_linalg(tmp_path):
     assert pairs == "[[0, 1]]"
 
 
-def test_collector_paused_while_loading_and_frozen_only_by_the_command_line(tmp_path):
-    """Importing netsim and loading its compiled loops leave the garbage collector as they
-    found it (on, nothing frozen; off stays off); the command line, whose process is its
-    own, freezes what it has loaded."""
+def test_the_library_leaves_the_garbage_collector_as_it_found_it(tmp_path):
+    """Importing netsim, loading its compiled loops and running a simulation through
+    ``main`` change nothing of the garbage collector: on stays on, off stays off, nothing
+    is frozen, and the user's frozen objects stay frozen."""
     code = (
         "import gc, sys\n"
         "gc.disable() if sys.argv[1] == 'off' else None\n"
+        "keep = [[i] for i in range(1000)]\n"
+        "gc.freeze() if sys.argv[2] == 'frozen' else None\n"
+        "before = (gc.isenabled(), gc.get_freeze_count() > 0)\n"
         "import netsim\n"
         "from netsim.compiled import load\n"
         "load('netsim._kernels', 100)\n"
-        "print(gc.isenabled(), gc.get_freeze_count())\n"
         "from netsim.tools.cli import main\n"
-        "try:\n"
-        f"    main(['run', '--out', {str(tmp_path)!r}, '--no-progress', '--quiet', '--set', 'world.n_robots=30',"
+        f"code = main(['run', '--out', {str(tmp_path)!r}, '--no-progress', '--quiet', '--set', 'world.n_robots=30',"
         " '--set', 'duration_s=2'])\n"
-        "except SystemExit as exc:\n"
-        "    assert not exc.code, exc.code\n"
-        "print(gc.isenabled(), gc.get_freeze_count() > 0)\n"
+        "print(code, (gc.isenabled(), gc.get_freeze_count() > 0) == before)\n"
     )
-    for state, first in (("on", "True 0"), ("off", "False 0")):
-        out = subprocess.run(
-            [sys.executable, "-c", code, state], capture_output=True, text=True, check=True, env=_env()
-        )
-        library, command_line = out.stdout.strip().splitlines()[-2:]
-        assert library == first
-        assert command_line == f"{state == 'on'} True"
-        shutil.rmtree(tmp_path)
-        tmp_path.mkdir()
+    for state in ("on", "off"):
+        for frozen in ("plain", "frozen"):
+            out = subprocess.run(
+                [sys.executable, "-c", code, state, frozen], capture_output=True, text=True, check=True, env=_env()
+            )
+            assert out.stdout.strip().splitlines()[-1] == "0 True", (state, frozen)
+            shutil.rmtree(tmp_path)
+            tmp_path.mkdir()
 
 
-def test_what_netsim_loads_goes_to_the_oldest_generation_unfrozen():
-    """After ``import netsim`` (collector on) what it loaded sits in the collector's oldest
-    generation, not among the young objects that the next pass would walk, and nothing is
-    frozen; where the user had frozen objects, they stay frozen."""
+def test_the_command_freezes_what_it_loaded_and_ends_at_once():
+    """The ``netsim`` command (netsim.tools.cli.command), whose process is its own, freezes
+    what its imports loaded out of the collector's passes, then ends the process at once
+    with main's exit code."""
     code = (
-        "import gc, sys\n"
-        "if sys.argv[1] == 'frozen':\n"
-        "    keep = [[i] for i in range(1000)]\n"
-        "    gc.freeze()\n"
-        "before = gc.get_freeze_count()\n"
-        "import netsim\n"
-        "young = len(gc.get_objects(0)) + len(gc.get_objects(1))\n"
-        "print(gc.isenabled(), (gc.get_freeze_count() > 0) == (before > 0), young < 0.1 * len(gc.get_objects(2)))\n"
+        "import gc, os, sys\n"
+        "from netsim.tools import cli\n"
+        "def ended(code):\n"
+        "    print(gc.get_freeze_count() > 0, code, flush=True)\n"
+        "    sys.exit(0)\n"
+        "os._exit = ended\n"
+        "sys.argv = ['netsim', 'run', '--set', 'world.n_robots=-3']\n"
+        "cli.command()\n"
     )
-    for state, want in (("plain", "True True True"), ("frozen", "True True False")):
-        out = subprocess.run(
-            [sys.executable, "-c", code, state], capture_output=True, text=True, check=True, env=_env()
-        )
-        assert out.stdout.strip().splitlines()[-1] == want, state
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=_env())
+    assert out.stdout.strip().splitlines()[-1] == "True 2"

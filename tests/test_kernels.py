@@ -5,7 +5,8 @@ with ``==``): the range query (netsim/_kernels.py) and the neighbour tables
 import numpy as np
 import pytest
 
-from netsim.spatial import RangeIndex
+from netsim.radio.spatial import RangeIndex
+from netsim.simpy_internals import set_now
 from netsim.state import RobotState
 from protocols.neighbours import DEGREE, NeighbourTable, ack_record, heard_in
 
@@ -213,7 +214,8 @@ def test_compiled_make_ack_equals_numpy():
         assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
         degrees.append(ack_a.record[DEGREE])
         now += 0.01
-        sim_a.env._now = sim_b.env._now = now
+        set_now(sim_a.env, now)
+        set_now(sim_b.env, now)
     for name in ("seq", "resign_pending", "role_sent", "degree_sent"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert max(degrees) > 3 and a.resign_pending.sum() < 30
@@ -329,7 +331,7 @@ def test_compiled_near_pairs_finds_every_kd_tree_pair(torus):
 def test_compiled_neighbour_lists_equal_numpy():
     """The range index's lists per robot (both directions of each pair, ascending) are the
     numpy lexsort's, with robots that have no neighbour and pairs in any order."""
-    from netsim.spatial import neighbour_lists
+    from netsim.radio.spatial import neighbour_lists
 
     rng = np.random.default_rng(4)
     for n in (1, 2, 50, 300):
@@ -350,7 +352,7 @@ def test_near_pairs_with_outliers_lines_and_bad_positions():
     positions that are not finite are refused, as the KD-tree refuses them."""
     from scipy.spatial import cKDTree
 
-    from netsim.crossings import grid_cells, near_pairs
+    from netsim.geometry import grid_cells, near_pairs
 
     rng = np.random.default_rng(12)
     cluster = np.vstack([rng.uniform(0, 1000, (2000, 2)), [[1e6, 1e6]]])
@@ -397,7 +399,7 @@ def test_compiled_reach_keys_equal_numpy(torus):
     distances a hair either side of the range, unequal ranges, a range larger than the
     area; on a torus also positions outside ``[0, side)`` and a torus narrower than three
     ranges."""
-    from netsim.crossings import in_box
+    from netsim.geometry import in_box
     from netsim.topology import reach_keys_of_pairs
 
     rng = np.random.default_rng(31)

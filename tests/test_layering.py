@@ -1,46 +1,115 @@
-"""Imports flow one way: netsim imports no project package; protocols and mobility never
-import each other; nothing imports experiments; the engine core (``netsim/`` apart from
-``netsim/tools/``) never imports the tools built on it."""
+"""Imports flow one way between the project's packages: each package imports only the
+packages it is allowed to, and no chain of imports (at run time, inside functions, or for
+type checking alone) leads from a package back to itself."""
 
 import ast
 from pathlib import Path
 
+import networkx as nx
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-FORBIDDEN = {
-    "netsim": {"protocols", "mobility", "hooks", "experiments"},
-    "protocols": {"mobility", "hooks", "experiments"},
-    "mobility": {"protocols", "hooks", "experiments"},
-    "hooks": {"protocols", "mobility", "experiments"},
-    "benchmarks": {"experiments"},
+
+# The packages below the engine's top level: each is one node of the import graph. The
+# engine's own modules (netsim/state.py, netsim/config.py, ...) are each a node of their own,
+# so that the radio may use the engine's base (state, events) while the run builder uses
+# the radio, and a cycle through any of them still shows.
+SUBPACKAGES = ("netsim.radio", "netsim.links", "netsim.formats", "netsim.tools", "netsim.envs")
+# The environments are the other end of the engine: built on it and the tools, used by no model.
+ENGINE = {"netsim", *SUBPACKAGES} - {"netsim.envs"}
+ALLOWED = {
+    "netsim": {"netsim", "netsim.radio", "netsim.links"},
+    "netsim.radio": {"netsim", "netsim.radio"},
+    "netsim.links": {"netsim", "netsim.radio", "netsim.links"},
+    "netsim.formats": {"netsim", "netsim.formats"},
+    "netsim.tools": ENGINE,
+    # The environments draw frames with the figures' code: built on the tools, like them.
+    "netsim.envs": ENGINE | {"netsim.envs"},
+    "protocols": ENGINE | {"protocols"},
+    "mobility": ENGINE | {"mobility"},
+    "hooks": ENGINE | {"hooks"},
+    "benchmarks": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "benchmarks"},
+    "experiments": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "experiments"},
 }
+PROJECT = {"netsim", "protocols", "mobility", "hooks", "experiments", "benchmarks"}
 
 
-def _modules(path: Path):
-    """Every module ``path`` imports, dotted, as written (absolute imports only)."""
+def _is_module(dotted: str) -> bool:
+    path = ROOT.joinpath(*dotted.split("."))
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
+
+
+def imports(path: Path):
+    """Every project module ``path`` imports, dotted (``from a import b`` is ``a.b`` when
+    ``b`` is a module, else ``a``); absolute imports only, wherever they stand."""
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):
-            yield from (a.name for a in node.names)
+            names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            yield node.module
-            yield from (f"{node.module}.{a.name}" for a in node.names)
+            names = [
+                f"{node.module}.{a.name}" if _is_module(f"{node.module}.{a.name}") else node.module for a in node.names
+            ]
+        else:
+            continue
+        yield from (n for n in names if n.split(".")[0] in PROJECT)
 
 
-@pytest.mark.parametrize("package", sorted(FORBIDDEN))
-def test_imports_flow_one_way(package):
-    files = list((ROOT / package).rglob("*.py"))
-    assert files
-    bad = [(f.relative_to(ROOT), m) for f in files for m in _modules(f) if m.split(".")[0] in FORBIDDEN[package]]
+def package_of(dotted: str) -> str:
+    """The package a module belongs to, as :data:`ALLOWED` names them."""
+    top = dotted.split(".")[0]
+    if top != "netsim":
+        return top
+    return next((p for p in SUBPACKAGES if dotted == p or dotted.startswith(p + ".")), "netsim")
+
+
+def node_of(dotted: str) -> str:
+    """The module's node of the import graph: its subpackage, or itself (engine modules)."""
+    pkg = package_of(dotted)
+    return dotted if pkg == "netsim" else pkg
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def files(package: str) -> list[Path]:
+    found = list(ROOT.joinpath(*package.split(".")).rglob("*.py"))
+    return [f for f in found if package_of(module_name(f)) == package]
+
+
+@pytest.mark.parametrize("package", sorted(ALLOWED))
+def test_each_package_imports_only_what_it_may(package):
+    """A package imports only the packages :data:`ALLOWED` lists for it: the engine no
+    model, the radio neither the link solvers nor the tools, protocols and mobility never
+    each other, nothing the experiments."""
+    found = files(package)
+    assert found
+    bad = [(f.relative_to(ROOT), m) for f in found for m in imports(f) if package_of(m) not in ALLOWED[package]]
     assert bad == []
 
 
-def core_files() -> list[Path]:
-    return [f for f in (ROOT / "netsim").rglob("*.py") if "tools" not in f.relative_to(ROOT / "netsim").parts]
+def test_every_package_is_covered():
+    """Every directory of Python modules in the project belongs to a package the layering
+    names (a new subpackage of the engine must be given its place)."""
+    dirs = {module_name(f.parent / "__init__.py") for top in PROJECT for f in ROOT.joinpath(top).rglob("*.py")}
+    assert {package_of(d) for d in dirs} <= set(ALLOWED)
+    engine_dirs = {d for d in dirs if d.startswith("netsim.")}
+    assert {d for d in engine_dirs if not any(d == p or d.startswith(p + ".") for p in SUBPACKAGES)} == set()
 
 
-def test_the_core_never_imports_the_tools():
-    files = core_files()
-    assert len(files) > 10
-    bad = [(f.relative_to(ROOT), m) for f in files for m in _modules(f) if m.startswith("netsim.tools")]
-    assert bad == []
+def import_graph() -> nx.DiGraph:
+    graph = nx.DiGraph()
+    for package in ALLOWED:
+        for f in files(package):
+            src = node_of(module_name(f))
+            graph.add_node(src)
+            graph.add_edges_from((src, node_of(m)) for m in imports(f) if node_of(m) != src)
+    return graph
+
+
+def test_no_import_cycles():
+    """No chain of imports leads from a package (or an engine module) back to itself."""
+    graph = import_graph()
+    assert {"netsim.radio", "netsim.links", "netsim.tools", "netsim.config"} <= set(graph)
+    assert list(nx.simple_cycles(graph)) == []

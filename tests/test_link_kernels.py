@@ -1,17 +1,17 @@
-"""The post-hoc link solver's compiled crossings (netsim/_link_kernels.py) are the numpy
+"""The post-hoc link solver's compiled crossings (netsim/links/_kernels.py) are the numpy
 solver's, compared with ``==``; and link lifetimes are the same either way."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from netsim import lifetimes
-from netsim.crossings import roots
+from netsim.links import lifetimes
+from netsim.links.crossings import roots
 from netsim.trajectory import LegTable
 
 pytest.importorskip("numba")
 
-from netsim import _link_kernels  # noqa: E402
+from netsim.links import _kernels as _link_kernels  # noqa: E402
 
 
 def _legs(rng, n, per_robot):

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.lifetimes import link_lifetimes
+from netsim.links.lifetimes import link_lifetimes
 from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.tools.validate import brute_force_mismatches, random_legs

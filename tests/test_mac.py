@@ -5,11 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from netsim.channel import DROP_CAUSES
 from netsim.errors import ConfigError
-from netsim.radio import mac_checks
+from netsim.radio.channel import DROP_CAUSES
 from netsim.radio.mac import MAC_DROP_CAUSES, airtime_s
 from netsim.run import execute, tables
+from netsim.simpy_internals import kernel_queue
+from netsim.tools import mac_checks
 from tests.fixtures import make_config
 
 T = 1e-3  # airtime of the test frames: 125 bytes at 1 Mb/s, no preamble
@@ -218,7 +219,7 @@ def test_a_frame_costs_a_bounded_number_of_kernel_events():
     for i in range(n):
         sim.channel.broadcast(i, None, lambda s, r, p: None, kind="f")
     steps = 0
-    while sim.env._queue:
+    while kernel_queue(sim.env):
         sim.env.step()
         steps += 1
     assert sim.channel.mac.attempts == n

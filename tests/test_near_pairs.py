@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from netsim.crossings import ALL_PAIRS_MAX, all_pairs_within, near_pairs
+from netsim.geometry import ALL_PAIRS_MAX, all_pairs_within, near_pairs
 
 
 @pytest.mark.parametrize("torus", [False, True])
@@ -72,15 +72,15 @@ def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkey
     has the pair exactly when its squared distance is within the range's square (the state
     test), whichever way the candidate pairs were found (their finders each round a distance
     at the range their own way), links solved after the run or during it."""
-    from netsim import crossings
-    from netsim.lifetimes import link_lifetimes
+    from netsim import geometry
+    from netsim.links.lifetimes import link_lifetimes
     from netsim.run import collect, simulation
     from netsim.state import RobotState
     from tests.fixtures import make_config
 
     monkeypatch.setenv("NETSIM_COMPILED", "1" if finder == "grid" else "0")
     if finder == "kd-tree":
-        monkeypatch.setattr(crossings, "ALL_PAIRS_MAX", 0)
+        monkeypatch.setattr(geometry, "ALL_PAIRS_MAX", 0)
     base = np.array([100.01586481765521, 201.7812107788257])
     linked = 0
     for k in range(-3, 4):

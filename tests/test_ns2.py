@@ -25,7 +25,6 @@ $ns_ at 2.000000000000 "$node_(0) setdest 40.000000000000 60.000000000000 5.0000
 $ns_ at 3.500000000000 "$god_ set-dist 0 1 2"
 $ns_ at 4.000000000000 "$node_(1) setdest 50.000000000000 90.000000000000 2.000000000000"
 $ns_ at 5.0 "$node_(0) setdest 10.0 20.0 1.0"
-$ns_ at 30.0 "$node_(1) set X_ 5.0"
 """
 
 
@@ -35,12 +34,15 @@ def test_parse_setdest_file(tmp_path):
     scen = ns2.read(f)
     assert scen.n_robots == 2
     assert scen.initial_m.tolist() == [[10.0, 20.0], [50.0, 50.0]]
-    assert scen.commands.kind.tolist() == ["setdest", "setdest", "setdest", "set"]
+    # Node 0's first stop (at 12 s) is cancelled by its second setdest at 5 s.
+    ev = scen.events
+    assert list(zip(ev.t_s, ev.robot)) == [(2.0, 0), (4.0, 1), (5.0, 0), (20.0, 0), (24.0, 1)]
+    assert ev.kind.tolist() == ["velocity", "velocity", "velocity", "stop", "stop"]
 
 
 def test_replay_follows_ns2_semantics(tmp_path):
     """setdest leaves from where the node is, stops on arrival, a new setdest replaces the
-    old one mid-way; set X_ at T moves the node and stops it."""
+    old one mid-way."""
     f = tmp_path / "s.tcl"
     f.write_text(SETDEST_SAMPLE)
     cfg = make_config(
@@ -59,10 +61,10 @@ def test_replay_follows_ns2_semantics(tmp_path):
     back = np.linalg.norm(p5 - [10, 20])  # then back to (10, 20) at 1 m/s, arriving at 5 + 15
     assert pos(5.0 + back / 2)[0] == pytest.approx((p5 + [10, 20]) / 2)
     assert pos(40.0)[0] == pytest.approx([10, 20])
-    # Node 1: leaves at 4, arrives at (50, 90) at 24, jumps to x = 5 at 30.
+    # Node 1: leaves at 4, arrives at (50, 90) at 24 and stays.
+    assert pos(14.0)[1] == pytest.approx([50, 70])
     assert pos(24.0)[1] == pytest.approx([50, 90])
-    assert pos(29.0)[1] == pytest.approx([50, 90])
-    assert pos(31.0)[1] == pytest.approx([5, 90])
+    assert pos(50.0)[1] == pytest.approx([50, 90])
 
 
 def test_generated_scenario_replays_to_the_same_positions(tmp_path):
@@ -123,17 +125,18 @@ def test_bonnmotion_style_file_is_read(tmp_path):
     f = tmp_path / "bm.ns_movements"
     f.write_text('$node_(0) set X_ 1.5\n$node_(0) set Y_ 2.5\n$ns_ at 0.0 "$node_(0) setdest 11.5 2.5 1.0"\n')
     scen = ns2.read(f)
-    assert scen.commands.iloc[0].tolist()[:2] == [0.0, 0]
+    assert scen.events.iloc[0].tolist()[:3] == [0.0, 0, "velocity"]
 
 
 @pytest.mark.parametrize(
     "text, words",
     [
-        ('$node_(0) set X_ 1\n$node_(0) set Y_ 1\n$ns_ at -1 "$node_(0) setdest 1 1 1"\n', ":3: negative"),
-        ("$node_(0) set X_ abc\n", ":1:"),
-        ("hello\n", ":1: not an ns-2 movement command"),
-        ("", "no nodes"),
-        ("# only a comment\n", "no nodes"),
+        ("$node_(0) set X_ inf\n", ":1: X_ inf must be finite"),
+        ('$node_(0) set X_ 1\n$ns_ at 1 "$node_(0) setdest 1 nan 1"\n', ":2: Y nan must be finite"),
+        ("$node_(0) set X_ abc\n", "no ns-2 movement line"),
+        ("hello\n", "no ns-2 movement line"),
+        ("", "no ns-2 movement line"),
+        ("# only a comment\n", "no ns-2 movement line"),
     ],
 )
 def test_malformed_files_name_the_line(tmp_path, text, words):
@@ -199,3 +202,22 @@ def test_trace_node_count_must_match(tmp_path, capsys):
         ]
     )
     assert code == 2 and "world.n_robots = 3" in capsys.readouterr().err
+
+
+def test_a_file_of_starting_positions_only_gives_robots_that_stand_still(tmp_path):
+    """As ns-3's Ns2MobilityHelper: a file with `$node_(i) set X_ / Y_` lines and no
+    `$ns_ at` line places the robots, which then stand still for the whole run."""
+    f = tmp_path / "start.tcl"
+    f.write_text("$node_(0) set X_ 10.0\n$node_(0) set Y_ 20.0\n$node_(1) set X_ 30.5\n$node_(1) set Y_ 40.0\n")
+    scen = ns2.read(f)
+    assert scen.events.empty
+    cfg = make_config(
+        duration_s=20.0,
+        world={"n_robots": 2, "side_m": 100.0},
+        mobility={"model": "trace", "trace_file": str(f)},
+        protocol={"model": "none"},
+    )
+    sim = build(cfg)
+    sim.run()
+    pos = sample_positions(sim.state.legs(), 2, [0.0, 7.5, 19.9])[["x_m", "y_m"]].to_numpy().reshape(3, 2, 2)
+    assert (pos == [[10.0, 20.0], [30.5, 40.0]]).all()

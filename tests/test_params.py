@@ -7,7 +7,7 @@ import pytest
 from netsim import config as cfgmod
 from netsim.config import Config, ProtocolSection, WorldParams
 from netsim.errors import ConfigError
-from netsim.loss import LOSS_MODELS
+from netsim.radio.loss import LOSS_MODELS
 from protocols.clustering import Candidate, choose_leader
 from protocols.stack import ClusteringParams
 

@@ -1,5 +1,7 @@
 """Models are found by name: built-in entry points, or a user's ``module:function``."""
 
+import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -26,43 +28,54 @@ def test_missing_user_module_is_a_clear_error():
         plugins.resolve(plugins.MOBILITY, "no_such_module_xyz:install", "mobility.model")
 
 
+PLUGINS_DOC = (Path(__file__).resolve().parents[1] / "docs" / "plugins.md").read_text()
+
+
+def _doc_block(first_line: str) -> str:
+    """The fenced block of docs/plugins.md whose first line is ``first_line``."""
+    for m in re.finditer(r"^```(\w*)\n(.*?)^```", PLUGINS_DOC, re.S | re.M):
+        if m[2].startswith(first_line + "\n"):
+            return m[2]
+    raise LookupError(first_line)
+
+
 @pytest.mark.slow
-def test_user_mobility_model_from_the_current_directory(tmp_path):
-    """The README's example: a module in the working directory, named on the command line."""
-    (tmp_path / "mymodels_readme.py").write_text(
-        "import math\n"
-        "def circle(sim):\n"
-        "    n, side = sim.state.n, sim.config.world.side_m\n"
-        "    angles = [2 * math.pi * i / n for i in range(n)]\n"
-        "    sim.state.place([[side / 2 + 100 * math.cos(a), side / 2 + 100 * math.sin(a)] for a in angles])\n"
-    )
-    # The installed console script, whose import path (unlike python -m) lacks the cwd.
+def test_the_docs_mobility_model_runs_as_shown_from_the_current_directory(tmp_path):
+    """docs/plugins.md's example module, as the page shows it, in the working directory,
+    named on the command line of the installed console script (whose import path, unlike
+    python -m, lacks the working directory): the robots stand on the circle of the radius
+    the command sets."""
+    (tmp_path / "mymodels.py").write_text(_doc_block("# mymodels.py"))
+    shown = "netsim run --set mobility.model=mymodels:CIRCLE --set mobility.radius_m=150"
+    assert shown in PLUGINS_DOC
     script = Path(sys.executable).parent / "netsim"
     if not script.exists():
         pytest.skip("the netsim console script is not installed next to this Python")
     out = tmp_path / "out"
-    run = subprocess.run(
-        [
-            str(script),
-            "run",
-            "--quiet",
-            "--out",
-            str(out),
-            "--set",
-            "mobility.model=mymodels_readme:circle",
-            "--set",
-            "duration_s=5",
-            "--set",
-            "world.n_robots=12",
-        ],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-    )
+    args = shlex.split(shown)[1:] + [
+        "--quiet",
+        "--out",
+        str(out),
+        "--set",
+        "duration_s=5",
+        "--set",
+        "world.n_robots=12",
+    ]
+    run = subprocess.run([str(script), *args], cwd=tmp_path, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     pos = pd.read_parquet(out / "positions.parquet")
     r = ((pos.x_m - 500) ** 2 + (pos.y_m - 500) ** 2) ** 0.5
-    assert r.to_numpy() == pytest.approx(100.0)
+    assert r.to_numpy() == pytest.approx(150.0)
+
+
+def test_a_plain_function_is_not_a_plugin(tmp_path, monkeypatch):
+    """The one form of plugin: a plain function (the removed ``install(sim)`` form) named
+    as a model is refused in one line naming the key and what a plugin is."""
+    (tmp_path / "plain_models.py").write_text("def circle(sim):\n    raise AssertionError('never called')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ConfigError, match="is not a netsim plugin") as caught:
+        plugins.resolve(plugins.MOBILITY, "plain_models:circle", "mobility.model")
+    assert "mobility.model" in str(caught.value) and "\n" not in str(caught.value)
 
 
 def test_each_group_lists_exactly_its_installed_entry_points():

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from netsim.radio import checks
 from netsim.radio.propagation import LogDistanceParams
+from netsim.tools import radio_checks as checks
 
 
 def test_log_distance_without_shadowing_is_a_unit_disk():

@@ -183,7 +183,7 @@ def test_normals_come_in_stream_order():
 
 
 def test_link_changes_kernel_equals_numpy():
-    from netsim.reception import LinkRecorder
+    from netsim.radio.reception import LinkRecorder
 
     rng = np.random.default_rng(8)
     n = 40

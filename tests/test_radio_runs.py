@@ -11,11 +11,11 @@ import pytest
 
 from netsim.config import from_dict
 from netsim.errors import ConfigError
-from netsim.radio.checks import wall_test_map
 from netsim.radio.free_space import legs_free
 from netsim.radio.los import line_of_sight
 from netsim.radio.maps import cached_map, load_map, save_map
 from netsim.run import execute
+from netsim.tools.radio_checks import wall_test_map
 
 
 def wall_map(tmp_path) -> str:
@@ -174,7 +174,7 @@ def linked_now(links: pd.DataFrame, t: float) -> set:
 
 
 def brute_force(legs, n, t, range_m, m):
-    from netsim.radio_links import positions
+    from netsim.links.radio_links import positions
     from netsim.trajectory import LegTable
 
     L = LegTable(legs, n)
@@ -188,7 +188,7 @@ def brute_force(legs, n, t, range_m, m):
 def _true_run_s(legs, n, a, b, t, range_m, m, step_s):
     """How long the pair's true state (range and line of sight, brute force every 1 ms)
     holds around ``t``, looking ``step_s`` either way."""
-    from netsim.radio_links import positions
+    from netsim.links.radio_links import positions
     from netsim.trajectory import LegTable
 
     L = LegTable(legs, n)
@@ -331,7 +331,7 @@ def test_example_maps_load_by_name():
 def test_positions_at_many_instants_follow_the_legs():
     """The vectorised lookup of (robot, time) positions used by the walled links solver
     gives each robot's leg at that time, also exactly at a leg's start."""
-    from netsim.radio_links import positions
+    from netsim.links.radio_links import positions
     from netsim.trajectory import LegTable
 
     rng = np.random.default_rng(1)
@@ -350,7 +350,7 @@ def test_positions_at_many_instants_follow_the_legs():
 def test_compiled_leg_lookup_equals_merge(monkeypatch):
     """Positions from the legs: the compiled per-query search finds the merge's legs."""
     pytest.importorskip("numba")
-    import netsim.radio_links as rl
+    import netsim.links.radio_links as rl
     from netsim.state import RobotState
     from netsim.trajectory import LegTable
 

@@ -7,8 +7,8 @@ import pytest
 
 from netsim.errors import ConfigError
 from netsim.radio import shadowing
-from netsim.radio.checks import correlation_table
 from netsim.radio.shadowing import PairShadowing, pair_keys, split_keys, travel_steps
+from netsim.tools.radio_checks import correlation_table
 
 
 def _sh(sigma=6.0, dcorr=10.0, seed=1, step=0.0):

@@ -165,3 +165,34 @@ def test_no_warning_by_default():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         build(make_config(world={"n_robots": 5}))
+
+
+@pytest.mark.parametrize(
+    "settings, stationary",
+    [
+        ([], True),
+        (["world.map=office", "world.side_m=200"], False),
+        (["world.placement=grid"], False),
+        (["mobility.speed_min_mps=0"], False),
+        (["mobility.stationary_start=false"], False),
+    ],
+)
+def test_stationary_start_auto_starts_stationary_wherever_its_law_is_known(settings, stationary):
+    """``stationary_start = "auto"`` (the default) draws the stationary start in an open
+    square with uniform placement and a least speed above 0, and starts at rest elsewhere
+    (a map, another placement, speed_min_mps = 0) instead of refusing the run."""
+    from mobility.random_waypoint import starts_stationary
+    from netsim import load
+
+    config = load(None, settings)
+    assert starts_stationary(config.mobility, config.world) is stationary
+
+
+def test_default_random_waypoint_runs_on_a_map():
+    """The default configuration on a map is accepted and moves the robots in free cells."""
+    from netsim import load
+    from netsim.run import build
+
+    sim = build(load(None, ["world.map=office", "world.side_m=200", "world.n_robots=5", "duration_s=20"]))
+    sim.run()
+    assert sim.state.legs()["vx_mps"].abs().max() > 0

@@ -223,11 +223,16 @@ def test_a_plugin_table_named_like_an_engine_table_is_one_line_and_exit_2(tmp_pa
     """A user's model whose table takes a name netsim writes itself: one line naming it,
     exit status 2, and no directory left."""
     (tmp_path / "clashing_model.py").write_text(
-        "import pandas as pd\ndef still(sim):\n    sim.trace.add_frame('links', lambda: pd.DataFrame({'a': [0]}))\n"
+        "import pandas as pd\n"
+        "from netsim.params import NoParams\n"
+        "from netsim.plugins import PluginSpec\n"
+        "def build(params, parts):\n"
+        "    parts.trace.add_frame('links', lambda: pd.DataFrame({'a': [0]}))\n"
+        "STILL = PluginSpec(Params=NoParams, build=build)\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
     out = tmp_path / "out"
-    code = main(["run", "--out", str(out), "--set", "mobility.model=clashing_model:still", *SMALL])
+    code = main(["run", "--out", str(out), "--set", "mobility.model=clashing_model:STILL", *SMALL])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
     assert len(err) == 1 and "links" in err[0]

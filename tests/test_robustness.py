@@ -115,6 +115,53 @@ def test_out_in_a_read_only_directory_is_refused_before_simulating(tmp_path, cap
         ro.chmod(0o700)
 
 
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """A finished run of 5 robots for 5 s."""
+    out = tmp_path_factory.mktemp("small") / "run"
+    assert main(["run", "--quiet", "--out", str(out), *SMALL]) == 0
+    return out
+
+
+def _unwritable_proc(d):
+    if not Path("/proc/self").is_dir():
+        pytest.skip("needs Linux /proc, where nothing can be written")
+
+
+@pytest.mark.parametrize(
+    "make, out, words",
+    [
+        (lambda d: (d / "adir").mkdir(), "adir", "is a directory"),
+        (lambda d: (d / "afile").write_text("x"), "afile/view.html", "the directory afile is a file"),
+        (lambda d: (d / "afile").write_text("x"), "afile/sub/view.html", "the directory afile is a file"),
+        (_unwritable_proc, "/proc/netsim-test/view.html", "cannot write in /proc"),
+    ],
+    ids=["existing-directory", "under-a-file", "under-a-file-deeper", "unwritable-place"],
+)
+def test_view_out_that_cannot_take_the_file_is_one_line(tmp_path, capfd, monkeypatch, small_run, make, out, words):
+    """`netsim view RUN --out X` where X is a directory, lies under a file, or is in a place
+    nothing can be written: one line, exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    make(tmp_path)
+    before, run_before = tree(tmp_path), tree(small_run)
+    refused(capfd, main(["view", str(small_run), "--out", out]), before, tmp_path, words, out)
+    assert tree(small_run) == run_before
+
+
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="permissions do not bind root")
+def test_view_out_in_a_read_only_directory_is_one_line(tmp_path, capfd, small_run):
+    """`netsim view RUN --out X` in a directory the user may not write: one line, exit 2."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        before = tree(tmp_path)
+        code = main(["view", str(small_run), "--out", str(ro / "view.html")])
+        refused(capfd, code, before, tmp_path, "cannot write in")
+    finally:
+        ro.chmod(0o700)
+
+
 def test_claim_dir_removes_what_it_created_when_the_work_fails(tmp_path):
     with pytest.raises(RuntimeError), claim_dir(tmp_path / "a" / "b" / "c"):
         raise RuntimeError("the work failed")
@@ -225,6 +272,26 @@ def test_bad_sweep_axis_value_writes_nothing(tmp_path, capfd, monkeypatch):
     code = main(["sweep", "bad.toml"])
     refused(capfd, code, before, tmp_path, "channel.range_m = -1.0")
     assert not (tmp_path / "sweep-out").exists()
+
+
+def test_a_scenario_file_given_as_a_sweep_says_where_its_keys_go(tmp_path, capfd, monkeypatch):
+    """`netsim sweep scenario.toml`: the one-line error lists the unknown keys and says that
+    a sweep file puts the scenario under [base] (or base_file) and the axes under [grid]
+    or [random]; nothing written."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scenario.toml").write_text("duration_s = 30.0\n[world]\nn_robots = 5\n")
+    before = tree(tmp_path)
+    line = refused(capfd, main(["sweep", "scenario.toml"]), before, tmp_path, "unknown key(s) ['duration_s', 'world']")
+    assert "under [base]" in line and "base_file" in line and "[grid] or [random]" in line
+
+
+def test_an_unknown_key_that_is_not_a_scenario_key_gets_no_base_hint(tmp_path, capfd, monkeypatch):
+    """The [base] hint is for scenario keys only: a plain typo is listed without it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text('nmae = "typo"\n' + SWEEP)
+    before = tree(tmp_path)
+    line = refused(capfd, main(["sweep", "s.toml"]), before, tmp_path, "unknown key(s) ['nmae']")
+    assert "[base]" not in line
 
 
 def test_sweep_refuses_a_directory_that_holds_something_else(tmp_path, capfd):

@@ -5,28 +5,36 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.run import execute
-from netsim.trajectory import sample_positions
+from netsim.run import build, execute
 from tests.fixtures import make_config
+
+CONFIG = dict(
+    seed=4,
+    duration_s=40.0,
+    world={"n_robots": 30, "side_m": 500.0},
+    channel={"range_m": 150.0},
+    protocol={"message_rate_hz": 1.0},
+)
 
 
 @pytest.fixture(scope="module")
 def frames():
-    cfg = make_config(
-        seed=4,
-        duration_s=40.0,
-        world={"n_robots": 30, "side_m": 500.0},
-        channel={"range_m": 150.0},
-        protocol={"message_rate_hz": 1.0},
-    )
-    return execute(cfg).frames
+    return execute(make_config(**CONFIG)).frames
 
 
-def test_legs_reproduce_the_sampled_positions(frames):
-    """positions.parquet is the legs evaluated at the sampling instants, exactly."""
+def test_positions_are_where_the_robots_were_during_the_run(frames):
+    """positions.parquet holds, at each sampling instant, the positions the run's own robot
+    state gave at that instant while the run went on (stopped there, not reconstructed
+    from the tables afterwards)."""
     pos = frames["positions"]
-    again = sample_positions(frames["legs"], 30, np.sort(pos["t_s"].unique()))
-    pd.testing.assert_frame_equal(again, pos)
+    times = np.sort(pos["t_s"].unique())
+    assert len(times) == 41
+    sim = build(make_config(**CONFIG))
+    for t in times[::7].tolist():
+        sim.run(until_s=t)
+        row = pos[pos["t_s"] == t].sort_values("robot")
+        live = sim.state.positions_at(t)
+        np.testing.assert_allclose(row[["x_m", "y_m"]].to_numpy(), live, rtol=0, atol=1e-9)
 
 
 def test_every_delivery_is_a_recorded_hop(frames):
@@ -54,3 +62,45 @@ def test_hops_chain_back_to_the_source(frames):
     assert (when <= later.t_sent_s.to_numpy()).all()
     sent = hops.drop_duplicates(["msg_id", "hop", "sender", "t_sent_s"]).groupby("msg_id").size()
     assert (sent <= msgs.loc[sent.index, "transmissions"]).all()
+
+
+@pytest.mark.parametrize("duration_s", [30.0, 30.5])
+def test_sampled_tables_end_at_the_runs_end(duration_s):
+    """The groups, beliefs, neighbour_beliefs and coverage tables are sampled every
+    interval from 0 and once more at the run's end T, whether or not T is a multiple of
+    the interval; the coverage table's last row is the summary's final values."""
+    cfg = make_config(
+        seed=2,
+        duration_s=duration_s,
+        world={"n_robots": 20, "side_m": 400.0, "placement": "centre", "centre_side_m": 150.0},
+        mobility={"model": "static"},
+        channel={"range_m": 100.0},
+        coverage={"enabled": True, "start_s": 10.0},
+    )
+    res = execute(cfg)
+    for name, interval in (("beliefs", 1.0), ("neighbour_beliefs", 1.0), ("groups", 1.0), ("coverage", 5.0)):
+        times = np.unique(res.frames[name]["t_s"].to_numpy())
+        grid = np.arange(0.0, duration_s - 1e-9, interval)
+        assert times[-1] == duration_s, name
+        assert set(grid[grid >= times[0]]) <= set(times) and len(times) == len(grid[grid >= times[0]]) + 1, name
+    last = res.frames["coverage"].iloc[-1]
+    assert last["covered_fraction_all"] == res.summary["covered_fraction_all_final"]
+    assert last["components"] == res.summary["components_final"]
+
+
+def test_a_sample_the_intervals_bring_to_the_end_is_not_taken_twice():
+    """Sampling every 0.1 s for 1 s gives 11 samples, the last at 1 s: the sum of ten
+    intervals falls a rounding error short of 1 s, and that sample is the last one, not a
+    second sample beside it."""
+    cfg = make_config(
+        seed=1,
+        duration_s=1.0,
+        world={"n_robots": 10, "side_m": 300.0},
+        mobility={"model": "static"},
+        output={"position_interval_s": 0.1},
+        coverage={"enabled": True, "metrics_interval_s": 0.1, "stop_hold_s": 0.5},
+    )
+    frames = execute(cfg).frames
+    for name in ("beliefs", "coverage"):
+        times = np.unique(frames[name]["t_s"].to_numpy())
+        assert len(times) == 11 and times[-1] == pytest.approx(1.0) and np.diff(times).min() > 0.09, name

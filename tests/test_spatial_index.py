@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from netsim.radio.spatial import RangeIndex
 from netsim.run import build
-from netsim.spatial import RangeIndex
 from netsim.state import RobotState
 from tests.fixtures import make_config
 

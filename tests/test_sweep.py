@@ -100,12 +100,13 @@ def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
         import os, signal, time
         from pathlib import Path
         from netsim import plugins
+        from netsim.params import NoParams
 
         MARK = Path(__file__).with_name("killed.marker")
         RUNS = Path(__file__).with_name("out") / "runs"
 
-        def install(sim):
-            if sim.config.world.n_robots == 7 and not MARK.exists():
+        def build(params, parts):
+            if parts.state.n == 7 and not MARK.exists():
                 # Kill only once another run is safely on disk (the other worker's).
                 for _ in range(600):
                     if any(RUNS.glob("*.parquet")):
@@ -114,7 +115,9 @@ def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
                 MARK.write_text("killed once")
                 os.kill(os.getppid(), signal.SIGKILL)
             static = plugins.resolve(plugins.MOBILITY, "static", "mobility.model")
-            return static.build(static.Params(), sim.parts)
+            return static.build(static.Params(), parts)
+
+        PLUGIN = plugins.PluginSpec(Params=NoParams, build=build)
     """)
     )
     (tmp_path / "s.toml").write_text(
@@ -124,7 +127,7 @@ def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
         [base]
         duration_s = 10.0
         [base.mobility]
-        model = "killer:install"
+        model = "killer:PLUGIN"
         [base.output]
         position_interval_s = 0.0
         [grid]

@@ -4,6 +4,7 @@ import numpy as np
 import simpy
 
 from netsim.events import URGENT, scheduled_event
+from netsim.simpy_internals import kernel_queue
 from netsim.timers import DeadlineTimers
 
 
@@ -23,7 +24,7 @@ def test_restart_moves_the_deadline_and_costs_no_kernel_event():
     timers.restart(0, 3.0)
     for k in range(1000):
         timers.restart(0, 3.0 + k * 0.001)
-    assert len(env._queue) == 1  # still the one event armed at 3.0
+    assert len(kernel_queue(env)) == 1  # still the one event armed at 3.0
     env.run(until=10)
     assert fired == [3.999]
 

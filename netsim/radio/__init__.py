@@ -1,19 +1,28 @@
-"""The radio wing of the channel: propagation, shadowing, and walls from an occupancy map.
+"""The channel: who hears a frame, when, and what is lost on the way.
 
+- :mod:`netsim.radio.channel`: the :class:`~netsim.radio.channel.Channel`, the face the
+  protocols send through (delays, delivery, drops, the loss model last);
+- :mod:`netsim.radio.spatial`: who is within range of a robot now (a neighbour list);
+- :mod:`netsim.radio.reception`: the reception decision of a radio, and its record of links;
+- :mod:`netsim.radio.propagation_models`: the propagation models ``channel.propagation``
+  chooses from (unit disk, log-distance);
 - :mod:`netsim.radio.propagation`: received power as a chain of small loss terms
   (log-distance path loss, shadowing, walls, or a unit disk with line of sight);
+- :mod:`netsim.radio.fast`: those chains compiled into one pass;
+- :mod:`netsim.radio.loss`: the reception loss models ``channel.loss_model`` chooses from;
 - :mod:`netsim.radio.shadowing`: log-normal shadowing per pair, reciprocal, spatially
   correlated as robots move (Gudmundson's exponential model);
 - :mod:`netsim.radio.maps`: ROS ``map_server`` maps (YAML and PGM/PNG image);
 - :mod:`netsim.radio.los`: line of sight and walls crossed, for many segments at once;
 - :mod:`netsim.radio.free_space`: where robots may be and go on a map;
 - :mod:`netsim.radio.examples`: the example maps shipped with netsim;
-- :mod:`netsim.radio.checks`: the closed-form checks of the radio models.
-- :mod:`netsim.radio.mac`: the shared medium (airtime, collisions, ALOHA, CSMA/DCF);
-- :mod:`netsim.radio.mac_checks`: its closed-form checks (ALOHA, Bianchi, hidden terminals).
+- :mod:`netsim.radio.mac`: the shared medium (airtime, collisions, ALOHA, CSMA/DCF).
 
-Nothing here reads a configuration or needs the simulation kernel: each piece takes numpy
-arrays and explicit parameters.
+The closed-form checks of these models are tools (:mod:`netsim.tools.radio_checks`,
+:mod:`netsim.tools.mac_checks`, run by ``netsim validate``). The package reads no
+configuration file: each model gets its parameters (the ``[channel]`` section's
+dataclasses) and its collaborators when the run is built. It imports the engine's base
+(state, events, agenda, parameters) and never the run builder, the link solvers or the tools.
 """
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from netsim import kernel_cache
+
 
 @numba.njit(cache=True, nogil=True)
 def cell(flat, w, half, pc, sc, p_max, s_max):
@@ -463,3 +465,8 @@ def legs_at(first, end, leg_t, robots, times, out):
             else:
                 hi = mid
         out[k] = max(lo - 1, first[r])
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

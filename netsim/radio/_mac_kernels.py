@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numba
 
+from netsim import kernel_cache
+
 
 @numba.njit(cache=True, nogil=True)
 def end_unit_disk(
@@ -52,3 +54,8 @@ def end_unit_disk(
         c = newly[k]
         busy_s[c] += now - busy_since[c]
     return m
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

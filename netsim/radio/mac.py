@@ -40,10 +40,10 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.channel import DROP_CAUSES, Channel, SendTimeBins
 from netsim.compiled import load
 from netsim.events import URGENT, scheduled_event
-from netsim.spatial import RangeIndex
+from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
+from netsim.radio.spatial import RangeIndex
 
 # Causes a medium adds: per reception (collision, half_duplex), per frame at its sender's row
 # (queue_full: the queue was full when it was handed over; retry_limit: a unicast that

@@ -15,6 +15,9 @@
     coverage scenario (or FILE) into DIR.
 ``netsim view RUN_DIR [--out FILE.html]``
     Write the replay of a run: one self-contained HTML file (default RUN_DIR/view.html).
+``netsim export RUN_DIR --format bonnmotion|ns2|rosbag2 --out PATH``
+    Write a run's motion (and for rosbag2 its links, roles and messages) in a format robot
+    teams' tools read.
 ``netsim config [CONFIG] [--set KEY=VALUE ...]``
     Print the configuration (the built-in default, or CONFIG with the overrides), every
     key with its meaning, the sections of the controllers it names included.
@@ -26,16 +29,17 @@ paths and the scheduler are checked before any simulation starts.
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import os
+import re
 import sys
 import warnings
 from pathlib import Path
 
 from netsim import config as cfgmod
 from netsim import ns2
-from netsim.errors import NetsimInputError
-from netsim.gcpause import own_process
+from netsim.errors import ConfigError, NetsimInputError
 
 EXIT_INPUT = 2
 
@@ -55,10 +59,22 @@ def summary_table(summary: dict) -> str:
     return "\n".join(f"  {k:<{width}}  {_format_value(v)}" for k, v in summary.items())
 
 
+def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None:
+    """``--set KEY VALUE`` (a space for the ``=``) leaves VALUE to be read as the command's
+    file or directory argument: when that names nothing, say what was meant."""
+    bare = [o for o in overrides or [] if "=" not in o]
+    if bare and positional is not None and not Path(positional).exists():
+        key = bare[-1]
+        raise NetsimInputError(
+            f"--set {key} {positional}: --set takes KEY=VALUE; did you mean --set {key}={positional}?"
+        )
+
+
 def cmd_run(args) -> int:
     from netsim.run import execute
     from netsim.tools.output import RunWriter, claim_dir, manifest
 
+    check_set_pairs(args.set, args.config)
     overrides = list(args.set or [])
     if args.seed is not None:
         overrides.append(f"seed={args.seed}")
@@ -79,6 +95,38 @@ def cmd_run(args) -> int:
     return 0
 
 
+# The configuration keys `netsim scenario generate` sets, by the flag that sets each.
+GENERATE_FLAGS = {
+    "world.n_robots": "--n",
+    "world.side_m": "--side",
+    "mobility.speed_min_mps": "--speed-min",
+    "mobility.speed_max_mps": "--speed-max",
+    "mobility.pause_s": "--pause",
+    "mobility.stationary_start": "--no-stationary-start",
+    "duration_s": "--duration",
+    "seed": "--seed",
+}
+
+
+def _flags_in(text: str) -> str:
+    """``text`` with the configuration keys `scenario generate` sets named by their flags."""
+    text = re.sub(r"(?:mobility\.)?stationary_start = false", "--no-stationary-start", text)
+    text = re.sub(r"with (?:mobility\.)?stationary_start = true", "without --no-stationary-start", text)
+    for key, flag in GENERATE_FLAGS.items():
+        if key != "seed":  # "seed" is also a word of the rules' prose
+            text = re.sub(rf"(?<![\w.]){re.escape(key)}(?![\w.])", flag, text)
+    return text
+
+
+def _in_flags(exc: ConfigError) -> NetsimInputError:
+    """A configuration error of `scenario generate` told in the flags the user typed."""
+    flag = GENERATE_FLAGS.get(exc.key)
+    if flag is None:
+        return exc
+    value = not exc.value if flag == "--no-stationary-start" else exc.value
+    return NetsimInputError(f"{flag} {value!r}: {_flags_in(exc.allowed)}")
+
+
 def cmd_scenario_generate(args) -> int:
     from netsim.run import build
 
@@ -95,10 +143,16 @@ def cmd_scenario_generate(args) -> int:
         },
         "protocol": {"model": "none"},
     }
-    config = cfgmod.from_dict(tree)
     out = Path(args.output)
-    check_out_file(out, "-o")
-    sim = build(config)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            config = cfgmod.from_dict(tree)
+            check_out_file(out, "-o")
+            sim = build(config)
+    except ConfigError as exc:
+        raise _in_flags(exc) from None
+    for w in caught:
+        warnings.warn(_flags_in(str(w.message)), w.category, stacklevel=1)
     sim.run()
     header = (
         f"netsim scenario generate: random waypoint, nodes: {args.n}, side: {args.side} m, "
@@ -115,14 +169,18 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
-def check_out_file(path: Path, option: str) -> None:
+def check_out_file(path: Path, option: str, make_parents: bool = False) -> None:
     """Refuse, before any work, a file that could not be written: its directory must exist
-    and be writable, and the path must not be a directory."""
+    and be writable, and the path must not be a directory. With ``make_parents`` the
+    directory may be missing, to be made by the writer: then its nearest existing ancestor
+    must be a writable directory."""
     import tempfile
 
     if path.is_dir():
         raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
     parent = path.parent
+    while make_parents and not parent.exists() and not parent.is_symlink() and parent != parent.parent:
+        parent = parent.parent
     if not parent.is_dir():
         what = "is a file" if parent.exists() else "does not exist"
         raise NetsimInputError(f"{option} {path}: the directory {parent} {what}")
@@ -172,6 +230,7 @@ def cmd_figures(args) -> int:
     from netsim.tools import figures
     from netsim.tools.output import claim_dir, is_run_dir, manifest, write_run
 
+    check_set_pairs(args.set, args.run_dir)
     if args.run_dir:
         if args.config or args.set:
             raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
@@ -202,12 +261,25 @@ def cmd_figures(args) -> int:
 def cmd_view(args) -> int:
     from netsim.tools import viewer
 
+    if args.out is not None:
+        check_out_file(Path(args.out), "--out", make_parents=True)
+    elif Path(args.run_dir).is_dir():
+        check_out_file(Path(args.run_dir) / "view.html", "the replay")
     path = viewer.write(args.run_dir, args.out)
     print(f"wrote {path} ({path.stat().st_size / 2**20:.2f} MiB): open it in a browser")
     return 0
 
 
+def cmd_export(args) -> int:
+    from netsim.tools.export import export
+
+    out = export(args.run_dir, args.format, args.out)
+    print(f"wrote {out}")
+    return 0
+
+
 def cmd_config(args) -> int:
+    check_set_pairs(args.set, args.config)
     config = cfgmod.load(args.config, list(args.set or [])) if args.config or args.set else None
     print(cfgmod.commented_toml(config), end="")
     return 0
@@ -270,7 +342,11 @@ def parser() -> argparse.ArgumentParser:
     f.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     f.add_argument("--out", help="where to write (default: RUN_DIR, or ./netsim-figures)")
     f.add_argument(
-        "--at", type=float, metavar="T", help="time of the deployment figure, Fig. 6, s (default: when control starts)"
+        "--at",
+        type=float,
+        metavar="T",
+        help="time of the deployment figure, Fig. 6, s (default: when coverage control starts; without coverage, "
+        "the first sample with every robot in a group)",
     )
     f.add_argument("--no-progress", action="store_true", help="no progress bar")
     f.set_defaults(func=cmd_figures)
@@ -279,6 +355,12 @@ def parser() -> argparse.ArgumentParser:
     vw.add_argument("run_dir", help="a run's output directory")
     vw.add_argument("--out", help="file to write (default: RUN_DIR/view.html)")
     vw.set_defaults(func=cmd_view)
+
+    x = sub.add_parser("export", help="write a run in the formats robot teams use (BonnMotion, ns-2, ROS 2 bag)")
+    x.add_argument("run_dir", help="a run's output directory")
+    x.add_argument("--format", required=True, help="bonnmotion, ns2 or rosbag2")
+    x.add_argument("--out", required=True, help="file (bonnmotion: NAME.movements[.gz], ns2) or new folder (rosbag2)")
+    x.set_defaults(func=cmd_export)
 
     c = sub.add_parser(
         "config", help="print the configuration (the default, or a file with overrides) with every key explained"
@@ -294,7 +376,6 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def main(argv=None) -> int:
-    own_process()  # what is loaded stays out of the collector's passes (netsim.gcpause)
     args = parser().parse_args(argv)
     warnings.showwarning = _one_line_warning
     try:
@@ -308,12 +389,20 @@ def main(argv=None) -> int:
 
 
 def command() -> None:
-    """The ``netsim`` command: :func:`main`, in a process of its own, which then ends at once.
-    By then every table is written and closed; what the interpreter would still do is tear
-    down every object of numpy, pandas and numba one by one (some 60 ms after every run,
-    a tenth of a small run), so the output streams and logs are flushed and the process
-    exits with main's code. If another thread is still running, the process ends the usual
-    way, waiting for it."""
+    """The ``netsim`` command: :func:`main`, in a process of its own. Its two process-wide
+    switches are made here, and nowhere in the library (importing netsim or running a
+    simulation from Python changes neither).
+
+    - What the imports loaded (numpy, pandas, the engine: many long-lived objects, no
+      garbage) is frozen out of the garbage collector's passes (``gc.freeze``), which would
+      otherwise walk it again and again during the run.
+    - When main returns, every table is written and closed; what the interpreter would
+      still do is tear down every object of numpy, pandas and numba one by one, so the
+      output streams and logs are flushed and the process ends at once (``os._exit``) with
+      main's code. If another thread is still running, the process ends the usual way,
+      waiting for it.
+    """
+    gc.freeze()
     code = main()
     for stream in (sys.stdout, sys.stderr):
         try:

@@ -1,7 +1,9 @@
 """The paper's figures, drawn from a run's output directory (``netsim figures``).
 
 - ``fig6_initial_deployment.png``: the deployment at one instant (by default when
-  coverage control starts, after the groups have formed; any time with ``--at``):
+  coverage control starts, after the groups have formed; without coverage, the first
+  sample with every robot in a group, or else with the fewest undecided, a note giving
+  the time; any time with ``--at``):
   leaders, members in their group's colour, gateways (filled with their own group's
   colour, edged with the other group's), undecided robots, and the links;
 - ``fig7_leader_paths.png``: every robot's path from that instant to the end, framed to
@@ -110,6 +112,39 @@ def snapshot(run: Run, t: float) -> Snapshot:
         g = style.other_group(run.groups[run.groups["t_s"] == _sample_time(run.groups, when)])
         other[g.index.to_numpy()] = g.to_numpy()
     return Snapshot(when, snap[["x_m", "y_m"]].to_numpy(), role, leader, other)
+
+
+def undecided_at(run: Run, times: np.ndarray) -> np.ndarray:
+    """How many robots are undecided (in no group) at each of ``times``, as :func:`snapshot`
+    reads the roles: a robot's last record at or before the instant, undecided before its
+    first."""
+    labels = run.config.protocol.plugin.role_labels
+    n = run.config.world.n_robots
+    if labels is None or run.roles.empty:
+        return np.full(len(times), n)
+    r = run.roles.reset_index(drop=True)
+    order = np.lexsort((np.arange(len(r)), r["t_s"].to_numpy(float)))
+    t = r["t_s"].to_numpy(float)[order]
+    robot = r["robot"].to_numpy(np.int64)[order]
+    now = (r["role"].to_numpy()[order] == labels.undecided).astype(np.int64)
+    # Each record changes its robot's state from its previous record's (undecided before
+    # the first): the count after each record is n plus the running sum of the changes.
+    before = np.ones(len(now), dtype=np.int64)
+    by_robot = np.lexsort((np.arange(len(robot)), robot))
+    same = robot[by_robot][1:] == robot[by_robot][:-1]
+    before[by_robot[1:][same]] = now[by_robot[:-1][same]]
+    count = n + np.cumsum(now - before)
+    k = np.searchsorted(t, np.asarray(times, float) + 1e-9, side="right")
+    return np.where(k > 0, count[np.maximum(k - 1, 0)], n)
+
+
+def groups_formed_s(run: Run) -> tuple[float, int]:
+    """The first positions sample at which every robot is in a group, or failing that the
+    first with the fewest undecided, and how many are undecided then."""
+    times = np.sort(run.positions["t_s"].unique())
+    undecided = undecided_at(run, times)
+    k = int(np.argmin(undecided))
+    return float(times[k]), int(undecided[k])
 
 
 def run_colours(run: Run) -> dict[int, str]:
@@ -289,8 +324,9 @@ def run_map(config):
 
 def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | None = None) -> list[Drawn]:
     """Draw Figs. 6-8 of the paper from the run in ``run_dir``; ``at_s``: the instant of
-    Fig. 6 (default: when coverage control starts, or the first sample). Returns each
-    PNG written with a note on what it could not show."""
+    Fig. 6 (default: when coverage control starts, or without coverage
+    :func:`groups_formed_s`). Returns each PNG written with a note on what it could not
+    show, or on the instant chosen for it."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -307,8 +343,18 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     tree = cfgmod.to_dict(config)
     protocol, cover = tree["protocol"], tree.get("coverage", {})
     first, last = float(run.positions["t_s"].min()), float(run.positions["t_s"].max())
-    if at_s is None:
-        at_s = cover["start_s"] if cover.get("enabled") else first
+    chosen = ""
+    if at_s is None and cover.get("enabled"):
+        at_s = cover["start_s"]
+    elif at_s is None:
+        # No control to start from: the first instant the groups have formed.
+        at_s, undecided = groups_formed_s(run)
+        if undecided == 0:
+            chosen = f"drawn at t = {at_s:g} s, the first sample with every robot in a group; see --at"
+        elif undecided < n:
+            chosen = (
+                f"drawn at t = {at_s:g} s, the first sample with the fewest robots undecided ({undecided}); see --at"
+            )
     elif not (first - 1e-9 <= at_s <= last + 1e-9 and math.isfinite(at_s)):
         raise NetsimInputError(
             f"--at = {at_s:g}: must be a time between {first:g} and {last:g} s (the positions sampled)"
@@ -325,7 +371,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     groups_n = int((start.role == "alpha").sum())
     ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
     _legend_outside(ax)
-    note = ""
+    note = chosen
     if config.protocol.plugin.role_labels is None:
         note = f"no roles: the run had protocol.model = {config.protocol.model!r}"
     elif groups_n == 0:

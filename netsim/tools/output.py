@@ -55,7 +55,7 @@ def versions() -> dict[str, str]:
 
 def _version(dist: str, module: str) -> str:
     # A loaded module's own __version__ is its distribution's; reading the installed
-    # metadata instead parses a file per distribution (about 1.5 ms each, after every run).
+    # metadata instead parses a file per distribution, after every run.
     loaded = sys.modules.get(module)
     version = getattr(loaded, "__version__", None)
     if isinstance(version, str):
@@ -288,7 +288,7 @@ class RunWriter:
 
 def write_table(frame: pd.DataFrame, path: Path) -> None:
     """``frame.to_parquet(path, index=False)``, the same file, written by pyarrow directly:
-    pandas' way there costs about 1 ms per table more (its engine lookup and file handle)."""
+    pandas' way there costs more per table (its engine lookup and file handle)."""
     if frame.attrs:  # no netsim table has any; pandas keeps them in the file
         frame.to_parquet(path, index=False)
         return

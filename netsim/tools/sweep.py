@@ -108,7 +108,15 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
     """Validate a sweep description (as loaded from TOML)."""
     unknown = set(tree) - SWEEP_KEYS
     if unknown:
-        raise _err(f"unknown key(s) {sorted(unknown)}; allowed: {sorted(SWEEP_KEYS)}")
+        hint = ""
+        scenario = sorted(unknown & set(cfgmod.to_dict(cfgmod.from_dict({}))))
+        if scenario:
+            # A scenario file given where a sweep file is expected.
+            hint = (
+                f"; a sweep file puts a scenario's keys (such as {scenario[0]!r}) under [base] (or names a "
+                'scenario file with base_file = "scenario.toml") and the values to sweep under [grid] or [random]'
+            )
+        raise _err(f"unknown key(s) {sorted(unknown)}; allowed: {sorted(SWEEP_KEYS)}{hint}")
     name = tree.get("name", "sweep")
     if not isinstance(name, str) or not name or any(c in name for c in "/\\\0") or name in (".", ".."):
         raise _err(f"name = {name!r}: must be a non-empty string without '/', '\\' or NUL, not '.' or '..'")

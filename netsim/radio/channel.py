@@ -18,7 +18,7 @@ drop cause:
 - ``out_of_range``: a unicast whose destination was not in range at send time (under a
   radio other than the plain unit disk: could not hear it, for walls or shadowing too).
 
-With a radio (:class:`~netsim.reception.Reception`: log-distance path loss, shadowing,
+With a radio (:class:`~netsim.radio.reception.Reception`: log-distance path loss, shadowing,
 walls from a map) the receivers are decided by it among the robots within its reach, then
 the loss model drops some: the reception is a chain, propagation, walls, shadowing, loss.
 Without one (the plain unit disk) they are the robots within the sender's range.
@@ -45,8 +45,8 @@ import simpy
 
 from netsim.agenda import Agenda
 from netsim.events import URGENT, Delivery, Drop, EventBus
-from netsim.loss import Survives
-from netsim.spatial import RangeIndex
+from netsim.radio.loss import Survives
+from netsim.radio.spatial import RangeIndex
 from netsim.state import RobotState
 
 DROP_CAUSES = ("loss", "not_alive", "out_of_range")
@@ -167,7 +167,7 @@ class Channel:
         self.state = state
         # Deliveries, and the callbacks of whoever shares it (the Ack beacons' ticks).
         self.agenda = Agenda(env)
-        # The radio (netsim.reception.Reception), None for the plain unit disk.
+        # The radio (netsim.radio.reception.Reception), None for the plain unit disk.
         self.reception = reception
         self.index = RangeIndex(state, reach_m=None if reception is None else reception.reach_m)
         # The compiled loops (netsim._kernels) when the run uses them, else None.
@@ -199,7 +199,7 @@ class Channel:
 
     @property
     def survives(self) -> Survives:
-        """The loss model (netsim.loss): which receptions survive."""
+        """The loss model (netsim.radio.loss): which receptions survive."""
         return self._survives
 
     @survives.setter

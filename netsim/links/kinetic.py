@@ -1,6 +1,6 @@
 """Link up/down events solved during the run, at their exact instants (a kinetic scheduler).
 
-The same geometry as the post-hoc solver (:mod:`netsim.lifetimes`, which stays the
+The same geometry as the post-hoc solver (:mod:`netsim.links.lifetimes`, which stays the
 reference): two robots on straight legs are linked while ``|d + w t| <= min(r_a, r_b)``,
 and the link's next up and down instants are roots of a quadratic. What changes is when
 they are solved: as the run goes, so that ``link_up`` and ``link_down`` are announced on the
@@ -8,7 +8,7 @@ run's event bus at the instant they happen, and ``links.parquet`` is their recor
 
 The run is cut into windows no longer than half the smallest range over the highest speed
 seen so far (``v_bound``); at a window's start the candidate pairs are those within
-``R_max + 2 v_bound W`` (:func:`netsim.crossings.near_pairs`; no other pair can meet during the window), and
+``R_max + 2 v_bound W`` (:func:`netsim.geometry.near_pairs`; no other pair can meet during the window), and
 every candidate's crossings within the window are solved in one vectorised step and queued.
 When a robot changes course, only its candidate pairs are solved again from that instant
 to the window's end; their earlier solutions are cancelled (a generation count per pair).
@@ -33,15 +33,16 @@ from __future__ import annotations
 
 import heapq
 import math
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.crossings import PHASE_STATE, clip_crossings, crossing_times, near_pairs, solve_piece, wrap
 from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, advance_clock, kernel_queue, scheduled_event
-from netsim.lifetimes import COLUMNS
+from netsim.geometry import near_pairs, wrap
+from netsim.links.crossings import PHASE_STATE, clip_crossings, crossing_times, solve_piece
+from netsim.links.lifetimes import COLUMNS
 from netsim.state import RobotState
 
 # A window's restart comes before the link events of its instant, which it solves again.
@@ -92,8 +93,8 @@ class RuntimeLinks:
         self.box = float(state.side_m) if state.torus else None
         # Links up now: key a n + b -> since when; and every lifetime that ended, as columns
         # a, b, up, down. Plain lists of numbers, as the queue's columns: the garbage
-        # collector tracks the lists, not the numbers (as lists of tuples it tracked and
-        # walked every row: a fifth of the runtime links' cost).
+        # collector tracks the lists, not the numbers (as lists of tuples it would track and
+        # walk every row).
         self.up: dict[int, float] = {}
         self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         self.started = False
@@ -327,7 +328,7 @@ class RuntimeLinks:
         ta, tb = st.t0_s.take(a), st.t0_s.take(b)
         va, vb = st.velocity_mps.take(a, axis=0), st.velocity_mps.take(b, axis=0)
         # Solved from the later of the two legs' starts, as the post-hoc solver does
-        # (netsim.crossings.solve_piece): the same floats, whatever the windows.
+        # (netsim.links.crossings.solve_piece): the same floats, whatever the windows.
         origin = np.maximum(ta, tb)
         pa = st.origin_m.take(a, axis=0) + va * (origin - ta)[:, None]
         pb = st.origin_m.take(b, axis=0) + vb * (origin - tb)[:, None]
@@ -341,7 +342,7 @@ class RuntimeLinks:
 
     def _queue_crossings(self, idx: np.ndarray, t: float) -> None:
         """Queue the known crossings of pairs ``idx`` that fall from ``t`` to the window's
-        end, as :func:`netsim.crossings.solve_piece` would find them."""
+        end, as :func:`netsim.links.crossings.solve_piece` would find them."""
         k = len(idx)
         if k == 0:
             return
@@ -401,13 +402,13 @@ class RuntimeLinks:
             t = heap[0][0]
         if t < self._armed_s:
             self._armed_s = t
-            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake)._value = t
+            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake, value=t)
 
     def _wake(self, event: simpy.Event) -> None:
         # The instant this wake was armed for. The kernel's clock, now + (t - now), can be a
         # rounding step away from it (no delay lands on some instants), so the events are
         # taken by their own time, never by the clock's.
-        armed_s = event._value
+        armed_s = cast(float, event.value)
         if armed_s >= self._armed_s:
             self._armed_s = math.inf
         self._announce(armed_s)

@@ -9,7 +9,7 @@ The run is cut into windows short enough that no robot moves more than half a ra
 one, and at every jump (a leg that does not start where the previous one ended: a trace's
 ``set X_``, or any model that places a robot); the candidate pairs of a window are those
 within ``R_max + 2 v_max W`` at its start (no other pair can meet during it), found with
-:func:`netsim.crossings.near_pairs`. Pairs whose robots keep their legs through the window are solved in one
+:func:`netsim.geometry.near_pairs`. Pairs whose robots keep their legs through the window are solved in one
 vectorised step; pairs where a robot changes course are solved leg piece by leg piece.
 At a jump the links of the robots that jumped are judged afresh on their new positions:
 a link opens or closes at the jump instant exactly.
@@ -32,7 +32,8 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.crossings import PHASE_STATE, in_box, near_pairs, solve_piece, wrap
+from netsim.geometry import in_box, near_pairs, wrap
+from netsim.links.crossings import PHASE_STATE, solve_piece
 from netsim.trajectory import LegTable
 
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
@@ -71,7 +72,7 @@ def link_events(
     n = len(np.atleast_1d(range_m)) if np.ndim(range_m) else int(legs["robot"].max()) + 1
     ranges = np.broadcast_to(np.asarray(range_m, float), (n,))
     L = LegTable(legs, n)
-    kernels = load("netsim._link_kernels", n) if not torus else None
+    kernels = load("netsim.links._kernels", n) if not torus else None
     if kernels is not None:
         # Writable C-ordered copies whatever pandas handed over: the compiled crossings
         # are compiled (and cached) for that one layout.
@@ -246,8 +247,8 @@ def _solve_legs(
     kernels: ModuleType | None = None,
 ) -> None:
     """Crossings of pairs on legs ``la``, ``lb`` within ``[t_start, t_start + length]``, solved
-    from the later of the two legs' starts (:func:`netsim.crossings.solve_piece`; on the
-    plane, with ``kernels``, :func:`netsim._link_kernels.plane_crossings`)."""
+    from the later of the two legs' starts (:func:`netsim.links.crossings.solve_piece`; on the
+    plane, with ``kernels``, :func:`netsim.links._kernels.plane_crossings`)."""
     if kernels is not None and box is None:
         n = len(la)
         t_start, length = (np.full(n, x, float) if np.ndim(x) == 0 else np.array(x, float) for x in (t_start, length))

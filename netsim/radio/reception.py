@@ -42,8 +42,8 @@ class LinkRecorder:
     first transmission to get through after such a cut opens a new lifetime, and it is
     always a touch: between two decisions with no course change the distance of the pair
     is convex in time, so a pair within reach at both cannot have left it in between.
-    :func:`netsim.radio_links.recorded_lifetimes` and
-    :class:`netsim.shadowed_links.ShadowedLinks` apply the cut.
+    :func:`netsim.links.radio_links.recorded_lifetimes` and
+    :class:`netsim.links.shadowed_links.ShadowedLinks` apply the cut.
 
     Parameters
     ----------

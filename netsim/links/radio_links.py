@@ -3,7 +3,7 @@
 How exact they are (docs/radio.md says the same for users):
 
 - **Log-distance without shadowing or walls**: a link is the distance threshold of the
-  implied range, solved exactly by :func:`netsim.lifetimes.link_lifetimes` (never here).
+  implied range, solved exactly by :func:`netsim.links.lifetimes.link_lifetimes` (never here).
 - **Walls, no shadowing** (unit disk with line of sight, or log-distance with
   ``wall_loss_db`` per wall): a link can only be up while the two robots are within the
   radio's largest range, and those intervals are solved exactly first (the *envelope*).
@@ -11,21 +11,21 @@ How exact they are (docs/radio.md says the same for users):
   sampled along stretches in which both robots keep their legs, at steps from the
   stretch's start over which neither robot moves more than ``SAMPLE_M``, and every change
   between two samples is located by bisection to ``TOLERANCE_S``
-  (:mod:`netsim.wall_samples`, shared with the runtime solver
-  :class:`netsim.walled_links.WalledLinks`: the same table, bit for bit). An event time is
+  (:mod:`netsim.links.wall_samples`, shared with the runtime solver
+  :class:`netsim.links.walled_links.WalledLinks`: the same table, bit for bit). An event time is
   therefore exact to within ``TOLERANCE_S`` (at the envelope's edges exactly); what can be
   missed is a change of state that is undone before the next sample (the line between two
   robots sweeping past a pillar or a doorway's edge while they move less than
   ``SAMPLE_M``). With robots at rest nothing is missed.
 - **Shadowing**: a link is random; its state is only defined where the channel looks at it,
-  at transmissions (:class:`~netsim.reception.LinkRecorder`). A link is up from the first
+  at transmissions (:class:`~netsim.radio.reception.LinkRecorder`). A link is up from the first
   transmission between the two robots (either way) that gets through while it is down to
   the first that does not; it goes down at the latest when the two leave the reach
   interval it came up in (solved exactly), and the next transmission that gets through
   after that cut brings it up again. So up times are send times, exact as the channel
   decided them, and a link between robots that never transmit is never seen.
 
-Censoring follows :func:`netsim.lifetimes.link_lifetimes`: ``censored_start`` for a link up
+Censoring follows :func:`netsim.links.lifetimes.link_lifetimes`: ``censored_start`` for a link up
 at t = 0, ``censored_end`` for one still up at the end.
 """
 
@@ -34,10 +34,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from netsim.lifetimes import COLUMNS, link_lifetimes
+from netsim.links.lifetimes import COLUMNS, link_lifetimes
+from netsim.links.wall_samples import Stretches, count_below, envelope_radii
 from netsim.radio import compiled_kernels
 from netsim.trajectory import LegTable
-from netsim.wall_samples import Stretches, count_below, envelope_radii
 
 
 def _legs_kernel():
@@ -105,7 +105,7 @@ def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float
     """Decisions of the channel, cut where the pair leaves the reach.
 
     Each lifetime starts at a decision that brings the link up, or at a touch
-    (:class:`~netsim.reception.LinkRecorder`) on a link the reach has cut, and ends at the
+    (:class:`~netsim.radio.reception.LinkRecorder`) on a link the reach has cut, and ends at the
     first decision that does not get through or where the pair leaves the reach interval
     (the envelope's) in which the lifetime began, whichever comes first. A start the
     envelope puts outside the reach (a decision at the range's edge, by rounding) is cut at
@@ -169,8 +169,8 @@ def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float
 
 def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float) -> pd.DataFrame:
     """Links on a map without shadowing: sampled along stretches within the exact envelope,
-    changes bisected (:mod:`netsim.wall_samples`); the reference the runtime solver
-    (:class:`netsim.walled_links.WalledLinks`) is tested against."""
+    changes bisected (:mod:`netsim.links.wall_samples`); the reference the runtime solver
+    (:class:`netsim.links.walled_links.WalledLinks`) is tested against."""
     radii, equal = envelope_radii(reception, ranges_m)
     n = len(radii)
     env = link_lifetimes(legs, radii, duration_s)

@@ -14,7 +14,7 @@ robots' link ranges, and makes the reception decision (a
 :class:`~netsim.radio.propagation.Propagation`, or None for a plain unit disk, which the
 channel decides by distance alone, as before). The channel's reception is then a chain:
 propagation (range or path loss), walls, shadowing, and the loss model last
-(:mod:`netsim.loss`).
+(:mod:`netsim.radio.loss`).
 """
 
 from __future__ import annotations

@@ -3,19 +3,19 @@ leaves the reach.
 
 Under shadowing a link is random and its state exists only where the channel looks at it,
 at transmissions; ``links.parquet`` is the record of the channel's decisions
-(:func:`netsim.radio_links.recorded_lifetimes`, docs/radio.md "Link events"): a link is up
+(:func:`netsim.links.radio_links.recorded_lifetimes`, docs/radio.md "Link events"): a link is up
 from the first transmission between the two robots (either way) that gets through while it
 is down, down at the first that does not (or when one of them sends while the other is
 beyond the reach), and at the latest at the exact instant the pair leaves the reach
 interval in which it came up; after that cut it is down, and the next transmission that
-gets through (a *touch* of the recorder, :class:`~netsim.reception.LinkRecorder`) brings
+gets through (a *touch* of the recorder, :class:`~netsim.radio.reception.LinkRecorder`) brings
 it up again.
 
 Both ends of that rule can be known as they happen. A decision is made at its send time,
-by :class:`~netsim.reception.LinkRecorder`, which tells :meth:`ShadowedLinks._decided`
+by :class:`~netsim.radio.reception.LinkRecorder`, which tells :meth:`ShadowedLinks._decided`
 its changes and touches;
 the reach's exits are the link events of a unit disk of the reach, solved during the run
-by a :class:`~netsim.kinetic.RuntimeLinks` of its own (the *envelope*, announced to nobody
+by a :class:`~netsim.links.kinetic.RuntimeLinks` of its own (the *envelope*, announced to nobody
 but this class) with the same arithmetic as the post-hoc solver. So ``link_up`` is
 announced at the send that brings a link up, and ``link_down`` at the send that brings it
 down or at the instant the pair leaves the reach, whichever comes first, and the table of
@@ -32,20 +32,20 @@ import pandas as pd
 import simpy
 
 from netsim.events import EventBus, LinkDown, LinkUp
-from netsim.kinetic import RuntimeLinks, links_frame
-from netsim.reception import LinkRecorder
+from netsim.links.kinetic import RuntimeLinks, links_frame
+from netsim.radio.reception import LinkRecorder
 from netsim.state import RobotState
 
 
 class ShadowedLinks:
     """Exact link events of one run under shadowing, announced as the channel decides them
-    (module notes). The same interface as :class:`~netsim.kinetic.RuntimeLinks`.
+    (module notes). The same interface as :class:`~netsim.links.kinetic.RuntimeLinks`.
 
     Parameters
     ----------
     env, state : the run's kernel and robots.
     events : the run's bus (``link_up``, ``link_down``).
-    recorder : the reception's :class:`~netsim.reception.LinkRecorder`.
+    recorder : the reception's :class:`~netsim.radio.reception.LinkRecorder`.
     reach_m : the radio's reach (no link beyond it).
     """
 

@@ -4,11 +4,11 @@ A link on a map is up while the radio says so (range or received power, and the 
 crossed), which has no closed form along the robots' legs: ``links.parquet`` samples it
 within the exact envelope (the intervals in which the pair is within the radio's largest
 range) along *stretches* whose samples depend only on what is known at their start
-(:mod:`netsim.wall_samples`, the arithmetic shared with the post-hoc solver
-:func:`netsim.radio_links.walled_lifetimes`, which stays the reference). So the same samples
+(:mod:`netsim.links.wall_samples`, the arithmetic shared with the post-hoc solver
+:func:`netsim.links.radio_links.walled_lifetimes`, which stays the reference). So the same samples
 can be taken as the run goes:
 
-- the envelope is a :class:`~netsim.kinetic.RuntimeLinks` of its own (announced to nobody
+- the envelope is a :class:`~netsim.links.kinetic.RuntimeLinks` of its own (announced to nobody
   but this class), solved with the same arithmetic as after the run;
 - where a pair enters it, and at every course change of either robot while it is in it, a
   stretch starts: its first sample is evaluated at once, and a change from the link's
@@ -32,16 +32,17 @@ from __future__ import annotations
 
 import heapq
 import math
+from typing import cast
 
 import numpy as np
 import pandas as pd
 import simpy
 
 from netsim.events import FIRST, EventBus, LinkDown, LinkUp, scheduled_event
-from netsim.kinetic import RuntimeLinks, links_frame
-from netsim.reception import Reception
+from netsim.links.kinetic import RuntimeLinks, links_frame
+from netsim.links.wall_samples import SAMPLE_M, Stretches, bisect, count_below, envelope_radii
+from netsim.radio.reception import Reception
 from netsim.state import RobotState
-from netsim.wall_samples import SAMPLE_M, Stretches, bisect, count_below, envelope_radii
 
 # A window's start comes before the link events of its instant (it only queues later ones).
 _RESTART = FIRST - 1
@@ -52,13 +53,13 @@ WINDOW_SAMPLES = 8
 
 class WalledLinks:
     """Link events of one run on a map, announced as they happen (module notes). The same
-    interface as :class:`~netsim.kinetic.RuntimeLinks`.
+    interface as :class:`~netsim.links.kinetic.RuntimeLinks`.
 
     Parameters
     ----------
     env, state : the run's kernel and robots.
     events : the run's bus (``link_up``, ``link_down``).
-    reception : the channel's :class:`~netsim.reception.Reception` (its map and radio).
+    reception : the channel's :class:`~netsim.radio.reception.Reception` (its map and radio).
     window_s : the length of a sampling window (default: :data:`WINDOW_SAMPLES` samples at
         the highest speed when it starts); the results do not depend on it.
     """
@@ -253,13 +254,12 @@ class WalledLinks:
             due = float(new.sample_time(np.flatnonzero(has_step & (new.jx > 1)), np.ones(len(later), np.int64)).min())
             if due < self._pending_at:
                 self._pending_at = due
-                event = scheduled_event(self.env, max(due - self.env.now, 0.0), _RESTART, self._take_pending)
-                event._value = due
+                scheduled_event(self.env, max(due - self.env.now, 0.0), _RESTART, self._take_pending, value=due)
 
     def _take_pending(self, event: simpy.Event) -> None:
         # Armed for an instant (the clock may be a rounding step off it); a later one armed
         # before an earlier took the stretches has nothing to do.
-        if event._value != self._pending_at:
+        if event.value != self._pending_at:
             return
         pending = np.fromiter(self._pending, np.int64, len(self._pending))
         self._pending.clear()
@@ -313,11 +313,11 @@ class WalledLinks:
         if heap and heap[0][0] < self._armed_s:
             t = heap[0][0]
             self._armed_s = t
-            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake)._value = t
+            scheduled_event(self.env, max(t - self.env.now, 0.0), FIRST, self._wake, value=t)
 
     def _wake(self, event: simpy.Event) -> None:
         # Taken by the instant armed for, not the clock (which may be a rounding step off).
-        armed_s = event._value
+        armed_s = cast(float, event.value)
         if armed_s >= self._armed_s:
             self._armed_s = math.inf
         self._announce(armed_s)

@@ -1,8 +1,8 @@
-"""Compiled (numba) loop of the post-hoc link solver (:mod:`netsim.lifetimes`): the
+"""Compiled (numba) loop of the post-hoc link solver (:mod:`netsim.links.lifetimes`): the
 crossings of pairs of robots on straight legs, on the plane.
 
-It computes exactly what :func:`netsim.lifetimes._solve_legs` computes through
-:func:`netsim.crossings.solve_piece` with numpy (the same arithmetic in the same order, one
+It computes exactly what :func:`netsim.links.lifetimes._solve_legs` computes through
+:func:`netsim.links.crossings.solve_piece` with numpy (the same arithmetic in the same order, one
 pair at a time): a 1,000-robot run hands that solver some 20,000 candidate pairs per window,
 and numpy's temporary arrays for each of its forty-odd steps cost more than the arithmetic.
 The tests check that both agree exactly.
@@ -15,7 +15,8 @@ import math
 import numba
 import numpy as np
 
-from netsim.crossings import EDGE_S, PHASE_END, PHASE_START
+from netsim import kernel_cache
+from netsim.links.crossings import EDGE_S, PHASE_END, PHASE_START
 
 
 @numba.njit(cache=True, nogil=True)
@@ -46,7 +47,7 @@ def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
     """Crossings of pairs on legs ``la``, ``lb`` (rows of ``leg_t``, ``leg_p``, ``leg_v``)
     with the disk of ``radius`` within ``[t_start, t_start + length]``, solved from the later
     of the two legs' starts: ``(pair, t, phase)`` of the entries, then of the exits, each in
-    pair order (:func:`netsim.crossings.clip_crossings` hands ``emit`` the same)."""
+    pair order (:func:`netsim.links.crossings.clip_crossings` hands ``emit`` the same)."""
     n = len(la)
     in_pair = np.empty(n, np.int64)
     in_t = np.empty(n)
@@ -62,7 +63,7 @@ def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
         dx = (leg_p[i, 0] + leg_v[i, 0] * dt_i) - (leg_p[j, 0] + leg_v[j, 0] * dt_j)
         dy = (leg_p[i, 1] + leg_v[i, 1] * dt_i) - (leg_p[j, 1] + leg_v[j, 1] * dt_j)
         wx, wy = leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1]
-        # netsim.crossings.roots: the numerically stable pair q / A and C / q.
+        # netsim.links.crossings.roots: the numerically stable pair q / A and C / q.
         a = _dot(wx, wy, wx, wy)
         b = 2.0 * _dot(dx, dy, wx, wy)
         c = _dot(dx, dy, dx, dy) - radius[k] * radius[k]
@@ -77,3 +78,8 @@ def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
         n_in = _keep(origin + lo, start, length[k], k, in_pair, in_t, in_phase, n_in)
         n_out = _keep(origin + hi, start, length[k], k, out_pair, out_t, out_phase, n_out)
     return in_pair[:n_in], in_t[:n_in], in_phase[:n_in], out_pair[:n_out], out_t[:n_out], out_phase[:n_out]
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -1,6 +1,6 @@
 """How a link on a map is sampled: the arithmetic that the post-hoc solver
-(:func:`netsim.radio_links.walled_lifetimes`) and the runtime one
-(:class:`netsim.walled_links.WalledLinks`) share, so that both take the same samples and
+(:func:`netsim.links.radio_links.walled_lifetimes`) and the runtime one
+(:class:`netsim.links.walled_links.WalledLinks`) share, so that both take the same samples and
 find the same floats.
 
 On a map (walls, no shadowing) a link can only be up while the two robots are within the
@@ -40,11 +40,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from netsim.crossings import crossing_times
+from netsim.links.crossings import crossing_times
 from netsim.radio.propagation import Pairs
 
 if TYPE_CHECKING:
-    from netsim.reception import Reception
+    from netsim.radio.reception import Reception
 
 SAMPLE_M = 1.0
 TOLERANCE_S = 1e-6

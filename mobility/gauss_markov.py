@@ -1,0 +1,126 @@
+"""Gauss-Markov mobility (Liang and Haas, INFOCOM 1999), as ns-3's
+``GaussMarkovMobilityModel`` moves a node in the plane.
+
+Every ``update_interval_s`` each robot draws its next speed and direction from its last
+ones, the means and a Gaussian:
+
+    s_n = alpha s_{n-1} + (1 - alpha) mean_speed + sqrt(1 - alpha^2) speed_sigma Z
+    d_n = alpha d_{n-1} + (1 - alpha) mean_direction + sqrt(1 - alpha^2) direction_sigma Z'
+
+and moves in a straight line at ``s_n (cos d_n, sin d_n)`` until the next update (a leg of
+cause ``"turn"``). ``alpha = 0`` is memoryless (a random walk), ``alpha = 1`` a straight
+line at the mean velocity. Each robot's mean direction is drawn uniformly on [0, 2 pi) at
+the start, and it starts at its means, as in ns-3. The speed process has mean
+``mean_speed_mps`` at every update (it starts there) and lag-one autocorrelation
+``alpha``; a negative ``s_n`` moves the robot backwards along ``d_n`` (as in ns-3).
+
+Borders, as ns-3 handles them: when the position one interval ahead lies outside the area,
+the velocity's offending component is reversed and the mean direction mirrored (``pi -
+d`` for a vertical border, ``-d`` for a horizontal one), and the direction is reset to the
+mean. A robot that would still leave the area (an interval's travel longer than its
+distance to the opposite border) is held at the border as ns-3 clamps it: it slides along
+the border (a leg of cause ``"border"``), or stops in a corner, until the next update.
+Every leg stays straight, so link events stay exact.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import simpy
+
+from netsim.errors import ConfigError
+from netsim.params import Params, finite, non_negative, param, positive, probability
+from netsim.placement import initial_positions
+from netsim.plugins import Parts, PluginSpec
+from netsim.state import RobotState
+
+
+@dataclass(frozen=True)
+class GaussMarkovParams(Params):
+    """Gauss-Markov's keys of ``[mobility]``."""
+
+    section = "mobility"
+    alpha: float = param(0.75, probability, "memory of speed and direction, in [0, 1] (0: random walk)")
+    mean_speed_mps: float = param(1.0, finite(non_negative), "mean speed, m/s")
+    speed_sigma_mps: float = param(0.2, finite(non_negative), "standard deviation of the speed, m/s")
+    direction_sigma_rad: float = param(0.4, finite(non_negative), "standard deviation of the direction, rad")
+    update_interval_s: float = param(1.0, finite(positive), "time between updates of speed and direction, s")
+
+
+def check(params: GaussMarkovParams, config) -> None:
+    if config.world.torus:
+        raise ConfigError("mobility.model", "gauss_markov", "moves in a bounded area; set world.torus = false")
+
+
+def _clamped_legs(p: np.ndarray, v: np.ndarray, duration_s: float, side_m: float) -> list[tuple[float, np.ndarray]]:
+    """The legs ``(start offset s, velocity)`` of a robot moving from ``p`` at ``v`` for
+    ``duration_s`` with its position clamped to the square: each coordinate that reaches a
+    border stops there, the other goes on."""
+    legs = [(0.0, v.copy())]
+    t, here, vel = 0.0, p.copy(), v.copy()
+    while True:
+        hit = math.inf
+        for k in range(2):
+            if vel[k] > 0:
+                hit = min(hit, (side_m - here[k]) / vel[k])
+            elif vel[k] < 0:
+                hit = min(hit, -here[k] / vel[k])
+        if t + hit >= duration_s:
+            return legs
+        t += hit
+        here = np.clip(here + vel * hit, 0.0, side_m)
+        for k in range(2):
+            if (vel[k] > 0 and here[k] >= side_m) or (vel[k] < 0 and here[k] <= 0.0):
+                vel[k] = 0.0
+        legs.append((t, vel.copy()))
+
+
+def gauss_markov_robot(
+    env: simpy.Environment, st: RobotState, m: GaussMarkovParams, side_m: float, i: int, rng: np.random.Generator
+):
+    """The life of robot ``i``: one update every ``update_interval_s``, forever."""
+    mean_dir = rng.uniform(0.0, 2 * math.pi)
+    speed, direction = m.mean_speed_mps, mean_dir
+    keep = math.sqrt(max(0.0, 1.0 - m.alpha * m.alpha))
+    dt = m.update_interval_s
+    cause = "start"
+    while True:
+        z = rng.standard_normal(2)
+        speed = m.alpha * speed + (1 - m.alpha) * m.mean_speed_mps + keep * m.speed_sigma_mps * z[0]
+        direction = m.alpha * direction + (1 - m.alpha) * mean_dir + keep * m.direction_sigma_rad * z[1]
+        v = speed * np.array([math.cos(direction), math.sin(direction)])
+        here = st.positions_at(env.now, [i])[0]
+        ahead = here + v * dt
+        if ahead[0] < 0.0 or ahead[0] > side_m:
+            v[0] = -v[0]
+            mean_dir = math.pi - mean_dir
+        if ahead[1] < 0.0 or ahead[1] > side_m:
+            v[1] = -v[1]
+            mean_dir = -mean_dir
+        if (ahead < 0.0).any() or (ahead > side_m).any():
+            direction = mean_dir
+        start = env.now
+        for k, (offset, vel) in enumerate(_clamped_legs(here, v, dt, side_m)):
+            if offset > 0:
+                yield env.timeout(start + offset - env.now)
+                # Land exactly on the border, not a rounding error outside it.
+                st.arrive(i, env.now, np.clip(st.positions_at(env.now, [i])[0], 0.0, side_m), log=False)
+                st.set_leg(i, env.now, vel, cause="border")
+            else:
+                st.set_leg(i, env.now, vel, cause=cause if k == 0 else "border")
+        yield env.timeout(start + dt - env.now)
+        cause = "turn"
+
+
+def build(m: GaussMarkovParams, parts: Parts) -> None:
+    w = parts.world
+    parts.state.place(initial_positions(w, parts.streams, parts.occupancy))
+    for i in range(w.n_robots):
+        rng = parts.streams.get("mobility", i)
+        parts.env.process(gauss_markov_robot(parts.env, parts.state, m, w.side_m, i, rng))
+
+
+PLUGIN = PluginSpec(Params=GaussMarkovParams, build=build, check=check)

@@ -1,0 +1,140 @@
+"""Reference point group mobility (Hong, Gerla, Pei and Chiang, MSWiM 1999): robots that
+move as teams.
+
+Robots ``g * group_size`` to ``(g + 1) * group_size - 1`` form group ``g`` (the last group
+may be smaller). Each group has a *reference point* that moves by random waypoint with the
+usual keys (``speed_min_mps``, ``speed_max_mps``, ``pause_s``), its waypoints uniform over
+the square shrunk by ``group_radius_m`` on every side, so that its members stay inside the
+area. Each member keeps an *offset* from the reference point, uniform over the disk of
+radius ``group_radius_m``, drawn afresh at every waypoint: while the reference point goes
+from ``A`` to ``B``, a member goes in a straight line, in the same time, from ``A + o`` to
+``B + o'``. Its offset at any instant is then on the chord from ``o`` to ``o'`` of that disk,
+so **every member stays within** ``group_radius_m`` **of its reference point at every
+instant**, and every leg is straight (link events stay exact). While the reference point
+pauses, its members stand still. The start is at rest, at the first reference point plus
+each member's first offset (``world.placement`` does not apply).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import simpy
+
+from mobility.speeds import SpeedParams
+from netsim.errors import ConfigError
+from netsim.params import finite, non_negative, param, positive
+from netsim.plugins import Parts, PluginSpec
+from netsim.state import RobotState
+
+
+@dataclass(frozen=True)
+class RpgmParams(SpeedParams):
+    """Reference point group mobility's keys of ``[mobility]`` (the reference points' speeds
+    and pause are random waypoint's)."""
+
+    group_size: int = param(5, positive, "robots per group (robots g*size .. (g+1)*size - 1 form group g)")
+    group_radius_m: float = param(50.0, finite(non_negative), "members stay within this of their reference point, m")
+
+
+def check(params: RpgmParams, config) -> None:
+    if params.speed_max_mps <= 0:
+        raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for rpgm")
+    if config.world.torus:
+        raise ConfigError("mobility.model", "rpgm", "moves in a bounded area; set world.torus = false")
+    if not 2 * params.group_radius_m < config.world.side_m:
+        raise ConfigError(
+            "mobility.group_radius_m",
+            params.group_radius_m,
+            f"must be less than half of world.side_m = {config.world.side_m} (the reference points need room)",
+        )
+
+
+def groups(n_robots: int, group_size: int) -> list[np.ndarray]:
+    """The members of each group, in order.
+
+    >>> [g.tolist() for g in groups(5, 2)]
+    [[0, 1], [2, 3], [4]]
+    """
+    return [np.arange(g, min(g + group_size, n_robots)) for g in range(0, n_robots, group_size)]
+
+
+def disk_offsets(rng: np.random.Generator, k: int, radius_m: float) -> np.ndarray:
+    """``k`` points uniform over the disk of ``radius_m`` around the origin."""
+    r = radius_m * np.sqrt(rng.random(k))
+    theta = rng.uniform(0.0, 2 * np.pi, k)
+    return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
+
+
+def group_process(
+    env: simpy.Environment,
+    st: RobotState,
+    m: RpgmParams,
+    side_m: float,
+    members: np.ndarray,
+    ref: np.ndarray,
+    group_rng: np.random.Generator,
+    member_rngs: list[np.random.Generator],
+    log: list[tuple[float, int, float, float]],
+    group: int,
+):
+    """The reference point's random waypoint, its members following (module notes);
+    ``log`` gets two rows ``(t_s, group, x_m, y_m)`` as the reference point starts a leg:
+    where it is, and where and when it will arrive."""
+    lo, hi = m.group_radius_m, side_m - m.group_radius_m
+    cause = "start"
+    while True:
+        dest = group_rng.uniform(lo, hi, 2)
+        speed = group_rng.uniform(m.speed_min_mps, m.speed_max_mps)
+        if speed <= 0.0:
+            for i in members.tolist():
+                st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
+            return  # a speed of exactly zero: the group never arrives
+        travel_s = float(np.hypot(*(dest - ref))) / speed
+        new = np.array([disk_offsets(rng, 1, m.group_radius_m)[0] for rng in member_rngs])
+        ends = dest + new
+        log.append((env.now, group, float(ref[0]), float(ref[1])))
+        log.append((env.now + travel_s, group, float(dest[0]), float(dest[1])))
+        if travel_s > 0.0:
+            starts = st.positions_at(env.now, members)
+            for k, i in enumerate(members.tolist()):
+                st.set_leg(i, env.now, (ends[k] - starts[k]) / travel_s, cause=cause)
+            yield env.timeout(travel_s)
+        for k, i in enumerate(members.tolist()):
+            st.arrive(i, env.now, ends[k], log=m.pause_s > 0)
+        ref = dest
+        cause = "waypoint"
+        if m.pause_s > 0:
+            yield env.timeout(m.pause_s)
+            cause = "pause_end"
+
+
+def build(m: RpgmParams, parts: Parts) -> None:
+    w = parts.world
+    teams = groups(w.n_robots, m.group_size)
+    lo, hi = m.group_radius_m, w.side_m - m.group_radius_m
+    start = np.empty((w.n_robots, 2))
+    plans = []
+    for g, members in enumerate(teams):
+        group_rng = parts.streams.get("mobility.group", g)
+        member_rngs = [parts.streams.get("mobility", i) for i in members.tolist()]
+        ref = group_rng.uniform(lo, hi, 2)
+        offsets = np.array([disk_offsets(rng, 1, m.group_radius_m)[0] for rng in member_rngs])
+        start[members] = ref + offsets
+        plans.append((members, ref, group_rng, member_rngs))
+    parts.state.place(start)
+    log: list[tuple[float, int, float, float]] = []
+    for g, (members, ref, group_rng, member_rngs) in enumerate(plans):
+        parts.env.process(
+            group_process(parts.env, parts.state, m, w.side_m, members, ref, group_rng, member_rngs, log, g)
+        )
+    parts.trace.add_frame("reference_points", lambda: pd.DataFrame(log, columns=list(REFERENCE_SCHEMA)))
+
+
+# The reference points' track: rows where each leg starts and ends (linear in between; the
+# last leg's end may lie beyond the run's end).
+REFERENCE_SCHEMA = {"t_s": "float64", "group": "int64", "x_m": "float64", "y_m": "float64"}
+
+PLUGIN = PluginSpec(Params=RpgmParams, build=build, check=check, tables={"reference_points": REFERENCE_SCHEMA})

@@ -1,0 +1,257 @@
+"""Connected coverage as a multi-agent environment (PettingZoo's parallel API; docs/cosim.md).
+
+``parallel_env(n_robots=20, ...)`` returns a :class:`CoverageEnv`. Each robot is an agent
+(``robot_0``, ...); a step is one control period (``step_s``): every agent's action is the
+velocity it holds over the period, and the network runs meanwhile (Acks, clustering, exact
+links), its robots moving as told (``mobility.model = "external"``: they stop on the
+border). Agents observe what they know (their own state and their neighbours as the Acks
+told them), never the true positions of the others; the team is rewarded for the covered
+fraction it gains, and penalised for every component of the true network beyond one.
+
+Observation of an agent (float32, ``4 + R + 4K`` values, R roles, K = ``max_neighbours``):
+its position ``x, y`` (m), its velocity ``vx, vy`` (m/s; 0 once stopped on the border), its
+role one-hot (``role_names``), then up to K neighbours of its table, nearest first by
+the positions their Acks told: ``dx, dy`` (m, told position minus own position), the age
+of that Ack (s) and 1 (present); missing neighbours are all zeros.
+
+Reward (the same for every agent): ``C(t) - C(t - step) - component_penalty x
+(components(t) - 1)``, ``C`` the fraction of the square within ``radius_m`` of some robot
+(on a grid of ``grid_cells^2`` cell centres), ``components`` those of the true unit-disk
+network of range ``range_m``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from netsim import config as cfgmod
+from netsim.compiled import load
+from netsim.cosim import CommandError
+from netsim.envs import measure
+from netsim.errors import ConfigError
+from netsim.params import Params, finite, non_negative, param, positive
+from netsim.run import build
+from netsim.sim import Simulation
+
+FIELDS_PER_NEIGHBOUR = 4  # dx, dy, age, present
+
+
+@dataclass(frozen=True)
+class CoverageEnvParams(Params):
+    """The environment's parameters (the keywords of :func:`parallel_env`)."""
+
+    section = "coverage_v0"
+    n_robots: int = param(20, positive, "number of robots (agents)")
+    side_m: float = param(400.0, finite(positive), "side of the square area, m")
+    range_m: float = param(50.0, finite(positive), "communication range (unit disk), m")
+    radius_m: float = param(0.0, finite(non_negative), "radius of the coverage disks, m (0: range_m)")
+    placement: str = param("centre", None, "world.placement of the robots at reset")
+    centre_side_m: float = param(100.0, finite(positive), 'placement = "centre": side of the central square, m')
+    speed_max_mps: float = param(2.0, finite(positive), "bound of each velocity component of an action, m/s")
+    step_s: float = param(1.0, finite(positive), "one step: the control period, s")
+    ack_period_s: float = param(1.0, finite(positive), "Ack period, s")
+    max_neighbours: int = param(6, non_negative, "neighbours K in an observation")
+    max_cycles: int = param(200, positive, "steps before the episode is truncated")
+    component_penalty: float = param(0.01, finite(non_negative), "reward lost per component beyond one")
+    grid_cells: int = param(100, positive, "the covered fraction's grid: cells per side")
+    seed: int = param(0, None, "seed of the first episode when reset() is given none")
+
+
+class CoverageEnv(ParallelEnv):
+    """The environment (module notes). ``sim`` is the current episode's
+    :class:`~netsim.sim.Simulation`, to read anything else the network did; ``netsim``
+    adds keys to its configuration (``{"channel": {"loss_model": ...}}``)."""
+
+    metadata = {"name": "coverage_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
+
+    def __init__(self, params: CoverageEnvParams, netsim: Mapping | None = None, render_mode: str | None = None):
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError("render_mode", render_mode, "must be None or 'rgb_array'")
+        self.params = p = params
+        self.render_mode = render_mode
+        self.netsim = dict(netsim or {})
+        self.possible_agents = [f"robot_{i}" for i in range(p.n_robots)]
+        self.agents: list[str] = []
+        self._live: set[str] = set()
+        self._index = {a: i for i, a in enumerate(self.possible_agents)}
+        self.radius_m = p.radius_m or p.range_m
+        self.role_names: tuple[str, ...] = ("gamma", "beta", "alpha")
+        self._obs_size = 4 + len(self.role_names) + FIELDS_PER_NEIGHBOUR * p.max_neighbours
+        self._seed = int(p.seed)
+        self._episode = -1
+        self.sim: Simulation | None = None
+        # Steps before truncation, for the next episodes (PettingZoo's tests set it).
+        self.max_cycles = p.max_cycles
+        self.cycles = 0
+        self.covered = 0.0
+        self.components = 0
+        v = np.float32(p.speed_max_mps)
+        self._action_space = spaces.Box(-v, v, shape=(2,), dtype=np.float32)
+        side, k = p.side_m, p.max_neighbours
+        tau = 3.0 * p.ack_period_s
+        low = [0.0, 0.0, -v, -v] + [0.0] * len(self.role_names) + [-side, -side, 0.0, 0.0] * k
+        high = [side, side, v, v] + [1.0] * len(self.role_names) + [side, side, tau, 1.0] * k
+        self._observation_space = spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
+        self._high = self._action_space.high.astype(float)
+        # The compiled twins of the measures (netsim.envs._kernels) from
+        # netsim.compiled.SMALL_RUN_ROBOTS robots on, as the runs' own loops.
+        self._measures: Any = load("netsim.envs._kernels", p.n_robots) or measure
+        self._config(self._seed)  # a bad key of ``netsim`` is refused now, not at the first reset
+
+    # -- spaces: one object per agent for the whole life of the environment ---------------
+
+    def observation_space(self, agent: str) -> spaces.Box:
+        return self._observation_space
+
+    def action_space(self, agent: str) -> spaces.Box:
+        return self._action_space
+
+    # -- episodes -------------------------------------------------------------------------
+    def _config(self, seed: int) -> cfgmod.Config:
+        p = self.params
+        raw = {
+            "seed": seed,
+            "duration_s": self.max_cycles * p.step_s,
+            "world": {
+                "n_robots": p.n_robots,
+                "side_m": p.side_m,
+                "placement": p.placement,
+                "centre_side_m": min(p.centre_side_m, p.side_m),
+            },
+            "channel": {"range_m": p.range_m},
+            "mobility": {"model": "external"},
+            "protocol": {"model": "clustering", "ack_period_s": p.ack_period_s, "message_rate_hz": 0.0},
+            # The protocol's tables are sampled at this interval: once an episode is enough.
+            "output": {"position_interval_s": self.max_cycles * p.step_s},
+        }
+        return cfgmod.from_dict(cfgmod.merge(raw, self.netsim))
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        """A new episode: the run of ``(seed, episode)``, ``episode`` counting the resets
+        since the last seed given (so ``reset()`` after ``reset(seed=s)`` is a new episode,
+        the same on every replay)."""
+        if seed is not None:
+            self._seed, self._episode = int(seed), 0
+        else:
+            self._episode += 1
+        p = self.params
+        self.sim = build(self._config(self._seed), run=self._episode)
+        if self.sim.groups is not None:
+            self.role_names = tuple(self.sim.groups.role_names)
+        self.agents = list(self.possible_agents)
+        self._live = set(self.agents)
+        self.cycles = 0
+        pos = self.sim.positions()
+        self.covered = float(self._measures.covered_fraction_grid(pos, self.radius_m, p.side_m, p.grid_cells))
+        self.components = int(self._measures.component_count(pos, p.range_m))
+        obs = self._observations(pos)
+        return obs, self._infos(pos)
+
+    def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        if self.sim is None or not self.agents:
+            raise RuntimeError("the episode is over (or not begun): call reset()")
+        robots, velocities = self._checked(actions)
+        sim, p = self.sim, self.params
+        if len(robots):
+            sim.drive(robots, velocities)
+        sim.run(until_s=(self.cycles + 1) * p.step_s, steps=1)
+        self.cycles += 1
+        pos = sim.positions()
+        covered = float(self._measures.covered_fraction_grid(pos, self.radius_m, p.side_m, p.grid_cells))
+        self.components = int(self._measures.component_count(pos, p.range_m))
+        reward = covered - self.covered - p.component_penalty * (self.components - 1)
+        self.covered = covered
+        obs = self._observations(pos)
+        infos = self._infos(pos)
+        done = self.cycles >= self.max_cycles
+        agents = self.agents
+        rewards = dict.fromkeys(agents, reward)
+        terminations = dict.fromkeys(agents, False)
+        truncations = dict.fromkeys(agents, done)
+        if done:
+            self.agents = []
+            self._live = set()
+        return obs, rewards, terminations, truncations, infos
+
+    def _checked(self, actions: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        """The robots and velocities of ``actions``, all checked before any is applied."""
+        live = self._live
+        if not live.issuperset(actions):
+            agent = next(a for a in actions if a not in live)
+            raise CommandError(f"action for {agent!r}: no such agent in this episode ({len(live)} agents)")
+        index = self._index
+        robots = [index[agent] for agent in actions]
+        try:
+            v = np.array(list(actions.values()), dtype=float)
+        except (TypeError, ValueError):
+            v = np.empty(0)
+        if v.shape != (len(robots), 2):
+            for agent, action in actions.items():  # which one is wrong
+                try:
+                    shape = np.asarray(action, dtype=float).shape
+                except (TypeError, ValueError):
+                    shape = None
+                if shape != (2,):
+                    raise CommandError(f"action of {agent} = {action!r}: must be a velocity (vx, vy), shape (2,)")
+        bad = ~(np.isfinite(v) & (np.abs(v) <= self._high)).all(axis=1)
+        if bad.any():
+            agent = list(actions)[int(np.flatnonzero(bad)[0])]
+            vmax = self.params.speed_max_mps
+            raise CommandError(
+                f"action of {agent} = {v[bad][0].tolist()}: each component must be finite and within "
+                f"[-{vmax:g}, {vmax:g}] m/s"
+            )
+        return np.array(robots, dtype=np.int64), v.reshape(-1, 2)
+
+    # -- what agents see ------------------------------------------------------------------
+    def _observations(self, pos: np.ndarray) -> dict[str, np.ndarray]:
+        sim, p = self.sim, self.params
+        assert sim is not None
+        n, k = p.n_robots, p.max_neighbours
+        out = np.zeros((n, self._obs_size), dtype=np.float32)
+        out[:, 0:2] = pos
+        out[:, 2:4] = sim.state.velocity_mps
+        roles = len(self.role_names)
+        if sim.groups is not None:
+            out[np.arange(n), 4 + sim.groups.role] = 1.0
+        if k and sim.neighbour_view is not None:
+            ids, told, heard_s = sim.neighbour_view.heard(sim.now)
+            self._measures.nearest_told(out, 4 + roles, pos, ids, told, heard_s, sim.now, k)
+        return {a: out[i] for i, a in enumerate(self.agents)}
+
+    def _infos(self, pos: np.ndarray) -> dict[str, dict]:
+        info = {"positions_m": pos, "covered_fraction": self.covered, "components": self.components}
+        return {a: info for a in self.agents}
+
+    # -- drawing --------------------------------------------------------------------------
+    def render(self) -> np.ndarray | None:
+        """With ``render_mode = "rgb_array"``: the team now, as the figures draw a deployment
+        (netsim.tools.figures), an ``(H, W, 3)`` uint8 array."""
+        if self.render_mode is None or self.sim is None:
+            return None
+        from netsim.envs.drawing import frame
+
+        return frame(self.sim, self.radius_m, self.params.range_m, self.covered)
+
+    def close(self) -> None:
+        self.sim = None
+
+
+def parallel_env(render_mode: str | None = None, netsim: Mapping | None = None, **params: Any) -> CoverageEnv:
+    """The environment, from the keys of :class:`CoverageEnvParams` (a bad value raises
+    :class:`~netsim.errors.ConfigError` naming it); ``netsim`` adds keys to the runs'
+    configuration; ``render_mode``: None or ``"rgb_array"``."""
+    return CoverageEnv(CoverageEnvParams(**params), netsim, render_mode)
+
+
+def env(**params: Any) -> Any:
+    """The environment in PettingZoo's AEC API (turns), converted from the parallel one."""
+    from pettingzoo.utils.conversions import parallel_to_aec
+
+    return parallel_to_aec(parallel_env(**params))

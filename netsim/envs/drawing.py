@@ -1,0 +1,45 @@
+"""A frame of an environment's team, drawn as the figures draw a deployment (roles, groups'
+colours, links, coverage disks, the area's border: netsim.tools.figures and style)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from netsim.sim import Simulation
+
+
+def frame(sim: Simulation, radius_m: float, range_m: float, covered: float, size_px: int = 480) -> np.ndarray:
+    """The team at ``sim.now`` as an ``(size_px, size_px, 3)`` uint8 image."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from netsim.tools import style
+    from netsim.tools.figures import Snapshot, draw_deployment
+
+    n, side = sim.state.n, sim.state.side_m
+    pos = sim.positions()
+    groups = sim.groups
+    if groups is not None:
+        names = np.array(groups.role_names, dtype=object)
+        role, leader = names[groups.role], groups.leader.copy()
+        leaders = np.flatnonzero(leader == np.arange(n))
+        colours = style.group_colours(leaders, pos[leaders], range_m)
+    else:
+        role, leader, colours = np.full(n, "none", dtype=object), np.full(n, -1), {}
+    snap = Snapshot(sim.now, pos, role, leader, np.full(n, -1))
+    dpi = 100
+    fig = Figure(figsize=(size_px / dpi, size_px / dpi), dpi=dpi)
+    ax = fig.add_axes((0.13, 0.1, 0.84, 0.84))
+    draw_deployment(ax, snap, colours, range_m, disks_m=radius_m)
+    ax.plot([0, side, side, 0, 0], [0, 0, side, side, 0], color=style.BORDER, lw=0.8, zorder=0)
+    margin = 0.02 * side
+    ax.set_xlim(-margin, side + margin)
+    ax.set_ylim(-margin, side + margin)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"t = {sim.now:g} s, covered {covered:.1%}", fontsize=9)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    rgba = np.asarray(canvas.buffer_rgba())
+    return rgba[:, :, :3].copy()

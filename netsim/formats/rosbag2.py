@@ -1,0 +1,232 @@
+"""ROS 2 bags (rosbag2: SQLite3 or MCAP storage), read and written with the ``rosbags``
+library: no ROS installation is needed.
+
+In: each robot's poses from ``nav_msgs/msg/Odometry`` or ``geometry_msgs/msg/PoseStamped``
+messages, one topic per robot: by default the topics ``/robot_<i>/...`` of those types (one
+per robot), or the list ``mobility.topics`` (robot ``i`` follows ``topics[i]``). A robot
+follows its poses in straight lines between their header stamps; times count from the
+first stamp of all the robots' poses; a robot whose log starts later waits at its first
+pose (:mod:`netsim.formats.waypoints`). Orientation and height are ignored.
+
+Out: a run as a bag (SQLite3, the storage every ROS 2 distribution reads), stamps the
+simulated time: ``geometry_msgs/msg/PoseStamped`` on ``/robot_<i>/pose`` for every sampled
+position (``positions.parquet``), the links up at each sampling instant as one
+``visualization_msgs/msg/MarkerArray`` on ``/links`` (a ``LINE_LIST`` marker), each role
+change as ``std_msgs/msg/String`` on ``/robot_<i>/role`` and each message sent or delivered
+on ``/messages`` (JSON text), all in frame ``map``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from netsim.errors import NetsimInputError
+from netsim.formats.waypoints import Waypoints
+
+POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
+_ROBOT_TOPIC = re.compile(r"^/robot_(\d+)/")
+FRAME = "map"
+
+
+def _typestore() -> Any:
+    from rosbags.typesys import Stores, get_typestore  # imported when asked: an optional dependency
+
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+def _robot_topics(connections: Any, topics: Sequence[str], source: str) -> dict[str, int]:
+    """Which topic each robot follows: ``{topic: robot}``."""
+    pose_topics = {c.topic: c.msgtype for c in connections if c.msgtype in POSE_TYPES}
+    if topics:
+        missing = [t for t in topics if t not in pose_topics]
+        if missing:
+            have = sorted(pose_topics) or "none"
+            raise NetsimInputError(
+                f"{source}: topic {missing[0]!r} of mobility.topics has no {' or '.join(POSE_TYPES)} messages "
+                f"(pose topics in the bag: {have})"
+            )
+        return {t: i for i, t in enumerate(topics)}
+    chosen: dict[int, list[str]] = {}
+    for topic in pose_topics:
+        if m := _ROBOT_TOPIC.match(topic):
+            chosen.setdefault(int(m[1]), []).append(topic)
+    if not chosen:
+        raise NetsimInputError(
+            f"{source}: no pose topic /robot_<i>/... of type {' or '.join(POSE_TYPES)} "
+            f"(topics: {sorted(c.topic for c in connections) or 'none'}); name them in mobility.topics"
+        )
+    twice = {i: t for i, t in chosen.items() if len(t) > 1}
+    if twice:
+        i, t = next(iter(sorted(twice.items())))
+        raise NetsimInputError(
+            f"{source}: robot {i} has several pose topics {sorted(t)}; name one per robot in mobility.topics"
+        )
+    lacking = sorted(set(range(max(chosen) + 1)) - set(chosen))
+    if lacking:
+        raise NetsimInputError(f"{source}: no pose topic for robot(s) {lacking[:10]} (robots are numbered from 0)")
+    return {t[0]: i for i, t in chosen.items()}
+
+
+def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
+    """The robots' tracks recorded in the bag at ``path`` (module notes); one line naming
+    the bag and what is wrong otherwise."""
+    from rosbags.rosbag2 import Reader  # imported when asked: an optional dependency
+
+    path = Path(path)
+    source = str(path)
+    if not path.is_dir():
+        raise NetsimInputError(f"{source!r}: not a rosbag2 folder (a folder with metadata.yaml)")
+    try:
+        reader = Reader(path)
+        reader.open()
+    except Exception as exc:  # the library's errors name the problem; one line for the user
+        raise NetsimInputError(f"{source}: cannot be read as a rosbag2 bag ({exc})") from None
+    try:
+        which = _robot_topics(reader.connections, topics, source)
+        store = _typestore()
+        conns = [c for c in reader.connections if c.topic in which]
+        robots, stamps, xs, ys = [], [], [], []
+        for conn, _t, raw in reader.messages(connections=conns):
+            msg = store.deserialize_cdr(raw, conn.msgtype)
+            pose = msg.pose.pose if conn.msgtype == "nav_msgs/msg/Odometry" else msg.pose
+            stamp = msg.header.stamp
+            robots.append(which[conn.topic])
+            stamps.append(stamp.sec * 1_000_000_000 + stamp.nanosec)
+            xs.append(pose.position.x)
+            ys.append(pose.position.y)
+    finally:
+        reader.close()
+    stamps_ns = np.array(stamps, dtype=np.int64)
+    t = (stamps_ns - stamps_ns.min()) / 1e9 if len(stamps_ns) else stamps_ns.astype(float)
+    if len(xs) and not np.isfinite(np.r_[xs, ys]).all():
+        raise NetsimInputError(f"{source}: a pose has a non-finite position")
+    return Waypoints.of(robots, t, xs, ys, source)
+
+
+def _make(store: Any, typename: str, **given: Any) -> Any:
+    """A message of ``typename`` with the ``given`` fields and zero or empty defaults."""
+    from rosbags.typesys.store import Nodetype  # imported when asked: an optional dependency
+
+    _consts, fields = store.fielddefs[typename]
+    kwargs = {}
+    for name, (kind, spec) in fields:
+        if name in given:
+            kwargs[name] = given[name]
+        elif kind == Nodetype.NAME:
+            kwargs[name] = _make(store, spec)
+        elif kind == Nodetype.BASE:
+            base = spec[0]
+            kwargs[name] = "" if base == "string" else False if base == "bool" else 0.0 if "float" in base else 0
+        elif kind == Nodetype.ARRAY:
+            (inner_kind, inner), size = spec
+            kwargs[name] = np.zeros(size, dtype=_dtype(inner[0])) if inner_kind == Nodetype.BASE else []
+        else:
+            inner_kind, inner = spec[0]
+            kwargs[name] = np.zeros(0, dtype=_dtype(inner[0])) if inner_kind == Nodetype.BASE else []
+    return store.types[typename](**kwargs)
+
+
+def _dtype(base: str) -> Any:
+    return {"bool": bool, "byte": np.uint8, "char": np.uint8, "octet": np.uint8}.get(base, base)
+
+
+def _stamp(store: Any, t_s: float) -> Any:
+    ns = int(round(t_s * 1e9))
+    return _make(store, "builtin_interfaces/msg/Time", sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
+    """The run's ``frames`` (its tables by name) as a bag in the new folder ``out``;
+    returns the number of messages written."""
+    from rosbags.rosbag2 import Writer  # imported when asked: an optional dependency
+
+    store = _typestore()
+    rows: list[tuple[int, str, str, object]] = []  # (stamp ns, topic, type, message)
+
+    def header(t_s: float) -> Any:
+        return _make(store, "std_msgs/msg/Header", stamp=_stamp(store, t_s), frame_id=FRAME)
+
+    def point(x: float, y: float) -> Any:
+        return _make(store, "geometry_msgs/msg/Point", x=float(x), y=float(y))
+
+    def ns(t_s: float) -> int:
+        return int(round(t_s * 1e9))
+
+    positions = frames["positions"]
+    for t, robot, x, y in positions[["t_s", "robot", "x_m", "y_m"]].to_numpy().tolist():
+        pose = _make(
+            store,
+            "geometry_msgs/msg/Pose",
+            position=point(x, y),
+            orientation=_make(store, "geometry_msgs/msg/Quaternion", w=1.0),
+        )
+        msg = _make(store, "geometry_msgs/msg/PoseStamped", header=header(t), pose=pose)
+        rows.append((ns(t), f"/robot_{int(robot)}/pose", "geometry_msgs/msg/PoseStamped", msg))
+
+    links = frames.get("links")
+    if links is not None:
+        a, b = links["a"].to_numpy(), links["b"].to_numpy()
+        up, down = links["t_up_s"].to_numpy(), links["t_down_s"].to_numpy()
+        for t, at in positions.groupby("t_s", sort=True):
+            t = float(t)  # type: ignore[arg-type]  # the group's key: a sampling instant
+            xy = dict(zip(at["robot"].tolist(), zip(at["x_m"].tolist(), at["y_m"].tolist())))
+            live = (up <= t) & (t < down)
+            pts = [point(*xy[int(r)]) for pair in zip(a[live], b[live]) for r in pair if int(r) in xy]
+            marker = _make(
+                store,
+                "visualization_msgs/msg/Marker",
+                header=header(t),
+                ns="links",
+                type=5,  # LINE_LIST: one segment per pair of points
+                pose=_make(
+                    store, "geometry_msgs/msg/Pose", orientation=_make(store, "geometry_msgs/msg/Quaternion", w=1.0)
+                ),
+                scale=_make(store, "geometry_msgs/msg/Vector3", x=0.5),
+                color=_make(store, "std_msgs/msg/ColorRGBA", r=0.2, g=0.4, b=0.9, a=1.0),
+                points=pts,
+            )
+            rows.append(
+                (
+                    ns(t),
+                    "/links",
+                    "visualization_msgs/msg/MarkerArray",
+                    _make(store, "visualization_msgs/msg/MarkerArray", markers=[marker]),
+                )
+            )
+
+    def text(t: float, topic: str, payload: dict) -> None:
+        rows.append(
+            (ns(t), topic, "std_msgs/msg/String", _make(store, "std_msgs/msg/String", data=json.dumps(payload)))
+        )
+
+    roles = frames.get("roles")
+    if roles is not None:
+        for t, robot, role, leader, cause in (
+            roles[["t_s", "robot", "role", "leader", "cause"]].to_numpy(object).tolist()
+        ):
+            text(t, f"/robot_{int(robot)}/role", {"role": str(role), "leader": int(leader), "cause": str(cause)})
+    messages = frames.get("messages")
+    if messages is not None:
+        for m in messages.to_dict("records"):
+            ids = {"msg_id": int(m["msg_id"]), "src": int(m["src"]), "dst": int(m["dst"])}
+            text(float(m["t_sent_s"]), "/messages", {"event": "sent", **ids})
+            if m["delivered"]:
+                extra = {"hops": int(m["hops"]), "latency_s": float(m["latency_s"])}
+                text(float(m["t_delivered_s"]), "/messages", {"event": "delivered", **ids, **extra})
+
+    rows.sort(key=lambda r: (r[0], r[1]))
+    with Writer(Path(out), version=8) as writer:
+        conns = {}
+        for _ns, topic, typename, _msg in rows:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, typename, typestore=store)
+        for stamp, topic, typename, msg in rows:
+            writer.write(conns[topic], stamp, store.serialize_cdr(msg, typename))
+    return len(rows)

@@ -1,0 +1,101 @@
+"""``netsim export``: a finished run in the formats robot teams' tools read.
+
+- ``bonnmotion``: the robots' motion as a BonnMotion ``.movements`` file (``.gz``:
+  compressed) with its ``.params`` beside it, from ``legs.parquet`` (exact: every leg's
+  start and the positions at the run's end);
+- ``ns2``: the same motion as an ns-2 movement file (``setdest`` per leg);
+- ``rosbag2``: a ROS 2 bag (a new folder) with the sampled poses, the links, the roles and
+  the messages (:mod:`netsim.formats.rosbag2`), for ``ros2 bag``, RViz and Foxglove.
+
+Written to a temporary name first and moved into place, so a failure leaves nothing.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+from netsim import ns2
+from netsim.errors import NetsimInputError
+from netsim.tools.output import is_run_dir
+
+FORMATS = ("bonnmotion", "ns2", "rosbag2")
+
+
+def _table(run_dir: Path, name: str, needed: bool = True) -> pd.DataFrame | None:
+    path = run_dir / f"{name}.parquet"
+    if not path.is_file():
+        if needed:
+            raise NetsimInputError(f"{run_dir}: the run has no {name}.parquet, which this export needs")
+        return None
+    return pd.read_parquet(path)
+
+
+def check_out(out: Path, fmt: str) -> None:
+    """Refuse, before any work, an output that exists or whose folder cannot be written."""
+    if out.exists():
+        raise NetsimInputError(f"--out {out}: exists already; give a new path")
+    parent = out.parent
+    if not parent.is_dir():
+        what = "is a file" if parent.exists() else "does not exist"
+        raise NetsimInputError(f"--out {out}: the directory {parent} {what}")
+    try:
+        probe = tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent)
+        Path(probe).rmdir()
+    except OSError as exc:
+        raise NetsimInputError(f"--out {out}: cannot write in {parent} ({exc.strerror or exc})") from None
+    if fmt == "bonnmotion" and not out.name.endswith((".movements", ".movements.gz")):
+        raise NetsimInputError(f"--out {out}: a BonnMotion file is named NAME.movements or NAME.movements.gz")
+
+
+def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
+    """Write ``run_dir`` as ``fmt`` to ``out``; returns ``out``."""
+    from netsim.formats import waypoints
+    from netsim.tools.viewer.data import load_config
+
+    run_dir, out = Path(run_dir), Path(out)
+    if fmt not in FORMATS:
+        raise NetsimInputError(f"--format {fmt}: must be one of {', '.join(FORMATS)}")
+    if not run_dir.is_dir() or not is_run_dir(run_dir):
+        raise NetsimInputError(f"{run_dir}: not a run directory (no manifest.json)")
+    check_out(out, fmt)
+    config = load_config(run_dir)
+    n, duration, side = config.world.n_robots, config.duration_s, config.world.side_m
+    if fmt == "rosbag2":
+        frames = {
+            name: _table(run_dir, name, name == "positions") for name in ("positions", "links", "roles", "messages")
+        }
+        if frames["positions"] is not None and frames["positions"].empty:
+            raise NetsimInputError(f"{run_dir}: positions.parquet is empty (set output.position_interval_s > 0)")
+        from netsim.formats import rosbag2
+
+        # The bag's files are named after its folder: write it under its own name in a
+        # temporary folder, then move it into place.
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+        try:
+            rosbag2.write(tmp / out.name, {k: v for k, v in frames.items() if v is not None})
+            (tmp / out.name).replace(out)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        return out
+    legs = _table(run_dir, "legs")
+    fd, name = tempfile.mkstemp(
+        prefix=f".{out.name}.", suffix=".gz" if out.name.endswith(".gz") else "", dir=out.parent
+    )
+    Path(name).unlink()
+    tmp = Path(name)
+    try:
+        if fmt == "ns2":
+            ns2.write(tmp, legs, n, duration, f"netsim export of {run_dir}")
+        else:
+            from netsim.formats import bonnmotion
+
+            bonnmotion.write(tmp, waypoints.from_legs(legs, n, duration), side, duration)
+            bonnmotion.params_path(tmp).replace(bonnmotion.params_path(out))
+        tmp.replace(out)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return out

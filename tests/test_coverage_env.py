@@ -1,0 +1,270 @@
+"""The PettingZoo environment netsim.envs.coverage_v0 (docs/cosim.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pettingzoo")
+
+from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
+
+from netsim.cosim import CommandError  # noqa: E402
+from netsim.envs import _kernels, coverage_v0, measure  # noqa: E402
+from netsim.errors import ConfigError  # noqa: E402
+
+SMALL = {"n_robots": 6, "side_m": 200.0, "range_m": 40.0, "centre_side_m": 60.0, "max_cycles": 12}
+
+
+def steps(env, actions_rng, k):
+    """``k`` steps of random actions from ``actions_rng``; every step's outputs."""
+    out = []
+    for _ in range(k):
+        actions = {a: actions_rng.uniform(-2.0, 2.0, 2) for a in env.agents}
+        out.append(env.step(actions))
+    return out
+
+
+def test_passes_pettingzoo_parallel_api_test():
+    """The environment passes PettingZoo's own parallel API test."""
+    parallel_api_test(coverage_v0.parallel_env(**SMALL), num_cycles=15)
+
+
+def test_passes_pettingzoo_parallel_seed_test():
+    """The environment passes PettingZoo's own seed test (same seed, same episode)."""
+    parallel_seed_test(lambda: coverage_v0.parallel_env(**SMALL))
+
+
+def test_same_seed_and_actions_give_the_same_episode():
+    """Two environments reset with the same seed and given the same actions return the
+    same observations, rewards and infos at every step, bit for bit."""
+    runs = []
+    for _ in range(2):
+        env = coverage_v0.parallel_env(**SMALL)
+        obs, _ = env.reset(seed=7)
+        runs.append((obs, steps(env, np.random.default_rng(1), 12)))
+    (obs_a, steps_a), (obs_b, steps_b) = runs
+    assert all(np.array_equal(obs_a[a], obs_b[a]) for a in obs_a)
+    for (oa, ra, _, ta, ia), (ob, rb, _, tb, ib) in zip(steps_a, steps_b):
+        assert all(oa[a].tobytes() == ob[a].tobytes() for a in oa)
+        assert ra == rb and ta == tb
+        assert ia["robot_0"]["positions_m"].tobytes() == ib["robot_0"]["positions_m"].tobytes()
+
+
+def test_reset_without_seed_is_a_new_episode():
+    """reset() after reset(seed=s) starts another episode (the next run of the seed)."""
+    env = coverage_v0.parallel_env(**SMALL)
+    first, _ = env.reset(seed=3)
+    second, _ = env.reset()
+    again, _ = env.reset(seed=3)
+    assert not np.array_equal(first["robot_0"], second["robot_0"])
+    assert np.array_equal(first["robot_0"], again["robot_0"])
+
+
+def test_observations_lie_in_the_observation_space():
+    """Every observation of an episode is in the agent's observation space."""
+    env = coverage_v0.parallel_env(**{**SMALL, "max_cycles": 30})
+    obs, _ = env.reset(seed=2)
+    space = env.observation_space("robot_0")
+    seen = [obs] + [s[0] for s in steps(env, np.random.default_rng(4), 30)]
+    assert all(space.contains(o[a]) for o in seen for a in o)
+
+
+def test_observation_holds_neighbours_as_their_acks_told_them():
+    """An agent's observation: its position, velocity and role, then its K nearest live
+    table entries by told position, relative to it, with the age of the Ack that told it."""
+    env = coverage_v0.parallel_env(**{**SMALL, "max_neighbours": 3})
+    env.reset(seed=5)
+    obs, *_ = env.step({a: np.array([0.5, -0.25]) for a in env.agents})
+    sim = env.sim
+    pos = sim.positions()
+    ids, told, heard_s = sim.neighbour_view.heard(sim.now)
+    for i, agent in enumerate(env.possible_agents):
+        o = obs[agent].astype(float)
+        np.testing.assert_allclose(o[:2], pos[i], rtol=1e-6)
+        np.testing.assert_allclose(o[2:4], sim.state.velocity_mps[i], rtol=1e-6)
+        assert o[4:7].tolist() == [float(k == sim.groups.role[i]) for k in range(3)]
+        live = np.flatnonzero(ids[i] >= 0)
+        assert sorted(ids[i][live].tolist()) == sim.neighbours(i).tolist()
+        near = live[np.argsort(((told[i, live] - pos[i]) ** 2).sum(axis=1), kind="stable")][:3]
+        rows = o[7:].reshape(3, 4)
+        for row, slot in zip(rows, near):
+            np.testing.assert_allclose(row[:2], told[i, slot] - pos[i], rtol=1e-5, atol=1e-4)
+            assert row[2] == pytest.approx(sim.now - heard_s[i, slot], abs=1e-6) and row[3] == 1.0
+        assert (rows[len(near) :] == 0).all()
+
+
+def test_reward_is_the_coverage_gain_less_the_component_penalty():
+    """reward = C(t) - C(t - step) - penalty x (components of the true network - 1), the
+    same for every agent, from the team's positions."""
+    params = {**SMALL, "placement": "uniform", "component_penalty": 0.05, "max_cycles": 8}
+    env = coverage_v0.parallel_env(**params)
+    _, infos = env.reset(seed=11)
+    before = infos["robot_0"]["positions_m"]
+    radius, side = params["range_m"], params["side_m"]
+    split = 0
+    for _, rewards, _, _, infos in steps(env, np.random.default_rng(3), 8):
+        pos = infos["robot_0"]["positions_m"]
+        gain = measure.covered_fraction_grid(pos, radius, side, 100) - measure.covered_fraction_grid(
+            before, radius, side, 100
+        )
+        parts = measure.component_count(pos, params["range_m"])
+        split += parts > 1
+        assert len(set(rewards.values())) == 1
+        assert rewards["robot_0"] == pytest.approx(gain - 0.05 * (parts - 1), abs=1e-12)
+        before = pos
+    assert split  # the penalty was at stake
+
+
+def test_episode_is_truncated_after_max_cycles():
+    """After max_cycles steps every agent is truncated (none terminated) and the agents are gone."""
+    env = coverage_v0.parallel_env(**{**SMALL, "max_cycles": 4})
+    env.reset(seed=0)
+    out = steps(env, np.random.default_rng(0), 4)
+    assert [all(s[3].values()) for s in out] == [False, False, False, True]
+    assert not any(any(s[2].values()) for s in out)
+    assert env.agents == []
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step({})
+
+
+def test_infos_give_the_team_positions():
+    """infos[agent]["positions_m"] is the team's (N, 2) positions at the step's end."""
+    env = coverage_v0.parallel_env(**SMALL)
+    env.reset(seed=1)
+    _, _, _, _, infos = steps(env, np.random.default_rng(2), 3)[-1]
+    assert all(np.array_equal(infos[a]["positions_m"], env.sim.positions()) for a in env.agents)
+    assert env.sim.now == 3.0
+
+
+@pytest.mark.parametrize(
+    ("action", "named"),
+    [
+        (np.array([1.0, 0.0, 0.0]), r"\[1\., 0\., 0\.\]"),
+        (np.array([2.5, 0.0]), r"\[2\.5, 0\.0\]"),
+        (np.array([np.nan, 0.0]), "nan"),
+        ("fast", "'fast'"),
+    ],
+)
+def test_bad_action_names_it_and_changes_nothing(action, named):
+    """An action of the wrong shape, outside the box or not finite raises a CommandError
+    naming the agent and the value; the episode goes on as if it had not been given."""
+
+    def play(bad: bool):
+        env = coverage_v0.parallel_env(**SMALL)
+        env.reset(seed=4)
+        rng = np.random.default_rng(9)
+        steps(env, rng, 2)
+        if bad:
+            actions = {a: np.array([0.1, 0.1]) for a in env.agents}
+            actions["robot_3"] = action
+            with pytest.raises(CommandError, match=named) as err:
+                env.step(actions)
+            assert "robot_3" in str(err.value)
+        return steps(env, rng, 3)
+
+    good, bad = play(False), play(True)
+    for (og, rg, *_), (ob, rb, *_) in zip(good, bad):
+        assert rg == rb and all(np.array_equal(og[a], ob[a]) for a in og)
+
+
+def test_action_for_an_unknown_agent_is_refused():
+    """An action for an agent that does not exist raises a CommandError naming it."""
+    env = coverage_v0.parallel_env(**SMALL)
+    env.reset(seed=0)
+    with pytest.raises(CommandError, match="robot_99"):
+        env.step({"robot_99": np.zeros(2)})
+
+
+def test_bad_parameter_is_a_config_error():
+    """A bad keyword value raises ConfigError naming the key and the value."""
+    with pytest.raises(ConfigError, match="coverage_v0.n_robots = 0"):
+        coverage_v0.parallel_env(n_robots=0)
+    with pytest.raises(ConfigError, match="render_mode = 'human'"):
+        coverage_v0.parallel_env(render_mode="human")
+
+
+def test_render_draws_an_rgb_frame():
+    """render_mode = "rgb_array": render() returns an (H, W, 3) uint8 image of the team."""
+    env = coverage_v0.parallel_env(**SMALL, render_mode="rgb_array")
+    env.reset(seed=0)
+    img = env.render()
+    assert img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 10
+    assert coverage_v0.parallel_env(**SMALL).render() is None
+
+
+def test_compiled_measures_equal_the_numpy_ones():
+    """The compiled covered fraction, component count and nearest told neighbours are the
+    numpy ones exactly (including disks past the border)."""
+    rng = np.random.default_rng(0)
+    for n in (1, 5, 30):
+        pos = rng.uniform(-20.0, 220.0, (n, 2))
+        assert _kernels.covered_fraction_grid(pos, 35.0, 200.0, 64) == measure.covered_fraction_grid(
+            pos, 35.0, 200.0, 64
+        )
+        assert _kernels.component_count(pos, 40.0) == measure.component_count(pos, 40.0)
+        slots = 8
+        ids = np.where(rng.random((n, slots)) < 0.6, rng.integers(0, n, (n, slots)), -1)
+        told = rng.uniform(0.0, 200.0, (n, slots, 2))
+        told[:, 1] = told[:, 0]  # ties: the lower slot first
+        heard = rng.uniform(0.0, 3.0, (n, slots))
+        for k in (0, 3, 10):
+            a, b = np.zeros((n, 40), np.float32), np.zeros((n, 40), np.float32)
+            _kernels.nearest_told(a, 2, pos, ids, told, heard, 3.5, k)
+            measure.nearest_told(b, 2, pos, ids, told, heard, 3.5, k)
+            assert a.tobytes() == b.tobytes()
+
+
+def test_covered_fraction_grid_is_the_search_trees():
+    """The grid's covered fraction is netsim.metrics.covered_fraction's on the same grid."""
+    from netsim.metrics import covered_fraction
+
+    pos = np.random.default_rng(1).uniform(0.0, 100.0, (12, 2))
+    assert measure.covered_fraction_grid(pos, 9.0, 100.0, 80) == covered_fraction(pos, 9.0, 100.0, 80)[0]
+
+
+@pytest.mark.slow
+def test_learn_coverage_example_runs_and_writes_csv_and_png(tmp_path):
+    """experiments/learn_coverage.py runs both policies, prints the covered fraction of the
+    bound each reaches, and writes its CSV and PNG."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pandas as pd
+
+    script = Path(__file__).resolve().parents[1] / "experiments" / "learn_coverage.py"
+    args = ["--n", "6", "--cycles", "6", "--episodes", "1", "--out", str(tmp_path)]
+    run = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "covered_of_bound" in run.stdout and "forces" in run.stdout and "random" in run.stdout
+    table = pd.read_csv(tmp_path / "learn_coverage.csv")
+    assert sorted(table["policy"]) == ["forces", "random"]
+    assert (table["covered_of_bound"] > 0).all()
+    assert (tmp_path / "learn_coverage.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("args", [["--episodes", "0"], ["--n", "0"]])
+def test_learn_coverage_bad_input_is_one_line_exit_2_nothing_written(tmp_path, args):
+    """A bad option of the example: exit status 2, one line on stderr, nothing written."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "experiments" / "learn_coverage.py"
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, str(script), *args, "--out", str(out)], capture_output=True, text=True)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert args[1] in run.stderr
+    assert not out.exists()
+
+
+def test_extra_configuration_reaches_the_runs_and_is_checked_at_once():
+    """``netsim`` adds keys to every episode's configuration; a bad one is a ConfigError
+    when the environment is made."""
+    env = coverage_v0.parallel_env(**SMALL, netsim={"channel": {"loss_model": "bernoulli", "loss_probability": 0.25}})
+    env.reset(seed=0)
+    assert env.sim.config.channel.loss_probability == 0.25
+    with pytest.raises(ConfigError, match="channel.loss_probabilty"):
+        coverage_v0.parallel_env(**SMALL, netsim={"channel": {"loss_probabilty": 0.25}})

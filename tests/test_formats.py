@@ -1,0 +1,260 @@
+"""BonnMotion and ROS 2 bags in and out, and ``netsim export``: every format round-trips
+or matches its reference (the waypoints' linear interpolation, the written poses)."""
+
+from __future__ import annotations
+
+import gzip
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from netsim import load
+from netsim.errors import NetsimInputError
+from netsim.formats import bonnmotion, rosbag2, waypoints
+from netsim.run import build, collect
+from netsim.tools.cli import main
+
+
+def _positions(legs: pd.DataFrame, t: float, n: int) -> np.ndarray:
+    """Every robot's exact position at ``t`` from its legs."""
+    out = np.empty((n, 2))
+    for i in range(n):
+        g = legs[(legs["robot"] == i) & (legs["t_s"] <= t)].iloc[-1]
+        out[i] = g["x_m"] + g["vx_mps"] * (t - g["t_s"]), g["y_m"] + g["vy_mps"] * (t - g["t_s"])
+    return out
+
+
+def _run(settings: list[str]):
+    config = load(None, ["duration_s=40", "world.n_robots=8", "protocol.model=clustering", *settings])
+    sim = build(config)
+    sim.run()
+    return config, collect(sim)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("run") / "run"
+    sets = ["duration_s=40", "world.n_robots=8", "mobility.stationary_start=false", "mobility.pause_s=0"]
+    assert main(["run", *(a for s in sets for a in ("--set", s)), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_bonnmotion_file_is_followed_linearly_between_waypoints(tmp_path):
+    """A node is at its first waypoint until its time, moves linearly to each next one,
+    and stays at the last; the run's legs give exactly these positions."""
+    path = tmp_path / "s.movements"
+    path.write_text("0 10 10 10 20 10 20 20 30\n5 100 100 15 100 200\n")
+    config, frames = _run(
+        ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=2", "protocol.model=none"]
+    )
+    legs = frames["legs"]
+    expect = {
+        0.0: [[10, 10], [100, 100]],
+        5.0: [[15, 10], [100, 100]],
+        10.0: [[20, 10], [100, 150]],
+        15.0: [[20, 20], [100, 200]],
+        20.0: [[20, 30], [100, 200]],
+        39.0: [[20, 30], [100, 200]],
+    }
+    for t, xy in expect.items():
+        assert np.allclose(_positions(legs, t, 2), xy, atol=1e-9), t
+
+
+def test_bonnmotion_equal_times_are_a_jump(tmp_path):
+    """Two waypoints at one instant: the node is at the second from then on."""
+    path = tmp_path / "j.movements"
+    path.write_text("0 0 0 4 0 0 4 50 50\n")
+    _config, frames = _run(
+        ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", "protocol.model=none"]
+    )
+    assert np.allclose(_positions(frames["legs"], 3.9, 1), [[0, 0]])
+    assert np.allclose(_positions(frames["legs"], 4.0, 1), [[50, 50]])
+
+
+def test_bonnmotion_export_round_trips_the_positions(run_dir, tmp_path):
+    """``netsim export --format bonnmotion`` then replaying the file gives the run's
+    positions at every instant (checked on a fine grid) to 1e-6 m, gzip included."""
+    out = tmp_path / "r.movements.gz"
+    assert main(["export", str(run_dir), "--format", "bonnmotion", "--out", str(out)]) == 0
+    assert (tmp_path / "r.params").read_text().count("nn=8") == 1
+    assert gzip.open(out, "rt").read().count("\n") == 8
+    legs = pd.read_parquet(run_dir / "legs.parquet")
+    _config, frames = _run(["mobility.model=trace", f"mobility.trace_file={out}", "protocol.model=none"])
+    for t in np.linspace(0.0, 39.99, 97):
+        assert np.allclose(_positions(frames["legs"], t, 8), _positions(legs, t, 8), atol=1e-6), t
+
+
+def test_bonnmotion_reads_3d_files_with_their_params(tmp_path):
+    """``J=3D`` in the ``.params`` beside: four numbers a waypoint, z dropped."""
+    (tmp_path / "d.params").write_text("model=RandomWaypoint3D\nx=100.0\ny=100.0\nnn=1\nJ=3D\n")
+    (tmp_path / "d.movements").write_text("0 1 2 3 10 11 12 13\n")
+    wp, params = bonnmotion.read(tmp_path / "d.movements")
+    assert params["J"] == "3D"
+    assert np.allclose(wp.positions_at(5.0), [[6, 7]])
+
+
+@pytest.mark.parametrize(
+    "text, says",
+    [
+        ("0 1 2 3 4\n", ":1: 5 numbers do not make whole waypoints"),
+        ("0 1 2\n0 1 x\n", ":2: 'x' is not a number"),
+        ("5 1 2 3 4 5\n", ":1: waypoint 2: time 3 goes back"),
+        ("0 1 2 inf 3 4\n", ":1: numbers must be finite"),
+        ("\n", "no movement line"),
+    ],
+)
+def test_malformed_bonnmotion_file_names_the_file_and_line(tmp_path, text, says):
+    path = tmp_path / "bad.movements"
+    path.write_text(text)
+    with pytest.raises(NetsimInputError) as err:
+        bonnmotion.read(path)
+    assert str(path) in str(err.value) and says in str(err.value)
+
+
+def test_bonnmotion_positions_outside_the_area_exit_2_one_line(tmp_path, capsys):
+    path = tmp_path / "far.movements"
+    path.write_text("0 10 10 5 2000 10\n")
+    out = tmp_path / "out"
+    code = main(
+        [
+            "run",
+            "--set",
+            "mobility.model=trace",
+            "--set",
+            f"mobility.trace_file={path}",
+            "--set",
+            "world.n_robots=1",
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "world.side_m" in err[0] and "2000" in err[0]
+    assert not out.exists()
+
+
+def test_rosbag2_export_holds_every_sampled_pose_and_reads_back(run_dir, tmp_path):
+    """The bag has a PoseStamped per sampled position on /robot_<i>/pose (stamps = simulated
+    time), links, roles and messages; replaying it gives the sampled positions exactly."""
+    out = tmp_path / "bag"
+    assert main(["export", str(run_dir), "--format", "rosbag2", "--out", str(out)]) == 0
+    from rosbags.rosbag2 import Reader
+
+    with Reader(out) as reader:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    pos = pd.read_parquet(run_dir / "positions.parquet")
+    assert topics["/robot_0/pose"] == "geometry_msgs/msg/PoseStamped"
+    assert topics["/links"] == "visualization_msgs/msg/MarkerArray"
+    assert topics["/robot_0/role"] == "std_msgs/msg/String"
+    assert counts["/robot_3/pose"] == int((pos["robot"] == 3).sum())
+    wp = rosbag2.read(out)
+    for t in sorted(pos["t_s"].unique()):
+        at = pos[pos["t_s"] == t].sort_values("robot")[["x_m", "y_m"]].to_numpy()
+        assert np.array_equal(wp.positions_at(t), at), t
+
+
+def _bag(path: Path, tracks: dict[str, list[tuple[float, float, float]]], msgtype: str) -> None:
+    from rosbags.rosbag2 import Writer
+
+    store = rosbag2._typestore()
+    with Writer(path, version=8) as w:
+        for topic, poses in tracks.items():
+            conn = w.add_connection(topic, msgtype, typestore=store)
+            for t, x, y in poses:
+                point = rosbag2._make(store, "geometry_msgs/msg/Point", x=x, y=y)
+                pose = rosbag2._make(store, "geometry_msgs/msg/Pose", position=point)
+                header = rosbag2._make(store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, t))
+                if msgtype == "nav_msgs/msg/Odometry":
+                    cov = rosbag2._make(store, "geometry_msgs/msg/PoseWithCovariance", pose=pose)
+                    msg = rosbag2._make(store, msgtype, header=header, pose=cov)
+                else:
+                    msg = rosbag2._make(store, msgtype, header=header, pose=pose)
+                w.write(conn, int(t * 1e9), store.serialize_cdr(msg, msgtype))
+
+
+def test_rosbag2_odometry_times_count_from_the_first_stamp_and_late_robots_wait(tmp_path):
+    """Odometry on /robot_<i>/odom: times from the bag's first stamp; a robot whose log
+    starts later waits at its first pose."""
+    bag = tmp_path / "odom"
+    _bag(
+        bag,
+        {"/robot_0/odom": [(100.0, 0, 0), (110.0, 10, 0)], "/robot_1/odom": [(105.0, 5, 5), (115.0, 5, 15)]},
+        "nav_msgs/msg/Odometry",
+    )
+    wp = rosbag2.read(bag)
+    assert np.allclose(wp.positions_at(0.0), [[0, 0], [5, 5]])
+    assert np.allclose(wp.positions_at(5.0), [[5, 0], [5, 5]])
+    assert np.allclose(wp.positions_at(10.0), [[10, 0], [5, 10]])
+
+
+def test_rosbag2_topics_key_chooses_each_robots_topic(tmp_path):
+    bag = tmp_path / "named"
+    _bag(bag, {"/alpha/pose": [(0.0, 1, 1)], "/beta/pose": [(0.0, 2, 2)]}, "geometry_msgs/msg/PoseStamped")
+    assert np.allclose(rosbag2.read(bag, ["/beta/pose", "/alpha/pose"]).initial_m(), [[2, 2], [1, 1]])
+    with pytest.raises(NetsimInputError, match="no pose topic /robot_<i>"):
+        rosbag2.read(bag)
+
+
+def test_bag_without_pose_topics_exits_2_one_line(tmp_path, capsys):
+    bag = tmp_path / "empty"
+    _bag(bag, {"/chatter": []}, "geometry_msgs/msg/PoseStamped")
+    bag2 = tmp_path / "notabag"
+    bag2.mkdir()
+    for b in (bag, bag2):
+        code = main(
+            [
+                "run",
+                "--set",
+                "mobility.model=trace",
+                "--set",
+                f"mobility.trace_file={b}",
+                "--set",
+                "world.n_robots=1",
+                "--out",
+                str(tmp_path / "o"),
+                "--no-progress",
+            ]
+        )
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and str(b) in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["--format", "gpx"], "--format gpx"),
+        (["--format", "bonnmotion", "--out", "x.txt"], "NAME.movements"),
+    ],
+)
+def test_export_bad_arguments_exit_2_one_line(run_dir, tmp_path, capsys, args, says):
+    argv = ["export", str(run_dir), *args]
+    if "--out" not in args:
+        argv += ["--out", str(tmp_path / "o.movements")]
+    else:
+        argv[argv.index("--out") + 1] = str(tmp_path / argv[argv.index("--out") + 1])
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_export_refuses_an_existing_output_and_a_non_run(run_dir, tmp_path, capsys):
+    taken = tmp_path / "taken.movements"
+    taken.write_text("keep")
+    assert main(["export", str(run_dir), "--format", "bonnmotion", "--out", str(taken)]) == 2
+    assert taken.read_text() == "keep"
+    assert main(["export", str(tmp_path), "--format", "ns2", "--out", str(tmp_path / "x.tcl")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "exists already" in err[0] and "not a run directory" in err[1]
+
+
+def test_waypoints_from_legs_reproduce_the_legs(run_dir):
+    legs = pd.read_parquet(run_dir / "legs.parquet")
+    wp = waypoints.from_legs(legs, 8, 40.0)
+    for t in (0.0, 3.3, 17.25, 40.0):
+        assert np.allclose(wp.positions_at(t), _positions(legs, t, 8), atol=1e-9)

@@ -1,0 +1,178 @@
+"""Gauss-Markov and reference point group mobility: each rule of the two models."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+import simpy
+
+from mobility.gauss_markov import GaussMarkovParams, _clamped_legs, gauss_markov_robot
+from mobility.rpgm import groups
+from netsim import load
+from netsim.errors import ConfigError
+from netsim.run import build, collect
+from netsim.state import RobotState
+
+
+def _run(settings: list[str]) -> dict[str, pd.DataFrame]:
+    sim = build(load(None, ["protocol.model=none", "output.position_interval_s=0", *settings]))
+    sim.run()
+    return collect(sim)
+
+
+def _positions_at_leg_ends(legs: pd.DataFrame, t_end: float) -> np.ndarray:
+    """Every robot's position at the start and the end of each of its legs."""
+    legs = legs.sort_values(["robot", "t_s"], kind="stable")
+    nxt = legs.groupby("robot")["t_s"].shift(-1).fillna(t_end).to_numpy()
+    dt = nxt - legs["t_s"].to_numpy()
+    start = legs[["x_m", "y_m"]].to_numpy()
+    end = start + legs[["vx_mps", "vy_mps"]].to_numpy() * dt[:, None]
+    return np.concatenate([start, end])
+
+
+class _Fixed:
+    """A stand-in random generator: uniform draws give ``u``, normal draws zeros."""
+
+    def __init__(self, u: float):
+        self.u = u
+
+    def uniform(self, lo, hi, size=None):
+        return self.u
+
+    def standard_normal(self, size):
+        return np.zeros(size)
+
+
+def _one_robot(p0, u: float, params: GaussMarkovParams, until_s: float, side_m: float = 100.0) -> pd.DataFrame:
+    env = simpy.Environment()
+    st = RobotState(1, side_m, 10.0)
+    st.place(np.array([p0], dtype=float))
+    env.process(gauss_markov_robot(env, st, params, side_m, 0, _Fixed(u)))
+    env.run(until=until_s)
+    return st.legs()
+
+
+def test_gauss_markov_alpha_one_is_a_straight_line_at_the_mean_velocity():
+    """With alpha = 1 speed and direction never change: every update keeps the velocity."""
+    p = GaussMarkovParams(alpha=1.0, mean_speed_mps=2.0, speed_sigma_mps=1.0, direction_sigma_rad=1.0)
+    legs = _one_robot((10.0, 50.0), 0.0, p, 20.0)
+    moving = legs[legs["cause"] != "start"].iloc[1:] if (legs["cause"] == "start").sum() > 1 else legs.iloc[1:]
+    assert np.allclose(moving[["vx_mps", "vy_mps"]].to_numpy(), [2.0, 0.0])
+
+
+def test_gauss_markov_border_reverses_the_velocity_and_mirrors_the_mean_direction():
+    """Heading east: the first update that would end beyond the right border turns the
+    robot west, and so do the following ones (the mean direction was mirrored to pi)."""
+    p = GaussMarkovParams(alpha=0.5, mean_speed_mps=2.0, speed_sigma_mps=0.0, direction_sigma_rad=0.0)
+    legs = _one_robot((97.0, 50.0), 0.0, p, 10.5)
+    v = legs[["vx_mps", "vy_mps"]].to_numpy()[1:]
+    assert v[0, 0] > 0 and np.all(v[1:, 0] < 0), v
+    assert np.allclose(v[:, 1], 0.0)
+
+
+def test_gauss_markov_robot_that_would_still_leave_slides_along_the_border():
+    """An interval's travel longer than the room left: the position is clamped as ns-3 clamps it."""
+    legs = _clamped_legs(np.array([99.0, 50.0]), np.array([3.0, 4.0]), 1.0, 100.0)
+    assert legs[0][0] == 0.0 and np.allclose(legs[0][1], [3.0, 4.0])
+    assert legs[1][0] == pytest.approx(1.0 / 3.0) and np.allclose(legs[1][1], [0.0, 4.0])
+
+
+def test_gauss_markov_robots_stay_in_the_area():
+    """Every leg starts and ends in the square (a straight leg between them stays in it)."""
+    frames = _run(["mobility.model=gauss_markov", "world.n_robots=20", "duration_s=200", "mobility.mean_speed_mps=5"])
+    xy = _positions_at_leg_ends(frames["legs"], 200.0)
+    assert xy.min() >= -1e-9 and xy.max() <= 1000.0 + 1e-9
+
+
+@pytest.mark.slow
+def test_gauss_markov_speeds_have_the_stated_mean_and_lag_one_autocorrelation():
+    """Successive updates' speeds: mean ``mean_speed_mps`` and lag-one autocorrelation
+    ``alpha``, each within 4 standard errors estimated across the (independent) robots."""
+    alpha, mean, sigma = 0.7, 3.0, 0.5
+    frames = _run(
+        [
+            "mobility.model=gauss_markov",
+            "world.n_robots=60",
+            "duration_s=400",
+            f"mobility.alpha={alpha}",
+            f"mobility.mean_speed_mps={mean}",
+            f"mobility.speed_sigma_mps={sigma}",
+            "world.side_m=5000",
+        ]
+    )
+    legs = frames["legs"]
+    updates = legs[legs["cause"].isin(["start", "turn"]) & (legs["t_s"] > 0) | (legs["cause"] == "start")]
+    means, corrs = [], []
+    for _, g in updates.groupby("robot"):
+        s = np.hypot(g["vx_mps"], g["vy_mps"]).to_numpy()
+        s = s[s > 0]
+        means.append(s.mean())
+        a, b = s[:-1] - s.mean(), s[1:] - s.mean()
+        corrs.append((a * b).sum() / (a * a).sum())
+    means, corrs = np.array(means), np.array(corrs)
+    assert abs(means.mean() - mean) < 4 * means.std(ddof=1) / math.sqrt(len(means))
+    assert abs(corrs.mean() - alpha) < 4 * corrs.std(ddof=1) / math.sqrt(len(corrs)) + 1.0 / 400
+
+
+def test_rpgm_groups_are_consecutive_robots():
+    """Robots g*size .. (g+1)*size - 1 form group g; the last group may be smaller."""
+    assert [g.tolist() for g in groups(7, 3)] == [[0, 1, 2], [3, 4, 5], [6]]
+
+
+def test_rpgm_every_member_stays_within_group_radius_of_its_reference_point():
+    """At every instant (checked on a fine grid of times against the reference point's
+    track, linear between its rows) each member is within ``group_radius_m`` of it."""
+    r, size, t_end = 40.0, 4, 300.0
+    frames = _run(
+        [
+            "mobility.model=rpgm",
+            "world.n_robots=12",
+            f"duration_s={t_end}",
+            f"mobility.group_size={size}",
+            f"mobility.group_radius_m={r}",
+            "mobility.pause_s=3",
+            "mobility.speed_min_mps=5",
+            "mobility.speed_max_mps=10",
+        ]
+    )
+    legs, ref = frames["legs"], frames["reference_points"]
+    assert len(ref) > 10
+    times = np.linspace(0.0, t_end, 3001)
+    worst = 0.0
+    for robot, g in legs.groupby("robot"):
+        track = ref[ref["group"] == robot // size].sort_values("t_s", kind="stable")
+        rx = np.interp(times, track["t_s"], track["x_m"])
+        ry = np.interp(times, track["t_s"], track["y_m"])
+        k = np.searchsorted(g["t_s"].to_numpy(), times, side="right") - 1
+        leg = g.iloc[k]
+        dt = times - leg["t_s"].to_numpy()
+        x = leg["x_m"].to_numpy() + leg["vx_mps"].to_numpy() * dt
+        y = leg["y_m"].to_numpy() + leg["vy_mps"].to_numpy() * dt
+        worst = max(worst, float(np.hypot(x - rx, y - ry).max()))
+    assert 0.5 * r < worst <= r + 1e-6
+
+
+def test_rpgm_members_stay_in_the_area():
+    """The reference points keep ``group_radius_m`` from every border, so members stay inside."""
+    frames = _run(["mobility.model=rpgm", "world.n_robots=15", "duration_s=300", "mobility.group_radius_m=80"])
+    xy = _positions_at_leg_ends(frames["legs"], 300.0)
+    assert xy.min() >= 0.0 and xy.max() <= 1000.0
+
+
+@pytest.mark.parametrize(
+    "settings, key",
+    [
+        (["mobility.model=rpgm", "mobility.group_radius_m=600"], "mobility.group_radius_m"),
+        (["mobility.model=rpgm", "mobility.group_size=0"], "mobility.group_size"),
+        (["mobility.model=gauss_markov", "mobility.alpha=1.5"], "mobility.alpha"),
+        (["mobility.model=gauss_markov", "mobility.update_interval_s=0"], "mobility.update_interval_s"),
+        (["mobility.model=gauss_markov", "world.torus=true"], "mobility.model"),
+    ],
+)
+def test_bad_group_and_smooth_mobility_keys_name_the_key(settings, key):
+    with pytest.raises(ConfigError) as err:
+        load(None, settings)
+    assert str(err.value).startswith(key)

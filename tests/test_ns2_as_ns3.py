@@ -1,0 +1,41 @@
+"""ns-2 movement files replay to the positions ns-3's Ns2MobilityHelper gives them.
+
+The reference positions (``tests/data/ns2/ns3_positions.json``) were made by ns-3 itself
+(the ns-3.44 wheel) with ``tests/data/ns2/ns3_positions.py`` from the files beside it:
+setdest's output with its ``$god_`` lines and statistics, a whole Tcl simulation script
+around the movement lines, BonnMotion's ns-2 export, and files with scheduled ``set X_``
+lines, quotes apart from the last number, comments after ``;``, lines out of time order,
+times that are not numbers or negative, a zero and a negative speed.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from netsim.run import build
+from netsim.trajectory import sample_positions
+from tests.fixtures import make_config
+
+DATA = Path(__file__).parent / "data" / "ns2"
+REFERENCE = json.loads((DATA / "ns3_positions.json").read_text())
+
+
+@pytest.mark.parametrize("name", sorted(REFERENCE))
+def test_ns2_file_replays_to_ns3s_positions(name):
+    ref = REFERENCE[name]
+    times = np.array(ref["times"], dtype=float)
+    expected = np.array(ref["positions"])
+    n = expected.shape[1]
+    sim = build(
+        make_config(
+            duration_s=float(times.max()) + 1.0,
+            world={"n_robots": n, "side_m": 1000.0},
+            mobility={"model": "trace", "trace_file": str(DATA / name)},
+            protocol={"model": "none"},
+        )
+    )
+    sim.run()
+    got = sample_positions(sim.state.legs(), n, times)[["x_m", "y_m"]].to_numpy().reshape(len(times), n, 2)
+    assert np.abs(got - expected).max() < 1e-6
