@@ -12,6 +12,8 @@ import math
 import numba
 import numpy as np
 
+from netsim import kernel_cache
+
 
 @numba.njit(cache=True, nogil=True)
 def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, out):
@@ -84,3 +86,8 @@ def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, out):
             shortest = max(math.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
             rank = math.floor(shortest / band_m) * nn + float(min(i, j) * n + max(i, j)) + 1.0
             out[i, j] = worst[a] < rank
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -402,7 +402,7 @@ class CoverageController:
         """Every robot's wish from its own position and the positions it heard."""
         c, memory, st = self.cfg, self.memory, self.state
         assert memory is not None
-        robot, other, xy, heard_s = self.view.heard(self.env.now)
+        robot, other, xy, heard_s = self.view.heard_acks(self.env.now)
         memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s)
         self.knows = memory.at(step.t_s, c.speed_max_mps, self.jitter_s)
         pos = step.positions_m

@@ -400,7 +400,7 @@ class Stack:
         order = np.lexsort((other, robot))
         return robot[order], other[order], xy[other[order]]
 
-    def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def heard_acks(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every robot's own record of the Acks it heard, live or expired (the latest of
         each sender, until its slot is reused): arrays ``(robot, sender, position the Ack
         carried (k, 2), reception time)``."""
