@@ -304,8 +304,9 @@ def test_a_model_that_cannot_respect_a_map_refuses_it(tmp_path):
 
 
 def test_stationary_start_is_refused_on_a_map():
+    """Asked for explicitly: the default ("auto") starts at rest on a map instead."""
     with pytest.raises(ConfigError, match="mobility.stationary_start"):
-        from_dict({"world": {"side_m": 100.0, "map": "office"}})
+        from_dict({"world": {"side_m": 100.0, "map": "office"}, "mobility": {"stationary_start": True}})
 
 
 def test_map_on_a_torus_is_refused():

@@ -172,7 +172,8 @@ def test_failing_run_leaves_no_output_directory(tmp_path, capfd):
     """A configuration error found only when the run is built (the stationary start draws
     its own positions) still leaves nothing."""
     before = tree(tmp_path)
-    code = main(["run", "--out", str(tmp_path / "a" / "out"), *SMALL, "--set", "world.placement=grid"])
+    grid = ["--set", "world.placement=grid", "--set", "mobility.stationary_start=true"]
+    code = main(["run", "--out", str(tmp_path / "a" / "out"), *SMALL, *grid])
     refused(capfd, code, before, tmp_path, "stationary_start")
 
 

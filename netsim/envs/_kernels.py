@@ -10,6 +10,8 @@ import math
 import numba
 import numpy as np
 
+from netsim import kernel_cache
+
 
 @numba.njit(cache=True, nogil=True)
 def covered_fraction_grid(p, radius_m, side_m, cells):
@@ -86,3 +88,8 @@ def nearest_told(out, start, pos, ids, told, heard_s, now, k):
                 out[i, c + 1] = 0.0
                 out[i, c + 2] = 0.0
                 out[i, c + 3] = 0.0
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())
