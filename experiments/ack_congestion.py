@@ -37,8 +37,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from netsim.config import ChannelParams  # noqa: E402
 from netsim.radio.mac import airtime_s  # noqa: E402
+from netsim.radio.mac_models import CsmaParams  # noqa: E402
 from netsim.tools import sweep as sweepmod  # noqa: E402
 from protocols.ack import AckParams  # noqa: E402
 
@@ -118,7 +118,8 @@ def main(argv=None) -> None:
     runs["spurious_role_changes_per_robot_per_min"] = spurious_changes(
         role_rows, runs.run_id, args.n, args.warmup, args.duration
     ).to_numpy()
-    channel = ChannelParams()
+    # The air's defaults, which every medium of the sweep shares.
+    channel = CsmaParams()
     ack_airtime = airtime_s(AckParams().ack_bytes, channel.data_rate_bps, channel.preamble_s)
     rows = []
     for (mac, period, _side), g in runs.groupby(["channel.mac", "ack_period_s", "world.side_m"]):

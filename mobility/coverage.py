@@ -27,10 +27,15 @@ The architecture (docs/model.md section 5)
 - Members move only by their leader's commands, sent over the channel; a member that
   misses its command holds for that step.
 - The step is made safe for connectivity by :func:`mobility.spread.plan_spread`: a
-  minimum spanning forest of the network is kept, each end of a kept link ending the step
-  within its half of the link's allowed length (module notes there). Because each end
+  minimum spanning forest of the links up now is kept, each end of a kept link ending the
+  step within its half of the link's allowed length (module notes there). Because each end
   keeps to its own half, a robot that holds instead of moving never breaks a kept link:
   the network stays connected at every instant even when commands are lost.
+- A link is what the channel makes under the run's radio, the same as ``links.parquet``:
+  the controller gets the run's link state when built (``parts.links``), counts the
+  components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
+  them up by the radio's rules (:mod:`mobility.keep`: the disk exactly; shadowing with a
+  fade margin and a bound on travel; walls swept exactly over the step).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
   3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
@@ -55,10 +60,11 @@ command can break a bridge there: connectivity is measured, not guaranteed.
 
 What is not distributed (``plan = "global"``, the default): each step's plan is computed
 in one pass for the whole team (the spanning forest over the whole network; a robot's
-limits then use only the current positions of its kept neighbours). With ``plan =
-"local"`` (:mod:`mobility.local`) every robot decides its own step from the Acks it heard,
-keeps the links it cannot certify a detour for, and answers for each against the other
-end's largest motion since its Ack; no command is sent.
+limits then use only the current positions of its kept neighbours, and under shadowing the
+shadowing measured on those links). With ``plan = "local"`` (:mod:`mobility.local`) every
+robot decides its own step from the Acks it heard, keeps the links it cannot certify a
+detour for, and answers for each against the other end's largest motion since its Ack; no
+command is sent.
 """
 
 from __future__ import annotations
@@ -74,16 +80,18 @@ import pandas as pd
 
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
+from mobility.keep import LinkRules
 from mobility.local import Memory, let_go, plan_local, pulls, sources_heard
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
+from netsim.events import LAST, scheduled_event
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from netsim.radio.free_space import obstacle_field, wall_forces
+from netsim.radio.free_space import free_fraction, obstacle_field, wall_forces
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
 
@@ -159,6 +167,11 @@ class CoverageParams(Params):
     )
     speed_max_mps: float = param(2.0, positive, "speed cap of every controlled robot, m/s")
     margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")
+    fade_margin_db: float = param(
+        8.0,
+        non_negative,
+        "shadowing: kept links keep this much power margin against the change of their shadowing, dB",
+    )
     stop_speed_mps: float = param(
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
     )
@@ -226,6 +239,12 @@ def check(params: CoverageParams, config) -> None:
         )
     if config.world.torus:
         raise ConfigError("coverage.enabled", True, "is for a bounded area; set world.torus = false")
+    if config.events.runtime_links == "off":
+        raise ConfigError(
+            "events.runtime_links",
+            "off",
+            "coverage needs the links as the channel makes them during the run: set it to 'auto' or 'on'",
+        )
     if not config.protocol.plugin.forms_groups:
         raise ConfigError(
             "coverage.enabled",
@@ -306,8 +325,13 @@ class CoverageController:
         self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.loop: ControlLoop = parts.control
         self.view: GroupView = parts.groups
+        if parts.links is None:
+            raise ValueError("the coverage controller needs the run's link state (events.runtime_links)")
         self.cfg = params
         st = parts.state
+        # The links as the channel makes them (those of links.parquet), and what keeps them up.
+        self.link_state = parts.links()
+        self.rules = LinkRules(parts.channel.reception, st, self.link_state, params.margin_m, params.fade_margin_db)
         self.range_m = float(np.min(st.range_m))
         self.radius_m = self.cfg.radius_m or self.range_m
         self.limits = StepLimits(
@@ -319,6 +343,7 @@ class CoverageController:
         self.got_command = np.zeros(st.n, bool)
         self.commander = np.full(st.n, -1)
         self.steps: list[StepRecord] = []
+        self._pending: StepRecord | None = None
         self.samples: list[dict] = []
         self.duration_s = float(parts.duration_s)
         self._max_wish = 0.0
@@ -441,7 +466,7 @@ class CoverageController:
         self.got_command[:] = False
         for leader in np.unique(plan.commander[plan.commander >= 0]).tolist():
             self.channel.broadcast(leader, step.t_s, self._deliver, kind="command")
-        self._record(step, plan)
+        self._pending = self._record(step, plan)
         if self.cfg.members is Members.SPREAD:
             self._stopping_rule(plan)
 
@@ -456,7 +481,27 @@ class CoverageController:
         commandable = member & is_leader[lead] & reach
         mobile = is_leader | commandable
         commander_of = np.where(commandable, leader, -1)
-        return plan_spread(step.positions_m, mobile, commander_of, step.velocity_mps, self.limits)
+        pos = step.positions_m
+        links = self.rules.candidates(pos, step.t_s)
+        plan = plan_spread(pos, mobile, commander_of, step.velocity_mps, self.limits, links)
+        if self.rules.walls is None or plan.kept is None:
+            return plan
+        return self._cut_for_walls(pos, plan, commander_of >= 0, links)
+
+    def _cut_for_walls(self, pos: np.ndarray, plan: Plan, commanded: np.ndarray, links) -> Plan:
+        """On a map: each step ends short of the walls (as the control loop would make it),
+        then is cut before the first instant a kept link would be lost (mobility.keep)."""
+        move = plan.velocity_mps * self.limits.period_s
+        moving = np.flatnonzero((move != 0).any(axis=1))
+        if len(moving) == 0:
+            return plan
+        move[moving] *= free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])[:, None]
+        scale = self.rules.cut_for_walls(pos, move, commanded, links, plan.kept, self.limits.period_s)
+        move *= scale[:, None]
+        velocity = move / self.limits.period_s
+        now_moving = (velocity != 0).any(axis=1)
+        held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & (scale < 1))
+        return plan._replace(velocity_mps=velocity, commander=np.where(now_moving, plan.commander, -1), held=held)
 
     def _stopping_rule(self, plan: Plan) -> None:
         """Control ends once no robot has moved faster than ``stop_speed_mps`` for ``stop_hold_s``."""
@@ -470,29 +515,52 @@ class CoverageController:
             self.settled_s = now
             self.loop.stop()
 
-    def _record(self, step: ControlStep, plan: Plan) -> None:
-        comps = metrics.components(step.positions_m, self.range_m)
+    def _record(self, step: ControlStep, plan: Plan) -> StepRecord:
+        """The step's row, its components counted when the step takes effect (:meth:`obey`)."""
         leaders = leads_itself(step.leader)
         moving = np.hypot(*plan.velocity_mps.T) > 0
-        self.steps.append(
-            StepRecord(
-                step.t_s,
-                int(leaders.sum()),
-                int(moving[leaders].sum()),
-                int(plan.held[leaders].sum()),
-                plan.bridges,
-                int(comps.max() + 1) if len(comps) else 0,
-                self._max_wish,
-                int(moving.sum()),
-                int(plan.held.sum()),
-            )
+        return StepRecord(
+            step.t_s,
+            int(leaders.sum()),
+            int(moving[leaders].sum()),
+            int(plan.held[leaders].sum()),
+            plan.bridges,
+            0,
+            self._max_wish,
+            int(moving.sum()),
+            int(plan.held.sum()),
         )
+
+    def _at_end_of_instant(self, fn) -> None:
+        """Call ``fn`` after everything else due now (every transmission and link event of
+        this instant: the links then are those links.parquet has at this instant)."""
+        scheduled_event(self.env, 0.0, LAST, lambda _event: fn())
+
+    def _count_step(self, row: int) -> None:
+        self.steps[row] = self.steps[row]._replace(components=self.components_now())
+
+    def _count_sample(self, sample: dict) -> None:
+        components = self.components_now()
+        sample["components"] = components
+        sample["connected"] = components == 1
+
+    def components_now(self) -> int:
+        """Connected components of the network of the links up now, as the channel makes
+        them (the links of links.parquet)."""
+        a, b = self.link_state.up_pairs()
+        comps = metrics.components_of_links(self.state.n, a, b)
+        return int(comps.max() + 1) if len(comps) else 0
 
     def _deliver(self, sender: int, receivers: np.ndarray, _payload) -> None:
         self.got_command[receivers[self.commander[receivers] == sender]] = True
 
     def obey(self, step: ControlStep) -> None:
         """At the step's start: a robot that did not hear its leader's command holds."""
+        if self._pending is not None:
+            self.steps.append(self._pending)
+            self._pending = None
+            row = len(self.steps) - 1
+            self._at_end_of_instant(lambda: self._count_step(row))
         missed = (self.commander >= 0) & ~self.got_command
         step.velocity_mps[missed] = 0.0
         self._odometer_to(step.t_s)
@@ -515,7 +583,7 @@ class CoverageController:
         cov_l, err_l = self._covered(leaders)
         cov_a, err_a = self._covered(pos)
         bound = metrics.bound_fraction(st.n, self.radius_m, st.side_m, self.range_m)
-        comps = metrics.components(pos, self.range_m)
+        components = self.components_now()
         spacing = metrics.nearest_spacing(leaders)
         travelled = self.odometer_m + self.speed_mps * (t - self.odo_t_s)
         return {
@@ -527,8 +595,8 @@ class CoverageController:
             "covered_error_bound_all": err_a,
             "coverage_bound": bound,
             "covered_of_bound_all": cov_a / bound if bound > 0 else math.nan,
-            "components": int(comps.max() + 1),
-            "connected": bool(comps.max() == 0),
+            "components": components,
+            "connected": components == 1,
             "spacing_median_ratio": float(np.median(spacing) / (SQRT3 * self.range_m))
             if len(leaders) > 1
             else math.nan,
@@ -539,7 +607,9 @@ class CoverageController:
     def sampler(self):
         env = self.env
         while True:
-            self.samples.append(self.sample(env.now))
+            sample = self.sample(env.now)
+            self.samples.append(sample)
+            self._at_end_of_instant(lambda sample=sample: self._count_sample(sample))
             if self.cfg.members is Members.SPREAD:
                 self._coverage_stopping_rule()
             yield env.timeout(self.cfg.metrics_interval_s)
@@ -607,7 +677,8 @@ class CoverageController:
 
     def _mark_start(self):
         yield self.env.timeout(self.cfg.start_s)
-        self.sample_at_start = self.sample(self.env.now)
+        self.sample_at_start = start = self.sample(self.env.now)
+        self._at_end_of_instant(lambda: self._count_sample(start))
 
 
 def build(params: CoverageParams, parts: Parts) -> CoverageController:

@@ -2,12 +2,16 @@
 near as it can to where its forces push it, while a spanning forest of the network keeps
 the team connected.
 
-- The kept links are a minimum spanning forest of the current network (all robots, range
-  ``r_c``): it has as many components as the network, and its links are the shortest, so
-  the stretched links are the ones let go. It is chosen afresh every step.
-- Each kept link ``(i, j)`` of length ``d`` may end the step at most ``R = max(r_c -
-  margin, d)`` long. If both ends move, each keeps to its half: it ends within ``R / 2``
-  of the link's midpoint now. If only ``i`` moves, ``i`` ends within ``R`` of ``j``.
+- The kept links are a minimum spanning forest of the links up now (the caller's
+  :class:`~mobility.steps.Candidates`, :mod:`mobility.keep`; by default the disk of range
+  ``r_c``): it has as many components as the network, and its links are the strongest
+  (the shortest on a disk), so the stretched links are the ones let go. It is chosen
+  afresh every step.
+- Each kept link ``(i, j)`` of length ``d`` may end the step at most ``R = max(keep, d)``
+  long (on a disk ``keep = r_c - margin``). If both ends move, each keeps to its half: it
+  ends within ``R / 2`` of the link's midpoint now. If only ``i`` moves, ``i`` ends within
+  ``R`` of ``j``. A link whose pair travel is bounded (shadowing) bounds each moving end's
+  step to its share of it (half when both move).
 - So each moving robot has a few disks to end in (one per kept link, and its reach,
   ``speed_max x period``, around where it is) and the area. Where it is now lies in all
   of them, so standing still is always allowed. Its wished end point is brought into
@@ -19,8 +23,9 @@ the team connected.
   neighbour along a kept link by more than the link's slack allows passes the excess on
   to it as a pull (:func:`pass_on_pulls`), and the chain follows.
 - Every robot moves in a straight line over the step, so a link within range at both
-  ends of the step is within range throughout (:mod:`mobility.steps`): on a loss-free
-  channel, the number of components never grows at any instant.
+  ends of the step is within range throughout (:mod:`mobility.steps`): the number of
+  components never grows above its value at the step's start (walls: the caller's
+  exact cut, :meth:`mobility.keep.LinkRules.cut_for_walls`).
 
 Who may move is the caller's: leaders, and members that can hear their leader's command.
 Everyone else (undecided robots, members out of their leader's range) holds, and the
@@ -31,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mobility.steps import Plan, StepLimits, box_limit, cap_length, step_limit
+from mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_length, step_limit
 from netsim.topology import geometric_pairs
 
 # Rounds of cyclic projection onto a robot's disks; the exact cut after them makes any
@@ -66,9 +71,10 @@ def spanning_forest(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.nda
     return i, j, np.hypot(*(pos[i] - pos[j]).T)
 
 
-def link_disks(pos: np.ndarray, mobile: np.ndarray, i: np.ndarray, j: np.ndarray, d: np.ndarray, keep_m: float):
+def link_disks(pos: np.ndarray, mobile: np.ndarray, i: np.ndarray, j: np.ndarray, d: np.ndarray, keep_m):
     """The disk each moving end of each kept link must end the step in: arrays
-    ``(robot, centre (k, 2), radius)`` (module notes)."""
+    ``(robot, centre (k, 2), radius)`` (module notes); ``keep_m`` one for all links or one
+    per link."""
     limit = np.maximum(keep_m, d)
     mid = 0.5 * (pos[i] + pos[j])
     robots, centres, radii = [], [], []
@@ -145,26 +151,70 @@ def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radi
     return target
 
 
+def forest_rows(n: int, links: Candidates) -> np.ndarray:
+    """The rows of ``links`` in a minimum spanning forest of the network they make (by
+    ``links.weight``, positive), in the order ``(i, j)``."""
+    if len(links.i) == 0:
+        return np.empty(0, np.int64)
+    from scipy.sparse import coo_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
+    tree = minimum_spanning_tree(coo_matrix((links.weight, (links.i, links.j)), shape=(n, n)).tocsr()).tocoo()
+    i, j = np.minimum(tree.row, tree.col).astype(np.int64), np.maximum(tree.row, tree.col).astype(np.int64)
+    keys = links.i * n + links.j
+    order = np.argsort(keys, kind="stable")
+    want = np.sort(i * n + j)
+    return order[np.searchsorted(keys, want, sorter=order)]
+
+
+def disk_links(pos: np.ndarray, limits: StepLimits) -> Candidates:
+    """The links of the disk of ``limits.range_m`` (every robot's), kept at ``limits.keep_m``."""
+    i, j, d = geometric_pairs(pos, limits.range_m)
+    k = len(i)
+    r = np.full(k, limits.range_m)
+    return Candidates(i, j, d, d + limits.range_m, np.full(k, limits.keep_m), np.full(k, np.inf), r)
+
+
 def plan_spread(
-    pos: np.ndarray, mobile: np.ndarray, commander_of: np.ndarray, desired_mps: np.ndarray, limits: StepLimits
+    pos: np.ndarray,
+    mobile: np.ndarray,
+    commander_of: np.ndarray,
+    desired_mps: np.ndarray,
+    limits: StepLimits,
+    links: Candidates | None = None,
 ) -> Plan:
     """Velocities for one control step (module notes).
 
     ``mobile``: who may move; ``commander_of``: for each robot, whose command it needs to
     move (-1: its own decision, as a leader); ``desired_mps``: the wished velocities (rows
-    of robots that may not move are ignored).
+    of robots that may not move are ignored); ``links``: the links up now, with what keeps
+    each up (:mod:`mobility.keep`; default: the disk of ``limits.range_m``).
     """
     n = len(pos)
     movers = np.flatnonzero(mobile)
-    i, j, d = spanning_forest(pos, limits.range_m)
-    robot, centre, radius = link_disks(pos, mobile, i, j, d, limits.keep_m)
+    if links is None:
+        links = disk_links(pos, limits)
+    kept = forest_rows(n, links)
+    i, j = links.i[kept], links.j[kept]
+    d = np.hypot(*(pos[i] - pos[j]).T)
+    keep = links.keep_m[kept]
+    robot, centre, radius = link_disks(pos, mobile, i, j, d, keep)
+    reach = np.full(n, limits.reach_m)
+    travel = links.travel_m[kept]
+    bounded = np.isfinite(travel)
+    if bounded.any():
+        # Each mobile end's share of the pair's allowed travel: half when both may move.
+        share = np.where(mobile[i] & mobile[j], travel / 2, travel)
+        for x in (i, j):
+            sel = bounded & mobile[x]
+            np.minimum.at(reach, x[sel], share[sel])
     robot = np.concatenate([robot, movers])
     centre = np.concatenate([centre, pos[movers]])
-    radius = np.concatenate([radius, np.full(len(movers), limits.reach_m)])
+    radius = np.concatenate([radius, reach[movers]])
 
-    wanted = pass_on_pulls(pos, desired_mps, mobile, (i, j, d), np.maximum(limits.keep_m, d), limits.period_s)
+    wanted = pass_on_pulls(pos, desired_mps, mobile, (i, j, d), np.maximum(keep, d), limits.period_s)
     wish = np.zeros((n, 2))
-    wish[movers] = cap_length(wanted[movers] * limits.period_s, limits.reach_m)
+    wish[movers] = cap_length(wanted[movers] * limits.period_s, reach[movers])
     end = project_into(pos + wish, robot, centre, radius, limits.side_m)
     move = end - pos
     move[~mobile] = 0.0
@@ -179,4 +229,4 @@ def plan_spread(
     velocity = move / limits.period_s
     moving = np.hypot(*velocity.T) > 0
     commander = np.where(moving, commander_of, -1)
-    return Plan(velocity, commander, held, len(i))
+    return Plan(velocity, commander, held, len(i), kept)

@@ -51,6 +51,31 @@ class Plan(NamedTuple):
     commander: np.ndarray  # leader whose command a robot needs to move (-1: none)
     held: np.ndarray  # robots whose step was shortened for connectivity or the border
     bridges: int  # kept links (follow: between groups; spread: of the spanning forest)
+    kept: np.ndarray | None = None  # spread: the rows of the candidate links kept
+
+
+class Candidates(NamedTuple):
+    """The links a plan may keep (up when the step starts), with what keeps each one up
+    (:mod:`mobility.keep`).
+
+    i, j : the two robots (``i < j``); d : the length now.
+    weight : the spanning forest prefers low weights (positive).
+    keep_m : a kept link ends the step at most ``max(keep_m, d)`` long.
+    travel_m : the pair's travel (sum of both robots' path lengths) allowed over the step
+        (inf: no bound; shadowing bounds it).
+    range_m : the unit disk's range of the pair (for line of sight on a map).
+    reserve_db : log-distance: the shadowing the link must withstand at every instant
+        (the measured value plus its budget; 0 without shadowing).
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    d: np.ndarray
+    weight: np.ndarray
+    keep_m: np.ndarray
+    travel_m: np.ndarray
+    range_m: np.ndarray
+    reserve_db: np.ndarray | None = None
 
 
 def step_limit(offset: np.ndarray, radius: np.ndarray, move: np.ndarray) -> np.ndarray:
@@ -76,9 +101,11 @@ def box_limit(pos: np.ndarray, move: np.ndarray, side_m: float) -> np.ndarray:
     return np.clip(hi.min(axis=1) * SAFETY, 0.0, 1.0)
 
 
-def cap_length(move: np.ndarray, cap_m: float) -> np.ndarray:
-    """``move`` with every row longer than ``cap_m`` shortened to ``cap_m`` (in place)."""
+def cap_length(move: np.ndarray, cap_m: float | np.ndarray) -> np.ndarray:
+    """``move`` with every row longer than ``cap_m`` (one for all, or one per row)
+    shortened to it (in place)."""
     length = np.hypot(*move.T)
-    over = length > cap_m
-    move[over] *= (cap_m / length[over])[:, None]
+    cap = np.broadcast_to(np.asarray(cap_m, float), length.shape)
+    over = length > cap
+    move[over] *= (cap[over] / length[over])[:, None]
     return move

@@ -20,7 +20,7 @@ import dataclasses
 import math
 import tomllib
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -41,9 +41,7 @@ from netsim.params import (
 from netsim.params import (
     describe as describe_params,
 )
-from netsim.radio.loss import LOSS_MODELS
-from netsim.radio.propagation import LogDistanceParams, reach_m
-from netsim.radio.propagation_models import PROPAGATION_MODELS, propagation_name
+from netsim.radio.models import LOSS, MAC, PROPAGATION
 
 
 class ConfigWarning(UserWarning):
@@ -99,31 +97,29 @@ def _ranges(key: str, value: Any) -> float | tuple[float, ...]:
     return r
 
 
-MACS = ("none", "aloha", "csma")
+def _model_name(group: str, what: str) -> Callable[[str, Any], str]:
+    """A coercion: the name of a channel model of ``group`` (entry point or
+    ``"package.module:attr"``), refused at once when no such model loads."""
+
+    def coerce(key: str, value: Any) -> str:
+        if not isinstance(value, str):
+            raise ConfigError(key, value, f"must be the name of a {what} (a string)")
+        plugins.resolve(group, value, key)
+        return value
+
+    return coerce
 
 
-def _mac(key: str, value: Any) -> str:
-    if value not in MACS:
-        raise ConfigError(key, value, "must be one of " + ", ".join(repr(m) for m in MACS))
-    return value
-
-
-def _contention_window(v: int) -> str | None:
-    # 802.11's windows are 2^k - 1: doubling keeps that form, (cw + 1) * 2 - 1.
-    return None if v >= 1 and (v + 1) & v == 0 else "must be 2^k - 1 with k >= 1 (1, 3, 7, ..., 1023)"
-
-
-def _loss_model(key: str, value: Any) -> str:
-    if not isinstance(value, str) or value not in LOSS_MODELS:
-        raise ConfigError(key, value, "must be one of " + ", ".join(repr(n) for n in LOSS_MODELS))
-    return value
+# The channel's models: the key that names each, its entry-point group, and the attribute
+# of ChannelParams that holds its parameters.
+CHANNEL_MODELS = (("propagation", PROPAGATION, "radio"), ("loss_model", LOSS, "loss"), ("mac", MAC, "medium"))
 
 
 @dataclass(frozen=True)
 class ChannelParams(Params):
-    """The channel's own keys, and ``loss``: the parameters of the loss model that
-    ``loss_model`` names, whose keys are keys of ``[channel]`` too (read through:
-    ``channel.loss_probability``)."""
+    """The channel's own keys, and the parameters of the models its keys name:
+    ``radio`` (``propagation``), ``loss`` (``loss_model``) and ``medium`` (``mac``), whose
+    keys are keys of ``[channel]`` too (read through: ``channel.loss_probability``)."""
 
     section = "channel"
     range_m: float | tuple[float, ...] = param(
@@ -131,85 +127,74 @@ class ChannelParams(Params):
     )
     latency_s: float = param(0.001, finite(non_negative), "fixed delay of every transmission, s")
     latency_jitter_s: float = param(0.0, finite(non_negative), "extra delay uniform on [0, jitter], s")
-    loss_model: str = param("bernoulli", None, "loss model: " + ", ".join(LOSS_MODELS), coerce=_loss_model)
+    loss_model: str = param(
+        "bernoulli",
+        None,
+        "loss model: a plugin of netsim.loss (bernoulli, distance, gilbert_elliott) or 'package.module:attr'",
+        coerce=_model_name(LOSS, "loss model"),
+    )
     propagation: str = param(
-        "unit_disk", None, "propagation model: " + ", ".join(PROPAGATION_MODELS), coerce=propagation_name
+        "unit_disk",
+        None,
+        "propagation model: a plugin of netsim.propagation (unit_disk, log_distance) or 'package.module:attr'",
+        coerce=_model_name(PROPAGATION, "propagation model"),
     )
-    # The shared medium (netsim/radio/mac.py, docs/radio.md); "none" is the channel of
-    # infinite capacity, every other key below is then unused.
-    mac: str = param("none", None, "medium access: 'none' (infinite capacity), 'aloha', 'csma'", coerce=_mac)
-    data_rate_bps: float = param(1e6, finite(positive), "data rate of every frame's payload, bit/s")
-    preamble_s: float = param(192e-6, finite(non_negative), "preamble and PHY header before every frame, s")
-    interference_range_m: float = param(
-        0.0,
-        finite(non_negative),
-        "robots within this distance of a sender are disturbed and sense it busy, m (0: the range;"
-        " log_distance: where the mean received power falls to noise_floor_dbm)",
+    # The shared medium (docs/radio.md); "none" is the channel of infinite capacity.
+    mac: str = param(
+        "none",
+        None,
+        "medium access: 'none' (infinite capacity), 'aloha', 'csma', or 'package.module:attr'",
+        coerce=_model_name(MAC, "medium access control"),
     )
-    capture_threshold_db: float = param(10.0, finite(non_negative), "log_distance: SINR a reception needs, dB")
-    noise_floor_dbm: float = param(-95.0, finite(lambda v: None), "log_distance: thermal noise at the receiver, dBm")
-    slot_s: float = param(20e-6, finite(positive), "csma: backoff slot, s")
-    difs_s: float = param(50e-6, finite(non_negative), "csma: idle time sensed before the backoff counts down, s")
-    cw_min: int = param(31, _contention_window, "csma: initial contention window (backoff uniform on 0..cw)")
-    cw_max: int = param(1023, _contention_window, "csma: largest contention window (doubles per failed unicast)")
-    retry_limit: int = param(7, non_negative, "csma: retransmissions of a unicast frame before it is dropped")
-    queue_frames: int = param(16, positive, "frames a robot's queue holds (its frame on the air included)")
     loss: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
     radio: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
-
-    def check(self) -> None:
-        if self.cw_max < self.cw_min:
-            raise ConfigError("channel.cw_max", self.cw_max, f"must be >= channel.cw_min = {self.cw_min}")
-        if self.mac != "none" and self.interference_range_m > 0:
-            largest = max(self.range_m) if isinstance(self.range_m, tuple) else self.range_m
-            if self.propagation == "unit_disk" and self.interference_range_m < largest:
-                raise ConfigError(
-                    "channel.interference_range_m",
-                    self.interference_range_m,
-                    f"must be at least the largest channel.range_m = {largest:g} (or 0: the range)",
-                )
+    medium: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for attr, key, wanted in (
-            ("loss", "channel.loss_model", LOSS_MODELS[self.loss_model].Params),
-            ("radio", "channel.propagation", PROPAGATION_MODELS[self.propagation].Params),
-        ):
+        for key, _, attr in CHANNEL_MODELS:
+            wanted = self.model(key).Params
             value = getattr(self, attr)
             if value is None:
                 object.__setattr__(self, attr, wanted())
             elif type(value) is not wanted:
                 raise ConfigError(
-                    key,
-                    getattr(self, key.split(".")[1]),
+                    f"channel.{key}",
+                    getattr(self, key),
                     f"has parameters {wanted.__name__}, not {type(value).__name__}",
                 )
-        radio = self.radio
-        if self.mac != "none" and isinstance(radio, LogDistanceParams) and self.interference_range_m > 0:
-            reach = reach_m(radio)
-            if self.interference_range_m < reach:
-                raise ConfigError(
-                    "channel.interference_range_m",
-                    self.interference_range_m,
-                    f"must be at least the radio's reach = {reach:g} m under log_distance (or 0: where the mean"
-                    " power reaches channel.noise_floor_dbm)",
-                )
-        if self.mac != "none" and isinstance(radio, LogDistanceParams):
-            margin = radio.sensitivity_dbm - self.noise_floor_dbm
-            if margin < self.capture_threshold_db:
-                # Else a frame just above the sensitivity fails on noise alone, and the
-                # collision count would include those failures.
-                raise ConfigError(
-                    "channel.noise_floor_dbm",
-                    self.noise_floor_dbm,
-                    f"must be at least channel.capture_threshold_db = {self.capture_threshold_db:g} dB below"
-                    f" channel.sensitivity_dbm = {radio.sensitivity_dbm:g} dBm",
-                )
+        for key, _, attr in CHANNEL_MODELS:
+            self.model(key).check(getattr(self, attr), self)
+
+    def model(self, key: str) -> Any:
+        """The model that ``key`` (``propagation``, ``loss_model``, ``mac``) names."""
+        group = next(g for k, g, _ in CHANNEL_MODELS if k == key)
+        return plugins.resolve(group, getattr(self, key), f"channel.{key}")
+
+    @property
+    def propagation_model(self) -> Any:
+        """The propagation model (:class:`~netsim.radio.models.PropagationModel`)."""
+        return self.model("propagation")
+
+    @property
+    def loss_plugin(self) -> Any:
+        """The loss model (:class:`~netsim.radio.models.LossModel`)."""
+        return self.model("loss_model")
+
+    @property
+    def mac_model(self) -> Any:
+        """The medium access control (:class:`~netsim.radio.models.MacModel`)."""
+        return self.model("mac")
+
+    def airtime_s(self, nbytes: int) -> float | None:
+        """How long a frame of ``nbytes`` occupies the air under the medium; None without one."""
+        mac = self.mac_model
+        return None if mac.airtime_s is None else float(mac.airtime_s(self.medium, nbytes))
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_"):
             raise AttributeError(name)
-        for sub in ("loss", "radio"):
+        for _, _, sub in CHANNEL_MODELS:
             params = self.__dict__.get(sub)
             if params is not None and name in names(type(params)):
                 return getattr(params, name)
@@ -373,12 +358,12 @@ class Config(Params):
             )
         if self.world.torus and self.world.side_m <= 2 * max(self.ranges_m(), default=0.0):
             raise ConfigError("world.side_m", self.world.side_m, "on a torus must exceed twice the largest range_m")
-        radio = self.channel.radio
-        if self.world.torus and isinstance(radio, LogDistanceParams) and radio.shadowing_sigma_db > 0:
+        radio, propagation = self.channel.radio, self.channel.propagation_model
+        if self.world.torus and propagation.shadowed(radio):
             # The reach's disks around a robot's images must be disjoint, as the range's are:
             # the cut of a shadowed link where its pair leaves the reach is solved on one image.
-            reach = reach_m(radio)
-            if not self.world.side_m > 2 * reach:
+            reach = propagation.reach(radio)
+            if reach is not None and not self.world.side_m > 2 * reach:
                 raise ConfigError(
                     "world.side_m",
                     self.world.side_m,
@@ -421,7 +406,7 @@ class Config(Params):
 
     def ranges_m(self) -> tuple[float, ...]:
         """Per-robot ranges as a tuple of floats, one per robot."""
-        implied = PROPAGATION_MODELS[self.channel.propagation].ranges(self.channel.radio)
+        implied = self.channel.propagation_model.ranges(self.channel.radio)
         if implied is not None:
             return (float(implied),) * self.world.n_robots
         r = self.channel.range_m
@@ -576,30 +561,48 @@ def _model_section(cls: type[ModelSection], raw: dict) -> ModelSection:
 
 
 def _channel_section(raw: dict) -> ChannelParams:
-    """``[channel]``: its own keys, the chosen propagation model's, the chosen loss model's;
-    keys of the models not chosen are ignored with a warning, any other key is an error."""
+    """``[channel]``: its own keys, and those of the models it names (propagation, loss
+    model, medium access); keys of the models not chosen are ignored with a warning, any
+    other key is an error."""
     own = names(ChannelParams)
-    chosen = _loss_model("channel.loss_model", raw.get("loss_model", ChannelParams.loss_model))
-    loss_cls = LOSS_MODELS[chosen].Params
-    radio = propagation_name("channel.propagation", raw.get("propagation", ChannelParams.propagation))
-    radio_cls = PROPAGATION_MODELS[radio].Params
-    radio_keys = names(radio_cls)
-    other_radio = _other_keys({name: m.Params for name, m in PROPAGATION_MODELS.items()}, radio)
-    ignored = [k for k in raw if k in other_radio and k not in radio_keys]
-    rest = {k: v for k, v in raw.items() if k not in radio_keys and k not in ignored}
-    others = _other_keys({name: m.Params for name, m in LOSS_MODELS.items()}, chosen)
-    taken = _split("channel", rest, own + radio_keys, chosen, loss_cls, others)
-    if radio_keys and "range_m" in raw:
-        ignored.append("range_m")
-    if ignored:
-        warnings.warn(
-            f"{', '.join('channel.' + k for k in ignored)}: not used by channel.propagation = {radio!r}; ignored",
-            ConfigWarning,
-            stacklevel=3,
-        )
-    values = {k: raw[k] for k in own if k in raw and k not in ignored}
-    radio_values = {k: raw[k] for k in radio_keys if k in raw}
-    return ChannelParams(**values, loss=loss_cls(**taken), radio=radio_cls(**radio_values))
+    chosen = {}
+    for key, group, attr in CHANNEL_MODELS:
+        name = _model_name(group, key)(f"channel.{key}", raw.get(key, getattr(ChannelParams, key)))
+        chosen[attr] = (key, name, plugins.resolve(group, name, f"channel.{key}").Params)
+    taken: dict[str, dict] = {attr: {} for attr in chosen}
+    ignored: dict[str, list[str]] = {attr: [] for attr in chosen}
+    others = {
+        attr: _other_keys({n: m.Params for n, m in plugins.registered(group).items()}, chosen[attr][1])
+        for _, group, attr in CHANNEL_MODELS
+    }
+    for k, v in raw.items():
+        if k in own:
+            continue
+        mine = [attr for attr, (_, _, cls) in chosen.items() if k in names(cls)]
+        for attr in mine:
+            taken[attr][k] = v
+        if mine:
+            continue
+        other = [attr for attr in chosen if k in others[attr]]
+        if not other:
+            raise _unknown(f"channel.{k}", v, own + [n for _, _, cls in chosen.values() for n in names(cls)])
+        ignored[other[0]].append(k)
+    params = {attr: cls(**taken[attr]) for attr, (_, _, cls) in chosen.items()}
+    propagation = plugins.resolve(PROPAGATION, chosen["radio"][1], "channel.propagation")
+    if "range_m" in raw and propagation.ranges(params["radio"]) is not None:
+        ignored["radio"].append("range_m")
+    for attr, keys in ignored.items():
+        if keys:
+            key, name, _ = chosen[attr]
+            owners = sorted({m for k in keys for m in others[attr].get(k, [])})
+            whose = f" (a key of {', '.join(owners)})" if owners else ""
+            warnings.warn(
+                f"{', '.join('channel.' + k for k in keys)}: not used by channel.{key} = {name!r}{whose}; ignored",
+                ConfigWarning,
+                stacklevel=3,
+            )
+    values = {k: raw[k] for k in own if k in raw and k not in ignored["radio"]}
+    return ChannelParams(**values, **params)
 
 
 def from_dict(raw: Mapping) -> Config:
@@ -637,9 +640,10 @@ def section_dict(value: Any, derived: bool = True) -> dict:
         return {"model": value.model, **_params_dict(value.params, derived)}
     if isinstance(value, ChannelParams):
         own = _params_dict(value, derived)
-        if PROPAGATION_MODELS[value.propagation].ranges(value.radio) is not None:
+        if value.propagation_model.ranges(value.radio) is not None:
             del own["range_m"]  # the radio implies the range
-        return {**own, **_params_dict(value.radio, derived), **_params_dict(value.loss, derived)}
+        models = (_params_dict(value.medium, derived), _params_dict(value.radio, derived))
+        return {**own, **models[0], **models[1], **_params_dict(value.loss, derived)}
     return _params_dict(value, derived)
 
 
@@ -743,7 +747,7 @@ def _section_rows(section: str, value: Any) -> list[tuple[str, Any, str, bool]]:
         rows.append(("model", value.model, f"{section} model, by plugin name (or 'package.module:attr')", False))
         params: list[Params] = [value.params]
     elif isinstance(value, ChannelParams):
-        params = [value, value.radio, value.loss]
+        params = [value, value.medium, value.radio, value.loss]
     else:
         params = [value]
     for p in params:
@@ -764,8 +768,9 @@ def _other_models(section: str) -> list[tuple[str, str, Any, str]]:
         group = plugins.MOBILITY if section == "mobility" else plugins.PROTOCOLS
         models = {name: p.Params for name, p in plugins.registered(group).items()}
     elif section == "channel":
-        models = {name: m.Params for name, m in PROPAGATION_MODELS.items()}
-        models.update({name: m.Params for name, m in LOSS_MODELS.items()})
+        models = {}
+        for _, group, _ in CHANNEL_MODELS:
+            models.update({name: m.Params for name, m in plugins.registered(group).items()})
     else:
         return []
     return [(model, k, d, doc) for model, cls in models.items() for k, d, doc, _ in describe_params(cls)]
@@ -795,7 +800,7 @@ def commented_toml(config: Config | None = None) -> str:
         owners = (
             [value.params]
             if isinstance(value, ModelSection)
-            else [value] + ([value.radio, value.loss] if isinstance(value, ChannelParams) else [])
+            else [value] + ([value.medium, value.radio, value.loss] if isinstance(value, ChannelParams) else [])
         )
         for key, v, doc, is_derived in _section_rows(section, value):
             used.add(key)
@@ -814,11 +819,17 @@ def commented_toml(config: Config | None = None) -> str:
         others = [row for row in _other_models(section) if row[1] not in used]
         if others:
             what = (
-                "propagation and loss models, used when propagation or loss_model"
+                "propagation, loss and medium access models, used when propagation, loss_model or mac"
                 if section == "channel"
                 else f"{section} models, used when model"
             )
             out += ["", f"# keys of the other {what} names one of them:"]
+            if section == "channel":
+                # A key several media share (aloha's and csma's) is listed once.
+                merged: dict[str, tuple[list[str], Any, str]] = {}
+                for model, key, default, doc in others:
+                    merged.setdefault(key, ([], default, doc))[0].append(model)
+                others = [(", ".join(models), key, default, doc) for key, (models, default, doc) in merged.items()]
             for model, key, default, doc in others:
                 shown = tomli_w.dumps({key: plain(default)}).strip() if default is not None else f"{key} = ..."
                 out.append(f"# {shown}    # ({model}) {doc}")

@@ -8,7 +8,9 @@
   rigorous bound on its error;
 - :func:`connected_coverage_bound`: ``U(N)``, the most that ``N`` robots whose network is
   connected can cover (docs/validation.md item 16);
-- :func:`components`: connected components of the unit-disk network;
+- :func:`components`: connected components of the unit-disk network; :func:`components_of_links`:
+  those of any radio's links (a link solver's); :func:`components_in_links_table`: their
+  number over time in a links table (``links.parquet``);
 - :func:`nearest_spacing`: each leader's distance to its nearest leader;
 - :func:`hexagonality`: the bond-orientational order parameter psi_6 (1 on a perfect
   hexagonal lattice, near 0 for a random arrangement).
@@ -17,6 +19,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -204,6 +207,47 @@ def components_at_link_events(
         graph = csr_matrix((np.ones(int(up.sum())), (a[up], b[up])), shape=(n, n))
         counts[k] = connected_components(graph, directed=False)[0]
     return times, counts
+
+
+def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Component label of every robot in the network of ``n`` robots whose links are the
+    pairs ``(a[k], b[k])`` (the links a radio makes, as a link solver's ``up_pairs()``).
+
+    >>> components_of_links(4, np.array([0, 2]), np.array([1, 3])).tolist()
+    [0, 0, 1, 1]
+    """
+    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import connected_components
+
+    graph = csr_matrix((np.ones(len(a)), (np.asarray(a, np.int64), np.asarray(b, np.int64))), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.ndarray:
+    """Number of connected components, at each of ``times_s``, of the network whose links
+    are the rows of a links table (``links.parquet``: a link is up on ``[t_up_s,
+    t_down_s)``, so at an instant where it goes down and another comes up, the state after
+    both; a link still up at the run's end, ``censored_end``, is up at its ``t_down_s``,
+    the end, too). ``O(E)`` per instant.
+
+    >>> import pandas as pd
+    >>> links = pd.DataFrame({"a": [0, 1], "b": [1, 2], "t_up_s": [0.0, 5.0], "t_down_s": [10.0, 8.0]})
+    >>> components_in_links_table(links, 3, [0.0, 5.0, 8.0, 10.0]).tolist()
+    [2, 1, 2, 3]
+    >>> links["censored_end"] = [True, False]
+    >>> components_in_links_table(links, 3, [10.0]).tolist()
+    [2]
+    """
+    a = np.asarray(links["a"], np.int64)
+    b = np.asarray(links["b"], np.int64)
+    up_s = np.asarray(links["t_up_s"], float)
+    down_s = np.asarray(links["t_down_s"], float)
+    open_end = np.asarray(links["censored_end"], bool) if "censored_end" in links else np.zeros(len(a), bool)
+    out = []
+    for t in np.asarray(times_s, float).reshape(-1).tolist():
+        up = (up_s <= t) & ((down_s > t) | (open_end & (down_s >= t)))
+        out.append(int(components_of_links(n, a[up], b[up]).max() + 1) if n else 0)
+    return np.array(out, np.int64)
 
 
 def nearest_spacing(positions_m: npt.ArrayLike) -> np.ndarray:

@@ -9,7 +9,8 @@ is built from its parameters and the parts of the run it works with (:class:`Par
 implements :class:`Reports`.
 
 Built-in plugins are entry points in ``pyproject.toml`` (groups ``netsim.mobility``,
-``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``), each naming a plugin object
+``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``, and the channel's models
+``netsim.propagation``, ``netsim.loss``, ``netsim.mac``), each naming a plugin object
 (``mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
 the configuration. So the engine never imports the packages that build on it, and names
 none of their models. A plugin is a :class:`PluginSpec` or an object with its members, and
@@ -33,8 +34,10 @@ import simpy
 
 from netsim.errors import ConfigError
 from netsim.params import Params
+from netsim.radio.models import CHANNEL_GROUPS, wants_members
 
 if TYPE_CHECKING:
+    import numpy as np
     import pandas as pd
 
     from netsim.control import ControlLoop
@@ -84,6 +87,19 @@ class Parts:
     events: EventBus | None = None
     # The world's occupancy map (netsim.radio.maps.OccupancyMap), None in open space.
     occupancy: Any = None
+    # For controllers and hooks: the links as the channel makes them (the same as
+    # links.parquet), solved during the run. Call it while building (it starts the runtime
+    # link solver); None when the run solves no link events during the run.
+    links: Callable[[], LinkState] | None = None
+
+
+class LinkState(Protocol):
+    """The links up now, as the channel makes them under the run's radio (a runtime link
+    solver: :class:`~netsim.kinetic.RuntimeLinks` and its kin)."""
+
+    def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Arrays ``(a, b)``, ``a < b``: the links up now."""
+        ...
 
 
 class Plugin(Protocol):
@@ -171,10 +187,16 @@ _MEMBERS = ("Params", "tables", "check", "build")
 
 
 @cache
-def _plugin(group: str, name: str) -> PluginSpec:
+def _plugin(group: str, name: str) -> Any:
     """The plugin ``name`` of ``group`` as a PluginSpec (an object with the members of
-    :class:`Plugin` is wrapped in one)."""
+    :class:`Plugin` is wrapped in one); a channel model (:mod:`netsim.radio.models`) as it
+    is, once it has its kind's members."""
     obj = _load(group, name)
+    if group in CHANNEL_GROUPS:
+        wanted = wants_members(group)
+        if not all(hasattr(obj, m) for m in wanted):
+            raise TypeError(f"is not a {CHANNEL_GROUPS[group].__name__} (an object with " + ", ".join(wanted) + ")")
+        return obj
     if isinstance(obj, PluginSpec):
         return obj
     if all(hasattr(obj, m) for m in _MEMBERS):

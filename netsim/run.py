@@ -36,8 +36,6 @@ from netsim.links.walled_links import WalledLinks
 from netsim.params import Params
 from netsim.plugins import Parts, Reports, Schema
 from netsim.radio.channel import Channel
-from netsim.radio.loss import LOSS_MODELS
-from netsim.radio.propagation_models import PROPAGATION_MODELS
 from netsim.radio.reception import Reception
 from netsim.rng import Streams
 from netsim.sim import Simulation
@@ -80,9 +78,9 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus)
     state.events = events
     ch = config.channel
-    survives = LOSS_MODELS[ch.loss_model].make(ch.loss, state.range_m, streams.get("channel.loss"))
+    survives = ch.loss_plugin.make(ch.loss, state.range_m, streams.get("channel.loss"))
     occupancy = world_map(config)
-    radio = PROPAGATION_MODELS[ch.propagation]
+    radio = ch.propagation_model
     propagation = radio.make(ch.radio, state.range_m, occupancy, streams.get("channel.shadowing"))
     reception = None
     if propagation is not None:
@@ -98,10 +96,14 @@ def simulation(config: Config, run: int = 0) -> Simulation:
         reception,
         events=events,
     )
-    if ch.mac != "none":
-        from netsim.radio.mac import Medium
+    mac = ch.mac_model
+    if mac.build is not None:
+        radio_params = ch.radio
 
-        channel.attach_mac(Medium(channel, ch, streams.get("channel.mac"), ch.radio))
+        def power(noise_floor_dbm: float, capture_threshold_db: float) -> Any:
+            return radio.power(radio_params, noise_floor_dbm, capture_threshold_db)
+
+        channel.attach_mac(mac.build(ch.medium, channel, streams.get("channel.mac"), power))
     parts = Parts(
         env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events, occupancy=occupancy
     )
@@ -173,7 +175,8 @@ def build(config: Config, run: int = 0) -> Simulation:
             occupancy=parts.occupancy,
         )
         sim.add_model("control", loop)
-        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups)
+        links = sim.link_events if sim.runtime_links != "off" else None
+        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links)
         for name, plugin, params in chosen:
             component = _build_model(sim, name, plugin, params, with_loop)
             if callable(component):
@@ -183,7 +186,12 @@ def build(config: Config, run: int = 0) -> Simulation:
         sim.live_topology()
     for name in events.hooks:
         hook = plugins.resolve(plugins.HOOKS, name, "events.hooks")
-        with_groups = dataclasses.replace(sim.parts, groups=sim.groups, control=sim.models.get("control"))
+        with_groups = dataclasses.replace(
+            sim.parts,
+            groups=sim.groups,
+            control=sim.models.get("control"),
+            links=sim.link_events if sim.runtime_links != "off" else None,
+        )
         _build_model(sim, name, hook, hook.Params(), with_groups)
     # Link events are solved during the run if asked for now (a hook subscribed) or later,
     # before the run starts (Simulation.run).
@@ -200,12 +208,7 @@ def tables(config: Config) -> dict[str, Schema]:
         out.update(plugin.tables)
     for name in config.events.hooks:
         out.update(plugins.resolve(plugins.HOOKS, name, "events.hooks").tables)
-    if config.channel.mac != "none":
-        from netsim.radio.mac import MEDIUM_SCHEMA, with_mac_causes
-
-        out = with_mac_causes(out)
-        out["medium"] = MEDIUM_SCHEMA
-    return out
+    return config.channel.mac_model.tables(out)
 
 
 @dataclass
@@ -284,7 +287,7 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
         "mean_degree": float(2 * life.sum() / (n * duration)) if duration > 0 else math.nan,
         "mean_speed_mps": float(distance.sum() / (n * duration)) if duration > 0 else math.nan,
     }
-    if config is not None and config.channel.propagation != "unit_disk":
+    if config is not None and config.channel.propagation_model.ranges(config.channel.radio) is not None:
         summary["propagation"] = config.channel.propagation
         summary["implied_range_m"] = float(sim.state.range_m[0]) if n else math.nan
     if sim.channel.reception is not None:

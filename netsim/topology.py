@@ -1,4 +1,5 @@
-"""Topology snapshots as networkx graphs, for analysis (never for the inner loop)."""
+"""Topology snapshots as networkx graphs, for analysis (never for the inner loop), and the
+pairs of robots within range."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ from netsim.state import RobotState
 
 if TYPE_CHECKING:  # networkx is imported by the snapshots alone, when asked for
     import networkx as nx
+
+    from netsim.plugins import LinkState
 
 
 def _candidates(
@@ -115,15 +118,29 @@ def geometric_edges(
     return list(zip(i.tolist(), j.tolist(), d.tolist()))
 
 
-def snapshot(state: RobotState, t: float, directed: bool = False, groups: GroupView | None = None) -> nx.Graph:
-    """The true unit-disk network at time ``t``.
+def snapshot(
+    state: RobotState,
+    t: float,
+    directed: bool = False,
+    groups: GroupView | None = None,
+    links: LinkState | None = None,
+) -> nx.Graph:
+    """The true network at time ``t``.
 
     Nodes carry ``pos`` (x, y) and, only when given the protocol's ``groups``
     (``snapshot(sim.state, sim.now, groups=sim.groups)``), ``role`` (its label, as
     "alpha", "beta", "gamma") and ``leader``; edges carry ``distance``. Positions are
     those at ``t``; roles and leaders are the current ones, so take the snapshot while the
-    run is at ``t`` for a consistent picture. With ``directed=True`` the graph is a
-    DiGraph with an edge i -> j when j is within i's range (one-way links appear once).
+    run is at ``t`` for a consistent picture.
+
+    The edges are the links as the channel makes them: with ``links`` (the run's runtime
+    link solver, ``sim.link_events()``), the links up now, whatever the radio (shadowing,
+    walls: the same links as ``links.parquet``), so ``t`` must be the run's present;
+    without it, the unit disk of the robots' ranges at ``t``, which are the channel's links
+    only under the unit disk (or log-distance path loss alone) in open space. With
+    ``directed=True`` the graph is a DiGraph with an edge i -> j when j is within i's
+    range (one-way links appear once; the links of a solver, always two-way, appear both
+    ways).
     """
     pos = state.positions_at(t)
     import networkx as nx
@@ -135,6 +152,13 @@ def snapshot(state: RobotState, t: float, directed: bool = False, groups: GroupV
         for i, (code, leader) in enumerate(zip(groups.role.tolist(), groups.leader.tolist())):
             g.nodes[i].update(role=groups.role_names[code], leader=int(leader))
     side = state.side_m if state.torus else None
-    i, j, d = geometric_pairs(pos, state.range_m, side, directed)  # type: ignore[assignment]  # i: a node id above
-    g.add_weighted_edges_from(zip(i.tolist(), j.tolist(), d.tolist()), weight="distance")  # type: ignore[attr-defined]
+    if links is not None:
+        a, b = links.up_pairs()
+        d = state.displacement(pos[a], pos[b])
+        dist = np.hypot(d[:, 0], d[:, 1])
+        if directed:
+            a, b, dist = np.r_[a, b], np.r_[b, a], np.r_[dist, dist]
+    else:
+        a, b, dist = geometric_pairs(pos, state.range_m, side, directed)
+    g.add_weighted_edges_from(zip(a.tolist(), b.tolist(), dist.tolist()), weight="distance")  # type: ignore[attr-defined]
     return g

@@ -32,7 +32,7 @@ import pandas as pd
 
 from netsim.errors import ConfigError
 from netsim.events import URGENT
-from netsim.params import Params, finite, non_negative, param, positive
+from netsim.params import Params, finite, names, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from protocols.neighbours import DEGREE, NeighbourTable, heard_in
 from protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
@@ -80,16 +80,19 @@ def check_tau(params: AckParams, config) -> None:
             f" = {gap:g}, the longest gap between two Acks without loss",
         )
     ch = config.channel
-    if ch.mac != "none":
-        airtime = ch.preamble_s + params.ack_bytes * 8.0 / ch.data_rate_bps
-        if not airtime < params.ack_period_s:
-            # Else a robot's own Acks fill its queue faster than the medium can carry them.
+    airtime = ch.airtime_s(params.ack_bytes)
+    if airtime is not None and not airtime < params.ack_period_s:
+        # Else a robot's own Acks fill its queue faster than the medium can carry them.
+        shorter = f" an airtime of {airtime:g} s: must be shorter than protocol.ack_period_s = {params.ack_period_s:g}"
+        if "data_rate_bps" not in names(type(ch.medium)):
             raise ConfigError(
-                "channel.data_rate_bps",
-                ch.data_rate_bps,
-                f"gives an Ack (protocol.ack_bytes = {params.ack_bytes}, channel.preamble_s = {ch.preamble_s:g})"
-                f" an airtime of {airtime:g} s: must be shorter than protocol.ack_period_s = {params.ack_period_s:g}",
+                "protocol.ack_bytes", params.ack_bytes, f"gives an Ack on channel.mac = {ch.mac!r}" + shorter
             )
+        raise ConfigError(
+            "channel.data_rate_bps",
+            ch.data_rate_bps,
+            f"gives an Ack (protocol.ack_bytes = {params.ack_bytes}, channel.preamble_s = {ch.preamble_s:g})" + shorter,
+        )
 
 
 ACKS_SCHEMA = {

@@ -559,11 +559,9 @@ class Stack:
     def messages_frame(self) -> pd.DataFrame:
         df = pd.DataFrame(self.relay.outcomes(), columns=list(Outcome._fields))
         if self.channel.deferred:
-            from netsim.radio.mac import MAC_CAUSES  # a shared medium's module, loaded with it
-
             # A shared medium: what it lost of each message's frames, by cause.
             losses = self.relay.medium_losses
-            for cause in MAC_CAUSES:
+            for cause in self.channel.medium_causes:
                 counts = [losses.get(mid, {}).get(cause, 0) for mid in df["msg_id"].tolist()]
                 df[f"dropped_{cause}"] = np.array(counts, dtype=np.int64)
         return df

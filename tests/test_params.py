@@ -7,7 +7,8 @@ import pytest
 from netsim import config as cfgmod
 from netsim.config import Config, ProtocolSection, WorldParams
 from netsim.errors import ConfigError
-from netsim.radio.loss import LOSS_MODELS
+from netsim.plugins import resolve
+from netsim.radio.models import LOSS
 from protocols.clustering import Candidate, choose_leader
 from protocols.stack import ClusteringParams
 
@@ -61,5 +62,5 @@ def test_an_unknown_choice_is_a_config_error_naming_what_is_allowed(key, value):
 def test_a_policy_name_is_checked_where_it_is_used_too():
     with pytest.raises(ValueError):
         choose_leader("neerest", [Candidate(4, 10.0), Candidate(7, 3.0)])
-    with pytest.raises(KeyError):
-        LOSS_MODELS["rayleigh"]
+    with pytest.raises(ConfigError):
+        resolve(LOSS, "rayleigh", "channel.loss_model")

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections.abc import Mapping
 from typing import Any, cast
 
 import numpy as np
@@ -67,6 +68,13 @@ def links_frame(ended: tuple, up: dict, n: int, t_end: float) -> pd.DataFrame:
     out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
     out["censored"] = out["censored_start"] | out["censored_end"]
     return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
+
+
+def up_pairs(up: Mapping[int, object], n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The links of a solver's ``up`` record (pair key ``a n + b``): arrays ``(a, b)``, ``a < b``,
+    in key order."""
+    keys = np.sort(np.fromiter(up.keys(), np.int64, len(up)))
+    return keys // n, keys % n
 
 
 class RuntimeLinks:
@@ -149,6 +157,10 @@ class RuntimeLinks:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
         censored)."""
         return links_frame(self.ended, self.up, max(self.state.n, 1), t_end)
+
+    def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The links up now: arrays ``(a, b)``, ``a < b``."""
+        return up_pairs(self.up, self._n)
 
     # -- course changes ------------------------------------------------------------------
     def _on_leg(self, i: int, t: float, jump: bool) -> None:

@@ -32,7 +32,7 @@ import pandas as pd
 import simpy
 
 from netsim.events import EventBus, LinkDown, LinkUp
-from netsim.links.kinetic import RuntimeLinks, links_frame
+from netsim.links.kinetic import RuntimeLinks, links_frame, up_pairs
 from netsim.radio.reception import LinkRecorder
 from netsim.state import RobotState
 
@@ -138,3 +138,7 @@ class ShadowedLinks:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
         censored)."""
         return links_frame(self.ended, {key: v[0] for key, v in self.up.items()}, self.n, t_end)
+
+    def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The links up now: arrays ``(a, b)``, ``a < b``."""
+        return up_pairs(self.up, self.n)

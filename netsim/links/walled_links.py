@@ -39,7 +39,7 @@ import pandas as pd
 import simpy
 
 from netsim.events import FIRST, EventBus, LinkDown, LinkUp, scheduled_event
-from netsim.links.kinetic import RuntimeLinks, links_frame
+from netsim.links.kinetic import RuntimeLinks, links_frame, up_pairs
 from netsim.links.wall_samples import SAMPLE_M, Stretches, bisect, count_below, envelope_radii
 from netsim.radio.reception import Reception
 from netsim.state import RobotState
@@ -334,3 +334,7 @@ class WalledLinks:
         """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
         censored)."""
         return links_frame(self.ended, self.up, self.n, t_end)
+
+    def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The links up now: arrays ``(a, b)``, ``a < b``."""
+        return up_pairs(self.up, self.n)

@@ -4,19 +4,23 @@
   protocols send through (delays, delivery, drops, the loss model last);
 - :mod:`netsim.radio.spatial`: who is within range of a robot now (a neighbour list);
 - :mod:`netsim.radio.reception`: the reception decision of a radio, and its record of links;
-- :mod:`netsim.radio.propagation_models`: the propagation models ``channel.propagation``
-  chooses from (unit disk, log-distance);
+- :mod:`netsim.radio.models`: what a propagation model, a loss model and a medium access
+  control declare to be plugins (entry-point groups ``netsim.propagation``,
+  ``netsim.loss``, ``netsim.mac``), and ``channel.mac = "none"``;
+- :mod:`netsim.radio.propagation_models`: the built-in propagation models (unit disk,
+  log-distance);
 - :mod:`netsim.radio.propagation`: received power as a chain of small loss terms
   (log-distance path loss, shadowing, walls, or a unit disk with line of sight);
 - :mod:`netsim.radio.fast`: those chains compiled into one pass;
-- :mod:`netsim.radio.loss`: the reception loss models ``channel.loss_model`` chooses from;
+- :mod:`netsim.radio.loss`: the built-in reception loss models;
 - :mod:`netsim.radio.shadowing`: log-normal shadowing per pair, reciprocal, spatially
   correlated as robots move (Gudmundson's exponential model);
 - :mod:`netsim.radio.maps`: ROS ``map_server`` maps (YAML and PGM/PNG image);
 - :mod:`netsim.radio.los`: line of sight and walls crossed, for many segments at once;
 - :mod:`netsim.radio.free_space`: where robots may be and go on a map;
 - :mod:`netsim.radio.examples`: the example maps shipped with netsim;
-- :mod:`netsim.radio.mac`: the shared medium (airtime, collisions, ALOHA, CSMA/DCF).
+- :mod:`netsim.radio.mac`: the shared medium (airtime, collisions, ALOHA, CSMA/DCF), and
+  :mod:`netsim.radio.mac_models` its two models' keys.
 
 The closed-form checks of these models are tools (:mod:`netsim.tools.radio_checks`,
 :mod:`netsim.tools.mac_checks`, run by ``netsim validate``). The package reads no

@@ -122,8 +122,11 @@ def shadow_step(table_keys, table_x, table_s, keys, s_new, z, sigma, decorrelati
 
 
 @numba.njit(cache=True, nogil=True)
-def path_loss_pass(d, d0, pl0, n10, rest_db, budget_slack, loss, alive):
-    """Path loss of each pair, and whether the terms after it could still let it through."""
+def path_loss_pass(frame, d, loss, alive):
+    """Path loss of each pair, and whether the terms after it could still let it through
+    (``frame``: the run's constants, :data:`netsim.radio.fast.FRAME`)."""
+    c = frame[0]
+    d0, pl0, n10, rest_db, budget_slack = c.d0_m, c.pl0_db, c.n10, -c.clip_db, c.budget_slack
     count = 0
     for m in range(d.shape[0]):
         loss[m] = 0.0 + (pl0 + n10 * np.log10(max(d[m], d0) / d0))
@@ -136,34 +139,16 @@ def path_loss_pass(d, d0, pl0, n10, rest_db, budget_slack, loss, alive):
 
 @numba.njit(cache=True, nogil=True)
 def budget_pass(
-    loss,
-    alive,
-    keys,
-    s_new,
-    z,
-    sigma,
-    decorrelation_m,
-    clip_db,
-    table_keys,
-    table_x,
-    table_s,
-    wall_db,
-    flat,
-    h,
-    w,
-    g0,
-    g1,
-    eps,
-    budget_slack,
-    tx_dbm,
-    sensitivity_dbm,
-    x_new,
-    new,
-    receivable,
-    dense_n=0,
+    frame, sigma, loss, alive, keys, s_new, z, table_keys, table_x, table_s, flat, g0, g1, x_new, new, receivable
 ):
-    """Shadowing (when sigma > 0) and walls (when wall_db > 0) for the pairs still alive,
-    then the decision ``tx - loss >= sensitivity``: the loss chain in one pass."""
+    """Shadowing (when ``sigma`` > 0) and walls (when the run has a wall loss) for the pairs
+    still alive, then the decision ``tx - loss >= sensitivity``: the loss chain in one pass.
+    ``frame``: the run's constants; ``table_*`` the shadowing's records
+    (:meth:`~netsim.radio.shadowing.PairShadowing.table`), ``z`` its normals in order."""
+    c = frame[0]
+    decorrelation_m, clip_db, wall_db, dense_n = c.decorrelation_m, c.clip_db, c.wall_db, c.dense_n
+    h, w, eps, budget_slack = c.map_h, c.map_w, c.eps, c.budget_slack
+    tx_dbm, sensitivity_dbm = c.tx_dbm, c.sensitivity_dbm
     n = table_keys.shape[0]
     j = 0
     for m in range(loss.shape[0]):
@@ -199,13 +184,15 @@ def budget_pass(
 
 
 @numba.njit(cache=True, nogil=True)
-def disk_pass(d, a, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receivable):
-    """The unit disk (the sender's range), with line of sight on a map."""
+def disk_pass(frame, d, a, range_m, flat, g0, g1, receivable):
+    """The unit disk (the sender's range: ``range_m[a]``, or ``range_m[0]`` for all), with
+    line of sight on a map."""
+    c = frame[0]
     for m in range(d.shape[0]):
-        r = range_m[a[m]] if per_robot else range_m[0]
+        r = range_m[a[m]] if c.per_robot else range_m[0]
         ok = d[m] <= r
-        if ok and use_map:
-            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, 0)
+        if ok and c.use_map:
+            walls, _ = trace_one(flat, c.map_h, c.map_w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
             ok = walls == 0
         receivable[m] = ok
 
@@ -215,7 +202,7 @@ def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     """Each pair's key, and its shadowing clock: the pair's travel at ``t`` (the two robots'
     :meth:`~netsim.state.RobotState.travelled_m` summed, ``speed`` being ``|v|`` as numpy
     computes it), floored to a multiple of ``step_m`` when ``step_m`` > 0
-    (:meth:`~netsim.radio.shadowing.PairShadowing._anchor`)."""
+    (:meth:`~netsim.radio.shadowing.PairShadowing.anchor`)."""
     own = odometer[sender] + speed[sender] * (t - t0[sender])
     for m in range(receivers.shape[0]):
         r = receivers[m]
@@ -283,70 +270,55 @@ def grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy
 
 
 @numba.njit(cache=True, nogil=True)
-def log_frame(
-    sender,
-    receivers,
-    distance_m,
-    odometer,
-    speed,
-    t0,
-    t,
-    step_m,
-    d0,
-    pl0,
-    n10,
-    clip_db,
-    budget_slack,
-    tx_dbm,
-    sensitivity_dbm,
-    sigma,
-    decorrelation_m,
-    table_keys,
-    table_x,
-    table_s,
-    dense_n,
-    normals,
-    wall_db,
-    flat,
-    h,
-    w,
-    origin_m,
-    velocity_mps,
-    map_ox,
-    map_oy,
-    res,
-    eps,
-    keys,
-    s_new,
-    x_new,
-    new,
-    receivable,
-):
-    """One frame under log-distance path loss, with shadowing when ``sigma`` > 0 and walls
-    when ``wall_db`` > 0: :func:`pair_clock`, :func:`grid_points`, :func:`path_loss_pass` and
-    :func:`budget_pass` in one call, the normals taken in order from ``normals``. Pairs met
-    for the first time get their slot at once when every pair has one (``dense_n`` > 0);
-    otherwise they are left flagged in ``new`` for the caller to insert. Returns the number
-    of normals used."""
+def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out):
+    """One frame under log-distance path loss, with shadowing when the run's ``sigma_db`` >
+    0 and walls when its ``wall_db`` > 0: :func:`pair_clock`, :func:`grid_points`,
+    :func:`path_loss_pass` and :func:`budget_pass` in one call.
+
+    ``frame``: the run's constants (:data:`netsim.radio.fast.FRAME`); ``robots``: the
+    state's ``(odometer_m, speed_mps, t0_s, origin_m, velocity_mps)``; ``shadow``: the
+    shadowing's ``(table_keys, table_x, table_s, normals)``, the normals taken in order;
+    ``flat``: the map's occupied cells; ``out``: ``(keys, s_new, x_new, new, receivable)``,
+    filled. Pairs met for the first time get their slot at once when every pair has one
+    (``dense_n`` > 0); otherwise they are left flagged in ``new`` for the caller to insert.
+    Returns the number of normals used."""
+    c = frame[0]
+    odometer, speed, t0, origin_m, velocity_mps = robots
+    table_keys, table_x, table_s, normals = shadow
+    keys, s_new, x_new, new, receivable = out
+    sigma, dense_n = c.sigma_db, c.dense_n
     k = receivers.shape[0]
     if sigma > 0.0:
-        pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new)
-    if wall_db > 0.0:
+        pair_clock(sender, receivers, odometer, speed, t0, t, c.step_m, keys, s_new)
+    if c.wall_db > 0.0:
         g0 = np.empty((k, 2))
         g1 = np.empty((k, 2))
-        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy, res, g0, g1)
+        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, c.map_ox, c.map_oy, c.res_m, g0, g1)
     else:
         g0 = g1 = np.zeros((1, 2))
     loss = np.empty(k)
     alive = np.empty(k, dtype=np.bool_)
-    count = path_loss_pass(distance_m, d0, pl0, n10, -clip_db, budget_slack, loss, alive)
+    count = path_loss_pass(frame, distance_m, loss, alive)
     if count == 0:
         sigma = 0.0
     budget_pass(
-        loss, alive, keys, s_new, normals, sigma, decorrelation_m, clip_db, table_keys, table_x, table_s,
-        wall_db, flat, h, w, g0, g1, eps, budget_slack, tx_dbm, sensitivity_dbm, x_new, new, receivable,
-        dense_n,
-    )  # fmt: skip
+        frame,
+        sigma,
+        loss,
+        alive,
+        keys,
+        s_new,
+        normals,
+        table_keys,
+        table_x,
+        table_s,
+        flat,
+        g0,
+        g1,
+        x_new,
+        new,
+        receivable,
+    )
     if dense_n > 0 and sigma > 0.0:
         for m in range(k):
             if new[m]:
@@ -358,21 +330,21 @@ def log_frame(
 
 
 @numba.njit(cache=True, nogil=True)
-def disk_frame(
-    sender, receivers, distance_m, range_m, per_robot, use_map, flat, h, w, origin_m, velocity_mps, t0, t,
-    map_ox, map_oy, res, eps, receivable,
-):  # fmt: skip
+def disk_frame(frame, t, sender, receivers, distance_m, range_m, robots, flat, receivable):
     """One frame under the unit disk (the sender's range), with line of sight on a map:
-    :func:`grid_points` and :func:`disk_pass` in one call."""
+    :func:`grid_points` and :func:`disk_pass` in one call. ``robots``: the state's
+    ``(origin_m, velocity_mps, t0_s)``."""
+    c = frame[0]
+    origin_m, velocity_mps, t0 = robots
     k = receivers.shape[0]
-    if use_map:
+    if c.use_map:
         g0 = np.empty((k, 2))
         g1 = np.empty((k, 2))
-        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy, res, g0, g1)
+        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, c.map_ox, c.map_oy, c.res_m, g0, g1)
     else:
         g0 = g1 = np.zeros((1, 2))
     senders = np.full(k, sender, dtype=np.int64)
-    disk_pass(distance_m, senders, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receivable)
+    disk_pass(frame, distance_m, senders, range_m, flat, g0, g1, receivable)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -224,6 +224,41 @@ class Channel:
         self.causes = mac.causes
 
     @property
+    def medium_causes(self) -> tuple[str, ...]:
+        """The drop causes the medium adds to the channel's own (none without a medium)."""
+        return self.causes[len(DROP_CAUSES) :]
+
+    def on_air(self, sender: int, dest: int, payload: object, deliver: Deliver, kind: str) -> np.ndarray:
+        """A medium's frame from ``sender`` going on the air now, with nothing to collide
+        with (a slot of its own): counted as sent, received by the robots that hear it
+        (``dest`` alone for a unicast, -1: a broadcast) and that the loss model spares,
+        delivered once after the latency (one jitter draw per frame), to nobody if none
+        got it and ``kind`` asks for that (:attr:`notify_empty`), as a medium delivers.
+        Returns the receivers."""
+        c = self.counters_for(kind)
+        c.sent[sender] += 1
+        binned = self._bin(kind)
+        if dest < 0:
+            receivers, dist = self._hearers(sender)
+        else:
+            heard, dist = self._unicast_hears(sender, dest)
+            receivers = np.array([dest])
+            if not heard:
+                self._out_of_range(kind, sender, dest, c, binned)
+                receivers = receivers[:0]
+        if len(receivers):
+            receivers, _ = self._decide(sender, receivers, dist, c, kind, binned)
+        delay = self.latency_s
+        if self.latency_jitter_s > 0:
+            assert self.latency_rng is not None  # checked when built
+            delay += self.latency_rng.random() * self.latency_jitter_s
+        if len(receivers):
+            self._at(delay, deliver, sender, receivers, payload, c, kind, binned)
+        elif kind in self.notify_empty:
+            self.agenda.at(delay, URGENT, deliver, sender, receivers, payload)
+        return receivers
+
+    @property
     def deferred(self) -> bool:
         """Whether receivers are decided at a frame's end (a medium), not at send time:
         ``broadcast`` then returns no receivers and ``unicast`` whether the frame was queued."""

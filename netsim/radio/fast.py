@@ -9,7 +9,9 @@ same pairs are dropped before shadowing (so the same normals are drawn), the sam
 updates are made, and the same sums are compared with the sensitivity. Pairs in one batch
 must be distinct (a broadcast's receivers are).
 
-Without numba it hands every batch to the generic chain.
+Without numba it hands every batch to the generic chain. A model whose chain has other
+terms brings no compiled path (:attr:`~netsim.radio.propagation.Propagation.fast` is None):
+:class:`GenericChain` evaluates it with numpy, term by term.
 """
 
 from __future__ import annotations
@@ -35,6 +37,33 @@ _NO_GRID = np.zeros(1, dtype=bool)
 _NO_POINTS = np.zeros((1, 2))
 _NO_KEYS = np.zeros(1, dtype=np.int64)
 _NO_FLOATS = np.zeros(1)
+
+# The constants of one run's frames, set once (CompiledChain.frame) and read by name in the
+# compiled passes: path loss (log-distance), shadowing, walls, the unit disk, the map grid.
+FRAME = np.dtype(
+    [
+        ("budget_slack", np.float64),  # P_t - sensitivity with the chain's early-drop slack, dB
+        ("tx_dbm", np.float64),
+        ("sensitivity_dbm", np.float64),
+        ("d0_m", np.float64),  # log-distance: reference distance
+        ("pl0_db", np.float64),  # log-distance: path loss at d0
+        ("n10", np.float64),  # log-distance: 10 n
+        ("step_m", np.float64),  # shadowing: the travel step a pair's value is anchored to
+        ("clip_db", np.float64),  # shadowing: |X| at most this
+        ("sigma_db", np.float64),  # shadowing: 0 without
+        ("decorrelation_m", np.float64),
+        ("dense_n", np.int64),  # shadowing: robots whose every pair has a slot (0: none)
+        ("wall_db", np.float64),  # loss per wall (0: no walls)
+        ("per_robot", np.bool_),  # unit disk: one range per robot
+        ("use_map", np.bool_),  # unit disk: line of sight on the map
+        ("map_h", np.int64),  # the map grid: rows, columns, origin, cell size, vertex tolerance
+        ("map_w", np.int64),
+        ("map_ox", np.float64),
+        ("map_oy", np.float64),
+        ("res_m", np.float64),
+        ("eps", np.float64),
+    ]
+)
 
 
 class CompiledChain:
@@ -64,19 +93,40 @@ class CompiledChain:
         term = self.walls or self.sight
         occupancy = term.occupancy if term is not None else None
         self.occupancy = occupancy
+        self.frame = self._frame_record()
+
+    def _frame_record(self) -> np.ndarray:
+        """The run's constants that the compiled passes read (:data:`FRAME`), one row."""
+        frame = np.zeros(1, dtype=FRAME)
+        row = frame[0]
+        row["budget_slack"] = self.budget_slack
+        row["tx_dbm"] = self.propagation.tx_power_dbm
+        row["sensitivity_dbm"] = self.propagation.sensitivity_dbm
+        # (Compared with None: a PairShadowing with no pair seen yet is falsy, it has a length.)
+        sh = self.shadow
+        row["decorrelation_m"] = 1.0 if sh is None else sh.decorrelation_m
+        if sh is not None:
+            row["step_m"], row["clip_db"], row["sigma_db"] = sh.step_m, sh.clip_db, sh.sigma_db
+            row["dense_n"] = sh.dense_n
         if self.log is not None:
             p = self.log.params
-            # (Compared with None: a PairShadowing with no pair seen yet is falsy, it has a length.)
-            step, clip, sigma, dcorr = (
-                (0.0, 0.0, 0.0, 1.0)
-                if self.shadow is None
-                else (self.shadow.step_m, self.shadow.clip_db, self.shadow.sigma_db, self.shadow.decorrelation_m)
+            row["d0_m"], row["pl0_db"], row["n10"] = (
+                p.reference_distance_m,
+                p.reference_loss_db,
+                10.0 * p.path_loss_exponent,
             )
-            # log_frame's arguments from step_m to decorrelation_m: fixed for the run.
-            self._frame_constants = (
-                step, p.reference_distance_m, p.reference_loss_db, 10.0 * p.path_loss_exponent, clip,
-                self.budget_slack, propagation.tx_power_dbm, propagation.sensitivity_dbm, sigma, dcorr,
-            )  # fmt: skip
+        row["wall_db"] = self.walls.wall_loss_db if self.walls is not None else 0.0
+        if self.range is not None:
+            row["per_robot"] = self.range.range_m.ndim == 1
+            row["use_map"] = self.sight is not None
+        m = self.occupancy
+        row["eps"] = VERTEX_TOLERANCE_CELLS
+        row["map_h"], row["map_w"] = (m.shape[0], m.shape[1]) if m is not None else (1, 1)
+        if m is not None:
+            row["map_ox"], row["map_oy"], row["res_m"] = float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m
+        else:
+            row["res_m"] = 1.0
+        return frame
 
     def _grid(self, pairs: Pairs):
         m = self.occupancy
@@ -95,7 +145,7 @@ class CompiledChain:
         if self.shadow is not None and len(pairs.a):
             keys = pair_keys(pairs.a, pairs.b)
             travel = np.zeros(len(pairs.a)) if pairs.travel_m is None else np.asarray(pairs.travel_m, dtype=float)
-            s_new = self.shadow._anchor(travel)
+            s_new = self.shadow.anchor(travel)
         return self._receivable(pairs, keys, s_new)
 
     def transmission(
@@ -114,35 +164,26 @@ class CompiledChain:
                 travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
                 pairs = pairs._replace(travel_m=travel)
             return self.receivable(pairs)
-        m = self.occupancy
-        if m is not None:
-            flat, h, w = m.occupied.ravel(), m.shape[0], m.shape[1]
-            ox, oy, res = float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m
-        else:
-            flat, h, w, ox, oy, res = _NO_GRID, 1, 1, 0.0, 0.0, 1.0
+        flat = self.occupancy.occupied.ravel() if self.occupancy is not None else _NO_GRID
         out = np.empty(k, dtype=bool)
         if self.range is not None:
+            robots = (state.origin_m, state.velocity_mps, state.t0_s)
             r = np.atleast_1d(self.range.range_m)
-            self.k.disk_frame(
-                sender, receivers, distances_m, r, self.range.range_m.ndim == 1, self.sight is not None,
-                flat, h, w, state.origin_m, state.velocity_mps, state.t0_s, t, ox, oy, res, VERTEX_TOLERANCE_CELLS, out,
-            )  # fmt: skip
+            self.k.disk_frame(self.frame, t, sender, receivers, distances_m, r, robots, flat, out)
             return out
-        wall_db = self.walls.wall_loss_db if self.walls is not None else 0.0
         if sh is not None:
             keys = np.empty(k, dtype=np.int64)
             s_new = np.empty(k)
-            tables = (sh._keys, sh._x, sh._s, sh.dense_n, sh.normals(k))
+            shadow = (*sh.table(), sh.normals(k))
         else:
             keys, s_new = _NO_KEYS, _NO_FLOATS
-            tables = (_NO_KEYS, _NO_FLOATS, _NO_FLOATS, 0, _NO_FLOATS)
+            shadow = (_NO_KEYS, _NO_FLOATS, _NO_FLOATS, _NO_FLOATS)
         x_new = np.empty(k)
         new = np.empty(k, dtype=bool)
+        robots5 = (state.odometer_m, speed_mps, state.t0_s, state.origin_m, state.velocity_mps)
         count = self.k.log_frame(
-            sender, receivers, distances_m, state.odometer_m, speed_mps, state.t0_s, t, *self._frame_constants,
-            *tables, wall_db, flat, h, w, state.origin_m, state.velocity_mps, ox, oy, res, VERTEX_TOLERANCE_CELLS,
-            keys, s_new, x_new, new, out,
-        )  # fmt: skip
+            self.frame, t, sender, receivers, distances_m, robots5, shadow, flat, (keys, s_new, x_new, new, out)
+        )
         if sh is not None:
             sh.consume(count)
             if not sh.dense and new.any():
@@ -167,38 +208,24 @@ class CompiledChain:
             r = np.atleast_1d(self.range.range_m)
             if g0 is None:
                 g0 = g1 = np.zeros((kn, 2))
-            self.k.disk_pass(
-                pairs.distance_m, pairs.a, r, self.range.range_m.ndim == 1,
-                self.sight is not None, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, out,
-            )  # fmt: skip
+            self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, g0, g1, out)
             return out
-        p = self.log.params  # type: ignore[union-attr]  # compiled only with a log-distance term
         sh = self.shadow
-        clip = sh.clip_db if sh is not None else 0.0
         loss = np.empty(kn)
         alive = np.empty(kn, dtype=bool)
-        count = self.k.path_loss_pass(
-            pairs.distance_m, p.reference_distance_m, p.reference_loss_db, 10.0 * p.path_loss_exponent,
-            -clip, self.budget_slack, loss, alive,
-        )  # fmt: skip
+        count = self.k.path_loss_pass(self.frame, pairs.distance_m, loss, alive)
         if g0 is None:
             g0 = g1 = _NO_POINTS
         if sh is not None and count:
             z = sh.normals(count)
             sh.consume(count)
-            tk, tx, ts, sigma = sh._keys, sh._x, sh._s, sh.sigma_db
+            (tk, tx, ts), sigma = sh.table(), sh.sigma_db
         else:
             keys, s_new, z = _NO_KEYS, _NO_FLOATS, _NO_FLOATS
             tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
         x_new = np.empty(kn)
         new = np.empty(kn, dtype=bool)
-        wall_db = self.walls.wall_loss_db if self.walls is not None else 0.0
-        self.k.budget_pass(
-            loss, alive, keys, s_new, z, sigma, sh.decorrelation_m if sh is not None else 1.0, clip,
-            tk, tx, ts, wall_db, flat, h, w, g0, g1, VERTEX_TOLERANCE_CELLS, self.budget_slack,
-            self.propagation.tx_power_dbm, self.propagation.sensitivity_dbm, x_new, new, out,
-            sh.dense_n if sh is not None else 0,
-        )  # fmt: skip
+        self.k.budget_pass(self.frame, sigma, loss, alive, keys, s_new, z, tk, tx, ts, flat, g0, g1, x_new, new, out)
         if sh is not None and new.any():
             self._insert_new(keys, x_new, s_new, new)
         return out
@@ -208,4 +235,34 @@ class CompiledChain:
         uniq, first = np.unique(keys[idx], return_index=True)
         if len(uniq) < len(idx):
             raise ValueError("the pairs of one batch must be distinct")
-        self.shadow._insert(uniq, x_new[idx[first]], s_new[idx[first]])  # type: ignore[union-attr]
+        self.shadow.insert(uniq, x_new[idx[first]], s_new[idx[first]])  # type: ignore[union-attr]
+
+
+class GenericChain:
+    """``receivable(pairs)`` of any :class:`~netsim.radio.propagation.Propagation`, with
+    numpy: the path of a model that brings no compiled one. Every pair carries both
+    robots' positions and their travel (what any term may read); the chain is evaluated as
+    :meth:`~netsim.radio.propagation.LossChain.receivable` does, pairs dropped as soon as
+    they cannot make it."""
+
+    # What the channel and a medium ask of a compiled path: a generic model declares no
+    # map, shadowing, walls or path loss of the built-in kinds.
+    occupancy = shadow = walls = log = None
+
+    def __init__(self, propagation: Propagation):
+        self.propagation = propagation
+
+    def receivable(self, pairs: Pairs) -> np.ndarray:
+        return self.propagation.receivable(pairs)
+
+    def transmission(
+        self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, speed_mps: np.ndarray
+    ) -> np.ndarray:
+        """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (as
+        :meth:`CompiledChain.transmission`)."""
+        k = len(receivers)
+        a = np.full(k, sender, dtype=np.int64)
+        pos_a = np.broadcast_to(state.positions_at(t, [sender]), (k, 2))
+        travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
+        pairs = Pairs(a, receivers, pos_a, state.positions_at(t, receivers), distances_m, travel)
+        return self.propagation.receivable(pairs)

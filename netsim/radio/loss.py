@@ -6,19 +6,20 @@ for a model that does (or a radio), and passes None to one that does not. Each m
 draws from the channel's own random stream. A model with nothing to draw (zero loss)
 draws nothing, so that turning loss off does not shift other draws.
 
-:data:`LOSS_MODELS` is the table ``channel.loss_model`` chooses from: each entry has its
-parameters (keys of ``[channel]``) and makes the callable.
+``channel.loss_model`` names one (entry points of the group ``netsim.loss``, or
+``"package.module:attr"``): a :class:`~netsim.radio.models.LossModel` with its parameters
+(keys of ``[channel]``) that makes the callable.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple
 
 import numpy as np
 
 from netsim.params import Params, param, positive, probability
+from netsim.radio.models import LossModel
 
 
 class BernoulliLoss:
@@ -124,22 +125,18 @@ class GilbertElliottParams(Params):
 Survives = Callable[[int, np.ndarray, "np.ndarray | None"], "np.ndarray | None"]
 
 
-class LossModel(NamedTuple):
-    """A loss model: its parameters, and ``make(params, range_m, rng) -> survives``."""
+BERNOULLI = LossModel(BernoulliParams, lambda p, range_m, rng: BernoulliLoss(p.loss_probability, rng), default=True)
+"""``channel.loss_model = "bernoulli"``."""
 
-    Params: type[Params]
-    make: Callable[[Any, np.ndarray, np.random.Generator], Survives]
+DISTANCE = LossModel(
+    DistanceParams, lambda p, range_m, rng: DistanceLoss(p.loss_probability, p.loss_distance_exponent, range_m, rng)
+)
+"""``channel.loss_model = "distance"``."""
 
-
-LOSS_MODELS: dict[str, LossModel] = {
-    "bernoulli": LossModel(BernoulliParams, lambda p, range_m, rng: BernoulliLoss(p.loss_probability, rng)),
-    "distance": LossModel(
-        DistanceParams, lambda p, range_m, rng: DistanceLoss(p.loss_probability, p.loss_distance_exponent, range_m, rng)
+GILBERT_ELLIOTT = LossModel(
+    GilbertElliottParams,
+    lambda p, range_m, rng: GilbertElliottLoss(
+        p.ge_p_good_to_bad, p.ge_p_bad_to_good, p.ge_loss_good, p.ge_loss_bad, len(range_m), rng
     ),
-    "gilbert_elliott": LossModel(
-        GilbertElliottParams,
-        lambda p, range_m, rng: GilbertElliottLoss(
-            p.ge_p_good_to_bad, p.ge_p_bad_to_good, p.ge_loss_good, p.ge_loss_bad, len(range_m), rng
-        ),
-    ),
-}
+)
+"""``channel.loss_model = "gilbert_elliott"``."""

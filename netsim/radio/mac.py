@@ -43,6 +43,7 @@ import simpy
 from netsim.compiled import load
 from netsim.events import URGENT, scheduled_event
 from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
+from netsim.radio.mac_models import CsmaParams
 from netsim.radio.spatial import RangeIndex
 
 # Causes a medium adds: per reception (collision, half_duplex), per frame at its sender's row
@@ -108,6 +109,7 @@ class PowerModel:
         self.d0_m = radio.reference_distance_m
         self.pl0_db = radio.reference_loss_db
         self.exponent = radio.path_loss_exponent
+        self.sensitivity_dbm = radio.sensitivity_dbm
         self.noise_mw = 10.0 ** (noise_floor_dbm / 10.0)
         self.capture = 10.0 ** (capture_threshold_db / 10.0)
         # Where the mean received power falls to the noise floor.
@@ -120,25 +122,36 @@ class PowerModel:
 
 
 class Medium:
-    """The shared medium of one run (module notes); ``params``: the ``[channel]`` keys."""
+    """The shared medium of one run (module notes); ``params``: its keys of ``[channel]``
+    (:class:`~netsim.radio.mac_models.AlohaParams` or
+    :class:`~netsim.radio.mac_models.CsmaParams`); ``power``: the radio's mean received
+    power (None: a frame is lost where another overlaps it); ``csma``: carrier sense and
+    backoff, else ALOHA."""
 
     causes = MAC_DROP_CAUSES
 
-    def __init__(self, channel: Channel, params: Any, rng: np.random.Generator, radio: Any = None):
+    def __init__(
+        self,
+        channel: Channel,
+        params: Any,
+        rng: np.random.Generator,
+        power: PowerModel | None = None,
+        csma: bool = False,
+    ):
         self.channel = channel
         self.env: simpy.Environment = channel.env
         self.state = channel.state
         n = self.state.n
-        self.csma = params.mac == "csma"
+        self.csma = csma
         self.rng = rng
         self.data_rate_bps = float(params.data_rate_bps)
         self.preamble_s = float(params.preamble_s)
-        self.slot_s, self.difs_s = float(params.slot_s), float(params.difs_s)
-        self.cw_min, self.cw_max = int(params.cw_min), int(params.cw_max)
-        self.retry_limit, self.queue_frames = int(params.retry_limit), int(params.queue_frames)
-        self.power = None
-        if radio is not None and hasattr(radio, "sensitivity_dbm"):
-            self.power = PowerModel(radio, params.noise_floor_dbm, params.capture_threshold_db)
+        # ALOHA never backs off: the backoff's defaults fill what it never reads.
+        backoff = params if csma else CsmaParams()
+        self.slot_s, self.difs_s = float(backoff.slot_s), float(backoff.difs_s)
+        self.cw_min, self.cw_max = int(backoff.cw_min), int(backoff.cw_max)
+        self.retry_limit, self.queue_frames = int(backoff.retry_limit), int(params.queue_frames)
+        self.power = power
         largest = float(self.state.range_m.max()) if n else 0.0
         rec = channel.reception
         # Shadowing or walls: a pair's power differs from the mean one.

@@ -34,8 +34,9 @@ implied range is exactly ``1 m * 10^(60 / 30) = 100 m``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -289,7 +290,8 @@ class Propagation:
     """A loss chain with its power budget: what the channel asks who hears a frame.
 
     ``range_m`` is the implied range (no shadowing, no walls); ``reach_m`` the distance
-    beyond which no pair is ever receivable (the neighbour search radius).
+    beyond which no pair is ever receivable (the neighbour search radius). A chain of any
+    terms works: without ``fast`` the channel evaluates it with numpy, term by term.
     """
 
     chain: LossChain
@@ -297,6 +299,9 @@ class Propagation:
     sensitivity_dbm: float
     range_m: float
     reach_m: float
+    # The model's compiled path, ``fast(propagation)`` (:class:`netsim.radio.fast.CompiledChain`
+    # for the chains below); None: the generic one (:class:`netsim.radio.fast.GenericChain`).
+    fast: Callable[[Propagation], Any] | None = None
 
     def receivable(self, pairs: Pairs) -> np.ndarray:
         return self.chain.receivable(pairs, self.tx_power_dbm, self.sensitivity_dbm)
@@ -320,7 +325,9 @@ def log_distance(params: LogDistanceParams, shadowing=None, occupancy=None) -> P
     if occupancy is not None and params.wall_loss_db > 0:
         terms.append(WallLoss(occupancy, params.wall_loss_db))
     reach = reach_m(params) if len(terms) > 1 and isinstance(terms[1], ShadowingLoss) else implied_range_m(params)
-    return Propagation(LossChain(*terms), params.tx_power_dbm, params.sensitivity_dbm, implied_range_m(params), reach)
+    return Propagation(
+        LossChain(*terms), params.tx_power_dbm, params.sensitivity_dbm, implied_range_m(params), reach, _compiled
+    )
 
 
 def unit_disk(range_m, occupancy=None) -> Propagation:
@@ -329,4 +336,10 @@ def unit_disk(range_m, occupancy=None) -> Propagation:
     if occupancy is not None:
         terms.append(LineOfSightLoss(occupancy))
     r = float(np.max(range_m))
-    return Propagation(LossChain(*terms), 0.0, 0.0, r, r)
+    return Propagation(LossChain(*terms), 0.0, 0.0, r, r, _compiled)
+
+
+def _compiled(propagation: Propagation) -> Any:
+    from netsim.radio.fast import CompiledChain
+
+    return CompiledChain(propagation)

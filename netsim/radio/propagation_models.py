@@ -1,4 +1,4 @@
-"""Propagation models: who can hear a frame, the table ``channel.propagation`` chooses from.
+"""Propagation models: who can hear a frame, the built-in models ``channel.propagation`` names.
 
 - ``"unit_disk"`` (the default, the paper's model): a frame from ``i`` reaches the robots
   within ``i``'s range (``channel.range_m``); on a map (``world.map``) a link also needs line
@@ -9,25 +9,31 @@
   crossed on a map. ``channel.range_m`` does not apply: every robot's range is the implied
   range, where ``P_r`` equals the sensitivity without shadowing or walls.
 
-Each entry of :data:`PROPAGATION_MODELS` has its parameters (keys of ``[channel]``), the
-robots' link ranges, and makes the reception decision (a
-:class:`~netsim.radio.propagation.Propagation`, or None for a plain unit disk, which the
-channel decides by distance alone, as before). The channel's reception is then a chain:
-propagation (range or path loss), walls, shadowing, and the loss model last
-(:mod:`netsim.radio.loss`).
+Each is a :class:`~netsim.radio.models.PropagationModel` (entry points of the group
+``netsim.propagation``): its parameters (keys of ``[channel]``), the robots' link ranges,
+and the reception decision it makes (a :class:`~netsim.radio.propagation.Propagation`, or
+None for a plain unit disk, which the channel decides by distance alone). The channel's
+reception is then a chain: propagation (range or path loss), walls, shadowing, and the
+loss model last (:mod:`netsim.radio.loss`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
-from netsim.errors import ConfigError
 from netsim.params import Params
-from netsim.radio.propagation import LogDistanceParams, Propagation, implied_range_m, log_distance, unit_disk
+from netsim.radio.models import PropagationModel
+from netsim.radio.propagation import (
+    LogDistanceParams,
+    Propagation,
+    implied_range_m,
+    log_distance,
+    reach_m,
+    unit_disk,
+)
 
 
 @dataclass(frozen=True)
@@ -52,32 +58,21 @@ def _log_distance(params: LogDistanceParams, range_m: np.ndarray, occupancy, rng
     return log_distance(params, shadowing, occupancy)
 
 
-class PropagationModel(NamedTuple):
-    """A propagation model: its parameters; ``ranges(params, range_m)``, the robots' link
-    ranges (None: ``channel.range_m``); ``make(params, range_m, occupancy, rng)``, the
-    reception decision (None: a unit disk by distance alone); ``shadowed(params)``, whether
-    links are random (link events are then the channel's decisions, not solved)."""
+def _power(params: LogDistanceParams, noise_floor_dbm: float, capture_threshold_db: float) -> Any:
+    from netsim.radio.mac import PowerModel
 
-    Params: type[Params]
-    ranges: Callable[[Any], float | None]
-    make: Callable[[Any, np.ndarray, Any, np.random.Generator], Propagation | None]
-    shadowed: Callable[[Any], bool]
-    walled: Callable[[Any], bool]
+    return PowerModel(params, noise_floor_dbm, capture_threshold_db)
 
 
-PROPAGATION_MODELS: dict[str, PropagationModel] = {
-    "unit_disk": PropagationModel(UnitDiskParams, lambda p: None, _unit_disk, lambda p: False, lambda p: True),
-    "log_distance": PropagationModel(
-        LogDistanceParams,
-        implied_range_m,
-        _log_distance,
-        lambda p: p.shadowing_sigma_db > 0,
-        lambda p: p.wall_loss_db > 0,
-    ),
-}
+UNIT_DISK = PropagationModel(UnitDiskParams, _unit_disk, default=True)
+"""``channel.propagation = "unit_disk"``: the paper's model."""
 
-
-def propagation_name(key: str, value: Any) -> str:
-    if not isinstance(value, str) or value not in PROPAGATION_MODELS:
-        raise ConfigError(key, value, "must be one of " + ", ".join(repr(n) for n in PROPAGATION_MODELS))
-    return value
+LOG_DISTANCE = PropagationModel(
+    LogDistanceParams,
+    _log_distance,
+    ranges=implied_range_m,
+    reach=reach_m,
+    shadowed=lambda p: p.shadowing_sigma_db > 0,
+    power=_power,
+)
+"""``channel.propagation = "log_distance"``: path loss, shadowing and walls."""

@@ -16,11 +16,13 @@ robot within reach, and a unicast that of its own pair alone.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pandas as pd
 
 from netsim.radio import compiled_kernels
-from netsim.radio.fast import CompiledChain
+from netsim.radio.fast import GenericChain
 from netsim.radio.propagation import Pairs, Propagation
 from netsim.state import RobotState
 
@@ -157,7 +159,9 @@ class Reception:
 
     def __init__(self, propagation: Propagation, state: RobotState, record: bool = False):
         self.propagation = propagation
-        self.compiled = CompiledChain(propagation)
+        fast = propagation.fast
+        # The model's compiled path (CompiledChain for the built-in chains), or the generic one.
+        self.compiled: Any = fast(propagation) if fast is not None else GenericChain(propagation)
         self.state = state
         self.reach_m = float(propagation.reach_m)
         self.map = self.compiled.occupancy

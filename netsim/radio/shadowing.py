@@ -175,7 +175,14 @@ class PairShadowing:
         """Pairs seen so far (and not forgotten)."""
         return int(np.count_nonzero(~np.isnan(self._x)))
 
-    def _anchor(self, travel_m: np.ndarray) -> np.ndarray:
+    def table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pairs' records as a compiled pass reads and updates them in place: keys
+        (:func:`pair_keys`, ascending), stored values ``X`` (unclipped; NaN: not seen, or
+        forgotten) and anchor travels. New pairs go in through :meth:`insert`."""
+        return self._keys, self._x, self._s
+
+    def anchor(self, travel_m: np.ndarray) -> np.ndarray:
+        """The travel a pair's value is taken at: ``travel_m`` down to a whole step."""
         if self.step_m > 0:
             return np.floor(travel_m / self.step_m) * self.step_m
         return travel_m
@@ -206,7 +213,7 @@ class PairShadowing:
         if self.sigma_db == 0.0 or k == 0:
             return np.zeros(k)
         keys = pair_keys(a, b)
-        s_new = self._anchor(np.array(np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))))
+        s_new = self.anchor(np.array(np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))))
         z = self.normals(k)[:k]
         self.consume(k)
         kernel = _kernel()
@@ -223,10 +230,11 @@ class PairShadowing:
                 uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)
                 fresh = self.sigma_db * z[idx[first]]
                 x[idx] = fresh[inverse]
-                self._insert(uniq, fresh, s_new[idx[first]])
+                self.insert(uniq, fresh, s_new[idx[first]])
         return np.clip(x, -self.clip_db, self.clip_db)
 
-    def _insert(self, keys, x, s) -> None:
+    def insert(self, keys, x, s) -> None:
+        """Record pairs seen for the first time (``keys`` ascending, none recorded yet)."""
         at = np.searchsorted(self._keys, keys)
         if self.dense:
             self._x[at] = x
@@ -262,7 +270,7 @@ class PairShadowing:
             self._x[at] = x[found]
             self._s[at] = np.maximum(su[found], self._s[at])
         if (~found).any():
-            self._insert(uniq[~found], x[~found], su[~found])
+            self.insert(uniq[~found], x[~found], su[~found])
         return x[inverse]
 
     def forget(self, odometer_m, horizon: float = 20.0) -> int:

@@ -1,0 +1,263 @@
+"""Compiled (numba) loops behind :mod:`netsim.radio.sweep`.
+
+They call :func:`netsim.radio._kernels.trace_one`: numba does not track callees across
+files, so a change there must touch this module too (or clear the cache).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from netsim.radio._kernels import trace_one
+
+# Where a vertex lies on the segment's line for every t (both factors of the cross product
+# vanish): relative to the size of each coefficient.
+_DEGENERATE = 1e-12
+# How close to a grid line, in cells, an end's crossing of the other axis is taken as a
+# crossing at a vertex (then a candidate whatever the cells).
+_NEAR_LINE_CELLS = 1e-6
+
+
+@numba.njit(cache=True, nogil=True)
+def _push(buf, n, t):
+    if n == buf.shape[0]:
+        grown = np.empty(2 * n)
+        grown[:n] = buf
+        buf = grown
+    buf[n] = t
+    return buf, n + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell(flat, h, w, i, j):
+    i = min(max(i, 0), w - 1)
+    j = min(max(j, 0), h - 1)
+    return flat[j * w + i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _linear_root(c0, c1, duration, buf, n):
+    """``c0 + c1 t = 0`` for ``t`` strictly inside ``(0, duration)``."""
+    if c1 != 0.0:
+        t = -c0 / c1
+        if t > 0.0 and t < duration:
+            buf, n = _push(buf, n, t)
+    return buf, n
+
+
+@numba.njit(cache=True, nogil=True)
+def _end_crossings(flat, h, w, e0, e1, f0, f1, duration, axis, buf, n):
+    """Where an end moving along ``e0 + e1 t`` (the axis crossed; ``f`` the other
+    coordinate) crosses a grid line between cells of different state, or near a vertex."""
+    if e1 == 0.0:
+        return buf, n
+    x_end = e0 + e1 * duration
+    lo = min(e0, x_end)
+    hi = max(e0, x_end)
+    first = np.int64(np.floor(lo)) + 1
+    last = np.int64(np.ceil(hi)) - 1
+    for line in range(first, last + 1):
+        t = (line - e0) / e1
+        if not (t > 0.0 and t < duration):
+            continue
+        f = f0 + f1 * t
+        r = np.rint(f)
+        if abs(f - r) <= _NEAR_LINE_CELLS:
+            buf, n = _push(buf, n, t)
+            continue
+        j = np.int64(np.floor(f))
+        if axis == 0:
+            differ = _cell(flat, h, w, line - 1, j) != _cell(flat, h, w, line, j)
+        else:
+            differ = _cell(flat, h, w, j, line - 1) != _cell(flat, h, w, j, line)
+        if differ:
+            buf, n = _push(buf, n, t)
+    return buf, n
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull_span(ys, xs, y):
+    """The span in x of the convex hull of four points along the line at height ``y``
+    (empty: lo > hi)."""
+    lo = np.inf
+    hi = -np.inf
+    for i in range(4):
+        if ys[i] == y:
+            lo = min(lo, xs[i])
+            hi = max(hi, xs[i])
+        for k in range(i + 1, 4):
+            y0, y1 = ys[i], ys[k]
+            if (y0 < y and y1 > y) or (y0 > y and y1 < y):
+                x = xs[i] + (xs[k] - xs[i]) * (y - y0) / (y1 - y0)
+                lo = min(lo, x)
+                hi = max(hi, x)
+    return lo, hi
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_roots(ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
+    """When the segment from ``a + va t`` to ``b + vb t`` (relative to a vertex) passes
+    through the vertex: ``cross(a + va t, b + vb t) = 0`` with the vertex between the ends."""
+    c0 = ax * by - ay * bx
+    c1 = ax * vby - ay * vbx + vax * by - vay * bx
+    c2 = vax * vby - vay * vbx
+    na = np.hypot(ax, ay)
+    nb = np.hypot(bx, by)
+    nva = np.hypot(vax, vay)
+    nvb = np.hypot(vbx, vby)
+    if (
+        abs(c0) <= _DEGENERATE * na * nb
+        and abs(c1) <= _DEGENERATE * (na * nvb + nva * nb)
+        and abs(c2) <= _DEGENERATE * nva * nvb
+    ):
+        # The vertex stays on the segment's line: which side of it each end is on changes
+        # where an end passes the vertex's lines.
+        buf, n = _linear_root(ax, vax, duration, buf, n)
+        buf, n = _linear_root(ay, vay, duration, buf, n)
+        buf, n = _linear_root(bx, vbx, duration, buf, n)
+        buf, n = _linear_root(by, vby, duration, buf, n)
+        return buf, n
+    r0 = np.nan
+    r1 = np.nan
+    if c2 == 0.0:
+        if c1 != 0.0:
+            r0 = -c0 / c1
+    else:
+        disc = c1 * c1 - 4.0 * c2 * c0
+        if disc < 0.0:
+            # A touch (a double root) that rounding pushed below zero.
+            if disc >= -1e-12 * (c1 * c1 + abs(4.0 * c2 * c0)):
+                r0 = -c1 / (2.0 * c2)
+        else:
+            q = -0.5 * (c1 + np.sqrt(disc)) if c1 >= 0.0 else -0.5 * (c1 - np.sqrt(disc))
+            if q != 0.0:
+                r0 = q / c2
+                r1 = c0 / q
+            else:
+                r0 = 0.0
+    for r in (r0, r1):
+        if not (r > 0.0 and r < duration):
+            continue
+        px = ax + vax * r
+        py = ay + vay * r
+        qx = bx + vbx * r
+        qy = by + vby * r
+        # Between the ends (with a margin: a spare candidate costs one evaluation).
+        if px * qx + py * qy <= 1e-9 * (px * px + py * py + qx * qx + qy * qy) + 1e-12:
+            buf, n = _push(buf, n, r)
+    return buf, n
+
+
+@numba.njit(cache=True, nogil=True)
+def candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, duration):
+    """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
+    ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
+    buf = np.empty(64)
+    n = 0
+    ax, ay, vax, vay = g0[0], g0[1], gv[0], gv[1]
+    bx, by, vbx, vby = k0[0], k0[1], kv[0], kv[1]
+    # The traversal's direction along each axis (and so its conventions) flips where the
+    # segment is parallel to it.
+    buf, n = _linear_root(bx - ax, vbx - vax, duration, buf, n)
+    buf, n = _linear_root(by - ay, vby - vay, duration, buf, n)
+    buf, n = _end_crossings(flat, h, w, ax, vax, ay, vay, duration, 0, buf, n)
+    buf, n = _end_crossings(flat, h, w, ay, vay, ax, vax, duration, 1, buf, n)
+    buf, n = _end_crossings(flat, h, w, bx, vbx, by, vby, duration, 0, buf, n)
+    buf, n = _end_crossings(flat, h, w, by, vby, bx, vbx, duration, 1, buf, n)
+    # The segment lies in the convex hull of the ends' first and last positions.
+    xs = np.array([ax, ax + vax * duration, bx, bx + vbx * duration])
+    ys = np.array([ay, ay + vay * duration, by, by + vby * duration])
+    margin = 1e-6
+    j_lo = max(np.int64(np.ceil(ys.min() - margin)), 0)
+    j_hi = min(np.int64(np.floor(ys.max() + margin)), h)
+    for j in range(j_lo, j_hi + 1):
+        start, stop = row_ptr[j], row_ptr[j + 1]
+        if start == stop:
+            continue
+        y = float(j)
+        lo, hi = _hull_span(ys, xs, y)
+        # Rows within the margin of a corner's height: take the corner's span too.
+        for i in range(4):
+            if abs(ys[i] - y) <= margin:
+                lo = min(lo, xs[i])
+                hi = max(hi, xs[i])
+        if lo > hi:
+            continue
+        first = np.searchsorted(cols[start:stop], np.ceil(lo - margin)) + start
+        for m in range(first, stop):
+            x = float(cols[m])
+            if x > hi + margin:
+                break
+            buf, n = _vertex_roots(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby, duration, buf, n)
+    return buf[:n]
+
+
+@numba.njit(cache=True, nogil=True)
+def sweep(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, limit):
+    """Rows ``(pair, t0, t1, walls)`` of every pair (:func:`netsim.radio.sweep.sweep_walls`);
+    the counts stop at ``limit + 1``."""
+    k = p0.shape[0]
+    cap = 4 * k + 16
+    pair = np.empty(cap, np.int64)
+    t0 = np.empty(cap)
+    t1 = np.empty(cap)
+    walls = np.empty(cap, np.int64)
+    rows = 0
+    g0 = np.empty(2)
+    gv = np.empty(2)
+    k0 = np.empty(2)
+    kv = np.empty(2)
+    for s in range(k):
+        g0[0] = (p0[s, 0] - origin_x) / res
+        g0[1] = (p0[s, 1] - origin_y) / res
+        gv[0] = vp[s, 0] / res
+        gv[1] = vp[s, 1] / res
+        k0[0] = (q0[s, 0] - origin_x) / res
+        k0[1] = (q0[s, 1] - origin_y) / res
+        kv[0] = vq[s, 0] / res
+        kv[1] = vq[s, 1] / res
+        d = duration[s]
+        cand = np.sort(candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, d))
+        m = cand.shape[0]
+        prev = 0.0
+        for c in range(m + 1):
+            nxt = cand[c] if c < m else d
+            if c < m and not nxt > prev:
+                continue
+            mid = 0.5 * (prev + nxt) if nxt > prev else prev
+            u0 = (p0[s, 0] + vp[s, 0] * mid - origin_x) / res
+            v0 = (p0[s, 1] + vp[s, 1] * mid - origin_y) / res
+            u1 = (q0[s, 0] + vq[s, 0] * mid - origin_x) / res
+            v1 = (q0[s, 1] + vq[s, 1] * mid - origin_y) / res
+            count, _ = trace_one(flat, h, w, u0, v0, u1, v1, eps, limit)
+            if rows > 0 and pair[rows - 1] == s and walls[rows - 1] == count:
+                t1[rows - 1] = nxt
+            else:
+                if rows == cap:
+                    cap *= 2
+                    pair = _grow_int(pair, cap)
+                    walls = _grow_int(walls, cap)
+                    t0 = _grow_float(t0, cap)
+                    t1 = _grow_float(t1, cap)
+                pair[rows] = s
+                t0[rows] = prev
+                t1[rows] = nxt
+                walls[rows] = count
+                rows += 1
+            prev = nxt
+    return pair[:rows], t0[:rows], t1[:rows], walls[:rows]
+
+
+@numba.njit(cache=True, nogil=True)
+def _grow_int(a, cap):
+    out = np.empty(cap, np.int64)
+    out[: a.shape[0]] = a
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _grow_float(a, cap):
+    out = np.empty(cap)
+    out[: a.shape[0]] = a
+    return out
