@@ -133,7 +133,7 @@ def leader_step_factors(
         np.minimum.at(s, k, step_limit(np.concatenate(rows_off), np.concatenate(rows_r), move[k]))
     # Members translate with their leader: the whole group stays inside the area.
     r_idx = np.flatnonzero(rigid)
-    np.minimum.at(s, group[r_idx], box_limit(pos[r_idx], move[group[r_idx]], limits.side_m))
+    np.minimum.at(s, group[r_idx], box_limit(pos[r_idx], move[group[r_idx]], limits.box))
     return s
 
 
@@ -155,7 +155,7 @@ def gateway_steps(pos: np.ndarray, move: np.ndarray, gw: np.ndarray, br: Bridges
     lim = step_limit(o, np.maximum(limits.keep_m, np.hypot(*o.T)), full[br.gw_robot])
     sg = np.ones(n)
     np.minimum.at(sg, br.gw_robot, lim)
-    sg[gw] = np.minimum(sg[gw], box_limit(pos[gw], want, limits.side_m))
+    sg[gw] = np.minimum(sg[gw], box_limit(pos[gw], want, limits.box))
     return want * sg[gw, None]
 
 

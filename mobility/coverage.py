@@ -85,6 +85,7 @@ from mobility.local import Memory, let_go, plan_local, pulls, sources_heard
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
+from netsim.area import Bounds
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.events import LAST, scheduled_event
@@ -263,7 +264,7 @@ def wished_velocities(
     law_name: str,
     range_m: float,
     gain: float,
-    side_m: float,
+    area: float | Bounds,
 ) -> np.ndarray:
     """``gain x (resultant + border push)`` for each leader, from the neighbour positions it knows."""
     law = LAWS[law_name]
@@ -271,7 +272,7 @@ def wished_velocities(
     for k, (i, nb) in enumerate(zip(leaders.tolist(), neighbours)):
         p = pos_now[i]
         # Every law is zero from 2 r_c on, so farther leaders need no filtering here.
-        out[k] = resultant(p, nb, law, range_m, gain) + border_force(p, side_m, range_m, gain)
+        out[k] = resultant(p, nb, law, range_m, gain) + border_force(p, area, range_m, gain)
     return out
 
 
@@ -292,13 +293,13 @@ def sources_true(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarra
 
 
 def spreading_forces(
-    pos: np.ndarray, target: np.ndarray, source_xy: np.ndarray, law_name: str, range_m: float, gain: float, side_m
+    pos: np.ndarray, target: np.ndarray, source_xy: np.ndarray, law_name: str, range_m: float, gain: float, area
 ) -> np.ndarray:
     """``gain x (resultant + border push)`` on every robot (rows of robots without
     sources are the border push alone), from the pairs ``(target, source position)``."""
     n = len(pos)
     f = pair_resultants(n, target, pos[target] - source_xy, LAWS[law_name], range_m, gain)
-    return f + border_forces(pos, side_m, range_m, gain)
+    return f + border_forces(pos, area, range_m, gain)
 
 
 class StepRecord(NamedTuple):
@@ -335,7 +336,7 @@ class CoverageController:
         self.range_m = float(np.min(st.range_m))
         self.radius_m = self.cfg.radius_m or self.range_m
         self.limits = StepLimits(
-            self.cfg.control_period_s, self.range_m, self.cfg.margin_m, self.cfg.speed_max_mps, st.side_m
+            self.cfg.control_period_s, self.range_m, self.cfg.margin_m, self.cfg.speed_max_mps, st.side_m, st.bounds
         )
         self.quiet_since = np.full(st.n, np.nan)
         self.all_quiet_since = math.nan
@@ -387,7 +388,9 @@ class CoverageController:
             neighbours = true_neighbours(pos_now, leaders, self.range_m) if len(leaders) else []
         else:
             neighbours = [self.view.heard_leaders(i, now)[1] for i in leaders.tolist()]
-        wished = wished_velocities(pos_now, leaders, neighbours, self.cfg.law, self.range_m, self.cfg.gain, step.side_m)
+        wished = wished_velocities(
+            pos_now, leaders, neighbours, self.cfg.law, self.range_m, self.cfg.gain, self.limits.box
+        )
         wished += self._wall_push(pos_now[leaders])
         speed = np.hypot(*wished.T) if len(leaders) else np.zeros(0)
         quiet = speed < self.cfg.stop_speed_mps
@@ -415,7 +418,7 @@ class CoverageController:
             target, source_xy = sources_true(pos_now, self.range_m)
         else:
             target, _, source_xy = self.view.neighbourhood(now)
-        wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, step.side_m)
+        wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos_now)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
@@ -573,8 +576,8 @@ class CoverageController:
 
     def _covered(self, centres: np.ndarray) -> tuple[float, float]:
         if self.cfg.area_method is AreaMethod.GRID:
-            return metrics.covered_fraction(centres, self.radius_m, self.limits.side_m, self.cfg.grid_cells)
-        return metrics.covered_fraction_exact(centres, self.radius_m, self.limits.side_m)
+            return metrics.covered_fraction(centres, self.radius_m, self.limits.box, self.cfg.grid_cells)
+        return metrics.covered_fraction_exact(centres, self.radius_m, self.limits.box)
 
     def sample(self, t: float) -> dict:
         st = self.state
@@ -582,7 +585,7 @@ class CoverageController:
         leaders = pos[leads_itself(self.view.leader)]
         cov_l, err_l = self._covered(leaders)
         cov_a, err_a = self._covered(pos)
-        bound = metrics.bound_fraction(st.n, self.radius_m, st.side_m, self.range_m)
+        bound = metrics.bound_fraction(st.n, self.radius_m, st.bounds, self.range_m)
         components = self.components_now()
         spacing = metrics.nearest_spacing(leaders)
         travelled = self.odometer_m + self.speed_mps * (t - self.odo_t_s)

@@ -56,9 +56,9 @@ class ExternalDriver:
             st.set_legs(robots, now, v)
             return
         here = st.positions_at(now, robots)
-        t_stop = time_to_border(here, v, st.side_m)
+        t_stop = time_to_border(here, v, st.bounds)
         finite = np.isfinite(t_stop)
-        ends = np.clip(here + v * np.where(finite, t_stop, 0.0)[:, None], 0.0, st.side_m)
+        ends = st.bounds.clip(here + v * np.where(finite, t_stop, 0.0)[:, None])
         if self.occupancy is not None and (t_stop > 0).any():
             from netsim.radio.free_space import free_fraction
 

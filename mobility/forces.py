@@ -23,6 +23,8 @@ from enum import StrEnum
 
 import numpy as np
 
+from netsim.area import Bounds, as_bounds
+
 SQRT3 = math.sqrt(3.0)
 
 
@@ -74,18 +76,21 @@ def resultant(p_i, neighbours_m, law, range_m: float, gain: float) -> np.ndarray
     return (mag[:, None] * delta[ok] / d[ok, None]).sum(axis=0)
 
 
-def border_force(p, side_m: float, range_m: float, gain: float) -> np.ndarray:
-    """Push back from the borders of the square: ``k (m - distance)`` inward within a margin
-    ``m = sqrt(3) r_c / 2`` of a border (half the target spacing: a leader there covers up
-    to the border with the least waste)."""
+def border_force(p, area: float | Bounds, range_m: float, gain: float) -> np.ndarray:
+    """Push back from the borders of the area (Bounds, or the side of the square ``[0,
+    side]^2``): ``k (m - distance)`` inward within a margin ``m = sqrt(3) r_c / 2`` of a
+    border (half the target spacing: a leader there covers up to the border with the least
+    waste)."""
+    b = as_bounds(area)
+    lo, hi = (b.x_min, b.y_min), (b.x_max, b.y_max)
     margin = SQRT3 * range_m / 2
     p = np.asarray(p, dtype=float)
     f = np.zeros(2)
     for k in range(2):
-        if p[k] < margin:
-            f[k] += gain * (margin - p[k])
-        if side_m - p[k] < margin:
-            f[k] -= gain * (margin - (side_m - p[k]))
+        if p[k] - lo[k] < margin:
+            f[k] += gain * (margin - (p[k] - lo[k]))
+        if hi[k] - p[k] < margin:
+            f[k] -= gain * (margin - (hi[k] - p[k]))
     return f
 
 
@@ -101,8 +106,9 @@ def pair_resultants(n: int, target: np.ndarray, delta: np.ndarray, law, range_m:
     return np.column_stack([fx, fy])
 
 
-def border_forces(p: np.ndarray, side_m: float, range_m: float, gain: float) -> np.ndarray:
+def border_forces(p: np.ndarray, area: float | Bounds, range_m: float, gain: float) -> np.ndarray:
     """:func:`border_force` for every row of ``p`` (k, 2) at once."""
+    b = as_bounds(area)
     margin = SQRT3 * range_m / 2
     p = np.asarray(p, dtype=float).reshape(-1, 2)
-    return gain * (np.clip(margin - p, 0.0, None) - np.clip(margin - (side_m - p), 0.0, None))
+    return gain * (np.clip(margin - (p - b.lo), 0.0, None) - np.clip(margin - (b.hi - p), 0.0, None))

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import simpy
 
+from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive, probability
 from netsim.placement import initial_positions
@@ -55,33 +56,39 @@ def check(params: GaussMarkovParams, config) -> None:
         raise ConfigError("mobility.model", "gauss_markov", "moves in a bounded area; set world.torus = false")
 
 
-def _clamped_legs(p: np.ndarray, v: np.ndarray, duration_s: float, side_m: float) -> list[tuple[float, np.ndarray]]:
+def _clamped_legs(
+    p: np.ndarray, v: np.ndarray, duration_s: float, box: float | Bounds
+) -> list[tuple[float, np.ndarray]]:
     """The legs ``(start offset s, velocity)`` of a robot moving from ``p`` at ``v`` for
-    ``duration_s`` with its position clamped to the square: each coordinate that reaches a
-    border stops there, the other goes on."""
+    ``duration_s`` with its position clamped to the area (Bounds, or the side of the square
+    ``[0, side]^2``): each coordinate that reaches a border stops there, the other goes on."""
+    area = as_bounds(box)
+    lo, hi = (area.x_min, area.y_min), (area.x_max, area.y_max)
     legs = [(0.0, v.copy())]
     t, here, vel = 0.0, p.copy(), v.copy()
     while True:
         hit = math.inf
         for k in range(2):
             if vel[k] > 0:
-                hit = min(hit, (side_m - here[k]) / vel[k])
+                hit = min(hit, (hi[k] - here[k]) / vel[k])
             elif vel[k] < 0:
-                hit = min(hit, -here[k] / vel[k])
+                hit = min(hit, -(here[k] - lo[k]) / vel[k])
         if t + hit >= duration_s:
             return legs
         t += hit
-        here = np.clip(here + vel * hit, 0.0, side_m)
+        here = area.clip(here + vel * hit)
         for k in range(2):
-            if (vel[k] > 0 and here[k] >= side_m) or (vel[k] < 0 and here[k] <= 0.0):
+            if (vel[k] > 0 and here[k] >= hi[k]) or (vel[k] < 0 and here[k] <= lo[k]):
                 vel[k] = 0.0
         legs.append((t, vel.copy()))
 
 
 def gauss_markov_robot(
-    env: simpy.Environment, st: RobotState, m: GaussMarkovParams, side_m: float, i: int, rng: np.random.Generator
+    env: simpy.Environment, st: RobotState, m: GaussMarkovParams, box: float | Bounds, i: int, rng: np.random.Generator
 ):
-    """The life of robot ``i``: one update every ``update_interval_s``, forever."""
+    """The life of robot ``i`` in the area ``box`` (Bounds, or the side of the square ``[0,
+    side]^2``): one update every ``update_interval_s``, forever."""
+    area = as_bounds(box)
     mean_dir = rng.uniform(0.0, 2 * math.pi)
     speed, direction = m.mean_speed_mps, mean_dir
     keep = math.sqrt(max(0.0, 1.0 - m.alpha * m.alpha))
@@ -94,20 +101,22 @@ def gauss_markov_robot(
         v = speed * np.array([math.cos(direction), math.sin(direction)])
         here = st.positions_at(env.now, [i])[0]
         ahead = here + v * dt
-        if ahead[0] < 0.0 or ahead[0] > side_m:
+        out_x = ahead[0] < area.x_min or ahead[0] > area.x_max
+        out_y = ahead[1] < area.y_min or ahead[1] > area.y_max
+        if out_x:
             v[0] = -v[0]
             mean_dir = math.pi - mean_dir
-        if ahead[1] < 0.0 or ahead[1] > side_m:
+        if out_y:
             v[1] = -v[1]
             mean_dir = -mean_dir
-        if (ahead < 0.0).any() or (ahead > side_m).any():
+        if out_x or out_y:
             direction = mean_dir
         start = env.now
-        for k, (offset, vel) in enumerate(_clamped_legs(here, v, dt, side_m)):
+        for k, (offset, vel) in enumerate(_clamped_legs(here, v, dt, area)):
             if offset > 0:
                 yield env.timeout(start + offset - env.now)
                 # Land exactly on the border, not a rounding error outside it.
-                st.arrive(i, env.now, np.clip(st.positions_at(env.now, [i])[0], 0.0, side_m), log=False)
+                st.arrive(i, env.now, area.clip(st.positions_at(env.now, [i])[0]), log=False)
                 st.set_leg(i, env.now, vel, cause="border")
             else:
                 st.set_leg(i, env.now, vel, cause=cause if k == 0 else "border")
@@ -120,7 +129,7 @@ def build(m: GaussMarkovParams, parts: Parts) -> None:
     parts.state.place(initial_positions(w, parts.streams, parts.occupancy))
     for i in range(w.n_robots):
         rng = parts.streams.get("mobility", i)
-        parts.env.process(gauss_markov_robot(parts.env, parts.state, m, w.side_m, i, rng))
+        parts.env.process(gauss_markov_robot(parts.env, parts.state, m, parts.state.bounds, i, rng))
 
 
 PLUGIN = PluginSpec(Params=GaussMarkovParams, build=build, check=check)

@@ -1,7 +1,7 @@
 """Random direction: robots keep a uniformly random heading and speed.
 
-In a bounded square a robot travels until it reaches the border, pauses ``pause_s``, and
-leaves in a new direction drawn uniformly among those pointing back inside. On a torus
+In a bounded area (the rectangle ``world.bounds_m``) a robot travels until it reaches the
+border, pauses ``pause_s``, and leaves in a new direction drawn uniformly among those pointing back inside. On a torus
 (``world.torus = true``) there is no border: a robot keeps its heading for
 ``turn_interval_s`` (``inf``: for ever, the constant-velocity model whose link durations
 have a closed form, docs/validation.md item 6), then draws a new one.
@@ -21,6 +21,7 @@ import numpy as np
 import simpy
 
 from mobility.speeds import SpeedParams
+from netsim.area import Bounds
 from netsim.errors import ConfigError
 from netsim.params import param, positive
 from netsim.placement import initial_positions
@@ -45,22 +46,24 @@ def check(params: RandomDirectionParams, config) -> None:
         raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for random direction")
 
 
-def _time_to_border(p: np.ndarray, v: np.ndarray, side: float) -> float:
+def _time_to_border(p: np.ndarray, v: np.ndarray, area: Bounds) -> float:
+    lo, hi = (area.x_min, area.y_min), (area.x_max, area.y_max)
     times = []
     for k in range(2):
         if v[k] > 0:
-            times.append((side - p[k]) / v[k])
+            times.append((hi[k] - p[k]) / v[k])
         elif v[k] < 0:
-            times.append(-p[k] / v[k])
+            times.append(-(p[k] - lo[k]) / v[k])
     return max(0.0, min(times)) if times else math.inf
 
 
-def _inward_heading(rng, p: np.ndarray, side: float) -> np.ndarray:
-    """A uniform heading, mirrored so that it does not point out of the square."""
+def _inward_heading(rng, p: np.ndarray, area: Bounds) -> np.ndarray:
+    """A uniform heading, mirrored so that it does not point out of the area."""
+    lo, hi = (area.x_min, area.y_min), (area.x_max, area.y_max)
     theta = rng.uniform(0.0, 2 * math.pi)
     u = np.array([math.cos(theta), math.sin(theta)])
     for k in range(2):
-        if (p[k] <= 0.0 and u[k] < 0) or (p[k] >= side and u[k] > 0):
+        if (p[k] <= lo[k] and u[k] < 0) or (p[k] >= hi[k] and u[k] > 0):
             u[k] = -u[k]
     return u
 
@@ -69,7 +72,7 @@ def direction_robot(
     env: simpy.Environment,
     st: RobotState,
     m: RandomDirectionParams,
-    side: float,
+    area: Bounds,
     i: int,
     rng: np.random.Generator,
     occupancy=None,
@@ -86,15 +89,15 @@ def direction_robot(
             yield env.timeout(m.turn_interval_s)
             cause = "turn"
             continue
-        v = speed * _inward_heading(rng, here, side)
-        travel = _time_to_border(here, v, side)
+        v = speed * _inward_heading(rng, here, area)
+        travel = _time_to_border(here, v, area)
         if occupancy is not None and speed > 0 and not math.isinf(travel):
             for _ in range(_HEADING_TRIES):
                 f = float(free_fraction(occupancy, here[None], (here + v * travel)[None])[0])
                 if f * travel * speed > _MIN_LEG_M:
                     break
-                v = speed * _inward_heading(rng, here, side)
-                travel = _time_to_border(here, v, side)
+                v = speed * _inward_heading(rng, here, area)
+                travel = _time_to_border(here, v, area)
             else:
                 f = 0.0
             travel *= f
@@ -113,7 +116,7 @@ def direction_robot(
         st.set_leg(i, env.now, v, cause=cause)
         yield env.timeout(travel)
         # Land exactly on the border, not a rounding error outside it.
-        st.arrive(i, env.now, np.clip(here + v * travel, 0.0, side), log=m.pause_s > 0, cause="border")
+        st.arrive(i, env.now, area.clip(here + v * travel), log=m.pause_s > 0, cause="border")
         cause = "border"
         if m.pause_s > 0:
             yield env.timeout(m.pause_s)
@@ -125,7 +128,7 @@ def build(m: RandomDirectionParams, parts: Parts) -> None:
     parts.state.place(initial_positions(w, parts.streams, parts.occupancy))
     for i in range(w.n_robots):
         rng = parts.streams.get("mobility", i)
-        parts.env.process(direction_robot(parts.env, parts.state, m, w.side_m, i, rng, parts.occupancy))
+        parts.env.process(direction_robot(parts.env, parts.state, m, parts.state.bounds, i, rng, parts.occupancy))
 
 
 PLUGIN = PluginSpec(Params=RandomDirectionParams, build=build, check=check, respects_map=True)

@@ -1,6 +1,6 @@
 """Random waypoint (paper section 1.1; docs/model.md section 2).
 
-Each robot picks a destination uniformly in the square and a speed uniform on
+Each robot picks a destination uniformly in the area (``world.bounds_m``) and a speed uniform on
 ``[speed_min_mps, speed_max_mps]``, travels there in a straight line, pauses ``pause_s``,
 and repeats; robots are independent. A leg costs two kernel events (arrival, end of
 pause) and nothing in between: positions are exact at any time from the leg.
@@ -23,8 +23,9 @@ import numpy as np
 import simpy
 
 from mobility.speeds import SpeedParams
+from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
-from netsim.metrics import MEAN_LEG_UNIT_SQUARE
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.params import param
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
@@ -106,17 +107,21 @@ def mean_inverse_speed(v_min: float, v_max: float) -> float:
     return math.log(v_max / v_min) / (v_max - v_min)
 
 
-def paused_fraction(side_m: float, v_min: float, v_max: float, pause_s: float) -> float:
-    """Long-run fraction of time a robot is paused: ``E[T_p] / (E[T_p] + E[L] E[1/V])``."""
+def paused_fraction(area: float | Bounds, v_min: float, v_max: float, pause_s: float) -> float:
+    """Long-run fraction of time a robot is paused: ``E[T_p] / (E[T_p] + E[L] E[1/V])``
+    (``area``: Bounds, or the side of the square ``[0, side]^2``)."""
     if pause_s == 0:
         return 0.0
-    return pause_s / (pause_s + MEAN_LEG_UNIT_SQUARE * side_m * mean_inverse_speed(v_min, v_max))
+    b = as_bounds(area)
+    leg = MEAN_LEG_UNIT_SQUARE * b.width if b.width == b.height else mean_distance_rectangle(b.width, b.height)
+    return pause_s / (pause_s + leg * mean_inverse_speed(v_min, v_max))
 
 
 def stationary_start(
-    rng: np.random.Generator, n: int, side_m: float, v_min: float, v_max: float, pause_s: float
+    rng: np.random.Generator, n: int, area: float | Bounds, v_min: float, v_max: float, pause_s: float
 ) -> Start:
-    """Draw the state of ``n`` robots from the stationary distribution (Navidi and Camp).
+    """Draw the state of ``n`` robots from the stationary distribution (Navidi and Camp),
+    in the rectangle ``area`` (Bounds, or the side of the square ``[0, side]^2``).
 
     With probability ``p_p`` a robot is paused at a uniform point with a residual pause
     uniform on ``(0, pause_s)``. Otherwise it is on a leg drawn with probability
@@ -133,7 +138,8 @@ def stationary_start(
             "must be > 0 with stationary_start = true (with 0 there is no stationary "
             "regime: the average speed decays to zero); set it > 0 or stationary_start = false",
         )
-    p_pause = paused_fraction(side_m, v_min, v_max, pause_s)
+    b = as_bounds(area)
+    p_pause = paused_fraction(b, v_min, v_max, pause_s)
     paused = rng.random(n) < p_pause
     moving = np.flatnonzero(~paused)
     pos = np.empty((n, 2))
@@ -142,18 +148,18 @@ def stationary_start(
     pause_left = np.zeros(n)
 
     k = int(paused.sum())
-    pos[paused] = rng.uniform(0, side_m, (k, 2))
+    pos[paused] = b.uniform(rng, k)
     dest[paused] = pos[paused]
     pause_left[paused] = rng.uniform(0, pause_s, k) if k else 0.0
 
     m = len(moving)
-    diagonal = side_m * math.sqrt(2)
+    diagonal = b.diagonal
     starts, ends = [], []
     need = m
     while need > 0:
         batch = max(2 * need, 16)
-        p1 = rng.uniform(0, side_m, (batch, 2))
-        p2 = rng.uniform(0, side_m, (batch, 2))
+        p1 = b.uniform(rng, batch)
+        p2 = b.uniform(rng, batch)
         accept = rng.random(batch) * diagonal < np.hypot(*(p2 - p1).T)
         starts.append(p1[accept][:need])
         ends.append(p2[accept][:need])
@@ -177,7 +183,7 @@ def waypoint_robot(
     env: simpy.Environment,
     st: RobotState,
     m: RandomWaypointParams,
-    side: float,
+    area: Bounds,
     i: int,
     start: Start,
     rng: np.random.Generator,
@@ -199,9 +205,9 @@ def waypoint_robot(
             cause = "pause_end"
     while True:
         if occupancy is None:
-            dest = rng.uniform(0.0, side, 2)
+            dest = area.uniform(rng, 1)[0]
         else:
-            dest = draw_destinations(occupancy, rng, st.positions_at(env.now, [i]), side)[0]
+            dest = draw_destinations(occupancy, rng, st.positions_at(env.now, [i]), area)[0]
         speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
         if speed <= 0.0:
             st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
@@ -218,7 +224,12 @@ def build(m: RandomWaypointParams, parts: Parts) -> None:
     w = parts.world
     if starts_stationary(m, w):
         start = stationary_start(
-            parts.streams.get("mobility.start"), w.n_robots, w.side_m, m.speed_min_mps, m.speed_max_mps, m.pause_s
+            parts.streams.get("mobility.start"),
+            w.n_robots,
+            parts.state.bounds,
+            m.speed_min_mps,
+            m.speed_max_mps,
+            m.pause_s,
         )
     else:
         if m.speed_min_mps == 0:
@@ -232,7 +243,14 @@ def build(m: RandomWaypointParams, parts: Parts) -> None:
     for i in range(w.n_robots):
         parts.env.process(
             waypoint_robot(
-                parts.env, parts.state, m, w.side_m, i, start, parts.streams.get("mobility", i), parts.occupancy
+                parts.env,
+                parts.state,
+                m,
+                parts.state.bounds,
+                i,
+                start,
+                parts.streams.get("mobility", i),
+                parts.occupancy,
             )
         )
 

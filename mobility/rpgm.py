@@ -24,6 +24,8 @@ import pandas as pd
 import simpy
 
 from mobility.speeds import SpeedParams
+from netsim.area import Bounds
+from netsim.config import world_bounds
 from netsim.errors import ConfigError
 from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
@@ -44,11 +46,18 @@ def check(params: RpgmParams, config) -> None:
         raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for rpgm")
     if config.world.torus:
         raise ConfigError("mobility.model", "rpgm", "moves in a bounded area; set world.torus = false")
-    if not 2 * params.group_radius_m < config.world.side_m:
+    area = world_bounds(config.world)
+    shorter = min(area.width, area.height)
+    if not 2 * params.group_radius_m < shorter:
+        where = (
+            f"world.side_m = {config.world.side_m}"
+            if area.is_square_at_origin
+            else f"the area's shorter side, {shorter:g} m (world.bounds_m)"
+        )
         raise ConfigError(
             "mobility.group_radius_m",
             params.group_radius_m,
-            f"must be less than half of world.side_m = {config.world.side_m} (the reference points need room)",
+            f"must be less than half of {where} (the reference points need room)",
         )
 
 
@@ -68,11 +77,19 @@ def disk_offsets(rng: np.random.Generator, k: int, radius_m: float) -> np.ndarra
     return np.column_stack([r * np.cos(theta), r * np.sin(theta)])
 
 
+def _reference_box(area: Bounds, radius_m: float) -> tuple[float | np.ndarray, float | np.ndarray]:
+    """Where reference points may go: the area shrunk by ``radius_m``, so that every member
+    (within ``radius_m`` of its reference point) stays in the area."""
+    if area.is_square_at_origin:
+        return radius_m, area.width - radius_m
+    return area.lo + radius_m, area.hi - radius_m
+
+
 def group_process(
     env: simpy.Environment,
     st: RobotState,
     m: RpgmParams,
-    side_m: float,
+    area: Bounds,
     members: np.ndarray,
     ref: np.ndarray,
     group_rng: np.random.Generator,
@@ -83,7 +100,7 @@ def group_process(
     """The reference point's random waypoint, its members following (module notes);
     ``log`` gets two rows ``(t_s, group, x_m, y_m)`` as the reference point starts a leg:
     where it is, and where and when it will arrive."""
-    lo, hi = m.group_radius_m, side_m - m.group_radius_m
+    lo, hi = _reference_box(area, m.group_radius_m)
     cause = "start"
     while True:
         dest = group_rng.uniform(lo, hi, 2)
@@ -114,7 +131,7 @@ def group_process(
 def build(m: RpgmParams, parts: Parts) -> None:
     w = parts.world
     teams = groups(w.n_robots, m.group_size)
-    lo, hi = m.group_radius_m, w.side_m - m.group_radius_m
+    lo, hi = _reference_box(parts.state.bounds, m.group_radius_m)
     start = np.empty((w.n_robots, 2))
     plans = []
     for g, members in enumerate(teams):
@@ -128,7 +145,7 @@ def build(m: RpgmParams, parts: Parts) -> None:
     log: list[tuple[float, int, float, float]] = []
     for g, (members, ref, group_rng, member_rngs) in enumerate(plans):
         parts.env.process(
-            group_process(parts.env, parts.state, m, w.side_m, members, ref, group_rng, member_rngs, log, g)
+            group_process(parts.env, parts.state, m, parts.state.bounds, members, ref, group_rng, member_rngs, log, g)
         )
     parts.trace.add_frame("reference_points", lambda: pd.DataFrame(log, columns=list(REFERENCE_SCHEMA)))
 

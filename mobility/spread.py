@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_length, step_limit
+from netsim.area import Bounds, as_bounds
 from netsim.topology import geometric_pairs
 
 # Rounds of cyclic projection onto a robot's disks; the exact cut after them makes any
@@ -131,10 +132,12 @@ def pass_on_pulls(
     return total
 
 
-def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radius: np.ndarray, side_m: float):
-    """Cyclic projection of each robot's ``target`` onto its disks and the square, in
+def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radius: np.ndarray, area: float | Bounds):
+    """Cyclic projection of each robot's ``target`` onto its disks and the area (Bounds, or
+    the side of the square ``[0, side]^2``), in
     place, :data:`PROJECTION_ROUNDS` rounds. A robot's disks are the rows of ``robot``
     naming it; each round projects onto them one at a time, then onto the square."""
+    box = as_bounds(area)
     order = np.argsort(robot, kind="stable")
     robot, centre, radius = robot[order], centre[order], radius[order]
     first = np.r_[0, np.flatnonzero(robot[1:] != robot[:-1]) + 1] if len(robot) else np.empty(0, np.int64)
@@ -147,7 +150,7 @@ def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radi
             dist = np.hypot(*off.T)
             out = dist > radius[rows]
             target[x[out]] = centre[rows[out]] + off[out] * (radius[rows[out]] / dist[out])[:, None]
-        np.clip(target, 0.0, side_m, out=target)
+        np.clip(target, box.lo, box.hi, out=target)
     return target
 
 
@@ -215,13 +218,13 @@ def plan_spread(
     wanted = pass_on_pulls(pos, desired_mps, mobile, (i, j, d), np.maximum(keep, d), limits.period_s)
     wish = np.zeros((n, 2))
     wish[movers] = cap_length(wanted[movers] * limits.period_s, reach[movers])
-    end = project_into(pos + wish, robot, centre, radius, limits.side_m)
+    end = project_into(pos + wish, robot, centre, radius, limits.box)
     move = end - pos
     move[~mobile] = 0.0
     s = np.ones(n)
     if len(robot):
         np.minimum.at(s, robot, step_limit(pos[robot] - centre, radius, move[robot]))
-    s = np.minimum(s, box_limit(pos, move, limits.side_m))
+    s = np.minimum(s, box_limit(pos, move, limits.box))
     move *= s[:, None]
 
     wished = np.hypot(*wish.T)

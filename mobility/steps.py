@@ -14,6 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from netsim.area import Bounds, as_bounds
+
 # Steps are cut a hair short of a constraint's boundary, against rounding.
 SAFETY = 1.0 - 1e-9
 
@@ -27,7 +29,8 @@ class StepLimits:
     margin_m : kept links end the step at most ``range_m - margin_m`` long (unless longer
         already, then no longer than they are).
     speed_max_mps : speed cap of every robot.
-    side_m : side of the square area; every robot stays inside it.
+    side_m : side of the square area ``[0, side_m]^2``; every robot stays inside it.
+    area : the area, when given (``world.bounds_m``): then it, not ``side_m``, is the box.
     """
 
     period_s: float
@@ -35,6 +38,12 @@ class StepLimits:
     margin_m: float
     speed_max_mps: float
     side_m: float
+    area: Bounds | None = None
+
+    @property
+    def box(self) -> Bounds:
+        """The area every robot stays in."""
+        return self.area if self.area is not None else Bounds.square(self.side_m)
 
     @property
     def keep_m(self) -> float:
@@ -94,10 +103,12 @@ def step_limit(offset: np.ndarray, radius: np.ndarray, move: np.ndarray) -> np.n
     return np.clip(s * SAFETY, 0.0, 1.0)
 
 
-def box_limit(pos: np.ndarray, move: np.ndarray, side_m: float) -> np.ndarray:
-    """Largest ``s`` in [0, 1] keeping ``pos + s move`` inside the square, row-wise."""
+def box_limit(pos: np.ndarray, move: np.ndarray, area: float | Bounds) -> np.ndarray:
+    """Largest ``s`` in [0, 1] keeping ``pos + s move`` inside the area (Bounds, or the side
+    of the square ``[0, side]^2``), row-wise."""
+    b = as_bounds(area)
     with np.errstate(divide="ignore", invalid="ignore"):
-        hi = np.where(move > 0, (side_m - pos) / move, np.where(move < 0, -pos / move, np.inf))
+        hi = np.where(move > 0, (b.hi - pos) / move, np.where(move < 0, -(pos - b.lo) / move, np.inf))
     return np.clip(hi.min(axis=1) * SAFETY, 0.0, 1.0)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 import simpy
 
 from netsim import ns2
+from netsim.config import world_bounds
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param
@@ -73,14 +74,28 @@ def trace_format(params: TraceParams) -> TraceFormat:
     return TraceFormat.NS2
 
 
-def _check_area(points: np.ndarray, params: TraceParams, world) -> None:
-    xy = points[~np.isnan(points)]
-    side = world.side_m
-    if len(xy) and (xy.min() < 0 or xy.max() > side):
+def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) -> None:
+    """Every position of the trace lies in the world's area (``world.bounds_m``)."""
+    x, y = x_m[~np.isnan(x_m)], y_m[~np.isnan(y_m)]
+    area = world_bounds(world)
+    if area.is_square_at_origin:
+        xy = np.concatenate([x, y])
+        side = world.side_m
+        if len(xy) and (xy.min() < 0 or xy.max() > side):
+            raise ConfigError(
+                "world.side_m",
+                side,
+                f"is smaller than the area of {params.trace_file} (coordinates from {xy.min():g} to {xy.max():g})",
+            )
+        return
+    if (len(x) and (x.min() < area.x_min or x.max() > area.x_max)) or (
+        len(y) and (y.min() < area.y_min or y.max() > area.y_max)
+    ):
         raise ConfigError(
-            "world.side_m",
-            side,
-            f"is smaller than the area of {params.trace_file} (coordinates from {xy.min():g} to {xy.max():g})",
+            "world.bounds_m",
+            area.as_list(),
+            f"does not contain the positions of {params.trace_file} (x from {x.min():g} to {x.max():g}, "
+            f"y from {y.min():g} to {y.max():g})",
         )
 
 
@@ -123,9 +138,10 @@ def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
         raise NetsimInputError(f"mobility.trace_file: {exc}") from None
     _check_count(scen.n_robots, params, world)
     if isinstance(scen, ns2.Scenario):
-        _check_area(np.concatenate([scen.initial_m.ravel(), _positions_reached(scen).ravel()]), params, world)
+        xy = np.concatenate([scen.initial_m.reshape(-1, 2), _positions_reached(scen)])
+        _check_area(xy[:, 0], xy[:, 1], params, world)
     else:
-        _check_area(np.concatenate([scen.x_m, scen.y_m]), params, world)
+        _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world)
     return scen
 
 

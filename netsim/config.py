@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from netsim import plugins
+from netsim.area import KEY, Bounds, parse_bounds
 from netsim.errors import ConfigError
 from netsim.params import (
     NoParams,
@@ -67,6 +68,15 @@ class WorldParams(Params):
     section = "world"
     n_robots: int = param(50, positive, "number of robots N")
     side_m: float = param(1000.0, finite(positive), "side of the square area A, metres")
+    bounds_m: tuple[float, float, float, float] | str = param(
+        None,
+        None,
+        'the area [x_min, y_min, x_max, y_max] in the world (the map\'s) frame, metres, or "map" for the whole '
+        "extent of world.map",
+        coerce=parse_bounds,
+        derive=lambda p: (0.0, 0.0, p.side_m, p.side_m),
+        rule="[0, 0, side_m, side_m]",
+    )
     placement: str = param("uniform", None, '"uniform", "grid", "centre", or a path to a CSV file with columns x_m,y_m')
     centre_side_m: float = param(250.0, positive, 'placement = "centre": side of the central square, metres')
     torus: bool = param(False, None, "wrap the area's borders (distances taken on a torus)")
@@ -78,10 +88,29 @@ class WorldParams(Params):
     )
 
     def check(self) -> None:
-        if self.placement == "centre" and self.centre_side_m > self.side_m:
+        bounds = self.bounds_m
+        if bounds == "map" and not self.map:
+            raise ConfigError(KEY, "map", "needs a map (world.map)")
+        if self.torus and bounds != (0.0, 0.0, self.side_m, self.side_m):
+            raise ConfigError(
+                KEY, plain(bounds), "cannot be set with world.torus = true (the torus is the square [0, side_m]^2)"
+            )
+        if self.placement == "centre" and bounds != "map":
+            self.check_centre(Bounds(*bounds))
+
+    def check_centre(self, area: Bounds) -> None:
+        """``placement = "centre"``: the central square fits in the area."""
+        if self.centre_side_m <= min(area.width, area.height):
+            return
+        if area.is_square_at_origin:
             raise ConfigError(
                 "world.centre_side_m", self.centre_side_m, f"must not exceed world.side_m = {self.side_m}"
             )
+        raise ConfigError(
+            "world.centre_side_m",
+            self.centre_side_m,
+            f"must not exceed the area's shorter side ({min(area.width, area.height):g} m, world.bounds_m)",
+        )
 
 
 def _ranges(key: str, value: Any) -> float | tuple[float, ...]:
@@ -415,14 +444,29 @@ class Config(Params):
         return (float(r),) * self.world.n_robots
 
 
+def world_bounds(world: Any) -> Bounds:
+    """The area of a world (``netsim.config.WorldParams``): ``world.bounds_m``, ``"map"``
+    being the whole extent of ``world.map``."""
+    b = world.bounds_m
+    if b == "map":
+        from netsim.radio.maps import cached_map
+
+        x0, x1, y0, y1 = cached_map(world.map).extent_m
+        return Bounds(x0, y0, x1, y1)
+    return Bounds(*(float(v) for v in b))
+
+
 def _check_map(config: Config) -> None:
     """The map loads, covers the area, and every model that moves robots keeps them off walls."""
-    from netsim.radio.maps import cached_map
+    from netsim.radio.maps import MAP_KEY, cached_map
 
     w = config.world
     if w.torus:
         raise ConfigError("world.map", w.map, "cannot be used with world.torus = true (a map does not wrap)")
-    cached_map(w.map).check_area(w.side_m)
+    area = world_bounds(w)
+    cached_map(w.map).check_area(area, KEY if w.bounds_m == "map" or "bounds_m" not in w.derived else MAP_KEY)
+    if w.placement == "centre":
+        w.check_centre(area)
     mobility = config.mobility
     if mobility.plugin.moves_robots and not getattr(mobility.plugin, "respects_map", False):
         raise ConfigError(
@@ -813,6 +857,10 @@ def commented_toml(config: Config | None = None) -> str:
             if is_derived:
                 # Written as the rule, not a number, so that it follows the key it derives from.
                 rule = next(_rule(type(p), key) for p in owners if key in names(type(p)))
+                if isinstance(v, list):
+                    # One commented line, not TOML's one line per element.
+                    items = (tomli_w.dumps({key: e}).split("=", 1)[1].strip() for e in v)
+                    line = f"{key} = [{', '.join(items)}]"
                 out += [f"# {doc}", f"# default: {rule}; uncomment to fix it", f"# {line}"]
                 continue
             out += [f"# {doc}", line]

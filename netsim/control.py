@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 import simpy
 
+from netsim.area import Bounds
 from netsim.errors import NetsimInputError
 from netsim.groups import GroupView
 from netsim.state import RobotState
@@ -55,6 +56,7 @@ class ControlStep:
     range_m : ``(N,)`` communication ranges.
     side_m : side of the square area.
     options : the ``[control.options]`` table.
+    bounds : the area robots move in (``world.bounds_m``; default ``[0, side_m]^2``).
     """
 
     t_s: float
@@ -67,7 +69,12 @@ class ControlStep:
     side_m: float
     options: dict
     role_names: tuple[str, ...] = ()
+    bounds: Bounds | None = None
     _records: dict[str, list[dict]] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.bounds is None:
+            self.bounds = Bounds.square(self.side_m)
 
     def record(self, table: str, **values: object) -> None:
         """Add a row ``{t_s, **values}`` to output table ``table`` (``<table>.parquet``)."""
@@ -161,6 +168,7 @@ class ControlLoop:
                 side_m=st.side_m,
                 options=self.options,
                 role_names=role_names,
+                bounds=st.bounds,
                 _records=self.records,
             )
             if self.stopped:

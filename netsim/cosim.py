@@ -22,6 +22,7 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from netsim.area import Bounds, as_bounds
 from netsim.errors import NetsimInputError
 
 
@@ -113,14 +114,16 @@ def velocities(velocities_mps: Any, k: int) -> np.ndarray:
     return v
 
 
-def time_to_border(p: np.ndarray, v: np.ndarray, side_m: float) -> np.ndarray:
+def time_to_border(p: np.ndarray, v: np.ndarray, area: float | Bounds) -> np.ndarray:
     """Time for each robot at ``p`` (k, 2) moving at ``v`` (k, 2) to reach the border of the
-    ``[0, side_m]^2`` square (``inf`` at rest; 0 when on the border and heading out).
+    area (Bounds, or the side of the square ``[0, side]^2``; ``inf`` at rest; 0 when on the
+    border and heading out).
 
     >>> time_to_border(np.array([[1.0, 5.0]]), np.array([[-0.5, 0.0]]), 10.0).tolist()
     [2.0]
     """
     t = np.full(p.shape, math.inf)
-    np.divide(side_m - p, v, out=t, where=v > 0)
-    np.divide(-p, v, out=t, where=v < 0)
+    b = as_bounds(area)
+    np.divide(b.hi - p, v, out=t, where=v > 0)
+    np.divide(-(p - b.lo), v, out=t, where=v < 0)
     return np.maximum(t.min(axis=1), 0.0)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from netsim.area import Bounds, as_bounds
 from netsim.topology import geometric_pairs
 
 # Mean distance between two uniform points of the unit square (docs/validation.md item 2):
@@ -41,6 +42,22 @@ LENS_AREA_AT_RANGE = 2 * math.pi / 3 - math.sqrt(3) / 2
 CONNECTED_AREA_PER_ROBOT = math.pi - LENS_AREA_AT_RANGE
 # Vertices of the regular polygons that bracket each disk (shapely: 4 x quad_segs).
 QUAD_SEGS = 16
+
+
+def mean_distance_rectangle(a: float, b: float) -> float:
+    """Mean distance between two points uniform in an ``a x b`` rectangle (Ghosh 1951):
+    the mean leg of random waypoint there.
+
+    >>> round(mean_distance_rectangle(1.0, 1.0), 6) == round(MEAN_LEG_UNIT_SQUARE, 6)
+    True
+    """
+    d = math.hypot(a, b)
+    return (
+        a**3 / b**2
+        + b**3 / a**2
+        + d * (3 - a**2 / b**2 - b**2 / a**2)
+        + 2.5 * (b**2 / a * math.log((a + d) / b) + a**2 / b * math.log((b + d) / a))
+    ) / 15
 
 
 def lens_area(radius_m: float, distance_m: float) -> float:
@@ -74,15 +91,17 @@ def connected_coverage_bound(n: int, radius_m: float, range_m: float | None = No
     return disk + (disk - lens_area(radius_m, reach)) * (n - 1)
 
 
-def bound_fraction(n: int, radius_m: float, side_m: float, range_m: float | None = None) -> float:
-    """``min(1, U(N) / A)``: the largest fraction of the square a connected team can cover."""
-    return min(1.0, connected_coverage_bound(n, radius_m, range_m) / side_m**2)
+def bound_fraction(n: int, radius_m: float, area: float | Bounds, range_m: float | None = None) -> float:
+    """``min(1, U(N) / A)``: the largest fraction of the area (Bounds, or the side of the
+    square ``[0, side]^2``) a connected team can cover; ``A`` is the area's, in m^2."""
+    return min(1.0, connected_coverage_bound(n, radius_m, range_m) / as_bounds(area).area)
 
 
 def union_area_bracket(
-    centres_m: npt.ArrayLike, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS
+    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, quad_segs: int = QUAD_SEGS
 ) -> tuple[float, float]:
-    """Area (m^2) of the union of the disks clipped to the ``side_m`` square, bracketed:
+    """Area (m^2) of the union of the disks clipped to the area (Bounds, or the side of the
+    square ``[0, side]^2``), bracketed:
     ``(lower, upper)`` from the unions of the inscribed and the circumscribed regular
     polygons with ``4 quad_segs`` vertices (each polygon inside, resp. around, its disk,
     so the unions are too). Computed with shapely (GEOS).
@@ -96,7 +115,8 @@ def union_area_bracket(
     centres = np.asarray(centres_m, dtype=float).reshape(-1, 2)
     if len(centres) == 0:
         return 0.0, 0.0
-    box = shapely.box(0.0, 0.0, side_m, side_m)
+    b = as_bounds(area)
+    box = shapely.box(b.x_min, b.y_min, b.x_max, b.y_max)
     points = shapely.points(centres)
     vertices = 4 * quad_segs
     areas = []
@@ -107,10 +127,11 @@ def union_area_bracket(
 
 
 def covered_fraction_exact(
-    centres_m: npt.ArrayLike, radius_m: float, side_m: float, quad_segs: int = QUAD_SEGS
+    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, quad_segs: int = QUAD_SEGS
 ) -> tuple[float, float]:
-    """Fraction of the ``side_m`` square within ``radius_m`` of some centre: ``(fraction,
-    error_bound)``, the true fraction being within ``error_bound`` of ``fraction``.
+    """Fraction of the area (Bounds, or the side of the square ``[0, side]^2``) within
+    ``radius_m`` of some centre: ``(fraction, error_bound)``, the true fraction being within
+    ``error_bound`` of ``fraction``.
 
     From :func:`union_area_bracket` ``[lower, upper]``. A polygon's shortfall along the
     union's boundary is about twice the circumscribed polygon's excess (``r^2 theta^3 /
@@ -122,17 +143,18 @@ def covered_fraction_exact(
     >>> abs(f - math.pi / 100) < 1e-6 and err < 6e-5
     True
     """
-    lower, upper = union_area_bracket(centres_m, radius_m, side_m, quad_segs)
-    area = side_m**2
+    lower, upper = union_area_bracket(centres_m, radius_m, area, quad_segs)
+    a = as_bounds(area).area
     value = (lower + 2.0 * upper) / 3.0
-    return value / area, max(value - lower, upper - value) / area
+    return value / a, max(value - lower, upper - value) / a
 
 
 def covered_fraction(
-    centres_m: npt.ArrayLike, radius_m: float, side_m: float, cells: int = 500, torus: bool = False
+    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, cells: int = 500, torus: bool = False
 ) -> tuple[float, float]:
-    """Fraction of the ``side_m`` square within ``radius_m`` of some centre, estimated on
-    a ``cells x cells`` grid of cell centres (cheap; :func:`covered_fraction_exact` is
+    """Fraction of the area (Bounds, or the side of the square ``[0, side]^2``; a torus is
+    the square) within ``radius_m`` of some centre, estimated on a ``cells x cells`` grid of
+    cell centres (cheap; :func:`covered_fraction_exact` is
     exact). Returns ``(fraction, error_bound)``.
 
     The bound is rigorous: a cell can be misclassified only if the union's boundary
@@ -147,9 +169,17 @@ def covered_fraction(
     from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
 
     centres = np.asarray(centres_m, dtype=float).reshape(-1, 2)
-    h = side_m / cells
-    axis = (np.arange(cells) + 0.5) * h
-    gx, gy = np.meshgrid(axis, axis)
+    b = as_bounds(area)
+    side_m = b.width
+    if b.is_square_at_origin:
+        h = side_m / cells
+        axis = (np.arange(cells) + 0.5) * h
+        gx, gy = np.meshgrid(axis, axis)
+        half_diagonal = h / math.sqrt(2)
+    else:
+        hx, hy = b.width / cells, b.height / cells
+        gx, gy = np.meshgrid(b.x_min + (np.arange(cells) + 0.5) * hx, b.y_min + (np.arange(cells) + 0.5) * hy)
+        half_diagonal = 0.5 * math.hypot(hx, hy)
     points = np.column_stack([gx.ravel(), gy.ravel()])
     if len(centres) == 0:
         return 0.0, 0.0
@@ -157,7 +187,6 @@ def covered_fraction(
         tree = cKDTree(np.mod(centres, side_m) % side_m, boxsize=side_m)
     else:
         tree = cKDTree(centres)
-    half_diagonal = h / math.sqrt(2)
     dist, _ = tree.query(points, distance_upper_bound=radius_m + half_diagonal)
     fraction = float(np.mean(dist <= radius_m))
     uncertain = np.abs(dist - radius_m) <= half_diagonal

@@ -23,7 +23,7 @@ import simpy
 
 from netsim import config as cfgmod
 from netsim import plugins
-from netsim.config import Config
+from netsim.config import Config, world_bounds
 from netsim.control import ControlLoop
 from netsim.cosim import Driver, Messenger, NeighbourView
 from netsim.errors import ConfigError, NetsimInputError
@@ -75,7 +75,7 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     streams = Streams(config.seed, run)
     w = config.world
     events = EventBus()
-    state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus)
+    state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus, world_bounds(w))
     state.events = events
     ch = config.channel
     survives = ch.loss_plugin.make(ch.loss, state.range_m, streams.get("channel.loss"))

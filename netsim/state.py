@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pandas as pd
 
+from netsim.area import Bounds
 from netsim.events import CourseChange, EventBus
 
 # Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
@@ -33,15 +34,25 @@ class RobotState:
     Parameters
     ----------
     n : number of robots.
-    side_m : side of the square area.
+    side_m : side of the square area (the torus's, and the default area ``[0, side_m]^2``).
     range_m : communication range of each robot (scalar or one per robot).
     torus : when true, positions wrap around the borders and distances are taken on the
         torus (minimum image).
+    bounds : the area robots move in, in the world frame (``world.bounds_m``); default the
+        square ``[0, side_m]^2``.
     """
 
-    def __init__(self, n: int, side_m: float, range_m: float | Sequence[float] | np.ndarray, torus: bool = False):
+    def __init__(
+        self,
+        n: int,
+        side_m: float,
+        range_m: float | Sequence[float] | np.ndarray,
+        torus: bool = False,
+        bounds: Bounds | None = None,
+    ):
         self.n = int(n)
         self.side_m = float(side_m)
+        self.bounds = bounds if bounds is not None else Bounds.square(self.side_m)
         self.torus = bool(torus)
         self.range_m = np.broadcast_to(np.asarray(range_m, dtype=float), (self.n,)).copy()
         self.origin_m = np.zeros((self.n, 2))

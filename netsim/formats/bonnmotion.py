@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from netsim.area import Bounds, as_bounds
 from netsim.errors import NetsimInputError
 from netsim.formats.waypoints import Waypoints
 
@@ -105,10 +106,16 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def write(path: str | Path, wp: Waypoints, side_m: float, duration_s: float) -> None:
+def write(path: str | Path, wp: Waypoints, area: float | Bounds, duration_s: float) -> None:
     """``wp`` as a ``.movements`` file (gzip-compressed when ``path`` ends in ``.gz``), and
     its ``.params`` beside it. Numbers are written with Python's shortest round-trip
-    ``repr``, so reading the file back gives the same positions."""
+    ``repr``, so reading the file back gives the same positions.
+
+    Positions stay in the run's frame. BonnMotion's area is ``[0, x] x [0, y]``: for an area
+    (Bounds, or the side of the square ``[0, side]^2``) in the positive quadrant ``x`` and
+    ``y`` are its far corner; for one reaching below 0 (a map's frame), ``x`` and ``y`` are
+    its size and the extra keys ``x_min`` and ``y_min`` its near corner."""
+    b = as_bounds(area)
     path = Path(path)
     lines = []
     for i in range(wp.n_robots):
@@ -121,7 +128,12 @@ def write(path: str | Path, wp: Waypoints, side_m: float, duration_s: float) -> 
             f.write(text)
     else:
         path.write_text(text)
-    params = {"model": "netsim", "x": side_m, "y": side_m, "duration": duration_s, "nn": wp.n_robots, "J": "2D"}
+    params: dict[str, object] = {"model": "netsim"}
+    if b.x_min >= 0 and b.y_min >= 0:
+        params.update(x=b.x_max, y=b.y_max)
+    else:
+        params.update(x=b.width, y=b.height, x_min=b.x_min, y_min=b.y_min)
+    params.update(duration=duration_s, nn=wp.n_robots, J="2D")
     params_path(path).write_text("".join(f"{k}={_plain(v)}\n" for k, v in params.items()))
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from netsim import kernel_cache
 from netsim.radio._kernels import trace_one
 
 # Where a vertex lies on the segment's line for every t (both factors of the cross product
@@ -261,3 +262,8 @@ def _grow_float(a, cap):
     out = np.empty(cap)
     out[: a.shape[0]] = a
     return out
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
 from netsim.radio import compiled_kernels
 from netsim.radio.los import VERTEX_TOLERANCE_CELLS, first_blocked, line_of_sight
@@ -46,17 +47,18 @@ def clearance_field_m(m: OccupancyMap) -> np.ndarray:
     return distance_transform_edt(m.free) * m.resolution_m
 
 
-def _eligible_cells(m: OccupancyMap, side_m: float, clearance_m: float):
+def _eligible_cells(m: OccupancyMap, area: float | Bounds, clearance_m: float):
     """Cells a robot may be drawn in, and the rectangle each shares with the area (computed
     once per map, area and clearance: waypoints draw from it at every leg)."""
     cache = m.__dict__.setdefault("_eligible", {})
-    key = (float(side_m), float(clearance_m))
+    b = as_bounds(area)
+    key = (b, float(clearance_m))
     if key not in cache:
-        cache[key] = _eligible_cells_now(m, side_m, clearance_m)
+        cache[key] = _eligible_cells_now(m, b, clearance_m)
     return cache[key]
 
 
-def _eligible_cells_now(m: OccupancyMap, side_m: float, clearance_m: float):
+def _eligible_cells_now(m: OccupancyMap, b: Bounds, clearance_m: float):
     ok = m.free.copy()
     if clearance_m > 0:
         # Any point of the cell is then at least clearance_m from any point of a cell that is
@@ -64,22 +66,30 @@ def _eligible_cells_now(m: OccupancyMap, side_m: float, clearance_m: float):
         ok &= clearance_field_m(m) - math.sqrt(2.0) * m.resolution_m >= clearance_m
     j, i = np.nonzero(ok)
     r = m.resolution_m
-    x0 = np.maximum(m.origin_m[0] + i * r, 0.0)
-    x1 = np.minimum(m.origin_m[0] + (i + 1) * r, side_m)
-    y0 = np.maximum(m.origin_m[1] + j * r, 0.0)
-    y1 = np.minimum(m.origin_m[1] + (j + 1) * r, side_m)
+    x0 = np.maximum(m.origin_m[0] + i * r, b.x_min)
+    x1 = np.minimum(m.origin_m[0] + (i + 1) * r, b.x_max)
+    y0 = np.maximum(m.origin_m[1] + j * r, b.y_min)
+    y1 = np.minimum(m.origin_m[1] + (j + 1) * r, b.y_max)
     keep = (x1 > x0) & (y1 > y0)
     x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
     return x0, x1, y0, y1, np.cumsum((x1 - x0) * (y1 - y0))
 
 
-def sample_free(m: OccupancyMap, rng: np.random.Generator, n: int, side_m: float, clearance_m: float = 0.0):
-    """``n`` positions uniform over the free part of ``[0, side_m]^2`` (with ``clearance_m``
-    from anything not free, conservatively to within 1.4 cells), shape ``(n, 2)``."""
-    x0, x1, y0, y1, cdf = _eligible_cells(m, side_m, clearance_m)
+def _where(area: float | Bounds) -> str:
+    b = as_bounds(area)
+    return f"[0, {b.width:g}]^2" if b.is_square_at_origin else str(b.as_list())
+
+
+def sample_free(
+    m: OccupancyMap, rng: np.random.Generator, n: int, area: float | Bounds, clearance_m: float = 0.0
+) -> np.ndarray:
+    """``n`` positions uniform over the free part of the area (``Bounds``, or the side of
+    the square ``[0, side]^2``; with ``clearance_m`` from anything not free, conservatively
+    to within 1.4 cells), shape ``(n, 2)``."""
+    x0, x1, y0, y1, cdf = _eligible_cells(m, area, clearance_m)
     if len(x0) == 0:
         extra = f" with a clearance of {clearance_m:g} m" if clearance_m > 0 else ""
-        raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area [0, {side_m:g}]^2{extra}")
+        raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area {_where(area)}{extra}")
     k = np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"), len(cdf) - 1)
     u = rng.random((n, 2))
     pos = np.column_stack([x0[k] + u[:, 0] * (x1[k] - x0[k]), y0[k] + u[:, 1] * (y1[k] - y0[k])])
@@ -118,7 +128,7 @@ def draw_destinations(
     m: OccupancyMap,
     rng: np.random.Generator,
     here_m,
-    side_m: float,
+    area: float | Bounds,
     batch: int = 64,
     max_rounds: int = 100,
 ) -> np.ndarray:
@@ -133,13 +143,13 @@ def draw_destinations(
         if len(todo) == 0:
             return out
         if kernel is None:
-            cand = sample_free(m, rng, len(todo) * batch, side_m)
+            cand = sample_free(m, rng, len(todo) * batch, area)
             ok = legs_free(m, np.repeat(here[todo], batch, axis=0), cand).reshape(len(todo), batch)
             got = ok.any(axis=1)
             pick = np.argmax(ok, axis=1)
             out[todo[got]] = cand.reshape(len(todo), batch, 2)[got, pick[got]]
         else:
-            got = _compiled_round(kernel, m, rng, here[todo], side_m, batch, out, todo)
+            got = _compiled_round(kernel, m, rng, here[todo], area, batch, out, todo)
         todo = todo[~got]
     if len(todo) == 0:
         return out
@@ -156,12 +166,12 @@ def _destinations_kernel():
     return None if k is None else k.free_destinations
 
 
-def _compiled_round(kernel, m: OccupancyMap, rng, here, side_m: float, batch: int, out, todo) -> np.ndarray:
+def _compiled_round(kernel, m: OccupancyMap, rng, here, area: float | Bounds, batch: int, out, todo) -> np.ndarray:
     """One round of :func:`draw_destinations`, compiled: the same draws from ``rng`` as
     :func:`sample_free` makes, the same points and legs, the first free leg kept."""
-    x0, x1, y0, y1, cdf = _eligible_cells(m, side_m, 0.0)
+    x0, x1, y0, y1, cdf = _eligible_cells(m, area, 0.0)
     if len(x0) == 0:
-        raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area [0, {side_m:g}]^2")
+        raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area {_where(area)}")
     n = len(here) * batch
     draw_cell = rng.random(n)
     draw_uv = rng.random((n, 2))

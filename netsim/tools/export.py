@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 
 from netsim import ns2
+from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.tools.output import is_run_dir
 
@@ -63,7 +64,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
         raise NetsimInputError(f"{run_dir}: not a run directory (no manifest.json)")
     check_out(out, fmt)
     config = load_config(run_dir)
-    n, duration, side = config.world.n_robots, config.duration_s, config.world.side_m
+    n, duration, area = config.world.n_robots, config.duration_s, world_bounds(config.world)
     if fmt == "rosbag2":
         frames = {
             name: _table(run_dir, name, name == "positions") for name in ("positions", "links", "roles", "messages")
@@ -93,7 +94,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
         else:
             from netsim.formats import bonnmotion
 
-            bonnmotion.write(tmp, waypoints.from_legs(legs, n, duration), side, duration)
+            bonnmotion.write(tmp, waypoints.from_legs(legs, n, duration), area, duration)
             bonnmotion.params_path(tmp).replace(bonnmotion.params_path(out))
         tmp.replace(out)
     finally:

@@ -35,6 +35,8 @@ import pandas as pd
 
 from netsim import config as cfgmod
 from netsim import metrics
+from netsim.area import Bounds
+from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.tools import style
 from netsim.topology import geometric_pairs
@@ -223,14 +225,15 @@ def draw_deployment(ax, snap: Snapshot, colours: dict[int, str], range_m: float,
         )
 
 
-def _axes(ax, xlim, ylim, side_m: float) -> None:
+def _axes(ax, xlim, ylim, area: Bounds) -> None:
     ax.set_xlim(*xlim)
     ax.set_ylim(*ylim)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     # The border of the area, where it is in view.
-    ax.plot([0, side_m, side_m, 0, 0], [0, 0, side_m, side_m, 0], color=style.BORDER, lw=0.8, zorder=0)
+    x0, y0, x1, y1 = area.as_list()
+    ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color=style.BORDER, lw=0.8, zorder=0)
 
 
 def _legend_outside(ax, **kw) -> None:
@@ -239,9 +242,9 @@ def _legend_outside(ax, **kw) -> None:
         ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, **kw)
 
 
-def _extent(xy: np.ndarray, margin_m: float, side_m: float):
-    lo = np.maximum(xy.min(axis=0) - margin_m, -0.02 * side_m)
-    hi = np.minimum(xy.max(axis=0) + margin_m, 1.02 * side_m)
+def _extent(xy: np.ndarray, margin_m: float, area: Bounds):
+    lo = np.maximum(xy.min(axis=0) - margin_m, area.lo - 0.02 * area.size)
+    hi = np.minimum(xy.max(axis=0) + margin_m, area.hi + 0.02 * area.size)
     # A square frame: the same scale on both axes.
     half = max(hi - lo) / 2
     mid = (lo + hi) / 2
@@ -294,8 +297,9 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
             label=f"leader at {t1:g} s",
         )
     travelled = np.hypot(*np.diff(xy, axis=1).transpose(2, 0, 1)).sum(axis=1)
-    xlim, ylim = _extent(xy.reshape(-1, 2), range_m, run.config.world.side_m)
-    _axes(ax, xlim, ylim, run.config.world.side_m)
+    area = world_bounds(run.config.world)
+    xlim, ylim = _extent(xy.reshape(-1, 2), range_m, area)
+    _axes(ax, xlim, ylim, area)
     if travelled.max(initial=0.0) == 0.0:
         return f"nobody moved between {t0:g} s and {t1:g} s"
     return ""
@@ -336,7 +340,8 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     out = Path(out_dir) if out_dir else run_dir
     run = read_run(run_dir)
     config = run.config
-    n, side = config.world.n_robots, config.world.side_m
+    n, area = config.world.n_robots, world_bounds(config.world)
+    whole = ((area.x_min, area.x_max), (area.y_min, area.y_max))
     range_m = float(min(config.ranges_m()))
     occupancy = run_map(config)
     # Keys of the run's models, where they have them.
@@ -366,7 +371,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     fig, ax = plt.subplots(figsize=(8.6, 7))
     colours = run_colours(run)
     draw_deployment(ax, start, colours, range_m)
-    _axes(ax, (0, side), (0, side), side)
+    _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     groups_n = int((start.role == "alpha").sum())
     ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
@@ -392,11 +397,11 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     fig, ax = plt.subplots(figsize=(8.6, 7))
     radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
     draw_deployment(ax, end, colours, range_m, disks_m=radius)
-    _axes(ax, (0, side), (0, side), side)
+    _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     if radius > 0:
-        covered, err = metrics.covered_fraction_exact(end.pos, radius, side)
-        bound = metrics.bound_fraction(n, radius, side, range_m)
+        covered, err = metrics.covered_fraction_exact(end.pos, radius, area)
+        bound = metrics.bound_fraction(n, radius, area, range_m)
         ax.set_title(
             f"Fig. 8  Deployment at t = {end.t_s:g} s with every robot's disk (r = {radius:g} m):\n"
             f"{100 * covered:.1f} % of the area covered; a connected team covers at most {100 * bound:.0f} %"

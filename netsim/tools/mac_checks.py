@@ -111,9 +111,32 @@ def aloha_periodic(n: int = 10, airtime_ratio: float = 0.02, rounds: int = 400, 
     periodic_rounds(sim, range(n), period, rounds, np.random.default_rng(seed))
     sim.env.run()
     got, decided = _reception_success(sim, "mid")
-    p = got / decided
     theory = (1.0 - 2.0 * airtime_ratio) ** (n - 1)
-    return MacCheck(f"ALOHA periodic, n = {n}, T/t = {airtime_ratio}", theory, p, 4.0 * _binomial_se(theory, decided))
+    se = aloha_periodic_se(n, airtime_ratio, rounds)
+    return MacCheck(f"ALOHA periodic, n = {n}, T/t = {airtime_ratio}", theory, got / decided, 4.0 * se)
+
+
+def aloha_periodic_se(n: int, airtime_ratio: float, rounds: int) -> float:
+    """Standard error of :func:`aloha_periodic`'s measured success over ``rounds`` rounds.
+
+    In mutual range a frame that overlaps another fails at every receiver (at the other
+    frame's sender by half duplex, elsewhere by collision), so the ``n - 1`` receptions of a
+    frame succeed or fail together, and two frames that overlap fail together. With ``x =
+    T/t`` and ``S`` a round's successful frames, ``p = (1 - 2x)^(n-1)`` and two frames whose
+    phases lie ``d`` apart on the circle (``d`` uniform on ``[0, 1/2]``) both succeed when
+    ``d >= x`` and none of the ``n - 2`` others falls within ``x`` of either, an arc of
+    ``2x + min(d, 2x)``:
+
+        P2 = 2 ((1 - 3x)^(n-1) - (1 - 4x)^(n-1)) / (n - 1) + (1 - 4x)^(n-1)
+        Var(S) = n p (1 - p) + n (n - 1) (P2 - p^2)
+
+    and the measured success ``sum S / (n rounds)`` has variance ``Var(S) / (n^2 rounds)``.
+    """
+    x = airtime_ratio
+    p = (1.0 - 2.0 * x) ** (n - 1)
+    both = 2.0 * ((1.0 - 3.0 * x) ** (n - 1) - (1.0 - 4.0 * x) ** (n - 1)) / (n - 1) + (1.0 - 4.0 * x) ** (n - 1)
+    var_s = n * p * (1.0 - p) + n * (n - 1) * (both - p * p)
+    return math.sqrt(var_s / (n * n * rounds))
 
 
 def aloha_poisson(n: int = 40, load: float = 0.5, frames: int = 20_000, seed: int = 1) -> MacCheck:
@@ -140,12 +163,27 @@ def aloha_poisson(n: int = 40, load: float = 0.5, frames: int = 20_000, seed: in
     env.run()
     got, decided = _reception_success(sim, "poisson")
     theory = math.exp(-2.0 * load)
-    # A robot's own frames queue behind each other (one radio): its load per frame time is
-    # G / (n - 1), small here; receptions of one frame are correlated (n - 1 receivers),
-    # hence a standard error over frames, not receptions.
-    return MacCheck(
-        f"ALOHA Poisson, G = {load}, n = {n}", theory, got / decided, 4.0 * _binomial_se(theory, decided / (n - 1))
-    )
+    se = aloha_poisson_se(load, decided / (n - 1))
+    return MacCheck(f"ALOHA Poisson, G = {load}, n = {n}", theory, got / decided, 4.0 * se)
+
+
+def aloha_poisson_se(load: float, frames: float) -> float:
+    """Standard error of :func:`aloha_poisson`'s measured success over ``frames`` frames.
+
+    The ``n - 1`` receptions of a frame succeed or fail together (as in
+    :func:`aloha_periodic_se`), so the count is over frames; and two frames that overlap
+    both fail, which adds to the binomial variance. Frames are a Poisson process of ``g =
+    G`` frames per frame time ``T`` (a robot's own frames, which queue behind each other,
+    are a share ``1 / (n - 1)`` of them, left out). Two frames ``u`` apart both succeed
+    with probability 0 for ``u < T``, ``e^(-g (2 + u/T))`` for ``T <= u < 2T`` and
+    ``e^(-4g)`` beyond; with ``p = e^(-2g)`` the ratio of successes to frames then has, by
+    the delta method over a long window,
+
+        Var = (p (1 - p) + 2 e^(-3g) (1 - e^(-g))) / frames.
+    """
+    p = math.exp(-2.0 * load)
+    extra = 2.0 * math.exp(-3.0 * load) * (1.0 - math.exp(-load))
+    return math.sqrt((p * (1.0 - p) + extra) / frames) if frames > 0 else math.inf
 
 
 def _binomial_se(p: float, count: float) -> float:
@@ -246,7 +284,9 @@ def hidden_terminals(
         decided = got + lost
         if len(xs) == 3:
             theory = 1 - 2 * airtime_ratio
-            tol = 4.0 * _binomial_se(theory, decided)
+            # A's and C's frames of a round fail together (they overlap each other): one
+            # independent outcome per round, not per reception.
+            tol = 4.0 * _binomial_se(theory, decided / 2)
         else:
             m = sim.channel.mac
             p = same_slot_bound(period, m.difs_s, m.slot_s, m.cw_min)
@@ -266,6 +306,90 @@ def same_slot_bound(period_s: float, difs_s: float, slot_s: float, cw: int) -> f
     the air defers to its end and the other has nothing left to send), and B's backoff
     ending in A's slot (at most ``1 / (cw + 1)`` of B's uniform draws)."""
     return min(1.0, 2.0 * (difs_s + cw * slot_s) / period_s / (cw + 1))
+
+
+# -- interference adds up (log-distance) ---------------------------------------------------
+def interference_sum(
+    cells: int = 50, rounds: int = 40, interferers: int = 3, seed: int = 1
+) -> tuple[MacCheck, int, int]:
+    """ALOHA under log-distance (no shadowing): every reception decided as the brute-force
+    SINR rule says, interference summed over every frame on the air.
+
+    Each cell (cells far beyond the interference range of each other) holds a receiver B, a
+    sender A at 30 m and ``interferers`` robots at 2.2 to 4.5 times that distance, each of
+    which alone leaves a signal-to-interference ratio of 10 to 20 dB. In every round A sends
+    one frame and each interferer one frame starting within one airtime of A's, at a uniform
+    offset. B gets A's frame exactly when ``S >= capture (N + I)``, ``S`` the mean power of
+    A at B, ``N`` the noise floor and ``I`` the largest, over the instants of A's frame, of
+    the summed mean powers at B of the other frames then on the air (senders within the
+    interference range of B). Returns the check (receptions decided otherwise than the rule:
+    0), the receptions, and how many of them the strongest interferer alone would decide
+    otherwise (what makes the check able to fail)."""
+    from netsim.radio.propagation import LogDistanceParams, path_loss_db
+
+    radio = LogDistanceParams()
+    period, airtime, d_signal = 1.0, 0.01, 30.0
+    rng = np.random.default_rng(seed)
+    k = interferers + 2
+    pos = np.zeros((cells * k, 2))
+    for c in range(cells):
+        centre = np.array([1000.0 * (c % 8) + 500.0, 1000.0 * (c // 8) + 500.0])
+        pos[c * k] = centre + d_signal * np.array([1.0, 0.0])  # A
+        pos[c * k + 1] = centre  # B
+        angle = rng.uniform(0.0, 2.0 * math.pi, interferers)
+        dist = d_signal * rng.uniform(2.2, 4.5, interferers)
+        pos[c * k + 2 : c * k + k] = centre + dist[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    sim = medium_run(
+        pos, "aloha", seed=seed, propagation="log_distance", preamble_s=0.0, data_rate_bps=1e6, latency_s=0.0
+    )
+    _sized(sim, airtime)
+    env, ch, medium = sim.env, sim.channel, sim.channel.mac
+    heard: set[tuple[int, int]] = set()
+
+    def deliver(_s, receivers, payload):
+        cell, r = payload
+        if cell * k + 1 in receivers.tolist():
+            heard.add((cell, r))
+
+    def noop(_s, _r, _p):
+        return None
+
+    def send_at(t: float, i: int, payload, fn):
+        ev = env.timeout(t)
+        ev.callbacks.append(lambda _ev: ch.broadcast(i, payload, fn, kind="edge"))
+
+    offsets = rng.uniform(-airtime, airtime, (cells, rounds, interferers))
+    for c in range(cells):
+        for r in range(rounds):
+            start = r * period + 0.5
+            send_at(start, c * k, (c, r), deliver)
+            for j in range(interferers):
+                send_at(start + offsets[c, r, j], c * k + 2 + j, None, noop)
+    env.run()
+
+    def power_mw(d):
+        return 10.0 ** ((radio.tx_power_dbm - path_loss_db(np.maximum(d, radio.reference_distance_m), radio)) / 10.0)
+
+    noise_mw = 10.0 ** (sim.config.channel.noise_floor_dbm / 10.0)
+    capture = 10.0 ** (sim.config.channel.capture_threshold_db / 10.0)
+    wrong = differs = 0
+    for c in range(cells):
+        b = pos[c * k + 1]
+        signal = float(power_mw(np.hypot(*(pos[c * k] - b))))
+        d_i = np.hypot(*(pos[c * k + 2 : c * k + k] - b).T)
+        p_i = np.where(d_i <= medium.interference_range_m, power_mw(d_i), 0.0)
+        for r in range(rounds):
+            s_i = offsets[c, r]  # the interferers' starts, relative to A's
+            # The summed interference is largest at A's start or at a later start within A's frame.
+            worst = max(float(p_i[(s_i <= at) & (s_i + airtime > at)].sum()) for at in [0.0, *s_i[s_i > 0.0].tolist()])
+            strongest = float(p_i[(s_i < airtime) & (s_i + airtime > 0.0)].max(initial=0.0))
+            ok = signal >= capture * (noise_mw + worst)
+            wrong += ok != ((c, r) in heard)
+            differs += ok != (signal >= capture * (noise_mw + strongest))
+    check = MacCheck(
+        f"ALOHA, log-distance, {interferers} interferers: receptions off the summed-SINR rule", 0.0, wrong, 0.0
+    )
+    return check, cells * rounds, differs
 
 
 def run_all() -> list[MacCheck]:

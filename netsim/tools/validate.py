@@ -2,15 +2,24 @@
 
 Each check builds runs from configurations (models by name, as ``netsim run`` does),
 measures from their outputs, and compares with theory within a stated tolerance: four
-standard errors for statistical checks unless said otherwise. The same results are
-tested, at other sizes and seeds, by the test suite.
+standard errors for statistical checks unless said otherwise, counted over the outcomes
+that are independent (frames, rounds or robots where receptions or legs go together). The
+same results are tested, at other sizes and seeds, by the test suite.
+
+The checks are listed in :data:`CHECKS`, one :class:`Item` each: the items of
+docs/validation.md it covers, the check (a function of a seed: None for the seeds fixed
+here, so that the default output does not change; ``netsim validate --seed N`` passes N,
+and each check turns it into the seeds of its runs with :func:`derive`), and whether it is
+statistical (it may then fail, rarely, on a correct model; a slow test runs each over 20
+seeds). A new check is a function ``check_x(seed=None) -> list[Check]`` and a line in
+:data:`CHECKS`.
 """
 
 from __future__ import annotations
 
 import math
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,9 +27,10 @@ import numpy as np
 import pandas as pd
 
 from netsim.config import from_dict
+from netsim.errors import NetsimInputError
 from netsim.groups import in_a_group, leads_itself
 from netsim.links.lifetimes import link_lifetimes
-from netsim.metrics import MEAN_LEG_UNIT_SQUARE
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.run import build, collect
 from netsim.tools import analysis
 from netsim.topology import geometric_pairs
@@ -41,14 +51,47 @@ class Check:
         return bool(abs(self.measured - self.theory) <= self.tolerance)
 
 
+@dataclass(frozen=True)
+class Item:
+    """An entry of :data:`CHECKS`: ``check(seed)`` returns the rows of the items
+    ``numbers`` of docs/validation.md; ``statistical``: its rows have a tolerance of
+    standard errors (a correct model fails one rarely), not an exact one."""
+
+    numbers: tuple[str, ...]
+    check: Callable[[int | None], list[Check]]
+    statistical: bool
+
+
+def derive(seed: int | None, default: int) -> int:
+    """The seed of a check's run (or generator) whose fixed seed is ``default``: ``default``
+    itself without ``--seed``, else a seed drawn from ``(seed, default)``."""
+    if seed is None:
+        return default
+    return int(np.random.SeedSequence([seed, default]).generate_state(1)[0])
+
+
+def cluster_se(values: np.ndarray, groups: np.ndarray) -> float:
+    """Standard error of ``values.mean()`` when values of one group (a robot's legs) may be
+    correlated and groups are independent: the ratio estimator's, ``sum_g (S_g - m N_g)^2``
+    over ``(sum N_g)^2``, times ``G / (G - 1)``."""
+    _, inverse = np.unique(groups, return_inverse=True)
+    sums = np.bincount(inverse, weights=values)
+    counts = np.bincount(inverse)
+    g = len(counts)
+    m = sums.sum() / counts.sum()
+    return float(math.sqrt(((sums - m * counts) ** 2).sum() * g / (g - 1)) / counts.sum())
+
+
 def _config(**tree):
     tree.setdefault("output", {"position_interval_s": 0.0})
     tree.setdefault("protocol", {"model": "none"})
     return from_dict(tree)
 
 
-def rwp_density(x: float, y: float) -> float:
-    """Exact stationary density of random waypoint on the unit square (Hyytiä et al. 2006)."""
+def rwp_density(x: float, y: float, width: float = 1.0, height: float = 1.0) -> float:
+    """Exact stationary density of random waypoint on the ``width x height`` rectangle
+    ``[0, width] x [0, height]`` (Hyytiä et al. 2006): ``f = int_0^pi a b (a + b) dphi /
+    (A^2 E[L])``, ``a`` and ``b`` the distances to the border both ways along ``phi``."""
     from scipy import integrate
 
     def border(phi):
@@ -56,20 +99,22 @@ def rwp_density(x: float, y: float) -> float:
         ts = [
             t
             for t in (
-                (1 - x) / c if c > 0 else None,
+                (width - x) / c if c > 0 else None,
                 -x / c if c < 0 else None,
-                (1 - y) / s if s > 0 else None,
+                (height - y) / s if s > 0 else None,
                 -y / s if s < 0 else None,
             )
             if t is not None
         ]
         return min(ts)
 
-    corners = sorted(math.atan2(cy - y, cx - x) % math.pi for cx in (0, 1) for cy in (0, 1))
+    corners = sorted(math.atan2(cy - y, cx - x) % math.pi for cx in (0, width) for cy in (0, height))
     value = integrate.quad(
         lambda p: (lambda a, b: a * b * (a + b))(border(p), border(p + math.pi)), 0, math.pi, points=corners, limit=200
     )[0]
-    return value / MEAN_LEG_UNIT_SQUARE
+    if width == height == 1.0:
+        return value / MEAN_LEG_UNIT_SQUARE
+    return value / ((width * height) ** 2 * mean_distance_rectangle(width, height))
 
 
 def completed_leg_lengths(legs: pd.DataFrame) -> np.ndarray:
@@ -83,13 +128,30 @@ def completed_leg_lengths(legs: pd.DataFrame) -> np.ndarray:
     return lengths
 
 
-def check_rwp() -> list[Check]:
+def leg_lengths_from_third(legs: pd.DataFrame, before_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(lengths, robots)`` of the moving legs that start before ``before_s``, each robot's
+    first two legs left out: its first is the stationary start's (length-biased); its second
+    starts at the first's end, which is not uniform. Every later leg joins two uniform
+    waypoints. ``before_s`` must leave time for any leg to end within the run (side times
+    sqrt 2 over the lowest speed before its end): then which legs count does not depend on
+    how long they are, as it would if legs were kept for having ended."""
+    t, r = legs["t_s"].to_numpy(), legs["robot"].to_numpy()
+    speed = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()
+    same = np.r_[r[1:] == r[:-1], False]
+    moving = same & (speed > 0)
+    rank = pd.Series(moving.astype(int)).groupby(r).cumsum().to_numpy()
+    keep = moving & (rank >= 3) & (t < before_s)
+    lengths = (speed[:-1] * np.diff(t))[keep[:-1]]
+    return lengths, r[:-1][keep[:-1]]
+
+
+def check_rwp_speed(seed: int | None = None) -> list[Check]:
     side, vmin, vmax, n, T = 200.0, 1.0, 4.0, 400, 600.0
     out = []
     for pause in (0.0, 20.0):
         sim = build(
             _config(
-                seed=5,
+                seed=derive(seed, 5),
                 duration_s=T,
                 world={"n_robots": n, "side_m": side},
                 mobility={"speed_min_mps": vmin, "speed_max_mps": vmax, "pause_s": pause},
@@ -109,36 +171,39 @@ def check_rwp() -> list[Check]:
                 "m/s",
             )
         )
-    # Many legs per robot: the unfinished last leg (length-biased, left out) must not matter.
-    side = 100.0
+    return out
+
+
+def check_rwp_leg_length(seed: int | None = None) -> list[Check]:
+    side, vmin, duration = 100.0, 2.0, 2000.0
     sim = build(
         _config(
-            seed=6,
-            duration_s=2000.0,
+            seed=derive(seed, 6),
+            duration_s=duration,
             world={"n_robots": 300, "side_m": side},
-            mobility={"speed_min_mps": 2.0, "speed_max_mps": 5.0, "pause_s": 0.0},
+            mobility={"speed_min_mps": vmin, "speed_max_mps": 5.0, "pause_s": 0.0},
         )
     )
     sim.run()
-    lengths = completed_leg_lengths(sim.state.legs())
-    out.append(
+    # Two legs of a robot share a waypoint: the standard error is over robots.
+    lengths, robots = leg_lengths_from_third(sim.state.legs(), duration - side * math.sqrt(2) / vmin)
+    return [
         Check(
             "2",
             "RWP mean leg length",
             MEAN_LEG_UNIT_SQUARE * side,
             lengths.mean(),
-            4 * lengths.std() / math.sqrt(len(lengths)),
+            4 * cluster_se(lengths, robots),
             "m",
         )
-    )
-    return out
+    ]
 
 
-def check_stationary_start() -> list[Check]:
+def check_stationary_start(seed: int | None = None) -> list[Check]:
     n, h = 100_000, 0.05
     sim = build(
         _config(
-            seed=3,
+            seed=derive(seed, 3),
             duration_s=1.0,
             world={"n_robots": n, "side_m": 1.0},
             mobility={"speed_min_mps": 0.01, "speed_max_mps": 0.05, "pause_s": 0.0},
@@ -172,11 +237,36 @@ def check_stationary_start() -> list[Check]:
             "m/s",
         )
     )
+    # A rectangle across the origin (world.bounds_m = [-1, 0, 1, 1]): the same law, shifted and stretched.
+    sim = build(
+        _config(
+            seed=4,
+            duration_s=1.0,
+            world={"n_robots": n, "side_m": 1.0, "bounds_m": [-1.0, 0.0, 1.0, 1.0]},
+            mobility={"speed_min_mps": 0.01, "speed_max_mps": 0.05, "pause_s": 0.0},
+        )
+    )
+    sim.env.run(until=1e-9)
+    p = sim.state.positions_at(0.0)
+    for pt in ((0.0, 0.5), (-0.9, 0.1)):
+        offsets = (np.arange(5) + 0.5) / 5 * h - h / 2
+        mass = np.mean([rwp_density(pt[0] + 1 + dx, pt[1] + dy, 2.0, 1.0) for dx in offsets for dy in offsets]) * h * h
+        count = int(((np.abs(p[:, 0] - pt[0]) < h / 2) & (np.abs(p[:, 1] - pt[1]) < h / 2)).sum())
+        out.append(
+            Check(
+                "3, 4",
+                f"RWP stationary density at t = 0 near {pt}, area [-1, 0, 1, 1]",
+                mass / h**2,
+                count / (n * h * h),
+                4 * math.sqrt(n * mass) / (n * h * h),
+                "per unit area",
+            )
+        )
     return out
 
 
-def check_unit_disk() -> list[Check]:
-    rng = np.random.default_rng(1)
+def check_unit_disk(seed: int | None = None) -> list[Check]:
+    rng = np.random.default_rng(derive(seed, 1))
     pos = rng.uniform(0, 100, (400, 2))
     i, j, _ = geometric_pairs(pos, 12.0)
     d = np.hypot(*(pos[:, None, :] - pos[None, :, :]).transpose(2, 0, 1))
@@ -185,11 +275,33 @@ def check_unit_disk() -> list[Check]:
     return [Check("5", "unit disk: linked iff distance <= R (pairs wrong)", 0.0, float(wrong), 0.0)]
 
 
-def check_torus_links() -> list[Check]:
+def capped_link_duration_s(range_m: float, speed_mps: float, cap_s: float) -> float:
+    """Mean of ``min(T, cap_s)`` over links born in steady state between robots of equal
+    speed ``v`` and uniform headings, ``T = 2 sqrt(R^2 - b^2) / v_r`` (docs/validation.md
+    item 6): links are born at a rate proportional to ``v_r = 2 v sin(theta / 2)``,
+    ``theta`` uniform on ``(0, pi)``, with ``b`` uniform on ``(-R, R)``. Without a cap it is
+    ``pi^2 R / (8 v)``."""
+    from scipy import integrate
+
+    def weighted(theta: float) -> float:
+        vr = 2.0 * speed_mps * math.sin(theta / 2.0)
+        if vr == 0.0:
+            return 0.0
+        capped = integrate.quad(
+            lambda b: min(2.0 * math.sqrt(max(range_m**2 - b * b, 0.0)) / vr, cap_s), -range_m, range_m, limit=200
+        )[0]
+        return vr * capped / (2.0 * range_m)
+
+    near_zero = [1e-4, 1e-3, 1e-2, 0.05, 0.2]
+    mean_vr = 4.0 * speed_mps / math.pi
+    return integrate.quad(weighted, 0.0, math.pi, points=near_zero, limit=400)[0] / math.pi / mean_vr
+
+
+def check_torus_links(seed: int | None = None) -> list[Check]:
     R, v, T = 10.0, 1.0, 1000.0
     sim = build(
         _config(
-            seed=11,
+            seed=derive(seed, 11),
             duration_s=T,
             world={"n_robots": 200, "side_m": 200.0, "torus": True},
             channel={"range_m": R},
@@ -198,15 +310,21 @@ def check_torus_links() -> list[Check]:
     )
     sim.run()
     links = collect(sim)["links"]
+    # Links born in the first half, each seen for at least T/2: min(duration, T/2) is known
+    # for every one of them, whereas their durations themselves would be cut at the run's end.
     born = links[(links.t_up_s > 0) & (links.t_up_s < T / 2)]
-    theory = math.pi**2 * R / (8 * v)
+    capped = np.minimum((born.t_down_s - born.t_up_s).to_numpy(), T / 2)
+    # A pair meets again on the torus at the same relative speed: its links' durations go
+    # together, hence the standard error over pairs.
+    pairs = (born.a * sim.state.n + born.b).to_numpy()
     return [
         Check(
             "6",
-            "link duration, torus, equal speeds: pi^2 R / (8 v) (5 %)",
-            theory,
-            float((born.t_down_s - born.t_up_s).mean()),
-            0.05 * theory,
+            f"link duration, torus, equal speeds, capped at {T / 2:g} s "
+            f"(pi^2 R / (8 v) = {math.pi**2 * R / (8 * v):.4g} uncapped)",
+            capped_link_duration_s(R, v, T / 2),
+            float(capped.mean()),
+            4 * cluster_se(capped, pairs),
             "s",
         )
     ]
@@ -252,7 +370,7 @@ def brute_force_mismatches(legs: pd.DataFrame, links: pd.DataFrame, ranges, time
     return wrong
 
 
-def check_exact_links() -> list[Check]:
+def check_exact_links(seed: int | None = None) -> list[Check]:
     """Item 7 on random trajectories, against brute force: plain, with jumps (sampled also
     just before and after every jump), and on the smallest torus allowed (side just above
     twice the range, where other images come into range within a piece)."""
@@ -262,7 +380,7 @@ def check_exact_links() -> list[Check]:
     out = []
     sim = build(
         _config(
-            seed=4,
+            seed=derive(seed, 4),
             duration_s=120.0,
             world={"n_robots": 30, "side_m": 200.0},
             channel={"range_m": 40.0},
@@ -294,7 +412,7 @@ def check_exact_links() -> list[Check]:
             "s",
         )
     )
-    times = np.sort(np.random.default_rng(4).uniform(0, 120.0, 2000))
+    times = np.sort(np.random.default_rng(derive(seed, 4)).uniform(0, 120.0, 2000))
     out.append(
         Check(
             "7",
@@ -304,7 +422,7 @@ def check_exact_links() -> list[Check]:
             0.0,
         )
     )
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(derive(seed, 7))
     n, duration, side = 20, 60.0, 80.0
     ranges = rng.uniform(10.0, 20.0, n)
     legs = random_legs(rng, n, duration, side, 3.0, jump_rate=0.4)
@@ -338,12 +456,12 @@ def check_exact_links() -> list[Check]:
     return out
 
 
-def check_discovery_delay() -> list[Check]:
+def check_discovery_delay(seed: int | None = None) -> list[Check]:
     pairs, p = 1000, 0.3
     n = 2 * pairs
     sim = build(
         _config(
-            seed=8,
+            seed=derive(seed, 8),
             duration_s=40.0,
             world={"n_robots": n, "side_m": 200_000.0},
             mobility={"model": "static"},
@@ -377,13 +495,13 @@ def check_discovery_delay() -> list[Check]:
             f"discovery delay T/2 + T p / (1 - p), p = {p}",
             0.5 + p / (1 - p),
             float(np.nanmean(delay)),
-            4 * float(np.nanstd(delay)) / math.sqrt(pairs),
+            4 * float(np.nanstd(delay)) / math.sqrt(int(np.isfinite(delay).sum())),
             "s",
         )
     ]
 
 
-def check_spurious_timeouts() -> list[Check]:
+def check_spurious_timeouts(seed: int | None = None) -> list[Check]:
     pairs, p, tau, k = 400, 0.3, 2.5, 2
     pos = np.zeros((2 * pairs, 2))
     pos[0::2, 0] = pos[1::2, 0] = np.arange(pairs) * 100.0
@@ -393,7 +511,7 @@ def check_spurious_timeouts() -> list[Check]:
         pd.DataFrame(pos, columns=["x_m", "y_m"]).to_csv(csv, index=False)
         sim = build(
             _config(
-                seed=9,
+                seed=derive(seed, 9),
                 duration_s=200.0,
                 world={"n_robots": 2 * pairs, "side_m": 1e5, "placement": str(csv)},
                 mobility={"model": "static"},
@@ -423,11 +541,11 @@ def check_spurious_timeouts() -> list[Check]:
     ]
 
 
-def check_delivery_ratio() -> list[Check]:
+def check_delivery_ratio(seed: int | None = None) -> list[Check]:
     p = 0.25
     sim = build(
         _config(
-            seed=3,
+            seed=derive(seed, 3),
             duration_s=60.0,
             world={"n_robots": 60, "side_m": 400.0},
             channel={"loss_probability": p, "range_m": 100.0},
@@ -441,17 +559,22 @@ def check_delivery_ratio() -> list[Check]:
     return [Check("10", f"delivered fraction of Acks, loss {p}", 1 - p, received / n, 4 * math.sqrt(p * (1 - p) / n))]
 
 
-def check_random_geometric() -> list[Check]:
+def check_mean_degree(seed: int | None = None) -> list[Check]:
     n, r, reps = 100, 0.1, 300
     degrees = []
     for rep in range(reps):
         sim = build(
-            _config(seed=1, world={"n_robots": n, "side_m": 1.0}, mobility={"model": "static"}, channel={"range_m": r}),
+            _config(
+                seed=derive(seed, 1),
+                world={"n_robots": n, "side_m": 1.0},
+                mobility={"model": "static"},
+                channel={"range_m": r},
+            ),
             run=rep,
         )
         degrees.append(2 * len(geometric_pairs(sim.state.positions_at(0.0), r)[0]) / n)
     theory = (n - 1) * (math.pi * r**2 - 8 * r**3 / 3 + r**4 / 2)
-    out = [
+    return [
         Check(
             "11",
             "mean degree, unit square with border",
@@ -460,12 +583,15 @@ def check_random_geometric() -> list[Check]:
             4 * float(np.std(degrees)) / math.sqrt(reps),
         )
     ]
+
+
+def check_no_isolated(seed: int | None = None) -> list[Check]:
     n, r, reps = 50, 0.16, 600
     ok = 0
     for rep in range(reps):
         sim = build(
             _config(
-                seed=2,
+                seed=derive(seed, 2),
                 world={"n_robots": n, "side_m": 1.0, "torus": True},
                 mobility={"model": "static"},
                 channel={"range_m": r},
@@ -475,20 +601,17 @@ def check_random_geometric() -> list[Check]:
         i, j, _ = geometric_pairs(sim.state.positions_at(0.0), r, side_m=1.0)
         ok += bool(np.bincount(np.r_[i, j], minlength=n).min() >= 1)
     theory = (1 - (1 - math.pi * r**2) ** (n - 1)) ** n
-    out.append(
-        Check("12", "P(no isolated robot), torus", theory, ok / reps, 4 * math.sqrt(theory * (1 - theory) / reps))
-    )
-    return out
+    return [Check("12", "P(no isolated robot), torus", theory, ok / reps, 4 * math.sqrt(theory * (1 - theory) / reps))]
 
 
-def check_clustering_invariants() -> list[Check]:
+def check_clustering_invariants(seed: int | None = None) -> list[Check]:
     bad = 0
-    for seed in (1, 2, 3):
+    for fixed in (1, 2, 3):
         n = 150
         side = 10.0 * math.sqrt(n * math.pi / 6)
         sim = build(
             _config(
-                seed=seed,
+                seed=derive(seed, fixed),
                 duration_s=40.0,
                 world={"n_robots": n, "side_m": side},
                 mobility={"model": "static"},
@@ -517,10 +640,15 @@ def _radio_run(**tree):
     return sim, collect(sim)
 
 
-def check_radio_unit_disk() -> list[Check]:
+def check_radio_unit_disk(seed: int | None = None) -> list[Check]:
     """17: log-distance without shadowing links exactly as a unit disk of the implied range:
     the same links table and the same Ack receptions, on the same moving team."""
-    base = {"seed": 17, "duration_s": 120.0, "world": {"n_robots": 100, "side_m": 800.0}, "protocol": {"model": "ack"}}
+    base = {
+        "seed": derive(seed, 17),
+        "duration_s": 120.0,
+        "world": {"n_robots": 100, "side_m": 800.0},
+        "protocol": {"model": "ack"},
+    }
     radio, radio_frames = _radio_run(**base, channel={"propagation": "log_distance"})
     r = float(radio.state.range_m[0])
     disk, disk_frames = _radio_run(**base, channel={"range_m": r})
@@ -536,7 +664,7 @@ def check_radio_unit_disk() -> list[Check]:
     ]
 
 
-def check_radio_link_probability() -> list[Check]:
+def check_radio_link_probability(seed: int | None = None) -> list[Check]:
     """18: shadowing sigma on a static uniform deployment: the fraction of pairs the channel
     links at distance d is Phi((P_t - PL(d) - sensitivity) / sigma), in every distance bin."""
     from scipy.spatial import cKDTree
@@ -547,7 +675,7 @@ def check_radio_link_probability() -> list[Check]:
     sigma, n, side = 4.0, 1000, 1000.0
     params = LogDistanceParams(shadowing_sigma_db=sigma)
     sim, frames = _radio_run(
-        seed=18,
+        seed=derive(seed, 18),
         duration_s=1.2,
         world={"n_robots": n, "side_m": side},
         mobility={"model": "static"},
@@ -583,15 +711,34 @@ def check_radio_link_probability() -> list[Check]:
     return out
 
 
-def check_radio_correlation() -> list[Check]:
+def check_radio_correlation(seed: int | None = None) -> list[Check]:
     """19: a moving pair's shadowing has correlation exp(-delta / d_corr) at travel separation
     delta, whatever the instants it was looked at in between (the channel's PairShadowing)."""
     from netsim.tools.radio_checks import check_shadowing_correlation
 
-    return [Check("19", c.result, c.theory, c.measured, c.tolerance, c.unit) for c in check_shadowing_correlation()]
+    rows = check_shadowing_correlation(seed=derive(seed, 1))
+    return [Check("19", c.result, c.theory, c.measured, c.tolerance, c.unit) for c in rows]
 
 
-def check_radio_walls() -> list[Check]:
+def check_radio_pair_travel(seed: int | None = None) -> list[Check]:
+    """27: the channel's shadowing of a pair whose robots both move decorrelates with the sum
+    of their path lengths (side by side at 1 m/s: 2 m of pair travel per second)."""
+    from netsim.tools.radio_checks import pair_travel_correlation
+
+    table = pair_travel_correlation(seed=derive(seed, 27))
+    return [
+        Check(
+            "27",
+            f"shadowing of pairs moving side by side: correlation at {row.delta_m:g} m of the two robots' travel",
+            row.theory,
+            row.correlation,
+            max(row.hi - row.theory, row.theory - row.lo),
+        )
+        for row in table.itertuples()
+    ]
+
+
+def check_radio_walls(seed: int | None = None) -> list[Check]:
     """20: across a wall two robots do not link under the unit disk, through a doorway they
     do; under log-distance each wall crossed costs wall_loss_db."""
     from netsim.radio.maps import save_map
@@ -605,6 +752,7 @@ def check_radio_walls() -> list[Check]:
             csv = Path(tmp) / "pos.csv"
             pd.DataFrame({"x_m": [15.0, 25.0], "y_m": [y, y]}).to_csv(csv, index=False)
             sim, frames = _radio_run(
+                seed=derive(seed, 1),
                 duration_s=5.0,
                 world={"n_robots": 2, "side_m": 40.0, "map": str(path), "placement": str(csv)},
                 mobility={"model": "static"},
@@ -620,19 +768,47 @@ def check_radio_walls() -> list[Check]:
 
 
 # -- the shared medium (channel.mac) ----------------------------------------------------------
-def check_medium() -> list[Check]:
-    """Items 21-24: ALOHA against its closed forms, CSMA against Bianchi, hidden terminals."""
+def check_aloha_periodic(seed: int | None = None) -> list[Check]:
+    """21: ALOHA, periodic frames at uniform phases, against (1 - 2T/t)^(n - 1)."""
+    from netsim.tools import mac_checks as m
+
+    c = m.aloha_periodic(seed=derive(seed, 1))
+    return [Check("21", c.item + ": reception success", c.theory, c.measured, c.tolerance)]
+
+
+def check_aloha_poisson(seed: int | None = None) -> list[Check]:
+    """22: ALOHA, Poisson traffic, against e^(-2G)."""
+    from netsim.tools import mac_checks as m
+
+    c = m.aloha_poisson(seed=derive(seed, 1))
+    return [Check("22", c.item + ": reception success", c.theory, c.measured, c.tolerance)]
+
+
+def check_csma_saturation(seed: int | None = None) -> list[Check]:
+    """23: CSMA saturation throughput against Bianchi (a model's tolerance, 5 %)."""
     from netsim.tools import mac_checks as m
 
     out = []
-    for item, c in (("21", m.aloha_periodic()), ("22", m.aloha_poisson())):
-        out.append(Check(item, c.item + ": reception success", c.theory, c.measured, c.tolerance))
     for n in (5, 10, 20, 50):
-        c = m.csma_saturation(n)
+        c = m.csma_saturation(n, seed=derive(seed, 1))
         out.append(Check("23", c.item + ": throughput (share of time)", c.theory, c.measured, c.tolerance))
-    for c in m.hidden_terminals():
-        out.append(Check("24", c.item, c.theory, c.measured, c.tolerance))
     return out
+
+
+def check_hidden_terminals(seed: int | None = None) -> list[Check]:
+    """24: hidden terminals lose like an ALOHA pair; the control (in range) at most the bound."""
+    from netsim.tools import mac_checks as m
+
+    return [Check("24", c.item, c.theory, c.measured, c.tolerance) for c in m.hidden_terminals(seed=derive(seed, 1))]
+
+
+def check_interference_sum(seed: int | None = None) -> list[Check]:
+    """26: under log-distance the medium sums the interference of every frame on the air."""
+    from netsim.tools import mac_checks as m
+
+    c, receptions, differs = m.interference_sum(seed=derive(seed, 1))
+    label = f"{c.item} ({differs} of {receptions} otherwise with the strongest alone)"
+    return [Check("26", label, c.theory, c.measured, c.tolerance)]
 
 
 MAC_NONE_RECORD = "tests/data/mac_none_724cc35.json"
@@ -672,11 +848,12 @@ def mac_none_mismatches(record: dict, frames: dict) -> list[str]:
     return bad
 
 
-def check_medium_none() -> list[Check]:
+def check_medium_none(seed: int | None = None) -> list[Check]:
     """Item 25: channel.mac = "none" reproduces the channel before the medium existed: a
     clustering run's Ack counts, role changes and table sizes equal those recorded at commit
     724cc35 (benchmarks/output_digest.py checks every table of 38 scenarios, byte for byte,
-    against a digest recorded on the branch point)."""
+    against a digest recorded on the branch point). The record fixes the run: ``seed`` is
+    not used."""
     record = mac_none_record()
     label = 'channel.mac = "none": Ack counts, role changes and row counts as recorded before the medium'
     if record is None:
@@ -689,33 +866,97 @@ def check_medium_none() -> list[Check]:
     return [Check("25", label, 1.0, same, 0.0)]
 
 
-CHECKS: list[Callable[[], list[Check]]] = [
-    check_rwp,
-    check_stationary_start,
-    check_unit_disk,
-    check_torus_links,
-    check_exact_links,
-    check_discovery_delay,
-    check_spurious_timeouts,
-    check_delivery_ratio,
-    check_random_geometric,
-    check_clustering_invariants,
-    check_radio_unit_disk,
-    check_radio_link_probability,
-    check_radio_correlation,
-    check_radio_walls,
-    check_medium,
-    check_medium_none,
+CHECKS: list[Item] = [
+    Item(("1",), check_rwp_speed, statistical=True),
+    Item(("2",), check_rwp_leg_length, statistical=True),
+    Item(("1", "3", "4"), check_stationary_start, statistical=True),
+    Item(("5",), check_unit_disk, statistical=False),
+    Item(("6",), check_torus_links, statistical=True),
+    Item(("7",), check_exact_links, statistical=False),
+    Item(("8",), check_discovery_delay, statistical=True),
+    Item(("9",), check_spurious_timeouts, statistical=True),
+    Item(("10",), check_delivery_ratio, statistical=True),
+    Item(("11",), check_mean_degree, statistical=True),
+    Item(("12",), check_no_isolated, statistical=True),
+    Item(("13",), check_clustering_invariants, statistical=False),
+    Item(("17",), check_radio_unit_disk, statistical=False),
+    Item(("18",), check_radio_link_probability, statistical=True),
+    Item(("19",), check_radio_correlation, statistical=True),
+    Item(("20",), check_radio_walls, statistical=False),
+    Item(("21",), check_aloha_periodic, statistical=True),
+    Item(("22",), check_aloha_poisson, statistical=True),
+    Item(("23",), check_csma_saturation, statistical=True),
+    Item(("24",), check_hidden_terminals, statistical=True),
+    Item(("25",), check_medium_none, statistical=False),
+    Item(("26",), check_interference_sum, statistical=False),
+    Item(("27",), check_radio_pair_travel, statistical=True),
 ]
 
 
-def run_all(progress: bool = True) -> list[Check]:
+def item_numbers(checks: Iterable[Item] | None = None) -> list[str]:
+    """Every item number the checks cover, in numerical order."""
+    numbers = {n for c in (CHECKS if checks is None else checks) for n in c.numbers}
+    return sorted(numbers, key=int)
+
+
+def parse_only(text: str) -> list[str]:
+    """``--only``'s value, item numbers separated by commas (``"21,22"``), checked against
+    :data:`CHECKS`: a :class:`NetsimInputError` naming the flag for anything else."""
+    known = item_numbers()
+    asked = [part.strip() for part in text.split(",")]
+    for part in asked:
+        if part not in known:
+            shown = f"no item {part}" if part.isdigit() else f"{part!r} is not an item number"
+            raise NetsimInputError(
+                f"--only = {text!r}: {shown}; give item numbers separated by commas, from {_spans(known)}"
+            )
+    return asked
+
+
+def _spans(numbers: list[str]) -> str:
+    """``"1-13, 17-27"`` for the sorted item numbers ``numbers``."""
+    values = [int(n) for n in numbers]
+    runs: list[list[int]] = []
+    for v in values:
+        if runs and v == runs[-1][1] + 1:
+            runs[-1][1] = v
+        else:
+            runs.append([v, v])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs)
+
+
+def parse_seed(text: str) -> int:
+    """``--seed``'s value: a whole number >= 0, else a :class:`NetsimInputError` naming the flag."""
+    try:
+        seed = int(text)
+    except ValueError:
+        seed = -1
+    if seed < 0:
+        raise NetsimInputError(f"--seed = {text!r}: must be a whole number >= 0")
+    return seed
+
+
+def select(only: Iterable[str] | None = None, statistical: bool | None = None) -> list[Item]:
+    """The checks covering any of the items ``only`` (all: None), the statistical ones alone
+    if ``statistical`` is True (the exact ones if False)."""
+    wanted = None if only is None else set(only)
+    return [
+        c
+        for c in CHECKS
+        if (wanted is None or wanted & set(c.numbers)) and (statistical is None or c.statistical == statistical)
+    ]
+
+
+def run_all(progress: bool = True, seed: int | None = None, only: Iterable[str] | None = None) -> list[Check]:
+    """The rows of the checks covering the items ``only`` (all: None), their random draws
+    from ``seed`` (None: the fixed seeds of the default table)."""
     from netsim.progress import progress_bar
 
+    checks = select(only)
     results = []
-    with progress_bar(len(CHECKS), "netsim validate", "check", enabled=progress, lines=5, leave=False) as bar:
-        for check in CHECKS:
-            results.extend(check())
+    with progress_bar(len(checks), "netsim validate", "check", enabled=progress, lines=5, leave=False) as bar:
+        for c in checks:
+            results.extend(c.check(seed))
             bar.update(1)
     return results
 

@@ -36,6 +36,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from netsim import config as cfgmod
+from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.plugins import RoleLabels
 from netsim.tools import style
@@ -388,6 +389,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         "title": run_dir.resolve().name,
         "n": n,
         "side_m": config.world.side_m,
+        "bounds_m": world_bounds(config.world).as_list(),
         "torus": config.world.torus,
         "duration_s": duration,
         "step_s": interval if interval > 0 else protocol.get("ack_period_s", 1.0),

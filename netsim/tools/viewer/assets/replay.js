@@ -290,11 +290,14 @@
   const SX = (x) => cam.ox + x * cam.scale;
   const SY = (y) => cam.oy - y * cam.scale;
 
+  // The area [x0, y0, x1, y1] in the world frame (the square [0, side_m]^2 by default).
+  const AREA = META.bounds_m || [0, 0, META.side_m, META.side_m];
+
   function fit() {
-    const side = META.side_m;
-    cam.scale = (0.96 * Math.min(cam.w, cam.h)) / side;
-    cam.ox = (cam.w - side * cam.scale) / 2;
-    cam.oy = (cam.h + side * cam.scale) / 2;
+    const [x0, y0, x1, y1] = AREA;
+    cam.scale = 0.96 * Math.min(cam.w / (x1 - x0), cam.h / (y1 - y0));
+    cam.ox = (cam.w - (x1 - x0) * cam.scale) / 2 - x0 * cam.scale;
+    cam.oy = (cam.h + (y1 - y0) * cam.scale) / 2 + y0 * cam.scale;
     cam.fitted = true;
   }
 
@@ -317,7 +320,7 @@
 
   function robotRadius() {
     // About an eighth of the typical spacing between robots, on screen.
-    const spacingPx = (META.side_m * cam.scale) / Math.sqrt(Math.max(1, META.n));
+    const spacingPx = (Math.sqrt((AREA[2] - AREA[0]) * (AREA[3] - AREA[1])) * cam.scale) / Math.sqrt(Math.max(1, META.n));
     return Math.max(2, Math.min(7, spacingPx / 8));
   }
 
@@ -459,12 +462,12 @@
 
   function drawField() {
     const dpr = window.devicePixelRatio || 1;
-    const n = model.n, x = model.x, y = model.y, side = META.side_m, t = model.t;
+    const n = model.n, x = model.x, y = model.y, t = model.t;
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     ctx.clearRect(0, 0, cam.w, cam.h);
     ctx.strokeStyle = PAL.border;
     ctx.lineWidth = 1;
-    ctx.strokeRect(SX(0), SY(side), side * cam.scale, side * cam.scale);
+    ctx.strokeRect(SX(AREA[0]), SY(AREA[3]), (AREA[2] - AREA[0]) * cam.scale, (AREA[3] - AREA[1]) * cam.scale);
 
     if (mapCanvas && ui.walls.checked) {
       const m = META.map;
@@ -1023,7 +1026,9 @@
     const s = META.summary;
     const facts = [
       `${META.n} robot${META.n === 1 ? "" : "s"}`,
-      `${fmt(META.side_m)} m ${META.torus ? "torus" : "square"}`,
+      META.torus || (AREA[0] === 0 && AREA[1] === 0 && AREA[2] === AREA[3])
+        ? `${fmt(META.side_m)} m ${META.torus ? "torus" : "square"}`
+        : `area x ${fmt(AREA[0])} to ${fmt(AREA[2])} m, y ${fmt(AREA[1])} to ${fmt(AREA[3])} m`,
       `${fmt(META.duration_s)} s`,
       `${META.mobility}`,
       `protocol ${META.protocol}`,

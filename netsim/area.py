@@ -1,0 +1,127 @@
+"""The area robots move in: an axis-aligned rectangle in the world frame (``world.bounds_m``).
+
+By default the square ``[0, side_m]^2``; on a map it may be any rectangle the map covers,
+``"map"`` meaning the map's whole extent, in the map's own frame (a ``map_saver`` map whose
+origin is ``[-10, -10]`` puts the start pose ``(0, 0)`` ten metres inside it). Placement,
+every mobility model, the coverage controller, the metrics and the figures take the area
+from here; the torus stays the square ``[0, side_m]^2``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from netsim.errors import ConfigError
+
+KEY = "world.bounds_m"
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """The rectangle ``[x_min, x_max] x [y_min, y_max]``, metres.
+
+    >>> b = Bounds(-10.0, -20.0, 50.0, 20.0)
+    >>> b.width, b.height, b.area
+    (60.0, 40.0, 2400.0)
+    >>> b.contains([[0.0, 0.0], [51.0, 0.0]]).tolist()
+    [True, False]
+    """
+
+    x_min: float
+    y_min: float
+    x_max: float
+    y_max: float
+
+    @classmethod
+    def square(cls, side_m: float) -> Bounds:
+        """The square ``[0, side_m]^2``."""
+        return cls(0.0, 0.0, float(side_m), float(side_m))
+
+    @property
+    def width(self) -> float:
+        return self.x_max - self.x_min
+
+    @property
+    def height(self) -> float:
+        return self.y_max - self.y_min
+
+    @property
+    def area(self) -> float:
+        """Area, m^2 (a square's as ``side**2``)."""
+        return self.width**2 if self.width == self.height else self.width * self.height
+
+    @property
+    def diagonal(self) -> float:
+        """Length of the diagonal, m (a square's as ``side * sqrt(2)``)."""
+        return self.width * math.sqrt(2) if self.width == self.height else math.hypot(self.width, self.height)
+
+    @property
+    def lo(self) -> np.ndarray:
+        """``[x_min, y_min]``."""
+        return np.array([self.x_min, self.y_min])
+
+    @property
+    def hi(self) -> np.ndarray:
+        """``[x_max, y_max]``."""
+        return np.array([self.x_max, self.y_max])
+
+    @property
+    def size(self) -> np.ndarray:
+        """``[width, height]``."""
+        return np.array([self.width, self.height])
+
+    @property
+    def is_square_at_origin(self) -> bool:
+        return self.x_min == 0.0 and self.y_min == 0.0 and self.width == self.height
+
+    def as_list(self) -> list[float]:
+        return [self.x_min, self.y_min, self.x_max, self.y_max]
+
+    def uniform(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``n`` points uniform over the rectangle, shape ``(n, 2)`` (on ``[0, side]^2`` the
+        same draws, bit for bit, as ``rng.uniform(0, side, (n, 2))``)."""
+        if self.is_square_at_origin:
+            return rng.uniform(0.0, self.x_max, (n, 2))
+        return self.lo + rng.uniform(0.0, 1.0, (n, 2)) * self.size
+
+    def contains(self, points_m: Any, tol_m: float = 0.0) -> np.ndarray:
+        """Whether each point lies in the closed rectangle (widened by ``tol_m``)."""
+        p = np.asarray(points_m, dtype=float).reshape(-1, 2)
+        return (
+            (p[:, 0] >= self.x_min - tol_m)
+            & (p[:, 0] <= self.x_max + tol_m)
+            & (p[:, 1] >= self.y_min - tol_m)
+            & (p[:, 1] <= self.y_max + tol_m)
+        )
+
+    def clip(self, points_m: Any) -> np.ndarray:
+        """Points moved to the nearest point of the rectangle (a copy)."""
+        return np.clip(np.asarray(points_m, dtype=float), self.lo, self.hi)
+
+
+def as_bounds(area: float | Bounds) -> Bounds:
+    """``area`` as Bounds: a number is the side of the square ``[0, side]^2``."""
+    return area if isinstance(area, Bounds) else Bounds.square(float(area))
+
+
+def parse_bounds(key: str, value: Any) -> tuple[float, float, float, float] | str:
+    """A configuration value of ``world.bounds_m``: ``"map"``, or four finite numbers
+    ``[x_min, y_min, x_max, y_max]`` with ``x_max > x_min`` and ``y_max > y_min``."""
+    allowed = 'must be [x_min, y_min, x_max, y_max] (metres, x_max > x_min, y_max > y_min) or "map"'
+    if value == "map":
+        return "map"
+    if isinstance(value, str) or not isinstance(value, list | tuple) or len(value) != 4:
+        raise ConfigError(key, value, allowed)
+    out = []
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)):
+            raise ConfigError(key, list(value), allowed)
+        out.append(float(v))
+    x0, y0, x1, y1 = out
+    if not (x1 > x0 and y1 > y0):
+        raise ConfigError(key, list(value), allowed)
+    return x0, y0, x1, y1

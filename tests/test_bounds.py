@@ -1,0 +1,424 @@
+"""The area as a rectangle in the world (map's) frame: ``world.bounds_m`` (docs/model.md
+section 1, docs/radio.md "Maps")."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+import simpy
+
+from mobility.forces import SQRT3, border_forces
+from mobility.gauss_markov import GaussMarkovParams, gauss_markov_robot
+from mobility.random_waypoint import stationary_start
+from mobility.steps import box_limit
+from netsim import load, metrics
+from netsim.area import Bounds
+from netsim.config import world_bounds
+from netsim.formats import bonnmotion
+from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
+from netsim.placement import initial_positions
+from netsim.radio.maps import save_map
+from netsim.rng import Streams
+from netsim.run import build, collect
+from netsim.state import RobotState
+from netsim.tools.cli import main
+from netsim.tools.validate import rwp_density
+
+# A rectangle across the origin, wider than high, nowhere near [0, side_m]^2.
+RECT = [-300.0, 100.0, 200.0, 400.0]
+
+
+def _run(settings: list[str]) -> dict[str, pd.DataFrame]:
+    sim = build(load(None, ["protocol.model=none", "output.position_interval_s=0", *settings]))
+    sim.run()
+    return collect(sim)
+
+
+def _leg_ends(legs: pd.DataFrame, t_end: float) -> np.ndarray:
+    """Every robot's position at the start and the end of each of its legs (a straight
+    leg between two points of a rectangle stays in it)."""
+    legs = legs.sort_values(["robot", "t_s"], kind="stable")
+    nxt = legs.groupby("robot")["t_s"].shift(-1).fillna(t_end).to_numpy()
+    start = legs[["x_m", "y_m"]].to_numpy()
+    end = start + legs[["vx_mps", "vy_mps"]].to_numpy() * (nxt - legs["t_s"].to_numpy())[:, None]
+    return np.concatenate([start, end])
+
+
+def ros_map(tmp_path, width_m=60.0, height_m=40.0, resolution_m=0.05, origin=(-10.0, -20.0)):
+    """A map as ``map_saver`` writes one of a 60 m x 40 m floor at 5 cm, origin [-10, -20]
+    (the start pose 10 m and 20 m inside), with an outer wall and two inner walls with doors."""
+    h, w = round(height_m / resolution_m), round(width_m / resolution_m)
+    occ = np.zeros((h, w), dtype=bool)
+    t = round(0.2 / resolution_m)
+    occ[:t], occ[-t:], occ[:, :t], occ[:, -t:] = True, True, True, True
+    # A wall at x = 10 m (column) with a door at y in [-2, 2], and one at y = 5 m (row)
+    # from x = 25 m on, with a door at x in [35, 38].
+    col = round((10.0 - origin[0]) / resolution_m)
+    occ[:, col : col + t] = True
+    door = slice(round((-2.0 - origin[1]) / resolution_m), round((2.0 - origin[1]) / resolution_m))
+    occ[door, col : col + t] = False
+    row = round((5.0 - origin[1]) / resolution_m)
+    occ[row : row + t, round((25.0 - origin[0]) / resolution_m) :] = True
+    occ[row : row + t, round((35.0 - origin[0]) / resolution_m) : round((38.0 - origin[0]) / resolution_m)] = False
+    occ[:t], occ[-t:], occ[:, :t], occ[:, -t:] = True, True, True, True
+    return save_map(tmp_path / "floor.yaml", occ, ~occ, resolution_m, origin)
+
+
+# -- the key -----------------------------------------------------------------------------
+
+
+def test_default_bounds_are_the_square_of_side_m():
+    """Without ``world.bounds_m`` the area is ``[0, 0, side_m, side_m]``."""
+    c = load(None, ["world.side_m=321"])
+    assert c.world.bounds_m == (0.0, 0.0, 321.0, 321.0)
+    assert world_bounds(c.world) == Bounds(0.0, 0.0, 321.0, 321.0)
+
+
+def test_map_bounds_are_the_map_extent(tmp_path):
+    """``world.bounds_m = "map"`` is the map's whole extent, in its own frame."""
+    c = load(None, [f"world.map={ros_map(tmp_path)}", "world.bounds_m=map", "mobility.model=static"])
+    b = world_bounds(c.world)
+    assert (b.x_min, b.y_min, b.x_max, b.y_max) == pytest.approx((-10.0, -20.0, 50.0, 20.0))
+
+
+@pytest.mark.parametrize(
+    "overrides, words",
+    [
+        (["world.bounds_m=[0, 0, -5, 100]"], "x_max > x_min"),
+        (["world.bounds_m=[0, 10, 100, 10]"], "x_max > x_min"),
+        (["world.bounds_m=[0, 0, inf, 100]"], "x_max > x_min"),
+        (["world.bounds_m=[0, 0, nan, 100]"], "x_max > x_min"),
+        (["world.bounds_m=[0, 0, 100]"], "x_max > x_min"),
+        (["world.bounds_m=wide"], "x_max > x_min"),
+        (["world.bounds_m=map"], "needs a map"),
+        (["world.torus=true", "world.bounds_m=[0, 0, 1000, 500]"], "torus"),
+        (["world.torus=true", "world.bounds_m=[-500, -500, 500, 500]"], "torus"),
+    ],
+)
+def test_bad_bounds_are_one_line_exit_2_nothing_written(tmp_path, capsys, overrides, words):
+    """A bad ``world.bounds_m`` is refused in one line naming it: exit 2, nothing written."""
+    _refused(tmp_path, capsys, overrides, "world.bounds_m", words)
+
+
+def test_bounds_outside_the_map_are_refused(tmp_path, capsys):
+    """Bounds the map does not cover: one line naming ``world.bounds_m`` and the map's extent."""
+    path = ros_map(tmp_path)
+    overrides = [f"world.map={path}", "world.bounds_m=[-20, -20, 40, 20]", "mobility.model=static"]
+    _refused(tmp_path, capsys, overrides, "world.bounds_m", "is not inside world.map")
+
+
+def _refused(tmp_path, capsys, overrides, key, words):
+    out = tmp_path / "out"
+    argv = ["run", "--quiet", "--out", str(out)]
+    for o in overrides:
+        argv += ["--set", o]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"netsim: error: {key} = "), err
+    assert words in err
+    assert "\n" not in err
+    assert not out.exists()
+
+
+# -- placement -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("placement", ["uniform", "grid", "centre"])
+def test_placement_fills_the_rectangle(placement):
+    """Every placement puts robots in the rectangle, spread over it (``centre``: around its middle)."""
+    c = load(None, [f"world.bounds_m={RECT}", f"world.placement={placement}", "world.n_robots=400"])
+    xy = initial_positions(c.world, Streams(1, 0))
+    b = Bounds(*RECT)
+    assert b.contains(xy).all()
+    if placement == "centre":
+        assert np.allclose(xy.mean(axis=0), [-50.0, 250.0], atol=15.0)
+    else:
+        assert xy[:, 0].min() < -280 and xy[:, 0].max() > 180
+        assert xy[:, 1].min() < 120 and xy[:, 1].max() > 380
+
+
+def test_csv_placement_is_in_the_world_frame_and_checked_against_the_bounds(tmp_path, capsys):
+    """CSV positions are world coordinates: negative ones inside the bounds are kept as
+    they are (in the positions table too), and one outside is refused naming the bounds."""
+    csv = tmp_path / "at.csv"
+    pd.DataFrame({"x_m": [-250.0, 150.0], "y_m": [120.0, 390.0]}).to_csv(csv, index=False)
+    sets = ["world.n_robots=2", f"world.bounds_m={RECT}", f"world.placement={csv}", "mobility.model=static"]
+    sim = build(load(None, ["protocol.model=none", "duration_s=5", *sets]))
+    sim.run()
+    pos = collect(sim)["positions"]
+    assert np.array_equal(pos[pos["t_s"] == 5.0][["x_m", "y_m"]].to_numpy(), [[-250.0, 120.0], [150.0, 390.0]])
+    pd.DataFrame({"x_m": [-250.0, 150.0], "y_m": [120.0, 50.0]}).to_csv(csv, index=False)
+    _refused(tmp_path, capsys, sets, "world.placement", "world.bounds_m")
+
+
+# -- every mobility model ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        ["mobility.model=random_waypoint", "mobility.stationary_start=true", "mobility.speed_max_mps=20"],
+        [
+            "mobility.model=random_waypoint",
+            "mobility.stationary_start=false",
+            "mobility.pause_s=2",
+            "mobility.speed_max_mps=20",
+        ],
+        ["mobility.model=random_direction", "mobility.pause_s=1", "mobility.speed_max_mps=20"],
+        ["mobility.model=gauss_markov", "mobility.mean_speed_mps=15", "mobility.alpha=0.3"],
+        ["mobility.model=rpgm", "mobility.group_radius_m=30", "mobility.group_size=3", "mobility.speed_max_mps=20"],
+    ],
+    ids=["rwp_stationary", "rwp_fresh", "random_direction", "gauss_markov", "rpgm"],
+)
+def test_every_mobility_model_keeps_robots_in_the_rectangle_and_uses_all_of_it(settings):
+    """Every leg starts and ends in the rectangle, and robots reach near each of its four borders."""
+    sets = [f"world.bounds_m={RECT}", "world.n_robots=24", "duration_s=400"]
+    legs = _run([*sets, *settings])["legs"]
+    xy = _leg_ends(legs, 400.0)
+    assert Bounds(*RECT).contains(xy, tol_m=1e-9).all()
+    assert xy[:, 0].min() < -250 and xy[:, 0].max() > 150
+    assert xy[:, 1].min() < 150 and xy[:, 1].max() > 350
+
+
+class _West:
+    """A stand-in random generator for Gauss-Markov: mean direction pi (west), no noise."""
+
+    def uniform(self, lo, hi, size=None):
+        return math.pi
+
+    def standard_normal(self, size):
+        return np.zeros(size)
+
+
+def _gauss_markov_west(x0: float) -> np.ndarray:
+    env = simpy.Environment()
+    st = RobotState(1, 1000.0, 10.0, bounds=Bounds(*RECT))
+    st.place(np.array([[x0, 250.0]]))
+    p = GaussMarkovParams(alpha=0.5, mean_speed_mps=2.0, speed_sigma_mps=0.0, direction_sigma_rad=0.0)
+    env.process(gauss_markov_robot(env, st, p, st.bounds, 0, _West()))
+    env.run(until=10.5)
+    return st.legs()[["vx_mps"]].to_numpy()[1:, 0]
+
+
+def test_gauss_markov_turns_at_the_rectangle_border_not_at_zero():
+    """Heading west, a robot crosses x = 0 inside the rectangle without turning, and turns
+    back east at the rectangle's x_min."""
+    assert np.all(_gauss_markov_west(3.0) < 0)
+    vx = _gauss_markov_west(-297.0)
+    assert vx[0] < 0 and np.all(vx[1:] > 0), vx
+
+
+def test_static_robots_stay_where_placed_in_the_rectangle():
+    """Static robots are placed in the rectangle and do not move."""
+    legs = _run([f"world.bounds_m={RECT}", "world.n_robots=30", "duration_s=10", "mobility.model=static"])["legs"]
+    assert len(legs) == 30 and Bounds(*RECT).contains(legs[["x_m", "y_m"]]).all()
+
+
+def test_external_robots_stop_at_the_rectangle_border():
+    """A robot driven from outside stops where it meets the rectangle's border, at its x_min."""
+    sim = build(
+        load(None, ["protocol.model=none", "world.n_robots=1", f"world.bounds_m={RECT}", "mobility.model=external"])
+    )
+    start = sim.state.positions_at(0.0)[0]
+    sim.run(until_s=1.0)
+    sim.drive([0], [[-10.0, 0.0]])
+    sim.run(until_s=200.0)
+    assert sim.state.positions_at(200.0)[0] == pytest.approx([-300.0, start[1]])
+
+
+def test_trace_positions_must_lie_in_the_bounds(tmp_path, capsys):
+    """A trace inside a negative rectangle replays as given; one leaving it is refused naming the bounds."""
+    path = tmp_path / "s.movements"
+    path.write_text("0 -290 110 10 190 390\n")
+    legs = _run(["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", f"world.bounds_m={RECT}"])[
+        "legs"
+    ]
+    assert legs.iloc[0][["x_m", "y_m"]].tolist() == [-290.0, 110.0]
+    path.write_text("0 -290 110 10 190 410\n")
+    sets = ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", f"world.bounds_m={RECT}"]
+    _refused(tmp_path, capsys, sets, "world.bounds_m", str(path))
+
+
+# -- random waypoint's stationary start on a rectangle -----------------------------------
+
+
+def test_mean_leg_on_a_rectangle_is_the_mean_distance_of_two_uniform_points():
+    """``E[L]`` on an ``a x b`` rectangle (Ghosh's closed form) is the Monte Carlo mean, and
+    the unit square's constant when ``a = b``."""
+    rng = np.random.default_rng(5)
+    p, q = rng.uniform(0, 1, (2, 400_000, 2)) * [4.0, 1.0]
+    assert mean_distance_rectangle(4.0, 1.0) == pytest.approx(np.hypot(*(p - q).T).mean(), rel=3e-3)
+    assert mean_distance_rectangle(3.0, 3.0) == pytest.approx(3 * MEAN_LEG_UNIT_SQUARE, rel=1e-12)
+
+
+@pytest.mark.slow
+def test_stationary_start_on_a_rectangle_is_stationary():
+    """Started in the stationary regime on a rectangle, robots' positions and the fraction
+    paused at t = 0 are those of a long run (Navidi and Camp's law, for any rectangle): the
+    x and y histograms at 0 s and at 600 s agree, and differ from a uniform start's."""
+    b = [-100.0, 0.0, 300.0, 100.0]
+    sets = [f"world.bounds_m={b}", "world.n_robots=1500", "mobility.speed_min_mps=2", "mobility.speed_max_mps=6"]
+    sim = build(load(None, ["protocol.model=none", "duration_s=600", "mobility.pause_s=20", *sets]))
+    sim.run(until_s=1e-6)
+    at0 = sim.state.positions_at(0.0)
+    still0 = np.mean(np.hypot(*sim.state.velocity_mps.T) == 0)
+    sim.run()
+    at1 = sim.state.positions_at(600.0)
+    still1 = np.mean(np.hypot(*sim.state.velocity_mps.T) == 0)
+    edges = [np.linspace(-100, 300, 9), np.linspace(0, 100, 5)]
+    for k in range(2):
+        h0 = np.histogram(at0[:, k], edges[k])[0] / len(at0)
+        h1 = np.histogram(at1[:, k], edges[k])[0] / len(at1)
+        uniform = np.diff(edges[k]) / (edges[k][-1] - edges[k][0])
+        assert np.abs(h0 - h1).max() < 0.035
+        assert np.abs(h1 - uniform).max() > 0.04
+    assert still0 == pytest.approx(still1, abs=0.04)
+
+
+@pytest.mark.parametrize("pt", [(0.0, 0.5), (-0.9, 0.1), (0.6, 0.8)])
+def test_stationary_start_spatial_density_on_a_rectangle(pt):
+    """Items 3 and 4 on the rectangle ``[-1, 0, 1, 1]``: positions at t = 0 follow Hyytiä
+    et al.'s exact density for a ``2 x 1`` rectangle, shifted to its corner (counts in a
+    0.05 x 0.05 box within 4 Poisson standard deviations of the integrated density)."""
+    n, h = 400_000, 0.05
+    s = stationary_start(np.random.default_rng(3), n, Bounds(-1.0, 0.0, 1.0, 1.0), 0.01, 0.05, 0.0)
+    offsets = (np.arange(5) + 0.5) / 5 * h - h / 2
+    mass = np.mean([rwp_density(pt[0] + 1 + dx, pt[1] + dy, 2.0, 1.0) for dx in offsets for dy in offsets]) * h * h
+    p = s.position_m
+    count = int(((np.abs(p[:, 0] - pt[0]) < h / 2) & (np.abs(p[:, 1] - pt[1]) < h / 2)).sum())
+    assert abs(count - n * mass) < 4 * math.sqrt(n * mass)
+
+
+def test_stationary_start_draws_inside_the_rectangle():
+    """Positions and destinations of the stationary start lie in the rectangle."""
+    s = stationary_start(np.random.default_rng(2), 2000, Bounds(*RECT), 1.0, 5.0, 3.0)
+    assert Bounds(*RECT).contains(s.position_m).all() and Bounds(*RECT).contains(s.destination_m).all()
+
+
+# -- coverage: bound, covered fraction, border forces, step limits --------------------------
+
+
+def test_coverage_bound_uses_the_rectangle_area():
+    """``U(N) / A`` with ``A`` the rectangle's area ``width x height``."""
+    u = metrics.connected_coverage_bound(10, 20.0, 30.0)
+    assert metrics.bound_fraction(10, 20.0, Bounds(*RECT), 30.0) == pytest.approx(u / (500.0 * 300.0), rel=1e-15)
+
+
+def test_covered_fraction_is_over_the_rectangle():
+    """One disk inside the rectangle covers ``pi r^2 / A``; one outside it, nothing (exact and grid)."""
+    b = Bounds(*RECT)
+    exact, err = metrics.covered_fraction_exact([[-50.0, 250.0]], 20.0, b)
+    assert abs(exact - math.pi * 400.0 / b.area) <= err + 1e-9
+    grid, gerr = metrics.covered_fraction([[-50.0, 250.0]], 20.0, b, cells=400)
+    assert abs(grid - math.pi * 400.0 / b.area) <= gerr
+    assert metrics.covered_fraction_exact([[100.0, 50.0]], 20.0, b)[0] == 0.0
+    assert metrics.covered_fraction([[100.0, 50.0]], 20.0, b)[0] == 0.0
+
+
+def test_border_forces_push_inward_from_every_border_of_the_rectangle():
+    """Within ``sqrt(3) r_c / 2`` of a border the push is ``gain (margin - distance)`` inward."""
+    b = Bounds(*RECT)
+    margin = SQRT3 * 40.0 / 2
+    p = np.array([[-295.0, 250.0], [195.0, 250.0], [0.0, 105.0], [0.0, 395.0], [0.0, 250.0]])
+    f = border_forces(p, b, 40.0, 2.0)
+    push = 2 * (margin - 5)
+    assert np.allclose(f, [[push, 0], [-push, 0], [0, push], [0, -push], [0, 0]], rtol=1e-12, atol=0)
+
+
+def test_box_limit_stops_steps_at_the_rectangle_border():
+    """A step toward a border is shortened to end (just) on it."""
+    s = box_limit(np.array([[-290.0, 250.0], [0.0, 390.0]]), np.array([[-20.0, 0.0], [0.0, 40.0]]), Bounds(*RECT))
+    assert s == pytest.approx([0.5, 0.25])
+
+
+def test_coverage_run_on_a_rectangle_reports_the_rectangle_bound_and_stays_inside():
+    """The coverage controller's ``coverage_bound`` is ``min(1, U(N) / A)`` for the
+    rectangle, and its robots stay in the rectangle."""
+    sets = [
+        "world.n_robots=20",
+        "duration_s=60",
+        "world.bounds_m=[-200, -100, 200, 100]",
+        "world.placement=centre",
+        "world.centre_side_m=60",
+        "mobility.model=static",
+        "channel.range_m=40",
+        "coverage.enabled=true",
+        "protocol.message_rate_hz=0",
+    ]
+    sim = build(load(None, ["output.position_interval_s=0", *sets]))
+    sim.run()
+    frames = collect(sim)
+    cov = frames["coverage"]
+    u = metrics.connected_coverage_bound(20, 40.0, 40.0)
+    assert cov["coverage_bound"].to_numpy() == pytest.approx(min(1.0, u / (400.0 * 200.0)))
+    xy = _leg_ends(frames["legs"], 60.0)
+    assert Bounds(-200, -100, 200, 100).contains(xy, tol_m=1e-9).all()
+    assert xy[:, 0].min() < -30  # it spread into the negative half
+
+
+# -- a real-sized ROS map in its own frame ----------------------------------------------------
+
+
+@pytest.mark.slow
+def test_run_on_a_ros_map_uses_the_whole_map(tmp_path):
+    """On a 60 m x 40 m map at 5 cm with origin [-10, -20] and ``world.bounds_m = "map"``,
+    placement covers the whole map and robots reach every part of it, negative coordinates
+    included, in free cells only; positions are in the map's frame."""
+    path = ros_map(tmp_path)
+    sets = [
+        f"world.map={path}",
+        "world.bounds_m=map",
+        "world.n_robots=40",
+        "duration_s=300",
+        "channel.range_m=15",
+        "mobility.speed_min_mps=1",
+        "mobility.speed_max_mps=3",
+        "output.position_interval_s=5",
+    ]
+    sim = build(load(None, ["protocol.model=none", *sets]))
+    start = sim.state.positions_at(0.0)
+    sim.run()
+    frames = collect(sim)
+    assert start[:, 0].min() < 0 and start[:, 1].min() < 0
+    assert start[:, 0].min() < -5 and start[:, 0].max() > 45 and start[:, 1].min() < -15 and start[:, 1].max() > 15
+    xy = _leg_ends(frames["legs"], 300.0)
+    assert xy[:, 0].min() < -8 and xy[:, 0].max() > 48 and xy[:, 1].min() < -18 and xy[:, 1].max() > 18
+    pos = frames["positions"][["x_m", "y_m"]].to_numpy()
+    from netsim.radio.maps import load_map
+
+    assert load_map(path).is_free(pos).all()
+    # Every quadrant of the map's frame is visited (the start pose at 0, 0 is inside).
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            assert ((np.sign(pos[:, 0]) == sx) & (np.sign(pos[:, 1]) == sy)).any()
+
+
+# -- export --------------------------------------------------------------------------------
+
+
+def test_bonnmotion_export_of_a_map_frame_run_round_trips(tmp_path):
+    """A run whose area reaches below 0 exports positions in its own frame, its size as
+    ``x``, ``y`` and its corner as ``x_min``, ``y_min``; read back, the same waypoints."""
+    out = tmp_path / "run"
+    sets = [f"world.bounds_m={RECT}", "world.n_robots=4", "duration_s=30", "mobility.stationary_start=false"]
+    assert main(["run", "--quiet", "--out", str(out), *(a for s in sets for a in ("--set", s))]) == 0
+    path = tmp_path / "s.movements"
+    assert main(["export", str(out), "--format", "bonnmotion", "--out", str(path)]) == 0
+    params = bonnmotion.read_params(bonnmotion.params_path(path))
+    assert [float(params[k]) for k in ("x", "y", "x_min", "y_min")] == [500.0, 300.0, -300.0, 100.0]
+    wp, _ = bonnmotion.read(path)
+    assert Bounds(*RECT).contains(np.column_stack([wp.x_m, wp.y_m])).all()
+    assert (wp.x_m < 0).any()
+
+
+def test_replay_data_carries_the_bounds(tmp_path):
+    """The replay page gets the area's bounds to frame and draw it."""
+    from netsim.tools.viewer.data import pack
+
+    out = tmp_path / "run"
+    sets = [f"world.bounds_m={RECT}", "world.n_robots=4", "duration_s=10"]
+    assert main(["run", "--quiet", "--out", str(out), *(a for s in sets for a in ("--set", s))]) == 0
+    assert pack(out)["meta"]["bounds_m"] == RECT
