@@ -436,7 +436,7 @@ class CoverageController:
         pos = step.positions_m
         known = memory.known(self.env.now, c.release_s)
         target, source_xy = sources_heard(self.knows, known, 2 * self.range_m, pos)
-        wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, step.side_m)
+        wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0

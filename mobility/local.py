@@ -223,7 +223,7 @@ def plan_local(
 
     wish = np.zeros((n, 2))
     wish[movers] = cap_length(desired_mps[movers] * limits.period_s, limits.reach_m)
-    end = project_into(pos + wish, robot, centre, r * SAFETY, limits.side_m)
+    end = project_into(pos + wish, robot, centre, r * SAFETY, limits.box)
     move = end - pos
     move[~mobile] = 0.0
     inside = ~outside[robot]
@@ -232,7 +232,7 @@ def plan_local(
         np.minimum.at(s, robot[inside], step_limit(pos[robot[inside]] - centre[inside], r[inside], move[robot[inside]]))
         missed = np.hypot(*(pos[robot] + move[robot] - centre).T) > r
         s[robot[~inside & missed]] = 0.0
-    s = np.minimum(s, box_limit(pos, move, limits.side_m))
+    s = np.minimum(s, box_limit(pos, move, limits.box))
     s[outside & (s < 1.0)] = 0.0
     move *= s[:, None]
     wished = np.hypot(*wish.T)
