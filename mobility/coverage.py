@@ -58,11 +58,13 @@ rigidly with their leader, and the bridges between groups kept by
 for less than ``stop_speed_mps`` for ``stop_hold_s``. Under loss a member that misses a
 command can break a bridge there: connectivity is measured, not guaranteed.
 
-What is not distributed: each step's plan is computed in one pass for the whole team (the
-spanning forest over the whole network; a robot's limits then use only the current
-positions of its kept neighbours, and under shadowing the shadowing measured on those
-links). A deployment would build the forest with a
-distributed minimum spanning tree algorithm and exchange the kept links in the Acks.
+What is not distributed (``plan = "global"``, the default): each step's plan is computed
+in one pass for the whole team (the spanning forest over the whole network; a robot's
+limits then use only the current positions of its kept neighbours, and under shadowing the
+shadowing measured on those links). With ``plan = "local"`` (:mod:`mobility.local`) every
+robot decides its own step from the Acks it heard, keeps the links it cannot certify a
+detour for, and answers for each against the other end's largest motion since its Ack; no
+command is sent.
 """
 
 from __future__ import annotations
@@ -79,6 +81,7 @@ import pandas as pd
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
 from mobility.keep import LinkRules
+from mobility.local import Memory, let_go, plan_local, pulls, sources_heard
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
@@ -93,6 +96,10 @@ from netsim.radio.free_space import free_fraction, obstacle_field, wall_forces
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
 
+# The stopping rule's default windows (coverage.stop_hold_s = 0), s.
+GLOBAL_HOLD_S = 20.0
+LOCAL_HOLD_S = 60.0
+
 
 class Members(StrEnum):
     """How members move: spread (pushed apart, every robot) or follow (the paper's)."""
@@ -106,6 +113,14 @@ class Knowledge(StrEnum):
 
     ACKS = "acks"
     GLOBAL = "global"
+
+
+class PlanScope(StrEnum):
+    """Who plans each step: one plan for the team from the true positions, or each robot
+    its own from what it heard."""
+
+    GLOBAL = "global"
+    LOCAL = "local"
 
 
 class AreaMethod(StrEnum):
@@ -131,6 +146,19 @@ class CoverageParams(Params):
     knowledge: Knowledge = param(
         Knowledge.ACKS, None, "positions the forces use: as heard in Acks (stale), or the true ones"
     )
+    plan: PlanScope = param(
+        PlanScope.GLOBAL,
+        None,
+        "spread: 'global' (one plan from the true positions) or 'local' (each robot from what it heard)",
+    )
+    release_s: float = param(
+        20.0, positive, "plan = 'local': a robot forgets a robot whose latest Ack it heard was sent this long ago, s"
+    )
+    band_m: float = param(
+        10.0,
+        positive,
+        "plan = 'local': links are ordered by bands of length this wide, then by their robots' ids, m",
+    )
     control_period_s: float = param(1.0, positive, "time between control steps, s (also for control.controllers)")
     start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
     gain: float = param(
@@ -149,9 +177,10 @@ class CoverageParams(Params):
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
     )
     stop_hold_s: float = param(
-        20.0,
-        positive,
-        "stopping rule's window: all leaders held (follow), or too little gain or motion (spread), s",
+        0.0,
+        non_negative,
+        "stopping rule's window: all leaders held (follow), or too little gain or motion (spread), s"
+        " (0: 20 s, 60 s with plan = 'local', whose team creeps slower)",
     )
     stop_gain: float = param(
         0.002, non_negative, "spread: control ends once coverage gains less than this in stop_hold_s (0: off)"
@@ -163,12 +192,25 @@ class CoverageParams(Params):
     )
     grid_cells: int = param(200, positive, "area_method = 'grid': grid cells per side (error bound reported)")
 
+    @property
+    def hold_s(self) -> float:
+        """The stopping rule's window (``stop_hold_s``, or its default for the plan)."""
+        if self.stop_hold_s > 0:
+            return self.stop_hold_s
+        return LOCAL_HOLD_S if self.plan is PlanScope.LOCAL else GLOBAL_HOLD_S
+
     def check(self) -> None:
-        if self.enabled and self.members is Members.SPREAD and self.metrics_interval_s > self.stop_hold_s:
+        if self.plan is PlanScope.LOCAL and self.knowledge is Knowledge.GLOBAL:
+            raise ConfigError(
+                "coverage.plan", "local", "needs coverage.knowledge = 'acks' (a robot uses only what it heard)"
+            )
+        if self.plan is PlanScope.LOCAL and self.members is Members.FOLLOW:
+            raise ConfigError("coverage.plan", "local", "needs coverage.members = 'spread', not 'follow'")
+        if self.enabled and self.members is Members.SPREAD and self.metrics_interval_s > self.hold_s:
             raise ConfigError(
                 "coverage.metrics_interval_s",
                 self.metrics_interval_s,
-                f"must not exceed coverage.stop_hold_s = {self.stop_hold_s} (the stopping rule compares samples)",
+                f"must not exceed coverage.stop_hold_s = {self.hold_s} (the stopping rule compares samples)",
             )
 
 
@@ -184,6 +226,12 @@ def check(params: CoverageParams, config) -> None:
         )
     if not params.enabled:
         return
+    if params.plan is PlanScope.LOCAL and ch.mac != "none":
+        raise ConfigError(
+            "coverage.plan",
+            "local",
+            f"needs channel.mac = 'none' (its bound on an Ack's age needs a bounded delay), not {ch.mac!r}",
+        )
     if config.mobility.plugin.moves_robots:
         raise ConfigError(
             "coverage.enabled",
@@ -309,6 +357,13 @@ class CoverageController:
         # step short of a wall).
         self.occupancy = parts.occupancy
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
+        # The local plan: what each robot heard (mobility.local).
+        self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
+        self.knows: Memory | None = None  # the memory as of the step being planned
+        # How much earlier than its latest possible sending time an Ack may have left.
+        self.jitter_s = float(parts.channel.latency_jitter_s)
+        self.announced_mps = np.zeros((st.n, 2))
+        self.announced_s = math.inf
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:
         """``gain (m - d)`` away from the nearest wall within ``m = sqrt(3) r_c / 2``, as the border."""
@@ -345,12 +400,15 @@ class CoverageController:
         qs = self.quiet_since[leaders]
         self.quiet_since[:] = np.nan
         self.quiet_since[leaders] = np.where(quiet, np.where(np.isnan(qs), now, qs), np.nan)
-        if len(leaders) and quiet.all() and now - np.nanmax(self.quiet_since[leaders]) >= self.cfg.stop_hold_s:
+        if len(leaders) and quiet.all() and now - np.nanmax(self.quiet_since[leaders]) >= self.cfg.hold_s:
             self.settled_s = now
             self.loop.stop()
         self._max_wish = float(speed.max()) if len(speed) else 0.0
 
     def _propose_spread(self, step: ControlStep) -> None:
+        if self.memory is not None:
+            self._propose_local(step)
+            return
         now = self.env.now
         c = self.cfg
         pos_now = self.state.positions_at(now)
@@ -368,10 +426,42 @@ class CoverageController:
         step.velocity_mps[:] = wished
         self._max_wish = float(speed[group >= 0].max()) if (group >= 0).any() else 0.0
 
+    def _propose_local(self, step: ControlStep) -> None:
+        """Every robot's wish from its own position and the positions it heard."""
+        c, memory, st = self.cfg, self.memory, self.state
+        assert memory is not None
+        robot, other, xy, heard_s = self.view.heard_acks(self.env.now)
+        memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s)
+        self.knows = memory.at(step.t_s, c.speed_max_mps, self.jitter_s)
+        pos = step.positions_m
+        known = memory.known(self.env.now, c.release_s)
+        target, source_xy = sources_heard(self.knows, known, 2 * self.range_m, pos)
+        wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
+        wished += self._wall_push(pos)
+        speed = np.hypot(*wished.T)
+        wished[speed < c.stop_speed_mps] = 0.0
+        step.velocity_mps[:] = wished
+        self._max_wish = float(speed.max(initial=0.0))
+
+    def _plan_local(self, step: ControlStep) -> Plan:
+        """Each robot keeps what it cannot let go of and answers for those links itself."""
+        memory, knows, c = self.memory, self.knows, self.cfg
+        assert memory is not None and knows is not None
+        known = memory.known(self.env.now, c.release_s)
+        kept = known & ~let_go(step.positions_m, knows, known, step.t_s, c.speed_max_mps, c.band_m, self.range_m)
+        wish = step.velocity_mps + pulls(
+            step.positions_m, knows, kept, self.announced_mps, self.announced_s, step.t_s, self.limits, memory.sent_s
+        )
+        # What each robot's next Acks announce (mobility.local, rule 4).
+        self.announced_mps, self.announced_s = wish, self.env.now
+        return plan_local(step.positions_m, wish, knows, kept, step.t_s, self.limits)
+
     def secure(self, step: ControlStep) -> None:
         """Order 100: make the plan keep the network connected; leaders send their commands."""
         if self.cfg.members is Members.FOLLOW:
             plan = plan_follow(step.positions_m, step.leader, step.velocity_mps, self.limits)
+        elif self.memory is not None:
+            plan = self._plan_local(step)
         else:
             plan = self._plan_spread(step)
         step.velocity_mps[:] = plan.velocity_mps
@@ -424,7 +514,7 @@ class CoverageController:
             return
         if math.isnan(self.all_quiet_since):
             self.all_quiet_since = now
-        if now - self.all_quiet_since >= self.cfg.stop_hold_s:
+        if now - self.all_quiet_since >= self.cfg.hold_s:
             self.settled_s = now
             self.loop.stop()
 
@@ -532,9 +622,9 @@ class CoverageController:
         risen ``stop_gain`` above its value ``stop_hold_s`` ago (the team stopped spreading)."""
         c, now = self.cfg, self.env.now
         loop = self.loop
-        if loop.stopped or c.stop_gain <= 0 or now < c.start_s + c.stop_hold_s - 1e-9:
+        if loop.stopped or c.stop_gain <= 0 or now < c.start_s + c.hold_s - 1e-9:
             return
-        window = [s["covered_of_bound_all"] for s in self.samples if s["t_s"] >= now - c.stop_hold_s - 1e-9]
+        window = [s["covered_of_bound_all"] for s in self.samples if s["t_s"] >= now - c.hold_s - 1e-9]
         if len(window) > 1 and max(window[1:]) - window[0] < c.stop_gain:
             self.settled_s = now
             loop.stop()

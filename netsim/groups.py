@@ -41,6 +41,12 @@ class GroupView(Protocol):
         arrays ``(robot, other, last-heard position of other (k, 2))``."""
         ...
 
+    def heard_acks(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What each robot itself heard: arrays ``(robot, sender, position in the sender's
+        latest Ack it heard (k, 2), when it heard it)``, entries its table no longer
+        counts live included while they are kept."""
+        ...
+
 
 def leads_itself(leader: np.ndarray) -> np.ndarray:
     """Mask of the leaders, from an array of leaders (module notes).

@@ -209,6 +209,35 @@ def components(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
     return connected_components(graph, directed=False)[1]
 
 
+def components_at_link_events(
+    a: np.ndarray, b: np.ndarray, t_up_s: np.ndarray, t_down_s: np.ndarray, censored_end: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The number of components of the network of ``n`` robots whose links are up over
+    ``[t_up_s, t_down_s)`` (the columns of ``links.parquet``; a link ``censored_end`` is
+    up until the end), at every instant a link goes up or down, just after it: arrays
+    ``(t_s, components)``.
+
+    >>> up, down, cut = np.array([0.0, 0.0]), np.array([5.0, 9.0]), np.array([False, True])
+    >>> components_at_link_events(np.array([0, 1]), np.array([1, 2]), up, down, cut, 3)
+    (array([0., 5.]), array([1, 2]))
+
+    Notes
+    -----
+    ``O(E)`` per event, ``E`` the links in the table.
+    """
+    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
+    from scipy.sparse.csgraph import connected_components
+
+    t_down_s = np.where(censored_end, np.inf, t_down_s)
+    times = np.unique(np.r_[t_up_s, t_down_s[np.isfinite(t_down_s)]])
+    counts = np.empty(len(times), dtype=np.int64)
+    for k, t in enumerate(times.tolist()):
+        up = (t_up_s <= t) & (t < t_down_s)
+        graph = csr_matrix((np.ones(int(up.sum())), (a[up], b[up])), shape=(n, n))
+        counts[k] = connected_components(graph, directed=False)[0]
+    return times, counts
+
+
 def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Component label of every robot in the network of ``n`` robots whose links are the
     pairs ``(a[k], b[k])`` (the links a radio makes, as a link solver's ``up_pairs()``).

@@ -22,7 +22,7 @@ from netsim.plugins import Parts, PluginSpec
 from netsim.topology import reach_keys
 from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy, membership
-from protocols.neighbours import LAST_HEARD, ROLE, X, Y
+from protocols.neighbours import EMPTY, LAST_HEARD, ROLE, X, Y
 from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
 from protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
 
@@ -399,6 +399,15 @@ class Stack:
         xy[heard[freshest]] = table.data[rows[freshest], slots[freshest]][:, [X, Y]]
         order = np.lexsort((other, robot))
         return robot[order], other[order], xy[other[order]]
+
+    def heard_acks(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every robot's own record of the Acks it heard, live or expired (the latest of
+        each sender, until its slot is reused): arrays ``(robot, sender, position the Ack
+        carried (k, 2), reception time)``."""
+        table = self.table
+        rows, slots = np.nonzero(table.id != EMPTY)
+        rec = table.data[rows, slots]
+        return rows.astype(np.int64), table.id[rows, slots], rec[:, [X, Y]], rec[:, LAST_HEARD]
 
     # -- ground truth beside belief ----------------------------------------------------
     def _heard_keys(self, now: float) -> np.ndarray:

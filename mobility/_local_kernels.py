@@ -1,0 +1,93 @@
+"""Compiled (numba) loop of the local plan's rule 1 (:func:`mobility.local.let_go`): per
+robot, the bottleneck of its certified detours, by a widest-path search over the robots
+within two links. It computes exactly what the numpy code computes (the tests compare
+them); for a few dozen robots, numpy's and scipy's cost per call, not the arithmetic, is
+what the numpy code costs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from netsim import kernel_cache
+
+
+@numba.njit(cache=True, nogil=True)
+def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, out):
+    """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``."""
+    n = pos.shape[0]
+    nn = float(n * n)
+    node = np.empty(n, np.int64)
+    qx = np.empty(n)
+    qy = np.empty(n)
+    e = np.empty(n)
+    worst = np.empty(n)
+    done = np.empty(n, np.bool_)
+    best = np.empty(n)
+    via = np.empty(n, np.int64)
+    for i in range(n):
+        k = 1
+        node[0] = i
+        qx[0], qy[0], e[0] = pos[i, 0], pos[i, 1], 0.0
+        for j in range(n):
+            if known[i, j]:
+                node[k] = j
+                qx[k], qy[k] = xy[i, j, 0], xy[i, j, 1]
+                e[k] = speed_mps * max(t0_s - sent_s[i, j], 0.0)
+                k += 1
+        m = k - 1
+        if m < 2:
+            continue
+        # Robots two links out: the freshest report among the remembered robots'.
+        for o in range(n):
+            best[o] = -np.inf
+            via[o] = -1
+        for a in range(1, k):
+            r = node[a]
+            for o in range(n):
+                if known[r, o] and sent_s[r, o] > best[o]:
+                    best[o] = sent_s[r, o]
+                    via[o] = r
+        for o in range(n):
+            if o != i and not known[i, o] and via[o] >= 0:
+                node[k] = o
+                qx[k], qy[k] = xy[via[o], o, 0], xy[via[o], o, 1]
+                e[k] = speed_mps * max(t0_s - sent_s[via[o], o], 0.0)
+                k += 1
+        for a in range(k):
+            worst[a] = np.inf
+            done[a] = False
+        worst[0] = 0.0
+        for _ in range(k):
+            u = -1
+            for a in range(k):
+                if not done[a] and (u < 0 or worst[a] < worst[u]):
+                    u = a
+            if u < 0 or worst[u] == np.inf:
+                break
+            done[u] = True
+            nu = node[u]
+            for v in range(k):
+                nv = node[v]
+                if done[v] or not (known[nu, nv] and known[nv, nu]):
+                    continue
+                longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
+                if longest > range_m:
+                    continue
+                rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
+                w = max(worst[u], rank)
+                if w < worst[v]:
+                    worst[v] = w
+        for a in range(1, m + 1):
+            j = node[a]
+            shortest = max(math.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
+            rank = math.floor(shortest / band_m) * nn + float(min(i, j) * n + max(i, j)) + 1.0
+            out[i, j] = worst[a] < rank
+
+
+# numba's cache of this module's functions, keyed by its source and what it imports from
+# (netsim.kernel_cache).
+kernel_cache.key(globals())

@@ -1,0 +1,299 @@
+"""The local plan (``coverage.plan = "local"``; docs/model.md section 5, "Local plan"): every
+robot decides its own step from what it has heard, and the network never splits.
+
+What a robot knows (:class:`Memory`): for each robot whose Ack it has heard, the position
+that Ack carried and the earliest time it can date from (its reception less the channel's
+largest delay). It keeps that after its neighbour table lets the entry expire, for
+``release_s`` after the Ack was sent; then it forgets the robot. Every robot moves at most
+``speed_max_mps``, so a robot last heard at ``q`` at time ``s`` is, at time ``t``, within
+``v (t - s)`` of ``q``.
+
+The rules, for robot ``i`` deciding the step that runs over ``[t0, t1]`` (``t1 = t0 +
+period``), its own position ``p`` at ``t0`` exact:
+
+1. **Detour.** ``i`` lets go of a remembered robot ``j`` only if it knows a *certified
+   detour*: a path from ``i`` to ``j`` through robots it remembers, each link of which
+   joins two robots that remember each other and is, whatever the true positions at
+   ``t0``, shorter than the link ``(i, j)``: its longest possible length (``|q_a - q_b| +
+   e_a + e_b``, ``e = v (t0 - s)``; ``|p - q_a| + e_a`` from ``i``) below the shortest
+   possible length of ``(i, j)`` (``|p - q_j| - e_j``). Every other remembered robot is
+   *kept*. (With detours of two links this is the relative neighbourhood graph; with
+   any, the local minimum spanning tree.)
+2. **Leash.** ``i`` ends the step within ``r - margin - v (t1 - s_j)`` of ``q_j`` for
+   every kept ``j``; as ``q_j`` is fixed, the distance is convex in time and the radius
+   linear, so ``i`` is then within ``r`` of ``j`` at every instant of the step whatever
+   ``j`` does.
+3. **Hold.** If ``i`` is farther than that radius from some kept ``q_j`` already (its
+   knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
+
+Why the network never splits: let ``K`` be the links in range at ``t0`` whose ends
+remember each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
+whose links are in ``K`` and truly shorter; by induction on length (the true lengths
+at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
+links neither end lets go of. Each of those is kept by both ends; over the step an end
+that moves keeps it in range (rule 2) and an end that holds does not change it (rule 3),
+so it is in range at every instant of the step, and at the next ``t0`` it is in ``K``
+again while both ends still remember each other. So the components of ``K`` never grow,
+and the network (which contains ``K``) never has more components than ``K`` had when
+control started: on a loss-free channel, always; under loss, unless a robot misses every
+Ack of a neighbour in range for ``release_s``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mobility.spread import project_into
+from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
+from netsim.compiled import load
+
+
+class Memory:
+    """What each robot has heard of each other robot: ``xy[i, j]``, the position in the
+    latest Ack of ``j`` that ``i`` heard, ``sent_s[i, j]``, the earliest time that Ack can
+    have been sent (``-inf``: never heard), and ``vel[i, j]``, the velocity that Ack
+    carried, which holds until ``until_s[i, j]`` (the sender's leg ends at the next control
+    step; ``until_s = sent_s``: the velocity is not known to hold after the Ack)."""
+
+    def __init__(self, n: int):
+        self.xy = np.zeros((n, n, 2))
+        self.sent_s = np.full((n, n), -np.inf)
+        self.vel = np.zeros((n, n, 2))
+        self.until_s = np.full((n, n), -np.inf)
+
+    def hear(
+        self,
+        robot: np.ndarray,
+        other: np.ndarray,
+        xy: np.ndarray,
+        heard_s: np.ndarray,
+        delay_s: float,
+        leg_velocity_mps: np.ndarray | None = None,
+        leg_start_s: np.ndarray | None = None,
+        leg_until_s: float = -np.inf,
+    ):
+        """Take the Acks in the robots' tables (reception times ``heard_s``; an Ack left at
+        most ``delay_s`` before it arrived). With ``leg_velocity_mps`` and ``leg_start_s``
+        (each robot's current leg), an Ack sent during its sender's current leg carries
+        that leg's velocity, which holds until ``leg_until_s`` (the next control step)."""
+        sent = heard_s - delay_s
+        newer = sent > self.sent_s[robot, other]
+        r, o, sent = robot[newer], other[newer], sent[newer]
+        self.sent_s[r, o] = sent
+        self.xy[r, o] = xy[newer]
+        if leg_velocity_mps is None or leg_start_s is None:
+            self.vel[r, o] = 0.0
+            self.until_s[r, o] = sent
+            return
+        on_leg = sent >= leg_start_s[o]
+        self.vel[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], 0.0)
+        self.until_s[r, o] = np.where(on_leg, leg_until_s, sent)
+
+    def known(self, now_s: float, release_s: float) -> np.ndarray:
+        """``(n, n)``: ``i`` remembers ``j`` (heard an Ack of it sent less than ``release_s`` ago)."""
+        return now_s - self.sent_s < release_s
+
+    def at(self, t0_s: float, speed_mps: float, jitter_s: float) -> Memory:
+        """What the robots know of each other at ``t0_s``, as a memory of Acks without
+        velocities: each position carried along its known leg to ``t0_s``, and a sending
+        time such that ``speed_mps (t - sent_s)`` bounds the distance to the true position
+        at every ``t >= t0_s`` (the leg's velocity over the send time's uncertainty
+        ``jitter_s``, then the speed cap from where the known leg ends)."""
+        out = Memory(len(self.sent_s))
+        heard = np.isfinite(self.sent_s)
+        with np.errstate(invalid="ignore"):
+            span = np.where(heard, np.clip(np.minimum(t0_s, self.until_s) - self.sent_s, 0.0, None), 0.0)
+        out.xy = self.xy + self.vel * span[..., None]
+        error = np.hypot(self.vel[..., 0], self.vel[..., 1]) * jitter_s
+        error = error + speed_mps * np.maximum(t0_s - np.where(heard, self.until_s, -np.inf), 0.0)
+        with np.errstate(invalid="ignore"):
+            out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)
+        out.until_s = out.sent_s.copy()
+        return out
+
+
+def let_go(
+    pos: np.ndarray, memory: Memory, known: np.ndarray, t0_s: float, speed_mps: float, band_m: float, range_m: float
+) -> np.ndarray:
+    """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
+
+    ``pos``: every robot's own position at ``t0_s``; ``known``: :meth:`Memory.known`;
+    ``band_m``: the width of the length bands of the links' order. Robot ``i``'s graph:
+    itself, the robots it remembers (at the positions it heard) and those they remember
+    (at the freshest position they report), joined where two remember each other and are
+    surely within ``range_m``, each link at the largest rank it can have at ``t0``. A
+    detour's worst link is the bottleneck of ``i``'s path to ``j`` in a minimum spanning
+    tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots the compiled
+    twin (:mod:`mobility._local_kernels`) computes the same.
+
+    Notes
+    -----
+    ``O(k^2)`` per robot with ``k`` robots within two links.
+    """
+    n = len(pos)
+    out = np.zeros((n, n), dtype=bool)
+    kernels = load("mobility._local_kernels", n)
+    if kernels is not None:
+        kernels.let_go(pos, memory.xy, memory.sent_s, known, t0_s, speed_mps, band_m, range_m, out)
+        return out
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
+    mutual = known & known.T
+    for i in range(n):
+        nb = np.flatnonzero(known[i])
+        m = len(nb)
+        if m < 2:
+            continue
+        reported = np.where(known[nb], memory.sent_s[nb], -np.inf)
+        reported[:, i] = -np.inf
+        reported[:, nb] = -np.inf
+        far = np.flatnonzero(np.isfinite(reported.max(axis=0)))
+        via = nb[reported[:, far].argmax(axis=0)]
+        node = np.r_[i, nb, far]
+        q = np.concatenate([pos[i : i + 1], memory.xy[i, nb], memory.xy[via, far]])
+        sent = np.r_[t0_s, memory.sent_s[i, nb], memory.sent_s[via, far]]
+        e = speed_mps * np.maximum(t0_s - sent, 0.0)
+        centre = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
+        pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
+        longest = centre + e[:, None] + e[None, :]
+        rank = link_rank(longest, pair, band_m, n) + 1.0
+        usable = mutual[np.ix_(node, node)] & (longest <= range_m)
+        tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
+        order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
+        worst = np.full(len(node), np.inf)
+        worst[0] = 0.0
+        for v, u in zip(order[1:].tolist(), pred[order[1:]].tolist()):
+            worst[v] = max(worst[u], rank[u, v])
+        shortest = np.maximum(centre[0, 1 : m + 1] - e[1 : m + 1], 0.0)
+        out[i, nb] = worst[1 : m + 1] < link_rank(shortest, pair[0, 1 : m + 1], band_m, n) + 1.0
+    return out
+
+
+def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> np.ndarray:
+    """A link's place in the order every robot uses: by band of length (``band_m`` wide),
+    then by the pair of ids (``min n + max``); one number, exact in a float.
+
+    >>> link_rank(np.array([5.0, 15.0, 5.0]), np.array([7, 1, 9]), 10.0, 4).tolist()
+    [7.0, 17.0, 9.0]
+    """
+    return np.floor(length_m / band_m) * (n * n) + pair
+
+
+def leash_radius(memory: Memory, t1_s: float, limits: StepLimits) -> np.ndarray:
+    """``(n, n)``: how far from ``q_j`` robot ``i`` may end the step (rule 2)."""
+    return limits.keep_m - limits.speed_max_mps * (t1_s - memory.sent_s)
+
+
+def plan_local(
+    pos: np.ndarray,
+    desired_mps: np.ndarray,
+    memory: Memory,
+    kept: np.ndarray,
+    t0_s: float,
+    limits: StepLimits,
+) -> Plan:
+    """Each robot's step (module notes): its wish, brought into its leashes, its reach and
+    the area.
+
+    ``kept``: ``(n, n)``, robot ``i`` keeps ``j`` (remembered and not let go of). A robot
+    inside all its leashes now goes along its projected step as far as it stays inside
+    them; one already outside some (but within what it answers for now) must end inside
+    them, and holds if the projection found no such end.
+    """
+    n = len(pos)
+    robot, other = np.nonzero(kept)
+    centre = memory.xy[robot, other]
+    now_m = leash_radius(memory, t0_s, limits)[robot, other]
+    r = leash_radius(memory, t0_s + limits.period_s, limits)[robot, other]
+    dist = np.hypot(*(pos[robot] - centre).T)
+    # Rule 3: a robot that cannot answer for a kept link now holds.
+    cannot = np.zeros(n, dtype=bool)
+    cannot[robot[dist > now_m]] = True
+    outside = np.zeros(n, dtype=bool)
+    outside[robot[dist > r]] = True
+    wants = np.hypot(*desired_mps.T) > 0
+    movers = np.flatnonzero(~cannot & wants)
+    mobile = np.zeros(n, dtype=bool)
+    mobile[movers] = True
+    sel = mobile[robot]
+    robot, centre, r = robot[sel], centre[sel], r[sel]
+    robot = np.concatenate([robot, movers])
+    centre = np.concatenate([centre, pos[movers]])
+    r = np.concatenate([r, np.full(len(movers), limits.reach_m)])
+
+    wish = np.zeros((n, 2))
+    wish[movers] = cap_length(desired_mps[movers] * limits.period_s, limits.reach_m)
+    end = project_into(pos + wish, robot, centre, r * SAFETY, limits.box)
+    move = end - pos
+    move[~mobile] = 0.0
+    inside = ~outside[robot]
+    s = np.ones(n)
+    if len(robot):
+        np.minimum.at(s, robot[inside], step_limit(pos[robot[inside]] - centre[inside], r[inside], move[robot[inside]]))
+        missed = np.hypot(*(pos[robot] + move[robot] - centre).T) > r
+        s[robot[~inside & missed]] = 0.0
+    s = np.minimum(s, box_limit(pos, move, limits.box))
+    s[outside & (s < 1.0)] = 0.0
+    move *= s[:, None]
+    wished = np.hypot(*wish.T)
+    held = (cannot & wants) | (mobile & (wished > 0) & (np.hypot(*(move - wish).T) > 1e-9 * limits.range_m))
+    both = kept & kept.T
+    return Plan(move / limits.period_s, np.full(n, -1), held, int(np.triu(both, 1).sum()))
+
+
+def pulls(
+    pos: np.ndarray,
+    memory: Memory,
+    kept: np.ndarray,
+    announced_mps: np.ndarray,
+    announced_s: float,
+    t0_s: float,
+    limits: StepLimits,
+    sent_s: np.ndarray | None = None,
+) -> np.ndarray:
+    """Rule 4, the pull: each robot's velocity toward the kept robots that announced (in an
+    Ack it heard, sent after ``announced_s``) a wish to move away from it faster than the
+    slack of its leash allows, by the excess. ``sent_s``: when the Acks were sent (default
+    ``memory.sent_s``; give the raw times when ``memory`` is :meth:`Memory.at`'s).
+
+    Without it a taut link only blocks: the outer robot of a chain wants out, the inner
+    ones are pushed evenly from all sides and stay. A pull travels one link per step.
+    """
+    heard = memory.sent_s if sent_s is None else sent_s
+    robot, other = np.nonzero(kept & (heard >= announced_s))
+    q = memory.xy[robot, other]
+    off = q - pos[robot]
+    d = np.hypot(*off.T)
+    along = off / np.maximum(d, 1e-12)[:, None]
+    slack = np.maximum(leash_radius(memory, t0_s + limits.period_s, limits)[robot, other] - d, 0.0) / limits.period_s
+    excess = np.maximum(np.einsum("ij,ij->i", announced_mps[other], along) - slack, 0.0)
+    out = np.zeros_like(pos)
+    np.add.at(out, robot, excess[:, None] * along)
+    return out
+
+
+def sources_heard(memory: Memory, known: np.ndarray, reach_m: float, pos: np.ndarray):
+    """Pairs ``(robot, position it knows of another robot within reach_m)``: the forces'
+    sources in the local plan. A robot knows the robots it remembers, at the position it
+    heard, and those they remember (their Acks carry their tables), at the freshest
+    position they report."""
+    n = len(pos)
+    robots, xys = [], []
+    for i in range(n):
+        nb = np.flatnonzero(known[i])
+        if len(nb) == 0:
+            continue
+        reported = np.where(known[nb], memory.sent_s[nb], -np.inf)
+        via = nb[reported.argmax(axis=0)]
+        fresh = np.isfinite(reported.max(axis=0))
+        fresh[i] = False
+        xy = memory.xy[via, np.arange(n)]
+        own = known[i]
+        xy[own] = memory.xy[i, own]
+        have = np.flatnonzero(own | fresh)
+        near = have[np.hypot(*(xy[have] - pos[i]).T) < reach_m]
+        robots.append(np.full(len(near), i))
+        xys.append(xy[near])
+    if not robots:
+        return np.empty(0, np.int64), np.empty((0, 2))
+    return np.concatenate(robots), np.concatenate(xys)

@@ -1,0 +1,320 @@
+"""The local plan (``coverage.plan = "local"``; docs/model.md section 5, "Local plan";
+mobility/local.py): one test per rule, the argument's conclusion on random scenes, and
+whole runs from dense starts that check the true network (``links.parquet``) at every
+link event."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mobility.local import Memory, let_go, plan_local, pulls
+from mobility.steps import StepLimits
+from netsim import config
+from netsim.errors import ConfigError
+from netsim.metrics import components, components_at_link_events
+from netsim.run import execute
+from netsim.tools.cli import main
+
+RC = 100.0
+V = 2.0  # speed cap, m/s
+LIMITS = StepLimits(period_s=1.0, range_m=RC, margin_m=1.0, speed_max_mps=V, side_m=2000.0)
+T0 = 10.0
+
+
+def memory_of(xy_heard, sent_s):
+    """A Memory from ``xy_heard[i][j]`` and ``sent_s[i][j]`` (-inf: never heard)."""
+    n = len(sent_s)
+    m = Memory(n)
+    m.xy[:] = np.asarray(xy_heard, dtype=float)
+    m.sent_s[:] = np.asarray(sent_s, dtype=float)
+    return m
+
+
+def all_heard(pos, sent):
+    """Every robot heard every other at its true position, Acks sent at ``sent``."""
+    n = len(pos)
+    xy = np.broadcast_to(pos[None, :, :], (n, n, 2)).copy()
+    s = np.full((n, n), float(sent))
+    np.fill_diagonal(s, -np.inf)
+    return memory_of(xy, s)
+
+
+def random_scene(seed, n=30, side=300.0, staleness_s=3.0):
+    """True positions at T0 and a memory consistent with the speed cap: a robot heard at
+    ``q`` at ``s`` is within ``V (T0 - s)`` of ``q`` at T0. Robots in range hear each other
+    (each Ack heard with probability 0.8)."""
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform(0, side, (n, 2))
+    d = np.hypot(*(pos[:, None] - pos[None]).transpose(2, 0, 1))
+    heard = (d <= RC) & (rng.random((n, n)) < 0.8)
+    np.fill_diagonal(heard, False)
+    sent = np.where(heard, T0 - rng.uniform(0.0, staleness_s, (n, n)), -np.inf)
+    # Each robot j was, at the time each Ack of it was sent, somewhere within V (T0 - s) of pos[j].
+    angle = rng.uniform(0, 2 * np.pi, (n, n))
+    radius = V * np.where(heard, T0 - sent, 0.0) * np.sqrt(rng.random((n, n)))
+    xy = pos[None, :, :] + np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=2)
+    return pos, memory_of(xy, sent)
+
+
+# -- rule 1: detours -----------------------------------------------------------------
+
+
+def test_detour_a_robot_lets_go_only_of_a_link_with_a_certified_detour():
+    """Rule 1: robot 0 lets go of robot 1 (80 m) when robot 2 is 45 m from each and all three
+    remember each other; not when robot 2 does not remember robot 1, and not when what it
+    knows of robot 2 is so old that the detour may be longer than the link."""
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 20.0]])
+    m = all_heard(pos, T0 - 0.5)
+    known = m.known(T0, 20.0)
+    out = let_go(pos, m, known, T0, V, 10.0, RC)
+    assert out[0, 1] and out[1, 0]
+    assert not out[0, 2] and not out[2, 0] and not out[1, 2] and not out[2, 1]
+
+    one_sided = known.copy()
+    one_sided[2, 1] = False
+    assert not let_go(pos, m, one_sided, T0, V, 10.0, RC)[0, 1]
+
+    m.sent_s[0, 2] = m.sent_s[1, 2] = T0 - 18.0  # 36 m of uncertainty on robot 2
+    assert not let_go(pos, m, m.known(T0, 20.0), T0, V, 10.0, RC)[0, 1]
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(seed):
+    """The argument of rule 1: of the links in range that both ends remember (``K``), those
+    neither end lets go of have the same components as ``K``, whatever the true positions
+    within what the robots know (stale positions, speed capped)."""
+    pos, m = random_scene(seed)
+    known = m.known(T0, 20.0)
+    gone = let_go(pos, m, known, T0, V, 10.0, RC)
+    n = len(pos)
+    d = np.hypot(*(pos[:, None] - pos[None]).transpose(2, 0, 1))
+    k = (d <= RC) & known & known.T
+    np.fill_diagonal(k, False)
+    kept = k & ~gone & ~gone.T
+    from scipy.sparse.csgraph import connected_components
+
+    nk, lk = connected_components(k, directed=False)
+    np_, lp = connected_components(kept, directed=False)
+    assert nk == np_ and (lk[:, None] == lk[None, :]).__eq__(lp[:, None] == lp[None, :]).all()
+    assert gone.sum() > n // 2  # the rule lets go of links at all
+
+
+def test_detour_compiled_and_numpy_agree(monkeypatch):
+    """The compiled twin of rule 1 lets go of exactly the links the numpy code does."""
+    for seed in range(10):
+        pos, m = random_scene(seed, n=40)
+        known = m.known(T0, 20.0)
+        monkeypatch.setenv("NETSIM_COMPILED", "0")
+        a = let_go(pos, m, known, T0, V, 10.0, RC)
+        monkeypatch.setenv("NETSIM_COMPILED", "1")
+        b = let_go(pos, m, known, T0, V, 10.0, RC)
+        assert (a == b).all()
+
+
+# -- rule 2: leashes -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_leash_keeps_every_kept_robot_in_range_over_the_step_whatever_it_does(seed):
+    """Rule 2: for every link a robot keeps, at every instant of the step, its distance to
+    the position it last heard plus the farthest that robot can have gone since is within
+    the range: the link holds whatever the other end does."""
+    pos, m = random_scene(seed)
+    known = m.known(T0, 20.0)
+    kept = known & ~let_go(pos, m, known, T0, V, 10.0, RC)
+    rng = np.random.default_rng(seed)
+    wish = rng.normal(0, 3.0, pos.shape)
+    plan = plan_local(pos, wish, m, kept, T0, LIMITS)
+    move = plan.velocity_mps * LIMITS.period_s
+    assert (np.hypot(*move.T) <= LIMITS.reach_m + 1e-9).all()
+    i, j = np.nonzero(kept)
+    moving = np.hypot(*move[i].T) > 0
+    i, j = i[moving], j[moving]
+    assert len(i) > 10
+    for tau in np.linspace(0.0, 1.0, 11):
+        at = pos[i] + tau * move[i]
+        worst = np.hypot(*(at - m.xy[i, j]).T) + V * (T0 + tau * LIMITS.period_s - m.sent_s[i, j])
+        assert (worst <= RC + 1e-6).all()
+
+
+def test_leash_lets_a_robot_slide_along_a_taut_link():
+    """Rule 2 allows motion along a taut link: the step is projected into the leash, not
+    cut to nothing."""
+    pos = np.array([[0.0, 0.0], [96.5, 0.0]])
+    m = all_heard(pos, T0 - 0.1)  # leash: 99 - 2 x 1.1 = 96.8 m
+    kept = m.known(T0, 20.0)
+    plan = plan_local(pos, np.array([[0.0, 0.0], [2.0, 2.0]]), m, kept, T0, LIMITS)
+    assert plan.velocity_mps[1, 1] > 1.0
+
+
+# -- rule 3: hold ---------------------------------------------------------------------
+
+
+def test_hold_a_robot_that_cannot_answer_for_a_kept_link_holds():
+    """Rule 3: a robot farther from a kept robot's last-heard position than it can answer
+    for now (its knowledge is too old) holds, whatever it wishes; its step is marked held."""
+    pos = np.array([[0.0, 0.0], [96.0, 0.0]])
+    m = all_heard(pos, T0 - 0.1)
+    m.sent_s[0, 1] = T0 - 3.0  # robot 0 answers for 99 - 6 = 93 m now
+    kept = m.known(T0, 20.0)
+    plan = plan_local(pos, np.array([[0.0, 2.0], [0.0, 0.0]]), m, kept, T0, LIMITS)
+    assert (plan.velocity_mps[0] == 0).all() and plan.held[0]
+
+
+def test_hold_a_robot_forgets_a_robot_not_heard_for_release_s():
+    """A robot remembers the latest Ack of each robot it heard (a later one replaces it,
+    an earlier one does not), for release_s after the Ack was sent."""
+    m = Memory(2)
+    m.hear(np.array([0]), np.array([1]), np.array([[5.0, 5.0]]), np.array([3.0]), 0.01)
+    m.hear(np.array([0]), np.array([1]), np.array([[1.0, 1.0]]), np.array([2.0]), 0.01)
+    assert m.xy[0, 1].tolist() == [5.0, 5.0] and m.sent_s[0, 1] == pytest.approx(2.99)
+    assert m.known(22.98, 20.0)[0, 1] and not m.known(23.0, 20.0)[0, 1]
+    assert not m.known(5.0, 20.0)[1, 0]
+
+
+def test_knowledge_an_ack_carries_its_senders_leg_until_the_next_step():
+    """An Ack sent during its sender's current leg carries the leg's velocity: the position
+    is carried along it to the step's start (exact up to the velocity times the send time's
+    uncertainty); after the leg's end, and for an Ack sent before the leg began, only the
+    speed cap bounds where the sender is."""
+    m = Memory(3)
+    vel = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]])
+    leg_start = np.array([0.0, 9.0, 9.6])
+    m.hear(
+        np.array([0, 0]),
+        np.array([1, 2]),
+        np.array([[10.0, 0.0], [0.0, 10.0]]),
+        np.array([9.5, 9.5]),
+        0.1,
+        vel,
+        leg_start,
+        10.1,
+    )
+    now = m.at(10.1, V, 0.05)
+    assert now.xy[0, 1].tolist() == pytest.approx([10.7, 0.0])  # sent at 9.4 (at the earliest), carried 0.7 s
+    assert V * (10.1 - now.sent_s[0, 1]) == pytest.approx(0.05)  # |v| x jitter
+    assert now.xy[0, 2].tolist() == [0.0, 10.0]  # sent before its leg began
+    assert V * (10.1 - now.sent_s[0, 2]) == pytest.approx(V * 0.7)
+    later = m.at(11.1, V, 0.05)  # the leg may have changed at 10.1
+    assert later.xy[0, 1].tolist() == pytest.approx([10.7, 0.0])
+    assert V * (11.1 - later.sent_s[0, 1]) == pytest.approx(0.05 + V * 1.0)
+
+
+# -- rule 4: pulls ----------------------------------------------------------------------
+
+
+def test_pull_a_robot_follows_a_kept_robot_that_announced_it_moves_away():
+    """Rule 4: robot 1, 95 m out, announced 2 m/s away from robot 0; robot 0's leash leaves
+    1 m/s of slack, so robot 0 is pulled after it at the excess, 1 m/s. A wish heard before
+    it was announced pulls nobody."""
+    pos = np.array([[0.0, 0.0], [95.0, 0.0]])
+    m = all_heard(pos, T0 - 0.5)  # leash: 99 - 2 (T0 + 1 - (T0 - 0.5)) = 96 m
+    kept = m.known(T0, 20.0)
+    announced = np.array([[0.0, 0.0], [2.0, 0.0]])
+    out = pulls(pos, m, kept, announced, T0 - 1.0, T0, LIMITS)
+    assert out[0].tolist() == pytest.approx([1.0, 0.0])
+    assert out[1].tolist() == [0.0, 0.0]
+    assert (pulls(pos, m, kept, announced, T0 - 0.1, T0, LIMITS) == 0).all()
+
+
+# -- whole runs --------------------------------------------------------------------------
+
+
+def local_run(n, seed, loss=0.0, duration=600, **extra):
+    overrides = [
+        f"world.n_robots={n}",
+        f"world.side_m={500 * math.sqrt(n):.1f}",
+        'world.placement="centre"',
+        f"world.centre_side_m={40 * math.sqrt(n):.1f}",
+        'mobility.model="static"',
+        "channel.range_m=100",
+        f"channel.loss_probability={loss}",
+        "coverage.enabled=true",
+        'coverage.plan="local"',
+        "protocol.message_rate_hz=0",
+        "output.position_interval_s=0",
+        f"duration_s={duration}",
+        f"seed={seed}",
+    ] + [f"{k}={v!r}".replace("'", '"') for k, v in extra.items()]
+    return execute(config.load(None, overrides))
+
+
+def true_components(r, n):
+    links = r.frames["links"]
+    return components_at_link_events(
+        *(links[c].to_numpy() for c in ("a", "b", "t_up_s", "t_down_s", "censored_end")), n
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n,loss,floor", [(20, 0.0, 0.6), (20, 0.3, 0.6), (60, 0.0, 0.6), (60, 0.3, 0.6)])
+def test_local_plan_never_splits_the_network_and_covers_the_bound(n, loss, floor):
+    """From a dense start, with 0 or 30 % of receptions lost: the true network (the links of
+    links.parquet) has one component when control starts and at every link event after;
+    the disks end covering at least ``floor`` of min(1, U(N) / A)."""
+    r = local_run(n, 1, loss)
+    times, counts = true_components(r, n)
+    start = r.sim.config.coverage.start_s
+    assert counts[times <= start][-1] == 1
+    assert counts[times > start].max() == 1
+    assert (times > start).sum() > 10  # links do go up and down under control
+    assert r.summary["covered_of_bound_all_final"] >= floor
+
+
+@pytest.mark.slow
+def test_local_plan_keeps_a_log_distance_network_without_shadowing():
+    """Under log-distance path loss without shadowing a link is a disk of the implied range:
+    the local plan keeps the true network in one component."""
+    n = 20
+    r = local_run(n, 2, duration=120, **{"channel.propagation": "log_distance", "channel.tx_power_dbm": 23.0})
+    rc = float(r.sim.state.range_m[0])
+    assert rc == pytest.approx(10 ** (63 / 30))  # the implied range, not channel.range_m
+    times, counts = true_components(r, n)
+    assert counts.max() == 1 and (times > 10.0).sum() > 10
+    assert r.summary["covered_fraction_all_final"] > 1.5 * r.summary["covered_fraction_all_start"]
+    assert components(r.sim.state.positions_at(r.sim.now), rc).max() == 0
+
+
+@pytest.mark.slow
+def test_local_plan_every_robot_decides_its_own_step_no_command_is_sent():
+    """With the local plan no leader sends commands: every robot moves by its own decision
+    (members included), and the moves are the same whatever the roles."""
+    r = local_run(20, 3, duration=60)
+    assert r.sim.channel.counters_for("command").sent.sum() == 0
+    legs = r.sim.state.legs()
+    assert legs["robot"].nunique() == 20
+
+
+# -- bad input -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "overrides, key",
+    [
+        (['coverage.plan="central"'], "coverage.plan"),
+        (['coverage.plan="local"', 'coverage.knowledge="global"'], "coverage.plan"),
+        (['coverage.plan="local"', 'coverage.members="follow"'], "coverage.plan"),
+        (
+            ["coverage.enabled=true", 'mobility.model="static"', 'coverage.plan="local"', 'channel.mac="aloha"'],
+            "coverage.plan",
+        ),
+        (["coverage.release_s=0"], "coverage.release_s"),
+        (["coverage.band_m=-1"], "coverage.band_m"),
+    ],
+)
+def test_bad_plan_is_one_line_exit_2_nothing_written(tmp_path, capsys, overrides, key):
+    with pytest.raises(ConfigError) as err:
+        config.load(None, overrides)
+    assert err.value.key == key
+    out = tmp_path / "out"
+    argv = ["run", "--quiet", "--out", str(out)]
+    for o in overrides:
+        argv += ["--set", o]
+    assert main(argv) == 2
+    msg = capsys.readouterr().err.strip()
+    assert msg.startswith(f"netsim: error: {key} = "), msg
+    assert "\n" not in msg
+    assert not out.exists()
