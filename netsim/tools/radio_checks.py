@@ -20,7 +20,6 @@ errors.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -39,22 +38,9 @@ from netsim.radio.propagation import (
     unit_disk,
 )
 from netsim.radio.shadowing import PairShadowing
+from netsim.tools.check import Check
 
 Z = 4.0
-
-
-@dataclass(frozen=True)
-class RadioCheck:
-    item: str
-    result: str
-    theory: float
-    measured: float
-    tolerance: float
-    unit: str = ""
-
-    @property
-    def passed(self) -> bool:
-        return bool(abs(self.measured - self.theory) <= self.tolerance)
 
 
 def _all_pairs(pos: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -72,9 +58,7 @@ def check_unit_disk_equivalence(params: LogDistanceParams | None = None, n: int 
     pairs = Pairs.between(a, b, pos)
     linked = log_distance(params).receivable(pairs)
     wrong = int((linked != (pairs.distance_m <= r)).sum())
-    return [
-        RadioCheck("17", f"log-distance, no shadowing: unit disk of {r:g} m (pairs wrong of {len(a)})", 0.0, wrong, 0.0)
-    ]
+    return [Check("17", f"log-distance, no shadowing: unit disk of {r:g} m (pairs wrong of {len(a)})", 0.0, wrong, 0.0)]
 
 
 def link_probability(distance_m, params: LogDistanceParams) -> np.ndarray:
@@ -133,7 +117,7 @@ def check_link_probability(params: LogDistanceParams | None = None, n_robots: in
     side = 8.0 * implied_range_m(params)
     table = link_fraction_table(params, n_robots, side, seed)
     return [
-        RadioCheck(
+        Check(
             "17",
             f"shadowing sigma {params.shadowing_sigma_db:g} dB: linked fraction, d in "
             f"[{row.d_lo_m:.0f}, {row.d_hi_m:.0f}) m ({row.pairs} pairs)",
@@ -191,7 +175,7 @@ def correlation_table(
 def check_shadowing_correlation(sigma_db: float = 6.0, decorrelation_m: float = 10.0, seed: int = 1):
     table = correlation_table(sigma_db, decorrelation_m, seed=seed)
     return [
-        RadioCheck(
+        Check(
             "17",
             f"shadowing correlation at {row.delta_m:g} m of pair travel (d_corr {decorrelation_m:g} m)",
             row.theory,
@@ -308,9 +292,9 @@ def check_walls(params: LogDistanceParams | None = None):
     drop = log_distance(params).received_dbm(pairs) - log_distance(params, occupancy=m).received_dbm(pairs)
     error = float(np.max(np.abs(drop - params.wall_loss_db * np.arange(4))))
     return [
-        RadioCheck("W1", "unit disk: robots across a wall (10 m apart, range 50 m) linked", 0.0, float(across), 0.0),
-        RadioCheck("W2", "unit disk: robots through a doorway (10 m apart) linked", 1.0, float(door), 0.0),
-        RadioCheck(
+        Check("W1", "unit disk: robots across a wall (10 m apart, range 50 m) linked", 0.0, float(across), 0.0),
+        Check("W2", "unit disk: robots through a doorway (10 m apart) linked", 1.0, float(door), 0.0),
+        Check(
             "W3",
             f"log-distance: power drop = {params.wall_loss_db:g} dB per wall, 0-3 walls (largest error)",
             0.0,
@@ -321,6 +305,6 @@ def check_walls(params: LogDistanceParams | None = None):
     ]
 
 
-def run_all() -> list[RadioCheck]:
+def run_all() -> list[Check]:
     """Every radio check, at its default size (a few seconds)."""
     return check_unit_disk_equivalence() + check_link_probability() + check_shadowing_correlation() + check_walls()

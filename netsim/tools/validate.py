@@ -33,22 +33,9 @@ from netsim.links.lifetimes import link_lifetimes
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.run import build, collect
 from netsim.tools import analysis
+from netsim.tools.check import Check
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
-
-
-@dataclass
-class Check:
-    item: str
-    result: str
-    theory: float
-    measured: float
-    tolerance: float
-    unit: str = ""
-
-    @property
-    def passed(self) -> bool:
-        return bool(abs(self.measured - self.theory) <= self.tolerance)
 
 
 @dataclass(frozen=True)
