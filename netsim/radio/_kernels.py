@@ -19,11 +19,22 @@ def cell(flat, w, half, pc, sc, p_max, s_max):
 
 
 @numba.njit(cache=True, nogil=True)
+def _snap(g, eps):
+    r = np.rint(g)
+    return r if abs(g - r) <= eps else g
+
+
+@numba.njit(cache=True, nogil=True)
 def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
     """Walls crossed by one segment (grid units) and where it first meets a blocked cell.
 
     Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
+    Ends within ``eps`` of a grid line are put on it (``netsim.radio.los._snap``).
     """
+    u0 = _snap(u0, eps)
+    v0 = _snap(v0, eps)
+    u1 = _snap(u1, eps)
+    v1 = _snap(v1, eps)
     i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
     j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
     count = 0

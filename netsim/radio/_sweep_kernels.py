@@ -261,3 +261,90 @@ def _grow_float(a, cap):
     out = np.empty(cap)
     out[: a.shape[0]] = a
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def link_chunks(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, radius_sq):
+    """The link's state over each chunk (two robots on straight legs, times from the chunk's
+    start): up while ``|q - p| <= sqrt(radius_sq[walls])`` (``inf``: up whatever the
+    distance; walls beyond the table: down). Returns each chunk's state just after its start
+    and the changes inside it ``(chunk, t, up)``, in order."""
+    limit = radius_sq.shape[0] - 1
+    pair, t0, t1, walls = sweep(
+        flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, limit
+    )
+    k = p0.shape[0]
+    first = np.zeros(k, np.bool_)
+    cap = 16
+    c_pair = np.empty(cap, np.int64)
+    c_t = np.empty(cap)
+    c_up = np.empty(cap, np.bool_)
+    n = 0
+    cur = False
+    started = False
+    for r in range(pair.shape[0]):
+        s = pair[r]
+        if r == 0 or pair[r - 1] != s:
+            started = False
+        ta, tb, wr = t0[r], t1[r], walls[r]
+        rsq = radius_sq[wr] if wr <= limit else -1.0
+        # The row's pieces: (start, state) at most three (down, up, down).
+        m = 1
+        s0, u0 = ta, False
+        s1, u1 = np.inf, False
+        s2, u2 = np.inf, False
+        if rsq == np.inf:
+            u0 = True
+        elif rsq >= 0.0:
+            dx = q0[s, 0] - p0[s, 0]
+            dy = q0[s, 1] - p0[s, 1]
+            wx = vq[s, 0] - vp[s, 0]
+            wy = vq[s, 1] - vp[s, 1]
+            a = wx * wx + wy * wy
+            b = 2.0 * (dx * wx + dy * wy)
+            c = dx * dx + dy * dy - rsq
+            if a == 0.0:
+                u0 = c <= 0.0
+            else:
+                disc = b * b - 4.0 * a * c
+                if disc > 0.0:
+                    sq = np.sqrt(disc)
+                    q = -0.5 * (b + sq) if b >= 0.0 else -0.5 * (b - sq)
+                    ra = q / a
+                    rb = c / q if q != 0.0 else -ra
+                    r_in, r_out = min(ra, rb), max(ra, rb)
+                    u0 = r_in <= ta and (ta < r_out or (ta == tb and ta <= r_out))
+                    if ta < r_in and r_in < tb:
+                        s1, u1 = r_in, True
+                        m = 2
+                        if r_out < tb:
+                            s2, u2 = r_out, False
+                            m = 3
+                    elif u0 and r_out < tb:
+                        s1, u1 = r_out, False
+                        m = 2
+        for piece in range(m):
+            if piece == 0:
+                st, up = s0, u0
+            elif piece == 1:
+                st, up = s1, u1
+            else:
+                st, up = s2, u2
+            if not started:
+                first[s] = up
+                cur = up
+                started = True
+            elif up != cur:
+                if n == cap:
+                    cap *= 2
+                    c_pair = _grow_int(c_pair, cap)
+                    c_t = _grow_float(c_t, cap)
+                    grown = np.empty(cap, np.bool_)
+                    grown[:n] = c_up[:n]
+                    c_up = grown
+                c_pair[n] = s
+                c_t[n] = st
+                c_up[n] = up
+                n += 1
+                cur = up
+    return first, c_pair[:n], c_t[:n], c_up[:n]

@@ -22,7 +22,9 @@ Conventions, where a segment meets the grid at its edges:
   segment is taken to touch all four cells around it: it is blocked there if any of them is
   (so a wall drawn as a diagonal staircase of pixels, whose cells touch only at corners, has
   no leak). A segment passing within ``1e-9`` cell of a vertex counts as passing through it.
-- both ends count: a robot standing in a blocked cell has no line of sight to anyone.
+- both ends count: a robot standing in a blocked cell has no line of sight to anyone;
+- an end within ``1e-9`` cell of a grid line is on it (so that a robot standing on a grid
+  corner given in world metres is on the corner, and its walls are the same both ways).
 
 Segments must lie on the map (within its closed extent); a point on the far edge belongs to
 the last cell. Walls are symmetric: ``walls(p, q) == walls(q, p)``.
@@ -41,6 +43,14 @@ import numpy as np
 VERTEX_TOLERANCE_CELLS = 1e-9
 
 
+def _snap(g: np.ndarray) -> np.ndarray:
+    """Grid coordinates within the vertex tolerance of a grid line put on it: a robot on a
+    grid corner (in world metres, which the division by the resolution may leave a rounding
+    step off it) is on the corner, whichever way the segment is traced."""
+    r = np.rint(g)
+    return np.where(np.abs(g - r) <= VERTEX_TOLERANCE_CELLS, r, g)
+
+
 def _trace_numpy(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False):
     """Walls crossed by each segment ``p[k] -> q[k]`` (and, with ``first``, the parameter in
     ``[0, 1]`` at which it first meets a blocked cell, ``inf`` if never)."""
@@ -50,8 +60,8 @@ def _trace_numpy(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first
     h, w = blocked.shape
     flat = blocked.ravel()
     origin = np.asarray(origin_m, dtype=float)
-    g0 = (p - origin) / resolution_m
-    g1 = (q - origin) / resolution_m
+    g0 = _snap((p - origin) / resolution_m)
+    g1 = _snap((q - origin) / resolution_m)
     # Two halves: rows 0..k-1 cross vertical lines (primary axis u), rows k..2k-1 cross
     # horizontal lines (primary axis v, the coordinates swapped). One pass serves both.
     G0 = np.concatenate([g0, g0[:, ::-1]])
