@@ -47,7 +47,7 @@ from netsim.radio.propagation import Pairs, effective_range_m
 if TYPE_CHECKING:
     from netsim.reception import Reception
 
-CHUNK_M = 1.0
+CHUNK_M = 4.0
 
 
 def envelope_radii(reception: Reception, ranges_m: np.ndarray) -> tuple[np.ndarray, bool]:

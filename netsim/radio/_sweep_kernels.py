@@ -96,9 +96,44 @@ def _hull_span(ys, xs, y):
 
 
 @numba.njit(cache=True, nogil=True)
-def _vertex_roots(ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
-    """When the segment from ``a + va t`` to ``b + vb t`` (relative to a vertex) passes
-    through the vertex: ``cross(a + va t, b + vb t) = 0`` with the vertex between the ends."""
+def _rises(x, y, z):
+    return (1 if (y and not x) else 0) + (1 if (z and not y) else 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _changes_count(flat, h, w, i, j, px, py, qx, qy):
+    """Whether the walls crossed may change as the segment from ``p`` to ``q`` (relative to
+    vertex ``(i, j)``, which lies between them) sweeps across the vertex.
+
+    Away from the ends and off the axes, the cells the segment visits change only there:
+    the cell before the vertex and the one after stay, and the one between is one of the two
+    beside the diagonal step or the other. The walls (rises from a clear cell into a blocked
+    one) then change by what that swap changes locally. Elsewhere (an end in or next to the
+    vertex's cells, a segment along an axis), it may change."""
+    dx = qx - px
+    dy = qy - py
+    length = abs(dx) + abs(dy)
+    if abs(dx) <= 1e-6 * length or abs(dy) <= 1e-6 * length:
+        return True
+    if max(abs(px), abs(py)) < 1.5 or max(abs(qx), abs(qy)) < 1.5:
+        return True
+    # Cells around the vertex, relative: (-1 or 0, -1 or 0).
+    bx = -1 if dx > 0 else 0
+    by = -1 if dy > 0 else 0
+    ax = -1 - bx
+    ay = -1 - by
+    before = _cell(flat, h, w, i + bx, j + by)
+    after = _cell(flat, h, w, i + ax, j + ay)
+    side1 = _cell(flat, h, w, i + ax, j + by)
+    side2 = _cell(flat, h, w, i + bx, j + ay)
+    return _rises(before, side1, after) != _rises(before, side2, after)
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_roots(flat, h, w, i, j, ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
+    """When the segment from ``a + va t`` to ``b + vb t`` (relative to vertex ``(i, j)``)
+    passes through the vertex: ``cross(a + va t, b + vb t) = 0`` with the vertex between the
+    ends; those at which the walls crossed cannot change left out (:func:`_changes_count`)."""
     c0 = ax * by - ay * bx
     c1 = ax * vby - ay * vbx + vax * by - vay * bx
     c2 = vax * vby - vay * vbx
@@ -145,7 +180,8 @@ def _vertex_roots(ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
         qy = by + vby * r
         # Between the ends (with a margin: a spare candidate costs one evaluation).
         if px * qx + py * qy <= 1e-9 * (px * px + py * py + qx * qx + qy * qy) + 1e-12:
-            buf, n = _push(buf, n, r)
+            if _changes_count(flat, h, w, i, j, px, py, qx, qy):
+                buf, n = _push(buf, n, r)
     return buf, n
 
 
@@ -189,7 +225,9 @@ def candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, duration):
             x = float(cols[m])
             if x > hi + margin:
                 break
-            buf, n = _vertex_roots(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby, duration, buf, n)
+            buf, n = _vertex_roots(
+                flat, h, w, cols[m], j, ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby, duration, buf, n
+            )
     return buf[:n]
 
 
