@@ -911,7 +911,7 @@ def test_the_live_graph_on_a_map_equals_the_links_and_the_channel_at_random_inst
     sim.env.process(look())
     sim.run()
     frames = collect(sim)
-    links, legs = frames["links"], frames["legs"]
+    links = frames["links"]
     events = np.r_[links["t_up_s"], links["t_down_s"]]
     compared = 0
     for t, edges, heard in seen:
