@@ -29,12 +29,7 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
     """Walls crossed by one segment (grid units) and where it first meets a blocked cell.
 
     Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
-    Ends within ``eps`` of a grid line are put on it (``netsim.radio.los._snap``).
     """
-    u0 = _snap(u0, eps)
-    v0 = _snap(v0, eps)
-    u1 = _snap(u1, eps)
-    v1 = _snap(v1, eps)
     i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
     j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
     count = 0
@@ -93,10 +88,23 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace(flat, h, w, g0, g1, eps, walls, first_t, limit):
-    """Every segment's walls (counting stops once past ``limit``) and first blocked point."""
+def walls_one(flat, h, w, u0, v0, u1, v1, eps, limit):
+    """The walls of :func:`trace_one` between two robots: ends within ``eps`` of a grid line
+    are put on it first (``netsim.radio.los._snap``), so that walls at a robot on a grid
+    corner are the same both ways."""
+    count, _ = trace_one(flat, h, w, _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps), eps, limit)
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def trace(flat, h, w, g0, g1, eps, walls, first_t, limit, snap):
+    """Every segment's walls (counting stops once past ``limit``) and first blocked point;
+    with ``snap``, the ends snapped as :func:`walls_one` does."""
     for s in range(g0.shape[0]):
-        walls[s], first_t[s] = trace_one(flat, h, w, g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1], eps, limit)
+        u0, v0, u1, v1 = g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1]
+        if snap:
+            u0, v0, u1, v1 = _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps)
+        walls[s], first_t[s] = trace_one(flat, h, w, u0, v0, u1, v1, eps, limit)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -202,7 +210,7 @@ def budget_pass(
             # whatever rounding the division made.
             affordable = (budget_slack - total) / wall_db
             limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
-            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
+            walls = walls_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
             total = total + wall_db * walls
         receivable[m] = tx_dbm - total >= sensitivity_dbm
 
@@ -214,7 +222,7 @@ def disk_pass(d, a, range_m, per_robot, use_map, flat, h, w, g0, g1, eps, receiv
         r = range_m[a[m]] if per_robot else range_m[0]
         ok = d[m] <= r
         if ok and use_map:
-            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, 0)
+            walls = walls_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, 0)
             ok = walls == 0
         receivable[m] = ok
 

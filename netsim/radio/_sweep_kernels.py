@@ -1,6 +1,6 @@
 """Compiled (numba) loops behind :mod:`netsim.radio.sweep`.
 
-They call :func:`netsim.radio._kernels.trace_one`: numba does not track callees across
+They call :func:`netsim.radio._kernels.walls_one`: numba does not track callees across
 files, so a change there must touch this module too (or clear the cache).
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from netsim.radio._kernels import trace_one
+from netsim.radio._kernels import walls_one
 
 # Where a vertex lies on the segment's line for every t (both factors of the cross product
 # vanish): relative to the size of each coefficient.
@@ -268,7 +268,7 @@ def sweep(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, du
             v0 = (p0[s, 1] + vp[s, 1] * mid - origin_y) / res
             u1 = (q0[s, 0] + vq[s, 0] * mid - origin_x) / res
             v1 = (q0[s, 1] + vq[s, 1] * mid - origin_y) / res
-            count, _ = trace_one(flat, h, w, u0, v0, u1, v1, eps, limit)
+            count = walls_one(flat, h, w, u0, v0, u1, v1, eps, limit)
             if rows > 0 and pair[rows - 1] == s and walls[rows - 1] == count:
                 t1[rows - 1] = nxt
             else:

@@ -17,7 +17,7 @@ Candidate vertices come from the region the segment sweeps: it lies in the conve
 the ends' first and last positions, whose span along each grid row is searched among that
 row's mixed vertices (found once per grid). Each instant is solved in closed form; the count
 on each interval between consecutive candidates is the traversal's
-(:func:`netsim.radio._kernels.trace_one`, the arithmetic of ``walls_crossed``) at its
+(:func:`netsim.radio._kernels.walls_one`, the arithmetic of ``walls_crossed``) at its
 midpoint, and consecutive intervals of equal count are merged.
 
 At an event itself the count may differ from both sides (a segment through a vertex touches
