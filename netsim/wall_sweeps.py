@@ -151,8 +151,7 @@ class Stretches:
         self.pa, self.va, self.ta = pa, va, np.asarray(ta, float)
         self.pb, self.vb, self.tb = pb, vb, np.asarray(tb, float)
         speed = np.maximum(np.hypot(va[:, 0], va[:, 1]), np.hypot(vb[:, 0], vb[:, 1]))
-        with np.errstate(divide="ignore"):
-            self.h = np.where(speed > 0, CHUNK_M / np.where(speed > 0, speed, 1.0), np.inf)
+        self.h = np.where(speed > 0, CHUNK_M / np.where(speed > 0, speed, 1.0), np.inf)
         origin = np.maximum(self.ta, self.tb)
         qa = pa + va * (origin - self.ta)[:, None]
         qb = pb + vb * (origin - self.tb)[:, None]
@@ -195,9 +194,10 @@ class Stretches:
     def chunk_start(self, rows: np.ndarray, k: np.ndarray) -> np.ndarray:
         """The instant chunk ``k`` of stretches ``rows`` starts."""
         u, h = self.u[rows], self.h[rows]
-        with np.errstate(invalid="ignore"):
-            t = u + k * h
-        return np.where(k == 0, u, t)
+        t = u.copy()
+        later = k > 0
+        t[later] += k[later] * h[later]
+        return t
 
     def take(
         self, radio: MapRadio, rows: np.ndarray, k0: np.ndarray, k1: np.ndarray, s0: np.ndarray | None
@@ -207,7 +207,7 @@ class Stretches:
         ``k0`` and at the end of chunk ``k1 - 1``. ``s0``: each row's state at the end of
         chunk ``k0 - 1`` (a different state at chunk ``k0``'s start is a change then); None
         when ``k0`` is the stretch's first chunk."""
-        from netsim.radio._sweep_kernels import link_chunks
+        from netsim.radio._sweep_kernels import assemble, link_chunks
 
         rows = np.asarray(rows, np.int64)
         count = np.maximum(np.asarray(k1) - np.asarray(k0), 0).astype(np.int64)
@@ -232,26 +232,7 @@ class Stretches:
             span, VERTEX_TOLERANCE_CELLS, radio.radius_sq,
         )  # fmt: skip
         first[dead] = False
-        # Each chunk's last state: its last change's, else its first.
-        last = first.copy()
-        ends = np.flatnonzero(np.r_[c_chunk[1:] != c_chunk[:-1], True]) if len(c_chunk) else np.empty(0, np.int64)
-        last[c_chunk[ends]] = c_up[ends]
-        has = count > 0
-        prev = np.r_[False, last[:-1]]
-        prev[starts[has]] = before[has]
-        at_start = first != prev
-        if s0 is None:
-            at_start[starts[has]] = False
-        b_chunk = np.flatnonzero(at_start)
-        chunk = np.r_[b_chunk, c_chunk]
-        t = np.r_[lo[b_chunk], lo[c_chunk] + c_t]
-        up = np.r_[first[b_chunk], c_up]
-        order = np.lexsort((np.r_[np.zeros(len(b_chunk)), np.ones(len(c_chunk))], chunk))
-        chunk, t, up = chunk[order], t[order], up[order]
-        start_state = before.copy()
-        start_state[has] = first[starts[has]]
-        end_state = before.copy()
-        end_state[has] = last[starts[has] + count[has] - 1]
+        chunk, t, up, start_state, end_state = assemble(first, c_chunk, c_t, c_up, lo, count, before, s0 is not None)
         return r[chunk], t, up, start_state, end_state
 
 

@@ -386,3 +386,45 @@ def link_chunks(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, 
                 n += 1
                 cur = up
     return first, c_pair[:n], c_t[:n], c_up[:n]
+
+
+@numba.njit(cache=True, nogil=True)
+def assemble(first, c_chunk, c_t, c_up, lo, count, before, boundary):
+    """The changes of consecutive chunks (``count[row]`` chunks per row, in order; each
+    chunk's state just after its start ``first``, its changes ``c_*`` from
+    :func:`link_chunks`, times from its start ``lo``), in time order: ``(chunk, t, up)``,
+    and each row's state after the start of its first chunk and at the end of its last.
+    A chunk whose first state differs from the previous chunk's last changes at its start;
+    so does a row's first chunk against ``before`` when ``boundary``."""
+    rows = count.shape[0]
+    cap = c_chunk.shape[0] + first.shape[0]
+    out_chunk = np.empty(cap, np.int64)
+    out_t = np.empty(cap)
+    out_up = np.empty(cap, np.bool_)
+    start_state = before.copy()
+    end_state = before.copy()
+    n = 0
+    i = 0
+    j = 0
+    for row in range(rows):
+        state = before[row]
+        for c in range(count[row]):
+            f = first[i]
+            if c == 0:
+                start_state[row] = f
+            if f != state and (c > 0 or boundary):
+                out_chunk[n] = i
+                out_t[n] = lo[i]
+                out_up[n] = f
+                n += 1
+            state = f
+            while j < c_chunk.shape[0] and c_chunk[j] == i:
+                out_chunk[n] = i
+                out_t[n] = lo[i] + c_t[j]
+                out_up[n] = c_up[j]
+                n += 1
+                state = c_up[j]
+                j += 1
+            i += 1
+        end_state[row] = state
+    return out_chunk[:n], out_t[:n], out_up[:n], start_state, end_state
