@@ -23,7 +23,7 @@ links.parquet, the link events announced, and the load average when the case end
 
 With ``--map office`` the robots move on the office map (200 m x 200 m), the unit disk with
 line of sight, the range chosen for a mean degree of 10 without walls
-(``200 sqrt(10 / (N pi))``: 11.3 m at N = 1,000): links are sampled between walls
+(``200 sqrt(10 / (N pi))``: 11.3 m at N = 1,000): links are solved exactly between walls
 (docs/radio.md), after the run or during it (netsim/links/walled_links.py).
 """
 

@@ -10,15 +10,19 @@ walls or shadowing. Cases:
 - ``unit_disk, 200 m square``: the office map's square without the map, range 11.3 m (the
   same mean degree), for reference;
 - ``office map, log_distance``: that square on the office map, implied range 11.3 m,
-  5 dB per wall (links solved from the map: sampled and bisected, docs/radio.md);
-- ``office map, unit_disk + line of sight``: the same, with the unit disk of 11.3 m.
+  5 dB per wall (links solved exactly from the map, docs/radio.md);
+- ``office map, unit_disk + line of sight``: the same, with the unit disk of 11.3 m;
+- ``building map``: a floor of 40 m x 40 m at 5 cm per pixel (the scale of a SLAM map of a
+  real building, :func:`netsim.radio.examples.building_floor`), ``--n-building`` robots
+  (100) at 0.1-0.5 m/s (pause 2 s), the same mean degree: log-distance with 5 dB per wall,
+  and the unit disk with line of sight.
 
 Each wall time is build + run + collecting the tables (links included), measured in this
 process one after another (numba's compiled code is cached on disk; a warm-up run loads
 it first); the process's CPU time beside it, which other jobs on the machine disturb less.
 Prints a table with each case's ratios to the baseline.
 
-    python benchmarks/radio_runs.py [--n 1000] [--duration 100]
+    python benchmarks/radio_runs.py [--n 1000] [--duration 100] [--n-building 100] [--only WORD]
 """
 
 from __future__ import annotations
@@ -31,7 +35,10 @@ import warnings
 DEGREE = 10.0
 
 
-def config(n: int, duration: float, side: float, channel: dict, world: dict | None = None):
+MOBILITY = {"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0, "stationary_start": False}
+
+
+def config(n: int, duration: float, side: float, channel: dict, world: dict | None = None, mobility=None):
     from netsim.config import from_dict
 
     with warnings.catch_warnings():
@@ -41,12 +48,24 @@ def config(n: int, duration: float, side: float, channel: dict, world: dict | No
                 "seed": 1,
                 "duration_s": duration,
                 "world": {"n_robots": n, "side_m": side, **(world or {})},
-                "mobility": {"speed_min_mps": 0.5, "speed_max_mps": 5.0, "pause_s": 2.0, "stationary_start": False},
+                "mobility": mobility or MOBILITY,
                 "channel": {"latency_s": 0.001, **channel},
                 "protocol": {"model": "ack", "ack_period_s": 1.0, "ack_jitter_s": 0.05, "tau_s": 3.0},
                 "output": {"position_interval_s": 0.0},
             }
         )
+
+
+def building_yaml():
+    """The building floor written as a ``map_saver`` map in a temporary folder."""
+    import tempfile
+    from pathlib import Path
+
+    from netsim.radio.examples import BUILDING_RESOLUTION_M, building_floor
+    from netsim.radio.maps import save_map
+
+    folder = Path(tempfile.mkdtemp(prefix="netsim-bench-"))
+    return save_map(folder / "building.yaml", *building_floor(), BUILDING_RESOLUTION_M)
 
 
 def timed(cfg) -> dict:
@@ -75,6 +94,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--duration", type=float, default=100.0)
+    ap.add_argument("--n-building", type=int, default=100)
+    ap.add_argument("--only", default="", help="run only the cases whose name contains this (and the baseline)")
     args = ap.parse_args()
     n, T = args.n, args.duration
     side = 100.0 * math.sqrt(n * math.pi / DEGREE)
@@ -95,6 +116,22 @@ def main() -> None:
         ),
         ("office map, unit_disk + line of sight", config(n, T, office_side, {"range_m": r_office}, {"map": "office"})),
     ]
+    nb, b_side = args.n_building, 40.0
+    r_b = b_side * math.sqrt(DEGREE / (nb * math.pi))
+    sens_b = 20.0 - 40.0 - 30.0 * math.log10(r_b)
+    slow = {"speed_min_mps": 0.1, "speed_max_mps": 0.5, "pause_s": 2.0, "stationary_start": False}
+    building = {"map": str(building_yaml())}
+    cases += [
+        (
+            f"building map (5 cm), {nb} robots, log_distance",
+            config(nb, T, b_side, {"propagation": "log_distance", "sensitivity_dbm": sens_b}, building, slow),
+        ),
+        (
+            f"building map (5 cm), {nb} robots, unit_disk + line of sight",
+            config(nb, T, b_side, {"range_m": r_b}, building, slow),
+        ),
+    ]
+    cases = [c for i, c in enumerate(cases) if i == 0 or args.only in c[0]]
     timed(config(50, 5.0, 200.0, {"propagation": "log_distance", "shadowing_sigma_db": 4.0}, {"map": "office"}))
     timed(config(50, 5.0, 200.0, {"range_m": 20.0}, {"map": "office"}))
     rows = []
@@ -106,6 +143,7 @@ def main() -> None:
     base_cpu = rows[0][1]["cpu_s"]
     print()
     print(f"N = {n}, {T:g} s simulated; office map: side {office_side:g} m, implied range {r_office:.1f} m")
+    print(f"building map: N = {nb}, side {b_side:g} m, range {r_b:.2f} m, robots at 0.1-0.5 m/s")
     print(
         "| case | wall (s) | run (s) | tables (s) | x unit disk | CPU (s) | x unit disk, CPU | Ack receptions "
         "| link lifetimes |"

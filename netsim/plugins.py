@@ -95,7 +95,7 @@ class Parts:
 
 class LinkState(Protocol):
     """The links up now, as the channel makes them under the run's radio (a runtime link
-    solver: :class:`~netsim.kinetic.RuntimeLinks` and its kin)."""
+    solver: :class:`~netsim.links.kinetic.RuntimeLinks` and its kin)."""
 
     def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """Arrays ``(a, b)``, ``a < b``: the links up now."""

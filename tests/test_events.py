@@ -806,7 +806,7 @@ def _random_map_case(seed: int, kind: str, window_s=None):
 @pytest.mark.parametrize("kind", MAP_KINDS)
 def test_runtime_links_on_a_map_equal_posthoc_on_random_trajectories(kind):
     """On a map, the link events solved during the run make the post-hoc table, bit for bit
-    (both sample each stretch on the same instants)."""
+    (both solve each stretch's chunks alike)."""
     _random_map_case(7000 + MAP_KINDS.index(kind), kind)
 
 
@@ -818,8 +818,8 @@ def test_runtime_links_on_a_map_equal_posthoc_on_many_random_trajectories(kind):
 
 
 def test_runtime_links_on_a_map_do_not_depend_on_the_sampling_window():
-    """The runtime solver takes its samples a window at a time; the table is the same
-    whatever the window (each stretch's samples are its own)."""
+    """The runtime solver solves its chunks a window at a time; the table is the same
+    whatever the window (each stretch's chunks are its own)."""
     tables = [_random_map_case(7050, "unit_disk", window_s=w) for w in (0.05, 0.7, 100.0)]
     for other in tables[1:]:
         _assert_same_links(other, tables[0])
@@ -855,11 +855,11 @@ def _one_wall_map(tmp_path) -> str:
 
 
 @pytest.mark.parametrize("runtime_links", ["on", "auto"])
-def test_a_pair_crossing_behind_a_wall_goes_down_at_the_instant_to_the_tolerance(tmp_path, runtime_links):
+def test_a_pair_crossing_behind_a_wall_goes_down_at_the_instant(tmp_path, runtime_links):
     """Robot 0 stands at (45, 70), left of a wall that ends at y = 60; robot 1 walks down
     x = 55 from y = 80 at 1 m/s. The line between them grazes the wall's corner (51, 60)
-    when robot 1 is at y = 70 - 10 / 0.6, at t = 80 / 3 s: the link goes down then, to
-    within 1e-6 s, announced at that instant, during the run and after it alike."""
+    when robot 1 is at y = 70 - 10 / 0.6, at t = 80 / 3 s: the link goes down then (to the
+    rounding of the root), announced at that instant, during the run and after it alike."""
     sim = _map_core(2, 60.0, _one_wall_map(tmp_path), 100.0, range_m=100.0)
     sim.runtime_links = runtime_links
     sim.state.place([[45.0, 70.0], [55.0, 80.0]])
@@ -871,7 +871,7 @@ def test_a_pair_crossing_behind_a_wall_goes_down_at_the_instant_to_the_tolerance
     frames = collect(sim)
     links = frames["links"]
     assert len(links) == 1 and links["t_up_s"].tolist() == [0.0]
-    assert abs(links["t_down_s"].iloc[0] - 80.0 / 3.0) <= 1e-6
+    assert abs(links["t_down_s"].iloc[0] - 80.0 / 3.0) <= 1e-12
     posthoc = radio_link_lifetimes(sim.channel.reception, frames["legs"], sim.state.range_m, 60.0)
     _assert_same_links(links, posthoc)
     if runtime_links == "on":
@@ -879,10 +879,10 @@ def test_a_pair_crossing_behind_a_wall_goes_down_at_the_instant_to_the_tolerance
         assert downs[0][0] == pytest.approx(downs[0][1].t_s, abs=1e-9)
 
 
-def test_a_pair_that_jumps_out_of_the_envelope_keeps_no_samples(tmp_path):
+def test_a_pair_that_jumps_out_of_the_envelope_keeps_no_changes(tmp_path):
     """Robot 1 walks up x = 55 from y = 52, behind the wall: its line of sight to robot 0 at
     (45, 70) would clear the wall's end at t = 4 / 3 s, but it jumps 56 m away at t = 0.5 s,
-    out of range: its stretch's samples, left to be taken at t = 1 s, are dropped with it
+    out of range: its stretch's changes, left to be solved at t = 1 s, are dropped with it
     (no link comes up), during the run as after it."""
     sim = _map_core(2, 10.0, _one_wall_map(tmp_path), 100.0, range_m=30.0)
     sim.state.place([[45.0, 70.0], [55.0, 52.0]])
@@ -893,9 +893,7 @@ def test_a_pair_that_jumps_out_of_the_envelope_keeps_no_samples(tmp_path):
 
 def test_the_live_graph_on_a_map_equals_the_links_and_the_channel_at_random_instants():
     """On a map the live graph holds, at any instant, the links up in links.parquet; and away
-    from the events by more than the tolerance, the pairs the channel lets through, but for
-    a change in the last step before a course change that the step's next sample (on the
-    legs as they were) did not confirm: it is announced at the course change."""
+    from the events, the pairs the channel lets through."""
     sim = build(load(None, ["world.n_robots=30", "duration_s=40", "protocol.model=none", *WALLS]))
     live = sim.live_topology()
     instants = np.sort(np.random.default_rng(8).uniform(0.0, 40.0, 40))
@@ -913,25 +911,17 @@ def test_the_live_graph_on_a_map_equals_the_links_and_the_channel_at_random_inst
     sim.env.process(look())
     sim.run()
     frames = collect(sim)
-    links, legs = frames["links"], frames["legs"]
+    links = frames["links"]
     events = np.r_[links["t_up_s"], links["t_down_s"]]
-    compared = late = 0
+    compared = 0
     for t, edges, heard in seen:
         up = links[(links["t_up_s"] <= t) & (t < links["t_down_s"])]
         assert edges == set(zip(up["a"].tolist(), up["b"].tolist())), t
-        if np.min(np.abs(events - t)) <= 1e-5:
+        if np.min(np.abs(events - t)) <= 1e-6:
             continue
         compared += 1
-        for a, b in edges ^ heard:
-            # The pair's next event is a course change of one of them, within one step (the
-            # robots here move at 0.5 m/s or more: a step is at most 2 s).
-            mine = links[(links["a"] == a) & (links["b"] == b)]
-            after = np.r_[mine["t_up_s"], mine["t_down_s"]]
-            nxt = after[after > t].min()
-            starts = legs[legs["robot"].isin([a, b])]["t_s"].to_numpy()
-            assert nxt in starts and nxt - t <= 2.0, (t, a, b)
-            late += 1
-    assert compared > 30 and len(links) > 20 and late <= 2
+        assert edges == heard, t
+    assert compared > 30 and len(links) > 20
 
 
 def test_a_hook_on_link_events_runs_on_a_map_and_sees_them_in_time_order():

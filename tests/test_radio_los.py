@@ -234,3 +234,25 @@ def test_first_blocked_is_where_the_wall_starts(implementation):
 def test_empty_batch(implementation):
     m = _map(np.zeros((2, 2), dtype=bool))
     assert walls_crossed(m, np.empty((0, 2)), np.empty((0, 2))).tolist() == []
+
+
+def test_walls_at_a_robot_on_a_grid_corner_are_symmetric(implementation):
+    """A robot standing on a grid corner given in world metres (a rounding step or a few off
+    it): the walls between it and another robot (anywhere, on another corner, or on the
+    same grid line) are the same both ways."""
+    rng = np.random.default_rng(9)
+    for res, origin in ((0.05, (0.0, 0.0)), (0.1, (-3.0, 2.0)), (0.3, (0.7, -1.1)), (0.07, (0.0, 0.0))):
+        blocked = rng.random((12, 12)) < 0.4
+        m = _map(blocked, res, origin)
+        k = 3000
+        o = np.asarray(origin)
+        p = rng.integers(1, 11, (k, 2)) * res + o
+        q = rng.uniform(0.5, 11.5, (k, 2)) * res + o
+        q[::3] = rng.integers(1, 11, (len(q[::3]), 2)) * res + o
+        q[1::3, 0] = p[1::3, 0]
+        q[2::6, 1] = p[2::6, 1]
+        # Each given a few rounding steps off, as a position computed another way would be.
+        off = np.array([0.0, 1e-14, -1e-14, 1e-12, -1e-12]) * res
+        p = p + rng.choice(off, p.shape)
+        q = q + rng.choice(off, q.shape)
+        assert np.array_equal(walls_crossed(m, p, q), walls_crossed(m, q, p))

@@ -7,16 +7,11 @@ How exact they are (docs/radio.md says the same for users):
 - **Walls, no shadowing** (unit disk with line of sight, or log-distance with
   ``wall_loss_db`` per wall): a link can only be up while the two robots are within the
   radio's largest range, and those intervals are solved exactly first (the *envelope*).
-  Within each, the link's state (range or received power, and the walls crossed) is
-  sampled along stretches in which both robots keep their legs, at steps from the
-  stretch's start over which neither robot moves more than ``SAMPLE_M``, and every change
-  between two samples is located by bisection to ``TOLERANCE_S``
-  (:mod:`netsim.links.wall_samples`, shared with the runtime solver
-  :class:`netsim.links.walled_links.WalledLinks`: the same table, bit for bit). An event time is
-  therefore exact to within ``TOLERANCE_S`` (at the envelope's edges exactly); what can be
-  missed is a change of state that is undone before the next sample (the line between two
-  robots sweeping past a pillar or a doorway's edge while they move less than
-  ``SAMPLE_M``). With robots at rest nothing is missed.
+  Within each, the link is solved exactly along stretches in which both robots keep their
+  legs: the walls crossed change only at instants solved in closed form
+  (:mod:`netsim.radio.sweep`), and between them the link is a distance threshold per
+  count of walls (:mod:`netsim.links.wall_sweeps`, shared with the runtime solver
+  :class:`netsim.links.walled_links.WalledLinks`: the same table, bit for bit).
 - **Shadowing**: a link is random; its state is only defined where the channel looks at it,
   at transmissions (:class:`~netsim.radio.reception.LinkRecorder`). A link is up from the first
   transmission between the two robots (either way) that gets through while it is down to
@@ -36,6 +31,7 @@ import pandas as pd
 
 from netsim.links.lifetimes import COLUMNS, link_lifetimes
 from netsim.links.wall_samples import Stretches, count_below, envelope_radii
+from netsim.links.wall_sweeps import Stretches, count_below, envelope_radii, map_radio
 from netsim.radio import compiled_kernels
 from netsim.trajectory import LegTable
 
@@ -168,8 +164,8 @@ def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float
 
 
 def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float) -> pd.DataFrame:
-    """Links on a map without shadowing: sampled along stretches within the exact envelope,
-    changes bisected (:mod:`netsim.links.wall_samples`); the reference the runtime solver
+    """Links on a map without shadowing: solved along stretches within the exact envelope
+    (:mod:`netsim.links.wall_sweeps`); the reference the runtime solver
     (:class:`netsim.links.walled_links.WalledLinks`) is tested against."""
     radii, equal = envelope_radii(reception, ranges_m)
     n = len(radii)
@@ -200,9 +196,8 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     la, lb = leg_index(L, a, u), leg_index(L, b, u)
     s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]))
     rows = np.arange(len(s))
-    s0 = s.first_state(reception, equal, rows)
-    k1 = np.minimum(count_below(u, s.h, e), s.jx)
-    row, t_chg, up_chg, _ = s.changes(reception, equal, rows, np.zeros(len(s)), k1, s0)
+    k1 = np.minimum(np.maximum(count_below(u, s.h, e), 1.0), s.nc)
+    row, t_chg, up_chg, s0, _ = s.take(map_radio(reception), rows, np.zeros(len(s)), k1, None)
     kept = t_chg <= e[row]
     row, t_chg, up_chg = row[kept], t_chg[kept], up_chg[kept]
     # Events in their order: by interval, stretch (rows are in time order), then the

@@ -1,29 +1,28 @@
 """Link events during the run on a map (walls, no shadowing).
 
 A link on a map is up while the radio says so (range or received power, and the walls
-crossed), which has no closed form along the robots' legs: ``links.parquet`` samples it
-within the exact envelope (the intervals in which the pair is within the radio's largest
-range) along *stretches* whose samples depend only on what is known at their start
-(:mod:`netsim.links.wall_samples`, the arithmetic shared with the post-hoc solver
-:func:`netsim.links.radio_links.walled_lifetimes`, which stays the reference). So the same samples
-can be taken as the run goes:
+crossed). ``links.parquet`` solves it exactly within the exact envelope (the intervals in
+which the pair is within the radio's largest range) along *stretches*, a chunk at a time,
+chunks that depend only on what is known at the stretch's start (:mod:`netsim.links.wall_sweeps`,
+the arithmetic shared with the post-hoc solver :func:`netsim.links.radio_links.walled_lifetimes`,
+which stays the reference). So the same chunks can be solved as the run goes:
 
 - the envelope is a :class:`~netsim.links.kinetic.RuntimeLinks` of its own (announced to nobody
   but this class), solved with the same arithmetic as after the run;
 - where a pair enters it, and at every course change of either robot while it is in it, a
-  stretch starts: its first sample is evaluated at once, and a change from the link's
-  current state is announced at that instant;
-- the stretches' later samples are taken ahead of time, a window at a time (all the pairs
-  in the envelope in one vectorised step), on the legs as they stand; each change between
-  two samples is bisected then, and queued at its instant; a course change cancels the
-  queued changes of its pairs' stretch that fall after it (a generation count per pair);
+  stretch starts: its first chunk is solved at once, a change from the link's current
+  state announced at that instant and the changes inside the chunk queued;
+- the stretches' later chunks are solved ahead of time, a window at a time (all the pairs
+  in the envelope in one call), on the legs as they stand, and their changes queued at
+  their instants; a course change cancels the queued changes of its pairs' stretch that
+  fall after it (a generation count per pair);
 - where the pair leaves the envelope the link goes down, exactly.
 
 The table of these events equals the post-hoc one, bit for bit (tests/test_events.py):
-the samples are the same floats whatever the windows, and a change found before a course
+the chunks are the same floats whatever the windows, and a change found before a course
 change is kept by both, one after it dropped by both.
 
-Order at one instant: a change between samples, and an envelope's edge, is a runtime link
+Order at one instant: a change inside a stretch, and an envelope's edge, is a runtime link
 event (before anything else due then, docs/events.md); a change at a stretch's start that
 a course change causes is announced right after the course change.
 """
@@ -40,15 +39,16 @@ import simpy
 
 from netsim.events import FIRST, EventBus, LinkDown, LinkUp, scheduled_event
 from netsim.links.kinetic import RuntimeLinks, links_frame, up_pairs
-from netsim.links.wall_samples import SAMPLE_M, Stretches, bisect, count_below, envelope_radii
+from netsim.links.wall_samples import Stretches, count_below, envelope_radii
+from netsim.links.wall_sweeps import CHUNK_M, Stretches, count_below, envelope_radii, map_radio
 from netsim.radio.reception import Reception
 from netsim.state import RobotState
 
 # A window's start comes before the link events of its instant (it only queues later ones).
 _RESTART = FIRST - 1
-# A window takes this many samples of the fastest robot's pairs (the results do not depend
-# on it; longer windows waste more samples when robots change course).
-WINDOW_SAMPLES = 8
+# A window takes this many chunks of the fastest robot's pairs (the results do not depend
+# on it; longer windows waste more work when robots change course).
+WINDOW_CHUNKS = 8
 
 
 class WalledLinks:
@@ -60,8 +60,8 @@ class WalledLinks:
     env, state : the run's kernel and robots.
     events : the run's bus (``link_up``, ``link_down``).
     reception : the channel's :class:`~netsim.radio.reception.Reception` (its map and radio).
-    window_s : the length of a sampling window (default: :data:`WINDOW_SAMPLES` samples at
-        the highest speed when it starts); the results do not depend on it.
+    window_s : the length of a window (default: :data:`WINDOW_CHUNKS` chunks at the highest
+        speed when it starts); the results do not depend on it.
     """
 
     def __init__(
@@ -74,6 +74,7 @@ class WalledLinks:
     ):
         self.env, self.state, self.reception = env, state, reception
         self.radii, self.equal = envelope_radii(reception, state.range_m)
+        self.radio = map_radio(reception)
         self.n = max(state.n, 1)
         self.window_s = window_s
         self.envelope = RuntimeLinks(env, state, None, range_m=self.radii)
@@ -85,8 +86,8 @@ class WalledLinks:
         # Links up now (key a n + b -> since when) and the lifetimes that ended.
         self.up: dict[int, float] = {}
         self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
-        # One slot per pair in the envelope: its stretch, the next sample interval to take
-        # (k_next) and the state at its first sample, and a generation that cancels the
+        # One slot per pair in the envelope: its stretch, the next chunk to solve (k_next)
+        # and the state at the end of the last one solved, and a generation that cancels the
         # changes queued for an earlier stretch.
         self._slot: dict[int, int] = {}
         self._by_robot: dict[int, set[int]] = {}
@@ -102,14 +103,14 @@ class WalledLinks:
         self._armed_s = math.inf
         self._w_end = -math.inf
         self._restart_pending = False
-        # Stretches whose samples after the second are still to take, and when the first of
+        # Stretches whose chunks after the first are still to solve, and when the first of
         # them is due.
         self._pending: set[int] = set()
         self._pending_at = math.inf
         self._dirty: set[int] = set()
         self._flush_pending = False
         self._quiet = False
-        self.samples = 0
+        self.chunks = 0
 
     @property
     def windows(self) -> int:
@@ -173,8 +174,8 @@ class WalledLinks:
         if slot is None:
             return
         self._gen[slot] += 1
-        # No more samples for it (a stretch left waiting for its later samples included).
-        self._k_next[slot] = self._stretch.jx[slot]
+        # No more chunks for it (a stretch left waiting for its later chunks included).
+        self._k_next[slot] = self._stretch.nc[slot]
         self._pending.discard(slot)
         self._by_robot[event.a].discard(slot)
         self._by_robot[event.b].discard(slot)
@@ -215,7 +216,7 @@ class WalledLinks:
     # -- stretches ---------------------------------------------------------------------
     def _start(self, slots: np.ndarray, u: np.ndarray) -> None:
         """New stretches of pairs ``slots`` from ``u`` on the robots' current legs: their
-        first sample decides the link's state now; later ones are taken to the window's end."""
+        first chunk decides the link's state now; later ones are solved a window at a time."""
         st = self.state
         a, b = self._stretch.a[slots], self._stretch.b[slots]
         o, v, t0 = st.origin_m, st.velocity_mps, st.t0_s
@@ -223,35 +224,25 @@ class WalledLinks:
         self._stretch.put(slots, new)
         for s in slots.tolist():
             self._gen[s] += 1
-        # The first sample decides the link now; the second, taken with it, whether the
-        # first step has a change (bisected now: it may be due at once). The later samples
-        # can wait until the second's instant: they are taken then, with every other
-        # stretch's due by then, in one vectorised step.
+        # The first chunk decides the link now and is solved at once (a change in it may be
+        # due at once). The later chunks can wait until the second's start: they are solved
+        # then, with every other stretch's due by then, in one call.
         k = len(new)
-        has_step = new.jx >= 1
-        step = np.flatnonzero(has_step)
-        rows = np.r_[np.arange(k), step]
-        ks = np.r_[np.zeros(k, np.int64), np.ones(len(step), np.int64)]
-        both = new.state(self.reception, self.equal, rows, new.sample_time(rows, ks))
-        first = both[:k]
-        second = first.copy()
-        second[step] = both[k:]
-        self.samples += len(rows)
+        rows = np.arange(k)
+        row, t, now_up, first, last = new.take(self.radio, rows, np.zeros(k), np.ones(k), None)
+        self.chunks += k
         n = self.n
         for ai, bi, ui, up in zip(a.tolist(), b.tolist(), u.tolist(), first.tolist()):
             self._set(ai * n + bi, ui, up)
-        self._k_next[slots] = np.where(has_step, 1.0, 0.0)
-        self._s_next[slots] = np.where(has_step, second, first)
-        chg = np.flatnonzero(has_step & (first != second))
-        if len(chg):
-            lo = new.sample_time(chg, np.zeros(len(chg), np.int64))
-            hi = new.sample_time(chg, np.ones(len(chg), np.int64))
-            t = bisect(lambda sel, tm: new.state(self.reception, self.equal, chg[sel], tm), lo, hi, first[chg])
-            self._queue(slots[chg], t, second[chg])
-        later = slots[has_step & (new.jx > 1)]
+        self._k_next[slots] = 1.0
+        self._s_next[slots] = last
+        if len(row):
+            self._queue(slots[row], t, now_up)
+        more = new.nc > 1
+        later = slots[more]
         if len(later):
             self._pending.update(later.tolist())
-            due = float(new.sample_time(np.flatnonzero(has_step & (new.jx > 1)), np.ones(len(later), np.int64)).min())
+            due = float(new.chunk_start(np.flatnonzero(more), np.ones(len(later))).min())
             if due < self._pending_at:
                 self._pending_at = due
                 scheduled_event(self.env, max(due - self.env.now, 0.0), _RESTART, self._take_pending, value=due)
@@ -264,7 +255,7 @@ class WalledLinks:
         pending = np.fromiter(self._pending, np.int64, len(self._pending))
         self._pending.clear()
         self._pending_at = math.inf
-        self._sample(np.sort(pending))
+        self._solve(np.sort(pending))
 
     def _queue(self, slots: np.ndarray, t: np.ndarray, now_up: np.ndarray) -> None:
         heap, gen, s = self._heap, self._gen, self._stretch
@@ -278,25 +269,26 @@ class WalledLinks:
             return float(self.window_s)
         v = self.state.velocity_mps
         top = float(np.sqrt((v * v).sum(axis=1).max())) if self.state.n else 0.0
-        return WINDOW_SAMPLES * SAMPLE_M / top if top > 0 else 1.0
+        return WINDOW_CHUNKS * CHUNK_M / top if top > 0 else 1.0
 
-    def _sample(self, slots: np.ndarray) -> None:
-        """Take the samples of stretches ``slots`` up to the window's end; queue the changes."""
+    def _solve(self, slots: np.ndarray) -> None:
+        """Solve the chunks of stretches ``slots`` that start before the window's end; queue
+        the changes."""
         now = self.env.now
         if not self._restart_pending and self._w_end <= now:
             self._w_end = now + self._window()
         s = self._stretch
-        k1 = np.minimum(count_below(s.u[slots], s.h[slots], self._w_end), s.jx[slots])
+        k1 = np.minimum(count_below(s.u[slots], s.h[slots], self._w_end), s.nc[slots])
         k0 = self._k_next[slots]
         todo = k0 < k1
         rows, k0, k1 = slots[todo], k0[todo], k1[todo]
         if len(rows):
-            row, t, now_up, last = s.changes(self.reception, self.equal, rows, k0, k1, self._s_next[rows])
-            self.samples += int((k1 - k0).sum())
+            row, t, now_up, _, last = s.take(self.radio, rows, k0, k1, self._s_next[rows])
+            self.chunks += int((k1 - k0).sum())
             self._k_next[rows] = k1
             self._s_next[rows] = last
             self._queue(row, t, now_up)
-        if not self._restart_pending and bool((self._k_next[slots] < s.jx[slots]).any()):
+        if not self._restart_pending and bool((self._k_next[slots] < s.nc[slots]).any()):
             self._restart_pending = True
             scheduled_event(self.env, max(self._w_end - now, 0.0), _RESTART, self._restart)
 
@@ -305,7 +297,7 @@ class WalledLinks:
         self._w_end = self.env.now + self._window()
         live = np.fromiter(self._slot.values(), np.int64, len(self._slot))
         if len(live):
-            self._sample(live[self._k_next[live] < self._stretch.jx[live]])
+            self._solve(live[self._k_next[live] < self._stretch.nc[live]])
 
     # -- the queue ---------------------------------------------------------------------
     def _arm(self) -> None:

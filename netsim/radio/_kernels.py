@@ -21,6 +21,12 @@ def cell(flat, w, half, pc, sc, p_max, s_max):
 
 
 @numba.njit(cache=True, nogil=True)
+def _snap(g, eps):
+    r = np.rint(g)
+    return r if abs(g - r) <= eps else g
+
+
+@numba.njit(cache=True, nogil=True)
 def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
     """Walls crossed by one segment (grid units) and where it first meets a blocked cell.
 
@@ -84,10 +90,23 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace(flat, h, w, g0, g1, eps, walls, first_t, limit):
-    """Every segment's walls (counting stops once past ``limit``) and first blocked point."""
+def walls_one(flat, h, w, u0, v0, u1, v1, eps, limit):
+    """The walls of :func:`trace_one` between two robots: ends within ``eps`` of a grid line
+    are put on it first (``netsim.radio.los._snap``), so that walls at a robot on a grid
+    corner are the same both ways."""
+    count, _ = trace_one(flat, h, w, _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps), eps, limit)
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def trace(flat, h, w, g0, g1, eps, walls, first_t, limit, snap):
+    """Every segment's walls (counting stops once past ``limit``) and first blocked point;
+    with ``snap``, the ends snapped as :func:`walls_one` does."""
     for s in range(g0.shape[0]):
-        walls[s], first_t[s] = trace_one(flat, h, w, g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1], eps, limit)
+        u0, v0, u1, v1 = g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1]
+        if snap:
+            u0, v0, u1, v1 = _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps)
+        walls[s], first_t[s] = trace_one(flat, h, w, u0, v0, u1, v1, eps, limit)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -178,7 +197,7 @@ def budget_pass(
             # whatever rounding the division made.
             affordable = (budget_slack - total) / wall_db
             limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
-            walls, _ = trace_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
+            walls = walls_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
             total = total + wall_db * walls
         receivable[m] = tx_dbm - total >= sensitivity_dbm
 
@@ -192,7 +211,7 @@ def disk_pass(frame, d, a, range_m, flat, g0, g1, receivable):
         r = range_m[a[m]] if c.per_robot else range_m[0]
         ok = d[m] <= r
         if ok and c.use_map:
-            walls, _ = trace_one(flat, c.map_h, c.map_w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
+            walls = walls_one(flat, c.map_h, c.map_w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
             ok = walls == 0
         receivable[m] = ok
 

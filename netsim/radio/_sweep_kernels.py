@@ -1,6 +1,6 @@
 """Compiled (numba) loops behind :mod:`netsim.radio.sweep`.
 
-They call :func:`netsim.radio._kernels.trace_one`: numba does not track callees across
+They call :func:`netsim.radio._kernels.walls_one`: numba does not track callees across
 files, so a change there must touch this module too (or clear the cache).
 """
 
@@ -10,7 +10,7 @@ import numba
 import numpy as np
 
 from netsim import kernel_cache
-from netsim.radio._kernels import trace_one
+from netsim.radio._kernels import walls_one
 
 # Where a vertex lies on the segment's line for every t (both factors of the cross product
 # vanish): relative to the size of each coefficient.
@@ -97,9 +97,44 @@ def _hull_span(ys, xs, y):
 
 
 @numba.njit(cache=True, nogil=True)
-def _vertex_roots(ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
-    """When the segment from ``a + va t`` to ``b + vb t`` (relative to a vertex) passes
-    through the vertex: ``cross(a + va t, b + vb t) = 0`` with the vertex between the ends."""
+def _rises(x, y, z):
+    return (1 if (y and not x) else 0) + (1 if (z and not y) else 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _changes_count(flat, h, w, i, j, px, py, qx, qy):
+    """Whether the walls crossed may change as the segment from ``p`` to ``q`` (relative to
+    vertex ``(i, j)``, which lies between them) sweeps across the vertex.
+
+    Away from the ends and off the axes, the cells the segment visits change only there:
+    the cell before the vertex and the one after stay, and the one between is one of the two
+    beside the diagonal step or the other. The walls (rises from a clear cell into a blocked
+    one) then change by what that swap changes locally. Elsewhere (an end in or next to the
+    vertex's cells, a segment along an axis), it may change."""
+    dx = qx - px
+    dy = qy - py
+    length = abs(dx) + abs(dy)
+    if abs(dx) <= 1e-6 * length or abs(dy) <= 1e-6 * length:
+        return True
+    if max(abs(px), abs(py)) < 1.5 or max(abs(qx), abs(qy)) < 1.5:
+        return True
+    # Cells around the vertex, relative: (-1 or 0, -1 or 0).
+    bx = -1 if dx > 0 else 0
+    by = -1 if dy > 0 else 0
+    ax = -1 - bx
+    ay = -1 - by
+    before = _cell(flat, h, w, i + bx, j + by)
+    after = _cell(flat, h, w, i + ax, j + ay)
+    side1 = _cell(flat, h, w, i + ax, j + by)
+    side2 = _cell(flat, h, w, i + bx, j + ay)
+    return _rises(before, side1, after) != _rises(before, side2, after)
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_roots(flat, h, w, i, j, ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
+    """When the segment from ``a + va t`` to ``b + vb t`` (relative to vertex ``(i, j)``)
+    passes through the vertex: ``cross(a + va t, b + vb t) = 0`` with the vertex between the
+    ends; those at which the walls crossed cannot change left out (:func:`_changes_count`)."""
     c0 = ax * by - ay * bx
     c1 = ax * vby - ay * vbx + vax * by - vay * bx
     c2 = vax * vby - vay * vbx
@@ -146,7 +181,8 @@ def _vertex_roots(ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
         qy = by + vby * r
         # Between the ends (with a margin: a spare candidate costs one evaluation).
         if px * qx + py * qy <= 1e-9 * (px * px + py * py + qx * qx + qy * qy) + 1e-12:
-            buf, n = _push(buf, n, r)
+            if _changes_count(flat, h, w, i, j, px, py, qx, qy):
+                buf, n = _push(buf, n, r)
     return buf, n
 
 
@@ -190,7 +226,9 @@ def candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, duration):
             x = float(cols[m])
             if x > hi + margin:
                 break
-            buf, n = _vertex_roots(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby, duration, buf, n)
+            buf, n = _vertex_roots(
+                flat, h, w, cols[m], j, ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby, duration, buf, n
+            )
     return buf[:n]
 
 
@@ -231,7 +269,7 @@ def sweep(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, du
             v0 = (p0[s, 1] + vp[s, 1] * mid - origin_y) / res
             u1 = (q0[s, 0] + vq[s, 0] * mid - origin_x) / res
             v1 = (q0[s, 1] + vq[s, 1] * mid - origin_y) / res
-            count, _ = trace_one(flat, h, w, u0, v0, u1, v1, eps, limit)
+            count = walls_one(flat, h, w, u0, v0, u1, v1, eps, limit)
             if rows > 0 and pair[rows - 1] == s and walls[rows - 1] == count:
                 t1[rows - 1] = nxt
             else:
@@ -262,6 +300,135 @@ def _grow_float(a, cap):
     out = np.empty(cap)
     out[: a.shape[0]] = a
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def link_chunks(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, radius_sq):
+    """The link's state over each chunk (two robots on straight legs, times from the chunk's
+    start): up while ``|q - p| <= sqrt(radius_sq[walls])`` (``inf``: up whatever the
+    distance; walls beyond the table: down). Returns each chunk's state just after its start
+    and the changes inside it ``(chunk, t, up)``, in order."""
+    limit = radius_sq.shape[0] - 1
+    pair, t0, t1, walls = sweep(
+        flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, limit
+    )
+    k = p0.shape[0]
+    first = np.zeros(k, np.bool_)
+    cap = 16
+    c_pair = np.empty(cap, np.int64)
+    c_t = np.empty(cap)
+    c_up = np.empty(cap, np.bool_)
+    n = 0
+    cur = False
+    started = False
+    for r in range(pair.shape[0]):
+        s = pair[r]
+        if r == 0 or pair[r - 1] != s:
+            started = False
+        ta, tb, wr = t0[r], t1[r], walls[r]
+        rsq = radius_sq[wr] if wr <= limit else -1.0
+        # The row's pieces: (start, state) at most three (down, up, down).
+        m = 1
+        s0, u0 = ta, False
+        s1, u1 = np.inf, False
+        s2, u2 = np.inf, False
+        if rsq == np.inf:
+            u0 = True
+        elif rsq >= 0.0:
+            dx = q0[s, 0] - p0[s, 0]
+            dy = q0[s, 1] - p0[s, 1]
+            wx = vq[s, 0] - vp[s, 0]
+            wy = vq[s, 1] - vp[s, 1]
+            a = wx * wx + wy * wy
+            b = 2.0 * (dx * wx + dy * wy)
+            c = dx * dx + dy * dy - rsq
+            if a == 0.0:
+                u0 = c <= 0.0
+            else:
+                disc = b * b - 4.0 * a * c
+                if disc > 0.0:
+                    sq = np.sqrt(disc)
+                    q = -0.5 * (b + sq) if b >= 0.0 else -0.5 * (b - sq)
+                    ra = q / a
+                    rb = c / q if q != 0.0 else -ra
+                    r_in, r_out = min(ra, rb), max(ra, rb)
+                    u0 = r_in <= ta and (ta < r_out or (ta == tb and ta <= r_out))
+                    if ta < r_in and r_in < tb:
+                        s1, u1 = r_in, True
+                        m = 2
+                        if r_out < tb:
+                            s2, u2 = r_out, False
+                            m = 3
+                    elif u0 and r_out < tb:
+                        s1, u1 = r_out, False
+                        m = 2
+        for piece in range(m):
+            if piece == 0:
+                st, up = s0, u0
+            elif piece == 1:
+                st, up = s1, u1
+            else:
+                st, up = s2, u2
+            if not started:
+                first[s] = up
+                cur = up
+                started = True
+            elif up != cur:
+                if n == cap:
+                    cap *= 2
+                    c_pair = _grow_int(c_pair, cap)
+                    c_t = _grow_float(c_t, cap)
+                    grown = np.empty(cap, np.bool_)
+                    grown[:n] = c_up[:n]
+                    c_up = grown
+                c_pair[n] = s
+                c_t[n] = st
+                c_up[n] = up
+                n += 1
+                cur = up
+    return first, c_pair[:n], c_t[:n], c_up[:n]
+
+
+@numba.njit(cache=True, nogil=True)
+def assemble(first, c_chunk, c_t, c_up, lo, count, before, boundary):
+    """The changes of consecutive chunks (``count[row]`` chunks per row, in order; each
+    chunk's state just after its start ``first``, its changes ``c_*`` from
+    :func:`link_chunks`, times from its start ``lo``), in time order: ``(chunk, t, up)``,
+    and each row's state after the start of its first chunk and at the end of its last.
+    A chunk whose first state differs from the previous chunk's last changes at its start;
+    so does a row's first chunk against ``before`` when ``boundary``."""
+    rows = count.shape[0]
+    cap = c_chunk.shape[0] + first.shape[0]
+    out_chunk = np.empty(cap, np.int64)
+    out_t = np.empty(cap)
+    out_up = np.empty(cap, np.bool_)
+    start_state = before.copy()
+    end_state = before.copy()
+    n = 0
+    i = 0
+    j = 0
+    for row in range(rows):
+        state = before[row]
+        for c in range(count[row]):
+            f = first[i]
+            if c == 0:
+                start_state[row] = f
+            if f != state and (c > 0 or boundary):
+                out_chunk[n] = i
+                out_t[n] = lo[i]
+                out_up[n] = f
+                n += 1
+            state = f
+            while j < c_chunk.shape[0] and c_chunk[j] == i:
+                out_chunk[n] = i
+                out_t[n] = lo[i] + c_t[j]
+                out_up[n] = c_up[j]
+                n += 1
+                state = c_up[j]
+                j += 1
+            i += 1
+        end_state[row] = state
+    return out_chunk[:n], out_t[:n], out_up[:n], start_state, end_state
 
 
 # numba's cache of this module's functions, keyed by its source and what it imports from

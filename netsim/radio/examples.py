@@ -12,6 +12,10 @@ Both are plain ``map_server`` maps (``office.yaml`` + ``office.pgm``), usable by
 (``world.map = "office"``) or copied as a starting point. Regenerate them with::
 
     python -m netsim.radio.examples [folder]
+
+:func:`building_floor` draws a third, not shipped, at the scale of a SLAM map of a real
+building (5 cm per pixel), for tests and benchmarks: write it with
+``save_map(path, *building_floor(), BUILDING_RESOLUTION_M)``.
 """
 
 from __future__ import annotations
@@ -132,6 +136,45 @@ def cave() -> tuple[np.ndarray, np.ndarray]:
 
 
 MAKERS = {"office": office, "cave": cave}
+
+BUILDING_RESOLUTION_M = 0.05
+
+
+def building_floor(side_m: float = 40.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """``(occupied, free)`` of a ``side_m`` square floor at 5 cm per pixel, row 0 at the
+    bottom: rooms of 5-8 m behind walls 10-15 cm thick, each wall with a door (1 m) every
+    6-7 m, a diagonal wall one pixel thick (its pixels touching only at corners) and 30
+    pillars of 30 cm; the outer edge open. ``seed`` draws the layout."""
+    rng = np.random.default_rng(seed)
+    res = BUILDING_RESOLUTION_M
+    n = int(round(side_m / res))
+    occ = np.zeros((n, n), bool)
+
+    def px(x_m: float) -> int:
+        return int(round(x_m / res))
+
+    x = 4.0
+    while x < side_m - 4.0:
+        thick, i = int(rng.integers(2, 4)), px(x)
+        occ[:, i : i + thick] = True
+        for y0 in np.arange(2.0, side_m - 2.0, 7.0):
+            door = y0 + rng.uniform(0.5, 5.0)
+            occ[px(door) : px(door + 1.0), i : i + thick] = False
+        x += rng.uniform(5.0, 8.0)
+    y = 3.0
+    while y < side_m - 4.0:
+        thick, j = int(rng.integers(2, 4)), px(y)
+        occ[j : j + thick, :] = True
+        for x0 in np.arange(1.0, side_m - 2.0, 6.0):
+            door = x0 + rng.uniform(0.5, 4.0)
+            occ[j : j + thick, px(door) : px(door + 1.0)] = False
+        y += rng.uniform(5.0, 8.0)
+    for k in range(px(min(12.0, side_m / 3))):
+        occ[px(side_m / 2) + k, px(side_m / 6) + k] = True
+    for _ in range(30):
+        cx, cy = rng.uniform(1.0, side_m - 1.0, 2)
+        occ[px(cy) : px(cy) + 6, px(cx) : px(cx) + 6] = True
+    return occ, ~occ
 
 
 def write_examples(folder: str | Path) -> list[Path]:

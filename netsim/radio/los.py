@@ -22,7 +22,12 @@ Conventions, where a segment meets the grid at its edges:
   segment is taken to touch all four cells around it: it is blocked there if any of them is
   (so a wall drawn as a diagonal staircase of pixels, whose cells touch only at corners, has
   no leak). A segment passing within ``1e-9`` cell of a vertex counts as passing through it.
-- both ends count: a robot standing in a blocked cell has no line of sight to anyone.
+- both ends count: a robot standing in a blocked cell has no line of sight to anyone;
+- between robots (the map's walls, no ``blocked`` given), an end within ``1e-9`` cell of a
+  grid line is on it, so that a robot standing on a grid corner given in world metres is
+  on the corner, and its walls are the same both ways. Motion (``blocked`` given, and
+  :func:`first_blocked`) traces the ends as they are: a robot stopped just short of a wall
+  stays out of it.
 
 Segments must lie on the map (within its closed extent); a point on the far edge belongs to
 the last cell. Walls are symmetric: ``walls(p, q) == walls(q, p)``.
@@ -41,9 +46,18 @@ import numpy as np
 VERTEX_TOLERANCE_CELLS = 1e-9
 
 
-def _trace_numpy(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False):
+def _snap(g: np.ndarray) -> np.ndarray:
+    """Grid coordinates within the vertex tolerance of a grid line put on it: a robot on a
+    grid corner (in world metres, which the division by the resolution may leave a rounding
+    step off it) is on the corner, whichever way the segment is traced."""
+    r = np.rint(g)
+    return np.where(np.abs(g - r) <= VERTEX_TOLERANCE_CELLS, r, g)
+
+
+def _trace_numpy(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False, snap: bool = False):
     """Walls crossed by each segment ``p[k] -> q[k]`` (and, with ``first``, the parameter in
-    ``[0, 1]`` at which it first meets a blocked cell, ``inf`` if never)."""
+    ``[0, 1]`` at which it first meets a blocked cell, ``inf`` if never); with ``snap``, ends
+    within the vertex tolerance of a grid line put on it."""
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     q = np.asarray(q, dtype=float).reshape(-1, 2)
     k = len(p)
@@ -52,6 +66,8 @@ def _trace_numpy(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first
     origin = np.asarray(origin_m, dtype=float)
     g0 = (p - origin) / resolution_m
     g1 = (q - origin) / resolution_m
+    if snap:
+        g0, g1 = _snap(g0), _snap(g1)
     # Two halves: rows 0..k-1 cross vertical lines (primary axis u), rows k..2k-1 cross
     # horizontal lines (primary axis v, the coordinates swapped). One pass serves both.
     G0 = np.concatenate([g0, g0[:, ::-1]])
@@ -139,12 +155,21 @@ def _kernel():
 _NO_LIMIT = np.iinfo(np.int64).max
 
 
-def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool = False, limit: int = _NO_LIMIT):
+def _trace(
+    blocked: np.ndarray,
+    resolution_m: float,
+    origin_m,
+    p,
+    q,
+    first: bool = False,
+    limit: int = _NO_LIMIT,
+    snap: bool = False,
+):
     """``_trace_numpy``, compiled; the compiled loop may stop counting past ``limit`` walls
     (the count is then ``limit + 1``, the first blocked point still exact)."""
     kernel = _kernel()
     if kernel is None:
-        return _trace_numpy(blocked, resolution_m, origin_m, p, q, first)
+        return _trace_numpy(blocked, resolution_m, origin_m, p, q, first, snap)
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     q = np.asarray(q, dtype=float).reshape(-1, 2)
     origin = np.asarray(origin_m, dtype=float)
@@ -161,6 +186,7 @@ def _trace(blocked: np.ndarray, resolution_m: float, origin_m, p, q, first: bool
         walls,
         first_t,
         limit,
+        snap,
     )
     return (walls, first_t) if first else walls
 
@@ -171,13 +197,13 @@ def walls_crossed(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndar
     ``blocked`` replaces the map's occupied cells (e.g. ``~occupancy.free`` for motion).
     """
     grid = occupancy.occupied if blocked is None else blocked
-    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q)
+    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, snap=blocked is None)
 
 
 def line_of_sight(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:
     """Whether each segment meets no occupied (or ``blocked``) cell (tracing stops at the first)."""
     grid = occupancy.occupied if blocked is None else blocked
-    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, limit=0) == 0
+    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, limit=0, snap=blocked is None) == 0
 
 
 def first_blocked(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:

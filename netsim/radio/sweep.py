@@ -17,7 +17,7 @@ Candidate vertices come from the region the segment sweeps: it lies in the conve
 the ends' first and last positions, whose span along each grid row is searched among that
 row's mixed vertices (found once per grid). Each instant is solved in closed form; the count
 on each interval between consecutive candidates is the traversal's
-(:func:`netsim.radio._kernels.trace_one`, the arithmetic of ``walls_crossed``) at its
+(:func:`netsim.radio._kernels.walls_one`, the arithmetic of ``walls_crossed``) at its
 midpoint, and consecutive intervals of equal count are merged.
 
 At an event itself the count may differ from both sides (a segment through a vertex touches
@@ -78,8 +78,9 @@ def vertex_index(blocked: np.ndarray) -> VertexIndex:
 _INDEX: list = []
 
 
-def _cached_index(blocked: np.ndarray) -> VertexIndex:
-    # One grid at a time (a run's map): keyed by the array itself, which it keeps alive.
+def cached_vertex_index(blocked: np.ndarray) -> VertexIndex:
+    """:func:`vertex_index`, kept for the last grid asked for (a run's map)."""
+    # Keyed by the array itself, which the cache keeps alive.
     if _INDEX and _INDEX[0][0] is blocked:
         return _INDEX[0][1]
     index = vertex_index(blocked)
@@ -109,7 +110,7 @@ def sweep_walls(
     from netsim.radio._sweep_kernels import sweep
 
     grid = np.ascontiguousarray(occupancy.occupied if blocked is None else blocked)
-    index = _cached_index(occupancy.occupied if blocked is None else blocked)
+    index = cached_vertex_index(occupancy.occupied if blocked is None else blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
     duration = np.ascontiguousarray(np.broadcast_to(np.asarray(duration_s, float), (len(p0),)))
     h, w = grid.shape
