@@ -9,8 +9,9 @@
   and the record of the channel's decisions under shadowing);
 - :mod:`netsim.links.shadowed_links`: runtime link events under shadowing, from the
   channel's decisions;
-- :mod:`netsim.links.walled_links` and :mod:`netsim.links.wall_samples`: runtime link
-  events on a map, where walls cut links.
+- :mod:`netsim.links.walled_links` and :mod:`netsim.links.wall_sweeps`: runtime link
+  events on a map, where walls cut links, solved exactly on the walls' sweep
+  (:mod:`netsim.radio.sweep`).
 
 The solvers read the robots' legs and the radio's reception decision
 (:mod:`netsim.radio`); nothing in the radio imports them.

@@ -30,7 +30,6 @@ import numpy as np
 import pandas as pd
 
 from netsim.links.lifetimes import COLUMNS, link_lifetimes
-from netsim.links.wall_samples import Stretches, count_below, envelope_radii
 from netsim.links.wall_sweeps import Stretches, count_below, envelope_radii, map_radio
 from netsim.radio import compiled_kernels
 from netsim.trajectory import LegTable

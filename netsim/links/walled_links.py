@@ -39,7 +39,6 @@ import simpy
 
 from netsim.events import FIRST, EventBus, LinkDown, LinkUp, scheduled_event
 from netsim.links.kinetic import RuntimeLinks, links_frame, up_pairs
-from netsim.links.wall_samples import Stretches, count_below, envelope_radii
 from netsim.links.wall_sweeps import CHUNK_M, Stretches, count_below, envelope_radii, map_radio
 from netsim.radio.reception import Reception
 from netsim.state import RobotState
