@@ -37,16 +37,11 @@ import pandas as pd
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run
 
 
-def scenarios(quick: bool) -> list[tuple[str, str, int, float]]:
+def scenarios(sizes: list[int], radios: bool) -> list[tuple[str, str, int, float]]:
     """``(radio, plan, N, loss)`` for every row."""
-    rows = [
-        ("unit disk", plan, n, loss)
-        for n in ((20, 60) if quick else (20, 60, 100, 200))
-        for plan in ("global", "local")
-        for loss in (0.0, 0.3)
-    ]
+    rows = [("unit disk", plan, n, loss) for n in sizes for plan in ("global", "local") for loss in (0.0, 0.3)]
     for radio in COVERAGE_RADIOS:
-        if radio != "unit disk":
+        if radios and radio != "unit disk":
             rows += [(radio, plan, 40 if radio.startswith("office") else 60, 0.0) for plan in ("global", "local")]
     return rows
 
@@ -73,12 +68,15 @@ def one(row: tuple[str, str, int, float], seed: int, duration_s: float) -> dict:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="unit disk at N = 20 and 60 only, and the radio rows")
+    p.add_argument("--n", type=int, nargs="+", help="unit disk team sizes (default: 20 60 100 200)")
+    p.add_argument("--no-radios", action="store_true", help="the unit disk rows only")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
     p.add_argument("--csv", help="also write the table here")
     args = p.parse_args(argv)
-    rows = scenarios(args.quick)
+    sizes = args.n or ([20, 60] if args.quick else [20, 60, 100, 200])
+    rows = scenarios(sizes, not args.no_radios)
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(one, rows, [args.seed] * len(rows), [args.duration] * len(rows)))
     table = pd.DataFrame(results)

@@ -75,3 +75,21 @@ def test_experiment_writes_csv_and_png(tmp_path, script, args, csv):
     assert len(df) >= 1 and not df.isna().all(axis=None)
     png = tmp_path / csv.replace(".csv", ".png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_coverage_targets_prints_its_table(tmp_path):
+    """experiments/coverage_targets.py (docs/model.md section 5) runs its scenario and prints
+    one row per run with the fraction of the bound, the components and the verdict."""
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / "coverage_targets.py"), "--n", "12", "--no-radios"]
+        + ["--duration", "40", "--workers", "1", "--csv", str(tmp_path / "t.csv")],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode in (0, 1), run.stderr[-2000:]
+    table = pd.read_csv(tmp_path / "t.csv")
+    assert len(table) == 4 and set(table["plan"]) == {"global", "local"}
+    assert (table["grew"] == 0).all() and table["table true"].all()
+    assert "rows pass" in run.stdout
