@@ -95,13 +95,18 @@ def _strtod(text: str) -> float | None:
 
 
 def _node_id(token: str) -> str | None:
-    """The id between the first ``(`` and the first ``)``, if it is a non-negative integer."""
+    """The id between the first ``(`` and the first ``)`` when ns-3 takes it for one (a
+    number ``strtod`` reads whole, with no ``.`` and no leading ``-``), as ns-3 then reads
+    it: its leading digits (``1e3`` is node 1), or 0 when it has none (``inf``)."""
     a, b = token.find("("), token.find(")")
     if a < 0 or b < 0:
         return None
     inner = token[a + 1 : b]
     v = _strtod(inner)
-    return inner if v is not None and "." not in inner and not inner.startswith("-") else None
+    if v is None or "." in inner or inner.startswith("-"):
+        return None
+    digits = re.match(r"\+?(\d*)", inner)
+    return (digits[1] if digits else "") or "0"
 
 
 def _tokens(raw: str) -> list[str]:

@@ -117,7 +117,8 @@ def write_file(name: str, body: str) -> None:
 
 
 def run_validate_quickly(monkeypatch) -> None:
-    monkeypatch.setattr(validate, "CHECKS", [validate.check_unit_disk, validate.check_exact_links])
+    quick = (validate.check_unit_disk, validate.check_exact_links)
+    monkeypatch.setattr(validate, "CHECKS", [c for c in validate.CHECKS if c.check in quick])
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         assert main(["validate", "--no-progress"]) == 0
