@@ -303,12 +303,18 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
 
 
 def execute(
-    config: Config, run: int = 0, progress: bool = False, emit: Callable[[str, pd.DataFrame], object] | None = None
+    config: Config,
+    run: int = 0,
+    progress: bool = False,
+    emit: Callable[[str, pd.DataFrame], object] | None = None,
+    built: Callable[[Simulation], object] | None = None,
 ) -> RunResult:
     """Build, run and collect (each table passed to ``emit`` as it is made: :func:`collect`),
-    timing the whole."""
+    timing the whole; ``built(sim)`` is called between the build and the run."""
     start = time.perf_counter()
     sim = build(config, run)
+    if built is not None:
+        built(sim)
     sim.run(progress=progress)
     frames = collect(sim, emit)
     wall = time.perf_counter() - start

@@ -83,7 +83,11 @@ def cmd_run(args) -> int:
     config = cfgmod.load(args.config, overrides)
     with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
         # Each table is written as soon as it is made, while the next is made.
-        result = execute(config, progress=not args.quiet and not args.no_progress, emit=writer.table)
+        # What the build loaded (numba and its registries, when the run uses compiled loops)
+        # is frozen out of the collector's passes too (command()).
+        result = execute(
+            config, progress=not args.quiet and not args.no_progress, emit=writer.table, built=_freeze_if_own
+        )
         written = writer.finish(result.summary, manifest(config, 0, result.wall_s))
         if args.view:
             from netsim.tools import viewer
@@ -399,6 +403,15 @@ def main(argv=None) -> int:
         return 130
 
 
+# Whether this process is the command's own (command()): only then is the collector's state changed.
+_OWN_PROCESS = False
+
+
+def _freeze_if_own(_sim: object = None) -> None:
+    if _OWN_PROCESS:
+        gc.freeze()
+
+
 def command() -> None:
     """The ``netsim`` command: :func:`main`, in a process of its own. Its two process-wide
     switches are made here, and nowhere in the library (importing netsim or running a
@@ -406,13 +419,16 @@ def command() -> None:
 
     - What the imports loaded (numpy, pandas, the engine: many long-lived objects, no
       garbage) is frozen out of the garbage collector's passes (``gc.freeze``), which would
-      otherwise walk it again and again during the run.
+      otherwise walk it again and again during the run; so is what a run's build loads
+      (numba and its registries, for a run that uses the compiled loops).
     - When main returns, every table is written and closed; what the interpreter would
       still do is tear down every object of numpy, pandas and numba one by one, so the
       output streams and logs are flushed and the process ends at once (``os._exit``) with
       main's code. If another thread is still running, the process ends the usual way,
       waiting for it.
     """
+    global _OWN_PROCESS
+    _OWN_PROCESS = True
     gc.freeze()
     code = main()
     for stream in (sys.stdout, sys.stderr):
