@@ -46,3 +46,21 @@ def test_command_exits_with_mains_code_on_bad_input(tmp_path):
     assert run.returncode == 2
     assert len(run.stderr.strip().splitlines()) == 1 and run.stderr.startswith("netsim: error:")
     assert not out.exists()
+
+
+def test_command_freezes_what_the_build_loaded_and_the_library_does_not(tmp_path, monkeypatch):
+    """In the command's own process, what a run's build loaded (numba's registries for the
+    compiled loops) is frozen out of the collector's passes before the run; called as a
+    library (``main``), the collector is left alone."""
+    import gc
+
+    from netsim.tools import cli
+
+    frozen = []
+    monkeypatch.setattr(gc, "freeze", lambda: frozen.append(True))
+    args = ["run", "--set", "world.n_robots=5", "--set", "duration_s=5", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert frozen == []
+    monkeypatch.setattr(cli, "_OWN_PROCESS", True)
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    assert frozen == [True]
