@@ -52,3 +52,20 @@ def clustering(positions, phases=None, start=True, core: dict | None = None, **p
     if start:
         stack.start(phases)
     return sim, stack
+
+
+def check_refused(tmp_path, capsys, overrides: list[str], key: str, words: str) -> None:
+    """``netsim run --set ...overrides`` is refused: exit 2, one line on standard error
+    naming ``key`` and saying ``words``, no output directory."""
+    from netsim.tools.cli import main
+
+    out = tmp_path / "out"
+    argv = ["run", "--quiet", "--out", str(out)]
+    for o in overrides:
+        argv += ["--set", o]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"netsim: error: {key} = "), err
+    assert words in err
+    assert "\n" not in err
+    assert not out.exists()

@@ -26,6 +26,7 @@ from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.tools.cli import main
 from netsim.tools.validate import rwp_density
+from tests.fixtures import check_refused
 
 # A rectangle across the origin, wider than high, nowhere near [0, side_m]^2.
 RECT = [-300.0, 100.0, 200.0, 400.0]
@@ -100,27 +101,14 @@ def test_map_bounds_are_the_map_extent(tmp_path):
 )
 def test_bad_bounds_are_one_line_exit_2_nothing_written(tmp_path, capsys, overrides, words):
     """A bad ``world.bounds_m`` is refused in one line naming it: exit 2, nothing written."""
-    _refused(tmp_path, capsys, overrides, "world.bounds_m", words)
+    check_refused(tmp_path, capsys, overrides, "world.bounds_m", words)
 
 
-def test_bounds_outside_the_map_are_refused(tmp_path, capsys):
+def test_bounds_outside_the_map_arecheck_refused(tmp_path, capsys):
     """Bounds the map does not cover: one line naming ``world.bounds_m`` and the map's extent."""
     path = ros_map(tmp_path)
     overrides = [f"world.map={path}", "world.bounds_m=[-20, -20, 40, 20]", "mobility.model=static"]
-    _refused(tmp_path, capsys, overrides, "world.bounds_m", "is not inside world.map")
-
-
-def _refused(tmp_path, capsys, overrides, key, words):
-    out = tmp_path / "out"
-    argv = ["run", "--quiet", "--out", str(out)]
-    for o in overrides:
-        argv += ["--set", o]
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith(f"netsim: error: {key} = "), err
-    assert words in err
-    assert "\n" not in err
-    assert not out.exists()
+    check_refused(tmp_path, capsys, overrides, "world.bounds_m", "is not inside world.map")
 
 
 # -- placement -----------------------------------------------------------------------------
@@ -151,7 +139,7 @@ def test_csv_placement_is_in_the_world_frame_and_checked_against_the_bounds(tmp_
     pos = collect(sim)["positions"]
     assert np.array_equal(pos[pos["t_s"] == 5.0][["x_m", "y_m"]].to_numpy(), [[-250.0, 120.0], [150.0, 390.0]])
     pd.DataFrame({"x_m": [-250.0, 150.0], "y_m": [120.0, 50.0]}).to_csv(csv, index=False)
-    _refused(tmp_path, capsys, sets, "world.placement", "world.bounds_m")
+    check_refused(tmp_path, capsys, sets, "world.placement", "world.bounds_m")
 
 
 # -- every mobility model ------------------------------------------------------------------
@@ -239,7 +227,7 @@ def test_trace_positions_must_lie_in_the_bounds(tmp_path, capsys):
     assert legs.iloc[0][["x_m", "y_m"]].tolist() == [-290.0, 110.0]
     path.write_text("0 -290 110 10 190 410\n")
     sets = ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", f"world.bounds_m={RECT}"]
-    _refused(tmp_path, capsys, sets, "world.bounds_m", str(path))
+    check_refused(tmp_path, capsys, sets, "world.bounds_m", str(path))
 
 
 # -- random waypoint's stationary start on a rectangle -----------------------------------

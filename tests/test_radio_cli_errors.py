@@ -8,6 +8,7 @@ import pytest
 from netsim.radio.maps import save_map
 from netsim.tools.cli import main
 from netsim.tools.radio_checks import wall_test_map
+from tests.fixtures import check_refused
 
 
 def good_map(tmp_path, origin=(0.0, 0.0)):
@@ -53,19 +54,6 @@ def test_bad_map_file_is_one_line_exit_2_nothing_written(tmp_path, capsys, name,
     check_refused(
         tmp_path, capsys, [f"world.map={path}", "world.side_m=40", "mobility.model=static"], "world.map", words
     )
-
-
-def check_refused(tmp_path, capsys, overrides, key, words):
-    out = tmp_path / "out"
-    argv = ["run", "--quiet", "--out", str(out)]
-    for o in overrides:
-        argv += ["--set", o]
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith(f"netsim: error: {key} = "), err
-    assert words in err
-    assert "\n" not in err
-    assert not out.exists()
 
 
 def test_missing_map_file(tmp_path, capsys):

@@ -43,6 +43,19 @@ from netsim.tools.check import Check
 Z = 4.0
 
 
+def correlation_row(delta_m: float, r: float, rho: float, n_pairs: int) -> dict:
+    """A measured correlation ``r`` over ``n_pairs`` independent pairs beside its theory
+    ``rho``, with the Fisher-z interval of :data:`Z` standard errors around ``rho``."""
+    half = Z / math.sqrt(n_pairs - 3)
+    return {
+        "delta_m": float(delta_m),
+        "correlation": r,
+        "theory": rho,
+        "lo": math.tanh(math.atanh(rho) - half),
+        "hi": math.tanh(math.atanh(rho) + half) if rho < 1 else 1.0,
+    }
+
+
 def _all_pairs(pos: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     pairs = cKDTree(pos).query_pairs(radius, output_type="ndarray")
     return pairs[:, 0], pairs[:, 1]
@@ -157,17 +170,8 @@ def correlation_table(
             last[look] = mid[look]
         x = sh.sample(a, b, np.full(n_pairs, float(delta)))
         last[:] = delta
-        r = float(np.corrcoef(x0, x)[0, 1])
-        rho = math.exp(-delta / decorrelation_m)
-        half = Z / math.sqrt(n_pairs - 3)
         rows.append(
-            {
-                "delta_m": float(delta),
-                "correlation": r,
-                "theory": rho,
-                "lo": math.tanh(math.atanh(rho) - half),
-                "hi": math.tanh(math.atanh(rho) + half) if rho < 1 else 1.0,
-            }
+            correlation_row(delta, float(np.corrcoef(x0, x)[0, 1]), math.exp(-delta / decorrelation_m), n_pairs)
         )
     return pd.DataFrame(rows)
 
@@ -245,17 +249,7 @@ def pair_travel_correlation(
     rows = []
     for delta in separations_m:
         r = float(np.corrcoef(first, powers(delta / (2.0 * speed_mps)))[0, 1])
-        rho = math.exp(-delta / d_corr)
-        half = Z / math.sqrt(n_pairs - 3)
-        rows.append(
-            {
-                "delta_m": float(delta),
-                "correlation": r,
-                "theory": rho,
-                "lo": math.tanh(math.atanh(rho) - half),
-                "hi": math.tanh(math.atanh(rho) + half),
-            }
-        )
+        rows.append(correlation_row(delta, r, math.exp(-delta / d_corr), n_pairs))
     return pd.DataFrame(rows)
 
 
