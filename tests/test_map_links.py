@@ -167,3 +167,15 @@ def test_runtime_map_links_equal_posthoc_on_a_building_map(building_yaml, kind):
     posthoc = radio_link_lifetimes(sim.channel.reception, frames["legs"], sim.state.range_m, duration)
     assert len(posthoc) > 10
     _assert_same_links(frames["links"], posthoc)
+
+
+def test_a_nearly_parallel_pair_does_not_hang_the_chunk_count():
+    """A pair whose relative speed is a rounding error leaves the envelope after ages
+    (1e16 s): its chunk count is beyond what a float counts by ones, and is taken as
+    estimated instead of settled one sample at a time (which never ended)."""
+    from netsim.links.wall_sweeps import count_below
+
+    u, h = np.array([13.001, 0.0]), np.array([2.0, 0.5])
+    got = count_below(u, h, np.array([6.525667902804318e16, 10.0]))
+    assert got[0] == pytest.approx((6.525667902804318e16 - 13.001) / 2.0, rel=1e-12)
+    assert got[1] == 20.0

@@ -247,14 +247,17 @@ def count_below(u: np.ndarray, h: np.ndarray, t_end: float | np.ndarray) -> np.n
     if len(fin):
         uu, hh, tt = u[fin], h[fin], t_end[fin]
         k = np.maximum(np.ceil((tt - uu) / hh), 1.0)
-        # Rounding may put the estimate one off either way: settle it on the samples.
+        # Rounding may put the estimate one off either way: settle it on the samples. Beyond
+        # 2**52 a float count no longer steps by one (a nearly parallel pair leaves the
+        # envelope after ages): the estimate stands there.
+        exact = k < 2.0**52
         while True:
-            up = uu + k * hh < tt
+            up = exact & (uu + k * hh < tt)
             if not up.any():
                 break
             k[up] += 1.0
         while True:
-            down = (k > 1) & (uu + (k - 1.0) * hh >= tt)
+            down = exact & (k > 1) & (uu + (k - 1.0) * hh >= tt)
             if not down.any():
                 break
             k[down] -= 1.0
