@@ -30,7 +30,19 @@ CASES = [
     ),
     (
         "coverage_vs_n.py",
-        ["--n", "20", "30", "--laws", "spring", "--reps", "2", "--duration", "60"],
+        [
+            "--n",
+            "8",
+            "--map-n",
+            "6",
+            "--reps",
+            "2",
+            "--duration",
+            "40",
+            "--radios",
+            "unit disk",
+            "office, line of sight",
+        ],
         "coverage_vs_n.csv",
     ),
     (
@@ -75,6 +87,11 @@ def test_experiment_writes_csv_and_png(tmp_path, script, args, csv):
     assert len(df) >= 1 and not df.isna().all(axis=None)
     png = tmp_path / csv.replace(".csv", ".png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    if script == "coverage_vs_n.py":
+        # One figure: every mode on every radio asked, each point from its own runs.
+        got = set(zip(df["radio"], df["mode"]))
+        assert got == {(r, m) for r in ("unit disk", "office, line of sight") for m in ("global", "local", "follow")}
+        assert (df["covered_of_bound_all_final_n"] == 2).all()
 
 
 @pytest.mark.slow
