@@ -11,8 +11,7 @@ import pandas as pd
 import pytest
 
 from protocols.clustering import (
-    ELECTION_CODES,
-    JOIN_CODES,
+    AckEffects,
     ElectionPolicy,
     JoinPolicy,
     ack_effects,
@@ -20,6 +19,7 @@ from protocols.clustering import (
     group_size,
     join_choice,
     membership,
+    rules_record,
 )
 from protocols.neighbours import EMPTY_RECORD, GROUP_SIZE, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
 from protocols.relay import flood_step, relays
@@ -66,7 +66,7 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
         receivers = np.sort(rng.choice(np.delete(np.arange(n), sender), int(rng.integers(0, 15)), replace=False))
         hears_me = rng.random(len(receivers)) < 0.6
         leads = bool(rng.random() < 0.7)
-        armed_s = rng.choice([np.inf, 1.0, 4.0, 5.0, 9.0], n)
+        armed_s = rng.choice([np.inf, 10.0, 13.0, 14.0, 18.0], n)  # renewed: now + tau = 13
         deadline_a = rng.uniform(0.0, 10.0, n)
         deadline_b = deadline_a.copy()
         ids, records = random_tables(rng, n, 6, now)
@@ -77,15 +77,20 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
             records[:, :, col] = rng.choice([-np.inf, 2.0, 6.5, 8.0, 9.0, np.inf], (n, 6))
         role_sent = rng.integers(0, 3, n)
         leader_since = rng.choice([np.inf, 0.0, 7.0, 8.5], n)
-        args = (role, leader, receivers, hears_me, symmetric, sender, leads)
-        tables = (ids, records, now, role_sent, leader_since, 1.0)
-        out_a, out_b = np.full((5, n), -7), np.full((5, n), -7)
-        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0, out_a, *tables)
-        b = ack_effects(*args, deadline_b, armed_s, 4.0, out_b, *tables)
+        told = (sender, receivers, np.zeros(12), leads)
+        rules = rules_record(TAU_S, 1.0, symmetric, "nearest", "lowest_id")
+        out_a, out_b = AckEffects.empty(n), AckEffects.empty(n)
+        for out in (out_a, out_b):
+            for row in out[:5]:
+                row[:] = -7
+        robots_a = (role, leader, role_sent, leader_since, deadline_a, armed_s)
+        robots_b = (role, leader, role_sent, leader_since, deadline_b, armed_s)
+        a = kernels.ack_effects(now, told, hears_me, robots_a, (ids, records, TAU_S), rules, tuple(out_a))
+        b = ack_effects(now, told, hears_me, robots_b, (ids, records, TAU_S), rules, tuple(out_b))
         assert a == b
         counts = [*a, a[3]]
-        assert [row[:k].tolist() for row, k in zip(out_a, counts)] == [
-            row[:k].tolist() for row, k in zip(out_b, counts)
+        assert [row[:k].tolist() for row, k in zip(out_a[:5], counts)] == [
+            row[:k].tolist() for row, k in zip(out_b[:5], counts)
         ]
         assert deadline_a.tobytes() == deadline_b.tobytes()
         found += [k > 0 for k in counts]
@@ -106,8 +111,7 @@ def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
     one, two = NeighbourTable(n, TAU_S, slots=2), NeighbourTable(n, TAU_S, slots=2)
     one.kernels = two.kernels = kernels  # 12 robots: a table of so few runs numpy otherwise
     deadline_one, deadline_two = np.full(n, np.inf), np.full(n, np.inf)
-    out_one, out_two = np.full((5, n), -7), np.full((6, n), -7)
-    flags = np.zeros((3, n), dtype=bool)
+    out_one, out_two = AckEffects.empty(n), AckEffects.empty(n)
     stale_seen = acted = 0
     for now, sender, receivers, _, record in _ack_stream(rng, n, 300):
         role = rng.integers(0, 3, n).astype(np.int8)
@@ -115,21 +119,28 @@ def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
         leads = bool(rng.random() < 0.7)
         armed_s = rng.choice([np.inf, now + 1.0, now + 5.0], n)
         role_sent, leader_since = rng.integers(0, 3, n), rng.choice([np.inf, 0.0, now - 0.5], n)
+        rules = rules_record(TAU_S, 1.0, symmetric, "nearest", "lowest_id")
         fresh, hears_me, stale = one.receive(now, sender, receivers, record)
         kept = receivers[fresh]
         counts = kernels.ack_effects(
-            role, leader, kept, hears_me[fresh], symmetric, sender, leads, deadline_one, armed_s, now + TAU_S,
-            out_one, one.id, one.data, now, role_sent, leader_since, 1.0,
-        )  # fmt: skip
+            now,
+            (sender, kept, record, leads),
+            hears_me[fresh],
+            (role, leader, role_sent, leader_since, deadline_one, armed_s),
+            one.view,
+            rules,
+            tuple(out_one),
+        )
+        told = (sender, receivers, record, leads)
+        robots = (role, leader, role_sent, leader_since, deadline_two, armed_s)
         stale_two, (kept_two, *counts_two) = two.take_by(
-            kernels.receive_effects, now, sender, receivers, record, flags, role, leader, symmetric, leads,
-            deadline_two, armed_s, now + TAU_S, out_two, role_sent, leader_since, 1.0,
-        )  # fmt: skip
+            kernels.receive_effects, now, told, robots, rules, tuple(out_two)
+        )
         assert (stale_two, kept_two, tuple(counts_two)) == (stale, len(kept), counts)
-        assert out_two[5, :kept_two].tolist() == kept.tolist()
-        assert flags[2, :kept_two].tolist() == hears_me[fresh].tolist()
+        assert out_two.takers[:kept_two].tolist() == kept.tolist()
+        assert out_two.takers_hear_me[:kept_two].tolist() == hears_me[fresh].tolist()
         for row, k in zip(range(5), [*counts, counts[3]]):
-            assert out_two[row, :k].tolist() == out_one[row, :k].tolist()
+            assert out_two[row][:k].tolist() == out_one[row][:k].tolist()
         assert deadline_two.tobytes() == deadline_one.tobytes()
         assert two.id.tobytes() == one.id.tobytes() and two.data.tobytes() == one.data.tobytes()
         stale_seen += stale
@@ -196,10 +207,10 @@ def test_compiled_sized_ack_announces_the_numpy_group_size(symmetric):
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = rng.integers(-1, n, n).astype(np.int64)
         for i in range(n):
+            motion, beacon = (origin, velocity, t0, False, 0.0), (sent, resign, sizes)
             ack = kernels.make_sized_ack(
-                i, now, origin, velocity, t0, False, 0.0, sent, resign, role, leader, sizes, ids, records, TAU_S,
-                sized, symmetric,
-            )  # fmt: skip
+                i, now, motion, beacon, (role, leader), (ids, records, TAU_S), sized, symmetric
+            )
             want = group_size(records[i], now, TAU_S, symmetric, i) if role[i] == ALPHA else 1
             assert ack[6] == ack[8][GROUP_SIZE] == sizes[i] == want and sized[i] == (role[i] == ALPHA)
             announced.append((int(role[i]), want))
@@ -561,21 +572,11 @@ def test_compiled_join_choice_equals_numpy(policy, symmetric):
         for i in range(6):
             x, y = float(rng.integers(0, 4)), float(rng.integers(0, 4))
             exclude = int(rng.choice([-1, *ids[i][:3].tolist()]))
-            first = rng.choice([None, *ids[i][:4].tolist()])
-            first = None if first is None else int(first)
-            a = kernels.join_choice(
-                ids[i],
-                records[i],
-                now,
-                TAU_S,
-                symmetric,
-                exclude,
-                x,
-                y,
-                JOIN_CODES[policy],
-                -2 if first is None else first,
-            )
-            b = join_choice(ids[i], records[i], now, TAU_S, symmetric, exclude, x, y, policy, first)
+            first = int(rng.choice([-1, *ids[i][:4].tolist()]))  # -1: no Ack triggered it
+            rules = rules_record(TAU_S, 1.0, symmetric, policy, "lowest_id")
+            table = (ids, records, TAU_S)
+            a = kernels.join_choice(table, i, now, rules, exclude, x, y, first)
+            b = join_choice(table, i, now, rules, exclude, x, y, first)
             assert a == b
             joined += a[0] >= 0
     assert joined > 50
@@ -597,10 +598,10 @@ def test_compiled_elected_in_row_equals_numpy(policy, symmetric):
         records[:, :, LEADER] = rng.integers(0, 3, (8, 6))  # mates of a few leaders
         for i in range(8):
             old, degree = int(rng.integers(0, 3)), int(rng.integers(0, 4))
-            a = kernels.elected_in_row(
-                ids[i], records[i], now, TAU_S, symmetric, old, i, degree, ELECTION_CODES[policy]
-            )
-            b = elected_in_row(ids[i], records[i], now, TAU_S, symmetric, old, i, degree, policy)
+            rules = rules_record(TAU_S, 1.0, symmetric, "nearest", policy)
+            table = (ids, records, TAU_S)
+            a = kernels.elected_in_row(table, i, now, rules, old, degree)
+            b = elected_in_row(table, i, now, rules, old, degree)
             assert a == b
             verdicts.append(a)
     assert policy == ElectionPolicy.NONE or 50 < sum(verdicts) < len(verdicts) - 50
