@@ -398,25 +398,30 @@ def _two_way(rec, now, tau_s, symmetric):
 
 
 @numba.njit(cache=True, nogil=True)
-def membership(ids, records, now, tau_s, symmetric, role, leader):
+def membership(table, now, symmetric, roles):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
     robot and group (:func:`protocols.clustering.membership`)."""
+    ids = table[0]
     n, slots = ids.shape
     robot = np.empty(n * (slots + 1), dtype=np.int64)
     group = np.empty(n * (slots + 1), dtype=np.int64)
     primary = np.empty(n * (slots + 1), dtype=np.bool_)
     m = 0
     for r in range(n):
-        m = _membership_row(ids[r], records[r], now, tau_s, symmetric, role[r], leader[r], r, robot, group, primary, m)
+        m = _membership_row(table, r, now, symmetric, roles, (robot, group, primary), m)
     return robot[:m], group[:m], primary[:m]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _membership_row(ids_row, records_row, now, tau_s, symmetric, role, own, r, robot, group, primary, m):
-    """Robot ``r``'s rows of :func:`membership` (``role``, leader ``own``, its row of the
-    tables), written from ``m`` on; returns the next free row. A slot's record is read only
-    when its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the
-    records are tens of MB at 10,000 robots, a scan costs the memory it reads."""
+def _membership_row(table, r, now, symmetric, roles, groups, m):
+    """Robot ``r``'s rows of :func:`membership`, written in ``groups`` ``(robot, group,
+    primary)`` from ``m`` on; returns the next free row. A slot's record is read only when
+    its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the records
+    are tens of MB at 10,000 robots, a scan costs the memory it reads."""
+    ids, records, tau_s = table
+    ids_row, records_row = ids[r], records[r]
+    role, own = roles[0][r], roles[1][r]
+    robot, group, primary = groups
     if role == LEADER_ROLE:
         robot[m], group[m], primary[m] = r, r, True
         return m + 1
@@ -442,12 +447,12 @@ def _membership_row(ids_row, records_row, now, tau_s, symmetric, role, own, r, r
 
 
 @numba.njit(cache=True, nogil=True)
-def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distributed_gateways):
+def relays(table, now, symmetric, roles, receivers, distributed_gateways):
     """The receivers of a flooded message that relay it (:func:`protocols.relay.relays`):
     leaders, and members with a live two-way neighbour in another group (a leader other than
-    their own or, with ``distributed_gateways``, a member of another leader). ``ids`` and
-    ``records`` are the neighbour table's ``(n, slots)`` ids and ``(n, slots, fields)``
-    records."""
+    their own or, with ``distributed_gateways``, a member of another leader)."""
+    ids, records, tau_s = table
+    role, leader = roles
     out = np.empty(len(receivers), dtype=np.int64)
     m = 0
     for r in receivers:
@@ -476,7 +481,7 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
 
 
 @numba.njit(cache=True, nogil=True)
-def flood_step(seen, receivers, ids, records, now, tau_s, symmetric, role, leader, distributed_gateways):
+def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gateways):
     """A flooded message's copy reaching ``receivers`` (:func:`protocols.relay.flood_step`):
     those that had not ``seen`` it, marked now, and which of them relay it (:func:`relays`)."""
     fresh = np.empty(len(receivers), dtype=np.int64)
@@ -487,7 +492,7 @@ def flood_step(seen, receivers, ids, records, now, tau_s, symmetric, role, leade
             fresh[m] = r
             m += 1
     fresh = fresh[:m]
-    return fresh, relays(ids, records, now, tau_s, symmetric, role, leader, fresh, distributed_gateways)
+    return fresh, relays(table, now, symmetric, roles, fresh, distributed_gateways)
 
 
 # The once-a-second samples of beliefs beside the truth (protocols.stack): one pass over the
@@ -497,19 +502,18 @@ def flood_step(seen, receivers, ids, records, now, tau_s, symmetric, role, leade
 
 
 @numba.njit(cache=True, nogil=True)
-def belief_rows(ids, records, now, tau_s, heard):
+def belief_rows(table, now, heard):
     """Who believes whom live, beside the truth (:func:`protocols.stack.belief_rows`): per
     pair ``(robot, neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or
     ``robot * n + neighbour`` is in ``heard`` (ascending keys), ordered by robot and
     neighbour, whether believed and whether in range; and where each robot's pairs start
     (``indptr``, ``n + 1``)."""
-    n, slots = ids.shape
+    n, slots = table[0].shape
     out = _belief_arrays(n, slots, len(heard))
-    live = np.empty(slots, np.int64)
-    senders = np.empty(n, np.int64)
+    scratch = (np.empty(slots, np.int64), np.empty(n, np.int64))
     k = p = 0
     for r in range(n):
-        k, p = _belief_row(ids[r], records[r], now, tau_s, heard, r, n, live, senders, out, k, p)
+        k, p = _belief_row(table, r, now, heard, scratch, out, k, p)
     return out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4]
 
 
@@ -527,11 +531,14 @@ def _belief_arrays(n, slots, n_heard):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, senders, out, k, p):
+def _belief_row(table, r, now, heard, scratch, out, k, p):
     """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` from ``k`` on, its
-    heard keys from ``heard[p]`` on (``senders``: room for ``n`` ids); returns the next
-    ``k`` and ``p``."""
-    m = _live_row(ids_row, records_row, now, tau_s, live)
+    heard keys from ``heard[p]`` on (``scratch``: ``(live, senders)``, room for a row's
+    slots and for ``n`` ids); returns the next ``k`` and ``p``."""
+    ids, records, tau_s = table
+    n = ids.shape[0]
+    live, senders = scratch
+    m = _live_row(ids[r], records[r], now, tau_s, live)
     base = r * n
     h = 0
     while p < len(heard) and heard[p] < base + n:
@@ -591,60 +598,55 @@ def _pair_rows(live, m, heard, h, r, out, k):
 
 
 @numba.njit(cache=True, nogil=True)
-def sample_rows(ids, records, now, tau_s, symmetric, role, leader, heard):
+def sample_rows(table, now, symmetric, roles, heard):
     """:func:`membership` and :func:`belief_rows` in one pass over the tables, each row
     read from memory once for both: ``(robot, group, primary), (robot, neighbour,
     believed, in_range, indptr)``."""
-    n, slots = ids.shape
+    n, slots = table[0].shape
     g_robot = np.empty(n * (slots + 1), dtype=np.int64)
     g_group = np.empty(n * (slots + 1), dtype=np.int64)
     g_primary = np.empty(n * (slots + 1), dtype=np.bool_)
     out = _belief_arrays(n, slots, len(heard))
-    live = np.empty(slots, np.int64)
-    senders = np.empty(n, np.int64)
+    scratch = (np.empty(slots, np.int64), np.empty(n, np.int64))
     m = k = p = 0
     for r in range(n):
-        ids_row, records_row = ids[r], records[r]
-        k, p = _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, senders, out, k, p)
-        m = _membership_row(
-            ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
-        )
+        k, p = _belief_row(table, r, now, heard, scratch, out, k, p)
+        m = _membership_row(table, r, now, symmetric, roles, (g_robot, g_group, g_primary), m)
     groups = (g_robot[:m], g_group[:m], g_primary[:m])
     return groups, (out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4])
 
 
 @numba.njit(cache=True, nogil=True)
-def sample_into(
-    ids, records, now, tau_s, symmetric, role, leader, pos, ranges, box, near_ptr, near, groups, pairs, counts, lo, hi,
-):  # fmt: skip
+def sample_into(table, now, symmetric, roles, truth, out, lo, hi):
     """A sample of robots ``lo`` to ``hi - 1`` (all: a whole sample) in one pass over their
-    rows of the tables, written where the caller says (the sampled tables' buffers, from
-    their next free row): their groups (:func:`membership`) in ``groups`` ``(robot, group,
-    primary)``, room for ``(hi - lo) * (slots + 1)`` rows; who believes whom beside the
-    truth (:func:`belief_rows`) in ``pairs`` ``(robot, neighbour, believed, in_range)``,
-    room for ``(hi - lo) * slots`` rows plus the length of their neighbour lists; and per
-    robot ``(robot, role, leader)`` and :func:`belief_counts`'s five columns in its row of
-    ``counts`` (``n`` rows). Returns the rows written in ``groups`` and in ``pairs``.
+    rows of the tables, written where the caller says in ``out`` ``(groups, pairs,
+    counts)`` (the sampled tables' buffers, from their next free row): their groups
+    (:func:`membership`) in ``groups`` ``(robot, group, primary)``, room for ``(hi - lo) *
+    (slots + 1)`` rows; who believes whom beside the truth (:func:`belief_rows`) in
+    ``pairs`` ``(robot, neighbour, believed, in_range)``, room for ``(hi - lo) * slots``
+    rows plus the length of their neighbour lists; and per robot ``(robot, role, leader)``
+    and :func:`belief_counts`'s five columns in its row of ``counts`` (``n`` rows). Returns
+    the rows written in ``groups`` and in ``pairs``.
 
-    The truth comes from the range index's neighbour lists (``near_ptr``, ``near``:
-    ascending, holding every robot within reach), decided as
-    :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``, ranges
-    ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
+    The ``truth``, ``(pos, ranges, box, near_ptr, near)``, comes from the range index's
+    neighbour lists (``near_ptr``, ``near``: ascending, holding every robot within reach),
+    decided as :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``,
+    ranges ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
     :func:`belief_counts` of those keys. Nothing is allocated but two rows of scratch: each
     row is written once, where the table keeps it. Two calls, on two parts of the robots,
     can run in two threads at once (the loop holds no lock)."""
+    ids, records, tau_s = table
+    role, leader = roles
+    pos, ranges, box, near_ptr, near = truth
+    groups, pairs, counts = out
     slots = ids.shape[1]
-    g_robot, g_group, g_primary = groups
     robot, role_out, leader_out, leader_in_range, believed_n, true_n, stale_n, missing_n = counts
     live = np.empty(slots, np.int64)
     heard = np.empty(longest_list(near_ptr), np.int64)
     m = k = 0
     for r in range(lo, hi):
-        ids_row, records_row = ids[r], records[r]
-        m = _membership_row(
-            ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
-        )
-        lv = _live_row(ids_row, records_row, now, tau_s, live)
+        m = _membership_row(table, r, now, symmetric, roles, groups, m)
+        lv = _live_row(ids[r], records[r], now, tau_s, live)
         h = senders_in_list(pos, ranges, box, near_ptr, near, r, heard)
         k, b, t, s = _pair_rows(live, lv, heard, h, r, pairs, k)
         own = leader[r]

@@ -424,19 +424,13 @@ def elected_in_row(table: tuple, i: int, now: float, rules: np.ndarray, old: int
     return elected(_ELECTION_BY_CODE[int(c["election_policy"])], Candidate(i, degree=degree), rivals)
 
 
-def membership(
-    ids: np.ndarray,
-    records: np.ndarray,
-    now: float,
-    tau_s: float,
-    symmetric: bool,
-    role: np.ndarray,
-    leader: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def membership(table: tuple, now: float, symmetric: bool, roles: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
-    robot and group, from the roles and the neighbour tables (``ids``, ``records``):
-    a leader in its own group, a member in its leader's (primary) and in those of the other
-    leaders it knows over a live two-way link."""
+    robot and group, from the ``roles`` ``(role, leader)`` and the neighbour ``table``
+    ``(ids, records, tau_s)``: a leader in its own group, a member in its leader's
+    (primary) and in those of the other leaders it knows over a live two-way link."""
+    ids, records, tau_s = table
+    role, leader = roles
     rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, ROLE] == LEADER))
     other = ids[rows, slots]
     member = role[rows] == MEMBER
@@ -529,8 +523,8 @@ class Clustering:
         gateway, in those of the other leaders it has a live two-way link with; an
         undecided robot in none. One pass over all neighbour tables.
         """
-        table, st = self.table, self.roles
-        return self._membership(table.id, table.data, now, table.tau_s, self.symmetric, st.role, st.leader)
+        st = self.roles
+        return self._membership(self.table.view, now, self.symmetric, (st.role, st.leader))
 
     def groups(self, now: float) -> list[set[int]]:
         """The groups (leader ids) each robot belongs to now (see :meth:`membership`)."""

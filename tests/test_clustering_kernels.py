@@ -230,7 +230,7 @@ def test_compiled_relays_equals_numpy(symmetric, distributed_gateways):
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = rng.integers(-1, 6, n).astype(np.int64)
         receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
-        args = (ids, records, now, TAU_S, symmetric, role, leader, receivers, distributed_gateways)
+        args = ((ids, records, TAU_S), now, symmetric, (role, leader), receivers, distributed_gateways)
         a, b = kernels.relays(*args), relays(*args)
         assert a.tolist() == b.tolist()
         relayed += len(a)
@@ -250,7 +250,7 @@ def test_compiled_flood_step_equals_numpy():
         seen = rng.random(n) < 0.4
         receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
         seen_a, seen_b = seen.copy(), seen.copy()
-        rest = (ids, records, now, TAU_S, bool(rng.random() < 0.5), role, leader, bool(rng.random() < 0.5))
+        rest = ((ids, records, TAU_S), now, bool(rng.random() < 0.5), (role, leader), bool(rng.random() < 0.5))
         fresh_a, relay_a = kernels.flood_step(seen_a, receivers, *rest)
         fresh_b, relay_b = flood_step(seen_b, receivers, *rest)
         assert fresh_a.tolist() == fresh_b.tolist() == [r for r in receivers.tolist() if not seen[r]]
@@ -284,10 +284,11 @@ def test_relays_are_leaders_and_members_next_to_another_group():
     entry(4, 0, 7, 1.0, 1)
     entry(4, 1, 6, TAU_S, 1)
     everyone = np.arange(8)
+    table, roles = (ids, records, TAU_S), (role, leader)
     for fn in (relays, kernels.relays):
-        assert fn(ids, records, now, TAU_S, False, role, leader, everyone, True).tolist() == [0, 1, 3, 5]
-        assert fn(ids, records, now, TAU_S, True, role, leader, everyone, True).tolist() == [0, 1, 2, 3, 5]
-        assert fn(ids, records, now, TAU_S, False, role, leader, everyone, False).tolist() == [0, 3, 5]
+        assert fn(table, now, False, roles, everyone, True).tolist() == [0, 1, 3, 5]
+        assert fn(table, now, True, roles, everyone, True).tolist() == [0, 1, 2, 3, 5]
+        assert fn(table, now, False, roles, everyone, False).tolist() == [0, 3, 5]
 
 
 def test_members_counted_as_roles_change():
@@ -319,7 +320,7 @@ def test_compiled_membership_equals_numpy(symmetric):
         ids, records = random_tables(rng, n, 6, now)
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = np.where(role == MEMBER, rng.integers(0, 6, n), np.where(role == ALPHA, np.arange(n), -1))
-        args = (ids, records, now, TAU_S, symmetric, role, leader)
+        args = ((ids, records, TAU_S), now, symmetric, (role, leader))
         a, b = kernels.membership(*args), membership(*args)
         assert [x.tolist() for x in a] == [x.tolist() for x in b]
         assert [x.dtype for x in a] == [x.dtype for x in b]
@@ -356,7 +357,8 @@ def test_compiled_belief_rows_equal_numpy():
         if rng.random() < 0.1:
             ids[:] = -1
             records[:, :, LAST_HEARD] = -np.inf
-        a, b = kernels.belief_rows(ids, records, now, TAU_S, heard), belief_rows(ids, records, now, TAU_S, heard)
+        table = (ids, records, TAU_S)
+        a, b = kernels.belief_rows(table, now, heard), belief_rows(table, now, heard)
         assert [x.tolist() for x in a] == [x.tolist() for x in b]
         assert [x.dtype for x in a] == [x.dtype for x in b]
         both += int((a[2] & a[3]).sum())
@@ -376,7 +378,7 @@ def test_compiled_sample_rows_equal_numpy(symmetric):
         ids, records, heard = belief_inputs(rng, n, slots, now)
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = np.where(role == MEMBER, rng.integers(0, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
-        args = (ids, records, now, TAU_S, symmetric, role, leader, heard)
+        args = ((ids, records, TAU_S), now, symmetric, (role, leader), heard)
         (ga, ra), (gb, rb) = kernels.sample_rows(*args), sample_rows(*args)
         assert [x.tolist() for x in ga] == [x.tolist() for x in gb]
         assert [x.tolist() for x in ra] == [x.tolist() for x in rb]
@@ -394,7 +396,7 @@ def test_compiled_belief_counts_equal_numpy():
     for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (30, 8)] * 10:
         now = 10.0
         ids, records, heard = belief_inputs(rng, n, slots, now)
-        rows = belief_rows(ids, records, now, TAU_S, heard)
+        rows = belief_rows((ids, records, TAU_S), now, heard)
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = np.where(role == MEMBER, rng.integers(-1, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
         args = (rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
@@ -452,9 +454,9 @@ def test_compiled_sample_into_equals_numpy(torus, symmetric):
         )
         counts = tuple(np.full(n, -7, dtype) for dtype in [np.int64, np.int8, np.int64, bool, *[np.int64] * 4])
         box = side if torus else 0.0
-        args = (ids, records, now, TAU_S, symmetric, role, leader, at, st.range_m, box, near_ptr, near)
-        m, k = kernels.sample_into(*args, groups, pairs, counts, 0, n)
-        (g_robot, g_group, g_primary), rows = sample_rows(ids, records, now, TAU_S, symmetric, role, leader, heard)
+        table, roles, truth = (ids, records, TAU_S), (role, leader), (at, st.range_m, box, near_ptr, near)
+        m, k = kernels.sample_into(table, now, symmetric, roles, truth, (groups, pairs, counts), 0, n)
+        (g_robot, g_group, g_primary), rows = sample_rows(table, now, symmetric, roles, heard)
         want = belief_counts(rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
         assert [x[:m].tolist() for x in groups] == [g_robot.tolist(), g_group.tolist(), g_primary.tolist()]
         assert [x[:k].tolist() for x in pairs] == [x.tolist() for x in rows[:4]]
