@@ -84,23 +84,22 @@ def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
         hm = at < n_heard and heard[at] == r
         if hears_me is not None:
             hears_me[k] = hm
-        ids_row, records_row = ids[r], records[r]
         slot = -1
         for s in range(slots):
-            if ids_row[s] == sender:
+            if ids[r, s] == sender:
                 slot = s
                 break
         found = slot >= 0
         if not found:
             # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
             for s in range(slots):
-                if ids_row[s] == EMPTY or now - records_row[s, LAST_HEARD] > tau_s:
+                if ids[r, s] == EMPTY or now - records[r, s, LAST_HEARD] > tau_s:
                     slot = s
                     break
             if slot < 0:
                 return k, stale
-            ids_row[slot] = sender
-        old = records_row[slot]
+            ids[r, slot] = sender
+        old = records[r, slot]
         if found and not old[SEQ] <= record[SEQ]:
             if fresh is not None:
                 fresh[k] = False

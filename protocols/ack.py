@@ -252,9 +252,15 @@ class AckBeacon:
         self.sized_symmetric = True
         self.size_rule: Callable[[int, float], None] | None = None
         self.phase_s = np.zeros(n)
-        # What the compiled Ack reads of the beacon and of the roles (protocols._kernels'
-        # ``beacon`` and ``roles``): arrays kept for the run, so made once.
-        self._compiled_view = ((self.sent, self.resign_pending, self.group_size), (self.roles.role, self.roles.leader))
+        # What the compiled Ack reads of the robots' motion, of the beacon and of the roles
+        # (protocols._kernels' ``motion``, ``beacon`` and ``roles``): arrays kept for the
+        # run, so put together once.
+        st = parts.state
+        self._compiled_view = (
+            (st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m),
+            (self.sent, self.resign_pending, self.group_size),
+            (self.roles.role, self.roles.leader),
+        )
         # Receptions ignored because a newer Ack of the same sender had arrived first.
         self.stale_acks = 0
 
@@ -297,9 +303,8 @@ class AckBeacon:
         if k is not None:
             # The same work in one compiled call (protocols._kernels.make_ack); the kernel
             # returns the Ack's fields in order: made into an Ack with no unpacking.
-            st, sized = self.state, self.sized
-            motion = (st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m)
-            beacon, roles_view = self._compiled_view
+            sized = self.sized
+            motion, beacon, roles_view = self._compiled_view
             if sized is None:
                 return Ack._make(k.make_ack(i, now, motion, beacon, roles_view, table.view))
             return Ack._make(
