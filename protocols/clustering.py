@@ -486,20 +486,14 @@ class Clustering:
         self._changes: tuple[list, list, list, list, list] = ([], [], [], [], [])
         parts.trace.add_frame("roles", self.roles_frame)
         # The compiled twins of ack_effects, group_size and membership (and of join_choice and
-        # elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS
-        # robots.
+        # elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = k = load("protocols._kernels", st.n)
-        st_roles = self.roles
         self._effects = k.ack_effects if k is not None else ack_effects
         # What the rules read and write per Ack, and the lists an Ack's effects are written
         # in, each also as the plain tuple the compiled loops take.
+        roles, timers = self.roles, self.timers
         self.robots = Robots(
-            st_roles.role,
-            st_roles.leader,
-            beacon.role_sent,
-            self.leader_since,
-            self.timers.deadline_s,
-            self.timers.armed_s,
+            roles.role, roles.leader, beacon.role_sent, self.leader_since, timers.deadline_s, timers.armed_s
         )
         self.effects = AckEffects.empty(st.n)
         self._robots, self._effects_rows = tuple(self.robots), tuple(self.effects)
