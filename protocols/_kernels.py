@@ -314,23 +314,23 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
     c = rules[0]
     symmetric, merge_delay_s = c.symmetric, c.merge_delay_s
     renewed_s = now + c.tau_s
-    a = b = j = m = 0
+    n_group = n_arm = n_join = n_merge = 0
     for k in range(len(receivers)):
         r = receivers[k]
         ro = role[r]
         two_way = symmetric or hears_me[k]
         if ro == MEMBER and leader[r] == sender:
             # Rules 3, 5 and 6: a member of the sender's group.
-            group[a] = k
-            a += 1
+            group[n_group] = k
+            n_group += 1
             if leads and two_way:
                 deadline_s[r] = renewed_s
                 if renewed_s < armed_s[r]:
-                    to_arm[b] = r
-                    b += 1
+                    to_arm[n_arm] = r
+                    n_arm += 1
         elif leads and two_way and ro == UNDECIDED:
-            may_join[j] = r  # rule 2
-            j += 1
+            may_join[n_join] = r  # rule 2
+            n_join += 1
         elif leads and two_way and ro == LEADER_ROLE and role_sent[r] == LEADER_ROLE:
             # Rule 5: leaders that have announced themselves as such, beside the sender
             # for the merge delay.
@@ -345,10 +345,10 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
             linked = rec[LIVE_SINCE] if symmetric else rec[BIDIR_SINCE]
             since = max(max(linked, rec[ROLE_SINCE]), leader_since[r])
             if not now - since < merge_delay_s:
-                may_merge[m] = r
-                merge_slot[m] = slot
-                m += 1
-    return a, b, j, m
+                may_merge[n_merge] = r
+                merge_slot[n_merge] = slot
+                n_merge += 1
+    return n_group, n_arm, n_join, n_merge
 
 
 @numba.njit(cache=True, nogil=True)
@@ -372,10 +372,10 @@ def receive_effects(table, now, told, robots, rules, effects, start):
             takers[kept] = receivers[j]
             takers_hear_me[kept] = hears_me[j]
             kept += 1
-    a, b, c, d = ack_effects(
+    n_group, n_arm, n_join, n_merge = ack_effects(
         now, (sender, takers[:kept], record, leads), takers_hear_me[:kept], robots, table, rules, effects
     )
-    return k, stale, kept, a, b, c, d
+    return k, stale, kept, n_group, n_arm, n_join, n_merge
 
 
 @numba.njit(cache=True, nogil=True)

@@ -339,8 +339,8 @@ def ack_effects(
         ]
     for row, found_ids in zip(effects, found):
         row[: len(found_ids)] = found_ids
-    a, b, c_, d = (len(found_ids) for found_ids in found[:4])
-    return a, b, c_, d
+    n_group, n_arm, n_join, n_merge = (len(found_ids) for found_ids in found[:4])
+    return n_group, n_arm, n_join, n_merge
 
 
 def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, i: int) -> int:
