@@ -7,6 +7,24 @@ Each computes exactly what its numpy counterpart computes,
 receiver by receiver instead of in array operations: for the ten or so receivers of one
 Ack, numpy's cost per operation, not the arithmetic, is what a call costs. The tests check
 that both agree exactly.
+
+The loops take a few named things, each a plain tuple of arrays unpacked by name on entry
+(numba types a plain tuple faster than a named one, on every call), or a one-row record:
+
+- ``table``: a neighbour table, ``(ids, records, tau_s)``: the ``(n, slots)`` ids, the
+  ``(n, slots, FIELDS)`` packed records (:data:`protocols.neighbours.NeighbourTable.view`);
+- ``roles``: ``(role, leader)`` of every robot (:class:`protocols.roles.Roles`);
+- ``robots``: the clustering's per-robot state, ``(role, leader, role_sent, leader_since,
+  deadline_s, armed_s)`` (:class:`protocols.clustering.Robots`);
+- ``rules``: the clustering's constants, a one-row record
+  (:data:`protocols.clustering.RULES`: ``tau_s``, ``merge_delay_s``, ``symmetric``, the
+  join and election policies' codes);
+- ``told``: an Ack told to the clustering, ``(sender, receivers, record, leads)``;
+- ``effects``: what an Ack does to the clustering, the lists the loop fills
+  (:class:`protocols.clustering.AckEffects`);
+- ``motion``, ``beacon``: what an Ack is made of, ``(origin_m, velocity_mps, t0_s, torus,
+  side_m)`` of the robots and ``(sent, resign_pending, group_size)`` of the beacon
+  (:meth:`protocols.ack.AckBeacon.make_ack`).
 """
 
 from __future__ import annotations
@@ -30,31 +48,33 @@ SEQ_SENT, ROLE_SENT, DEGREE_SENT = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def receive(ids, records, slots, now, sender, receivers, record, tau_s, start, fresh, hears_me):
+def receive(table, now, sender, receivers, record, flags, start):
     """Record an Ack of ``sender`` (its packed ``record``: the fields, then the sorted ids it
     heard) in the rows of ``receivers[start:]`` (:meth:`protocols.neighbours.NeighbourTable.update`).
 
-    ``ids`` and ``records`` are the table's flat ``(n * slots)`` ids and ``(n * slots,
-    fields)`` records. Fills ``hears_me`` (the receiver is among ``heard``) and ``fresh``
-    (the Ack was taken: not older than the entry's). Returns ``(-1, stale)`` when done,
+    Fills ``flags``, ``(fresh, hears_me)``: whether the Ack was taken (not older than the
+    entry's) and whether the receiver is among ``heard``. Returns ``(-1, stale)`` when done,
     ``stale`` the number of receivers from ``start`` on that did not take the Ack, or
     ``(k, stale)`` where ``receivers[k]``'s row has no free slot (the table must grow first;
     the receivers before it are done, ``stale`` counting those of them from ``start``).
     """
-    return _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, hears_me, start)
+    fresh, hears_me = flags
+    return _receive(table, now, sender, receivers, record, fresh, hears_me, start)
 
 
 @numba.njit(cache=True, nogil=True)
-def take(ids, records, slots, now, sender, receivers, record, tau_s, start):
+def take(table, now, sender, receivers, record, start):
     """:func:`receive` without the flags (:meth:`protocols.neighbours.NeighbourTable.take`):
     two arrays fewer to pass per Ack."""
-    return _receive(ids, records, slots, now, sender, receivers, record, tau_s, None, None, start)
+    return _receive(table, now, sender, receivers, record, None, None, start)
 
 
 @numba.njit(cache=True, nogil=True)
-def _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, hears_me, start):
+def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
     # fresh and hears_me are both arrays or both None (take): the compiler drops the
     # branches on them in each version.
+    ids, records, tau_s = table
+    slots = ids.shape[1]
     heard = record[FIELDS:]
     n_heard = len(heard)
     stale = 0
@@ -64,24 +84,22 @@ def _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, 
         hm = at < n_heard and heard[at] == r
         if hears_me is not None:
             hears_me[k] = hm
-        base = r * slots
         slot = -1
         for s in range(slots):
-            if ids[base + s] == sender:
+            if ids[r, s] == sender:
                 slot = s
                 break
         found = slot >= 0
         if not found:
             # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
             for s in range(slots):
-                if ids[base + s] == EMPTY or now - records[base + s, LAST_HEARD] > tau_s:
+                if ids[r, s] == EMPTY or now - records[r, s, LAST_HEARD] > tau_s:
                     slot = s
                     break
             if slot < 0:
                 return k, stale
-            ids[base + slot] = sender
-        f = base + slot
-        old = records[f]
+            ids[r, slot] = sender
+        old = records[r, slot]
         if found and not old[SEQ] <= record[SEQ]:
             if fresh is not None:
                 fresh[k] = False
@@ -107,20 +125,24 @@ def _receive(ids, records, slots, now, sender, receivers, record, tau_s, fresh, 
 
 
 @numba.njit(cache=True, nogil=True)
-def announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, group_size):
-    """What a robot's Ack carries, from its row of the table: the Ack's packed record (the
-    fields, with the two-way degree: live entries that hear the robot), then the ids of the
-    live entries, ascending (:func:`protocols.neighbours.ack_record`; ``np.sort(id[live])``
-    and ``(live & hears_me).sum()``). One array: the Ack costs one array, not two."""
-    return _announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, group_size, None, True)
+def announce(table, i, now, fields):
+    """What robot ``i``'s Ack carries, from its row of the ``table``: the Ack's packed record
+    (its ``fields``, ``(seq, role, leader, x_m, y_m, group_size)``, with the two-way degree:
+    live entries that hear the robot), then the ids of the live entries, ascending
+    (:func:`protocols.neighbours.ack_record`; ``np.sort(id[live])`` and ``(live &
+    hears_me).sum()``). One array: the Ack costs one array, not two."""
+    return _announce(table, i, now, fields, None, True)
 
 
 @numba.njit(cache=True, nogil=True)
-def _announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, group_size, mates_of, symmetric):
+def _announce(table, i, now, fields, mates_of, symmetric):
     # mates_of: None, or the robot sending the Ack (the clustering's), whose members are
     # counted in the same pass over the live entries: a leader announces 1 + those over a
     # two-way link that named it their leader (group_size), read where the row's lines are
     # already in cache. The compiler drops the counting where it is None.
+    ids, records, tau_s = table
+    ids_row, records_row = ids[i], records[i]
+    seq, role, leader, x_m, y_m, group_size = fields
     record = np.empty(FIELDS + len(ids_row))
     record[:FIELDS] = EMPTY_RECORD
     k = 0
@@ -146,30 +168,24 @@ def _announce(ids_row, records_row, now, tau_s, seq, role, leader, x_m, y_m, gro
 
 
 @numba.njit(cache=True, nogil=True)
-def make_ack(
-    i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, group_size,
-    ids, records, tau_s,
-):  # fmt: skip
+def make_ack(i, now, motion, beacon, roles, table):
     """Robot ``i``'s Ack at ``now``, once its hooks have run, as
-    :meth:`protocols.ack.AckBeacon.make_ack` builds it: its position, its next sequence
-    number, the resignation it owes, its role, leader and group size, and what its row of
-    the table (``ids``, ``records``: the table's ``(n, slots)`` arrays) announces
-    (:func:`announce`). Counts the sequence number, clears the resignation and records the
-    role and degree sent (``sent``, the beacon's (n, 3) array), as the numpy code does.
-    Returns the Ack's fields in the order of :class:`protocols.ack.Ack`: ``(i, role,
-    leader, seq, x, y, group_size, resign, record)``."""
-    return _make_ack(
-        i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, group_size,
-        ids, records, tau_s, None, True,
-    )  # fmt: skip
+    :meth:`protocols.ack.AckBeacon.make_ack` builds it: its position (``motion``), its next
+    sequence number, the resignation it owes, its role, leader and group size (``beacon``,
+    ``roles``), and what its row of the ``table`` announces (:func:`announce`). Counts the
+    sequence number, clears the resignation and records the role and degree sent (the
+    beacon's ``sent``, an (n, 3) array), as the numpy code does. Returns the Ack's fields in
+    the order of :class:`protocols.ack.Ack`: ``(i, role, leader, seq, x, y, group_size,
+    resign, record)``."""
+    return _make_ack(i, now, motion, beacon, roles, table, None, True)
 
 
 @numba.njit(cache=True, nogil=True)
-def _make_ack(
-    i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, group_size,
-    ids, records, tau_s, mates_of, symmetric,
-):  # fmt: skip
+def _make_ack(i, now, motion, beacon, roles, table, mates_of, symmetric):
     # mates_of: as in _announce; the size announced is also written in group_size.
+    origin_m, velocity_mps, t0_s, torus, side_m = motion
+    sent, resign_pending, group_size = beacon
+    role, leader = roles
     x, y = position(origin_m, velocity_mps, t0_s, i, now, torus, side_m)
     s = sent[i, SEQ_SENT] + 1
     sent[i, SEQ_SENT] = s
@@ -177,7 +193,7 @@ def _make_ack(
     if resign:
         resign_pending[i] = False
     ro, le, size = np.int64(role[i]), leader[i], group_size[i]
-    record = _announce(ids[i], records[i], now, tau_s, s, ro, le, x, y, size, mates_of, symmetric)
+    record = _announce(table, i, now, (s, ro, le, x, y, size), mates_of, symmetric)
     if mates_of is not None:
         size = np.int64(record[GROUP_SIZE])
         group_size[i] = size
@@ -187,27 +203,22 @@ def _make_ack(
 
 
 @numba.njit(cache=True, nogil=True)
-def make_sized_ack(
-    i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, sizes,
-    ids, records, tau_s, sized, symmetric,
-):  # fmt: skip
+def make_sized_ack(i, now, motion, beacon, roles, table, sized, symmetric):
     """:func:`make_ack`, after the clustering's hook has set the group size the Ack
     announces (:func:`protocols.clustering.announced_size`): a leader's is 1 + its live
     two-way members in its row (:func:`group_size`, counted in the pass that makes the
-    Ack), anyone else's 1 (``sizes``, written back; ``sized``: whose is other than 1). One
-    call per Ack instead of a Python hook and two compiled calls."""
+    Ack), anyone else's 1 (the beacon's ``group_size``, written back; ``sized``: whose is
+    other than 1). One call per Ack instead of a Python hook and two compiled calls."""
     # The members counted for every Ack, used for a leader's: one call for both cases (a
     # call for each would cost every Ack a second compiled call).
-    leads = role[i] == LEADER_ROLE
+    sizes = beacon[2]
+    leads = roles[0][i] == LEADER_ROLE
     if leads:
         sized[i] = True
     elif sized[i]:
         sizes[i] = 1
         sized[i] = False
-    return _make_ack(
-        i, now, origin_m, velocity_mps, t0_s, torus, side_m, sent, resign_pending, role, leader, sizes,
-        ids, records, tau_s, i, symmetric,
-    )  # fmt: skip
+    return _make_ack(i, now, motion, beacon, roles, table, i, symmetric)
 
 
 # Rule 2's join policies (protocols.clustering.JOIN_CODES).
@@ -215,11 +226,16 @@ JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def join_choice(ids_row, records_row, now, tau_s, symmetric, exclude, x_m, y_m, policy, first_heard):
-    """Rule 2 from a row of the table (:func:`protocols.clustering.join_choice`): the leader
-    that a robot at ``(x_m, y_m)`` joins among its live two-way neighbours whose last Ack
-    said they were leaders, but ``exclude``, by the join ``policy`` (its code), and the
-    first slot of that leader in the row; ``(-1, -1)`` when it knows no leader."""
+def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard):
+    """Rule 2 from robot ``i``'s row of the ``table`` (:func:`protocols.clustering.join_choice`):
+    the leader that ``i``, at ``(x_m, y_m)``, joins among its live two-way neighbours whose
+    last Ack said they were leaders, but ``exclude``, by the join policy of the ``rules``
+    (its code; ``first_heard``: the leader whose Ack triggered the join, or negative), and
+    the first slot of that leader in the row; ``(-1, -1)`` when it knows no leader."""
+    ids, records, tau_s = table
+    ids_row, records_row = ids[i], records[i]
+    c = rules[0]
+    symmetric, policy = c.symmetric, c.join_policy
     best, best_d = -1, np.inf
     for s in range(len(ids_row)):
         rec = records_row[s]
@@ -250,11 +266,15 @@ ELECT_LOWEST_ID, ELECT_HIGHEST_DEGREE, ELECT_NONE = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def elected_in_row(ids_row, records_row, now, tau_s, symmetric, old, i, degree, policy):
-    """Rule 6 from robot ``i``'s row of the table (:func:`protocols.clustering.elected_in_row`):
+def elected_in_row(table, i, now, rules, old, degree):
+    """Rule 6 from robot ``i``'s row of the ``table`` (:func:`protocols.clustering.elected_in_row`):
     whether ``i``, of announced ``degree``, takes over from its lost leader ``old`` among the
     live two-way neighbours whose last Ack said they were members of ``old``, by the election
-    ``policy`` (its code)."""
+    policy of the ``rules`` (its code)."""
+    ids, records, tau_s = table
+    ids_row, records_row = ids[i], records[i]
+    c = rules[0]
+    symmetric, policy = c.symmetric, c.election_policy
     if policy == ELECT_NONE:
         return False
     for s in range(len(ids_row)):
@@ -280,35 +300,40 @@ UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def ack_effects(
-    role, leader, receivers, hears_me, symmetric, sender, leads, deadline_s, armed_s, renewed_s, out,
-    ids, records, now, role_sent, leader_since, merge_delay_s,
-):  # fmt: skip
-    """What an Ack of ``sender`` does to the clustering, from the roles before it acts, in
-    the rows of ``out``, and how many of the first four (:func:`protocols.clustering.ack_effects`):
-    positions (in ``receivers``) of the members of ``sender``'s group; if it ``leads`` (a
-    leader's Ack, not resigning), their timers over a two-way link set to ``renewed_s`` in
-    ``deadline_s`` and those of them to arm (``renewed_s`` before the event armed in
-    ``armed_s``), the undecided robots over a two-way link, and the leaders over a two-way
-    link that may merge with ``sender`` at ``now`` (and, in row 4, the slot of ``sender`` in
-    their rows of ``ids`` and ``records``)."""
-    a = b = c = d = 0
+def ack_effects(now, told, hears_me, robots, table, rules, effects):
+    """What an Ack (``told``) does to the clustering (:func:`protocols.clustering.ack_effects`),
+    from the roles before it acts: the lists of ``effects`` it fills, and how many of each
+    (``group``, ``to_arm``, ``may_join``, ``may_merge``; ``merge_slot`` as long as
+    ``may_merge``). ``hears_me``: per receiver, whether the Ack lists it. A leading Ack
+    (a leader's, not resigning) also sets its group's renewed deadlines (rule 3) in the
+    ``robots``' ``deadline_s``."""
+    sender, receivers, _, leads = told
+    role, leader, role_sent, leader_since, deadline_s, armed_s = robots
+    ids, records, _ = table
+    group, to_arm, may_join, may_merge, merge_slot, _, _, _, _ = effects
+    c = rules[0]
+    symmetric, merge_delay_s = c.symmetric, c.merge_delay_s
+    renewed_s = now + c.tau_s
+    n_group = n_arm = n_join = n_merge = 0
     for k in range(len(receivers)):
         r = receivers[k]
         ro = role[r]
         two_way = symmetric or hears_me[k]
         if ro == MEMBER and leader[r] == sender:
-            out[0, a] = k
-            a += 1
+            # Rules 3, 5 and 6: a member of the sender's group.
+            group[n_group] = k
+            n_group += 1
             if leads and two_way:
                 deadline_s[r] = renewed_s
                 if renewed_s < armed_s[r]:
-                    out[1, b] = r
-                    b += 1
+                    to_arm[n_arm] = r
+                    n_arm += 1
         elif leads and two_way and ro == UNDECIDED:
-            out[2, c] = r
-            c += 1
+            may_join[n_join] = r  # rule 2
+            n_join += 1
         elif leads and two_way and ro == LEADER_ROLE and role_sent[r] == LEADER_ROLE:
+            # Rule 5: leaders that have announced themselves as such, beside the sender
+            # for the merge delay.
             slot = -1
             for s in range(ids.shape[1]):
                 if ids[r, s] == sender:
@@ -320,42 +345,37 @@ def ack_effects(
             linked = rec[LIVE_SINCE] if symmetric else rec[BIDIR_SINCE]
             since = max(max(linked, rec[ROLE_SINCE]), leader_since[r])
             if not now - since < merge_delay_s:
-                out[3, d] = r
-                out[4, d] = slot
-                d += 1
-    return a, b, c, d
+                may_merge[n_merge] = r
+                merge_slot[n_merge] = slot
+                n_merge += 1
+    return n_group, n_arm, n_join, n_merge
 
 
 @numba.njit(cache=True, nogil=True)
-def receive_effects(
-    ids, records, slots, now, sender, receivers, record, tau_s, start, flags,
-    role, leader, symmetric, leads, deadline_s, armed_s, renewed_s, out, role_sent, leader_since, merge_delay_s,
-):  # fmt: skip
-    """:func:`receive` then :func:`ack_effects` in one call: an Ack told to the clustering
-    (:meth:`protocols.clustering.Clustering.take_told`), recorded in the table (flat ``ids`` and
-    ``records``, as for :func:`receive`; ``flags`` rows 0 and 1: ``fresh`` and
-    ``hears_me``) and then acted on by the receivers that took it (written in ``out`` row 5,
-    their ``hears_me`` in ``flags`` row 2; ``out`` rows 0 to 4 as :func:`ack_effects`
-    writes them, positions in row 5). Returns ``(k, stale, kept, a, b, c, d)``: ``k`` and
-    ``stale`` as :func:`receive` returns them (``k >= 0``: the table must grow, then the
-    call be made again from ``k``; nothing acted on yet), ``kept`` the receivers that took
-    the Ack, and :func:`ack_effects`' counts."""
-    k, stale = _receive(ids, records, slots, now, sender, receivers, record, tau_s, flags[0], flags[1], start)
+def receive_effects(table, now, told, robots, rules, effects, start):
+    """:func:`receive` then :func:`ack_effects` in one call: an Ack ``told`` to the clustering
+    (:meth:`protocols.clustering.Clustering.take_told`), recorded in the ``table`` (the
+    ``effects``' ``fresh`` and ``hears_me`` per receiver, as :func:`receive` fills its
+    flags) and then acted on by the receivers that took it (the ``effects``' ``takers``,
+    with their ``takers_hear_me``). Returns ``(k, stale, kept, group, to_arm, may_join,
+    may_merge)``: ``k`` and ``stale`` as :func:`receive` returns them (``k >= 0``: the table
+    must grow, then the call be made again from ``k``; nothing acted on yet), ``kept`` the
+    receivers that took the Ack, and :func:`ack_effects`' counts."""
+    sender, receivers, record, leads = told
+    _, _, _, _, _, takers, fresh, hears_me, takers_hear_me = effects
+    k, stale = _receive(table, now, sender, receivers, record, fresh, hears_me, start)
     if k >= 0:
         return k, stale, 0, 0, 0, 0, 0
     kept = 0
     for j in range(len(receivers)):
-        if flags[0, j]:
-            out[5, kept] = receivers[j]
-            flags[2, kept] = flags[1, j]
+        if fresh[j]:
+            takers[kept] = receivers[j]
+            takers_hear_me[kept] = hears_me[j]
             kept += 1
-    n = len(role)
-    a, b, c, d = ack_effects(
-        role, leader, out[5, :kept], flags[2, :kept], symmetric, sender, leads, deadline_s, armed_s, renewed_s, out,
-        ids.reshape((n, slots)), records.reshape((n, slots, records.shape[1])), now, role_sent, leader_since,
-        merge_delay_s,
-    )  # fmt: skip
-    return k, stale, kept, a, b, c, d
+    n_group, n_arm, n_join, n_merge = ack_effects(
+        now, (sender, takers[:kept], record, leads), takers_hear_me[:kept], robots, table, rules, effects
+    )
+    return k, stale, kept, n_group, n_arm, n_join, n_merge
 
 
 @numba.njit(cache=True, nogil=True)
@@ -377,25 +397,30 @@ def _two_way(rec, now, tau_s, symmetric):
 
 
 @numba.njit(cache=True, nogil=True)
-def membership(ids, records, now, tau_s, symmetric, role, leader):
+def membership(table, now, symmetric, roles):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
     robot and group (:func:`protocols.clustering.membership`)."""
+    ids = table[0]
     n, slots = ids.shape
     robot = np.empty(n * (slots + 1), dtype=np.int64)
     group = np.empty(n * (slots + 1), dtype=np.int64)
     primary = np.empty(n * (slots + 1), dtype=np.bool_)
     m = 0
     for r in range(n):
-        m = _membership_row(ids[r], records[r], now, tau_s, symmetric, role[r], leader[r], r, robot, group, primary, m)
+        m = _membership_row(table, r, now, symmetric, roles, (robot, group, primary), m)
     return robot[:m], group[:m], primary[:m]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _membership_row(ids_row, records_row, now, tau_s, symmetric, role, own, r, robot, group, primary, m):
-    """Robot ``r``'s rows of :func:`membership` (``role``, leader ``own``, its row of the
-    tables), written from ``m`` on; returns the next free row. A slot's record is read only
-    when its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the
-    records are tens of MB at 10,000 robots, a scan costs the memory it reads."""
+def _membership_row(table, r, now, symmetric, roles, groups, m):
+    """Robot ``r``'s rows of :func:`membership`, written in ``groups`` ``(robot, group,
+    primary)`` from ``m`` on; returns the next free row. A slot's record is read only when
+    its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the records
+    are tens of MB at 10,000 robots, a scan costs the memory it reads."""
+    ids, records, tau_s = table
+    ids_row, records_row = ids[r], records[r]
+    role, own = roles[0][r], roles[1][r]
+    robot, group, primary = groups
     if role == LEADER_ROLE:
         robot[m], group[m], primary[m] = r, r, True
         return m + 1
@@ -421,12 +446,12 @@ def _membership_row(ids_row, records_row, now, tau_s, symmetric, role, own, r, r
 
 
 @numba.njit(cache=True, nogil=True)
-def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distributed_gateways):
+def relays(table, now, symmetric, roles, receivers, distributed_gateways):
     """The receivers of a flooded message that relay it (:func:`protocols.relay.relays`):
     leaders, and members with a live two-way neighbour in another group (a leader other than
-    their own or, with ``distributed_gateways``, a member of another leader). ``ids`` and
-    ``records`` are the neighbour table's ``(n, slots)`` ids and ``(n, slots, fields)``
-    records."""
+    their own or, with ``distributed_gateways``, a member of another leader)."""
+    ids, records, tau_s = table
+    role, leader = roles
     out = np.empty(len(receivers), dtype=np.int64)
     m = 0
     for r in receivers:
@@ -455,7 +480,7 @@ def relays(ids, records, now, tau_s, symmetric, role, leader, receivers, distrib
 
 
 @numba.njit(cache=True, nogil=True)
-def flood_step(seen, receivers, ids, records, now, tau_s, symmetric, role, leader, distributed_gateways):
+def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gateways):
     """A flooded message's copy reaching ``receivers`` (:func:`protocols.relay.flood_step`):
     those that had not ``seen`` it, marked now, and which of them relay it (:func:`relays`)."""
     fresh = np.empty(len(receivers), dtype=np.int64)
@@ -466,7 +491,7 @@ def flood_step(seen, receivers, ids, records, now, tau_s, symmetric, role, leade
             fresh[m] = r
             m += 1
     fresh = fresh[:m]
-    return fresh, relays(ids, records, now, tau_s, symmetric, role, leader, fresh, distributed_gateways)
+    return fresh, relays(table, now, symmetric, roles, fresh, distributed_gateways)
 
 
 # The once-a-second samples of beliefs beside the truth (protocols.stack): one pass over the
@@ -476,19 +501,18 @@ def flood_step(seen, receivers, ids, records, now, tau_s, symmetric, role, leade
 
 
 @numba.njit(cache=True, nogil=True)
-def belief_rows(ids, records, now, tau_s, heard):
+def belief_rows(table, now, heard):
     """Who believes whom live, beside the truth (:func:`protocols.stack.belief_rows`): per
     pair ``(robot, neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or
     ``robot * n + neighbour`` is in ``heard`` (ascending keys), ordered by robot and
     neighbour, whether believed and whether in range; and where each robot's pairs start
     (``indptr``, ``n + 1``)."""
-    n, slots = ids.shape
+    n, slots = table[0].shape
     out = _belief_arrays(n, slots, len(heard))
-    live = np.empty(slots, np.int64)
-    senders = np.empty(n, np.int64)
+    scratch = (np.empty(slots, np.int64), np.empty(n, np.int64))
     k = p = 0
     for r in range(n):
-        k, p = _belief_row(ids[r], records[r], now, tau_s, heard, r, n, live, senders, out, k, p)
+        k, p = _belief_row(table, r, now, heard, scratch, out, k, p)
     return out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4]
 
 
@@ -506,11 +530,14 @@ def _belief_arrays(n, slots, n_heard):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, senders, out, k, p):
+def _belief_row(table, r, now, heard, scratch, out, k, p):
     """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` from ``k`` on, its
-    heard keys from ``heard[p]`` on (``senders``: room for ``n`` ids); returns the next
-    ``k`` and ``p``."""
-    m = _live_row(ids_row, records_row, now, tau_s, live)
+    heard keys from ``heard[p]`` on (``scratch``: ``(live, senders)``, room for a row's
+    slots and for ``n`` ids); returns the next ``k`` and ``p``."""
+    ids, records, tau_s = table
+    n = ids.shape[0]
+    live, senders = scratch
+    m = _live_row(ids[r], records[r], now, tau_s, live)
     base = r * n
     h = 0
     while p < len(heard) and heard[p] < base + n:
@@ -570,60 +597,55 @@ def _pair_rows(live, m, heard, h, r, out, k):
 
 
 @numba.njit(cache=True, nogil=True)
-def sample_rows(ids, records, now, tau_s, symmetric, role, leader, heard):
+def sample_rows(table, now, symmetric, roles, heard):
     """:func:`membership` and :func:`belief_rows` in one pass over the tables, each row
     read from memory once for both: ``(robot, group, primary), (robot, neighbour,
     believed, in_range, indptr)``."""
-    n, slots = ids.shape
+    n, slots = table[0].shape
     g_robot = np.empty(n * (slots + 1), dtype=np.int64)
     g_group = np.empty(n * (slots + 1), dtype=np.int64)
     g_primary = np.empty(n * (slots + 1), dtype=np.bool_)
     out = _belief_arrays(n, slots, len(heard))
-    live = np.empty(slots, np.int64)
-    senders = np.empty(n, np.int64)
+    scratch = (np.empty(slots, np.int64), np.empty(n, np.int64))
     m = k = p = 0
     for r in range(n):
-        ids_row, records_row = ids[r], records[r]
-        k, p = _belief_row(ids_row, records_row, now, tau_s, heard, r, n, live, senders, out, k, p)
-        m = _membership_row(
-            ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
-        )
+        k, p = _belief_row(table, r, now, heard, scratch, out, k, p)
+        m = _membership_row(table, r, now, symmetric, roles, (g_robot, g_group, g_primary), m)
     groups = (g_robot[:m], g_group[:m], g_primary[:m])
     return groups, (out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4])
 
 
 @numba.njit(cache=True, nogil=True)
-def sample_into(
-    ids, records, now, tau_s, symmetric, role, leader, pos, ranges, box, near_ptr, near, groups, pairs, counts, lo, hi,
-):  # fmt: skip
+def sample_into(table, now, symmetric, roles, truth, out, lo, hi):
     """A sample of robots ``lo`` to ``hi - 1`` (all: a whole sample) in one pass over their
-    rows of the tables, written where the caller says (the sampled tables' buffers, from
-    their next free row): their groups (:func:`membership`) in ``groups`` ``(robot, group,
-    primary)``, room for ``(hi - lo) * (slots + 1)`` rows; who believes whom beside the
-    truth (:func:`belief_rows`) in ``pairs`` ``(robot, neighbour, believed, in_range)``,
-    room for ``(hi - lo) * slots`` rows plus the length of their neighbour lists; and per
-    robot ``(robot, role, leader)`` and :func:`belief_counts`'s five columns in its row of
-    ``counts`` (``n`` rows). Returns the rows written in ``groups`` and in ``pairs``.
+    rows of the tables, written where the caller says in ``out`` ``(groups, pairs,
+    counts)`` (the sampled tables' buffers, from their next free row): their groups
+    (:func:`membership`) in ``groups`` ``(robot, group, primary)``, room for ``(hi - lo) *
+    (slots + 1)`` rows; who believes whom beside the truth (:func:`belief_rows`) in
+    ``pairs`` ``(robot, neighbour, believed, in_range)``, room for ``(hi - lo) * slots``
+    rows plus the length of their neighbour lists; and per robot ``(robot, role, leader)``
+    and :func:`belief_counts`'s five columns in its row of ``counts`` (``n`` rows). Returns
+    the rows written in ``groups`` and in ``pairs``.
 
-    The truth comes from the range index's neighbour lists (``near_ptr``, ``near``:
-    ascending, holding every robot within reach), decided as
-    :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``, ranges
-    ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
+    The ``truth``, ``(pos, ranges, box, near_ptr, near)``, comes from the range index's
+    neighbour lists (``near_ptr``, ``near``: ascending, holding every robot within reach),
+    decided as :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``,
+    ranges ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
     :func:`belief_counts` of those keys. Nothing is allocated but two rows of scratch: each
     row is written once, where the table keeps it. Two calls, on two parts of the robots,
     can run in two threads at once (the loop holds no lock)."""
+    ids, records, tau_s = table
+    role, leader = roles
+    pos, ranges, box, near_ptr, near = truth
+    groups, pairs, counts = out
     slots = ids.shape[1]
-    g_robot, g_group, g_primary = groups
     robot, role_out, leader_out, leader_in_range, believed_n, true_n, stale_n, missing_n = counts
     live = np.empty(slots, np.int64)
     heard = np.empty(longest_list(near_ptr), np.int64)
     m = k = 0
     for r in range(lo, hi):
-        ids_row, records_row = ids[r], records[r]
-        m = _membership_row(
-            ids_row, records_row, now, tau_s, symmetric, role[r], leader[r], r, g_robot, g_group, g_primary, m
-        )
-        lv = _live_row(ids_row, records_row, now, tau_s, live)
+        m = _membership_row(table, r, now, symmetric, roles, groups, m)
+        lv = _live_row(ids[r], records[r], now, tau_s, live)
         h = senders_in_list(pos, ranges, box, near_ptr, near, r, heard)
         k, b, t, s = _pair_rows(live, lv, heard, h, r, pairs, k)
         own = leader[r]

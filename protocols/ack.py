@@ -252,6 +252,15 @@ class AckBeacon:
         self.sized_symmetric = True
         self.size_rule: Callable[[int, float], None] | None = None
         self.phase_s = np.zeros(n)
+        # What the compiled Ack reads of the robots' motion, of the beacon and of the roles
+        # (protocols._kernels' ``motion``, ``beacon`` and ``roles``): arrays kept for the
+        # run, so put together once.
+        st = parts.state
+        self._compiled_view = (
+            (st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m),
+            (self.sent, self.resign_pending, self.group_size),
+            (self.roles.role, self.roles.leader),
+        )
         # Receptions ignored because a newer Ack of the same sender had arrived first.
         self.stale_acks = 0
 
@@ -292,19 +301,15 @@ class AckBeacon:
         table = self.table
         k = table.kernels
         if k is not None:
-            # The same work in one compiled call (protocols._kernels.make_ack).
-            st, roles, sized = self.state, self.roles, self.sized
-            # The kernel returns the Ack's fields in order: made into an Ack with no unpacking.
+            # The same work in one compiled call (protocols._kernels.make_ack); the kernel
+            # returns the Ack's fields in order: made into an Ack with no unpacking.
+            sized = self.sized
+            motion, beacon, roles_view = self._compiled_view
             if sized is None:
-                return Ack._make(k.make_ack(
-                    i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.sent, self.resign_pending,
-                    roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s,
-                ))  # fmt: skip
-            return Ack._make(k.make_sized_ack(
-                i, now, st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m, self.sent, self.resign_pending,
-                roles.role, roles.leader, self.group_size, table.id, table.data, table.tau_s, sized,
-                self.sized_symmetric,
-            ))  # fmt: skip
+                return Ack._make(k.make_ack(i, now, motion, beacon, roles_view, table.view))
+            return Ack._make(
+                k.make_sized_ack(i, now, motion, beacon, roles_view, table.view, sized, self.sized_symmetric)
+            )
         if self.size_rule is not None:
             self.size_rule(i, now)
         x, y = self.state.position(i, now)

@@ -23,7 +23,28 @@ robots build a two-level network:
 
 The decisions are pure functions of small values (:func:`choose_leader`,
 :func:`merge_loser`, :func:`elected`, :data:`TRANSITIONS`), testable without the kernel;
-:class:`Clustering` is the runner that feeds them from Ack deliveries and timers.
+:class:`Clustering` is the runner that feeds them from Ack deliveries and timers. Where
+each rule lives:
+
+- rule 1: :meth:`Clustering.start`;
+- rule 2: :func:`join_choice` (which leader), :meth:`Clustering._rule2_join`;
+- rule 3: :func:`ack_effects` renews a member's deadline on its leader's Ack
+  (:meth:`Clustering._rule3_renew` schedules the event); the timeout is
+  :meth:`Clustering._rule3_leader_lost`;
+- rule 4: :meth:`Clustering._rule4_no_leader`;
+- rule 5: :func:`ack_effects` finds the leaders ready to merge with an Ack's sender,
+  :func:`merge_loser` decides, :meth:`Clustering._rule5_merge` acts; a resignation and a
+  mutual yield reach the members in :meth:`Clustering._rule5_leader_resigned` and
+  :meth:`Clustering._rule5_mutual_yield`;
+- rule 6: :func:`elected_in_row` (who wins), :meth:`Clustering._rule6_reaffiliate`.
+
+An Ack is taken in two steps: its effects first (:func:`ack_effects`, or the compiled
+``receive_effects`` that also records it in the table: which receivers are the sender's
+members, which timers to arm, who may join, who may merge, in an :class:`AckEffects`),
+then the rules they fire (:meth:`Clustering._apply`). The compiled loops
+(:mod:`protocols._kernels`) take the same few named things as their numpy twins here:
+the table's ``view``, the robots' state (:class:`Robots`), the constants (:data:`RULES`)
+and the effects' lists.
 
 Timers are exact: a member's deadline is ``tau`` after the last two-way Ack from its
 leader; an undecided robot's is ``tau`` after it became undecided or last heard a leader
@@ -200,38 +221,101 @@ def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
 _NONE = np.empty(0, dtype=np.int64)
 
 
+# The clustering's constants, one record read by name in the compiled rules
+# (protocols._kernels' ``rules``) and in their numpy twins.
+RULES = np.dtype(
+    [
+        ("tau_s", np.float64),  # rule 3: a renewed member's deadline is tau after the Ack
+        ("merge_delay_s", np.float64),  # rule 5
+        ("symmetric", np.bool_),  # equal ranges: every live link is two-way (docs/model.md 4.1)
+        ("join_policy", np.int64),  # rule 2: JOIN_CODES
+        ("election_policy", np.int64),  # rule 6: ELECTION_CODES
+    ]
+)
+_JOIN_BY_CODE = {code: policy for policy, code in JOIN_CODES.items()}
+_ELECTION_BY_CODE = {code: policy for policy, code in ELECTION_CODES.items()}
+
+
+def rules_record(tau_s: float, merge_delay_s: float, symmetric: bool, join_policy: str, election_policy: str):
+    """The clustering's constants as one :data:`RULES` record (an array of one row)."""
+    rules = np.zeros(1, dtype=RULES)
+    row = rules[0]
+    row["tau_s"], row["merge_delay_s"], row["symmetric"] = tau_s, merge_delay_s, symmetric
+    row["join_policy"] = JOIN_CODES[JoinPolicy(join_policy)]
+    row["election_policy"] = ELECTION_CODES[ElectionPolicy(election_policy)]
+    return rules
+
+
+class Robots(NamedTuple):
+    """The per-robot state the rules read and write on an Ack (protocols._kernels'
+    ``robots``, passed as a plain tuple)."""
+
+    role: np.ndarray  # Roles.role
+    leader: np.ndarray  # Roles.leader
+    role_sent: np.ndarray  # the role each announced in its last Ack (AckBeacon.role_sent)
+    leader_since: np.ndarray  # when each last became a leader (inf: it is not one)
+    deadline_s: np.ndarray  # the timers' deadlines (rules 3 and 4; DeadlineTimers)
+    armed_s: np.ndarray  # when each timer's event is armed
+
+
+class AckEffects(NamedTuple):
+    """What an Ack does to the clustering (docs/model.md 4.2), as lists filled per Ack by
+    :func:`ack_effects` (and the compiled ``receive_effects``), each as long as the robots
+    and reused from Ack to Ack: the counts returned say how much of each is the Ack's.
+    Passed to the compiled loops as a plain tuple (protocols._kernels' ``effects``)."""
+
+    group: np.ndarray  # rules 3, 5, 6: where (in the receivers) the sender's group's members are
+    to_arm: np.ndarray  # rule 3: members whose renewed timer needs its event armed
+    may_join: np.ndarray  # rule 2: undecided robots over a two-way link (a leader's Ack)
+    may_merge: np.ndarray  # rule 5: leaders over a two-way link ready to merge with the sender
+    merge_slot: np.ndarray  # rule 5: the sender's slot in each of their rows of the table
+    takers: np.ndarray  # the receivers that took the Ack (not overtaken)
+    fresh: np.ndarray  # per receiver: whether it took the Ack
+    hears_me: np.ndarray  # per receiver: whether the Ack lists it
+    takers_hear_me: np.ndarray  # per taker: whether the Ack lists it
+
+    @classmethod
+    def empty(cls, n: int) -> AckEffects:
+        """Room for an Ack to all of ``n`` robots."""
+        rows, flags = np.empty((6, n), dtype=np.int64), np.empty((3, n), dtype=bool)
+        return cls(*rows, *flags)
+
+
 def ack_effects(
-    role: np.ndarray,
-    leader: np.ndarray,
-    receivers: np.ndarray,
-    hears_me: np.ndarray,
-    symmetric: bool,
-    sender: int,
-    leads: bool,
-    deadline_s: np.ndarray,
-    armed_s: np.ndarray,
-    renewed_s: float,
-    out: np.ndarray,
-    ids: np.ndarray,
-    records: np.ndarray,
     now: float,
-    role_sent: np.ndarray,
-    leader_since: np.ndarray,
-    merge_delay_s: float,
+    told: tuple,
+    hears_me: np.ndarray,
+    robots: tuple,
+    table: tuple,
+    rules: np.ndarray,
+    effects: tuple,
 ) -> tuple[int, int, int, int]:
-    """What an Ack of ``sender`` does, from the roles before it acts, in the rows of ``out``
-    (each at least as long as ``receivers``; returned: how many of the first four): positions
-    (in ``receivers``) of the members of ``sender``'s group; and if the Ack ``leads`` (a
-    leader's, not resigning), those members' timers over a two-way link restart at
-    ``renewed_s`` (written in the timers' ``deadline_s``; listed: those of them whose timers
-    must be armed, ``renewed_s`` before the event in ``armed_s``), the undecided robots over
-    a two-way link (they may join), and the leaders over a two-way link that may merge with
-    ``sender`` now (row 4: the slot of ``sender`` in their rows of the table, ``ids`` and
-    ``records``): those that announced themselves as leaders (``role_sent``) and have been
-    leaders beside ``sender`` for ``merge_delay_s`` at ``now``, counted from the latest of
-    the link known (two-way, or live when links are ``symmetric``), ``sender``'s Acks saying
-    leader, and their own leadership (``leader_since``). Counts and a reused ``out``, not new
-    arrays: cheaper to hand back from the compiled twin, once per Ack."""
+    """What an Ack ``told`` ``(sender, receivers, record, leads)`` does, from the roles before
+    it acts (``robots``, :class:`Robots`), in the lists of ``effects`` (:class:`AckEffects`;
+    returned: how many of ``group``, ``to_arm``, ``may_join`` and ``may_merge``):
+
+    - ``group``: positions (in ``receivers``) of the members of the sender's group;
+    - if the Ack ``leads`` (a leader's, not resigning), those members' timers over a two-way
+      link restart ``tau_s`` from ``now`` (rule 3: written in the ``robots``'
+      ``deadline_s``; ``to_arm``: those of them whose timer's event must be armed, the
+      deadline before the event in ``armed_s``);
+    - ``may_join``: the undecided robots over a two-way link (rule 2);
+    - ``may_merge``: the leaders over a two-way link that may merge with the sender now
+      (rule 5; ``merge_slot``: the sender's slot in their rows of the ``table``): those that
+      announced themselves as leaders (``role_sent``) and have been leaders beside the sender
+      for ``merge_delay_s`` at ``now``, counted from the latest of the link known (two-way,
+      or live when links are ``symmetric``), the sender's Acks saying leader, and their own
+      leadership (``leader_since``).
+
+    ``hears_me``: per receiver, whether the Ack lists it; ``rules``: :data:`RULES`. Counts
+    and reused lists, not new arrays: cheaper to hand back from the compiled twin, once per
+    Ack."""
+    sender, receivers, _, leads = told
+    role, leader, role_sent, leader_since, deadline_s, armed_s = robots
+    ids, records, _ = table
+    c = rules[0]
+    symmetric, merge_delay_s = bool(c["symmetric"]), float(c["merge_delay_s"])
+    renewed_s = now + float(c["tau_s"])
     r_role = role[receivers]
     mine = (r_role == MEMBER) & (leader[receivers] == sender)
     found = [np.flatnonzero(mine), _NONE, _NONE, _NONE, _NONE]
@@ -253,10 +337,10 @@ def ack_effects(
             leaders[ready],
             slots[ready],
         ]
-    for row, found_ids in zip(out, found):
+    for row, found_ids in zip(effects, found):
         row[: len(found_ids)] = found_ids
-    a, b, c, d = (len(found_ids) for found_ids in found[:4])
-    return a, b, c, d
+    n_group, n_arm, n_join, n_merge = (len(found_ids) for found_ids in found[:4])
+    return n_group, n_arm, n_join, n_merge
 
 
 def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, i: int) -> int:
@@ -297,27 +381,25 @@ def leader_slots(
 
 
 def join_choice(
-    ids_row: np.ndarray,
-    records_row: np.ndarray,
-    now: float,
-    tau_s: float,
-    symmetric: bool,
-    exclude: int,
-    x_m: float,
-    y_m: float,
-    policy: str,
-    first_heard: int | None,
+    table: tuple, i: int, now: float, rules: np.ndarray, exclude: int, x_m: float, y_m: float, first_heard: int
 ) -> tuple[int, int]:
-    """Rule 2 from a row of the table: the leader that a robot at ``(x_m, y_m)`` joins
-    (:func:`choose_leader`) among the live two-way neighbours whose last Ack said they were
-    leaders, but ``exclude`` (:func:`leader_slots`; their distances from the positions their
-    Acks carried), and its first slot in the row; ``(NO_LEADER, -1)`` when there is none."""
-    slots = leader_slots(ids_row, records_row, now, tau_s, symmetric, exclude)
+    """Rule 2 from robot ``i``'s row of the ``table`` ``(ids, records, tau_s)``: the leader
+    that ``i``, at ``(x_m, y_m)``, joins (:func:`choose_leader`, by the join policy of the
+    ``rules``, :data:`RULES`; ``first_heard``: the leader whose Ack triggered the join, or
+    negative) among the live two-way neighbours whose last Ack said they were leaders, but
+    ``exclude`` (:func:`leader_slots`; their distances from the positions their Acks
+    carried), and its first slot in the row; ``(NO_LEADER, -1)`` when there is none."""
+    ids_all, records, tau_s = table
+    ids_row, records_row = ids_all[i], records[i]
+    c = rules[0]
+    slots = leader_slots(ids_row, records_row, now, tau_s, bool(c["symmetric"]), exclude)
     if not len(slots):
         return NO_LEADER, -1
     dist = np.hypot(records_row[slots, X] - x_m, records_row[slots, Y] - y_m)
     ids = ids_row[slots].tolist()
-    leader = choose_leader(policy, [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())], first_heard)
+    candidates = [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())]
+    policy = _JOIN_BY_CODE[int(c["join_policy"])]
+    leader = choose_leader(policy, candidates, first_heard if first_heard >= 0 else None)
     return leader, int(slots[ids.index(leader)])
 
 
@@ -328,39 +410,27 @@ def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: boo
     return np.flatnonzero(mask & (records_row[:, LEADER_FIELD] == leader) & (records_row[:, ROLE] == MEMBER))
 
 
-def elected_in_row(
-    ids_row: np.ndarray,
-    records_row: np.ndarray,
-    now: float,
-    tau_s: float,
-    symmetric: bool,
-    old: int,
-    i: int,
-    degree: int,
-    policy: str,
-) -> bool:
-    """Rule 6 from robot ``i``'s row of the table: whether ``i``, of announced ``degree``,
-    takes over from its lost leader ``old`` (:func:`elected`) among the former members it
+def elected_in_row(table: tuple, i: int, now: float, rules: np.ndarray, old: int, degree: int) -> bool:
+    """Rule 6 from robot ``i``'s row of the ``table`` ``(ids, records, tau_s)``: whether
+    ``i``, of announced ``degree``, takes over from its lost leader ``old`` (:func:`elected`,
+    by the election policy of the ``rules``, :data:`RULES`) among the former members it
     knows (:func:`mate_slots`), each with the degree its last Ack announced."""
-    mates = mate_slots(records_row, now, tau_s, symmetric, old)
-    ids, degrees = ids_row[mates].tolist(), records_row[mates, DEGREE].tolist()
+    ids_all, records, tau_s = table
+    records_row = records[i]
+    c = rules[0]
+    mates = mate_slots(records_row, now, tau_s, bool(c["symmetric"]), old)
+    ids, degrees = ids_all[i][mates].tolist(), records_row[mates, DEGREE].tolist()
     rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids, degrees)]
-    return elected(policy, Candidate(i, degree=degree), rivals)
+    return elected(_ELECTION_BY_CODE[int(c["election_policy"])], Candidate(i, degree=degree), rivals)
 
 
-def membership(
-    ids: np.ndarray,
-    records: np.ndarray,
-    now: float,
-    tau_s: float,
-    symmetric: bool,
-    role: np.ndarray,
-    leader: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def membership(table: tuple, now: float, symmetric: bool, roles: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
-    robot and group, from the roles and the neighbour tables (``ids``, ``records``):
-    a leader in its own group, a member in its leader's (primary) and in those of the other
-    leaders it knows over a live two-way link."""
+    robot and group, from the ``roles`` ``(role, leader)`` and the neighbour ``table``
+    ``(ids, records, tau_s)``: a leader in its own group, a member in its leader's
+    (primary) and in those of the other leaders it knows over a live two-way link."""
+    ids, records, tau_s = table
+    role, leader = roles
     rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, ROLE] == LEADER))
     other = ids[rows, slots]
     member = role[rows] == MEMBER
@@ -397,6 +467,9 @@ class Clustering:
         # With equal ranges hearing an Ack implies the link is two-way (docs/model.md 4.1).
         self.symmetric = bool(np.all(st.range_m == st.range_m[0])) if st.n else True
         self.timers = DeadlineTimers(parts.env, st.n, self._expire, parts.channel.agenda)
+        self.rules = rules_record(
+            self.tau_s, self.merge_delay_s, self.symmetric, self.join_policy, self.election_policy
+        )
         self.role_changes = np.zeros(st.n, dtype=np.int64)
         # When each robot last became a leader (inf: it is not one).
         self.leader_since = np.full(st.n, np.inf)
@@ -413,13 +486,17 @@ class Clustering:
         self._changes: tuple[list, list, list, list, list] = ([], [], [], [], [])
         parts.trace.add_frame("roles", self.roles_frame)
         # The compiled twins of ack_effects, group_size and membership (and of join_choice and
-        # elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS
-        # robots.
+        # elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS robots.
         self.kernels = k = load("protocols._kernels", st.n)
         self._effects = k.ack_effects if k is not None else ack_effects
-        # ack_effects' lists, per Ack (row 5: the receivers that took it, for take_told).
-        self._effects_out = np.empty((6, st.n), dtype=np.int64)
-        self._flags = np.empty((3, st.n), dtype=bool)  # take_told's flags, per Ack
+        # What the rules read and write per Ack, and the lists an Ack's effects are written
+        # in, each also as the plain tuple the compiled loops take.
+        roles, timers = self.roles, self.timers
+        self.robots = Robots(
+            roles.role, roles.leader, beacon.role_sent, self.leader_since, timers.deadline_s, timers.armed_s
+        )
+        self.effects = AckEffects.empty(st.n)
+        self._robots, self._effects_rows = tuple(self.robots), tuple(self.effects)
         self._group_size = k.group_size if k is not None else group_size
         self._membership = k.membership if k is not None else membership
         on_ack = self.on_ack  # one bound method: the beacon knows it by identity
@@ -427,14 +504,6 @@ class Clustering:
         if k is not None:
             beacon.taker = (on_ack, self.take_told)
         beacon.sized, beacon.sized_symmetric, beacon.size_rule = self._sized, self.symmetric, self._before_ack
-
-    def start(self) -> None:
-        roles, now = self.roles, self.env.now
-        roles.role[:] = UNDECIDED
-        roles.leader[:] = NO_LEADER
-        for i in range(self.state.n):
-            self._record(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START)
-        self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
 
     # -- what a robot knows --------------------------------------------------------------
     def group_size(self, i: int, now: float) -> int:
@@ -448,8 +517,8 @@ class Clustering:
         gateway, in those of the other leaders it has a live two-way link with; an
         undecided robot in none. One pass over all neighbour tables.
         """
-        table, st = self.table, self.roles
-        return self._membership(table.id, table.data, now, table.tau_s, self.symmetric, st.role, st.leader)
+        st = self.roles
+        return self._membership(self.table.view, now, self.symmetric, (st.role, st.leader))
 
     def groups(self, now: float) -> list[set[int]]:
         """The groups (leader ids) each robot belongs to now (see :meth:`membership`)."""
@@ -497,131 +566,47 @@ class Clustering:
             return pd.DataFrame([], columns=list(RoleChange._fields))
         return pd.DataFrame(dict(zip(RoleChange._fields, self._changes)))
 
-    def _join(self, i: int, now: float, first_heard: int | None = None, exclude: int = NO_LEADER) -> bool:
-        """Rule 2 for robot ``i`` (undecided) from what its table knows; False if no leader is known."""
+    # -- the rules of docs/model.md 4.2, in its order ------------------------------------
+    def start(self) -> None:
+        """Rule 1: every robot starts undecided; its timer (rule 4) runs from its first Ack."""
+        roles, now = self.roles, self.env.now
+        roles.role[:] = UNDECIDED
+        roles.leader[:] = NO_LEADER
+        for i in range(self.state.n):
+            self._record(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START)
+        self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
+
+    def _rule2_join(self, i: int, now: float, first_heard: int = NO_LEADER, exclude: int = NO_LEADER) -> bool:
+        """Rule 2 for robot ``i`` (undecided) from what its table knows: it joins a leader
+        (the join policy's; ``first_heard``: the leader whose Ack triggered it), its timer
+        running from that leader's last Ack; False if no leader but ``exclude`` is known."""
         table = self.table
-        k = self.kernels
-        if k is not None:
-            x, y = self.state.position(i, now)
-            leader, slot = k.join_choice(
-                table.id[i], table.data[i], now, table.tau_s, self.symmetric, exclude, x, y,
-                JOIN_CODES[self.join_policy], -2 if first_heard is None else first_heard,
-            )  # fmt: skip
-            if leader < 0:
-                return False
-        else:
-            x, y = self.state.position(i, now)
-            leader, slot = join_choice(
-                table.id[i], table.data[i], now, table.tau_s, self.symmetric, exclude, x, y, self.join_policy,
-                first_heard,
-            )  # fmt: skip
-            if leader == NO_LEADER:
-                return False
+        x, y = self.state.position(i, now)
+        join = self.kernels.join_choice if self.kernels is not None else join_choice
+        leader, slot = join(table.view, i, now, self.rules, exclude, x, y, first_heard)
+        if leader < 0:
+            return False
         self._set(i, "leader_heard", leader, now)
         self.timers.restart(i, table.data[i, slot, LAST_HEARD] + self.tau_s)
         return True
 
-    def _leader_gone(self, i: int, now: float, event: str) -> None:
-        """Rules 3 and 6: ``i`` lost its leader (timeout or resignation)."""
-        old = int(self.roles.leader[i])
-        self._set(i, event, NO_LEADER, now)
-        if self._join(i, now, exclude=old):
-            return
-        # Like with like: my degree as I announced it, beside theirs as they announced them
-        # (all counted before the leader was lost).
-        table, degree = self.table, int(self.beacon.degree_sent[i])
-        k = self.kernels
-        if k is not None:
-            code = ELECTION_CODES[self.election_policy]
-            won = k.elected_in_row(table.id[i], table.data[i], now, table.tau_s, self.symmetric, old, i, degree, code)
-        else:
-            won = elected_in_row(
-                table.id[i], table.data[i], now, table.tau_s, self.symmetric, old, i, degree, self.election_policy
-            )
-        if won:
-            self._set(i, "elected", i, now)
-            self.timers.cancel(i)
-        else:
-            self.timers.restart(i, now + self.tau_s)
+    def _rule3_renew(self, to_arm: np.ndarray, renewed_s: float) -> None:
+        """Rule 3, on a leading Ack: its members' deadlines were set to ``renewed_s``
+        (:func:`ack_effects`); the events of those timers ``to_arm`` are scheduled."""
+        self.timers.arm(to_arm, renewed_s)
 
-    def _expire(self, i: int, now: float) -> None:
-        role = self.roles.role[i]
-        if role == MEMBER:
-            self._leader_gone(i, now, "leader_timeout")
-        elif role == UNDECIDED:
-            self._set(i, "no_leader_timeout", i, now)
+    def _rule3_leader_lost(self, i: int, now: float) -> None:
+        """Rule 3: member ``i`` heard no Ack from its leader for ``tau``; rule 6 follows."""
+        self._rule6_reaffiliate(i, now, "leader_timeout")
 
-    def on_ack(self, now: float, ack: Ack, receivers: np.ndarray, hears_me: np.ndarray) -> None:
-        leads = ack.role == LEADER and not ack.resign
-        if not leads and not self._members_of[ack.sender]:
-            return
-        st, timers, out = self.roles, self.timers, self._effects_out
-        renewed_s = now + self.tau_s
-        table = self.table
-        a, b, c, d = self._effects(
-            st.role, st.leader, receivers, hears_me, self.symmetric, ack.sender, leads,
-            timers.deadline_s, timers.armed_s, renewed_s, out,
-            table.id, table.data, now, self.beacon.role_sent, self.leader_since, self.merge_delay_s,
-        )  # fmt: skip
-        self._act(now, ack, leads, receivers, hears_me, renewed_s, a, b, c, d)
+    def _rule4_no_leader(self, i: int, now: float) -> None:
+        """Rule 4: undecided ``i`` heard no leader for ``tau``: it leads."""
+        self._set(i, "no_leader_timeout", i, now)
 
-    def take_told(self, now: float, ack: Ack, receivers: np.ndarray) -> int:
-        """The beacon's table update and :meth:`on_ack` in one compiled call
-        (:func:`protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
-        many receivers did not take the Ack (stale)."""
-        st, timers, out, flags = self.roles, self.timers, self._effects_out, self._flags
-        leads = ack.role == LEADER and not ack.resign
-        renewed_s = now + self.tau_s
-        stale, (kept, a, b, c, d) = self.table.take_by(
-            self.kernels.receive_effects, now, ack.sender, receivers, ack.record, flags, st.role, st.leader,
-            self.symmetric, leads, timers.deadline_s, timers.armed_s, renewed_s, out, self.beacon.role_sent,
-            self.leader_since, self.merge_delay_s,
-        )  # fmt: skip
-        if b or c or d or (a and not leads):  # else nothing left to do (most Acks)
-            # Copies: out and flags are the next Ack's.
-            self._act(now, ack, leads, out[5, :kept].copy(), flags[2, :kept].copy(), renewed_s, a, b, c, d)
-        return stale
-
-    def _act(
-        self, now: float, ack: Ack, leads: bool, receivers: np.ndarray, hears_me: np.ndarray, renewed_s: float,
-        a: int, b: int, c: int, d: int,
-    ) -> None:  # fmt: skip
-        """What an Ack does, from :func:`ack_effects`' lists (in ``_effects_out``, counts
-        ``a`` to ``d``) of its fresh ``receivers``."""
-        out = self._effects_out
-        if not leads:
-            for k in out[0, :a].tolist():
-                r = int(receivers[k])
-                if ack.role == MEMBER and ack.leader == r:
-                    self._mutual_yield(r, ack.sender, now, bool(hears_me[k] | self.symmetric))
-                else:
-                    self._leader_gone(r, now, "leader_resigned")
-            return
-        if b:
-            self.timers.arm(out[1, :b], renewed_s)
-        if not (c or d):
-            return  # most leaders' Acks: their members' timers renewed, nothing else
-        # out is reused: read it now.
-        undecided, leaders, slots = out[2, :c].tolist(), out[3, :d].tolist(), out[4, :d].tolist()
-        for r in undecided:
-            self._join(r, now, first_heard=ack.sender)
-        for r, slot in zip(leaders, slots):
-            self._merge(r, slot, ack, now)
-
-    def _mutual_yield(self, r: int, other: int, now: float, two_way: bool) -> None:
-        """``r`` yielded to ``other``, which (on older news) yielded to ``r``: the lower id
-        takes the lead back, the other stays its member."""
-        if r < other:
-            self._set(r, "mutual_yield", r, now)
-            self.beacon.resign_pending[r] = False
-            self.timers.cancel(r)
-        elif two_way:
-            # The other is about to lead again: its Ack shows the link alive meanwhile.
-            self.timers.restart(r, now + self.tau_s)
-
-    def _merge(self, r: int, slot: int, ack: Ack, now: float) -> None:
+    def _rule5_merge(self, r: int, slot: int, ack: Ack, now: float) -> None:
         """Rule 5 for leader ``r``, which has announced itself as a leader and been one beside
-        the sender of ``ack`` (in ``slot`` of its row) for the merge delay (ack_effects)."""
+        the sender of ``ack`` (in ``slot`` of its row) for the merge delay (:func:`ack_effects`):
+        by the merge policy, it yields (joins the sender, resigns in its next Ack) or not."""
         rows = self.table.data[r, slot]
         # What each announced in its last Ack: the same kind of information on both sides.
         me = Candidate(r, group_size=int(self.beacon.group_size[r]), degree=int(self.beacon.degree_sent[r]))
@@ -630,3 +615,109 @@ class Clustering:
             self._set(r, "merge_lost", ack.sender, now)
             self.beacon.resign_pending[r] = True
             self.timers.restart(r, now + self.tau_s)
+
+    def _rule5_leader_resigned(self, r: int, now: float) -> None:
+        """Rule 5: member ``r``'s leader resigned (or its Ack no longer says leader): ``r``
+        re-affiliates at once (rule 6)."""
+        self._rule6_reaffiliate(r, now, "leader_resigned")
+
+    def _rule5_mutual_yield(self, r: int, other: int, now: float, two_way: bool) -> None:
+        """Rule 5: ``r`` yielded to ``other``, which (on older news) yielded to ``r``: the lower
+        id takes the lead back, the other stays its member."""
+        if r < other:
+            self._set(r, "mutual_yield", r, now)
+            self.beacon.resign_pending[r] = False
+            self.timers.cancel(r)
+        elif two_way:
+            # The other is about to lead again: its Ack shows the link alive meanwhile.
+            self.timers.restart(r, now + self.tau_s)
+
+    def _rule6_reaffiliate(self, i: int, now: float, event: str) -> None:
+        """Rule 6: ``i`` lost its leader (``event``: timeout or resignation): it joins another
+        known leader (rule 2), else wins the election among its former group's members it
+        knows and leads, else stays undecided (rule 4's timer running)."""
+        old = int(self.roles.leader[i])
+        self._set(i, event, NO_LEADER, now)
+        if self._rule2_join(i, now, exclude=old):
+            return
+        # Like with like: my degree as I announced it, beside theirs as they announced them
+        # (all counted before the leader was lost).
+        degree = int(self.beacon.degree_sent[i])
+        elect = self.kernels.elected_in_row if self.kernels is not None else elected_in_row
+        if elect(self.table.view, i, now, self.rules, old, degree):
+            self._set(i, "elected", i, now)
+            self.timers.cancel(i)
+        else:
+            self.timers.restart(i, now + self.tau_s)
+
+    # -- the runner: timers and Acks to the rules ------------------------------------------
+    def _expire(self, i: int, now: float) -> None:
+        role = self.roles.role[i]
+        if role == MEMBER:
+            self._rule3_leader_lost(i, now)
+        elif role == UNDECIDED:
+            self._rule4_no_leader(i, now)
+
+    def on_ack(self, now: float, ack: Ack, receivers: np.ndarray, hears_me: np.ndarray) -> None:
+        leads = ack.role == LEADER and not ack.resign
+        if not leads and not self._members_of[ack.sender]:
+            return
+        told = (ack.sender, receivers, ack.record, leads)
+        counts = self._effects(now, told, hears_me, self._robots, self.table.view, self.rules, self._effects_rows)
+        self._apply(now, ack, leads, receivers, hears_me, *counts)
+
+    def take_told(self, now: float, ack: Ack, receivers: np.ndarray) -> int:
+        """The beacon's table update and :meth:`on_ack` in one compiled call
+        (:func:`protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
+        many receivers did not take the Ack (stale)."""
+        leads = ack.role == LEADER and not ack.resign
+        told = (ack.sender, receivers, ack.record, leads)
+        stale, (kept, group, to_arm, may_join, may_merge) = self.table.take_by(
+            self.kernels.receive_effects, now, told, self._robots, self.rules, self._effects_rows
+        )
+        if to_arm or may_join or may_merge or (group and not leads):  # else nothing left to do (most Acks)
+            # Copies: the effects' lists are the next Ack's.
+            effects = self.effects
+            takers, hear_me = effects.takers[:kept].copy(), effects.takers_hear_me[:kept].copy()
+            self._apply(now, ack, leads, takers, hear_me, group, to_arm, may_join, may_merge)
+        return stale
+
+    def _apply(
+        self,
+        now: float,
+        ack: Ack,
+        leads: bool,
+        receivers: np.ndarray,
+        hears_me: np.ndarray,
+        group: int,
+        to_arm: int,
+        may_join: int,
+        may_merge: int,
+    ) -> None:
+        """The rules an Ack fires, from :func:`ack_effects`' lists (:attr:`effects`, the
+        first ``group``, ``to_arm``, ``may_join`` and ``may_merge`` of each) over its fresh
+        ``receivers``. A leading Ack renews its members' timers (rule 3) before the joins
+        (rule 2) and merges (rule 5) it brings: the timers' events are scheduled in that
+        order, and events due at one instant run in the order they were scheduled."""
+        effects = self.effects
+        if not leads:
+            # The sender's Ack no longer leads: its members learn it resigned (rule 5) or,
+            # when it yielded to them, that both yielded.
+            for k in effects.group[:group].tolist():
+                r = int(receivers[k])
+                if ack.role == MEMBER and ack.leader == r:
+                    self._rule5_mutual_yield(r, ack.sender, now, bool(hears_me[k] | self.symmetric))
+                else:
+                    self._rule5_leader_resigned(r, now)
+            return
+        if to_arm:
+            self._rule3_renew(effects.to_arm[:to_arm], renewed_s=now + self.tau_s)
+        if not (may_join or may_merge):
+            return  # most leaders' Acks: their members' timers renewed, nothing else
+        # The lists are reused: read them now.
+        undecided = effects.may_join[:may_join].tolist()
+        leaders, slots = effects.may_merge[:may_merge].tolist(), effects.merge_slot[:may_merge].tolist()
+        for r in undecided:
+            self._rule2_join(r, now, first_heard=ack.sender)
+        for r, slot in zip(leaders, slots):
+            self._rule5_merge(r, slot, ack, now)

@@ -44,6 +44,8 @@ class NeighbourTable:
         self.data = np.broadcast_to(EMPTY_RECORD, (n, slots, len(EMPTY_RECORD))).copy()
         self._records = self.data.reshape(-1, len(EMPTY_RECORD))
         self._ids = self.id.reshape(-1)
+        # What the compiled loops take (protocols._kernels' ``table``), made again on growth.
+        self.view = (self.id, self.data, self.tau_s)
         self.kernels = load("protocols._kernels", n)
 
     # Views of single columns, for reading.
@@ -73,6 +75,7 @@ class NeighbourTable:
         self.id, self.data = ids, data
         self._records = data.reshape(-1, len(EMPTY_RECORD))
         self._ids = ids.reshape(-1)
+        self.view = (ids, data, self.tau_s)
 
     def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
         # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
@@ -124,21 +127,19 @@ class NeighbourTable:
             return fresh, hears_me, len(fresh) - int(fresh.sum())
         fresh = np.empty(len(receivers), dtype=bool)
         hears_me = np.empty(len(receivers), dtype=bool)
-        stale, _ = self.take_by(k.receive, now, sender, receivers, record, fresh, hears_me)
+        stale, _ = self.take_by(k.receive, now, sender, receivers, record, (fresh, hears_me))
         return fresh, hears_me, stale
 
-    def take_by(self, kernel, now: float, sender: int, receivers: np.ndarray, record: np.ndarray, *more) -> tuple:
+    def take_by(self, kernel, *args) -> tuple:
         """Record an Ack as :meth:`receive` does, by a compiled ``kernel`` that takes the
-        table's flat arrays as :func:`protocols._kernels.receive` does and may do more with
-        it: ``kernel(ids, records, slots, now, sender, receivers, record, tau_s, start,
-        *more)`` returns ``(k, stale, *results)``, ``k >= 0`` when ``receivers[k]``'s row
-        must grow first (then it is called again from there). Returns the receivers that did
-        not take the Ack (stale) and the last call's ``results``."""
+        table as :func:`protocols._kernels.receive` does and may do more with it:
+        ``kernel(view, *args, start)`` (:attr:`view`) returns ``(k, stale, *results)``, ``k
+        >= 0`` when the row of the ``k``-th receiver must grow first (then it is called
+        again from there). Returns the receivers that did not take the Ack (stale) and the
+        last call's ``results``."""
         start, stale = 0, 0
         while True:
-            start, more_stale, *results = kernel(
-                self._ids, self._records, self.id.shape[1], now, sender, receivers, record, self.tau_s, start, *more
-            )
+            start, more_stale, *results = kernel(self.view, *args, start)
             stale += more_stale
             if start < 0:
                 return stale, results
@@ -153,9 +154,7 @@ class NeighbourTable:
         # take_by's loop, written out: the path of most Acks, with no arguments to gather.
         start, stale = 0, 0
         while True:
-            start, more = k.take(
-                self._ids, self._records, self.id.shape[1], now, sender, receivers, record, self.tau_s, start
-            )
+            start, more = k.take(self.view, now, sender, receivers, record, start)
             stale += more
             if start < 0:
                 return stale
@@ -194,7 +193,7 @@ class NeighbourTable:
         neighbours, ascending."""
         k = self.kernels
         if k is not None:
-            return k.announce(self.id[i], self.data[i], float(now), self.tau_s, seq, role, leader, x_m, y_m, group_size)
+            return k.announce(self.view, i, float(now), (seq, role, leader, x_m, y_m, group_size))
         live = self.live_mask(now, i)
         degree = int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
         return ack_record(seq, role, leader, x_m, y_m, group_size, degree, np.sort(self.id[i][live]))

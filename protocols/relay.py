@@ -118,21 +118,15 @@ def bfs_hops(tail: np.ndarray, head: np.ndarray, n: int, source: int) -> np.ndar
 
 
 def relays(
-    ids: np.ndarray,
-    records: np.ndarray,
-    now: float,
-    tau_s: float,
-    symmetric: bool,
-    role: np.ndarray,
-    leader: np.ndarray,
-    receivers: np.ndarray,
-    distributed_gateways: bool,
+    table: tuple, now: float, symmetric: bool, roles: tuple, receivers: np.ndarray, distributed_gateways: bool
 ) -> np.ndarray:
     """The ``receivers`` of a flooded message that relay it: leaders, and gateways, the
-    members with a live two-way neighbour (in their neighbour tables: ``ids`` and
-    ``records``, as :class:`protocols.neighbours.NeighbourTable` holds them) in another
-    group: a leader other than their own or, with ``distributed_gateways``, a member of
-    another leader."""
+    members with a live two-way neighbour (in their neighbour tables: the ``table`` ``(ids,
+    records, tau_s)``, :attr:`protocols.neighbours.NeighbourTable.view`) in another group: a
+    leader other than their own or, with ``distributed_gateways``, a member of another
+    leader. ``roles``: ``(role, leader)``."""
+    ids, records, tau_s = table
+    role, leader = roles
     rows = records[receivers]
     own = leader[receivers][:, None]
     if distributed_gateways:
@@ -147,20 +141,17 @@ def relays(
 def flood_step(
     seen: np.ndarray,
     receivers: np.ndarray,
-    ids: np.ndarray,
-    records: np.ndarray,
+    table: tuple,
     now: float,
-    tau_s: float,
     symmetric: bool,
-    role: np.ndarray,
-    leader: np.ndarray,
+    roles: tuple,
     distributed_gateways: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
     """A flooded message's copy reaching ``receivers``: those that had not ``seen`` it
     (a flag per robot, set for them now), and which of them relay it (:func:`relays`)."""
     fresh = receivers[~seen[receivers]]
     seen[fresh] = True
-    return fresh, relays(ids, records, now, tau_s, symmetric, role, leader, fresh, distributed_gateways)
+    return fresh, relays(table, now, symmetric, roles, fresh, distributed_gateways)
 
 
 class Relay:
@@ -269,10 +260,9 @@ class Relay:
         had_dst = seen[msg.dst]
         cl = self.clustering
         table = cl.table
-        fresh, relaying = (flood_step if self.kernels is None else self.kernels.flood_step)(
-            seen, receivers, table.id, table.data, now, table.tau_s, cl.symmetric, self.roles.role, self.roles.leader,
-            self.distributed_gateways,
-        )  # fmt: skip
+        step = flood_step if self.kernels is None else self.kernels.flood_step
+        roles = (self.roles.role, self.roles.leader)
+        fresh, relaying = step(seen, receivers, table.view, now, cl.symmetric, roles, self.distributed_gateways)
         if not had_dst and seen[msg.dst]:
             self._delivered(msg, now)
         if msg.ttl <= 1:

@@ -168,11 +168,13 @@ def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     return both, in_sorted(both, a), in_sorted(both, b)
 
 
-def belief_rows(ids: np.ndarray, records: np.ndarray, now: float, tau_s: float, heard: np.ndarray) -> Beliefs:
+def belief_rows(table: tuple, now: float, heard: np.ndarray) -> Beliefs:
     """Who believes whom live at ``now``, beside the truth: one row per pair ``(robot,
-    neighbour)`` where ``robot`` holds a live entry of ``neighbour`` in its table (``ids``,
-    ``records``) or ``robot * n + neighbour`` is among the ascending keys ``heard``
-    (``neighbour``'s transmissions reach ``robot``), ordered by robot and neighbour."""
+    neighbour)`` where ``robot`` holds a live entry of ``neighbour`` in its table (the
+    ``table`` ``(ids, records, tau_s)``) or ``robot * n + neighbour`` is among the ascending
+    keys ``heard`` (``neighbour``'s transmissions reach ``robot``), ordered by robot and
+    neighbour."""
+    ids, records, tau_s = table
     n = len(ids)
     keys, believed, in_range = union_sorted(believed_keys(ids, records, now, tau_s), heard)
     robot = keys // n if n else keys
@@ -204,20 +206,12 @@ def belief_counts(
 
 
 def sample_rows(
-    ids: np.ndarray,
-    records: np.ndarray,
-    now: float,
-    tau_s: float,
-    symmetric: bool,
-    role: np.ndarray,
-    leader: np.ndarray,
-    heard: np.ndarray,
+    table: tuple, now: float, symmetric: bool, roles: tuple, heard: np.ndarray
 ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
     """What a sample takes from the tables: everyone's groups
     (:func:`protocols.clustering.membership`) and who believes whom (:func:`belief_rows`);
     the compiled twin reads the tables once for both."""
-    groups = membership(ids, records, now, tau_s, symmetric, role, leader)
-    return groups, belief_rows(ids, records, now, tau_s, heard)
+    return membership(table, now, symmetric, roles), belief_rows(table, now, heard)
 
 
 class Beliefs(NamedTuple):
@@ -428,7 +422,7 @@ class Stack:
         """Who believes whom live now, beside the truth (:func:`belief_rows`): every
         ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
         table = self.table
-        return Beliefs(*self._belief_rows(table.id, table.data, now, table.tau_s, self._heard_keys(now)))
+        return Beliefs(*self._belief_rows(table.view, now, self._heard_keys(now)))
 
     def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
@@ -499,7 +493,7 @@ class Stack:
         table, roles = self.table, self.roles
         heard = self._heard_keys(now)
         (robot, group, primary), rows = self._sample_rows(
-            table.id, table.data, now, table.tau_s, self.clustering.symmetric, roles.role, roles.leader, heard
+            table.view, now, self.clustering.symmetric, (roles.role, roles.leader), heard
         )
         self._groups.add(now, {"robot": robot, "group": group, "primary": primary})
         keys = Beliefs(*rows)
@@ -530,14 +524,12 @@ class Stack:
             n,
             n,
         )
-        sample = partial(
-            self._sample_into,
-            table.id, table.data, now, table.tau_s, self.clustering.symmetric, roles.role, roles.leader,
-            st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, near_ptr, near,
-        )  # fmt: skip
+        truth = (st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, near_ptr, near)
+        roles_view = (roles.role, roles.leader)
+        sample = partial(self._sample_into, table.view, now, self.clustering.symmetric, roles_view, truth)
         g, p, c = tuple(groups.values()), tuple(pairs.values()), tuple(counts.values())
         if n < SAMPLE_IN_TWO_ROBOTS or self._cores < 2:
-            m, k = sample(g, p, c, 0, n)
+            m, k = sample((g, p, c), 0, n)
         else:
             # Two halves at once, in two threads. The second writes its rows at the end of
             # each room, as far from its start as they may need, and they are moved up after
@@ -546,7 +538,7 @@ class Stack:
             g_end = len(g[0]) - (n - h) * (slots + 1)
             p_end = len(p[0]) - (n - h) * slots - int(near_ptr[n] - near_ptr[h])
             g_tail, p_tail = tuple(col[g_end:] for col in g), tuple(col[p_end:] for col in p)
-            (m, k), (m2, k2) = side_by_side(lambda: sample(g, p, c, 0, h), lambda: sample(g_tail, p_tail, c, h, n))
+            (m, k), (m2, k2) = side_by_side(lambda: sample((g, p, c), 0, h), lambda: sample((g_tail, p_tail, c), h, n))
             for room, start, end, rows in ((g, m, g_end, m2), (p, k, p_end, k2)):
                 for col in room:
                     col[start : start + rows] = col[end : end + rows]

@@ -11,8 +11,7 @@ import pandas as pd
 import pytest
 
 from protocols.clustering import (
-    ELECTION_CODES,
-    JOIN_CODES,
+    AckEffects,
     ElectionPolicy,
     JoinPolicy,
     ack_effects,
@@ -20,6 +19,7 @@ from protocols.clustering import (
     group_size,
     join_choice,
     membership,
+    rules_record,
 )
 from protocols.neighbours import EMPTY_RECORD, GROUP_SIZE, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
 from protocols.relay import flood_step, relays
@@ -66,7 +66,7 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
         receivers = np.sort(rng.choice(np.delete(np.arange(n), sender), int(rng.integers(0, 15)), replace=False))
         hears_me = rng.random(len(receivers)) < 0.6
         leads = bool(rng.random() < 0.7)
-        armed_s = rng.choice([np.inf, 1.0, 4.0, 5.0, 9.0], n)
+        armed_s = rng.choice([np.inf, 10.0, 13.0, 14.0, 18.0], n)  # renewed: now + tau = 13
         deadline_a = rng.uniform(0.0, 10.0, n)
         deadline_b = deadline_a.copy()
         ids, records = random_tables(rng, n, 6, now)
@@ -77,15 +77,20 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
             records[:, :, col] = rng.choice([-np.inf, 2.0, 6.5, 8.0, 9.0, np.inf], (n, 6))
         role_sent = rng.integers(0, 3, n)
         leader_since = rng.choice([np.inf, 0.0, 7.0, 8.5], n)
-        args = (role, leader, receivers, hears_me, symmetric, sender, leads)
-        tables = (ids, records, now, role_sent, leader_since, 1.0)
-        out_a, out_b = np.full((5, n), -7), np.full((5, n), -7)
-        a = kernels.ack_effects(*args, deadline_a, armed_s, 4.0, out_a, *tables)
-        b = ack_effects(*args, deadline_b, armed_s, 4.0, out_b, *tables)
+        told = (sender, receivers, np.zeros(12), leads)
+        rules = rules_record(TAU_S, 1.0, symmetric, "nearest", "lowest_id")
+        out_a, out_b = AckEffects.empty(n), AckEffects.empty(n)
+        for out in (out_a, out_b):
+            for row in out[:5]:
+                row[:] = -7
+        robots_a = (role, leader, role_sent, leader_since, deadline_a, armed_s)
+        robots_b = (role, leader, role_sent, leader_since, deadline_b, armed_s)
+        a = kernels.ack_effects(now, told, hears_me, robots_a, (ids, records, TAU_S), rules, tuple(out_a))
+        b = ack_effects(now, told, hears_me, robots_b, (ids, records, TAU_S), rules, tuple(out_b))
         assert a == b
         counts = [*a, a[3]]
-        assert [row[:k].tolist() for row, k in zip(out_a, counts)] == [
-            row[:k].tolist() for row, k in zip(out_b, counts)
+        assert [row[:k].tolist() for row, k in zip(out_a[:5], counts)] == [
+            row[:k].tolist() for row, k in zip(out_b[:5], counts)
         ]
         assert deadline_a.tobytes() == deadline_b.tobytes()
         found += [k > 0 for k in counts]
@@ -106,8 +111,7 @@ def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
     one, two = NeighbourTable(n, TAU_S, slots=2), NeighbourTable(n, TAU_S, slots=2)
     one.kernels = two.kernels = kernels  # 12 robots: a table of so few runs numpy otherwise
     deadline_one, deadline_two = np.full(n, np.inf), np.full(n, np.inf)
-    out_one, out_two = np.full((5, n), -7), np.full((6, n), -7)
-    flags = np.zeros((3, n), dtype=bool)
+    out_one, out_two = AckEffects.empty(n), AckEffects.empty(n)
     stale_seen = acted = 0
     for now, sender, receivers, _, record in _ack_stream(rng, n, 300):
         role = rng.integers(0, 3, n).astype(np.int8)
@@ -115,21 +119,28 @@ def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
         leads = bool(rng.random() < 0.7)
         armed_s = rng.choice([np.inf, now + 1.0, now + 5.0], n)
         role_sent, leader_since = rng.integers(0, 3, n), rng.choice([np.inf, 0.0, now - 0.5], n)
+        rules = rules_record(TAU_S, 1.0, symmetric, "nearest", "lowest_id")
         fresh, hears_me, stale = one.receive(now, sender, receivers, record)
         kept = receivers[fresh]
         counts = kernels.ack_effects(
-            role, leader, kept, hears_me[fresh], symmetric, sender, leads, deadline_one, armed_s, now + TAU_S,
-            out_one, one.id, one.data, now, role_sent, leader_since, 1.0,
-        )  # fmt: skip
+            now,
+            (sender, kept, record, leads),
+            hears_me[fresh],
+            (role, leader, role_sent, leader_since, deadline_one, armed_s),
+            one.view,
+            rules,
+            tuple(out_one),
+        )
+        told = (sender, receivers, record, leads)
+        robots = (role, leader, role_sent, leader_since, deadline_two, armed_s)
         stale_two, (kept_two, *counts_two) = two.take_by(
-            kernels.receive_effects, now, sender, receivers, record, flags, role, leader, symmetric, leads,
-            deadline_two, armed_s, now + TAU_S, out_two, role_sent, leader_since, 1.0,
-        )  # fmt: skip
+            kernels.receive_effects, now, told, robots, rules, tuple(out_two)
+        )
         assert (stale_two, kept_two, tuple(counts_two)) == (stale, len(kept), counts)
-        assert out_two[5, :kept_two].tolist() == kept.tolist()
-        assert flags[2, :kept_two].tolist() == hears_me[fresh].tolist()
+        assert out_two.takers[:kept_two].tolist() == kept.tolist()
+        assert out_two.takers_hear_me[:kept_two].tolist() == hears_me[fresh].tolist()
         for row, k in zip(range(5), [*counts, counts[3]]):
-            assert out_two[row, :k].tolist() == out_one[row, :k].tolist()
+            assert out_two[row][:k].tolist() == out_one[row][:k].tolist()
         assert deadline_two.tobytes() == deadline_one.tobytes()
         assert two.id.tobytes() == one.id.tobytes() and two.data.tobytes() == one.data.tobytes()
         stale_seen += stale
@@ -196,10 +207,10 @@ def test_compiled_sized_ack_announces_the_numpy_group_size(symmetric):
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = rng.integers(-1, n, n).astype(np.int64)
         for i in range(n):
+            motion, beacon = (origin, velocity, t0, False, 0.0), (sent, resign, sizes)
             ack = kernels.make_sized_ack(
-                i, now, origin, velocity, t0, False, 0.0, sent, resign, role, leader, sizes, ids, records, TAU_S,
-                sized, symmetric,
-            )  # fmt: skip
+                i, now, motion, beacon, (role, leader), (ids, records, TAU_S), sized, symmetric
+            )
             want = group_size(records[i], now, TAU_S, symmetric, i) if role[i] == ALPHA else 1
             assert ack[6] == ack[8][GROUP_SIZE] == sizes[i] == want and sized[i] == (role[i] == ALPHA)
             announced.append((int(role[i]), want))
@@ -219,7 +230,7 @@ def test_compiled_relays_equals_numpy(symmetric, distributed_gateways):
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = rng.integers(-1, 6, n).astype(np.int64)
         receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
-        args = (ids, records, now, TAU_S, symmetric, role, leader, receivers, distributed_gateways)
+        args = ((ids, records, TAU_S), now, symmetric, (role, leader), receivers, distributed_gateways)
         a, b = kernels.relays(*args), relays(*args)
         assert a.tolist() == b.tolist()
         relayed += len(a)
@@ -239,7 +250,7 @@ def test_compiled_flood_step_equals_numpy():
         seen = rng.random(n) < 0.4
         receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
         seen_a, seen_b = seen.copy(), seen.copy()
-        rest = (ids, records, now, TAU_S, bool(rng.random() < 0.5), role, leader, bool(rng.random() < 0.5))
+        rest = ((ids, records, TAU_S), now, bool(rng.random() < 0.5), (role, leader), bool(rng.random() < 0.5))
         fresh_a, relay_a = kernels.flood_step(seen_a, receivers, *rest)
         fresh_b, relay_b = flood_step(seen_b, receivers, *rest)
         assert fresh_a.tolist() == fresh_b.tolist() == [r for r in receivers.tolist() if not seen[r]]
@@ -273,10 +284,11 @@ def test_relays_are_leaders_and_members_next_to_another_group():
     entry(4, 0, 7, 1.0, 1)
     entry(4, 1, 6, TAU_S, 1)
     everyone = np.arange(8)
+    table, roles = (ids, records, TAU_S), (role, leader)
     for fn in (relays, kernels.relays):
-        assert fn(ids, records, now, TAU_S, False, role, leader, everyone, True).tolist() == [0, 1, 3, 5]
-        assert fn(ids, records, now, TAU_S, True, role, leader, everyone, True).tolist() == [0, 1, 2, 3, 5]
-        assert fn(ids, records, now, TAU_S, False, role, leader, everyone, False).tolist() == [0, 3, 5]
+        assert fn(table, now, False, roles, everyone, True).tolist() == [0, 1, 3, 5]
+        assert fn(table, now, True, roles, everyone, True).tolist() == [0, 1, 2, 3, 5]
+        assert fn(table, now, False, roles, everyone, False).tolist() == [0, 3, 5]
 
 
 def test_members_counted_as_roles_change():
@@ -308,7 +320,7 @@ def test_compiled_membership_equals_numpy(symmetric):
         ids, records = random_tables(rng, n, 6, now)
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = np.where(role == MEMBER, rng.integers(0, 6, n), np.where(role == ALPHA, np.arange(n), -1))
-        args = (ids, records, now, TAU_S, symmetric, role, leader)
+        args = ((ids, records, TAU_S), now, symmetric, (role, leader))
         a, b = kernels.membership(*args), membership(*args)
         assert [x.tolist() for x in a] == [x.tolist() for x in b]
         assert [x.dtype for x in a] == [x.dtype for x in b]
@@ -345,7 +357,8 @@ def test_compiled_belief_rows_equal_numpy():
         if rng.random() < 0.1:
             ids[:] = -1
             records[:, :, LAST_HEARD] = -np.inf
-        a, b = kernels.belief_rows(ids, records, now, TAU_S, heard), belief_rows(ids, records, now, TAU_S, heard)
+        table = (ids, records, TAU_S)
+        a, b = kernels.belief_rows(table, now, heard), belief_rows(table, now, heard)
         assert [x.tolist() for x in a] == [x.tolist() for x in b]
         assert [x.dtype for x in a] == [x.dtype for x in b]
         both += int((a[2] & a[3]).sum())
@@ -365,7 +378,7 @@ def test_compiled_sample_rows_equal_numpy(symmetric):
         ids, records, heard = belief_inputs(rng, n, slots, now)
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = np.where(role == MEMBER, rng.integers(0, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
-        args = (ids, records, now, TAU_S, symmetric, role, leader, heard)
+        args = ((ids, records, TAU_S), now, symmetric, (role, leader), heard)
         (ga, ra), (gb, rb) = kernels.sample_rows(*args), sample_rows(*args)
         assert [x.tolist() for x in ga] == [x.tolist() for x in gb]
         assert [x.tolist() for x in ra] == [x.tolist() for x in rb]
@@ -383,7 +396,7 @@ def test_compiled_belief_counts_equal_numpy():
     for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (30, 8)] * 10:
         now = 10.0
         ids, records, heard = belief_inputs(rng, n, slots, now)
-        rows = belief_rows(ids, records, now, TAU_S, heard)
+        rows = belief_rows((ids, records, TAU_S), now, heard)
         role = rng.integers(0, 3, n).astype(np.int8)
         leader = np.where(role == MEMBER, rng.integers(-1, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
         args = (rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
@@ -441,9 +454,9 @@ def test_compiled_sample_into_equals_numpy(torus, symmetric):
         )
         counts = tuple(np.full(n, -7, dtype) for dtype in [np.int64, np.int8, np.int64, bool, *[np.int64] * 4])
         box = side if torus else 0.0
-        args = (ids, records, now, TAU_S, symmetric, role, leader, at, st.range_m, box, near_ptr, near)
-        m, k = kernels.sample_into(*args, groups, pairs, counts, 0, n)
-        (g_robot, g_group, g_primary), rows = sample_rows(ids, records, now, TAU_S, symmetric, role, leader, heard)
+        table, roles, truth = (ids, records, TAU_S), (role, leader), (at, st.range_m, box, near_ptr, near)
+        m, k = kernels.sample_into(table, now, symmetric, roles, truth, (groups, pairs, counts), 0, n)
+        (g_robot, g_group, g_primary), rows = sample_rows(table, now, symmetric, roles, heard)
         want = belief_counts(rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
         assert [x[:m].tolist() for x in groups] == [g_robot.tolist(), g_group.tolist(), g_primary.tolist()]
         assert [x[:k].tolist() for x in pairs] == [x.tolist() for x in rows[:4]]
@@ -561,21 +574,11 @@ def test_compiled_join_choice_equals_numpy(policy, symmetric):
         for i in range(6):
             x, y = float(rng.integers(0, 4)), float(rng.integers(0, 4))
             exclude = int(rng.choice([-1, *ids[i][:3].tolist()]))
-            first = rng.choice([None, *ids[i][:4].tolist()])
-            first = None if first is None else int(first)
-            a = kernels.join_choice(
-                ids[i],
-                records[i],
-                now,
-                TAU_S,
-                symmetric,
-                exclude,
-                x,
-                y,
-                JOIN_CODES[policy],
-                -2 if first is None else first,
-            )
-            b = join_choice(ids[i], records[i], now, TAU_S, symmetric, exclude, x, y, policy, first)
+            first = int(rng.choice([-1, *ids[i][:4].tolist()]))  # -1: no Ack triggered it
+            rules = rules_record(TAU_S, 1.0, symmetric, policy, "lowest_id")
+            table = (ids, records, TAU_S)
+            a = kernels.join_choice(table, i, now, rules, exclude, x, y, first)
+            b = join_choice(table, i, now, rules, exclude, x, y, first)
             assert a == b
             joined += a[0] >= 0
     assert joined > 50
@@ -597,10 +600,10 @@ def test_compiled_elected_in_row_equals_numpy(policy, symmetric):
         records[:, :, LEADER] = rng.integers(0, 3, (8, 6))  # mates of a few leaders
         for i in range(8):
             old, degree = int(rng.integers(0, 3)), int(rng.integers(0, 4))
-            a = kernels.elected_in_row(
-                ids[i], records[i], now, TAU_S, symmetric, old, i, degree, ELECTION_CODES[policy]
-            )
-            b = elected_in_row(ids[i], records[i], now, TAU_S, symmetric, old, i, degree, policy)
+            rules = rules_record(TAU_S, 1.0, symmetric, "nearest", policy)
+            table = (ids, records, TAU_S)
+            a = kernels.elected_in_row(table, i, now, rules, old, degree)
+            b = elected_in_row(table, i, now, rules, old, degree)
             assert a == b
             verdicts.append(a)
     assert policy == ElectionPolicy.NONE or 50 < sum(verdicts) < len(verdicts) - 50

@@ -58,11 +58,11 @@ from protocols import _kernels as k
 
 assert k.__file__.startswith(%r), k.__file__
 n, slots = 1, 4
-ack = k.make_ack(
-    0, 10.0, np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]), np.array([0.0]), False, 1000.0,
-    np.zeros((n, 3), np.int64), np.zeros(n, bool), np.zeros(n, np.int64), np.full(n, -1, np.int64),
-    np.ones(n, np.int64), np.full((n, slots), -1, np.int64), np.tile(k.EMPTY_RECORD, (n, slots, 1)), 3.0,
-)
+motion = (np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]), np.array([0.0]), False, 1000.0)
+beacon = (np.zeros((n, 3), np.int64), np.zeros(n, bool), np.ones(n, np.int64))
+roles = (np.zeros(n, np.int64), np.full(n, -1, np.int64))
+table = (np.full((n, slots), -1, np.int64), np.tile(k.EMPTY_RECORD, (n, slots, 1)), 3.0)
+ack = k.make_ack(0, 10.0, motion, beacon, roles, table)
 print(ack[4])
 """
 
