@@ -98,3 +98,30 @@ def test_the_command_freezes_what_it_loaded_and_ends_at_once():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=_env())
     assert out.stdout.strip().splitlines()[-1] == "True 2"
+
+
+def test_importing_the_package_loads_no_library_and_the_console_script_pauses_the_collector():
+    """``import netsim`` (and the console script's module, netsim.tools.command) load none
+    of numpy, pandas or pyarrow, so that the ``netsim`` command can pause the garbage
+    collector while they load; its names still come on demand. The console script loads
+    the command with the collector off and leaves it as it found it."""
+    code = (
+        "import gc, os, sys\n"
+        "import netsim, netsim.tools.command\n"
+        "print(sorted(m for m in ('numpy', 'pandas', 'pyarrow', 'netsim.config') if m in sys.modules))\n"
+        "seen = []\n"
+        "class Watch:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'pandas':\n"
+        "            seen.append(gc.isenabled())\n"
+        "sys.meta_path.insert(0, Watch())\n"
+        "def ended(code):\n"
+        "    print(seen, gc.isenabled(), code)\n"
+        "    print(netsim.load.__module__, netsim.Simulation.__name__, flush=True)\n"
+        "    sys.exit(0)\n"
+        "os._exit = ended\n"
+        "sys.argv = ['netsim', 'run', '--set', 'world.n_robots=-3']\n"
+        "netsim.tools.command.command()\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=_env())
+    assert out.stdout.strip().splitlines() == ["[]", "[False] True 2", "netsim.config Simulation"]
