@@ -43,8 +43,10 @@ from netsim.topology import geometric_pairs
 # Rounds of cyclic projection onto a robot's disks; the exact cut after them makes any
 # number safe, more only bring the end point nearer the best one.
 PROJECTION_ROUNDS = 8
-# How many links a pull travels along taut links in one step.
-TENSION_HOPS = 3
+# How many links a pull travels along taut links in one step: a branch of the spanning
+# tree is seldom longer, and a pull stopped short of the branch's root leaves the branch
+# folded.
+TENSION_HOPS = 30
 
 
 def spanning_forest(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

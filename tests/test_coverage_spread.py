@@ -129,6 +129,19 @@ def test_pulls_travel_along_taut_links():
     assert held[:, 0] == pytest.approx([0.0, 0.0, 0.0, 1.0])
 
 
+def test_a_pull_travels_a_long_taut_chain_in_one_step():
+    """The outer robot of a chain of twenty taut links pulls every robot of it in the same
+    step: the tension of a taut chain is not stopped after a few links, so a long branch
+    follows its tip instead of blocking it."""
+    n = 21
+    pos = np.column_stack([99.0 * np.arange(n), np.zeros(n)])
+    link = (np.arange(n - 1), np.arange(1, n), np.full(n - 1, 99.0))
+    wish = np.zeros((n, 2))
+    wish[-1, 0] = 1.0
+    out = pass_on_pulls(pos, wish, np.ones(n, bool), link, np.full(n - 1, 99.0), 1.0)
+    assert out[:, 0] == pytest.approx(np.ones(n))
+
+
 def test_leaders_know_their_two_hop_neighbourhood_from_acks(build_sim):
     """On a static loss-free network, after a few Ack periods, what every robot knows is
     exactly who it hears and who they hear (a symmetric relation), at their positions."""
