@@ -1,8 +1,9 @@
-"""Compiled (numba) loop of the local plan's rule 1 (:func:`mobility.local.let_go`): per
-robot, the bottleneck of its certified detours, by a widest-path search over the robots
-within two links. It computes exactly what the numpy code computes (the tests compare
-them); for a few dozen robots, numpy's and scipy's cost per call, not the arithmetic, is
-what the numpy code costs.
+"""Compiled (numba) loops of the local plan: rule 1 (:func:`mobility.local.let_go`), per
+robot the bottleneck of its certified detours, by a widest-path search over the robots
+within two links; and the walls' test (:func:`mobility.local.clear_of_walls`). They
+compute exactly what the numpy code computes (the tests compare them); for a few dozen
+robots, numpy's and scipy's cost per call, not the arithmetic, is what the numpy code
+costs.
 """
 
 from __future__ import annotations
@@ -16,7 +17,37 @@ from netsim import kernel_cache
 
 
 @numba.njit(cache=True, nogil=True)
-def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, out):
+def clear(walls, ax, ay, bx, by, e):
+    """The segment from ``(ax, ay)`` to ``(bx, by)``, widened by ``e``, meets no wall
+    (:func:`mobility.local.clear_of_walls`, one segment)."""
+    field = walls.field
+    h, w = field.shape
+    res = walls.resolution_m
+    length = math.hypot(bx - ax, by - ay)
+    t = 0.0
+    while True:
+        f = t / length if length > 0 else 0.0
+        u = (ax + f * (bx - ax) - walls.origin_x_m) / res
+        v = (ay + f * (by - ay) - walls.origin_y_m) / res
+        ci = min(max(math.floor(u), 0), w - 1)
+        cj = min(max(math.floor(v), 0), h - 1)
+        gap = field[cj, ci] - math.hypot(u - ci - 0.5, v - cj - 0.5) * res - e
+        if gap <= walls.step_m:
+            return False
+        if t >= length:
+            return True
+        t = min(t + gap, length)
+
+
+@numba.njit(cache=True, nogil=True)
+def clear_many(walls, a, b, e, out):
+    """:func:`clear` for every row."""
+    for k in range(a.shape[0]):
+        out[k] = clear(walls, a[k, 0], a[k, 1], b[k, 0], b[k, 1], e[k])
+
+
+@numba.njit(cache=True, nogil=True)
+def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, walls, out):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``."""
     n = pos.shape[0]
     nn = float(n * n)
@@ -76,6 +107,8 @@ def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, out):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 if longest > range_m:
+                    continue
+                if walls.on and not clear(walls, qx[u], qy[u], qx[v], qy[v], max(e[u], e[v])):
                     continue
                 rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)
