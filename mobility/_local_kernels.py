@@ -108,7 +108,9 @@ def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, walls, out)
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 if longest > range_m:
                     continue
-                if walls.on and not clear(walls, qx[u], qy[u], qx[v], qy[v], max(e[u], e[v])):
+                # From the node met first in the list, as the numpy code walks it.
+                a, b = min(u, v), max(u, v)
+                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], max(e[u], e[v])):
                     continue
                 rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)

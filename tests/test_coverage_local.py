@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from mobility.local import Memory, let_go, plan_local, pulls
+from mobility.local import NO_WALLS, Memory, clear_of_walls, cut_for_walls, let_go, plan_local, pulls, walls_of
 from mobility.steps import StepLimits
 from netsim import config
 from netsim.errors import ConfigError
@@ -220,6 +220,135 @@ def test_pull_a_robot_follows_a_kept_robot_that_announced_it_moves_away():
     assert (pulls(pos, m, kept, announced, T0 - 0.1, T0, LIMITS) == 0).all()
 
 
+# -- rule 5: walls -------------------------------------------------------------------------
+
+RES = 0.5
+ORIGIN = (-10.0, -10.0)
+
+
+def blocks_map(blocks, width_m=320.0, height_m=320.0):
+    """An occupancy grid (0.5 m cells from ``ORIGIN``) with the rectangles ``blocks``
+    (``x0, y0, x1, y1``, metres) occupied."""
+    occ = np.zeros((int(height_m / RES), int(width_m / RES)), dtype=bool)
+    for x0, y0, x1, y1 in blocks:
+        c0, c1 = int((x0 - ORIGIN[0]) / RES), int(np.ceil((x1 - ORIGIN[0]) / RES))
+        r0, r1 = int((y0 - ORIGIN[1]) / RES), int(np.ceil((y1 - ORIGIN[1]) / RES))
+        occ[r0:r1, c0:c1] = True
+    return occ
+
+
+def wall_shapes(occ):
+    """The occupied cells as one shapely geometry (closed squares)."""
+    from shapely import box, unary_union
+
+    rows, cols = np.nonzero(occ)
+    x0, y0 = ORIGIN[0] + cols * RES, ORIGIN[1] + rows * RES
+    return unary_union([box(a, b, a + RES, b + RES) for a, b in zip(x0, y0)])
+
+
+def test_walls_a_segment_said_clear_is_clear_of_every_wall_by_its_width():
+    """The walls' test is never wrong when it says clear: every point within ``e`` of the
+    segment lies outside every occupied cell (closed squares), by shapely's exact distance;
+    and it says clear for most segments well away from walls."""
+    from shapely import LineString
+
+    rng = np.random.default_rng(5)
+    occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (200, 200, 201, 201), (60, 150, 150, 151)], 250.0, 250.0)
+    walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
+    a = rng.uniform(0, 220, (400, 2))
+    b = a + rng.normal(0, 30, (400, 2))
+    e = rng.uniform(0, 5, 400)
+    said = clear_of_walls(walls, a, b, e)
+    exact = np.array([LineString([p, q]).distance(shapes) for p, q in zip(a, b)])
+    assert (exact[said] > e[said]).all()
+    assert said[exact > e + 2 * RES].mean() > 0.95
+    assert said.sum() > 100 and (~said).sum() > 20
+
+
+def test_walls_compiled_and_numpy_agree(monkeypatch):
+    """The compiled walls' test says exactly what the numpy code says."""
+    rng = np.random.default_rng(6)
+    occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (60, 150, 150, 151)], 250.0, 250.0)
+    walls = walls_of(occ, ORIGIN, RES)
+    a = rng.uniform(0, 220, (300, 2))
+    b = a + rng.normal(0, 30, (300, 2))
+    e = rng.uniform(0, 5, 300)
+    monkeypatch.setenv("NETSIM_COMPILED", "0")
+    slow = clear_of_walls(walls, a, b, e)
+    monkeypatch.setenv("NETSIM_COMPILED", "1")
+    assert (slow == clear_of_walls(walls, a, b, e)).all()
+
+
+def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
+    """Rule 1 on a map: robot 0 lets go of robot 1 through robot 2 (as in open space) only
+    when the detour's links are surely clear of walls: a pillar on the link from robot 2 to
+    robot 1 (and none on the link from 0 to 1) keeps the link (0, 1); the compiled twin
+    agrees."""
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 20.0]])
+    m = all_heard(pos, T0 - 0.5)
+    known = m.known(T0, 20.0)
+    pillar = walls_of(blocks_map([(59.5, 9.5, 60.5, 10.5)], 120.0, 60.0), ORIGIN, RES)
+    far = walls_of(blocks_map([(59.5, 29.5, 60.5, 30.5)], 120.0, 60.0), ORIGIN, RES)
+    assert let_go(pos, m, known, T0, V, 10.0, RC, far)[0, 1]
+    assert not let_go(pos, m, known, T0, V, 10.0, RC, pillar)[0, 1]
+    for seed in range(5):
+        pos, m = random_scene(seed, n=40)
+        walls = walls_of(blocks_map([(100, 50, 102, 250), (150, 100, 300, 101)]), ORIGIN, RES)
+        known = m.known(T0, 20.0)
+        out = []
+        for flag in ("0", "1"):
+            monkeypatch.setenv("NETSIM_COMPILED", flag)
+            out.append(let_go(pos, m, known, T0, V, 10.0, RC, walls))
+        assert (out[0] == out[1]).all()
+
+
+def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():
+    """Rule 5: robot 0 keeps robot 1, 20 m east (heard 0.1 s ago: within 2.2 m of where it
+    was heard until the step's end). With no wall near, it makes its whole 2 m step; with a
+    pillar 3.5 m off the link, a part of it; with a pillar 2 m off the link, it holds."""
+    pos = np.array([[0.0, 0.0], [20.0, 0.0]])
+    m = all_heard(pos, T0 - 0.1)
+    kept = m.known(T0, 20.0)
+    move = np.array([[0.0, -2.0], [0.0, 0.0]])
+    t1 = T0 + LIMITS.period_s
+
+    def scale(y):
+        walls = walls_of(blocks_map([(10.0, y, 10.5, y + 0.5)], 60.0, 40.0), ORIGIN, RES)
+        return cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[0]
+
+    assert scale(15.0) == 1.0
+    assert 0.0 < scale(3.5) < 1.0
+    assert scale(2.0) == 0.0
+    assert cut_for_walls(pos, move, m, kept, t1, LIMITS, NO_WALLS)[0] == 1.0
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_whatever_the_other_does(seed):
+    """Rule 5, the argument: for every link a moving robot keeps, the convex hull of its
+    step and of the disk where the other end can be at the step's end (every segment
+    between them at every instant) meets no wall (shapely, exact), and the leash of rule 2
+    still holds at the step's end."""
+    from shapely import GeometryCollection, LineString, Point
+
+    pos, m = random_scene(seed, n=30)
+    occ = blocks_map([(100, 50, 102, 250), (150, 100, 300, 101), (40, 200, 80, 204)])
+    walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
+    known = m.known(T0, 20.0)
+    kept = known & ~let_go(pos, m, known, T0, V, 10.0, RC, walls)
+    wish = np.random.default_rng(seed).normal(0, 3.0, pos.shape)
+    move = plan_local(pos, wish, m, kept, T0, LIMITS).velocity_mps * LIMITS.period_s
+    t1 = T0 + LIMITS.period_s
+    move = move * cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[:, None]
+    i, j = np.nonzero(kept & (np.hypot(*move.T) > 0)[:, None])
+    assert len(i) > 10
+    for a, b in zip(i.tolist(), j.tolist()):
+        e = V * (t1 - m.sent_s[a, b])
+        step = LineString([pos[a], pos[a] + move[a]]) if (move[a] != 0).any() else Point(pos[a])
+        hull = GeometryCollection([step, Point(m.xy[a, b]).buffer(e * 1.001, 64)]).convex_hull
+        assert not hull.intersects(shapes)
+        assert np.hypot(*(pos[a] + move[a] - m.xy[a, b])) + e <= RC - LIMITS.margin_m + 1e-6
+
+
 # -- whole runs --------------------------------------------------------------------------
 
 
@@ -276,6 +405,24 @@ def test_local_plan_keeps_a_log_distance_network_without_shadowing():
     assert counts.max() == 1 and (times > 10.0).sum() > 10
     assert r.summary["covered_fraction_all_final"] > 1.5 * r.summary["covered_fraction_all_start"]
     assert components(r.sim.state.positions_at(r.sim.now), rc).max() == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "radio, n", [("shadowing 4 dB", 60), ("office, line of sight", 40), ("office, 5 dB a wall", 40)]
+)
+def test_local_plan_never_splits_the_real_network_on_every_radio(radio, n):
+    """Under shadowing (links kept within the sure distance, up even at ``+4 sigma``) and on
+    the office map (links kept clear of walls over each step; line of sight, and 5 dB a
+    wall), from a dense start (the scenario of ``netsim validate`` item 30): the real
+    network (links.parquet) never has more components after control starts than at its
+    start, and the coverage table reports it truly."""
+    from netsim.tools.validate import coverage_run
+
+    o = coverage_run(radio, "local", n, 0.0, 1, 600.0)
+    assert o["components_max"] == o["components_at_start"]
+    assert o["table_true"]
+    assert o["of_bound"] > 0.1
 
 
 @pytest.mark.slow
