@@ -258,6 +258,12 @@ def test_walls_a_segment_said_clear_is_clear_of_every_wall_by_its_width():
     a = rng.uniform(0, 220, (400, 2))
     b = a + rng.normal(0, 30, (400, 2))
     e = rng.uniform(0, 5, 400)
+    # And segments grazing a wall's side and corner, within a cell of the distance e.
+    graze_e = rng.uniform(0, 5, 200)
+    x = 42.0 + graze_e + rng.uniform(-0.5, 0.5, 200)
+    a = np.r_[a, np.c_[x, rng.uniform(20, 60, 200)]]
+    b = np.r_[b, np.c_[x, rng.uniform(80, 140, 200)]]
+    e = np.r_[e, graze_e]
     said = clear_of_walls(walls, a, b, e)
     exact = np.array([LineString([p, q]).distance(shapes) for p, q in zip(a, b)])
     assert (exact[said] > e[said]).all()
