@@ -25,14 +25,27 @@ period``), its own position ``p`` at ``t0`` exact:
    ``j`` does.
 3. **Hold.** If ``i`` is farther than that radius from some kept ``q_j`` already (its
    knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
+4. **Pull** (:func:`pulls`).
+5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` moves only if, for every kept ``j``,
+   no wall lies within ``e_j(t1) + |step|`` of the segment from ``p`` to ``q_j``: that
+   region holds the convex hull of the step and of the disk where ``j`` can be, so every
+   segment between the two robots during the step is clear of walls; else a shorter step,
+   or it holds. A detour's link must be surely clear of walls too (:func:`clear_of_walls`).
 
-Why the network never splits: let ``K`` be the links in range at ``t0`` whose ends
-remember each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
+``r`` is the plan's range: the range on a disk (the implied range under log-distance;
+on a map, for a link clear of walls), and under shadowing the *sure* distance, where even
+the clipped worst shadowing (``+4 sigma``) leaves a link up. A link longer than that, or
+through a wall, is never certified: a robot that keeps it holds, and a link whose two
+robots hold does not change (the shadowing runs in the pair's travel).
+
+Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
+each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
-that moves keeps it in range (rule 2) and an end that holds does not change it (rule 3),
-so it is in range at every instant of the step, and at the next ``t0`` it is in ``K``
+that moves keeps it up whatever the other does (rules 2 and 5), an end that cannot holds
+(rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
+of the step, and at the next ``t0`` it is in ``K``
 again while both ends still remember each other. So the components of ``K`` never grow,
 and the network (which contains ``K``) never has more components than ``K`` had when
 control started: on a loss-free channel, always; under loss, unless a robot misses every
