@@ -81,7 +81,7 @@ import pandas as pd
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
 from mobility.keep import LinkRules
-from mobility.local import Memory, cut_for_walls, let_go, plan_local, pulls, sources_heard, walls_of
+from mobility.local import Memory, cut_for_walls, latest_pulls, let_go, plan_local, sources_heard, walls_of
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
@@ -155,7 +155,7 @@ class CoverageParams(Params):
         20.0, positive, "plan = 'local': a robot forgets a robot whose latest Ack it heard was sent this long ago, s"
     )
     band_m: float = param(
-        10.0,
+        7.5,
         positive,
         "plan = 'local': links are ordered by bands of length this wide, then by their robots' ids, m",
     )
@@ -370,6 +370,8 @@ class CoverageController:
         self.jitter_s = float(parts.channel.latency_jitter_s)
         self.announced_mps = np.zeros((st.n, 2))
         self.announced_s = math.inf
+        self.earlier_mps = np.zeros((st.n, 2))
+        self.earlier_s = math.inf
 
     def _sure_range_m(self) -> float:
         """The local plan's range: a link clear of walls is up at every transmission while
@@ -469,10 +471,10 @@ class CoverageController:
         known = memory.known(self.env.now, c.release_s)
         limits, walls, pos = self.local_limits, self.local_walls, step.positions_m
         kept = known & ~let_go(pos, knows, known, step.t_s, c.speed_max_mps, c.band_m, limits.range_m, walls)
-        wish = step.velocity_mps + pulls(
-            pos, knows, kept, self.announced_mps, self.announced_s, step.t_s, limits, memory.sent_s
-        )
+        announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
+        wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (mobility.local, rule 4).
+        self.earlier_mps, self.earlier_s = self.announced_mps, self.announced_s
         self.announced_mps, self.announced_s = wish, self.env.now
         plan = plan_local(pos, wish, knows, kept, step.t_s, limits)
         if not walls.on:

@@ -433,6 +433,26 @@ def pulls(
     return out
 
 
+def latest_pulls(
+    pos: np.ndarray,
+    memory: Memory,
+    kept: np.ndarray,
+    announced: tuple[np.ndarray, float],
+    earlier: tuple[np.ndarray, float],
+    t0_s: float,
+    limits: StepLimits,
+    sent_s: np.ndarray,
+) -> np.ndarray:
+    """Rule 4 from the latest wish each robot heard: the wishes ``announced`` at the last
+    step (and when), carried by the Acks sent since; for a kept robot whose latest Ack heard
+    was sent before that, the wishes announced a step ``earlier``, which that Ack carried.
+    ``sent_s``: when the Acks were sent."""
+    older = kept & (sent_s < announced[1])
+    return pulls(pos, memory, kept, *announced, t0_s, limits, sent_s) + pulls(
+        pos, memory, older, *earlier, t0_s, limits, sent_s
+    )
+
+
 def sources_heard(memory: Memory, known: np.ndarray, reach_m: float, pos: np.ndarray):
     """Pairs ``(robot, position it knows of another robot within reach_m)``: the forces'
     sources in the local plan. A robot knows the robots it remembers, at the position it

@@ -10,7 +10,17 @@ import math
 import numpy as np
 import pytest
 
-from mobility.local import NO_WALLS, Memory, clear_of_walls, cut_for_walls, let_go, plan_local, pulls, walls_of
+from mobility.local import (
+    NO_WALLS,
+    Memory,
+    clear_of_walls,
+    cut_for_walls,
+    latest_pulls,
+    let_go,
+    plan_local,
+    pulls,
+    walls_of,
+)
 from mobility.steps import StepLimits
 from netsim import config
 from netsim.errors import ConfigError
@@ -218,6 +228,25 @@ def test_pull_a_robot_follows_a_kept_robot_that_announced_it_moves_away():
     assert out[0].tolist() == pytest.approx([1.0, 0.0])
     assert out[1].tolist() == [0.0, 0.0]
     assert (pulls(pos, m, kept, announced, T0 - 0.1, T0, LIMITS) == 0).all()
+
+
+def test_pull_a_robot_that_missed_the_latest_ack_uses_the_wish_of_the_one_before():
+    """Rule 4 under loss: robot 0's latest Ack of robot 1 was sent after the step before
+    last and before the last step, so it carried the wish announced at the step before
+    last: robot 0 is pulled by that wish. An Ack sent before both announcements pulls
+    nobody; one sent after the last uses the last wish."""
+    pos = np.array([[0.0, 0.0], [92.0, 0.0]])
+    m = all_heard(pos, T0 - 0.5)
+    kept = m.known(T0, 20.0)
+    last = (np.array([[0.0, 0.0], [0.0, 0.0]]), T0 - 1.0)
+    before = (np.array([[0.0, 0.0], [3.0, 0.0]]), T0 - 2.0)
+    m.sent_s[0, 1] = T0 - 1.5  # leash: 99 - 2 x 2.5 = 94 m, 2 m/s of slack
+    out = latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s)
+    assert out[0].tolist() == pytest.approx([1.0, 0.0])
+    m.sent_s[0, 1] = T0 - 2.5
+    assert (latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s) == 0).all()
+    m.sent_s[0, 1] = T0 - 0.5
+    assert (latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s) == 0).all()
 
 
 # -- rule 5: walls -------------------------------------------------------------------------
