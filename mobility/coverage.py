@@ -361,8 +361,9 @@ class CoverageController:
         # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
         self.local_limits = replace(self.limits, range_m=self._sure_range_m())
+        on_map = self.memory is not None and self.rules.walls is not None and parts.occupancy is not None
         self.local_walls = walls_of(
-            None if self.rules.walls is None or parts.occupancy is None else parts.occupancy.occupied,
+            parts.occupancy.occupied if on_map else None,
             *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
         )
         self.knows: Memory | None = None  # the memory as of the step being planned
