@@ -63,8 +63,9 @@ in one pass for the whole team (the spanning forest over the whole network; a ro
 limits then use only the current positions of its kept neighbours, and under shadowing the
 shadowing measured on those links). With ``plan = "local"`` (:mod:`mobility.local`) every
 robot decides its own step from the Acks it heard, keeps the links it cannot certify a
-detour for, and answers for each against the other end's largest motion since its Ack; no
-command is sent.
+detour for, and answers for each against the other end's largest motion since its Ack
+(under shadowing within the sure distance, on a map clear of walls), or holds; no command
+is sent.
 """
 
 from __future__ import annotations

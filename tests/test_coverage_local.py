@@ -460,6 +460,21 @@ def test_local_plan_never_splits_the_real_network_on_every_radio(radio, n):
     assert o["of_bound"] > 0.1
 
 
+def test_shadowing_the_local_plans_range_is_the_sure_distance():
+    """Under shadowing the local plan's range (rules 1 to 3) is the sure distance: where a
+    link with the worst shadowing the channel uses (clipped at +4 sigma) has a margin of
+    exactly 0, well inside the implied range; without shadowing it is the implied range."""
+    from netsim.radio.propagation import path_loss_db
+
+    log = {"channel.propagation": "log_distance", "channel.tx_power_dbm": 23.0}
+    plain = local_run(6, 1, duration=1, **log).sim.models["coverage"]
+    shadowed = local_run(6, 1, duration=1, **log, **{"channel.shadowing_sigma_db": 4.0}).sim.models["coverage"]
+    r = shadowed.local_limits.range_m
+    p = shadowed.rules.log
+    assert p.budget_db + p.reference_loss_db - path_loss_db(np.array([r]), p)[0] - 16.0 == pytest.approx(0.0, abs=1e-9)
+    assert plain.local_limits.range_m == pytest.approx(plain.range_m) and r < 0.5 * plain.range_m
+
+
 @pytest.mark.slow
 def test_local_plan_every_robot_decides_its_own_step_no_command_is_sent():
     """With the local plan no leader sends commands: every robot moves by its own decision
