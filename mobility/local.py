@@ -106,12 +106,17 @@ def walls_of(
     )
 
 
-def clear_of_walls(walls: Walls, a: np.ndarray, b: np.ndarray, e_m: np.ndarray) -> np.ndarray:
-    """Whether every point within ``e_m`` of the segment from ``a`` to ``b`` (row-wise) is
-    outside every wall cell: then every segment between a point within ``e_m`` of ``a`` and
-    one within ``e_m`` of ``b`` is clear of walls (it lies in their convex hull, which lies
-    within ``e_m`` of the segment). Conservative: the test walks the segment in steps of its
-    clearance (:attr:`Walls.field`, less the distance to the cell's centre) and gives up
+def clear_of_walls(
+    walls: Walls, a: np.ndarray, b: np.ndarray, e_a_m: np.ndarray, e_b_m: np.ndarray | None = None
+) -> np.ndarray:
+    """Whether the convex hull of the disk of radius ``e_a_m`` around ``a`` and the disk of
+    radius ``e_b_m`` (default ``e_a_m``) around ``b`` (row-wise) is clear of every wall
+    cell: then every segment between a point of the one and a point of the other is clear
+    of walls. The hull lies in the disks of radius ``(1 - f) e_a + f e_b`` around the
+    points ``a + f (b - a)``, ``f`` in [0, 1] (a convex combination of two points of the
+    disks is within that of the combination of the centres). Conservative: the test walks
+    the segment, each step the clearance there (:attr:`Walls.field`, less the distance to
+    the cell's centre) less that radius, shortened by the radius's growth, and gives up
     within :attr:`Walls.step_m` of a wall.
 
     >>> w = walls_of(np.eye(4, dtype=bool)[::-1], resolution_m=1.0)
@@ -122,34 +127,38 @@ def clear_of_walls(walls: Walls, a: np.ndarray, b: np.ndarray, e_m: np.ndarray) 
     """
     a = np.asarray(a, float).reshape(-1, 2)
     b = np.asarray(b, float).reshape(-1, 2)
-    e = np.broadcast_to(np.asarray(e_m, float), (len(a),)).copy()
+    ea = np.broadcast_to(np.asarray(e_a_m, float), (len(a),)).copy()
+    eb = ea.copy() if e_b_m is None else np.broadcast_to(np.asarray(e_b_m, float), (len(a),)).copy()
     if not walls.on or len(a) == 0:
         return np.ones(len(a), dtype=bool)
     out = np.empty(len(a), dtype=bool)
     kernels = load("mobility._local_kernels", SMALL_RUN_ROBOTS)
     if kernels is not None:
-        kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), e, out)
+        kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
         return out
     h, w = walls.field.shape
     res = walls.resolution_m
     length = np.hypot(*(b - a).T)
+    some = length > 0
+    growth = np.where(some, np.abs(eb - ea) / np.where(some, length, 1.0), 0.0)
     t = np.zeros(len(a))
     active = np.ones(len(a), dtype=bool)
     out[:] = True
     while active.any():
         k = np.flatnonzero(active)
-        f = np.where(length[k] > 0, t[k] / np.where(length[k] > 0, length[k], 1.0), 0.0)
+        f = np.where(some[k], t[k] / np.where(some[k], length[k], 1.0), 0.0)
         u = (a[k, 0] + f * (b[k, 0] - a[k, 0]) - walls.origin_x_m) / res
         v = (a[k, 1] + f * (b[k, 1] - a[k, 1]) - walls.origin_y_m) / res
         ci = np.clip(np.floor(u), 0, w - 1).astype(np.int64)
         cj = np.clip(np.floor(v), 0, h - 1).astype(np.int64)
-        gap = walls.field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - e[k]
+        radius = np.where(some[k], ea[k] + f * (eb[k] - ea[k]), np.maximum(ea[k], eb[k]))
+        gap = walls.field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
         blocked = gap <= walls.step_m
         out[k[blocked]] = False
         done = blocked | (t[k] >= length[k])
         active[k[done]] = False
         go = k[~done]
-        t[go] = np.minimum(t[go] + gap[~done], length[go])
+        t[go] = np.minimum(t[go] + gap[~done] / (1.0 + growth[go]), length[go])
     return out
 
 
@@ -273,7 +282,7 @@ def let_go(
         usable = mutual[np.ix_(node, node)] & (longest <= range_m)
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
-            ok = clear_of_walls(walls, q[a], q[b], np.maximum(e[a], e[b]))
+            ok = clear_of_walls(walls, q[a], q[b], e[a], e[b])
             usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
@@ -391,7 +400,7 @@ def cut_for_walls(
             break
         r = robot[rows]
         end = pos[r] + s * move[r]
-        ok = clear_of_walls(walls, pos[r], centre[rows], e[rows] + s * length[r])
+        ok = clear_of_walls(walls, pos[r], centre[rows], s * length[r], e[rows])
         ok &= np.hypot(*(end - centre[rows]).T) <= leash[rows]
         failed = np.zeros(n, dtype=bool)
         failed[r[~ok]] = True
