@@ -27,8 +27,8 @@ period``), its own position ``p`` at ``t0`` exact:
    knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
 4. **Pull** (:func:`pulls`).
 5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` moves only if, for every kept ``j``,
-   no wall lies within ``e_j(t1) + |step|`` of the segment from ``p`` to ``q_j``: that
-   region holds the convex hull of the step and of the disk where ``j`` can be, so every
+   the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk where
+   ``j`` can be during the step (``e_j(t1)`` around ``q_j``) meets no wall, so every
    segment between the two robots during the step is clear of walls; else a shorter step,
    or it holds. A detour's link must be surely clear of walls too (:func:`clear_of_walls`).
 
@@ -375,11 +375,12 @@ def cut_for_walls(
     pos: np.ndarray, move: np.ndarray, memory: Memory, kept: np.ndarray, t1_s: float, limits: StepLimits, walls: Walls
 ) -> np.ndarray:
     """Rule 5 (walls): the fraction of its ``move`` each robot makes, the largest of
-    :data:`WALL_TRIES` with which every kept link is surely clear of walls over the step:
-    within ``e_j(t1) + |step|`` of the segment from ``p`` to ``q_j`` (which holds the convex
-    hull of the step and of the disk where ``j`` can be) no wall, and the step still ending
-    within its leash (rule 2). 0: the robot holds (then it answers for nothing: the other
-    end, or no motion, keeps the link)."""
+    :data:`WALL_TRIES` with which every kept link is surely clear of walls over the step
+    (the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk of radius
+    ``e_j(t1)`` around ``q_j``, which holds the step and where ``j`` can be, meets no wall,
+    :func:`clear_of_walls`), and the step still ends within its leash (rule 2). 0: the
+    robot holds (then it answers for nothing: the other end, or no motion, keeps the
+    link)."""
     n = len(pos)
     scale = np.ones(n)
     length = np.hypot(*move.T)
