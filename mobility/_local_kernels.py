@@ -1,8 +1,9 @@
-"""Compiled (numba) loop of the local plan's rule 1 (:func:`mobility.local.let_go`): per
-robot, the bottleneck of its certified detours, by a widest-path search over the robots
-within two links. It computes exactly what the numpy code computes (the tests compare
-them); for a few dozen robots, numpy's and scipy's cost per call, not the arithmetic, is
-what the numpy code costs.
+"""Compiled (numba) loops of the local plan: rule 1 (:func:`mobility.local.let_go`), per
+robot the bottleneck of its certified detours, by a widest-path search over the robots
+within two links; and the walls' test (:func:`mobility.local.clear_of_walls`). They
+compute exactly what the numpy code computes (the tests compare them); for a few dozen
+robots, numpy's and scipy's cost per call, not the arithmetic, is what the numpy code
+costs.
 """
 
 from __future__ import annotations
@@ -16,7 +17,39 @@ from netsim import kernel_cache
 
 
 @numba.njit(cache=True, nogil=True)
-def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, out):
+def clear(walls, ax, ay, bx, by, ea, eb):
+    """The convex hull of the disks of radius ``ea`` around ``(ax, ay)`` and ``eb`` around
+    ``(bx, by)`` meets no wall (:func:`mobility.local.clear_of_walls`, one pair)."""
+    field = walls.field
+    h, w = field.shape
+    res = walls.resolution_m
+    length = math.hypot(bx - ax, by - ay)
+    growth = abs(eb - ea) / length if length > 0 else 0.0
+    t = 0.0
+    while True:
+        f = t / length if length > 0 else 0.0
+        u = (ax + f * (bx - ax) - walls.origin_x_m) / res
+        v = (ay + f * (by - ay) - walls.origin_y_m) / res
+        ci = min(max(math.floor(u), 0), w - 1)
+        cj = min(max(math.floor(v), 0), h - 1)
+        radius = ea + f * (eb - ea) if length > 0 else max(ea, eb)
+        gap = field[cj, ci] - math.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
+        if gap <= walls.step_m:
+            return False
+        if t >= length:
+            return True
+        t = min(t + gap / (1.0 + growth), length)
+
+
+@numba.njit(cache=True, nogil=True)
+def clear_many(walls, a, b, ea, eb, out):
+    """:func:`clear` for every row."""
+    for k in range(a.shape[0]):
+        out[k] = clear(walls, a[k, 0], a[k, 1], b[k, 0], b[k, 1], ea[k], eb[k])
+
+
+@numba.njit(cache=True, nogil=True)
+def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, walls, out):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``."""
     n = pos.shape[0]
     nn = float(n * n)
@@ -76,6 +109,10 @@ def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, out):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 if longest > range_m:
+                    continue
+                # From the node met first in the list, as the numpy code walks it.
+                a, b = min(u, v), max(u, v)
+                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a], e[b]):
                     continue
                 rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)

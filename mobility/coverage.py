@@ -63,15 +63,16 @@ in one pass for the whole team (the spanning forest over the whole network; a ro
 limits then use only the current positions of its kept neighbours, and under shadowing the
 shadowing measured on those links). With ``plan = "local"`` (:mod:`mobility.local`) every
 robot decides its own step from the Acks it heard, keeps the links it cannot certify a
-detour for, and answers for each against the other end's largest motion since its Ack; no
-command is sent.
+detour for, and answers for each against the other end's largest motion since its Ack
+(under shadowing within the sure distance, on a map clear of walls), or holds; no command
+is sent.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import StrEnum
 from typing import NamedTuple
 
@@ -81,7 +82,7 @@ import pandas as pd
 from mobility.bridges import plan_follow
 from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
 from mobility.keep import LinkRules
-from mobility.local import Memory, let_go, plan_local, pulls, sources_heard
+from mobility.local import Memory, cut_for_walls, latest_pulls, let_go, plan_local, sources_heard, walls_of
 from mobility.spread import plan_spread
 from mobility.steps import Plan, StepLimits
 from netsim import metrics
@@ -155,7 +156,7 @@ class CoverageParams(Params):
         20.0, positive, "plan = 'local': a robot forgets a robot whose latest Ack it heard was sent this long ago, s"
     )
     band_m: float = param(
-        10.0,
+        7.5,
         positive,
         "plan = 'local': links are ordered by bands of length this wide, then by their robots' ids, m",
     )
@@ -357,13 +358,35 @@ class CoverageController:
         # step short of a wall).
         self.occupancy = parts.occupancy
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
-        # The local plan: what each robot heard (mobility.local).
+        # The local plan: what each robot heard (mobility.local), the distance within which
+        # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
+        self.local_limits = replace(self.limits, range_m=self._sure_range_m())
+        on_map = self.memory is not None and self.rules.walls is not None and parts.occupancy is not None
+        self.local_walls = walls_of(
+            parts.occupancy.occupied if on_map else None,
+            *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
+        )
         self.knows: Memory | None = None  # the memory as of the step being planned
         # How much earlier than its latest possible sending time an Ack may have left.
         self.jitter_s = float(parts.channel.latency_jitter_s)
         self.announced_mps = np.zeros((st.n, 2))
         self.announced_s = math.inf
+        self.earlier_mps = np.zeros((st.n, 2))
+        self.earlier_s = math.inf
+
+    def _sure_range_m(self) -> float:
+        """The local plan's range: a link clear of walls is up at every transmission while
+        its robots are this close (the range; under log-distance the implied range, and
+        with shadowing the distance at which even the clipped worst, ``+4 sigma``, leaves
+        it up)."""
+        log = self.rules.log
+        if log is None:
+            return self.range_m
+        from netsim.radio.propagation import effective_range_m
+
+        worst = self.rules.shadow.clip_db if self.rules.shadow is not None else 0.0
+        return min(self.range_m, float(effective_range_m(log, worst, 0)))
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:
         """``gain (m - d)`` away from the nearest wall within ``m = sqrt(3) r_c / 2``, as the border."""
@@ -448,13 +471,25 @@ class CoverageController:
         memory, knows, c = self.memory, self.knows, self.cfg
         assert memory is not None and knows is not None
         known = memory.known(self.env.now, c.release_s)
-        kept = known & ~let_go(step.positions_m, knows, known, step.t_s, c.speed_max_mps, c.band_m, self.range_m)
-        wish = step.velocity_mps + pulls(
-            step.positions_m, knows, kept, self.announced_mps, self.announced_s, step.t_s, self.limits, memory.sent_s
-        )
+        limits, walls, pos = self.local_limits, self.local_walls, step.positions_m
+        kept = known & ~let_go(pos, knows, known, step.t_s, c.speed_max_mps, c.band_m, limits.range_m, walls)
+        announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
+        wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (mobility.local, rule 4).
+        self.earlier_mps, self.earlier_s = self.announced_mps, self.announced_s
         self.announced_mps, self.announced_s = wish, self.env.now
-        return plan_local(step.positions_m, wish, knows, kept, step.t_s, self.limits)
+        plan = plan_local(pos, wish, knows, kept, step.t_s, limits)
+        if not walls.on:
+            return plan
+        # Rule 5: the step ends short of the walls (as the control loop would make it), then
+        # keeps every kept link clear of them.
+        move = plan.velocity_mps * limits.period_s
+        moving = np.flatnonzero((move != 0).any(axis=1))
+        if len(moving):
+            move[moving] *= free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])[:, None]
+        scale = cut_for_walls(pos, move, knows, kept, step.t_s + limits.period_s, limits, walls)
+        held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & (scale < 1))
+        return plan._replace(velocity_mps=move * (scale / limits.period_s)[:, None], held=held)
 
     def secure(self, step: ControlStep) -> None:
         """Order 100: make the plan keep the network connected; leaders send their commands."""

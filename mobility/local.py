@@ -25,14 +25,27 @@ period``), its own position ``p`` at ``t0`` exact:
    ``j`` does.
 3. **Hold.** If ``i`` is farther than that radius from some kept ``q_j`` already (its
    knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
+4. **Pull** (:func:`pulls`).
+5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` moves only if, for every kept ``j``,
+   the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk where
+   ``j`` can be during the step (``e_j(t1)`` around ``q_j``) meets no wall, so every
+   segment between the two robots during the step is clear of walls; else a shorter step,
+   or it holds. A detour's link must be surely clear of walls too (:func:`clear_of_walls`).
 
-Why the network never splits: let ``K`` be the links in range at ``t0`` whose ends
-remember each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
+``r`` is the plan's range: the range on a disk (the implied range under log-distance;
+on a map, for a link clear of walls), and under shadowing the *sure* distance, where even
+the clipped worst shadowing (``+4 sigma``) leaves a link up. A link longer than that, or
+through a wall, is never certified: a robot that keeps it holds, and a link whose two
+robots hold does not change (the shadowing runs in the pair's travel).
+
+Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
+each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
-that moves keeps it in range (rule 2) and an end that holds does not change it (rule 3),
-so it is in range at every instant of the step, and at the next ``t0`` it is in ``K``
+that moves keeps it up whatever the other does (rules 2 and 5), an end that cannot holds
+(rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
+of the step, and at the next ``t0`` it is in ``K``
 again while both ends still remember each other. So the components of ``K`` never grow,
 and the network (which contains ``K``) never has more components than ``K`` had when
 control started: on a loss-free channel, always; under loss, unless a robot misses every
@@ -41,11 +54,112 @@ Ack of a neighbour in range for ``release_s``.
 
 from __future__ import annotations
 
+import math
+from typing import NamedTuple
+
 import numpy as np
 
 from mobility.spread import project_into
 from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
-from netsim.compiled import load
+from netsim.compiled import SMALL_RUN_ROBOTS, load
+
+
+class Walls(NamedTuple):
+    """What a robot knows of the walls: its team's map, as a lower bound of the distance from
+    a cell's points to the nearest occupied cell (:func:`walls_of`). ``on``: False where
+    there is no map (then nothing is a wall)."""
+
+    on: bool
+    field: np.ndarray  # (H, W): the distance from the cell's centre to the nearest wall, less half a diagonal, m
+    origin_x_m: float
+    origin_y_m: float
+    resolution_m: float
+    step_m: float  # a test comes this close to a wall only to give up
+
+
+NO_WALLS = Walls(False, np.full((1, 1), np.inf), 0.0, 0.0, 1.0, 0.0)
+
+
+def walls_of(
+    occupied: np.ndarray | None, origin_m: tuple[float, float] = (0.0, 0.0), resolution_m: float = 1.0
+) -> Walls:
+    """The walls of a map (``occupied``: ``(H, W)`` bool, row 0 at the bottom), or
+    :data:`NO_WALLS` (None). A point ``x`` in the cell of centre ``c`` is at least
+    ``field - |x - c|`` from every occupied cell (closed squares): a cell's points lie within
+    half a diagonal of its centre."""
+    if occupied is None:
+        return NO_WALLS
+    from scipy.ndimage import distance_transform_edt
+
+    half = resolution_m * math.sqrt(0.5)
+    if not occupied.any():
+        field = np.full(occupied.shape, np.inf)
+    else:
+        field = distance_transform_edt(~occupied) * resolution_m - half
+    return Walls(
+        True,
+        np.ascontiguousarray(field, float),
+        float(origin_m[0]),
+        float(origin_m[1]),
+        float(resolution_m),
+        0.01 * resolution_m,
+    )
+
+
+def clear_of_walls(
+    walls: Walls, a: np.ndarray, b: np.ndarray, e_a_m: np.ndarray, e_b_m: np.ndarray | None = None
+) -> np.ndarray:
+    """Whether the convex hull of the disk of radius ``e_a_m`` around ``a`` and the disk of
+    radius ``e_b_m`` (default ``e_a_m``) around ``b`` (row-wise) is clear of every wall
+    cell: then every segment between a point of the one and a point of the other is clear
+    of walls. The hull lies in the disks of radius ``(1 - f) e_a + f e_b`` around the
+    points ``a + f (b - a)``, ``f`` in [0, 1] (a convex combination of two points of the
+    disks is within that of the combination of the centres). Conservative: the test walks
+    the segment, each step the clearance there (:attr:`Walls.field`, less the distance to
+    the cell's centre) less that radius, shortened by the radius's growth, and gives up
+    within :attr:`Walls.step_m` of a wall.
+
+    >>> w = walls_of(np.eye(4, dtype=bool)[::-1], resolution_m=1.0)
+    >>> clear_of_walls(w, np.array([[0.2, 0.2], [3.8, 3.5]]), np.array([[0.2, 3.5], [3.8, 0.2]]), np.zeros(2)).tolist()
+    [False, False]
+    >>> clear_of_walls(NO_WALLS, np.zeros((1, 2)), np.ones((1, 2)), np.ones(1)).tolist()
+    [True]
+    """
+    a = np.asarray(a, float).reshape(-1, 2)
+    b = np.asarray(b, float).reshape(-1, 2)
+    ea = np.broadcast_to(np.asarray(e_a_m, float), (len(a),)).copy()
+    eb = ea.copy() if e_b_m is None else np.broadcast_to(np.asarray(e_b_m, float), (len(a),)).copy()
+    if not walls.on or len(a) == 0:
+        return np.ones(len(a), dtype=bool)
+    out = np.empty(len(a), dtype=bool)
+    kernels = load("mobility._local_kernels", SMALL_RUN_ROBOTS)
+    if kernels is not None:
+        kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
+        return out
+    h, w = walls.field.shape
+    res = walls.resolution_m
+    length = np.hypot(*(b - a).T)
+    some = length > 0
+    growth = np.where(some, np.abs(eb - ea) / np.where(some, length, 1.0), 0.0)
+    t = np.zeros(len(a))
+    active = np.ones(len(a), dtype=bool)
+    out[:] = True
+    while active.any():
+        k = np.flatnonzero(active)
+        f = np.where(some[k], t[k] / np.where(some[k], length[k], 1.0), 0.0)
+        u = (a[k, 0] + f * (b[k, 0] - a[k, 0]) - walls.origin_x_m) / res
+        v = (a[k, 1] + f * (b[k, 1] - a[k, 1]) - walls.origin_y_m) / res
+        ci = np.clip(np.floor(u), 0, w - 1).astype(np.int64)
+        cj = np.clip(np.floor(v), 0, h - 1).astype(np.int64)
+        radius = np.where(some[k], ea[k] + f * (eb[k] - ea[k]), np.maximum(ea[k], eb[k]))
+        gap = walls.field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
+        blocked = gap <= walls.step_m
+        out[k[blocked]] = False
+        done = blocked | (t[k] >= length[k])
+        active[k[done]] = False
+        go = k[~done]
+        t[go] = np.minimum(t[go] + gap[~done] / (1.0 + growth[go]), length[go])
+    return out
 
 
 class Memory:
@@ -113,7 +227,14 @@ class Memory:
 
 
 def let_go(
-    pos: np.ndarray, memory: Memory, known: np.ndarray, t0_s: float, speed_mps: float, band_m: float, range_m: float
+    pos: np.ndarray,
+    memory: Memory,
+    known: np.ndarray,
+    t0_s: float,
+    speed_mps: float,
+    band_m: float,
+    range_m: float,
+    walls: Walls = NO_WALLS,
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
@@ -121,7 +242,8 @@ def let_go(
     ``band_m``: the width of the length bands of the links' order. Robot ``i``'s graph:
     itself, the robots it remembers (at the positions it heard) and those they remember
     (at the freshest position they report), joined where two remember each other and are
-    surely within ``range_m``, each link at the largest rank it can have at ``t0``. A
+    surely within ``range_m`` and (on a map) surely clear of ``walls`` (:func:`clear_of_walls`
+    with the larger of the two uncertainties), each link at the largest rank it can have at ``t0``. A
     detour's worst link is the bottleneck of ``i``'s path to ``j`` in a minimum spanning
     tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots the compiled
     twin (:mod:`mobility._local_kernels`) computes the same.
@@ -134,7 +256,7 @@ def let_go(
     out = np.zeros((n, n), dtype=bool)
     kernels = load("mobility._local_kernels", n)
     if kernels is not None:
-        kernels.let_go(pos, memory.xy, memory.sent_s, known, t0_s, speed_mps, band_m, range_m, out)
+        kernels.let_go(pos, memory.xy, memory.sent_s, known, t0_s, speed_mps, band_m, range_m, walls, out)
         return out
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
@@ -158,6 +280,10 @@ def let_go(
         longest = centre + e[:, None] + e[None, :]
         rank = link_rank(longest, pair, band_m, n) + 1.0
         usable = mutual[np.ix_(node, node)] & (longest <= range_m)
+        if walls.on:
+            a, b = np.nonzero(np.triu(usable, 1))
+            ok = clear_of_walls(walls, q[a], q[b], e[a], e[b])
+            usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
         worst = np.full(len(node), np.inf)
@@ -241,6 +367,51 @@ def plan_local(
     return Plan(move / limits.period_s, np.full(n, -1), held, int(np.triu(both, 1).sum()))
 
 
+# The fractions of its step a robot tries, longest first, when walls stand near its links.
+WALL_TRIES = (1.0, 0.5, 0.25, 0.125, 0.0)
+
+
+def cut_for_walls(
+    pos: np.ndarray, move: np.ndarray, memory: Memory, kept: np.ndarray, t1_s: float, limits: StepLimits, walls: Walls
+) -> np.ndarray:
+    """Rule 5 (walls): the fraction of its ``move`` each robot makes, the largest of
+    :data:`WALL_TRIES` with which every kept link is surely clear of walls over the step
+    (the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk of radius
+    ``e_j(t1)`` around ``q_j``, which holds the step and where ``j`` can be, meets no wall,
+    :func:`clear_of_walls`), and the step still ends within its leash (rule 2). 0: the
+    robot holds (then it answers for nothing: the other end, or no motion, keeps the
+    link)."""
+    n = len(pos)
+    scale = np.ones(n)
+    length = np.hypot(*move.T)
+    movers = np.flatnonzero(length > 0)
+    if not walls.on or len(movers) == 0:
+        return scale
+    robot, other = np.nonzero(kept & (length > 0)[:, None])
+    centre = memory.xy[robot, other]
+    e = np.maximum(limits.speed_max_mps * (t1_s - memory.sent_s[robot, other]), 0.0)
+    leash = leash_radius(memory, t1_s, limits)[robot, other]
+    undecided = np.zeros(n, dtype=bool)
+    undecided[movers] = True
+    for s in WALL_TRIES:
+        if s == 0.0:
+            break
+        rows = np.flatnonzero(undecided[robot])
+        if len(rows) == 0:
+            break
+        r = robot[rows]
+        end = pos[r] + s * move[r]
+        ok = clear_of_walls(walls, pos[r], centre[rows], s * length[r], e[rows])
+        ok &= np.hypot(*(end - centre[rows]).T) <= leash[rows]
+        failed = np.zeros(n, dtype=bool)
+        failed[r[~ok]] = True
+        done = undecided & ~failed
+        scale[done] = s
+        undecided &= failed
+    scale[undecided] = 0.0
+    return scale
+
+
 def pulls(
     pos: np.ndarray,
     memory: Memory,
@@ -270,6 +441,26 @@ def pulls(
     out = np.zeros_like(pos)
     np.add.at(out, robot, excess[:, None] * along)
     return out
+
+
+def latest_pulls(
+    pos: np.ndarray,
+    memory: Memory,
+    kept: np.ndarray,
+    announced: tuple[np.ndarray, float],
+    earlier: tuple[np.ndarray, float],
+    t0_s: float,
+    limits: StepLimits,
+    sent_s: np.ndarray,
+) -> np.ndarray:
+    """Rule 4 from the latest wish each robot heard: the wishes ``announced`` at the last
+    step (and when), carried by the Acks sent since; for a kept robot whose latest Ack heard
+    was sent before that, the wishes announced a step ``earlier``, which that Ack carried.
+    ``sent_s``: when the Acks were sent."""
+    older = kept & (sent_s < announced[1])
+    return pulls(pos, memory, kept, *announced, t0_s, limits, sent_s) + pulls(
+        pos, memory, older, *earlier, t0_s, limits, sent_s
+    )
 
 
 def sources_heard(memory: Memory, known: np.ndarray, reach_m: float, pos: np.ndarray):

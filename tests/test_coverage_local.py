@@ -10,7 +10,17 @@ import math
 import numpy as np
 import pytest
 
-from mobility.local import Memory, let_go, plan_local, pulls
+from mobility.local import (
+    NO_WALLS,
+    Memory,
+    clear_of_walls,
+    cut_for_walls,
+    latest_pulls,
+    let_go,
+    plan_local,
+    pulls,
+    walls_of,
+)
 from mobility.steps import StepLimits
 from netsim import config
 from netsim.errors import ConfigError
@@ -220,6 +230,167 @@ def test_pull_a_robot_follows_a_kept_robot_that_announced_it_moves_away():
     assert (pulls(pos, m, kept, announced, T0 - 0.1, T0, LIMITS) == 0).all()
 
 
+def test_pull_a_robot_that_missed_the_latest_ack_uses_the_wish_of_the_one_before():
+    """Rule 4 under loss: robot 0's latest Ack of robot 1 was sent after the step before
+    last and before the last step, so it carried the wish announced at the step before
+    last: robot 0 is pulled by that wish. An Ack sent before both announcements pulls
+    nobody; one sent after the last uses the last wish."""
+    pos = np.array([[0.0, 0.0], [92.0, 0.0]])
+    m = all_heard(pos, T0 - 0.5)
+    kept = m.known(T0, 20.0)
+    last = (np.array([[0.0, 0.0], [0.0, 0.0]]), T0 - 1.0)
+    before = (np.array([[0.0, 0.0], [3.0, 0.0]]), T0 - 2.0)
+    m.sent_s[0, 1] = T0 - 1.5  # leash: 99 - 2 x 2.5 = 94 m, 2 m/s of slack
+    out = latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s)
+    assert out[0].tolist() == pytest.approx([1.0, 0.0])
+    m.sent_s[0, 1] = T0 - 2.5
+    assert (latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s) == 0).all()
+    m.sent_s[0, 1] = T0 - 0.5
+    assert (latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s) == 0).all()
+
+
+# -- rule 5: walls -------------------------------------------------------------------------
+
+RES = 0.5
+ORIGIN = (-10.0, -10.0)
+
+
+def blocks_map(blocks, width_m=320.0, height_m=320.0):
+    """An occupancy grid (0.5 m cells from ``ORIGIN``) with the rectangles ``blocks``
+    (``x0, y0, x1, y1``, metres) occupied."""
+    occ = np.zeros((int(height_m / RES), int(width_m / RES)), dtype=bool)
+    for x0, y0, x1, y1 in blocks:
+        c0, c1 = int((x0 - ORIGIN[0]) / RES), int(np.ceil((x1 - ORIGIN[0]) / RES))
+        r0, r1 = int((y0 - ORIGIN[1]) / RES), int(np.ceil((y1 - ORIGIN[1]) / RES))
+        occ[r0:r1, c0:c1] = True
+    return occ
+
+
+def wall_shapes(occ):
+    """The occupied cells as one shapely geometry (closed squares)."""
+    from shapely import box, unary_union
+
+    rows, cols = np.nonzero(occ)
+    x0, y0 = ORIGIN[0] + cols * RES, ORIGIN[1] + rows * RES
+    return unary_union([box(a, b, a + RES, b + RES) for a, b in zip(x0, y0)])
+
+
+def disks_hull(a, ea, b, eb):
+    """The convex hull of two disks, as a shapely polygon a hair larger than the true one."""
+    from shapely import GeometryCollection, Point
+
+    grow = 1.0 / math.cos(math.pi / 256) + 1e-9  # 64 segments a quarter: circumscribed
+    return GeometryCollection([Point(a).buffer(ea * grow, 64), Point(b).buffer(eb * grow, 64)]).convex_hull
+
+
+def test_walls_a_pair_of_disks_said_clear_has_a_hull_clear_of_every_wall():
+    """The walls' test is never wrong when it says clear: the convex hull of the two disks
+    meets no occupied cell (closed squares, shapely); and it says clear for most hulls
+    well away from walls. Disks of equal and unequal radii, and segments grazing a wall's
+    side and corner within a cell of their radius."""
+    rng = np.random.default_rng(5)
+    occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (200, 200, 201, 201), (60, 150, 150, 151)], 250.0, 250.0)
+    walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
+    a = rng.uniform(0, 220, (400, 2))
+    b = a + rng.normal(0, 30, (400, 2))
+    ea = rng.uniform(0, 5, 400)
+    eb = np.where(rng.random(400) < 0.5, ea, rng.uniform(0, 5, 400))
+    graze = rng.uniform(0, 5, 200)
+    x = 42.0 + graze + rng.uniform(-0.5, 0.5, 200)
+    a = np.r_[a, np.c_[x, rng.uniform(20, 60, 200)]]
+    b = np.r_[b, np.c_[x, rng.uniform(80, 140, 200)]]
+    ea, eb = np.r_[ea, graze], np.r_[eb, graze]
+    said = clear_of_walls(walls, a, b, ea, eb)
+    gap = np.array([disks_hull(p, u, q, w).distance(shapes) for p, u, q, w in zip(a, ea, b, eb)])
+    assert (gap[said] > 0).all()
+    assert said[gap > 2 * RES].mean() > 0.95
+    assert said.sum() > 100 and (~said).sum() > 20
+
+
+def test_walls_compiled_and_numpy_agree(monkeypatch):
+    """The compiled walls' test says exactly what the numpy code says."""
+    rng = np.random.default_rng(6)
+    occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (60, 150, 150, 151)], 250.0, 250.0)
+    walls = walls_of(occ, ORIGIN, RES)
+    a = rng.uniform(0, 220, (300, 2))
+    b = a + rng.normal(0, 30, (300, 2))
+    ea, eb = rng.uniform(0, 5, (2, 300))
+    monkeypatch.setenv("NETSIM_COMPILED", "0")
+    slow = clear_of_walls(walls, a, b, ea, eb)
+    monkeypatch.setenv("NETSIM_COMPILED", "1")
+    assert (slow == clear_of_walls(walls, a, b, ea, eb)).all()
+
+
+def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
+    """Rule 1 on a map: robot 0 lets go of robot 1 through robot 2 (as in open space) only
+    when the detour's links are surely clear of walls: a pillar on the link from robot 2 to
+    robot 1 (and none on the link from 0 to 1) keeps the link (0, 1); the compiled twin
+    agrees."""
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 20.0]])
+    m = all_heard(pos, T0 - 0.5)
+    known = m.known(T0, 20.0)
+    pillar = walls_of(blocks_map([(59.5, 9.5, 60.5, 10.5)], 120.0, 60.0), ORIGIN, RES)
+    far = walls_of(blocks_map([(59.5, 29.5, 60.5, 30.5)], 120.0, 60.0), ORIGIN, RES)
+    assert let_go(pos, m, known, T0, V, 10.0, RC, far)[0, 1]
+    assert not let_go(pos, m, known, T0, V, 10.0, RC, pillar)[0, 1]
+    for seed in range(5):
+        pos, m = random_scene(seed, n=40)
+        walls = walls_of(blocks_map([(100, 50, 102, 250), (150, 100, 300, 101)]), ORIGIN, RES)
+        known = m.known(T0, 20.0)
+        out = []
+        for flag in ("0", "1"):
+            monkeypatch.setenv("NETSIM_COMPILED", flag)
+            out.append(let_go(pos, m, known, T0, V, 10.0, RC, walls))
+        assert (out[0] == out[1]).all()
+
+
+def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():
+    """Rule 5: robot 0 keeps robot 1, 20 m east (heard 0.1 s ago: within 2.2 m of where it
+    was heard until the step's end). With no wall near, it makes its whole 2 m step; with a
+    pillar 2.5 m off the link's middle, a part of it; with a pillar 1 m off, it holds."""
+    pos = np.array([[0.0, 0.0], [20.0, 0.0]])
+    m = all_heard(pos, T0 - 0.1)
+    kept = m.known(T0, 20.0)
+    move = np.array([[0.0, -2.0], [0.0, 0.0]])
+    t1 = T0 + LIMITS.period_s
+
+    def scale(y):
+        walls = walls_of(blocks_map([(10.0, y, 10.5, y + 0.5)], 60.0, 40.0), ORIGIN, RES)
+        return cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[0]
+
+    assert scale(15.0) == 1.0
+    assert 0.0 < scale(2.5) < 1.0
+    assert scale(1.0) == 0.0
+    assert cut_for_walls(pos, move, m, kept, t1, LIMITS, NO_WALLS)[0] == 1.0
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_whatever_the_other_does(seed):
+    """Rule 5, the argument: for every link a moving robot keeps, the convex hull of its
+    step and of the disk where the other end can be at the step's end (every segment
+    between them at every instant) meets no wall (shapely, exact), and the leash of rule 2
+    still holds at the step's end."""
+    from shapely import GeometryCollection, LineString, Point
+
+    pos, m = random_scene(seed, n=30)
+    occ = blocks_map([(100, 50, 102, 250), (150, 100, 300, 101), (40, 200, 80, 204)])
+    walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
+    known = m.known(T0, 20.0)
+    kept = known & ~let_go(pos, m, known, T0, V, 10.0, RC, walls)
+    wish = np.random.default_rng(seed).normal(0, 3.0, pos.shape)
+    move = plan_local(pos, wish, m, kept, T0, LIMITS).velocity_mps * LIMITS.period_s
+    t1 = T0 + LIMITS.period_s
+    move = move * cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[:, None]
+    i, j = np.nonzero(kept & (np.hypot(*move.T) > 0)[:, None])
+    assert len(i) > 10
+    for a, b in zip(i.tolist(), j.tolist()):
+        e = V * (t1 - m.sent_s[a, b])
+        step = LineString([pos[a], pos[a] + move[a]]) if (move[a] != 0).any() else Point(pos[a])
+        hull = GeometryCollection([step, Point(m.xy[a, b]).buffer(e * 1.001, 64)]).convex_hull
+        assert not hull.intersects(shapes)
+        assert np.hypot(*(pos[a] + move[a] - m.xy[a, b])) + e <= RC - LIMITS.margin_m + 1e-6
+
+
 # -- whole runs --------------------------------------------------------------------------
 
 
@@ -276,6 +447,39 @@ def test_local_plan_keeps_a_log_distance_network_without_shadowing():
     assert counts.max() == 1 and (times > 10.0).sum() > 10
     assert r.summary["covered_fraction_all_final"] > 1.5 * r.summary["covered_fraction_all_start"]
     assert components(r.sim.state.positions_at(r.sim.now), rc).max() == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "radio, n", [("shadowing 4 dB", 60), ("office, line of sight", 40), ("office, 5 dB a wall", 40)]
+)
+def test_local_plan_never_splits_the_real_network_on_every_radio(radio, n):
+    """Under shadowing (links kept within the sure distance, up even at ``+4 sigma``) and on
+    the office map (links kept clear of walls over each step; line of sight, and 5 dB a
+    wall), from a dense start (the scenario of ``netsim validate`` item 30): the real
+    network (links.parquet) never has more components after control starts than at its
+    start, and the coverage table reports it truly."""
+    from netsim.tools.validate import coverage_run
+
+    o = coverage_run(radio, "local", n, 0.0, 1, 600.0)
+    assert o["components_max"] == o["components_at_start"]
+    assert o["table_true"]
+    assert o["of_bound"] > 0.1
+
+
+def test_shadowing_the_local_plans_range_is_the_sure_distance():
+    """Under shadowing the local plan's range (rules 1 to 3) is the sure distance: where a
+    link with the worst shadowing the channel uses (clipped at +4 sigma) has a margin of
+    exactly 0, well inside the implied range; without shadowing it is the implied range."""
+    from netsim.radio.propagation import path_loss_db
+
+    log = {"channel.propagation": "log_distance", "channel.tx_power_dbm": 23.0}
+    plain = local_run(6, 1, duration=1, **log).sim.models["coverage"]
+    shadowed = local_run(6, 1, duration=1, **log, **{"channel.shadowing_sigma_db": 4.0}).sim.models["coverage"]
+    r = shadowed.local_limits.range_m
+    p = shadowed.rules.log
+    assert p.budget_db + p.reference_loss_db - path_loss_db(np.array([r]), p)[0] - 16.0 == pytest.approx(0.0, abs=1e-9)
+    assert plain.local_limits.range_m == pytest.approx(plain.range_m) and r < 0.5 * plain.range_m
 
 
 @pytest.mark.slow
