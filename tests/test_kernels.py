@@ -253,8 +253,9 @@ def test_compiled_frame_end_equals_numpy():
         # compiled
         c2, t2, b2 = cover.copy(), transmitting.copy(), busy_s.copy()
         hd2, col2, newly2 = np.empty(n, bool), np.empty(n, bool), np.empty(n + 1, np.int64)
-        frame = (disturbed, i, rx, hd_start, col_start, seq, now)
-        m = _mac_kernels.end_unit_disk(c2, t2, tx_seq, cover_seq, b2, busy_since, *frame, hd2, col2, newly2)
+        frame = (i, seq, now, disturbed, rx, hd_start, col_start)
+        medium = (c2, t2, tx_seq, cover_seq, b2, busy_since)
+        m = _mac_kernels.end_unit_disk(medium, frame, (hd2, col2, newly2))
         assert (c1 == c2).all() and (t1 == t2).all() and (b1 == b2).all()
         assert (hd1 == hd2[: len(rx)]).all() and (col1 == col2[: len(rx)]).all()
         assert newly1.tolist() == newly2[:m].tolist()
