@@ -332,7 +332,8 @@ def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out
         points = (np.empty((k, 2)), np.empty((k, 2)))
         grid_points(frame, t, sender, receivers, (origin_m, velocity_mps, t0), points)
     else:
-        points = (np.zeros((1, 2)), np.zeros((1, 2)))
+        none = np.zeros((1, 2))
+        points = (none, none)
     loss = np.empty(k)
     alive = np.empty(k, dtype=np.bool_)
     count = path_loss_pass(frame, distance_m, loss, alive)
@@ -360,7 +361,8 @@ def disk_frame(frame, t, sender, receivers, distance_m, range_m, robots, flat, r
         points = (np.empty((k, 2)), np.empty((k, 2)))
         grid_points(frame, t, sender, receivers, robots, points)
     else:
-        points = (np.zeros((1, 2)), np.zeros((1, 2)))
+        none = np.zeros((1, 2))
+        points = (none, none)
     senders = np.full(k, sender, dtype=np.int64)
     disk_pass(frame, distance_m, senders, range_m, flat, points, receivable)
 
