@@ -27,11 +27,13 @@ def _snap(g, eps):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
-    """Walls crossed by one segment (grid units) and where it first meets a blocked cell.
+def trace_one(cells, u0, v0, u1, v1, eps, limit):
+    """Walls crossed by one segment (grid units) and where it first meets a blocked cell;
+    ``cells``: the grid's ``(flat, h, w)``, its blocked cells row-major.
 
     Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
     """
+    flat, h, w = cells
     i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
     j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
     count = 0
@@ -90,23 +92,27 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
 
 
 @numba.njit(cache=True, nogil=True)
-def walls_one(flat, h, w, u0, v0, u1, v1, eps, limit):
+def walls_one(cells, u0, v0, u1, v1, eps, limit):
     """The walls of :func:`trace_one` between two robots: ends within ``eps`` of a grid line
     are put on it first (``netsim.radio.los._snap``), so that walls at a robot on a grid
     corner are the same both ways."""
-    count, _ = trace_one(flat, h, w, _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps), eps, limit)
+    count, _ = trace_one(cells, _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps), eps, limit)
     return count
 
 
 @numba.njit(cache=True, nogil=True)
-def trace(flat, h, w, g0, g1, eps, walls, first_t, limit, snap):
-    """Every segment's walls (counting stops once past ``limit``) and first blocked point;
-    with ``snap``, the ends snapped as :func:`walls_one` does."""
+def trace(cells, points, eps, out, limit, snap):
+    """Every segment's walls (counting stops once past ``limit``) and first blocked point,
+    ``out``: ``(walls, first_t)``, filled; the segments from ``g0`` to ``g1`` (``points``, grid
+    units) on the grid ``cells``, ``(flat, h, w)``. With ``snap``, the ends snapped as
+    :func:`walls_one` does."""
+    g0, g1 = points
+    walls, first_t = out
     for s in range(g0.shape[0]):
         u0, v0, u1, v1 = g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1]
         if snap:
             u0, v0, u1, v1 = _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps)
-        walls[s], first_t[s] = trace_one(flat, h, w, u0, v0, u1, v1, eps, limit)
+        walls[s], first_t[s] = trace_one(cells, u0, v0, u1, v1, eps, limit)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -179,7 +185,7 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
     g0, g1 = points
     keys, s_new, x_new, new, receivable = pairs
     decorrelation_m, clip_db, wall_db, dense_n = c.decorrelation_m, c.clip_db, c.wall_db, c.dense_n
-    h, w, eps, budget_slack = c.map_h, c.map_w, c.eps, c.budget_slack
+    cells, eps, budget_slack = (flat, c.map_h, c.map_w), c.eps, c.budget_slack
     tx_dbm, sensitivity_dbm = c.tx_dbm, c.sensitivity_dbm
     n = table_keys.shape[0]
     j = 0
@@ -210,7 +216,7 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
             # whatever rounding the division made.
             affordable = (budget_slack - total) / wall_db
             limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
-            walls = walls_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
+            walls = walls_one(cells, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
             total = total + wall_db * walls
         receivable[m] = tx_dbm - total >= sensitivity_dbm
 
@@ -225,7 +231,7 @@ def disk_pass(frame, d, a, range_m, flat, points, receivable):
         r = range_m[a[m]] if c.per_robot else range_m[0]
         ok = d[m] <= r
         if ok and c.use_map:
-            walls = walls_one(flat, c.map_h, c.map_w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
+            walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
             ok = walls == 0
         receivable[m] = ok
 
@@ -441,7 +447,7 @@ def free_destinations(cells, grid, draws, here, batch, eps, out):
                 y = 0.5 * (y0[cell] + y1[cell])
                 u = (x - ox) / res
                 v = (y - oy) / res
-            walls, _ = trace_one(not_free_flat, h, w, hu, hv, u, v, eps, 0)
+            walls, _ = trace_one((not_free_flat, h, w), hu, hv, u, v, eps, 0)
             if walls == 0:
                 picked[k, 0] = x
                 picked[k, 1] = y

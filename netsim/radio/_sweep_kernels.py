@@ -252,6 +252,7 @@ def sweep(grid, motion, duration, eps, limit):
     """Rows ``(pair, t0, t1, walls)`` of every pair (:func:`netsim.radio.sweep.sweep_walls`);
     the counts stop at ``limit + 1``."""
     flat, h, w, _row_ptr, _cols, origin_x, origin_y, res = grid
+    cells = (flat, h, w)
     p0, vp, q0, vq = motion
     k = p0.shape[0]
     cap = 4 * k + 16
@@ -286,7 +287,7 @@ def sweep(grid, motion, duration, eps, limit):
             v0 = (p0[s, 1] + vp[s, 1] * mid - origin_y) / res
             u1 = (q0[s, 0] + vq[s, 0] * mid - origin_x) / res
             v1 = (q0[s, 1] + vq[s, 1] * mid - origin_y) / res
-            count = walls_one(flat, h, w, u0, v0, u1, v1, eps, limit)
+            count = walls_one(cells, u0, v0, u1, v1, eps, limit)
             if rows > 0 and pair[rows - 1] == s and walls[rows - 1] == count:
                 t1[rows - 1] = nxt
             else:
