@@ -41,9 +41,11 @@ def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
 
 
 @numba.njit(cache=True, nogil=True)
-def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
+def within(cand, motion, i, t, r):
     """The candidates ``cand`` within ``r`` of robot ``i`` at ``t``, and their distances
-    (:meth:`netsim.radio.spatial.RangeIndex.within` over a candidate list)."""
+    (:meth:`netsim.radio.spatial.RangeIndex.within` over a candidate list). ``motion``: the
+    robots' ``(origin_m, velocity_mps, t0_s, torus, side_m)``."""
+    origin_m, velocity_mps, t0_s, torus, side_m = motion
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     r2 = r * r
     ids = np.empty(len(cand), dtype=np.int64)
@@ -60,11 +62,12 @@ def within(cand, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m):
 
 
 @numba.njit(cache=True, nogil=True)
-def within_alive(cand, lo, hi, origin_m, velocity_mps, t0_s, i, t, r, torus, side_m, alive):
+def within_alive(cand, lo, hi, motion, i, t, r, alive):
     """The candidates ``cand[lo:hi]`` within ``r`` of robot ``i`` at ``t`` (as
     :func:`within`, without the distances), and whether all of them are ``alive``
     (:meth:`netsim.radio.spatial.RangeIndex.within_alive`). The span is passed, not a slice:
     making the view would cost the caller more than the loop."""
+    origin_m, velocity_mps, t0_s, torus, side_m = motion
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     r2 = r * r
     ids = np.empty(hi - lo, dtype=np.int64)

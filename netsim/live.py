@@ -134,8 +134,8 @@ class LiveTopology:
         self._advance(t_end)
         n = self.state.n
         if t_end <= 0 or n == 0:
-            return {"time_mean_components": float("nan"), "time_mean_largest_component": float("nan"),
-                    "time_mean_degree": float("nan")}  # fmt: skip
+            nan = float("nan")
+            return {"time_mean_components": nan, "time_mean_largest_component": nan, "time_mean_degree": nan}
         a = self._area
         return {
             "time_mean_components": a[0] / t_end,

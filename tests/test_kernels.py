@@ -221,6 +221,23 @@ def test_compiled_make_ack_equals_numpy():
     assert max(degrees) > 3 and a.resign_pending.sum() < 30
 
 
+def end_unit_disk_numpy(medium, frame, out):
+    """The numpy twin of netsim.radio._mac_kernels.end_unit_disk, as Medium._end computes
+    it: the same arguments, updated and filled the same way; returns how many are newly idle."""
+    cover, transmitting, tx_seq, cover_seq, busy_s, busy_since = medium
+    i, seq, now, disturbed, rx, hd_start, col_start = frame
+    hd, col, newly = out
+    cover[disturbed] -= 1
+    transmitting[i] = False
+    hd[: len(rx)] = hd_start | (tx_seq[rx] > seq)
+    col[: len(rx)] = ~hd[: len(rx)] & (col_start | (cover_seq[rx] != seq))
+    cand = np.append(disturbed, i)
+    idle = cand[(cover[cand] == 0) & ~transmitting[cand]]
+    newly[: len(idle)] = idle
+    busy_s[idle] += now - busy_since[idle]
+    return len(idle)
+
+
 def test_compiled_frame_end_equals_numpy():
     """A frame's end under the unit disk (netsim/radio/_mac_kernels.py) leaves the medium's
     arrays and finds the same half-duplex and collision losses and the same robots newly
@@ -240,24 +257,19 @@ def test_compiled_frame_end_equals_numpy():
         disturbed = np.sort(rng.choice(others, int(rng.integers(0, 20)), replace=False))
         rx = np.sort(rng.choice(disturbed, int(rng.integers(0, len(disturbed) + 1)), replace=False))
         hd_start, col_start = rng.random(len(rx)) < 0.2, rng.random(len(rx)) < 0.2
-        seq, now = 6, 1.0 + rng.random()
-        # numpy, as in Medium._end
-        c1, t1, b1 = cover.copy(), transmitting.copy(), busy_s.copy()
-        c1[disturbed] -= 1
-        t1[i] = False
-        hd1 = hd_start | (tx_seq[rx] > seq)
-        col1 = ~hd1 & (col_start | (cover_seq[rx] != seq))
-        cand = np.append(disturbed, i)
-        newly1 = cand[(c1[cand] == 0) & ~t1[cand]]
-        b1[newly1] += now - busy_since[newly1]
-        # compiled
-        c2, t2, b2 = cover.copy(), transmitting.copy(), busy_s.copy()
-        hd2, col2, newly2 = np.empty(n, bool), np.empty(n, bool), np.empty(n + 1, np.int64)
-        frame = (disturbed, i, rx, hd_start, col_start, seq, now)
-        m = _mac_kernels.end_unit_disk(c2, t2, tx_seq, cover_seq, b2, busy_since, *frame, hd2, col2, newly2)
-        assert (c1 == c2).all() and (t1 == t2).all() and (b1 == b2).all()
-        assert (hd1 == hd2[: len(rx)]).all() and (col1 == col2[: len(rx)]).all()
-        assert newly1.tolist() == newly2[:m].tolist()
+        frame = (i, 6, 1.0 + rng.random(), disturbed, rx, hd_start, col_start)
+        runs = []
+        for end in (end_unit_disk_numpy, _mac_kernels.end_unit_disk):
+            medium = (cover.copy(), transmitting.copy(), tx_seq, cover_seq, busy_s.copy(), busy_since)
+            out = (np.zeros(n, bool), np.zeros(n, bool), np.zeros(n + 1, np.int64))
+            m = end(medium, frame, out)
+            runs.append((m, medium, out))
+        (m1, medium1, out1), (m2, medium2, out2) = runs
+        assert m1 == m2
+        assert all(np.array_equal(x, y) for x, y in zip(medium1, medium2))
+        assert np.array_equal(out1[0][: len(rx)], out2[0][: len(rx)])
+        assert np.array_equal(out1[1][: len(rx)], out2[1][: len(rx)])
+        assert out1[2][:m1].tolist() == out2[2][:m2].tolist()
 
 
 def test_medium_runs_equal_with_and_without_compiled_loops(monkeypatch):

@@ -77,26 +77,19 @@ def linked(
 
 
 class MapRadio(NamedTuple):
-    """What a chunk's solution needs of the radio: the map's walls (its cells, and the
-    vertices where blocked and clear cells meet) and, per count of walls crossed, the
-    squared distance within which the link is up (``inf``: anywhere in the envelope; counts
-    beyond the table: never)."""
+    """What a chunk's solution needs of the radio: the map's walls (``grid``, the plain
+    tuple of a :class:`~netsim.radio.sweep.MapGrid`, as the kernels take it) and, per count
+    of walls crossed, the squared distance within which the link is up (``inf``: anywhere
+    in the envelope; counts beyond the table: never)."""
 
-    flat: np.ndarray
-    h: int
-    w: int
-    row_ptr: np.ndarray
-    cols: np.ndarray
-    origin_x: float
-    origin_y: float
-    resolution_m: float
+    grid: tuple
     radius_sq: np.ndarray
 
 
 def map_radio(reception: Reception) -> MapRadio:
     """The :class:`MapRadio` of a channel on a map without shadowing: the unit disk with line
     of sight (no wall at all), or log-distance with ``wall_loss_db`` per wall."""
-    from netsim.radio.sweep import cached_vertex_index
+    from netsim.radio.sweep import map_grid
 
     chain = reception.compiled
     occupancy = reception.map
@@ -112,19 +105,7 @@ def map_radio(reception: Reception) -> MapRadio:
         radius_sq = radius_sq[: int(np.flatnonzero(radius_sq >= 0).max()) + 1]
     else:
         radius_sq = np.array([np.inf])
-    index = cached_vertex_index(occupancy.occupied)
-    h, w = occupancy.shape
-    return MapRadio(
-        np.ascontiguousarray(occupancy.occupied).ravel(),
-        h,
-        w,
-        index.row_ptr,
-        index.cols,
-        float(occupancy.origin_m[0]),
-        float(occupancy.origin_m[1]),
-        float(occupancy.resolution_m),
-        radius_sq,
-    )
+    return MapRadio(tuple(map_grid(occupancy)), radius_sq)
 
 
 class Stretches:
@@ -226,11 +207,8 @@ class Stretches:
         span[dead] = 0.0
         p0 = self.pa[r] + self.va[r] * (lo - self.ta[r])[:, None]
         q0 = self.pb[r] + self.vb[r] * (lo - self.tb[r])[:, None]
-        first, c_chunk, c_t, c_up = link_chunks(
-            radio.flat, radio.h, radio.w, radio.row_ptr, radio.cols, radio.origin_x, radio.origin_y,
-            radio.resolution_m, p0, np.ascontiguousarray(self.va[r]), q0, np.ascontiguousarray(self.vb[r]),
-            span, VERTEX_TOLERANCE_CELLS, radio.radius_sq,
-        )  # fmt: skip
+        motion = (p0, np.ascontiguousarray(self.va[r]), q0, np.ascontiguousarray(self.vb[r]))
+        first, c_chunk, c_t, c_up = link_chunks(radio.grid, motion, span, VERTEX_TOLERANCE_CELLS, radio.radius_sq)
         first[dead] = False
         chunk, t, up, start_state, end_state = assemble(first, c_chunk, c_t, c_up, lo, count, before, s0 is not None)
         return r[chunk], t, up, start_state, end_state

@@ -27,11 +27,13 @@ def _snap(g, eps):
 
 
 @numba.njit(cache=True, nogil=True)
-def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
-    """Walls crossed by one segment (grid units) and where it first meets a blocked cell.
+def trace_one(cells, u0, v0, u1, v1, eps, limit):
+    """Walls crossed by one segment (grid units) and where it first meets a blocked cell;
+    ``cells``: the grid's ``(flat, h, w)``, its blocked cells row-major.
 
     Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
     """
+    flat, h, w = cells
     i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
     j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
     count = 0
@@ -90,23 +92,27 @@ def trace_one(flat, h, w, u0, v0, u1, v1, eps, limit):
 
 
 @numba.njit(cache=True, nogil=True)
-def walls_one(flat, h, w, u0, v0, u1, v1, eps, limit):
+def walls_one(cells, u0, v0, u1, v1, eps, limit):
     """The walls of :func:`trace_one` between two robots: ends within ``eps`` of a grid line
     are put on it first (``netsim.radio.los._snap``), so that walls at a robot on a grid
     corner are the same both ways."""
-    count, _ = trace_one(flat, h, w, _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps), eps, limit)
+    count, _ = trace_one(cells, _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps), eps, limit)
     return count
 
 
 @numba.njit(cache=True, nogil=True)
-def trace(flat, h, w, g0, g1, eps, walls, first_t, limit, snap):
-    """Every segment's walls (counting stops once past ``limit``) and first blocked point;
-    with ``snap``, the ends snapped as :func:`walls_one` does."""
+def trace(cells, points, eps, out, limit, snap):
+    """Every segment's walls (counting stops once past ``limit``) and first blocked point,
+    ``out``: ``(walls, first_t)``, filled; the segments from ``g0`` to ``g1`` (``points``, grid
+    units) on the grid ``cells``, ``(flat, h, w)``. With ``snap``, the ends snapped as
+    :func:`walls_one` does."""
+    g0, g1 = points
+    walls, first_t = out
     for s in range(g0.shape[0]):
         u0, v0, u1, v1 = g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1]
         if snap:
             u0, v0, u1, v1 = _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps)
-        walls[s], first_t[s] = trace_one(flat, h, w, u0, v0, u1, v1, eps, limit)
+        walls[s], first_t[s] = trace_one(cells, u0, v0, u1, v1, eps, limit)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -121,8 +127,15 @@ def slot(table_keys, dense_n, key):
 
 
 @numba.njit(cache=True, nogil=True)
-def shadow_step(table_keys, table_x, table_s, keys, s_new, z, sigma, decorrelation_m, x, new, dense_n=0):
-    """Move the stored pairs among ``keys`` on to travel ``s_new`` (in place); flag the others."""
+def shadow_step(shadow, law, pairs, out):
+    """Move the stored pairs among ``keys`` on to travel ``s_new`` (in place): their values
+    to ``x``; flag the others in ``new``. ``shadow``: the records and the normals, taken in
+    order, ``(table_keys, table_x, table_s, z)``; ``law``: ``(sigma, decorrelation_m,
+    dense_n)``; ``pairs``: ``(keys, s_new)``; ``out``: ``(x, new)``, filled."""
+    table_keys, table_x, table_s, z = shadow
+    sigma, decorrelation_m, dense_n = law
+    keys, s_new = pairs
+    x, new = out
     n = table_keys.shape[0]
     for m in range(keys.shape[0]):
         pos = slot(table_keys, dense_n, keys[m])
@@ -157,16 +170,22 @@ def path_loss_pass(frame, d, loss, alive):
 
 
 @numba.njit(cache=True, nogil=True)
-def budget_pass(
-    frame, sigma, loss, alive, keys, s_new, z, table_keys, table_x, table_s, flat, g0, g1, x_new, new, receivable
-):
+def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
     """Shadowing (when ``sigma`` > 0) and walls (when the run has a wall loss) for the pairs
     still alive, then the decision ``tx - loss >= sensitivity``: the loss chain in one pass.
-    ``frame``: the run's constants; ``table_*`` the shadowing's records
-    (:meth:`~netsim.radio.shadowing.PairShadowing.table`), ``z`` its normals in order."""
+    ``frame``: the run's constants; ``path``: :func:`path_loss_pass`'s ``(loss, alive)``;
+    ``shadow``: the shadowing's records
+    (:meth:`~netsim.radio.shadowing.PairShadowing.table`) and its normals, taken in order,
+    ``(table_keys, table_x, table_s, z)``; ``flat``: the map's occupied cells; ``points``:
+    the ends in grid units, ``(g0, g1)``; ``pairs``: ``(keys, s_new, x_new, new,
+    receivable)``, the keys and travels read (shadowing), the rest filled."""
     c = frame[0]
+    loss, alive = path
+    table_keys, table_x, table_s, z = shadow
+    g0, g1 = points
+    keys, s_new, x_new, new, receivable = pairs
     decorrelation_m, clip_db, wall_db, dense_n = c.decorrelation_m, c.clip_db, c.wall_db, c.dense_n
-    h, w, eps, budget_slack = c.map_h, c.map_w, c.eps, c.budget_slack
+    cells, eps, budget_slack = (flat, c.map_h, c.map_w), c.eps, c.budget_slack
     tx_dbm, sensitivity_dbm = c.tx_dbm, c.sensitivity_dbm
     n = table_keys.shape[0]
     j = 0
@@ -197,21 +216,22 @@ def budget_pass(
             # whatever rounding the division made.
             affordable = (budget_slack - total) / wall_db
             limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
-            walls = walls_one(flat, h, w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
+            walls = walls_one(cells, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
             total = total + wall_db * walls
         receivable[m] = tx_dbm - total >= sensitivity_dbm
 
 
 @numba.njit(cache=True, nogil=True)
-def disk_pass(frame, d, a, range_m, flat, g0, g1, receivable):
+def disk_pass(frame, d, a, range_m, flat, points, receivable):
     """The unit disk (the sender's range: ``range_m[a]``, or ``range_m[0]`` for all), with
-    line of sight on a map."""
+    line of sight on a map (``flat``, the ends in grid units ``points``: ``(g0, g1)``)."""
     c = frame[0]
+    g0, g1 = points
     for m in range(d.shape[0]):
         r = range_m[a[m]] if c.per_robot else range_m[0]
         ok = d[m] <= r
         if ok and c.use_map:
-            walls = walls_one(flat, c.map_h, c.map_w, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
+            walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
             ok = walls == 0
         receivable[m] = ok
 
@@ -272,10 +292,15 @@ def link_touches(up, sender, receivers, linked, t0, last_t, every, touched):
 
 
 @numba.njit(cache=True, nogil=True)
-def grid_points(sender, receivers, origin_m, velocity_mps, t0, t, map_ox, map_oy, res, g0, g1):
-    """Grid coordinates of the sender (every row of ``g0``) and of each receiver (``g1``) at
-    ``t``: the positions of :meth:`~netsim.state.RobotState.positions_at` (plane), the same
-    arithmetic in the same order."""
+def grid_points(frame, t, sender, receivers, motion, points):
+    """Grid coordinates (the map grid of ``frame``) of the sender (every row of ``g0``) and
+    of each receiver (``g1``) at ``t``, ``points``: ``(g0, g1)``, filled. The positions of
+    :meth:`~netsim.state.RobotState.positions_at` (plane), the same arithmetic in the same
+    order; ``motion``: the state's ``(origin_m, velocity_mps, t0_s)``."""
+    c = frame[0]
+    map_ox, map_oy, res = c.map_ox, c.map_oy, c.res_m
+    origin_m, velocity_mps, t0 = motion
+    g0, g1 = points
     dt = t - t0[sender]
     u0 = (origin_m[sender, 0] + velocity_mps[sender, 0] * dt - map_ox) / res
     v0 = (origin_m[sender, 1] + velocity_mps[sender, 1] * dt - map_oy) / res
@@ -303,41 +328,24 @@ def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out
     Returns the number of normals used."""
     c = frame[0]
     odometer, speed, t0, origin_m, velocity_mps = robots
-    table_keys, table_x, table_s, normals = shadow
-    keys, s_new, x_new, new, receivable = out
+    table_keys, table_x, table_s, _normals = shadow
+    keys, s_new, x_new, new, _receivable = out
     sigma, dense_n = c.sigma_db, c.dense_n
     k = receivers.shape[0]
     if sigma > 0.0:
         pair_clock(sender, receivers, odometer, speed, t0, t, c.step_m, keys, s_new)
     if c.wall_db > 0.0:
-        g0 = np.empty((k, 2))
-        g1 = np.empty((k, 2))
-        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, c.map_ox, c.map_oy, c.res_m, g0, g1)
+        points = (np.empty((k, 2)), np.empty((k, 2)))
+        grid_points(frame, t, sender, receivers, (origin_m, velocity_mps, t0), points)
     else:
-        g0 = g1 = np.zeros((1, 2))
+        none = np.zeros((1, 2))
+        points = (none, none)
     loss = np.empty(k)
     alive = np.empty(k, dtype=np.bool_)
     count = path_loss_pass(frame, distance_m, loss, alive)
     if count == 0:
         sigma = 0.0
-    budget_pass(
-        frame,
-        sigma,
-        loss,
-        alive,
-        keys,
-        s_new,
-        normals,
-        table_keys,
-        table_x,
-        table_s,
-        flat,
-        g0,
-        g1,
-        x_new,
-        new,
-        receivable,
-    )
+    budget_pass(frame, sigma, (loss, alive), shadow, flat, points, out)
     if dense_n > 0 and sigma > 0.0:
         for m in range(k):
             if new[m]:
@@ -354,16 +362,15 @@ def disk_frame(frame, t, sender, receivers, distance_m, range_m, robots, flat, r
     :func:`grid_points` and :func:`disk_pass` in one call. ``robots``: the state's
     ``(origin_m, velocity_mps, t0_s)``."""
     c = frame[0]
-    origin_m, velocity_mps, t0 = robots
     k = receivers.shape[0]
     if c.use_map:
-        g0 = np.empty((k, 2))
-        g1 = np.empty((k, 2))
-        grid_points(sender, receivers, origin_m, velocity_mps, t0, t, c.map_ox, c.map_oy, c.res_m, g0, g1)
+        points = (np.empty((k, 2)), np.empty((k, 2)))
+        grid_points(frame, t, sender, receivers, robots, points)
     else:
-        g0 = g1 = np.zeros((1, 2))
+        none = np.zeros((1, 2))
+        points = (none, none)
     senders = np.full(k, sender, dtype=np.int64)
-    disk_pass(frame, distance_m, senders, range_m, flat, g0, g1, receivable)
+    disk_pass(frame, distance_m, senders, range_m, flat, points, receivable)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -403,14 +410,20 @@ def first_above(cdf, x):
 
 
 @numba.njit(cache=True, nogil=True)
-def free_destinations(
-    cdf, x0, x1, y0, y1, draw_cell, draw_uv, free_flat, not_free_flat, h, w, ox, oy, res, here, batch, eps, out, got
-):
+def free_destinations(cells, grid, draws, here, batch, eps, out):
     """One round of :func:`netsim.radio.free_space.draw_destinations` for robots at ``here``:
     robot ``k``'s ``batch`` candidates are drawn as ``sample_free`` draws them (a cell by
     area from ``draw_cell``, a point in it from ``draw_uv``; a point that rounding put outside
     a free cell moved to its cell's centre), and the first whose straight leg from ``here[k]``
-    stays in free cells is kept (``got[k]``). Legs after the first free one are not traced."""
+    stays in free cells is kept (``got[k]``). Legs after the first free one are not traced.
+
+    ``cells``: the free cells to draw from, ``(cdf, x0, x1, y0, y1)`` (cumulative area,
+    bounds in metres); ``grid``: the map's ``(free_flat, not_free_flat, h, w, ox, oy,
+    res)``; ``draws``: ``(draw_cell, draw_uv)``; ``out``: ``(picked, got)``, filled."""
+    cdf, x0, x1, y0, y1 = cells
+    free_flat, not_free_flat, h, w, ox, oy, res = grid
+    draw_cell, draw_uv = draws
+    picked, got = out
     last = cdf.shape[0] - 1
     total = cdf[last]
     for k in range(here.shape[0]):
@@ -434,10 +447,10 @@ def free_destinations(
                 y = 0.5 * (y0[cell] + y1[cell])
                 u = (x - ox) / res
                 v = (y - oy) / res
-            walls, _ = trace_one(not_free_flat, h, w, hu, hv, u, v, eps, 0)
+            walls, _ = trace_one((not_free_flat, h, w), hu, hv, u, v, eps, 0)
             if walls == 0:
-                out[k, 0] = x
-                out[k, 1] = y
+                picked[k, 0] = x
+                picked[k, 1] = y
                 got[k] = True
                 break
 

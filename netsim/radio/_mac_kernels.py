@@ -13,29 +13,19 @@ from netsim import kernel_cache
 
 
 @numba.njit(cache=True, nogil=True)
-def end_unit_disk(
-    cover,
-    transmitting,
-    tx_seq,
-    cover_seq,
-    busy_s,
-    busy_since,  # the medium's arrays, updated
-    disturbed,
-    i,
-    rx,
-    hd_start,
-    col_start,
-    seq,
-    now,  # the frame
-    hd,
-    col,
-    newly,  # out
-):
+def end_unit_disk(medium, frame, out):
     """Frame ``seq`` of robot ``i`` leaves the air at ``now``: the robots it disturbed sense one
     frame less, ``hd``/``col`` (one per receiver in ``rx``) tell which receptions were lost to
     half duplex and to collisions, and the robots that sense the medium idle again (the
     disturbed, then ``i``) are written to ``newly`` with their busy time added; returns how
-    many."""
+    many.
+
+    ``medium``: the medium's arrays, updated, ``(cover, transmitting, tx_seq, cover_seq,
+    busy_s, busy_since)``; ``frame``: ``(i, seq, now, disturbed, rx, hd_start, col_start)``;
+    ``out``: ``(hd, col, newly)``, filled."""
+    cover, transmitting, tx_seq, cover_seq, busy_s, busy_since = medium
+    i, seq, now, disturbed, rx, hd_start, col_start = frame
+    hd, col, newly = out
     for k in range(len(disturbed)):
         cover[disturbed[k]] -= 1
     transmitting[i] = False

@@ -1,7 +1,13 @@
 """Compiled (numba) loops behind :mod:`netsim.radio.sweep`.
 
-They call :func:`netsim.radio._kernels.walls_one`: numba does not track callees across
-files, so a change there must touch this module too (or clear the cache).
+They call :func:`netsim.radio._kernels.walls_one` (numba does not track callees across
+files: :mod:`netsim.kernel_cache` keys this module's cache by that one's source too).
+
+What they take, by name: ``grid``, the map's ``(flat, h, w, row_ptr, cols, origin_x,
+origin_y, resolution_m)`` (:class:`netsim.radio.sweep.MapGrid`: the occupied cells row-major,
+the vertices where blocked and clear cells meet, the grid's origin and cell size); its
+first three, ``cells``, are what a cell's lookup reads. ``motion``: the two robots of each
+pair on straight legs, ``(p0, vp, q0, vq)`` (metres, m/s).
 """
 
 from __future__ import annotations
@@ -31,7 +37,8 @@ def _push(buf, n, t):
 
 
 @numba.njit(cache=True, nogil=True)
-def _cell(flat, h, w, i, j):
+def _cell(cells, i, j):
+    flat, h, w = cells
     i = min(max(i, 0), w - 1)
     j = min(max(j, 0), h - 1)
     return flat[j * w + i]
@@ -48,9 +55,11 @@ def _linear_root(c0, c1, duration, buf, n):
 
 
 @numba.njit(cache=True, nogil=True)
-def _end_crossings(flat, h, w, e0, e1, f0, f1, duration, axis, buf, n):
-    """Where an end moving along ``e0 + e1 t`` (the axis crossed; ``f`` the other
-    coordinate) crosses a grid line between cells of different state, or near a vertex."""
+def _end_crossings(cells, end, duration, axis, buf, n):
+    """Where an end moving along ``e0 + e1 t`` (the axis crossed; ``f0 + f1 t`` the other
+    coordinate; ``end``: ``(e0, e1, f0, f1)``) crosses a grid line between cells of
+    different state, or near a vertex."""
+    e0, e1, f0, f1 = end
     if e1 == 0.0:
         return buf, n
     x_end = e0 + e1 * duration
@@ -69,9 +78,9 @@ def _end_crossings(flat, h, w, e0, e1, f0, f1, duration, axis, buf, n):
             continue
         j = np.int64(np.floor(f))
         if axis == 0:
-            differ = _cell(flat, h, w, line - 1, j) != _cell(flat, h, w, line, j)
+            differ = _cell(cells, line - 1, j) != _cell(cells, line, j)
         else:
-            differ = _cell(flat, h, w, j, line - 1) != _cell(flat, h, w, j, line)
+            differ = _cell(cells, j, line - 1) != _cell(cells, j, line)
         if differ:
             buf, n = _push(buf, n, t)
     return buf, n
@@ -102,15 +111,18 @@ def _rises(x, y, z):
 
 
 @numba.njit(cache=True, nogil=True)
-def _changes_count(flat, h, w, i, j, px, py, qx, qy):
-    """Whether the walls crossed may change as the segment from ``p`` to ``q`` (relative to
-    vertex ``(i, j)``, which lies between them) sweeps across the vertex.
+def _changes_count(cells, vertex, p, q):
+    """Whether the walls crossed may change as the segment from ``p`` to ``q`` (``(x, y)``
+    relative to ``vertex``, ``(i, j)``, which lies between them) sweeps across the vertex.
 
     Away from the ends and off the axes, the cells the segment visits change only there:
     the cell before the vertex and the one after stay, and the one between is one of the two
     beside the diagonal step or the other. The walls (rises from a clear cell into a blocked
     one) then change by what that swap changes locally. Elsewhere (an end in or next to the
     vertex's cells, a segment along an axis), it may change."""
+    i, j = vertex
+    px, py = p
+    qx, qy = q
     dx = qx - px
     dy = qy - py
     length = abs(dx) + abs(dy)
@@ -123,18 +135,20 @@ def _changes_count(flat, h, w, i, j, px, py, qx, qy):
     by = -1 if dy > 0 else 0
     ax = -1 - bx
     ay = -1 - by
-    before = _cell(flat, h, w, i + bx, j + by)
-    after = _cell(flat, h, w, i + ax, j + ay)
-    side1 = _cell(flat, h, w, i + ax, j + by)
-    side2 = _cell(flat, h, w, i + bx, j + ay)
+    before = _cell(cells, i + bx, j + by)
+    after = _cell(cells, i + ax, j + ay)
+    side1 = _cell(cells, i + ax, j + by)
+    side2 = _cell(cells, i + bx, j + ay)
     return _rises(before, side1, after) != _rises(before, side2, after)
 
 
 @numba.njit(cache=True, nogil=True)
-def _vertex_roots(flat, h, w, i, j, ax, ay, vax, vay, bx, by, vbx, vby, duration, buf, n):
-    """When the segment from ``a + va t`` to ``b + vb t`` (relative to vertex ``(i, j)``)
-    passes through the vertex: ``cross(a + va t, b + vb t) = 0`` with the vertex between the
-    ends; those at which the walls crossed cannot change left out (:func:`_changes_count`)."""
+def _vertex_roots(cells, vertex, segment, duration, buf, n):
+    """When the segment from ``a + va t`` to ``b + vb t`` (relative to ``vertex``, ``(i,
+    j)``; ``segment``: ``(ax, ay, vax, vay, bx, by, vbx, vby)``) passes through the vertex:
+    ``cross(a + va t, b + vb t) = 0`` with the vertex between the ends; those at which the
+    walls crossed cannot change left out (:func:`_changes_count`)."""
+    ax, ay, vax, vay, bx, by, vbx, vby = segment
     c0 = ax * by - ay * bx
     c1 = ax * vby - ay * vbx + vax * by - vay * bx
     c2 = vax * vby - vay * vbx
@@ -181,15 +195,17 @@ def _vertex_roots(flat, h, w, i, j, ax, ay, vax, vay, bx, by, vbx, vby, duration
         qy = by + vby * r
         # Between the ends (with a margin: a spare candidate costs one evaluation).
         if px * qx + py * qy <= 1e-9 * (px * px + py * py + qx * qx + qy * qy) + 1e-12:
-            if _changes_count(flat, h, w, i, j, px, py, qx, qy):
+            if _changes_count(cells, vertex, (px, py), (qx, qy)):
                 buf, n = _push(buf, n, r)
     return buf, n
 
 
 @numba.njit(cache=True, nogil=True)
-def candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, duration):
+def candidates(grid, g0, gv, k0, kv, duration):
     """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
     ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
+    flat, h, w, row_ptr, cols, _ox, _oy, _res = grid
+    cells = (flat, h, w)
     buf = np.empty(64)
     n = 0
     ax, ay, vax, vay = g0[0], g0[1], gv[0], gv[1]
@@ -198,10 +214,10 @@ def candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, duration):
     # segment is parallel to it.
     buf, n = _linear_root(bx - ax, vbx - vax, duration, buf, n)
     buf, n = _linear_root(by - ay, vby - vay, duration, buf, n)
-    buf, n = _end_crossings(flat, h, w, ax, vax, ay, vay, duration, 0, buf, n)
-    buf, n = _end_crossings(flat, h, w, ay, vay, ax, vax, duration, 1, buf, n)
-    buf, n = _end_crossings(flat, h, w, bx, vbx, by, vby, duration, 0, buf, n)
-    buf, n = _end_crossings(flat, h, w, by, vby, bx, vbx, duration, 1, buf, n)
+    buf, n = _end_crossings(cells, (ax, vax, ay, vay), duration, 0, buf, n)
+    buf, n = _end_crossings(cells, (ay, vay, ax, vax), duration, 1, buf, n)
+    buf, n = _end_crossings(cells, (bx, vbx, by, vby), duration, 0, buf, n)
+    buf, n = _end_crossings(cells, (by, vby, bx, vbx), duration, 1, buf, n)
     # The segment lies in the convex hull of the ends' first and last positions.
     xs = np.array([ax, ax + vax * duration, bx, bx + vbx * duration])
     ys = np.array([ay, ay + vay * duration, by, by + vby * duration])
@@ -226,16 +242,18 @@ def candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, duration):
             x = float(cols[m])
             if x > hi + margin:
                 break
-            buf, n = _vertex_roots(
-                flat, h, w, cols[m], j, ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby, duration, buf, n
-            )
+            segment = (ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+            buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
     return buf[:n]
 
 
 @numba.njit(cache=True, nogil=True)
-def sweep(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, limit):
+def sweep(grid, motion, duration, eps, limit):
     """Rows ``(pair, t0, t1, walls)`` of every pair (:func:`netsim.radio.sweep.sweep_walls`);
     the counts stop at ``limit + 1``."""
+    flat, h, w, _row_ptr, _cols, origin_x, origin_y, res = grid
+    cells = (flat, h, w)
+    p0, vp, q0, vq = motion
     k = p0.shape[0]
     cap = 4 * k + 16
     pair = np.empty(cap, np.int64)
@@ -257,7 +275,7 @@ def sweep(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, du
         kv[0] = vq[s, 0] / res
         kv[1] = vq[s, 1] / res
         d = duration[s]
-        cand = np.sort(candidates(flat, h, w, row_ptr, cols, g0, gv, k0, kv, d))
+        cand = np.sort(candidates(grid, g0, gv, k0, kv, d))
         m = cand.shape[0]
         prev = 0.0
         for c in range(m + 1):
@@ -269,7 +287,7 @@ def sweep(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, du
             v0 = (p0[s, 1] + vp[s, 1] * mid - origin_y) / res
             u1 = (q0[s, 0] + vq[s, 0] * mid - origin_x) / res
             v1 = (q0[s, 1] + vq[s, 1] * mid - origin_y) / res
-            count = walls_one(flat, h, w, u0, v0, u1, v1, eps, limit)
+            count = walls_one(cells, u0, v0, u1, v1, eps, limit)
             if rows > 0 and pair[rows - 1] == s and walls[rows - 1] == count:
                 t1[rows - 1] = nxt
             else:
@@ -303,15 +321,14 @@ def _grow_float(a, cap):
 
 
 @numba.njit(cache=True, nogil=True)
-def link_chunks(flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, radius_sq):
-    """The link's state over each chunk (two robots on straight legs, times from the chunk's
-    start): up while ``|q - p| <= sqrt(radius_sq[walls])`` (``inf``: up whatever the
+def link_chunks(grid, motion, duration, eps, radius_sq):
+    """The link's state over each chunk (the two robots of ``motion`` on straight legs,
+    times from the chunk's start): up while ``|q - p| <= sqrt(radius_sq[walls])`` (``inf``: up whatever the
     distance; walls beyond the table: down). Returns each chunk's state just after its start
     and the changes inside it ``(chunk, t, up)``, in order."""
+    p0, vp, q0, vq = motion
     limit = radius_sq.shape[0] - 1
-    pair, t0, t1, walls = sweep(
-        flat, h, w, row_ptr, cols, origin_x, origin_y, res, p0, vp, q0, vq, duration, eps, limit
-    )
+    pair, t0, t1, walls = sweep(grid, motion, duration, eps, limit)
     k = p0.shape[0]
     first = np.zeros(k, np.bool_)
     cap = 16

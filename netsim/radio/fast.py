@@ -208,7 +208,7 @@ class CompiledChain:
             r = np.atleast_1d(self.range.range_m)
             if g0 is None:
                 g0 = g1 = np.zeros((kn, 2))
-            self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, g0, g1, out)
+            self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, (g0, g1), out)
             return out
         sh = self.shadow
         loss = np.empty(kn)
@@ -225,7 +225,8 @@ class CompiledChain:
             tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
         x_new = np.empty(kn)
         new = np.empty(kn, dtype=bool)
-        self.k.budget_pass(self.frame, sigma, loss, alive, keys, s_new, z, tk, tx, ts, flat, g0, g1, x_new, new, out)
+        columns = (keys, s_new, x_new, new, out)
+        self.k.budget_pass(self.frame, sigma, (loss, alive), (tk, tx, ts, z), flat, (g0, g1), columns)
         if sh is not None and new.any():
             self._insert_new(keys, x_new, s_new, new)
         return out

@@ -178,10 +178,9 @@ def _compiled_round(kernel, m: OccupancyMap, rng, here, area: float | Bounds, ba
     h, w = m.shape
     picked = np.empty((len(here), 2))
     got = np.empty(len(here), dtype=bool)
-    kernel(
-        cdf, x0, x1, y0, y1, draw_cell, draw_uv, m.free.ravel(), m.not_free.ravel(), h, w,
-        float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m, here, batch, VERTEX_TOLERANCE_CELLS, picked, got,
-    )  # fmt: skip
+    grid = (m.free.ravel(), m.not_free.ravel(), h, w, float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m)
+    cells = (cdf, x0, x1, y0, y1)
+    kernel(cells, grid, (draw_cell, draw_uv), here, batch, VERTEX_TOLERANCE_CELLS, (picked, got))
     out[todo[got]] = picked[got]
     return got
 

@@ -176,18 +176,8 @@ def _trace(
     walls = np.empty(len(p), dtype=np.int64)
     first_t = np.empty(len(p))
     h, w = blocked.shape
-    kernel(
-        blocked.ravel(),
-        h,
-        w,
-        (p - origin) / resolution_m,
-        (q - origin) / resolution_m,
-        VERTEX_TOLERANCE_CELLS,
-        walls,
-        first_t,
-        limit,
-        snap,
-    )
+    points = ((p - origin) / resolution_m, (q - origin) / resolution_m)
+    kernel((blocked.ravel(), h, w), points, VERTEX_TOLERANCE_CELLS, (walls, first_t), limit, snap)
     return (walls, first_t) if first else walls
 
 

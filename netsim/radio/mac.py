@@ -201,6 +201,10 @@ class Medium:
         # Time each robot sensed the medium busy (own transmissions included).
         self.busy_since = np.zeros(n)
         self.busy_s = np.zeros(n)
+        # The arrays the compiled frame end reads and updates (_mac_kernels' ``medium`` and
+        # ``out``): kept for the run, so put together once.
+        self._medium = (self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
+        self._end_out = (self._hd, self._col, self._newly)
         self.frames_sent = 0
         self.attempts = 0
         self.airtime_total_s = 0.0
@@ -378,10 +382,8 @@ class Medium:
         rx = frame.receivers
         newly = None
         if self._kernels is not None:
-            args = (self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
-            m = self._kernels.end_unit_disk(
-                *args, disturbed, i, rx, frame.hd_start, frame.col_start, seq, now, self._hd, self._col, self._newly
-            )
+            leaving = (i, seq, now, disturbed, rx, frame.hd_start, frame.col_start)
+            m = self._kernels.end_unit_disk(self._medium, leaving, self._end_out)
             hd, col, newly = self._hd[: len(rx)], self._col[: len(rx)], self._newly[:m].copy()
         else:
             self.cover[disturbed] -= 1

@@ -222,9 +222,8 @@ class PairShadowing:
         else:
             x = np.empty(k)
             new = np.empty(k, dtype=np.bool_)
-            kernel(
-                self._keys, self._x, self._s, keys, s_new, z, self.sigma_db, self.decorrelation_m, x, new, self.dense_n
-            )
+            law = (self.sigma_db, self.decorrelation_m, self.dense_n)
+            kernel((self._keys, self._x, self._s, z), law, (keys, s_new), (x, new))
             if new.any():
                 idx = np.flatnonzero(new)
                 uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)

@@ -57,6 +57,9 @@ class RangeIndex:
         self._indices = _NONE
         self.rebuilds = 0
         self.kernels = load("netsim._kernels", state.n)
+        # The robots' motion as the compiled queries read it (netsim._kernels' ``motion``):
+        # arrays kept for the run, so put together once.
+        self._motion = (state.origin_m, state.velocity_mps, state.t0_s, state.torus, state.side_m)
 
     def _build(self, t: float) -> None:
         st = self.state
@@ -89,7 +92,7 @@ class RangeIndex:
             return _NONE, _NO_DISTANCE
         if self.kernels is not None:
             k = self.kernels
-            return k.within(cand, st.origin_m, st.velocity_mps, st.t0_s, int(i), float(t), r, st.torus, st.side_m)
+            return k.within(cand, self._motion, int(i), float(t), r)
         cand, dist2 = self._filter(t, i, r, cand)
         return cand, np.sqrt(dist2)
 
@@ -104,9 +107,7 @@ class RangeIndex:
             return _NONE, True
         if self.kernels is not None:
             k = self.kernels
-            return k.within_alive(
-                cand, lo, hi, st.origin_m, st.velocity_mps, st.t0_s, int(i), float(t), r, st.torus, st.side_m, st.alive
-            )
+            return k.within_alive(cand, lo, hi, self._motion, int(i), float(t), r, st.alive)
         ids = self._filter(t, i, r, cand[lo:hi])[0]
         return ids, bool(st.alive[ids].all())
 

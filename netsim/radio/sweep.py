@@ -91,6 +91,31 @@ def cached_vertex_index(blocked: np.ndarray) -> VertexIndex:
 _NO_LIMIT = np.iinfo(np.int64).max
 
 
+class MapGrid(NamedTuple):
+    """A map as the sweep's kernels read it (:mod:`netsim.radio._sweep_kernels`' ``grid``,
+    passed as a plain tuple): the cells that block, row-major, of an ``h`` by ``w`` grid,
+    the vertices where blocked and clear cells meet (:class:`VertexIndex`), the grid's
+    origin and cell size (metres)."""
+
+    flat: np.ndarray
+    h: int
+    w: int
+    row_ptr: np.ndarray
+    cols: np.ndarray
+    origin_x: float
+    origin_y: float
+    resolution_m: float
+
+
+def map_grid(occupancy, blocked: np.ndarray | None = None) -> MapGrid:
+    """The :class:`MapGrid` of a map; ``blocked`` replaces its occupied cells."""
+    grid = np.ascontiguousarray(occupancy.occupied if blocked is None else blocked)
+    index = cached_vertex_index(occupancy.occupied if blocked is None else blocked)
+    h, w = grid.shape
+    ox, oy = (float(c) for c in occupancy.origin_m)
+    return MapGrid(grid.ravel(), h, w, index.row_ptr, index.cols, ox, oy, float(occupancy.resolution_m))
+
+
 def sweep_walls(
     occupancy,
     p0,
@@ -109,27 +134,10 @@ def sweep_walls(
     """
     from netsim.radio._sweep_kernels import sweep
 
-    grid = np.ascontiguousarray(occupancy.occupied if blocked is None else blocked)
-    index = cached_vertex_index(occupancy.occupied if blocked is None else blocked)
+    grid = map_grid(occupancy, blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
     duration = np.ascontiguousarray(np.broadcast_to(np.asarray(duration_s, float), (len(p0),)))
-    h, w = grid.shape
-    ox, oy = (float(c) for c in occupancy.origin_m)
-    pair, t0, t1, walls = sweep(
-        grid.ravel(),
-        h,
-        w,
-        index.row_ptr,
-        index.cols,
-        ox,
-        oy,
-        float(occupancy.resolution_m),
-        p0,
-        vp,
-        q0,
-        vq,
-        duration,
-        VERTEX_TOLERANCE_CELLS,
-        _NO_LIMIT if limit is None else int(limit),
-    )
+    motion = (p0, vp, q0, vq)
+    limit = _NO_LIMIT if limit is None else int(limit)
+    pair, t0, t1, walls = sweep(tuple(grid), motion, duration, VERTEX_TOLERANCE_CELLS, limit)
     return Sweep(pair, t0, t1, walls)
