@@ -79,23 +79,8 @@ def point(radio: str, mode: str, n: int, law: str, loss: float, duration_s: floa
     return {k: v for k, v in keys.items() if k not in BASE_KEYS}
 
 
-def radio_of(row: pd.Series) -> str:
-    """The radio a finished run used, from its resolved configuration: the radio of
-    :data:`COVERAGE_RADIOS` whose keys it all has, the most specific if several."""
-    best, most = "other", 0
-    for name, settings in COVERAGE_RADIOS.items():
-        wanted: dict = {}
-        for text in settings:
-            wanted.update(sweepmod.flatten(parse_override(text)))
-        if len(wanted) > most and all(k in row.index and row[k] == v for k, v in wanted.items()):
-            best, most = name, len(wanted)
-    return best
-
-
-def mode_of(row: pd.Series) -> str:
-    if row["coverage.members"] == "follow":
-        return "follow"
-    return str(row["coverage.plan"])
+def _key(keys: dict) -> tuple:
+    return tuple(sorted((k, repr(v)) for k, v in keys.items()))
 
 
 def plot(agg: pd.DataFrame, path: Path, radios: list[str], title: str) -> None:
@@ -148,13 +133,19 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     if min(args.n + args.map_n) < 2:
         raise NetsimInputError("--n and --map-n: at least 2 robots")
-    points = tuple(
-        point(radio, mode, n, law, args.loss, args.duration)
-        for radio in args.radios
-        for mode in args.modes
-        for n in (args.map_n if radio.startswith("office") else args.n)
-        for law in args.laws
-    )
+    for option, value in (("--reps", args.reps), ("--workers", args.workers)):
+        if value < 1:
+            raise NetsimInputError(f"{option} {value}: at least 1")
+    if not args.duration > 0:
+        raise NetsimInputError(f"--duration {args.duration:g}: must be positive")
+    labelled = {}
+    for radio in args.radios:
+        for mode in args.modes:
+            for n in args.map_n if radio.startswith("office") else args.n:
+                for law in args.laws:
+                    keys = point(radio, mode, n, law, args.loss, args.duration)
+                    labelled[_key(keys)] = (radio, mode, keys)
+    points = tuple(keys for _, _, keys in labelled.values())
     base = {"seed": args.seed, "duration_s": args.duration}
     sweep = sweepmod.parse(
         {"name": "coverage_vs_n", "replications": args.reps, "base": base, "grid": {"coverage.law": args.laws}}
@@ -163,9 +154,12 @@ def main(argv=None) -> None:
     out = Path(args.out)
     report = sweepmod.run_sweep(sweep, out / "sweep", workers=args.workers, scheduler=args.scheduler)
     print(report.text())
+    # This invocation's runs only: the directory may keep runs of other options.
+    label = {run.run_id: labelled[_key(run.point)][:2] for run in sweep.runs()}
     runs = sweepmod.load(out / "sweep")
-    runs["radio"] = [radio_of(r) for _, r in runs.iterrows()]
-    runs["mode"] = [mode_of(r) for _, r in runs.iterrows()]
+    runs = runs[runs["run_id"].isin(label)].reset_index(drop=True)
+    runs["radio"] = [label[r][0] for r in runs["run_id"]]
+    runs["mode"] = [label[r][1] for r in runs["run_id"]]
     runs["grew"] = (runs["components_max_during_control"] - runs["components_start"]).clip(lower=0).astype(float)
     runs["connected_final"] = runs["connected_final"].astype(float)
     runs["settling_s"] = runs["control_settled_s"].astype(float) - runs["coverage.start_s"]

@@ -172,10 +172,13 @@ def test_runtime_map_links_equal_posthoc_on_a_building_map(building_yaml, kind):
 def test_a_nearly_parallel_pair_does_not_hang_the_chunk_count():
     """A pair whose relative speed is a rounding error leaves the envelope after ages
     (1e16 s): its chunk count is beyond what a float counts by ones, and is taken as
-    estimated instead of settled one sample at a time (which never ended)."""
+    estimated instead of settled one sample at a time; likewise samples too fine for
+    their floats to move."""
     from netsim.links.wall_sweeps import count_below
 
     u, h = np.array([13.001, 0.0]), np.array([2.0, 0.5])
     got = count_below(u, h, np.array([6.525667902804318e16, 10.0]))
     assert got[0] == pytest.approx((6.525667902804318e16 - 13.001) / 2.0, rel=1e-12)
     assert got[1] == 20.0
+    fine = count_below(np.array([1e6]), np.array([1e-12]), np.array([1e6 + 1.0]))
+    assert fine[0] == pytest.approx(1e12, rel=1e-3)

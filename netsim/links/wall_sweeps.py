@@ -214,6 +214,10 @@ class Stretches:
         return r[chunk], t, up, start_state, end_state
 
 
+# Steps of one sample that settle count_below's estimate (one is the most rounding needs).
+SETTLE_STEPS = 8
+
+
 def count_below(u: np.ndarray, h: np.ndarray, t_end: float | np.ndarray) -> np.ndarray:
     """How many samples ``u + k h`` (``k >= 0``) fall before ``t_end``, as floats (inf when
     all do); computed on the very floats of the samples."""
@@ -225,16 +229,17 @@ def count_below(u: np.ndarray, h: np.ndarray, t_end: float | np.ndarray) -> np.n
     if len(fin):
         uu, hh, tt = u[fin], h[fin], t_end[fin]
         k = np.maximum(np.ceil((tt - uu) / hh), 1.0)
-        # Rounding may put the estimate one off either way: settle it on the samples. Beyond
-        # 2**52 a float count no longer steps by one (a nearly parallel pair leaves the
-        # envelope after ages): the estimate stands there.
+        # Rounding may put the estimate one off either way: settle it on the samples. Where
+        # the samples are too fine for their floats to step with k (a nearly parallel pair
+        # leaves the envelope after ages, or k beyond 2**52), a few steps do not settle it
+        # and the estimate stands.
         exact = k < 2.0**52
-        while True:
+        for _ in range(SETTLE_STEPS):
             up = exact & (uu + k * hh < tt)
             if not up.any():
                 break
             k[up] += 1.0
-        while True:
+        for _ in range(SETTLE_STEPS):
             down = exact & (k > 1) & (uu + (k - 1.0) * hh >= tt)
             if not down.any():
                 break
