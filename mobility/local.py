@@ -132,6 +132,9 @@ def clear_of_walls(
     if not walls.on or len(a) == 0:
         return np.ones(len(a), dtype=bool)
     out = np.empty(len(a), dtype=bool)
+    # Compiled whatever the team's size (unless NETSIM_COMPILED=0): the numpy twin marches
+    # every segment in lockstep, one Python round per march step, and only runs on a map
+    # reach here to pay numba's import.
     kernels = load("mobility._local_kernels", SMALL_RUN_ROBOTS)
     if kernels is not None:
         kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
