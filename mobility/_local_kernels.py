@@ -49,8 +49,12 @@ def clear_many(walls, a, b, ea, eb, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def let_go(pos, xy, sent_s, known, t0_s, speed_mps, band_m, range_m, walls, out):
-    """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``."""
+def let_go(pos, memory, rule, walls, out):
+    """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``.
+    ``memory``: what the robots remember, ``(xy, sent_s, known)``; ``rule``: the step's
+    ``(t0_s, speed_mps, band_m, range_m)``."""
+    xy, sent_s, known = memory
+    t0_s, speed_mps, band_m, range_m = rule
     n = pos.shape[0]
     nn = float(n * n)
     node = np.empty(n, np.int64)

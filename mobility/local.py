@@ -259,7 +259,8 @@ def let_go(
     out = np.zeros((n, n), dtype=bool)
     kernels = load("mobility._local_kernels", n)
     if kernels is not None:
-        kernels.let_go(pos, memory.xy, memory.sent_s, known, t0_s, speed_mps, band_m, range_m, walls, out)
+        rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m))
+        kernels.let_go(pos, (memory.xy, memory.sent_s, known), rule, walls, out)
         return out
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
