@@ -15,57 +15,28 @@ event) when control starts and the largest after, and when control settled.
 from __future__ import annotations
 
 import argparse
-import math
 import time
 
 from netsim import config as cfgmod
-from netsim.metrics import components_at_link_events
 from netsim.run import execute
+from netsim.tools.validate import coverage_outcome, coverage_settings
 
 
 def one_run(plan: str, n: int, loss: float, seed: int, duration_s: float, extra: list[str]) -> dict:
-    overrides = [
-        f"world.n_robots={n}",
-        f"world.side_m={500 * math.sqrt(n):.1f}",
-        'world.placement="centre"',
-        f"world.centre_side_m={40 * math.sqrt(n):.1f}",
-        'mobility.model="static"',
-        "channel.range_m=100",
-        f"channel.loss_probability={loss}",
-        "coverage.enabled=true",
-        f'coverage.plan="{plan}"',
-        "protocol.message_rate_hz=0",
-        "output.position_interval_s=0",
-        f"duration_s={duration_s}",
-        f"seed={seed}",
-        *extra,
-    ]
-    cfg = cfgmod.load(None, overrides)
+    cfg = cfgmod.load(None, coverage_settings("unit disk", plan, n, loss, seed, duration_s) + extra)
     start = time.perf_counter()
     result = execute(cfg)
     wall = time.perf_counter() - start
-    links = result.frames["links"]
-    times, counts = components_at_link_events(
-        links["a"].to_numpy(),
-        links["b"].to_numpy(),
-        links["t_up_s"].to_numpy(),
-        links["t_down_s"].to_numpy(),
-        links["censored_end"].to_numpy(),
-        n,
-    )
-    control_s = cfg.coverage.start_s
-    before = counts[times <= control_s]
-    after = counts[times > control_s]
-    s = result.summary
+    o = coverage_outcome(result.frames, result.summary, n, cfg.coverage.start_s, duration_s)
     return {
         "plan": plan,
         "N": n,
         "loss": loss,
         "seed": seed,
-        "of bound": s["covered_of_bound_all_final"],
-        "components at start": int(before[-1]) if len(before) else 1,
-        "largest after": int(after.max()) if len(after) else int(before[-1]),
-        "settled s": s["control_settled_s"],
+        "of bound": o["of_bound"],
+        "components at start": o["components_at_start"],
+        "largest after": o["components_max"],
+        "settled s": result.summary["control_settled_s"],
         "wall s": wall,
     }
 

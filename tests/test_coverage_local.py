@@ -27,6 +27,7 @@ from netsim.errors import ConfigError
 from netsim.metrics import components, components_at_link_events
 from netsim.run import execute
 from netsim.tools.cli import main
+from netsim.tools.validate import coverage_settings
 
 RC = 100.0
 V = 2.0  # speed cap, m/s
@@ -395,22 +396,8 @@ def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_whatever_the_o
 
 
 def local_run(n, seed, loss=0.0, duration=600, **extra):
-    overrides = [
-        f"world.n_robots={n}",
-        f"world.side_m={500 * math.sqrt(n):.1f}",
-        'world.placement="centre"',
-        f"world.centre_side_m={40 * math.sqrt(n):.1f}",
-        'mobility.model="static"',
-        "channel.range_m=100",
-        f"channel.loss_probability={loss}",
-        "coverage.enabled=true",
-        'coverage.plan="local"',
-        "protocol.message_rate_hz=0",
-        "output.position_interval_s=0",
-        f"duration_s={duration}",
-        f"seed={seed}",
-    ] + [f"{k}={v!r}".replace("'", '"') for k, v in extra.items()]
-    return execute(config.load(None, overrides))
+    overrides = coverage_settings("unit disk", "local", n, loss, seed, duration)
+    return execute(config.load(None, overrides + [f"{k}={v!r}".replace("'", '"') for k, v in extra.items()]))
 
 
 def true_components(r, n):
