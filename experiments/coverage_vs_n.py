@@ -119,12 +119,12 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, nargs="+", default=[20, 60, 100, 200], help="numbers of robots in open space")
     p.add_argument("--map-n", type=int, nargs="+", default=[10, 20, 40], help="numbers of robots on the office map")
-    p.add_argument("--modes", nargs="+", default=list(MODES), choices=list(MODES))
+    p.add_argument("--modes", nargs="+", default=list(MODES), help=f"of {list(MODES)}")
     p.add_argument(
         "--radios",
         nargs="+",
         default=["unit disk", "shadowing 4 dB", "office, line of sight"],
-        choices=list(COVERAGE_RADIOS),
+        help=f"of {list(COVERAGE_RADIOS)}",
     )
     p.add_argument("--laws", nargs="+", default=["spring"], help="coverage.law values")
     p.add_argument("--loss", type=float, default=0.0, help="channel.loss_probability")
@@ -133,6 +133,11 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     if min(args.n + args.map_n) < 2:
         raise NetsimInputError("--n and --map-n: at least 2 robots")
+    # Checked here, not by argparse's choices: its usage block would make the error several lines.
+    for option, given, known in (("--modes", args.modes, MODES), ("--radios", args.radios, COVERAGE_RADIOS)):
+        unknown = [x for x in given if x not in known]
+        if unknown:
+            raise NetsimInputError(f"{option} {unknown[0]!r}: not one of {list(known)}")
     for option, value in (("--reps", args.reps), ("--workers", args.workers)):
         if value < 1:
             raise NetsimInputError(f"{option} {value}: at least 1")

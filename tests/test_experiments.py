@@ -113,16 +113,20 @@ def test_coverage_targets_prints_its_table(tmp_path):
 
 
 @pytest.mark.slow
-def test_coverage_vs_n_refuses_a_team_of_one_in_one_line_and_writes_nothing(tmp_path):
-    """A coverage team needs two robots: ``--n 1`` is one line on stderr, exit status 2,
-    and no output directory."""
+@pytest.mark.parametrize(
+    "args, said",
+    [(["--n", "1"], "--n and --map-n"), (["--radios", "moon"], "--radios 'moon'"), (["--reps", "0"], "--reps 0")],
+)
+def test_coverage_vs_n_refuses_bad_options_in_one_line_and_writes_nothing(tmp_path, args, said):
+    """A team of one, an unknown radio, no replications: each is one line on stderr naming
+    the option, exit status 2, and no output directory."""
     out = tmp_path / "out"
     run = subprocess.run(
-        [sys.executable, str(ROOT / "experiments" / "coverage_vs_n.py"), "--n", "1", "--out", str(out)],
+        [sys.executable, str(ROOT / "experiments" / "coverage_vs_n.py"), *args, "--out", str(out)],
         capture_output=True,
         text=True,
         cwd=tmp_path,
     )
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
-    assert "--n and --map-n" in run.stderr
+    assert said in run.stderr
     assert not out.exists()
