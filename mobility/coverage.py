@@ -31,6 +31,13 @@ The architecture (docs/model.md section 5)
   step within its half of the link's allowed length (module notes there). Because each end
   keeps to its own half, a robot that holds instead of moving never breaks a kept link:
   the network stays connected at every instant even when commands are lost.
+- The team unfolds (``plan = "global"``). Forces among neighbours alone balance inside
+  the team: it grows into a disk of evenly spaced robots whose kept tree is taut and
+  folded, far below the bound. So every robot is also pushed away from the centre of its
+  component of the network, in proportion to its distance from it (``expansion``, a
+  centrifugal field): the kept tree straightens into branches that run outwards and part,
+  and the inside of the team empties where no robot adds area. The centre is the team's
+  shared knowledge, which the global plan has and the local plan does not.
 - A link is what the channel makes under the run's radio, the same as ``links.parquet``:
   the controller gets the run's link state when built (``parts.links``), counts the
   components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
@@ -80,7 +87,16 @@ import numpy as np
 import pandas as pd
 
 from mobility.bridges import plan_follow
-from mobility.forces import LAWS, SQRT3, Law, border_force, border_forces, pair_resultants, resultant
+from mobility.forces import (
+    LAWS,
+    SQRT3,
+    Law,
+    border_force,
+    border_forces,
+    expansion_forces,
+    pair_resultants,
+    resultant,
+)
 from mobility.keep import LinkRules
 from mobility.local import Memory, cut_for_walls, latest_pulls, let_go, plan_local, sources_heard, walls_of
 from mobility.spread import plan_spread
@@ -173,6 +189,12 @@ class CoverageParams(Params):
         8.0,
         non_negative,
         "shadowing: kept links keep this much power margin against the change of their shadowing, dB",
+    )
+    expansion: float = param(
+        0.1,
+        non_negative,
+        "spread, plan = 'global': every robot is also pushed away from the centre of its component with"
+        " expansion x its distance from it (forces in metres; 0: off)",
     )
     stop_speed_mps: float = param(
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
@@ -443,6 +465,9 @@ class CoverageController:
             target, _, source_xy = self.view.neighbourhood(now)
         wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos_now)
+        if c.expansion > 0:
+            a, b = self.link_state.up_pairs()
+            wished += expansion_forces(pos_now, metrics.components_of_links(self.state.n, a, b), c.expansion, c.gain)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
