@@ -932,9 +932,9 @@ def check_rpgm(seed: int | None = None) -> list[Check]:
 # -- coverage on the radio the robots have (items 30, 31) ------------------------------------
 # The targets of the covered fraction of min(1, U(N) / A) from a dense start, by plan
 # (experiments/coverage_targets.py), and the floors item 31 holds every seed to: the global
-# plan is near its target at N = 60 (0.73-0.76 over the seeds tried), so its floor is lower.
+# plan's floor sits below what it reaches at N = 60 over the seeds tried, well above its target.
 COVERAGE_FLOOR = {"global": 0.75, "local": 0.60}
-VALIDATE_FLOOR = {"global": 0.70, "local": 0.60}
+VALIDATE_FLOOR = {"global": 0.85, "local": 0.60}
 COVERAGE_RADIOS = {
     "unit disk": ["channel.range_m=100"],
     "shadowing 4 dB": ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4"],
