@@ -26,7 +26,10 @@ more than it plausibly can. What "up" means, and how it is kept, depends on the 
   than ``FADE_SIGMAS`` standard deviations beyond its drift: probabilistic. A link within
   the *sure* distance, where even the worst clipped shadowing (``+4 sigma``) leaves it up,
   is kept like a disk link, with no bound on travel: guaranteed. A pair that does not move
-  keeps its ``X`` (the process runs in travel): holding never breaks a link.
+  keeps its ``X`` (the process runs in travel): holding never breaks a link. The forest
+  ranks a link by the margin left after the plausible change of ``X`` over the pair's
+  travel since ``X`` was measured: a link not kept while its robots moved on may be
+  weaker than its measurement says.
 - **Walls** (a map: the unit disk with line of sight, or log-distance with
   ``wall_loss_db``): besides the limits above (the range or the power with the walls
   crossed when the step starts), the walls crossed by the segment between two moving
@@ -52,6 +55,24 @@ CUT_ROUNDS = 8
 CUT_BACKOFF_M = 0.05
 
 
+def _plausible_change_db(rho: np.ndarray, x_db: np.ndarray, sigma_db: float) -> np.ndarray:
+    """``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2)``: the drift of the
+    shadowing back to 0 from a favourable ``x``, and :data:`FADE_SIGMAS` of its spread."""
+    drift = np.maximum(-np.asarray(x_db, float), 0.0)
+    return (1.0 - rho) * drift + FADE_SIGMAS * sigma_db * np.sqrt(np.maximum(1.0 - rho * rho, 0.0))
+
+
+def plausible_change_db(travel_m: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float) -> np.ndarray:
+    """How far the shadowing measured at ``x_db`` plausibly moved (against the link) over a
+    pair travel ``travel_m``: :func:`_plausible_change_db` at ``rho = exp(-travel / d_corr)``.
+
+    >>> plausible_change_db(np.array([0.0, 1.438]), np.zeros(2), 4.0, 10.0).round(2).tolist()
+    [0.0, 8.0]
+    """
+    rho = np.exp(-np.maximum(np.asarray(travel_m, float), 0.0) / decorrelation_m)
+    return _plausible_change_db(rho, x_db, sigma_db)
+
+
 def fade_travel_m(budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float) -> np.ndarray:
     """The largest pair travel ``delta`` over which the shadowing's plausible change stays
     within ``budget_db``: ``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2) <=
@@ -62,11 +83,9 @@ def fade_travel_m(budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, deco
     [0.0, 1.438, inf]
     """
     budget = np.asarray(budget_db, float)
-    drift = np.maximum(-np.asarray(x_db, float), 0.0)
-    spread = FADE_SIGMAS * sigma_db
 
     def change(rho: np.ndarray) -> np.ndarray:
-        return (1.0 - rho) * drift + spread * np.sqrt(np.maximum(1.0 - rho * rho, 0.0))
+        return _plausible_change_db(rho, x_db, sigma_db)
 
     lo, hi = np.zeros_like(budget), np.ones_like(budget)
     # The change falls as rho grows: bisect for the smallest rho within the budget.
@@ -175,7 +194,11 @@ class LinkRules:
             keep = np.maximum(effective_range_m(p, x + budget, walls), d)
             pair_travel = self.state.travelled_m(t_s, i) + self.state.travelled_m(t_s, j)
             _, anchor = sh.state(i, j)
-            travel = np.maximum(fade_travel_m(budget, x, sh.sigma_db, sh.decorrelation_m) - (pair_travel - anchor), 0.0)
+            since = np.maximum(pair_travel - anchor, 0.0)
+            travel = np.maximum(fade_travel_m(budget, x, sh.sigma_db, sh.decorrelation_m) - since, 0.0)
+            # What is left of the margin after the plausible change since X was measured: a
+            # link the pair has moved on from since (not kept then) is weaker than it looks.
+            left = margin - plausible_change_db(since, x, sh.sigma_db, sh.decorrelation_m)
             reserve = x + budget
             # Within the sure distance even the worst shadowing leaves the link up.
             sure_r = effective_range_m(p, sh.clip_db, walls)
@@ -184,7 +207,8 @@ class LinkRules:
             travel = np.where(sure, np.inf, travel)
             reserve = np.where(sure, sh.clip_db, reserve)
             r = effective_range_m(p, reserve, walls)
-        # The forest prefers the links with the largest margin.
+            margin = np.where(sure, margin, left)
+        # The forest prefers the links with the largest margin (left).
         weight = float(margin.max(initial=0.0)) + 1.0 - margin
         return Candidates(i, j, d, weight, keep, travel, r, reserve)
 

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mobility.keep import FADE_SIGMAS, LinkRules, fade_travel_m
+from mobility.keep import FADE_SIGMAS, LinkRules, fade_travel_m, plausible_change_db
 from mobility.spread import forest_rows
 from mobility.steps import Candidates
 from netsim import config
@@ -253,6 +253,20 @@ def test_the_forest_prefers_the_links_with_the_largest_margin():
     inf = np.full(3, np.inf)
     rows = forest_rows(3, Candidates(i, j, d, weight, d, inf, d))
     assert sorted(rows.tolist()) == [1, 2]
+
+
+def test_the_forest_prefers_a_link_whose_shadowing_was_measured_since_its_pair_last_moved():
+    """Two links alike but for the pair travel since their shadowing was measured: the
+    stale one weighs more by the plausible change of its shadowing over that travel (its
+    margin left), so a forest lets it go first. A link left unkept while its robots moved
+    on is weaker than its measurement says."""
+    pos = np.array([[0.0, 0.0], [60.0, 0.0], [0.0, 60.0]])
+    rules, _ = shadowed_rules(pos, x_db=[1.0, 1.0], anchor_m=[0.0, 0.0], travelled_m=[0.0, 0.0, 3.0])
+    c = rules.candidates(pos, 0.0)
+    assert list(zip(c.i.tolist(), c.j.tolist())) == [(0, 1), (0, 2)]
+    change = float(plausible_change_db(np.array([3.0]), np.array([1.0]), 4.0, 10.0)[0])
+    assert change > 1.0
+    assert c.weight[1] - c.weight[0] == pytest.approx(change)
 
 
 @pytest.mark.slow
