@@ -31,13 +31,14 @@ The architecture (docs/model.md section 5)
   step within its half of the link's allowed length (module notes there). Because each end
   keeps to its own half, a robot that holds instead of moving never breaks a kept link:
   the network stays connected at every instant even when commands are lost.
-- The team unfolds (``plan = "global"``). Forces among neighbours alone balance inside
-  the team: it grows into a disk of evenly spaced robots whose kept tree is taut and
-  folded, far below the bound. So every robot is also pushed away from the centre of its
-  component of the network, in proportion to its distance from it (``expansion``, a
-  centrifugal field): the kept tree straightens into branches that run outwards and part,
-  and the inside of the team empties where no robot adds area. The centre is the team's
-  shared knowledge, which the global plan has and the local plan does not.
+- The team unfolds. Forces among neighbours alone balance inside the team: it grows into
+  a disk of evenly spaced robots whose kept tree is taut and folded, far below the bound.
+  So every robot is also pushed away from a centre, in proportion to its distance from it
+  (``expansion``, a centrifugal field): the kept tree straightens into branches that run
+  outwards and part, and the inside of the team empties where no robot adds area. The
+  global plan pushes from the centre of each robot's component of the network (knowledge
+  of the whole team, which it has); the local plan from the centre of the area, which
+  every robot knows as it knows the borders that push it.
 - A link is what the channel makes under the run's radio, the same as ``links.parquet``:
   the controller gets the run's link state when built (``parts.links``), counts the
   components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
@@ -93,6 +94,7 @@ from mobility.forces import (
     Law,
     border_force,
     border_forces,
+    component_centres,
     expansion_forces,
     pair_resultants,
     resultant,
@@ -116,6 +118,10 @@ from netsim.trajectory import distance_travelled
 # The stopping rule's default windows (coverage.stop_hold_s = 0), s.
 GLOBAL_HOLD_S = 20.0
 LOCAL_HOLD_S = 60.0
+# The expansion's defaults: the local plan's leashes are shorter and its team creeps slower,
+# so it needs the stronger push.
+GLOBAL_EXPANSION = 0.1
+LOCAL_EXPANSION = 0.3
 
 
 class Members(StrEnum):
@@ -191,10 +197,13 @@ class CoverageParams(Params):
         "shadowing: kept links keep this much power margin against the change of their shadowing, dB",
     )
     expansion: float = param(
-        0.1,
+        None,
         non_negative,
-        "spread, plan = 'global': every robot is also pushed away from the centre of its component with"
-        " expansion x its distance from it (forces in metres; 0: off)",
+        "spread: every robot is also pushed away from a centre (global plan: its component's; local: the"
+        " area's) with expansion x its distance from it (forces in metres; 0: off)",
+        kind=float,
+        derive=lambda p: LOCAL_EXPANSION if p.plan is PlanScope.LOCAL else GLOBAL_EXPANSION,
+        rule="0.1 with plan = 'global', 0.3 with 'local'",
     )
     stop_speed_mps: float = param(
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
@@ -467,7 +476,8 @@ class CoverageController:
         wished += self._wall_push(pos_now)
         if c.expansion > 0:
             a, b = self.link_state.up_pairs()
-            wished += expansion_forces(pos_now, metrics.components_of_links(self.state.n, a, b), c.expansion, c.gain)
+            centre = component_centres(pos_now, metrics.components_of_links(self.state.n, a, b))
+            wished += expansion_forces(pos_now, centre, c.expansion, c.gain)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
@@ -486,6 +496,9 @@ class CoverageController:
         target, source_xy = sources_heard(self.knows, known, 2 * self.range_m, pos)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
+        if c.expansion > 0:
+            box = self.limits.box
+            wished += expansion_forces(pos, 0.5 * (box.lo + box.hi), c.expansion, c.gain)
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished

@@ -106,19 +106,26 @@ def pair_resultants(n: int, target: np.ndarray, delta: np.ndarray, law, range_m:
     return np.column_stack([fx, fy])
 
 
-def expansion_forces(p: np.ndarray, component: np.ndarray, factor: float, gain: float) -> np.ndarray:
-    """``gain x factor x (p - c)`` for every row of ``p`` (k, 2), ``c`` the centre (mean
-    position) of the robot's ``component``: a push away from the centre of its part of
-    the network, growing with the distance from it.
+def component_centres(p: np.ndarray, component: np.ndarray) -> np.ndarray:
+    """For every row of ``p`` (k, 2), the centre (mean position) of its ``component``.
 
-    >>> expansion_forces(np.array([[0.0, 0.0], [10.0, 0.0], [50.0, 50.0]]), np.array([0, 0, 1]), 0.1, 1.0).tolist()
-    [[-0.5, 0.0], [0.5, 0.0], [0.0, 0.0]]
+    >>> component_centres(np.array([[0.0, 0.0], [10.0, 0.0], [50.0, 50.0]]), np.array([0, 0, 1])).tolist()
+    [[5.0, 0.0], [5.0, 0.0], [50.0, 50.0]]
     """
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     count = np.bincount(component, minlength=int(component.max(initial=-1)) + 1)
     centre = np.column_stack([np.bincount(component, weights=p[:, k], minlength=len(count)) for k in range(2)])
-    centre /= np.maximum(count, 1)[:, None]
-    return gain * factor * (p - centre[component])
+    return (centre / np.maximum(count, 1)[:, None])[component]
+
+
+def expansion_forces(p: np.ndarray, centre: np.ndarray, factor: float, gain: float) -> np.ndarray:
+    """``gain x factor x (p - c)`` for every row of ``p`` (k, 2), ``c`` its row of ``centre``
+    (or one point for all): a push away from the centre that grows with the distance from it.
+
+    >>> expansion_forces(np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([5.0, 0.0]), 0.1, 1.0).tolist()
+    [[-0.5, 0.0], [0.5, 0.0]]
+    """
+    return gain * factor * (np.asarray(p, dtype=float).reshape(-1, 2) - centre)
 
 
 def border_forces(p: np.ndarray, area: float | Bounds, range_m: float, gain: float) -> np.ndarray:

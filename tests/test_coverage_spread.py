@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from mobility.forces import expansion_forces
+from mobility.forces import component_centres, expansion_forces
 from mobility.spread import pass_on_pulls, plan_spread, spanning_forest
 from mobility.steps import StepLimits
 from netsim import config
@@ -270,8 +270,8 @@ def test_expansion_pushes_each_robot_away_from_the_centre_of_its_component():
     """``gain x expansion x (p - c)``, ``c`` the mean position of the robot's own component:
     a robot at its component's centre feels nothing, and the push grows with the distance."""
     pos = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [500.0, 500.0], [500.0, 540.0]])
-    component = np.array([0, 0, 0, 1, 1])
-    f = expansion_forces(pos, component, 0.1, 0.5)
+    centre = component_centres(pos, np.array([0, 0, 0, 1, 1]))
+    f = expansion_forces(pos, centre, 0.1, 0.5)
     np.testing.assert_allclose(f, [[-0.5, 0.0], [0.0, 0.0], [0.5, 0.0], [0.0, -1.0], [0.0, 1.0]], atol=1e-12)
 
 
@@ -297,10 +297,18 @@ def test_expansion_unfolds_the_team_far_past_the_even_disk():
 
 
 @pytest.mark.slow
-def test_expansion_is_the_global_plans_alone():
-    """The local plan has no team centre to push from: its motion is the same with any
-    expansion."""
-    settings = coverage_settings("unit disk", "local", 20, 0.0, 1, 60)
-    a, b = (execute(config.load(None, settings + [f"coverage.expansion={e}"])) for e in (0.0, 0.5))
-    assert len(a.sim.state.legs()) > 20
-    assert a.sim.state.legs().equals(b.sim.state.legs())
+def test_expansion_the_local_plan_pushes_from_the_centre_of_the_area():
+    """The local plan has no team centre: it pushes from the centre of the area, which every
+    robot knows. From a dense start (60 robots, 30 % of receptions lost) the team covers at
+    least 0.75 of the bound and never splits; without the push (expansion = 0) below 0.72."""
+    n = 60
+    settings = coverage_settings("unit disk", "local", n, 0.3, 1, 600)
+    r = execute(config.load(None, settings))
+    assert r.sim.config.coverage.expansion == 0.3
+    times, counts = components_at_link_events(
+        *(r.frames["links"][c].to_numpy() for c in ("a", "b", "t_up_s", "t_down_s", "censored_end")), n
+    )
+    assert counts.max() == 1
+    assert r.summary["covered_of_bound_all_final"] >= 0.75
+    off = execute(config.load(None, settings + ["coverage.expansion=0"]))
+    assert off.summary["covered_of_bound_all_final"] < 0.72
