@@ -31,14 +31,13 @@ The architecture (docs/model.md section 5)
   step within its half of the link's allowed length (module notes there). Because each end
   keeps to its own half, a robot that holds instead of moving never breaks a kept link:
   the network stays connected at every instant even when commands are lost.
-- The team unfolds. Forces among neighbours alone balance inside the team: it grows into
-  a disk of evenly spaced robots whose kept tree is taut and folded, far below the bound.
-  So every robot is also pushed away from a centre, in proportion to its distance from it
-  (``expansion``, a centrifugal field): the kept tree straightens into branches that run
-  outwards and part, and the inside of the team empties where no robot adds area. The
-  global plan pushes from the centre of each robot's component of the network (knowledge
-  of the whole team, which it has); the local plan from the centre of the area, which
-  every robot knows as it knows the borders that push it.
+- The team unfolds (``plan = "global"``). Forces among neighbours alone balance inside
+  the team: it grows into a disk of evenly spaced robots whose kept tree is taut and
+  folded, far below the bound. So every robot is also pushed away from the centre of its
+  component of the network, in proportion to its distance from it (``expansion``, a
+  centrifugal field, capped): the kept tree straightens into branches that run outwards
+  and part, and the inside of the team empties where no robot adds area. The centre is
+  knowledge of the whole team, which the global plan has and the local plan does not.
 - A link is what the channel makes under the run's radio, the same as ``links.parquet``:
   the controller gets the run's link state when built (``parts.links``), counts the
   components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
@@ -109,7 +108,7 @@ from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.events import LAST, scheduled_event
 from netsim.groups import GroupView, in_a_group, leads_itself
-from netsim.params import Params, non_negative, param, positive
+from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.radio.free_space import free_fraction, obstacle_field, wall_forces
 from netsim.topology import geometric_pairs
@@ -118,10 +117,10 @@ from netsim.trajectory import distance_travelled
 # The stopping rule's default windows (coverage.stop_hold_s = 0), s.
 GLOBAL_HOLD_S = 20.0
 LOCAL_HOLD_S = 60.0
-# The expansion's defaults: the local plan's leashes are shorter and its team creeps slower,
-# so it needs the stronger push.
+# The expansion's push, and its cap as a fraction of r_c: half the border's strongest push,
+# so that the border still holds a robot the expansion drives at it well inside the area.
 GLOBAL_EXPANSION = 0.1
-LOCAL_EXPANSION = 0.3
+EXPANSION_CAP = SQRT3 / 4
 
 
 class Members(StrEnum):
@@ -167,7 +166,10 @@ class CoverageParams(Params):
     )
     law: Law = param(Law.SPRING, None, "force law between neighbouring robots (follow: between leaders)")
     knowledge: Knowledge = param(
-        Knowledge.ACKS, None, "positions the forces use: as heard in Acks (stale), or the true ones"
+        Knowledge.ACKS,
+        None,
+        "positions the forces among neighbours use: as heard in Acks (stale), or the true ones (the global"
+        " plan's expansion and limits use the true ones either way)",
     )
     plan: PlanScope = param(
         PlanScope.GLOBAL,
@@ -198,12 +200,12 @@ class CoverageParams(Params):
     )
     expansion: float = param(
         None,
-        non_negative,
-        "spread: every robot is also pushed away from a centre (global plan: its component's; local: the"
-        " area's) with expansion x its distance from it (forces in metres; 0: off)",
+        finite(non_negative),
+        "spread, plan = 'global': every robot is also pushed away from the centre of its component with"
+        " expansion x its distance from it, at most sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off)",
         kind=float,
-        derive=lambda p: LOCAL_EXPANSION if p.plan is PlanScope.LOCAL else GLOBAL_EXPANSION,
-        rule="0.1 with plan = 'global', 0.3 with 'local'",
+        derive=lambda p: 0.0 if p.plan is PlanScope.LOCAL else GLOBAL_EXPANSION,
+        rule="0.1 with plan = 'global', 0 with 'local'",
     )
     stop_speed_mps: float = param(
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
@@ -235,6 +237,10 @@ class CoverageParams(Params):
         if self.plan is PlanScope.LOCAL and self.knowledge is Knowledge.GLOBAL:
             raise ConfigError(
                 "coverage.plan", "local", "needs coverage.knowledge = 'acks' (a robot uses only what it heard)"
+            )
+        if self.plan is PlanScope.LOCAL and self.expansion > 0:
+            raise ConfigError(
+                "coverage.expansion", self.expansion, "needs coverage.plan = 'global' (the local plan knows no centre)"
             )
         if self.plan is PlanScope.LOCAL and self.members is Members.FOLLOW:
             raise ConfigError("coverage.plan", "local", "needs coverage.members = 'spread', not 'follow'")
@@ -477,7 +483,7 @@ class CoverageController:
         if c.expansion > 0:
             a, b = self.link_state.up_pairs()
             centre = component_centres(pos_now, metrics.components_of_links(self.state.n, a, b))
-            wished += expansion_forces(pos_now, centre, c.expansion, c.gain)
+            wished += expansion_forces(pos_now, centre, c.expansion, c.gain, EXPANSION_CAP * self.range_m)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
@@ -496,9 +502,6 @@ class CoverageController:
         target, source_xy = sources_heard(self.knows, known, 2 * self.range_m, pos)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
-        if c.expansion > 0:
-            box = self.limits.box
-            wished += expansion_forces(pos, 0.5 * (box.lo + box.hi), c.expansion, c.gain)
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished

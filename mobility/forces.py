@@ -118,14 +118,18 @@ def component_centres(p: np.ndarray, component: np.ndarray) -> np.ndarray:
     return (centre / np.maximum(count, 1)[:, None])[component]
 
 
-def expansion_forces(p: np.ndarray, centre: np.ndarray, factor: float, gain: float) -> np.ndarray:
-    """``gain x factor x (p - c)`` for every row of ``p`` (k, 2), ``c`` its row of ``centre``
-    (or one point for all): a push away from the centre that grows with the distance from it.
+def expansion_forces(p: np.ndarray, centre: np.ndarray, factor: float, gain: float, cap_m: float) -> np.ndarray:
+    """``gain x min(factor x |p - c|, cap_m)`` away from ``c`` for every row of ``p`` (k, 2),
+    ``c`` its row of ``centre`` (or one point for all): a push away from the centre that
+    grows with the distance from it, up to ``cap_m`` (forces in metres).
 
-    >>> expansion_forces(np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([5.0, 0.0]), 0.1, 1.0).tolist()
-    [[-0.5, 0.0], [0.5, 0.0]]
+    >>> expansion_forces(np.array([[0.0, 0.0], [10.0, 0.0], [5.0, 90.0]]), np.array([5.0, 0.0]), 0.1, 1.0, 5.0).tolist()
+    [[-0.5, 0.0], [0.5, 0.0], [0.0, 5.0]]
     """
-    return gain * factor * (np.asarray(p, dtype=float).reshape(-1, 2) - centre)
+    off = np.asarray(p, dtype=float).reshape(-1, 2) - centre
+    d = np.hypot(*off.T)
+    scale = np.minimum(factor, cap_m / np.maximum(d, 1e-300))
+    return gain * scale[:, None] * off
 
 
 def border_forces(p: np.ndarray, area: float | Bounds, range_m: float, gain: float) -> np.ndarray:

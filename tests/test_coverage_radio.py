@@ -255,7 +255,7 @@ def test_the_forest_prefers_the_links_with_the_largest_margin():
     assert sorted(rows.tolist()) == [1, 2]
 
 
-def test_the_forest_prefers_a_link_whose_shadowing_was_measured_since_its_pair_last_moved():
+def test_a_link_whose_pair_moved_since_its_shadowing_was_measured_weighs_more():
     """Two links alike but for the pair travel since their shadowing was measured: the
     stale one weighs more by the plausible change of its shadowing over that travel (its
     margin left), so a forest lets it go first. A link left unkept while its robots moved

@@ -12,6 +12,7 @@ from mobility.steps import StepLimits
 from netsim import config
 from netsim.metrics import components, components_at_link_events
 from netsim.run import execute
+from netsim.tools.cli import main
 from netsim.tools.validate import coverage_settings
 from netsim.topology import geometric_pairs
 from protocols.roles import LEADER, MEMBER, UNDECIDED
@@ -268,11 +269,18 @@ def test_same_seed_same_spread():
 
 def test_expansion_pushes_each_robot_away_from_the_centre_of_its_component():
     """``gain x expansion x (p - c)``, ``c`` the mean position of the robot's own component:
-    a robot at its component's centre feels nothing, and the push grows with the distance."""
+    a robot at its component's centre feels nothing, the push grows with the distance, and
+    it sums to nothing over a component."""
     pos = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [500.0, 500.0], [500.0, 540.0]])
     centre = component_centres(pos, np.array([0, 0, 0, 1, 1]))
-    f = expansion_forces(pos, centre, 0.1, 0.5)
+    f = expansion_forces(pos, centre, 0.1, 0.5, np.inf)
     np.testing.assert_allclose(f, [[-0.5, 0.0], [0.0, 0.0], [0.5, 0.0], [0.0, -1.0], [0.0, 1.0]], atol=1e-12)
+
+
+def test_expansion_is_capped():
+    """Far from the centre the push stops growing at the cap (in metres, times the gain)."""
+    f = expansion_forces(np.array([[1000.0, 0.0], [0.0, 30.0]]), np.zeros(2), 0.1, 0.5, 43.3)
+    np.testing.assert_allclose(f, [[0.5 * 43.3, 0.0], [0.0, 0.5 * 3.0]])
 
 
 def expansion_run(n, loss, duration, *extra):
@@ -296,19 +304,31 @@ def test_expansion_unfolds_the_team_far_past_the_even_disk():
     assert off.summary["covered_of_bound_all_final"] < 0.85
 
 
+def test_expansion_with_the_local_plan_is_one_line_exit_2_nothing_written(tmp_path, capsys):
+    """No robot of the local plan knows a centre to push from: asking for one is an error."""
+    out = tmp_path / "out"
+    argv = ["run", "--quiet", "--out", str(out), "--set", "coverage.plan=local", "--set", "coverage.expansion=0.1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("netsim: error: coverage.expansion = 0.1"), err
+    assert "\n" not in err
+    assert not out.exists()
+
+
+def test_expansion_defaults_to_the_plans_from_a_file_too(tmp_path):
+    """Unset, ``expansion`` follows the plan (0.1 global, 0 local), from a file as from --set."""
+    scenario = tmp_path / "s.toml"
+    scenario.write_text('[coverage]\nplan = "local"\n')
+    assert config.load(scenario, []).coverage.expansion == 0.0
+    assert config.load(scenario, ["coverage.plan=global"]).coverage.expansion == 0.1
+    assert config.load(None, []).coverage.expansion == 0.1
+    assert config.load(scenario, ["coverage.plan=global", "coverage.expansion=0.3"]).coverage.expansion == 0.3
+
+
 @pytest.mark.slow
-def test_expansion_the_local_plan_pushes_from_the_centre_of_the_area():
-    """The local plan has no team centre: it pushes from the centre of the area, which every
-    robot knows. From a dense start (60 robots, 30 % of receptions lost) the team covers at
-    least 0.75 of the bound and never splits; without the push (expansion = 0) below 0.72."""
-    n = 60
-    settings = coverage_settings("unit disk", "local", n, 0.3, 1, 600)
-    r = execute(config.load(None, settings))
-    assert r.sim.config.coverage.expansion == 0.3
-    times, counts = components_at_link_events(
-        *(r.frames["links"][c].to_numpy() for c in ("a", "b", "t_up_s", "t_down_s", "censored_end")), n
-    )
-    assert counts.max() == 1
-    assert r.summary["covered_of_bound_all_final"] >= 0.75
-    off = execute(config.load(None, settings + ["coverage.expansion=0"]))
-    assert off.summary["covered_of_bound_all_final"] < 0.72
+def test_expansion_leaves_follow_mode_alone():
+    """The paper's controller moves leaders by their forces alone, whatever ``expansion``."""
+    settings = coverage_settings("unit disk", "global", 20, 0.0, 1, 60) + ["coverage.members=follow"]
+    a, b = (execute(config.load(None, settings + [f"coverage.expansion={e}"])) for e in (0.0, 0.5))
+    assert len(a.sim.state.legs()) > 20
+    assert a.sim.state.legs().equals(b.sim.state.legs())
