@@ -10,6 +10,31 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import settings  # noqa: E402
 
+import netsim.run  # noqa: E402
+
+
+def _check_coverage_tables(collect):
+    """``collect`` that also asserts a run's coverage table has, at every sample, the
+    components of the network of its ``links`` table (one notion of link everywhere)."""
+    from netsim.metrics import components_in_links_table
+
+    def checked(sim, emit=None):
+        frames = collect(sim, emit)
+        cov, links = frames.get("coverage"), frames.get("links")
+        if cov is not None and len(cov) and {"t_s", "components"} <= set(cov.columns) and links is not None:
+            times = cov["t_s"].to_numpy(float)
+            real = components_in_links_table(links, sim.state.n, times)
+            wrong = np.flatnonzero(cov["components"].to_numpy() != real)
+            assert not len(wrong), f"coverage table's components untrue at t = {times[wrong][:5].tolist()} s"
+        return frames
+
+    return checked
+
+
+# Every run a test makes in this process goes through the check above: installed before
+# anything imports ``collect`` by name (tests.fixtures loads netsim.tools.validate, which does).
+netsim.run.collect = _check_coverage_tables(netsim.run.collect)
+
 from netsim.run import build  # noqa: E402
 from tests.fixtures import make_config  # noqa: E402
 
@@ -31,30 +56,3 @@ def build_sim():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
-
-
-def _check_coverage_tables(collect):
-    """``collect`` that also asserts a run's coverage table has, at every sample, the
-    components of the network of its ``links`` table (one notion of link everywhere)."""
-    from netsim.metrics import components_in_links_table
-
-    def checked(sim, emit=None):
-        frames = collect(sim, emit)
-        cov, links = frames.get("coverage"), frames.get("links")
-        if cov is not None and len(cov) and {"t_s", "components"} <= set(cov.columns) and links is not None:
-            times = cov["t_s"].to_numpy(float)
-            real = components_in_links_table(links, sim.state.n, times)
-            wrong = np.flatnonzero(cov["components"].to_numpy() != real)
-            assert not len(wrong), f"coverage table's components untrue at t = {times[wrong][:5].tolist()} s"
-        return frames
-
-    return checked
-
-
-def pytest_configure(config):
-    """Every run a test makes in this process goes through the check above: installed
-    before the test modules are imported, so that those importing ``collect`` by name get
-    it too."""
-    import netsim.run
-
-    netsim.run.collect = _check_coverage_tables(netsim.run.collect)
