@@ -117,10 +117,8 @@ from netsim.trajectory import distance_travelled
 # The stopping rule's default windows (coverage.stop_hold_s = 0), s.
 GLOBAL_HOLD_S = 20.0
 LOCAL_HOLD_S = 60.0
-# The expansion's push, and its cap as a fraction of r_c: half the border's strongest push,
-# so that the border still holds a robot the expansion drives at it well inside the area.
+# The expansion's push with the global plan (the local plan has none).
 GLOBAL_EXPANSION = 0.1
-EXPANSION_CAP = SQRT3 / 4
 
 
 class Members(StrEnum):
@@ -483,7 +481,7 @@ class CoverageController:
         if c.expansion > 0:
             a, b = self.link_state.up_pairs()
             centre = component_centres(pos_now, metrics.components_of_links(self.state.n, a, b))
-            wished += expansion_forces(pos_now, centre, c.expansion, c.gain, EXPANSION_CAP * self.range_m)
+            wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0

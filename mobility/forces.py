@@ -26,6 +26,9 @@ import numpy as np
 from netsim.area import Bounds, as_bounds
 
 SQRT3 = math.sqrt(3.0)
+# The expansion's cap, as a fraction of r_c: half the border's strongest push, so that the
+# border still holds a robot the expansion drives at it well inside the area.
+EXPANSION_CAP = SQRT3 / 4
 
 
 def spring(d, range_m: float, gain: float):
@@ -118,17 +121,18 @@ def component_centres(p: np.ndarray, component: np.ndarray) -> np.ndarray:
     return (centre / np.maximum(count, 1)[:, None])[component]
 
 
-def expansion_forces(p: np.ndarray, centre: np.ndarray, factor: float, gain: float, cap_m: float) -> np.ndarray:
-    """``gain x min(factor x |p - c|, cap_m)`` away from ``c`` for every row of ``p`` (k, 2),
-    ``c`` its row of ``centre`` (or one point for all): a push away from the centre that
-    grows with the distance from it, up to ``cap_m`` (forces in metres).
+def expansion_forces(p: np.ndarray, centre: np.ndarray, factor: float, range_m: float, gain: float) -> np.ndarray:
+    """``gain x min(factor x |p - c|, EXPANSION_CAP x r_c)`` away from ``c`` for every row of
+    ``p`` (k, 2), ``c`` its row of ``centre`` (or one point for all): a push away from the
+    centre that grows with the distance from it, up to the cap (forces in metres).
 
-    >>> expansion_forces(np.array([[0.0, 0.0], [10.0, 0.0], [5.0, 90.0]]), np.array([5.0, 0.0]), 0.1, 1.0, 5.0).tolist()
-    [[-0.5, 0.0], [0.5, 0.0], [0.0, 5.0]]
+    >>> p = np.array([[0.0, 0.0], [10.0, 0.0], [5.0, 900.0]])
+    >>> expansion_forces(p, np.array([5.0, 0.0]), 0.1, 40.0, 1.0).round(2).tolist()
+    [[-0.5, 0.0], [0.5, 0.0], [0.0, 17.32]]
     """
     off = np.asarray(p, dtype=float).reshape(-1, 2) - centre
     d = np.hypot(*off.T)
-    scale = np.minimum(factor, cap_m / np.maximum(d, 1e-300))
+    scale = np.minimum(factor, EXPANSION_CAP * range_m / np.maximum(d, 1e-300))
     return gain * scale[:, None] * off
 
 

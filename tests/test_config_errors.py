@@ -33,6 +33,7 @@ from netsim.tools.cli import main
         ("channel.range_m=[1.0, 2.0]", "channel.range_m", "one range per robot"),
         ("mobility.model=trace", "mobility.trace_file", "must name a file"),
         ("duration_s=inf", "duration_s", "finite"),
+        ("coverage.expansion=inf", "coverage.expansion", "finite"),
     ],
 )
 def test_bad_value_names_key_value_and_rule(override, key, words):

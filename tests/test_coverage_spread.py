@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from mobility.forces import component_centres, expansion_forces
+from mobility.forces import border_forces, component_centres, expansion_forces
 from mobility.spread import pass_on_pulls, plan_spread, spanning_forest
 from mobility.steps import StepLimits
 from netsim import config
@@ -273,14 +273,18 @@ def test_expansion_pushes_each_robot_away_from_the_centre_of_its_component():
     it sums to nothing over a component."""
     pos = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [500.0, 500.0], [500.0, 540.0]])
     centre = component_centres(pos, np.array([0, 0, 0, 1, 1]))
-    f = expansion_forces(pos, centre, 0.1, 0.5, np.inf)
+    f = expansion_forces(pos, centre, 0.1, 1e6, 0.5)
     np.testing.assert_allclose(f, [[-0.5, 0.0], [0.0, 0.0], [0.5, 0.0], [0.0, -1.0], [0.0, 1.0]], atol=1e-12)
 
 
-def test_expansion_is_capped():
-    """Far from the centre the push stops growing at the cap (in metres, times the gain)."""
-    f = expansion_forces(np.array([[1000.0, 0.0], [0.0, 30.0]]), np.zeros(2), 0.1, 0.5, 43.3)
-    np.testing.assert_allclose(f, [[0.5 * 43.3, 0.0], [0.0, 0.5 * 3.0]])
+def test_expansion_is_capped_below_the_borders_push():
+    """Far from the centre the push stops growing at sqrt(3) r_c / 4 (times the gain), half
+    the border's strongest push: a robot the expansion drives at the border is pushed back
+    inside."""
+    far = np.array([[999.0, 500.0]])
+    f = expansion_forces(far, np.array([[0.0, 500.0]]), 0.1, RC, 0.5)
+    np.testing.assert_allclose(f, [[0.5 * math.sqrt(3) * RC / 4, 0.0]])
+    assert (f + border_forces(far, 1000.0, RC, 0.5))[0, 0] < 0
 
 
 def expansion_run(n, loss, duration, *extra):
