@@ -4,23 +4,30 @@ numba checks a cached function against its own source file only (numba issue 183
 kernel that calls a kernel of another module (``protocols._kernels`` calls
 ``netsim._kernels``), or reads a constant imported from one, would go on running the old
 code after an edit of that other module alone, silently. So every kernel module ends with
-``key(globals())``: the cache of each function it compiles goes to a directory named by a
-hash of the module's own source and of every module it imports from (a kernel module
-stands there by its own key, so the hash follows the calls all the way down). An edit
-anywhere below a kernel gives it a new directory, where it is compiled again; going back
-to earlier sources finds their directory still there.
+``key(globals())``: the cache of each function it compiles goes to a directory named by
+the module and a hash of numba's and Python's versions and of every source the module
+reaches by imports: its own, and, through any chain of modules of the same distribution
+(its top-level package) or of the engine (``netsim``), each one's source, a kernel module
+standing there by its own key. A constant re-exported through a plain module, or a kernel
+reached through a plain facade, is therefore in the hash as surely as a direct import. An
+edit anywhere below a kernel gives it a new directory, where it is compiled again.
 
 The directories sit under ``$NUMBA_CACHE_DIR`` when it is set, else under
 ``$XDG_CACHE_HOME/netsim-robots/kernels`` (``~/.cache/netsim-robots/kernels`` by default).
-Only the kernels' own functions are pointed there, while :func:`key` runs: the rest of
-the process's numba settings are left as they were.
+Each module keeps its ``KEPT_VERSIONS`` most recently used directories (so that two
+checkouts used in turn, as a before-and-after measurement does, both stay compiled); older
+ones are deleted when a module is keyed. Only the kernels' own functions are pointed
+there, while :func:`key` runs: the rest of the process's numba settings are left as they
+were.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib.machinery
 import os
 import re
+import shutil
 import sys
 import threading
 from pathlib import Path
@@ -28,6 +35,9 @@ from typing import Any
 
 _KEYS: dict[str, str] = {}  # kernel module -> its key
 _LOCK = threading.Lock()  # numba's cache directory is one global setting while a module is keyed
+KEPT_VERSIONS = 4
+_PATHS: dict[str, str | None] = {}  # module not loaded -> its file, None if no module
+_SOURCES: dict[str, tuple[tuple[str, int, int], bytes, list[str]]] = {}  # module -> (file's stamp, digest, imports)
 
 
 def base_directory() -> Path:
@@ -66,23 +76,87 @@ def imported_modules(source: str, package: str | None) -> list[str]:
     return names
 
 
+def _module_path(name: str) -> str | None:
+    """Where module ``name`` lives (its ``.py`` file, or its package's ``__init__.py``),
+    found from its parents' locations without importing anything: an import inside a
+    function has not run yet, and a name may be an attribute (``from a import b``)."""
+    module = sys.modules.get(name)
+    if module is not None:
+        return getattr(module, "__file__", None)
+    if name in _PATHS:
+        return _PATHS[name]
+    parent, _, child = name.rpartition(".")
+    found = None
+    if not parent:
+        try:
+            spec = importlib.machinery.PathFinder.find_spec(name)
+        except (ImportError, ValueError):
+            spec = None
+        found = spec.origin if spec is not None else None
+    else:
+        above = _module_path(parent)
+        if above is not None and os.path.basename(above) == "__init__.py":
+            folder = os.path.dirname(above)
+            for candidate in (os.path.join(folder, f"{child}.py"), os.path.join(folder, child, "__init__.py")):
+                if os.path.isfile(candidate):
+                    found = candidate
+                    break
+    _PATHS[name] = found
+    return found
+
+
+def _read(name: str, file: str) -> tuple[bytes, list[str]]:
+    """The digest of a source file and the modules it imports from, read once per version
+    of the file in a process (many kernel modules reach the same sources)."""
+    stat = os.stat(file)
+    stamp = (file, stat.st_mtime_ns, stat.st_size)
+    if _SOURCES.get(name, (None,))[0] != stamp:
+        with open(file, "rb") as f:
+            source = f.read()
+        package = name if os.path.basename(file) == "__init__.py" else name.rpartition(".")[0]
+        _SOURCES[name] = (stamp, hashlib.sha256(source).digest(), imported_modules(source.decode(), package))
+    _, digest, imports = _SOURCES[name]
+    return digest, imports
+
+
 def source_key(module_name: str) -> str:
-    """The hash of ``module_name``'s source and of what it imports from (module notes):
-    a module already keyed counts by its key, any other by its source file, if it has one."""
-    module = sys.modules[module_name]
-    path = Path(module.__file__ or "")
-    source = path.read_bytes()
-    digest = hashlib.sha256(source)
-    for name in imported_modules(source.decode(), module.__package__):
-        if name in _KEYS:
-            digest.update(f"{name}={_KEYS[name]}\n".encode())
+    """The hash of numba's and Python's versions and of every source ``module_name``
+    reaches by imports, its own included (module notes). A module of another distribution
+    counts by its own file alone (its version shows there): the chain is not followed into
+    it. The hash depends on the sources alone, not on what this process loaded first."""
+    import numba
+
+    home = {module_name.split(".")[0], "netsim"}
+    reached: dict[str, bytes] = {}
+    stack = [module_name]
+    while stack:
+        name = stack.pop()
+        if name in reached:
             continue
-        found = sys.modules.get(name)
-        file = getattr(found, "__file__", None)
-        if found is not None and file and file.endswith(".py"):
-            digest.update(f"{name}\n".encode())
-            digest.update(Path(file).read_bytes())
+        file = _module_path(name)
+        if file is None or not file.endswith(".py"):
+            reached[name] = b""
+            continue
+        reached[name], imports = _read(name, file)
+        if name.split(".")[0] in home:
+            stack.extend(imports)
+    digest = hashlib.sha256(f"numba {numba.__version__}; python {sys.version}\n".encode())
+    for name in sorted(reached):
+        if reached[name]:
+            digest.update(name.encode() + b"\n" + reached[name])
     return digest.hexdigest()[:20]
+
+
+def _prune(module_name: str, kept: Path) -> None:
+    """Delete all but the ``KEPT_VERSIONS`` most recently used directories of a module."""
+    base = kept.parent
+    kept.mkdir(parents=True, exist_ok=True)
+    os.utime(kept)  # marks it used
+    mine = [d for d in base.glob(f"{module_name}-*") if d.is_dir() and d.name.rpartition("-")[0] == module_name]
+    mine.sort(key=lambda d: d.stat().st_mtime, reverse=True)
+    for old in mine[KEPT_VERSIONS:]:
+        if old != kept:
+            shutil.rmtree(old, ignore_errors=True)
 
 
 def key(namespace: dict[str, Any]) -> Path:
@@ -95,7 +169,8 @@ def key(namespace: dict[str, Any]) -> Path:
     name = namespace["__name__"]
     with _LOCK:
         module_key = source_key(name)
-        directory = base_directory() / module_key
+        directory = base_directory() / f"{name}-{module_key}"
+        _prune(name, directory)
         # numba's settings are set from the environment when it loads: untyped.
         kept = config.CACHE_DIR  # type: ignore[attr-defined]
         config.CACHE_DIR = str(directory)  # type: ignore[attr-defined]

@@ -29,25 +29,94 @@ def test_every_kernel_module_keys_its_cache():
     assert set(KERNEL_MODULES) <= set(kernel_cache.keyed_modules())
 
 
-def test_a_modules_key_follows_what_it_imports_from(tmp_path, monkeypatch):
-    """A module's key changes with its own source and with the source of a module it
-    imports a constant from, and with the key of a kernel module it imports."""
-    pkg = tmp_path / "keyprobe"
+def _package(tmp_path, monkeypatch, name: str, files: dict[str, str]) -> Path:
+    pkg = tmp_path / name
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
-    (pkg / "constants.py").write_text("EDGE = 1.0\n")
-    (pkg / "user.py").write_text("from .constants import EDGE\n\nTWICE = 2 * EDGE\n")
+    for file, text in files.items():
+        (pkg / file).write_text(text)
     monkeypatch.syspath_prepend(str(tmp_path))
+    return pkg
+
+
+def _forget(prefix: str) -> None:
+    for name in [m for m in sys.modules if m == prefix or m.startswith(prefix + ".")]:
+        del sys.modules[name]
+
+
+def test_a_modules_key_follows_what_it_imports_from(tmp_path, monkeypatch):
+    """A module's key changes with its own source and with the source of a module it
+    imports a constant from, and is the same when computed again."""
+    pkg = _package(
+        tmp_path, monkeypatch, "keyprobe", {"constants.py": "EDGE = 1.0\n", "user.py": "from .constants import EDGE\n"}
+    )
     importlib.import_module("keyprobe.user")
     first = kernel_cache.source_key("keyprobe.user")
     assert kernel_cache.source_key("keyprobe.user") == first
     (pkg / "constants.py").write_text("EDGE = 2.0\n")
-    second = kernel_cache.source_key("keyprobe.user")
-    assert second != first
-    monkeypatch.setitem(kernel_cache._KEYS, "keyprobe.constants", "an-earlier-key")
-    assert kernel_cache.source_key("keyprobe.user") not in (first, second)
-    for name in ("keyprobe.user", "keyprobe.constants", "keyprobe"):
-        sys.modules.pop(name, None)
+    assert kernel_cache.source_key("keyprobe.user") != first
+    (pkg / "user.py").write_text("from .constants import EDGE  # edited\n")
+    _forget("keyprobe")
+
+
+def test_a_constant_re_exported_through_a_plain_module_is_in_the_key(tmp_path, monkeypatch):
+    """A kernel module reading a constant that a plain module re-exports from a third one:
+    editing the third alone changes the kernel module's key (a hash one import deep misses it)."""
+    files = {
+        "constants.py": "EDGE = 1.0\n",
+        "facade.py": "from stale_const.constants import EDGE\n",
+        "kern.py": "from stale_const.facade import EDGE\n",
+    }
+    pkg = _package(tmp_path, monkeypatch, "stale_const", files)
+    importlib.import_module("stale_const.kern")
+    first = kernel_cache.source_key("stale_const.kern")
+    (pkg / "constants.py").write_text("EDGE = 2.0\n")
+    assert kernel_cache.source_key("stale_const.kern") != first
+    _forget("stale_const")
+
+
+def test_a_kernel_reached_through_a_plain_facade_is_in_the_key(tmp_path, monkeypatch):
+    """A kernel module calling a kernel of another kernel module through a plain facade
+    module: editing that other kernel module alone changes the caller's key, wherever the
+    processes' imports stood when the caller was keyed."""
+    files = {
+        "_inner.py": "def step(x):\n    return x + 1.0\n",
+        "facade.py": "from stale_facade._inner import step\n",
+        "kern.py": "def later():\n    from stale_facade.facade import step\n\n    return step\n",
+    }
+    pkg = _package(tmp_path, monkeypatch, "stale_facade", files)
+    importlib.import_module("stale_facade.kern")  # facade and _inner are not loaded yet
+    first = kernel_cache.source_key("stale_facade.kern")
+    (pkg / "_inner.py").write_text("def step(x):\n    return x + 2.0\n")
+    assert kernel_cache.source_key("stale_facade.kern") != first
+    _forget("stale_facade")
+
+
+def test_numbas_version_is_in_the_key(monkeypatch):
+    """Machine code compiled by one numba is never served to another."""
+    import numba
+
+    first = kernel_cache.source_key("netsim._kernels")
+    monkeypatch.setattr(numba, "__version__", "0.0.0")
+    assert kernel_cache.source_key("netsim._kernels") != first
+
+
+def test_old_keyed_directories_are_pruned(tmp_path, monkeypatch):
+    """A module keeps its KEPT_VERSIONS most recently used directories; older ones go, and
+    another module's directories are untouched."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    old = []
+    for age in range(kernel_cache.KEPT_VERSIONS + 2):
+        d = tmp_path / f"pkg._kernels-{age:020d}"
+        d.mkdir()
+        os.utime(d, (1_000_000 - age, 1_000_000 - age))
+        old.append(d)
+    other = tmp_path / "pkg._kernels_other-00000000000000000000"
+    other.mkdir()
+    kept = tmp_path / "pkg._kernels-ffffffffffffffffffff"
+    kernel_cache._prune("pkg._kernels", kept)
+    assert kept.is_dir() and other.is_dir()
+    assert [d.is_dir() for d in old] == [True] * (kernel_cache.KEPT_VERSIONS - 1) + [False] * 3
 
 
 # Robot 0's Ack at t = 10 s, from rest at the origin moving at 1 m/s along x: its x is the
