@@ -17,6 +17,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SUBPACKAGES = ("netsim.radio", "netsim.links", "netsim.formats", "netsim.tools", "netsim.envs")
 # The environments are the other end of the engine: built on it and the tools, used by no model.
 ENGINE = {"netsim", *SUBPACKAGES} - {"netsim.envs"}
+# The models build on the engine's core, never on the application built on it (the CLI,
+# sweeps, figures): a model runs wherever the engine does.
+CORE = ENGINE - {"netsim.tools"}
 ALLOWED = {
     "netsim": {"netsim", "netsim.radio", "netsim.links"},
     "netsim.radio": {"netsim", "netsim.radio"},
@@ -25,9 +28,9 @@ ALLOWED = {
     "netsim.tools": ENGINE,
     # The environments draw frames with the figures' code: built on the tools, like them.
     "netsim.envs": ENGINE | {"netsim.envs"},
-    "protocols": ENGINE | {"protocols"},
-    "mobility": ENGINE | {"mobility"},
-    "hooks": ENGINE | {"hooks"},
+    "protocols": CORE | {"protocols"},
+    "mobility": CORE | {"mobility"},
+    "hooks": CORE | {"hooks"},
     "benchmarks": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "benchmarks"},
     "experiments": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "experiments"},
 }
@@ -113,3 +116,24 @@ def test_no_import_cycles():
     graph = import_graph()
     assert {"netsim.radio", "netsim.links", "netsim.tools", "netsim.config"} <= set(graph)
     assert list(nx.simple_cycles(graph)) == []
+
+
+# Cycles between modules of one subpackage, each broken today by an import inside a
+# function; they go when the radio's physics and its shared medium are arranged in one
+# direction (the propagation chain given its compiler, the medium its access policy).
+KNOWN_MODULE_CYCLES = {
+    frozenset({"netsim.radio.mac", "netsim.radio.mac_models"}),
+    frozenset({"netsim.radio.propagation", "netsim.radio.fast"}),
+    frozenset({"netsim.radio.propagation", "netsim.radio.fast", "netsim.radio.shadowing"}),
+}
+
+
+def test_no_import_cycles_between_modules():
+    """No chain of imports leads from a module back to itself, inside a subpackage too
+    (the package graph above sees a subpackage as one node), but for the cycles listed."""
+    graph = nx.DiGraph()
+    for package in ALLOWED:
+        for f in files(package):
+            src = module_name(f)
+            graph.add_edges_from((src, m) for m in imports(f) if m != src)
+    assert {frozenset(c) for c in nx.simple_cycles(graph)} <= KNOWN_MODULE_CYCLES
