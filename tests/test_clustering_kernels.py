@@ -170,10 +170,12 @@ def test_clustering_taking_told_acks_in_one_call_runs_as_in_two():
         sim.run(until_s=20.0)
         runs.append(stack)
     assert calls.count(True) > 100 and set(calls) == {True}
-    a, b, _ = runs
-    assert a.clustering.roles_frame().equals(b.clustering.roles_frame()) and len(a.clustering.roles_frame()) > 30
-    assert a.groups_frame().equals(b.groups_frame())
-    assert a.beacon.table.data.tobytes() == b.beacon.table.data.tobytes()
+    a = runs[0]
+    assert len(a.clustering.roles_frame()) > 30
+    for b in runs[1:]:
+        assert a.clustering.roles_frame().equals(b.clustering.roles_frame())
+        assert a.groups_frame().equals(b.groups_frame())
+        assert a.beacon.table.data.tobytes() == b.beacon.table.data.tobytes()
 
 
 @pytest.mark.parametrize("symmetric", [False, True])

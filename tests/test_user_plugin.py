@@ -9,6 +9,7 @@ import tomllib
 import pandas as pd
 import pytest
 
+from netsim.errors import NetsimInputError
 from netsim.tools import sweep as sweepmod
 from netsim.tools.cli import main
 
@@ -102,5 +103,7 @@ def test_a_sweep_varies_the_plugin_key_and_keeps_its_table(tmp_path):
 
 
 def test_a_sweep_refuses_a_table_no_plugin_writes(tmp_path):
-    with pytest.raises(Exception, match="tables"):
+    """A sweep keeping a table that no plugin of its base writes is refused by name, as bad
+    input, before any run."""
+    with pytest.raises(NetsimInputError, match=r"^sweep file: tables = \['too_close'\]: must be a list drawn from"):
         sweepmod.parse({"name": "x", "tables": ["too_close"], "base": {"duration_s": 5.0}, "grid": {"seed": [1, 2]}})
