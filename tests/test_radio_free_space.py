@@ -169,3 +169,31 @@ def test_first_above_is_searchsorted_right():
         xs = np.r_[rng.random(30) * cdf[-1], cdf[rng.integers(0, n, 10)], [0.0, cdf[-1], -1.0, cdf[-1] + 1.0]]
         for x in xs.tolist():
             assert first_above(cdf, x) == np.searchsorted(cdf, x, side="right")
+
+
+def test_a_waypoint_on_a_map_is_uniform_over_the_free_space_visible_from_the_robot(rng):
+    """The law of destinations on a map (docs/radio.md, "Robots on a map"): from where a
+    robot stands, its next waypoint is uniform over the free points it sees along a free
+    straight leg. Binned counts of many draws from one point against the visible free area
+    of each bin (a Monte Carlo of free points whose leg is free): a chi-square test, and no
+    draw in a bin that cannot be seen."""
+    from scipy.stats import chisquare
+
+    m = _rooms()
+    here = np.array([[3.0, 7.0]])  # in the left room, seeing the right room through the door only in part
+    draws = draw_destinations(m, rng, np.repeat(here, 20000, axis=0), 20.0)
+    probe = sample_free(m, np.random.default_rng(99), 400000, 20.0)
+    visible = probe[legs_free(m, np.repeat(here, len(probe), axis=0), probe)]
+
+    def counts(points):
+        return np.histogram2d(points[:, 0], points[:, 1], bins=(10, 5), range=((0, 20), (0, 10)))[0].ravel()
+
+    expected, got = counts(visible), counts(draws)
+    seen = expected > 0
+    assert got[~seen].sum() == 0
+    assert got[25:].sum() > 100  # beyond the wall (x > 10 m), seen through the door and drawn
+    pooled = expected[seen] >= 100  # the bins at the edge of what is seen, pooled into one
+    exp, obs = expected[seen][pooled], got[seen][pooled]
+    if (~pooled).any():
+        exp, obs = np.append(exp, expected[seen][~pooled].sum()), np.append(obs, got[seen][~pooled].sum())
+    assert chisquare(obs, exp / exp.sum() * obs.sum()).pvalue > 1e-4
