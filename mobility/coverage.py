@@ -106,11 +106,11 @@ from netsim import metrics
 from netsim.area import Bounds
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
-from netsim.events import LAST, scheduled_event
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.radio.free_space import free_fraction, obstacle_field, wall_forces
+from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
 

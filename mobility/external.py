@@ -17,10 +17,10 @@ import numpy as np
 import simpy
 
 from netsim.cosim import time_to_border
-from netsim.events import NORMAL, scheduled_event
 from netsim.params import NoParams
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
+from netsim.scheduling import NORMAL, scheduled_event
 from netsim.state import RobotState
 
 

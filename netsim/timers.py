@@ -27,7 +27,7 @@ import numpy as np
 import simpy
 
 from netsim.agenda import Agenda
-from netsim.events import NORMAL, scheduled_event
+from netsim.scheduling import NORMAL, scheduled_event
 from netsim.simpy_internals import now as clock
 
 

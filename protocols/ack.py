@@ -31,9 +31,9 @@ import numpy as np
 import pandas as pd
 
 from netsim.errors import ConfigError
-from netsim.events import URGENT
 from netsim.params import Params, finite, names, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
+from netsim.scheduling import URGENT
 from protocols.neighbours import DEGREE, NeighbourTable, heard_in
 from protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 

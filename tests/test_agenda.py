@@ -10,8 +10,8 @@ import simpy
 
 import netsim.radio.channel
 from netsim.agenda import Agenda
-from netsim.events import FIRST, NORMAL, URGENT, scheduled_event
 from netsim.run import build, collect
+from netsim.scheduling import FIRST, NORMAL, URGENT, scheduled_event
 from protocols.ack import AckBeacon, AckParams
 from tests.fixtures import clustering, make_config, static_core
 

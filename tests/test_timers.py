@@ -3,7 +3,7 @@
 import numpy as np
 import simpy
 
-from netsim.events import URGENT, scheduled_event
+from netsim.scheduling import URGENT, scheduled_event
 from netsim.simpy_internals import kernel_queue
 from netsim.timers import DeadlineTimers
 

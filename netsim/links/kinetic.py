@@ -20,7 +20,7 @@ the later leg start), so a candidate pair whose robots keep their legs into the 
 window keeps the instants already solved, and each window solves only the pairs that are
 new to it or changed course.
 
-Queued events run at priority :data:`~netsim.events.FIRST` (before anything else due at
+Queued events run at priority :data:`~netsim.scheduling.FIRST` (before anything else due at
 their instant), in the order ``(t, a, b)``; for one pair, in the order the post-hoc solver
 uses, keeping only those that change the link's state. One kernel event wakes the solver
 for the next instant that has events; it goes on to the following instants, moving the
@@ -40,10 +40,11 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.events import FIRST, LAST, EventBus, LinkDown, LinkUp, advance_clock, kernel_queue, scheduled_event
+from netsim.events import EventBus, LinkDown, LinkUp
 from netsim.geometry import near_pairs, wrap
 from netsim.links.crossings import PHASE_STATE, clip_crossings, crossing_times, solve_piece
 from netsim.links.lifetimes import COLUMNS
+from netsim.scheduling import FIRST, LAST, advance_clock, kernel_queue, scheduled_event
 from netsim.state import RobotState
 
 # A window's restart comes before the link events of its instant, which it solves again.
@@ -429,7 +430,7 @@ class RuntimeLinks:
     def _announce(self, until: float, quiet: bool = False) -> None:
         """Apply and announce the queued events due at or before ``until``, in order, and
         those of the following instants while the kernel has nothing that would run before
-        a wake armed for them (:func:`~netsim.events.kernel_queue`): the clock is moved to
+        a wake armed for them (:func:`~netsim.scheduling.kernel_queue`): the clock is moved to
         each, exactly, and the order is that of one kernel event per instant, without its
         cost. ``quiet``: the run's end; apply up to ``until`` only, announcing nothing."""
         qt, qa, qb, qphase, qnegk, qidx, qkey = self._queue

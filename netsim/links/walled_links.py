@@ -37,10 +37,11 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.events import FIRST, EventBus, LinkDown, LinkUp, scheduled_event
+from netsim.events import EventBus, LinkDown, LinkUp
 from netsim.links.kinetic import RuntimeLinks, links_frame, up_pairs
 from netsim.links.wall_sweeps import CHUNK_M, Stretches, count_below, envelope_radii, map_radio
 from netsim.radio.reception import Reception
+from netsim.scheduling import FIRST, scheduled_event
 from netsim.state import RobotState
 
 # A window's start comes before the link events of its instant (it only queues later ones).

@@ -44,9 +44,10 @@ import pandas as pd
 import simpy
 
 from netsim.agenda import Agenda
-from netsim.events import URGENT, Delivery, Drop, EventBus
+from netsim.events import Delivery, Drop, EventBus
 from netsim.radio.loss import Survives
 from netsim.radio.spatial import RangeIndex
+from netsim.scheduling import URGENT
 from netsim.state import RobotState
 
 DROP_CAUSES = ("loss", "not_alive", "out_of_range")

@@ -41,10 +41,10 @@ import pandas as pd
 import simpy
 
 from netsim.compiled import load
-from netsim.events import URGENT, scheduled_event
 from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
 from netsim.radio.mac_models import CsmaParams
 from netsim.radio.spatial import RangeIndex
+from netsim.scheduling import URGENT, scheduled_event
 
 # Causes a medium adds: per reception (collision, half_duplex), per frame at its sender's row
 # (queue_full: the queue was full when it was handed over; retry_limit: a unicast that
