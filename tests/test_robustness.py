@@ -195,6 +195,40 @@ def test_scenario_generate_refuses_an_unwritable_file_before_simulating(tmp_path
     refused(capfd, code, before, tmp_path, words)
 
 
+GENERATE = ["scenario", "generate", "--n", "3", "--side", "100", "--speed-max", "2", "--duration", "5"]
+
+
+def test_scenario_generate_refuses_an_existing_file(tmp_path, capfd, monkeypatch):
+    """`netsim scenario generate -o FILE` never overwrites a file that exists: one line,
+    exit 2, the file untouched (as `netsim export` refuses an existing --out)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.tcl").write_text("the user's own scenario\n")
+    before = tree(tmp_path)
+    line = refused(capfd, main([*GENERATE, "-o", "s.tcl"]), before, tmp_path, "-o s.tcl", "exists already")
+    assert (tmp_path / "s.tcl").read_text() == "the user's own scenario\n", line
+
+
+def test_view_out_refuses_an_existing_file(tmp_path, capfd, small_run):
+    """`netsim view RUN --out FILE` never overwrites a file that exists: one line, exit 2,
+    the file untouched."""
+    (tmp_path / "replay.html").write_text("the user's own page\n")
+    before = tree(tmp_path)
+    refused(capfd, main(["view", str(small_run), "--out", str(tmp_path / "replay.html")]), before, tmp_path,
+            "exists already")
+    assert (tmp_path / "replay.html").read_text() == "the user's own page\n"
+
+
+def test_view_remakes_the_runs_own_replay(tmp_path, capfd, small_run):
+    """Without --out, `netsim view RUN` writes RUN/view.html, the run's own file, again
+    when it is there already (as `netsim run --view` left it)."""
+    (small_run / "view.html").write_text("stale\n")
+    try:
+        assert main(["view", str(small_run)]) == 0, capfd.readouterr().err
+        assert (small_run / "view.html").read_text().startswith("<!")
+    finally:
+        (small_run / "view.html").unlink(missing_ok=True)
+
+
 # -- a team of one ------------------------------------------------------------------------
 @pytest.mark.parametrize("routing", ["backbone", "oracle"])
 def test_a_team_of_one_robot_runs_and_sends_no_messages(tmp_path, capfd, routing):

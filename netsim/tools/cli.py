@@ -175,15 +175,19 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
-def check_out_file(path: Path, option: str, make_parents: bool = False) -> None:
+def check_out_file(path: Path, option: str, make_parents: bool = False, replace: bool = False) -> None:
     """Refuse, before any work, a file that could not be written: its directory must exist
-    and be writable, and the path must not be a directory. With ``make_parents`` the
-    directory may be missing, to be made by the writer: then its nearest existing ancestor
-    must be a writable directory."""
+    and be writable, and the path must not be a directory, nor (unless ``replace``, for a
+    file netsim names itself) a file that exists, as ``netsim export`` refuses it: a user's
+    file is never overwritten silently. With ``make_parents`` the directory may be missing,
+    to be made by the writer: then its nearest existing ancestor must be a writable
+    directory."""
     import tempfile
 
     if path.is_dir():
         raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
+    if not replace and (path.exists() or path.is_symlink()):
+        raise NetsimInputError(f"{option} {path}: exists already; give a new path")
     parent = path.parent
     while make_parents and not parent.exists() and not parent.is_symlink() and parent != parent.parent:
         parent = parent.parent
@@ -272,7 +276,8 @@ def cmd_view(args) -> int:
     if args.out is not None:
         check_out_file(Path(args.out), "--out", make_parents=True)
     elif Path(args.run_dir).is_dir():
-        check_out_file(Path(args.run_dir) / "view.html", "the replay")
+        # The run's own replay (as `netsim run --view` writes it) is remade in place.
+        check_out_file(Path(args.run_dir) / "view.html", "the replay", replace=True)
     path = viewer.write(args.run_dir, args.out)
     print(f"wrote {path} ({path.stat().st_size / 2**20:.2f} MiB): open it in a browser")
     return 0
@@ -323,7 +328,7 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--duration", type=float, required=True, help="scenario length, s")
     g.add_argument("--seed", type=int, default=1)
     g.add_argument("--no-stationary-start", action="store_true", help="start from uniform positions at rest")
-    g.add_argument("-o", "--output", required=True, help="file to write")
+    g.add_argument("-o", "--output", required=True, help="file to write (a new path: an existing file is refused)")
     g.set_defaults(func=cmd_scenario_generate)
 
     w = sub.add_parser("sweep", help="run a parameter sweep (resumable; local pool or Dask cluster)")
@@ -368,7 +373,9 @@ def parser() -> argparse.ArgumentParser:
 
     vw = sub.add_parser("view", help="write an interactive replay of a run: one self-contained HTML file")
     vw.add_argument("run_dir", help="a run's output directory")
-    vw.add_argument("--out", help="file to write (default: RUN_DIR/view.html)")
+    vw.add_argument(
+        "--out", help="file to write, a new path (default: RUN_DIR/view.html, which is remade in place)"
+    )
     vw.set_defaults(func=cmd_view)
 
     x = sub.add_parser("export", help="write a run in the formats robot teams use (BonnMotion, ns-2, ROS 2 bag)")
