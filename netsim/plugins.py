@@ -224,8 +224,10 @@ def _where(exc: BaseException) -> str:
         for f in frames
         if not f.filename.startswith("<") and not any(os.path.realpath(f.filename).startswith(p) for p in libraries)
     ]
-    frame = (own or [f for f in frames if not f.filename.startswith("<")] or frames or [None])[-1]
-    return f"{frame.filename}, line {frame.lineno}" if frame else "?"
+    candidates = own or [f for f in frames if not f.filename.startswith("<")] or list(frames)
+    if not candidates:
+        return "?"
+    return f"{candidates[-1].filename}, line {candidates[-1].lineno}"
 
 
 def _import_failure(exc: BaseException) -> PluginImportError:
