@@ -458,13 +458,13 @@ def world_bounds(world: Any) -> Bounds:
 
 def _check_map(config: Config) -> None:
     """The map loads, covers the area, and every model that moves robots keeps them off walls."""
-    from netsim.radio.maps import MAP_KEY, cached_map
+    from netsim.radio.maps import cached_map
 
     w = config.world
     if w.torus:
         raise ConfigError("world.map", w.map, "cannot be used with world.torus = true (a map does not wrap)")
     area = world_bounds(w)
-    cached_map(w.map).check_area(area, KEY if w.bounds_m == "map" or "bounds_m" not in w.derived else MAP_KEY)
+    cached_map(w.map).check_area(area, bounds_given=w.bounds_m != "map" and "bounds_m" not in w.derived)
     if w.placement == "centre":
         w.check_centre(area)
     mobility = config.mobility

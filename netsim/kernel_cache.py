@@ -19,6 +19,10 @@ checkouts used in turn, as a before-and-after measurement does, both stay compil
 ones are deleted when a module is keyed. Only the kernels' own functions are pointed
 there, while :func:`key` runs: the rest of the process's numba settings are left as they
 were.
+
+A directory with no compiled code in it means the module's loops will be compiled, not
+loaded, which takes a while the first time a version runs on a machine: a command that
+wants to say so asks :func:`when_cold` to be told.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import re
 import shutil
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +43,7 @@ _LOCK = threading.Lock()  # numba's cache directory is one global setting while 
 KEPT_VERSIONS = 4
 _PATHS: dict[str, str | None] = {}  # module not loaded -> its file, None if no module
 _SOURCES: dict[str, tuple[tuple[str, int, int], bytes, list[str]]] = {}  # module -> (file's stamp, digest, imports)
+_ON_COLD: list[Callable[[Path], object]] = []  # told once, of the first cold directory (when_cold)
 
 
 def base_directory() -> Path:
@@ -46,6 +52,20 @@ def base_directory() -> Path:
         return Path(os.environ["NUMBA_CACHE_DIR"])
     cache_home = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(cache_home) / "netsim-robots" / "kernels"
+
+
+def when_cold(callback: Callable[[Path], object] | None) -> None:
+    """Have ``callback(directory)`` called once, the next time a kernel module is keyed to
+    a directory that holds no compiled code yet (its loops are about to be compiled rather
+    than loaded); None: no call."""
+    with _LOCK:
+        _ON_COLD[:] = [] if callback is None else [callback]
+
+
+def is_cold(directory: Path) -> bool:
+    """Whether ``directory`` (a module's keyed directory) holds no compiled code: numba
+    writes an index (``*.nbi``) beside each function's code."""
+    return not any(directory.rglob("*.nbi"))
 
 
 # Import statements, read by pattern rather than by parsing the module (which costs more
@@ -181,6 +201,11 @@ def key(namespace: dict[str, Any]) -> Path:
         finally:
             config.CACHE_DIR = kept  # type: ignore[attr-defined]
         _KEYS[name] = module_key
+        told = _ON_COLD[:] if _ON_COLD and is_cold(directory) else []
+        if told:
+            _ON_COLD.clear()
+    for callback in told:
+        callback(directory)
     return directory
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+import traceback
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cache
@@ -204,17 +205,64 @@ def _plugin(group: str, name: str) -> Any:
     raise TypeError("is not a netsim plugin (a PluginSpec, or an object with " + ", ".join(_MEMBERS) + ")")
 
 
+class PluginImportError(ImportError):
+    """A plugin's module failed while it was imported (a syntax error, an exception raised by
+    its code): told in one line, the file and line where it failed, the error's kind and
+    message, as the traceback's last lines would."""
+
+
+def _where(exc: BaseException) -> str:
+    """``FILE, line N`` of the failure: for a syntax error, where the parser stopped; else
+    the innermost frame of the traceback that is the user's code (not Python's import
+    machinery nor an installed library), the innermost frame if there is none."""
+    if isinstance(exc, SyntaxError) and exc.filename:
+        return f"{exc.filename}, line {exc.lineno}"
+    frames = traceback.extract_tb(exc.__traceback__)
+    libraries = {os.path.realpath(p) for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)}
+    own = [
+        f
+        for f in frames
+        if not f.filename.startswith("<") and not any(os.path.realpath(f.filename).startswith(p) for p in libraries)
+    ]
+    candidates = own or [f for f in frames if not f.filename.startswith("<")] or list(frames)
+    if not candidates:
+        return "?"
+    return f"{candidates[-1].filename}, line {candidates[-1].lineno}"
+
+
+def _import_failure(exc: BaseException) -> PluginImportError:
+    message = exc.msg if isinstance(exc, SyntaxError) else str(exc)
+    text = f"{_where(exc)}: {type(exc).__name__}" + (f": {message}" if message else "")
+    return PluginImportError(" ".join(text.split()))  # one line, whatever the message holds
+
+
+def _names_the_plugin(exc: ModuleNotFoundError, name: str) -> bool:
+    """Whether the module not found is the plugin's own (or a package on its path)."""
+    module_name = name.partition(":")[0]
+    return bool(exc.name) and (module_name == exc.name or module_name.startswith(f"{exc.name}."))
+
+
 def _load(group: str, name: str) -> Any:
-    if ":" in name:
-        module_name, _, attr = name.partition(":")
-        obj = _import_user_module(module_name)
-        for part in attr.split("."):
-            obj = getattr(obj, part)
-        return obj
-    found = [ep for ep in _entry_points(group) if ep.name == name]
-    if not found:
-        raise LookupError(name)
-    return found[0].load()
+    try:
+        if ":" in name:
+            module_name, _, attr = name.partition(":")
+            obj = _import_user_module(module_name)
+        else:
+            found = [ep for ep in _entry_points(group) if ep.name == name]
+            if not found:
+                raise LookupError(name)
+            return found[0].load()
+    except LookupError:
+        raise
+    except ImportError as exc:
+        if isinstance(exc, ModuleNotFoundError) and _names_the_plugin(exc, name):
+            raise  # no such module: nothing ran, no file to name
+        raise _import_failure(exc) from exc
+    except Exception as exc:  # the module's own code failed as it ran: its file and line
+        raise _import_failure(exc) from exc
+    for part in attr.split("."):
+        obj = getattr(obj, part)
+    return obj
 
 
 def resolve(group: str, name: str, key: str) -> Any:

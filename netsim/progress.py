@@ -38,10 +38,33 @@ def progress_bar(
         isatty = getattr(stream, "isatty", None)
         tty = bool(isatty and isatty())
     if tty:
-        from tqdm.auto import tqdm
-
-        return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=stream, **tqdm_options)
+        return _estimating_bar()(total=total, initial=initial, desc=desc, unit=unit, file=stream, **tqdm_options)
     return PlainLines(total, desc, unit, initial, lines, stream)
+
+
+def _estimating_bar() -> type:
+    """tqdm's bar, whose estimate of the time left waits for the first unit of work (a
+    simulated second, a run) to be done and then counts from there: the first unit carries
+    the start-up (compiling the loops, starting workers), which would make the rate of the
+    rest look far slower than it is."""
+    from tqdm.auto import tqdm
+
+    class EstimatingBar(tqdm):
+        _since: tuple[float, float] | None = None  # (work done, time) when the first unit was done
+
+        @property
+        def format_dict(self) -> dict:
+            values = super().format_dict
+            done, now = values["n"] - values["initial"], values["elapsed"]
+            if self._since is None and done >= 1:
+                self._since = (done, now)
+            if self._since is None or done <= self._since[0] or now <= self._since[1]:
+                values["rate"] = 0  # tqdm shows no rate and no time left ("?")
+            else:
+                values["rate"] = (done - self._since[0]) / (now - self._since[1])
+            return values
+
+    return EstimatingBar
 
 
 class _Silent:

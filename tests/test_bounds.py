@@ -111,6 +111,31 @@ def test_bounds_outside_the_map_arecheck_refused(tmp_path, capsys):
     check_refused(tmp_path, capsys, overrides, "world.bounds_m", "is not inside world.map")
 
 
+@pytest.mark.parametrize(
+    "overrides, key, words",
+    [
+        (
+            ["world.bounds_m=[0, 0, 2000, 2000]"],
+            "world.bounds_m",
+            "world.bounds_m = [0.0, 0.0, 2000.0, 2000.0]: is not inside world.map = 'office', "
+            "which covers x in [0, 200], y in [0, 200]",
+        ),
+        (
+            ["world.side_m=2000"],
+            "world.map",
+            "world.map = 'office': covers 200 m x 200 m, smaller than the area (2000 m x 2000 m, world.side_m)",
+        ),
+    ],
+    ids=["bounds-set", "side-set"],
+)
+def test_an_area_the_map_does_not_cover_is_told_by_the_key_that_made_it(tmp_path, capsys, overrides, key, words):
+    """An area the map does not cover names the key the user set and its value: bounds set
+    (a square at the origin included) name ``world.bounds_m`` and its numbers, never the
+    map's name as their value nor world.side_m; an area from ``world.side_m`` names the map
+    as too small."""
+    check_refused(tmp_path, capsys, ["world.map=office", "mobility.model=static", *overrides], key, words)
+
+
 # -- placement -----------------------------------------------------------------------------
 
 

@@ -86,3 +86,35 @@ def test_each_group_lists_exactly_its_installed_entry_points():
     for group in (plugins.MOBILITY, plugins.PROTOCOLS, plugins.CONTROLLERS, plugins.HOOKS, "netsim.none"):
         assert plugins._entry_points(group) == tuple(entry_points(group=group)), group
     assert plugins.available(plugins.PROTOCOLS) == ["ack", "clustering", "none"]
+
+
+@pytest.mark.parametrize(
+    "source, line, kind",
+    [
+        ("import math\n\ndef circle(:\n    pass\n", 3, "SyntaxError: invalid syntax"),
+        ("import math\nraise RuntimeError('the model is\\nnot ready')\n", 2, "RuntimeError: the model is not ready"),
+        ("import no_such_module_of_the_user_xyz\n", 1, "ModuleNotFoundError: No module named"),
+        ("x = 1\nfrom math import no_such_name\n", 2, "ImportError: cannot import name 'no_such_name'"),
+        ("def f():\n    return 1 / 0\n\nPLUGIN = f()\n", 2, "ZeroDivisionError: division by zero"),
+    ],
+    ids=["syntax-error", "exception", "missing-import", "bad-from-import", "error-in-a-call"],
+)
+def test_a_plugin_module_that_fails_to_import_is_one_line_naming_file_and_line(
+    tmp_path, capfd, monkeypatch, source, line, kind
+):
+    """A user's plugin module that fails as it is imported (a syntax error, an exception its
+    code raises, an import of its own that fails) is one line, exit 2, nothing written: the
+    key, the plugin's file and the line where it failed, the error's kind and message."""
+    from netsim.tools.cli import main
+
+    name = f"broken_model_{tmp_path.name.replace('-', '_')}"
+    path = tmp_path / f"{name}.py"
+    path.write_text(source)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out = tmp_path / "out"
+    code = main(["run", "--quiet", "--out", str(out), "--set", f"mobility.model={name}:PLUGIN"])
+    err = capfd.readouterr().err
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("netsim: error: mobility.model = "), err
+    assert f"{path}, line {line}: {kind}" in err, err
+    assert not out.exists()

@@ -236,3 +236,23 @@ def test_every_readme_file_block_loads():
                 sweepmod.parse(tree).runs()
             else:
                 cfgmod.from_dict(tree)
+
+
+@pytest.mark.parametrize("page", ["README.md", "docs/sweeps.md"])
+def test_the_sweep_files_base_file_comment_stands_where_it_is_valid(page, tmp_path, monkeypatch):
+    """The sweep file a page shows names ``base_file`` in a comment: written out as a line
+    where the comment stands (after the code on that line), the file is a valid sweep
+    starting from that scenario file."""
+    monkeypatch.chdir(tmp_path)
+    Path("my.toml").write_text("seed = 7\n")
+    shown = [body for lang, body in blocks((ROOT / page).read_text()) if lang == "toml" and "[grid]" in body]
+    assert shown and any("base_file" in body for body in shown)
+    for body in shown:
+        lines = []
+        for line in body.splitlines():
+            code, _, comment = line.partition("#")
+            named = re.search(r'base_file = "[^"]+"', comment)
+            lines += [code] if code.strip() or not named else []
+            lines += [named[0]] if named else []
+        sweep = sweepmod.parse(tomllib.loads("\n".join(lines)), tmp_path / "speed.toml")
+        assert sweep.base["seed"] == 7  # the scenario file was read

@@ -19,6 +19,7 @@ import pytest
 
 from netsim import config as cfgmod
 from netsim import run as runmod
+from netsim.errors import NetsimInputError
 from netsim.progress import PlainLines, progress_bar
 from netsim.tools import sweep as sweepmod
 from netsim.tools.cli import main
@@ -193,6 +194,45 @@ def test_scenario_generate_refuses_an_unwritable_file_before_simulating(tmp_path
         ]
     )
     refused(capfd, code, before, tmp_path, words)
+
+
+GENERATE = ["scenario", "generate", "--n", "3", "--side", "100", "--speed-max", "2", "--duration", "5"]
+
+
+def test_scenario_generate_refuses_an_existing_file(tmp_path, capfd, monkeypatch):
+    """`netsim scenario generate -o FILE` never overwrites a file that exists: one line,
+    exit 2, the file untouched (as `netsim export` refuses an existing --out)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.tcl").write_text("the user's own scenario\n")
+    before = tree(tmp_path)
+    line = refused(capfd, main([*GENERATE, "-o", "s.tcl"]), before, tmp_path, "-o s.tcl", "exists already")
+    assert (tmp_path / "s.tcl").read_text() == "the user's own scenario\n", line
+
+
+def test_view_out_refuses_an_existing_file(tmp_path, capfd, small_run):
+    """`netsim view RUN --out FILE` never overwrites a file that exists: one line, exit 2,
+    the file untouched."""
+    (tmp_path / "replay.html").write_text("the user's own page\n")
+    before = tree(tmp_path)
+    refused(
+        capfd,
+        main(["view", str(small_run), "--out", str(tmp_path / "replay.html")]),
+        before,
+        tmp_path,
+        "exists already",
+    )
+    assert (tmp_path / "replay.html").read_text() == "the user's own page\n"
+
+
+def test_view_remakes_the_runs_own_replay(tmp_path, capfd, small_run):
+    """Without --out, `netsim view RUN` writes RUN/view.html, the run's own file, again
+    when it is there already (as `netsim run --view` left it)."""
+    (small_run / "view.html").write_text("stale\n")
+    try:
+        assert main(["view", str(small_run)]) == 0, capfd.readouterr().err
+        assert (small_run / "view.html").read_text().startswith("<!")
+    finally:
+        (small_run / "view.html").unlink(missing_ok=True)
 
 
 # -- a team of one ------------------------------------------------------------------------
@@ -466,3 +506,139 @@ def test_sweep_bar_redraws_once_per_run(tmp_path, monkeypatch):
     sweepmod.run_sweep(sweep, tmp_path / "o", workers=1)
     draws = term.getvalue().count("\r")
     assert 4 <= draws <= 4 + 2  # one per run, plus the first and last draw
+
+
+# -- a first run: what it says while it compiles, and what it cannot hold ----------------------
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_the_bar_estimates_no_time_left_before_the_first_unit_of_work():
+    """On a terminal the bar shows no estimate of the time left until the first unit of
+    work (a simulated second) is done, and then estimates from the rate since then: the
+    start-up (compiling the loops) does not make the rest look slower."""
+    bar = progress_bar(
+        300,
+        "netsim run",
+        "sim s",
+        stream=_Terminal(),
+        mininterval=0,
+        bar_format="{n:.1f}/{total:.0f} [{elapsed}<{remaining}]",
+    )
+    clock = [0.0]
+    bar._time = lambda: clock[0]
+    bar.start_t = bar.last_print_t = 0.0
+    clock[0] = 30.0  # the first half second took the compile
+    bar.update(0.5)
+    assert str(bar) == "0.5/300 [00:30<?]"
+    clock[0] = 31.0
+    bar.update(1.0)
+    assert str(bar).endswith("<?]")
+    clock[0] = 33.0
+    bar.update(3.0)  # 3 s simulated in the 2 s since the first second: 1.5 sim s per s
+    assert str(bar) == "4.5/300 [00:33<03:17]"
+    bar.close()
+
+
+def _cold_kernel_module(tmp_path, monkeypatch, name):
+    """A module that keys its kernels' cache (as every kernel module does) under a new,
+    empty cache directory."""
+    (tmp_path / f"{name}.py").write_text("from netsim.kernel_cache import key\n\nkey(globals())\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delitem(sys.modules, name, raising=False)
+
+
+def test_a_kernel_module_keyed_to_an_empty_directory_is_told_once(tmp_path, monkeypatch):
+    """when_cold's callback hears of the first kernel module whose keyed directory holds no
+    compiled code, once; a directory with compiled code in it is not cold."""
+    import importlib
+
+    from netsim import kernel_cache
+
+    told = []
+    kernel_cache.when_cold(told.append)
+    try:
+        _cold_kernel_module(tmp_path, monkeypatch, "cold_probe_a")
+        importlib.import_module("cold_probe_a")
+        assert len(told) == 1 and told[0].parent == tmp_path / "cache"
+        (told[0] / "sub").mkdir(parents=True)
+        (told[0] / "sub" / "f-1.py311.nbi").write_bytes(b"")
+        kernel_cache.when_cold(told.append)
+        sys.modules.pop("cold_probe_a")
+        importlib.import_module("cold_probe_a")
+        assert len(told) == 1, "a directory with compiled code is not cold"
+    finally:
+        kernel_cache.when_cold(None)
+        sys.modules.pop("cold_probe_a", None)
+
+
+@pytest.mark.parametrize("quiet", [False, True], ids=["says-so", "quiet"])
+def test_netsim_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capfd, monkeypatch, quiet):
+    """`netsim run` with a cold kernel cache prints one line on standard error, as the
+    compiling starts, that it compiles the simulator's loops; with --quiet, nothing."""
+    import importlib
+
+    from netsim import kernel_cache
+
+    _cold_kernel_module(tmp_path, monkeypatch, "cold_probe_b")
+
+    def execute(*a, **k):  # the build imports the kernel modules; then stop
+        importlib.import_module("cold_probe_b")
+        raise NetsimInputError("stopped after the build")
+
+    monkeypatch.setattr(runmod, "execute", execute)
+    try:
+        code = main(["run", *(["--quiet"] if quiet else []), "--out", str(tmp_path / "o"), *SMALL])
+    finally:
+        kernel_cache.when_cold(None)
+        sys.modules.pop("cold_probe_b", None)
+    err = capfd.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1] == "netsim: error: stopped after the build"
+    compiling = [line for line in err if "compiling the simulator's loops" in line]
+    assert compiling == (
+        []
+        if quiet
+        else [
+            f"netsim run: compiling the simulator's loops, once for this version of "
+            f"netsim (cached in {tmp_path / 'cache'})..."
+        ]
+    )
+
+
+def test_a_team_that_cannot_fit_in_memory_is_refused_up_front(tmp_path, capfd, monkeypatch, no_simulation):
+    """`world.n_robots` beyond what the machine's memory can hold (the robots' state and the
+    positions table alone) is one line naming the key, exit 2, before any work, nothing
+    written."""
+    from netsim.tools import cli
+
+    monkeypatch.setattr(runmod, "build", lambda *a, **k: pytest.fail("built before checking the memory"))
+    monkeypatch.chdir(tmp_path)
+    n = 100_000_000
+    config = cfgmod.load(None, [f"world.n_robots={n}"])
+    memory = cli.machine_memory_bytes()
+    if memory is None or cli.least_memory_bytes(config) <= memory:
+        pytest.skip("this machine could hold the state of 10^8 robots")
+    before = tree(tmp_path)
+    line = refused(
+        capfd,
+        main(["run", "--set", f"world.n_robots={n}"]),
+        before,
+        tmp_path,
+        f"world.n_robots = {n}: the run would hold at least",
+        "of memory",
+    )
+    assert "GiB" in line
+
+
+def test_the_least_memory_grows_with_the_team_and_the_samples():
+    """The memory floor counts each robot's state and each row of positions.parquet."""
+    from netsim.tools import cli
+
+    one = cli.least_memory_bytes(cfgmod.load(None, ["world.n_robots=1", "output.position_interval_s=0"]))
+    assert one > 0
+    ten = cli.least_memory_bytes(cfgmod.load(None, ["world.n_robots=10", "output.position_interval_s=0"]))
+    assert ten == 10 * one
+    sampled = cli.least_memory_bytes(cfgmod.load(None, ["world.n_robots=10", "duration_s=9"]))
+    assert sampled == ten + 10 * 10 * 32  # 10 samples (0..9 s) of 4 eight-byte columns

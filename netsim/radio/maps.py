@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from netsim.area import KEY as BOUNDS_KEY
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
 
@@ -118,42 +119,44 @@ class OccupancyMap:
         r = self.resolution_m
         return self.origin_m[0] + (np.arange(w) + 0.5) * r, self.origin_m[1] + (np.arange(h) + 0.5) * r
 
-    def check_area(self, area: float | Bounds, key: str = MAP_KEY) -> None:
+    def check_area(self, area: float | Bounds, bounds_given: bool = False) -> None:
         """Refuse a map that does not cover the area (``Bounds``, or the side of the square
-        ``[0, side]^2``) or has no free cell in it."""
+        ``[0, side]^2``) or has no free cell in it. ``bounds_given``: the area is
+        ``world.bounds_m`` as the user set it, and an area the map does not cover is told as
+        that key's value; else it is the square ``[0, world.side_m]^2`` (or the map's own
+        extent), and the map is told as too small."""
         b = as_bounds(area)
         x0, x1, y0, y1 = self.extent_m
         name = self.source or "<map>"
+        covers = f"covers x in [{x0:g}, {x1:g}], y in [{y0:g}, {y1:g}]"
         tol = 1e-9 * max(1.0, b.width, b.height, abs(b.x_min), abs(b.y_min))
-        if b.is_square_at_origin:
+        inside = not (x0 > b.x_min + tol or y0 > b.y_min + tol or x1 < b.x_max - tol or y1 < b.y_max - tol)
+        if bounds_given and not inside:
+            raise ConfigError(
+                BOUNDS_KEY,
+                b.as_list(),
+                f"is not inside world.map = {name!r}, which {covers}; set world.bounds_m inside it",
+            )
+        if not inside:
             side_m = b.width
             w_m, h_m = x1 - x0, y1 - y0
             if w_m < side_m - tol or h_m < side_m - tol:
                 raise ConfigError(
-                    key,
+                    MAP_KEY,
                     name,
                     f"covers {w_m:g} m x {h_m:g} m, smaller than the area ({side_m:g} m x {side_m:g} m, world.side_m)",
                 )
-            if x0 > tol or y0 > tol or x1 < side_m - tol or y1 < side_m - tol:
-                raise ConfigError(
-                    key,
-                    name,
-                    f"with origin [{x0:g}, {y0:g}] covers x in [{x0:g}, {x1:g}], y in [{y0:g}, {y1:g}], which does "
-                    f"not contain the area [0, {side_m:g}] x [0, {side_m:g}]; the origin must be <= 0 and the map "
-                    f"reach world.side_m (or set world.bounds_m)",
-                )
-        elif x0 > b.x_min + tol or y0 > b.y_min + tol or x1 < b.x_max - tol or y1 < b.y_max - tol:
             raise ConfigError(
-                key,
-                b.as_list(),
-                f"is not inside world.map {name}, which covers x in [{x0:g}, {x1:g}], y in [{y0:g}, {y1:g}]",
+                MAP_KEY,
+                name,
+                f"with origin [{x0:g}, {y0:g}] {covers}, which does not contain the area [0, {side_m:g}] x "
+                f"[0, {side_m:g}]; the origin must be <= 0 and the map reach world.side_m (or set world.bounds_m)",
             )
         cx, cy = self.cell_centres_m()
         cols = (cx >= b.x_min) & (cx <= b.x_max)
         rows = (cy >= b.y_min) & (cy <= b.y_max)
         if not self.free[np.ix_(rows, cols)].any():
-            where = "[0, world.side_m]^2" if b.is_square_at_origin else f"{b.as_list()} (world.bounds_m)"
-            raise ConfigError(key, name, f"has no free cell inside the area {where}")
+            raise ConfigError(MAP_KEY, name, f"has no free cell inside the area {b.as_list()}")
 
 
 def occupancy_from_pixels(

@@ -72,6 +72,65 @@ def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None
         )
 
 
+def machine_memory_bytes() -> int | None:
+    """The machine's physical memory, None where the system does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def least_memory_bytes(config: cfgmod.Config) -> int:
+    """Memory a run of ``config`` holds whatever its models: the robots' state (every
+    array RobotState keeps per robot) and, made at the end, the positions table (a row
+    per robot and sample). The models, the trace and the other tables come on top."""
+    import numpy as np
+
+    from netsim.run import ENGINE_TABLES, position_times
+    from netsim.state import RobotState
+
+    state = RobotState(1, 1.0, 1.0)
+    per_robot = sum(v.nbytes for v in vars(state).values() if isinstance(v, np.ndarray) and v.base is None)
+    row = sum(np.dtype(t).itemsize for t in ENGINE_TABLES["positions"].values())
+    samples = len(position_times(config.output.position_interval_s, config.duration_s))
+    return config.world.n_robots * (per_robot + samples * row)
+
+
+def check_fits_in_memory(config: cfgmod.Config) -> None:
+    """Refuse, before any work, a run that cannot fit in the machine's memory (rather than
+    build it for minutes and fail)."""
+    have, need = machine_memory_bytes(), least_memory_bytes(config)
+    if have is None or need <= have:
+        return
+    n = config.world.n_robots
+    raise ConfigError(
+        "world.n_robots",
+        n,
+        f"the run would hold at least {need / 2**30:,.1f} GiB (the robots' state and positions.parquet's "
+        f"rows, before any model's), more than this machine's {have / 2**30:,.1f} GiB of memory; lower it, "
+        "or duration_s, or raise output.position_interval_s (0: no positions table)",
+    )
+
+
+def say_when_compiling(command: str, enabled: bool) -> None:
+    """The first run of a version of netsim on a machine compiles its loops, and prints
+    nothing meanwhile (the progress bar starts with the simulation): say so on standard
+    error, once, when it starts."""
+    if not enabled:
+        return
+    from netsim import kernel_cache
+
+    def tell(directory: Path) -> None:
+        print(
+            f"{command}: compiling the simulator's loops, once for this version of netsim "
+            f"(cached in {directory.parent})...",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    kernel_cache.when_cold(tell)
+
+
 def cmd_run(args) -> int:
     from netsim.run import execute
     from netsim.tools.output import RunWriter, claim_dir, manifest
@@ -81,6 +140,8 @@ def cmd_run(args) -> int:
     if args.seed is not None:
         overrides.append(f"seed={args.seed}")
     config = cfgmod.load(args.config, overrides)
+    check_fits_in_memory(config)
+    say_when_compiling("netsim run", not args.quiet)
     with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
         # Each table is written as soon as it is made, while the next is made.
         # What the build loaded (numba and its registries, when the run uses compiled loops)
@@ -175,15 +236,19 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
-def check_out_file(path: Path, option: str, make_parents: bool = False) -> None:
+def check_out_file(path: Path, option: str, make_parents: bool = False, replace: bool = False) -> None:
     """Refuse, before any work, a file that could not be written: its directory must exist
-    and be writable, and the path must not be a directory. With ``make_parents`` the
-    directory may be missing, to be made by the writer: then its nearest existing ancestor
-    must be a writable directory."""
+    and be writable, and the path must not be a directory, nor (unless ``replace``, for a
+    file netsim names itself) a file that exists, as ``netsim export`` refuses it: a user's
+    file is never overwritten silently. With ``make_parents`` the directory may be missing,
+    to be made by the writer: then its nearest existing ancestor must be a writable
+    directory."""
     import tempfile
 
     if path.is_dir():
         raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
+    if not replace and (path.exists() or path.is_symlink()):
+        raise NetsimInputError(f"{option} {path}: exists already; give a new path")
     parent = path.parent
     while make_parents and not parent.exists() and not parent.is_symlink() and parent != parent.parent:
         parent = parent.parent
@@ -226,6 +291,7 @@ def cmd_validate(args) -> int:
 
     seed = None if args.seed is None else validate.parse_seed(args.seed)
     only = None if args.only is None else validate.parse_only(args.only)
+    say_when_compiling("netsim validate", True)
     results = validate.run_all(progress=not args.no_progress, seed=seed, only=only)
     print(validate.table(results))
     failed = [c for c in results if not c.passed]
@@ -256,6 +322,8 @@ def cmd_figures(args) -> int:
             raise NetsimInputError(
                 f"--at = {args.at:g}: must be a time between 0 and duration_s = {config.duration_s:g} s"
             )
+        check_fits_in_memory(config)
+        say_when_compiling("netsim figures", True)
         with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
             result = execute(config, progress=not args.no_progress)
             write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
@@ -272,7 +340,8 @@ def cmd_view(args) -> int:
     if args.out is not None:
         check_out_file(Path(args.out), "--out", make_parents=True)
     elif Path(args.run_dir).is_dir():
-        check_out_file(Path(args.run_dir) / "view.html", "the replay")
+        # The run's own replay (as `netsim run --view` writes it) is remade in place.
+        check_out_file(Path(args.run_dir) / "view.html", "the replay", replace=True)
     path = viewer.write(args.run_dir, args.out)
     print(f"wrote {path} ({path.stat().st_size / 2**20:.2f} MiB): open it in a browser")
     return 0
@@ -323,7 +392,7 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--duration", type=float, required=True, help="scenario length, s")
     g.add_argument("--seed", type=int, default=1)
     g.add_argument("--no-stationary-start", action="store_true", help="start from uniform positions at rest")
-    g.add_argument("-o", "--output", required=True, help="file to write")
+    g.add_argument("-o", "--output", required=True, help="file to write (a new path: an existing file is refused)")
     g.set_defaults(func=cmd_scenario_generate)
 
     w = sub.add_parser("sweep", help="run a parameter sweep (resumable; local pool or Dask cluster)")
@@ -368,7 +437,7 @@ def parser() -> argparse.ArgumentParser:
 
     vw = sub.add_parser("view", help="write an interactive replay of a run: one self-contained HTML file")
     vw.add_argument("run_dir", help="a run's output directory")
-    vw.add_argument("--out", help="file to write (default: RUN_DIR/view.html)")
+    vw.add_argument("--out", help="file to write, a new path (default: RUN_DIR/view.html, which is remade in place)")
     vw.set_defaults(func=cmd_view)
 
     x = sub.add_parser("export", help="write a run in the formats robot teams use (BonnMotion, ns-2, ROS 2 bag)")
