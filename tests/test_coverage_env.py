@@ -297,19 +297,28 @@ def episode(env, seed: int) -> list[tuple[dict, dict, float]]:
     return out
 
 
+def links_components(env, seen) -> tuple[list, list]:
+    """The components the environment gave at each of ``seen``'s instants, and those of the
+    episode's links table (links.parquet) at the same instants."""
+    links = collect(env.sim)["links"]
+    expected = metrics.components_in_links_table(links, env.sim.state.n, [t for *_, t in seen])
+    return [infos["robot_0"]["components"] for _, infos, _ in seen], expected.tolist()
+
+
 def test_components_and_disks_follow_a_range_set_in_netsim():
     """With channel.range_m set through ``netsim``, the reward's components are those of
-    the unit-disk network of that range and the coverage disks have that radius."""
+    the links of that range (links.parquet's at each step's end) and the coverage disks
+    have that radius."""
     env = coverage_v0.parallel_env(**{**SMALL, "placement": "uniform"}, netsim={"channel": {"range_m": 80.0}})
-    split = 0
-    for _, infos, _ in episode(env, 3):
-        info = infos["robot_0"]
-        pos = info["positions_m"]
-        parts = int(metrics.components(pos, 80.0).max() + 1)
-        split += parts > 1
-        assert info["components"] == parts
-        assert info["covered_fraction"] == measure.covered_fraction_grid(pos, 80.0, 0.0, 0.0, 200.0, 200.0, 100)
-    assert split  # a split team was seen
+    seen = episode(env, 3)
+    for _, infos, _ in seen:
+        pos = infos["robot_0"]["positions_m"]
+        assert infos["robot_0"]["covered_fraction"] == measure.covered_fraction_grid(
+            pos, 80.0, 0.0, 0.0, 200.0, 200.0, 100
+        )
+    got, expected = links_components(env, seen)
+    assert got == expected
+    assert max(got) > 1  # a split team was seen
 
 
 def test_components_under_shadowing_are_those_of_the_links_table():
@@ -317,12 +326,8 @@ def test_components_under_shadowing_are_those_of_the_links_table():
     the links of links.parquet at each step's end."""
     shadowed = {"channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0, "path_loss_exponent": 4.0}}
     env = coverage_v0.parallel_env(**{**SMALL, "placement": "uniform"}, netsim=shadowed)
-    seen = episode(env, 2)
-    times = [t for *_, t in seen]
-    links = collect(env.sim)["links"]
-    expected = metrics.components_in_links_table(links, SMALL["n_robots"], times)
-    got = [infos["robot_0"]["components"] for _, infos, _ in seen]
-    assert got == list(expected)
+    got, expected = links_components(env, episode(env, 2))
+    assert got == expected
     assert max(got) > 1  # a split team was seen
 
 
@@ -367,13 +372,16 @@ def test_tau_set_in_netsim_bounds_the_ages_observed():
         ({"world": {"n_robots": 7}}, "world.n_robots = 7"),
         ({"mobility": {"model": "random_waypoint"}}, "mobility.model = 'random_waypoint'"),
         ({"duration_s": 5.0}, "duration_s = 5.0"),
-        ({"events": {"runtime_links": "off"}}, "events.runtime_links = 'off'"),
+        (
+            {"events": {"runtime_links": "off"}, "channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0}},
+            "events.runtime_links = 'off'",
+        ),
         ({"world": {"torus": True}}, "world.torus = True"),
     ],
 )
 def test_setting_the_environment_cannot_honour_is_refused(netsim, key):
     """A setting of ``netsim`` the environment cannot honour (another number of robots,
-    robots moved by a model, another duration, no links during the run, a torus) raises a
+    robots moved by a model, another duration, no link events under shadowing, a torus) raises a
     one-line ConfigError naming it when the environment is made."""
     with pytest.raises(ConfigError, match=key.replace("(", r"\(")) as err:
         coverage_v0.parallel_env(**SMALL, netsim=netsim)

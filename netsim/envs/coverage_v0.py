@@ -46,6 +46,7 @@ from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.run import build
 from netsim.sim import Simulation
+from netsim.topology import geometric_pairs
 
 FIELDS_PER_NEIGHBOUR = 4  # dx, dy, age, present
 
@@ -163,7 +164,8 @@ class CoverageEnv(ParallelEnv):
         self.sim = sim = build(self._config(self._seed), run=self._episode)
         if sim.groups is not None:
             self.role_names = tuple(sim.groups.role_names)
-        sim.link_events()  # the channel's links, counted at every step
+        if sim.link_solver is not None:
+            sim.link_events()  # links decided by the channel (shadowing, walls), tracked as it makes them
         sim.run(until_s=0.0)
         self._finish_instant()
         self.agents = list(self.possible_agents)
@@ -171,7 +173,7 @@ class CoverageEnv(ParallelEnv):
         self.cycles = 0
         pos = sim.positions()
         self.covered = self._covered(pos)
-        self.components = self._components()
+        self.components = self._components(pos)
         obs = self._observations(pos)
         return obs, self._infos(pos)
 
@@ -190,11 +192,16 @@ class CoverageEnv(ParallelEnv):
             self._measures.covered_fraction_grid(pos, self.radius_m, a.x_min, a.y_min, a.width, a.height, cells)
         )
 
-    def _components(self) -> int:
-        """Components of the network of the links the channel has up now."""
+    def _components(self, pos: np.ndarray) -> int:
+        """Components of the network of the links the channel has up now: on the unit disk
+        the pairs within both robots' ranges (the rule of its link solver), else those its
+        link solver holds."""
         sim = self.sim
-        assert sim is not None and sim.links is not None
-        a, b = sim.links.up_pairs()
+        assert sim is not None
+        if sim.links is None:
+            a, b, _ = geometric_pairs(pos, sim.state.range_m)
+        else:
+            a, b = sim.links.up_pairs()
         return int(self._measures.component_count(sim.state.n, a, b))
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
@@ -209,7 +216,7 @@ class CoverageEnv(ParallelEnv):
         self.cycles += 1
         pos = sim.positions()
         covered = self._covered(pos)
-        self.components = self._components()
+        self.components = self._components(pos)
         reward = covered - self.covered - p.component_penalty * (self.components - 1)
         self.covered = covered
         obs = self._observations(pos)
@@ -321,8 +328,14 @@ def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, obje
         return key, value, "the environment's agents move the robots: no controller may"
     if config.duration_s != params.max_cycles * params.step_s:
         return "duration_s", config.duration_s, "is max_cycles x step_s in the environment: set those"
-    if config.events.runtime_links == "off":
-        return "events.runtime_links", "off", "the environment counts the links the channel makes during the run"
+    channel = config.channel
+    decided = world.map or channel.propagation_model.shadowed(channel.radio)
+    if decided and config.events.runtime_links == "off":
+        return (
+            "events.runtime_links",
+            "off",
+            "the environment counts the links the channel makes under shadowing or walls during the run",
+        )
     if world.torus:
         return "world.torus", True, "the environment measures coverage of a bounded area"
     return None
