@@ -321,12 +321,19 @@ def test_components_and_disks_follow_a_range_set_in_netsim():
     assert max(got) > 1  # a split team was seen
 
 
-def test_components_under_shadowing_are_those_of_the_links_table():
-    """Under shadowing the reward's components are those of the links the channel makes,
-    the links of links.parquet at each step's end."""
-    shadowed = {"channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0, "path_loss_exponent": 4.0}}
-    env = coverage_v0.parallel_env(**{**SMALL, "placement": "uniform"}, netsim=shadowed)
-    got, expected = links_components(env, episode(env, 2))
+@pytest.mark.parametrize(
+    ("placement", "netsim"),
+    [
+        ("uniform", {"channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0, "path_loss_exponent": 4.0}}),
+        ("centre", {"world": {"map": "office", "bounds_m": "map"}}),
+    ],
+    ids=["shadowing", "walls"],
+)
+def test_components_under_shadowing_or_walls_are_those_of_the_links_table(placement, netsim):
+    """Under shadowing, or on a map, the reward's components are those of the links the
+    channel makes, the links of links.parquet at the reset and at each step's end."""
+    env = coverage_v0.parallel_env(**{**SMALL, "placement": placement}, netsim=netsim)
+    got, expected = links_components(env, episode(env, 1))
     assert got == expected
     assert max(got) > 1  # a split team was seen
 
