@@ -59,7 +59,7 @@ class CoverageEnvParams(Params):
     n_robots: int = param(20, positive, "number of robots (agents)")
     side_m: float = param(400.0, finite(positive), "side of the square area, m")
     range_m: float = param(50.0, finite(positive), "communication range (unit disk), m")
-    radius_m: float = param(0.0, finite(non_negative), "radius of the coverage disks, m (0: range_m)")
+    radius_m: float = param(0.0, finite(non_negative), "radius of the coverage disks, m (0: the run's smallest range)")
     placement: str = param("centre", None, "world.placement of the robots at reset")
     centre_side_m: float = param(100.0, finite(positive), 'placement = "centre": side of the central square, m')
     speed_max_mps: float = param(2.0, finite(positive), "bound of each velocity component of an action, m/s")
