@@ -140,18 +140,13 @@ class CoverageEnv(ParallelEnv):
                 "placement": p.placement,
                 "centre_side_m": min(p.centre_side_m, p.side_m),
             },
-            # range_m is the unit disk's: another propagation model implies its own ranges.
-            "channel": {"range_m": p.range_m} if self._unit_disk() else {},
+            "channel": {"range_m": p.range_m},
             "mobility": {"model": "external"},
             "protocol": {"model": "clustering", "ack_period_s": p.ack_period_s, "message_rate_hz": 0.0},
             # The protocol's tables are sampled at this interval: once an episode is enough.
             "output": {"position_interval_s": self.max_cycles * p.step_s},
         }
         return cfgmod.from_dict(cfgmod.merge(raw, self.netsim))
-
-    def _unit_disk(self) -> bool:
-        channel = self.netsim.get("channel")
-        return not isinstance(channel, Mapping) or channel.get("propagation", "unit_disk") == "unit_disk"
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """A new episode: the run of ``(seed, episode)``, ``episode`` counting the resets
