@@ -56,11 +56,10 @@ def measure_rate(n: int, cycles: int, episodes: int) -> dict:
     for _ in range(cycles):
         env._observations(pos)
     observe = (time.perf_counter() - t0) / cycles
-    p = env.params
     t0 = time.perf_counter()
     for _ in range(cycles):
-        env._measures.covered_fraction_grid(pos, env.radius_m, p.side_m, p.grid_cells)
-        env._measures.component_count(pos, p.range_m)
+        env._covered(pos)
+        env._components(pos)
     score = (time.perf_counter() - t0) / cycles
     return {
         "n": n,

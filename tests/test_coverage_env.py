@@ -9,9 +9,11 @@ pytest.importorskip("pettingzoo")
 
 from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
 
+from netsim import metrics  # noqa: E402
 from netsim.cosim import CommandError  # noqa: E402
 from netsim.envs import _kernels, coverage_v0, measure  # noqa: E402
 from netsim.errors import ConfigError  # noqa: E402
+from netsim.run import collect  # noqa: E402
 
 SMALL = {"n_robots": 6, "side_m": 200.0, "range_m": 40.0, "centre_side_m": 60.0, "max_cycles": 12}
 
@@ -105,10 +107,10 @@ def test_reward_is_the_coverage_gain_less_the_component_penalty():
     split = 0
     for _, rewards, _, _, infos in steps(env, np.random.default_rng(3), 8):
         pos = infos["robot_0"]["positions_m"]
-        gain = measure.covered_fraction_grid(pos, radius, side, 100) - measure.covered_fraction_grid(
-            before, radius, side, 100
+        gain = measure.covered_fraction_grid(pos, radius, 0.0, 0.0, side, side, 100) - measure.covered_fraction_grid(
+            before, radius, 0.0, 0.0, side, side, 100
         )
-        parts = measure.component_count(pos, params["range_m"])
+        parts = int(metrics.components(pos, params["range_m"]).max() + 1)
         split += parts > 1
         assert len(set(rewards.values())) == 1
         assert rewards["robot_0"] == pytest.approx(gain - 0.05 * (parts - 1), abs=1e-12)
@@ -196,14 +198,16 @@ def test_render_draws_an_rgb_frame():
 
 def test_compiled_measures_equal_the_numpy_ones():
     """The compiled covered fraction, component count and nearest told neighbours are the
-    numpy ones exactly (including disks past the border)."""
+    numpy ones exactly (including disks past the border, and areas off the origin)."""
     rng = np.random.default_rng(0)
     for n in (1, 5, 30):
         pos = rng.uniform(-20.0, 220.0, (n, 2))
-        assert _kernels.covered_fraction_grid(pos, 35.0, 200.0, 64) == measure.covered_fraction_grid(
-            pos, 35.0, 200.0, 64
-        )
-        assert _kernels.component_count(pos, 40.0) == measure.component_count(pos, 40.0)
+        for area in ((0.0, 0.0, 200.0, 200.0), (-15.0, 30.0, 180.0, 120.0)):
+            assert _kernels.covered_fraction_grid(pos, 35.0, *area, 64) == measure.covered_fraction_grid(
+                pos, 35.0, *area, 64
+            )
+        a, b = rng.integers(0, n, (2, n))
+        assert _kernels.component_count(n, a, b) == measure.component_count(n, a, b)
         slots = 8
         ids = np.where(rng.random((n, slots)) < 0.6, rng.integers(0, n, (n, slots)), -1)
         told = rng.uniform(0.0, 200.0, (n, slots, 2))
@@ -221,7 +225,17 @@ def test_covered_fraction_grid_is_the_search_trees():
     from netsim.metrics import covered_fraction
 
     pos = np.random.default_rng(1).uniform(0.0, 100.0, (12, 2))
-    assert measure.covered_fraction_grid(pos, 9.0, 100.0, 80) == covered_fraction(pos, 9.0, 100.0, 80)[0]
+    assert (
+        measure.covered_fraction_grid(pos, 9.0, 0.0, 0.0, 100.0, 100.0, 80) == covered_fraction(pos, 9.0, 100.0, 80)[0]
+    )
+
+
+def test_component_count_is_that_of_the_links():
+    """The component count of a set of links is netsim.metrics.components_of_links's."""
+    rng = np.random.default_rng(2)
+    for n in (1, 7, 40):
+        a, b = rng.integers(0, n, (2, n // 2 + 1))
+        assert measure.component_count(n, a, b) == metrics.components_of_links(n, a, b).max() + 1
 
 
 @pytest.mark.slow
@@ -268,3 +282,127 @@ def test_extra_configuration_reaches_the_runs_and_is_checked_at_once():
     assert env.sim.config.channel.loss_probability == 0.25
     with pytest.raises(ConfigError, match="channel.loss_probabilty"):
         coverage_v0.parallel_env(**SMALL, netsim={"channel": {"loss_probabilty": 0.25}})
+
+
+# -- the environment measures the run it has (whatever ``netsim`` sets) -------------------
+def episode(env, seed: int) -> list[tuple[dict, dict, float]]:
+    """A whole episode of random actions: ``(observations, infos, t_s)`` at the reset and
+    after every step."""
+    obs, infos = env.reset(seed=seed)
+    out = [(obs, infos, env.sim.now)]
+    rng = np.random.default_rng(seed)
+    while env.agents:
+        obs, _, _, _, infos = env.step({a: rng.uniform(-2.0, 2.0, 2) for a in env.agents})
+        out.append((obs, infos, env.sim.now))
+    return out
+
+
+def links_components(env, seen) -> tuple[list, list]:
+    """The components the environment gave at each of ``seen``'s instants, and those of the
+    episode's links table (links.parquet) at the same instants."""
+    links = collect(env.sim)["links"]
+    expected = metrics.components_in_links_table(links, env.sim.state.n, [t for *_, t in seen])
+    return [infos["robot_0"]["components"] for _, infos, _ in seen], expected.tolist()
+
+
+def test_components_and_disks_follow_a_range_set_in_netsim():
+    """With channel.range_m set through ``netsim``, the reward's components are those of
+    the links of that range (links.parquet's at each step's end) and the coverage disks
+    have that radius."""
+    env = coverage_v0.parallel_env(**{**SMALL, "placement": "uniform"}, netsim={"channel": {"range_m": 80.0}})
+    seen = episode(env, 3)
+    for _, infos, _ in seen:
+        pos = infos["robot_0"]["positions_m"]
+        assert infos["robot_0"]["covered_fraction"] == measure.covered_fraction_grid(
+            pos, 80.0, 0.0, 0.0, 200.0, 200.0, 100
+        )
+    got, expected = links_components(env, seen)
+    assert got == expected
+    assert max(got) > 1  # a split team was seen
+
+
+@pytest.mark.parametrize(
+    ("placement", "netsim"),
+    [
+        ("uniform", {"channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0, "path_loss_exponent": 4.0}}),
+        ("centre", {"world": {"map": "office", "bounds_m": "map"}}),
+    ],
+    ids=["shadowing", "walls"],
+)
+def test_components_under_shadowing_or_walls_are_those_of_the_links_table(placement, netsim):
+    """Under shadowing, or on a map, the reward's components are those of the links the
+    channel makes, the links of links.parquet at the reset and at each step's end."""
+    env = coverage_v0.parallel_env(**{**SMALL, "placement": placement}, netsim=netsim)
+    got, expected = links_components(env, episode(env, 1))
+    assert got == expected
+    assert max(got) > 1  # a split team was seen
+
+
+@pytest.mark.parametrize(
+    ("world", "area"),
+    [
+        ({"side_m": 800.0}, (0.0, 0.0, 800.0, 800.0)),
+        ({"bounds_m": [100.0, -50.0, 500.0, 250.0]}, (100.0, -50.0, 400.0, 300.0)),
+    ],
+)
+def test_area_set_in_netsim_bounds_observations_and_coverage(world, area):
+    """With the area set through ``netsim`` (world.side_m, world.bounds_m), every
+    observation lies in the observation space and the covered fraction is that of the run's
+    area."""
+    env = coverage_v0.parallel_env(**{**SMALL, "placement": "uniform"}, netsim={"world": world})
+    space = env.observation_space("robot_0")
+    for obs, infos, _ in episode(env, 4):
+        assert all(space.contains(o) for o in obs.values())
+        pos = infos["robot_0"]["positions_m"]
+        assert infos["robot_0"]["covered_fraction"] == measure.covered_fraction_grid(pos, 40.0, *area, 100)
+    x0, y0, w, h = area
+    assert space.low[:2].tolist() == [x0, y0] and space.high[:2].tolist() == [x0 + w, y0 + h]
+
+
+def test_tau_set_in_netsim_bounds_the_ages_observed():
+    """With protocol.tau_s set through ``netsim`` the ages observed are bounded by it, and
+    every observation lies in the observation space."""
+    env = coverage_v0.parallel_env(**{**SMALL, "placement": "uniform"}, netsim={"protocol": {"tau_s": 6.0}})
+    space = env.observation_space("robot_0")
+    ages = space.high[7 + 2 :: 4]
+    assert (ages == 6.0).all()
+    old = 0
+    for obs, _, _ in episode(env, 5):
+        assert all(space.contains(o) for o in obs.values())
+        old += sum(int((o[7 + 2 :: 4] > 3.0).sum()) for o in obs.values())
+    assert old  # ages beyond 3 ack periods were seen
+
+
+@pytest.mark.parametrize(
+    ("netsim", "key"),
+    [
+        ({"world": {"n_robots": 7}}, "world.n_robots = 7"),
+        ({"mobility": {"model": "random_waypoint"}}, "mobility.model = 'random_waypoint'"),
+        ({"duration_s": 5.0}, "duration_s = 5.0"),
+        (
+            {"events": {"runtime_links": "off"}, "channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0}},
+            "events.runtime_links = 'off'",
+        ),
+        ({"world": {"torus": True}}, "world.torus = True"),
+    ],
+)
+def test_setting_the_environment_cannot_honour_is_refused(netsim, key):
+    """A setting of ``netsim`` the environment cannot honour (another number of robots,
+    robots moved by a model, another duration, no link events under shadowing, a torus) raises a
+    one-line ConfigError naming it when the environment is made."""
+    with pytest.raises(ConfigError, match=key.replace("(", r"\(")) as err:
+        coverage_v0.parallel_env(**SMALL, netsim=netsim)
+    assert "\n" not in str(err.value)
+
+
+def test_step_without_actions_keeps_every_velocity():
+    """env.step({}) is a step in which every robot keeps the velocity it had."""
+    env = coverage_v0.parallel_env(**SMALL)
+    env.reset(seed=6)
+    steps(env, np.random.default_rng(8), 1)
+    before = env.sim.state.velocity_mps.copy()
+    pos = env.sim.positions()
+    env.step({})
+    assert np.array_equal(env.sim.state.velocity_mps, before) and (before != 0).any()
+    moving = (env.sim.state.velocity_mps != 0).any(axis=1)
+    assert (env.sim.positions()[moving] != pos[moving]).any(axis=1).all()

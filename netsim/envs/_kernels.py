@@ -14,46 +14,41 @@ from netsim import kernel_cache
 
 
 @numba.njit(cache=True, nogil=True)
-def covered_fraction_grid(p, radius_m, side_m, cells):
+def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
     """:func:`netsim.envs.measure.covered_fraction_grid`."""
     n = p.shape[0]
     if n == 0:
         return 0.0
-    h = side_m / cells
+    hx = width_m / cells
+    hy = height_m / cells
     covered = np.zeros((cells, cells), dtype=np.bool_)
     r2 = radius_m * radius_m
     for k in range(n):
-        x, y = p[k, 0], p[k, 1]
-        lo = int(min(max(math.ceil((y - radius_m) / h - 0.5), 0.0), cells))
-        hi = int(min(max(math.floor((y + radius_m) / h - 0.5), -1.0), cells - 1))
+        x, y = p[k, 0] - x0_m, p[k, 1] - y0_m
+        lo = int(min(max(math.ceil((y - radius_m) / hy - 0.5), 0.0), cells))
+        hi = int(min(max(math.floor((y + radius_m) / hy - 0.5), -1.0), cells - 1))
         for row in range(lo, hi + 1):
-            dy = (row + 0.5) * h - y
+            dy = (row + 0.5) * hy - y
             half = math.sqrt(max(r2 - dy * dy, 0.0))
-            first = int(min(max(math.ceil((x - half) / h - 0.5), 0.0), cells))
-            last = int(min(max(math.floor((x + half) / h - 0.5), -1.0), cells - 1))
+            first = int(min(max(math.ceil((x - half) / hx - 0.5), 0.0), cells))
+            last = int(min(max(math.floor((x + half) / hx - 0.5), -1.0), cells - 1))
             for col in range(first, last + 1):
                 covered[row, col] = True
     return covered.sum() / (cells * cells)
 
 
 @numba.njit(cache=True, nogil=True)
-def component_count(p, range_m):
+def component_count(n, a, b):
     """:func:`netsim.envs.measure.component_count` (by union-find)."""
-    n = p.shape[0]
     parent = np.arange(n)
-    r2 = range_m * range_m
-    for i in range(n):
-        for j in range(i + 1, n):
-            dx = p[i, 0] - p[j, 0]
-            dy = p[i, 1] - p[j, 1]
-            if dx * dx + dy * dy <= r2:
-                a, b = i, j
-                while parent[a] != a:
-                    a = parent[a]
-                while parent[b] != b:
-                    b = parent[b]
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
+    for k in range(a.shape[0]):
+        i, j = a[k], b[k]
+        while parent[i] != i:
+            i = parent[i]
+        while parent[j] != j:
+            j = parent[j]
+        if i != j:
+            parent[max(i, j)] = min(i, j)
     count = 0
     for i in range(n):
         if parent[i] == i:

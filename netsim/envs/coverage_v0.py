@@ -8,16 +8,23 @@ border). Agents observe what they know (their own state and their neighbours as 
 told them), never the true positions of the others; the team is rewarded for the covered
 fraction it gains, and penalised for every component of the true network beyond one.
 
+Everything is measured on the network and area the run really has, the keywords' values
+or what ``netsim`` sets instead (``world.side_m``, ``world.bounds_m``, ``channel.*``,
+``protocol.tau_s``, ...): an override the environment cannot honour is refused when it
+is made (:func:`refused`).
+
 Observation of an agent (float32, ``4 + R + 4K`` values, R roles, K = ``max_neighbours``):
 its position ``x, y`` (m), its velocity ``vx, vy`` (m/s; 0 once stopped on the border), its
 role one-hot (``role_names``), then up to K neighbours of its table, nearest first by
 the positions their Acks told: ``dx, dy`` (m, told position minus own position), the age
-of that Ack (s) and 1 (present); missing neighbours are all zeros.
+of that Ack (s) and 1 (present); missing neighbours are all zeros. Its bounds are the
+run's: the area, the speed bound, the protocol's ``tau``.
 
 Reward (the same for every agent): ``C(t) - C(t - step) - component_penalty x
-(components(t) - 1)``, ``C`` the fraction of the square within ``radius_m`` of some robot
-(on a grid of ``grid_cells^2`` cell centres), ``components`` those of the true unit-disk
-network of range ``range_m``.
+(components(t) - 1)``, ``C`` the fraction of the run's area within ``radius_m`` (0: the
+run's smallest range, as the coverage table) of some robot, on a grid of ``grid_cells^2``
+cell centres; ``components`` those of the links the channel makes (those of
+``links.parquet``, as the coverage table counts them).
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from netsim import config as cfgmod
+from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.cosim import CommandError
 from netsim.envs import measure
@@ -38,6 +46,7 @@ from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.run import build
 from netsim.sim import Simulation
+from netsim.topology import geometric_pairs
 
 FIELDS_PER_NEIGHBOUR = 4  # dx, dy, age, present
 
@@ -50,7 +59,7 @@ class CoverageEnvParams(Params):
     n_robots: int = param(20, positive, "number of robots (agents)")
     side_m: float = param(400.0, finite(positive), "side of the square area, m")
     range_m: float = param(50.0, finite(positive), "communication range (unit disk), m")
-    radius_m: float = param(0.0, finite(non_negative), "radius of the coverage disks, m (0: range_m)")
+    radius_m: float = param(0.0, finite(non_negative), "radius of the coverage disks, m (0: the run's smallest range)")
     placement: str = param("centre", None, "world.placement of the robots at reset")
     centre_side_m: float = param(100.0, finite(positive), 'placement = "centre": side of the central square, m')
     speed_max_mps: float = param(2.0, finite(positive), "bound of each velocity component of an action, m/s")
@@ -80,29 +89,36 @@ class CoverageEnv(ParallelEnv):
         self.agents: list[str] = []
         self._live: set[str] = set()
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
-        self.radius_m = p.radius_m or p.range_m
-        self.role_names: tuple[str, ...] = ("gamma", "beta", "alpha")
-        self._obs_size = 4 + len(self.role_names) + FIELDS_PER_NEIGHBOUR * p.max_neighbours
         self._seed = int(p.seed)
-        self._episode = -1
-        self.sim: Simulation | None = None
         # Steps before truncation, for the next episodes (PettingZoo's tests set it).
         self.max_cycles = p.max_cycles
+        # A bad key of ``netsim``, or one the environment cannot honour, is refused now,
+        # not at the first reset.
+        config = self._config(self._seed)
+        problem = refused(config, p)
+        if problem is not None:
+            raise ConfigError(*problem)
+        # The run's area, ranges and tau, whatever set them (the keywords or ``netsim``).
+        self.area: Bounds = cfgmod.world_bounds(config.world)
+        self.range_m = float(min(config.ranges_m()))
+        self.radius_m = p.radius_m or self.range_m
+        self.tau_s = float(getattr(config.protocol.params, "tau_s", np.inf))
+        self.role_names: tuple[str, ...] = ("gamma", "beta", "alpha")
+        self._obs_size = 4 + len(self.role_names) + FIELDS_PER_NEIGHBOUR * p.max_neighbours
+        self._episode = -1
+        self.sim: Simulation | None = None
         self.cycles = 0
         self.covered = 0.0
         self.components = 0
         v = np.float32(p.speed_max_mps)
         self._action_space = spaces.Box(-v, v, shape=(2,), dtype=np.float32)
-        side, k = p.side_m, p.max_neighbours
-        tau = 3.0 * p.ack_period_s
-        low = [0.0, 0.0, -v, -v] + [0.0] * len(self.role_names) + [-side, -side, 0.0, 0.0] * k
-        high = [side, side, v, v] + [1.0] * len(self.role_names) + [side, side, tau, 1.0] * k
-        self._observation_space = spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
+        self._observation_space = observation_space(
+            self.area, p.speed_max_mps, len(self.role_names), p.max_neighbours, self.tau_s
+        )
         self._high = self._action_space.high.astype(float)
         # The compiled twins of the measures (netsim.envs._kernels) from
         # netsim.compiled.SMALL_RUN_ROBOTS robots on, as the runs' own loops.
         self._measures: Any = load("netsim.envs._kernels", p.n_robots) or measure
-        self._config(self._seed)  # a bad key of ``netsim`` is refused now, not at the first reset
 
     # -- spaces: one object per agent for the whole life of the environment ---------------
 
@@ -140,18 +156,48 @@ class CoverageEnv(ParallelEnv):
             self._seed, self._episode = int(seed), 0
         else:
             self._episode += 1
-        p = self.params
-        self.sim = build(self._config(self._seed), run=self._episode)
-        if self.sim.groups is not None:
-            self.role_names = tuple(self.sim.groups.role_names)
+        self.sim = sim = build(self._config(self._seed), run=self._episode)
+        if sim.groups is not None:
+            self.role_names = tuple(sim.groups.role_names)
+        if sim.link_solver is not None:
+            sim.link_events()  # links decided by the channel (shadowing, walls), tracked as it makes them
+        sim.run(until_s=0.0)
+        self._finish_instant()
         self.agents = list(self.possible_agents)
         self._live = set(self.agents)
         self.cycles = 0
-        pos = self.sim.positions()
-        self.covered = float(self._measures.covered_fraction_grid(pos, self.radius_m, p.side_m, p.grid_cells))
-        self.components = int(self._measures.component_count(pos, p.range_m))
+        pos = sim.positions()
+        self.covered = self._covered(pos)
+        self.components = self._components(pos)
         obs = self._observations(pos)
         return obs, self._infos(pos)
+
+    def _finish_instant(self) -> None:
+        """Process everything else due now (placements and the first links at t = 0; any
+        transmission or link event at a step's end), so that the measures see the links
+        as the coverage table does: after every event of the instant."""
+        env = self.sim.env  # type: ignore[union-attr]
+        while env.peek() <= env.now:
+            env.step()
+
+    def _covered(self, pos: np.ndarray) -> float:
+        a = self.area
+        cells = self.params.grid_cells
+        return float(
+            self._measures.covered_fraction_grid(pos, self.radius_m, a.x_min, a.y_min, a.width, a.height, cells)
+        )
+
+    def _components(self, pos: np.ndarray) -> int:
+        """Components of the network of the links the channel has up now: on the unit disk
+        the pairs within both robots' ranges (the rule of its link solver), else those its
+        link solver holds."""
+        sim = self.sim
+        assert sim is not None
+        if sim.links is None:
+            a, b, _ = geometric_pairs(pos, sim.state.range_m)
+        else:
+            a, b = sim.links.up_pairs()
+        return int(self._measures.component_count(sim.state.n, a, b))
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if self.sim is None or not self.agents:
@@ -161,10 +207,11 @@ class CoverageEnv(ParallelEnv):
         if len(robots):
             sim.drive(robots, velocities)
         sim.run(until_s=(self.cycles + 1) * p.step_s, steps=1)
+        self._finish_instant()
         self.cycles += 1
         pos = sim.positions()
-        covered = float(self._measures.covered_fraction_grid(pos, self.radius_m, p.side_m, p.grid_cells))
-        self.components = int(self._measures.component_count(pos, p.range_m))
+        covered = self._covered(pos)
+        self.components = self._components(pos)
         reward = covered - self.covered - p.component_penalty * (self.components - 1)
         self.covered = covered
         obs = self._observations(pos)
@@ -181,6 +228,8 @@ class CoverageEnv(ParallelEnv):
 
     def _checked(self, actions: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         """The robots and velocities of ``actions``, all checked before any is applied."""
+        if not actions:  # a step without actions: every robot keeps its velocity
+            return np.empty(0, np.int64), np.empty((0, 2))
         live = self._live
         if not live.issuperset(actions):
             agent = next(a for a in actions if a not in live)
@@ -237,10 +286,54 @@ class CoverageEnv(ParallelEnv):
             return None
         from netsim.envs.drawing import frame
 
-        return frame(self.sim, self.radius_m, self.params.range_m, self.covered)
+        return frame(self.sim, self.radius_m, self.range_m, self.covered)
 
     def close(self) -> None:
         self.sim = None
+
+
+def observation_space(area: Bounds, speed_max_mps: float, roles: int, k: int, tau_s: float) -> spaces.Box:
+    """The box of an agent's observation (module notes) in the run's ``area``, with
+    ``roles`` roles, ``k`` neighbours and Acks live for less than ``tau_s``."""
+    v, w, h = speed_max_mps, area.width, area.height
+    low = [area.x_min, area.y_min, -v, -v] + [0.0] * roles + [-w, -h, 0.0, 0.0] * k
+    high = [area.x_max, area.y_max, v, v] + [1.0] * roles + [w, h, tau_s, 1.0] * k
+    return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
+
+
+def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, object, str] | None:
+    """The key, value and reason of a setting of the runs' ``config`` that the environment
+    cannot honour (its agents drive every robot over ``max_cycles`` steps, and it measures
+    coverage of a bounded area on the links the channel makes during the run), or None."""
+    world = config.world
+    if world.n_robots != params.n_robots:
+        return (
+            "world.n_robots",
+            world.n_robots,
+            f"the environment has n_robots = {params.n_robots} agents: set n_robots",
+        )
+    if config.mobility.model != "external":
+        return (
+            "mobility.model",
+            config.mobility.model,
+            "the environment's agents move the robots: it must be 'external'",
+        )
+    for name, *_ in cfgmod.controllers(config):
+        key, value = ("control.controllers", name) if name in config.control.controllers else (f"{name}.enabled", True)
+        return key, value, "the environment's agents move the robots: no controller may"
+    if config.duration_s != params.max_cycles * params.step_s:
+        return "duration_s", config.duration_s, "is max_cycles x step_s in the environment: set those"
+    channel = config.channel
+    decided = world.map or channel.propagation_model.shadowed(channel.radio)
+    if decided and config.events.runtime_links == "off":
+        return (
+            "events.runtime_links",
+            "off",
+            "the environment counts the links the channel makes under shadowing or walls during the run",
+        )
+    if world.torus:
+        return "world.torus", True, "the environment measures coverage of a bounded area"
+    return None
 
 
 def parallel_env(render_mode: str | None = None, netsim: Mapping | None = None, **params: Any) -> CoverageEnv:

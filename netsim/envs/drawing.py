@@ -16,7 +16,7 @@ def frame(sim: Simulation, radius_m: float, range_m: float, covered: float, size
     from netsim.tools import style
     from netsim.tools.figures import Snapshot, draw_deployment
 
-    n, side = sim.state.n, sim.state.side_m
+    n, area = sim.state.n, sim.state.bounds
     pos = sim.positions()
     groups = sim.groups
     if groups is not None:
@@ -31,10 +31,11 @@ def frame(sim: Simulation, radius_m: float, range_m: float, covered: float, size
     fig = Figure(figsize=(size_px / dpi, size_px / dpi), dpi=dpi)
     ax = fig.add_axes((0.13, 0.1, 0.84, 0.84))
     draw_deployment(ax, snap, colours, range_m, disks_m=radius_m)
-    ax.plot([0, side, side, 0, 0], [0, 0, side, side, 0], color=style.BORDER, lw=0.8, zorder=0)
-    margin = 0.02 * side
-    ax.set_xlim(-margin, side + margin)
-    ax.set_ylim(-margin, side + margin)
+    x0, y0, x1, y1 = area.x_min, area.y_min, area.x_max, area.y_max
+    ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color=style.BORDER, lw=0.8, zorder=0)
+    margin = 0.02 * max(area.width, area.height)
+    ax.set_xlim(x0 - margin, x1 + margin)
+    ax.set_ylim(y0 - margin, y1 + margin)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")

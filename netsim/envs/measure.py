@@ -1,36 +1,40 @@
 """What the environments score at every step, fast at tens of robots: the covered fraction
-of the square on a grid, and the number of components of the true unit-disk network."""
+of the run's area on a grid, and the number of components of the network of the links the
+run's channel makes."""
 
 from __future__ import annotations
 
 import numpy as np
 
 
-def covered_fraction_grid(centres_m: np.ndarray, radius_m: float, side_m: float, cells: int) -> float:
-    """Fraction of the ``cells x cells`` grid of cell centres of the ``side_m`` square that
-    lie within ``radius_m`` of some centre (:func:`netsim.metrics.covered_fraction` on the
-    same grid, without a search tree: each disk marks, in each grid row it reaches, the run
-    of cells it covers, and a running sum along the rows counts them).
+def covered_fraction_grid(
+    centres_m: np.ndarray, radius_m: float, x0_m: float, y0_m: float, width_m: float, height_m: float, cells: int
+) -> float:
+    """Fraction of the ``cells x cells`` grid of cell centres of the rectangle ``[x0, x0 +
+    width] x [y0, y0 + height]`` that lie within ``radius_m`` of some centre
+    (:func:`netsim.metrics.covered_fraction` on the same grid, without a search tree: each
+    disk marks, in each grid row it reaches, the run of cells it covers, and a running sum
+    along the rows counts them).
 
-    >>> round(covered_fraction_grid(np.array([[50.0, 50.0]]), 10.0, 100.0, 500), 3)
+    >>> round(covered_fraction_grid(np.array([[50.0, 50.0]]), 10.0, 0.0, 0.0, 100.0, 100.0, 500), 3)
     0.031
-    >>> covered_fraction_grid(np.empty((0, 2)), 10.0, 100.0, 10)
+    >>> covered_fraction_grid(np.empty((0, 2)), 10.0, 0.0, 0.0, 100.0, 100.0, 10)
     0.0
     """
-    p = np.asarray(centres_m, dtype=float).reshape(-1, 2)
+    p = np.asarray(centres_m, dtype=float).reshape(-1, 2) - np.array([x0_m, y0_m])
     if len(p) == 0:
         return 0.0
-    h = side_m / cells
-    lo = np.clip(np.ceil((p[:, 1] - radius_m) / h - 0.5), 0, cells).astype(np.int64)
-    hi = np.clip(np.floor((p[:, 1] + radius_m) / h - 0.5), -1, cells - 1).astype(np.int64)
+    hx, hy = width_m / cells, height_m / cells
+    lo = np.clip(np.ceil((p[:, 1] - radius_m) / hy - 0.5), 0, cells).astype(np.int64)
+    hi = np.clip(np.floor((p[:, 1] + radius_m) / hy - 0.5), -1, cells - 1).astype(np.int64)
     rows = np.maximum(hi - lo + 1, 0)
     disk = np.repeat(np.arange(len(p)), rows)
     row = np.repeat(lo - np.cumsum(rows) + rows, rows) + np.arange(int(rows.sum()))
-    dy = (row + 0.5) * h - p[disk, 1]
+    dy = (row + 0.5) * hy - p[disk, 1]
     half = np.sqrt(np.maximum(radius_m * radius_m - dy * dy, 0.0))
     x = p[disk, 0]
-    first = np.clip(np.ceil((x - half) / h - 0.5), 0, cells).astype(np.int64)
-    last = np.clip(np.floor((x + half) / h - 0.5), -1, cells - 1).astype(np.int64)
+    first = np.clip(np.ceil((x - half) / hx - 0.5), 0, cells).astype(np.int64)
+    last = np.clip(np.floor((x + half) / hx - 0.5), -1, cells - 1).astype(np.int64)
     keep = first <= last
     row, first, last = row[keep], first[keep], last[keep]
     width = cells + 1
@@ -41,24 +45,26 @@ def covered_fraction_grid(centres_m: np.ndarray, radius_m: float, side_m: float,
     return float(covered.mean())
 
 
-def component_count(positions_m: np.ndarray, range_m: float) -> int:
-    """Connected components of the unit-disk network of range ``range_m`` (each robot's
-    label becomes the least label in reach until none changes).
+def component_count(n: int, a: np.ndarray, b: np.ndarray) -> int:
+    """Connected components of the network of ``n`` robots whose links are the pairs
+    ``(a[k], b[k])`` (the links a run's channel makes: its link solver's ``up_pairs()``).
+    Each robot's label becomes the least label in reach, halving paths, until none changes.
 
-    >>> component_count(np.array([[0.0, 0.0], [1.0, 0.0], [5.0, 0.0]]), 1.0)
+    >>> component_count(4, np.array([0, 2]), np.array([1, 3]))
     2
+    >>> component_count(3, np.empty(0, np.int64), np.empty(0, np.int64))
+    3
     """
-    p = np.asarray(positions_m, dtype=float)
-    n = len(p)
-    if n == 0:
-        return 0
-    d = p[:, None, :] - p[None, :, :]
-    near = (d * d).sum(axis=2) <= range_m * range_m
+    a = np.asarray(a, dtype=np.int64)
+    b = np.asarray(b, dtype=np.int64)
     labels = np.arange(n)
     while True:
-        new = np.where(near, labels[None, :], n).min(axis=1)
+        new = labels.copy()
+        np.minimum.at(new, a, labels[b])
+        np.minimum.at(new, b, labels[a])
+        new = new[new]
         if (new == labels).all():
-            return int(len(np.unique(labels)))
+            return int(np.count_nonzero(labels == np.arange(n)))
         labels = new
 
 
