@@ -865,13 +865,26 @@ def ar1_mean_variance(alpha: float, k: int) -> float:
     return float(1.0 + 2.0 * ((1.0 - j / k) * alpha**j).sum()) / k
 
 
-def ar1_autocorrelation(alpha: float, lag: int, k: int) -> float:
-    """Expected lag-``lag`` sample autocorrelation of ``k`` successive values of a stationary
-    AR(1) process, its mean estimated: ``alpha^h - ((1 + alpha) (1 - alpha^h) / (1 - alpha)
-    + 2 h alpha^h) / k`` to order ``1/k`` (Marriott and Pope 1954; ``h = 1`` gives
-    Kendall's ``alpha - (1 + 3 alpha) / k``)."""
-    h = lag
-    return alpha**h - ((1 + alpha) * (1 - alpha**h) / (1 - alpha) + 2 * h * alpha**h) / k
+def ar1_autocorrelations(alpha: float, lags: Iterable[int], k: int) -> np.ndarray:
+    """Expected sample autocorrelations (:func:`sample_autocorrelation`) at ``lags`` of ``k``
+    successive values of a stationary Gaussian AR(1) process of coefficient ``alpha``:
+    ``alpha^h`` less a bias of order ``1/k`` from the estimated mean and the ratio.
+
+    The estimate is a ratio ``N / D`` of quadratic forms of the values ``x`` (covariance
+    ``S = alpha^|i - j|``): with ``C`` the centring matrix and ``M = C S C``, ``E[D] =
+    tr M``, ``Var D = 2 tr M^2``, ``E[N_h] = sum_i M[i, i + h]`` and ``Cov(N_h, D) = 2 sum_i
+    M^2[i, i + h]``, and the second-order delta method gives ``E[N]/E[D] - Cov(N, D)/E[D]^2
+    + E[N] Var(D)/E[D]^3`` (error of order ``1/k^2``)."""
+    i = np.arange(k)
+    cov = alpha ** np.abs(i[:, None] - i[None, :]).astype(float)
+    m = cov - cov.mean(axis=0, keepdims=True) - cov.mean(axis=1, keepdims=True) + cov.mean()
+    m2 = m @ m
+    ed, vd = float(np.trace(m)), 2.0 * float(np.trace(m2))
+    out = []
+    for h in lags:
+        en, cnd = float(np.trace(m, offset=h)), 2.0 * float(np.trace(m2, offset=h))
+        out.append(en / ed - cnd / ed**2 + en * vd / ed**3)
+    return np.array(out)
 
 
 def sample_autocorrelation(x: np.ndarray, lag: int) -> float:
@@ -924,16 +937,17 @@ def check_gauss_markov(seed: int | None = None) -> list[Check]:
             corrs[name].append([sample_autocorrelation(x, h) for h in GM_LAGS])
     k = len(s)
     means_a = np.array(means)
-    out = [
-        Check("28", "Gauss-Markov mean speed", mean, means_a.mean(), 4 * means_a.std(ddof=1) / math.sqrt(n), "m/s")
-    ]
+    out = [Check("28", "Gauss-Markov mean speed", mean, means_a.mean(), 4 * means_a.std(ddof=1) / math.sqrt(n), "m/s")]
     # Deviations from the sample mean fall short of the process's variance by the mean's.
     shrink = 1.0 - ar1_mean_variance(alpha, k)
     for name, sd, unit in (("speed", sigma, "(m/s)^2"), ("direction", sigma_d, "rad^2")):
         v = np.array(variances[name])
         out.append(
-            Check("28", f"Gauss-Markov {name} variance", sd**2 * shrink, v.mean(), 4 * v.std(ddof=1) / math.sqrt(n), unit)
+            Check(
+                "28", f"Gauss-Markov {name} variance", sd**2 * shrink, v.mean(), 4 * v.std(ddof=1) / math.sqrt(n), unit
+            )
         )
+    expected = ar1_autocorrelations(alpha, GM_LAGS, k)
     for name in ("speed", "direction"):
         c = np.array(corrs[name])
         for col, h in enumerate(GM_LAGS):
@@ -941,7 +955,7 @@ def check_gauss_markov(seed: int | None = None) -> list[Check]:
                 Check(
                     "28",
                     f"Gauss-Markov {name} autocorrelation at lag {h} (alpha^{h} = {alpha**h:.4g})",
-                    ar1_autocorrelation(alpha, h, k),
+                    float(expected[col]),
                     c[:, col].mean(),
                     4 * c[:, col].std(ddof=1) / math.sqrt(n),
                 )
