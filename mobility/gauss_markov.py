@@ -83,6 +83,13 @@ def _clamped_legs(
         legs.append((t, vel.copy()))
 
 
+def noise_scale(alpha: float) -> float:
+    """The factor of each update's Gaussian, ``sqrt(1 - alpha^2)``: it keeps the stationary
+    standard deviations of speed and direction at ``speed_sigma_mps`` and
+    ``direction_sigma_rad`` whatever ``alpha``."""
+    return math.sqrt(max(0.0, 1.0 - alpha * alpha))
+
+
 def gauss_markov_robot(
     env: simpy.Environment, st: RobotState, m: GaussMarkovParams, box: float | Bounds, i: int, rng: np.random.Generator
 ):
@@ -91,7 +98,7 @@ def gauss_markov_robot(
     area = as_bounds(box)
     mean_dir = rng.uniform(0.0, 2 * math.pi)
     speed, direction = m.mean_speed_mps, mean_dir
-    keep = math.sqrt(max(0.0, 1.0 - m.alpha * m.alpha))
+    keep = noise_scale(m.alpha)
     dt = m.update_interval_s
     cause = "start"
     while True:

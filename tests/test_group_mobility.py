@@ -10,7 +10,7 @@ import pytest
 import simpy
 
 from mobility.gauss_markov import GaussMarkovParams, _clamped_legs, gauss_markov_robot
-from mobility.rpgm import groups
+from mobility.rpgm import MAX_DRAWS, OffsetLaw, RpgmParams, draw_offset, groups, member_offset
 from netsim import load
 from netsim.errors import ConfigError
 from netsim.run import build, collect
@@ -167,6 +167,7 @@ def test_rpgm_members_stay_in_the_area():
     [
         (["mobility.model=rpgm", "mobility.group_radius_m=600"], "mobility.group_radius_m"),
         (["mobility.model=rpgm", "mobility.group_size=0"], "mobility.group_size"),
+        (["mobility.model=rpgm", "mobility.offset_law=uniform"], "mobility.offset_law"),
         (["mobility.model=gauss_markov", "mobility.alpha=1.5"], "mobility.alpha"),
         (["mobility.model=gauss_markov", "mobility.update_interval_s=0"], "mobility.update_interval_s"),
         (["mobility.model=gauss_markov", "world.torus=true"], "mobility.model"),
@@ -176,3 +177,77 @@ def test_bad_group_and_smooth_mobility_keys_name_the_key(settings, key):
     with pytest.raises(ConfigError) as err:
         load(None, settings)
     assert str(err.value).startswith(key)
+
+
+class _Draws:
+    """A stand-in generator: ``random()`` and ``uniform()`` give the listed values in turn."""
+
+    def __init__(self, randoms, angles):
+        self.randoms, self.angles = list(randoms), list(angles)
+
+    def random(self):
+        return self.randoms.pop(0)
+
+    def uniform(self, lo, hi):
+        return self.angles.pop(0)
+
+
+def test_rpgm_offset_distance_is_uniform_on_the_radius_by_default():
+    """By default (Hong et al. 1999, BonnMotion) an offset's distance is uniform on [0, R]:
+    mean R / 2, a quarter of them within R / 4 (uniform over the disk would give 2R/3, 1/16)."""
+    rng = np.random.default_rng(5)
+    law = RpgmParams().offset_law
+    assert law == OffsetLaw.UNIFORM_RADIUS
+    r = np.array([np.hypot(*draw_offset(rng, 10.0, law)) for _ in range(20000)])
+    assert r.max() <= 10.0
+    assert abs(r.mean() - 5.0) < 4 * 10.0 / math.sqrt(12 * 20000)
+    assert abs((r < 2.5).mean() - 0.25) < 4 * math.sqrt(0.25 * 0.75 / 20000)
+
+
+def test_rpgm_offset_law_uniform_area_draws_uniformly_over_the_disk():
+    """``mobility.offset_law = "uniform_area"``: offsets uniform over the disk, distance mean 2R/3."""
+    rng = np.random.default_rng(6)
+    law = load(None, ["mobility.model=rpgm", "mobility.offset_law=uniform_area"]).mobility.params.offset_law
+    r = np.array([np.hypot(*draw_offset(rng, 10.0, law)) for _ in range(20000)])
+    assert abs(r.mean() - 20.0 / 3) < 4 * math.sqrt(50.0 - (20.0 / 3) ** 2) / math.sqrt(20000)
+
+
+def test_rpgm_member_offset_too_fast_is_drawn_again():
+    """A new offset that would make the member faster than ``speed_max_mps`` is drawn again
+    (BonnMotion's rule): here the first draw, 10 m ahead of a reference point that moves
+    5 m, would take the member 15 m in a leg that allows 10, and is refused."""
+    m = RpgmParams(speed_max_mps=1.0, group_radius_m=10.0)
+    # The reference point moves 5 m east in 10 s; the member may move at most 10 m.
+    rng = _Draws(randoms=[1.0, 0.0], angles=[0.0, 0.0])
+    new = member_offset(rng, m, np.zeros(2), np.array([5.0, 0.0]), 10.0)
+    assert np.allclose(new, [0.0, 0.0]) and not rng.randoms
+
+
+def test_rpgm_member_keeps_its_offset_when_no_draw_is_slow_enough():
+    """After MAX_DRAWS refused draws (or on a leg of no time) the member keeps its offset and
+    so moves with its reference point, never faster than it."""
+    m = RpgmParams(speed_max_mps=1.0, group_radius_m=10.0)
+    old = np.array([3.0, 4.0])
+    far = _Draws(randoms=[1.0] * MAX_DRAWS, angles=[0.0] * MAX_DRAWS)
+    assert np.array_equal(member_offset(far, m, old, np.array([10.0, 0.0]), 10.0), old)
+    assert np.array_equal(member_offset(np.random.default_rng(1), m, old, np.zeros(2), 0.0), old)
+
+
+def test_rpgm_members_are_never_faster_than_speed_max():
+    """No member leg is faster than ``speed_max_mps`` (offsets redrawn rather than rushed),
+    with reference points at up to that speed and a radius large against short legs."""
+    frames = _run(
+        [
+            "mobility.model=rpgm",
+            "world.n_robots=40",
+            "duration_s=1500",
+            "world.side_m=400",
+            "mobility.group_radius_m=60",
+            "mobility.speed_min_mps=1",
+            "mobility.speed_max_mps=2",
+        ]
+    )
+    legs = frames["legs"]
+    speed = np.hypot(legs["vx_mps"], legs["vy_mps"])
+    assert speed.max() <= 2.0 * (1 + 1e-9)
+    assert (speed > 1.9).sum() > 0

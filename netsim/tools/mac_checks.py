@@ -5,7 +5,8 @@ own (no protocol above), measures, and returns the theory beside it:
 
 - :func:`aloha_periodic`: ALOHA, ``n`` robots in mutual range, one frame of airtime ``T``
   per period ``t`` each, at independent uniform phases: a reception succeeds with
-  probability ``(1 - 2T/t)^(n - 1)``;
+  probability ``(1 - 2T/t)^(n - 1)``; :func:`half_duplex_pair`, the same with two robots,
+  where every loss is to half duplex;
 - :func:`aloha_poisson`: ALOHA, Poisson traffic of load ``G`` (frames per frame time from
   the ``n - 1`` robots other than the sender): ``e^(-2G)``;
 - :func:`csma_saturation`: CSMA (802.11 DCF, basic access), ``n`` saturated robots sending
@@ -114,6 +115,15 @@ def aloha_periodic(n: int = 10, airtime_ratio: float = 0.02, rounds: int = 400, 
     theory = (1.0 - 2.0 * airtime_ratio) ** (n - 1)
     se = aloha_periodic_se(n, airtime_ratio, rounds)
     return MacCheck(f"ALOHA periodic, n = {n}, T/t = {airtime_ratio}", theory, got / decided, 4.0 * se)
+
+
+def half_duplex_pair(airtime_ratio: float = 0.1, rounds: int = 1000, seed: int = 1) -> MacCheck:
+    """ALOHA, two robots in range sending periodic frames: the only frame that can spoil a
+    reception is the receiver's own, so every loss is to half duplex, and the success is
+    :func:`aloha_periodic`'s with ``n = 2``, ``1 - 2T/t``; a medium that let a sender
+    receive would deliver every frame."""
+    c = aloha_periodic(n=2, airtime_ratio=airtime_ratio, rounds=rounds, seed=seed)
+    return c._replace(item=f"ALOHA periodic, a pair, T/t = {airtime_ratio} (every loss half duplex)")
 
 
 def aloha_periodic_se(n: int, airtime_ratio: float, rounds: int) -> float:

@@ -756,11 +756,16 @@ def check_radio_walls(seed: int | None = None) -> list[Check]:
 
 # -- the shared medium (channel.mac) ----------------------------------------------------------
 def check_aloha_periodic(seed: int | None = None) -> list[Check]:
-    """21: ALOHA, periodic frames at uniform phases, against (1 - 2T/t)^(n - 1)."""
+    """21: ALOHA, periodic frames at uniform phases, against (1 - 2T/t)^(n - 1); with two
+    robots every loss is to half duplex (a robot sending cannot receive)."""
     from netsim.tools import mac_checks as m
 
     c = m.aloha_periodic(seed=derive(seed, 1))
-    return [Check("21", c.item + ": reception success", c.theory, c.measured, c.tolerance)]
+    pair = m.half_duplex_pair(seed=derive(seed, 21))
+    return [
+        Check("21", c.item + ": reception success", c.theory, c.measured, c.tolerance),
+        Check("21", pair.item + ": reception success", pair.theory, pair.measured, pair.tolerance),
+    ]
 
 
 def check_aloha_poisson(seed: int | None = None) -> list[Check]:
@@ -853,80 +858,188 @@ def check_medium_none(seed: int | None = None) -> list[Check]:
     return [Check("25", label, 1.0, same, 0.0)]
 
 
+def ar1_mean_variance(alpha: float, k: int) -> float:
+    """Variance of the mean of ``k`` successive values of a stationary AR(1) process of
+    coefficient ``alpha``, over the process's variance: ``(1 + 2 sum_j (1 - j/k) alpha^j) / k``."""
+    j = np.arange(1, k)
+    return float(1.0 + 2.0 * ((1.0 - j / k) * alpha**j).sum()) / k
+
+
+def ar1_autocorrelations(alpha: float, lags: Iterable[int], k: int) -> np.ndarray:
+    """Expected sample autocorrelations (:func:`sample_autocorrelation`) at ``lags`` of ``k``
+    successive values of a stationary Gaussian AR(1) process of coefficient ``alpha``:
+    ``alpha^h`` less a bias of order ``1/k`` from the estimated mean and the ratio.
+
+    The estimate is a ratio ``N / D`` of quadratic forms of the values ``x`` (covariance
+    ``S = alpha^|i - j|``): with ``C`` the centring matrix and ``M = C S C``, ``E[D] =
+    tr M``, ``Var D = 2 tr M^2``, ``E[N_h] = sum_i M[i, i + h]`` and ``Cov(N_h, D) = 2 sum_i
+    M^2[i, i + h]``, and the second-order delta method gives ``E[N]/E[D] - Cov(N, D)/E[D]^2
+    + E[N] Var(D)/E[D]^3`` (error of order ``1/k^2``)."""
+    i = np.arange(k)
+    cov = alpha ** np.abs(i[:, None] - i[None, :]).astype(float)
+    m = cov - cov.mean(axis=0, keepdims=True) - cov.mean(axis=1, keepdims=True) + cov.mean()
+    m2 = m @ m
+    ed, vd = float(np.trace(m)), 2.0 * float(np.trace(m2))
+    out = []
+    for h in lags:
+        en, cnd = float(np.trace(m, offset=h)), 2.0 * float(np.trace(m2, offset=h))
+        out.append(en / ed - cnd / ed**2 + en * vd / ed**3)
+    return np.array(out)
+
+
+def sample_autocorrelation(x: np.ndarray, lag: int) -> float:
+    """``sum (x_t - m)(x_(t+h) - m) / sum (x_t - m)^2``, ``m`` the mean of ``x``."""
+    d = x - x.mean()
+    return float((d[:-lag] * d[lag:]).sum() / (d * d).sum())
+
+
+GM_LAGS = (1, 2, 4, 8)
+
+
 def check_gauss_markov(seed: int | None = None) -> list[Check]:
-    """Item 28: Gauss-Markov speeds at successive updates have mean ``mean_speed_mps`` and
-    lag-one autocorrelation ``alpha``."""
-    alpha, mean, sigma, n, updates, skip = 0.7, 3.0, 0.5, 40, 1500, 20
+    """Item 28: Gauss-Markov speed and direction at successive updates are stationary AR(1)
+    processes: the speed's mean is ``mean_speed_mps``, the variances are ``speed_sigma_mps^2``
+    and ``direction_sigma_rad^2`` and the autocorrelations ``alpha^h`` at lags ``h`` up to 8.
+    The robots start near the centre of a square they cannot leave in the run (a row counts
+    those whose path was long enough to reach a border: the borders turn a robot)."""
+    alpha, mean, sigma, sigma_d, n, updates, skip = 0.7, 3.0, 0.5, 0.3, 60, 1500, 20
+    side, centre = 20000.0, 2000.0
     sim = build(
         _config(
             seed=derive(seed, 28),
             duration_s=float(updates),
-            world={"n_robots": n, "side_m": 20000.0},
+            world={"n_robots": n, "side_m": side, "placement": "centre", "centre_side_m": centre},
             mobility={
                 "model": "gauss_markov",
                 "alpha": alpha,
                 "mean_speed_mps": mean,
                 "speed_sigma_mps": sigma,
-                "direction_sigma_rad": 0.3,
+                "direction_sigma_rad": sigma_d,
             },
         )
     )
     sim.run()
     legs = sim.state.legs()
+    start = legs.groupby("robot").first()[["x_m", "y_m"]].to_numpy()
+    room = np.minimum(start, side - start).min(axis=1)
     legs = legs[legs["cause"].isin(["start", "turn"])]
-    means, corrs = [], []
+    means, variances, corrs = [], {"speed": [], "direction": []}, {"speed": [], "direction": []}
+    reach = []
     for _, g in legs.groupby("robot"):
-        # The first updates leave the start at the mean speed: the process is stationary after.
-        s = np.hypot(g["vx_mps"], g["vy_mps"]).to_numpy()[1:][skip:]
+        v = g[["vx_mps", "vy_mps"]].to_numpy()
+        reach.append(np.hypot(*v.T).sum() * sim.config.mobility.update_interval_s)
+        # The first updates leave the start at the means: the processes are stationary after.
+        s = np.hypot(*v.T)[1:][skip:]
+        d = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))[1:][skip:]
         means.append(s.mean())
-        d = s - s.mean()
-        corrs.append(float((d[:-1] * d[1:]).sum() / (d * d).sum()))
-    means_a, corrs_a = np.array(means), np.array(corrs)
+        for name, x in (("speed", s), ("direction", d)):
+            variances[name].append(float(((x - x.mean()) ** 2).mean()))
+            corrs[name].append([sample_autocorrelation(x, h) for h in GM_LAGS])
     k = len(s)
-    return [
-        Check("28", "Gauss-Markov mean speed", mean, means_a.mean(), 4 * means_a.std(ddof=1) / math.sqrt(n), "m/s"),
-        # The lag-one sample autocorrelation of k values is biased by -(1 + 3 alpha) / k.
-        Check(
-            "28",
-            "Gauss-Markov speed lag-one autocorrelation",
-            alpha - (1 + 3 * alpha) / k,
-            corrs_a.mean(),
-            4 * corrs_a.std(ddof=1) / math.sqrt(n),
-        ),
-    ]
+    means_a = np.array(means)
+    out = [Check("28", "Gauss-Markov mean speed", mean, means_a.mean(), 4 * means_a.std(ddof=1) / math.sqrt(n), "m/s")]
+    # Deviations from the sample mean fall short of the process's variance by the mean's.
+    shrink = 1.0 - ar1_mean_variance(alpha, k)
+    for name, sd, unit in (("speed", sigma, "(m/s)^2"), ("direction", sigma_d, "rad^2")):
+        v = np.array(variances[name])
+        out.append(
+            Check(
+                "28", f"Gauss-Markov {name} variance", sd**2 * shrink, v.mean(), 4 * v.std(ddof=1) / math.sqrt(n), unit
+            )
+        )
+    expected = ar1_autocorrelations(alpha, GM_LAGS, k)
+    for name in ("speed", "direction"):
+        c = np.array(corrs[name])
+        for col, h in enumerate(GM_LAGS):
+            out.append(
+                Check(
+                    "28",
+                    f"Gauss-Markov {name} autocorrelation at lag {h} (alpha^{h} = {alpha**h:.4g})",
+                    float(expected[col]),
+                    c[:, col].mean(),
+                    4 * c[:, col].std(ddof=1) / math.sqrt(n),
+                )
+            )
+    near = int((np.array(reach) >= room).sum())
+    out.append(Check("28", "Gauss-Markov robots whose path could reach a border", 0, near, 0))
+    return out
 
 
 def check_rpgm(seed: int | None = None) -> list[Check]:
-    """Item 29: every member of a reference point group stays within ``group_radius_m`` of
-    its group's reference point, at every instant (checked where either changes course:
-    both move in straight lines in between, so the distance is convex there)."""
+    """Item 29: group mobility as Hong et al. and BonnMotion define it. Exact: every member
+    stays within ``group_radius_m`` of its group's reference point at every instant
+    (checked where either changes course: both move in straight lines in between, so the
+    distance is convex there), and no member is faster than ``speed_max_mps``. Statistical,
+    on the reference legs where the speed bound cannot reject a new offset (``speed_max_mps``
+    times the leg's time at least its length plus the disk's diameter): a member's new
+    offset ``o'`` at the leg's end has a distance uniform on ``[0, R]`` (mean ``R / 2``), and
+    is drawn afresh, independent of the old offset ``o``: ``o . o'`` has mean 0."""
     from netsim.trajectory import sample_positions
 
-    radius, size, n, T = 40.0, 5, 30, 600.0
+    radius, size, n, T, vmax = 40.0, 5, 60, 3000.0, 5.0
     sim = build(
         _config(
             seed=derive(seed, 29),
             duration_s=T,
             world={"n_robots": n, "side_m": 800.0},
-            mobility={"model": "rpgm", "group_size": size, "group_radius_m": radius, "pause_s": 2.0},
+            mobility={
+                "model": "rpgm",
+                "group_size": size,
+                "group_radius_m": radius,
+                "pause_s": 2.0,
+                "speed_min_mps": 0.5,
+                "speed_max_mps": vmax,
+            },
         )
     )
     sim.run()
     frames = collect(sim)
-    ref = frames["reference_points"]
+    ref, legs = frames["reference_points"], frames["legs"]
     times = np.unique(np.r_[ref["t_s"].to_numpy(), T])
     times = times[times <= T]
-    pos = sample_positions(frames["legs"], n, times)
+    pos = sample_positions(legs, n, times)[["x_m", "y_m"]].to_numpy().reshape(len(times), n, 2)
     farther = 0
+    distance, dot, member = [], [], []
     for g, track in ref.groupby("group"):
-        track = track.drop_duplicates("t_s", keep="last").sort_values("t_s")
-        rx = np.interp(times, track["t_s"], track["x_m"])
-        ry = np.interp(times, track["t_s"], track["y_m"])
+        # The log holds each reference leg as two rows: where it starts, where and when it ends.
+        t0, t1 = track["t_s"].to_numpy()[0::2], track["t_s"].to_numpy()[1::2]
+        p0, p1 = track[["x_m", "y_m"]].to_numpy()[0::2], track[["x_m", "y_m"]].to_numpy()[1::2]
+        unique = track.drop_duplicates("t_s", keep="last").sort_values("t_s")
+        rx = np.interp(times, unique["t_s"], unique["x_m"])
+        ry = np.interp(times, unique["t_s"], unique["y_m"])
+        within = t1 <= T
+        free = within & (vmax * (t1 - t0) >= np.hypot(*(p1 - p0).T) + 2 * radius)
+        k0, k1 = np.searchsorted(times, t0[free]), np.searchsorted(times, t1[free])
         for i in range(int(g) * size, min((int(g) + 1) * size, n)):
-            at = pos[pos["robot"] == i].sort_values("t_s")
-            d = np.hypot(at["x_m"].to_numpy() - rx, at["y_m"].to_numpy() - ry)
+            d = np.hypot(pos[:, i, 0] - rx, pos[:, i, 1] - ry)
             farther += int((d > radius * (1 + 1e-9)).sum())
-    return [Check("29", f"RPGM: member-instants farther than {radius:g} m from the reference point", 0, farther, 0)]
+            old, new = pos[k0, i] - p0[free], pos[k1, i] - p1[free]
+            distance.extend((np.hypot(*new.T) / radius).tolist())
+            dot.extend(((old * new).sum(axis=1) / radius**2).tolist())
+            member.extend([i] * len(new))
+    speed = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()
+    faster = int((speed > vmax * (1 + 1e-9)).sum())
+    distance_a, dot_a, member_a = np.array(distance), np.array(dot), np.array(member)
+    return [
+        Check("29", f"RPGM: member-instants farther than {radius:g} m from the reference point", 0, farther, 0),
+        Check("29", f"RPGM: member legs faster than speed_max_mps = {vmax:g} m/s", 0, faster, 0),
+        # Each unconstrained leg's offset is a fresh draw: independent across legs and members.
+        Check(
+            "29",
+            f"RPGM: new offset's distance over the radius, mean ({len(distance_a)} member-legs)",
+            0.5,
+            distance_a.mean(),
+            4 * distance_a.std(ddof=1) / math.sqrt(len(distance_a)),
+        ),
+        # Consecutive legs of a member share an offset: the standard error is over members.
+        Check(
+            "29",
+            "RPGM: old offset . new offset over radius^2, mean (fresh draws: 0)",
+            0.0,
+            dot_a.mean(),
+            4 * cluster_se(dot_a, member_a),
+        ),
+    ]
 
 
 # -- coverage on the radio the robots have (items 30, 31) ------------------------------------
@@ -1057,7 +1170,7 @@ CHECKS: list[Item] = [
     Item(("26",), check_interference_sum, statistical=False),
     Item(("27",), check_radio_pair_travel, statistical=True),
     Item(("28",), check_gauss_markov, statistical=True),
-    Item(("29",), check_rpgm, statistical=False),
+    Item(("29",), check_rpgm, statistical=True),
     Item(("30", "31"), check_coverage, statistical=False),
 ]
 
