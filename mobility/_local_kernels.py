@@ -1,6 +1,6 @@
 """Compiled (numba) loops of the local plan: rule 1 (:func:`mobility.local.let_go`), per
 robot the bottleneck of its certified detours, by a widest-path search over the robots
-within two links; and the walls' test (:func:`mobility.local.clear_of_walls`). They
+it remembers; and the walls' test (:func:`mobility.local.clear_of_walls`). They
 compute exactly what the numpy code computes (the tests compare them); for a few dozen
 robots, numpy's and scipy's cost per call, not the arithmetic, is what the numpy code
 costs.
@@ -50,9 +50,10 @@ def clear_many(walls, a, b, ea, eb, out):
 
 @numba.njit(cache=True, nogil=True)
 def let_go(pos, memory, rule, walls, out):
-    """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``.
-    ``memory``: what the robots remember, ``(xy, sent_s, known)``; ``rule``: the step's
-    ``(t0_s, speed_mps, band_m, range_m)``."""
+    """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
+    through robots it remembers (:func:`mobility.local.let_go`). ``memory``: what the
+    robots remember, ``(xy, sent_s, known)``; ``rule``: the step's ``(t0_s, speed_mps,
+    band_m, range_m)``."""
     xy, sent_s, known = memory
     t0_s, speed_mps, band_m, range_m = rule
     n = pos.shape[0]
@@ -63,8 +64,6 @@ def let_go(pos, memory, rule, walls, out):
     e = np.empty(n)
     worst = np.empty(n)
     done = np.empty(n, np.bool_)
-    best = np.empty(n)
-    via = np.empty(n, np.int64)
     for i in range(n):
         k = 1
         node[0] = i
@@ -78,22 +77,6 @@ def let_go(pos, memory, rule, walls, out):
         m = k - 1
         if m < 2:
             continue
-        # Robots two links out: the freshest report among the remembered robots'.
-        for o in range(n):
-            best[o] = -np.inf
-            via[o] = -1
-        for a in range(1, k):
-            r = node[a]
-            for o in range(n):
-                if known[r, o] and sent_s[r, o] > best[o]:
-                    best[o] = sent_s[r, o]
-                    via[o] = r
-        for o in range(n):
-            if o != i and not known[i, o] and via[o] >= 0:
-                node[k] = o
-                qx[k], qy[k] = xy[via[o], o, 0], xy[via[o], o, 1]
-                e[k] = speed_mps * max(t0_s - sent_s[via[o], o], 0.0)
-                k += 1
         for a in range(k):
             worst[a] = np.inf
             done[a] = False

@@ -659,7 +659,7 @@ class CoverageController:
         leaders = pos[leads_itself(self.view.leader)]
         cov_l, err_l = self._covered(leaders)
         cov_a, err_a = self._covered(pos)
-        bound = metrics.bound_fraction(st.n, self.radius_m, st.bounds, self.range_m)
+        bound = metrics.bound_fraction(st.n, self.radius_m, st.bounds, st.range_m)
         components = self.components_now()
         spacing = metrics.nearest_spacing(leaders)
         travelled = self.odometer_m + self.speed_mps * (t - self.odo_t_s)

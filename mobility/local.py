@@ -243,17 +243,19 @@ def let_go(
 
     ``pos``: every robot's own position at ``t0_s``; ``known``: :meth:`Memory.known`;
     ``band_m``: the width of the length bands of the links' order. Robot ``i``'s graph:
-    itself, the robots it remembers (at the positions it heard) and those they remember
-    (at the freshest position they report), joined where two remember each other and are
-    surely within ``range_m`` and (on a map) surely clear of ``walls`` (:func:`clear_of_walls`
-    with the larger of the two uncertainties), each link at the largest rank it can have at ``t0``. A
-    detour's worst link is the bottleneck of ``i``'s path to ``j`` in a minimum spanning
-    tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots the compiled
-    twin (:mod:`mobility._local_kernels`) computes the same.
+    itself and the robots it remembers (at the positions it heard), joined where two
+    remember each other and are surely within ``range_m`` and (on a map) surely clear of
+    ``walls`` (:func:`clear_of_walls` with the larger of the two uncertainties), each link
+    at the largest rank it can have at ``t0``. Whether two of them remember each other is
+    in what ``i`` heard: its own memory and the records their Acks carried. A robot two
+    links out is no node: whether it remembers anyone is in its own Acks, which ``i`` did
+    not hear. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
+    minimum spanning tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS`
+    robots the compiled twin (:mod:`mobility._local_kernels`) computes the same.
 
     Notes
     -----
-    ``O(k^2)`` per robot with ``k`` robots within two links.
+    ``O(k^2)`` per robot with ``k`` robots it remembers.
     """
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
@@ -270,14 +272,9 @@ def let_go(
         m = len(nb)
         if m < 2:
             continue
-        reported = np.where(known[nb], memory.sent_s[nb], -np.inf)
-        reported[:, i] = -np.inf
-        reported[:, nb] = -np.inf
-        far = np.flatnonzero(np.isfinite(reported.max(axis=0)))
-        via = nb[reported[:, far].argmax(axis=0)]
-        node = np.r_[i, nb, far]
-        q = np.concatenate([pos[i : i + 1], memory.xy[i, nb], memory.xy[via, far]])
-        sent = np.r_[t0_s, memory.sent_s[i, nb], memory.sent_s[via, far]]
+        node = np.r_[i, nb]
+        q = np.concatenate([pos[i : i + 1], memory.xy[i, nb]])
+        sent = np.r_[t0_s, memory.sent_s[i, nb]]
         e = speed_mps * np.maximum(t0_s - sent, 0.0)
         centre = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)

@@ -70,30 +70,47 @@ def lens_area(radius_m: float, distance_m: float) -> float:
     return 2 * r * r * math.acos(d / (2 * r)) - 0.5 * d * math.sqrt(4 * r * r - d * d)
 
 
-def connected_coverage_bound(n: int, radius_m: float, range_m: float | None = None) -> float:
+def connected_coverage_bound(n: int, radius_m: float, range_m: float | npt.ArrayLike | None = None) -> float:
     """``U(N) = r^2 (pi + 1.9132 (N - 1))``, m^2: the most that ``n`` disks of radius
     ``radius_m`` can cover when their centres form a connected network of range
-    ``range_m`` (default: the radius; docs/validation.md item 16).
+    ``range_m`` (default: the radius; docs/validation.md item 16), one range for all or
+    one per robot.
 
-    Order the robots from a root so that each has an earlier neighbour within range; each
-    new disk shares with that neighbour's at least the lens at distance ``range_m``. A
-    straight chain at spacing ``r`` reaches the bound exactly.
+    A link joins two robots at most ``min(r_a, r_b)`` apart (docs/events.md). Root a
+    spanning tree of the network at a robot of the largest range: every other robot ``i``
+    has a parent within ``min(r_i, r_parent) <= r_i``, and its disk shares with the
+    parent's at least the lens at distance ``r_i`` (the lens shrinks with the distance).
+    So each robot but one of the largest range adds at most ``pi r^2 - lens(r, r_i)``.
+    A straight chain, the longest ranges first, each link at its full length, reaches the
+    bound exactly (equal ranges: at spacing ``r``).
 
     >>> round(connected_coverage_bound(2, 1.0), 4)
     5.0548
+    >>> round(connected_coverage_bound(3, 1.0, [1.0, 2.0, 2.0]), 4)
+    8.1964
     >>> connected_coverage_bound(0, 1.0)
     0.0
     """
     if n <= 0:
         return 0.0
-    reach = radius_m if range_m is None else range_m
     disk = math.pi * radius_m**2
-    return disk + (disk - lens_area(radius_m, reach)) * (n - 1)
+    if range_m is None or np.ndim(range_m) == 0:
+        reach = radius_m if range_m is None else float(range_m)  # type: ignore[arg-type]
+        return disk + (disk - lens_area(radius_m, reach)) * (n - 1)
+    ranges = np.asarray(range_m, dtype=float).ravel()
+    if len(ranges) != n:
+        raise ValueError(f"{len(ranges)} ranges for {n} robots")
+    # Equal ranges give one term, (disk - lens) (n - 1): the scalar formula, bit for bit.
+    reaches, counts = np.unique(np.sort(ranges)[:-1], return_counts=True)
+    return disk + sum((disk - lens_area(radius_m, float(r))) * int(c) for r, c in zip(reaches, counts))
 
 
-def bound_fraction(n: int, radius_m: float, area: float | Bounds, range_m: float | None = None) -> float:
+def bound_fraction(
+    n: int, radius_m: float, area: float | Bounds, range_m: float | npt.ArrayLike | None = None
+) -> float:
     """``min(1, U(N) / A)``: the largest fraction of the area (Bounds, or the side of the
-    square ``[0, side]^2``) a connected team can cover; ``A`` is the area's, in m^2."""
+    square ``[0, side]^2``) a connected team can cover; ``A`` is the area's, in m^2;
+    ``range_m`` one range or one per robot (:func:`connected_coverage_bound`)."""
     return min(1.0, connected_coverage_bound(n, radius_m, range_m) / as_bounds(area).area)
 
 

@@ -125,6 +125,31 @@ def test_detour_compiled_and_numpy_agree(monkeypatch):
         assert (a == b).all()
 
 
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_robot_decides_from_what_it_heard_alone(monkeypatch, compiled):
+    """Rule 1 uses only what robot i heard: its own position and memory and the records
+    of the robots it remembers (their Acks carry them). Whatever the robots it does not
+    remember remember, and wherever the others are, i lets go of the same robots (both
+    twins)."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    rng = np.random.default_rng(7)
+    for seed in range(4):
+        pos, m = random_scene(seed, n=30)
+        known = m.known(T0, 20.0)
+        gone = let_go(pos, m, known, T0, V, 10.0, RC)
+        n = len(pos)
+        for i in range(n):
+            unheard = np.flatnonzero(~known[i])
+            unheard = unheard[unheard != i]
+            other = np.flatnonzero(np.arange(n) != i)
+            p2, m2, k2 = pos.copy(), memory_of(m.xy.copy(), m.sent_s.copy()), known.copy()
+            p2[other] = rng.uniform(0, 300.0, (len(other), 2))
+            k2[unheard] = rng.random((len(unheard), n)) < 0.5
+            m2.sent_s[unheard] = np.where(k2[unheard], T0 - rng.uniform(0, 3.0, (len(unheard), n)), -np.inf)
+            m2.xy[unheard] = rng.uniform(0, 300.0, (len(unheard), n, 2))
+            assert (let_go(p2, m2, k2, T0, V, 10.0, RC)[i] == gone[i]).all(), i
+
+
 # -- rule 2: leashes -------------------------------------------------------------------
 
 

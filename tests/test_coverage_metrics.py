@@ -204,6 +204,73 @@ def test_property_no_connected_deployment_covers_more_than_the_bound(seed, n):
     assert lower <= connected_coverage_bound(n, r)
 
 
+AUDIT_RANGES = [100.0, 100.0, 150.0, 150.0, 150.0, 150.0]
+
+
+def test_per_robot_equal_ranges_give_the_one_range_bound_bit_for_bit():
+    """Item 16: one range per robot, all equal, is the one-range bound exactly (equal-range
+    runs keep their outputs)."""
+    for n, r, reach in [(1, 100.0, 100.0), (2, 1.0, 1.0), (60, 100.0, 100.0), (37, 80.0, 120.0), (5, 10.0, 25.0)]:
+        assert connected_coverage_bound(n, r, [reach] * n) == connected_coverage_bound(n, r, reach)
+        assert bound_fraction(n, r, 1e4, np.full(n, reach)) == bound_fraction(n, r, 1e4, reach)
+
+
+def test_a_chain_longest_ranges_first_reaches_the_unequal_range_bound():
+    """Item 16 with unequal ranges: a straight chain, the longest ranges first, each link
+    at its full length min(r_a, r_b), covers exactly U (disks of the smallest range);
+    the smallest range's bound is exceeded."""
+    r = min(AUDIT_RANGES)
+    x = [0.0]
+    for a, b in zip(AUDIT_RANGES[:0:-1], AUDIT_RANGES[-2::-1]):
+        x.append(x[-1] + min(a, b))
+    chain = np.column_stack([200.0 + np.array(x), np.full(len(x), 400.0)])
+    lower, upper = union_area_bracket(chain, r, 1500.0)
+    assert lower <= connected_coverage_bound(6, r, AUDIT_RANGES) <= upper
+    assert lower > connected_coverage_bound(6, r, r)
+
+
+def linked(pos: np.ndarray, ranges: np.ndarray) -> bool:
+    """Whether the network of links ``|p_a - p_b| <= min(r_a, r_b)`` is connected."""
+    d = np.hypot(*(pos[:, None, :] - pos[None, :, :]).transpose(2, 0, 1))
+    adjacent = d <= np.minimum.outer(ranges, ranges) + 1e-9
+    seen, todo = {0}, [0]
+    while todo:
+        for j in np.flatnonzero(adjacent[todo.pop()]).tolist():
+            if j not in seen:
+                seen.add(j)
+                todo.append(j)
+    return len(seen) == len(pos)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 30), scale=st.sampled_from([1.0, 1.5]))
+def test_property_with_unequal_ranges_no_connected_deployment_covers_more_than_the_bound(seed, n, scale):
+    """Item 16 with one range per robot: whatever the connected deployment (each robot
+    placed within, often at, its link's reach min(r_i, r_parent) of an earlier one), the
+    disks of the smallest range's radius (the coverage default; scale 1.5: larger
+    disks) cover at most U."""
+    rng = np.random.default_rng(seed)
+    ranges = rng.choice([100.0, 120.0, 150.0, 200.0, 260.0], n)
+    pos = [np.zeros(2)]
+    for i in range(1, n):
+        parent = int(rng.integers(i))
+        reach = min(ranges[i], ranges[parent])
+        dist = reach if rng.random() < 0.6 else rng.uniform(0.2 * reach, reach)
+        angle = rng.uniform(0, 2 * math.pi)
+        pos.append(pos[parent] + dist * np.array([math.cos(angle), math.sin(angle)]))
+    pos = np.array(pos)
+    assert linked(pos, ranges)
+    r = scale * ranges.min()
+    side = 2 * (260.0 * n + r)
+    lower, _ = union_area_bracket(pos + side / 2, r, side)
+    assert lower <= connected_coverage_bound(n, r, ranges)
+
+
+def test_the_bound_refuses_ranges_for_another_team_size():
+    with pytest.raises(ValueError, match="3 ranges for 4 robots"):
+        connected_coverage_bound(4, 1.0, [1.0, 1.0, 2.0])
+
+
 def test_a_disconnected_pair_can_exceed_the_bound():
     """The bound needs connectivity: two disks far apart cover 2 pi r^2 > U(2)."""
     lower, _ = union_area_bracket([[20.0, 20.0], [80.0, 80.0]], 10.0, 100.0)

@@ -10,7 +10,7 @@ from mobility.forces import border_forces, component_centres, expansion_forces
 from mobility.spread import pass_on_pulls, plan_spread, spanning_forest
 from mobility.steps import StepLimits
 from netsim import config
-from netsim.metrics import components, components_at_link_events
+from netsim.metrics import components, components_at_link_events, connected_coverage_bound
 from netsim.run import execute
 from netsim.tools.cli import main
 from netsim.tools.validate import coverage_settings
@@ -336,3 +336,18 @@ def test_expansion_leaves_follow_mode_alone():
     a, b = (execute(config.load(None, settings + [f"coverage.expansion={e}"])) for e in (0.0, 0.5))
     assert len(a.sim.state.legs()) > 20
     assert a.sim.state.legs().equals(b.sim.state.legs())
+
+
+def test_with_unequal_ranges_the_team_never_covers_more_than_the_bound():
+    """The audit's ranges (100, 100 and four of 150 m): the team, connected through links
+    longer than the smallest range, covers at most U with one range per robot
+    (docs/validation.md item 16), so covered_of_bound_all never exceeds 1."""
+    ranges = [100.0, 100.0, 150.0, 150.0, 150.0, 150.0]
+    r = spread_run(6, 1, 1200.0, duration=400, **{"world.centre_side_m": 100.0, "channel.range_m": ranges})
+    cov = r.frames["coverage"]
+    assert cov["connected"].all()
+    assert (cov["covered_fraction_all"] - cov["covered_error_bound_all"] <= cov["coverage_bound"]).all()
+    assert cov["covered_of_bound_all"].max() > 0.85
+    assert cov["coverage_bound"].iloc[-1] == pytest.approx(
+        connected_coverage_bound(6, 100.0, ranges) / 1200.0**2, rel=1e-15
+    )

@@ -401,7 +401,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     draw_map(ax, occupancy)
     if radius > 0:
         covered, err = metrics.covered_fraction_exact(end.pos, radius, area)
-        bound = metrics.bound_fraction(n, radius, area, range_m)
+        bound = metrics.bound_fraction(n, radius, area, config.ranges_m())
         ax.set_title(
             f"Fig. 8  Deployment at t = {end.t_s:g} s with every robot's disk (r = {radius:g} m):\n"
             f"{100 * covered:.1f} % of the area covered; a connected team covers at most {100 * bound:.0f} %"
