@@ -80,6 +80,7 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     ch = config.channel
     survives = ch.loss_plugin.make(ch.loss, state.range_m, streams.get("channel.loss"))
     occupancy = world_map(config)
+    state.check_motion(occupancy)
     radio = ch.propagation_model
     propagation = radio.make(ch.radio, state.range_m, occupancy, streams.get("channel.shadowing"))
     reception = None
