@@ -274,14 +274,15 @@ class RobotState:
         self._changed(i, t, False, cause if log else None)
 
     # -- the area and the walls -------------------------------------------------------
-    def check_motion(self, occupancy: Any = None) -> None:
-        """From now on, refuse motion that leaves the area (``bounds``) or, with
-        ``occupancy`` (a map), enters a cell that is not free: :class:`MotionError` naming
-        the robot and the time. Not on a torus, where every position is inside."""
+    def check_motion(self, walls: Any = None) -> None:
+        """From now on, refuse motion that leaves the area (``bounds``) or, with ``walls``
+        (a map's, :class:`netsim.radio.free_space.Walls`), enters a cell that is not free:
+        :class:`MotionError` naming the robot and the time. Not on a torus, where every
+        position is inside."""
         self.checked = not self.torus
         b = self.bounds
         self._tolerance_m = BORDER_TOLERANCE * max(1.0, b.width, b.height)
-        self._walls = occupancy
+        self._walls = walls
 
     def check_until(self, t: float) -> None:
         """The legs robots are on, up to ``t`` (the end of a run): :meth:`check_motion`'s
@@ -300,9 +301,7 @@ class RobotState:
         if not self._inside(float(end[0]), float(end[1])):
             self._refuse_leg(i, t, end, "leaves the area")
         if self._walls is not None and (self.velocity_mps[i, 0] != 0 or self.velocity_mps[i, 1] != 0):
-            from netsim.radio.free_space import legs_free
-
-            if not legs_free(self._walls, self.origin_m[i : i + 1], end[None])[0]:
+            if not self._walls.legs_free(self.origin_m[i : i + 1], end[None])[0]:
                 self._refuse_leg(i, t, end, "crosses a wall of the map")
 
     def _check_ends(self, idx: np.ndarray, t: float, ends: np.ndarray) -> None:
@@ -317,9 +316,7 @@ class RobotState:
             v = self.velocity_mps[idx]
             moving = np.flatnonzero((v[:, 0] != 0) | (v[:, 1] != 0))
             if len(moving):
-                from netsim.radio.free_space import legs_free
-
-                free = legs_free(self._walls, self.origin_m[idx[moving]], ends[moving])
+                free = self._walls.legs_free(self.origin_m[idx[moving]], ends[moving])
                 if not free.all():
                     k = int(moving[np.flatnonzero(~free)[0]])
                     self._refuse_leg(int(idx[k]), t, ends[k], "crosses a wall of the map")
@@ -328,7 +325,9 @@ class RobotState:
         """A jump lands in the area and (on a map) in a free cell."""
         where = f"({float(to[0]):g}, {float(to[1]):g})"
         if not self._inside(float(to[0]), float(to[1])):
-            raise MotionError(f"robot {i} jumps out of the area{self._area()} at t = {t:.9g} s, to {where}{self._note(i)}")
+            raise MotionError(
+                f"robot {i} jumps out of the area{self._area()} at t = {t:.9g} s, to {where}{self._note(i)}"
+            )
         if self._walls is not None and not bool(self._walls.is_free(np.asarray(to, dtype=float)[None])[0]):
             raise MotionError(f"robot {i} jumps into a wall of the map at t = {t:.9g} s, to {where}{self._note(i)}")
 
@@ -339,15 +338,11 @@ class RobotState:
             frac = self._exit_fraction(start, np.asarray(end, dtype=float))
             where = self._area()
         else:
-            from netsim.radio.los import first_blocked
-
-            f = float(first_blocked(self._walls, start[None], np.asarray(end, dtype=float)[None], self._walls.not_free)[0])
+            f = float(self._walls.first_blocked(start[None], np.asarray(end, dtype=float)[None])[0])
             frac, where = (min(f, 1.0) if np.isfinite(f) else 1.0), ""
         t_out = t0 + frac * (t - t0)
         p = start + frac * (np.asarray(end, dtype=float) - start)
-        raise MotionError(
-            f"robot {i} {what}{where} at t = {t_out:.9g} s, at ({p[0]:g}, {p[1]:g}){self._note(i)}"
-        )
+        raise MotionError(f"robot {i} {what}{where} at t = {t_out:.9g} s, at ({p[0]:g}, {p[1]:g}){self._note(i)}")
 
     def _exit_fraction(self, start: np.ndarray, end: np.ndarray) -> float:
         """The fraction of the leg ``start -> end`` at which it leaves the area."""
@@ -355,6 +350,8 @@ class RobotState:
         frac = 1.0
         for axis, (lo, hi) in enumerate(((b.x_min, b.x_max), (b.y_min, b.y_max))):
             a, e = float(start[axis]), float(end[axis])
+            if (e > hi + tol or e < lo - tol) and e == a:
+                return 0.0  # the leg is outside from its start
             if e > hi + tol:
                 frac = min(frac, (hi - a) / (e - a))
             elif e < lo - tol:

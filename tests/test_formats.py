@@ -272,11 +272,14 @@ def test_a_guessed_format_is_named_in_the_error(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert "no ns-2 movement line" in err[0] and "guessed" in err[0] and "mobility.trace_format" in err[0]
-    assert main(
-        ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={path}"]
-        + ["--set", "mobility.trace_format=bonnmotion", "--set", "world.n_robots=1", "--set", "duration_s=5"]
-        + ["--out", str(tmp_path / "out2")]
-    ) == 0
+    assert (
+        main(
+            ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={path}"]
+            + ["--set", "mobility.trace_format=bonnmotion", "--set", "world.n_robots=1", "--set", "duration_s=5"]
+            + ["--out", str(tmp_path / "out2")]
+        )
+        == 0
+    )
 
 
 def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys):
@@ -285,7 +288,16 @@ def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys)
     out = tmp_path / "r.movements.gz"
     assert main(["export", str(run_dir), "--format", "bonnmotion", "--out", str(out)]) == 0
     capsys.readouterr()
-    replay = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={out}", "--set", "world.n_robots=8"]
+    replay = [
+        "run",
+        "--quiet",
+        "--set",
+        "mobility.model=trace",
+        "--set",
+        f"mobility.trace_file={out}",
+        "--set",
+        "world.n_robots=8",
+    ]
     assert main([*replay, "--set", "duration_s=60", "--out", str(tmp_path / "a")]) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("netsim: warning: ")

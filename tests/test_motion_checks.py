@@ -67,7 +67,9 @@ THROUGH_A_WALL = PluginSpec(Params=NoParams, build=_through_a_wall, respects_map
 
 
 def _config(model, *more):
-    return load(None, [f"mobility.model=tests.test_motion_checks:{model}", "world.n_robots=2", "protocol.model=none", *more])
+    return load(
+        None, [f"mobility.model=tests.test_motion_checks:{model}", "world.n_robots=2", "protocol.model=none", *more]
+    )
 
 
 def test_a_plugin_robot_still_outside_at_the_end_is_refused_naming_it_and_the_time():
@@ -102,7 +104,7 @@ def test_a_robot_leaving_the_area_is_one_line_exit_2(tmp_path, capsys):
 
 def test_a_plugin_robot_crossing_a_wall_is_refused():
     """On a map, a leg that enters a cell that is not free is refused, naming the robot."""
-    config = _config("THROUGH_A_WALL", "world.map=office", "world.side_m=200", "duration_s=60")
+    config = _config("THROUGH_A_WALL", "world.map=office", "world.side_m=200", "duration_s=12")
     with pytest.raises(MotionError, match=r"^robot 0 crosses a wall of the map at t = "):
         execute(config)
 
