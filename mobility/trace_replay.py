@@ -1,11 +1,17 @@
 """Replay of recorded or generated motion (``mobility.model = "trace"``): an ns-2 movement
-file (ns-2's ``setdest``, BonnMotion's ns-2 export, ``netsim scenario generate``; with the
-semantics of ns-3's ``Ns2MobilityHelper``), a BonnMotion ``.movements`` file, or a ROS 2
-bag of the robots' poses (docs/model.md section 2.2)."""
+file (ns-2's ``setdest``, BonnMotion's ns-2 export, ``netsim scenario generate``; as ns-2
+replays it, or as ns-3's ``Ns2MobilityHelper`` does with ``ns2_semantics = "ns3"``), a
+BonnMotion ``.movements`` file, or a ROS 2 bag of the robots' poses (docs/model.md
+section 2.2).
+
+Before the run, the trace's motion is replayed once up to ``duration_s`` on a robot state
+that checks the area (:meth:`RobotState.check_motion`): a robot that leaves it is one line
+naming the robot, the time and the file's line, and nothing is simulated."""
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
@@ -20,7 +26,14 @@ from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param
 from netsim.plugins import Parts, PluginSpec
-from netsim.state import RobotState
+from netsim.state import MotionError, RobotState
+
+
+class Ns2Semantics(StrEnum):
+    """What an ns-2 file's lines do: as ns-2 replays them, or as ns-3's helper does."""
+
+    NS2 = "ns2"
+    NS3 = "ns3"
 
 
 class TraceFormat(StrEnum):
@@ -55,6 +68,12 @@ class TraceParams(Params):
     )
     topics: tuple[str, ...] = param(
         (), None, "rosbag2: the pose topic of each robot, in order (default: /robot_<i>/...)", coerce=_topics
+    )
+    ns2_semantics: Ns2Semantics = param(
+        Ns2Semantics.NS2,
+        None,
+        "ns-2 files: 'ns2' (a scheduled set X_ moves the robot at its time; lines applied in time order) "
+        "or 'ns3' (as ns-3's Ns2MobilityHelper: a scheduled set X_ also places it from the start)",
     )
 
     def check(self) -> None:
@@ -110,7 +129,7 @@ def _positions_reached(scen: ns2.Scenario) -> np.ndarray:
     st = RobotState(scen.n_robots, 1.0, 1.0)
     st.place(scen.initial_m)
     corners = []
-    for t, i, kind, x, y in scen.events.itertuples(index=False):
+    for t, i, kind, x, y, _line in scen.events.itertuples(index=False):
         corners.append(st.positions_at(t, [i])[0])
         if kind != "position":
             st.set_leg(i, t, (x, y))
@@ -120,22 +139,32 @@ def _positions_reached(scen: ns2.Scenario) -> np.ndarray:
     return np.array(corners).reshape(-1, 2)
 
 
-def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
-    """The motion of ``params.trace_file``, checked against the world's size."""
-    fmt = trace_format(params)
+def _read(params: TraceParams, fmt: TraceFormat, world) -> ns2.Scenario | Waypoints:
     try:
         if fmt is TraceFormat.NS2:
-            scen = ns2.read(params.trace_file, world.n_robots)
-        elif fmt is TraceFormat.BONNMOTION:
+            return ns2.read(params.trace_file, world.n_robots, params.ns2_semantics.value)
+        if fmt is TraceFormat.BONNMOTION:
             from netsim.formats import bonnmotion
 
             scen, _params = bonnmotion.read(params.trace_file)
-        else:
-            from netsim.formats import rosbag2
+            return scen
+        from netsim.formats import rosbag2
 
-            scen = rosbag2.read(params.trace_file, params.topics)
+        return rosbag2.read(params.trace_file, params.topics)
     except NetsimInputError as exc:
-        raise NetsimInputError(f"mobility.trace_file: {exc}") from None
+        guessed = ""
+        if params.trace_format is TraceFormat.AUTO and fmt is TraceFormat.NS2:
+            guessed = (
+                " (read as ns-2, the format guessed from the name: set mobility.trace_format = "
+                "'bonnmotion' or 'rosbag2' for another)"
+            )
+        raise NetsimInputError(f"mobility.trace_file: {exc}{guessed}") from None
+
+
+def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
+    """The motion of ``params.trace_file``, checked against the world's size."""
+    fmt = trace_format(params)
+    scen = _read(params, fmt, world)
     _check_count(scen.n_robots, params, world)
     if isinstance(scen, ns2.Scenario):
         xy = np.concatenate([scen.initial_m.reshape(-1, 2), _positions_reached(scen)])
@@ -145,11 +174,51 @@ def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
     return scen
 
 
-def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario):
-    """One process applies the events in time order (:class:`netsim.ns2.Scenario`)."""
-    for t, i, kind, x, y in scen.events.itertuples(index=False):
+def check_motion(scen: ns2.Scenario, params: TraceParams, world, duration_s: float) -> None:
+    """Replay ``scen`` up to ``duration_s`` on a state that checks the area (the run's own
+    check, :meth:`RobotState.check_motion`), each leg noted with the file's line that made
+    it: a robot that leaves is one line naming it, the time and the line, before the run."""
+    st = RobotState(scen.n_robots, world.side_m, 1.0, world.torus, world_bounds(world))
+    st.check_motion()
+    st.place(scen.initial_m)
+    env = simpy.Environment()
+    env.process(replay(env, st, scen, note=params.trace_file))
+    try:
+        env.run(until=duration_s)
+        st.check_until(duration_s)
+    except MotionError as exc:
+        raise MotionError(f"mobility.trace_file: {exc}") from None
+
+
+def _warn_if_short(wp: Waypoints, params: TraceParams, duration_s: float) -> None:
+    """A recorded trace that ends before the run: the robots then stand still."""
+    declared = ""
+    end_s = float(wp.t_s.max())
+    if trace_format(params) is TraceFormat.BONNMOTION:
+        from netsim.formats import bonnmotion
+
+        path = bonnmotion.params_path(Path(params.trace_file))
+        given = bonnmotion.read_params(path).get("duration", "")
+        try:
+            end_s, declared = float(given), f" (duration={given} in {path.name})"
+        except ValueError:
+            pass
+    if end_s < duration_s:
+        warnings.warn(
+            f"mobility.trace_file: {params.trace_file} ends at {end_s:g} s{declared}, before duration_s = "
+            f"{duration_s:g}: the robots stand still at their last positions from then on",
+            stacklevel=2,
+        )
+
+
+def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario, note: str = ""):
+    """One process applies the events in time order (:class:`netsim.ns2.Scenario`); with
+    ``note`` (the file's name), each leg is noted with the line that made it."""
+    for t, i, kind, x, y, line in scen.events.itertuples(index=False):
         if t > env.now:
             yield env.timeout(t - env.now)
+        if note:
+            st.leg_notes[i] = f"{note}:{line}"
         if kind == "velocity":
             st.set_leg(i, env.now, (x, y), cause="trace")
         elif kind == "stop":
@@ -179,6 +248,10 @@ def follow(env: simpy.Environment, st: RobotState, wp: Waypoints):
 
 def build(params: TraceParams, parts: Parts) -> None:
     scen = load(params, parts.world)
+    if isinstance(scen, ns2.Scenario):
+        check_motion(scen, params, parts.world, parts.duration_s)
+    else:
+        _warn_if_short(scen, params, parts.duration_s)
     parts.state.place(scen.initial_m if isinstance(scen, ns2.Scenario) else scen.initial_m())
     proc = (
         replay(parts.env, parts.state, scen) if isinstance(scen, ns2.Scenario) else follow(parts.env, parts.state, scen)

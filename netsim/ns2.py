@@ -1,5 +1,5 @@
-"""The ns-2 movement-scenario format, read as ns-3's ``Ns2MobilityHelper`` reads it, and
-written as ns-2's ``setdest`` writes it.
+"""The ns-2 movement-scenario format, read as ns-2 replays it (or as ns-3's
+``Ns2MobilityHelper`` does), and written as ns-2's ``setdest`` writes it.
 
 ::
 
@@ -8,8 +8,10 @@ written as ns-2's ``setdest`` writes it.
     $node_(0) set Z_ 0.0
     $ns_ at 2.0 "$node_(0) setdest 400.0 250.0 3.5"
 
-Reading follows ns-3's helper line for line, so that a file replays to the positions ns-3
-gives (the tests compare with ns-3 itself):
+The lines are understood as ns-3's helper understands them, line for line; what they
+then do follows ns-2 by default (``semantics = "ns2"``) or ns-3 (``"ns3"``, so that a file
+replays to the positions ns-3 gives: the tests compare with ns-3 itself). The two differ in
+a scheduled ``set X_`` and in lines out of time order:
 
 - Everything after a ``#`` is a comment; blanks and ``;`` at a line's ends are dropped. A
   line is then split on blanks and understood only in one of three shapes (the quotes may
@@ -51,6 +53,12 @@ from netsim.errors import NetsimInputError
 
 _NODE = re.compile(r"\(([^()]*)\)")
 _COORDS = ("X_", "Y_", "Z_")
+SEMANTICS = ("ns2", "ns3")
+# A line that names a node's movement (a setdest, or a set of a coordinate): one not
+# understood is counted in a warning, where other Tcl is skipped without a word.
+_MOVEMENT = re.compile(r"setdest|\$node_\([^)]*\)\s+set\s+[XYZ]_")
+# Lines named in a warning, at most.
+_SHOWN = 5
 # Without world.n_robots the team is 0 to the highest node the file names: a bound on that
 # number keeps a stray huge one from asking for gigabytes of positions.
 MAX_INFERRED_NODES = 1_000_000
@@ -61,10 +69,10 @@ class Scenario:
     """A parsed movement file: the positions at t = 0 and the events that change the
     nodes' motion, in the order they happen.
 
-    ``events`` has columns ``t_s, robot, kind, x_m, y_m``: ``kind`` is ``"velocity"`` (from
-    ``t_s`` on the node moves at ``(x_m, y_m)`` m/s from where it is), ``"stop"`` (it
+    ``events`` has columns ``t_s, robot, kind, x_m, y_m, line``: ``kind`` is ``"velocity"``
+    (from ``t_s`` on the node moves at ``(x_m, y_m)`` m/s from where it is), ``"stop"`` (it
     arrives where its ``setdest`` was heading, and stops) or ``"position"`` (the node is
-    put at ``(x_m, y_m)`` and stops).
+    put at ``(x_m, y_m)`` and stops); ``line`` is the file's line that made the event.
     """
 
     initial_m: np.ndarray
@@ -139,13 +147,23 @@ class _Heading:
     arrival_s: float = 0.0
 
 
-def read(path: str | Path, n_robots: int | None = None) -> Scenario:
-    """Parse an ns-2 movement file as ns-3 does (module notes); raise
-    :class:`NetsimInputError` naming the line for what cannot be simulated.
+def _lines_named(lines: list[int]) -> str:
+    shown = ", ".join(map(str, lines[:_SHOWN]))
+    return f"{shown} and {len(lines) - _SHOWN} more" if len(lines) > _SHOWN else shown
+
+
+def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") -> Scenario:
+    """Parse an ns-2 movement file and replay it as ns-2 (``semantics = "ns2"``) or ns-3
+    (``"ns3"``) does (module notes); raise :class:`NetsimInputError` naming the line for
+    what cannot be simulated, and warn (one warning each) of nodes without an initial
+    position, lines out of time order and lines skipped.
 
     With ``n_robots``, a node numbered ``n_robots`` or above is an error naming it (nodes
     are numbered from 0), rather than a gap in the initial positions. Without it, the team
     is 0 to the highest node named, at most :data:`MAX_INFERRED_NODES` nodes."""
+    if semantics not in SEMANTICS:
+        raise ValueError(f"semantics must be one of {SEMANTICS}, not {semantics!r}")
+    as_ns2 = semantics == "ns2"
     path = Path(path)
     if not path.is_file():
         raise NetsimInputError(f"{str(path)!r}: no such file")
@@ -177,34 +195,19 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
 
     # The lines understood, in file order: ("init" | "setdest" | "set", lineno, node, values).
     parsed: list[tuple[str, int, int, tuple[Any, ...]]] = []
+    skipped: list[int] = []
     for lineno, raw in enumerate(lines, 1):
-        w = _tokens(raw)
-        if len(w) == 4:
-            nid = _node_id(w[0])
-            value = _strtod(w[3])
-            if nid is not None and w[1] == "set" and w[2] in _COORDS and value is not None:
-                parsed.append(("init", lineno, node(nid, lineno), (w[2], finite(value, lineno, w[2]))))
+        if _understood(_tokens(raw), lineno, parsed, node, finite, as_ns2):
             continue
-        if len(w) not in (7, 8) or w[0] != "$ns_" or w[1] != "at":
-            continue
-        nid = _node_id(w[3])
-        t = _strtod(w[2])
-        if nid is None or t is None or t < 0:
-            continue
-        t = finite(t, lineno, "time")
-        if len(w) == 8 and w[4] == "setdest":
-            xs = [_strtod(v) for v in w[5:8]]
-            if None not in xs:
-                vals = tuple(finite(v, lineno, k) for v, k in zip(xs, ("X", "Y", "speed")))  # type: ignore[arg-type]
-                parsed.append(("setdest", lineno, node(nid, lineno), (t, *vals)))
-        elif len(w) == 7 and w[4] == "set" and w[5] in _COORDS:
-            # ns-3 does not check the value: one that is not a number counts as 0.
-            parsed.append(("set", lineno, node(nid, lineno), (t, w[5], finite(_strtod(w[6]) or 0.0, lineno, w[5]))))
+        if _MOVEMENT.search(raw.split("#", 1)[0]):
+            skipped.append(lineno)
     if not parsed:
         raise NetsimInputError(
             f'{path}: no ns-2 movement line ($node_(i) set X_ x, $ns_ at T "$node_(i) setdest X Y S" '
             'or $ns_ at T "$node_(i) set X_ x")'
         )
+    # A setdest with a negative speed is understood (ns-3 reads it) but moves nothing.
+    skipped += [ln for kind, ln, _i, vals in parsed if kind == "setdest" and vals[3] < 0]
     ids = [p[2] for p in parsed]
     n = max(ids) + 1
     named = set(ids)
@@ -225,15 +228,151 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
             given.setdefault(i, set()).add(str(vals[0]))
         if kind == "init":
             heading[i] = _Heading(final=now[i].copy())
-    events: list[list] = []  # [t, seq, robot, kind, x, y, cancelled]
+    initial = now.copy()
+    scheduled = [p for p in parsed if p[0] != "init"]
+    late = _out_of_order(scheduled)
+    if as_ns2:
+        scheduled.sort(key=lambda p: p[3][0])
+        events = _ns2_events(scheduled, heading)
+    else:
+        events = _ns3_events(scheduled, heading, now)
+        initial = now
 
-    def schedule(t: float, i: int, kind: str, xy: Any) -> int:
-        events.append([t, len(events), i, kind, float(xy[0]), float(xy[1]), False])
-        return len(events) - 1
+    warn = lambda text: warnings.warn(f"{path}: {text}", stacklevel=3)  # noqa: E731
+    lacking = [i for i in range(n) if not {"X_", "Y_"} <= given.get(i, set())]
+    if lacking:
+        more = f" and {len(lacking) - 10} more" if len(lacking) > 10 else ""
+        warn(
+            f"node(s) {lacking[:10]}{more} have no initial X_ or Y_: they start at 0 on that axis,"
+            " as in ns-2 and ns-3's Ns2MobilityHelper"
+        )
+    if late:
+        lines_late = [ln for ln, _i in late]
+        nodes = sorted({i for _ln, i in late})
+        how = (
+            "applied in time order, as ns-2's scheduler does"
+            if as_ns2
+            else "read in file order, as ns-3's Ns2MobilityHelper reads them (mobility.ns2_semantics = 'ns3'): "
+            "a setdest read after a later one cancels that one's stop"
+        )
+        warn(
+            f"line(s) {_lines_named(lines_late)} (node(s) {nodes[:10]}) are earlier than a line before "
+            f"them for the same node: {how}"
+        )
+    if skipped:
+        skipped.sort()
+        warn(
+            f"{len(skipped)} movement line(s) not understood (a word missing or extra, a time or number "
+            f"that is not one, a negative speed) are skipped: line(s) {_lines_named(skipped)}"
+        )
+    live = sorted((e for e in events if not e[6]), key=lambda e: (e[0], e[1]))
+    frame = pd.DataFrame(
+        [(e[0], e[2], e[3], e[4], e[5], e[7]) for e in live],
+        columns=["t_s", "robot", "kind", "x_m", "y_m", "line"],
+    ).astype({"t_s": float, "robot": np.int64, "x_m": float, "y_m": float, "line": np.int64})
+    return Scenario(initial, frame)
 
-    for kind, _lineno, i, vals in parsed:
-        if kind == "init":
+
+def _understood(w: list[str], lineno: int, parsed: list, node: Any, finite: Any, as_ns2: bool) -> bool:
+    """Add the line of words ``w`` to ``parsed`` if it is one of the three shapes (module
+    notes); whether it was."""
+    if len(w) == 4:
+        nid = _node_id(w[0])
+        value = _strtod(w[3])
+        if nid is not None and w[1] == "set" and w[2] in _COORDS and value is not None:
+            parsed.append(("init", lineno, node(nid, lineno), (w[2], finite(value, lineno, w[2]))))
+            return True
+        return False
+    if len(w) not in (7, 8) or w[0] != "$ns_" or w[1] != "at":
+        return False
+    nid = _node_id(w[3])
+    t = _strtod(w[2])
+    if nid is None or t is None or t < 0:
+        return False
+    t = finite(t, lineno, "time")
+    if len(w) == 8 and w[4] == "setdest":
+        xs = [_strtod(v) for v in w[5:8]]
+        if None in xs:
+            return False
+        vals = tuple(finite(v, lineno, k) for v, k in zip(xs, ("X", "Y", "speed")))  # type: ignore[arg-type]
+        parsed.append(("setdest", lineno, node(nid, lineno), (t, *vals)))
+        return True
+    if len(w) == 7 and w[4] == "set" and w[5] in _COORDS:
+        value = _strtod(w[6])
+        if value is None and as_ns2:
+            return False
+        # ns-3 does not check the value: one that is not a number counts as 0.
+        parsed.append(("set", lineno, node(nid, lineno), (t, w[5], finite(value or 0.0, lineno, w[5]))))
+        return True
+    return False
+
+
+def _out_of_order(scheduled: list) -> list[tuple[int, int]]:
+    """``(line, node)`` of each scheduled line whose time is earlier than one before it in
+    the file for the same node."""
+    latest: dict[int, float] = {}
+    late = []
+    for _kind, lineno, i, vals in scheduled:
+        if vals[0] < latest.get(i, -math.inf):
+            late.append((lineno, i))
+        else:
+            latest[i] = vals[0]
+    return late
+
+
+def _where(h: _Heading, t: float) -> np.ndarray:
+    """Where a node on heading ``h`` is at ``t`` (not before its start)."""
+    return h.start + h.velocity * (t - h.travel_start_s) if h.arrival_s > t else h.final.copy()
+
+
+class _Events(list):
+    """``[t, seq, robot, kind, x, y, cancelled, line]`` rows."""
+
+    def add(self, t: float, i: int, kind: str, xy: Any, line: int) -> int:
+        self.append([t, len(self), i, kind, float(xy[0]), float(xy[1]), False, line])
+        return len(self) - 1
+
+
+def _ns2_events(scheduled: list, heading: dict[int, _Heading]) -> _Events:
+    """The events of the scheduled lines, taken in time order, as ns-2 applies them."""
+    events = _Events()
+    for kind, lineno, i, vals in scheduled:
+        h = heading.setdefault(i, _Heading())
+        t = vals[0]
+        if kind == "setdest" and vals[3] < 0:
             continue
+        if kind == "set" and vals[1] == "Z_":
+            continue
+        here = _where(h, t)
+        if h.arrival_s > t and h.stop_event >= 0:
+            events[h.stop_event][6] = True
+        new = _Heading(start=here.copy(), final=here.copy(), travel_start_s=t, arrival_s=t)
+        if kind == "set":
+            here[0 if vals[1] == "X_" else 1] = vals[2]
+            new.start, new.final = here.copy(), here.copy()
+            events.add(t, i, "position", here, lineno)
+        else:
+            _t, x, y, speed = vals
+            dist = math.hypot(x - here[0], y - here[1])
+            if speed == 0 or dist == 0:
+                events.add(t, i, "velocity", (0.0, 0.0), lineno)
+            else:
+                travel = dist / speed
+                v = np.array([(x - here[0]) / travel, (y - here[1]) / travel])
+                new.velocity = v
+                events.add(t, i, "velocity", v, lineno)
+                new.stop_event = events.add(t + travel, i, "stop", (0.0, 0.0), lineno)
+                new.final = here + v * travel
+                new.arrival_s = t + travel
+        heading[i] = new
+    return events
+
+
+def _ns3_events(scheduled: list, heading: dict[int, _Heading], now: np.ndarray) -> _Events:
+    """The events of the scheduled lines, read in file order as ns-3's helper reads them;
+    ``now`` (where each node is as the file is read) is moved by each ``set``."""
+    events = _Events()
+    for kind, lineno, i, vals in scheduled:
         h = heading.setdefault(i, _Heading())
         if kind == "setdest":
             t, x, y, speed = vals
@@ -243,14 +382,14 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
                     events[h.stop_event][6] = True
             new = _Heading(start=h.final.copy(), final=h.final.copy(), travel_start_s=t, arrival_s=t)
             if speed == 0:
-                new.stop_event = schedule(t, i, "velocity", (0.0, 0.0))
+                new.stop_event = events.add(t, i, "velocity", (0.0, 0.0), lineno)
             elif speed > 0:
                 travel = math.hypot(x - new.final[0], y - new.final[1]) / speed
                 if travel > 0:
                     v = np.array([(x - new.final[0]) / travel, (y - new.final[1]) / travel])
                     new.velocity = v
-                    schedule(t, i, "velocity", v)
-                    new.stop_event = schedule(t + travel, i, "stop", (0.0, 0.0))
+                    events.add(t, i, "velocity", v, lineno)
+                    new.stop_event = events.add(t + travel, i, "stop", (0.0, 0.0), lineno)
                     new.final = new.final + v * travel
                     new.arrival_s = t + travel
             heading[i] = new
@@ -259,24 +398,11 @@ def read(path: str | Path, n_robots: int | None = None) -> Scenario:
             if coord != "Z_":
                 now[i, 0 if coord == "X_" else 1] = value
             h.final = now[i].copy()
-            schedule(t, i, "position", now[i])
+            events.add(t, i, "position", now[i], lineno)
             if h.arrival_s > t and h.stop_event >= 0:
                 events[h.stop_event][6] = True
             h.arrival_s = h.travel_start_s = t
-
-    lacking = [i for i in range(n) if not {"X_", "Y_"} <= given.get(i, set())]
-    if lacking:
-        more = f" and {len(lacking) - 10} more" if len(lacking) > 10 else ""
-        warnings.warn(
-            f"{path}: node(s) {lacking[:10]}{more} have no initial X_ or Y_: they start at 0 on that axis,"
-            " as in ns-3's Ns2MobilityHelper",
-            stacklevel=2,
-        )
-    live = sorted((e for e in events if not e[6]), key=lambda e: (e[0], e[1]))
-    frame = pd.DataFrame(
-        [(e[0], e[2], e[3], e[4], e[5]) for e in live], columns=["t_s", "robot", "kind", "x_m", "y_m"]
-    ).astype({"t_s": float, "robot": np.int64, "x_m": float, "y_m": float})
-    return Scenario(now, frame)
+    return events
 
 
 def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float, header: str = "") -> None:

@@ -152,6 +152,13 @@ def build(config: Config, run: int = 0) -> Simulation:
     the mobility model, the protocol, then the controllers (module notes)."""
     sim = simulation(config, run)
     parts = sim.parts
+    # The models' motion is checked (a bare core's scripted robots go where a test sends them).
+    walls = None
+    if parts.occupancy is not None:
+        from netsim.radio.free_space import Walls
+
+        walls = Walls(parts.occupancy)
+    sim.state.check_motion(walls)
     mobility = _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
     sim.driver = mobility if isinstance(mobility, Driver) else None
     protocol = _build_model(sim, "protocol", config.protocol.plugin, config.protocol.params, parts)

@@ -178,6 +178,7 @@ class Simulation:
             # for a short advance (a co-simulation's step) is most of its cost.
             if until > start:
                 self.env.run(until=until)
+            self.state.check_until(self.env.now)
             return
         with progress_bar(
             round(until - start, 6),
@@ -193,3 +194,4 @@ class Simulation:
                     before = self.env.now
                     self.env.run(until=t)
                     bar.update(self.env.now - before)
+        self.state.check_until(self.env.now)

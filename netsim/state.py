@@ -8,16 +8,25 @@ leg is logged with its cause (:data:`CAUSES`), which is what exact link events a
 export are computed from. Every change of a robot's leg is also told to the run's
 ``watchers`` (the runtime link solver) and, as a ``course_change`` event, to the
 subscribers of the run's event bus.
+
+A run's state checks the motion (:meth:`RobotState.check_motion`): every leg a robot ends,
+every jump and, at the end of the run, every leg it is on must stay in the area and, on a
+map, off the walls, whichever model moved it. The check sits where legs change, so it
+covers every mobility model, controller and trace without their own code; as the area is
+convex, a straight leg stays inside when its two ends do, so it costs two comparisons per
+leg (and one traversal of the grid per leg on a map).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from netsim.area import Bounds
+from netsim.errors import NetsimInputError
 from netsim.events import CourseChange, EventBus
 
 # Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
@@ -26,6 +35,12 @@ from netsim.events import CourseChange, EventBus
 # ``setdest``, a jump (a leg that starts away from where the robot was).
 CAUSES = ("start", "waypoint", "pause_end", "border", "turn", "command", "trace", "jump")
 LEG_COLUMNS = ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"]
+# How far past the border (a fraction of the area's size) a leg's end may round.
+BORDER_TOLERANCE = 1e-9
+
+
+class MotionError(NetsimInputError):
+    """A robot left the area or crossed a wall: the model or the trace that moved it is wrong."""
 
 
 class RobotState:
@@ -75,6 +90,13 @@ class RobotState:
         self.watchers: list[Callable[[int, float, bool], None]] = []
         # The run's event bus (netsim.events.EventBus), if any: course_change events.
         self.events: EventBus | None = None
+        # Off until check_motion: a scratch state (a test's, a format's) holds any position.
+        self.checked = False
+        self._tolerance_m = 0.0
+        self._walls: Any = None
+        # Where each robot's current leg comes from, for the message of a failed check
+        # (a trace's file and line), when the model that moves it says.
+        self.leg_notes: dict[int, str] = {}
 
     # -- positions -------------------------------------------------------------------
     def positions_at(self, t: float, idx: int | Sequence[int] | np.ndarray | None = None) -> np.ndarray:
@@ -155,9 +177,14 @@ class RobotState:
         """
         if start_m is None:
             start = self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i])
+            if self.checked:
+                self._check_end(i, t, start)
         else:
             start = np.asarray(start_m, dtype=float)
             self.jumps += 1
+            if self.checked:
+                self._check_end(i, t, self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i]))
+                self._check_jump(i, t, start)
         if cause is None:
             cause = "command" if start_m is None else "jump"
         vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
@@ -185,6 +212,8 @@ class RobotState:
         old = self.velocity_mps[idx]
         start = self.origin_m[idx] + old * dt[:, None]
         moving = (old[:, 0] != 0) | (old[:, 1] != 0)
+        if self.checked:
+            self._check_ends(idx, t, start)
         if moving.any():
             self.odometer_m[idx[moving]] += np.hypot(old[moving, 0], old[moving, 1]) * dt[moving]
         self.origin_m[idx] = start
@@ -234,6 +263,8 @@ class RobotState:
         ``log=False`` when the robot leaves again at the same instant: the stop would be
         a leg of zero length (the watchers are still told: the leg changed).
         """
+        if self.checked:
+            self._check_end(i, t, np.asarray(dest_m, dtype=float))
         self._log_travel(i, t)
         self.origin_m[i] = dest_m
         self.velocity_mps[i] = 0.0
@@ -241,6 +272,99 @@ class RobotState:
         if log:
             self._legs.append((float(t), int(i), float(dest_m[0]), float(dest_m[1]), 0.0, 0.0, cause))
         self._changed(i, t, False, cause if log else None)
+
+    # -- the area and the walls -------------------------------------------------------
+    def check_motion(self, walls: Any = None) -> None:
+        """From now on, refuse motion that leaves the area (``bounds``) or, with ``walls``
+        (a map's, :class:`netsim.radio.free_space.Walls`), enters a cell that is not free:
+        :class:`MotionError` naming the robot and the time. Not on a torus, where every
+        position is inside."""
+        self.checked = not self.torus
+        b = self.bounds
+        self._tolerance_m = BORDER_TOLERANCE * max(1.0, b.width, b.height)
+        self._walls = walls
+
+    def check_until(self, t: float) -> None:
+        """The legs robots are on, up to ``t`` (the end of a run): :meth:`check_motion`'s
+        rule for motion that no leg change has ended yet."""
+        if not self.checked:
+            return
+        self._check_ends(np.arange(self.n), t, self.positions_at(t))
+
+    def _inside(self, x: float, y: float) -> bool:
+        b, tol = self.bounds, self._tolerance_m
+        return b.x_min - tol <= x <= b.x_max + tol and b.y_min - tol <= y <= b.y_max + tol
+
+    def _check_end(self, i: int, t: float, end: np.ndarray) -> None:
+        """Robot ``i``'s current leg, ending at ``end`` at ``t``, stays in the area and
+        (on a map) in free cells: as the area is convex, its ends tell."""
+        if not self._inside(float(end[0]), float(end[1])):
+            self._refuse_leg(i, t, end, "leaves the area")
+        if self._walls is not None and (self.velocity_mps[i, 0] != 0 or self.velocity_mps[i, 1] != 0):
+            if not self._walls.legs_free(self.origin_m[i : i + 1], end[None])[0]:
+                self._refuse_leg(i, t, end, "crosses a wall of the map")
+
+    def _check_ends(self, idx: np.ndarray, t: float, ends: np.ndarray) -> None:
+        """:meth:`_check_end` for robots ``idx`` at once."""
+        b, tol = self.bounds, self._tolerance_m
+        x, y = ends[:, 0], ends[:, 1]
+        out = ~((x >= b.x_min - tol) & (x <= b.x_max + tol) & (y >= b.y_min - tol) & (y <= b.y_max + tol))
+        if out.any():
+            k = int(np.flatnonzero(out)[0])
+            self._refuse_leg(int(idx[k]), t, ends[k], "leaves the area")
+        if self._walls is not None:
+            v = self.velocity_mps[idx]
+            moving = np.flatnonzero((v[:, 0] != 0) | (v[:, 1] != 0))
+            if len(moving):
+                free = self._walls.legs_free(self.origin_m[idx[moving]], ends[moving])
+                if not free.all():
+                    k = int(moving[np.flatnonzero(~free)[0]])
+                    self._refuse_leg(int(idx[k]), t, ends[k], "crosses a wall of the map")
+
+    def _check_jump(self, i: int, t: float, to: np.ndarray) -> None:
+        """A jump lands in the area and (on a map) in a free cell."""
+        where = f"({float(to[0]):g}, {float(to[1]):g})"
+        if not self._inside(float(to[0]), float(to[1])):
+            raise MotionError(
+                f"robot {i} jumps out of the area{self._area()} at t = {t:.9g} s, to {where}{self._note(i)}"
+            )
+        if self._walls is not None and not bool(self._walls.is_free(np.asarray(to, dtype=float)[None])[0]):
+            raise MotionError(f"robot {i} jumps into a wall of the map at t = {t:.9g} s, to {where}{self._note(i)}")
+
+    def _refuse_leg(self, i: int, t: float, end: np.ndarray, what: str) -> None:
+        """Raise :class:`MotionError` for robot ``i``'s leg, naming when it leaves."""
+        start, t0 = self.origin_m[i].copy(), float(self.t0_s[i])
+        if what == "leaves the area":
+            frac = self._exit_fraction(start, np.asarray(end, dtype=float))
+            where = self._area()
+        else:
+            f = float(self._walls.first_blocked(start[None], np.asarray(end, dtype=float)[None])[0])
+            frac, where = (min(f, 1.0) if np.isfinite(f) else 1.0), ""
+        t_out = t0 + frac * (t - t0)
+        p = start + frac * (np.asarray(end, dtype=float) - start)
+        raise MotionError(f"robot {i} {what}{where} at t = {t_out:.9g} s, at ({p[0]:g}, {p[1]:g}){self._note(i)}")
+
+    def _exit_fraction(self, start: np.ndarray, end: np.ndarray) -> float:
+        """The fraction of the leg ``start -> end`` at which it leaves the area."""
+        b, tol = self.bounds, self._tolerance_m
+        frac = 1.0
+        for axis, (lo, hi) in enumerate(((b.x_min, b.x_max), (b.y_min, b.y_max))):
+            a, e = float(start[axis]), float(end[axis])
+            if (e > hi + tol or e < lo - tol) and e == a:
+                return 0.0  # the leg is outside from its start
+            if e > hi + tol:
+                frac = min(frac, (hi - a) / (e - a))
+            elif e < lo - tol:
+                frac = min(frac, (lo - a) / (e - a))
+        return max(frac, 0.0)
+
+    def _area(self) -> str:
+        b = self.bounds
+        return f" [{b.x_min:g}, {b.x_max:g}] x [{b.y_min:g}, {b.y_max:g}]"
+
+    def _note(self, i: int) -> str:
+        note = self.leg_notes.get(i)
+        return f" ({note})" if note else ""
 
     # -- log -------------------------------------------------------------------------
     def legs(self) -> pd.DataFrame:

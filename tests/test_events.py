@@ -500,7 +500,7 @@ def test_link_breaks_hook_counts_breaks_per_robot_per_minute():
         ],
     )
     sim = build(config)
-    sim.state.place([[0, 0], [30, 0], [0, 100]])
+    sim.state.place([[200, 200], [230, 200], [200, 300]])
     # Robot 1 passes robot 0: up at 20, down at 40 (minute 0). Robot 2 passes robot 0
     # twice: up at 90, down at 110 (minute 1), turns back at 115: up at 120, down at 140
     # (minute 2).

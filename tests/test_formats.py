@@ -258,3 +258,49 @@ def test_waypoints_from_legs_reproduce_the_legs(run_dir):
     wp = waypoints.from_legs(legs, 8, 40.0)
     for t in (0.0, 3.3, 17.25, 40.0):
         assert np.allclose(wp.positions_at(t), _positions(legs, t, 8), atol=1e-9)
+
+
+def test_a_guessed_format_is_named_in_the_error(tmp_path, capsys):
+    """A BonnMotion file not named .movements is read as ns-2 by guess: its error says the
+    format was guessed and names mobility.trace_format."""
+    path = tmp_path / "scenario.txt"
+    path.write_text("0 10 10 5 20 10\n")
+    code = main(
+        ["run", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={path}"]
+        + ["--set", "world.n_robots=1", "--out", str(tmp_path / "out"), "--no-progress"]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "no ns-2 movement line" in err[0] and "guessed" in err[0] and "mobility.trace_format" in err[0]
+    assert (
+        main(
+            ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={path}"]
+            + ["--set", "mobility.trace_format=bonnmotion", "--set", "world.n_robots=1", "--set", "duration_s=5"]
+            + ["--out", str(tmp_path / "out2")]
+        )
+        == 0
+    )
+
+
+def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys):
+    """A BonnMotion export of a 40 s run replayed for 60 s: one warning line naming the
+    trace's end (its .params' duration) and duration_s; none for the run's own length."""
+    out = tmp_path / "r.movements.gz"
+    assert main(["export", str(run_dir), "--format", "bonnmotion", "--out", str(out)]) == 0
+    capsys.readouterr()
+    replay = [
+        "run",
+        "--quiet",
+        "--set",
+        "mobility.model=trace",
+        "--set",
+        f"mobility.trace_file={out}",
+        "--set",
+        "world.n_robots=8",
+    ]
+    assert main([*replay, "--set", "duration_s=60", "--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("netsim: warning: ")
+    assert "ends at 40 s (duration=40.0 in r.params), before duration_s = 60" in err[0]
+    assert main([*replay, "--set", "duration_s=40", "--out", str(tmp_path / "b")]) == 0
+    assert capsys.readouterr().err == ""

@@ -5,7 +5,7 @@ import pytest
 
 from netsim import ns2
 from netsim.errors import NetsimInputError
-from netsim.run import build
+from netsim.run import build, execute
 from netsim.tools.cli import main
 from netsim.trajectory import sample_positions
 from tests.fixtures import make_config
@@ -221,3 +221,128 @@ def test_a_file_of_starting_positions_only_gives_robots_that_stand_still(tmp_pat
     sim.run()
     pos = sample_positions(sim.state.legs(), 2, [0.0, 7.5, 19.9])[["x_m", "y_m"]].to_numpy().reshape(3, 2, 2)
     assert (pos == [[10.0, 20.0], [30.5, 40.0]]).all()
+
+
+# -- ns-2's meaning of a file, and ns-3's as an option -------------------------------------------
+JUMPS = """\
+$node_(0) set X_ 100.0
+$node_(0) set Y_ 450.0
+$node_(1) set X_ 150.0
+$node_(1) set Y_ 450.0
+$node_(2) set X_ 125.0
+$node_(2) set Y_ 50.0
+$node_(3) set X_ 140.0
+$node_(3) set Y_ 440.0
+$ns_ at 21.25 "$node_(2) set Y_ 450.0"
+$ns_ at 40.5 "$node_(3) set X_ 900.0"
+"""
+
+
+def _links_of(tmp_path, text, **mobility):
+    f = tmp_path / "jumps.tcl"
+    f.write_text(text)
+    cfg = make_config(
+        duration_s=60.0,
+        world={"n_robots": 4, "side_m": 1000.0},
+        channel={"range_m": 100.0},
+        mobility={"model": "trace", "trace_file": str(f), **mobility},
+        protocol={"model": "none"},
+    )
+    links = execute(cfg).frames["links"]
+    return {(int(a), int(b)): (float(u), float(d)) for a, b, u, d in links[["a", "b", "t_up_s", "t_down_s"]].to_numpy()}
+
+
+def test_a_scheduled_set_moves_the_robot_at_its_time_and_its_links_change_then(tmp_path):
+    """ns-2's meaning (the default): `$ns_ at T "$node_(i) set Y_ y"` leaves the robot where
+    its initial lines put it until T, then it jumps: its links open and close at T exactly."""
+    got = _links_of(tmp_path, JUMPS)
+    assert got == {
+        (0, 1): (0.0, 60.0),
+        (0, 2): (21.25, 60.0),
+        (1, 2): (21.25, 60.0),
+        (0, 3): (0.0, 40.5),
+        (1, 3): (0.0, 40.5),
+        (2, 3): (21.25, 40.5),
+    }
+
+
+def test_ns3_semantics_place_a_scheduled_set_from_the_start(tmp_path):
+    """mobility.ns2_semantics = "ns3" reads the file as ns-3's Ns2MobilityHelper does: a
+    scheduled set moves the robot when the file is read (from t = 0), and again at T."""
+    got = _links_of(tmp_path, JUMPS, ns2_semantics="ns3")
+    assert got == {(0, 1): (0.0, 60.0), (0, 2): (0.0, 60.0), (1, 2): (0.0, 60.0)}
+
+
+def test_a_bad_ns2_semantics_is_one_line_exit_2(tmp_path, capsys):
+    f = tmp_path / "s.tcl"
+    f.write_text(SETDEST_SAMPLE)
+    code = main(
+        ["run", "--quiet", "--out", str(tmp_path / "o"), "--set", "mobility.model=trace"]
+        + ["--set", f"mobility.trace_file={f}", "--set", "world.n_robots=2", "--set", "mobility.ns2_semantics=ns4"]
+    )
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1
+    assert err[0].startswith("netsim: error: mobility.ns2_semantics = 'ns4'") and "'ns2', 'ns3'" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+OUT_OF_ORDER = """\
+$node_(0) set X_ 100.0
+$node_(0) set Y_ 100.0
+$ns_ at 10.0 "$node_(0) setdest 900.0 200.0 4.0"
+$ns_ at 5.0 "$node_(0) setdest 500.0 900.0 0.0"
+"""
+
+
+def test_lines_out_of_time_order_are_named_in_a_warning_and_applied_in_time_order(tmp_path):
+    """A node's line earlier than one before it is named in one warning; ns-2 applies the
+    lines in time order, so the robot stops at its setdest's destination and stays in the area."""
+    f = tmp_path / "late.tcl"
+    f.write_text(OUT_OF_ORDER)
+    with pytest.warns(UserWarning, match=r"line\(s\) 4 \(node\(s\) \[0\]\) are earlier .* time order") as caught:
+        scen = ns2.read(f)
+    assert len(caught) == 1
+    cfg = make_config(
+        duration_s=300.0,
+        world={"n_robots": 1, "side_m": 1000.0},
+        mobility={"model": "trace", "trace_file": str(f)},
+        protocol={"model": "none"},
+    )
+    with pytest.warns(UserWarning):
+        sim = build(cfg)
+    sim.run()
+    pos = sample_positions(sim.state.legs(), 1, [7.0, 299.0])[["x_m", "y_m"]].to_numpy()
+    assert pos.tolist() == [[100.0, 100.0], pytest.approx([900.0, 200.0])]
+    assert scen.events.kind.tolist() == ["velocity", "velocity", "stop"]
+
+
+def test_a_robot_that_leaves_the_area_is_one_line_naming_it_the_time_and_the_line(tmp_path, capsys):
+    """Read as ns-3 reads it, the out-of-order file never stops the robot: the replayed
+    motion leaves the area, which is refused before the run (robot, time, file line)."""
+    f = tmp_path / "late.tcl"
+    f.write_text(OUT_OF_ORDER)
+    code = main(
+        ["run", "--quiet", "--out", str(tmp_path / "o"), "--set", "mobility.model=trace", "--set", "world.n_robots=1"]
+        + ["--set", f"mobility.trace_file={f}", "--set", "mobility.ns2_semantics=ns3"]
+    )
+    err = [line for line in capsys.readouterr().err.splitlines() if "warning" not in line]
+    assert code == 2 and len(err) == 1
+    assert err[0].startswith("netsim: error: mobility.trace_file: robot 0 leaves the area")
+    # It leaves (100, 100) at 10 s toward (900, 200) at 4 m/s: x = 1000 at 10 + 900 / (4 cos a).
+    t_out = 10.0 + 900.0 / (4.0 * 800.0 / np.hypot(800.0, 100.0))
+    assert f"at t = {t_out:.9g} s" in err[0] and f"{f}:3" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_skipped_lines_are_counted_in_one_warning(tmp_path):
+    """Movement lines that are not understood (a truncated last line, a negative speed) are
+    skipped, and one warning counts them and names the first lines."""
+    f = tmp_path / "cut.tcl"
+    f.write_text(
+        "$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\n$god_ set-dist 0 1 2\n"
+        '$ns_ at 1.0 "$node_(0) setdest 5.0 5.0 -2.0"\n$ns_ at 2.0 "$node_(0) setdest 5.0 5.0 1.0"\n'
+        '$ns_ at 9.0 "$node_(0) setdest 5'
+    )
+    with pytest.warns(UserWarning, match=r"2 movement line\(s\) not understood .* line\(s\) 4, 6$") as caught:
+        ns2.read(f)
+    assert len(caught) == 1

@@ -1,4 +1,5 @@
-"""ns-2 movement files replay to the positions ns-3's Ns2MobilityHelper gives them.
+"""ns-2 movement files replay to the positions ns-3's Ns2MobilityHelper gives them, when
+read as ns-3 reads them (``mobility.ns2_semantics = "ns3"``).
 
 The reference positions (``tests/data/ns2/ns3_positions.json``) were made by ns-3 itself
 (the ns-3.44 wheel) with ``tests/data/ns2/ns3_positions.py`` from the files beside it:
@@ -24,6 +25,7 @@ REFERENCE = json.loads((DATA / "ns3_positions.json").read_text())
 
 @pytest.mark.parametrize("name", sorted(REFERENCE))
 def test_ns2_file_replays_to_ns3s_positions(name):
+    """With ns2_semantics = "ns3", every position is ns-3's, to 1e-6 m."""
     ref = REFERENCE[name]
     times = np.array(ref["times"], dtype=float)
     expected = np.array(ref["positions"])
@@ -32,7 +34,7 @@ def test_ns2_file_replays_to_ns3s_positions(name):
         make_config(
             duration_s=float(times.max()) + 1.0,
             world={"n_robots": n, "side_m": 1000.0},
-            mobility={"model": "trace", "trace_file": str(DATA / name)},
+            mobility={"model": "trace", "trace_file": str(DATA / name), "ns2_semantics": "ns3"},
             protocol={"model": "none"},
         )
     )

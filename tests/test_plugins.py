@@ -118,3 +118,26 @@ def test_a_plugin_module_that_fails_to_import_is_one_line_naming_file_and_line(
     assert err.count("\n") == 1 and err.startswith("netsim: error: mobility.model = "), err
     assert f"{path}, line {line}: {kind}" in err, err
     assert not out.exists()
+
+
+def test_the_docs_moving_model_runs_as_shown(tmp_path, monkeypatch):
+    """docs/plugins.md's model that moves robots (set_leg, arrive), as the page shows it:
+    each robot walks its own line between the turning points, at the speed set."""
+    from netsim import load
+    from netsim.run import execute
+
+    (tmp_path / "patrol.py").write_text(_doc_block("# patrol.py"))
+    shown = "netsim run --set mobility.model=patrol:PATROL --set mobility.speed_mps=3"
+    assert shown in PLUGINS_DOC
+    monkeypatch.syspath_prepend(str(tmp_path))
+    sets = [a.split("=", 1)[0] + "=" + a.split("=", 1)[1] for a in shlex.split(shown)[3::2]]
+    config = load(None, [*sets, "world.n_robots=4", "duration_s=400", "protocol.model=none"])
+    frames = execute(config).frames
+    legs = frames["legs"]
+    assert set(legs["cause"]) == {"start", "command", "waypoint"}
+    moving = legs[legs["cause"] == "command"]
+    assert (abs(moving["vx_mps"]) == 3.0).all() and (moving["vy_mps"] == 0.0).all()
+    pos = frames["positions"]
+    assert pos["x_m"].between(50.0, 950.0).all() and pos["x_m"].max() > 940.0
+    lines = pos.groupby("robot")["y_m"].agg(["min", "max"])
+    assert (lines["min"] == lines["max"]).all() and lines["min"].tolist() == [125.0, 375.0, 625.0, 875.0]

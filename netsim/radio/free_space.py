@@ -105,6 +105,24 @@ def legs_free(m: OccupancyMap, starts, ends) -> np.ndarray:
     return line_of_sight(m, starts, ends, blocked=m.not_free)
 
 
+@dataclass(frozen=True)
+class Walls:
+    """A map's walls as the robot state's motion check asks about them
+    (:meth:`netsim.state.RobotState.check_motion`)."""
+
+    map: OccupancyMap
+
+    def legs_free(self, starts, ends) -> np.ndarray:
+        return legs_free(self.map, starts, ends)
+
+    def first_blocked(self, starts, ends) -> np.ndarray:
+        """The fraction of each leg at which it first enters a cell that is not free."""
+        return first_blocked(self.map, starts, ends, blocked=self.map.not_free)
+
+    def is_free(self, points_m) -> np.ndarray:
+        return self.map.is_free(points_m)
+
+
 def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6) -> np.ndarray:
     """Fraction ``f`` in ``[0, 1]`` of each leg that a robot can travel in free cells: 1 when
     the whole leg is free, else it stops ``margin_m`` short of the first cell that is not free
