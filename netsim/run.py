@@ -229,8 +229,12 @@ def position_times(interval_s: float, duration_s: float) -> np.ndarray:
 
 
 def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None = None) -> dict[str, pd.DataFrame]:
-    """Every output table of a finished run; each is also passed to ``emit(name, table)``
-    as soon as it is made (a writer starts on it while the next is made)."""
+    """Every output table of the run so far; each is also passed to ``emit(name, table)``
+    as soon as it is made (a writer starts on it while the next is made).
+
+    The tables end at ``sim.now``, whether or not the run has reached ``duration_s``:
+    positions are sampled up to now, links still up are censored at now, as the end of a
+    finished run censors them (docs/python.md)."""
     frames: dict[str, pd.DataFrame] = {}
 
     def add(name: str, frame: pd.DataFrame) -> None:
@@ -247,7 +251,7 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     side, torus = sim.state.side_m, sim.state.torus
     for name in sim.trace.names():
         add(name, sim.trace.frame(name))
-    times = position_times(sim.parts.output.position_interval_s, sim.duration_s)
+    times = position_times(sim.parts.output.position_interval_s, sim.env.now)
     add("positions", sample_positions(legs, sim.state.n, times, side, torus))
     reception = sim.channel.reception
     if sim.links is not None:
