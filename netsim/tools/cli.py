@@ -56,9 +56,17 @@ def _format_value(v) -> str:
     return str(v)
 
 
+# Keys of the summary printed with what they are (summary.json keeps the keys alone).
+SUMMARY_LABELS = {
+    "link_duration_km_mean_s": "link_duration_km_mean_s (Kaplan-Meier)",
+    "mean_link_duration_s": "mean_link_duration_s (complete links only)",
+}
+
+
 def summary_table(summary: dict) -> str:
-    width = max(len(k) for k in summary)
-    return "\n".join(f"  {k:<{width}}  {_format_value(v)}" for k, v in summary.items())
+    labels = {k: SUMMARY_LABELS.get(k, k) for k in summary}
+    width = max(len(label) for label in labels.values())
+    return "\n".join(f"  {labels[k]:<{width}}  {_format_value(v)}" for k, v in summary.items())
 
 
 def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None:
