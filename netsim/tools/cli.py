@@ -42,6 +42,7 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim import ns2
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.tools.command import EXIT_INTERRUPTED, INTERRUPTED_LINE, interrupted
 
 EXIT_INPUT = 2
 
@@ -406,9 +407,11 @@ def main(argv=None) -> int:
     except NetsimInputError as exc:
         print(f"netsim: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
-    except KeyboardInterrupt:
-        print("netsim: interrupted; nothing written", file=sys.stderr)
-        return 130
+    except BaseException as exc:  # Ctrl-C, or what a compiled call made of it (netsim.tools.command)
+        if not interrupted(exc):
+            raise
+        print(INTERRUPTED_LINE, file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 # Whether this process is the command's own (command()): only then is the collector's state changed.
