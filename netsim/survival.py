@@ -14,6 +14,7 @@ import math
 from statistics import NormalDist
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 
@@ -34,7 +35,7 @@ def link_durations(links: pd.DataFrame) -> pd.DataFrame:
     )
 
 
-def kaplan_meier(durations, observed, level: float = 0.95) -> pd.DataFrame:
+def kaplan_meier(durations: npt.ArrayLike, observed: npt.ArrayLike, level: float = 0.95) -> pd.DataFrame:
     """Kaplan-Meier survival curve: ``t_s, at_risk, events, survival, ci_low, ci_high``.
 
     One row per distinct time with an observed end; the confidence band is pointwise,
@@ -75,7 +76,13 @@ def kaplan_meier(durations, observed, level: float = 0.95) -> pd.DataFrame:
     )
 
 
-def restricted_mean(km: pd.DataFrame, durations, observed, horizon_s: float | None = None, level: float = 0.95):
+def restricted_mean(
+    km: pd.DataFrame,
+    durations: npt.ArrayLike,
+    observed: npt.ArrayLike,
+    horizon_s: float | None = None,
+    level: float = 0.95,
+) -> tuple[float, float, float]:
     """Mean lifetime restricted to ``horizon_s`` (default: the longest duration), the area
     under the survival curve, with its confidence interval (Klein and Moeschberger).
 
@@ -102,11 +109,11 @@ def restricted_mean(km: pd.DataFrame, durations, observed, horizon_s: float | No
     return mean, mean - half, mean + half
 
 
-def median(km: pd.DataFrame):
+def median(km: pd.DataFrame) -> tuple[float, float, float]:
     """Median lifetime and its confidence interval, where the survival curve and its band
     cross one half (NaN where they never do)."""
 
-    def first_below(col):
+    def first_below(col: str) -> float:
         hit = km.loc[km[col] <= 0.5, "t_s"]
         return float(hit.iloc[0]) if len(hit) else float("nan")
 
