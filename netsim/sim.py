@@ -24,6 +24,12 @@ if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live gra
     from netsim.live import LiveTopology
 
 
+def _seconds(t: float) -> str:
+    """``t`` short (``60``, not ``60.0``) where that is exact, else in full."""
+    short = f"{t:g}"
+    return short if float(short) == t else repr(t)
+
+
 class Simulation:
     """One run: ``env`` (SimPy), ``state`` (robots), ``channel``, ``trace``, ``streams``,
     ``events`` (the bus: ``sim.events.on("link_down", fn)``, docs/events.md).
@@ -173,11 +179,12 @@ class Simulation:
             raise CommandError(f"until_s = {until_s!r}: must be a time in seconds, not NaN")
         if until > self.duration_s:
             raise CommandError(
-                f"until_s = {until:g} is after the run's end (duration_s = {self.duration_s:g}): "
+                f"until_s = {_seconds(until)} is after the run's end (duration_s = {_seconds(self.duration_s)}): "
                 "set duration_s to run longer"
             )
         if until < self.env.now:
-            raise CommandError(f"until_s = {until:g} is before now ({self.env.now:g} s): a run only goes forward")
+            now = _seconds(self.env.now)
+            raise CommandError(f"until_s = {_seconds(until)} is before now ({now} s): a run only goes forward")
         return until
 
     def run(self, until_s: float | None = None, progress: bool = False, steps: int = 200) -> None:

@@ -66,8 +66,8 @@ def _sim(duration_s: float = 60.0):
     return build(make_config(duration_s=duration_s, **CONFIG))
 
 
-@pytest.mark.parametrize("until", [120.0, math.inf, 60.000001])
-def test_run_beyond_the_end_is_refused(until):
+@pytest.mark.parametrize("until, named", [(120.0, "120"), (math.inf, "inf"), (60.000001, "60.000001")])
+def test_run_beyond_the_end_is_refused(until, named):
     """``sim.run(until_s=...)`` later than ``duration_s`` raises a ValueError naming the
     value and the run's end, and the run has not moved."""
     sim = _sim()
@@ -75,6 +75,7 @@ def test_run_beyond_the_end_is_refused(until):
         sim.run(until_s=until)
     assert isinstance(info.value, CommandError)
     assert "\n" not in str(info.value)
+    assert str(info.value).startswith(f"until_s = {named} is after")
     assert sim.now == 0.0
 
 
