@@ -10,7 +10,7 @@ as it goes (``events.runtime_links = "auto"``).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 import pandas as pd
@@ -26,9 +26,11 @@ SCHEMA = {"minute": "int64", "t_s": "float64", "robot": "int64", "breaks": "int6
 class LinkBreaks:
     """Counts of link breaks by robot and minute."""
 
-    def __init__(self, n: int, duration_s: float):
+    def __init__(self, n: int, duration_s: float, clock: Callable[[], float] | None = None):
         self.minutes = max(1, math.ceil(duration_s / MINUTE_S))
         self.counts = np.zeros((self.minutes, n), dtype=np.int64)
+        # The run's clock: the table ends at the minute of now (collected before the end).
+        self.clock = clock
 
     def on_link_down(self, ev: LinkDown) -> None:
         m = min(int(ev.t_s // MINUTE_S), self.minutes - 1)
@@ -36,14 +38,17 @@ class LinkBreaks:
         self.counts[m, ev.b] += 1
 
     def frame(self) -> pd.DataFrame:
-        minutes, n = self.counts.shape
+        counts = self.counts
+        if self.clock is not None:
+            counts = counts[: max(1, math.ceil(self.clock() / MINUTE_S))]
+        minutes, n = counts.shape
         minute = np.repeat(np.arange(minutes, dtype=np.int64), n)
         return pd.DataFrame(
             {
                 "minute": minute,
                 "t_s": minute * MINUTE_S,
                 "robot": np.tile(np.arange(n, dtype=np.int64), minutes),
-                "breaks": self.counts.ravel(),
+                "breaks": counts.ravel(),
             }
         )
 
@@ -54,7 +59,8 @@ class LinkBreaks:
 
 
 def build(params: NoParams, parts: Parts) -> LinkBreaks:
-    hook = LinkBreaks(parts.state.n, parts.duration_s)
+    env = parts.env
+    hook = LinkBreaks(parts.state.n, parts.duration_s, lambda: env.now)
     parts.events.on("link_down", hook.on_link_down)
     parts.trace.add_frame("link_breaks", hook.frame)
     return hook

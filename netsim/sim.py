@@ -3,6 +3,7 @@ random streams, event bus) and a record of the models built on it."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
@@ -21,6 +22,12 @@ from netsim.progress import progress_bar
 
 if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live graph
     from netsim.live import LiveTopology
+
+
+def _seconds(t: float) -> str:
+    """``t`` short (``60``, not ``60.0``) where that is exact, else in full."""
+    short = f"{t:g}"
+    return short if float(short) == t else repr(t)
 
 
 class Simulation:
@@ -162,16 +169,38 @@ class Simulation:
         self.events.link_events_on = self.links is not None
         self.events.started = True
 
+    def _until(self, until_s: Any) -> float:
+        """``until_s`` as a float, checked against the run's clock and end."""
+        try:
+            until = float(until_s)
+        except (TypeError, ValueError):
+            raise CommandError(f"until_s = {until_s!r}: must be a time in seconds") from None
+        if math.isnan(until):
+            raise CommandError(f"until_s = {until_s!r}: must be a time in seconds, not NaN")
+        if until > self.duration_s:
+            raise CommandError(
+                f"until_s = {_seconds(until)} is after the run's end (duration_s = {_seconds(self.duration_s)}): "
+                "set duration_s to run longer"
+            )
+        if until < self.env.now:
+            now = _seconds(self.env.now)
+            raise CommandError(f"until_s = {_seconds(until)} is before now ({now} s): a run only goes forward")
+        return until
+
     def run(self, until_s: float | None = None, progress: bool = False, steps: int = 200) -> None:
         """Advance to ``until_s`` (default: the configured duration).
 
         Events due exactly at ``until_s`` are not processed (SimPy's convention); every
         output is computed for the interval ``[0, until_s]`` from exact trajectories. With
         ``progress``, the advance is made in ``steps`` parts, each reported.
+
+        ``until_s`` must lie in ``[now, duration_s]``: anything else (later than the run's
+        end, earlier than now, NaN) raises :class:`~netsim.cosim.CommandError` (a
+        ``ValueError``) naming it, and the run is left as it was.
         """
+        until = self.duration_s if until_s is None else self._until(until_s)
         if not self.events.started:
             self._begin()
-        until = self.duration_s if until_s is None else float(until_s)
         start = self.env.now
         if not progress:
             # In one call: the kernel's run costs a stop event and a return per call, which

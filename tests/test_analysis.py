@@ -61,3 +61,49 @@ def test_link_durations_skip_links_up_at_the_start():
     assert ld["duration_s"].tolist() == [5.0, 5.0] and ld["observed"].tolist() == [True, False]
     s = lifetime_summary(links)
     assert s["links"] == 2 and s["censored"] == 1
+
+
+def test_kaplan_meier_counts_at_risk_and_ends_at_every_time():
+    """At each ended lifetime t, ``at_risk`` counts the lifetimes at least t long (ended
+    or not) and ``events`` the ended ones equal to t: ties and censoring at t included."""
+    rng = np.random.default_rng(5)
+    d = rng.integers(1, 30, 400).astype(float)
+    e = rng.random(400) < 0.6
+    km = kaplan_meier(d, e)
+    for t, n, ev in km[["t_s", "at_risk", "events"]].to_numpy().tolist():
+        assert n == (d >= t).sum() and ev == ((d == t) & e).sum()
+
+
+@pytest.fixture(scope="module")
+def default_run():
+    from netsim.run import execute
+    from tests.fixtures import make_config
+
+    config = make_config(seed=1, duration_s=150.0, world={"n_robots": 30, "side_m": 600.0}, channel={"range_m": 100.0})
+    return execute(config)
+
+
+def test_summary_leads_with_the_kaplan_meier_mean_link_duration(default_run):
+    """The summary's first link duration is the Kaplan-Meier restricted mean of
+    ``lifetime_summary`` with its confidence interval (links up at the end counted), before
+    ``mean_link_duration_s``, the mean of the complete links alone (kept, and lower)."""
+    summary, links = default_run.summary, default_run.frames["links"]
+    km = lifetime_summary(links)
+    assert summary["link_duration_km_mean_s"] == km["mean_s"]
+    assert summary["link_duration_km_ci_low_s"] == km["mean_ci_low_s"]
+    assert summary["link_duration_km_ci_high_s"] == km["mean_ci_high_s"]
+    keys = list(summary)
+    assert keys.index("link_duration_km_mean_s") < keys.index("mean_link_duration_s")
+    done = links[~links["censored"]]
+    assert summary["mean_link_duration_s"] == (done["t_down_s"] - done["t_up_s"]).mean()
+    assert links["censored_end"].any() and summary["mean_link_duration_s"] < summary["link_duration_km_mean_s"]
+
+
+def test_printed_summary_names_the_complete_links_mean_for_what_it_is(default_run):
+    """The printed summary shows ``mean_link_duration_s`` as the mean of complete links
+    only, and the Kaplan-Meier mean as such; summary.json keeps the bare keys."""
+    from netsim.tools.cli import summary_table
+
+    lines = summary_table(default_run.summary).splitlines()
+    assert any(ln.split()[:4] == ["mean_link_duration_s", "(complete", "links", "only)"] for ln in lines)
+    assert any(ln.split()[:2] == ["link_duration_km_mean_s", "(Kaplan-Meier)"] for ln in lines)

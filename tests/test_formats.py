@@ -157,6 +157,30 @@ def test_rosbag2_export_holds_every_sampled_pose_and_reads_back(run_dir, tmp_pat
         assert np.array_equal(wp.positions_at(t), at), t
 
 
+def test_rosbag2_links_at_each_sample_are_the_links_up_then(run_dir, tmp_path):
+    """The bag's ``/links`` at each sampling instant t holds one segment per link up at t:
+    ``t_up_s <= t < t_down_s``, and at the last sample T the links still up at the end
+    (``censored_end``, ``t_down_s = T``)."""
+    out = tmp_path / "bag"
+    assert main(["export", str(run_dir), "--format", "rosbag2", "--out", str(out)]) == 0
+    from rosbags.rosbag2 import Reader
+
+    store = rosbag2._typestore()
+    segments = {}
+    with Reader(out) as reader:
+        conns = [c for c in reader.connections if c.topic == "/links"]
+        for conn, stamp, raw in reader.messages(connections=conns):
+            msg = store.deserialize_cdr(raw, conn.msgtype)
+            segments[stamp / 1e9] = len(msg.markers[0].points) // 2
+    links = pd.read_parquet(run_dir / "links.parquet")
+    end = float(pd.read_parquet(run_dir / "positions.parquet")["t_s"].max())
+    assert max(segments) == end
+    for t, got in segments.items():
+        up = (links.t_up_s <= t) & ((t < links.t_down_s) | (links.censored_end & (t <= links.t_down_s)))
+        assert got == int(up.sum()), t
+    assert segments[end] == int(links.censored_end.sum()) > 0
+
+
 def _bag(path: Path, tracks: dict[str, list[tuple[float, float, float]]], msgtype: str) -> None:
     from rosbags.rosbag2 import Writer
 

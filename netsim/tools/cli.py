@@ -42,6 +42,7 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim import ns2
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.tools.command import EXIT_INTERRUPTED, INTERRUPTED_LINE, interrupted
 
 EXIT_INPUT = 2
 
@@ -56,9 +57,17 @@ def _format_value(v) -> str:
     return str(v)
 
 
+# Keys of the summary printed with what they are (summary.json keeps the keys alone).
+SUMMARY_LABELS = {
+    "link_duration_km_mean_s": "link_duration_km_mean_s (Kaplan-Meier)",
+    "mean_link_duration_s": "mean_link_duration_s (complete links only)",
+}
+
+
 def summary_table(summary: dict) -> str:
-    width = max(len(k) for k in summary)
-    return "\n".join(f"  {k:<{width}}  {_format_value(v)}" for k, v in summary.items())
+    labels = {k: SUMMARY_LABELS.get(k, k) for k in summary}
+    width = max(len(label) for label in labels.values())
+    return "\n".join(f"  {labels[k]:<{width}}  {_format_value(v)}" for k, v in summary.items())
 
 
 def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None:
@@ -467,9 +476,11 @@ def main(argv=None) -> int:
     except NetsimInputError as exc:
         print(f"netsim: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
-    except KeyboardInterrupt:
-        print("netsim: interrupted; nothing written", file=sys.stderr)
-        return 130
+    except BaseException as exc:  # Ctrl-C, or what a compiled call made of it (netsim.tools.command)
+        if not interrupted(exc):
+            raise
+        print(INTERRUPTED_LINE, file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 # Whether this process is the command's own (command()): only then is the collector's state changed.

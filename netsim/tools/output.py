@@ -32,6 +32,7 @@ import tomli_w
 
 from netsim.config import Config, to_dict
 from netsim.errors import NetsimInputError
+from netsim.tools.command import interrupted
 
 # The distributions named in a manifest, with the module each installs.
 VERSIONED = {
@@ -269,6 +270,9 @@ class RunWriter:
         into place (module notes); the paths written."""
         for write in self._writes:
             write.result()  # a failed write raises here
+        if interrupted():
+            # Ctrl-C that a compiled call swallowed: the run is given up all the same.
+            raise KeyboardInterrupt
         tmp, out = self._start(), self.out
         (tmp / "summary.json").write_text(json.dumps({k: _plain(v) for k, v in summary.items()}, indent=2) + "\n")
         (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")

@@ -1,0 +1,113 @@
+"""Running a simulation from Python: how far ``sim.run`` may go, and what ``collect``
+returns for a run stopped before its end."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from netsim.cosim import CommandError
+from netsim.run import build, collect
+from tests.fixtures import make_config
+
+CONFIG = dict(
+    seed=3,
+    world={"n_robots": 20, "side_m": 400.0},
+    channel={"range_m": 120.0},
+    protocol={"message_rate_hz": 1.0},
+    output={"position_interval_s": 1.0},
+    events={"hooks": ["link_breaks"]},
+)
+STOP_S = 90.0
+TIME_COLUMNS = ("t_s", "t_up_s", "t_down_s", "t_sent_s", "t_received_s", "t_delivered_s")
+
+
+def _collected(duration_s: float, until_s: float | None = None) -> dict[str, pd.DataFrame]:
+    sim = build(make_config(duration_s=duration_s, **CONFIG))
+    sim.run(until_s=until_s)
+    return collect(sim)
+
+
+@pytest.fixture(scope="module")
+def stopped():
+    """A 3,000 s run collected at 90 s."""
+    return _collected(3000.0, STOP_S)
+
+
+def test_collect_before_the_end_ends_every_table_at_now(stopped):
+    """Tables collected before the run's end end at ``sim.now``: no time in any table is
+    later than now (positions are not carried along the legs to ``duration_s``)."""
+    for name, frame in stopped.items():
+        for col in TIME_COLUMNS:
+            if col in frame and len(frame):
+                assert frame[col].max() <= STOP_S, f"{name}.{col} reaches {frame[col].max()}"
+    assert stopped["positions"]["t_s"].max() == STOP_S
+
+
+def test_collect_before_the_end_keeps_robots_in_the_area(stopped):
+    """Every position collected before the run's end is inside the area."""
+    pos = stopped["positions"]
+    side = CONFIG["world"]["side_m"]
+    assert pos["x_m"].between(0, side).all() and pos["y_m"].between(0, side).all()
+
+
+def test_collect_before_the_end_is_the_run_that_ended_there(stopped):
+    """Positions and links collected at ``now`` are those of a run whose duration is now:
+    links still up are censored at now."""
+    ended = _collected(STOP_S)
+    for name in ("positions", "links"):
+        pd.testing.assert_frame_equal(stopped[name], ended[name])
+    assert stopped["links"]["censored_end"].any()
+    assert (stopped["links"].loc[stopped["links"]["censored_end"], "t_down_s"] == STOP_S).all()
+
+
+def _sim(duration_s: float = 60.0):
+    return build(make_config(duration_s=duration_s, **CONFIG))
+
+
+@pytest.mark.parametrize("until, named", [(120.0, "120"), (math.inf, "inf"), (60.000001, "60.000001")])
+def test_run_beyond_the_end_is_refused(until, named):
+    """``sim.run(until_s=...)`` later than ``duration_s`` raises a ValueError naming the
+    value and the run's end, and the run has not moved."""
+    sim = _sim()
+    with pytest.raises(ValueError, match=r"until_s = .* is after the run's end \(duration_s = 60\)") as info:
+        sim.run(until_s=until)
+    assert isinstance(info.value, CommandError)
+    assert "\n" not in str(info.value)
+    assert str(info.value).startswith(f"until_s = {named} is after")
+    assert sim.now == 0.0
+
+
+def test_run_before_now_is_refused():
+    """``sim.run(until_s=...)`` earlier than ``sim.now`` raises a ValueError naming both."""
+    sim = _sim()
+    sim.run(until_s=20.0)
+    with pytest.raises(ValueError, match=r"^until_s = 10 is before now \(20 s\)"):
+        sim.run(until_s=10.0)
+    assert sim.now == 20.0
+
+
+@pytest.mark.parametrize("until", [math.nan, "soon", None])
+def test_run_at_nan_or_not_a_time_is_refused(until):
+    """``sim.run(until_s=nan)`` (or a value that is not a number) raises a ValueError
+    naming the value; ``None`` is the run's end."""
+    sim = _sim(10.0)
+    if until is None:
+        sim.run(until_s=until)
+        assert sim.now == 10.0
+        return
+    with pytest.raises(ValueError, match=r"^until_s = "):
+        sim.run(until_s=until)
+    assert sim.now == 0.0
+
+
+def test_run_to_now_and_to_the_end_are_allowed():
+    """``until_s`` equal to now (nothing happens) and equal to ``duration_s`` are allowed."""
+    sim = _sim(10.0)
+    sim.run(until_s=0.0)
+    sim.run(until_s=4.0)
+    sim.run(until_s=4.0)
+    sim.run(until_s=10.0)
+    assert sim.now == 10.0
+    np.testing.assert_array_equal(collect(sim)["positions"]["t_s"].max(), 10.0)
