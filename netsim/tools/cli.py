@@ -42,7 +42,7 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim import ns2
 from netsim.errors import ConfigError, NetsimInputError
-from netsim.tools.command import EXIT_INTERRUPTED, INTERRUPTED_LINE, interrupted
+from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, interrupted
 
 EXIT_INPUT = 2
 

@@ -17,49 +17,18 @@ all), and the note tells such an exception for what it is (:func:`interrupted`).
 from __future__ import annotations
 
 import gc
-import os
 import signal
-import sys
 
-INTERRUPTED_LINE = "netsim: interrupted; nothing written"
-EXIT_INTERRUPTED = 130
-_INTERRUPTED = False
+from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, exit_interrupted, interrupted, on_sigint
 
-
-def _on_sigint(signum: int, frame: object) -> None:
-    global _INTERRUPTED
-    _INTERRUPTED = True
-    raise KeyboardInterrupt
-
-
-def interrupted(exc: BaseException | None = None) -> bool:
-    """Whether the user interrupted the command: Ctrl-C was pressed (in the command's own
-    process), or ``exc`` is, or was raised while handling or because of, a
-    ``KeyboardInterrupt``."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return _INTERRUPTED
-
-
-def exit_interrupted() -> None:
-    """Say so in one line and end the process with status 130, at once: nothing else runs
-    (the run directory was already given up by the handlers the interrupt went through)."""
-    try:
-        print(INTERRUPTED_LINE, file=sys.stderr, flush=True)
-    except (OSError, ValueError):  # a closed stream: the status still tells
-        pass
-    os._exit(EXIT_INTERRUPTED)
+__all__ = ["EXIT_INTERRUPTED", "INTERRUPTED_LINE", "command", "exit_interrupted", "interrupted"]
 
 
 def command() -> None:
     """The ``netsim`` command (:func:`netsim.tools.cli.command`), its libraries loaded with
     the collector paused, Ctrl-C one line and exit status 130 wherever it lands."""
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not ignored by the parent
-        signal.signal(signal.SIGINT, _on_sigint)
+        signal.signal(signal.SIGINT, on_sigint)
     try:
         was_enabled = gc.isenabled()
         gc.disable()

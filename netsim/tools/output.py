@@ -32,7 +32,7 @@ import tomli_w
 
 from netsim.config import Config, to_dict
 from netsim.errors import NetsimInputError
-from netsim.tools.command import interrupted
+from netsim.tools.interrupt import interrupted
 
 # The distributions named in a manifest, with the module each installs.
 VERSIONED = {

@@ -1,0 +1,41 @@
+"""Ctrl-C in the ``netsim`` command: the note that the user interrupted it, and the one
+line and exit status 130 that say so (module notes of :mod:`netsim.tools.command`). Apart
+from the command and the modules that give a run up, so that both may ask it."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+INTERRUPTED_LINE = "netsim: interrupted; nothing written"
+EXIT_INTERRUPTED = 130
+_INTERRUPTED = False
+
+
+def on_sigint(signum: int, frame: object) -> None:
+    global _INTERRUPTED
+    _INTERRUPTED = True
+    raise KeyboardInterrupt
+
+
+def interrupted(exc: BaseException | None = None) -> bool:
+    """Whether the user interrupted the command: Ctrl-C was pressed (in the command's own
+    process), or ``exc`` is, or was raised while handling or because of, a
+    ``KeyboardInterrupt``."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return _INTERRUPTED
+
+
+def exit_interrupted() -> None:
+    """Say so in one line and end the process with status 130, at once: nothing else runs
+    (the run directory was already given up by the handlers the interrupt went through)."""
+    try:
+        print(INTERRUPTED_LINE, file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # a closed stream: the status still tells
+        pass
+    os._exit(EXIT_INTERRUPTED)
