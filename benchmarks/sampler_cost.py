@@ -1,15 +1,16 @@
 """Benchmark: what the clustering's once-a-second sample costs, on compare.py's workload.
 
 Runs ``netsim run`` with the clustering protocol in this process, times each step of
-:meth:`protocols.stack.Stack._sampler` (one sample: what it does between two yields, wall
+:meth:`netsim.protocols.stack.Stack._sampler` (one sample: what it does between two yields, wall
 and CPU), and of that the range index's neighbour lists asked for (a rebuild of them when
 due: the channel's range queries would have done it otherwise), and counts the process's
 minor page faults over the whole run and within the samples. Prints one line.
-To compare with another checkout, run this same file with that checkout first on
-``PYTHONPATH`` (its ``netsim`` and ``protocols`` are then the ones imported), alternating:
+To compare with another checkout, run this same file from each checkout's own virtual
+environment (each with ``pip install -e .``: the models install under ``netsim``'s
+namespace from their folders, so ``PYTHONPATH`` alone would mix the two trees), alternating:
 
-    python benchmarks/sampler_cost.py --n 10000
-    PYTHONPATH=/path/to/other/checkout python benchmarks/sampler_cost.py --n 10000
+    .venv/bin/python benchmarks/sampler_cost.py --n 10000
+    /path/to/other/checkout/.venv/bin/python benchmarks/sampler_cost.py --n 10000
 """
 
 from __future__ import annotations
@@ -25,10 +26,11 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=10000)
     ap.add_argument("--duration", type=float, default=100.0)
     args = ap.parse_args()
+    import netsim.protocols.stack
     from compare import netsim_settings
 
     import netsim.radio.spatial
-    import protocols.stack
+    from netsim import protocols
     from netsim.tools import cli
 
     sampler, lists = protocols.stack.Stack._sampler, netsim.radio.spatial.RangeIndex.lists

@@ -36,11 +36,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from netsim.protocols.ack import AckParams  # noqa: E402
 
 from netsim.radio.mac import airtime_s  # noqa: E402
 from netsim.radio.mac_models import CsmaParams  # noqa: E402
 from netsim.tools import sweep as sweepmod  # noqa: E402
-from protocols.ack import AckParams  # noqa: E402
 
 RANGE_M = 100.0
 MACS = ("none", "aloha", "csma")

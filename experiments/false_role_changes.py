@@ -24,10 +24,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from netsim.protocols.roles import LABELS  # noqa: E402
 
 from netsim.tools import analysis  # noqa: E402
 from netsim.tools import sweep as sweepmod  # noqa: E402
-from protocols.roles import LABELS  # noqa: E402
 
 
 def main(argv=None) -> None:

@@ -1,6 +1,6 @@
-"""Compiled (numba) loops of the local plan: rule 1 (:func:`mobility.local.let_go`), per
+"""Compiled (numba) loops of the local plan: rule 1 (:func:`netsim.mobility.local.let_go`), per
 robot the bottleneck of its certified detours, by a widest-path search over the robots
-it remembers; and the walls' test (:func:`mobility.local.clear_of_walls`). They
+it remembers; and the walls' test (:func:`netsim.mobility.local.clear_of_walls`). They
 compute exactly what the numpy code computes (the tests compare them); for a few dozen
 robots, numpy's and scipy's cost per call, not the arithmetic, is what the numpy code
 costs.
@@ -19,7 +19,7 @@ from netsim import kernel_cache
 @numba.njit(cache=True, nogil=True)
 def clear(walls, ax, ay, bx, by, ea, eb):
     """The convex hull of the disks of radius ``ea`` around ``(ax, ay)`` and ``eb`` around
-    ``(bx, by)`` meets no wall (:func:`mobility.local.clear_of_walls`, one pair)."""
+    ``(bx, by)`` meets no wall (:func:`netsim.mobility.local.clear_of_walls`, one pair)."""
     field = walls.field
     h, w = field.shape
     res = walls.resolution_m
@@ -51,7 +51,7 @@ def clear_many(walls, a, b, ea, eb, out):
 @numba.njit(cache=True, nogil=True)
 def let_go(pos, memory, rule, walls, out):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
-    through robots it remembers (:func:`mobility.local.let_go`). ``memory``: what the
+    through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
     robots remember, ``(xy, sent_s, known)``; ``rule``: the step's ``(t0_s, speed_mps,
     band_m, range_m)``."""
     xy, sent_s, known = memory

@@ -15,7 +15,7 @@ rigidly, and the bridges between groups are kept.
   inside the area.
 
 Every robot moves in a straight line, so kept links that hold at both ends of the step
-hold throughout (:mod:`mobility.steps`).
+hold throughout (:mod:`netsim.mobility.steps`).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
-from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 from netsim.groups import in_a_group, leads_itself
 from netsim.topology import geometric_pairs
 

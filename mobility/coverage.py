@@ -17,7 +17,7 @@ most robots keep one or two neighbours near full range and stay well away from t
 The architecture (docs/model.md section 5)
 -------------------------------------
 - Leaders decide. Each control period a leader computes, for itself and for each member
-  whose Acks it hears, the virtual force (:mod:`mobility.forces`, the configured law,
+  whose Acks it hears, the virtual force (:mod:`netsim.mobility.forces`, the configured law,
   plus the border's push) from the robots that robot knows of: those it hears and those
   they hear, at the positions last heard (an Ack carries its sender's table; a member's
   Ack brings its knowledge to its leader). The relation is symmetric (i knows j if and
@@ -26,7 +26,7 @@ The architecture (docs/model.md section 5)
   every robot closer than ``2 r_c``, for comparison.
 - Members move only by their leader's commands, sent over the channel; a member that
   misses its command holds for that step.
-- The step is made safe for connectivity by :func:`mobility.spread.plan_spread`: a
+- The step is made safe for connectivity by :func:`netsim.mobility.spread.plan_spread`: a
   minimum spanning forest of the links up now is kept, each end of a kept link ending the
   step within its half of the link's allowed length (module notes there). Because each end
   keeps to its own half, a robot that holds instead of moving never breaks a kept link:
@@ -41,7 +41,7 @@ The architecture (docs/model.md section 5)
 - A link is what the channel makes under the run's radio, the same as ``links.parquet``:
   the controller gets the run's link state when built (``parts.links``), counts the
   components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
-  them up by the radio's rules (:mod:`mobility.keep`: the disk exactly; shadowing with a
+  them up by the radio's rules (:mod:`netsim.mobility.keep`: the disk exactly; shadowing with a
   fade margin and a bound on travel; walls swept exactly over the step).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
@@ -61,14 +61,14 @@ stopped gaining area; a motion-only rule would not end.)
 ``members = "follow"`` keeps the paper's controller, for comparison: forces among leaders
 only (the leaders they hear and those their neighbours hear), members translating
 rigidly with their leader, and the bridges between groups kept by
-:func:`mobility.bridges.plan_follow`; its stopping rule: every leader's force has asked
+:func:`netsim.mobility.bridges.plan_follow`; its stopping rule: every leader's force has asked
 for less than ``stop_speed_mps`` for ``stop_hold_s``. Under loss a member that misses a
 command can break a bridge there: connectivity is measured, not guaranteed.
 
 What is not distributed (``plan = "global"``, the default): each step's plan is computed
 in one pass for the whole team (the spanning forest over the whole network; a robot's
 limits then use only the current positions of its kept neighbours, and under shadowing the
-shadowing measured on those links). With ``plan = "local"`` (:mod:`mobility.local`) every
+shadowing measured on those links). With ``plan = "local"`` (:mod:`netsim.mobility.local`) every
 robot decides its own step from the Acks it heard, keeps the links it cannot certify a
 detour for, and answers for each against the other end's largest motion since its Ack
 (under shadowing within the sure distance, on a map clear of walls), or holds; no command
@@ -85,9 +85,8 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-
-from mobility.bridges import plan_follow
-from mobility.forces import (
+from netsim.mobility.bridges import plan_follow
+from netsim.mobility.forces import (
     LAWS,
     SQRT3,
     Law,
@@ -98,10 +97,11 @@ from mobility.forces import (
     pair_resultants,
     resultant,
 )
-from mobility.keep import LinkRules
-from mobility.local import Memory, cut_for_walls, latest_pulls, let_go, plan_local, sources_heard, walls_of
-from mobility.spread import plan_spread
-from mobility.steps import Plan, StepLimits
+from netsim.mobility.keep import LinkRules
+from netsim.mobility.local import Memory, cut_for_walls, latest_pulls, let_go, plan_local, sources_heard, walls_of
+from netsim.mobility.spread import plan_spread
+from netsim.mobility.steps import Plan, StepLimits
+
 from netsim import metrics
 from netsim.area import Bounds
 from netsim.control import ControlLoop, ControlStep

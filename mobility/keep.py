@@ -42,8 +42,8 @@ more than it plausibly can. What "up" means, and how it is kept, depends on the 
 from __future__ import annotations
 
 import numpy as np
+from netsim.mobility.steps import Candidates
 
-from mobility.steps import Candidates
 from netsim.topology import geometric_pairs
 
 # Standard deviations of the shadowing's change per step that a kept link's budget covers

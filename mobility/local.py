@@ -58,9 +58,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from netsim.mobility.spread import project_into
+from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
-from mobility.spread import project_into
-from mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 from netsim.compiled import SMALL_RUN_ROBOTS, load
 
 
@@ -135,7 +135,7 @@ def clear_of_walls(
     # Compiled whatever the team's size (unless NETSIM_COMPILED=0): the numpy twin marches
     # every segment in lockstep, one Python round per march step, and only runs on a map
     # reach here to pay numba's import.
-    kernels = load("mobility._local_kernels", SMALL_RUN_ROBOTS)
+    kernels = load("netsim.mobility._local_kernels", SMALL_RUN_ROBOTS)
     if kernels is not None:
         kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
         return out
@@ -251,7 +251,7 @@ def let_go(
     links out is no node: whether it remembers anyone is in its own Acks, which ``i`` did
     not hear. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
     minimum spanning tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS`
-    robots the compiled twin (:mod:`mobility._local_kernels`) computes the same.
+    robots the compiled twin (:mod:`netsim.mobility._local_kernels`) computes the same.
 
     Notes
     -----
@@ -259,7 +259,7 @@ def let_go(
     """
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
-    kernels = load("mobility._local_kernels", n)
+    kernels = load("netsim.mobility._local_kernels", n)
     if kernels is not None:
         rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m))
         kernels.let_go(pos, (memory.xy, memory.sent_s, known), rule, walls, out)

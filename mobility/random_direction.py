@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import simpy
+from netsim.mobility.speeds import SpeedParams
 
-from mobility.speeds import SpeedParams
 from netsim.area import Bounds
 from netsim.errors import ConfigError
 from netsim.params import param, positive

@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 import simpy
+from netsim.mobility.speeds import SpeedParams
 
-from mobility.speeds import SpeedParams
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle

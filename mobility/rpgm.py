@@ -29,8 +29,8 @@ from enum import StrEnum
 import numpy as np
 import pandas as pd
 import simpy
+from netsim.mobility.speeds import SpeedParams
 
-from mobility.speeds import SpeedParams
 from netsim.area import Bounds
 from netsim.config import world_bounds
 from netsim.errors import ConfigError

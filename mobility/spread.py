@@ -3,7 +3,7 @@ near as it can to where its forces push it, while a spanning forest of the netwo
 the team connected.
 
 - The kept links are a minimum spanning forest of the links up now (the caller's
-  :class:`~mobility.steps.Candidates`, :mod:`mobility.keep`; by default the disk of range
+  :class:`~netsim.mobility.steps.Candidates`, :mod:`netsim.mobility.keep`; by default the disk of range
   ``r_c``): it has as many components as the network, and its links are the strongest
   (the shortest on a disk), so the stretched links are the ones let go. It is chosen
   afresh every step.
@@ -23,9 +23,9 @@ the team connected.
   neighbour along a kept link by more than the link's slack allows passes the excess on
   to it as a pull (:func:`pass_on_pulls`), and the chain follows.
 - Every robot moves in a straight line over the step, so a link within range at both
-  ends of the step is within range throughout (:mod:`mobility.steps`): the number of
+  ends of the step is within range throughout (:mod:`netsim.mobility.steps`): the number of
   components never grows above its value at the step's start (walls: the caller's
-  exact cut, :meth:`mobility.keep.LinkRules.cut_for_walls`).
+  exact cut, :meth:`netsim.mobility.keep.LinkRules.cut_for_walls`).
 
 Who may move is the caller's: leaders, and members that can hear their leader's command.
 Everyone else (undecided robots, members out of their leader's range) holds, and the
@@ -35,8 +35,8 @@ links to them are kept from the moving end alone.
 from __future__ import annotations
 
 import numpy as np
+from netsim.mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_length, step_limit
 
-from mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_length, step_limit
 from netsim.area import Bounds, as_bounds
 from netsim.topology import geometric_pairs
 
@@ -193,7 +193,7 @@ def plan_spread(
     ``mobile``: who may move; ``commander_of``: for each robot, whose command it needs to
     move (-1: its own decision, as a leader); ``desired_mps``: the wished velocities (rows
     of robots that may not move are ignored); ``links``: the links up now, with what keeps
-    each up (:mod:`mobility.keep`; default: the disk of ``limits.range_m``).
+    each up (:mod:`netsim.mobility.keep`; default: the disk of ``limits.range_m``).
     """
     n = len(pos)
     movers = np.flatnonzero(mobile)

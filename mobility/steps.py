@@ -1,7 +1,7 @@
 """What every coverage plan shares: the limits of one control step, the plan it returns,
 and the geometry of shortening a straight step so that it ends inside a disk or the area.
 
-Both plans (:mod:`mobility.bridges`, :mod:`mobility.spread`) rest on one fact: over a
+Both plans (:mod:`netsim.mobility.bridges`, :mod:`netsim.mobility.spread`) rest on one fact: over a
 step every robot moves in a straight line at constant speed, so the distance between two
 robots is a convex function of time; a link within range at both ends of the step is
 within range throughout it.
@@ -65,7 +65,7 @@ class Plan(NamedTuple):
 
 class Candidates(NamedTuple):
     """The links a plan may keep (up when the step starts), with what keeps each one up
-    (:mod:`mobility.keep`).
+    (:mod:`netsim.mobility.keep`).
 
     i, j : the two robots (``i < j``); d : the length now.
     weight : the spanning forest prefers low weights (positive).

@@ -1,7 +1,7 @@
 """Compiled (numba) loops of the protocols' hot paths: the neighbour tables and the Ack
-(:mod:`protocols.neighbours`, :mod:`protocols.ack`), the clustering's per-Ack rules, relaying
-and once-a-second samples (:mod:`protocols.clustering`, :mod:`protocols.relay`,
-:mod:`protocols.stack`).
+(:mod:`netsim.protocols.neighbours`, :mod:`netsim.protocols.ack`), the clustering's per-Ack rules, relaying
+and once-a-second samples (:mod:`netsim.protocols.clustering`, :mod:`netsim.protocols.relay`,
+:mod:`netsim.protocols.stack`).
 
 Each computes exactly what its numpy counterpart computes,
 receiver by receiver instead of in array operations: for the ten or so receivers of one
@@ -12,19 +12,19 @@ The loops take a few named things, each a plain tuple of arrays unpacked by name
 (numba types a plain tuple faster than a named one, on every call), or a one-row record:
 
 - ``table``: a neighbour table, ``(ids, records, tau_s)``: the ``(n, slots)`` ids, the
-  ``(n, slots, FIELDS)`` packed records (:data:`protocols.neighbours.NeighbourTable.view`);
-- ``roles``: ``(role, leader)`` of every robot (:class:`protocols.roles.Roles`);
+  ``(n, slots, FIELDS)`` packed records (:data:`netsim.protocols.neighbours.NeighbourTable.view`);
+- ``roles``: ``(role, leader)`` of every robot (:class:`netsim.protocols.roles.Roles`);
 - ``robots``: the clustering's per-robot state, ``(role, leader, role_sent, leader_since,
-  deadline_s, armed_s)`` (:class:`protocols.clustering.Robots`);
+  deadline_s, armed_s)`` (:class:`netsim.protocols.clustering.Robots`);
 - ``rules``: the clustering's constants, a one-row record
-  (:data:`protocols.clustering.RULES`: ``tau_s``, ``merge_delay_s``, ``symmetric``, the
+  (:data:`netsim.protocols.clustering.RULES`: ``tau_s``, ``merge_delay_s``, ``symmetric``, the
   join and election policies' codes);
 - ``told``: an Ack told to the clustering, ``(sender, receivers, record, leads)``;
 - ``effects``: what an Ack does to the clustering, the lists the loop fills
-  (:class:`protocols.clustering.AckEffects`);
+  (:class:`netsim.protocols.clustering.AckEffects`);
 - ``motion``, ``beacon``: what an Ack is made of, ``(origin_m, velocity_mps, t0_s, torus,
   side_m)`` of the robots and ``(sent, resign_pending, group_size)`` of the beacon
-  (:meth:`protocols.ack.AckBeacon.make_ack`).
+  (:meth:`netsim.protocols.ack.AckBeacon.make_ack`).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ SEQ_SENT, ROLE_SENT, DEGREE_SENT = 0, 1, 2
 @numba.njit(cache=True, nogil=True)
 def receive(table, now, sender, receivers, record, flags, start):
     """Record an Ack of ``sender`` (its packed ``record``: the fields, then the sorted ids it
-    heard) in the rows of ``receivers[start:]`` (:meth:`protocols.neighbours.NeighbourTable.update`).
+    heard) in the rows of ``receivers[start:]`` (:meth:`netsim.protocols.neighbours.NeighbourTable.update`).
 
     Fills ``flags``, ``(fresh, hears_me)``: whether the Ack was taken (not older than the
     entry's) and whether the receiver is among ``heard``. Returns ``(-1, stale)`` when done,
@@ -64,7 +64,7 @@ def receive(table, now, sender, receivers, record, flags, start):
 
 @numba.njit(cache=True, nogil=True)
 def take(table, now, sender, receivers, record, start):
-    """:func:`receive` without the flags (:meth:`protocols.neighbours.NeighbourTable.take`):
+    """:func:`receive` without the flags (:meth:`netsim.protocols.neighbours.NeighbourTable.take`):
     two arrays fewer to pass per Ack."""
     return _receive(table, now, sender, receivers, record, None, None, start)
 
@@ -129,7 +129,7 @@ def announce(table, i, now, fields):
     """What robot ``i``'s Ack carries, from its row of the ``table``: the Ack's packed record
     (its ``fields``, ``(seq, role, leader, x_m, y_m, group_size)``, with the two-way degree:
     live entries that hear the robot), then the ids of the live entries, ascending
-    (:func:`protocols.neighbours.ack_record`; ``np.sort(id[live])`` and ``(live &
+    (:func:`netsim.protocols.neighbours.ack_record`; ``np.sort(id[live])`` and ``(live &
     hears_me).sum()``). One array: the Ack costs one array, not two."""
     return _announce(table, i, now, fields, None, True)
 
@@ -170,12 +170,12 @@ def _announce(table, i, now, fields, mates_of, symmetric):
 @numba.njit(cache=True, nogil=True)
 def make_ack(i, now, motion, beacon, roles, table):
     """Robot ``i``'s Ack at ``now``, once its hooks have run, as
-    :meth:`protocols.ack.AckBeacon.make_ack` builds it: its position (``motion``), its next
+    :meth:`netsim.protocols.ack.AckBeacon.make_ack` builds it: its position (``motion``), its next
     sequence number, the resignation it owes, its role, leader and group size (``beacon``,
     ``roles``), and what its row of the ``table`` announces (:func:`announce`). Counts the
     sequence number, clears the resignation and records the role and degree sent (the
     beacon's ``sent``, an (n, 3) array), as the numpy code does. Returns the Ack's fields in
-    the order of :class:`protocols.ack.Ack`: ``(i, role, leader, seq, x, y, group_size,
+    the order of :class:`netsim.protocols.ack.Ack`: ``(i, role, leader, seq, x, y, group_size,
     resign, record)``."""
     return _make_ack(i, now, motion, beacon, roles, table, None, True)
 
@@ -205,7 +205,7 @@ def _make_ack(i, now, motion, beacon, roles, table, mates_of, symmetric):
 @numba.njit(cache=True, nogil=True)
 def make_sized_ack(i, now, motion, beacon, roles, table, sized, symmetric):
     """:func:`make_ack`, after the clustering's hook has set the group size the Ack
-    announces (:func:`protocols.clustering.announced_size`): a leader's is 1 + its live
+    announces (:func:`netsim.protocols.clustering.announced_size`): a leader's is 1 + its live
     two-way members in its row (:func:`group_size`, counted in the pass that makes the
     Ack), anyone else's 1 (the beacon's ``group_size``, written back; ``sized``: whose is
     other than 1). One call per Ack instead of a Python hook and two compiled calls."""
@@ -227,7 +227,7 @@ JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
 
 @numba.njit(cache=True, nogil=True)
 def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard):
-    """Rule 2 from robot ``i``'s row of the ``table`` (:func:`protocols.clustering.join_choice`):
+    """Rule 2 from robot ``i``'s row of the ``table`` (:func:`netsim.protocols.clustering.join_choice`):
     the leader that ``i``, at ``(x_m, y_m)``, joins among its live two-way neighbours whose
     last Ack said they were leaders, but ``exclude``, by the join policy of the ``rules``
     (its code; ``first_heard``: the leader whose Ack triggered the join, or negative), and
@@ -267,7 +267,7 @@ ELECT_LOWEST_ID, ELECT_HIGHEST_DEGREE, ELECT_NONE = 0, 1, 2
 
 @numba.njit(cache=True, nogil=True)
 def elected_in_row(table, i, now, rules, old, degree):
-    """Rule 6 from robot ``i``'s row of the ``table`` (:func:`protocols.clustering.elected_in_row`):
+    """Rule 6 from robot ``i``'s row of the ``table`` (:func:`netsim.protocols.clustering.elected_in_row`):
     whether ``i``, of announced ``degree``, takes over from its lost leader ``old`` among the
     live two-way neighbours whose last Ack said they were members of ``old``, by the election
     policy of the ``rules`` (its code)."""
@@ -301,7 +301,7 @@ UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
 @numba.njit(cache=True, nogil=True)
 def ack_effects(now, told, hears_me, robots, table, rules, effects):
-    """What an Ack (``told``) does to the clustering (:func:`protocols.clustering.ack_effects`),
+    """What an Ack (``told``) does to the clustering (:func:`netsim.protocols.clustering.ack_effects`),
     from the roles before it acts: the lists of ``effects`` it fills, and how many of each
     (``group``, ``to_arm``, ``may_join``, ``may_merge``; ``merge_slot`` as long as
     ``may_merge``). ``hears_me``: per receiver, whether the Ack lists it. A leading Ack
@@ -354,7 +354,7 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
 @numba.njit(cache=True, nogil=True)
 def receive_effects(table, now, told, robots, rules, effects, start):
     """:func:`receive` then :func:`ack_effects` in one call: an Ack ``told`` to the clustering
-    (:meth:`protocols.clustering.Clustering.take_told`), recorded in the ``table`` (the
+    (:meth:`netsim.protocols.clustering.Clustering.take_told`), recorded in the ``table`` (the
     ``effects``' ``fresh`` and ``hears_me`` per receiver, as :func:`receive` fills its
     flags) and then acted on by the receivers that took it (the ``effects``' ``takers``,
     with their ``takers_hear_me``). Returns ``(k, stale, kept, group, to_arm, may_join,
@@ -381,7 +381,7 @@ def receive_effects(table, now, told, robots, rules, effects, start):
 @numba.njit(cache=True, nogil=True)
 def group_size(records_row, now, tau_s, symmetric, i):
     """1 + the live two-way entries of robot ``i``'s row whose Ack named ``i`` as their
-    leader (:meth:`protocols.clustering.Clustering.group_size`)."""
+    leader (:meth:`netsim.protocols.clustering.Clustering.group_size`)."""
     size = 1
     for s in range(len(records_row)):
         rec = records_row[s]
@@ -399,7 +399,7 @@ def _two_way(rec, now, tau_s, symmetric):
 @numba.njit(cache=True, nogil=True)
 def membership(table, now, symmetric, roles):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
-    robot and group (:func:`protocols.clustering.membership`)."""
+    robot and group (:func:`netsim.protocols.clustering.membership`)."""
     ids = table[0]
     n, slots = ids.shape
     robot = np.empty(n * (slots + 1), dtype=np.int64)
@@ -447,7 +447,7 @@ def _membership_row(table, r, now, symmetric, roles, groups, m):
 
 @numba.njit(cache=True, nogil=True)
 def relays(table, now, symmetric, roles, receivers, distributed_gateways):
-    """The receivers of a flooded message that relay it (:func:`protocols.relay.relays`):
+    """The receivers of a flooded message that relay it (:func:`netsim.protocols.relay.relays`):
     leaders, and members with a live two-way neighbour in another group (a leader other than
     their own or, with ``distributed_gateways``, a member of another leader)."""
     ids, records, tau_s = table
@@ -481,7 +481,7 @@ def relays(table, now, symmetric, roles, receivers, distributed_gateways):
 
 @numba.njit(cache=True, nogil=True)
 def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gateways):
-    """A flooded message's copy reaching ``receivers`` (:func:`protocols.relay.flood_step`):
+    """A flooded message's copy reaching ``receivers`` (:func:`netsim.protocols.relay.flood_step`):
     those that had not ``seen`` it, marked now, and which of them relay it (:func:`relays`)."""
     fresh = np.empty(len(receivers), dtype=np.int64)
     m = 0
@@ -502,7 +502,7 @@ def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gatewa
 
 @numba.njit(cache=True, nogil=True)
 def belief_rows(table, now, heard):
-    """Who believes whom live, beside the truth (:func:`protocols.stack.belief_rows`): per
+    """Who believes whom live, beside the truth (:func:`netsim.protocols.stack.belief_rows`): per
     pair ``(robot, neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or
     ``robot * n + neighbour`` is in ``heard`` (ascending keys), ordered by robot and
     neighbour, whether believed and whether in range; and where each robot's pairs start
@@ -688,7 +688,7 @@ def _pair_in_range(neighbour, in_range, indptr, r, j):
 def belief_counts(neighbour, believed, in_range, indptr, role, leader):
     """Per robot, from its pairs (:func:`belief_rows`): how many neighbours it believes live,
     how many it truly has, how many beliefs are stale, how many missing, and whether its
-    leader is in two-way range (a leader: yes) (:func:`protocols.stack.belief_counts`)."""
+    leader is in two-way range (a leader: yes) (:func:`netsim.protocols.stack.belief_counts`)."""
     n = len(indptr) - 1
     believed_n = np.zeros(n, np.int64)
     true_n = np.zeros(n, np.int64)

@@ -29,13 +29,13 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from netsim.protocols.neighbours import DEGREE, NeighbourTable, heard_in
+from netsim.protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, names, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
-from protocols.neighbours import DEGREE, NeighbourTable, heard_in
-from protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 
 @dataclass(frozen=True)

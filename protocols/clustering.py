@@ -42,7 +42,7 @@ An Ack is taken in two steps: its effects first (:func:`ack_effects`, or the com
 ``receive_effects`` that also records it in the table: which receivers are the sender's
 members, which timers to arm, who may join, who may merge, in an :class:`AckEffects`),
 then the rules they fire (:meth:`Clustering._apply`). The compiled loops
-(:mod:`protocols._kernels`) take the same few named things as their numpy twins here:
+(:mod:`netsim.protocols._kernels`) take the same few named things as their numpy twins here:
 the table's ``view``, the robots' state (:class:`Robots`), the constants (:data:`RULES`)
 and the effects' lists.
 
@@ -61,14 +61,23 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from netsim.protocols.ack import Ack, AckBeacon
+from netsim.protocols.neighbours import BIDIR_SINCE, DEGREE, LAST_HEARD, LIVE_SINCE, ROLE, ROLE_SINCE, X, Y, two_way
+from netsim.protocols.neighbours import LEADER as LEADER_FIELD
+from netsim.protocols.roles import (
+    LEADER,
+    LEADER_LOST,
+    MEMBER,
+    NO_LEADER,
+    ROLE_NAMES,
+    UNDECIDED,
+    RoleChange,
+    declare_roles,
+)
 
 from netsim.compiled import load
 from netsim.plugins import Parts
 from netsim.timers import DeadlineTimers
-from protocols.ack import Ack, AckBeacon
-from protocols.neighbours import BIDIR_SINCE, DEGREE, LAST_HEARD, LIVE_SINCE, ROLE, ROLE_SINCE, X, Y, two_way
-from protocols.neighbours import LEADER as LEADER_FIELD
-from protocols.roles import LEADER, LEADER_LOST, MEMBER, NO_LEADER, ROLE_NAMES, UNDECIDED, RoleChange, declare_roles
 
 # Causes recorded in roles.parquet, named after the rule that fired.
 START = "rule1_start"
@@ -345,7 +354,7 @@ def ack_effects(
 
 def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, i: int) -> int:
     """1 + the live two-way entries of robot ``i``'s neighbour table row (its records, as
-    :class:`protocols.neighbours.NeighbourTable` holds them) whose last Ack named ``i`` as
+    :class:`netsim.protocols.neighbours.NeighbourTable` holds them) whose last Ack named ``i`` as
     their leader."""
     return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
 
@@ -450,7 +459,7 @@ class Clustering:
     in ``roles`` (the beacon's, which its Acks announce).
 
     ``params`` holds ``tau_s``, ``merge_delay_s`` and the three policies (the clustering
-    protocol's parameters, :class:`protocols.stack.ClusteringParams`)."""
+    protocol's parameters, :class:`netsim.protocols.stack.ClusteringParams`)."""
 
     def __init__(self, params, parts: Parts, beacon: AckBeacon):
         self.env, self.state, self.trace = parts.env, parts.state, parts.trace
@@ -487,7 +496,7 @@ class Clustering:
         parts.trace.add_frame("roles", self.roles_frame)
         # The compiled twins of ack_effects, group_size and membership (and of join_choice and
         # elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS robots.
-        self.kernels = k = load("protocols._kernels", st.n)
+        self.kernels = k = load("netsim.protocols._kernels", st.n)
         self._effects = k.ack_effects if k is not None else ack_effects
         # What the rules read and write per Ack, and the lists an Ack's effects are written
         # in, each also as the plain tuple the compiled loops take.
@@ -668,7 +677,7 @@ class Clustering:
 
     def take_told(self, now: float, ack: Ack, receivers: np.ndarray) -> int:
         """The beacon's table update and :meth:`on_ack` in one compiled call
-        (:func:`protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
+        (:func:`netsim.protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
         many receivers did not take the Ack (stale)."""
         leads = ack.role == LEADER and not ack.resign
         told = (ack.sender, receivers, ack.record, leads)

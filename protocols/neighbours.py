@@ -16,7 +16,7 @@ own record (:func:`ack_record`) is the same fields followed by the ids the sende
 ascending: one array per Ack.
 
 Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots, :meth:`NeighbourTable.receive` and
-:meth:`NeighbourTable.announce` run compiled loops (:mod:`protocols._kernels`) that
+:meth:`NeighbourTable.announce` run compiled loops (:mod:`netsim.protocols._kernels`) that
 compute exactly what the numpy code here computes.
 """
 
@@ -46,7 +46,7 @@ class NeighbourTable:
         self._ids = self.id.reshape(-1)
         # What the compiled loops take (protocols._kernels' ``table``), made again on growth.
         self.view = (self.id, self.data, self.tau_s)
-        self.kernels = load("protocols._kernels", n)
+        self.kernels = load("netsim.protocols._kernels", n)
 
     # Views of single columns, for reading.
     last_heard_s = property(lambda self: self.data[:, :, LAST_HEARD])
@@ -132,7 +132,7 @@ class NeighbourTable:
 
     def take_by(self, kernel, *args) -> tuple:
         """Record an Ack as :meth:`receive` does, by a compiled ``kernel`` that takes the
-        table as :func:`protocols._kernels.receive` does and may do more with it:
+        table as :func:`netsim.protocols._kernels.receive` does and may do more with it:
         ``kernel(view, *args, start)`` (:attr:`view`) returns ``(k, stale, *results)``, ``k
         >= 0`` when the row of the ``k``-th receiver must grow first (then it is called
         again from there). Returns the receivers that did not take the Ack (stale) and the

@@ -6,11 +6,11 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import pandas as pd
+from netsim.protocols.ack import ACKS_SCHEMA, ack_figures
+from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
 from netsim.params import NoParams
 from netsim.plugins import Parts, PluginSpec
-from protocols.ack import ACKS_SCHEMA, ack_figures
-from protocols.roles import ROLES_SCHEMA, declare_roles
 
 
 class Silent:

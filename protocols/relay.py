@@ -21,6 +21,9 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 import simpy
+from netsim.protocols.neighbours import LEADER as LEADER_FIELD
+from netsim.protocols.neighbours import ROLE, two_way
+from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
 from netsim.compiled import load
 from netsim.cosim import Arrival
@@ -28,9 +31,6 @@ from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
 from netsim.rng import Streams
 from netsim.topology import geometric_pairs
-from protocols.neighbours import LEADER as LEADER_FIELD
-from protocols.neighbours import ROLE, two_way
-from protocols.roles import LEADER, MEMBER, UNDECIDED
 
 
 class Routing(StrEnum):
@@ -122,7 +122,7 @@ def relays(
 ) -> np.ndarray:
     """The ``receivers`` of a flooded message that relay it: leaders, and gateways, the
     members with a live two-way neighbour (in their neighbour tables: the ``table`` ``(ids,
-    records, tau_s)``, :attr:`protocols.neighbours.NeighbourTable.view`) in another group: a
+    records, tau_s)``, :attr:`netsim.protocols.neighbours.NeighbourTable.view`) in another group: a
     leader other than their own or, with ``distributed_gateways``, a member of another
     leader. ``roles``: ``(role, leader)``."""
     ids, records, tau_s = table
@@ -187,7 +187,7 @@ class Relay:
         # for the garbage collector to walk again and again.
         self._hops: tuple[list, list, list, list, list, list] = ([], [], [], [], [], [])
         # The compiled twin of relays, past netsim.compiled.SMALL_RUN_ROBOTS robots.
-        self.kernels = load("protocols._kernels", parts.state.n)
+        self.kernels = load("netsim.protocols._kernels", parts.state.n)
         # The channel's range index, whose neighbour lists the searches for shortest paths
         # use (a unit disk only: a radio decides its links otherwise).
         self._index = self.channel.reach_lists

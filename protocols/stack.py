@@ -14,17 +14,17 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
+from netsim.protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy, membership
+from netsim.protocols.neighbours import EMPTY, LAST_HEARD, ROLE, X, Y
+from netsim.protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
+from netsim.protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
 
 from netsim.compiled import cores, load, side_by_side
 from netsim.cosim import Arrival
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import reach_keys
-from protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
-from protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy, membership
-from protocols.neighbours import EMPTY, LAST_HEARD, ROLE, X, Y
-from protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
-from protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
 
 
 def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
@@ -209,7 +209,7 @@ def sample_rows(
     table: tuple, now: float, symmetric: bool, roles: tuple, heard: np.ndarray
 ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
     """What a sample takes from the tables: everyone's groups
-    (:func:`protocols.clustering.membership`) and who believes whom (:func:`belief_rows`);
+    (:func:`netsim.protocols.clustering.membership`) and who believes whom (:func:`belief_rows`);
     the compiled twin reads the tables once for both."""
     return membership(table, now, symmetric, roles), belief_rows(table, now, heard)
 
@@ -288,7 +288,7 @@ class Stack:
         interval = self._sample_interval_s
         expected = int(self.duration_s // interval) + 2 if interval > 0 else 1
         self._groups, self._beliefs, self._neighbour_beliefs = (Samples(expected) for _ in range(3))
-        kernels = load("protocols._kernels", n)
+        kernels = load("netsim.protocols._kernels", n)
         # The compiled twins of sample_rows, belief_rows and belief_counts, past
         # netsim.compiled.SMALL_RUN_ROBOTS robots.
         self._sample_rows = kernels.sample_rows if kernels is not None else sample_rows
@@ -501,7 +501,7 @@ class Stack:
         self._neighbour_beliefs.add(now, self._neighbour_belief_columns(now, keys))
 
     def _sample_in_place(self, now: float) -> None:
-        """:meth:`_sample` by one compiled pass (:func:`protocols._kernels.sample_into`)
+        """:meth:`_sample` by one compiled pass (:func:`netsim.protocols._kernels.sample_into`)
         writing straight into the tables' buffers, the truth from the channel's neighbour
         lists: the same rows, without a sample's worth of arrays made and then copied. From
         :data:`SAMPLE_IN_TWO_ROBOTS` robots on, on two cores or more, two passes at once,

@@ -5,12 +5,12 @@ in one line."""
 from __future__ import annotations
 
 import numpy as np
+from netsim.protocols.stack import ClusteringParams, Stack
 
 from netsim.config import Config, from_dict
 from netsim.run import simulation
 from netsim.sim import Simulation
 from netsim.tools.validate import rwp_density
-from protocols.stack import ClusteringParams, Stack
 
 __all__ = ["clustering", "make_config", "rwp_density", "static_core"]
 

@@ -4,9 +4,9 @@ import math
 
 import numpy as np
 import pytest
+from netsim.protocols.neighbours import NeighbourTable, ack_record
 
 from netsim.run import build
-from protocols.neighbours import NeighbourTable, ack_record
 from tests.fixtures import make_config
 
 

@@ -5,10 +5,10 @@ import math
 
 import numpy as np
 import pytest
+from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, delivery_ratio
 
 from netsim.radio.channel import SendTimeBins
 from netsim.run import build, collect, execute, tables
-from protocols.ack import ACK_DELIVERY_SCHEMA, delivery_ratio
 from tests.fixtures import make_config
 
 

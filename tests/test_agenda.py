@@ -7,12 +7,12 @@ import numpy as np
 import pandas as pd
 import pytest
 import simpy
+from netsim.protocols.ack import AckBeacon, AckParams
 
 import netsim.radio.channel
 from netsim.agenda import Agenda
 from netsim.run import build, collect
 from netsim.scheduling import FIRST, NORMAL, URGENT, scheduled_event
-from protocols.ack import AckBeacon, AckParams
 from tests.fixtures import clustering, make_config, static_core
 
 

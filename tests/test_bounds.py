@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 import simpy
+from netsim.mobility.forces import SQRT3, border_forces
+from netsim.mobility.gauss_markov import GaussMarkovParams, gauss_markov_robot
+from netsim.mobility.random_waypoint import stationary_start
+from netsim.mobility.steps import box_limit
 
-from mobility.forces import SQRT3, border_forces
-from mobility.gauss_markov import GaussMarkovParams, gauss_markov_robot
-from mobility.random_waypoint import stationary_start
-from mobility.steps import box_limit
 from netsim import load, metrics
 from netsim.area import Bounds
 from netsim.config import world_bounds

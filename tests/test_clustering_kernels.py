@@ -9,8 +9,7 @@ the numpy ``relays`` keeps the relaying rule."""
 import numpy as np
 import pandas as pd
 import pytest
-
-from protocols.clustering import (
+from netsim.protocols.clustering import (
     AckEffects,
     ElectionPolicy,
     JoinPolicy,
@@ -21,16 +20,17 @@ from protocols.clustering import (
     membership,
     rules_record,
 )
-from protocols.neighbours import EMPTY_RECORD, GROUP_SIZE, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
-from protocols.relay import flood_step, relays
-from protocols.roles import LEADER as ALPHA
-from protocols.roles import MEMBER, UNDECIDED
-from protocols.stack import belief_counts, belief_rows, believed_keys, sample_rows
+from netsim.protocols.neighbours import EMPTY_RECORD, GROUP_SIZE, HEARS_ME, LAST_HEARD, LEADER, ROLE, X, Y
+from netsim.protocols.relay import flood_step, relays
+from netsim.protocols.roles import LEADER as ALPHA
+from netsim.protocols.roles import MEMBER, UNDECIDED
+from netsim.protocols.stack import belief_counts, belief_rows, believed_keys, sample_rows
+
 from tests.fixtures import clustering
 
 pytest.importorskip("numba")
 
-from protocols import _kernels as kernels  # noqa: E402
+from netsim.protocols import _kernels as kernels  # noqa: E402
 
 TAU_S = 3.0
 
@@ -54,7 +54,7 @@ def test_compiled_ack_effects_equals_numpy(symmetric):
     of them to arm, the undecided robots it reaches over two-way links and the leaders that
     may merge with its sender now, with the sender's slot in their rows) and the deadlines it
     writes are the numpy ones."""
-    from protocols.neighbours import BIDIR_SINCE, LIVE_SINCE, ROLE_SINCE
+    from netsim.protocols.neighbours import BIDIR_SINCE, LIVE_SINCE, ROLE_SINCE
 
     rng = np.random.default_rng(5)
     n, now = 60, 10.0
@@ -103,7 +103,8 @@ def test_compiled_receive_effects_is_receive_then_ack_effects(symmetric):
     (receive_effects), leaves the table, the deadlines and ack_effects' lists (over the
     receivers that took it) as the two calls do, one after the other; overtaken Acks
     (stale) and rows that must grow midway included."""
-    from protocols.neighbours import NeighbourTable
+    from netsim.protocols.neighbours import NeighbourTable
+
     from tests.test_kernels import _ack_stream
 
     rng = np.random.default_rng(23)
@@ -485,7 +486,7 @@ def test_sample_in_two_halves_equals_one_pass(monkeypatch):
     """A run's sampled tables taken in two halves at once (two threads, the second's rows
     moved up after the first's) are those of one pass (the threshold lowered to this small
     run, two cores assumed whatever the machine has)."""
-    import protocols.stack
+    from netsim import protocols
 
     (_, whole) = _clustering_after(monkeypatch, 12.0, True)
     monkeypatch.setattr(protocols.stack, "SAMPLE_IN_TWO_ROBOTS", 1)
@@ -504,7 +505,7 @@ def test_gateways_mean_counts_robots_in_two_groups_per_sample():
     """``gateways_mean`` (the summary figure) is the mean over the sampled instants of the
     robots with two rows or more in the ``groups`` table, as a groupby counts them; samples
     without rows do not count."""
-    from protocols.stack import gateways_mean
+    from netsim.protocols.stack import gateways_mean
 
     rng = np.random.default_rng(23)
     for _ in range(30):
@@ -592,7 +593,7 @@ def test_compiled_elected_in_row_equals_numpy(policy, symmetric):
     """Rule 6 from a row of the table (whether a robot takes over among the former members
     of its lost leader it knows, by each election policy; ties of degree to the lowest id)
     is the numpy verdict."""
-    from protocols.neighbours import DEGREE
+    from netsim.protocols.neighbours import DEGREE
 
     rng = np.random.default_rng(12)
     now, verdicts = 10.0, []

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
 from netsim.config import from_dict
 from netsim.metrics import components
 from netsim.run import build, collect
 from netsim.topology import geometric_edges
-from protocols.roles import LEADER, MEMBER, UNDECIDED
 from tests.fixtures import clustering
 
 

@@ -10,9 +10,9 @@ started more than a period after it.
 
 import numpy as np
 import pytest
+from netsim.protocols.clustering import TRANSITIONS, Candidate, choose_leader, elected, merge_loser, transition
+from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
-from protocols.clustering import TRANSITIONS, Candidate, choose_leader, elected, merge_loser, transition
-from protocols.roles import LEADER, MEMBER, UNDECIDED
 from tests.fixtures import clustering
 
 TAU, PERIOD, LATENCY = 3.0, 1.0, 0.001
@@ -234,7 +234,7 @@ def test_rule5_leaders_that_yield_to_each_other_settle_on_the_lower_id(monkeypat
     makes both yield (forced here: each believes it loses), the lower id takes the lead
     back on hearing the other's yield, the higher stays its member, and nothing changes
     after that."""
-    import protocols.clustering as clustering
+    import netsim.protocols.clustering as clustering
 
     monkeypatch.setattr(clustering, "merge_loser", lambda policy, me, other: me.id)
     sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.1, 0.2], latency_s=1.3)
@@ -344,8 +344,7 @@ def test_roles_table_is_the_frame_of_its_records():
     """The roles table kept as columns is the frame a trace makes of RoleChange records:
     the same values, dtypes and order; all-object columns when there is no change."""
     import pandas as pd
-
-    from protocols.roles import RoleChange
+    from netsim.protocols.roles import RoleChange
 
     sim, stack, _ = scripted([[0, 0], [5, 0], [50, 0]], [0.1, 0.2, 0.3])
     # The records as the run announces them, one by one: a path apart from the table's columns.

@@ -6,14 +6,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from netsim.mobility.bridges import plan_follow
+from netsim.mobility.steps import StepLimits
+from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
-from mobility.bridges import plan_follow
-from mobility.steps import StepLimits
 from netsim import config
 from netsim.errors import ConfigError
 from netsim.metrics import components
 from netsim.run import execute
-from protocols.roles import LEADER, MEMBER, UNDECIDED
 
 RC = 100.0
 SQRT3 = math.sqrt(3.0)

@@ -9,8 +9,7 @@ import math
 
 import numpy as np
 import pytest
-
-from mobility.local import (
+from netsim.mobility.local import (
     NO_WALLS,
     Memory,
     clear_of_walls,
@@ -21,7 +20,8 @@ from mobility.local import (
     pulls,
     walls_of,
 )
-from mobility.steps import StepLimits
+from netsim.mobility.steps import StepLimits
+
 from netsim import config
 from netsim.errors import ConfigError
 from netsim.metrics import components, components_at_link_events

@@ -8,10 +8,10 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from netsim.mobility.keep import FADE_SIGMAS, LinkRules, fade_travel_m, plausible_change_db
+from netsim.mobility.spread import forest_rows
+from netsim.mobility.steps import Candidates
 
-from mobility.keep import FADE_SIGMAS, LinkRules, fade_travel_m, plausible_change_db
-from mobility.spread import forest_rows
-from mobility.steps import Candidates
 from netsim import config
 from netsim.errors import ConfigError
 from netsim.metrics import components_in_links_table, components_of_links

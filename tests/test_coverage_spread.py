@@ -5,17 +5,17 @@ import math
 
 import numpy as np
 import pytest
+from netsim.mobility.forces import border_forces, component_centres, expansion_forces
+from netsim.mobility.spread import pass_on_pulls, plan_spread, spanning_forest
+from netsim.mobility.steps import StepLimits
+from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
-from mobility.forces import border_forces, component_centres, expansion_forces
-from mobility.spread import pass_on_pulls, plan_spread, spanning_forest
-from mobility.steps import StepLimits
 from netsim import config
 from netsim.metrics import components, components_at_link_events, connected_coverage_bound
 from netsim.run import execute
 from netsim.tools.cli import main
 from netsim.tools.validate import coverage_settings
 from netsim.topology import geometric_pairs
-from protocols.roles import LEADER, MEMBER, UNDECIDED
 
 RC = 100.0
 

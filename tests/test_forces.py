@@ -4,8 +4,7 @@ import math
 
 import numpy as np
 import pytest
-
-from mobility.forces import LAWS, SQRT3, border_force, pair_force, resultant
+from netsim.mobility.forces import LAWS, SQRT3, border_force, pair_force, resultant
 
 RC = 10.0
 

@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 import simpy
+from netsim.mobility.gauss_markov import GaussMarkovParams, _clamped_legs, gauss_markov_robot
+from netsim.mobility.rpgm import MAX_DRAWS, OffsetLaw, RpgmParams, draw_offset, groups, member_offset
 
-from mobility.gauss_markov import GaussMarkovParams, _clamped_legs, gauss_markov_robot
-from mobility.rpgm import MAX_DRAWS, OffsetLaw, RpgmParams, draw_offset, groups, member_offset
 from netsim import load
 from netsim.errors import ConfigError
 from netsim.run import build, collect

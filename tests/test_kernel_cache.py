@@ -13,8 +13,9 @@ import pytest
 from netsim import kernel_cache
 
 ROOT = Path(__file__).resolve().parents[1]
+# The models' folders install under netsim's namespace (netsim.protocols, ...).
 KERNEL_MODULES = sorted(
-    ".".join(p.relative_to(ROOT).with_suffix("").parts)
+    ".".join(([] if package == "netsim" else ["netsim"]) + list(p.relative_to(ROOT).with_suffix("").parts))
     for package in ("netsim", "protocols", "mobility", "hooks")
     for p in (ROOT / package).rglob("*_kernels.py")
 )
@@ -23,7 +24,7 @@ KERNEL_MODULES = sorted(
 def test_every_kernel_module_keys_its_cache():
     """Each module of compiled kernels in the tree, once imported, has pointed its cache at
     a directory keyed by its sources."""
-    assert "protocols._kernels" in KERNEL_MODULES and "netsim._kernels" in KERNEL_MODULES
+    assert "netsim.protocols._kernels" in KERNEL_MODULES and "netsim._kernels" in KERNEL_MODULES
     for name in KERNEL_MODULES:
         importlib.import_module(name)
     assert set(KERNEL_MODULES) <= set(kernel_cache.keyed_modules())
@@ -123,7 +124,7 @@ def test_old_keyed_directories_are_pruned(tmp_path, monkeypatch):
 # caller's (protocols._kernels.make_ack) use of the callee netsim._kernels.position.
 PROBE = """
 import numpy as np
-from protocols import _kernels as k
+from netsim.protocols import _kernels as k
 
 assert k.__file__.startswith(%r), k.__file__
 n, slots = 1, 4
@@ -142,8 +143,9 @@ def test_an_edited_callee_in_another_module_changes_its_callers_result(tmp_path)
     (not its caller's module) changes what protocols._kernels.make_ack computes."""
     tree = tmp_path / "tree"
     ignore = shutil.ignore_patterns("__pycache__")
-    for package in ("netsim", "protocols"):
-        shutil.copytree(ROOT / package, tree / package, ignore=ignore)
+    shutil.copytree(ROOT / "netsim", tree / "netsim", ignore=ignore)
+    # The copy's netsim holds the protocols where an installed netsim has them.
+    shutil.copytree(ROOT / "protocols", tree / "netsim" / "protocols", ignore=ignore)
     (tree / "probe.py").write_text(PROBE % str(tree))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONDONTWRITEBYTECODE": "1"}
 

@@ -4,16 +4,17 @@ with ``==``): the range query (netsim/_kernels.py) and the neighbour tables
 
 import numpy as np
 import pytest
+from netsim.protocols.neighbours import DEGREE, NeighbourTable, ack_record, heard_in
 
 from netsim.radio.spatial import RangeIndex
 from netsim.simpy_internals import set_now
 from netsim.state import RobotState
-from protocols.neighbours import DEGREE, NeighbourTable, ack_record, heard_in
 
 pytest.importorskip("numba")
 
+from netsim.protocols import _kernels as table_kernels  # noqa: E402
+
 from netsim import _kernels as core_kernels  # noqa: E402
-from protocols import _kernels as table_kernels  # noqa: E402
 
 
 def _moving_state(rng, n, side, torus):
@@ -98,7 +99,7 @@ def test_overtaken_ack_counted_when_a_later_receivers_row_grows():
 
 def test_compiled_empty_record_is_the_tables():
     """The empty record the compiled Ack starts from (a constant there) is the table's."""
-    from protocols.neighbours import EMPTY_RECORD
+    from netsim.protocols.neighbours import EMPTY_RECORD
 
     assert table_kernels.EMPTY_RECORD.tobytes() == EMPTY_RECORD.tobytes()
 
@@ -178,7 +179,8 @@ def test_runs_equal_with_and_without_compiled_loops(monkeypatch):
 
 def _beacon_after(seconds: float, compiled: bool):
     """An Ack beacon on 30 robots, some moving, run for ``seconds``: its tables filled."""
-    from protocols.ack import AckBeacon, AckParams
+    from netsim.protocols.ack import AckBeacon, AckParams
+
     from tests.fixtures import static_core
 
     rng = np.random.default_rng(8)
@@ -467,7 +469,7 @@ def test_hops_from_the_range_index_lists_equal_numpy(torus):
     """Hop distances from a robot (and towards it) searched over the range index's lists are
     the numpy search's over every pair in reach: unequal ranges (one-way links), robots
     out of reach of all (inf), moving robots with lists built earlier."""
-    from protocols.relay import hop_distances
+    from netsim.protocols.relay import hop_distances
 
     rng = np.random.default_rng(33)
     st = _moving_state(rng, 250, 900.0, torus)

@@ -3,14 +3,14 @@ or with --set is the same object, validated when made; derived defaults are deri
 wherever it is made; an unknown name is an error everywhere."""
 
 import pytest
+from netsim.protocols.clustering import Candidate, choose_leader
+from netsim.protocols.stack import ClusteringParams
 
 from netsim import config as cfgmod
 from netsim.config import Config, ProtocolSection, WorldParams
 from netsim.errors import ConfigError
 from netsim.plugins import resolve
 from netsim.radio.models import LOSS
-from protocols.clustering import Candidate, choose_leader
-from protocols.stack import ClusteringParams
 
 
 def test_a_derived_default_is_derived_however_the_configuration_is_made(tmp_path):

@@ -141,3 +141,54 @@ def test_the_docs_moving_model_runs_as_shown(tmp_path, monkeypatch):
     assert pos["x_m"].between(50.0, 950.0).all() and pos["x_m"].max() > 940.0
     lines = pos.groupby("robot")["y_m"].agg(["min", "max"])
     assert (lines["min"] == lines["max"]).all() and lines["min"].tolist() == [125.0, 375.0, 625.0, 875.0]
+
+
+CIRCLE_MODULE = """
+import math
+from dataclasses import dataclass
+
+from netsim.params import Params, param, positive
+from netsim.plugins import Parts, PluginSpec
+
+
+@dataclass(frozen=True)
+class CircleParams(Params):
+    section = "mobility"
+    radius_m: float = param(100.0, positive, "radius of the circle, metres")
+
+
+def circle(params, parts):
+    n, centre = parts.state.n, parts.world.side_m / 2
+    angles = [2 * math.pi * i / n for i in range(n)]
+    r = params.radius_m
+    parts.state.place([[centre + r * math.cos(a), centre + r * math.sin(a)] for a in angles])
+
+
+PLUGIN = PluginSpec(Params=CircleParams, build=circle, moves_robots=False)
+"""
+
+
+@pytest.mark.parametrize("own", ["mobility.py", "protocols.py", "hooks.py"])
+def test_a_users_module_named_like_a_model_package_shadows_nothing(tmp_path, own):
+    """A user's own ``mobility.py`` (or ``protocols.py``, ``hooks.py``) in the working
+    directory, named as a plugin, leaves netsim's built-in models where they are: the run
+    loads the user's model and the built-in coverage controller, clustering and hook."""
+    (tmp_path / own).write_text(CIRCLE_MODULE)
+    module = own.removesuffix(".py")
+    sets = [
+        f"mobility.model={module}:PLUGIN",
+        "world.n_robots=6",
+        "duration_s=5",
+        "protocol.model=clustering",
+        "coverage.enabled=true",
+        'events.hooks=["link_breaks"]',
+    ]
+    command = [str(Path(sys.executable).with_name("netsim")), "run", "--quiet", "--out", "out"]
+    run = subprocess.run(
+        command + [a for s in sets for a in ("--set", s)],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "out" / "positions.parquet").is_file()

@@ -5,8 +5,8 @@ import warnings
 
 import numpy as np
 import pytest
+from netsim.mobility.random_waypoint import paused_fraction, stationary_start
 
-from mobility.random_waypoint import paused_fraction, stationary_start
 from netsim.errors import ConfigError
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE
 from netsim.run import build
@@ -181,7 +181,8 @@ def test_stationary_start_auto_starts_stationary_wherever_its_law_is_known(setti
     """``stationary_start = "auto"`` (the default) draws the stationary start in an open
     square with uniform placement and a least speed above 0, and starts at rest elsewhere
     (a map, another placement, speed_min_mps = 0) instead of refusing the run."""
-    from mobility.random_waypoint import starts_stationary
+    from netsim.mobility.random_waypoint import starts_stationary
+
     from netsim import load
 
     config = load(None, settings)

@@ -257,7 +257,7 @@ def _failed(rows, words):
 def test_gauss_markov_item_fails_with_noise_scaled_by_one_minus_alpha(monkeypatch):
     """Item 28 sees Gauss-Markov noise scaled by ``1 - alpha`` instead of ``sqrt(1 - alpha^2)``:
     both variances fail (the mean and the autocorrelations do not change)."""
-    import mobility.gauss_markov as gm
+    import netsim.mobility.gauss_markov as gm
 
     monkeypatch.setattr(gm, "noise_scale", lambda alpha: 1.0 - alpha)
     rows = validate.check_gauss_markov()
@@ -291,7 +291,7 @@ def test_ar1_autocorrelation_bias_matches_a_process_drawn_directly():
 def test_rpgm_item_fails_with_a_rigid_group(monkeypatch):
     """Item 29 sees members that never redraw their offset (a rigid group): the old and new
     offsets are the same, not independent."""
-    import mobility.rpgm as rpgm
+    import netsim.mobility.rpgm as rpgm
 
     monkeypatch.setattr(rpgm, "member_offset", lambda rng, m, old, move, travel_s: old)
     assert _failed(validate.check_rpgm(), "old offset . new offset")
@@ -300,7 +300,7 @@ def test_rpgm_item_fails_with_a_rigid_group(monkeypatch):
 @pytest.mark.slow
 def test_rpgm_item_fails_with_offsets_uniform_over_the_disk(monkeypatch):
     """Item 29 sees offsets drawn uniformly over the disk (mean distance 2R/3, not R/2)."""
-    import mobility.rpgm as rpgm
+    import netsim.mobility.rpgm as rpgm
 
     draw = rpgm.draw_offset
     monkeypatch.setattr(rpgm, "draw_offset", lambda rng, r, law: draw(rng, r, rpgm.OffsetLaw.UNIFORM_AREA))
@@ -311,7 +311,7 @@ def test_rpgm_item_fails_with_offsets_uniform_over_the_disk(monkeypatch):
 def test_rpgm_item_fails_with_member_speed_unbounded(monkeypatch):
     """Item 29 sees members whose new offset is not redrawn when it would make them faster
     than speed_max_mps."""
-    import mobility.rpgm as rpgm
+    import netsim.mobility.rpgm as rpgm
 
     monkeypatch.setattr(
         rpgm, "member_offset", lambda rng, m, old, move, travel_s: rpgm.draw_offset(rng, m.group_radius_m, m.offset_law)
