@@ -17,8 +17,9 @@ of the fingerprint.
     python benchmarks/output_digest.py --check digests.json --ignore legs.cause
 
 ``--check`` exits with status 1 if any table differs, and names the tables that do.
-``--ignore TABLE.COLUMN`` (repeatable) fingerprints a table without one of its columns:
-the check of a change that adds a column and must leave everything else as it was.
+``--ignore TABLE.COLUMN`` (repeatable) fingerprints a table without one of its columns
+(``summary.KEY``: the summary without that key): the check of a change that adds a column
+or a summary figure and must leave everything else as it was.
 """
 
 from __future__ import annotations
@@ -142,7 +143,7 @@ def digest(name: str, directory: Path, ignore: tuple[str, ...] = ()) -> dict[str
         buf = io.BytesIO()
         frame.to_parquet(buf, index=False)
         out[table] = hashlib.sha256(buf.getvalue()).hexdigest()[:16]
-    summary = {k: v for k, v in result.summary.items() if k != "wall_s"}
+    summary = {k: v for k, v in result.summary.items() if k != "wall_s" and f"summary.{k}" not in ignore}
     out["summary"] = hashlib.sha256(json.dumps(summary, sort_keys=True, default=str).encode()).hexdigest()[:16]
     return out
 
