@@ -263,8 +263,11 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     add("positions", sample_positions(legs, sim.state.n, times, side, torus))
     reception = sim.channel.reception
     if sim.links is not None:
-        # Solved during the run: the record of the link events (docs/events.md).
-        sim.links.finish(sim.env.now)
+        # Solved during the run: the record of the link events (docs/events.md). The
+        # changes due at the run's end, which the kernel does not process, are applied at
+        # the end alone: mid-run they are the run's to announce when it goes on.
+        if sim.env.now >= sim.duration_s:
+            sim.links.finish(sim.env.now)
         add("links", sim.links.frame(sim.env.now))
     elif reception is not None:
         add("links", radio_link_lifetimes(reception, legs, sim.state.range_m, sim.env.now, side, torus))
