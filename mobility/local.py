@@ -246,10 +246,10 @@ def let_go(
     itself and the robots it remembers (at the positions it heard), joined where two
     remember each other and are surely within ``range_m`` and (on a map) surely clear of
     ``walls`` (:func:`clear_of_walls` with the larger of the two uncertainties), each link
-    at the largest rank it can have at ``t0``. Whether two of them remember each other is
-    in what ``i`` heard: its own memory and the records their Acks carried. A robot two
-    links out is no node: whether it remembers anyone is in its own Acks, which ``i`` did
-    not hear. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
+    at the largest rank it can have at ``t0``. A robot two links out is no node: ``i``
+    heard nothing of it. Whether two robots ``i`` remembers remember each other is read
+    from ``known`` as it is at ``t0`` (docs/model.md 5.1: it stands for a list the Acks do
+    not carry yet). A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
     minimum spanning tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS`
     robots the compiled twin (:mod:`netsim.mobility._local_kernels`) computes the same.
 

@@ -127,10 +127,8 @@ def test_detour_compiled_and_numpy_agree(monkeypatch):
 
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_detour_a_robot_decides_from_what_it_heard_alone(monkeypatch, compiled):
-    """Rule 1 uses only what robot i heard: its own position and memory and the records
-    of the robots it remembers (their Acks carry them). Whatever the robots it does not
-    remember remember, and wherever the others are, i lets go of the same robots (both
-    twins)."""
+    """Rule 1 reads nothing of the robots i does not remember: whatever they remember and
+    wherever the others are, i lets go of the same robots (both twins)."""
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(7)
     for seed in range(4):
