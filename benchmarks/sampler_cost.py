@@ -30,10 +30,9 @@ def main() -> None:
     from compare import netsim_settings
 
     import netsim.radio.spatial
-    from netsim import protocols
     from netsim.tools import cli
 
-    sampler, lists = protocols.stack.Stack._sampler, netsim.radio.spatial.RangeIndex.lists
+    sampler, lists = netsim.protocols.stack.Stack._sampler, netsim.radio.spatial.RangeIndex.lists
     spent = {"wall": 0.0, "cpu": 0.0, "samples": 0, "lists": 0.0, "sampling": False, "faults": 0}
 
     def timed_sampler(self, interval):
@@ -57,7 +56,7 @@ def main() -> None:
             spent["lists"] += time.perf_counter() - w
         return out
 
-    protocols.stack.Stack._sampler = timed_sampler  # type: ignore[method-assign]
+    netsim.protocols.stack.Stack._sampler = timed_sampler  # type: ignore[method-assign]
     netsim.radio.spatial.RangeIndex.lists = timed_lists  # type: ignore[method-assign]
     with tempfile.TemporaryDirectory() as out:
         argv = ["run", "--out", out, "--no-progress", "--quiet"]
@@ -74,7 +73,7 @@ def main() -> None:
         faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - faults
     k = max(spent["samples"], 1)
     print(
-        f"{protocols.stack.__file__}: N = {args.n}, {spent['samples']} samples: "
+        f"{netsim.protocols.stack.__file__}: N = {args.n}, {spent['samples']} samples: "
         f"{1e3 * spent['wall'] / k:.2f} ms wall, {1e3 * spent['cpu'] / k:.2f} ms CPU per sample "
         f"(the lists {1e3 * spent['lists'] / k:.2f} ms wall); "
         f"netsim run {wall:.2f} s wall, {cpu:.2f} s CPU, {faults} minor page faults ({spent['faults']} in the samples)"

@@ -393,7 +393,7 @@ class CoverageController:
         # step short of a wall).
         self.occupancy = parts.occupancy
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
-        # The local plan: what each robot heard (mobility.local), the distance within which
+        # The local plan: what each robot heard (netsim.mobility.local), the distance within which
         # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
         self.local_limits = replace(self.limits, range_m=self._sure_range_m())
@@ -514,7 +514,7 @@ class CoverageController:
         kept = known & ~let_go(pos, knows, known, step.t_s, c.speed_max_mps, c.band_m, limits.range_m, walls)
         announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
-        # What each robot's next Acks announce (mobility.local, rule 4).
+        # What each robot's next Acks announce (netsim.mobility.local, rule 4).
         self.earlier_mps, self.earlier_s = self.announced_mps, self.announced_s
         self.announced_mps, self.announced_s = wish, self.env.now
         plan = plan_local(pos, wish, knows, kept, step.t_s, limits)
@@ -567,7 +567,7 @@ class CoverageController:
 
     def _cut_for_walls(self, pos: np.ndarray, plan: Plan, commanded: np.ndarray, links) -> Plan:
         """On a map: each step ends short of the walls (as the control loop would make it),
-        then is cut before the first instant a kept link would be lost (mobility.keep)."""
+        then is cut before the first instant a kept link would be lost (netsim.mobility.keep)."""
         move = plan.velocity_mps * self.limits.period_s
         moving = np.flatnonzero((move != 0).any(axis=1))
         if len(moving) == 0:

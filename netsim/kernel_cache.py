@@ -1,7 +1,7 @@
 """numba's on-disk cache of the compiled kernels, keyed by the sources they are built from.
 
 numba checks a cached function against its own source file only (numba issue 1833): a
-kernel that calls a kernel of another module (``protocols._kernels`` calls
+kernel that calls a kernel of another module (``netsim.protocols._kernels`` calls
 ``netsim._kernels``), or reads a constant imported from one, would go on running the old
 code after an edit of that other module alone, silently. So every kernel module ends with
 ``key(globals())``: the cache of each function it compiles goes to a directory named by
@@ -28,7 +28,7 @@ wants to say so asks :func:`when_cold` to be told.
 from __future__ import annotations
 
 import hashlib
-import importlib.machinery
+import importlib.util
 import os
 import re
 import shutil
@@ -107,12 +107,14 @@ def _module_path(name: str) -> str | None:
         return _PATHS[name]
     parent, _, child = name.rpartition(".")
     found = None
-    if not parent:
+    if not parent or parent in sys.modules:
+        # The import system's own finders (an installed layout, a folder mapped into a
+        # package) locate it; only the parent, loaded already, is imported on the way.
         try:
-            spec = importlib.machinery.PathFinder.find_spec(name)
-        except (ImportError, ValueError):
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError, AttributeError):
             spec = None
-        found = spec.origin if spec is not None else None
+        found = spec.origin if spec is not None and spec.has_location else None
     else:
         above = _module_path(parent)
         if above is not None and os.path.basename(above) == "__init__.py":

@@ -11,7 +11,7 @@ implements :class:`Reports`.
 Built-in plugins are entry points in ``pyproject.toml`` (groups ``netsim.mobility``,
 ``netsim.protocols``, ``netsim.controllers``, ``netsim.hooks``, and the channel's models
 ``netsim.propagation``, ``netsim.loss``, ``netsim.mac``), each naming a plugin object
-(``mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
+(``netsim.mobility.random_waypoint:PLUGIN``); a user's own is named ``"package.module:attr"`` in
 the configuration. So the engine never imports the packages that build on it, and names
 none of their models. A plugin is a :class:`PluginSpec` or an object with its members, and
 nothing else: a component is handed its parameters and collaborators when it is built,

@@ -35,15 +35,15 @@ import numpy as np
 from netsim import kernel_cache
 from netsim._kernels import longest_list, position, reaches_robot, senders_in_list
 
-# The packed record's columns and the empty id (protocols.neighbours; repeated here so
+# The packed record's columns and the empty id (netsim.protocols.neighbours; repeated here so
 # that numba sees constants).
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
 FIELDS = 12  # an Ack's record: these fields, then the ids it heard
 EMPTY = -1
-# protocols.neighbours.EMPTY_RECORD, a constant of the compiled code (not an argument per Ack).
+# netsim.protocols.neighbours.EMPTY_RECORD, a constant of the compiled code (not an argument per Ack).
 EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf])
 # Columns of the Ack beacon's per-robot (n, 3) array of what each robot sent last
-# (protocols.ack.AckBeacon.sent): its sequence number, role and two-way degree.
+# (netsim.protocols.ack.AckBeacon.sent): its sequence number, role and two-way degree.
 SEQ_SENT, ROLE_SENT, DEGREE_SENT = 0, 1, 2
 
 
@@ -221,7 +221,7 @@ def make_sized_ack(i, now, motion, beacon, roles, table, sized, symmetric):
     return _make_ack(i, now, motion, beacon, roles, table, i, symmetric)
 
 
-# Rule 2's join policies (protocols.clustering.JOIN_CODES).
+# Rule 2's join policies (netsim.protocols.clustering.JOIN_CODES).
 JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
 
 
@@ -261,7 +261,7 @@ def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard):
     return -1, -1  # not reached: best is one of those slots
 
 
-# Rule 6's election policies (protocols.clustering.ELECTION_CODES).
+# Rule 6's election policies (netsim.protocols.clustering.ELECTION_CODES).
 ELECT_LOWEST_ID, ELECT_HIGHEST_DEGREE, ELECT_NONE = 0, 1, 2
 
 
@@ -292,10 +292,10 @@ def elected_in_row(table, i, now, rules, old, degree):
     return True
 
 
-# Roles (protocols.roles).
+# Roles (netsim.protocols.roles).
 UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 
-# The clustering's loops (protocols.clustering, relay and stack), each equal to a numpy
+# The clustering's loops (netsim.protocols.clustering, relay and stack), each equal to a numpy
 # function there: per Ack, per flooded message and per sample.
 
 
@@ -494,7 +494,7 @@ def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gatewa
     return fresh, relays(table, now, symmetric, roles, fresh, distributed_gateways)
 
 
-# The once-a-second samples of beliefs beside the truth (protocols.stack): one pass over the
+# The once-a-second samples of beliefs beside the truth (netsim.protocols.stack): one pass over the
 # neighbour tables, rows as they are laid out, each slot's record read only when its id is
 # not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the (n, slots, fields)
 # records are tens of MB at 10,000 robots, so a scan's cost is the memory it reads.

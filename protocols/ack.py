@@ -174,7 +174,7 @@ class Ack(NamedTuple):
     group_size: int
     resign: bool
     # The fields packed for neighbour tables, then the ids the sender has heard within tau,
-    # ascending (protocols.neighbours.ack_record): one array per Ack.
+    # ascending (netsim.protocols.neighbours.ack_record): one array per Ack.
     record: np.ndarray
 
     @property
@@ -246,14 +246,14 @@ class AckBeacon:
         # Set by a protocol whose leaders announce their group's size (the clustering): whose
         # announced size is other than 1, whether links are symmetric, and the numpy rule
         # that sets the size before an Ack. The compiled Ack applies the same rule itself
-        # (protocols._kernels.make_sized_ack); each Ack takes one path or the other, so the
+        # (netsim.protocols._kernels.make_sized_ack); each Ack takes one path or the other, so the
         # size is set whichever way the table computes.
         self.sized: np.ndarray | None = None
         self.sized_symmetric = True
         self.size_rule: Callable[[int, float], None] | None = None
         self.phase_s = np.zeros(n)
         # What the compiled Ack reads of the robots' motion, of the beacon and of the roles
-        # (protocols._kernels' ``motion``, ``beacon`` and ``roles``): arrays kept for the
+        # (netsim.protocols._kernels' ``motion``, ``beacon`` and ``roles``): arrays kept for the
         # run, so put together once.
         st = parts.state
         self._compiled_view = (
@@ -302,7 +302,7 @@ class AckBeacon:
         table = self.table
         k = table.kernels
         if k is not None:
-            # The same work in one compiled call (protocols._kernels.make_ack); the kernel
+            # The same work in one compiled call (netsim.protocols._kernels.make_ack); the kernel
             # returns the Ack's fields in order: made into an Ack with no unpacking.
             sized = self.sized
             motion, beacon, roles_view = self._compiled_view

@@ -156,7 +156,7 @@ JOIN: dict[JoinPolicy, Callable[[list[Candidate], int | None], int]] = {
 }
 
 
-# The join policies' codes in the compiled join_choice (protocols._kernels).
+# The join policies' codes in the compiled join_choice (netsim.protocols._kernels).
 JOIN_CODES = {JoinPolicy.NEAREST: 0, JoinPolicy.FIRST_HEARD: 1, JoinPolicy.LOWEST_ID: 2}
 
 
@@ -209,7 +209,7 @@ ELECTION: dict[ElectionPolicy, Callable[[Candidate, list[Candidate]], bool]] = {
 }
 
 
-# The election policies' codes in the compiled elected_in_row (protocols._kernels).
+# The election policies' codes in the compiled elected_in_row (netsim.protocols._kernels).
 ELECTION_CODES = {ElectionPolicy.LOWEST_ID: 0, ElectionPolicy.HIGHEST_DEGREE: 1, ElectionPolicy.NONE: 2}
 
 
@@ -231,7 +231,7 @@ _NONE = np.empty(0, dtype=np.int64)
 
 
 # The clustering's constants, one record read by name in the compiled rules
-# (protocols._kernels' ``rules``) and in their numpy twins.
+# (netsim.protocols._kernels' ``rules``) and in their numpy twins.
 RULES = np.dtype(
     [
         ("tau_s", np.float64),  # rule 3: a renewed member's deadline is tau after the Ack
@@ -256,7 +256,7 @@ def rules_record(tau_s: float, merge_delay_s: float, symmetric: bool, join_polic
 
 
 class Robots(NamedTuple):
-    """The per-robot state the rules read and write on an Ack (protocols._kernels'
+    """The per-robot state the rules read and write on an Ack (netsim.protocols._kernels'
     ``robots``, passed as a plain tuple)."""
 
     role: np.ndarray  # Roles.role
@@ -271,7 +271,7 @@ class AckEffects(NamedTuple):
     """What an Ack does to the clustering (docs/model.md 4.2), as lists filled per Ack by
     :func:`ack_effects` (and the compiled ``receive_effects``), each as long as the robots
     and reused from Ack to Ack: the counts returned say how much of each is the Ack's.
-    Passed to the compiled loops as a plain tuple (protocols._kernels' ``effects``)."""
+    Passed to the compiled loops as a plain tuple (netsim.protocols._kernels' ``effects``)."""
 
     group: np.ndarray  # rules 3, 5, 6: where (in the receivers) the sender's group's members are
     to_arm: np.ndarray  # rule 3: members whose renewed timer needs its event armed

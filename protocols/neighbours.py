@@ -44,7 +44,7 @@ class NeighbourTable:
         self.data = np.broadcast_to(EMPTY_RECORD, (n, slots, len(EMPTY_RECORD))).copy()
         self._records = self.data.reshape(-1, len(EMPTY_RECORD))
         self._ids = self.id.reshape(-1)
-        # What the compiled loops take (protocols._kernels' ``table``), made again on growth.
+        # What the compiled loops take (netsim.protocols._kernels' ``table``), made again on growth.
         self.view = (self.id, self.data, self.tau_s)
         self.kernels = load("netsim.protocols._kernels", n)
 

@@ -486,14 +486,14 @@ def test_sample_in_two_halves_equals_one_pass(monkeypatch):
     """A run's sampled tables taken in two halves at once (two threads, the second's rows
     moved up after the first's) are those of one pass (the threshold lowered to this small
     run, two cores assumed whatever the machine has)."""
-    from netsim import protocols
+    import netsim.protocols.stack
 
     (_, whole) = _clustering_after(monkeypatch, 12.0, True)
-    monkeypatch.setattr(protocols.stack, "SAMPLE_IN_TWO_ROBOTS", 1)
-    monkeypatch.setattr(protocols.stack, "cores", lambda: 2)
+    monkeypatch.setattr(netsim.protocols.stack, "SAMPLE_IN_TWO_ROBOTS", 1)
+    monkeypatch.setattr(netsim.protocols.stack, "cores", lambda: 2)
     calls = []
-    both = protocols.stack.side_by_side
-    monkeypatch.setattr(protocols.stack, "side_by_side", lambda *fns: calls.append(1) or both(*fns))
+    both = netsim.protocols.stack.side_by_side
+    monkeypatch.setattr(netsim.protocols.stack, "side_by_side", lambda *fns: calls.append(1) or both(*fns))
     (_, halves) = _clustering_after(monkeypatch, 12.0, True)
     assert len(calls) == 12  # a sample a second, from 0 s, before 12 s
     for frame in ("groups_frame", "beliefs_frame", "neighbour_beliefs_frame"):

@@ -406,3 +406,16 @@ def test_step_without_actions_keeps_every_velocity():
     assert np.array_equal(env.sim.state.velocity_mps, before) and (before != 0).any()
     moving = (env.sim.state.velocity_mps != 0).any(axis=1)
     assert (env.sim.positions()[moving] != pos[moving]).any(axis=1).all()
+
+
+def test_a_duration_that_no_longer_matches_max_cycles_is_refused_at_reset():
+    """A duration set through ``netsim`` that matched ``max_cycles`` when the environment
+    was made, and no longer does once ``max_cycles`` is changed (as PettingZoo's tests do),
+    is refused at the next reset in one line, not by a run stopped mid-episode."""
+    step_s = SMALL.get("step_s", 1.0)
+    max_cycles = SMALL.get("max_cycles", 200)
+    env = coverage_v0.parallel_env(**SMALL, netsim={"duration_s": max_cycles * step_s})
+    env.max_cycles = max_cycles + 5
+    with pytest.raises(ConfigError, match="duration_s") as err:
+        env.reset(seed=1)
+    assert "\n" not in str(err.value)

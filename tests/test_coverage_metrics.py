@@ -204,7 +204,7 @@ def test_property_no_connected_deployment_covers_more_than_the_bound(seed, n):
     assert lower <= connected_coverage_bound(n, r)
 
 
-AUDIT_RANGES = [100.0, 100.0, 150.0, 150.0, 150.0, 150.0]
+UNEQUAL_RANGES = [100.0, 100.0, 150.0, 150.0, 150.0, 150.0]
 
 
 def test_per_robot_equal_ranges_give_the_one_range_bound_bit_for_bit():
@@ -219,13 +219,13 @@ def test_a_chain_longest_ranges_first_reaches_the_unequal_range_bound():
     """Item 16 with unequal ranges: a straight chain, the longest ranges first, each link
     at its full length min(r_a, r_b), covers exactly U (disks of the smallest range);
     the smallest range's bound is exceeded."""
-    r = min(AUDIT_RANGES)
+    r = min(UNEQUAL_RANGES)
     x = [0.0]
-    for a, b in zip(AUDIT_RANGES[:0:-1], AUDIT_RANGES[-2::-1]):
+    for a, b in zip(UNEQUAL_RANGES[:0:-1], UNEQUAL_RANGES[-2::-1]):
         x.append(x[-1] + min(a, b))
     chain = np.column_stack([200.0 + np.array(x), np.full(len(x), 400.0)])
     lower, upper = union_area_bracket(chain, r, 1500.0)
-    assert lower <= connected_coverage_bound(6, r, AUDIT_RANGES) <= upper
+    assert lower <= connected_coverage_bound(6, r, UNEQUAL_RANGES) <= upper
     assert lower > connected_coverage_bound(6, r, r)
 
 

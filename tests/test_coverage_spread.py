@@ -339,7 +339,7 @@ def test_expansion_leaves_follow_mode_alone():
 
 
 def test_with_unequal_ranges_the_team_never_covers_more_than_the_bound():
-    """The audit's ranges (100, 100 and four of 150 m): the team, connected through links
+    """Unequal ranges (100, 100 and four of 150 m): the team, connected through links
     longer than the smallest range, covers at most U with one range per robot
     (docs/validation.md item 16), so covered_of_bound_all never exceeds 1."""
     ranges = [100.0, 100.0, 150.0, 150.0, 150.0, 150.0]

@@ -121,7 +121,7 @@ def test_old_keyed_directories_are_pruned(tmp_path, monkeypatch):
 
 
 # Robot 0's Ack at t = 10 s, from rest at the origin moving at 1 m/s along x: its x is the
-# caller's (protocols._kernels.make_ack) use of the callee netsim._kernels.position.
+# caller's (netsim.protocols._kernels.make_ack) use of the callee netsim._kernels.position.
 PROBE = """
 import numpy as np
 from netsim.protocols import _kernels as k
@@ -140,7 +140,7 @@ print(ack[4])
 @pytest.mark.slow
 def test_an_edited_callee_in_another_module_changes_its_callers_result(tmp_path):
     """In a copy of the tree, with a warm cache: editing netsim._kernels.position alone
-    (not its caller's module) changes what protocols._kernels.make_ack computes."""
+    (not its caller's module) changes what netsim.protocols._kernels.make_ack computes."""
     tree = tmp_path / "tree"
     ignore = shutil.ignore_patterns("__pycache__")
     shutil.copytree(ROOT / "netsim", tree / "netsim", ignore=ignore)

@@ -29,6 +29,7 @@ cell centres; ``components`` those of the links the channel makes (those of
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -156,7 +157,12 @@ class CoverageEnv(ParallelEnv):
             self._seed, self._episode = int(seed), 0
         else:
             self._episode += 1
-        self.sim = sim = build(self._config(self._seed), run=self._episode)
+        config = self._config(self._seed)
+        # max_cycles may have changed since the environment was made: checked again.
+        problem = refused(config, dataclasses.replace(self.params, max_cycles=self.max_cycles))
+        if problem is not None:
+            raise ConfigError(*problem)
+        self.sim = sim = build(config, run=self._episode)
         if sim.groups is not None:
             self.role_names = tuple(sim.groups.role_names)
         if sim.link_solver is not None:
