@@ -333,6 +333,22 @@ class _Events(list):
         return len(self) - 1
 
 
+def _head_to(events: _Events, new: _Heading, i: int, t: float, x: float, y: float, speed: float, lineno: int) -> bool:
+    """A ``setdest``'s leg, in both readings: ``new`` (standing at ``new.final`` at ``t``)
+    heads for ``(x, y)`` at ``speed``, with its velocity event and the stop at its arrival;
+    False (nothing added) when there is no travel."""
+    travel = math.hypot(x - new.final[0], y - new.final[1]) / speed if speed > 0 else 0.0
+    if not travel > 0:
+        return False
+    v = np.array([(x - new.final[0]) / travel, (y - new.final[1]) / travel])
+    new.velocity = v
+    events.add(t, i, "velocity", v, lineno)
+    new.stop_event = events.add(t + travel, i, "stop", (0.0, 0.0), lineno)
+    new.final = new.final + v * travel
+    new.arrival_s = t + travel
+    return True
+
+
 def _ns2_events(scheduled: list, heading: dict[int, _Heading]) -> _Events:
     """The events of the scheduled lines, taken in time order, as ns-2 applies them."""
     events = _Events()
@@ -353,17 +369,8 @@ def _ns2_events(scheduled: list, heading: dict[int, _Heading]) -> _Events:
             events.add(t, i, "position", here, lineno)
         else:
             _t, x, y, speed = vals
-            dist = math.hypot(x - here[0], y - here[1])
-            if speed == 0 or dist == 0:
+            if not _head_to(events, new, i, t, x, y, speed, lineno):
                 events.add(t, i, "velocity", (0.0, 0.0), lineno)
-            else:
-                travel = dist / speed
-                v = np.array([(x - here[0]) / travel, (y - here[1]) / travel])
-                new.velocity = v
-                events.add(t, i, "velocity", v, lineno)
-                new.stop_event = events.add(t + travel, i, "stop", (0.0, 0.0), lineno)
-                new.final = here + v * travel
-                new.arrival_s = t + travel
         heading[i] = new
     return events
 
@@ -384,14 +391,7 @@ def _ns3_events(scheduled: list, heading: dict[int, _Heading], now: np.ndarray) 
             if speed == 0:
                 new.stop_event = events.add(t, i, "velocity", (0.0, 0.0), lineno)
             elif speed > 0:
-                travel = math.hypot(x - new.final[0], y - new.final[1]) / speed
-                if travel > 0:
-                    v = np.array([(x - new.final[0]) / travel, (y - new.final[1]) / travel])
-                    new.velocity = v
-                    events.add(t, i, "velocity", v, lineno)
-                    new.stop_event = events.add(t + travel, i, "stop", (0.0, 0.0), lineno)
-                    new.final = new.final + v * travel
-                    new.arrival_s = t + travel
+                _head_to(events, new, i, t, x, y, speed, lineno)
             heading[i] = new
         else:
             t, coord, value = vals

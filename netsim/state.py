@@ -296,16 +296,15 @@ class RobotState:
         return b.x_min - tol <= x <= b.x_max + tol and b.y_min - tol <= y <= b.y_max + tol
 
     def _check_end(self, i: int, t: float, end: np.ndarray) -> None:
-        """Robot ``i``'s current leg, ending at ``end`` at ``t``, stays in the area and
-        (on a map) in free cells: as the area is convex, its ends tell."""
-        if not self._inside(float(end[0]), float(end[1])):
-            self._refuse_leg(i, t, end, "leaves the area")
-        if self._walls is not None and (self.velocity_mps[i, 0] != 0 or self.velocity_mps[i, 1] != 0):
-            if not self._walls.legs_free(self.origin_m[i : i + 1], end[None])[0]:
-                self._refuse_leg(i, t, end, "crosses a wall of the map")
+        """:meth:`_check_ends` for robot ``i`` alone, with a fast path for the common case (a
+        leg ending inside the area, no map)."""
+        moving = self.velocity_mps[i, 0] != 0 or self.velocity_mps[i, 1] != 0
+        if not self._inside(float(end[0]), float(end[1])) or (self._walls is not None and moving):
+            self._check_ends(np.array([i]), t, np.asarray(end, dtype=float)[None])
 
     def _check_ends(self, idx: np.ndarray, t: float, ends: np.ndarray) -> None:
-        """:meth:`_check_end` for robots ``idx`` at once."""
+        """Robots ``idx``'s current legs, ending at ``ends`` at ``t``, stay in the area and (on a
+        map) in free cells: as the area is convex, their ends tell."""
         b, tol = self.bounds, self._tolerance_m
         x, y = ends[:, 0], ends[:, 1]
         out = ~((x >= b.x_min - tol) & (x <= b.x_max + tol) & (y >= b.y_min - tol) & (y <= b.y_max + tol))
