@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from netsim import kernel_cache
+from netsim.compiled import jit
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def clear(walls, ax, ay, bx, by, ea, eb):
     """The convex hull of the disks of radius ``ea`` around ``(ax, ay)`` and ``eb`` around
     ``(bx, by)`` meets no wall (:func:`netsim.mobility.local.clear_of_walls`, one pair)."""
@@ -41,14 +40,14 @@ def clear(walls, ax, ay, bx, by, ea, eb):
         t = min(t + gap / (1.0 + growth), length)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def clear_many(walls, a, b, ea, eb, out):
     """:func:`clear` for every row."""
     for k in range(a.shape[0]):
         out[k] = clear(walls, a[k, 0], a[k, 1], b[k, 0], b[k, 1], ea[k], eb[k])
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def let_go(pos, memory, rule, walls, out):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
     through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
@@ -110,8 +109,3 @@ def let_go(pos, memory, rule, walls, out):
             shortest = max(math.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
             rank = math.floor(shortest / band_m) * nn + float(min(i, j) * n + max(i, j)) + 1.0
             out[i, j] = worst[a] < rank
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (netsim.kernel_cache).
-kernel_cache.key(globals())

@@ -9,13 +9,12 @@ operation, not the arithmetic, is what a call costs. The tests check that both a
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from netsim import kernel_cache
+from netsim.compiled import jit
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
     """Robot ``i``'s position at ``t`` (:meth:`netsim.state.RobotState.position`)."""
     dt = t - t0_s[i]
@@ -26,7 +25,7 @@ def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
     return x, y
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
     """Robot ``j``'s position at ``t`` minus ``(x, y)`` (the nearest image on a torus): the
     range query's arithmetic. The numpy code adds complex numbers: the same products and
@@ -40,7 +39,7 @@ def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
     return dx, dy
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def within(cand, motion, i, t, r):
     """The candidates ``cand`` within ``r`` of robot ``i`` at ``t``, and their distances
     (:meth:`netsim.radio.spatial.RangeIndex.within` over a candidate list). ``motion``: the
@@ -61,7 +60,7 @@ def within(cand, motion, i, t, r):
     return ids[:k], dist[:k]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def within_alive(cand, lo, hi, motion, i, t, r, alive):
     """The candidates ``cand[lo:hi]`` within ``r`` of robot ``i`` at ``t`` (as
     :func:`within`, without the distances), and whether all of them are ``alive``
@@ -83,7 +82,7 @@ def within_alive(cand, lo, hi, motion, i, t, r, alive):
     return ids[:k], all_alive
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def count_each(counts, ids):
     """``counts[ids] += 1`` for distinct ``ids`` (the channel's per-robot reception count):
     for the tens of receivers of one delivery, a loop costs less than numpy's fancy index."""
@@ -91,7 +90,7 @@ def count_each(counts, ids):
         counts[j] += 1
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def all_set(mask, ids):
     """``mask[ids].all()`` (whether every receiver is alive), without the temporary array."""
     for j in ids:
@@ -100,13 +99,13 @@ def all_set(mask, ids):
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _cell_of(v, lo, size, cells):
     c = int((v - lo) / size)
     return min(max(c, 0), cells - 1)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def grid(pos, r, box):
     """The grid of :func:`near_pairs` over positions ``pos`` (in ``[0, box)`` on a torus of
     side ``box > 0``): cells no smaller than ``r``, ``cells_x`` by ``cells_y``; each
@@ -147,7 +146,7 @@ def grid(pos, r, box):
     return cells_x, cells_y, cell, start, members
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def near_pairs(pos, r, box):
     """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` of each other (on a torus of
     side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r`` (as many as
@@ -195,7 +194,7 @@ def near_pairs(pos, r, box):
     return pairs
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def neighbour_lists(pairs, n):
     """Both directions of the ``pairs`` as lists per robot, ascending: ``(indptr,
     indices)`` with robot ``i``'s neighbours at ``indices[indptr[i]:indptr[i + 1]]``
@@ -219,7 +218,7 @@ def neighbour_lists(pairs, n):
     return indptr, indices
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _row_spans(cy, cx, cells_x, cells_y, wrap, spans):
     """The cells next to cell ``(cy, cx)`` (itself included), as at most six spans
     ``[lo, hi)`` of consecutive (row-major) cell numbers in ``spans``; how many. In the
@@ -252,7 +251,7 @@ def _row_spans(cy, cx, cells_x, cells_y, wrap, spans):
     return k
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _sort_small(a, lo, hi):
     """Sort ``a[lo:hi]`` in place by insertion: for the tens of ids of one robot, numba's
     sort costs more to call than this costs to run."""
@@ -265,7 +264,7 @@ def _sort_small(a, lo, hi):
         a[j] = v
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def reaches(ddx, ddy, lim, box):
     """Whether a sender at ``(ddx, ddy)`` from a receiver (the nearest image on a torus of
     side ``box > 0``) reaches it with range ``lim``: the square decides all but a distance
@@ -278,7 +277,7 @@ def reaches(ddx, ddy, lim, box):
     return hit
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@jit(nogil=True, inline="always")
 def _reach_band(ddx, ddy, lim, box):
     """:func:`reaches`'s arithmetic: the offset (folded to the nearest image on a torus),
     its square, and the squares up to which it surely reaches and beyond which it surely
@@ -289,14 +288,14 @@ def _reach_band(ddx, ddy, lim, box):
     return ddx, ddy, ddx * ddx + ddy * ddy, lim * lim * (1.0 - 1e-6), lim * lim * (1.0 + 1e-6)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def reaches_robot(pos, ranges, box, a, m):
     """Whether robot ``m``'s transmissions reach robot ``a`` (positions ``pos``, ranges
     ``ranges``): :func:`reach_keys_in_lists`'s test of one candidate."""
     return reaches(pos[a, 0] - pos[m, 0], pos[a, 1] - pos[m, 1], ranges[m], box)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def senders_in_list(pos, ranges, box, indptr, indices, a, out):
     """The robots of ``a``'s neighbour list (``indices[indptr[a]:indptr[a + 1]]``,
     ascending) whose transmissions reach ``a`` (:func:`reaches_robot`), ascending, in
@@ -325,7 +324,7 @@ def senders_in_list(pos, ranges, box, indptr, indices, a, out):
     return h
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def reach_keys_in_lists(pos, ranges, box, indptr, indices):
     """:func:`reach_keys` with each receiver's candidates from neighbour lists (those of
     :meth:`netsim.radio.spatial.RangeIndex.lists`: ascending, holding every robot within reach),
@@ -342,7 +341,7 @@ def reach_keys_in_lists(pos, ranges, box, indptr, indices):
     return keys[:q]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def longest_list(indptr):
     """The length of the longest of the lists ``indptr`` delimits."""
     longest = 0
@@ -351,7 +350,7 @@ def longest_list(indptr):
     return longest
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
     """Hops from ``source`` to every robot over the directed links where a sender reaches a
     receiver (``towards``: from every robot to ``source``), ``inf`` where there is no path: a
@@ -387,7 +386,7 @@ def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
     return hops
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def reach_keys(pos, folded, ranges, box):
     """``receiver * n + sender`` for every ordered pair where the sender reaches the receiver
     (``|p_receiver - p_sender| <= ranges[sender]``, on a torus of side ``box`` when ``box >
@@ -438,8 +437,3 @@ def reach_keys(pos, folded, ranges, box):
             keys[q] = base + senders[t]
             q += 1
     return keys
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
-kernel_cache.key(globals())

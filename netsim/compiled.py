@@ -1,11 +1,14 @@
-"""Whether the hot path runs its compiled (numba) loops, and loading them.
+"""The compiled loops (kernels): written once, run compiled or as plain Python.
 
-The per-message work of the channel and the Ack beacon (range queries, neighbour tables)
-has compiled twins of its numpy code; each computes exactly what the numpy code computes
-(tests compare them with ``==``). Importing numba and loading its cached machine code
-costs more than a small run's whole simulation, so runs of fewer than
-:data:`SMALL_RUN_ROBOTS` robots keep the numpy code. ``NETSIM_COMPILED=0`` or ``=1`` in the
-environment forces one or the other (for the comparisons; the outputs are the same).
+Each hot rule is one function in a kernel module (``_kernels.py``), written in numba's loop
+style and marked :func:`jit`. Importing a kernel module loads no numba: its functions are
+plain Python, which is how a small run calls them. :func:`load` decides, in this one place,
+which a run gets: for :data:`SMALL_RUN_ROBOTS` robots or more the module's compiled copy
+(:func:`compiled_copy`: every marked function compiled by numba from the same source), else
+the module itself. Importing numba and loading its cached machine code costs more than a
+small run's whole simulation; a loop over a few robots costs little in Python.
+``NETSIM_COMPILED=0`` or ``=1`` in the environment forces one or the other (the outputs are
+the same, bit for bit: the tests run both).
 """
 
 from __future__ import annotations
@@ -14,14 +17,36 @@ import importlib
 import os
 import sys
 import threading
+import types
 from collections.abc import Callable
 from types import ModuleType
-from typing import TypeVar
+from typing import Any, TypeVar
 
 SMALL_RUN_ROBOTS = 20
 
 T = TypeVar("T")
 U = TypeVar("U")
+F = TypeVar("F", bound=Callable[..., Any])
+
+_JIT = "__netsim_jit__"  # a kernel's numba options, set by jit
+_COPIES: dict[str, ModuleType] = {}  # kernel module -> its compiled copy
+_COPY_LOCK = threading.RLock()
+
+
+def jit(**options: Any) -> Callable[[F], F]:
+    """Mark a kernel: compiled with ``numba.njit(cache=True, **options)`` in its module's
+    compiled copy, itself (plain Python) in the module."""
+
+    def mark(function: F) -> F:
+        setattr(function, _JIT, options)
+        return function
+
+    return mark
+
+
+def is_kernel(value: object) -> bool:
+    """Whether ``value`` is a function marked by :func:`jit`."""
+    return isinstance(value, types.FunctionType) and hasattr(value, _JIT)
 
 
 def compiled_wanted(n_robots: int) -> bool:
@@ -32,19 +57,55 @@ def compiled_wanted(n_robots: int) -> bool:
     return n_robots >= SMALL_RUN_ROBOTS
 
 
-def load(module: str, n_robots: int) -> ModuleType | None:
-    """The module of compiled loops ``module`` when wanted for ``n_robots``, else None
-    (also where numba is missing: it is a dependency, the numpy code is the fallback)."""
-    if not compiled_wanted(n_robots):
-        return None
-    loaded = sys.modules.get(module)
-    if loaded is not None:  # asked for at every rebuild of the range index
-        return loaded
-    try:
-        _numba_without_blas_probe()
-        return importlib.import_module(module)
-    except ImportError:  # pragma: no cover
-        return None
+def load(module: str, n_robots: int) -> ModuleType:
+    """The kernel module ``module`` as a run of ``n_robots`` robots calls it: its compiled
+    copy when wanted (:func:`compiled_wanted`) and numba is there, else the module itself."""
+    if compiled_wanted(n_robots):
+        try:
+            return compiled_copy(module)
+        except ImportError:  # pragma: no cover  (numba is a dependency; plain Python is the fallback)
+            pass
+    return importlib.import_module(module)
+
+
+def compiled_copy(module: str) -> ModuleType:
+    """The compiled copy of the kernel module ``module``: a module of the same globals in
+    which every function marked :func:`jit` is numba's compilation of the same source (its
+    globals the copy's, so that a kernel calls the compiled kernels), and every kernel it
+    imports from another kernel module is that module's compiled one. Made once per process;
+    the machine code is cached on disk (:mod:`netsim.kernel_cache`)."""
+    copy = _COPIES.get(module)
+    if copy is not None:
+        return copy
+    with _COPY_LOCK:
+        copy = _COPIES.get(module)
+        if copy is None:
+            copy = _COPIES[module] = _compile(module)
+    return copy
+
+
+def _compile(name: str) -> ModuleType:
+    _numba_without_blas_probe()
+    import numba
+
+    from netsim import kernel_cache
+
+    plain = importlib.import_module(name)
+    copy = ModuleType(name, plain.__doc__)
+    namespace = copy.__dict__
+    namespace.update(plain.__dict__)
+    for key, value in plain.__dict__.items():
+        if not is_kernel(value):
+            continue
+        if value.__module__ != name:  # a kernel of another module, imported here
+            namespace[key] = getattr(compiled_copy(value.__module__), value.__name__)
+            continue
+        function = types.FunctionType(value.__code__, namespace, value.__name__, value.__defaults__, value.__closure__)
+        function.__qualname__ = value.__qualname__
+        function.__doc__ = value.__doc__
+        namespace[key] = numba.njit(cache=True, **getattr(value, _JIT))(function)
+    kernel_cache.key(namespace)
+    return copy
 
 
 def _numba_without_blas_probe() -> None:

@@ -29,11 +29,10 @@ The loops take a few named things, each a plain tuple of arrays unpacked by name
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from netsim import kernel_cache
 from netsim._kernels import longest_list, position, reaches_robot, senders_in_list
+from netsim.compiled import jit
 
 # The packed record's columns and the empty id (netsim.protocols.neighbours; repeated here so
 # that numba sees constants).
@@ -47,7 +46,7 @@ EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np
 SEQ_SENT, ROLE_SENT, DEGREE_SENT = 0, 1, 2
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def receive(table, now, sender, receivers, record, flags, start):
     """Record an Ack of ``sender`` (its packed ``record``: the fields, then the sorted ids it
     heard) in the rows of ``receivers[start:]`` (:meth:`netsim.protocols.neighbours.NeighbourTable.update`).
@@ -62,14 +61,14 @@ def receive(table, now, sender, receivers, record, flags, start):
     return _receive(table, now, sender, receivers, record, fresh, hears_me, start)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def take(table, now, sender, receivers, record, start):
     """:func:`receive` without the flags (:meth:`netsim.protocols.neighbours.NeighbourTable.take`):
     two arrays fewer to pass per Ack."""
     return _receive(table, now, sender, receivers, record, None, None, start)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
     # fresh and hears_me are both arrays or both None (take): the compiler drops the
     # branches on them in each version.
@@ -124,7 +123,7 @@ def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
     return -1, stale
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def announce(table, i, now, fields):
     """What robot ``i``'s Ack carries, from its row of the ``table``: the Ack's packed record
     (its ``fields``, ``(seq, role, leader, x_m, y_m, group_size)``, with the two-way degree:
@@ -134,7 +133,7 @@ def announce(table, i, now, fields):
     return _announce(table, i, now, fields, None, True)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _announce(table, i, now, fields, mates_of, symmetric):
     # mates_of: None, or the robot sending the Ack (the clustering's), whose members are
     # counted in the same pass over the live entries: a leader announces 1 + those over a
@@ -167,7 +166,7 @@ def _announce(table, i, now, fields, mates_of, symmetric):
     return record[: FIELDS + k]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def make_ack(i, now, motion, beacon, roles, table):
     """Robot ``i``'s Ack at ``now``, once its hooks have run, as
     :meth:`netsim.protocols.ack.AckBeacon.make_ack` builds it: its position (``motion``), its next
@@ -180,7 +179,7 @@ def make_ack(i, now, motion, beacon, roles, table):
     return _make_ack(i, now, motion, beacon, roles, table, None, True)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _make_ack(i, now, motion, beacon, roles, table, mates_of, symmetric):
     # mates_of: as in _announce; the size announced is also written in group_size.
     origin_m, velocity_mps, t0_s, torus, side_m = motion
@@ -202,7 +201,7 @@ def _make_ack(i, now, motion, beacon, roles, table, mates_of, symmetric):
     return i, ro, le, s, x, y, size, resign, record
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def make_sized_ack(i, now, motion, beacon, roles, table, sized, symmetric):
     """:func:`make_ack`, after the clustering's hook has set the group size the Ack
     announces (:func:`netsim.protocols.clustering.announced_size`): a leader's is 1 + its live
@@ -225,7 +224,7 @@ def make_sized_ack(i, now, motion, beacon, roles, table, sized, symmetric):
 JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard):
     """Rule 2 from robot ``i``'s row of the ``table`` (:func:`netsim.protocols.clustering.join_choice`):
     the leader that ``i``, at ``(x_m, y_m)``, joins among its live two-way neighbours whose
@@ -265,7 +264,7 @@ def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard):
 ELECT_LOWEST_ID, ELECT_HIGHEST_DEGREE, ELECT_NONE = 0, 1, 2
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def elected_in_row(table, i, now, rules, old, degree):
     """Rule 6 from robot ``i``'s row of the ``table`` (:func:`netsim.protocols.clustering.elected_in_row`):
     whether ``i``, of announced ``degree``, takes over from its lost leader ``old`` among the
@@ -299,7 +298,7 @@ UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
 # function there: per Ack, per flooded message and per sample.
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def ack_effects(now, told, hears_me, robots, table, rules, effects):
     """What an Ack (``told``) does to the clustering (:func:`netsim.protocols.clustering.ack_effects`),
     from the roles before it acts: the lists of ``effects`` it fills, and how many of each
@@ -351,7 +350,7 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
     return n_group, n_arm, n_join, n_merge
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def receive_effects(table, now, told, robots, rules, effects, start):
     """:func:`receive` then :func:`ack_effects` in one call: an Ack ``told`` to the clustering
     (:meth:`netsim.protocols.clustering.Clustering.take_told`), recorded in the ``table`` (the
@@ -378,7 +377,7 @@ def receive_effects(table, now, told, robots, rules, effects, start):
     return k, stale, kept, n_group, n_arm, n_join, n_merge
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def group_size(records_row, now, tau_s, symmetric, i):
     """1 + the live two-way entries of robot ``i``'s row whose Ack named ``i`` as their
     leader (:meth:`netsim.protocols.clustering.Clustering.group_size`)."""
@@ -390,13 +389,13 @@ def group_size(records_row, now, tau_s, symmetric, i):
     return size
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _two_way(rec, now, tau_s, symmetric):
     """Whether an entry (its record) is a live neighbour over a two-way link."""
     return now - rec[LAST_HEARD] < tau_s and (symmetric or rec[HEARS_ME] != 0)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def membership(table, now, symmetric, roles):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
     robot and group (:func:`netsim.protocols.clustering.membership`)."""
@@ -411,7 +410,7 @@ def membership(table, now, symmetric, roles):
     return robot[:m], group[:m], primary[:m]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@jit(nogil=True, inline="always")
 def _membership_row(table, r, now, symmetric, roles, groups, m):
     """Robot ``r``'s rows of :func:`membership`, written in ``groups`` ``(robot, group,
     primary)`` from ``m`` on; returns the next free row. A slot's record is read only when
@@ -445,7 +444,7 @@ def _membership_row(table, r, now, symmetric, roles, groups, m):
     return m
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def relays(table, now, symmetric, roles, receivers, distributed_gateways):
     """The receivers of a flooded message that relay it (:func:`netsim.protocols.relay.relays`):
     leaders, and members with a live two-way neighbour in another group (a leader other than
@@ -479,7 +478,7 @@ def relays(table, now, symmetric, roles, receivers, distributed_gateways):
     return out[:m]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gateways):
     """A flooded message's copy reaching ``receivers`` (:func:`netsim.protocols.relay.flood_step`):
     those that had not ``seen`` it, marked now, and which of them relay it (:func:`relays`)."""
@@ -500,7 +499,7 @@ def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gatewa
 # records are tens of MB at 10,000 robots, so a scan's cost is the memory it reads.
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def belief_rows(table, now, heard):
     """Who believes whom live, beside the truth (:func:`netsim.protocols.stack.belief_rows`): per
     pair ``(robot, neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or
@@ -516,7 +515,7 @@ def belief_rows(table, now, heard):
     return out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _belief_arrays(n, slots, n_heard):
     """The arrays :func:`_belief_row` fills, for at most every slot and every heard key."""
     size = n * slots + n_heard
@@ -529,7 +528,7 @@ def _belief_arrays(n, slots, n_heard):
     return robot, neighbour, believed, in_range, indptr
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@jit(nogil=True, inline="always")
 def _belief_row(table, r, now, heard, scratch, out, k, p):
     """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` from ``k`` on, its
     heard keys from ``heard[p]`` on (``scratch``: ``(live, senders)``, room for a row's
@@ -549,7 +548,7 @@ def _belief_row(table, r, now, heard, scratch, out, k, p):
     return k, p
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@jit(nogil=True, inline="always")
 def _live_row(ids_row, records_row, now, tau_s, live):
     """The ids of the live entries of a robot's row, ascending, in ``live``; how many. A
     slot's record is read only when its id is not EMPTY (never live)."""
@@ -571,7 +570,7 @@ def _live_row(ids_row, records_row, now, tau_s, live):
 _PAST_IDS = np.iinfo(np.int64).max
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@jit(nogil=True, inline="always")
 def _pair_rows(live, m, heard, h, r, out, k):
     """Robot ``r``'s pairs: the union of the ids it believes live (``live[:m]``) and of those
     whose transmissions reach it (``heard[:h]``), both ascending, written in ``out``
@@ -596,7 +595,7 @@ def _pair_rows(live, m, heard, h, r, out, k):
     return k, b_n, t_n, s_n
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def sample_rows(table, now, symmetric, roles, heard):
     """:func:`membership` and :func:`belief_rows` in one pass over the tables, each row
     read from memory once for both: ``(robot, group, primary), (robot, neighbour,
@@ -615,7 +614,7 @@ def sample_rows(table, now, symmetric, roles, heard):
     return groups, (out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4])
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def sample_into(table, now, symmetric, roles, truth, out, lo, hi):
     """A sample of robots ``lo`` to ``hi - 1`` (all: a whole sample) in one pass over their
     rows of the tables, written where the caller says in ``out`` ``(groups, pairs,
@@ -663,7 +662,7 @@ def sample_into(table, now, symmetric, roles, truth, out, lo, hi):
     return m, k
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@jit(nogil=True, inline="always")
 def _lower_bound(a, lo, hi, x):
     """The first position in ascending ``a[lo:hi]`` whose item is not below ``x`` (``hi``
     if none): ``lo + np.searchsorted(a[lo:hi], x)``, without making the view."""
@@ -676,7 +675,7 @@ def _lower_bound(a, lo, hi, x):
     return lo
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _pair_in_range(neighbour, in_range, indptr, r, j):
     """Whether robot ``r``'s pairs (of :func:`belief_rows`) hold ``j`` in range."""
     lo, hi = indptr[r], indptr[r + 1]
@@ -684,7 +683,7 @@ def _pair_in_range(neighbour, in_range, indptr, r, j):
     return at < hi and neighbour[at] == j and in_range[at]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def belief_counts(neighbour, believed, in_range, indptr, role, leader):
     """Per robot, from its pairs (:func:`belief_rows`): how many neighbours it believes live,
     how many it truly has, how many beliefs are stale, how many missing, and whether its
@@ -714,8 +713,3 @@ def belief_counts(neighbour, believed, in_range, indptr, role, leader):
                 neighbour, in_range, indptr, own, r
             )
     return believed_n, true_n, stale_n, missing_n, leader_in_range
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
-kernel_cache.key(globals())

@@ -247,7 +247,7 @@ _ELECTION_BY_CODE = {code: policy for policy, code in ELECTION_CODES.items()}
 
 def rules_record(tau_s: float, merge_delay_s: float, symmetric: bool, join_policy: str, election_policy: str):
     """The clustering's constants as one :data:`RULES` record (an array of one row)."""
-    rules = np.zeros(1, dtype=RULES)
+    rules = np.zeros(1, dtype=RULES).view(np.recarray)
     row = rules[0]
     row["tau_s"], row["merge_delay_s"], row["symmetric"] = tau_s, merge_delay_s, symmetric
     row["join_policy"] = JOIN_CODES[JoinPolicy(join_policy)]

@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from netsim import kernel_cache
+from netsim.compiled import jit
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
     """:func:`netsim.envs.measure.covered_fraction_grid`."""
     n = p.shape[0]
@@ -37,7 +36,7 @@ def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
     return covered.sum() / (cells * cells)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def component_count(n, a, b):
     """:func:`netsim.envs.measure.component_count` (by union-find)."""
     parent = np.arange(n)
@@ -56,7 +55,7 @@ def component_count(n, a, b):
     return count
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def nearest_told(out, start, pos, ids, told, heard_s, now, k):
     """:func:`netsim.envs.measure.nearest_told`, written into ``out[:, start:]``."""
     n, slots = ids.shape
@@ -83,8 +82,3 @@ def nearest_told(out, start, pos, ids, told, heard_s, now, k):
                 out[i, c + 1] = 0.0
                 out[i, c + 2] = 0.0
                 out[i, c + 3] = 0.0
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
-kernel_cache.key(globals())

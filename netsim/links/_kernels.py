@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from netsim import kernel_cache
+from netsim.compiled import jit
 from netsim.links.crossings import EDGE_S, PHASE_END, PHASE_START
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _dot(x0, x1, y0, y1):
     # numpy's einsum over a row of two: a sum started at zero, term by term.
     s = 0.0
@@ -28,7 +27,7 @@ def _dot(x0, x1, y0, y1):
     return s
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _keep(at, start, length, k, pair, times, phase, m):
     """A crossing of pair ``k`` at ``at``, kept at row ``m`` if it falls in the window
     ``[start, start + length]`` (give or take the edge tolerance), clipped into it, with its
@@ -42,7 +41,7 @@ def _keep(at, start, length, k, pair, times, phase, m):
     return m
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
     """Crossings of pairs on legs ``la``, ``lb`` (rows of ``leg_t``, ``leg_p``, ``leg_v``)
     with the disk of ``radius`` within ``[t_start, t_start + length]``, solved from the later
@@ -78,8 +77,3 @@ def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
         n_in = _keep(origin + lo, start, length[k], k, in_pair, in_t, in_phase, n_in)
         n_out = _keep(origin + hi, start, length[k], k, out_pair, out_t, out_phase, n_out)
     return in_pair[:n_in], in_t[:n_in], in_phase[:n_in], out_pair[:n_out], out_t[:n_out], out_phase[:n_out]
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
-kernel_cache.key(globals())

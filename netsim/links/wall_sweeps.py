@@ -188,7 +188,10 @@ class Stretches:
         ``k0`` and at the end of chunk ``k1 - 1``. ``s0``: each row's state at the end of
         chunk ``k0 - 1`` (a different state at chunk ``k0``'s start is a change then); None
         when ``k0`` is the stretch's first chunk."""
-        from netsim.radio._sweep_kernels import assemble, link_chunks
+        from netsim.compiled import compiled_copy
+
+        k = compiled_copy("netsim.radio._sweep_kernels")
+        assemble, link_chunks = k.assemble, k.link_chunks
 
         rows = np.asarray(rows, np.int64)
         count = np.maximum(np.asarray(k1) - np.asarray(k0), 0).astype(np.int64)

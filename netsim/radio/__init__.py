@@ -33,8 +33,9 @@ dataclasses) and its collaborators when the run is built. It imports the engine'
 def compiled_kernels():
     """The compiled loops (:mod:`netsim.radio._kernels`), or None where numba is missing
     (it is a dependency; the numpy paths are kept for exotic platforms)."""
+    from netsim.compiled import compiled_copy
+
     try:
-        from netsim.radio import _kernels
+        return compiled_copy("netsim.radio._kernels")
     except ImportError:  # pragma: no cover
         return None
-    return _kernels

@@ -7,26 +7,25 @@ the arithmetic, is what a call costs. The tests check that both agree exactly.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from netsim import kernel_cache
+from netsim.compiled import jit
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def cell(flat, w, half, pc, sc, p_max, s_max):
     pc = min(max(pc, 0), p_max)
     sc = min(max(sc, 0), s_max)
     return flat[pc * w + sc] if half == 1 else flat[sc * w + pc]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _snap(g, eps):
     r = np.rint(g)
     return r if abs(g - r) <= eps else g
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def trace_one(cells, u0, v0, u1, v1, eps, limit):
     """Walls crossed by one segment (grid units) and where it first meets a blocked cell;
     ``cells``: the grid's ``(flat, h, w)``, its blocked cells row-major.
@@ -91,7 +90,7 @@ def trace_one(cells, u0, v0, u1, v1, eps, limit):
     return count, ft
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def walls_one(cells, u0, v0, u1, v1, eps, limit):
     """The walls of :func:`trace_one` between two robots: ends within ``eps`` of a grid line
     are put on it first (``netsim.radio.los._snap``), so that walls at a robot on a grid
@@ -100,7 +99,7 @@ def walls_one(cells, u0, v0, u1, v1, eps, limit):
     return count
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def trace(cells, points, eps, out, limit, snap):
     """Every segment's walls (counting stops once past ``limit``) and first blocked point,
     ``out``: ``(walls, first_t)``, filled; the segments from ``g0`` to ``g1`` (``points``, grid
@@ -115,7 +114,7 @@ def trace(cells, points, eps, out, limit, snap):
         walls[s], first_t[s] = trace_one(cells, u0, v0, u1, v1, eps, limit)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def slot(table_keys, dense_n, key):
     """Where ``key`` is (or would go) in the table: computed when every pair of ``dense_n``
     robots has its slot (keys in ascending order, lower id major), else a binary search."""
@@ -126,7 +125,7 @@ def slot(table_keys, dense_n, key):
     return np.searchsorted(table_keys, key)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def shadow_step(shadow, law, pairs, out):
     """Move the stored pairs among ``keys`` on to travel ``s_new`` (in place): their values
     to ``x``; flag the others in ``new``. ``shadow``: the records and the normals, taken in
@@ -153,7 +152,7 @@ def shadow_step(shadow, law, pairs, out):
             new[m] = True
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def path_loss_pass(frame, d, loss, alive):
     """Path loss of each pair, and whether the terms after it could still let it through
     (``frame``: the run's constants, :data:`netsim.radio.fast.FRAME`)."""
@@ -169,7 +168,7 @@ def path_loss_pass(frame, d, loss, alive):
     return count
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
     """Shadowing (when ``sigma`` > 0) and walls (when the run has a wall loss) for the pairs
     still alive, then the decision ``tx - loss >= sensitivity``: the loss chain in one pass.
@@ -221,7 +220,7 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
         receivable[m] = tx_dbm - total >= sensitivity_dbm
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def disk_pass(frame, d, a, range_m, flat, points, receivable):
     """The unit disk (the sender's range: ``range_m[a]``, or ``range_m[0]`` for all), with
     line of sight on a map (``flat``, the ends in grid units ``points``: ``(g0, g1)``)."""
@@ -236,7 +235,7 @@ def disk_pass(frame, d, a, range_m, flat, points, receivable):
         receivable[m] = ok
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     """Each pair's key, and its shadowing clock: the pair's travel at ``t`` (the two robots'
     :meth:`~netsim.state.RobotState.travelled_m` summed, ``speed`` being ``|v|`` as numpy
@@ -250,7 +249,7 @@ def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
         keys[m] = (min(sender, r) << 32) | max(sender, r)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def link_changes(up, sender, receivers, linked, scratch, changed):
     """Robots whose link with ``sender`` differs from ``up[sender]`` once this decision is
     taken (heard: up; otherwise down), written to ``changed``; returns how many.
@@ -269,7 +268,7 @@ def link_changes(up, sender, receivers, linked, scratch, changed):
     return count
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def link_touches(up, sender, receivers, linked, t0, last_t, every, touched):
     """Robots heard by ``sender`` whose link with it is already up and that may have left
     the reach since the pair's last decision: one of the two started a leg (or jumped) at or
@@ -291,7 +290,7 @@ def link_touches(up, sender, receivers, linked, t0, last_t, every, touched):
     return count
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def grid_points(frame, t, sender, receivers, motion, points):
     """Grid coordinates (the map grid of ``frame``) of the sender (every row of ``g0``) and
     of each receiver (``g1``) at ``t``, ``points``: ``(g0, g1)``, filled. The positions of
@@ -313,7 +312,7 @@ def grid_points(frame, t, sender, receivers, motion, points):
         g1[m, 1] = (origin_m[r, 1] + velocity_mps[r, 1] * dt - map_oy) / res
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out):
     """One frame under log-distance path loss, with shadowing when the run's ``sigma_db`` >
     0 and walls when its ``wall_db`` > 0: :func:`pair_clock`, :func:`grid_points`,
@@ -356,7 +355,7 @@ def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out
     return count if sigma > 0.0 else 0
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def disk_frame(frame, t, sender, receivers, distance_m, range_m, robots, flat, receivable):
     """One frame under the unit disk (the sender's range), with line of sight on a map:
     :func:`grid_points` and :func:`disk_pass` in one call. ``robots``: the state's
@@ -373,7 +372,7 @@ def disk_frame(frame, t, sender, receivers, distance_m, range_m, robots, flat, r
     disk_pass(frame, distance_m, senders, range_m, flat, points, receivable)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def first_above(cdf, x):
     """``np.searchsorted(cdf, x, side="right")``: the first index whose value exceeds ``x``
     (``cdf`` non-decreasing). The search starts where ``x`` would fall were the steps equal
@@ -409,7 +408,7 @@ def first_above(cdf, x):
     return lo
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def free_destinations(cells, grid, draws, here, batch, eps, out):
     """One round of :func:`netsim.radio.free_space.draw_destinations` for robots at ``here``:
     robot ``k``'s ``batch`` candidates are drawn as ``sample_free`` draws them (a cell by
@@ -455,7 +454,7 @@ def free_destinations(cells, grid, draws, here, batch, eps, out):
                 break
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def legs_at(first, end, leg_t, robots, times, out):
     """For each query, the last leg of ``robots[k]`` (its legs ``first[r]`` to ``end[r]``, in
     time order) that starts at or before ``times[k]``; its first leg when none does."""
@@ -469,8 +468,3 @@ def legs_at(first, end, leg_t, robots, times, out):
             else:
                 hi = mid
         out[k] = max(lo - 1, first[r])
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
-kernel_cache.key(globals())

@@ -7,12 +7,10 @@ the arithmetic, is what a frame's end costs. The tests check that both agree exa
 
 from __future__ import annotations
 
-import numba
-
-from netsim import kernel_cache
+from netsim.compiled import jit
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def end_unit_disk(medium, frame, out):
     """Frame ``seq`` of robot ``i`` leaves the air at ``now``: the robots it disturbed sense one
     frame less, ``hd``/``col`` (one per receiver in ``rx``) tell which receptions were lost to
@@ -44,8 +42,3 @@ def end_unit_disk(medium, frame, out):
         c = newly[k]
         busy_s[c] += now - busy_since[c]
     return m
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
-kernel_cache.key(globals())

@@ -12,10 +12,9 @@ pair on straight legs, ``(p0, vp, q0, vq)`` (metres, m/s).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from netsim import kernel_cache
+from netsim.compiled import jit
 from netsim.radio._kernels import walls_one
 
 # Where a vertex lies on the segment's line for every t (both factors of the cross product
@@ -26,7 +25,7 @@ _DEGENERATE = 1e-12
 _NEAR_LINE_CELLS = 1e-6
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _push(buf, n, t):
     if n == buf.shape[0]:
         grown = np.empty(2 * n)
@@ -36,7 +35,7 @@ def _push(buf, n, t):
     return buf, n + 1
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _cell(cells, i, j):
     flat, h, w = cells
     i = min(max(i, 0), w - 1)
@@ -44,7 +43,7 @@ def _cell(cells, i, j):
     return flat[j * w + i]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _linear_root(c0, c1, duration, buf, n):
     """``c0 + c1 t = 0`` for ``t`` strictly inside ``(0, duration)``."""
     if c1 != 0.0:
@@ -54,7 +53,7 @@ def _linear_root(c0, c1, duration, buf, n):
     return buf, n
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _end_crossings(cells, end, duration, axis, buf, n):
     """Where an end moving along ``e0 + e1 t`` (the axis crossed; ``f0 + f1 t`` the other
     coordinate; ``end``: ``(e0, e1, f0, f1)``) crosses a grid line between cells of
@@ -86,7 +85,7 @@ def _end_crossings(cells, end, duration, axis, buf, n):
     return buf, n
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _hull_span(ys, xs, y):
     """The span in x of the convex hull of four points along the line at height ``y``
     (empty: lo > hi)."""
@@ -105,12 +104,12 @@ def _hull_span(ys, xs, y):
     return lo, hi
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _rises(x, y, z):
     return (1 if (y and not x) else 0) + (1 if (z and not y) else 0)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _changes_count(cells, vertex, p, q):
     """Whether the walls crossed may change as the segment from ``p`` to ``q`` (``(x, y)``
     relative to ``vertex``, ``(i, j)``, which lies between them) sweeps across the vertex.
@@ -142,7 +141,7 @@ def _changes_count(cells, vertex, p, q):
     return _rises(before, side1, after) != _rises(before, side2, after)
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _vertex_roots(cells, vertex, segment, duration, buf, n):
     """When the segment from ``a + va t`` to ``b + vb t`` (relative to ``vertex``, ``(i,
     j)``; ``segment``: ``(ax, ay, vax, vay, bx, by, vbx, vby)``) passes through the vertex:
@@ -200,7 +199,7 @@ def _vertex_roots(cells, vertex, segment, duration, buf, n):
     return buf, n
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def candidates(grid, g0, gv, k0, kv, duration):
     """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
     ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
@@ -247,7 +246,7 @@ def candidates(grid, g0, gv, k0, kv, duration):
     return buf[:n]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def sweep(grid, motion, duration, eps, limit):
     """Rows ``(pair, t0, t1, walls)`` of every pair (:func:`netsim.radio.sweep.sweep_walls`);
     the counts stop at ``limit + 1``."""
@@ -306,21 +305,21 @@ def sweep(grid, motion, duration, eps, limit):
     return pair[:rows], t0[:rows], t1[:rows], walls[:rows]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _grow_int(a, cap):
     out = np.empty(cap, np.int64)
     out[: a.shape[0]] = a
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def _grow_float(a, cap):
     out = np.empty(cap)
     out[: a.shape[0]] = a
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def link_chunks(grid, motion, duration, eps, radius_sq):
     """The link's state over each chunk (the two robots of ``motion`` on straight legs,
     times from the chunk's start): up while ``|q - p| <= sqrt(radius_sq[walls])`` (``inf``: up whatever the
@@ -406,7 +405,7 @@ def link_chunks(grid, motion, duration, eps, radius_sq):
     return first, c_pair[:n], c_t[:n], c_up[:n]
 
 
-@numba.njit(cache=True, nogil=True)
+@jit(nogil=True)
 def assemble(first, c_chunk, c_t, c_up, lo, count, before, boundary):
     """The changes of consecutive chunks (``count[row]`` chunks per row, in order; each
     chunk's state just after its start ``first``, its changes ``c_*`` from
@@ -446,8 +445,3 @@ def assemble(first, c_chunk, c_t, c_up, lo, count, before, boundary):
             i += 1
         end_state[row] = state
     return out_chunk[:n], out_t[:n], out_up[:n], start_state, end_state
-
-
-# numba's cache of this module's functions, keyed by its source and what it imports from
-# (numba alone would miss an edit of a module called from here: netsim.kernel_cache).
-kernel_cache.key(globals())

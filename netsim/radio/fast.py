@@ -97,7 +97,7 @@ class CompiledChain:
 
     def _frame_record(self) -> np.ndarray:
         """The run's constants that the compiled passes read (:data:`FRAME`), one row."""
-        frame = np.zeros(1, dtype=FRAME)
+        frame = np.zeros(1, dtype=FRAME).view(np.recarray)
         row = frame[0]
         row["budget_slack"] = self.budget_slack
         row["tx_dbm"] = self.propagation.tx_power_dbm

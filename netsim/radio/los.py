@@ -145,7 +145,9 @@ def _kernel():
     """
     if not _KERNEL:
         try:
-            from netsim.radio._kernels import trace
+            from netsim.compiled import compiled_copy
+
+            trace = compiled_copy("netsim.radio._kernels").trace
         except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
             trace = None
         _KERNEL.append(trace)

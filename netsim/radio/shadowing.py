@@ -75,7 +75,9 @@ def _kernel():
     """The compiled update (:mod:`netsim.radio._kernels`), or None without numba."""
     if not _KERNEL:
         try:
-            from netsim.radio._kernels import shadow_step
+            from netsim.compiled import compiled_copy
+
+            shadow_step = compiled_copy("netsim.radio._kernels").shadow_step
         except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
             shadow_step = None
         _KERNEL.append(shadow_step)

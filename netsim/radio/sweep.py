@@ -132,7 +132,9 @@ def sweep_walls(
     ``blocked`` replaces the map's occupied cells; with ``limit``, counts above it are
     reported as ``limit + 1`` (enough to decide a link, and cheaper).
     """
-    from netsim.radio._sweep_kernels import sweep
+    from netsim.compiled import compiled_copy
+
+    sweep = compiled_copy("netsim.radio._sweep_kernels").sweep
 
     grid = map_grid(occupancy, blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
