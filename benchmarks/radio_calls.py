@@ -18,11 +18,11 @@ import time
 import numpy as np
 
 from netsim.radio.fast import CompiledChain
-from netsim.radio.free_space import sample_free
-from netsim.radio.los import walls_crossed
-from netsim.radio.maps import load_map
 from netsim.radio.propagation import LogDistanceParams, Pairs, log_distance, unit_disk
 from netsim.radio.shadowing import PairShadowing
+from netsim.world.free_space import sample_free
+from netsim.world.los import walls_crossed
+from netsim.world.maps import load_map
 
 
 def per_call_us(fn, min_time_s=0.3) -> float:
@@ -47,7 +47,7 @@ def batch(m, rng, k, length_m, n_robots=1000):
 
 def measure(m, rng, k: int, length_m: float) -> dict:
     """Microseconds per call for k pairs at most length_m apart."""
-    from netsim.radio import los
+    from netsim.world import los
 
     params = LogDistanceParams(shadowing_sigma_db=6.0, path_loss_exponent=3.0)
     pos, a, b = batch(m, rng, k, length_m)

@@ -13,7 +13,7 @@ walls or shadowing. Cases:
   5 dB per wall (links solved exactly from the map, docs/radio.md);
 - ``office map, unit_disk + line of sight``: the same, with the unit disk of 11.3 m;
 - ``building map``: a floor of 40 m x 40 m at 5 cm per pixel (the scale of a SLAM map of a
-  real building, :func:`netsim.radio.examples.building_floor`), ``--n-building`` robots
+  real building, :func:`netsim.world.examples.building_floor`), ``--n-building`` robots
   (100) at 0.1-0.5 m/s (pause 2 s), the same mean degree: log-distance with 5 dB per wall,
   and the unit disk with line of sight.
 
@@ -61,8 +61,8 @@ def building_yaml():
     import tempfile
     from pathlib import Path
 
-    from netsim.radio.examples import BUILDING_RESOLUTION_M, building_floor
-    from netsim.radio.maps import save_map
+    from netsim.world.examples import BUILDING_RESOLUTION_M, building_floor
+    from netsim.world.maps import save_map
 
     folder = Path(tempfile.mkdtemp(prefix="netsim-bench-"))
     return save_map(folder / "building.yaml", *building_floor(), BUILDING_RESOLUTION_M)

@@ -109,10 +109,10 @@ from netsim.errors import ConfigError
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from netsim.radio.free_space import free_fraction, obstacle_field, wall_forces
 from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
+from netsim.world.free_space import free_fraction, obstacle_field, wall_forces
 
 # The stopping rule's default windows (coverage.stop_hold_s = 0), s.
 GLOBAL_HOLD_S = 20.0
@@ -418,10 +418,8 @@ class CoverageController:
         log = self.rules.log
         if log is None:
             return self.range_m
-        from netsim.radio.propagation import effective_range_m
-
         worst = self.rules.shadow.clip_db if self.rules.shadow is not None else 0.0
-        return min(self.range_m, float(effective_range_m(log, worst, 0)))
+        return min(self.range_m, float(log.effective_range_m(worst, 0)))
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:
         """``gain (m - d)`` away from the nearest wall within ``m = sqrt(3) r_c / 2``, as the border."""

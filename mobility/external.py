@@ -4,7 +4,7 @@ where ``world.placement`` puts them, at rest, and move only as ``sim.drive`` tel
 A drive is a new straight leg from where the robot is, now (cause ``"command"``), so link
 events stay exact. The area's border and the map's walls hold as for every model: a robot
 driven toward the border stops on it, and on a map it stops just short of the first cell
-that is not free (as random direction does, :func:`netsim.radio.free_space.free_fraction`),
+that is not free (as random direction does, :func:`netsim.world.free_space.free_fraction`),
 at the exact instant it gets there (a leg at rest, cause ``"border"``). It then stays there,
 whatever it was told, until it is driven at another velocity; a robot on the border driven
 outward (even partly: there is no sliding along the border) does not move. On a torus there
@@ -60,7 +60,7 @@ class ExternalDriver:
         finite = np.isfinite(t_stop)
         ends = st.bounds.clip(here + v * np.where(finite, t_stop, 0.0)[:, None])
         if self.occupancy is not None and (t_stop > 0).any():
-            from netsim.radio.free_space import free_fraction
+            from netsim.world.free_space import free_fraction
 
             ahead = np.flatnonzero(t_stop > 0)
             # A robot at rest that is told to move "to infinity" (a torus has no map) is

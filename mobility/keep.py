@@ -33,7 +33,7 @@ more than it plausibly can. What "up" means, and how it is kept, depends on the 
 - **Walls** (a map: the unit disk with line of sight, or log-distance with
   ``wall_loss_db``): besides the limits above (the range or the power with the walls
   crossed when the step starts), the walls crossed by the segment between two moving
-  robots are computed exactly over the whole step (:func:`netsim.radio.sweep.sweep_walls`),
+  robots are computed exactly over the whole step (:func:`netsim.world.sweep.sweep_walls`),
   also for a commanded robot that misses its command and holds while its partner moves;
   a robot's step is cut just before the first instant a kept link would be lost
   (:meth:`LinkRules.cut_for_walls`).
@@ -155,20 +155,16 @@ class LinkRules:
         """No pair farther apart links (the range, or the implied range without walls)."""
         if self.log is None:
             return float(self.state.range_m.max())
-        from netsim.radio.propagation import implied_range_m
-
-        return implied_range_m(self.log)
+        return self.log.implied_range_m()
 
     def _walls_now(self, pos: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         if self.walls is None or len(i) == 0:
             return np.zeros(len(i), np.int64)
-        from netsim.radio.los import walls_crossed
+        from netsim.world.los import walls_crossed
 
         return np.asarray(walls_crossed(self.walls, pos[i], pos[j]), np.int64)
 
     def _power_candidates(self, pos, t_s, i, j, d, walls) -> Candidates:
-        from netsim.radio.propagation import effective_range_m, path_loss_db
-
         p = self.log
         wall_db = self.wall_loss_db * walls
         x = np.zeros(len(i))
@@ -180,18 +176,18 @@ class LinkRules:
             seen = ~np.isnan(raw)
         else:
             seen = np.ones(len(i), bool)
-        margin = p.budget_db + p.reference_loss_db - path_loss_db(d, p) - x - wall_db
+        margin = p.budget_db + p.reference_loss_db - p.path_loss_db(d) - x - wall_db
         ok = seen & (margin >= 0)
         i, j, d, walls, x, margin = i[ok], j[ok], d[ok], walls[ok], x[ok], margin[ok]
         travel = travel[ok]
         if self.shadow is None:
-            r = effective_range_m(p, 0.0, walls)
+            r = p.effective_range_m(0.0, walls)
             reserve = np.zeros(len(i))
             keep = r - self.margin_m
         else:
             sh = self.shadow
             budget = np.minimum(self.fade_margin_db, margin)
-            keep = np.maximum(effective_range_m(p, x + budget, walls), d)
+            keep = np.maximum(p.effective_range_m(x + budget, walls), d)
             pair_travel = self.state.travelled_m(t_s, i) + self.state.travelled_m(t_s, j)
             _, anchor = sh.state(i, j)
             since = np.maximum(pair_travel - anchor, 0.0)
@@ -201,12 +197,12 @@ class LinkRules:
             left = margin - plausible_change_db(since, x, sh.sigma_db, sh.decorrelation_m)
             reserve = x + budget
             # Within the sure distance even the worst shadowing leaves the link up.
-            sure_r = effective_range_m(p, sh.clip_db, walls)
+            sure_r = p.effective_range_m(sh.clip_db, walls)
             sure = (d <= sure_r) & (sure_r - self.margin_m >= keep)
             keep = np.where(sure, sure_r - self.margin_m, keep)
             travel = np.where(sure, np.inf, travel)
             reserve = np.where(sure, sh.clip_db, reserve)
-            r = effective_range_m(p, reserve, walls)
+            r = p.effective_range_m(reserve, walls)
             margin = np.where(sure, margin, left)
         # The forest prefers the links with the largest margin (left).
         weight = float(margin.max(initial=0.0)) + 1.0 - margin
@@ -218,11 +214,9 @@ class LinkRules:
         not up at any length)."""
         if self.log is None:
             return np.where(walls == 0, links.range_m[k], -1.0)
-        from netsim.radio.propagation import effective_range_m
-
         p = self.log
         margin = p.budget_db - links.reserve_db[k] - self.wall_loss_db * walls
-        return np.where(margin >= 0, effective_range_m(p, links.reserve_db[k], walls), -1.0)
+        return np.where(margin >= 0, p.effective_range_m(links.reserve_db[k], walls), -1.0)
 
     def cut_for_walls(
         self,
@@ -277,7 +271,7 @@ class LinkRules:
     def _first_loss(self, pa, va, pb, vb, k, links: Candidates, period_s: float) -> np.ndarray:
         """For each scenario (two robots from ``pa``, ``pb`` at ``va``, ``vb``), the start of
         the first stretch of constant walls in which its link ``k`` is lost (inf: none)."""
-        from netsim.radio.sweep import sweep_walls
+        from netsim.world.sweep import sweep_walls
 
         # Counts beyond what any link survives are all alike.
         limit = 0 if self.log is None else int(np.ceil(self.log.budget_db / max(self.wall_loss_db, 1e-9)))

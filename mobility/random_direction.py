@@ -8,7 +8,7 @@ have a closed form, docs/validation.md item 6), then draws a new one.
 
 On a map (``world.map``) a robot starts in a free cell and travels in its heading until the
 border or the first cell that is not free, whichever comes first, stopping just short of it
-(:func:`netsim.radio.free_space.free_fraction`), then pauses and turns. A heading that
+(:func:`netsim.world.free_space.free_fraction`), then pauses and turns. A heading that
 leaves no room to move (facing a wall) is drawn again.
 """
 
@@ -26,8 +26,8 @@ from netsim.errors import ConfigError
 from netsim.params import param, positive
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
-from netsim.radio.free_space import free_fraction
 from netsim.state import RobotState
+from netsim.world.free_space import free_fraction
 
 # On a map: headings tried before a robot facing walls gives up, and the shortest leg kept.
 _HEADING_TRIES = 64

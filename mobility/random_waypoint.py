@@ -29,8 +29,8 @@ from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.params import param
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
-from netsim.radio.free_space import draw_destinations
 from netsim.state import RobotState
+from netsim.world.free_space import draw_destinations
 
 
 @dataclass(frozen=True)

@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 import simpy
 
-from netsim import ns2
 from netsim.config import world_bounds
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.formats import ns2
 from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param
 from netsim.plugins import Parts, PluginSpec
@@ -212,7 +212,7 @@ def _warn_if_short(wp: Waypoints, params: TraceParams, duration_s: float) -> Non
 
 
 def replay(env: simpy.Environment, st: RobotState, scen: ns2.Scenario, note: str = ""):
-    """One process applies the events in time order (:class:`netsim.ns2.Scenario`); with
+    """One process applies the events in time order (:class:`netsim.formats.ns2.Scenario`); with
     ``note`` (the file's name), each leg is noted with the line that made it."""
     for t, i, kind, x, y, line in scen.events.itertuples(index=False):
         if t > env.now:

@@ -53,7 +53,7 @@ class ConfigWarning(UserWarning):
 def _map_path(key: str, value: Any) -> str:
     """A map's YAML path made absolute (a run directory's config.toml then finds it from
     anywhere); an example's name and "" (no map) as given."""
-    from netsim.radio.maps import EXAMPLES
+    from netsim.world.maps import EXAMPLES
 
     value = coerce_value(key, value, str)
     if value == "" or value in EXAMPLES:
@@ -449,7 +449,7 @@ def world_bounds(world: Any) -> Bounds:
     being the whole extent of ``world.map``."""
     b = world.bounds_m
     if b == "map":
-        from netsim.radio.maps import cached_map
+        from netsim.world.maps import cached_map
 
         x0, x1, y0, y1 = cached_map(world.map).extent_m
         return Bounds(x0, y0, x1, y1)
@@ -458,7 +458,7 @@ def world_bounds(world: Any) -> Bounds:
 
 def _check_map(config: Config) -> None:
     """The map loads, covers the area, and every model that moves robots keeps them off walls."""
-    from netsim.radio.maps import cached_map
+    from netsim.world.maps import cached_map
 
     w = config.world
     if w.torus:

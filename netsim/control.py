@@ -118,7 +118,7 @@ class ControlLoop:
         self.moved_by = moved_by
         self.groups = groups
         self.options = options if options is not None else {}
-        # The world's map (netsim.radio.maps.OccupancyMap) or None: robots stay in free cells.
+        # The world's map (netsim.world.maps.OccupancyMap) or None: robots stay in free cells.
         self.occupancy = occupancy
         self._controllers: list[tuple[int, int, Controller]] = []
         # Called as fn(step) at t_s, after commands have arrived, before velocities apply.
@@ -194,7 +194,7 @@ class ControlLoop:
     def _keep_off_walls(self, step: ControlStep) -> None:
         """On a map, shorten every robot's step so that it ends just short of the first cell
         that is not free (a controller cannot drive a robot into a wall)."""
-        from netsim.radio.free_space import free_fraction
+        from netsim.world.free_space import free_fraction
 
         v = step.velocity_mps
         moving = np.flatnonzero((v != 0).any(axis=1))

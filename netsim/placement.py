@@ -110,7 +110,7 @@ def on_map(world: WorldParams, area: Bounds, streams: Streams, occupancy: Any) -
     """Placement on a map: ``uniform`` is uniform over the free part of the area, ``centre``
     uniform over the free part of the central square; ``grid`` and a CSV file must put every
     robot in a free cell."""
-    from netsim.radio.free_space import sample_free
+    from netsim.world.free_space import sample_free
 
     key = "world.placement"
     n = world.n_robots

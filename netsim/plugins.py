@@ -86,7 +86,7 @@ class Parts:
     control: ControlLoop | None = None
     groups: GroupView | None = None
     events: EventBus | None = None
-    # The world's occupancy map (netsim.radio.maps.OccupancyMap), None in open space.
+    # The world's occupancy map (netsim.world.maps.OccupancyMap), None in open space.
     occupancy: Any = None
     # For controllers and hooks: the links as the channel makes them (the same as
     # links.parquet), solved during the run. Call it while building (it starts the runtime

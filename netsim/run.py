@@ -127,7 +127,7 @@ def world_map(config: Config) -> Any:
     """The run's occupancy map (``world.map``), None in open space."""
     if not config.world.map:
         return None
-    from netsim.radio.maps import cached_map
+    from netsim.world.maps import cached_map
 
     return cached_map(config.world.map)
 
@@ -156,7 +156,7 @@ def build(config: Config, run: int = 0) -> Simulation:
     # The models' motion is checked (a bare core's scripted robots go where a test sends them).
     walls = None
     if parts.occupancy is not None:
-        from netsim.radio.free_space import Walls
+        from netsim.world.free_space import Walls
 
         walls = Walls(parts.occupancy)
     sim.state.check_motion(walls)

@@ -276,7 +276,7 @@ class RobotState:
     # -- the area and the walls -------------------------------------------------------
     def check_motion(self, walls: Any = None) -> None:
         """From now on, refuse motion that leaves the area (``bounds``) or, with ``walls``
-        (a map's, :class:`netsim.radio.free_space.Walls`), enters a cell that is not free:
+        (a map's, :class:`netsim.world.free_space.Walls`), enters a cell that is not free:
         :class:`MotionError` naming the robot and the time. Not on a torus, where every
         position is inside."""
         self.checked = not self.torus

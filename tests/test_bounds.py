@@ -20,12 +20,12 @@ from netsim.config import world_bounds
 from netsim.formats import bonnmotion
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.placement import initial_positions
-from netsim.radio.maps import save_map
 from netsim.rng import Streams
 from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.tools.cli import main
 from netsim.tools.validate import rwp_density
+from netsim.world.maps import save_map
 from tests.fixtures import check_refused
 
 # A rectangle across the origin, wider than high, nowhere near [0, side_m]^2.
@@ -400,7 +400,7 @@ def test_run_on_a_ros_map_uses_the_whole_map(tmp_path):
     xy = _leg_ends(frames["legs"], 300.0)
     assert xy[:, 0].min() < -8 and xy[:, 0].max() > 48 and xy[:, 1].min() < -18 and xy[:, 1].max() > 18
     pos = frames["positions"][["x_m", "y_m"]].to_numpy()
-    from netsim.radio.maps import load_map
+    from netsim.world.maps import load_map
 
     assert load_map(path).is_free(pos).all()
     # Every quadrant of the map's frame is visited (the start pose at 0, 0 is inside).

@@ -15,10 +15,10 @@ from netsim.mobility.steps import Candidates
 from netsim import config
 from netsim.errors import ConfigError
 from netsim.metrics import components_in_links_table, components_of_links
-from netsim.radio.los import walls_crossed
 from netsim.radio.propagation import LogDistanceParams, effective_range_m
 from netsim.run import execute
 from netsim.tools.cli import main
+from netsim.world.los import walls_crossed
 
 COVERAGE = ["mobility.model=static", "coverage.enabled=true", "protocol.message_rate_hz=0", "world.placement=centre"]
 OFFICE = ["world.map=office", "world.side_m=200", "world.n_robots=30", "world.centre_side_m=50", "duration_s=80"]
@@ -89,10 +89,10 @@ def test_real_network_never_splits_after_control_starts(radio_run):
 def exact_components(cfg, r, times) -> np.ndarray:
     """Components of the network the radio makes on the map at each of ``times``, from the
     exact positions (the legs) and the exact walls crossed."""
-    from netsim.radio.maps import cached_map
     from netsim.radio.propagation import path_loss_db
     from netsim.topology import geometric_pairs
     from netsim.trajectory import sample_positions
+    from netsim.world.maps import cached_map
 
     n, m = cfg.world.n_robots, cached_map(cfg.world.map)
     ch = cfg.channel
@@ -307,7 +307,7 @@ def test_snapshot_with_the_link_state_has_the_channels_links():
 def wall_rules(blocks, resolution_m=0.5, side_m=40.0):
     """LinkRules of the unit disk (range 30 m) with line of sight on a map whose occupied
     cells are the rectangles ``blocks`` ((x0, x1, y0, y1), metres)."""
-    from netsim.radio.maps import OccupancyMap
+    from netsim.world.maps import OccupancyMap
 
     cells = int(side_m / resolution_m)
     occupied = np.zeros((cells, cells), bool)

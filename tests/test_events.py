@@ -17,12 +17,12 @@ from netsim.events import EVENT_NAMES, EventBus, LinkDown, LinkUp
 from netsim.links.lifetimes import link_lifetimes
 from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.walled_links import WalledLinks
-from netsim.radio.maps import save_map
 from netsim.run import build, collect, execute, simulation
 from netsim.scheduling import NORMAL, URGENT, scheduled_event
 from netsim.state import CAUSES
 from netsim.tools.validate import random_legs
 from netsim.topology import snapshot
+from netsim.world.maps import save_map
 from tests.fixtures import make_config
 
 

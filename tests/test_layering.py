@@ -14,22 +14,25 @@ ROOT = Path(__file__).resolve().parents[1]
 # engine's own modules (netsim/state.py, netsim/config.py, ...) are each a node of their own,
 # so that the radio may use the engine's base (state, events) while the run builder uses
 # the radio, and a cycle through any of them still shows.
-SUBPACKAGES = ("netsim.radio", "netsim.links", "netsim.formats", "netsim.tools", "netsim.envs")
+SUBPACKAGES = ("netsim.world", "netsim.radio", "netsim.links", "netsim.formats", "netsim.tools", "netsim.envs")
 # The environments are the other end of the engine: built on it and the tools, used by no model.
 ENGINE = {"netsim", *SUBPACKAGES} - {"netsim.envs"}
 # The models build on the engine's core, never on the application built on it (the CLI,
 # sweeps, figures): a model runs wherever the engine does.
 CORE = ENGINE - {"netsim.tools"}
 ALLOWED = {
-    "netsim": {"netsim", "netsim.radio", "netsim.links"},
-    "netsim.radio": {"netsim", "netsim.radio"},
-    "netsim.links": {"netsim", "netsim.radio", "netsim.links"},
+    "netsim": {"netsim", "netsim.world", "netsim.radio", "netsim.links"},
+    # The world (maps, free space, line of sight) is the ground the radio and the motion stand on.
+    "netsim.world": {"netsim", "netsim.world"},
+    "netsim.radio": {"netsim", "netsim.world", "netsim.radio"},
+    "netsim.links": {"netsim", "netsim.world", "netsim.radio", "netsim.links"},
     "netsim.formats": {"netsim", "netsim.formats"},
     "netsim.tools": ENGINE,
     # The environments draw frames with the figures' code: built on the tools, like them.
     "netsim.envs": ENGINE | {"netsim.envs"},
     "protocols": CORE | {"protocols"},
-    "mobility": CORE | {"mobility"},
+    # Motion plans on the radio it is handed (its parameters' methods), never imports it.
+    "mobility": (CORE - {"netsim.radio"}) | {"mobility"},
     "hooks": CORE | {"hooks"},
     "benchmarks": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "benchmarks"},
     "experiments": ENGINE | {"netsim.envs", "protocols", "mobility", "hooks", "experiments"},

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from netsim.radio.examples import SIDE_M
-from netsim.radio.maps import load_map
 from netsim.radio.propagation import LogDistanceParams, log_distance
 from netsim.radio.reception import Reception
 from netsim.radio.shadowing import PairShadowing
+from netsim.world.examples import SIDE_M
+from netsim.world.maps import load_map
 from tests.test_radio_fast import _moving_state
 
 

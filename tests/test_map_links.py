@@ -9,9 +9,9 @@ import pytest
 
 from netsim.links.radio_links import positions, radio_link_lifetimes
 from netsim.links.wall_sweeps import envelope_radii, linked
-from netsim.radio.maps import cached_map, save_map
 from netsim.run import collect, simulation
 from netsim.trajectory import LegTable
+from netsim.world.maps import cached_map, save_map
 from tests.building_map import building_map
 from tests.fixtures import make_config
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from netsim import ns2
 from netsim.errors import NetsimInputError
+from netsim.formats import ns2
 from netsim.run import build, execute
 from netsim.tools.cli import main
 from netsim.trajectory import sample_positions

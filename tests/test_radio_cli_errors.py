@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from netsim.radio.maps import save_map
 from netsim.tools.cli import main
 from netsim.tools.radio_checks import wall_test_map
+from netsim.world.maps import save_map
 from tests.fixtures import check_refused
 
 

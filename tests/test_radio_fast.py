@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from netsim.radio.examples import SIDE_M
 from netsim.radio.fast import CompiledChain
-from netsim.radio.free_space import sample_free
-from netsim.radio.maps import load_map
 from netsim.radio.propagation import LogDistanceParams, Pairs, log_distance, unit_disk
 from netsim.radio.shadowing import PairShadowing
+from netsim.world.examples import SIDE_M
+from netsim.world.free_space import sample_free
+from netsim.world.maps import load_map
 
 pytest.importorskip("numba")
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from netsim.errors import ConfigError
-from netsim.radio import examples
-from netsim.radio.free_space import (
+from netsim.world import examples
+from netsim.world.free_space import (
     clearance_field_m,
     draw_destinations,
     free_fraction,
@@ -14,8 +14,8 @@ from netsim.radio.free_space import (
     sample_free,
     wall_forces,
 )
-from netsim.radio.los import walls_crossed
-from netsim.radio.maps import OccupancyMap, load_map
+from netsim.world.los import walls_crossed
+from netsim.world.maps import OccupancyMap, load_map
 
 
 def _rooms():
@@ -111,7 +111,7 @@ def test_clearance_field_is_distance_to_nearest_non_free_cell():
 
 @pytest.mark.parametrize("name", ["office", "cave"])
 def test_shipped_examples_match_their_generator(name):
-    """The shipped PGMs are what the generator draws (regenerate: python -m netsim.radio.examples)."""
+    """The shipped PGMs are what the generator draws (regenerate: python -m netsim.world.examples)."""
     occ, free = examples.MAKERS[name]()
     m = load_map(name)
     assert m.resolution_m == examples.RESOLUTION_M
@@ -144,7 +144,7 @@ def test_cave_is_one_connected_tunnel():
 def test_compiled_destinations_equal_numpy(name, monkeypatch):
     """The compiled round draws, checks and picks exactly as sample_free and legs_free do."""
     pytest.importorskip("numba")
-    from netsim.radio import free_space
+    from netsim.world import free_space
 
     m = load_map(name)
     here = sample_free(m, np.random.default_rng(3), 200, examples.SIDE_M)
@@ -159,7 +159,7 @@ def test_compiled_destinations_equal_numpy(name, monkeypatch):
 def test_first_above_is_searchsorted_right():
     """The galloping search returns numpy's side="right" index, ties and empty steps included."""
     pytest.importorskip("numba")
-    from netsim.radio._kernels import first_above
+    from netsim.world._kernels import first_above
 
     rng = np.random.default_rng(0)
     for trial in range(200):

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from netsim.radio import los
-from netsim.radio.los import first_blocked, line_of_sight, walls_crossed
-from netsim.radio.maps import OccupancyMap
+from netsim.world import los
+from netsim.world.los import first_blocked, line_of_sight, walls_crossed
+from netsim.world.maps import OccupancyMap
 
 
 def _map(blocked, resolution=1.0, origin=(0.0, 0.0)):

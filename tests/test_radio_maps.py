@@ -5,7 +5,7 @@ import pytest
 from PIL import Image
 
 from netsim.errors import ConfigError
-from netsim.radio.maps import EXAMPLES, load_map, occupancy_from_pixels, save_map
+from netsim.world.maps import EXAMPLES, load_map, occupancy_from_pixels, save_map
 
 YAML = """image: {image}
 resolution: {resolution}

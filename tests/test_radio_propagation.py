@@ -6,12 +6,11 @@ import math
 import numpy as np
 import pytest
 
-import netsim.radio.los
-import netsim.radio.maps
 import netsim.radio.propagation
 import netsim.radio.shadowing
+import netsim.world.los
+import netsim.world.maps
 from netsim.errors import ConfigError
-from netsim.radio.maps import OccupancyMap
 from netsim.radio.propagation import (
     LogDistanceParams,
     LossChain,
@@ -24,11 +23,12 @@ from netsim.radio.propagation import (
     unit_disk,
 )
 from netsim.radio.shadowing import PairShadowing
+from netsim.world.maps import OccupancyMap
 
 
 @pytest.mark.parametrize(
     "module",
-    [netsim.radio.propagation, netsim.radio.shadowing, netsim.radio.maps, netsim.radio.los],
+    [netsim.radio.propagation, netsim.radio.shadowing, netsim.world.maps, netsim.world.los],
 )
 def test_docstring_examples(module):
     result = doctest.testmod(module)

@@ -11,11 +11,11 @@ import pytest
 
 from netsim.config import from_dict
 from netsim.errors import ConfigError
-from netsim.radio.free_space import legs_free
-from netsim.radio.los import line_of_sight
-from netsim.radio.maps import cached_map, load_map, save_map
 from netsim.run import execute
 from netsim.tools.radio_checks import wall_test_map
+from netsim.world.free_space import legs_free
+from netsim.world.los import line_of_sight
+from netsim.world.maps import cached_map, load_map, save_map
 
 
 def wall_map(tmp_path) -> str:

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from netsim.radio.los import walls_crossed
-from netsim.radio.maps import OccupancyMap, load_map
-from netsim.radio.sweep import sweep_walls, vertex_index
+from netsim.world.los import walls_crossed
+from netsim.world.maps import OccupancyMap, load_map
+from netsim.world.sweep import sweep_walls, vertex_index
 from tests.building_map import building_map
 
 

@@ -454,7 +454,7 @@ def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
 def test_walls_of_a_run_with_a_map_are_drawn(tmp_path, open_page):
     """A run on the office map: the page draws its walls from the run's own world.map, in
     the wall colour where the map is occupied and not where it is free."""
-    from netsim.radio.maps import cached_map
+    from netsim.world.maps import cached_map
 
     run = _run(
         tmp_path / "office",

@@ -11,7 +11,7 @@
   channel's decisions;
 - :mod:`netsim.links.walled_links` and :mod:`netsim.links.wall_sweeps`: runtime link
   events on a map, where walls cut links, solved exactly on the walls' sweep
-  (:mod:`netsim.radio.sweep`).
+  (:mod:`netsim.world.sweep`).
 
 The solvers read the robots' legs and the radio's reception decision
 (:mod:`netsim.radio`); nothing in the radio imports them.

@@ -9,7 +9,7 @@ How exact they are (docs/radio.md says the same for users):
   radio's largest range, and those intervals are solved exactly first (the *envelope*).
   Within each, the link is solved exactly along stretches in which both robots keep their
   legs: the walls crossed change only at instants solved in closed form
-  (:mod:`netsim.radio.sweep`), and between them the link is a distance threshold per
+  (:mod:`netsim.world.sweep`), and between them the link is a distance threshold per
   count of walls (:mod:`netsim.links.wall_sweeps`, shared with the runtime solver
   :class:`netsim.links.walled_links.WalledLinks`: the same table, bit for bit).
 - **Shadowing**: a link is random; its state is only defined where the channel looks at it,

@@ -7,7 +7,7 @@ radio's largest range (the *envelope*, solved exactly). Within it the link's sta
 solved along *stretches*: a stretch starts where the pair enters the envelope and at every
 course change of either robot, and lasts while both keep their legs. On a stretch the walls
 crossed by the segment between the two robots change only at instants solved in closed form
-(:func:`netsim.radio.sweep.sweep_walls`), and between them the link is up while the
+(:func:`netsim.world.sweep.sweep_walls`), and between them the link is up while the
 distance is within the range those walls leave (the unit disk: no wall at all; log-distance:
 ``PL(d) + wall_loss_db * walls`` within the budget, a distance threshold per count, whose
 crossings are the roots of a quadratic). So every change of state is found, at its instant.
@@ -41,8 +41,8 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from netsim.links.crossings import crossing_times
-from netsim.radio.los import VERTEX_TOLERANCE_CELLS
 from netsim.radio.propagation import Pairs, effective_range_m
+from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
 if TYPE_CHECKING:
     from netsim.radio.reception import Reception
@@ -78,7 +78,7 @@ def linked(
 
 class MapRadio(NamedTuple):
     """What a chunk's solution needs of the radio: the map's walls (``grid``, the plain
-    tuple of a :class:`~netsim.radio.sweep.MapGrid`, as the kernels take it) and, per count
+    tuple of a :class:`~netsim.world.sweep.MapGrid`, as the kernels take it) and, per count
     of walls crossed, the squared distance within which the link is up (``inf``: anywhere
     in the envelope; counts beyond the table: never)."""
 
@@ -89,7 +89,7 @@ class MapRadio(NamedTuple):
 def map_radio(reception: Reception) -> MapRadio:
     """The :class:`MapRadio` of a channel on a map without shadowing: the unit disk with line
     of sight (no wall at all), or log-distance with ``wall_loss_db`` per wall."""
-    from netsim.radio.sweep import map_grid
+    from netsim.world.sweep import map_grid
 
     chain = reception.compiled
     occupancy = reception.map
@@ -190,7 +190,7 @@ class Stretches:
         when ``k0`` is the stretch's first chunk."""
         from netsim.compiled import compiled_copy
 
-        k = compiled_copy("netsim.radio._sweep_kernels")
+        k = compiled_copy("netsim.world._sweep_kernels")
         assemble, link_chunks = k.assemble, k.link_chunks
 
         rows = np.asarray(rows, np.int64)

@@ -15,10 +15,10 @@
 - :mod:`netsim.radio.loss`: the built-in reception loss models;
 - :mod:`netsim.radio.shadowing`: log-normal shadowing per pair, reciprocal, spatially
   correlated as robots move (Gudmundson's exponential model);
-- :mod:`netsim.radio.maps`: ROS ``map_server`` maps (YAML and PGM/PNG image);
-- :mod:`netsim.radio.los`: line of sight and walls crossed, for many segments at once;
-- :mod:`netsim.radio.free_space`: where robots may be and go on a map;
-- :mod:`netsim.radio.examples`: the example maps shipped with netsim;
+- :mod:`netsim.world.maps`: ROS ``map_server`` maps (YAML and PGM/PNG image);
+- :mod:`netsim.world.los`: line of sight and walls crossed, for many segments at once;
+- :mod:`netsim.world.free_space`: where robots may be and go on a map;
+- :mod:`netsim.world.examples`: the example maps shipped with netsim;
 - :mod:`netsim.radio.mac`: the shared medium (airtime, collisions, ALOHA, CSMA/DCF), and
   :mod:`netsim.radio.mac_models` its two models' keys.
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.radio import compiled_kernels
-from netsim.radio.los import VERTEX_TOLERANCE_CELLS
 from netsim.radio.propagation import (
     LineOfSightLoss,
     LogDistanceLoss,
@@ -30,6 +29,7 @@ from netsim.radio.propagation import (
     WallLoss,
 )
 from netsim.radio.shadowing import pair_keys
+from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
 _NO_GRID = np.zeros(1, dtype=bool)
 # Stand-ins for the arrays a pass does not read (no walls: no grid points; no shadowing: no

@@ -6,7 +6,7 @@ Under the log-distance model a frame from ``a`` reaches ``b`` with power
 
 and is receivable when ``P_r >= sensitivity``. ``X`` is the pair's shadowing
 (:mod:`netsim.radio.shadowing`), ``W`` the loss of the walls the straight line between the
-two robots crosses (:mod:`netsim.radio.los`). Below the reference distance the path loss
+two robots crosses (:mod:`netsim.world.los`). Below the reference distance the path loss
 stays ``PL(d0)``, as ns-3's ``LogDistancePropagationLossModel`` does.
 
 Each term is a small object with ``loss_db(pairs) -> array`` over a batch of pairs
@@ -113,6 +113,20 @@ class LogDistanceParams(Params):
         """The loss a link can afford beyond ``PL(d0)``: ``P_t - PL(d0) - sensitivity``."""
         return self.tx_power_dbm - self.reference_loss_db - self.sensitivity_dbm
 
+    # The law's distances, asked of the parameters by the models that are handed them (the
+    # mobility models plan on the radio without importing it).
+    def path_loss_db(self, distance_m) -> np.ndarray:
+        """:func:`path_loss_db` under these parameters."""
+        return path_loss_db(distance_m, self)
+
+    def implied_range_m(self) -> float:
+        """:func:`implied_range_m` under these parameters."""
+        return implied_range_m(self)
+
+    def effective_range_m(self, shadowing_db=0.0, walls=0) -> np.ndarray:
+        """:func:`effective_range_m` under these parameters."""
+        return effective_range_m(self, shadowing_db, walls)
+
 
 def path_loss_db(distance_m, params: LogDistanceParams) -> np.ndarray:
     """``PL(d0) + 10 n log10(d / d0)``, and ``PL(d0)`` below ``d0`` (also at ``d = 0``)."""
@@ -214,7 +228,7 @@ class WallLoss:
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
-        from netsim.radio.los import walls_crossed
+        from netsim.world.los import walls_crossed
 
         return self.wall_loss_db * walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
 
@@ -239,7 +253,7 @@ class LineOfSightLoss:
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
-        from netsim.radio.los import walls_crossed
+        from netsim.world.los import walls_crossed
 
         return np.where(walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b) == 0, 0.0, np.inf)
 

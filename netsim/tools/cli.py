@@ -40,8 +40,8 @@ import warnings
 from pathlib import Path
 
 from netsim import config as cfgmod
-from netsim import ns2
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.formats import ns2
 from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, interrupted
 
 EXIT_INPUT = 2

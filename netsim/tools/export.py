@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from netsim import ns2
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
+from netsim.formats import ns2
 from netsim.tools.output import is_run_dir
 
 FORMATS = ("bonnmotion", "ns2", "rosbag2")

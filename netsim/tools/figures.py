@@ -321,7 +321,7 @@ def run_map(config):
     """The run's occupancy map, or None in open space."""
     if not config.world.map:
         return None
-    from netsim.radio.maps import cached_map
+    from netsim.world.maps import cached_map
 
     return cached_map(config.world.map)
 

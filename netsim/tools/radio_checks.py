@@ -26,7 +26,6 @@ import pandas as pd
 from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
-from netsim.radio.maps import OccupancyMap
 from netsim.radio.propagation import (
     TRUNCATION_SIGMAS,
     LogDistanceParams,
@@ -39,6 +38,7 @@ from netsim.radio.propagation import (
 )
 from netsim.radio.shadowing import PairShadowing
 from netsim.tools.check import Check
+from netsim.world.maps import OccupancyMap
 
 Z = 4.0
 

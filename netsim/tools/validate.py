@@ -728,8 +728,8 @@ def check_radio_pair_travel(seed: int | None = None) -> list[Check]:
 def check_radio_walls(seed: int | None = None) -> list[Check]:
     """20: across a wall two robots do not link under the unit disk, through a doorway they
     do; under log-distance each wall crossed costs wall_loss_db."""
-    from netsim.radio.maps import save_map
     from netsim.tools.radio_checks import check_walls, wall_test_map
+    from netsim.world.maps import save_map
 
     m = wall_test_map()
     out = []

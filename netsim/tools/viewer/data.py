@@ -362,7 +362,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
 
     map_meta = None
     if map_grid is None and config.world.map:
-        from netsim.radio.maps import cached_map
+        from netsim.world.maps import cached_map
 
         m = cached_map(config.world.map)
         map_grid = MapGrid(m.occupied, m.resolution_m, m.origin_m)

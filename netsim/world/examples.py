@@ -11,7 +11,7 @@
 Both are plain ``map_server`` maps (``office.yaml`` + ``office.pgm``), usable by name
 (``world.map = "office"``) or copied as a starting point. Regenerate them with::
 
-    python -m netsim.radio.examples [folder]
+    python -m netsim.world.examples [folder]
 
 :func:`building_floor` draws a third, not shipped, at the scale of a SLAM map of a real
 building (5 cm per pixel), for tests and benchmarks: write it with
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from netsim.radio.maps import save_map
+from netsim.world.maps import save_map
 
 RESOLUTION_M = 0.25
 SIDE_M = 200.0

@@ -6,7 +6,7 @@ area ``[0, side]^2``. The helpers here are what mobility models need to respect 
 - :func:`sample_free`: positions uniform over the free part of the area (optionally keeping a
   clearance from anything not free); placement and waypoints draw from it.
 - :func:`legs_free`: whether straight legs stay in free cells all along (exact grid
-  traversal, vectorised over legs, :mod:`netsim.radio.los`).
+  traversal, vectorised over legs, :mod:`netsim.world.los`).
 - :func:`free_fraction`: how far along a leg a robot can go before it would enter a cell that
   is not free (random direction: travel until the wall).
 - :func:`draw_destinations`: random waypoint on a map. A destination is drawn uniformly over
@@ -32,9 +32,8 @@ import numpy as np
 
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
-from netsim.radio import compiled_kernels
-from netsim.radio.los import VERTEX_TOLERANCE_CELLS, first_blocked, line_of_sight
-from netsim.radio.maps import MAP_KEY, OccupancyMap
+from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, line_of_sight
+from netsim.world.maps import MAP_KEY, OccupancyMap
 
 
 def clearance_field_m(m: OccupancyMap) -> np.ndarray:
@@ -180,8 +179,12 @@ def draw_destinations(
 
 
 def _destinations_kernel():
-    k = compiled_kernels()
-    return None if k is None else k.free_destinations
+    from netsim.compiled import compiled_copy
+
+    try:
+        return compiled_copy("netsim.world._kernels").free_destinations
+    except ImportError:  # pragma: no cover
+        return None
 
 
 def _compiled_round(kernel, m: OccupancyMap, rng, here, area: float | Bounds, batch: int, out, todo) -> np.ndarray:

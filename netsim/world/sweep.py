@@ -1,6 +1,6 @@
 """Walls crossed by the segment between two robots moving in straight lines, over time, exactly.
 
-The count of :func:`netsim.radio.los.walls_crossed` between ``p(t) = p0 + vp t`` and
+The count of :func:`netsim.world.los.walls_crossed` between ``p(t) = p0 + vp t`` and
 ``q(t) = q0 + vq t`` is piecewise constant in ``t``. It can change only where the cells the
 segment meets change in a way that matters:
 
@@ -17,13 +17,13 @@ Candidate vertices come from the region the segment sweeps: it lies in the conve
 the ends' first and last positions, whose span along each grid row is searched among that
 row's mixed vertices (found once per grid). Each instant is solved in closed form; the count
 on each interval between consecutive candidates is the traversal's
-(:func:`netsim.radio._kernels.walls_one`, the arithmetic of ``walls_crossed``) at its
+(:func:`netsim.world._kernels.walls_one`, the arithmetic of ``walls_crossed``) at its
 midpoint, and consecutive intervals of equal count are merged.
 
 At an event itself the count may differ from both sides (a segment through a vertex touches
 its four cells; so does one within ``1e-9`` cell of it): the rows describe open intervals.
 
->>> from netsim.radio.maps import OccupancyMap
+>>> from netsim.world.maps import OccupancyMap
 >>> wall = np.zeros((4, 6), dtype=bool); wall[1:, 3] = True  # a wall with a gap at the bottom
 >>> # one robot walks up past the wall's lower corner, the other stands beyond the wall
 >>> m = OccupancyMap(wall, ~wall, 1.0, (0.0, 0.0))
@@ -38,7 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim.radio.los import VERTEX_TOLERANCE_CELLS
+from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
 
 class Sweep(NamedTuple):
@@ -92,7 +92,7 @@ _NO_LIMIT = np.iinfo(np.int64).max
 
 
 class MapGrid(NamedTuple):
-    """A map as the sweep's kernels read it (:mod:`netsim.radio._sweep_kernels`' ``grid``,
+    """A map as the sweep's kernels read it (:mod:`netsim.world._sweep_kernels`' ``grid``,
     passed as a plain tuple): the cells that block, row-major, of an ``h`` by ``w`` grid,
     the vertices where blocked and clear cells meet (:class:`VertexIndex`), the grid's
     origin and cell size (metres)."""
@@ -134,7 +134,7 @@ def sweep_walls(
     """
     from netsim.compiled import compiled_copy
 
-    sweep = compiled_copy("netsim.radio._sweep_kernels").sweep
+    sweep = compiled_copy("netsim.world._sweep_kernels").sweep
 
     grid = map_grid(occupancy, blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))

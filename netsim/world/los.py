@@ -2,7 +2,7 @@
 
 A segment from ``p`` to ``q`` visits, in order, every cell that contains one of its points
 (cells are half-open, ``[i, i + 1) x [j, j + 1)`` in grid units, as in
-:mod:`netsim.radio.maps`). It changes cell only where it crosses a grid line, so the cells it
+:mod:`netsim.world.maps`). It changes cell only where it crosses a grid line, so the cells it
 visits are known from those crossings alone (Amanatides and Woo, 1987): the crossings of the
 vertical lines and of the horizontal lines, each located exactly by where the segment meets
 the line. This module computes them for all segments in one set of numpy operations, with no
@@ -32,7 +32,7 @@ Conventions, where a segment meets the grid at its edges:
 Segments must lie on the map (within its closed extent); a point on the far edge belongs to
 the last cell. Walls are symmetric: ``walls(p, q) == walls(q, p)``.
 
->>> from netsim.radio.maps import OccupancyMap
+>>> from netsim.world.maps import OccupancyMap
 >>> wall = np.zeros((4, 6), dtype=bool); wall[:, 3] = True; wall[0, 3] = False  # a door at the bottom
 >>> m = OccupancyMap(wall, ~wall, 1.0, (0.0, 0.0))
 >>> walls_crossed(m, [[0.5, 2.5], [0.5, 0.5]], [[5.5, 2.5], [5.5, 0.5]]).tolist()
@@ -138,7 +138,7 @@ _KERNEL: list = []
 
 
 def _kernel():
-    """The compiled traversal (:mod:`netsim.radio._kernels`), or None without numba.
+    """The compiled traversal (:mod:`netsim.world._kernels`), or None without numba.
 
     Imported on first use: numba takes a second to import, which a run without a map
     should not pay.
@@ -147,7 +147,7 @@ def _kernel():
         try:
             from netsim.compiled import compiled_copy
 
-            trace = compiled_copy("netsim.radio._kernels").trace
+            trace = compiled_copy("netsim.world._kernels").trace
         except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
             trace = None
         _KERNEL.append(trace)

@@ -201,7 +201,7 @@ def _number(key, where, name, value, check, allowed):
 
 def example_path(name: str) -> Path:
     """The YAML file of a map shipped with netsim (``"office"`` or ``"cave"``)."""
-    return Path(str(resources.files("netsim.radio").joinpath("example_maps", f"{name}.yaml")))
+    return Path(str(resources.files("netsim.world").joinpath("example_maps", f"{name}.yaml")))
 
 
 def load_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:

@@ -1,10 +1,10 @@
-"""Compiled (numba) loops behind :mod:`netsim.radio.sweep`.
+"""Compiled (numba) loops behind :mod:`netsim.world.sweep`.
 
-They call :func:`netsim.radio._kernels.walls_one` (numba does not track callees across
+They call :func:`netsim.world._kernels.walls_one` (numba does not track callees across
 files: :mod:`netsim.kernel_cache` keys this module's cache by that one's source too).
 
 What they take, by name: ``grid``, the map's ``(flat, h, w, row_ptr, cols, origin_x,
-origin_y, resolution_m)`` (:class:`netsim.radio.sweep.MapGrid`: the occupied cells row-major,
+origin_y, resolution_m)`` (:class:`netsim.world.sweep.MapGrid`: the occupied cells row-major,
 the vertices where blocked and clear cells meet, the grid's origin and cell size); its
 first three, ``cells``, are what a cell's lookup reads. ``motion``: the two robots of each
 pair on straight legs, ``(p0, vp, q0, vq)`` (metres, m/s).
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.compiled import jit
-from netsim.radio._kernels import walls_one
+from netsim.world._kernels import walls_one
 
 # Where a vertex lies on the segment's line for every t (both factors of the cross product
 # vanish): relative to the size of each coefficient.
@@ -248,7 +248,7 @@ def candidates(grid, g0, gv, k0, kv, duration):
 
 @jit(nogil=True)
 def sweep(grid, motion, duration, eps, limit):
-    """Rows ``(pair, t0, t1, walls)`` of every pair (:func:`netsim.radio.sweep.sweep_walls`);
+    """Rows ``(pair, t0, t1, walls)`` of every pair (:func:`netsim.world.sweep.sweep_walls`);
     the counts stop at ``limit + 1``."""
     flat, h, w, _row_ptr, _cols, origin_x, origin_y, res = grid
     cells = (flat, h, w)

@@ -1,0 +1,195 @@
+"""Compiled loops of the world's geometry (:mod:`netsim.world.los`,
+:mod:`netsim.world.free_space`): the traversal of a segment through a map's cells, and
+destinations drawn over the free space. Plain Python when a run is small
+(:func:`netsim.compiled.load`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from netsim.compiled import jit
+
+
+@jit(nogil=True)
+def cell(flat, w, half, pc, sc, p_max, s_max):
+    pc = min(max(pc, 0), p_max)
+    sc = min(max(sc, 0), s_max)
+    return flat[pc * w + sc] if half == 1 else flat[sc * w + pc]
+
+
+@jit(nogil=True)
+def _snap(g, eps):
+    r = np.rint(g)
+    return r if abs(g - r) <= eps else g
+
+
+@jit(nogil=True)
+def trace_one(cells, u0, v0, u1, v1, eps, limit):
+    """Walls crossed by one segment (grid units) and where it first meets a blocked cell;
+    ``cells``: the grid's ``(flat, h, w)``, its blocked cells row-major.
+
+    Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
+    """
+    flat, h, w = cells
+    i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
+    j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
+    count = 0
+    ft = np.inf
+    if flat[j0 * w + i0]:
+        count = 1
+        ft = 0.0
+        if count > limit:
+            return count, ft
+    for half in range(2):
+        if half == 0:
+            P0, S0, P1, S1, p_max, s_max = u0, v0, u1, v1, w - 1, h - 1
+        else:
+            P0, S0, P1, S1, p_max, s_max = v0, u0, v1, u1, h - 1, w - 1
+        c0 = np.int64(np.floor(P0))
+        c1 = np.int64(np.floor(P1))
+        n = abs(c1 - c0)
+        if n == 0:
+            continue
+        fwd = c1 > c0
+        dp = P1 - P0
+        ds = S1 - S0
+        s0 = np.int64(np.floor(S0))
+        s1 = np.int64(np.floor(S1))
+        s_lo, s_hi = min(s0, s1), max(s0, s1)
+        length = np.hypot(dp, ds) if half == 0 else np.hypot(ds, dp)
+        for a in range(n):
+            line = c0 + a + 1 if fwd else c0 - a
+            t = (line - P0) / dp
+            sc = S0 + t * ds
+            y = np.rint(sc)
+            vertex = abs(sc - y) * abs(dp) <= eps * length and y > s_lo and y <= s_hi
+            p_after = line if fwd else line - 1
+            p_before = line - 1 if fwd else line
+            if vertex:
+                yi = np.int64(y)
+                s_before = yi - 1 if ds > 0 else yi
+                s_after = yi if ds > 0 else yi - 1
+            else:
+                s_before = s_after = min(max(np.int64(np.floor(sc)), s_lo), s_hi)
+            before = cell(flat, w, half, p_before, s_before, p_max, s_max)
+            hit = cell(flat, w, half, p_after, s_after, p_max, s_max)
+            if vertex and half == 0:
+                hit = (
+                    hit
+                    or cell(flat, w, half, p_after, s_before, p_max, s_max)
+                    or cell(flat, w, half, p_before, s_after, p_max, s_max)
+                )
+            if hit and not before and not (vertex and half == 1):
+                count += 1
+                if count > limit:
+                    return count, min(ft, t)
+            if hit and t < ft:
+                ft = t
+    return count, ft
+
+
+@jit(nogil=True)
+def walls_one(cells, u0, v0, u1, v1, eps, limit):
+    """The walls of :func:`trace_one` between two robots: ends within ``eps`` of a grid line
+    are put on it first (``netsim.world.los._snap``), so that walls at a robot on a grid
+    corner are the same both ways."""
+    count, _ = trace_one(cells, _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps), eps, limit)
+    return count
+
+
+@jit(nogil=True)
+def trace(cells, points, eps, out, limit, snap):
+    """Every segment's walls (counting stops once past ``limit``) and first blocked point,
+    ``out``: ``(walls, first_t)``, filled; the segments from ``g0`` to ``g1`` (``points``, grid
+    units) on the grid ``cells``, ``(flat, h, w)``. With ``snap``, the ends snapped as
+    :func:`walls_one` does."""
+    g0, g1 = points
+    walls, first_t = out
+    for s in range(g0.shape[0]):
+        u0, v0, u1, v1 = g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1]
+        if snap:
+            u0, v0, u1, v1 = _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps)
+        walls[s], first_t[s] = trace_one(cells, u0, v0, u1, v1, eps, limit)
+
+
+@jit(nogil=True)
+def first_above(cdf, x):
+    """``np.searchsorted(cdf, x, side="right")``: the first index whose value exceeds ``x``
+    (``cdf`` non-decreasing). The search starts where ``x`` would fall were the steps equal
+    (on a map, most cells are whole: nearly so) and gallops out from there, so that it
+    touches a few entries of a long table instead of twenty scattered ones."""
+    n = cdf.shape[0]
+    if n == 0:
+        return 0
+    total = cdf[n - 1]
+    guess = n - 1
+    if total > 0.0 and x < total:
+        guess = min(max(np.int64(x / total * n), 0), n - 1)
+    # Bracket [lo, hi): cdf[lo - 1] <= x (or lo = 0) and cdf[hi] > x (or hi = n).
+    step = 1
+    if cdf[guess] <= x:
+        lo, hi = guess + 1, guess + 1
+        while hi < n and cdf[hi] <= x:
+            lo = hi + 1
+            hi = min(hi + step, n)
+            step *= 2
+    else:
+        lo, hi = guess, guess
+        while lo > 0 and cdf[lo - 1] > x:
+            hi = lo - 1
+            lo = max(lo - step, 0)
+            step *= 2
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cdf[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@jit(nogil=True)
+def free_destinations(cells, grid, draws, here, batch, eps, out):
+    """One round of :func:`netsim.world.free_space.draw_destinations` for robots at ``here``:
+    robot ``k``'s ``batch`` candidates are drawn as ``sample_free`` draws them (a cell by
+    area from ``draw_cell``, a point in it from ``draw_uv``; a point that rounding put outside
+    a free cell moved to its cell's centre), and the first whose straight leg from ``here[k]``
+    stays in free cells is kept (``got[k]``). Legs after the first free one are not traced.
+
+    ``cells``: the free cells to draw from, ``(cdf, x0, x1, y0, y1)`` (cumulative area,
+    bounds in metres); ``grid``: the map's ``(free_flat, not_free_flat, h, w, ox, oy,
+    res)``; ``draws``: ``(draw_cell, draw_uv)``; ``out``: ``(picked, got)``, filled."""
+    cdf, x0, x1, y0, y1 = cells
+    free_flat, not_free_flat, h, w, ox, oy, res = grid
+    draw_cell, draw_uv = draws
+    picked, got = out
+    last = cdf.shape[0] - 1
+    total = cdf[last]
+    for k in range(here.shape[0]):
+        got[k] = False
+        hu = (here[k, 0] - ox) / res
+        hv = (here[k, 1] - oy) / res
+        for b in range(batch):
+            c = k * batch + b
+            cell = min(first_above(cdf, draw_cell[c] * total), last)
+            x = x0[cell] + draw_uv[c, 0] * (x1[cell] - x0[cell])
+            y = y0[cell] + draw_uv[c, 1] * (y1[cell] - y0[cell])
+            u = (x - ox) / res
+            v = (y - oy) / res
+            free = False
+            if u >= 0 and u <= w and v >= 0 and v <= h:
+                i = min(np.int64(np.floor(u)), w - 1)
+                j = min(np.int64(np.floor(v)), h - 1)
+                free = free_flat[j * w + i]
+            if not free:
+                x = 0.5 * (x0[cell] + x1[cell])
+                y = 0.5 * (y0[cell] + y1[cell])
+                u = (x - ox) / res
+                v = (y - oy) / res
+            walls, _ = trace_one((not_free_flat, h, w), hu, hv, u, v, eps, 0)
+            if walls == 0:
+                picked[k, 0] = x
+                picked[k, 1] = y
+                got[k] = True
+                break
