@@ -6,14 +6,17 @@ that Ack carried and the earliest time it can date from (its reception less the 
 largest delay). It keeps that after its neighbour table lets the entry expire, for
 ``release_s`` after the Ack was sent; then it forgets the robot. Every robot moves at most
 ``speed_max_mps``, so a robot last heard at ``q`` at time ``s`` is, at time ``t``, within
-``v (t - s)`` of ``q``.
+``v (t - s)`` of ``q``. An Ack also carries its sender's list of the robots it remembers
+(:class:`Lists`): from those a robot learns which robots its neighbours remember, and
+where they heard them.
 
 The rules, for robot ``i`` deciding the step that runs over ``[t0, t1]`` (``t1 = t0 +
 period``), its own position ``p`` at ``t0`` exact:
 
 1. **Detour.** ``i`` lets go of a remembered robot ``j`` only if it knows a *certified
    detour*: a path from ``i`` to ``j`` through robots it remembers, each link of which
-   joins two robots that remember each other and is, whatever the true positions at
+   joins two robots that remember each other (as the lists ``i`` holds from them show)
+   and is, whatever the true positions at
    ``t0``, shorter than the link ``(i, j)``: its longest possible length (``|q_a - q_b| +
    e_a + e_b``, ``e = v (t0 - s)``; ``|p - q_a| + e_a`` from ``i``) below the shortest
    possible length of ``(i, j)`` (``|p - q_j| - e_j``). Every other remembered robot is
