@@ -48,16 +48,20 @@ def clear_many(walls, a, b, ea, eb, out):
 
 
 @jit(nogil=True)
-def let_go(pos, memory, rule, walls, out):
+def let_go(pos, memory, lists, rule, walls, out):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
     through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
-    robots remember, ``(xy, sent_s, known)``; ``rule``: the step's ``(t0_s, speed_mps,
-    band_m, range_m)``."""
+    robots remember, ``(xy, sent_s, known)``; ``lists``: the lists they hold from each other
+    (:class:`netsim.mobility.local.Heard`), ``(which, start, other, sent_s)``; ``rule``: the
+    step's ``(t0_s, speed_mps, band_m, range_m, release_s)``."""
     xy, sent_s, known = memory
-    t0_s, speed_mps, band_m, range_m = rule
+    which, start, other, listed_s = lists
+    t0_s, speed_mps, band_m, range_m, release_s = rule
     n = pos.shape[0]
     nn = float(n * n)
     node = np.empty(n, np.int64)
+    local = np.full(n, -1, np.int64)
+    certain = np.zeros((n, n), np.bool_)
     qx = np.empty(n)
     qy = np.empty(n)
     e = np.empty(n)
@@ -76,6 +80,22 @@ def let_go(pos, memory, rule, walls, out):
         m = k - 1
         if m < 2:
             continue
+        # certain[a, b]: i can tell that node a remembers node b at t0 (from a's list).
+        for a in range(k):
+            local[node[a]] = a
+            for b in range(k):
+                certain[a, b] = a == 0 and b > 0
+        for a in range(1, k):
+            u = node[a]
+            s = which[i, u]
+            if s < 0:
+                continue
+            for p in range(start[s, u], start[s, u + 1]):
+                b = local[other[p]]
+                if b >= 0 and t0_s - listed_s[p] < release_s:
+                    certain[a, b] = True
+        for a in range(k):
+            local[node[a]] = -1
         for a in range(k):
             worst[a] = np.inf
             done[a] = False
@@ -91,7 +111,7 @@ def let_go(pos, memory, rule, walls, out):
             nu = node[u]
             for v in range(k):
                 nv = node[v]
-                if done[v] or not (known[nu, nv] and known[nv, nu]):
+                if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 if longest > range_m:

@@ -98,7 +98,17 @@ from netsim.mobility.forces import (
     resultant,
 )
 from netsim.mobility.keep import LinkRules
-from netsim.mobility.local import Memory, cut_for_walls, latest_pulls, let_go, plan_local, sources_heard, walls_of
+from netsim.mobility.local import (
+    Heard,
+    Lists,
+    Memory,
+    cut_for_walls,
+    latest_pulls,
+    let_go,
+    plan_local,
+    sources_heard,
+    walls_of,
+)
 from netsim.mobility.spread import plan_spread
 from netsim.mobility.steps import Plan, StepLimits
 
@@ -396,6 +406,10 @@ class CoverageController:
         # The local plan: what each robot heard (netsim.mobility.local), the distance within which
         # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
+        # What the Acks carry of their senders' memories: a list per control step, as many
+        # as an Ack still remembered can date from.
+        self.lists = Lists(st.n, math.ceil(params.release_s / params.control_period_s) + 2)
+        self.heard: Heard | None = None  # what each robot holds as of the step being planned
         self.local_limits = replace(self.limits, range_m=self._sure_range_m())
         on_map = self.memory is not None and self.rules.walls is not None and parts.occupancy is not None
         self.local_walls = walls_of(
@@ -494,8 +508,9 @@ class CoverageController:
         memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s)
         self.knows = memory.at(step.t_s, c.speed_max_mps, self.jitter_s)
         pos = step.positions_m
-        known = memory.known(self.env.now, c.release_s)
-        target, source_xy = sources_heard(self.knows, known, 2 * self.range_m, pos)
+        self.heard = self.lists.heard(memory.known(self.env.now, c.release_s), memory.sent_s, c.release_s)
+        self.lists.take(memory, self.env.now, c.release_s)
+        target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
         speed = np.hypot(*wished.T)
@@ -505,11 +520,10 @@ class CoverageController:
 
     def _plan_local(self, step: ControlStep) -> Plan:
         """Each robot keeps what it cannot let go of and answers for those links itself."""
-        memory, knows, c = self.memory, self.knows, self.cfg
-        assert memory is not None and knows is not None
-        known = memory.known(self.env.now, c.release_s)
+        memory, knows, heard, c = self.memory, self.knows, self.heard, self.cfg
+        assert memory is not None and knows is not None and heard is not None
         limits, walls, pos = self.local_limits, self.local_walls, step.positions_m
-        kept = known & ~let_go(pos, knows, known, step.t_s, c.speed_max_mps, c.band_m, limits.range_m, walls)
+        kept = heard.known & ~let_go(pos, knows, heard, step.t_s, c.speed_max_mps, c.band_m, limits.range_m, walls)
         announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (netsim.mobility.local, rule 4).

@@ -6,14 +6,17 @@ that Ack carried and the earliest time it can date from (its reception less the 
 largest delay). It keeps that after its neighbour table lets the entry expire, for
 ``release_s`` after the Ack was sent; then it forgets the robot. Every robot moves at most
 ``speed_max_mps``, so a robot last heard at ``q`` at time ``s`` is, at time ``t``, within
-``v (t - s)`` of ``q``.
+``v (t - s)`` of ``q``. An Ack also carries its sender's list of the robots it remembers
+(:class:`Lists`): from those a robot learns which robots its neighbours remember, and
+where they heard them.
 
 The rules, for robot ``i`` deciding the step that runs over ``[t0, t1]`` (``t1 = t0 +
 period``), its own position ``p`` at ``t0`` exact:
 
 1. **Detour.** ``i`` lets go of a remembered robot ``j`` only if it knows a *certified
    detour*: a path from ``i`` to ``j`` through robots it remembers, each link of which
-   joins two robots that remember each other and is, whatever the true positions at
+   joins two robots that remember each other (as the lists ``i`` holds from them show)
+   and is, whatever the true positions at
    ``t0``, shorter than the link ``(i, j)``: its longest possible length (``|q_a - q_b| +
    e_a + e_b``, ``e = v (t0 - s)``; ``|p - q_a| + e_a`` from ``i``) below the shortest
    possible length of ``(i, j)`` (``|p - q_j| - e_j``). Every other remembered robot is
@@ -229,10 +232,74 @@ class Memory:
         return out
 
 
+class Heard(NamedTuple):
+    """What the robots heard, as rule 1 and the forces read it: each robot's own memory
+    (``known``) and, from each robot it remembers, the list the latest Ack it heard of that
+    robot carried (:class:`Lists`). The lists of every snapshot are stored one after the
+    other, each sorted by sender, then by the robot listed."""
+
+    known: np.ndarray  # (n, n) bool: Memory.known
+    which: np.ndarray  # (n, n) int64: the snapshot whose list i holds from u; -1: none
+    start: np.ndarray  # (K, n + 1) int64: snapshot k's list of u is entries start[k, u]:start[k, u + 1]
+    other: np.ndarray  # (M,) int64: the robot an entry lists
+    sent_s: np.ndarray  # (M,): the earliest time the sender's latest Ack of it can have been sent
+    xy: np.ndarray  # (M, 2): the position that Ack carried
+    release_s: float
+
+
+class Lists:
+    """What an Ack carries of its sender's memory: the robots it remembers, each with the
+    position and the earliest sending time of the latest Ack of it the sender heard.
+
+    A robot's memory changes at control steps alone (:meth:`Memory.hear`), and only
+    refreshes there: an Ack sent after a step carries at least the list of that step. So
+    ``i``, holding an Ack of ``u`` sent no earlier than ``s``, holds at least ``u``'s list
+    as of its latest step before ``s`` (:meth:`take` keeps the last ``depth`` of them; with
+    none old enough, ``i`` counts the list as empty). The lists start with control: an Ack
+    sent before the first step carries none."""
+
+    def __init__(self, n: int, depth: int):
+        self.n = n
+        self.depth = int(depth)
+        self._taken: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def take(self, memory: Memory, now_s: float, release_s: float) -> None:
+        """Every robot's list from now on: the robots it remembers (:meth:`Memory.known`)."""
+        robot, other = np.nonzero(memory.known(now_s, release_s))
+        start = np.searchsorted(robot, np.arange(self.n + 1))
+        self._taken.append((float(now_s), start, other, memory.sent_s[robot, other], memory.xy[robot, other]))
+        del self._taken[: -self.depth]
+
+    def heard(self, known: np.ndarray, sent_s: np.ndarray, release_s: float) -> Heard:
+        """What each robot holds: its own memory ``known`` and, for each robot ``u`` whose
+        latest Ack it heard can have been sent no earlier than ``sent_s[i, u]``, ``u``'s list of
+        its latest step strictly before then."""
+        taken_s = np.array([t[0] for t in self._taken])
+        which = np.searchsorted(taken_s, sent_s, side="left") - 1
+        sizes = np.array([len(t[2]) for t in self._taken], dtype=np.int64)
+        offset = np.r_[0, np.cumsum(sizes)[:-1]] if len(sizes) else sizes
+        start = np.array([t[1] + o for t, o in zip(self._taken, offset)], dtype=np.int64).reshape(-1, self.n + 1)
+        other = np.concatenate([t[2] for t in self._taken]) if self._taken else np.empty(0, np.int64)
+        sent = np.concatenate([t[3] for t in self._taken]) if self._taken else np.empty(0)
+        xy = np.concatenate([t[4] for t in self._taken]) if self._taken else np.empty((0, 2))
+        return Heard(known, which.astype(np.int64), start, other.astype(np.int64), sent, xy, float(release_s))
+
+
+def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Entries (indices into ``heard``) of the list ``i`` holds from ``u`` that still stand at
+    ``t_s``: ``u`` remembers those robots then (a robot's memory only refreshes)."""
+    k = heard.which[i, u]
+    if k < 0:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    entries = np.arange(heard.start[k, u], heard.start[k, u + 1])
+    entries = entries[t_s - heard.sent_s[entries] < heard.release_s]
+    return entries, heard.other[entries]
+
+
 def let_go(
     pos: np.ndarray,
     memory: Memory,
-    known: np.ndarray,
+    heard: Heard,
     t0_s: float,
     speed_mps: float,
     band_m: float,
@@ -241,38 +308,49 @@ def let_go(
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
-    ``pos``: every robot's own position at ``t0_s``; ``known``: :meth:`Memory.known`;
-    ``band_m``: the width of the length bands of the links' order. Robot ``i``'s graph:
-    itself and the robots it remembers (at the positions it heard), joined where two
-    remember each other and are surely within ``range_m`` and (on a map) surely clear of
-    ``walls`` (:func:`clear_of_walls` with the larger of the two uncertainties), each link
-    at the largest rank it can have at ``t0``. A robot two links out is no node: ``i``
-    heard nothing of it. Whether two robots ``i`` remembers remember each other is read
-    from ``known`` as it is at ``t0`` (docs/model.md 5.1: it stands for a list the Acks do
-    not carry yet). A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
+    ``pos``: every robot's own position at ``t0_s``; ``heard``: each robot's memory and the
+    lists it holds (:class:`Lists`); ``band_m``: the width of the length bands of the links'
+    order. Robot ``i``'s graph: itself and the robots it remembers (at the positions it
+    heard), joined where ``i`` can certify that the two remember each other at ``t0_s``
+    (``i`` remembers the robots of its graph; ``u`` remembers ``v`` if the list ``i`` holds
+    from ``u`` names ``v`` with an Ack sent less than ``release_s`` before ``t0_s``) and they
+    are surely within ``range_m`` and (on a map) surely clear of ``walls``
+    (:func:`clear_of_walls` with the larger of the two uncertainties), each link at the
+    largest rank it can have at ``t0``. A robot two links out is no node: ``i`` heard
+    nothing of it. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
     minimum spanning tree of that graph. Past :data:`netsim.compiled.SMALL_RUN_ROBOTS`
     robots the compiled twin (:mod:`netsim.mobility._local_kernels`) computes the same.
 
     Notes
     -----
-    ``O(k^2)`` per robot with ``k`` robots it remembers.
+    ``O(k^2 + l)`` per robot with ``k`` robots it remembers, whose lists hold ``l`` entries.
     """
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
+    known = heard.known
     kernels = load("netsim.mobility._local_kernels", n)
     if kernels is not None:
-        rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m))
-        kernels.let_go(pos, (memory.xy, memory.sent_s, known), rule, walls, out)
+        rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m), heard.release_s)
+        lists = (heard.which, heard.start, heard.other, heard.sent_s)
+        kernels.let_go(pos, (memory.xy, memory.sent_s, known), lists, rule, walls, out)
         return out
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
-    mutual = known & known.T
+    local = np.full(n, -1)
     for i in range(n):
         nb = np.flatnonzero(known[i])
         m = len(nb)
         if m < 2:
             continue
         node = np.r_[i, nb]
+        local[node] = np.arange(m + 1)
+        # certain[a, b]: i can tell that node a remembers node b at t0.
+        certain = np.zeros((m + 1, m + 1), dtype=bool)
+        certain[0, 1:] = True
+        for a in range(1, m + 1):
+            b = local[reported(heard, i, node[a], t0_s)[1]]
+            certain[a, b[b >= 0]] = True
+        local[node] = -1
         q = np.concatenate([pos[i : i + 1], memory.xy[i, nb]])
         sent = np.r_[t0_s, memory.sent_s[i, nb]]
         e = speed_mps * np.maximum(t0_s - sent, 0.0)
@@ -280,7 +358,8 @@ def let_go(
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
         longest = centre + e[:, None] + e[None, :]
         rank = link_rank(longest, pair, band_m, n) + 1.0
-        usable = mutual[np.ix_(node, node)] & (longest <= range_m)
+        usable = certain & certain.T & (longest <= range_m)
+        np.fill_diagonal(usable, False)
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
             ok = clear_of_walls(walls, q[a], q[b], e[a], e[b])
@@ -464,22 +543,32 @@ def latest_pulls(
     )
 
 
-def sources_heard(memory: Memory, known: np.ndarray, reach_m: float, pos: np.ndarray):
+def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos: np.ndarray):
     """Pairs ``(robot, position it knows of another robot within reach_m)``: the forces'
     sources in the local plan. A robot knows the robots it remembers, at the position it
-    heard, and those they remember (their Acks carry their tables), at the freshest
-    position they report."""
+    heard (``memory``), and those named in the lists it holds from them (:class:`Lists`;
+    still remembered at ``t0_s``), at the position of the freshest Ack any of those lists
+    reports (the first of the robots it remembers, by id, on a tie)."""
     n = len(pos)
+    known = heard.known
     robots, xys = [], []
     for i in range(n):
         nb = np.flatnonzero(known[i])
         if len(nb) == 0:
             continue
-        reported = np.where(known[nb], memory.sent_s[nb], -np.inf)
-        via = nb[reported.argmax(axis=0)]
-        fresh = np.isfinite(reported.max(axis=0))
+        xy = np.zeros((n, 2))
+        fresh = np.zeros(n, dtype=bool)
+        entries = [reported(heard, i, u, t0_s)[0] for u in nb.tolist()]
+        rows = np.concatenate(entries)
+        if len(rows):
+            other, sent = heard.other[rows], heard.sent_s[rows]
+            # Entries are in the order of the robots i remembers (ids ascending); a stable
+            # sort keeps the first on a tie.
+            order = np.lexsort((-sent, other))
+            first = order[np.r_[True, other[order][1:] != other[order][:-1]]]
+            fresh[other[first]] = True
+            xy[other[first]] = heard.xy[rows[first]]
         fresh[i] = False
-        xy = memory.xy[via, np.arange(n)]
         own = known[i]
         xy[own] = memory.xy[i, own]
         have = np.flatnonzero(own | fresh)

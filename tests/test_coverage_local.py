@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from netsim.mobility.local import (
     NO_WALLS,
+    Lists,
     Memory,
     clear_of_walls,
     cut_for_walls,
@@ -18,6 +19,7 @@ from netsim.mobility.local import (
     let_go,
     plan_local,
     pulls,
+    sources_heard,
     walls_of,
 )
 from netsim.mobility.steps import StepLimits
@@ -42,6 +44,15 @@ def memory_of(xy_heard, sent_s):
     m.xy[:] = np.asarray(xy_heard, dtype=float)
     m.sent_s[:] = np.asarray(sent_s, dtype=float)
     return m
+
+
+def told(m, lists=None, release_s=20.0):
+    """What the robots heard: their memory ``m`` and, from every robot they remember, its
+    list as the memory ``lists`` (default ``m``) holds it, carried by every Ack they heard."""
+    n = len(m.sent_s)
+    kept = Lists(n, 1)
+    kept.take(m if lists is None else lists, m.sent_s[np.isfinite(m.sent_s)].min(initial=T0) - 1.0, release_s)
+    return kept.heard(m.known(T0, release_s), m.sent_s, release_s)
 
 
 def all_heard(pos, sent):
@@ -79,17 +90,71 @@ def test_detour_a_robot_lets_go_only_of_a_link_with_a_certified_detour():
     knows of robot 2 is so old that the detour may be longer than the link."""
     pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 20.0]])
     m = all_heard(pos, T0 - 0.5)
-    known = m.known(T0, 20.0)
-    out = let_go(pos, m, known, T0, V, 10.0, RC)
+    out = let_go(pos, m, told(m), T0, V, 10.0, RC)
     assert out[0, 1] and out[1, 0]
     assert not out[0, 2] and not out[2, 0] and not out[1, 2] and not out[2, 1]
 
-    one_sided = known.copy()
-    one_sided[2, 1] = False
-    assert not let_go(pos, m, one_sided, T0, V, 10.0, RC)[0, 1]
+    one_sided = memory_of(m.xy, m.sent_s.copy())
+    one_sided.sent_s[2, 1] = -np.inf
+    assert not let_go(pos, m, told(m, one_sided), T0, V, 10.0, RC)[0, 1]
 
     m.sent_s[0, 2] = m.sent_s[1, 2] = T0 - 18.0  # 36 m of uncertainty on robot 2
-    assert not let_go(pos, m, m.known(T0, 20.0), T0, V, 10.0, RC)[0, 1]
+    assert not let_go(pos, m, told(m), T0, V, 10.0, RC)[0, 1]
+
+
+def heard_over_steps(pos, hears):
+    """A memory and what each robot holds (:class:`Lists`) after control steps at 5, 6, ...,
+    10 s (T0): at each, robot ``r`` hears the latest Ack of ``o`` (at its true position, sent
+    half a second before the step) where ``hears(r, o, t)``."""
+    n = len(pos)
+    m, lists = Memory(n), Lists(n, 25)
+    for t in np.arange(5.0, T0 + 0.5):
+        pairs = [(r, o) for r in range(n) for o in range(n) if r != o and hears(r, o, t)]
+        robot, other = np.array(pairs).T
+        m.hear(robot, other, pos[other], np.full(len(pairs), t - 0.5), 0.0)
+        heard = lists.heard(m.known(t, 20.0), m.sent_s, 20.0)
+        lists.take(m, t, 20.0)
+    return m, heard
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_robot_certifies_that_two_robots_remember_each_other_from_their_acks_alone(monkeypatch, compiled):
+    """Rule 1 reads whether robot 2 remembers robot 1 from the list in the latest Ack of
+    robot 2 that robot 0 heard, not from robot 2's memory. Robot 2 first hears robot 1 at
+    the step of 9 s; robot 0's latest Ack of robot 2 was sent after that step (it lets go of
+    robot 1 through robot 2), or, that Ack lost, before it (it keeps robot 1, though robots
+    1 and 2 remember each other at T0)."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 20.0]])
+
+    def hears(lost):
+        return lambda r, o, t: not (r == 2 and o == 1 and t < 9.0) and (r, o, t) != lost
+
+    m, heard = heard_over_steps(pos, hears(None))
+    assert let_go(pos, m, heard, T0, V, 10.0, RC)[0, 1]
+    m, heard = heard_over_steps(pos, hears((0, 2, T0)))
+    known = m.known(T0, 20.0)
+    assert known[2, 1] and known[1, 2] and known[0, 2]
+    assert not let_go(pos, m, heard, T0, V, 10.0, RC)[0, 1]
+
+
+def test_forces_a_robot_knows_a_robot_two_links_out_from_the_lists_it_heard_alone():
+    """The forces' sources: robot 0 knows robot 1 (out of its range, within twice it) only
+    once the latest Ack of robot 2 it heard names it: not when that Ack was sent before
+    robot 2 first heard robot 1 (at the step of 9 s), though robot 2 remembers it at T0."""
+    pos = np.array([[0.0, 0.0], [180.0, 0.0], [90.0, 0.0]])
+
+    def hears(lost):
+        in_range = {(0, 2), (2, 0), (1, 2), (2, 1)}
+        return lambda r, o, t: (r, o) in in_range and not (r == 2 and o == 1 and t < 9.0) and (r, o, t) != lost
+
+    m, heard = heard_over_steps(pos, hears(None))
+    robot, xy = sources_heard(m, heard, T0, 2 * RC, pos)
+    assert sorted(map(tuple, xy[robot == 0].tolist())) == [(90.0, 0.0), (180.0, 0.0)]
+    m, heard = heard_over_steps(pos, hears((0, 2, T0)))
+    assert m.known(T0, 20.0)[2, 1]
+    robot, xy = sources_heard(m, heard, T0, 2 * RC, pos)
+    assert xy[robot == 0].tolist() == [[90.0, 0.0]]
 
 
 @pytest.mark.parametrize("seed", range(30))
@@ -99,7 +164,7 @@ def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(se
     within what the robots know (stale positions, speed capped)."""
     pos, m = random_scene(seed)
     known = m.known(T0, 20.0)
-    gone = let_go(pos, m, known, T0, V, 10.0, RC)
+    gone = let_go(pos, m, told(m), T0, V, 10.0, RC)
     n = len(pos)
     d = np.hypot(*(pos[:, None] - pos[None]).transpose(2, 0, 1))
     k = (d <= RC) & known & known.T
@@ -114,15 +179,23 @@ def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(se
 
 
 def test_detour_compiled_and_numpy_agree(monkeypatch):
-    """The compiled twin of rule 1 lets go of exactly the links the numpy code does."""
+    """The compiled twin of rule 1 lets go of exactly the links the numpy code does, the
+    lists the robots hold taken at several steps, each naming some of what its sender
+    remembers."""
+    rng = np.random.default_rng(3)
     for seed in range(10):
         pos, m = random_scene(seed, n=40)
-        known = m.known(T0, 20.0)
+        lists = Lists(len(pos), 3)
+        for taken in (T0 - 3.5, T0 - 2.5, T0 - 1.5):
+            some = memory_of(m.xy, np.where(rng.random(m.sent_s.shape) < 0.8, m.sent_s - 18.5, -np.inf))
+            lists.take(some, taken, 20.0)
+        heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+        assert len(np.unique(heard.which)) == 4  # every list, and none
         monkeypatch.setenv("NETSIM_COMPILED", "0")
-        a = let_go(pos, m, known, T0, V, 10.0, RC)
+        a = let_go(pos, m, heard, T0, V, 10.0, RC)
         monkeypatch.setenv("NETSIM_COMPILED", "1")
-        b = let_go(pos, m, known, T0, V, 10.0, RC)
-        assert (a == b).all()
+        b = let_go(pos, m, heard, T0, V, 10.0, RC)
+        assert (a == b).all() and a.any() and (a != let_go(pos, m, told(m), T0, V, 10.0, RC)).any()
 
 
 @pytest.mark.parametrize("compiled", ["0", "1"])
@@ -134,7 +207,7 @@ def test_detour_a_robot_decides_from_what_it_heard_alone(monkeypatch, compiled):
     for seed in range(4):
         pos, m = random_scene(seed, n=30)
         known = m.known(T0, 20.0)
-        gone = let_go(pos, m, known, T0, V, 10.0, RC)
+        gone = let_go(pos, m, told(m), T0, V, 10.0, RC)
         n = len(pos)
         for i in range(n):
             unheard = np.flatnonzero(~known[i])
@@ -145,7 +218,7 @@ def test_detour_a_robot_decides_from_what_it_heard_alone(monkeypatch, compiled):
             k2[unheard] = rng.random((len(unheard), n)) < 0.5
             m2.sent_s[unheard] = np.where(k2[unheard], T0 - rng.uniform(0, 3.0, (len(unheard), n)), -np.inf)
             m2.xy[unheard] = rng.uniform(0, 300.0, (len(unheard), n, 2))
-            assert (let_go(p2, m2, k2, T0, V, 10.0, RC)[i] == gone[i]).all(), i
+            assert (let_go(p2, m2, told(m2), T0, V, 10.0, RC)[i] == gone[i]).all(), i
 
 
 # -- rule 2: leashes -------------------------------------------------------------------
@@ -158,7 +231,7 @@ def test_leash_keeps_every_kept_robot_in_range_over_the_step_whatever_it_does(se
     the range: the link holds whatever the other end does."""
     pos, m = random_scene(seed)
     known = m.known(T0, 20.0)
-    kept = known & ~let_go(pos, m, known, T0, V, 10.0, RC)
+    kept = known & ~let_go(pos, m, told(m), T0, V, 10.0, RC)
     rng = np.random.default_rng(seed)
     wish = rng.normal(0, 3.0, pos.shape)
     plan = plan_local(pos, wish, m, kept, T0, LIMITS)
@@ -352,19 +425,17 @@ def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
     agrees."""
     pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 20.0]])
     m = all_heard(pos, T0 - 0.5)
-    known = m.known(T0, 20.0)
     pillar = walls_of(blocks_map([(59.5, 9.5, 60.5, 10.5)], 120.0, 60.0), ORIGIN, RES)
     far = walls_of(blocks_map([(59.5, 29.5, 60.5, 30.5)], 120.0, 60.0), ORIGIN, RES)
-    assert let_go(pos, m, known, T0, V, 10.0, RC, far)[0, 1]
-    assert not let_go(pos, m, known, T0, V, 10.0, RC, pillar)[0, 1]
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC, far)[0, 1]
+    assert not let_go(pos, m, told(m), T0, V, 10.0, RC, pillar)[0, 1]
     for seed in range(5):
         pos, m = random_scene(seed, n=40)
         walls = walls_of(blocks_map([(100, 50, 102, 250), (150, 100, 300, 101)]), ORIGIN, RES)
-        known = m.known(T0, 20.0)
         out = []
         for flag in ("0", "1"):
             monkeypatch.setenv("NETSIM_COMPILED", flag)
-            out.append(let_go(pos, m, known, T0, V, 10.0, RC, walls))
+            out.append(let_go(pos, m, told(m), T0, V, 10.0, RC, walls))
         assert (out[0] == out[1]).all()
 
 
@@ -400,7 +471,7 @@ def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_whatever_the_o
     occ = blocks_map([(100, 50, 102, 250), (150, 100, 300, 101), (40, 200, 80, 204)])
     walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
     known = m.known(T0, 20.0)
-    kept = known & ~let_go(pos, m, known, T0, V, 10.0, RC, walls)
+    kept = known & ~let_go(pos, m, told(m), T0, V, 10.0, RC, walls)
     wish = np.random.default_rng(seed).normal(0, 3.0, pos.shape)
     move = plan_local(pos, wish, m, kept, T0, LIMITS).velocity_mps * LIMITS.period_s
     t1 = T0 + LIMITS.period_s
