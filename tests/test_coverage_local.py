@@ -5,6 +5,7 @@ link event."""
 
 from __future__ import annotations
 
+import importlib
 import math
 
 import numpy as np
@@ -30,6 +31,7 @@ from netsim.metrics import components, components_at_link_events
 from netsim.run import execute
 from netsim.tools.cli import main
 from netsim.tools.validate import coverage_settings
+from tests.oracles import local as oracle
 
 RC = 100.0
 V = 2.0  # speed cap, m/s
@@ -178,10 +180,10 @@ def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(se
     assert gone.sum() > n // 2  # the rule lets go of links at all
 
 
-def test_detour_compiled_and_numpy_agree(monkeypatch):
-    """The compiled twin of rule 1 lets go of exactly the links the numpy code does, the
-    lists the robots hold taken at several steps, each naming some of what its sender
-    remembers."""
+def test_detour_kernel_agrees_with_its_oracle(monkeypatch):
+    """Rule 1's kernel, plain and compiled, lets go of exactly the links its numpy oracle
+    (tests/oracles/local.py) does, the lists the robots hold taken at several steps, each
+    naming some of what its sender remembers."""
     rng = np.random.default_rng(3)
     for seed in range(10):
         pos, m = random_scene(seed, n=40)
@@ -195,7 +197,9 @@ def test_detour_compiled_and_numpy_agree(monkeypatch):
         a = let_go(pos, m, heard, T0, V, 10.0, RC)
         monkeypatch.setenv("NETSIM_COMPILED", "1")
         b = let_go(pos, m, heard, T0, V, 10.0, RC)
-        assert (a == b).all() and a.any() and (a != let_go(pos, m, told(m), T0, V, 10.0, RC)).any()
+        want = oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS)
+        assert (a == want).all() and (b == want).all() and a.any()
+        assert (a != let_go(pos, m, told(m), T0, V, 10.0, RC)).any()
 
 
 @pytest.mark.parametrize("compiled", ["0", "1"])
@@ -404,25 +408,28 @@ def test_walls_a_pair_of_disks_said_clear_has_a_hull_clear_of_every_wall():
     assert said.sum() > 100 and (~said).sum() > 20
 
 
-def test_walls_compiled_and_numpy_agree(monkeypatch):
-    """The compiled walls' test says exactly what the numpy code says."""
+def test_walls_kernel_agrees_with_its_oracle(monkeypatch):
+    """The walls' test, plain and compiled, says exactly what its numpy oracle says."""
     rng = np.random.default_rng(6)
     occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (60, 150, 150, 151)], 250.0, 250.0)
     walls = walls_of(occ, ORIGIN, RES)
     a = rng.uniform(0, 220, (300, 2))
     b = a + rng.normal(0, 30, (300, 2))
     ea, eb = rng.uniform(0, 5, (2, 300))
-    monkeypatch.setenv("NETSIM_COMPILED", "0")
-    slow = clear_of_walls(walls, a, b, ea, eb)
-    monkeypatch.setenv("NETSIM_COMPILED", "1")
-    assert (slow == clear_of_walls(walls, a, b, ea, eb)).all()
+    want = oracle.clear_of_walls(walls, a, b, ea, eb)
+    assert 0 < want.sum() < len(want)
+    assert (want == clear_of_walls(walls, a, b, ea, eb)).all()
+    plain = importlib.import_module("netsim.mobility._local_kernels")
+    out = np.empty(len(a), dtype=bool)
+    plain.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
+    assert (want == out).all()
 
 
 def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
     """Rule 1 on a map: robot 0 lets go of robot 1 through robot 2 (as in open space) only
     when the detour's links are surely clear of walls: a pillar on the link from robot 2 to
-    robot 1 (and none on the link from 0 to 1) keeps the link (0, 1); the compiled twin
-    agrees."""
+    robot 1 (and none on the link from 0 to 1) keeps the link (0, 1); plain and compiled
+    kernels agree with the oracle."""
     pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 20.0]])
     m = all_heard(pos, T0 - 0.5)
     pillar = walls_of(blocks_map([(59.5, 9.5, 60.5, 10.5)], 120.0, 60.0), ORIGIN, RES)
@@ -436,7 +443,8 @@ def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
         for flag in ("0", "1"):
             monkeypatch.setenv("NETSIM_COMPILED", flag)
             out.append(let_go(pos, m, told(m), T0, V, 10.0, RC, walls))
-        assert (out[0] == out[1]).all()
+        want = oracle.let_go(pos, m, told(m), T0, V, 10.0, RC, walls)
+        assert (out[0] == want).all() and (out[1] == want).all()
 
 
 def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():

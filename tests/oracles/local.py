@@ -1,0 +1,86 @@
+"""Reference oracles of the local plan's kernels (:mod:`netsim.mobility._local_kernels`):
+the same rules in numpy array operations, written independently of the loops, for the
+tests to compare the kernels with (plain and compiled)."""
+
+import numpy as np
+from netsim.mobility.local import Heard, Memory, Walls, link_rank, reported
+
+
+def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
+    """:func:`netsim.mobility.local.clear_of_walls`, every segment marched in lockstep."""
+    a = np.asarray(a, float).reshape(-1, 2)
+    b = np.asarray(b, float).reshape(-1, 2)
+    ea = np.broadcast_to(np.asarray(ea, float), (len(a),)).copy()
+    eb = np.broadcast_to(np.asarray(eb, float), (len(a),)).copy()
+    out = np.empty(len(a), dtype=bool)
+    h, w = walls.field.shape
+    res = walls.resolution_m
+    length = np.hypot(*(b - a).T)
+    some = length > 0
+    growth = np.where(some, np.abs(eb - ea) / np.where(some, length, 1.0), 0.0)
+    t = np.zeros(len(a))
+    active = np.ones(len(a), dtype=bool)
+    out[:] = True
+    while active.any():
+        k = np.flatnonzero(active)
+        f = np.where(some[k], t[k] / np.where(some[k], length[k], 1.0), 0.0)
+        u = (a[k, 0] + f * (b[k, 0] - a[k, 0]) - walls.origin_x_m) / res
+        v = (a[k, 1] + f * (b[k, 1] - a[k, 1]) - walls.origin_y_m) / res
+        ci = np.clip(np.floor(u), 0, w - 1).astype(np.int64)
+        cj = np.clip(np.floor(v), 0, h - 1).astype(np.int64)
+        radius = np.where(some[k], ea[k] + f * (eb[k] - ea[k]), np.maximum(ea[k], eb[k]))
+        gap = walls.field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
+        blocked = gap <= walls.step_m
+        out[k[blocked]] = False
+        done = blocked | (t[k] >= length[k])
+        active[k[done]] = False
+        go = k[~done]
+        t[go] = np.minimum(t[go] + gap[~done] / (1.0 + growth[go]), length[go])
+    return out
+
+
+def let_go(pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, walls: Walls) -> np.ndarray:
+    """:func:`netsim.mobility.local.let_go`: per robot, the minimum spanning tree of its
+    certified graph by scipy, and the bottleneck of its path to each remembered robot."""
+    n = len(pos)
+    out = np.zeros((n, n), dtype=bool)
+    known = heard.known
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
+    local = np.full(n, -1)
+    for i in range(n):
+        nb = np.flatnonzero(known[i])
+        m = len(nb)
+        if m < 2:
+            continue
+        node = np.r_[i, nb]
+        local[node] = np.arange(m + 1)
+        # certain[a, b]: i can tell that node a remembers node b at t0.
+        certain = np.zeros((m + 1, m + 1), dtype=bool)
+        certain[0, 1:] = True
+        for a in range(1, m + 1):
+            b = local[reported(heard, i, node[a], t0_s)[1]]
+            certain[a, b[b >= 0]] = True
+        local[node] = -1
+        q = np.concatenate([pos[i : i + 1], memory.xy[i, nb]])
+        sent = np.r_[t0_s, memory.sent_s[i, nb]]
+        e = speed_mps * np.maximum(t0_s - sent, 0.0)
+        centre = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
+        pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
+        longest = centre + e[:, None] + e[None, :]
+        rank = link_rank(longest, pair, band_m, n) + 1.0
+        usable = certain & certain.T & (longest <= range_m)
+        np.fill_diagonal(usable, False)
+        if walls.on:
+            a, b = np.nonzero(np.triu(usable, 1))
+            ok = clear_of_walls(walls, q[a], q[b], e[a], e[b])
+            usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
+        tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
+        order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
+        worst = np.full(len(node), np.inf)
+        worst[0] = 0.0
+        for v, u in zip(order[1:].tolist(), pred[order[1:]].tolist()):
+            worst[v] = max(worst[u], rank[u, v])
+        shortest = np.maximum(centre[0, 1 : m + 1] - e[1 : m + 1], 0.0)
+        out[i, nb] = worst[1 : m + 1] < link_rank(shortest, pair[0, 1 : m + 1], band_m, n) + 1.0
+    return out
