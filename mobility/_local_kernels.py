@@ -1,9 +1,8 @@
-"""Compiled (numba) loops of the local plan: rule 1 (:func:`netsim.mobility.local.let_go`), per
-robot the bottleneck of its certified detours, by a widest-path search over the robots
-it remembers; and the walls' test (:func:`netsim.mobility.local.clear_of_walls`). They
-compute exactly what the numpy code computes (the tests compare them); for a few dozen
-robots, numpy's and scipy's cost per call, not the arithmetic, is what the numpy code
-costs.
+"""The local plan's loops (compiled or plain, :func:`netsim.compiled.load`): rule 1
+(:func:`netsim.mobility.local.let_go`), per robot the bottleneck of its certified detours,
+by a widest-path search over the robots it remembers; and the walls' test
+(:func:`netsim.mobility.local.clear_of_walls`). The tests compare them with numpy oracles
+(tests/oracles/local.py).
 """
 
 from __future__ import annotations
@@ -116,7 +115,7 @@ def let_go(pos, memory, lists, rule, walls, out):
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 if longest > range_m:
                     continue
-                # From the node met first in the list, as the numpy code walks it.
+                # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
                 if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a], e[b]):
                     continue
