@@ -20,9 +20,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from netsim import config as cfgmod
+from netsim import placement
 from netsim.config import Config
 from netsim.errors import NetsimInputError
-from netsim.formats import ns2, placement
+from netsim.formats import ns2
 from netsim.tools import sweep as sweepmod
 
 QUICK = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
