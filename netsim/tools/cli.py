@@ -23,6 +23,9 @@
 ``netsim config [CONFIG] [--set KEY=VALUE ...]``
     Print the configuration (the built-in default, or CONFIG with the overrides), every
     key with its meaning, the sections of the controllers it names included.
+``netsim calibrate LOG [--sensitivity-dbm S] [--map MAP] [--out FILE.toml]``
+    Fit the log-distance channel (reference loss, exponent, shadowing, wall loss) to a
+    log of frames and write the ``[channel]`` fragment ``netsim run`` reads.
 
 Bad input gives one line on standard error and exit status 2, and writes nothing; output
 paths and the scheduler are checked before any simulation starts.
@@ -461,6 +464,10 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("config", nargs="?", help="TOML scenario file (default: the built-in scenario)")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     c.set_defaults(func=cmd_config)
+
+    from netsim.tools import calibrate
+
+    calibrate.add_parser(sub)
     return p
 
 
