@@ -2,7 +2,8 @@
 of ``netsim calibrate``; run as a module it prints the maximum-likelihood and the naive fits
 beside the truth (the numbers quoted in docs/radio.md)::
 
-    python -m tests.calibration_logs [--seeds 5]
+    python -m tests.calibration_logs [--seeds 3]
+    python -m tests.calibration_logs --write site.csv    # the received-only log of seed 0
 
 Robots move by random waypoint (straight legs, no pause) in a square; every ``step_s`` one
 robot, in turn, sends a frame to all the others. The power is the log-distance law of
@@ -103,28 +104,46 @@ def synth_log(
     return log[log["received"]].reset_index(drop=True)
 
 
-def main(argv=None) -> None:
+KEYS = ("reference_loss_db", "path_loss_exponent", "shadowing_sigma_db", "shadowing_decorrelation_m")
+
+
+def comparison(seeds: int) -> str:
+    """The ML fit (with its interval) and the naive least squares beside the truth, per log."""
     from netsim.tools.calibrate import calibrate_frame
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=5)
-    args = ap.parse_args(argv)
-    keys = ("reference_loss_db", "path_loss_exponent", "shadowing_sigma_db", "shadowing_decorrelation_m")
-    print("truth: " + ", ".join(f"{k} = {getattr(TRUTH, k):g}" for k in keys))
-    print(f"{'log':<10} {'seed':>4}  {'fit':<14}" + "".join(f"{k:>27}" for k in keys))
+    lines = [f"{'log':<10} {'seed':>4}  {'fit':<9}" + "".join(f"{k:>28}" for k in KEYS)]
+    lines.append(f"{'':<10} {'':>4}  {'truth':<9}" + "".join(f"{getattr(TRUTH, k):>28g}" for k in KEYS))
     for censored in (False, True):
-        for seed in range(args.seeds):
-            log = synth_log(seed, censored=censored)
-            result = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
+        for seed in range(seeds):
+            result = calibrate_frame(synth_log(seed, censored=censored), sensitivity_dbm=TRUTH.sensitivity_dbm)
             for name, fit in (("ML", result.fit), ("naive LS", result.naive)):
                 cells = []
-                for k in keys:
-                    e = result.decorrelation.estimate if k == "shadowing_decorrelation_m" else getattr(fit, k)
-                    if k == "shadowing_decorrelation_m" and name != "ML":
-                        e = None
-                    cells.append("-" if e is None else f"{e.value:.2f} [{e.low:.2f}, {e.high:.2f}]")
+                for k in KEYS:
+                    if k == "shadowing_decorrelation_m":
+                        e = result.decorrelation.estimate if name == "ML" else None
+                    else:
+                        e = getattr(fit, k)
+                    if e is None:
+                        cells.append("-")
+                    elif name == "ML":
+                        cells.append(f"{e.value:.2f} [{e.low:.2f}, {e.high:.2f}]")
+                    else:
+                        cells.append(f"{e.value:.2f}")
                 kind = "censored" if censored else "truncated"
-                print(f"{kind:<10} {seed:>4}  {name:<14}" + "".join(f"{c:>27}" for c in cells))
+                lines.append(f"{kind:<10} {seed:>4}  {name:<9}" + "".join(f"{c:>28}" for c in cells))
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=3, help="logs of each kind to fit (seeds 0, 1, ...)")
+    ap.add_argument("--write", metavar="FILE.csv", help="only write the received-only log of seed 0 as CSV")
+    args = ap.parse_args(argv)
+    if args.write:
+        synth_log(0).to_csv(args.write, index=False)
+        print(f"wrote {args.write}")
+        return
+    print(comparison(args.seeds))
 
 
 if __name__ == "__main__":
