@@ -92,11 +92,19 @@ def synth_log(
         for c, v in zip(cols, (np.full(len(dst), t), a, dst, p, q, d, power), strict=True):
             cols[c].append(v)
     v = {c: np.concatenate(parts) for c, parts in cols.items()}
-    log = pd.DataFrame({
-        "t_s": v["t_s"], "src": v["src"], "dst": v["dst"],
-        "src_x_m": v["p"][:, 0], "src_y_m": v["p"][:, 1], "dst_x_m": v["q"][:, 0], "dst_y_m": v["q"][:, 1],
-        "distance_m": v["distance_m"], "rssi_dbm": v["rssi_dbm"],
-    })
+    log = pd.DataFrame(
+        {
+            "t_s": v["t_s"],
+            "src": v["src"],
+            "dst": v["dst"],
+            "src_x_m": v["p"][:, 0],
+            "src_y_m": v["p"][:, 1],
+            "dst_x_m": v["q"][:, 0],
+            "dst_y_m": v["q"][:, 1],
+            "distance_m": v["distance_m"],
+            "rssi_dbm": v["rssi_dbm"],
+        }
+    )
     log["received"] = log["rssi_dbm"] >= params.sensitivity_dbm
     if censored:
         log.loc[~log["received"], "rssi_dbm"] = np.nan

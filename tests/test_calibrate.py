@@ -190,6 +190,7 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("good", ["--sensitivity-dbm", "-1"], "above every logged power"),
         ("good", ["--sensitivity-dbm", "-75"], "were received below it"),
         ("good", ["--sensitivity-dbm", "5"], "must be in [-200, 0] dBm"),
+        ("good", ["--tx-power-dbm", "-60"], "the fitted channel is not one netsim runs: channel.reference_loss_db"),
         ("good", ["--map", "nowhere.yaml"], "--map = 'nowhere.yaml'"),
         ("no_distance", ["--map", "office"], "--map needs the positions"),
         ("missing", [], "no such file"),

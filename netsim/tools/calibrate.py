@@ -157,10 +157,11 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
     t_s = _numbers(log, "t_s", where)
     power_dbm = _numbers(log, power, where, missing_ok=True)
     if "received" in cols:
-        received = log["received"]
-        if received.isna().any() or not set(received.unique()) <= {True, False, 0, 1, "true", "false"}:
+        words = {"true": True, "false": False}
+        received = log["received"].map(lambda v: words.get(v.lower(), v) if isinstance(v, str) else v)
+        if received.isna().any() or not set(received.unique()) <= {True, False}:
             raise NetsimInputError(f"{where}: column received must hold true or false in every row")
-        received = received.replace({"true": True, "false": False}).astype(bool).to_numpy()
+        received = received.astype(bool).to_numpy()
         lacking = received & np.isnan(power_dbm)
         if lacking.any():
             i = int(np.flatnonzero(lacking)[0])
@@ -239,8 +240,10 @@ def calibrate_frames(
             f"--reference-distance-m {reference_distance_m:g} m): the path-loss exponent cannot be fitted"
         )
     if walls is not None and np.ptp(walls[seen]) == 0:
-        raise NetsimInputError(f"{where}: every received frame crosses {int(walls[seen][0])} walls of the map: "
-                               "the wall loss cannot be fitted apart from the reference loss")
+        raise NetsimInputError(
+            f"{where}: every received frame crosses {int(walls[seen][0])} walls of the map: "
+            "the wall loss cannot be fitted apart from the reference loss"
+        )
     design = cf.Design(frames.power_dbm, g, walls, pair, float(tx_power_dbm))
     censored = bool((~seen).any())
     try:
@@ -258,8 +261,17 @@ def calibrate_frames(
         clear = seen & (mean - s > cf.CLEAR_SIGMAS * sigma)
         decorrelation = cf.fit_decorrelation(frames.power_dbm - mean, frames.travel_m(), pair, clear, sigma)
     return Calibration(
-        fit, naive, decorrelation, s, given, float(tx_power_dbm), float(reference_distance_m),
-        len(frames.t_s), int(seen.sum()), len(np.unique(pair)), frames.robots,
+        fit,
+        naive,
+        decorrelation,
+        s,
+        given,
+        float(tx_power_dbm),
+        float(reference_distance_m),
+        len(frames.t_s),
+        int(seen.sum()),
+        len(np.unique(pair)),
+        frames.robots,
     )
 
 
@@ -324,8 +336,11 @@ def report(c: Calibration, where: str) -> str:
 
 
 def toml_fragment(c: Calibration, where: str) -> str:
-    lines = [f"# netsim calibrate {where}: {c.received:,} received frames of {c.pairs:,} pairs, "
-             f"{c.fit.likelihood} likelihood", "[channel]"]
+    lines = [
+        f"# netsim calibrate {where}: {c.received:,} received frames of {c.pairs:,} pairs, "
+        f"{c.fit.likelihood} likelihood",
+        "[channel]",
+    ]
     for k, v in c.channel().items():
         lines.append(f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {float(v)!r}")
     return "\n".join(lines) + "\n"
@@ -345,15 +360,11 @@ def _check_flag(flag: str, value: float | None, ok, allowed: str) -> None:
         raise NetsimInputError(f"{flag} {value:g}: {allowed}")
 
 
-def cmd_calibrate(args) -> int:
-    from netsim.tools.cli import check_out_file
-
+def command(args) -> int:
+    """``netsim calibrate`` (:mod:`netsim.tools.cli` checks ``--out`` first)."""
     _check_flag("--sensitivity-dbm", args.sensitivity_dbm, lambda v: -200 <= v <= 0, "must be in [-200, 0] dBm")
     _check_flag("--tx-power-dbm", args.tx_power_dbm, lambda v: -60 <= v <= 60, "must be in [-60, 60] dBm")
     _check_flag("--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be > 0 m")
-    out = Path(args.out) if args.out else None
-    if out is not None:
-        check_out_file(out, "--out")
     path = Path(args.log)
     log = read_log(path)
     frames = check_log(log, str(path), need_positions=args.map is not None)
@@ -370,9 +381,10 @@ def cmd_calibrate(args) -> int:
     check_channel(result)
     print(report(result, str(path)))
     text = toml_fragment(result, str(path))
-    if out is None:
+    if args.out is None:
         print("\n" + text, end="")
         return 0
+    out = Path(args.out)
     tmp = out.with_name(f".{out.name}.tmp")
     try:
         tmp.write_text(text)
@@ -381,28 +393,3 @@ def cmd_calibrate(args) -> int:
         tmp.unlink(missing_ok=True)
     print(f"wrote {out} (run it: netsim run {out})")
     return 0
-
-
-def add_parser(sub) -> None:
-    """The ``calibrate`` command's arguments."""
-    c = sub.add_parser("calibrate", help="fit the log-distance channel to a log of frames; write a [channel] fragment")
-    c.add_argument("log", help="CSV or Parquet log: t_s, src, dst, rssi_dbm, and distance_m or both ends' positions")
-    c.add_argument(
-        "--sensitivity-dbm", type=float, help="the radio's sensitivity, dBm (default: estimated, the weakest logged power)"
-    )
-    c.add_argument("--out", help="TOML file to write, a new path (default: print the fragment)")
-    c.add_argument("--map", help="occupancy map (map_server YAML, or office/cave) to fit the loss per wall")
-    c.add_argument(
-        "--tx-power-dbm",
-        type=float,
-        default=LogDistanceParams.tx_power_dbm,
-        help=f"the transmit power, dBm (default: channel.tx_power_dbm's, {LogDistanceParams.tx_power_dbm:g})",
-    )
-    c.add_argument(
-        "--reference-distance-m",
-        type=float,
-        default=LogDistanceParams.reference_distance_m,
-        help="d0 of reference_loss_db, m (default: channel.reference_distance_m's, "
-        f"{LogDistanceParams.reference_distance_m:g})",
-    )
-    c.set_defaults(func=cmd_calibrate)

@@ -176,13 +176,19 @@ def fit_naive(design: Design) -> ChannelFit:
     sigma = float(np.sqrt(np.mean(resid**2)))
     # Scores of the normal likelihood, which least squares maximises.
     theta = np.r_[beta, np.log(sigma)]
-    sub = Design(design.y_dbm[seen], design.g_db[seen], None if design.walls is None else design.walls[seen],
-                 design.cluster[seen], design.tx_power_dbm)
+    sub = Design(
+        design.y_dbm[seen],
+        design.g_db[seen],
+        None if design.walls is None else design.walls[seen],
+        design.cluster[seen],
+        design.tx_power_dbm,
+    )
     return _ml(sub, theta, -np.inf, censored=False, likelihood="least squares", optimise=False)
 
 
-def _ml(design: Design, start: np.ndarray, sensitivity_dbm: float, censored: bool, likelihood: str,
-        optimise: bool = True) -> ChannelFit:
+def _ml(
+    design: Design, start: np.ndarray, sensitivity_dbm: float, censored: bool, likelihood: str, optimise: bool = True
+) -> ChannelFit:
     def negll(theta):
         ll, scores = _loglik_and_scores(theta, design, sensitivity_dbm, censored)
         return -ll.sum(), -scores.sum(axis=0)
@@ -221,8 +227,13 @@ def _start(design: Design) -> np.ndarray:
 def fit_truncated(design: Design, sensitivity_dbm: float) -> ChannelFit:
     """Maximum likelihood of the normal truncated at ``sensitivity_dbm`` (received rows only)."""
     seen = design.received
-    sub = Design(design.y_dbm[seen], design.g_db[seen], None if design.walls is None else design.walls[seen],
-                 design.cluster[seen], design.tx_power_dbm)
+    sub = Design(
+        design.y_dbm[seen],
+        design.g_db[seen],
+        None if design.walls is None else design.walls[seen],
+        design.cluster[seen],
+        design.tx_power_dbm,
+    )
     return _ml(sub, _start(sub), sensitivity_dbm, censored=False, likelihood="truncated")
 
 
@@ -273,7 +284,9 @@ def fit_decorrelation(residual_db, travel_m, cluster, usable, sigma_db: float) -
     n_pairs = len(np.unique(pair))
     if len(delta) < MIN_STEPS or n_pairs < MIN_STEP_PAIRS:
         return Decorrelation(
-            None, len(delta), n_pairs,
+            None,
+            len(delta),
+            n_pairs,
             f"too few steps between frames of a pair that moved (need {MIN_STEPS} from {MIN_STEP_PAIRS} pairs)",
         )
     scale = float(np.median(delta))
@@ -287,7 +300,9 @@ def fit_decorrelation(residual_db, travel_m, cluster, usable, sigma_db: float) -
     theta = res.x
     if not res.success or not np.all(np.isfinite(theta)) or min(theta[1] - lo, hi - theta[1]) < 1e-3:
         return Decorrelation(
-            None, len(delta), n_pairs,
+            None,
+            len(delta),
+            n_pairs,
             "not determined by this log (the pairs' travel between frames is far shorter or far longer than it)",
         )
 
