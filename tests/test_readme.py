@@ -61,6 +61,10 @@ REDUCED = {
         "netsim figures --set duration_s=60",
         "the built-in coverage scenario, 60 simulated seconds instead of 300",
     ),
+    "python -m tests.calibration_logs --write site.csv": (
+        f"PYTHONPATH={shlex.quote(str(ROOT))} {PY} -m tests.calibration_logs --write site.csv",
+        "the test helpers are the repository's, not the install's: found from the repository's root",
+    ),
     "netsim validate": ("@validate", "the full validation takes about a minute; its quick checks run"),
     "netsim sweep speed.toml --scheduler tcp://head:8786     # an existing Dask cluster": (
         "netsim sweep speed.toml --scheduler {scheduler}",

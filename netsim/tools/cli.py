@@ -23,6 +23,9 @@
 ``netsim config [CONFIG] [--set KEY=VALUE ...]``
     Print the configuration (the built-in default, or CONFIG with the overrides), every
     key with its meaning, the sections of the controllers it names included.
+``netsim calibrate LOG [--sensitivity-dbm S] [--map MAP] [--out FILE.toml]``
+    Fit the log-distance channel (reference loss, exponent, shadowing, wall loss) to a
+    log of frames and write the ``[channel]`` fragment ``netsim run`` reads.
 
 Bad input gives one line on standard error and exit status 2, and writes nothing; output
 paths and the scheduler are checked before any simulation starts.
@@ -364,6 +367,14 @@ def cmd_export(args) -> int:
     return 0
 
 
+def cmd_calibrate(args) -> int:
+    from netsim.tools import calibrate
+
+    if args.out is not None:
+        check_out_file(Path(args.out), "--out")
+    return calibrate.command(args)
+
+
 def cmd_config(args) -> int:
     check_set_pairs(args.set, args.config)
     config = cfgmod.load(args.config, list(args.set or [])) if args.config or args.set else None
@@ -461,6 +472,32 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("config", nargs="?", help="TOML scenario file (default: the built-in scenario)")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
     c.set_defaults(func=cmd_config)
+
+    from netsim.radio.propagation import LogDistanceParams
+
+    cal = sub.add_parser(
+        "calibrate", help="fit the log-distance channel to a log of frames; write the [channel] fragment"
+    )
+    cal.add_argument("log", help="CSV or Parquet log: t_s, src, dst, rssi_dbm, and distance_m or both ends' positions")
+    cal.add_argument(
+        "--sensitivity-dbm", type=float, help="the radio's sensitivity, dBm (default: the weakest logged power)"
+    )
+    cal.add_argument("--map", help="occupancy map (map_server YAML, or office / cave) to fit the loss per wall")
+    cal.add_argument("--out", help="TOML file to write, a new path (default: print the fragment)")
+    cal.add_argument(
+        "--tx-power-dbm",
+        type=float,
+        default=LogDistanceParams.tx_power_dbm,
+        help=f"transmit power, dBm (default: channel.tx_power_dbm's, {LogDistanceParams.tx_power_dbm:g})",
+    )
+    cal.add_argument(
+        "--reference-distance-m",
+        type=float,
+        default=LogDistanceParams.reference_distance_m,
+        help="d0 of reference_loss_db, m (default: channel.reference_distance_m's, "
+        f"{LogDistanceParams.reference_distance_m:g})",
+    )
+    cal.set_defaults(func=cmd_calibrate)
     return p
 
 

@@ -1,0 +1,395 @@
+"""``netsim calibrate LOG``: the log-distance channel fitted to a site's logged frames.
+
+The log is a CSV or Parquet file, one row per frame, with ``t_s``, ``src``, ``dst``, the
+power ``rssi_dbm`` (or ``rx_power_dbm``) and either ``distance_m`` or both ends' positions
+(``src_x_m``, ``src_y_m``, ``dst_x_m``, ``dst_y_m``). A row whose power is empty is a frame
+sent but not received; with a ``received`` column (as in a run's ``receptions.parquet``),
+the rows where it is false are those, whatever their power column holds. The statistics are
+in :mod:`netsim.tools.channel_fit`; this module reads and checks the log, runs the fits and
+writes the ``[channel]`` fragment.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from netsim.errors import NetsimInputError
+from netsim.radio.propagation import LogDistanceParams
+from netsim.tools import channel_fit as cf
+
+POSITIONS = ("src_x_m", "src_y_m", "dst_x_m", "dst_y_m")
+POWER_COLUMNS = ("rssi_dbm", "rx_power_dbm")
+MIN_FRAMES = 30
+MIN_PAIRS = 5
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """What ``netsim calibrate`` found."""
+
+    fit: cf.ChannelFit
+    naive: cf.ChannelFit
+    decorrelation: cf.Decorrelation
+    sensitivity_dbm: float
+    sensitivity_given: bool
+    tx_power_dbm: float
+    reference_distance_m: float
+    frames: int
+    received: int
+    pairs: int
+    robots: int
+
+    def channel(self) -> dict:
+        """The ``[channel]`` keys, as ``netsim run`` reads them."""
+        keys = {
+            "propagation": "log_distance",
+            "tx_power_dbm": self.tx_power_dbm,
+            "reference_distance_m": self.reference_distance_m,
+            "reference_loss_db": self.fit.reference_loss_db.value,
+            "path_loss_exponent": self.fit.path_loss_exponent.value,
+            "sensitivity_dbm": self.sensitivity_dbm,
+            "shadowing_sigma_db": self.fit.shadowing_sigma_db.value,
+        }
+        if self.decorrelation.estimate is not None:
+            keys["shadowing_decorrelation_m"] = self.decorrelation.estimate.value
+        if self.fit.wall_loss_db is not None:
+            keys["wall_loss_db"] = self.fit.wall_loss_db.value
+        return keys
+
+
+def read_log(path: Path) -> pd.DataFrame:
+    """The log as a table; a missing or unreadable file is a :class:`NetsimInputError`."""
+    if not path.exists():
+        raise NetsimInputError(f"{path}: no such file")
+    if path.is_dir():
+        raise NetsimInputError(f"{path}: is a directory; give a CSV or Parquet log of frames")
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".csv":
+            return pd.read_csv(path)
+        if suffix in (".parquet", ".pq"):
+            return pd.read_parquet(path)
+    except pd.errors.EmptyDataError:
+        raise NetsimInputError(f"{path}: is empty (no header, no frames)") from None
+    except (ValueError, OSError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        kind = "CSV" if suffix == ".csv" else "Parquet"
+        raise NetsimInputError(f"{path}: cannot be read as {kind} ({first})") from None
+    raise NetsimInputError(f"{path}: unknown format {suffix or '(no suffix)'!r}; give a .csv or .parquet log")
+
+
+def _numbers(log: pd.DataFrame, column: str, where: str, missing_ok: bool = False) -> np.ndarray:
+    """A column as floats; a cell that is not a number (or missing, unless allowed) is refused."""
+    raw = log[column]
+    values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    bad = (np.isnan(values) & raw.notna().to_numpy()) | np.isinf(values)
+    if not missing_ok:
+        bad |= np.isnan(values)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise NetsimInputError(
+            f"{where}: column {column} row {i + 1}: {raw.iloc[i]!r} is not a finite number "
+            f"({int(bad.sum()):,} such rows)"
+        )
+    return values
+
+
+@dataclass(frozen=True)
+class Frames:
+    """The checked log: power (NaN: not received), distance, positions (or None), pair ids."""
+
+    t_s: np.ndarray
+    power_dbm: np.ndarray
+    distance_m: np.ndarray
+    positions: np.ndarray | None  # (rows, 4): src x, y, dst x, y
+    src: np.ndarray  # robot index
+    dst: np.ndarray
+    robots: int
+
+    @property
+    def pair(self) -> np.ndarray:
+        lo, hi = np.minimum(self.src, self.dst), np.maximum(self.src, self.dst)
+        return lo * self.robots + hi
+
+    def travel_m(self) -> np.ndarray:
+        """Each row's pair travel: both robots' path lengths up to the row's time, each robot's
+        path the polyline through every position the log gives of it (src or dst end)."""
+        n = len(self.t_s)
+        robot = np.r_[self.src, self.dst]
+        t = np.r_[self.t_s, self.t_s]
+        xy = np.r_[self.positions[:, :2], self.positions[:, 2:]]
+        order = np.lexsort((t, robot))
+        step = np.zeros(2 * n)
+        same = robot[order[1:]] == robot[order[:-1]]
+        step[1:] = np.where(same, np.hypot(*(xy[order[1:]] - xy[order[:-1]]).T), 0.0)
+        # Cumulative per robot: the running sum restarted at each robot's first observation.
+        run = np.cumsum(step)
+        first = np.r_[True, ~same]
+        run -= np.maximum.accumulate(np.where(first, run, -np.inf))
+        odo = np.empty(2 * n)
+        odo[order] = run
+        return odo[:n] + odo[n:]
+
+
+def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
+    """The log's columns checked and read: one line naming the problem otherwise."""
+    cols = set(log.columns)
+    power = next((c for c in POWER_COLUMNS if c in cols), None)
+    missing = [c for c in ("t_s", "src", "dst") if c not in cols] + ([] if power else ["rssi_dbm"])
+    has_positions = all(c in cols for c in POSITIONS)
+    if need_positions and not has_positions:
+        missing += [c for c in POSITIONS if c not in cols]
+    elif not has_positions and "distance_m" not in cols:
+        missing.append(f"distance_m (or {', '.join(POSITIONS)})")
+    if missing:
+        raise NetsimInputError(
+            f"{where}: lacks the column{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
+            f"(a log needs t_s, src, dst, rssi_dbm and distance_m or {', '.join(POSITIONS)}"
+            f"{'; --map needs the positions' if need_positions else ''})"
+        )
+    if len(log) == 0:
+        raise NetsimInputError(f"{where}: has no frames (only a header)")
+    t_s = _numbers(log, "t_s", where)
+    power_dbm = _numbers(log, power, where, missing_ok=True)
+    if "received" in cols:
+        words = {"true": True, "false": False}
+        received = log["received"].map(lambda v: words.get(v.lower(), v) if isinstance(v, str) else v)
+        if received.isna().any() or not set(received.unique()) <= {True, False}:
+            raise NetsimInputError(f"{where}: column received must hold true or false in every row")
+        received = received.astype(bool).to_numpy()
+        lacking = received & np.isnan(power_dbm)
+        if lacking.any():
+            i = int(np.flatnonzero(lacking)[0])
+            raise NetsimInputError(f"{where}: row {i + 1} is received but its {power} is empty")
+        power_dbm = np.where(received, power_dbm, np.nan)
+    for c in ("src", "dst"):
+        if log[c].isna().any():
+            i = int(np.flatnonzero(log[c].isna().to_numpy())[0])
+            raise NetsimInputError(f"{where}: column {c} row {i + 1} is empty (every frame needs both robots)")
+    ids, names = pd.factorize(pd.concat([log["src"], log["dst"]], ignore_index=True))
+    src, dst = ids[: len(log)].astype(np.int64), ids[len(log) :].astype(np.int64)
+    if (src == dst).any():
+        i = int(np.flatnonzero(src == dst)[0])
+        raise NetsimInputError(f"{where}: row {i + 1} has src = dst = {log['src'].iloc[i]!r}")
+    positions = None
+    if has_positions:
+        positions = np.column_stack([_numbers(log, c, where) for c in POSITIONS])
+        distance = np.hypot(positions[:, 2] - positions[:, 0], positions[:, 3] - positions[:, 1])
+        what = "the distance between the two ends' positions"
+    else:
+        distance = _numbers(log, "distance_m", where)
+        what = "distance_m"
+    bad = ~(distance > 0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise NetsimInputError(
+            f"{where}: row {i + 1}: {what} is {distance[i]:g}; every distance must be > 0 m "
+            f"({int(bad.sum()):,} such rows)"
+        )
+    return Frames(t_s, power_dbm, distance, positions, src, dst, len(names))
+
+
+def check_sensitivity(power_dbm: np.ndarray, sensitivity_dbm: float | None, where: str) -> None:
+    """A given sensitivity must lie at or below every logged power: a frame below it is
+    never received, so a log holding one contradicts it."""
+    if sensitivity_dbm is None:
+        return
+    seen = power_dbm[~np.isnan(power_dbm)]
+    below = seen < sensitivity_dbm
+    if below.all():
+        raise NetsimInputError(
+            f"--sensitivity-dbm {sensitivity_dbm:g}: above every logged power (the strongest is {seen.max():g} dBm); "
+            "no frame below the sensitivity is received"
+        )
+    if below.any():
+        raise NetsimInputError(
+            f"--sensitivity-dbm {sensitivity_dbm:g}: {int(below.sum()):,} frames of {where} were received below it "
+            f"(the weakest at {seen.min():g} dBm); give at most that, or leave it out to estimate it"
+        )
+
+
+def calibrate_frames(
+    frames: Frames,
+    sensitivity_dbm: float | None = None,
+    tx_power_dbm: float = LogDistanceParams.tx_power_dbm,
+    reference_distance_m: float = LogDistanceParams.reference_distance_m,
+    walls: np.ndarray | None = None,
+    where: str = "the log",
+) -> Calibration:
+    """Fit the channel to checked frames (see :mod:`netsim.tools.channel_fit`)."""
+    seen = ~np.isnan(frames.power_dbm)
+    pair = frames.pair
+    received_pairs = len(np.unique(pair[seen]))
+    if seen.sum() < MIN_FRAMES or received_pairs < MIN_PAIRS:
+        raise NetsimInputError(
+            f"{where}: too few frames to fit: {int(seen.sum()):,} received frames from {received_pairs} pairs; "
+            f"need at least {MIN_FRAMES} from {MIN_PAIRS} pairs of robots"
+        )
+    check_sensitivity(frames.power_dbm, sensitivity_dbm, where)
+    given = sensitivity_dbm is not None
+    s = float(sensitivity_dbm) if given else float(frames.power_dbm[seen].min())
+    g = 10.0 * np.log10(np.maximum(frames.distance_m, reference_distance_m) / reference_distance_m)
+    if np.ptp(g[seen]) < 1e-9:
+        raise NetsimInputError(
+            f"{where}: every received frame is at the same distance (or within "
+            f"--reference-distance-m {reference_distance_m:g} m): the path-loss exponent cannot be fitted"
+        )
+    if walls is not None and np.ptp(walls[seen]) == 0:
+        raise NetsimInputError(
+            f"{where}: every received frame crosses {int(walls[seen][0])} walls of the map: "
+            "the wall loss cannot be fitted apart from the reference loss"
+        )
+    design = cf.Design(frames.power_dbm, g, walls, pair, float(tx_power_dbm))
+    censored = bool((~seen).any())
+    try:
+        fit = cf.fit_censored(design, s) if censored else cf.fit_truncated(design, s)
+        naive = cf.fit_naive(design)
+    except cf.FitError as exc:
+        raise NetsimInputError(f"{where}: {exc}") from None
+    if frames.positions is None:
+        decorrelation = cf.Decorrelation(
+            None, 0, 0, "needs each pair's travel, so both ends' positions (src_x_m, src_y_m, dst_x_m, dst_y_m)"
+        )
+    else:
+        sigma = fit.shadowing_sigma_db.value
+        mean = fit.mean_dbm(design)
+        clear = seen & (mean - s > cf.CLEAR_SIGMAS * sigma)
+        decorrelation = cf.fit_decorrelation(frames.power_dbm - mean, frames.travel_m(), pair, clear, sigma)
+    return Calibration(
+        fit,
+        naive,
+        decorrelation,
+        s,
+        given,
+        float(tx_power_dbm),
+        float(reference_distance_m),
+        len(frames.t_s),
+        int(seen.sum()),
+        len(np.unique(pair)),
+        frames.robots,
+    )
+
+
+def calibrate_frame(log: pd.DataFrame, sensitivity_dbm: float | None = None, where: str = "the log", **kw):
+    """:func:`calibrate_frames` of a table in the log's format."""
+    return calibrate_frames(check_log(log, where, need_positions=False), sensitivity_dbm, where=where, **kw)
+
+
+def _cell(e: cf.Estimate | None) -> str:
+    return "-" if e is None else f"{e.value:.4g} [{e.low:.4g}, {e.high:.4g}]"
+
+
+def report(c: Calibration, where: str) -> str:
+    """The printed table: each estimate with its 95 % interval, the naive fit beside."""
+    fit, naive = c.fit, c.naive
+    lines = [
+        f"netsim calibrate: {where}: {c.frames:,} frames ({c.received:,} received) between {c.pairs:,} pairs "
+        f"of {c.robots:,} robots",
+    ]
+    if fit.likelihood == "censored":
+        lines.append(
+            f"likelihood: censored (Tobit): {c.frames - c.received:,} frames sent but not received count as "
+            "below the sensitivity"
+        )
+    else:
+        lines.append("likelihood: truncated at the sensitivity (the log lists received frames only)")
+    if c.sensitivity_given:
+        lines.append(f"sensitivity_dbm: {c.sensitivity_dbm:g} (given)")
+    else:
+        lines.append(
+            f"sensitivity_dbm: {c.sensitivity_dbm:.4g} (estimated: the weakest logged power, the maximum-likelihood "
+            "estimate of the truncation point; give --sensitivity-dbm if the radio's is known)"
+        )
+    lines.append(f"tx_power_dbm: {c.tx_power_dbm:g}, reference_distance_m: {c.reference_distance_m:g} (used as given)")
+    rows = [
+        ("reference_loss_db", fit.reference_loss_db, naive.reference_loss_db),
+        ("path_loss_exponent", fit.path_loss_exponent, naive.path_loss_exponent),
+    ]
+    if fit.wall_loss_db is not None:
+        rows.append(("wall_loss_db", fit.wall_loss_db, naive.wall_loss_db))
+    rows += [
+        ("shadowing_sigma_db", fit.shadowing_sigma_db, naive.shadowing_sigma_db),
+        ("shadowing_decorrelation_m", c.decorrelation.estimate, None),
+    ]
+    head = f"  {'key':<26}  {'maximum likelihood [95 % interval]':<36}  naive least squares"
+    lines.append(head)
+    for name, e, n in rows:
+        lines.append(f"  {name:<26}  {_cell(e):<36}  {'-' if n is None else f'{n.value:.4g}'}")
+    lines.append(
+        "intervals: 95 %, cluster-robust (sandwich) with the pair as cluster: a pair's frames share its shadowing"
+    )
+    d = c.decorrelation
+    if d.estimate is None:
+        lines.append(f"shadowing_decorrelation_m: not estimated ({d.reason}); left out of the fragment")
+    else:
+        lines.append(
+            f"shadowing_decorrelation_m: from {d.steps:,} steps between consecutive frames of {d.pairs:,} pairs "
+            f"whose predicted power is over {cf.CLEAR_SIGMAS:g} sigma above the sensitivity"
+        )
+    lines.append("naive least squares: through the received frames as if none were lost; biased (see docs/radio.md)")
+    return "\n".join(lines)
+
+
+def toml_fragment(c: Calibration, where: str) -> str:
+    lines = [
+        f"# netsim calibrate {where}: {c.received:,} received frames of {c.pairs:,} pairs, "
+        f"{c.fit.likelihood} likelihood",
+        "[channel]",
+    ]
+    for k, v in c.channel().items():
+        lines.append(f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {float(v)!r}")
+    return "\n".join(lines) + "\n"
+
+
+def check_channel(c: Calibration) -> None:
+    """The fitted channel must be one ``netsim run`` accepts (its keys' bounds)."""
+    keys = {k: v for k, v in c.channel().items() if k != "propagation"}
+    try:
+        LogDistanceParams(**keys)
+    except NetsimInputError as exc:
+        raise NetsimInputError(f"the fitted channel is not one netsim runs: {exc}") from None
+
+
+def _check_flag(flag: str, value: float | None, ok, allowed: str) -> None:
+    if value is not None and not (math.isfinite(value) and ok(value)):
+        raise NetsimInputError(f"{flag} {value:g}: {allowed}")
+
+
+def command(args) -> int:
+    """``netsim calibrate`` (:mod:`netsim.tools.cli` checks ``--out`` first)."""
+    _check_flag("--sensitivity-dbm", args.sensitivity_dbm, lambda v: -200 <= v <= 0, "must be in [-200, 0] dBm")
+    _check_flag("--tx-power-dbm", args.tx_power_dbm, lambda v: -60 <= v <= 60, "must be in [-60, 60] dBm")
+    _check_flag("--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be > 0 m")
+    path = Path(args.log)
+    log = read_log(path)
+    frames = check_log(log, str(path), need_positions=args.map is not None)
+    walls = None
+    if args.map is not None:
+        from netsim.world.los import walls_crossed
+        from netsim.world.maps import load_map
+
+        occupancy = load_map(args.map, "--map")
+        walls = walls_crossed(occupancy, frames.positions[:, :2], frames.positions[:, 2:]).astype(float)
+    result = calibrate_frames(
+        frames, args.sensitivity_dbm, args.tx_power_dbm, args.reference_distance_m, walls, where=str(path)
+    )
+    check_channel(result)
+    print(report(result, str(path)))
+    text = toml_fragment(result, str(path))
+    if args.out is None:
+        print("\n" + text, end="")
+        return 0
+    out = Path(args.out)
+    tmp = out.with_name(f".{out.name}.tmp")
+    try:
+        tmp.write_text(text)
+        tmp.replace(out)
+    finally:
+        tmp.unlink(missing_ok=True)
+    print(f"wrote {out} (run it: netsim run {out})")
+    return 0

@@ -1,0 +1,231 @@
+"""``netsim calibrate``: logs made with netsim's channel physics and known parameters give
+them back within their intervals; the fragment it writes runs as it is; bad input is one
+line, exit status 2, nothing written."""
+
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from netsim import config as cfgmod
+from netsim.radio.propagation import LogDistanceParams
+from netsim.tools.calibrate import calibrate_frame
+from netsim.tools.cli import main
+from tests.calibration_logs import TRUTH, synth_log
+
+SMALL = {"n_robots": 8, "duration_s": 300.0, "step_s": 0.5}
+
+
+@pytest.fixture(scope="module")
+def small_log():
+    return synth_log(3, **SMALL)
+
+
+def write_csv(tmp_path, log, name="log.csv"):
+    path = tmp_path / name
+    log.to_csv(path, index=False)
+    return path
+
+
+def test_fragment_runs_as_it_is(tmp_path, capsys, small_log):
+    """The TOML fragment written by --out is accepted by `netsim run` unchanged and holds
+    the fitted keys, the tx power and the sensitivity used."""
+    log, toml = write_csv(tmp_path, small_log), tmp_path / "site.toml"
+    assert main(["calibrate", str(log), "--sensitivity-dbm", "-80", "--out", str(toml)]) == 0
+    printed = capsys.readouterr().out
+    assert "path_loss_exponent" in printed and f"wrote {toml}" in printed
+    channel = tomllib.loads(toml.read_text())["channel"]
+    assert channel["propagation"] == "log_distance"
+    assert channel["sensitivity_dbm"] == -80.0 and channel["tx_power_dbm"] == TRUTH.tx_power_dbm
+    loaded = cfgmod.load(toml).channel.radio
+    for key in ("reference_loss_db", "path_loss_exponent", "shadowing_sigma_db", "shadowing_decorrelation_m"):
+        assert getattr(loaded, key) == channel[key]
+    out = tmp_path / "run"
+    argv = ["run", str(toml), "--quiet", "--out", str(out), "--set", "world.n_robots=4", "--set", "duration_s=5"]
+    assert main(argv) == 0
+    assert (out / "summary.json").is_file()
+
+
+def test_without_out_prints_the_fragment_and_writes_nothing(tmp_path, capsys, small_log):
+    """Without --out the fragment is printed (and no file appears)."""
+    log = write_csv(tmp_path, small_log)
+    assert main(["calibrate", str(log), "--sensitivity-dbm", "-80"]) == 0
+    out = capsys.readouterr().out
+    assert "[channel]" in out and 'propagation = "log_distance"' in out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv"]
+
+
+def test_sensitivity_estimated_is_the_weakest_logged_power(small_log):
+    """Without a sensitivity the truncated fit takes the weakest logged power (its MLE)."""
+    result = calibrate_frame(small_log)
+    assert not result.sensitivity_given
+    assert result.sensitivity_dbm == small_log["rssi_dbm"].min()
+    assert result.fit.likelihood == "truncated"
+
+
+def test_receptions_table_with_received_column_is_censored(tmp_path, capsys):
+    """A table in receptions.parquet's form (t_s, src, dst, distance_m, rssi_dbm NaN when not
+    received, received) is read: the unreceived rows make it a censored fit; without
+    positions the decorrelation is not estimated and stays out of the fragment."""
+    log = synth_log(4, censored=True, **SMALL)[["t_s", "src", "dst", "distance_m", "rssi_dbm", "received"]]
+    path, toml = tmp_path / "receptions.parquet", tmp_path / "site.toml"
+    log.to_parquet(path)
+    assert main(["calibrate", str(path), "--sensitivity-dbm", "-80", "--out", str(toml)]) == 0
+    printed = capsys.readouterr().out
+    assert "censored (Tobit)" in printed
+    assert "shadowing_decorrelation_m: not estimated" in printed
+    channel = tomllib.loads(toml.read_text())["channel"]
+    assert "shadowing_decorrelation_m" not in channel
+    assert abs(channel["path_loss_exponent"] - TRUTH.path_loss_exponent) < 0.3
+
+
+def test_naive_fit_underestimates_exponent_and_sigma_when_truncated():
+    """Least squares through the received frames alone underestimates the path-loss
+    exponent and the shadowing sigma (docs/radio.md): below the ML fit's interval."""
+    result = calibrate_frame(synth_log(5, duration_s=600.0, step_s=0.5), sensitivity_dbm=TRUTH.sensitivity_dbm)
+    for key in ("path_loss_exponent", "shadowing_sigma_db"):
+        naive, ml = getattr(result.naive, key), getattr(result.fit, key)
+        assert naive.value < ml.low, key
+        assert ml.covers(getattr(TRUTH, key)), key
+
+
+def test_wall_loss_recovered_with_map(tmp_path, capsys):
+    """With --map the loss per wall crossed is fitted; the known one is within its interval."""
+    from netsim.tools.radio_checks import wall_test_map
+    from netsim.world.maps import save_map
+
+    m = wall_test_map()
+    yaml = save_map(tmp_path / "walls.yaml", m.occupied, m.free, m.resolution_m, (0.0, 0.0))
+    params = LogDistanceParams(
+        reference_loss_db=40.0, path_loss_exponent=3.0, shadowing_sigma_db=4.0, wall_loss_db=6.0, sensitivity_dbm=-80.0
+    )
+    log = synth_log(6, params, side_m=40.0, duration_s=400.0, step_s=0.5, occupancy=m)
+    path, toml = write_csv(tmp_path, log), tmp_path / "site.toml"
+    assert main(["calibrate", str(path), "--sensitivity-dbm", "-80", "--map", str(yaml), "--out", str(toml)]) == 0
+    assert "wall_loss_db" in capsys.readouterr().out
+    channel = tomllib.loads(toml.read_text())["channel"]
+    result = calibrate_frame(log, sensitivity_dbm=-80.0)  # the same log, walls ignored: no wall loss
+    assert result.fit.wall_loss_db is None
+    assert abs(channel["wall_loss_db"] - 6.0) < 1.5
+
+
+def _coverage(censored: bool) -> dict[str, int]:
+    hits = dict.fromkeys(
+        ("reference_loss_db", "path_loss_exponent", "shadowing_sigma_db", "shadowing_decorrelation_m"), 0
+    )
+    for seed in range(20):
+        log = synth_log(100 + seed, censored=censored, duration_s=600.0, step_s=0.5)
+        result = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
+        assert result.fit.likelihood == ("censored" if censored else "truncated")
+        for key in hits:
+            est = result.decorrelation.estimate if key == "shadowing_decorrelation_m" else getattr(result.fit, key)
+            hits[key] += est is not None and est.covers(getattr(TRUTH, key))
+    return hits
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("censored", [False, True], ids=["truncated", "censored"])
+def test_known_parameters_within_their_intervals_in_18_of_20_seeds(censored):
+    """Logs made with known parameters give each of them back within its 95 % interval in
+    at least 18 of 20 seeds, for received-only logs (truncated) and full ones (censored)."""
+    hits = _coverage(censored)
+    assert all(h >= 18 for h in hits.values()), hits
+
+
+# -- bad input: one line, exit 2, nothing written ---------------------------------------------
+
+
+def _no_positions(good: pd.DataFrame, row: int, distance_m: float) -> pd.DataFrame:
+    log = good.drop(columns=["src_x_m", "src_y_m", "dst_x_m", "dst_y_m"])
+    log.loc[row, "distance_m"] = distance_m
+    return log
+
+
+def _non_numeric(good: pd.DataFrame) -> pd.DataFrame:
+    log = good.astype({"rssi_dbm": object})
+    log.loc[7, "rssi_dbm"] = "strong"
+    return log
+
+
+# Each bad log: a table written as CSV, or the bytes of a file (name, content).
+BAD_LOGS = {
+    "no_rssi": lambda g: g.drop(columns=["rssi_dbm"]),
+    "no_distance": lambda g: g.drop(columns=["distance_m", "src_x_m"]),
+    "header_only": lambda g: g.iloc[:0],
+    "empty": lambda g: ("empty.csv", b""),
+    "non_numeric": _non_numeric,
+    "negative_distance": lambda g: _no_positions(g, 3, -2.0),
+    "zero_distance": lambda g: _no_positions(g, 3, 0.0),
+    "too_few": lambda g: g.iloc[:20],
+    "missing": lambda g: ("nowhere.csv", None),
+    "unknown_format": lambda g: ("log.txt", b"t_s,src\n"),
+    "broken_parquet": lambda g: ("broken.parquet", b"PAR1 not really parquet"),
+}
+
+
+def bad_log(tmp_path, good: pd.DataFrame, case: str):
+    made = BAD_LOGS[case](good)
+    if isinstance(made, pd.DataFrame):
+        return write_csv(tmp_path, made, f"{case}.csv")
+    name, content = made
+    if content is not None:
+        (tmp_path / name).write_bytes(content)
+    return tmp_path / name
+
+
+@pytest.mark.parametrize(
+    "case, extra, words",
+    [
+        ("no_rssi", [], "lacks the column rssi_dbm"),
+        ("no_distance", [], "distance_m (or src_x_m"),
+        ("header_only", [], "has no frames"),
+        ("empty", [], "is empty"),
+        ("non_numeric", [], "'strong' is not a finite number"),
+        ("negative_distance", [], "every distance must be > 0 m"),
+        ("zero_distance", [], "every distance must be > 0 m"),
+        ("too_few", [], "too few frames to fit"),
+        ("good", ["--sensitivity-dbm", "-1"], "above every logged power"),
+        ("good", ["--sensitivity-dbm", "-75"], "were received below it"),
+        ("good", ["--sensitivity-dbm", "5"], "must be in [-200, 0] dBm"),
+        ("good", ["--tx-power-dbm", "-60"], "the fitted channel is not one netsim runs: channel.reference_loss_db"),
+        ("good", ["--map", "nowhere.yaml"], "--map = 'nowhere.yaml'"),
+        ("no_distance", ["--map", "office"], "--map needs the positions"),
+        ("missing", [], "no such file"),
+        ("unknown_format", [], "unknown format '.txt'"),
+        ("broken_parquet", [], "cannot be read as Parquet"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_log, case, extra, words):
+    """Each kind of bad log or flag: `netsim: error: ...` on one line, exit status 2, and
+    the --out file is not written."""
+    path = write_csv(tmp_path, small_log, "good.csv") if case == "good" else bad_log(tmp_path, small_log, case)
+    out = tmp_path / "site.toml"
+    assert main(["calibrate", str(path), *extra, "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert err.startswith("netsim: error: ") and "\n" not in err, err
+    assert words in err, err
+    assert not out.exists()
+    assert "[channel]" not in captured.out
+
+
+def test_out_refuses_an_existing_file(tmp_path, capsys, small_log):
+    """--out never overwrites: an existing file is refused before any work, left as it was."""
+    log, out = write_csv(tmp_path, small_log), tmp_path / "site.toml"
+    out.write_text("mine\n")
+    assert main(["calibrate", str(log), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"netsim: error: --out {out}: exists already; give a new path"
+    assert out.read_text() == "mine\n"
+
+
+def test_received_row_without_power_is_refused(tmp_path, capsys, small_log):
+    """A row marked received whose power is empty is bad input, not a lost frame."""
+    log = small_log.copy()
+    log.loc[5, "rssi_dbm"] = np.nan
+    path = write_csv(tmp_path, log)
+    assert main(["calibrate", str(path)]) == 2
+    assert "row 6 is received but its rssi_dbm is empty" in capsys.readouterr().err
