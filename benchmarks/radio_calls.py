@@ -75,7 +75,6 @@ def measure(m, rng, k: int, length_m: float) -> dict:
         "power": per_call_us(lambda: plain.received_dbm(pairs)),
         "+shadowing": per_call_us(lambda: shadowed.received_dbm(moved())),
         "walls": per_call_us(lambda: walls_crossed(m, pairs.pos_a, pairs.pos_b)),
-        "walls_plain": per_call_us(lambda: walls_crossed(m, pairs.pos_a, pairs.pos_b, n_robots=1)),
         "chain": per_call_us(lambda: full.receivable(moved())),
         "disk+LOS": per_call_us(lambda: disk.receivable(pairs)),
         "c:shadow": per_call_us(lambda: fused_shadow.receivable(moved())),
@@ -98,8 +97,7 @@ def main() -> None:
         print(" ".join(f"{r[c]:10.0f}" if c in ("length_m", "k", "cells/seg") else f"{r[c]:10.1f}" for c in cols))
     print(
         "microseconds per call (all k pairs at once). power: log-distance alone; +shadowing: with a moving"
-        " pair's shadowing; walls: walls crossed on the office map (walls_plain: its loop as plain Python,"
-        " as a small run has it); chain:"
+        " pair's shadowing; walls: walls crossed on the office map; chain:"
         " log-distance + shadowing + walls deciding receivability; disk+LOS: unit disk needing line of sight;"
         " c:*: the same through CompiledChain"
     )
