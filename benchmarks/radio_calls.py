@@ -47,8 +47,6 @@ def batch(m, rng, k, length_m, n_robots=1000):
 
 def measure(m, rng, k: int, length_m: float) -> dict:
     """Microseconds per call for k pairs at most length_m apart."""
-    from netsim.world import los
-
     params = LogDistanceParams(shadowing_sigma_db=6.0, path_loss_exponent=3.0)
     pos, a, b = batch(m, rng, k, length_m)
     pairs = Pairs.between(a, b, pos, np.zeros(len(pos)))
@@ -61,19 +59,15 @@ def measure(m, rng, k: int, length_m: float) -> dict:
     sh2 = PairShadowing(6.0, 10.0, np.random.default_rng(2))
     sh2.sample(np.arange(50_000) + 10_000, np.arange(50_000) + 70_000, np.zeros(50_000))
     sh2.sample(a, b, np.zeros(len(a)))
-    fused_full = CompiledChain(log_distance(params, sh2, m))
-    fused_shadow = CompiledChain(log_distance(params, sh2))
-    fused_disk = CompiledChain(disk)
+    fused_full = CompiledChain(log_distance(params, sh2, m), 1000)
+    fused_shadow = CompiledChain(log_distance(params, sh2), 1000)
+    fused_disk = CompiledChain(disk, 1000)
     travel = [0.0]
 
     def moved():
         travel[0] += 0.1  # the pairs move between calls: every look is an update
         return pairs._replace(travel_m=np.full(len(a), travel[0]))
 
-    kernel = los._kernel
-    los._kernel = lambda: None
-    numpy_walls = per_call_us(lambda: walls_crossed(m, pairs.pos_a, pairs.pos_b))
-    los._kernel = kernel
     return {
         "length_m": length_m,
         "k": len(a),
@@ -81,7 +75,6 @@ def measure(m, rng, k: int, length_m: float) -> dict:
         "power": per_call_us(lambda: plain.received_dbm(pairs)),
         "+shadowing": per_call_us(lambda: shadowed.received_dbm(moved())),
         "walls": per_call_us(lambda: walls_crossed(m, pairs.pos_a, pairs.pos_b)),
-        "walls_numpy": numpy_walls,
         "chain": per_call_us(lambda: full.receivable(moved())),
         "disk+LOS": per_call_us(lambda: disk.receivable(pairs)),
         "c:shadow": per_call_us(lambda: fused_shadow.receivable(moved())),
@@ -104,7 +97,7 @@ def main() -> None:
         print(" ".join(f"{r[c]:10.0f}" if c in ("length_m", "k", "cells/seg") else f"{r[c]:10.1f}" for c in cols))
     print(
         "microseconds per call (all k pairs at once). power: log-distance alone; +shadowing: with a moving"
-        " pair's shadowing; walls: walls crossed on the office map (walls_numpy: without numba); chain:"
+        " pair's shadowing; walls: walls crossed on the office map; chain:"
         " log-distance + shadowing + walls deciding receivability; disk+LOS: unit disk needing line of sight;"
         " c:*: the same through CompiledChain"
     )

@@ -15,6 +15,8 @@ pytest.importorskip("numba")
 from netsim.protocols import _kernels as table_kernels  # noqa: E402
 
 from netsim import _kernels as core_kernels  # noqa: E402
+from netsim.compiled import compiled_copy  # noqa: E402
+from tests.oracles import radio as oracle  # noqa: E402
 
 
 def _moving_state(rng, n, side, torus):
@@ -35,20 +37,28 @@ def _queries(rng, st, count):
         yield t, i
 
 
+def _index_kernels():
+    """The range index's loops, plain Python and compiled."""
+    return (("plain", core_kernels), ("compiled", compiled_copy("netsim._kernels")))
+
+
 @pytest.mark.parametrize("torus", [False, True])
-def test_compiled_range_query_equals_numpy(torus):
-    """Robots within range of a sender, and their distances, are the numpy query's bit for
-    bit, on the plane and on a torus, from the neighbour list and from the full scan."""
+@pytest.mark.parametrize("which", ["plain", "compiled"])
+def test_range_query_equals_the_oracle(torus, which):
+    """Robots within range of a sender, and their distances, are the oracle's bit for bit
+    (plain Python and compiled), on the plane and on a torus, from the neighbour list and
+    from the full scan."""
     rng = np.random.default_rng(3)
     n, side = 200, 400.0
     st = _moving_state(rng, n, side, torus)
-    compiled, plain = RangeIndex(st), RangeIndex(st)
-    compiled.kernels, plain.kernels = core_kernels, None
+    index = RangeIndex(st)
+    index.kernels = dict(_index_kernels())[which]
     checked = 0
     for t, i in _queries(rng, st, 300):
         radius = None if rng.random() < 0.8 else float(rng.choice([30.0, 1000.0]))
-        a_ids, a_d = compiled.within(t, i, radius)
-        b_ids, b_d = plain.within(t, i, radius)
+        a_ids, a_d = index.within(t, i, radius)
+        r = float(st.range_m[i]) if radius is None else radius
+        b_ids, b_d = oracle.within(st, t, i, r, np.delete(np.arange(n), i))
         assert a_ids.tolist() == b_ids.tolist()
         assert a_d.tobytes() == b_d.tobytes()
         checked += len(a_ids)
@@ -56,22 +66,22 @@ def test_compiled_range_query_equals_numpy(torus):
 
 
 @pytest.mark.parametrize("torus", [False, True])
-def test_compiled_range_query_without_distances_equals_numpy(torus):
-    """The query a transmission makes when nothing asks the distances: the same receivers
-    as the query with distances, and whether all are alive, compiled and numpy alike (some
-    robots switched off)."""
+@pytest.mark.parametrize("which", ["plain", "compiled"])
+def test_range_query_without_distances_equals_the_oracle(torus, which):
+    """The query a transmission makes when nothing asks the distances: the oracle's
+    receivers, and whether all are alive (some robots switched off)."""
     rng = np.random.default_rng(5)
     n, side = 200, 400.0
     st = _moving_state(rng, n, side, torus)
-    compiled, plain = RangeIndex(st), RangeIndex(st)
-    compiled.kernels, plain.kernels = core_kernels, None
+    index = RangeIndex(st)
+    index.kernels = dict(_index_kernels())[which]
     dead_seen = 0
     for t, i in _queries(rng, st, 300):
         st.alive[:] = rng.random(n) > 0.02
-        a_ids, a_alive = compiled.within_alive(t, i)
-        b_ids, b_alive = plain.within_alive(t, i)
-        assert a_ids.tolist() == b_ids.tolist() == plain.within(t, i)[0].tolist()
-        assert a_alive is b_alive is bool(st.alive[a_ids].all())
+        a_ids, a_alive = index.within_alive(t, i)
+        b_ids = oracle.within(st, t, i, float(st.range_m[i]), np.delete(np.arange(n), i))[0]
+        assert a_ids.tolist() == b_ids.tolist()
+        assert a_alive is bool(st.alive[b_ids].all())
         dead_seen += not a_alive
     assert dead_seen > 10
 
@@ -223,28 +233,13 @@ def test_compiled_make_ack_equals_numpy():
     assert max(degrees) > 3 and a.resign_pending.sum() < 30
 
 
-def end_unit_disk_numpy(medium, frame, out):
-    """The numpy twin of netsim.radio._mac_kernels.end_unit_disk, as Medium._end computes
-    it: the same arguments, updated and filled the same way; returns how many are newly idle."""
-    cover, transmitting, tx_seq, cover_seq, busy_s, busy_since = medium
-    i, seq, now, disturbed, rx, hd_start, col_start = frame
-    hd, col, newly = out
-    cover[disturbed] -= 1
-    transmitting[i] = False
-    hd[: len(rx)] = hd_start | (tx_seq[rx] > seq)
-    col[: len(rx)] = ~hd[: len(rx)] & (col_start | (cover_seq[rx] != seq))
-    cand = np.append(disturbed, i)
-    idle = cand[(cover[cand] == 0) & ~transmitting[cand]]
-    newly[: len(idle)] = idle
-    busy_s[idle] += now - busy_since[idle]
-    return len(idle)
-
-
-def test_compiled_frame_end_equals_numpy():
-    """A frame's end under the unit disk (netsim/radio/_mac_kernels.py) leaves the medium's
-    arrays and finds the same half-duplex and collision losses and the same robots newly
-    idle, with the same busy times, as the numpy code of Medium._end."""
+def test_frame_end_equals_the_oracle():
+    """A frame's end under the unit disk (netsim/radio/_mac_kernels.py, plain and compiled)
+    leaves the medium's arrays and finds the same half-duplex and collision losses and the
+    same robots newly idle, with the same busy times, as the oracle."""
     from netsim.radio import _mac_kernels
+
+    compiled = compiled_copy("netsim.radio._mac_kernels")
 
     rng = np.random.default_rng(5)
     n = 60
@@ -261,22 +256,23 @@ def test_compiled_frame_end_equals_numpy():
         hd_start, col_start = rng.random(len(rx)) < 0.2, rng.random(len(rx)) < 0.2
         frame = (i, 6, 1.0 + rng.random(), disturbed, rx, hd_start, col_start)
         runs = []
-        for end in (end_unit_disk_numpy, _mac_kernels.end_unit_disk):
+        for end in (oracle.end_unit_disk, _mac_kernels.end_unit_disk, compiled.end_unit_disk):
             medium = (cover.copy(), transmitting.copy(), tx_seq, cover_seq, busy_s.copy(), busy_since)
             out = (np.zeros(n, bool), np.zeros(n, bool), np.zeros(n + 1, np.int64))
             m = end(medium, frame, out)
             runs.append((m, medium, out))
-        (m1, medium1, out1), (m2, medium2, out2) = runs
-        assert m1 == m2
-        assert all(np.array_equal(x, y) for x, y in zip(medium1, medium2))
-        assert np.array_equal(out1[0][: len(rx)], out2[0][: len(rx)])
-        assert np.array_equal(out1[1][: len(rx)], out2[1][: len(rx)])
-        assert out1[2][:m1].tolist() == out2[2][:m2].tolist()
+        m1, medium1, out1 = runs[0]
+        for m2, medium2, out2 in runs[1:]:
+            assert m1 == m2
+            assert all(np.array_equal(x, y) for x, y in zip(medium1, medium2))
+            assert np.array_equal(out1[0][: len(rx)], out2[0][: len(rx)])
+            assert np.array_equal(out1[1][: len(rx)], out2[1][: len(rx)])
+            assert out1[2][:m1].tolist() == out2[2][:m2].tolist()
 
 
-def test_medium_runs_equal_with_and_without_compiled_loops(monkeypatch):
-    """A run on a CSMA medium under the unit disk gives the same tables with the compiled
-    frame end as with the numpy code."""
+def test_medium_runs_equal_plain_and_compiled(monkeypatch):
+    """A run on a CSMA medium under the unit disk gives the same tables with its loops
+    compiled as with them plain Python."""
     from netsim.run import execute
     from tests.fixtures import make_config
 
@@ -297,17 +293,19 @@ def test_medium_runs_equal_with_and_without_compiled_loops(monkeypatch):
         assert frames["0"][name].equals(frames["1"][name]), name
 
 
-def test_compiled_reception_counts_equal_numpy():
-    """The channel's compiled count of receptions (``count_each``) and alive check
-    (``all_set``) equal numpy's fancy increment and ``mask[ids].all()``."""
+@pytest.mark.parametrize("which", ["plain", "compiled"])
+def test_reception_counts_equal_numpy(which):
+    """The channel's count of receptions (``count_each``) and alive check (``all_set``),
+    plain and compiled, equal numpy's fancy increment and ``mask[ids].all()``."""
+    k = dict(_index_kernels())[which]
     rng = np.random.default_rng(5)
     a, b = np.zeros(300, dtype=np.int64), np.zeros(300, dtype=np.int64)
     for _ in range(200):
         ids = np.sort(rng.choice(300, int(rng.integers(0, 40)), replace=False)).astype(np.int64)
-        core_kernels.count_each(a, ids)
+        k.count_each(a, ids)
         b[ids] += 1
         mask = rng.random(300) < 0.97
-        assert core_kernels.all_set(mask, ids) == bool(mask[ids].all())
+        assert k.all_set(mask, ids) == bool(mask[ids].all())
     assert a.tolist() == b.tolist()
 
 
@@ -342,11 +340,11 @@ def test_compiled_near_pairs_finds_every_kd_tree_pair(torus):
             assert np.all(d[:, 0] ** 2 + d[:, 1] ** 2 <= r * r * (1 + 1e-9))
 
 
-def test_compiled_neighbour_lists_equal_numpy():
+@pytest.mark.parametrize("which", ["plain", "compiled"])
+def test_neighbour_lists_equal_the_oracle(which):
     """The range index's lists per robot (both directions of each pair, ascending) are the
-    numpy lexsort's, with robots that have no neighbour and pairs in any order."""
-    from netsim.radio.spatial import neighbour_lists
-
+    oracle's lexsort's, with robots that have no neighbour and pairs in any order."""
+    k = dict(_index_kernels())[which]
     rng = np.random.default_rng(4)
     for n in (1, 2, 50, 300):
         for m in (0, 1, 40, 2000):
@@ -356,7 +354,7 @@ def test_compiled_neighbour_lists_equal_numpy():
             b = (a + rng.integers(1, max(n, 2), m)) % n
             pairs = np.unique(np.column_stack([np.minimum(a, b), np.maximum(a, b)]), axis=0)
             pairs = pairs[rng.permutation(len(pairs))].astype(np.int64).reshape(-1, 2)
-            got, want = core_kernels.neighbour_lists(pairs, n), neighbour_lists(pairs, n)
+            got, want = k.neighbour_lists(pairs, n), oracle.neighbour_lists(pairs, n)
             assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()
 
 

@@ -143,8 +143,11 @@ def test_map_links_equal_the_radio_every_millisecond_on_a_building_map(building_
     assert wrong == 0
 
 
-def test_map_links_equal_the_radio_on_a_building_map_quick(building_yaml):
+def test_map_links_equal_the_radio_on_a_building_map_quick(building_yaml, monkeypatch):
     """The same, shorter, every 10 ms: slow robots on 5 cm cells."""
+    # Thousands of lines over fine cells: the loops compiled (their plain Python is checked
+    # against the oracles, tests/oracles/radio.py).
+    monkeypatch.setenv("NETSIM_COMPILED", "1")
     n, duration = 8, 20.0
     sim = _core(n, duration, building_yaml, 40.0, BUILDING_CHANNELS["unit_disk"])
     legs = waypoint_legs(np.random.default_rng(13), n, duration, (0.1, 0.5), _building_points())
@@ -154,10 +157,12 @@ def test_map_links_equal_the_radio_on_a_building_map_quick(building_yaml):
 
 
 @pytest.mark.parametrize("kind", list(BUILDING_CHANNELS))
-def test_runtime_map_links_equal_posthoc_on_a_building_map(building_yaml, kind):
+def test_runtime_map_links_equal_posthoc_on_a_building_map(building_yaml, kind, monkeypatch):
     """Slow robots on 5 cm cells: the link events solved during the run make the post-hoc
     table, bit for bit."""
     from tests.test_events import _assert_same_links, _replay
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1")  # fine cells: as in the test above
 
     n, duration = 16, 30.0
     sim = _core(n, duration, building_yaml, 40.0, BUILDING_CHANNELS[kind])

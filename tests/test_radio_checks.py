@@ -50,5 +50,7 @@ def test_wall_checks_pass_and_catch_a_leaky_wall(monkeypatch):
     assert all(c.passed for c in checks.check_walls(LogDistanceParams(wall_loss_db=7.5)))
     from netsim.world import los
 
-    monkeypatch.setattr(los, "walls_crossed", lambda m, p, q, blocked=None: np.zeros(len(np.atleast_2d(p)), int))
+    monkeypatch.setattr(
+        los, "walls_crossed", lambda m, p, q, blocked=None, n_robots=None: np.zeros(len(np.atleast_2d(p)), int)
+    )
     assert not any(c.passed for c in checks.check_walls() if c.item in ("W1", "W3"))

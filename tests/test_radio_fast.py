@@ -9,6 +9,16 @@ from netsim.radio.shadowing import PairShadowing
 from netsim.world.examples import SIDE_M
 from netsim.world.free_space import sample_free
 from netsim.world.maps import load_map
+from tests.oracles import radio as oracle
+
+
+@pytest.fixture(params=[1, 1000], ids=["plain", "compiled"])
+def n_robots(request, monkeypatch):
+    """The robots of the run a chain is made for: few (its loops plain Python), many
+    (compiled), netsim.compiled.load deciding."""
+    monkeypatch.delenv("NETSIM_COMPILED", raising=False)
+    return request.param
+
 
 pytest.importorskip("numba")
 
@@ -49,9 +59,9 @@ def _twins(params, with_map, step_m=0.0):
         (LogDistanceParams(sensitivity_dbm=-65.0), False),
     ],
 )
-def test_compiled_log_distance_equals_chain(params, with_map):
+def test_compiled_log_distance_equals_chain(params, with_map, n_robots):
     (generic, sh1), (compiled_prop, sh2) = _twins(params, with_map)
-    compiled = CompiledChain(compiled_prop)
+    compiled = CompiledChain(compiled_prop, n_robots)
     decided = 0
     for s, rec, pos, odo in _broadcasts(1):
         pairs = Pairs.between(np.full(len(rec), s), rec, pos, odo)
@@ -66,10 +76,10 @@ def test_compiled_log_distance_equals_chain(params, with_map):
 
 @pytest.mark.parametrize("ranges", [25.0, np.linspace(10.0, 40.0, 120)])
 @pytest.mark.parametrize("with_map", [True, False])
-def test_compiled_unit_disk_equals_chain(ranges, with_map):
+def test_compiled_unit_disk_equals_chain(ranges, with_map, n_robots):
     m = load_map("office") if with_map else None
     generic = unit_disk(ranges, m)
-    compiled = CompiledChain(unit_disk(ranges, m))
+    compiled = CompiledChain(unit_disk(ranges, m), n_robots)
     for s, rec, pos, odo in _broadcasts(2, calls=30):
         pairs = Pairs.between(np.full(len(rec), s), rec, pos, odo)
         assert np.array_equal(generic.receivable(pairs), compiled.receivable(pairs))
@@ -80,7 +90,7 @@ def test_unknown_chain_is_refused():
 
     sh = PairShadowing(4.0, 10.0, np.random.default_rng(1))
     with pytest.raises(ValueError, match="no compiled form"):
-        CompiledChain(Propagation(LossChain(ShadowingLoss(sh)), 0.0, -1.0, 1.0, 1.0))
+        CompiledChain(Propagation(LossChain(ShadowingLoss(sh)), 0.0, -1.0, 1.0, 1.0), 1)
 
 
 def _moving_state(seed, n=150, side=400.0, legs=4):
@@ -128,7 +138,7 @@ CHAINS = {
 
 @pytest.mark.parametrize("chain", CHAINS)
 @pytest.mark.parametrize("dense", [True, False])
-def test_transmission_equals_chain(chain, dense):
+def test_transmission_equals_chain(chain, dense, n_robots):
     """The channel's per-frame call decides, draws and stores exactly as the generic chain."""
     sigma, wall_db, with_map = CHAINS[chain]
     m = load_map("office") if with_map else None
@@ -145,7 +155,7 @@ def test_transmission_equals_chain(chain, dense):
             ranges = 30.0 if sigma is None else np.linspace(10.0, 60.0, st.n)
             made.append((unit_disk(ranges, m), None))
     (generic, sh1), (prop, sh2) = made
-    fast = CompiledChain(prop)
+    fast = CompiledChain(prop, n_robots)
     heard = 0
     for sender in rng.choice(st.n, 60).tolist():
         rec = np.delete(np.arange(st.n), sender)
@@ -182,27 +192,30 @@ def test_normals_come_in_stream_order():
     assert np.array_equal(np.concatenate(taken), np.random.default_rng(11).standard_normal(sh.draws))
 
 
-def test_link_changes_kernel_equals_numpy():
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_link_changes_equal_the_oracle(compiled, monkeypatch):
+    """The link record's loops (plain and compiled) find the oracle's changed and touched
+    links, decision by decision."""
     from netsim.radio.reception import LinkRecorder
 
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(8)
     n = 40
     t0 = np.zeros(n)  # legs' starts: some touches, not all
-    compiled, plain = LinkRecorder(n, t0), LinkRecorder(n, t0)
-    plain._kernel = plain._touch_kernel = None
-    assert compiled._kernel is not None and compiled._touch_kernel is not None
+    got, want = LinkRecorder(n, t0), LinkRecorder(n, t0)
+    want._kernel, want._touch_kernel = oracle.link_changes, oracle.link_touches
     t = 0.0
     for _ in range(400):
         t0[rng.random(n) < 0.05] = t
         s = int(rng.integers(n))
         rec = np.sort(rng.choice(np.delete(np.arange(n), s), int(rng.integers(0, n - 1)), replace=False))
         linked = rng.random(len(rec)) < 0.6
-        compiled.observe(t, s, rec, linked)
-        plain.observe(t, s, rec, linked)
-        assert np.array_equal(compiled.up, plain.up)
+        got.observe(t, s, rec, linked)
+        want.observe(t, s, rec, linked)
+        assert np.array_equal(got.up, want.up)
         t += 0.1
-    a, b = compiled.intervals(t), plain.intervals(t)
+    a, b = got.intervals(t), want.intervals(t)
     assert len(a) > 100
     assert a.equals(b)
-    touches = compiled.touches()
-    assert 20 < len(touches) and touches.equals(plain.touches())
+    touches = got.touches()
+    assert 20 < len(touches) and touches.equals(want.touches())

@@ -141,18 +141,19 @@ def test_cave_is_one_connected_tunnel():
 
 
 @pytest.mark.parametrize("name", ["office", "cave"])
-def test_compiled_destinations_equal_numpy(name, monkeypatch):
-    """The compiled round draws, checks and picks exactly as sample_free and legs_free do."""
-    pytest.importorskip("numba")
-    from netsim.world import free_space
+@pytest.mark.parametrize("compiled", ["1", "0"])
+def test_destinations_equal_the_oracle(name, compiled, monkeypatch):
+    """A round's loop (compiled and plain) draws, checks and picks exactly as sample_free
+    and legs_free do (the oracle)."""
+    from tests.oracles import radio as oracle
 
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
     m = load_map(name)
-    here = sample_free(m, np.random.default_rng(3), 200, examples.SIDE_M)
+    here = sample_free(m, np.random.default_rng(3), 40 if compiled == "0" else 200, examples.SIDE_M)
     rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
-    compiled = draw_destinations(m, rng_a, here, examples.SIDE_M)
-    monkeypatch.setattr(free_space, "_destinations_kernel", lambda: None)
-    plain = draw_destinations(m, rng_b, here, examples.SIDE_M)
-    assert np.array_equal(compiled, plain)
+    got = draw_destinations(m, rng_a, here, examples.SIDE_M)
+    want = oracle.draw_destinations(m, rng_b, here, examples.SIDE_M)
+    assert np.array_equal(got, want)
     assert rng_a.random() == rng_b.random()  # the same draws were made
 
 

@@ -320,10 +320,14 @@ def test_positions_at_many_instants_follow_the_legs():
     np.testing.assert_array_equal(positions(L, robots, times), want)
 
 
-def test_compiled_leg_lookup_equals_merge(monkeypatch):
-    """Positions from the legs: the compiled per-query search finds the merge's legs."""
-    pytest.importorskip("numba")
+@pytest.mark.parametrize("compiled", ["1", "0"])
+def test_leg_lookup_equals_the_oracle(compiled, monkeypatch):
+    """Positions from the legs: the per-query search (compiled and plain) finds the legs of
+    the oracle's merge."""
     import netsim.links.radio_links as rl
+    from tests.oracles import radio as oracle
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
     from netsim.state import RobotState
     from netsim.trajectory import LegTable
 
@@ -338,7 +342,7 @@ def test_compiled_leg_lookup_equals_merge(monkeypatch):
     robots = rng.integers(0, 30, 5000)
     times = np.r_[rng.uniform(0, 60, 4990), np.full(10, 50.0)]
     robots[-10:] = 3
-    compiled = rl.positions(L, robots, times)
-    monkeypatch.setattr(rl, "_legs_kernel", lambda: None)
-    assert np.array_equal(compiled, rl.positions(L, robots, times))
-    assert np.array_equal(compiled[-1], [20.0, 20.0])
+    got = rl.positions(L, robots, times)
+    leg = oracle.leg_index(L, robots, times)
+    assert np.array_equal(got, L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None])
+    assert np.array_equal(got[-1], [20.0, 20.0])

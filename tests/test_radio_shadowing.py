@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from netsim.errors import ConfigError
-from netsim.radio import shadowing
 from netsim.radio.shadowing import PairShadowing, pair_keys, split_keys, travel_steps
 from netsim.tools.radio_checks import correlation_table
 
@@ -131,13 +130,16 @@ def test_bad_parameters(args, key):
     assert err.value.key == key
 
 
-def test_compiled_and_numpy_updates_agree(monkeypatch):
-    """Same seed, same batches (new pairs, both directions, repeated looks): the compiled
-    update and the numpy one give the same values (to the last bits of exp)."""
-    if shadowing._kernel() is None:
-        pytest.skip("numba is not installed")
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_updates_equal_the_oracle(compiled, monkeypatch):
+    """Same seed, same batches (new pairs, both directions, repeated looks): the update's
+    loop, plain and compiled, gives the oracle's values (to the last bits of exp) and leaves
+    the same records."""
+    from tests.oracles import radio as oracle
 
-    def run():
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+
+    def run(sample):
         rng = np.random.default_rng(21)
         sh = PairShadowing(6.0, 10.0, np.random.default_rng(22))
         travel = np.zeros(60)
@@ -149,24 +151,22 @@ def test_compiled_and_numpy_updates_agree(monkeypatch):
             a, b = a[ok], b[ok]
             a, b = np.r_[a, b[:3]], np.r_[b, a[:3]]  # some pairs in both directions
             travel += rng.random(60) * rng.integers(0, 2, 60)
-            out.append(sh.sample(a, b, travel[a] + travel[b]))
+            out.append(sample(sh, a, b, travel[a] + travel[b]))
         return np.concatenate(out), sh
 
-    compiled, sh1 = run()
-    monkeypatch.setattr(shadowing, "_kernel", lambda: None)
-    plain, sh2 = run()
-    assert np.allclose(compiled, plain, rtol=0, atol=1e-9)
+    got, sh1 = run(lambda sh, a, b, s: sh.sample(a, b, s))
+    want, sh2 = run(oracle.shadow_sample)
+    assert np.allclose(got, want, rtol=0, atol=1e-9)
     assert np.array_equal(sh1._keys, sh2._keys) and np.allclose(sh1._x, sh2._x, atol=1e-9)
 
 
-@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("compiled", ["1", "0"])
 def test_pairs_listed_in_advance_give_the_same_values(compiled, monkeypatch):
     """With every pair's slot made at once (n_robots given) the values are exactly those of
-    the table that grows as pairs are seen, draw for draw."""
+    the table that grows as pairs are seen, draw for draw (the loop compiled and plain)."""
     from netsim.radio import shadowing as sh
 
-    if not compiled:
-        monkeypatch.setattr(sh, "_KERNEL", [None])
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(3)
     looks = [(rng.integers(0, 40, 25), rng.integers(0, 40, 25)) for _ in range(30)]
     out = []

@@ -29,15 +29,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from netsim.compiled import load
 from netsim.links.lifetimes import COLUMNS, link_lifetimes
 from netsim.links.wall_sweeps import Stretches, count_below, envelope_radii, map_radio
-from netsim.radio import compiled_kernels
 from netsim.trajectory import LegTable
-
-
-def _legs_kernel():
-    k = compiled_kernels()
-    return None if k is None else k.legs_at
 
 
 def leg_index(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -45,22 +40,9 @@ def leg_index(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     before it (each robot's legs are contiguous and in time order)."""
     robots = np.asarray(robots, np.int64)
     times = np.asarray(times, float)
-    kernel = _legs_kernel()
-    if kernel is not None:
-        leg = np.empty(len(robots), np.int64)
-        kernel(L.first, L.end, L.t, robots, times, leg)
-        return leg
-    leg_robot = np.repeat(np.arange(len(L.first)), L.end - L.first)
-    k, m = len(robots), len(L.t)
-    # Sort legs and queries together by (robot, time), a leg before a query at the same time.
-    key_robot = np.r_[leg_robot, robots]
-    key_t = np.r_[L.t, times]
-    is_query = np.r_[np.zeros(m, np.int8), np.ones(k, np.int8)]
-    order = np.lexsort((is_query, key_t, key_robot))
-    legs_before = np.cumsum(is_query[order] == 0)
-    where = np.empty(m + k, np.int64)
-    where[order] = legs_before - 1
-    return np.maximum(where[m:], L.first[robots])
+    leg = np.empty(len(robots), np.int64)
+    load("netsim.radio._kernels", len(L.first)).legs_at(L.first, L.end, L.t, robots, times, leg)
+    return leg
 
 
 def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:

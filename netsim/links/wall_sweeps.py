@@ -36,10 +36,11 @@ the run goes, and a pair at rest would be solved for nothing.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from netsim.compiled import load
 from netsim.links.crossings import crossing_times
 from netsim.radio.propagation import Pairs, effective_range_m
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
@@ -80,10 +81,12 @@ class MapRadio(NamedTuple):
     """What a chunk's solution needs of the radio: the map's walls (``grid``, the plain
     tuple of a :class:`~netsim.world.sweep.MapGrid`, as the kernels take it) and, per count
     of walls crossed, the squared distance within which the link is up (``inf``: anywhere
-    in the envelope; counts beyond the table: never)."""
+    in the envelope; counts beyond the table: never); ``kernels``: the sweep's loops for
+    the run (:mod:`netsim.world._sweep_kernels`, as :func:`netsim.compiled.load` gives them)."""
 
     grid: tuple
     radius_sq: np.ndarray
+    kernels: Any
 
 
 def map_radio(reception: Reception) -> MapRadio:
@@ -105,7 +108,8 @@ def map_radio(reception: Reception) -> MapRadio:
         radius_sq = radius_sq[: int(np.flatnonzero(radius_sq >= 0).max()) + 1]
     else:
         radius_sq = np.array([np.inf])
-    return MapRadio(tuple(map_grid(occupancy)), radius_sq)
+    kernels = load("netsim.world._sweep_kernels", reception.state.n)
+    return MapRadio(tuple(map_grid(occupancy)), radius_sq, kernels)
 
 
 class Stretches:
@@ -188,10 +192,7 @@ class Stretches:
         ``k0`` and at the end of chunk ``k1 - 1``. ``s0``: each row's state at the end of
         chunk ``k0 - 1`` (a different state at chunk ``k0``'s start is a change then); None
         when ``k0`` is the stretch's first chunk."""
-        from netsim.compiled import compiled_copy
-
-        k = compiled_copy("netsim.world._sweep_kernels")
-        assemble, link_chunks = k.assemble, k.link_chunks
+        assemble, link_chunks = radio.kernels.assemble, radio.kernels.link_chunks
 
         rows = np.asarray(rows, np.int64)
         count = np.maximum(np.asarray(k1) - np.asarray(k0), 0).astype(np.int64)

@@ -28,14 +28,3 @@ configuration file: each model gets its parameters (the ``[channel]`` section's
 dataclasses) and its collaborators when the run is built. It imports the engine's base
 (state, events, agenda, parameters) and never the run builder, the link solvers or the tools.
 """
-
-
-def compiled_kernels():
-    """The compiled loops (:mod:`netsim.radio._kernels`), or None where numba is missing
-    (it is a dependency; the numpy paths are kept for exotic platforms)."""
-    from netsim.compiled import compiled_copy
-
-    try:
-        return compiled_copy("netsim.radio._kernels")
-    except ImportError:  # pragma: no cover
-        return None

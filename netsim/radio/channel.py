@@ -171,7 +171,7 @@ class Channel:
         # The radio (netsim.radio.reception.Reception), None for the plain unit disk.
         self.reception = reception
         self.index = RangeIndex(state, reach_m=None if reception is None else reception.reach_m)
-        # The compiled loops (netsim._kernels) when the run uses them, else None.
+        # The engine's loops (netsim._kernels), compiled or plain as the run has them.
         self.kernels = self.index.kernels
         self.survives = survives
         self.latency_s = float(latency_s)
@@ -212,10 +212,9 @@ class Channel:
 
     @property
     def reach_lists(self) -> RangeIndex | None:
-        """The range index, where its neighbour lists hold every robot a sender reaches and
-        compiled loops search them: None under a radio (which decides its links otherwise)
-        or in a small run (no compiled loops)."""
-        return self.index if self.reception is None and self.index.kernels is not None else None
+        """The range index, where its neighbour lists hold every robot a sender reaches:
+        None under a radio (which decides its links otherwise)."""
+        return self.index if self.reception is None else None
 
     def attach_mac(self, mac: Any) -> None:
         """Put every transmission from now on through the shared medium ``mac``."""
@@ -402,9 +401,8 @@ class Channel:
         """The receivers (and distances: None when not measured) alive and spared by the loss
         model; the others counted. ``all_alive``: whether all are alive, if known already."""
         if all_alive is None:
-            # Everyone alive is the common case: the compiled check makes no temporary array.
-            k = self.kernels
-            all_alive = k is not None and k.all_set(self.state.alive, receivers)
+            # Everyone alive is the common case: the loop's check makes no temporary array.
+            all_alive = self.kernels.all_set(self.state.alive, receivers)
         if not all_alive:
             alive = self.state.alive[receivers]
             if not alive.all():
@@ -457,11 +455,7 @@ class Channel:
         binned: _Bin | None,
     ) -> None:
         """A delivery's arrival: count the receptions, tell the bus, hand them to the protocol."""
-        k = self.kernels
-        if k is not None:
-            k.count_each(counters.received, receivers)
-        else:
-            counters.received[receivers] += 1
+        self.kernels.count_each(counters.received, receivers)
         if binned is not None:
             binned.row[SendTimeBins.RECEIVED] += len(receivers)
         on_delivery = self.on_delivery

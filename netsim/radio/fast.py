@@ -1,24 +1,26 @@
-"""The loss chains of :mod:`netsim.radio.propagation` compiled into one pass: the channel's hot path.
+"""The loss chains of :mod:`netsim.radio.propagation` in one pass: the channel's hot path.
 
 A transmission asks which of its few tens of candidate receivers can hear it. Through the
 generic chain that costs some fifty numpy operations, whatever the number of pairs; here it
-is two compiled loops and one draw of normals. :class:`CompiledChain` accepts the chains
+is two loops (:mod:`netsim.radio._kernels`, compiled or plain Python as
+:func:`netsim.compiled.load` decides for the run) and one draw of normals.
+:class:`CompiledChain` accepts the chains
 that :func:`~netsim.radio.propagation.log_distance` and
 :func:`~netsim.radio.propagation.unit_disk` build and decides exactly as the chain does: the
 same pairs are dropped before shadowing (so the same normals are drawn), the same shadowing
 updates are made, and the same sums are compared with the sensitivity. Pairs in one batch
 must be distinct (a broadcast's receivers are).
 
-Without numba it hands every batch to the generic chain. A model whose chain has other
-terms brings no compiled path (:attr:`~netsim.radio.propagation.Propagation.fast` is None):
-:class:`GenericChain` evaluates it with numpy, term by term.
+A model whose chain has other terms brings no one-pass path
+(:attr:`~netsim.radio.propagation.Propagation.fast` is None): :class:`GenericChain`
+evaluates it with numpy, term by term.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from netsim.radio import compiled_kernels
+from netsim.compiled import load
 from netsim.radio.propagation import (
     LineOfSightLoss,
     LogDistanceLoss,
@@ -67,11 +69,12 @@ FRAME = np.dtype(
 
 
 class CompiledChain:
-    """``receivable(pairs)`` of a :class:`~netsim.radio.propagation.Propagation`, compiled."""
+    """``receivable(pairs)`` of a :class:`~netsim.radio.propagation.Propagation` in one
+    pass, for a run of ``n_robots`` robots."""
 
-    def __init__(self, propagation: Propagation):
+    def __init__(self, propagation: Propagation, n_robots: int):
         self.propagation = propagation
-        self.k = compiled_kernels()
+        self.k = load("netsim.radio._kernels", n_robots)
         terms = list(propagation.chain.terms)
         kinds = [type(t) for t in terms]
         self.log = self.shadow = self.walls = self.range = self.sight = None
@@ -139,8 +142,6 @@ class CompiledChain:
         return m.occupied.ravel(), h, w, g0, g1
 
     def receivable(self, pairs: Pairs) -> np.ndarray:
-        if self.k is None:
-            return self.propagation.receivable(pairs)
         keys = s_new = None
         if self.shadow is not None and len(pairs.a):
             keys = pair_keys(pairs.a, pairs.b)
@@ -152,13 +153,13 @@ class CompiledChain:
         self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, speed_mps: np.ndarray
     ) -> np.ndarray:
         """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (ids, distinct):
-        the channel's per-frame call, one compiled call that also finds the robots' positions
+        the channel's per-frame call, one kernel call that also finds the robots' positions
         on the map and the pairs' travels. ``speed_mps``: every robot's ``|v|`` as numpy's
         ``abs`` gives it (a compiled ``abs`` may differ in the last bit, and the pairs'
         travels must be exactly those of ``state.travelled_m``)."""
         k = len(receivers)
         sh = self.shadow
-        if self.k is None or k == 0 or state.torus:
+        if k == 0 or state.torus:
             pairs = self._pairs(state, t, sender, receivers, distances_m)
             if sh is not None:
                 travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])

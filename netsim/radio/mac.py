@@ -187,8 +187,9 @@ class Medium:
         self.backoff = np.full(n, -1, dtype=np.int64)
         self.count_from = np.full(n, math.inf)
         self.tx_at = np.full(n, math.inf)
-        # A frame's end under the unit disk as one compiled call (numpy below for small runs).
-        self._kernels = load("netsim.radio._mac_kernels", n) if self.power is None else None
+        # A frame's end (the unit disk's decision; under a power model its SINR replaces the
+        # collisions) as one loop (netsim.radio._mac_kernels).
+        self._kernels = load("netsim.radio._mac_kernels", n)
         self._hd, self._col = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         self._newly = np.empty(n + 1, dtype=np.int64)
         # (transmit instant, robot) for every finite instant set, stale ones left in place
@@ -201,7 +202,7 @@ class Medium:
         # Time each robot sensed the medium busy (own transmissions included).
         self.busy_since = np.zeros(n)
         self.busy_s = np.zeros(n)
-        # The arrays the compiled frame end reads and updates (_mac_kernels' ``medium`` and
+        # The arrays the frame end's loop reads and updates (_mac_kernels' ``medium`` and
         # ``out``): kept for the run, so put together once.
         self._medium = (self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
         self._end_out = (self._hd, self._col, self._newly)
@@ -380,24 +381,16 @@ class Medium:
         i, seq = frame.sender, frame.seq
         disturbed = frame.interferers
         rx = frame.receivers
-        newly = None
-        if self._kernels is not None:
-            leaving = (i, seq, now, disturbed, rx, frame.hd_start, frame.col_start)
-            m = self._kernels.end_unit_disk(self._medium, leaving, self._end_out)
-            hd, col, newly = self._hd[: len(rx)], self._col[: len(rx)], self._newly[:m].copy()
-        else:
-            self.cover[disturbed] -= 1
-            self.transmitting[i] = False
-            hd = frame.hd_start | (self.tx_seq[rx] > seq)
-            if self.power is not None:
-                del self.on_air[seq]
-                self.load_mw[disturbed] -= frame.power_mw
-                quiet = disturbed[self.cover[disturbed] == 0]
-                self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
-                interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
-                col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
-            else:
-                col = ~hd & (frame.col_start | (self.cover_seq[rx] != seq))
+        leaving = (i, seq, now, disturbed, rx, frame.hd_start, frame.col_start)
+        m = self._kernels.end_unit_disk(self._medium, leaving, self._end_out)
+        hd, col, newly = self._hd[: len(rx)], self._col[: len(rx)], self._newly[:m].copy()
+        if self.power is not None:
+            del self.on_air[seq]
+            self.load_mw[disturbed] -= frame.power_mw
+            quiet = disturbed[self.cover[disturbed] == 0]
+            self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
+            interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
+            col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
         ok = ~(hd | col)
         c, binned = frame.counters, frame.binned
         for cause, lost in (("half_duplex", hd), ("collision", col)):
@@ -409,12 +402,6 @@ class Medium:
                 self.channel._dropped(frame.kind, i, rx[lost], cause)
                 self._lost(frame.kind, frame.payload, cause, int(lost.sum()))
         got = rx[ok]
-        if newly is None:
-            # Who senses the medium idle again.
-            cand = np.append(disturbed, i)
-            idle = (self.cover[cand] == 0) & ~self.transmitting[cand]
-            newly = cand[idle]
-            self.busy_s[newly] += now - self.busy_since[newly]
         q = self.queue[i]
         retry = self.csma and frame.dest >= 0 and not len(got) and self.retries[i] < self.retry_limit
         if retry:

@@ -220,17 +220,20 @@ class ShadowingLoss:
 
 
 class WallLoss:
-    """``wall_loss_db`` per wall (run of occupied cells) the straight line crosses."""
+    """``wall_loss_db`` per wall (run of occupied cells) the straight line crosses
+    (``n_robots``: the run's robots, as :func:`netsim.world.los.walls_crossed` takes them)."""
 
-    def __init__(self, occupancy, wall_loss_db: float):
+    def __init__(self, occupancy, wall_loss_db: float, n_robots: int | None = None):
         self.occupancy = occupancy
         self.wall_loss_db = float(wall_loss_db)
+        self.n_robots = n_robots
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
         from netsim.world.los import walls_crossed
 
-        return self.wall_loss_db * walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
+        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b, n_robots=self.n_robots)
+        return self.wall_loss_db * walls
 
 
 class RangeLoss:
@@ -248,14 +251,16 @@ class RangeLoss:
 class LineOfSightLoss:
     """0 dB when no occupied cell lies between the two robots, infinite otherwise."""
 
-    def __init__(self, occupancy):
+    def __init__(self, occupancy, n_robots: int | None = None):
         self.occupancy = occupancy
+        self.n_robots = n_robots
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
         from netsim.world.los import walls_crossed
 
-        return np.where(walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b) == 0, 0.0, np.inf)
+        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b, n_robots=self.n_robots)
+        return np.where(walls == 0, 0.0, np.inf)
 
 
 class LossChain:
@@ -305,7 +310,7 @@ class Propagation:
 
     ``range_m`` is the implied range (no shadowing, no walls); ``reach_m`` the distance
     beyond which no pair is ever receivable (the neighbour search radius). A chain of any
-    terms works: without ``fast`` the channel evaluates it with numpy, term by term.
+    terms works: without ``fast`` the channel evaluates it term by term.
     """
 
     chain: LossChain
@@ -313,9 +318,9 @@ class Propagation:
     sensitivity_dbm: float
     range_m: float
     reach_m: float
-    # The model's compiled path, ``fast(propagation)`` (:class:`netsim.radio.fast.CompiledChain`
+    # The model's one-pass path, ``fast(propagation, n_robots)`` (:class:`netsim.radio.fast.CompiledChain`
     # for the chains below); None: the generic one (:class:`netsim.radio.fast.GenericChain`).
-    fast: Callable[[Propagation], Any] | None = None
+    fast: Callable[[Propagation, int], Any] | None = None
 
     def receivable(self, pairs: Pairs) -> np.ndarray:
         return self.chain.receivable(pairs, self.tx_power_dbm, self.sensitivity_dbm)
@@ -325,8 +330,9 @@ class Propagation:
         return self.tx_power_dbm - self.chain.loss_db(pairs)
 
 
-def log_distance(params: LogDistanceParams, shadowing=None, occupancy=None) -> Propagation:
-    """Log-distance path loss, then shadowing (when given and sigma > 0), then walls (on a map).
+def log_distance(params: LogDistanceParams, shadowing=None, occupancy=None, n_robots: int | None = None) -> Propagation:
+    """Log-distance path loss, then shadowing (when given and sigma > 0), then walls (on a
+    map, traced as :func:`netsim.world.los.walls_crossed` does for ``n_robots``).
 
     >>> prop = log_distance(LogDistanceParams())
     >>> pairs = Pairs.between([0, 0], [1, 2], [[0.0, 0.0], [100.0, 0.0], [100.5, 0.0]])
@@ -337,23 +343,24 @@ def log_distance(params: LogDistanceParams, shadowing=None, occupancy=None) -> P
     if shadowing is not None and shadowing.sigma_db > 0:
         terms.append(ShadowingLoss(shadowing))
     if occupancy is not None and params.wall_loss_db > 0:
-        terms.append(WallLoss(occupancy, params.wall_loss_db))
+        terms.append(WallLoss(occupancy, params.wall_loss_db, n_robots))
     reach = reach_m(params) if len(terms) > 1 and isinstance(terms[1], ShadowingLoss) else implied_range_m(params)
     return Propagation(
         LossChain(*terms), params.tx_power_dbm, params.sensitivity_dbm, implied_range_m(params), reach, _compiled
     )
 
 
-def unit_disk(range_m, occupancy=None) -> Propagation:
-    """The paper's unit disk (a receiver within the sender's range), needing line of sight on a map."""
+def unit_disk(range_m, occupancy=None, n_robots: int | None = None) -> Propagation:
+    """The paper's unit disk (a receiver within the sender's range), needing line of sight
+    on a map (traced as :func:`netsim.world.los.walls_crossed` does for ``n_robots``)."""
     terms: list = [RangeLoss(range_m)]
     if occupancy is not None:
-        terms.append(LineOfSightLoss(occupancy))
+        terms.append(LineOfSightLoss(occupancy, n_robots))
     r = float(np.max(range_m))
     return Propagation(LossChain(*terms), 0.0, 0.0, r, r, _compiled)
 
 
-def _compiled(propagation: Propagation) -> Any:
+def _compiled(propagation: Propagation, n_robots: int) -> Any:
     from netsim.radio.fast import CompiledChain
 
-    return CompiledChain(propagation)
+    return CompiledChain(propagation, n_robots)

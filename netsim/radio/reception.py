@@ -1,6 +1,6 @@
 """The radio's reception decision inside the channel, and the record of its decisions.
 
-:class:`Reception` asks a :class:`~netsim.radio.propagation.Propagation` (compiled,
+:class:`Reception` asks a :class:`~netsim.radio.propagation.Propagation` (in one pass,
 :class:`~netsim.radio.fast.CompiledChain`) which of a transmission's candidate receivers
 (every robot within the radio's reach) can hear it: path loss or range, then shadowing,
 then walls, each pair dropped as soon as it cannot make it. Shadowing is looked at then,
@@ -21,15 +21,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from netsim.radio import compiled_kernels
+from netsim.compiled import load
 from netsim.radio.fast import GenericChain
 from netsim.radio.propagation import Pairs, Propagation
 from netsim.state import RobotState
-
-
-def _kernels():
-    k = compiled_kernels()
-    return (None, None) if k is None else (k.link_changes, k.link_touches)
 
 
 class LinkRecorder:
@@ -70,7 +65,8 @@ class LinkRecorder:
         self._every = bool(torus)
         # Each robot's last send (a decision on all its pairs).
         self._last_t = np.full(n, -np.inf)
-        self._kernel, self._touch_kernel = _kernels()
+        kernels = load("netsim.radio._kernels", n)
+        self._kernel, self._touch_kernel = kernels.link_changes, kernels.link_touches
         # Called as fn(t, sender, robots, up, touched) with every decision that changes links
         # or touches one (lists: the robots whose link with sender changed, whether it is now
         # up, and the robots touched).
@@ -118,26 +114,13 @@ class LinkRecorder:
 
     def _changes(self, sender: int, receivers: np.ndarray, linked: np.ndarray) -> int:
         """How many robots' links with ``sender`` this decision changes (ids in ``_changed``)."""
-        if self._kernel is not None:
-            return int(self._kernel(self.up, sender, receivers, linked, self._scratch, self._changed))
-        now = np.zeros(self.n, dtype=bool)
-        now[receivers[linked]] = True
-        changed = np.flatnonzero(self.up[sender] != now)
-        self._changed[: len(changed)] = changed
-        return len(changed)
+        return int(self._kernel(self.up, sender, receivers, linked, self._scratch, self._changed))
 
     def _touches_of(self, sender: int, receivers: np.ndarray, linked: np.ndarray) -> int:
         """How many robots this decision touches (ids in ``_touched``, class notes); before
         ``_last_t[sender]`` is set to now."""
-        if self._touch_kernel is not None:
-            args = (self.up, sender, receivers, linked, self._t0, self._last_t, self._every, self._touched)
-            return int(self._touch_kernel(*args))
-        heard = receivers[linked]
-        heard = heard[self.up[sender, heard]]
-        p = np.maximum(self._last_t[sender], self._last_t[heard])
-        touched = heard[self._every | (self._t0[sender] >= p) | (self._t0[heard] >= p)]
-        self._touched[: len(touched)] = touched
-        return len(touched)
+        args = (self.up, sender, receivers, linked, self._t0, self._last_t, self._every, self._touched)
+        return int(self._touch_kernel(*args))
 
     def intervals(self, duration_s: float) -> pd.DataFrame:
         """``a, b, t_up_s, t_down_s, open, id`` (still up at the end: ``t_down_s`` =
@@ -161,7 +144,7 @@ class Reception:
         self.propagation = propagation
         fast = propagation.fast
         # The model's compiled path (CompiledChain for the built-in chains), or the generic one.
-        self.compiled: Any = fast(propagation) if fast is not None else GenericChain(propagation)
+        self.compiled: Any = fast(propagation, state.n) if fast is not None else GenericChain(propagation)
         self.state = state
         self.reach_m = float(propagation.reach_m)
         self.map = self.compiled.occupancy

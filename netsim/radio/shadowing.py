@@ -65,24 +65,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from netsim.compiled import SMALL_RUN_ROBOTS, load
 from netsim.errors import ConfigError
 from netsim.radio.propagation import TRUNCATION_SIGMAS
-
-_KERNEL: list = []
-
-
-def _kernel():
-    """The compiled update (:mod:`netsim.radio._kernels`), or None without numba."""
-    if not _KERNEL:
-        try:
-            from netsim.compiled import compiled_copy
-
-            shadow_step = compiled_copy("netsim.radio._kernels").shadow_step
-        except ImportError:  # pragma: no cover - numba is a dependency; kept optional for exotic platforms
-            shadow_step = None
-        _KERNEL.append(shadow_step)
-    return _KERNEL[0]
-
 
 # Standard normals drawn at once (see PairShadowing.normals).
 NORMALS_BLOCK = 4096
@@ -116,7 +101,9 @@ class PairShadowing:
     rng : the component's own generator (e.g. ``sim.streams.get("shadowing")``).
     step_m : 0 to evaluate the process at each look; > 0 for a process piecewise constant
         in travel, changing at multiples of ``step_m`` (see the module notes).
-    n_robots : when given and at most ``DENSE_MAX_ROBOTS``, every pair's slot is made at
+    n_robots : the run's robots (its update loop then compiled or plain Python as
+        :func:`netsim.compiled.load` decides; None, outside a run: as for a large one).
+        When given and at most ``DENSE_MAX_ROBOTS``, every pair's slot is made at
         once (unseen: NaN), so that a pair seen for the first time costs a lookup, not an
         insertion into the sorted table (which copies it: ruinous when a run of a thousand
         robots meets new pairs at every transmission). Memory: 24 bytes per pair.
@@ -140,6 +127,7 @@ class PairShadowing:
         self.decorrelation_m = float(decorrelation_m)
         self.step_m = float(step_m)
         self.rng = rng
+        self._step = load("netsim.radio._kernels", SMALL_RUN_ROBOTS if n_robots is None else n_robots).shadow_step
         self.clip_db = TRUNCATION_SIGMAS * self.sigma_db
         self._keys = np.empty(0, dtype=np.int64)
         self._x = np.empty(0)
@@ -218,20 +206,16 @@ class PairShadowing:
         s_new = self.anchor(np.array(np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))))
         z = self.normals(k)[:k]
         self.consume(k)
-        kernel = _kernel()
-        if kernel is None:
-            x = self._sample_numpy(keys, s_new, z)
-        else:
-            x = np.empty(k)
-            new = np.empty(k, dtype=np.bool_)
-            law = (self.sigma_db, self.decorrelation_m, self.dense_n)
-            kernel((self._keys, self._x, self._s, z), law, (keys, s_new), (x, new))
-            if new.any():
-                idx = np.flatnonzero(new)
-                uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)
-                fresh = self.sigma_db * z[idx[first]]
-                x[idx] = fresh[inverse]
-                self.insert(uniq, fresh, s_new[idx[first]])
+        x = np.empty(k)
+        new = np.empty(k, dtype=np.bool_)
+        law = (self.sigma_db, self.decorrelation_m, self.dense_n)
+        self._step((self._keys, self._x, self._s, z), law, (keys, s_new), (x, new))
+        if new.any():
+            idx = np.flatnonzero(new)
+            uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)
+            fresh = self.sigma_db * z[idx[first]]
+            x[idx] = fresh[inverse]
+            self.insert(uniq, fresh, s_new[idx[first]])
         return np.clip(x, -self.clip_db, self.clip_db)
 
     def insert(self, keys, x, s) -> None:
@@ -244,35 +228,6 @@ class PairShadowing:
         self._keys = np.insert(self._keys, at, keys)
         self._x = np.insert(self._x, at, x)
         self._s = np.insert(self._s, at, s)
-
-    def _sample_numpy(self, keys, s_new, z) -> np.ndarray:
-        """What the compiled kernel computes, in numpy operations (the fallback without numba)."""
-        order = np.argsort(keys, kind="stable")
-        sk = keys[order]
-        first = np.r_[True, sk[1:] != sk[:-1]]
-        uniq = sk[first]
-        inverse = np.empty(len(keys), dtype=np.int64)
-        inverse[order] = np.cumsum(first) - 1
-        lead = order[first]  # each pair's first appearance in the batch
-        zu, su = z[lead], s_new[lead]
-        n_old = len(self._keys)
-        pos = np.searchsorted(self._keys, uniq)
-        if n_old:
-            at_ = np.minimum(pos, n_old - 1)
-            found = (self._keys[at_] == uniq) & ~np.isnan(self._x[at_])
-        else:
-            found = np.zeros(len(uniq), dtype=bool)
-        x = self.sigma_db * zu
-        if found.any():
-            at = pos[found]
-            delta = np.maximum(su[found] - self._s[at], 0.0)
-            rho = np.exp(-delta / self.decorrelation_m)
-            x[found] = rho * self._x[at] + self.sigma_db * np.sqrt(1.0 - rho * rho) * zu[found]
-            self._x[at] = x[found]
-            self._s[at] = np.maximum(su[found], self._s[at])
-        if (~found).any():
-            self.insert(uniq[~found], x[~found], su[~found])
-        return x[inverse]
 
     def forget(self, odometer_m, horizon: float = 20.0) -> int:
         """Drop pairs whose travel since their last look exceeds ``horizon`` ``d_corr``.

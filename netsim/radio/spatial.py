@@ -10,9 +10,9 @@ robot in range of ``i`` now is on ``i``'s list, so a query is a slice of the lis
 on exact current positions. Rebuilding costs O(N) every ``s / v_max`` seconds; a larger
 slack means fewer rebuilds and longer lists. The default slack is a fifth of the largest range.
 
-Past :data:`netsim.compiled.SMALL_RUN_ROBOTS` robots a query's filter is one compiled loop
-(:func:`netsim._kernels.within`) and the lists are built by one
-(:func:`netsim._kernels.neighbour_lists`), equal to the numpy code here.
+A query's filter is one loop (:func:`netsim._kernels.within`) and the lists are built by
+one (:func:`netsim._kernels.neighbour_lists`), compiled or plain Python as
+:func:`netsim.compiled.load` decides for the run.
 """
 
 from __future__ import annotations
@@ -25,21 +25,6 @@ from netsim.state import RobotState
 
 _NONE = np.empty(0, dtype=np.int64)
 _NO_DISTANCE = np.empty(0)
-
-
-def _wrap(d: np.ndarray, side: float) -> np.ndarray:
-    return (d.real - side * np.round(d.real / side)) + 1j * (d.imag - side * np.round(d.imag / side))
-
-
-def neighbour_lists(pairs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Both directions of the ``pairs`` as lists per robot, ascending: ``(indptr,
-    indices)``, robot ``i``'s neighbours at ``indices[indptr[i]:indptr[i + 1]]``."""
-    rows = np.concatenate([pairs[:, 0], pairs[:, 1]])
-    cols = np.concatenate([pairs[:, 1], pairs[:, 0]])
-    order = np.lexsort((cols, rows))
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
-    return indptr, cols[order].astype(np.int64)
 
 
 class RangeIndex:
@@ -57,7 +42,7 @@ class RangeIndex:
         self._indices = _NONE
         self.rebuilds = 0
         self.kernels = load("netsim._kernels", state.n)
-        # The robots' motion as the compiled queries read it (netsim._kernels' ``motion``):
+        # The robots' motion as the queries read it (netsim._kernels' ``motion``):
         # arrays kept for the run, so put together once.
         self._motion = (state.origin_m, state.velocity_mps, state.t0_s, state.torus, state.side_m)
 
@@ -65,10 +50,7 @@ class RangeIndex:
         st = self.state
         pos = st.positions_at(t)
         pairs = near_pairs(pos, self.reach_m + 2 * self.slack_m, st.side_m if st.torus else None)
-        if self.kernels is not None:
-            self._indptr, self._indices = self.kernels.neighbour_lists(pairs, st.n)
-        else:
-            self._indptr, self._indices = neighbour_lists(pairs, st.n)
+        self._indptr, self._indices = self.kernels.neighbour_lists(pairs, st.n)
         # The same offsets as Python ints: read once per query, cheaper than numpy scalars.
         self._bounds = self._indptr.tolist()
         self._t_build = t
@@ -90,11 +72,7 @@ class RangeIndex:
         cand = cand[lo:hi]
         if len(cand) == 0:
             return _NONE, _NO_DISTANCE
-        if self.kernels is not None:
-            k = self.kernels
-            return k.within(cand, self._motion, int(i), float(t), r)
-        cand, dist2 = self._filter(t, i, r, cand)
-        return cand, np.sqrt(dist2)
+        return self.kernels.within(cand, self._motion, int(i), float(t), r)
 
     def within_alive(self, t: float, i: int) -> tuple[np.ndarray, bool]:
         """Robots other than ``i`` within ``i``'s range at ``t``, ids ascending (those of
@@ -105,11 +83,7 @@ class RangeIndex:
         cand, lo, hi = self._candidate_span(t, i, r)
         if lo == hi:
             return _NONE, True
-        if self.kernels is not None:
-            k = self.kernels
-            return k.within_alive(cand, lo, hi, self._motion, int(i), float(t), r, st.alive)
-        ids = self._filter(t, i, r, cand[lo:hi])[0]
-        return ids, bool(st.alive[ids].all())
+        return self.kernels.within_alive(cand, lo, hi, self._motion, int(i), float(t), r, st.alive)
 
     def lists(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Every robot's neighbour list, valid at ``t`` (rebuilt first if some robot may
@@ -136,15 +110,3 @@ class RangeIndex:
             return np.delete(np.arange(st.n), i), 0, st.n - 1
         bounds = self._bounds
         return self._indices, bounds[i], bounds[i + 1]
-
-    def _filter(self, t: float, i: int, r: float, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The candidates within ``r`` of ``i`` at ``t`` and their squared distances."""
-        st = self.state
-        x, y = st.position(i, t)
-        # Complex views of the (n, 2) arrays: one operation per step instead of two.
-        d = st.origin_c.take(cand) + st.velocity_c.take(cand) * (t - st.t0_s.take(cand)) - complex(x, y)
-        if st.torus:
-            d = _wrap(d, st.side_m)
-        dist2 = d.real * d.real + d.imag * d.imag
-        keep = dist2 <= r * r
-        return cand[keep], dist2[keep]
