@@ -537,7 +537,7 @@ class CoverageController:
         move = plan.velocity_mps * limits.period_s
         moving = np.flatnonzero((move != 0).any(axis=1))
         if len(moving):
-            f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving], n_robots=len(pos))
+            f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])
             move[moving] *= f[:, None]
         scale = cut_for_walls(pos, move, knows, kept, step.t_s + limits.period_s, limits, walls)
         held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & (scale < 1))
@@ -585,7 +585,7 @@ class CoverageController:
         moving = np.flatnonzero((move != 0).any(axis=1))
         if len(moving) == 0:
             return plan
-        f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving], n_robots=len(pos))
+        f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])
         move[moving] *= f[:, None]
         scale = self.rules.cut_for_walls(pos, move, commanded, links, plan.kept, self.limits.period_s)
         move *= scale[:, None]

@@ -162,7 +162,7 @@ class LinkRules:
             return np.zeros(len(i), np.int64)
         from netsim.world.los import walls_crossed
 
-        return np.asarray(walls_crossed(self.walls, pos[i], pos[j], n_robots=len(self.state.range_m)), np.int64)
+        return np.asarray(walls_crossed(self.walls, pos[i], pos[j]), np.int64)
 
     def _power_candidates(self, pos, t_s, i, j, d, walls) -> Candidates:
         p = self.log
@@ -276,7 +276,7 @@ class LinkRules:
         # Counts beyond what any link survives are all alike.
         limit = 0 if self.log is None else int(np.ceil(self.log.budget_db / max(self.wall_loss_db, 1e-9)))
         duration = np.full(len(pa), float(period_s))
-        table = sweep_walls(self.walls, pa, va, pb, vb, duration, limit=limit, n_robots=len(self.state.range_m))
+        table = sweep_walls(self.walls, pa, va, pb, vb, duration, limit=limit)
         pair, t0, t1, walls = (np.asarray(c) for c in (table.pair, table.t0_s, table.t1_s, table.walls))
         # Distance is convex in time: its largest value on a stretch is at an end.
         d0 = np.hypot(*((pa[pair] + va[pair] * t0[:, None]) - (pb[pair] + vb[pair] * t0[:, None])).T)

@@ -207,7 +207,7 @@ def waypoint_robot(
         if occupancy is None:
             dest = area.uniform(rng, 1)[0]
         else:
-            dest = draw_destinations(occupancy, rng, st.positions_at(env.now, [i]), area, n_robots=st.n)[0]
+            dest = draw_destinations(occupancy, rng, st.positions_at(env.now, [i]), area)[0]
         speed = rng.uniform(m.speed_min_mps, m.speed_max_mps)
         if speed <= 0.0:
             st.set_leg(i, env.now, (0.0, 0.0), cause=cause)

@@ -23,6 +23,11 @@ from types import ModuleType
 from typing import Any, TypeVar
 
 SMALL_RUN_ROBOTS = 20
+# Kernel modules whose loops walk a map cell by cell (line of sight, walls swept, free
+# destinations): compiled at any team size. A plain-Python walk pays the interpreter at
+# every cell of every segment, and a small team on a map traces enough segments to cost
+# more than numba's import.
+WALKS_MAPS = frozenset({"netsim.world._kernels", "netsim.world._sweep_kernels"})
 
 T = TypeVar("T")
 U = TypeVar("U")
@@ -30,6 +35,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 _JIT = "__netsim_jit__"  # a kernel's numba options, set by jit
 _COPIES: dict[str, ModuleType] = {}  # kernel module -> its compiled copy
+_PLAIN: dict[str, ModuleType] = {}  # kernel module -> itself, or its plain copy (plain_copy)
 _COPY_LOCK = threading.RLock()
 
 
@@ -59,13 +65,68 @@ def compiled_wanted(n_robots: int) -> bool:
 
 def load(module: str, n_robots: int) -> ModuleType:
     """The kernel module ``module`` as a run of ``n_robots`` robots calls it: its compiled
-    copy when wanted (:func:`compiled_wanted`) and numba is there, else the module itself."""
-    if compiled_wanted(n_robots):
+    copy when wanted (:func:`compiled_wanted`, or a module of :data:`WALKS_MAPS` unless
+    ``NETSIM_COMPILED=0``) and numba is there, else the module in plain Python
+    (:func:`plain_copy`)."""
+    if compiled_wanted(max(n_robots, SMALL_RUN_ROBOTS) if module in WALKS_MAPS else n_robots):
         try:
             return compiled_copy(module)
         except ImportError:  # pragma: no cover  (numba is a dependency; plain Python is the fallback)
             pass
-    return importlib.import_module(module)
+    return plain_copy(module)
+
+
+def plain_copy(module: str) -> ModuleType:
+    """The kernel module ``module`` in plain Python: the module itself, unless it calls a
+    kernel of a module of :data:`WALKS_MAPS`, which even a plain loop calls compiled (numba
+    loaded at the first such call, not before: a run without a map never makes one). Then a
+    copy of the module whose kernels see that kernel compiled."""
+    copy = _PLAIN.get(module)
+    if copy is not None:
+        return copy
+    plain = importlib.import_module(module)
+    walks = {
+        key: value
+        for key, value in plain.__dict__.items()
+        if is_kernel(value) and value.__module__ != module and value.__module__ in WALKS_MAPS
+    }
+    if not walks or not compiled_wanted(SMALL_RUN_ROBOTS):
+        _PLAIN[module] = plain
+        return plain
+    copy = ModuleType(module, plain.__doc__)
+    namespace = copy.__dict__
+    namespace.update(plain.__dict__)
+    for key, value in plain.__dict__.items():
+        if key in walks:
+            namespace[key] = _compiled_on_call(value)
+        elif is_kernel(value) and value.__module__ == module:
+            namespace[key] = _rebound(value, namespace)
+    _PLAIN[module] = copy
+    return copy
+
+
+def _rebound(function: types.FunctionType, namespace: dict[str, Any]) -> types.FunctionType:
+    """``function`` with ``namespace`` for its globals (the same code)."""
+    out = types.FunctionType(
+        function.__code__, namespace, function.__name__, function.__defaults__, function.__closure__
+    )
+    out.__qualname__ = function.__qualname__
+    out.__doc__ = function.__doc__
+    return out
+
+
+def _compiled_on_call(kernel: Callable[..., Any]) -> Callable[..., Any]:
+    """A plain function calling the compiled ``kernel``, compiled at its first call."""
+    name, module = kernel.__name__, kernel.__module__
+    found: list[Callable[..., Any]] = []
+
+    def call(*args: Any) -> Any:
+        if not found:
+            found.append(getattr(compiled_copy(module), name))
+        return found[0](*args)
+
+    call.__name__ = call.__qualname__ = name
+    return call
 
 
 def compiled_copy(module: str) -> ModuleType:
@@ -100,10 +161,7 @@ def _compile(name: str) -> ModuleType:
         if value.__module__ != name:  # a kernel of another module, imported here
             namespace[key] = getattr(compiled_copy(value.__module__), value.__name__)
             continue
-        function = types.FunctionType(value.__code__, namespace, value.__name__, value.__defaults__, value.__closure__)
-        function.__qualname__ = value.__qualname__
-        function.__doc__ = value.__doc__
-        namespace[key] = numba.njit(cache=True, **getattr(value, _JIT))(function)
+        namespace[key] = numba.njit(cache=True, **getattr(value, _JIT))(_rebound(value, namespace))
     kernel_cache.key(namespace)
     return copy
 

@@ -201,7 +201,7 @@ class ControlLoop:
         if len(moving) == 0:
             return
         here = self.state.positions_at(self.env.now, moving)
-        f = free_fraction(self.occupancy, here, here + v[moving] * self.period_s, n_robots=self.state.n)
+        f = free_fraction(self.occupancy, here, here + v[moving] * self.period_s)
         v[moving] *= f[:, None]
 
     def _apply(self, step: ControlStep, current: np.ndarray) -> None:

@@ -158,7 +158,7 @@ def build(config: Config, run: int = 0) -> Simulation:
     if parts.occupancy is not None:
         from netsim.world.free_space import Walls
 
-        walls = Walls(parts.occupancy, sim.state.n)
+        walls = Walls(parts.occupancy)
     sim.state.check_motion(walls)
     mobility = _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
     sim.driver = mobility if isinstance(mobility, Driver) else None

@@ -220,19 +220,17 @@ class ShadowingLoss:
 
 
 class WallLoss:
-    """``wall_loss_db`` per wall (run of occupied cells) the straight line crosses
-    (``n_robots``: the run's robots, as :func:`netsim.world.los.walls_crossed` takes them)."""
+    """``wall_loss_db`` per wall (run of occupied cells) the straight line crosses"""
 
-    def __init__(self, occupancy, wall_loss_db: float, n_robots: int | None = None):
+    def __init__(self, occupancy, wall_loss_db: float):
         self.occupancy = occupancy
         self.wall_loss_db = float(wall_loss_db)
-        self.n_robots = n_robots
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
         from netsim.world.los import walls_crossed
 
-        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b, n_robots=self.n_robots)
+        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
         return self.wall_loss_db * walls
 
 
@@ -251,15 +249,14 @@ class RangeLoss:
 class LineOfSightLoss:
     """0 dB when no occupied cell lies between the two robots, infinite otherwise."""
 
-    def __init__(self, occupancy, n_robots: int | None = None):
+    def __init__(self, occupancy):
         self.occupancy = occupancy
-        self.n_robots = n_robots
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
         from netsim.world.los import walls_crossed
 
-        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b, n_robots=self.n_robots)
+        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
         return np.where(walls == 0, 0.0, np.inf)
 
 
@@ -330,9 +327,9 @@ class Propagation:
         return self.tx_power_dbm - self.chain.loss_db(pairs)
 
 
-def log_distance(params: LogDistanceParams, shadowing=None, occupancy=None, n_robots: int | None = None) -> Propagation:
+def log_distance(params: LogDistanceParams, shadowing=None, occupancy=None) -> Propagation:
     """Log-distance path loss, then shadowing (when given and sigma > 0), then walls (on a
-    map, traced as :func:`netsim.world.los.walls_crossed` does for ``n_robots``).
+    map, traced as :func:`netsim.world.los.walls_crossed` does).
 
     >>> prop = log_distance(LogDistanceParams())
     >>> pairs = Pairs.between([0, 0], [1, 2], [[0.0, 0.0], [100.0, 0.0], [100.5, 0.0]])
@@ -343,19 +340,19 @@ def log_distance(params: LogDistanceParams, shadowing=None, occupancy=None, n_ro
     if shadowing is not None and shadowing.sigma_db > 0:
         terms.append(ShadowingLoss(shadowing))
     if occupancy is not None and params.wall_loss_db > 0:
-        terms.append(WallLoss(occupancy, params.wall_loss_db, n_robots))
+        terms.append(WallLoss(occupancy, params.wall_loss_db))
     reach = reach_m(params) if len(terms) > 1 and isinstance(terms[1], ShadowingLoss) else implied_range_m(params)
     return Propagation(
         LossChain(*terms), params.tx_power_dbm, params.sensitivity_dbm, implied_range_m(params), reach, _compiled
     )
 
 
-def unit_disk(range_m, occupancy=None, n_robots: int | None = None) -> Propagation:
+def unit_disk(range_m, occupancy=None) -> Propagation:
     """The paper's unit disk (a receiver within the sender's range), needing line of sight
-    on a map (traced as :func:`netsim.world.los.walls_crossed` does for ``n_robots``)."""
+    on a map (traced as :func:`netsim.world.los.walls_crossed` does)."""
     terms: list = [RangeLoss(range_m)]
     if occupancy is not None:
-        terms.append(LineOfSightLoss(occupancy, n_robots))
+        terms.append(LineOfSightLoss(occupancy))
     r = float(np.max(range_m))
     return Propagation(LossChain(*terms), 0.0, 0.0, r, r, _compiled)
 

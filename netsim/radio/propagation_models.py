@@ -44,7 +44,7 @@ class UnitDiskParams(Params):
 
 
 def _unit_disk(params, range_m: np.ndarray, occupancy, rng) -> Propagation | None:
-    return None if occupancy is None else unit_disk(range_m, occupancy, len(range_m))
+    return None if occupancy is None else unit_disk(range_m, occupancy)
 
 
 def _log_distance(params: LogDistanceParams, range_m: np.ndarray, occupancy, rng) -> Propagation:
@@ -55,7 +55,7 @@ def _log_distance(params: LogDistanceParams, range_m: np.ndarray, occupancy, rng
         shadowing = PairShadowing(
             params.shadowing_sigma_db, params.shadowing_decorrelation_m, rng, n_robots=len(range_m)
         )
-    return log_distance(params, shadowing, occupancy, len(range_m))
+    return log_distance(params, shadowing, occupancy)
 
 
 def _power(params: LogDistanceParams, noise_floor_dbm: float, capture_threshold_db: float) -> Any:

@@ -99,48 +99,46 @@ def sample_free(
     return pos
 
 
-def legs_free(m: OccupancyMap, starts, ends, n_robots: int | None = None) -> np.ndarray:
-    """Whether each straight leg ``starts[k] -> ends[k]`` stays in free cells all along
-    (``n_robots``: the run's robots, as :mod:`netsim.world.los` takes them)."""
-    return line_of_sight(m, starts, ends, blocked=m.not_free, n_robots=n_robots)
+def legs_free(m: OccupancyMap, starts, ends) -> np.ndarray:
+    """Whether each straight leg ``starts[k] -> ends[k]`` stays in free cells all along"""
+    return line_of_sight(m, starts, ends, blocked=m.not_free)
 
 
 @dataclass(frozen=True)
 class Walls:
     """A map's walls as the robot state's motion check asks about them
-    (:meth:`netsim.state.RobotState.check_motion`), for a run of ``n_robots``."""
+    (:meth:`netsim.state.RobotState.check_motion`)."""
 
     map: OccupancyMap
-    n_robots: int | None = None
 
     def legs_free(self, starts, ends) -> np.ndarray:
-        return legs_free(self.map, starts, ends, self.n_robots)
+        return legs_free(self.map, starts, ends)
 
     def first_blocked(self, starts, ends) -> np.ndarray:
         """The fraction of each leg at which it first enters a cell that is not free."""
-        return first_blocked(self.map, starts, ends, blocked=self.map.not_free, n_robots=self.n_robots)
+        return first_blocked(self.map, starts, ends, blocked=self.map.not_free)
 
     def is_free(self, points_m) -> np.ndarray:
         return self.map.is_free(points_m)
 
 
-def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6, n_robots: int | None = None) -> np.ndarray:
+def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6) -> np.ndarray:
     """Fraction ``f`` in ``[0, 1]`` of each leg that a robot can travel in free cells: 1 when
     the whole leg is free, else it stops ``margin_m`` short of the first cell that is not free
     (and the leg ``start -> start + f (end - start)`` is free)."""
     s = np.asarray(starts, dtype=float).reshape(-1, 2)
     e = np.asarray(ends, dtype=float).reshape(-1, 2)
-    t = first_blocked(m, s, e, blocked=m.not_free, n_robots=n_robots)
+    t = first_blocked(m, s, e, blocked=m.not_free)
     length = np.hypot(*(e - s).T)
     f = np.where(np.isinf(t), 1.0, np.maximum(t - margin_m / np.maximum(length, 1e-300), 0.0))
     for _ in range(60):
         stop = s + f[:, None] * (e - s)
-        bad = (f > 0) & ~legs_free(m, s, stop, n_robots)
+        bad = (f > 0) & ~legs_free(m, s, stop)
         if not bad.any():
             return f
         f[bad] = np.maximum(f[bad] - 4.0 * margin_m / np.maximum(length[bad], 1e-300), 0.0)
         margin_m *= 4.0
-    return np.where(legs_free(m, s, s + f[:, None] * (e - s), n_robots), f, 0.0)
+    return np.where(legs_free(m, s, s + f[:, None] * (e - s)), f, 0.0)
 
 
 def draw_destinations(
@@ -150,16 +148,14 @@ def draw_destinations(
     area: float | Bounds,
     batch: int = 64,
     max_rounds: int = 100,
-    n_robots: int | None = None,
 ) -> np.ndarray:
     """A random waypoint for each robot at ``here_m``: uniform over the free space, redrawn
-    until the straight leg to it is free (see the module notes). Shape ``(k, 2)``.
-    ``n_robots``: the run's robots, as :mod:`netsim.world.los` takes them."""
+    until the straight leg to it is free (see the module notes). Shape ``(k, 2)``."""
     here = np.asarray(here_m, dtype=float).reshape(-1, 2)
     k = len(here)
     out = np.empty((k, 2))
     todo = np.arange(k)
-    kernel = kernels_for("netsim.world._kernels", n_robots).free_destinations
+    kernel = kernels_for("netsim.world._kernels").free_destinations
     for _ in range(max_rounds):
         if len(todo) == 0:
             return out

@@ -7,9 +7,8 @@ visits are known from those crossings alone (Amanatides and Woo, 1987): the cros
 vertical lines and of the horizontal lines, each located exactly by where the segment meets
 the line. One loop (:func:`netsim.world._kernels.trace`) walks each segment's crossings in
 order, looks up the cells on both sides of each, and stops as soon as the answer is known.
-The cost is proportional to the number of cells crossed. Each function takes the robots of
-the run asking (``n_robots``): :func:`netsim.compiled.load` decides by it whether the loop
-runs compiled or as plain Python (None, outside a run: as for a large one).
+The cost is proportional to the number of cells crossed; the loop runs compiled at any
+team size (:data:`netsim.compiled.WALKS_MAPS`).
 
 **Walls crossed** is the number of separate runs of blocked cells met along the segment: the
 cell of ``p`` if blocked, plus each crossing from a clear cell into a blocked one. A segment
@@ -44,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim.compiled import SMALL_RUN_ROBOTS, load
+from netsim.compiled import load
 
 VERTEX_TOLERANCE_CELLS = 1e-9
 
@@ -52,10 +51,10 @@ VERTEX_TOLERANCE_CELLS = 1e-9
 _NO_LIMIT = np.iinfo(np.int64).max
 
 
-def kernels_for(module: str, n_robots: int | None):
-    """The kernel module ``module`` for a run of ``n_robots`` (:func:`netsim.compiled.load`);
-    None, a call outside a run (a tool's batch): as for a large run."""
-    return load(module, SMALL_RUN_ROBOTS if n_robots is None else n_robots)
+def kernels_for(module: str):
+    """The world's kernel module ``module`` (:func:`netsim.compiled.load`: compiled at any
+    team size, :data:`netsim.compiled.WALKS_MAPS`)."""
+    return load(module, 0)
 
 
 def _trace(
@@ -67,13 +66,12 @@ def _trace(
     first: bool = False,
     limit: int = _NO_LIMIT,
     snap: bool = False,
-    n_robots: int | None = None,
 ):
     """Walls crossed by each segment ``p[k] -> q[k]`` (and, with ``first``, the parameter in
     ``[0, 1]`` at which it first meets a blocked cell, ``inf`` if never); with ``snap``, ends
     within the vertex tolerance of a grid line put on it. Counting may stop past ``limit``
     walls (the count is then ``limit + 1``, the first blocked point still exact)."""
-    kernel = kernels_for("netsim.world._kernels", n_robots).trace
+    kernel = kernels_for("netsim.world._kernels").trace
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     q = np.asarray(q, dtype=float).reshape(-1, 2)
     origin = np.asarray(origin_m, dtype=float)
@@ -85,23 +83,23 @@ def _trace(
     return (walls, first_t) if first else walls
 
 
-def walls_crossed(occupancy, p, q, blocked: np.ndarray | None = None, n_robots: int | None = None) -> np.ndarray:
+def walls_crossed(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:
     """Number of walls (runs of occupied cells) on each segment ``p[k] -> q[k]`` (world metres).
 
     ``blocked`` replaces the map's occupied cells (e.g. ``~occupancy.free`` for motion).
     """
     grid = occupancy.occupied if blocked is None else blocked
-    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, snap=blocked is None, n_robots=n_robots)
+    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, snap=blocked is None)
 
 
-def line_of_sight(occupancy, p, q, blocked: np.ndarray | None = None, n_robots: int | None = None) -> np.ndarray:
+def line_of_sight(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:
     """Whether each segment meets no occupied (or ``blocked``) cell (tracing stops at the first)."""
     grid = occupancy.occupied if blocked is None else blocked
     snap = blocked is None
-    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, limit=0, snap=snap, n_robots=n_robots) == 0
+    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, limit=0, snap=snap) == 0
 
 
-def first_blocked(occupancy, p, q, blocked: np.ndarray | None = None, n_robots: int | None = None) -> np.ndarray:
+def first_blocked(occupancy, p, q, blocked: np.ndarray | None = None) -> np.ndarray:
     """For each segment, the fraction ``t`` of the way from ``p`` to ``q`` at which it first
     enters a blocked cell (0 when ``p`` is in one), ``inf`` when it never does.
 
@@ -109,4 +107,4 @@ def first_blocked(occupancy, p, q, blocked: np.ndarray | None = None, n_robots: 
     short of it.
     """
     grid = occupancy.occupied if blocked is None else blocked
-    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, first=True, n_robots=n_robots)[1]
+    return _trace(grid, occupancy.resolution_m, occupancy.origin_m, p, q, first=True)[1]

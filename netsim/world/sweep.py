@@ -125,18 +125,16 @@ def sweep_walls(
     duration_s,
     blocked: np.ndarray | None = None,
     limit: int | None = None,
-    n_robots: int | None = None,
 ) -> Sweep:
     """Walls crossed between ``p0[k] + vp[k] t`` and ``q0[k] + vq[k] t`` (metres, m/s) for
     ``t`` in ``[0, duration_s[k]]``, as rows of constant count (module notes).
 
     ``blocked`` replaces the map's occupied cells; with ``limit``, counts above it are
-    reported as ``limit + 1`` (enough to decide a link, and cheaper). ``n_robots``: the
-    run's robots, as :mod:`netsim.world.los` takes them.
+    reported as ``limit + 1`` (enough to decide a link, and cheaper).
     """
     from netsim.world.los import kernels_for
 
-    sweep = kernels_for("netsim.world._sweep_kernels", n_robots).sweep
+    sweep = kernels_for("netsim.world._sweep_kernels").sweep
 
     grid = map_grid(occupancy, blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
