@@ -401,8 +401,12 @@ def test_near_pairs_at_a_range_of_zero_or_far_below_the_side(torus, kind):
     range-sized cells would be far more than the robots: the KD-tree's pairs."""
     rng = np.random.default_rng(13)
     side = 1000.0
-    pos = np.round(rng.uniform(0, side, (200, 2)) / 100) * 100 % side
-    for r in (0.0, 1e-3, 150.0):
+    lattice = np.round(rng.uniform(0, side, (100, 2)) / 100) * 100 % side
+    spread = rng.uniform(0, side, (100, 2))
+    # Pairs half a metre apart, some across the torus's edge.
+    spread[:10] = np.column_stack([rng.uniform(0, side, 10), np.full(10, side - 0.2)])
+    pos = np.vstack([lattice, spread, (spread + 0.5 * np.array([0.6, 0.8])) % side])
+    for r in (0.0, 1.0, 150.0):
         got = {tuple(p) for p in core(kind).near_pairs(pos, r, side if torus else 0.0).tolist()}
         want = {tuple(p) for p in pairs_oracle.kd_tree_pairs(pos, r, side if torus else None).tolist()}
         assert got == want and len(want) > 10
