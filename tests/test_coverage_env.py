@@ -10,8 +10,8 @@ pytest.importorskip("pettingzoo")
 from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
 
 from netsim import metrics  # noqa: E402
-from netsim.cosim import CommandError  # noqa: E402
 from netsim.compiled import compiled_copy  # noqa: E402
+from netsim.cosim import CommandError  # noqa: E402
 from netsim.envs import _kernels, coverage_v0  # noqa: E402
 from netsim.errors import ConfigError  # noqa: E402
 from netsim.run import collect  # noqa: E402

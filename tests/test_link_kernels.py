@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.links import lifetimes
 from netsim.compiled import compiled_copy
+from netsim.links import lifetimes
 from netsim.links.crossings import roots, solve_piece
 from netsim.trajectory import LegTable
 
