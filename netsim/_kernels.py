@@ -1,13 +1,15 @@
-"""Compiled (numba) loops of the engine core's hot paths: the range query of a transmission,
+"""The loops (kernels) of the engine core's hot paths: the range query of a transmission,
 the grid of candidate pairs (range index, link solvers, snapshots) and the pairs in reach of
-a sample.
+a sample; compiled or plain Python as :func:`netsim.compiled.load` decides.
 
-Each computes exactly what its numpy counterpart computes, with the same arithmetic in the
-same order, one item at a time: for the tens of candidates of one query, numpy's cost per
-operation, not the arithmetic, is what a call costs. The tests check that both agree exactly.
+One item at a time: for the tens of candidates of one query, numpy's cost per operation,
+not the arithmetic, is what a call costs. The tests compare them, plain and compiled, with
+numpy oracles (tests/oracles/).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -110,19 +112,30 @@ def grid(pos, r, box):
     """The grid of :func:`near_pairs` over positions ``pos`` (in ``[0, box)`` on a torus of
     side ``box > 0``): cells no smaller than ``r``, ``cells_x`` by ``cells_y``; each
     position's cell (row-major), and the positions by cell, ascending within each:
-    ``members[start[c]:start[c + 1]]`` are cell ``c``'s."""
+    ``members[start[c]:start[c + 1]]`` are cell ``c``'s.
+
+    Cells a little wider than ``r``, as long as there are at most ``16 n + 64`` of them;
+    where that would take more (a few robots far from the others, a line of robots, a
+    range of zero), cells twice as wide, and again, until it does not: every pair within
+    ``r`` is still in the same or adjacent cells, and the grid's cost stays in proportion
+    to the robots."""
     n = pos.shape[0]
+    most = 16.0 * n + 64.0
     # Cells a little wider than r: two points within r are in the same or adjacent cells
     # whatever the rounding of their cell numbers.
     wide = r * (1.0 + 1e-6)
     if box > 0.0:
         lo_x = lo_y = 0.0
-        cells_x = cells_y = max(int(box // wide), 1)
+        across = box // wide if wide > 0.0 else most
+        cells_x = cells_y = max(int(min(across, math.floor(math.sqrt(most)))), 1)
         size_x = size_y = box / cells_x
     else:
         lo_x, lo_y = pos[:, 0].min(), pos[:, 1].min()
         span_x, span_y = pos[:, 0].max() - lo_x, pos[:, 1].max() - lo_y
-        # The caller keeps the count of cells in proportion to the points (grid_cells).
+        if not wide > 0.0:
+            wide = max(span_x, span_y, 1.0) / most
+        while (span_x // wide + 1.0) * (span_y // wide + 1.0) > most:
+            wide *= 2.0
         cells_x, cells_y = int(span_x // wide) + 1, int(span_y // wide) + 1
         size_x = size_y = wide
     # On a torus of fewer than three cells a side, neighbouring cells repeat: one cell.
@@ -149,8 +162,7 @@ def grid(pos, r, box):
 @jit(nogil=True)
 def near_pairs(pos, r, box):
     """Pairs ``(i, j)``, ``i < j``, of positions within ``r`` of each other (on a torus of
-    side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r`` (as many as
-    :func:`netsim.geometry.grid_cells` counts: the caller checks they are not too many): what
+    side ``box`` when ``box > 0``), by a grid of cells no smaller than ``r`` (:func:`grid`): what
     ``cKDTree.query_pairs(r)`` finds, and possibly pairs further apart than ``r`` by a
     relative 1e-9 (a distance at the bound rounds either way; callers filter exactly and
     ask with a slack, so such pairs change nothing). Rows by robot ``i``, then its cells row by
@@ -269,7 +281,7 @@ def reaches(ddx, ddy, lim, box):
     """Whether a sender at ``(ddx, ddy)`` from a receiver (the nearest image on a torus of
     side ``box > 0``) reaches it with range ``lim``: the square decides all but a distance
     within a relative 1e-6 of the range, which numpy's hypot decides (as
-    :func:`netsim.topology.reach_keys_of_pairs` measures)."""
+    :func:`netsim.topology.geometric_pairs` measures)."""
     ddx, ddy, d2, sure, unsure = _reach_band(ddx, ddy, lim, box)
     hit = d2 <= sure
     if (d2 > sure) & (d2 <= unsure):
@@ -393,8 +405,7 @@ def reach_keys(pos, folded, ranges, box):
     0``), ascending (:func:`netsim.topology.reach_keys`). Candidates from the :func:`grid` of
     the largest range over the ``folded`` positions (in ``[0, box)`` on a torus, else
     ``pos``), taken cell by cell from copies of the positions in cell order (a row of three
-    cells' candidates contiguous in memory); distances from ``pos``, as numpy computes them.
-    The caller checks the cells are not too many (:func:`netsim.geometry.grid_cells`)."""
+    cells' candidates contiguous in memory); distances from ``pos``, as numpy computes them."""
     n = pos.shape[0]
     cells_x, cells_y, cell, start, members = grid(folded, ranges.max(), box)
     n_cells = cells_x * cells_y

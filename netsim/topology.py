@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from netsim.compiled import load
-from netsim.geometry import grid_cells, in_box, near_pairs
+from netsim.geometry import finite_positions, in_box, near_pairs
 from netsim.groups import GroupView
 from netsim.state import RobotState
 
@@ -47,8 +47,7 @@ def geometric_pairs(
 
     Notes
     -----
-    A grid of cells (or every pair, or a KD-tree, in small runs) finds the candidate pairs within the largest
-    range: ``O(N + E)``.
+    A grid of cells finds the candidate pairs within the largest range: ``O(N + E)``.
     """
     positions_m = np.asarray(positions_m, dtype=float)
     n = len(positions_m)
@@ -72,38 +71,25 @@ def geometric_pairs(
 def reach_keys(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None) -> np.ndarray:
     """``receiver * n + sender`` for every ordered pair where the sender reaches the
     receiver (``d <= r_sender``), ascending: :func:`geometric_pairs`'s directed pairs as
-    one sorted key each, without ordering the pairs first. Past a small run's robots, one
-    compiled pass over a grid (:func:`netsim._kernels.reach_keys`), where the grid's cells
-    stay in proportion to the robots; else :func:`reach_keys_of_pairs`.
+    one sorted key each, without ordering the pairs first, in one pass over a grid
+    (:func:`netsim._kernels.reach_keys`).
 
     >>> reach_keys(np.array([[0., 0.], [3., 4.], [20., 0.]]), np.array([5.0, 4.0, 30.0])).tolist()
     [2, 3, 5]
     """
     positions_m = np.asarray(positions_m, dtype=float)
     n = len(positions_m)
+    if n < 2:
+        return np.empty(0, np.int64)
     ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))
-    kernels = load("netsim._kernels", n)
-    if kernels is not None and n >= 2:
-        folded = in_box(positions_m, side_m)
-        r_max = float(ranges.max())
-        if np.isfinite(folded).all() and r_max > 0 and grid_cells(folded, r_max, side_m) <= 16 * n + 64:
-            return kernels.reach_keys(
-                np.ascontiguousarray(positions_m),
-                np.ascontiguousarray(folded),
-                np.ascontiguousarray(ranges),
-                float(side_m or 0.0),
-            )
-    return reach_keys_of_pairs(positions_m, ranges, side_m)
-
-
-def reach_keys_of_pairs(positions_m: np.ndarray, ranges_m: np.ndarray, side_m: float | None = None) -> np.ndarray:
-    """:func:`reach_keys` from the candidate pairs (:func:`netsim.geometry.near_pairs`),
-    each pair's two directions filtered and all keys sorted: the numpy twin of the
-    compiled pass, and the way where a grid would need too many cells."""
-    n = len(positions_m)
-    i, j, dist = _candidates(positions_m, ranges_m, side_m)
-    fwd, back = dist <= ranges_m[i], dist <= ranges_m[j]
-    return np.sort(np.concatenate([j[fwd] * n + i[fwd], i[back] * n + j[back]]))
+    folded = in_box(positions_m, side_m)
+    finite_positions(folded)
+    return load("netsim._kernels", n).reach_keys(
+        np.ascontiguousarray(positions_m),
+        np.ascontiguousarray(folded),
+        np.ascontiguousarray(ranges),
+        float(side_m or 0.0),
+    )
 
 
 def geometric_edges(

@@ -434,7 +434,7 @@ def test_compiled_sample_into_equals_numpy(torus, symmetric):
     them both ways, one way, not at all. Nothing is written past the rows it reports."""
     from netsim.radio.spatial import RangeIndex
     from netsim.state import RobotState
-    from netsim.topology import reach_keys_of_pairs
+    from tests.oracles.near_pairs import reach_keys as reach_keys_of_pairs
     from tests.test_kernels import reach_layouts
 
     rng = np.random.default_rng(37)

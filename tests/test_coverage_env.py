@@ -10,10 +10,12 @@ pytest.importorskip("pettingzoo")
 from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
 
 from netsim import metrics  # noqa: E402
+from netsim.compiled import compiled_copy  # noqa: E402
 from netsim.cosim import CommandError  # noqa: E402
-from netsim.envs import _kernels, coverage_v0, measure  # noqa: E402
+from netsim.envs import _kernels, coverage_v0  # noqa: E402
 from netsim.errors import ConfigError  # noqa: E402
 from netsim.run import collect  # noqa: E402
+from tests.oracles import envs as oracle  # noqa: E402
 
 SMALL = {"n_robots": 6, "side_m": 200.0, "range_m": 40.0, "centre_side_m": 60.0, "max_cycles": 12}
 
@@ -107,7 +109,7 @@ def test_reward_is_the_coverage_gain_less_the_component_penalty():
     split = 0
     for _, rewards, _, _, infos in steps(env, np.random.default_rng(3), 8):
         pos = infos["robot_0"]["positions_m"]
-        gain = measure.covered_fraction_grid(pos, radius, 0.0, 0.0, side, side, 100) - measure.covered_fraction_grid(
+        gain = oracle.covered_fraction_grid(pos, radius, 0.0, 0.0, side, side, 100) - oracle.covered_fraction_grid(
             before, radius, 0.0, 0.0, side, side, 100
         )
         parts = int(metrics.components(pos, params["range_m"]).max() + 1)
@@ -196,18 +198,21 @@ def test_render_draws_an_rgb_frame():
     assert coverage_v0.parallel_env(**SMALL).render() is None
 
 
-def test_compiled_measures_equal_the_numpy_ones():
-    """The compiled covered fraction, component count and nearest told neighbours are the
-    numpy ones exactly (including disks past the border, and areas off the origin)."""
+@pytest.mark.parametrize("compiled", [False, True], ids=["plain", "compiled"])
+def test_measure_kernels_equal_the_numpy_oracles(compiled):
+    """The covered fraction, component count and nearest told neighbours of the kernels,
+    plain and compiled, are the numpy oracles' exactly (including disks past the border,
+    and areas off the origin)."""
+    kernels = compiled_copy("netsim.envs._kernels") if compiled else _kernels
     rng = np.random.default_rng(0)
     for n in (1, 5, 30):
         pos = rng.uniform(-20.0, 220.0, (n, 2))
         for area in ((0.0, 0.0, 200.0, 200.0), (-15.0, 30.0, 180.0, 120.0)):
-            assert _kernels.covered_fraction_grid(pos, 35.0, *area, 64) == measure.covered_fraction_grid(
+            assert kernels.covered_fraction_grid(pos, 35.0, *area, 64) == oracle.covered_fraction_grid(
                 pos, 35.0, *area, 64
             )
         a, b = rng.integers(0, n, (2, n))
-        assert _kernels.component_count(n, a, b) == measure.component_count(n, a, b)
+        assert kernels.component_count(n, a, b) == oracle.component_count(n, a, b)
         slots = 8
         ids = np.where(rng.random((n, slots)) < 0.6, rng.integers(0, n, (n, slots)), -1)
         told = rng.uniform(0.0, 200.0, (n, slots, 2))
@@ -215,8 +220,8 @@ def test_compiled_measures_equal_the_numpy_ones():
         heard = rng.uniform(0.0, 3.0, (n, slots))
         for k in (0, 3, 10):
             a, b = np.zeros((n, 40), np.float32), np.zeros((n, 40), np.float32)
-            _kernels.nearest_told(a, 2, pos, ids, told, heard, 3.5, k)
-            measure.nearest_told(b, 2, pos, ids, told, heard, 3.5, k)
+            kernels.nearest_told(a, 2, pos, ids, told, heard, 3.5, k)
+            oracle.nearest_told(b, 2, pos, ids, told, heard, 3.5, k)
             assert a.tobytes() == b.tobytes()
 
 
@@ -226,7 +231,7 @@ def test_covered_fraction_grid_is_the_search_trees():
 
     pos = np.random.default_rng(1).uniform(0.0, 100.0, (12, 2))
     assert (
-        measure.covered_fraction_grid(pos, 9.0, 0.0, 0.0, 100.0, 100.0, 80) == covered_fraction(pos, 9.0, 100.0, 80)[0]
+        oracle.covered_fraction_grid(pos, 9.0, 0.0, 0.0, 100.0, 100.0, 80) == covered_fraction(pos, 9.0, 100.0, 80)[0]
     )
 
 
@@ -235,7 +240,7 @@ def test_component_count_is_that_of_the_links():
     rng = np.random.default_rng(2)
     for n in (1, 7, 40):
         a, b = rng.integers(0, n, (2, n // 2 + 1))
-        assert measure.component_count(n, a, b) == metrics.components_of_links(n, a, b).max() + 1
+        assert oracle.component_count(n, a, b) == metrics.components_of_links(n, a, b).max() + 1
 
 
 @pytest.mark.slow
@@ -313,7 +318,7 @@ def test_components_and_disks_follow_a_range_set_in_netsim():
     seen = episode(env, 3)
     for _, infos, _ in seen:
         pos = infos["robot_0"]["positions_m"]
-        assert infos["robot_0"]["covered_fraction"] == measure.covered_fraction_grid(
+        assert infos["robot_0"]["covered_fraction"] == oracle.covered_fraction_grid(
             pos, 80.0, 0.0, 0.0, 200.0, 200.0, 100
         )
     got, expected = links_components(env, seen)
@@ -354,7 +359,7 @@ def test_area_set_in_netsim_bounds_observations_and_coverage(world, area):
     for obs, infos, _ in episode(env, 4):
         assert all(space.contains(o) for o in obs.values())
         pos = infos["robot_0"]["positions_m"]
-        assert infos["robot_0"]["covered_fraction"] == measure.covered_fraction_grid(pos, 40.0, *area, 100)
+        assert infos["robot_0"]["covered_fraction"] == oracle.covered_fraction_grid(pos, 40.0, *area, 100)
     x0, y0, w, h = area
     assert space.low[:2].tolist() == [x0, y0] and space.high[:2].tolist() == [x0 + w, y0 + h]
 

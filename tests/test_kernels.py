@@ -16,7 +16,16 @@ from netsim.protocols import _kernels as table_kernels  # noqa: E402
 
 from netsim import _kernels as core_kernels  # noqa: E402
 from netsim.compiled import compiled_copy  # noqa: E402
+from tests.oracles import near_pairs as pairs_oracle  # noqa: E402
 from tests.oracles import radio as oracle  # noqa: E402
+
+
+def core(kind: str):
+    """The engine core's kernels as plain Python or compiled."""
+    return compiled_copy("netsim._kernels") if kind == "compiled" else core_kernels
+
+
+BOTH = pytest.mark.parametrize("kind", ["plain", "compiled"])
 
 
 def _moving_state(rng, n, side, torus):
@@ -309,13 +318,13 @@ def test_reception_counts_equal_numpy(which):
     assert a.tolist() == b.tolist()
 
 
+@BOTH
 @pytest.mark.parametrize("torus", [False, True])
-def test_compiled_near_pairs_finds_every_kd_tree_pair(torus):
-    """The grid's pairs within r are the KD-tree's (every one of them, each once, i < j),
-    plus at most pairs further than r by a relative 1e-9: uniform, clustered and sparse
-    layouts, a torus narrower than three ranges, r larger than the area."""
-    from scipy.spatial import cKDTree
-
+def test_near_pairs_finds_every_kd_tree_pair(torus, kind):
+    """The grid's pairs within r, plain and compiled, are the KD-tree's (every one of them,
+    each once, i < j), plus at most pairs further than r by a relative 1e-9: uniform,
+    clustered and sparse layouts, a torus narrower than three ranges, r larger than the
+    area."""
     rng = np.random.default_rng(11)
     side = 1000.0
     layouts = [
@@ -327,9 +336,8 @@ def test_compiled_near_pairs_finds_every_kd_tree_pair(torus):
     for pos in layouts:
         for r in (50.0, 120.0, 400.0, 2000.0):
             box = side if torus else None
-            got = core_kernels.near_pairs(pos, r, side if torus else 0.0)
-            tree = cKDTree(pos, boxsize=box) if torus else cKDTree(pos)
-            want = {tuple(p) for p in tree.query_pairs(r, output_type="ndarray").tolist()}
+            got = core(kind).near_pairs(pos, r, side if torus else 0.0)
+            want = {tuple(p) for p in pairs_oracle.kd_tree_pairs(pos, r, box).tolist()}
             found = [tuple(p) for p in got.tolist()]
             assert len(found) == len(set(found))
             assert all(i < j for i, j in found)
@@ -358,27 +366,47 @@ def test_neighbour_lists_equal_the_oracle(which):
             assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()
 
 
-def test_near_pairs_with_outliers_lines_and_bad_positions():
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_near_pairs_with_outliers_lines_and_bad_positions(monkeypatch, compiled):
     """Candidate pairs where a grid of range-sized cells would need far more cells than
-    robots (a cluster with one robot far away; robots on a long line) are the KD-tree's;
-    positions that are not finite are refused, as the KD-tree refuses them."""
-    from scipy.spatial import cKDTree
+    robots (a cluster with one robot far away; robots on a long line), plain and compiled,
+    are the KD-tree's; positions that are not finite are refused."""
+    from netsim.geometry import near_pairs
 
-    from netsim.geometry import grid_cells, near_pairs
-
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(12)
-    cluster = np.vstack([rng.uniform(0, 1000, (2000, 2)), [[1e6, 1e6]]])
+    cluster = np.vstack([rng.uniform(0, 1000, (2000 if compiled == "1" else 300, 2)), [[1e6, 1e6]]])
     line = np.column_stack([np.sort(rng.uniform(0, 1e10, 100)), np.zeros(100)])
     line[50:60, 0] = line[50, 0] + np.arange(10) * 0.5
-    for pos, r in ((cluster, 10.0), (line, 1.0)):
-        assert grid_cells(pos, r, None) > 16 * len(pos) + 64
+    diagonal = np.column_stack([line[:, 0], line[:, 0]])
+    for pos, r in ((cluster, 10.0), (line, 1.0), (diagonal, 1.0)):
+        span = pos.max(axis=0) - pos.min(axis=0)
+        assert (span[0] // r + 1) * (span[1] // r + 1) > 16 * len(pos) + 64
         got = {tuple(p) for p in near_pairs(pos, r, None).tolist()}
-        want = {tuple(p) for p in cKDTree(pos).query_pairs(r, output_type="ndarray").tolist()}
-        assert got == want and len(want) > 10
+        want = {tuple(p) for p in pairs_oracle.kd_tree_pairs(pos, r, None).tolist()}
+        assert got == want and len(want) >= 9
     bad = rng.uniform(0, 100, (50, 2))
     bad[7] = np.nan
     with pytest.raises(ValueError, match="finite"):
         near_pairs(bad, 10.0, None)
+
+
+@BOTH
+@pytest.mark.parametrize("torus", [False, True])
+def test_near_pairs_at_a_range_of_zero_or_far_below_the_side(torus, kind):
+    """A range of zero (coincident robots alone are pairs) and a range so small that
+    range-sized cells would be far more than the robots: the KD-tree's pairs."""
+    rng = np.random.default_rng(13)
+    side = 1000.0
+    lattice = np.round(rng.uniform(0, side, (100, 2)) / 100) * 100 % side
+    spread = rng.uniform(0, side, (100, 2))
+    # Pairs half a metre apart, some across the torus's edge.
+    spread[:10] = np.column_stack([rng.uniform(0, side, 10), np.full(10, side - 0.2)])
+    pos = np.vstack([lattice, spread, (spread + 0.5 * np.array([0.6, 0.8])) % side])
+    for r in (0.0, 1.0, 150.0):
+        got = {tuple(p) for p in core(kind).near_pairs(pos, r, side if torus else 0.0).tolist()}
+        want = {tuple(p) for p in pairs_oracle.kd_tree_pairs(pos, r, side if torus else None).tolist()}
+        assert got == want and len(want) > 10
 
 
 def reach_layouts(rng, side):
@@ -404,15 +432,15 @@ def reach_layouts(rng, side):
     yield rng.uniform(0, side, (2, 2)), np.full(2, 900.0)
 
 
+@BOTH
 @pytest.mark.parametrize("torus", [False, True])
-def test_compiled_reach_keys_equal_numpy(torus):
-    """``receiver * n + sender`` for every sender reaching its receiver, ascending, is the
-    numpy one from the candidate pairs: uniform, clustered, sparse and lattice layouts,
+def test_reach_keys_equal_the_oracle(torus, kind):
+    """``receiver * n + sender`` for every sender reaching its receiver, ascending, plain and
+    compiled, is the oracle's from the KD-tree's pairs: uniform, clustered, sparse and lattice layouts,
     distances a hair either side of the range, unequal ranges, a range larger than the
     area; on a torus also positions outside ``[0, side)`` and a torus narrower than three
     ranges."""
     from netsim.geometry import in_box
-    from netsim.topology import reach_keys_of_pairs
 
     rng = np.random.default_rng(31)
     side = 1000.0
@@ -421,8 +449,8 @@ def test_compiled_reach_keys_equal_numpy(torus):
     for pos, ranges in reach_layouts(rng, side):
         if torus:
             pos = pos + side * rng.integers(-2, 3, pos.shape)  # unwrapped: the same robots
-        got = core_kernels.reach_keys(pos, in_box(pos, box), ranges, side if torus else 0.0)
-        want = reach_keys_of_pairs(pos, ranges, box)
+        got = core(kind).reach_keys(pos, in_box(pos, box), ranges, side if torus else 0.0)
+        want = pairs_oracle.reach_keys(pos, ranges, box)
         assert got.tolist() == want.tolist()
         hits += len(want)
     assert hits > 1000
@@ -434,8 +462,6 @@ def test_reach_keys_from_the_range_index_lists_equal_numpy(torus):
     are the numpy ones: the layouts above standing still (distances a hair either side of
     the range, unequal ranges, a range larger than the area), and robots moving, the lists
     built earlier and still valid."""
-    from netsim.topology import reach_keys_of_pairs
-
     rng = np.random.default_rng(32)
     side = 1000.0
     box = side if torus else None
@@ -445,7 +471,7 @@ def test_reach_keys_from_the_range_index_lists_equal_numpy(torus):
         st.place(pos % side if torus else pos)
         at = st.positions_at(0.0)
         got = core_kernels.reach_keys_in_lists(at, st.range_m, side if torus else 0.0, *RangeIndex(st).lists(0.0))
-        assert got.tolist() == reach_keys_of_pairs(at, st.range_m, box).tolist()
+        assert got.tolist() == pairs_oracle.reach_keys(at, st.range_m, box).tolist()
         hits += len(got)
     st = _moving_state(rng, 300, 600.0, torus)
     index, t, rebuilds = RangeIndex(st), 0.0, []
@@ -455,7 +481,7 @@ def test_reach_keys_from_the_range_index_lists_equal_numpy(torus):
         st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
         at = st.positions_at(t)
         got = core_kernels.reach_keys_in_lists(at, st.range_m, 600.0 if torus else 0.0, *index.lists(t))
-        assert got.tolist() == reach_keys_of_pairs(at, st.range_m, 600.0 if torus else None).tolist()
+        assert got.tolist() == pairs_oracle.reach_keys(at, st.range_m, 600.0 if torus else None).tolist()
         rebuilds.append(index.rebuilds)
         hits += len(got)
     # Rebuilt along the way, and lists built earlier answered later queries.
@@ -494,11 +520,14 @@ def brute_reach_keys(pos: np.ndarray, ranges: np.ndarray) -> list[int]:
     return sorted((receiver * n + sender).tolist())
 
 
-def test_reach_keys_where_the_grid_would_not_fit():
-    """:func:`netsim.topology.reach_keys` is every pair in reach where a grid would need far
-    more cells than robots (the candidate pairs' way), for no robot or one, and elsewhere."""
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_reach_keys_where_the_grid_would_not_fit(monkeypatch, compiled):
+    """:func:`netsim.topology.reach_keys`, plain and compiled, is every pair in reach where a
+    grid of range-sized cells would need far more cells than robots, for no robot or one,
+    and elsewhere."""
     from netsim.topology import reach_keys
 
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(32)
     cluster = np.vstack([rng.uniform(0, 1000, (200, 2)), [[1e6, 1e6]]])
     spread = rng.uniform(0, 1000, (300, 2))
@@ -511,9 +540,9 @@ def test_reach_keys_where_the_grid_would_not_fit():
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_reach_keys_at_exactly_the_range_on_every_path(monkeypatch, compiled):
     """Two robots whose distance (hypot) is exactly the range, its square a hair above the
-    range's: in reach on every path, the compiled grid, the KD-tree of small runs or
-    NETSIM_COMPILED=0, and the candidates of a grid that would not fit."""
-    from netsim.topology import reach_keys, reach_keys_of_pairs
+    range's: in reach with the grid plain (NETSIM_COMPILED=0) and compiled, among many
+    robots and beside one far away (coarser cells), and by the oracle."""
+    from netsim.topology import reach_keys
 
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(5)
@@ -533,7 +562,7 @@ def test_reach_keys_at_exactly_the_range_on_every_path(monkeypatch, compiled):
         want = brute_reach_keys(pos, ranges)
         assert {1, len(pos)} <= set(want)
         assert reach_keys(pos, r).tolist() == want
-        assert reach_keys_of_pairs(pos, ranges, None).tolist() == want
+        assert pairs_oracle.reach_keys(pos, ranges, None).tolist() == want
 
 
 @pytest.mark.parametrize("torus", [False, True])
@@ -578,8 +607,6 @@ def test_senders_in_list_equal_numpy(torus):
     """Per robot, the senders of its neighbour list that reach it (the samples' truth, one
     robot at a time: ``senders_in_list``, in room for the longest list) are the numpy ones:
     the reach layouts, distances a hair either side of the range included."""
-    from netsim.topology import reach_keys_of_pairs
-
     rng = np.random.default_rng(33)
     side = 1000.0
     box = side if torus else 0.0
@@ -589,7 +616,7 @@ def test_senders_in_list_equal_numpy(torus):
         st.place(pos % side if torus else pos)
         at = st.positions_at(0.0)
         indptr, indices = RangeIndex(st).lists(0.0)
-        want = reach_keys_of_pairs(at, st.range_m, side if torus else None)
+        want = pairs_oracle.reach_keys(at, st.range_m, side if torus else None)
         n = len(pos)
         out = np.empty(core_kernels.longest_list(indptr), np.int64)
         assert len(out) == int(np.diff(indptr).max())

@@ -1,12 +1,14 @@
-"""The post-hoc link solver's compiled crossings (netsim/links/_kernels.py) are the numpy
-solver's, compared with ``==``; and link lifetimes are the same either way."""
+"""The post-hoc link solver's crossings (netsim/links/_kernels.py), plain and compiled, are
+the numpy solver's (netsim.links.crossings.solve_piece), compared with ``==``; and link
+lifetimes are the same either way."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from netsim.compiled import compiled_copy
 from netsim.links import lifetimes
-from netsim.links.crossings import roots
+from netsim.links.crossings import roots, solve_piece
 from netsim.trajectory import LegTable
 
 pytest.importorskip("numba")
@@ -42,15 +44,24 @@ def _solved(table, la, lb, radius, t_start, length, kernels):
         found.append((np.asarray(t, float).tobytes(), a.tobytes(), np.asarray(b).tobytes(), k, phase.tobytes()))
 
     pairs = np.arange(len(la), dtype=np.int64)
-    lifetimes._solve_legs(table, la, lb, radius, t_start, length, pairs, pairs + 1000, emit, None, kernels)
+    if kernels is not None:
+        lifetimes._solve_legs(table, la, lb, radius, t_start, length, pairs, pairs + 1000, emit, None, kernels)
+        return found
+    # The numpy solver, on the plane.
+    origin = np.maximum(table.t[la], table.t[lb])
+    pa = table.p[la] + table.v[la] * (origin - table.t[la])[:, None]
+    pb = table.p[lb] + table.v[lb] * (origin - table.t[lb])[:, None]
+    v = table.v[la] - table.v[lb]
+    solve_piece(pa - pb, v, radius, origin, t_start, length, pairs, pairs + 1000, emit, None)
     return found
 
 
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
 @pytest.mark.parametrize("scalar_window", [True, False])
-def test_compiled_plane_crossings_equal_numpy(scalar_window):
+def test_plane_crossings_equal_numpy(scalar_window, kind):
     """Every crossing of pairs on straight legs, its time and its phase, and their order,
-    are the numpy solver's bit for bit, for one window shared by all pairs and for a
-    window of each pair's own."""
+    plain and compiled, are the numpy solver's bit for bit, for one window shared by all
+    pairs and for a window of each pair's own."""
     rng = np.random.default_rng(5)
     _, table = _legs(rng, 40, 4)
     m = 4000
@@ -69,15 +80,16 @@ def test_compiled_plane_crossings_equal_numpy(scalar_window):
         length = rng.choice([0.0, 2.0, 10.0, 12.5], m)
         shift = rng.choice([0.0, 1.0, 0.5, 0.3e-10, -0.3e-10, 0.7], m)
         t_start = np.maximum(at - shift * length + rng.choice([0.0, 0.3e-10, -0.3e-10], m), origin)
-    got = _solved(table, la, lb, radius, t_start, length, _link_kernels)
+    kernels = compiled_copy("netsim.links._kernels") if kind == "compiled" else _link_kernels
+    got = _solved(table, la, lb, radius, t_start, length, kernels)
     want = _solved(table, la, lb, radius, t_start, length, None)
     assert got == want
     assert sum(len(f[1]) for f in want) > 8 * 200  # crossings were found (8 bytes a pair)
 
 
-def test_link_lifetimes_equal_with_and_without_compiled_crossings(monkeypatch):
+def test_link_lifetimes_equal_with_crossings_plain_or_compiled(monkeypatch):
     """The link lifetimes of random legs are the same rows, bit for bit, whether the
-    crossings are solved compiled or with numpy."""
+    crossings are solved compiled or as plain Python."""
     legs, _ = _legs(np.random.default_rng(9), 60, 5)
     frames = []
     for flag in ("1", "0"):

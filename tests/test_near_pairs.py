@@ -1,5 +1,6 @@
-"""Candidate pairs of a few robots come from every pair, not from scipy's KD-tree: the same
-pairs, and a small run never imports scipy.spatial."""
+"""Candidate pairs come from one grid (netsim._kernels.near_pairs), plain or compiled: the
+KD-tree's pairs, in the grid's order either way, and a small run never imports
+scipy.spatial."""
 
 import subprocess
 import sys
@@ -7,22 +8,27 @@ import sys
 import numpy as np
 import pytest
 
-from netsim.geometry import ALL_PAIRS_MAX, all_pairs_within, near_pairs
+from netsim.compiled import compiled_copy
+from netsim.geometry import near_pairs
+from tests.oracles.near_pairs import all_pairs_within, kd_tree_pairs
 
 
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
 @pytest.mark.parametrize("torus", [False, True])
-def test_every_pair_within_range_is_the_kd_tree_pairs(torus):
-    """``all_pairs_within`` finds the KD-tree's pairs within the range, but for rounding at
-    the range itself (each rounds a distance its own way: callers ask with slack), ordered
-    ``(i, j)`` with ``i < j``; on the plane and on a torus, with positions on a lattice
+def test_near_pairs_are_every_pair_within_range(torus, kind):
+    """The grid, plain and compiled, finds every pair within the range (each once, ``i <
+    j``) and at most pairs further by a relative 1e-9 (a distance at the range rounds either
+    way: callers filter exactly); on the plane and on a torus, with positions on a lattice
     (distances exactly the range), coincident ones, and a pair whose distance rounds to
-    either side of the range."""
-    from scipy.spatial import cKDTree
+    either side of the range. The oracles (every pair, the KD-tree) agree within the same
+    bounds."""
+    import netsim._kernels
 
+    kernels = compiled_copy("netsim._kernels") if kind == "compiled" else netsim._kernels
     rng = np.random.default_rng(2)
     side = 300.0
     layouts = [
-        rng.uniform(0, side, (ALL_PAIRS_MAX, 2)),
+        rng.uniform(0, side, (64, 2)),
         np.round(rng.uniform(0, side, (40, 2)) / 50) * 50 % side,
         np.zeros((5, 2)),
         rng.uniform(0, side, (2, 2)),
@@ -31,21 +37,24 @@ def test_every_pair_within_range_is_the_kd_tree_pairs(torus):
     for pos in layouts:
         for r in (0.0, 50.0, 120.0, 1000.0):
             box = side if torus else None
-            got = all_pairs_within(pos, r, box)
-            found = [tuple(p) for p in got.tolist()]
-            assert found == sorted(found) and all(i < j for i, j in found)
-            tree = cKDTree(pos, boxsize=box) if torus else cKDTree(pos)
-            inner = {tuple(p) for p in tree.query_pairs(r * (1 - 1e-9), output_type="ndarray").tolist()}
-            outer = {tuple(p) for p in tree.query_pairs(r * (1 + 1e-9), output_type="ndarray").tolist()}
+            inner = {tuple(p) for p in kd_tree_pairs(pos, r * (1 - 1e-9), box).tolist()}
+            outer = {tuple(p) for p in kd_tree_pairs(pos, r * (1 + 1e-9), box).tolist()}
+            every = [tuple(p) for p in all_pairs_within(pos, r, box).tolist()]
+            assert every == sorted(every) and inner <= set(every) <= outer
+            found = [tuple(p) for p in kernels.near_pairs(pos, r, side if torus else 0.0).tolist()]
+            assert len(found) == len(set(found)) and all(i < j for i, j in found)
             assert inner <= set(found) <= outer
 
 
-def test_near_pairs_of_a_few_robots_without_compiled_loops(monkeypatch):
-    """With the numpy code, ``near_pairs`` of up to ALL_PAIRS_MAX positions is every pair
-    within range."""
-    monkeypatch.setenv("NETSIM_COMPILED", "0")
+def test_near_pairs_plain_and_compiled_are_the_same_list(monkeypatch):
+    """``near_pairs`` gives the same pairs in the same order whether a run calls the grid
+    compiled or as plain Python (NETSIM_COMPILED)."""
     pos = np.random.default_rng(4).uniform(0, 200, (30, 2))
-    assert near_pairs(pos, 60.0, None).tolist() == all_pairs_within(pos, 60.0, None).tolist()
+    got = {}
+    for compiled in ("0", "1"):
+        monkeypatch.setenv("NETSIM_COMPILED", compiled)
+        got[compiled] = near_pairs(pos, 60.0, None).tolist()
+    assert got["0"] == got["1"] and len(got["0"]) > 20
 
 
 def test_small_run_does_not_import_the_kd_tree(tmp_path):
@@ -65,22 +74,19 @@ def test_small_run_does_not_import_the_kd_tree(tmp_path):
     assert out.stdout.strip().splitlines()[-1] == "False"
 
 
-@pytest.mark.parametrize("finder", ["every pair", "kd-tree", "grid"])
+@pytest.mark.parametrize("compiled", ["0", "1"])
 @pytest.mark.parametrize("solved", ["after the run", "during the run"])
-def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkeypatch, finder, solved):
+def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkeypatch, compiled, solved):
     """Two robots standing still at their range, to the last bit either side: the links table
     has the pair exactly when its squared distance is within the range's square (the state
-    test), whichever way the candidate pairs were found (their finders each round a distance
-    at the range their own way), links solved after the run or during it."""
-    from netsim import geometry
+    test), the candidate pairs found by the grid plain or compiled (it finds them with a
+    slack), links solved after the run or during it."""
     from netsim.links.lifetimes import link_lifetimes
     from netsim.run import collect, simulation
     from netsim.state import RobotState
     from tests.fixtures import make_config
 
-    monkeypatch.setenv("NETSIM_COMPILED", "1" if finder == "grid" else "0")
-    if finder == "kd-tree":
-        monkeypatch.setattr(geometry, "ALL_PAIRS_MAX", 0)
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
     base = np.array([100.01586481765521, 201.7812107788257])
     linked = 0
     for k in range(-3, 4):
@@ -108,6 +114,6 @@ def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkey
             sim.run()
             links = collect(sim)["links"]
         d = pos[0] - pos[1]
-        assert len(links) == int(d @ d <= 100.0 * 100.0), (k, finder)
+        assert len(links) == int(d @ d <= 100.0 * 100.0), (k, compiled)
         linked += len(links)
     assert 0 < linked < 7  # both sides of the edge were tried

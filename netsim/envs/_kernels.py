@@ -1,7 +1,9 @@
-"""Compiled (numba) twins of an environment step's measures and observations
-(:mod:`netsim.envs.measure`): the same arithmetic one item at a time, for tens of robots
-where numpy's cost per call, not the arithmetic, is what a step costs. The tests check that
-both agree exactly."""
+"""What an environment step measures and observes, written as loops (kernels: compiled or
+plain Python, :func:`netsim.compiled.load`): the covered fraction of the run's area on a
+grid, the number of components of the network of the links the run's channel makes, and
+each robot's nearest told neighbours. One item at a time: for tens of robots numpy's cost
+per call, not the arithmetic, is what a step costs. The tests compare them with numpy
+oracles (tests/oracles/envs.py)."""
 
 from __future__ import annotations
 
@@ -14,7 +16,10 @@ from netsim.compiled import jit
 
 @jit(nogil=True)
 def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
-    """:func:`netsim.envs.measure.covered_fraction_grid`."""
+    """Fraction of the ``cells x cells`` grid of cell centres of the rectangle ``[x0, x0 +
+    width] x [y0, y0 + height]`` that lie within ``radius_m`` of some centre of ``p``
+    (:func:`netsim.metrics.covered_fraction` on the same grid, without a search tree: each
+    disk marks, in each grid row it reaches, the run of cells it covers)."""
     n = p.shape[0]
     if n == 0:
         return 0.0
@@ -38,7 +43,9 @@ def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
 
 @jit(nogil=True)
 def component_count(n, a, b):
-    """:func:`netsim.envs.measure.component_count` (by union-find)."""
+    """Connected components of the network of ``n`` robots whose links are the pairs
+    ``(a[k], b[k])`` (the links a run's channel makes: its link solver's ``up_pairs()``),
+    by union-find."""
     parent = np.arange(n)
     for k in range(a.shape[0]):
         i, j = a[k], b[k]
@@ -57,7 +64,10 @@ def component_count(n, a, b):
 
 @jit(nogil=True)
 def nearest_told(out, start, pos, ids, told, heard_s, now, k):
-    """:func:`netsim.envs.measure.nearest_told`, written into ``out[:, start:]``."""
+    """Write into ``out[i, start:start + 4 min(k, slots)]`` robot ``i``'s ``k`` nearest live
+    table entries by told position (ties: the lower slot first): ``dx, dy`` (told position
+    minus ``pos[i]``), the age of the Ack that told it (``now - heard_s``) and 1; zeros where
+    fewer are live. ``ids, told, heard_s``: a :class:`netsim.cosim.NeighbourView`'s arrays."""
     n, slots = ids.shape
     d2 = np.empty(slots)
     for i in range(n):

@@ -42,7 +42,6 @@ from netsim import config as cfgmod
 from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.cosim import CommandError
-from netsim.envs import measure
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.run import build
@@ -117,9 +116,8 @@ class CoverageEnv(ParallelEnv):
             self.area, p.speed_max_mps, len(self.role_names), p.max_neighbours, self.tau_s
         )
         self._high = self._action_space.high.astype(float)
-        # The compiled twins of the measures (netsim.envs._kernels) from
-        # netsim.compiled.SMALL_RUN_ROBOTS robots on, as the runs' own loops.
-        self._measures: Any = load("netsim.envs._kernels", p.n_robots) or measure
+        # The measures' kernels, compiled or plain as the run's own loops (netsim.compiled.load).
+        self._measures: Any = load("netsim.envs._kernels", p.n_robots)
 
     # -- spaces: one object per agent for the whole life of the environment ---------------
 

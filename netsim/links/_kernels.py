@@ -1,11 +1,11 @@
-"""Compiled (numba) loop of the post-hoc link solver (:mod:`netsim.links.lifetimes`): the
-crossings of pairs of robots on straight legs, on the plane.
+"""The loop of the post-hoc link solver (:mod:`netsim.links.lifetimes`), compiled or plain
+Python as :func:`netsim.compiled.load` decides: the crossings of pairs of robots on straight
+legs, on the plane.
 
-It computes exactly what :func:`netsim.links.lifetimes._solve_legs` computes through
-:func:`netsim.links.crossings.solve_piece` with numpy (the same arithmetic in the same order, one
-pair at a time): a 1,000-robot run hands that solver some 20,000 candidate pairs per window,
-and numpy's temporary arrays for each of its forty-odd steps cost more than the arithmetic.
-The tests check that both agree exactly.
+One pair at a time, the arithmetic of :func:`netsim.links.crossings.solve_piece` in the same
+order: a 1,000-robot run hands the solver some 20,000 candidate pairs per window, and numpy's
+temporary arrays for each of its forty-odd steps cost more than the arithmetic. The tests
+compare it, plain and compiled, with that numpy solver bit for bit.
 """
 
 from __future__ import annotations

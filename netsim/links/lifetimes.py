@@ -72,11 +72,10 @@ def link_events(
     n = len(np.atleast_1d(range_m)) if np.ndim(range_m) else int(legs["robot"].max()) + 1
     ranges = np.broadcast_to(np.asarray(range_m, float), (n,))
     L = LegTable(legs, n)
-    kernels = load("netsim.links._kernels", n) if not torus else None
-    if kernels is not None:
-        # Writable C-ordered copies whatever pandas handed over: the compiled crossings
-        # are compiled (and cached) for that one layout.
-        L.t, L.p, L.v = (np.array(x, float, order="C") for x in (L.t, L.p, L.v))
+    kernels = load("netsim.links._kernels", n)
+    # Writable C-ordered copies whatever pandas handed over: the compiled crossings are
+    # compiled (and cached) for that one layout.
+    L.t, L.p, L.v = (np.array(x, float, order="C") for x in (L.t, L.p, L.v))
     v_max = float(np.hypot(L.v[:, 0], L.v[:, 1]).max()) if len(L.v) else 0.0
     r_max = float(ranges.max())
     if window_s is not None:
@@ -195,7 +194,7 @@ def _solve_changing(
     stop: float,
     box: float | None,
     emit: Callable[..., None],
-    kernels: ModuleType | None = None,
+    kernels: ModuleType,
 ) -> None:
     """Pairs where a robot changes course within ``[start, stop)``: cut each pair's window
     at both robots' course changes and solve every piece, all pairs in one pass."""
@@ -244,12 +243,13 @@ def _solve_legs(
     b: np.ndarray,
     emit: Callable[..., None],
     box: float | None,
-    kernels: ModuleType | None = None,
+    kernels: ModuleType,
 ) -> None:
     """Crossings of pairs on legs ``la``, ``lb`` within ``[t_start, t_start + length]``, solved
-    from the later of the two legs' starts (:func:`netsim.links.crossings.solve_piece`; on the
-    plane, with ``kernels``, :func:`netsim.links._kernels.plane_crossings`)."""
-    if kernels is not None and box is None:
+    from the later of the two legs' starts: on the plane by ``kernels``
+    (:func:`netsim.links._kernels.plane_crossings`), on a torus, where every image of the
+    other robot counts, by :func:`netsim.links.crossings.solve_piece`."""
+    if box is None:
         n = len(la)
         t_start, length = (np.full(n, x, float) if np.ndim(x) == 0 else np.array(x, float) for x in (t_start, length))
         found = kernels.plane_crossings(L.t, L.p, L.v, la, lb, radius, t_start, length)
