@@ -22,12 +22,19 @@ KERNEL_MODULES = sorted(
 
 
 def test_every_kernel_module_keys_its_cache():
-    """Each module of compiled kernels in the tree, once imported, has pointed its cache at
-    a directory keyed by its sources."""
+    """The compiled copy of each kernel module in the tree (netsim.compiled.compiled_copy)
+    has pointed the cache of every kernel it compiles at a directory keyed by its sources."""
+    from numba.core.dispatcher import Dispatcher
+
+    from netsim.compiled import compiled_copy
+
     assert "netsim.protocols._kernels" in KERNEL_MODULES and "netsim._kernels" in KERNEL_MODULES
     for name in KERNEL_MODULES:
-        importlib.import_module(name)
-    assert set(KERNEL_MODULES) <= set(kernel_cache.keyed_modules())
+        copy = compiled_copy(name)
+        own = [v for v in vars(copy).values() if isinstance(v, Dispatcher) and v.py_func.__module__ == name]
+        assert own, name
+        keyed = kernel_cache.base_directory() / f"{name}-{kernel_cache.keyed_modules()[name]}"
+        assert all(str(keyed) in str(v._cache._cache_path) for v in own), name
 
 
 def _package(tmp_path, monkeypatch, name: str, files: dict[str, str]) -> Path:
