@@ -1,8 +1,8 @@
-"""Compiled (numba) loops behind :mod:`netsim.world.los` and :mod:`netsim.radio.shadowing`.
-
-Each computes exactly what its numpy counterpart computes, with the same arithmetic, one item
-at a time: for the few tens of pairs a transmission involves, numpy's cost per operation, not
-the arithmetic, is what a call costs. The tests check that both agree exactly.
+"""The radio's loops (compiled or plain, :func:`netsim.compiled.load`): the passes over a
+frame's pairs (:mod:`netsim.radio.fast`), the shadowing's update
+(:mod:`netsim.radio.shadowing`), the links' record and the legs' lookup, one item at a
+time. The tests check them against numpy oracles (tests/oracles/radio.py) and the loss
+chain's own path on whole arrays.
 """
 
 from __future__ import annotations

@@ -1,8 +1,6 @@
-"""Compiled (numba) loop of the shared medium's hot path: a frame's end under the unit disk.
-
-It computes exactly what :meth:`netsim.radio.mac.Medium._end`'s numpy code computes, one
-robot at a time: for the tens of robots a frame disturbs, numpy's cost per operation, not
-the arithmetic, is what a frame's end costs. The tests check that both agree exactly.
+"""The shared medium's hot loop (compiled or plain, :func:`netsim.compiled.load`): a
+frame's end (:meth:`netsim.radio.mac.Medium._end`), one robot at a time. The tests check it
+against its numpy oracle (tests/oracles/radio.py).
 """
 
 from __future__ import annotations
