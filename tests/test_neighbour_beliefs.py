@@ -85,7 +85,7 @@ def test_the_table_adds_up_to_the_beliefs_counts():
 
 def test_in_sorted_is_isin():
     """Membership in a sorted pool by binary search is np.isin, empty pool and ends included."""
-    from netsim.protocols.stack import in_sorted
+    from tests.oracles.protocols import in_sorted
 
     rng = np.random.default_rng(8)
     for size in (0, 1, 5, 200):
