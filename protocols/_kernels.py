@@ -3,76 +3,203 @@
 and once-a-second samples (:mod:`netsim.protocols.clustering`, :mod:`netsim.protocols.relay`,
 :mod:`netsim.protocols.stack`).
 
-Each computes exactly what its numpy counterpart computes,
-receiver by receiver instead of in array operations: for the ten or so receivers of one
-Ack, numpy's cost per operation, not the arithmetic, is what a call costs. The tests check
-that both agree exactly.
+Each rule is written once, here, receiver by receiver: for the ten or so receivers of one
+Ack, a loop costs less than numpy's array operations, whose cost per operation, not the
+arithmetic, is what a call costs. :func:`netsim.compiled.load` gives a run this module as it
+is (plain Python, for a few robots) or its compiled copy; the tests check both against
+reference oracles (``tests/oracles/protocols.py``).
 
-The loops take a few named things, each a plain tuple of arrays unpacked by name on entry
-(numba types a plain tuple faster than a named one, on every call), or a one-row record:
-
-- ``table``: a neighbour table, ``(ids, records, tau_s)``: the ``(n, slots)`` ids, the
-  ``(n, slots, FIELDS)`` packed records (:data:`netsim.protocols.neighbours.NeighbourTable.view`);
-- ``roles``: ``(role, leader)`` of every robot (:class:`netsim.protocols.roles.Roles`);
-- ``robots``: the clustering's per-robot state, ``(role, leader, role_sent, leader_since,
-  deadline_s, armed_s)`` (:class:`netsim.protocols.clustering.Robots`);
-- ``rules``: the clustering's constants, a one-row record
-  (:data:`netsim.protocols.clustering.RULES`: ``tau_s``, ``merge_delay_s``, ``symmetric``, the
-  join and election policies' codes);
-- ``told``: an Ack told to the clustering, ``(sender, receivers, record, leads)``;
-- ``effects``: what an Ack does to the clustering, the lists the loop fills
-  (:class:`netsim.protocols.clustering.AckEffects`);
-- ``motion``, ``beacon``: what an Ack is made of, ``(origin_m, velocity_mps, t0_s, torus,
-  side_m)`` of the robots and ``(sent, resign_pending, group_size)`` of the beacon
-  (:meth:`netsim.protocols.ack.AckBeacon.make_ack`).
+The loops take a few records, each a :class:`~typing.NamedTuple` defined here and read by
+field name: :class:`Table`, :class:`RoleArrays`, :class:`Robots`, :class:`Told`,
+:class:`AckEffects`, :class:`Motion`, :class:`Beacon`, :class:`Truth` and the sample's
+columns (:class:`Groups`, :class:`Pairs`, :class:`Counts`). numba types a named tuple passed
+from Python by a slower path than a plain one, on every call: so the callers pass each as a
+plain tuple of its fields (``tuple(Table(...))``, built once where it can be), and a loop
+called from Python names it on entry (``Table(*table)``, free in compiled code). The
+clustering's constants are a one-row record
+(:data:`netsim.protocols.clustering.RULES`: ``tau_s``, ``merge_delay_s``, ``symmetric``, the
+join and election policies' codes).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
 from netsim._kernels import longest_list, position, reaches_robot, senders_in_list
 from netsim.compiled import jit
 
-# The packed record's columns and the empty id (netsim.protocols.neighbours; repeated here so
-# that numba sees constants).
+# Columns of a neighbour table's packed record (netsim.protocols.neighbours). BIDIR_SINCE:
+# since when the neighbour has continuously listed us in its Acks (the link is known
+# two-way); inf while it does not. ROLE_SINCE: since when the live entry's Acks have
+# continuously told the role they tell now.
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
-FIELDS = 12  # an Ack's record: these fields, then the ids it heard
-EMPTY = -1
-# netsim.protocols.neighbours.EMPTY_RECORD, a constant of the compiled code (not an argument per Ack).
-EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf])
+EMPTY = -1  # the id of an empty slot
+# An empty slot's record (never live), a constant of the compiled code (not an argument per Ack).
+EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf], dtype=float)
+FIELDS = len(EMPTY_RECORD)  # an Ack's record: these fields, then the ids it heard
 # Columns of the Ack beacon's per-robot (n, 3) array of what each robot sent last
 # (netsim.protocols.ack.AckBeacon.sent): its sequence number, role and two-way degree.
 SEQ_SENT, ROLE_SENT, DEGREE_SENT = 0, 1, 2
+# Roles (netsim.protocols.roles).
+UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
+
+
+class Table(NamedTuple):
+    """A neighbour table (:attr:`netsim.protocols.neighbours.NeighbourTable.view`)."""
+
+    ids: np.ndarray  # (n, slots): the neighbour in each slot, EMPTY for none
+    records: np.ndarray  # (n, slots, FIELDS): the packed records
+    tau_s: float  # the liveness timeout
+
+
+class RoleArrays(NamedTuple):
+    """Every robot's role and leader (:class:`netsim.protocols.roles.Roles`)."""
+
+    role: np.ndarray
+    leader: np.ndarray
+
+
+class Robots(NamedTuple):
+    """The per-robot state the clustering's rules read and write on an Ack."""
+
+    role: np.ndarray  # Roles.role
+    leader: np.ndarray  # Roles.leader
+    role_sent: np.ndarray  # the role each announced in its last Ack (AckBeacon.role_sent)
+    leader_since: np.ndarray  # when each last became a leader (inf: it is not one)
+    deadline_s: np.ndarray  # the timers' deadlines (rules 3 and 4; DeadlineTimers)
+    armed_s: np.ndarray  # when each timer's event is armed
+
+
+class Told(NamedTuple):
+    """An Ack told to the clustering."""
+
+    sender: int
+    receivers: np.ndarray
+    record: np.ndarray  # the Ack's packed record
+    leads: bool  # a leader's Ack, not resigning
+
+
+class AckEffects(NamedTuple):
+    """What an Ack does to the clustering (docs/model.md 4.2), as lists filled per Ack by
+    :func:`ack_effects` (and :func:`receive_effects`), each as long as the robots and reused
+    from Ack to Ack: the counts returned say how much of each is the Ack's."""
+
+    group: np.ndarray  # rules 3, 5, 6: where (in the receivers) the sender's group's members are
+    to_arm: np.ndarray  # rule 3: members whose renewed timer needs its event armed
+    may_join: np.ndarray  # rule 2: undecided robots over a two-way link (a leader's Ack)
+    may_merge: np.ndarray  # rule 5: leaders over a two-way link ready to merge with the sender
+    merge_slot: np.ndarray  # rule 5: the sender's slot in each of their rows of the table
+    takers: np.ndarray  # the receivers that took the Ack (not overtaken)
+    fresh: np.ndarray  # per receiver: whether it took the Ack
+    hears_me: np.ndarray  # per receiver: whether the Ack lists it
+    takers_hear_me: np.ndarray  # per taker: whether the Ack lists it
+
+    @classmethod
+    def empty(cls, n: int) -> AckEffects:
+        """Room for an Ack to all of ``n`` robots."""
+        rows, flags = np.empty((6, n), dtype=np.int64), np.empty((3, n), dtype=bool)
+        return cls(*rows, *flags)
+
+
+class Motion(NamedTuple):
+    """The robots' motion (:class:`netsim.state.RobotState`): where each is at any time."""
+
+    origin_m: np.ndarray
+    velocity_mps: np.ndarray
+    t0_s: np.ndarray
+    torus: bool
+    side_m: float
+
+
+class Beacon(NamedTuple):
+    """The Ack beacon's per-robot state (:class:`netsim.protocols.ack.AckBeacon`)."""
+
+    sent: np.ndarray  # (n, 3): the sequence number, role and degree each sent last
+    resign_pending: np.ndarray  # whose next Ack resigns
+    group_size: np.ndarray  # the group size each announces
+
+
+class Truth(NamedTuple):
+    """Who reaches whom now, from the range index's neighbour lists (ascending, holding
+    every robot within reach), decided as :func:`netsim._kernels.reach_keys_in_lists`
+    decides it."""
+
+    pos: np.ndarray  # positions
+    ranges: np.ndarray  # ranges
+    box: float  # the torus' side, or 0
+    near_ptr: np.ndarray
+    near: np.ndarray
+
+
+class Groups(NamedTuple):
+    """Group membership, a row per robot and group (the ``groups`` table's columns)."""
+
+    robot: np.ndarray
+    group: np.ndarray
+    primary: np.ndarray
+
+
+class Pairs(NamedTuple):
+    """Who believes whom beside the truth (the ``neighbour_beliefs`` table's columns)."""
+
+    robot: np.ndarray
+    neighbour: np.ndarray
+    believed: np.ndarray
+    in_range: np.ndarray
+
+
+class Beliefs(NamedTuple):
+    """:class:`Pairs` with where each robot's pairs start (``indptr``, ``n + 1``)."""
+
+    robot: np.ndarray
+    neighbour: np.ndarray
+    believed: np.ndarray
+    in_range: np.ndarray
+    indptr: np.ndarray
+
+
+class Counts(NamedTuple):
+    """Per robot, its beliefs beside the truth (the ``beliefs`` table's columns)."""
+
+    robot: np.ndarray
+    role: np.ndarray
+    leader: np.ndarray
+    leader_in_range: np.ndarray
+    believed_neighbours: np.ndarray
+    true_neighbours: np.ndarray
+    stale_neighbours: np.ndarray
+    missing_neighbours: np.ndarray
 
 
 @jit(nogil=True)
-def receive(table, now, sender, receivers, record, flags, start):
+def receive(table, now, sender, receivers, record, fresh, hears_me, start):
     """Record an Ack of ``sender`` (its packed ``record``: the fields, then the sorted ids it
-    heard) in the rows of ``receivers[start:]`` (:meth:`netsim.protocols.neighbours.NeighbourTable.update`).
+    heard) in the rows of ``receivers[start:]`` of the ``table``
+    (:meth:`netsim.protocols.neighbours.NeighbourTable.receive`).
 
-    Fills ``flags``, ``(fresh, hears_me)``: whether the Ack was taken (not older than the
-    entry's) and whether the receiver is among ``heard``. Returns ``(-1, stale)`` when done,
+    Fills, per receiver, ``fresh``: whether the Ack was taken (not older than the entry's),
+    and ``hears_me``: whether the receiver is among ``heard``. Returns ``(-1, stale)`` when done,
     ``stale`` the number of receivers from ``start`` on that did not take the Ack, or
     ``(k, stale)`` where ``receivers[k]``'s row has no free slot (the table must grow first;
     the receivers before it are done, ``stale`` counting those of them from ``start``).
     """
-    fresh, hears_me = flags
-    return _receive(table, now, sender, receivers, record, fresh, hears_me, start)
+    return _receive(Table(*table), now, sender, receivers, record, fresh, hears_me, start)
 
 
 @jit(nogil=True)
 def take(table, now, sender, receivers, record, start):
     """:func:`receive` without the flags (:meth:`netsim.protocols.neighbours.NeighbourTable.take`):
     two arrays fewer to pass per Ack."""
-    return _receive(table, now, sender, receivers, record, None, None, start)
+    return _receive(Table(*table), now, sender, receivers, record, None, None, start)
 
 
 @jit(nogil=True)
 def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
     # fresh and hears_me are both arrays or both None (take): the compiler drops the
     # branches on them in each version.
-    ids, records, tau_s = table
+    ids, records, tau_s = table.ids, table.records, table.tau_s
     slots = ids.shape[1]
     heard = record[FIELDS:]
     n_heard = len(heard)
@@ -124,24 +251,21 @@ def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
 
 
 @jit(nogil=True)
-def announce(table, i, now, fields):
+def announce(table, i, now, seq, role, leader, x_m, y_m, group_size):
     """What robot ``i``'s Ack carries, from its row of the ``table``: the Ack's packed record
-    (its ``fields``, ``(seq, role, leader, x_m, y_m, group_size)``, with the two-way degree:
-    live entries that hear the robot), then the ids of the live entries, ascending
-    (:func:`netsim.protocols.neighbours.ack_record`; ``np.sort(id[live])`` and ``(live &
-    hears_me).sum()``). One array: the Ack costs one array, not two."""
-    return _announce(table, i, now, fields, None, True)
+    (these fields, the others the empty record's, with the two-way degree: live entries
+    that hear the robot), then the ids of the live entries, ascending. One array: the Ack
+    costs one array, not two."""
+    return _announce(Table(*table), i, now, seq, role, leader, x_m, y_m, group_size, None, True)
 
 
 @jit(nogil=True)
-def _announce(table, i, now, fields, mates_of, symmetric):
+def _announce(table, i, now, seq, role, leader, x_m, y_m, group_size, mates_of, symmetric):
     # mates_of: None, or the robot sending the Ack (the clustering's), whose members are
     # counted in the same pass over the live entries: a leader announces 1 + those over a
     # two-way link that named it their leader (group_size), read where the row's lines are
     # already in cache. The compiler drops the counting where it is None.
-    ids, records, tau_s = table
-    ids_row, records_row = ids[i], records[i]
-    seq, role, leader, x_m, y_m, group_size = fields
+    ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     record = np.empty(FIELDS + len(ids_row))
     record[:FIELDS] = EMPTY_RECORD
     k = 0
@@ -173,51 +297,49 @@ def make_ack(i, now, motion, beacon, roles, table):
     sequence number, the resignation it owes, its role, leader and group size (``beacon``,
     ``roles``), and what its row of the ``table`` announces (:func:`announce`). Counts the
     sequence number, clears the resignation and records the role and degree sent (the
-    beacon's ``sent``, an (n, 3) array), as the numpy code does. Returns the Ack's fields in
+    beacon's ``sent``, an (n, 3) array). Returns the Ack's fields in
     the order of :class:`netsim.protocols.ack.Ack`: ``(i, role, leader, seq, x, y, group_size,
     resign, record)``."""
-    return _make_ack(i, now, motion, beacon, roles, table, None, True)
+    return _make_ack(i, now, Motion(*motion), Beacon(*beacon), RoleArrays(*roles), Table(*table), None, True)
 
 
 @jit(nogil=True)
 def _make_ack(i, now, motion, beacon, roles, table, mates_of, symmetric):
     # mates_of: as in _announce; the size announced is also written in group_size.
-    origin_m, velocity_mps, t0_s, torus, side_m = motion
-    sent, resign_pending, group_size = beacon
-    role, leader = roles
-    x, y = position(origin_m, velocity_mps, t0_s, i, now, torus, side_m)
+    sent, resign_pending, group_size = beacon.sent, beacon.resign_pending, beacon.group_size
+    x, y = position(motion.origin_m, motion.velocity_mps, motion.t0_s, i, now, motion.torus, motion.side_m)
     s = sent[i, SEQ_SENT] + 1
     sent[i, SEQ_SENT] = s
     resign = resign_pending[i]
     if resign:
         resign_pending[i] = False
-    ro, le, size = np.int64(role[i]), leader[i], group_size[i]
-    record = _announce(table, i, now, (s, ro, le, x, y, size), mates_of, symmetric)
+    ro, le, size = np.int64(roles.role[i]), roles.leader[i], group_size[i]
+    record = _announce(table, i, now, s, ro, le, x, y, size, mates_of, symmetric)
     if mates_of is not None:
         size = np.int64(record[GROUP_SIZE])
         group_size[i] = size
     sent[i, ROLE_SENT] = ro
     sent[i, DEGREE_SENT] = np.int64(record[DEGREE])
-    return i, ro, le, s, x, y, size, resign, record
+    # Python's scalars, as the compiled copy returns them, in plain Python too.
+    return i, int(ro), int(le), int(s), float(x), float(y), int(size), bool(resign), record
 
 
 @jit(nogil=True)
 def make_sized_ack(i, now, motion, beacon, roles, table, sized, symmetric):
-    """:func:`make_ack`, after the clustering's hook has set the group size the Ack
-    announces (:func:`netsim.protocols.clustering.announced_size`): a leader's is 1 + its live
+    """:func:`make_ack` with the group size the Ack announces: a leader's is 1 + its live
     two-way members in its row (:func:`group_size`, counted in the pass that makes the
     Ack), anyone else's 1 (the beacon's ``group_size``, written back; ``sized``: whose is
-    other than 1). One call per Ack instead of a Python hook and two compiled calls."""
+    other than 1). One call per Ack."""
     # The members counted for every Ack, used for a leader's: one call for both cases (a
     # call for each would cost every Ack a second compiled call).
-    sizes = beacon[2]
-    leads = roles[0][i] == LEADER_ROLE
-    if leads:
+    beacon, roles = Beacon(*beacon), RoleArrays(*roles)
+    sizes = beacon.group_size
+    if roles.role[i] == LEADER_ROLE:
         sized[i] = True
     elif sized[i]:
         sizes[i] = 1
         sized[i] = False
-    return _make_ack(i, now, motion, beacon, roles, table, i, symmetric)
+    return _make_ack(i, now, Motion(*motion), beacon, roles, Table(*table), i, symmetric)
 
 
 # Rule 2's join policies (netsim.protocols.clustering.JOIN_CODES).
@@ -226,13 +348,15 @@ JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
 
 @jit(nogil=True)
 def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard):
-    """Rule 2 from robot ``i``'s row of the ``table`` (:func:`netsim.protocols.clustering.join_choice`):
-    the leader that ``i``, at ``(x_m, y_m)``, joins among its live two-way neighbours whose
-    last Ack said they were leaders, but ``exclude``, by the join policy of the ``rules``
-    (its code; ``first_heard``: the leader whose Ack triggered the join, or negative), and
-    the first slot of that leader in the row; ``(-1, -1)`` when it knows no leader."""
-    ids, records, tau_s = table
-    ids_row, records_row = ids[i], records[i]
+    """Rule 2 from robot ``i``'s row of the ``table``
+    (:meth:`netsim.protocols.clustering.Clustering._rule2_join`): the leader that ``i``, at
+    ``(x_m, y_m)``, joins among its live two-way neighbours whose last Ack said they were
+    leaders, but ``exclude``, by the join policy of the ``rules`` (its code, that of
+    :func:`netsim.protocols.clustering.choose_leader`'s policy; ``first_heard``: the leader
+    whose Ack triggered the join, or negative), and the first slot of that leader in the
+    row; ``(-1, -1)`` when it knows no leader."""
+    table = Table(*table)
+    ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     c = rules[0]
     symmetric, policy = c.symmetric, c.join_policy
     best, best_d = -1, np.inf
@@ -266,12 +390,13 @@ ELECT_LOWEST_ID, ELECT_HIGHEST_DEGREE, ELECT_NONE = 0, 1, 2
 
 @jit(nogil=True)
 def elected_in_row(table, i, now, rules, old, degree):
-    """Rule 6 from robot ``i``'s row of the ``table`` (:func:`netsim.protocols.clustering.elected_in_row`):
-    whether ``i``, of announced ``degree``, takes over from its lost leader ``old`` among the
-    live two-way neighbours whose last Ack said they were members of ``old``, by the election
-    policy of the ``rules`` (its code)."""
-    ids, records, tau_s = table
-    ids_row, records_row = ids[i], records[i]
+    """Rule 6 from robot ``i``'s row of the ``table``
+    (:meth:`netsim.protocols.clustering.Clustering._rule6_reaffiliate`): whether ``i``, of
+    announced ``degree``, takes over from its lost leader ``old`` among the live two-way
+    neighbours whose last Ack said they were members of ``old``, by the election policy of
+    the ``rules`` (its code, that of :func:`netsim.protocols.clustering.elected`'s policy)."""
+    table = Table(*table)
+    ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     c = rules[0]
     symmetric, policy = c.symmetric, c.election_policy
     if policy == ELECT_NONE:
@@ -291,25 +416,37 @@ def elected_in_row(table, i, now, rules, old, degree):
     return True
 
 
-# Roles (netsim.protocols.roles).
-UNDECIDED, MEMBER, LEADER_ROLE = 0, 1, 2
-
-# The clustering's loops (netsim.protocols.clustering, relay and stack), each equal to a numpy
-# function there: per Ack, per flooded message and per sample.
+# The clustering's loops (netsim.protocols.clustering, relay and stack): per Ack, per flooded
+# message and per sample.
 
 
 @jit(nogil=True)
 def ack_effects(now, told, hears_me, robots, table, rules, effects):
-    """What an Ack (``told``) does to the clustering (:func:`netsim.protocols.clustering.ack_effects`),
-    from the roles before it acts: the lists of ``effects`` it fills, and how many of each
-    (``group``, ``to_arm``, ``may_join``, ``may_merge``; ``merge_slot`` as long as
-    ``may_merge``). ``hears_me``: per receiver, whether the Ack lists it. A leading Ack
-    (a leader's, not resigning) also sets its group's renewed deadlines (rule 3) in the
-    ``robots``' ``deadline_s``."""
-    sender, receivers, _, leads = told
-    role, leader, role_sent, leader_since, deadline_s, armed_s = robots
-    ids, records, _ = table
-    group, to_arm, may_join, may_merge, merge_slot, _, _, _, _ = effects
+    """What an Ack ``told`` (:class:`Told`) does, from the roles before it acts (the
+    ``robots``, :class:`Robots`), in the lists of ``effects`` (:class:`AckEffects`;
+    returned: how many of ``group``, ``to_arm``, ``may_join`` and ``may_merge``):
+
+    - ``group``: positions (in the receivers) of the members of the sender's group;
+    - if the Ack leads (a leader's, not resigning), those members' timers over a two-way
+      link restart ``tau_s`` from ``now`` (rule 3: written in the robots' ``deadline_s``;
+      ``to_arm``: those of them whose timer's event must be armed, the deadline before
+      the event in ``armed_s``);
+    - ``may_join``: the undecided robots over a two-way link (rule 2);
+    - ``may_merge``: the leaders over a two-way link that may merge with the sender now
+      (rule 5; ``merge_slot``: the sender's slot in their rows of the ``table``): those that
+      announced themselves as leaders (``role_sent``) and have been leaders beside the
+      sender for ``merge_delay_s`` at ``now``, counted from the latest of the link known
+      (two-way, or live when links are symmetric), the sender's Acks saying leader, and
+      their own leadership (``leader_since``).
+
+    ``hears_me``: per receiver, whether the Ack lists it; ``rules``:
+    :data:`netsim.protocols.clustering.RULES`. Counts and reused lists, not new arrays:
+    cheaper to hand back, once per Ack."""
+    told, robots, table, effects = Told(*told), Robots(*robots), Table(*table), AckEffects(*effects)
+    sender, receivers, leads = told.sender, told.receivers, told.leads
+    role, leader, deadline_s, armed_s = robots.role, robots.leader, robots.deadline_s, robots.armed_s
+    ids, records = table.ids, table.records
+    group, to_arm, may_join, may_merge = effects.group, effects.to_arm, effects.may_join, effects.may_merge
     c = rules[0]
     symmetric, merge_delay_s = c.symmetric, c.merge_delay_s
     renewed_s = now + c.tau_s
@@ -330,7 +467,7 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
         elif leads and two_way and ro == UNDECIDED:
             may_join[n_join] = r  # rule 2
             n_join += 1
-        elif leads and two_way and ro == LEADER_ROLE and role_sent[r] == LEADER_ROLE:
+        elif leads and two_way and ro == LEADER_ROLE and robots.role_sent[r] == LEADER_ROLE:
             # Rule 5: leaders that have announced themselves as such, beside the sender
             # for the merge delay.
             slot = -1
@@ -342,10 +479,10 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
                 continue
             rec = records[r, slot]
             linked = rec[LIVE_SINCE] if symmetric else rec[BIDIR_SINCE]
-            since = max(max(linked, rec[ROLE_SINCE]), leader_since[r])
+            since = max(max(linked, rec[ROLE_SINCE]), robots.leader_since[r])
             if not now - since < merge_delay_s:
                 may_merge[n_merge] = r
-                merge_slot[n_merge] = slot
+                effects.merge_slot[n_merge] = slot
                 n_merge += 1
     return n_group, n_arm, n_join, n_merge
 
@@ -360,20 +497,20 @@ def receive_effects(table, now, told, robots, rules, effects, start):
     may_merge)``: ``k`` and ``stale`` as :func:`receive` returns them (``k >= 0``: the table
     must grow, then the call be made again from ``k``; nothing acted on yet), ``kept`` the
     receivers that took the Ack, and :func:`ack_effects`' counts."""
-    sender, receivers, record, leads = told
-    _, _, _, _, _, takers, fresh, hears_me, takers_hear_me = effects
-    k, stale = _receive(table, now, sender, receivers, record, fresh, hears_me, start)
+    table, told, effects = Table(*table), Told(*told), AckEffects(*effects)
+    receivers, fresh, hears_me = told.receivers, effects.fresh, effects.hears_me
+    k, stale = _receive(table, now, told.sender, receivers, told.record, fresh, hears_me, start)
     if k >= 0:
         return k, stale, 0, 0, 0, 0, 0
+    takers, takers_hear_me = effects.takers, effects.takers_hear_me
     kept = 0
     for j in range(len(receivers)):
         if fresh[j]:
             takers[kept] = receivers[j]
             takers_hear_me[kept] = hears_me[j]
             kept += 1
-    n_group, n_arm, n_join, n_merge = ack_effects(
-        now, (sender, takers[:kept], record, leads), takers_hear_me[:kept], robots, table, rules, effects
-    )
+    taken = Told(told.sender, takers[:kept], told.record, told.leads)
+    n_group, n_arm, n_join, n_merge = ack_effects(now, taken, takers_hear_me[:kept], robots, table, rules, effects)
     return k, stale, kept, n_group, n_arm, n_join, n_merge
 
 
@@ -398,28 +535,35 @@ def _two_way(rec, now, tau_s, symmetric):
 @jit(nogil=True)
 def membership(table, now, symmetric, roles):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
-    robot and group (:func:`netsim.protocols.clustering.membership`)."""
-    ids = table[0]
-    n, slots = ids.shape
-    robot = np.empty(n * (slots + 1), dtype=np.int64)
-    group = np.empty(n * (slots + 1), dtype=np.int64)
-    primary = np.empty(n * (slots + 1), dtype=np.bool_)
+    robot and group (:meth:`netsim.protocols.clustering.Clustering.membership`): a leader in
+    its own group, a member in its leader's (primary) and in those of the other leaders it
+    knows over a live two-way link."""
+    table, roles = Table(*table), RoleArrays(*roles)
+    n, slots = table.ids.shape
+    groups = _group_arrays(n, slots)
     m = 0
     for r in range(n):
-        m = _membership_row(table, r, now, symmetric, roles, (robot, group, primary), m)
-    return robot[:m], group[:m], primary[:m]
+        m = _membership_row(table, r, now, symmetric, roles, groups, m)
+    return groups.robot[:m], groups.group[:m], groups.primary[:m]
+
+
+@jit(nogil=True)
+def _group_arrays(n, slots):
+    """The :class:`Groups` :func:`_membership_row` fills, for at most every slot and the
+    robot's own group."""
+    size = n * (slots + 1)
+    return Groups(np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64), np.empty(size, dtype=np.bool_))
 
 
 @jit(nogil=True, inline="always")
 def _membership_row(table, r, now, symmetric, roles, groups, m):
-    """Robot ``r``'s rows of :func:`membership`, written in ``groups`` ``(robot, group,
-    primary)`` from ``m`` on; returns the next free row. A slot's record is read only when
+    """Robot ``r``'s rows of :func:`membership`, written in ``groups`` (:class:`Groups`)
+    from ``m`` on; returns the next free row. A slot's record is read only when
     its id is not EMPTY (an EMPTY slot's record is EMPTY_RECORD, never live): the records
     are tens of MB at 10,000 robots, a scan costs the memory it reads."""
-    ids, records, tau_s = table
-    ids_row, records_row = ids[r], records[r]
-    role, own = roles[0][r], roles[1][r]
-    robot, group, primary = groups
+    ids_row, records_row, tau_s = table.ids[r], table.records[r], table.tau_s
+    role, own = roles.role[r], roles.leader[r]
+    robot, group, primary = groups.robot, groups.group, groups.primary
     if role == LEADER_ROLE:
         robot[m], group[m], primary[m] = r, r, True
         return m + 1
@@ -446,11 +590,13 @@ def _membership_row(table, r, now, symmetric, roles, groups, m):
 
 @jit(nogil=True)
 def relays(table, now, symmetric, roles, receivers, distributed_gateways):
-    """The receivers of a flooded message that relay it (:func:`netsim.protocols.relay.relays`):
-    leaders, and members with a live two-way neighbour in another group (a leader other than
-    their own or, with ``distributed_gateways``, a member of another leader)."""
-    ids, records, tau_s = table
-    role, leader = roles
+    """The ``receivers`` of a flooded message that relay it (:mod:`netsim.protocols.relay`):
+    leaders, and gateways, the members with a live two-way neighbour in another group (a
+    leader other than their own or, with ``distributed_gateways``, a member of another
+    leader)."""
+    table, roles = Table(*table), RoleArrays(*roles)
+    ids, records, tau_s = table.ids, table.records, table.tau_s
+    role, leader = roles.role, roles.leader
     out = np.empty(len(receivers), dtype=np.int64)
     m = 0
     for r in receivers:
@@ -480,8 +626,9 @@ def relays(table, now, symmetric, roles, receivers, distributed_gateways):
 
 @jit(nogil=True)
 def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gateways):
-    """A flooded message's copy reaching ``receivers`` (:func:`netsim.protocols.relay.flood_step`):
-    those that had not ``seen`` it, marked now, and which of them relay it (:func:`relays`)."""
+    """A flooded message's copy reaching ``receivers`` (:meth:`netsim.protocols.relay.Relay._on_flood`):
+    those that had not ``seen`` it (a flag per robot, set for them now), and which of them
+    relay it (:func:`relays`)."""
     fresh = np.empty(len(receivers), dtype=np.int64)
     m = 0
     for r in receivers:
@@ -501,23 +648,30 @@ def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gatewa
 
 @jit(nogil=True)
 def belief_rows(table, now, heard):
-    """Who believes whom live, beside the truth (:func:`netsim.protocols.stack.belief_rows`): per
-    pair ``(robot, neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or
-    ``robot * n + neighbour`` is in ``heard`` (ascending keys), ordered by robot and
-    neighbour, whether believed and whether in range; and where each robot's pairs start
-    (``indptr``, ``n + 1``)."""
-    n, slots = table[0].shape
+    """Who believes whom live, beside the truth (:class:`Beliefs`): per pair ``(robot,
+    neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or ``robot * n +
+    neighbour`` is in ``heard`` (ascending keys: ``neighbour``'s transmissions reach
+    ``robot``), ordered by robot and neighbour, whether believed and whether in range; and
+    where each robot's pairs start (``indptr``, ``n + 1``)."""
+    table = Table(*table)
+    n, slots = table.ids.shape
     out = _belief_arrays(n, slots, len(heard))
-    scratch = (np.empty(slots, np.int64), np.empty(n, np.int64))
+    live, senders = np.empty(slots, np.int64), np.empty(n, np.int64)
     k = p = 0
     for r in range(n):
-        k, p = _belief_row(table, r, now, heard, scratch, out, k, p)
-    return out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4]
+        k, p = _belief_row(table, r, now, heard, live, senders, out, k, p)
+    return _beliefs_to(out, k)
+
+
+@jit(nogil=True)
+def _beliefs_to(out, k):
+    """The first ``k`` pairs of :class:`Beliefs` ``out``, as a plain tuple."""
+    return out.robot[:k], out.neighbour[:k], out.believed[:k], out.in_range[:k], out.indptr
 
 
 @jit(nogil=True)
 def _belief_arrays(n, slots, n_heard):
-    """The arrays :func:`_belief_row` fills, for at most every slot and every heard key."""
+    """The :class:`Beliefs` :func:`_belief_row` fills, for at most every slot and every heard key."""
     size = n * slots + n_heard
     robot = np.empty(size, np.int64)
     neighbour = np.empty(size, np.int64)
@@ -525,26 +679,25 @@ def _belief_arrays(n, slots, n_heard):
     believed = np.empty(size, np.bool_)
     in_range = np.empty(size, np.bool_)
     indptr = np.zeros(n + 1, np.int64)
-    return robot, neighbour, believed, in_range, indptr
+    return Beliefs(robot, neighbour, believed, in_range, indptr)
 
 
 @jit(nogil=True, inline="always")
-def _belief_row(table, r, now, heard, scratch, out, k, p):
-    """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` from ``k`` on, its
-    heard keys from ``heard[p]`` on (``scratch``: ``(live, senders)``, room for a row's
-    slots and for ``n`` ids); returns the next ``k`` and ``p``."""
-    ids, records, tau_s = table
-    n = ids.shape[0]
-    live, senders = scratch
-    m = _live_row(ids[r], records[r], now, tau_s, live)
+def _belief_row(table, r, now, heard, live, senders, out, k, p):
+    """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` (:class:`Beliefs`)
+    from ``k`` on, its heard keys from ``heard[p]`` on (``live``, ``senders``: scratch,
+    room for a row's slots and for ``n`` ids); returns the next ``k`` and ``p``."""
+    n = table.ids.shape[0]
+    m = _live_row(table.ids[r], table.records[r], now, table.tau_s, live)
     base = r * n
     h = 0
     while p < len(heard) and heard[p] < base + n:
         senders[h] = heard[p] - base
         h += 1
         p += 1
-    k, _, _, _ = _pair_rows(live, m, senders, h, r, out[:4], k)
-    out[4][r + 1] = k
+    pairs = Pairs(out.robot, out.neighbour, out.believed, out.in_range)
+    k, _, _, _ = _pair_rows(live, m, senders, h, r, pairs, k)
+    out.indptr[r + 1] = k
     return k, p
 
 
@@ -574,10 +727,9 @@ _PAST_IDS = np.iinfo(np.int64).max
 def _pair_rows(live, m, heard, h, r, out, k):
     """Robot ``r``'s pairs: the union of the ids it believes live (``live[:m]``) and of those
     whose transmissions reach it (``heard[:h]``), both ascending, written in ``out``
-    ``(robot, neighbour, believed, in_range)`` from row ``k`` on with the flags; returns the
-    next row and how many of the pairs are believed, in range, and believed but not in range
-    (stale)."""
-    robot, neighbour, believed, in_range = out
+    (:class:`Pairs`) from row ``k`` on with the flags; returns the next row and how many of
+    the pairs are believed, in range, and believed but not in range (stale)."""
+    robot, neighbour, believed, in_range = out.robot, out.neighbour, out.believed, out.in_range
     q = u = b_n = t_n = s_n = 0
     while q < m or u < h:
         b = live[q] if q < m else _PAST_IDS
@@ -600,46 +752,39 @@ def sample_rows(table, now, symmetric, roles, heard):
     """:func:`membership` and :func:`belief_rows` in one pass over the tables, each row
     read from memory once for both: ``(robot, group, primary), (robot, neighbour,
     believed, in_range, indptr)``."""
-    n, slots = table[0].shape
-    g_robot = np.empty(n * (slots + 1), dtype=np.int64)
-    g_group = np.empty(n * (slots + 1), dtype=np.int64)
-    g_primary = np.empty(n * (slots + 1), dtype=np.bool_)
+    table, roles = Table(*table), RoleArrays(*roles)
+    n, slots = table.ids.shape
+    groups = _group_arrays(n, slots)
     out = _belief_arrays(n, slots, len(heard))
-    scratch = (np.empty(slots, np.int64), np.empty(n, np.int64))
+    live, senders = np.empty(slots, np.int64), np.empty(n, np.int64)
     m = k = p = 0
     for r in range(n):
-        k, p = _belief_row(table, r, now, heard, scratch, out, k, p)
-        m = _membership_row(table, r, now, symmetric, roles, (g_robot, g_group, g_primary), m)
-    groups = (g_robot[:m], g_group[:m], g_primary[:m])
-    return groups, (out[0][:k], out[1][:k], out[2][:k], out[3][:k], out[4])
+        k, p = _belief_row(table, r, now, heard, live, senders, out, k, p)
+        m = _membership_row(table, r, now, symmetric, roles, groups, m)
+    return (groups.robot[:m], groups.group[:m], groups.primary[:m]), _beliefs_to(out, k)
 
 
 @jit(nogil=True)
-def sample_into(table, now, symmetric, roles, truth, out, lo, hi):
+def sample_into(table, now, symmetric, roles, truth, groups, pairs, counts, lo, hi):
     """A sample of robots ``lo`` to ``hi - 1`` (all: a whole sample) in one pass over their
-    rows of the tables, written where the caller says in ``out`` ``(groups, pairs,
-    counts)`` (the sampled tables' buffers, from their next free row): their groups
-    (:func:`membership`) in ``groups`` ``(robot, group, primary)``, room for ``(hi - lo) *
-    (slots + 1)`` rows; who believes whom beside the truth (:func:`belief_rows`) in
-    ``pairs`` ``(robot, neighbour, believed, in_range)``, room for ``(hi - lo) * slots``
-    rows plus the length of their neighbour lists; and per robot ``(robot, role, leader)``
-    and :func:`belief_counts`'s five columns in its row of ``counts`` (``n`` rows). Returns
-    the rows written in ``groups`` and in ``pairs``.
+    rows of the tables, written where the caller says (the sampled tables' buffers, from
+    their next free row): their groups (:func:`membership`) in ``groups``
+    (:class:`Groups`), room for ``(hi - lo) * (slots + 1)`` rows; who believes whom beside
+    the truth (:func:`belief_rows`) in ``pairs`` (:class:`Pairs`), room for ``(hi - lo) *
+    slots`` rows plus the length of their neighbour lists; and per robot its row of
+    ``counts`` (:class:`Counts`, ``n`` rows: :func:`belief_counts`'s columns). Returns the
+    rows written in ``groups`` and in ``pairs``.
 
-    The ``truth``, ``(pos, ranges, box, near_ptr, near)``, comes from the range index's
-    neighbour lists (``near_ptr``, ``near``: ascending, holding every robot within reach),
-    decided as :func:`netsim._kernels.reach_keys_in_lists` decides it (positions ``pos``,
-    ranges ``ranges``, torus side ``box`` or 0): the same rows as :func:`sample_rows` and
-    :func:`belief_counts` of those keys. Nothing is allocated but two rows of scratch: each
-    row is written once, where the table keeps it. Two calls, on two parts of the robots,
+    The ``truth`` (:class:`Truth`) is the range index's: the same rows as
+    :func:`sample_rows` and :func:`belief_counts` of the keys it holds. Nothing is allocated
+    but two rows of scratch: each row is written once, where the table keeps it. Two calls, on two parts of the robots,
     can run in two threads at once (the loop holds no lock)."""
-    ids, records, tau_s = table
-    role, leader = roles
-    pos, ranges, box, near_ptr, near = truth
-    groups, pairs, counts = out
-    slots = ids.shape[1]
-    robot, role_out, leader_out, leader_in_range, believed_n, true_n, stale_n, missing_n = counts
-    live = np.empty(slots, np.int64)
+    table, roles, truth = Table(*table), RoleArrays(*roles), Truth(*truth)
+    groups, pairs, counts = Groups(*groups), Pairs(*pairs), Counts(*counts)
+    ids, records, tau_s = table.ids, table.records, table.tau_s
+    role, leader = roles.role, roles.leader
+    pos, ranges, box, near_ptr, near = truth.pos, truth.ranges, truth.box, truth.near_ptr, truth.near
+    live = np.empty(ids.shape[1], np.int64)
     heard = np.empty(longest_list(near_ptr), np.int64)
     m = k = 0
     for r in range(lo, hi):
@@ -648,8 +793,9 @@ def sample_into(table, now, symmetric, roles, truth, out, lo, hi):
         h = senders_in_list(pos, ranges, box, near_ptr, near, r, heard)
         k, b, t, s = _pair_rows(live, lv, heard, h, r, pairs, k)
         own = leader[r]
-        robot[r], role_out[r], leader_out[r] = r, role[r], own
-        believed_n[r], true_n[r], stale_n[r], missing_n[r] = b, t, s, t - (b - s)
+        counts.robot[r], counts.role[r], counts.leader[r] = r, role[r], own
+        counts.believed_neighbours[r], counts.true_neighbours[r] = b, t
+        counts.stale_neighbours[r], counts.missing_neighbours[r] = s, t - (b - s)
         in_range = role[r] == LEADER_ROLE
         if role[r] == MEMBER and own >= 0:
             # Two-way: the leader among the robots that reach r, r reaching the leader.
@@ -658,7 +804,7 @@ def sample_into(table, now, symmetric, roles, truth, out, lo, hi):
                 first, end = near_ptr[own], near_ptr[own + 1]
                 at = _lower_bound(near, first, end, r)
                 in_range = at < end and near[at] == r and reaches_robot(pos, ranges, box, own, r)
-        leader_in_range[r] = in_range
+        counts.leader_in_range[r] = in_range
     return m, k
 
 
@@ -687,7 +833,8 @@ def _pair_in_range(neighbour, in_range, indptr, r, j):
 def belief_counts(neighbour, believed, in_range, indptr, role, leader):
     """Per robot, from its pairs (:func:`belief_rows`): how many neighbours it believes live,
     how many it truly has, how many beliefs are stale, how many missing, and whether its
-    leader is in two-way range (a leader: yes) (:func:`netsim.protocols.stack.belief_counts`)."""
+    leader is in two-way range (a leader: yes; an undecided robot: no) (the ``beliefs``
+    table, :meth:`netsim.protocols.stack.Stack.belief_vs_truth`)."""
     n = len(indptr) - 1
     believed_n = np.zeros(n, np.int64)
     true_n = np.zeros(n, np.int64)

@@ -29,7 +29,8 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from netsim.protocols.neighbours import DEGREE, NeighbourTable, heard_in
+from netsim.protocols._kernels import Beacon, Motion, RoleArrays
+from netsim.protocols.neighbours import NeighbourTable, heard_in
 from netsim.protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 from netsim.errors import ConfigError
@@ -174,7 +175,7 @@ class Ack(NamedTuple):
     group_size: int
     resign: bool
     # The fields packed for neighbour tables, then the ids the sender has heard within tau,
-    # ascending (netsim.protocols.neighbours.ack_record): one array per Ack.
+    # ascending (netsim.protocols.neighbours.NeighbourTable.announce): one array per Ack.
     record: np.ndarray
 
     @property
@@ -237,30 +238,24 @@ class AckBeacon:
         self.leader_listeners: list[AckListener] = []
         self.watched: list[int] = [0] * n
         # Set by a leader listener that can also take the Acks it is told of into the table
-        # (the clustering, compiled): (that listener, taker), taker(now, ack, receivers)
-        # recording such an Ack and acting on it in one compiled call, returning how many
-        # receivers did not take it (stale). Used while that listener is the only one and
-        # the table runs its compiled loops: then table.receive and the listener's call are
-        # the same work, done in two calls.
+        # (the clustering): (that listener, taker), taker(now, ack, receivers) recording
+        # such an Ack and acting on it in one compiled call, returning how many receivers
+        # did not take it (stale). Used while that listener is the only one: then
+        # table.receive and the listener's call are the same work, done in two calls.
         self.taker: tuple[AckListener, Callable[[float, Ack, np.ndarray], int]] | None = None
         # Set by a protocol whose leaders announce their group's size (the clustering): whose
-        # announced size is other than 1, whether links are symmetric, and the numpy rule
-        # that sets the size before an Ack. The compiled Ack applies the same rule itself
-        # (netsim.protocols._kernels.make_sized_ack); each Ack takes one path or the other, so the
-        # size is set whichever way the table computes.
+        # announced size is other than 1, and whether links are symmetric. The Ack sets the
+        # size itself (netsim.protocols._kernels.make_sized_ack).
         self.sized: np.ndarray | None = None
         self.sized_symmetric = True
-        self.size_rule: Callable[[int, float], None] | None = None
         self.phase_s = np.zeros(n)
         # What the compiled Ack reads of the robots' motion, of the beacon and of the roles
-        # (netsim.protocols._kernels' ``motion``, ``beacon`` and ``roles``): arrays kept for the
-        # run, so put together once.
+        # (netsim.protocols._kernels' Motion, Beacon and RoleArrays, as plain tuples): arrays
+        # kept for the run, so put together once.
         st = parts.state
-        self._compiled_view = (
-            (st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m),
-            (self.sent, self.resign_pending, self.group_size),
-            (self.roles.role, self.roles.leader),
-        )
+        self._motion = tuple(Motion(st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m))
+        self._beacon = tuple(Beacon(self.sent, self.resign_pending, self.group_size))
+        self._roles = tuple(RoleArrays(self.roles.role, self.roles.leader))
         # Receptions ignored because a newer Ack of the same sender had arrived first.
         self.stale_acks = 0
 
@@ -298,32 +293,17 @@ class AckBeacon:
         self._agenda.at(step, URGENT, self._tick, i)
 
     def make_ack(self, i: int) -> Ack:
-        now = self.env.now
-        table = self.table
+        """Robot ``i``'s Ack now, in one compiled call (:func:`netsim.protocols._kernels.make_ack`,
+        or :func:`~netsim.protocols._kernels.make_sized_ack` when leaders announce their
+        group's size); the kernel returns the Ack's fields in order: made into an Ack with no
+        unpacking."""
+        now, table, sized = self.env.now, self.table, self.sized
         k = table.kernels
-        if k is not None:
-            # The same work in one compiled call (netsim.protocols._kernels.make_ack); the kernel
-            # returns the Ack's fields in order: made into an Ack with no unpacking.
-            sized = self.sized
-            motion, beacon, roles_view = self._compiled_view
-            if sized is None:
-                return Ack._make(k.make_ack(i, now, motion, beacon, roles_view, table.view))
-            return Ack._make(
-                k.make_sized_ack(i, now, motion, beacon, roles_view, table.view, sized, self.sized_symmetric)
-            )
-        if self.size_rule is not None:
-            self.size_rule(i, now)
-        x, y = self.state.position(i, now)
-        seq = int(self.seq[i]) + 1
-        self.seq[i] = seq
-        resign = bool(self.resign_pending[i])
-        if resign:
-            self.resign_pending[i] = False
-        roles = self.roles
-        role, leader, size = int(roles.role[i]), int(roles.leader[i]), int(self.group_size[i])
-        record = table.announce(now, i, seq, role, leader, x, y, size)
-        self.role_sent[i], self.degree_sent[i] = role, record[DEGREE]
-        return Ack(i, role, leader, seq, x, y, size, resign, record)
+        if sized is None:
+            return Ack._make(k.make_ack(i, now, self._motion, self._beacon, self._roles, table.view))
+        return Ack._make(
+            k.make_sized_ack(i, now, self._motion, self._beacon, self._roles, table.view, sized, self.sized_symmetric)
+        )
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
         now = self.env.now
@@ -354,9 +334,9 @@ class AckBeacon:
         return self.table.heard(now)
 
     def _taker_alone(self, listener: AckListener) -> bool:
-        """Whether ``listener`` (a taker's) is the only one, and the table's loops compiled."""
+        """Whether ``listener`` (a taker's) is the only one."""
         leaders = self.leader_listeners
-        return not self.listeners and len(leaders) == 1 and leaders[0] is listener and self.table.kernels is not None
+        return not self.listeners and len(leaders) == 1 and leaders[0] is listener
 
     def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         return {**ack_figures(frames), "acks_overtaken": int(self.stale_acks)}

@@ -27,24 +27,26 @@ The decisions are pure functions of small values (:func:`choose_leader`,
 each rule lives:
 
 - rule 1: :meth:`Clustering.start`;
-- rule 2: :func:`join_choice` (which leader), :meth:`Clustering._rule2_join`;
-- rule 3: :func:`ack_effects` renews a member's deadline on its leader's Ack
+- rule 2: :func:`netsim.protocols._kernels.join_choice` (which leader),
+  :meth:`Clustering._rule2_join`;
+- rule 3: :func:`~netsim.protocols._kernels.ack_effects` renews a member's deadline on its leader's Ack
   (:meth:`Clustering._rule3_renew` schedules the event); the timeout is
   :meth:`Clustering._rule3_leader_lost`;
 - rule 4: :meth:`Clustering._rule4_no_leader`;
-- rule 5: :func:`ack_effects` finds the leaders ready to merge with an Ack's sender,
+- rule 5: :func:`~netsim.protocols._kernels.ack_effects` finds the leaders ready to merge with an Ack's sender,
   :func:`merge_loser` decides, :meth:`Clustering._rule5_merge` acts; a resignation and a
   mutual yield reach the members in :meth:`Clustering._rule5_leader_resigned` and
   :meth:`Clustering._rule5_mutual_yield`;
-- rule 6: :func:`elected_in_row` (who wins), :meth:`Clustering._rule6_reaffiliate`.
+- rule 6: :func:`~netsim.protocols._kernels.elected_in_row` (who wins),
+  :meth:`Clustering._rule6_reaffiliate`.
 
-An Ack is taken in two steps: its effects first (:func:`ack_effects`, or the compiled
-``receive_effects`` that also records it in the table: which receivers are the sender's
-members, which timers to arm, who may join, who may merge, in an :class:`AckEffects`),
-then the rules they fire (:meth:`Clustering._apply`). The compiled loops
-(:mod:`netsim.protocols._kernels`) take the same few named things as their numpy twins here:
-the table's ``view``, the robots' state (:class:`Robots`), the constants (:data:`RULES`)
-and the effects' lists.
+An Ack is taken in two steps: its effects first (:func:`~netsim.protocols._kernels.ack_effects`,
+or :func:`~netsim.protocols._kernels.receive_effects` that also records it in the table: which
+receivers are the sender's members, which timers to arm, who may join, who may merge, in an
+:class:`~netsim.protocols._kernels.AckEffects`), then the rules they fire
+(:meth:`Clustering._apply`). The loops (:mod:`netsim.protocols._kernels`) take the table's
+``view``, the robots' state (:class:`~netsim.protocols._kernels.Robots`), the constants
+(:data:`RULES`) and the effects' lists.
 
 Timers are exact: a member's deadline is ``tau`` after the last two-way Ack from its
 leader; an undecided robot's is ``tau`` after it became undecided or last heard a leader
@@ -61,9 +63,8 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from netsim.protocols._kernels import DEGREE, LAST_HEARD, AckEffects, Robots, RoleArrays, Told
 from netsim.protocols.ack import Ack, AckBeacon
-from netsim.protocols.neighbours import BIDIR_SINCE, DEGREE, LAST_HEARD, LIVE_SINCE, ROLE, ROLE_SINCE, X, Y, two_way
-from netsim.protocols.neighbours import LEADER as LEADER_FIELD
 from netsim.protocols.roles import (
     LEADER,
     LEADER_LOST,
@@ -227,11 +228,8 @@ def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
     return ELECTION[ElectionPolicy(policy)](me, rivals)
 
 
-_NONE = np.empty(0, dtype=np.int64)
-
-
 # The clustering's constants, one record read by name in the compiled rules
-# (netsim.protocols._kernels' ``rules``) and in their numpy twins.
+# (netsim.protocols._kernels' ``rules``).
 RULES = np.dtype(
     [
         ("tau_s", np.float64),  # rule 3: a renewed member's deadline is tau after the Ack
@@ -241,8 +239,6 @@ RULES = np.dtype(
         ("election_policy", np.int64),  # rule 6: ELECTION_CODES
     ]
 )
-_JOIN_BY_CODE = {code: policy for policy, code in JOIN_CODES.items()}
-_ELECTION_BY_CODE = {code: policy for policy, code in ELECTION_CODES.items()}
 
 
 def rules_record(tau_s: float, merge_delay_s: float, symmetric: bool, join_policy: str, election_policy: str):
@@ -253,205 +249,6 @@ def rules_record(tau_s: float, merge_delay_s: float, symmetric: bool, join_polic
     row["join_policy"] = JOIN_CODES[JoinPolicy(join_policy)]
     row["election_policy"] = ELECTION_CODES[ElectionPolicy(election_policy)]
     return rules
-
-
-class Robots(NamedTuple):
-    """The per-robot state the rules read and write on an Ack (netsim.protocols._kernels'
-    ``robots``, passed as a plain tuple)."""
-
-    role: np.ndarray  # Roles.role
-    leader: np.ndarray  # Roles.leader
-    role_sent: np.ndarray  # the role each announced in its last Ack (AckBeacon.role_sent)
-    leader_since: np.ndarray  # when each last became a leader (inf: it is not one)
-    deadline_s: np.ndarray  # the timers' deadlines (rules 3 and 4; DeadlineTimers)
-    armed_s: np.ndarray  # when each timer's event is armed
-
-
-class AckEffects(NamedTuple):
-    """What an Ack does to the clustering (docs/model.md 4.2), as lists filled per Ack by
-    :func:`ack_effects` (and the compiled ``receive_effects``), each as long as the robots
-    and reused from Ack to Ack: the counts returned say how much of each is the Ack's.
-    Passed to the compiled loops as a plain tuple (netsim.protocols._kernels' ``effects``)."""
-
-    group: np.ndarray  # rules 3, 5, 6: where (in the receivers) the sender's group's members are
-    to_arm: np.ndarray  # rule 3: members whose renewed timer needs its event armed
-    may_join: np.ndarray  # rule 2: undecided robots over a two-way link (a leader's Ack)
-    may_merge: np.ndarray  # rule 5: leaders over a two-way link ready to merge with the sender
-    merge_slot: np.ndarray  # rule 5: the sender's slot in each of their rows of the table
-    takers: np.ndarray  # the receivers that took the Ack (not overtaken)
-    fresh: np.ndarray  # per receiver: whether it took the Ack
-    hears_me: np.ndarray  # per receiver: whether the Ack lists it
-    takers_hear_me: np.ndarray  # per taker: whether the Ack lists it
-
-    @classmethod
-    def empty(cls, n: int) -> AckEffects:
-        """Room for an Ack to all of ``n`` robots."""
-        rows, flags = np.empty((6, n), dtype=np.int64), np.empty((3, n), dtype=bool)
-        return cls(*rows, *flags)
-
-
-def ack_effects(
-    now: float,
-    told: tuple,
-    hears_me: np.ndarray,
-    robots: tuple,
-    table: tuple,
-    rules: np.ndarray,
-    effects: tuple,
-) -> tuple[int, int, int, int]:
-    """What an Ack ``told`` ``(sender, receivers, record, leads)`` does, from the roles before
-    it acts (``robots``, :class:`Robots`), in the lists of ``effects`` (:class:`AckEffects`;
-    returned: how many of ``group``, ``to_arm``, ``may_join`` and ``may_merge``):
-
-    - ``group``: positions (in ``receivers``) of the members of the sender's group;
-    - if the Ack ``leads`` (a leader's, not resigning), those members' timers over a two-way
-      link restart ``tau_s`` from ``now`` (rule 3: written in the ``robots``'
-      ``deadline_s``; ``to_arm``: those of them whose timer's event must be armed, the
-      deadline before the event in ``armed_s``);
-    - ``may_join``: the undecided robots over a two-way link (rule 2);
-    - ``may_merge``: the leaders over a two-way link that may merge with the sender now
-      (rule 5; ``merge_slot``: the sender's slot in their rows of the ``table``): those that
-      announced themselves as leaders (``role_sent``) and have been leaders beside the sender
-      for ``merge_delay_s`` at ``now``, counted from the latest of the link known (two-way,
-      or live when links are ``symmetric``), the sender's Acks saying leader, and their own
-      leadership (``leader_since``).
-
-    ``hears_me``: per receiver, whether the Ack lists it; ``rules``: :data:`RULES`. Counts
-    and reused lists, not new arrays: cheaper to hand back from the compiled twin, once per
-    Ack."""
-    sender, receivers, _, leads = told
-    role, leader, role_sent, leader_since, deadline_s, armed_s = robots
-    ids, records, _ = table
-    c = rules[0]
-    symmetric, merge_delay_s = bool(c["symmetric"]), float(c["merge_delay_s"])
-    renewed_s = now + float(c["tau_s"])
-    r_role = role[receivers]
-    mine = (r_role == MEMBER) & (leader[receivers] == sender)
-    found = [np.flatnonzero(mine), _NONE, _NONE, _NONE, _NONE]
-    if leads:
-        both_ways = hears_me | symmetric
-        renew = receivers[mine & both_ways]
-        deadline_s[renew] = renewed_s
-        leaders = receivers[(r_role == LEADER) & both_ways]
-        leaders = leaders[role_sent[leaders] == LEADER]
-        at = ids[leaders] == sender
-        leaders, slots = leaders[at.any(axis=1)], np.argmax(at, axis=1)[at.any(axis=1)]
-        rec = records[leaders, slots]
-        linked = rec[:, LIVE_SINCE] if symmetric else rec[:, BIDIR_SINCE]
-        since = np.maximum(np.maximum(linked, rec[:, ROLE_SINCE]), leader_since[leaders])
-        ready = ~(now - since < merge_delay_s)
-        found[1:] = [
-            renew[renewed_s < armed_s[renew]],
-            receivers[(r_role == UNDECIDED) & both_ways],
-            leaders[ready],
-            slots[ready],
-        ]
-    for row, found_ids in zip(effects, found):
-        row[: len(found_ids)] = found_ids
-    n_group, n_arm, n_join, n_merge = (len(found_ids) for found_ids in found[:4])
-    return n_group, n_arm, n_join, n_merge
-
-
-def group_size(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, i: int) -> int:
-    """1 + the live two-way entries of robot ``i``'s neighbour table row (its records, as
-    :class:`netsim.protocols.neighbours.NeighbourTable` holds them) whose last Ack named ``i`` as
-    their leader."""
-    return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
-
-
-def announced_size(
-    role: np.ndarray,
-    sizes: np.ndarray,
-    sized: np.ndarray,
-    records_row: np.ndarray,
-    now: float,
-    tau_s: float,
-    symmetric: bool,
-    i: int,
-) -> None:
-    """Before robot ``i``'s Ack: the group size it announces, in ``sizes``: a leader its
-    :func:`group_size`, anyone else 1 (written only when it was not: ``sized`` marks whose
-    size is other than 1)."""
-    if role[i] == LEADER:
-        sizes[i] = group_size(records_row, now, tau_s, symmetric, i)
-        sized[i] = True
-    elif sized[i]:
-        sizes[i] = 1
-        sized[i] = False
-
-
-def leader_slots(
-    ids_row: np.ndarray, records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, exclude: int
-) -> np.ndarray:
-    """The slots of a row's live two-way neighbours whose last Ack said they were leaders,
-    but ``exclude``."""
-    mask = two_way(records_row, now, tau_s, symmetric) & (records_row[:, ROLE] == LEADER) & (ids_row != exclude)
-    return np.flatnonzero(mask)
-
-
-def join_choice(
-    table: tuple, i: int, now: float, rules: np.ndarray, exclude: int, x_m: float, y_m: float, first_heard: int
-) -> tuple[int, int]:
-    """Rule 2 from robot ``i``'s row of the ``table`` ``(ids, records, tau_s)``: the leader
-    that ``i``, at ``(x_m, y_m)``, joins (:func:`choose_leader`, by the join policy of the
-    ``rules``, :data:`RULES`; ``first_heard``: the leader whose Ack triggered the join, or
-    negative) among the live two-way neighbours whose last Ack said they were leaders, but
-    ``exclude`` (:func:`leader_slots`; their distances from the positions their Acks
-    carried), and its first slot in the row; ``(NO_LEADER, -1)`` when there is none."""
-    ids_all, records, tau_s = table
-    ids_row, records_row = ids_all[i], records[i]
-    c = rules[0]
-    slots = leader_slots(ids_row, records_row, now, tau_s, bool(c["symmetric"]), exclude)
-    if not len(slots):
-        return NO_LEADER, -1
-    dist = np.hypot(records_row[slots, X] - x_m, records_row[slots, Y] - y_m)
-    ids = ids_row[slots].tolist()
-    candidates = [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())]
-    policy = _JOIN_BY_CODE[int(c["join_policy"])]
-    leader = choose_leader(policy, candidates, first_heard if first_heard >= 0 else None)
-    return leader, int(slots[ids.index(leader)])
-
-
-def mate_slots(records_row: np.ndarray, now: float, tau_s: float, symmetric: bool, leader: int) -> np.ndarray:
-    """The slots of a row's live two-way neighbours whose last Ack said they were members
-    of ``leader``."""
-    mask = two_way(records_row, now, tau_s, symmetric)
-    return np.flatnonzero(mask & (records_row[:, LEADER_FIELD] == leader) & (records_row[:, ROLE] == MEMBER))
-
-
-def elected_in_row(table: tuple, i: int, now: float, rules: np.ndarray, old: int, degree: int) -> bool:
-    """Rule 6 from robot ``i``'s row of the ``table`` ``(ids, records, tau_s)``: whether
-    ``i``, of announced ``degree``, takes over from its lost leader ``old`` (:func:`elected`,
-    by the election policy of the ``rules``, :data:`RULES`) among the former members it
-    knows (:func:`mate_slots`), each with the degree its last Ack announced."""
-    ids_all, records, tau_s = table
-    records_row = records[i]
-    c = rules[0]
-    mates = mate_slots(records_row, now, tau_s, bool(c["symmetric"]), old)
-    ids, degrees = ids_all[i][mates].tolist(), records_row[mates, DEGREE].tolist()
-    rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids, degrees)]
-    return elected(_ELECTION_BY_CODE[int(c["election_policy"])], Candidate(i, degree=degree), rivals)
-
-
-def membership(table: tuple, now: float, symmetric: bool, roles: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
-    robot and group, from the ``roles`` ``(role, leader)`` and the neighbour ``table``
-    ``(ids, records, tau_s)``: a leader in its own group, a member in its leader's
-    (primary) and in those of the other leaders it knows over a live two-way link."""
-    ids, records, tau_s = table
-    role, leader = roles
-    rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, ROLE] == LEADER))
-    other = ids[rows, slots]
-    member = role[rows] == MEMBER
-    rows, other = rows[member], other[member]
-    secondary = other != leader[rows]
-    leaders = np.flatnonzero(role == LEADER)
-    members = np.flatnonzero(role == MEMBER)
-    robot = np.concatenate([leaders, members, rows[secondary]])
-    group = np.concatenate([leaders, leader[members], other[secondary]])
-    primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
-    order = np.lexsort((~primary, group, robot))
-    return robot[order], group[order], primary[order]
 
 
 class Clustering:
@@ -494,10 +291,8 @@ class Clustering:
         # collector to walk, again and again, until the end.
         self._changes: tuple[list, list, list, list, list] = ([], [], [], [], [])
         parts.trace.add_frame("roles", self.roles_frame)
-        # The compiled twins of ack_effects, group_size and membership (and of join_choice and
-        # elected_in_row, used by name), past netsim.compiled.SMALL_RUN_ROBOTS robots.
-        self.kernels = k = load("netsim.protocols._kernels", st.n)
-        self._effects = k.ack_effects if k is not None else ack_effects
+        # The rules' loops (netsim.protocols._kernels), loaded for the run's size.
+        self.kernels = load("netsim.protocols._kernels", st.n)
         # What the rules read and write per Ack, and the lists an Ack's effects are written
         # in, each also as the plain tuple the compiled loops take.
         roles, timers = self.roles, self.timers
@@ -506,28 +301,26 @@ class Clustering:
         )
         self.effects = AckEffects.empty(st.n)
         self._robots, self._effects_rows = tuple(self.robots), tuple(self.effects)
-        self._group_size = k.group_size if k is not None else group_size
-        self._membership = k.membership if k is not None else membership
+        self._roles = tuple(RoleArrays(roles.role, roles.leader))
         on_ack = self.on_ack  # one bound method: the beacon knows it by identity
         beacon.leader_listeners.append(on_ack)
-        if k is not None:
-            beacon.taker = (on_ack, self.take_told)
-        beacon.sized, beacon.sized_symmetric, beacon.size_rule = self._sized, self.symmetric, self._before_ack
+        beacon.taker = (on_ack, self.take_told)
+        beacon.sized, beacon.sized_symmetric = self._sized, self.symmetric
 
     # -- what a robot knows --------------------------------------------------------------
     def group_size(self, i: int, now: float) -> int:
         """1 + the live two-way neighbours whose last Ack named ``i`` as their leader."""
-        return int(self._group_size(self.table.data[i], now, self.table.tau_s, self.symmetric, i))
+        return int(self.kernels.group_size(self.table.data[i], now, self.table.tau_s, self.symmetric, i))
 
     def membership(self, now: float):
         """Group membership of every robot now, as arrays ``(robot, group, primary)``.
 
         A leader is in its own group; a member in its leader's (primary) and, if it is a
         gateway, in those of the other leaders it has a live two-way link with; an
-        undecided robot in none. One pass over all neighbour tables.
+        undecided robot in none. One pass over all neighbour tables
+        (:func:`netsim.protocols._kernels.membership`).
         """
-        st = self.roles
-        return self._membership(self.table.view, now, self.symmetric, (st.role, st.leader))
+        return self.kernels.membership(self.table.view, now, self.symmetric, self._roles)
 
     def groups(self, now: float) -> list[set[int]]:
         """The groups (leader ids) each robot belongs to now (see :meth:`membership`)."""
@@ -540,12 +333,6 @@ class Clustering:
         """Ids of the members that belong to two groups or more."""
         robot, _, _ = self.membership(now)
         return np.flatnonzero(np.bincount(robot, minlength=self.state.n) > 1)
-
-    def _before_ack(self, i: int, now: float) -> None:
-        table = self.table
-        announced_size(
-            self.roles.role, self.beacon.group_size, self._sized, table.data[i], now, table.tau_s, self.symmetric, i
-        )
 
     # -- transitions ---------------------------------------------------------------------
     def _set(self, i: int, event: str, leader: int, now: float) -> None:
@@ -591,8 +378,7 @@ class Clustering:
         running from that leader's last Ack; False if no leader but ``exclude`` is known."""
         table = self.table
         x, y = self.state.position(i, now)
-        join = self.kernels.join_choice if self.kernels is not None else join_choice
-        leader, slot = join(table.view, i, now, self.rules, exclude, x, y, first_heard)
+        leader, slot = self.kernels.join_choice(table.view, i, now, self.rules, exclude, x, y, first_heard)
         if leader < 0:
             return False
         self._set(i, "leader_heard", leader, now)
@@ -601,7 +387,8 @@ class Clustering:
 
     def _rule3_renew(self, to_arm: np.ndarray, renewed_s: float) -> None:
         """Rule 3, on a leading Ack: its members' deadlines were set to ``renewed_s``
-        (:func:`ack_effects`); the events of those timers ``to_arm`` are scheduled."""
+        (:func:`netsim.protocols._kernels.ack_effects`); the events of those timers
+        ``to_arm`` are scheduled."""
         self.timers.arm(to_arm, renewed_s)
 
     def _rule3_leader_lost(self, i: int, now: float) -> None:
@@ -614,7 +401,8 @@ class Clustering:
 
     def _rule5_merge(self, r: int, slot: int, ack: Ack, now: float) -> None:
         """Rule 5 for leader ``r``, which has announced itself as a leader and been one beside
-        the sender of ``ack`` (in ``slot`` of its row) for the merge delay (:func:`ack_effects`):
+        the sender of ``ack`` (in ``slot`` of its row) for the merge delay
+        (:func:`netsim.protocols._kernels.ack_effects`):
         by the merge policy, it yields (joins the sender, resigns in its next Ack) or not."""
         rows = self.table.data[r, slot]
         # What each announced in its last Ack: the same kind of information on both sides.
@@ -652,8 +440,7 @@ class Clustering:
         # Like with like: my degree as I announced it, beside theirs as they announced them
         # (all counted before the leader was lost).
         degree = int(self.beacon.degree_sent[i])
-        elect = self.kernels.elected_in_row if self.kernels is not None else elected_in_row
-        if elect(self.table.view, i, now, self.rules, old, degree):
+        if self.kernels.elected_in_row(self.table.view, i, now, self.rules, old, degree):
             self._set(i, "elected", i, now)
             self.timers.cancel(i)
         else:
@@ -671,8 +458,10 @@ class Clustering:
         leads = ack.role == LEADER and not ack.resign
         if not leads and not self._members_of[ack.sender]:
             return
-        told = (ack.sender, receivers, ack.record, leads)
-        counts = self._effects(now, told, hears_me, self._robots, self.table.view, self.rules, self._effects_rows)
+        told = tuple(Told(ack.sender, receivers, ack.record, leads))
+        counts = self.kernels.ack_effects(
+            now, told, hears_me, self._robots, self.table.view, self.rules, self._effects_rows
+        )
         self._apply(now, ack, leads, receivers, hears_me, *counts)
 
     def take_told(self, now: float, ack: Ack, receivers: np.ndarray) -> int:
@@ -680,7 +469,7 @@ class Clustering:
         (:func:`netsim.protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
         many receivers did not take the Ack (stale)."""
         leads = ack.role == LEADER and not ack.resign
-        told = (ack.sender, receivers, ack.record, leads)
+        told = tuple(Told(ack.sender, receivers, ack.record, leads))
         stale, (kept, group, to_arm, may_join, may_merge) = self.table.take_by(
             self.kernels.receive_effects, now, told, self._robots, self.rules, self._effects_rows
         )
@@ -703,7 +492,7 @@ class Clustering:
         may_join: int,
         may_merge: int,
     ) -> None:
-        """The rules an Ack fires, from :func:`ack_effects`' lists (:attr:`effects`, the
+        """The rules an Ack fires, from the lists of its effects (:attr:`effects`, the
         first ``group``, ``to_arm``, ``may_join`` and ``may_merge`` of each) over its fresh
         ``receivers``. A leading Ack renews its members' timers (rule 3) before the joins
         (rule 2) and merges (rule 5) it brings: the timers' events are scheduled in that

@@ -21,9 +21,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 import simpy
-from netsim.protocols.neighbours import LEADER as LEADER_FIELD
-from netsim.protocols.neighbours import ROLE, two_way
-from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
+from netsim.protocols._kernels import RoleArrays
 
 from netsim.compiled import load
 from netsim.cosim import Arrival
@@ -83,10 +81,10 @@ class Outcome(NamedTuple):
 def hop_distances(state, now: float, node: int, towards: bool = False, index=None) -> np.ndarray:
     """Hops from ``node`` to every robot over the true directed unit-disk links now
     (``towards=True``: from every robot to ``node``, a search on the reversed links), as
-    floats, ``inf`` where there is no path. Given the channel's range index with its
-    compiled loops (``index``: a unit disk), one compiled search over its neighbour lists
+    floats, ``inf`` where there is no path. Given the channel's range index (``index``: a
+    unit disk), one compiled search over its neighbour lists
     (:func:`netsim._kernels.hops_in_lists`, the same links) instead of every pair first."""
-    if index is not None and index.kernels is not None:
+    if index is not None:
         indptr, indices = index.lists(now)
         pos, side = state.positions_at(now), state.side_m if state.torus else 0.0
         return index.kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
@@ -115,43 +113,6 @@ def bfs_hops(tail: np.ndarray, head: np.ndarray, n: int, source: int) -> np.ndar
         frontier = np.unique(reached[np.isinf(hops[reached])])
         hops[frontier] = level
     return hops
-
-
-def relays(
-    table: tuple, now: float, symmetric: bool, roles: tuple, receivers: np.ndarray, distributed_gateways: bool
-) -> np.ndarray:
-    """The ``receivers`` of a flooded message that relay it: leaders, and gateways, the
-    members with a live two-way neighbour (in their neighbour tables: the ``table`` ``(ids,
-    records, tau_s)``, :attr:`netsim.protocols.neighbours.NeighbourTable.view`) in another group: a
-    leader other than their own or, with ``distributed_gateways``, a member of another
-    leader. ``roles``: ``(role, leader)``."""
-    ids, records, tau_s = table
-    role, leader = roles
-    rows = records[receivers]
-    own = leader[receivers][:, None]
-    if distributed_gateways:
-        other = (rows[:, :, ROLE] != UNDECIDED) & (rows[:, :, LEADER_FIELD] != own)
-    else:
-        other = (rows[:, :, ROLE] == LEADER) & (ids[receivers] != own)
-    r_role = role[receivers]
-    gateway = (two_way(rows, now, tau_s, symmetric) & other).any(axis=1)
-    return receivers[(r_role == LEADER) | ((r_role == MEMBER) & gateway)]
-
-
-def flood_step(
-    seen: np.ndarray,
-    receivers: np.ndarray,
-    table: tuple,
-    now: float,
-    symmetric: bool,
-    roles: tuple,
-    distributed_gateways: bool,
-) -> tuple[np.ndarray, np.ndarray]:
-    """A flooded message's copy reaching ``receivers``: those that had not ``seen`` it
-    (a flag per robot, set for them now), and which of them relay it (:func:`relays`)."""
-    fresh = receivers[~seen[receivers]]
-    seen[fresh] = True
-    return fresh, relays(table, now, symmetric, roles, fresh, distributed_gateways)
 
 
 class Relay:
@@ -186,8 +147,10 @@ class Relay:
         # table is built from them at once, and a run's 10^5 deliveries leave no records
         # for the garbage collector to walk again and again.
         self._hops: tuple[list, list, list, list, list, list] = ([], [], [], [], [], [])
-        # The compiled twin of relays, past netsim.compiled.SMALL_RUN_ROBOTS robots.
+        # Who relays a flooded message (netsim.protocols._kernels.flood_step: leaders and
+        # gateways), loaded for the run's size.
         self.kernels = load("netsim.protocols._kernels", parts.state.n)
+        self._roles = tuple(RoleArrays(self.roles.role, self.roles.leader))
         # The channel's range index, whose neighbour lists the searches for shortest paths
         # use (a unit disk only: a radio decides its links otherwise).
         self._index = self.channel.reach_lists
@@ -259,10 +222,9 @@ class Relay:
         seen = self._seen[mid]
         had_dst = seen[msg.dst]
         cl = self.clustering
-        table = cl.table
-        step = flood_step if self.kernels is None else self.kernels.flood_step
-        roles = (self.roles.role, self.roles.leader)
-        fresh, relaying = step(seen, receivers, table.view, now, cl.symmetric, roles, self.distributed_gateways)
+        fresh, relaying = self.kernels.flood_step(
+            seen, receivers, cl.table.view, now, cl.symmetric, self._roles, self.distributed_gateways
+        )
         if not had_dst and seen[msg.dst]:
             self._delivered(msg, now)
         if msg.ttl <= 1:

@@ -6,7 +6,6 @@ them), ``ack_delivery``, ``messages`` and ``hops`` tables and summary figures.""
 from __future__ import annotations
 
 import math
-import mmap
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
@@ -14,9 +13,9 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from netsim.protocols._kernels import EMPTY, LAST_HEARD, ROLE, Beliefs, Counts, Groups, Pairs, RoleArrays, Truth, X, Y
 from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
-from netsim.protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy, membership
-from netsim.protocols.neighbours import EMPTY, LAST_HEARD, ROLE, X, Y
+from netsim.protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from netsim.protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
 from netsim.protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
 
@@ -24,117 +23,12 @@ from netsim.compiled import cores, load, side_by_side
 from netsim.cosim import Arrival
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
+from netsim.samples import Samples
 from netsim.topology import reach_keys
-
-
-def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
-    """``np.isin(values, pool)`` for a sorted ``pool``, by binary search (np.isin hashes or
-    sorts both arrays on every call)."""
-    if len(pool) == 0:
-        return np.zeros(len(values), dtype=bool)
-    at = np.minimum(pool.searchsorted(values), len(pool) - 1)
-    return pool[at] == values
-
 
 # From this many robots on, a compiled sample is taken in two halves at once, in two threads
 # (on two cores or more): below it, a sample is too short for a thread's start to pay off.
 SAMPLE_IN_TWO_ROBOTS = 1000
-
-
-class Samples:
-    """A table sampled during the run: each sample's columns (arrays of one length) and its
-    time ``t_s``, written as they come into one buffer per column, so that the table at the
-    end is the buffers' filled part (no concatenation: at 10,000 robots the samples are
-    hundreds of MB, and every fresh page costs a fault).
-
-    When short, a buffer grows, at least to double, to what the remaining samples need at a
-    typical sample's rows (the current one's; for a sample written in place,
-    :meth:`reserve`, the latest one's), with a margin, plus the most rows one sample may
-    take: so it grows once or twice in a run. Capacity never written is never touched, so
-    costs no memory."""
-
-    MARGIN = 1.25
-
-    def __init__(self, expected: int = 1) -> None:
-        self.times: list[float] = []
-        self.expected = max(int(expected), 1)
-        self.rows = 0
-        self.last_rows = 0  # the latest sample's
-        self._t = np.empty(0)
-        self._buffers: dict[str, np.ndarray] = {}
-
-    def __len__(self) -> int:
-        return len(self.times)
-
-    def add(self, now: float, columns: dict[str, np.ndarray]) -> Samples:
-        m = len(next(iter(columns.values()))) if columns else 0
-        room = self.reserve({name: np.asarray(col).dtype for name, col in columns.items()}, m, m)
-        for name, col in columns.items():
-            room[name][:] = col
-        return self.commit(now, m)
-
-    def reserve(self, dtypes: Mapping[str, np.dtype], rows: int, typical: int) -> dict[str, np.ndarray]:
-        """Room for a sample of at most ``rows`` rows, to be filled and then kept by
-        :meth:`commit`: each column's buffer (``dtypes``, in the table's order: the first
-        sample's make the buffers) from the next free row on, ``rows`` long. When short,
-        the buffers grow to what the remaining samples need at ``typical`` rows each, at
-        least double."""
-        if not self._buffers:
-            self._buffers = {name: np.empty(0, dtype=dtype) for name, dtype in dtypes.items()}
-        at, end = self.rows, self.rows + rows
-        if end > len(self._t):
-            left = max(self.expected - len(self.times), 1)
-            self._grow(max(2 * len(self._t), at + int(self.MARGIN * typical * left) + rows))
-        return {name: buf[at:end] for name, buf in self._buffers.items()}
-
-    def commit(self, now: float, rows: int) -> Samples:
-        """Keep the first ``rows`` rows of the room :meth:`reserve` gave as the sample at
-        ``now``."""
-        at, end = self.rows, self.rows + rows
-        self._t[at:end] = now
-        self.times.append(now)
-        self.rows = end
-        self.last_rows = rows
-        return self
-
-    def _grow(self, capacity: int) -> None:
-        def grown(buf: np.ndarray) -> np.ndarray:
-            new = column_buffer(capacity, buf.dtype)
-            new[: self.rows] = buf[: self.rows]
-            return new
-
-        self._t = grown(self._t)
-        self._buffers = {name: grown(buf) for name, buf in self._buffers.items()}
-
-    def frame(self, convert: Mapping[str, Callable[[np.ndarray], object]] | None = None) -> pd.DataFrame:
-        """All samples, in order, as one table: ``t_s`` first, then the columns (each
-        passed through ``convert[name]`` if given)."""
-        rows = self.rows
-        out: dict[str, object] = {"t_s": self._t[:rows]}
-        for name, buf in self._buffers.items():
-            col = buf[:rows]
-            out[name] = convert[name](col) if convert and name in convert else col
-        # The columns are the buffers' filled part, never written again (later samples go
-        # after it, or into a grown buffer): copying them into blocks would only cost.
-        return pd.DataFrame(out, copy=False)
-
-
-def column_buffer(capacity: int, dtype: np.dtype) -> np.ndarray:
-    """An empty array of ``capacity`` items of ``dtype`` whose memory is touched only where
-    written, in pages of 4 KiB: numpy asks for huge pages (2 MiB) for large arrays, and where
-    the kernel compacts memory to find one at its first write (transparent huge pages'
-    ``defrag = madvise``, a common default) can cost far more per huge page than the faults
-    of its 512 small pages. Arrays of objects: numpy's."""
-    dtype = np.dtype(dtype)
-    if dtype.hasobject or capacity == 0:
-        return np.empty(capacity, dtype=dtype)
-    size = capacity * dtype.itemsize
-    # Private: a process forked later (a worker) writes its own copy, never this one.
-    private = getattr(mmap, "MAP_PRIVATE", None)
-    memory = mmap.mmap(-1, size, flags=private | mmap.MAP_ANONYMOUS) if private is not None else mmap.mmap(-1, size)
-    if hasattr(mmap, "MADV_NOHUGEPAGE"):  # where huge pages are always used unless refused
-        memory.madvise(mmap.MADV_NOHUGEPAGE)
-    return np.frombuffer(memory, dtype=dtype, count=capacity)
 
 
 # The role labels by code, in the column pandas makes of a list of labels (its string
@@ -151,80 +45,6 @@ def role_labels(codes: np.ndarray):
 def beliefs_table(samples: Samples) -> pd.DataFrame:
     """The ``beliefs`` table of samples of :meth:`Stack._belief_columns`."""
     return samples.frame({"role": role_labels})
-
-
-def believed_keys(ids: np.ndarray, records: np.ndarray, now: float, tau_s: float) -> np.ndarray:
-    """``robot * n + other`` for every live entry of the ``n`` robots' neighbour tables
-    (``ids``, ``records``), ascending: whom each robot believes live."""
-    live = now - records[:, :, LAST_HEARD] < tau_s
-    return np.sort(np.nonzero(live)[0] * len(ids) + ids[live])
-
-
-def union_sorted(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The ascending union of two ascending arrays of distinct keys, and per key whether it
-    is in ``a`` and whether in ``b``."""
-    both = np.sort(np.concatenate([a, b]))
-    both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
-    return both, in_sorted(both, a), in_sorted(both, b)
-
-
-def belief_rows(table: tuple, now: float, heard: np.ndarray) -> Beliefs:
-    """Who believes whom live at ``now``, beside the truth: one row per pair ``(robot,
-    neighbour)`` where ``robot`` holds a live entry of ``neighbour`` in its table (the
-    ``table`` ``(ids, records, tau_s)``) or ``robot * n + neighbour`` is among the ascending
-    keys ``heard`` (``neighbour``'s transmissions reach ``robot``), ordered by robot and
-    neighbour."""
-    ids, records, tau_s = table
-    n = len(ids)
-    keys, believed, in_range = union_sorted(believed_keys(ids, records, now, tau_s), heard)
-    robot = keys // n if n else keys
-    return Beliefs(robot, keys % n if n else keys, believed, in_range, robot.searchsorted(np.arange(n + 1)))
-
-
-def belief_counts(
-    neighbour: np.ndarray,
-    believed: np.ndarray,
-    in_range: np.ndarray,
-    indptr: np.ndarray,
-    role: np.ndarray,
-    leader: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per robot, from its rows of :func:`belief_rows` (``indptr``): how many neighbours it
-    believes live, how many it truly has, how many of its beliefs are stale (believed, not
-    in range) and missing (in range, not believed), and whether its leader is in two-way
-    range (a leader's: yes; an undecided robot's: no)."""
-    n = len(indptr) - 1
-    rows = np.repeat(np.arange(n), np.diff(indptr))
-    believed_n = np.bincount(rows[believed], minlength=n)
-    true_n = np.bincount(rows[in_range], minlength=n)
-    stale_n = np.bincount(rows[believed & ~in_range], minlength=n)
-    heard_keys = rows[in_range] * n + neighbour[in_range]
-    has = np.flatnonzero((role == MEMBER) & (leader >= 0))
-    in_reach = np.zeros(n, dtype=bool)
-    in_reach[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
-    return believed_n, true_n, stale_n, true_n - (believed_n - stale_n), in_reach | (role == LEADER)
-
-
-def sample_rows(
-    table: tuple, now: float, symmetric: bool, roles: tuple, heard: np.ndarray
-) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
-    """What a sample takes from the tables: everyone's groups
-    (:func:`netsim.protocols.clustering.membership`) and who believes whom (:func:`belief_rows`);
-    the compiled twin reads the tables once for both."""
-    return membership(table, now, symmetric, roles), belief_rows(table, now, heard)
-
-
-class Beliefs(NamedTuple):
-    """Who believes whom live at one instant, beside the truth (:func:`belief_rows`): per
-    pair ``(robot, neighbour)`` where ``robot`` believes ``neighbour`` live or
-    ``neighbour``'s transmissions reach ``robot``, ordered by robot and neighbour, whether
-    it is believed and whether in range; ``indptr``: where each robot's pairs start."""
-
-    robot: np.ndarray
-    neighbour: np.ndarray
-    believed: np.ndarray
-    in_range: np.ndarray
-    indptr: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -288,13 +108,9 @@ class Stack:
         interval = self._sample_interval_s
         expected = int(self.duration_s // interval) + 2 if interval > 0 else 1
         self._groups, self._beliefs, self._neighbour_beliefs = (Samples(expected) for _ in range(3))
-        kernels = load("netsim.protocols._kernels", n)
-        # The compiled twins of sample_rows, belief_rows and belief_counts, past
-        # netsim.compiled.SMALL_RUN_ROBOTS robots.
-        self._sample_rows = kernels.sample_rows if kernels is not None else sample_rows
-        self._belief_rows = kernels.belief_rows if kernels is not None else belief_rows
-        self._belief_counts = kernels.belief_counts if kernels is not None else belief_counts
-        self._sample_into = kernels.sample_into if kernels is not None else None
+        # The samples' loops (netsim.protocols._kernels), loaded for the run's size.
+        self.kernels = load("netsim.protocols._kernels", n)
+        self._roles = tuple(RoleArrays(self.roles.role, self.roles.leader))
         self._cores = cores()
 
     # -- the groups, for the rest of the run ------------------------------------------
@@ -419,10 +235,10 @@ class Stack:
         return reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
 
     def _belief_keys(self, now: float) -> Beliefs:
-        """Who believes whom live now, beside the truth (:func:`belief_rows`): every
-        ``other`` that ``robot`` believes live or whose transmissions reach ``robot``."""
-        table = self.table
-        return Beliefs(*self._belief_rows(table.view, now, self._heard_keys(now)))
+        """Who believes whom live now, beside the truth
+        (:func:`netsim.protocols._kernels.belief_rows`): every ``other`` that ``robot``
+        believes live or whose transmissions reach ``robot``."""
+        return Beliefs(*self.kernels.belief_rows(self.table.view, now, self._heard_keys(now)))
 
     def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
@@ -442,7 +258,7 @@ class Stack:
         arrays of roles and leaders: :meth:`Samples.add` copies them)."""
         roles = self.roles
         b = keys if keys is not None else self._belief_keys(now)
-        believed, true_count, stale, missing, in_range = self._belief_counts(
+        believed, true_count, stale, missing, in_range = self.kernels.belief_counts(
             b.neighbour, b.believed, b.in_range, b.indptr, roles.role, roles.leader
         )
         return {
@@ -475,9 +291,8 @@ class Stack:
 
     def _take_sample(self, now: float) -> None:
         # In place where the truth comes from the channel's neighbour lists (as in
-        # _heard_keys) and the loops are compiled.
-        in_place = self._sample_into is not None and self.channel.reach_lists is not None
-        (self._sample_in_place if in_place else self._sample)(now)
+        # _heard_keys).
+        (self._sample_in_place if self.channel.reach_lists is not None else self._sample)(now)
 
     def _sample_at_end(self) -> None:
         """The last sample of the sampled tables, at the run's end ``T``, once the run has
@@ -490,10 +305,9 @@ class Stack:
 
     def _sample(self, now: float) -> None:
         """One sample of the ``groups``, ``beliefs`` and ``neighbour_beliefs`` tables."""
-        table, roles = self.table, self.roles
         heard = self._heard_keys(now)
-        (robot, group, primary), rows = self._sample_rows(
-            table.view, now, self.clustering.symmetric, (roles.role, roles.leader), heard
+        (robot, group, primary), rows = self.kernels.sample_rows(
+            self.table.view, now, self.clustering.symmetric, self._roles, heard
         )
         self._groups.add(now, {"robot": robot, "group": group, "primary": primary})
         keys = Beliefs(*rows)
@@ -501,7 +315,7 @@ class Stack:
         self._neighbour_beliefs.add(now, self._neighbour_belief_columns(now, keys))
 
     def _sample_in_place(self, now: float) -> None:
-        """:meth:`_sample` by one compiled pass (:func:`netsim.protocols._kernels.sample_into`)
+        """:meth:`_sample` by one pass (:func:`netsim.protocols._kernels.sample_into`)
         writing straight into the tables' buffers, the truth from the channel's neighbour
         lists: the same rows, without a sample's worth of arrays made and then copied. From
         :data:`SAMPLE_IN_TWO_ROBOTS` robots on, on two cores or more, two passes at once,
@@ -524,12 +338,12 @@ class Stack:
             n,
             n,
         )
-        truth = (st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, near_ptr, near)
-        roles_view = (roles.role, roles.leader)
-        sample = partial(self._sample_into, table.view, now, self.clustering.symmetric, roles_view, truth)
-        g, p, c = tuple(groups.values()), tuple(pairs.values()), tuple(counts.values())
+        truth = tuple(Truth(st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, near_ptr, near))
+        sample = partial(self.kernels.sample_into, table.view, now, self.clustering.symmetric, self._roles, truth)
+        # The columns as the loop takes them, by name (the tables' columns are the records' fields).
+        g, p, c = tuple(Groups(**groups)), tuple(Pairs(**pairs)), tuple(Counts(**counts))
         if n < SAMPLE_IN_TWO_ROBOTS or self._cores < 2:
-            m, k = sample((g, p, c), 0, n)
+            m, k = sample(g, p, c, 0, n)
         else:
             # Two halves at once, in two threads. The second writes its rows at the end of
             # each room, as far from its start as they may need, and they are moved up after
@@ -538,7 +352,7 @@ class Stack:
             g_end = len(g[0]) - (n - h) * (slots + 1)
             p_end = len(p[0]) - (n - h) * slots - int(near_ptr[n] - near_ptr[h])
             g_tail, p_tail = tuple(col[g_end:] for col in g), tuple(col[p_end:] for col in p)
-            (m, k), (m2, k2) = side_by_side(lambda: sample((g, p, c), 0, h), lambda: sample((g_tail, p_tail, c), h, n))
+            (m, k), (m2, k2) = side_by_side(lambda: sample(g, p, c, 0, h), lambda: sample(g_tail, p_tail, c, h, n))
             for room, start, end, rows in ((g, m, g_end, m2), (p, k, p_end, k2)):
                 for col in room:
                     col[start : start + rows] = col[end : end + rows]

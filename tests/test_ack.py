@@ -4,10 +4,11 @@ import math
 
 import numpy as np
 import pytest
-from netsim.protocols.neighbours import NeighbourTable, ack_record
+from netsim.protocols.neighbours import NeighbourTable
 
 from netsim.run import build
 from tests.fixtures import make_config
+from tests.oracles.protocols import ack_record
 
 
 def _static(positions, duration=20.0, **protocol):
@@ -111,20 +112,20 @@ def test_two_way_link_is_reported_as_heard():
 
 def test_table_grows_beyond_its_initial_slots():
     table = NeighbourTable(40, tau_s=3.0, slots=2)
-    fields = ack_record(0, 0, -1, 0.0, 0.0, 1)
+    fields = ack_record(0, 0, -1, 0.0, 0.0, 1, heard=[0])  # it lists robot 0
     for s in range(1, 40):
-        table.update(1.0, s, np.array([0]), np.array([True]), fields)
+        table.receive(1.0, s, np.array([0]), fields)
     assert table.slots >= 39
     assert table.live_ids(1.5, 0).tolist() == list(range(1, 40))
 
 
 def test_expired_slot_is_reused_and_live_since_restarts():
     table = NeighbourTable(3, tau_s=3.0, slots=1)
-    fields = ack_record(0, 0, -1, 0.0, 0.0, 1)
-    table.update(0.0, 1, np.array([0]), np.array([True]), fields)
-    table.update(2.0, 1, np.array([0]), np.array([True]), fields)
+    fields = ack_record(0, 0, -1, 0.0, 0.0, 1, heard=[0])  # it lists robot 0
+    table.receive(0.0, 1, np.array([0]), fields)
+    table.receive(2.0, 1, np.array([0]), fields)
     assert table.live_since_s[0, 0] == 0.0
-    table.update(10.0, 2, np.array([0]), np.array([True]), fields)  # 1 expired: slot reused
+    table.receive(10.0, 2, np.array([0]), fields)  # 1 expired: slot reused
     assert table.slots == 1 and table.id[0, 0] == 2 and table.live_since_s[0, 0] == 10.0
 
 
@@ -178,10 +179,10 @@ def test_an_ack_exactly_tau_after_the_last_keeps_the_entry_live():
     """An Ack arriving at the instant the entry expires counts: the entry stays live
     (``live_since`` and the two-way start are kept), and the slot is not reused then."""
     table = NeighbourTable(3, tau_s=3.0, slots=1)
-    fields = ack_record(1, 0, -1, 0.0, 0.0, 1)
-    table.update(0.0, 1, np.array([0]), np.array([True]), fields)
-    table.update(3.0, 2, np.array([0]), np.array([True]), fields)  # another sender, same instant
-    table.update(3.0, 1, np.array([0]), np.array([True]), ack_record(2, 0, -1, 0.0, 0.0, 1))
+    fields = ack_record(1, 0, -1, 0.0, 0.0, 1, heard=[0])
+    table.receive(0.0, 1, np.array([0]), fields)
+    table.receive(3.0, 2, np.array([0]), fields)  # another sender, same instant
+    table.receive(3.0, 1, np.array([0]), ack_record(2, 0, -1, 0.0, 0.0, 1, heard=[0]))
     slot = table.entry(0, 1)
     assert table.live_since_s[0, slot] == 0.0 and table.bidir_since_s[0, slot] == 0.0
     assert table.live_mask(5.9, 0)[slot]
@@ -191,8 +192,8 @@ def test_an_older_ack_does_not_roll_the_entry_back():
     """Acks overtaken by newer ones (latency jitter above the period) are ignored: the
     entry keeps the newest Ack's fields and time."""
     table = NeighbourTable(2, tau_s=3.0)
-    fresh = table.update(1.0, 1, np.array([0]), np.array([True]), ack_record(7, 2, 1, 5.0, 6.0, 4))
-    stale = table.update(1.5, 1, np.array([0]), np.array([False]), ack_record(6, 0, -1, 1.0, 2.0, 1))
+    fresh, _, _ = table.receive(1.0, 1, np.array([0]), ack_record(7, 2, 1, 5.0, 6.0, 4, heard=[0]))
+    stale, _, _ = table.receive(1.5, 1, np.array([0]), ack_record(6, 0, -1, 1.0, 2.0, 1))
     assert fresh.tolist() == [True] and stale.tolist() == [False]
     slot = table.entry(0, 1)
     assert (table.seq[0, slot], table.role[0, slot], table.leader[0, slot], table.group_size[0, slot]) == (7, 2, 1, 4)

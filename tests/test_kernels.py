@@ -1,18 +1,14 @@
 """The hot path's compiled loops compute exactly what the numpy code computes (compared
-with ``==``): the range query (netsim/_kernels.py) and the neighbour tables
-(protocols/_kernels.py); and a whole run gives the same tables either way."""
+with ``==``): the range query (netsim/_kernels.py); and a whole run gives the same tables
+either way (the neighbour tables' loops: test_neighbour_kernels.py)."""
 
 import numpy as np
 import pytest
-from netsim.protocols.neighbours import DEGREE, NeighbourTable, ack_record, heard_in
 
 from netsim.radio.spatial import RangeIndex
-from netsim.simpy_internals import set_now
 from netsim.state import RobotState
 
 pytest.importorskip("numba")
-
-from netsim.protocols import _kernels as table_kernels  # noqa: E402
 
 from netsim import _kernels as core_kernels  # noqa: E402
 from netsim.compiled import compiled_copy  # noqa: E402
@@ -95,86 +91,6 @@ def test_range_query_without_distances_equals_the_oracle(torus, which):
     assert dead_seen > 10
 
 
-def test_overtaken_ack_counted_when_a_later_receivers_row_grows():
-    """An Ack older than a receiver's entry (overtaken in flight) is counted stale, also when
-    a later receiver of the same delivery has no free slot and the table grows midway:
-    compiled (receive and take) and numpy alike."""
-    out = []
-    for kernels in (table_kernels, None):
-        for how in ("receive", "take"):
-            t = NeighbourTable(3, tau_s=10.0, slots=1)
-            t.kernels = kernels
-            t.receive(0.0, 2, np.array([0]), ack_record(5, 0, -1, 0.0, 0.0, 1))  # 0 holds 2's seq 5
-            t.receive(0.0, 0, np.array([1]), ack_record(1, 0, -1, 0.0, 0.0, 1))  # 1's only slot: 0
-            older = ack_record(4, 0, -1, 0.0, 0.0, 1)
-            if how == "receive":
-                fresh, _, stale = t.receive(1.0, 2, np.array([0, 1]), older)
-                assert fresh.tolist() == [False, True]
-            else:
-                stale = t.take(1.0, 2, np.array([0, 1]), older)
-            out.append((stale, t.slots))
-    assert out == [(1, 2)] * 4
-
-
-def test_compiled_empty_record_is_the_tables():
-    """The empty record the compiled Ack starts from (a constant there) is the table's."""
-    from netsim.protocols.neighbours import EMPTY_RECORD
-
-    assert table_kernels.EMPTY_RECORD.tobytes() == EMPTY_RECORD.tobytes()
-
-
-def _ack_stream(rng, n, calls):
-    """Random Acks: senders, receivers (distinct, ascending), heard lists, records (some
-    sequence numbers going back: Acks overtaken in flight), at times with gaps past tau."""
-    t = 0.0
-    seq = np.zeros(n, dtype=np.int64)
-    for _ in range(calls):
-        t += float(rng.choice([0.0, 0.25, 0.5, 1.0, 3.0]))  # on a grid: Acks exactly tau apart
-        s = int(rng.integers(n))
-        seq[s] += 1
-        others = np.delete(np.arange(n), s)
-        receivers = np.sort(rng.choice(others, int(rng.integers(0, n - 1)), replace=False)).astype(np.int64)
-        heard = np.sort(rng.choice(others, int(rng.integers(0, 8)), replace=False)).astype(np.int64)
-        back = int(rng.integers(0, 3)) if rng.random() < 0.1 else 0
-        fields = (seq[s] - back, int(rng.integers(0, 3)), int(rng.integers(-1, n)), *rng.random(2), 3, 2)
-        yield t, s, receivers, heard, ack_record(*fields, heard=heard)
-
-
-def test_compiled_neighbour_table_equals_numpy():
-    """Recording Acks (new entries, renewals, expiry and reuse of slots, overtaken Acks,
-    growth of the table) leaves the same table and flags as the numpy update, and what an
-    Ack announces (heard ids, packed record with the degree) is the numpy one."""
-    rng = np.random.default_rng(11)
-    n = 12
-    compiled, plain = NeighbourTable(n, tau_s=3.0, slots=2), NeighbourTable(n, tau_s=3.0, slots=2)
-    compiled.kernels, plain.kernels = table_kernels, None
-    # take(): receive() without the flags kept (the Ack model's deliveries), both ways.
-    taken = [NeighbourTable(n, tau_s=3.0, slots=2), NeighbourTable(n, tau_s=3.0, slots=2)]
-    taken[0].kernels, taken[1].kernels = table_kernels, None
-    stale = 0
-    for t, s, receivers, heard, record in _ack_stream(rng, n, 1500):
-        a_fresh, a_hm, a_stale = compiled.receive(t, s, receivers, record)
-        b_fresh, b_hm, b_stale = plain.receive(t, s, receivers, record)
-        assert a_fresh.tolist() == b_fresh.tolist() and a_hm.tolist() == b_hm.tolist()
-        assert a_hm.tolist() == np.isin(receivers, heard).tolist()
-        assert a_stale == b_stale == int((~a_fresh).sum())
-        assert [tb.take(t, s, receivers, record) for tb in taken] == [a_stale, a_stale]
-        stale += a_stale
-        i = int(rng.integers(n))
-        fields = (int(rng.integers(100)), int(rng.integers(3)), int(rng.integers(-1, n)), *rng.random(2), 4)
-        a_record = compiled.announce(t, i, *fields)
-        b_record = plain.announce(t, i, *fields)
-        assert a_record.tobytes() == b_record.tobytes()
-        live = plain.live_mask(t, i)
-        assert heard_in(a_record).tolist() == sorted(plain.id[i][live].tolist())
-    assert compiled.slots == plain.slots > 2
-    assert np.array_equal(compiled.id, plain.id)
-    assert compiled.data.tobytes() == plain.data.tobytes()
-    for tb in taken:
-        assert np.array_equal(tb.id, plain.id) and tb.data.tobytes() == plain.data.tobytes()
-    assert stale > 10
-
-
 def test_runs_equal_with_and_without_compiled_loops(monkeypatch):
     """A run's tables are the same with the compiled loops as with the numpy code."""
     from netsim.run import execute
@@ -194,52 +110,6 @@ def test_runs_equal_with_and_without_compiled_loops(monkeypatch):
     assert frames["0"].keys() == frames["1"].keys()
     for name in frames["0"]:
         assert frames["0"][name].equals(frames["1"][name]), name
-
-
-def _beacon_after(seconds: float, compiled: bool):
-    """An Ack beacon on 30 robots, some moving, run for ``seconds``: its tables filled."""
-    from netsim.protocols.ack import AckBeacon, AckParams
-
-    from tests.fixtures import static_core
-
-    rng = np.random.default_rng(8)
-    sim = static_core(rng.uniform(0, 60, (30, 2)), range_m=25.0)
-    for i in range(0, 30, 3):
-        sim.state.set_leg(i, 0.0, rng.uniform(-2, 2, 2), cause="command")
-    beacon = AckBeacon(AckParams(), sim.parts)
-    if not compiled:
-        beacon.table.kernels = None
-    beacon.start()
-    sim.run(until_s=seconds)
-    return sim, beacon
-
-
-def test_compiled_make_ack_equals_numpy():
-    """An Ack built in one compiled call (position, sequence number, resignation, role,
-    leader, group size, what the table announces; the sequence number counted, the
-    resignation cleared, the role and degree sent recorded) is the numpy one."""
-    (sim_a, a), (sim_b, b) = _beacon_after(6.0, True), _beacon_after(6.0, False)
-    assert a.table.kernels is not None
-    rng = np.random.default_rng(9)
-    now = sim_a.env.now
-    degrees = []
-    for _ in range(200):
-        i = int(rng.integers(30))
-        role, leader, size, resign = rng.integers(0, 3), rng.integers(-1, 30), rng.integers(1, 9), rng.random() < 0.3
-        for beacon in (a, b):
-            beacon.roles.role[i], beacon.roles.leader[i] = role, leader
-            beacon.group_size[i], beacon.resign_pending[i] = size, resign
-        ack_a, ack_b = a.make_ack(i), b.make_ack(i)
-        assert ack_a._replace(record=None) == ack_b._replace(record=None)
-        assert [type(x) for x in ack_a] == [type(x) for x in ack_b]
-        assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
-        degrees.append(ack_a.record[DEGREE])
-        now += 0.01
-        set_now(sim_a.env, now)
-        set_now(sim_b.env, now)
-    for name in ("seq", "resign_pending", "role_sent", "degree_sent"):
-        assert np.array_equal(getattr(a, name), getattr(b, name)), name
-    assert max(degrees) > 3 and a.resign_pending.sum() < 30
 
 
 def test_frame_end_equals_the_oracle():

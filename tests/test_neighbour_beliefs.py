@@ -85,7 +85,7 @@ def test_the_table_adds_up_to_the_beliefs_counts():
 
 def test_in_sorted_is_isin():
     """Membership in a sorted pool by binary search is np.isin, empty pool and ends included."""
-    from netsim.protocols.stack import in_sorted
+    from tests.oracles.protocols import in_sorted
 
     rng = np.random.default_rng(8)
     for size in (0, 1, 5, 200):
@@ -101,7 +101,7 @@ def test_samples_frame_is_every_sample_in_order(expected):
     past their first estimate (``expected`` samples of the first one's rows) or never; a
     table taken before later samples is unchanged by them; samples added or written in
     room reserved for more rows than kept alike."""
-    from netsim.protocols.stack import Samples
+    from netsim.samples import Samples
 
     rng = np.random.default_rng(41)
     samples = Samples(expected)
@@ -136,7 +136,7 @@ def test_samples_frame_is_every_sample_in_order(expected):
 def test_sampled_buffers_are_not_shared_with_a_forked_process():
     """A process forked while a run's samples are held (a sweep's worker, say) writes its
     own copy of their buffers: the parent's next rows are its own, not the child's."""
-    from netsim.protocols.stack import Samples
+    from netsim.samples import Samples
 
     samples = Samples(10)
     samples.add(0.0, {"robot": np.arange(5)})

@@ -1,0 +1,309 @@
+"""Oracles of the protocols' loops (netsim.protocols._kernels), in numpy: the neighbour
+table's update and announcement, the clustering's effects of an Ack, its rules 2 and 6 read
+from a row, everyone's groups, who relays a flooded message, and the samples of beliefs
+beside the truth. Each states its rule in array operations, independently of the loop."""
+
+from __future__ import annotations
+
+import numpy as np
+from netsim.protocols._kernels import (
+    BIDIR_SINCE,
+    DEGREE,
+    EMPTY,
+    EMPTY_RECORD,
+    FIELDS,
+    GROUP_SIZE,
+    HEARS_ME,
+    LAST_HEARD,
+    LEADER,
+    LIVE_SINCE,
+    ROLE,
+    ROLE_SINCE,
+    SEQ,
+    Beliefs,
+    X,
+    Y,
+)
+from netsim.protocols.clustering import ELECTION_CODES, JOIN_CODES, Candidate, choose_leader, elected
+from netsim.protocols.roles import LEADER as ALPHA
+from netsim.protocols.roles import MEMBER, NO_LEADER, UNDECIDED
+
+_NONE = np.empty(0, dtype=np.int64)
+_JOIN_BY_CODE = {code: policy for policy, code in JOIN_CODES.items()}
+_ELECTION_BY_CODE = {code: policy for policy, code in ELECTION_CODES.items()}
+
+
+# -- neighbour tables ------------------------------------------------------------------
+def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0, heard=()) -> np.ndarray:
+    """The packed record of an Ack's fields (time and link columns are filled on update),
+    followed by the ids ``heard`` (ascending) it carries."""
+    rec = np.empty(FIELDS + len(heard))
+    rec[:FIELDS] = EMPTY_RECORD
+    rec[SEQ], rec[ROLE], rec[LEADER], rec[X], rec[Y] = seq, role, leader, x_m, y_m
+    rec[GROUP_SIZE], rec[DEGREE] = group_size, degree
+    rec[FIELDS:] = heard
+    return rec
+
+
+def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
+    """Per receiver, whether it is among the ids ``heard`` (ascending)."""
+    if len(heard) == 0:
+        return np.zeros(len(receivers), dtype=bool)
+    at = np.minimum(heard.searchsorted(receivers), len(heard) - 1)
+    return heard[at] == receivers
+
+
+def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
+    """Which ``records`` (any leading shape) are live neighbours over a two-way link."""
+    live = now - records[..., LAST_HEARD] < tau_s
+    if not symmetric:
+        live &= records[..., HEARS_ME] != 0
+    return live
+
+
+class NumpyTable:
+    """A neighbour table updated by gathers and scatters of records: the rules of
+    :class:`netsim.protocols.neighbours.NeighbourTable`, stated in numpy."""
+
+    def __init__(self, n: int, tau_s: float, slots: int = 16):
+        self.n, self.tau_s = n, float(tau_s)
+        self.id = np.full((n, slots), EMPTY, dtype=np.int64)
+        self.data = np.broadcast_to(EMPTY_RECORD, (n, slots, FIELDS)).copy()
+
+    @property
+    def slots(self) -> int:
+        return self.id.shape[1]
+
+    def _grow(self) -> None:
+        k = self.slots
+        ids = np.full((self.n, 2 * k), EMPTY, dtype=np.int64)
+        ids[:, :k] = self.id
+        data = np.broadcast_to(EMPTY_RECORD, (self.n, 2 * k, FIELDS)).copy()
+        data[:, :k] = self.data
+        self.id, self.data = ids, data
+
+    def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
+        # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
+        return (self.id[rows] == EMPTY) | (now - self.data[rows, :, LAST_HEARD] > self.tau_s)
+
+    def _place(self, now, sender, receivers, found):
+        """Give ``sender`` a slot in the rows of the receivers that have none for it."""
+        r_new = receivers[~found]
+        free = self._free_slots(now, r_new)
+        while not free.any(axis=1).all():
+            self._grow()
+            free = self._free_slots(now, r_new)
+        self.id[r_new, free.argmax(axis=1)] = sender
+
+    def update(self, now, sender, receivers, hears_me, record) -> np.ndarray:
+        """Record an Ack from ``sender`` heard by ``receivers`` (``hears_me``: whether each
+        was among the ids the Ack carried); returns per receiver whether it was taken."""
+        found = (self.id[receivers] == sender).any(axis=1)
+        if not found.all():
+            self._place(now, sender, receivers, found)
+        flat = receivers * self.slots + (self.id[receivers] == sender).argmax(axis=1)
+        records = self.data.reshape(-1, FIELDS)
+        old = records[flat]
+        fresh = ~found | (old[:, SEQ] <= record[SEQ])
+        flat, old, found, hears_me = flat[fresh], old[fresh], found[fresh], hears_me[fresh]
+        rec = np.empty_like(old)
+        rec[:] = record[:FIELDS]
+        rec[:, LAST_HEARD] = now
+        was_live = found & (now - old[:, LAST_HEARD] <= self.tau_s)
+        rec[:, LIVE_SINCE] = np.where(was_live, old[:, LIVE_SINCE], now)
+        rec[:, HEARS_ME] = hears_me
+        still_two_way = was_live & (old[:, HEARS_ME] != 0)
+        rec[:, BIDIR_SINCE] = np.where(hears_me, np.where(still_two_way, old[:, BIDIR_SINCE], now), np.inf)
+        same_role = was_live & (old[:, ROLE] == record[ROLE])
+        rec[:, ROLE_SINCE] = np.where(same_role, old[:, ROLE_SINCE], now)
+        records[flat] = rec
+        return fresh
+
+    def receive(self, now, sender, receivers, record):
+        """:meth:`update`, ``hears_me`` read from the record: ``(fresh, hears_me, stale)``."""
+        hears_me = hears(record[FIELDS:], receivers)
+        fresh = self.update(now, sender, receivers, hears_me, record)
+        return fresh, hears_me, len(fresh) - int(fresh.sum())
+
+    def live_mask(self, now: float, i: int) -> np.ndarray:
+        return now - self.data[i, :, LAST_HEARD] < self.tau_s
+
+    def announce(self, now, i, seq, role, leader, x_m, y_m, group_size) -> np.ndarray:
+        """Robot ``i``'s Ack's packed record, with its two-way degree, then its live ids."""
+        live = self.live_mask(now, i)
+        degree = int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
+        return ack_record(seq, role, leader, x_m, y_m, group_size, degree, np.sort(self.id[i][live]))
+
+
+# -- the clustering ----------------------------------------------------------------------
+def ack_effects(now, told, hears_me, robots, table, rules, effects) -> tuple[int, int, int, int]:
+    """What an Ack does to the clustering (netsim.protocols._kernels.ack_effects), by masks
+    over its receivers."""
+    sender, receivers, _, leads = told
+    role, leader, role_sent, leader_since, deadline_s, armed_s = robots
+    ids, records, _ = table
+    c = rules[0]
+    symmetric, merge_delay_s = bool(c["symmetric"]), float(c["merge_delay_s"])
+    renewed_s = now + float(c["tau_s"])
+    r_role = role[receivers]
+    mine = (r_role == MEMBER) & (leader[receivers] == sender)
+    found = [np.flatnonzero(mine), _NONE, _NONE, _NONE, _NONE]
+    if leads:
+        both_ways = hears_me | symmetric
+        renew = receivers[mine & both_ways]
+        deadline_s[renew] = renewed_s
+        leaders = receivers[(r_role == ALPHA) & both_ways]
+        leaders = leaders[role_sent[leaders] == ALPHA]
+        at = ids[leaders] == sender
+        leaders, slots = leaders[at.any(axis=1)], np.argmax(at, axis=1)[at.any(axis=1)]
+        rec = records[leaders, slots]
+        linked = rec[:, LIVE_SINCE] if symmetric else rec[:, BIDIR_SINCE]
+        since = np.maximum(np.maximum(linked, rec[:, ROLE_SINCE]), leader_since[leaders])
+        ready = ~(now - since < merge_delay_s)
+        found[1:] = [
+            renew[renewed_s < armed_s[renew]],
+            receivers[(r_role == UNDECIDED) & both_ways],
+            leaders[ready],
+            slots[ready],
+        ]
+    for row, found_ids in zip(effects, found):
+        row[: len(found_ids)] = found_ids
+    n_group, n_arm, n_join, n_merge = (len(found_ids) for found_ids in found[:4])
+    return n_group, n_arm, n_join, n_merge
+
+
+def mate_slots(records_row, now, tau_s, symmetric, leader) -> np.ndarray:
+    """The slots of a row's live two-way neighbours whose last Ack said they were members
+    of ``leader``."""
+    mask = two_way(records_row, now, tau_s, symmetric)
+    return np.flatnonzero(mask & (records_row[:, LEADER] == leader) & (records_row[:, ROLE] == MEMBER))
+
+
+def group_size(records_row, now, tau_s, symmetric, i) -> int:
+    """1 + the live two-way entries of a row whose last Ack named ``i`` as their leader."""
+    return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
+
+
+def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard) -> tuple[int, int]:
+    """Rule 2 from robot ``i``'s row: :func:`netsim.protocols.clustering.choose_leader` over
+    its live two-way leaders but ``exclude``, and the chosen one's first slot."""
+    ids_all, records, tau_s = table
+    ids_row, records_row = ids_all[i], records[i]
+    c = rules[0]
+    mask = two_way(records_row, now, tau_s, bool(c["symmetric"])) & (records_row[:, ROLE] == ALPHA)
+    slots = np.flatnonzero(mask & (ids_row != exclude))
+    if not len(slots):
+        return NO_LEADER, -1
+    dist = np.hypot(records_row[slots, X] - x_m, records_row[slots, Y] - y_m)
+    ids = ids_row[slots].tolist()
+    candidates = [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())]
+    policy = _JOIN_BY_CODE[int(c["join_policy"])]
+    leader = choose_leader(policy, candidates, first_heard if first_heard >= 0 else None)
+    return leader, int(slots[ids.index(leader)])
+
+
+def elected_in_row(table, i, now, rules, old, degree) -> bool:
+    """Rule 6 from robot ``i``'s row: :func:`netsim.protocols.clustering.elected` among the
+    former members of ``old`` it knows, each with the degree its last Ack announced."""
+    ids_all, records, tau_s = table
+    records_row = records[i]
+    c = rules[0]
+    mates = mate_slots(records_row, now, tau_s, bool(c["symmetric"]), old)
+    ids, degrees = ids_all[i][mates].tolist(), records_row[mates, DEGREE].tolist()
+    rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids, degrees)]
+    return elected(_ELECTION_BY_CODE[int(c["election_policy"])], Candidate(i, degree=degree), rivals)
+
+
+def membership(table, now, symmetric, roles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Everyone's groups ``(robot, group, primary)``, ordered by robot and group."""
+    ids, records, tau_s = table
+    role, leader = roles
+    rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, ROLE] == ALPHA))
+    other = ids[rows, slots]
+    member = role[rows] == MEMBER
+    rows, other = rows[member], other[member]
+    secondary = other != leader[rows]
+    leaders = np.flatnonzero(role == ALPHA)
+    members = np.flatnonzero(role == MEMBER)
+    robot = np.concatenate([leaders, members, rows[secondary]])
+    group = np.concatenate([leaders, leader[members], other[secondary]])
+    primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
+    order = np.lexsort((~primary, group, robot))
+    return robot[order], group[order], primary[order]
+
+
+# -- relaying ----------------------------------------------------------------------------
+def relays(table, now, symmetric, roles, receivers, distributed_gateways) -> np.ndarray:
+    """The receivers of a flooded message that relay it: leaders, and members with a live
+    two-way neighbour in another group."""
+    ids, records, tau_s = table
+    role, leader = roles
+    rows = records[receivers]
+    own = leader[receivers][:, None]
+    if distributed_gateways:
+        other = (rows[:, :, ROLE] != UNDECIDED) & (rows[:, :, LEADER] != own)
+    else:
+        other = (rows[:, :, ROLE] == ALPHA) & (ids[receivers] != own)
+    r_role = role[receivers]
+    gateway = (two_way(rows, now, tau_s, symmetric) & other).any(axis=1)
+    return receivers[(r_role == ALPHA) | ((r_role == MEMBER) & gateway)]
+
+
+def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gateways):
+    """Those ``receivers`` that had not ``seen`` the message (marked now), and which of
+    them relay it."""
+    fresh = receivers[~seen[receivers]]
+    seen[fresh] = True
+    return fresh, relays(table, now, symmetric, roles, fresh, distributed_gateways)
+
+
+# -- samples of beliefs beside the truth ---------------------------------------------------
+def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
+    """``np.isin(values, pool)`` for a sorted ``pool``, by binary search."""
+    if len(pool) == 0:
+        return np.zeros(len(values), dtype=bool)
+    at = np.minimum(pool.searchsorted(values), len(pool) - 1)
+    return pool[at] == values
+
+
+def believed_keys(ids, records, now, tau_s) -> np.ndarray:
+    """``robot * n + other`` for every live entry of the tables, ascending."""
+    live = now - records[:, :, LAST_HEARD] < tau_s
+    return np.sort(np.nonzero(live)[0] * len(ids) + ids[live])
+
+
+def union_sorted(a, b):
+    """The ascending union of two ascending arrays of distinct keys, and per key whether it
+    is in ``a`` and whether in ``b``."""
+    both = np.sort(np.concatenate([a, b]))
+    both = both[np.r_[True, both[1:] != both[:-1]]] if len(both) else both
+    return both, in_sorted(both, a), in_sorted(both, b)
+
+
+def belief_rows(table, now, heard) -> Beliefs:
+    """Who believes whom live beside who is in range (``heard``: ascending keys)."""
+    ids, records, tau_s = table
+    n = len(ids)
+    keys, believed, in_range = union_sorted(believed_keys(ids, records, now, tau_s), heard)
+    robot = keys // n if n else keys
+    return Beliefs(robot, keys % n if n else keys, believed, in_range, robot.searchsorted(np.arange(n + 1)))
+
+
+def belief_counts(neighbour, believed, in_range, indptr, role, leader):
+    """Per robot: believed, true, stale and missing neighbours, and whether its leader is in
+    two-way range."""
+    n = len(indptr) - 1
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    believed_n = np.bincount(rows[believed], minlength=n)
+    true_n = np.bincount(rows[in_range], minlength=n)
+    stale_n = np.bincount(rows[believed & ~in_range], minlength=n)
+    heard_keys = rows[in_range] * n + neighbour[in_range]
+    has = np.flatnonzero((role == MEMBER) & (leader >= 0))
+    in_reach = np.zeros(n, dtype=bool)
+    in_reach[has] = in_sorted(has * n + leader[has], heard_keys) & in_sorted(leader[has] * n + has, heard_keys)
+    return believed_n, true_n, stale_n, true_n - (believed_n - stale_n), in_reach | (role == ALPHA)
+
+
+def sample_rows(table, now, symmetric, roles, heard):
+    """A sample's groups and belief rows."""
+    return membership(table, now, symmetric, roles), belief_rows(table, now, heard)

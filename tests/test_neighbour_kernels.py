@@ -1,0 +1,145 @@
+"""The neighbour tables' and the Ack's loops (protocols/_kernels.py), as plain Python and
+compiled, compute exactly what the numpy oracle computes (compared with ``==``,
+tests/oracles/protocols.py), and build the same Acks either way."""
+
+import importlib
+
+import numpy as np
+import pytest
+from netsim.protocols.neighbours import DEGREE, NeighbourTable, heard_in
+
+from netsim.simpy_internals import set_now
+from tests.oracles.protocols import NumpyTable, ack_record
+
+pytest.importorskip("numba")
+
+KERNELS = "netsim.protocols._kernels"
+
+
+@pytest.fixture(params=["plain", "compiled"])
+def kernels(request):
+    """The protocols' kernel module as a small run calls it (plain Python) and compiled."""
+    from netsim.compiled import compiled_copy
+
+    return importlib.import_module(KERNELS) if request.param == "plain" else compiled_copy(KERNELS)
+
+
+def _table(kernels, n, tau_s, slots):
+    table = NeighbourTable(n, tau_s=tau_s, slots=slots)
+    table.kernels = kernels
+    return table
+
+
+def test_overtaken_ack_counted_when_a_later_receivers_row_grows(kernels):
+    """An Ack older than a receiver's entry (overtaken in flight) is counted stale, also when
+    a later receiver of the same delivery has no free slot and the table grows midway
+    (receive and take)."""
+    out = []
+    for how in ("receive", "take"):
+        t = _table(kernels, 3, 10.0, 1)
+        t.receive(0.0, 2, np.array([0]), ack_record(5, 0, -1, 0.0, 0.0, 1))  # 0 holds 2's seq 5
+        t.receive(0.0, 0, np.array([1]), ack_record(1, 0, -1, 0.0, 0.0, 1))  # 1's only slot: 0
+        older = ack_record(4, 0, -1, 0.0, 0.0, 1)
+        if how == "receive":
+            fresh, _, stale = t.receive(1.0, 2, np.array([0, 1]), older)
+            assert fresh.tolist() == [False, True]
+        else:
+            stale = t.take(1.0, 2, np.array([0, 1]), older)
+        out.append((stale, t.slots))
+    assert out == [(1, 2)] * 2
+
+
+def _ack_stream(rng, n, calls):
+    """Random Acks: senders, receivers (distinct, ascending), heard lists, records (some
+    sequence numbers going back: Acks overtaken in flight), at times with gaps past tau."""
+    t = 0.0
+    seq = np.zeros(n, dtype=np.int64)
+    for _ in range(calls):
+        t += float(rng.choice([0.0, 0.25, 0.5, 1.0, 3.0]))  # on a grid: Acks exactly tau apart
+        s = int(rng.integers(n))
+        seq[s] += 1
+        others = np.delete(np.arange(n), s)
+        receivers = np.sort(rng.choice(others, int(rng.integers(0, n - 1)), replace=False)).astype(np.int64)
+        heard = np.sort(rng.choice(others, int(rng.integers(0, 8)), replace=False)).astype(np.int64)
+        back = int(rng.integers(0, 3)) if rng.random() < 0.1 else 0
+        fields = (seq[s] - back, int(rng.integers(0, 3)), int(rng.integers(-1, n)), *rng.random(2), 3, 2)
+        yield t, s, receivers, heard, ack_record(*fields, heard=heard)
+
+
+def test_neighbour_table_loops_equal_the_oracle(kernels):
+    """Recording Acks (new entries, renewals, expiry and reuse of slots, overtaken Acks,
+    growth of the table) leaves the same table and flags as the numpy oracle's update, and
+    what an Ack announces (heard ids, packed record with the degree) is the oracle's."""
+    rng = np.random.default_rng(11)
+    n = 12
+    table, oracle = _table(kernels, n, 3.0, 2), NumpyTable(n, tau_s=3.0, slots=2)
+    # take(): receive() without the flags kept (the Ack model's deliveries).
+    taken = _table(kernels, n, 3.0, 2)
+    stale = 0
+    for t, s, receivers, heard, record in _ack_stream(rng, n, 1500):
+        a_fresh, a_hm, a_stale = table.receive(t, s, receivers, record)
+        b_fresh, b_hm, b_stale = oracle.receive(t, s, receivers, record)
+        assert a_fresh.tolist() == b_fresh.tolist() and a_hm.tolist() == b_hm.tolist()
+        assert a_hm.tolist() == np.isin(receivers, heard).tolist()
+        assert a_stale == b_stale == int((~a_fresh).sum())
+        assert taken.take(t, s, receivers, record) == a_stale
+        stale += a_stale
+        i = int(rng.integers(n))
+        fields = (int(rng.integers(100)), int(rng.integers(3)), int(rng.integers(-1, n)), *rng.random(2), 4)
+        a_record = table.announce(t, i, *fields)
+        assert a_record.tobytes() == oracle.announce(t, i, *fields).tobytes()
+        assert heard_in(a_record).tolist() == sorted(oracle.id[i][oracle.live_mask(t, i)].tolist())
+    assert table.slots == oracle.slots > 2
+    for tb in (table, taken):
+        assert np.array_equal(tb.id, oracle.id) and tb.data.tobytes() == oracle.data.tobytes()
+    assert stale > 10
+
+
+def _beacon_after(monkeypatch, seconds: float, compiled: bool):
+    """An Ack beacon on 30 robots, some moving, run for ``seconds``: its tables filled."""
+    from netsim.protocols.ack import AckBeacon, AckParams
+
+    from tests.fixtures import static_core
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
+    rng = np.random.default_rng(8)
+    sim = static_core(rng.uniform(0, 60, (30, 2)), range_m=25.0)
+    for i in range(0, 30, 3):
+        sim.state.set_leg(i, 0.0, rng.uniform(-2, 2, 2), cause="command")
+    beacon = AckBeacon(AckParams(), sim.parts)
+    beacon.start()
+    sim.run(until_s=seconds)
+    return sim, beacon
+
+
+def test_acks_built_plain_and_compiled_are_the_same(monkeypatch):
+    """An Ack built in one call (position, sequence number, resignation, role, leader,
+    group size, what the table announces; the sequence number counted, the resignation
+    cleared, the role and degree sent recorded) is the same built by the plain-Python loop
+    as by the compiled one, and announces what the oracle's table announces."""
+    (sim_a, a), (sim_b, b) = _beacon_after(monkeypatch, 6.0, True), _beacon_after(monkeypatch, 6.0, False)
+    assert a.table.kernels is not b.table.kernels
+    rng = np.random.default_rng(9)
+    now = sim_a.env.now
+    degrees = []
+    for _ in range(200):
+        i = int(rng.integers(30))
+        role, leader, size, resign = rng.integers(0, 3), rng.integers(-1, 30), rng.integers(1, 9), rng.random() < 0.3
+        for beacon in (a, b):
+            beacon.roles.role[i], beacon.roles.leader[i] = role, leader
+            beacon.group_size[i], beacon.resign_pending[i] = size, resign
+        ack_a, ack_b = a.make_ack(i), b.make_ack(i)
+        assert ack_a._replace(record=None) == ack_b._replace(record=None)
+        assert [type(x) for x in ack_a] == [type(x) for x in ack_b]
+        assert ack_a.heard.tolist() == ack_b.heard.tolist() and ack_a.record.tobytes() == ack_b.record.tobytes()
+        oracle = NumpyTable(30, a.table.tau_s)
+        oracle.id, oracle.data = a.table.id, a.table.data
+        fields = (ack_a.seq, ack_a.role, ack_a.leader, ack_a.x_m, ack_a.y_m, ack_a.group_size)
+        assert ack_a.record.tobytes() == oracle.announce(now, i, *fields).tobytes()
+        degrees.append(ack_a.record[DEGREE])
+        now += 0.01
+        set_now(sim_a.env, now)
+        set_now(sim_b.env, now)
+    for name in ("seq", "resign_pending", "role_sent", "degree_sent"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert max(degrees) > 3 and a.resign_pending.sum() < 30
