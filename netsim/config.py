@@ -286,6 +286,12 @@ class EventsParams(Params):
 class OutputParams(Params):
     section = "output"
     position_interval_s: float = param(1.0, finite(non_negative), "positions sampling interval (0: off)")
+    receptions: bool = param(
+        False,
+        None,
+        "write receptions.parquet: one row per robot each frame reaches above the noise floor, with its "
+        "distance, received power, SINR, and whether it was received or why not (docs/outputs.md)",
+    )
 
 
 # -- sections that name a model ------------------------------------------------------------

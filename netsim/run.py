@@ -37,6 +37,7 @@ from netsim.params import Params
 from netsim.plugins import Parts, Reports, Schema
 from netsim.radio.channel import Channel
 from netsim.radio.reception import Reception
+from netsim.radio.receptions import RECEPTIONS_SCHEMA, ReceptionLog
 from netsim.rng import Streams
 from netsim.sim import Simulation
 from netsim.state import RobotState
@@ -105,6 +106,8 @@ def simulation(config: Config, run: int = 0) -> Simulation:
             return radio.power(radio_params, noise_floor_dbm, capture_threshold_db)
 
         channel.attach_mac(mac.build(ch.medium, channel, streams.get("channel.mac"), power))
+    if config.output.receptions:
+        channel.receptions = ReceptionLog(channel)
     parts = Parts(
         env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events, occupancy=occupancy
     )
@@ -216,6 +219,8 @@ def tables(config: Config) -> dict[str, Schema]:
         out.update(plugin.tables)
     for name in config.events.hooks:
         out.update(plugins.resolve(plugins.HOOKS, name, "events.hooks").tables)
+    if config.output.receptions:
+        out["receptions"] = dict(RECEPTIONS_SCHEMA)
     return config.channel.mac_model.tables(out)
 
 
@@ -250,7 +255,7 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
         if emit is not None:
             emit(name, frame)
 
-    clash = sorted(set(sim.trace.names()) & (set(ENGINE_TABLES) | {"medium"}))
+    clash = sorted(set(sim.trace.names()) & (set(ENGINE_TABLES) | {"medium", "receptions"}))
     if clash:
         raise NetsimInputError(
             f"a model's table is named like one netsim writes itself ({', '.join(clash)}): rename it in its plugin"
@@ -277,6 +282,8 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     add("legs", legs)
     if sim.channel.mac is not None:
         add("medium", sim.channel.mac.frame())
+    if sim.channel.receptions is not None:
+        add("receptions", sim.channel.receptions.frame())
     return frames
 
 

@@ -197,6 +197,10 @@ class Channel:
         # Per kind, called as (payload, cause, receptions) for what a medium loses of a
         # frame (cause "collision", "half_duplex"; "queue_full", "retry_limit" with 1).
         self.medium_losses: dict[str, Callable[[object, str, int], None]] = {}
+        # The record of every reception (netsim.radio.receptions.ReceptionLog), None: none
+        # kept, and no per-reception work. The frame being decided fills ``_rows``.
+        self.receptions: Any = None
+        self._rows: Any = None
 
     @property
     def survives(self) -> Survives:
@@ -239,15 +243,17 @@ class Channel:
         c.sent[sender] += 1
         binned = self._bin(kind)
         if dest < 0:
-            receivers, dist = self._hearers(sender)
+            receivers, dist = self._hearers(sender, kind, math.inf)
         else:
-            heard, dist = self._unicast_hears(sender, dest)
+            heard, dist = self._unicast_hears(sender, dest, kind, math.inf)
             receivers = np.array([dest])
             if not heard:
                 self._out_of_range(kind, sender, dest, c, binned)
                 receivers = receivers[:0]
         if len(receivers):
             receivers, _ = self._decide(sender, receivers, dist, c, kind, binned)
+        if self._rows is not None:
+            self._close()
         delay = self.latency_s
         if self.latency_jitter_s > 0:
             assert self.latency_rng is not None  # checked when built
@@ -284,14 +290,24 @@ class Channel:
         radio with shadowing this looks at the shadowing, as a transmission does)."""
         return self._hearers(sender)
 
-    def _hearers(self, sender: int) -> tuple[np.ndarray, np.ndarray]:
+    def _hearers(self, sender: int, kind: str | None = None, sinr_db: float = math.nan) -> tuple[np.ndarray, np.ndarray]:
+        """The robots that hear ``sender`` now, and their distances; ``kind``: of a frame
+        (its rows opened when receptions are recorded, their SINR ``sinr_db`` until the
+        medium finds it), None: a query (:meth:`in_range`)."""
         now = self.env.now
+        log = self.receptions if kind is not None else None
         if self.reception is None:
-            return self.index.within(now, sender)
-        receivers, dist = self.index.within(now, sender, self.reception.reach_m)
-        if len(receivers):
-            keep = self.reception.decide(now, sender, receivers, dist)
-            receivers, dist = receivers[keep], dist[keep]
+            receivers, dist = self.index.within(now, sender)
+            if log is not None:
+                self._rows = log.open(now, sender, kind, receivers, dist, None, sinr_db)
+            return receivers, dist
+        candidates, near = self.index.within(now, sender, self.reception.reach_m)
+        receivers, dist, keep = candidates, near, None
+        if len(candidates):
+            keep = self.reception.decide(now, sender, candidates, near)
+            receivers, dist = candidates[keep], near[keep]
+        if log is not None:
+            self._rows = log.open(now, sender, kind, candidates, near, keep, sinr_db)
         return receivers, dist
 
     def broadcast(self, sender: int, payload: object, deliver: Deliver, kind: str = "ack") -> np.ndarray:
@@ -301,6 +317,11 @@ class Channel:
         c = self.counters.get(kind) or self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind) if self.bins else None
+        if self.receptions is not None:
+            receivers, dist = self._hearers(sender, kind, math.inf)
+            receivers = self._transmit(sender, receivers, dist, payload, deliver, c, kind, binned)
+            self._close()
+            return receivers
         if self.reception is not None:
             receivers, dist = self._hearers(sender)
         elif self._distances:
@@ -319,26 +340,42 @@ class Channel:
         c = self.counters_for(kind)
         c.sent[sender] += 1
         binned = self._bin(kind)
-        heard, dist = self._unicast_hears(sender, dest)
+        heard, dist = self._unicast_hears(sender, dest, kind, math.inf)
         if not heard:
             self._out_of_range(kind, sender, dest, c, binned)
+            if self._rows is not None:
+                self._close()
             return False
         got = self._transmit(sender, np.array([dest]), dist, payload, deliver, c, kind, binned)
+        if self._rows is not None:
+            self._close()
         return len(got) == 1
 
-    def _unicast_hears(self, sender: int, dest: int) -> tuple[bool, np.ndarray]:
+    def _close(self) -> None:
+        """The frame whose rows are open is decided: keep them."""
+        self.receptions.close(self._rows)
+        self._rows = None
+
+    def _unicast_hears(
+        self, sender: int, dest: int, kind: str | None = None, sinr_db: float = math.nan
+    ) -> tuple[bool, np.ndarray]:
         """Whether ``dest`` hears ``sender`` now (range, or the radio deciding this pair
-        alone), and their distance (an array of one)."""
+        alone), and their distance (an array of one); ``kind``: of a frame (its row opened
+        when receptions are recorded, as :meth:`_hearers`)."""
         st, now = self.state, self.env.now
         d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [sender]))
         dist = np.hypot(d[:, 0], d[:, 1])
         if dest == sender:
-            return False, dist
-        if self.reception is None:
-            return bool(dist[0] <= st.range_m[sender]), dist
-        if dist[0] > self.reception.reach_m:
-            return False, dist
-        return bool(self.reception.decide(now, sender, np.array([dest]), dist, every_pair=False)[0]), dist
+            heard = False
+        elif self.reception is None:
+            heard = bool(dist[0] <= st.range_m[sender])
+        elif dist[0] > self.reception.reach_m:
+            heard = False
+        else:
+            heard = bool(self.reception.decide(now, sender, np.array([dest]), dist, every_pair=False)[0])
+        if kind is not None and self.receptions is not None:
+            self._rows = self.receptions.open(now, sender, kind, np.array([dest]), dist, np.array([heard]), sinr_db)
+        return heard, dist
 
     def _out_of_range(self, kind: str, sender: int, dest: int, c: Counters, binned: _Bin | None) -> None:
         """Count a unicast whose destination could not hear it."""
@@ -409,6 +446,8 @@ class Channel:
                 np.add.at(c.dropped[1], receivers[~alive], 1)
                 if binned is not None:
                     binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
+                if self._rows is not None:
+                    self._rows.mark(receivers[~alive], 1)
                 self._dropped(kind, sender, receivers[~alive], "not_alive")
                 receivers = receivers[alive]
                 if dist is not None:
@@ -420,6 +459,8 @@ class Channel:
             np.add.at(c.dropped[0], receivers[~keep], 1)
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED, int((~keep).sum()))
+            if self._rows is not None:
+                self._rows.mark(receivers[~keep], 0)
             self._dropped(kind, sender, receivers[~keep], "loss")
             receivers = receivers[keep]
             if dist is not None:

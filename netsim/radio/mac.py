@@ -89,6 +89,7 @@ class Frame:
         "signal_mw",
         "rx_mw",
         "peak_mw",
+        "rows",
     )
 
     def __init__(self, sender, dest, kind, payload, deliver, counters, binned, airtime):
@@ -99,6 +100,8 @@ class Frame:
         self.hd_start = self.col_start = np.empty(0, dtype=bool)
         self.interferers = _EMPTY
         self.power_mw = self.signal_mw = self.rx_mw = self.peak_mw = np.empty(0)
+        # Its receptions' rows while it is decided (netsim.radio.receptions), None: not recorded.
+        self.rows = None
 
 
 class PowerModel:
@@ -310,7 +313,7 @@ class Medium:
         self.airtime_total_s += frame.airtime_s
         c = frame.counters
         if frame.dest < 0:
-            receivers, dist = ch._hearers(i)
+            receivers, dist = ch._hearers(i, frame.kind)
         else:
             receivers, dist = self._unicast_receiver(i, frame)
         if self.same_as_hearers and frame.dest < 0:
@@ -321,6 +324,8 @@ class Medium:
             receivers, kept = ch._decide(i, receivers, dist, c, frame.kind, frame.binned)
             assert kept is not None  # measured distances in, measured distances out
             dist = kept
+        if ch._rows is not None:
+            frame.rows, ch._rows = ch._rows, None
         frame.receivers = receivers
         frame.hd_start = self.transmitting[receivers]
         frame.col_start = self.cover[receivers] > 0
@@ -353,7 +358,7 @@ class Medium:
         scheduled_event(self.env, frame.airtime_s, URGENT, lambda _ev: self._end(frame))
 
     def _unicast_receiver(self, i: int, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
-        heard, dist = self.channel._unicast_hears(i, frame.dest)
+        heard, dist = self.channel._unicast_hears(i, frame.dest, frame.kind)
         if heard:
             return np.array([frame.dest]), dist
         self.channel._out_of_range(frame.kind, i, frame.dest, frame.counters, frame.binned)
@@ -391,6 +396,8 @@ class Medium:
             self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
             interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
             col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
+        if frame.rows is not None:
+            self._record(frame, rx, hd, col)
         ok = ~(hd | col)
         c, binned = frame.counters, frame.binned
         for cause, lost in (("half_duplex", hd), ("collision", col)):
@@ -424,6 +431,18 @@ class Medium:
         resume = newly[self.backoff[newly] >= 0]
         if len(resume):
             self._count_down(resume, now)
+
+    def _record(self, frame: Frame, rx: np.ndarray, hd: np.ndarray, col: np.ndarray) -> None:
+        """Close the rows of ``frame`` (netsim.radio.receptions): the receptions it lost at its
+        end, and under a power model each receiver's SINR, its signal over the noise and the
+        peak interference of the frame (what the capture threshold is compared with)."""
+        rows, frame.rows = frame.rows, None
+        if self.power is not None and len(rx):
+            interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
+            rows.set_sinr(rx, 10.0 * np.log10(frame.rx_mw / (self.power.noise_mw + interference)))
+        rows.mark(rx[hd], self.causes.index("half_duplex"))
+        rows.mark(rx[col], self.causes.index("collision"))
+        self.channel.receptions.close(rows)
 
     def _notify(self, sender: int, got: np.ndarray, payload, deliver, kind: str, c, binned) -> None:
         ch = self.channel
