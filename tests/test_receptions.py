@@ -42,7 +42,9 @@ def _run(config):
     deliveries, drops = [], []
 
     def built(sim):
-        sim.events.on("delivery", lambda e: deliveries.extend((e.kind, e.sender, r, None) for r in e.receivers.tolist()))
+        sim.events.on(
+            "delivery", lambda e: deliveries.extend((e.kind, e.sender, r, None) for r in e.receivers.tolist())
+        )
         sim.events.on("drop", lambda e: drops.extend((e.kind, e.sender, r, e.cause) for r in e.receivers.tolist()))
 
     result = execute(config, built=built)
@@ -102,7 +104,11 @@ def test_receptions_power_is_the_log_distance_law_with_the_pairs_shadowing():
         p = result.sim.channel.reception.propagation
         radio = result.sim.config.channel.radio
         d = np.maximum(r["distance_m"].to_numpy(), radio.reference_distance_m)
-        law = p.tx_power_dbm - radio.reference_loss_db - 10 * radio.path_loss_exponent * np.log10(d / radio.reference_distance_m)
+        law = (
+            p.tx_power_dbm
+            - radio.reference_loss_db
+            - 10 * radio.path_loss_exponent * np.log10(d / radio.reference_distance_m)
+        )
         gap = r["rx_power_dbm"].to_numpy() - law
         assert np.abs(gap).max() <= clip_db + 1e-9
         if clip_db:
@@ -145,7 +151,9 @@ def test_receptions_under_the_unit_disk_have_no_power():
     assert list(r.columns) == list(RECEPTIONS_SCHEMA)
 
 
-@pytest.mark.parametrize("channel", [{"loss_model": "bernoulli", "loss_probability": 0.2}, {**SHADOWED, "mac": "aloha"}])
+@pytest.mark.parametrize(
+    "channel", [{"loss_model": "bernoulli", "loss_probability": 0.2}, {**SHADOWED, "mac": "aloha"}]
+)
 def test_receptions_off_writes_no_file_and_changes_no_other_table(tmp_path: Path, channel):
     """With ``output.receptions`` off no receptions.parquet is written, and every other
     table is the same byte for byte as with it on."""

@@ -290,7 +290,9 @@ class Channel:
         radio with shadowing this looks at the shadowing, as a transmission does)."""
         return self._hearers(sender)
 
-    def _hearers(self, sender: int, kind: str | None = None, sinr_db: float = math.nan) -> tuple[np.ndarray, np.ndarray]:
+    def _hearers(
+        self, sender: int, kind: str | None = None, sinr_db: float = math.nan
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The robots that hear ``sender`` now, and their distances; ``kind``: of a frame
         (its rows opened when receptions are recorded, their SINR ``sinr_db`` until the
         medium finds it), None: a query (:meth:`in_range`)."""

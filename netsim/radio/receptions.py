@@ -46,7 +46,16 @@ class FrameRows:
 
     __slots__ = ("t_s", "src", "kind", "dst", "distance_m", "power_dbm", "sinr_db", "cause")
 
-    def __init__(self, t_s: float, src: int, kind: str, dst: np.ndarray, distance_m: np.ndarray, power_dbm, sinr_db):
+    def __init__(
+        self,
+        t_s: float,
+        src: int,
+        kind: str,
+        dst: np.ndarray,
+        distance_m: np.ndarray,
+        power_dbm: np.ndarray,
+        sinr_db: float,
+    ):
         self.t_s, self.src, self.kind = t_s, src, kind
         self.dst = np.array(dst, dtype=np.int64)
         self.distance_m = np.array(distance_m, dtype=float)
