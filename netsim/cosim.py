@@ -5,7 +5,8 @@ are built, so that :class:`~netsim.sim.Simulation` can offer ``drive``, ``neighb
 - a mobility model that moves robots as told (``mobility.model = "external"``) is a
   :class:`Driver`;
 - a protocol that keeps neighbour tables (the Ack beacon, the clustering) is a
-  :class:`NeighbourView`;
+  :class:`NeighbourView`, and a :class:`LinkQualityView` when its tables keep each entry's
+  last received power (theirs do);
 - a protocol that relays messages between any two robots (the clustering) is a
   :class:`Messenger`.
 
@@ -58,6 +59,17 @@ class NeighbourView(Protocol):
         """Every robot's live table entries now, as dense arrays with one row per robot and
         a column per slot: ids ``(N, S)`` (-1 in a slot with no live entry), the positions
         the entries' last Acks told ``(N, S, 2)``, and when those Acks arrived ``(N, S)``."""
+        ...
+
+
+@runtime_checkable
+class LinkQualityView(Protocol):
+    """Neighbour tables that keep each entry's last received power."""
+
+    def link_quality(self, now: float, robot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``robot``'s live table entries now, by id ascending: the ids, the power (dBm) at
+        which it got each entry's last Ack (NaN where the channel measures no power), and
+        when that Ack arrived (s)."""
         ...
 
 

@@ -10,7 +10,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from netsim.cosim import Arrival, CommandError, Driver, Messenger, NeighbourView, robot_id, robot_ids, velocities
+from netsim.cosim import (
+    Arrival,
+    CommandError,
+    Driver,
+    LinkQualityView,
+    Messenger,
+    NeighbourView,
+    robot_id,
+    robot_ids,
+    velocities,
+)
 from netsim.errors import ConfigError
 from netsim.events import LINK_EVENTS, EventBus
 from netsim.groups import GroupView
@@ -21,6 +31,8 @@ from netsim.plugins import Parts
 from netsim.progress import progress_bar
 
 if TYPE_CHECKING:  # networkx is imported only by runs that ask for the live graph
+    import pandas as pd
+
     from netsim.live import LiveTopology
 
 
@@ -113,6 +125,29 @@ class Simulation:
             raise CommandError(f"{self._model_name('protocol')} keeps no neighbour tables")
         ids = self.neighbour_view.heard(self.env.now)[0][i]
         return np.sort(ids[ids >= 0])
+
+    def link_quality(self, robot: int) -> pd.DataFrame:
+        """The live entries of ``robot``'s neighbour table now (those :meth:`neighbours`
+        lists), one row each by ``neighbour`` ascending: ``rx_power_dbm``, the power at
+        which ``robot`` got the neighbour's last Ack (NaN under the unit disk, or any radio
+        without a log-distance law), and ``age_s``, the time since that Ack arrived."""
+        import pandas as pd
+
+        i = robot_id(robot, self.state.n)
+        view = self.neighbour_view
+        if view is None:
+            raise CommandError(f"{self._model_name('protocol')} keeps no neighbour tables: no link quality to give")
+        if not isinstance(view, LinkQualityView):
+            raise CommandError(f"{self._model_name('protocol')} keeps no received power in its neighbour tables")
+        now = self.env.now
+        ids, power, heard_s = view.link_quality(now, i)
+        return pd.DataFrame(
+            {
+                "neighbour": np.asarray(ids, dtype=np.int64),
+                "rx_power_dbm": np.asarray(power, dtype=float),
+                "age_s": now - np.asarray(heard_s, dtype=float),
+            }
+        )
 
     def send(self, src: int, dst: int, payload: Any = None) -> int:
         """Send ``payload`` from ``src`` to ``dst`` now, relayed by the protocol as its own

@@ -33,11 +33,14 @@ from netsim.compiled import jit
 # Columns of a neighbour table's packed record (netsim.protocols.neighbours). BIDIR_SINCE:
 # since when the neighbour has continuously listed us in its Acks (the link is known
 # two-way); inf while it does not. ROLE_SINCE: since when the live entry's Acks have
-# continuously told the role they tell now.
-LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
+# continuously told the role they tell now. RX_POWER: the power (dBm) at which the receiver
+# got the Ack the entry holds, NaN when the channel measures none (no log-distance law): the
+# receiver's own measurement, written on receipt, never carried by an Ack (its record holds
+# NaN there).
+LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE, RX_POWER = range(13)
 EMPTY = -1  # the id of an empty slot
 # An empty slot's record (never live), a constant of the compiled code (not an argument per Ack).
-EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf], dtype=float)
+EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf, np.nan], dtype=float)
 FIELDS = len(EMPTY_RECORD)  # an Ack's record: these fields, then the ids it heard
 # Columns of the Ack beacon's per-robot (n, 3) array of what each robot sent last
 # (netsim.protocols.ack.AckBeacon.sent): its sequence number, role and two-way degree.
@@ -174,10 +177,11 @@ class Counts(NamedTuple):
 
 
 @jit(nogil=True)
-def receive(table, now, sender, receivers, record, fresh, hears_me, start):
+def receive(table, now, sender, receivers, record, power_dbm, fresh, hears_me, start):
     """Record an Ack of ``sender`` (its packed ``record``: the fields, then the sorted ids it
     heard) in the rows of ``receivers[start:]`` of the ``table``
-    (:meth:`netsim.protocols.neighbours.NeighbourTable.receive`).
+    (:meth:`netsim.protocols.neighbours.NeighbourTable.receive`), with the power each
+    receiver got it at (``power_dbm``, per receiver; None: none measured, NaN kept).
 
     Fills, per receiver, ``fresh``: whether the Ack was taken (not older than the entry's),
     and ``hears_me``: whether the receiver is among ``heard``. Returns ``(-1, stale)`` when done,
@@ -185,20 +189,20 @@ def receive(table, now, sender, receivers, record, fresh, hears_me, start):
     ``(k, stale)`` where ``receivers[k]``'s row has no free slot (the table must grow first;
     the receivers before it are done, ``stale`` counting those of them from ``start``).
     """
-    return _receive(Table(*table), now, sender, receivers, record, fresh, hears_me, start)
+    return _receive(Table(*table), now, sender, receivers, record, power_dbm, fresh, hears_me, start)
 
 
 @jit(nogil=True)
-def take(table, now, sender, receivers, record, start):
+def take(table, now, sender, receivers, record, power_dbm, start):
     """:func:`receive` without the flags (:meth:`netsim.protocols.neighbours.NeighbourTable.take`):
     two arrays fewer to pass per Ack."""
-    return _receive(Table(*table), now, sender, receivers, record, None, None, start)
+    return _receive(Table(*table), now, sender, receivers, record, power_dbm, None, None, start)
 
 
 @jit(nogil=True)
-def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
+def _receive(table, now, sender, receivers, record, power_dbm, fresh, hears_me, start):
     # fresh and hears_me are both arrays or both None (take): the compiler drops the
-    # branches on them in each version.
+    # branches on them in each version, as on power_dbm (None: the record's NaN stays).
     ids, records, tau_s = table.ids, table.records, table.tau_s
     slots = ids.shape[1]
     heard = record[FIELDS:]
@@ -247,6 +251,8 @@ def _receive(table, now, sender, receivers, record, fresh, hears_me, start):
         old[HEARS_ME] = 1.0 if hm else 0.0
         old[BIDIR_SINCE] = bidir_since
         old[ROLE_SINCE] = role_since
+        if power_dbm is not None:
+            old[RX_POWER] = power_dbm[k]
     return -1, stale
 
 
@@ -488,9 +494,10 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
 
 
 @jit(nogil=True)
-def receive_effects(table, now, told, robots, rules, effects, start):
+def receive_effects(table, now, told, power_dbm, robots, rules, effects, start):
     """:func:`receive` then :func:`ack_effects` in one call: an Ack ``told`` to the clustering
-    (:meth:`netsim.protocols.clustering.Clustering.take_told`), recorded in the ``table`` (the
+    (:meth:`netsim.protocols.clustering.Clustering.take_told`), recorded in the ``table`` with
+    the power each receiver got it at (``power_dbm``, as :func:`receive` takes it; the
     ``effects``' ``fresh`` and ``hears_me`` per receiver, as :func:`receive` fills its
     flags) and then acted on by the receivers that took it (the ``effects``' ``takers``,
     with their ``takers_hear_me``). Returns ``(k, stale, kept, group, to_arm, may_join,
@@ -499,7 +506,7 @@ def receive_effects(table, now, told, robots, rules, effects, start):
     receivers that took the Ack, and :func:`ack_effects`' counts."""
     table, told, effects = Table(*table), Told(*told), AckEffects(*effects)
     receivers, fresh, hears_me = told.receivers, effects.fresh, effects.hears_me
-    k, stale = _receive(table, now, told.sender, receivers, told.record, fresh, hears_me, start)
+    k, stale = _receive(table, now, told.sender, receivers, told.record, power_dbm, fresh, hears_me, start)
     if k >= 0:
         return k, stale, 0, 0, 0, 0, 0
     takers, takers_hear_me = effects.takers, effects.takers_hear_me

@@ -238,11 +238,11 @@ class AckBeacon:
         self.leader_listeners: list[AckListener] = []
         self.watched: list[int] = [0] * n
         # Set by a leader listener that can also take the Acks it is told of into the table
-        # (the clustering): (that listener, taker), taker(now, ack, receivers) recording
+        # (the clustering): (that listener, taker), taker(now, ack, receivers, power_dbm) recording
         # such an Ack and acting on it in one compiled call, returning how many receivers
         # did not take it (stale). Used while that listener is the only one: then
         # table.receive and the listener's call are the same work, done in two calls.
-        self.taker: tuple[AckListener, Callable[[float, Ack, np.ndarray], int]] | None = None
+        self.taker: tuple[AckListener, Callable[[float, Ack, np.ndarray, np.ndarray | None], int]] | None = None
         # Set by a protocol whose leaders announce their group's size (the clustering): whose
         # announced size is other than 1, and whether links are symmetric. The Ack sets the
         # size itself (netsim.protocols._kernels.make_sized_ack).
@@ -278,6 +278,8 @@ class AckBeacon:
             agenda.at(phases[i], URGENT, self._tick, i)
         channel = self.channel
         channel.frame_bytes["ack"] = p.ack_bytes
+        # Each receiver's power, for its table (none under the unit disk).
+        channel.measure_power("ack")
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
         bins = channel.bin_by_send_time("ack", self.series_interval_s)
         # Binned up to now: the tables end where the run is (netsim.run.collect).
@@ -305,19 +307,20 @@ class AckBeacon:
             k.make_sized_ack(i, now, self._motion, self._beacon, self._roles, table.view, sized, self.sized_symmetric)
         )
 
-    def deliver(self, sender: int, receivers: np.ndarray, ack: Ack) -> None:
+    def deliver(self, sender: int, receivers: np.ndarray, ack: Ack, power_dbm: np.ndarray | None = None) -> None:
+        """``ack`` arrives at ``receivers``, each at ``power_dbm`` (None: not measured)."""
         now = self.env.now
         tell_leader_listeners = self.leader_listeners and (ack.role == LEADER or self.watched[ack.sender])
         if not tell_leader_listeners and not self.listeners:
             # Nobody to tell (the Ack model alone; most Acks under the clustering): the table
             # is all there is to update.
-            self.stale_acks += self.table.take(now, sender, receivers, ack.record)
+            self.stale_acks += self.table.take(now, sender, receivers, ack.record, power_dbm)
             return
         taker = self.taker
         if tell_leader_listeners and taker is not None and self._taker_alone(taker[0]):
-            self.stale_acks += taker[1](now, ack, receivers)
+            self.stale_acks += taker[1](now, ack, receivers, power_dbm)
             return
-        fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.record)
+        fresh, hears_me, stale = self.table.receive(now, sender, receivers, ack.record, power_dbm)
         if stale:
             self.stale_acks += stale
             receivers, hears_me = receivers[fresh], hears_me[fresh]
@@ -332,6 +335,10 @@ class AckBeacon:
     def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
         return self.table.heard(now)
+
+    def link_quality(self, now: float, robot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``robot``'s live entries and their last power (:class:`netsim.cosim.LinkQualityView`)."""
+        return self.table.link_quality(now, robot)
 
     def _taker_alone(self, listener: AckListener) -> bool:
         """Whether ``listener`` (a taker's) is the only one."""

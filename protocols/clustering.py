@@ -464,14 +464,14 @@ class Clustering:
         )
         self._apply(now, ack, leads, receivers, hears_me, *counts)
 
-    def take_told(self, now: float, ack: Ack, receivers: np.ndarray) -> int:
-        """The beacon's table update and :meth:`on_ack` in one compiled call
-        (:func:`netsim.protocols._kernels.receive_effects`; the beacon's ``taker``): returns how
-        many receivers did not take the Ack (stale)."""
+    def take_told(self, now: float, ack: Ack, receivers: np.ndarray, power_dbm: np.ndarray | None = None) -> int:
+        """The beacon's table update (each receiver's power ``power_dbm``, None: not measured)
+        and :meth:`on_ack` in one compiled call (:func:`netsim.protocols._kernels.receive_effects`;
+        the beacon's ``taker``): returns how many receivers did not take the Ack (stale)."""
         leads = ack.role == LEADER and not ack.resign
         told = tuple(Told(ack.sender, receivers, ack.record, leads))
         stale, (kept, group, to_arm, may_join, may_merge) = self.table.take_by(
-            self.kernels.receive_effects, now, told, self._robots, self.rules, self._effects_rows
+            self.kernels.receive_effects, now, told, power_dbm, self._robots, self.rules, self._effects_rows
         )
         if to_arm or may_join or may_merge or (group and not leads):  # else nothing left to do (most Acks)
             # Copies: the effects' lists are the next Ack's.

@@ -12,7 +12,10 @@ The table is a fixed number of slots per robot, doubled when a robot hears more
 neighbours than it has slots; an expired slot is reused. The fields of a slot are packed
 in one float64 record (integers up to 2^53 are exact), a slot's fields in one row of
 memory. An Ack's own record (:meth:`NeighbourTable.announce`) is the same fields followed
-by the ids the sender heard, ascending: one array per Ack.
+by the ids the sender heard, ascending: one array per Ack. A slot also keeps the power
+(dBm) at which its robot got the Ack the entry holds (``rx_power_dbm``), measured by the
+channel on the way (NaN when it measures none: under the unit disk, or any radio without a
+log-distance law); an Ack's own record carries NaN there.
 
 The table's rules are compiled loops (:mod:`netsim.protocols._kernels`, loaded for the
 run's size by :func:`netsim.compiled.load`), which also define the record's columns.
@@ -34,6 +37,7 @@ from netsim.protocols._kernels import (
     LIVE_SINCE,
     ROLE,
     ROLE_SINCE,
+    RX_POWER,
     SEQ,
     Table,
     X,
@@ -67,6 +71,7 @@ class NeighbourTable:
     ack_degree = property(lambda self: self.data[:, :, DEGREE].astype(np.int64))
     bidir_since_s = property(lambda self: self.data[:, :, BIDIR_SINCE])
     role_since_s = property(lambda self: self.data[:, :, ROLE_SINCE])
+    rx_power_dbm = property(lambda self: self.data[:, :, RX_POWER])
 
     @property
     def slots(self) -> int:
@@ -82,17 +87,22 @@ class NeighbourTable:
         self.view = tuple(Table(ids, data, self.tau_s))
 
     def receive(
-        self, now: float, sender: int, receivers: np.ndarray, record: np.ndarray
+        self,
+        now: float,
+        sender: int,
+        receivers: np.ndarray,
+        record: np.ndarray,
+        power_dbm: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, int]:
         """Record an Ack from ``sender`` (its packed ``record``, with the ids it heard),
-        heard by every robot in ``receivers`` at ``now``
-        (:func:`netsim.protocols._kernels.receive`). Returns ``(fresh, hears_me, stale)``:
+        heard by every robot in ``receivers`` at ``now``, each at ``power_dbm`` (None: not
+        measured) (:func:`netsim.protocols._kernels.receive`). Returns ``(fresh, hears_me, stale)``:
         per receiver whether the Ack was taken (False: an older Ack than the entry's
         newest) and whether it was among the ids the Ack carried, and how many receivers
         did not take the Ack (not fresh)."""
         fresh = np.empty(len(receivers), dtype=bool)
         hears_me = np.empty(len(receivers), dtype=bool)
-        stale, _ = self.take_by(self.kernels.receive, now, sender, receivers, record, fresh, hears_me)
+        stale, _ = self.take_by(self.kernels.receive, now, sender, receivers, record, power_dbm, fresh, hears_me)
         return fresh, hears_me, stale
 
     def take_by(self, kernel, *args) -> tuple:
@@ -110,14 +120,16 @@ class NeighbourTable:
                 return stale, results
             self._grow()
 
-    def take(self, now: float, sender: int, receivers: np.ndarray, record: np.ndarray) -> int:
+    def take(
+        self, now: float, sender: int, receivers: np.ndarray, record: np.ndarray, power_dbm: np.ndarray | None = None
+    ) -> int:
         """:meth:`receive`, for a caller that keeps no flag: returns only how many receivers
         did not take the Ack (not fresh)."""
         # take_by's loop, written out: the path of most Acks, with no arguments to gather.
         take = self.kernels.take
         start, stale = 0, 0
         while True:
-            start, more = take(self.view, now, sender, receivers, record, start)
+            start, more = take(self.view, now, sender, receivers, record, power_dbm, start)
             stale += more
             if start < 0:
                 return stale
@@ -134,6 +146,14 @@ class NeighbourTable:
         the Acks that told them ``(n, slots)``."""
         live = self.live_mask(now)
         return np.where(live, self.id, EMPTY), self.data[:, :, X : Y + 1].copy(), self.data[:, :, LAST_HEARD].copy()
+
+    def link_quality(self, now: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Row ``i``'s live entries now, by neighbour id ascending: the ids, the power (dBm,
+        NaN: not measured) of the Ack each entry holds, and when it arrived
+        (:class:`netsim.cosim.LinkQualityView`)."""
+        slots = np.flatnonzero(self.live_mask(now, i) & (self.id[i] != EMPTY))
+        slots = slots[np.argsort(self.id[i, slots], kind="stable")]
+        return self.id[i, slots].copy(), self.data[i, slots, RX_POWER].copy(), self.data[i, slots, LAST_HEARD].copy()
 
     def announce(
         self, now: float, i: int, seq: int, role: int, leader: int, x_m: float, y_m: float, group_size: int

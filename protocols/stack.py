@@ -160,6 +160,10 @@ class Stack:
         """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
         return self.table.heard(now)
 
+    def link_quality(self, now: float, robot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``robot``'s live entries and their last power (:class:`netsim.cosim.LinkQualityView`)."""
+        return self.table.link_quality(now, robot)
+
     def send_message(self, src: int, dst: int, payload: object) -> int:
         """A message from outside, relayed as the traffic's (:class:`netsim.cosim.Messenger`)."""
         return self.relay.send(src, dst, payload, carried=True)

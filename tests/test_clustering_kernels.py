@@ -129,7 +129,8 @@ def test_receive_effects_is_receive_then_ack_effects(symmetric, kernels):
         armed_s = rng.choice([np.inf, now + 1.0, now + 5.0], n)
         role_sent, leader_since = rng.integers(0, 3, n), rng.choice([np.inf, 0.0, now - 0.5], n)
         rules = rules_record(TAU_S, 1.0, symmetric, "nearest", "lowest_id")
-        fresh, hears_me, stale = one.receive(now, sender, receivers, record)
+        power = rng.uniform(-95.0, -40.0, len(receivers)) if rng.random() < 0.7 else None
+        fresh, hears_me, stale = one.receive(now, sender, receivers, record, power)
         kept = receivers[fresh]
         counts = kernels.ack_effects(
             now,
@@ -143,7 +144,7 @@ def test_receive_effects_is_receive_then_ack_effects(symmetric, kernels):
         told = (sender, receivers, record, leads)
         robots = (role, leader, role_sent, leader_since, deadline_two, armed_s)
         stale_two, (kept_two, *counts_two) = two.take_by(
-            kernels.receive_effects, now, told, robots, rules, tuple(out_two)
+            kernels.receive_effects, now, told, power, robots, rules, tuple(out_two)
         )
         assert (stale_two, kept_two, tuple(counts_two)) == (stale, len(kept), counts)
         assert out_two.takers[:kept_two].tolist() == kept.tolist()

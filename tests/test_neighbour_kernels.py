@@ -68,8 +68,9 @@ def _ack_stream(rng, n, calls):
 
 def test_neighbour_table_loops_equal_the_oracle(kernels):
     """Recording Acks (new entries, renewals, expiry and reuse of slots, overtaken Acks,
-    growth of the table) leaves the same table and flags as the numpy oracle's update, and
-    what an Ack announces (heard ids, packed record with the degree) is the oracle's."""
+    growth of the table, each receiver's power or none measured) leaves the same table and
+    flags as the numpy oracle's update, and what an Ack announces (heard ids, packed record
+    with the degree) is the oracle's."""
     rng = np.random.default_rng(11)
     n = 12
     table, oracle = _table(kernels, n, 3.0, 2), NumpyTable(n, tau_s=3.0, slots=2)
@@ -77,12 +78,13 @@ def test_neighbour_table_loops_equal_the_oracle(kernels):
     taken = _table(kernels, n, 3.0, 2)
     stale = 0
     for t, s, receivers, heard, record in _ack_stream(rng, n, 1500):
-        a_fresh, a_hm, a_stale = table.receive(t, s, receivers, record)
-        b_fresh, b_hm, b_stale = oracle.receive(t, s, receivers, record)
+        power = rng.uniform(-95.0, -40.0, len(receivers)) if rng.random() < 0.7 else None
+        a_fresh, a_hm, a_stale = table.receive(t, s, receivers, record, power)
+        b_fresh, b_hm, b_stale = oracle.receive(t, s, receivers, record, power)
         assert a_fresh.tolist() == b_fresh.tolist() and a_hm.tolist() == b_hm.tolist()
         assert a_hm.tolist() == np.isin(receivers, heard).tolist()
         assert a_stale == b_stale == int((~a_fresh).sum())
-        assert taken.take(t, s, receivers, record) == a_stale
+        assert taken.take(t, s, receivers, record, power) == a_stale
         stale += a_stale
         i = int(rng.integers(n))
         fields = (int(rng.integers(100)), int(rng.integers(3)), int(rng.integers(-1, n)), *rng.random(2), 4)

@@ -28,6 +28,11 @@ With a shared medium (``channel.mac`` other than ``"none"``: :mod:`netsim.radio.
 the frame goes on the air, the collisions at its end, and adds its own drop causes. Without
 one, the code below runs as it always has.
 
+A kind's deliveries can carry the power each receiver got the frame at
+(:meth:`Channel.measure_power`: the Acks', for the neighbour tables), under a radio with a
+log-distance law: computed once per frame, for its receivers, right after the radio decided
+them (the power the decision saw). Under the unit disk there is none and no such work.
+
 A kind's counts can also be kept over time (:meth:`Channel.bin_by_send_time`): per
 interval of *send* time, so that each bin tells the fate of the transmissions sent in it
 (a reception is counted, on arrival, in the bin its transmission was sent in).
@@ -52,8 +57,10 @@ from netsim.state import RobotState
 
 DROP_CAUSES = ("loss", "not_alive", "out_of_range")
 
-# deliver(sender, receivers, payload): called at delivery time with the receiving ids.
-Deliver = Callable[[int, np.ndarray, Any], None]
+# deliver(sender, receivers, payload): called at delivery time with the receiving ids; for a
+# kind whose power is measured (Channel.measure_power), deliver(sender, receivers, payload,
+# power_dbm), with the power each receiver got the frame at.
+Deliver = Callable[..., None]
 
 
 class Counters:
@@ -201,6 +208,26 @@ class Channel:
         # kept, and no per-reception work. The frame being decided fills ``_rows``.
         self.receptions: Any = None
         self._rows: Any = None
+        # Kinds whose deliveries carry each receiver's power (measure_power); empty without a
+        # log-distance law.
+        self.measured: set[str] = set()
+
+    def measure_power(self, kind: str) -> bool:
+        """Hand ``kind``'s deliveries the power (dBm) each receiver got the frame at, as a
+        fourth argument of ``deliver``, when the radio has a power law (log-distance);
+        returns whether it has (else deliveries stay as they are, and nothing is measured)."""
+        rec = self.reception
+        if rec is None or rec.compiled.log is None:
+            return False
+        self.measured.add(kind)
+        return True
+
+    def power_dbm(self, sender: int, kind: str, receivers: np.ndarray, dist: np.ndarray | None) -> np.ndarray | None:
+        """The power at ``receivers`` (at ``dist``) of ``sender``'s frame of ``kind`` now, as
+        the radio just decided them; None where ``kind`` is not measured."""
+        if kind not in self.measured or dist is None:
+            return None
+        return self.reception.received_dbm(self.env.now, sender, receivers, dist)
 
     @property
     def survives(self) -> Survives:
@@ -250,8 +277,11 @@ class Channel:
             if not heard:
                 self._out_of_range(kind, sender, dest, c, binned)
                 receivers = receivers[:0]
+        power = None
         if len(receivers):
-            receivers, _ = self._decide(sender, receivers, dist, c, kind, binned)
+            receivers, dist = self._decide(sender, receivers, dist, c, kind, binned)
+            if self.measured:
+                power = self.power_dbm(sender, kind, receivers, dist)
         if self._rows is not None:
             self._close()
         delay = self.latency_s
@@ -259,7 +289,7 @@ class Channel:
             assert self.latency_rng is not None  # checked when built
             delay += self.latency_rng.random() * self.latency_jitter_s
         if len(receivers):
-            self._at(delay, deliver, sender, receivers, payload, c, kind, binned)
+            self._at(delay, deliver, sender, receivers, payload, c, kind, binned, power)
         elif kind in self.notify_empty:
             self.agenda.at(delay, URGENT, deliver, sender, receivers, payload)
         return receivers
@@ -418,13 +448,15 @@ class Channel:
         receivers, dist = self._decide(sender, receivers, dist, c, kind, binned, all_alive)
         if len(receivers) == 0:
             return receivers
+        power = self.power_dbm(sender, kind, receivers, dist) if self.measured else None
         if self.latency_jitter_s > 0:
             assert self.latency_rng is not None  # checked when built
             delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
-            for r, delay in zip(receivers.tolist(), delays.tolist()):
-                self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned)
+            for k, (r, delay) in enumerate(zip(receivers.tolist(), delays.tolist())):
+                one = None if power is None else power[k : k + 1]
+                self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned, one)
         else:
-            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind, binned)
+            self._at(self.latency_s, deliver, sender, receivers, payload, c, kind, binned, power)
         return receivers
 
     def _decide(
@@ -479,13 +511,20 @@ class Channel:
         c: Counters,
         kind: str,
         binned: _Bin | None = None,
+        power_dbm: np.ndarray | None = None,
     ) -> None:
         # At URGENT priority, on the agenda: where a kernel event scheduled now would run.
         # Deliveries at the channel's latency come in the order they are due: queued.
-        if delay == self.latency_s:
-            self.agenda.at_in_order(delay, URGENT, self._arrive, deliver, sender, receivers, payload, c, kind, binned)
+        if power_dbm is not None:
+            # The receivers' power handed on as deliver's fourth argument.
+            payload = (payload, power_dbm)
+            arrive = self._arrive_measured
         else:
-            self.agenda.at(delay, URGENT, self._arrive, deliver, sender, receivers, payload, c, kind, binned)
+            arrive = self._arrive
+        if delay == self.latency_s:
+            self.agenda.at_in_order(delay, URGENT, arrive, deliver, sender, receivers, payload, c, kind, binned)
+        else:
+            self.agenda.at(delay, URGENT, arrive, deliver, sender, receivers, payload, c, kind, binned)
 
     def _arrive(
         self,
@@ -507,6 +546,20 @@ class Channel:
             for fn in on_delivery:
                 fn(delivery)
         deliver(sender, receivers, payload)
+
+    def _arrive_measured(
+        self,
+        deliver: Deliver,
+        sender: int,
+        receivers: np.ndarray,
+        measured: tuple[object, np.ndarray],
+        counters: Counters,
+        kind: str,
+        binned: _Bin | None,
+    ) -> None:
+        """:meth:`_arrive` of a measured kind: ``measured`` the payload and the receivers' power."""
+        payload, power_dbm = measured
+        self._arrive(lambda s, r, p: deliver(s, r, p, power_dbm), sender, receivers, payload, counters, kind, binned)
 
     def frame(self, kind: str) -> pd.DataFrame:
         return self.counters_for(kind).frame()

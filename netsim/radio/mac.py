@@ -89,6 +89,7 @@ class Frame:
         "signal_mw",
         "rx_mw",
         "peak_mw",
+        "power_dbm",
         "rows",
     )
 
@@ -100,6 +101,8 @@ class Frame:
         self.hd_start = self.col_start = np.empty(0, dtype=bool)
         self.interferers = _EMPTY
         self.power_mw = self.signal_mw = self.rx_mw = self.peak_mw = np.empty(0)
+        # Its receivers' power (dBm) when its kind's is measured (Channel.measure_power).
+        self.power_dbm = None
         # Its receptions' rows while it is decided (netsim.radio.receptions), None: not recorded.
         self.rows = None
 
@@ -324,6 +327,7 @@ class Medium:
             receivers, kept = ch._decide(i, receivers, dist, c, frame.kind, frame.binned)
             assert kept is not None  # measured distances in, measured distances out
             dist = kept
+        frame.power_dbm = ch.power_dbm(i, frame.kind, receivers, dist) if ch.measured else None
         if ch._rows is not None:
             frame.rows, ch._rows = ch._rows, None
         frame.receivers = receivers
@@ -421,7 +425,8 @@ class Medium:
                 self._frame_dropped(i, frame.kind, c, binned, "retry_limit", frame.payload)
             self.retries[i] = 0
             self.cw[i] = self.cw_min
-            self._notify(i, got, frame.payload, frame.deliver, frame.kind, c, binned)
+            power = frame.power_dbm[ok] if frame.power_dbm is not None else None
+            self._notify(i, got, frame.payload, frame.deliver, frame.kind, c, binned, power)
         if not self.csma:
             if q:
                 self._start(i)
@@ -444,14 +449,14 @@ class Medium:
         rows.mark(rx[col], self.causes.index("collision"))
         self.channel.receptions.close(rows)
 
-    def _notify(self, sender: int, got: np.ndarray, payload, deliver, kind: str, c, binned) -> None:
+    def _notify(self, sender: int, got: np.ndarray, payload, deliver, kind: str, c, binned, power_dbm=None) -> None:
         ch = self.channel
         delay = ch.latency_s
         if ch.latency_jitter_s > 0:
             assert ch.latency_rng is not None
             delay += ch.latency_rng.random() * ch.latency_jitter_s
         if len(got):
-            ch._at(delay, deliver, sender, got, payload, c, kind, binned)
+            ch._at(delay, deliver, sender, got, payload, c, kind, binned, power_dbm)
         elif kind in ch.notify_empty:
             scheduled_event(self.env, delay, URGENT, lambda _ev: deliver(sender, _EMPTY, payload))
 

@@ -19,6 +19,7 @@ from netsim.protocols._kernels import (
     LIVE_SINCE,
     ROLE,
     ROLE_SINCE,
+    RX_POWER,
     SEQ,
     Beliefs,
     X,
@@ -95,9 +96,10 @@ class NumpyTable:
             free = self._free_slots(now, r_new)
         self.id[r_new, free.argmax(axis=1)] = sender
 
-    def update(self, now, sender, receivers, hears_me, record) -> np.ndarray:
+    def update(self, now, sender, receivers, hears_me, record, power_dbm=None) -> np.ndarray:
         """Record an Ack from ``sender`` heard by ``receivers`` (``hears_me``: whether each
-        was among the ids the Ack carried); returns per receiver whether it was taken."""
+        was among the ids the Ack carried; ``power_dbm``: the power each got it at, None:
+        the record's); returns per receiver whether it was taken."""
         found = (self.id[receivers] == sender).any(axis=1)
         if not found.all():
             self._place(now, sender, receivers, found)
@@ -108,6 +110,8 @@ class NumpyTable:
         flat, old, found, hears_me = flat[fresh], old[fresh], found[fresh], hears_me[fresh]
         rec = np.empty_like(old)
         rec[:] = record[:FIELDS]
+        if power_dbm is not None:
+            rec[:, RX_POWER] = np.asarray(power_dbm)[fresh]
         rec[:, LAST_HEARD] = now
         was_live = found & (now - old[:, LAST_HEARD] <= self.tau_s)
         rec[:, LIVE_SINCE] = np.where(was_live, old[:, LIVE_SINCE], now)
@@ -119,10 +123,10 @@ class NumpyTable:
         records[flat] = rec
         return fresh
 
-    def receive(self, now, sender, receivers, record):
+    def receive(self, now, sender, receivers, record, power_dbm=None):
         """:meth:`update`, ``hears_me`` read from the record: ``(fresh, hears_me, stale)``."""
         hears_me = hears(record[FIELDS:], receivers)
-        fresh = self.update(now, sender, receivers, hears_me, record)
+        fresh = self.update(now, sender, receivers, hears_me, record, power_dbm)
         return fresh, hears_me, len(fresh) - int(fresh.sum())
 
     def live_mask(self, now: float, i: int) -> np.ndarray:
