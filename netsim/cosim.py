@@ -66,10 +66,11 @@ class NeighbourView(Protocol):
 class LinkQualityView(Protocol):
     """Neighbour tables that keep each entry's last received power."""
 
-    def link_quality(self, now: float, robot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``robot``'s live table entries now, by id ascending: the ids, the power (dBm) at
-        which it got each entry's last Ack (NaN where the channel measures no power), and
-        when that Ack arrived (s)."""
+    def link_quality(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every robot's live table entries now, as :meth:`NeighbourView.heard`'s dense
+        arrays: ids ``(N, S)`` (-1 in a slot with no live entry), the power (dBm) at which
+        the robot got each entry's last Ack (NaN where the channel measures no power) and
+        when that Ack arrived ``(N, S)``."""
         ...
 
 

@@ -140,12 +140,14 @@ class Simulation:
         if not isinstance(view, LinkQualityView):
             raise CommandError(f"{self._model_name('protocol')} keeps no received power in its neighbour tables")
         now = self.env.now
-        ids, power, heard_s = view.link_quality(now, i)
+        ids, power, heard_s = (np.asarray(a)[i] for a in view.link_quality(now))
+        slots = np.flatnonzero(ids >= 0)
+        slots = slots[np.argsort(ids[slots], kind="stable")]
         return pd.DataFrame(
             {
-                "neighbour": np.asarray(ids, dtype=np.int64),
-                "rx_power_dbm": np.asarray(power, dtype=float),
-                "age_s": now - np.asarray(heard_s, dtype=float),
+                "neighbour": ids[slots].astype(np.int64),
+                "rx_power_dbm": power[slots].astype(float),
+                "age_s": now - heard_s[slots].astype(float),
             }
         )
 

@@ -147,13 +147,12 @@ class NeighbourTable:
         live = self.live_mask(now)
         return np.where(live, self.id, EMPTY), self.data[:, :, X : Y + 1].copy(), self.data[:, :, LAST_HEARD].copy()
 
-    def link_quality(self, now: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Row ``i``'s live entries now, by neighbour id ascending: the ids, the power (dBm,
-        NaN: not measured) of the Ack each entry holds, and when it arrived
-        (:class:`netsim.cosim.LinkQualityView`)."""
-        slots = np.flatnonzero(self.live_mask(now, i) & (self.id[i] != EMPTY))
-        slots = slots[np.argsort(self.id[i, slots], kind="stable")]
-        return self.id[i, slots].copy(), self.data[i, slots, RX_POWER].copy(), self.data[i, slots, LAST_HEARD].copy()
+    def link_quality(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every row's live entries now (:class:`netsim.cosim.LinkQualityView`): ids ``(n,
+        slots)``, -1 where no live entry; the power (dBm, NaN: not measured) at which the
+        row's robot got the Ack each entry holds, and when it arrived ``(n, slots)``."""
+        live = self.live_mask(now)
+        return np.where(live, self.id, EMPTY), self.data[:, :, RX_POWER].copy(), self.data[:, :, LAST_HEARD].copy()
 
     def announce(
         self, now: float, i: int, seq: int, role: int, leader: int, x_m: float, y_m: float, group_size: int

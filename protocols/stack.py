@@ -160,9 +160,9 @@ class Stack:
         """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
         return self.table.heard(now)
 
-    def link_quality(self, now: float, robot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``robot``'s live entries and their last power (:class:`netsim.cosim.LinkQualityView`)."""
-        return self.table.link_quality(now, robot)
+    def link_quality(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The tables' live entries and their last power (:class:`netsim.cosim.LinkQualityView`)."""
+        return self.table.link_quality(now)
 
     def send_message(self, src: int, dst: int, payload: object) -> int:
         """A message from outside, relayed as the traffic's (:class:`netsim.cosim.Messenger`)."""

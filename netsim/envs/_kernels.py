@@ -92,3 +92,32 @@ def nearest_told(out, start, pos, ids, told, heard_s, now, k):
                 out[i, c + 1] = 0.0
                 out[i, c + 2] = 0.0
                 out[i, c + 3] = 0.0
+
+
+@jit(nogil=True)
+def strongest_heard(out, start, ids, power_dbm, heard_s, now, k, low_dbm, high_dbm):
+    """Write into ``out[i, start:start + 3 min(k, slots)]`` robot ``i``'s ``k`` strongest live
+    table entries by the power it got their last Acks at (ties: the lower slot first;
+    entries without a power left out): that power (dBm, kept within ``[low_dbm,
+    high_dbm]``, the observation's bounds, against float32's rounding there), the age of
+    the Ack (``now - heard_s``) and 1; where fewer are live, ``low_dbm`` (nothing heard:
+    the floor, inside the bounds), 0 and 0. ``ids, power_dbm,
+    heard_s``: a :class:`netsim.cosim.LinkQualityView`'s arrays."""
+    n, slots = ids.shape
+    key = np.empty(slots)
+    for i in range(n):
+        for s in range(slots):
+            p = power_dbm[i, s]
+            key[s] = -p if ids[i, s] >= 0 and not np.isnan(p) else np.inf
+        order = np.argsort(key, kind="mergesort")
+        for m in range(min(k, slots)):
+            s = order[m]
+            c = start + 3 * m
+            if key[s] < np.inf:
+                out[i, c] = min(max(power_dbm[i, s], low_dbm), high_dbm)
+                out[i, c + 1] = now - heard_s[i, s]
+                out[i, c + 2] = 1.0
+            else:
+                out[i, c] = low_dbm
+                out[i, c + 1] = 0.0
+                out[i, c + 2] = 0.0

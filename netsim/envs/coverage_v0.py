@@ -17,8 +17,12 @@ Observation of an agent (float32, ``4 + R + 4K`` values, R roles, K = ``max_neig
 its position ``x, y`` (m), its velocity ``vx, vy`` (m/s; 0 once stopped on the border), its
 role one-hot (``role_names``), then up to K neighbours of its table, nearest first by
 the positions their Acks told: ``dx, dy`` (m, told position minus own position), the age
-of that Ack (s) and 1 (present); missing neighbours are all zeros. Its bounds are the
-run's: the area, the speed bound, the protocol's ``tau``.
+of that Ack (s) and 1 (present); missing neighbours are all zeros. With ``link_quality``
+(a log-distance radio), ``3K`` more: up to K live entries, strongest first by the power it
+got their last Acks at: that power (dBm), the Ack's age (s) and 1; a missing one is the
+radio's sensitivity (the floor: nothing heard), 0 and 0. Its
+bounds are the run's: the area, the speed bound, the protocol's ``tau``, the radio's
+sensitivity and strongest possible power (:func:`power_bounds_dbm`).
 
 Reward (the same for every agent): ``C(t) - C(t - step) - component_penalty x
 (components(t) - 1)``, ``C`` the fraction of the run's area within ``radius_m`` (0: the
@@ -41,14 +45,16 @@ from pettingzoo import ParallelEnv
 from netsim import config as cfgmod
 from netsim.area import Bounds
 from netsim.compiled import load
-from netsim.cosim import CommandError
+from netsim.cosim import CommandError, LinkQualityView
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
+from netsim.radio.propagation import TRUNCATION_SIGMAS
 from netsim.run import build
 from netsim.sim import Simulation
 from netsim.topology import geometric_pairs
 
 FIELDS_PER_NEIGHBOUR = 4  # dx, dy, age, present
+FIELDS_PER_LINK = 3  # rx_power_dbm, age, present (link_quality)
 
 
 @dataclass(frozen=True)
@@ -66,6 +72,9 @@ class CoverageEnvParams(Params):
     step_s: float = param(1.0, finite(positive), "one step: the control period, s")
     ack_period_s: float = param(1.0, finite(positive), "Ack period, s")
     max_neighbours: int = param(6, non_negative, "neighbours K in an observation")
+    link_quality: bool = param(
+        False, None, "append the K strongest live neighbours' received power and age (a log-distance radio)"
+    )
     max_cycles: int = param(200, positive, "steps before the episode is truncated")
     component_penalty: float = param(0.01, finite(non_negative), "reward lost per component beyond one")
     grid_cells: int = param(100, positive, "the covered fraction's grid: cells per side")
@@ -104,7 +113,10 @@ class CoverageEnv(ParallelEnv):
         self.radius_m = p.radius_m or self.range_m
         self.tau_s = float(getattr(config.protocol.params, "tau_s", np.inf))
         self.role_names: tuple[str, ...] = ("gamma", "beta", "alpha")
-        self._obs_size = 4 + len(self.role_names) + FIELDS_PER_NEIGHBOUR * p.max_neighbours
+        # Where the link quality starts in an observation; its power's bounds (None: off).
+        self.link_quality_start = 4 + len(self.role_names) + FIELDS_PER_NEIGHBOUR * p.max_neighbours
+        self.power_bounds_dbm = power_bounds_dbm(config) if p.link_quality else None
+        self._obs_size = self.link_quality_start + (FIELDS_PER_LINK * p.max_neighbours if p.link_quality else 0)
         self._episode = -1
         self.sim: Simulation | None = None
         self.cycles = 0
@@ -113,7 +125,7 @@ class CoverageEnv(ParallelEnv):
         v = np.float32(p.speed_max_mps)
         self._action_space = spaces.Box(-v, v, shape=(2,), dtype=np.float32)
         self._observation_space = observation_space(
-            self.area, p.speed_max_mps, len(self.role_names), p.max_neighbours, self.tau_s
+            self.area, p.speed_max_mps, len(self.role_names), p.max_neighbours, self.tau_s, self.power_bounds_dbm
         )
         self._high = self._action_space.high.astype(float)
         # The measures' kernels, compiled or plain as the run's own loops (netsim.compiled.load).
@@ -276,6 +288,11 @@ class CoverageEnv(ParallelEnv):
         if k and sim.neighbour_view is not None:
             ids, told, heard_s = sim.neighbour_view.heard(sim.now)
             self._measures.nearest_told(out, 4 + roles, pos, ids, told, heard_s, sim.now, k)
+        bounds = self.power_bounds_dbm
+        if k and bounds is not None and isinstance(sim.neighbour_view, LinkQualityView):
+            ids, power, heard_s = sim.neighbour_view.link_quality(sim.now)
+            start = self.link_quality_start
+            self._measures.strongest_heard(out, start, ids, power, heard_s, sim.now, k, *bounds)
         return {a: out[i] for i, a in enumerate(self.agents)}
 
     def _infos(self, pos: np.ndarray) -> dict[str, dict]:
@@ -296,13 +313,34 @@ class CoverageEnv(ParallelEnv):
         self.sim = None
 
 
-def observation_space(area: Bounds, speed_max_mps: float, roles: int, k: int, tau_s: float) -> spaces.Box:
+def observation_space(
+    area: Bounds,
+    speed_max_mps: float,
+    roles: int,
+    k: int,
+    tau_s: float,
+    power_bounds_dbm: tuple[float, float] | None = None,
+) -> spaces.Box:
     """The box of an agent's observation (module notes) in the run's ``area``, with
-    ``roles`` roles, ``k`` neighbours and Acks live for less than ``tau_s``."""
+    ``roles`` roles, ``k`` neighbours and Acks live for less than ``tau_s``; with the link
+    quality of ``k`` neighbours when ``power_bounds_dbm`` (their power's) are given."""
     v, w, h = speed_max_mps, area.width, area.height
     low = [area.x_min, area.y_min, -v, -v] + [0.0] * roles + [-w, -h, 0.0, 0.0] * k
     high = [area.x_max, area.y_max, v, v] + [1.0] * roles + [w, h, tau_s, 1.0] * k
+    if power_bounds_dbm is not None:
+        low += [power_bounds_dbm[0], 0.0, 0.0] * k
+        high += [power_bounds_dbm[1], tau_s, 1.0] * k
     return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
+
+
+def power_bounds_dbm(config: cfgmod.Config) -> tuple[float, float]:
+    """The power (dBm) an Ack can be received at under the run's log-distance radio: at
+    least the sensitivity (a frame below it is not received), at most the transmit power
+    less the path loss at the reference distance (the least there is: nearer, the loss
+    stays PL(d0)) plus the strongest shadowing (clipped at 4 sigma); walls only take."""
+    radio = config.channel.radio
+    strongest = radio.tx_power_dbm - radio.reference_loss_db + TRUNCATION_SIGMAS * radio.shadowing_sigma_db
+    return float(radio.sensitivity_dbm), float(strongest)
 
 
 def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, object, str] | None:
@@ -337,6 +375,12 @@ def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, obje
         )
     if world.torus:
         return "world.torus", True, "the environment measures coverage of a bounded area"
+    if params.link_quality and channel.propagation != "log_distance":
+        return (
+            "link_quality",
+            True,
+            f"needs a received power: channel.propagation = 'log_distance' (set it in netsim), not {channel.propagation!r}",
+        )
     return None
 
 

@@ -97,3 +97,31 @@ def nearest_told(
     block[:, :, 3] = 1.0
     block[~live[rows, order]] = 0.0
     out[:, start : start + 4 * take] = block.reshape(n, -1)
+
+
+def strongest_heard(
+    out: np.ndarray,
+    start: int,
+    ids: np.ndarray,
+    power_dbm: np.ndarray,
+    heard_s: np.ndarray,
+    now: float,
+    k: int,
+    low_dbm: float,
+    high_dbm: float,
+) -> None:
+    """Write into ``out[i, start:start + 3 min(k, slots)]`` robot ``i``'s ``k`` strongest live
+    table entries with a power (ties: the lower slot first): the power clipped to
+    ``[low_dbm, high_dbm]``, the age of the Ack and 1; ``(low_dbm, 0, 0)`` where fewer are live."""
+    n, slots = ids.shape
+    valid = (ids >= 0) & ~np.isnan(power_dbm)
+    key = np.where(valid, -np.nan_to_num(power_dbm), np.inf)
+    take = min(k, slots)
+    order = np.argsort(key, axis=1, kind="stable")[:, :take]
+    rows = np.arange(n)[:, None]
+    block = np.zeros((n, take, 3))
+    block[:, :, 0] = np.clip(power_dbm[rows, order], low_dbm, high_dbm)
+    block[:, :, 1] = now - heard_s[rows, order]
+    block[:, :, 2] = 1.0
+    block[~valid[rows, order]] = (low_dbm, 0.0, 0.0)
+    out[:, start : start + 3 * take] = block.reshape(n, -1)
