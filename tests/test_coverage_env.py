@@ -200,8 +200,8 @@ def test_render_draws_an_rgb_frame():
 
 @pytest.mark.parametrize("compiled", [False, True], ids=["plain", "compiled"])
 def test_measure_kernels_equal_the_numpy_oracles(compiled):
-    """The covered fraction, component count and nearest told neighbours of the kernels,
-    plain and compiled, are the numpy oracles' exactly (including disks past the border,
+    """The covered fraction, component count, nearest told neighbours and strongest heard
+    ones (link quality) of the kernels, plain and compiled, are the numpy oracles' exactly (including disks past the border,
     and areas off the origin)."""
     kernels = compiled_copy("netsim.envs._kernels") if compiled else _kernels
     rng = np.random.default_rng(0)
@@ -222,6 +222,13 @@ def test_measure_kernels_equal_the_numpy_oracles(compiled):
             a, b = np.zeros((n, 40), np.float32), np.zeros((n, 40), np.float32)
             kernels.nearest_told(a, 2, pos, ids, told, heard, 3.5, k)
             oracle.nearest_told(b, 2, pos, ids, told, heard, 3.5, k)
+            assert a.tobytes() == b.tobytes()
+        power = np.where(rng.random((n, slots)) < 0.9, rng.uniform(-85.0, -30.0, (n, slots)), np.nan)
+        power[:, 2] = power[:, 3]  # ties: the lower slot first
+        for k in (0, 3, 10):
+            a, b = np.zeros((n, 40), np.float32), np.zeros((n, 40), np.float32)
+            kernels.strongest_heard(a, 2, ids, power, heard, 3.5, k, -80.0, -35.0)
+            oracle.strongest_heard(b, 2, ids, power, heard, 3.5, k, -80.0, -35.0)
             assert a.tobytes() == b.tobytes()
 
 
@@ -423,4 +430,47 @@ def test_a_duration_that_no_longer_matches_max_cycles_is_refused_at_reset():
     env.max_cycles = max_cycles + 5
     with pytest.raises(ConfigError, match="duration_s") as err:
         env.reset(seed=1)
+    assert "\n" not in str(err.value)
+
+
+LOG_DISTANCE = {"channel": {"propagation": "log_distance", "shadowing_sigma_db": 4.0}}
+
+
+def test_link_quality_observes_the_strongest_live_neighbours_at_the_documented_index():
+    """With link_quality, an agent's observation holds from index 7 + 4K on its K strongest
+    live entries of sim.link_quality (power dBm, age s, 1), strongest first, padded with
+    (sensitivity, 0, 0), inside the observation space; the fields before are unchanged."""
+    k = 4
+    env = coverage_v0.parallel_env(n_robots=8, max_cycles=6, max_neighbours=k, link_quality=True, netsim=LOG_DISTANCE)
+    plain = coverage_v0.parallel_env(n_robots=8, max_cycles=6, max_neighbours=k, netsim=LOG_DISTANCE)
+    start = 7 + 4 * k
+    assert env.link_quality_start == start
+    assert env.observation_space("robot_0").shape == (start + 3 * k,)
+    seen = padded = 0
+    obs, _ = env.reset(seed=3)
+    plain_obs, _ = plain.reset(seed=3)
+    for step in range(6):
+        for a, o in obs.items():
+            assert env.observation_space(a).contains(o)
+            assert o[:start].tobytes() == plain_obs[a].tobytes()
+            lq = env.sim.link_quality(int(a.split("_")[1]))
+            top = lq.sort_values("rx_power_dbm", ascending=False, kind="stable").head(k)
+            got = o[start:].reshape(k, 3)
+            m = len(top)
+            assert got[:m, 0].tolist() == top["rx_power_dbm"].to_numpy(np.float32).tolist()
+            assert got[:m, 1].tolist() == top["age_s"].to_numpy(np.float32).tolist()
+            assert (got[:m, 2] == 1).all()
+            assert got[m:].tolist() == [[-80.0, 0.0, 0.0]] * (k - m)
+            seen += m
+            padded += k - m
+        actions = {a: env.action_space(a).sample() for a in env.agents}
+        obs, *_ = env.step(actions)
+        plain_obs, *_ = plain.step(actions)
+    assert seen > 20 and padded > 0
+
+
+def test_link_quality_without_a_power_is_refused():
+    """link_quality under the unit disk (no power measured) is a one-line ConfigError."""
+    with pytest.raises(ConfigError, match="link_quality") as err:
+        coverage_v0.parallel_env(n_robots=4, link_quality=True)
     assert "\n" not in str(err.value)
