@@ -19,7 +19,8 @@ SHADOWED = {
     "loss_model": "bernoulli",
     "loss_probability": 0.2,
 }
-MEDIUM = {"propagation": "log_distance", "sensitivity_dbm": -80.0, "mac": "aloha"}
+# A slow medium: many Acks lost to collisions, the others delivered.
+MEDIUM = {"propagation": "log_distance", "sensitivity_dbm": -80.0, "mac": "aloha", "data_rate_bps": 20000.0}
 
 
 def _sim(channel: dict, protocol: str = "clustering"):
@@ -37,9 +38,11 @@ def _sim(channel: dict, protocol: str = "clustering"):
 
 
 def _last_acks(sim) -> dict:
-    """Per (receiver, sender), the last Ack received by now in receptions.parquet."""
+    """Per (receiver, sender), the last Ack received by now in receptions.parquet: arrived,
+    its frame's start (``t_s``) plus its airtime under a medium, plus the latency, by now."""
     rx = collect(sim)["receptions"]
-    acks = rx[(rx["kind"] == "ack") & rx["received"]]
+    airtime_s = sim.config.channel.airtime_s(sim.config.protocol.params.ack_bytes) or 0.0
+    acks = rx[(rx["kind"] == "ack") & rx["received"] & (rx["t_s"] + airtime_s + LATENCY_S <= NOW_S)]
     return {(int(r.dst), int(r.src)): r for r in acks.itertuples()}
 
 
