@@ -37,7 +37,8 @@ from netsim.compiled import jit
 # got the Ack the entry holds, NaN when the channel measures none (no log-distance law): the
 # receiver's own measurement, written on receipt, never carried by an Ack (its record holds
 # NaN there).
-LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE, RX_POWER = range(13)
+LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
+RX_POWER = 12
 EMPTY = -1  # the id of an empty slot
 # An empty slot's record (never live), a constant of the compiled code (not an argument per Ack).
 EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf, np.nan], dtype=float)

@@ -201,8 +201,8 @@ def test_render_draws_an_rgb_frame():
 @pytest.mark.parametrize("compiled", [False, True], ids=["plain", "compiled"])
 def test_measure_kernels_equal_the_numpy_oracles(compiled):
     """The covered fraction, component count, nearest told neighbours and strongest heard
-    ones (link quality) of the kernels, plain and compiled, are the numpy oracles' exactly (including disks past the border,
-    and areas off the origin)."""
+    ones (link quality) of the kernels, plain and compiled, are the numpy oracles' exactly
+    (including disks past the border, and areas off the origin)."""
     kernels = compiled_copy("netsim.envs._kernels") if compiled else _kernels
     rng = np.random.default_rng(0)
     for n in (1, 5, 30):
@@ -449,7 +449,7 @@ def test_link_quality_observes_the_strongest_live_neighbours_at_the_documented_i
     seen = padded = 0
     obs, _ = env.reset(seed=3)
     plain_obs, _ = plain.reset(seed=3)
-    for step in range(6):
+    for _ in range(6):
         for a, o in obs.items():
             assert env.observation_space(a).contains(o)
             assert o[:start].tobytes() == plain_obs[a].tobytes()

@@ -338,7 +338,7 @@ def power_bounds_dbm(config: cfgmod.Config) -> tuple[float, float]:
     least the sensitivity (a frame below it is not received), at most the transmit power
     less the path loss at the reference distance (the least there is: nearer, the loss
     stays PL(d0)) plus the strongest shadowing (clipped at 4 sigma); walls only take."""
-    radio = config.channel.radio
+    radio: Any = config.channel.radio  # LogDistanceParams (refused otherwise)
     strongest = radio.tx_power_dbm - radio.reference_loss_db + TRUNCATION_SIGMAS * radio.shadowing_sigma_db
     return float(radio.sensitivity_dbm), float(strongest)
 
@@ -379,7 +379,8 @@ def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, obje
         return (
             "link_quality",
             True,
-            f"needs a received power: channel.propagation = 'log_distance' (set it in netsim), not {channel.propagation!r}",
+            "needs a received power: channel.propagation = 'log_distance' (set it in netsim),"
+            f" not {channel.propagation!r}",
         )
     return None
 

@@ -279,9 +279,9 @@ class Channel:
                 receivers = receivers[:0]
         power = None
         if len(receivers):
-            receivers, dist = self._decide(sender, receivers, dist, c, kind, binned)
+            receivers, kept = self._decide(sender, receivers, dist, c, kind, binned)
             if self.measured:
-                power = self.power_dbm(sender, kind, receivers, dist)
+                power = self.power_dbm(sender, kind, receivers, kept)
         if self._rows is not None:
             self._close()
         delay = self.latency_s
@@ -515,6 +515,7 @@ class Channel:
     ) -> None:
         # At URGENT priority, on the agenda: where a kernel event scheduled now would run.
         # Deliveries at the channel's latency come in the order they are due: queued.
+        arrive: Callable[..., None]
         if power_dbm is not None:
             # The receivers' power handed on as deliver's fourth argument.
             payload = (payload, power_dbm)
