@@ -140,3 +140,34 @@ def test_other_errors_are_not_taken_for_an_interrupt(monkeypatch, tmp_path):
     monkeypatch.setattr(cli, "cmd_run", run)
     with pytest.raises(SystemError, match="a bug"):
         cli.main(["run", "--out", str(tmp_path / "out")])
+
+
+def test_ctrl_c_while_the_run_moves_into_place_never_leaves_half_a_run(tmp_path, monkeypatch):
+    """SIGINT while the finished run's files move into place (over an earlier run's) is
+    held off until every file is there, then dropped: the directory holds the new run,
+    whole, and nothing of the earlier one."""
+    import os
+
+    from netsim.tools import output
+    from netsim.tools.cli import main
+
+    out = tmp_path / "out"
+    small = ["--set", "world.n_robots=5", "--set", "duration_s=5", "--no-progress", "--quiet", "--out", str(out)]
+    assert main(["run", *small, "--set", "seed=1"]) == 0
+    before = {f.name: f.read_bytes() for f in out.iterdir()}
+    replace = os.replace
+    sent = []
+
+    def replace_and_interrupt(src, dst):
+        if not sent and os.path.dirname(os.fspath(dst)) == os.fspath(out):
+            sent.append(True)
+            os.kill(os.getpid(), signal.SIGINT)
+        replace(src, dst)
+
+    monkeypatch.setattr(output.os, "replace", replace_and_interrupt)
+    assert main(["run", *small, "--set", "seed=2"]) == 0
+    assert sent
+    after = {f.name: f.read_bytes() for f in out.iterdir()}
+    assert after.keys() == before.keys()
+    assert after["positions.parquet"] != before["positions.parquet"]
+    assert '"seed": 2' in after["config.toml"].decode() or "seed = 2" in after["config.toml"].decode()

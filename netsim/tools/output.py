@@ -19,8 +19,10 @@ import json
 import os
 import platform
 import shutil
+import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
@@ -276,18 +278,35 @@ class RunWriter:
         tmp, out = self._start(), self.out
         (tmp / "summary.json").write_text(json.dumps({k: _plain(v) for k, v in summary.items()}, indent=2) + "\n")
         (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")
-        # The earlier run goes as a whole, its manifest first: a directory with a manifest
-        # always holds one complete run, and never tables of two runs side by side.
-        old = earlier_run_files(out)
-        (out / "manifest.json").unlink(missing_ok=True)
-        for f in old:
-            f.unlink(missing_ok=True)
-        new = sorted(tmp.iterdir(), key=lambda f: (f.name == "manifest.json", f.name))
-        written = []
-        for f in new:
-            os.replace(f, out / f.name)
-            written.append(out / f.name)
+        with _ctrl_c_held():
+            # The earlier run goes as a whole, its manifest first: a directory with a manifest
+            # always holds one complete run, and never tables of two runs side by side.
+            old = earlier_run_files(out)
+            (out / "manifest.json").unlink(missing_ok=True)
+            for f in old:
+                f.unlink(missing_ok=True)
+            new = sorted(tmp.iterdir(), key=lambda f: (f.name == "manifest.json", f.name))
+            written = []
+            for f in new:
+                os.replace(f, out / f.name)
+                written.append(out / f.name)
         return sorted(written)
+
+
+@contextmanager
+def _ctrl_c_held():
+    """Ctrl-C held off while the finished run's files move into place, so that an
+    interrupt never leaves half of one run and half of the other. One that came meanwhile
+    came too late: it is dropped, and the command ends as a finished run does. (Off the
+    main thread, where no handler can be set, nothing changes.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    kept = signal.signal(signal.SIGINT, lambda signum, frame: None)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_DFL if kept is None else kept)
 
 
 def write_table(frame: pd.DataFrame, path: Path) -> None:
