@@ -48,7 +48,7 @@ from netsim.compiled import load
 from netsim.cosim import CommandError, LinkQualityView
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
-from netsim.radio.propagation import TRUNCATION_SIGMAS
+from netsim.radio.propagation import TRUNCATION_SIGMAS, LogDistanceParams
 from netsim.run import build
 from netsim.sim import Simulation
 from netsim.topology import geometric_pairs
@@ -375,12 +375,12 @@ def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, obje
         )
     if world.torus:
         return "world.torus", True, "the environment measures coverage of a bounded area"
-    if params.link_quality and channel.propagation != "log_distance":
+    if params.link_quality and not isinstance(channel.radio, LogDistanceParams):
         return (
             "link_quality",
             True,
-            "needs a received power: channel.propagation = 'log_distance' (set it in netsim),"
-            f" not {channel.propagation!r}",
+            "needs a received power: a log-distance radio, as channel.propagation = 'log_distance'"
+            f" (set it in netsim), not {channel.propagation!r}",
         )
     return None
 
