@@ -100,9 +100,12 @@ CHANNELS = {
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["office", "cave"])
 @pytest.mark.parametrize("kind", list(CHANNELS))
-def test_map_links_equal_the_radio_every_millisecond_on_shipped_maps(name, kind):
+def test_map_links_equal_the_radio_every_millisecond_on_shipped_maps(name, kind, monkeypatch):
     """On the shipped maps (robots at 0.5-4 m/s), no pair's state in links.parquet differs
     from the radio's at any millisecond more than 1e-6 s from the pair's events."""
+    # Millions of pair-instants through the radio: compiled (the plain loops are checked
+    # against their oracles elsewhere).
+    monkeypatch.setenv("NETSIM_COMPILED", "1")
     n, duration = 14, 30.0
     sim = _core(n, duration, name, 200.0, CHANNELS[kind])
     # Waypoints in the free cells of the map's middle, so that pairs meet.
@@ -131,10 +134,11 @@ BUILDING_CHANNELS = {
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", list(BUILDING_CHANNELS))
-def test_map_links_equal_the_radio_every_millisecond_on_a_building_map(building_yaml, kind):
+def test_map_links_equal_the_radio_every_millisecond_on_a_building_map(building_yaml, kind, monkeypatch):
     """On a 40 m x 40 m map of 5 cm cells with robots at 0.1-0.5 m/s, no pair's state in
     links.parquet differs from the radio's at any millisecond more than 1e-6 s from the
     pair's events."""
+    monkeypatch.setenv("NETSIM_COMPILED", "1")  # as on the shipped maps
     n, duration = 12, 40.0
     sim = _core(n, duration, building_yaml, 40.0, BUILDING_CHANNELS[kind])
     legs = waypoint_legs(np.random.default_rng(12), n, duration, (0.1, 0.5), _building_points())
