@@ -70,6 +70,12 @@ class Design:
     def received(self) -> np.ndarray:
         return ~np.isnan(self.y_dbm)
 
+    def received_only(self) -> Design:
+        """The rows of the frames that were received."""
+        seen = self.received
+        walls = None if self.walls is None else self.walls[seen]
+        return Design(self.y_dbm[seen], self.g_db[seen], walls, self.cluster[seen], self.tx_power_dbm)
+
     def columns(self) -> np.ndarray:
         """Regressors of the loss: ``1`` (``PL(d0)``), ``g`` (``n``) and the walls (``w``)."""
         cols = [np.ones_like(self.g_db), self.g_db]
@@ -176,14 +182,7 @@ def fit_naive(design: Design) -> ChannelFit:
     sigma = float(np.sqrt(np.mean(resid**2)))
     # Scores of the normal likelihood, which least squares maximises.
     theta = np.r_[beta, np.log(sigma)]
-    sub = Design(
-        design.y_dbm[seen],
-        design.g_db[seen],
-        None if design.walls is None else design.walls[seen],
-        design.cluster[seen],
-        design.tx_power_dbm,
-    )
-    return _ml(sub, theta, -np.inf, censored=False, likelihood="least squares", optimise=False)
+    return _ml(design.received_only(), theta, -np.inf, censored=False, likelihood="least squares", optimise=False)
 
 
 def _ml(
@@ -226,14 +225,7 @@ def _start(design: Design) -> np.ndarray:
 
 def fit_truncated(design: Design, sensitivity_dbm: float) -> ChannelFit:
     """Maximum likelihood of the normal truncated at ``sensitivity_dbm`` (received rows only)."""
-    seen = design.received
-    sub = Design(
-        design.y_dbm[seen],
-        design.g_db[seen],
-        None if design.walls is None else design.walls[seen],
-        design.cluster[seen],
-        design.tx_power_dbm,
-    )
+    sub = design.received_only()
     return _ml(sub, _start(sub), sensitivity_dbm, censored=False, likelihood="truncated")
 
 
