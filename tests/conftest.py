@@ -56,3 +56,15 @@ def build_sim():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def pytest_configure(config):
+    # Spread over workers (`-n`), the long tests would otherwise start wherever collection
+    # puts them and the last one can run alone at the end: they go first (below), and a
+    # worker that runs out of tests takes half of another's queue instead of waiting.
+    if getattr(config.option, "dist", "no") == "load":
+        config.option.dist = "worksteal"
+
+
+def pytest_collection_modifyitems(config, items):
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
