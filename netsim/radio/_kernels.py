@@ -52,6 +52,20 @@ def shadow_step(shadow, law, pairs, out):
 
 
 @jit(nogil=True)
+def path_loss_db(distance_m, d0_m, pl0_db, n10):
+    """The log-distance law, the one place it is computed: ``PL(d0) + 10 n log10(d / d0)``,
+    and ``PL(d0)`` below ``d0`` (at ``d = 0`` too); ``n10`` is ``10 n``."""
+    return pl0_db + n10 * np.log10(max(distance_m, d0_m) / d0_m)
+
+
+@jit(nogil=True)
+def path_losses_db(distance_m, d0_m, pl0_db, n10, out):
+    """:func:`path_loss_db` of every distance of ``distance_m`` (1-d), written to ``out``."""
+    for m in range(distance_m.shape[0]):
+        out[m] = path_loss_db(distance_m[m], d0_m, pl0_db, n10)
+
+
+@jit(nogil=True)
 def path_loss_pass(frame, d, loss, alive):
     """Path loss of each pair, and whether the terms after it could still let it through
     (``frame``: the run's constants, :data:`netsim.radio.fast.FRAME`)."""
@@ -59,7 +73,7 @@ def path_loss_pass(frame, d, loss, alive):
     d0, pl0, n10, rest_db, budget_slack = c.d0_m, c.pl0_db, c.n10, -c.clip_db, c.budget_slack
     count = 0
     for m in range(d.shape[0]):
-        loss[m] = 0.0 + (pl0 + n10 * np.log10(max(d[m], d0) / d0))
+        loss[m] = 0.0 + path_loss_db(d[m], d0, pl0, n10)
         ok = loss[m] + rest_db <= budget_slack
         alive[m] = ok
         if ok:

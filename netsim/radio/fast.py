@@ -6,7 +6,7 @@ is two loops (:mod:`netsim.radio._kernels`, compiled or plain Python as
 :func:`netsim.compiled.load` decides for the run) and one draw of normals.
 :class:`CompiledChain` accepts the chains
 that :func:`~netsim.radio.propagation.log_distance` and
-:func:`~netsim.radio.propagation.unit_disk` build and decides exactly as the chain does: the
+:func:`~netsim.radio.propagation.unit_disk` build (their ``fast``) and decides exactly as the chain does: the
 same pairs are dropped before shadowing (so the same normals are drawn), the same shadowing
 updates are made, and the same sums are compared with the sensitivity. Pairs in one batch
 must be distinct (a broadcast's receivers are).
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.compiled import load
-from netsim.radio.propagation import (
+from netsim.radio.chain import (
     LineOfSightLoss,
     LogDistanceLoss,
     Pairs,
@@ -90,7 +90,7 @@ class CompiledChain:
                 self.sight = terms.pop(0)
         if terms or (self.log is None and self.range is None):
             raise ValueError(f"no compiled form for the chain {[k.__name__ for k in kinds]}")
-        budget = propagation.tx_power_dbm - propagation.sensitivity_dbm
+        budget = propagation.radio.budget_db
         # The chain's own early-drop rule, slack included.
         self.budget_slack = budget + 1e-9 * (1.0 + abs(budget))
         term = self.walls or self.sight
@@ -103,8 +103,8 @@ class CompiledChain:
         frame = np.zeros(1, dtype=FRAME).view(np.recarray)
         row = frame[0]
         row["budget_slack"] = self.budget_slack
-        row["tx_dbm"] = self.propagation.tx_power_dbm
-        row["sensitivity_dbm"] = self.propagation.sensitivity_dbm
+        row["tx_dbm"] = self.propagation.radio.tx_power_dbm
+        row["sensitivity_dbm"] = self.propagation.radio.sensitivity_dbm
         # (Compared with None: a PairShadowing with no pair seen yet is falsy, it has a length.)
         sh = self.shadow
         row["decorrelation_m"] = 1.0 if sh is None else sh.decorrelation_m

@@ -67,7 +67,11 @@ import numpy as np
 
 from netsim.compiled import SMALL_RUN_ROBOTS, load
 from netsim.errors import ConfigError
-from netsim.radio.propagation import TRUNCATION_SIGMAS
+
+# Shadowing is used clipped to +-4 sigma (its state is not: see PairShadowing), so that no
+# pair beyond a finite distance can ever link; the link probability then follows the closed
+# form exactly wherever it lies between 3.2e-5 and 1 - 3.2e-5.
+TRUNCATION_SIGMAS = 4.0
 
 # Standard normals drawn at once (see PairShadowing.normals).
 NORMALS_BLOCK = 4096

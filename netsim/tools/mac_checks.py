@@ -298,7 +298,7 @@ def hidden_terminals(
             # independent outcome per round, not per reception.
             tol = 4.0 * _binomial_se(theory, decided / 2)
         else:
-            m = sim.channel.mac
+            m = sim.channel.mac.access  # CSMA's backoff keys
             p = same_slot_bound(period, m.difs_s, m.slot_s, m.cw_min)
             theory = 1.0
             tol = p + 4.0 * _binomial_se(1.0 - p, decided)
