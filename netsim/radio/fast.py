@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.compiled import load
+from netsim.radio._kernels import Decided, Motion, PathLoss, Points, Robots, Shadow
 from netsim.radio.chain import (
     LineOfSightLoss,
     LogDistanceLoss,
@@ -39,6 +40,7 @@ _NO_GRID = np.zeros(1, dtype=bool)
 _NO_POINTS = np.zeros((1, 2))
 _NO_KEYS = np.zeros(1, dtype=np.int64)
 _NO_FLOATS = np.zeros(1)
+_NO_SHADOW = tuple(Shadow(_NO_KEYS, _NO_FLOATS, _NO_FLOATS, _NO_FLOATS))
 
 # The constants of one run's frames, set once (CompiledChain.frame) and read by name in the
 # compiled passes: path loss (log-distance), shadowing, walls, the unit disk, the map grid.
@@ -168,23 +170,22 @@ class CompiledChain:
         flat = self.occupancy.occupied.ravel() if self.occupancy is not None else _NO_GRID
         out = np.empty(k, dtype=bool)
         if self.range is not None:
-            robots = (state.origin_m, state.velocity_mps, state.t0_s)
+            robots = tuple(Motion(state.origin_m, state.velocity_mps, state.t0_s))
             r = np.atleast_1d(self.range.range_m)
             self.k.disk_frame(self.frame, t, sender, receivers, distances_m, r, robots, flat, out)
             return out
         if sh is not None:
             keys = np.empty(k, dtype=np.int64)
             s_new = np.empty(k)
-            shadow = (*sh.table(), sh.normals(k))
+            shadow = tuple(Shadow(*sh.table(), sh.normals(k)))
         else:
             keys, s_new = _NO_KEYS, _NO_FLOATS
-            shadow = (_NO_KEYS, _NO_FLOATS, _NO_FLOATS, _NO_FLOATS)
+            shadow = _NO_SHADOW
         x_new = np.empty(k)
         new = np.empty(k, dtype=bool)
-        robots5 = (state.odometer_m, speed_mps, state.t0_s, state.origin_m, state.velocity_mps)
-        count = self.k.log_frame(
-            self.frame, t, sender, receivers, distances_m, robots5, shadow, flat, (keys, s_new, x_new, new, out)
-        )
+        robots = tuple(Robots(state.odometer_m, speed_mps, state.t0_s, state.origin_m, state.velocity_mps))
+        decided = tuple(Decided(keys, s_new, x_new, new, out))
+        count = self.k.log_frame(self.frame, t, sender, receivers, distances_m, robots, shadow, flat, decided)
         if sh is not None:
             sh.consume(count)
             if not sh.dense and new.any():
@@ -209,7 +210,7 @@ class CompiledChain:
             r = np.atleast_1d(self.range.range_m)
             if g0 is None:
                 g0 = g1 = np.zeros((kn, 2))
-            self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, (g0, g1), out)
+            self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, tuple(Points(g0, g1)), out)
             return out
         sh = self.shadow
         loss = np.empty(kn)
@@ -226,8 +227,9 @@ class CompiledChain:
             tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
         x_new = np.empty(kn)
         new = np.empty(kn, dtype=bool)
-        columns = (keys, s_new, x_new, new, out)
-        self.k.budget_pass(self.frame, sigma, (loss, alive), (tk, tx, ts, z), flat, (g0, g1), columns)
+        columns = tuple(Decided(keys, s_new, x_new, new, out))
+        path, shadow = tuple(PathLoss(loss, alive)), tuple(Shadow(tk, tx, ts, z))
+        self.k.budget_pass(self.frame, sigma, path, shadow, flat, tuple(Points(g0, g1)), columns)
         if sh is not None and new.any():
             self._insert_new(keys, x_new, s_new, new)
         return out

@@ -42,6 +42,7 @@ import simpy
 
 from netsim.compiled import load
 from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
+from netsim.radio._mac_kernels import Ends, Leaving, MediumArrays
 from netsim.radio.chain import Radio, path_loss_db
 from netsim.radio.spatial import RangeIndex
 from netsim.scheduling import URGENT, scheduled_event
@@ -343,8 +344,9 @@ class Medium:
         self.busy_s = np.zeros(n)
         # The arrays the frame end's loop reads and updates (_mac_kernels' ``medium`` and
         # ``out``): kept for the run, so put together once.
-        self._medium = (self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
-        self._end_out = (self._hd, self._col, self._newly)
+        arrays = MediumArrays(self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
+        self._medium = tuple(arrays)
+        self._end_out = tuple(Ends(self._hd, self._col, self._newly))
         self.frames_sent = 0
         self.attempts = 0
         self.airtime_total_s = 0.0
@@ -454,7 +456,7 @@ class Medium:
         i, seq = frame.sender, frame.seq
         disturbed = frame.interferers
         rx = frame.receivers
-        leaving = (i, seq, now, disturbed, rx, frame.hd_start, frame.col_start)
+        leaving = tuple(Leaving(i, seq, now, disturbed, rx, frame.hd_start, frame.col_start))
         m = self._kernels.end_unit_disk(self._medium, leaving, self._end_out)
         hd, col, newly = self._hd[: len(rx)], self._col[: len(rx)], self._newly[:m].copy()
         if self.power is not None:
