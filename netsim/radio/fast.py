@@ -177,7 +177,8 @@ class CompiledChain:
         if sh is not None:
             keys = np.empty(k, dtype=np.int64)
             s_new = np.empty(k)
-            shadow = tuple(Shadow(*sh.table(), sh.normals(k)))
+            table_keys, table_x, table_s = sh.table()
+            shadow = tuple(Shadow(table_keys, table_x, table_s, sh.normals(k)))
         else:
             keys, s_new = _NO_KEYS, _NO_FLOATS
             shadow = _NO_SHADOW
@@ -208,7 +209,7 @@ class CompiledChain:
         flat, h, w, g0, g1 = self._grid(pairs) if (self.walls or self.sight) else (_NO_GRID, 1, 1, None, None)
         if self.range is not None:
             r = np.atleast_1d(self.range.range_m)
-            if g0 is None:
+            if g0 is None or g1 is None:
                 g0 = g1 = np.zeros((kn, 2))
             self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, tuple(Points(g0, g1)), out)
             return out
@@ -216,7 +217,7 @@ class CompiledChain:
         loss = np.empty(kn)
         alive = np.empty(kn, dtype=bool)
         count = self.k.path_loss_pass(self.frame, pairs.distance_m, loss, alive)
-        if g0 is None:
+        if g0 is None or g1 is None:
             g0 = g1 = _NO_POINTS
         if sh is not None and count:
             z = sh.normals(count)

@@ -1,8 +1,11 @@
 """The shared medium: frames take airtime, overlapping frames collide, CSMA senses and defers.
 
 Under ``channel.mac = "aloha"`` or ``"csma"`` the channel hands every frame to a
-:class:`Medium` (docs/radio.md, "Shared medium"). A frame of ``b`` bytes occupies the medium
-for ``preamble_s + 8 b / data_rate_bps`` from the instant its sender puts it on the air:
+:class:`Medium` (docs/radio.md, "Shared medium"): the airtime, the collisions and a frame's
+end, common to both, with an access policy (:class:`Aloha`, :class:`Csma`) deciding when a
+robot's head frame goes on the air and whether a failed unicast is sent again. A frame of
+``b`` bytes occupies the medium for ``preamble_s + 8 b / data_rate_bps`` from the instant its
+sender puts it on the air:
 
 - ``aloha``: at once (after the sender's own earlier frames: a radio sends one frame at a time);
 - ``csma``: 802.11 DCF. The robot draws a backoff of ``U{0..cw}`` slots, counts it down
@@ -41,9 +44,9 @@ import pandas as pd
 import simpy
 
 from netsim.compiled import load
-from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
 from netsim.radio._mac_kernels import Ends, Leaving, MediumArrays
 from netsim.radio.chain import Radio, path_loss_db
+from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
 from netsim.radio.spatial import RangeIndex
 from netsim.scheduling import URGENT, scheduled_event
 

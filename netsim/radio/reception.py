@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.radio.fast import GenericChain
 from netsim.radio.chain import Pairs, Propagation
+from netsim.radio.fast import GenericChain
 from netsim.state import RobotState
 
 
