@@ -37,7 +37,8 @@ def test_a_user_propagation_model_decides_who_hears_a_frame():
     """Under two-ray ground a robot hears exactly the robots within the model's implied
     range (the generic path evaluates the user's loss term), and the run's ranges and
     summary follow the model."""
-    config = cfgmod.load(None, [*SMALL, f"channel.propagation={TWO_RAY}", "channel.tx_power_dbm=5"])
+    two_ray = [f"channel.propagation={TWO_RAY}", "channel.tx_power_dbm=5", "channel.sensitivity_dbm=-70"]
+    config = cfgmod.load(None, [*SMALL, *two_ray])
     range_m = two_ray_plugin.implied_range_m(config.channel.radio)
     assert 30 < range_m < 100
     sim = build(config)

@@ -137,22 +137,13 @@ def test_no_import_cycles():
     assert list(nx.simple_cycles(graph)) == []
 
 
-# Cycles between modules of one subpackage, each broken today by an import inside a
-# function; they go when the radio's physics and its shared medium are arranged in one
-# direction (the propagation chain given its compiler, the medium its access policy).
-KNOWN_MODULE_CYCLES = {
-    frozenset({"netsim.radio.mac", "netsim.radio.mac_models"}),
-    frozenset({"netsim.radio.propagation", "netsim.radio.fast"}),
-    frozenset({"netsim.radio.propagation", "netsim.radio.fast", "netsim.radio.shadowing"}),
-}
-
-
 def test_no_import_cycles_between_modules():
     """No chain of imports leads from a module back to itself, inside a subpackage too
-    (the package graph above sees a subpackage as one node), but for the cycles listed."""
+    (the package graph above sees a subpackage as one node), imports inside functions
+    included."""
     graph = nx.DiGraph()
     for package in ALLOWED:
         for f in files(package):
             src = module_name(f)
             graph.add_edges_from((src, m) for m in imports(f) if m != src)
-    assert {frozenset(c) for c in nx.simple_cycles(graph)} <= KNOWN_MODULE_CYCLES
+    assert list(nx.simple_cycles(graph)) == []

@@ -210,6 +210,19 @@ def test_a_unicast_is_retried_up_to_the_retry_limit():
     assert log and log[0][2] == []
 
 
+def test_aloha_sends_a_failed_unicast_once():
+    """ALOHA: a unicast that reaches nobody is not sent again, and counts no retry_limit drop."""
+    sim = _medium([0, 10, 200], mac="aloha")
+    log = []
+    _send_at(sim, 0.0, 0, log, dest=2)  # out of range: the attempt fails
+    sim.channel.notify_empty.add("f")
+    sim.env.run()
+    assert sim.channel.mac.attempts == 1
+    assert _dropped(sim, "out_of_range", robot=2) == 1
+    assert _dropped(sim, "retry_limit") == 0
+    assert log and log[0][2] == []
+
+
 def test_a_frame_costs_a_bounded_number_of_kernel_events():
     """O(1) kernel events per frame, whatever the number of receivers or contenders: at most
     a wake-up (handing it over can move the earliest transmit instant), its end and its

@@ -86,11 +86,11 @@ def test_compiled_unit_disk_equals_chain(ranges, with_map, n_robots):
 
 
 def test_unknown_chain_is_refused():
-    from netsim.radio.propagation import LossChain, Propagation, ShadowingLoss
+    from netsim.radio.propagation import LossChain, Propagation, Radio, ShadowingLoss
 
     sh = PairShadowing(4.0, 10.0, np.random.default_rng(1))
     with pytest.raises(ValueError, match="no compiled form"):
-        CompiledChain(Propagation(LossChain(ShadowingLoss(sh)), 0.0, -1.0, 1.0, 1.0), 1)
+        CompiledChain(Propagation(LossChain(ShadowingLoss(sh)), Radio(0.0, -1.0), 1.0, 1.0), 1)
 
 
 def _moving_state(seed, n=150, side=400.0, legs=4):

@@ -103,7 +103,7 @@ def test_chain_drops_pairs_before_costly_terms():
     chain = LossChain(netsim.radio.propagation.LogDistanceLoss(p), Spy())
     d = np.array([50.0, 150.0, 99.0])
     pairs = Pairs(np.zeros(3, int), np.array([1, 2, 3]), np.zeros((3, 2)), np.zeros((3, 2)), d)
-    mask = chain.receivable(pairs, p.tx_power_dbm, p.sensitivity_dbm)
+    mask = chain.receivable(pairs, p.radio)
     assert mask.tolist() == [True, False, True]
     assert seen == [[1, 3]]
 

@@ -105,7 +105,7 @@ def test_receptions_power_is_the_log_distance_law_with_the_pairs_shadowing():
         radio = result.sim.config.channel.radio
         d = np.maximum(r["distance_m"].to_numpy(), radio.reference_distance_m)
         law = (
-            p.tx_power_dbm
+            p.radio.tx_power_dbm
             - radio.reference_loss_db
             - 10 * radio.path_loss_exponent * np.log10(d / radio.reference_distance_m)
         )

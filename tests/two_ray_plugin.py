@@ -12,20 +12,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from netsim.params import Params, finite, param, positive
+from netsim.params import finite, param, positive
 from netsim.radio.models import PropagationModel
-from netsim.radio.propagation import LossChain, Propagation
+from netsim.radio.propagation import LossChain, Propagation, RadioParams
 
 SPEED_OF_LIGHT_MPS = 299_792_458.0
 
 
 @dataclass(frozen=True)
-class TwoRayParams(Params):
-    section = "channel"
+class TwoRayParams(RadioParams):
+    """Two-ray's own keys; transmit power and sensitivity are the radio's."""
+
     antenna_height_m: float = param(1.5, finite(positive), "two_ray: height of every antenna above the ground, m")
     frequency_hz: float = param(2.4e9, finite(positive), "two_ray: carrier frequency, Hz")
-    tx_power_dbm: float = param(20.0, finite(lambda v: None), "two_ray: transmit power, dBm")
-    sensitivity_dbm: float = param(-70.0, finite(lambda v: None), "two_ray: a frame is received when P_r >= this, dBm")
 
 
 def loss_db(distance_m, params: TwoRayParams) -> np.ndarray:
@@ -41,7 +40,7 @@ def loss_db(distance_m, params: TwoRayParams) -> np.ndarray:
 
 def implied_range_m(params: TwoRayParams) -> float:
     """Where the received power falls to the sensitivity (the loss grows with distance)."""
-    budget = params.tx_power_dbm - params.sensitivity_dbm
+    budget = params.radio.budget_db
     lo, hi = 1.0, 1e7
     for _ in range(200):
         mid = 0.5 * (lo + hi)
@@ -62,7 +61,7 @@ class TwoRayLoss:
 
 def make(params: TwoRayParams, range_m, occupancy, rng) -> Propagation:
     r = implied_range_m(params)
-    return Propagation(LossChain(TwoRayLoss(params)), params.tx_power_dbm, params.sensitivity_dbm, r, r)
+    return Propagation(LossChain(TwoRayLoss(params)), params.radio, r, r)
 
 
 # A deterministic model of distance alone: its links are the unit disk of its implied

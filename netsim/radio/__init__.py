@@ -9,8 +9,10 @@
   ``netsim.loss``, ``netsim.mac``), and ``channel.mac = "none"``;
 - :mod:`netsim.radio.propagation_models`: the built-in propagation models (unit disk,
   log-distance);
-- :mod:`netsim.radio.propagation`: received power as a chain of small loss terms
-  (log-distance path loss, shadowing, walls, or a unit disk with line of sight);
+- :mod:`netsim.radio.chain`: received power as a chain of small loss terms, heard with the
+  robots' radio (transmit power, sensitivity);
+- :mod:`netsim.radio.propagation`: the two built-in chains (log-distance path loss,
+  shadowing, walls, or a unit disk with line of sight), the radio's keys;
 - :mod:`netsim.radio.fast`: those chains compiled into one pass;
 - :mod:`netsim.radio.loss`: the built-in reception loss models;
 - :mod:`netsim.radio.shadowing`: log-normal shadowing per pair, reciprocal, spatially
@@ -19,8 +21,10 @@
 - :mod:`netsim.world.los`: line of sight and walls crossed, for many segments at once;
 - :mod:`netsim.world.free_space`: where robots may be and go on a map;
 - :mod:`netsim.world.examples`: the example maps shipped with netsim;
-- :mod:`netsim.radio.mac`: the shared medium (airtime, collisions, ALOHA, CSMA/DCF), and
-  :mod:`netsim.radio.mac_models` its two models' keys.
+- :mod:`netsim.radio.mac`: the shared medium (airtime and collisions, with ALOHA or
+  CSMA/DCF as its access policy), and :mod:`netsim.radio.mac_models` its two models' keys;
+- :mod:`netsim.radio._kernels`: the radio's loops, the path-loss law among them (computed
+  there once, for every caller).
 
 The closed-form checks of these models are tools (:mod:`netsim.tools.radio_checks`,
 :mod:`netsim.tools.mac_checks`, run by ``netsim validate``). The package reads no

@@ -1,16 +1,105 @@
 """The radio's loops (compiled or plain, :func:`netsim.compiled.load`): the passes over a
 frame's pairs (:mod:`netsim.radio.fast`), the shadowing's update
 (:mod:`netsim.radio.shadowing`), the links' record and the legs' lookup, one item at a
-time. The tests check them against numpy oracles (tests/oracles/radio.py) and the loss
-chain's own path on whole arrays.
+time; and the log-distance law itself (:func:`path_loss_db`), which every place that needs
+a loss calls. The tests check them against numpy oracles (tests/oracles/radio.py) and the
+loss chain's own path on whole arrays.
+
+The loops take their arrays as records, each a :class:`~typing.NamedTuple` defined here and
+read by field name: :class:`Shadow`, :class:`ShadowLaw`, :class:`Clocks`, :class:`Drawn`,
+:class:`PathLoss`, :class:`Points`, :class:`Decided`, :class:`Motion`, :class:`Robots`.
+numba types a named tuple passed from Python by a slower path than a plain one, on every
+call: so the callers pass each as a plain tuple of its fields, built by its record
+(``tuple(Points(g0, g1))``), and a loop names it on entry (``Points(*points)``, free in
+compiled code). The run's constants are a one-row record (:data:`netsim.radio.fast.FRAME`).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
 from netsim.compiled import jit
 from netsim.world._kernels import walls_one
+
+
+class Shadow(NamedTuple):
+    """The shadowing's records (:meth:`~netsim.radio.shadowing.PairShadowing.table`) and
+    the standard normals of this call, taken in order."""
+
+    table_keys: np.ndarray  # each stored pair's key, ascending
+    table_x: np.ndarray  # its shadowing, dB (NaN: listed, never seen)
+    table_s: np.ndarray  # the pair's travel at that value, m
+    normals: np.ndarray
+
+
+class ShadowLaw(NamedTuple):
+    """The shadowing's law: sigma (dB), decorrelation distance (m), and the robots whose
+    every pair has a slot (0: none)."""
+
+    sigma_db: float
+    decorrelation_m: float
+    dense_n: int
+
+
+class Clocks(NamedTuple):
+    """Pairs by key, and each pair's travel now (its shadowing's clock), m."""
+
+    keys: np.ndarray
+    s_new: np.ndarray
+
+
+class Drawn(NamedTuple):
+    """Filled: each pair's shadowing, dB, and whether the pair is new (not stored)."""
+
+    x: np.ndarray
+    new: np.ndarray
+
+
+class PathLoss(NamedTuple):
+    """Each pair's path loss, dB, and whether the terms after it could let it through."""
+
+    loss: np.ndarray
+    alive: np.ndarray
+
+
+class Points(NamedTuple):
+    """The ends of each pair in grid units (rows ``(u, v)``): sender, receiver."""
+
+    g0: np.ndarray
+    g1: np.ndarray
+
+
+class Decided(NamedTuple):
+    """A frame's pairs: their keys and travels (read, or filled by :func:`log_frame`), and,
+    filled, a new pair's shadowing, whether it is new, and whether it is received."""
+
+    keys: np.ndarray
+    s_new: np.ndarray
+    x_new: np.ndarray
+    new: np.ndarray
+    receivable: np.ndarray
+
+
+class Motion(NamedTuple):
+    """The robots' legs (:class:`~netsim.state.RobotState`): where each started, its
+    velocity and when."""
+
+    origin_m: np.ndarray
+    velocity_mps: np.ndarray
+    t0_s: np.ndarray
+
+
+class Robots(NamedTuple):
+    """The robots' legs and odometers: what a pair's shadowing clock and a map's grid
+    points are computed from (``speed_mps``: ``|v|`` as numpy computes it)."""
+
+    odometer_m: np.ndarray
+    speed_mps: np.ndarray
+    t0_s: np.ndarray
+    origin_m: np.ndarray
+    velocity_mps: np.ndarray
 
 
 @jit(nogil=True)
@@ -26,14 +115,17 @@ def slot(table_keys, dense_n, key):
 
 @jit(nogil=True)
 def shadow_step(shadow, law, pairs, out):
-    """Move the stored pairs among ``keys`` on to travel ``s_new`` (in place): their values
-    to ``x``; flag the others in ``new``. ``shadow``: the records and the normals, taken in
-    order, ``(table_keys, table_x, table_s, z)``; ``law``: ``(sigma, decorrelation_m,
-    dense_n)``; ``pairs``: ``(keys, s_new)``; ``out``: ``(x, new)``, filled."""
-    table_keys, table_x, table_s, z = shadow
-    sigma, decorrelation_m, dense_n = law
-    keys, s_new = pairs
-    x, new = out
+    """Move the stored pairs among ``pairs.keys`` on to travel ``pairs.s_new`` (in place):
+    their values to ``out.x``; flag the others in ``out.new``. ``shadow``: :class:`Shadow`;
+    ``law``: :class:`ShadowLaw`; ``pairs``: :class:`Clocks`; ``out``: :class:`Drawn`."""
+    sh = Shadow(*shadow)
+    lw = ShadowLaw(*law)
+    pc = Clocks(*pairs)
+    dr = Drawn(*out)
+    table_keys, table_x, table_s, z = sh.table_keys, sh.table_x, sh.table_s, sh.normals
+    sigma, decorrelation_m, dense_n = lw.sigma_db, lw.decorrelation_m, lw.dense_n
+    keys, s_new = pc.keys, pc.s_new
+    x, new = dr.x, dr.new
     n = table_keys.shape[0]
     for m in range(keys.shape[0]):
         pos = slot(table_keys, dense_n, keys[m])
@@ -52,6 +144,20 @@ def shadow_step(shadow, law, pairs, out):
 
 
 @jit(nogil=True)
+def path_loss_db(distance_m, d0_m, pl0_db, n10):
+    """The log-distance law, the one place it is computed: ``PL(d0) + 10 n log10(d / d0)``,
+    and ``PL(d0)`` below ``d0`` (at ``d = 0`` too); ``n10`` is ``10 n``."""
+    return pl0_db + n10 * np.log10(max(distance_m, d0_m) / d0_m)
+
+
+@jit(nogil=True)
+def path_losses_db(distance_m, d0_m, pl0_db, n10, out):
+    """:func:`path_loss_db` of every distance of ``distance_m`` (1-d), written to ``out``."""
+    for m in range(distance_m.shape[0]):
+        out[m] = path_loss_db(distance_m[m], d0_m, pl0_db, n10)
+
+
+@jit(nogil=True)
 def path_loss_pass(frame, d, loss, alive):
     """Path loss of each pair, and whether the terms after it could still let it through
     (``frame``: the run's constants, :data:`netsim.radio.fast.FRAME`)."""
@@ -59,7 +165,7 @@ def path_loss_pass(frame, d, loss, alive):
     d0, pl0, n10, rest_db, budget_slack = c.d0_m, c.pl0_db, c.n10, -c.clip_db, c.budget_slack
     count = 0
     for m in range(d.shape[0]):
-        loss[m] = 0.0 + (pl0 + n10 * np.log10(max(d[m], d0) / d0))
+        loss[m] = 0.0 + path_loss_db(d[m], d0, pl0, n10)
         ok = loss[m] + rest_db <= budget_slack
         alive[m] = ok
         if ok:
@@ -71,17 +177,19 @@ def path_loss_pass(frame, d, loss, alive):
 def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
     """Shadowing (when ``sigma`` > 0) and walls (when the run has a wall loss) for the pairs
     still alive, then the decision ``tx - loss >= sensitivity``: the loss chain in one pass.
-    ``frame``: the run's constants; ``path``: :func:`path_loss_pass`'s ``(loss, alive)``;
-    ``shadow``: the shadowing's records
-    (:meth:`~netsim.radio.shadowing.PairShadowing.table`) and its normals, taken in order,
-    ``(table_keys, table_x, table_s, z)``; ``flat``: the map's occupied cells; ``points``:
-    the ends in grid units, ``(g0, g1)``; ``pairs``: ``(keys, s_new, x_new, new,
-    receivable)``, the keys and travels read (shadowing), the rest filled."""
+    ``frame``: the run's constants; ``path``: :func:`path_loss_pass`'s :class:`PathLoss`;
+    ``shadow``: :class:`Shadow`; ``flat``: the map's occupied cells; ``points``:
+    :class:`Points`; ``pairs``: :class:`Decided`, the keys and travels read (shadowing),
+    the rest filled."""
     c = frame[0]
-    loss, alive = path
-    table_keys, table_x, table_s, z = shadow
-    g0, g1 = points
-    keys, s_new, x_new, new, receivable = pairs
+    pl = PathLoss(*path)
+    sh = Shadow(*shadow)
+    ends = Points(*points)
+    dec = Decided(*pairs)
+    loss, alive = pl.loss, pl.alive
+    table_keys, table_x, table_s, z = sh.table_keys, sh.table_x, sh.table_s, sh.normals
+    g0, g1 = ends.g0, ends.g1
+    keys, s_new, x_new, new, receivable = dec.keys, dec.s_new, dec.x_new, dec.new, dec.receivable
     decorrelation_m, clip_db, wall_db, dense_n = c.decorrelation_m, c.clip_db, c.wall_db, c.dense_n
     cells, eps, budget_slack = (flat, c.map_h, c.map_w), c.eps, c.budget_slack
     tx_dbm, sensitivity_dbm = c.tx_dbm, c.sensitivity_dbm
@@ -122,9 +230,10 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
 @jit(nogil=True)
 def disk_pass(frame, d, a, range_m, flat, points, receivable):
     """The unit disk (the sender's range: ``range_m[a]``, or ``range_m[0]`` for all), with
-    line of sight on a map (``flat``, the ends in grid units ``points``: ``(g0, g1)``)."""
+    line of sight on a map (``flat``, the ends in grid units ``points``: :class:`Points`)."""
     c = frame[0]
-    g0, g1 = points
+    ends = Points(*points)
+    g0, g1 = ends.g0, ends.g1
     for m in range(d.shape[0]):
         r = range_m[a[m]] if c.per_robot else range_m[0]
         ok = d[m] <= r
@@ -192,13 +301,15 @@ def link_touches(up, sender, receivers, linked, t0, last_t, every, touched):
 @jit(nogil=True)
 def grid_points(frame, t, sender, receivers, motion, points):
     """Grid coordinates (the map grid of ``frame``) of the sender (every row of ``g0``) and
-    of each receiver (``g1``) at ``t``, ``points``: ``(g0, g1)``, filled. The positions of
+    of each receiver (``g1``) at ``t``, ``points``: :class:`Points`, filled. The positions of
     :meth:`~netsim.state.RobotState.positions_at` (plane), the same arithmetic in the same
-    order; ``motion``: the state's ``(origin_m, velocity_mps, t0_s)``."""
+    order; ``motion``: the state's :class:`Motion`."""
     c = frame[0]
     map_ox, map_oy, res = c.map_ox, c.map_oy, c.res_m
-    origin_m, velocity_mps, t0 = motion
-    g0, g1 = points
+    mo = Motion(*motion)
+    ends = Points(*points)
+    origin_m, velocity_mps, t0 = mo.origin_m, mo.velocity_mps, mo.t0_s
+    g0, g1 = ends.g0, ends.g1
     dt = t - t0[sender]
     u0 = (origin_m[sender, 0] + velocity_mps[sender, 0] * dt - map_ox) / res
     v0 = (origin_m[sender, 1] + velocity_mps[sender, 1] * dt - map_oy) / res
@@ -218,32 +329,33 @@ def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out
     :func:`path_loss_pass` and :func:`budget_pass` in one call.
 
     ``frame``: the run's constants (:data:`netsim.radio.fast.FRAME`); ``robots``: the
-    state's ``(odometer_m, speed_mps, t0_s, origin_m, velocity_mps)``; ``shadow``: the
-    shadowing's ``(table_keys, table_x, table_s, normals)``, the normals taken in order;
-    ``flat``: the map's occupied cells; ``out``: ``(keys, s_new, x_new, new, receivable)``,
-    filled. Pairs met for the first time get their slot at once when every pair has one
-    (``dense_n`` > 0); otherwise they are left flagged in ``new`` for the caller to insert.
-    Returns the number of normals used."""
+    state's :class:`Robots`; ``shadow``: :class:`Shadow`, the normals taken in order;
+    ``flat``: the map's occupied cells; ``out``: :class:`Decided`, filled. Pairs met for the
+    first time get their slot at once when every pair has one (``dense_n`` > 0); otherwise
+    they are left flagged in ``new`` for the caller to insert. Returns the number of normals
+    used."""
     c = frame[0]
-    odometer, speed, t0, origin_m, velocity_mps = robots
-    table_keys, table_x, table_s, _normals = shadow
-    keys, s_new, x_new, new, _receivable = out
+    rb = Robots(*robots)
+    sh = Shadow(*shadow)
+    dec = Decided(*out)
+    table_keys, table_x, table_s = sh.table_keys, sh.table_x, sh.table_s
+    keys, s_new, x_new, new = dec.keys, dec.s_new, dec.x_new, dec.new
     sigma, dense_n = c.sigma_db, c.dense_n
     k = receivers.shape[0]
     if sigma > 0.0:
-        pair_clock(sender, receivers, odometer, speed, t0, t, c.step_m, keys, s_new)
+        pair_clock(sender, receivers, rb.odometer_m, rb.speed_mps, rb.t0_s, t, c.step_m, keys, s_new)
     if c.wall_db > 0.0:
-        points = (np.empty((k, 2)), np.empty((k, 2)))
-        grid_points(frame, t, sender, receivers, (origin_m, velocity_mps, t0), points)
+        points = Points(np.empty((k, 2)), np.empty((k, 2)))
+        grid_points(frame, t, sender, receivers, Motion(rb.origin_m, rb.velocity_mps, rb.t0_s), points)
     else:
         none = np.zeros((1, 2))
-        points = (none, none)
+        points = Points(none, none)
     loss = np.empty(k)
     alive = np.empty(k, dtype=np.bool_)
     count = path_loss_pass(frame, distance_m, loss, alive)
     if count == 0:
         sigma = 0.0
-    budget_pass(frame, sigma, (loss, alive), shadow, flat, points, out)
+    budget_pass(frame, sigma, PathLoss(loss, alive), sh, flat, points, dec)
     if dense_n > 0 and sigma > 0.0:
         for m in range(k):
             if new[m]:
@@ -258,15 +370,15 @@ def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out
 def disk_frame(frame, t, sender, receivers, distance_m, range_m, robots, flat, receivable):
     """One frame under the unit disk (the sender's range), with line of sight on a map:
     :func:`grid_points` and :func:`disk_pass` in one call. ``robots``: the state's
-    ``(origin_m, velocity_mps, t0_s)``."""
+    :class:`Motion`."""
     c = frame[0]
     k = receivers.shape[0]
     if c.use_map:
-        points = (np.empty((k, 2)), np.empty((k, 2)))
+        points = Points(np.empty((k, 2)), np.empty((k, 2)))
         grid_points(frame, t, sender, receivers, robots, points)
     else:
         none = np.zeros((1, 2))
-        points = (none, none)
+        points = Points(none, none)
     senders = np.full(k, sender, dtype=np.int64)
     disk_pass(frame, distance_m, senders, range_m, flat, points, receivable)
 

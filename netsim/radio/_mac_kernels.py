@@ -1,11 +1,52 @@
 """The shared medium's hot loop (compiled or plain, :func:`netsim.compiled.load`): a
 frame's end (:meth:`netsim.radio.mac.Medium._end`), one robot at a time. The tests check it
 against its numpy oracle (tests/oracles/radio.py).
+
+Its arrays are records read by field name (:class:`MediumArrays`, :class:`Leaving`,
+:class:`Ends`), passed as plain tuples of their fields and named on entry, as
+:mod:`netsim.radio._kernels` explains.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import numpy as np
+
 from netsim.compiled import jit
+
+
+class MediumArrays(NamedTuple):
+    """The medium's per-robot arrays a frame's end reads and updates."""
+
+    cover: np.ndarray  # frames of other senders on the air within interference range
+    transmitting: np.ndarray
+    tx_seq: np.ndarray  # the robot's latest own frame
+    cover_seq: np.ndarray  # the latest frame start that disturbed the robot
+    busy_s: np.ndarray  # time sensed busy so far
+    busy_since: np.ndarray
+
+
+class Leaving(NamedTuple):
+    """The frame leaving the air: frame ``seq`` of robot ``i`` at ``now``, the robots it
+    disturbed, its receivers and, per receiver, whether it was lost at its start."""
+
+    i: int
+    seq: int
+    now: float
+    disturbed: np.ndarray
+    rx: np.ndarray
+    hd_start: np.ndarray
+    col_start: np.ndarray
+
+
+class Ends(NamedTuple):
+    """Filled: per receiver, lost to half duplex, lost to a collision; the robots that
+    sense the medium idle again."""
+
+    hd: np.ndarray
+    col: np.ndarray
+    newly: np.ndarray
 
 
 @jit(nogil=True)
@@ -16,12 +57,16 @@ def end_unit_disk(medium, frame, out):
     disturbed, then ``i``) are written to ``newly`` with their busy time added; returns how
     many.
 
-    ``medium``: the medium's arrays, updated, ``(cover, transmitting, tx_seq, cover_seq,
-    busy_s, busy_since)``; ``frame``: ``(i, seq, now, disturbed, rx, hd_start, col_start)``;
-    ``out``: ``(hd, col, newly)``, filled."""
-    cover, transmitting, tx_seq, cover_seq, busy_s, busy_since = medium
-    i, seq, now, disturbed, rx, hd_start, col_start = frame
-    hd, col, newly = out
+    ``medium``: :class:`MediumArrays`, updated; ``frame``: :class:`Leaving`; ``out``:
+    :class:`Ends`, filled."""
+    md = MediumArrays(*medium)
+    fr = Leaving(*frame)
+    en = Ends(*out)
+    cover, transmitting, tx_seq, cover_seq = md.cover, md.transmitting, md.tx_seq, md.cover_seq
+    busy_s, busy_since = md.busy_s, md.busy_since
+    i, seq, now, disturbed, rx = fr.i, fr.seq, fr.now, fr.disturbed, fr.rx
+    hd_start, col_start = fr.hd_start, fr.col_start
+    hd, col, newly = en.hd, en.col, en.newly
     for k in range(len(disturbed)):
         cover[disturbed[k]] -= 1
     transmitting[i] = False

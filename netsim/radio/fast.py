@@ -6,7 +6,7 @@ is two loops (:mod:`netsim.radio._kernels`, compiled or plain Python as
 :func:`netsim.compiled.load` decides for the run) and one draw of normals.
 :class:`CompiledChain` accepts the chains
 that :func:`~netsim.radio.propagation.log_distance` and
-:func:`~netsim.radio.propagation.unit_disk` build and decides exactly as the chain does: the
+:func:`~netsim.radio.propagation.unit_disk` build (their ``fast``) and decides exactly as the chain does: the
 same pairs are dropped before shadowing (so the same normals are drawn), the same shadowing
 updates are made, and the same sums are compared with the sensitivity. Pairs in one batch
 must be distinct (a broadcast's receivers are).
@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.compiled import load
-from netsim.radio.propagation import (
+from netsim.radio._kernels import Decided, Motion, PathLoss, Points, Robots, Shadow
+from netsim.radio.chain import (
     LineOfSightLoss,
     LogDistanceLoss,
     Pairs,
@@ -39,6 +40,7 @@ _NO_GRID = np.zeros(1, dtype=bool)
 _NO_POINTS = np.zeros((1, 2))
 _NO_KEYS = np.zeros(1, dtype=np.int64)
 _NO_FLOATS = np.zeros(1)
+_NO_SHADOW = tuple(Shadow(_NO_KEYS, _NO_FLOATS, _NO_FLOATS, _NO_FLOATS))
 
 # The constants of one run's frames, set once (CompiledChain.frame) and read by name in the
 # compiled passes: path loss (log-distance), shadowing, walls, the unit disk, the map grid.
@@ -90,7 +92,7 @@ class CompiledChain:
                 self.sight = terms.pop(0)
         if terms or (self.log is None and self.range is None):
             raise ValueError(f"no compiled form for the chain {[k.__name__ for k in kinds]}")
-        budget = propagation.tx_power_dbm - propagation.sensitivity_dbm
+        budget = propagation.radio.budget_db
         # The chain's own early-drop rule, slack included.
         self.budget_slack = budget + 1e-9 * (1.0 + abs(budget))
         term = self.walls or self.sight
@@ -103,8 +105,8 @@ class CompiledChain:
         frame = np.zeros(1, dtype=FRAME).view(np.recarray)
         row = frame[0]
         row["budget_slack"] = self.budget_slack
-        row["tx_dbm"] = self.propagation.tx_power_dbm
-        row["sensitivity_dbm"] = self.propagation.sensitivity_dbm
+        row["tx_dbm"] = self.propagation.radio.tx_power_dbm
+        row["sensitivity_dbm"] = self.propagation.radio.sensitivity_dbm
         # (Compared with None: a PairShadowing with no pair seen yet is falsy, it has a length.)
         sh = self.shadow
         row["decorrelation_m"] = 1.0 if sh is None else sh.decorrelation_m
@@ -168,23 +170,23 @@ class CompiledChain:
         flat = self.occupancy.occupied.ravel() if self.occupancy is not None else _NO_GRID
         out = np.empty(k, dtype=bool)
         if self.range is not None:
-            robots = (state.origin_m, state.velocity_mps, state.t0_s)
+            robots = tuple(Motion(state.origin_m, state.velocity_mps, state.t0_s))
             r = np.atleast_1d(self.range.range_m)
             self.k.disk_frame(self.frame, t, sender, receivers, distances_m, r, robots, flat, out)
             return out
         if sh is not None:
             keys = np.empty(k, dtype=np.int64)
             s_new = np.empty(k)
-            shadow = (*sh.table(), sh.normals(k))
+            table_keys, table_x, table_s = sh.table()
+            shadow = tuple(Shadow(table_keys, table_x, table_s, sh.normals(k)))
         else:
             keys, s_new = _NO_KEYS, _NO_FLOATS
-            shadow = (_NO_KEYS, _NO_FLOATS, _NO_FLOATS, _NO_FLOATS)
+            shadow = _NO_SHADOW
         x_new = np.empty(k)
         new = np.empty(k, dtype=bool)
-        robots5 = (state.odometer_m, speed_mps, state.t0_s, state.origin_m, state.velocity_mps)
-        count = self.k.log_frame(
-            self.frame, t, sender, receivers, distances_m, robots5, shadow, flat, (keys, s_new, x_new, new, out)
-        )
+        robots = tuple(Robots(state.odometer_m, speed_mps, state.t0_s, state.origin_m, state.velocity_mps))
+        decided = tuple(Decided(keys, s_new, x_new, new, out))
+        count = self.k.log_frame(self.frame, t, sender, receivers, distances_m, robots, shadow, flat, decided)
         if sh is not None:
             sh.consume(count)
             if not sh.dense and new.any():
@@ -207,15 +209,15 @@ class CompiledChain:
         flat, h, w, g0, g1 = self._grid(pairs) if (self.walls or self.sight) else (_NO_GRID, 1, 1, None, None)
         if self.range is not None:
             r = np.atleast_1d(self.range.range_m)
-            if g0 is None:
+            if g0 is None or g1 is None:
                 g0 = g1 = np.zeros((kn, 2))
-            self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, (g0, g1), out)
+            self.k.disk_pass(self.frame, pairs.distance_m, pairs.a, r, flat, tuple(Points(g0, g1)), out)
             return out
         sh = self.shadow
         loss = np.empty(kn)
         alive = np.empty(kn, dtype=bool)
         count = self.k.path_loss_pass(self.frame, pairs.distance_m, loss, alive)
-        if g0 is None:
+        if g0 is None or g1 is None:
             g0 = g1 = _NO_POINTS
         if sh is not None and count:
             z = sh.normals(count)
@@ -226,8 +228,9 @@ class CompiledChain:
             tk, tx, ts, sigma = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), 0.0
         x_new = np.empty(kn)
         new = np.empty(kn, dtype=bool)
-        columns = (keys, s_new, x_new, new, out)
-        self.k.budget_pass(self.frame, sigma, (loss, alive), (tk, tx, ts, z), flat, (g0, g1), columns)
+        columns = tuple(Decided(keys, s_new, x_new, new, out))
+        path, shadow = tuple(PathLoss(loss, alive)), tuple(Shadow(tk, tx, ts, z))
+        self.k.budget_pass(self.frame, sigma, path, shadow, flat, tuple(Points(g0, g1)), columns)
         if sh is not None and new.any():
             self._insert_new(keys, x_new, s_new, new)
         return out

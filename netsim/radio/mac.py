@@ -1,8 +1,11 @@
 """The shared medium: frames take airtime, overlapping frames collide, CSMA senses and defers.
 
 Under ``channel.mac = "aloha"`` or ``"csma"`` the channel hands every frame to a
-:class:`Medium` (docs/radio.md, "Shared medium"). A frame of ``b`` bytes occupies the medium
-for ``preamble_s + 8 b / data_rate_bps`` from the instant its sender puts it on the air:
+:class:`Medium` (docs/radio.md, "Shared medium"): the airtime, the collisions and a frame's
+end, common to both, with an access policy (:class:`Aloha`, :class:`Csma`) deciding when a
+robot's head frame goes on the air and whether a failed unicast is sent again. A frame of
+``b`` bytes occupies the medium for ``preamble_s + 8 b / data_rate_bps`` from the instant its
+sender puts it on the air:
 
 - ``aloha``: at once (after the sender's own earlier frames: a radio sends one frame at a time);
 - ``csma``: 802.11 DCF. The robot draws a backoff of ``U{0..cw}`` slots, counts it down
@@ -41,8 +44,9 @@ import pandas as pd
 import simpy
 
 from netsim.compiled import load
+from netsim.radio._mac_kernels import Ends, Leaving, MediumArrays
+from netsim.radio.chain import Radio, path_loss_db
 from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
-from netsim.radio.mac_models import CsmaParams
 from netsim.radio.spatial import RangeIndex
 from netsim.scheduling import URGENT, scheduled_event
 
@@ -108,31 +112,181 @@ class Frame:
 
 
 class PowerModel:
-    """Mean received power (log-distance path loss, no shadowing or walls) for SINR sums."""
+    """Mean received power for SINR sums: the radio's ``P_t`` less the path loss
+    (:func:`netsim.radio.chain.path_loss_db`, the chain's own law), no shadowing or walls.
+    ``params``: the log-distance keys (:class:`~netsim.radio.propagation.LogDistanceParams`)."""
 
-    def __init__(self, radio: Any, noise_floor_dbm: float, capture_threshold_db: float):
-        self.tx_power_dbm = radio.tx_power_dbm
-        self.d0_m = radio.reference_distance_m
-        self.pl0_db = radio.reference_loss_db
-        self.exponent = radio.path_loss_exponent
-        self.sensitivity_dbm = radio.sensitivity_dbm
+    def __init__(self, params: Any, noise_floor_dbm: float, capture_threshold_db: float):
+        self.params = params
+        self.radio: Radio = params.radio
+        self.sensitivity_dbm = self.radio.sensitivity_dbm
         self.noise_mw = 10.0 ** (noise_floor_dbm / 10.0)
         self.capture = 10.0 ** (capture_threshold_db / 10.0)
         # Where the mean received power falls to the noise floor.
-        margin = self.tx_power_dbm - self.pl0_db - noise_floor_dbm
-        self.noise_range_m = float(self.d0_m * 10.0 ** (margin / (10.0 * self.exponent)))
+        margin = self.radio.tx_power_dbm - params.reference_loss_db - noise_floor_dbm
+        self.noise_range_m = float(params.reference_distance_m * 10.0 ** (margin / (10.0 * params.path_loss_exponent)))
 
     def received_mw(self, distance_m: np.ndarray) -> np.ndarray:
-        d = np.maximum(distance_m, self.d0_m)
-        return 10.0 ** ((self.tx_power_dbm - self.pl0_db - 10.0 * self.exponent * np.log10(d / self.d0_m)) / 10.0)
+        return 10.0 ** (self.radio.received_dbm(path_loss_db(distance_m, self.params)) / 10.0)
+
+
+class Aloha:
+    """ALOHA's access: a robot puts its head frame on the air at once (after its own earlier
+    frames: a radio sends one frame at a time), and never sends a frame again."""
+
+    name = "aloha"
+
+    def __init__(self, medium: Medium, params: Any):
+        self.medium = medium
+
+    def contend(self, i: int) -> None:
+        """Robot ``i`` has a new head frame."""
+        if not self.medium.transmitting[i]:
+            self.medium._start(i)
+
+    def started(self, i: int) -> None:
+        """Robot ``i`` put its head frame on the air."""
+
+    def sensed_busy(self, robots: np.ndarray, now: float) -> None:
+        """The medium turned busy at ``robots``."""
+
+    def unicast_failed(self, i: int) -> str:
+        """Robot ``i``'s unicast reached nobody: ``"again"`` (send it again), ``"drop"``
+        (given up: a ``retry_limit`` drop) or ``"done"``."""
+        return "done"
+
+    def frame_done(self, i: int) -> None:
+        """Robot ``i``'s head frame left its queue."""
+
+    def ended(self, i: int, newly_idle: np.ndarray, now: float) -> None:
+        """Robot ``i``'s frame left the air; ``newly_idle`` sense the medium idle again."""
+        if self.medium.queue[i]:
+            self.medium._start(i)
+
+
+class Csma:
+    """CSMA/DCF's access (module notes): backoff counted down over idle slots, frozen while
+    the medium is busy, doubled on a failed unicast, which is sent again up to the retry
+    limit. ``params``: :class:`~netsim.radio.mac_models.CsmaParams`."""
+
+    name = "csma"
+
+    def __init__(self, medium: Medium, params: Any):
+        self.medium = medium
+        n = medium.state.n
+        self.slot_s, self.difs_s = float(params.slot_s), float(params.difs_s)
+        self.cw_min, self.cw_max = int(params.cw_min), int(params.cw_max)
+        self.retry_limit = int(params.retry_limit)
+        # Slots left (-1: nothing to send), instant the count runs from (inf: frozen),
+        # transmit instant (inf: none), contention window and retries of the head frame.
+        self.backoff = np.full(n, -1, dtype=np.int64)
+        self.count_from = np.full(n, math.inf)
+        self.tx_at = np.full(n, math.inf)
+        # (transmit instant, robot) for every finite instant set, stale ones left in place
+        # (valid while tx_at still holds it): the earliest without an O(N) scan per wake-up.
+        self._due: list[tuple[float, int]] = []
+        self.cw = np.full(n, self.cw_min, dtype=np.int64)
+        self.retries = np.zeros(n, dtype=np.int64)
+        self._wake_token = 0
+        self._wake_at = math.inf
+
+    def contend(self, i: int) -> None:
+        m = self.medium
+        self.backoff[i] = m.rng.integers(self.cw[i] + 1)
+        if m.cover[i] == 0 and not m.transmitting[i]:
+            self._count_down(np.array([i]), m.env.now)
+
+    def started(self, i: int) -> None:
+        self.tx_at[i] = math.inf
+        self.backoff[i] = -1
+        self.count_from[i] = math.inf
+
+    def _count_down(self, robots: np.ndarray, now: float) -> None:
+        """``robots`` sense the medium idle from ``now``: their backoffs count down after
+        DIFS, and the earliest transmit instant wakes the medium."""
+        self.count_from[robots] = now + self.difs_s
+        self.tx_at[robots] = self.count_from[robots] + self.backoff[robots] * self.slot_s
+        at = self.tx_at[robots].tolist()
+        for r, t in zip(robots.tolist(), at):
+            heapq.heappush(self._due, (t, r))
+        self._wake(min(at))
+
+    def _wake(self, first: float | None = None) -> None:
+        """One kernel event, at the earliest transmit instant of all robots.
+
+        The event pending at ``_wake_at`` is never later than the earliest instant: freezing
+        only moves instants later (the event then finds nobody due and looks again), so a
+        change that moves instants earlier need only compare its own (``first``) with it."""
+        if first is None:
+            due, tx_at = self._due, self.tx_at
+            while due and tx_at[due[0][1]] != due[0][0]:
+                heapq.heappop(due)
+            first = due[0][0] if due else math.inf
+        if first < self._wake_at:
+            self._wake_at = first
+            self._wake_token += 1
+            token = self._wake_token
+            env = self.medium.env
+            scheduled_event(env, max(first - env.now, 0.0), URGENT, lambda _ev: self._on_wake(token))
+
+    def _on_wake(self, token: int) -> None:
+        if token != self._wake_token:
+            return  # superseded by an earlier instant
+        self._wake_at = math.inf
+        now = self.medium.env.now
+        due, tx_at, ready = self._due, self.tx_at, set()
+        while due and due[0][0] <= now + _EPS_S:
+            at, i = heapq.heappop(due)
+            if tx_at[i] == at:
+                ready.add(i)
+        for i in sorted(ready):  # in robot order, as a scan of tx_at would find them
+            self.medium._start(i)
+        self._wake()
+
+    def sensed_busy(self, robots: np.ndarray, now: float) -> None:
+        """Those of ``robots`` counting down stop, keeping the slots left; those due now
+        transmit anyway (their slot had begun)."""
+        counting = robots[np.isfinite(self.count_from[robots])]
+        if not len(counting):
+            return
+        since = now - self.count_from[counting]
+        elapsed = np.where(since >= 0, np.floor(since / self.slot_s + 1e-6), -1).astype(np.int64)
+        due = elapsed >= self.backoff[counting]
+        stop = counting[~due]
+        el = elapsed[~due]
+        # A busy period counts as one slot of the countdown (802.11: a backoff slot boundary
+        # falls at the end of DIFS; Bianchi's chain decrements at every slot, busy or idle).
+        self.backoff[stop] -= np.where(el >= 0, el + 1, 0)
+        self.count_from[stop] = math.inf
+        self.tx_at[stop] = math.inf
+
+    def unicast_failed(self, i: int) -> str:
+        if self.retries[i] < self.retry_limit:
+            self.retries[i] += 1
+            self.cw[i] = min(2 * self.cw[i] + 1, self.cw_max)
+            return "again"
+        return "drop"
+
+    def frame_done(self, i: int) -> None:
+        self.retries[i] = 0
+        self.cw[i] = self.cw_min
+
+    def ended(self, i: int, newly_idle: np.ndarray, now: float) -> None:
+        if self.medium.queue[i]:
+            self.backoff[i] = self.medium.rng.integers(self.cw[i] + 1)
+        resume = newly_idle[self.backoff[newly_idle] >= 0]
+        if len(resume):
+            self._count_down(resume, now)
 
 
 class Medium:
-    """The shared medium of one run (module notes); ``params``: its keys of ``[channel]``
+    """The shared medium of one run (module notes): airtime, collisions and the frames'
+    ends, whatever the access. ``params``: its keys of ``[channel]``
     (:class:`~netsim.radio.mac_models.AlohaParams` or
     :class:`~netsim.radio.mac_models.CsmaParams`); ``power``: the radio's mean received
-    power (None: a frame is lost where another overlaps it); ``csma``: carrier sense and
-    backoff, else ALOHA."""
+    power (None: a frame is lost where another overlaps it); ``access``: when a robot puts
+    its head frame on the air and whether it sends a failed one again (:class:`Aloha` or
+    :class:`Csma`, made with the medium and ``params``)."""
 
     causes = MAC_DROP_CAUSES
 
@@ -142,21 +296,16 @@ class Medium:
         params: Any,
         rng: np.random.Generator,
         power: PowerModel | None = None,
-        csma: bool = False,
+        access: type[Aloha] | type[Csma] = Aloha,
     ):
         self.channel = channel
         self.env: simpy.Environment = channel.env
         self.state = channel.state
         n = self.state.n
-        self.csma = csma
         self.rng = rng
         self.data_rate_bps = float(params.data_rate_bps)
         self.preamble_s = float(params.preamble_s)
-        # ALOHA never backs off: the backoff's defaults fill what it never reads.
-        backoff = params if csma else CsmaParams()
-        self.slot_s, self.difs_s = float(backoff.slot_s), float(backoff.difs_s)
-        self.cw_min, self.cw_max = int(backoff.cw_min), int(backoff.cw_max)
-        self.retry_limit, self.queue_frames = int(backoff.retry_limit), int(params.queue_frames)
+        self.queue_frames = int(params.queue_frames)
         self.power = power
         largest = float(self.state.range_m.max()) if n else 0.0
         rec = channel.reception
@@ -188,33 +337,23 @@ class Medium:
         self.load_mw = np.zeros(n)
         self.on_air: dict[int, Frame] = {}
         self.seq = 0
-        # CSMA: slots left (-1: nothing to send), instant the count runs from (inf: frozen),
-        # transmit instant (inf: none), contention window and retries of the head frame.
-        self.backoff = np.full(n, -1, dtype=np.int64)
-        self.count_from = np.full(n, math.inf)
-        self.tx_at = np.full(n, math.inf)
         # A frame's end (the unit disk's decision; under a power model its SINR replaces the
         # collisions) as one loop (netsim.radio._mac_kernels).
         self._kernels = load("netsim.radio._mac_kernels", n)
         self._hd, self._col = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         self._newly = np.empty(n + 1, dtype=np.int64)
-        # (transmit instant, robot) for every finite instant set, stale ones left in place
-        # (valid while tx_at still holds it): the earliest without an O(N) scan per wake-up.
-        self._due: list[tuple[float, int]] = []
-        self.cw = np.full(n, self.cw_min, dtype=np.int64)
-        self.retries = np.zeros(n, dtype=np.int64)
-        self._wake_token = 0
-        self._wake_at = math.inf
         # Time each robot sensed the medium busy (own transmissions included).
         self.busy_since = np.zeros(n)
         self.busy_s = np.zeros(n)
         # The arrays the frame end's loop reads and updates (_mac_kernels' ``medium`` and
         # ``out``): kept for the run, so put together once.
-        self._medium = (self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
-        self._end_out = (self._hd, self._col, self._newly)
+        arrays = MediumArrays(self.cover, self.transmitting, self.tx_seq, self.cover_seq, self.busy_s, self.busy_since)
+        self._medium = tuple(arrays)
+        self._end_out = tuple(Ends(self._hd, self._col, self._newly))
         self.frames_sent = 0
         self.attempts = 0
         self.airtime_total_s = 0.0
+        self.access = access(self, params)
 
     # -- handing frames over ---------------------------------------------------------
     def send(self, sender: int, dest: int, payload: object, deliver, kind: str) -> np.ndarray:
@@ -235,7 +374,7 @@ class Medium:
         frame = Frame(sender, dest, kind, payload, deliver, c, binned, airtime)
         q.append(frame)
         if len(q) == 1:
-            self._contend(sender)
+            self.access.contend(sender)
         return np.array([sender])
 
     def _frame_dropped(self, sender: int, kind: str, c, binned, cause: str, payload: object) -> None:
@@ -251,65 +390,12 @@ class Medium:
         if tell is not None:
             tell(payload, cause, count)
 
-    def _contend(self, i: int) -> None:
-        """Robot ``i`` has a new head frame: ALOHA sends it now, CSMA draws a backoff."""
-        if not self.csma:
-            if not self.transmitting[i]:
-                self._start(i)
-            return
-        self.backoff[i] = self.rng.integers(self.cw[i] + 1)
-        if self.cover[i] == 0 and not self.transmitting[i]:
-            self._count_down(np.array([i]), self.env.now)
-
-    def _count_down(self, robots: np.ndarray, now: float) -> None:
-        """``robots`` sense the medium idle from ``now``: their backoffs count down after
-        DIFS, and the earliest transmit instant wakes the medium."""
-        self.count_from[robots] = now + self.difs_s
-        self.tx_at[robots] = self.count_from[robots] + self.backoff[robots] * self.slot_s
-        at = self.tx_at[robots].tolist()
-        for r, t in zip(robots.tolist(), at):
-            heapq.heappush(self._due, (t, r))
-        self._wake(min(at))
-
-    def _wake(self, first: float | None = None) -> None:
-        """One kernel event, at the earliest transmit instant of all robots.
-
-        The event pending at ``_wake_at`` is never later than the earliest instant: freezing
-        only moves instants later (the event then finds nobody due and looks again), so a
-        change that moves instants earlier need only compare its own (``first``) with it."""
-        if first is None:
-            due, tx_at = self._due, self.tx_at
-            while due and tx_at[due[0][1]] != due[0][0]:
-                heapq.heappop(due)
-            first = due[0][0] if due else math.inf
-        if first < self._wake_at:
-            self._wake_at = first
-            self._wake_token += 1
-            token = self._wake_token
-            scheduled_event(self.env, max(first - self.env.now, 0.0), URGENT, lambda _ev: self._on_wake(token))
-
-    def _on_wake(self, token: int) -> None:
-        if token != self._wake_token:
-            return  # superseded by an earlier instant
-        self._wake_at = math.inf
-        now = self.env.now
-        due, tx_at, ready = self._due, self.tx_at, set()
-        while due and due[0][0] <= now + _EPS_S:
-            at, i = heapq.heappop(due)
-            if tx_at[i] == at:
-                ready.add(i)
-        for i in sorted(ready):  # in robot order, as a scan of tx_at would find them
-            self._start(i)
-        self._wake()
-
     # -- a frame on the air ------------------------------------------------------------
     def _start(self, i: int) -> None:
         ch = self.channel
         now = self.env.now
         frame = self.queue[i][0]
-        self.tx_at[i] = math.inf
-        self.backoff[i] = -1
-        self.count_from[i] = math.inf
+        self.access.started(i)
         self.seq += 1
         seq = frame.seq = self.seq
         self.attempts += 1
@@ -357,8 +443,8 @@ class Medium:
         self.busy_since[newly] = now
         if sender_idle:
             self.busy_since[i] = now
-        if self.csma and len(newly):
-            self._freeze(newly, now)
+        if len(newly):
+            self.access.sensed_busy(newly, now)
         scheduled_event(self.env, frame.airtime_s, URGENT, lambda _ev: self._end(frame))
 
     def _unicast_receiver(self, i: int, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
@@ -368,29 +454,12 @@ class Medium:
         self.channel._out_of_range(frame.kind, i, frame.dest, frame.counters, frame.binned)
         return _EMPTY, np.empty(0)
 
-    def _freeze(self, robots: np.ndarray, now: float) -> None:
-        """The medium turned busy for ``robots``: those counting down stop, keeping the slots
-        left; those due now transmit anyway (their slot had begun)."""
-        counting = robots[np.isfinite(self.count_from[robots])]
-        if not len(counting):
-            return
-        since = now - self.count_from[counting]
-        elapsed = np.where(since >= 0, np.floor(since / self.slot_s + 1e-6), -1).astype(np.int64)
-        due = elapsed >= self.backoff[counting]
-        stop = counting[~due]
-        el = elapsed[~due]
-        # A busy period counts as one slot of the countdown (802.11: a backoff slot boundary
-        # falls at the end of DIFS; Bianchi's chain decrements at every slot, busy or idle).
-        self.backoff[stop] -= np.where(el >= 0, el + 1, 0)
-        self.count_from[stop] = math.inf
-        self.tx_at[stop] = math.inf
-
     def _end(self, frame: Frame) -> None:
         now = self.env.now
         i, seq = frame.sender, frame.seq
         disturbed = frame.interferers
         rx = frame.receivers
-        leaving = (i, seq, now, disturbed, rx, frame.hd_start, frame.col_start)
+        leaving = tuple(Leaving(i, seq, now, disturbed, rx, frame.hd_start, frame.col_start))
         m = self._kernels.end_unit_disk(self._medium, leaving, self._end_out)
         hd, col, newly = self._hd[: len(rx)], self._col[: len(rx)], self._newly[:m].copy()
         if self.power is not None:
@@ -413,29 +482,16 @@ class Medium:
                 self.channel._dropped(frame.kind, i, rx[lost], cause)
                 self._lost(frame.kind, frame.payload, cause, int(lost.sum()))
         got = rx[ok]
-        q = self.queue[i]
-        retry = self.csma and frame.dest >= 0 and not len(got) and self.retries[i] < self.retry_limit
-        if retry:
-            self.retries[i] += 1
-            self.cw[i] = min(2 * self.cw[i] + 1, self.cw_max)
-        else:
-            q.popleft()
+        outcome = self.access.unicast_failed(i) if frame.dest >= 0 and not len(got) else "done"
+        if outcome != "again":
+            self.queue[i].popleft()
             self.frames_sent += 1
-            if frame.dest >= 0 and not len(got) and self.csma:
+            if outcome == "drop":
                 self._frame_dropped(i, frame.kind, c, binned, "retry_limit", frame.payload)
-            self.retries[i] = 0
-            self.cw[i] = self.cw_min
+            self.access.frame_done(i)
             power = frame.power_dbm[ok] if frame.power_dbm is not None else None
             self._notify(i, got, frame.payload, frame.deliver, frame.kind, c, binned, power)
-        if not self.csma:
-            if q:
-                self._start(i)
-            return
-        if q:
-            self.backoff[i] = self.rng.integers(self.cw[i] + 1)
-        resume = newly[self.backoff[newly] >= 0]
-        if len(resume):
-            self._count_down(resume, now)
+        self.access.ended(i, newly, now)
 
     def _record(self, frame: Frame, rx: np.ndarray, hd: np.ndarray, col: np.ndarray) -> None:
         """Close the rows of ``frame`` (netsim.radio.receptions): the receptions it lost at its
@@ -479,7 +535,7 @@ class Medium:
         decided = received + totals["collision"] + totals["half_duplex"]
         n = self.state.n
         return {
-            "mac": "csma" if self.csma else "aloha",
+            "mac": self.access.name,
             "mac_frames": self.frames_sent,
             "mac_transmissions": self.attempts,
             "mac_airtime_s": self.airtime_total_s,

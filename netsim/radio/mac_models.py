@@ -137,18 +137,18 @@ def _tables(tables: dict) -> dict:
     return out
 
 
-def _build(csma: bool) -> Callable[[Any, Any, np.random.Generator, Any], Any]:
+def _build(access: str) -> Callable[[Any, Any, np.random.Generator, Any], Any]:
     def build(params: Any, channel: Any, rng: np.random.Generator, power: Any) -> Any:
-        from netsim.radio.mac import Medium
+        from netsim.radio import mac
 
         mean_power = power(params.noise_floor_dbm, params.capture_threshold_db)
-        return Medium(channel, params, rng, mean_power, csma=csma)
+        return mac.Medium(channel, params, rng, mean_power, access=getattr(mac, access))
 
     return build
 
 
-ALOHA = MacModel(AlohaParams, _build(False), _airtime_s, _tables, check_medium)
+ALOHA = MacModel(AlohaParams, _build("Aloha"), _airtime_s, _tables, check_medium)
 """``channel.mac = "aloha"``: a frame goes on the air at once (after its sender's earlier ones)."""
 
-CSMA = MacModel(CsmaParams, _build(True), _airtime_s, _tables, check_medium)
+CSMA = MacModel(CsmaParams, _build("Csma"), _airtime_s, _tables, check_medium)
 """``channel.mac = "csma"``: 802.11 DCF's carrier sense and binary exponential backoff."""

@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
+from netsim.radio.chain import Pairs, Propagation
 from netsim.radio.fast import GenericChain
-from netsim.radio.propagation import Pairs, Propagation
 from netsim.state import RobotState
 
 
@@ -191,4 +191,4 @@ class Reception:
             loss = loss + np.clip(np.nan_to_num(x), -c.shadow.clip_db, c.shadow.clip_db)
         if c.walls is not None and k:
             loss = loss + c.walls.loss_db(c._pairs(self.state, t, sender, receivers, distances_m))
-        return self.propagation.tx_power_dbm - loss
+        return self.propagation.radio.received_dbm(loss)

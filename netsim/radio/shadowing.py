@@ -67,7 +67,12 @@ import numpy as np
 
 from netsim.compiled import SMALL_RUN_ROBOTS, load
 from netsim.errors import ConfigError
-from netsim.radio.propagation import TRUNCATION_SIGMAS
+from netsim.radio._kernels import Clocks, Drawn, Shadow, ShadowLaw
+
+# Shadowing is used clipped to +-4 sigma (its state is not: see PairShadowing), so that no
+# pair beyond a finite distance can ever link; the link probability then follows the closed
+# form exactly wherever it lies between 3.2e-5 and 1 - 3.2e-5.
+TRUNCATION_SIGMAS = 4.0
 
 # Standard normals drawn at once (see PairShadowing.normals).
 NORMALS_BLOCK = 4096
@@ -208,8 +213,9 @@ class PairShadowing:
         self.consume(k)
         x = np.empty(k)
         new = np.empty(k, dtype=np.bool_)
-        law = (self.sigma_db, self.decorrelation_m, self.dense_n)
-        self._step((self._keys, self._x, self._s, z), law, (keys, s_new), (x, new))
+        law = tuple(ShadowLaw(self.sigma_db, self.decorrelation_m, self.dense_n))
+        shadow = tuple(Shadow(self._keys, self._x, self._s, z))
+        self._step(shadow, law, tuple(Clocks(keys, s_new)), tuple(Drawn(x, new)))
         if new.any():
             idx = np.flatnonzero(new)
             uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)

@@ -26,6 +26,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from netsim.config import from_dict
+from netsim.radio.mac_models import CsmaParams
 
 
 class MacCheck(NamedTuple):
@@ -298,7 +299,8 @@ def hidden_terminals(
             # independent outcome per round, not per reception.
             tol = 4.0 * _binomial_se(theory, decided / 2)
         else:
-            m = sim.channel.mac
+            # The bound under CSMA's backoff (ALOHA has none: the backoff's defaults).
+            m = sim.channel.mac.access if mac == "csma" else CsmaParams()
             p = same_slot_bound(period, m.difs_s, m.slot_s, m.cw_min)
             theory = 1.0
             tol = p + 4.0 * _binomial_se(1.0 - p, decided)

@@ -1,0 +1,233 @@
+"""The loss chain: received power as a sum of small loss terms, and the radio that hears it.
+
+Each term is a small object with ``loss_db(pairs) -> array`` over a batch of pairs
+(:class:`Pairs`), vectorised, and ``lowest_db``, the least loss it can ever return. A
+:class:`LossChain` sums its terms; asked only which pairs a :class:`Radio` hears, it
+evaluates the terms in order and drops a pair as soon as the loss so far plus the least the
+remaining terms can add exceeds the radio's budget ``P_t - sensitivity``. Cheap terms
+first, then: walls are only traced for pairs that path loss and shadowing leave in range.
+
+The log-distance law itself is computed in one place, the kernel
+:func:`netsim.radio._kernels.path_loss_db`: the chain's term (:func:`path_loss_db`), the
+compiled pass of a frame, the shared medium's interference and the receptions' power all
+call it. The models that build chains are :mod:`netsim.radio.propagation`'s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from netsim.compiled import load
+from netsim.radio.shadowing import TRUNCATION_SIGMAS
+
+
+class Radio(NamedTuple):
+    """A robot's radio: the power it sends with and the weakest power it hears, dBm. The
+    same for every propagation model that has a notion of power (the keys
+    ``channel.tx_power_dbm`` and ``channel.sensitivity_dbm``, :class:`netsim.radio.propagation.RadioParams`).
+
+    >>> Radio(20.0, -80.0).hears(np.array([99.0, 100.0, 101.0])).tolist()
+    [True, True, False]
+    """
+
+    tx_power_dbm: float
+    sensitivity_dbm: float
+
+    @property
+    def budget_db(self) -> float:
+        """The most loss a frame can take and still be heard: ``P_t - sensitivity``."""
+        return self.tx_power_dbm - self.sensitivity_dbm
+
+    def received_dbm(self, loss_db):
+        """``P_r = P_t - loss``."""
+        return self.tx_power_dbm - loss_db
+
+    def hears(self, loss_db):
+        """Whether a frame after ``loss_db`` arrives at or above the sensitivity."""
+        return self.tx_power_dbm - loss_db >= self.sensitivity_dbm
+
+
+# The unit disk has no power: its chain adds 0 dB within range and infinity beyond, heard
+# with a budget of 0 dB.
+NO_POWER = Radio(0.0, 0.0)
+
+
+def path_loss_db(distance_m, params: Any) -> np.ndarray:
+    """``PL(d0) + 10 n log10(d / d0)``, and ``PL(d0)`` below ``d0`` (also at ``d = 0``), of
+    every distance, under ``params`` (``reference_distance_m``, ``reference_loss_db``,
+    ``path_loss_exponent``): the kernel :func:`netsim.radio._kernels.path_loss_db`."""
+    d = np.asarray(distance_m, dtype=float)
+    flat = d.reshape(-1)
+    out = np.empty(flat.shape[0])
+    kernels = load("netsim.radio._kernels", flat.shape[0])
+    n10 = 10.0 * params.path_loss_exponent
+    kernels.path_losses_db(flat, params.reference_distance_m, params.reference_loss_db, n10, out)
+    return out.reshape(d.shape)
+
+
+class Pairs(NamedTuple):
+    """A batch of (sender ``a``, receiver ``b``) pairs and what loss terms may need of them.
+
+    ``travel_m`` is the sum of the two robots' path lengths since t = 0 (the pair's own
+    clock for shadowing); None for robots that never move.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    pos_a: np.ndarray | None  # None: no term needs positions (no map)
+    pos_b: np.ndarray | None
+    distance_m: np.ndarray
+    travel_m: np.ndarray | None = None
+
+    @classmethod
+    def between(cls, a, b, positions_m, travel_m=None) -> Pairs:
+        """Pairs ``(a[k], b[k])`` of robots at ``positions_m`` (plane, not a torus);
+        ``travel_m`` is per robot (odometers) and summed per pair."""
+        a = np.asarray(a, dtype=np.int64)
+        b = np.asarray(b, dtype=np.int64)
+        positions_m = np.asarray(positions_m, dtype=float)
+        pa, pb = positions_m[a], positions_m[b]
+        d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
+        travel = None if travel_m is None else np.asarray(travel_m, dtype=float)[a] + np.asarray(travel_m)[b]
+        return cls(a, b, pa, pb, d, travel)
+
+    def take(self, idx) -> Pairs:
+        t = None if self.travel_m is None else self.travel_m[idx]
+        pa = None if self.pos_a is None else self.pos_a[idx]
+        pb = None if self.pos_b is None else self.pos_b[idx]
+        return Pairs(self.a[idx], self.b[idx], pa, pb, self.distance_m[idx], t)
+
+
+class LogDistanceLoss:
+    """``PL(d0) + 10 n log10(d / d0)`` (``PL(d0)`` below ``d0``): :func:`path_loss_db`."""
+
+    def __init__(self, params: Any):
+        self.params = params
+        self.lowest_db = params.reference_loss_db
+
+    def loss_db(self, pairs: Pairs) -> np.ndarray:
+        return path_loss_db(pairs.distance_m, self.params)
+
+
+class ShadowingLoss:
+    """The pair's shadowing ``X`` (dB), from a :class:`~netsim.radio.shadowing.PairShadowing`."""
+
+    def __init__(self, shadowing):
+        self.shadowing = shadowing
+        self.lowest_db = -TRUNCATION_SIGMAS * shadowing.sigma_db
+
+    def loss_db(self, pairs: Pairs) -> np.ndarray:
+        travel = np.zeros(len(pairs.a)) if pairs.travel_m is None else pairs.travel_m
+        return self.shadowing.sample(pairs.a, pairs.b, travel)
+
+
+class WallLoss:
+    """``wall_loss_db`` per wall (run of occupied cells) the straight line crosses"""
+
+    def __init__(self, occupancy, wall_loss_db: float):
+        self.occupancy = occupancy
+        self.wall_loss_db = float(wall_loss_db)
+        self.lowest_db = 0.0
+
+    def loss_db(self, pairs: Pairs) -> np.ndarray:
+        from netsim.world.los import walls_crossed
+
+        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
+        return self.wall_loss_db * walls
+
+
+class RangeLoss:
+    """The unit disk: 0 dB within the sender's range (scalar or one per robot), infinite beyond."""
+
+    def __init__(self, range_m):
+        self.range_m = np.asarray(range_m, dtype=float)
+        self.lowest_db = 0.0
+
+    def loss_db(self, pairs: Pairs) -> np.ndarray:
+        r = self.range_m if self.range_m.ndim == 0 else self.range_m[pairs.a]
+        return np.where(pairs.distance_m <= r, 0.0, np.inf)
+
+
+class LineOfSightLoss:
+    """0 dB when no occupied cell lies between the two robots, infinite otherwise."""
+
+    def __init__(self, occupancy):
+        self.occupancy = occupancy
+        self.lowest_db = 0.0
+
+    def loss_db(self, pairs: Pairs) -> np.ndarray:
+        from netsim.world.los import walls_crossed
+
+        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
+        return np.where(walls == 0, 0.0, np.inf)
+
+
+class LossChain:
+    """The sum of loss terms, evaluated in order."""
+
+    def __init__(self, *terms):
+        self.terms = tuple(terms)
+        # Least loss the terms from index i onward can add (for dropping pairs early).
+        floors = [t.lowest_db for t in self.terms]
+        self._rest = [float(sum(floors[i:])) for i in range(len(floors))]
+
+    def loss_db(self, pairs: Pairs) -> np.ndarray:
+        """Total loss of every pair (all terms evaluated on all pairs)."""
+        total = np.zeros(len(pairs.a))
+        for t in self.terms:
+            total = total + t.loss_db(pairs)
+        return total
+
+    def receivable(self, pairs: Pairs, radio: Radio) -> np.ndarray:
+        """Mask of the pairs that ``radio`` hears: ``tx_power_dbm - loss >= sensitivity_dbm``.
+
+        A pair leaves the batch as soon as it cannot make it, so later (costlier) terms,
+        and shadowing draws, are spent only on pairs still in the running.
+        """
+        k = len(pairs.a)
+        budget = radio.budget_db
+        alive = np.arange(k)
+        loss = np.zeros(k)
+        sub = pairs
+        for i, term in enumerate(self.terms):
+            # A small slack: dropping here must never disagree with the exact test below.
+            keep = loss + self._rest[i] <= budget + 1e-9 * (1.0 + abs(budget))
+            if not keep.all():
+                alive, loss = alive[keep], loss[keep]
+                sub = sub.take(keep)
+                if len(alive) == 0:
+                    break
+            loss = loss + term.loss_db(sub)
+        mask = np.zeros(k, dtype=bool)
+        mask[alive[radio.hears(loss)]] = True
+        return mask
+
+
+@dataclass(frozen=True)
+class Propagation:
+    """A loss chain and the radio it is heard with: what the channel asks who hears a frame.
+
+    ``radio`` is the robots' :class:`Radio` (every robot sends with the same power);
+    ``range_m`` is the implied range (no shadowing, no walls); ``reach_m`` the distance
+    beyond which no pair is ever receivable (the neighbour search radius). A chain of any
+    terms works: without ``fast`` the channel evaluates it term by term.
+    """
+
+    chain: LossChain
+    radio: Radio
+    range_m: float
+    reach_m: float
+    # The model's one-pass path, ``fast(propagation, n_robots)`` (:class:`netsim.radio.fast.CompiledChain`
+    # for the built-in chains); None: the generic one (:class:`netsim.radio.fast.GenericChain`).
+    fast: Callable[[Propagation, int], Any] | None = None
+
+    def receivable(self, pairs: Pairs) -> np.ndarray:
+        return self.chain.receivable(pairs, self.radio)
+
+    def received_dbm(self, pairs: Pairs) -> np.ndarray:
+        """``P_r`` of every pair (``-inf`` where a term blocks): for interference sums."""
+        return self.radio.received_dbm(self.chain.loss_db(pairs))
