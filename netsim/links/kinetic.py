@@ -42,7 +42,8 @@ import simpy
 
 from netsim.events import EventBus, LinkDown, LinkUp
 from netsim.geometry import near_pairs, wrap
-from netsim.links.crossings import PHASE_STATE, clip_crossings, crossing_times, solve_piece
+from netsim.compiled import load
+from netsim.links._kernels import PHASE_STATE
 from netsim.links.lifetimes import COLUMNS
 from netsim.scheduling import FIRST, LAST, advance_clock, kernel_queue, scheduled_event
 from netsim.state import RobotState
@@ -136,6 +137,7 @@ class RuntimeLinks:
         self.on_down: list = events.subscribers("link_down") if events is not None else []
         self._kernel = kernel_queue(env)  # the same list for the whole run (read only)
         self._n = max(state.n, 1)
+        self._crossing = load("netsim.links._kernels", state.n)
         state.watchers.append(self._on_leg)
 
     # -- life cycle ----------------------------------------------------------------------
@@ -322,51 +324,47 @@ class RuntimeLinks:
             self._at_in[idx], self._at_out[idx] = self._crossings(idx)
             self._queue_crossings(idx, t)
             return
-        origin, d0, w = self._relative(idx)
-        found: list[tuple] = []
-
-        def emit(t_ev: Any, ia: Any, _ib: Any, kind: int, phase: Any) -> None:
-            if len(ia):
-                found.append((np.asarray(t_ev, float), np.asarray(ia, np.int64), kind, np.asarray(phase)))
-
-        solve_piece(d0, w, self._cr[idx], origin, t, self._w_end - t, idx, idx, emit, self.box)
-        for t_ev, ia, kind, phase in found:
-            self._push(t_ev, self._ca[ia], self._cb[ia], kind, phase, ia)
-
-    def _relative(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """For candidate pairs ``idx``: the later of their two legs' starts, the relative
-        position then (nearest image on a torus) and the relative velocity."""
-        st = self.state
-        a, b = self._ca[idx], self._cb[idx]
-        ta, tb = st.t0_s.take(a), st.t0_s.take(b)
-        va, vb = st.velocity_mps.take(a, axis=0), st.velocity_mps.take(b, axis=0)
-        # Solved from the later of the two legs' starts, as the post-hoc solver does
-        # (netsim.links.crossings.solve_piece): the same floats, whatever the windows.
-        origin = np.maximum(ta, tb)
-        pa = st.origin_m.take(a, axis=0) + va * (origin - ta)[:, None]
-        pb = st.origin_m.take(b, axis=0) + vb * (origin - tb)[:, None]
-        return origin, wrap(pa - pb, self.box), va - vb
+        st, k = self.state, len(idx)
+        found = self._crossing.crossings(
+            st.t0_s,
+            st.origin_m,
+            st.velocity_mps,
+            self._ca[idx],
+            self._cb[idx],
+            self._cr[idx],
+            np.full(k, float(t)),
+            np.full(k, self._w_end - t),
+            self.box,
+        )
+        self._push_found(idx, *found)
 
     def _crossings(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """In the plane: the instants candidate pairs ``idx`` enter and leave range on
-        their current legs (NaN: never)."""
-        origin, d0, w = self._relative(idx)
-        return crossing_times(d0, w, self._cr[idx], origin)
+        their current legs (NaN: never), solved from the later of their two legs' starts
+        as the post-hoc solver solves them: the same floats, whatever the windows."""
+        st = self.state
+        return self._crossing.crossing_times(
+            st.t0_s, st.origin_m, st.velocity_mps, self._ca[idx], self._cb[idx], self._cr[idx]
+        )
 
     def _queue_crossings(self, idx: np.ndarray, t: float) -> None:
         """Queue the known crossings of pairs ``idx`` that fall from ``t`` to the window's
-        end, as :func:`netsim.links.crossings.solve_piece` would find them."""
+        end, as :func:`netsim.links._kernels.crossings` would find them."""
         k = len(idx)
         if k == 0:
             return
-        ca, cb = self._ca, self._cb
+        found = self._crossing.clip_crossings(
+            self._at_in[idx], self._at_out[idx], np.full(k, float(t)), np.full(k, self._w_end - t)
+        )
+        self._push_found(idx, *found)
 
-        def emit(t_ev: np.ndarray, ia: np.ndarray, _ib: np.ndarray, kind: int, phase: np.ndarray) -> None:
-            self._push(t_ev, ca[ia], cb[ia], kind, phase, ia)
-
-        t_start = np.broadcast_to(np.float64(t), (k,))
-        length = np.broadcast_to(np.float64(self._w_end - t), (k,))
-        clip_crossings(self._at_in[idx], self._at_out[idx], t_start, length, idx, idx, emit)
+    def _push_found(self, idx: np.ndarray, pair: np.ndarray, t: np.ndarray, phase: np.ndarray, kind: np.ndarray) -> None:
+        """Queue crossings found for candidate pairs ``idx`` (``pair`` indexes ``idx``): the
+        entries, then the exits, as the kernels list them."""
+        ia = idx[pair]
+        up = kind > 0
+        self._push(t[up], self._ca[ia[up]], self._cb[ia[up]], 1, phase[up], ia[up])
+        self._push(t[~up], self._ca[ia[~up]], self._cb[ia[~up]], -1, phase[~up], ia[~up])
 
     # -- the queue -----------------------------------------------------------------------
     # An event is (t, a, b, phase, -kind, idx, gen): in that order events run (module

@@ -33,7 +33,7 @@ import pandas as pd
 
 from netsim.compiled import load
 from netsim.geometry import in_box, near_pairs, wrap
-from netsim.links.crossings import PHASE_STATE, solve_piece
+from netsim.links._kernels import PHASE_STATE
 from netsim.trajectory import LegTable
 
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
@@ -66,7 +66,7 @@ def link_events(
 ) -> tuple[np.ndarray, ...]:
     """Up (+1) and down (-1) events of every link, as arrays ``(t, a, b, kind, phase)``.
 
-    ``phase`` orders events of a pair at the same instant (see ``_PHASE_*``). ``window_s``
+    ``phase`` orders events of a pair at the same instant (``netsim.links._kernels.PHASE_*``). ``window_s``
     overrides the solver's window (the results do not depend on it).
     """
     n = len(np.atleast_1d(range_m)) if np.ndim(range_m) else int(legs["robot"].max()) + 1
@@ -92,14 +92,14 @@ def link_events(
 
     out: list[tuple[np.ndarray, ...]] = []
 
-    def emit(t: np.ndarray, a: np.ndarray, b: np.ndarray, k: int, phase: int | np.ndarray) -> None:
+    def emit(t: np.ndarray, a: np.ndarray, b: np.ndarray, k: int | np.ndarray, phase: int | np.ndarray) -> None:
         a = np.asarray(a, np.int64)
         out.append(
             (
                 np.asarray(t, float),
                 a,
                 np.asarray(b, np.int64),
-                np.full(len(a), k, np.int8),
+                np.broadcast_to(np.asarray(k, np.int8), a.shape),
                 np.broadcast_to(np.asarray(phase, np.int8), a.shape),
             )
         )
@@ -246,20 +246,12 @@ def _solve_legs(
     kernels: ModuleType,
 ) -> None:
     """Crossings of pairs on legs ``la``, ``lb`` within ``[t_start, t_start + length]``, solved
-    from the later of the two legs' starts: on the plane by ``kernels``
-    (:func:`netsim.links._kernels.plane_crossings`), on a torus, where every image of the
-    other robot counts, by :func:`netsim.links.crossings.solve_piece`."""
-    if box is None:
-        n = len(la)
-        t_start, length = (np.full(n, x, float) if np.ndim(x) == 0 else np.array(x, float) for x in (t_start, length))
-        found = kernels.plane_crossings(L.t, L.p, L.v, la, lb, radius, t_start, length)
-        for pair, t, phase, kind in ((*found[:3], 1), (*found[3:], -1)):
-            emit(t, a[pair], b[pair], kind, phase)
-        return
-    origin = np.maximum(L.t[la], L.t[lb])
-    pa = L.p[la] + L.v[la] * (origin - L.t[la])[:, None]
-    pb = L.p[lb] + L.v[lb] * (origin - L.t[lb])[:, None]
-    solve_piece(wrap(pa - pb, box), L.v[la] - L.v[lb], radius, origin, t_start, length, a, b, emit, box)
+    from the later of the two legs' starts (:func:`netsim.links._kernels.crossings`; on a
+    torus every image of the other robot counts)."""
+    n = len(la)
+    t_start, length = (np.full(n, x, float) if np.ndim(x) == 0 else np.array(x, float) for x in (t_start, length))
+    pair, t, phase, kind = kernels.crossings(L.t, L.p, L.v, la, lb, radius, t_start, length, box or 0.0)
+    emit(t, a[pair], b[pair], kind, phase)
 
 
 def link_lifetimes(

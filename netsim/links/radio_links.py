@@ -175,7 +175,7 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     e = np.where(np.r_[iv[1:] == iv[:-1], False], np.r_[u[1:], 0.0], t1[iv])
     a, b = a_env[iv], b_env[iv]
     la, lb = leg_index(L, a, u), leg_index(L, b, u)
-    s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]))
+    s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]), n)
     rows = np.arange(len(s))
     k1 = np.minimum(np.maximum(count_below(u, s.h, e), 1.0), s.nc)
     row, t_chg, up_chg, s0, _ = s.take(map_radio(reception), rows, np.zeros(len(s)), k1, None)

@@ -220,7 +220,7 @@ class WalledLinks:
         st = self.state
         a, b = self._stretch.a[slots], self._stretch.b[slots]
         o, v, t0 = st.origin_m, st.velocity_mps, st.t0_s
-        new = Stretches(a, b, u, o[a], v[a], t0[a], o[b], v[b], t0[b], np.minimum(self.radii[a], self.radii[b]))
+        new = Stretches(a, b, u, o[a], v[a], t0[a], o[b], v[b], t0[b], np.minimum(self.radii[a], self.radii[b]), self.n)
         self._stretch.put(slots, new)
         for s in slots.tolist():
             self._gen[s] += 1

@@ -1,12 +1,9 @@
-"""Crossings of a pair's relative path with a disk: the arithmetic that every link solver shares.
+"""The crossings of a pair's relative path with a disk, solved with numpy: the reference
+the link kernels (netsim/links/_kernels.py) are compared with, bit for bit.
 
-Two robots on straight legs have relative position ``d + w t``; they are linked while
-``|d + w t| <= R``, so a link comes up and goes down at the roots of
-``|w|^2 t^2 + 2 (d.w) t + |d|^2 - R^2 = 0``. :func:`solve_piece` finds them over a piece of
-time during which neither robot changes course, on a torus for every image of the other
-robot that the path can reach, and hands each crossing to an ``emit`` callback. The
-post-hoc solver (:mod:`netsim.links.lifetimes`) and the runtime one (:mod:`netsim.links.kinetic`) both
-solve through it, so that they compute the same roots the same way.
+Vectorised over pairs, image by image on a torus; crossings are handed to an ``emit``
+callback as ``(t, a, b, kind, phase)``. Independent of the kernels' loops; only the
+constants (the edge tolerance, the phases) are shared.
 """
 
 from __future__ import annotations
@@ -15,11 +12,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-EDGE_S = 1e-10
+from netsim.links._kernels import EDGE_S, PHASE_END, PHASE_START
 
-# Order of events at the same instant for one pair: a crossing at the end of a piece, then
-# the state set at a jump (or at t = 0), then a crossing at the start of the next piece.
-PHASE_END, PHASE_STATE, PHASE_START = 0, 1, 2
 
 
 def roots(d: np.ndarray, w: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
