@@ -68,12 +68,15 @@ def _frame(a, b, t_up, t_down, duration_s: float, open_end) -> pd.DataFrame:
 
 
 def radio_link_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float, side_m=None, torus=False):
-    """The links table of a run whose channel decides receptions with ``reception``."""
+    """The links table (``links.parquet``) of a run whose channel decides receptions with
+    ``reception`` (None: the unit disk of ``ranges_m``); whether or not link events were
+    announced during the run, this is the table's one producer."""
     n = len(ranges_m)
-    if reception.recorder is not None:
+    if reception is not None and reception.recorder is not None:
         return recorded_lifetimes(reception.recorder, legs, n, reception.reach_m, duration_s, side_m, torus)
-    if reception.map is None:
-        # Log-distance without shadowing or walls: the unit disk of the implied range, exactly.
+    if reception is None or reception.map is None:
+        # The unit disk, or log-distance without shadowing or walls: the unit disk of the
+        # implied range, exactly.
         return link_lifetimes(legs, ranges_m, duration_s, side_m, torus)
     return walled_lifetimes(reception, legs, ranges_m, duration_s)
 
