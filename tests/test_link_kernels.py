@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 
 from netsim.compiled import compiled_copy
-from netsim.links import lifetimes
 from netsim.geometry import wrap
+from netsim.links import lifetimes
 from netsim.trajectory import LegTable
-from tests.oracles.links import roots, solve_piece
+from tests.oracles.links import in_range, roots, solve_piece
 
 pytest.importorskip("numba")
 
@@ -121,3 +121,24 @@ def test_link_lifetimes_equal_with_crossings_plain_or_compiled(monkeypatch):
         frames.append(lifetimes.link_lifetimes(legs, 40.0, 60.0))
     assert len(frames[0]) > 50
     pd.testing.assert_frame_equal(frames[0], frames[1], check_exact=True)
+
+
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
+@pytest.mark.parametrize("box", [None, 100.0])
+def test_in_range_equals_numpy(box, kind):
+    """Whether two robots are linked at an instant (the state set at the start and at a
+    jump), plain and compiled, is the numpy oracle's, on the plane and on a torus, for
+    distances drawn near the range (where rounding decides)."""
+    rng = np.random.default_rng(3)
+    n = 400
+    pos = np.where(rng.random((n, 2)) < 0.5, rng.uniform(0, 100, (n, 2)), rng.integers(0, 5, (n, 2)) * 25.0)
+    a, b = rng.integers(0, n, 5000), rng.integers(0, n, 5000)
+    d = pos[a] - pos[b]
+    if box is not None:
+        d = d - box * np.round(d / box)
+    radius = np.where(rng.random(5000) < 0.5, np.hypot(d[:, 0], d[:, 1]), rng.choice([25.0, 50.0, 30.0], 5000))
+    kernels = compiled_copy("netsim.links._kernels") if kind == "compiled" else _link_kernels
+    got = kernels.in_range(pos, a, b, radius, box or 0.0)
+    want = in_range(pos, a, b, radius, box)
+    assert (got == want).all()
+    assert 0.2 < want.mean() < 0.95

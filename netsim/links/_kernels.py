@@ -40,16 +40,6 @@ def _dot(x0, x1, y0, y1):
 
 
 @jit(nogil=True)
-def _rint(x):
-    # numpy's round: to the nearest integer, halves to even.
-    f = math.floor(x)
-    r = x - f
-    if r > 0.5 or (r == 0.5 and f % 2.0 != 0.0):
-        f += 1.0
-    return f
-
-
-@jit(nogil=True)
 def _relative(leg_t, leg_p, leg_v, i, j, box):
     """The later of legs ``i`` and ``j``'s starts, and the relative position then (the
     nearest image on a torus of side ``box > 0``)."""
@@ -58,9 +48,26 @@ def _relative(leg_t, leg_p, leg_v, i, j, box):
     dx = (leg_p[i, 0] + leg_v[i, 0] * dt_i) - (leg_p[j, 0] + leg_v[j, 0] * dt_j)
     dy = (leg_p[i, 1] + leg_v[i, 1] * dt_i) - (leg_p[j, 1] + leg_v[j, 1] * dt_j)
     if box > 0:
-        dx = dx - box * _rint(dx / box)
-        dy = dy - box * _rint(dy / box)
+        dx = dx - box * np.rint(dx / box)
+        dy = dy - box * np.rint(dy / box)
     return origin, dx, dy
+
+
+@jit(nogil=True)
+def in_range(pos, a, b, radius, box):
+    """Whether robots ``a[k]`` and ``b[k]`` at positions ``pos`` are linked: within
+    ``radius[k]`` of each other (the nearest image on a torus of side ``box > 0``), the
+    state a solver sets at the start and at a jump."""
+    n = len(a)
+    out = np.empty(n, np.bool_)
+    for k in range(n):
+        dx = pos[a[k], 0] - pos[b[k], 0]
+        dy = pos[a[k], 1] - pos[b[k], 1]
+        if box > 0:
+            dx = dx - box * np.rint(dx / box)
+            dy = dy - box * np.rint(dy / box)
+        out[k] = _dot(dx, dy, dx, dy) <= radius[k] * radius[k]
+    return out
 
 
 @jit(nogil=True)

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.geometry import in_box, near_pairs, wrap
+from netsim.geometry import near_pairs, wrap
 from netsim.links._kernels import PHASE_STATE
 from netsim.trajectory import LegTable
 
@@ -114,7 +114,7 @@ def link_events(
         L.advance(start)
         pos = L.at(L.cur, start)
         if not first and nxt > 0 and cuts[nxt - 1] == start:
-            _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit)
+            _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit, kernels)
         reach = r_max + 2.0 * v_max * (stop - start)
         pairs = near_pairs(pos, reach, box)
         if len(pairs):
@@ -123,8 +123,7 @@ def link_events(
             i, j = np.where(swap, j, i), np.where(swap, i, j)
             radius = np.minimum(ranges[i], ranges[j])
             if first:
-                d0 = wrap(pos[i] - pos[j], box)
-                up = np.einsum("ij,ij->i", d0, d0) <= radius * radius
+                up = kernels.in_range(pos, i, j, radius, box or 0.0)
                 emit(np.zeros(int(up.sum())), i[up], j[up], 1, PHASE_STATE)
             changing = L.changes_in(start, stop)
             simple = ~(changing[i] | changing[j])
@@ -143,15 +142,13 @@ def link_events(
 
 
 def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (``j`` may be ``who[k]``)."""
-    from scipy.spatial import cKDTree  # only runs with jumps ask
-
-    pts = in_box(pos, box)
-    tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
-    near = tree.query_ball_point(pts[who], r)
-    counts = np.fromiter((len(x) for x in near), np.int64, len(near))
-    b = np.concatenate([np.asarray(x, np.int64) for x in near]) if counts.sum() else np.empty(0, np.int64)
-    return np.repeat(who, counts), b
+    """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (and maybe a little
+    further: :func:`netsim.geometry.near_pairs`; callers judge the distance exactly)."""
+    pairs = near_pairs(pos, r, box)
+    mine = np.zeros(len(pos), bool)
+    mine[who] = True
+    a, b = pairs[:, 0], pairs[:, 1]
+    return np.r_[a[mine[a]], b[mine[b]]], np.r_[b[mine[a]], a[mine[b]]]
 
 
 def _jump_state(
@@ -163,6 +160,7 @@ def _jump_state(
     r_max: float,
     box: float | None,
     emit: Callable[..., None],
+    kernels: ModuleType,
 ) -> None:
     """At a jump instant ``t``, set the state of every link of the robots that jumped: up if
     in range on the new positions ``pos``, down if it was in range on the old ones (events
@@ -178,9 +176,7 @@ def _jump_state(
     a, b = np.r_[a1, a2], np.r_[b1, b2]
     keep = a != b
     a, b = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
-    d = wrap(pos[a] - pos[b], box)
-    radius = np.minimum(ranges[a], ranges[b])
-    up = np.einsum("ij,ij->i", d, d) <= radius * radius
+    up = kernels.in_range(pos, a, b, np.minimum(ranges[a], ranges[b]), box or 0.0)
     emit(np.full(int(up.sum()), t), a[up], b[up], 1, PHASE_STATE)
     emit(np.full(int((~up).sum()), t), a[~up], b[~up], -1, PHASE_STATE)
 

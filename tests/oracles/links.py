@@ -15,7 +15,6 @@ import numpy as np
 from netsim.links._kernels import EDGE_S, PHASE_END, PHASE_START
 
 
-
 def roots(d: np.ndarray, w: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Entry and exit times (relative) of ``|d + w t| = radius``; NaN when none."""
     A = np.einsum("ij,ij->i", w, w)
@@ -120,3 +119,11 @@ def clip_crossings(
         t_ev = np.minimum(np.maximum(at[hit], t_start[hit]), end[hit])
         phase = np.where(t_ev - t_start[hit] <= 0.5 * length[hit], PHASE_START, PHASE_END)
         emit(t_ev, a[hit], b[hit], kind, phase)
+
+
+def in_range(pos: np.ndarray, a: np.ndarray, b: np.ndarray, radius: np.ndarray, box: float | None) -> np.ndarray:
+    """Whether robots ``a[k]`` and ``b[k]`` are within ``radius[k]`` (nearest image on a torus)."""
+    d = pos[a] - pos[b]
+    if box is not None:
+        d = d - box * np.round(d / box)
+    return np.einsum("ij,ij->i", d, d) <= radius * radius
