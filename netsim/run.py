@@ -29,7 +29,6 @@ from netsim.cosim import Driver, Messenger, NeighbourView
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.events import EventBus
 from netsim.groups import GroupView
-from netsim.links.lifetimes import link_lifetimes
 from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.shadowed_links import ShadowedLinks
 from netsim.links.walled_links import WalledLinks
@@ -266,18 +265,14 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
         add(name, sim.trace.frame(name))
     times = position_times(sim.parts.output.position_interval_s, sim.env.now)
     add("positions", sample_positions(legs, sim.state.n, times, side, torus))
-    reception = sim.channel.reception
-    if sim.links is not None:
-        # Solved during the run: the record of the link events (docs/events.md). The
-        # changes due at the run's end, which the kernel does not process, are applied at
-        # the end alone: mid-run they are the run's to announce when it goes on.
-        if sim.env.now >= sim.duration_s:
-            sim.links.finish(sim.env.now)
-        add("links", sim.links.frame(sim.env.now))
-    elif reception is not None:
-        add("links", radio_link_lifetimes(reception, legs, sim.state.range_m, sim.env.now, side, torus))
-    else:
-        add("links", link_lifetimes(legs, sim.state.range_m, sim.env.now, side, torus))
+    if sim.links is not None and sim.env.now >= sim.duration_s:
+        # The changes due at the run's end, which the kernel does not process, are applied
+        # to the live links at the end alone (mid-run they are the run's to announce when it
+        # goes on): after the run they are those the table leaves up.
+        sim.links.finish(sim.env.now)
+    # Solved from the legs, whether or not link events were announced during the run: the
+    # runtime solvers are the live feed, and their events are this table's rows.
+    add("links", radio_link_lifetimes(sim.channel.reception, legs, sim.state.range_m, sim.env.now, side, torus))
     # Every course change: trajectories are exact from these (positions unwrapped on a torus).
     add("legs", legs)
     if sim.channel.mac is not None:

@@ -24,6 +24,7 @@ from netsim.tools.validate import random_legs
 from netsim.topology import snapshot
 from netsim.world.maps import save_map
 from tests.fixtures import make_config
+from tests.link_feed import Feed
 
 
 # -- helpers ---------------------------------------------------------------------------------
@@ -61,6 +62,17 @@ def _replay(sim, legs: pd.DataFrame) -> None:
     env.process(drive())
 
 
+def _fed(sim):
+    """``sim`` with a :class:`~tests.link_feed.Feed` of its link events (before the run)."""
+    sim.feed = Feed(sim.events)
+    return sim
+
+
+def _announced(sim) -> pd.DataFrame:
+    """The link events ``sim`` announced (after :func:`collect`), as a links table."""
+    return sim.feed.table(sim, sim.env.now)
+
+
 def _assert_same_links(runtime: pd.DataFrame, posthoc: pd.DataFrame) -> None:
     key = ["a", "b", "t_up_s"]
     r = runtime.sort_values(key, kind="stable").reset_index(drop=True)
@@ -74,14 +86,15 @@ def _assert_same_links(runtime: pd.DataFrame, posthoc: pd.DataFrame) -> None:
 
 
 def _runtime_vs_posthoc(legs, n, ranges, duration_s, side_m=1e6, torus=False):
-    sim = _core(n, list(ranges), duration_s, side_m, torus, runtime_links="on")
+    sim = _fed(_core(n, list(ranges), duration_s, side_m, torus, runtime_links="on"))
     _replay(sim, legs)
     sim.run()
     frames = collect(sim)
     assert sim.links is not None
     posthoc = link_lifetimes(frames["legs"], sim.state.range_m, duration_s, side_m, torus)
     assert len(posthoc) > 3  # the case has links to compare
-    _assert_same_links(frames["links"], posthoc)
+    _assert_same_links(_announced(sim), posthoc)
+    pd.testing.assert_frame_equal(frames["links"], posthoc)
     return sim
 
 
@@ -131,10 +144,10 @@ def test_runtime_links_equal_posthoc_on_many_random_trajectories(kind):
 def test_runtime_links_equal_posthoc_in_runs(overrides):
     base = ["world.n_robots=30", "duration_s=120", "world.side_m=500", "channel.range_m=100", "protocol.model=none"]
     config = load(None, base + overrides + ["events.runtime_links=on"])
-    result = execute(config)
+    result = execute(config, built=_fed)
     st = result.sim.state
     posthoc = link_lifetimes(result.frames["legs"], st.range_m, 120.0, st.side_m, st.torus)
-    _assert_same_links(result.frames["links"], posthoc)
+    _assert_same_links(_announced(result.sim), posthoc)
 
 
 TRACE = """\
@@ -170,12 +183,12 @@ def test_runtime_links_equal_posthoc_on_a_trace_with_jumps(tmp_path):
             "events.runtime_links=on",
         ],
     )
-    result = execute(config)
+    result = execute(config, built=_fed)
     st = result.sim.state
     assert st.jumps >= 3
     posthoc = link_lifetimes(result.frames["legs"], st.range_m, 200.0)
     assert len(posthoc) >= 3
-    _assert_same_links(result.frames["links"], posthoc)
+    _assert_same_links(_announced(result.sim), posthoc)
     legs = result.frames["legs"]
     assert (legs["cause"] == "jump").sum() == 3
     assert set(legs["cause"]) == {"start", "trace", "waypoint", "jump"}
@@ -639,12 +652,12 @@ def test_runtime_links_under_log_distance_without_shadowing_or_walls():
     base = ["world.n_robots=30", "duration_s=120", "world.side_m=500", "protocol.model=ack"]
     radio = ["channel.propagation=log_distance", "channel.sensitivity_dbm=-80"]
     config = load(None, base + radio + ["events.runtime_links=on", "events.live_topology=true"])
-    result = execute(config)
+    result = execute(config, built=_fed)
     assert result.sim.links is not None
     st = result.sim.state
     posthoc = link_lifetimes(result.frames["legs"], st.range_m, 120.0, st.side_m, st.torus)
     assert len(posthoc) > 3
-    _assert_same_links(result.frames["links"], posthoc)
+    _assert_same_links(_announced(result.sim), posthoc)
     # The same run, links solved after it, writes the same receptions.
     after = execute(load(None, base + radio))
     assert after.sim.links is None
@@ -674,7 +687,7 @@ def test_runtime_links_under_shadowing_equal_the_record_after_the_run(torus):
     the post-hoc record (radio_links.recorded_lifetimes) bit for bit, and the run's
     receptions are those of the run that solves links after it."""
     overrides = SHADOWED + torus
-    sim = build(load(None, overrides))
+    sim = _fed(build(load(None, overrides)))
     announced = []
     sim.events.on("link_up", lambda ev: announced.append((sim.now, ev.t_s, "up", ev.a, ev.b)))
     sim.events.on("link_down", lambda ev: announced.append((sim.now, ev.t_s, "down", ev.a, ev.b)))
@@ -684,7 +697,7 @@ def test_runtime_links_under_shadowing_equal_the_record_after_the_run(torus):
     st, reception = sim.state, sim.channel.reception
     posthoc = radio_link_lifetimes(reception, frames["legs"], st.range_m, 60.0, st.side_m, st.torus)
     assert len(posthoc) > 50
-    _assert_same_links(frames["links"], posthoc)
+    _assert_same_links(_announced(sim), posthoc)
     # Some links were cut where the pair left the reach, before the decision that ended them.
     decided = reception.recorder.intervals(60.0)
     cut = frames["links"].merge(decided, on=["a", "b", "t_up_s"], suffixes=("", "_decided"))
@@ -712,7 +725,7 @@ def test_a_shadowed_link_decided_at_t0_is_cut_where_the_pair_leaves_the_reach():
         events={"runtime_links": "on"},
         output={"position_interval_s": 0.0},
     )
-    sim = simulation(config)
+    sim = _fed(simulation(config))
     sim.state.place([[0.0, 0.0], [50.0, 0.0]])
     _scripted(sim, [(0.0, 1, (20.0, 0.0), None)])
     sim.env.process(_broadcast_at(sim, 0.0))
@@ -722,7 +735,7 @@ def test_a_shadowed_link_decided_at_t0_is_cut_where_the_pair_leaves_the_reach():
     frames = collect(sim)
     reception = sim.channel.reception
     posthoc = radio_link_lifetimes(reception, frames["legs"], sim.state.range_m, 30.0, sim.state.side_m)
-    _assert_same_links(frames["links"], posthoc)
+    _assert_same_links(_announced(sim), posthoc)
     # Up at the broadcast, down where the pair is 341 m apart (not at a decision: there is none).
     assert frames["links"]["t_up_s"].tolist() == [0.0]
     assert frames["links"]["t_down_s"].tolist() == [downs[0].t_s]
@@ -761,7 +774,7 @@ def _map_core(n, duration_s, world_map="office", side_m=200.0, **channel):
         events={"runtime_links": "on"},
         output={"position_interval_s": 0.0},
     )
-    return simulation(config)
+    return _fed(simulation(config))
 
 
 def _walled_runtime_vs_posthoc(sim, duration_s, window_s=None):
@@ -775,7 +788,7 @@ def _walled_runtime_vs_posthoc(sim, duration_s, window_s=None):
     assert isinstance(sim.links, WalledLinks)
     st = sim.state
     posthoc = radio_link_lifetimes(sim.channel.reception, frames["legs"], st.range_m, duration_s)
-    _assert_same_links(frames["links"], posthoc)
+    _assert_same_links(_announced(sim), posthoc)
     return frames["links"]
 
 
@@ -839,11 +852,12 @@ def test_runtime_links_on_a_map_equal_posthoc_in_runs(overrides):
     """Runs on a map: the same links table with link events during the run or after it,
     and the same receptions."""
     base = ["world.n_robots=30", "duration_s=40", "protocol.model=ack", *WALLS, *overrides]
-    during = execute(load(None, [*base, "events.runtime_links=on"]))
+    during = execute(load(None, [*base, "events.runtime_links=on"]), built=_fed)
     assert isinstance(during.sim.links, WalledLinks)
     after = execute(load(None, base))
     assert after.sim.links is None
     assert len(after.frames["links"]) > 20
+    _assert_same_links(_announced(during.sim), after.frames["links"])
     pd.testing.assert_frame_equal(during.frames["links"], after.frames["links"])
     pd.testing.assert_frame_equal(during.frames["acks"], after.frames["acks"])
 
@@ -1008,7 +1022,7 @@ def test_a_shadowed_link_up_beyond_the_reach_by_rounding_is_cut_at_once():
     """A decision that gets through while the envelope has the pair beyond the reach (the
     range's edge, by rounding) is cut at once, keyed to the envelope's current interval: its
     lifetime ends where it begins, never at an earlier exit."""
-    sim, _ = _shadowed_pair_run("on")
+    sim = _fed(_shadowed_pair_run("on")[0])
     recorder = sim.channel.reception.recorder
 
     def fake():  # robot 1 is 640 m away at t = 2.6, beyond the reach: a forged success
@@ -1023,7 +1037,9 @@ def test_a_shadowed_link_up_beyond_the_reach_by_rounding_is_cut_at_once():
     assert links["t_up_s"].tolist() == [1.0, 2.6, 4.0]
     assert links["t_down_s"].tolist()[1] == 2.6
     st = sim.state
-    _assert_same_links(links, radio_link_lifetimes(sim.channel.reception, frames["legs"], st.range_m, 6.0, st.side_m))
+    _assert_same_links(
+        _announced(sim), radio_link_lifetimes(sim.channel.reception, frames["legs"], st.range_m, 6.0, st.side_m)
+    )
 
 
 def _rule_lifetimes(decisions, env: pd.DataFrame, n: int, duration_s: float) -> set:
@@ -1077,7 +1093,7 @@ def _random_shadowed_run(seed: int, torus: bool):
         events={"runtime_links": "on"},
         output={"position_interval_s": 0.0},
     )
-    sim = simulation(config)
+    sim = _fed(simulation(config))
     sim.state.place(1000.0 + rng.uniform(-100.0, 100.0, (n, 2)))
     moves = []
     for r in range(n):
@@ -1124,7 +1140,7 @@ def test_shadowed_links_follow_the_rule_at_run_time_and_after_on_random_excursio
         links = frames["links"]
         assert (links["t_up_s"] <= links["t_down_s"]).all()
         posthoc = radio_link_lifetimes(reception, frames["legs"], st.range_m, 20.0, st.side_m, st.torus)
-        _assert_same_links(links, posthoc)
+        _assert_same_links(_announced(sim), posthoc)
         env = link_lifetimes(frames["legs"], np.full(st.n, reception.reach_m), 20.0, st.side_m, st.torus)
         rule = _rule_lifetimes(decisions, env, st.n, 20.0)
         assert set(zip(links["a"], links["b"], links["t_up_s"], links["t_down_s"])) == rule

@@ -1,15 +1,16 @@
-"""The post-hoc link solver's crossings (netsim/links/_kernels.py), plain and compiled, are
-the numpy solver's (netsim.links.crossings.solve_piece), compared with ``==``; and link
-lifetimes are the same either way."""
+"""The link solvers' crossings (netsim/links/_kernels.py), plain and compiled, are the numpy
+oracle's (tests/oracles/links.py), compared with ``==``, on the plane and on a torus; and
+link lifetimes are the same either way."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from netsim.compiled import compiled_copy
+from netsim.geometry import wrap
 from netsim.links import lifetimes
-from netsim.links.crossings import roots, solve_piece
 from netsim.trajectory import LegTable
+from tests.oracles.links import in_range, roots, solve_piece
 
 pytest.importorskip("numba")
 
@@ -35,24 +36,26 @@ def _legs(rng, n, per_robot):
     return legs, table
 
 
-def _solved(table, la, lb, radius, t_start, length, kernels):
+def _solved(table, la, lb, radius, t_start, length, kernels, box=None):
     found = []
 
     def emit(t, a, b, k, phase):
         a = np.asarray(a, np.int64)
         phase = np.broadcast_to(np.asarray(phase, np.int8), a.shape)
-        found.append((np.asarray(t, float).tobytes(), a.tobytes(), np.asarray(b).tobytes(), k, phase.tobytes()))
+        k = np.broadcast_to(np.asarray(k, np.int8), a.shape)
+        for row in zip(np.asarray(t, float).tolist(), a.tolist(), np.asarray(b).tolist(), k.tolist(), phase.tolist()):
+            found.append(row)
 
     pairs = np.arange(len(la), dtype=np.int64)
     if kernels is not None:
-        lifetimes._solve_legs(table, la, lb, radius, t_start, length, pairs, pairs + 1000, emit, None, kernels)
-        return found
-    # The numpy solver, on the plane.
-    origin = np.maximum(table.t[la], table.t[lb])
-    pa = table.p[la] + table.v[la] * (origin - table.t[la])[:, None]
-    pb = table.p[lb] + table.v[lb] * (origin - table.t[lb])[:, None]
-    v = table.v[la] - table.v[lb]
-    solve_piece(pa - pb, v, radius, origin, t_start, length, pairs, pairs + 1000, emit, None)
+        lifetimes._solve_legs(table, la, lb, radius, t_start, length, pairs, pairs + 1000, emit, box, kernels)
+    else:
+        # The numpy oracle.
+        origin = np.maximum(table.t[la], table.t[lb])
+        pa = table.p[la] + table.v[la] * (origin - table.t[la])[:, None]
+        pb = table.p[lb] + table.v[lb] * (origin - table.t[lb])[:, None]
+        v = table.v[la] - table.v[lb]
+        solve_piece(wrap(pa - pb, box), v, radius, origin, t_start, length, pairs, pairs + 1000, emit, box)
     return found
 
 
@@ -84,7 +87,28 @@ def test_plane_crossings_equal_numpy(scalar_window, kind):
     got = _solved(table, la, lb, radius, t_start, length, kernels)
     want = _solved(table, la, lb, radius, t_start, length, None)
     assert got == want
-    assert sum(len(f[1]) for f in want) > 8 * 200  # crossings were found (8 bytes a pair)
+    assert len(want) > 200  # crossings were found
+
+
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
+@pytest.mark.parametrize("side", [150.0, 60.0])
+def test_torus_crossings_equal_numpy(side, kind):
+    """On a torus every image of the other robot that the path can reach counts: every
+    crossing, its time and its phase, plain and compiled, are the numpy oracle's bit for
+    bit, on a side near the range (several images in reach) and a wide one."""
+    rng = np.random.default_rng(11)
+    _, table = _legs(rng, 30, 3)
+    m = 2000
+    la = rng.integers(0, len(table.t), m)
+    lb = rng.integers(0, len(table.t), m)
+    radius = np.where(rng.random(m) < 0.5, rng.uniform(10, 40, m), 25.0)
+    t_start = rng.uniform(0, 40, m)
+    length = rng.choice([0.0, 2.0, 10.0, 30.0], m)
+    kernels = compiled_copy("netsim.links._kernels") if kind == "compiled" else _link_kernels
+    got = _solved(table, la, lb, radius, t_start, length, kernels, side)
+    want = _solved(table, la, lb, radius, t_start, length, None, side)
+    assert got == want
+    assert len(want) > 200
 
 
 def test_link_lifetimes_equal_with_crossings_plain_or_compiled(monkeypatch):
@@ -97,3 +121,24 @@ def test_link_lifetimes_equal_with_crossings_plain_or_compiled(monkeypatch):
         frames.append(lifetimes.link_lifetimes(legs, 40.0, 60.0))
     assert len(frames[0]) > 50
     pd.testing.assert_frame_equal(frames[0], frames[1], check_exact=True)
+
+
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
+@pytest.mark.parametrize("box", [None, 100.0])
+def test_in_range_equals_numpy(box, kind):
+    """Whether two robots are linked at an instant (the state set at the start and at a
+    jump), plain and compiled, is the numpy oracle's, on the plane and on a torus, for
+    distances drawn near the range (where rounding decides)."""
+    rng = np.random.default_rng(3)
+    n = 400
+    pos = np.where(rng.random((n, 2)) < 0.5, rng.uniform(0, 100, (n, 2)), rng.integers(0, 5, (n, 2)) * 25.0)
+    a, b = rng.integers(0, n, 5000), rng.integers(0, n, 5000)
+    d = pos[a] - pos[b]
+    if box is not None:
+        d = d - box * np.round(d / box)
+    radius = np.where(rng.random(5000) < 0.5, np.hypot(d[:, 0], d[:, 1]), rng.choice([25.0, 50.0, 30.0], 5000))
+    kernels = compiled_copy("netsim.links._kernels") if kind == "compiled" else _link_kernels
+    got = kernels.in_range(pos, a, b, radius, box or 0.0)
+    want = in_range(pos, a, b, radius, box)
+    assert (got == want).all()
+    assert 0.2 < want.mean() < 0.95

@@ -164,18 +164,18 @@ def test_map_links_equal_the_radio_on_a_building_map_quick(building_yaml, monkey
 def test_runtime_map_links_equal_posthoc_on_a_building_map(building_yaml, kind, monkeypatch):
     """Slow robots on 5 cm cells: the link events solved during the run make the post-hoc
     table, bit for bit."""
-    from tests.test_events import _assert_same_links, _replay
+    from tests.test_events import _announced, _assert_same_links, _fed, _replay
 
     monkeypatch.setenv("NETSIM_COMPILED", "1")  # fine cells: as in the test above
 
     n, duration = 16, 30.0
-    sim = _core(n, duration, building_yaml, 40.0, BUILDING_CHANNELS[kind])
+    sim = _fed(_core(n, duration, building_yaml, 40.0, BUILDING_CHANNELS[kind]))
     _replay(sim, waypoint_legs(np.random.default_rng(14), n, duration, (0.1, 0.5), _building_points()))
     sim.run()
     frames = collect(sim)
     posthoc = radio_link_lifetimes(sim.channel.reception, frames["legs"], sim.state.range_m, duration)
     assert len(posthoc) > 10
-    _assert_same_links(frames["links"], posthoc)
+    _assert_same_links(_announced(sim), posthoc)
 
 
 def test_a_nearly_parallel_pair_does_not_hang_the_chunk_count():

@@ -1,11 +1,18 @@
-"""The loop of the post-hoc link solver (:mod:`netsim.links.lifetimes`), compiled or plain
-Python as :func:`netsim.compiled.load` decides: the crossings of pairs of robots on straight
-legs, on the plane.
+"""Crossings of a pair's relative path with a disk: the rule every link solver shares,
+compiled or plain Python as :func:`netsim.compiled.load` decides.
 
-One pair at a time, the arithmetic of :func:`netsim.links.crossings.solve_piece` in the same
-order: a 1,000-robot run hands the solver some 20,000 candidate pairs per window, and numpy's
-temporary arrays for each of its forty-odd steps cost more than the arithmetic. The tests
-compare it, plain and compiled, with that numpy solver bit for bit.
+Two robots on straight legs have relative position ``d + w t``; they are linked while
+``|d + w t| <= R``, so a link comes up and goes down at the roots of
+``|w|^2 t^2 + 2 (d.w) t + |d|^2 - R^2 = 0``. The roots are solved from the later of the two
+legs' starts, so that a crossing's instant depends on the pair's legs alone, not on where a
+solver's windows happen to fall: the post-hoc solver (:mod:`netsim.links.lifetimes`), the
+runtime one (:mod:`netsim.links.kinetic`) and the walls' stretches
+(:mod:`netsim.links.wall_sweeps`) all call these functions, so they find the very same floats.
+
+Legs are given as rows of ``leg_t`` (start), ``leg_p`` (position then) and ``leg_v``
+(velocity); pair ``k`` is legs ``la[k]`` and ``lb[k]``. On a torus (``box > 0``) every image
+of the other robot that the path can reach within the window counts, not only the nearest
+one. The tests compare these, plain and compiled, with a numpy oracle bit for bit.
 """
 
 from __future__ import annotations
@@ -15,7 +22,12 @@ import math
 import numpy as np
 
 from netsim.compiled import jit
-from netsim.links.crossings import EDGE_S, PHASE_END, PHASE_START
+
+EDGE_S = 1e-10
+
+# Order of events at the same instant for one pair: a crossing at the end of a piece, then
+# the state set at a jump (or at t = 0), then a crossing at the start of the next piece.
+PHASE_END, PHASE_STATE, PHASE_START = 0, 1, 2
 
 
 @jit(nogil=True)
@@ -28,52 +40,153 @@ def _dot(x0, x1, y0, y1):
 
 
 @jit(nogil=True)
-def _keep(at, start, length, k, pair, times, phase, m):
+def _relative(leg_t, leg_p, leg_v, i, j, box):
+    """The later of legs ``i`` and ``j``'s starts, and the relative position then (the
+    nearest image on a torus of side ``box > 0``)."""
+    origin = leg_t[i] if leg_t[i] >= leg_t[j] else leg_t[j]
+    dt_i, dt_j = origin - leg_t[i], origin - leg_t[j]
+    dx = (leg_p[i, 0] + leg_v[i, 0] * dt_i) - (leg_p[j, 0] + leg_v[j, 0] * dt_j)
+    dy = (leg_p[i, 1] + leg_v[i, 1] * dt_i) - (leg_p[j, 1] + leg_v[j, 1] * dt_j)
+    if box > 0:
+        dx = dx - box * np.rint(dx / box)
+        dy = dy - box * np.rint(dy / box)
+    return origin, dx, dy
+
+
+@jit(nogil=True)
+def in_range(pos, a, b, radius, box):
+    """Whether robots ``a[k]`` and ``b[k]`` at positions ``pos`` are linked: within
+    ``radius[k]`` of each other (the nearest image on a torus of side ``box > 0``), the
+    state a solver sets at the start and at a jump."""
+    n = len(a)
+    out = np.empty(n, np.bool_)
+    for k in range(n):
+        dx = pos[a[k], 0] - pos[b[k], 0]
+        dy = pos[a[k], 1] - pos[b[k], 1]
+        if box > 0:
+            dx = dx - box * np.rint(dx / box)
+            dy = dy - box * np.rint(dy / box)
+        out[k] = _dot(dx, dy, dx, dy) <= radius[k] * radius[k]
+    return out
+
+
+@jit(nogil=True)
+def _times(origin, dx, dy, wx, wy, radius):
+    """The instants the path ``(dx, dy) + (wx, wy) (t - origin)`` enters and leaves the disk
+    of ``radius``: NaN when it does not cross it."""
+    a = _dot(wx, wy, wx, wy)
+    b = 2.0 * _dot(dx, dy, wx, wy)
+    c = _dot(dx, dy, dx, dy) - radius * radius
+    disc = b * b - 4.0 * a * c
+    if not (a > 0 and disc > 0):
+        return np.nan, np.nan
+    # The numerically stable pair of roots: q / A and C / q.
+    q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+    r1 = q / a
+    r2 = c / q if q != 0 else -r1
+    return origin + min(r1, r2), origin + max(r1, r2)
+
+
+@jit(nogil=True)
+def _keep(at, start, length, k, kind, pair, times, phase, kinds, m):
     """A crossing of pair ``k`` at ``at``, kept at row ``m`` if it falls in the window
     ``[start, start + length]`` (give or take the edge tolerance), clipped into it, with its
-    phase; returns the next free row."""
+    phase; returns the next free row.
+
+    A crossing on a window's edge is looked for by both windows, with a little slack, so
+    that rounding cannot hide it from both; the duplicate is dropped later. One near a
+    window's start sorts after one near the previous window's end at the same instant."""
     end = start + length
     if at >= start - EDGE_S and at <= end + EDGE_S:
         t = min(max(at, start), end)
-        pair[m], times[m] = k, t
+        pair[m], times[m], kinds[m] = k, t, kind
         phase[m] = PHASE_START if t - start <= 0.5 * length else PHASE_END
         return m + 1
     return m
 
 
 @jit(nogil=True)
-def plane_crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length):
-    """Crossings of pairs on legs ``la``, ``lb`` (rows of ``leg_t``, ``leg_p``, ``leg_v``)
-    with the disk of ``radius`` within ``[t_start, t_start + length]``, solved from the later
-    of the two legs' starts: ``(pair, t, phase)`` of the entries, then of the exits, each in
-    pair order (:func:`netsim.links.crossings.clip_crossings` hands ``emit`` the same)."""
+def crossing_times(leg_t, leg_p, leg_v, la, lb, radius):
+    """On the plane: the instants pairs on legs ``la``, ``lb`` enter and leave the disk of
+    ``radius`` (NaN: never), solved from the later of the two legs' starts."""
     n = len(la)
-    in_pair = np.empty(n, np.int64)
-    in_t = np.empty(n)
-    in_phase = np.empty(n, np.int8)
-    out_pair = np.empty(n, np.int64)
-    out_t = np.empty(n)
-    out_phase = np.empty(n, np.int8)
-    n_in = n_out = 0
+    at_in = np.empty(n)
+    at_out = np.empty(n)
     for k in range(n):
         i, j = la[k], lb[k]
-        origin = leg_t[i] if leg_t[i] >= leg_t[j] else leg_t[j]
-        dt_i, dt_j = origin - leg_t[i], origin - leg_t[j]
-        dx = (leg_p[i, 0] + leg_v[i, 0] * dt_i) - (leg_p[j, 0] + leg_v[j, 0] * dt_j)
-        dy = (leg_p[i, 1] + leg_v[i, 1] * dt_i) - (leg_p[j, 1] + leg_v[j, 1] * dt_j)
+        origin, dx, dy = _relative(leg_t, leg_p, leg_v, i, j, 0.0)
         wx, wy = leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1]
-        # netsim.links.crossings.roots: the numerically stable pair q / A and C / q.
-        a = _dot(wx, wy, wx, wy)
-        b = 2.0 * _dot(dx, dy, wx, wy)
-        c = _dot(dx, dy, dx, dy) - radius[k] * radius[k]
-        disc = b * b - 4.0 * a * c
-        if not (a > 0 and disc > 0):
-            continue  # no crossing: numpy's NaN roots, which no window holds
-        q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
-        r1 = q / a
-        r2 = c / q if q != 0 else -r1
-        lo, hi = min(r1, r2), max(r1, r2)
-        start = t_start[k]
-        n_in = _keep(origin + lo, start, length[k], k, in_pair, in_t, in_phase, n_in)
-        n_out = _keep(origin + hi, start, length[k], k, out_pair, out_t, out_phase, n_out)
-    return in_pair[:n_in], in_t[:n_in], in_phase[:n_in], out_pair[:n_out], out_t[:n_out], out_phase[:n_out]
+        at_in[k], at_out[k] = _times(origin, dx, dy, wx, wy, radius[k])
+    return at_in, at_out
+
+
+@jit(nogil=True)
+def clip_crossings(at_in, at_out, t_start, length):
+    """The crossings ``at_in`` (up, kind 1) and ``at_out`` (down, kind -1) of each pair that
+    fall within ``[t_start, t_start + length]``: ``(pair, t, phase, kind)``, the entries then
+    the exits, each in pair order."""
+    n = len(at_in)
+    pair = np.empty(2 * n, np.int64)
+    times = np.empty(2 * n)
+    phase = np.empty(2 * n, np.int8)
+    kinds = np.empty(2 * n, np.int8)
+    m = 0
+    for k in range(n):
+        m = _keep(at_in[k], t_start[k], length[k], k, 1, pair, times, phase, kinds, m)
+    for k in range(n):
+        m = _keep(at_out[k], t_start[k], length[k], k, -1, pair, times, phase, kinds, m)
+    return pair[:m], times[:m], phase[:m], kinds[:m]
+
+
+@jit(nogil=True)
+def crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length, box):
+    """The crossings of pairs on legs ``la``, ``lb`` with the disk of ``radius`` within
+    ``[t_start, t_start + length]``, on the plane (``box = 0``) or a torus of side ``box``:
+    ``(pair, t, phase, kind)``. On a torus, image by image (the entries, then the exits, of
+    the pairs whose path can reach it); on the plane, :func:`clip_crossings` of
+    :func:`crossing_times`."""
+    if not box > 0:
+        at_in, at_out = crossing_times(leg_t, leg_p, leg_v, la, lb, radius)
+        return clip_crossings(at_in, at_out, t_start, length)
+    n = len(la)
+    origin = np.empty(n)
+    dx = np.empty(n)
+    dy = np.empty(n)
+    reach = np.empty(n)
+    top = 0.0
+    for k in range(n):
+        i, j = la[k], lb[k]
+        origin[k], dx[k], dy[k] = _relative(leg_t, leg_p, leg_v, i, j, box)
+        w = np.hypot(leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1])
+        # Image k is reachable when |d - box k| <= R + |w| span (span: from origin to the
+        # window's end); with d the nearest image, |k_x|, |k_y| <= 1/2 + reach / box.
+        reach[k] = radius[k] + w * (t_start[k] + length[k] - origin[k])
+        if k == 0 or reach[k] > top:
+            top = reach[k]
+    n_img = int(math.floor(0.5 + top / box)) if n else 0
+    side = 2 * n_img + 1
+    cap = 2 * n * side * side
+    pair = np.empty(cap, np.int64)
+    times = np.empty(cap)
+    phase = np.empty(cap, np.int8)
+    kinds = np.empty(cap, np.int8)
+    in_t = np.empty(n)
+    out_t = np.empty(n)
+    sel = np.empty(n, np.bool_)
+    m = 0
+    for kx in range(-n_img, n_img + 1):
+        for ky in range(-n_img, n_img + 1):
+            for k in range(n):
+                i, j = la[k], lb[k]
+                ex, ey = dx[k] - box * kx, dy[k] - box * ky
+                sel[k] = (kx == 0 and ky == 0) or np.hypot(ex, ey) <= reach[k] * (1 + 1e-9)
+                if sel[k]:
+                    wx, wy = leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1]
+                    in_t[k], out_t[k] = _times(origin[k], ex, ey, wx, wy, radius[k])
+            for k in range(n):
+                if sel[k]:
+                    m = _keep(in_t[k], t_start[k], length[k], k, 1, pair, times, phase, kinds, m)
+            for k in range(n):
+                if sel[k]:
+                    m = _keep(out_t[k], t_start[k], length[k], k, -1, pair, times, phase, kinds, m)
+    return pair[:m], times[:m], phase[:m], kinds[:m]

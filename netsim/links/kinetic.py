@@ -4,7 +4,8 @@ The same geometry as the post-hoc solver (:mod:`netsim.links.lifetimes`, which s
 reference): two robots on straight legs are linked while ``|d + w t| <= min(r_a, r_b)``,
 and the link's next up and down instants are roots of a quadratic. What changes is when
 they are solved: as the run goes, so that ``link_up`` and ``link_down`` are announced on the
-run's event bus at the instant they happen, and ``links.parquet`` is their record.
+run's event bus at the instant they happen: the live feed of the links whose table,
+``links.parquet``, the post-hoc solver writes (the feed's events are its rows, bit for bit).
 
 The run is cut into windows no longer than half the smallest range over the highest speed
 seen so far (``v_bound``); at a window's start the candidate pairs are those within
@@ -37,38 +38,17 @@ from collections.abc import Mapping
 from typing import Any, cast
 
 import numpy as np
-import pandas as pd
 import simpy
 
+from netsim.compiled import load
 from netsim.events import EventBus, LinkDown, LinkUp
-from netsim.geometry import near_pairs, wrap
-from netsim.links.crossings import PHASE_STATE, clip_crossings, crossing_times, solve_piece
-from netsim.links.lifetimes import COLUMNS
+from netsim.geometry import near_pairs
+from netsim.links._kernels import PHASE_STATE
 from netsim.scheduling import FIRST, LAST, advance_clock, kernel_queue, scheduled_event
 from netsim.state import RobotState
 
 # A window's restart comes before the link events of its instant, which it solves again.
 _RESTART = FIRST - 1
-
-
-def links_frame(ended: tuple, up: dict, n: int, t_end: float) -> pd.DataFrame:
-    """links.parquet from a live solver's record: ``ended`` the columns ``(a, b, t_up,
-    t_down)`` of the links that went down, ``up`` the links still up (pair key ``a n + b``:
-    since when), which end at ``t_end``, censored."""
-    ea, eb, e_up, e_down = ended
-    still = np.fromiter(up.keys(), np.int64, len(up))
-    out = pd.DataFrame(
-        {
-            "a": np.r_[np.array(ea, np.int64), still // n],
-            "b": np.r_[np.array(eb, np.int64), still % n],
-            "t_up_s": np.r_[np.array(e_up, float), np.fromiter(up.values(), float, len(up))],
-            "t_down_s": np.r_[np.array(e_down, float), np.full(len(still), t_end)],
-        }
-    )
-    out["censored_start"] = out["t_up_s"].to_numpy() == 0.0
-    out["censored_end"] = np.r_[np.zeros(len(ea), bool), np.ones(len(still), bool)]
-    out["censored"] = out["censored_start"] | out["censored_end"]
-    return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
 
 
 def up_pairs(up: Mapping[int, object], n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -100,12 +80,8 @@ class RuntimeLinks:
         self.r_min = float(self.ranges.min()) if state.n else 0.0
         self.r_max = float(self.ranges.max()) if state.n else 0.0
         self.box = float(state.side_m) if state.torus else None
-        # Links up now: key a n + b -> since when; and every lifetime that ended, as columns
-        # a, b, up, down. Plain lists of numbers, as the queue's columns: the garbage
-        # collector tracks the lists, not the numbers (as lists of tuples it would track and
-        # walk every row).
+        # Links up now: key a n + b -> since when.
         self.up: dict[int, float] = {}
-        self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         self.started = False
         self.v_bound = 0.0
         self.windows = 0
@@ -136,6 +112,7 @@ class RuntimeLinks:
         self.on_down: list = events.subscribers("link_down") if events is not None else []
         self._kernel = kernel_queue(env)  # the same list for the whole run (read only)
         self._n = max(state.n, 1)
+        self._solver = load("netsim.links._kernels", state.n)
         state.watchers.append(self._on_leg)
 
     # -- life cycle ----------------------------------------------------------------------
@@ -153,11 +130,6 @@ class RuntimeLinks:
         """Apply the queued events due at or before ``t_end`` (the run's end, whose events
         the kernel does not process), without announcing them."""
         self._announce(t_end, quiet=True)
-
-    def frame(self, t_end: float) -> pd.DataFrame:
-        """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
-        censored)."""
-        return links_frame(self.ended, self.up, max(self.state.n, 1), t_end)
 
     def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """The links up now: arrays ``(a, b)``, ``a < b``."""
@@ -241,8 +213,7 @@ class RuntimeLinks:
         self._gen = np.zeros(m, np.int64)
         self._gen_now = [0] * m
         if first:
-            d = wrap(pos[ca] - pos[cb], self.box)
-            inside = np.einsum("ij,ij->i", d, d) <= self._cr * self._cr
+            inside = self._solver.in_range(pos, ca, cb, self._cr, self.box or 0.0)
             self._push(np.full(int(inside.sum()), t), ca[inside], cb[inside], 1, PHASE_STATE)
         if jumpers is not None and len(jumpers):
             self._judge_jumpers(t, pos, jumpers)
@@ -310,9 +281,7 @@ class RuntimeLinks:
         if len(old):
             a = np.r_[a, old // n]
             b = np.r_[b, old % n]
-        d = wrap(pos[a] - pos[b], self.box)
-        radius = np.minimum(self.ranges[a], self.ranges[b])
-        inside = np.einsum("ij,ij->i", d, d) <= radius * radius
+        inside = self._solver.in_range(pos, a, b, np.minimum(self.ranges[a], self.ranges[b]), self.box or 0.0)
         self._push(np.full(int(inside.sum()), t), a[inside], b[inside], 1, PHASE_STATE)
         self._push(np.full(int((~inside).sum()), t), a[~inside], b[~inside], -1, PHASE_STATE)
 
@@ -322,51 +291,49 @@ class RuntimeLinks:
             self._at_in[idx], self._at_out[idx] = self._crossings(idx)
             self._queue_crossings(idx, t)
             return
-        origin, d0, w = self._relative(idx)
-        found: list[tuple] = []
-
-        def emit(t_ev: Any, ia: Any, _ib: Any, kind: int, phase: Any) -> None:
-            if len(ia):
-                found.append((np.asarray(t_ev, float), np.asarray(ia, np.int64), kind, np.asarray(phase)))
-
-        solve_piece(d0, w, self._cr[idx], origin, t, self._w_end - t, idx, idx, emit, self.box)
-        for t_ev, ia, kind, phase in found:
-            self._push(t_ev, self._ca[ia], self._cb[ia], kind, phase, ia)
-
-    def _relative(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """For candidate pairs ``idx``: the later of their two legs' starts, the relative
-        position then (nearest image on a torus) and the relative velocity."""
-        st = self.state
-        a, b = self._ca[idx], self._cb[idx]
-        ta, tb = st.t0_s.take(a), st.t0_s.take(b)
-        va, vb = st.velocity_mps.take(a, axis=0), st.velocity_mps.take(b, axis=0)
-        # Solved from the later of the two legs' starts, as the post-hoc solver does
-        # (netsim.links.crossings.solve_piece): the same floats, whatever the windows.
-        origin = np.maximum(ta, tb)
-        pa = st.origin_m.take(a, axis=0) + va * (origin - ta)[:, None]
-        pb = st.origin_m.take(b, axis=0) + vb * (origin - tb)[:, None]
-        return origin, wrap(pa - pb, self.box), va - vb
+        st, k = self.state, len(idx)
+        found = self._solver.crossings(
+            st.t0_s,
+            st.origin_m,
+            st.velocity_mps,
+            self._ca[idx],
+            self._cb[idx],
+            self._cr[idx],
+            np.full(k, float(t)),
+            np.full(k, self._w_end - t),
+            self.box,
+        )
+        self._push_found(idx, *found)
 
     def _crossings(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """In the plane: the instants candidate pairs ``idx`` enter and leave range on
-        their current legs (NaN: never)."""
-        origin, d0, w = self._relative(idx)
-        return crossing_times(d0, w, self._cr[idx], origin)
+        their current legs (NaN: never), solved from the later of their two legs' starts
+        as the post-hoc solver solves them: the same floats, whatever the windows."""
+        st = self.state
+        return self._solver.crossing_times(
+            st.t0_s, st.origin_m, st.velocity_mps, self._ca[idx], self._cb[idx], self._cr[idx]
+        )
 
     def _queue_crossings(self, idx: np.ndarray, t: float) -> None:
         """Queue the known crossings of pairs ``idx`` that fall from ``t`` to the window's
-        end, as :func:`netsim.links.crossings.solve_piece` would find them."""
+        end, as :func:`netsim.links._kernels.crossings` would find them."""
         k = len(idx)
         if k == 0:
             return
-        ca, cb = self._ca, self._cb
+        found = self._solver.clip_crossings(
+            self._at_in[idx], self._at_out[idx], np.full(k, float(t)), np.full(k, self._w_end - t)
+        )
+        self._push_found(idx, *found)
 
-        def emit(t_ev: np.ndarray, ia: np.ndarray, _ib: np.ndarray, kind: int, phase: np.ndarray) -> None:
-            self._push(t_ev, ca[ia], cb[ia], kind, phase, ia)
-
-        t_start = np.broadcast_to(np.float64(t), (k,))
-        length = np.broadcast_to(np.float64(self._w_end - t), (k,))
-        clip_crossings(self._at_in[idx], self._at_out[idx], t_start, length, idx, idx, emit)
+    def _push_found(
+        self, idx: np.ndarray, pair: np.ndarray, t: np.ndarray, phase: np.ndarray, kind: np.ndarray
+    ) -> None:
+        """Queue crossings found for candidate pairs ``idx`` (``pair`` indexes ``idx``): the
+        entries, then the exits, as the kernels list them."""
+        ia = idx[pair]
+        up = kind > 0
+        self._push(t[up], self._ca[ia[up]], self._cb[ia[up]], 1, phase[up], ia[up])
+        self._push(t[~up], self._ca[ia[~up]], self._cb[ia[~up]], -1, phase[~up], ia[~up])
 
     # -- the queue -----------------------------------------------------------------------
     # An event is (t, a, b, phase, -kind, idx, gen): in that order events run (module
@@ -437,7 +404,6 @@ class RuntimeLinks:
         heap = self._heap
         qi, nq = self._qi, len(qt)
         gen, up = self._gen_now, self.up
-        ea, eb, e_up, e_down = self.ended
         on_up: list = [] if quiet else self.on_up
         on_down: list = [] if quiet else self.on_down
         env, kernel, n = self.env, self._kernel, self._n
@@ -488,10 +454,6 @@ class RuntimeLinks:
                 t_up = up.pop(key, None)
                 if t_up is None:
                     continue
-                ea.append(a)
-                eb.append(b)
-                e_up.append(t_up)
-                e_down.append(t)
                 if on_down:
                     down_event = new(LinkDown, (t, a, b, t_up))
                     for fn in on_down:

@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.geometry import in_box, near_pairs, wrap
-from netsim.links.crossings import PHASE_STATE, solve_piece
+from netsim.geometry import near_pairs, wrap
+from netsim.links._kernels import PHASE_STATE
 from netsim.trajectory import LegTable
 
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
@@ -66,7 +66,7 @@ def link_events(
 ) -> tuple[np.ndarray, ...]:
     """Up (+1) and down (-1) events of every link, as arrays ``(t, a, b, kind, phase)``.
 
-    ``phase`` orders events of a pair at the same instant (see ``_PHASE_*``). ``window_s``
+    ``phase`` orders events of a pair at the same instant (``netsim.links._kernels.PHASE_*``). ``window_s``
     overrides the solver's window (the results do not depend on it).
     """
     n = len(np.atleast_1d(range_m)) if np.ndim(range_m) else int(legs["robot"].max()) + 1
@@ -92,14 +92,14 @@ def link_events(
 
     out: list[tuple[np.ndarray, ...]] = []
 
-    def emit(t: np.ndarray, a: np.ndarray, b: np.ndarray, k: int, phase: int | np.ndarray) -> None:
+    def emit(t: np.ndarray, a: np.ndarray, b: np.ndarray, k: int | np.ndarray, phase: int | np.ndarray) -> None:
         a = np.asarray(a, np.int64)
         out.append(
             (
                 np.asarray(t, float),
                 a,
                 np.asarray(b, np.int64),
-                np.full(len(a), k, np.int8),
+                np.broadcast_to(np.asarray(k, np.int8), a.shape),
                 np.broadcast_to(np.asarray(phase, np.int8), a.shape),
             )
         )
@@ -114,7 +114,7 @@ def link_events(
         L.advance(start)
         pos = L.at(L.cur, start)
         if not first and nxt > 0 and cuts[nxt - 1] == start:
-            _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit)
+            _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit, kernels)
         reach = r_max + 2.0 * v_max * (stop - start)
         pairs = near_pairs(pos, reach, box)
         if len(pairs):
@@ -123,8 +123,7 @@ def link_events(
             i, j = np.where(swap, j, i), np.where(swap, i, j)
             radius = np.minimum(ranges[i], ranges[j])
             if first:
-                d0 = wrap(pos[i] - pos[j], box)
-                up = np.einsum("ij,ij->i", d0, d0) <= radius * radius
+                up = kernels.in_range(pos, i, j, radius, box or 0.0)
                 emit(np.zeros(int(up.sum())), i[up], j[up], 1, PHASE_STATE)
             changing = L.changes_in(start, stop)
             simple = ~(changing[i] | changing[j])
@@ -143,15 +142,13 @@ def link_events(
 
 
 def _near(pos: np.ndarray, who: np.ndarray, r: float, box: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (``j`` may be ``who[k]``)."""
-    from scipy.spatial import cKDTree  # only runs with jumps ask
-
-    pts = in_box(pos, box)
-    tree = cKDTree(pts, boxsize=box) if box is not None else cKDTree(pts)
-    near = tree.query_ball_point(pts[who], r)
-    counts = np.fromiter((len(x) for x in near), np.int64, len(near))
-    b = np.concatenate([np.asarray(x, np.int64) for x in near]) if counts.sum() else np.empty(0, np.int64)
-    return np.repeat(who, counts), b
+    """Pairs ``(who[k], j)`` with ``j`` within ``r`` of ``who[k]`` (and maybe a little
+    further: :func:`netsim.geometry.near_pairs`; callers judge the distance exactly)."""
+    pairs = near_pairs(pos, r, box)
+    mine = np.zeros(len(pos), bool)
+    mine[who] = True
+    a, b = pairs[:, 0], pairs[:, 1]
+    return np.r_[a[mine[a]], b[mine[b]]], np.r_[b[mine[a]], a[mine[b]]]
 
 
 def _jump_state(
@@ -163,6 +160,7 @@ def _jump_state(
     r_max: float,
     box: float | None,
     emit: Callable[..., None],
+    kernels: ModuleType,
 ) -> None:
     """At a jump instant ``t``, set the state of every link of the robots that jumped: up if
     in range on the new positions ``pos``, down if it was in range on the old ones (events
@@ -178,9 +176,7 @@ def _jump_state(
     a, b = np.r_[a1, a2], np.r_[b1, b2]
     keep = a != b
     a, b = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
-    d = wrap(pos[a] - pos[b], box)
-    radius = np.minimum(ranges[a], ranges[b])
-    up = np.einsum("ij,ij->i", d, d) <= radius * radius
+    up = kernels.in_range(pos, a, b, np.minimum(ranges[a], ranges[b]), box or 0.0)
     emit(np.full(int(up.sum()), t), a[up], b[up], 1, PHASE_STATE)
     emit(np.full(int((~up).sum()), t), a[~up], b[~up], -1, PHASE_STATE)
 
@@ -246,20 +242,12 @@ def _solve_legs(
     kernels: ModuleType,
 ) -> None:
     """Crossings of pairs on legs ``la``, ``lb`` within ``[t_start, t_start + length]``, solved
-    from the later of the two legs' starts: on the plane by ``kernels``
-    (:func:`netsim.links._kernels.plane_crossings`), on a torus, where every image of the
-    other robot counts, by :func:`netsim.links.crossings.solve_piece`."""
-    if box is None:
-        n = len(la)
-        t_start, length = (np.full(n, x, float) if np.ndim(x) == 0 else np.array(x, float) for x in (t_start, length))
-        found = kernels.plane_crossings(L.t, L.p, L.v, la, lb, radius, t_start, length)
-        for pair, t, phase, kind in ((*found[:3], 1), (*found[3:], -1)):
-            emit(t, a[pair], b[pair], kind, phase)
-        return
-    origin = np.maximum(L.t[la], L.t[lb])
-    pa = L.p[la] + L.v[la] * (origin - L.t[la])[:, None]
-    pb = L.p[lb] + L.v[lb] * (origin - L.t[lb])[:, None]
-    solve_piece(wrap(pa - pb, box), L.v[la] - L.v[lb], radius, origin, t_start, length, a, b, emit, box)
+    from the later of the two legs' starts (:func:`netsim.links._kernels.crossings`; on a
+    torus every image of the other robot counts)."""
+    n = len(la)
+    t_start, length = (np.full(n, x, float) if np.ndim(x) == 0 else np.array(x, float) for x in (t_start, length))
+    pair, t, phase, kind = kernels.crossings(L.t, L.p, L.v, la, lb, radius, t_start, length, box or 0.0)
+    emit(t, a[pair], b[pair], kind, phase)
 
 
 def link_lifetimes(

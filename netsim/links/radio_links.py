@@ -68,12 +68,15 @@ def _frame(a, b, t_up, t_down, duration_s: float, open_end) -> pd.DataFrame:
 
 
 def radio_link_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float, side_m=None, torus=False):
-    """The links table of a run whose channel decides receptions with ``reception``."""
+    """The links table (``links.parquet``) of a run whose channel decides receptions with
+    ``reception`` (None: the unit disk of ``ranges_m``); whether or not link events were
+    announced during the run, this is the table's one producer."""
     n = len(ranges_m)
-    if reception.recorder is not None:
+    if reception is not None and reception.recorder is not None:
         return recorded_lifetimes(reception.recorder, legs, n, reception.reach_m, duration_s, side_m, torus)
-    if reception.map is None:
-        # Log-distance without shadowing or walls: the unit disk of the implied range, exactly.
+    if reception is None or reception.map is None:
+        # The unit disk, or log-distance without shadowing or walls: the unit disk of the
+        # implied range, exactly.
         return link_lifetimes(legs, ranges_m, duration_s, side_m, torus)
     return walled_lifetimes(reception, legs, ranges_m, duration_s)
 
@@ -175,7 +178,7 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     e = np.where(np.r_[iv[1:] == iv[:-1], False], np.r_[u[1:], 0.0], t1[iv])
     a, b = a_env[iv], b_env[iv]
     la, lb = leg_index(L, a, u), leg_index(L, b, u)
-    s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]))
+    s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]), n)
     rows = np.arange(len(s))
     k1 = np.minimum(np.maximum(count_below(u, s.h, e), 1.0), s.nc)
     row, t_chg, up_chg, s0, _ = s.take(map_radio(reception), rows, np.zeros(len(s)), k1, None)

@@ -28,11 +28,10 @@ docs/events.md); a decision is announced during the transmission that makes it.
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 import simpy
 
 from netsim.events import EventBus, LinkDown, LinkUp
-from netsim.links.kinetic import RuntimeLinks, links_frame, up_pairs
+from netsim.links.kinetic import RuntimeLinks, up_pairs
 from netsim.radio.reception import LinkRecorder
 from netsim.state import RobotState
 
@@ -63,7 +62,6 @@ class ShadowedLinks:
         self.up: dict[int, tuple[float, float | None]] = {}
         # Each pair's last exit from the reach.
         self._left: dict[int, float] = {}
-        self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         self._on_up = events.subscribers("link_up")
         self._on_down = events.subscribers("link_down")
 
@@ -79,14 +77,8 @@ class ShadowedLinks:
         self.envelope.finish(t_end)
 
     def _end(self, key: int, t_up: float, t_down: float) -> None:
-        a, b = divmod(key, self.n)
-        ea, eb, e_up, e_down = self.ended
-        ea.append(a)
-        eb.append(b)
-        e_up.append(t_up)
-        e_down.append(t_down)
         if self._on_down:
-            event = LinkDown(t_down, a, b, t_up)
+            event = LinkDown(t_down, *divmod(key, self.n), t_up)
             for fn in self._on_down:
                 fn(event)
 
@@ -133,11 +125,6 @@ class ShadowedLinks:
         if mine is not None and mine[1] == event.up_since_s:
             del self.up[key]
             self._end(key, mine[0], event.t_s)
-
-    def frame(self, t_end: float) -> pd.DataFrame:
-        """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
-        censored)."""
-        return links_frame(self.ended, {key: v[0] for key, v in self.up.items()}, self.n, t_end)
 
     def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """The links up now: arrays ``(a, b)``, ``a < b``."""

@@ -41,7 +41,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from netsim.compiled import load
-from netsim.links.crossings import crossing_times
 from netsim.radio.propagation import Pairs, effective_range_m
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
@@ -130,6 +129,7 @@ class Stretches:
         vb: np.ndarray,
         tb: np.ndarray,
         radius: np.ndarray,
+        n_robots: int,
     ):
         self.a, self.b = np.asarray(a, np.int64), np.asarray(b, np.int64)
         self.u = np.asarray(u, float)
@@ -137,10 +137,11 @@ class Stretches:
         self.pb, self.vb, self.tb = pb, vb, np.asarray(tb, float)
         speed = np.maximum(np.hypot(va[:, 0], va[:, 1]), np.hypot(vb[:, 0], vb[:, 1]))
         self.h = np.where(speed > 0, CHUNK_M / np.where(speed > 0, speed, 1.0), np.inf)
-        origin = np.maximum(self.ta, self.tb)
-        qa = pa + va * (origin - self.ta)[:, None]
-        qb = pb + vb * (origin - self.tb)[:, None]
-        _, out = crossing_times(qa - qb, va - vb, np.asarray(radius, float), origin)
+        m = len(self.u)
+        legs = np.arange(m)
+        _, out = load("netsim.links._kernels", n_robots).crossing_times(
+            np.r_[self.ta, self.tb], np.r_[pa, pb], np.r_[va, vb], legs, legs + m, np.asarray(radius, float)
+        )
         self.x = np.where(np.isnan(out), np.inf, out)
         # Out of the envelope at the start (a jump out of range, the envelope's own event due
         # at the same instant): down until the envelope says otherwise. At the envelope's

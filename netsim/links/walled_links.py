@@ -1,7 +1,7 @@
 """Link events during the run on a map (walls, no shadowing).
 
 A link on a map is up while the radio says so (range or received power, and the walls
-crossed). ``links.parquet`` solves it exactly within the exact envelope (the intervals in
+crossed). The post-hoc solver (``links.parquet``) solves it exactly within the exact envelope (the intervals in
 which the pair is within the radio's largest range) along *stretches*, a chunk at a time,
 chunks that depend only on what is known at the stretch's start (:mod:`netsim.links.wall_sweeps`,
 the arithmetic shared with the post-hoc solver :func:`netsim.links.radio_links.walled_lifetimes`,
@@ -34,11 +34,10 @@ import math
 from typing import cast
 
 import numpy as np
-import pandas as pd
 import simpy
 
 from netsim.events import EventBus, LinkDown, LinkUp
-from netsim.links.kinetic import RuntimeLinks, links_frame, up_pairs
+from netsim.links.kinetic import RuntimeLinks, up_pairs
 from netsim.links.wall_sweeps import CHUNK_M, Stretches, count_below, envelope_radii, map_radio
 from netsim.radio.reception import Reception
 from netsim.scheduling import FIRST, scheduled_event
@@ -83,9 +82,8 @@ class WalledLinks:
         state.watchers.append(self._on_leg)
         self.on_up: list = events.subscribers("link_up") if events is not None else []
         self.on_down: list = events.subscribers("link_down") if events is not None else []
-        # Links up now (key a n + b -> since when) and the lifetimes that ended.
+        # Links up now: key a n + b -> since when.
         self.up: dict[int, float] = {}
-        self.ended: tuple[list[int], list[int], list[float], list[float]] = ([], [], [], [])
         # One slot per pair in the envelope: its stretch, the next chunk to solve (k_next)
         # and the state at the end of the last one solved, and a generation that cancels the
         # changes queued for an earlier stretch.
@@ -143,14 +141,8 @@ class WalledLinks:
         t_up = self.up.pop(key, None)
         if t_up is None:
             return
-        a, b = divmod(key, self.n)
-        ea, eb, e_up, e_down = self.ended
-        ea.append(a)
-        eb.append(b)
-        e_up.append(t_up)
-        e_down.append(t)
         if self.on_down and not self._quiet:
-            down = LinkDown(t, a, b, t_up)
+            down = LinkDown(t, *divmod(key, self.n), t_up)
             for fn in self.on_down:
                 fn(down)
 
@@ -220,7 +212,7 @@ class WalledLinks:
         st = self.state
         a, b = self._stretch.a[slots], self._stretch.b[slots]
         o, v, t0 = st.origin_m, st.velocity_mps, st.t0_s
-        new = Stretches(a, b, u, o[a], v[a], t0[a], o[b], v[b], t0[b], np.minimum(self.radii[a], self.radii[b]))
+        new = Stretches(a, b, u, o[a], v[a], t0[a], o[b], v[b], t0[b], np.minimum(self.radii[a], self.radii[b]), self.n)
         self._stretch.put(slots, new)
         for s in slots.tolist():
             self._gen[s] += 1
@@ -321,11 +313,6 @@ class WalledLinks:
             t, a, b, _seq, up, slot, g = heapq.heappop(heap)
             if gen[slot] == g:
                 self._set(a * n + b, t, up)
-
-    def frame(self, t_end: float) -> pd.DataFrame:
-        """The lifetimes so far, as links.parquet (the links still up end at ``t_end``,
-        censored)."""
-        return links_frame(self.ended, self.up, self.n, t_end)
 
     def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """The links up now: arrays ``(a, b)``, ``a < b``."""

@@ -6,26 +6,9 @@ beside the truth. Each states its rule in array operations, independently of the
 from __future__ import annotations
 
 import numpy as np
-from netsim.protocols._kernels import (
-    BIDIR_SINCE,
-    DEGREE,
-    EMPTY,
-    EMPTY_RECORD,
-    FIELDS,
-    GROUP_SIZE,
-    HEARS_ME,
-    LAST_HEARD,
-    LEADER,
-    LIVE_SINCE,
-    ROLE,
-    ROLE_SINCE,
-    RX_POWER,
-    SEQ,
-    Beliefs,
-    X,
-    Y,
-)
+from netsim.protocols import _kernels as K
 from netsim.protocols.clustering import ELECTION_CODES, JOIN_CODES, Candidate, choose_leader, elected
+from netsim.protocols.neighbours import NeighbourTable
 from netsim.protocols.roles import LEADER as ALPHA
 from netsim.protocols.roles import MEMBER, NO_LEADER, UNDECIDED
 
@@ -38,11 +21,11 @@ _ELECTION_BY_CODE = {code: policy for policy, code in ELECTION_CODES.items()}
 def ack_record(seq, role, leader, x_m, y_m, group_size, degree=0, heard=()) -> np.ndarray:
     """The packed record of an Ack's fields (time and link columns are filled on update),
     followed by the ids ``heard`` (ascending) it carries."""
-    rec = np.empty(FIELDS + len(heard))
-    rec[:FIELDS] = EMPTY_RECORD
-    rec[SEQ], rec[ROLE], rec[LEADER], rec[X], rec[Y] = seq, role, leader, x_m, y_m
-    rec[GROUP_SIZE], rec[DEGREE] = group_size, degree
-    rec[FIELDS:] = heard
+    rec = np.empty(K.FIELDS + len(heard))
+    rec[: K.FIELDS] = K.EMPTY_RECORD
+    rec[K.SEQ], rec[K.ROLE], rec[K.LEADER], rec[K.X], rec[K.Y] = seq, role, leader, x_m, y_m
+    rec[K.GROUP_SIZE], rec[K.DEGREE] = group_size, degree
+    rec[K.FIELDS :] = heard
     return rec
 
 
@@ -56,36 +39,20 @@ def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
 
 def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
     """Which ``records`` (any leading shape) are live neighbours over a two-way link."""
-    live = now - records[..., LAST_HEARD] < tau_s
+    live = now - records[..., K.LAST_HEARD] < tau_s
     if not symmetric:
-        live &= records[..., HEARS_ME] != 0
+        live &= records[..., K.HEARS_ME] != 0
     return live
 
 
-class NumpyTable:
+class NumpyTable(NeighbourTable):
     """A neighbour table updated by gathers and scatters of records: the rules of
-    :class:`netsim.protocols.neighbours.NeighbourTable`, stated in numpy."""
-
-    def __init__(self, n: int, tau_s: float, slots: int = 16):
-        self.n, self.tau_s = n, float(tau_s)
-        self.id = np.full((n, slots), EMPTY, dtype=np.int64)
-        self.data = np.broadcast_to(EMPTY_RECORD, (n, slots, FIELDS)).copy()
-
-    @property
-    def slots(self) -> int:
-        return self.id.shape[1]
-
-    def _grow(self) -> None:
-        k = self.slots
-        ids = np.full((self.n, 2 * k), EMPTY, dtype=np.int64)
-        ids[:, :k] = self.id
-        data = np.broadcast_to(EMPTY_RECORD, (self.n, 2 * k, FIELDS)).copy()
-        data[:, :k] = self.data
-        self.id, self.data = ids, data
+    :class:`netsim.protocols.neighbours.NeighbourTable`, stated in numpy. Its storage (the
+    slots and their growth) is the production table's; only the rules are the oracle's."""
 
     def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
         # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
-        return (self.id[rows] == EMPTY) | (now - self.data[rows, :, LAST_HEARD] > self.tau_s)
+        return (self.id[rows] == K.EMPTY) | (now - self.data[rows, :, K.LAST_HEARD] > self.tau_s)
 
     def _place(self, now, sender, receivers, found):
         """Give ``sender`` a slot in the rows of the receivers that have none for it."""
@@ -104,38 +71,38 @@ class NumpyTable:
         if not found.all():
             self._place(now, sender, receivers, found)
         flat = receivers * self.slots + (self.id[receivers] == sender).argmax(axis=1)
-        records = self.data.reshape(-1, FIELDS)
+        records = self.data.reshape(-1, K.FIELDS)
         old = records[flat]
-        fresh = ~found | (old[:, SEQ] <= record[SEQ])
+        fresh = ~found | (old[:, K.SEQ] <= record[K.SEQ])
         flat, old, found, hears_me = flat[fresh], old[fresh], found[fresh], hears_me[fresh]
         rec = np.empty_like(old)
-        rec[:] = record[:FIELDS]
+        rec[:] = record[: K.FIELDS]
         if power_dbm is not None:
-            rec[:, RX_POWER] = np.asarray(power_dbm)[fresh]
-        rec[:, LAST_HEARD] = now
-        was_live = found & (now - old[:, LAST_HEARD] <= self.tau_s)
-        rec[:, LIVE_SINCE] = np.where(was_live, old[:, LIVE_SINCE], now)
-        rec[:, HEARS_ME] = hears_me
-        still_two_way = was_live & (old[:, HEARS_ME] != 0)
-        rec[:, BIDIR_SINCE] = np.where(hears_me, np.where(still_two_way, old[:, BIDIR_SINCE], now), np.inf)
-        same_role = was_live & (old[:, ROLE] == record[ROLE])
-        rec[:, ROLE_SINCE] = np.where(same_role, old[:, ROLE_SINCE], now)
+            rec[:, K.RX_POWER] = np.asarray(power_dbm)[fresh]
+        rec[:, K.LAST_HEARD] = now
+        was_live = found & (now - old[:, K.LAST_HEARD] <= self.tau_s)
+        rec[:, K.LIVE_SINCE] = np.where(was_live, old[:, K.LIVE_SINCE], now)
+        rec[:, K.HEARS_ME] = hears_me
+        still_two_way = was_live & (old[:, K.HEARS_ME] != 0)
+        rec[:, K.BIDIR_SINCE] = np.where(hears_me, np.where(still_two_way, old[:, K.BIDIR_SINCE], now), np.inf)
+        same_role = was_live & (old[:, K.ROLE] == record[K.ROLE])
+        rec[:, K.ROLE_SINCE] = np.where(same_role, old[:, K.ROLE_SINCE], now)
         records[flat] = rec
         return fresh
 
     def receive(self, now, sender, receivers, record, power_dbm=None):
         """:meth:`update`, ``hears_me`` read from the record: ``(fresh, hears_me, stale)``."""
-        hears_me = hears(record[FIELDS:], receivers)
+        hears_me = hears(record[K.FIELDS :], receivers)
         fresh = self.update(now, sender, receivers, hears_me, record, power_dbm)
         return fresh, hears_me, len(fresh) - int(fresh.sum())
 
     def live_mask(self, now: float, i: int) -> np.ndarray:
-        return now - self.data[i, :, LAST_HEARD] < self.tau_s
+        return now - self.data[i, :, K.LAST_HEARD] < self.tau_s
 
     def announce(self, now, i, seq, role, leader, x_m, y_m, group_size) -> np.ndarray:
         """Robot ``i``'s Ack's packed record, with its two-way degree, then its live ids."""
         live = self.live_mask(now, i)
-        degree = int((live & (self.data[i, :, HEARS_ME] != 0)).sum())
+        degree = int((live & (self.data[i, :, K.HEARS_ME] != 0)).sum())
         return ack_record(seq, role, leader, x_m, y_m, group_size, degree, np.sort(self.id[i][live]))
 
 
@@ -161,8 +128,8 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects) -> tuple[int
         at = ids[leaders] == sender
         leaders, slots = leaders[at.any(axis=1)], np.argmax(at, axis=1)[at.any(axis=1)]
         rec = records[leaders, slots]
-        linked = rec[:, LIVE_SINCE] if symmetric else rec[:, BIDIR_SINCE]
-        since = np.maximum(np.maximum(linked, rec[:, ROLE_SINCE]), leader_since[leaders])
+        linked = rec[:, K.LIVE_SINCE] if symmetric else rec[:, K.BIDIR_SINCE]
+        since = np.maximum(np.maximum(linked, rec[:, K.ROLE_SINCE]), leader_since[leaders])
         ready = ~(now - since < merge_delay_s)
         found[1:] = [
             renew[renewed_s < armed_s[renew]],
@@ -180,7 +147,7 @@ def mate_slots(records_row, now, tau_s, symmetric, leader) -> np.ndarray:
     """The slots of a row's live two-way neighbours whose last Ack said they were members
     of ``leader``."""
     mask = two_way(records_row, now, tau_s, symmetric)
-    return np.flatnonzero(mask & (records_row[:, LEADER] == leader) & (records_row[:, ROLE] == MEMBER))
+    return np.flatnonzero(mask & (records_row[:, K.LEADER] == leader) & (records_row[:, K.ROLE] == MEMBER))
 
 
 def group_size(records_row, now, tau_s, symmetric, i) -> int:
@@ -194,11 +161,11 @@ def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard) -> tuple[i
     ids_all, records, tau_s = table
     ids_row, records_row = ids_all[i], records[i]
     c = rules[0]
-    mask = two_way(records_row, now, tau_s, bool(c["symmetric"])) & (records_row[:, ROLE] == ALPHA)
+    mask = two_way(records_row, now, tau_s, bool(c["symmetric"])) & (records_row[:, K.ROLE] == ALPHA)
     slots = np.flatnonzero(mask & (ids_row != exclude))
     if not len(slots):
         return NO_LEADER, -1
-    dist = np.hypot(records_row[slots, X] - x_m, records_row[slots, Y] - y_m)
+    dist = np.hypot(records_row[slots, K.X] - x_m, records_row[slots, K.Y] - y_m)
     ids = ids_row[slots].tolist()
     candidates = [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())]
     policy = _JOIN_BY_CODE[int(c["join_policy"])]
@@ -213,7 +180,7 @@ def elected_in_row(table, i, now, rules, old, degree) -> bool:
     records_row = records[i]
     c = rules[0]
     mates = mate_slots(records_row, now, tau_s, bool(c["symmetric"]), old)
-    ids, degrees = ids_all[i][mates].tolist(), records_row[mates, DEGREE].tolist()
+    ids, degrees = ids_all[i][mates].tolist(), records_row[mates, K.DEGREE].tolist()
     rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids, degrees)]
     return elected(_ELECTION_BY_CODE[int(c["election_policy"])], Candidate(i, degree=degree), rivals)
 
@@ -222,7 +189,7 @@ def membership(table, now, symmetric, roles) -> tuple[np.ndarray, np.ndarray, np
     """Everyone's groups ``(robot, group, primary)``, ordered by robot and group."""
     ids, records, tau_s = table
     role, leader = roles
-    rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, ROLE] == ALPHA))
+    rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, K.ROLE] == ALPHA))
     other = ids[rows, slots]
     member = role[rows] == MEMBER
     rows, other = rows[member], other[member]
@@ -245,9 +212,9 @@ def relays(table, now, symmetric, roles, receivers, distributed_gateways) -> np.
     rows = records[receivers]
     own = leader[receivers][:, None]
     if distributed_gateways:
-        other = (rows[:, :, ROLE] != UNDECIDED) & (rows[:, :, LEADER] != own)
+        other = (rows[:, :, K.ROLE] != UNDECIDED) & (rows[:, :, K.LEADER] != own)
     else:
-        other = (rows[:, :, ROLE] == ALPHA) & (ids[receivers] != own)
+        other = (rows[:, :, K.ROLE] == ALPHA) & (ids[receivers] != own)
     r_role = role[receivers]
     gateway = (two_way(rows, now, tau_s, symmetric) & other).any(axis=1)
     return receivers[(r_role == ALPHA) | ((r_role == MEMBER) & gateway)]
@@ -272,7 +239,7 @@ def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
 
 def believed_keys(ids, records, now, tau_s) -> np.ndarray:
     """``robot * n + other`` for every live entry of the tables, ascending."""
-    live = now - records[:, :, LAST_HEARD] < tau_s
+    live = now - records[:, :, K.LAST_HEARD] < tau_s
     return np.sort(np.nonzero(live)[0] * len(ids) + ids[live])
 
 
@@ -284,13 +251,13 @@ def union_sorted(a, b):
     return both, in_sorted(both, a), in_sorted(both, b)
 
 
-def belief_rows(table, now, heard) -> Beliefs:
+def belief_rows(table, now, heard) -> K.Beliefs:
     """Who believes whom live beside who is in range (``heard``: ascending keys)."""
     ids, records, tau_s = table
     n = len(ids)
     keys, believed, in_range = union_sorted(believed_keys(ids, records, now, tau_s), heard)
     robot = keys // n if n else keys
-    return Beliefs(robot, keys % n if n else keys, believed, in_range, robot.searchsorted(np.arange(n + 1)))
+    return K.Beliefs(robot, keys % n if n else keys, believed, in_range, robot.searchsorted(np.arange(n + 1)))
 
 
 def belief_counts(neighbour, believed, in_range, indptr, role, leader):

@@ -1,12 +1,9 @@
-"""Crossings of a pair's relative path with a disk: the arithmetic that every link solver shares.
+"""The crossings of a pair's relative path with a disk, solved with numpy: the reference
+the link kernels (netsim/links/_kernels.py) are compared with, bit for bit.
 
-Two robots on straight legs have relative position ``d + w t``; they are linked while
-``|d + w t| <= R``, so a link comes up and goes down at the roots of
-``|w|^2 t^2 + 2 (d.w) t + |d|^2 - R^2 = 0``. :func:`solve_piece` finds them over a piece of
-time during which neither robot changes course, on a torus for every image of the other
-robot that the path can reach, and hands each crossing to an ``emit`` callback. The
-post-hoc solver (:mod:`netsim.links.lifetimes`) and the runtime one (:mod:`netsim.links.kinetic`) both
-solve through it, so that they compute the same roots the same way.
+Vectorised over pairs, image by image on a torus; crossings are handed to an ``emit``
+callback as ``(t, a, b, kind, phase)``. Independent of the kernels' loops; only the
+constants (the edge tolerance, the phases) are shared.
 """
 
 from __future__ import annotations
@@ -15,11 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-EDGE_S = 1e-10
-
-# Order of events at the same instant for one pair: a crossing at the end of a piece, then
-# the state set at a jump (or at t = 0), then a crossing at the start of the next piece.
-PHASE_END, PHASE_STATE, PHASE_START = 0, 1, 2
+from netsim.links._kernels import EDGE_S, PHASE_END, PHASE_START
 
 
 def roots(d: np.ndarray, w: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -126,3 +119,11 @@ def clip_crossings(
         t_ev = np.minimum(np.maximum(at[hit], t_start[hit]), end[hit])
         phase = np.where(t_ev - t_start[hit] <= 0.5 * length[hit], PHASE_START, PHASE_END)
         emit(t_ev, a[hit], b[hit], kind, phase)
+
+
+def in_range(pos: np.ndarray, a: np.ndarray, b: np.ndarray, radius: np.ndarray, box: float | None) -> np.ndarray:
+    """Whether robots ``a[k]`` and ``b[k]`` are within ``radius[k]`` (nearest image on a torus)."""
+    d = pos[a] - pos[b]
+    if box is not None:
+        d = d - box * np.round(d / box)
+    return np.einsum("ij,ij->i", d, d) <= radius * radius
