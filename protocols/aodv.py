@@ -463,11 +463,12 @@ class Aodv(Router):
         self.control(i, Rerr(unreachable), self._on_rerr, kind, dest=dest)
 
     def _rerr_kind(self, count: int) -> str:
-        """The kind of a RERR of ``count`` destinations (its size grows with them)."""
+        """The channel kind of a RERR of ``count`` destinations (its size grows with them),
+        counted as ``rerr``."""
         kind = f"rerr_{count}"
         if count not in self._rerr_kinds:
             self._rerr_kinds.add(count)
-            self.control_kind(kind, RERR_BYTES_BASE + RERR_BYTES_PER_DEST * count)
+            self.control_kind(kind, RERR_BYTES_BASE + RERR_BYTES_PER_DEST * count, "rerr")
         return kind
 
     def _on_rerr(self, sender: int, receivers: np.ndarray, rerr: Rerr) -> None:

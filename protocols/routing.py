@@ -22,8 +22,8 @@ from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 from netsim.plugins import Parts
 
 # The tables every routing protocol writes (the flows' when there are flows), and its
-# control frames: per kind, the frames sent and received.
-CONTROL_SCHEMA = {"kind": "object", "bytes": "int64", "sent": "int64", "received": "int64"}
+# control frames: per kind, the frames sent, their bytes, and their receptions.
+CONTROL_SCHEMA = {"kind": "object", "sent": "int64", "bytes_sent": "int64", "received": "int64"}
 ROUTING_TABLES = {
     "roles": ROLES_SCHEMA,
     "acks": ACKS_SCHEMA,
@@ -57,7 +57,10 @@ class Router:
         self.ttl = ttl
         self._next_id = 0
         self._told: dict[int, Outcome] = {}
+        # Per channel kind of control frame: its size and the kind it counts as (frames of
+        # one kind whose size varies, an OLSR HELLO, are channel kinds of their own).
         self.control_bytes: dict[str, int] = {}
+        self.control_label: dict[str, str] = {}
         self.control_sent: dict[str, int] = {}
         self.control_received: dict[str, int] = {}
         self.data_transmissions = 0
@@ -141,9 +144,11 @@ class Router:
             told(pkt.id, False, self.env.now, pkt.hops, robot, cause)
 
     # -- control ------------------------------------------------------------------------
-    def control_kind(self, kind: str, nbytes: int) -> None:
-        """Declare a kind of control frame and its size, bytes."""
+    def control_kind(self, kind: str, nbytes: int, label: str = "") -> None:
+        """Declare a kind of control frame, its size (bytes), and the kind it is counted as
+        in the ``control`` table (``label``; default the kind itself)."""
         self.control_bytes[kind] = nbytes
+        self.control_label[kind] = label or kind
         self.channel.frame_bytes[kind] = nbytes
         self.control_sent.setdefault(kind, 0)
         self.control_received.setdefault(kind, 0)
@@ -167,14 +172,20 @@ class Router:
         return counted
 
     def control_frame(self) -> pd.DataFrame:
-        """Per kind of control frame: its size, the frames sent and the receptions."""
-        kinds = sorted(self.control_bytes)
+        """Per kind of control frame: the frames sent, their bytes and their receptions."""
+        rows: dict[str, list[int]] = {}
+        for k, label in self.control_label.items():
+            row = rows.setdefault(label, [0, 0, 0])
+            row[0] += self.control_sent[k]
+            row[1] += self.control_sent[k] * self.control_bytes[k]
+            row[2] += self.control_received[k]
+        labels = sorted(rows)
         return pd.DataFrame(
             {
-                "kind": kinds,
-                "bytes": [self.control_bytes[k] for k in kinds],
-                "sent": [self.control_sent[k] for k in kinds],
-                "received": [self.control_received[k] for k in kinds],
+                "kind": labels,
+                "sent": [rows[k][0] for k in labels],
+                "bytes_sent": [rows[k][1] for k in labels],
+                "received": [rows[k][2] for k in labels],
             }
         ).astype(CONTROL_SCHEMA)
 
