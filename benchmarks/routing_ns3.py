@@ -184,9 +184,7 @@ def ns3_side(scenario: str, protocol: str, args) -> dict:
     addresses = ns.Ipv4AddressHelper()
     addresses.SetBase(ns.Ipv4Address("10.0.0.0"), ns.Ipv4Mask("255.255.255.0"))
     addresses.Assign(devices)
-    cppyy.gbl.routecmp.Install(
-        nodes, src, dst, args.packet_bytes, args.interval, args.start, args.duration, port
-    )
+    cppyy.gbl.routecmp.Install(nodes, src, dst, args.packet_bytes, args.interval, args.start, args.duration, port)
     ns.Simulator.Stop(ns.Seconds(args.duration))
     ns.Simulator.Run()
     g = cppyy.gbl.routecmp

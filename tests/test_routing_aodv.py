@@ -102,3 +102,48 @@ def test_aodv_parameter_out_of_range_is_refused():
     """A TTL threshold beyond the network diameter is refused, naming the key."""
     with pytest.raises(ConfigError, match="protocol.ttl_threshold = 40"):
         make_config(protocol={"model": "aodv", "ttl_threshold": 40})
+
+
+BREAK = """$node_(0) set X_ 50.0
+$node_(0) set Y_ 500.0
+$node_(1) set X_ 150.0
+$node_(1) set Y_ 500.0
+$node_(2) set X_ 250.0
+$node_(2) set Y_ 500.0
+$node_(3) set X_ 350.0
+$node_(3) set Y_ 500.0
+$ns_ at 15.0 "$node_(2) setdest 250.0 900.0 50.0"
+"""
+
+
+def test_route_error_reaches_the_source_when_a_link_of_its_route_breaks(tmp_path):
+    """Robot 2 of the line 0-1-2-3 walks away while 0 sends to 3: robot 1 finds the link
+    broken when a packet does not get through (link-layer detection), drops that packet
+    there, invalidates its routes through 2 and sends a RERR to its precursor 0, whose
+    route to 3 becomes invalid too; later packets wait for a new route."""
+    trace = tmp_path / "break.ns2"
+    trace.write_text(BREAK)
+    config = make_config(
+        seed=2,
+        duration_s=30.0,
+        world={"n_robots": 4, "side_m": 1000.0},
+        mobility={"model": "trace", "trace_file": str(trace)},
+        channel={"range_m": 120.0},
+        protocol={"model": "aodv"},
+        traffic={
+            "flows": [{"src": 0, "dst": 3, "start_s": 10.0, "stop_s": 25.0, "rate_bps": 8000.0, "packet_bytes": 1000}]
+        },
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    aodv = sim.models["protocol"]
+    assert not aodv.tables[1].routes[3].valid and not aodv.tables[0].routes[3].valid
+    control = frames["control"].set_index("kind")
+    assert control.loc["rerr", "sent"] >= 1 and control.loc["rerr", "received"] >= 1
+    packets = frames["packets"]
+    lost = packets[packets["drop_cause"] == "lost"]
+    assert len(lost) == 1 and lost["drop_robot"].iloc[0] == 1
+    assert packets[packets["t_sent_s"] < 15.0]["delivered"].all()
+    assert (packets[packets["t_sent_s"] > lost["t_sent_s"].iloc[0]]["drop_cause"] == "in_flight").all()
