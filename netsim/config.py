@@ -43,6 +43,7 @@ from netsim.params import (
     describe as describe_params,
 )
 from netsim.radio.models import LOSS, MAC, PROPAGATION
+from netsim.traffic import TrafficParams, check_robots
 
 
 class ConfigWarning(UserWarning):
@@ -174,6 +175,9 @@ class ChannelParams(Params):
         None,
         "medium access: 'none' (infinite capacity), 'aloha', 'csma', or 'package.module:attr'",
         coerce=_model_name(MAC, "medium access control"),
+    )
+    max_frame_bytes: int = param(
+        1500, positive, "largest payload of one frame, bytes: a flow's larger packets travel as several frames"
     )
     loss: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
     radio: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
@@ -346,7 +350,7 @@ def _nested(cls: type) -> Any:
     return field(default_factory=cls, metadata={"nested": True})
 
 
-ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "control", "events", "output")
+ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "traffic", "control", "events", "output")
 
 
 @dataclass(frozen=True)
@@ -360,6 +364,7 @@ class Config(Params):
     mobility: MobilitySection = _nested(MobilitySection)
     channel: ChannelParams = _nested(ChannelParams)
     protocol: ProtocolSection = _nested(ProtocolSection)
+    traffic: TrafficParams = _nested(TrafficParams)
     control: ControlParams = _nested(ControlParams)
     events: EventsParams = _nested(EventsParams)
     output: OutputParams = _nested(OutputParams)
@@ -406,6 +411,14 @@ class Config(Params):
                 )
         if self.world.map:
             _check_map(self)
+        if self.traffic.flows:
+            check_robots(self.traffic, self.world.n_robots)
+            if not getattr(self.protocol.plugin, "carries_flows", False):
+                raise ConfigError(
+                    "traffic.flows",
+                    f"<list of {len(self.traffic.flows)}>",
+                    f"protocol.model = {self.protocol.model!r} relays no messages: choose one that carries flows",
+                )
         for plugin, params in self.models():
             plugin.check(params, self)
         for k, name in enumerate(self.events.hooks):
@@ -671,6 +684,7 @@ def from_dict(raw: Mapping) -> Config:
     values["mobility"] = _model_section(MobilitySection, _table(raw, "mobility"))
     values["channel"] = _channel_section(_table(raw, "channel"))
     values["protocol"] = _model_section(ProtocolSection, _table(raw, "protocol"))
+    values["traffic"] = _plain_section(TrafficParams, _table(raw, "traffic"))
     values["control"] = control
     values["events"] = _plain_section(EventsParams, _table(raw, "events"))
     values["output"] = _plain_section(OutputParams, _table(raw, "output"))
@@ -701,7 +715,7 @@ def to_dict(config: Config, derived: bool = True) -> dict:
     """The configuration as a nested dict of plain TOML values, sections in order; without
     the values derived from other keys if ``derived`` is false."""
     out: dict[str, Any] = {"seed": config.seed, "duration_s": config.duration_s}
-    for name in ("world", "mobility", "channel", "protocol"):
+    for name in ("world", "mobility", "channel", "protocol", "traffic"):
         out[name] = section_dict(getattr(config, name), derived)
     for name, params in config.sections.items():
         out[name] = section_dict(params, derived)

@@ -92,6 +92,9 @@ class Parts:
     # links.parquet), solved during the run. Call it while building (it starts the runtime
     # link solver); None when the run solves no link events during the run.
     links: Callable[[], LinkState] | None = None
+    # The flows of traffic.flows and the largest payload of one frame
+    # (netsim.traffic.Traffic), for the protocol that carries them; None: no flows.
+    traffic: Any = None
 
 
 class LinkState(Protocol):
@@ -149,6 +152,8 @@ class PluginSpec:
     # are written in roles.parquet.
     forms_groups: bool = False
     role_labels: RoleLabels | None = None
+    # Protocols: whether the component relays the flows of ``traffic.flows`` (Parts.traffic).
+    carries_flows: bool = False
     # Controllers with a section: ``timing(params) -> (period_s, start_s)`` of the control
     # loop, if the section sets it.
     timing: Callable[[Any], tuple[float, float]] | None = None

@@ -42,6 +42,7 @@ from netsim.sim import Simulation
 from netsim.state import RobotState
 from netsim.survival import lifetime_summary
 from netsim.trace import Trace
+from netsim.traffic import Traffic
 from netsim.trajectory import distance_travelled, sample_positions
 
 # The tables every run writes, whatever its models (theirs are declared by their plugins).
@@ -107,8 +108,20 @@ def simulation(config: Config, run: int = 0) -> Simulation:
         channel.attach_mac(mac.build(ch.medium, channel, streams.get("channel.mac"), power))
     if config.output.receptions:
         channel.receptions = ReceptionLog(channel)
+    flows = config.traffic.flow_list()
+    traffic = Traffic(tuple(flows), config.channel.max_frame_bytes) if flows else None
     parts = Parts(
-        env, state, channel, Trace(), streams, w, config.duration_s, config.output, events=events, occupancy=occupancy
+        env,
+        state,
+        channel,
+        Trace(),
+        streams,
+        w,
+        config.duration_s,
+        config.output,
+        events=events,
+        occupancy=occupancy,
+        traffic=traffic,
     )
     sim = Simulation(parts, config, run)
     # Log-distance path loss without shadowing or walls is the unit disk of the implied range

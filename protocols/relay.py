@@ -15,6 +15,7 @@ of every transmission is kept (:meth:`Relay.hops_frame`, the ``hops`` table).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from enum import StrEnum
 from typing import NamedTuple
 
@@ -158,14 +159,29 @@ class Relay:
         # what has arrived at each robot.
         self._payloads: dict[int, object] = {}
         self._inboxes: dict[int, list[Arrival]] = {}
+        # Messages sent as frames of another kind than "data" (a flow's, sized apart), and
+        # those whose sender is told their fate: on_outcome(msg_id, delivered, now, hops,
+        # robot, cause), robot and cause saying where and why a message was dropped.
+        self._kinds: dict[int, str] = {}
+        self._watched: dict[int, Callable[[int, bool, float, int, int, str], None]] = {}
 
     def inbox(self, robot: int) -> list[Arrival]:
         """The messages sent with a payload that have reached ``robot``, in order of arrival."""
         return list(self._inboxes.get(robot, ()))
 
-    def send(self, src: int, dst: int, payload: object = None, carried: bool = False) -> int:
+    def send(
+        self,
+        src: int,
+        dst: int,
+        payload: object = None,
+        carried: bool = False,
+        kind: str = "data",
+        on_outcome: Callable[[int, bool, float, int, int, str], None] | None = None,
+    ) -> int:
         """Send a message from ``src`` to ``dst`` now; returns its id. A message from
-        outside (``carried``, or any ``payload``) is kept in ``dst``'s inbox when it arrives."""
+        outside (``carried``, or any ``payload``) is kept in ``dst``'s inbox when it arrives.
+        ``kind``: the frames' kind (its size: ``channel.frame_bytes``); ``on_outcome`` is
+        called once, when the message is delivered or can no longer be."""
         st, now = self.state, self.env.now
         if not (0 <= src < st.n and 0 <= dst < st.n) or src == dst:
             raise ValueError(f"need two different robots in [0, {st.n}), got src={src}, dst={dst}")
@@ -187,6 +203,14 @@ class Relay:
         self._pending[mid] = 0
         if carried or payload is not None:
             self._payloads[mid] = payload
+        if kind != "data":
+            self._kinds[mid] = kind
+            if kind not in self.channel.notify_empty:
+                self.channel.notify_empty.add(kind)
+                if self.channel.deferred:
+                    self.channel.medium_losses[kind] = self._medium_loss
+        if on_outcome is not None:
+            self._watched[mid] = on_outcome
         msg = Message(mid, src, dst, self.ttl, 1, now)
         if self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
@@ -195,14 +219,14 @@ class Relay:
             seen[src] = True
             self._broadcast(src, msg)
             if self._pending[mid] == 0:
-                self._dropped(msg, now, "died_out")  # nobody received the source's broadcast
+                self._dropped(msg, now, "died_out", src)  # nobody received the source's broadcast
                 del self._seen[mid]
         return mid
 
     # -- backbone flooding -------------------------------------------------------------
     def _broadcast(self, sender: int, msg: Message) -> None:
         self._outcomes[msg.id]["transmissions"] += 1
-        got = self.channel.broadcast(sender, msg, self._on_flood, kind="data")
+        got = self.channel.broadcast(sender, msg, self._on_flood, kind=self._kinds.get(msg.id, "data"))
         self._pending[msg.id] += self._arrivals(len(got))
 
     def _arrivals(self, receivers: int) -> int:
@@ -246,17 +270,18 @@ class Relay:
         to_dst = hop_distances(st, now, msg.dst, towards=True, index=self._index)
         nbrs, _ = self.channel.in_range(holder)
         if len(nbrs) == 0 or not np.isfinite(to_dst[nbrs]).any():
-            self._dropped(msg, now, "no_route")  # no route now: the message is lost
+            self._dropped(msg, now, "no_route", holder)  # no route now: the message is lost
             return
         # The next hop: the neighbour fewest hops from the destination (lowest id on ties).
         nxt = int(nbrs[int(np.argmin(to_dst[nbrs]))])
         self._outcomes[msg.id]["transmissions"] += 1
-        if not self.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind="data"):
-            self._dropped(msg, now, "lost")
+        kind = self._kinds.get(msg.id, "data")
+        if not self.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind=kind):
+            self._dropped(msg, now, "lost", holder)
 
     def _on_oracle(self, sender: int, receivers: np.ndarray, msg: Message) -> None:
         if not len(receivers):
-            self._dropped(msg, self.env.now, "lost")  # a shared medium: the frame did not get through
+            self._dropped(msg, self.env.now, "lost", sender)  # a shared medium: the frame did not get through
             return
         self._hop(msg, sender, self.env.now, receivers)
         holder = int(receivers[0])
@@ -265,7 +290,7 @@ class Relay:
         elif msg.ttl > 1:
             self._forward_oracle(holder, msg._replace(ttl=msg.ttl - 1, hops=msg.hops + 1))
         else:
-            self._dropped(msg, self.env.now, "ttl")
+            self._dropped(msg, self.env.now, "ttl", holder)
 
     def _hop(self, msg: Message, sender: int, now: float, receivers: np.ndarray) -> None:
         ids, hops, senders, sent, received, recv = self._hops
@@ -283,17 +308,24 @@ class Relay:
             if msg.id in self._payloads:
                 arrival = Arrival(now, msg.src, self._payloads.pop(msg.id), msg.id)
                 self._inboxes.setdefault(msg.dst, []).append(arrival)
+            told = self._watched.pop(msg.id, None)
+            if told is not None:
+                told(msg.id, True, now, msg.hops, -1, "")
             ev = self.events
             if ev is not None and ev.wants("message_delivered"):
                 ev.emit(
                     "message_delivered", MessageDelivered(now, msg.id, msg.src, msg.dst, msg.hops, out["latency_s"])
                 )
 
-    def _dropped(self, msg: Message, now: float, cause: str) -> None:
-        """No copy of ``msg`` can reach its destination any more (never called once delivered)."""
+    def _dropped(self, msg: Message, now: float, cause: str, at: int = -1) -> None:
+        """No copy of ``msg`` can reach its destination any more (never called once
+        delivered); ``at``: the robot that held it last (-1: a flood, held by many)."""
         if self._outcomes[msg.id]["delivered"]:
             return
         self._payloads.pop(msg.id, None)
+        told = self._watched.pop(msg.id, None)
+        if told is not None:
+            told(msg.id, False, now, msg.hops, at, cause)
         ev = self.events
         if ev is not None and ev.wants("message_dropped"):
             ev.emit("message_dropped", MessageDropped(now, msg.id, msg.src, msg.dst, msg.hops, cause))

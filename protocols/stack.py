@@ -16,6 +16,7 @@ import pandas as pd
 from netsim.protocols._kernels import EMPTY, LAST_HEARD, ROLE, Beliefs, Counts, Groups, Pairs, RoleArrays, Truth, X, Y
 from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from netsim.protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
+from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
 from netsim.protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
 
@@ -97,6 +98,10 @@ class Stack:
         self.table = self.beacon.table
         self.clustering = Clustering(params, parts, self.beacon)
         self.relay = Relay(params, parts, self.clustering)
+        # The flows of traffic.flows, carried by the relay (None: none).
+        self.flows = None
+        if parts.traffic is not None:
+            self.flows = FlowTraffic(parts.traffic, self.env, self.channel.frame_bytes, self._send_flow_frame)
         n = parts.state.n
         # Leader commands: each member keeps the latest command of its current leader.
         self.command: list[Command | None] = [None] * n
@@ -132,12 +137,19 @@ class Stack:
         p = self.params
         if p.message_rate_hz > 0:
             self.env.process(traffic(self.env, self.streams, self.state.n, self.relay, p.message_rate_hz))
+        if self.flows is not None:
+            self.flows.start(self.duration_s)
+            self.trace.add_frame("packets", self.flows.packets_frame)
+            self.trace.add_frame("flows", self.flows.flows_frame)
         self.env.process(self._sampler(self._sample_interval_s))
         self.trace.add_frame("messages", self.messages_frame)
         self.trace.add_frame("hops", self.relay.hops_frame)
         self.trace.add_frame("groups", self.groups_frame)
         self.trace.add_frame("beliefs", self.beliefs_frame)
         self.trace.add_frame("neighbour_beliefs", self.neighbour_beliefs_frame)
+
+    def _send_flow_frame(self, src: int, dst: int, kind: str, on_outcome) -> int:
+        return self.relay.send(src, dst, kind=kind, on_outcome=on_outcome)
 
     # -- leader commands ---------------------------------------------------------------
     def send_command(self, leader: int, payload) -> None:
@@ -531,8 +543,11 @@ PLUGIN = PluginSpec(
         "neighbour_beliefs": NEIGHBOUR_BELIEFS_SCHEMA,
         "messages": MESSAGES_SCHEMA,
         "hops": HOPS_SCHEMA,
+        "flows": FLOWS_SCHEMA,
+        "packets": PACKETS_SCHEMA,
     },
     default=True,
     forms_groups=True,
     role_labels=LABELS,
+    carries_flows=True,
 )

@@ -51,6 +51,11 @@ CASES = [
         "walls_and_shadowing.csv",
     ),
     (
+        "routing_compare.py",
+        ["--n", "10", "--side", "250", "--duration", "40", "--warmup", "15", "--speeds", "2", "--reps", "2"],
+        "routing_compare.csv",
+    ),
+    (
         "ack_congestion.py",
         ["--n", "20", "--densities", "8", "--periods", "0.5", "--duration", "15", "--warmup", "5", "--reps", "1"],
         "ack_congestion.csv",

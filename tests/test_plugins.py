@@ -85,7 +85,7 @@ def test_each_group_lists_exactly_its_installed_entry_points():
 
     for group in (plugins.MOBILITY, plugins.PROTOCOLS, plugins.CONTROLLERS, plugins.HOOKS, "netsim.none"):
         assert plugins._entry_points(group) == tuple(entry_points(group=group)), group
-    assert plugins.available(plugins.PROTOCOLS) == ["ack", "clustering", "none"]
+    assert plugins.available(plugins.PROTOCOLS) == ["ack", "aodv", "clustering", "greedy", "none", "olsr"]
 
 
 @pytest.mark.parametrize(

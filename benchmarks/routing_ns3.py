@@ -1,0 +1,249 @@
+"""netsim's aodv and olsr against ns-3's (the ns-3.44 wheel: ns.AodvHelper, ns.OlsrHelper) on
+the same static scenarios: a line and a grid, range propagation (a unit disk), no loss, one
+light flow from one end to the other. Compared: the flow's delivery ratio, its packets'
+mean hop count, and control packets per second, network-wide.
+
+    bash benchmarks/ns3_env.sh .ns3venv          # once: the ns-3 wheel (a few minutes)
+    python benchmarks/routing_ns3.py --ns3-python .ns3venv/bin/python
+    python benchmarks/routing_ns3.py --only line --protocols aodv
+
+Each row runs netsim (this interpreter) and ns-3 (``--ns3-python``, this script with
+``--side ns3``); the table says whether each figure is within its tolerance (TOLERANCE)
+and the script exits 1 if any is not.
+
+ns-3's side: 802.11b ad hoc at 11 Mbit/s, RangePropagationLossModel (MaxRange = the range),
+constant positions, IPv4/UDP; the flow a UDP socket sending ``--packet-bytes`` every
+``--interval`` s; hops from the TTL the packet arrives with (65 - TTL, sent with 64);
+control packets counted at every node's IPv4 Tx trace by their UDP port (654: AODV, 698:
+OLSR). ns-3's OLSR may carry a HELLO and a TC in one packet; netsim sends one message per
+frame: its control figure is messages per second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+
+SCENARIOS = {
+    # name: (positions, range_m, src, dst)
+    "line": ([(50.0 + 100.0 * i, 500.0) for i in range(6)], 120.0, 0, 5),
+    "grid": ([(50.0 + 100.0 * i, 50.0 + 100.0 * j) for i in range(4) for j in range(4)], 120.0, 0, 15),
+}
+# What may differ between the two: delivery ratio (absolute), mean hops (absolute), control
+# packets per second (relative).
+TOLERANCE = {"delivery_ratio": 0.05, "mean_hops": 0.25, "control_per_s": 0.30}
+
+
+def netsim_side(scenario: str, protocol: str, args) -> dict:
+    import tempfile
+    from pathlib import Path
+
+    from netsim.config import from_dict
+    from netsim.run import build, collect
+
+    xy, range_m, src, dst = SCENARIOS[scenario]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "robots.csv"
+        path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
+        rate_bps = args.packet_bytes * 8 / args.interval
+        config = from_dict(
+            {
+                "seed": args.seed,
+                "duration_s": args.duration,
+                "world": {"n_robots": len(xy), "side_m": 1000.0, "placement": str(path)},
+                "mobility": {"model": "static"},
+                "channel": {"range_m": range_m},
+                "protocol": {"model": protocol},
+                "traffic": {
+                    "flows": [
+                        {
+                            "src": src,
+                            "dst": dst,
+                            "start_s": args.start,
+                            "stop_s": args.duration,
+                            "rate_bps": rate_bps,
+                            "packet_bytes": args.packet_bytes,
+                        }
+                    ]
+                },
+                "output": {"position_interval_s": 0.0},
+            }
+        )
+        sim = build(config)
+        sim.run()
+        frames = collect(sim)
+    packets = frames["packets"]
+    got = packets[packets["delivered"]]
+    return {
+        "sent": len(packets),
+        "delivered": len(got),
+        "delivery_ratio": len(got) / len(packets),
+        "mean_hops": float(got["hops"].mean()) if len(got) else float("nan"),
+        "control_per_s": float(frames["control"]["sent"].sum()) / args.duration,
+    }
+
+
+NS3_CPP = r"""
+namespace routecmp {
+using namespace ns3;
+static uint64_t g_sent = 0, g_recv = 0, g_hops = 0, g_ctrl = 0;
+static uint16_t g_ctrl_port = 0;
+uint64_t Sent() { return g_sent; }
+uint64_t Received() { return g_recv; }
+uint64_t HopSum() { return g_hops; }
+uint64_t Control() { return g_ctrl; }
+
+static void Tx(Ptr<const Packet> p, Ptr<Ipv4> ipv4, uint32_t iface) {
+    Ptr<Packet> c = p->Copy();
+    Ipv4Header ih;
+    c->RemoveHeader(ih);
+    if (ih.GetProtocol() != 17) return;
+    UdpHeader uh;
+    c->PeekHeader(uh);
+    if (uh.GetDestinationPort() == g_ctrl_port) ++g_ctrl;
+}
+
+static void Recv(Ptr<Socket> s) {
+    Ptr<Packet> p;
+    while ((p = s->Recv())) {
+        ++g_recv;
+        SocketIpTtlTag tag;
+        if (p->RemovePacketTag(tag)) g_hops += 65 - tag.GetTtl();
+    }
+}
+
+struct Sender {
+    Ptr<Socket> sock;
+    uint32_t size;
+    Time interval, stop;
+    void Send() {
+        if (Simulator::Now() >= stop) return;
+        sock->Send(Create<Packet>(size));
+        ++g_sent;
+        Simulator::Schedule(interval, &Sender::Send, this);
+    }
+};
+static Sender* g_sender = nullptr;
+
+void Install(NodeContainer nodes, uint32_t src, uint32_t dst, uint32_t size, double interval,
+             double start, double stop, uint16_t ctrl_port) {
+    g_ctrl_port = ctrl_port;
+    Config::ConnectWithoutContext("/NodeList/*/$ns3::Ipv4L3Protocol/Tx", MakeCallback(&Tx));
+    TypeId tid = TypeId::LookupByName("ns3::UdpSocketFactory");
+    Ptr<Socket> rx = Socket::CreateSocket(nodes.Get(dst), tid);
+    rx->SetIpRecvTtl(true);
+    rx->Bind(InetSocketAddress(Ipv4Address::GetAny(), 9));
+    rx->SetRecvCallback(MakeCallback(&Recv));
+    Ptr<Socket> tx = Socket::CreateSocket(nodes.Get(src), tid);
+    Ipv4Address to = nodes.Get(dst)->GetObject<Ipv4>()->GetAddress(1, 0).GetLocal();
+    tx->Connect(InetSocketAddress(to, 9));
+    g_sender = new Sender{tx, size, Seconds(interval), Seconds(stop)};
+    Simulator::Schedule(Seconds(start), &Sender::Send, g_sender);
+}
+}
+"""
+
+
+def ns3_side(scenario: str, protocol: str, args) -> dict:
+    import cppyy
+    from ns import ns
+
+    cppyy.cppdef(NS3_CPP)
+    xy, range_m, src, dst = SCENARIOS[scenario]
+    ns.RngSeedManager.SetSeed(args.seed)
+    nodes = ns.NodeContainer()
+    nodes.Create(len(xy))
+    alloc = ns.CreateObject[ns.ListPositionAllocator]()
+    for x, y in xy:
+        alloc.Add(ns.Vector(x, y, 0.0))
+    mob = ns.MobilityHelper()
+    mob.SetPositionAllocator(alloc)
+    mob.SetMobilityModel("ns3::ConstantPositionMobilityModel")
+    mob.Install(nodes)
+    wifi = ns.WifiHelper()
+    wifi.SetStandard(ns.WIFI_STANDARD_80211b)
+    rate = ns.StringValue("DsssRate11Mbps")
+    wifi.SetRemoteStationManager("ns3::ConstantRateWifiManager", "DataMode", rate, "ControlMode", rate)
+    chan = ns.YansWifiChannelHelper()
+    chan.SetPropagationDelay("ns3::ConstantSpeedPropagationDelayModel")
+    chan.AddPropagationLoss("ns3::RangePropagationLossModel", "MaxRange", ns.DoubleValue(range_m))
+    phy = ns.YansWifiPhyHelper()
+    phy.SetChannel(chan.Create())
+    mac = ns.WifiMacHelper()
+    mac.SetType("ns3::AdhocWifiMac")
+    devices = wifi.Install(phy, mac, nodes)
+    stack = ns.InternetStackHelper()
+    if protocol == "aodv":
+        routing, port = ns.AodvHelper(), 654
+    else:
+        routing, port = ns.OlsrHelper(), 698
+    stack.SetRoutingHelper(routing)
+    stack.Install(nodes)
+    addresses = ns.Ipv4AddressHelper()
+    addresses.SetBase(ns.Ipv4Address("10.0.0.0"), ns.Ipv4Mask("255.255.255.0"))
+    addresses.Assign(devices)
+    cppyy.gbl.routecmp.Install(nodes, src, dst, args.packet_bytes, args.interval, args.start, args.duration, port)
+    ns.Simulator.Stop(ns.Seconds(args.duration))
+    ns.Simulator.Run()
+    g = cppyy.gbl.routecmp
+    sent, recv = int(g.Sent()), int(g.Received())
+    out = {
+        "sent": sent,
+        "delivered": recv,
+        "delivery_ratio": recv / sent if sent else float("nan"),
+        "mean_hops": int(g.HopSum()) / recv if recv else float("nan"),
+        "control_per_s": int(g.Control()) / args.duration,
+    }
+    ns.Simulator.Destroy()
+    return out
+
+
+def within(name: str, ours: float, theirs: float) -> bool:
+    tol = TOLERANCE[name]
+    if name == "control_per_s":
+        return abs(ours - theirs) <= tol * theirs
+    return abs(ours - theirs) <= tol
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--side", choices=["both", "netsim", "ns3"], default="both")
+    p.add_argument("--ns3-python", default=".ns3venv/bin/python")
+    p.add_argument("--only", nargs="*", default=list(SCENARIOS))
+    p.add_argument("--protocols", nargs="*", default=["aodv", "olsr"])
+    p.add_argument("--duration", type=float, default=100.0, help="simulated time, s")
+    p.add_argument("--start", type=float, default=30.0, help="when the flow starts, s")
+    p.add_argument("--interval", type=float, default=1.0, help="between two packets of the flow, s")
+    p.add_argument("--packet-bytes", type=int, default=512)
+    p.add_argument("--seed", type=int, default=1)
+    args = p.parse_args()
+    if args.side != "both":
+        (scenario,), (protocol,) = args.only, args.protocols
+        side = ns3_side if args.side == "ns3" else netsim_side
+        print(json.dumps(side(scenario, protocol, args)))
+        return 0
+    common = [
+        f"--duration={args.duration}",
+        f"--start={args.start}",
+        f"--interval={args.interval}",
+        f"--packet-bytes={args.packet_bytes}",
+        f"--seed={args.seed}",
+    ]
+    ok = True
+    print(f"{'scenario':8} {'protocol':8} {'figure':15} {'netsim':>9} {'ns-3':>9}  within")
+    for scenario in args.only:
+        for protocol in args.protocols:
+            ours = netsim_side(scenario, protocol, args)
+            run = [args.ns3_python, __file__, "--side=ns3", "--only", scenario, "--protocols", protocol, *common]
+            theirs = json.loads(subprocess.run(run, check=True, capture_output=True, text=True).stdout.splitlines()[-1])
+            for name in TOLERANCE:
+                good = within(name, ours[name], theirs[name])
+                ok &= good
+                print(f"{scenario:8} {protocol:8} {name:15} {ours[name]:9.3f} {theirs[name]:9.3f}  {good}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

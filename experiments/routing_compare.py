@@ -1,0 +1,154 @@
+"""Routing compared: delivery, latency and control overhead against speed, for the
+clustering's backbone flooding and oracle shortest paths, and the aodv, olsr and greedy
+protocols (docs/routing.md).
+
+A random-waypoint team; ``--flows`` flows between fixed pairs (robot k to robot n-1-k) of
+``--packet-bytes`` every ``--interval`` s from ``--warmup`` s (after the protocols have
+settled) to the end. Per protocol and maximum speed, over ``--reps`` replications: the
+packets' delivery ratio, their median latency, and control frames per robot per second
+(the clustering's Acks for backbone and oracle, which the backbone needs and the oracle
+does not: for it, none), each with a 95 % confidence interval (Student's t over the
+replications).
+
+Writes ``routing_compare.csv`` (one row per protocol and speed) and
+``routing_compare.png`` (the three figures against speed).
+
+    python experiments/routing_compare.py
+    python experiments/routing_compare.py --speeds 1 5 10 --reps 5 --n 30
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from scipy import stats  # noqa: E402
+
+from netsim.tools import sweep as sweepmod  # noqa: E402
+
+PROTOCOLS = {
+    "backbone": {"model": "clustering", "routing": "backbone", "message_rate_hz": 0.0},
+    "oracle": {"model": "clustering", "routing": "oracle", "message_rate_hz": 0.0},
+    "aodv": {"model": "aodv"},
+    "olsr": {"model": "olsr"},
+    "greedy": {"model": "greedy"},
+}
+
+
+def ci95(values) -> tuple[float, float, float]:
+    """Mean and the half-width's ends of a 95 % Student's t interval (NaN with one value)."""
+    v = np.asarray([x for x in values if np.isfinite(x)], dtype=float)
+    if len(v) == 0:
+        return np.nan, np.nan, np.nan
+    m = float(v.mean())
+    if len(v) < 2:
+        return m, np.nan, np.nan
+    h = float(stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
+    return m, m - h, m + h
+
+
+def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | None, n: int, duration_s: float):
+    """Per run: delivery ratio, median latency of the delivered packets, control frames per
+    robot per second."""
+    out = []
+    for _, run in runs.iterrows():
+        pk = packets[packets.run_id == run.run_id]
+        got = pk[pk["delivered"]]
+        if control is not None:
+            frames = float(control[control.run_id == run.run_id]["sent"].sum())
+        else:
+            frames = float(run.get("acks_sent", 0.0)) if run["protocol.routing"] == "backbone" else 0.0
+        out.append(
+            {
+                "speed_mps": run["mobility.speed_max_mps"],
+                "delivery_ratio": len(got) / len(pk) if len(pk) else np.nan,
+                "latency_p50_s": float(got["latency_s"].median()) if len(got) else np.nan,
+                "control_per_robot_per_s": frames / (n * duration_s),
+            }
+        )
+    return pd.DataFrame(out)
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--n", type=int, default=40)
+    p.add_argument("--side", type=float, default=600.0)
+    p.add_argument("--range", type=float, default=150.0)
+    p.add_argument("--duration", type=float, default=200.0)
+    p.add_argument("--warmup", type=float, default=30.0, help="flows start then, s")
+    p.add_argument("--speeds", type=float, nargs="+", default=[1.0, 5.0, 10.0, 20.0])
+    p.add_argument("--flows", type=int, default=4)
+    p.add_argument("--interval", type=float, default=1.0, help="between two packets of a flow, s")
+    p.add_argument("--packet-bytes", type=int, default=512)
+    p.add_argument("--protocols", nargs="+", default=list(PROTOCOLS), choices=list(PROTOCOLS))
+    sweepmod.add_runner_arguments(p, "routing_compare", reps=3)
+    args = p.parse_args(argv)
+    out = Path(args.out)
+    rate = args.packet_bytes * 8 / args.interval
+    flows = [
+        {
+            "src": k,
+            "dst": args.n - 1 - k,
+            "start_s": args.warmup,
+            "stop_s": args.duration,
+            "rate_bps": rate,
+            "packet_bytes": args.packet_bytes,
+        }
+        for k in range(args.flows)
+    ]
+    rows = []
+    for name in args.protocols:
+        base = {
+            "seed": args.seed,
+            "duration_s": args.duration,
+            "world": {"n_robots": args.n, "side_m": args.side},
+            "channel": {"range_m": args.range},
+            "protocol": PROTOCOLS[name],
+            "traffic": {"flows": flows},
+            "output": {"position_interval_s": 0.0},
+        }
+        clustering = PROTOCOLS[name]["model"] == "clustering"
+        grid = {"mobility.speed_max_mps": args.speeds}
+        tables = ["packets"] if clustering else ["packets", "control"]
+        sweep = sweepmod.parse({"name": name, "replications": args.reps, "tables": tables, "base": base, "grid": grid})
+        print(sweepmod.run_sweep(sweep, out / name, workers=args.workers, scheduler=args.scheduler).text())
+        runs = sweepmod.load(out / name)
+        if clustering:
+            runs["protocol.routing"] = PROTOCOLS[name]["routing"]
+        control = None if clustering else sweepmod.load_table(out / name, "control")
+        figures = per_run(runs, sweepmod.load_table(out / name, "packets"), control, args.n, args.duration)
+        for speed, g in figures.groupby("speed_mps"):
+            row = {"protocol": name, "speed_mps": speed, "runs": len(g)}
+            for col in ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s"):
+                row[col], row[f"{col}_ci_low"], row[f"{col}_ci_high"] = ci95(g[col])
+            rows.append(row)
+    table = pd.DataFrame(rows)
+    out.mkdir(parents=True, exist_ok=True)
+    table.to_csv(out / "routing_compare.csv", index=False)
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for ax, col, label in zip(
+        axes,
+        ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s"),
+        ("delivery ratio", "median latency, s", "control frames per robot per s"),
+    ):
+        for name, g in table.groupby("protocol", sort=False):
+            low = (g[col] - g[f"{col}_ci_low"]).fillna(0)
+            high = (g[f"{col}_ci_high"] - g[col]).fillna(0)
+            ax.errorbar(g["speed_mps"], g[col], yerr=[low, high], marker="o", capsize=3, label=name)
+        ax.set_xlabel("maximum speed, m/s")
+        ax.set_ylabel(label)
+    axes[0].legend()
+    fig.tight_layout()
+    fig.savefig(out / "routing_compare.png", dpi=120)
+    print(f"wrote {out / 'routing_compare.csv'} and {out / 'routing_compare.png'}")
+
+
+if __name__ == "__main__":
+    sweepmod.run_script(main)

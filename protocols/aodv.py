@@ -1,0 +1,488 @@
+"""``protocol.model = "aodv"``: Ad hoc On-Demand Distance Vector routing, RFC 3561
+(docs/routing.md, "aodv").
+
+A source without a route buffers its packets and floods a route request (RREQ) with an
+expanding ring (TTL_START, + TTL_INCREMENT up to TTL_THRESHOLD, then NET_DIAMETER, retried
+RREQ_RETRIES times, each wait a ring traversal time, doubled on every retry at
+NET_DIAMETER). Each robot the RREQ reaches learns the reverse route to its originator; the
+destination, or a robot with a fresh enough route, unicasts a route reply (RREP) back,
+which sets up the forward route. Routes carry destination sequence numbers (a route is
+replaced only by a fresher one, section 6.2) and lifetimes (ACTIVE_ROUTE_TIMEOUT, renewed
+by use). Neighbours are known from hello messages (RREPs with TTL 1, every
+HELLO_INTERVAL) and from the link layer (a unicast that does not get through); a broken
+link invalidates every route through it and a route error (RERR) goes to the robots that
+used them (precursors). No local repair, no gratuitous RREPs.
+
+The RFC's rules are plain functions (:func:`fresher`, :func:`ring_ttls`) and the routing
+table a small class (:class:`RouteTable`), each tested by name in tests/test_routing_aodv.py.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router
+
+from netsim.errors import ConfigError
+from netsim.params import Params, finite, non_negative, param, positive
+from netsim.plugins import Parts, PluginSpec
+from netsim.scheduling import URGENT
+
+# Message sizes (RFC 3561 section 5), bytes.
+RREQ_BYTES = 24
+RREP_BYTES = 20
+RERR_BYTES_BASE = 4
+RERR_BYTES_PER_DEST = 8
+
+
+@dataclass(frozen=True)
+class AodvParams(Params):
+    """AODV's keys of ``[protocol]``, with RFC 3561's defaults (section 10)."""
+
+    section = "protocol"
+    active_route_timeout_s: float = param(3.0, finite(positive), "ACTIVE_ROUTE_TIMEOUT: a route unused this long, s")
+    hello: bool = param(True, None, "send hello messages (false: neighbours from the link layer alone)")
+    hello_interval_s: float = param(1.0, finite(positive), "HELLO_INTERVAL, s")
+    allowed_hello_loss: int = param(2, positive, "ALLOWED_HELLO_LOSS: hellos missed before a link is broken")
+    net_diameter: int = param(35, positive, "NET_DIAMETER: the largest TTL of a RREQ, hops")
+    node_traversal_time_s: float = param(0.04, finite(positive), "NODE_TRAVERSAL_TIME, s")
+    rreq_retries: int = param(2, non_negative, "RREQ_RETRIES: RREQs at NET_DIAMETER after the first")
+    ttl_start: int = param(1, positive, "TTL_START: the TTL of the first RREQ")
+    ttl_increment: int = param(2, positive, "TTL_INCREMENT: added to the TTL of each new ring")
+    ttl_threshold: int = param(7, positive, "TTL_THRESHOLD: past it, the RREQ's TTL is NET_DIAMETER")
+    timeout_buffer: int = param(2, non_negative, "TIMEOUT_BUFFER of RING_TRAVERSAL_TIME, hops")
+    queue_packets: int = param(64, positive, "packets buffered per robot while a route is sought")
+    jitter_s: float = param(0.01, non_negative, "forwarded broadcasts wait U(0, jitter), s (RFC 5148)")
+
+    def check(self) -> None:
+        if self.ttl_start > self.net_diameter or self.ttl_threshold > self.net_diameter:
+            raise ConfigError(
+                "protocol.ttl_threshold",
+                self.ttl_threshold,
+                f"TTL_START and TTL_THRESHOLD must not exceed protocol.net_diameter = {self.net_diameter}",
+            )
+
+    @property
+    def net_traversal_time_s(self) -> float:
+        """NET_TRAVERSAL_TIME = 2 NODE_TRAVERSAL_TIME NET_DIAMETER."""
+        return 2.0 * self.node_traversal_time_s * self.net_diameter
+
+    @property
+    def path_discovery_time_s(self) -> float:
+        """PATH_DISCOVERY_TIME = 2 NET_TRAVERSAL_TIME: how long a RREQ is remembered."""
+        return 2.0 * self.net_traversal_time_s
+
+    @property
+    def my_route_timeout_s(self) -> float:
+        """MY_ROUTE_TIMEOUT = 2 ACTIVE_ROUTE_TIMEOUT: the lifetime a destination's RREP gives."""
+        return 2.0 * self.active_route_timeout_s
+
+    @property
+    def delete_period_s(self) -> float:
+        """DELETE_PERIOD = K max(ACTIVE_ROUTE_TIMEOUT, HELLO_INTERVAL), K = 5."""
+        return 5.0 * max(self.active_route_timeout_s, self.hello_interval_s)
+
+    def ring_traversal_time_s(self, ttl: int) -> float:
+        """RING_TRAVERSAL_TIME = 2 NODE_TRAVERSAL_TIME (TTL_VALUE + TIMEOUT_BUFFER)."""
+        return 2.0 * self.node_traversal_time_s * (ttl + self.timeout_buffer)
+
+
+def seq_newer(a: int, b: int) -> bool:
+    """Whether sequence number ``a`` is newer than ``b``: signed 32-bit rollover (section 6.1)."""
+    return ((a - b + 2**31) % 2**32) - 2**31 > 0
+
+
+def fresher(known: Route | None, seq: int, valid_seq: bool, hops: int) -> bool:
+    """Whether an offered route (``seq``, ``valid_seq``, ``hops``) replaces the ``known`` one
+    (section 6.2): when none is known, or the known has no valid sequence number, or the
+    offer's sequence number is newer, or the same with the known route invalid or longer.
+    An offer without a valid sequence number never replaces a known valid one."""
+    if known is None or not known.valid_seq:
+        return True
+    if not valid_seq:
+        return False
+    if seq_newer(seq, known.seq):
+        return True
+    return seq == known.seq and (not known.valid or hops < known.hops)
+
+
+def ring_ttls(p: AodvParams, last_hops: int | None = None) -> list[int]:
+    """The TTLs of a route discovery's RREQs, in order (section 6.4): from TTL_START (or the
+    last known hop count + TTL_INCREMENT), + TTL_INCREMENT while not past TTL_THRESHOLD,
+    then NET_DIAMETER, tried 1 + RREQ_RETRIES times."""
+    ttl = p.ttl_start if last_hops is None else min(last_hops + p.ttl_increment, p.net_diameter)
+    out = []
+    while ttl <= p.ttl_threshold:
+        out.append(ttl)
+        ttl += p.ttl_increment
+    return out + [p.net_diameter] * (1 + p.rreq_retries)
+
+
+@dataclass
+class Route:
+    """One entry of a robot's routing table (section 6.1)."""
+
+    next_hop: int
+    hops: int
+    seq: int
+    valid_seq: bool
+    expires_s: float
+    valid: bool = True
+    precursors: set[int] = field(default_factory=set)
+
+
+class RouteTable:
+    """A robot's routes, by destination."""
+
+    def __init__(self) -> None:
+        self.routes: dict[int, Route] = {}
+
+    def active(self, dst: int, now: float) -> Route | None:
+        """The valid, unexpired route to ``dst``, if any (an expired one becomes invalid)."""
+        r = self.routes.get(dst)
+        if r is None or not r.valid:
+            return None
+        if r.expires_s < now:
+            r.valid = False
+            return None
+        return r
+
+    def offer(self, dst: int, next_hop: int, hops: int, seq: int, valid_seq: bool, expires_s: float) -> bool:
+        """Take an offered route if :func:`fresher` (else only extend the lifetime of the
+        same route); returns whether it was taken."""
+        known = self.routes.get(dst)
+        if fresher(known, seq, valid_seq, hops):
+            precursors = known.precursors if known is not None else set()
+            keep_seq = known.seq if (known is not None and not valid_seq) else seq
+            self.routes[dst] = Route(next_hop, hops, keep_seq, valid_seq, expires_s, True, precursors)
+            return True
+        if known is not None and known.valid and known.next_hop == next_hop and known.hops == hops:
+            known.expires_s = max(known.expires_s, expires_s)
+        return False
+
+    def break_link(self, next_hop: int, now: float, delete_period_s: float) -> list[tuple[int, int, set[int]]]:
+        """The link to ``next_hop`` is broken: every valid route through it becomes invalid,
+        its sequence number increased (section 6.11); returns ``(dst, seq, precursors)`` of
+        each, the unreachable destinations of the RERR."""
+        out = []
+        for dst, r in self.routes.items():
+            if r.valid and r.next_hop == next_hop:
+                r.valid = False
+                r.seq = (r.seq + 1) % 2**32
+                r.expires_s = now + delete_period_s
+                out.append((dst, r.seq, set(r.precursors)))
+        return out
+
+    def on_rerr(self, sender: int, unreachable: list[tuple[int, int]], now: float, delete_period_s: float):
+        """A RERR from ``sender``: the valid routes to its unreachable destinations through
+        ``sender`` become invalid, with the RERR's sequence numbers; returns them as
+        :meth:`break_link` does (to be sent on to their precursors)."""
+        out = []
+        for dst, seq in unreachable:
+            r = self.routes.get(dst)
+            if r is not None and r.valid and r.next_hop == sender:
+                r.valid = False
+                r.seq = seq
+                r.expires_s = now + delete_period_s
+                out.append((dst, seq, set(r.precursors)))
+        return out
+
+
+class Rreq(NamedTuple):
+    orig: int
+    rreq_id: int
+    dst: int
+    dst_seq: int
+    unknown_seq: bool
+    orig_seq: int
+    hops: int
+    ttl: int
+
+
+class Rrep(NamedTuple):
+    dst: int
+    dst_seq: int
+    orig: int
+    hops: int
+    lifetime_s: float
+    hello: bool = False
+
+
+class Rerr(NamedTuple):
+    unreachable: tuple[tuple[int, int], ...]
+
+
+class Discovery:
+    """A route discovery under way at a source: its TTLs still to try and its packets."""
+
+    __slots__ = ("ttls", "waiting", "retries_at_diameter")
+
+    def __init__(self, ttls: list[int]):
+        self.ttls = ttls
+        self.waiting: list[Packet] = []
+        self.retries_at_diameter = 0
+
+
+class Aodv(Router):
+    """AODV at every robot (module notes)."""
+
+    def __init__(self, params: AodvParams, parts: Parts):
+        super().__init__(parts, params.net_diameter)
+        self.params = p = params
+        n = self.state.n
+        self.tables = [RouteTable() for _ in range(n)]
+        self.own_seq = [0] * n
+        self.rreq_id = [0] * n
+        # (orig, rreq_id) each robot has seen, until when it remembers it.
+        self.seen: list[dict[tuple[int, int], float]] = [{} for _ in range(n)]
+        self.discoveries: list[dict[int, Discovery]] = [{} for _ in range(n)]
+        # When each robot last heard each neighbour's hello (links from hellos).
+        self.hello_heard: list[dict[int, float]] = [{} for _ in range(n)]
+        # Every RREQ a source originated: (t_s, source, destination, ttl): the expanding ring.
+        self.rreqs_originated: list[tuple[float, int, int, int]] = []
+        self.control_kind("rreq", RREQ_BYTES)
+        self.control_kind("rrep", RREP_BYTES)
+        self.control_kind("hello", RREP_BYTES)
+        self._rerr_kinds: set[int] = set()
+        self._rng = self.streams.get("aodv.jitter")
+        self._hello_phase = self.streams.get("aodv.hello").uniform(0.0, p.hello_interval_s, n) if p.hello else None
+
+    def start(self) -> None:
+        super().start()
+        if self._hello_phase is not None:
+            agenda = self.channel.agenda
+            for i in range(self.state.n):
+                agenda.at(float(self._hello_phase[i]), URGENT, self._hello_tick, i)
+
+    def _later(self, delay_s: float, fn, *args) -> None:
+        self.channel.agenda.at(delay_s, URGENT, fn, *args)
+
+    def _jitter(self) -> float:
+        j = self.params.jitter_s
+        return float(self._rng.uniform(0.0, j)) if j > 0 else 0.0
+
+    # -- hellos (section 6.9) -------------------------------------------------------------
+    def _hello_tick(self, i: int) -> None:
+        p = self.params
+        if self.state.alive[i]:
+            lifetime = p.allowed_hello_loss * p.hello_interval_s
+            self.control(i, Rrep(i, self.own_seq[i], i, 0, lifetime, True), self._on_hello, "hello")
+        # Hellos jittered by a quarter of the interval, as ns-3 does, so neighbours do not lock step.
+        self._later(p.hello_interval_s * (0.75 + 0.5 * float(self._rng.random())), self._hello_tick, i)
+
+    def _on_hello(self, sender: int, receivers: np.ndarray, hello: Rrep) -> None:
+        now = self.env.now
+        for r in receivers.tolist():
+            self.hello_heard[r][sender] = now
+            self.tables[r].offer(sender, sender, 1, hello.dst_seq, True, now + hello.lifetime_s)
+
+    def _neighbour_lost(self, i: int, nbr: int, now: float) -> bool:
+        """Whether ``i`` has missed ALLOWED_HELLO_LOSS hellos of ``nbr`` it used to hear."""
+        p = self.params
+        heard = self.hello_heard[i].get(nbr)
+        return p.hello and heard is not None and now - heard > p.allowed_hello_loss * p.hello_interval_s
+
+    # -- data -------------------------------------------------------------------------
+    def next_hop(self, holder: int, pkt: Packet) -> tuple[int, str]:
+        now, p = self.env.now, self.params
+        table = self.tables[holder]
+        r = table.active(pkt.dst, now)
+        if r is not None and self._neighbour_lost(holder, r.next_hop, now):
+            self._link_broken(holder, r.next_hop)
+            r = None
+        if r is None:
+            if holder != pkt.src:
+                # Section 6.11 (ii): data for a destination with no active route.
+                self._send_rerr(holder, [(pkt.dst, self._seq_of(table, pkt.dst), set())], broadcast=True)
+            return -1, "no_route"
+        # Using a route keeps it, and the routes to its next hop and back to the source (6.2).
+        r.expires_s = max(r.expires_s, now + p.active_route_timeout_s)
+        for other in (r.next_hop, pkt.src):
+            back = table.active(other, now)
+            if back is not None:
+                back.expires_s = max(back.expires_s, now + p.active_route_timeout_s)
+        return r.next_hop, ""
+
+    @staticmethod
+    def _seq_of(table: RouteTable, dst: int) -> int:
+        r = table.routes.get(dst)
+        return r.seq if r is not None else 0
+
+    def originate(self, src: int, pkt: Packet) -> None:
+        now = self.env.now
+        r = self.tables[src].active(pkt.dst, now)
+        if r is not None and not self._neighbour_lost(src, r.next_hop, now):
+            self.forward(src, pkt)
+            return
+        d = self.discoveries[src].get(pkt.dst)
+        if d is None:
+            known = self.tables[src].routes.get(pkt.dst)
+            d = self.discoveries[src][pkt.dst] = Discovery(ring_ttls(self.params, known.hops if known else None))
+            d.waiting.append(pkt)
+            self._send_rreq(src, pkt.dst, d)
+        elif len(d.waiting) < self.params.queue_packets:
+            d.waiting.append(pkt)
+        else:
+            self.dropped(pkt, src, "queue_full")
+
+    def link_failed(self, holder: int, nxt: int, pkt: Packet) -> None:
+        if nxt >= 0:
+            self._link_broken(holder, nxt)
+
+    # -- route discovery (sections 6.3 to 6.7) -------------------------------------------
+    def _send_rreq(self, src: int, dst: int, d: Discovery) -> None:
+        p, now = self.params, self.env.now
+        ttl = d.ttls.pop(0)
+        self.own_seq[src] += 1  # section 6.1: before a route discovery
+        self.rreq_id[src] += 1
+        known = self.tables[src].routes.get(dst)
+        rreq = Rreq(
+            src,
+            self.rreq_id[src],
+            dst,
+            known.seq if known is not None else 0,
+            known is None or not known.valid_seq,
+            self.own_seq[src],
+            0,
+            ttl,
+        )
+        self.seen[src][(src, rreq.rreq_id)] = now + p.path_discovery_time_s
+        self.rreqs_originated.append((now, src, dst, ttl))
+        self.control(src, rreq, self._on_rreq, "rreq")
+        if ttl < p.net_diameter:
+            wait = p.ring_traversal_time_s(ttl)
+        else:
+            wait = p.net_traversal_time_s * 2**d.retries_at_diameter  # binary exponential backoff
+            d.retries_at_diameter += 1
+        self._later(wait, self._rreq_timeout, src, dst, d)
+
+    def _rreq_timeout(self, src: int, dst: int, d: Discovery) -> None:
+        if self.discoveries[src].get(dst) is not d:
+            return  # the route was found
+        if d.ttls:
+            self._send_rreq(src, dst, d)
+            return
+        del self.discoveries[src][dst]
+        for pkt in d.waiting:
+            self.dropped(pkt, src, "no_route")
+
+    def _on_rreq(self, sender: int, receivers: np.ndarray, rreq: Rreq) -> None:
+        now, p = self.env.now, self.params
+        for r in receivers.tolist():
+            table = self.tables[r]
+            table.offer(sender, sender, 1, 0, False, now + p.active_route_timeout_s)
+            key = (rreq.orig, rreq.rreq_id)
+            if self.seen[r].get(key, -1.0) >= now:
+                continue
+            self.seen[r][key] = now + p.path_discovery_time_s
+            hops = rreq.hops + 1
+            lifetime = now + 2 * p.net_traversal_time_s - 2 * hops * p.node_traversal_time_s
+            table.offer(rreq.orig, sender, hops, rreq.orig_seq, True, lifetime)
+            back = table.routes[rreq.orig]
+            if back.next_hop == sender:
+                back.expires_s = max(back.expires_s, lifetime)
+            if r == rreq.dst:
+                # Section 6.6.1: the destination's sequence number, at least the RREQ's.
+                if not rreq.unknown_seq and seq_newer(rreq.dst_seq, self.own_seq[r]):
+                    self.own_seq[r] = rreq.dst_seq
+                self._send_rrep(r, Rrep(r, self.own_seq[r], rreq.orig, 0, p.my_route_timeout_s))
+                continue
+            fwd = table.active(rreq.dst, now)
+            if (
+                fwd is not None
+                and fwd.valid_seq
+                and not rreq.unknown_seq
+                and not seq_newer(rreq.dst_seq, fwd.seq)
+                and fwd.next_hop != sender
+            ):
+                # Section 6.6.2: an intermediate robot with a fresh enough route answers.
+                fwd.precursors.add(sender)
+                back.precursors.add(fwd.next_hop)
+                self._send_rrep(r, Rrep(rreq.dst, fwd.seq, rreq.orig, fwd.hops, fwd.expires_s - now))
+                continue
+            if rreq.ttl > 1:
+                dst_seq = rreq.dst_seq
+                known = table.routes.get(rreq.dst)
+                if known is not None and known.valid_seq and seq_newer(known.seq, dst_seq):
+                    dst_seq = known.seq
+                out = rreq._replace(hops=hops, ttl=rreq.ttl - 1, dst_seq=dst_seq)
+                self._later(self._jitter(), self._rebroadcast_rreq, r, out)
+
+    def _rebroadcast_rreq(self, r: int, rreq: Rreq) -> None:
+        if self.state.alive[r]:
+            self.control(r, rreq, self._on_rreq, "rreq")
+
+    def _send_rrep(self, r: int, rrep: Rrep) -> None:
+        """Unicast ``rrep`` from ``r`` one hop back toward its originator."""
+        back = self.tables[r].active(rrep.orig, self.env.now)
+        if back is None:
+            return
+        self.control(r, rrep, self._on_rrep, "rrep", dest=back.next_hop)
+
+    def _on_rrep(self, sender: int, receivers: np.ndarray, rrep: Rrep) -> None:
+        now, p = self.env.now, self.params
+        for r in receivers.tolist():
+            table = self.tables[r]
+            table.offer(sender, sender, 1, 0, False, now + p.active_route_timeout_s)
+            hops = rrep.hops + 1
+            table.offer(rrep.dst, sender, hops, rrep.dst_seq, True, now + rrep.lifetime_s)
+            if r == rrep.orig:
+                d = self.discoveries[r].pop(rrep.dst, None)
+                if d is not None:
+                    for pkt in d.waiting:
+                        self.forward(r, pkt)
+                continue
+            back = table.active(rrep.orig, now)
+            fwd = table.routes.get(rrep.dst)
+            if back is None or fwd is None:
+                continue
+            fwd.precursors.add(back.next_hop)
+            back.precursors.add(fwd.next_hop)
+            back.expires_s = max(back.expires_s, now + p.active_route_timeout_s)
+            self.control(r, rrep._replace(hops=hops), self._on_rrep, "rrep", dest=back.next_hop)
+
+    # -- route errors (section 6.11) -----------------------------------------------------
+    def _link_broken(self, i: int, nbr: int) -> None:
+        now, p = self.env.now, self.params
+        self.hello_heard[i].pop(nbr, None)
+        lost = self.tables[i].break_link(nbr, now, p.delete_period_s)
+        if lost:
+            self._send_rerr(i, lost)
+
+    def _send_rerr(self, i: int, lost: list[tuple[int, int, set[int]]], broadcast: bool = False) -> None:
+        """A RERR of the destinations ``lost`` to their precursors (a unicast to a single
+        one, else a broadcast); none if nobody used those routes."""
+        precursors = set().union(*(pre for _, _, pre in lost))
+        if not precursors and not broadcast:
+            return
+        unreachable = tuple((dst, seq) for dst, seq, _ in lost)
+        kind = self._rerr_kind(len(unreachable))
+        dest = next(iter(precursors)) if len(precursors) == 1 else -1
+        self.control(i, Rerr(unreachable), self._on_rerr, kind, dest=dest)
+
+    def _rerr_kind(self, count: int) -> str:
+        """The channel kind of a RERR of ``count`` destinations (its size grows with them),
+        counted as ``rerr``."""
+        kind = f"rerr_{count}"
+        if count not in self._rerr_kinds:
+            self._rerr_kinds.add(count)
+            self.control_kind(kind, RERR_BYTES_BASE + RERR_BYTES_PER_DEST * count, "rerr")
+        return kind
+
+    def _on_rerr(self, sender: int, receivers: np.ndarray, rerr: Rerr) -> None:
+        now, p = self.env.now, self.params
+        for r in receivers.tolist():
+            lost = self.tables[r].on_rerr(sender, list(rerr.unreachable), now, p.delete_period_s)
+            if lost:
+                self._send_rerr(r, lost)
+
+
+def build(params: AodvParams, parts: Parts) -> Aodv:
+    router = Aodv(params, parts)
+    router.start()
+    return router
+
+
+PLUGIN = PluginSpec(Params=AodvParams, build=build, tables=dict(ROUTING_TABLES), carries_flows=True)

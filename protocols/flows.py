@@ -1,0 +1,172 @@
+"""The flows of ``traffic.flows`` carried by a protocol that relays messages (docs/routing.md).
+
+Each packet of a flow leaves its source at its time (:func:`netsim.traffic.send_times`) as
+one message per frame (:func:`netsim.traffic.fragment_bytes`), each relayed on its own. A
+packet is delivered when its last frame arrives, and only if every frame does; it is
+dropped when the first of its frames is, and that frame says where and why. The tables:
+``packets`` (one row per packet) and ``flows`` (one row per flow).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+import simpy
+
+from netsim.traffic import Flow, Traffic, fragment_bytes, send_times
+
+PACKETS_SCHEMA = {
+    "flow": "int64",
+    "packet": "int64",
+    "src": "int64",
+    "dst": "int64",
+    "bytes": "int64",
+    "frames": "int64",
+    "t_sent_s": "float64",
+    "delivered": "bool",
+    "t_delivered_s": "float64",
+    "latency_s": "float64",
+    "hops": "int64",
+    "frames_delivered": "int64",
+    "t_dropped_s": "float64",
+    "drop_robot": "int64",
+    "drop_cause": "object",
+}
+
+FLOWS_SCHEMA = {
+    "flow": "int64",
+    "src": "int64",
+    "dst": "int64",
+    "packets_sent": "int64",
+    "packets_delivered": "int64",
+    "delivery_ratio": "float64",
+    "goodput_bps": "float64",
+    "latency_p50_s": "float64",
+    "latency_p95_s": "float64",
+    "mean_hops": "float64",
+}
+
+# A packet some of whose frames were still on their way when the run ended.
+IN_FLIGHT = "in_flight"
+
+# send(src, dst, kind, on_outcome) -> message id: the protocol's relay.
+# on_outcome(msg_id, delivered, now, hops, robot, cause).
+Outcome = Callable[[int, bool, float, int, int, str], None]
+Send = Callable[[int, int, str, Outcome], int]
+
+
+def frame_kind(nbytes: int) -> str:
+    """The channel's kind for a flow's frame of ``nbytes`` (a medium's airtime follows it)."""
+    return f"flow_{nbytes}B"
+
+
+class FlowTraffic:
+    """Sends the flows' packets through ``send`` and keeps every packet's fate."""
+
+    def __init__(self, traffic: Traffic, env: simpy.Environment, frame_bytes: dict[str, int], send: Send):
+        self.flows: tuple[Flow, ...] = traffic.flows
+        self.max_frame_bytes = traffic.max_frame_bytes
+        self.env, self.send = env, send
+        self.frame_bytes = frame_bytes
+        # One entry per packet, in order of sending: its row (a dict of PACKETS_SCHEMA).
+        self._packets: list[dict] = []
+
+    def start(self, end_s: float) -> None:
+        """Start every flow's packets, up to the run's end ``end_s``."""
+        for k, flow in enumerate(self.flows):
+            sizes = fragment_bytes(flow.packet_bytes, self.max_frame_bytes)
+            for nbytes in set(sizes):
+                self.frame_bytes[frame_kind(nbytes)] = nbytes
+            times = send_times(flow, end_s)
+            if times:
+                self.env.process(self._source(k, flow, times, sizes))
+
+    def _source(self, k: int, flow: Flow, times: list[float], sizes: list[int]):
+        env = self.env
+        for p, t in enumerate(times):
+            if t > env.now:
+                yield env.timeout(t - env.now)
+            self._send_packet(k, p, flow, sizes)
+
+    def _send_packet(self, k: int, p: int, flow: Flow, sizes: list[int]) -> None:
+        row = {
+            "flow": k,
+            "packet": p,
+            "src": flow.src,
+            "dst": flow.dst,
+            "bytes": flow.packet_bytes,
+            "frames": len(sizes),
+            "t_sent_s": self.env.now,
+            "delivered": False,
+            "t_delivered_s": np.nan,
+            "latency_s": np.nan,
+            "hops": 0,
+            "frames_delivered": 0,
+            "t_dropped_s": np.nan,
+            "drop_robot": -1,
+            "drop_cause": "",
+        }
+        self._packets.append(row)
+        # The row is the outcome's state: bound to it, no lookup by message id.
+        told = self._teller(row)
+        for nbytes in sizes:
+            self.send(flow.src, flow.dst, frame_kind(nbytes), told)
+
+    @staticmethod
+    def _teller(row: dict) -> Outcome:
+        def told(msg_id: int, delivered: bool, now: float, hops: int, robot: int, cause: str) -> None:
+            if delivered:
+                row["frames_delivered"] += 1
+                row["hops"] = max(row["hops"], hops)
+                if row["frames_delivered"] == row["frames"]:
+                    row.update(delivered=True, t_delivered_s=now, latency_s=now - row["t_sent_s"])
+            elif not row["drop_cause"]:
+                # The first frame lost loses the packet: it says where and why.
+                row.update(t_dropped_s=now, drop_robot=robot, drop_cause=cause)
+
+        return told
+
+    def packets_frame(self) -> pd.DataFrame:
+        """One row per packet sent (PACKETS_SCHEMA); a packet neither delivered nor dropped
+        when the run ended is ``in_flight``; ``hops`` of a delivered packet is its longest
+        frame's path (0 if not delivered)."""
+        df = pd.DataFrame(self._packets, columns=list(PACKETS_SCHEMA))
+        df = df.astype(PACKETS_SCHEMA)
+        pending = ~df["delivered"] & (df["drop_cause"] == "")
+        df.loc[pending, "drop_cause"] = IN_FLIGHT
+        df.loc[~df["delivered"], "hops"] = 0
+        return df
+
+    def flows_frame(self) -> pd.DataFrame:
+        """One row per flow (FLOWS_SCHEMA); goodput is the bits of the packets delivered over
+        the time the flow was on within the run (NaN if it never was)."""
+        return flows_table(self.flows, self.packets_frame(), self.env.now)
+
+
+def flows_table(flows: tuple[Flow, ...], packets: pd.DataFrame, end_s: float) -> pd.DataFrame:
+    """The ``flows`` table of the ``packets`` table of a run that ended at ``end_s``."""
+    rows = []
+    by_flow = dict(tuple(packets.groupby("flow"))) if len(packets) else {}
+    for k, f in enumerate(flows):
+        pk = by_flow.get(k, packets.iloc[:0])
+        got = pk[pk["delivered"]]
+        sent, delivered = len(pk), len(got)
+        on_s = min(f.stop_s, end_s) - f.start_s
+        lat = got["latency_s"].to_numpy()
+        rows.append(
+            {
+                "flow": k,
+                "src": f.src,
+                "dst": f.dst,
+                "packets_sent": sent,
+                "packets_delivered": delivered,
+                "delivery_ratio": delivered / sent if sent else np.nan,
+                "goodput_bps": float(got["bytes"].sum()) * 8.0 / on_s if on_s > 0 else np.nan,
+                "latency_p50_s": float(np.percentile(lat, 50)) if delivered else np.nan,
+                "latency_p95_s": float(np.percentile(lat, 95)) if delivered else np.nan,
+                "mean_hops": float(got["hops"].mean()) if delivered else np.nan,
+            }
+        )
+    return pd.DataFrame(rows, columns=list(FLOWS_SCHEMA)).astype(FLOWS_SCHEMA)

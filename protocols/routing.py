@@ -1,0 +1,203 @@
+"""What the routing protocols share (docs/routing.md, "Routing protocols"): data packets
+sent hop by hop as unicast frames, each holder asking the protocol for the next hop; the
+flows of ``traffic.flows`` carried that way; control frames counted by kind.
+
+A protocol subclasses :class:`Router` and implements :meth:`Router.next_hop` (and, if it
+learns of broken links, :meth:`Router.link_failed`); it sends its control frames with
+:meth:`Router.control`, which puts them on the channel as frames of their own kind and
+size, so that they take airtime, collide and are lost like any other.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+from netsim.protocols.ack import ACKS_SCHEMA
+from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
+from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
+
+from netsim.plugins import Parts
+
+# The tables every routing protocol writes (the flows' when there are flows), and its
+# control frames: per kind, the frames sent, their bytes, and their receptions.
+CONTROL_SCHEMA = {"kind": "object", "sent": "int64", "bytes_sent": "int64", "received": "int64"}
+ROUTING_TABLES = {
+    "roles": ROLES_SCHEMA,
+    "acks": ACKS_SCHEMA,
+    "flows": FLOWS_SCHEMA,
+    "packets": PACKETS_SCHEMA,
+    "control": CONTROL_SCHEMA,
+}
+
+Outcome = Callable[[int, bool, float, int, int, str], None]
+
+
+class Packet(NamedTuple):
+    """A data packet (one frame of a flow's packet) on its way."""
+
+    id: int
+    src: int
+    dst: int
+    ttl: int  # hops it may still take
+    hops: int  # hops taken so far
+    kind: str  # the channel's kind of its frame (its size)
+    t_sent_s: float
+    dst_xy: tuple[float, float] | None = None  # where the destination was (geographic routing)
+
+
+class Router:
+    """Data forwarding and bookkeeping of a routing protocol (module notes)."""
+
+    def __init__(self, parts: Parts, ttl: int):
+        self.env, self.state, self.channel = parts.env, parts.state, parts.channel
+        self.streams, self.trace = parts.streams, parts.trace
+        self.ttl = ttl
+        self._next_id = 0
+        self._told: dict[int, Outcome] = {}
+        # Per channel kind of control frame: its size and the kind it counts as (frames of
+        # one kind whose size varies, an OLSR HELLO, are channel kinds of their own).
+        self.control_bytes: dict[str, int] = {}
+        self.control_label: dict[str, str] = {}
+        self.control_sent: dict[str, int] = {}
+        self.control_received: dict[str, int] = {}
+        self.data_transmissions = 0
+        self.flows = None
+        if parts.traffic is not None:
+            self.flows = FlowTraffic(parts.traffic, self.env, self.channel.frame_bytes, self.send)
+        declare_roles(parts.trace)
+        channel = self.channel
+        self.trace.add_frame("acks", lambda: channel.frame("ack"))
+        self.trace.add_frame("control", self.control_frame)
+        self.duration_s = float(parts.duration_s)
+
+    def start(self) -> None:
+        """Start the flows (the protocol starts its own control traffic)."""
+        if self.flows is not None:
+            self.flows.start(self.duration_s)
+            self.trace.add_frame("packets", self.flows.packets_frame)
+            self.trace.add_frame("flows", self.flows.flows_frame)
+
+    # -- what a protocol implements ----------------------------------------------------
+    def next_hop(self, holder: int, pkt: Packet) -> tuple[int, str]:
+        """The neighbour ``holder`` sends ``pkt`` to, or ``(-1, cause)``: dropped here."""
+        raise NotImplementedError
+
+    def link_failed(self, holder: int, nxt: int, pkt: Packet) -> None:
+        """The frame ``holder`` sent ``nxt`` did not get through (link-layer detection)."""
+
+    # -- data ---------------------------------------------------------------------------
+    def send(self, src: int, dst: int, kind: str, on_outcome: Outcome) -> int:
+        """A data packet (frame of ``kind``) from ``src`` to ``dst`` now (FlowTraffic's send)."""
+        mid = self._next_id
+        self._next_id += 1
+        self._told[mid] = on_outcome
+        if kind not in self.channel.notify_empty:
+            self.channel.notify_empty.add(kind)  # under a medium, a unicast nobody got is told
+        pkt = Packet(mid, src, dst, self.ttl, 0, kind, self.env.now, self.destination_xy(dst))
+        self.originate(src, pkt)
+        return mid
+
+    def destination_xy(self, dst: int) -> tuple[float, float] | None:
+        """What the source puts in a packet of where its destination is (None: nothing)."""
+        return None
+
+    def originate(self, src: int, pkt: Packet) -> None:
+        """A packet leaves its source (a protocol that must first find a route overrides)."""
+        self.forward(src, pkt)
+
+    def forward(self, holder: int, pkt: Packet) -> None:
+        """``holder`` has ``pkt`` (not its destination): send it on, or drop it here."""
+        if pkt.ttl <= 0:
+            self.dropped(pkt, holder, "ttl")
+            return
+        nxt, cause = self.next_hop(holder, pkt)
+        if nxt < 0:
+            self.dropped(pkt, holder, cause)
+            return
+        self.data_transmissions += 1
+        if not self.channel.unicast(holder, nxt, pkt, self._on_data, kind=pkt.kind):
+            self.link_failed(holder, nxt, pkt)
+            self.dropped(pkt, holder, "lost")
+
+    def _on_data(self, sender: int, receivers: np.ndarray, pkt: Packet) -> None:
+        if not len(receivers):
+            # A shared medium: the frame did not get through.
+            self.link_failed(sender, -1, pkt)
+            self.dropped(pkt, sender, "lost")
+            return
+        holder = int(receivers[0])
+        pkt = pkt._replace(ttl=pkt.ttl - 1, hops=pkt.hops + 1)
+        if holder == pkt.dst:
+            told = self._told.pop(pkt.id, None)
+            if told is not None:
+                told(pkt.id, True, self.env.now, pkt.hops, -1, "")
+        else:
+            self.forward(holder, pkt)
+
+    def dropped(self, pkt: Packet, robot: int, cause: str) -> None:
+        """``pkt`` is lost at ``robot`` for ``cause``."""
+        told = self._told.pop(pkt.id, None)
+        if told is not None:
+            told(pkt.id, False, self.env.now, pkt.hops, robot, cause)
+
+    # -- control ------------------------------------------------------------------------
+    def control_kind(self, kind: str, nbytes: int, label: str = "") -> None:
+        """Declare a kind of control frame, its size (bytes), and the kind it is counted as
+        in the ``control`` table (``label``; default the kind itself)."""
+        self.control_bytes[kind] = nbytes
+        self.control_label[kind] = label or kind
+        self.channel.frame_bytes[kind] = nbytes
+        self.control_sent.setdefault(kind, 0)
+        self.control_received.setdefault(kind, 0)
+
+    def control(self, sender: int, payload: object, deliver: Callable, kind: str, dest: int = -1) -> None:
+        """Send a control frame of ``kind`` (a broadcast, or a unicast to ``dest``)."""
+        self.control_sent[kind] += 1
+        if dest < 0:
+            self.channel.broadcast(sender, payload, self._counted(deliver, kind), kind=kind)
+        else:
+            self.channel.unicast(sender, dest, payload, self._counted(deliver, kind), kind=kind)
+
+    def _counted(self, deliver: Callable, kind: str) -> Callable:
+        received = self.control_received
+
+        def counted(sender: int, receivers: np.ndarray, payload: object, *rest) -> None:
+            received[kind] += len(receivers)
+            if len(receivers):
+                deliver(sender, receivers, payload)
+
+        return counted
+
+    def control_frame(self) -> pd.DataFrame:
+        """Per kind of control frame: the frames sent, their bytes and their receptions."""
+        rows: dict[str, list[int]] = {}
+        for k, label in self.control_label.items():
+            row = rows.setdefault(label, [0, 0, 0])
+            row[0] += self.control_sent[k]
+            row[1] += self.control_sent[k] * self.control_bytes[k]
+            row[2] += self.control_received[k]
+        labels = sorted(rows)
+        return pd.DataFrame(
+            {
+                "kind": labels,
+                "sent": [rows[k][0] for k in labels],
+                "bytes_sent": [rows[k][1] for k in labels],
+                "received": [rows[k][2] for k in labels],
+            }
+        ).astype(CONTROL_SCHEMA)
+
+    def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
+        """Control overhead, and the flows' delivery."""
+        sent = sum(self.control_sent.values())
+        out = {
+            "control_frames": sent,
+            "control_frames_per_s": sent / duration_s if duration_s else float("nan"),
+            "data_transmissions": self.data_transmissions,
+        }
+        packets = frames.get("packets")
+        if packets is not None and len(packets):
+            out["packet_delivery_ratio"] = float(packets["delivered"].mean())
+        return out

@@ -1,0 +1,162 @@
+"""Traffic flows (traffic.flows): packets of a flow's size and rate, split into frames of
+channel.max_frame_bytes and delivered only whole; the flows and packets tables; bad flows
+refused in one line."""
+
+import numpy as np
+import pytest
+
+from netsim.errors import ConfigError
+from netsim.run import build, collect
+from netsim.tools.cli import main
+from netsim.traffic import Flow, fragment_bytes, send_times
+from tests.fixtures import make_config
+
+
+def _line_csv(tmp_path, n, spacing_m):
+    path = tmp_path / "line.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{50 + i * spacing_m},500\n" for i in range(n)))
+    return str(path)
+
+
+def _line_run(tmp_path, flows, n=5, spacing_m=100.0, duration_s=30.0, protocol=None, channel=None):
+    config = make_config(
+        seed=2,
+        duration_s=duration_s,
+        world={"n_robots": n, "side_m": 1000.0, "placement": _line_csv(tmp_path, n, spacing_m)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0, **(channel or {})},
+        protocol={"message_rate_hz": 0.0, **(protocol or {})},
+        traffic={"flows": flows},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    return collect(sim)
+
+
+FLOW = {"src": 0, "dst": 4, "start_s": 10.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 1000}
+
+
+def test_send_times_follow_rate_and_stop_at_stop_s():
+    """A flow sends a packet every packet_bytes * 8 / rate_bps seconds from start_s, none at
+    or after stop_s, none after the run's end."""
+    f = Flow(0, 1, 2.0, 12.0, 8000.0, 1000)
+    assert send_times(f, 100.0) == [2.0 + k for k in range(10)]
+    assert send_times(f, 5.5) == [2.0, 3.0, 4.0, 5.0]
+    assert send_times(f, 1.0) == []
+
+
+def test_payload_over_max_frame_bytes_is_split_into_frames():
+    """A packet over channel.max_frame_bytes travels as full frames and the rest; the sizes
+    add up to the packet."""
+    for size in (1, 1499, 1500, 1501, 4000, 30000):
+        frames = fragment_bytes(size, 1500)
+        assert sum(frames) == size and all(0 < b <= 1500 for b in frames)
+        assert len(frames) == -(-size // 1500)
+
+
+@pytest.mark.parametrize("routing", ["oracle", "backbone"])
+def test_flow_on_a_static_line_is_delivered_over_its_hops(tmp_path, routing):
+    """On a connected static line without loss every packet of a flow from one end to the
+    other arrives (once the backbone has formed), over the line's hops; the flows table
+    sums the packets table."""
+    frames = _line_run(tmp_path, [FLOW], protocol={"routing": routing})
+    packets, flows = frames["packets"], frames["flows"]
+    assert len(packets) == 10 and packets["delivered"].all()
+    assert (packets["frames"] == 1).all()
+    if routing == "oracle":
+        assert (packets["hops"] == 4).all()
+    row = flows.iloc[0]
+    assert row["packets_sent"] == 10 and row["packets_delivered"] == 10 and row["delivery_ratio"] == 1.0
+    assert row["goodput_bps"] == pytest.approx(8000.0)
+    assert row["latency_p50_s"] == pytest.approx(np.percentile(packets["latency_s"], 50))
+    assert list(flows.columns) == [
+        "flow",
+        "src",
+        "dst",
+        "packets_sent",
+        "packets_delivered",
+        "delivery_ratio",
+        "goodput_bps",
+        "latency_p50_s",
+        "latency_p95_s",
+        "mean_hops",
+    ]
+
+
+def test_packet_is_delivered_only_whole(tmp_path):
+    """A packet split into frames counts as delivered only if every frame arrives: with a
+    lossy channel, a packet some of whose frames arrived and others not is not delivered,
+    and every delivered packet had all its frames delivered."""
+    big = {**FLOW, "dst": 2, "packet_bytes": 6000, "rate_bps": 48000.0}
+    frames = _line_run(
+        tmp_path,
+        [big],
+        n=3,
+        protocol={"routing": "oracle"},
+        channel={"loss_probability": 0.2},
+    )
+    packets = frames["packets"]
+    assert (packets["frames"] == 4).all()
+    assert (packets["frames_delivered"][packets["delivered"]] == 4).all()
+    partial = packets[(packets["frames_delivered"] > 0) & (packets["frames_delivered"] < 4)]
+    assert len(partial) > 0 and not partial["delivered"].any()
+    assert (partial["drop_cause"] == "lost").all()
+    assert packets["delivered"].any()
+
+
+def test_dropped_packet_says_where_and_why(tmp_path):
+    """A packet that cannot reach its destination (a gap in the line) is dropped at the
+    robot that held it, for want of a route (oracle routing)."""
+    flow = {**FLOW, "dst": 2}
+    path = tmp_path / "gap.csv"
+    path.write_text("x_m,y_m\n100,500\n200,500\n600,500\n")
+    config = make_config(
+        seed=2,
+        duration_s=20.0,
+        world={"n_robots": 3, "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"message_rate_hz": 0.0, "routing": "oracle"},
+        traffic={"flows": [flow]},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    packets = collect(sim)["packets"]
+    assert not packets["delivered"].any()
+    assert (packets["drop_cause"] == "no_route").all() and (packets["drop_robot"] == 0).all()
+
+
+BAD_FLOWS = [
+    ({**FLOW, "dst": 9}, "traffic.flows[0].dst = 9: no such robot"),
+    ({**FLOW, "stop_s": 1.0}, "traffic.flows[0].stop_s = 1.0: must be after"),
+    ({**FLOW, "rate_bps": 0}, "traffic.flows[0].rate_bps = 0.0: must be > 0"),
+    ({**FLOW, "packet_bytes": -5}, "traffic.flows[0].packet_bytes = -5: must be > 0"),
+    ({**FLOW, "colour": 1}, "traffic.flows[0].colour"),
+]
+
+
+@pytest.mark.parametrize("flow, words", BAD_FLOWS)
+def test_bad_flow_is_refused_naming_it(flow, words):
+    """A flow naming a robot that does not exist, stopping before it starts, or with a rate
+    or size that is not positive is a ConfigError naming the flow's key."""
+    with pytest.raises(ConfigError) as err:
+        make_config(world={"n_robots": 5}, traffic={"flows": [flow]})
+    assert words in str(err.value)
+
+
+def test_flows_need_a_protocol_that_carries_them():
+    """Flows under a protocol that relays nothing (ack) are refused, not silently unsent."""
+    with pytest.raises(ConfigError, match="relays no messages"):
+        make_config(world={"n_robots": 5}, protocol={"model": "ack"}, traffic={"flows": [FLOW]})
+
+
+def test_cli_bad_flow_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys):
+    """`netsim run` with a bad flow: one line `netsim: error: ...`, exit 2, nothing written."""
+    flow = "{src=0, dst=99, start_s=0, stop_s=5, rate_bps=1000, packet_bytes=100}"
+    code = main(["run", "--quiet", "--out", str(tmp_path / "out"), "--set", f"traffic.flows=[{flow}]"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0].startswith("netsim: error: traffic.flows[0].dst = 99")
+    assert not (tmp_path / "out").exists()

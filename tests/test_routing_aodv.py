@@ -1,0 +1,149 @@
+"""AODV (RFC 3561), rule by rule: destination sequence numbers, route errors, the expanding
+ring; and a flow over a static line."""
+
+import numpy as np
+import pytest
+from netsim.protocols.aodv import AodvParams, RouteTable, ring_ttls, seq_newer
+
+from netsim.errors import ConfigError
+from netsim.run import build, collect
+from tests.fixtures import make_config
+
+
+def _run(tmp_path, xy, flows, duration_s=30.0, **protocol):
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
+    config = make_config(
+        seed=5,
+        duration_s=duration_s,
+        world={"n_robots": len(xy), "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"model": "aodv", **protocol},
+        traffic={"flows": flows},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    return sim, collect(sim)
+
+
+def test_stale_sequence_number_never_replaces_fresher_route():
+    """A route offered with an older destination sequence number never replaces a known
+    one, however short; the same number replaces it only when shorter; a newer one always
+    does (RFC 3561 6.2), across the 32-bit rollover. Over random offers the table's
+    sequence number never goes back."""
+    t = RouteTable()
+    t.offer(9, next_hop=1, hops=4, seq=10, valid_seq=True, expires_s=100.0)
+    assert not t.offer(9, 2, 1, 9, True, 100.0) and t.routes[9].next_hop == 1
+    assert not t.offer(9, 2, 5, 10, True, 100.0) and t.routes[9].next_hop == 1
+    assert not t.offer(9, 2, 1, 0, False, 100.0) and t.routes[9].next_hop == 1
+    assert t.offer(9, 2, 3, 10, True, 100.0) and t.routes[9].next_hop == 2
+    assert t.offer(9, 3, 8, 11, True, 100.0) and t.routes[9].next_hop == 3
+    t.offer(7, 1, 2, 2**32 - 1, True, 100.0)
+    assert seq_newer(0, 2**32 - 1) and t.offer(7, 2, 9, 0, True, 100.0)
+    rng = np.random.default_rng(3)
+    t, best = RouteTable(), None
+    for _ in range(2000):
+        seq = int(rng.integers(0, 20))
+        t.offer(5, int(rng.integers(10)), int(rng.integers(1, 10)), seq, True, 100.0)
+        best = seq if best is None or seq > best else best
+        assert t.routes[5].seq == best
+
+
+def test_route_error_invalidates_routes_through_the_broken_link():
+    """A broken link to a next hop invalidates every valid route through it (their
+    sequence numbers increased) and no other, and names them for the RERR; a RERR from a
+    neighbour invalidates the listed routes through that neighbour alone (6.11, 6.12)."""
+    t = RouteTable()
+    for dst, nh in ((3, 1), (4, 1), (5, 2), (6, 1)):
+        t.offer(dst, nh, 2, 10, True, 100.0)
+    t.routes[6].precursors.add(8)
+    lost = t.break_link(1, now=50.0, delete_period_s=15.0)
+    assert sorted(d for d, _, _ in lost) == [3, 4, 6]
+    assert all(seq == 11 for _, seq, _ in lost) and [p for d, _, p in lost if d == 6] == [{8}]
+    assert t.active(5, 50.0) is not None and all(t.active(d, 50.0) is None for d in (3, 4, 6))
+    u = RouteTable()
+    for dst, nh in ((3, 1), (4, 2), (5, 1)):
+        u.offer(dst, nh, 2, 10, True, 100.0)
+    got = u.on_rerr(1, [(3, 12), (4, 12)], now=50.0, delete_period_s=15.0)
+    assert [(d, s) for d, s, _ in got] == [(3, 12)]
+    assert u.active(3, 50.0) is None and u.active(4, 50.0) is not None and u.active(5, 50.0) is not None
+
+
+def test_expanding_ring_ttls(tmp_path):
+    """A route discovery's RREQs go out with TTL_START, + TTL_INCREMENT up to
+    TTL_THRESHOLD, then NET_DIAMETER for 1 + RREQ_RETRIES tries (RFC 3561 6.4); a run finds a
+    destination five hops away at the third ring, and gives up on an unreachable one after
+    every ring, dropping its packets for want of a route."""
+    assert ring_ttls(AodvParams()) == [1, 3, 5, 7, 35, 35, 35]
+    assert ring_ttls(AodvParams(ttl_start=2, ttl_increment=3, ttl_threshold=9, rreq_retries=1)) == [2, 5, 8, 35, 35]
+    flow = {"src": 0, "dst": 5, "start_s": 10.0, "stop_s": 10.5, "rate_bps": 8000.0, "packet_bytes": 1000}
+    sim, frames = _run(tmp_path, [(50 + 100 * i, 500) for i in range(6)], [flow])
+    assert [ttl for _, _, _, ttl in sim.models["protocol"].rreqs_originated] == [1, 3, 5]
+    assert frames["packets"]["delivered"].all() and (frames["packets"]["hops"] == 5).all()
+    sim, frames = _run(tmp_path, [(50, 500), (150, 500), (900, 900)], [{**flow, "dst": 2}], duration_s=40.0)
+    assert [ttl for _, _, _, ttl in sim.models["protocol"].rreqs_originated] == [1, 3, 5, 7, 35, 35, 35]
+    assert (frames["packets"]["drop_cause"] == "no_route").all()
+
+
+def test_aodv_delivers_along_a_static_line_with_control_frames_of_the_rfc_sizes(tmp_path):
+    """Every packet of a flow down a static line arrives over the line's hops; RREQ, RREP
+    and hello frames are sent with RFC 3561's sizes (24, 20, 20 bytes)."""
+    flow = {"src": 0, "dst": 4, "start_s": 10.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 1000}
+    sim, frames = _run(tmp_path, [(50 + 100 * i, 500) for i in range(5)], [flow])
+    assert frames["packets"]["delivered"].all() and (frames["packets"]["hops"] == 4).all()
+    control = frames["control"].set_index("kind")
+    assert dict(control["bytes_sent"] / control["sent"]) == {"hello": 20, "rrep": 20, "rreq": 24}
+    assert (control["sent"] > 0).all()
+
+
+def test_aodv_parameter_out_of_range_is_refused():
+    """A TTL threshold beyond the network diameter is refused, naming the key."""
+    with pytest.raises(ConfigError, match="protocol.ttl_threshold = 40"):
+        make_config(protocol={"model": "aodv", "ttl_threshold": 40})
+
+
+BREAK = """$node_(0) set X_ 50.0
+$node_(0) set Y_ 500.0
+$node_(1) set X_ 150.0
+$node_(1) set Y_ 500.0
+$node_(2) set X_ 250.0
+$node_(2) set Y_ 500.0
+$node_(3) set X_ 350.0
+$node_(3) set Y_ 500.0
+$ns_ at 15.0 "$node_(2) setdest 250.0 900.0 50.0"
+"""
+
+
+def test_route_error_reaches_the_source_when_a_link_of_its_route_breaks(tmp_path):
+    """Robot 2 of the line 0-1-2-3 walks away while 0 sends to 3: robot 1 finds the link
+    broken when a packet does not get through (link-layer detection), drops that packet
+    there, invalidates its routes through 2 and sends a RERR to its precursor 0, whose
+    route to 3 becomes invalid too; later packets wait for a new route."""
+    trace = tmp_path / "break.ns2"
+    trace.write_text(BREAK)
+    config = make_config(
+        seed=2,
+        duration_s=30.0,
+        world={"n_robots": 4, "side_m": 1000.0},
+        mobility={"model": "trace", "trace_file": str(trace)},
+        channel={"range_m": 120.0},
+        protocol={"model": "aodv"},
+        traffic={
+            "flows": [{"src": 0, "dst": 3, "start_s": 10.0, "stop_s": 25.0, "rate_bps": 8000.0, "packet_bytes": 1000}]
+        },
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    aodv = sim.models["protocol"]
+    assert not aodv.tables[1].routes[3].valid and not aodv.tables[0].routes[3].valid
+    control = frames["control"].set_index("kind")
+    assert control.loc["rerr", "sent"] >= 1 and control.loc["rerr", "received"] >= 1
+    packets = frames["packets"]
+    lost = packets[packets["drop_cause"] == "lost"]
+    assert len(lost) == 1 and lost["drop_robot"].iloc[0] == 1
+    assert packets[packets["t_sent_s"] < 15.0]["delivered"].all()
+    assert (packets[packets["t_sent_s"] > lost["t_sent_s"].iloc[0]]["drop_cause"] == "in_flight").all()

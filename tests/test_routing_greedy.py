@@ -1,0 +1,104 @@
+"""Greedy geographic forwarding (protocol.model = "greedy"): its forwarding rule, its
+documented behaviour at a local maximum, and its parameters' ranges."""
+
+import numpy as np
+import pytest
+from netsim.protocols.greedy import greedy_next_hop
+
+from netsim.errors import ConfigError
+from netsim.run import build, collect
+from netsim.tools.cli import main
+from tests.fixtures import make_config
+
+FLOW = {"src": 0, "dst": 4, "start_s": 10.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 1000}
+
+
+def _run(tmp_path, xy, flows, duration_s=30.0, **protocol):
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
+    config = make_config(
+        seed=4,
+        duration_s=duration_s,
+        world={"n_robots": len(xy), "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"model": "greedy", **protocol},
+        traffic={"flows": flows},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    return sim, collect(sim)
+
+
+def test_greedy_never_forwards_away_from_the_destination():
+    """The next hop is always strictly closer to the destination than the holder (by the
+    positions the holder knows), the closest such neighbour; and there is none (-1, a local
+    maximum) exactly when no neighbour is closer. Random neighbourhoods, many of them with
+    every neighbour farther."""
+    rng = np.random.default_rng(7)
+    maxima = forwarded = 0
+    for _ in range(3000):
+        k = int(rng.integers(0, 8))
+        own, dst = rng.uniform(0, 100, 2), rng.uniform(0, 100, 2)
+        ids = rng.choice(50, k, replace=False)
+        xy = own + rng.uniform(-20, 20, (k, 2))
+        nxt = greedy_next_hop(own, dst, ids, xy)
+        d = np.hypot(*(xy - dst).T)
+        own_d = np.hypot(*(own - dst))
+        if nxt < 0:
+            maxima += 1
+            assert not (d < own_d).any()
+        else:
+            forwarded += 1
+            j = int(np.flatnonzero(ids == nxt)[0])
+            assert d[j] < own_d and d[j] == d.min()
+    assert maxima > 300 and forwarded > 300
+
+
+def test_greedy_delivers_along_a_static_line(tmp_path):
+    """On a connected static line, every packet goes straight down the line: delivered, in
+    as many hops as robots in between plus one; position beacons are counted as control."""
+    sim, frames = _run(tmp_path, [(50 + 100 * i, 500) for i in range(5)], [FLOW])
+    packets = frames["packets"]
+    assert packets["delivered"].all() and (packets["hops"] == 4).all()
+    control = frames["control"].set_index("kind")
+    sent = control.loc["beacon", "sent"]
+    assert sent > 0 and control.loc["beacon", "bytes_sent"] == 24 * sent
+
+
+def test_local_maximum_drops_the_packet_there(tmp_path):
+    """A holder with no neighbour closer to the destination than itself drops the packet
+    (drop_cause local_maximum, at that holder): no perimeter recovery, no transmission."""
+    xy = [(100, 500), (50, 580), (400, 500)]  # robot 1 is behind robot 0; the destination is alone
+    sim, frames = _run(tmp_path, xy, [{**FLOW, "dst": 2}])
+    packets = frames["packets"]
+    assert len(packets) == 10 and not packets["delivered"].any()
+    assert (packets["drop_cause"] == "local_maximum").all() and (packets["drop_robot"] == 0).all()
+    assert sim.models["protocol"].data_transmissions == 0
+
+
+@pytest.mark.parametrize(
+    "key, value, words",
+    [
+        ("beacon_jitter_s", 0.6, "protocol.beacon_jitter_s = 0.6: must be less than half"),
+        ("beacon_period_s", 0.0, "protocol.beacon_period_s = 0.0: must be > 0"),
+        ("neighbour_timeout_s", 1.0, "protocol.neighbour_timeout_s = 1.0: must be greater than"),
+        ("hop_limit", 0, "protocol.hop_limit = 0: must be > 0"),
+    ],
+)
+def test_greedy_parameter_out_of_range_is_refused(key, value, words):
+    """A greedy parameter out of its range is a ConfigError naming the key."""
+    with pytest.raises(ConfigError) as err:
+        make_config(protocol={"model": "greedy", key: value})
+    assert words in str(err.value)
+
+
+def test_cli_greedy_parameter_out_of_range_exits_2(tmp_path, capsys):
+    """`netsim run` with a routing parameter out of range: one line, exit 2, nothing written."""
+    out = tmp_path / "out"
+    sets = ["--set", "protocol.model=greedy", "--set", "protocol.hop_limit=0"]
+    code = main(["run", "--quiet", "--out", str(out), *sets])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("netsim: error: protocol.hop_limit = 0")
+    assert not out.exists()
