@@ -12,6 +12,7 @@ from typing import Any
 
 from cyclonedds.core import Policy, Qos
 from cyclonedds.domain import DomainParticipant
+from cyclonedds.internal import InvalidSample
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
@@ -59,10 +60,5 @@ def take_all(reader: DataReader) -> list[Any]:
         got = reader.take(N=64)
         if not got:
             return out
-        out.extend(s for s in got if s is not None and not _is_invalid(s))
-
-
-def _is_invalid(sample: Any) -> bool:
-    # A disposed or unregistered instance comes as a sample without data.
-    info = getattr(sample, "sample_info", None)
-    return info is not None and not info.valid_data
+        # A writer that goes away leaves a sample without data (InvalidSample).
+        out.extend(s for s in got if s is not None and not isinstance(s, InvalidSample))
