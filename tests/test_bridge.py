@@ -188,6 +188,7 @@ def wait_for(reader: DataReader, proc: subprocess.Popen, what: str, timeout_s: f
     raise AssertionError(f"no {what} within {timeout_s} s")
 
 
+@pytest.mark.slow
 def test_twist_on_cmd_vel_moves_robot_at_that_velocity(tmp_path):
     """A Twist on /robot_0/cmd_vel moves robot 0 at its linear.x, linear.y (world frame, m/s)
     from the simulated instant the bridge takes it: its odometry tells that velocity and
@@ -221,6 +222,7 @@ def test_twist_on_cmd_vel_moves_robot_at_that_velocity(tmp_path):
     assert not len(legs[(legs["robot"] != 0) & (legs["cause"] == "command")])
 
 
+@pytest.mark.slow
 def test_clock_advances_at_the_rate_asked(tmp_path):
     """/clock (ROS 2's clock QoS) steps by one control period of simulated time and, at
     --rate R, never runs ahead of R simulated seconds per wall second."""
@@ -248,6 +250,7 @@ def test_clock_advances_at_the_rate_asked(tmp_path):
     assert summary["bridge_rate"] == rate and summary["bridge_lag_max_s"] >= 0
 
 
+@pytest.mark.slow
 def test_relayed_message_arrives_with_the_channel_latency_while_the_link_is_up_and_not_after(tmp_path):
     """A message robot 0 publishes on /robot_0/tx/chat reaches /robot_1/rx/chat while the
     channel links them, channel.latency_s later (relay.parquet), and none sent after the
@@ -291,6 +294,7 @@ def test_relayed_message_arrives_with_the_channel_latency_while_the_link_is_up_a
     assert len(got) == len(set(got)) == len(to_1)
 
 
+@pytest.mark.slow
 def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
     """SIGINT (Ctrl-C) ends a bridge before duration_s with exit status 0 and the run's
     tables written up to that instant."""

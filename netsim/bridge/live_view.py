@@ -160,7 +160,7 @@ class LiveView:
         stamp = Timestamp(int(t_s // 1), _ns(t_s % 1.0) % 1_000_000_000)
         size = Vector3(x=2.0, y=2.0, z=2.0)
         spheres = [
-            SpherePrimitive(pose=Pose(position=Point3(x=x, y=y, z=0.0), orientation=Quaternion(w=1.0)), size=size, color=_colour(c))
+            SpherePrimitive(pose=Pose(position=Vector3(x=x, y=y, z=0.0), orientation=Quaternion(w=1.0)), size=size, color=_colour(c))
             for (x, y), c in zip(pos.tolist(), rgba, strict=True)
         ]
         points = [Point3(x=float(pos[k, 0]), y=float(pos[k, 1]), z=0.0) for ab in sorted(self.up) for k in ab]
@@ -170,7 +170,7 @@ class LiveView:
                 thickness=0.5,
                 points=points,
                 color=_colour((0.1, 0.6, 0.1, 0.8)),
-                pose=Pose(position=Point3(), orientation=Quaternion(w=1.0)),
+                pose=Pose(position=Vector3(), orientation=Quaternion(w=1.0)),
             )
         ]
         entities = [
