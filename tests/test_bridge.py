@@ -28,7 +28,9 @@ from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
 
 COMMAND = str(Path(sys.executable).with_name("netsim"))
-RELIABLE = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(10))
+RELIABLE = Qos(
+    Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(10)
+)
 CLOCK_QOS = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(1))
 
 
@@ -325,7 +327,14 @@ def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
         ([], ["--rate", "-2"], "--rate -2: must be a positive"),
         (["mobility.model=random_waypoint"], [], "mobility.model = 'random_waypoint'"),
     ],
-    ids=["unknown_relay_type", "domain_id_too_large", "domain_id_negative", "rate_zero", "rate_negative", "not_external"],
+    ids=[
+        "unknown_relay_type",
+        "domain_id_too_large",
+        "domain_id_negative",
+        "rate_zero",
+        "rate_negative",
+        "not_external",
+    ],
 )
 def test_bad_bridge_input_is_one_line_and_exit_2(tmp_path, capsys, sets, flags, message):
     """An unknown relay type, a domain id outside 0..232, a --rate not positive, a mobility

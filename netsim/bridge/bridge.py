@@ -7,7 +7,7 @@ and relayed messages out, on the topics below (``i`` a robot id).
 | ``/robot_i/odom`` | nav_msgs/msg/Odometry | out |
 | ``/robot_i/neighbours`` | std_msgs/msg/Int32MultiArray | out |
 | ``/clock`` | rosgraph_msgs/msg/Clock | out |
-| ``/network/links`` | visualization_msgs/msg/MarkerArray | out |
+| ``/network/links`` | visualization_msgs/msg/MarkerArray | out, ``LINKS_HZ`` per simulated s |
 | ``/robot_i/tx/<name>`` | the relay's type | in |
 | ``/robot_i/rx/<name>`` | the relay's type | out |
 
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from netsim.bridge.messages import idl_type, stamp, zero
-from netsim.bridge.node import CLOCK_QOS, Node, take_all
+from netsim.bridge.node import CLOCK_QOS, Node, Template, serialized, take_all, write_bytes
 from netsim.bridge.relay import ChannelRelay
 from netsim.bridge.settings import BridgeSettings
 
@@ -34,8 +34,39 @@ CLOCK = "rosgraph_msgs/msg/Clock"
 NEIGHBOURS = "std_msgs/msg/Int32MultiArray"
 MARKERS = "visualization_msgs/msg/MarkerArray"
 LINKS_TOPIC = "/network/links"
+# The links' markers per simulated second (at most one per step): Cyclone's Python
+# serializer takes longer over a MarkerArray than over everything else a step publishes.
+LINKS_HZ = 2.0
 # The colours of the roles in the links' markers (RGBA), by role label; grey otherwise.
 ROLE_RGBA = {"leader": (0.85, 0.2, 0.2, 1.0), "member": (0.2, 0.45, 0.85, 1.0), "undecided": (0.6, 0.6, 0.6, 1.0)}
+
+
+def _set(path: str) -> Any:
+    """A function that sets the field at the dotted ``path`` of a message."""
+    *parents, leaf = path.split(".")
+
+    def set_field(message: Any, value: Any) -> None:
+        for p in parents:
+            message = getattr(message, p)
+        setattr(message, leaf, value)
+
+    return set_field
+
+
+def odometry(writer: Any, robot: int) -> Template:
+    """Robot ``robot``'s odometry, its stamp, position and velocity patched at each write."""
+    msg = zero(ODOM)
+    msg.header.frame_id, msg.child_frame_id = FRAME, f"robot_{robot}"
+    msg.pose.pose.orientation.w = 1.0
+    fields = {
+        "sec": ("<i", _set("header.stamp.sec")),
+        "nanosec": ("<I", _set("header.stamp.nanosec")),
+        "x": ("<d", _set("pose.pose.position.x")),
+        "y": ("<d", _set("pose.pose.position.y")),
+        "vx": ("<d", _set("twist.twist.linear.x")),
+        "vy": ("<d", _set("twist.twist.linear.y")),
+    }
+    return Template(writer, msg, fields)
 
 
 class RosBridge:
@@ -46,15 +77,23 @@ class RosBridge:
         n = sim.state.n
         self.node = node = Node(settings.domain_id)
         self.cmd = [node.reader(f"/robot_{i}/cmd_vel", TWIST) for i in range(n)]
-        self.odom = [node.writer(f"/robot_{i}/odom", ODOM) for i in range(n)]
+        self.odom = [odometry(node.writer(f"/robot_{i}/odom", ODOM), i) for i in range(n)]
         self.neigh = [node.writer(f"/robot_{i}/neighbours", NEIGHBOURS) for i in range(n)]
+        # Each robot's neighbours as last serialized: a list is serialized again only when it changes.
+        self._neigh_sent: list[tuple[tuple[int, ...], bytes] | None] = [None] * n
         self.clock = node.writer("/clock", CLOCK, qos=CLOCK_QOS)
         self.links = node.writer(LINKS_TOPIC, MARKERS)
         self.relay = ChannelRelay(sim, [r.name for r in settings.relay])
-        self.tx = {r.name: [node.reader(f"/robot_{i}/tx/{r.name}", r.msgtype) for i in range(n)] for r in settings.relay}
-        self.rx = {r.name: [node.writer(f"/robot_{i}/rx/{r.name}", r.msgtype) for i in range(n)] for r in settings.relay}
+        self.tx = {
+            r.name: [node.reader(f"/robot_{i}/tx/{r.name}", r.msgtype) for i in range(n)] for r in settings.relay
+        }
+        self.rx = {
+            r.name: [node.writer(f"/robot_{i}/rx/{r.name}", r.msgtype) for i in range(n)] for r in settings.relay
+        }
         self.topology = sim.live_topology() if sim.config.events.runtime_links != "off" else None
         self.commands = 0
+        self._links_every = max(1, round(settings.odom_hz / LINKS_HZ))
+        self._steps = 0
         self._types = {name: idl_type(name) for name in (ODOM, CLOCK, NEIGHBOURS, MARKERS)}
 
     # -- in ------------------------------------------------------------------------------
@@ -82,20 +121,21 @@ class RosBridge:
         self.clock.write(self._types[CLOCK](clock=now))
         pos = sim.positions()
         vel = sim.state.velocity_mps
-        for i, writer in enumerate(self.odom):
-            msg = zero(ODOM)
-            msg.header.stamp, msg.header.frame_id = now, FRAME
-            msg.child_frame_id = f"robot_{i}"
-            msg.pose.pose.position.x, msg.pose.pose.position.y = float(pos[i, 0]), float(pos[i, 1])
-            msg.pose.pose.orientation.w = 1.0
-            msg.twist.twist.linear.x, msg.twist.twist.linear.y = float(vel[i, 0]), float(vel[i, 1])
-            writer.write(msg)
+        sec, nanosec = now.sec, now.nanosec
+        for i, (x, y), (vx, vy) in zip(range(len(pos)), pos.tolist(), vel.tolist(), strict=True):
+            self.odom[i].write(sec=sec, nanosec=nanosec, x=x, y=y, vx=vx, vy=vy)
         if sim.neighbour_view is not None:
             for i, writer in enumerate(self.neigh):
-                msg = zero(NEIGHBOURS)
-                msg.data = [int(j) for j in sim.neighbours(i)]
-                writer.write(msg)
-        self.links.write(self._markers(now, pos))
+                ids = tuple(int(j) for j in sim.neighbours(i))
+                sent = self._neigh_sent[i]
+                if sent is None or sent[0] != ids:
+                    msg = zero(NEIGHBOURS)
+                    msg.data = list(ids)
+                    sent = self._neigh_sent[i] = (ids, serialized(writer, msg))
+                write_bytes(writer, sent[1])
+        if self._steps % self._links_every == 0:
+            self.links.write(self._markers(now, pos))
+        self._steps += 1
         for robot, name, message in self.relay.take():
             self.rx[name][robot].write(message)
 

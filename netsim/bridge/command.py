@@ -10,6 +10,7 @@ from __future__ import annotations
 import signal
 import sys
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -23,7 +24,7 @@ LIVE_STEP_S = 0.1
 
 
 @contextmanager
-def _stop_on_signals(pacer: Pacer):
+def _stop_on_signals(pacer: Pacer) -> Iterator[None]:
     """Ctrl-C and SIGTERM stop ``pacer`` at its next step instead of raising."""
 
     def stop(signum: int, frame: object) -> None:

@@ -5,13 +5,13 @@ happens, for the Foxglove app (``Open connection`` > ``Foxglove WebSocket``,
 Channels (every message's log time is its simulated instant, and the server tells the
 app the simulated time):
 
-| topic | schema | when |
-| --- | --- | --- |
-| ``/netsim/scene`` | ``foxglove.SceneUpdate``: a sphere per robot, coloured by role, and the links as lines, frame ``world`` | every step |
-| ``/netsim/poses`` | JSON ``{t_s, x_m: [...], y_m: [...], vx_mps: [...], vy_mps: [...]}`` | every step |
-| ``/netsim/roles`` | JSON ``{t_s, robot, role, leader, cause}`` | each role change |
-| ``/netsim/links`` | JSON ``{t_s, a, b, up}`` | each link up or down |
-| ``/netsim/messages`` | JSON ``{t_s, msg_id, src, dst, hops, delivered, latency_s, cause}`` | each message delivered or dropped end to end |
+- ``/netsim/scene``: ``foxglove.SceneUpdate``, a sphere per robot coloured by role and the
+  links as lines, frame ``world``; every step;
+- ``/netsim/poses``: JSON ``{t_s, x_m, y_m, vx_mps, vy_mps}`` (lists by robot); every step;
+- ``/netsim/roles``: JSON ``{t_s, robot, role, leader, cause}``; at each role change;
+- ``/netsim/links``: JSON ``{t_s, a, b, up}``; as each link comes up or goes down;
+- ``/netsim/messages``: JSON ``{t_s, msg_id, src, dst, hops, delivered, latency_s,
+  cause}``; as each protocol message is delivered or dropped end to end.
 
 A step is ``1 / bridge.odom_hz`` simulated seconds in ``netsim bridge``, 0.1 s in
 ``netsim run --live``.
@@ -160,7 +160,9 @@ class LiveView:
         stamp = Timestamp(int(t_s // 1), _ns(t_s % 1.0) % 1_000_000_000)
         size = Vector3(x=2.0, y=2.0, z=2.0)
         spheres = [
-            SpherePrimitive(pose=Pose(position=Vector3(x=x, y=y, z=0.0), orientation=Quaternion(w=1.0)), size=size, color=_colour(c))
+            SpherePrimitive(
+                pose=Pose(position=Vector3(x=x, y=y, z=0.0), orientation=Quaternion(w=1.0)), size=size, color=_colour(c)
+            )
             for (x, y), c in zip(pos.tolist(), rgba, strict=True)
         ]
         points = [Point3(x=float(pos[k, 0]), y=float(pos[k, 1]), z=0.0) for ab in sorted(self.up) for k in ab]
