@@ -134,7 +134,7 @@ LOOPBACK_XML = """<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInte
 </Domain></CycloneDDS>"""
 
 # Each test its own domain: bridges of tests run side by side never meet.
-DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64}
+DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64, "bytes": 65}
 
 
 @pytest.fixture(autouse=True)
@@ -314,6 +314,32 @@ def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
         assert (out / f"{table}.parquet").is_file()
     positions = pd.read_parquet(out / "positions.parquet")
     assert positions["t_s"].max() <= summary["duration_s"]
+
+
+def test_odometry_bytes_are_the_serializers_own():
+    """The odometry the bridge writes as patched bytes is byte for byte what Cyclone's
+    serializer makes of the same message (stamp, position, velocity, frames)."""
+    from netsim.bridge.bridge import odometry
+    from netsim.bridge.node import Node, serialized
+
+    node = Node(DOMAINS["bytes"])
+    writer = node.writer("/robot_3/odom", "nav_msgs/msg/Odometry")
+    template = odometry(writer, 3)
+    got = template.fill(sec=12, nanosec=500_000_000, x=101.25, y=-3.5, vx=1.5, vy=-0.25)
+    msg = Odometry(
+        header=Header(stamp=Time(sec=12, nanosec=500_000_000), frame_id="world"),
+        child_frame_id="robot_3",
+        pose=PoseWithCovariance(
+            pose=Pose(position=Point(x=101.25, y=-3.5, z=0.0), orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)),
+            covariance=[0.0] * 36,
+        ),
+        twist=TwistWithCovariance(
+            twist=Twist(linear=Vector3(x=1.5, y=-0.25, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)),
+            covariance=[0.0] * 36,
+        ),
+    )
+    assert got == serialized(writer, msg)
+    assert Odometry.deserialize(got) == msg
 
 
 # -- bad input: one line, exit status 2, nothing written, before DDS is loaded --------------

@@ -51,15 +51,15 @@ def _field_type(node: tuple) -> Any:
     if kind == Nodetype.BASE:
         name, bound = rest
         if name == "string" and bound:
-            return t.bounded_str[bound]
+            return t.bounded_str[bound]  # type: ignore[misc]
         return _BASE[name]
     if kind == Nodetype.NAME:
         return idl_type(rest)
     sub, length = rest
     inner = _field_type(sub)
     if kind == Nodetype.ARRAY:
-        return t.array[inner, length]
-    return t.sequence[inner, length] if length else t.sequence[inner]
+        return t.array[inner, length]  # type: ignore[misc]
+    return t.sequence[inner, length] if length else t.sequence[inner]  # type: ignore[misc]
 
 
 @cache
@@ -97,7 +97,7 @@ def _zero(tp: Any) -> Any:
         return [_zero(tp.subtype)] * tp.length
     if isinstance(tp, t.sequence):
         return []
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
         return tp(**{f.name: _zero(f.type) for f in dataclasses.fields(tp)})
     if tp in (t.float32, t.float64):
         return 0.0

@@ -91,12 +91,16 @@ class Template:
             self.offsets[name] = (fields[name][0], at)
         self.data = bytearray(data)
 
-    def write(self, **values: float) -> None:
+    def fill(self, **values: float) -> bytes:
+        """The message's bytes with ``values`` in their fields (the others as last filled)."""
         data = self.data
         for name, value in values.items():
             fmt, at = self.offsets[name]
             struct.pack_into(fmt, data, at, value)
-        write_bytes(self.writer, bytes(data))
+        return bytes(data)
+
+    def write(self, **values: float) -> None:
+        write_bytes(self.writer, self.fill(**values))
 
 
 def serialized(writer: DataWriter, message: Any) -> bytes:
