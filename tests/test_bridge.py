@@ -168,9 +168,10 @@ def start_bridge(config: Path, out: Path, *flags: str) -> subprocess.Popen:
 
 
 def finish(proc: subprocess.Popen, timeout_s: float = 120) -> str:
+    """Wait for the bridge to end; its standard error."""
     out, err = proc.communicate(timeout=timeout_s)
     assert proc.returncode == 0, err
-    return out
+    return err
 
 
 def take(reader: DataReader) -> list:
@@ -298,16 +299,16 @@ def test_relayed_message_arrives_with_the_channel_latency_while_the_link_is_up_a
 
 @pytest.mark.slow
 def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
-    """SIGINT (Ctrl-C) ends a bridge before duration_s with exit status 0 and the run's
-    tables written up to that instant."""
+    """SIGINT (Ctrl-C) ends a bridge (here with its live view) before duration_s with exit
+    status 0 and the run's tables written up to that instant."""
     config = scenario(tmp_path, DOMAINS["ctrl_c"], duration_s=600.0)
     out = tmp_path / "out"
-    proc = start_bridge(config, out, "--rate", "1")
+    proc = start_bridge(config, out, "--rate", "1", "--live", "0")
     dp = DomainParticipant(DOMAINS["ctrl_c"])
     clock = DataReader(dp, Topic(dp, "rt/clock", Clock), qos=CLOCK_QOS)
     wait_for(clock, proc, "/clock")
     proc.send_signal(signal.SIGINT)
-    finish(proc)
+    assert "live view: Foxglove WebSocket on ws://127.0.0.1:" in finish(proc)
     summary = json.loads((out / "summary.json").read_text())
     assert 0 < summary["duration_s"] < 600
     for table in ("legs", "links", "positions", "roles", "relay"):
