@@ -195,13 +195,16 @@ def wait_for(reader: DataReader, proc: subprocess.Popen, what: str, timeout_s: f
 def test_twist_on_cmd_vel_moves_robot_at_that_velocity(tmp_path):
     """A Twist on /robot_0/cmd_vel moves robot 0 at its linear.x, linear.y (world frame, m/s)
     from the simulated instant the bridge takes it: its odometry tells that velocity and
-    positions that advance by it, and legs.parquet holds the commanded leg."""
+    positions that advance by it, and legs.parquet holds the commanded leg. A Twist that is
+    not a finite velocity (robot 1's) is dropped and counted, and the session goes on."""
     config = scenario(tmp_path, DOMAINS["twist"], duration_s=6.0)
     proc = start_bridge(config, tmp_path / "out", "--rate", "2")
     dp = DomainParticipant(DOMAINS["twist"])
     odom = DataReader(dp, Topic(dp, "rt/robot_0/odom", Odometry), qos=RELIABLE)
     cmd = DataWriter(dp, Topic(dp, "rt/robot_0/cmd_vel", Twist), qos=RELIABLE)
+    cmd_1 = DataWriter(dp, Topic(dp, "rt/robot_1/cmd_vel", Twist), qos=RELIABLE)
     wait_for(odom, proc, "odometry")
+    cmd_1.write(Twist(linear=Vector3(x=float("nan"), y=1.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)))
     twist = Twist(linear=Vector3(x=1.5, y=-0.5, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
     moving: list[Odometry] = []
     while proc.poll() is None and len(moving) < 5:
@@ -223,6 +226,8 @@ def test_twist_on_cmd_vel_moves_robot_at_that_velocity(tmp_path):
     assert len(commanded) == 1
     assert commanded[["vx_mps", "vy_mps"]].iloc[0].tolist() == [1.5, -0.5]
     assert not len(legs[(legs["robot"] != 0) & (legs["cause"] == "command")])
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["bridge_commands_refused"] == 1
 
 
 @pytest.mark.slow

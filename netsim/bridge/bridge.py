@@ -18,6 +18,7 @@ Robots have no heading: a Twist's ``linear.x`` and ``linear.y`` are the world fr
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -92,6 +93,7 @@ class RosBridge:
         }
         self.topology = sim.live_topology() if sim.config.events.runtime_links != "off" else None
         self.commands = 0
+        self.refused = 0
         self._links_every = max(1, round(settings.odom_hz / LINKS_HZ))
         self._steps = 0
         self._types = {name: idl_type(name) for name in (ODOM, CLOCK, NEIGHBOURS, MARKERS)}
@@ -102,11 +104,15 @@ class RosBridge:
         robots, vel = [], []
         for i, reader in enumerate(self.cmd):
             got = take_all(reader)
-            if got:
-                last = got[-1]  # the latest command holds
+            self.commands += len(got)
+            # The latest command holds; one that is not a finite velocity is dropped (counted),
+            # as a robot cannot be driven at it.
+            good = [(float(c.linear.x), float(c.linear.y)) for c in got]
+            good = [v for v in good if math.isfinite(v[0]) and math.isfinite(v[1])]
+            self.refused += len(got) - len(good)
+            if good:
                 robots.append(i)
-                vel.append((float(last.linear.x), float(last.linear.y)))
-                self.commands += len(got)
+                vel.append(good[-1])
         if robots:
             self.sim.drive(robots, np.array(vel, dtype=float))
         for name, readers in self.tx.items():

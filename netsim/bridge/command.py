@@ -76,6 +76,7 @@ def bridge(args: Any) -> int:
         summary.update({f"bridge_{k}": v for k, v in pacer.lag.summary().items()})
         summary["bridge_rate"] = rate
         summary["bridge_commands"] = ros.commands
+        summary["bridge_commands_refused"] = ros.refused
         summary["bridge_relayed_sent"] = ros.relay.sent
         (writer._start() / "bridge.toml").write_text(tomli_w.dumps(settings.as_dict()))
         written = writer.finish(summary, manifest(config, 0, wall))
