@@ -251,9 +251,10 @@ def test_clock_advances_at_the_rate_asked(tmp_path):
     steps = {round(b - a, 9) for a, b in zip(sim, sim[1:], strict=False)}
     assert steps and all(abs(s / 0.1 - round(s / 0.1)) < 1e-6 for s in steps)  # whole control periods
     (w0, t0), (w1, t1) = seen[0], seen[-1]
-    # A clock message can reach this process late, never early: the first may be late by
-    # the time it took to read it; one period of slack covers that.
-    assert w1 - w0 >= (t1 - t0 - 0.1) / rate
+    # Read late by this busy process, the first message can shorten the span seen: a
+    # quarter of it is slack (a bridge that does not wait for the wall clock takes a
+    # fraction of it for 3 robots).
+    assert w1 - w0 >= 0.75 * (t1 - t0) / rate
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["bridge_rate"] == rate and summary["bridge_lag_max_s"] >= 0
 
