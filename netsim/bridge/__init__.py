@@ -9,6 +9,9 @@ view of a run in Foxglove (``--live``).
 - :mod:`~netsim.bridge.loop`: the run paced against the wall clock;
 - :mod:`~netsim.bridge.live_view`: the Foxglove WebSocket server.
 
+The commands themselves (``netsim bridge``, ``netsim run --live``) are in
+:mod:`netsim.tools.bridge`, with the other commands: the engine's modules never import the tools.
+
 Nothing here is imported by ``netsim run`` unless it is given ``--live``; ``cyclonedds``
 and ``foxglove`` (the optional extra ``ros``) are imported only by the modules that use them.
 """

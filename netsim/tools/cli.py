@@ -161,7 +161,7 @@ def cmd_run(args) -> int:
         # What the build loaded (numba and its registries, when the run uses compiled loops)
         # is frozen out of the collector's passes too (command()).
         if args.live is not None:
-            from netsim.bridge.command import run_live
+            from netsim.tools.bridge import run_live
 
             result = run_live(config, args.live, writer)
         else:
@@ -214,10 +214,18 @@ def _in_flags(exc: ConfigError) -> NetsimInputError:
 
 
 def cmd_bridge(args) -> int:
-    from netsim.bridge.command import bridge
+    from netsim.bridge.settings import check_rate, load
+    from netsim.tools.bridge import bridge
 
     check_set_pairs(args.set, args.config)
-    return bridge(args)
+    rate = check_rate(args.rate)
+    config, settings = load(args.config, list(args.set or []))
+    check_fits_in_memory(config)
+    summary, out, written = bridge(args, config, settings, rate)
+    if not args.quiet:
+        print(summary_table(summary))
+        print(f"results: {out}/ ({', '.join(p.name for p in written)})")
+    return 0
 
 
 def cmd_scenario_generate(args) -> int:

@@ -1,5 +1,5 @@
 """``netsim bridge`` and ``netsim run --live``: the commands' bodies (netsim.tools.cli
-parses their flags and calls these).
+parses their flags and calls these; the bridge itself is :mod:`netsim.bridge`).
 
 Unlike ``netsim run``, a bridge is a live session: Ctrl-C (or SIGTERM) ends it where it is,
 and every table is written up to that instant, with the summary; the exit status is 0.
@@ -12,12 +12,13 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import tomli_w
 
 from netsim.bridge.loop import Pacer
-from netsim.bridge.settings import check_rate, load
+from netsim.bridge.settings import BridgeSettings
 
 # Wall-clock steps of `netsim run --live`, s of simulated time.
 LIVE_STEP_S = 0.1
@@ -38,15 +39,12 @@ def _stop_on_signals(pacer: Pacer) -> Iterator[None]:
             signal.signal(s, handler)
 
 
-def bridge(args: Any) -> int:
+def bridge(args: Any, config: Any, settings: BridgeSettings, rate: float) -> tuple[dict, Path, list[Path]]:
+    """Run the bridge of ``config`` (checked input); returns the summary, the run's
+    directory and the files written."""
     from netsim.run import build, collect, summarize
-    from netsim.tools.cli import check_fits_in_memory, summary_table
     from netsim.tools.output import RunWriter, claim_dir, manifest
 
-    rate = check_rate(args.rate)
-    overrides = list(args.set or [])
-    config, settings = load(args.config, overrides)
-    check_fits_in_memory(config)
     with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
         from netsim.bridge.bridge import RosBridge  # loads Cyclone DDS
 
@@ -88,10 +86,7 @@ def bridge(args: Any) -> int:
         f"max {lag['lag_max_s']:.3f} s, mean {lag['lag_mean_s']:.3f} s (control period {1 / settings.odom_hz:g} s)",
         flush=True,
     )
-    if not args.quiet:
-        print(summary_table(summary))
-        print(f"results: {out}/ ({', '.join(p.name for p in written)})")
-    return 0
+    return summary, out, written
 
 
 def _live_view(sim: Any, port: int | None) -> Any:
