@@ -14,12 +14,20 @@ ROOT = Path(__file__).resolve().parents[1]
 # engine's own modules (netsim/state.py, netsim/config.py, ...) are each a node of their own,
 # so that the radio may use the engine's base (state, events) while the run builder uses
 # the radio, and a cycle through any of them still shows.
-SUBPACKAGES = ("netsim.world", "netsim.radio", "netsim.links", "netsim.formats", "netsim.tools", "netsim.envs")
+SUBPACKAGES = (
+    "netsim.world",
+    "netsim.radio",
+    "netsim.links",
+    "netsim.formats",
+    "netsim.tools",
+    "netsim.envs",
+    "netsim.bridge",
+)
 # The environments are the other end of the engine: built on it and the tools, used by no model.
 ENGINE = {"netsim", *SUBPACKAGES} - {"netsim.envs"}
 # The models build on the engine's core, never on the application built on it (the CLI,
 # sweeps, figures): a model runs wherever the engine does.
-CORE = ENGINE - {"netsim.tools"}
+CORE = ENGINE - {"netsim.tools", "netsim.bridge"}
 ALLOWED = {
     "netsim": {"netsim", "netsim.world", "netsim.radio", "netsim.links"},
     # The world (maps, free space, line of sight) is the ground the radio and the motion stand on.
@@ -30,6 +38,9 @@ ALLOWED = {
     "netsim.tools": ENGINE,
     # The environments draw frames with the figures' code: built on the tools, like them.
     "netsim.envs": ENGINE | {"netsim.envs"},
+    # ROS 2 and the live view (netsim bridge, --live): a run driven and watched from outside,
+    # built on the engine; its commands are the tools'.
+    "netsim.bridge": {"netsim", "netsim.world", "netsim.radio", "netsim.links", "netsim.bridge"},
     "protocols": CORE | {"protocols"},
     # Motion plans on the radio it is handed (its parameters' methods), never imports it.
     "mobility": (CORE - {"netsim.radio"}) | {"mobility"},

@@ -3,6 +3,8 @@
 ``netsim run [CONFIG] [--set KEY=VALUE ...] [--seed N] [--out DIR]``
     Simulate a scenario (the built-in default when no file is given) and write its
     results to DIR (default ``./netsim-out``).
+``netsim bridge [CONFIG] [--set KEY=VALUE ...] [--rate R] [--out DIR] [--live [PORT]]``
+    Run a scenario with ``mobility.model = "external"`` as ROS 2 nodes on DDS (docs/ros2.md).
 ``netsim scenario generate --n N --side M ... -o FILE``
     Write a random waypoint movement scenario in the ns-2 format.
 ``netsim sweep SWEEP.toml [--workers N | --scheduler tcp://host:port] [--out DIR]``
@@ -158,9 +160,14 @@ def cmd_run(args) -> int:
         # Each table is written as soon as it is made, while the next is made.
         # What the build loaded (numba and its registries, when the run uses compiled loops)
         # is frozen out of the collector's passes too (command()).
-        result = execute(
-            config, progress=not args.quiet and not args.no_progress, emit=writer.table, built=_freeze_if_own
-        )
+        if args.live is not None:
+            from netsim.tools.bridge import run_live
+
+            result = run_live(config, args.live, writer)
+        else:
+            result = execute(
+                config, progress=not args.quiet and not args.no_progress, emit=writer.table, built=_freeze_if_own
+            )
         written = writer.finish(result.summary, manifest(config, 0, result.wall_s))
         if args.view:
             from netsim.tools import viewer
@@ -204,6 +211,21 @@ def _in_flags(exc: ConfigError) -> NetsimInputError:
         return exc
     value = not exc.value if flag == "--no-stationary-start" else exc.value
     return NetsimInputError(f"{flag} {value!r}: {_flags_in(exc.allowed)}")
+
+
+def cmd_bridge(args) -> int:
+    from netsim.bridge.settings import check_rate, load
+    from netsim.tools.bridge import bridge
+
+    check_set_pairs(args.set, args.config)
+    rate = check_rate(args.rate)
+    config, settings = load(args.config, list(args.set or []))
+    check_fits_in_memory(config)
+    summary, out, written = bridge(args, config, settings, rate)
+    if not args.quiet:
+        print(summary_table(summary))
+        print(f"results: {out}/ ({', '.join(p.name for p in written)})")
+    return 0
 
 
 def cmd_scenario_generate(args) -> int:
@@ -382,6 +404,19 @@ def cmd_config(args) -> int:
     return 0
 
 
+LIVE_PORT = 8765
+
+
+def _port(text: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be a TCP port, 0 to 65535 (0: any free port)")
+    return port
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="netsim", description="Discrete-event simulator of multi-robot ad-hoc networks.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -399,7 +434,36 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
     r.add_argument("--view", action="store_true", help="also write the replay, DIR/view.html (see netsim view)")
+    r.add_argument(
+        "--live",
+        nargs="?",
+        const=LIVE_PORT,
+        type=_port,
+        metavar="PORT",
+        help=f"run at real time, streamed to Foxglove over a WebSocket on 127.0.0.1:PORT (default {LIVE_PORT}; "
+        "docs/ros2.md)",
+    )
     r.set_defaults(func=cmd_run)
+
+    b = sub.add_parser("bridge", help="run a scenario as ROS 2 nodes on DDS: robots driven by cmd_vel (docs/ros2.md)")
+    b.add_argument("config", nargs="?", help="TOML scenario file with mobility.model = 'external' and a [bridge] table")
+    b.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value (bridge.* too)")
+    b.add_argument("--rate", type=float, default=1.0, help="simulated seconds per wall second (default 1: real time)")
+    b.add_argument(
+        "--out",
+        default="netsim-out",
+        help="output directory (default: ./netsim-out), written when the run ends or is stopped (Ctrl-C)",
+    )
+    b.add_argument(
+        "--live",
+        nargs="?",
+        const=LIVE_PORT,
+        type=_port,
+        metavar="PORT",
+        help=f"also stream the run to Foxglove over a WebSocket on 127.0.0.1:PORT (default {LIVE_PORT})",
+    )
+    b.add_argument("--quiet", action="store_true", help="print nothing but errors and the lag")
+    b.set_defaults(func=cmd_bridge)
 
     s = sub.add_parser("scenario", help="movement scenario files")
     ssub = s.add_subparsers(dest="scenario_command", required=True)

@@ -1,0 +1,173 @@
+"""The run as ROS 2 nodes see it (docs/ros2.md): commands in, odometry, clock, network
+and relayed messages out, on the topics below (``i`` a robot id).
+
+| topic | type | way |
+| --- | --- | --- |
+| ``/robot_i/cmd_vel`` | geometry_msgs/msg/Twist | in |
+| ``/robot_i/odom`` | nav_msgs/msg/Odometry | out |
+| ``/robot_i/neighbours`` | std_msgs/msg/Int32MultiArray | out |
+| ``/clock`` | rosgraph_msgs/msg/Clock | out |
+| ``/network/links`` | visualization_msgs/msg/MarkerArray | out, ``LINKS_HZ`` per simulated s |
+| ``/robot_i/tx/<name>`` | the relay's type | in |
+| ``/robot_i/rx/<name>`` | the relay's type | out |
+
+Robots have no heading: a Twist's ``linear.x`` and ``linear.y`` are the world frame's
+(east and north, m/s), its other fields are ignored; odometry is in the frame ``world``
+(the run's area), its orientation the identity.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from netsim.bridge.messages import idl_type, stamp, zero
+from netsim.bridge.node import CLOCK_QOS, Node, Template, serialized, take_all, write_bytes
+from netsim.bridge.relay import ChannelRelay
+from netsim.bridge.settings import BridgeSettings
+
+FRAME = "world"
+TWIST = "geometry_msgs/msg/Twist"
+ODOM = "nav_msgs/msg/Odometry"
+CLOCK = "rosgraph_msgs/msg/Clock"
+NEIGHBOURS = "std_msgs/msg/Int32MultiArray"
+MARKERS = "visualization_msgs/msg/MarkerArray"
+LINKS_TOPIC = "/network/links"
+# The links' markers per simulated second (at most one per step): Cyclone's Python
+# serializer takes longer over a MarkerArray than over everything else a step publishes.
+LINKS_HZ = 2.0
+# The colours of the roles in the links' markers (RGBA), by role label; grey otherwise.
+ROLE_RGBA = {"leader": (0.85, 0.2, 0.2, 1.0), "member": (0.2, 0.45, 0.85, 1.0), "undecided": (0.6, 0.6, 0.6, 1.0)}
+
+
+def _set(path: str) -> Any:
+    """A function that sets the field at the dotted ``path`` of a message."""
+    *parents, leaf = path.split(".")
+
+    def set_field(message: Any, value: Any) -> None:
+        for p in parents:
+            message = getattr(message, p)
+        setattr(message, leaf, value)
+
+    return set_field
+
+
+def odometry(writer: Any, robot: int) -> Template:
+    """Robot ``robot``'s odometry, its stamp, position and velocity patched at each write."""
+    msg = zero(ODOM)
+    msg.header.frame_id, msg.child_frame_id = FRAME, f"robot_{robot}"
+    msg.pose.pose.orientation.w = 1.0
+    fields = {
+        "sec": ("<i", _set("header.stamp.sec")),
+        "nanosec": ("<I", _set("header.stamp.nanosec")),
+        "x": ("<d", _set("pose.pose.position.x")),
+        "y": ("<d", _set("pose.pose.position.y")),
+        "vx": ("<d", _set("twist.twist.linear.x")),
+        "vy": ("<d", _set("twist.twist.linear.y")),
+    }
+    return Template(writer, msg, fields)
+
+
+class RosBridge:
+    """Publishes and takes a run's topics on one DDS participant."""
+
+    def __init__(self, sim: Any, settings: BridgeSettings):
+        self.sim, self.settings = sim, settings
+        n = sim.state.n
+        self.node = node = Node(settings.domain_id)
+        self.cmd = [node.reader(f"/robot_{i}/cmd_vel", TWIST) for i in range(n)]
+        self.odom = [odometry(node.writer(f"/robot_{i}/odom", ODOM), i) for i in range(n)]
+        self.neigh = [node.writer(f"/robot_{i}/neighbours", NEIGHBOURS) for i in range(n)]
+        # Each robot's neighbours as last serialized: a list is serialized again only when it changes.
+        self._neigh_sent: list[tuple[tuple[int, ...], bytes] | None] = [None] * n
+        self.clock = node.writer("/clock", CLOCK, qos=CLOCK_QOS)
+        self.links = node.writer(LINKS_TOPIC, MARKERS)
+        self.relay = ChannelRelay(sim, [r.name for r in settings.relay])
+        self.tx = {
+            r.name: [node.reader(f"/robot_{i}/tx/{r.name}", r.msgtype) for i in range(n)] for r in settings.relay
+        }
+        self.rx = {
+            r.name: [node.writer(f"/robot_{i}/rx/{r.name}", r.msgtype) for i in range(n)] for r in settings.relay
+        }
+        self.topology = sim.live_topology() if sim.config.events.runtime_links != "off" else None
+        self.commands = 0
+        self.refused = 0
+        self._links_every = max(1, round(settings.odom_hz / LINKS_HZ))
+        self._steps = 0
+        self._types = {name: idl_type(name) for name in (ODOM, CLOCK, NEIGHBOURS, MARKERS)}
+
+    # -- in ------------------------------------------------------------------------------
+    def take(self, t_s: float) -> None:
+        """Apply the commands and send the messages that came since the last call."""
+        robots, vel = [], []
+        for i, reader in enumerate(self.cmd):
+            got = take_all(reader)
+            self.commands += len(got)
+            # The latest command holds; one that is not a finite velocity is dropped (counted),
+            # as a robot cannot be driven at it.
+            good = [(float(c.linear.x), float(c.linear.y)) for c in got]
+            good = [v for v in good if math.isfinite(v[0]) and math.isfinite(v[1])]
+            self.refused += len(got) - len(good)
+            if good:
+                robots.append(i)
+                vel.append(good[-1])
+        if robots:
+            self.sim.drive(robots, np.array(vel, dtype=float))
+        for name, readers in self.tx.items():
+            for i, reader in enumerate(readers):
+                for message in take_all(reader):
+                    self.relay.send(i, name, message, len(message.serialize()))
+
+    # -- out -----------------------------------------------------------------------------
+    def publish(self, t_s: float) -> None:
+        sim = self.sim
+        now = stamp(t_s)
+        self.clock.write(self._types[CLOCK](clock=now))
+        pos = sim.positions()
+        vel = sim.state.velocity_mps
+        sec, nanosec = now.sec, now.nanosec
+        for i, (x, y), (vx, vy) in zip(range(len(pos)), pos.tolist(), vel.tolist(), strict=True):
+            self.odom[i].write(sec=sec, nanosec=nanosec, x=x, y=y, vx=vx, vy=vy)
+        if sim.neighbour_view is not None:
+            for i, writer in enumerate(self.neigh):
+                ids = tuple(int(j) for j in sim.neighbours(i))
+                sent = self._neigh_sent[i]
+                if sent is None or sent[0] != ids:
+                    msg = zero(NEIGHBOURS)
+                    msg.data = list(ids)
+                    sent = self._neigh_sent[i] = (ids, serialized(writer, msg))
+                write_bytes(writer, sent[1])
+        if self._steps % self._links_every == 0:
+            self.links.write(self._markers(now, pos))
+        self._steps += 1
+        for robot, name, message in self.relay.take():
+            self.rx[name][robot].write(message)
+
+    def _markers(self, now: Any, pos: np.ndarray) -> Any:
+        point = idl_type("geometry_msgs/msg/Point")
+        colour = idl_type("std_msgs/msg/ColorRGBA")
+        robots = zero("visualization_msgs/msg/Marker")
+        robots.header.stamp, robots.header.frame_id = now, FRAME
+        robots.ns, robots.id, robots.type = "robots", 0, 7  # SPHERE_LIST
+        robots.pose.orientation.w = 1.0
+        robots.scale.x = robots.scale.y = robots.scale.z = 2.0
+        robots.color = colour(r=0.6, g=0.6, b=0.6, a=1.0)
+        robots.points = [point(x=float(x), y=float(y), z=0.0) for x, y in pos.tolist()]
+        groups = self.sim.groups
+        if groups is not None:
+            names = groups.role_names
+            rgba = [ROLE_RGBA.get(names[int(c)], (0.6, 0.6, 0.6, 1.0)) for c in groups.role]
+            robots.colors = [colour(r=r, g=g, b=b, a=a) for r, g, b, a in rgba]
+        links = zero("visualization_msgs/msg/Marker")
+        links.header.stamp, links.header.frame_id = now, FRAME
+        links.ns, links.id, links.type = "links", 1, 5  # LINE_LIST
+        links.pose.orientation.w = 1.0
+        links.scale.x = 0.5
+        links.color = colour(r=0.1, g=0.6, b=0.1, a=0.8)
+        if self.topology is not None:
+            ends = [p for a, b in self.topology.graph.edges for p in (a, b)]
+            links.points = [point(x=float(pos[k, 0]), y=float(pos[k, 1]), z=0.0) for k in ends]
+        out = self._types[MARKERS](markers=[robots, links])
+        return out

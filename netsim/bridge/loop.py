@@ -1,0 +1,87 @@
+"""The run paced against the wall clock, and what it tells and hears at each step.
+
+The run advances in control periods of ``1 / bridge.odom_hz`` simulated seconds. At each
+step's end, once the wall clock has reached it (``--rate R``: the simulated instant ``t``
+is due at ``t / R`` wall seconds after the start), the bridge publishes ``/clock`` and each
+robot's odometry, neighbours and the links, then the relayed messages that arrived during
+the step; then it takes the commands and messages ROS 2 nodes sent meanwhile and applies
+them at that instant: a Twist drives its robot from then on, a message on a ``tx`` topic
+goes on the air then. The lag is how late the wall clock is when a step is done computing
+(0 while the run keeps up): its largest value (and when), its mean and its last are the
+summary's ``bridge_lag_*``. The schedule starts when the first step is out: that step
+carries the start-up's one-time costs, which are no lag.
+
+The loop ends at ``duration_s`` or when :attr:`Pacer.stop` is set (Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass
+class Lag:
+    """How late the steps were done, s of wall time."""
+
+    max_s: float = 0.0
+    total_s: float = 0.0
+    steps: int = 0
+    last_s: float = 0.0
+    max_at_s: float = math.nan  # the simulated instant of the step that was latest
+
+    def add(self, lag_s: float, t_s: float) -> None:
+        self.last_s = lag_s
+        if lag_s > self.max_s or math.isnan(self.max_at_s):
+            self.max_s, self.max_at_s = lag_s, t_s
+        self.total_s += lag_s
+        self.steps += 1
+
+    def summary(self) -> dict:
+        mean = self.total_s / self.steps if self.steps else math.nan
+        return {
+            "lag_max_s": self.max_s,
+            "lag_max_at_s": self.max_at_s,
+            "lag_mean_s": mean,
+            "lag_last_s": self.last_s,
+            "steps": self.steps,
+        }
+
+
+class Pacer:
+    """Steps a simulation at ``rate`` simulated seconds per wall second."""
+
+    def __init__(self, sim: Any, period_s: float, rate: float, clock: Callable[[], float] = time.monotonic):
+        self.sim, self.period_s, self.rate, self.clock = sim, float(period_s), float(rate), clock
+        self.lag = Lag()
+        self.stop = False
+
+    def run(self, step_end: Callable[[float], None], step_start: Callable[[float], None]) -> None:
+        """Advance to the run's end (or :attr:`stop`): ``step_start(t)`` at each step's start
+        (commands), ``step_end(t)`` once its end is due on the wall clock (outputs)."""
+        sim, end = self.sim, self.sim.duration_s
+        t0_sim = sim.now
+        wall0 = math.nan
+        k = 0
+        step_start(sim.now)
+        while not self.stop and sim.now < end:
+            k += 1
+            t = min(t0_sim + k * self.period_s, end)
+            sim.run(until_s=t)
+            if k == 1:
+                # The first step carries the start-up's one-time costs (the run's first
+                # events, the first messages' serializers): the schedule starts when it is
+                # out, and the lag is counted from the second step on.
+                step_end(t)
+                wall0 = self.clock() - (t - t0_sim) / self.rate
+            else:
+                late = self.clock() - (wall0 + (t - t0_sim) / self.rate)
+                self.lag.add(max(late, 0.0), t)
+                if late < 0:
+                    time.sleep(-late)
+                step_end(t)
+            if t < end:
+                step_start(t)

@@ -1,0 +1,129 @@
+"""The ``[bridge]`` table of a scenario and the checks of ``netsim bridge``'s input.
+
+The table is the bridge's, not the run's: it is taken out of the scenario before the rest
+is read as any run's configuration (:func:`load`), and written next to the run's tables
+(``bridge.toml``). Every check here runs before DDS is loaded or anything is written.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from netsim import config as cfgmod
+from netsim.errors import ConfigError, NetsimInputError
+
+# DDS maps a domain id to UDP ports (7400 + 250 x id, and up): ids above 232 overflow them.
+DOMAIN_ID_MAX = 232
+# A ROS 2 topic name's token: what `rt/robot_i/tx/<name>` may end with.
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*")
+_KEYS = ("domain_id", "odom_hz", "relay")
+
+
+@dataclass(frozen=True)
+class Relay:
+    """One relayed topic: robots publish on ``/robot_i/tx/<name>``, the channel's
+    receivers get it on ``/robot_j/rx/<name>``; ``msgtype`` as ``pkg/msg/Type``."""
+
+    name: str
+    msgtype: str
+
+
+@dataclass(frozen=True)
+class BridgeSettings:
+    domain_id: int = 0
+    odom_hz: float = 10.0
+    relay: tuple[Relay, ...] = field(default_factory=tuple)
+
+    def as_dict(self) -> dict:
+        return {
+            "domain_id": self.domain_id,
+            "odom_hz": self.odom_hz,
+            "relay": [{"name": r.name, "type": r.msgtype} for r in self.relay],
+        }
+
+
+def typestore() -> Any:
+    """The ROS 2 message definitions the bridge knows (those of rosbags' Humble store)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+def ros_type(name: str) -> str:
+    """``pkg/Type`` or ``pkg/msg/Type`` as ``pkg/msg/Type``."""
+    parts = name.split("/")
+    if len(parts) == 2:
+        return f"{parts[0]}/msg/{parts[1]}"
+    return name
+
+
+def _relay(k: int, entry: Any, known: Any) -> Relay:
+    key = f"bridge.relay[{k}]"
+    if not isinstance(entry, dict) or set(entry) != {"name", "type"}:
+        raise ConfigError(key, entry, 'must be a table {name = "chat", type = "std_msgs/msg/String"}')
+    name, msgtype = entry["name"], entry["type"]
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise ConfigError(f"{key}.name", name, "must be a topic name: letters, digits, _ and /, from a letter")
+    if not isinstance(msgtype, str) or ros_type(msgtype) not in known:
+        raise ConfigError(
+            f"{key}.type", msgtype, "unknown ROS 2 message type (give pkg/msg/Type, one of rosbags' ROS 2 types)"
+        )
+    return Relay(name, ros_type(msgtype))
+
+
+def settings(raw: Any) -> BridgeSettings:
+    """The ``[bridge]`` table as :class:`BridgeSettings`, or a :class:`ConfigError`."""
+    if not isinstance(raw, dict):
+        raise ConfigError("bridge", raw, "must be a table ([bridge])")
+    for key in raw:
+        if key not in _KEYS:
+            raise ConfigError(f"bridge.{key}", raw[key], "unknown key; allowed: " + ", ".join(_KEYS))
+    domain = raw.get("domain_id", 0)
+    if isinstance(domain, bool) or not isinstance(domain, int) or not 0 <= domain <= DOMAIN_ID_MAX:
+        raise ConfigError("bridge.domain_id", domain, f"must be an integer from 0 to {DOMAIN_ID_MAX}")
+    hz = raw.get("odom_hz", 10.0)
+    if isinstance(hz, bool) or not isinstance(hz, int | float) or not (math.isfinite(hz) and hz > 0):
+        raise ConfigError("bridge.odom_hz", hz, "must be a positive number, Hz")
+    entries = raw.get("relay", [])
+    if not isinstance(entries, list):
+        raise ConfigError("bridge.relay", entries, "must be a list of tables [[bridge.relay]]")
+    known = typestore().fielddefs if entries else {}
+    relay = tuple(_relay(k, e, known) for k, e in enumerate(entries))
+    names = [r.name for r in relay]
+    if len(set(names)) != len(names):
+        raise ConfigError("bridge.relay", names, "each topic name may be relayed once")
+    return BridgeSettings(domain, float(hz), relay)
+
+
+def check_rate(rate: float) -> float:
+    if not (math.isfinite(rate) and rate > 0):
+        raise NetsimInputError(f"--rate {rate:g}: must be a positive number of simulated seconds per wall second")
+    return rate
+
+
+def load(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeSettings]:
+    """The run's configuration and the bridge's settings from a scenario file and
+    ``--set`` overrides (``bridge.*`` keys included)."""
+    raw: dict = {}
+    if path is not None:
+        p = Path(path)
+        if not p.is_file():
+            raise ConfigError("<config file>", str(p), "no such file")
+        try:
+            raw = tomllib.loads(p.read_text())
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise ConfigError("<config file>", str(p), f"is not valid TOML: {exc}") from None
+    for text in overrides:
+        raw = cfgmod.merge(raw, cfgmod.parse_override(text))
+    bridge = settings(raw.pop("bridge", {}))
+    config = cfgmod.from_dict(raw)
+    if config.mobility.model != "external":
+        raise ConfigError(
+            "mobility.model", config.mobility.model, "the bridge moves robots as ROS 2 nodes tell: must be 'external'"
+        )
+    return config, bridge

@@ -1,0 +1,400 @@
+"""``netsim bridge`` (docs/ros2.md) driven from another process as a ROS 2 node would: this
+test process, with Cyclone DDS and its own structures under ROS 2's type names, on the
+loopback and a DDS domain of each test's own."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+cyclonedds = pytest.importorskip("cyclonedds")  # the extra "ros" (installed with "test")
+
+import cyclonedds.idl.annotations as annotate  # noqa: E402
+from cyclonedds.core import Policy, Qos  # noqa: E402
+from cyclonedds.domain import DomainParticipant  # noqa: E402
+from cyclonedds.idl import IdlStruct  # noqa: E402
+from cyclonedds.idl.types import array, float64, int32, uint32  # noqa: E402
+from cyclonedds.internal import InvalidSample  # noqa: E402
+from cyclonedds.pub import DataWriter  # noqa: E402
+from cyclonedds.sub import DataReader  # noqa: E402
+from cyclonedds.topic import Topic  # noqa: E402
+from cyclonedds.util import duration  # noqa: E402
+
+COMMAND = str(Path(sys.executable).with_name("netsim"))
+RELIABLE = Qos(
+    Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(10)
+)
+CLOCK_QOS = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(1))
+
+
+# -- ROS 2 messages, written here as a ROS 2 node's would be (rosidl's DDS names) -----------
+@dataclass
+@annotate.final
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+@annotate.final
+class Clock(IdlStruct, typename="rosgraph_msgs::msg::dds_::Clock_"):
+    clock: Time
+
+
+@dataclass
+@annotate.final
+class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+@annotate.final
+class Twist(IdlStruct, typename="geometry_msgs::msg::dds_::Twist_"):
+    linear: Vector3
+    angular: Vector3
+
+
+@dataclass
+@annotate.final
+class String(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    data: str
+
+
+@dataclass
+@annotate.final
+class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time
+    frame_id: str
+
+
+@dataclass
+@annotate.final
+class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+@annotate.final
+class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64
+    y: float64
+    z: float64
+    w: float64
+
+
+@dataclass
+@annotate.final
+class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+    position: Point
+    orientation: Quaternion
+
+
+@dataclass
+@annotate.final
+class PoseWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWithCovariance_"):
+    pose: Pose
+    covariance: array[float64, 36]
+
+
+@dataclass
+@annotate.final
+class TwistWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::TwistWithCovariance_"):
+    twist: Twist
+    covariance: array[float64, 36]
+
+
+@dataclass
+@annotate.final
+class Odometry(IdlStruct, typename="nav_msgs::msg::dds_::Odometry_"):
+    header: Header
+    child_frame_id: str
+    pose: PoseWithCovariance
+    twist: TwistWithCovariance
+
+
+def seconds(t: Time) -> float:
+    return t.sec + t.nanosec * 1e-9
+
+
+# -- the bridge in a process of its own, on the loopback --------------------------------------
+LOOPBACK_XML = """<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces>
+<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>
+<MaxAutoParticipantIndex>40</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery>
+</Domain></CycloneDDS>"""
+
+# Each test its own domain: bridges of tests run side by side never meet.
+DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64, "bytes": 65}
+
+
+@pytest.fixture(autouse=True)
+def loopback_dds(tmp_path, monkeypatch):
+    """Cyclone DDS on the loopback alone, with unicast discovery (no multicast needed)."""
+    xml = tmp_path / "cyclonedds.xml"
+    xml.write_text(LOOPBACK_XML)
+    monkeypatch.setenv("CYCLONEDDS_URI", xml.as_uri())
+
+
+def scenario(tmp_path: Path, domain: int, extra: str = "", n: int = 3, duration_s: float = 4.0) -> Path:
+    path = tmp_path / "bridge.toml"
+    path.write_text(
+        f"duration_s = {duration_s}\n"
+        f"[world]\nn_robots = {n}\nside_m = 400\nplacement = 'centre'\ncentre_side_m = 10\n"
+        "[channel]\nrange_m = 40\n"
+        "[mobility]\nmodel = 'external'\n"
+        "[protocol]\nmessage_rate_hz = 0\n"
+        f"[bridge]\ndomain_id = {domain}\nodom_hz = 10\n{extra}"
+    )
+    return path
+
+
+def start_bridge(config: Path, out: Path, *flags: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [COMMAND, "bridge", str(config), "--out", str(out), "--quiet", *flags],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def finish(proc: subprocess.Popen, timeout_s: float = 120) -> str:
+    """Wait for the bridge to end; its standard error."""
+    out, err = proc.communicate(timeout=timeout_s)
+    assert proc.returncode == 0, err
+    return err
+
+
+def take(reader: DataReader) -> list:
+    """The samples with data waiting in ``reader`` (a writer that leaves sends one without)."""
+    return [s for s in reader.take(N=100) if s is not None and not isinstance(s, InvalidSample)]
+
+
+def wait_for(reader: DataReader, proc: subprocess.Popen, what: str, timeout_s: float = 60) -> list:
+    """Samples from ``reader`` as soon as there are any (the bridge is up)."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        got = take(reader)
+        if got:
+            return got
+        assert proc.poll() is None, f"the bridge ended before {what}: {proc.communicate()[1]}"
+        time.sleep(0.02)
+    raise AssertionError(f"no {what} within {timeout_s} s")
+
+
+@pytest.mark.slow
+def test_twist_on_cmd_vel_moves_robot_at_that_velocity(tmp_path):
+    """A Twist on /robot_0/cmd_vel moves robot 0 at its linear.x, linear.y (world frame, m/s)
+    from the simulated instant the bridge takes it: its odometry tells that velocity and
+    positions that advance by it, and legs.parquet holds the commanded leg. A Twist that is
+    not a finite velocity (robot 1's) is dropped and counted, and the session goes on."""
+    config = scenario(tmp_path, DOMAINS["twist"], duration_s=6.0)
+    proc = start_bridge(config, tmp_path / "out", "--rate", "2")
+    dp = DomainParticipant(DOMAINS["twist"])
+    odom = DataReader(dp, Topic(dp, "rt/robot_0/odom", Odometry), qos=RELIABLE)
+    cmd = DataWriter(dp, Topic(dp, "rt/robot_0/cmd_vel", Twist), qos=RELIABLE)
+    cmd_1 = DataWriter(dp, Topic(dp, "rt/robot_1/cmd_vel", Twist), qos=RELIABLE)
+    wait_for(odom, proc, "odometry")
+    cmd_1.write(Twist(linear=Vector3(x=float("nan"), y=1.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)))
+    twist = Twist(linear=Vector3(x=1.5, y=-0.5, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
+    moving: list[Odometry] = []
+    while proc.poll() is None and len(moving) < 5:
+        cmd.write(twist)
+        time.sleep(0.05)
+        moving += [s for s in take(odom) if s.twist.twist.linear.x == 1.5]
+    finish(proc)
+    assert len(moving) >= 2, "robot 0's odometry never told the commanded velocity"
+    first, last = moving[0], moving[-1]
+    assert (first.twist.twist.linear.x, first.twist.twist.linear.y) == (1.5, -0.5)
+    dt = seconds(last.header.stamp) - seconds(first.header.stamp)
+    dx = last.pose.pose.position.x - first.pose.pose.position.x
+    dy = last.pose.pose.position.y - first.pose.pose.position.y
+    assert dt > 0
+    assert dx == pytest.approx(1.5 * dt, abs=1e-6) and dy == pytest.approx(-0.5 * dt, abs=1e-6)
+    assert first.header.frame_id == "world" and first.child_frame_id == "robot_0"
+    legs = pd.read_parquet(tmp_path / "out" / "legs.parquet")
+    commanded = legs[(legs["robot"] == 0) & (legs["cause"] == "command")]
+    assert len(commanded) == 1
+    assert commanded[["vx_mps", "vy_mps"]].iloc[0].tolist() == [1.5, -0.5]
+    assert not len(legs[(legs["robot"] != 0) & (legs["cause"] == "command")])
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["bridge_commands_refused"] == 1
+
+
+@pytest.mark.slow
+def test_clock_advances_at_the_rate_asked(tmp_path):
+    """/clock (ROS 2's clock QoS) steps by one control period of simulated time and, at
+    --rate R, never runs ahead of R simulated seconds per wall second."""
+    rate = 4.0
+    config = scenario(tmp_path, DOMAINS["clock"], duration_s=8.0)
+    proc = start_bridge(config, tmp_path / "out", "--rate", str(rate))
+    dp = DomainParticipant(DOMAINS["clock"])
+    clock = DataReader(dp, Topic(dp, "rt/clock", Clock), qos=CLOCK_QOS)
+    seen: list[tuple[float, float]] = []  # (wall, simulated)
+    for s in wait_for(clock, proc, "/clock"):
+        seen.append((time.monotonic(), seconds(s.clock)))
+    while proc.poll() is None:
+        seen += [(time.monotonic(), seconds(s.clock)) for s in take(clock)]
+        time.sleep(0.01)
+    finish(proc)
+    sim = [t for _, t in seen]
+    assert sim == sorted(sim) and sim[-1] == pytest.approx(8.0)
+    steps = {round(b - a, 9) for a, b in zip(sim, sim[1:], strict=False)}
+    assert steps and all(abs(s / 0.1 - round(s / 0.1)) < 1e-6 for s in steps)  # whole control periods
+    (w0, t0), (w1, t1) = seen[0], seen[-1]
+    # Read late by this busy process, the first message can shorten the span seen: a
+    # quarter of it is slack (a bridge that does not wait for the wall clock takes a
+    # fraction of it for 3 robots).
+    assert w1 - w0 >= 0.75 * (t1 - t0) / rate
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["bridge_rate"] == rate and summary["bridge_lag_max_s"] >= 0
+
+
+@pytest.mark.slow
+def test_relayed_message_arrives_with_the_channel_latency_while_the_link_is_up_and_not_after(tmp_path):
+    """A message robot 0 publishes on /robot_0/tx/chat reaches /robot_1/rx/chat while the
+    channel links them, channel.latency_s later (relay.parquet), and none sent after the
+    link broke arrives."""
+    relay = "relay = [{name = 'chat', type = 'std_msgs/msg/String'}]\n"
+    config = scenario(tmp_path, DOMAINS["relay"], extra=relay, n=2, duration_s=10.0)
+    text = config.read_text().replace("range_m = 40", "range_m = 40\nlatency_s = 0.25")
+    config.write_text(text)
+    proc = start_bridge(config, tmp_path / "out", "--rate", "2")
+    dp = DomainParticipant(DOMAINS["relay"])
+    tx = DataWriter(dp, Topic(dp, "rt/robot_0/tx/chat", String), qos=RELIABLE)
+    rx = DataReader(dp, Topic(dp, "rt/robot_1/rx/chat", String), qos=RELIABLE)
+    clock = DataReader(dp, Topic(dp, "rt/clock", Clock), qos=CLOCK_QOS)
+    cmd = DataWriter(dp, Topic(dp, "rt/robot_0/cmd_vel", Twist), qos=RELIABLE)
+    wait_for(clock, proc, "/clock")
+    got: list[str] = []
+    k, away = 0, False
+    while proc.poll() is None:
+        tx.write(String(data=f"m{k}"))
+        k += 1
+        got += [s.data for s in take(rx)]
+        now = max((seconds(s.clock) for s in take(clock)), default=0.0)
+        if now > 3.0 and not away:
+            # 20 m/s east: robot 0 leaves robot 1's 40 m range within about 2.5 s.
+            cmd.write(Twist(linear=Vector3(x=20.0, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)))
+            away = True
+        time.sleep(0.05)
+    finish(proc)
+    out = tmp_path / "out"
+    rows = pd.read_parquet(out / "relay.parquet")
+    links = pd.read_parquet(out / "links.parquet")
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(links) == 1 and not links["censored_end"].iloc[0], "the link must break during the run"
+    t_down = float(links["t_down_s"].iloc[0])
+    to_1 = rows[rows["dst"] == 1]
+    assert len(to_1) > 0
+    assert (to_1["t_received_s"] - to_1["t_sent_s"]).tolist() == pytest.approx([0.25] * len(to_1))
+    assert (to_1["t_sent_s"] <= t_down).all()
+    assert summary["bridge_relayed_sent"] > len(to_1), "messages sent after the break must have been lost"
+    # Every reception the channel decided was published on /robot_1/rx/chat, once.
+    assert len(got) == len(set(got)) == len(to_1)
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
+    """SIGINT (Ctrl-C) ends a bridge (here with its live view) before duration_s with exit
+    status 0 and the run's tables written up to that instant."""
+    config = scenario(tmp_path, DOMAINS["ctrl_c"], duration_s=600.0)
+    out = tmp_path / "out"
+    proc = start_bridge(config, out, "--rate", "1", "--live", "0")
+    dp = DomainParticipant(DOMAINS["ctrl_c"])
+    clock = DataReader(dp, Topic(dp, "rt/clock", Clock), qos=CLOCK_QOS)
+    wait_for(clock, proc, "/clock")
+    proc.send_signal(signal.SIGINT)
+    assert "live view: Foxglove WebSocket on ws://127.0.0.1:" in finish(proc)
+    summary = json.loads((out / "summary.json").read_text())
+    assert 0 < summary["duration_s"] < 600
+    for table in ("legs", "links", "positions", "roles", "relay"):
+        assert (out / f"{table}.parquet").is_file()
+    positions = pd.read_parquet(out / "positions.parquet")
+    assert positions["t_s"].max() <= summary["duration_s"]
+
+
+def test_odometry_bytes_are_the_serializers_own():
+    """The odometry the bridge writes as patched bytes is byte for byte what Cyclone's
+    serializer makes of the same message (stamp, position, velocity, frames)."""
+    from netsim.bridge.bridge import odometry
+    from netsim.bridge.node import Node, serialized
+
+    node = Node(DOMAINS["bytes"])
+    writer = node.writer("/robot_3/odom", "nav_msgs/msg/Odometry")
+    template = odometry(writer, 3)
+    got = template.fill(sec=12, nanosec=500_000_000, x=101.25, y=-3.5, vx=1.5, vy=-0.25)
+    msg = Odometry(
+        header=Header(stamp=Time(sec=12, nanosec=500_000_000), frame_id="world"),
+        child_frame_id="robot_3",
+        pose=PoseWithCovariance(
+            pose=Pose(position=Point(x=101.25, y=-3.5, z=0.0), orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)),
+            covariance=[0.0] * 36,
+        ),
+        twist=TwistWithCovariance(
+            twist=Twist(linear=Vector3(x=1.5, y=-0.25, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)),
+            covariance=[0.0] * 36,
+        ),
+    )
+    assert got == serialized(writer, msg)
+    assert Odometry.deserialize(got) == msg
+
+
+# -- bad input: one line, exit status 2, nothing written, before DDS is loaded --------------
+@pytest.mark.parametrize(
+    ("sets", "flags", "message"),
+    [
+        (["bridge.relay=[{name='chat', type='std_msgs/msg/Nope'}]"], [], "bridge.relay[0].type = 'std_msgs/msg/Nope'"),
+        (["bridge.domain_id=233"], [], "bridge.domain_id = 233: must be an integer from 0 to 232"),
+        (["bridge.domain_id=-1"], [], "bridge.domain_id = -1"),
+        ([], ["--rate", "0"], "--rate 0: must be a positive"),
+        ([], ["--rate", "-2"], "--rate -2: must be a positive"),
+        (["mobility.model=random_waypoint"], [], "mobility.model = 'random_waypoint'"),
+    ],
+    ids=[
+        "unknown_relay_type",
+        "domain_id_too_large",
+        "domain_id_negative",
+        "rate_zero",
+        "rate_negative",
+        "not_external",
+    ],
+)
+def test_bad_bridge_input_is_one_line_and_exit_2(tmp_path, capsys, sets, flags, message):
+    """An unknown relay type, a domain id outside 0..232, a --rate not positive, a mobility
+    model other than external: one line on standard error, exit status 2, nothing written."""
+    from netsim.tools.cli import main
+
+    args = ["bridge", "--out", str(tmp_path / "out"), "--set", "mobility.model=external"]
+    for s in sets:
+        args += ["--set", s]
+    code = main(args + flags)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("netsim: error: ") and message in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_netsim_run_loads_neither_dds_nor_foxglove(tmp_path):
+    """``netsim run`` (no --live) imports neither cyclonedds nor foxglove: the bridge costs
+    nothing when not used."""
+    code = (
+        "import sys\n"
+        "from netsim.tools.cli import main\n"
+        f"assert main(['run', '--out', {str(tmp_path / 'o')!r}, '--quiet', '--set', 'duration_s=5',"
+        " '--set', 'mobility.model=external']) == 0\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('cyclonedds', 'foxglove', 'netsim')"
+        " and (m.startswith('netsim.bridge') or not m.startswith('netsim'))))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "NETSIM_COMPILED"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.strip().splitlines()[-1] == "[]"
