@@ -12,9 +12,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from netsim.mobility._fade_kernels import plausible_change_db, range_at_m
 
 from netsim.compiled import jit
-from netsim.mobility._fade_kernels import plausible_change_db, range_at_m
 
 
 @jit(nogil=True)

@@ -42,7 +42,7 @@ more than it plausibly can. What "up" means, and how it is kept, depends on the 
 from __future__ import annotations
 
 import numpy as np
-from netsim.mobility._fade_kernels import FADE_SIGMAS
+from netsim.mobility._fade_kernels import FADE_SIGMAS as FADE_SIGMAS
 from netsim.mobility.steps import Candidates
 
 from netsim.compiled import load
