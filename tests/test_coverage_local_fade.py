@@ -74,7 +74,7 @@ def test_fade_step_keeps_the_pair_travel_within_the_travel_limit():
     plausible change stays within B."""
     f = fade()
     lim = limits(f)
-    for x, sent in ((0.0, T0 - 0.2), (-3.0, T0 - 0.6), (2.0, T0 - 1.0)):
+    for x, sent in ((0.0, T0 - 0.2), (0.0, T0 - 1.2), (-3.0, T0 - 0.6), (2.0, T0 - 1.0)):
         m = measured_pair(45.0, x, sent)
         keep, travel = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
         m.keep_m = keep
@@ -174,3 +174,22 @@ def test_detour_through_a_measured_link_beyond_the_sure_distance():
     lists.take(m, T0 - 1.0, 20.0)
     held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+
+
+@pytest.mark.slow
+def test_local_plan_under_shadowing_spreads_and_keeps_the_real_network():
+    """Under 4 dB shadowing, from the dense start of ``netsim validate``'s coverage scenario,
+    the local plan moves (it keeps links by their measured margin, not only within the sure
+    distance, where no robot moved) and the real network (links.parquet) gains no component
+    after control starts."""
+    from netsim import config
+    from netsim.run import execute
+    from netsim.tools.validate import coverage_outcome, coverage_settings
+
+    n, duration = 12, 120.0
+    cfg = config.load(None, coverage_settings("shadowing 4 dB", "local", n, 0.0, 1, duration))
+    r = execute(cfg)
+    o = coverage_outcome(r.frames, r.summary, n, cfg.coverage.start_s, duration)
+    assert o["components_max"] == o["components_at_start"] == 1
+    assert r.summary["distance_mean_m"] > 5.0
+    assert r.summary["covered_of_bound_all_final"] > 1.1 * r.summary["covered_of_bound_all_start"]
