@@ -71,8 +71,8 @@ limits then use only the current positions of its kept neighbours, and under sha
 shadowing measured on those links). With ``plan = "local"`` (:mod:`netsim.mobility.local`) every
 robot decides its own step from the Acks it heard, keeps the links it cannot certify a
 detour for, and answers for each against the other end's largest motion since its Ack
-(under shadowing within the sure distance, on a map clear of walls), or holds; no command
-is sent.
+(under shadowing by the shadowing it measured on the link's Acks, on a map clear of walls),
+or holds; no command is sent.
 """
 
 from __future__ import annotations
