@@ -1,6 +1,8 @@
 """The local plan's loops (compiled or plain, :func:`netsim.compiled.load`): rule 1
 (:func:`netsim.mobility.local.let_go`), per robot the bottleneck of its certified detours,
-by a widest-path search over the robots it remembers; and the walls' test
+by a widest-path search over the robots it remembers, a link surely up within the plan's
+range or, under shadowing, within the range its measured shadowing allows
+(:func:`measured_range_m`); and the walls' test
 (:func:`netsim.mobility.local.clear_of_walls`). The tests compare them with numpy oracles
 (tests/oracles/local.py).
 """
@@ -10,6 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from netsim.mobility._fade_kernels import plausible_change_db, range_at_m
 
 from netsim.compiled import jit
 
@@ -47,20 +50,42 @@ def clear_many(walls, a, b, ea, eb, out):
 
 
 @jit(nogil=True)
-def let_go(pos, memory, lists, rule, walls, out):
+def measured_range_m(x_db, measured_s, t0_s, speed_mps, fade):
+    """How long a link whose shadowing was measured at ``x_db`` on a frame sent no earlier
+    than ``measured_s`` can surely be at ``t0_s`` (0: no measurement): the length at which
+    its margin meets the sensitivity after the plausible change of the shadowing over the
+    pair's largest travel since, ``2 speed_mps (t0_s - measured_s)``. ``fade``:
+    ``(on, sigma_db, decorrelation_m, budget_db, reference_distance_m, exponent)``."""
+    on, sigma_db, decorrelation_m, budget_db, d0_m, exponent = fade
+    if not on or math.isnan(x_db) or not measured_s > -math.inf:
+        return 0.0
+    travel = 2.0 * speed_mps * max(t0_s - measured_s, 0.0)
+    change = plausible_change_db(travel, x_db, sigma_db, decorrelation_m)
+    return range_at_m(x_db + change, budget_db, d0_m, exponent)
+
+
+@jit(nogil=True)
+def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
     through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
     robots remember, ``(xy, sent_s, known)``; ``lists``: the lists they hold from each other
     (:class:`netsim.mobility.local.Heard`), ``(which, start, other, sent_s)``; ``rule``: the
-    step's ``(t0_s, speed_mps, band_m, range_m, release_s)``."""
+    step's ``(t0_s, speed_mps, band_m, range_m, release_s)``; ``fade``: the shadowing's rule
+    (:func:`measured_range_m`, ``on`` False: none); ``measured``: the shadowing each robot
+    measured on each robot's latest Ack and when it can have been sent, ``(x_db (n, n),
+    measured_s (n, n), listed_x_db (M,))``, the last for the lists' entries."""
     xy, sent_s, known = memory
     which, start, other, listed_s = lists
     t0_s, speed_mps, band_m, range_m, release_s = rule
+    x_db, measured_s, listed_x = measured
     n = pos.shape[0]
     nn = float(n * n)
     node = np.empty(n, np.int64)
     local = np.full(n, -1, np.int64)
     certain = np.zeros((n, n), np.bool_)
+    # sure[a, b]: the longest the link of nodes a, b can surely be at t0 (the plan's range,
+    # or what a shadowing measured on it allows).
+    sure = np.zeros((n, n))
     qx = np.empty(n)
     qy = np.empty(n)
     e = np.empty(n)
@@ -84,6 +109,12 @@ def let_go(pos, memory, lists, rule, walls, out):
             local[node[a]] = a
             for b in range(k):
                 certain[a, b] = a == 0 and b > 0
+                sure[a, b] = range_m
+        for b in range(1, k):
+            j = node[b]
+            r = measured_range_m(x_db[i, j], measured_s[i, j], t0_s, speed_mps, fade)
+            sure[0, b] = max(sure[0, b], r)
+            sure[b, 0] = sure[0, b]
         for a in range(1, k):
             u = node[a]
             s = which[i, u]
@@ -93,6 +124,9 @@ def let_go(pos, memory, lists, rule, walls, out):
                 b = local[other[p]]
                 if b >= 0 and t0_s - listed_s[p] < release_s:
                     certain[a, b] = True
+                    r = measured_range_m(listed_x[p], listed_s[p], t0_s, speed_mps, fade)
+                    sure[a, b] = max(sure[a, b], r)
+                    sure[b, a] = max(sure[b, a], r)
         for a in range(k):
             local[node[a]] = -1
         for a in range(k):
@@ -113,7 +147,7 @@ def let_go(pos, memory, lists, rule, walls, out):
                 if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
-                if longest > range_m:
+                if longest > sure[u, v]:
                     continue
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)

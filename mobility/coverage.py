@@ -71,8 +71,8 @@ limits then use only the current positions of its kept neighbours, and under sha
 shadowing measured on those links). With ``plan = "local"`` (:mod:`netsim.mobility.local`) every
 robot decides its own step from the Acks it heard, keeps the links it cannot certify a
 detour for, and answers for each against the other end's largest motion since its Ack
-(under shadowing within the sure distance, on a map clear of walls), or holds; no command
-is sent.
+(under shadowing by the shadowing it measured on the link's Acks, on a map clear of walls),
+or holds; no command is sent.
 """
 
 from __future__ import annotations
@@ -99,6 +99,7 @@ from netsim.mobility.forces import (
 )
 from netsim.mobility.keep import LinkRules
 from netsim.mobility.local import (
+    Fade,
     Heard,
     Lists,
     Memory,
@@ -411,6 +412,12 @@ class CoverageController:
         self.lists = Lists(st.n, math.ceil(params.release_s / params.control_period_s) + 2)
         self.heard: Heard | None = None  # what each robot holds as of the step being planned
         self.local_limits = replace(self.limits, range_m=self._sure_range_m())
+        # Under shadowing in open space the local plan keeps links by the shadowing each
+        # robot measured on them (netsim.mobility.local.Fade), every robot at its speed cap.
+        self.fade = self._local_fade() if self.memory is not None else None
+        if self.fade is not None:
+            speed = min(self.limits.speed_max_mps, self.fade.speed_mps)
+            self.local_limits = replace(self.local_limits, speed_max_mps=speed)
         on_map = self.memory is not None and self.rules.walls is not None and parts.occupancy is not None
         self.local_walls = walls_of(
             parts.occupancy.occupied if on_map else None,
@@ -434,6 +441,23 @@ class CoverageController:
             return self.range_m
         worst = self.rules.shadow.clip_db if self.rules.shadow is not None else 0.0
         return min(self.range_m, float(log.effective_range_m(worst, 0)))
+
+    def _local_fade(self) -> Fade | None:
+        """The local plan's fade-margin rule: under shadowing (log-distance, sigma > 0) in
+        open space with a budget that allows some travel; else None (the sure distance)."""
+        rules = self.rules
+        if rules.log is None or rules.shadow is None or rules.walls is not None or not self.cfg.fade_margin_db > 0:
+            return None
+        sh = rules.shadow
+        return Fade(
+            rules.log,
+            sh.sigma_db,
+            sh.decorrelation_m,
+            self.cfg.fade_margin_db,
+            self.local_limits.range_m,
+            self.cfg.margin_m,
+            self.cfg.control_period_s,
+        )
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:
         """``gain (m - d)`` away from the nearest wall within ``m = sqrt(3) r_c / 2``, as the border."""
@@ -504,9 +528,16 @@ class CoverageController:
         """Every robot's wish from its own position and the positions it heard."""
         c, memory, st = self.cfg, self.memory, self.state
         assert memory is not None
-        robot, other, xy, heard_s = self.view.heard_acks(self.env.now)
-        memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s)
-        self.knows = memory.at(step.t_s, c.speed_max_mps, self.jitter_s)
+        robot, other, xy, heard_s, power_dbm = self.view.heard_acks(self.env.now)
+        speed = self.local_limits.speed_max_mps
+        x_db = margin_db = None
+        if self.fade is not None:
+            # Each robot's own measurement: the power it received each Ack at.
+            own = st.positions_at(self.env.now)[robot]
+            age = self.env.now - (heard_s - self.loop.lead_s)
+            x_db, margin_db = self.fade.measure(own, xy, power_dbm, age, speed)
+        memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s, x_db, margin_db)
+        self.knows = memory.at(step.t_s, speed, self.jitter_s)
         pos = step.positions_m
         self.heard = self.lists.heard(memory.known(self.env.now, c.release_s), memory.sent_s, c.release_s)
         self.lists.take(memory, self.env.now, c.release_s)
@@ -523,13 +554,18 @@ class CoverageController:
         memory, knows, heard, c = self.memory, self.knows, self.heard, self.cfg
         assert memory is not None and knows is not None and heard is not None
         limits, walls, pos = self.local_limits, self.local_walls, step.positions_m
-        kept = heard.known & ~let_go(pos, knows, heard, step.t_s, c.speed_max_mps, c.band_m, limits.range_m, walls)
+        t0, t1, speed = step.t_s, step.t_s + limits.period_s, limits.speed_max_mps
+        fade = self.fade
+        if fade is not None:
+            knows.keep_m, travel = fade.limits(knows, t0, t1, speed)
+        kept = heard.known & ~let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, fade)
         announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (netsim.mobility.local, rule 4).
         self.earlier_mps, self.earlier_s = self.announced_mps, self.announced_s
         self.announced_mps, self.announced_s = wish, self.env.now
-        plan = plan_local(pos, wish, knows, kept, step.t_s, limits)
+        reach = fade.reach(travel, kept) if fade is not None else None
+        plan = plan_local(pos, wish, knows, kept, step.t_s, limits, reach)
         if not walls.on:
             return plan
         # Rule 5: the step ends short of the walls (as the control loop would make it), then

@@ -42,62 +42,55 @@ more than it plausibly can. What "up" means, and how it is kept, depends on the 
 from __future__ import annotations
 
 import numpy as np
+from netsim.mobility._fade_kernels import FADE_SIGMAS as FADE_SIGMAS
 from netsim.mobility.steps import Candidates
 
+from netsim.compiled import load
 from netsim.topology import geometric_pairs
 
-# Standard deviations of the shadowing's change per step that a kept link's budget covers
-# (a one-sided 4-sigma event has probability 3.2e-5 at each look of the channel).
-FADE_SIGMAS = 4.0
 # Rounds of shortening steps on a map before robots whose links still fail are held.
 CUT_ROUNDS = 8
 # A step cut before a kept link's loss ends this far (of the faster robot's path) before it.
 CUT_BACKOFF_M = 0.05
 
 
-def _plausible_change_db(rho: np.ndarray, x_db: np.ndarray, sigma_db: float) -> np.ndarray:
-    """``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2)``: the drift of the
-    shadowing back to 0 from a favourable ``x``, and :data:`FADE_SIGMAS` of its spread."""
-    drift = np.maximum(-np.asarray(x_db, float), 0.0)
-    return (1.0 - rho) * drift + FADE_SIGMAS * sigma_db * np.sqrt(np.maximum(1.0 - rho * rho, 0.0))
+def _fade_kernels(rows: int):
+    return load("netsim.mobility._fade_kernels", rows)
 
 
 def plausible_change_db(travel_m: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float) -> np.ndarray:
     """How far the shadowing measured at ``x_db`` plausibly moved (against the link) over a
-    pair travel ``travel_m``: :func:`_plausible_change_db` at ``rho = exp(-travel / d_corr)``.
+    pair travel ``travel_m``: ``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2)``
+    at ``rho = exp(-travel / d_corr)``, the drift of the shadowing back to 0 from a
+    favourable ``x`` and :data:`FADE_SIGMAS` of its spread (the rule both plans use,
+    :func:`netsim.mobility._fade_kernels.plausible_change_db`).
 
     >>> plausible_change_db(np.array([0.0, 1.438]), np.zeros(2), 4.0, 10.0).round(2).tolist()
     [0.0, 8.0]
     """
-    rho = np.exp(-np.maximum(np.asarray(travel_m, float), 0.0) / decorrelation_m)
-    return _plausible_change_db(rho, x_db, sigma_db)
+    travel, x = np.broadcast_arrays(np.asarray(travel_m, float), np.asarray(x_db, float))
+    shape = travel.shape
+    travel, x = np.ascontiguousarray(travel.ravel()), np.ascontiguousarray(x.ravel())
+    out = np.empty(len(travel))
+    _fade_kernels(len(out)).plausible_change_many(travel, x, float(sigma_db), float(decorrelation_m), out)
+    return out.reshape(shape)
 
 
 def fade_travel_m(budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float) -> np.ndarray:
     """The largest pair travel ``delta`` over which the shadowing's plausible change stays
     within ``budget_db``: ``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2) <=
     budget``, ``rho = exp(-delta / d_corr)`` (0 for a budget <= 0; inf when even complete
-    decorrelation stays within it).
+    decorrelation stays within it; :func:`netsim.mobility._fade_kernels.fade_travel_m`).
 
     >>> fade_travel_m(np.array([0.0, 8.0, 100.0]), np.zeros(3), 4.0, 10.0).round(3).tolist()
     [0.0, 1.438, inf]
     """
-    budget = np.asarray(budget_db, float)
-
-    def change(rho: np.ndarray) -> np.ndarray:
-        return _plausible_change_db(rho, x_db, sigma_db)
-
-    lo, hi = np.zeros_like(budget), np.ones_like(budget)
-    # The change falls as rho grows: bisect for the smallest rho within the budget.
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        ok = change(mid) <= budget
-        hi = np.where(ok, mid, hi)
-        lo = np.where(ok, lo, mid)
-    with np.errstate(divide="ignore"):
-        travel = -decorrelation_m * np.log(hi)
-    travel = np.where(change(np.zeros_like(budget)) <= budget, np.inf, travel)
-    return np.where(budget > 0, travel, 0.0)
+    budget, x = np.broadcast_arrays(np.asarray(budget_db, float), np.asarray(x_db, float))
+    shape = budget.shape
+    budget, x = np.ascontiguousarray(budget.ravel()), np.ascontiguousarray(x.ravel())
+    out = np.empty(len(budget))
+    _fade_kernels(len(out)).fade_travel_many(budget, x, float(sigma_db), float(decorrelation_m), out)
+    return out.reshape(shape)
 
 
 class LinkRules:

@@ -37,9 +37,23 @@ period``), its own position ``p`` at ``t0`` exact:
 
 ``r`` is the plan's range: the range on a disk (the implied range under log-distance;
 on a map, for a link clear of walls), and under shadowing the *sure* distance, where even
-the clipped worst shadowing (``+4 sigma``) leaves a link up. A link longer than that, or
-through a wall, is never certified: a robot that keeps it holds, and a link whose two
-robots hold does not change (the shadowing runs in the pair's travel).
+the clipped worst shadowing (``+4 sigma``) leaves a link up. A link through a wall is never
+certified: a robot that keeps it holds, and a link whose two robots hold does not change.
+
+**Shadowing** (in open space, :class:`Fade`): each robot measures the pair's shadowing
+``X`` on every Ack it hears, from the power it received it at, ``X = P_t - PL(d) - P_r``
+(``d`` from the position the Ack carried; the shadowing is reciprocal, so what ``i``
+measures on ``j``'s Ack is the pair's), and keeps a link by the global plan's fade-margin
+rule (:mod:`netsim.mobility.keep`, :mod:`netsim.mobility._fade_kernels`): within the
+length where its margin with that ``X`` is ``B = min(fade_margin_db, margin)`` (in place of
+``r`` in rules 2 and 3), while the pair's travel since the Ack, bounded by the speed cap
+every robot keeps (:attr:`Fade.speed_mps`), and its own step stay within the travel ``B``
+allows; else within the sure distance. An Ack's list carries the shadowing its sender
+measured on each robot it lists, so rule 1 certifies a detour's link by a measurement too:
+up at ``t0`` unless the shadowing moved beyond ``FADE_SIGMAS`` standard deviations over
+the pair's largest travel since. Both make the guarantee below probabilistic for the links
+longer than the sure distance, as the global plan's. A link whose two robots hold does not
+change (the shadowing runs in the pair's travel).
 
 Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
 each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
@@ -61,6 +75,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from netsim.mobility.keep import fade_travel_m
 from netsim.mobility.spread import project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
@@ -155,6 +170,15 @@ class Memory:
         self.sent_s = np.full((n, n), -np.inf)
         self.vel = np.zeros((n, n, 2))
         self.until_s = np.full((n, n), -np.inf)
+        # Under shadowing (:class:`Fade`): the pair's shadowing ``i`` measured on that Ack
+        # (dB, NaN: none), the margin it was received with (dB above the sensitivity), and
+        # the earliest time the Ack can have been sent, which :meth:`at` leaves as it is.
+        self.x_db = np.full((n, n), np.nan)
+        self.margin_db = np.full((n, n), np.nan)
+        self.measured_s = np.full((n, n), -np.inf)
+        # How far from ``q_j`` robot ``i`` answers for the link (:func:`leash_radius`); None:
+        # the plan's range less its margin for every link.
+        self.keep_m: np.ndarray | None = None
 
     def hear(
         self,
@@ -166,16 +190,23 @@ class Memory:
         leg_velocity_mps: np.ndarray | None = None,
         leg_start_s: np.ndarray | None = None,
         leg_until_s: float = -np.inf,
+        x_db: np.ndarray | None = None,
+        margin_db: np.ndarray | None = None,
     ):
         """Take the Acks in the robots' tables (reception times ``heard_s``; an Ack left at
         most ``delay_s`` before it arrived). With ``leg_velocity_mps`` and ``leg_start_s``
         (each robot's current leg), an Ack sent during its sender's current leg carries
-        that leg's velocity, which holds until ``leg_until_s`` (the next control step)."""
+        that leg's velocity, which holds until ``leg_until_s`` (the next control step).
+        ``x_db``, ``margin_db``: the shadowing each robot measured on each Ack and the
+        margin it heard it with (:meth:`Fade.measure`; NaN: none)."""
         sent = heard_s - delay_s
         newer = sent > self.sent_s[robot, other]
         r, o, sent = robot[newer], other[newer], sent[newer]
         self.sent_s[r, o] = sent
+        self.measured_s[r, o] = sent
         self.xy[r, o] = xy[newer]
+        self.x_db[r, o] = np.nan if x_db is None else x_db[newer]
+        self.margin_db[r, o] = np.nan if margin_db is None else margin_db[newer]
         if leg_velocity_mps is None or leg_start_s is None:
             self.vel[r, o] = 0.0
             self.until_s[r, o] = sent
@@ -204,6 +235,7 @@ class Memory:
         with np.errstate(invalid="ignore"):
             out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)
         out.until_s = out.sent_s.copy()
+        out.x_db, out.margin_db, out.measured_s = self.x_db, self.margin_db, self.measured_s
         return out
 
 
@@ -220,6 +252,7 @@ class Heard(NamedTuple):
     sent_s: np.ndarray  # (M,): the earliest time the sender's latest Ack of it can have been sent
     xy: np.ndarray  # (M, 2): the position that Ack carried
     release_s: float
+    x_db: np.ndarray | None = None  # (M,): the shadowing the sender measured on that Ack (NaN: none)
 
 
 class Lists:
@@ -236,13 +269,22 @@ class Lists:
     def __init__(self, n: int, depth: int):
         self.n = n
         self.depth = int(depth)
-        self._taken: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._taken: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
 
     def take(self, memory: Memory, now_s: float, release_s: float) -> None:
         """Every robot's list from now on: the robots it remembers (:meth:`Memory.known`)."""
         robot, other = np.nonzero(memory.known(now_s, release_s))
         start = np.searchsorted(robot, np.arange(self.n + 1))
-        self._taken.append((float(now_s), start, other, memory.sent_s[robot, other], memory.xy[robot, other]))
+        self._taken.append(
+            (
+                float(now_s),
+                start,
+                other,
+                memory.sent_s[robot, other],
+                memory.xy[robot, other],
+                memory.x_db[robot, other],
+            )
+        )
         del self._taken[: -self.depth]
 
     def heard(self, known: np.ndarray, sent_s: np.ndarray, release_s: float) -> Heard:
@@ -257,7 +299,8 @@ class Lists:
         other = np.concatenate([t[2] for t in self._taken]) if self._taken else np.empty(0, np.int64)
         sent = np.concatenate([t[3] for t in self._taken]) if self._taken else np.empty(0)
         xy = np.concatenate([t[4] for t in self._taken]) if self._taken else np.empty((0, 2))
-        return Heard(known, which.astype(np.int64), start, other.astype(np.int64), sent, xy, float(release_s))
+        x = np.concatenate([t[5] for t in self._taken]) if self._taken else np.empty(0)
+        return Heard(known, which.astype(np.int64), start, other.astype(np.int64), sent, xy, float(release_s), x)
 
 
 def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -280,6 +323,7 @@ def let_go(
     band_m: float,
     range_m: float,
     walls: Walls = NO_WALLS,
+    fade: Fade | None = None,
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
@@ -306,7 +350,10 @@ def let_go(
     rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m), heard.release_s)
     lists = (heard.which, heard.start, heard.other, heard.sent_s)
     kernels = load("netsim.mobility._local_kernels", n)
-    kernels.let_go(pos, (memory.xy, memory.sent_s, known), lists, rule, walls, out)
+    listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
+    measured = (memory.x_db, memory.measured_s, listed_x)
+    rule_of_fade = NO_FADE if fade is None else fade.rule
+    kernels.let_go(pos, (memory.xy, memory.sent_s, known), lists, rule, walls, out, rule_of_fade, measured)
     return out
 
 
@@ -321,8 +368,11 @@ def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> 
 
 
 def leash_radius(memory: Memory, t1_s: float, limits: StepLimits) -> np.ndarray:
-    """``(n, n)``: how far from ``q_j`` robot ``i`` may end the step (rule 2)."""
-    return limits.keep_m - limits.speed_max_mps * (t1_s - memory.sent_s)
+    """``(n, n)``: how far from ``q_j`` robot ``i`` may end the step (rule 2): what it
+    answers for (``memory.keep_m``, or the plan's range less its margin) less ``j``'s largest
+    motion since its Ack."""
+    keep = limits.keep_m if memory.keep_m is None else memory.keep_m
+    return keep - limits.speed_max_mps * (t1_s - memory.sent_s)
 
 
 def plan_local(
@@ -332,6 +382,7 @@ def plan_local(
     kept: np.ndarray,
     t0_s: float,
     limits: StepLimits,
+    reach_m: np.ndarray | None = None,
 ) -> Plan:
     """Each robot's step (module notes): its wish, brought into its leashes, its reach and
     the area.
@@ -339,9 +390,12 @@ def plan_local(
     ``kept``: ``(n, n)``, robot ``i`` keeps ``j`` (remembered and not let go of). A robot
     inside all its leashes now goes along its projected step as far as it stays inside
     them; one already outside some (but within what it answers for now) must end inside
-    them, and holds if the projection found no such end.
+    them, and holds if the projection found no such end. ``reach_m``: each robot's longest
+    step (default the speed cap's; under shadowing the travel its kept links allow,
+    :meth:`Fade.reach`); a robot whose reach is 0 holds.
     """
     n = len(pos)
+    reach = np.full(n, limits.reach_m) if reach_m is None else np.minimum(reach_m, limits.reach_m)
     robot, other = np.nonzero(kept)
     centre = memory.xy[robot, other]
     now_m = leash_radius(memory, t0_s, limits)[robot, other]
@@ -353,6 +407,7 @@ def plan_local(
     outside = np.zeros(n, dtype=bool)
     outside[robot[dist > r]] = True
     wants = np.hypot(*desired_mps.T) > 0
+    cannot |= reach <= 0
     movers = np.flatnonzero(~cannot & wants)
     mobile = np.zeros(n, dtype=bool)
     mobile[movers] = True
@@ -360,10 +415,10 @@ def plan_local(
     robot, centre, r = robot[sel], centre[sel], r[sel]
     robot = np.concatenate([robot, movers])
     centre = np.concatenate([centre, pos[movers]])
-    r = np.concatenate([r, np.full(len(movers), limits.reach_m)])
+    r = np.concatenate([r, reach[movers]])
 
     wish = np.zeros((n, 2))
-    wish[movers] = cap_length(desired_mps[movers] * limits.period_s, limits.reach_m)
+    wish[movers] = cap_length(desired_mps[movers] * limits.period_s, reach[movers])
     end = project_into(pos + wish, robot, centre, r * SAFETY, limits.box)
     move = end - pos
     move[~mobile] = 0.0
@@ -513,3 +568,92 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
     if not robots:
         return np.empty(0, np.int64), np.empty((0, 2))
     return np.concatenate(robots), np.concatenate(xys)
+
+
+# The fade rule switched off (:func:`netsim.mobility._local_kernels.measured_range_m`).
+NO_FADE = (False, 0.0, 1.0, 0.0, 1.0, 1.0)
+
+
+class Fade:
+    """The fade-margin rule by which the local plan keeps links under shadowing (module
+    notes, "Shadowing"; the global plan's rule, :mod:`netsim.mobility.keep`, one
+    implementation: :mod:`netsim.mobility._fade_kernels`).
+
+    ``radio``: the log-distance law's parameters (``tx_power_dbm``, ``sensitivity_dbm``,
+    ``path_loss_db``, ``budget_db``, ...); ``sigma_db``, ``decorrelation_m``: the
+    shadowing's; ``fade_margin_db``: the budget a kept link keeps against the change of its
+    shadowing; ``sure_m``: the plan's range without a measurement (the sure distance);
+    ``margin_m``: the plan's distance margin; ``period_s``: the control period.
+    """
+
+    def __init__(
+        self,
+        radio,
+        sigma_db: float,
+        decorrelation_m: float,
+        fade_margin_db: float,
+        sure_m: float,
+        margin_m: float,
+        period_s: float,
+    ):
+        self.radio = radio
+        self.sigma_db = float(sigma_db)
+        self.decorrelation_m = float(decorrelation_m)
+        self.fade_margin_db = float(fade_margin_db)
+        self.sure_m = float(sure_m)
+        self.margin_m = float(margin_m)
+        self.rule = (
+            True,
+            self.sigma_db,
+            self.decorrelation_m,
+            float(radio.budget_db),
+            float(radio.reference_distance_m),
+            float(radio.path_loss_exponent),
+        )
+        # The speed cap known to all: a pair's travel over two control periods, both robots
+        # at the cap, stays within what a full budget allows at X = 0 (an Ack each period
+        # then leaves every kept link some travel in each step).
+        travel = float(
+            fade_travel_m(np.array([self.fade_margin_db]), np.zeros(1), self.sigma_db, self.decorrelation_m)[0]
+        )
+        self.speed_mps = travel / (4.0 * float(period_s))
+
+    def measure(
+        self, own_xy: np.ndarray, heard_xy: np.ndarray, power_dbm: np.ndarray, age_s: np.ndarray, speed_mps: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The shadowing each robot measured on each Ack it heard, and the margin it heard
+        it with (dB; NaN where no power was measured): ``X = P_t - PL(d) - P_r``, ``d`` the
+        shortest the distance can have been when the Ack was sent (the position it carried
+        to the robot's own position now, less the robot's largest motion since ``age_s``
+        ago): an ``X`` no lower than the true one, which only shortens the links kept.
+        ``margin = P_r - sensitivity``."""
+        d = np.hypot(*(heard_xy - own_xy).T) - speed_mps * np.maximum(age_s, 0.0) if len(own_xy) else np.zeros(0)
+        r = self.radio
+        x = r.tx_power_dbm - r.path_loss_db(np.maximum(d, 0.0)) - power_dbm
+        return x, power_dbm - r.sensitivity_dbm
+
+    def limits(self, knows: Memory, t0_s: float, t1_s: float, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(keep_m, travel_m)``, ``(n, n)``: how far from ``q_j`` robot ``i`` answers for
+        the link to ``j`` (rule 2, before ``j``'s motion since its Ack), and the longest step
+        it may take while keeping it (inf: no bound). A link with a measurement: budget
+        ``B = min(fade_margin_db, margin)``, kept up to where its margin with the measured
+        ``X`` is ``B``, less ``margin_m``, while the pair's travel since the Ack (``i``'s own
+        and ``j``'s, each at most the speed cap) plus ``i``'s step stays within the travel
+        that ``B`` allows (:func:`netsim.mobility.keep.fade_travel_m`); where that gives no
+        longer link or no travel, the sure distance less ``margin_m``, no bound."""
+        x, margin, s = knows.x_db, knows.margin_db, knows.measured_s
+        measured = np.isfinite(x) & np.isfinite(margin) & np.isfinite(s)
+        budget = np.where(measured, np.minimum(self.fade_margin_db, margin), 0.0)
+        x0 = np.where(measured, x, 0.0)
+        reach = self.radio.effective_range_m(x0 + budget, 0)
+        travel = fade_travel_m(budget, x0, self.sigma_db, self.decorrelation_m)
+        with np.errstate(invalid="ignore"):
+            left = travel - speed_mps * ((t0_s - s) + (t1_s - s))
+        usable = measured & (reach > self.sure_m) & (left > 0)
+        keep = np.where(usable, reach, self.sure_m) - self.margin_m
+        return keep, np.where(usable, left, np.inf)
+
+    @staticmethod
+    def reach(travel_m: np.ndarray, kept: np.ndarray) -> np.ndarray:
+        """Each robot's longest step: the least travel its kept links allow."""
+        return np.where(kept, travel_m, np.inf).min(axis=1, initial=np.inf)

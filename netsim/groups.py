@@ -41,10 +41,11 @@ class GroupView(Protocol):
         arrays ``(robot, other, last-heard position of other (k, 2))``."""
         ...
 
-    def heard_acks(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def heard_acks(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """What each robot itself heard: arrays ``(robot, sender, position in the sender's
-        latest Ack it heard (k, 2), when it heard it)``, entries its table no longer
-        counts live included while they are kept."""
+        latest Ack it heard (k, 2), when it heard it, the power it heard it at (dBm, NaN
+        where the channel measures none))``, entries its table no longer counts live
+        included while they are kept."""
         ...
 
 

@@ -13,7 +13,20 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from netsim.protocols._kernels import EMPTY, LAST_HEARD, ROLE, Beliefs, Counts, Groups, Pairs, RoleArrays, Truth, X, Y
+from netsim.protocols._kernels import (
+    EMPTY,
+    LAST_HEARD,
+    ROLE,
+    RX_POWER,
+    Beliefs,
+    Counts,
+    Groups,
+    Pairs,
+    RoleArrays,
+    Truth,
+    X,
+    Y,
+)
 from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
 from netsim.protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
@@ -226,14 +239,15 @@ class Stack:
         order = np.lexsort((other, robot))
         return robot[order], other[order], xy[other[order]]
 
-    def heard_acks(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def heard_acks(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every robot's own record of the Acks it heard, live or expired (the latest of
         each sender, until its slot is reused): arrays ``(robot, sender, position the Ack
-        carried (k, 2), reception time)``."""
+        carried (k, 2), reception time, power the robot received it at (dBm, NaN: not
+        measured))``."""
         table = self.table
         rows, slots = np.nonzero(table.id != EMPTY)
         rec = table.data[rows, slots]
-        return rows.astype(np.int64), table.id[rows, slots], rec[:, [X, Y]], rec[:, LAST_HEARD]
+        return rows.astype(np.int64), table.id[rows, slots], rec[:, [X, Y]], rec[:, LAST_HEARD], rec[:, RX_POWER]
 
     # -- ground truth beside belief ----------------------------------------------------
     def _heard_keys(self, now: float) -> np.ndarray:

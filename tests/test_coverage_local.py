@@ -543,7 +543,7 @@ def test_local_plan_keeps_a_log_distance_network_without_shadowing():
     "radio, n", [("shadowing 4 dB", 60), ("office, line of sight", 40), ("office, 5 dB a wall", 40)]
 )
 def test_local_plan_never_splits_the_real_network_on_every_radio(radio, n):
-    """Under shadowing (links kept within the sure distance, up even at ``+4 sigma``) and on
+    """Under shadowing (links kept by the shadowing each robot measured on them) and on
     the office map (links kept clear of walls over each step; line of sight, and 5 dB a
     wall), from a dense start (the scenario of ``netsim validate`` item 30): the real
     network (links.parquet) never has more components after control starts than at its

@@ -1,0 +1,195 @@
+"""The local plan under shadowing (docs/model.md section 5.1, "Radios"; mobility/local.py,
+"Shadowing"): each robot keeps links by the shadowing it measured on the Acks it heard, with
+the global plan's fade-margin rule (mobility/_fade_kernels.py). One test per rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from netsim.mobility.keep import fade_travel_m, plausible_change_db
+from netsim.mobility.local import Fade, Lists, Memory, let_go, plan_local
+from netsim.mobility.steps import StepLimits
+
+from netsim.radio.propagation import LogDistanceParams
+
+RADIO = LogDistanceParams(shadowing_sigma_db=4.0)
+SIGMA, DCORR, FADE_DB = 4.0, 10.0, 8.0
+SURE = float(RADIO.effective_range_m(4.0 * SIGMA))
+PERIOD = 1.0
+T0 = 10.0
+
+
+def fade() -> Fade:
+    return Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, PERIOD)
+
+
+def limits(f: Fade) -> StepLimits:
+    return StepLimits(period_s=PERIOD, range_m=SURE, margin_m=1.0, speed_max_mps=f.speed_mps, side_m=5000.0)
+
+
+def measured_pair(distance_m: float, x_db: float, sent_s: float) -> Memory:
+    """Two robots, 0 at the origin and 1 at ``distance_m``, each having heard the other's Ack
+    sent at ``sent_s`` with the pair's shadowing ``x_db`` (the power it gives, as received)."""
+    m = Memory(2)
+    m.xy[0, 1] = (distance_m, 0.0)
+    m.xy[1, 0] = (0.0, 0.0)
+    m.sent_s[0, 1] = m.sent_s[1, 0] = sent_s
+    m.measured_s[:] = m.sent_s
+    power = RADIO.tx_power_dbm - float(RADIO.path_loss_db(distance_m)) - x_db
+    m.x_db[0, 1] = m.x_db[1, 0] = x_db
+    m.margin_db[0, 1] = m.margin_db[1, 0] = power - RADIO.sensitivity_dbm
+    return m
+
+
+def test_fade_keeps_a_link_as_far_as_its_measured_shadowing_allows():
+    """A kept link with a measurement is answered for up to where its margin with the
+    measured X is B = min(fade_margin_db, margin), less margin_m: the farther the worse the
+    measured shadowing; a link never measured, or left no travel, is answered for only up to
+    the sure distance."""
+    f = fade()
+    keeps = []
+    for x in (-4.0, 0.0, 4.0):
+        m = measured_pair(40.0, x, T0 - 0.5)
+        keep, travel = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
+        margin = RADIO.tx_power_dbm - float(RADIO.path_loss_db(40.0)) - x - RADIO.sensitivity_dbm
+        budget = min(FADE_DB, margin)
+        want = float(RADIO.effective_range_m(x + budget)) - 1.0
+        assert keep[0, 1] == pytest.approx(want, rel=1e-12)
+        assert np.isfinite(travel[0, 1])
+        keeps.append(keep[0, 1])
+    assert keeps[0] > keeps[1] > keeps[2] > SURE
+    never = Memory(2)
+    never.sent_s[0, 1] = T0 - 0.5
+    keep, travel = f.limits(never, T0, T0 + PERIOD, f.speed_mps)
+    assert keep[0, 1] == SURE - 1.0 and travel[0, 1] == np.inf
+    stale = measured_pair(40.0, 0.0, T0 - 30.0)  # the pair may have travelled too far since
+    keep, travel = f.limits(stale, T0, T0 + PERIOD, f.speed_mps)
+    assert keep[0, 1] == SURE - 1.0 and travel[0, 1] == np.inf
+
+
+def test_fade_step_keeps_the_pair_travel_within_the_travel_limit():
+    """The travel limit: a robot's step on a measured link beyond the sure distance is no
+    longer than the travel B allows less both robots' largest travel since the Ack, so
+    v (t0 - s) + |step| + v (t1 - s) <= fade_travel_m(B, X); and over that travel the
+    plausible change stays within B."""
+    f = fade()
+    lim = limits(f)
+    for x, sent in ((0.0, T0 - 0.2), (0.0, T0 - 1.2), (-3.0, T0 - 0.6), (2.0, T0 - 1.0)):
+        m = measured_pair(45.0, x, sent)
+        keep, travel = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
+        m.keep_m = keep
+        kept = np.array([[False, True], [True, False]])
+        reach = Fade.reach(travel, kept)
+        pos = np.array([[0.0, 0.0], [45.0, 0.0]]) + 1000.0
+        m.xy[0, 1], m.xy[1, 0] = pos[1], pos[0]
+        wish = np.array([[-5.0, 0.0], [5.0, 0.0]])  # both pull away as fast as they can
+        plan = plan_local(pos, wish, m, kept, T0, lim, reach)
+        step = np.hypot(*(plan.velocity_mps * PERIOD).T)
+        budget = min(FADE_DB, float(m.margin_db[0, 1]))
+        allowed = float(fade_travel_m(np.array([budget]), np.array([x]), SIGMA, DCORR)[0])
+        worst = f.speed_mps * ((T0 - sent) + (T0 + PERIOD - sent))
+        assert (step + worst <= allowed * (1 + 1e-9)).all(), (x, step, worst, allowed)
+        assert float(plausible_change_db(np.array([step[0] + worst]), np.array([x]), SIGMA, DCORR)[0]) <= budget + 1e-9
+        assert (step > 0).all()
+
+
+def test_shadowing_is_measured_from_the_power_the_robot_received():
+    """X = P_t - PL(d) - P_r from the power the robot itself received, d the shortest the
+    distance can have been at sending (the robot's largest motion since taken off): exact
+    when the robot has not moved, and never below the true X (only shorter links kept)."""
+    f = fade()
+    rng = np.random.default_rng(3)
+    k = 200
+    sender = rng.uniform(0, 200, (k, 2))
+    at_send = rng.uniform(0, 200, (k, 2))
+    x_true = rng.normal(0, SIGMA, k)
+    d = np.hypot(*(sender - at_send).T)
+    power = RADIO.tx_power_dbm - RADIO.path_loss_db(d) - x_true
+    x, margin = f.measure(at_send, sender, power, np.zeros(k), 0.5)
+    assert np.allclose(x, x_true, atol=1e-9)
+    assert np.allclose(margin, power - RADIO.sensitivity_dbm)
+    age = rng.uniform(0, 2, k)
+    angle = rng.uniform(0, 2 * np.pi, k)
+    moved = at_send + (0.5 * age * rng.random(k))[:, None] * np.c_[np.cos(angle), np.sin(angle)]
+    x_moved, _ = f.measure(moved, sender, power, age, 0.5)
+    assert (x_moved >= x_true - 1e-9).all()
+    # No power received, nothing measured.
+    x_none, _ = f.measure(at_send[:3], sender[:3], np.full(3, np.nan), np.zeros(3), 0.5)
+    assert np.isnan(x_none).all()
+
+
+def test_a_robot_uses_only_the_powers_it_received():
+    """A robot's measurement of a pair is the one it made on the Ack it heard (Memory.hear
+    takes it with the Ack, NaN for a robot never heard), and what it learns of its
+    neighbours' links is the measurement each of them made (the Ack's list), never its own
+    nor the other end's."""
+    n = 3
+    m = Memory(n)
+    robot, other = np.array([0, 1, 1, 2]), np.array([1, 0, 2, 1])
+    xy = np.zeros((4, 2))
+    heard = np.full(4, T0 - 0.5)
+    x = np.array([1.0, 2.0, 3.0, 4.0])  # each robot's own measurement of each Ack it heard
+    m.hear(robot, other, xy, heard, 0.001, x_db=x, margin_db=x + 10)
+    assert m.x_db[0, 1] == 1.0 and m.x_db[1, 0] == 2.0 and m.x_db[1, 2] == 3.0 and m.x_db[2, 1] == 4.0
+    assert np.isnan(m.x_db[0, 2]) and np.isnan(m.x_db[2, 0])
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 1.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    for u in range(n):
+        k = held.which[0, u]
+        if k < 0:
+            continue
+        for p in range(held.start[k, u], held.start[k, u + 1]):
+            assert held.x_db[p] == m.x_db[u, held.other[p]]
+
+
+def test_detour_through_a_measured_link_beyond_the_sure_distance():
+    """Rule 1 under shadowing: a detour's link longer than the sure distance is certified
+    when the shadowing measured on it (by its own ends, told in their Acks' lists) leaves it
+    up at t0 after the plausible change over the pair's largest travel since; not without
+    a measurement."""
+    f = fade()
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])  # 0-1 80 m; 0-2, 2-1 about 43 m
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - 0.5)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = sent
+    m.measured_s[:] = sent
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 1.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    v = f.speed_mps
+    assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+    m.x_db[:] = -2.0  # a favourable shadowing, measured on every Ack
+    np.fill_diagonal(m.x_db, np.nan)
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 1.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+    # A shadowing that leaves the detour's links too short at t0 certifies nothing.
+    m.x_db[:] = 14.0
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 1.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+
+
+@pytest.mark.slow
+def test_local_plan_under_shadowing_spreads_and_keeps_the_real_network():
+    """Under 4 dB shadowing, from the dense start of ``netsim validate``'s coverage scenario,
+    the local plan moves (it keeps links by their measured margin, not only within the sure
+    distance, where no robot moved) and the real network (links.parquet) gains no component
+    after control starts."""
+    from netsim import config
+    from netsim.run import execute
+    from netsim.tools.validate import coverage_outcome, coverage_settings
+
+    n, duration = 12, 120.0
+    cfg = config.load(None, coverage_settings("shadowing 4 dB", "local", n, 0.0, 1, duration))
+    r = execute(cfg)
+    o = coverage_outcome(r.frames, r.summary, n, cfg.coverage.start_s, duration)
+    assert o["components_max"] == o["components_at_start"] == 1
+    assert r.summary["distance_mean_m"] > 5.0
+    assert r.summary["covered_of_bound_all_final"] > 1.1 * r.summary["covered_of_bound_all_start"]
