@@ -33,13 +33,13 @@ def two_rooms(tmp_path, door: bool = True):
     return save_map(tmp_path / ("rooms.yaml" if door else "closed.yaml"), occ, ~occ, RES_M)
 
 
-def _world(path, n, **extra):
+def _world(path, n, channel=None, **extra):
     return make_config(
         seed=extra.pop("seed", 3),
         duration_s=1.0,
         world={"n_robots": n, "side_m": 20.0, "bounds_m": "map", "map": str(path), "placement": "connected", **extra},
         mobility={"model": "static"},
-        channel={"range_m": 12.0},
+        channel=channel or {"range_m": 12.0},
         protocol={"model": "none"},
         output={"position_interval_s": 0.0},
     )
@@ -65,18 +65,21 @@ def test_connected_start_is_one_network_through_a_door(tmp_path):
     both, form one network of line-of-sight links at t = 0 (walls cut the links a plain
     distance test would keep)."""
     path = two_rooms(tmp_path)
-    for seed in (1, 2, 3):
-        pos = _placed(_world(path, 25, seed=seed, start_m=[10.0, 10.0], centre_side_m=60.0))
+    both_rooms = 0
+    for seed in range(1, 9):
+        pos = _placed(_world(path, 10, seed=seed, start_m=[10.0, 10.0], centre_side_m=60.0))
         assert _sight_components(path, pos, 12.0) == 1
-        # Robots reached the second room (through the door), so the walls were in play.
-        assert (pos[:, 0] > 20.0).any() and (pos[:, 0] < 20.0).any()
+        both_rooms += bool((pos[:, 0] > 20.0).any() and (pos[:, 0] < 20.0).any())
+    # Robots reached the second room (through the door), so the walls were in play.
+    assert both_rooms > 0
 
 
 def test_connected_start_stays_in_the_start_points_free_region(tmp_path):
     """Without a door the second room is another free region: every robot starts in the
-    start point's room."""
+    start point's room, even under a radio whose links cross the wall (5 dB a wall)."""
     path = two_rooms(tmp_path, door=False)
-    pos = _placed(_world(path, 15, start_m=[30.0, 10.0], centre_side_m=60.0))
+    radio = {"propagation": "log_distance", "wall_loss_db": 5.0, "sensitivity_dbm": -64.3}
+    pos = _placed(_world(path, 15, channel=radio, start_m=[30.0, 10.0], centre_side_m=60.0))
     assert (pos[:, 0] > 20.25).all()
 
 
