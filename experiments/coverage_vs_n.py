@@ -24,10 +24,10 @@ Writes to ``--out``:
 
 - ``coverage_vs_n.csv``: per point, the mean, standard deviation and 95 % confidence
   interval over replications of the final covered fraction of the bound
-  ``min(1, U(N) / A)`` (on the map ``A`` is the free region's area) and of the area, how far the number of components rose during
-  control above its value at control start (``grew``: the real network, the channel's
-  links, at every control step), the fraction of runs connected at the end, the settling
-  time and the distance travelled per robot;
+  ``min(1, U(N) / A)`` (on the map ``A`` is the free region's area) and of the area, how
+  far the number of components rose during control above its value at control start
+  (``grew``: the real network, the channel's links, at every control step), the fraction
+  of runs connected at the end, the settling time and the distance travelled per robot;
 - ``coverage_vs_n.png``: one column per radio; the covered fraction of the bound (with
   the targets of docs/model.md 5.2 on the unit disk: 75 % global, 60 % local) and
   ``grew`` against N, one line per mode.

@@ -215,7 +215,7 @@ def _linked(channel: Any) -> Callable[..., np.ndarray]:
     reception = None if channel is None else channel.reception
     if reception is None:
 
-        def disk(a, b, pa, pb, ranges):
+        def disk(a: np.ndarray, b: np.ndarray, pa: np.ndarray, pb: np.ndarray, ranges: np.ndarray) -> np.ndarray:
             return np.hypot(*(pb - pa).T) <= np.minimum(ranges[a], ranges[b])
 
         return disk
@@ -229,13 +229,15 @@ def _linked(channel: Any) -> Callable[..., np.ndarray]:
         )
     from netsim.links.wall_sweeps import envelope_radii, linked
 
-    def radio(a, b, pa, pb, ranges):
+    def radio(a: np.ndarray, b: np.ndarray, pa: np.ndarray, pb: np.ndarray, ranges: np.ndarray) -> np.ndarray:
         return linked(reception, envelope_radii(reception, ranges)[1], a, b, pa, pb)
 
     return radio
 
 
-def _start_space(world: WorldParams, area: Bounds, start: np.ndarray, occupancy: Any):
+def _start_space(
+    world: WorldParams, area: Bounds, start: np.ndarray, occupancy: Any
+) -> Callable[[np.random.Generator, int], np.ndarray]:
     """A function ``draw(rng, k)``: ``k`` points uniform over the start space (the square
     about ``start`` in the area, and on a map the free region's cells in it)."""
     half = world.centre_side_m / 2
@@ -260,7 +262,7 @@ def _start_space(world: WorldParams, area: Bounds, start: np.ndarray, occupancy:
     x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
     cdf = np.cumsum((x1 - x0) * (y1 - y0))
 
-    def draw(rng, k):
+    def draw(rng: np.random.Generator, k: int) -> np.ndarray:
         c = np.minimum(np.searchsorted(cdf, rng.random(k) * cdf[-1], side="right"), len(cdf) - 1)
         u = rng.random((k, 2))
         pos = np.column_stack([x0[c] + u[:, 0] * (x1[c] - x0[c]), y0[c] + u[:, 1] * (y1[c] - y0[c])])

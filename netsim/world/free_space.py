@@ -110,8 +110,8 @@ def _cells_in_area(m: OccupancyMap, area: float | Bounds) -> np.ndarray:
     r = m.resolution_m
     x0 = m.origin_m[0] + np.arange(w) * r
     y0 = m.origin_m[1] + np.arange(h) * r
-    cols = (np.minimum(x0 + r, b.x_max) > np.maximum(x0, b.x_min))
-    rows = (np.minimum(y0 + r, b.y_max) > np.maximum(y0, b.y_min))
+    cols = np.minimum(x0 + r, b.x_max) > np.maximum(x0, b.x_min)
+    rows = np.minimum(y0 + r, b.y_max) > np.maximum(y0, b.y_min)
     return m.free & rows[:, None] & cols[None, :]
 
 
