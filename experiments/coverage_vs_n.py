@@ -8,7 +8,10 @@ items and of ``experiments/coverage_targets.py``
 middle of the area (a square of side ``40 sqrt(N)`` m, about 20 neighbours per robot; 40 m
 on the office map), an area large enough that a connected team cannot cover it
 (``500 sqrt(N)`` m a side in open space), range 100 m (30 m on the office map); groups
-form, then the team spreads by virtual forces until the stopping rule ends control.
+form, then the team spreads by virtual forces until the stopping rule ends control. On the
+office map the start is connected on the run's own links (``world.placement =
+"connected"``, in the free region of the area's centre), and the bound is over the free
+region's area (docs/model.md 5.3).
 
 The modes: ``global`` (``coverage.members = "spread"``, ``coverage.plan = "global"``: one
 plan for the whole team, from true positions), ``local`` (``coverage.plan = "local"``: each
@@ -21,10 +24,10 @@ Writes to ``--out``:
 
 - ``coverage_vs_n.csv``: per point, the mean, standard deviation and 95 % confidence
   interval over replications of the final covered fraction of the bound
-  ``min(1, U(N) / A)`` and of the area, how far the number of components rose during
-  control above its value at control start (``grew``: the real network, the channel's
-  links, at every control step), the fraction of runs connected at the end, the settling
-  time and the distance travelled per robot;
+  ``min(1, U(N) / A)`` (on the map ``A`` is the free region's area) and of the area, how
+  far the number of components rose during control above its value at control start
+  (``grew``: the real network, the channel's links, at every control step), the fraction
+  of runs connected at the end, the settling time and the distance travelled per robot;
 - ``coverage_vs_n.png``: one column per radio; the covered fraction of the bound (with
   the targets of docs/model.md 5.2 on the unit disk: 75 % global, 60 % local) and
   ``grew`` against N, one line per mode.
@@ -73,6 +76,8 @@ BASE_KEYS = ("seed", "duration_s")
 def point(radio: str, mode: str, n: int, law: str, loss: float, duration_s: float) -> dict:
     """The configuration keys of one point: the validate scenario, the mode's keys, the law."""
     settings = [*coverage_settings(radio, "global", n, loss, 0, duration_s), *MODES[mode], f"coverage.law={law}"]
+    if radio.startswith("office"):
+        settings.append("world.placement=connected")
     keys: dict = {}
     for text in settings:
         keys.update(sweepmod.flatten(parse_override(text)))

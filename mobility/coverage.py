@@ -123,7 +123,7 @@ from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
-from netsim.world.free_space import free_fraction, obstacle_field, wall_forces
+from netsim.world.free_space import free_fraction, free_region, obstacle_field, region_polygon, wall_forces
 
 # The stopping rule's default windows (coverage.stop_hold_s = 0), s.
 GLOBAL_HOLD_S = 20.0
@@ -404,6 +404,13 @@ class CoverageController:
         # step short of a wall).
         self.occupancy = parts.occupancy
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
+        # On a map coverage is of the free region the team starts in, the space it can reach
+        # (docs/model.md 5.3): the covered fractions and the bound are over its area.
+        self.region = None
+        if parts.occupancy is not None:
+            cells = free_region(parts.occupancy, self.limits.box, st.positions_at(parts.env.now))
+            region = region_polygon(parts.occupancy, self.limits.box, cells)
+            self.region = region if region.area > 0 else None
         # The local plan: what each robot heard (netsim.mobility.local), the distance within which
         # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
@@ -699,9 +706,10 @@ class CoverageController:
         self.odo_t_s = t
 
     def _covered(self, centres: np.ndarray) -> tuple[float, float]:
+        box, region = self.limits.box, self.region
         if self.cfg.area_method is AreaMethod.GRID:
-            return metrics.covered_fraction(centres, self.radius_m, self.limits.box, self.cfg.grid_cells)
-        return metrics.covered_fraction_exact(centres, self.radius_m, self.limits.box)
+            return metrics.covered_fraction(centres, self.radius_m, box, self.cfg.grid_cells, region=region)
+        return metrics.covered_fraction_exact(centres, self.radius_m, box, region=region)
 
     def sample(self, t: float) -> dict:
         st = self.state
@@ -709,7 +717,8 @@ class CoverageController:
         leaders = pos[leads_itself(self.view.leader)]
         cov_l, err_l = self._covered(leaders)
         cov_a, err_a = self._covered(pos)
-        bound = metrics.bound_fraction(st.n, self.radius_m, st.bounds, st.range_m)
+        free_m2 = None if self.region is None else float(self.region.area)
+        bound = metrics.bound_fraction(st.n, self.radius_m, st.bounds, st.range_m, free_m2)
         components = self.components_now()
         spacing = metrics.nearest_spacing(leaders)
         travelled = self.odometer_m + self.speed_mps * (t - self.odo_t_s)

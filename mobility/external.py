@@ -104,7 +104,7 @@ class ExternalDriver:
 
 
 def build(params: NoParams, parts: Parts) -> ExternalDriver:
-    parts.state.place(initial_positions(parts.world, parts.streams, parts.occupancy))
+    parts.state.place(initial_positions(parts.world, parts.streams, parts.occupancy, parts.channel))
     return ExternalDriver(parts.env, parts.state, parts.occupancy)
 
 

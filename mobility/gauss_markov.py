@@ -133,7 +133,7 @@ def gauss_markov_robot(
 
 def build(m: GaussMarkovParams, parts: Parts) -> None:
     w = parts.world
-    parts.state.place(initial_positions(w, parts.streams, parts.occupancy))
+    parts.state.place(initial_positions(w, parts.streams, parts.occupancy, parts.channel))
     for i in range(w.n_robots):
         rng = parts.streams.get("mobility", i)
         parts.env.process(gauss_markov_robot(parts.env, parts.state, m, parts.state.bounds, i, rng))

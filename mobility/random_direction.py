@@ -125,7 +125,7 @@ def direction_robot(
 
 def build(m: RandomDirectionParams, parts: Parts) -> None:
     w = parts.world
-    parts.state.place(initial_positions(w, parts.streams, parts.occupancy))
+    parts.state.place(initial_positions(w, parts.streams, parts.occupancy, parts.channel))
     for i in range(w.n_robots):
         rng = parts.streams.get("mobility", i)
         parts.env.process(direction_robot(parts.env, parts.state, m, parts.state.bounds, i, rng, parts.occupancy))

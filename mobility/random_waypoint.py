@@ -238,7 +238,7 @@ def build(m: RandomWaypointParams, parts: Parts) -> None:
                 "random waypoint decays toward zero over the run (Yoon, Liu and Noble 2003)",
                 stacklevel=2,
             )
-        start = _fresh_start(initial_positions(w, parts.streams, parts.occupancy))
+        start = _fresh_start(initial_positions(w, parts.streams, parts.occupancy, parts.channel))
     parts.state.place(start.position_m)
     for i in range(w.n_robots):
         parts.env.process(

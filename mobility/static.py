@@ -8,7 +8,7 @@ from netsim.plugins import Parts, PluginSpec
 
 
 def build(params: NoParams, parts: Parts) -> None:
-    parts.state.place(initial_positions(parts.world, parts.streams, parts.occupancy))
+    parts.state.place(initial_positions(parts.world, parts.streams, parts.occupancy, parts.channel))
 
 
 PLUGIN = PluginSpec(Params=NoParams, build=build, moves_robots=False, respects_map=True)

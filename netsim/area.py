@@ -125,3 +125,15 @@ def parse_bounds(key: str, value: Any) -> tuple[float, float, float, float] | st
     if not (x1 > x0 and y1 > y0):
         raise ConfigError(key, list(value), allowed)
     return x0, y0, x1, y1
+
+
+def parse_start(key: str, value: Any) -> tuple[float, float] | str:
+    """A configuration value of ``world.start_m``: ``"centre"`` or two finite numbers ``[x, y]``."""
+    allowed = 'must be [x, y] (metres) or "centre"'
+    if value == "centre":
+        return "centre"
+    if isinstance(value, str) or not isinstance(value, list | tuple) or len(value) != 2:
+        raise ConfigError(key, value, allowed)
+    if any(isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)) for v in value):
+        raise ConfigError(key, list(value), allowed)
+    return float(value[0]), float(value[1])

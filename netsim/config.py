@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from netsim import plugins
-from netsim.area import KEY, Bounds, parse_bounds
+from netsim.area import KEY, Bounds, parse_bounds, parse_start
 from netsim.errors import ConfigError
 from netsim.params import (
     NoParams,
@@ -78,8 +78,24 @@ class WorldParams(Params):
         derive=lambda p: (0.0, 0.0, p.side_m, p.side_m),
         rule="[0, 0, side_m, side_m]",
     )
-    placement: str = param("uniform", None, '"uniform", "grid", "centre", or a path to a CSV file with columns x_m,y_m')
-    centre_side_m: float = param(250.0, positive, 'placement = "centre": side of the central square, metres')
+    placement: str = param(
+        "uniform",
+        None,
+        '"uniform", "grid", "centre", "connected" (a start whose links at t = 0 form one network), '
+        "or a path to a CSV file with columns x_m,y_m",
+    )
+    centre_side_m: float = param(
+        250.0,
+        positive,
+        'placement = "centre": side of the central square; "connected": of the square about start_m, metres',
+    )
+    start_m: tuple[float, float] | str = param(
+        "centre",
+        None,
+        'placement = "connected": the start point [x, y] in the world frame, metres (on a map, in a free cell: '
+        'robots start in its free region), or "centre" for the area\'s centre',
+        coerce=parse_start,
+    )
     torus: bool = param(False, None, "wrap the area's borders (distances taken on a torus)")
     map: str = param(
         "",
@@ -98,6 +114,8 @@ class WorldParams(Params):
             )
         if self.placement == "centre" and bounds != "map":
             self.check_centre(Bounds(*bounds))
+        if self.start_m != "centre" and bounds != "map" and not Bounds(*bounds).contains([self.start_m])[0]:
+            raise ConfigError("world.start_m", list(self.start_m), f"is outside the area {list(bounds)}")
 
     def check_centre(self, area: Bounds) -> None:
         """``placement = "centre"``: the central square fits in the area."""

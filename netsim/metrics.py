@@ -106,19 +106,30 @@ def connected_coverage_bound(n: int, radius_m: float, range_m: float | npt.Array
 
 
 def bound_fraction(
-    n: int, radius_m: float, area: float | Bounds, range_m: float | npt.ArrayLike | None = None
+    n: int,
+    radius_m: float,
+    area: float | Bounds,
+    range_m: float | npt.ArrayLike | None = None,
+    free_area_m2: float | None = None,
 ) -> float:
     """``min(1, U(N) / A)``: the largest fraction of the area (Bounds, or the side of the
-    square ``[0, side]^2``) a connected team can cover; ``A`` is the area's, in m^2;
-    ``range_m`` one range or one per robot (:func:`connected_coverage_bound`)."""
-    return min(1.0, connected_coverage_bound(n, radius_m, range_m) / as_bounds(area).area)
+    square ``[0, side]^2``) a connected team can cover; ``A`` is the area's, in m^2, or on a
+    map ``free_area_m2``, that of the free region the team can reach (docs/model.md 5.3);
+    ``range_m`` one range or one per robot (:func:`connected_coverage_bound`).
+
+    >>> bound_fraction(2, 1.0, 10.0) == bound_fraction(2, 1.0, 100.0, free_area_m2=100.0)
+    True
+    """
+    a = as_bounds(area).area if free_area_m2 is None else float(free_area_m2)
+    return min(1.0, connected_coverage_bound(n, radius_m, range_m) / a)
 
 
 def union_area_bracket(
-    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, quad_segs: int = QUAD_SEGS
+    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, quad_segs: int = QUAD_SEGS, region: Any = None
 ) -> tuple[float, float]:
     """Area (m^2) of the union of the disks clipped to the area (Bounds, or the side of the
-    square ``[0, side]^2``), bracketed:
+    square ``[0, side]^2``), or to ``region`` (a shapely geometry inside the area: a map's
+    free region, :func:`netsim.world.free_space.region_polygon`) when given, bracketed:
     ``(lower, upper)`` from the unions of the inscribed and the circumscribed regular
     polygons with ``4 quad_segs`` vertices (each polygon inside, resp. around, its disk,
     so the unions are too). Computed with shapely (GEOS).
@@ -133,7 +144,7 @@ def union_area_bracket(
     if len(centres) == 0:
         return 0.0, 0.0
     b = as_bounds(area)
-    box = shapely.box(b.x_min, b.y_min, b.x_max, b.y_max)
+    box = shapely.box(b.x_min, b.y_min, b.x_max, b.y_max) if region is None else region
     points = shapely.points(centres)
     vertices = 4 * quad_segs
     areas = []
@@ -144,9 +155,10 @@ def union_area_bracket(
 
 
 def covered_fraction_exact(
-    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, quad_segs: int = QUAD_SEGS
+    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, quad_segs: int = QUAD_SEGS, region: Any = None
 ) -> tuple[float, float]:
-    """Fraction of the area (Bounds, or the side of the square ``[0, side]^2``) within
+    """Fraction of the area (Bounds, or the side of the square ``[0, side]^2``), or of
+    ``region`` (a shapely geometry inside it: a map's free region) when given, within
     ``radius_m`` of some centre: ``(fraction, error_bound)``, the true fraction being within
     ``error_bound`` of ``fraction``.
 
@@ -160,19 +172,26 @@ def covered_fraction_exact(
     >>> abs(f - math.pi / 100) < 1e-6 and err < 6e-5
     True
     """
-    lower, upper = union_area_bracket(centres_m, radius_m, area, quad_segs)
-    a = as_bounds(area).area
+    lower, upper = union_area_bracket(centres_m, radius_m, area, quad_segs, region)
+    a = as_bounds(area).area if region is None else float(region.area)
     value = (lower + 2.0 * upper) / 3.0
     return value / a, max(value - lower, upper - value) / a
 
 
 def covered_fraction(
-    centres_m: npt.ArrayLike, radius_m: float, area: float | Bounds, cells: int = 500, torus: bool = False
+    centres_m: npt.ArrayLike,
+    radius_m: float,
+    area: float | Bounds,
+    cells: int = 500,
+    torus: bool = False,
+    region: Any = None,
 ) -> tuple[float, float]:
     """Fraction of the area (Bounds, or the side of the square ``[0, side]^2``; a torus is
     the square) within ``radius_m`` of some centre, estimated on a ``cells x cells`` grid of
     cell centres (cheap; :func:`covered_fraction_exact` is
-    exact). Returns ``(fraction, error_bound)``.
+    exact). Returns ``(fraction, error_bound)``. With ``region`` (a shapely geometry inside
+    the area: a map's free region) the fraction is of the grid's cells whose centre lies in
+    it, and the cells the region's boundary crosses count as uncertain too.
 
     The bound is rigorous: a cell can be misclassified only if the union's boundary
     crosses it, i.e. only if its centre is within ``h / sqrt(2)`` (``h``: the cell size)
@@ -198,15 +217,22 @@ def covered_fraction(
         gx, gy = np.meshgrid(b.x_min + (np.arange(cells) + 0.5) * hx, b.y_min + (np.arange(cells) + 0.5) * hy)
         half_diagonal = 0.5 * math.hypot(hx, hy)
     points = np.column_stack([gx.ravel(), gy.ravel()])
-    if len(centres) == 0:
-        return 0.0, 0.0
+    edge = np.zeros(len(points), dtype=bool)
+    if region is not None:
+        import shapely
+
+        inside = shapely.contains_xy(region, points[:, 0], points[:, 1])
+        edge = shapely.dwithin(region.boundary, shapely.points(points[inside]), half_diagonal)
+        points = points[inside]
+    if len(centres) == 0 or len(points) == 0:
+        return 0.0, float(np.mean(edge)) if len(edge) else 0.0
     if torus:
         tree = cKDTree(np.mod(centres, side_m) % side_m, boxsize=side_m)
     else:
         tree = cKDTree(centres)
     dist, _ = tree.query(points, distance_upper_bound=radius_m + half_diagonal)
     fraction = float(np.mean(dist <= radius_m))
-    uncertain = np.abs(dist - radius_m) <= half_diagonal
+    uncertain = (np.abs(dist - radius_m) <= half_diagonal) | edge
     return fraction, float(np.mean(uncertain))
 
 

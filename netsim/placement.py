@@ -1,5 +1,6 @@
 """Initial placement of robots (``world.placement``) in the world's area (``world.bounds_m``):
-uniform, grid, centre (uniform in a central square, a dense start for coverage), or read
+uniform, grid, centre (uniform in a central square, a dense start for coverage), connected
+(a dense start whose network is whole on the run's own links, :func:`connected`), or read
 from a CSV file of ``x_m,y_m`` rows (in the world frame).
 Mobility models start from :func:`initial_positions`."""
 
@@ -93,11 +94,15 @@ PLACEMENTS: dict[str, Callable[[Any, Bounds, Streams], np.ndarray]] = {
 }
 
 
-def initial_positions(world: WorldParams, streams: Streams, occupancy: Any = None) -> np.ndarray:
+def initial_positions(world: WorldParams, streams: Streams, occupancy: Any = None, channel: Any = None) -> np.ndarray:
     """The placement ``world.placement`` names (``world``: the world's parameters) in the
     world's area (``world.bounds_m``), its random draws from the stream ``"placement"``. On
-    a map (``occupancy``) robots are placed in free cells only (:func:`on_map`)."""
+    a map (``occupancy``) robots are placed in free cells only (:func:`on_map`).
+    ``channel``: the run's (:class:`~netsim.radio.channel.Channel`), whose links
+    ``"connected"`` keeps whole."""
     area = world_bounds(world)
+    if world.placement == "connected":
+        return connected(world, area, streams.get("placement"), occupancy, channel)
     if occupancy is not None:
         return on_map(world, area, streams, occupancy)
     place = PLACEMENTS.get(world.placement)
@@ -139,3 +144,131 @@ def on_map(world: WorldParams, area: Bounds, streams: Streams, occupancy: Any) -
             f"puts robot {int(bad[0])} at ({x:g}, {y:g}), not in a free cell of world.map ({len(bad)} robots are not)",
         )
     return xy
+
+
+CONNECTED_KEY = "world.placement"
+# Candidates drawn per round, and rounds per robot, before connected placement gives up.
+CONNECTED_BATCH = 64
+CONNECTED_ROUNDS = 200
+
+
+def start_point(world: WorldParams, area: Bounds) -> np.ndarray:
+    """``world.start_m``, or the area's centre for ``"centre"``."""
+    if world.start_m == "centre":
+        return np.array([0.5 * (area.x_min + area.x_max), 0.5 * (area.y_min + area.y_max)])
+    return np.array(world.start_m, dtype=float)
+
+
+def connected(
+    world: WorldParams, area: Bounds, rng: np.random.Generator, occupancy: Any = None, channel: Any = None
+) -> np.ndarray:
+    """``world.placement = "connected"``: robots whose links at ``t = 0`` (the run's radio:
+    range, line of sight, wall loss) form one network, in the square of side
+    ``world.centre_side_m`` centred on ``world.start_m`` (clipped to the area) and, on a
+    map, in the free region of the start point (:func:`netsim.world.free_space.free_region`).
+
+    Robot 0 is drawn uniform over that space; each next robot is the first of a stream of
+    such draws (``CONNECTED_BATCH`` at a time) that has a link to a robot already placed,
+    so the links form a spanning tree at least. Draws come from ``rng`` alone: the same
+    seed, the same start. A ``ConfigError`` when a robot finds no place in
+    ``CONNECTED_BATCH * CONNECTED_ROUNDS`` draws (the space is too small or too walled for
+    the team) or when links are not decided by positions (shadowing)."""
+    start = start_point(world, area)
+    if not area.contains(start[None, :])[0]:
+        raise ConfigError("world.start_m", list(start), f"is outside the area {area.as_list()} (world.bounds_m)")
+    linked = _linked(channel)
+    draw = _start_space(world, area, start, occupancy)
+    n = world.n_robots
+    out = np.empty((n, 2))
+    out[0] = draw(rng, 1)[0]
+    ranges = _ranges(channel, n)
+    for k in range(1, n):
+        for _ in range(CONNECTED_ROUNDS):
+            cand = draw(rng, CONNECTED_BATCH)
+            c, p = np.divmod(np.arange(CONNECTED_BATCH * k), k)
+            a = np.full(len(c), k)
+            up = linked(a, p, cand[c], out[p], ranges).reshape(CONNECTED_BATCH, k).any(axis=1)
+            if up.any():
+                out[k] = cand[int(np.argmax(up))]
+                break
+        else:
+            raise ConfigError(
+                CONNECTED_KEY,
+                "connected",
+                f"found no place for robot {k} linked to the {k} already placed in "
+                f"{CONNECTED_BATCH * CONNECTED_ROUNDS} draws: too many robots (world.n_robots = {n}) for "
+                "the space near world.start_m (enlarge world.centre_side_m)",
+            )
+    return out
+
+
+def _ranges(channel: Any, n: int) -> np.ndarray:
+    if channel is None:
+        raise ValueError('world.placement = "connected" needs the run\'s channel')
+    return np.broadcast_to(np.asarray(channel.state.range_m, dtype=float), (n,))
+
+
+def _linked(channel: Any) -> Callable[..., np.ndarray]:
+    """The link's state of pairs ``a, b`` at positions ``pa, pb`` as the channel decides it
+    at ``t = 0``: the unit disk of the ranges in open space, else the radio's own decision
+    (:func:`netsim.links.wall_sweeps.linked`)."""
+    reception = None if channel is None else channel.reception
+    if reception is None:
+
+        def disk(a: np.ndarray, b: np.ndarray, pa: np.ndarray, pb: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+            return np.hypot(*(pb - pa).T) <= np.minimum(ranges[a], ranges[b])
+
+        return disk
+    shadow = reception.shadowing
+    if shadow is not None and shadow.sigma_db > 0:
+        raise ConfigError(
+            CONNECTED_KEY,
+            "connected",
+            "needs links that positions decide; under shadowing (channel.shadowing_sigma_db > 0) "
+            "each frame draws its own",
+        )
+    from netsim.links.wall_sweeps import envelope_radii, linked
+
+    def radio(a: np.ndarray, b: np.ndarray, pa: np.ndarray, pb: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+        return linked(reception, envelope_radii(reception, ranges)[1], a, b, pa, pb)
+
+    return radio
+
+
+def _start_space(
+    world: WorldParams, area: Bounds, start: np.ndarray, occupancy: Any
+) -> Callable[[np.random.Generator, int], np.ndarray]:
+    """A function ``draw(rng, k)``: ``k`` points uniform over the start space (the square
+    about ``start`` in the area, and on a map the free region's cells in it)."""
+    half = world.centre_side_m / 2
+    lo = np.maximum(start - half, [area.x_min, area.y_min])
+    hi = np.minimum(start + half, [area.x_max, area.y_max])
+    if occupancy is None:
+        return lambda rng, k: lo + rng.uniform(0.0, 1.0, size=(k, 2)) * (hi - lo)
+    from netsim.world.free_space import free_region
+
+    if not occupancy.is_free(start[None, :])[0]:
+        raise ConfigError(
+            "world.start_m", [float(v) for v in start], f"is not in a free cell of world.map ({occupancy.source})"
+        )
+    region = free_region(occupancy, area, start[None, :])
+    j, i = np.nonzero(region)
+    r = occupancy.resolution_m
+    x0 = np.maximum(occupancy.origin_m[0] + i * r, lo[0])
+    x1 = np.minimum(occupancy.origin_m[0] + (i + 1) * r, hi[0])
+    y0 = np.maximum(occupancy.origin_m[1] + j * r, lo[1])
+    y1 = np.minimum(occupancy.origin_m[1] + (j + 1) * r, hi[1])
+    keep = (x1 > x0) & (y1 > y0)
+    x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
+    cdf = np.cumsum((x1 - x0) * (y1 - y0))
+
+    def draw(rng: np.random.Generator, k: int) -> np.ndarray:
+        c = np.minimum(np.searchsorted(cdf, rng.random(k) * cdf[-1], side="right"), len(cdf) - 1)
+        u = rng.random((k, 2))
+        pos = np.column_stack([x0[c] + u[:, 0] * (x1[c] - x0[c]), y0[c] + u[:, 1] * (y1[c] - y0[c])])
+        # A point rounded onto a cell's upper edge belongs to the next cell: keep it inside.
+        bad = ~occupancy.is_free(pos)
+        pos[bad] = np.column_stack([0.5 * (x0[c[bad]] + x1[c[bad]]), 0.5 * (y0[c[bad]] + y1[c[bad]])])
+        return pos
+
+    return draw

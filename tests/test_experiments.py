@@ -135,3 +135,37 @@ def test_coverage_vs_n_refuses_bad_options_in_one_line_and_writes_nothing(tmp_pa
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
     assert said in run.stderr
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_coverage_on_map_prints_its_table(tmp_path):
+    """experiments/coverage_on_map.py (docs/experiments.md) runs the office from a connected
+    start and prints one row per radio and plan: every start connected, the covered fraction
+    of the free-area bound, the seeds that split and the verdict."""
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / "coverage_on_map.py"), "--n", "8", "--seeds", "1"]
+        + ["--radios", "office, line of sight", "--duration", "30", "--workers", "1", "--csv", str(tmp_path / "r.csv")],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode in (0, 1), run.stderr[-2000:]
+    runs = pd.read_csv(tmp_path / "r.csv")
+    assert len(runs) == 2 and set(runs["plan"]) == {"global", "local"}
+    assert (runs["comp0"] == 1).all() and not runs["split"].any()
+    assert ((runs["final"] > 0) & (runs["final"] <= 1.0 + 1e-9)).all()
+    assert "rows pass" in run.stdout
+
+
+@pytest.mark.slow
+def test_coverage_on_map_refuses_bad_options_in_one_line(tmp_path):
+    """An unknown radio or no seeds: one line on stderr naming the option, exit status 2."""
+    for args, said in ((["--radios", "moon"], "--radios 'moon'"), (["--seeds", "0"], "--seeds 0")):
+        run = subprocess.run(
+            [sys.executable, str(ROOT / "experiments" / "coverage_on_map.py"), *args],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+        )
+        assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+        assert said in run.stderr

@@ -18,6 +18,10 @@ area ``[0, side]^2``. The helpers here are what mobility models need to respect 
   large rooms and long corridors, visible from many places, grows. Robots never cut through
   walls, and legs stay straight, so link events along them stay exact. (A path planner
   would keep the destination law uniform at the price of polylines; not done here.)
+- :func:`free_region`: the *free region* of some points, the cells of the area a robot can
+  reach from them through free cells (4-connected: two free cells that touch at a corner
+  only do not join), the space a team that starts there can use; :func:`region_polygon`
+  the same cells as one polygon, for areas covered within it.
 - :func:`obstacle_field` and :func:`wall_forces`: a repulsion from walls for virtual-force
   coverage, ``gain * (margin - d)`` away from the nearest cell that is not free, within
   ``margin`` of it (``d`` from the grid's distance transform).
@@ -97,6 +101,68 @@ def sample_free(
     if bad.any():
         pos[bad] = np.column_stack([0.5 * (x0[k[bad]] + x1[k[bad]]), 0.5 * (y0[k[bad]] + y1[k[bad]])])
     return pos
+
+
+def _cells_in_area(m: OccupancyMap, area: float | Bounds) -> np.ndarray:
+    """Free cells that share a part of positive size with the area, shape ``(H, W)``."""
+    b = as_bounds(area)
+    h, w = m.shape
+    r = m.resolution_m
+    x0 = m.origin_m[0] + np.arange(w) * r
+    y0 = m.origin_m[1] + np.arange(h) * r
+    cols = np.minimum(x0 + r, b.x_max) > np.maximum(x0, b.x_min)
+    rows = np.minimum(y0 + r, b.y_max) > np.maximum(y0, b.y_min)
+    return m.free & rows[:, None] & cols[None, :]
+
+
+def free_region(m: OccupancyMap, area: float | Bounds, points_m) -> np.ndarray:
+    """The free region of ``points_m`` (module notes): mask ``(H, W)`` of the free cells in
+    the area joined through free cells in the area (sharing a side) to the cell of one of the
+    points. Points not in a free cell of the area add nothing."""
+    from scipy.ndimage import label
+
+    cells = _cells_in_area(m, area)
+    labels, _ = label(cells)
+    p = np.asarray(points_m, dtype=float).reshape(-1, 2)
+    p = p[m.contains(p)]
+    i, j = m.cells(p)
+    seeds = np.unique(labels[j, i])
+    return np.isin(labels, seeds[seeds > 0])
+
+
+def region_area_m2(m: OccupancyMap, area: float | Bounds, region: np.ndarray) -> float:
+    """Area (m^2) of the region's cells inside the area."""
+    return float(region_polygon(m, area, region).area)
+
+
+def region_polygon(m: OccupancyMap, area: float | Bounds, region: np.ndarray):
+    """The cells of ``region`` (a mask of :func:`free_region`) clipped to the area, as one
+    shapely geometry: a rectangle per run of cells in a row, runs equal in consecutive rows
+    merged, then their union."""
+    import shapely
+
+    h, w = region.shape
+    r = m.resolution_m
+    ox, oy = m.origin_m
+    boxes = []
+    open_runs: dict[tuple[int, int], int] = {}  # (first column, end column) -> first row
+    padded = np.zeros((h + 1, w + 2), dtype=np.int8)
+    padded[:h, 1:-1] = region
+    for j in range(h + 1):
+        edges = np.flatnonzero(np.diff(padded[j]))
+        runs = set(zip(edges[::2].tolist(), edges[1::2].tolist()))
+        for run in list(open_runs):
+            if run not in runs:
+                j0 = open_runs.pop(run)
+                boxes.append((ox + run[0] * r, oy + j0 * r, ox + run[1] * r, oy + j * r))
+        for run in runs:
+            open_runs.setdefault(run, j)
+    if not boxes:
+        return shapely.Polygon()
+    b = as_bounds(area)
+    x0, y0, x1, y1 = np.array(boxes).T
+    union = shapely.union_all(shapely.box(x0, y0, x1, y1))
+    return shapely.intersection(union, shapely.box(b.x_min, b.y_min, b.x_max, b.y_max))
 
 
 def legs_free(m: OccupancyMap, starts, ends) -> np.ndarray:
