@@ -807,6 +807,11 @@ def nest(dotted_key: str, value: Any) -> dict:
 
 def load(path: str | Path | None = None, overrides: Iterable[str] = ()) -> Config:
     """Load a TOML file (or the built-in default scenario when ``path`` is None)."""
+    return from_dict(read_tree(path, overrides))
+
+
+def read_tree(path: str | Path | None = None, overrides: Iterable[str] = ()) -> dict:
+    """A scenario file's keys as read, ``--set`` overrides merged in, not yet checked."""
     raw: dict = {}
     if path is not None:
         p = Path(path)
@@ -818,7 +823,7 @@ def load(path: str | Path | None = None, overrides: Iterable[str] = ()) -> Confi
             raise ConfigError("<config file>", str(p), f"is not valid TOML: {exc}") from None
     for text in overrides:
         raw = merge(raw, parse_override(text))
-    return from_dict(raw)
+    return raw
 
 
 # -- documentation ---------------------------------------------------------------------------

@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from netsim import config as cfgmod
@@ -109,17 +107,7 @@ def check_rate(rate: float) -> float:
 def load(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeSettings]:
     """The run's configuration and the bridge's settings from a scenario file and
     ``--set`` overrides (``bridge.*`` keys included)."""
-    raw: dict = {}
-    if path is not None:
-        p = Path(path)
-        if not p.is_file():
-            raise ConfigError("<config file>", str(p), "no such file")
-        try:
-            raw = tomllib.loads(p.read_text())
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise ConfigError("<config file>", str(p), f"is not valid TOML: {exc}") from None
-    for text in overrides:
-        raw = cfgmod.merge(raw, cfgmod.parse_override(text))
+    raw = cfgmod.read_tree(path, overrides)
     bridge = settings(raw.pop("bridge", {}))
     config = cfgmod.from_dict(raw)
     if config.mobility.model != "external":
