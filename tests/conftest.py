@@ -66,5 +66,9 @@ def pytest_configure(config):
         config.option.dist = "worksteal"
 
 
+# The longest test of all (it plays the README's every command), started before the others.
+LONGEST = "test_readme.py::test_every_readme_command_runs"
+
+
 def pytest_collection_modifyitems(config, items):
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+    items.sort(key=lambda item: (not item.nodeid.endswith(LONGEST), item.get_closest_marker("slow") is None))

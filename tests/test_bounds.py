@@ -385,7 +385,7 @@ def test_run_on_a_ros_map_uses_the_whole_map(tmp_path):
         f"world.map={path}",
         "world.bounds_m=map",
         "world.n_robots=40",
-        "duration_s=300",
+        "duration_s=150",
         "channel.range_m=15",
         "mobility.speed_min_mps=1",
         "mobility.speed_max_mps=3",
@@ -397,7 +397,7 @@ def test_run_on_a_ros_map_uses_the_whole_map(tmp_path):
     frames = collect(sim)
     assert start[:, 0].min() < 0 and start[:, 1].min() < 0
     assert start[:, 0].min() < -5 and start[:, 0].max() > 45 and start[:, 1].min() < -15 and start[:, 1].max() > 15
-    xy = _leg_ends(frames["legs"], 300.0)
+    xy = _leg_ends(frames["legs"], 150.0)
     assert xy[:, 0].min() < -8 and xy[:, 0].max() > 48 and xy[:, 1].min() < -18 and xy[:, 1].max() > 18
     pos = frames["positions"][["x_m", "y_m"]].to_numpy()
     from netsim.world.maps import load_map

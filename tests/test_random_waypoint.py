@@ -123,7 +123,7 @@ def test_mean_leg_length_in_a_run():
 @pytest.mark.slow
 def test_positions_stay_stationary_during_a_run():
     """Item 3 over time: the spatial density at t = 300 s equals the stationary one."""
-    n, side = 20_000, 1.0
+    n, side = 8_000, 1.0
     cfg = make_config(
         seed=7,
         duration_s=301.0,
