@@ -1,4 +1,5 @@
 import os
+import signal
 from pathlib import Path
 
 # The compiled kernels' cache of the tests, apart from the user's: netsim.kernel_cache keys
@@ -59,6 +60,10 @@ def rng():
 
 
 def pytest_configure(config):
+    # A shell that starts the tests in the background hands them SIGINT ignored, and every
+    # process they start inherits that: the Ctrl-C tests' children would never see theirs.
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     # Spread over workers (`-n`), the long tests would otherwise start wherever collection
     # puts them and the last one can run alone at the end: they go first (below), and a
     # worker that runs out of tests takes half of another's queue instead of waiting.
