@@ -30,17 +30,14 @@ import argparse
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
+from netsim.protocols.ack import AckParams
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from netsim.protocols.ack import AckParams  # noqa: E402
-
-from netsim.radio.mac import airtime_s  # noqa: E402
-from netsim.radio.mac_models import CsmaParams  # noqa: E402
-from netsim.tools import sweep as sweepmod  # noqa: E402
+from netsim.radio.mac import airtime_s
+from netsim.radio.mac_models import CsmaParams
+from netsim.tools import sweep as sweepmod
+from netsim.tools.figures import pyplot
 
 RANGE_M = 100.0
 MACS = ("none", "aloha", "csma")
@@ -148,6 +145,7 @@ def main(argv=None) -> None:
     df.to_csv(out / "ack_congestion.csv", index=False)
 
     panels = {**METRICS, "carried_ack_load": "carried Ack load G x delivery ratio"}
+    plt = pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(15, 8), constrained_layout=True)
     # One colour per medium, one marker per density: along a line only the Ack period changes.
     colours = {mac: f"C{k}" for k, mac in enumerate(MACS)}

@@ -19,12 +19,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from netsim.tools import sweep as sweepmod  # noqa: E402
+from netsim.tools import sweep as sweepmod
+from netsim.tools.figures import pyplot
 
 METRICS = {
     "leaders_time_mean": "leaders (time-weighted mean)",
@@ -34,6 +30,7 @@ METRICS = {
 
 
 def plot(agg, path: Path, title: str) -> None:
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(METRICS), figsize=(4.2 * len(METRICS), 3.6), constrained_layout=True)
     for ax, (metric, label) in zip(axes, METRICS.items()):
         for pause, g in agg.groupby("mobility.pause_s"):

@@ -44,17 +44,14 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from netsim.config import parse_override  # noqa: E402
-from netsim.errors import NetsimInputError  # noqa: E402
-from netsim.tools import sweep as sweepmod  # noqa: E402
-from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_settings  # noqa: E402
+from netsim.config import parse_override
+from netsim.errors import NetsimInputError
+from netsim.tools import sweep as sweepmod
+from netsim.tools.figures import pyplot
+from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_settings
 
 MODES = {
     "global": ["coverage.members=spread", "coverage.plan=global"],
@@ -89,6 +86,7 @@ def _key(keys: dict) -> tuple:
 
 
 def plot(agg: pd.DataFrame, path: Path, radios: list[str], title: str) -> None:
+    plt = pyplot()
     fig, axes = plt.subplots(2, len(radios), figsize=(4.6 * len(radios), 7.0), squeeze=False, constrained_layout=True)
     several_laws = agg["coverage.law"].nunique() > 1
     for col, radio in enumerate(radios):

@@ -18,16 +18,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
+from netsim.protocols.roles import LABELS
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from netsim.protocols.roles import LABELS  # noqa: E402
-
-from netsim.tools import analysis  # noqa: E402
-from netsim.tools import sweep as sweepmod  # noqa: E402
+from netsim.tools import analysis
+from netsim.tools import sweep as sweepmod
+from netsim.tools.figures import pyplot
 
 
 def main(argv=None) -> None:
@@ -98,6 +95,7 @@ def main(argv=None) -> None:
         )
     df = pd.DataFrame(rows)
     df.to_csv(out / "false_role_changes.csv", index=False)
+    plt = pyplot()
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
     ps = np.linspace(min(args.losses), max(args.losses), 100)
     for tau, g in df.groupby("tau_over_period"):

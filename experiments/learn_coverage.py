@@ -28,16 +28,13 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from netsim import metrics  # noqa: E402
-from netsim.envs import coverage_v0  # noqa: E402
-from netsim.errors import NetsimInputError  # noqa: E402
+from netsim import metrics
+from netsim.envs import coverage_v0
+from netsim.errors import NetsimInputError
+from netsim.tools.figures import pyplot
 
 Policy = Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]]
 
@@ -138,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         episode_return=("return", "mean"),
     )
     print(summary.to_string(float_format=lambda v: f"{v:.3f}"))
+    plt = pyplot()
     fig, (ax, pic) = plt.subplots(1, 2, figsize=(11, 4.6))
     for name, curve in curves.items():
         ax.plot(np.arange(len(curve)) * env.params.step_s, curve, label=name)

@@ -20,15 +20,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from netsim.tools import analysis  # noqa: E402
-from netsim.tools import sweep as sweepmod  # noqa: E402
+from netsim.tools import analysis
+from netsim.tools import sweep as sweepmod
+from netsim.tools.figures import pyplot
 
 
 def run(name, base, grid, reps, out, args):
@@ -88,6 +85,7 @@ def main(argv=None) -> None:
     df = pd.DataFrame(rows).drop(columns=["mobility.pause_s"])
     df.to_csv(out / "link_lifetime.csv", index=False)
 
+    plt = pyplot()
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
     for v, km in curves.items():
         left.step(km.t_s, km.survival, where="post", label=f"v_max {v:g} m/s")

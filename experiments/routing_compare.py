@@ -22,15 +22,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pandas as pd
+from scipy import stats
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from scipy import stats  # noqa: E402
-
-from netsim.tools import sweep as sweepmod  # noqa: E402
+from netsim.tools import sweep as sweepmod
+from netsim.tools.figures import pyplot
 
 PROTOCOLS = {
     "backbone": {"model": "clustering", "routing": "backbone", "message_rate_hz": 0.0},
@@ -132,6 +129,7 @@ def main(argv=None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     table.to_csv(out / "routing_compare.csv", index=False)
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, col, label in zip(
         axes,

@@ -24,12 +24,8 @@ import argparse
 import math
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from netsim.tools import sweep as sweepmod  # noqa: E402
+from netsim.tools import sweep as sweepmod
+from netsim.tools.figures import pyplot
 
 METRICS = {
     "leaders_time_mean": "leaders (time-weighted mean)",
@@ -46,6 +42,7 @@ def sensitivity_for(range_m: float) -> float:
 
 
 def plot(agg, path: Path, title: str) -> None:
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(METRICS), figsize=(4.2 * len(METRICS), 3.6), constrained_layout=True)
     for ax, (metric, label) in zip(axes, METRICS.items()):
         for world_map, g in agg.groupby("world.map"):

@@ -127,7 +127,7 @@ def test_runtime_links_equal_posthoc_on_random_trajectories(kind, seed):
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_runtime_links_equal_posthoc_on_many_random_trajectories(kind):
-    for seed in range(25):
+    for seed in range(12):
         _random_case(5000 + 4 * seed + KINDS.index(kind), kind)
 
 
@@ -827,7 +827,7 @@ def test_runtime_links_on_a_map_equal_posthoc_on_random_trajectories(kind):
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", MAP_KINDS)
 def test_runtime_links_on_a_map_equal_posthoc_on_many_random_trajectories(kind):
-    for seed in range(12):
+    for seed in range(6):
         _random_map_case(7100 + 4 * seed + MAP_KINDS.index(kind), kind)
 
 

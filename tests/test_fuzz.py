@@ -27,7 +27,7 @@ from netsim.formats import ns2
 from netsim.tools import sweep as sweepmod
 
 QUICK = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-THOROUGH = settings(max_examples=800, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+THOROUGH = settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 WORKDIR = Path(tempfile.mkdtemp(prefix="netsim-fuzz-"))
 KEYS = [k for k, _, _ in cfgmod.describe()]

@@ -157,7 +157,7 @@ def test_medium_runs_equal_plain_and_compiled(monkeypatch):
 
     cfg = make_config(
         seed=2,
-        duration_s=20.0,
+        duration_s=8.0,
         world={"n_robots": 40, "side_m": 300.0},
         channel={"range_m": 80.0, "mac": "csma"},
         protocol={"ack_period_s": 0.05, "ack_jitter_s": 0.01, "tau_s": 0.5},
@@ -198,8 +198,8 @@ def test_near_pairs_finds_every_kd_tree_pair(torus, kind):
     rng = np.random.default_rng(11)
     side = 1000.0
     layouts = [
-        rng.uniform(0, side, (400, 2)),
-        np.concatenate([rng.normal(300, 5, (150, 2)), rng.normal(700, 30, (150, 2))]) % side,
+        rng.uniform(0, side, (250, 2)),
+        np.concatenate([rng.normal(300, 5, (100, 2)), rng.normal(700, 30, (100, 2))]) % side,
         rng.uniform(0, side, (30, 2)),
         np.round(rng.uniform(0, side, (300, 2)) / 50) * 50 % side,  # a lattice: distances exactly r
     ]

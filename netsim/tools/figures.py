@@ -326,16 +326,23 @@ def run_map(config):
     return cached_map(config.world.map)
 
 
-def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | None = None) -> list[Drawn]:
-    """Draw Figs. 6-8 of the paper from the run in ``run_dir``; ``at_s``: the instant of
-    Fig. 6 (default: when coverage control starts, or without coverage
-    :func:`groups_formed_s`). Returns each PNG written with a note on what it could not
-    show, or on the instant chosen for it."""
+def pyplot():
+    """matplotlib's pyplot drawing to files (the Agg backend), imported when a figure is
+    drawn rather than when a command starts: importing it costs more than a small run."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | None = None) -> list[Drawn]:
+    """Draw Figs. 6-8 of the paper from the run in ``run_dir``; ``at_s``: the instant of
+    Fig. 6 (default: when coverage control starts, or without coverage
+    :func:`groups_formed_s`). Returns each PNG written with a note on what it could not
+    show, or on the instant chosen for it."""
+    plt = pyplot()
     run_dir = Path(run_dir)
     out = Path(out_dir) if out_dir else run_dir
     run = read_run(run_dir)
