@@ -6,8 +6,9 @@ Chromium (through playwright) connected to `ws://127.0.0.1:PORT` with a layout o
 and stops the run (Ctrl-C: a live `netsim run` writes nothing then).
 
 The app is not part of netsim: give the URL of a served web build of the Foxglove app or of
-Lichtblick (its open-source fork, same WebSocket protocol), e.g. Lichtblick's
-`yarn web:build:prod` output served with `python -m http.server 8080 -d web/.webpack`:
+Lichtblick (its open-source fork, same WebSocket protocol; the picture in docs/ros2.md is
+Lichtblick 1.28.1), e.g. Lichtblick's `yarn web:build:prod` output served with
+`python -m http.server 8080 -d web/.webpack`:
 
     pip install -e ".[ros,test]"      # foxglove-sdk, playwright; Pillow comes with matplotlib
     python docs/images/make_live_view.py --app-url http://127.0.0.1:8080/
@@ -54,11 +55,11 @@ def layout(side_m: float) -> dict:
     three_d = {
         "cameraState": {
             "perspective": False,
-            "distance": side_m * 1.25,
+            "distance": side_m * 1.1,
             "phi": 0.0001,
             "thetaOffset": 0,
-            "target": [half, half, 0],
-            "targetOffset": [0, 0, 0],
+            "target": [0, 0, 0],
+            "targetOffset": [half, half, 0],
             "targetOrientation": [0, 0, 0, 1],
             "fovy": 45,
             "near": 0.5,
@@ -144,6 +145,12 @@ def shoot(app_url: str, ws_url: str, layout_url: str, png: Path, wait_s: float, 
         page = browser.new_page(viewport={"width": size[0], "height": size[1]})
         page.on("console", lambda m: print(f"app: {m.text}", file=sys.stderr) if m.type == "error" else None)
         page.goto(f"{app_url}?{query}")
+        # Lichtblick opens with its left sidebar: close it to give the panels the room.
+        close = page.locator("[data-testid=sidebar-close-left]")
+        try:
+            close.click(timeout=20_000)
+        except Exception:
+            print("no left sidebar to close", file=sys.stderr)
         time.sleep(wait_s)
         page.screenshot(path=str(png))
         browser.close()
