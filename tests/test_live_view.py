@@ -7,6 +7,7 @@ import struct
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -65,3 +66,51 @@ def test_live_run_advertises_its_channels_and_streams_poses(tmp_path):
         proc.communicate(timeout=120)
     assert proc.returncode == 0
     assert (tmp_path / "out" / "positions.parquet").is_file()
+
+
+def _clustered_sim(side_m: float = 200.0):
+    """Twelve static robots under the clustering protocol (run 20 s: leaders and members)."""
+    from netsim.run import build
+    from tests.fixtures import make_config
+
+    config = make_config(
+        seed=3,
+        duration_s=30,
+        world={"n_robots": 12, "side_m": side_m},
+        mobility={"model": "static"},
+        channel={"range_m": 80},
+    )
+    return build(config)
+
+
+def test_live_scene_colours_leaders_members_and_undecided_robots():
+    """The scene's sphere of a leader (role ``alpha``) is red, a member's (``beta``) blue, an
+    undecided robot's (``gamma``) grey: the colours follow the protocol's role labels."""
+    from netsim.bridge.live_view import GREY, robot_rgba
+
+    sim = _clustered_sim()
+    sim.run(until_s=20)
+    names = [sim.groups.role_names[int(c)] for c in sim.groups.role]
+    assert {"alpha", "beta"} <= set(names)
+    expected = {"alpha": (0.85, 0.2, 0.2, 1.0), "beta": (0.2, 0.45, 0.85, 1.0), "gamma": GREY}
+    assert robot_rgba(sim.groups, sim.state.n) == [expected[r] for r in names]
+
+
+def test_live_scene_robots_and_links_show_with_the_whole_area_in_view():
+    """A robot's sphere is 1/100 of the area's longer side across, and links are lines a
+    fixed number of screen pixels wide, so both show when the app looks at the whole area."""
+    from netsim.area import Bounds
+    from netsim.bridge.live_view import LINK_WIDTH_PX, LiveView, robot_diameter_m
+
+    assert robot_diameter_m(Bounds(0.0, 0.0, 1000.0, 400.0)) == 10.0
+    sim = _clustered_sim(side_m=500.0)
+    view = LiveView(sim, 0)
+    try:
+        sim.run(until_s=20)
+        sent = []
+        view.scene = SimpleNamespace(log=lambda msg, log_time: sent.append(repr(msg)))
+        view.publish(sim.env.now)
+    finally:
+        view.close()
+    assert "size: Some(Vector3 { x: 5.0, y: 5.0, z: 5.0 })" in sent[0]  # the 500 m area
+    assert f"thickness: {LINK_WIDTH_PX}, scale_invariant: true" in sent[0]

@@ -38,8 +38,15 @@ from foxglove.messages import (
     Vector3,
 )
 
-ROLE_RGBA = {"leader": (0.85, 0.2, 0.2, 1.0), "member": (0.2, 0.45, 0.85, 1.0), "undecided": (0.6, 0.6, 0.6, 1.0)}
+from netsim.area import Bounds
+from netsim.config import world_bounds
+
 GREY = (0.6, 0.6, 0.6, 1.0)
+# Keyed by the clustering protocol's role labels: leader (alpha), member (beta), undecided
+# (gamma); a protocol with other labels gets grey robots.
+ROLE_RGBA = {"alpha": (0.85, 0.2, 0.2, 1.0), "beta": (0.2, 0.45, 0.85, 1.0), "gamma": GREY}
+# Links are drawn in screen pixels: in metres they would vanish when the whole area is in view.
+LINK_WIDTH_PX = 2.0
 
 _NUMBERS = {"type": "array", "items": {"type": "number"}}
 POSES_SCHEMA = {
@@ -84,6 +91,20 @@ def _ns(t_s: float) -> int:
     return int(round(t_s * 1e9))
 
 
+def robot_rgba(groups: Any, n: int) -> list[tuple[float, float, float, float]]:
+    """Each robot's colour now: by its role (``ROLE_RGBA``), grey without roles."""
+    if groups is None:
+        return [GREY] * n
+    names = groups.role_names
+    return [ROLE_RGBA.get(names[int(c)], GREY) for c in groups.role]
+
+
+def robot_diameter_m(bounds: Bounds) -> float:
+    """A robot's sphere: 1/100 of the area's longer side, so that the team shows when the
+    whole area is in view, whatever its size."""
+    return max(bounds.width, bounds.height) / 100.0
+
+
 def _colour(rgba: tuple[float, float, float, float]) -> Color:
     r, g, b, a = rgba
     return Color(r=r, g=g, b=b, a=a)
@@ -104,6 +125,7 @@ class LiveView:
         self.links = foxglove.Channel("/netsim/links", schema=LINKS_SCHEMA)
         self.messages = foxglove.Channel("/netsim/messages", schema=MESSAGES_SCHEMA)
         self.up: set[tuple[int, int]] = set()
+        self.robot_m = robot_diameter_m(world_bounds(sim.config.world))
         ev = sim.events
         ev.on("link_up", self._link_up)
         ev.on("link_down", self._link_down)
@@ -151,14 +173,10 @@ class LiveView:
             },
             log_time=ns,
         )
-        groups = sim.groups
-        if groups is not None:
-            names = groups.role_names
-            rgba = [ROLE_RGBA.get(names[int(c)], GREY) for c in groups.role]
-        else:
-            rgba = [GREY] * len(pos)
+        rgba = robot_rgba(sim.groups, len(pos))
         stamp = Timestamp(int(t_s // 1), _ns(t_s % 1.0) % 1_000_000_000)
-        size = Vector3(x=2.0, y=2.0, z=2.0)
+        d = self.robot_m
+        size = Vector3(x=d, y=d, z=d)
         spheres = [
             SpherePrimitive(
                 pose=Pose(position=Vector3(x=x, y=y, z=0.0), orientation=Quaternion(w=1.0)), size=size, color=_colour(c)
@@ -169,7 +187,8 @@ class LiveView:
         lines = [
             LinePrimitive(
                 type=LinePrimitiveLineType.LineList,
-                thickness=0.5,
+                thickness=LINK_WIDTH_PX,
+                scale_invariant=True,
                 points=points,
                 color=_colour((0.1, 0.6, 0.1, 0.8)),
                 pose=Pose(position=Vector3(), orientation=Quaternion(w=1.0)),
