@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -134,7 +135,7 @@ LOOPBACK_XML = """<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInte
 </Domain></CycloneDDS>"""
 
 # Each test its own domain: bridges of tests run side by side never meet.
-DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64, "bytes": 65}
+DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64, "bytes": 65, "markers": 66}
 
 
 @pytest.fixture(autouse=True)
@@ -347,6 +348,36 @@ def test_odometry_bytes_are_the_serializers_own():
     )
     assert got == serialized(writer, msg)
     assert Odometry.deserialize(got) == msg
+
+
+def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
+    """The bridge's ``robots`` marker colours a leader (``alpha``) red, a member (``beta``)
+    blue, as the live view's scene does, and sizes the spheres to the area so that they
+    show in a view of the whole area."""
+    from netsim.bridge.bridge import RosBridge
+    from netsim.bridge.look import ROLE_RGBA
+    from netsim.bridge.settings import BridgeSettings
+    from netsim.run import build
+    from tests.fixtures import make_config
+
+    config = make_config(
+        seed=3,
+        duration_s=30,
+        world={"n_robots": 12, "side_m": 300.0, "placement": "centre", "centre_side_m": 150.0},
+        mobility={"model": "external"},
+        channel={"range_m": 80},
+    )
+    sim = build(config)
+    ros = RosBridge(sim, BridgeSettings(domain_id=DOMAINS["markers"]))
+    sim.run(until_s=20)
+    from netsim.bridge.messages import stamp
+
+    robots, _links = ros._markers(stamp(20.0), sim.positions()).markers
+    names = [sim.groups.role_names[int(c)] for c in sim.groups.role]
+    assert {"alpha", "beta"} <= set(names)
+    got = [(c.r, c.g, c.b, c.a) for c in robots.colors]
+    assert got == [tuple(np.float32(v) for v in ROLE_RGBA[r]) for r in names]
+    assert robots.scale.x == 3.0  # 1/100 of the 300 m side
 
 
 # -- bad input: one line, exit status 2, nothing written, before DDS is loaded --------------

@@ -86,7 +86,7 @@ def _clustered_sim(side_m: float = 200.0):
 def test_live_scene_colours_leaders_members_and_undecided_robots():
     """The scene's sphere of a leader (role ``alpha``) is red, a member's (``beta``) blue, an
     undecided robot's (``gamma``) grey: the colours follow the protocol's role labels."""
-    from netsim.bridge.live_view import GREY, robot_rgba
+    from netsim.bridge.look import GREY, robot_rgba
 
     sim = _clustered_sim()
     sim.run(until_s=20)
@@ -100,7 +100,8 @@ def test_live_scene_robots_and_links_show_with_the_whole_area_in_view():
     """A robot's sphere is 1/100 of the area's longer side across, and links are lines a
     fixed number of screen pixels wide, so both show when the app looks at the whole area."""
     from netsim.area import Bounds
-    from netsim.bridge.live_view import LINK_WIDTH_PX, LiveView, robot_diameter_m
+    from netsim.bridge.live_view import LINK_WIDTH_PX, LiveView
+    from netsim.bridge.look import robot_diameter_m
 
     assert robot_diameter_m(Bounds(0.0, 0.0, 1000.0, 400.0)) == 10.0
     sim = _clustered_sim(side_m=500.0)

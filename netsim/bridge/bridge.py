@@ -23,10 +23,12 @@ from typing import Any
 
 import numpy as np
 
+from netsim.bridge.look import LINK_RGBA, robot_diameter_m, robot_rgba
 from netsim.bridge.messages import idl_type, stamp, zero
 from netsim.bridge.node import CLOCK_QOS, Node, Template, serialized, take_all, write_bytes
 from netsim.bridge.relay import ChannelRelay
 from netsim.bridge.settings import BridgeSettings
+from netsim.config import world_bounds
 
 FRAME = "world"
 TWIST = "geometry_msgs/msg/Twist"
@@ -38,8 +40,6 @@ LINKS_TOPIC = "/network/links"
 # The links' markers per simulated second (at most one per step): Cyclone's Python
 # serializer takes longer over a MarkerArray than over everything else a step publishes.
 LINKS_HZ = 2.0
-# The colours of the roles in the links' markers (RGBA), by role label; grey otherwise.
-ROLE_RGBA = {"leader": (0.85, 0.2, 0.2, 1.0), "member": (0.2, 0.45, 0.85, 1.0), "undecided": (0.6, 0.6, 0.6, 1.0)}
 
 
 def _set(path: str) -> Any:
@@ -152,20 +152,18 @@ class RosBridge:
         robots.header.stamp, robots.header.frame_id = now, FRAME
         robots.ns, robots.id, robots.type = "robots", 0, 7  # SPHERE_LIST
         robots.pose.orientation.w = 1.0
-        robots.scale.x = robots.scale.y = robots.scale.z = 2.0
-        robots.color = colour(r=0.6, g=0.6, b=0.6, a=1.0)
+        # Sized to the area, as in the Foxglove scene: seen when the whole area is in view.
+        size = robot_diameter_m(world_bounds(self.sim.config.world))
+        robots.scale.x = robots.scale.y = robots.scale.z = size
         robots.points = [point(x=float(x), y=float(y), z=0.0) for x, y in pos.tolist()]
-        groups = self.sim.groups
-        if groups is not None:
-            names = groups.role_names
-            rgba = [ROLE_RGBA.get(names[int(c)], (0.6, 0.6, 0.6, 1.0)) for c in groups.role]
-            robots.colors = [colour(r=r, g=g, b=b, a=a) for r, g, b, a in rgba]
+        robots.colors = [colour(r=r, g=g, b=b, a=a) for r, g, b, a in robot_rgba(self.sim.groups, len(pos))]
         links = zero("visualization_msgs/msg/Marker")
         links.header.stamp, links.header.frame_id = now, FRAME
         links.ns, links.id, links.type = "links", 1, 5  # LINE_LIST
         links.pose.orientation.w = 1.0
-        links.scale.x = 0.5
-        links.color = colour(r=0.1, g=0.6, b=0.1, a=0.8)
+        links.scale.x = size / 5.0
+        r, g, b, a = LINK_RGBA
+        links.color = colour(r=r, g=g, b=b, a=a)
         if self.topology is not None:
             ends = [p for a, b in self.topology.graph.edges for p in (a, b)]
             links.points = [point(x=float(pos[k, 0]), y=float(pos[k, 1]), z=0.0) for k in ends]

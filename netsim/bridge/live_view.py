@@ -38,13 +38,9 @@ from foxglove.messages import (
     Vector3,
 )
 
-from netsim.area import Bounds
+from netsim.bridge.look import LINK_RGBA, robot_diameter_m, robot_rgba
 from netsim.config import world_bounds
 
-GREY = (0.6, 0.6, 0.6, 1.0)
-# Keyed by the clustering protocol's role labels: leader (alpha), member (beta), undecided
-# (gamma); a protocol with other labels gets grey robots.
-ROLE_RGBA = {"alpha": (0.85, 0.2, 0.2, 1.0), "beta": (0.2, 0.45, 0.85, 1.0), "gamma": GREY}
 # Links are drawn in screen pixels: in metres they would vanish when the whole area is in view.
 LINK_WIDTH_PX = 2.0
 
@@ -89,20 +85,6 @@ MESSAGES_SCHEMA = {
 
 def _ns(t_s: float) -> int:
     return int(round(t_s * 1e9))
-
-
-def robot_rgba(groups: Any, n: int) -> list[tuple[float, float, float, float]]:
-    """Each robot's colour now: by its role (``ROLE_RGBA``), grey without roles."""
-    if groups is None:
-        return [GREY] * n
-    names = groups.role_names
-    return [ROLE_RGBA.get(names[int(c)], GREY) for c in groups.role]
-
-
-def robot_diameter_m(bounds: Bounds) -> float:
-    """A robot's sphere: 1/100 of the area's longer side, so that the team shows when the
-    whole area is in view, whatever its size."""
-    return max(bounds.width, bounds.height) / 100.0
 
 
 def _colour(rgba: tuple[float, float, float, float]) -> Color:
@@ -190,7 +172,7 @@ class LiveView:
                 thickness=LINK_WIDTH_PX,
                 scale_invariant=True,
                 points=points,
-                color=_colour((0.1, 0.6, 0.1, 0.8)),
+                color=_colour(LINK_RGBA),
                 pose=Pose(position=Vector3(), orientation=Quaternion(w=1.0)),
             )
         ]
