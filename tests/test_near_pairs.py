@@ -78,9 +78,10 @@ def test_small_run_does_not_import_the_kd_tree(tmp_path):
 @pytest.mark.parametrize("solved", ["after the run", "during the run"])
 def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkeypatch, compiled, solved):
     """Two robots standing still at their range, to the last bit either side: the links table
-    has the pair exactly when its squared distance is within the range's square (the state
-    test), the candidate pairs found by the grid plain or compiled (it finds them with a
-    slack), links solved after the run or during it."""
+    has the pair exactly when its distance (``np.hypot``) is within the range (the one rule
+    of in range, :func:`netsim._kernels.reaches`, where the squares would say otherwise),
+    the candidate pairs found by the grid plain or compiled (it finds them with a slack),
+    links solved after the run or during it."""
     from netsim.links.lifetimes import link_lifetimes
     from netsim.run import collect, simulation
     from netsim.state import RobotState
@@ -114,6 +115,6 @@ def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkey
             sim.run()
             links = collect(sim)["links"]
         d = pos[0] - pos[1]
-        assert len(links) == int(d @ d <= 100.0 * 100.0), (k, compiled)
+        assert len(links) == int(np.hypot(*d) <= 100.0), (k, compiled)
         linked += len(links)
     assert 0 < linked < 7  # both sides of the edge were tried

@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim.geometry import in_box, wrap
+from netsim.geometry import in_box
+
+
+def wrap(d: np.ndarray, box: float | None) -> np.ndarray:
+    """The nearest image of each displacement on a torus of side ``box`` (None: the plane)."""
+    return d if box is None else d - box * np.round(d / box)
 
 
 def all_pairs_within(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
