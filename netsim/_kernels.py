@@ -1,6 +1,8 @@
 """The loops (kernels) of the engine core's hot paths: the range query of a transmission,
 the grid of candidate pairs (range index, link solvers, snapshots) and the pairs in reach of
-a sample; compiled or plain Python as :func:`netsim.compiled.load` decides.
+a sample; and the one rule of in range (:func:`reaches`) and the one torus wrap
+(:func:`nearest_image`) that every part asks. Compiled or plain Python as
+:func:`netsim.compiled.load` decides.
 
 One item at a time: for the tens of candidates of one query, numpy's cost per operation,
 not the arithmetic, is what a call costs. The tests compare them, plain and compiled, with
@@ -462,7 +464,7 @@ def reach_keys(pos, folded, ranges, box):
     0``), ascending (:func:`netsim.topology.reach_keys`). Candidates from the :func:`grid` of
     the largest range over the ``folded`` positions (in ``[0, box)`` on a torus, else
     ``pos``), taken cell by cell from copies of the positions in cell order (a row of three
-    cells' candidates contiguous in memory); distances from ``pos``, as numpy computes them."""
+    cells' candidates contiguous in memory); offsets from ``pos``."""
     n = pos.shape[0]
     cells_x, cells_y, cell, start, members = grid(folded, ranges.max(), box)
     n_cells = cells_x * cells_y

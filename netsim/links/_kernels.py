@@ -12,7 +12,10 @@ runtime one (:mod:`netsim.links.kinetic`) and the walls' stretches
 Legs are given as rows of ``leg_t`` (start), ``leg_p`` (position then) and ``leg_v``
 (velocity); pair ``k`` is legs ``la[k]`` and ``lb[k]``. On a torus (``box > 0``) every image
 of the other robot that the path can reach within the window counts, not only the nearest
-one. The tests compare these, plain and compiled, with a numpy oracle bit for bit.
+one. Whether a pair is linked at an instant (the state a solver sets at the start and at a
+jump) is :func:`netsim._kernels.in_range`, the engine's one rule of in range, and the
+nearest image its one wrap. The tests compare these, plain and compiled, with a numpy
+oracle bit for bit.
 """
 
 from __future__ import annotations
