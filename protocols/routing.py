@@ -22,8 +22,9 @@ from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 from netsim.plugins import Parts
 
 # The tables every routing protocol writes (the flows' when there are flows), and its
-# control frames: per kind, the frames sent, their bytes, and their receptions.
-CONTROL_SCHEMA = {"kind": "object", "sent": "int64", "bytes_sent": "int64", "received": "int64"}
+# control frames: per kind, the frames sent, their bytes, their receptions, and the
+# protocol's messages they carried (one per frame but where a frame packs several: OLSR).
+CONTROL_SCHEMA = {"kind": "object", "sent": "int64", "bytes_sent": "int64", "received": "int64", "messages": "int64"}
 ROUTING_TABLES = {
     "roles": ROLES_SCHEMA,
     "acks": ACKS_SCHEMA,
@@ -63,6 +64,7 @@ class Router:
         self.control_label: dict[str, str] = {}
         self.control_sent: dict[str, int] = {}
         self.control_received: dict[str, int] = {}
+        self.control_messages: dict[str, int] = {}
         self.data_transmissions = 0
         self.flows = None
         if parts.traffic is not None:
@@ -152,10 +154,15 @@ class Router:
         self.channel.frame_bytes[kind] = nbytes
         self.control_sent.setdefault(kind, 0)
         self.control_received.setdefault(kind, 0)
+        self.control_messages.setdefault(kind, 0)
 
-    def control(self, sender: int, payload: object, deliver: Callable, kind: str, dest: int = -1) -> None:
-        """Send a control frame of ``kind`` (a broadcast, or a unicast to ``dest``)."""
+    def control(
+        self, sender: int, payload: object, deliver: Callable, kind: str, dest: int = -1, messages: int = 1
+    ) -> None:
+        """Send a control frame of ``kind`` (a broadcast, or a unicast to ``dest``) carrying
+        ``messages`` of the protocol's messages."""
         self.control_sent[kind] += 1
+        self.control_messages[kind] += messages
         if dest < 0:
             self.channel.broadcast(sender, payload, self._counted(deliver, kind), kind=kind)
         else:
@@ -172,13 +179,15 @@ class Router:
         return counted
 
     def control_frame(self) -> pd.DataFrame:
-        """Per kind of control frame: the frames sent, their bytes and their receptions."""
+        """Per kind of control frame: the frames sent, their bytes, their receptions and the
+        messages they carried."""
         rows: dict[str, list[int]] = {}
         for k, label in self.control_label.items():
-            row = rows.setdefault(label, [0, 0, 0])
+            row = rows.setdefault(label, [0, 0, 0, 0])
             row[0] += self.control_sent[k]
             row[1] += self.control_sent[k] * self.control_bytes[k]
             row[2] += self.control_received[k]
+            row[3] += self.control_messages[k]
         labels = sorted(rows)
         return pd.DataFrame(
             {
@@ -186,15 +195,19 @@ class Router:
                 "sent": [rows[k][0] for k in labels],
                 "bytes_sent": [rows[k][1] for k in labels],
                 "received": [rows[k][2] for k in labels],
+                "messages": [rows[k][3] for k in labels],
             }
         ).astype(CONTROL_SCHEMA)
 
     def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         """Control overhead, and the flows' delivery."""
         sent = sum(self.control_sent.values())
+        messages = sum(self.control_messages.values())
         out = {
             "control_frames": sent,
             "control_frames_per_s": sent / duration_s if duration_s else float("nan"),
+            "control_messages": messages,
+            "control_messages_per_s": messages / duration_s if duration_s else float("nan"),
             "data_transmissions": self.data_transmissions,
         }
         packets = frames.get("packets")
