@@ -24,10 +24,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from netsim.protocols.routing import ROUTING_TABLES, Packet, Router
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
 from netsim.errors import ConfigError
-from netsim.params import Params, finite, param, positive
+from netsim.params import finite, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -42,7 +42,7 @@ ADDRESS_BYTES = 4
 
 
 @dataclass(frozen=True)
-class OlsrParams(Params):
+class OlsrParams(RoutingParams):
     """OLSR's keys of ``[protocol]``, with RFC 3626's defaults (section 18)."""
 
     section = "protocol"
@@ -152,7 +152,7 @@ class Olsr(Router):
     """OLSR at every robot (module notes)."""
 
     def __init__(self, params: OlsrParams, parts: Parts):
-        super().__init__(parts, params.ttl)
+        super().__init__(parts, params.ttl, params)
         self.params = params
         n = self.state.n
         # Robot i's link set: neighbour -> (when last heard, until when symmetric).

@@ -11,6 +11,7 @@ size, so that they take airtime, collide and are lost like any other.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -19,7 +20,9 @@ from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
+from netsim.params import Params, non_negative, param, positive
 from netsim.plugins import Parts
+from netsim.traffic import Traffic
 
 # The tables every routing protocol writes (the flows' when there are flows), and its
 # control frames: per kind, the frames sent, their bytes, their receptions, and the
@@ -34,6 +37,18 @@ ROUTING_TABLES = {
 }
 
 Outcome = Callable[[int, bool, float, int, int, str], None]
+
+
+@dataclass(frozen=True)
+class RoutingParams(Params):
+    """The keys of ``[protocol]`` every routing protocol has: the messages between random
+    pairs, as the clustering's (its default rate is 0.2 /s; here none unless asked)."""
+
+    section = "protocol"
+    message_rate_hz: float = param(0.0, non_negative, "messages sent per second, network-wide (random pairs)")
+    message_bytes: int = param(
+        512, positive, "size of a random pair's message, bytes (over channel.max_frame_bytes: several frames)"
+    )
 
 
 class Packet(NamedTuple):
@@ -52,7 +67,7 @@ class Packet(NamedTuple):
 class Router:
     """Data forwarding and bookkeeping of a routing protocol (module notes)."""
 
-    def __init__(self, parts: Parts, ttl: int):
+    def __init__(self, parts: Parts, ttl: int, pairs: RoutingParams | None = None):
         self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.streams, self.trace = parts.streams, parts.trace
         self.ttl = ttl
@@ -67,8 +82,12 @@ class Router:
         self.control_messages: dict[str, int] = {}
         self.data_transmissions = 0
         self.flows = None
-        if parts.traffic is not None:
-            self.flows = FlowTraffic(parts.traffic, self.env, self.channel.frame_bytes, self.send)
+        self.pairs = pairs if pairs is not None and pairs.message_rate_hz > 0 else None
+        traffic = parts.traffic
+        if traffic is None and self.pairs is not None:
+            traffic = Traffic((), parts.max_frame_bytes)
+        if traffic is not None:
+            self.flows = FlowTraffic(traffic, self.env, self.channel.frame_bytes, self.send)
         declare_roles(parts.trace)
         channel = self.channel
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
@@ -76,9 +95,14 @@ class Router:
         self.duration_s = float(parts.duration_s)
 
     def start(self) -> None:
-        """Start the flows (the protocol starts its own control traffic)."""
+        """Start the flows and the random pairs' messages (the protocol starts its own
+        control traffic)."""
         if self.flows is not None:
             self.flows.start(self.duration_s)
+            if self.pairs is not None:
+                pairs = self.pairs
+                rng = self.streams.get("traffic")
+                self.flows.start_pairs(self.state.n, pairs.message_rate_hz, pairs.message_bytes, rng)
             self.trace.add_frame("packets", self.flows.packets_frame)
             self.trace.add_frame("flows", self.flows.flows_frame)
 
