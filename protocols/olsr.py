@@ -27,7 +27,7 @@ import numpy as np
 from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
 from netsim.errors import ConfigError
-from netsim.params import finite, param, positive
+from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -56,6 +56,14 @@ class OlsrParams(RoutingParams):
     )
     dup_hold_time_s: float = param(30.0, finite(positive), "DUP_HOLD_TIME: a message is remembered this long, s")
     ttl: int = param(255, positive, "TTL of a TC and hops a data packet may take")
+    start_spread_s: float = param(
+        None,
+        non_negative,
+        "each robot starts its HELLO and TC timers at U(0, spread) (0: all at t = 0, as ns-3's nodes), s",
+        kind=float,
+        derive=lambda p: p.hello_interval_s,
+        rule="hello_interval_s",
+    )
 
     def check(self) -> None:
         if not self.neighb_hold_time_s > self.hello_interval_s:
@@ -182,7 +190,7 @@ class Olsr(Router):
         p, n = self.params, self.state.n
         agenda = self.channel.agenda
         # Each robot starts its HELLO and TC timers together, at a time of its own.
-        phase = self.streams.get("olsr.phase").uniform(0.0, p.hello_interval_s, n)
+        phase = self.streams.get("olsr.phase").uniform(0.0, p.start_spread_s, n)
         for i in range(n):
             agenda.at(float(phase[i]), URGENT, self._hello_tick, i)
             agenda.at(float(phase[i]), URGENT, self._tc_tick, i)
@@ -278,19 +286,18 @@ class Olsr(Router):
             key = (tc.orig, tc.ansn)
             if tc.orig == r:
                 continue
-            until, retransmitted = self.duplicates[r].get(key, (-1.0, False))
-            if until < now:
-                # Processed once (section 3.4, 9.5).
-                known = self.topology[r].get(tc.orig)
-                if known is None or tc.ansn >= known[0]:
-                    self.topology[r][tc.orig] = (tc.ansn, tc.advertised, now + p.top_hold_time_s)
-                    self._routes[r] = None
-            elif retransmitted:
+            if self.duplicates[r].get(key, (-1.0, False))[0] >= now:
+                # Processed and considered for forwarding once, at the first copy from a
+                # symmetric neighbour (one interface: section 3.4, 3.4.1 step 2).
                 continue
-            self.duplicates[r][key] = (now + p.dup_hold_time_s, retransmitted)
-            # MPR flooding: retransmitted once, by the sender's MPRs alone, while TTL allows.
-            if self.selectors[r].get(sender, -1.0) >= now and tc.ttl > 1:
-                self.duplicates[r][key] = (now + p.dup_hold_time_s, True)
+            known = self.topology[r].get(tc.orig)
+            if known is None or tc.ansn >= known[0]:
+                self.topology[r][tc.orig] = (tc.ansn, tc.advertised, now + p.top_hold_time_s)
+                self._routes[r] = None
+            # MPR flooding: retransmitted by the sender's MPRs alone, while TTL allows.
+            forward = self.selectors[r].get(sender, -1.0) >= now and tc.ttl > 1
+            self.duplicates[r][key] = (now + p.dup_hold_time_s, forward)
+            if forward:
                 self.queue(r, tc._replace(ttl=tc.ttl - 1, hops=tc.hops + 1))
 
     # -- routing table (section 10) -----------------------------------------------------------

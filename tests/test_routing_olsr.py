@@ -156,3 +156,35 @@ def test_olsr_parameter_out_of_range_is_refused():
     """A neighbour hold time not longer than the HELLO interval is refused, naming the key."""
     with pytest.raises(ConfigError, match="protocol.neighb_hold_time_s = 2.0"):
         make_config(protocol={"model": "olsr", "neighb_hold_time_s": 2.0})
+
+
+def test_olsr_tc_is_considered_for_forwarding_once_at_its_first_copy(tmp_path):
+    """RFC 3626 3.4.1 (one interface): a TC is processed and considered for forwarding at
+    the first copy a robot gets from a symmetric neighbour, and retransmitted then only if
+    that neighbour chose the robot as MPR (and the TTL allows); a later copy, even from a
+    neighbour that chose it, is not retransmitted."""
+    expected: dict[tuple, bool] = {}  # (robot, originator, ANSN) -> retransmit
+    forwarded: list[tuple] = []
+
+    def watch(olsr):
+        on_tc, queue = olsr._on_tc, olsr.queue
+
+        def received(sender, receivers, tc):
+            now = olsr.env.now
+            for r in receivers.tolist():
+                key = (r, tc.orig, tc.ansn)
+                if tc.orig != r and key not in expected and sender in olsr.symmetric(r, now):
+                    expected[key] = olsr.selectors[r].get(sender, -1.0) >= now and tc.ttl > 1
+            on_tc(sender, receivers, tc)
+
+        def queued(i, message):
+            if message.__class__.__name__ == "Tc" and message.orig != i:
+                forwarded.append((i, message.orig, message.ansn))
+            queue(i, message)
+
+        olsr._on_tc, olsr.queue = received, queued
+
+    _run(tmp_path, GRID, [], duration_s=40.0, watch=watch)
+    assert len(forwarded) == len(set(forwarded))
+    assert set(forwarded) == {k for k, go in expected.items() if go}
+    assert sum(expected.values()) > 50 and not all(expected.values())
