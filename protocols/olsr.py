@@ -5,10 +5,11 @@ of them are symmetric, and which it chose as multipoint relays (MPRs); from them
 robot knows its symmetric neighbours and its two-hop neighbours, and selects MPRs that
 cover every two-hop neighbour (:func:`select_mprs`, section 8.3.1). A robot that some
 neighbours chose as MPR (its MPR selectors) floods a topology control message (TC) every
-TC_INTERVAL advertising them; a TC is retransmitted once, and only by the MPRs of the
-robot it came from (MPR flooding, section 3.4). The routing table is the shortest paths
-over the symmetric links, the two-hop links and the advertised links (section 10). No
-HNA or MID messages (one interface per robot), every robot of WILL_DEFAULT willingness.
+TC_INTERVAL advertising them; a TC is considered for forwarding once, at its first copy,
+and retransmitted only by the MPRs of the robot it came from (MPR flooding, section 3.4).
+The routing table is the shortest paths over the symmetric links, the two-hop links and
+the advertised links (section 10). No HNA or MID messages (one interface per robot),
+every robot of WILL_DEFAULT willingness.
 
 A packet carries one or more messages (section 3.4): every message a robot generates or
 retransmits waits in its queue a jitter of up to MAXJITTER (section 18.3), and the
