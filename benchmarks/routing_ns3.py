@@ -1,22 +1,28 @@
 """netsim's aodv and olsr against ns-3's (the ns-3.44 wheel: ns.AodvHelper, ns.OlsrHelper) on
-the same static scenarios: a line and a grid, range propagation (a unit disk), no loss, one
-light flow from one end to the other. Compared: the flow's delivery ratio, its packets'
-mean hop count, and control packets per second, network-wide.
+the same scenarios: a static line and grid, and a mobile team replayed from one ns-2 trace
+(``netsim scenario generate``, read by netsim and by ns-3's Ns2MobilityHelper), range
+propagation (a unit disk), no loss, light flows (from one end to the other of the line and
+the grid; from robot 0 to four others of the team, whose routes break and change).
+Compared: the flows' delivery ratio, their packets' mean hop count, and control packets
+per second, network-wide; control messages per second are printed beside them (an OLSR
+packet carries one or more). netsim's OLSR robots start at t = 0 like ns-3's nodes
+(``protocol.start_spread_s = 0``).
 
     bash benchmarks/ns3_env.sh .ns3venv          # once: the ns-3 wheel (a few minutes)
     python benchmarks/routing_ns3.py --ns3-python .ns3venv/bin/python
     python benchmarks/routing_ns3.py --only line --protocols aodv
+    python benchmarks/routing_ns3.py --only mobile --trace team.ns2   # a trace of your own
 
 Each row runs netsim (this interpreter) and ns-3 (``--ns3-python``, this script with
 ``--side ns3``); the table says whether each figure is within its tolerance (TOLERANCE)
 and the script exits 1 if any is not.
 
 ns-3's side: 802.11b ad hoc at 11 Mbit/s, RangePropagationLossModel (MaxRange = the range),
-constant positions, IPv4/UDP; the flow a UDP socket sending ``--packet-bytes`` every
-``--interval`` s; hops from the TTL the packet arrives with (65 - TTL, sent with 64);
+constant positions (the mobile team: Ns2MobilityHelper), IPv4/UDP; each flow a UDP socket
+sending ``--packet-bytes`` every ``--interval`` s; hops from the TTL the packet arrives with (65 - TTL, sent with 64);
 control packets counted at every node's IPv4 Tx trace by their UDP port (654: AODV, 698:
-OLSR). ns-3's OLSR may carry a HELLO and a TC in one packet; netsim sends one message per
-frame: its control figure is messages per second.
+OLSR); OLSR's messages counted at its Tx trace (the messages of each packet sent), AODV's
+one per packet.
 """
 
 from __future__ import annotations
@@ -25,37 +31,58 @@ import argparse
 import json
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 SCENARIOS = {
-    # name: (positions, range_m, src, dst)
-    "line": ([(50.0 + 100.0 * i, 500.0) for i in range(6)], 120.0, 0, 5),
-    "grid": ([(50.0 + 100.0 * i, 50.0 + 100.0 * j) for i in range(4) for j in range(4)], 120.0, 0, 15),
+    # name: (positions, range_m, src, dsts: a flow to each); positions None: the mobile
+    # team's trace.
+    "line": ([(50.0 + 100.0 * i, 500.0) for i in range(6)], 120.0, 0, (5,)),
+    "grid": ([(50.0 + 100.0 * i, 50.0 + 100.0 * j) for i in range(4) for j in range(4)], 120.0, 0, (15,)),
+    "mobile": (None, 250.0, 0, (3, 6, 9, 13)),
 }
+# The mobile team: random waypoint, written once by `netsim scenario generate` (its seed is
+# --seed) and replayed by both.
+MOBILE = {"n": 30, "side": 1000.0, "speed_min": 1.0, "speed_max": 5.0, "pause": 0.0}
 # What may differ between the two: delivery ratio (absolute), mean hops (absolute), control
 # packets per second (relative).
 TOLERANCE = {"delivery_ratio": 0.05, "mean_hops": 0.25, "control_per_s": 0.30}
+FIGURES = ("delivery_ratio", "mean_hops", "control_per_s", "messages_per_s")
+
+
+def write_trace(path: Path, args) -> None:
+    """The mobile team's ns-2 trace, as `netsim scenario generate` writes it."""
+    m = MOBILE
+    netsim = Path(sys.executable).with_name("netsim")
+    flags = [f"--n={m['n']}", f"--side={m['side']}", f"--speed-min={m['speed_min']}", f"--speed-max={m['speed_max']}"]
+    flags += [f"--pause={m['pause']}", f"--duration={args.duration}", f"--seed={args.seed}", "-o", str(path)]
+    subprocess.run([str(netsim), "scenario", "generate", *flags], check=True, capture_output=True)
 
 
 def netsim_side(scenario: str, protocol: str, args) -> dict:
-    import tempfile
-    from pathlib import Path
-
     from netsim.config import from_dict
     from netsim.run import build, collect
 
-    xy, range_m, src, dst = SCENARIOS[scenario]
+    xy, range_m, src, dsts = SCENARIOS[scenario]
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "robots.csv"
-        path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
+        if xy is None:
+            world = {"n_robots": MOBILE["n"], "side_m": MOBILE["side"]}
+            mobility = {"model": "trace", "trace_file": args.trace, "ns2_semantics": "ns3"}
+        else:
+            path = Path(tmp) / "robots.csv"
+            path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
+            world = {"n_robots": len(xy), "side_m": 1000.0, "placement": str(path)}
+            mobility = {"model": "static"}
         rate_bps = args.packet_bytes * 8 / args.interval
         config = from_dict(
             {
                 "seed": args.seed,
                 "duration_s": args.duration,
-                "world": {"n_robots": len(xy), "side_m": 1000.0, "placement": str(path)},
-                "mobility": {"model": "static"},
+                "world": world,
+                "mobility": mobility,
                 "channel": {"range_m": range_m},
-                "protocol": {"model": protocol},
+                # OLSR's robots all start at t = 0, as ns-3's nodes do.
+                "protocol": {"model": protocol, **({"start_spread_s": 0.0} if protocol == "olsr" else {})},
                 "traffic": {
                     "flows": [
                         {
@@ -66,6 +93,7 @@ def netsim_side(scenario: str, protocol: str, args) -> dict:
                             "rate_bps": rate_bps,
                             "packet_bytes": args.packet_bytes,
                         }
+                        for dst in dsts
                     ]
                 },
                 "output": {"position_interval_s": 0.0},
@@ -82,18 +110,25 @@ def netsim_side(scenario: str, protocol: str, args) -> dict:
         "delivery_ratio": len(got) / len(packets),
         "mean_hops": float(got["hops"].mean()) if len(got) else float("nan"),
         "control_per_s": float(frames["control"]["sent"].sum()) / args.duration,
+        "messages_per_s": float(frames["control"]["messages"].sum()) / args.duration,
     }
 
 
 NS3_CPP = r"""
+#include "ns3/olsr-routing-protocol.h"
 namespace routecmp {
 using namespace ns3;
-static uint64_t g_sent = 0, g_recv = 0, g_hops = 0, g_ctrl = 0;
+static uint64_t g_sent = 0, g_recv = 0, g_hops = 0, g_ctrl = 0, g_msgs = 0;
 static uint16_t g_ctrl_port = 0;
 uint64_t Sent() { return g_sent; }
 uint64_t Received() { return g_recv; }
 uint64_t HopSum() { return g_hops; }
 uint64_t Control() { return g_ctrl; }
+uint64_t OlsrMessages() { return g_msgs; }
+
+static void OlsrTx(const olsr::PacketHeader& header, const olsr::MessageList& messages) {
+    g_msgs += messages.size();
+}
 
 static void Tx(Ptr<const Packet> p, Ptr<Ipv4> ipv4, uint32_t iface) {
     Ptr<Packet> c = p->Copy();
@@ -125,12 +160,15 @@ struct Sender {
         Simulator::Schedule(interval, &Sender::Send, this);
     }
 };
-static Sender* g_sender = nullptr;
 
-void Install(NodeContainer nodes, uint32_t src, uint32_t dst, uint32_t size, double interval,
-             double start, double stop, uint16_t ctrl_port) {
+void Trace(uint16_t ctrl_port) {
     g_ctrl_port = ctrl_port;
     Config::ConnectWithoutContext("/NodeList/*/$ns3::Ipv4L3Protocol/Tx", MakeCallback(&Tx));
+    Config::ConnectWithoutContextFailSafe("/NodeList/*/$ns3::olsr::RoutingProtocol/Tx", MakeCallback(&OlsrTx));
+}
+
+void Install(NodeContainer nodes, uint32_t src, uint32_t dst, uint32_t size, double interval,
+             double start, double stop) {
     TypeId tid = TypeId::LookupByName("ns3::UdpSocketFactory");
     Ptr<Socket> rx = Socket::CreateSocket(nodes.Get(dst), tid);
     rx->SetIpRecvTtl(true);
@@ -139,8 +177,8 @@ void Install(NodeContainer nodes, uint32_t src, uint32_t dst, uint32_t size, dou
     Ptr<Socket> tx = Socket::CreateSocket(nodes.Get(src), tid);
     Ipv4Address to = nodes.Get(dst)->GetObject<Ipv4>()->GetAddress(1, 0).GetLocal();
     tx->Connect(InetSocketAddress(to, 9));
-    g_sender = new Sender{tx, size, Seconds(interval), Seconds(stop)};
-    Simulator::Schedule(Seconds(start), &Sender::Send, g_sender);
+    Sender* sender = new Sender{tx, size, Seconds(interval), Seconds(stop)};
+    Simulator::Schedule(Seconds(start), &Sender::Send, sender);
 }
 }
 """
@@ -151,17 +189,21 @@ def ns3_side(scenario: str, protocol: str, args) -> dict:
     from ns import ns
 
     cppyy.cppdef(NS3_CPP)
-    xy, range_m, src, dst = SCENARIOS[scenario]
+    xy, range_m, src, dsts = SCENARIOS[scenario]
     ns.RngSeedManager.SetSeed(args.seed)
     nodes = ns.NodeContainer()
-    nodes.Create(len(xy))
-    alloc = ns.CreateObject[ns.ListPositionAllocator]()
-    for x, y in xy:
-        alloc.Add(ns.Vector(x, y, 0.0))
-    mob = ns.MobilityHelper()
-    mob.SetPositionAllocator(alloc)
-    mob.SetMobilityModel("ns3::ConstantPositionMobilityModel")
-    mob.Install(nodes)
+    if xy is None:
+        nodes.Create(MOBILE["n"])
+        ns.Ns2MobilityHelper(args.trace).Install()
+    else:
+        nodes.Create(len(xy))
+        alloc = ns.CreateObject[ns.ListPositionAllocator]()
+        for x, y in xy:
+            alloc.Add(ns.Vector(x, y, 0.0))
+        mob = ns.MobilityHelper()
+        mob.SetPositionAllocator(alloc)
+        mob.SetMobilityModel("ns3::ConstantPositionMobilityModel")
+        mob.Install(nodes)
     wifi = ns.WifiHelper()
     wifi.SetStandard(ns.WIFI_STANDARD_80211b)
     rate = ns.StringValue("DsssRate11Mbps")
@@ -184,7 +226,9 @@ def ns3_side(scenario: str, protocol: str, args) -> dict:
     addresses = ns.Ipv4AddressHelper()
     addresses.SetBase(ns.Ipv4Address("10.0.0.0"), ns.Ipv4Mask("255.255.255.0"))
     addresses.Assign(devices)
-    cppyy.gbl.routecmp.Install(nodes, src, dst, args.packet_bytes, args.interval, args.start, args.duration, port)
+    cppyy.gbl.routecmp.Trace(port)
+    for dst in dsts:
+        cppyy.gbl.routecmp.Install(nodes, src, dst, args.packet_bytes, args.interval, args.start, args.duration)
     ns.Simulator.Stop(ns.Seconds(args.duration))
     ns.Simulator.Run()
     g = cppyy.gbl.routecmp
@@ -195,6 +239,7 @@ def ns3_side(scenario: str, protocol: str, args) -> dict:
         "delivery_ratio": recv / sent if sent else float("nan"),
         "mean_hops": int(g.HopSum()) / recv if recv else float("nan"),
         "control_per_s": int(g.Control()) / args.duration,
+        "messages_per_s": (int(g.OlsrMessages()) if protocol == "olsr" else int(g.Control())) / args.duration,
     }
     ns.Simulator.Destroy()
     return out
@@ -218,7 +263,18 @@ def main() -> int:
     p.add_argument("--interval", type=float, default=1.0, help="between two packets of the flow, s")
     p.add_argument("--packet-bytes", type=int, default=512)
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--trace", default="", help="the mobile team's ns-2 trace (default: written anew)")
     args = p.parse_args()
+    if "mobile" in args.only and not args.trace:
+        with tempfile.TemporaryDirectory() as tmp:
+            args.trace = str(Path(tmp) / "mobile.ns2")
+            write_trace(Path(args.trace), args)
+            return compare(args)
+    return compare(args)
+
+
+def compare(args) -> int:
+    """Run each scenario and protocol on both sides (or on one, ``--side``); print the table."""
     if args.side != "both":
         (scenario,), (protocol,) = args.only, args.protocols
         side = ns3_side if args.side == "ns3" else netsim_side
@@ -230,6 +286,7 @@ def main() -> int:
         f"--interval={args.interval}",
         f"--packet-bytes={args.packet_bytes}",
         f"--seed={args.seed}",
+        f"--trace={args.trace}",
     ]
     ok = True
     print(f"{'scenario':8} {'protocol':8} {'figure':15} {'netsim':>9} {'ns-3':>9}  within")
@@ -238,10 +295,11 @@ def main() -> int:
             ours = netsim_side(scenario, protocol, args)
             run = [args.ns3_python, __file__, "--side=ns3", "--only", scenario, "--protocols", protocol, *common]
             theirs = json.loads(subprocess.run(run, check=True, capture_output=True, text=True).stdout.splitlines()[-1])
-            for name in TOLERANCE:
-                good = within(name, ours[name], theirs[name])
-                ok &= good
-                print(f"{scenario:8} {protocol:8} {name:15} {ours[name]:9.3f} {theirs[name]:9.3f}  {good}")
+            for name in FIGURES:
+                good = within(name, ours[name], theirs[name]) if name in TOLERANCE else None
+                ok &= good is not False
+                verdict = "" if good is None else str(good)
+                print(f"{scenario:8} {protocol:8} {name:15} {ours[name]:9.3f} {theirs[name]:9.3f}  {verdict}")
     return 0 if ok else 1
 
 

@@ -95,6 +95,9 @@ class Parts:
     # The flows of traffic.flows and the largest payload of one frame
     # (netsim.traffic.Traffic), for the protocol that carries them; None: no flows.
     traffic: Any = None
+    # channel.max_frame_bytes: the largest payload of one frame (a protocol that packs
+    # several messages into a frame keeps under it).
+    max_frame_bytes: int = 1500
 
 
 class LinkState(Protocol):

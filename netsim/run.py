@@ -122,6 +122,7 @@ def simulation(config: Config, run: int = 0) -> Simulation:
         events=events,
         occupancy=occupancy,
         traffic=traffic,
+        max_frame_bytes=config.channel.max_frame_bytes,
     )
     sim = Simulation(parts, config, run)
     # Log-distance path loss without shadowing or walls is the unit disk of the implied range

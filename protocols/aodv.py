@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from netsim.protocols.routing import ROUTING_TABLES, Packet, Router
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
 from netsim.errors import ConfigError
-from netsim.params import Params, finite, non_negative, param, positive
+from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -38,7 +38,7 @@ RERR_BYTES_PER_DEST = 8
 
 
 @dataclass(frozen=True)
-class AodvParams(Params):
+class AodvParams(RoutingParams):
     """AODV's keys of ``[protocol]``, with RFC 3561's defaults (section 10)."""
 
     section = "protocol"
@@ -229,7 +229,7 @@ class Aodv(Router):
     """AODV at every robot (module notes)."""
 
     def __init__(self, params: AodvParams, parts: Parts):
-        super().__init__(parts, params.net_diameter)
+        super().__init__(parts, params.net_diameter, params)
         self.params = p = params
         n = self.state.n
         self.tables = [RouteTable() for _ in range(n)]

@@ -5,6 +5,9 @@ one message per frame (:func:`netsim.traffic.fragment_bytes`), each relayed on i
 packet is delivered when its last frame arrives, and only if every frame does; it is
 dropped when the first of its frames is, and that frame says where and why. The tables:
 ``packets`` (one row per packet) and ``flows`` (one row per flow).
+
+A routing protocol sends the messages between random pairs (``protocol.message_rate_hz``)
+the same way: packets of flow ``-1`` (:meth:`FlowTraffic.start_pairs`).
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ FLOWS_SCHEMA = {
 
 # A packet some of whose frames were still on their way when the run ended.
 IN_FLIGHT = "in_flight"
+# The flow of the messages between random pairs in the packets table.
+PAIRS_FLOW = -1
 
 # send(src, dst, kind, on_outcome) -> message id: the protocol's relay.
 # on_outcome(msg_id, delivered, now, hops, robot, cause).
@@ -82,6 +87,29 @@ class FlowTraffic:
             times = send_times(flow, end_s)
             if times:
                 self.env.process(self._source(k, flow, times, sizes))
+
+    def start_pairs(self, n: int, rate_hz: float, message_bytes: int, rng: np.random.Generator) -> None:
+        """Messages of ``message_bytes`` between uniformly random pairs of the ``n`` robots,
+        a Poisson process of ``rate_hz``, drawn from ``rng`` as the clustering's relay draws
+        them (the same stream gives the same pairs at the same times); packets of flow
+        :data:`PAIRS_FLOW`. A team of one robot sends nothing (and draws nothing)."""
+        if n < 2:
+            return
+        sizes = fragment_bytes(message_bytes, self.max_frame_bytes)
+        for nbytes in set(sizes):
+            self.frame_bytes[frame_kind(nbytes)] = nbytes
+        self.env.process(self._pairs(n, rate_hz, message_bytes, sizes, rng))
+
+    def _pairs(self, n: int, rate_hz: float, message_bytes: int, sizes: list[int], rng: np.random.Generator):
+        env = self.env
+        p = 0
+        while True:
+            yield env.timeout(rng.exponential(1.0 / rate_hz))
+            src = int(rng.integers(n))
+            dst = int(rng.integers(n - 1))
+            dst += dst >= src
+            self._send_packet(PAIRS_FLOW, p, Flow(src, dst, env.now, env.now, 0.0, message_bytes), sizes)
+            p += 1
 
     def _source(self, k: int, flow: Flow, times: list[float], sizes: list[int]):
         env = self.env

@@ -15,16 +15,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from netsim.protocols.routing import ROUTING_TABLES, Packet, Router
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
 from netsim.errors import ConfigError
-from netsim.params import Params, finite, non_negative, param, positive
+from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
 
 @dataclass(frozen=True)
-class GreedyParams(Params):
+class GreedyParams(RoutingParams):
     """Greedy geographic forwarding's keys of ``[protocol]``."""
 
     section = "protocol"
@@ -87,7 +87,7 @@ class Greedy(Router):
     """Position beacons, neighbour tables and greedy forwarding (module notes)."""
 
     def __init__(self, params: GreedyParams, parts: Parts):
-        super().__init__(parts, params.hop_limit)
+        super().__init__(parts, params.hop_limit, params)
         self.params = params
         n = self.state.n
         # What robot i last heard of neighbour j: its position and when (-inf: never).

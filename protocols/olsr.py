@@ -5,10 +5,17 @@ of them are symmetric, and which it chose as multipoint relays (MPRs); from them
 robot knows its symmetric neighbours and its two-hop neighbours, and selects MPRs that
 cover every two-hop neighbour (:func:`select_mprs`, section 8.3.1). A robot that some
 neighbours chose as MPR (its MPR selectors) floods a topology control message (TC) every
-TC_INTERVAL advertising them; a TC is retransmitted once, and only by the MPRs of the
-robot it came from (MPR flooding, section 3.4). The routing table is the shortest paths
-over the symmetric links, the two-hop links and the advertised links (section 10). No
-HNA or MID messages (one interface per robot), every robot of WILL_DEFAULT willingness.
+TC_INTERVAL advertising them; a TC is considered for forwarding once, at its first copy,
+and retransmitted only by the MPRs of the robot it came from (MPR flooding, section 3.4).
+The routing table is the shortest paths over the symmetric links, the two-hop links and
+the advertised links (section 10). No HNA or MID messages (one interface per robot),
+every robot of WILL_DEFAULT willingness.
+
+A packet carries one or more messages (section 3.4): every message a robot generates or
+retransmits waits in its queue a jitter of up to MAXJITTER (section 18.3), and the
+messages queued meanwhile leave together, packed into as few frames as
+``channel.max_frame_bytes`` allows (:func:`pack`), so that a HELLO and a TC, or TCs
+forwarded together, cost one frame and one medium access.
 """
 
 from __future__ import annotations
@@ -18,10 +25,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from netsim.protocols.routing import ROUTING_TABLES, Packet, Router
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
 from netsim.errors import ConfigError
-from netsim.params import Params, finite, param, positive
+from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -36,7 +43,7 @@ ADDRESS_BYTES = 4
 
 
 @dataclass(frozen=True)
-class OlsrParams(Params):
+class OlsrParams(RoutingParams):
     """OLSR's keys of ``[protocol]``, with RFC 3626's defaults (section 18)."""
 
     section = "protocol"
@@ -50,6 +57,14 @@ class OlsrParams(Params):
     )
     dup_hold_time_s: float = param(30.0, finite(positive), "DUP_HOLD_TIME: a message is remembered this long, s")
     ttl: int = param(255, positive, "TTL of a TC and hops a data packet may take")
+    start_spread_s: float = param(
+        None,
+        non_negative,
+        "each robot starts its HELLO and TC timers at U(0, spread) (0: all at t = 0, as ns-3's nodes), s",
+        kind=float,
+        derive=lambda p: p.hello_interval_s,
+        rule="hello_interval_s",
+    )
 
     def check(self) -> None:
         if not self.neighb_hold_time_s > self.hello_interval_s:
@@ -105,24 +120,48 @@ class Tc(NamedTuple):
 
 
 def hello_bytes(hello: Hello) -> int:
-    """A HELLO's size: headers, then per link code (asymmetric, symmetric, MPR) its header
-    and its addresses."""
+    """A HELLO message's size: headers, then per link code (asymmetric, symmetric, MPR) its
+    header and its addresses."""
     asym = hello.heard - hello.symmetric
     groups = [asym, hello.symmetric - hello.mprs, hello.mprs]
     body = sum(LINK_CODE_HEADER_BYTES + ADDRESS_BYTES * len(g) for g in groups if g)
-    return PACKET_HEADER_BYTES + MESSAGE_HEADER_BYTES + HELLO_HEADER_BYTES + body
+    return MESSAGE_HEADER_BYTES + HELLO_HEADER_BYTES + body
 
 
 def tc_bytes(count: int) -> int:
-    """A TC's size advertising ``count`` neighbours."""
-    return PACKET_HEADER_BYTES + MESSAGE_HEADER_BYTES + TC_HEADER_BYTES + ADDRESS_BYTES * count
+    """A TC message's size advertising ``count`` neighbours."""
+    return MESSAGE_HEADER_BYTES + TC_HEADER_BYTES + ADDRESS_BYTES * count
+
+
+def message_bytes(message: Hello | Tc) -> int:
+    """A message's size, its headers included."""
+    return hello_bytes(message) if isinstance(message, Hello) else tc_bytes(len(message.advertised))
+
+
+def pack(messages: list, max_frame_bytes: int) -> list[tuple[tuple, int]]:
+    """The packets ``messages`` leave in, in their order: ``(messages, bytes)``, each the
+    packet header and as many messages as fit in ``max_frame_bytes``; a message too large
+    to share a frame with another (a HELLO listing hundreds of neighbours) goes alone."""
+    packets: list[tuple[tuple, int]] = []
+    batch: list = []
+    size = PACKET_HEADER_BYTES
+    for m in messages:
+        nbytes = message_bytes(m)
+        if batch and size + nbytes > max_frame_bytes:
+            packets.append((tuple(batch), size))
+            batch, size = [], PACKET_HEADER_BYTES
+        batch.append(m)
+        size += nbytes
+    if batch:
+        packets.append((tuple(batch), size))
+    return packets
 
 
 class Olsr(Router):
     """OLSR at every robot (module notes)."""
 
     def __init__(self, params: OlsrParams, parts: Parts):
-        super().__init__(parts, params.ttl)
+        super().__init__(parts, params.ttl, params)
         self.params = params
         n = self.state.n
         # Robot i's link set: neighbour -> (when last heard, until when symmetric).
@@ -142,25 +181,52 @@ class Olsr(Router):
         self._routes: list[dict[int, int] | None] = [None] * n
         self._routes_at = [-1.0] * n
         self._rng = self.streams.get("olsr.jitter")
+        # Each robot's messages waiting to leave, and whether their departure is scheduled.
+        self.queued: list[list[Hello | Tc]] = [[] for _ in range(n)]
+        self._leaving = [False] * n
+        self.max_frame_bytes = int(parts.max_frame_bytes)
 
     def start(self) -> None:
         super().start()
         p, n = self.params, self.state.n
         agenda = self.channel.agenda
-        phase = self.streams.get("olsr.phase").uniform(0.0, p.hello_interval_s, (2, n))
+        # Each robot starts its HELLO and TC timers together, at a time of its own.
+        phase = self.streams.get("olsr.phase").uniform(0.0, p.start_spread_s, n)
         for i in range(n):
-            agenda.at(float(phase[0, i]), URGENT, self._hello_tick, i)
-            agenda.at(float(phase[1, i]) + p.hello_interval_s, URGENT, self._tc_tick, i)
-
-    def _jittered(self, interval_s: float) -> float:
-        """An interval less up to MAXJITTER = interval / 4 (section 18.3)."""
-        return interval_s - float(self._rng.uniform(0.0, interval_s / 4))
+            agenda.at(float(phase[i]), URGENT, self._hello_tick, i)
+            agenda.at(float(phase[i]), URGENT, self._tc_tick, i)
 
     def _kind(self, label: str, nbytes: int) -> str:
         kind = f"{label}_{nbytes}B"
         if kind not in self.control_bytes:
             self.control_kind(kind, nbytes, label)
         return kind
+
+    # -- packets (section 3.4) -----------------------------------------------------------------
+    def queue(self, i: int, message: Hello | Tc) -> None:
+        """Robot ``i`` sends ``message`` in its next packet: the first message queued sets
+        when that packet leaves, after U(0, MAXJITTER = hello_interval_s / 4) (section 18.3)."""
+        self.queued[i].append(message)
+        if not self._leaving[i]:
+            self._leaving[i] = True
+            delay_s = float(self._rng.uniform(0.0, self.params.hello_interval_s / 4))
+            self.channel.agenda.at(delay_s, URGENT, self._send_queued, i)
+
+    def _send_queued(self, i: int) -> None:
+        messages, self.queued[i] = self.queued[i], []
+        self._leaving[i] = False
+        if not self.state.alive[i]:
+            return
+        for batch, nbytes in pack(messages, self.max_frame_bytes):
+            label = "+".join(k for k, t in (("hello", Hello), ("tc", Tc)) if any(isinstance(m, t) for m in batch))
+            self.control(i, batch, self._on_packet, self._kind(label, nbytes), messages=len(batch))
+
+    def _on_packet(self, sender: int, receivers: np.ndarray, batch: tuple) -> None:
+        for message in batch:
+            if isinstance(message, Hello):
+                self._on_hello(sender, receivers, message)
+            else:
+                self._on_tc(sender, receivers, message)
 
     # -- neighbour sensing (section 7 and 8) ------------------------------------------------
     def symmetric(self, i: int, now: float) -> set[int]:
@@ -172,9 +238,8 @@ class Olsr(Router):
         if self.state.alive[i]:
             self._select_mprs(i, now)
             heard = frozenset(j for j, t in self.heard_until[i].items() if t >= now)
-            hello = Hello(i, heard, frozenset(self.symmetric(i, now)), frozenset(self.mprs[i]))
-            self.control(i, hello, self._on_hello, self._kind("hello", hello_bytes(hello)))
-        self.channel.agenda.at(self._jittered(self.params.hello_interval_s), URGENT, self._hello_tick, i)
+            self.queue(i, Hello(i, heard, frozenset(self.symmetric(i, now)), frozenset(self.mprs[i])))
+        self.channel.agenda.at(self.params.hello_interval_s, URGENT, self._hello_tick, i)
 
     def _on_hello(self, sender: int, receivers: np.ndarray, hello: Hello) -> None:
         now, p = self.env.now, self.params
@@ -211,8 +276,8 @@ class Olsr(Router):
                 self.ansn[i] += 1
                 tc = Tc(i, self.ansn[i], selectors, self.params.ttl, 0)
                 self.duplicates[i][(i, tc.ansn)] = (now + self.params.dup_hold_time_s, True)
-                self.control(i, tc, self._on_tc, self._kind("tc", tc_bytes(len(selectors))))
-        self.channel.agenda.at(self._jittered(self.params.tc_interval_s), URGENT, self._tc_tick, i)
+                self.queue(i, tc)
+        self.channel.agenda.at(self.params.tc_interval_s, URGENT, self._tc_tick, i)
 
     def _on_tc(self, sender: int, receivers: np.ndarray, tc: Tc) -> None:
         now, p = self.env.now, self.params
@@ -222,21 +287,19 @@ class Olsr(Router):
             key = (tc.orig, tc.ansn)
             if tc.orig == r:
                 continue
-            until, retransmitted = self.duplicates[r].get(key, (-1.0, False))
-            if until < now:
-                # Processed once (section 3.4, 9.5).
-                known = self.topology[r].get(tc.orig)
-                if known is None or tc.ansn >= known[0]:
-                    self.topology[r][tc.orig] = (tc.ansn, tc.advertised, now + p.top_hold_time_s)
-                    self._routes[r] = None
-            elif retransmitted:
+            if self.duplicates[r].get(key, (-1.0, False))[0] >= now:
+                # Processed and considered for forwarding once, at the first copy from a
+                # symmetric neighbour (one interface: section 3.4, 3.4.1 step 2).
                 continue
-            self.duplicates[r][key] = (now + p.dup_hold_time_s, retransmitted)
-            # MPR flooding: retransmitted once, by the sender's MPRs alone, while TTL allows.
-            if self.selectors[r].get(sender, -1.0) >= now and tc.ttl > 1:
-                self.duplicates[r][key] = (now + p.dup_hold_time_s, True)
-                out = tc._replace(ttl=tc.ttl - 1, hops=tc.hops + 1)
-                self.control(r, out, self._on_tc, self._kind("tc", tc_bytes(len(tc.advertised))))
+            known = self.topology[r].get(tc.orig)
+            if known is None or tc.ansn >= known[0]:
+                self.topology[r][tc.orig] = (tc.ansn, tc.advertised, now + p.top_hold_time_s)
+                self._routes[r] = None
+            # MPR flooding: retransmitted by the sender's MPRs alone, while TTL allows.
+            forward = self.selectors[r].get(sender, -1.0) >= now and tc.ttl > 1
+            self.duplicates[r][key] = (now + p.dup_hold_time_s, forward)
+            if forward:
+                self.queue(r, tc._replace(ttl=tc.ttl - 1, hops=tc.hops + 1))
 
     # -- routing table (section 10) -----------------------------------------------------------
     def routes(self, i: int) -> dict[int, int]:

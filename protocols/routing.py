@@ -11,6 +11,7 @@ size, so that they take airtime, collide and are lost like any other.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -19,11 +20,14 @@ from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
+from netsim.params import Params, non_negative, param, positive
 from netsim.plugins import Parts
+from netsim.traffic import Traffic
 
 # The tables every routing protocol writes (the flows' when there are flows), and its
-# control frames: per kind, the frames sent, their bytes, and their receptions.
-CONTROL_SCHEMA = {"kind": "object", "sent": "int64", "bytes_sent": "int64", "received": "int64"}
+# control frames: per kind, the frames sent, their bytes, their receptions, and the
+# protocol's messages they carried (one per frame but where a frame packs several: OLSR).
+CONTROL_SCHEMA = {"kind": "object", "sent": "int64", "bytes_sent": "int64", "received": "int64", "messages": "int64"}
 ROUTING_TABLES = {
     "roles": ROLES_SCHEMA,
     "acks": ACKS_SCHEMA,
@@ -33,6 +37,18 @@ ROUTING_TABLES = {
 }
 
 Outcome = Callable[[int, bool, float, int, int, str], None]
+
+
+@dataclass(frozen=True)
+class RoutingParams(Params):
+    """The keys of ``[protocol]`` every routing protocol has: the messages between random
+    pairs, as the clustering's (its default rate is 0.2 /s; here none unless asked)."""
+
+    section = "protocol"
+    message_rate_hz: float = param(0.0, non_negative, "messages sent per second, network-wide (random pairs)")
+    message_bytes: int = param(
+        512, positive, "size of a random pair's message, bytes (over channel.max_frame_bytes: several frames)"
+    )
 
 
 class Packet(NamedTuple):
@@ -51,7 +67,7 @@ class Packet(NamedTuple):
 class Router:
     """Data forwarding and bookkeeping of a routing protocol (module notes)."""
 
-    def __init__(self, parts: Parts, ttl: int):
+    def __init__(self, parts: Parts, ttl: int, pairs: RoutingParams | None = None):
         self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.streams, self.trace = parts.streams, parts.trace
         self.ttl = ttl
@@ -63,10 +79,15 @@ class Router:
         self.control_label: dict[str, str] = {}
         self.control_sent: dict[str, int] = {}
         self.control_received: dict[str, int] = {}
+        self.control_messages: dict[str, int] = {}
         self.data_transmissions = 0
         self.flows = None
-        if parts.traffic is not None:
-            self.flows = FlowTraffic(parts.traffic, self.env, self.channel.frame_bytes, self.send)
+        self.pairs = pairs if pairs is not None and pairs.message_rate_hz > 0 else None
+        traffic = parts.traffic
+        if traffic is None and self.pairs is not None:
+            traffic = Traffic((), parts.max_frame_bytes)
+        if traffic is not None:
+            self.flows = FlowTraffic(traffic, self.env, self.channel.frame_bytes, self.send)
         declare_roles(parts.trace)
         channel = self.channel
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
@@ -74,9 +95,14 @@ class Router:
         self.duration_s = float(parts.duration_s)
 
     def start(self) -> None:
-        """Start the flows (the protocol starts its own control traffic)."""
+        """Start the flows and the random pairs' messages (the protocol starts its own
+        control traffic)."""
         if self.flows is not None:
             self.flows.start(self.duration_s)
+            if self.pairs is not None:
+                pairs = self.pairs
+                rng = self.streams.get("traffic")
+                self.flows.start_pairs(self.state.n, pairs.message_rate_hz, pairs.message_bytes, rng)
             self.trace.add_frame("packets", self.flows.packets_frame)
             self.trace.add_frame("flows", self.flows.flows_frame)
 
@@ -152,10 +178,15 @@ class Router:
         self.channel.frame_bytes[kind] = nbytes
         self.control_sent.setdefault(kind, 0)
         self.control_received.setdefault(kind, 0)
+        self.control_messages.setdefault(kind, 0)
 
-    def control(self, sender: int, payload: object, deliver: Callable, kind: str, dest: int = -1) -> None:
-        """Send a control frame of ``kind`` (a broadcast, or a unicast to ``dest``)."""
+    def control(
+        self, sender: int, payload: object, deliver: Callable, kind: str, dest: int = -1, messages: int = 1
+    ) -> None:
+        """Send a control frame of ``kind`` (a broadcast, or a unicast to ``dest``) carrying
+        ``messages`` of the protocol's messages."""
         self.control_sent[kind] += 1
+        self.control_messages[kind] += messages
         if dest < 0:
             self.channel.broadcast(sender, payload, self._counted(deliver, kind), kind=kind)
         else:
@@ -172,13 +203,15 @@ class Router:
         return counted
 
     def control_frame(self) -> pd.DataFrame:
-        """Per kind of control frame: the frames sent, their bytes and their receptions."""
+        """Per kind of control frame: the frames sent, their bytes, their receptions and the
+        messages they carried."""
         rows: dict[str, list[int]] = {}
         for k, label in self.control_label.items():
-            row = rows.setdefault(label, [0, 0, 0])
+            row = rows.setdefault(label, [0, 0, 0, 0])
             row[0] += self.control_sent[k]
             row[1] += self.control_sent[k] * self.control_bytes[k]
             row[2] += self.control_received[k]
+            row[3] += self.control_messages[k]
         labels = sorted(rows)
         return pd.DataFrame(
             {
@@ -186,15 +219,19 @@ class Router:
                 "sent": [rows[k][0] for k in labels],
                 "bytes_sent": [rows[k][1] for k in labels],
                 "received": [rows[k][2] for k in labels],
+                "messages": [rows[k][3] for k in labels],
             }
         ).astype(CONTROL_SCHEMA)
 
     def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         """Control overhead, and the flows' delivery."""
         sent = sum(self.control_sent.values())
+        messages = sum(self.control_messages.values())
         out = {
             "control_frames": sent,
             "control_frames_per_s": sent / duration_s if duration_s else float("nan"),
+            "control_messages": messages,
+            "control_messages_per_s": messages / duration_s if duration_s else float("nan"),
             "data_transmissions": self.data_transmissions,
         }
         packets = frames.get("packets")

@@ -3,7 +3,7 @@
 import networkx as nx
 import numpy as np
 import pytest
-from netsim.protocols.olsr import select_mprs
+from netsim.protocols.olsr import PACKET_HEADER_BYTES, message_bytes, select_mprs
 
 from netsim.errors import ConfigError
 from netsim.run import build, collect
@@ -45,7 +45,7 @@ def test_mprs_take_a_neighbour_that_alone_reaches_a_two_hop_neighbour():
     assert select_mprs(via, set(range(10, 16))) == {2, 3}
 
 
-def _run(tmp_path, xy, flows, duration_s=40.0, **protocol):
+def _run(tmp_path, xy, flows, duration_s=40.0, channel=None, watch=None, **protocol):
     path = tmp_path / "robots.csv"
     path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
     config = make_config(
@@ -53,33 +53,138 @@ def _run(tmp_path, xy, flows, duration_s=40.0, **protocol):
         duration_s=duration_s,
         world={"n_robots": len(xy), "side_m": 1000.0, "placement": str(path)},
         mobility={"model": "static"},
-        channel={"range_m": 120.0},
+        channel={"range_m": 120.0, **(channel or {})},
         protocol={"model": "olsr", **protocol},
         traffic={"flows": flows},
         output={"position_interval_s": 0.0},
     )
     sim = build(config)
+    if watch is not None:
+        watch(sim.models["protocol"])
     sim.run()
     return sim, collect(sim)
+
+
+GRID = [(50 + 100 * i, 50 + 100 * j) for i in range(4) for j in range(4)]
+
+
+def _departures(tmp_path, max_frame_bytes):
+    """A static grid's OLSR for 25 s: per robot, the messages it queued since its previous
+    packet left and the frames (messages, bytes) that left then, in order."""
+    log: list = []  # ("queued", robot, message) or ("frame", robot, messages, bytes)
+
+    def watch(olsr):
+        queue, control = olsr.queue, olsr.control
+
+        def queued(i, message):
+            log.append(("queued", i, message))
+            queue(i, message)
+
+        def sent(i, batch, deliver, kind, dest=-1, messages=1):
+            log.append(("frame", i, batch, olsr.control_bytes[kind], olsr.env.now))
+            control(i, batch, deliver, kind, dest, messages)
+
+        olsr.queue, olsr.control = queued, sent
+
+    _run(tmp_path, GRID, [], duration_s=25.0, channel={"max_frame_bytes": max_frame_bytes}, watch=watch)
+    waiting: dict[int, list] = {}
+    departures: list[tuple[list, list]] = []  # (messages queued, frames that left)
+    last: dict[int, tuple[float, list]] = {}
+    for entry in log:
+        i = entry[1]
+        if entry[0] == "queued":
+            waiting.setdefault(i, []).append(entry[2])
+            continue
+        _, _, batch, nbytes, now = entry
+        if i in last and last[i][0] == now:
+            last[i][1].append((batch, nbytes))  # another frame of the same departure
+            continue
+        frames = [(batch, nbytes)]
+        last[i] = (now, frames)
+        departures.append((waiting.pop(i, []), frames))
+    return departures
+
+
+def test_olsr_messages_queued_together_leave_in_one_frame(tmp_path):
+    """RFC 3626 3.4 (a packet carries one or more messages), as ns-3 does it: the messages a
+    robot queues (its HELLO, its TC, the TCs it forwards) before its queued packet leaves
+    all leave then, in one frame when they fit (here always), of the packet header and
+    their sizes."""
+    departures = _departures(tmp_path, 1500)
+    assert departures
+    for queued, frames in departures:
+        assert len(frames) == 1
+        batch, nbytes = frames[0]
+        assert list(batch) == queued
+        assert nbytes == PACKET_HEADER_BYTES + sum(message_bytes(m) for m in batch)
+    assert sum(len(frames[0][0]) > 1 for _, frames in departures) >= 10
+
+
+def test_olsr_frame_never_exceeds_channel_max_frame_bytes(tmp_path):
+    """Messages queued together that do not fit in ``channel.max_frame_bytes`` leave in
+    several frames at once, none over the limit, each as full as the next message allows,
+    the messages in the order queued."""
+    limit = 64
+    departures = _departures(tmp_path, limit)
+    split = 0
+    for queued, frames in departures:
+        assert [m for batch, _ in frames for m in batch] == queued
+        for (batch, nbytes), after in zip(frames, frames[1:] + [None]):
+            assert nbytes == PACKET_HEADER_BYTES + sum(message_bytes(m) for m in batch) <= limit
+            if after is not None:
+                assert nbytes + message_bytes(after[0][0]) > limit
+        split += len(frames) > 1
+    assert split >= 10
 
 
 def test_olsr_routes_shortest_paths_on_a_static_grid(tmp_path):
     """Once HELLOs and TCs have spread, every robot of a static 4 x 4 grid has a route to
     every other, of the grid's hop distance, and a flow corner to corner is delivered in 6
     hops."""
-    xy = [(50 + 100 * i, 50 + 100 * j) for i in range(4) for j in range(4)]
     flow = {"src": 0, "dst": 15, "start_s": 30.0, "stop_s": 35.0, "rate_bps": 8000.0, "packet_bytes": 1000}
-    sim, frames = _run(tmp_path, xy, [flow])
+    sim, frames = _run(tmp_path, GRID, [flow])
     olsr = sim.models["protocol"]
     for i in range(16):
         routes = olsr.routes(i)
         assert set(routes) == set(range(16)) - {i}
     packets = frames["packets"]
     assert packets["delivered"].all() and (packets["hops"] == 6).all()
-    assert set(frames["control"]["kind"]) == {"hello", "tc"}
+    assert set(frames["control"]["kind"]) <= {"hello", "tc", "hello+tc"}
 
 
 def test_olsr_parameter_out_of_range_is_refused():
     """A neighbour hold time not longer than the HELLO interval is refused, naming the key."""
     with pytest.raises(ConfigError, match="protocol.neighb_hold_time_s = 2.0"):
         make_config(protocol={"model": "olsr", "neighb_hold_time_s": 2.0})
+
+
+def test_olsr_tc_is_considered_for_forwarding_once_at_its_first_copy(tmp_path):
+    """RFC 3626 3.4.1 (one interface): a TC is processed and considered for forwarding at
+    the first copy a robot gets from a symmetric neighbour, and retransmitted then only if
+    that neighbour chose the robot as MPR (and the TTL allows); a later copy, even from a
+    neighbour that chose it, is not retransmitted."""
+    expected: dict[tuple, bool] = {}  # (robot, originator, ANSN) -> retransmit
+    forwarded: list[tuple] = []
+
+    def watch(olsr):
+        on_tc, queue = olsr._on_tc, olsr.queue
+
+        def received(sender, receivers, tc):
+            now = olsr.env.now
+            for r in receivers.tolist():
+                key = (r, tc.orig, tc.ansn)
+                if tc.orig != r and key not in expected and sender in olsr.symmetric(r, now):
+                    expected[key] = olsr.selectors[r].get(sender, -1.0) >= now and tc.ttl > 1
+            on_tc(sender, receivers, tc)
+
+        def queued(i, message):
+            if message.__class__.__name__ == "Tc" and message.orig != i:
+                forwarded.append((i, message.orig, message.ansn))
+            queue(i, message)
+
+        olsr._on_tc, olsr.queue = received, queued
+
+    _run(tmp_path, GRID, [], duration_s=40.0, watch=watch)
+    assert len(forwarded) == len(set(forwarded))
+    assert set(forwarded) == {k for k, go in expected.items() if go}
+    assert sum(expected.values()) > 50 and not all(expected.values())

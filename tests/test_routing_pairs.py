@@ -1,0 +1,74 @@
+"""The messages between random pairs (``protocol.message_rate_hz``) under the routing
+protocols: the clustering's pairs, carried as packets of flow -1."""
+
+import pytest
+
+from netsim.errors import ConfigError
+from netsim.run import build, collect
+from tests.fixtures import make_config
+
+GRID = [(50 + 100 * i, 50 + 100 * j) for i in range(4) for j in range(4)]
+
+
+def _run(tmp_path, protocol, duration_s=20.0, **flows):
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in GRID))
+    config = make_config(
+        seed=4,
+        duration_s=duration_s,
+        world={"n_robots": len(GRID), "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol=protocol,
+        output={"position_interval_s": 0.0},
+        **flows,
+    )
+    sim = build(config)
+    sim.run()
+    return collect(sim)
+
+
+@pytest.mark.parametrize("model", ["aodv", "olsr", "greedy"])
+def test_routing_protocols_send_the_clusterings_random_pairs(tmp_path, model):
+    """Under a routing protocol, ``protocol.message_rate_hz`` sends the messages the
+    clustering's relay sends at the same seed (same times, same pairs), each a packet of
+    ``message_bytes`` in ``packets.parquet`` with ``flow = -1``."""
+    rate = {"message_rate_hz": 3.0, "message_bytes": 200}
+    theirs = _run(tmp_path, {"model": "clustering", **rate})["messages"]
+    ours = _run(tmp_path, {"model": model, **rate})["packets"]
+    assert len(theirs) > 30
+    assert (ours["flow"] == -1).all() and (ours["bytes"] == 200).all() and (ours["frames"] == 1).all()
+    assert ours["packet"].tolist() == list(range(len(ours)))
+    assert ours["t_sent_s"].tolist() == theirs["t_sent_s"].tolist()
+    assert ours["src"].tolist() == theirs["src"].tolist()
+    assert ours["dst"].tolist() == theirs["dst"].tolist()
+
+
+def test_random_pairs_are_routed_over_shortest_paths_once_olsr_has_converged(tmp_path):
+    """On a static grid, once OLSR's HELLOs and TCs have spread, every random pair's message
+    is delivered over the grid's hop distance; the flows keep their own rows beside them."""
+    flow = {"src": 0, "dst": 15, "start_s": 15.0, "stop_s": 25.0, "rate_bps": 8000.0, "packet_bytes": 1000}
+    frames = _run(tmp_path, {"model": "olsr", "message_rate_hz": 2.0}, 40.0, traffic={"flows": [flow]})
+    packets = frames["packets"]
+    pairs = packets[(packets["flow"] == -1) & (packets["t_sent_s"] > 20.0)]
+    assert len(pairs) > 20
+    assert pairs["delivered"].all()
+    hops = [abs(s // 4 - d // 4) + abs(s % 4 - d % 4) for s, d in zip(pairs["src"], pairs["dst"])]
+    assert pairs["hops"].tolist() == hops
+    assert (packets["flow"] == 0).sum() == 10
+    assert frames["flows"]["flow"].tolist() == [0]
+
+
+def test_routing_protocol_without_message_rate_sends_no_random_pairs(tmp_path):
+    """A routing protocol's ``message_rate_hz`` defaults to 0: the flows alone, no packets
+    table without them."""
+    frames = _run(tmp_path, {"model": "aodv"}, 10.0)
+    assert "packets" not in frames or len(frames["packets"]) == 0
+
+
+def test_routing_message_rate_out_of_range_is_refused():
+    """A negative message rate or a size that is not positive is refused, naming the key."""
+    with pytest.raises(ConfigError, match="protocol.message_rate_hz"):
+        make_config(protocol={"model": "olsr", "message_rate_hz": -1.0})
+    with pytest.raises(ConfigError, match="protocol.message_bytes"):
+        make_config(protocol={"model": "greedy", "message_bytes": 0})
