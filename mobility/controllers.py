@@ -19,6 +19,7 @@ import numpy as np
 from netsim.control import ControlStep
 from netsim.params import NoParams
 from netsim.plugins import Parts, PluginSpec
+from netsim.topology import geometric_pairs
 
 
 def _min_separation_m(step: ControlStep) -> float:
@@ -34,16 +35,13 @@ def avoid_collisions(params: NoParams, parts: Parts):
     always safe for connectivity."""
 
     def controller(step: ControlStep) -> None:
-        from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
-
         sep = _min_separation_m(step)
         for _ in range(3):  # a robot that holds can stop another: settle in a few passes
             end = step.positions_m + step.velocity_mps * step.period_s
             moving = np.hypot(*step.velocity_mps.T) > 0
-            pairs = cKDTree(end).query_pairs(sep, output_type="ndarray")
-            if len(pairs) == 0:
+            i, j, _ = geometric_pairs(end, sep)
+            if len(i) == 0:
                 return
-            i, j = pairs[:, 0], pairs[:, 1]
             stop = np.unique(np.concatenate([i[moving[i]], j[moving[j]]]))
             if len(stop) == 0:
                 return
@@ -66,7 +64,7 @@ def log_separation(params: NoParams, parts: Parts):
         step.record(
             "separation",
             min_distance_m=float(d[:, 1].min()),
-            pairs_closer_than_min=int(len(tree.query_pairs(sep))),
+            pairs_closer_than_min=len(geometric_pairs(step.positions_m, sep)[0]),
         )
 
     return hook

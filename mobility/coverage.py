@@ -115,6 +115,7 @@ from netsim.mobility.steps import Plan, StepLimits
 
 from netsim import metrics
 from netsim.area import Bounds
+from netsim.compiled import load
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.groups import GroupView, in_a_group, leads_itself
@@ -324,12 +325,12 @@ def wished_velocities(
 
 
 def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> list[np.ndarray]:
-    """For each leader, the true positions of the other leaders closer than ``2 r_c``."""
+    """For each leader, the true positions of the other leaders within ``2 r_c``, in the
+    order of the leaders (the pairs in range, :func:`netsim.topology.geometric_pairs`)."""
     lp = pos[leaders]
-    from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
-
-    tree = cKDTree(lp)
-    return [lp[[j for j in js if j != k]] for k, js in enumerate(tree.query_ball_point(lp, 2 * range_m))]
+    a, b, _ = geometric_pairs(lp, 2 * range_m, directed=True)
+    bounds = np.searchsorted(a, np.arange(len(lp) + 1)).tolist()
+    return [lp[b[lo:hi]] for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 
 def sources_true(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -610,7 +611,8 @@ class CoverageController:
         is_leader = leads_itself(leader)
         member = in_a_group(leader)
         lead = np.where(member, leader, 0)
-        reach = np.hypot(*(pos_now - pos_now[lead]).T) <= self.state.range_m[lead]
+        st = self.state  # never a torus (coverage refuses one)
+        reach = load("netsim._kernels", st.n).in_range(pos_now, np.arange(st.n), lead, st.range_m[lead], 0.0)
         commandable = member & is_leader[lead] & reach
         mobile = is_leader | commandable
         commander_of = np.where(commandable, leader, -1)

@@ -1,6 +1,8 @@
 """The loops (kernels) of the engine core's hot paths: the range query of a transmission,
 the grid of candidate pairs (range index, link solvers, snapshots) and the pairs in reach of
-a sample; compiled or plain Python as :func:`netsim.compiled.load` decides.
+a sample; and the one rule of in range (:func:`reaches`) and the one torus wrap
+(:func:`nearest_image`) that every part asks. Compiled or plain Python as
+:func:`netsim.compiled.load` decides.
 
 One item at a time: for the tens of candidates of one query, numpy's cost per operation,
 not the arithmetic, is what a call costs. The tests compare them, plain and compiled, with
@@ -36,9 +38,28 @@ def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
     dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
     dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y
     if torus:
-        dx = dx - side_m * np.rint(dx / side_m)
-        dy = dy - side_m * np.rint(dy / side_m)
+        return nearest_image(dx, dy, side_m)
     return dx, dy
+
+
+@jit(nogil=True)
+def nearest_image(dx, dy, box):
+    """The offset ``(dx, dy)`` folded to its nearest image on a torus of side ``box > 0``
+    (unchanged on the plane, ``box = 0``): the one torus wrap of the engine."""
+    if box > 0.0:
+        dx -= box * np.rint(dx / box)
+        dy -= box * np.rint(dy / box)
+    return dx, dy
+
+
+@jit(nogil=True)
+def nearest_images(d, box):
+    """:func:`nearest_image` of every row of the offsets ``d`` (``(m, 2)``), as a new array
+    (:func:`netsim.geometry.wrap`)."""
+    out = np.empty((d.shape[0], 2))
+    for k in range(d.shape[0]):
+        out[k, 0], out[k, 1] = nearest_image(d[k, 0], d[k, 1], box)
+    return out
 
 
 @jit(nogil=True)
@@ -48,16 +69,14 @@ def within(cand, motion, i, t, r):
     robots' ``(origin_m, velocity_mps, t0_s, torus, side_m)``."""
     origin_m, velocity_mps, t0_s, torus, side_m = motion
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
-    r2 = r * r
     ids = np.empty(len(cand), dtype=np.int64)
     dist = np.empty(len(cand))
     k = 0
     for j in cand:
         dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
-        d2 = dx * dx + dy * dy
-        if d2 <= r2:
+        if reaches(dx, dy, r, 0.0):
             ids[k] = j
-            dist[k] = np.sqrt(d2)
+            dist[k] = np.sqrt(dx * dx + dy * dy)
             k += 1
     return ids[:k], dist[:k]
 
@@ -70,13 +89,12 @@ def within_alive(cand, lo, hi, motion, i, t, r, alive):
     making the view would cost the caller more than the loop."""
     origin_m, velocity_mps, t0_s, torus, side_m = motion
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
-    r2 = r * r
     ids = np.empty(hi - lo, dtype=np.int64)
     k = 0
     all_alive = True
     for j in cand[lo:hi]:
         dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
-        if dx * dx + dy * dy <= r2:
+        if reaches(dx, dy, r, 0.0):
             ids[k] = j
             k += 1
             if not alive[j]:
@@ -211,11 +229,7 @@ def near_pairs(pos, r, box):
                 out_j = grown(out_j, len(out_j) + hi - lo)
             for m in range(lo, hi):
                 j = members[m]
-                ddx = px[m] - xi
-                ddy = py[m] - yi
-                if box > 0.0:
-                    ddx -= box * np.rint(ddx / box)
-                    ddy -= box * np.rint(ddy / box)
+                ddx, ddy = nearest_image(px[m] - xi, py[m] - yi, box)
                 # No branch on the outcome (a coin toss for the processor): every candidate
                 # is written, counted if it is a pair.
                 out_i[k] = i
@@ -334,10 +348,12 @@ def grown(a, extra):
 
 @jit(nogil=True)
 def reaches(ddx, ddy, lim, box):
-    """Whether a sender at ``(ddx, ddy)`` from a receiver (the nearest image on a torus of
-    side ``box > 0``) reaches it with range ``lim``: the square decides all but a distance
-    within a relative 1e-6 of the range, which numpy's hypot decides (as
-    :func:`netsim.topology.geometric_pairs` measures)."""
+    """Whether a robot at ``(ddx, ddy)`` from another (the nearest image on a torus of side
+    ``box > 0``) is within ``lim`` of it: ``hypot(ddx, ddy) <= lim``, the one rule of "in
+    range" (the range query, the link solvers' state, the pairs in range, who reaches whom).
+    The square decides all but a distance within a relative 1e-6 of the range, where
+    ``np.hypot`` (correctly rounded or nearly) decides: the same answer, mostly without the
+    root."""
     ddx, ddy, d2, sure, unsure = _reach_band(ddx, ddy, lim, box)
     hit = d2 <= sure
     if (d2 > sure) & (d2 <= unsure):
@@ -350,9 +366,7 @@ def _reach_band(ddx, ddy, lim, box):
     """:func:`reaches`'s arithmetic: the offset (folded to the nearest image on a torus),
     its square, and the squares up to which it surely reaches and beyond which it surely
     does not."""
-    if box > 0.0:
-        ddx -= box * np.rint(ddx / box)
-        ddy -= box * np.rint(ddy / box)
+    ddx, ddy = nearest_image(ddx, ddy, box)
     return ddx, ddy, ddx * ddx + ddy * ddy, lim * lim * (1.0 - 1e-6), lim * lim * (1.0 + 1e-6)
 
 
@@ -361,6 +375,51 @@ def reaches_robot(pos, ranges, box, a, m):
     """Whether robot ``m``'s transmissions reach robot ``a`` (positions ``pos``, ranges
     ``ranges``): :func:`reach_keys_in_lists`'s test of one candidate."""
     return reaches(pos[a, 0] - pos[m, 0], pos[a, 1] - pos[m, 1], ranges[m], box)
+
+
+@jit(nogil=True)
+def in_range(pos, a, b, radius, box):
+    """Whether robots ``a[k]`` and ``b[k]`` at positions ``pos`` are within ``radius[k]`` of
+    each other (:func:`reaches`, the nearest image on a torus of side ``box > 0``): the
+    state a link solver sets at the start and at a jump, a connected placement's links, a
+    member within its leader's range."""
+    n = len(a)
+    out = np.empty(n, np.bool_)
+    for k in range(n):
+        out[k] = reaches(pos[a[k], 0] - pos[b[k], 0], pos[a[k], 1] - pos[b[k], 1], radius[k], box)
+    return out
+
+
+@jit(nogil=True)
+def pairs_in_range(pos, i, j, ranges, box, directed):
+    """Of the candidate pairs ``(i[k], j[k])`` (:func:`near_pairs`), those in range
+    (:func:`reaches`) at positions ``pos`` (the nearest image on a torus of side ``box >
+    0``), as ``(a, b, distance)``, unsorted. Undirected: ``(i, j)`` within ``min(r_i, r_j)``
+    (both hear each other). Directed: ``(i, j)`` within ``r_i`` (i reaches j) and ``(j, i)``
+    within ``r_j``. The distance is ``np.hypot`` of the nearest image."""
+    m = len(i)
+    a = np.empty(2 * m, np.int64)
+    b = np.empty(2 * m, np.int64)
+    dist = np.empty(2 * m)
+    k = 0
+    for q in range(m):
+        p, o = i[q], j[q]
+        dx, dy = nearest_image(pos[p, 0] - pos[o, 0], pos[p, 1] - pos[o, 1], box)
+        if directed:
+            forward = reaches(dx, dy, ranges[p], 0.0)
+            back = reaches(dx, dy, ranges[o], 0.0)
+        else:
+            forward = reaches(dx, dy, min(ranges[p], ranges[o]), 0.0)
+            back = False
+        if forward or back:
+            d = np.hypot(dx, dy)
+            if forward:
+                a[k], b[k], dist[k] = p, o, d
+                k += 1
+            if back:
+                a[k], b[k], dist[k] = o, p, d
+                k += 1
+    return a[:k], b[:k], dist[:k]
 
 
 @jit(nogil=True)
@@ -461,7 +520,7 @@ def reach_keys(pos, folded, ranges, box):
     0``), ascending (:func:`netsim.topology.reach_keys`). Candidates from the :func:`grid` of
     the largest range over the ``folded`` positions (in ``[0, box)`` on a torus, else
     ``pos``), taken cell by cell from copies of the positions in cell order (a row of three
-    cells' candidates contiguous in memory); distances from ``pos``, as numpy computes them."""
+    cells' candidates contiguous in memory); offsets from ``pos``."""
     n = pos.shape[0]
     cells_x, cells_y, cell, start, members = grid(folded, ranges.max(), box)
     n_cells = cells_x * cells_y

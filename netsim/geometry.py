@@ -8,9 +8,14 @@ import numpy as np
 from netsim.compiled import load
 
 
-def wrap(d: np.ndarray, box: float | None) -> np.ndarray:
-    """The nearest image of each displacement on a torus of side ``box`` (None: the plane)."""
-    return d if box is None else d - box * np.round(d / box)
+def wrap(d: np.ndarray, box: float | None, n_robots: int) -> np.ndarray:
+    """The nearest image of each displacement (rows of ``d``) on a torus of side ``box``
+    (None: the plane, ``d`` itself), in a run of ``n_robots``
+    (:func:`netsim._kernels.nearest_image`)."""
+    if box is None:
+        return d
+    rows = np.ascontiguousarray(d, dtype=float).reshape(-1, 2)
+    return load("netsim._kernels", n_robots).nearest_images(rows, float(box)).reshape(np.shape(d))
 
 
 def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:

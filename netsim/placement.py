@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.area import Bounds, as_bounds
+from netsim.compiled import load
 from netsim.config import world_bounds
 from netsim.errors import ConfigError
 from netsim.rng import Streams
@@ -216,7 +217,11 @@ def _linked(channel: Any) -> Callable[..., np.ndarray]:
     if reception is None:
 
         def disk(a: np.ndarray, b: np.ndarray, pa: np.ndarray, pb: np.ndarray, ranges: np.ndarray) -> np.ndarray:
-            return np.hypot(*(pb - pa).T) <= np.minimum(ranges[a], ranges[b])
+            m = len(a)
+            ends = np.concatenate([pa, pb]).astype(float)
+            rows = np.arange(m)
+            radius = np.minimum(ranges[a], ranges[b]).astype(float)
+            return load("netsim._kernels", len(ranges)).in_range(ends, rows, rows + m, radius, 0.0)
 
         return disk
     shadow = reception.shadowing

@@ -28,6 +28,7 @@ import pandas as pd
 from netsim.area import Bounds
 from netsim.errors import NetsimInputError
 from netsim.events import CourseChange, EventBus
+from netsim.geometry import wrap
 
 # Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
 # waypoint (or a trace's destination) reached, the end of a pause, the border reached
@@ -131,11 +132,9 @@ class RobotState:
             self.odometer_m[i] += float(np.hypot(vx, vy)) * (t - self.t0_s[i])
 
     def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Vectors from positions ``b`` to ``a``; the shortest image on a torus."""
-        d = a - b
-        if self.torus:
-            d -= self.side_m * np.round(d / self.side_m)
-        return d
+        """Vectors from positions ``b`` to ``a``; the shortest image on a torus
+        (:func:`netsim.geometry.wrap`)."""
+        return wrap(a - b, self.side_m if self.torus else None, self.n)
 
     # -- motion ----------------------------------------------------------------------
     def place(self, positions_m: np.ndarray) -> None:

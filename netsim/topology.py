@@ -18,24 +18,6 @@ if TYPE_CHECKING:  # networkx is imported by the snapshots alone, when asked for
     from netsim.plugins import LinkState
 
 
-def _candidates(
-    positions_m: np.ndarray, ranges: np.ndarray, side_m: float | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The unordered pairs ``i < j`` within the largest range (a superset: the callers
-    filter on the distances), and their distances (unsorted)."""
-    empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
-    if not len(positions_m):
-        return empty
-    pairs = near_pairs(positions_m, float(ranges.max()), side_m)
-    if len(pairs) == 0:
-        return empty
-    i, j = pairs[:, 0], pairs[:, 1]
-    d = positions_m[i] - positions_m[j]
-    if side_m is not None:
-        d -= side_m * np.round(d / side_m)
-    return i, j, np.hypot(d[:, 0], d[:, 1])
-
-
 def geometric_pairs(
     positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None, directed: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -43,26 +25,22 @@ def geometric_pairs(
 
     Undirected (default): ``i < j`` and ``d <= min(r_i, r_j)``, the links on which both
     robots hear each other. Directed: every ordered pair with ``d <= r_i`` (i reaches j).
-    ``side_m`` set: distances on a torus.
+    ``side_m`` set: distances on a torus. In range as everywhere in the engine
+    (:func:`netsim._kernels.reaches`).
 
     Notes
     -----
     A grid of cells finds the candidate pairs within the largest range: ``O(N + E)``.
     """
-    positions_m = np.asarray(positions_m, dtype=float)
+    positions_m = np.ascontiguousarray(positions_m, dtype=float)
     n = len(positions_m)
-    ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))
-    i, j, dist = _candidates(positions_m, ranges, side_m)
-    if directed:
-        fwd, back = dist <= ranges[i], dist <= ranges[j]
-        i, j, dist = (
-            np.concatenate([i[fwd], j[back]]),
-            np.concatenate([j[fwd], i[back]]),
-            np.concatenate([dist[fwd], dist[back]]),
-        )
-    else:
-        keep = dist <= np.minimum(ranges[i], ranges[j])
-        i, j, dist = i[keep], j[keep], dist[keep]
+    ranges = np.ascontiguousarray(np.broadcast_to(np.asarray(range_m, dtype=float), (n,)))
+    if n < 2:
+        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
+    pairs = near_pairs(positions_m, float(ranges.max()), side_m)
+    i, j, dist = load("netsim._kernels", n).pairs_in_range(
+        positions_m, pairs[:, 0], pairs[:, 1], ranges, float(side_m or 0.0), directed
+    )
     # Each pair once: one key per pair orders them as lexsort((j, i)) would, five times faster.
     order = np.argsort(i * n + j)
     return i[order], j[order], dist[order]

@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 
 from netsim.compiled import compiled_copy
-from netsim.geometry import wrap
 from netsim.links import lifetimes
 from netsim.trajectory import LegTable
 from tests.oracles.links import in_range, roots, solve_piece
+from tests.oracles.near_pairs import wrap
 
 pytest.importorskip("numba")
 

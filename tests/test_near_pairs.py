@@ -78,9 +78,10 @@ def test_small_run_does_not_import_the_kd_tree(tmp_path):
 @pytest.mark.parametrize("solved", ["after the run", "during the run"])
 def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkeypatch, compiled, solved):
     """Two robots standing still at their range, to the last bit either side: the links table
-    has the pair exactly when its squared distance is within the range's square (the state
-    test), the candidate pairs found by the grid plain or compiled (it finds them with a
-    slack), links solved after the run or during it."""
+    has the pair exactly when its distance (``np.hypot``) is within the range (the one rule
+    of in range, :func:`netsim._kernels.reaches`, where the squares would say otherwise),
+    the candidate pairs found by the grid plain or compiled (it finds them with a slack),
+    links solved after the run or during it."""
     from netsim.links.lifetimes import link_lifetimes
     from netsim.run import collect, simulation
     from netsim.state import RobotState
@@ -114,6 +115,75 @@ def test_robots_standing_at_their_range_are_linked_as_the_state_test_says(monkey
             sim.run()
             links = collect(sim)["links"]
         d = pos[0] - pos[1]
-        assert len(links) == int(d @ d <= 100.0 * 100.0), (k, compiled)
+        assert len(links) == int(np.hypot(*d) <= 100.0), (k, compiled)
         linked += len(links)
     assert 0 < linked < 7  # both sides of the edge were tried
+
+
+# A pair whose distance (hypot) is a hair beyond 100 m while its square is within 100 m's
+# square: where two codes of "in range" would part.
+_EDGE = np.array([[200.0, 200.0], [100.01586481765521, 201.7812107788257]])
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_in_range_is_one_rule_on_every_path(monkeypatch, compiled):
+    """Whether a robot is in range is decided by one rule (``hypot <= r``) by every code
+    that asks, plain and compiled: the range query of a transmission, the link solvers'
+    state, the pairs in range (both ways), who reaches whom, on a pair the squares would
+    put in range."""
+    from netsim.compiled import load
+    from netsim.radio.spatial import RangeIndex
+    from netsim.state import RobotState
+    from netsim.topology import geometric_pairs, reach_keys
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    d = _EDGE[0] - _EDGE[1]
+    assert d @ d <= 100.0 * 100.0 and np.hypot(*d) > 100.0
+    st = RobotState(2, 1000.0, 100.0)
+    st.place(_EDGE)
+    ids, _ = RangeIndex(st).within(0.0, 0)
+    assert ids.tolist() == []
+    kernels = load("netsim._kernels", 2)
+    assert not kernels.in_range(_EDGE, np.array([0]), np.array([1]), np.array([100.0]), 0.0)[0]
+    assert len(geometric_pairs(_EDGE, 100.0)[0]) == len(geometric_pairs(_EDGE, 100.0, directed=True)[0]) == 0
+    assert reach_keys(_EDGE, 100.0).tolist() == []
+    # A hair nearer, every path has the pair.
+    near = _EDGE.copy()
+    near[1, 0] = np.nextafter(near[1, 0], 200.0)
+    st.place(near)
+    assert RangeIndex(st).within(0.0, 0)[0].tolist() == [1]
+    assert len(geometric_pairs(near, 100.0)[0]) == 1
+
+
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
+def test_the_torus_wrap_is_the_nearest_image(kind):
+    """The torus's one wrap (:func:`netsim._kernels.nearest_images`), plain and compiled,
+    is the oracle's ``d - box round(d / box)`` bit for bit, halves of the side included."""
+    from netsim import _kernels
+    from netsim.compiled import compiled_copy
+    from tests.oracles.near_pairs import wrap
+
+    rng = np.random.default_rng(8)
+    box = 37.3
+    d = np.concatenate([rng.uniform(-3 * box, 3 * box, (2000, 2)), rng.integers(-6, 7, (200, 2)) * box / 2])
+    kernels = compiled_copy("netsim._kernels") if kind == "compiled" else _kernels
+    assert kernels.nearest_images(d, box).tobytes() == wrap(d, box).tobytes()
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_true_neighbours_are_the_other_leaders_within_twice_the_range(monkeypatch, compiled):
+    """With global knowledge a leader's neighbours are the other leaders within ``2 r_c``,
+    in the order of the leaders, the same positions as a KD-tree's (the oracle)."""
+    from netsim.mobility.coverage import true_neighbours
+
+    from tests.oracles.near_pairs import ball_neighbours
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    rng = np.random.default_rng(21)
+    pos = rng.uniform(0, 800, (60, 2))
+    leaders = np.sort(rng.choice(60, 25, replace=False))
+    got = true_neighbours(pos, leaders, 100.0)
+    want = ball_neighbours(pos[leaders], 200.0)
+    assert len(got) == len(want) == 25
+    assert all(g.shape == w.shape and g.tobytes() == w.tobytes() for g, w in zip(got, want))
+    assert sum(len(g) for g in got) > 20

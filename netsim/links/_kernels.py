@@ -12,7 +12,10 @@ runtime one (:mod:`netsim.links.kinetic`) and the walls' stretches
 Legs are given as rows of ``leg_t`` (start), ``leg_p`` (position then) and ``leg_v``
 (velocity); pair ``k`` is legs ``la[k]`` and ``lb[k]``. On a torus (``box > 0``) every image
 of the other robot that the path can reach within the window counts, not only the nearest
-one. The tests compare these, plain and compiled, with a numpy oracle bit for bit.
+one. Whether a pair is linked at an instant (the state a solver sets at the start and at a
+jump) is :func:`netsim._kernels.in_range`, the engine's one rule of in range, and the
+nearest image its one wrap. The tests compare these, plain and compiled, with a numpy
+oracle bit for bit.
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ import math
 
 import numpy as np
 
+from netsim._kernels import in_range as in_range  # the solvers' state test, through this module
+from netsim._kernels import nearest_image
 from netsim.compiled import jit
 
 EDGE_S = 1e-10
@@ -47,27 +52,8 @@ def _relative(leg_t, leg_p, leg_v, i, j, box):
     dt_i, dt_j = origin - leg_t[i], origin - leg_t[j]
     dx = (leg_p[i, 0] + leg_v[i, 0] * dt_i) - (leg_p[j, 0] + leg_v[j, 0] * dt_j)
     dy = (leg_p[i, 1] + leg_v[i, 1] * dt_i) - (leg_p[j, 1] + leg_v[j, 1] * dt_j)
-    if box > 0:
-        dx = dx - box * np.rint(dx / box)
-        dy = dy - box * np.rint(dy / box)
+    dx, dy = nearest_image(dx, dy, box)
     return origin, dx, dy
-
-
-@jit(nogil=True)
-def in_range(pos, a, b, radius, box):
-    """Whether robots ``a[k]`` and ``b[k]`` at positions ``pos`` are linked: within
-    ``radius[k]`` of each other (the nearest image on a torus of side ``box > 0``), the
-    state a solver sets at the start and at a jump."""
-    n = len(a)
-    out = np.empty(n, np.bool_)
-    for k in range(n):
-        dx = pos[a[k], 0] - pos[b[k], 0]
-        dy = pos[a[k], 1] - pos[b[k], 1]
-        if box > 0:
-            dx = dx - box * np.rint(dx / box)
-            dy = dy - box * np.rint(dy / box)
-        out[k] = _dot(dx, dy, dx, dy) <= radius[k] * radius[k]
-    return out
 
 
 @jit(nogil=True)

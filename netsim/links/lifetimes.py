@@ -50,7 +50,7 @@ def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.nd
     k = np.flatnonzero(same)
     prev = k - 1
     reached = L.p[prev] + L.v[prev] * (L.t[k] - L.t[prev])[:, None]
-    gap = wrap(L.p[k] - reached, box)
+    gap = wrap(L.p[k] - reached, box, len(L.first))
     scale = 1.0 + np.abs(L.p[k]).max(axis=1) + np.abs(reached).max(axis=1)
     jump = np.hypot(gap[:, 0], gap[:, 1]) > 1e-9 * scale
     return L.t[k[jump]], robot[k[jump]]

@@ -1,7 +1,7 @@
 """Who is within range of a robot now: exact answers from a neighbour list built earlier.
 
 Rebuilding a spatial index for every transmission would cost O(N) or more each. Instead,
-at ``t_build`` a grid of cells (every pair or a KD-tree in small runs; :func:`netsim.geometry.near_pairs`)
+at ``t_build`` a grid of cells (:func:`netsim.geometry.near_pairs`)
 lists, for every robot, the robots within ``R + 2 s`` of it (a Verlet list, as in molecular
 dynamics), where ``R`` is the largest range and ``s`` a slack. Until some robot could
 have moved more than ``s`` since then (``speed_high_water * (t - t_build) > s``, the highest

@@ -122,8 +122,9 @@ def clip_crossings(
 
 
 def in_range(pos: np.ndarray, a: np.ndarray, b: np.ndarray, radius: np.ndarray, box: float | None) -> np.ndarray:
-    """Whether robots ``a[k]`` and ``b[k]`` are within ``radius[k]`` (nearest image on a torus)."""
+    """Whether robots ``a[k]`` and ``b[k]`` are within ``radius[k]`` (``hypot <= radius``,
+    nearest image on a torus)."""
     d = pos[a] - pos[b]
     if box is not None:
         d = d - box * np.round(d / box)
-    return np.einsum("ij,ij->i", d, d) <= radius * radius
+    return np.hypot(d[:, 0], d[:, 1]) <= radius

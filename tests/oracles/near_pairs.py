@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim.geometry import in_box, wrap
+from netsim.geometry import in_box
+
+
+def wrap(d: np.ndarray, box: float | None) -> np.ndarray:
+    """The nearest image of each displacement on a torus of side ``box`` (None: the plane)."""
+    return d if box is None else d - box * np.round(d / box)
 
 
 def all_pairs_within(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
@@ -47,3 +52,12 @@ def reach_keys(positions_m: np.ndarray, ranges_m: np.ndarray, side_m: float | No
     dist = np.hypot(d[:, 0], d[:, 1])
     fwd, back = dist <= ranges_m[i], dist <= ranges_m[j]
     return np.sort(np.concatenate([j[fwd] * n + i[fwd], i[back] * n + j[back]]))
+
+
+def ball_neighbours(pos_m: np.ndarray, range_m: float) -> list[np.ndarray]:
+    """For each point, the positions of the other points within ``range_m``, ascending by
+    index: scipy's KD-tree ``query_ball_point`` (sorted for many points)."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(pos_m)
+    return [pos_m[[j for j in js if j != k]] for k, js in enumerate(tree.query_ball_point(pos_m, range_m))]
