@@ -126,6 +126,27 @@ def _cell_of(v, lo, size, cells):
 
 
 @jit(nogil=True)
+def _extent(pos):
+    # The positions' smallest and largest x and y (zeros without positions): numpy's
+    # min and max, without the machinery numba compiles for them.
+    if pos.shape[0] == 0:
+        return 0.0, 0.0, 0.0, 0.0
+    lo_x = hi_x = pos[0, 0]
+    lo_y = hi_y = pos[0, 1]
+    for i in range(1, pos.shape[0]):
+        x, y = pos[i, 0], pos[i, 1]
+        if x < lo_x:
+            lo_x = x
+        if x > hi_x:
+            hi_x = x
+        if y < lo_y:
+            lo_y = y
+        if y > hi_y:
+            hi_y = y
+    return lo_x, lo_y, hi_x, hi_y
+
+
+@jit(nogil=True)
 def grid(pos, r, box):
     """The grid of :func:`near_pairs` over positions ``pos`` (in ``[0, box)`` on a torus of
     side ``box > 0``): cells no smaller than ``r``, ``cells_x`` by ``cells_y``; each
@@ -148,8 +169,8 @@ def grid(pos, r, box):
         cells_x = cells_y = max(int(min(across, math.floor(math.sqrt(most)))), 1)
         size_x = size_y = box / cells_x
     else:
-        lo_x, lo_y = pos[:, 0].min(), pos[:, 1].min()
-        span_x, span_y = pos[:, 0].max() - lo_x, pos[:, 1].max() - lo_y
+        lo_x, lo_y, hi_x, hi_y = _extent(pos)
+        span_x, span_y = hi_x - lo_x, hi_y - lo_y
         if not wide > 0.0:
             wide = max(span_x, span_y, 1.0) / most
         while (span_x // wide + 1.0) * (span_y // wide + 1.0) > most:
@@ -204,8 +225,8 @@ def near_pairs(pos, r, box):
         for sp in range(n_spans):
             lo, hi = start[spans[sp, 0]], start[spans[sp, 1]]
             if len(out_i) - k < hi - lo:
-                out_i = np.concatenate((out_i, np.empty(len(out_i) + hi - lo, np.int64)))
-                out_j = np.concatenate((out_j, np.empty(len(out_j) + hi - lo, np.int64)))
+                out_i = grown(out_i, len(out_i) + hi - lo)
+                out_j = grown(out_j, len(out_j) + hi - lo)
             for m in range(lo, hi):
                 j = members[m]
                 ddx, ddy = nearest_image(px[m] - xi, py[m] - yi, box)
@@ -240,7 +261,7 @@ def neighbour_lists(pairs, n):
         indices[fill[b]] = a
         fill[b] += 1
     for i in range(n):
-        indices[indptr[i] : indptr[i + 1]].sort()
+        sort_range(indices, indptr[i], indptr[i + 1])
     return indptr, indices
 
 
@@ -278,16 +299,51 @@ def _row_spans(cy, cx, cells_x, cells_y, wrap, spans):
 
 
 @jit(nogil=True)
-def _sort_small(a, lo, hi):
-    """Sort ``a[lo:hi]`` in place by insertion: for the tens of ids of one robot, numba's
-    sort costs more to call than this costs to run."""
-    for i in range(lo + 1, hi):
-        v = a[i]
-        j = i
-        while j > lo and a[j - 1] > v:
-            a[j] = a[j - 1]
-            j -= 1
-        a[j] = v
+def sort_range(a, lo, hi):
+    """Sort ``a[lo:hi]`` in place (numbers, no NaN): by insertion for the tens of ids of one
+    robot, by a heap beyond. numba's own sort costs more to call than this costs to run on
+    a robot's ids, and several times more to compile."""
+    if hi - lo <= 32:
+        for i in range(lo + 1, hi):
+            v = a[i]
+            j = i
+            while j > lo and a[j - 1] > v:
+                a[j] = a[j - 1]
+                j -= 1
+            a[j] = v
+        return
+    n = hi - lo
+    for root in range(n // 2 - 1, -1, -1):
+        _sift_down(a, lo, root, n)
+    for end in range(n - 1, 0, -1):
+        a[lo], a[lo + end] = a[lo + end], a[lo]
+        _sift_down(a, lo, 0, end)
+
+
+@jit(nogil=True)
+def _sift_down(a, lo, root, n):
+    # The heap of sort_range: a[lo + root]'s subtree among the first n, made a max-heap.
+    while True:
+        child = 2 * root + 1
+        if child >= n:
+            return
+        if child + 1 < n and a[lo + child] < a[lo + child + 1]:
+            child += 1
+        if not a[lo + root] < a[lo + child]:
+            return
+        a[lo + root], a[lo + child] = a[lo + child], a[lo + root]
+        root = child
+
+
+@jit(nogil=True)
+def grown(a, extra):
+    """A copy of ``a`` with room for ``extra`` more items after it (left unset): what
+    ``np.concatenate`` with an empty array gives, without its shape checks' messages, whose
+    text formatting is most of what it costs numba to compile."""
+    out = np.empty(len(a) + extra, a.dtype)
+    for k in range(len(a)):
+        out[k] = a[k]
+    return out
 
 
 @jit(nogil=True)
@@ -489,14 +545,14 @@ def reach_keys(pos, folded, ranges, box):
             for sp in range(n_spans):
                 lo, hi = start[spans[sp, 0]], start[spans[sp, 1]]
                 if len(senders) - k < hi - lo:
-                    senders = np.concatenate((senders, np.empty(len(senders) + hi - lo, np.int64)))
+                    senders = grown(senders, len(senders) + hi - lo)
                 for m in range(lo, hi):
                     # No branch on the outcome (a coin toss for the processor): every
                     # candidate is written, counted if it reaches.
                     hit = reaches(ax - px[m], ay - py[m], pr[m], box) & (m != am)
                     senders[k] = members[m]
                     k += hit
-            _sort_small(senders, k0, k)
+            sort_range(senders, k0, k)
             a = members[am]
             first[a], count[a] = k0, k - k0
     keys = np.empty(k, np.int64)

@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import longest_list, position, reaches_robot, senders_in_list
+from netsim._kernels import longest_list, position, reaches_robot, senders_in_list, sort_range
 from netsim.compiled import jit
 
 # Columns of a neighbour table's packed record (netsim.protocols.neighbours). BIDIR_SINCE:
@@ -290,7 +290,7 @@ def _announce(table, i, now, seq, role, leader, x_m, y_m, group_size, mates_of, 
             if mates_of is not None:
                 if (symmetric or hears_me) and records_row[s, ROLE] == MEMBER and records_row[s, LEADER] == mates_of:
                     size += 1
-    record[FIELDS : FIELDS + k].sort()
+    sort_range(record, FIELDS, FIELDS + k)
     record[SEQ], record[ROLE], record[LEADER], record[X], record[Y] = seq, role, leader, x_m, y_m
     record[GROUP_SIZE] = size if mates_of is not None and role == LEADER_ROLE else group_size
     record[DEGREE] = degree

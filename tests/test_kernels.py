@@ -495,3 +495,17 @@ def test_senders_in_list_equal_numpy(torus):
             assert out[:k].tolist() == (want[want // n == a] % n).tolist()
             hits += k
     assert hits > 1000
+
+
+@BOTH
+def test_sort_range_sorts_the_range_alone_as_numpy_sorts_it(kind):
+    """``sort_range`` sorts ``a[lo:hi]`` in place, ids or floats, short (insertion) or long
+    (heap), duplicates included, and leaves the rest of the array as it was."""
+    rng = np.random.default_rng(4)
+    for length in (0, 1, 2, 5, 31, 32, 33, 64, 257):
+        for values in (rng.integers(0, 40, length + 6), rng.permutation(length + 6).astype(float)):
+            a = values.copy()
+            core(kind).sort_range(a, 3, 3 + length)
+            want = values.copy()
+            want[3 : 3 + length] = np.sort(values[3 : 3 + length])
+            assert a.tolist() == want.tolist(), (length, values.dtype)
