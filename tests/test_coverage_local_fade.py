@@ -246,3 +246,29 @@ def test_fade_step_counts_the_travel_the_acks_tell_not_the_cap():
     _, told = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
     assert told[0, 1] == pytest.approx(allowed - f.speed_mps * PERIOD)
     assert told[0, 1] > blind[0, 1]
+
+
+def test_detour_certified_over_the_travel_the_acks_tell():
+    """Rule 1 with velocities: a detour's link measured beyond the sure distance counts as up
+    at t0 over the pair's travel since the measurement as the robot knows it (both ends
+    held, by their Acks: no change of the shadowing), where the speed cap's worst case
+    (both ends at the cap since) would leave it too short."""
+    f = fade()
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])  # 0-1 80 m; 0-2, 2-1 about 43 m
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - 1.5)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = sent
+    m.measured_s[:] = sent
+    m.x_db[:] = 6.0  # an adverse shadowing: the 43 m links are up out to 63 m
+    np.fill_diagonal(m.x_db, np.nan)
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 2.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    v = f.speed_mps
+    assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+    m.leg_speed_mps[:] = 0.0  # every Ack said its sender held, since before it was sent
+    m.leg_from_s[:] = T0 - 5.0
+    assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
