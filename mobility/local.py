@@ -46,12 +46,15 @@ certified: a robot that keeps it holds, and a link whose two robots hold does no
 measures on ``j``'s Ack is the pair's), and keeps a link by the global plan's fade-margin
 rule (:mod:`netsim.mobility.keep`, :mod:`netsim.mobility._fade_kernels`): within the
 length where its margin with that ``X`` is ``B = min(fade_margin_db, margin)`` (in place of
-``r`` in rules 2 and 3), while the pair's travel since the Ack, bounded by the speed cap
-every robot keeps (:attr:`Fade.speed_mps`), and its own step stay within the travel ``B``
-allows; else within the sure distance. An Ack's list carries the shadowing its sender
-measured on each robot it lists, so rule 1 certifies a detour's link by a measurement too:
-up at ``t0`` unless the shadowing moved beyond ``FADE_SIGMAS`` standard deviations over
-the pair's largest travel since. Both make the guarantee below probabilistic for the links
+``r`` in rules 2 and 3), while the pair's travel since the Ack, the other end's next step
+at the speed cap every robot keeps (:attr:`Fade.speed_mps`) and its own step stay within
+the travel ``B`` allows; else within the sure distance. The pair's travel since a
+measurement is what ``i`` knows of it (:meth:`Memory.travel_m`): its own leg, and each
+robot's speed as its latest Ack carried it (with the time its leg started: velocities
+change only at control steps), the cap only before that or where no velocity is known. An
+Ack's list carries the shadowing its sender measured on each robot it lists, so rule 1
+certifies a detour's link by a measurement too: up at ``t0`` unless the shadowing moved
+beyond ``FADE_SIGMAS`` standard deviations over the pair's largest travel since. Both make the guarantee below probabilistic for the links
 longer than the sure distance, as the global plan's. A link whose two robots hold does not
 change (the shadowing runs in the pair's travel).
 
@@ -682,9 +685,10 @@ class Fade:
         it may take while keeping it (inf: no bound). A link with a measurement: budget
         ``B = min(fade_margin_db, margin)``, kept up to where its margin with the measured
         ``X`` is ``B``, less ``margin_m``, while the pair's travel since the Ack (``i``'s own
-        and ``j``'s, each at most the speed cap) plus ``i``'s step stays within the travel
-        that ``B`` allows (:func:`netsim.mobility.keep.fade_travel_m`); where that gives no
-        longer link or no travel, the sure distance less ``margin_m``, no bound."""
+        and ``j``'s as ``i`` knows them, :meth:`Memory.travel_m`), ``j``'s next step at the
+        speed cap and ``i``'s step stay within the travel that ``B`` allows
+        (:func:`netsim.mobility.keep.fade_travel_m`); where that gives no longer link or no
+        travel, the sure distance less ``margin_m``, no bound."""
         x, margin, s = knows.x_db, knows.margin_db, knows.measured_s
         measured = np.isfinite(x) & np.isfinite(margin) & np.isfinite(s)
         budget = np.where(measured, np.minimum(self.fade_margin_db, margin), 0.0)
