@@ -54,8 +54,9 @@ robot's speed as its latest Ack carried it (with the time its leg started: veloc
 change only at control steps), the cap only before that or where no velocity is known. An
 Ack's list carries the shadowing its sender measured on each robot it lists, so rule 1
 certifies a detour's link by a measurement too: up at ``t0`` unless the shadowing moved
-beyond ``FADE_SIGMAS`` standard deviations over the pair's largest travel since. Both make the guarantee below probabilistic for the links
-longer than the sure distance, as the global plan's. A link whose two robots hold does not
+beyond ``FADE_SIGMAS`` standard deviations over the pair's largest travel since. Both
+make the guarantee below probabilistic for the links longer than the sure distance, as the
+global plan's. A link whose two robots hold does not
 change (the shadowing runs in the pair's travel).
 
 Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
@@ -271,7 +272,8 @@ def largest_travel_m(
     along where no speed is known (NaN). One rule with
     :func:`netsim.mobility._local_kernels.largest_travel_m`.
 
-    >>> largest_travel_m(np.array([0.0, 0.5, np.nan]), np.array([9.0, 9.5, np.inf]), np.full(3, 8.0), 10.0, 1.0).tolist()
+    >>> speed, leg_from = np.array([0.0, 0.5, np.nan]), np.array([9.0, 9.5, np.inf])
+    >>> largest_travel_m(speed, leg_from, np.full(3, 8.0), 10.0, 1.0).tolist()
     [1.0, 1.75, 2.0]
     """
     since = np.asarray(since_s, float)

@@ -220,10 +220,7 @@ def test_travel_since_a_measurement_is_bounded_by_the_velocity_the_acks_carried(
     since[0, 1] = T0 - 4.0  # before the leg robot 1's Ack told of: the cap
     assert m.travel_m(since, T0, cap)[0, 1] == pytest.approx(cap * 1.0)
     got = np.array(
-        [
-            kernels.largest_travel_m(m.leg_speed_mps[0, j], m.leg_from_s[0, j], since[0, j], T0, cap)
-            for j in range(n)
-        ]
+        [kernels.largest_travel_m(m.leg_speed_mps[0, j], m.leg_from_s[0, j], since[0, j], T0, cap) for j in range(n)]
     )
     assert np.allclose(got, largest_travel_m(m.leg_speed_mps[0], m.leg_from_s[0], since[0], T0, cap))
 
