@@ -34,6 +34,16 @@ least 19 of 20 seeds (95 % of the seeds run).
 
     python experiments/coverage_targets.py --shadowing --workers 2
     python experiments/coverage_targets.py --shadowing --seeds 3 --n 20 60   # a quick look
+
+``--why`` runs the local plan under 4 dB shadowing on one seed (``--seed``, each ``--n``)
+and prints where it loses to the global plan: per control step, how many robots moved,
+held by rule 3 (a kept link they cannot answer for) or wished nothing, and of the links
+that held a robot, how many were weak (margin below ``coverage.fade_margin_db``), already
+down at the step (the true network), or up with a detour of truly shorter up links
+(one rule 1 could in principle certify), or only with a detour of stronger links (the
+global plan's order, by margin), or none.
+
+    python experiments/coverage_targets.py --why --n 20 60 --duration 150
 """
 
 from __future__ import annotations
@@ -141,6 +151,81 @@ def main_shadowing(args) -> int:
     return 1 if failed else 0
 
 
+def why(n: int, seed: int, duration_s: float) -> dict:
+    """Where the local plan loses (module notes, ``--why``): counts over the run's control
+    steps, from the plan's own state at each step and the true network."""
+    import numpy as np
+    from netsim.mobility import coverage
+    from netsim.mobility.local import leash_radius, let_go
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
+    counts = dict.fromkeys(
+        ["robot-steps", "moved", "held, rule 3", "held, no travel", "no wish", "holding links", "weak", "down",
+         "shorter detour", "stronger detour only", "no detour"], 0)  # fmt: skip
+
+    def bottleneck(size, i, j, weight):
+        # The largest weight on the best path between every two robots (through the forest).
+        tree = minimum_spanning_tree(coo_matrix((weight, (i, j)), shape=(size, size)).tocsr())
+        tree = (tree + tree.T).tocsr()
+        out = np.full((size, size), np.inf)
+        for a in range(size):
+            order, pred = breadth_first_order(tree, a, directed=False, return_predecessors=True)
+            worst = np.full(size, np.inf)
+            worst[a] = -np.inf
+            for v in order[1:]:
+                worst[v] = max(worst[pred[v]], tree[pred[v], v])
+            out[a] = worst
+        return out
+
+    plan_local = coverage.CoverageController._plan_local
+
+    def watched(self, step):
+        plan = plan_local(self, step)
+        knows, heard, fade, limits, pos = self.knows, self.heard, self.fade, self.local_limits, step.positions_m
+        t0, speed = step.t_s, limits.speed_max_mps
+        _, travel = fade.limits(knows, t0, t0 + limits.period_s, speed)
+        band, walls = self.cfg.band_m, self.local_walls
+        kept = heard.known & ~let_go(pos, knows, heard, t0, speed, band, limits.range_m, walls, fade)
+        links = self.rules.candidates(pos, t0)
+        length = np.hypot(*(pos[links.i] - pos[links.j]).T)
+        size = len(pos)
+        shorter = bottleneck(size, links.i, links.j, length + 1e-9)
+        stronger = bottleneck(size, links.i, links.j, links.weight)
+        own_len = np.full((size, size), np.inf)
+        own_len[links.i, links.j] = own_len[links.j, links.i] = length
+        own_w = np.full((size, size), np.inf)
+        own_w[links.i, links.j] = own_w[links.j, links.i] = links.weight
+        dist = np.hypot(*(pos[:, None, :] - knows.xy).transpose(2, 0, 1))
+        holding = kept & (dist > leash_radius(knows, t0, limits))
+        moved = np.hypot(*plan.velocity_mps.T) > 0
+        wish = np.hypot(*step.velocity_mps.T) > 0
+        no_travel = fade.reach(travel, kept) <= 0
+        counts["robot-steps"] += size
+        counts["moved"] += int(moved.sum())
+        counts["held, rule 3"] += int((~moved & wish & holding.any(axis=1)).sum())
+        counts["held, no travel"] += int((~moved & wish & ~holding.any(axis=1) & no_travel).sum())
+        counts["no wish"] += int((~moved & ~wish).sum())
+        a, b = np.nonzero(holding & (~moved & wish)[:, None])
+        up = np.isfinite(own_len[a, b])
+        counts["holding links"] += len(a)
+        counts["weak"] += int((knows.margin_db[a, b] < self.cfg.fade_margin_db).sum())
+        counts["down"] += int((~up).sum())
+        by_length = up & (shorter[a, b] < own_len[a, b] - 1e-6)
+        by_margin = up & (stronger[a, b] < own_w[a, b] - 1e-9)
+        counts["shorter detour"] += int(by_length.sum())
+        counts["stronger detour only"] += int((by_margin & ~by_length).sum())
+        counts["no detour"] += int((up & ~by_length & ~by_margin).sum())
+        return plan
+
+    coverage.CoverageController._plan_local = watched
+    try:
+        o = coverage_run(SHADOWING, "local", n, 0.0, seed, duration_s)
+    finally:
+        coverage.CoverageController._plan_local = plan_local
+    return {"N": n, "seed": seed, "of bound": o["of_bound"], **counts}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="unit disk at N = 20 and 60 only, and the radio rows")
@@ -152,7 +237,13 @@ def main(argv=None) -> int:
     p.add_argument("--csv", help="also write the table here (with --shadowing: every run, as it ends)")
     p.add_argument("--shadowing", action="store_true", help="the targets under 4 dB shadowing (module notes)")
     p.add_argument("--seeds", type=int, default=20, help="--shadowing: seeds 1 to this")
+    p.add_argument("--why", action="store_true", help="where the local plan loses under shadowing (module notes)")
     args = p.parse_args(argv)
+    if args.why:
+        table = pd.DataFrame([why(n, args.seed, args.duration) for n in args.n or [20, 60]])
+        with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
+            print(table.T.to_string(header=False))
+        return 0
     if args.shadowing:
         return main_shadowing(args)
     sizes = args.n or ([20, 60] if args.quick else [20, 60, 100, 200])

@@ -1,8 +1,9 @@
 """The local plan's loops (compiled or plain, :func:`netsim.compiled.load`): rule 1
 (:func:`netsim.mobility.local.let_go`), per robot the bottleneck of its certified detours,
 by a widest-path search over the robots it remembers, a link surely up within the plan's
-range or, under shadowing, within the range its measured shadowing allows
-(:func:`measured_range_m`); and the walls' test
+range or, under shadowing, within the range its measured shadowing allows over the pair's
+travel since, as far as the robot knows it (:func:`measured_range_m`,
+:func:`largest_travel_m`); and the walls' test
 (:func:`netsim.mobility.local.clear_of_walls`). The tests compare them with numpy oracles
 (tests/oracles/local.py).
 """
@@ -50,17 +51,29 @@ def clear_many(walls, a, b, ea, eb, out):
 
 
 @jit(nogil=True)
-def measured_range_m(x_db, measured_s, t0_s, speed_mps, fade):
+def largest_travel_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
+    """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
+    Ack carried from ``leg_from_s`` on (NaN: unknown), at the speed cap before
+    (:func:`netsim.mobility.local.largest_travel_m`, one pair)."""
+    if not since_s > -math.inf:
+        return math.inf
+    if math.isnan(leg_speed_mps):
+        return speed_mps * max(t0_s - since_s, 0.0)
+    start = min(max(leg_from_s, since_s), t0_s)
+    return speed_mps * max(start - since_s, 0.0) + leg_speed_mps * max(t0_s - start, 0.0)
+
+
+@jit(nogil=True)
+def measured_range_m(x_db, measured_s, travel_m, fade):
     """How long a link whose shadowing was measured at ``x_db`` on a frame sent no earlier
-    than ``measured_s`` can surely be at ``t0_s`` (0: no measurement): the length at which
-    its margin meets the sensitivity after the plausible change of the shadowing over the
-    pair's largest travel since, ``2 speed_mps (t0_s - measured_s)``. ``fade``:
-    ``(on, sigma_db, decorrelation_m, budget_db, reference_distance_m, exponent)``."""
+    than ``measured_s`` can surely be now (0: no measurement): the length at which its
+    margin meets the sensitivity after the plausible change of the shadowing over the
+    pair's largest travel since, ``travel_m`` (each end's by :func:`largest_travel_m`).
+    ``fade``: ``(on, sigma_db, decorrelation_m, budget_db, reference_distance_m, exponent)``."""
     on, sigma_db, decorrelation_m, budget_db, d0_m, exponent = fade
     if not on or math.isnan(x_db) or not measured_s > -math.inf:
         return 0.0
-    travel = 2.0 * speed_mps * max(t0_s - measured_s, 0.0)
-    change = plausible_change_db(travel, x_db, sigma_db, decorrelation_m)
+    change = plausible_change_db(travel_m, x_db, sigma_db, decorrelation_m)
     return range_at_m(x_db + change, budget_db, d0_m, exponent)
 
 
@@ -73,11 +86,13 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     step's ``(t0_s, speed_mps, band_m, range_m, release_s)``; ``fade``: the shadowing's rule
     (:func:`measured_range_m`, ``on`` False: none); ``measured``: the shadowing each robot
     measured on each robot's latest Ack and when it can have been sent, ``(x_db (n, n),
-    measured_s (n, n), listed_x_db (M,))``, the last for the lists' entries."""
+    measured_s (n, n), listed_x_db (M,), leg_speed_mps (n, n), leg_from_s (n, n))``, the
+    third for the lists' entries, the last two the speeds each robot knows (its own on the
+    diagonal; :func:`largest_travel_m`)."""
     xy, sent_s, known = memory
     which, start, other, listed_s = lists
     t0_s, speed_mps, band_m, range_m, release_s = rule
-    x_db, measured_s, listed_x = measured
+    x_db, measured_s, listed_x, leg_speed, leg_from = measured
     n = pos.shape[0]
     nn = float(n * n)
     node = np.empty(n, np.int64)
@@ -111,8 +126,12 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 certain[a, b] = a == 0 and b > 0
                 sure[a, b] = range_m
         for b in range(1, k):
+            # The pair's travel since the measurement: each end's, as far as i knows it.
             j = node[b]
-            r = measured_range_m(x_db[i, j], measured_s[i, j], t0_s, speed_mps, fade)
+            s_ij = measured_s[i, j]
+            travel = largest_travel_m(leg_speed[i, i], leg_from[i, i], s_ij, t0_s, speed_mps)
+            travel += largest_travel_m(leg_speed[i, j], leg_from[i, j], s_ij, t0_s, speed_mps)
+            r = measured_range_m(x_db[i, j], s_ij, travel, fade)
             sure[0, b] = max(sure[0, b], r)
             sure[b, 0] = sure[0, b]
         for a in range(1, k):
@@ -124,7 +143,11 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 b = local[other[p]]
                 if b >= 0 and t0_s - listed_s[p] < release_s:
                     certain[a, b] = True
-                    r = measured_range_m(listed_x[p], listed_s[p], t0_s, speed_mps, fade)
+                    s_p = listed_s[p]
+                    listed = node[b]
+                    travel = largest_travel_m(leg_speed[i, u], leg_from[i, u], s_p, t0_s, speed_mps)
+                    travel += largest_travel_m(leg_speed[i, listed], leg_from[i, listed], s_p, t0_s, speed_mps)
+                    r = measured_range_m(listed_x[p], s_p, travel, fade)
                     sure[a, b] = max(sure[a, b], r)
                     sure[b, a] = max(sure[b, a], r)
         for a in range(k):

@@ -46,13 +46,17 @@ certified: a robot that keeps it holds, and a link whose two robots hold does no
 measures on ``j``'s Ack is the pair's), and keeps a link by the global plan's fade-margin
 rule (:mod:`netsim.mobility.keep`, :mod:`netsim.mobility._fade_kernels`): within the
 length where its margin with that ``X`` is ``B = min(fade_margin_db, margin)`` (in place of
-``r`` in rules 2 and 3), while the pair's travel since the Ack, bounded by the speed cap
-every robot keeps (:attr:`Fade.speed_mps`), and its own step stay within the travel ``B``
-allows; else within the sure distance. An Ack's list carries the shadowing its sender
-measured on each robot it lists, so rule 1 certifies a detour's link by a measurement too:
-up at ``t0`` unless the shadowing moved beyond ``FADE_SIGMAS`` standard deviations over
-the pair's largest travel since. Both make the guarantee below probabilistic for the links
-longer than the sure distance, as the global plan's. A link whose two robots hold does not
+``r`` in rules 2 and 3), while the pair's travel since the Ack, the other end's next step
+at the speed cap every robot keeps (:attr:`Fade.speed_mps`) and its own step stay within
+the travel ``B`` allows; else within the sure distance. The pair's travel since a
+measurement is what ``i`` knows of it (:meth:`Memory.travel_m`): its own leg, and each
+robot's speed as its latest Ack carried it (with the time its leg started: velocities
+change only at control steps), the cap only before that or where no velocity is known. An
+Ack's list carries the shadowing its sender measured on each robot it lists, so rule 1
+certifies a detour's link by a measurement too: up at ``t0`` unless the shadowing moved
+beyond ``FADE_SIGMAS`` standard deviations over the pair's largest travel since. Both
+make the guarantee below probabilistic for the links longer than the sure distance, as the
+global plan's. A link whose two robots hold does not
 change (the shadowing runs in the pair's travel).
 
 Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
@@ -179,6 +183,11 @@ class Memory:
         # How far from ``q_j`` robot ``i`` answers for the link (:func:`leash_radius`); None:
         # the plan's range less its margin for every link.
         self.keep_m: np.ndarray | None = None
+        # The speed at which ``i`` knows ``j`` moves from ``leg_from_s[i, j]`` until the step
+        # being planned (the velocity of ``j``'s Ack sent on its current leg; ``i``'s own on
+        # the diagonal), NaN: unknown (:func:`largest_travel_m`).
+        self.leg_speed_mps = np.full((n, n), np.nan)
+        self.leg_from_s = np.full((n, n), np.inf)
 
     def hear(
         self,
@@ -210,10 +219,19 @@ class Memory:
         if leg_velocity_mps is None or leg_start_s is None:
             self.vel[r, o] = 0.0
             self.until_s[r, o] = sent
+            self.leg_speed_mps[r, o] = np.nan
+            self.leg_from_s[r, o] = np.inf
             return
         on_leg = sent >= leg_start_s[o]
         self.vel[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], 0.0)
         self.until_s[r, o] = np.where(on_leg, leg_until_s, sent)
+        self.leg_speed_mps[r, o] = np.where(on_leg, np.hypot(*leg_velocity_mps[o].T), np.nan)
+        # An Ack carries its sender's velocity and when its leg started.
+        self.leg_from_s[r, o] = np.where(on_leg, leg_start_s[o], np.inf)
+        # Each robot knows its own leg: its velocity since the leg started.
+        own = np.arange(len(self.sent_s))
+        self.leg_speed_mps[own, own] = np.hypot(*leg_velocity_mps.T)
+        self.leg_from_s[own, own] = leg_start_s
 
     def known(self, now_s: float, release_s: float) -> np.ndarray:
         """``(n, n)``: ``i`` remembers ``j`` (heard an Ack of it sent less than ``release_s`` ago)."""
@@ -236,7 +254,38 @@ class Memory:
             out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)
         out.until_s = out.sent_s.copy()
         out.x_db, out.margin_db, out.measured_s = self.x_db, self.margin_db, self.measured_s
+        out.leg_speed_mps, out.leg_from_s = self.leg_speed_mps, self.leg_from_s
         return out
+
+    def travel_m(self, since_s: np.ndarray, t0_s: float, speed_mps: float) -> np.ndarray:
+        """``(n, n)``: the farthest ``i`` knows ``j`` (itself on the diagonal) can have travelled
+        from ``since_s[i, j]`` to ``t0_s`` (:func:`largest_travel_m`)."""
+        return largest_travel_m(self.leg_speed_mps, self.leg_from_s, since_s, t0_s, speed_mps)
+
+
+def largest_travel_m(
+    leg_speed_mps: np.ndarray, leg_from_s: np.ndarray, since_s: np.ndarray, t0_s: float, speed_mps: float
+) -> np.ndarray:
+    """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
+    Ack carried (``leg_speed_mps``, its leg's, which holds from ``leg_from_s`` until the
+    step at ``t0_s``) where that is known, at the speed cap before it, and at the cap all
+    along where no speed is known (NaN). One rule with
+    :func:`netsim.mobility._local_kernels.largest_travel_m`.
+
+    >>> speed, leg_from = np.array([0.0, 0.5, np.nan]), np.array([9.0, 9.5, np.inf])
+    >>> largest_travel_m(speed, leg_from, np.full(3, 8.0), 10.0, 1.0).tolist()
+    [1.0, 1.75, 2.0]
+    """
+    since = np.asarray(since_s, float)
+    with np.errstate(invalid="ignore"):
+        known = ~np.isnan(leg_speed_mps)
+        start = np.clip(np.maximum(leg_from_s, since), None, t0_s)
+        out = np.where(
+            known,
+            speed_mps * np.maximum(start - since, 0.0) + np.nan_to_num(leg_speed_mps) * np.maximum(t0_s - start, 0.0),
+            speed_mps * np.maximum(t0_s - since, 0.0),
+        )
+    return np.where(np.isfinite(since), out, np.inf)
 
 
 class Heard(NamedTuple):
@@ -351,7 +400,7 @@ def let_go(
     lists = (heard.which, heard.start, heard.other, heard.sent_s)
     kernels = load("netsim.mobility._local_kernels", n)
     listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
-    measured = (memory.x_db, memory.measured_s, listed_x)
+    measured = (memory.x_db, memory.measured_s, listed_x, memory.leg_speed_mps, memory.leg_from_s)
     rule_of_fade = NO_FADE if fade is None else fade.rule
     kernels.let_go(pos, (memory.xy, memory.sent_s, known), lists, rule, walls, out, rule_of_fade, measured)
     return out
@@ -570,7 +619,7 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
     return np.concatenate(robots), np.concatenate(xys)
 
 
-# The fade rule switched off (:func:`netsim.mobility._local_kernels.measured_range_m`).
+# The fade rule switched off (:func:`netsim.mobility._local_kernels.let_go`).
 NO_FADE = (False, 0.0, 1.0, 0.0, 1.0, 1.0)
 
 
@@ -638,17 +687,22 @@ class Fade:
         it may take while keeping it (inf: no bound). A link with a measurement: budget
         ``B = min(fade_margin_db, margin)``, kept up to where its margin with the measured
         ``X`` is ``B``, less ``margin_m``, while the pair's travel since the Ack (``i``'s own
-        and ``j``'s, each at most the speed cap) plus ``i``'s step stays within the travel
-        that ``B`` allows (:func:`netsim.mobility.keep.fade_travel_m`); where that gives no
-        longer link or no travel, the sure distance less ``margin_m``, no bound."""
+        and ``j``'s as ``i`` knows them, :meth:`Memory.travel_m`), ``j``'s next step at the
+        speed cap and ``i``'s step stay within the travel that ``B`` allows
+        (:func:`netsim.mobility.keep.fade_travel_m`); where that gives no longer link or no
+        travel, the sure distance less ``margin_m``, no bound."""
         x, margin, s = knows.x_db, knows.margin_db, knows.measured_s
         measured = np.isfinite(x) & np.isfinite(margin) & np.isfinite(s)
         budget = np.where(measured, np.minimum(self.fade_margin_db, margin), 0.0)
         x0 = np.where(measured, x, 0.0)
         reach = self.radio.effective_range_m(x0 + budget, 0)
         travel = fade_travel_m(budget, x0, self.sigma_db, self.decorrelation_m)
+        own = np.arange(len(s))
+        own_travel = largest_travel_m(
+            knows.leg_speed_mps[own, own][:, None], knows.leg_from_s[own, own][:, None], s, t0_s, speed_mps
+        )
         with np.errstate(invalid="ignore"):
-            left = travel - speed_mps * ((t0_s - s) + (t1_s - s))
+            left = travel - own_travel - knows.travel_m(s, t0_s, speed_mps) - speed_mps * (t1_s - t0_s)
         usable = measured & (reach > self.sure_m) & (left > 0)
         keep = np.where(usable, reach, self.sure_m) - self.margin_m
         return keep, np.where(usable, left, np.inf)

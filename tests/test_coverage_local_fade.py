@@ -193,3 +193,79 @@ def test_local_plan_under_shadowing_spreads_and_keeps_the_real_network():
     assert o["components_max"] == o["components_at_start"] == 1
     assert r.summary["distance_mean_m"] > 5.0
     assert r.summary["covered_of_bound_all_final"] > 1.1 * r.summary["covered_of_bound_all_start"]
+
+
+def test_travel_since_a_measurement_is_bounded_by_the_velocity_the_acks_carried():
+    """A robot bounds a neighbour's travel since an Ack by the velocity that Ack carried (its
+    sender's leg, which holds from the leg's start until the next control step) and its own
+    by its own leg; only where no velocity is known, or before the leg started, by the
+    speed cap. Memory.hear takes the velocity with the Ack; the compiled rule and numpy's
+    agree."""
+    from netsim.mobility import _local_kernels as kernels
+    from netsim.mobility.local import largest_travel_m
+
+    n = 3
+    m = Memory(n)
+    robot, other = np.array([0, 0]), np.array([1, 2])
+    vel = np.array([[0.1, 0.0], [0.0, 0.0], [0.3, 0.4]])  # robot 1 holds, robot 2 at 0.5 m/s
+    leg_start = np.array([T0 - 1.0, T0 - 3.0, T0 - 1.0])
+    heard = np.array([T0 - 0.5, T0 - 2.0])  # robot 2's Ack left before its leg started
+    m.hear(robot, other, np.zeros((2, 2)), heard, 0.0, vel, leg_start, T0)
+    cap = 0.36
+    since = np.full((n, n), T0 - 2.5)
+    travel = m.travel_m(since, T0, cap)
+    assert travel[0, 1] == 0.0  # its Ack: it has held since T0 - 3
+    assert travel[0, 0] == pytest.approx(cap * 1.5 + 0.1 * 1.0)  # its own leg from T0 - 1
+    assert travel[0, 2] == pytest.approx(cap * 2.5)  # no velocity known: the cap all along
+    since[0, 1] = T0 - 4.0  # before the leg robot 1's Ack told of: the cap
+    assert m.travel_m(since, T0, cap)[0, 1] == pytest.approx(cap * 1.0)
+    got = np.array(
+        [kernels.largest_travel_m(m.leg_speed_mps[0, j], m.leg_from_s[0, j], since[0, j], T0, cap) for j in range(n)]
+    )
+    assert np.allclose(got, largest_travel_m(m.leg_speed_mps[0], m.leg_from_s[0], since[0], T0, cap))
+
+
+def test_fade_step_counts_the_travel_the_acks_tell_not_the_cap():
+    """The travel limit with velocities: a robot whose neighbour's Ack says it held, and which
+    held itself, has the whole travel B allows less the neighbour's next step at the cap
+    (fade_travel_m(B, X) - v period), more than the cap's worst case gives; the pair's
+    travel still stays within the travel B allows."""
+    f = fade()
+    x, sent = 0.0, T0 - 0.8
+    m = measured_pair(45.0, x, sent)
+    budget = min(FADE_DB, float(m.margin_db[0, 1]))
+    allowed = float(fade_travel_m(np.array([budget]), np.array([x]), SIGMA, DCORR)[0])
+    _, blind = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
+    assert blind[0, 1] == pytest.approx(allowed - f.speed_mps * ((T0 - sent) + (T0 + PERIOD - sent)))
+    # Both held on legs that started before the Ack (what Memory.hear records).
+    m.leg_speed_mps[:] = 0.0
+    m.leg_from_s[:] = T0 - 5.0
+    _, told = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
+    assert told[0, 1] == pytest.approx(allowed - f.speed_mps * PERIOD)
+    assert told[0, 1] > blind[0, 1]
+
+
+def test_detour_certified_over_the_travel_the_acks_tell():
+    """Rule 1 with velocities: a detour's link measured beyond the sure distance counts as up
+    at t0 over the pair's travel since the measurement as the robot knows it (both ends
+    held, by their Acks: no change of the shadowing), where the speed cap's worst case
+    (both ends at the cap since) would leave it too short."""
+    f = fade()
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])  # 0-1 80 m; 0-2, 2-1 about 43 m
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - 1.5)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = sent
+    m.measured_s[:] = sent
+    m.x_db[:] = 6.0  # an adverse shadowing: the 43 m links are up out to 63 m
+    np.fill_diagonal(m.x_db, np.nan)
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 2.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    v = f.speed_mps
+    assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+    m.leg_speed_mps[:] = 0.0  # every Ack said its sender held, since before it was sent
+    m.leg_from_s[:] = T0 - 5.0
+    assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
