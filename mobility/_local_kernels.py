@@ -54,13 +54,24 @@ def clear_many(walls, a, b, ea, eb, out):
 def largest_travel_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
     """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
     Ack carried from ``leg_from_s`` on (NaN: unknown), at the speed cap before
-    (:func:`netsim.mobility.local.largest_travel_m`, one pair)."""
+    (one pair)."""
     if not since_s > -math.inf:
         return math.inf
     if math.isnan(leg_speed_mps):
         return speed_mps * max(t0_s - since_s, 0.0)
     start = min(max(leg_from_s, since_s), t0_s)
     return speed_mps * max(start - since_s, 0.0) + leg_speed_mps * max(t0_s - start, 0.0)
+
+
+@jit(nogil=True)
+def largest_travels_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
+    """:func:`largest_travel_m` of every ``(i, j)`` of the ``(n, m)`` arrays: robot ``j``'s
+    leg as ``i`` knows it, since ``since_s[i, j]``."""
+    out = np.empty(since_s.shape)
+    for i in range(since_s.shape[0]):
+        for j in range(since_s.shape[1]):
+            out[i, j] = largest_travel_m(leg_speed_mps[i, j], leg_from_s[i, j], since_s[i, j], t0_s, speed_mps)
+    return out
 
 
 @jit(nogil=True)

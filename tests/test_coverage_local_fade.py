@@ -199,10 +199,12 @@ def test_travel_since_a_measurement_is_bounded_by_the_velocity_the_acks_carried(
     """A robot bounds a neighbour's travel since an Ack by the velocity that Ack carried (its
     sender's leg, which holds from the leg's start until the next control step) and its own
     by its own leg; only where no velocity is known, or before the leg started, by the
-    speed cap. Memory.hear takes the velocity with the Ack; the compiled rule and numpy's
-    agree."""
+    speed cap. Memory.hear takes the velocity with the Ack; the rule, plain and compiled,
+    and numpy's reading of it agree."""
     from netsim.mobility import _local_kernels as kernels
-    from netsim.mobility.local import largest_travel_m
+
+    from netsim.compiled import compiled_copy
+    from tests.oracles.local import largest_travel_m
 
     n = 3
     m = Memory(n)
@@ -219,10 +221,10 @@ def test_travel_since_a_measurement_is_bounded_by_the_velocity_the_acks_carried(
     assert travel[0, 2] == pytest.approx(cap * 2.5)  # no velocity known: the cap all along
     since[0, 1] = T0 - 4.0  # before the leg robot 1's Ack told of: the cap
     assert m.travel_m(since, T0, cap)[0, 1] == pytest.approx(cap * 1.0)
-    got = np.array(
-        [kernels.largest_travel_m(m.leg_speed_mps[0, j], m.leg_from_s[0, j], since[0, j], T0, cap) for j in range(n)]
-    )
-    assert np.allclose(got, largest_travel_m(m.leg_speed_mps[0], m.leg_from_s[0], since[0], T0, cap))
+    want = largest_travel_m(m.leg_speed_mps, m.leg_from_s, since, T0, cap)
+    for k in (kernels, compiled_copy("netsim.mobility._local_kernels")):
+        got = k.largest_travels_m(m.leg_speed_mps, m.leg_from_s, since, T0, cap)
+        assert got.tolist() == want.tolist()
 
 
 def test_fade_step_counts_the_travel_the_acks_tell_not_the_cap():

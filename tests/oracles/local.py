@@ -84,3 +84,28 @@ def let_go(pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, 
         shortest = np.maximum(centre[0, 1 : m + 1] - e[1 : m + 1], 0.0)
         out[i, nb] = worst[1 : m + 1] < link_rank(shortest, pair[0, 1 : m + 1], band_m, n) + 1.0
     return out
+
+
+def largest_travel_m(
+    leg_speed_mps: np.ndarray, leg_from_s: np.ndarray, since_s: np.ndarray, t0_s: float, speed_mps: float
+) -> np.ndarray:
+    """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
+    Ack carried (``leg_speed_mps``, its leg's, which holds from ``leg_from_s`` until the
+    step at ``t0_s``) where that is known, at the speed cap before it, and at the cap all
+    along where no speed is known (NaN). numpy's reading of
+    :func:`netsim.mobility._local_kernels.largest_travel_m`, element by element.
+
+    >>> speed, leg_from = np.array([0.0, 0.5, np.nan]), np.array([9.0, 9.5, np.inf])
+    >>> largest_travel_m(speed, leg_from, np.full(3, 8.0), 10.0, 1.0).tolist()
+    [1.0, 1.75, 2.0]
+    """
+    since = np.asarray(since_s, float)
+    with np.errstate(invalid="ignore"):
+        known = ~np.isnan(leg_speed_mps)
+        start = np.clip(np.maximum(leg_from_s, since), None, t0_s)
+        out = np.where(
+            known,
+            speed_mps * np.maximum(start - since, 0.0) + np.nan_to_num(leg_speed_mps) * np.maximum(t0_s - start, 0.0),
+            speed_mps * np.maximum(t0_s - since, 0.0),
+        )
+    return np.where(np.isfinite(since), out, np.inf)
