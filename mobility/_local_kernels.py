@@ -18,7 +18,7 @@ from netsim.mobility._fade_kernels import plausible_change_db, range_at_m
 from netsim.compiled import jit
 
 
-@jit(nogil=True)
+@jit(nogil=True, walks=True)
 def clear(walls, ax, ay, bx, by, ea, eb):
     """The convex hull of the disks of radius ``ea`` around ``(ax, ay)`` and ``eb`` around
     ``(bx, by)`` meets no wall (:func:`netsim.mobility.local.clear_of_walls`, one pair)."""
@@ -43,7 +43,7 @@ def clear(walls, ax, ay, bx, by, ea, eb):
         t = min(t + gap / (1.0 + growth), length)
 
 
-@jit(nogil=True)
+@jit(nogil=True, walks=True)
 def clear_many(walls, a, b, ea, eb, out):
     """:func:`clear` for every row."""
     for k in range(a.shape[0]):

@@ -83,7 +83,7 @@ from netsim.mobility.keep import fade_travel_m
 from netsim.mobility.spread import project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
-from netsim.compiled import SMALL_RUN_ROBOTS, load
+from netsim.compiled import load
 
 
 class Walls(NamedTuple):
@@ -154,10 +154,8 @@ def clear_of_walls(
     if not walls.on or len(a) == 0:
         return np.ones(len(a), dtype=bool)
     out = np.empty(len(a), dtype=bool)
-    # Compiled whatever the team's size: a robot on a map tests every kept link's segment,
-    # march step by march step, which a plain-Python loop makes the slowest part of a
-    # small run (and a run on a map loads numba for the walls' sweep anyway).
-    kernels = load("netsim.mobility._local_kernels", SMALL_RUN_ROBOTS)
+    # The walls' test walks the map: compiled whatever the team's size (jit's walks).
+    kernels = load("netsim.mobility._local_kernels", None)
     kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
     return out
 

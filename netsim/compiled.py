@@ -34,17 +34,22 @@ U = TypeVar("U")
 F = TypeVar("F", bound=Callable[..., Any])
 
 _JIT = "__netsim_jit__"  # a kernel's numba options, set by jit
+_WALKS = "__netsim_walks__"  # set by jit on a kernel that walks a map (jit's walks)
 _COPIES: dict[str, ModuleType] = {}  # kernel module -> its compiled copy
 _PLAIN: dict[str, ModuleType] = {}  # kernel module -> itself, or its plain copy (plain_copy)
 _COPY_LOCK = threading.RLock()
 
 
-def jit(**options: Any) -> Callable[[F], F]:
+def jit(walks: bool = False, **options: Any) -> Callable[[F], F]:
     """Mark a kernel: compiled with ``numba.njit(cache=True, **options)`` in its module's
-    compiled copy, itself (plain Python) in the module."""
+    compiled copy, itself (plain Python) in the module. ``walks``: the kernel walks a map
+    cell by cell, so a plain copy calls it compiled all the same, as it calls the kernels of
+    :data:`WALKS_MAPS` (:func:`plain_copy`)."""
 
     def mark(function: F) -> F:
         setattr(function, _JIT, options)
+        if walks:
+            setattr(function, _WALKS, True)
         return function
 
     return mark
@@ -55,20 +60,24 @@ def is_kernel(value: object) -> bool:
     return isinstance(value, types.FunctionType) and hasattr(value, _JIT)
 
 
-def compiled_wanted(n_robots: int) -> bool:
-    """Whether a run of ``n_robots`` should use the compiled loops."""
+def compiled_wanted(n_robots: int | None) -> bool:
+    """Whether a run of ``n_robots`` should use the compiled loops; None: a caller that
+    cannot know the team's size (a batch tool) gets them compiled."""
     forced = os.environ.get("NETSIM_COMPILED", "")
     if forced in ("0", "1"):
         return forced == "1"
-    return n_robots >= SMALL_RUN_ROBOTS
+    return n_robots is None or n_robots >= SMALL_RUN_ROBOTS
 
 
-def load(module: str, n_robots: int) -> ModuleType:
-    """The kernel module ``module`` as a run of ``n_robots`` robots calls it: its compiled
-    copy when wanted (:func:`compiled_wanted`, or a module of :data:`WALKS_MAPS` unless
-    ``NETSIM_COMPILED=0``) and numba is there, else the module in plain Python
-    (:func:`plain_copy`)."""
-    if compiled_wanted(max(n_robots, SMALL_RUN_ROBOTS) if module in WALKS_MAPS else n_robots):
+def load(module: str, n_robots: int | None) -> ModuleType:
+    """The kernel module ``module`` as a run of ``n_robots`` robots (None: not known) calls
+    it: its compiled copy when wanted (:func:`compiled_wanted`, or a module of
+    :data:`WALKS_MAPS` unless ``NETSIM_COMPILED=0``) and numba is there, else the module in
+    plain Python (:func:`plain_copy`)."""
+    size = n_robots
+    if module in WALKS_MAPS and n_robots is not None:
+        size = max(n_robots, SMALL_RUN_ROBOTS)
+    if compiled_wanted(size):
         try:
             return compiled_copy(module)
         except ImportError:  # pragma: no cover  (numba is a dependency; plain Python is the fallback)
@@ -77,10 +86,11 @@ def load(module: str, n_robots: int) -> ModuleType:
 
 
 def plain_copy(module: str) -> ModuleType:
-    """The kernel module ``module`` in plain Python: the module itself, unless it calls a
-    kernel of a module of :data:`WALKS_MAPS`, which even a plain loop calls compiled (numba
-    loaded at the first such call, not before: a run without a map never makes one). Then a
-    copy of the module whose kernels see that kernel compiled."""
+    """The kernel module ``module`` in plain Python: the module itself, unless it holds a
+    kernel that walks a map (a kernel of a module of :data:`WALKS_MAPS`, or one marked by
+    :func:`jit`'s ``walks``), which even a plain loop calls compiled (numba loaded at the
+    first such call, not before: a run without a map never makes one). Then a copy of the
+    module whose kernels see those kernels compiled."""
     copy = _PLAIN.get(module)
     if copy is not None:
         return copy
@@ -88,7 +98,8 @@ def plain_copy(module: str) -> ModuleType:
     walks = {
         key: value
         for key, value in plain.__dict__.items()
-        if is_kernel(value) and value.__module__ != module and value.__module__ in WALKS_MAPS
+        if is_kernel(value)
+        and ((value.__module__ != module and value.__module__ in WALKS_MAPS) or getattr(value, _WALKS, False))
     }
     if not walks or not compiled_wanted(SMALL_RUN_ROBOTS):
         _PLAIN[module] = plain

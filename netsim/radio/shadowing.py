@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim.compiled import SMALL_RUN_ROBOTS, load
+from netsim.compiled import load
 from netsim.errors import ConfigError
 from netsim.radio._kernels import Clocks, Drawn, Shadow, ShadowLaw
 
@@ -132,7 +132,7 @@ class PairShadowing:
         self.decorrelation_m = float(decorrelation_m)
         self.step_m = float(step_m)
         self.rng = rng
-        self._step = load("netsim.radio._kernels", SMALL_RUN_ROBOTS if n_robots is None else n_robots).shadow_step
+        self._step = load("netsim.radio._kernels", n_robots).shadow_step
         self.clip_db = TRUNCATION_SIGMAS * self.sigma_db
         self._keys = np.empty(0, dtype=np.int64)
         self._x = np.empty(0)
