@@ -281,7 +281,7 @@ def _announce(table, i, now, seq, role, leader, x_m, y_m, group_size, mates_of, 
     for s in range(len(ids_row)):
         # An EMPTY slot holds the empty record, never live: its record is not read (a row's
         # ids are a few cache lines, its records many).
-        if ids_row[s] != EMPTY and now - records_row[s, LAST_HEARD] < tau_s:
+        if ids_row[s] != EMPTY and is_live(records_row[s, LAST_HEARD], now, tau_s):
             record[FIELDS + k] = ids_row[s]
             k += 1
             hears_me = records_row[s, HEARS_ME] != 0
@@ -535,9 +535,25 @@ def group_size(records_row, now, tau_s, symmetric, i):
 
 
 @jit(nogil=True)
+def is_live(last_heard_s, now, tau_s):
+    """An entry is live while the last Ack that told it arrived less than ``tau_s`` ago: the
+    timeout rule, read by every use of the table."""
+    return now - last_heard_s < tau_s
+
+
+@jit(nogil=True)
+def live_entries(last_heard_s, now, tau_s):
+    """:func:`is_live` of every entry of ``last_heard_s`` (one dimension: flatten a table)."""
+    out = np.empty(last_heard_s.shape[0], np.bool_)
+    for k in range(last_heard_s.shape[0]):
+        out[k] = is_live(last_heard_s[k], now, tau_s)
+    return out
+
+
+@jit(nogil=True)
 def _two_way(rec, now, tau_s, symmetric):
     """Whether an entry (its record) is a live neighbour over a two-way link."""
-    return now - rec[LAST_HEARD] < tau_s and (symmetric or rec[HEARS_ME] != 0)
+    return is_live(rec[LAST_HEARD], now, tau_s) and (symmetric or rec[HEARS_ME] != 0)
 
 
 @jit(nogil=True)
@@ -716,7 +732,7 @@ def _live_row(ids_row, records_row, now, tau_s, live):
     m = 0
     for s in range(len(ids_row)):
         j = ids_row[s]
-        if j != EMPTY and now - records_row[s, LAST_HEARD] < tau_s:
+        if j != EMPTY and is_live(records_row[s, LAST_HEARD], now, tau_s):
             # Insertion into the row's sorted ids (a dozen or so).
             at = m
             while at > 0 and live[at - 1] > j:

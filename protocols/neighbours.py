@@ -138,7 +138,7 @@ class NeighbourTable:
     def live_mask(self, now: float, i=None) -> np.ndarray:
         """Which slots hold live entries (all rows, or row ``i``)."""
         last = self.data[:, :, LAST_HEARD] if i is None else self.data[i, :, LAST_HEARD]
-        return now - last < self.tau_s
+        return self.kernels.live_entries(last.ravel(), float(now), self.tau_s).reshape(last.shape)
 
     def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every row's live entries now (:class:`netsim.cosim.NeighbourView`): ids ``(n,

@@ -206,7 +206,8 @@ class Stack:
         rows = [leader] + table.id[leader][live].tolist()
         ids = table.id[rows]
         data = table.data[rows]
-        mask = (now - data[:, :, LAST_HEARD] < table.tau_s) & (data[:, :, ROLE] == LEADER) & (ids != leader)
+        fresh = table.kernels.live_entries(data[:, :, LAST_HEARD].ravel(), float(now), table.tau_s)
+        mask = fresh.reshape(ids.shape) & (data[:, :, ROLE] == LEADER) & (ids != leader)
         if not mask.any():
             return np.empty(0, dtype=np.int64), np.empty((0, 2))
         found, rec = ids[mask], data[mask]

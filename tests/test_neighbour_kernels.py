@@ -145,3 +145,15 @@ def test_acks_built_plain_and_compiled_are_the_same(monkeypatch):
     for name in ("seq", "resign_pending", "role_sent", "degree_sent"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert max(degrees) > 3 and a.resign_pending.sum() < 30
+
+
+def test_timeout_an_entry_is_live_while_its_last_ack_is_younger_than_tau(kernels):
+    """The timeout rule, one kernel for every reader of the table: an entry whose last Ack
+    arrived exactly ``tau_s`` ago or earlier is not live; one a hair younger is; an empty
+    slot (last heard at minus infinity) never is."""
+    tau_s, now = 2.5, 10.0
+    last = np.array([now - tau_s, np.nextafter(now - tau_s, now), now, -np.inf, 0.0, 9.0])
+    assert kernels.live_entries(last, now, tau_s).tolist() == [False, True, True, False, False, True]
+    rng = np.random.default_rng(3)
+    last = rng.uniform(0.0, now, 500)
+    assert kernels.live_entries(last, now, tau_s).tolist() == (now - last < tau_s).tolist()
