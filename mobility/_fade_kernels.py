@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 
+from netsim._kernels import range_at_margin_m
 from netsim.compiled import jit
 
 # Standard deviations of the shadowing's change that a kept link's budget covers (a
@@ -67,10 +68,7 @@ def range_at_m(loss_db, budget_db, reference_distance_m, exponent):
     """The distance at which a link whose shadowing (and walls) cost ``loss_db`` meets the
     sensitivity under log-distance (``budget_db = P_t - PL(d0) - sensitivity``); 0 when
     even ``d0`` is too far."""
-    margin = budget_db - loss_db
-    if margin < 0:
-        return 0.0
-    return reference_distance_m * 10.0 ** (margin / (10.0 * exponent))
+    return range_at_margin_m(budget_db - loss_db, reference_distance_m, exponent)
 
 
 @jit(nogil=True)

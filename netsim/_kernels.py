@@ -563,3 +563,21 @@ def reach_keys(pos, folded, ranges, box):
             keys[q] = base + senders[t]
             q += 1
     return keys
+
+
+@jit(nogil=True)
+def range_at_margin_m(margin_db, d0_m, exponent):
+    """The log-distance law's inverse (:func:`netsim.radio._kernels.path_loss_db`), the one
+    place it is computed: the distance at which the path loss exceeds ``PL(d0)`` by
+    ``margin_db`` (``d0 10^(margin / 10 n)``); 0 where the margin is negative (not even
+    ``d0`` is in reach) or not a number."""
+    if not margin_db >= 0:
+        return 0.0
+    return d0_m * 10.0 ** (margin_db / (10.0 * exponent))
+
+
+@jit(nogil=True)
+def ranges_at_margin_m(margin_db, d0_m, exponent, out):
+    """:func:`range_at_margin_m` of every margin of ``margin_db`` (1-d), written to ``out``."""
+    for m in range(margin_db.shape[0]):
+        out[m] = range_at_margin_m(margin_db[m], d0_m, exponent)

@@ -733,13 +733,9 @@ def _live_row(ids_row, records_row, now, tau_s, live):
     for s in range(len(ids_row)):
         j = ids_row[s]
         if j != EMPTY and is_live(records_row[s, LAST_HEARD], now, tau_s):
-            # Insertion into the row's sorted ids (a dozen or so).
-            at = m
-            while at > 0 and live[at - 1] > j:
-                live[at] = live[at - 1]
-                at -= 1
-            live[at] = j
+            live[m] = j
             m += 1
+    sort_range(live, 0, m)
     return m
 
 

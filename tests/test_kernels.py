@@ -509,3 +509,21 @@ def test_sort_range_sorts_the_range_alone_as_numpy_sorts_it(kind):
             want = values.copy()
             want[3 : 3 + length] = np.sort(values[3 : 3 + length])
             assert a.tolist() == want.tolist(), (length, values.dtype)
+
+
+@BOTH
+def test_range_at_margin_inverts_the_path_loss_law(kind):
+    """The law's inverse, one kernel for the radio's ranges and the plans' fade rule: at the
+    distance it gives, the path loss exceeds ``PL(d0)`` by the margin; no margin gives
+    ``d0``; a negative margin or NaN gives 0 (never in reach)."""
+    from netsim.radio._kernels import path_loss_db
+
+    k = core(kind)
+    for margin in (0.0, 3.0, 20.0, 61.5):
+        d = k.range_at_margin_m(margin, 1.0, 3.0)
+        assert path_loss_db(d, 1.0, 40.0, 30.0) - 40.0 == pytest.approx(margin, abs=1e-9)
+    assert k.range_at_margin_m(0.0, 2.0, 3.0) == 2.0
+    margins = np.array([-0.1, np.nan, 10.0])
+    out = np.empty(3)
+    k.ranges_at_margin_m(margins, 1.0, 2.0, out)
+    assert out.tolist() == [0.0, 0.0, 10.0**0.5]

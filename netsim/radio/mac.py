@@ -124,7 +124,10 @@ class PowerModel:
         self.capture = 10.0 ** (capture_threshold_db / 10.0)
         # Where the mean received power falls to the noise floor.
         margin = self.radio.tx_power_dbm - params.reference_loss_db - noise_floor_dbm
-        self.noise_range_m = float(params.reference_distance_m * 10.0 ** (margin / (10.0 * params.path_loss_exponent)))
+        kernels = load("netsim._kernels", 1)
+        self.noise_range_m = float(
+            kernels.range_at_margin_m(float(margin), params.reference_distance_m, params.path_loss_exponent)
+        )
 
     def received_mw(self, distance_m: np.ndarray) -> np.ndarray:
         return 10.0 ** (self.radio.received_dbm(path_loss_db(distance_m, self.params)) / 10.0)

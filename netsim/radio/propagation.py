@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from netsim.compiled import load
 from netsim.errors import ConfigError
 from netsim.params import Params, param
 from netsim.radio.chain import (
@@ -173,7 +174,10 @@ class LogDistanceParams(RadioParams):
 
 def implied_range_m(params: LogDistanceParams) -> float:
     """The distance at which ``P_r`` equals the sensitivity without shadowing or walls."""
-    return float(params.reference_distance_m * 10.0 ** (params.budget_db / (10.0 * params.path_loss_exponent)))
+    kernels = load("netsim._kernels", 1)
+    return float(
+        kernels.range_at_margin_m(float(params.budget_db), params.reference_distance_m, params.path_loss_exponent)
+    )
 
 
 def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0) -> np.ndarray:
@@ -189,9 +193,12 @@ def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0) -> n
     [100.0, 10.0, 0.0]
     """
     margin = params.budget_db - np.asarray(shadowing_db, dtype=float) - params.wall_loss_db * np.asarray(walls)
+    flat = np.ascontiguousarray(margin, dtype=float).reshape(-1)
+    out = np.empty(flat.shape[0])
     with np.errstate(over="ignore"):
-        r = params.reference_distance_m * 10.0 ** (margin / (10.0 * params.path_loss_exponent))
-    return np.where(margin >= 0, r, 0.0)
+        kernels = load("netsim._kernels", flat.shape[0])
+        kernels.ranges_at_margin_m(flat, params.reference_distance_m, params.path_loss_exponent, out)
+    return out.reshape(np.shape(margin))
 
 
 def reach_m(params: LogDistanceParams) -> float:
