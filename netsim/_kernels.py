@@ -581,3 +581,31 @@ def ranges_at_margin_m(margin_db, d0_m, exponent, out):
     """:func:`range_at_margin_m` of every margin of ``margin_db`` (1-d), written to ``out``."""
     for m in range(margin_db.shape[0]):
         out[m] = range_at_margin_m(margin_db[m], d0_m, exponent)
+
+
+@jit(nogil=True)
+def component_labels(n, a, b):
+    """The component of each of ``n`` robots in the network whose links are the pairs
+    ``(a[k], b[k])``, by union-find: numbered 0, 1, ... in the order of each component's
+    lowest robot (a set's root is its lowest robot, labelled before the others)."""
+    parent = np.arange(n)
+    for k in range(a.shape[0]):
+        i, j = a[k], b[k]
+        while parent[i] != i:
+            i = parent[i]
+        while parent[j] != j:
+            j = parent[j]
+        if i != j:
+            parent[max(i, j)] = min(i, j)
+    labels = np.empty(n, np.int64)
+    count = 0
+    for i in range(n):
+        r = i
+        while parent[r] != r:
+            r = parent[r]
+        if r == i:
+            labels[i] = count
+            count += 1
+        else:
+            labels[i] = labels[r]
+    return labels

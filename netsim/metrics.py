@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from netsim.area import Bounds, as_bounds
+from netsim.compiled import load
 from netsim.topology import geometric_pairs
 
 # Mean distance between two uniform points of the unit square (docs/validation.md item 2):
@@ -243,13 +244,8 @@ def random_coverage(n: int, radius_m: float, area_m2: float) -> float:
 
 def components(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None) -> np.ndarray:
     """Component label of every robot in the two-way unit-disk network."""
-    n = len(positions_m)
     i, j, _ = geometric_pairs(positions_m, range_m, side_m)
-    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
-    from scipy.sparse.csgraph import connected_components
-
-    graph = csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
-    return connected_components(graph, directed=False)[1]
+    return components_of_links(len(positions_m), i, j)
 
 
 def components_at_link_events(
@@ -268,16 +264,12 @@ def components_at_link_events(
     -----
     ``O(E)`` per event, ``E`` the links in the table.
     """
-    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
-    from scipy.sparse.csgraph import connected_components
-
     t_down_s = np.where(censored_end, np.inf, t_down_s)
     times = np.unique(np.r_[t_up_s, t_down_s[np.isfinite(t_down_s)]])
     counts = np.empty(len(times), dtype=np.int64)
     for k, t in enumerate(times.tolist()):
         up = (t_up_s <= t) & (t < t_down_s)
-        graph = csr_matrix((np.ones(int(up.sum())), (a[up], b[up])), shape=(n, n))
-        counts[k] = connected_components(graph, directed=False)[0]
+        counts[k] = components_of_links(n, a[up], b[up]).max() + 1 if n else 0
     return times, counts
 
 
@@ -288,11 +280,10 @@ def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     >>> components_of_links(4, np.array([0, 2]), np.array([1, 3])).tolist()
     [0, 0, 1, 1]
     """
-    from scipy.sparse import csr_matrix  # imported when asked: a run without it does not load it
-    from scipy.sparse.csgraph import connected_components
-
-    graph = csr_matrix((np.ones(len(a)), (np.asarray(a, np.int64), np.asarray(b, np.int64))), shape=(n, n))
-    return connected_components(graph, directed=False)[1]
+    a = np.ascontiguousarray(a, np.int64)
+    b = np.ascontiguousarray(b, np.int64)
+    # int32, as scipy's connected_components numbers them (the tables' columns keep their type).
+    return load("netsim._kernels", n).component_labels(n, a, b).astype(np.int32)
 
 
 def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.ndarray:

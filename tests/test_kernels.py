@@ -527,3 +527,18 @@ def test_range_at_margin_inverts_the_path_loss_law(kind):
     out = np.empty(3)
     k.ranges_at_margin_m(margins, 1.0, 2.0, out)
     assert out.tolist() == [0.0, 0.0, 10.0**0.5]
+
+
+@BOTH
+def test_component_labels_are_scipys_connected_components(kind):
+    """The components of a network, one kernel for the metrics, the coverage plan and the
+    environment: the labels scipy's connected_components gives (numbered in the order of
+    each component's lowest robot), isolated robots and repeated links included."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(8)
+    for n, m in ((1, 0), (7, 3), (60, 40), (200, 150)):
+        a, b = rng.integers(0, n, m), rng.integers(0, n, m)
+        want = connected_components(csr_matrix((np.ones(m), (a, b)), shape=(n, n)), directed=False)[1]
+        assert core(kind).component_labels(n, a, b).tolist() == want.tolist()

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from netsim._kernels import component_labels
 from netsim.compiled import jit
 
 
@@ -44,22 +45,10 @@ def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
 @jit(nogil=True)
 def component_count(n, a, b):
     """Connected components of the network of ``n`` robots whose links are the pairs
-    ``(a[k], b[k])`` (the links a run's channel makes: its link solver's ``up_pairs()``),
-    by union-find."""
-    parent = np.arange(n)
-    for k in range(a.shape[0]):
-        i, j = a[k], b[k]
-        while parent[i] != i:
-            i = parent[i]
-        while parent[j] != j:
-            j = parent[j]
-        if i != j:
-            parent[max(i, j)] = min(i, j)
-    count = 0
-    for i in range(n):
-        if parent[i] == i:
-            count += 1
-    return count
+    ``(a[k], b[k])`` (the links a run's channel makes: its link solver's ``up_pairs()``)."""
+    if n == 0:
+        return 0
+    return component_labels(n, a, b).max() + 1
 
 
 @jit(nogil=True)
