@@ -88,6 +88,16 @@ SCENARIOS: dict[str, list[str]] = {
     # The radio (channel.propagation, shadowing, walls from a map).
     "log_distance": ["channel.propagation=log_distance"],
     "log_distance_shadowing": ["channel.propagation=log_distance", "channel.shadowing_sigma_db=6"],
+    "receptions_shadowing": [
+        "channel.propagation=log_distance",
+        "channel.shadowing_sigma_db=6",
+        "output.receptions=true",
+    ],
+    "receptions_unicast": [
+        "channel.propagation=log_distance",
+        "protocol.message_rate_hz=1",
+        "output.receptions=true",
+    ],
     "office_unit_disk": OFFICE,
     "office_log_distance_shadowing": OFFICE
     + ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4", "channel.sensitivity_dbm=-68"],

@@ -76,7 +76,7 @@ def within(cand, motion, i, t, r):
         dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
         if reaches(dx, dy, r, 0.0):
             ids[k] = j
-            dist[k] = np.sqrt(dx * dx + dy * dy)
+            dist[k] = np.hypot(dx, dy)
             k += 1
     return ids[:k], dist[:k]
 

@@ -18,14 +18,15 @@ def _wrap(d: np.ndarray, side: float) -> np.ndarray:
 
 
 def within(st, t: float, i: int, r: float, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The candidates within ``r`` of robot ``i`` at ``t`` and their distances."""
+    """The candidates within ``r`` of robot ``i`` at ``t`` and their distances (``hypot``:
+    the engine's one pair distance, the channel's unicast and the radio's pairs too)."""
     x, y = st.position(i, t)
     d = st.origin_c.take(cand) + st.velocity_c.take(cand) * (t - st.t0_s.take(cand)) - complex(x, y)
     if st.torus:
         d = _wrap(d, st.side_m)
-    dist2 = d.real * d.real + d.imag * d.imag
-    keep = dist2 <= r * r
-    return cand[keep], np.sqrt(dist2[keep])
+    dist = np.hypot(d.real, d.imag)
+    keep = dist <= r
+    return cand[keep], dist[keep]
 
 
 def neighbour_lists(pairs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
