@@ -609,3 +609,44 @@ def component_labels(n, a, b):
         else:
             labels[i] = labels[r]
     return labels
+
+
+@jit(nogil=True)
+def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box):
+    """The distance from each centre of the ``cells x cells`` grid of cells of the rectangle
+    ``[x0, x0 + width] x [y0, y0 + height]`` (``[row, col]``: row along y) to the nearest of
+    the points ``p`` within ``reach_m`` of it (``inf`` where none is): the one rule of "a
+    cell is covered" (:func:`netsim.metrics.covered_fraction`, the environments' score).
+    The distance is ``np.hypot`` of the offset, the nearest image on a torus of side
+    ``box > 0`` (the rectangle is then the square ``[0, box]^2``). Each point visits, in
+    each grid row its disk of radius ``reach_m`` reaches, the run of cells the disk can
+    cover there, one more at each end."""
+    out = np.full((cells, cells), np.inf)
+    hx = width_m / cells
+    hy = height_m / cells
+    for k in range(p.shape[0]):
+        x, y = p[k, 0] - x0_m, p[k, 1] - y0_m
+        if box > 0.0:
+            x, y = x % box, y % box
+        for iy in range(-1, 2):
+            if iy != 0 and (box <= 0.0 or (iy < 0 and y - reach_m > 0.0) or (iy > 0 and y + reach_m < box)):
+                continue
+            sy = y - iy * box
+            # one cell beyond the disk's rows and runs is tried too: the distance, not the
+            # rounding of a bound, decides
+            lo = max(int(math.floor((sy - reach_m) / hy - 0.5)), 0)
+            hi = min(int(math.ceil((sy + reach_m) / hy - 0.5)), cells - 1)
+            for ix in range(-1, 2):
+                if ix != 0 and (box <= 0.0 or (ix < 0 and x - reach_m > 0.0) or (ix > 0 and x + reach_m < box)):
+                    continue
+                sx = x - ix * box
+                for row in range(lo, hi + 1):
+                    dy = (row + 0.5) * hy - sy
+                    half = math.sqrt(max(reach_m * reach_m - dy * dy, 0.0))
+                    first = max(int(math.floor((sx - half) / hx - 0.5)), 0)
+                    last = min(int(math.ceil((sx + half) / hx - 0.5)), cells - 1)
+                    for col in range(first, last + 1):
+                        d = np.hypot((col + 0.5) * hx - sx, dy)
+                        if d <= reach_m and d < out[row, col]:
+                            out[row, col] = d
+    return out

@@ -189,10 +189,11 @@ def covered_fraction(
 ) -> tuple[float, float]:
     """Fraction of the area (Bounds, or the side of the square ``[0, side]^2``; a torus is
     the square) within ``radius_m`` of some centre, estimated on a ``cells x cells`` grid of
-    cell centres (cheap; :func:`covered_fraction_exact` is
-    exact). Returns ``(fraction, error_bound)``. With ``region`` (a shapely geometry inside
-    the area: a map's free region) the fraction is of the grid's cells whose centre lies in
-    it, and the cells the region's boundary crosses count as uncertain too.
+    cell centres (cheap; :func:`covered_fraction_exact` is exact): a centre is covered by
+    the kernel :func:`netsim._kernels.grid_nearest_m`, the environments' rule too. Returns
+    ``(fraction, error_bound)``. With ``region`` (a shapely geometry inside the area: a
+    map's free region) the fraction is of the grid's cells whose centre lies in it, and the
+    cells the region's boundary crosses count as uncertain too.
 
     The bound is rigorous: a cell can be misclassified only if the union's boundary
     crosses it, i.e. only if its centre is within ``h / sqrt(2)`` (``h``: the cell size)
@@ -203,8 +204,6 @@ def covered_fraction(
     >>> round(covered_fraction([[50.0, 50.0]], 10.0, 100.0)[0], 3)
     0.031
     """
-    from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
-
     centres = np.asarray(centres_m, dtype=float).reshape(-1, 2)
     b = as_bounds(area)
     side_m = b.width
@@ -217,21 +216,19 @@ def covered_fraction(
         hx, hy = b.width / cells, b.height / cells
         gx, gy = np.meshgrid(b.x_min + (np.arange(cells) + 0.5) * hx, b.y_min + (np.arange(cells) + 0.5) * hy)
         half_diagonal = 0.5 * math.hypot(hx, hy)
-    points = np.column_stack([gx.ravel(), gy.ravel()])
-    edge = np.zeros(len(points), dtype=bool)
+    inside = slice(None)
+    edge = np.zeros(cells * cells, dtype=bool)
     if region is not None:
         import shapely
 
-        inside = shapely.contains_xy(region, points[:, 0], points[:, 1])
-        edge = shapely.dwithin(region.boundary, shapely.points(points[inside]), half_diagonal)
-        points = points[inside]
-    if len(centres) == 0 or len(points) == 0:
+        inside = shapely.contains_xy(region, gx.ravel(), gy.ravel())
+        edge = shapely.dwithin(region.boundary, shapely.points(gx.ravel()[inside], gy.ravel()[inside]), half_diagonal)
+    if len(centres) == 0 or len(edge) == 0:
         return 0.0, float(np.mean(edge)) if len(edge) else 0.0
-    if torus:
-        tree = cKDTree(np.mod(centres, side_m) % side_m, boxsize=side_m)
-    else:
-        tree = cKDTree(centres)
-    dist, _ = tree.query(points, distance_upper_bound=radius_m + half_diagonal)
+    kernels = load("netsim._kernels", None)
+    box = side_m if torus else 0.0
+    dist = kernels.grid_nearest_m(centres, radius_m + half_diagonal, b.x_min, b.y_min, b.width, b.height, cells, box)
+    dist = dist.ravel()[inside]
     fraction = float(np.mean(dist <= radius_m))
     uncertain = (np.abs(dist - radius_m) <= half_diagonal) | edge
     return fraction, float(np.mean(uncertain))

@@ -275,3 +275,51 @@ def test_a_disconnected_pair_can_exceed_the_bound():
     """The bound needs connectivity: two disks far apart cover 2 pi r^2 > U(2)."""
     lower, _ = union_area_bracket([[20.0, 20.0], [80.0, 80.0]], 10.0, 100.0)
     assert lower > connected_coverage_bound(2, 10.0)
+
+
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
+@pytest.mark.parametrize("shape", ["plane", "torus", "rectangle"])
+def test_grid_cell_nearest_centre_is_every_cell_against_every_centre(kind, shape):
+    """The one rule of a covered cell (``netsim._kernels.grid_nearest_m``): each cell
+    centre's distance (hypot, the nearest image on a torus) to its nearest point within the
+    reach, else inf, exactly as every cell against every point computes it; disks crossing
+    the area's edges (and, on a torus, wrapping over them) included."""
+    from netsim import _kernels
+    from netsim.compiled import compiled_copy
+    from tests.oracles import coverage_grid as oracle
+
+    kernels = compiled_copy("netsim._kernels") if kind == "compiled" else _kernels
+    rng = np.random.default_rng(11)
+    if shape == "rectangle":
+        x0, y0, w, h, box = -30.0, 12.5, 140.0, 90.0, 0.0
+    else:
+        x0, y0, w, h, box = 0.0, 0.0, 100.0, 100.0, (100.0 if shape == "torus" else 0.0)
+    p = np.column_stack([rng.uniform(x0 - 10, x0 + w + 10, 25), rng.uniform(y0 - 10, y0 + h + 10, 25)])
+    for reach in (3.7, 18.0, 60.0):
+        got = kernels.grid_nearest_m(p, reach, x0, y0, w, h, 64, box)
+        want = oracle.grid_nearest_m(p, reach, x0, y0, w, h, 64, box)
+        assert got.tobytes() == want.tobytes()
+        assert np.isfinite(got).any()
+
+
+@pytest.mark.parametrize("shape", ["plane", "torus", "rectangle", "region"])
+def test_covered_fraction_and_its_bound_are_the_search_trees(shape):
+    """The covered fraction and its error bound, from the grid kernel, equal what a search
+    tree over the cell centres gives (scipy's cKDTree, periodic on a torus), on the plane, a
+    torus, an offset rectangle and a region inside it."""
+    import shapely
+
+    from netsim.area import Bounds
+    from tests.oracles.coverage_grid import covered_fraction_kd
+
+    rng = np.random.default_rng(7)
+    area: float | Bounds = 100.0
+    region = None
+    if shape == "rectangle":
+        area = Bounds(-20.0, 10.0, 120.0, 70.0)
+    if shape == "region":
+        region = shapely.Polygon([(5, 5), (95, 10), (60, 90), (10, 70)]).difference(shapely.box(40, 30, 55, 60))
+    p = rng.uniform(-5.0, 105.0, (30, 2))
+    for radius in (4.0, 11.5):
+        args = (p, radius, area, 150, shape == "torus", region)
+        assert covered_fraction(*args) == covered_fraction_kd(*args)

@@ -7,11 +7,9 @@ oracles (tests/oracles/envs.py)."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from netsim._kernels import component_labels
+from netsim._kernels import component_labels, grid_nearest_m
 from netsim.compiled import jit
 
 
@@ -19,27 +17,11 @@ from netsim.compiled import jit
 def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
     """Fraction of the ``cells x cells`` grid of cell centres of the rectangle ``[x0, x0 +
     width] x [y0, y0 + height]`` that lie within ``radius_m`` of some centre of ``p``
-    (:func:`netsim.metrics.covered_fraction` on the same grid, without a search tree: each
-    disk marks, in each grid row it reaches, the run of cells it covers)."""
-    n = p.shape[0]
-    if n == 0:
+    (:func:`netsim._kernels.grid_nearest_m`, the rule of :func:`netsim.metrics.covered_fraction`)."""
+    if p.shape[0] == 0:
         return 0.0
-    hx = width_m / cells
-    hy = height_m / cells
-    covered = np.zeros((cells, cells), dtype=np.bool_)
-    r2 = radius_m * radius_m
-    for k in range(n):
-        x, y = p[k, 0] - x0_m, p[k, 1] - y0_m
-        lo = int(min(max(math.ceil((y - radius_m) / hy - 0.5), 0.0), cells))
-        hi = int(min(max(math.floor((y + radius_m) / hy - 0.5), -1.0), cells - 1))
-        for row in range(lo, hi + 1):
-            dy = (row + 0.5) * hy - y
-            half = math.sqrt(max(r2 - dy * dy, 0.0))
-            first = int(min(max(math.ceil((x - half) / hx - 0.5), 0.0), cells))
-            last = int(min(max(math.floor((x + half) / hx - 0.5), -1.0), cells - 1))
-            for col in range(first, last + 1):
-                covered[row, col] = True
-    return covered.sum() / (cells * cells)
+    nearest = grid_nearest_m(p, radius_m, x0_m, y0_m, width_m, height_m, cells, 0.0)
+    return (nearest <= radius_m).sum() / (cells * cells)
 
 
 @jit(nogil=True)
