@@ -130,11 +130,6 @@ def free_region(m: OccupancyMap, area: float | Bounds, points_m) -> np.ndarray:
     return np.isin(labels, seeds[seeds > 0])
 
 
-def region_area_m2(m: OccupancyMap, area: float | Bounds, region: np.ndarray) -> float:
-    """Area (m^2) of the region's cells inside the area."""
-    return float(region_polygon(m, area, region).area)
-
-
 def region_polygon(m: OccupancyMap, area: float | Bounds, region: np.ndarray):
     """The cells of ``region`` (a mask of :func:`free_region`) clipped to the area, as one
     shapely geometry: a rectangle per run of cells in a row, runs equal in consecutive rows
