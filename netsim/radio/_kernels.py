@@ -113,6 +113,31 @@ def slot(table_keys, dense_n, key):
     return np.searchsorted(table_keys, key)
 
 
+@jit(nogil=True, inline="always")
+def stored_slot(table_keys, table_x, dense_n, key):
+    """The slot of the pair ``key`` in the table when the pair has a stored value, else the
+    table's length. A slot holding NaN is a pair listed in advance but never seen yet; with
+    every pair listed (``dense_n > 0``) the slot is the pair's, and its key need not be read."""
+    n = table_keys.shape[0]
+    pos = slot(table_keys, dense_n, key)
+    if pos < n and (dense_n > 0 or table_keys[pos] == key) and not np.isnan(table_x[pos]):
+        return pos
+    return n
+
+
+@jit(nogil=True, inline="always")
+def moved_on(table_x, table_s, pos, s_new, sigma, decorrelation_m, z):
+    """The pair in slot ``pos`` moved on to travel ``s_new``: its shadowing correlated with
+    the stored value by ``exp(-travel / decorrelation)`` (Gudmundson), the innovation ``z``
+    (a standard normal) scaled to keep the variance ``sigma^2``; the slot updated in place."""
+    delta = max(s_new - table_s[pos], 0.0)
+    rho = np.exp(-delta / decorrelation_m)
+    v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z
+    table_x[pos] = v
+    table_s[pos] = max(s_new, table_s[pos])
+    return v
+
+
 @jit(nogil=True)
 def shadow_step(shadow, law, pairs, out):
     """Move the stored pairs among ``pairs.keys`` on to travel ``pairs.s_new`` (in place):
@@ -128,16 +153,9 @@ def shadow_step(shadow, law, pairs, out):
     x, new = dr.x, dr.new
     n = table_keys.shape[0]
     for m in range(keys.shape[0]):
-        pos = slot(table_keys, dense_n, keys[m])
-        # A slot holding NaN is a pair listed in advance but never seen yet; with every pair
-        # listed (dense_n > 0) the slot is the pair's, and its key need not be read.
-        if pos < n and (dense_n > 0 or table_keys[pos] == keys[m]) and not np.isnan(table_x[pos]):
-            delta = max(s_new[m] - table_s[pos], 0.0)
-            rho = np.exp(-delta / decorrelation_m)
-            v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[m]
-            table_x[pos] = v
-            table_s[pos] = max(s_new[m], table_s[pos])
-            x[m] = v
+        pos = stored_slot(table_keys, table_x, dense_n, keys[m])
+        if pos < n:
+            x[m] = moved_on(table_x, table_s, pos, s_new[m], sigma, decorrelation_m, z[m])
             new[m] = False
         else:
             new[m] = True
@@ -202,13 +220,9 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
             continue
         total = loss[m]
         if sigma > 0.0:
-            pos = slot(table_keys, dense_n, keys[m])
-            if pos < n and (dense_n > 0 or table_keys[pos] == keys[m]) and not np.isnan(table_x[pos]):
-                delta = max(s_new[m] - table_s[pos], 0.0)
-                rho = np.exp(-delta / decorrelation_m)
-                v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z[j]
-                table_x[pos] = v
-                table_s[pos] = max(s_new[m], table_s[pos])
+            pos = stored_slot(table_keys, table_x, dense_n, keys[m])
+            if pos < n:
+                v = moved_on(table_x, table_s, pos, s_new[m], sigma, decorrelation_m, z[j])
             else:
                 v = sigma * z[j]
                 new[m] = True
