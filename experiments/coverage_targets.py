@@ -156,7 +156,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
     steps, from the plan's own state at each step and the true network."""
     import numpy as np
     from netsim.mobility import coverage
-    from netsim.mobility.local import leash_radius, let_go
+    from netsim.mobility.local import leash_radius
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
@@ -182,11 +182,10 @@ def why(n: int, seed: int, duration_s: float) -> dict:
 
     def watched(self, step):
         plan = plan_local(self, step)
-        knows, heard, fade, limits, pos = self.knows, self.heard, self.fade, self.local_limits, step.positions_m
+        knows, fade, limits, pos = self.knows, self.fade, self.local_limits, step.positions_m
         t0, speed = step.t_s, limits.speed_max_mps
         _, travel = fade.limits(knows, t0, t0 + limits.period_s, speed)
-        band, walls = self.cfg.band_m, self.local_walls
-        kept = heard.known & ~let_go(pos, knows, heard, t0, speed, band, limits.range_m, walls, fade)
+        kept = self.kept
         links = self.rules.candidates(pos, t0)
         length = np.hypot(*(pos[links.i] - pos[links.j]).T)
         size = len(pos)
@@ -198,6 +197,8 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         own_w[links.i, links.j] = own_w[links.j, links.i] = links.weight
         dist = np.hypot(*(pos[:, None, :] - knows.xy).transpose(2, 0, 1))
         holding = kept & (dist > leash_radius(knows, t0, limits))
+        if self.halves is not None:
+            holding &= ~self.halves.usable
         moved = np.hypot(*plan.velocity_mps.T) > 0
         wish = np.hypot(*step.velocity_mps.T) > 0
         no_travel = fade.reach(travel, kept) <= 0
