@@ -37,7 +37,8 @@ least 19 of 20 seeds (95 % of the seeds run).
 
 ``--why`` runs the local plan under 4 dB shadowing on one seed (``--seed``, each ``--n``)
 and prints where it loses to the global plan: per control step, how many robots moved,
-held by rule 3 (a kept link they cannot answer for) or wished nothing, and of the links
+held by rule 3 (a kept link they cannot answer for, alone or by halves) or wished
+nothing, and of the links
 that held a robot, how many were weak (margin below ``coverage.fade_margin_db``), already
 down at the step (the true network), or up with a detour of truly shorter up links
 (one rule 1 could in principle certify), or only with a detour of stronger links (the

@@ -57,14 +57,20 @@ certifies a detour's link by a measurement too: up at ``t0`` unless the shadowin
 beyond ``FADE_SIGMAS`` standard deviations over the pair's largest travel since. Both
 make the guarantee below probabilistic for the links longer than the sure distance, as the
 global plan's. A link whose two robots hold does not
-change (the shadowing runs in the pair's travel).
+change (the shadowing runs in the pair's travel). A robot that cannot answer for a kept
+link alone (rule 3) answers for its half when both ends can compute the same limits
+(:meth:`Fade.halves`): it knows where the other is at ``t0`` and reads the link's record
+(:func:`link_records`); it ends within half the link's allowed length of the midpoint at
+``t0`` and takes at most half of the pair's travel left, so a weak link, which would hold
+both robots for good, moves a little and its shadowing changes.
 
 Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
 each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
-that moves keeps it up whatever the other does (rules 2 and 5), an end that cannot holds
+that moves keeps it up whatever the other does (rules 2 and 5), or keeps its half while
+the other keeps its half, answers alone or holds (halves), an end that cannot holds
 (rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
 of the step, and at the next ``t0`` it is in ``K``
 again while both ends still remember each other. So the components of ``K`` never grow,
