@@ -286,18 +286,20 @@ def test_detour_certified_over_the_travel_the_acks_tell():
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
 
 
-def held_pair(distance_m: float, x_db: float, measured_s: float, exact: bool = True):
+def held_pair(distance_m: float, x_db: float, measured_s: float, exact: bool = True, x_larger_db: float | None = None):
     """Two robots 0 and 1 ``distance_m`` apart that have held since ``T0 - 5``, each having
     heard the other's Ack sent at ``measured_s`` (the pair's shadowing ``x_db``), which robot
     0, the smaller id, listed at the step before ``T0`` (the link's record). ``exact``: each
-    knows where the other is at ``T0`` (the Ack was sent on its current leg). Returns the
+    knows where the other is at ``T0`` (the Ack was sent on its current leg); robot 1 measured
+    ``x_larger_db`` (default the same). Returns the
     positions, what the robots know at ``T0`` (:meth:`Memory.at`'s form) and what they hold."""
     pos = np.array([[1000.0, 1000.0], [1000.0 + distance_m, 1000.0]])
     m = Memory(2)
     m.xy[0, 1], m.xy[1, 0] = pos[1], pos[0]
     m.sent_s[0, 1] = m.sent_s[1, 0] = measured_s
     m.measured_s[:] = m.sent_s
-    m.x_db[0, 1] = m.x_db[1, 0] = x_db
+    m.x_db[0, 1] = x_db
+    m.x_db[1, 0] = x_db if x_larger_db is None else x_larger_db
     record_margins(m, pos)
     m.leg_speed_mps[:] = 0.0
     m.leg_from_s[:] = T0 - 5.0
@@ -319,8 +321,9 @@ def test_halves_a_robot_answers_for_half_of_a_weak_link_it_cannot_answer_for_alo
     length now) and each moves at most half of the travel B allows since the record."""
     f = fade()
     lim = limits(f)
-    pos, knows, held = held_pair(45.0, 6.0, T0 - 0.5)
-    assert knows.margin_db[0, 1] < FADE_DB
+    # Robot 1 measured a little less fade than robot 0: both read robot 0's, the record.
+    pos, knows, held = held_pair(45.0, 6.0, T0 - 0.5, x_larger_db=5.0)
+    assert knows.margin_db[0, 1] < FADE_DB and knows.margin_db[1, 0] < FADE_DB
     knows.keep_m, travel = f.limits(knows, T0, T0 + PERIOD, f.speed_mps)
     kept = np.array([[False, True], [True, False]])
     wish = np.array([[0.0, 5.0], [0.0, -5.0]])  # each sideways, away from the other's side
