@@ -37,7 +37,8 @@ least 19 of 20 seeds (95 % of the seeds run).
 
 ``--why`` runs the local plan under 4 dB shadowing on one seed (``--seed``, each ``--n``)
 and prints where it loses to the global plan: per control step, how many robots moved,
-held by rule 3 (a kept link they cannot answer for) or wished nothing, and of the links
+held by rule 3 (a kept link they cannot answer for, alone or by halves) or wished
+nothing, and of the links
 that held a robot, how many were weak (margin below ``coverage.fade_margin_db``), already
 down at the step (the true network), or up with a detour of truly shorter up links
 (one rule 1 could in principle certify), or only with a detour of stronger links (the
@@ -156,7 +157,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
     steps, from the plan's own state at each step and the true network."""
     import numpy as np
     from netsim.mobility import coverage
-    from netsim.mobility.local import leash_radius, let_go
+    from netsim.mobility.local import leash_radius
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
@@ -182,11 +183,10 @@ def why(n: int, seed: int, duration_s: float) -> dict:
 
     def watched(self, step):
         plan = plan_local(self, step)
-        knows, heard, fade, limits, pos = self.knows, self.heard, self.fade, self.local_limits, step.positions_m
+        knows, fade, limits, pos = self.knows, self.fade, self.local_limits, step.positions_m
         t0, speed = step.t_s, limits.speed_max_mps
         _, travel = fade.limits(knows, t0, t0 + limits.period_s, speed)
-        band, walls = self.cfg.band_m, self.local_walls
-        kept = heard.known & ~let_go(pos, knows, heard, t0, speed, band, limits.range_m, walls, fade)
+        kept = self.kept
         links = self.rules.candidates(pos, t0)
         length = np.hypot(*(pos[links.i] - pos[links.j]).T)
         size = len(pos)
@@ -198,6 +198,8 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         own_w[links.i, links.j] = own_w[links.j, links.i] = links.weight
         dist = np.hypot(*(pos[:, None, :] - knows.xy).transpose(2, 0, 1))
         holding = kept & (dist > leash_radius(knows, t0, limits))
+        if self.halves is not None:
+            holding &= ~self.halves.usable
         moved = np.hypot(*plan.velocity_mps.T) > 0
         wish = np.hypot(*step.velocity_mps.T) > 0
         no_travel = fade.reach(travel, kept) <= 0

@@ -103,6 +103,7 @@ from netsim.mobility.local import (
     Heard,
     Lists,
     Memory,
+    answered_by_halves,
     cut_for_walls,
     latest_pulls,
     let_go,
@@ -432,6 +433,8 @@ class CoverageController:
             *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
         )
         self.knows: Memory | None = None  # the memory as of the step being planned
+        self.halves = None  # the links each robot answered for by its half at the latest step
+        self.kept: np.ndarray | None = None  # the links each robot kept at the latest step
         # How much earlier than its latest possible sending time an Ack may have left.
         self.jitter_s = float(parts.channel.latency_jitter_s)
         self.announced_mps = np.zeros((st.n, 2))
@@ -567,13 +570,22 @@ class CoverageController:
         if fade is not None:
             knows.keep_m, travel = fade.limits(knows, t0, t1, speed)
         kept = heard.known & ~let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, fade)
+        self.kept = kept
         announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (netsim.mobility.local, rule 4).
         self.earlier_mps, self.earlier_s = self.announced_mps, self.announced_s
         self.announced_mps, self.announced_s = wish, self.env.now
-        reach = fade.reach(travel, kept) if fade is not None else None
-        plan = plan_local(pos, wish, knows, kept, step.t_s, limits, reach)
+        reach, halves = None, None
+        if fade is not None:
+            # Rule 2 by halves: the links a robot cannot answer for alone (rule 3).
+            halves = fade.halves(knows, heard, pos, t0, speed)
+            used = answered_by_halves(pos, knows, kept, t0, limits, halves)
+            halves = halves._replace(usable=used)
+            travel = np.where(used, halves.travel_m, travel)
+            reach = fade.reach(travel, kept)
+        self.halves = halves
+        plan = plan_local(pos, wish, knows, kept, step.t_s, limits, reach, halves)
         if not walls.on:
             return plan
         # Rule 5: the step ends short of the walls (as the control loop would make it), then

@@ -57,14 +57,20 @@ certifies a detour's link by a measurement too: up at ``t0`` unless the shadowin
 beyond ``FADE_SIGMAS`` standard deviations over the pair's largest travel since. Both
 make the guarantee below probabilistic for the links longer than the sure distance, as the
 global plan's. A link whose two robots hold does not
-change (the shadowing runs in the pair's travel).
+change (the shadowing runs in the pair's travel). A robot that cannot answer for a kept
+link alone (rule 3) answers for its half when both ends can compute the same limits
+(:meth:`Fade.halves`): it knows where the other is at ``t0`` and reads the link's record
+(:func:`link_records`); it ends within half the link's allowed length of the midpoint at
+``t0`` and takes at most half of the pair's travel left, so a weak link, which would hold
+both robots for good, moves a little and its shadowing changes.
 
 Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
 each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
-that moves keeps it up whatever the other does (rules 2 and 5), an end that cannot holds
+that moves keeps it up whatever the other does (rules 2 and 5), or keeps its half while
+the other keeps its half, answers alone or holds (halves), an end that cannot holds
 (rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
 of the step, and at the next ``t0`` it is in ``K``
 again while both ends still remember each other. So the components of ``K`` never grow,
@@ -420,6 +426,7 @@ def plan_local(
     t0_s: float,
     limits: StepLimits,
     reach_m: np.ndarray | None = None,
+    halves: Halves | None = None,
 ) -> Plan:
     """Each robot's step (module notes): its wish, brought into its leashes, its reach and
     the area.
@@ -429,7 +436,9 @@ def plan_local(
     them; one already outside some (but within what it answers for now) must end inside
     them, and holds if the projection found no such end. ``reach_m``: each robot's longest
     step (default the speed cap's; under shadowing the travel its kept links allow,
-    :meth:`Fade.reach`); a robot whose reach is 0 holds.
+    :meth:`Fade.reach`); a robot whose reach is 0 holds. ``halves``: the links each robot
+    answers for by its half (``usable``, :func:`answered_by_halves`): it ends within the
+    half's radius of the link's midpoint in place of its leash.
     """
     n = len(pos)
     reach = np.full(n, limits.reach_m) if reach_m is None else np.minimum(reach_m, limits.reach_m)
@@ -437,6 +446,10 @@ def plan_local(
     centre = memory.xy[robot, other]
     now_m = leash_radius(memory, t0_s, limits)[robot, other]
     r = leash_radius(memory, t0_s + limits.period_s, limits)[robot, other]
+    if halves is not None:
+        half = halves.usable[robot, other]
+        centre[half] = halves.centre_m[robot[half], other[half]]
+        now_m[half] = r[half] = halves.radius_m[robot[half], other[half]]
     dist = np.hypot(*(pos[robot] - centre).T)
     # Rule 3: a robot that cannot answer for a kept link now holds.
     cannot = np.zeros(n, dtype=bool)
@@ -611,6 +624,53 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
 NO_FADE = (False, 0.0, 1.0, 0.0, 1.0, 1.0)
 
 
+class Halves(NamedTuple):
+    """Where each robot ``i`` can answer for its half of its link to ``j`` (:meth:`Fade.halves`):
+    ``usable[i, j]``; then it ends the step within ``radius_m[i, j]`` of ``centre_m[i, j]``
+    (the midpoint of the two positions at ``t0``) and moves at most ``travel_m[i, j]``."""
+
+    usable: np.ndarray  # (n, n) bool
+    centre_m: np.ndarray  # (n, n, 2)
+    radius_m: np.ndarray  # (n, n)
+    travel_m: np.ndarray  # (n, n)
+
+
+def link_records(heard: Heard, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(x_db, sent_s)``, ``(n, n)``: for robot ``i`` and its link to ``j``, the link's
+    *record*: the shadowing the smaller id measured on the latest Ack of the larger it had
+    heard as of its latest step before ``t0`` (its list of that step, the last one ``heard``
+    holds) and the earliest time that Ack can have been sent, as ``i`` reads it: in its own
+    list, or in the other robot's list of that step when the latest Ack of it ``i`` heard
+    carried that one. NaN (``-inf``): ``i`` cannot read it. Both ends that read it read the
+    same numbers."""
+    x = np.full((n, n), np.nan)
+    sent = np.full((n, n), -np.inf)
+    prev = heard.start.shape[0] - 1
+    if prev < 0:
+        return x, sent
+    rows = np.arange(heard.start[prev, 0], heard.start[prev, n])
+    sender = np.repeat(np.arange(n), np.diff(heard.start[prev]))
+    other = heard.other[rows]
+    lower = sender < other
+    listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
+    for reader, read, ok in (
+        (sender, other, lower),
+        (other, sender, lower & (heard.which[other, sender] == prev)),
+    ):
+        x[reader[ok], read[ok]] = listed_x[rows[ok]]
+        sent[reader[ok], read[ok]] = heard.sent_s[rows[ok]]
+    return x, sent
+
+
+def answered_by_halves(
+    pos: np.ndarray, memory: Memory, kept: np.ndarray, t0_s: float, limits: StepLimits, halves: Halves
+) -> np.ndarray:
+    """``(n, n)``: the kept links each robot answers for by its half (rule 2, "Halves"): those
+    it cannot answer for alone now (rule 3) and can by its half."""
+    dist = np.hypot(*(pos[:, None, :] - memory.xy).transpose(2, 0, 1))
+    return kept & halves.usable & (dist > leash_radius(memory, t0_s, limits))
+
+
 class Fade:
     """The fade-margin rule by which the local plan keeps links under shadowing (module
     notes, "Shadowing"; the global plan's rule, :mod:`netsim.mobility.keep`, one
@@ -694,6 +754,37 @@ class Fade:
         usable = measured & (reach > self.sure_m) & (left > 0)
         keep = np.where(usable, reach, self.sure_m) - self.margin_m
         return keep, np.where(usable, left, np.inf)
+
+    def halves(self, knows: Memory, heard: Heard, pos: np.ndarray, t0_s: float, speed_mps: float) -> Halves:
+        """Where each robot can answer for half of a link (rule 2, "Halves"): the link's record
+        (:func:`link_records`) read, the other end's position at ``t0_s`` known exactly, so
+        that both ends compute one midpoint ``c``, one length ``L`` and one budget: ``B =
+        min(fade_margin_db, m0)``, ``m0`` the margin at the link's length now with the
+        recorded ``X``, ``L`` where the margin with that ``X`` is ``B``, and the pair's
+        travel ``fade_travel_m(B, X)`` from the record on, less the pair's travel since as
+        the robot knows it, of which each end takes half."""
+        n = len(pos)
+        x, since = link_records(heard, n)
+        q = knows.xy
+        d0 = np.hypot(*(pos[:, None, :] - q).transpose(2, 0, 1))
+        r = self.radio
+        with np.errstate(invalid="ignore"):
+            exact = knows.sent_s >= t0_s
+            seen = np.isfinite(x) & np.isfinite(since) & exact
+            x0 = np.where(seen, x, 0.0)
+            m0 = np.where(seen, r.tx_power_dbm - r.path_loss_db(np.maximum(d0, 1e-9)) - x0 - r.sensitivity_dbm, 0.0)
+            budget = np.where(seen, np.minimum(self.fade_margin_db, m0), 0.0)
+            # B <= m0: the margin at d0 is at least B (max: the inverse's rounding).
+            length = np.maximum(r.effective_range_m(x0 + budget, 0), d0)
+            own = np.arange(n)
+            own_travel = largest_travel_m(
+                knows.leg_speed_mps[own, own][:, None], knows.leg_from_s[own, own][:, None], since, t0_s, speed_mps
+            )
+            travel = fade_travel_m(budget, x0, self.sigma_db, self.decorrelation_m)
+            left = travel - own_travel - knows.travel_m(since, t0_s, speed_mps)
+            usable = seen & (budget > 0) & (left > 0)
+        centre = 0.5 * (pos[:, None, :] + q)
+        return Halves(usable, centre, np.where(usable, 0.5 * length, 0.0), np.where(usable, 0.5 * left, 0.0))
 
     @staticmethod
     def reach(travel_m: np.ndarray, kept: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from netsim.mobility.keep import fade_travel_m, plausible_change_db
-from netsim.mobility.local import Fade, Lists, Memory, let_go, plan_local
+from netsim.mobility.local import Fade, Lists, Memory, answered_by_halves, let_go, plan_local
 from netsim.mobility.steps import StepLimits
 
 from netsim.radio.propagation import LogDistanceParams
@@ -39,6 +39,15 @@ def measured_pair(distance_m: float, x_db: float, sent_s: float) -> Memory:
     m.x_db[0, 1] = m.x_db[1, 0] = x_db
     m.margin_db[0, 1] = m.margin_db[1, 0] = power - RADIO.sensitivity_dbm
     return m
+
+
+def record_margins(m: Memory, pos: np.ndarray, x_db: float | None = None) -> None:
+    """Each robot's margin on each Ack it remembers, as the power the pair's distance and
+    shadowing (``x_db``, default the one it measured) give."""
+    d = np.hypot(*(pos[:, None] - pos[None]).transpose(2, 0, 1))
+    x = m.x_db if x_db is None else np.full(d.shape, x_db)
+    m.margin_db[:] = RADIO.tx_power_dbm - RADIO.path_loss_db(np.maximum(d, 1.0)) - x - RADIO.sensitivity_dbm
+    np.fill_diagonal(m.margin_db, np.nan)
 
 
 def test_fade_keeps_a_link_as_far_as_its_measured_shadowing_allows():
@@ -157,6 +166,7 @@ def test_detour_through_a_measured_link_beyond_the_sure_distance():
     np.fill_diagonal(sent, -np.inf)
     m.sent_s[:] = sent
     m.measured_s[:] = sent
+    record_margins(m, pos, -2.0)  # the margins the Acks came with, the shadowing unknown
     lists = Lists(n, 2)
     lists.take(m, T0 - 1.0, 20.0)
     held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
@@ -164,12 +174,14 @@ def test_detour_through_a_measured_link_beyond_the_sure_distance():
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     m.x_db[:] = -2.0  # a favourable shadowing, measured on every Ack
     np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
     lists = Lists(n, 2)
     lists.take(m, T0 - 1.0, 20.0)
     held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     # A shadowing that leaves the detour's links too short at t0 certifies nothing.
     m.x_db[:] = 14.0
+    record_margins(m, pos)
     lists = Lists(n, 2)
     lists.take(m, T0 - 1.0, 20.0)
     held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
@@ -263,6 +275,7 @@ def test_detour_certified_over_the_travel_the_acks_tell():
     m.measured_s[:] = sent
     m.x_db[:] = 6.0  # an adverse shadowing: the 43 m links are up out to 63 m
     np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
     lists = Lists(n, 2)
     lists.take(m, T0 - 2.0, 20.0)
     held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
@@ -271,3 +284,116 @@ def test_detour_certified_over_the_travel_the_acks_tell():
     m.leg_speed_mps[:] = 0.0  # every Ack said its sender held, since before it was sent
     m.leg_from_s[:] = T0 - 5.0
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+
+
+def held_pair(distance_m: float, x_db: float, measured_s: float, exact: bool = True, x_larger_db: float | None = None):
+    """Two robots 0 and 1 ``distance_m`` apart that have held since ``T0 - 5``, each having
+    heard the other's Ack sent at ``measured_s`` (the pair's shadowing ``x_db``), which robot
+    0, the smaller id, listed at the step before ``T0`` (the link's record). ``exact``: each
+    knows where the other is at ``T0`` (the Ack was sent on its current leg); robot 1 measured
+    ``x_larger_db`` (default the same). Returns the
+    positions, what the robots know at ``T0`` (:meth:`Memory.at`'s form) and what they hold."""
+    pos = np.array([[1000.0, 1000.0], [1000.0 + distance_m, 1000.0]])
+    m = Memory(2)
+    m.xy[0, 1], m.xy[1, 0] = pos[1], pos[0]
+    m.sent_s[0, 1] = m.sent_s[1, 0] = measured_s
+    m.measured_s[:] = m.sent_s
+    m.x_db[0, 1] = x_db
+    m.x_db[1, 0] = x_db if x_larger_db is None else x_larger_db
+    record_margins(m, pos)
+    m.leg_speed_mps[:] = 0.0
+    m.leg_from_s[:] = T0 - 5.0
+    lists = Lists(2, 2)
+    lists.take(m, T0 - 1.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    knows = Memory(2)
+    for name in ("xy", "x_db", "margin_db", "measured_s", "leg_speed_mps", "leg_from_s"):
+        setattr(knows, name, getattr(m, name).copy())
+    knows.sent_s = np.where(np.isfinite(m.sent_s), T0 if exact else measured_s, -np.inf)
+    return pos, knows, held
+
+
+def test_halves_a_robot_answers_for_half_of_a_weak_link_it_cannot_answer_for_alone():
+    """Rule 2 by halves: a weak link (margin below fade_margin_db) neither end can answer for
+    alone (rule 3 holds both) is answered for by each end's half when each knows where the
+    other is at t0 and reads the link's record: both compute one midpoint, one length L (where
+    the margin with the recorded X is B = min(fade_margin_db, m0), m0 the margin at the
+    length now) and each moves at most half of the travel B allows since the record."""
+    f = fade()
+    lim = limits(f)
+    # Robot 1 measured a little less fade than robot 0: both read robot 0's, the record.
+    pos, knows, held = held_pair(45.0, 6.0, T0 - 0.5, x_larger_db=5.0)
+    assert knows.margin_db[0, 1] < FADE_DB and knows.margin_db[1, 0] < FADE_DB
+    knows.keep_m, travel = f.limits(knows, T0, T0 + PERIOD, f.speed_mps)
+    kept = np.array([[False, True], [True, False]])
+    wish = np.array([[0.0, 5.0], [0.0, -5.0]])  # each sideways, away from the other's side
+    alone = plan_local(pos, wish, knows, kept, T0, lim, Fade.reach(travel, kept))
+    assert (alone.velocity_mps == 0).all() and alone.held.all()
+    halves = f.halves(knows, held, pos, T0, f.speed_mps)
+    assert halves.usable.all() == False and halves.usable[0, 1] and halves.usable[1, 0]  # noqa: E712
+    assert np.allclose(halves.centre_m[0, 1], halves.centre_m[1, 0], rtol=0, atol=1e-9)
+    assert halves.radius_m[0, 1] == pytest.approx(halves.radius_m[1, 0], rel=1e-12)
+    m0 = RADIO.tx_power_dbm - float(RADIO.path_loss_db(45.0)) - 6.0 - RADIO.sensitivity_dbm
+    budget = min(FADE_DB, m0)
+    length = max(float(RADIO.effective_range_m(6.0 + budget)), 45.0)
+    assert 2 * halves.radius_m[0, 1] == pytest.approx(length, rel=1e-9)
+    allowed = float(fade_travel_m(np.array([budget]), np.array([6.0]), SIGMA, DCORR)[0])
+    assert halves.travel_m[0, 1] == pytest.approx(allowed / 2, rel=1e-9)
+    used = answered_by_halves(pos, knows, kept, T0, lim, halves)
+    halves = halves._replace(usable=used)
+    reach = Fade.reach(np.where(used, halves.travel_m, travel), kept)
+    plan = plan_local(pos, wish, knows, kept, T0, lim, reach, halves)
+    step = plan.velocity_mps * PERIOD
+    assert (np.hypot(*step.T) > 0).all()
+    assert (np.hypot(*step.T) <= allowed / 2 * (1 + 1e-9)).all()
+    assert np.hypot(*(pos[0] + step[0] - pos[1] - step[1])) <= length * (1 + 1e-9)
+
+
+def test_halves_need_the_other_ends_position_at_t0_and_the_links_record():
+    """A robot answers for half of a link only where both ends compute the same midpoint and
+    length: it knows where the other end is at t0 (an Ack sent on the other's current leg),
+    and it reads the link's record (the smaller id's list of the latest step)."""
+    f = fade()
+    pos, knows, held = held_pair(45.0, 6.0, T0 - 0.5, exact=False)
+    assert not f.halves(knows, held, pos, T0, f.speed_mps).usable.any()
+    pos, knows, held = held_pair(45.0, 6.0, T0 - 0.5)
+    unread = held._replace(which=np.full_like(held.which, -1))
+    usable = f.halves(knows, unread, pos, T0, f.speed_mps).usable
+    assert usable[0, 1] and not usable[1, 0]  # robot 0 reads its own list, robot 1 none
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_halves_keep_the_link_within_its_length_and_the_pair_travel_within_its_budget(seed):
+    """Whatever each end wishes, with both ends answering by their halves, or one by its half
+    and the other alone (rule 3: it holds), the link is within L at the end of the step (so
+    throughout: the distance is convex) and the pair's travel since the record within the
+    travel B allows."""
+    f = fade()
+    lim = limits(f)
+    rng = np.random.default_rng(seed)
+    tried = 0
+    for _ in range(20):
+        d, x = rng.uniform(31.0, 70.0), rng.uniform(-4.0, 10.0)
+        pos, knows, held = held_pair(d, x, T0 - rng.uniform(0.1, 1.0))
+        knows.keep_m, travel = f.limits(knows, T0, T0 + PERIOD, f.speed_mps)
+        kept = np.array([[False, True], [True, False]])
+        halves = f.halves(knows, held, pos, T0, f.speed_mps)
+        if not halves.usable[0, 1]:
+            continue
+        tried += 1
+        used = answered_by_halves(pos, knows, kept, T0, lim, halves)
+        if rng.random() < 0.3:
+            used[1, 0] = False  # robot 1 answers alone
+        h = halves._replace(usable=used)
+        reach = Fade.reach(np.where(used, h.travel_m, travel), kept)
+        wish = rng.normal(0.0, 3.0, (2, 2))
+        plan = plan_local(pos, wish, knows, kept, T0, lim, reach, h)
+        step = plan.velocity_mps * PERIOD
+        # Both held since before the record: the pair's travel since is its steps.
+        m0 = RADIO.tx_power_dbm - float(RADIO.path_loss_db(d)) - x - RADIO.sensitivity_dbm
+        budget = min(FADE_DB, m0)
+        length = max(float(RADIO.effective_range_m(x + budget)), d)
+        allowed = float(fade_travel_m(np.array([budget]), np.array([x]), SIGMA, DCORR)[0])
+        assert np.hypot(*(pos[0] + step[0] - pos[1] - step[1])) <= length * (1 + 1e-9)
+        assert np.hypot(*step.T).sum() <= allowed * (1 + 1e-9)
+    assert tried >= 10
