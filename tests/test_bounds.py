@@ -427,6 +427,7 @@ def test_bonnmotion_export_of_a_map_frame_run_round_trips(tmp_path):
     assert (wp.x_m < 0).any()
 
 
+@pytest.mark.slow
 def test_replay_data_carries_the_bounds(tmp_path):
     """The replay page gets the area's bounds to frame and draw it."""
     from netsim.tools.viewer.data import pack

@@ -338,6 +338,7 @@ def test_expansion_leaves_follow_mode_alone():
     assert a.sim.state.legs().equals(b.sim.state.legs())
 
 
+@pytest.mark.slow
 def test_with_unequal_ranges_the_team_never_covers_more_than_the_bound():
     """Unequal ranges (100, 100 and four of 150 m): the team, connected through links
     longer than the smallest range, covers at most U with one range per robot

@@ -312,12 +312,14 @@ def test_aloha_periodic_success_follows_the_closed_form():
     assert abs(c.measured - c.theory) <= c.tolerance
 
 
+@pytest.mark.slow
 def test_aloha_poisson_success_follows_the_closed_form():
     """ALOHA, Poisson load G: success e^(-2G)."""
     c = mac_checks.aloha_poisson(n=30, load=0.3, frames=8000, seed=4)
     assert abs(c.measured - c.theory) <= c.tolerance
 
 
+@pytest.mark.slow
 def test_hidden_terminals_lose_like_an_aloha_pair():
     """Hidden terminals under CSMA: B loses like an ALOHA pair; A and B alone, both sending,
     lose at most the same-slot bound. Under ALOHA the control fails (B's own frames)."""
