@@ -426,6 +426,7 @@ def test_walls_kernel_agrees_with_its_oracle(monkeypatch):
     assert (want == out).all()
 
 
+@pytest.mark.slow
 def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
     """Rule 1 on a map: robot 0 lets go of robot 1 through robot 2 (as in open space) only
     when the detour's links are surely clear of walls: a pillar on the link from robot 2 to

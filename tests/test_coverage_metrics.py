@@ -245,6 +245,7 @@ def linked(pos: np.ndarray, ranges: np.ndarray) -> bool:
     return len(seen) == len(pos)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 30), scale=st.sampled_from([1.0, 1.5]))
 def test_property_with_unequal_ranges_no_connected_deployment_covers_more_than_the_bound(seed, n, scale):

@@ -308,6 +308,7 @@ def test_a_guessed_format_is_named_in_the_error(tmp_path, capsys):
     )
 
 
+@pytest.mark.slow
 def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys):
     """A BonnMotion export of a 40 s run replayed for 60 s: one warning line naming the
     trace's end (its .params' duration) and duration_s; none for the run's own length."""

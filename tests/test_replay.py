@@ -181,6 +181,7 @@ def test_gateways_are_drawn_from_the_groups_sample(moving_run, open_page):
     assert found > 0
 
 
+@pytest.mark.slow
 def test_play_advances_time(moving_run, open_page):
     page = open_page(moving_run / "view.html")
     page.js("netsimView.seek(10)")
@@ -225,6 +226,7 @@ def test_screenshot_is_not_blank(moving_run, open_page):
     assert colours & group  # in the groups' colours
 
 
+@pytest.mark.slow
 def test_hover_shows_id_role_leader_and_neighbours(moving_run, open_page):
     page = open_page(moving_run / "view.html")
     t = 30.0

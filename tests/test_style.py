@@ -51,6 +51,7 @@ def test_the_figures_name_no_colour():
     assert HEX.findall(src) == []
 
 
+@pytest.mark.slow
 def test_the_page_carries_the_style_itself(tmp_path):
     """The replay's page embeds :func:`style.as_json` as is: a colour changed in the style
     changes the figures and the page alike."""
