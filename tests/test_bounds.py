@@ -347,6 +347,7 @@ def test_box_limit_stops_steps_at_the_rectangle_border():
     assert s == pytest.approx([0.5, 0.25])
 
 
+@pytest.mark.slow
 def test_coverage_run_on_a_rectangle_reports_the_rectangle_bound_and_stays_inside():
     """The coverage controller's ``coverage_bound`` is ``min(1, U(N) / A)`` for the
     rectangle, and its robots stay in the rectangle."""

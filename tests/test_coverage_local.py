@@ -385,6 +385,7 @@ def disks_hull(a, ea, b, eb):
     return GeometryCollection([Point(a).buffer(ea * grow, 64), Point(b).buffer(eb * grow, 64)]).convex_hull
 
 
+@pytest.mark.slow
 def test_walls_a_pair_of_disks_said_clear_has_a_hull_clear_of_every_wall():
     """The walls' test is never wrong when it says clear: the convex hull of the two disks
     meets no occupied cell (closed squares, shapely); and it says clear for most hulls

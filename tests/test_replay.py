@@ -540,6 +540,7 @@ def test_view_of_a_bad_directory_is_a_one_line_error(tmp_path, capsys, setup, me
     assert not (tmp_path / "v.html").exists()
 
 
+@pytest.mark.slow
 def test_view_needs_legs_or_positions(moving_run, tmp_path, capsys):
     run = tmp_path / "bare"
     run.mkdir()
