@@ -110,6 +110,7 @@ def test_two_way_link_is_reported_as_heard():
     assert t.hears_me[0, t.entry(0, 1)] and t.hears_me[1, t.entry(1, 0)]
 
 
+@pytest.mark.slow
 def test_table_grows_beyond_its_initial_slots():
     table = NeighbourTable(40, tau_s=3.0, slots=2)
     fields = ack_record(0, 0, -1, 0.0, 0.0, 1, heard=[0])  # it lists robot 0

@@ -153,6 +153,7 @@ def test_a_clustering_run_is_the_same_with_the_agenda(monkeypatch):
         pd.testing.assert_frame_equal(frames[name], ref_frames[name])
 
 
+@pytest.mark.slow
 def test_a_moving_run_with_loss_and_jitter_is_the_same_with_the_agenda(monkeypatch):
     """Random waypoint, loss, latency jitter, runtime link events (at FIRST priority),
     messages: every table as with one kernel event per entry."""

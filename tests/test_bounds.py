@@ -347,6 +347,7 @@ def test_box_limit_stops_steps_at_the_rectangle_border():
     assert s == pytest.approx([0.5, 0.25])
 
 
+@pytest.mark.slow
 def test_coverage_run_on_a_rectangle_reports_the_rectangle_bound_and_stays_inside():
     """The coverage controller's ``coverage_bound`` is ``min(1, U(N) / A)`` for the
     rectangle, and its robots stay in the rectangle."""
@@ -427,6 +428,7 @@ def test_bonnmotion_export_of_a_map_frame_run_round_trips(tmp_path):
     assert (wp.x_m < 0).any()
 
 
+@pytest.mark.slow
 def test_replay_data_carries_the_bounds(tmp_path):
     """The replay page gets the area's bounds to frame and draw it."""
     from netsim.tools.viewer.data import pack

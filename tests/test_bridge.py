@@ -415,6 +415,7 @@ def test_bad_bridge_input_is_one_line_and_exit_2(tmp_path, capsys, sets, flags, 
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_netsim_run_loads_neither_dds_nor_foxglove(tmp_path):
     """``netsim run`` (no --live) imports neither cyclonedds nor foxglove: the bridge costs
     nothing when not used."""

@@ -82,6 +82,7 @@ def test_receptions_table_with_received_column_is_censored(tmp_path, capsys):
     assert abs(channel["path_loss_exponent"] - TRUTH.path_loss_exponent) < 0.3
 
 
+@pytest.mark.slow
 def test_naive_fit_underestimates_exponent_and_sigma_when_truncated():
     """Least squares through the received frames alone underestimates the path-loss
     exponent and the shadowing sigma (docs/radio.md): below the ML fit's interval."""
@@ -92,6 +93,7 @@ def test_naive_fit_underestimates_exponent_and_sigma_when_truncated():
         assert ml.covers(getattr(TRUTH, key)), key
 
 
+@pytest.mark.slow
 def test_wall_loss_recovered_with_map(tmp_path, capsys):
     """With --map the loss per wall crossed is fitted; the known one is within its interval."""
     from netsim.tools.radio_checks import wall_test_map

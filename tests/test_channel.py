@@ -113,6 +113,7 @@ def test_distance_loss_follows_its_law():
         assert keep.mean() == pytest.approx(p, abs=4 * math.sqrt(p * (1 - p) / 50_000) + 1e-9)
 
 
+@pytest.mark.slow
 def test_gilbert_elliott_loss_is_bursty_with_the_right_mean():
     """Long-run loss = pi_bad * loss_bad + pi_good * loss_good; losses cluster."""
     model = GilbertElliottLoss(0.05, 0.25, 0.0, 1.0, 2, np.random.default_rng(2))
@@ -125,6 +126,7 @@ def test_gilbert_elliott_loss_is_bursty_with_the_right_mean():
     assert after_loss > 3 * lost.mean()
 
 
+@pytest.mark.slow
 def test_observed_delivery_ratio_in_a_run():
     """Item 10: over all in-range pairs, the fraction of Ack receptions delivered is 1 - p,
     within its binomial confidence interval."""

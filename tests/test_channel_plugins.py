@@ -143,6 +143,7 @@ def test_the_cli_runs_a_user_mac_and_writes_its_table(tmp_path):
     assert json.loads((out / "summary.json").read_text())["mac"] == "tdma"
 
 
+@pytest.mark.slow
 def test_a_sweep_varies_the_user_models_keys(tmp_path):
     """A sweep takes a user model's key as an axis: a higher antenna reaches farther
     (more links), a longer TDMA slot delays the Acks (fewer sent in the run)."""
@@ -181,6 +182,7 @@ def test_a_user_loss_model_drops_what_it_says():
     assert result.summary["acks_dropped_loss"] > 0 and result.summary["acks_received"] > 0
 
 
+@pytest.mark.slow
 def test_the_engine_compares_against_no_channel_model_name():
     """No comparison in the engine (netsim/ but its tools) or the protocols names a
     built-in channel model: what a model does is asked of its declaration, so a user's

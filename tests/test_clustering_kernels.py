@@ -431,6 +431,7 @@ def reach_tables(rng, n, slots, now, heard):
     return ids, records, senders
 
 
+@pytest.mark.parametrize("kernels", [pytest.param("plain", marks=pytest.mark.slow), "compiled"], indirect=True)
 @pytest.mark.parametrize("torus", [False, True])
 @pytest.mark.parametrize("symmetric", [False, True])
 def test_sample_into_loop_equals_the_oracle(torus, symmetric, kernels):

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from netsim.tools.cli import main
 
@@ -15,6 +16,7 @@ COMMAND = str(Path(sys.executable).with_name("netsim"))
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
 
 
+@pytest.mark.slow
 def test_command_flushes_what_it_printed_through_a_pipe(capsys):
     """``netsim config`` piped (so stdout is block-buffered) prints all that main prints."""
     main(["config", "--set", "world.n_robots=12"])
@@ -24,6 +26,7 @@ def test_command_flushes_what_it_printed_through_a_pipe(capsys):
     assert run.stdout == expected
 
 
+@pytest.mark.slow
 def test_command_run_writes_every_table_and_exits_zero(tmp_path):
     run = subprocess.run(
         [COMMAND, "run", "--out", str(tmp_path), "--no-progress", "--set", "world.n_robots=8", "--set", "duration_s=5"],
@@ -35,6 +38,7 @@ def test_command_run_writes_every_table_and_exits_zero(tmp_path):
     assert len(pd.read_parquet(tmp_path / "roles.parquet")) >= 8
 
 
+@pytest.mark.slow
 def test_command_exits_with_mains_code_on_bad_input(tmp_path):
     """A user's error: exit 2, one line, nothing written (as main returns it)."""
     out = tmp_path / "run"

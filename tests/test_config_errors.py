@@ -238,6 +238,7 @@ def test_placement_conflicting_with_stationary_start(tmp_path, capsys):
     assert code == 2 and "stationary_start" in err
 
 
+@pytest.mark.slow
 def test_console_script_gives_no_traceback(tmp_path):
     out = subprocess.run(
         [sys.executable, "-m", "netsim.tools.cli", "run", "--set", "world.n_robots=-1", "--out", str(tmp_path / "o")],

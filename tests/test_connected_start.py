@@ -60,6 +60,7 @@ def _sight_components(path, pos, range_m):
     return len(np.unique(components_of_links(len(pos), a[seen], b[seen])))
 
 
+@pytest.mark.slow
 def test_connected_start_is_one_network_through_a_door(tmp_path):
     """Robots placed "connected" on two rooms joined by a door, the start square covering
     both, form one network of line-of-sight links at t = 0 (walls cut the links a plain

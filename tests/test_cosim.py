@@ -160,6 +160,29 @@ def test_sent_message_arrives_in_the_inbox(tmp_path):
     assert sim.inbox(0) == []
 
 
+def _play(tmp_path, call=None, named=""):
+    """The run of the bad-call test; ``call`` (which must raise a CommandError naming
+    ``named``) made between the drives."""
+    sim = driven(tmp_path, [[100.0 + 8.0 * k, 100.0] for k in range(4)], protocol="clustering")
+    sim.run(until_s=4.0)
+    sim.drive([1], [[0.5, 0.0]])
+    if call is not None:
+        with pytest.raises(CommandError, match=named.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")):
+            call(sim)
+    sim.drive([2], [[0.0, 0.7]])
+    sim.send(0, 3, "after")
+    sim.run(until_s=30.0)
+    return sim
+
+
+@pytest.fixture(scope="module")
+def good_play(tmp_path_factory):
+    """The bad-call test's run without the bad call (the same for every call): its tables
+    and robot 3's inbox."""
+    good = _play(tmp_path_factory.mktemp("good"))
+    return collect(good), good.inbox(3)
+
+
 @pytest.mark.parametrize(
     ("call", "named"),
     [
@@ -177,26 +200,15 @@ def test_sent_message_arrives_in_the_inbox(tmp_path):
         (lambda s: s.inbox(-3), "-3"),
     ],
 )
-def test_bad_call_names_the_value_and_changes_nothing(tmp_path, call, named):
+def test_bad_call_names_the_value_and_changes_nothing(tmp_path, good_play, call, named):
     """A call with an unknown robot, a non-finite velocity or a wrong shape raises a
     CommandError naming the value; the run goes on exactly as if it had not been made."""
-
-    def play(bad: bool):
-        sim = driven(tmp_path, [[100.0 + 8.0 * k, 100.0] for k in range(4)], protocol="clustering")
-        sim.run(until_s=4.0)
-        sim.drive([1], [[0.5, 0.0]])
-        if bad:
-            with pytest.raises(CommandError, match=named.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")):
-                call(sim)
-        sim.drive([2], [[0.0, 0.7]])
-        sim.send(0, 3, "after")
-        sim.run(until_s=30.0)
-        return sim
-
-    good, bad = play(False), play(True)
-    for name, frame in collect(good).items():
-        pd.testing.assert_frame_equal(frame, collect(bad)[name], obj=name)
-    assert good.inbox(3) == bad.inbox(3)
+    tables, inbox = good_play
+    bad = _play(tmp_path, call, named)
+    got = collect(bad)
+    for name, frame in tables.items():
+        pd.testing.assert_frame_equal(frame, got[name], obj=name)
+    assert inbox == bad.inbox(3)
 
 
 def test_drive_needs_the_external_model(build_sim):

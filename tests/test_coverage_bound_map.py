@@ -75,6 +75,7 @@ def test_free_region_leaves_out_free_space_the_team_cannot_reach(tmp_path):
     assert both.area == pytest.approx(ROOM.area + 150.0, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_coverage_run_on_a_map_reports_fractions_and_bound_of_the_free_region(tmp_path):
     """A coverage run on the rectangle map: the coverage table's ``coverage_bound`` is the
     open-space bound of the rectangle, and ``covered_fraction_all`` at t = 0 the fraction of

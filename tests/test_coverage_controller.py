@@ -1,6 +1,7 @@
 """The virtual-force coverage controller (docs/model.md section 5): the bridge-keeping plan of
 one step, and whole runs from dense random static deployments."""
 
+import functools
 import math
 from pathlib import Path
 
@@ -129,13 +130,20 @@ def coverage_run(n, seed, **extra):
     return execute(config.load(None, overrides))
 
 
+@pytest.fixture(scope="module")
+def shared_run():
+    """``coverage_run(n, seed)``, run once in this module for all the tests that only read
+    it (a run is a pure function of its configuration)."""
+    return functools.cache(coverage_run)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("n,seed", [(40, 1), (80, 2), (120, 3)])
-def test_coverage_grows_spacing_reaches_target_and_network_stays_connected(n, seed):
+def test_coverage_grows_spacing_reaches_target_and_network_stays_connected(n, seed, shared_run):
     """From a dense random static deployment: covered fraction grows; the median
     nearest-leader spacing ends within 10 % of sqrt(3) r_c; connected at the start, at
     every control step, and at the end."""
-    r = coverage_run(n, seed)
+    r = shared_run(n, seed)
     s = r.summary
     assert s["components_start"] == 1
     assert s["covered_fraction_leaders_final"] > 1.1 * s["covered_fraction_leaders_start"]
@@ -166,10 +174,10 @@ def test_global_knowledge_mode_also_converges():
 
 
 @pytest.mark.slow
-def test_stopping_rule_ends_control_and_robots_stay_still():
+def test_stopping_rule_ends_control_and_robots_stay_still(shared_run):
     """Once every leader's force has asked for less than stop_speed_mps for stop_hold_s,
     control ends and nobody moves any more."""
-    r = coverage_run(40, 1)
+    r = shared_run(40, 1)
     settled = r.summary["control_settled_s"]
     assert math.isfinite(settled) and settled < 260
     legs = r.sim.state.legs()
@@ -189,8 +197,8 @@ def test_members_that_miss_their_command_hold():
 
 
 @pytest.mark.slow
-def test_coverage_metrics_are_sampled_over_time():
-    r = coverage_run(40, 1)
+def test_coverage_metrics_are_sampled_over_time(shared_run):
+    r = shared_run(40, 1)
     cov = r.frames["coverage"]
     expected = {
         "t_s",
@@ -231,8 +239,8 @@ def test_follow_mode_reproduces_the_paper_faithful_controller(seed):
 
 
 @pytest.mark.slow
-def test_same_seed_same_coverage_trace():
-    a, b = coverage_run(30, 7), coverage_run(30, 7)
+def test_same_seed_same_coverage_trace(shared_run):
+    a, b = shared_run(40, 1), coverage_run(40, 1)
     assert a.sim.state.legs().equals(b.sim.state.legs())
 
 

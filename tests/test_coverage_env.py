@@ -188,6 +188,7 @@ def test_bad_parameter_is_a_config_error():
         coverage_v0.parallel_env(render_mode="human")
 
 
+@pytest.mark.slow
 def test_render_draws_an_rgb_frame():
     """render_mode = "rgb_array": render() returns an (H, W, 3) uint8 image of the team."""
     env = coverage_v0.parallel_env(**SMALL, render_mode="rgb_array")
@@ -271,6 +272,7 @@ def test_learn_coverage_example_runs_and_writes_csv_and_png(tmp_path):
     assert (tmp_path / "learn_coverage.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args", [["--episodes", "0"], ["--n", "0"]])
 def test_learn_coverage_bad_input_is_one_line_exit_2_nothing_written(tmp_path, args):
     """A bad option of the example: exit status 2, one line on stderr, nothing written."""

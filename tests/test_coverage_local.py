@@ -180,6 +180,7 @@ def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(se
     assert gone.sum() > n // 2  # the rule lets go of links at all
 
 
+@pytest.mark.slow
 def test_detour_kernel_agrees_with_its_oracle(monkeypatch):
     """Rule 1's kernel, plain and compiled, lets go of exactly the links its numpy oracle
     (tests/oracles/local.py) does, the lists the robots hold taken at several steps, each
@@ -202,7 +203,7 @@ def test_detour_kernel_agrees_with_its_oracle(monkeypatch):
         assert (a != let_go(pos, m, told(m), T0, V, 10.0, RC)).any()
 
 
-@pytest.mark.parametrize("compiled", ["0", "1"])
+@pytest.mark.parametrize("compiled", [pytest.param("0", marks=pytest.mark.slow), "1"])
 def test_detour_a_robot_decides_from_what_it_heard_alone(monkeypatch, compiled):
     """Rule 1 reads nothing of the robots i does not remember: whatever they remember and
     wherever the others are, i lets go of the same robots (both twins)."""
@@ -384,6 +385,7 @@ def disks_hull(a, ea, b, eb):
     return GeometryCollection([Point(a).buffer(ea * grow, 64), Point(b).buffer(eb * grow, 64)]).convex_hull
 
 
+@pytest.mark.slow
 def test_walls_a_pair_of_disks_said_clear_has_a_hull_clear_of_every_wall():
     """The walls' test is never wrong when it says clear: the convex hull of the two disks
     meets no occupied cell (closed squares, shapely); and it says clear for most hulls
@@ -425,6 +427,7 @@ def test_walls_kernel_agrees_with_its_oracle(monkeypatch):
     assert (want == out).all()
 
 
+@pytest.mark.slow
 def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
     """Rule 1 on a map: robot 0 lets go of robot 1 through robot 2 (as in open space) only
     when the detour's links are surely clear of walls: a pillar on the link from robot 2 to

@@ -64,6 +64,7 @@ def test_hexagonal_lattice_covers_everything_with_kershner_density():
     assert np.median(nearest_spacing(lattice)) == pytest.approx(math.sqrt(3) * r)
 
 
+@pytest.mark.slow
 def test_lens_area_at_hexagonal_spacing():
     """Item 14: two disks of radius r, sqrt(3) r apart, share 0.1812 r^2."""
     r = 1.0
@@ -75,6 +76,7 @@ def test_lens_area_at_hexagonal_spacing():
     assert lens == pytest.approx(LENS_AREA_AT_HEX_SPACING, rel=0.01)
 
 
+@pytest.mark.slow
 def test_random_deployment_coverage_on_a_torus():
     """Item 15: n uniform centres cover 1 - (1 - pi r^2 / A)^n (on a torus: no border)."""
     n, r, side, reps = 40, 8.0, 100.0, 40
@@ -191,6 +193,7 @@ def connected_deployment(seed: int, n: int, r: float) -> np.ndarray:
     return np.array(pos)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 40))
 def test_property_no_connected_deployment_covers_more_than_the_bound(seed, n):
@@ -242,6 +245,7 @@ def linked(pos: np.ndarray, ranges: np.ndarray) -> bool:
     return len(seen) == len(pos)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 30), scale=st.sampled_from([1.0, 1.5]))
 def test_property_with_unequal_ranges_no_connected_deployment_covers_more_than_the_bound(seed, n, scale):

@@ -117,7 +117,7 @@ KINDS = ["bounded", "torus", "jumps", "unequal_ranges"]
 
 
 @pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", [0, 1, *(pytest.param(s, marks=pytest.mark.slow) for s in (2, 3))])
 def test_runtime_links_equal_posthoc_on_random_trajectories(kind, seed):
     sim = _random_case(1000 + 4 * seed + KINDS.index(kind), kind)
     if kind == "jumps":
@@ -224,6 +224,7 @@ def test_course_change_events_are_the_legs_as_they_happen():
     pd.testing.assert_frame_equal(got, want)
 
 
+@pytest.mark.slow
 def test_control_commands_are_legs_with_cause_command():
     config = load(
         None,
@@ -425,6 +426,7 @@ def test_live_topology_needs_runtime_links():
 
 
 # -- the live topology -------------------------------------------------------------------------
+@pytest.mark.slow
 def test_the_live_graph_equals_the_snapshot_at_random_instants():
     config = load(None, ["world.n_robots=40", "duration_s=120", "world.side_m=500", "channel.range_m=110"])
     sim = build(config)
@@ -680,6 +682,7 @@ SHADOWED = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("torus", [[], ["world.torus=true"]], ids=["plane", "torus"])
 def test_runtime_links_under_shadowing_equal_the_record_after_the_run(torus):
     """Under shadowing, link events run live: up at the send that brings a link up, down at
@@ -817,6 +820,7 @@ def _random_map_case(seed: int, kind: str, window_s=None):
     return links
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", MAP_KINDS)
 def test_runtime_links_on_a_map_equal_posthoc_on_random_trajectories(kind):
     """On a map, the link events solved during the run make the post-hoc table, bit for bit
@@ -831,6 +835,7 @@ def test_runtime_links_on_a_map_equal_posthoc_on_many_random_trajectories(kind):
         _random_map_case(7100 + 4 * seed + MAP_KINDS.index(kind), kind)
 
 
+@pytest.mark.slow
 def test_runtime_links_on_a_map_do_not_depend_on_the_sampling_window():
     """The runtime solver solves its chunks a window at a time; the table is the same
     whatever the window (each stretch's chunks are its own)."""
@@ -839,6 +844,7 @@ def test_runtime_links_on_a_map_do_not_depend_on_the_sampling_window():
         _assert_same_links(other, tables[0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "overrides",
     [
@@ -906,6 +912,7 @@ def test_a_pair_that_jumps_out_of_the_envelope_keeps_no_changes(tmp_path):
     assert len(links) == 0
 
 
+@pytest.mark.slow
 def test_the_live_graph_on_a_map_equals_the_links_and_the_channel_at_random_instants():
     """On a map the live graph holds, at any instant, the links up in links.parquet; and away
     from the events, the pairs the channel lets through."""
@@ -939,6 +946,7 @@ def test_the_live_graph_on_a_map_equals_the_links_and_the_channel_at_random_inst
     assert compared > 30 and len(links) > 20
 
 
+@pytest.mark.slow
 def test_a_hook_on_link_events_runs_on_a_map_and_sees_them_in_time_order():
     """The example hook runs on a map: link events during the run, announced in time order
     at their instants, its table counts the breaks of links.parquet."""
@@ -1126,6 +1134,7 @@ def _random_shadowed_run(seed: int, torus: bool):
     return sim, decisions
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("torus", [False, True], ids=["plane", "torus"])
 def test_shadowed_links_follow_the_rule_at_run_time_and_after_on_random_excursions(torus):
     """On random runs whose links leave the reach and come back between transmissions: every

@@ -62,6 +62,7 @@ def test_figures_of_a_run_without_coverage_draw_fig6_when_every_robot_is_in_a_gr
     assert "fig6" in first and f"drawn at t = {times[k]:g} s" in first and "undecided" not in first
 
 
+@pytest.mark.slow
 def test_undecided_robots_are_counted_as_the_figures_read_the_roles(waypoint_run):
     """The count of undecided robots at each sample equals the undecided robots of
     :func:`figures.snapshot` there (a robot's last role record at or before the sample)."""
@@ -74,6 +75,7 @@ def test_undecided_robots_are_counted_as_the_figures_read_the_roles(waypoint_run
     assert counted[0] == 20 and counted.min() == 0
 
 
+@pytest.mark.slow
 def test_figures_of_a_run_without_roles(tmp_path, capsys):
     """The Ack beacon alone gives no roles: robots are plain dots, and the figures say so."""
     run = tmp_path / "run"
@@ -128,6 +130,7 @@ def test_style_is_plain_values_for_other_viewers():
     assert style.NO_GROUP not in style.GROUP_PALETTE
 
 
+@pytest.mark.slow
 def test_figures_draw_the_map_under_the_robots(tmp_path, capsys):
     """A run on the office map: every figure shows its walls (the wall grey), and a run in
     open space has none of that grey."""

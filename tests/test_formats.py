@@ -73,6 +73,7 @@ def test_bonnmotion_equal_times_are_a_jump(tmp_path):
     assert np.allclose(_positions(frames["legs"], 4.0, 1), [[50, 50]])
 
 
+@pytest.mark.slow
 def test_bonnmotion_export_round_trips_the_positions(run_dir, tmp_path):
     """``netsim export --format bonnmotion`` then replaying the file gives the run's
     positions at every instant (checked on a fine grid) to 1e-6 m, gzip included."""
@@ -136,6 +137,7 @@ def test_bonnmotion_positions_outside_the_area_exit_2_one_line(tmp_path, capsys)
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_rosbag2_export_holds_every_sampled_pose_and_reads_back(run_dir, tmp_path):
     """The bag has a PoseStamped per sampled position on /robot_<i>/pose (stamps = simulated
     time), links, roles and messages; replaying it gives the sampled positions exactly."""
@@ -306,6 +308,7 @@ def test_a_guessed_format_is_named_in_the_error(tmp_path, capsys):
     )
 
 
+@pytest.mark.slow
 def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys):
     """A BonnMotion export of a 40 s run replayed for 60 s: one warning line naming the
     trace's end (its .params' duration) and duration_s; none for the run's own length."""

@@ -80,6 +80,7 @@ def test_gauss_markov_robot_that_would_still_leave_slides_along_the_border():
     assert legs[1][0] == pytest.approx(1.0 / 3.0) and np.allclose(legs[1][1], [0.0, 4.0])
 
 
+@pytest.mark.slow
 def test_gauss_markov_robots_stay_in_the_area():
     """Every leg starts and ends in the square (a straight leg between them stays in it)."""
     frames = _run(["mobility.model=gauss_markov", "world.n_robots=20", "duration_s=200", "mobility.mean_speed_mps=5"])

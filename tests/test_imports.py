@@ -6,7 +6,10 @@ import shutil
 import subprocess
 import sys
 
+import pytest
 
+
+@pytest.mark.slow
 def test_small_run_imports_no_graph_jit_or_plotting(tmp_path):
     """``netsim run`` with 10 robots: networkx, numba and matplotlib stay unloaded."""
     code = (
@@ -31,6 +34,7 @@ def _env():
     return env
 
 
+@pytest.mark.slow
 def test_large_run_imports_no_kd_tree_or_scipy_linalg(tmp_path):
     """``netsim run`` with 60 robots (compiled loops): the candidate pairs come from the
     compiled grid, so scipy.spatial stays unloaded, and numba's probe for BLAS does not
@@ -54,6 +58,7 @@ def test_large_run_imports_no_kd_tree_or_scipy_linalg(tmp_path):
     assert pairs == "[[0, 1]]"
 
 
+@pytest.mark.slow
 def test_the_library_leaves_the_garbage_collector_as_it_found_it(tmp_path):
     """Importing netsim, loading its compiled loops and running a simulation through
     ``main`` change nothing of the garbage collector: on stays on, off stays off, nothing
@@ -82,6 +87,7 @@ def test_the_library_leaves_the_garbage_collector_as_it_found_it(tmp_path):
         tmp_path.mkdir()
 
 
+@pytest.mark.slow
 def test_the_command_freezes_what_it_loaded_and_ends_at_once():
     """The ``netsim`` command (netsim.tools.cli.command), whose process is its own, freezes
     what its imports loaded out of the collector's passes, then ends the process at once
@@ -100,6 +106,7 @@ def test_the_command_freezes_what_it_loaded_and_ends_at_once():
     assert out.stdout.strip().splitlines()[-1] == "True 2"
 
 
+@pytest.mark.slow
 def test_importing_the_package_loads_no_library_and_the_console_script_pauses_the_collector():
     """``import netsim`` (and the console script's module, netsim.tools.command) load none
     of numpy, pandas or pyarrow, so that the ``netsim`` command can pause the garbage

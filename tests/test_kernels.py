@@ -22,6 +22,9 @@ def core(kind: str):
 
 
 BOTH = pytest.mark.parametrize("kind", ["plain", "compiled"])
+# The plain loops run as Python, slowly on the bigger cases: those run with the slow tests,
+# the compiled ones in the quick loop.
+PLAIN_SLOW = pytest.param("plain", marks=pytest.mark.slow)
 
 
 def _moving_state(rng, n, side, torus):
@@ -48,7 +51,7 @@ def _index_kernels():
 
 
 @pytest.mark.parametrize("torus", [False, True])
-@pytest.mark.parametrize("which", ["plain", "compiled"])
+@pytest.mark.parametrize("which", [PLAIN_SLOW, "compiled"])
 def test_range_query_equals_the_oracle(torus, which):
     """Robots within range of a sender, and their distances, are the oracle's bit for bit
     (plain Python and compiled), on the plane and on a torus, from the neighbour list and
@@ -71,7 +74,7 @@ def test_range_query_equals_the_oracle(torus, which):
 
 
 @pytest.mark.parametrize("torus", [False, True])
-@pytest.mark.parametrize("which", ["plain", "compiled"])
+@pytest.mark.parametrize("which", [PLAIN_SLOW, "compiled"])
 def test_range_query_without_distances_equals_the_oracle(torus, which):
     """The query a transmission makes when nothing asks the distances: the oracle's
     receivers, and whether all are alive (some robots switched off)."""
@@ -91,6 +94,7 @@ def test_range_query_without_distances_equals_the_oracle(torus, which):
     assert dead_seen > 10
 
 
+@pytest.mark.slow
 def test_runs_equal_with_and_without_compiled_loops(monkeypatch):
     """A run's tables are the same with the compiled loops as with the numpy code."""
     from netsim.run import execute
@@ -149,6 +153,7 @@ def test_frame_end_equals_the_oracle():
             assert out1[2][:m1].tolist() == out2[2][:m2].tolist()
 
 
+@pytest.mark.slow
 def test_medium_runs_equal_plain_and_compiled(monkeypatch):
     """A run on a CSMA medium under the unit disk gives the same tables with its loops
     compiled as with them plain Python."""
@@ -188,6 +193,7 @@ def test_reception_counts_equal_numpy(which):
     assert a.tolist() == b.tolist()
 
 
+@pytest.mark.slow
 @BOTH
 @pytest.mark.parametrize("torus", [False, True])
 def test_near_pairs_finds_every_kd_tree_pair(torus, kind):
@@ -302,7 +308,7 @@ def reach_layouts(rng, side):
     yield rng.uniform(0, side, (2, 2)), np.full(2, 900.0)
 
 
-@BOTH
+@pytest.mark.parametrize("kind", [PLAIN_SLOW, "compiled"])
 @pytest.mark.parametrize("torus", [False, True])
 def test_reach_keys_equal_the_oracle(torus, kind):
     """``receiver * n + sender`` for every sender reaching its receiver, ascending, plain and
@@ -326,6 +332,7 @@ def test_reach_keys_equal_the_oracle(torus, kind):
     assert hits > 1000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("torus", [False, True])
 def test_reach_keys_from_the_range_index_lists_equal_numpy(torus):
     """The pairs in reach from the range index's neighbour lists (the clustering's samples)

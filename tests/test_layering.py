@@ -141,6 +141,7 @@ def import_graph() -> nx.DiGraph:
     return graph
 
 
+@pytest.mark.slow
 def test_no_import_cycles():
     """No chain of imports leads from a package (or an engine module) back to itself."""
     graph = import_graph()
@@ -148,6 +149,7 @@ def test_no_import_cycles():
     assert list(nx.simple_cycles(graph)) == []
 
 
+@pytest.mark.slow
 def test_no_import_cycles_between_modules():
     """No chain of imports leads from a module back to itself, inside a subpackage too
     (the package graph above sees a subpackage as one node), imports inside functions

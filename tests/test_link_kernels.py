@@ -90,7 +90,7 @@ def test_plane_crossings_equal_numpy(scalar_window, kind):
     assert len(want) > 200  # crossings were found
 
 
-@pytest.mark.parametrize("kind", ["plain", "compiled"])
+@pytest.mark.parametrize("kind", [pytest.param("plain", marks=pytest.mark.slow), "compiled"])
 @pytest.mark.parametrize("side", [150.0, 60.0])
 def test_torus_crossings_equal_numpy(side, kind):
     """On a torus every image of the other robot that the path can reach counts: every
@@ -111,6 +111,7 @@ def test_torus_crossings_equal_numpy(side, kind):
     assert len(want) > 200
 
 
+@pytest.mark.slow
 def test_link_lifetimes_equal_with_crossings_plain_or_compiled(monkeypatch):
     """The link lifetimes of random legs are the same rows, bit for bit, whether the
     crossings are solved compiled or as plain Python."""

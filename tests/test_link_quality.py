@@ -46,6 +46,7 @@ def _last_acks(sim) -> dict:
     return {(int(r.dst), int(r.src)): r for r in acks.itertuples()}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("channel", [SHADOWED, MEDIUM], ids=["shadowing_loss", "aloha"])
 def test_table_power_is_that_of_the_last_ack_received(channel):
     """Each live entry's rx_power_dbm is, bit for bit, the rx_power_dbm of the last Ack of
@@ -61,6 +62,7 @@ def test_table_power_is_that_of_the_last_ack_received(channel):
     assert checked > 50
 
 
+@pytest.mark.slow
 def test_age_is_now_less_the_last_acks_arrival():
     """age_s = now - the arrival (send + latency) of the pair's last Ack received."""
     sim = _sim(SHADOWED)

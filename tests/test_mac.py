@@ -250,6 +250,7 @@ def test_mac_none_is_the_channel_of_infinite_capacity():
     assert "channel_utilisation" not in res.summary
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mac", ["aloha", "csma"])
 def test_the_protocol_runs_on_any_mac(mac):
     """Clustering and relaying run unchanged on a medium; the tables gain its drop causes."""
@@ -306,18 +307,21 @@ def test_an_interference_range_of_at_least_the_reach_is_accepted_under_log_dista
         assert make_config(channel={"mac": "csma", "propagation": "log_distance", "interference_range_m": r})
 
 
+@pytest.mark.slow
 def test_aloha_periodic_success_follows_the_closed_form():
     """ALOHA, periodic frames at random phases: success (1 - 2T/t)^(n-1)."""
     c = mac_checks.aloha_periodic(n=8, airtime_ratio=0.03, rounds=200, seed=3)
     assert abs(c.measured - c.theory) <= c.tolerance
 
 
+@pytest.mark.slow
 def test_aloha_poisson_success_follows_the_closed_form():
     """ALOHA, Poisson load G: success e^(-2G)."""
     c = mac_checks.aloha_poisson(n=30, load=0.3, frames=8000, seed=4)
     assert abs(c.measured - c.theory) <= c.tolerance
 
 
+@pytest.mark.slow
 def test_hidden_terminals_lose_like_an_aloha_pair():
     """Hidden terminals under CSMA: B loses like an ALOHA pair; A and B alone, both sending,
     lose at most the same-slot bound. Under ALOHA the control fails (B's own frames)."""

@@ -57,6 +57,7 @@ def test_near_pairs_plain_and_compiled_are_the_same_list(monkeypatch):
     assert got["0"] == got["1"] and len(got["0"]) > 20
 
 
+@pytest.mark.slow
 def test_small_run_does_not_import_the_kd_tree(tmp_path):
     """``netsim run`` with 10 robots leaves scipy.spatial unloaded."""
     code = (

@@ -66,6 +66,7 @@ def _ack_stream(rng, n, calls):
         yield t, s, receivers, heard, ack_record(*fields, heard=heard)
 
 
+@pytest.mark.slow
 def test_neighbour_table_loops_equal_the_oracle(kernels):
     """Recording Acks (new entries, renewals, expiry and reuse of slots, overtaken Acks,
     growth of the table, each receiver's power or none measured) leaves the same table and

@@ -168,6 +168,7 @@ PLUGIN = PluginSpec(Params=CircleParams, build=circle, moves_robots=False)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("own", ["mobility.py", "protocols.py", "hooks.py"])
 def test_a_users_module_named_like_a_model_package_shadows_nothing(tmp_path, own):
     """A user's own ``mobility.py`` (or ``protocols.py``, ``hooks.py``) in the working

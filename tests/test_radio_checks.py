@@ -12,6 +12,7 @@ def test_log_distance_without_shadowing_is_a_unit_disk():
     assert c.passed and c.measured == 0
 
 
+@pytest.mark.slow
 def test_link_fraction_follows_phi_in_every_bin():
     """Static uniform deployment, sigma = 6 dB: every bin within 4 SE of Phi (clipped at 4 sigma)."""
     results = checks.check_link_probability(LogDistanceParams(shadowing_sigma_db=6.0), n_robots=1500, seed=5)
@@ -19,6 +20,7 @@ def test_link_fraction_follows_phi_in_every_bin():
     assert all(c.passed for c in results), [c for c in results if not c.passed]
 
 
+@pytest.mark.slow
 def test_link_fraction_check_catches_a_wrong_sigma(monkeypatch):
     """The check can fail: shadowing drawn with 8 dB against a 6 dB theory is caught."""
     from netsim.radio import shadowing

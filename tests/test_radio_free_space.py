@@ -141,7 +141,7 @@ def test_cave_is_one_connected_tunnel():
 
 
 @pytest.mark.parametrize("name", ["office", "cave"])
-@pytest.mark.parametrize("compiled", ["1", "0"])
+@pytest.mark.parametrize("compiled", ["1", pytest.param("0", marks=pytest.mark.slow)])
 def test_destinations_equal_the_oracle(name, compiled, monkeypatch):
     """A round's loop (compiled and plain) draws, checks and picks exactly as sample_free
     and legs_free do (the oracle)."""

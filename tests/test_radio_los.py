@@ -233,6 +233,7 @@ def test_empty_batch(implementation):
     assert walls_crossed(m, np.empty((0, 2)), np.empty((0, 2))).tolist() == []
 
 
+@pytest.mark.parametrize("implementation", ["compiled", pytest.param("plain", marks=pytest.mark.slow)], indirect=True)
 def test_walls_at_a_robot_on_a_grid_corner_are_symmetric(implementation):
     """A robot standing on a grid corner given in world metres (a rounding step or a few off
     it): the walls between it and another robot (anywhere, on another corner, or on the

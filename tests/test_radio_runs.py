@@ -48,6 +48,7 @@ def acks_received(result) -> int:
 
 
 # -- propagation -----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_log_distance_without_shadowing_is_the_unit_disk_of_the_implied_range():
     """Same links (exact, solved) and the same receptions as a unit disk of 100 m."""
     base = {"seed": 4, "duration_s": 60.0, "world": {"n_robots": 60, "side_m": 600.0}, "protocol": {"model": "ack"}}
@@ -86,6 +87,7 @@ def shadowed_run(sigma=6.0, seed=3):
     )
 
 
+@pytest.mark.slow
 def test_shadowing_links_are_the_channels_decisions():
     """Under shadowing the links table records what the channel decided: a pair linked at a
     send time of an Ack heard is inside one of its link intervals."""
@@ -111,6 +113,7 @@ def test_shadowing_links_are_the_channels_decisions():
     )
 
 
+@pytest.mark.slow
 def test_shadowed_run_is_reproducible_and_sigma_zero_draws_nothing():
     a, b = shadowed_run(seed=5), shadowed_run(seed=5)
     pd.testing.assert_frame_equal(a.frames["links"], b.frames["links"])
@@ -185,6 +188,7 @@ def brute_force(legs, n, t, range_m, m):
     return set(zip(i[ok].tolist(), j[ok].tolist()))
 
 
+@pytest.mark.slow
 def test_walled_links_match_line_of_sight_at_random_times():
     """links.parquet under the unit disk on a map: at random instants (away from its event
     times) exactly the pairs in range with line of sight."""
@@ -238,6 +242,7 @@ def test_robots_stay_in_free_space(mobility):
     assert every_leg_free(r, cached_map("office"))
 
 
+@pytest.mark.slow
 def test_placement_draws_free_cells():
     r = run(
         duration_s=1.0,
@@ -248,6 +253,7 @@ def test_placement_draws_free_cells():
     assert cached_map("cave").is_free(r.sim.state.positions_at(0.0)).all()
 
 
+@pytest.mark.slow
 def test_coverage_keeps_robots_off_walls():
     r = run(
         seed=3,

@@ -33,9 +33,15 @@ def _mismatches(occupancy, p0, vp, q0, vq, duration, step_s, away_s=1e-6):
     # the cell's alone, an instant that no row of open intervals describes.
     times = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + 0.5) * step_s
     times = np.minimum(times, np.repeat(duration, counts))
-    # Each instant's row, and how far it is from the row's ends.
-    start = np.searchsorted(s.pair, pair, side="left")
-    row = start + np.array([np.searchsorted(s.t1_s[s.pair == i], tt, side="left") for i, tt in zip(pair, times)])
+    # Each instant's row, and how far it is from the row's ends: a pair's rows are
+    # consecutive (pairs ascending), and so are its instants.
+    assert np.all(np.diff(s.pair) >= 0)
+    bounds = np.searchsorted(s.pair, np.arange(k + 1), side="left")
+    first = np.cumsum(counts) - counts
+    row = np.empty(len(times), dtype=np.int64)
+    for i in range(k):
+        mine = slice(first[i], first[i] + counts[i])
+        row[mine] = bounds[i] + np.searchsorted(s.t1_s[bounds[i] : bounds[i + 1]], times[mine], side="left")
     row = np.minimum(row, len(s.pair) - 1)
     away = (np.abs(times - s.t0_s[row]) > away_s) & (np.abs(times - s.t1_s[row]) > away_s)
     truth = _brute(occupancy, p0, vp, q0, vq, times, pair)

@@ -80,6 +80,7 @@ def _check_rows_are_the_channels(result, deliveries, drops):
             assert (per_robot == c.dropped[k]).all(), (kind, cause)
 
 
+@pytest.mark.slow
 def test_receptions_are_the_channels_decisions_under_shadowing():
     """Under log-distance with 4 dB shadowing and 20 % loss, the received rows are the
     deliveries, the failed rows the drops (per cause), and a row is received iff its power
@@ -94,6 +95,7 @@ def test_receptions_are_the_channels_decisions_under_shadowing():
     assert np.isinf(r["sinr_db"]).all()
 
 
+@pytest.mark.slow
 def test_receptions_power_is_the_log_distance_law_with_the_pairs_shadowing():
     """Each row's power is the path loss at its distance, recomputed here, plus a shadowing
     within the clip (without shadowing: the law exactly); its distance is the pair's."""
@@ -120,6 +122,7 @@ def test_receptions_power_is_the_log_distance_law_with_the_pairs_shadowing():
             assert row["distance_m"] == pytest.approx(float(np.hypot(*(pos[0] - pos[1]))), abs=1e-9)
 
 
+@pytest.mark.slow
 def test_receptions_under_a_shared_medium_are_its_captures():
     """Under ALOHA with a power model, collisions and half duplex are rows too: the received
     rows are the deliveries, the failed rows the drops; a frame that reached its end is
@@ -151,6 +154,7 @@ def test_receptions_under_the_unit_disk_have_no_power():
     assert list(r.columns) == list(RECEPTIONS_SCHEMA)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "channel", [{"loss_model": "bernoulli", "loss_probability": 0.2}, {**SHADOWED, "mac": "aloha"}]
 )

@@ -167,6 +167,7 @@ def test_drawn_positions_roles_and_links_equal_the_files(moving_run, open_page):
         assert_matches(page, moving_run, 40, t)
 
 
+@pytest.mark.slow
 def test_gateways_are_drawn_from_the_groups_sample(moving_run, open_page):
     """A member in two groups at the last groups sample is drawn as a gateway."""
     page = open_page(moving_run / "view.html")
@@ -180,6 +181,7 @@ def test_gateways_are_drawn_from_the_groups_sample(moving_run, open_page):
     assert found > 0
 
 
+@pytest.mark.slow
 def test_play_advances_time(moving_run, open_page):
     page = open_page(moving_run / "view.html")
     page.js("netsimView.seek(10)")
@@ -192,6 +194,7 @@ def test_play_advances_time(moving_run, open_page):
     np.testing.assert_allclose(np.array(page.js("netsimView.positions()")), positions_at(moving_run, 40, t), atol=1e-9)
 
 
+@pytest.mark.slow
 def test_relayed_messages_are_drawn_as_they_hop(moving_run, open_page):
     """Within the message trail, one segment per robot's first reception of a message
     (hops.parquet, less the repeats and the source hearing its own message again)."""
@@ -223,6 +226,7 @@ def test_screenshot_is_not_blank(moving_run, open_page):
     assert colours & group  # in the groups' colours
 
 
+@pytest.mark.slow
 def test_hover_shows_id_role_leader_and_neighbours(moving_run, open_page):
     page = open_page(moving_run / "view.html")
     t = 30.0
@@ -451,6 +455,7 @@ def test_walls_of_a_map_are_drawn(moving_run, tmp_path, open_page):
     assert not any(c == wall for c in colours_at(200.0))
 
 
+@pytest.mark.slow
 def test_walls_of_a_run_with_a_map_are_drawn(tmp_path, open_page):
     """A run on the office map: the page draws its walls from the run's own world.map, in
     the wall colour where the map is occupied and not where it is free."""
@@ -504,6 +509,7 @@ def test_walls_of_a_run_with_a_map_are_drawn(tmp_path, open_page):
 
 
 # -- the command, without a browser ------------------------------------------------------
+@pytest.mark.slow
 def test_view_writes_one_self_contained_file(moving_run, tmp_path, capsys):
     """`netsim view RUN --out FILE`: one file, no external script, style or image, and the
     same run gives the same bytes."""
@@ -534,6 +540,7 @@ def test_view_of_a_bad_directory_is_a_one_line_error(tmp_path, capsys, setup, me
     assert not (tmp_path / "v.html").exists()
 
 
+@pytest.mark.slow
 def test_view_needs_legs_or_positions(moving_run, tmp_path, capsys):
     run = tmp_path / "bare"
     run.mkdir()
@@ -543,6 +550,7 @@ def test_view_needs_legs_or_positions(moving_run, tmp_path, capsys):
     assert list(run.iterdir()) == [run / "config.toml"]
 
 
+@pytest.mark.slow
 def test_the_form_shows_the_command_for_another_scenario(moving_run, open_page):
     """The paper's workflow from the page: N, speeds, duration, range and seed give the
     `netsim run` command, starting from the run's own configuration."""
@@ -558,6 +566,7 @@ def test_the_form_shows_the_command_for_another_scenario(moving_run, open_page):
     assert "--seed 3" in command and command.rstrip().endswith("--view")
 
 
+@pytest.mark.slow
 def test_a_run_without_roles_is_drawn_as_in_the_figures(tmp_path, open_page):
     """The Ack beacon alone: no roles, so plain grey dots in both drawings; the chart
     still has the Ack delivery ratio."""

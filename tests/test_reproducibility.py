@@ -16,8 +16,14 @@ def _run(tmp_path, name, *extra):
     return out
 
 
-def test_same_seed_gives_identical_files(tmp_path):
-    a, b = _run(tmp_path, "a", "--seed", "7"), _run(tmp_path, "b", "--seed", "7")
+@pytest.fixture(scope="module")
+def seed_7(tmp_path_factory):
+    """The run of seed 7, made once for the tests that compare another run with it."""
+    return _run(tmp_path_factory.mktemp("seed_7"), "a", "--seed", "7")
+
+
+def test_same_seed_gives_identical_files(tmp_path, seed_7):
+    a, b = seed_7, _run(tmp_path, "b", "--seed", "7")
     for name in ("positions", "links", "acks", "roles", "groups", "messages", "beliefs", "legs", "hops"):
         assert (a / f"{name}.parquet").read_bytes() == (b / f"{name}.parquet").read_bytes(), name
     assert (a / "config.toml").read_text() == (b / "config.toml").read_text()
@@ -27,15 +33,15 @@ def test_same_seed_gives_identical_files(tmp_path):
 
 
 @pytest.mark.slow
-def test_other_seed_gives_other_results(tmp_path):
-    a, b = _run(tmp_path, "a", "--seed", "7"), _run(tmp_path, "b", "--seed", "8")
+def test_other_seed_gives_other_results(tmp_path, seed_7):
+    a, b = seed_7, _run(tmp_path, "b", "--seed", "8")
     for name in ("positions", "links", "acks"):
         assert not pd.read_parquet(a / f"{name}.parquet").equals(pd.read_parquet(b / f"{name}.parquet")), name
 
 
 @pytest.mark.slow
-def test_protocol_parameters_leave_positions_unchanged(tmp_path):
-    a = _run(tmp_path, "a", "--seed", "7")
+def test_protocol_parameters_leave_positions_unchanged(tmp_path, seed_7):
+    a = seed_7
     b = _run(
         tmp_path,
         "b",
@@ -136,11 +142,11 @@ def test_tables_are_the_files_pandas_writes(tmp_path, rows):
         assert (tmp_path / "run" / "t.parquet").read_bytes() == (tmp_path / "pandas.parquet").read_bytes()
 
 
-def test_tables_written_together_are_the_files_written_one_at_a_time(tmp_path, monkeypatch):
+def test_tables_written_together_are_the_files_written_one_at_a_time(tmp_path, monkeypatch, seed_7):
     """write_run writes its tables a few at a time: every file is the one it writes alone."""
     from netsim.tools import output
 
-    a = _run(tmp_path, "a", "--seed", "7")
+    a = seed_7
     monkeypatch.setattr(output, "WRITERS", 1)
     b = _run(tmp_path, "b", "--seed", "7")
     tables = sorted(p.name for p in a.glob("*.parquet"))

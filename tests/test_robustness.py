@@ -224,6 +224,7 @@ def test_view_out_refuses_an_existing_file(tmp_path, capfd, small_run):
     assert (tmp_path / "replay.html").read_text() == "the user's own page\n"
 
 
+@pytest.mark.slow
 def test_view_remakes_the_runs_own_replay(tmp_path, capfd, small_run):
     """Without --out, `netsim view RUN` writes RUN/view.html, the run's own file, again
     when it is there already (as `netsim run --view` left it)."""

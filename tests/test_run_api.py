@@ -113,6 +113,7 @@ def test_run_to_now_and_to_the_end_are_allowed():
     np.testing.assert_array_equal(collect(sim)["positions"]["t_s"].max(), 10.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "radio",
     [

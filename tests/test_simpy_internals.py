@@ -31,6 +31,7 @@ def test_another_major_version_is_refused_in_one_line(version):
     assert f"SimPy {simpy_internals.TESTED_MAJOR}" in message and "pip install" in message
 
 
+@pytest.mark.slow
 def test_no_other_module_touches_simpys_internals():
     """Outside netsim/simpy_internals.py no module of netsim, protocols, mobility or hooks
     reads or sets SimPy's private attributes (``_queue``, ``_eid``, ``_now``, ``_ok``,

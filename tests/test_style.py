@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from netsim.tools import figures, style, viewer
 from netsim.tools.cli import main
@@ -50,6 +51,7 @@ def test_the_figures_name_no_colour():
     assert HEX.findall(src) == []
 
 
+@pytest.mark.slow
 def test_the_page_carries_the_style_itself(tmp_path):
     """The replay's page embeds :func:`style.as_json` as is: a colour changed in the style
     changes the figures and the page alike."""
@@ -133,6 +135,7 @@ def _colour_of(run_dir: Path) -> np.ndarray:
     return np.frombuffer(raw, dtype="<i2", count=length, offset=offset)
 
 
+@pytest.mark.slow
 def test_a_run_without_sampled_positions_is_coloured_at_every_ack_period(tmp_path):
     """Without positions.parquet the replay decides the colours on the legs at every Ack
     period: the same colours as the same run sampled every Ack period."""

@@ -104,6 +104,7 @@ def test_leg_lengths_from_third_leave_out_the_first_two_legs_and_late_starts():
     assert lengths.tolist() == [3.0, 4.0] and robots.tolist() == [0, 0]
 
 
+@pytest.mark.slow
 def test_capped_link_duration_is_pi_squared_r_over_8v_without_a_cap_and_less_with_one():
     """Item 6's theory: the mean of min(T, cap) over links born in steady state is
     pi^2 R / (8 v) for a cap beyond every duration, and the exact capped value below it."""
@@ -139,7 +140,14 @@ def test_aloha_poisson_standard_error_matches_a_poisson_line_drawn_directly():
     assert ratio.var() == pytest.approx(mac_checks.aloha_poisson_se(g, frames.mean()) ** 2, rel=0.1)
 
 
-@pytest.mark.parametrize("check", [validate.check_unit_disk, validate.check_exact_links, validate.check_delivery_ratio])
+@pytest.mark.parametrize(
+    "check",
+    [
+        validate.check_unit_disk,
+        pytest.param(validate.check_exact_links, marks=pytest.mark.slow),
+        pytest.param(validate.check_delivery_ratio, marks=pytest.mark.slow),
+    ],
+)
 def test_quick_checks_pass(check):
     for result in check():
         assert result.passed, result
