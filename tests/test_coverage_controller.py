@@ -198,6 +198,8 @@ def test_members_that_miss_their_command_hold():
 
 @pytest.mark.slow
 def test_coverage_metrics_are_sampled_over_time(shared_run):
+    """The coverage table has its columns and a row every metrics interval (5 s), the mean
+    distance travelled never falls, and the travel table agrees with the summary."""
     r = shared_run(40, 1)
     cov = r.frames["coverage"]
     expected = {
@@ -240,6 +242,7 @@ def test_follow_mode_reproduces_the_paper_faithful_controller(seed):
 
 @pytest.mark.slow
 def test_same_seed_same_coverage_trace(shared_run):
+    """Two runs of the same seed under coverage control move every robot the same way."""
     a, b = shared_run(40, 1), coverage_run(40, 1)
     assert a.sim.state.legs().equals(b.sim.state.legs())
 

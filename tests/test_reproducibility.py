@@ -23,6 +23,7 @@ def seed_7(tmp_path_factory):
 
 
 def test_same_seed_gives_identical_files(tmp_path, seed_7):
+    """The same seed writes the same tables, configuration and summary, byte for byte."""
     a, b = seed_7, _run(tmp_path, "b", "--seed", "7")
     for name in ("positions", "links", "acks", "roles", "groups", "messages", "beliefs", "legs", "hops"):
         assert (a / f"{name}.parquet").read_bytes() == (b / f"{name}.parquet").read_bytes(), name
@@ -34,6 +35,7 @@ def test_same_seed_gives_identical_files(tmp_path, seed_7):
 
 @pytest.mark.slow
 def test_other_seed_gives_other_results(tmp_path, seed_7):
+    """Another seed gives other positions, links and Acks."""
     a, b = seed_7, _run(tmp_path, "b", "--seed", "8")
     for name in ("positions", "links", "acks"):
         assert not pd.read_parquet(a / f"{name}.parquet").equals(pd.read_parquet(b / f"{name}.parquet")), name
@@ -41,6 +43,7 @@ def test_other_seed_gives_other_results(tmp_path, seed_7):
 
 @pytest.mark.slow
 def test_protocol_parameters_leave_positions_unchanged(tmp_path, seed_7):
+    """Changing the protocol's parameters never changes the robots' motion (streams per component)."""
     a = seed_7
     b = _run(
         tmp_path,
