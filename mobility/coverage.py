@@ -722,7 +722,9 @@ class CoverageController:
     def _covered(self, centres: np.ndarray) -> tuple[float, float]:
         box, region = self.limits.box, self.region
         if self.cfg.area_method is AreaMethod.GRID:
-            return metrics.covered_fraction(centres, self.radius_m, box, self.cfg.grid_cells, region=region)
+            return metrics.covered_fraction(
+                centres, self.radius_m, box, self.cfg.grid_cells, region=region, n_robots=self.state.n
+            )
         return metrics.covered_fraction_exact(centres, self.radius_m, box, region=region)
 
     def sample(self, t: float) -> dict:

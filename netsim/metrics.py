@@ -186,6 +186,7 @@ def covered_fraction(
     cells: int = 500,
     torus: bool = False,
     region: Any = None,
+    n_robots: int | None = None,
 ) -> tuple[float, float]:
     """Fraction of the area (Bounds, or the side of the square ``[0, side]^2``; a torus is
     the square) within ``radius_m`` of some centre, estimated on a ``cells x cells`` grid of
@@ -193,7 +194,8 @@ def covered_fraction(
     the kernel :func:`netsim._kernels.grid_nearest_m`, the environments' rule too. Returns
     ``(fraction, error_bound)``. With ``region`` (a shapely geometry inside the area: a
     map's free region) the fraction is of the grid's cells whose centre lies in it, and the
-    cells the region's boundary crosses count as uncertain too.
+    cells the region's boundary crosses count as uncertain too. ``n_robots``: the team's
+    size, for :func:`netsim.compiled.load` (None: not known, the compiled kernel).
 
     The bound is rigorous: a cell can be misclassified only if the union's boundary
     crosses it, i.e. only if its centre is within ``h / sqrt(2)`` (``h``: the cell size)
@@ -225,7 +227,7 @@ def covered_fraction(
         edge = shapely.dwithin(region.boundary, shapely.points(gx.ravel()[inside], gy.ravel()[inside]), half_diagonal)
     if len(centres) == 0 or len(edge) == 0:
         return 0.0, float(np.mean(edge)) if len(edge) else 0.0
-    kernels = load("netsim._kernels", None)
+    kernels = load("netsim._kernels", n_robots)
     box = side_m if torus else 0.0
     dist = kernels.grid_nearest_m(centres, radius_m + half_diagonal, b.x_min, b.y_min, b.width, b.height, cells, box)
     dist = dist.ravel()[inside]
