@@ -741,19 +741,34 @@ class Fade:
         travel, the sure distance less ``margin_m``, no bound."""
         x, margin, s = knows.x_db, knows.margin_db, knows.measured_s
         measured = np.isfinite(x) & np.isfinite(margin) & np.isfinite(s)
-        budget = np.where(measured, np.minimum(self.fade_margin_db, margin), 0.0)
         x0 = np.where(measured, x, 0.0)
-        reach = self.radio.effective_range_m(x0 + budget, 0)
-        travel = fade_travel_m(budget, x0, self.sigma_db, self.decorrelation_m)
-        own = np.arange(len(s))
-        own_travel = largest_travel_m(
-            knows.leg_speed_mps[own, own][:, None], knows.leg_from_s[own, own][:, None], s, t0_s, speed_mps
-        )
+        _, reach, left = self._allowance(knows, np.where(measured, margin, 0.0), x0, s, t0_s, speed_mps)
         with np.errstate(invalid="ignore"):
-            left = travel - own_travel - knows.travel_m(s, t0_s, speed_mps) - speed_mps * (t1_s - t0_s)
+            left = left - speed_mps * (t1_s - t0_s)
         usable = measured & (reach > self.sure_m) & (left > 0)
         keep = np.where(usable, reach, self.sure_m) - self.margin_m
         return keep, np.where(usable, left, np.inf)
+
+    def _allowance(
+        self, knows: Memory, margin_db: np.ndarray, x0_db: np.ndarray, since_s: np.ndarray, t0_s: float, speed: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fade-margin rule for links measured at ``since_s`` with shadowing ``x0_db``
+        and margin ``margin_db`` (0 where there is none): ``(budget, length, left)``, the
+        budget ``B = min(fade_margin_db, margin)``, the length at which the margin with that
+        ``X`` is ``B``, and the pair's travel ``B`` allows
+        (:func:`netsim.mobility.keep.fade_travel_m`) less what each end travelled since, as
+        the robot knows it (its own leg, the other's from its Acks, :meth:`Memory.travel_m`;
+        ``speed``: the cap, where no velocity is known)."""
+        budget = np.minimum(self.fade_margin_db, margin_db)
+        length = self.radio.effective_range_m(x0_db + budget, 0)
+        own = np.arange(len(since_s))
+        own_travel = largest_travel_m(
+            knows.leg_speed_mps[own, own][:, None], knows.leg_from_s[own, own][:, None], since_s, t0_s, speed
+        )
+        with np.errstate(invalid="ignore"):
+            travel = fade_travel_m(budget, x0_db, self.sigma_db, self.decorrelation_m)
+            left = travel - own_travel - knows.travel_m(since_s, t0_s, speed)
+        return budget, length, left
 
     def halves(self, knows: Memory, heard: Heard, pos: np.ndarray, t0_s: float, speed_mps: float) -> Halves:
         """Where each robot can answer for half of a link (rule 2, "Halves"): the link's record
@@ -773,15 +788,9 @@ class Fade:
             seen = np.isfinite(x) & np.isfinite(since) & exact
             x0 = np.where(seen, x, 0.0)
             m0 = np.where(seen, r.tx_power_dbm - r.path_loss_db(np.maximum(d0, 1e-9)) - x0 - r.sensitivity_dbm, 0.0)
-            budget = np.where(seen, np.minimum(self.fade_margin_db, m0), 0.0)
+            budget, length, left = self._allowance(knows, m0, x0, since, t0_s, speed_mps)
             # B <= m0: the margin at d0 is at least B (max: the inverse's rounding).
-            length = np.maximum(r.effective_range_m(x0 + budget, 0), d0)
-            own = np.arange(n)
-            own_travel = largest_travel_m(
-                knows.leg_speed_mps[own, own][:, None], knows.leg_from_s[own, own][:, None], since, t0_s, speed_mps
-            )
-            travel = fade_travel_m(budget, x0, self.sigma_db, self.decorrelation_m)
-            left = travel - own_travel - knows.travel_m(since, t0_s, speed_mps)
+            length = np.maximum(length, d0)
             usable = seen & (budget > 0) & (left > 0)
         centre = 0.5 * (pos[:, None, :] + q)
         return Halves(usable, centre, np.where(usable, 0.5 * length, 0.0), np.where(usable, 0.5 * left, 0.0))
