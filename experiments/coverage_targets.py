@@ -200,6 +200,8 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         holding = kept & (dist > leash_radius(knows, t0, limits))
         if self.halves is not None:
             holding &= ~self.halves.usable
+            # the travel the plan used: a half's, where the robot answered by halves
+            travel = np.where(self.halves.usable, self.halves.travel_m, travel)
         moved = np.hypot(*plan.velocity_mps.T) > 0
         wish = np.hypot(*step.velocity_mps.T) > 0
         no_travel = fade.reach(travel, kept) <= 0
