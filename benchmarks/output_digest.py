@@ -79,6 +79,8 @@ SCENARIOS: dict[str, list[str]] = {
     "coverage_follow": COVERAGE + ["coverage.members=follow"],
     "coverage_follow_global": COVERAGE
     + ["coverage.members=follow", "coverage.knowledge=global", "coverage.law=repulsion"],
+    "coverage_local_shadowing": COVERAGE
+    + ["coverage.plan=local", "channel.propagation=log_distance", "channel.shadowing_sigma_db=4"],
     "controllers": COVERAGE + ['control.controllers=["avoid_collisions", "log_separation"]'],
     "hooks_without_coverage": ['control.controllers=["log_separation"]', "control.options={min_separation_m = 5.0}"],
     "overtaken_acks": ["channel.latency_jitter_s=1.5", "protocol.tau_s=4", "protocol.message_rate_hz=1"],
