@@ -25,6 +25,7 @@ from typing import NamedTuple
 import numpy as np
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
+from netsim.compiled import load
 from netsim.groups import in_a_group, leads_itself
 from netsim.topology import geometric_pairs
 
@@ -55,8 +56,8 @@ def groups_of(pos: np.ndarray, leader: np.ndarray, range_m: float) -> Groups:
     is_leader = leads_itself(leader)
     member = in_a_group(leader)
     lead = np.where(member, leader, ids)
-    to_leader = np.hypot(*(pos - pos[lead]).T)
-    follows = member & is_leader[lead] & (to_leader <= range_m)
+    near = load("netsim._kernels", len(pos)).in_range(pos, ids, lead, np.full(len(pos), float(range_m)), 0.0)
+    follows = member & is_leader[lead] & near
     return Groups(np.where(follows, lead, ids), is_leader, follows)
 
 

@@ -139,7 +139,7 @@ class LinkRules:
         if self.log is None:
             # The unit disk with line of sight.
             r = np.minimum(self.state.range_m[i], self.state.range_m[j])
-            ok = (d <= r) & (walls == 0)
+            ok = load("netsim._kernels", len(pos)).in_range(pos, i, j, r, 0.0) & (walls == 0)
             i, j, d, r = i[ok], j[ok], d[ok], r[ok]
             return Candidates(i, j, d, d + float(r.max(initial=0.0)), r - self.margin_m, np.full(len(i), np.inf), r)
         return self._power_candidates(pos, t_s, i, j, d, walls)
