@@ -35,12 +35,13 @@ class Shadow(NamedTuple):
 
 
 class ShadowLaw(NamedTuple):
-    """The shadowing's law: sigma (dB), decorrelation distance (m), and the robots whose
-    every pair has a slot (0: none)."""
+    """The shadowing's law: sigma (dB), decorrelation distance (m), the robots whose
+    every pair has a slot (0: none), and the bound of ``|X|`` in a loss (dB)."""
 
     sigma_db: float
     decorrelation_m: float
     dense_n: int
+    clip_db: float
 
 
 class Clocks(NamedTuple):
@@ -51,10 +52,12 @@ class Clocks(NamedTuple):
 
 
 class Drawn(NamedTuple):
-    """Filled: each pair's shadowing, dB, and whether the pair is new (not stored)."""
+    """Filled: each pair's shadowing, dB (a new pair's first draw where it is new), whether
+    the pair is new (not stored), and the shadowing as a loss uses it (:func:`shadow_term`)."""
 
     x: np.ndarray
     new: np.ndarray
+    used: np.ndarray
 
 
 class PathLoss(NamedTuple):
@@ -138,27 +141,44 @@ def moved_on(table_x, table_s, pos, s_new, sigma, decorrelation_m, z):
     return v
 
 
+@jit(nogil=True, inline="always")
+def look(table_keys, table_x, table_s, dense_n, key, s_new, sigma, decorrelation_m, z):
+    """The pair ``key`` looked at at travel ``s_new`` with the standard normal ``z``: its
+    stored value moved on (:func:`moved_on`), or, for a pair not stored, a draw of the
+    stationary law ``sigma z`` (not stored here: the caller records it). Returns the value
+    and whether the pair is new."""
+    pos = stored_slot(table_keys, table_x, dense_n, key)
+    if pos < table_keys.shape[0]:
+        return moved_on(table_x, table_s, pos, s_new, sigma, decorrelation_m, z), False
+    return sigma * z, True
+
+
+@jit(nogil=True, inline="always")
+def shadow_term(x, clip_db):
+    """The shadowing ``x`` (dB) as a pair's loss takes it: clipped to ``+-clip_db`` (the
+    stored state is not clipped, so the process stays exact)."""
+    return min(max(x, -clip_db), clip_db)
+
+
 @jit(nogil=True)
 def shadow_step(shadow, law, pairs, out):
-    """Move the stored pairs among ``pairs.keys`` on to travel ``pairs.s_new`` (in place):
-    their values to ``out.x``; flag the others in ``out.new``. ``shadow``: :class:`Shadow`;
-    ``law``: :class:`ShadowLaw`; ``pairs``: :class:`Clocks`; ``out``: :class:`Drawn`."""
+    """Look at the pairs ``pairs.keys`` at travels ``pairs.s_new`` (:func:`look`; stored
+    pairs move on in place): their values to ``out.x``, clipped to ``out.used``
+    (:func:`shadow_term`), the new ones flagged in ``out.new``. ``shadow``: :class:`Shadow`;
+    ``law``: :class:`ShadowLaw` (``clip_db``: :func:`shadow_term`'s bound); ``pairs``:
+    :class:`Clocks`; ``out``: :class:`Drawn`."""
     sh = Shadow(*shadow)
     lw = ShadowLaw(*law)
     pc = Clocks(*pairs)
     dr = Drawn(*out)
     table_keys, table_x, table_s, z = sh.table_keys, sh.table_x, sh.table_s, sh.normals
-    sigma, decorrelation_m, dense_n = lw.sigma_db, lw.decorrelation_m, lw.dense_n
+    sigma, decorrelation_m, dense_n, clip_db = lw.sigma_db, lw.decorrelation_m, lw.dense_n, lw.clip_db
     keys, s_new = pc.keys, pc.s_new
-    x, new = dr.x, dr.new
-    n = table_keys.shape[0]
     for m in range(keys.shape[0]):
-        pos = stored_slot(table_keys, table_x, dense_n, keys[m])
-        if pos < n:
-            x[m] = moved_on(table_x, table_s, pos, s_new[m], sigma, decorrelation_m, z[m])
-            new[m] = False
-        else:
-            new[m] = True
+        v, is_new = look(table_keys, table_x, table_s, dense_n, keys[m], s_new[m], sigma, decorrelation_m, z[m])
+        dr.x[m] = v
+        dr.new[m] = is_new
+        dr.used[m] = shadow_term(v, clip_db)
 
 
 @jit(nogil=True)
@@ -211,7 +231,6 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
     decorrelation_m, clip_db, wall_db, dense_n = c.decorrelation_m, c.clip_db, c.wall_db, c.dense_n
     cells, eps, budget_slack = (flat, c.map_h, c.map_w), c.eps, c.budget_slack
     tx_dbm, sensitivity_dbm = c.tx_dbm, c.sensitivity_dbm
-    n = table_keys.shape[0]
     j = 0
     for m in range(loss.shape[0]):
         receivable[m] = False
@@ -220,15 +239,12 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
             continue
         total = loss[m]
         if sigma > 0.0:
-            pos = stored_slot(table_keys, table_x, dense_n, keys[m])
-            if pos < n:
-                v = moved_on(table_x, table_s, pos, s_new[m], sigma, decorrelation_m, z[j])
-            else:
-                v = sigma * z[j]
+            v, is_new = look(table_keys, table_x, table_s, dense_n, keys[m], s_new[m], sigma, decorrelation_m, z[j])
+            if is_new:
                 new[m] = True
                 x_new[m] = v
             j += 1
-            total = total + min(max(v, -clip_db), clip_db)
+            total = total + shadow_term(v, clip_db)
         if wall_db > 0.0:
             if total > budget_slack:
                 continue
@@ -242,6 +258,37 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
 
 
 @jit(nogil=True)
+def received_pass(frame, d, x, walls, out):
+    """Power (dBm) at each receiver: ``P_t`` less the loss a decision sums, path loss
+    (:func:`path_loss_db`), the pair's stored shadowing ``x`` (:func:`shadow_term`; NaN, a
+    pair never seen: none) when the run has shadowing, and ``wall_db`` per wall of ``walls``
+    when it has a wall loss. ``frame``: the run's constants."""
+    c = frame[0]
+    for m in range(d.shape[0]):
+        total = path_loss_db(d[m], c.d0_m, c.pl0_db, c.n10)
+        if c.sigma_db > 0.0:
+            total = total + (0.0 if np.isnan(x[m]) else shadow_term(x[m], c.clip_db))
+        if c.wall_db > 0.0:
+            total = total + c.wall_db * walls[m]
+        out[m] = c.tx_dbm - total
+
+
+@jit(nogil=True, inline="always")
+def in_disk(distance_m, range_m):
+    """The unit disk's rule: a pair at ``distance_m`` links when within the range."""
+    return distance_m <= range_m
+
+
+@jit(nogil=True)
+def disk_losses(distance_m, a, range_m, out):
+    """The unit disk as a loss (dB) of each pair: 0 within the range of its sender
+    (``range_m[a[m]]``, or ``range_m[0]`` for all when it has one item), infinite beyond."""
+    per_robot = range_m.shape[0] > 1
+    for m in range(distance_m.shape[0]):
+        out[m] = 0.0 if in_disk(distance_m[m], range_m[a[m]] if per_robot else range_m[0]) else np.inf
+
+
+@jit(nogil=True)
 def disk_pass(frame, d, a, range_m, flat, points, receivable):
     """The unit disk (the sender's range: ``range_m[a]``, or ``range_m[0]`` for all), with
     line of sight on a map (``flat``, the ends in grid units ``points``: :class:`Points`)."""
@@ -249,8 +296,7 @@ def disk_pass(frame, d, a, range_m, flat, points, receivable):
     ends = Points(*points)
     g0, g1 = ends.g0, ends.g1
     for m in range(d.shape[0]):
-        r = range_m[a[m]] if c.per_robot else range_m[0]
-        ok = d[m] <= r
+        ok = in_disk(d[m], range_m[a[m]] if c.per_robot else range_m[0])
         if ok and c.use_map:
             walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, 0)
             ok = walls == 0

@@ -148,8 +148,11 @@ class RangeLoss:
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
-        r = self.range_m if self.range_m.ndim == 0 else self.range_m[pairs.a]
-        return np.where(pairs.distance_m <= r, 0.0, np.inf)
+        """The kernel :func:`netsim.radio._kernels.disk_losses`, the compiled pass's rule."""
+        d = np.asarray(pairs.distance_m, dtype=float)
+        out = np.empty(d.shape[0])
+        load("netsim.radio._kernels", d.shape[0]).disk_losses(d, pairs.a, np.atleast_1d(self.range_m), out)
+        return out
 
 
 class LineOfSightLoss:

@@ -22,9 +22,13 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.radio.chain import Pairs, Propagation
+from netsim.radio.chain import Propagation
 from netsim.radio.fast import GenericChain
 from netsim.state import RobotState
+from netsim.world.los import walls_crossed
+
+# What a pass reads where a run has no shadowing or no walls.
+_NONE = np.zeros(1)
 
 
 class LinkRecorder:
@@ -184,11 +188,12 @@ class Reception:
         if c.log is None:
             raise ValueError("received power needs a log-distance radio")
         k = len(receivers)
-        pairs = Pairs(np.full(k, sender, dtype=np.int64), receivers, None, None, distances_m, None)
-        loss = c.log.loss_db(pairs)
+        x = walls = _NONE
         if c.shadow is not None and c.shadow.sigma_db > 0 and k:
-            x, _ = c.shadow.state(pairs.a, receivers)
-            loss = loss + np.clip(np.nan_to_num(x), -c.shadow.clip_db, c.shadow.clip_db)
+            x, _ = c.shadow.state(np.full(k, sender, dtype=np.int64), receivers)
         if c.walls is not None and k:
-            loss = loss + c.walls.loss_db(c._pairs(self.state, t, sender, receivers, distances_m))
-        return self.propagation.radio.received_dbm(loss)
+            pairs = c._pairs(self.state, t, sender, receivers, distances_m)
+            walls = walls_crossed(c.walls.occupancy, pairs.pos_a, pairs.pos_b)
+        out = np.empty(k)
+        c.k.received_pass(c.frame, np.asarray(distances_m, dtype=float), x, walls, out)
+        return out

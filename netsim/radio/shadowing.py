@@ -213,16 +213,17 @@ class PairShadowing:
         self.consume(k)
         x = np.empty(k)
         new = np.empty(k, dtype=np.bool_)
-        law = tuple(ShadowLaw(self.sigma_db, self.decorrelation_m, self.dense_n))
+        used = np.empty(k)
+        law = tuple(ShadowLaw(self.sigma_db, self.decorrelation_m, self.dense_n, self.clip_db))
         shadow = tuple(Shadow(self._keys, self._x, self._s, z))
-        self._step(shadow, law, tuple(Clocks(keys, s_new)), tuple(Drawn(x, new)))
+        self._step(shadow, law, tuple(Clocks(keys, s_new)), tuple(Drawn(x, new, used)))
         if new.any():
+            # A pair new twice in the batch keeps the draw of its first appearance.
             idx = np.flatnonzero(new)
             uniq, first, inverse = np.unique(keys[idx], return_index=True, return_inverse=True)
-            fresh = self.sigma_db * z[idx[first]]
-            x[idx] = fresh[inverse]
-            self.insert(uniq, fresh, s_new[idx[first]])
-        return np.clip(x, -self.clip_db, self.clip_db)
+            used[idx] = used[idx[first]][inverse]
+            self.insert(uniq, x[idx[first]], s_new[idx[first]])
+        return used
 
     def insert(self, keys, x, s) -> None:
         """Record pairs seen for the first time (``keys`` ascending, none recorded yet)."""
