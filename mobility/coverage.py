@@ -97,6 +97,7 @@ from netsim.mobility.forces import (
     pair_resultants,
     resultant,
 )
+from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide
 from netsim.mobility.keep import LinkRules
 from netsim.mobility.local import (
     Fade,
@@ -406,6 +407,8 @@ class CoverageController:
         # step short of a wall).
         self.occupancy = parts.occupancy
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
+        # Distances through the map's free space, for pushes that follow it (netsim.mobility.geodesic).
+        self.grid = FreeGrid(parts.occupancy, self.limits.box) if parts.occupancy is not None else None
         # On a map coverage is of the free region the team starts in, the space it can reach
         # (docs/model.md 5.3): the covered fractions and the bound are over its area.
         self.region = None
@@ -477,6 +480,19 @@ class CoverageController:
         margin = SQRT3 * self.range_m / 2
         return wall_forces(self.occupancy, self.obstacles, pos, margin, self.cfg.gain)
 
+    def _in_sight(self, pos: np.ndarray, target: np.ndarray, source_xy: np.ndarray):
+        """On a map, the force pairs whose straight segment is free (netsim.mobility.geodesic.in_sight)."""
+        if self.occupancy is None:
+            return target, source_xy
+        ok = in_sight(self.occupancy, pos[target], source_xy)
+        return target[ok], source_xy[ok]
+
+    def _slide(self, pos: np.ndarray, wished: np.ndarray) -> np.ndarray:
+        """On a map, wishes that run into a wall slide along it (netsim.mobility.geodesic.slide)."""
+        if self.occupancy is None:
+            return wished
+        return slide(self.occupancy, pos, wished, self.limits.period_s, self.limits.reach_m)
+
     # -- the two stages of a step --------------------------------------------------
     def propose(self, step: ControlStep) -> None:
         """Order 0: the wished velocities from the forces the leaders know of."""
@@ -523,12 +539,18 @@ class CoverageController:
             target, source_xy = sources_true(pos_now, self.range_m)
         else:
             target, _, source_xy = self.view.neighbourhood(now)
+        target, source_xy = self._in_sight(pos_now, target, source_xy)
         wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos_now)
         if c.expansion > 0:
             a, b = self.link_state.up_pairs()
-            centre = component_centres(pos_now, metrics.components_of_links(self.state.n, a, b))
-            wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
+            component = metrics.components_of_links(self.state.n, a, b)
+            if self.grid is not None:
+                wished += expansion_along_free_space(self.grid, pos_now, component, c.expansion, self.range_m, c.gain)
+            else:
+                centre = component_centres(pos_now, component)
+                wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
+        wished = self._slide(pos_now, wished)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
@@ -553,8 +575,10 @@ class CoverageController:
         self.heard = self.lists.heard(memory.known(self.env.now, c.release_s), memory.sent_s, c.release_s)
         self.lists.take(memory, self.env.now, c.release_s)
         target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)
+        target, source_xy = self._in_sight(pos, target, source_xy)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
+        wished = self._slide(pos, wished)
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
