@@ -22,7 +22,6 @@ team's map is known to every robot):
 from __future__ import annotations
 
 import numpy as np
-
 from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
 
