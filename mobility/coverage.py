@@ -666,6 +666,9 @@ class CoverageController:
         moving = np.flatnonzero((move != 0).any(axis=1))
         if len(moving) == 0:
             return plan
+        # A planned step that runs into a wall slides along it instead: the exact cut below
+        # keeps every kept link up whatever the step.
+        move = slide(self.occupancy, pos, move, 1.0, math.inf)
         f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])
         move[moving] *= f[:, None]
         scale = self.rules.cut_for_walls(pos, move, commanded, links, plan.kept, self.limits.period_s)
