@@ -98,7 +98,7 @@ from netsim.mobility.forces import (
     resultant,
 )
 from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide
-from netsim.mobility.keep import LinkRules
+from netsim.mobility.keep import LinkRules, prefer
 from netsim.mobility.local import (
     Fade,
     Heard,
@@ -113,7 +113,7 @@ from netsim.mobility.local import (
     walls_of,
 )
 from netsim.mobility.spread import plan_spread
-from netsim.mobility.steps import Plan, StepLimits
+from netsim.mobility.steps import Plan, StepLimits, cap_length
 
 from netsim import metrics
 from netsim.area import Bounds
@@ -654,10 +654,24 @@ class CoverageController:
         commander_of = np.where(commandable, leader, -1)
         pos = step.positions_m
         links = self.rules.candidates(pos, step.t_s)
+        if self.rules.walls is not None and self.occupancy is not None:
+            links = self._prefer_lasting(pos, np.where(mobile[:, None], step.velocity_mps, 0.0), links)
         plan = plan_spread(pos, mobile, commander_of, step.velocity_mps, self.limits, links)
         if self.rules.walls is None or plan.kept is None:
             return plan
         return self._cut_for_walls(pos, plan, commander_of >= 0, links)
+
+    def _prefer_lasting(self, pos: np.ndarray, wish_mps: np.ndarray, links):
+        """On a map: the forest prefers the links that stay up over the wished step (each
+        wish capped at the reach and ended short of the walls), so that the links it keeps
+        are the ones that let the robots move (netsim.mobility.keep.prefer)."""
+        period = self.limits.period_s
+        move = cap_length(wish_mps * period, self.limits.reach_m)
+        moving = np.flatnonzero((move != 0).any(axis=1))
+        if len(moving) == 0 or len(links.i) == 0:
+            return links
+        move[moving] *= free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])[:, None]
+        return prefer(links, self.rules.lasting(pos, move / period, links, period))
 
     def _cut_for_walls(self, pos: np.ndarray, plan: Plan, commanded: np.ndarray, links) -> Plan:
         """On a map: each step ends short of the walls (as the control loop would make it),
