@@ -72,3 +72,30 @@ def test_a_wish_that_reaches_no_wall_is_left_as_it_is():
     pos = np.array([[5.0, 15.0], [9.5, 15.0]])
     wish = np.array([[1.5, 1.0], [-1.5, 1.0]])
     assert (slide(m, pos, wish, 1.0, 2.0) == wish).all()
+
+
+def test_a_link_whose_sight_the_wished_step_would_sweep_past_a_wall_does_not_last():
+    """LinkRules.lasting: two robots translating side by side past a wall lose line of
+    sight during the step (though not at its ends): that link does not last; standing
+    still, it does."""
+    from tests.test_coverage_radio import one_link, wall_rules
+
+    rules, _ = wall_rules([(9.0, 11.0, 10.0, 12.0)])
+    pos = np.array([[5.0, 5.0], [15.0, 5.0]])
+    links = one_link(pos)
+    assert rules.lasting(pos, np.array([[0.0, 20.0], [0.0, 20.0]]), links, 1.0).tolist() == [False]
+    assert rules.lasting(pos, np.zeros((2, 2)), links, 1.0).tolist() == [True]
+
+
+def test_the_forest_prefers_the_links_that_last_over_the_wished_step():
+    """Of a triangle whose shortest link would not last over the step, the spanning forest
+    keeps the two that would (as many links: the network stays one component)."""
+    from netsim.mobility.keep import prefer
+    from netsim.mobility.spread import forest_rows
+    from netsim.mobility.steps import Candidates
+
+    d = np.array([10.0, 20.0, 25.0])  # links (0, 1), (0, 2), (1, 2)
+    links = Candidates(np.array([0, 0, 1]), np.array([1, 2, 2]), d, d + 30.0, d, np.full(3, np.inf), np.full(3, 30.0))
+    assert sorted(forest_rows(3, links).tolist()) == [0, 1]
+    lasting = np.array([False, True, True])
+    assert sorted(forest_rows(3, prefer(links, lasting)).tolist()) == [1, 2]
