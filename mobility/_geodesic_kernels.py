@@ -4,9 +4,9 @@
 The grid's moves are the 16 of a knight's and a king's: the 8 neighbours and the 8 cells a
 knight's move away, a knight's move allowed when the two cells it passes between are free
 too. Its path lengths over-estimate the straight distance in open space by at most 2.7 %
-(4 % with the 8 neighbours alone), and the direction of steepest ascent is within 13.3
-degrees of the true one, so a push along it flows through doors and along corridors and
-never points into a wall.
+(8.2 % with the 8 neighbours alone), and the direction of steepest ascent is within 13.3
+degrees of the true one (in open space), and it leads to a free cell: a push along it
+flows through doors and along corridors instead of into walls.
 """
 
 from __future__ import annotations

@@ -43,6 +43,11 @@ The architecture (docs/model.md section 5)
   components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
   them up by the radio's rules (:mod:`netsim.mobility.keep`: the disk exactly; shadowing with a
   fade margin and a bound on travel; walls swept exactly over the step).
+- On a map (docs/model.md 5.3, :mod:`netsim.mobility.geodesic`) walls push as borders do,
+  robots push each other only in sight, wishes that run into a wall slide along it, and
+  with the global plan the expansion runs along free space, the planned step slides too
+  before the exact cut, and the forest prefers the links that last over the wished step
+  (:func:`netsim.mobility.keep.prefer`).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
   3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after

@@ -36,7 +36,9 @@ more than it plausibly can. What "up" means, and how it is kept, depends on the 
   robots are computed exactly over the whole step (:func:`netsim.world.sweep.sweep_walls`),
   also for a commanded robot that misses its command and holds while its partner moves;
   a robot's step is cut just before the first instant a kept link would be lost
-  (:meth:`LinkRules.cut_for_walls`).
+  (:meth:`LinkRules.cut_for_walls`). The plan's forest prefers the links that would stay
+  up over the wished step (:meth:`LinkRules.lasting`, :func:`prefer`): those that would
+  be lost hold their robots back at corners and doors.
 """
 
 from __future__ import annotations
