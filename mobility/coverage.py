@@ -43,6 +43,11 @@ The architecture (docs/model.md section 5)
   components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
   them up by the radio's rules (:mod:`netsim.mobility.keep`: the disk exactly; shadowing with a
   fade margin and a bound on travel; walls swept exactly over the step).
+- On a map (docs/model.md 5.3, :mod:`netsim.mobility.geodesic`) walls push as borders do,
+  robots push each other only in sight, wishes that run into a wall slide along it, and
+  with the global plan the expansion runs along free space, the planned step slides too
+  before the exact cut, and the forest prefers the links that last over the wished step
+  (:func:`netsim.mobility.keep.prefer`).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
   3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
@@ -97,7 +102,8 @@ from netsim.mobility.forces import (
     pair_resultants,
     resultant,
 )
-from netsim.mobility.keep import LinkRules
+from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide
+from netsim.mobility.keep import LinkRules, prefer
 from netsim.mobility.local import (
     Fade,
     Heard,
@@ -112,7 +118,7 @@ from netsim.mobility.local import (
     walls_of,
 )
 from netsim.mobility.spread import plan_spread
-from netsim.mobility.steps import Plan, StepLimits
+from netsim.mobility.steps import Plan, StepLimits, cap_length
 
 from netsim import metrics
 from netsim.area import Bounds
@@ -406,6 +412,8 @@ class CoverageController:
         # step short of a wall).
         self.occupancy = parts.occupancy
         self.obstacles = obstacle_field(parts.occupancy) if parts.occupancy is not None else None
+        # Distances through the map's free space, for pushes that follow it (netsim.mobility.geodesic).
+        self.grid = FreeGrid(parts.occupancy, self.limits.box) if parts.occupancy is not None else None
         # On a map coverage is of the free region the team starts in, the space it can reach
         # (docs/model.md 5.3): the covered fractions and the bound are over its area.
         self.region = None
@@ -477,6 +485,19 @@ class CoverageController:
         margin = SQRT3 * self.range_m / 2
         return wall_forces(self.occupancy, self.obstacles, pos, margin, self.cfg.gain)
 
+    def _in_sight(self, pos: np.ndarray, target: np.ndarray, source_xy: np.ndarray):
+        """On a map, the force pairs whose straight segment is free (netsim.mobility.geodesic.in_sight)."""
+        if self.occupancy is None:
+            return target, source_xy
+        ok = in_sight(self.occupancy, pos[target], source_xy)
+        return target[ok], source_xy[ok]
+
+    def _slide(self, pos: np.ndarray, wished: np.ndarray) -> np.ndarray:
+        """On a map, wishes that run into a wall slide along it (netsim.mobility.geodesic.slide)."""
+        if self.occupancy is None:
+            return wished
+        return slide(self.occupancy, pos, wished, self.limits.period_s, self.limits.reach_m)
+
     # -- the two stages of a step --------------------------------------------------
     def propose(self, step: ControlStep) -> None:
         """Order 0: the wished velocities from the forces the leaders know of."""
@@ -523,12 +544,18 @@ class CoverageController:
             target, source_xy = sources_true(pos_now, self.range_m)
         else:
             target, _, source_xy = self.view.neighbourhood(now)
+        target, source_xy = self._in_sight(pos_now, target, source_xy)
         wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos_now)
         if c.expansion > 0:
             a, b = self.link_state.up_pairs()
-            centre = component_centres(pos_now, metrics.components_of_links(self.state.n, a, b))
-            wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
+            component = metrics.components_of_links(self.state.n, a, b)
+            if self.grid is not None:
+                wished += expansion_along_free_space(self.grid, pos_now, component, c.expansion, self.range_m, c.gain)
+            else:
+                centre = component_centres(pos_now, component)
+                wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
+        wished = self._slide(pos_now, wished)
         wished[group < 0] = 0.0
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
@@ -553,8 +580,10 @@ class CoverageController:
         self.heard = self.lists.heard(memory.known(self.env.now, c.release_s), memory.sent_s, c.release_s)
         self.lists.take(memory, self.env.now, c.release_s)
         target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)
+        target, source_xy = self._in_sight(pos, target, source_xy)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
+        wished = self._slide(pos, wished)
         speed = np.hypot(*wished.T)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
@@ -630,10 +659,24 @@ class CoverageController:
         commander_of = np.where(commandable, leader, -1)
         pos = step.positions_m
         links = self.rules.candidates(pos, step.t_s)
+        if self.rules.walls is not None and self.occupancy is not None:
+            links = self._prefer_lasting(pos, np.where(mobile[:, None], step.velocity_mps, 0.0), links)
         plan = plan_spread(pos, mobile, commander_of, step.velocity_mps, self.limits, links)
         if self.rules.walls is None or plan.kept is None:
             return plan
         return self._cut_for_walls(pos, plan, commander_of >= 0, links)
+
+    def _prefer_lasting(self, pos: np.ndarray, wish_mps: np.ndarray, links):
+        """On a map: the forest prefers the links that stay up over the wished step (each
+        wish capped at the reach and ended short of the walls), so that the links it keeps
+        are the ones that let the robots move (netsim.mobility.keep.prefer)."""
+        period = self.limits.period_s
+        move = cap_length(wish_mps * period, self.limits.reach_m)
+        moving = np.flatnonzero((move != 0).any(axis=1))
+        if len(moving) == 0 or len(links.i) == 0:
+            return links
+        move[moving] *= free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])[:, None]
+        return prefer(links, self.rules.lasting(pos, move / period, links, period))
 
     def _cut_for_walls(self, pos: np.ndarray, plan: Plan, commanded: np.ndarray, links) -> Plan:
         """On a map: each step ends short of the walls (as the control loop would make it),
@@ -642,6 +685,9 @@ class CoverageController:
         moving = np.flatnonzero((move != 0).any(axis=1))
         if len(moving) == 0:
             return plan
+        # A planned step that runs into a wall slides along it instead: the exact cut below
+        # keeps every kept link up whatever the step.
+        move = slide(self.occupancy, pos, move, 1.0, math.inf)
         f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])
         move[moving] *= f[:, None]
         scale = self.rules.cut_for_walls(pos, move, commanded, links, plan.kept, self.limits.period_s)

@@ -36,7 +36,9 @@ more than it plausibly can. What "up" means, and how it is kept, depends on the 
   robots are computed exactly over the whole step (:func:`netsim.world.sweep.sweep_walls`),
   also for a commanded robot that misses its command and holds while its partner moves;
   a robot's step is cut just before the first instant a kept link would be lost
-  (:meth:`LinkRules.cut_for_walls`).
+  (:meth:`LinkRules.cut_for_walls`). The plan's forest prefers the links that would stay
+  up over the wished step (:meth:`LinkRules.lasting`, :func:`prefer`): those that would
+  be lost hold their robots back at corners and doors.
 """
 
 from __future__ import annotations
@@ -91,6 +93,20 @@ def fade_travel_m(budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, deco
     out = np.empty(len(budget))
     _fade_kernels(len(out)).fade_travel_many(budget, x, float(sigma_db), float(decorrelation_m), out)
     return out.reshape(shape)
+
+
+def prefer(links: Candidates, lasting: np.ndarray) -> Candidates:
+    """``links`` with the weight of every link not ``lasting`` raised above that of every
+    link, so that a minimum spanning forest takes a link that does not last only where no
+    lasting one joins the same parts (the forest has as many components either way).
+
+    >>> rows = ([0, 0], [1, 2], [5.0, 9.0], [1.0, 2.0], [9.0, 9.0], [np.inf] * 2, [9.0] * 2)
+    >>> c = Candidates(*(np.array(v) for v in rows))
+    >>> prefer(c, np.array([False, True])).weight.tolist()
+    [4.0, 2.0]
+    """
+    raise_by = np.where(lasting, 0.0, float(links.weight.max(initial=0.0)) + 1.0)
+    return links._replace(weight=links.weight + raise_by)
 
 
 class LinkRules:
@@ -260,6 +276,15 @@ class LinkRules:
                 mover = ~held & moving[robots]
                 np.minimum.at(scale, robots[mover], scale[robots[mover]] * cut[mover])
         return scale
+
+    def lasting(self, pos: np.ndarray, velocity_mps: np.ndarray, links: Candidates, period_s: float) -> np.ndarray:
+        """Whether each candidate link stays up over a step of ``period_s`` with the robots
+        moving at ``velocity_mps`` from ``pos`` (walls swept exactly, as for a kept link)."""
+        k = np.arange(len(links.i))
+        if self.walls is None or len(k) == 0:
+            return np.ones(len(k), bool)
+        va, vb = velocity_mps[links.i], velocity_mps[links.j]
+        return ~np.isfinite(self._first_loss(pos[links.i], va, pos[links.j], vb, k, links, period_s))
 
     def _first_loss(self, pa, va, pb, vb, k, links: Candidates, period_s: float) -> np.ndarray:
         """For each scenario (two robots from ``pa``, ``pb`` at ``va``, ``vb``), the start of

@@ -1,0 +1,181 @@
+"""Coverage pushes that follow free space on a map (docs/model.md 5.3).
+
+Straight-line pushes know nothing of doors: a robot pushed at a wall has its step cut
+there and stays. On a map the plans therefore use three rules, from the map alone (the
+team's map is known to every robot):
+
+- **Pushes in sight** (:func:`in_sight`): two robots push each other only when the
+  straight segment between them is free. A push through a wall could only press a robot
+  against that wall (its step is cut there); robots that see each other push along the
+  free segment between them.
+- **Expansion along free space** (the global plan): the push away from the centre of a
+  component is along the steepest ascent of the distance *through free space* from the
+  centre (:class:`FreeGrid`: shortest paths on the map's free cells), its size growing
+  with that distance. It leads robots out of a room through its door and along corridors,
+  where the straight push would press them against the room's far wall.
+- **Sliding** (:func:`slide`): a wished step that would run into a wall is replaced by
+  the longer of its two components along the grid's axes, the walls of a grid map being
+  its cells' sides, when that gets farther in the wished direction: a robot pushed
+  obliquely at a wall slides along it instead of stopping.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from netsim.mobility.forces import EXPANSION_CAP
+from netsim.mobility.steps import cap_length
+
+from netsim.compiled import load
+from netsim.world.free_space import free_fraction, legs_free
+
+# The side of the grid the distances are computed on, m (at least one map cell): fine
+# enough to keep a 1.5 m door open, coarse enough to be cheap at every step.
+GRID_CELL_M = 0.5
+# How far (in grid cells) a position whose own cell is not free looks for a free one: a
+# robot may stand within a map cell of a wall, whose grid cell then counts as blocked.
+NEAR_CELLS = 2
+# Distance fields kept for reuse.
+FIELDS_KEPT = 8
+# The expansion's source: the component's centre on a lattice of this spacing, m.
+SOURCE_M = 2.0
+
+
+def _kernels():
+    return load("netsim.mobility._geodesic_kernels", None)
+
+
+class FreeGrid:
+    """The map's free space on a grid of about :data:`GRID_CELL_M`: a grid cell is free
+    when every map cell it holds is free and inside the area."""
+
+    def __init__(self, occupancy, box):
+        m = occupancy
+        k = max(1, int(round(GRID_CELL_M / m.resolution_m)))
+        h, w = m.shape
+        free = np.zeros(((h + k - 1) // k * k, (w + k - 1) // k * k), bool)
+        free[:h, :w] = m.free
+        xs = m.origin_m[0] + (np.arange(free.shape[1]) + 0.5) * m.resolution_m
+        ys = m.origin_m[1] + (np.arange(free.shape[0]) + 0.5) * m.resolution_m
+        free &= ((ys >= box.y_min) & (ys <= box.y_max))[:, None] & ((xs >= box.x_min) & (xs <= box.x_max))[None, :]
+        self.h, self.w = free.shape[0] // k, free.shape[1] // k
+        self.free = np.ascontiguousarray(free.reshape(self.h, k, self.w, k).all(axis=(1, 3)).ravel())
+        self.cell_m = k * m.resolution_m
+        self.origin_m = (float(m.origin_m[0]), float(m.origin_m[1]))
+        kern = _kernels()
+        self.moves = (kern.MOVES_X, kern.MOVES_Y)
+        self._fields: dict[int, np.ndarray] = {}  # source cell -> field, oldest first
+
+    def cells(self, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The grid cell of each point, or the nearest free one within :data:`NEAR_CELLS`
+        when its own is not free (-1, -1: none)."""
+        p = np.asarray(points_m, float).reshape(-1, 2)
+        x = np.floor((p[:, 0] - self.origin_m[0]) / self.cell_m).astype(np.int64)
+        y = np.floor((p[:, 1] - self.origin_m[1]) / self.cell_m).astype(np.int64)
+        out_x, out_y = np.full(len(p), -1), np.full(len(p), -1)
+        best = np.full(len(p), np.inf)
+        r = NEAR_CELLS
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                cx, cy = x + dx, y + dy
+                inside = (cx >= 0) & (cy >= 0) & (cx < self.w) & (cy < self.h)
+                ok = inside.copy()
+                ok[inside] = self.free[cy[inside] * self.w + cx[inside]]
+                centre_x = self.origin_m[0] + (cx + 0.5) * self.cell_m
+                centre_y = self.origin_m[1] + (cy + 0.5) * self.cell_m
+                d = np.hypot(centre_x - p[:, 0], centre_y - p[:, 1])
+                better = ok & (d < best)
+                best[better] = d[better]
+                out_x[better], out_y[better] = cx[better], cy[better]
+        return out_x, out_y
+
+    def field(self, source_m) -> np.ndarray:
+        """Distances (m) through free space from the grid cell of the point ``source_m`` to
+        every grid cell (inf: not reachable; all inf when the point has no free cell near).
+        The latest :data:`FIELDS_KEPT` fields are kept (read only)."""
+        sx, sy = self.cells(np.asarray(source_m, float).reshape(1, 2))
+        source = int(sy[0] * self.w + sx[0]) if sx[0] >= 0 else -1
+        out = self._fields.pop(source, None)
+        if out is None:
+            out = np.empty(self.w * self.h)
+            _kernels().distance_field(self.free, self.w, self.h, source, self.cell_m, *self.moves, out)
+            out.flags.writeable = False
+            if len(self._fields) >= FIELDS_KEPT:
+                self._fields.pop(next(iter(self._fields)))
+        self._fields[source] = out
+        return out
+
+    def ascent(self, field: np.ndarray, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """At each point, the unit direction of the field's steepest ascent through free
+        space (zero at a dead end, where no free move ascends, or where the field is not
+        reached) and the field's value (inf: not reached)."""
+        x, y = self.cells(points_m)
+        direction = np.zeros((len(x), 2))
+        value = np.full(len(x), np.inf)
+        ok = np.flatnonzero(x >= 0)
+        if len(ok):
+            d, v = np.zeros((len(ok), 2)), np.empty(len(ok))
+            _kernels().ascent(self.free, self.w, self.h, field, x[ok], y[ok], self.cell_m, *self.moves, d, v)
+            direction[ok], value[ok] = d, v
+        return direction, value
+
+
+def in_sight(occupancy, a_m: np.ndarray, b_m: np.ndarray) -> np.ndarray:
+    """Whether each straight segment ``a_m[k] -> b_m[k]`` stays in free cells: the pairs of
+    robots that push each other on a map (module notes)."""
+    if len(a_m) == 0:
+        return np.zeros(0, bool)
+    return legs_free(occupancy, a_m, b_m)
+
+
+def slide(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, reach_m: float) -> np.ndarray:
+    """The wishes with every step that would run into a wall within ``reach_m`` replaced by
+    its component along one axis when that one, cut at the walls too, gets farther along
+    the wish (module notes). Other rows are returned as they are."""
+    out = wish_mps.copy()
+    rows = np.flatnonzero((wish_mps != 0).any(axis=1))
+    if len(rows) == 0:
+        return out
+    p = pos[rows]
+    m = cap_length(wish_mps[rows] * period_s, reach_m)
+    f = free_fraction(occupancy, p, p + m)
+    blocked = f < 1.0
+    if not blocked.any():
+        return out
+    rows, p, m, f = rows[blocked], p[blocked], m[blocked], f[blocked]
+    best_gain = f * np.einsum("ij,ij->i", m, m)  # progress along the wish, times its length
+    choice = np.full(len(rows), -1)
+    for axis in (0, 1):
+        alt = np.zeros_like(m)
+        alt[:, axis] = m[:, axis]
+        gain = free_fraction(occupancy, p, p + alt) * m[:, axis] ** 2
+        better = gain > best_gain
+        best_gain = np.where(better, gain, best_gain)
+        choice[better] = axis
+    for axis in (0, 1):
+        sel = rows[choice == axis]
+        out[sel, 1 - axis] = 0.0
+    return out
+
+
+def expansion_along_free_space(
+    grid: FreeGrid, pos: np.ndarray, component: np.ndarray, factor: float, range_m: float, gain: float
+) -> np.ndarray:
+    """The expansion on a map (module notes): for every robot ``gain x min(factor x D,
+    EXPANSION_CAP x r_c)`` along the steepest ascent of ``D``, the distance through free
+    space from the robot of its component nearest the component's centre (mean position).
+    A robot alone in its component, or at a dead end of the field, feels none."""
+    out = np.zeros((len(pos), 2))
+    for c in np.unique(component).tolist():
+        rows = np.flatnonzero(component == c)
+        if len(rows) < 2:
+            continue
+        centre = pos[rows].mean(axis=0)
+        # The centre on a lattice of SOURCE_M (the field is then computed again only when
+        # the centre moves to another lattice point), or, in a wall, the robot nearest it.
+        source = (np.floor(centre / SOURCE_M) + 0.5) * SOURCE_M
+        if grid.cells(source)[0][0] < 0:
+            source = pos[rows[int(np.argmin(np.hypot(*(pos[rows] - centre).T)))]]
+        direction, d = grid.ascent(grid.field(source), pos[rows])
+        size = gain * np.minimum(factor * np.where(np.isfinite(d), d, 0.0), EXPANSION_CAP * range_m)
+        out[rows] = size[:, None] * direction
+    return out

@@ -1,0 +1,101 @@
+"""Coverage pushes that follow free space on a map (netsim.mobility.geodesic; docs/model.md 5.3)."""
+
+from __future__ import annotations
+
+import numpy as np
+from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide
+
+from netsim.area import Bounds
+from netsim.world.maps import OccupancyMap
+
+SIDE_M = 20.0
+RES_M = 0.25
+
+
+def room_with_a_door() -> OccupancyMap:
+    """A 20 m x 20 m floor at 25 cm a cell with a wall along x = 10 m, one 2 m door in it
+    at y from 2 to 4 m."""
+    n = int(SIDE_M / RES_M)
+    occupied = np.zeros((n, n), bool)
+    occupied[:, 40] = True  # x in [10, 10.25)
+    occupied[8:16, 40] = False  # y in [2, 4)
+    return OccupancyMap(occupied, ~occupied, RES_M, (0.0, 0.0))
+
+
+def test_distance_through_free_space_goes_round_the_wall_through_the_door():
+    """The field is the length of the shortest path through free cells: from one side of a
+    wall to the point straight across it, the way through the door, not the straight 4 m."""
+    grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
+    field = grid.field([8.0, 15.0])
+    _, d = grid.ascent(field, np.array([[12.0, 15.0], [8.0, 12.0]]))
+    through_door = np.hypot(2.2, 11.0) + np.hypot(1.8, 11.0)  # via (10.1, 4)
+    assert through_door - 1.0 < d[0] < 1.05 * through_door + 1.0
+    # In sight: the straight distance, to within the grid's moves.
+    assert 3.0 - 0.5 < d[1] < 1.03 * 3.0 + 0.5
+
+
+def test_the_expansion_on_a_map_pushes_on_along_the_path_from_the_centre():
+    """A robot that went through the door is pushed on along the path through free space
+    from its component's centre (away from the door, right), not straight away from the
+    centre (down, into the floor's edge); in the centre's own room the push is straight
+    away from the centre."""
+    m = room_with_a_door()
+    grid = FreeGrid(m, Bounds.square(SIDE_M))
+    pos = np.array([[5.0, 15.0], [9.0, 11.0], [9.0, 19.0], [12.0, 3.0]])
+    push = expansion_along_free_space(grid, pos, np.zeros(4, np.int64), 0.1, 30.0, 1.0)
+    assert push[3, 0] > 2 * abs(push[3, 1])  # right, along the path
+    away = pos[0] - pos.mean(axis=0)
+    assert push[0] @ away > 0.9 * np.hypot(*push[0]) * np.hypot(*away)  # straight from the centre
+
+
+def test_robots_push_each_other_only_in_sight():
+    """Two robots on either side of the wall do not push each other; two in one room do,
+    and so do two that see each other through the door."""
+    m = room_with_a_door()
+    a = np.array([[8.0, 15.0], [8.0, 15.0], [8.0, 3.0]])
+    b = np.array([[12.0, 15.0], [3.0, 12.0], [12.0, 3.0]])
+    assert in_sight(m, a, b).tolist() == [False, True, True]
+
+
+def test_a_wish_that_runs_into_a_wall_slides_along_it():
+    """A robot pushed obliquely at a wall within its reach moves along the wall, by the
+    component of its wish parallel to it, instead of stopping at the wall."""
+    m = room_with_a_door()
+    pos = np.array([[9.9, 15.0]])
+    out = slide(m, pos, np.array([[1.5, 1.0]]), 1.0, 2.0)
+    assert out.tolist() == [[0.0, 1.0]]
+
+
+def test_a_wish_that_reaches_no_wall_is_left_as_it_is():
+    """Only a step that would run into a wall within the robot's reach changes."""
+    m = room_with_a_door()
+    pos = np.array([[5.0, 15.0], [9.5, 15.0]])
+    wish = np.array([[1.5, 1.0], [-1.5, 1.0]])
+    assert (slide(m, pos, wish, 1.0, 2.0) == wish).all()
+
+
+def test_a_link_whose_sight_the_wished_step_would_sweep_past_a_wall_does_not_last():
+    """LinkRules.lasting: two robots translating side by side past a wall lose line of
+    sight during the step (though not at its ends): that link does not last; standing
+    still, it does."""
+    from tests.test_coverage_radio import one_link, wall_rules
+
+    rules, _ = wall_rules([(9.0, 11.0, 10.0, 12.0)])
+    pos = np.array([[5.0, 5.0], [15.0, 5.0]])
+    links = one_link(pos)
+    assert rules.lasting(pos, np.array([[0.0, 20.0], [0.0, 20.0]]), links, 1.0).tolist() == [False]
+    assert rules.lasting(pos, np.zeros((2, 2)), links, 1.0).tolist() == [True]
+
+
+def test_the_forest_prefers_the_links_that_last_over_the_wished_step():
+    """Of a triangle whose shortest link would not last over the step, the spanning forest
+    keeps the two that would (as many links: the network stays one component)."""
+    from netsim.mobility.keep import prefer
+    from netsim.mobility.spread import forest_rows
+    from netsim.mobility.steps import Candidates
+
+    d = np.array([10.0, 20.0, 25.0])  # links (0, 1), (0, 2), (1, 2)
+    links = Candidates(np.array([0, 0, 1]), np.array([1, 2, 2]), d, d + 30.0, d, np.full(3, np.inf), np.full(3, 30.0))
+    assert sorted(forest_rows(3, links).tolist()) == [0, 1]
+    lasting = np.array([False, True, True])
+    assert sorted(forest_rows(3, prefer(links, lasting)).tolist()) == [1, 2]
