@@ -94,7 +94,9 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
     robots remember, ``(xy, sent_s, known)``; ``lists``: the lists they hold from each other
     (:class:`netsim.mobility.local.Heard`), ``(which, start, other, sent_s)``; ``rule``: the
-    step's ``(t0_s, speed_mps, band_m, range_m, release_s)``; ``fade``: the shadowing's rule
+    step's ``(t0_s, speed_mps, band_m, range_m, release_s, window_s)``, a detour's link
+    certified up over ``[t0_s - window_s, t0_s]`` (each end within ``speed_mps window_s`` of
+    where it is at ``t0_s``); ``fade``: the shadowing's rule
     (:func:`measured_range_m`, ``on`` False: none); ``measured``: the shadowing each robot
     measured on each robot's latest Ack and when it can have been sent, ``(x_db (n, n),
     measured_s (n, n), listed_x_db (M,), leg_speed_mps (n, n), leg_from_s (n, n))``, the
@@ -102,7 +104,9 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     diagonal; :func:`largest_travel_m`)."""
     xy, sent_s, known = memory
     which, start, other, listed_s = lists
-    t0_s, speed_mps, band_m, range_m, release_s = rule
+    t0_s, speed_mps, band_m, range_m, release_s, window_s = rule
+    # Each robot's largest motion over the window before t0.
+    sweep = speed_mps * window_s
     x_db, measured_s, listed_x, leg_speed, leg_from = measured
     n = pos.shape[0]
     nn = float(n * n)
@@ -137,12 +141,14 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 certain[a, b] = a == 0 and b > 0
                 sure[a, b] = range_m
         for b in range(1, k):
-            # The pair's travel since the measurement: each end's, as far as i knows it.
+            # The pair's travel since the measurement: each end's, as far as i knows it; to
+            # an instant of the window, up to each end's motion over it more (the shadowing's
+            # change depends on the pair's travel between the two instants, either way).
             j = node[b]
             s_ij = measured_s[i, j]
             travel = largest_travel_m(leg_speed[i, i], leg_from[i, i], s_ij, t0_s, speed_mps)
             travel += largest_travel_m(leg_speed[i, j], leg_from[i, j], s_ij, t0_s, speed_mps)
-            r = measured_range_m(x_db[i, j], s_ij, travel, fade)
+            r = measured_range_m(x_db[i, j], s_ij, travel + 2.0 * sweep, fade)
             sure[0, b] = max(sure[0, b], r)
             sure[b, 0] = sure[0, b]
         for a in range(1, k):
@@ -158,7 +164,7 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                     listed = node[b]
                     travel = largest_travel_m(leg_speed[i, u], leg_from[i, u], s_p, t0_s, speed_mps)
                     travel += largest_travel_m(leg_speed[i, listed], leg_from[i, listed], s_p, t0_s, speed_mps)
-                    r = measured_range_m(listed_x[p], s_p, travel, fade)
+                    r = measured_range_m(listed_x[p], s_p, travel + 2.0 * sweep, fade)
                     sure[a, b] = max(sure[a, b], r)
                     sure[b, a] = max(sure[b, a], r)
         for a in range(k):
@@ -181,11 +187,11 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
-                if longest > sure[u, v]:
+                if longest + 2.0 * sweep > sure[u, v]:
                     continue
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
-                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a], e[b]):
+                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep, e[b] + sweep):
                     continue
                 rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)

@@ -367,6 +367,7 @@ def let_go(
     range_m: float,
     walls: Walls = NO_WALLS,
     fade: Fade | None = None,
+    window_s: float = 0.0,
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
@@ -381,7 +382,9 @@ def let_go(
     largest rank it can have at ``t0``. A robot two links out is no node: ``i`` heard
     nothing of it. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
     minimum spanning tree of that graph, computed by
-    :func:`netsim.mobility._local_kernels.let_go`.
+    :func:`netsim.mobility._local_kernels.let_go`. ``window_s``: a detour's links are
+    certified up over ``[t0_s - window_s, t0_s]``, not at ``t0_s`` alone (each end within
+    ``speed_mps window_s`` more of where it is known to be; :class:`Silence`).
 
     Notes
     -----
@@ -390,7 +393,7 @@ def let_go(
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     known = heard.known
-    rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m), heard.release_s)
+    rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m), heard.release_s, float(window_s))
     lists = (heard.which, heard.start, heard.other, heard.sent_s)
     kernels = load("netsim.mobility._local_kernels", n)
     listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
@@ -398,6 +401,54 @@ def let_go(
     rule_of_fade = NO_FADE if fade is None else fade.rule
     kernels.let_go(pos, (memory.xy, memory.sent_s, known), lists, rule, walls, out, rule_of_fade, measured)
     return out
+
+
+# How much longer than the largest gap between two Acks a robot waits before it counts a
+# robot silent, and how much wider the window of rule 1 is for it (s): room for the
+# rounding of the times compared.
+SILENCE_SLACK_S = 1e-6
+
+
+class Silence(NamedTuple):
+    """The release of a silent robot (module notes, "Release"), on a channel that loses no
+    frame: ``i`` lets go of ``j`` once it has heard no Ack of ``j`` for more than ``gap_s``
+    (then the link was down at an instant of the window, :func:`silence_of`), and rule 1
+    certifies a detour's links up over the ``window_s`` before ``t0``."""
+
+    gap_s: float
+    window_s: float
+
+
+def silence_of(period_s: float, jitter_s: float, latency_s: float, latency_jitter_s: float) -> Silence:
+    """The release's gap and window from the Acks' timing (``protocol.ack_period_s``,
+    ``protocol.ack_jitter_s``) and the channel's delay (``latency_s + latency_jitter_s``,
+    the largest ``lead``).
+
+    Two Acks of ``j`` leave at most ``period_s + jitter_s`` apart, so the closed span
+    ``[now - lead - period_s - jitter_s - slack, now - lead - slack]`` holds one, sent at
+    ``a``; it arrived by ``a + lead < now``. Had the link been up then, ``i`` would hold it,
+    heard no earlier than ``a + latency_s``: a silence of at most ``period_s + jitter_s +
+    latency_jitter_s + slack`` (``gap_s``). A longer silence means the link was down at an
+    instant of that span, which starts ``period_s + jitter_s + 2 lead + slack`` (``window_s``)
+    before ``t0 = now + lead``.
+
+    >>> [round(x, 9) for x in silence_of(1.0, 0.05, 0.001, 0.0)]
+    [1.050001, 1.052001]
+    """
+    lead = latency_s + latency_jitter_s
+    gap = period_s + jitter_s + latency_jitter_s + SILENCE_SLACK_S
+    return Silence(gap, period_s + jitter_s + 2.0 * lead + SILENCE_SLACK_S)
+
+
+def silent(memory: Memory, now_s: float, lead_s: float, silence: Silence | None) -> np.ndarray:
+    """``(n, n)``: ``i`` has heard no Ack of ``j`` for more than ``silence.gap_s`` at ``now_s``
+    (the latest one it heard arrived at ``memory.sent_s + lead_s``); all False without the
+    release (``silence`` None: a channel that may lose frames)."""
+    if silence is None:
+        return np.zeros(memory.sent_s.shape, dtype=bool)
+    heard = np.isfinite(memory.sent_s)
+    with np.errstate(invalid="ignore"):
+        return heard & (now_s - (memory.sent_s + lead_s) > silence.gap_s)
 
 
 def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> np.ndarray:

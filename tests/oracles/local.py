@@ -39,9 +39,13 @@ def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
     return out
 
 
-def let_go(pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, walls: Walls) -> np.ndarray:
+def let_go(
+    pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, walls: Walls, window_s: float = 0.0
+) -> np.ndarray:
     """:func:`netsim.mobility.local.let_go`: per robot, the minimum spanning tree of its
-    certified graph by scipy, and the bottleneck of its path to each remembered robot."""
+    certified graph by scipy, and the bottleneck of its path to each remembered robot; a
+    link certified up over the window before ``t0_s`` (each end ``speed_mps window_s`` less
+    sure of where it was)."""
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     known = heard.known
@@ -69,11 +73,12 @@ def let_go(pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, 
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
         longest = centre + e[:, None] + e[None, :]
         rank = link_rank(longest, pair, band_m, n) + 1.0
-        usable = certain & certain.T & (longest <= range_m)
+        sweep = speed_mps * window_s
+        usable = certain & certain.T & (longest + 2.0 * sweep <= range_m)
         np.fill_diagonal(usable, False)
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
-            ok = clear_of_walls(walls, q[a], q[b], e[a], e[b])
+            ok = clear_of_walls(walls, q[a], q[b], e[a] + sweep, e[b] + sweep)
             usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
