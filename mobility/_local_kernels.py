@@ -95,8 +95,10 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     robots remember, ``(xy, sent_s, known)``; ``lists``: the lists they hold from each other
     (:class:`netsim.mobility.local.Heard`), ``(which, start, other, sent_s)``; ``rule``: the
     step's ``(t0_s, speed_mps, band_m, range_m, release_s, window_s)``, a detour's link
-    certified up over ``[t0_s - window_s, t0_s]`` (each end within ``speed_mps window_s`` of
-    where it is at ``t0_s``); ``fade``: the shadowing's rule
+    certified up over ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): each end farther from
+    where it is at ``t0_s`` by its largest travel over the window, and a measured link's
+    pair travel counted from the window's start where that is earlier than the measurement
+    (:func:`largest_travel_m`); ``fade``: the shadowing's rule
     (:func:`measured_range_m`, ``on`` False: none); ``measured``: the shadowing each robot
     measured on each robot's latest Ack and when it can have been sent, ``(x_db (n, n),
     measured_s (n, n), listed_x_db (M,), leg_speed_mps (n, n), leg_from_s (n, n))``, the
@@ -105,8 +107,7 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     xy, sent_s, known = memory
     which, start, other, listed_s = lists
     t0_s, speed_mps, band_m, range_m, release_s, window_s = rule
-    # Each robot's largest motion over the window before t0.
-    sweep = speed_mps * window_s
+    opens_s = t0_s - window_s
     x_db, measured_s, listed_x, leg_speed, leg_from = measured
     n = pos.shape[0]
     nn = float(n * n)
@@ -119,6 +120,8 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     qx = np.empty(n)
     qy = np.empty(n)
     e = np.empty(n)
+    # sweep[a]: node a's largest travel over the window, as i knows it.
+    sweep = np.zeros(n)
     worst = np.empty(n)
     done = np.empty(n, np.bool_)
     for i in range(n):
@@ -134,6 +137,10 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
         m = k - 1
         if m < 2:
             continue
+        if window_s > 0:
+            for a in range(k):
+                u = node[a]
+                sweep[a] = largest_travel_m(leg_speed[i, u], leg_from[i, u], opens_s, t0_s, speed_mps)
         # certain[a, b]: i can tell that node a remembers node b at t0 (from a's list).
         for a in range(k):
             local[node[a]] = a
@@ -141,14 +148,15 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 certain[a, b] = a == 0 and b > 0
                 sure[a, b] = range_m
         for b in range(1, k):
-            # The pair's travel since the measurement: each end's, as far as i knows it; to
-            # an instant of the window, up to each end's motion over it more (the shadowing's
-            # change depends on the pair's travel between the two instants, either way).
+            # The pair's travel since the measurement: each end's, as far as i knows it; over
+            # a window, from its start if earlier (an instant of the window before the
+            # measurement is within the window's travel of it: the shadowing's change
+            # depends on the pair's travel between the two instants, either way).
             j = node[b]
-            s_ij = measured_s[i, j]
+            s_ij = min(measured_s[i, j], opens_s) if window_s > 0 else measured_s[i, j]
             travel = largest_travel_m(leg_speed[i, i], leg_from[i, i], s_ij, t0_s, speed_mps)
             travel += largest_travel_m(leg_speed[i, j], leg_from[i, j], s_ij, t0_s, speed_mps)
-            r = measured_range_m(x_db[i, j], s_ij, travel + 2.0 * sweep, fade)
+            r = measured_range_m(x_db[i, j], s_ij, travel, fade)
             sure[0, b] = max(sure[0, b], r)
             sure[b, 0] = sure[0, b]
         for a in range(1, k):
@@ -160,11 +168,11 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 b = local[other[p]]
                 if b >= 0 and t0_s - listed_s[p] < release_s:
                     certain[a, b] = True
-                    s_p = listed_s[p]
+                    s_p = min(listed_s[p], opens_s) if window_s > 0 else listed_s[p]
                     listed = node[b]
                     travel = largest_travel_m(leg_speed[i, u], leg_from[i, u], s_p, t0_s, speed_mps)
                     travel += largest_travel_m(leg_speed[i, listed], leg_from[i, listed], s_p, t0_s, speed_mps)
-                    r = measured_range_m(listed_x[p], s_p, travel + 2.0 * sweep, fade)
+                    r = measured_range_m(listed_x[p], s_p, travel, fade)
                     sure[a, b] = max(sure[a, b], r)
                     sure[b, a] = max(sure[b, a], r)
         for a in range(k):
@@ -187,11 +195,11 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
-                if longest + 2.0 * sweep > sure[u, v]:
+                if longest + sweep[u] + sweep[v] > sure[u, v]:
                     continue
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
-                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep, e[b] + sweep):
+                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep[a], e[b] + sweep[b]):
                     continue
                 rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)

@@ -117,8 +117,10 @@ def triangle(sent_s):
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypatch, compiled):
     """Rule 1 with the release: a detour's link counts only if it is surely up over the whole
-    window before t0 (each end up to speed x window farther than at t0). Links of 98.5 m at
-    most at t0 are surely up then, not over a window of about a second at 2 m/s."""
+    window before t0, each end farther than at t0 by its largest travel over the window as
+    the robot knows it (the speed cap, or the speed its Acks carried). Links of 98.5 m at
+    most at t0 are surely up then, not over a window of about a second at 2 m/s, unless
+    the robots held."""
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     pos, m = triangle(T0 - 0.5)
     assert let_go(pos, m, told(m), T0, V, 10.0, RC)[0, 1]
@@ -127,6 +129,11 @@ def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypat
     near[2, 1] -= 5.0  # 4 m shorter links: certified over the window too
     m2 = memory_of(np.broadcast_to(near[None], (3, 3, 2)).copy(), m.sent_s)
     assert let_go(near, m2, told(m2), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
+    # Robots whose Acks (and robot 0's own leg) say they have held since before the window
+    # travelled nothing over it: certified as at t0.
+    m.leg_speed_mps[:] = 0.0
+    m.leg_from_s[:] = T0 - 5.0
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
 
 
 @pytest.mark.parametrize("compiled", ["0", "1"])
@@ -179,3 +186,35 @@ def test_release_a_robot_lets_go_only_of_links_down_within_the_window():
             # Up over the whole window: one up interval covers [t0 - window, t0].
             assert not any(lo <= t0 - window and (np.isnan(hi) or hi > t0) for lo, hi in spans), (t0, i, j)
     assert count > 100
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windows_start(monkeypatch, compiled):
+    """Rule 1 under shadowing with the release: a detour's link measured beyond the sure
+    distance counts as up over the window when its shadowing stays within range over the
+    pair's travel from the window's start (earlier than the measurement), not only from the
+    measurement: two robots at the speed cap travel 0.14 m in the 0.2 s since their Acks,
+    0.76 m over the window, enough for the shadowing's plausible change to shorten links
+    of about 43 m measured at 6 dB below their length."""
+    from tests.test_coverage_local_fade import SURE, fade, record_margins
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    f = fade()
+    v = f.speed_mps
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - 0.2)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = m.measured_s[:] = sent
+    m.x_db[:] = 6.0
+    np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
+    m.leg_speed_mps[:] = v  # every robot at the cap since before the window
+    m.leg_from_s[:] = T0 - 5.0
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 1.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+    assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f, window_s=SILENCE.window_s)[0, 1]

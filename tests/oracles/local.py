@@ -44,8 +44,8 @@ def let_go(
 ) -> np.ndarray:
     """:func:`netsim.mobility.local.let_go`: per robot, the minimum spanning tree of its
     certified graph by scipy, and the bottleneck of its path to each remembered robot; a
-    link certified up over the window before ``t0_s`` (each end ``speed_mps window_s`` less
-    sure of where it was)."""
+    link certified up over the window before ``t0_s`` (each end farther by its largest
+    travel over the window as the robot knows it)."""
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     known = heard.known
@@ -73,8 +73,12 @@ def let_go(
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
         longest = centre + e[:, None] + e[None, :]
         rank = link_rank(longest, pair, band_m, n) + 1.0
-        sweep = speed_mps * window_s
-        usable = certain & certain.T & (longest + 2.0 * sweep <= range_m)
+        sweep = np.zeros(m + 1)
+        if window_s > 0:
+            sweep = largest_travel_m(
+                memory.leg_speed_mps[i, node], memory.leg_from_s[i, node], np.full(m + 1, t0_s - window_s), t0_s, speed_mps
+            )
+        usable = certain & certain.T & (longest + sweep[:, None] + sweep[None, :] <= range_m)
         np.fill_diagonal(usable, False)
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
