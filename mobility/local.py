@@ -35,6 +35,15 @@ period``), its own position ``p`` at ``t0`` exact:
    segment between the two robots during the step is clear of walls; else a shorter step,
    or it holds. A detour's link must be surely clear of walls too (:func:`clear_of_walls`).
 
+**Release** (:class:`Silence`, on a channel that loses no frame): ``i`` lets go of a robot
+it has heard no Ack of for longer than the largest gap between two (``ack_period_s +
+ack_jitter_s`` plus the channel's delay jitter): an Ack of it due before the step did not
+arrive, so the link was down at an instant of the *window* ``[t0 - W, t0]``
+(:func:`silence_of`). Rule 1 then certifies a detour's links up over the whole window: each
+end farther from where ``i`` knows it at ``t0`` by its largest travel over the window, a
+measured link's pair travel counted from the window's start. Under loss a missed Ack says
+nothing of the link: no release, ``W = 0``.
+
 ``r`` is the plan's range: the range on a disk (the implied range under log-distance;
 on a map, for a link clear of walls), and under shadowing the *sure* distance, where even
 the clipped worst shadowing (``+4 sigma``) leaves a link up. A link through a wall is never
@@ -64,15 +73,16 @@ link alone (rule 3) answers for its half when both ends can compute the same lim
 ``t0`` and takes at most half of the pair's travel left, so a weak link, which would hold
 both robots for good, moves a little and its shadowing changes.
 
-Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
-each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
+Why the network never splits: let ``K`` be the links up over the window ``[t0 - W, t0]``
+whose ends remember each other. No end lets go of one as silent (it carried every Ack of
+the window). A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
 that moves keeps it up whatever the other does (rules 2 and 5), or keeps its half while
 the other keeps its half, answers alone or holds (halves), an end that cannot holds
 (rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
-of the step, and at the next ``t0`` it is in ``K``
+of the step, so up over the next step's window, and at the next ``t0`` it is in ``K``
 again while both ends still remember each other. So the components of ``K`` never grow,
 and the network (which contains ``K``) never has more components than ``K`` had when
 control started: on a loss-free channel, always; under loss, unless a robot misses every
