@@ -92,7 +92,9 @@ def measured_range_m(x_db, measured_s, travel_m, fade):
 def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
     through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
-    robots remember, ``(xy, sent_s, known)``; ``lists``: the lists they hold from each other
+    robots remember, ``(xy, sent_s, known, silent)``, ``silent[i, j]``: ``i``'s link to ``j``
+    was down in the window (:class:`netsim.mobility.local.Silence`), never a detour's link
+    (``j`` still a node); ``lists``: the lists they hold from each other
     (:class:`netsim.mobility.local.Heard`), ``(which, start, other, sent_s)``; ``rule``: the
     step's ``(t0_s, speed_mps, band_m, range_m, release_s, window_s)``, a detour's link
     certified up over ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): each end farther from
@@ -104,7 +106,7 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     measured_s (n, n), listed_x_db (M,), leg_speed_mps (n, n), leg_from_s (n, n))``, the
     third for the lists' entries, the last two the speeds each robot knows (its own on the
     diagonal; :func:`largest_travel_m`)."""
-    xy, sent_s, known = memory
+    xy, sent_s, known, silent = memory
     which, start, other, listed_s = lists
     t0_s, speed_mps, band_m, range_m, release_s, window_s = rule
     opens_s = t0_s - window_s
@@ -145,7 +147,7 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
         for a in range(k):
             local[node[a]] = a
             for b in range(k):
-                certain[a, b] = a == 0 and b > 0
+                certain[a, b] = a == 0 and b > 0 and not silent[i, node[b]]
                 sure[a, b] = range_m
         for b in range(1, k):
             # The pair's travel since the measurement: each end's, as far as i knows it; over

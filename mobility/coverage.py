@@ -579,12 +579,11 @@ class CoverageController:
         fade = self.fade
         if fade is not None:
             knows.keep_m, travel = fade.limits(knows, t0, t1, speed)
-        # A silent robot is no node of rule 1's graph: its link was down in the window.
+        # A robot lets go of a silent robot: their link was down in the window.
         quiet = silent(memory, self.env.now, self.loop.lead_s, self.silence)
-        listening = heard._replace(known=heard.known & ~quiet)
         window = 0.0 if self.silence is None else self.silence.window_s
-        gone = let_go(pos, knows, listening, t0, speed, c.band_m, limits.range_m, walls, fade, window)
-        kept = listening.known & ~gone
+        gone = let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, fade, window, quiet)
+        kept = heard.known & ~quiet & ~gone
         self.kept, self.silent = kept, quiet
         announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)

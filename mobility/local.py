@@ -378,6 +378,7 @@ def let_go(
     walls: Walls = NO_WALLS,
     fade: Fade | None = None,
     window_s: float = 0.0,
+    silent_of: np.ndarray | None = None,
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
@@ -393,8 +394,11 @@ def let_go(
     nothing of it. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
     minimum spanning tree of that graph, computed by
     :func:`netsim.mobility._local_kernels.let_go`. ``window_s``: a detour's links are
-    certified up over ``[t0_s - window_s, t0_s]``, not at ``t0_s`` alone (each end within
-    ``speed_mps window_s`` more of where it is known to be; :class:`Silence`).
+    certified up over ``[t0_s - window_s, t0_s]``, not at ``t0_s`` alone (each end farther
+    from where it is known to be by its largest travel over the window; :class:`Silence`).
+    ``silent_of``: ``(n, n)``, the robots each robot has heard nothing of for longer than
+    the largest gap between two Acks (:func:`silent`): their link was down in the window,
+    so it is no detour's link, though the robot is still a node.
 
     Notes
     -----
@@ -409,7 +413,8 @@ def let_go(
     listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
     measured = (memory.x_db, memory.measured_s, listed_x, memory.leg_speed_mps, memory.leg_from_s)
     rule_of_fade = NO_FADE if fade is None else fade.rule
-    kernels.let_go(pos, (memory.xy, memory.sent_s, known), lists, rule, walls, out, rule_of_fade, measured)
+    quiet = np.zeros((n, n), dtype=bool) if silent_of is None else np.ascontiguousarray(silent_of, dtype=bool)
+    kernels.let_go(pos, (memory.xy, memory.sent_s, known, quiet), lists, rule, walls, out, rule_of_fade, measured)
     return out
 
 

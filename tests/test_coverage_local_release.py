@@ -218,3 +218,24 @@ def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windo
     held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f, window_s=SILENCE.window_s)[0, 1]
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_silent_robots_link_is_no_detours_link_though_the_robot_is_still_a_node(monkeypatch, compiled):
+    """Rule 1 with the release: a robot's link to a robot it counts silent was down in the
+    window, so it never enters a detour; the silent robot is still a node, reached through
+    others (robot 0 lets go of robot 1 through 3 and the silent 2; when it does not remember
+    3, the only detour starts with its link to 2, and it keeps 1)."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    pos = np.array([[0.0, 0.0], [90.0, 0.0], [60.0, 20.0], [30.0, 20.0]])
+    n = len(pos)
+    s = np.full((n, n), T0 - 0.5)
+    np.fill_diagonal(s, -np.inf)
+    m = memory_of(np.broadcast_to(pos[None], (n, n, 2)).copy(), s)
+    quiet = np.zeros((n, n), dtype=bool)
+    quiet[0, 2] = True
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)[0, 1]
+    m.sent_s[0, 3] = -np.inf
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC)[0, 1]
+    assert not let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)[0, 1]
+    assert (oracle.let_go(pos, m, told(m), T0, V, 10.0, RC, NO_WALLS, 0.0, quiet) == let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)).all()

@@ -40,12 +40,22 @@ def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
 
 
 def let_go(
-    pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, walls: Walls, window_s: float = 0.0
+    pos,
+    memory: Memory,
+    heard: Heard,
+    t0_s,
+    speed_mps,
+    band_m,
+    range_m,
+    walls: Walls,
+    window_s: float = 0.0,
+    silent_of: np.ndarray | None = None,
 ) -> np.ndarray:
     """:func:`netsim.mobility.local.let_go`: per robot, the minimum spanning tree of its
     certified graph by scipy, and the bottleneck of its path to each remembered robot; a
     link certified up over the window before ``t0_s`` (each end farther by its largest
-    travel over the window as the robot knows it)."""
+    travel over the window as the robot knows it); a silent robot's link (``silent_of``) no
+    detour's link."""
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     known = heard.known
@@ -61,7 +71,7 @@ def let_go(
         local[node] = np.arange(m + 1)
         # certain[a, b]: i can tell that node a remembers node b at t0.
         certain = np.zeros((m + 1, m + 1), dtype=bool)
-        certain[0, 1:] = True
+        certain[0, 1:] = True if silent_of is None else ~silent_of[i, nb]
         for a in range(1, m + 1):
             b = local[reported(heard, i, node[a], t0_s)[1]]
             certain[a, b[b >= 0]] = True
