@@ -238,4 +238,7 @@ def test_detour_a_silent_robots_link_is_no_detours_link_though_the_robot_is_stil
     m.sent_s[0, 3] = -np.inf
     assert let_go(pos, m, told(m), T0, V, 10.0, RC)[0, 1]
     assert not let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)[0, 1]
-    assert (oracle.let_go(pos, m, told(m), T0, V, 10.0, RC, NO_WALLS, 0.0, quiet) == let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)).all()
+    assert (
+        oracle.let_go(pos, m, told(m), T0, V, 10.0, RC, NO_WALLS, 0.0, quiet)
+        == let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)
+    ).all()

@@ -86,7 +86,11 @@ def let_go(
         sweep = np.zeros(m + 1)
         if window_s > 0:
             sweep = largest_travel_m(
-                memory.leg_speed_mps[i, node], memory.leg_from_s[i, node], np.full(m + 1, t0_s - window_s), t0_s, speed_mps
+                memory.leg_speed_mps[i, node],
+                memory.leg_from_s[i, node],
+                np.full(m + 1, t0_s - window_s),
+                t0_s,
+                speed_mps,
             )
         usable = certain & certain.T & (longest + sweep[:, None] + sweep[None, :] <= range_m)
         np.fill_diagonal(usable, False)
