@@ -138,17 +138,21 @@ def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypat
 
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_detour_kernel_over_a_window_agrees_with_its_oracle(monkeypatch, compiled):
-    """Rule 1's kernel with a window lets go of exactly the links its numpy oracle does."""
-    from tests.test_coverage_local import random_scene
+    """Rule 1's kernel with a window lets go of exactly the links its numpy oracle does, in
+    open space and on a map (a detour's link surely clear of walls over the window)."""
+    from netsim.mobility.local import walls_of
+    from tests.test_coverage_local import ORIGIN, RES, blocks_map, random_scene
 
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    map_walls = walls_of(blocks_map([(100, 50, 102, 250), (150, 100, 300, 101)]), ORIGIN, RES)
     differs = False
     for seed in range(4):
         pos, m = random_scene(seed, n=30)
         heard = told(m)
-        got = let_go(pos, m, heard, T0, V, 10.0, RC, window_s=3.0)
-        assert (got == oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS, 3.0)).all()
-        differs |= bool((got != let_go(pos, m, heard, T0, V, 10.0, RC)).any())
+        for walls in (NO_WALLS, map_walls):
+            got = let_go(pos, m, heard, T0, V, 10.0, RC, walls, window_s=3.0)
+            assert (got == oracle.let_go(pos, m, heard, T0, V, 10.0, RC, walls, 3.0)).all()
+            differs |= bool((got != let_go(pos, m, heard, T0, V, 10.0, RC, walls)).any())
     assert differs
 
 

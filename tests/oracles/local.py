@@ -96,7 +96,7 @@ def let_go(
         np.fill_diagonal(usable, False)
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
-            ok = clear_of_walls(walls, q[a], q[b], e[a] + sweep, e[b] + sweep)
+            ok = clear_of_walls(walls, q[a], q[b], e[a] + sweep[a], e[b] + sweep[b])
             usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
