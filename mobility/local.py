@@ -39,7 +39,8 @@ period``), its own position ``p`` at ``t0`` exact:
 it has heard no Ack of for longer than the largest gap between two (``ack_period_s +
 ack_jitter_s`` plus the channel's delay jitter): an Ack of it due before the step did not
 arrive, so the link was down at an instant of the *window* ``[t0 - W, t0]``
-(:func:`silence_of`). Rule 1 then certifies a detour's links up over the whole window: each
+(:func:`silence_of`); the robot stays a node of rule 1's graph, but that link is no
+detour's link. Rule 1 then certifies a detour's links up over the whole window: each
 end farther from where ``i`` knows it at ``t0`` by its largest travel over the window, a
 measured link's pair travel counted from the window's start. Under loss a missed Ack says
 nothing of the link: no release, ``W = 0``.
