@@ -153,7 +153,8 @@ def ack_timing(config: Config) -> AckTiming | None:
     ``ack_period_s`` and ``ack_jitter_s`` (None for a protocol without them), and whether
     the channel loses frames: only the Bernoulli model at ``loss_probability = 0`` without a
     shared medium counts as lossless (any other loss model may drop a frame)."""
-    params = config.protocol.params
+    # The protocol's own parameters, whatever its class: the keys are checked by name.
+    params: Any = config.protocol.params
     keys = names(type(params))
     if "ack_period_s" not in keys or "ack_jitter_s" not in keys:
         return None

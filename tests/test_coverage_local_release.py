@@ -141,6 +141,7 @@ def test_detour_kernel_over_a_window_agrees_with_its_oracle(monkeypatch, compile
     """Rule 1's kernel with a window lets go of exactly the links its numpy oracle does, in
     open space and on a map (a detour's link surely clear of walls over the window)."""
     from netsim.mobility.local import walls_of
+
     from tests.test_coverage_local import ORIGIN, RES, blocks_map, random_scene
 
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
