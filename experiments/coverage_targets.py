@@ -38,7 +38,8 @@ least 19 of 20 seeds (95 % of the seeds run).
 ``--why`` runs the local plan under 4 dB shadowing on one seed (``--seed``, each ``--n``)
 and prints where it loses to the global plan: per control step, how many robots moved,
 held by rule 3 (a kept link they cannot answer for, alone or by halves) or wished
-nothing, and of the links
+nothing, how many links robots let go of as silent (no Ack heard for longer than the
+largest gap between two, on a channel that loses no frame), and of the links
 that held a robot, how many were weak (margin below ``coverage.fade_margin_db``), already
 down at the step (the true network), or up with a detour of truly shorter up links
 (one rule 1 could in principle certify), or only with a detour of stronger links (the
@@ -162,8 +163,8 @@ def why(n: int, seed: int, duration_s: float) -> dict:
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
     counts = dict.fromkeys(
-        ["robot-steps", "moved", "held, rule 3", "held, no travel", "no wish", "holding links", "weak", "down",
-         "shorter detour", "stronger detour only", "no detour"], 0)  # fmt: skip
+        ["robot-steps", "moved", "held, rule 3", "held, no travel", "no wish", "let go as silent", "holding links",
+         "weak", "down", "shorter detour", "stronger detour only", "no detour"], 0)  # fmt: skip
 
     def bottleneck(size, i, j, weight):
         # The largest weight on the best path between every two robots (through the forest).
@@ -210,6 +211,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         counts["held, rule 3"] += int((~moved & wish & holding.any(axis=1)).sum())
         counts["held, no travel"] += int((~moved & wish & ~holding.any(axis=1) & no_travel).sum())
         counts["no wish"] += int((~moved & ~wish).sum())
+        counts["let go as silent"] += int((self.silent & self.heard.known).sum())
         a, b = np.nonzero(holding & (~moved & wish)[:, None])
         up = np.isfinite(own_len[a, b])
         counts["holding links"] += len(a)

@@ -92,17 +92,24 @@ def measured_range_m(x_db, measured_s, travel_m, fade):
 def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
     through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
-    robots remember, ``(xy, sent_s, known)``; ``lists``: the lists they hold from each other
+    robots remember, ``(xy, sent_s, known, silent)``, ``silent[i, j]``: ``i``'s link to ``j``
+    was down in the window (:class:`netsim.mobility.local.Silence`), never a detour's link
+    (``j`` still a node); ``lists``: the lists they hold from each other
     (:class:`netsim.mobility.local.Heard`), ``(which, start, other, sent_s)``; ``rule``: the
-    step's ``(t0_s, speed_mps, band_m, range_m, release_s)``; ``fade``: the shadowing's rule
+    step's ``(t0_s, speed_mps, band_m, range_m, release_s, window_s)``, a detour's link
+    certified up over ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): each end farther from
+    where it is at ``t0_s`` by its largest travel over the window, and a measured link's
+    pair travel counted from the window's start where that is earlier than the measurement
+    (:func:`largest_travel_m`); ``fade``: the shadowing's rule
     (:func:`measured_range_m`, ``on`` False: none); ``measured``: the shadowing each robot
     measured on each robot's latest Ack and when it can have been sent, ``(x_db (n, n),
     measured_s (n, n), listed_x_db (M,), leg_speed_mps (n, n), leg_from_s (n, n))``, the
     third for the lists' entries, the last two the speeds each robot knows (its own on the
     diagonal; :func:`largest_travel_m`)."""
-    xy, sent_s, known = memory
+    xy, sent_s, known, silent = memory
     which, start, other, listed_s = lists
-    t0_s, speed_mps, band_m, range_m, release_s = rule
+    t0_s, speed_mps, band_m, range_m, release_s, window_s = rule
+    opens_s = t0_s - window_s
     x_db, measured_s, listed_x, leg_speed, leg_from = measured
     n = pos.shape[0]
     nn = float(n * n)
@@ -115,6 +122,8 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     qx = np.empty(n)
     qy = np.empty(n)
     e = np.empty(n)
+    # sweep[a]: node a's largest travel over the window, as i knows it.
+    sweep = np.zeros(n)
     worst = np.empty(n)
     done = np.empty(n, np.bool_)
     for i in range(n):
@@ -130,16 +139,23 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
         m = k - 1
         if m < 2:
             continue
+        if window_s > 0:
+            for a in range(k):
+                u = node[a]
+                sweep[a] = largest_travel_m(leg_speed[i, u], leg_from[i, u], opens_s, t0_s, speed_mps)
         # certain[a, b]: i can tell that node a remembers node b at t0 (from a's list).
         for a in range(k):
             local[node[a]] = a
             for b in range(k):
-                certain[a, b] = a == 0 and b > 0
+                certain[a, b] = a == 0 and b > 0 and not silent[i, node[b]]
                 sure[a, b] = range_m
         for b in range(1, k):
-            # The pair's travel since the measurement: each end's, as far as i knows it.
+            # The pair's travel since the measurement: each end's, as far as i knows it; over
+            # a window, from its start if earlier (an instant of the window before the
+            # measurement is within the window's travel of it: the shadowing's change
+            # depends on the pair's travel between the two instants, either way).
             j = node[b]
-            s_ij = measured_s[i, j]
+            s_ij = min(measured_s[i, j], opens_s) if window_s > 0 else measured_s[i, j]
             travel = largest_travel_m(leg_speed[i, i], leg_from[i, i], s_ij, t0_s, speed_mps)
             travel += largest_travel_m(leg_speed[i, j], leg_from[i, j], s_ij, t0_s, speed_mps)
             r = measured_range_m(x_db[i, j], s_ij, travel, fade)
@@ -154,7 +170,7 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 b = local[other[p]]
                 if b >= 0 and t0_s - listed_s[p] < release_s:
                     certain[a, b] = True
-                    s_p = listed_s[p]
+                    s_p = min(listed_s[p], opens_s) if window_s > 0 else listed_s[p]
                     listed = node[b]
                     travel = largest_travel_m(leg_speed[i, u], leg_from[i, u], s_p, t0_s, speed_mps)
                     travel += largest_travel_m(leg_speed[i, listed], leg_from[i, listed], s_p, t0_s, speed_mps)
@@ -181,11 +197,11 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
-                if longest > sure[u, v]:
+                if longest + sweep[u] + sweep[v] > sure[u, v]:
                     continue
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
-                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a], e[b]):
+                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep[a], e[b] + sweep[b]):
                     continue
                 rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)

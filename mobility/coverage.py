@@ -114,6 +114,8 @@ from netsim.mobility.local import (
     latest_pulls,
     let_go,
     plan_local,
+    silence_of,
+    silent,
     sources_heard,
     walls_of,
 )
@@ -440,6 +442,14 @@ class CoverageController:
             parts.occupancy.occupied if on_map else None,
             *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
         )
+        # On a channel that loses no frame a missed Ack means the link was down: a robot lets
+        # go of a robot it has not heard for longer than the largest gap between two Acks
+        # (netsim.mobility.local.Silence). Under loss it keeps it for release_s.
+        acks, ch = parts.acks, parts.channel
+        self.silence = None
+        if self.memory is not None and acks is not None and acks.lossless:
+            self.silence = silence_of(acks.period_s, acks.jitter_s, ch.latency_s, ch.latency_jitter_s)
+        self.silent: np.ndarray | None = None  # the robots each robot let go of as silent at the latest step
         self.knows: Memory | None = None  # the memory as of the step being planned
         self.halves = None  # the links each robot answered for by its half at the latest step
         self.kept: np.ndarray | None = None  # the links each robot kept at the latest step
@@ -598,8 +608,12 @@ class CoverageController:
         fade = self.fade
         if fade is not None:
             knows.keep_m, travel = fade.limits(knows, t0, t1, speed)
-        kept = heard.known & ~let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, fade)
-        self.kept = kept
+        # A robot lets go of a silent robot: their link was down in the window.
+        quiet = silent(memory, self.env.now, self.loop.lead_s, self.silence)
+        window = 0.0 if self.silence is None else self.silence.window_s
+        gone = let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, fade, window, quiet)
+        kept = heard.known & ~quiet & ~gone
+        self.kept, self.silent = kept, quiet
         announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (netsim.mobility.local, rule 4).

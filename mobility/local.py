@@ -35,6 +35,16 @@ period``), its own position ``p`` at ``t0`` exact:
    segment between the two robots during the step is clear of walls; else a shorter step,
    or it holds. A detour's link must be surely clear of walls too (:func:`clear_of_walls`).
 
+**Release** (:class:`Silence`, on a channel that loses no frame): ``i`` lets go of a robot
+it has heard no Ack of for longer than the largest gap between two (``ack_period_s +
+ack_jitter_s`` plus the channel's delay jitter): an Ack of it due before the step did not
+arrive, so the link was down at an instant of the *window* ``[t0 - W, t0]``
+(:func:`silence_of`); the robot stays a node of rule 1's graph, but that link is no
+detour's link. Rule 1 then certifies a detour's links up over the whole window: each
+end farther from where ``i`` knows it at ``t0`` by its largest travel over the window, a
+measured link's pair travel counted from the window's start. Under loss a missed Ack says
+nothing of the link: no release, ``W = 0``.
+
 ``r`` is the plan's range: the range on a disk (the implied range under log-distance;
 on a map, for a link clear of walls), and under shadowing the *sure* distance, where even
 the clipped worst shadowing (``+4 sigma``) leaves a link up. A link through a wall is never
@@ -64,15 +74,16 @@ link alone (rule 3) answers for its half when both ends can compute the same lim
 ``t0`` and takes at most half of the pair's travel left, so a weak link, which would hold
 both robots for good, moves a little and its shadowing changes.
 
-Why the network never splits: let ``K`` be the links up at ``t0`` whose ends remember
-each other. A link of ``K`` that some end lets go of has, by rule 1, a detour
+Why the network never splits: let ``K`` be the links up over the window ``[t0 - W, t0]``
+whose ends remember each other. No end lets go of one as silent (it carried every Ack of
+the window). A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
 that moves keeps it up whatever the other does (rules 2 and 5), or keeps its half while
 the other keeps its half, answers alone or holds (halves), an end that cannot holds
 (rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
-of the step, and at the next ``t0`` it is in ``K``
+of the step, so up over the next step's window, and at the next ``t0`` it is in ``K``
 again while both ends still remember each other. So the components of ``K`` never grow,
 and the network (which contains ``K``) never has more components than ``K`` had when
 control started: on a loss-free channel, always; under loss, unless a robot misses every
@@ -367,6 +378,8 @@ def let_go(
     range_m: float,
     walls: Walls = NO_WALLS,
     fade: Fade | None = None,
+    window_s: float = 0.0,
+    silent_of: np.ndarray | None = None,
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
@@ -381,7 +394,12 @@ def let_go(
     largest rank it can have at ``t0``. A robot two links out is no node: ``i`` heard
     nothing of it. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
     minimum spanning tree of that graph, computed by
-    :func:`netsim.mobility._local_kernels.let_go`.
+    :func:`netsim.mobility._local_kernels.let_go`. ``window_s``: a detour's links are
+    certified up over ``[t0_s - window_s, t0_s]``, not at ``t0_s`` alone (each end farther
+    from where it is known to be by its largest travel over the window; :class:`Silence`).
+    ``silent_of``: ``(n, n)``, the robots each robot has heard nothing of for longer than
+    the largest gap between two Acks (:func:`silent`): their link was down in the window,
+    so it is no detour's link, though the robot is still a node.
 
     Notes
     -----
@@ -390,14 +408,63 @@ def let_go(
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     known = heard.known
-    rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m), heard.release_s)
+    rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m), heard.release_s, float(window_s))
     lists = (heard.which, heard.start, heard.other, heard.sent_s)
     kernels = load("netsim.mobility._local_kernels", n)
     listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
     measured = (memory.x_db, memory.measured_s, listed_x, memory.leg_speed_mps, memory.leg_from_s)
     rule_of_fade = NO_FADE if fade is None else fade.rule
-    kernels.let_go(pos, (memory.xy, memory.sent_s, known), lists, rule, walls, out, rule_of_fade, measured)
+    quiet = np.zeros((n, n), dtype=bool) if silent_of is None else np.ascontiguousarray(silent_of, dtype=bool)
+    kernels.let_go(pos, (memory.xy, memory.sent_s, known, quiet), lists, rule, walls, out, rule_of_fade, measured)
     return out
+
+
+# How much longer than the largest gap between two Acks a robot waits before it counts a
+# robot silent, and how much wider the window of rule 1 is for it (s): room for the
+# rounding of the times compared.
+SILENCE_SLACK_S = 1e-6
+
+
+class Silence(NamedTuple):
+    """The release of a silent robot (module notes, "Release"), on a channel that loses no
+    frame: ``i`` lets go of ``j`` once it has heard no Ack of ``j`` for more than ``gap_s``
+    (then the link was down at an instant of the window, :func:`silence_of`), and rule 1
+    certifies a detour's links up over the ``window_s`` before ``t0``."""
+
+    gap_s: float
+    window_s: float
+
+
+def silence_of(period_s: float, jitter_s: float, latency_s: float, latency_jitter_s: float) -> Silence:
+    """The release's gap and window from the Acks' timing (``protocol.ack_period_s``,
+    ``protocol.ack_jitter_s``) and the channel's delay (``latency_s + latency_jitter_s``,
+    the largest ``lead``).
+
+    Two Acks of ``j`` leave at most ``period_s + jitter_s`` apart, so the closed span
+    ``[now - lead - period_s - jitter_s - slack, now - lead - slack]`` holds one, sent at
+    ``a``; it arrived by ``a + lead < now``. Had the link been up then, ``i`` would hold it,
+    heard no earlier than ``a + latency_s``: a silence of at most ``period_s + jitter_s +
+    latency_jitter_s + slack`` (``gap_s``). A longer silence means the link was down at an
+    instant of that span, which starts ``period_s + jitter_s + 2 lead + slack`` (``window_s``)
+    before ``t0 = now + lead``.
+
+    >>> [round(x, 9) for x in silence_of(1.0, 0.05, 0.001, 0.0)]
+    [1.050001, 1.052001]
+    """
+    lead = latency_s + latency_jitter_s
+    gap = period_s + jitter_s + latency_jitter_s + SILENCE_SLACK_S
+    return Silence(gap, period_s + jitter_s + 2.0 * lead + SILENCE_SLACK_S)
+
+
+def silent(memory: Memory, now_s: float, lead_s: float, silence: Silence | None) -> np.ndarray:
+    """``(n, n)``: ``i`` has heard no Ack of ``j`` for more than ``silence.gap_s`` at ``now_s``
+    (the latest one it heard arrived at ``memory.sent_s + lead_s``); all False without the
+    release (``silence`` None: a channel that may lose frames)."""
+    if silence is None:
+        return np.zeros(memory.sent_s.shape, dtype=bool)
+    heard = np.isfinite(memory.sent_s)
+    with np.errstate(invalid="ignore"):
+        return heard & (now_s - (memory.sent_s + lead_s) > silence.gap_s)
 
 
 def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> np.ndarray:

@@ -69,6 +69,19 @@ class RoleLabels(NamedTuple):
     leader_lost: str
 
 
+class AckTiming(NamedTuple):
+    """When a robot's Acks come, for controllers that plan on their absence (the local
+    plan's release, docs/model.md 5.1): the protocol's ``ack_period_s`` and ``ack_jitter_s``
+    (each robot sends an Ack at most ``period_s + jitter_s`` after its previous one), and
+    whether the channel delivers every frame to every robot its radio lets hear it
+    (``lossless``: the Bernoulli loss model at ``loss_probability = 0`` and no shared
+    medium), so that a missed Ack means the link was down when it was sent."""
+
+    period_s: float
+    jitter_s: float
+    lossless: bool
+
+
 @dataclass(frozen=True)
 class Parts:
     """What a model is built with: the run's core, the world, the run's event bus
@@ -98,6 +111,9 @@ class Parts:
     # channel.max_frame_bytes: the largest payload of one frame (a protocol that packs
     # several messages into a frame keeps under it).
     max_frame_bytes: int = 1500
+    # For controllers: the Ack beacon's timing and whether the channel loses frames; None
+    # when the protocol sends no Acks.
+    acks: AckTiming | None = None
 
 
 class LinkState(Protocol):

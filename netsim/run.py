@@ -32,8 +32,8 @@ from netsim.groups import GroupView
 from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.shadowed_links import ShadowedLinks
 from netsim.links.walled_links import WalledLinks
-from netsim.params import Params
-from netsim.plugins import Parts, Reports, Schema
+from netsim.params import Params, names
+from netsim.plugins import AckTiming, Parts, Reports, Schema
 from netsim.radio.channel import Channel
 from netsim.radio.reception import Reception
 from netsim.radio.receptions import RECEPTIONS_SCHEMA, ReceptionLog
@@ -148,6 +148,21 @@ def world_map(config: Config) -> Any:
     return cached_map(config.world.map)
 
 
+def ack_timing(config: Config) -> AckTiming | None:
+    """The Ack beacon's timing for the controllers (:attr:`Parts.acks`): the protocol's keys
+    ``ack_period_s`` and ``ack_jitter_s`` (None for a protocol without them), and whether
+    the channel loses frames: only the Bernoulli model at ``loss_probability = 0`` without a
+    shared medium counts as lossless (any other loss model may drop a frame)."""
+    # The protocol's own parameters, whatever its class: the keys are checked by name.
+    params: Any = config.protocol.params
+    keys = names(type(params))
+    if "ack_period_s" not in keys or "ack_jitter_s" not in keys:
+        return None
+    ch = config.channel
+    lossless = ch.loss_model == "bernoulli" and ch.loss_probability == 0 and ch.mac_model.build is None
+    return AckTiming(float(params.ack_period_s), float(params.ack_jitter_s), bool(lossless))
+
+
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
     component = plugin.build(params, parts)
     sim.add_model(name, component)
@@ -200,7 +215,7 @@ def build(config: Config, run: int = 0) -> Simulation:
         )
         sim.add_model("control", loop)
         links = sim.link_events if sim.runtime_links != "off" else None
-        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links)
+        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links, acks=ack_timing(config))
         for name, plugin, params in chosen:
             component = _build_model(sim, name, plugin, params, with_loop)
             if callable(component):

@@ -39,9 +39,23 @@ def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
     return out
 
 
-def let_go(pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, walls: Walls) -> np.ndarray:
+def let_go(
+    pos,
+    memory: Memory,
+    heard: Heard,
+    t0_s,
+    speed_mps,
+    band_m,
+    range_m,
+    walls: Walls,
+    window_s: float = 0.0,
+    silent_of: np.ndarray | None = None,
+) -> np.ndarray:
     """:func:`netsim.mobility.local.let_go`: per robot, the minimum spanning tree of its
-    certified graph by scipy, and the bottleneck of its path to each remembered robot."""
+    certified graph by scipy, and the bottleneck of its path to each remembered robot; a
+    link certified up over the window before ``t0_s`` (each end farther by its largest
+    travel over the window as the robot knows it); a silent robot's link (``silent_of``) no
+    detour's link."""
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     known = heard.known
@@ -57,7 +71,7 @@ def let_go(pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, 
         local[node] = np.arange(m + 1)
         # certain[a, b]: i can tell that node a remembers node b at t0.
         certain = np.zeros((m + 1, m + 1), dtype=bool)
-        certain[0, 1:] = True
+        certain[0, 1:] = True if silent_of is None else ~silent_of[i, nb]
         for a in range(1, m + 1):
             b = local[reported(heard, i, node[a], t0_s)[1]]
             certain[a, b[b >= 0]] = True
@@ -69,11 +83,20 @@ def let_go(pos, memory: Memory, heard: Heard, t0_s, speed_mps, band_m, range_m, 
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
         longest = centre + e[:, None] + e[None, :]
         rank = link_rank(longest, pair, band_m, n) + 1.0
-        usable = certain & certain.T & (longest <= range_m)
+        sweep = np.zeros(m + 1)
+        if window_s > 0:
+            sweep = largest_travel_m(
+                memory.leg_speed_mps[i, node],
+                memory.leg_from_s[i, node],
+                np.full(m + 1, t0_s - window_s),
+                t0_s,
+                speed_mps,
+            )
+        usable = certain & certain.T & (longest + sweep[:, None] + sweep[None, :] <= range_m)
         np.fill_diagonal(usable, False)
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
-            ok = clear_of_walls(walls, q[a], q[b], e[a], e[b])
+            ok = clear_of_walls(walls, q[a], q[b], e[a] + sweep[a], e[b] + sweep[b])
             usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)

@@ -1,0 +1,249 @@
+"""The local plan's release of a silent robot (docs/model.md 5.1, "Release"; mobility/local.py,
+:class:`Silence`): on a channel that loses no frame a robot lets go of a robot it has heard no
+Ack of for longer than the largest gap between two Acks, and rule 1 then certifies a detour's
+links up over the window before the step; under loss it keeps the robot for release_s."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from netsim.mobility.local import NO_WALLS, Lists, Memory, let_go, silence_of, silent
+
+from netsim import config
+from netsim.run import ack_timing, build, execute
+from netsim.tools.validate import coverage_settings
+from tests.oracles import local as oracle
+
+RC = 100.0
+V = 2.0
+T0 = 10.0
+PERIOD_S, JITTER_S, LATENCY_S = 1.0, 0.05, 0.001
+SILENCE = silence_of(PERIOD_S, JITTER_S, LATENCY_S, 0.0)
+
+
+def memory_of(xy_heard, sent_s):
+    n = len(sent_s)
+    m = Memory(n)
+    m.xy[:] = np.asarray(xy_heard, dtype=float)
+    m.sent_s[:] = np.asarray(sent_s, dtype=float)
+    return m
+
+
+def told(m, release_s=20.0):
+    """Every robot holds, from every robot it remembers, that robot's memory as its list."""
+    lists = Lists(len(m.sent_s), 1)
+    lists.take(m, m.sent_s[np.isfinite(m.sent_s)].min(initial=T0) - 1.0, release_s)
+    return lists.heard(m.known(T0, release_s), m.sent_s, release_s)
+
+
+def test_release_a_robot_is_silent_once_it_heard_no_ack_for_longer_than_the_largest_gap():
+    """The largest gap between two Acks of a robot as heard is ack period + ack jitter + the
+    channel's delay jitter: a robot whose latest Ack arrived a little less than that ago is
+    not silent, one a little more is; a robot never heard is not silent (not remembered)."""
+    assert SILENCE.gap_s == pytest.approx(PERIOD_S + JITTER_S, abs=1e-5)
+    assert silence_of(1.0, 0.05, 0.001, 0.02).gap_s == pytest.approx(1.07, abs=1e-5)
+    now, lead = 20.0, LATENCY_S
+    m = Memory(3)
+    heard_s = np.array([now - (PERIOD_S + JITTER_S) + 1e-4, now - (PERIOD_S + JITTER_S) - 1e-4])
+    m.hear(np.array([0, 0]), np.array([1, 2]), np.zeros((2, 2)), heard_s, lead)
+    quiet = silent(m, now, lead, SILENCE)
+    assert not quiet[0, 1] and quiet[0, 2]
+    assert not quiet[1].any() and not quiet[2].any()
+    assert not silent(m, now, lead, None).any()
+
+
+@pytest.mark.filterwarnings("ignore::netsim.config.ConfigWarning")
+def test_release_is_on_only_where_the_channel_loses_no_frame():
+    """The plan is given the Acks' timing when built (netsim.run.ack_timing): lossless only
+    with the Bernoulli loss model at loss_probability = 0 and no shared medium; the distance
+    loss model (which drops near the range's edge whatever its floor) and Gilbert-Elliott
+    count as lossy, and a protocol without Acks gives nothing."""
+    base = coverage_settings("shadowing 4 dB", "local", 6, 0.0, 1, 30.0)
+
+    def timing(*extra):
+        return ack_timing(config.load(None, base + list(extra)))
+
+    assert timing() == (PERIOD_S, JITTER_S, True)
+    assert timing("protocol.ack_period_s=2.0") == (2.0, JITTER_S, True)
+    assert not timing("channel.loss_probability=0.01").lossless
+    assert not timing('channel.loss_model="distance"', "channel.loss_probability=0").lossless
+    assert not timing('channel.loss_model="gilbert_elliott"').lossless
+    assert not timing('channel.mac="aloha"', "coverage.enabled=false").lossless
+    assert timing('protocol.model="none"', "coverage.enabled=false") is None
+
+
+def two_robots(loss):
+    """Two robots of the local plan 30 m apart (unit disk, range 100 m), robot 1 switched off
+    at 15 s: from then on robot 0 hears no Ack of it."""
+    overrides = coverage_settings("unit disk", "local", 2, loss, 1, 30.0) + ["world.centre_side_m=30"]
+    sim = build(config.load(None, overrides))
+    sim.run(15.0)
+    ctl = sim.models["coverage"]
+    assert ctl.kept[0, 1] and not ctl.silent.any()
+    sim.state.alive[1] = False
+    return sim, ctl
+
+
+def test_release_a_robot_lets_go_of_a_silent_robot_on_a_lossless_channel():
+    """On a lossless channel robot 0 lets go of robot 1 at the first step after more than
+    the largest gap between two Acks without one (though it still remembers it)."""
+    sim, ctl = two_robots(0.0)
+    assert ctl.silence is not None
+    sim.run(16.0)  # the step at 16 s: the latest Ack is less than the gap old
+    assert ctl.kept[0, 1]
+    sim.run(18.0)
+    assert ctl.silent[0, 1] and not ctl.kept[0, 1]
+    assert ctl.heard.known[0, 1]
+
+
+def test_release_under_loss_a_robot_keeps_a_silent_robot_for_release_s():
+    """Under loss a missed Ack says nothing of the link: robot 0 keeps robot 1 while it
+    remembers it (release_s after its latest Ack)."""
+    sim, ctl = two_robots(0.01)
+    assert ctl.silence is None
+    sim.run(25.0)
+    assert ctl.kept[0, 1] and not ctl.silent.any()
+
+
+def triangle(sent_s):
+    """Robots 0 and 1 120 m apart, robot 2 97.5 m from each; all heard at ``sent_s``."""
+    pos = np.array([[0.0, 0.0], [120.0, 0.0], [60.0, np.sqrt(97.5**2 - 60.0**2)]])
+    n = len(pos)
+    s = np.full((n, n), float(sent_s))
+    np.fill_diagonal(s, -np.inf)
+    return pos, memory_of(np.broadcast_to(pos[None], (n, n, 2)).copy(), s)
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypatch, compiled):
+    """Rule 1 with the release: a detour's link counts only if it is surely up over the whole
+    window before t0, each end farther than at t0 by its largest travel over the window as
+    the robot knows it (the speed cap, or the speed its Acks carried). Links of 98.5 m at
+    most at t0 are surely up then, not over a window of about a second at 2 m/s, unless
+    the robots held."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    pos, m = triangle(T0 - 0.5)
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC)[0, 1]
+    assert not let_go(pos, m, told(m), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
+    near = pos.copy()
+    near[2, 1] -= 5.0  # 4 m shorter links: certified over the window too
+    m2 = memory_of(np.broadcast_to(near[None], (3, 3, 2)).copy(), m.sent_s)
+    assert let_go(near, m2, told(m2), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
+    # Robots whose Acks (and robot 0's own leg) say they have held since before the window
+    # travelled nothing over it: certified as at t0.
+    m.leg_speed_mps[:] = 0.0
+    m.leg_from_s[:] = T0 - 5.0
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_kernel_over_a_window_agrees_with_its_oracle(monkeypatch, compiled):
+    """Rule 1's kernel with a window lets go of exactly the links its numpy oracle does, in
+    open space and on a map (a detour's link surely clear of walls over the window)."""
+    from netsim.mobility.local import walls_of
+
+    from tests.test_coverage_local import ORIGIN, RES, blocks_map, random_scene
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    map_walls = walls_of(blocks_map([(100, 50, 102, 250), (150, 100, 300, 101)]), ORIGIN, RES)
+    differs = False
+    for seed in range(4):
+        pos, m = random_scene(seed, n=30)
+        heard = told(m)
+        for walls in (NO_WALLS, map_walls):
+            got = let_go(pos, m, heard, T0, V, 10.0, RC, walls, window_s=3.0)
+            assert (got == oracle.let_go(pos, m, heard, T0, V, 10.0, RC, walls, 3.0)).all()
+            differs |= bool((got != let_go(pos, m, heard, T0, V, 10.0, RC, walls)).any())
+    assert differs
+
+
+@pytest.mark.slow
+def test_release_a_robot_lets_go_only_of_links_down_within_the_window():
+    """The release's premise, on a lossless run under 4 dB shadowing: whenever a robot lets
+    go of a robot as silent, the link (links.parquet) was down at some instant of the window
+    before the step; so no link up over the window is ever let go of for silence."""
+    from netsim.mobility import coverage
+
+    seen = []
+    plan_local = coverage.CoverageController._plan_local
+
+    def watched(self, step):
+        plan = plan_local(self, step)
+        i, j = np.nonzero(self.silent & self.heard.known)
+        seen.append((step.t_s, i, j))
+        return plan
+
+    coverage.CoverageController._plan_local = watched
+    try:
+        r = execute(config.load(None, coverage_settings("shadowing 4 dB", "local", 20, 0.0, 1, 150.0)))
+    finally:
+        coverage.CoverageController._plan_local = plan_local
+    window = r.sim.models["coverage"].silence.window_s
+    links = r.frames["links"]
+    up = {}
+    for a, b, t_up, t_down in links[["a", "b", "t_up_s", "t_down_s"]].itertuples(index=False):
+        up.setdefault((min(a, b), max(a, b)), []).append((t_up, t_down))
+    count = 0
+    for t0, robots, others in seen:
+        for i, j in zip(robots.tolist(), others.tolist()):
+            count += 1
+            spans = up.get((min(i, j), max(i, j)), [])
+            # Up over the whole window: one up interval covers [t0 - window, t0].
+            assert not any(lo <= t0 - window and (np.isnan(hi) or hi > t0) for lo, hi in spans), (t0, i, j)
+    assert count > 100
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windows_start(monkeypatch, compiled):
+    """Rule 1 under shadowing with the release: a detour's link measured beyond the sure
+    distance counts as up over the window when its shadowing stays within range over the
+    pair's travel from the window's start (earlier than the measurement), not only from the
+    measurement: two robots at the speed cap travel 0.14 m in the 0.2 s since their Acks,
+    0.76 m over the window, enough for the shadowing's plausible change to shorten links
+    of about 43 m measured at 6 dB below their length."""
+    from tests.test_coverage_local_fade import SURE, fade, record_margins
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    f = fade()
+    v = f.speed_mps
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - 0.2)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = m.measured_s[:] = sent
+    m.x_db[:] = 6.0
+    np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
+    m.leg_speed_mps[:] = v  # every robot at the cap since before the window
+    m.leg_from_s[:] = T0 - 5.0
+    lists = Lists(n, 2)
+    lists.take(m, T0 - 1.0, 20.0)
+    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
+    assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f, window_s=SILENCE.window_s)[0, 1]
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_silent_robots_link_is_no_detours_link_though_the_robot_is_still_a_node(monkeypatch, compiled):
+    """Rule 1 with the release: a robot's link to a robot it counts silent was down in the
+    window, so it never enters a detour; the silent robot is still a node, reached through
+    others (robot 0 lets go of robot 1 through 3 and the silent 2; when it does not remember
+    3, the only detour starts with its link to 2, and it keeps 1)."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    pos = np.array([[0.0, 0.0], [90.0, 0.0], [60.0, 20.0], [30.0, 20.0]])
+    n = len(pos)
+    s = np.full((n, n), T0 - 0.5)
+    np.fill_diagonal(s, -np.inf)
+    m = memory_of(np.broadcast_to(pos[None], (n, n, 2)).copy(), s)
+    quiet = np.zeros((n, n), dtype=bool)
+    quiet[0, 2] = True
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)[0, 1]
+    m.sent_s[0, 3] = -np.inf
+    assert let_go(pos, m, told(m), T0, V, 10.0, RC)[0, 1]
+    assert not let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)[0, 1]
+    assert (
+        oracle.let_go(pos, m, told(m), T0, V, 10.0, RC, NO_WALLS, 0.0, quiet)
+        == let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)
+    ).all()
