@@ -52,6 +52,18 @@ class Driver(Protocol):
 
 
 @runtime_checkable
+class AckSchedule(Protocol):
+    """A protocol whose robots beacon Acks: a robot's next Ack leaves at most
+    ``ack_period_s + ack_jitter_s`` after its previous one."""
+
+    @property
+    def ack_period_s(self) -> float: ...
+
+    @property
+    def ack_jitter_s(self) -> float: ...
+
+
+@runtime_checkable
 class NeighbourView(Protocol):
     """What each robot's neighbour table holds."""
 

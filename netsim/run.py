@@ -25,14 +25,14 @@ from netsim import config as cfgmod
 from netsim import plugins
 from netsim.config import Config, world_bounds
 from netsim.control import ControlLoop
-from netsim.cosim import Driver, Messenger, NeighbourView
+from netsim.cosim import AckSchedule, Driver, Messenger, NeighbourView
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.events import EventBus
 from netsim.groups import GroupView
 from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.shadowed_links import ShadowedLinks
 from netsim.links.walled_links import WalledLinks
-from netsim.params import Params, names
+from netsim.params import Params
 from netsim.plugins import AckTiming, Parts, Reports, Schema
 from netsim.radio.channel import Channel
 from netsim.radio.reception import Reception
@@ -148,19 +148,16 @@ def world_map(config: Config) -> Any:
     return cached_map(config.world.map)
 
 
-def ack_timing(config: Config) -> AckTiming | None:
-    """The Ack beacon's timing for the controllers (:attr:`Parts.acks`): the protocol's keys
-    ``ack_period_s`` and ``ack_jitter_s`` (None for a protocol without them), and whether
-    the channel loses frames: only the Bernoulli model at ``loss_probability = 0`` without a
-    shared medium counts as lossless (any other loss model may drop a frame)."""
-    # The protocol's own parameters, whatever its class: the keys are checked by name.
-    params: Any = config.protocol.params
-    keys = names(type(params))
-    if "ack_period_s" not in keys or "ack_jitter_s" not in keys:
+def ack_timing(protocol: object, channel: Any) -> AckTiming | None:
+    """The Ack beacon's timing for the controllers (:attr:`Parts.acks`), as the run's
+    ``protocol`` declares it (:class:`~netsim.cosim.AckSchedule`; None for a protocol
+    without Acks), and whether the ``channel`` (its configuration) loses frames: only the
+    Bernoulli model at ``loss_probability = 0`` without a shared medium counts as lossless
+    (any other loss model may drop a frame)."""
+    if not isinstance(protocol, AckSchedule):
         return None
-    ch = config.channel
-    lossless = ch.loss_model == "bernoulli" and ch.loss_probability == 0 and ch.mac_model.build is None
-    return AckTiming(float(params.ack_period_s), float(params.ack_jitter_s), bool(lossless))
+    lossless = channel.loss_model == "bernoulli" and channel.loss_probability == 0 and channel.mac_model.build is None
+    return AckTiming(float(protocol.ack_period_s), float(protocol.ack_jitter_s), bool(lossless))
 
 
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
@@ -215,7 +212,8 @@ def build(config: Config, run: int = 0) -> Simulation:
         )
         sim.add_model("control", loop)
         links = sim.link_events if sim.runtime_links != "off" else None
-        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links, acks=ack_timing(config))
+        acks = ack_timing(protocol, config.channel)
+        with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links, acks=acks)
         for name, plugin, params in chosen:
             component = _build_model(sim, name, plugin, params, with_loop)
             if callable(component):

@@ -336,6 +336,16 @@ class AckBeacon:
         """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
         return self.table.heard(now)
 
+    @property
+    def ack_period_s(self) -> float:
+        """The Ack period (:class:`netsim.cosim.AckSchedule`)."""
+        return self.params.ack_period_s
+
+    @property
+    def ack_jitter_s(self) -> float:
+        """The most an Ack leaves after its period (:class:`netsim.cosim.AckSchedule`)."""
+        return self.params.ack_jitter_s
+
     def link_quality(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The tables' live entries and their last power (:class:`netsim.cosim.LinkQualityView`)."""
         return self.table.link_quality(now)

@@ -181,6 +181,17 @@ class Stack:
                     fn(r, cmd)
 
     # -- driven from outside (netsim.cosim) -------------------------------------------
+
+    @property
+    def ack_period_s(self) -> float:
+        """The Ack period (:class:`netsim.cosim.AckSchedule`)."""
+        return self.params.ack_period_s
+
+    @property
+    def ack_jitter_s(self) -> float:
+        """The most an Ack leaves after its period (:class:`netsim.cosim.AckSchedule`)."""
+        return self.params.ack_jitter_s
+
     def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
         return self.table.heard(now)

@@ -54,14 +54,16 @@ def test_release_a_robot_is_silent_once_it_heard_no_ack_for_longer_than_the_larg
 
 @pytest.mark.filterwarnings("ignore::netsim.config.ConfigWarning")
 def test_release_is_on_only_where_the_channel_loses_no_frame():
-    """The plan is given the Acks' timing when built (netsim.run.ack_timing): lossless only
-    with the Bernoulli loss model at loss_probability = 0 and no shared medium; the distance
-    loss model (which drops near the range's edge whatever its floor) and Gilbert-Elliott
-    count as lossy, and a protocol without Acks gives nothing."""
+    """The plan is given the Acks' timing when built (netsim.run.ack_timing), as the run's
+    protocol declares it: lossless only with the Bernoulli loss model at loss_probability =
+    0 and no shared medium; the distance loss model (which drops near the range's edge
+    whatever its floor) and Gilbert-Elliott count as lossy, and a protocol without Acks
+    gives nothing."""
     base = coverage_settings("shadowing 4 dB", "local", 6, 0.0, 1, 30.0)
 
     def timing(*extra):
-        return ack_timing(config.load(None, base + list(extra)))
+        cfg = config.load(None, base + list(extra))
+        return ack_timing(build(cfg).models["protocol"], cfg.channel)
 
     assert timing() == (PERIOD_S, JITTER_S, True)
     assert timing("protocol.ack_period_s=2.0") == (2.0, JITTER_S, True)
