@@ -317,7 +317,8 @@ def sort_range(a, lo, hi):
         _sift_down(a, lo, root, n)
     for end in range(n - 1, 0, -1):
         a[lo], a[lo + end] = a[lo + end], a[lo]
-        _sift_down(a, lo, 0, end)
+        # int(0), not 0: numba compiles a kernel once more for each literal argument.
+        _sift_down(a, lo, int(0), end)
 
 
 @jit(nogil=True)

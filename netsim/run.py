@@ -151,12 +151,13 @@ def world_map(config: Config) -> Any:
 def ack_timing(protocol: object, channel: Any) -> AckTiming | None:
     """The Ack beacon's timing for the controllers (:attr:`Parts.acks`), as the run's
     ``protocol`` declares it (:class:`~netsim.cosim.AckSchedule`; None for a protocol
-    without Acks), and whether the ``channel`` (its configuration) loses frames: only the
-    Bernoulli model at ``loss_probability = 0`` without a shared medium counts as lossless
-    (any other loss model may drop a frame)."""
+    without Acks), and whether the ``channel`` (its configuration) loses frames: lossless
+    when its loss model declares it drops none under its keys
+    (:attr:`~netsim.radio.models.LossModel.lossless`: the Bernoulli model at
+    ``loss_probability = 0``) and there is no shared medium."""
     if not isinstance(protocol, AckSchedule):
         return None
-    lossless = channel.loss_model == "bernoulli" and channel.loss_probability == 0 and channel.mac_model.build is None
+    lossless = channel.loss_plugin.lossless(channel.loss) and channel.mac_model.build is None
     return AckTiming(float(protocol.ack_period_s), float(protocol.ack_jitter_s), bool(lossless))
 
 

@@ -290,7 +290,7 @@ def _announce(table, i, now, seq, role, leader, x_m, y_m, group_size, mates_of, 
             if mates_of is not None:
                 if (symmetric or hears_me) and records_row[s, ROLE] == MEMBER and records_row[s, LEADER] == mates_of:
                     size += 1
-    sort_range(record, FIELDS, FIELDS + k)
+    sort_range(record, int(FIELDS), FIELDS + k)  # int(): no literal argument (netsim._kernels.sort_range)
     record[SEQ], record[ROLE], record[LEADER], record[X], record[Y] = seq, role, leader, x_m, y_m
     record[GROUP_SIZE] = size if mates_of is not None and role == LEADER_ROLE else group_size
     record[DEGREE] = degree
@@ -729,13 +729,13 @@ def _belief_row(table, r, now, heard, live, senders, out, k, p):
 def _live_row(ids_row, records_row, now, tau_s, live):
     """The ids of the live entries of a robot's row, ascending, in ``live``; how many. A
     slot's record is read only when its id is not EMPTY (never live)."""
-    m = 0
+    m = int(0)  # not a literal (netsim._kernels.sort_range)
     for s in range(len(ids_row)):
         j = ids_row[s]
         if j != EMPTY and is_live(records_row[s, LAST_HEARD], now, tau_s):
             live[m] = j
             m += 1
-    sort_range(live, 0, m)
+    sort_range(live, int(0), m)
     return m
 
 

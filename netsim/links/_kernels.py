@@ -116,11 +116,12 @@ def clip_crossings(at_in, at_out, t_start, length):
     times = np.empty(2 * n)
     phase = np.empty(2 * n, np.int8)
     kinds = np.empty(2 * n, np.int8)
-    m = 0
+    # int(): numba compiles _keep once more for each literal argument (0, 1, -1).
+    m = int(0)
     for k in range(n):
-        m = _keep(at_in[k], t_start[k], length[k], k, 1, pair, times, phase, kinds, m)
+        m = _keep(at_in[k], t_start[k], length[k], k, int(1), pair, times, phase, kinds, m)
     for k in range(n):
-        m = _keep(at_out[k], t_start[k], length[k], k, -1, pair, times, phase, kinds, m)
+        m = _keep(at_out[k], t_start[k], length[k], k, int(-1), pair, times, phase, kinds, m)
     return pair[:m], times[:m], phase[:m], kinds[:m]
 
 
@@ -159,7 +160,7 @@ def crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length, box):
     in_t = np.empty(n)
     out_t = np.empty(n)
     sel = np.empty(n, np.bool_)
-    m = 0
+    m = int(0)  # not a literal (clip_crossings)
     for kx in range(-n_img, n_img + 1):
         for ky in range(-n_img, n_img + 1):
             for k in range(n):
@@ -171,8 +172,8 @@ def crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length, box):
                     in_t[k], out_t[k] = _times(origin[k], ex, ey, wx, wy, radius[k])
             for k in range(n):
                 if sel[k]:
-                    m = _keep(in_t[k], t_start[k], length[k], k, 1, pair, times, phase, kinds, m)
+                    m = _keep(in_t[k], t_start[k], length[k], k, int(1), pair, times, phase, kinds, m)
             for k in range(n):
                 if sel[k]:
-                    m = _keep(out_t[k], t_start[k], length[k], k, -1, pair, times, phase, kinds, m)
+                    m = _keep(out_t[k], t_start[k], length[k], k, int(-1), pair, times, phase, kinds, m)
     return pair[:m], times[:m], phase[:m], kinds[:m]

@@ -125,7 +125,12 @@ class GilbertElliottParams(Params):
 Survives = Callable[[int, np.ndarray, "np.ndarray | None"], "np.ndarray | None"]
 
 
-BERNOULLI = LossModel(BernoulliParams, lambda p, range_m, rng: BernoulliLoss(p.loss_probability, rng), default=True)
+BERNOULLI = LossModel(
+    BernoulliParams,
+    lambda p, range_m, rng: BernoulliLoss(p.loss_probability, rng),
+    default=True,
+    lossless=lambda p: p.loss_probability == 0,
+)
 """``channel.loss_model = "bernoulli"``."""
 
 DISTANCE = LossModel(

@@ -82,11 +82,14 @@ class PropagationModel:
 class LossModel:
     """A reception loss model: ``make(params, range_m, rng)`` returns the callable
     ``survives(sender, receivers, distances_m) -> mask or None`` (:mod:`netsim.radio.loss`),
-    drawing from ``rng`` (the channel's stream ``channel.loss``)."""
+    drawing from ``rng`` (the channel's stream ``channel.loss``). ``lossless(params)``:
+    whether under these keys it never drops a frame (then a frame the radio lets through
+    arrives, unless a medium loses it); by default it may."""
 
     Params: type[Params]
     make: Callable[[Any, np.ndarray, np.random.Generator], Any]
     check: Callable[[Any, Any], None] = _no_check
+    lossless: Callable[[Any], bool] = _never
     default: bool = False
 
 
