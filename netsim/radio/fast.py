@@ -161,12 +161,8 @@ class CompiledChain:
         travels must be exactly those of ``state.travelled_m``)."""
         k = len(receivers)
         sh = self.shadow
-        if k == 0 or state.torus:
-            pairs = self._pairs(state, t, sender, receivers, distances_m)
-            if sh is not None:
-                travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
-                pairs = pairs._replace(travel_m=travel)
-            return self.receivable(pairs)
+        # A torus has no map (config), so the passes never place its robots on a grid; the
+        # pairs' travels, the shadowing's clock, do not depend on where the robots are.
         flat = self.occupancy.occupied.ravel() if self.occupancy is not None else _NO_GRID
         out = np.empty(k, dtype=bool)
         if self.range is not None:
