@@ -303,6 +303,20 @@ def disk_pass(frame, d, a, range_m, flat, points, receivable):
         receivable[m] = ok
 
 
+@jit(nogil=True, inline="always")
+def anchored(travel_m, step_m):
+    """The travel a pair's shadowing is taken at: ``travel_m`` down to a whole ``step_m``
+    when ``step_m`` > 0 (a process piecewise constant in travel), else itself."""
+    return np.floor(travel_m / step_m) * step_m if step_m > 0.0 else travel_m
+
+
+@jit(nogil=True)
+def anchors(travel_m, step_m, out):
+    """:func:`anchored` of every travel of ``travel_m`` (1-d), written to ``out``."""
+    for m in range(travel_m.shape[0]):
+        out[m] = anchored(travel_m[m], step_m)
+
+
 @jit(nogil=True)
 def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     """Each pair's key, and its shadowing clock: the pair's travel at ``t`` (the two robots'
@@ -313,7 +327,7 @@ def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     for m in range(receivers.shape[0]):
         r = receivers[m]
         travel = (odometer[r] + speed[r] * (t - t0[r])) + own
-        s_new[m] = np.floor(travel / step_m) * step_m if step_m > 0.0 else travel
+        s_new[m] = anchored(travel, step_m)
         keys[m] = (min(sender, r) << 32) | max(sender, r)
 
 

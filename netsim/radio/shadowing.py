@@ -132,7 +132,8 @@ class PairShadowing:
         self.decorrelation_m = float(decorrelation_m)
         self.step_m = float(step_m)
         self.rng = rng
-        self._step = load("netsim.radio._kernels", n_robots).shadow_step
+        kernels = load("netsim.radio._kernels", n_robots)
+        self._step, self._anchors = kernels.shadow_step, kernels.anchors
         self.clip_db = TRUNCATION_SIGMAS * self.sigma_db
         self._keys = np.empty(0, dtype=np.int64)
         self._x = np.empty(0)
@@ -177,10 +178,13 @@ class PairShadowing:
         return self._keys, self._x, self._s
 
     def anchor(self, travel_m: np.ndarray) -> np.ndarray:
-        """The travel a pair's value is taken at: ``travel_m`` down to a whole step."""
-        if self.step_m > 0:
-            return np.floor(travel_m / self.step_m) * self.step_m
-        return travel_m
+        """The travel a pair's value is taken at: ``travel_m`` down to a whole step (the
+        kernel :func:`netsim.radio._kernels.anchored`, as a frame's pass takes it)."""
+        travel = np.asarray(travel_m, dtype=float)
+        flat = travel.reshape(-1)
+        out = np.empty(flat.shape[0])
+        self._anchors(flat, self.step_m, out)
+        return out.reshape(travel.shape)
 
     def state(self, a, b) -> tuple[np.ndarray, np.ndarray]:
         """Stored (unclipped) value and anchor travel of each pair; NaN for pairs never seen."""
