@@ -65,7 +65,7 @@ def test_compiled_log_distance_equals_chain(params, with_map, n_robots):
     decided = 0
     for s, rec, pos, odo in _broadcasts(1):
         pairs = Pairs.between(np.full(len(rec), s), rec, pos, odo)
-        a = generic.receivable(pairs)
+        a = generic.chain.receivable(pairs, generic.radio)
         b = compiled.receivable(pairs)
         assert np.array_equal(a, b)
         decided += int(a.sum())
@@ -82,7 +82,7 @@ def test_compiled_unit_disk_equals_chain(ranges, with_map, n_robots):
     compiled = CompiledChain(unit_disk(ranges, m), n_robots)
     for s, rec, pos, odo in _broadcasts(2, calls=30):
         pairs = Pairs.between(np.full(len(rec), s), rec, pos, odo)
-        assert np.array_equal(generic.receivable(pairs), compiled.receivable(pairs))
+        assert np.array_equal(generic.chain.receivable(pairs, generic.radio), compiled.receivable(pairs))
 
 
 def test_unknown_chain_is_refused():
@@ -169,7 +169,7 @@ def test_transmission_equals_chain(chain, dense, n_robots):
             dist,
             st.travelled_m(t, rec) + float(st.travelled_m(t, [sender])[0]),
         )
-        a = generic.receivable(pairs)
+        a = generic.chain.receivable(pairs, generic.radio)
         b = fast.transmission(st, t, sender, rec, dist, np.abs(st.velocity_c))
         assert np.array_equal(a, b)
         heard += int(a.sum())

@@ -176,3 +176,37 @@ def test_receptions_off_writes_no_file_and_changes_no_other_table(tmp_path: Path
     assert on == sorted(off + ["receptions.parquet"])
     for name in off:
         assert (outs[False] / name).read_bytes() == (outs[True] / name).read_bytes(), name
+
+
+def test_receptions_power_on_a_map_is_the_law_less_every_wall_crossed():
+    """On a map with a wall loss, each row's power is the log-distance law at its distance
+    less ``wall_loss_db`` for every wall the pair's segment crosses, all of them counted
+    (rows far below the sensitivity too), the walls recomputed here from where the robots
+    stand."""
+    from netsim.world.los import walls_crossed
+
+    wall_db = 5.0
+    channel = {"propagation": "log_distance", "sensitivity_dbm": SENSITIVITY_DBM, "wall_loss_db": wall_db}
+    config = make_config(
+        seed=4,
+        duration_s=4.0,
+        world={"n_robots": 14, "side_m": 200.0, "map": "office"},
+        mobility={"model": "static"},
+        channel={"latency_s": LATENCY_S, **channel},
+        protocol={"model": "clustering"},
+        output={"position_interval_s": 1.0, "receptions": True},
+    )
+    result, _, _ = _run(config)
+    r = result.frames["receptions"]
+    sim = result.sim
+    radio = sim.config.channel.radio
+    d = np.maximum(r["distance_m"].to_numpy(), radio.reference_distance_m)
+    law = (
+        radio.tx_power_dbm
+        - radio.reference_loss_db
+        - 10 * radio.path_loss_exponent * np.log10(d / radio.reference_distance_m)
+    )
+    pos = sim.state.positions_at(0.0)  # robots that stand: where they are at every frame
+    walls = walls_crossed(sim.channel.reception.map, pos[r["src"].to_numpy()], pos[r["dst"].to_numpy()])
+    assert np.allclose(r["rx_power_dbm"].to_numpy(), law - wall_db * walls, rtol=0, atol=1e-9)
+    assert (walls >= 3).sum() > 10 and len(np.unique(walls)) >= 5  # many walls, of many counts

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from netsim.compiled import jit
-from netsim.world._kernels import walls_one
+from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
 
 class Shadow(NamedTuple):
@@ -258,18 +258,29 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
 
 
 @jit(nogil=True)
-def received_pass(frame, d, x, walls, out):
-    """Power (dBm) at each receiver: ``P_t`` less the loss a decision sums, path loss
-    (:func:`path_loss_db`), the pair's stored shadowing ``x`` (:func:`shadow_term`; NaN, a
-    pair never seen: none) when the run has shadowing, and ``wall_db`` per wall of ``walls``
-    when it has a wall loss. ``frame``: the run's constants."""
+def received_pass(frame, t, sender, receivers, d, x, motion, flat, out):
+    """Power (dBm) at each of ``receivers`` of ``sender``'s frame at ``t``: ``P_t`` less the
+    loss a decision sums, path loss (:func:`path_loss_db`) at ``d``, the pair's stored
+    shadowing ``x`` (:func:`shadow_term`; NaN, a pair never seen: none) when the run has
+    shadowing, and ``wall_db`` per wall the pair's segment crosses, all counted, when it has
+    a wall loss (the robots placed by :func:`grid_points` from ``motion``, the state's
+    :class:`Motion`; ``flat``: the map's occupied cells). ``frame``: the run's constants."""
     c = frame[0]
-    for m in range(d.shape[0]):
+    k = receivers.shape[0]
+    if c.wall_db > 0.0:
+        ends = Points(np.empty((k, 2)), np.empty((k, 2)))
+        grid_points(frame, t, sender, receivers, motion, ends)
+    else:
+        none = np.zeros((1, 2))
+        ends = Points(none, none)
+    for m in range(k):
         total = path_loss_db(d[m], c.d0_m, c.pl0_db, c.n10)
         if c.sigma_db > 0.0:
             total = total + (0.0 if np.isnan(x[m]) else shadow_term(x[m], c.clip_db))
         if c.wall_db > 0.0:
-            total = total + c.wall_db * walls[m]
+            g0, g1 = ends.g0, ends.g1
+            walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, NO_LIMIT)
+            total = total + c.wall_db * walls
         out[m] = c.tx_dbm - total
 
 
@@ -374,10 +385,10 @@ def link_touches(up, sender, receivers, linked, t0, last_t, every, touched):
 
 @jit(nogil=True)
 def grid_points(frame, t, sender, receivers, motion, points):
-    """Grid coordinates (the map grid of ``frame``) of the sender (every row of ``g0``) and
-    of each receiver (``g1``) at ``t``, ``points``: :class:`Points`, filled. The positions of
-    :meth:`~netsim.state.RobotState.positions_at` (plane), the same arithmetic in the same
-    order; ``motion``: the state's :class:`Motion`."""
+    """Grid coordinates (:func:`~netsim.world._kernels.on_grid`, the map grid of ``frame``)
+    of the sender (every row of ``g0``) and of each receiver (``g1``) at ``t``, ``points``:
+    :class:`Points`, filled. The positions of :meth:`~netsim.state.RobotState.positions_at`
+    (plane), the same arithmetic in the same order; ``motion``: the state's :class:`Motion`."""
     c = frame[0]
     map_ox, map_oy, res = c.map_ox, c.map_oy, c.res_m
     mo = Motion(*motion)
@@ -385,15 +396,28 @@ def grid_points(frame, t, sender, receivers, motion, points):
     origin_m, velocity_mps, t0 = mo.origin_m, mo.velocity_mps, mo.t0_s
     g0, g1 = ends.g0, ends.g1
     dt = t - t0[sender]
-    u0 = (origin_m[sender, 0] + velocity_mps[sender, 0] * dt - map_ox) / res
-    v0 = (origin_m[sender, 1] + velocity_mps[sender, 1] * dt - map_oy) / res
+    u0 = on_grid(origin_m[sender, 0] + velocity_mps[sender, 0] * dt, map_ox, res)
+    v0 = on_grid(origin_m[sender, 1] + velocity_mps[sender, 1] * dt, map_oy, res)
     for m in range(receivers.shape[0]):
         r = receivers[m]
         dt = t - t0[r]
         g0[m, 0] = u0
         g0[m, 1] = v0
-        g1[m, 0] = (origin_m[r, 0] + velocity_mps[r, 0] * dt - map_ox) / res
-        g1[m, 1] = (origin_m[r, 1] + velocity_mps[r, 1] * dt - map_oy) / res
+        g1[m, 0] = on_grid(origin_m[r, 0] + velocity_mps[r, 0] * dt, map_ox, res)
+        g1[m, 1] = on_grid(origin_m[r, 1] + velocity_mps[r, 1] * dt, map_oy, res)
+
+
+@jit(nogil=True)
+def pair_points(frame, pos_a, pos_b, points):
+    """Grid coordinates (:func:`~netsim.world._kernels.on_grid`, the map grid of ``frame``)
+    of the pairs' ends at ``pos_a`` and ``pos_b`` (metres), ``points``: :class:`Points`, filled."""
+    c = frame[0]
+    ends = Points(*points)
+    for m in range(pos_a.shape[0]):
+        ends.g0[m, 0] = on_grid(pos_a[m, 0], c.map_ox, c.res_m)
+        ends.g0[m, 1] = on_grid(pos_a[m, 1], c.map_oy, c.res_m)
+        ends.g1[m, 0] = on_grid(pos_b[m, 0], c.map_ox, c.res_m)
+        ends.g1[m, 1] = on_grid(pos_b[m, 1], c.map_oy, c.res_m)
 
 
 @jit(nogil=True)

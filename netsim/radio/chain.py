@@ -229,6 +229,10 @@ class Propagation:
     fast: Callable[[Propagation, int], Any] | None = None
 
     def receivable(self, pairs: Pairs) -> np.ndarray:
+        """Mask of the pairs the radio hears: the model's compiled pass where it has one
+        (``fast``), else its chain term by term (:meth:`LossChain.receivable`)."""
+        if self.fast is not None:
+            return self.fast(self, len(pairs.a)).receivable(pairs)
         return self.chain.receivable(pairs, self.radio)
 
     def received_dbm(self, pairs: Pairs) -> np.ndarray:

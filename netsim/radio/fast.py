@@ -134,14 +134,13 @@ class CompiledChain:
         return frame
 
     def _grid(self, pairs: Pairs):
-        m = self.occupancy
-        if m is None:
-            return _NO_GRID, 1, 1, _NO_POINTS, _NO_POINTS
-        origin = np.asarray(m.origin_m)
-        h, w = m.shape
-        g0 = (pairs.pos_a - origin) / m.resolution_m
-        g1 = (pairs.pos_b - origin) / m.resolution_m
-        return m.occupied.ravel(), h, w, g0, g1
+        """The map's occupied cells and the pairs' ends in its grid units (:func:`pair_points`)."""
+        kn = len(pairs.a)
+        g0, g1 = np.empty((kn, 2)), np.empty((kn, 2))
+        pos_a = np.ascontiguousarray(pairs.pos_a, dtype=float)
+        pos_b = np.ascontiguousarray(pairs.pos_b, dtype=float)
+        self.k.pair_points(self.frame, pos_a, pos_b, tuple(Points(g0, g1)))
+        return self.occupancy.occupied.ravel(), g0, g1  # type: ignore[union-attr]
 
     def receivable(self, pairs: Pairs) -> np.ndarray:
         keys = s_new = None
@@ -189,20 +188,12 @@ class CompiledChain:
                 self._insert_new(keys, x_new, s_new, new)
         return out
 
-    def _pairs(self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> Pairs:
-        k = len(receivers)
-        a = np.full(k, sender, dtype=np.int64)
-        if self.occupancy is None:
-            return Pairs(a, receivers, None, None, distances_m, None)
-        pos_a = np.broadcast_to(state.positions_at(t, [sender]), (k, 2))
-        return Pairs(a, receivers, pos_a, state.positions_at(t, receivers), distances_m, None)
-
     def _receivable(self, pairs: Pairs, keys, s_new) -> np.ndarray:
         kn = len(pairs.a)
         out = np.empty(kn, dtype=bool)
         if kn == 0:
             return out
-        flat, h, w, g0, g1 = self._grid(pairs) if (self.walls or self.sight) else (_NO_GRID, 1, 1, None, None)
+        flat, g0, g1 = self._grid(pairs) if self.occupancy is not None else (_NO_GRID, None, None)
         if self.range is not None:
             r = np.atleast_1d(self.range.range_m)
             if g0 is None or g1 is None:

@@ -22,13 +22,14 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
+from netsim.radio._kernels import Motion
 from netsim.radio.chain import Propagation
 from netsim.radio.fast import GenericChain
 from netsim.state import RobotState
-from netsim.world.los import walls_crossed
 
 # What a pass reads where a run has no shadowing or no walls.
 _NONE = np.zeros(1)
+_NO_CELLS = np.zeros(1, dtype=bool)
 
 
 class LinkRecorder:
@@ -188,12 +189,12 @@ class Reception:
         if c.log is None:
             raise ValueError("received power needs a log-distance radio")
         k = len(receivers)
-        x = walls = _NONE
+        x = _NONE
         if c.shadow is not None and c.shadow.sigma_db > 0 and k:
             x, _ = c.shadow.state(np.full(k, sender, dtype=np.int64), receivers)
-        if c.walls is not None and k:
-            pairs = c._pairs(self.state, t, sender, receivers, distances_m)
-            walls = walls_crossed(c.walls.occupancy, pairs.pos_a, pairs.pos_b)
+        st = self.state
+        motion = tuple(Motion(st.origin_m, st.velocity_mps, st.t0_s))
+        flat = c.occupancy.occupied.ravel() if c.occupancy is not None else _NO_CELLS
         out = np.empty(k)
-        c.k.received_pass(c.frame, np.asarray(distances_m, dtype=float), x, walls, out)
+        c.k.received_pass(c.frame, t, sender, receivers, np.asarray(distances_m, dtype=float), x, motion, flat, out)
         return out

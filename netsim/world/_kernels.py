@@ -10,6 +10,24 @@ import numpy as np
 
 from netsim.compiled import jit
 
+# Counting walls without a stop (``limit`` of :func:`trace_one`).
+NO_LIMIT = np.iinfo(np.int64).max
+
+
+@jit(nogil=True, inline="always")
+def on_grid(x_m, origin_m, resolution_m):
+    """A coordinate in metres in the map grid's units, where cell ``i`` spans ``[i, i + 1)``
+    (:mod:`netsim.world.maps`): the one conversion every loop over a map makes."""
+    return (x_m - origin_m) / resolution_m
+
+
+@jit(nogil=True)
+def grid_coords(points_m, ox, oy, resolution_m, u, v):
+    """:func:`on_grid` of every point of ``points_m`` (``(k, 2)``), written to ``u`` and ``v``."""
+    for k in range(points_m.shape[0]):
+        u[k] = on_grid(points_m[k, 0], ox, resolution_m)
+        v[k] = on_grid(points_m[k, 1], oy, resolution_m)
+
 
 @jit(nogil=True)
 def cell(flat, w, half, pc, sc, p_max, s_max):
@@ -99,15 +117,17 @@ def walls_one(cells, u0, v0, u1, v1, eps, limit):
 
 
 @jit(nogil=True)
-def trace(cells, points, eps, out, limit, snap):
+def trace(cells, frame, points, eps, out, limit, snap):
     """Every segment's walls (counting stops once past ``limit``) and first blocked point,
-    ``out``: ``(walls, first_t)``, filled; the segments from ``g0`` to ``g1`` (``points``, grid
-    units) on the grid ``cells``, ``(flat, h, w)``. With ``snap``, the ends snapped as
-    :func:`walls_one` does."""
-    g0, g1 = points
+    ``out``: ``(walls, first_t)``, filled; the segments from ``p`` to ``q`` (``points``,
+    metres) on the grid ``cells``, ``(flat, h, w)``, placed by ``frame``, ``(ox, oy,
+    resolution_m)``. With ``snap``, the ends snapped as :func:`walls_one` does."""
+    p, q = points
+    ox, oy, res = frame
     walls, first_t = out
-    for s in range(g0.shape[0]):
-        u0, v0, u1, v1 = g0[s, 0], g0[s, 1], g1[s, 0], g1[s, 1]
+    for s in range(p.shape[0]):
+        u0, v0 = on_grid(p[s, 0], ox, res), on_grid(p[s, 1], oy, res)
+        u1, v1 = on_grid(q[s, 0], ox, res), on_grid(q[s, 1], oy, res)
         if snap:
             u0, v0, u1, v1 = _snap(u0, eps), _snap(v0, eps), _snap(u1, eps), _snap(v1, eps)
         walls[s], first_t[s] = trace_one(cells, u0, v0, u1, v1, eps, limit)
@@ -168,15 +188,15 @@ def free_destinations(cells, grid, draws, here, batch, eps, out):
     total = cdf[last]
     for k in range(here.shape[0]):
         got[k] = False
-        hu = (here[k, 0] - ox) / res
-        hv = (here[k, 1] - oy) / res
+        hu = on_grid(here[k, 0], ox, res)
+        hv = on_grid(here[k, 1], oy, res)
         for b in range(batch):
             c = k * batch + b
             cell = min(first_above(cdf, draw_cell[c] * total), last)
             x = x0[cell] + draw_uv[c, 0] * (x1[cell] - x0[cell])
             y = y0[cell] + draw_uv[c, 1] * (y1[cell] - y0[cell])
-            u = (x - ox) / res
-            v = (y - oy) / res
+            u = on_grid(x, ox, res)
+            v = on_grid(y, oy, res)
             free = False
             if u >= 0 and u <= w and v >= 0 and v <= h:
                 i = min(np.int64(np.floor(u)), w - 1)
@@ -185,8 +205,8 @@ def free_destinations(cells, grid, draws, here, batch, eps, out):
             if not free:
                 x = 0.5 * (x0[cell] + x1[cell])
                 y = 0.5 * (y0[cell] + y1[cell])
-                u = (x - ox) / res
-                v = (y - oy) / res
+                u = on_grid(x, ox, res)
+                v = on_grid(y, oy, res)
             walls, _ = trace_one((not_free_flat, h, w), hu, hv, u, v, eps, 0)
             if walls == 0:
                 picked[k, 0] = x

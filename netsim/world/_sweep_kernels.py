@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.compiled import jit
-from netsim.world._kernels import walls_one
+from netsim.world._kernels import on_grid, walls_one
 
 # Where a vertex lies on the segment's line for every t (both factors of the cross product
 # vanish): relative to the size of each coefficient.
@@ -265,12 +265,12 @@ def sweep(grid, motion, duration, eps, limit):
     k0 = np.empty(2)
     kv = np.empty(2)
     for s in range(k):
-        g0[0] = (p0[s, 0] - origin_x) / res
-        g0[1] = (p0[s, 1] - origin_y) / res
+        g0[0] = on_grid(p0[s, 0], origin_x, res)
+        g0[1] = on_grid(p0[s, 1], origin_y, res)
         gv[0] = vp[s, 0] / res
         gv[1] = vp[s, 1] / res
-        k0[0] = (q0[s, 0] - origin_x) / res
-        k0[1] = (q0[s, 1] - origin_y) / res
+        k0[0] = on_grid(q0[s, 0], origin_x, res)
+        k0[1] = on_grid(q0[s, 1], origin_y, res)
         kv[0] = vq[s, 0] / res
         kv[1] = vq[s, 1] / res
         d = duration[s]
@@ -282,10 +282,10 @@ def sweep(grid, motion, duration, eps, limit):
             if c < m and not nxt > prev:
                 continue
             mid = 0.5 * (prev + nxt) if nxt > prev else prev
-            u0 = (p0[s, 0] + vp[s, 0] * mid - origin_x) / res
-            v0 = (p0[s, 1] + vp[s, 1] * mid - origin_y) / res
-            u1 = (q0[s, 0] + vq[s, 0] * mid - origin_x) / res
-            v1 = (q0[s, 1] + vq[s, 1] * mid - origin_y) / res
+            u0 = on_grid(p0[s, 0] + vp[s, 0] * mid, origin_x, res)
+            v0 = on_grid(p0[s, 1] + vp[s, 1] * mid, origin_y, res)
+            u1 = on_grid(q0[s, 0] + vq[s, 0] * mid, origin_x, res)
+            v1 = on_grid(q0[s, 1] + vq[s, 1] * mid, origin_y, res)
             count = walls_one(cells, u0, v0, u1, v1, eps, limit)
             if rows > 0 and pair[rows - 1] == s and walls[rows - 1] == count:
                 t1[rows - 1] = nxt

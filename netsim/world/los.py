@@ -44,11 +44,9 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.compiled import load
+from netsim.world._kernels import NO_LIMIT
 
 VERTEX_TOLERANCE_CELLS = 1e-9
-
-
-_NO_LIMIT = np.iinfo(np.int64).max
 
 
 def kernels_for(module: str):
@@ -64,7 +62,7 @@ def _trace(
     p,
     q,
     first: bool = False,
-    limit: int = _NO_LIMIT,
+    limit: int = NO_LIMIT,
     snap: bool = False,
 ):
     """Walls crossed by each segment ``p[k] -> q[k]`` (and, with ``first``, the parameter in
@@ -74,12 +72,11 @@ def _trace(
     kernel = kernels_for("netsim.world._kernels").trace
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     q = np.asarray(q, dtype=float).reshape(-1, 2)
-    origin = np.asarray(origin_m, dtype=float)
+    frame = (float(origin_m[0]), float(origin_m[1]), float(resolution_m))
     walls = np.empty(len(p), dtype=np.int64)
     first_t = np.empty(len(p))
     h, w = blocked.shape
-    points = ((p - origin) / resolution_m, (q - origin) / resolution_m)
-    kernel((blocked.ravel(), h, w), points, VERTEX_TOLERANCE_CELLS, (walls, first_t), limit, snap)
+    kernel((blocked.ravel(), h, w), frame, (p, q), VERTEX_TOLERANCE_CELLS, (walls, first_t), limit, snap)
     return (walls, first_t) if first else walls
 
 

@@ -48,6 +48,7 @@ import numpy as np
 from netsim.area import KEY as BOUNDS_KEY
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
+from netsim.world.los import kernels_for
 
 MAP_KEY = "world.map"
 REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
@@ -88,8 +89,11 @@ class OccupancyMap:
 
     def to_grid(self, points_m) -> tuple[np.ndarray, np.ndarray]:
         """Grid coordinates ``(u, v)`` of points: cell ``(floor(u), floor(v))``, in cell units."""
-        p = np.asarray(points_m, dtype=float).reshape(-1, 2)
-        return (p[:, 0] - self.origin_m[0]) / self.resolution_m, (p[:, 1] - self.origin_m[1]) / self.resolution_m
+        p = np.ascontiguousarray(points_m, dtype=float).reshape(-1, 2)
+        u, v = np.empty(len(p)), np.empty(len(p))
+        ox, oy = float(self.origin_m[0]), float(self.origin_m[1])
+        kernels_for("netsim.world._kernels").grid_coords(p, ox, oy, float(self.resolution_m), u, v)
+        return u, v
 
     def cells(self, points_m) -> tuple[np.ndarray, np.ndarray]:
         """Column ``i`` and row ``j`` of the cell of each point (far edges in the last cell)."""

@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from netsim.world._kernels import NO_LIMIT
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
 
@@ -86,9 +87,6 @@ def cached_vertex_index(blocked: np.ndarray) -> VertexIndex:
     index = vertex_index(blocked)
     _INDEX[:] = [(blocked, index)]
     return index
-
-
-_NO_LIMIT = np.iinfo(np.int64).max
 
 
 class MapGrid(NamedTuple):
@@ -140,6 +138,6 @@ def sweep_walls(
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
     duration = np.ascontiguousarray(np.broadcast_to(np.asarray(duration_s, float), (len(p0),)))
     motion = (p0, vp, q0, vq)
-    limit = _NO_LIMIT if limit is None else int(limit)
+    limit = NO_LIMIT if limit is None else int(limit)
     pair, t0, t1, walls = sweep(tuple(grid), motion, duration, VERTEX_TOLERANCE_CELLS, limit)
     return Sweep(pair, t0, t1, walls)
