@@ -28,12 +28,18 @@ period``), its own position ``p`` at ``t0`` exact:
    ``j`` does.
 3. **Hold.** If ``i`` is farther than that radius from some kept ``q_j`` already (its
    knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
-4. **Pull** (:func:`pulls`).
-5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` moves only if, for every kept ``j``,
-   the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk where
-   ``j`` can be during the step (``e_j(t1)`` around ``q_j``) meets no wall, so every
-   segment between the two robots during the step is clear of walls; else a shorter step,
-   or it holds. A detour's link must be surely clear of walls too (:func:`clear_of_walls`).
+4. **Pull** (:func:`pulls`). On a map a robot announces its wish as it could carry it out
+   (:func:`netsim.mobility.geodesic.within_reach`), not a wish into a wall.
+5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j`` alone
+   (the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk where
+   ``j`` can be during the step, ``e_j(t1)`` around ``q_j``, meets no wall, so every
+   segment between the two robots during the step is clear of walls whatever ``j`` does)
+   or *by region*: the map's regions (:func:`free_rectangles`, convex and free, one order
+   every robot computes) give the link the first region, in order, holding both robots
+   at ``t0`` (:func:`shared_regions`; ``j``, from its side, names the same or none), and
+   ``i`` ends its step in it; else a shorter step, or it holds. A detour's link must be
+   surely clear of walls too (:func:`clear_of_walls`, or one region holds both ends,
+   :func:`in_one_region`).
 
 **Release** (:class:`Silence`, on a channel that loses no frame): ``i`` lets go of a robot
 it has heard no Ack of for longer than the largest gap between two (``ack_period_s +
@@ -80,10 +86,11 @@ the window). A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
-that moves keeps it up whatever the other does (rules 2 and 5), or keeps its half while
-the other keeps its half, answers alone or holds (halves), an end that cannot holds
-(rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
-of the step, so up over the next step's window, and at the next ``t0`` it is in ``K``
+that moves keeps it up whatever the other does (rules 2 and 5 alone), or keeps its half
+while the other keeps its half, answers alone or holds (halves), or keeps to the link's
+region while the other keeps to the same region, answers alone or holds in it (rule 5 by
+region: a region is convex and clear of walls), an end that cannot holds (rules 3 and 5),
+and a link whose ends hold does not change, so it is up at every instant of the step, so up over the next step's window, and at the next ``t0`` it is in ``K``
 again while both ends still remember each other. So the components of ``K`` never grow,
 and the network (which contains ``K``) never has more components than ``K`` had when
 control started: on a loss-free channel, always; under loss, unless a robot misses every
