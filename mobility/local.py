@@ -90,8 +90,9 @@ that moves keeps it up whatever the other does (rules 2 and 5 alone), or keeps i
 while the other keeps its half, answers alone or holds (halves), or keeps to the link's
 region while the other keeps to the same region, answers alone or holds in it (rule 5 by
 region: a region is convex and clear of walls), an end that cannot holds (rules 3 and 5),
-and a link whose ends hold does not change, so it is up at every instant of the step, so up over the next step's window, and at the next ``t0`` it is in ``K``
-again while both ends still remember each other. So the components of ``K`` never grow,
+and a link whose ends hold does not change, so it is up at every instant of the step, so
+up over the next step's window, and at the next ``t0`` it is in ``K`` again while both
+ends still remember each other. So the components of ``K`` never grow,
 and the network (which contains ``K``) never has more components than ``K`` had when
 control started: on a loss-free channel, always; under loss, unless a robot misses every
 Ack of a neighbour in range for ``release_s``.
