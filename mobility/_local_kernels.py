@@ -50,6 +50,113 @@ def clear_many(walls, a, b, ea, eb, out):
         out[k] = clear(walls, a[k, 0], a[k, 1], b[k, 0], b[k, 1], ea[k], eb[k])
 
 
+# A region's test scans the cells under a disk only up to this many; a larger disk is
+# undecided (the tests then refuse: they may refuse a link, never pass one).
+REGION_SCAN_CELLS = 4096
+
+
+@jit(nogil=True, walks=True)
+def region_holds(walls, r, qx, qy, e):
+    """Where a robot within ``e`` of ``(qx, qy)`` can be, against region ``r`` (a rectangle
+    of free cells, :func:`netsim.mobility.local.walls_of`):
+    1 if every point of the disk in a cell that is not a wall lies in the region, 0 if the
+    disk misses the region, -1 if neither is shown (a disk too large to scan counts so)."""
+    x0, x1, y0, y1 = walls.rects[r, 0], walls.rects[r, 1], walls.rects[r, 2], walls.rects[r, 3]
+    dx = max(x0 - qx, 0.0, qx - x1)
+    dy = max(y0 - qy, 0.0, qy - y1)
+    if math.hypot(dx, dy) > e:
+        return 0
+    if qx - e >= x0 and qx + e <= x1 and qy - e >= y0 and qy + e <= y1:
+        return 1
+    res = walls.resolution_m
+    ox, oy = walls.origin_x_m, walls.origin_y_m
+    h, w = walls.open.shape
+    i0 = max(math.floor((qx - e - ox) / res), 0)
+    i1 = min(math.floor((qx + e - ox) / res), w - 1)
+    j0 = max(math.floor((qy - e - oy) / res), 0)
+    j1 = min(math.floor((qy + e - oy) / res), h - 1)
+    if (i1 - i0 + 1) * (j1 - j0 + 1) > REGION_SCAN_CELLS:
+        return -1
+    for j in range(j0, j1 + 1):
+        for i in range(i0, i1 + 1):
+            if not walls.open[j, i]:
+                continue
+            cx0, cy0 = ox + i * res, oy + j * res
+            cx1, cy1 = cx0 + res, cy0 + res
+            if math.hypot(max(cx0 - qx, 0.0, qx - cx1), max(cy0 - qy, 0.0, qy - cy1)) > e:
+                continue
+            # The disk's part in this cell lies in the cell's box clipped to the disk's box.
+            if max(cx0, qx - e) < x0 or min(cx1, qx + e) > x1 or max(cy0, qy - e) < y0 or min(cy1, qy + e) > y1:
+                return -1
+    return 1
+
+
+@jit(nogil=True, walks=True)
+def bucket_of(walls, px, py):
+    """The index of the bucket of regions that holds the point (-1: off the map)."""
+    h, w = walls.open.shape
+    i = math.floor((px - walls.origin_x_m) / walls.resolution_m)
+    j = math.floor((py - walls.origin_y_m) / walls.resolution_m)
+    if i < 0 or j < 0 or i >= w or j >= h:
+        return -1
+    k = walls.bucket_cells
+    return (j // k) * ((w + k - 1) // k) + i // k
+
+
+@jit(nogil=True, walks=True)
+def shared_region(walls, px, py, qx, qy, e):
+    """The first region, in the regions' order, that holds both ``(px, py)`` (a robot's own
+    position, exact) and the other robot, known to be within ``e`` of ``(qx, qy)``, or -1
+    where that cannot be told: the regions holding ``p`` are taken in order, one the disk
+    misses is passed over, and the first that holds the whole disk is the answer; one the
+    disk only may meet ends the search. So what it gives is the first region holding both
+    true positions, the same number the other robot computes from its side
+    (:func:`netsim.mobility.local.cut_for_walls`)."""
+    b = bucket_of(walls, px, py)
+    if b < 0:
+        return -1
+    for k in range(walls.bucket_start[b], walls.bucket_start[b + 1]):
+        r = walls.bucket_regions[k]
+        if not (walls.rects[r, 0] <= px <= walls.rects[r, 1] and walls.rects[r, 2] <= py <= walls.rects[r, 3]):
+            continue
+        held = region_holds(walls, r, qx, qy, e)
+        if held == 1:
+            return r
+        if held < 0:
+            return -1
+    return -1
+
+
+@jit(nogil=True, walks=True)
+def shared_regions(walls, p, q, e, out):
+    """:func:`shared_region` for every row."""
+    for k in range(p.shape[0]):
+        out[k] = shared_region(walls, p[k, 0], p[k, 1], q[k, 0], q[k, 1], e[k])
+
+
+@jit(nogil=True, walks=True)
+def in_one_region(walls, ax, ay, ea, bx, by, eb):
+    """Some region holds the point ``a`` and both disks' points that are not in walls
+    (every segment between two robots in them is then clear of walls)."""
+    b = bucket_of(walls, ax, ay)
+    if b < 0:
+        return False
+    for k in range(walls.bucket_start[b], walls.bucket_start[b + 1]):
+        r = walls.bucket_regions[k]
+        if not (walls.rects[r, 0] <= ax <= walls.rects[r, 1] and walls.rects[r, 2] <= ay <= walls.rects[r, 3]):
+            continue
+        if region_holds(walls, r, ax, ay, ea) == 1 and region_holds(walls, r, bx, by, eb) == 1:
+            return True
+    return False
+
+
+@jit(nogil=True, walks=True)
+def in_one_region_many(walls, a, b, ea, eb, out):
+    """:func:`in_one_region` for every row."""
+    for k in range(a.shape[0]):
+        out[k] = in_one_region(walls, a[k, 0], a[k, 1], ea[k], b[k, 0], b[k, 1], eb[k])
+
+
 @jit(nogil=True)
 def largest_travel_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
     """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
@@ -201,8 +308,12 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                     continue
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
-                if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep[a], e[b] + sweep[b]):
-                    continue
+                if walls.on:
+                    ea, eb = e[a] + sweep[a], e[b] + sweep[b]
+                    if not clear(walls, qx[a], qy[a], qx[b], qy[b], ea, eb) and not in_one_region(
+                        walls, qx[a], qy[a], ea, qx[b], qy[b], eb
+                    ):
+                        continue
                 rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)
                 if w < worst[v]:

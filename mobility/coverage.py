@@ -102,7 +102,7 @@ from netsim.mobility.forces import (
     pair_resultants,
     resultant,
 )
-from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide
+from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide, within_reach
 from netsim.mobility.keep import LinkRules, prefer
 from netsim.mobility.local import (
     Fade,
@@ -441,6 +441,7 @@ class CoverageController:
         self.local_walls = walls_of(
             parts.occupancy.occupied if on_map else None,
             *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
+            free=parts.occupancy.free if on_map else None,
         )
         # On a channel that loses no frame a missed Ack means the link was down: a robot lets
         # go of a robot it has not heard for longer than the largest gap between two Acks
@@ -618,7 +619,13 @@ class CoverageController:
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (netsim.mobility.local, rule 4).
         self.earlier_mps, self.earlier_s = self.announced_mps, self.announced_s
-        self.announced_mps, self.announced_s = wish, self.env.now
+        # On a map a robot announces the step it can make (capped at its reach, ended short
+        # of the walls): a wish into a wall would pull every robot keeping it there too.
+        if walls.on:
+            announced = within_reach(self.occupancy, pos, wish, limits.period_s, limits.reach_m)
+        else:
+            announced = wish
+        self.announced_mps, self.announced_s = announced, self.env.now
         reach, halves = None, None
         if fade is not None:
             # Rule 2 by halves: the links a robot cannot answer for alone (rule 3).
@@ -638,9 +645,11 @@ class CoverageController:
         if len(moving):
             f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])
             move[moving] *= f[:, None]
-        scale = cut_for_walls(pos, move, knows, kept, step.t_s + limits.period_s, limits, walls)
-        held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & (scale < 1))
-        return plan._replace(velocity_mps=move * (scale / limits.period_s)[:, None], held=held)
+        planned = move.copy()
+        move = cut_for_walls(pos, move, knows, kept, step.t_s + limits.period_s, limits, walls)
+        changed = np.hypot(*(move - planned).T) > 1e-9 * limits.range_m
+        held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & changed)
+        return plan._replace(velocity_mps=move / limits.period_s, held=held)
 
     def secure(self, step: ControlStep) -> None:
         """Order 100: make the plan keep the network connected; leaders send their commands."""

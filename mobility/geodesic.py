@@ -179,3 +179,14 @@ def expansion_along_free_space(
         size = gain * np.minimum(factor * np.where(np.isfinite(d), d, 0.0), EXPANSION_CAP * range_m)
         out[rows] = size[:, None] * direction
     return out
+
+
+def within_reach(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, reach_m: float) -> np.ndarray:
+    """Each wished velocity as the robot could carry it out over a step of ``period_s``:
+    capped at ``reach_m`` and ended short of the walls (the local plan's pull on a map,
+    docs/model.md 5.1, rule 4: what a robot announces)."""
+    move = cap_length(np.asarray(wish_mps, float) * period_s, reach_m)
+    moving = np.flatnonzero((move != 0).any(axis=1))
+    if len(moving):
+        move[moving] *= free_fraction(occupancy, pos[moving], pos[moving] + move[moving])[:, None]
+    return move / period_s

@@ -28,12 +28,18 @@ period``), its own position ``p`` at ``t0`` exact:
    ``j`` does.
 3. **Hold.** If ``i`` is farther than that radius from some kept ``q_j`` already (its
    knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
-4. **Pull** (:func:`pulls`).
-5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` moves only if, for every kept ``j``,
-   the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk where
-   ``j`` can be during the step (``e_j(t1)`` around ``q_j``) meets no wall, so every
-   segment between the two robots during the step is clear of walls; else a shorter step,
-   or it holds. A detour's link must be surely clear of walls too (:func:`clear_of_walls`).
+4. **Pull** (:func:`pulls`). On a map a robot announces its wish as it could carry it out
+   (:func:`netsim.mobility.geodesic.within_reach`), not a wish into a wall.
+5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j`` alone
+   (the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk where
+   ``j`` can be during the step, ``e_j(t1)`` around ``q_j``, meets no wall, so every
+   segment between the two robots during the step is clear of walls whatever ``j`` does)
+   or *by region*: the map's regions (:func:`free_rectangles`, convex and free, one order
+   every robot computes) give the link the first region, in order, holding both robots
+   at ``t0`` (:func:`shared_regions`; ``j``, from its side, names the same or none), and
+   ``i`` ends its step in it; else a shorter step, or it holds. A detour's link must be
+   surely clear of walls too (:func:`clear_of_walls`, or one region holds both ends,
+   :func:`in_one_region`).
 
 **Release** (:class:`Silence`, on a channel that loses no frame): ``i`` lets go of a robot
 it has heard no Ack of for longer than the largest gap between two (``ack_period_s +
@@ -80,11 +86,13 @@ the window). A link of ``K`` that some end lets go of has, by rule 1, a detour
 whose links are in ``K`` and truly shorter; by induction on length (the true lengths
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
-that moves keeps it up whatever the other does (rules 2 and 5), or keeps its half while
-the other keeps its half, answers alone or holds (halves), an end that cannot holds
-(rules 3 and 5), and a link whose ends hold does not change, so it is up at every instant
-of the step, so up over the next step's window, and at the next ``t0`` it is in ``K``
-again while both ends still remember each other. So the components of ``K`` never grow,
+that moves keeps it up whatever the other does (rules 2 and 5 alone), or keeps its half
+while the other keeps its half, answers alone or holds (halves), or keeps to the link's
+region while the other keeps to the same region, answers alone or holds in it (rule 5 by
+region: a region is convex and clear of walls), an end that cannot holds (rules 3 and 5),
+and a link whose ends hold does not change, so it is up at every instant of the step, so
+up over the next step's window, and at the next ``t0`` it is in ``K`` again while both
+ends still remember each other. So the components of ``K`` never grow,
 and the network (which contains ``K``) never has more components than ``K`` had when
 control started: on a loss-free channel, always; under loss, unless a robot misses every
 Ack of a neighbour in range for ``release_s``.
@@ -105,8 +113,8 @@ from netsim.compiled import load
 
 class Walls(NamedTuple):
     """What a robot knows of the walls: its team's map, as a lower bound of the distance from
-    a cell's points to the nearest occupied cell (:func:`walls_of`). ``on``: False where
-    there is no map (then nothing is a wall)."""
+    a cell's points to the nearest occupied cell, and as convex *regions* of free space
+    (:func:`walls_of`). ``on``: False where there is no map (then nothing is a wall)."""
 
     on: bool
     field: np.ndarray  # (H, W): the distance from the cell's centre to the nearest wall, less half a diagonal, m
@@ -114,18 +122,89 @@ class Walls(NamedTuple):
     origin_y_m: float
     resolution_m: float
     step_m: float  # a test comes this close to a wall only to give up
+    open: np.ndarray  # (H, W) bool: cells that are not walls (where a robot may be)
+    rects: np.ndarray  # (R, 4): each region's x0, x1, y0, y1, m (its free cells, shrunk by REGION_INSET_M)
+    bucket_cells: int  # the side of a bucket of the regions' index, in cells
+    bucket_start: np.ndarray  # (B + 1,) int64: bucket b's regions are bucket_regions[start[b]:start[b + 1]]
+    bucket_regions: np.ndarray  # (M,) int64: the regions meeting each bucket, in the regions' order
 
 
-NO_WALLS = Walls(False, np.full((1, 1), np.inf), 0.0, 0.0, 1.0, 0.0)
+NO_WALLS = Walls(
+    False,
+    np.full((1, 1), np.inf),
+    0.0,
+    0.0,
+    1.0,
+    0.0,
+    np.ones((1, 1), bool),
+    np.zeros((0, 4)),
+    1,
+    np.zeros(2, np.int64),
+    np.zeros(0, np.int64),
+)
+
+# The side of a bucket of the regions' index, m.
+REGION_BUCKET_M = 4.0
+# How far inside its free cells a region's rectangle ends, m: a segment in it then keeps off
+# the grid lines of its border, beyond the tolerance within which line of sight puts a
+# point on a grid line (netsim.world.los), yet a robot stopped short of a wall by the
+# control loop (netsim.world.free_space.free_fraction) still stands in it.
+REGION_INSET_M = 1e-7
+# A step brought into a region ends this much farther inside, so that the robot, moved along
+# the step with rounding, still stands in the region at the next step.
+REGION_CLAMP_M = 1e-8
+
+
+def free_rectangles(free: np.ndarray) -> np.ndarray:
+    """``(R, 4)`` int64, each row ``(i0, i1, j0, j1)`` (columns and rows, inclusive): the
+    rectangles of free cells that a run of free cells along a row (or a column) spans when
+    it is stretched across the rows (columns) where the whole run is free. On a floor plan
+    these are its rooms, its corridors and the strips through its doors. Ordered by area,
+    largest first, then by position: one order every robot computes from the map.
+
+    >>> free = np.ones((3, 5), bool); free[1, 1:4] = False
+    >>> free_rectangles(free).tolist()
+    [[0, 4, 0, 0], [0, 4, 2, 2], [0, 0, 0, 2], [4, 4, 0, 2]]
+    """
+    found = set()
+    for grid, flip in ((free, False), (free.T, True)):
+        h, w = grid.shape
+        prefix = np.zeros((h, w + 1), np.int64)
+        prefix[:, 1:] = np.cumsum(grid, axis=1)
+        last: dict[tuple[int, int], int] = {}
+        for y in range(h):
+            edges = np.diff(np.r_[0, grid[y].astype(np.int8), 0])
+            for x0, x1 in zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist()):
+                if last.get((x0, x1), -1) >= y:
+                    continue
+                full = (prefix[:, x1 + 1] - prefix[:, x0]) == x1 - x0 + 1
+                below = np.flatnonzero(~full[:y])
+                above = np.flatnonzero(~full[y:])
+                y0 = int(below[-1]) + 1 if len(below) else 0
+                y1 = y + int(above[0]) - 1 if len(above) else h - 1
+                last[(x0, x1)] = y1
+                found.add((y0, y1, x0, x1) if flip else (x0, x1, y0, y1))
+    if not found:
+        return np.zeros((0, 4), np.int64)
+    rects = np.array(sorted(found), np.int64)
+    area = (rects[:, 1] - rects[:, 0] + 1) * (rects[:, 3] - rects[:, 2] + 1)
+    order = np.lexsort((rects[:, 1], rects[:, 3], rects[:, 0], rects[:, 2], -area))
+    return rects[order]
 
 
 def walls_of(
-    occupied: np.ndarray | None, origin_m: tuple[float, float] = (0.0, 0.0), resolution_m: float = 1.0
+    occupied: np.ndarray | None,
+    origin_m: tuple[float, float] = (0.0, 0.0),
+    resolution_m: float = 1.0,
+    free: np.ndarray | None = None,
 ) -> Walls:
     """The walls of a map (``occupied``: ``(H, W)`` bool, row 0 at the bottom), or
     :data:`NO_WALLS` (None). A point ``x`` in the cell of centre ``c`` is at least
     ``field - |x - c|`` from every occupied cell (closed squares): a cell's points lie within
-    half a diagonal of its centre."""
+    half a diagonal of its centre. The regions are :func:`free_rectangles` of the ``free``
+    cells (default: those not occupied), each shrunk by :data:`REGION_INSET_M` so that a
+    segment in it keeps clear of the grid lines of its border (convex: a segment between two
+    of its points lies in it, clear of walls)."""
     if occupied is None:
         return NO_WALLS
     from scipy.ndimage import distance_transform_edt
@@ -135,13 +214,39 @@ def walls_of(
         field = np.full(occupied.shape, np.inf)
     else:
         field = distance_transform_edt(~occupied) * resolution_m - half
+    cells = free_rectangles(~occupied if free is None else free & ~occupied)
+    ox, oy, res = float(origin_m[0]), float(origin_m[1]), float(resolution_m)
+    inset = REGION_INSET_M
+    rects = np.column_stack(
+        [
+            ox + cells[:, 0] * res + inset,
+            ox + (cells[:, 1] + 1) * res - inset,
+            oy + cells[:, 2] * res + inset,
+            oy + (cells[:, 3] + 1) * res - inset,
+        ]
+    ).reshape(-1, 4)
+    k = max(1, int(round(REGION_BUCKET_M / res)))
+    h, w = occupied.shape
+    bw, bh = (w + k - 1) // k, (h + k - 1) // k
+    members: list[list[int]] = [[] for _ in range(bw * bh)]
+    for r, (i0, i1, j0, j1) in enumerate(cells.tolist()):
+        for by in range(j0 // k, j1 // k + 1):
+            for bx in range(i0 // k, i1 // k + 1):
+                members[by * bw + bx].append(r)
+    start = np.r_[0, np.cumsum([len(m) for m in members])].astype(np.int64)
+    flat = np.array([r for m in members for r in m], np.int64)
     return Walls(
         True,
         np.ascontiguousarray(field, float),
-        float(origin_m[0]),
-        float(origin_m[1]),
-        float(resolution_m),
-        0.01 * resolution_m,
+        ox,
+        oy,
+        res,
+        0.01 * res,
+        np.ascontiguousarray(~occupied),
+        np.ascontiguousarray(rects, float),
+        k,
+        start,
+        flat,
     )
 
 
@@ -558,28 +663,93 @@ def plan_local(
 WALL_TRIES = (1.0, 0.5, 0.25, 0.125, 0.0)
 
 
+def shared_regions(walls: Walls, pos: np.ndarray, q: np.ndarray, e_m: np.ndarray) -> np.ndarray:
+    """For each row, the region a robot at ``pos`` (exact) and the other end of its link,
+    within ``e_m`` of ``q``, share: the first region in the regions' order that holds both
+    (-1: none, or the robot cannot tell;
+    :func:`netsim.mobility._local_kernels.shared_region`). Both ends that can tell compute
+    the same region."""
+    p = np.ascontiguousarray(np.asarray(pos, float).reshape(-1, 2))
+    out = np.full(len(p), -1, np.int64)
+    if not walls.on or len(p) == 0:
+        return out
+    q = np.ascontiguousarray(np.asarray(q, float).reshape(-1, 2))
+    e = np.ascontiguousarray(np.broadcast_to(np.asarray(e_m, float), (len(p),)))
+    load("netsim.mobility._local_kernels", None).shared_regions(walls, p, q, e, out)
+    return out
+
+
+def in_one_region(walls: Walls, a: np.ndarray, b: np.ndarray, e_a_m: np.ndarray, e_b_m: np.ndarray) -> np.ndarray:
+    """Whether some region holds every point not in a wall of the disk of radius ``e_a_m``
+    around ``a`` and of the disk of radius ``e_b_m`` around ``b`` (row-wise): then every
+    segment between two robots in them is clear of walls
+    (:func:`netsim.mobility._local_kernels.in_one_region`)."""
+    a = np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2))
+    b = np.ascontiguousarray(np.asarray(b, float).reshape(-1, 2))
+    out = np.zeros(len(a), dtype=bool)
+    if not walls.on or len(a) == 0:
+        return np.ones(len(a), dtype=bool) if not walls.on else out
+    ea = np.ascontiguousarray(np.broadcast_to(np.asarray(e_a_m, float), (len(a),)))
+    eb = np.ascontiguousarray(np.broadcast_to(np.asarray(e_b_m, float), (len(a),)))
+    load("netsim.mobility._local_kernels", None).in_one_region_many(walls, a, b, ea, eb, out)
+    return out
+
+
 def cut_for_walls(
     pos: np.ndarray, move: np.ndarray, memory: Memory, kept: np.ndarray, t1_s: float, limits: StepLimits, walls: Walls
 ) -> np.ndarray:
-    """Rule 5 (walls): the fraction of its ``move`` each robot makes, the largest of
-    :data:`WALL_TRIES` with which every kept link is surely clear of walls over the step
-    (the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk of radius
-    ``e_j(t1)`` around ``q_j``, which holds the step and where ``j`` can be, meets no wall,
-    :func:`clear_of_walls`), and the step still ends within its leash (rule 2). 0: the
-    robot holds (then it answers for nothing: the other end, or no motion, keeps the
-    link)."""
+    """Rule 5 (walls): each robot's step, such that every kept link is surely clear of walls
+    over it, and still ending within its leashes (rule 2). A link is answered for
+
+    - *alone*, whatever the other end does: the convex hull of the disk of radius
+      ``|step|`` around ``p`` and of the disk of radius ``e_j(t1)`` around ``q_j``, which
+      holds the step and where ``j`` can be, meets no wall (:func:`clear_of_walls`);
+    - or *by region*, where that fails for the whole ``move``: both ends share a region
+      (:func:`shared_regions`, from ``j``'s place at ``t0``, within ``e_j(t0)`` of ``q_j``),
+      and the robot ends its step in it. The other end holds there, answers alone, or ends
+      its step in the same region (both compute the same one); a region is convex and free,
+      so the segment between the two stays clear of walls throughout.
+
+    The step's end is brought into the regions of its links (each coordinate clamped into
+    their common rectangle, so a robot slides along a corridor), or, where that leaves a
+    leash, the step is cut at their border; then the largest fraction of
+    :data:`WALL_TRIES` with which the links answered for alone pass and the leashes hold is
+    taken. 0: the robot holds (then it answers for nothing: the other end, or no motion,
+    keeps the link)."""
     n = len(pos)
-    scale = np.ones(n)
+    move = np.array(move, float)
     length = np.hypot(*move.T)
     movers = np.flatnonzero(length > 0)
     if not walls.on or len(movers) == 0:
-        return scale
+        return move
     robot, other = np.nonzero(kept & (length > 0)[:, None])
     centre = memory.xy[robot, other]
-    e = np.maximum(limits.speed_max_mps * (t1_s - memory.sent_s[robot, other]), 0.0)
+    v = limits.speed_max_mps
+    e = np.maximum(v * (t1_s - memory.sent_s[robot, other]), 0.0)
+    e0 = np.maximum(v * (t1_s - limits.period_s - memory.sent_s[robot, other]), 0.0)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
-    undecided = np.zeros(n, dtype=bool)
-    undecided[movers] = True
+    region = np.full(len(robot), -1, np.int64)
+    alone = clear_of_walls(walls, pos[robot], centre, length[robot], e)
+    region[~alone] = shared_regions(walls, pos[robot[~alone]], centre[~alone], e0[~alone])
+    boxed = region >= 0
+    lo = np.full((n, 2), -np.inf)
+    hi = np.full((n, 2), np.inf)
+    for axis, (low, high) in enumerate(((0, 1), (2, 3))):
+        np.maximum.at(lo[:, axis], robot[boxed], walls.rects[region[boxed], low])
+        np.minimum.at(hi[:, axis], robot[boxed], walls.rects[region[boxed], high])
+    inner_lo = np.minimum(lo + REGION_CLAMP_M, pos)
+    inner_hi = np.maximum(hi - REGION_CLAMP_M, pos)
+    slid = np.clip(pos + move, inner_lo, inner_hi) - pos
+    off_leash = np.zeros(n, dtype=bool)
+    off_leash[robot[np.hypot(*(pos[robot] + slid[robot] - centre).T) > leash]] = True
+    # Where sliding leaves a leash, the step stops at the regions' border instead.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(move > 0, (inner_hi - pos) / move, np.where(move < 0, (inner_lo - pos) / move, np.inf))
+    cut = np.clip(reach.min(axis=1), 0.0, 1.0)
+    move = np.where(off_leash[:, None], move * cut[:, None], slid)
+    length = np.hypot(*move.T)
+    scale = np.ones(n)
+    undecided = length > 0
     for s in WALL_TRIES:
         if s == 0.0:
             break
@@ -588,7 +758,7 @@ def cut_for_walls(
             break
         r = robot[rows]
         end = pos[r] + s * move[r]
-        ok = clear_of_walls(walls, pos[r], centre[rows], s * length[r], e[rows])
+        ok = boxed[rows] | clear_of_walls(walls, pos[r], centre[rows], s * length[r], e[rows])
         ok &= np.hypot(*(end - centre[rows]).T) <= leash[rows]
         failed = np.zeros(n, dtype=bool)
         failed[r[~ok]] = True
@@ -596,7 +766,7 @@ def cut_for_walls(
         scale[done] = s
         undecided &= failed
     scale[undecided] = 0.0
-    return scale
+    return move * scale[:, None]
 
 
 def pulls(

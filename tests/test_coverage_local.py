@@ -450,10 +450,16 @@ def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
         assert (out[0] == want).all() and (out[1] == want).all()
 
 
+def without_regions(walls):
+    """The walls with no region (rule 5 and rule 1 answer alone)."""
+    return walls._replace(bucket_start=np.zeros_like(walls.bucket_start), bucket_regions=np.zeros(0, np.int64))
+
+
 def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():
-    """Rule 5: robot 0 keeps robot 1, 20 m east (heard 0.1 s ago: within 2.2 m of where it
-    was heard until the step's end). With no wall near, it makes its whole 2 m step; with a
-    pillar 2.5 m off the link's middle, a part of it; with a pillar 1 m off, it holds."""
+    """Rule 5, answering alone (no region to share): robot 0 keeps robot 1, 20 m east (heard
+    0.1 s ago: within 2.2 m of where it was heard until the step's end). With no wall near,
+    it makes its whole 2 m step; with a pillar 2.5 m off the link's middle, a part of it;
+    with a pillar 1 m off, it holds."""
     pos = np.array([[0.0, 0.0], [20.0, 0.0]])
     m = all_heard(pos, T0 - 0.1)
     kept = m.known(T0, 20.0)
@@ -461,32 +467,32 @@ def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():
     t1 = T0 + LIMITS.period_s
 
     def scale(y):
-        walls = walls_of(blocks_map([(10.0, y, 10.5, y + 0.5)], 60.0, 40.0), ORIGIN, RES)
-        return cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[0]
+        walls = without_regions(walls_of(blocks_map([(10.0, y, 10.5, y + 0.5)], 60.0, 40.0), ORIGIN, RES))
+        return cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[0, 1] / move[0, 1]
 
     assert scale(15.0) == 1.0
     assert 0.0 < scale(2.5) < 1.0
     assert scale(1.0) == 0.0
-    assert cut_for_walls(pos, move, m, kept, t1, LIMITS, NO_WALLS)[0] == 1.0
+    assert (cut_for_walls(pos, move, m, kept, t1, LIMITS, NO_WALLS) == move).all()
 
 
 @pytest.mark.parametrize("seed", range(8))
 def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_whatever_the_other_does(seed):
-    """Rule 5, the argument: for every link a moving robot keeps, the convex hull of its
-    step and of the disk where the other end can be at the step's end (every segment
-    between them at every instant) meets no wall (shapely, exact), and the leash of rule 2
-    still holds at the step's end."""
+    """Rule 5 answering alone, the argument: for every link a moving robot keeps, the convex
+    hull of its step and of the disk where the other end can be at the step's end (every
+    segment between them at every instant) meets no wall (shapely, exact), and the leash of
+    rule 2 still holds at the step's end (rule 5 by region: tests/test_coverage_local_map.py)."""
     from shapely import GeometryCollection, LineString, Point
 
     pos, m = random_scene(seed, n=30)
     occ = blocks_map([(100, 50, 102, 250), (150, 100, 300, 101), (40, 200, 80, 204)])
-    walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
+    walls, shapes = without_regions(walls_of(occ, ORIGIN, RES)), wall_shapes(occ)
     known = m.known(T0, 20.0)
     kept = known & ~let_go(pos, m, told(m), T0, V, 10.0, RC, walls)
     wish = np.random.default_rng(seed).normal(0, 3.0, pos.shape)
     move = plan_local(pos, wish, m, kept, T0, LIMITS).velocity_mps * LIMITS.period_s
     t1 = T0 + LIMITS.period_s
-    move = move * cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[:, None]
+    move = cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)
     i, j = np.nonzero(kept & (np.hypot(*move.T) > 0)[:, None])
     assert len(i) > 10
     for a, b in zip(i.tolist(), j.tolist()):
