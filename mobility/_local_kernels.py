@@ -16,6 +16,7 @@ import numpy as np
 from netsim.mobility._fade_kernels import plausible_change_db, range_at_m
 
 from netsim.compiled import jit
+from netsim.world._kernels import on_grid
 
 
 @jit(nogil=True, walks=True)
@@ -30,8 +31,8 @@ def clear(walls, ax, ay, bx, by, ea, eb):
     t = 0.0
     while True:
         f = t / length if length > 0 else 0.0
-        u = (ax + f * (bx - ax) - walls.origin_x_m) / res
-        v = (ay + f * (by - ay) - walls.origin_y_m) / res
+        u = on_grid(ax + f * (bx - ax), walls.origin_x_m, res)
+        v = on_grid(ay + f * (by - ay), walls.origin_y_m, res)
         ci = min(max(math.floor(u), 0), w - 1)
         cj = min(max(math.floor(v), 0), h - 1)
         radius = ea + f * (eb - ea) if length > 0 else max(ea, eb)
@@ -71,10 +72,10 @@ def region_holds(walls, r, qx, qy, e):
     res = walls.resolution_m
     ox, oy = walls.origin_x_m, walls.origin_y_m
     h, w = walls.open.shape
-    i0 = max(math.floor((qx - e - ox) / res), 0)
-    i1 = min(math.floor((qx + e - ox) / res), w - 1)
-    j0 = max(math.floor((qy - e - oy) / res), 0)
-    j1 = min(math.floor((qy + e - oy) / res), h - 1)
+    i0 = max(math.floor(on_grid(qx - e, ox, res)), 0)
+    i1 = min(math.floor(on_grid(qx + e, ox, res)), w - 1)
+    j0 = max(math.floor(on_grid(qy - e, oy, res)), 0)
+    j1 = min(math.floor(on_grid(qy + e, oy, res)), h - 1)
     if (i1 - i0 + 1) * (j1 - j0 + 1) > REGION_SCAN_CELLS:
         return -1
     for j in range(j0, j1 + 1):
@@ -95,8 +96,8 @@ def region_holds(walls, r, qx, qy, e):
 def bucket_of(walls, px, py):
     """The index of the bucket of regions that holds the point (-1: off the map)."""
     h, w = walls.open.shape
-    i = math.floor((px - walls.origin_x_m) / walls.resolution_m)
-    j = math.floor((py - walls.origin_y_m) / walls.resolution_m)
+    i = math.floor(on_grid(px, walls.origin_x_m, walls.resolution_m))
+    j = math.floor(on_grid(py, walls.origin_y_m, walls.resolution_m))
     if i < 0 or j < 0 or i >= w or j >= h:
         return -1
     k = walls.bucket_cells
