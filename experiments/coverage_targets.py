@@ -164,7 +164,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
 
     counts = dict.fromkeys(
         ["robot-steps", "moved", "held, rule 3", "held, no travel", "no wish", "let go as silent", "holding links",
-         "weak", "down", "shorter detour", "stronger detour only", "no detour"], 0)  # fmt: skip
+         "weak", "down", "shorter detour", "stronger detour only", "no detour", "stronger detour"], 0)  # fmt: skip
 
     def bottleneck(size, i, j, weight):
         # The largest weight on the best path between every two robots (through the forest).
@@ -221,6 +221,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         by_margin = up & (stronger[a, b] < own_w[a, b] - 1e-9)
         counts["shorter detour"] += int(by_length.sum())
         counts["stronger detour only"] += int((by_margin & ~by_length).sum())
+        counts["stronger detour"] += int(by_margin.sum())
         counts["no detour"] += int((up & ~by_length & ~by_margin).sum())
         return plan
 
