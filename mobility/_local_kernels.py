@@ -89,20 +89,7 @@ def measured_range_m(x_db, measured_s, travel_m, fade):
 
 
 @jit(nogil=True)
-def kept_through(from_ab, ack_ab, from_ba, ack_ba, last_s):
-    """Both ends of a link kept it at every step from one holding an Ack that crossed it,
-    sent (at the latest) by ``last_s``, to the step before: ``from_ab``, ``ack_ab``, the run
-    of ``a`` keeping ``b`` (:class:`netsim.mobility.local.Runs`), ``from_ba``, ``ack_ba``,
-    ``b``'s of ``a`` (inf: no run)."""
-    if not (from_ab < math.inf and from_ba < math.inf):
-        return False
-    if ack_ab <= last_s and ack_ab >= from_ba:
-        return True
-    return ack_ba <= last_s and ack_ba >= from_ab
-
-
-@jit(nogil=True)
-def let_go(pos, memory, lists, rule, walls, out, fade, measured, chain):
+def let_go(pos, memory, lists, rule, walls, out, fade, measured):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
     through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
     robots remember, ``(xy, sent_s, known, silent)``, ``silent[i, j]``: ``i``'s link to ``j``
@@ -118,20 +105,12 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured, chain):
     measured on each robot's latest Ack and when it can have been sent, ``(x_db (n, n),
     measured_s (n, n), listed_x_db (M,), leg_speed_mps (n, n), leg_from_s (n, n))``, the
     third for the lists' entries, the last two the speeds each robot knows (its own on the
-    diagonal; :func:`largest_travel_m`); ``chain``: the runs of keeping, ``(on, from_s (n,
-    n), ack_s (n, n), listed_from_s (M,), listed_ack_s (M,), latest, jitter_s)``, each
-    robot's own as of the step before and those the lists carry (:class:`Runs`), read from
-    the lists of snapshot ``latest`` (the step before) alone: a link both of whose ends kept
-    it at every step from one holding an Ack sent by ``t0_s - window_s`` (its earliest
-    sending time ``jitter_s`` earlier) to the step before counts as up over the window
-    (:func:`kept_through`), whatever its length."""
+    diagonal; :func:`largest_travel_m`)."""
     xy, sent_s, known, silent = memory
     which, start, other, listed_s = lists
     t0_s, speed_mps, band_m, range_m, release_s, window_s = rule
     opens_s = t0_s - window_s
     x_db, measured_s, listed_x, leg_speed, leg_from = measured
-    chained, own_from, own_ack, listed_from, listed_ack, latest, jitter_s, by_margin, own_rec, ten_n = chain
-    last_s = opens_s - jitter_s
     n = pos.shape[0]
     nn = float(n * n)
     node = np.empty(n, np.int64)
@@ -140,12 +119,6 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured, chain):
     # sure[a, b]: the longest the link of nodes a, b can surely be at t0 (the plan's range,
     # or what a shadowing measured on it allows).
     sure = np.zeros((n, n))
-    # run_from[a, b], run_ack[a, b]: node a's run of keeping node b, as i knows it (Runs).
-    run_from = np.full((n, n), np.inf)
-    run_ack = np.full((n, n), np.inf)
-    # rec[a, b]: the link's record as i reads it (the shadowing the smaller id listed on the
-    # larger at the step before; NaN: unknown), for the order by margin.
-    rec = np.full((n, n), np.nan)
     qx = np.empty(n)
     qy = np.empty(n)
     e = np.empty(n)
@@ -176,16 +149,6 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured, chain):
             for b in range(k):
                 certain[a, b] = a == 0 and b > 0 and not silent[i, node[b]]
                 sure[a, b] = range_m
-                run_from[a, b] = np.inf
-                run_ack[a, b] = np.inf
-                rec[a, b] = np.nan
-        for b in range(1, k):
-            if chained:
-                run_from[0, b] = own_from[i, node[b]]
-                run_ack[0, b] = own_ack[i, node[b]]
-            if by_margin:
-                rec[0, b] = own_rec[i, node[b]]
-                rec[b, 0] = rec[0, b]
         for b in range(1, k):
             # The pair's travel since the measurement: each end's, as far as i knows it; over
             # a window, from its start if earlier (an instant of the window before the
@@ -214,12 +177,6 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured, chain):
                     r = measured_range_m(listed_x[p], s_p, travel, fade)
                     sure[a, b] = max(sure[a, b], r)
                     sure[b, a] = max(sure[b, a], r)
-                    if chained and s == latest:
-                        run_from[a, b] = listed_from[p]
-                        run_ack[a, b] = listed_ack[p]
-                    if by_margin and s == latest and u < listed:
-                        rec[a, b] = listed_x[p]
-                        rec[b, a] = listed_x[p]
         for a in range(k):
             local[node[a]] = -1
         for a in range(k):
@@ -240,29 +197,18 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured, chain):
                 if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
                 longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
-                if longest + sweep[u] + sweep[v] > sure[u, v] and not (
-                    chained and kept_through(run_from[u, v], run_ack[u, v], run_from[v, u], run_ack[v, u], last_s)
-                ):
+                if longest + sweep[u] + sweep[v] > sure[u, v]:
                     continue
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
                 if walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep[a], e[b] + sweep[b]):
                     continue
-                key = longest
-                if by_margin:
-                    if math.isnan(rec[u, v]):
-                        continue
-                    key = longest * 10.0 ** (rec[u, v] / ten_n)
-                rank = math.floor(key / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
+                rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)
                 if w < worst[v]:
                     worst[v] = w
         for a in range(1, m + 1):
             j = node[a]
             shortest = max(math.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
-            if by_margin:
-                if math.isnan(rec[0, a]):
-                    continue
-                shortest = shortest * 10.0 ** (rec[0, a] / ten_n)
             rank = math.floor(shortest / band_m) * nn + float(min(i, j) * n + max(i, j)) + 1.0
             out[i, j] = worst[a] < rank

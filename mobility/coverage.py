@@ -113,9 +113,7 @@ from netsim.mobility.local import (
     cut_for_walls,
     latest_pulls,
     let_go,
-    no_runs,
     plan_local,
-    runs_after,
     silence_of,
     silent,
     sources_heard,
@@ -455,8 +453,6 @@ class CoverageController:
         self.knows: Memory | None = None  # the memory as of the step being planned
         self.halves = None  # the links each robot answered for by its half at the latest step
         self.kept: np.ndarray | None = None  # the links each robot kept at the latest step
-        # Under shadowing: each robot's runs of keeping, told in its lists (netsim.mobility.local.Runs).
-        self.runs = no_runs(st.n) if self.fade is not None else None
         # How much earlier than its latest possible sending time an Ack may have left.
         self.jitter_s = float(parts.channel.latency_jitter_s)
         self.announced_mps = np.zeros((st.n, 2))
@@ -615,15 +611,9 @@ class CoverageController:
         # A robot lets go of a silent robot: their link was down in the window.
         quiet = silent(memory, self.env.now, self.loop.lead_s, self.silence)
         window = 0.0 if self.silence is None else self.silence.window_s
-        gone = let_go(
-            pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, fade, window, quiet, self.runs, self.jitter_s
-        )
+        gone = let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, fade, window, quiet)
         kept = heard.known & ~quiet & ~gone
         self.kept, self.silent = kept, quiet
-        if self.runs is not None:
-            # Kept since an Ack: what this step's list (taken at this instant) tells of it.
-            self.runs = runs_after(self.runs, kept, memory.sent_s, t0)
-            self.lists.mark(self.runs)
         announced, earlier = (self.announced_mps, self.announced_s), (self.earlier_mps, self.earlier_s)
         wish = step.velocity_mps + latest_pulls(pos, knows, kept, announced, earlier, step.t_s, limits, memory.sent_s)
         # What each robot's next Acks announce (netsim.mobility.local, rule 4).

@@ -307,11 +307,6 @@ class Heard(NamedTuple):
     xy: np.ndarray  # (M, 2): the position that Ack carried
     release_s: float
     x_db: np.ndarray | None = None  # (M,): the shadowing the sender measured on that Ack (NaN: none)
-    # (M,): the sender's run of keeping the robot listed (:class:`Runs`), as of the list's
-    # step: since when it kept it at every step (inf: not kept at that step), and the
-    # earliest sending time of an Ack of it heard within that run (inf: none).
-    kept_from_s: np.ndarray | None = None
-    kept_ack_s: np.ndarray | None = None
 
 
 class Lists:
@@ -328,7 +323,7 @@ class Lists:
     def __init__(self, n: int, depth: int):
         self.n = n
         self.depth = int(depth)
-        self._taken: list[tuple] = []
+        self._taken: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
 
     def take(self, memory: Memory, now_s: float, release_s: float) -> None:
         """Every robot's list from now on: the robots it remembers (:meth:`Memory.known`)."""
@@ -342,21 +337,9 @@ class Lists:
                 memory.sent_s[robot, other],
                 memory.xy[robot, other],
                 memory.x_db[robot, other],
-                np.full(len(other), np.inf),
-                np.full(len(other), np.inf),
             )
         )
         del self._taken[: -self.depth]
-
-    def mark(self, runs: Runs) -> None:
-        """The runs of keeping (:class:`Runs`) as of the latest step, into that step's list:
-        decided at the same instant as the list was taken, so every Ack that carries the
-        list carries them."""
-        if not self._taken:
-            return
-        t, start, other, *rest = self._taken[-1]
-        robot = np.repeat(np.arange(self.n), np.diff(start))
-        self._taken[-1] = (t, start, other, *rest[:3], runs.from_s[robot, other], runs.ack_s[robot, other])
 
     def heard(self, known: np.ndarray, sent_s: np.ndarray, release_s: float) -> Heard:
         """What each robot holds: its own memory ``known`` and, for each robot ``u`` whose
@@ -371,53 +354,7 @@ class Lists:
         sent = np.concatenate([t[3] for t in self._taken]) if self._taken else np.empty(0)
         xy = np.concatenate([t[4] for t in self._taken]) if self._taken else np.empty((0, 2))
         x = np.concatenate([t[5] for t in self._taken]) if self._taken else np.empty(0)
-        kept_from = np.concatenate([t[6] for t in self._taken]) if self._taken else np.empty(0)
-        kept_ack = np.concatenate([t[7] for t in self._taken]) if self._taken else np.empty(0)
-        return Heard(
-            known, which.astype(np.int64), start, other.astype(np.int64), sent, xy, float(release_s), x, kept_from,
-            kept_ack,
-        )  # fmt: skip
-
-
-class Runs(NamedTuple):
-    """Each robot's runs of keeping (docs/model.md 5.1, "Kept since an Ack"): ``from_s[a, b]``,
-    the start (``t0``) of the first step of the unbroken run of steps, up to the latest one,
-    at each of which ``a`` kept ``b`` (inf: not kept at the latest step); ``ack_s[a, b]``, the
-    earliest sending time of an Ack of ``b`` that ``a`` heard, sent no earlier than that
-    (inf: none yet). The link was up when that Ack was sent, and a link up at an instant of a
-    step that both ends keep stays up to the step's end (unless its shadowing moves beyond
-    what the plan covers): so if ``b``'s run also holds the Ack's step, the link has been up
-    since the Ack, to the end of the latest step of both runs."""
-
-    from_s: np.ndarray  # (n, n)
-    ack_s: np.ndarray  # (n, n)
-
-
-def no_runs(n: int) -> Runs:
-    """Nobody has kept anything yet (before control starts)."""
-    return Runs(np.full((n, n), np.inf), np.full((n, n), np.inf))
-
-
-def runs_after(runs: Runs, kept: np.ndarray, sent_s: np.ndarray, t0_s: float) -> Runs:
-    """The runs once each robot has kept ``kept`` (``(n, n)``) at the step starting at ``t0_s``:
-    a run goes on where the link was kept at the step before too, starts at ``t0_s`` where it
-    was not, and ends where the link is not kept now. ``sent_s``: the earliest sending time of
-    the latest Ack of each robot each robot heard (:attr:`Memory.sent_s`), taken as the run's
-    Ack when the run has none yet and it was sent within the run.
-
-    >>> r = runs_after(no_runs(2), np.array([[False, True], [True, False]]), np.full((2, 2), 4.0), 5.0)
-    >>> r.from_s[0, 1], r.ack_s[0, 1]
-    (np.float64(5.0), np.float64(inf))
-    >>> r = runs_after(r, np.array([[False, True], [False, False]]), np.full((2, 2), 5.5), 6.0)
-    >>> r.from_s.tolist(), r.ack_s.tolist()
-    ([[inf, 5.0], [inf, inf]], [[inf, 5.5], [inf, inf]])
-    """
-    going_on = kept & np.isfinite(runs.from_s)
-    from_s = np.where(kept, np.where(going_on, runs.from_s, float(t0_s)), np.inf)
-    with np.errstate(invalid="ignore"):
-        fresh = sent_s >= from_s
-    ack_s = np.where(going_on & np.isfinite(runs.ack_s), runs.ack_s, np.where(kept & fresh, sent_s, np.inf))
-    return Runs(from_s, ack_s)
+        return Heard(known, which.astype(np.int64), start, other.astype(np.int64), sent, xy, float(release_s), x)
 
 
 def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -443,8 +380,6 @@ def let_go(
     fade: Fade | None = None,
     window_s: float = 0.0,
     silent_of: np.ndarray | None = None,
-    runs: Runs | None = None,
-    jitter_s: float = 0.0,
 ) -> np.ndarray:
     """``(n, n)``: robot ``i`` lets go of ``j`` (rule 1: it knows a certified detour).
 
@@ -464,13 +399,7 @@ def let_go(
     from where it is known to be by its largest travel over the window; :class:`Silence`).
     ``silent_of``: ``(n, n)``, the robots each robot has heard nothing of for longer than
     the largest gap between two Acks (:func:`silent`): their link was down in the window,
-    so it is no detour's link, though the robot is still a node. ``runs``: each robot's own
-    runs of keeping as of the step before (:class:`Runs`; None: not used); with them a
-    detour's link also counts as up over the window, whatever its length, when both ends
-    kept it at the step before and at every step back to an Ack that crossed it no later
-    than the window's start (``jitter_s``: how much later than its earliest sending time an
-    Ack can have left), as ``i``'s own runs and the lists of that step it holds from the
-    ends tell.
+    so it is no detour's link, though the robot is still a node.
 
     Notes
     -----
@@ -486,22 +415,8 @@ def let_go(
     measured = (memory.x_db, memory.measured_s, listed_x, memory.leg_speed_mps, memory.leg_from_s)
     rule_of_fade = NO_FADE if fade is None else fade.rule
     quiet = np.zeros((n, n), dtype=bool) if silent_of is None else np.ascontiguousarray(silent_of, dtype=bool)
-    if runs is None or heard.kept_from_s is None or heard.kept_ack_s is None or fade is None:
-        chain = (False, NO_RUNS.from_s, NO_RUNS.ack_s, np.empty(0), np.empty(0), -1, 0.0, False, NO_RUNS.from_s, 1.0)
-    else:
-        latest = heard.start.shape[0] - 1
-        own_rec, _ = link_records(heard, n)
-        ten_n = 10.0 * float(fade.radio.path_loss_exponent)
-        chain = (
-            True, runs.from_s, runs.ack_s, heard.kept_from_s, heard.kept_ack_s, latest,
-            float(jitter_s), True, own_rec, ten_n,
-        )  # fmt: skip
-    memory_of = (memory.xy, memory.sent_s, known, quiet)
-    kernels.let_go(pos, memory_of, lists, rule, walls, out, rule_of_fade, measured, chain)
+    kernels.let_go(pos, (memory.xy, memory.sent_s, known, quiet), lists, rule, walls, out, rule_of_fade, measured)
     return out
-
-
-NO_RUNS = no_runs(1)
 
 
 # How much longer than the largest gap between two Acks a robot waits before it counts a
