@@ -43,9 +43,23 @@ largest gap between two, on a channel that loses no frame), and of the links
 that held a robot, how many were weak (margin below ``coverage.fade_margin_db``), already
 down at the step (the true network), or up with a detour of truly shorter up links
 (one rule 1 could in principle certify), or only with a detour of stronger links (the
-global plan's order, by margin), or none.
+global plan's order, by margin), or none; and, whatever their length, how many had a
+detour of stronger links.
 
     python experiments/coverage_targets.py --why --n 20 60 --duration 150
+
+``--bound`` asks how much of the gap rule 1 (which links a robot lets go of) could close at
+best: on seeds 1 to ``--seeds`` (each ``--n``, default 20) it runs the global plan, the
+local plan, and the local plan with rule 1 replaced by an oracle that reads the true
+network: a robot lets go of a link when the links up at the step join its ends through
+links that come before it, by length or by the global plan's order (the margin left after
+the plausible change of the shadowing), over the robots it remembers or over the whole
+team (then with every other rule of the local plan, its own limits and leashes, unchanged).
+Not a plan (no robot knows the true network): a bound. Prints each run's covered fraction
+of the bound over the global plan's on the same seed, and how far any run's real network
+grew.
+
+    python experiments/coverage_targets.py --bound --seeds 5 --n 20
 """
 
 from __future__ import annotations
@@ -164,7 +178,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
 
     counts = dict.fromkeys(
         ["robot-steps", "moved", "held, rule 3", "held, no travel", "no wish", "let go as silent", "holding links",
-         "weak", "down", "shorter detour", "stronger detour only", "no detour"], 0)  # fmt: skip
+         "weak", "down", "shorter detour", "stronger detour only", "no detour", "stronger detour"], 0)  # fmt: skip
 
     def bottleneck(size, i, j, weight):
         # The largest weight on the best path between every two robots (through the forest).
@@ -221,6 +235,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         by_margin = up & (stronger[a, b] < own_w[a, b] - 1e-9)
         counts["shorter detour"] += int(by_length.sum())
         counts["stronger detour only"] += int((by_margin & ~by_length).sum())
+        counts["stronger detour"] += int(by_margin.sum())
         counts["no detour"] += int((up & ~by_length & ~by_margin).sum())
         return plan
 
@@ -232,6 +247,108 @@ def why(n: int, seed: int, duration_s: float) -> dict:
     return {"N": n, "seed": seed, "of bound": o["of_bound"], **counts}
 
 
+# Rule 1's oracles of --bound: (name, the order, over whom).
+ORACLES = {
+    "length, remembered": ("length", "remembered"),
+    "margin, remembered": ("margin", "remembered"),
+    "margin, team": ("margin", "team"),
+}
+
+
+def oracle_let_go(controller, order: str, over: str):
+    """Rule 1 replaced by an oracle (module notes, ``--bound``): robot ``i`` lets go of ``j``
+    when the links up at the step (the true network, :meth:`LinkRules.candidates`) join
+    them through links that come before ``(i, j)`` in ``order`` (``"length"``: the true
+    lengths; ``"margin"``: the global plan's weights, the margin left after the plausible
+    change of the shadowing), over the robots ``i`` remembers (``over = "remembered"``) or
+    over the whole team (``"team"``, then only robots ``i`` remembers are let go of). Not
+    a plan: it reads the true positions and shadowing."""
+    import numpy as np
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
+    def let_go(pos, knows, heard, t0_s, *args, **kwargs):
+        n = len(pos)
+        links = controller.rules.candidates(pos, t0_s)
+        key = np.hypot(*(pos[links.i] - pos[links.j]).T) if order == "length" else links.weight
+        weight = np.full((n, n), np.inf)
+        weight[links.i, links.j] = weight[links.j, links.i] = key
+        out = np.zeros((n, n), dtype=bool)
+        for i in range(n):
+            others = np.flatnonzero(heard.known[i]) if over == "remembered" else np.flatnonzero(np.arange(n) != i)
+            nodes = np.r_[i, others]
+            sub = weight[np.ix_(nodes, nodes)]
+            a, b = np.nonzero(np.triu(np.isfinite(sub), 1))
+            if len(a) == 0:
+                continue
+            m = len(nodes)
+            # Bottleneck of the best path from i: through the minimum spanning forest (a tiny
+            # shift keeps zero weights in the graph).
+            tree = minimum_spanning_tree(coo_matrix((sub[a, b] + 1e-12, (a, b)), shape=(m, m)).tocsr())
+            tree = (tree + tree.T).tocsr()
+            reached, pred = breadth_first_order(tree, 0, directed=False, return_predecessors=True)
+            worst = np.full(m, np.inf)
+            worst[0] = -np.inf
+            for v in reached[1:]:
+                worst[v] = max(worst[pred[v]], tree[pred[v], v])
+            out[i, others] = heard.known[i, others] & (worst[1:] < sub[0, 1:] - 1e-9)
+        return out
+
+    return let_go
+
+
+def bound_one(job: tuple[str, int, int], duration_s: float) -> dict:
+    """One run of ``--bound``: the global plan, the local plan, or the local plan with an oracle."""
+    kind, n, seed = job
+    if kind in ("global", "local"):
+        o = coverage_run(SHADOWING, kind, n, 0.0, seed, duration_s)
+    else:
+        from netsim.mobility import coverage
+
+        plan_local, let_go = coverage.CoverageController._plan_local, coverage.let_go
+
+        def watched(self, step):
+            coverage.let_go = oracle_let_go(self, *ORACLES[kind])
+            return plan_local(self, step)
+
+        coverage.CoverageController._plan_local = watched
+        try:
+            o = coverage_run(SHADOWING, "local", n, 0.0, seed, duration_s)
+        finally:
+            coverage.CoverageController._plan_local, coverage.let_go = plan_local, let_go
+    grew = max(o["components_max"] - o["components_at_start"], 0)
+    return {"N": n, "seed": seed, "plan": kind, "of bound": o["of_bound"], "grew": grew}
+
+
+def main_bound(args) -> int:
+    sizes = args.n or [20]
+    kinds = ["global", "local", *ORACLES]
+    jobs = [(kind, n, seed) for n in sizes for seed in range(1, args.seeds + 1) for kind in kinds]
+    done = []
+    with ProcessPoolExecutor(args.workers) as pool:
+        for run in pool.map(bound_one, jobs, [args.duration] * len(jobs)):
+            done.append(run)
+            print(run, flush=True)
+            if args.csv:
+                pd.DataFrame(done).to_csv(args.csv, index=False)
+    runs = pd.DataFrame(done)
+    rows = []
+    for (n, seed), g in runs.groupby(["N", "seed"]):
+        got = g.set_index("plan")
+        row = {"N": int(n), "seed": int(seed), "global": float(got.loc["global", "of bound"])}
+        for kind in kinds[1:]:
+            row[kind] = float(got.loc[kind, "of bound"] / got.loc["global", "of bound"])
+        row["grew (most)"] = int(g["grew"].max())
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    means = table.groupby("N").mean(numeric_only=True).reset_index().assign(seed="mean")
+    least = table.groupby("N").min(numeric_only=True).reset_index().assign(seed="least")
+    table = pd.concat([table, means, least], ignore_index=True)
+    with pd.option_context("display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format):
+        print(table.to_string(index=False))
+    return 0
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="unit disk at N = 20 and 60 only, and the radio rows")
@@ -240,11 +357,14 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
-    p.add_argument("--csv", help="also write the table here (with --shadowing: every run, as it ends)")
+    p.add_argument("--csv", help="also write the table here (with --shadowing, --bound: every run, as it ends)")
     p.add_argument("--shadowing", action="store_true", help="the targets under 4 dB shadowing (module notes)")
     p.add_argument("--seeds", type=int, default=20, help="--shadowing: seeds 1 to this")
     p.add_argument("--why", action="store_true", help="where the local plan loses under shadowing (module notes)")
+    p.add_argument("--bound", action="store_true", help="what rule 1 could give at best under shadowing (module notes)")
     args = p.parse_args(argv)
+    if args.bound:
+        return main_bound(args)
     if args.why:
         table = pd.DataFrame([why(n, args.seed, args.duration) for n in args.n or [20, 60]])
         with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):

@@ -1,0 +1,84 @@
+"""experiments/coverage_targets.py ``--bound`` (docs/model.md 5.2, "Under 4 dB shadowing"):
+rule 1 replaced by an oracle that reads the true network, to bound what rule 1 could give.
+One test per rule of the oracle."""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def targets():
+    spec = importlib.util.spec_from_file_location("coverage_targets", ROOT / "experiments" / "coverage_targets.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+# Robot 0 at the origin, 1 at 80 m, 2 between them (about 43 m from each): the link 0-1 is the
+# longest; in the global plan's order (weight) the short link 0-2 is the weakest, as if in a
+# deep fade.
+POS = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])
+LINKS = SimpleNamespace(i=np.array([0, 0, 1]), j=np.array([1, 2, 2]), weight=np.array([2.0, 3.0, 1.0]))
+
+
+def controller():
+    return SimpleNamespace(rules=SimpleNamespace(candidates=lambda pos, t_s: LINKS))
+
+
+def heard(known: np.ndarray):
+    return SimpleNamespace(known=known)
+
+
+def test_bound_oracle_lets_go_of_a_link_joined_through_links_before_it_over_the_robots_remembered():
+    """By length over the robots it remembers: robot 0 lets go of 1 (80 m) when it remembers 2,
+    the detour 0-2-1 being of shorter links up; not when it does not remember 2 (the detour is
+    out of its graph), though the whole team's graph has it; it never lets go of a robot it
+    does not remember."""
+    t = targets()
+    everyone = ~np.eye(3, dtype=bool)
+    out = t.oracle_let_go(controller(), "length", "remembered")(POS, None, heard(everyone), 10.0)
+    assert out[0, 1] and not out[0, 2] and not out[1, 2]
+    only_1 = everyone.copy()
+    only_1[0, 2] = False
+    assert not t.oracle_let_go(controller(), "length", "remembered")(POS, None, heard(only_1), 10.0)[0, 1]
+    team = t.oracle_let_go(controller(), "length", "team")(POS, None, heard(only_1), 10.0)
+    assert team[0, 1] and not team[0, 2]
+    assert not t.oracle_let_go(controller(), "margin", "team")(POS, None, heard(only_1), 10.0)[0, 2]
+
+
+def test_bound_oracle_by_margin_lets_go_of_a_short_link_in_a_deep_fade():
+    """In the global plan's order (the margin left, as its weights) robot 0 lets go of its short
+    link to 2, the weakest, through 0-1-2, and keeps the long 0-1, which no detour of
+    stronger links replaces."""
+    t = targets()
+    everyone = ~np.eye(3, dtype=bool)
+    out = t.oracle_let_go(controller(), "margin", "remembered")(POS, None, heard(everyone), 10.0)
+    assert out[0, 2] and not out[0, 1]
+    assert out[2, 0] and not out[1, 0] and not out[1, 2]
+
+
+@pytest.mark.slow
+def test_bound_runs_every_plan_and_oracle_on_each_seed_and_prints_their_ratios(tmp_path):
+    """``--bound`` runs, on each seed, the global plan, the local plan and the local plan with
+    each oracle of rule 1, writes every run as it ends, and prints each over the global plan."""
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / "coverage_targets.py"), "--bound", "--n", "8", "--seeds", "1"]
+        + ["--duration", "40", "--workers", "1", "--csv", str(tmp_path / "b.csv")],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    runs = pd.read_csv(tmp_path / "b.csv")
+    assert sorted(runs["plan"]) == sorted(["global", "local", *targets().ORACLES])
+    assert "margin, team" in run.stdout and "least" in run.stdout
