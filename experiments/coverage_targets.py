@@ -147,18 +147,24 @@ def shadowing_table(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def main_shadowing(args) -> int:
-    sizes = args.n or SHADOWING_SIZES
-    # Seed by seed, both plans side by side: a run cut short still has whole seeds.
-    jobs = [(plan, n, seed) for seed in range(1, args.seeds + 1) for n in sizes for plan in ("global", "local")]
+def run_jobs(one, jobs: list, args) -> pd.DataFrame:
+    """``one(job, duration)`` of every job over ``args.workers`` processes, each run printed
+    (and the CSV written again) as it finishes: a run cut short keeps what it has."""
     done = []
     with ProcessPoolExecutor(args.workers) as pool:
-        for run in pool.map(shadowing_one, jobs, [args.duration] * len(jobs)):
+        for run in pool.map(one, jobs, [args.duration] * len(jobs)):
             done.append(run)
             print(run, flush=True)
             if args.csv:
                 pd.DataFrame(done).to_csv(args.csv, index=False)
-    runs = pd.DataFrame(done)
+    return pd.DataFrame(done)
+
+
+def main_shadowing(args) -> int:
+    sizes = args.n or SHADOWING_SIZES
+    # Seed by seed, both plans side by side: a run cut short still has whole seeds.
+    jobs = [(plan, n, seed) for seed in range(1, args.seeds + 1) for n in sizes for plan in ("global", "local")]
+    runs = run_jobs(shadowing_one, jobs, args)
     table = shadowing_table(runs)
     with pd.option_context("display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))
@@ -324,14 +330,7 @@ def main_bound(args) -> int:
     sizes = args.n or [20]
     kinds = ["global", "local", *ORACLES]
     jobs = [(kind, n, seed) for n in sizes for seed in range(1, args.seeds + 1) for kind in kinds]
-    done = []
-    with ProcessPoolExecutor(args.workers) as pool:
-        for run in pool.map(bound_one, jobs, [args.duration] * len(jobs)):
-            done.append(run)
-            print(run, flush=True)
-            if args.csv:
-                pd.DataFrame(done).to_csv(args.csv, index=False)
-    runs = pd.DataFrame(done)
+    runs = run_jobs(bound_one, jobs, args)
     rows = []
     for (n, seed), g in runs.groupby(["N", "seed"]):
         got = g.set_index("plan")
