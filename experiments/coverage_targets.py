@@ -351,14 +351,21 @@ def main_bound(args) -> int:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="unit disk at N = 20 and 60 only, and the radio rows")
-    p.add_argument("--n", type=int, nargs="+", help="team sizes (default: 20 60 100 200; --shadowing: 20 60 100)")
+    p.add_argument(
+        "--n",
+        type=int,
+        nargs="+",
+        help="team sizes (default: 20 60 100 200; --shadowing: 20 60 100; --bound: 20; --why: 20 60)",
+    )
     p.add_argument("--no-radios", action="store_true", help="the unit disk rows only")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
     p.add_argument("--csv", help="also write the table here (with --shadowing, --bound: every run, as it ends)")
     p.add_argument("--shadowing", action="store_true", help="the targets under 4 dB shadowing (module notes)")
-    p.add_argument("--seeds", type=int, default=20, help="--shadowing: seeds 1 to this")
+    p.add_argument(
+        "--seeds", type=int, default=20, help="--shadowing, --bound: seeds 1 to this (--bound runs five plans a seed)"
+    )
     p.add_argument("--why", action="store_true", help="where the local plan loses under shadowing (module notes)")
     p.add_argument("--bound", action="store_true", help="what rule 1 could give at best under shadowing (module notes)")
     args = p.parse_args(argv)

@@ -133,7 +133,14 @@ from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import geometric_pairs
 from netsim.trajectory import distance_travelled
-from netsim.world.free_space import free_fraction, free_region, obstacle_field, region_polygon, wall_forces
+from netsim.world.free_space import (
+    free_fraction,
+    free_region,
+    obstacle_field,
+    region_polygon,
+    short_of_walls,
+    wall_forces,
+)
 
 # The stopping rule's default windows (coverage.stop_hold_s = 0), s.
 GLOBAL_HOLD_S = 20.0
@@ -640,11 +647,7 @@ class CoverageController:
             return plan
         # Rule 5: the step ends short of the walls (as the control loop would make it), then
         # keeps every kept link clear of them.
-        move = plan.velocity_mps * limits.period_s
-        moving = np.flatnonzero((move != 0).any(axis=1))
-        if len(moving):
-            f = free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])
-            move[moving] *= f[:, None]
+        move = short_of_walls(self.occupancy, pos, plan.velocity_mps * limits.period_s, 1.0)
         planned = move.copy()
         move = cut_for_walls(pos, move, knows, kept, step.t_s + limits.period_s, limits, walls)
         changed = np.hypot(*(move - planned).T) > 1e-9 * limits.range_m
@@ -695,10 +698,9 @@ class CoverageController:
         are the ones that let the robots move (netsim.mobility.keep.prefer)."""
         period = self.limits.period_s
         move = cap_length(wish_mps * period, self.limits.reach_m)
-        moving = np.flatnonzero((move != 0).any(axis=1))
-        if len(moving) == 0 or len(links.i) == 0:
+        if not (move != 0).any() or len(links.i) == 0:
             return links
-        move[moving] *= free_fraction(self.occupancy, pos[moving], pos[moving] + move[moving])[:, None]
+        short_of_walls(self.occupancy, pos, move, 1.0)
         return prefer(links, self.rules.lasting(pos, move / period, links, period))
 
     def _cut_for_walls(self, pos: np.ndarray, plan: Plan, commanded: np.ndarray, links) -> Plan:

@@ -26,7 +26,7 @@ from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
 
 from netsim.compiled import load
-from netsim.world.free_space import free_fraction, legs_free
+from netsim.world.free_space import free_fraction, legs_free, short_of_walls
 
 # The side of the grid the distances are computed on, m (at least one map cell): fine
 # enough to keep a 1.5 m door open, coarse enough to be cheap at every step.
@@ -186,7 +186,4 @@ def within_reach(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: flo
     capped at ``reach_m`` and ended short of the walls (the local plan's pull on a map,
     docs/model.md 5.1, rule 4: what a robot announces)."""
     move = cap_length(np.asarray(wish_mps, float) * period_s, reach_m)
-    moving = np.flatnonzero((move != 0).any(axis=1))
-    if len(moving):
-        move[moving] *= free_fraction(occupancy, pos[moving], pos[moving] + move[moving])[:, None]
-    return move / period_s
+    return short_of_walls(occupancy, pos, move, 1.0) / period_s

@@ -194,15 +194,12 @@ class ControlLoop:
     def _keep_off_walls(self, step: ControlStep) -> None:
         """On a map, shorten every robot's step so that it ends just short of the first cell
         that is not free (a controller cannot drive a robot into a wall)."""
-        from netsim.world.free_space import free_fraction
+        from netsim.world.free_space import short_of_walls
 
-        v = step.velocity_mps
-        moving = np.flatnonzero((v != 0).any(axis=1))
-        if len(moving) == 0:
+        if not (step.velocity_mps != 0).any():
             return
-        here = self.state.positions_at(self.env.now, moving)
-        f = free_fraction(self.occupancy, here, here + v[moving] * self.period_s)
-        v[moving] *= f[:, None]
+        here = self.state.positions_at(self.env.now)
+        short_of_walls(self.occupancy, here, step.velocity_mps, self.period_s)
 
     def _apply(self, step: ControlStep, current: np.ndarray) -> None:
         if self.occupancy is not None:

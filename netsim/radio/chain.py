@@ -232,7 +232,9 @@ class Propagation:
         """Mask of the pairs the radio hears: the model's compiled pass where it has one
         (``fast``), else its chain term by term (:meth:`LossChain.receivable`)."""
         if self.fast is not None:
-            return self.fast(self, len(pairs.a)).receivable(pairs)
+            # The team is known only by the ids the pairs name: the robots up to the largest.
+            n_robots = int(max(pairs.a.max(), pairs.b.max())) + 1 if len(pairs.a) else 0
+            return self.fast(self, n_robots).receivable(pairs)
         return self.chain.receivable(pairs, self.radio)
 
     def received_dbm(self, pairs: Pairs) -> np.ndarray:

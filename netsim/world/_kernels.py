@@ -117,13 +117,13 @@ def walls_one(cells, u0, v0, u1, v1, eps, limit):
 
 
 @jit(nogil=True)
-def trace(cells, frame, points, eps, out, limit, snap):
+def trace(cells, placement, ends_m, eps, out, limit, snap):
     """Every segment's walls (counting stops once past ``limit``) and first blocked point,
-    ``out``: ``(walls, first_t)``, filled; the segments from ``p`` to ``q`` (``points``,
-    metres) on the grid ``cells``, ``(flat, h, w)``, placed by ``frame``, ``(ox, oy,
-    resolution_m)``. With ``snap``, the ends snapped as :func:`walls_one` does."""
-    p, q = points
-    ox, oy, res = frame
+    ``out``: ``(walls, first_t)``, filled; the segments from ``p`` to ``q`` (``ends_m``,
+    metres) on the grid ``cells``, ``(flat, h, w)``, placed by ``placement``, ``(origin_x,
+    origin_y, resolution_m)``. With ``snap``, the ends snapped as :func:`walls_one` does."""
+    p, q = ends_m
+    ox, oy, res = placement
     walls, first_t = out
     for s in range(p.shape[0]):
         u0, v0 = on_grid(p[s, 0], ox, res), on_grid(p[s, 1], oy, res)

@@ -183,6 +183,18 @@ class Walls:
         return self.map.is_free(points_m)
 
 
+def short_of_walls(m: OccupancyMap, starts_m: np.ndarray, velocity_mps: np.ndarray, period_s: float) -> np.ndarray:
+    """Each robot's velocity scaled so that its step of ``period_s`` from ``starts_m`` ends
+    just short of the first cell that is not free (:func:`free_fraction`), in place; rows
+    of zero velocity are not traced. What a robot can carry out on a map: the control loop
+    makes every step so, and the plans plan with it."""
+    moving = np.flatnonzero((velocity_mps != 0).any(axis=1))
+    if len(moving):
+        here = starts_m[moving]
+        velocity_mps[moving] *= free_fraction(m, here, here + velocity_mps[moving] * period_s)[:, None]
+    return velocity_mps
+
+
 def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6) -> np.ndarray:
     """Fraction ``f`` in ``[0, 1]`` of each leg that a robot can travel in free cells: 1 when
     the whole leg is free, else it stops ``margin_m`` short of the first cell that is not free

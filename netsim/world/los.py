@@ -72,11 +72,11 @@ def _trace(
     kernel = kernels_for("netsim.world._kernels").trace
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     q = np.asarray(q, dtype=float).reshape(-1, 2)
-    frame = (float(origin_m[0]), float(origin_m[1]), float(resolution_m))
+    placement = (float(origin_m[0]), float(origin_m[1]), float(resolution_m))
     walls = np.empty(len(p), dtype=np.int64)
     first_t = np.empty(len(p))
     h, w = blocked.shape
-    kernel((blocked.ravel(), h, w), frame, (p, q), VERTEX_TOLERANCE_CELLS, (walls, first_t), limit, snap)
+    kernel((blocked.ravel(), h, w), placement, (p, q), VERTEX_TOLERANCE_CELLS, (walls, first_t), limit, snap)
     return (walls, first_t) if first else walls
 
 
