@@ -180,8 +180,7 @@ class LinkRules:
         travel = np.full(len(i), np.inf)
         if self.shadow is not None:
             raw, _ = self.shadow.state(i, j)
-            clip = self.shadow.clip_db
-            x = np.clip(np.nan_to_num(raw, nan=np.inf), -clip, clip)
+            x = self.shadow.loss_terms(np.nan_to_num(raw, nan=np.inf))
             seen = ~np.isnan(raw)
         else:
             seen = np.ones(len(i), bool)

@@ -207,7 +207,24 @@ class Jitter:
         return self._draws[self._next - 1]
 
 
-class AckBeacon:
+class AckTiming:
+    """The Ack timing a protocol declares (:class:`netsim.cosim.AckSchedule`), read from its
+    :class:`AckParams` (``params``): for the Ack beacon and the stacks built on it."""
+
+    params: AckParams
+
+    @property
+    def ack_period_s(self) -> float:
+        """The Ack period (:class:`netsim.cosim.AckSchedule`)."""
+        return self.params.ack_period_s
+
+    @property
+    def ack_jitter_s(self) -> float:
+        """The most an Ack leaves after its period (:class:`netsim.cosim.AckSchedule`)."""
+        return self.params.ack_jitter_s
+
+
+class AckBeacon(AckTiming):
     """Ack beacons and neighbour tables of all robots; ``roles``: the roles and leaders the
     Acks announce (the clustering's; all undecided without it)."""
 
@@ -335,16 +352,6 @@ class AckBeacon:
     def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""
         return self.table.heard(now)
-
-    @property
-    def ack_period_s(self) -> float:
-        """The Ack period (:class:`netsim.cosim.AckSchedule`)."""
-        return self.params.ack_period_s
-
-    @property
-    def ack_jitter_s(self) -> float:
-        """The most an Ack leaves after its period (:class:`netsim.cosim.AckSchedule`)."""
-        return self.params.ack_jitter_s
 
     def link_quality(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The tables' live entries and their last power (:class:`netsim.cosim.LinkQualityView`)."""

@@ -27,7 +27,7 @@ from netsim.protocols._kernels import (
     X,
     Y,
 )
-from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, check_tau
+from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, AckTiming, check_tau
 from netsim.protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
@@ -96,7 +96,7 @@ class Command(NamedTuple):
     payload: object
 
 
-class Stack:
+class Stack(AckTiming):
     """The clustering protocol of one run; its groups as a :class:`~netsim.groups.GroupView`."""
 
     role_names = ROLE_NAMES
@@ -181,16 +181,6 @@ class Stack:
                     fn(r, cmd)
 
     # -- driven from outside (netsim.cosim) -------------------------------------------
-
-    @property
-    def ack_period_s(self) -> float:
-        """The Ack period (:class:`netsim.cosim.AckSchedule`)."""
-        return self.params.ack_period_s
-
-    @property
-    def ack_jitter_s(self) -> float:
-        """The most an Ack leaves after its period (:class:`netsim.cosim.AckSchedule`)."""
-        return self.params.ack_jitter_s
 
     def heard(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the neighbour tables hold now (:class:`netsim.cosim.NeighbourView`)."""

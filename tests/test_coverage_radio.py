@@ -190,7 +190,9 @@ def shadowed_rules(pos, x_db, anchor_m, travelled_m, fade_margin_db=8.0, margin_
         xs = [table[(int(p), int(q))] for p, q in zip(a, b)]
         return np.array([v[0] for v in xs]), np.array([v[1] for v in xs])
 
-    shadow = SimpleNamespace(sigma_db=4.0, clip_db=16.0, decorrelation_m=10.0, state=state)
+    shadow = SimpleNamespace(
+        sigma_db=4.0, clip_db=16.0, decorrelation_m=10.0, state=state, loss_terms=lambda x: np.clip(x, -16.0, 16.0)
+    )
     compiled = SimpleNamespace(log=SimpleNamespace(params=params), shadow=shadow, walls=None)
     reception = SimpleNamespace(compiled=compiled, map=None)
     robots = SimpleNamespace(

@@ -161,6 +161,24 @@ def shadow_term(x, clip_db):
 
 
 @jit(nogil=True)
+def shadow_terms(x, clip_db, out):
+    """:func:`shadow_term` of every value of ``x`` (1-d), into ``out``."""
+    for m in range(x.shape[0]):
+        out[m] = shadow_term(x[m], clip_db)
+
+
+@jit(nogil=True)
+def stored_states(table_keys, table_x, table_s, dense_n, keys, x, s):
+    """Each pair's stored (unclipped) shadowing and anchor travel, looked up as a frame
+    looks it up (:func:`stored_slot`), into ``x`` and ``s``; NaN for a pair never seen."""
+    n = table_keys.shape[0]
+    for m in range(keys.shape[0]):
+        pos = stored_slot(table_keys, table_x, dense_n, keys[m])
+        x[m] = table_x[pos] if pos < n else np.nan
+        s[m] = table_s[pos] if pos < n else np.nan
+
+
+@jit(nogil=True)
 def shadow_step(shadow, law, pairs, out):
     """Look at the pairs ``pairs.keys`` at travels ``pairs.s_new`` (:func:`look`; stored
     pairs move on in place): their values to ``out.x``, clipped to ``out.used``

@@ -134,6 +134,7 @@ class PairShadowing:
         self.rng = rng
         kernels = load("netsim.radio._kernels", n_robots)
         self._step, self._anchors = kernels.shadow_step, kernels.anchors
+        self._states, self._terms = kernels.stored_states, kernels.shadow_terms
         self.clip_db = TRUNCATION_SIGMAS * self.sigma_db
         self._keys = np.empty(0, dtype=np.int64)
         self._x = np.empty(0)
@@ -189,15 +190,18 @@ class PairShadowing:
     def state(self, a, b) -> tuple[np.ndarray, np.ndarray]:
         """Stored (unclipped) value and anchor travel of each pair; NaN for pairs never seen."""
         keys = pair_keys(a, b)
-        x = np.full(len(keys), np.nan)
-        s = np.full(len(keys), np.nan)
-        n = len(self._keys)
-        if n:
-            pos = np.minimum(np.searchsorted(self._keys, keys), n - 1)
-            found = (self._keys[pos] == keys) & ~np.isnan(self._x[pos])
-            x[found] = self._x[pos[found]]
-            s[found] = self._s[pos[found]]
+        x, s = np.empty(len(keys)), np.empty(len(keys))
+        table_keys, table_x, table_s = self.table()
+        self._states(table_keys, table_x, table_s, self.dense_n, keys, x, s)
         return x, s
+
+    def loss_terms(self, x_db) -> np.ndarray:
+        """Stored shadowing values as a pair's loss takes them, clipped to ``+-clip_db``
+        (:func:`netsim.radio._kernels.shadow_term`)."""
+        x = np.ascontiguousarray(x_db, dtype=float)
+        out = np.empty(len(x))
+        self._terms(x, self.clip_db, out)
+        return out
 
     def sample(self, a, b, travel_m) -> np.ndarray:
         """``X`` (dB, clipped to +-4 sigma) of pairs ``(a[k], b[k])`` at pair travels ``travel_m[k]``.
