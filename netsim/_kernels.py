@@ -236,8 +236,11 @@ def near_pairs(pos, r, box):
                 out_j[k] = j
                 k += (ddx * ddx + ddy * ddy <= r2) & (j > i)
     pairs = np.empty((k, 2), np.int64)
-    pairs[:, 0] = out_i[:k]
-    pairs[:, 1] = out_j[:k]
+    # A loop, not a slice's copy: numba compiles the copy's shape checks with the formatting
+    # of their messages, which costs more than the rest of the kernel.
+    for m in range(k):
+        pairs[m, 0] = out_i[m]
+        pairs[m, 1] = out_j[m]
     return pairs
 
 

@@ -274,7 +274,8 @@ def _announce(table, i, now, seq, role, leader, x_m, y_m, group_size, mates_of, 
     # already in cache. The compiler drops the counting where it is None.
     ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     record = np.empty(FIELDS + len(ids_row))
-    record[:FIELDS] = EMPTY_RECORD
+    for f in range(FIELDS):  # not a slice's copy, whose shape checks cost numba much to compile
+        record[f] = EMPTY_RECORD[f]
     k = 0
     degree = 0
     size = 1

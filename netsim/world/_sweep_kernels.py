@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from netsim._kernels import grown
 from netsim.compiled import jit
 from netsim.world._kernels import on_grid, walls_one
 
@@ -28,9 +29,7 @@ _NEAR_LINE_CELLS = 1e-6
 @jit(nogil=True)
 def _push(buf, n, t):
     if n == buf.shape[0]:
-        grown = np.empty(2 * n)
-        grown[:n] = buf
-        buf = grown
+        buf = grown(buf, n)
     buf[n] = t
     return buf, n + 1
 
@@ -206,7 +205,7 @@ def candidates(grid, g0, gv, k0, kv, duration):
     flat, h, w, row_ptr, cols, _ox, _oy, _res = grid
     cells = (flat, h, w)
     buf = np.empty(64)
-    n = 0
+    n = np.int64(0)  # not the literal 0, for which numba would compile the callees again
     ax, ay, vax, vay = g0[0], g0[1], gv[0], gv[1]
     bx, by, vbx, vby = k0[0], k0[1], kv[0], kv[1]
     # The traversal's direction along each axis (and so its conventions) flips where the
@@ -290,12 +289,11 @@ def sweep(grid, motion, duration, eps, limit):
             if rows > 0 and pair[rows - 1] == s and walls[rows - 1] == count:
                 t1[rows - 1] = nxt
             else:
-                if rows == cap:
-                    cap *= 2
-                    pair = _grow_int(pair, cap)
-                    walls = _grow_int(walls, cap)
-                    t0 = _grow_float(t0, cap)
-                    t1 = _grow_float(t1, cap)
+                if rows == pair.shape[0]:
+                    pair = grown(pair, rows)
+                    walls = grown(walls, rows)
+                    t0 = grown(t0, rows)
+                    t1 = grown(t1, rows)
                 pair[rows] = s
                 t0[rows] = prev
                 t1[rows] = nxt
@@ -303,20 +301,6 @@ def sweep(grid, motion, duration, eps, limit):
                 rows += 1
             prev = nxt
     return pair[:rows], t0[:rows], t1[:rows], walls[:rows]
-
-
-@jit(nogil=True)
-def _grow_int(a, cap):
-    out = np.empty(cap, np.int64)
-    out[: a.shape[0]] = a
-    return out
-
-
-@jit(nogil=True)
-def _grow_float(a, cap):
-    out = np.empty(cap)
-    out[: a.shape[0]] = a
-    return out
 
 
 @jit(nogil=True)
@@ -390,13 +374,10 @@ def link_chunks(grid, motion, duration, eps, radius_sq):
                 cur = up
                 started = True
             elif up != cur:
-                if n == cap:
-                    cap *= 2
-                    c_pair = _grow_int(c_pair, cap)
-                    c_t = _grow_float(c_t, cap)
-                    grown = np.empty(cap, np.bool_)
-                    grown[:n] = c_up[:n]
-                    c_up = grown
+                if n == c_pair.shape[0]:
+                    c_pair = grown(c_pair, n)
+                    c_t = grown(c_t, n)
+                    c_up = grown(c_up, n)
                 c_pair[n] = s
                 c_t[n] = st
                 c_up[n] = up
