@@ -27,7 +27,7 @@ from netsim.mobility.steps import cap_length
 
 from netsim.compiled import load
 from netsim.world.free_space import free_fraction, legs_free, short_of_walls
-from netsim.world.los import kernels_for
+from netsim.world.maps import grid_coords
 
 # The side of the grid the distances are computed on, m (at least one map cell): fine
 # enough to keep a 1.5 m door open, coarse enough to be cheap at every step.
@@ -69,9 +69,8 @@ class FreeGrid:
     def cells(self, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The grid cell of each point, or the nearest free one within :data:`NEAR_CELLS`
         when its own is not free (-1, -1: none)."""
-        p = np.ascontiguousarray(points_m, float).reshape(-1, 2)
-        u, v = np.empty(len(p)), np.empty(len(p))
-        kernels_for("netsim.world._kernels").grid_coords(p, *self.origin_m, self.cell_m, u, v)
+        p = np.asarray(points_m, float).reshape(-1, 2)
+        u, v = grid_coords(p, self.origin_m, self.cell_m)
         x, y = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
         out_x, out_y = np.full(len(p), -1), np.full(len(p), -1)
         best = np.full(len(p), np.inf)

@@ -236,9 +236,7 @@ def near_pairs(pos, r, box):
                 out_j[k] = j
                 k += (ddx * ddx + ddy * ddy <= r2) & (j > i)
     pairs = np.empty((k, 2), np.int64)
-    # A loop, not a slice's copy: numba compiles the copy's shape checks with the formatting
-    # of their messages, which costs more than the rest of the kernel.
-    for m in range(k):
+    for m in range(k):  # not a copy into a slice (docs/architecture.md, the compiled cache)
         pairs[m, 0] = out_i[m]
         pairs[m, 1] = out_j[m]
     return pairs
@@ -342,8 +340,8 @@ def _sift_down(a, lo, root, n):
 @jit(nogil=True)
 def grown(a, extra):
     """A copy of ``a`` with room for ``extra`` more items after it (left unset): what
-    ``np.concatenate`` with an empty array gives, without its shape checks' messages, whose
-    text formatting is most of what it costs numba to compile."""
+    ``np.concatenate`` with an empty array gives, copied element by element
+    (docs/architecture.md, the compiled cache)."""
     out = np.empty(len(a) + extra, a.dtype)
     for k in range(len(a)):
         out[k] = a[k]

@@ -274,7 +274,7 @@ def _announce(table, i, now, seq, role, leader, x_m, y_m, group_size, mates_of, 
     # already in cache. The compiler drops the counting where it is None.
     ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     record = np.empty(FIELDS + len(ids_row))
-    for f in range(FIELDS):  # not a slice's copy, whose shape checks cost numba much to compile
+    for f in range(FIELDS):  # not a copy into a slice (docs/architecture.md, the compiled cache)
         record[f] = EMPTY_RECORD[f]
     k = 0
     degree = 0
@@ -820,7 +820,7 @@ def sample_into(table, now, symmetric, roles, truth, groups, pairs, counts, lo, 
         in_range = role[r] == LEADER_ROLE
         if role[r] == MEMBER and own >= 0:
             # Two-way: the leader among the robots that reach r, r reaching the leader.
-            at = _lower_bound(heard, 0, h, own)
+            at = _lower_bound(heard, int(0), h, own)
             if at < h and heard[at] == own:
                 first, end = near_ptr[own], near_ptr[own + 1]
                 at = _lower_bound(near, first, end, r)

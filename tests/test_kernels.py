@@ -2,9 +2,6 @@
 with ``==``): the range query (netsim/_kernels.py); and a whole run gives the same tables
 either way (the neighbour tables' loops: test_neighbour_kernels.py)."""
 
-import ast
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -552,21 +549,3 @@ def test_component_labels_are_scipys_connected_components(kind):
         a, b = rng.integers(0, n, m), rng.integers(0, n, m)
         want = connected_components(csr_matrix((np.ones(m), (a, b)), shape=(n, n)), directed=False)[1]
         assert core(kind).component_labels(n, a, b).tolist() == want.tolist()
-
-
-def _sliced(node: ast.expr) -> bool:
-    return isinstance(node, ast.Slice) or (isinstance(node, ast.Tuple) and any(_sliced(e) for e in node.elts))
-
-
-def test_no_kernel_copies_an_array_into_a_slice():
-    """A copy into a slice (``out[:n] = a``) makes numba compile its shape check with the
-    formatting of its message, which costs a first run on a machine more than most kernels
-    do: kernels copy element by element (as :func:`netsim._kernels.grown` does)."""
-    root = Path(__file__).resolve().parents[1]
-    found = []
-    for path in sorted(p for top in ("netsim", "protocols", "mobility") for p in (root / top).rglob("_*kernels.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Assign) and not isinstance(node.value, ast.Constant):
-                if any(isinstance(t, ast.Subscript) and _sliced(t.slice) for t in node.targets):
-                    found.append(f"{path.relative_to(root)}:{node.lineno}")
-    assert found == []

@@ -116,7 +116,7 @@ def clip_crossings(at_in, at_out, t_start, length):
     times = np.empty(2 * n)
     phase = np.empty(2 * n, np.int8)
     kinds = np.empty(2 * n, np.int8)
-    # int(): numba compiles _keep once more for each literal argument (0, 1, -1).
+    # int(): values, not literals (docs/architecture.md, the compiled cache).
     m = int(0)
     for k in range(n):
         m = _keep(at_in[k], t_start[k], length[k], k, int(1), pair, times, phase, kinds, m)

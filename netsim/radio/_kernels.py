@@ -296,8 +296,8 @@ def received_pass(frame, t, sender, receivers, d, x, motion, flat, out):
         if c.sigma_db > 0.0:
             total = total + (0.0 if np.isnan(x[m]) else shadow_term(x[m], c.clip_db))
         if c.wall_db > 0.0:
-            g0, g1, every = ends.g0, ends.g1, np.int64(NO_LIMIT)
-            walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, every)
+            g0, g1, no_limit = ends.g0, ends.g1, int(NO_LIMIT)
+            walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, no_limit)
             total = total + c.wall_db * walls
         out[m] = c.tx_dbm - total
 
@@ -327,7 +327,7 @@ def disk_pass(frame, d, a, range_m, flat, points, receivable):
     for m in range(d.shape[0]):
         ok = in_disk(d[m], range_m[a[m]] if c.per_robot else range_m[0])
         if ok and c.use_map:
-            walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, np.int64(0))
+            walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, int(0))
             ok = walls == 0
         receivable[m] = ok
 

@@ -10,9 +10,8 @@ import numpy as np
 
 from netsim.compiled import jit
 
-# Counting walls without a stop (``limit`` of :func:`trace_one`). Kernels pass a limit as an
-# int64 value (``np.int64(NO_LIMIT)``), never as a literal: numba compiles a callee again for
-# each literal argument it is called with.
+# Counting walls without a stop (``limit`` of :func:`trace_one`); a kernel passes it as
+# ``int(NO_LIMIT)``, a value, not a literal (docs/architecture.md, the compiled cache).
 NO_LIMIT = np.iinfo(np.int64).max
 
 
@@ -209,7 +208,7 @@ def free_destinations(cells, grid, draws, here, batch, eps, out):
                 y = 0.5 * (y0[cell] + y1[cell])
                 u = on_grid(x, ox, res)
                 v = on_grid(y, oy, res)
-            walls, _ = trace_one((not_free_flat, h, w), hu, hv, u, v, eps, np.int64(0))
+            walls, _ = trace_one((not_free_flat, h, w), hu, hv, u, v, eps, int(0))
             if walls == 0:
                 picked[k, 0] = x
                 picked[k, 1] = y

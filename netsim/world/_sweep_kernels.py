@@ -205,17 +205,18 @@ def candidates(grid, g0, gv, k0, kv, duration):
     flat, h, w, row_ptr, cols, _ox, _oy, _res = grid
     cells = (flat, h, w)
     buf = np.empty(64)
-    n = np.int64(0)  # not the literal 0, for which numba would compile the callees again
+    n = int(0)  # a value, not a literal (docs/architecture.md, the compiled cache)
     ax, ay, vax, vay = g0[0], g0[1], gv[0], gv[1]
     bx, by, vbx, vby = k0[0], k0[1], kv[0], kv[1]
     # The traversal's direction along each axis (and so its conventions) flips where the
     # segment is parallel to it.
     buf, n = _linear_root(bx - ax, vbx - vax, duration, buf, n)
     buf, n = _linear_root(by - ay, vby - vay, duration, buf, n)
-    buf, n = _end_crossings(cells, (ax, vax, ay, vay), duration, 0, buf, n)
-    buf, n = _end_crossings(cells, (ay, vay, ax, vax), duration, 1, buf, n)
-    buf, n = _end_crossings(cells, (bx, vbx, by, vby), duration, 0, buf, n)
-    buf, n = _end_crossings(cells, (by, vby, bx, vbx), duration, 1, buf, n)
+    x_axis, y_axis = int(0), int(1)
+    buf, n = _end_crossings(cells, (ax, vax, ay, vay), duration, x_axis, buf, n)
+    buf, n = _end_crossings(cells, (ay, vay, ax, vax), duration, y_axis, buf, n)
+    buf, n = _end_crossings(cells, (bx, vbx, by, vby), duration, x_axis, buf, n)
+    buf, n = _end_crossings(cells, (by, vby, bx, vbx), duration, y_axis, buf, n)
     # The segment lies in the convex hull of the ends' first and last positions.
     xs = np.array([ax, ax + vax * duration, bx, bx + vbx * duration])
     ys = np.array([ay, ay + vay * duration, by, by + vby * duration])
@@ -258,7 +259,7 @@ def sweep(grid, motion, duration, eps, limit):
     t0 = np.empty(cap)
     t1 = np.empty(cap)
     walls = np.empty(cap, np.int64)
-    rows = 0
+    rows = int(0)
     g0 = np.empty(2)
     gv = np.empty(2)
     k0 = np.empty(2)
@@ -318,7 +319,7 @@ def link_chunks(grid, motion, duration, eps, radius_sq):
     c_pair = np.empty(cap, np.int64)
     c_t = np.empty(cap)
     c_up = np.empty(cap, np.bool_)
-    n = 0
+    n = int(0)
     cur = False
     started = False
     for r in range(pair.shape[0]):

@@ -89,11 +89,7 @@ class OccupancyMap:
 
     def to_grid(self, points_m) -> tuple[np.ndarray, np.ndarray]:
         """Grid coordinates ``(u, v)`` of points: cell ``(floor(u), floor(v))``, in cell units."""
-        p = np.ascontiguousarray(points_m, dtype=float).reshape(-1, 2)
-        u, v = np.empty(len(p)), np.empty(len(p))
-        ox, oy = float(self.origin_m[0]), float(self.origin_m[1])
-        kernels_for("netsim.world._kernels").grid_coords(p, ox, oy, float(self.resolution_m), u, v)
-        return u, v
+        return grid_coords(points_m, self.origin_m, self.resolution_m)
 
     def cells(self, points_m) -> tuple[np.ndarray, np.ndarray]:
         """Column ``i`` and row ``j`` of the cell of each point (far edges in the last cell)."""
@@ -161,6 +157,16 @@ class OccupancyMap:
         rows = (cy >= b.y_min) & (cy <= b.y_max)
         if not self.free[np.ix_(rows, cols)].any():
             raise ConfigError(MAP_KEY, name, f"has no free cell inside the area {b.as_list()}")
+
+
+def grid_coords(points_m, origin_m, cell_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates ``(u, v)`` of points on a grid with its corner at ``origin_m`` and cells
+    ``cell_m`` wide: cell ``(floor(u), floor(v))``, in cell units (the kernel ``on_grid``)."""
+    p = np.ascontiguousarray(points_m, dtype=float).reshape(-1, 2)
+    u, v = np.empty(len(p)), np.empty(len(p))
+    ox, oy = float(origin_m[0]), float(origin_m[1])
+    kernels_for("netsim.world._kernels").grid_coords(p, ox, oy, float(cell_m), u, v)
+    return u, v
 
 
 def occupancy_from_pixels(
