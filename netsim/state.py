@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.area import Bounds
+from netsim.compiled import load
 from netsim.errors import NetsimInputError
 from netsim.events import CourseChange, EventBus
 from netsim.geometry import wrap
@@ -114,13 +115,11 @@ class RobotState:
         return p
 
     def position(self, i: int, t: float) -> tuple[float, float]:
-        """Position of robot ``i`` at ``t`` as two floats (the per-message fast path)."""
-        dt = t - self.t0_s[i]
-        x = float(self.origin_m[i, 0] + self.velocity_mps[i, 0] * dt)
-        y = float(self.origin_m[i, 1] + self.velocity_mps[i, 1] * dt)
-        if self.torus:
-            x, y = x % self.side_m, y % self.side_m
-        return x, y
+        """Position of robot ``i`` at ``t`` as two floats (:func:`netsim._kernels.position`,
+        the rule the compiled loops place a robot by)."""
+        kernels = load("netsim._kernels", self.n)
+        x, y = kernels.position(self.origin_m, self.velocity_mps, self.t0_s, int(i), float(t), self.torus, self.side_m)
+        return float(x), float(y)
 
     def travelled_m(self, t: float, idx: np.ndarray | Sequence[int]) -> np.ndarray:
         """Path length of robots ``idx`` from t = 0 to ``t`` (``t`` on their current leg)."""

@@ -355,18 +355,19 @@ JOIN_NEAREST, JOIN_FIRST_HEARD, JOIN_LOWEST_ID = 0, 1, 2
 
 
 @jit(nogil=True)
-def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard):
+def join_choice(table, i, now, rules, exclude, motion, first_heard):
     """Rule 2 from robot ``i``'s row of the ``table``
-    (:meth:`netsim.protocols.clustering.Clustering._rule2_join`): the leader that ``i``, at
-    ``(x_m, y_m)``, joins among its live two-way neighbours whose last Ack said they were
+    (:meth:`netsim.protocols.clustering.Clustering._rule2_join`): the leader that ``i``, where
+    ``motion`` places it at ``now``, joins among its live two-way neighbours whose last Ack said they were
     leaders, but ``exclude``, by the join policy of the ``rules`` (its code, that of
     :func:`netsim.protocols.clustering.choose_leader`'s policy; ``first_heard``: the leader
     whose Ack triggered the join, or negative), and the first slot of that leader in the
     row; ``(-1, -1)`` when it knows no leader."""
-    table = Table(*table)
+    table, m = Table(*table), Motion(*motion)
     ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     c = rules[0]
     symmetric, policy = c.symmetric, c.join_policy
+    x_m, y_m = position(m.origin_m, m.velocity_mps, m.t0_s, i, now, m.torus, m.side_m)
     best, best_d = -1, np.inf
     for s in range(len(ids_row)):
         rec = records_row[s]

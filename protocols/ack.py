@@ -270,7 +270,7 @@ class AckBeacon(AckTiming):
         # (netsim.protocols._kernels' Motion, Beacon and RoleArrays, as plain tuples): arrays
         # kept for the run, so put together once.
         st = parts.state
-        self._motion = tuple(Motion(st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m))
+        self.motion = tuple(Motion(st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m))
         self._beacon = tuple(Beacon(self.sent, self.resign_pending, self.group_size))
         self._roles = tuple(RoleArrays(self.roles.role, self.roles.leader))
         # Receptions ignored because a newer Ack of the same sender had arrived first.
@@ -319,9 +319,9 @@ class AckBeacon(AckTiming):
         now, table, sized = self.env.now, self.table, self.sized
         k = table.kernels
         if sized is None:
-            return Ack._make(k.make_ack(i, now, self._motion, self._beacon, self._roles, table.view))
+            return Ack._make(k.make_ack(i, now, self.motion, self._beacon, self._roles, table.view))
         return Ack._make(
-            k.make_sized_ack(i, now, self._motion, self._beacon, self._roles, table.view, sized, self.sized_symmetric)
+            k.make_sized_ack(i, now, self.motion, self._beacon, self._roles, table.view, sized, self.sized_symmetric)
         )
 
     def deliver(self, sender: int, receivers: np.ndarray, ack: Ack, power_dbm: np.ndarray | None = None) -> None:

@@ -376,9 +376,8 @@ class Clustering:
         """Rule 2 for robot ``i`` (undecided) from what its table knows: it joins a leader
         (the join policy's; ``first_heard``: the leader whose Ack triggered it), its timer
         running from that leader's last Ack; False if no leader but ``exclude`` is known."""
-        table = self.table
-        x, y = self.state.position(i, now)
-        leader, slot = self.kernels.join_choice(table.view, i, now, self.rules, exclude, x, y, first_heard)
+        table, motion = self.table, self.beacon.motion
+        leader, slot = self.kernels.join_choice(table.view, i, now, self.rules, exclude, motion, first_heard)
         if leader < 0:
             return False
         self._set(i, "leader_heard", leader, now)

@@ -593,7 +593,11 @@ def test_join_choice_loop_equals_the_oracle(policy, symmetric, kernels):
             first = int(rng.choice([-1, *ids[i][:4].tolist()]))  # -1: no Ack triggered it
             rules = rules_record(TAU_S, 1.0, symmetric, policy, "lowest_id")
             table = (ids, records, TAU_S)
-            a = kernels.join_choice(table, i, now, rules, exclude, x, y, first)
+            # Robot i stands still at (x, y) (the kernel places it from the robots' motion).
+            origin = np.zeros((6, 2))
+            origin[i] = x, y
+            motion = (origin, np.zeros((6, 2)), np.zeros(6), False, 0.0)
+            a = kernels.join_choice(table, i, now, rules, exclude, motion, first)
             b = join_choice(table, i, now, rules, exclude, x, y, first)
             assert a == b
             joined += a[0] >= 0
