@@ -233,7 +233,9 @@ def calibrate_frames(
     check_sensitivity(frames.power_dbm, sensitivity_dbm, where)
     given = sensitivity_dbm is not None
     s = float(sensitivity_dbm) if given else float(frames.power_dbm[seen].min())
-    g = 10.0 * np.log10(np.maximum(frames.distance_m, reference_distance_m) / reference_distance_m)
+    # The law's distance term, 10 log10(max(d, d0) / d0): its loss with exponent 1 and none at d0.
+    term = LogDistanceParams(reference_distance_m=reference_distance_m, reference_loss_db=0.0, path_loss_exponent=1.0)
+    g = term.path_loss_db(frames.distance_m)
     if np.ptp(g[seen]) < 1e-9:
         raise NetsimInputError(
             f"{where}: every received frame is at the same distance (or within "
