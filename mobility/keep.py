@@ -222,9 +222,9 @@ class LinkRules:
         not up at any length)."""
         if self.log is None:
             return np.where(walls == 0, links.range_m[k], -1.0)
-        p = self.log
-        margin = p.budget_db - links.reserve_db[k] - self.wall_loss_db * walls
-        return np.where(margin >= 0, p.effective_range_m(links.reserve_db[k], walls), -1.0)
+        # The law's range is d0 or more wherever the margin at d0 is not negative, else 0.
+        r = self.log.effective_range_m(links.reserve_db[k], walls)
+        return np.where(r > 0.0, r, -1.0)
 
     def cut_for_walls(
         self,

@@ -30,10 +30,20 @@ def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
 
 
 @jit(nogil=True)
+def positions(origin_m, velocity_mps, t0_s, rows, t, torus, side_m, out):
+    """Robots ``rows``' positions at ``t`` into ``out``, shape ``(k, 2)``: :func:`position`
+    row by row (:meth:`netsim.state.RobotState.positions_at`)."""
+    for k in range(rows.size):
+        x, y = position(origin_m, velocity_mps, t0_s, rows[k], t, torus, side_m)
+        out[k, 0] = x
+        out[k, 1] = y
+    return out
+
+
+@jit(nogil=True)
 def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
     """Robot ``j``'s position at ``t`` minus ``(x, y)`` (the nearest image on a torus): the
-    range query's arithmetic (the state's positions, :meth:`netsim.state.RobotState.positions_at`:
-    the same products and sums, part by part)."""
+    range query's arithmetic (:func:`position`'s products and sums, part by part)."""
     dtj = t - t0_s[j]
     dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
     dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y

@@ -102,17 +102,25 @@ class RobotState:
 
     # -- positions -------------------------------------------------------------------
     def positions_at(self, t: float, idx: int | Sequence[int] | np.ndarray | None = None) -> np.ndarray:
-        """Positions at time ``t`` (all robots, or rows ``idx``), shape ``(k, 2)``.
+        """Positions at time ``t`` (all robots, or rows ``idx``), shape ``(k, 2)`` (``(2,)``
+        for one int): :func:`netsim._kernels.positions`, the rule the compiled loops place
+        a robot by.
 
         ``t`` must not be before the start of a robot's current leg.
         """
-        if idx is None:
-            p = self.origin_m + self.velocity_mps * (t - self.t0_s)[:, None]
-        else:
-            p = self.origin_m[idx] + self.velocity_mps[idx] * (t - self.t0_s[idx])[..., None]
-        if self.torus:
-            p = np.mod(p, self.side_m)
-        return p
+        rows = np.arange(self.n) if idx is None else np.asarray(idx)
+        one = rows.ndim == 0
+        rows = rows.reshape(-1)
+        if rows.size and rows.dtype.kind not in "iu":
+            raise TypeError(f"robot indices must be integers, got {rows.dtype}")
+        rows = rows.astype(np.int64, copy=False)
+        # A compiled loop does not check its indices.
+        if rows.size and not -self.n <= min(rows.min(), 0) <= max(rows.max(), 0) < self.n:
+            raise IndexError(f"robot index out of range for {self.n} robots")
+        out = np.empty((rows.size, 2))
+        kernels = load("netsim._kernels", self.n)
+        kernels.positions(self.origin_m, self.velocity_mps, self.t0_s, rows, float(t), self.torus, self.side_m, out)
+        return out[0] if one else out
 
     def position(self, i: int, t: float) -> tuple[float, float]:
         """Position of robot ``i`` at ``t`` as two floats (:func:`netsim._kernels.position`,

@@ -51,6 +51,32 @@ def _index_kernels():
 
 
 @pytest.mark.parametrize("torus", [False, True])
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_positions_are_each_legs_law(monkeypatch, torus, compiled):
+    """A robot's position is its leg's origin plus its velocity times the time since the
+    leg began, folded onto the torus: the oracle's numpy law bit for bit, for every robot,
+    rows by list, array and int, on the plain and the compiled path; a bad index is an
+    error, not a read outside the state."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    rng = np.random.default_rng(11)
+    st = _moving_state(rng, 40, 300.0, torus)
+    for t, _ in _queries(rng, st, 60):
+        rows = rng.integers(st.n, size=int(rng.integers(0, 6)))
+        assert np.array_equal(st.positions_at(t), oracle.positions(st, t))
+        assert np.array_equal(st.positions_at(t, rows), oracle.positions(st, t, rows))
+        assert np.array_equal(st.positions_at(t, list(rows)), oracle.positions(st, t, rows))
+        i = int(rng.integers(st.n))
+        assert np.array_equal(st.positions_at(t, i), oracle.positions(st, t, i))
+        assert st.position(i, t) == tuple(oracle.positions(st, t, [i])[0])
+    with pytest.raises(IndexError):
+        st.positions_at(t, [st.n])
+    with pytest.raises(IndexError):
+        st.positions_at(t, [-st.n - 1])
+    with pytest.raises(TypeError):
+        st.positions_at(t, [0.5])
+
+
+@pytest.mark.parametrize("torus", [False, True])
 @pytest.mark.parametrize("which", [PLAIN_SLOW, "compiled"])
 def test_range_query_equals_the_oracle(torus, which):
     """Robots within range of a sender, and their distances, are the oracle's bit for bit

@@ -17,6 +17,16 @@ def _wrap(d: np.ndarray, side: float) -> np.ndarray:
     return (d.real - side * np.round(d.real / side)) + 1j * (d.imag - side * np.round(d.imag / side))
 
 
+def positions(st, t: float, idx=None) -> np.ndarray:
+    """Every robot's (or rows ``idx``') position at ``t`` on its current leg, in numpy
+    operations: ``origin + velocity * (t - t0)``, folded onto the torus by ``np.mod``."""
+    if idx is None:
+        p = st.origin_m + st.velocity_mps * (t - st.t0_s)[:, None]
+    else:
+        p = st.origin_m[idx] + st.velocity_mps[idx] * (t - st.t0_s[idx])[..., None]
+    return np.mod(p, st.side_m) if st.torus else p
+
+
 def within(st, t: float, i: int, r: float, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The candidates within ``r`` of robot ``i`` at ``t`` and their distances (``hypot``:
     the engine's one pair distance, the channel's unicast and the radio's pairs too)."""
