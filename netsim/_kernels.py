@@ -32,12 +32,17 @@ def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
 @jit(nogil=True)
 def positions(origin_m, velocity_mps, t0_s, rows, t, torus, side_m, out):
     """Robots ``rows``' positions at ``t`` into ``out``, shape ``(k, 2)``: :func:`position`
-    row by row (:meth:`netsim.state.RobotState.positions_at`)."""
+    row by row (:meth:`netsim.state.RobotState.positions_at`). Returns the first ``k`` whose
+    row names no robot (-1: none); nothing is written from there."""
+    n = t0_s.shape[0]
     for k in range(rows.size):
-        x, y = position(origin_m, velocity_mps, t0_s, rows[k], t, torus, side_m)
+        i = rows[k]
+        if i < -n or i >= n:
+            return k
+        x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
         out[k, 0] = x
         out[k, 1] = y
-    return out
+    return -1
 
 
 @jit(nogil=True)

@@ -19,6 +19,7 @@ leg (and one traversal of the grid per leg on a map).
 
 from __future__ import annotations
 
+import types
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -99,35 +100,56 @@ class RobotState:
         # Where each robot's current leg comes from, for the message of a failed check
         # (a trace's file and line), when the model that moves it says.
         self.leg_notes: dict[int, str] = {}
+        # The core kernels as this team's size calls them (netsim.compiled.load), looked up
+        # at the first position asked: a leg change asks one, and the lookup reads the
+        # environment.
+        self._core: types.ModuleType | None = None
 
     # -- positions -------------------------------------------------------------------
-    def positions_at(self, t: float, idx: int | Sequence[int] | np.ndarray | None = None) -> np.ndarray:
+    def positions_at(
+        self, t: float, idx: int | Sequence[int] | np.ndarray | None = None, fold: bool = True
+    ) -> np.ndarray:
         """Positions at time ``t`` (all robots, or rows ``idx``), shape ``(k, 2)`` (``(2,)``
         for one int): :func:`netsim._kernels.positions`, the rule the compiled loops place
-        a robot by.
+        a robot by. ``fold=False``: on a torus, the point on the robot's unfolded leg.
 
         ``t`` must not be before the start of a robot's current leg.
         """
         rows = np.arange(self.n) if idx is None else np.asarray(idx)
         one = rows.ndim == 0
-        rows = rows.reshape(-1)
-        if rows.size and rows.dtype.kind not in "iu":
-            raise TypeError(f"robot indices must be integers, got {rows.dtype}")
-        rows = rows.astype(np.int64, copy=False)
-        # A compiled loop does not check its indices.
-        if rows.size and not -self.n <= min(rows.min(), 0) <= max(rows.max(), 0) < self.n:
-            raise IndexError(f"robot index out of range for {self.n} robots")
+        if rows.dtype != np.int64:
+            if rows.size and rows.dtype.kind not in "iu":
+                hint = " (a mask: np.flatnonzero(mask))" if rows.dtype == bool else ""
+                raise TypeError(f"robot indices must be integers, got {rows.dtype}{hint}")
+            rows = rows.astype(np.int64)
+        if rows.ndim > 1:
+            raise ValueError(f"robot indices must be one number or a 1-d sequence, got shape {rows.shape}")
         out = np.empty((rows.size, 2))
-        kernels = load("netsim._kernels", self.n)
-        kernels.positions(self.origin_m, self.velocity_mps, self.t0_s, rows, float(t), self.torus, self.side_m, out)
+        kernels = self._core or self._load_core()
+        bad = kernels.positions(
+            self.origin_m,
+            self.velocity_mps,
+            self.t0_s,
+            rows.reshape(-1),
+            float(t),
+            self.torus and fold,
+            self.side_m,
+            out,
+        )
+        if bad >= 0:
+            raise IndexError(f"robot index {rows.reshape(-1)[bad]} out of range for {self.n} robots")
         return out[0] if one else out
 
     def position(self, i: int, t: float) -> tuple[float, float]:
         """Position of robot ``i`` at ``t`` as two floats (:func:`netsim._kernels.position`,
         the rule the compiled loops place a robot by)."""
-        kernels = load("netsim._kernels", self.n)
+        kernels = self._core or self._load_core()
         x, y = kernels.position(self.origin_m, self.velocity_mps, self.t0_s, int(i), float(t), self.torus, self.side_m)
         return float(x), float(y)
+
+    def _load_core(self) -> types.ModuleType:
+        self._core = load("netsim._kernels", self.n)
+        return self._core
 
     def travelled_m(self, t: float, idx: np.ndarray | Sequence[int]) -> np.ndarray:
         """Path length of robots ``idx`` from t = 0 to ``t`` (``t`` on their current leg)."""
@@ -182,14 +204,14 @@ class RobotState:
         and ``"command"`` otherwise.
         """
         if start_m is None:
-            start = self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i])
+            start = self.positions_at(t, i, fold=False)
             if self.checked:
                 self._check_end(i, t, start)
         else:
             start = np.asarray(start_m, dtype=float)
             self.jumps += 1
             if self.checked:
-                self._check_end(i, t, self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i]))
+                self._check_end(i, t, self.positions_at(t, i, fold=False))
                 self._check_jump(i, t, start)
         if cause is None:
             cause = "command" if start_m is None else "jump"
@@ -216,7 +238,7 @@ class RobotState:
             return
         dt = t - self.t0_s[idx]
         old = self.velocity_mps[idx]
-        start = self.origin_m[idx] + old * dt[:, None]
+        start = self.positions_at(t, idx, fold=False)
         moving = (old[:, 0] != 0) | (old[:, 1] != 0)
         if self.checked:
             self._check_ends(idx, t, start)
@@ -252,7 +274,7 @@ class RobotState:
         Returns the travel time (0 when already there or when the speed is 0, in which
         case the robot stops).
         """
-        here = self.origin_m[i] + self.velocity_mps[i] * (t - self.t0_s[i])
+        here = self.positions_at(t, i, fold=False)
         delta = np.asarray(dest_m, dtype=float) - here
         dist = float(np.hypot(delta[0], delta[1]))
         if dist == 0.0 or speed_mps <= 0.0:

@@ -54,26 +54,30 @@ def _index_kernels():
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_positions_are_each_legs_law(monkeypatch, torus, compiled):
     """A robot's position is its leg's origin plus its velocity times the time since the
-    leg began, folded onto the torus: the oracle's numpy law bit for bit, for every robot,
-    rows by list, array and int, on the plain and the compiled path; a bad index is an
-    error, not a read outside the state."""
+    leg began, folded onto the torus (unless asked unfolded): the oracle's numpy law bit for
+    bit, for every robot, rows by list, array (negative ones too) and int, on the plain and
+    the compiled path; a bad index is an error, not a read outside the state."""
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(11)
     st = _moving_state(rng, 40, 300.0, torus)
+
+    def same(a, b):
+        return a.shape == b.shape and a.tobytes() == b.tobytes()
+
     for t, _ in _queries(rng, st, 60):
-        rows = rng.integers(st.n, size=int(rng.integers(0, 6)))
-        assert np.array_equal(st.positions_at(t), oracle.positions(st, t))
-        assert np.array_equal(st.positions_at(t, rows), oracle.positions(st, t, rows))
-        assert np.array_equal(st.positions_at(t, list(rows)), oracle.positions(st, t, rows))
+        rows = rng.integers(-st.n, st.n, size=int(rng.integers(0, 6)))
+        assert same(st.positions_at(t), oracle.positions(st, t))
+        assert same(st.positions_at(t, fold=False), oracle.positions(st, t, fold=False))
+        assert same(st.positions_at(t, rows), oracle.positions(st, t, rows))
+        assert same(st.positions_at(t, list(rows)), oracle.positions(st, t, rows))
         i = int(rng.integers(st.n))
-        assert np.array_equal(st.positions_at(t, i), oracle.positions(st, t, i))
-        assert st.position(i, t) == tuple(oracle.positions(st, t, [i])[0])
-    with pytest.raises(IndexError):
-        st.positions_at(t, [st.n])
-    with pytest.raises(IndexError):
-        st.positions_at(t, [-st.n - 1])
-    with pytest.raises(TypeError):
-        st.positions_at(t, [0.5])
+        assert same(st.positions_at(t, i), oracle.positions(st, t, i))
+        assert same(np.array(st.position(i, t)), oracle.positions(st, t, i))
+    for bad, error in (([st.n], IndexError), ([-st.n - 1], IndexError), ([0.5], TypeError), ([[0, 1]], ValueError)):
+        with pytest.raises(error):
+            st.positions_at(t, bad)
+    with pytest.raises(TypeError, match="flatnonzero"):
+        st.positions_at(t, np.ones(st.n, bool))
 
 
 @pytest.mark.parametrize("torus", [False, True])

@@ -174,12 +174,6 @@ class RuntimeLinks:
             self._arm()
 
     # -- windows -------------------------------------------------------------------------
-    def _positions(self, t: float, who: np.ndarray | None = None) -> np.ndarray:
-        st = self.state
-        if who is None:
-            return st.origin_m + st.velocity_mps * (t - st.t0_s)[:, None]
-        return st.origin_m[who] + st.velocity_mps[who] * (t - st.t0_s[who])[:, None]
-
     def _new_window(
         self, t: float, first: bool = False, jumpers: np.ndarray | None = None, moved: np.ndarray | None = None
     ) -> None:
@@ -201,7 +195,7 @@ class RuntimeLinks:
         else:
             self._w_end = math.inf  # nobody moves: nothing to solve until someone does
             reach = self.r_max
-        pos = self._positions(t)
+        pos = st.positions_at(t, fold=False)
         pairs = near_pairs(pos, reach, self.box)
         # Candidate pairs in key order (a n + b, a < b), hence in the order (a, b).
         keys = np.sort(np.minimum(pairs[:, 0], pairs[:, 1]) * n + np.maximum(pairs[:, 0], pairs[:, 1]))

@@ -17,14 +17,14 @@ def _wrap(d: np.ndarray, side: float) -> np.ndarray:
     return (d.real - side * np.round(d.real / side)) + 1j * (d.imag - side * np.round(d.imag / side))
 
 
-def positions(st, t: float, idx=None) -> np.ndarray:
+def positions(st, t: float, idx=None, fold: bool = True) -> np.ndarray:
     """Every robot's (or rows ``idx``') position at ``t`` on its current leg, in numpy
     operations: ``origin + velocity * (t - t0)``, folded onto the torus by ``np.mod``."""
     if idx is None:
         p = st.origin_m + st.velocity_mps * (t - st.t0_s)[:, None]
     else:
         p = st.origin_m[idx] + st.velocity_mps[idx] * (t - st.t0_s[idx])[..., None]
-    return np.mod(p, st.side_m) if st.torus else p
+    return np.mod(p, st.side_m) if st.torus and fold else p
 
 
 def within(st, t: float, i: int, r: float, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
