@@ -82,6 +82,29 @@ def test_unicast_out_of_range_is_a_counted_drop():
     assert c.received.tolist() == [0, 0, 1]
 
 
+@pytest.mark.parametrize("torus", [False, True])
+def test_a_unicast_reaches_exactly_whom_a_broadcast_reaches(torus):
+    """Unicast and broadcast ask one rule of "in range": robots exactly at the range (along
+    an axis, on a 6-8-10 diagonal, across the torus's edge) hear both, robots a picometre
+    beyond hear neither."""
+    x0 = 995.0 if torus else 0.0  # on the torus the receivers are across the edge, at x = 5
+    x = 5.0 if torus else 10.0
+    positions = [[x0, 7.0], [x, 7.0], [x + 1e-12, 7.0], [x - 4.0, 15.0], [x - 4.0, 15.0 + 1e-12]]
+    cfg = make_config(
+        world={"n_robots": len(positions), "side_m": 1000.0, "torus": torus},
+        mobility={"model": "static"},
+        channel={"range_m": 10.0},
+        protocol={"model": "none"},
+    )
+    sim = build(cfg)
+    sim.state.place(np.array(positions))
+    heard = []
+    sim.channel.broadcast(0, None, lambda s, rx, p: heard.extend(rx.tolist()))
+    sim.env.run(until=1)
+    by_unicast = [k for k in range(1, len(positions)) if sim.channel.unicast(0, k, None, lambda *a: None)]
+    assert heard == by_unicast == [1, 3]
+
+
 def test_switched_off_robot_is_a_counted_drop():
     sim = _static_sim([[0, 0], [5, 0], [6, 0]])
     sim.state.alive[2] = False

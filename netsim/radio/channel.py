@@ -400,7 +400,7 @@ class Channel:
         if dest == sender:
             heard = False
         elif self.reception is None:
-            heard = bool(dist[0] <= st.range_m[sender])
+            heard = bool(self.kernels.reaches(float(d[0, 0]), float(d[0, 1]), float(st.range_m[sender]), 0.0))
         elif dist[0] > self.reception.reach_m:
             heard = False
         else:
