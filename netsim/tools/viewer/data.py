@@ -32,12 +32,11 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 
 from netsim import config as cfgmod
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
+from netsim.metrics import components_in_links_table
 from netsim.plugins import RoleLabels
 from netsim.tools import style
 from netsim.trajectory import sample_positions
@@ -109,25 +108,6 @@ def load_config(run_dir: Path) -> cfgmod.Config:
     return cfgmod.from_dict(tomllib.loads(path.read_text()))
 
 
-def links_up(links: pd.DataFrame, t: float) -> np.ndarray:
-    """Mask of the link lifetimes up at ``t``: ``t_up <= t < t_down``, and through the
-    last instant for a link still up at the end of the run."""
-    end = links["t_down_s"].to_numpy(float)
-    end = np.where(links["censored_end"].to_numpy(bool), np.inf, end)
-    return (links["t_up_s"].to_numpy(float) <= t) & (t < end)
-
-
-def components_series(links: pd.DataFrame, n: int, times: np.ndarray) -> np.ndarray:
-    """Connected components of the network at each of ``times``."""
-    a, b = links["a"].to_numpy(np.int64), links["b"].to_numpy(np.int64)
-    out = np.empty(len(times), dtype=np.int64)
-    for k, t in enumerate(times.tolist()):
-        up = links_up(links, t)
-        graph = csr_matrix((np.ones(int(up.sum())), (a[up], b[up])), shape=(n, n))
-        out[k] = connected_components(graph, directed=False)[0]
-    return out
-
-
 def leaders_series(roles: pd.DataFrame, leader_label: str) -> tuple[np.ndarray, np.ndarray]:
     """The number of leaders after each role change (a step function, exact)."""
     if roles.empty:
@@ -165,7 +145,7 @@ def series(
     if labels is not None and not roles.empty:
         add("leaders", "leaders", *leaders_series(roles, labels.leader), "step", "count")
     times = np.linspace(0.0, duration, CHART_POINTS + 1)
-    add("components", "components", times, components_series(links, n, times), "sample", "count")
+    add("components", "components", times, components_in_links_table(links, n, times), "sample", "count")
     if coverage is not None and len(coverage):
         t = coverage["t_s"].to_numpy(float)
         for who, label in (("leaders", "leaders' disks"), ("all", "all robots' disks")):
