@@ -263,13 +263,19 @@ def components_at_link_events(
     -----
     ``O(E)`` per event, ``E`` the links in the table.
     """
-    t_down_s = np.where(censored_end, np.inf, t_down_s)
-    times = np.unique(np.r_[t_up_s, t_down_s[np.isfinite(t_down_s)]])
+    censored_end = np.asarray(censored_end, bool)
+    times = np.unique(np.r_[t_up_s, t_down_s[~censored_end & np.isfinite(t_down_s)]])
     counts = np.empty(len(times), dtype=np.int64)
     for k, t in enumerate(times.tolist()):
-        up = (t_up_s <= t) & (t < t_down_s)
+        up = links_up_at(t_up_s, t_down_s, censored_end, t)
         counts[k] = components_of_links(n, a[up], b[up]).max() + 1 if n else 0
     return times, counts
+
+
+def links_up_at(t_up_s: np.ndarray, t_down_s: np.ndarray, censored_end: np.ndarray, t: float) -> np.ndarray:
+    """Which rows of a links table are up at ``t``: on ``[t_up_s, t_down_s)``, and a link
+    still up at the run's end (``censored_end``) at its ``t_down_s``, the end, too."""
+    return (t_up_s <= t) & ((t_down_s > t) | (censored_end & (t_down_s >= t)))
 
 
 def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -307,7 +313,7 @@ def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.
     open_end = np.asarray(links["censored_end"], bool) if "censored_end" in links else np.zeros(len(a), bool)
     out = []
     for t in np.asarray(times_s, float).reshape(-1).tolist():
-        up = (up_s <= t) & ((down_s > t) | (open_end & (down_s >= t)))
+        up = links_up_at(up_s, down_s, open_end, t)
         out.append(int(components_of_links(n, a[up], b[up]).max() + 1) if n else 0)
     return np.array(out, np.int64)
 
