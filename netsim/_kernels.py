@@ -97,6 +97,16 @@ def within(cand, motion, i, t, r):
 
 
 @jit(nogil=True)
+def pair_reach(motion, i, j, t, r):
+    """Whether robot ``j`` is within ``r`` of robot ``i`` at ``t``, and their distance, as
+    :func:`within` measures a candidate (a unicast's one receiver)."""
+    origin_m, velocity_mps, t0_s, torus, side_m = motion
+    x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
+    dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
+    return reaches(dx, dy, r, 0.0), np.hypot(dx, dy)
+
+
+@jit(nogil=True)
 def within_alive(cand, lo, hi, motion, i, t, r, alive):
     """The candidates ``cand[lo:hi]`` within ``r`` of robot ``i`` at ``t`` (as
     :func:`within`, without the distances), and whether all of them are ``alive``

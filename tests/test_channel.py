@@ -105,6 +105,34 @@ def test_a_unicast_reaches_exactly_whom_a_broadcast_reaches(torus):
     assert heard == by_unicast == [1, 3]
 
 
+def test_a_unicast_measures_its_pair_as_the_range_query_does():
+    """On a torus, with every receiver set exactly at the range the sender's range query
+    measures to it (and then at the next float below), a unicast is heard exactly when the
+    query finds the robot: one offset, one distance, one comparison."""
+    rng = np.random.default_rng(5)
+    n, side = 200, 100.0
+    cfg = make_config(
+        world={"n_robots": n, "side_m": side, "torus": True},
+        mobility={"model": "static"},
+        channel={"range_m": 30.0},
+        protocol={"model": "none"},
+    )
+    sim = build(cfg)
+    st = sim.state
+    st.place(rng.uniform(0.0, side, (n, 2)))
+    # Many robots cross the edges (their legs run on unfolded).
+    st.set_legs(np.arange(n), 0.0, rng.uniform(-10.0, 10.0, (n, 2)))
+    sim.env.run(until=13.3)
+    for sender in range(3):
+        ids, dist = sim.channel.index.within(sim.env.now, sender, 30.0)
+        assert len(ids) > 30
+        for k, d in zip(ids.tolist(), dist.tolist()):
+            st.range_m[sender] = d
+            assert sim.channel.unicast(sender, k, None, lambda *a: None)
+            st.range_m[sender] = np.nextafter(d, 0.0)
+            assert not sim.channel.unicast(sender, k, None, lambda *a: None)
+
+
 def test_switched_off_robot_is_a_counted_drop():
     sim = _static_sim([[0, 0], [5, 0], [6, 0]])
     sim.state.alive[2] = False

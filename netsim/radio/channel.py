@@ -395,14 +395,13 @@ class Channel:
         alone), and their distance (an array of one); ``kind``: of a frame (its row opened
         when receptions are recorded, as :meth:`_hearers`)."""
         st, now = self.state, self.env.now
-        d = st.displacement(st.positions_at(now, [dest]), st.positions_at(now, [sender]))
-        dist = np.hypot(d[:, 0], d[:, 1])
-        if dest == sender:
+        r = st.range_m[sender] if self.reception is None else self.reception.reach_m
+        in_reach, d = self.index.reaches(now, sender, dest, r)
+        dist = np.array([d])
+        if dest == sender or not in_reach:
             heard = False
         elif self.reception is None:
-            heard = bool(self.kernels.reaches(float(d[0, 0]), float(d[0, 1]), float(st.range_m[sender]), 0.0))
-        elif dist[0] > self.reception.reach_m:
-            heard = False
+            heard = True
         else:
             heard = bool(self.reception.decide(now, sender, np.array([dest]), dist, every_pair=False)[0])
         if kind is not None and self.receptions is not None:

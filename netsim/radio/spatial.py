@@ -74,6 +74,12 @@ class RangeIndex:
             return _NONE, _NO_DISTANCE
         return self.kernels.within(cand, self._motion, int(i), float(t), r)
 
+    def reaches(self, t: float, i: int, j: int, radius_m: float) -> tuple[bool, float]:
+        """Whether ``j`` is within ``radius_m`` of ``i`` at ``t``, and their distance, as
+        :meth:`within` measures them."""
+        hit, d = self.kernels.pair_reach(self._motion, int(i), int(j), float(t), float(radius_m))
+        return bool(hit), float(d)
+
     def within_alive(self, t: float, i: int) -> tuple[np.ndarray, bool]:
         """Robots other than ``i`` within ``i``'s range at ``t``, ids ascending (those of
         :meth:`within`, without their distances), and whether all of them are alive: what
