@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
+from netsim.compiled import load
 from netsim.errors import ConfigError
 from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
@@ -93,6 +94,7 @@ class Greedy(Router):
         # What robot i last heard of neighbour j: its position and when (-inf: never).
         self.heard_xy = np.zeros((n, n, 2))
         self.heard_t = np.full((n, n), -np.inf)
+        self.kernels = load("netsim.protocols._kernels", n)
         self.control_kind("beacon", params.beacon_bytes)
 
     def start(self) -> None:
@@ -117,8 +119,9 @@ class Greedy(Router):
         self.heard_t[receivers, sender] = self.env.now
 
     def neighbours(self, i: int) -> np.ndarray:
-        """The robots ``i`` has heard within the timeout, ids ascending."""
-        return np.flatnonzero(self.heard_t[i] >= self.env.now - self.params.neighbour_timeout_s)
+        """The robots ``i`` has heard within the timeout, ids ascending: live as a clustering
+        neighbour entry is (``is_live``: heard less than the timeout ago)."""
+        return np.flatnonzero(self.kernels.live_entries(self.heard_t[i], self.env.now, self.params.neighbour_timeout_s))
 
     def destination_xy(self, dst: int) -> tuple[float, float]:
         x, y = self.state.positions_at(self.env.now, [dst])[0]

@@ -31,6 +31,18 @@ def _run(tmp_path, xy, flows, duration_s=30.0, **protocol):
     return sim, collect(sim)
 
 
+def test_a_neighbour_not_heard_for_the_timeout_is_forgotten(tmp_path):
+    """A neighbour heard exactly ``neighbour_timeout_s`` ago is forgotten, one heard a
+    moment later is not (the neighbour entry's rule: live while heard less than the
+    timeout ago)."""
+    sim, _ = _run(tmp_path, [(0, 0), (50, 0), (100, 0)], [], duration_s=5.0)
+    greedy, now = sim.models["protocol"], sim.env.now
+    timeout = greedy.params.neighbour_timeout_s
+    greedy.heard_t[0, 1] = now - timeout
+    greedy.heard_t[0, 2] = np.nextafter(now - timeout, np.inf)
+    assert greedy.neighbours(0).tolist() == [2]
+
+
 def test_greedy_never_forwards_away_from_the_destination():
     """The next hop is always strictly closer to the destination than the holder (by the
     positions the holder knows), the closest such neighbour; and there is none (-1, a local
