@@ -93,8 +93,7 @@ class LinkRecorder:
         stays where it was (a touch is then judged from that earlier instant: a touch too
         many is harmless, it only matters after a cut at the reach)."""
         up = bool(self.up[sender, dest])
-        p = max(self._last_t[sender], self._last_t[dest])
-        touched = [dest] if linked and up and (self._every or max(self._t0[sender], self._t0[dest]) >= p) else []
+        touched = self._touched[: self._touches_of(sender, np.array([dest]), np.array([linked]))].tolist()
         changed = [dest] if linked != up else []
         if changed or touched:
             self._record(t, sender, changed, [linked] * len(changed), touched)
