@@ -104,6 +104,7 @@ class RobotState:
         # at the first position asked: a leg change asks one, and the lookup reads the
         # environment.
         self._core: types.ModuleType | None = None
+        self._every_robot = np.arange(self.n)
 
     # -- positions -------------------------------------------------------------------
     def positions_at(
@@ -115,13 +116,15 @@ class RobotState:
 
         ``t`` must not be before the start of a robot's current leg.
         """
-        rows = np.arange(self.n) if idx is None else np.asarray(idx)
+        rows = self._every_robot if idx is None else np.asarray(idx)
         one = rows.ndim == 0
         if rows.dtype != np.int64:
             if rows.size and rows.dtype.kind not in "iu":
                 hint = " (a mask: np.flatnonzero(mask))" if rows.dtype == bool else ""
                 raise TypeError(f"robot indices must be integers, got {rows.dtype}{hint}")
             rows = rows.astype(np.int64)
+        # numba compiles a kernel again for each new array layout it is handed.
+        rows = np.ascontiguousarray(rows)
         if rows.ndim > 1:
             raise ValueError(f"robot indices must be one number or a 1-d sequence, got shape {rows.shape}")
         out = np.empty((rows.size, 2))

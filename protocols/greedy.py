@@ -121,7 +121,9 @@ class Greedy(Router):
     def neighbours(self, i: int) -> np.ndarray:
         """The robots ``i`` has heard within the timeout, ids ascending: live as a clustering
         neighbour entry is (``is_live``: heard less than the timeout ago)."""
-        return np.flatnonzero(self.kernels.live_entries(self.heard_t[i], self.env.now, self.params.neighbour_timeout_s))
+        return np.flatnonzero(
+            self.kernels.live_entries(self.heard_t[i], float(self.env.now), float(self.params.neighbour_timeout_s))
+        )
 
     def destination_xy(self, dst: int) -> tuple[float, float]:
         x, y = self.state.positions_at(self.env.now, [dst])[0]

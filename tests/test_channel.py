@@ -84,9 +84,9 @@ def test_unicast_out_of_range_is_a_counted_drop():
 
 @pytest.mark.parametrize("torus", [False, True])
 def test_a_unicast_reaches_exactly_whom_a_broadcast_reaches(torus):
-    """Unicast and broadcast ask one rule of "in range": robots exactly at the range (along
-    an axis, on a 6-8-10 diagonal, across the torus's edge) hear both, robots a picometre
-    beyond hear neither."""
+    """Unicast and broadcast agree on "in range" where the distances are exact: robots
+    exactly at the range (along an axis, on a 6-8-10 diagonal, across the torus's edge) hear
+    both, robots a picometre beyond hear neither (the range is inclusive for both)."""
     x0 = 995.0 if torus else 0.0  # on the torus the receivers are across the edge, at x = 5
     x = 5.0 if torus else 10.0
     positions = [[x0, 7.0], [x, 7.0], [x + 1e-12, 7.0], [x - 4.0, 15.0], [x - 4.0, 15.0 + 1e-12]]
@@ -131,6 +131,8 @@ def test_a_unicast_measures_its_pair_as_the_range_query_does():
             assert sim.channel.unicast(sender, k, None, lambda *a: None)
             st.range_m[sender] = np.nextafter(d, 0.0)
             assert not sim.channel.unicast(sender, k, None, lambda *a: None)
+    with pytest.raises(IndexError):
+        sim.channel.index.pair_within(sim.env.now, 0, n, 30.0)
 
 
 def test_switched_off_robot_is_a_counted_drop():

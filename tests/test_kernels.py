@@ -70,8 +70,11 @@ def test_positions_are_each_legs_law(monkeypatch, torus, compiled):
         assert same(st.positions_at(t, fold=False), oracle.positions(st, t, fold=False))
         assert same(st.positions_at(t, rows), oracle.positions(st, t, rows))
         assert same(st.positions_at(t, list(rows)), oracle.positions(st, t, rows))
+        assert same(st.positions_at(t, rows.astype(np.int32)), oracle.positions(st, t, rows))
+        assert same(st.positions_at(t, rows[::-1][::2]), oracle.positions(st, t, rows[::-1][::2]))  # a strided view
         i = int(rng.integers(st.n))
         assert same(st.positions_at(t, i), oracle.positions(st, t, i))
+        assert same(st.positions_at(t, np.int64(i)), oracle.positions(st, t, i))
         assert same(np.array(st.position(i, t)), oracle.positions(st, t, i))
     for bad, error in (([st.n], IndexError), ([-st.n - 1], IndexError), ([0.5], TypeError), ([[0, 1]], ValueError)):
         with pytest.raises(error):

@@ -38,6 +38,7 @@ def test_a_neighbour_not_heard_for_the_timeout_is_forgotten(tmp_path):
     sim, _ = _run(tmp_path, [(0, 0), (50, 0), (100, 0)], [], duration_s=5.0)
     greedy, now = sim.models["protocol"], sim.env.now
     timeout = greedy.params.neighbour_timeout_s
+    assert now - (now - timeout) == timeout  # the tie is exact
     greedy.heard_t[0, 1] = now - timeout
     greedy.heard_t[0, 2] = np.nextafter(now - timeout, np.inf)
     assert greedy.neighbours(0).tolist() == [2]

@@ -29,6 +29,7 @@ import pandas as pd
 
 from netsim.errors import NetsimInputError
 from netsim.formats.waypoints import Waypoints
+from netsim.metrics import links_up_at
 
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
 _ROBOT_TOPIC = re.compile(r"^/robot_(\d+)/")
@@ -174,12 +175,11 @@ def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
     if links is not None:
         a, b = links["a"].to_numpy(), links["b"].to_numpy()
         up, down = links["t_up_s"].to_numpy(), links["t_down_s"].to_numpy()
-        # A link still up at the run's end T has t_down_s = T: it is up at the sample at T.
         open_end = links["censored_end"].to_numpy(bool) if "censored_end" in links else np.zeros(len(links), bool)
         for t, at in positions.groupby("t_s", sort=True):
             t = float(t)  # type: ignore[arg-type]  # the group's key: a sampling instant
             xy = dict(zip(at["robot"].tolist(), zip(at["x_m"].tolist(), at["y_m"].tolist())))
-            live = (up <= t) & ((t < down) | (open_end & (t <= down)))
+            live = links_up_at(up, down, open_end, t)
             pts = [point(*xy[int(r)]) for pair in zip(a[live], b[live]) for r in pair if int(r) in xy]
             marker = _make(
                 store,

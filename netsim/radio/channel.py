@@ -396,7 +396,7 @@ class Channel:
         when receptions are recorded, as :meth:`_hearers`)."""
         st, now = self.state, self.env.now
         r = st.range_m[sender] if self.reception is None else self.reception.reach_m
-        in_reach, d = self.index.reaches(now, sender, dest, r)
+        in_reach, d = self.index.pair_within(now, sender, dest, r)
         dist = np.array([d])
         if dest == sender or not in_reach:
             heard = False

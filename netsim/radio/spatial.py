@@ -74,9 +74,12 @@ class RangeIndex:
             return _NONE, _NO_DISTANCE
         return self.kernels.within(cand, self._motion, int(i), float(t), r)
 
-    def reaches(self, t: float, i: int, j: int, radius_m: float) -> tuple[bool, float]:
+    def pair_within(self, t: float, i: int, j: int, radius_m: float) -> tuple[bool, float]:
         """Whether ``j`` is within ``radius_m`` of ``i`` at ``t``, and their distance, as
         :meth:`within` measures them."""
+        n = self.state.n
+        if not (-n <= i < n and -n <= j < n):
+            raise IndexError(f"robot index out of range for {n} robots: {i}, {j}")
         hit, d = self.kernels.pair_reach(self._motion, int(i), int(j), float(t), float(radius_m))
         return bool(hit), float(d)
 
