@@ -97,6 +97,17 @@ def within(cand, motion, i, t, r):
 
 
 @jit(nogil=True)
+def points_on_legs(origin_m, velocity_mps, t0_s, rows, times_s, out):
+    """Where leg ``rows[k]`` (its origin, velocity and start) puts its robot at
+    ``times_s[k]``, unfolded, into ``out``: :func:`position` with a time per row (a leg
+    table's points, :func:`netsim.trajectory.points_on_legs`)."""
+    for k in range(rows.size):
+        x, y = position(origin_m, velocity_mps, t0_s, rows[k], times_s[k], False, 0.0)
+        out[k, 0] = x
+        out[k, 1] = y
+
+
+@jit(nogil=True)
 def pair_reach(motion, i, j, t, r):
     """Whether robot ``j`` is within ``r`` of robot ``i`` at ``t``, and their distance, as
     :func:`within` measures a candidate (a unicast's one receiver)."""

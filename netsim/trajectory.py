@@ -6,6 +6,33 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from netsim.compiled import load
+
+
+def points_on_legs(
+    origin_m: np.ndarray,
+    velocity_mps: np.ndarray,
+    t0_s: np.ndarray,
+    rows: npt.ArrayLike,
+    times_s: npt.ArrayLike,
+    n_robots: int | None,
+) -> np.ndarray:
+    """Where leg ``rows[k]`` of the legs ``(origin_m, velocity_mps, t0_s)`` puts its robot
+    at ``times_s[k]`` (one time for all, or one per row), unfolded, shape ``(k, 2)``: the
+    position rule the state and the compiled loops use (:func:`netsim._kernels.points_on_legs`)."""
+    rows = np.ascontiguousarray(rows, np.int64).reshape(-1)
+    times = np.ascontiguousarray(np.broadcast_to(np.asarray(times_s, float), rows.shape))
+    out = np.empty((rows.size, 2))
+    load("netsim._kernels", n_robots).points_on_legs(
+        np.ascontiguousarray(origin_m, float),
+        np.ascontiguousarray(velocity_mps, float),
+        np.ascontiguousarray(t0_s, float),
+        rows,
+        times,
+        out,
+    )
+    return out
+
 
 class LegTable:
     """The leg log as flat arrays, with each robot's legs contiguous and time-ordered."""
@@ -16,6 +43,7 @@ class LegTable:
         self.p = legs[["x_m", "y_m"]].to_numpy(float)
         self.v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
         robots = legs["robot"].to_numpy(np.int64)
+        self.n = n
         self.first = np.searchsorted(robots, np.arange(n), "left")
         self.end = np.searchsorted(robots, np.arange(n), "right")
         if np.any(self.end == self.first):
@@ -32,8 +60,9 @@ class LegTable:
                 return
             self.cur[move] += 1
 
-    def at(self, legs: np.ndarray, t: float) -> np.ndarray:
-        return self.p[legs] + self.v[legs] * (t - self.t[legs])[:, None]
+    def at(self, legs: np.ndarray, t: npt.ArrayLike) -> np.ndarray:
+        """Where legs ``legs`` put their robots at ``t`` (one time, or one per leg)."""
+        return points_on_legs(self.p, self.v, self.t, legs, t, self.n)
 
     def changes_in(self, a: float, b: float) -> np.ndarray:
         """Robots that start a new leg in (a, b)."""

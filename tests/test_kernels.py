@@ -83,6 +83,24 @@ def test_positions_are_each_legs_law(monkeypatch, torus, compiled):
         st.positions_at(t, np.ones(st.n, bool))
 
 
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_points_on_legs_are_each_legs_law(monkeypatch, compiled):
+    """A leg table's point of leg ``k`` at its own time is the leg's origin plus its
+    velocity times the time since the leg began (numpy's law, bit for bit), on both paths:
+    with one time for all rows and with a time per row."""
+    from netsim.trajectory import points_on_legs
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    rng = np.random.default_rng(12)
+    p, v, t0 = rng.uniform(-500, 500, (30, 2)), rng.uniform(-9, 9, (30, 2)), rng.uniform(0, 50, 30)
+    rows = rng.integers(0, 30, 200)
+    times = t0[rows] + rng.exponential(20.0, 200)
+    law = p[rows] + v[rows] * (times - t0[rows])[:, None]
+    assert points_on_legs(p, v, t0, rows, times, 30).tobytes() == law.tobytes()
+    law = p[rows] + v[rows] * (77.5 - t0[rows])[:, None]
+    assert points_on_legs(p, v, t0, rows, 77.5, 30).tobytes() == law.tobytes()
+
+
 @pytest.mark.parametrize("torus", [False, True])
 @pytest.mark.parametrize("which", [PLAIN_SLOW, "compiled"])
 def test_range_query_equals_the_oracle(torus, which):

@@ -49,7 +49,7 @@ def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.nd
     same = np.r_[False, robot[1:] == robot[:-1]]
     k = np.flatnonzero(same)
     prev = k - 1
-    reached = L.p[prev] + L.v[prev] * (L.t[k] - L.t[prev])[:, None]
+    reached = L.at(prev, L.t[k])
     gap = wrap(L.p[k] - reached, box, len(L.first))
     scale = 1.0 + np.abs(L.p[k]).max(axis=1) + np.abs(reached).max(axis=1)
     jump = np.hypot(gap[:, 0], gap[:, 1]) > 1e-9 * scale
@@ -170,7 +170,7 @@ def _jump_state(
     for r in jumpers.tolist():  # the leg that was current just before t
         lo, hi = L.first[r], L.end[r]
         leg = max(lo, lo + int(np.searchsorted(L.t[lo:hi], t, "left")) - 1)
-        before[r] = L.p[leg] + L.v[leg] * (t - L.t[leg])
+        before[r] = L.at(np.array([leg]), t)[0]
     a1, b1 = _near(before, jumpers, r_max, box)
     a2, b2 = _near(pos, jumpers, r_max, box)
     a, b = np.r_[a1, a2], np.r_[b1, b2]

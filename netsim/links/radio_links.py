@@ -49,7 +49,7 @@ def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``."""
     times = np.asarray(times, float)
     leg = leg_index(L, robots, times)
-    return L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None]
+    return L.at(leg, times)
 
 
 def _frame(a, b, t_up, t_down, duration_s: float, open_end) -> pd.DataFrame:

@@ -42,6 +42,7 @@ import numpy as np
 
 from netsim.compiled import load
 from netsim.radio.propagation import Pairs, effective_range_m
+from netsim.trajectory import points_on_legs
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
 if TYPE_CHECKING:
@@ -146,8 +147,8 @@ class Stretches:
         # Out of the envelope at the start (a jump out of range, the envelope's own event due
         # at the same instant): down until the envelope says otherwise. At the envelope's
         # edge the distance is the radius itself, which rounding may put on either side.
-        ua = pa + va * (self.u - self.ta)[:, None]
-        ub = pb + vb * (self.u - self.tb)[:, None]
+        ua = points_on_legs(pa, va, self.ta, legs, self.u, n_robots)
+        ub = points_on_legs(pb, vb, self.tb, legs, self.u, n_robots)
         far = np.hypot(ub[:, 0] - ua[:, 0], ub[:, 1] - ua[:, 1]) > np.asarray(radius, float) * (1.0 + 1e-9)
         self.out = far.astype(float)
         self.nc = np.maximum(count_below(self.u, self.h, self.x), 1.0)
@@ -210,8 +211,9 @@ class Stretches:
         span = np.where(np.isfinite(hi), np.maximum(hi - lo, 0.0), 0.0)
         dead = (self.out[r] > 0) | (np.isfinite(hi) & (hi <= lo))
         span[dead] = 0.0
-        p0 = self.pa[r] + self.va[r] * (lo - self.ta[r])[:, None]
-        q0 = self.pb[r] + self.vb[r] * (lo - self.tb[r])[:, None]
+        # A map's links walk its cells compiled at any team size: so do their points.
+        p0 = points_on_legs(self.pa, self.va, self.ta, r, lo, None)
+        q0 = points_on_legs(self.pb, self.vb, self.tb, r, lo, None)
         motion = (p0, np.ascontiguousarray(self.va[r]), q0, np.ascontiguousarray(self.vb[r]))
         first, c_chunk, c_t, c_up = link_chunks(radio.grid, motion, span, VERTEX_TOLERANCE_CELLS, radio.radius_sq)
         first[dead] = False
