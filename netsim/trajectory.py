@@ -40,8 +40,10 @@ class LegTable:
     def __init__(self, legs: pd.DataFrame, n: int):
         legs = legs.sort_values(["robot", "t_s"], kind="stable")
         self.t = legs["t_s"].to_numpy(float)
-        self.p = legs[["x_m", "y_m"]].to_numpy(float)
-        self.v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
+        # Row-major, as the kernels take them (a frame's columns come out column-major, and
+        # each call would copy the whole log).
+        self.p = np.ascontiguousarray(legs[["x_m", "y_m"]].to_numpy(float))
+        self.v = np.ascontiguousarray(legs[["vx_mps", "vy_mps"]].to_numpy(float))
         robots = legs["robot"].to_numpy(np.int64)
         self.n = n
         self.first = np.searchsorted(robots, np.arange(n), "left")
