@@ -27,9 +27,9 @@ from netsim.protocols._kernels import RoleArrays
 from netsim.compiled import load
 from netsim.cosim import Arrival
 from netsim.events import MessageDelivered, MessageDropped
+from netsim.geometry import near_pairs
 from netsim.plugins import Parts
 from netsim.rng import Streams
-from netsim.topology import geometric_pairs
 
 
 class Routing(StrEnum):
@@ -82,38 +82,19 @@ class Outcome(NamedTuple):
 def hop_distances(state, now: float, node: int, towards: bool = False, index=None) -> np.ndarray:
     """Hops from ``node`` to every robot over the true directed unit-disk links now
     (``towards=True``: from every robot to ``node``, a search on the reversed links), as
-    floats, ``inf`` where there is no path. Given the channel's range index (``index``: a
-    unit disk), one compiled search over its neighbour lists
-    (:func:`netsim._kernels.hops_in_lists`, the same links) instead of every pair first."""
+    floats, ``inf`` where there is no path: one compiled search
+    (:func:`netsim._kernels.hops_in_lists`) over the channel's range index's neighbour lists
+    (``index``: a unit disk), or, without one, over lists of the pairs within the largest
+    range built for the search."""
+    pos, side = state.positions_at(now), state.side_m if state.torus else 0.0
     if index is not None:
+        kernels = index.kernels
         indptr, indices = index.lists(now)
-        pos, side = state.positions_at(now), state.side_m if state.torus else 0.0
-        return index.kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
-    a, b, _ = geometric_pairs(state.positions_at(now), state.range_m, state.side_m if state.torus else None, True)
-    return bfs_hops(b, a, state.n, node) if towards else bfs_hops(a, b, state.n, node)
-
-
-def bfs_hops(tail: np.ndarray, head: np.ndarray, n: int, source: int) -> np.ndarray:
-    """Hops from ``source`` to every node over the directed edges ``tail[k] -> head[k]``
-    (``inf``: unreachable), a breadth-first search a frontier at a time. What scipy's
-    ``shortest_path(..., unweighted=True)`` gives, without importing scipy.sparse's graph
-    routines (0.1 s) for a handful of messages."""
-    order = np.argsort(tail, kind="stable")
-    heads = head[order]
-    start = np.searchsorted(tail[order], np.arange(n + 1))
-    hops = np.full(n, np.inf)
-    hops[source] = 0.0
-    frontier = np.array([source], dtype=np.int64)
-    level = 0
-    while len(frontier):
-        level += 1
-        first, count = start[frontier], start[frontier + 1] - start[frontier]
-        # The out-edges of every frontier node, gathered in one index array.
-        at = np.repeat(first - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
-        reached = heads[at]
-        frontier = np.unique(reached[np.isinf(hops[reached])])
-        hops[frontier] = level
-    return hops
+    else:
+        kernels = load("netsim._kernels", state.n)
+        pairs = near_pairs(pos, float(state.range_m.max()), side or None)
+        indptr, indices = kernels.neighbour_lists(pairs, state.n)
+    return kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
 
 
 class Relay:

@@ -423,6 +423,8 @@ def test_hops_from_the_range_index_lists_equal_numpy(torus):
     out of reach of all (inf), moving robots with lists built earlier."""
     from netsim.protocols.relay import hop_distances
 
+    from tests.oracles import protocols as protocols_oracle
+
     rng = np.random.default_rng(33)
     st = _moving_state(rng, 250, 900.0, torus)
     index, t, finite = RangeIndex(st), 0.0, 0
@@ -433,7 +435,8 @@ def test_hops_from_the_range_index_lists_equal_numpy(torus):
         for towards in (False, True):
             node = int(rng.integers(250))
             got = hop_distances(st, t, node, towards, index=index)
-            want = hop_distances(st, t, node, towards)
+            want = protocols_oracle.hop_distances(st, t, node, towards)
+            assert hop_distances(st, t, node, towards).tobytes() == want.tobytes()  # lists built here
             assert got.tobytes() == want.tobytes()
             finite += int(np.isfinite(got).sum())
     assert 0 < finite < 40 * 2 * 250  # some paths, and some robots out of reach

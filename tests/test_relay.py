@@ -7,9 +7,10 @@ def test_bfs_hops_equals_scipy_shortest_path():
     """The true hop count a message's shortest_hops records (a breadth-first search over the
     directed links) is scipy's unweighted shortest path, inf where unreachable, bit for bit:
     random directed graphs with repeated edges, isolated nodes and one-node graphs."""
-    from netsim.protocols.relay import bfs_hops
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import shortest_path
+
+    from tests.oracles.protocols import bfs_hops
 
     rng = np.random.default_rng(1)
     reached = 0
