@@ -170,44 +170,61 @@ def first_above(cdf, x):
     return lo
 
 
+@jit(nogil=True, inline="always")
+def free_point(cells, grid, draw_cell, draw_uv):
+    """A point uniform over the free cells ``cells`` from the uniforms ``draw_cell`` and
+    ``draw_uv`` (a cell by area, a point in it); a point that rounding put outside a free
+    cell moved to its cell's centre. ``cells`` and ``grid`` as in :func:`free_destinations`."""
+    cdf, x0, x1, y0, y1 = cells
+    free_flat, _, h, w, ox, oy, res = grid
+    last = cdf.shape[0] - 1
+    cell = min(first_above(cdf, draw_cell * cdf[last]), last)
+    x = x0[cell] + draw_uv[0] * (x1[cell] - x0[cell])
+    y = y0[cell] + draw_uv[1] * (y1[cell] - y0[cell])
+    u = on_grid(x, ox, res)
+    v = on_grid(y, oy, res)
+    free = False
+    if u >= 0 and u <= w and v >= 0 and v <= h:
+        i = min(np.int64(np.floor(u)), w - 1)
+        j = min(np.int64(np.floor(v)), h - 1)
+        free = free_flat[j * w + i]
+    if not free:
+        x = 0.5 * (x0[cell] + x1[cell])
+        y = 0.5 * (y0[cell] + y1[cell])
+    return x, y
+
+
+@jit(nogil=True)
+def free_points(cells, grid, draw_cell, draw_uv, out):
+    """:func:`free_point` of every draw, into ``out`` (:func:`netsim.world.free_space.sample_free`)."""
+    for c in range(draw_cell.shape[0]):
+        x, y = free_point(cells, grid, draw_cell[c], draw_uv[c])
+        out[c, 0] = x
+        out[c, 1] = y
+
+
 @jit(nogil=True)
 def free_destinations(cells, grid, draws, here, batch, eps, out):
     """One round of :func:`netsim.world.free_space.draw_destinations` for robots at ``here``:
-    robot ``k``'s ``batch`` candidates are drawn as ``sample_free`` draws them (a cell by
-    area from ``draw_cell``, a point in it from ``draw_uv``; a point that rounding put outside
-    a free cell moved to its cell's centre), and the first whose straight leg from ``here[k]``
-    stays in free cells is kept (``got[k]``). Legs after the first free one are not traced.
+    robot ``k``'s ``batch`` candidates are drawn as ``sample_free`` draws them
+    (:func:`free_point`), and the first whose straight leg from ``here[k]`` stays in free
+    cells is kept (``got[k]``). Legs after the first free one are not traced.
 
     ``cells``: the free cells to draw from, ``(cdf, x0, x1, y0, y1)`` (cumulative area,
     bounds in metres); ``grid``: the map's ``(free_flat, not_free_flat, h, w, ox, oy,
     res)``; ``draws``: ``(draw_cell, draw_uv)``; ``out``: ``(picked, got)``, filled."""
-    cdf, x0, x1, y0, y1 = cells
-    free_flat, not_free_flat, h, w, ox, oy, res = grid
+    _, not_free_flat, h, w, ox, oy, res = grid
     draw_cell, draw_uv = draws
     picked, got = out
-    last = cdf.shape[0] - 1
-    total = cdf[last]
     for k in range(here.shape[0]):
         got[k] = False
         hu = on_grid(here[k, 0], ox, res)
         hv = on_grid(here[k, 1], oy, res)
         for b in range(batch):
             c = k * batch + b
-            cell = min(first_above(cdf, draw_cell[c] * total), last)
-            x = x0[cell] + draw_uv[c, 0] * (x1[cell] - x0[cell])
-            y = y0[cell] + draw_uv[c, 1] * (y1[cell] - y0[cell])
+            x, y = free_point(cells, grid, draw_cell[c], draw_uv[c])
             u = on_grid(x, ox, res)
             v = on_grid(y, oy, res)
-            free = False
-            if u >= 0 and u <= w and v >= 0 and v <= h:
-                i = min(np.int64(np.floor(u)), w - 1)
-                j = min(np.int64(np.floor(v)), h - 1)
-                free = free_flat[j * w + i]
-            if not free:
-                x = 0.5 * (x0[cell] + x1[cell])
-                y = 0.5 * (y0[cell] + y1[cell])
-                u = on_grid(x, ox, res)
-                v = on_grid(y, oy, res)
             walls, _ = trace_one((not_free_flat, h, w), hu, hv, u, v, eps, int(0))
             if walls == 0:
                 picked[k, 0] = x

@@ -93,14 +93,17 @@ def sample_free(
     if len(x0) == 0:
         extra = f" with a clearance of {clearance_m:g} m" if clearance_m > 0 else ""
         raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area {_where(area)}{extra}")
-    k = np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"), len(cdf) - 1)
-    u = rng.random((n, 2))
-    pos = np.column_stack([x0[k] + u[:, 0] * (x1[k] - x0[k]), y0[k] + u[:, 1] * (y1[k] - y0[k])])
-    # A point drawn on a cell's upper edge by rounding belongs to the next cell: keep it inside.
-    bad = ~m.is_free(pos)
-    if bad.any():
-        pos[bad] = np.column_stack([0.5 * (x0[k[bad]] + x1[k[bad]]), 0.5 * (y0[k[bad]] + y1[k[bad]])])
+    draw_cell = rng.random(n)
+    draw_uv = rng.random((n, 2))
+    pos = np.empty((n, 2))
+    kernels_for("netsim.world._kernels").free_points((cdf, x0, x1, y0, y1), _grid(m), draw_cell, draw_uv, pos)
     return pos
+
+
+def _grid(m: OccupancyMap) -> tuple:
+    """The map as the draw kernels read it: ``(free_flat, not_free_flat, h, w, ox, oy, res)``."""
+    h, w = m.shape
+    return (m.free.ravel(), m.not_free.ravel(), h, w, float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m)
 
 
 def _cells_in_area(m: OccupancyMap, area: float | Bounds) -> np.ndarray:
@@ -253,12 +256,9 @@ def _round(kernel, m: OccupancyMap, rng, here, area: float | Bounds, batch: int,
     n = len(here) * batch
     draw_cell = rng.random(n)
     draw_uv = rng.random((n, 2))
-    h, w = m.shape
     picked = np.empty((len(here), 2))
     got = np.empty(len(here), dtype=bool)
-    grid = (m.free.ravel(), m.not_free.ravel(), h, w, float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m)
-    cells = (cdf, x0, x1, y0, y1)
-    kernel(cells, grid, (draw_cell, draw_uv), here, batch, VERTEX_TOLERANCE_CELLS, (picked, got))
+    kernel((cdf, x0, x1, y0, y1), _grid(m), (draw_cell, draw_uv), here, batch, VERTEX_TOLERANCE_CELLS, (picked, got))
     out[todo[got]] = picked[got]
     return got
 
