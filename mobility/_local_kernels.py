@@ -26,7 +26,7 @@ def clear(walls, ax, ay, bx, by, ea, eb):
     field = walls.field
     h, w = field.shape
     res = walls.resolution_m
-    length = math.hypot(bx - ax, by - ay)
+    length = np.hypot(bx - ax, by - ay)
     growth = abs(eb - ea) / length if length > 0 else 0.0
     t = 0.0
     while True:
@@ -36,7 +36,7 @@ def clear(walls, ax, ay, bx, by, ea, eb):
         ci = min(max(math.floor(u), 0), w - 1)
         cj = min(max(math.floor(v), 0), h - 1)
         radius = ea + f * (eb - ea) if length > 0 else max(ea, eb)
-        gap = field[cj, ci] - math.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
+        gap = field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
         if gap <= walls.step_m:
             return False
         if t >= length:
@@ -65,7 +65,7 @@ def region_holds(walls, r, qx, qy, e):
     x0, x1, y0, y1 = walls.rects[r, 0], walls.rects[r, 1], walls.rects[r, 2], walls.rects[r, 3]
     dx = max(x0 - qx, 0.0, qx - x1)
     dy = max(y0 - qy, 0.0, qy - y1)
-    if math.hypot(dx, dy) > e:
+    if np.hypot(dx, dy) > e:
         return 0
     if qx - e >= x0 and qx + e <= x1 and qy - e >= y0 and qy + e <= y1:
         return 1
@@ -84,7 +84,7 @@ def region_holds(walls, r, qx, qy, e):
                 continue
             cx0, cy0 = ox + i * res, oy + j * res
             cx1, cy1 = cx0 + res, cy0 + res
-            if math.hypot(max(cx0 - qx, 0.0, qx - cx1), max(cy0 - qy, 0.0, qy - cy1)) > e:
+            if np.hypot(max(cx0 - qx, 0.0, qx - cx1), max(cy0 - qy, 0.0, qy - cy1)) > e:
                 continue
             # The disk's part in this cell lies in the cell's box clipped to the disk's box.
             if max(cx0, qx - e) < x0 or min(cx1, qx + e) > x1 or max(cy0, qy - e) < y0 or min(cy1, qy + e) > y1:
@@ -304,7 +304,7 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                 nv = node[v]
                 if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
-                longest = math.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
+                longest = np.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 if longest + sweep[u] + sweep[v] > sure[u, v]:
                     continue
                 # From the node met first in the list (the order the oracle walks too).
@@ -321,6 +321,6 @@ def let_go(pos, memory, lists, rule, walls, out, fade, measured):
                     worst[v] = w
         for a in range(1, m + 1):
             j = node[a]
-            shortest = max(math.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
+            shortest = max(np.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
             rank = math.floor(shortest / band_m) * nn + float(min(i, j) * n + max(i, j)) + 1.0
             out[i, j] = worst[a] < rank

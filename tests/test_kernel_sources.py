@@ -62,3 +62,41 @@ def test_no_kernel_copies_an_array_into_a_slice():
     assert len(modules) >= 10
     found = [f"{p.relative_to(ROOT)}:{line}" for p in modules for line in copies_into_slices(p.read_text())]
     assert found == []
+
+
+# numpy evaluates these with its own vectorised code (SVML on CPUs with AVX-512), which can
+# round differently from the C library a compiled kernel calls; Python's math.hypot is an
+# algorithm of its own. A kernel run as plain Python must give the compiled run's bits, so
+# kernels call math.exp, math.log10, ... and np.hypot (docs/architecture.md).
+ROUNDS_ITS_OWN_WAY = {("np", f) for f in ("exp", "expm1", "exp2", "log", "log10", "log2", "log1p", "power", "cbrt")}
+ROUNDS_ITS_OWN_WAY |= {("np", f) for f in ("sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2")}
+ROUNDS_ITS_OWN_WAY |= {("np", f) for f in ("sinh", "cosh", "tanh")} | {("math", "hypot"), ("math", "dist")}
+
+
+def calls_rounding_their_own_way(source: str) -> list[int]:
+    """Lines that name a function of :data:`ROUNDS_ITS_OWN_WAY`."""
+    return sorted(
+        node.lineno
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.Attribute)
+        and isinstance(node.value, ast.Name)
+        and (node.value.id, node.attr) in ROUNDS_ITS_OWN_WAY
+    )
+
+
+def test_functions_that_round_their_own_way_are_found():
+    source = "\n".join(
+        ["a = np.log10(x)", "b = math.log10(x)", "c = np.exp(-x)", "d = math.hypot(x, y)", "e = np.hypot(x, y)"]
+    )
+    assert calls_rounding_their_own_way(source) == [1, 3, 4]
+
+
+def test_no_kernel_calls_a_function_whose_plain_bits_may_differ():
+    """Plain and compiled runs give the same outputs bit for bit on every CPU: no kernel calls
+    numpy's transcendental functions or Python's hypot."""
+    found = [
+        f"{p.relative_to(ROOT)}:{line}"
+        for p in kernel_modules()
+        for line in calls_rounding_their_own_way(p.read_text())
+    ]
+    assert found == []

@@ -16,6 +16,7 @@ compiled code). The run's constants are a one-row record (:data:`netsim.radio.fa
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -134,7 +135,7 @@ def moved_on(table_x, table_s, pos, s_new, sigma, decorrelation_m, z):
     the stored value by ``exp(-travel / decorrelation)`` (Gudmundson), the innovation ``z``
     (a standard normal) scaled to keep the variance ``sigma^2``; the slot updated in place."""
     delta = max(s_new - table_s[pos], 0.0)
-    rho = np.exp(-delta / decorrelation_m)
+    rho = math.exp(-delta / decorrelation_m)
     v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z
     table_x[pos] = v
     table_s[pos] = max(s_new, table_s[pos])
@@ -203,7 +204,7 @@ def shadow_step(shadow, law, pairs, out):
 def path_loss_db(distance_m, d0_m, pl0_db, n10):
     """The log-distance law, the one place it is computed: ``PL(d0) + 10 n log10(d / d0)``,
     and ``PL(d0)`` below ``d0`` (at ``d = 0`` too); ``n10`` is ``10 n``."""
-    return pl0_db + n10 * np.log10(max(distance_m, d0_m) / d0_m)
+    return pl0_db + n10 * math.log10(max(distance_m, d0_m) / d0_m)
 
 
 @jit(nogil=True)
