@@ -132,7 +132,6 @@ from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import geometric_pairs
-from netsim.trajectory import distance_travelled
 from netsim.world.free_space import (
     free_fraction,
     free_region,
@@ -413,10 +412,6 @@ class CoverageController:
         self.duration_s = float(parts.duration_s)
         self._max_wish = 0.0
         self.sample_at_start: dict | None = None
-        # Odometer: distance per robot up to odo_t_s, and the speeds since.
-        self.odometer_m = np.zeros(st.n)
-        self.odo_t_s = 0.0
-        self.speed_mps = np.zeros(st.n)
         # On a map, walls push as the area's border does (the control loop also stops any
         # step short of a wall).
         self.occupancy = parts.occupancy
@@ -767,8 +762,7 @@ class CoverageController:
         """Connected components of the network of the links up now, as the channel makes
         them (the links of links.parquet)."""
         a, b = self.link_state.up_pairs()
-        comps = metrics.components_of_links(self.state.n, a, b)
-        return int(comps.max() + 1) if len(comps) else 0
+        return metrics.component_count(self.state.n, a, b)
 
     def _deliver(self, sender: int, receivers: np.ndarray, _payload) -> None:
         self.got_command[receivers[self.commander[receivers] == sender]] = True
@@ -782,13 +776,8 @@ class CoverageController:
             self._at_end_of_instant(lambda: self._count_step(row))
         missed = (self.commander >= 0) & ~self.got_command
         step.velocity_mps[missed] = 0.0
-        self._odometer_to(step.t_s)
-        self.speed_mps = np.hypot(*step.velocity_mps.T)
 
     # -- metrics over time -----------------------------------------------------------
-    def _odometer_to(self, t: float) -> None:
-        self.odometer_m += self.speed_mps * (t - self.odo_t_s)
-        self.odo_t_s = t
 
     def _covered(self, centres: np.ndarray) -> tuple[float, float]:
         box, region = self.limits.box, self.region
@@ -808,7 +797,7 @@ class CoverageController:
         bound = metrics.bound_fraction(st.n, self.radius_m, st.bounds, st.range_m, free_m2)
         components = self.components_now()
         spacing = metrics.nearest_spacing(leaders)
-        travelled = self.odometer_m + self.speed_mps * (t - self.odo_t_s)
+        travelled = st.travelled_m(t, slice(None))
         return {
             "t_s": t,
             "leaders": len(leaders),
@@ -863,7 +852,7 @@ class CoverageController:
     def travel_frame(self) -> pd.DataFrame:
         """Distance each robot travelled over the run (the energy it spent moving)."""
         st = self.state
-        return pd.DataFrame({"robot": np.arange(st.n), "distance_m": distance_travelled(st.legs(), self.env.now)})
+        return pd.DataFrame({"robot": np.arange(st.n), "distance_m": st.travelled_m(self.env.now, slice(None))})
 
     def control_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.steps, columns=list(StepRecord._fields))

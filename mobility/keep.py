@@ -184,8 +184,11 @@ class LinkRules:
             seen = ~np.isnan(raw)
         else:
             seen = np.ones(len(i), bool)
-        margin = p.budget_db + p.reference_loss_db - p.path_loss_db(d) - x - wall_db
-        ok = seen & (margin >= 0)
+        # Summed as a frame's loss is, so that a link is a candidate exactly when the radio
+        # would hear a frame across it.
+        loss = (p.path_loss_db(d) + x) + wall_db
+        ok = seen & p.radio.hears(loss)
+        margin = np.maximum(p.radio.budget_db - loss, 0.0)
         i, j, d, walls, x, margin = i[ok], j[ok], d[ok], walls[ok], x[ok], margin[ok]
         travel = travel[ok]
         if self.shadow is None:

@@ -650,6 +650,15 @@ def component_labels(n, a, b):
 
 
 @jit(nogil=True)
+def component_count(n, a, b):
+    """Connected components of the network of ``n`` robots whose links are the pairs
+    ``(a[k], b[k])``: one more than the largest of :func:`component_labels` (none of no robot)."""
+    if n == 0:
+        return 0
+    return component_labels(n, a, b).max() + 1
+
+
+@jit(nogil=True)
 def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box):
     """The distance from each centre of the ``cells x cells`` grid of cells of the rectangle
     ``[x0, x0 + width] x [y0, y0 + height]`` (``[row, col]``: row along y) to the nearest of

@@ -268,7 +268,7 @@ def components_at_link_events(
     counts = np.empty(len(times), dtype=np.int64)
     for k, t in enumerate(times.tolist()):
         up = links_up_at(t_up_s, t_down_s, censored_end, t)
-        counts[k] = components_of_links(n, a[up], b[up]).max() + 1 if n else 0
+        counts[k] = component_count(n, a[up], b[up])
     return times, counts
 
 
@@ -289,6 +289,17 @@ def components_of_links(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     b = np.ascontiguousarray(b, np.int64)
     # int32, as scipy's connected_components numbers them (the tables' columns keep their type).
     return load("netsim._kernels", n).component_labels(n, a, b).astype(np.int32)
+
+
+def component_count(n: int, a: np.ndarray, b: np.ndarray) -> int:
+    """Number of connected components of the network of :func:`components_of_links`.
+
+    >>> component_count(4, np.array([0, 2]), np.array([1, 3]))
+    2
+    """
+    a = np.ascontiguousarray(a, np.int64)
+    b = np.ascontiguousarray(b, np.int64)
+    return int(load("netsim._kernels", n).component_count(n, a, b))
 
 
 def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.ndarray:
@@ -314,7 +325,7 @@ def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.
     out = []
     for t in np.asarray(times_s, float).reshape(-1).tolist():
         up = links_up_at(up_s, down_s, open_end, t)
-        out.append(int(components_of_links(n, a[up], b[up]).max() + 1) if n else 0)
+        out.append(component_count(n, a[up], b[up]))
     return np.array(out, np.int64)
 
 

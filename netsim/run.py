@@ -43,7 +43,7 @@ from netsim.state import RobotState
 from netsim.survival import lifetime_summary
 from netsim.trace import Trace
 from netsim.traffic import Traffic
-from netsim.trajectory import distance_travelled, sample_positions
+from netsim.trajectory import sample_positions
 
 # The tables every run writes, whatever its models (theirs are declared by their plugins).
 ENGINE_TABLES: dict[str, Schema] = {
@@ -316,7 +316,7 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
     links = frames["links"]
     life = links["t_down_s"] - links["t_up_s"]
     done = ~links["censored"]
-    distance = distance_travelled(sim.state.legs(), duration)
+    distance = sim.state.travelled_m(duration, slice(None))
     km = lifetime_summary(links)
     config = sim.config
     summary = {

@@ -154,14 +154,16 @@ class RobotState:
         self._core = load("netsim._kernels", self.n)
         return self._core
 
-    def travelled_m(self, t: float, idx: np.ndarray | Sequence[int]) -> np.ndarray:
-        """Path length of robots ``idx`` from t = 0 to ``t`` (``t`` on their current leg)."""
+    def travelled_m(self, t: float, idx: np.ndarray | Sequence[int] | slice) -> np.ndarray:
+        """Path length of robots ``idx`` (ids, or a slice: ``slice(None)``, every robot)
+        from t = 0 to ``t`` (``t`` on their current leg)."""
         return self.odometer_m[idx] + np.abs(self.velocity_c[idx]) * (t - self.t0_s[idx])
 
     def _log_travel(self, i: int, t: float) -> None:
-        vx, vy = self.velocity_mps[i]
-        if vx or vy:
-            self.odometer_m[i] += float(np.hypot(vx, vy)) * (t - self.t0_s[i])
+        # A one-row slice: numpy's array abs, which travelled_m (and so the shadowing's
+        # clock) takes; the scalar abs may round differently.
+        row = slice(i, i + 1)
+        self.odometer_m[row] = self.travelled_m(t, row)
 
     def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vectors from positions ``b`` to ``a``; the shortest image on a torus
@@ -239,14 +241,10 @@ class RobotState:
         v = np.asarray(velocities_mps, dtype=float).reshape(len(idx), 2)
         if len(idx) == 0:
             return
-        dt = t - self.t0_s[idx]
-        old = self.velocity_mps[idx]
         start = self.positions_at(t, idx, fold=False)
-        moving = (old[:, 0] != 0) | (old[:, 1] != 0)
         if self.checked:
             self._check_ends(idx, t, start)
-        if moving.any():
-            self.odometer_m[idx[moving]] += np.hypot(old[moving, 0], old[moving, 1]) * dt[moving]
+        self.odometer_m[idx] = self.travelled_m(t, idx)
         self.origin_m[idx] = start
         self.velocity_mps[idx] = v
         self.t0_s[idx] = t

@@ -99,15 +99,3 @@ def sample_positions(
             "y_m": xy[:, :, 1].ravel(),
         }
     )
-
-
-def distance_travelled(legs: pd.DataFrame, until_s: float) -> np.ndarray:
-    """Distance each robot covered in ``[0, until_s]``."""
-    legs = legs.sort_values(["robot", "t_s"], kind="stable")
-    t = legs["t_s"].to_numpy(float)
-    robot = legs["robot"].to_numpy(np.int64)
-    nxt = np.r_[t[1:], until_s]
-    nxt = np.where(np.r_[robot[1:] != robot[:-1], True], until_s, nxt)
-    dur = np.clip(np.minimum(nxt, until_s) - np.minimum(t, until_s), 0, None)
-    speed = np.hypot(legs["vx_mps"].to_numpy(float), legs["vy_mps"].to_numpy(float))
-    return np.bincount(robot, weights=speed * dur, minlength=int(robot.max()) + 1 if len(robot) else 0)

@@ -9,6 +9,7 @@ pytest.importorskip("pettingzoo")
 
 from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
 
+from netsim import _kernels as core_kernels  # noqa: E402
 from netsim import metrics  # noqa: E402
 from netsim.compiled import compiled_copy  # noqa: E402
 from netsim.cosim import CommandError  # noqa: E402
@@ -205,6 +206,7 @@ def test_measure_kernels_equal_the_numpy_oracles(compiled):
     ones (link quality) of the kernels, plain and compiled, are the numpy oracles' exactly
     (including disks past the border, and areas off the origin)."""
     kernels = compiled_copy("netsim.envs._kernels") if compiled else _kernels
+    core = compiled_copy("netsim._kernels") if compiled else core_kernels
     rng = np.random.default_rng(0)
     for n in (1, 5, 30):
         pos = rng.uniform(-20.0, 220.0, (n, 2))
@@ -213,7 +215,7 @@ def test_measure_kernels_equal_the_numpy_oracles(compiled):
                 pos, 35.0, *area, 64
             )
         a, b = rng.integers(0, n, (2, n))
-        assert kernels.component_count(n, a, b) == oracle.component_count(n, a, b)
+        assert core.component_count(n, a, b) == oracle.component_count(n, a, b)
         slots = 8
         ids = np.where(rng.random((n, slots)) < 0.6, rng.integers(0, n, (n, slots)), -1)
         told = rng.uniform(0.0, 200.0, (n, slots, 2))
@@ -244,11 +246,14 @@ def test_covered_fraction_grid_is_the_search_trees():
 
 
 def test_component_count_is_that_of_the_links():
-    """The component count of a set of links is netsim.metrics.components_of_links's."""
+    """The component count of a set of links is netsim.metrics.components_of_links's, and
+    netsim.metrics.component_count's (none of no robot)."""
     rng = np.random.default_rng(2)
     for n in (1, 7, 40):
         a, b = rng.integers(0, n, (2, n // 2 + 1))
         assert oracle.component_count(n, a, b) == metrics.components_of_links(n, a, b).max() + 1
+        assert metrics.component_count(n, a, b) == oracle.component_count(n, a, b)
+    assert metrics.component_count(0, np.empty(0, np.int64), np.empty(0, np.int64)) == 0
 
 
 @pytest.mark.slow

@@ -246,6 +246,25 @@ def test_a_link_the_channel_has_not_up_is_not_a_candidate():
     assert list(zip(c.i.tolist(), c.j.tolist())) == [(0, 1)]
 
 
+def test_a_link_is_a_candidate_exactly_when_the_radio_hears_a_frame_across_it():
+    """A measured link is a candidate iff a frame across it now is heard:
+    ``P_t - (PL(d) + X) >= sensitivity``, the radio's sum to the last bit, with pairs placed
+    within a few floats of each one's edge."""
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-10.0, 10.0, 60)
+    params = LogDistanceParams(shadowing_sigma_db=4.0)
+    edge = effective_range_m(params, np.clip(x, -16.0, 16.0))
+    d = np.array([np.nextafter(r, np.inf if k % 2 else 0.0) for r, k in zip(edge, rng.integers(0, 2, 60))])
+    for _ in range(3):
+        d = np.nextafter(d, np.where(rng.random(60) < 0.5, np.inf, 0.0))
+    pos = np.vstack([[0.0, 0.0], np.c_[d, np.zeros(60)]])
+    rules, _ = shadowed_rules(pos, x_db=x, anchor_m=np.zeros(60), travelled_m=np.zeros(61))
+    c = rules.candidates(pos, 0.0)
+    heard = params.tx_power_dbm - (params.path_loss_db(d) + np.clip(x, -16.0, 16.0)) >= params.sensitivity_dbm
+    assert 0 < heard.sum() < 60
+    assert sorted(c.j.tolist()) == (np.flatnonzero(heard) + 1).tolist()
+
+
 def test_the_forest_prefers_the_links_with_the_largest_margin():
     """Of a triangle, the spanning forest lets go of the link with the least margin (the
     largest weight), however short it is."""

@@ -83,6 +83,30 @@ def test_positions_are_each_legs_law(monkeypatch, torus, compiled):
         st.positions_at(t, np.ones(st.n, bool))
 
 
+def test_the_odometer_is_the_sum_of_each_legs_travel():
+    """A robot's path length is the sum over its legs of ``|v|`` times the leg's time, with
+    the one ``|v|`` the shadowing's clock takes (numpy's complex abs), whichever way its legs
+    began: one at a time, many at once, toward a point, or stopping at it. Bit for bit."""
+    rng = np.random.default_rng(13)
+    st = _moving_state(rng, 30, 300.0, False)
+    t = 0.0
+    for _ in range(200):
+        t += float(rng.exponential(0.5))
+        i = int(rng.integers(st.n))
+        way = rng.integers(4)
+        if way == 0:
+            st.set_leg(i, t, rng.uniform(-8, 8, 2), cause="waypoint")
+        elif way == 1:
+            rows = rng.choice(st.n, size=int(rng.integers(1, 8)), replace=False)
+            st.set_legs(rows, t, rng.uniform(-8, 8, (len(rows), 2)))
+        elif way == 2:
+            st.head_to(i, t, rng.uniform(0, 300, 2), float(rng.uniform(0.5, 9)))
+        else:
+            st.arrive(i, t, st.positions_at(t, i))
+    t += 1.0
+    assert st.travelled_m(t, slice(None)).tobytes() == oracle.distance_travelled(st.legs(), t).tobytes()
+
+
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_points_on_legs_are_each_legs_law(monkeypatch, compiled):
     """A leg table's point of leg ``k`` at its own time is the leg's origin plus its
@@ -603,3 +627,23 @@ def test_component_labels_are_scipys_connected_components(kind):
         a, b = rng.integers(0, n, m), rng.integers(0, n, m)
         want = connected_components(csr_matrix((np.ones(m), (a, b)), shape=(n, n)), directed=False)[1]
         assert core(kind).component_labels(n, a, b).tolist() == want.tolist()
+
+
+def test_the_radios_laws_give_the_same_bits_plain_and_compiled():
+    """The log-distance law and a pair's shadowing moved on (the two transcendental rules of
+    a frame's decision) give the same bits run as plain Python and compiled, so a small run
+    and a large one decide a frame alike on any CPU."""
+    import netsim.radio._kernels as plain
+
+    rng = np.random.default_rng(17)
+    d = rng.uniform(0.1, 400.0, 5000)
+    x0, z = rng.normal(0.0, 4.0, 5000), rng.normal(size=5000)
+    laws, steps = [], []
+    for k in (plain, compiled_copy("netsim.radio._kernels")):
+        laws.append(np.array([k.path_loss_db(float(v), 1.0, 40.0, 31.7) for v in d]))
+        x, s = x0.copy(), np.zeros(5000)
+        for pos in range(5000):
+            k.moved_on(x, s, pos, float(d[pos] / 7.0), 4.0, 9.0, float(z[pos]))
+        steps.append(x)
+    assert laws[0].tobytes() == laws[1].tobytes()
+    assert steps[0].tobytes() == steps[1].tobytes()

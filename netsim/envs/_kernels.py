@@ -1,15 +1,14 @@
 """What an environment step measures and observes, written as loops (kernels: compiled or
 plain Python, :func:`netsim.compiled.load`): the covered fraction of the run's area on a
-grid, the number of components of the network of the links the run's channel makes, and
-each robot's nearest told neighbours. One item at a time: for tens of robots numpy's cost
-per call, not the arithmetic, is what a step costs. The tests compare them with numpy
-oracles (tests/oracles/envs.py)."""
+grid, and each robot's nearest told neighbours and strongest heard ones. One item at a
+time: for tens of robots numpy's cost per call, not the arithmetic, is what a step costs.
+The tests compare them with numpy oracles (tests/oracles/envs.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from netsim._kernels import component_labels, grid_nearest_m
+from netsim._kernels import grid_nearest_m
 from netsim.compiled import jit
 
 
@@ -22,15 +21,6 @@ def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
         return 0.0
     nearest = grid_nearest_m(p, radius_m, x0_m, y0_m, width_m, height_m, cells, 0.0)
     return (nearest <= radius_m).sum() / (cells * cells)
-
-
-@jit(nogil=True)
-def component_count(n, a, b):
-    """Connected components of the network of ``n`` robots whose links are the pairs
-    ``(a[k], b[k])`` (the links a run's channel makes: its link solver's ``up_pairs()``)."""
-    if n == 0:
-        return 0
-    return component_labels(n, a, b).max() + 1
 
 
 @jit(nogil=True)

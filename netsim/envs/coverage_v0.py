@@ -43,6 +43,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from netsim import config as cfgmod
+from netsim import metrics
 from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.cosim import CommandError, LinkQualityView
@@ -213,7 +214,7 @@ class CoverageEnv(ParallelEnv):
             a, b, _ = geometric_pairs(pos, sim.state.range_m)
         else:
             a, b = sim.links.up_pairs()
-        return int(self._measures.component_count(sim.state.n, a, b))
+        return metrics.component_count(sim.state.n, a, b)
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if self.sim is None or not self.agents:

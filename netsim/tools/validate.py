@@ -35,7 +35,6 @@ from netsim.run import build, collect
 from netsim.tools import analysis
 from netsim.tools.check import Check
 from netsim.topology import geometric_pairs
-from netsim.trajectory import distance_travelled
 
 
 @dataclass(frozen=True)
@@ -145,8 +144,7 @@ def check_rwp_speed(seed: int | None = None) -> list[Check]:
             )
         )
         sim.run()
-        legs = sim.state.legs()
-        per_robot = distance_travelled(legs, T) / T
+        per_robot = sim.state.travelled_m(T, slice(None)) / T
         EL, EinvV = MEAN_LEG_UNIT_SQUARE * side, math.log(vmax / vmin) / (vmax - vmin)
         out.append(
             Check(

@@ -247,3 +247,17 @@ def leg_index(L, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     where = np.empty(m + k, np.int64)
     where[order] = legs_before - 1
     return np.maximum(where[m:], L.first[robots])
+
+
+# -- the odometer (netsim.state.RobotState.travelled_m) -----------------------------------
+def distance_travelled(legs, until_s: float) -> np.ndarray:
+    """Each robot's path length over ``[0, until_s]`` from its legs table: the sum, leg by
+    leg in time order, of ``|v|`` (numpy's complex abs) times the leg's time within the run."""
+    legs = legs.sort_values(["robot", "t_s"], kind="stable")
+    t = legs["t_s"].to_numpy(float)
+    robot = legs["robot"].to_numpy(np.int64)
+    nxt = np.where(np.r_[robot[1:] != robot[:-1], True], until_s, np.r_[t[1:], until_s])
+    dur = np.clip(np.minimum(nxt, until_s) - np.minimum(t, until_s), 0, None)
+    v = np.ascontiguousarray(legs[["vx_mps", "vy_mps"]].to_numpy(float))
+    speed = np.abs(v.view(np.complex128)[:, 0])
+    return np.bincount(robot, weights=speed * dur, minlength=int(robot.max()) + 1 if len(robot) else 0)
