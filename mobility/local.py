@@ -109,6 +109,7 @@ from netsim.mobility.spread import project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
 from netsim.compiled import load
+from netsim.geometry import speeds_mps
 
 
 class Walls(NamedTuple):
@@ -345,12 +346,12 @@ class Memory:
         on_leg = sent >= leg_start_s[o]
         self.vel[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], 0.0)
         self.until_s[r, o] = np.where(on_leg, leg_until_s, sent)
-        self.leg_speed_mps[r, o] = np.where(on_leg, np.hypot(*leg_velocity_mps[o].T), np.nan)
+        self.leg_speed_mps[r, o] = np.where(on_leg, speeds_mps(leg_velocity_mps[o]), np.nan)
         # An Ack carries its sender's velocity and when its leg started.
         self.leg_from_s[r, o] = np.where(on_leg, leg_start_s[o], np.inf)
         # Each robot knows its own leg: its velocity since the leg started.
         own = np.arange(len(self.sent_s))
-        self.leg_speed_mps[own, own] = np.hypot(*leg_velocity_mps.T)
+        self.leg_speed_mps[own, own] = speeds_mps(leg_velocity_mps)
         self.leg_from_s[own, own] = leg_start_s
 
     def known(self, now_s: float, release_s: float) -> np.ndarray:

@@ -45,6 +45,28 @@ def positions(origin_m, velocity_mps, t0_s, rows, t, torus, side_m, out):
     return -1
 
 
+@jit(nogil=True, inline="always")
+def travel(odometer_m, speed_mps, t0_s, i, t):
+    """Robot ``i``'s path length at ``t`` on its current leg: its odometer (the legs before)
+    plus its speed (the state's ``speed_mps``, numpy's ``abs`` of its velocity) times the
+    time on the leg. The shadowing's clock runs on it (``netsim.radio._kernels.pair_clock``)."""
+    return odometer_m[i] + speed_mps[i] * (t - t0_s[i])
+
+
+@jit(nogil=True)
+def travels(odometer_m, speed_mps, t0_s, rows, t, out):
+    """:func:`travel` of robots ``rows`` at ``t`` into ``out``
+    (:meth:`netsim.state.RobotState.travelled_m`). Returns the first ``k`` whose row names
+    no robot (-1: none); nothing is written from there."""
+    n = t0_s.shape[0]
+    for k in range(rows.size):
+        i = rows[k]
+        if i < -n or i >= n:
+            return k
+        out[k] = travel(odometer_m, speed_mps, t0_s, i, t)
+    return -1
+
+
 @jit(nogil=True)
 def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
     """Robot ``j``'s position at ``t`` minus ``(x, y)`` (the nearest image on a torus): the
@@ -611,7 +633,11 @@ def range_at_margin_m(margin_db, d0_m, exponent):
     ``d0`` is in reach) or not a number."""
     if not margin_db >= 0:
         return 0.0
-    return d0_m * 10.0 ** (margin_db / (10.0 * exponent))
+    decades = margin_db / (10.0 * exponent)
+    # Past every float: Python's power raises where the compiled one gives inf.
+    if decades > 308.0:
+        return math.inf
+    return d0_m * 10.0**decades
 
 
 @jit(nogil=True)

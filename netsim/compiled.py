@@ -22,6 +22,10 @@ from collections.abc import Callable
 from types import ModuleType
 from typing import Any, TypeVar
 
+# numba vectorises loops with Intel's SVML where that library is installed (icc_rt), whose
+# functions round their own way: a compiled kernel would then differ from its plain run.
+os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")
+
 SMALL_RUN_ROBOTS = 20
 # Kernel modules whose loops walk a map cell by cell (line of sight, walls swept, free
 # destinations): compiled at any team size. A plain-Python walk pays the interpreter at

@@ -18,6 +18,19 @@ def wrap(d: np.ndarray, box: float | None, n_robots: int) -> np.ndarray:
     return load("netsim._kernels", n_robots).nearest_images(rows, float(box)).reshape(np.shape(d))
 
 
+def speeds_mps(velocity_mps: np.ndarray) -> np.ndarray:
+    """The speed of each row ``(vx, vy)``: numpy's ``abs`` of ``vx + i vy``, the one law of a
+    robot's speed (its odometer and the shadowing's clock run on it, the local plan bounds
+    a known robot's travel by it). The same bits for a row whichever rows come with it; a
+    compiled ``abs`` or ``hypot`` may differ in the last bit.
+
+    >>> speeds_mps(np.array([[3.0, 4.0], [0.0, -2.0]])).tolist()
+    [5.0, 2.0]
+    """
+    v = np.ascontiguousarray(velocity_mps, dtype=float).reshape(-1, 2)
+    return np.abs(v.view(np.complex128)[:, 0])
+
+
 def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
     """Pairs ``(i, j)``, ``i < j``, of positions within ``range_m`` (periodic on a torus of
     side ``side_m``), as an ``(m, 2)`` array in the grid's fixed order

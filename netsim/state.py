@@ -30,7 +30,7 @@ from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.errors import NetsimInputError
 from netsim.events import CourseChange, EventBus
-from netsim.geometry import wrap
+from netsim.geometry import speeds_mps, wrap
 
 # Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
 # waypoint (or a trace's destination) reached, the end of a pause, the border reached
@@ -85,9 +85,11 @@ class RobotState:
         self.speed_high_water_mps = 0.0
         # Bumped when a robot jumps (a trace's "set X_" at t > 0): the index must rebuild.
         self.jumps = 0
-        # Path length of each robot up to the start of its current leg (jumps add nothing):
-        # the clock of the radio's shadowing (a pair's travel).
+        # Path length of each robot up to the start of its current leg (jumps add nothing),
+        # and its speed on the leg (numpy's abs of its velocity): the robot's travel
+        # (travelled_m), the clock of the radio's shadowing (a pair's travel).
         self.odometer_m = np.zeros(self.n)
+        self.speed_mps = np.zeros(self.n)
         self._legs: list[tuple] = []
         # Told of every change of a robot's leg as fn(robot, t, jump), logged or not.
         self.watchers: list[Callable[[int, float, bool], None]] = []
@@ -116,17 +118,7 @@ class RobotState:
 
         ``t`` must not be before the start of a robot's current leg.
         """
-        rows = self._every_robot if idx is None else np.asarray(idx)
-        one = rows.ndim == 0
-        if rows.dtype != np.int64:
-            if rows.size and rows.dtype.kind not in "iu":
-                hint = " (a mask: np.flatnonzero(mask))" if rows.dtype == bool else ""
-                raise TypeError(f"robot indices must be integers, got {rows.dtype}{hint}")
-            rows = rows.astype(np.int64)
-        # numba compiles a kernel again for each new array layout it is handed.
-        rows = np.ascontiguousarray(rows)
-        if rows.ndim > 1:
-            raise ValueError(f"robot indices must be one number or a 1-d sequence, got shape {rows.shape}")
+        rows, one = self._rows(idx)
         out = np.empty((rows.size, 2))
         kernels = self._core or self._load_core()
         bad = kernels.positions(
@@ -143,6 +135,25 @@ class RobotState:
             raise IndexError(f"robot index {rows.reshape(-1)[bad]} out of range for {self.n} robots")
         return out[0] if one else out
 
+    def _rows(self, idx: int | Sequence[int] | np.ndarray | slice | None) -> tuple[np.ndarray, bool]:
+        """Robot ids as a kernel takes them (contiguous int64), and whether one was asked."""
+        if idx is None:
+            return self._every_robot, False
+        if isinstance(idx, slice):
+            return self._every_robot[idx], False
+        rows = np.asarray(idx)
+        one = rows.ndim == 0
+        if rows.dtype != np.int64:
+            if rows.size and rows.dtype.kind not in "iu":
+                hint = " (a mask: np.flatnonzero(mask))" if rows.dtype == bool else ""
+                raise TypeError(f"robot indices must be integers, got {rows.dtype}{hint}")
+            rows = rows.astype(np.int64)
+        # numba compiles a kernel again for each new array layout it is handed.
+        rows = np.ascontiguousarray(rows)
+        if rows.ndim > 1:
+            raise ValueError(f"robot indices must be one number or a 1-d sequence, got shape {rows.shape}")
+        return rows, one
+
     def position(self, i: int, t: float) -> tuple[float, float]:
         """Position of robot ``i`` at ``t`` as two floats (:func:`netsim._kernels.position`,
         the rule the compiled loops place a robot by)."""
@@ -156,14 +167,26 @@ class RobotState:
 
     def travelled_m(self, t: float, idx: np.ndarray | Sequence[int] | slice) -> np.ndarray:
         """Path length of robots ``idx`` (ids, or a slice: ``slice(None)``, every robot)
-        from t = 0 to ``t`` (``t`` on their current leg)."""
-        return self.odometer_m[idx] + np.abs(self.velocity_c[idx]) * (t - self.t0_s[idx])
+        from t = 0 to ``t`` (``t`` on their current leg): :func:`netsim._kernels.travel`,
+        the law the shadowing's clock runs on."""
+        rows, _ = self._rows(idx)
+        out = np.empty(rows.size)
+        kernels = self._core or self._load_core()
+        bad = kernels.travels(self.odometer_m, self.speed_mps, self.t0_s, rows.reshape(-1), float(t), out)
+        if bad >= 0:
+            raise IndexError(f"robot index {rows.reshape(-1)[bad]} out of range for {self.n} robots")
+        return out
 
     def _log_travel(self, i: int, t: float) -> None:
-        # A one-row slice: numpy's array abs, which travelled_m (and so the shadowing's
-        # clock) takes; the scalar abs may round differently.
-        row = slice(i, i + 1)
-        self.odometer_m[row] = self.travelled_m(t, row)
+        kernels = self._core or self._load_core()
+        self.odometer_m[i] = kernels.travel(self.odometer_m, self.speed_mps, self.t0_s, i, float(t))
+
+    def _set_speeds(self, idx: int | np.ndarray) -> None:
+        rows = np.atleast_1d(idx)
+        self.speed_mps[rows] = speeds_mps(self.velocity_mps[rows])
+        high = float(self.speed_mps[rows].max(initial=0.0))
+        if high > self.speed_high_water_mps:
+            self.speed_high_water_mps = high
 
     def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vectors from positions ``b`` to ``a``; the shortest image on a torus
@@ -178,6 +201,7 @@ class RobotState:
             raise ValueError(f"expected positions of shape ({self.n}, 2), got {positions_m.shape}")
         self.origin_m[:] = positions_m
         self.velocity_mps[:] = 0.0
+        self.speed_mps[:] = 0.0
         self.t0_s[:] = 0.0
         self.odometer_m[:] = 0.0
         self._legs = [(0.0, i, x, y, 0.0, 0.0, "start") for i, (x, y) in enumerate(positions_m.tolist())]
@@ -225,9 +249,7 @@ class RobotState:
         self.origin_m[i] = start
         self.velocity_mps[i] = (vx, vy)
         self.t0_s[i] = t
-        speed = (vx * vx + vy * vy) ** 0.5
-        if speed > self.speed_high_water_mps:
-            self.speed_high_water_mps = speed
+        self._set_speeds(i)
         self._legs.append((float(t), int(i), float(start[0]), float(start[1]), vx, vy, cause))
         self._changed(i, t, start_m is not None, cause)
 
@@ -248,9 +270,7 @@ class RobotState:
         self.origin_m[idx] = start
         self.velocity_mps[idx] = v
         self.t0_s[idx] = t
-        speed = float(np.sqrt(np.max(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])))
-        if speed > self.speed_high_water_mps:
-            self.speed_high_water_mps = speed
+        self._set_speeds(idx)
         t = float(t)
         causes = [cause] * len(idx) if isinstance(cause, str) else list(cause)
         new = [
@@ -297,6 +317,7 @@ class RobotState:
         self._log_travel(i, t)
         self.origin_m[i] = dest_m
         self.velocity_mps[i] = 0.0
+        self.speed_mps[i] = 0.0
         self.t0_s[i] = t
         if log:
             self._legs.append((float(t), int(i), float(dest_m[0]), float(dest_m[1]), 0.0, 0.0, cause))

@@ -2,6 +2,7 @@
 the compiled cache), checked on their sources."""
 
 import ast
+import os
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,3 +101,19 @@ def test_no_kernel_calls_a_function_whose_plain_bits_may_differ():
         for line in calls_rounding_their_own_way(p.read_text())
     ]
     assert found == []
+
+
+def test_numba_is_told_not_to_use_intel_svml():
+    """With Intel's SVML installed numba would vectorise the kernels' maths with functions
+    that round their own way; netsim turns that off before numba loads (a user's own
+    setting wins)."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_DISABLE_INTEL_SVML"}
+    code = "import os, netsim.compiled; print(os.environ.get('NUMBA_DISABLE_INTEL_SVML'))"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "1"
+    env["NUMBA_DISABLE_INTEL_SVML"] = "0"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "0"

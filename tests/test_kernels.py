@@ -647,3 +647,12 @@ def test_the_radios_laws_give_the_same_bits_plain_and_compiled():
         steps.append(x)
     assert laws[0].tobytes() == laws[1].tobytes()
     assert steps[0].tobytes() == steps[1].tobytes()
+
+
+def test_a_range_past_every_float_is_infinite_on_both_paths():
+    """The inverse law of a margin larger than any float range gives inf, plain and
+    compiled (Python's power would raise), and the largest finite ones agree."""
+    for k in (core_kernels, compiled_copy("netsim._kernels")):
+        assert k.range_at_margin_m(4000.0, 1.0, 1.0) == np.inf
+        assert k.range_at_margin_m(3000.0, 1.0, 1.0) == 1e300
+        assert k.range_at_margin_m(-1.0, 1.0, 1.0) == 0.0

@@ -21,6 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from netsim._kernels import travel
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -350,14 +351,13 @@ def anchors(travel_m, step_m, out):
 @jit(nogil=True)
 def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     """Each pair's key, and its shadowing clock: the pair's travel at ``t`` (the two robots'
-    :meth:`~netsim.state.RobotState.travelled_m` summed, ``speed`` being ``|v|`` as numpy
-    computes it), floored to a multiple of ``step_m`` when ``step_m`` > 0
+    :func:`netsim._kernels.travel` summed, ``speed`` the state's ``speed_mps``), floored to
+    a multiple of ``step_m`` when ``step_m`` > 0
     (:meth:`~netsim.radio.shadowing.PairShadowing.anchor`)."""
-    own = odometer[sender] + speed[sender] * (t - t0[sender])
+    own = travel(odometer, speed, t0, sender, t)
     for m in range(receivers.shape[0]):
         r = receivers[m]
-        travel = (odometer[r] + speed[r] * (t - t0[r])) + own
-        s_new[m] = anchored(travel, step_m)
+        s_new[m] = anchored(travel(odometer, speed, t0, r, t) + own, step_m)
         keys[m] = (min(sender, r) << 32) | max(sender, r)
 
 

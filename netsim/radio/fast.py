@@ -150,14 +150,11 @@ class CompiledChain:
             s_new = self.shadow.anchor(travel)
         return self._receivable(pairs, keys, s_new)
 
-    def transmission(
-        self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, speed_mps: np.ndarray
-    ) -> np.ndarray:
+    def transmission(self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
         """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (ids, distinct):
         the channel's per-frame call, one kernel call that also finds the robots' positions
-        on the map and the pairs' travels. ``speed_mps``: every robot's ``|v|`` as numpy's
-        ``abs`` gives it (a compiled ``abs`` may differ in the last bit, and the pairs'
-        travels must be exactly those of ``state.travelled_m``)."""
+        on the map and the pairs' travels (:func:`netsim._kernels.travel`, as
+        ``state.travelled_m``)."""
         k = len(receivers)
         sh = self.shadow
         # A torus has no map (config), so the passes never place its robots on a grid; the
@@ -179,7 +176,7 @@ class CompiledChain:
             shadow = _NO_SHADOW
         x_new = np.empty(k)
         new = np.empty(k, dtype=bool)
-        robots = tuple(Robots(state.odometer_m, speed_mps, state.t0_s, state.origin_m, state.velocity_mps))
+        robots = tuple(Robots(state.odometer_m, state.speed_mps, state.t0_s, state.origin_m, state.velocity_mps))
         decided = tuple(Decided(keys, s_new, x_new, new, out))
         count = self.k.log_frame(self.frame, t, sender, receivers, distances_m, robots, shadow, flat, decided)
         if sh is not None:
@@ -247,9 +244,7 @@ class GenericChain:
     def receivable(self, pairs: Pairs) -> np.ndarray:
         return self.propagation.receivable(pairs)
 
-    def transmission(
-        self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, speed_mps: np.ndarray
-    ) -> np.ndarray:
+    def transmission(self, state, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray) -> np.ndarray:
         """:meth:`receivable` of ``sender``'s frame at ``t`` to ``receivers`` (as
         :meth:`CompiledChain.transmission`)."""
         k = len(receivers)

@@ -154,14 +154,6 @@ class Reception:
         self.map = self.compiled.occupancy
         self.shadowing = self.compiled.shadow
         self.recorder = LinkRecorder(state.n, state.t0_s, state.torus) if record else None
-        # Every robot's speed, kept as legs change: the shadowing's clock is the pairs' travel.
-        self.speed_mps = np.abs(state.velocity_c)
-        if self.shadowing is not None:
-            state.watchers.append(self._course_changed)
-
-    def _course_changed(self, robot: int, t: float, jump: bool) -> None:
-        # A one-item slice: numpy's array abs, the one state.travelled_m uses.
-        self.speed_mps[robot] = np.abs(self.state.velocity_c[robot : robot + 1])[0]
 
     def decide(
         self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, every_pair: bool = True
@@ -170,7 +162,7 @@ class Reception:
         ``t``. ``every_pair``: ``receivers`` are all the robots within reach (a broadcast),
         so the decision tells the state of every link of ``sender``; False: of these pairs
         alone (a unicast's destination)."""
-        linked = self.compiled.transmission(self.state, t, sender, receivers, distances_m, self.speed_mps)
+        linked = self.compiled.transmission(self.state, t, sender, receivers, distances_m)
         if self.recorder is not None:
             if every_pair:
                 self.recorder.observe(t, sender, receivers, linked)

@@ -55,10 +55,9 @@ class RangeIndex:
         self._bounds = self._indptr.tolist()
         self._t_build = t
         self._jumps = st.jumps
-        speeds = np.hypot(st.velocity_mps[:, 0], st.velocity_mps[:, 1])
         # Raised, never lowered: another index on the same state (a shared medium's) may have
         # been built earlier, when some robot was faster than any is now.
-        st.speed_high_water_mps = max(st.speed_high_water_mps, float(speeds.max()) if st.n else 0.0)
+        st.speed_high_water_mps = max(st.speed_high_water_mps, float(st.speed_mps.max(initial=0.0)))
         self.rebuilds += 1
 
     def within(self, t: float, i: int, radius_m: float | None = None) -> tuple[np.ndarray, np.ndarray]:
