@@ -27,7 +27,7 @@ def speeds_mps(velocity_mps: np.ndarray) -> np.ndarray:
     >>> speeds_mps(np.array([[3.0, 4.0], [0.0, -2.0]])).tolist()
     [5.0, 2.0]
     """
-    v = np.ascontiguousarray(velocity_mps, dtype=float).reshape(-1, 2)
+    v = np.ascontiguousarray(velocity_mps, dtype=np.float64).reshape(-1, 2)
     return np.abs(v.view(np.complex128)[:, 0])
 
 

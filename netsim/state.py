@@ -182,9 +182,9 @@ class RobotState:
         self.odometer_m[i] = kernels.travel(self.odometer_m, self.speed_mps, self.t0_s, i, float(t))
 
     def _set_speeds(self, idx: int | np.ndarray) -> None:
-        rows = np.atleast_1d(idx)
-        self.speed_mps[rows] = speeds_mps(self.velocity_mps[rows])
-        high = float(self.speed_mps[rows].max(initial=0.0))
+        speeds = speeds_mps(self.velocity_mps[idx])
+        self.speed_mps[idx] = speeds if np.ndim(idx) else speeds[0]
+        high = float(speeds.max(initial=0.0))
         if high > self.speed_high_water_mps:
             self.speed_high_water_mps = high
 
