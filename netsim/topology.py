@@ -3,7 +3,7 @@ pairs of robots within range."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,6 +16,21 @@ if TYPE_CHECKING:  # networkx is imported by the snapshots alone, when asked for
     import networkx as nx
 
     from netsim.plugins import LinkState
+
+
+def reach_lists(state: RobotState, now: float, index: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every robot's position at ``now`` and neighbour lists ``(indptr, indices)``, each
+    list ascending and holding every robot within the largest range: those of the channel's
+    range index (``index``, :meth:`netsim.radio.spatial.RangeIndex.lists`) or, without
+    one, of the pairs within the largest range, built for the call. Who reaches whom is
+    then decided in the lists (:func:`netsim._kernels.senders_in_list`)."""
+    pos = state.positions_at(now)
+    if index is not None:
+        indptr, indices = index.lists(now)
+        return pos, indptr, indices
+    pairs = near_pairs(pos, float(state.range_m.max()), state.side_m if state.torus else None)
+    indptr, indices = load("netsim._kernels", state.n).neighbour_lists(pairs, state.n)
+    return pos, indptr, indices
 
 
 def geometric_pairs(

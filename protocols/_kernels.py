@@ -154,16 +154,6 @@ class Pairs(NamedTuple):
     in_range: np.ndarray
 
 
-class Beliefs(NamedTuple):
-    """:class:`Pairs` with where each robot's pairs start (``indptr``, ``n + 1``)."""
-
-    robot: np.ndarray
-    neighbour: np.ndarray
-    believed: np.ndarray
-    in_range: np.ndarray
-    indptr: np.ndarray
-
-
 class Counts(NamedTuple):
     """Per robot, its beliefs beside the truth (the ``beliefs`` table's columns)."""
 
@@ -672,61 +662,6 @@ def flood_step(seen, receivers, table, now, symmetric, roles, distributed_gatewa
 # records are tens of MB at 10,000 robots, so a scan's cost is the memory it reads.
 
 
-@jit(nogil=True)
-def belief_rows(table, now, heard):
-    """Who believes whom live, beside the truth (:class:`Beliefs`): per pair ``(robot,
-    neighbour)`` where ``robot`` holds a live entry of ``neighbour`` or ``robot * n +
-    neighbour`` is in ``heard`` (ascending keys: ``neighbour``'s transmissions reach
-    ``robot``), ordered by robot and neighbour, whether believed and whether in range; and
-    where each robot's pairs start (``indptr``, ``n + 1``)."""
-    table = Table(*table)
-    n, slots = table.ids.shape
-    out = _belief_arrays(n, slots, len(heard))
-    live, senders = np.empty(slots, np.int64), np.empty(n, np.int64)
-    k = p = 0
-    for r in range(n):
-        k, p = _belief_row(table, r, now, heard, live, senders, out, k, p)
-    return _beliefs_to(out, k)
-
-
-@jit(nogil=True)
-def _beliefs_to(out, k):
-    """The first ``k`` pairs of :class:`Beliefs` ``out``, as a plain tuple."""
-    return out.robot[:k], out.neighbour[:k], out.believed[:k], out.in_range[:k], out.indptr
-
-
-@jit(nogil=True)
-def _belief_arrays(n, slots, n_heard):
-    """The :class:`Beliefs` :func:`_belief_row` fills, for at most every slot and every heard key."""
-    size = n * slots + n_heard
-    robot = np.empty(size, np.int64)
-    neighbour = np.empty(size, np.int64)
-    # Every row up to the last is written (flags too): no need to clear the memory first.
-    believed = np.empty(size, np.bool_)
-    in_range = np.empty(size, np.bool_)
-    indptr = np.zeros(n + 1, np.int64)
-    return Beliefs(robot, neighbour, believed, in_range, indptr)
-
-
-@jit(nogil=True, inline="always")
-def _belief_row(table, r, now, heard, live, senders, out, k, p):
-    """Robot ``r``'s pairs of :func:`belief_rows`, written in ``out`` (:class:`Beliefs`)
-    from ``k`` on, its heard keys from ``heard[p]`` on (``live``, ``senders``: scratch,
-    room for a row's slots and for ``n`` ids); returns the next ``k`` and ``p``."""
-    n = table.ids.shape[0]
-    m = _live_row(table.ids[r], table.records[r], now, table.tau_s, live)
-    base = r * n
-    h = 0
-    while p < len(heard) and heard[p] < base + n:
-        senders[h] = heard[p] - base
-        h += 1
-        p += 1
-    pairs = Pairs(out.robot, out.neighbour, out.believed, out.in_range)
-    k, _, _, _ = _pair_rows(live, m, senders, h, r, pairs, k)
-    out.indptr[r + 1] = k
-    return k, p
-
-
 @jit(nogil=True, inline="always")
 def _live_row(ids_row, records_row, now, tau_s, live):
     """The ids of the live entries of a robot's row, ascending, in ``live``; how many. A
@@ -770,37 +705,22 @@ def _pair_rows(live, m, heard, h, r, out, k):
 
 
 @jit(nogil=True)
-def sample_rows(table, now, symmetric, roles, heard):
-    """:func:`membership` and :func:`belief_rows` in one pass over the tables, each row
-    read from memory once for both: ``(robot, group, primary), (robot, neighbour,
-    believed, in_range, indptr)``."""
-    table, roles = Table(*table), RoleArrays(*roles)
-    n, slots = table.ids.shape
-    groups = _group_arrays(n, slots)
-    out = _belief_arrays(n, slots, len(heard))
-    live, senders = np.empty(slots, np.int64), np.empty(n, np.int64)
-    m = k = p = 0
-    for r in range(n):
-        k, p = _belief_row(table, r, now, heard, live, senders, out, k, p)
-        m = _membership_row(table, r, now, symmetric, roles, groups, m)
-    return (groups.robot[:m], groups.group[:m], groups.primary[:m]), _beliefs_to(out, k)
-
-
-@jit(nogil=True)
 def sample_into(table, now, symmetric, roles, truth, groups, pairs, counts, lo, hi):
     """A sample of robots ``lo`` to ``hi - 1`` (all: a whole sample) in one pass over their
     rows of the tables, written where the caller says (the sampled tables' buffers, from
     their next free row): their groups (:func:`membership`) in ``groups``
     (:class:`Groups`), room for ``(hi - lo) * (slots + 1)`` rows; who believes whom beside
-    the truth (:func:`belief_rows`) in ``pairs`` (:class:`Pairs`), room for ``(hi - lo) *
-    slots`` rows plus the length of their neighbour lists; and per robot its row of
-    ``counts`` (:class:`Counts`, ``n`` rows: :func:`belief_counts`'s columns). Returns the
-    rows written in ``groups`` and in ``pairs``.
+    the truth in ``pairs`` (:class:`Pairs`: per robot, by neighbour, the union of the ids
+    it believes live and of those whose transmissions reach it, flagged), room for ``(hi -
+    lo) * slots`` rows plus the length of their neighbour lists; and per robot its row of
+    ``counts`` (:class:`Counts`: how many it believes, how many truly reach it, how many
+    beliefs are stale and how many missing, and whether its leader is in two-way range).
+    Returns the rows written in ``groups`` and in ``pairs``.
 
-    The ``truth`` (:class:`Truth`) is the range index's: the same rows as
-    :func:`sample_rows` and :func:`belief_counts` of the keys it holds. Nothing is allocated
-    but two rows of scratch: each row is written once, where the table keeps it. Two calls, on two parts of the robots,
-    can run in two threads at once (the loop holds no lock)."""
+    The ``truth`` (:class:`Truth`) is neighbour lists holding every robot within reach
+    (:func:`netsim.topology.reach_lists`). Nothing is allocated but two rows of scratch:
+    each row is written once, where the table keeps it. Two calls, on two parts of the
+    robots, can run in two threads at once (the loop holds no lock)."""
     table, roles, truth = Table(*table), RoleArrays(*roles), Truth(*truth)
     groups, pairs, counts = Groups(*groups), Pairs(*pairs), Counts(*counts)
     ids, records, tau_s = table.ids, table.records, table.tau_s
@@ -841,44 +761,3 @@ def _lower_bound(a, lo, hi, x):
         else:
             hi = mid
     return lo
-
-
-@jit(nogil=True)
-def _pair_in_range(neighbour, in_range, indptr, r, j):
-    """Whether robot ``r``'s pairs (of :func:`belief_rows`) hold ``j`` in range."""
-    lo, hi = indptr[r], indptr[r + 1]
-    at = lo + np.searchsorted(neighbour[lo:hi], j)
-    return at < hi and neighbour[at] == j and in_range[at]
-
-
-@jit(nogil=True)
-def belief_counts(neighbour, believed, in_range, indptr, role, leader):
-    """Per robot, from its pairs (:func:`belief_rows`): how many neighbours it believes live,
-    how many it truly has, how many beliefs are stale, how many missing, and whether its
-    leader is in two-way range (a leader: yes; an undecided robot: no) (the ``beliefs``
-    table, :meth:`netsim.protocols.stack.Stack.belief_vs_truth`)."""
-    n = len(indptr) - 1
-    believed_n = np.zeros(n, np.int64)
-    true_n = np.zeros(n, np.int64)
-    stale_n = np.zeros(n, np.int64)
-    missing_n = np.zeros(n, np.int64)
-    leader_in_range = np.zeros(n, np.bool_)
-    for r in range(n):
-        b = t = s = 0
-        for k in range(indptr[r], indptr[r + 1]):
-            if in_range[k]:
-                t += 1
-                if believed[k]:
-                    b += 1
-            elif believed[k]:
-                b += 1
-                s += 1
-        believed_n[r], true_n[r], stale_n[r], missing_n[r] = b, t, s, t - (b - s)
-        own = leader[r]
-        if role[r] == LEADER_ROLE:
-            leader_in_range[r] = True
-        elif role[r] == MEMBER and own >= 0:
-            leader_in_range[r] = _pair_in_range(neighbour, in_range, indptr, r, own) and _pair_in_range(
-                neighbour, in_range, indptr, own, r
-            )
-    return believed_n, true_n, stale_n, missing_n, leader_in_range

@@ -27,9 +27,9 @@ from netsim.protocols._kernels import RoleArrays
 from netsim.compiled import load
 from netsim.cosim import Arrival
 from netsim.events import MessageDelivered, MessageDropped
-from netsim.geometry import near_pairs
 from netsim.plugins import Parts
 from netsim.rng import Streams
+from netsim.topology import reach_lists
 
 
 class Routing(StrEnum):
@@ -86,15 +86,9 @@ def hop_distances(state, now: float, node: int, towards: bool = False, index=Non
     (:func:`netsim._kernels.hops_in_lists`) over the channel's range index's neighbour lists
     (``index``: a unit disk), or, without one, over lists of the pairs within the largest
     range built for the search."""
-    pos, side = state.positions_at(now), state.side_m if state.torus else 0.0
-    if index is not None:
-        kernels = index.kernels
-        indptr, indices = index.lists(now)
-    else:
-        kernels = load("netsim._kernels", state.n)
-        pairs = near_pairs(pos, float(state.range_m.max()), side or None)
-        indptr, indices = kernels.neighbour_lists(pairs, state.n)
-    return kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
+    pos, indptr, indices = reach_lists(state, now, index)
+    side = state.side_m if state.torus else 0.0
+    return load("netsim._kernels", state.n).hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
 
 
 class Relay:

@@ -18,7 +18,6 @@ from netsim.protocols._kernels import (
     LAST_HEARD,
     ROLE,
     RX_POWER,
-    Beliefs,
     Counts,
     Groups,
     Pairs,
@@ -38,7 +37,7 @@ from netsim.cosim import Arrival
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.samples import Samples
-from netsim.topology import reach_keys
+from netsim.topology import reach_lists
 
 # From this many robots on, a compiled sample is taken in two halves at once, in two threads
 # (on two cores or more): below it, a sample is too short for a thread's start to pay off.
@@ -252,27 +251,7 @@ class Stack(AckTiming):
         return rows.astype(np.int64), table.id[rows, slots], rec[:, [X, Y]], rec[:, LAST_HEARD], rec[:, RX_POWER]
 
     # -- ground truth beside belief ----------------------------------------------------
-    def _heard_keys(self, now: float) -> np.ndarray:
-        """``receiver * n + sender`` for every sender whose transmissions reach the
-        receiver now, ascending."""
-        st = self.state
-        index = self.channel.reach_lists
-        if index is not None:
-            # The channel's neighbour lists hold every robot within the largest range: the
-            # candidates, without a grid built for each sample.
-            indptr, indices = index.lists(now)
-            return index.kernels.reach_keys_in_lists(
-                st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, indptr, indices
-            )
-        return reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
-
-    def _belief_keys(self, now: float) -> Beliefs:
-        """Who believes whom live now, beside the truth
-        (:func:`netsim.protocols._kernels.belief_rows`): every ``other`` that ``robot``
-        believes live or whose transmissions reach ``robot``."""
-        return Beliefs(*self.kernels.belief_rows(self.table.view, now, self._heard_keys(now)))
-
-    def belief_vs_truth(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
+    def belief_vs_truth(self, now: float) -> pd.DataFrame:
         """Per robot: its role and leader, whether the leader is truly in two-way range,
         how many neighbours it believes live and how many it truly has, and how many of
         its beliefs are stale (believed live, out of range) or missing (in range, not
@@ -283,37 +262,18 @@ class Stack(AckTiming):
         (``|p_i - p_j| <= r_j``), whether or not ``i`` reaches ``j``. A member's leader is
         in range when the link is two-way (``<= min(r_i, r_j)``), as a member needs.
         """
-        return beliefs_table(Samples().add(now, self._belief_columns(now, keys)))
+        samples = Samples()
+        self._sample_into(now, Samples(), Samples(), samples)
+        return beliefs_table(samples)
 
-    def _belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
-        """:meth:`belief_vs_truth`'s columns but ``t_s``, the roles as codes (the live
-        arrays of roles and leaders: :meth:`Samples.add` copies them)."""
-        roles = self.roles
-        b = keys if keys is not None else self._belief_keys(now)
-        believed, true_count, stale, missing, in_range = self.kernels.belief_counts(
-            b.neighbour, b.believed, b.in_range, b.indptr, roles.role, roles.leader
-        )
-        return {
-            "robot": np.arange(self.state.n),
-            "role": roles.role,
-            "leader": roles.leader,
-            "leader_in_range": in_range,
-            "believed_neighbours": believed,
-            "true_neighbours": true_count,
-            "stale_neighbours": stale,
-            "missing_neighbours": missing,
-        }
-
-    def neighbour_beliefs(self, now: float, keys: Beliefs | None = None) -> pd.DataFrame:
+    def neighbour_beliefs(self, now: float) -> pd.DataFrame:
         """The ids behind :meth:`belief_vs_truth`'s counts: one row per robot and other
         robot that it believes live or whose transmissions reach it now, ordered by robot
         and other; ``believed`` and ``in_range`` say which (stale: believed only; missing:
         in range only)."""
-        return Samples().add(now, self._neighbour_belief_columns(now, keys)).frame()
-
-    def _neighbour_belief_columns(self, now: float, keys: Beliefs | None = None) -> dict[str, np.ndarray]:
-        b = keys if keys is not None else self._belief_keys(now)
-        return {"robot": b.robot, "neighbour": b.neighbour, "believed": b.believed, "in_range": b.in_range}
+        samples = Samples()
+        self._sample_into(now, Samples(), samples, Samples())
+        return samples.frame()
 
     def _sampler(self, interval: float):
         env = self.env
@@ -322,9 +282,7 @@ class Stack(AckTiming):
             yield env.timeout(interval)
 
     def _take_sample(self, now: float) -> None:
-        # In place where the truth comes from the channel's neighbour lists (as in
-        # _heard_keys).
-        (self._sample_in_place if self.channel.reach_lists is not None else self._sample)(now)
+        self._sample_into(now, self._groups, self._neighbour_beliefs, self._beliefs)
 
     def _sample_at_end(self) -> None:
         """The last sample of the sampled tables, at the run's end ``T``, once the run has
@@ -335,42 +293,31 @@ class Stack(AckTiming):
         if self.env.now >= end and not ended_at(self._groups.times, end):
             self._take_sample(end)
 
-    def _sample(self, now: float) -> None:
-        """One sample of the ``groups``, ``beliefs`` and ``neighbour_beliefs`` tables."""
-        heard = self._heard_keys(now)
-        (robot, group, primary), rows = self.kernels.sample_rows(
-            self.table.view, now, self.clustering.symmetric, self._roles, heard
-        )
-        self._groups.add(now, {"robot": robot, "group": group, "primary": primary})
-        keys = Beliefs(*rows)
-        self._beliefs.add(now, self._belief_columns(now, keys))
-        self._neighbour_beliefs.add(now, self._neighbour_belief_columns(now, keys))
-
-    def _sample_in_place(self, now: float) -> None:
-        """:meth:`_sample` by one pass (:func:`netsim.protocols._kernels.sample_into`)
-        writing straight into the tables' buffers, the truth from the channel's neighbour
-        lists: the same rows, without a sample's worth of arrays made and then copied. From
-        :data:`SAMPLE_IN_TWO_ROBOTS` robots on, on two cores or more, two passes at once,
-        each over half of the robots."""
+    def _sample_into(self, now: float, groups_out: Samples, pairs_out: Samples, counts_out: Samples) -> None:
+        """One sample of the ``groups``, ``neighbour_beliefs`` and ``beliefs`` tables, by
+        one pass (:func:`netsim.protocols._kernels.sample_into`) writing straight into the
+        tables' buffers, the truth decided in the neighbour lists of
+        :func:`netsim.topology.reach_lists`. From :data:`SAMPLE_IN_TWO_ROBOTS` robots on, on
+        two cores or more, two passes at once, each over half of the robots."""
         st, table, roles = self.state, self.table, self.roles
-        near_ptr, near = self.channel.index.lists(now)
+        pos, near_ptr, near = reach_lists(st, now, self.channel.reach_lists)
         n, slots = table.id.shape
         int64, flag = np.dtype(np.int64), np.dtype(np.bool_)
-        groups = self._groups.reserve(
-            {"robot": int64, "group": int64, "primary": flag}, n * (slots + 1), self._groups.last_rows
+        groups = groups_out.reserve(
+            {"robot": int64, "group": int64, "primary": flag}, n * (slots + 1), groups_out.last_rows
         )
-        pairs = self._neighbour_beliefs.reserve(
+        pairs = pairs_out.reserve(
             {"robot": int64, "neighbour": int64, "believed": flag, "in_range": flag},
             n * slots + len(near),
-            self._neighbour_beliefs.last_rows,
+            pairs_out.last_rows,
         )
-        counts = self._beliefs.reserve(
+        counts = counts_out.reserve(
             {"robot": int64, "role": roles.role.dtype, "leader": roles.leader.dtype, "leader_in_range": flag}
             | dict.fromkeys(BELIEF_COLUMNS[5:], int64),
             n,
             n,
         )
-        truth = tuple(Truth(st.positions_at(now), st.range_m, st.side_m if st.torus else 0.0, near_ptr, near))
+        truth = tuple(Truth(pos, st.range_m, st.side_m if st.torus else 0.0, near_ptr, near))
         sample = partial(self.kernels.sample_into, table.view, now, self.clustering.symmetric, self._roles, truth)
         # The columns as the loop takes them, by name (the tables' columns are the records' fields).
         g, p, c = tuple(Groups(**groups)), tuple(Pairs(**pairs)), tuple(Counts(**counts))
@@ -389,9 +336,9 @@ class Stack(AckTiming):
                 for col in room:
                     col[start : start + rows] = col[end : end + rows]
             m, k = m + m2, k + k2
-        self._groups.commit(now, m)
-        self._neighbour_beliefs.commit(now, k)
-        self._beliefs.commit(now, n)
+        groups_out.commit(now, m)
+        pairs_out.commit(now, k)
+        counts_out.commit(now, n)
 
     # -- outputs -----------------------------------------------------------------------
     def messages_frame(self) -> pd.DataFrame:

@@ -18,7 +18,6 @@ from tests.fixtures import clustering
 from tests.oracles.protocols import (
     ack_effects,
     belief_counts,
-    belief_rows,
     believed_keys,
     elected_in_row,
     flood_step,
@@ -353,70 +352,6 @@ def belief_inputs(rng, n, slots, now):
     return ids, records, np.unique(keys).astype(np.int64) if n else np.empty(0, np.int64)
 
 
-def test_belief_rows_loop_equals_the_oracle(kernels):
-    """Who believes whom beside who is in range (the union of the live entries and the
-    heard keys, by robot and neighbour, with the flags and each robot's first row) is the
-    oracle's: no robots, one, no rows, no heard keys, empty tables included."""
-    rng = np.random.default_rng(19)
-    both = only_heard = only_believed = 0
-    for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (12, 6), (30, 8)] * 8:
-        now = 10.0
-        ids, records, heard = belief_inputs(rng, n, slots, now)
-        if rng.random() < 0.1:
-            heard = heard[:0]
-        if rng.random() < 0.1:
-            ids[:] = -1
-            records[:, :, LAST_HEARD] = -np.inf
-        table = (ids, records, TAU_S)
-        a, b = kernels.belief_rows(table, now, heard), belief_rows(table, now, heard)
-        assert [x.tolist() for x in a] == [x.tolist() for x in b]
-        assert [x.dtype for x in a] == [x.dtype for x in b]
-        both += int((a[2] & a[3]).sum())
-        only_heard += int((~a[2] & a[3]).sum())
-        only_believed += int((a[2] & ~a[3]).sum())
-    assert min(both, only_heard, only_believed) > 50
-
-
-@pytest.mark.parametrize("symmetric", [False, True])
-def test_sample_rows_loop_equals_the_oracle(symmetric, kernels):
-    """A sample's one pass over the tables gives everyone's groups and who believes whom
-    as the oracle's membership and belief rows do (no robots, one, empty tables included)."""
-    rng = np.random.default_rng(29)
-    gateways = 0
-    for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (30, 8)] * 8:
-        now = 10.0
-        ids, records, heard = belief_inputs(rng, n, slots, now)
-        role = rng.integers(0, 3, n).astype(np.int8)
-        leader = np.where(role == MEMBER, rng.integers(0, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
-        args = ((ids, records, TAU_S), now, symmetric, (role, leader), heard)
-        (ga, ra), (gb, rb) = kernels.sample_rows(*args), sample_rows(*args)
-        assert [x.tolist() for x in ga] == [x.tolist() for x in gb]
-        assert [x.tolist() for x in ra] == [x.tolist() for x in rb]
-        assert [x.dtype for x in (*ga, *ra)] == [x.dtype for x in (*gb, *rb)]
-        gateways += int((~ga[2]).sum())
-    assert gateways > 20
-
-
-def test_belief_counts_loop_equals_the_oracle(kernels):
-    """Per robot the believed, true, stale and missing neighbours and whether its leader is
-    in two-way range are the oracle's (members of leaders in range both ways, one way,
-    not at all; members without a leader; leaders; undecided robots)."""
-    rng = np.random.default_rng(23)
-    in_range = 0
-    for n, slots in [(0, 4), (1, 4), (2, 3), (12, 6), (30, 8)] * 10:
-        now = 10.0
-        ids, records, heard = belief_inputs(rng, n, slots, now)
-        rows = belief_rows((ids, records, TAU_S), now, heard)
-        role = rng.integers(0, 3, n).astype(np.int8)
-        leader = np.where(role == MEMBER, rng.integers(-1, max(n, 1), n), np.where(role == ALPHA, np.arange(n), -1))
-        args = (rows.neighbour, rows.believed, rows.in_range, rows.indptr, role, leader)
-        a, b = kernels.belief_counts(*args), belief_counts(*args)
-        assert [x.tolist() for x in a] == [x.tolist() for x in b]
-        assert [x.dtype for x in a] == [x.dtype for x in b]
-        in_range += int((a[4] & (role == MEMBER)).sum())
-    assert in_range > 20
-
-
 def reach_tables(rng, n, slots, now, heard):
     """Neighbour tables whose rows hold (distinct) ids of robots that reach their robot
     (``heard``: ascending keys), and other ids: entries true and stale, live and expired."""
@@ -479,12 +414,14 @@ def test_sample_into_loop_equals_the_oracle(torus, symmetric, kernels):
     assert lir > 50
 
 
+@pytest.mark.parametrize("radio", [False, True], ids=["unit disk", "log-distance"])
 @pytest.mark.parametrize("compiled", [False, True])
-def test_sampler_tables_written_in_place_equal_those_made_of_rows(monkeypatch, compiled):
+def test_sampler_tables_written_in_place_equal_those_made_of_rows(monkeypatch, compiled, radio):
     """A run's sampled tables (groups, beliefs, neighbour_beliefs), written in place by one
-    pass (sample_into), are those made of a sample's rows and counts (sample_rows, then
-    belief_counts), plain and compiled."""
-    (_, a), (_, b) = (_clustering_after(monkeypatch, 12.0, compiled, rows) for rows in (False, True))
+    pass (sample_into) over neighbour lists, the channel's range index's or (under a radio)
+    built for the sample, are the oracle's made of a sample's rows and counts (membership
+    and belief rows of the keys in reach, then the counts), plain and compiled."""
+    (_, a), (_, b) = (_clustering_after(monkeypatch, 12.0, compiled, rows, radio) for rows in (False, True))
     for x, y in [(a.groups_frame(), b.groups_frame()), (a.beliefs_frame(), b.beliefs_frame())]:
         assert x.equals(y) and len(x) > 300
     x, y = a.neighbour_beliefs_frame(), b.neighbour_beliefs_frame()
@@ -529,17 +466,39 @@ def test_gateways_mean_counts_robots_in_two_groups_per_sample():
         assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy()) == expected
 
 
-def _clustering_after(monkeypatch, seconds: float, compiled: bool, rows: bool = False):
+def _clustering_after(monkeypatch, seconds: float, compiled: bool, rows: bool = False, radio: bool = False):
     """The clustering on 30 robots within a few ranges of each other, run for ``seconds``:
-    groups formed, tables filled; compiled loops or plain Python; ``rows``: sampled by
-    rows (as without the range index's lists), not in place."""
+    groups formed, tables filled; compiled loops or plain Python; ``rows``: sampled by the
+    oracles (tests/oracles/protocols.py), not by the production pass; ``radio``: under
+    log-distance with an implied range of 25 m (no range index's lists)."""
+    from netsim.topology import reach_keys
     from tests.fixtures import clustering
 
     monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
     rng = np.random.default_rng(8)
-    sim, stack = clustering(rng.uniform(0, 60, (30, 2)), start=False, core={"range_m": 25.0})
+    core: dict = {"range_m": 25.0}
+    if radio:
+        # About 32 m without shadowing; the channel has no range index's lists.
+        core = {"propagation": "log_distance", "path_loss_exponent": 4.0, "shadowing_sigma_db": 4.0}
+    sim, stack = clustering(rng.uniform(0, 60, (30, 2)), start=False, core=core)
+    assert (sim.channel.reach_lists is None) == radio
     if rows:
-        stack._sample_in_place = stack._sample
+
+        def by_rows(now, groups_out, pairs_out, counts_out):
+            st = stack.state
+            heard = reach_keys(st.positions_at(now), st.range_m, st.side_m if st.torus else None)
+            roles = (stack.roles.role, stack.roles.leader)
+            (robot, group, primary), b = sample_rows(stack.table.view, now, stack.clustering.symmetric, roles, heard)
+            groups_out.add(now, {"robot": robot, "group": group, "primary": primary})
+            pairs_out.add(
+                now, {"robot": b.robot, "neighbour": b.neighbour, "believed": b.believed, "in_range": b.in_range}
+            )
+            counts = belief_counts(b.neighbour, b.believed, b.in_range, b.indptr, *roles)
+            names = ["believed_neighbours", "true_neighbours", "stale_neighbours", "missing_neighbours"]
+            columns = {"robot": np.arange(st.n), "role": roles[0], "leader": roles[1], "leader_in_range": counts[4]}
+            counts_out.add(now, columns | dict(zip(names, counts[:4])))
+
+        stack._sample_into = by_rows
     stack.start()
     sim.run(until_s=seconds)
     return sim, stack

@@ -5,6 +5,8 @@ beside the truth. Each states its rule in array operations, independently of the
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from netsim.protocols import _kernels as K
 from netsim.protocols.clustering import ELECTION_CODES, JOIN_CODES, Candidate, choose_leader, elected
@@ -251,13 +253,24 @@ def union_sorted(a, b):
     return both, in_sorted(both, a), in_sorted(both, b)
 
 
-def belief_rows(table, now, heard) -> K.Beliefs:
+class Beliefs(NamedTuple):
+    """Who believes whom beside the truth, per pair (robot, neighbour), and where each
+    robot's pairs start (``indptr``, ``n + 1``)."""
+
+    robot: np.ndarray
+    neighbour: np.ndarray
+    believed: np.ndarray
+    in_range: np.ndarray
+    indptr: np.ndarray
+
+
+def belief_rows(table, now, heard) -> Beliefs:
     """Who believes whom live beside who is in range (``heard``: ascending keys)."""
     ids, records, tau_s = table
     n = len(ids)
     keys, believed, in_range = union_sorted(believed_keys(ids, records, now, tau_s), heard)
     robot = keys // n if n else keys
-    return K.Beliefs(robot, keys % n if n else keys, believed, in_range, robot.searchsorted(np.arange(n + 1)))
+    return Beliefs(robot, keys % n if n else keys, believed, in_range, robot.searchsorted(np.arange(n + 1)))
 
 
 def belief_counts(neighbour, believed, in_range, indptr, role, leader):
