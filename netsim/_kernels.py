@@ -513,9 +513,9 @@ def senders_in_list(pos, ranges, box, indptr, indices, a, out):
 
 @jit(nogil=True)
 def reach_keys_in_lists(pos, ranges, box, indptr, indices):
-    """:func:`reach_keys` with each receiver's candidates from neighbour lists (those of
-    :meth:`netsim.radio.spatial.RangeIndex.lists`: ascending, holding every robot within reach),
-    not from a grid built for the purpose: the same keys, ascending, the same arithmetic."""
+    """``receiver * n + sender`` for every ordered pair where the sender reaches the
+    receiver (:func:`senders_in_list`), ascending, each receiver's candidates from neighbour
+    lists (ascending, holding every robot within reach: :func:`netsim.topology.reach_lists`)."""
     n = pos.shape[0]
     keys = np.empty(len(indices), np.int64)
     senders = np.empty(longest_list(indptr), np.int64)
@@ -571,58 +571,6 @@ def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
         frontier, reached = reached, frontier
         size = found
     return hops
-
-
-@jit(nogil=True)
-def reach_keys(pos, folded, ranges, box):
-    """``receiver * n + sender`` for every ordered pair where the sender reaches the receiver
-    (``|p_receiver - p_sender| <= ranges[sender]``, on a torus of side ``box`` when ``box >
-    0``), ascending (:func:`netsim.topology.reach_keys`). Candidates from the :func:`grid` of
-    the largest range over the ``folded`` positions (in ``[0, box)`` on a torus, else
-    ``pos``), taken cell by cell from copies of the positions in cell order (a row of three
-    cells' candidates contiguous in memory); offsets from ``pos``."""
-    n = pos.shape[0]
-    cells_x, cells_y, cell, start, members = grid(folded, ranges.max(), box)
-    n_cells = cells_x * cells_y
-    wrap = box > 0.0 and n_cells > 1
-    px, py, pr = np.empty(n), np.empty(n), np.empty(n)
-    for m in range(n):
-        j = members[m]
-        px[m], py[m], pr[m] = pos[j, 0], pos[j, 1], ranges[j]
-    # Each receiver's senders, ascending, at senders[first[a]:first[a] + count[a]].
-    first = np.empty(n, np.int64)  # every robot's written: each is a receiver of its cell
-    count = np.empty(n, np.int64)
-    senders = np.empty(32 * n + 16, np.int64)
-    spans = np.empty((6, 2), np.int64)
-    k = 0
-    for c0 in range(n_cells):
-        if start[c0] == start[c0 + 1]:
-            continue
-        n_spans = _row_spans(c0 // cells_x, c0 % cells_x, cells_x, cells_y, wrap, spans)
-        for am in range(start[c0], start[c0 + 1]):
-            ax, ay = px[am], py[am]
-            k0 = k
-            for sp in range(n_spans):
-                lo, hi = start[spans[sp, 0]], start[spans[sp, 1]]
-                if len(senders) - k < hi - lo:
-                    senders = grown(senders, len(senders) + hi - lo)
-                for m in range(lo, hi):
-                    # No branch on the outcome (a coin toss for the processor): every
-                    # candidate is written, counted if it reaches.
-                    hit = reaches(ax - px[m], ay - py[m], pr[m], box) & (m != am)
-                    senders[k] = members[m]
-                    k += hit
-            sort_range(senders, k0, k)
-            a = members[am]
-            first[a], count[a] = k0, k - k0
-    keys = np.empty(k, np.int64)
-    q = 0
-    for a in range(n):
-        base = a * n
-        for t in range(first[a], first[a] + count[a]):
-            keys[q] = base + senders[t]
-            q += 1
-    return keys
 
 
 @jit(nogil=True)

@@ -64,25 +64,21 @@ def geometric_pairs(
 def reach_keys(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None) -> np.ndarray:
     """``receiver * n + sender`` for every ordered pair where the sender reaches the
     receiver (``d <= r_sender``), ascending: :func:`geometric_pairs`'s directed pairs as
-    one sorted key each, without ordering the pairs first, in one pass over a grid
-    (:func:`netsim._kernels.reach_keys`).
+    one sorted key each, decided in neighbour lists of the pairs within the largest range
+    as a run decides them (:func:`netsim._kernels.reach_keys_in_lists`).
 
     >>> reach_keys(np.array([[0., 0.], [3., 4.], [20., 0.]]), np.array([5.0, 4.0, 30.0])).tolist()
     [2, 3, 5]
     """
-    positions_m = np.asarray(positions_m, dtype=float)
+    positions_m = np.ascontiguousarray(positions_m, dtype=float)
     n = len(positions_m)
     if n < 2:
         return np.empty(0, np.int64)
-    ranges = np.broadcast_to(np.asarray(range_m, dtype=float), (n,))
-    folded = in_box(positions_m, side_m)
-    finite_positions(folded)
-    return load("netsim._kernels", n).reach_keys(
-        np.ascontiguousarray(positions_m),
-        np.ascontiguousarray(folded),
-        np.ascontiguousarray(ranges),
-        float(side_m or 0.0),
-    )
+    ranges = np.ascontiguousarray(np.broadcast_to(np.asarray(range_m, dtype=float), (n,)))
+    finite_positions(in_box(positions_m, side_m))
+    kernels = load("netsim._kernels", n)
+    indptr, indices = kernels.neighbour_lists(near_pairs(positions_m, float(ranges.max()), side_m), n)
+    return kernels.reach_keys_in_lists(positions_m, ranges, float(side_m or 0.0), indptr, indices)
 
 
 def geometric_edges(

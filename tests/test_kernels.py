@@ -385,14 +385,16 @@ def reach_layouts(rng, side):
 
 @pytest.mark.parametrize("kind", [PLAIN_SLOW, "compiled"])
 @pytest.mark.parametrize("torus", [False, True])
-def test_reach_keys_equal_the_oracle(torus, kind):
+def test_reach_keys_equal_the_oracle(monkeypatch, torus, kind):
     """``receiver * n + sender`` for every sender reaching its receiver, ascending, plain and
-    compiled, is the oracle's from the KD-tree's pairs: uniform, clustered, sparse and lattice layouts,
-    distances a hair either side of the range, unequal ranges, a range larger than the
-    area; on a torus also positions outside ``[0, side)`` and a torus narrower than three
-    ranges."""
-    from netsim.geometry import in_box
+    compiled (netsim.topology.reach_keys: neighbour lists of the pairs within the largest
+    range), is the oracle's from the KD-tree's pairs: uniform, clustered, sparse and lattice
+    layouts, distances a hair either side of the range, unequal ranges, a range larger than
+    the area; on a torus also positions outside ``[0, side)`` and a torus narrower than
+    three ranges."""
+    from netsim.topology import reach_keys
 
+    monkeypatch.setenv("NETSIM_COMPILED", "1" if kind == "compiled" else "0")
     rng = np.random.default_rng(31)
     side = 1000.0
     box = side if torus else None
@@ -400,7 +402,7 @@ def test_reach_keys_equal_the_oracle(torus, kind):
     for pos, ranges in reach_layouts(rng, side):
         if torus:
             pos = pos + side * rng.integers(-2, 3, pos.shape)  # unwrapped: the same robots
-        got = core(kind).reach_keys(pos, in_box(pos, box), ranges, side if torus else 0.0)
+        got = reach_keys(pos, ranges, box)
         want = pairs_oracle.reach_keys(pos, ranges, box)
         assert got.tolist() == want.tolist()
         hits += len(want)
