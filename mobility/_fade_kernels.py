@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from netsim._kernels import range_at_margin_m
+from netsim._kernels import range_at_margin_m, shadow_correlation
 from netsim.compiled import jit
 
 # Standard deviations of the shadowing's change that a kept link's budget covers (a
@@ -38,7 +38,7 @@ def change_at_rho_db(rho, x_db, sigma_db):
 def plausible_change_db(travel_m, x_db, sigma_db, decorrelation_m):
     """How far the shadowing measured at ``x_db`` plausibly moved against the link over a
     pair travel ``travel_m`` (module notes)."""
-    rho = math.exp(-max(travel_m, 0.0) / decorrelation_m)
+    rho = shadow_correlation(travel_m, decorrelation_m)
     return change_at_rho_db(rho, x_db, sigma_db)
 
 

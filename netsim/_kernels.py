@@ -573,6 +573,15 @@ def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
     return hops
 
 
+@jit(nogil=True, inline="always")
+def shadow_correlation(travel_m, decorrelation_m):
+    """Gudmundson's correlation of a pair's shadowing across a pair travel ``travel_m``
+    (none counts as 0): ``exp(-travel / decorrelation)``. The radio's shadowing steps by it
+    (``netsim.radio._kernels.moved_on``) and the plans' fade rule bounds its change by it
+    (``netsim.mobility._fade_kernels``)."""
+    return math.exp(-max(travel_m, 0.0) / decorrelation_m)
+
+
 @jit(nogil=True)
 def range_at_margin_m(margin_db, d0_m, exponent):
     """The log-distance law's inverse (:func:`netsim.radio._kernels.path_loss_db`), the one

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netsim.compiled import load
-from netsim.geometry import finite_positions, in_box, near_pairs
+from netsim.geometry import near_pairs
 from netsim.groups import GroupView
 from netsim.state import RobotState
 
@@ -75,7 +75,6 @@ def reach_keys(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
     if n < 2:
         return np.empty(0, np.int64)
     ranges = np.ascontiguousarray(np.broadcast_to(np.asarray(range_m, dtype=float), (n,)))
-    finite_positions(in_box(positions_m, side_m))
     kernels = load("netsim._kernels", n)
     indptr, indices = kernels.neighbour_lists(near_pairs(positions_m, float(ranges.max()), side_m), n)
     return kernels.reach_keys_in_lists(positions_m, ranges, float(side_m or 0.0), indptr, indices)

@@ -126,9 +126,9 @@ class Beacon(NamedTuple):
 
 
 class Truth(NamedTuple):
-    """Who reaches whom now, from the range index's neighbour lists (ascending, holding
-    every robot within reach), decided as :func:`netsim._kernels.reach_keys_in_lists`
-    decides it."""
+    """Who reaches whom now, from neighbour lists (ascending, holding every robot within
+    reach: :func:`netsim.topology.reach_lists`), decided as
+    :func:`netsim._kernels.reach_keys_in_lists` decides it."""
 
     pos: np.ndarray  # positions
     ranges: np.ndarray  # ranges

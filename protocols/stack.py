@@ -56,7 +56,7 @@ def role_labels(codes: np.ndarray):
 
 
 def beliefs_table(samples: Samples) -> pd.DataFrame:
-    """The ``beliefs`` table of samples of :meth:`Stack._belief_columns`."""
+    """The ``beliefs`` table of the per-robot counts of :meth:`Stack._sample_into`."""
     return samples.frame({"role": role_labels})
 
 

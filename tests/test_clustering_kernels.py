@@ -428,19 +428,21 @@ def test_sampler_tables_written_in_place_equal_those_made_of_rows(monkeypatch, c
     assert x.equals(y) and x["believed"].sum() > 300 and x["in_range"].sum() > 300
 
 
-def test_sample_in_two_halves_equals_one_pass(monkeypatch):
+@pytest.mark.parametrize("radio", [False, True], ids=["unit disk", "log-distance"])
+def test_sample_in_two_halves_equals_one_pass(monkeypatch, radio):
     """A run's sampled tables taken in two halves at once (two threads, the second's rows
     moved up after the first's) are those of one pass (the threshold lowered to this small
-    run, two cores assumed whatever the machine has)."""
+    run, two cores assumed whatever the machine has), on the range index's lists and on
+    lists built for the sample."""
     import netsim.protocols.stack
 
-    (_, whole) = _clustering_after(monkeypatch, 12.0, True)
+    (_, whole) = _clustering_after(monkeypatch, 12.0, True, radio=radio)
     monkeypatch.setattr(netsim.protocols.stack, "SAMPLE_IN_TWO_ROBOTS", 1)
     monkeypatch.setattr(netsim.protocols.stack, "cores", lambda: 2)
     calls = []
     both = netsim.protocols.stack.side_by_side
     monkeypatch.setattr(netsim.protocols.stack, "side_by_side", lambda *fns: calls.append(1) or both(*fns))
-    (_, halves) = _clustering_after(monkeypatch, 12.0, True)
+    (_, halves) = _clustering_after(monkeypatch, 12.0, True, radio=radio)
     assert len(calls) == 12  # a sample a second, from 0 s, before 12 s
     for frame in ("groups_frame", "beliefs_frame", "neighbour_beliefs_frame"):
         a, b = getattr(whole, frame)(), getattr(halves, frame)()
@@ -470,9 +472,10 @@ def _clustering_after(monkeypatch, seconds: float, compiled: bool, rows: bool = 
     """The clustering on 30 robots within a few ranges of each other, run for ``seconds``:
     groups formed, tables filled; compiled loops or plain Python; ``rows``: sampled by the
     oracles (tests/oracles/protocols.py), not by the production pass; ``radio``: under
-    log-distance with an implied range of 25 m (no range index's lists)."""
-    from netsim.topology import reach_keys
+    log-distance with 4 dB shadowing (no range index's lists), the truth of the oracle's
+    sample from the KD-tree's pairs."""
     from tests.fixtures import clustering
+    from tests.oracles.near_pairs import reach_keys
 
     monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
     rng = np.random.default_rng(8)

@@ -658,3 +658,21 @@ def test_a_range_past_every_float_is_infinite_on_both_paths():
         assert k.range_at_margin_m(4000.0, 1.0, 1.0) == np.inf
         assert k.range_at_margin_m(3000.0, 1.0, 1.0) == 1e300
         assert k.range_at_margin_m(-1.0, 1.0, 1.0) == 0.0
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_a_pairs_key_is_its_lower_id_then_its_higher(monkeypatch, compiled):
+    """The key of an unordered pair, as the shadowing's table and a frame's decision name it:
+    the lower id in the high 32 bits, the higher in the low ones, whichever end comes first
+    (ids up to 2**31 - 1), on both paths."""
+    from netsim.radio.shadowing import pair_keys, split_keys
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    rng = np.random.default_rng(41)
+    a, b = rng.integers(0, 2**31, 500), rng.integers(0, 2**31, 500)
+    a[:3], b[:3] = [0, 2**31 - 1, 5], [2**31 - 1, 0, 5]
+    keys = pair_keys(a, b)
+    assert keys.tolist() == pair_keys(b, a).tolist()
+    assert keys.tolist() == [(min(x, y) << 32) | max(x, y) for x, y in zip(a.tolist(), b.tolist())]
+    low, high = split_keys(keys)
+    assert low.tolist() == np.minimum(a, b).tolist() and high.tolist() == np.maximum(a, b).tolist()

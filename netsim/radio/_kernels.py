@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import travel
+from netsim._kernels import shadow_correlation, travel
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -135,8 +135,7 @@ def moved_on(table_x, table_s, pos, s_new, sigma, decorrelation_m, z):
     """The pair in slot ``pos`` moved on to travel ``s_new``: its shadowing correlated with
     the stored value by ``exp(-travel / decorrelation)`` (Gudmundson), the innovation ``z``
     (a standard normal) scaled to keep the variance ``sigma^2``; the slot updated in place."""
-    delta = max(s_new - table_s[pos], 0.0)
-    rho = math.exp(-delta / decorrelation_m)
+    rho = shadow_correlation(s_new - table_s[pos], decorrelation_m)
     v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z
     table_x[pos] = v
     table_s[pos] = max(s_new, table_s[pos])
@@ -348,6 +347,21 @@ def anchors(travel_m, step_m, out):
         out[m] = anchored(travel_m[m], step_m)
 
 
+@jit(nogil=True, inline="always")
+def pair_key(a, b):
+    """The key of the unordered pair of robots ``a``, ``b``: the lower id in the high 32
+    bits, the higher in the low ones (ids below 2**31)."""
+    return (min(a, b) << 32) | max(a, b)
+
+
+@jit(nogil=True)
+def pair_keys_of(a, b, out):
+    """:func:`pair_key` of each pair ``(a[m], b[m])`` into ``out``
+    (:func:`netsim.radio.shadowing.pair_keys`)."""
+    for m in range(a.shape[0]):
+        out[m] = pair_key(a[m], b[m])
+
+
 @jit(nogil=True)
 def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     """Each pair's key, and its shadowing clock: the pair's travel at ``t`` (the two robots'
@@ -358,7 +372,7 @@ def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     for m in range(receivers.shape[0]):
         r = receivers[m]
         s_new[m] = anchored(travel(odometer, speed, t0, r, t) + own, step_m)
-        keys[m] = (min(sender, r) << 32) | max(sender, r)
+        keys[m] = pair_key(sender, r)
 
 
 @jit(nogil=True)

@@ -85,10 +85,13 @@ _LOW = np.int64((1 << 32) - 1)
 
 
 def pair_keys(a, b) -> np.ndarray:
-    """One int64 key per unordered pair: ``min << 32 | max`` (robot ids below 2**31)."""
-    a = np.asarray(a, dtype=np.int64)
-    b = np.asarray(b, dtype=np.int64)
-    return (np.minimum(a, b) << _SHIFT) | np.maximum(a, b)
+    """One int64 key per unordered pair: ``min << 32 | max`` (robot ids below 2**31), the
+    key a frame's decision gives the pair (:func:`netsim.radio._kernels.pair_key`)."""
+    a, b = np.broadcast_arrays(np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64))
+    flat_a, flat_b = np.ascontiguousarray(a).reshape(-1), np.ascontiguousarray(b).reshape(-1)
+    out = np.empty(flat_a.shape[0], np.int64)
+    load("netsim.radio._kernels", flat_a.shape[0]).pair_keys_of(flat_a, flat_b, out)
+    return out.reshape(a.shape)
 
 
 def split_keys(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
