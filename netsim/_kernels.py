@@ -69,11 +69,10 @@ def travels(odometer_m, speed_mps, t0_s, rows, t, out):
 
 @jit(nogil=True)
 def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
-    """Robot ``j``'s position at ``t`` minus ``(x, y)`` (the nearest image on a torus): the
-    range query's arithmetic (:func:`position`'s products and sums, part by part)."""
-    dtj = t - t0_s[j]
-    dx = origin_m[j, 0] + velocity_mps[j, 0] * dtj - x
-    dy = origin_m[j, 1] + velocity_mps[j, 1] * dtj - y
+    """Robot ``j``'s position at ``t`` (:func:`position`, on its unfolded leg) minus ``(x,
+    y)``, the nearest image on a torus: the range query's arithmetic."""
+    xj, yj = position(origin_m, velocity_mps, t0_s, j, t, False, side_m)
+    dx, dy = xj - x, yj - y
     if torus:
         return nearest_image(dx, dy, side_m)
     return dx, dy

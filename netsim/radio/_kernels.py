@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import shadow_correlation, travel
+from netsim._kernels import position, shadow_correlation, travel
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -420,24 +420,22 @@ def link_touches(up, sender, receivers, linked, t0, last_t, every, touched):
 def grid_points(frame, t, sender, receivers, motion, points):
     """Grid coordinates (:func:`~netsim.world._kernels.on_grid`, the map grid of ``frame``)
     of the sender (every row of ``g0``) and of each receiver (``g1``) at ``t``, ``points``:
-    :class:`Points`, filled. The positions of :meth:`~netsim.state.RobotState.positions_at`
-    (plane), the same arithmetic in the same order; ``motion``: the state's :class:`Motion`."""
+    :class:`Points`, filled. The positions of :func:`netsim._kernels.position` (a map is
+    never a torus); ``motion``: the state's :class:`Motion`."""
     c = frame[0]
     map_ox, map_oy, res = c.map_ox, c.map_oy, c.res_m
     mo = Motion(*motion)
     ends = Points(*points)
     origin_m, velocity_mps, t0 = mo.origin_m, mo.velocity_mps, mo.t0_s
     g0, g1 = ends.g0, ends.g1
-    dt = t - t0[sender]
-    u0 = on_grid(origin_m[sender, 0] + velocity_mps[sender, 0] * dt, map_ox, res)
-    v0 = on_grid(origin_m[sender, 1] + velocity_mps[sender, 1] * dt, map_oy, res)
+    x0, y0 = position(origin_m, velocity_mps, t0, sender, t, False, 0.0)
+    u0, v0 = on_grid(x0, map_ox, res), on_grid(y0, map_oy, res)
     for m in range(receivers.shape[0]):
-        r = receivers[m]
-        dt = t - t0[r]
+        x, y = position(origin_m, velocity_mps, t0, receivers[m], t, False, 0.0)
         g0[m, 0] = u0
         g0[m, 1] = v0
-        g1[m, 0] = on_grid(origin_m[r, 0] + velocity_mps[r, 0] * dt, map_ox, res)
-        g1[m, 1] = on_grid(origin_m[r, 1] + velocity_mps[r, 1] * dt, map_oy, res)
+        g1[m, 0] = on_grid(x, map_ox, res)
+        g1[m, 1] = on_grid(y, map_oy, res)
 
 
 @jit(nogil=True)
