@@ -12,10 +12,23 @@ numpy oracles (tests/oracles/).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from netsim.compiled import jit
+
+
+class Motion(NamedTuple):
+    """The robots' motion (:class:`netsim.state.RobotState`'s legs): where each leg started,
+    its velocity and when, and the torus (``side_m``) when ``torus``. The one record every
+    kernel that places robots reads, by field."""
+
+    origin_m: np.ndarray
+    velocity_mps: np.ndarray
+    t0_s: np.ndarray
+    torus: bool
+    side_m: float
 
 
 @jit(nogil=True)
@@ -102,8 +115,9 @@ def nearest_images(d, box):
 def within(cand, motion, i, t, r):
     """The candidates ``cand`` within ``r`` of robot ``i`` at ``t``, and their distances
     (:meth:`netsim.radio.spatial.RangeIndex.within` over a candidate list). ``motion``: the
-    robots' ``(origin_m, velocity_mps, t0_s, torus, side_m)``."""
-    origin_m, velocity_mps, t0_s, torus, side_m = motion
+    robots' :class:`Motion`."""
+    mo = Motion(*motion)
+    origin_m, velocity_mps, t0_s, torus, side_m = mo.origin_m, mo.velocity_mps, mo.t0_s, mo.torus, mo.side_m
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     ids = np.empty(len(cand), dtype=np.int64)
     dist = np.empty(len(cand))
@@ -132,7 +146,8 @@ def points_on_legs(origin_m, velocity_mps, t0_s, rows, times_s, out):
 def pair_reach(motion, i, j, t, r):
     """Whether robot ``j`` is within ``r`` of robot ``i`` at ``t``, and their distance, as
     :func:`within` measures a candidate (a unicast's one receiver)."""
-    origin_m, velocity_mps, t0_s, torus, side_m = motion
+    mo = Motion(*motion)
+    origin_m, velocity_mps, t0_s, torus, side_m = mo.origin_m, mo.velocity_mps, mo.t0_s, mo.torus, mo.side_m
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
     return reaches(dx, dy, r, 0.0), np.hypot(dx, dy)
@@ -144,7 +159,8 @@ def within_alive(cand, lo, hi, motion, i, t, r, alive):
     :func:`within`, without the distances), and whether all of them are ``alive``
     (:meth:`netsim.radio.spatial.RangeIndex.within_alive`). The span is passed, not a slice:
     making the view would cost the caller more than the loop."""
-    origin_m, velocity_mps, t0_s, torus, side_m = motion
+    mo = Motion(*motion)
+    origin_m, velocity_mps, t0_s, torus, side_m = mo.origin_m, mo.velocity_mps, mo.t0_s, mo.torus, mo.side_m
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     ids = np.empty(hi - lo, dtype=np.int64)
     k = 0

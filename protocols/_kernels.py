@@ -10,13 +10,13 @@ is (plain Python, for a few robots) or its compiled copy; the tests check both a
 reference oracles (``tests/oracles/protocols.py``).
 
 The loops take a few records, each a :class:`~typing.NamedTuple` defined here and read by
-field name: :class:`Table`, :class:`RoleArrays`, :class:`Robots`, :class:`Told`,
-:class:`AckEffects`, :class:`Motion`, :class:`Beacon`, :class:`Truth` and the sample's
-columns (:class:`Groups`, :class:`Pairs`, :class:`Counts`). numba types a named tuple passed
-from Python by a slower path than a plain one, on every call: so the callers pass each as a
-plain tuple of its fields (``tuple(Table(...))``, built once where it can be), and a loop
-called from Python names it on entry (``Table(*table)``, free in compiled code). The
-clustering's constants are a one-row record
+field name (and the robots' :class:`netsim._kernels.Motion`): :class:`Table`,
+:class:`RoleArrays`, :class:`Robots`, :class:`Told`, :class:`AckEffects`, :class:`Beacon`,
+:class:`Truth` and the sample's columns (:class:`Groups`, :class:`Pairs`, :class:`Counts`).
+numba types a named tuple passed from Python by a slower path than a plain one, on every
+call: so the callers pass each as a plain tuple of its fields (``tuple(Table(...))``, built
+once where it can be), and a loop called from Python names it on entry (``Table(*table)``,
+free in compiled code). The clustering's constants are a one-row record
 (:data:`netsim.protocols.clustering.RULES`: ``tau_s``, ``merge_delay_s``, ``symmetric``, the
 join and election policies' codes).
 """
@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import longest_list, position, reaches_robot, senders_in_list, sort_range
+from netsim._kernels import Motion, longest_list, position, reaches_robot, senders_in_list, sort_range
 from netsim.compiled import jit
 
 # Columns of a neighbour table's packed record (netsim.protocols.neighbours). BIDIR_SINCE:
@@ -105,16 +105,6 @@ class AckEffects(NamedTuple):
         """Room for an Ack to all of ``n`` robots."""
         rows, flags = np.empty((6, n), dtype=np.int64), np.empty((3, n), dtype=bool)
         return cls(*rows, *flags)
-
-
-class Motion(NamedTuple):
-    """The robots' motion (:class:`netsim.state.RobotState`): where each is at any time."""
-
-    origin_m: np.ndarray
-    velocity_mps: np.ndarray
-    t0_s: np.ndarray
-    torus: bool
-    side_m: float
 
 
 class Beacon(NamedTuple):

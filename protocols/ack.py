@@ -29,10 +29,11 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from netsim.protocols._kernels import Beacon, Motion, RoleArrays
+from netsim.protocols._kernels import Beacon, RoleArrays
 from netsim.protocols.neighbours import NeighbourTable, heard_in
 from netsim.protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
+from netsim._kernels import Motion
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, names, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec

@@ -7,7 +7,8 @@ loss chain's own path on whole arrays.
 
 The loops take their arrays as records, each a :class:`~typing.NamedTuple` defined here and
 read by field name: :class:`Shadow`, :class:`ShadowLaw`, :class:`Clocks`, :class:`Drawn`,
-:class:`PathLoss`, :class:`Points`, :class:`Decided`, :class:`Motion`, :class:`Robots`.
+:class:`PathLoss`, :class:`Points`, :class:`Decided`, :class:`Robots` (and the robots'
+:class:`netsim._kernels.Motion`).
 numba types a named tuple passed from Python by a slower path than a plain one, on every
 call: so the callers pass each as a plain tuple of its fields, built by its record
 (``tuple(Points(g0, g1))``), and a loop names it on entry (``Points(*points)``, free in
@@ -21,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import position, shadow_correlation, travel
+from netsim._kernels import Motion, position, shadow_correlation, travel
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -85,15 +86,6 @@ class Decided(NamedTuple):
     x_new: np.ndarray
     new: np.ndarray
     receivable: np.ndarray
-
-
-class Motion(NamedTuple):
-    """The robots' legs (:class:`~netsim.state.RobotState`): where each started, its
-    velocity and when."""
-
-    origin_m: np.ndarray
-    velocity_mps: np.ndarray
-    t0_s: np.ndarray
 
 
 class Robots(NamedTuple):
@@ -475,7 +467,7 @@ def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out
         pair_clock(sender, receivers, rb.odometer_m, rb.speed_mps, rb.t0_s, t, c.step_m, keys, s_new)
     if c.wall_db > 0.0:
         points = Points(np.empty((k, 2)), np.empty((k, 2)))
-        grid_points(frame, t, sender, receivers, Motion(rb.origin_m, rb.velocity_mps, rb.t0_s), points)
+        grid_points(frame, t, sender, receivers, Motion(rb.origin_m, rb.velocity_mps, rb.t0_s, False, 0.0), points)
     else:
         none = np.zeros((1, 2))
         points = Points(none, none)

@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from netsim._kernels import Motion
 from netsim.compiled import load
-from netsim.radio._kernels import Decided, Motion, PathLoss, Points, Robots, Shadow
+from netsim.radio._kernels import Decided, PathLoss, Points, Robots, Shadow
 from netsim.radio.chain import (
     LineOfSightLoss,
     LogDistanceLoss,
@@ -162,7 +163,7 @@ class CompiledChain:
         flat = self.occupancy.occupied.ravel() if self.occupancy is not None else _NO_GRID
         out = np.empty(k, dtype=bool)
         if self.range is not None:
-            robots = tuple(Motion(state.origin_m, state.velocity_mps, state.t0_s))
+            robots = tuple(Motion(state.origin_m, state.velocity_mps, state.t0_s, state.torus, state.side_m))
             r = np.atleast_1d(self.range.range_m)
             self.k.disk_frame(self.frame, t, sender, receivers, distances_m, r, robots, flat, out)
             return out

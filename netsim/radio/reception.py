@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from netsim._kernels import Motion
 from netsim.compiled import load
-from netsim.radio._kernels import Motion
 from netsim.radio.chain import Propagation
 from netsim.radio.fast import GenericChain
 from netsim.state import RobotState
@@ -184,7 +184,7 @@ class Reception:
         if c.shadow is not None and c.shadow.sigma_db > 0 and k:
             x, _ = c.shadow.state(np.full(k, sender, dtype=np.int64), receivers)
         st = self.state
-        motion = tuple(Motion(st.origin_m, st.velocity_mps, st.t0_s))
+        motion = tuple(Motion(st.origin_m, st.velocity_mps, st.t0_s, st.torus, st.side_m))
         flat = c.occupancy.occupied.ravel() if c.occupancy is not None else _NO_CELLS
         out = np.empty(k)
         c.k.received_pass(c.frame, t, sender, receivers, np.asarray(distances_m, dtype=float), x, motion, flat, out)

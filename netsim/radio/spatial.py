@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from netsim._kernels import Motion
 from netsim.compiled import load
 from netsim.geometry import near_pairs
 from netsim.state import RobotState
@@ -42,9 +43,9 @@ class RangeIndex:
         self._indices = _NONE
         self.rebuilds = 0
         self.kernels = load("netsim._kernels", state.n)
-        # The robots' motion as the queries read it (netsim._kernels' ``motion``):
+        # The robots' motion as the queries read it (netsim._kernels.Motion):
         # arrays kept for the run, so put together once.
-        self._motion = (state.origin_m, state.velocity_mps, state.t0_s, state.torus, state.side_m)
+        self._motion = tuple(Motion(state.origin_m, state.velocity_mps, state.t0_s, state.torus, state.side_m))
 
     def _build(self, t: float) -> None:
         st = self.state
