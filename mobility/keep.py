@@ -49,6 +49,7 @@ from netsim.mobility.steps import Candidates
 
 from netsim.compiled import load
 from netsim.topology import geometric_pairs
+from netsim.trajectory import points_on_legs
 
 # Rounds of shortening steps on a map before robots whose links still fail are held.
 CUT_ROUNDS = 8
@@ -298,9 +299,15 @@ class LinkRules:
         duration = np.full(len(pa), float(period_s))
         table = sweep_walls(self.walls, pa, va, pb, vb, duration, limit=limit)
         pair, t0, t1, walls = (np.asarray(c) for c in (table.pair, table.t0_s, table.t1_s, table.walls))
-        # Distance is convex in time: its largest value on a stretch is at an end.
-        d0 = np.hypot(*((pa[pair] + va[pair] * t0[:, None]) - (pb[pair] + vb[pair] * t0[:, None])).T)
-        d1 = np.hypot(*((pa[pair] + va[pair] * t1[:, None]) - (pb[pair] + vb[pair] * t1[:, None])).T)
+        # Distance is convex in time: its largest value on a stretch is at an end. The legs
+        # start at the step's start (time 0).
+        start, n = np.zeros(len(pa)), len(pa)
+
+        def apart(t: np.ndarray) -> np.ndarray:
+            ends = points_on_legs(pa, va, start, pair, t, n) - points_on_legs(pb, vb, start, pair, t, n)
+            return np.hypot(*ends.T)
+
+        d0, d1 = apart(t0), apart(t1)
         lost = np.maximum(d0, d1) > self._range_with(links, k[pair], walls)
         first = np.full(len(pa), np.inf)
         np.minimum.at(first, pair[lost], t0[lost])
