@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from netsim._kernels import in_range as in_range  # the solvers' state test, through this module
-from netsim._kernels import nearest_image
+from netsim._kernels import nearest_image, position
 from netsim.compiled import jit
 
 EDGE_S = 1e-10
@@ -49,10 +49,9 @@ def _relative(leg_t, leg_p, leg_v, i, j, box):
     """The later of legs ``i`` and ``j``'s starts, and the relative position then (the
     nearest image on a torus of side ``box > 0``)."""
     origin = leg_t[i] if leg_t[i] >= leg_t[j] else leg_t[j]
-    dt_i, dt_j = origin - leg_t[i], origin - leg_t[j]
-    dx = (leg_p[i, 0] + leg_v[i, 0] * dt_i) - (leg_p[j, 0] + leg_v[j, 0] * dt_j)
-    dy = (leg_p[i, 1] + leg_v[i, 1] * dt_i) - (leg_p[j, 1] + leg_v[j, 1] * dt_j)
-    dx, dy = nearest_image(dx, dy, box)
+    xi, yi = position(leg_p, leg_v, leg_t, i, origin, False, 0.0)
+    xj, yj = position(leg_p, leg_v, leg_t, j, origin, False, 0.0)
+    dx, dy = nearest_image(xi - xj, yi - yj, box)
     return origin, dx, dy
 
 

@@ -157,8 +157,7 @@ class RuntimeLinks:
         jumped = np.fromiter(sorted(self._jumped), np.int64, len(self._jumped))
         self._dirty.clear()
         self._jumped.clear()
-        v = self.state.velocity_mps[dirty]
-        if len(jumped) or float(np.hypot(v[:, 0], v[:, 1]).max()) > self.v_bound or t >= self._w_end:
+        if len(jumped) or float(self.state.speed_mps[dirty].max()) > self.v_bound or t >= self._w_end:
             self._new_window(t, jumpers=jumped, moved=dirty)
             return
         if not self._csr_ready:
@@ -187,8 +186,7 @@ class RuntimeLinks:
         # list (walked in order), later re-solves into a small heap beside it.
         self._heap = []
         self._batch = []
-        speeds = np.hypot(st.velocity_mps[:, 0], st.velocity_mps[:, 1])
-        self.v_bound = max(self.v_bound, float(speeds.max()) if n else 0.0)
+        self.v_bound = max(self.v_bound, float(st.speed_mps.max()) if n else 0.0)
         if self.v_bound > 0:
             self._w_end = t + max(0.5 * self.r_min / self.v_bound, 1e-6)
             reach = self.r_max + 2.0 * self.v_bound * (self._w_end - t)

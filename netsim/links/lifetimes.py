@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.geometry import near_pairs, wrap
+from netsim.geometry import near_pairs, speeds_mps, wrap
 from netsim.links._kernels import PHASE_STATE
 from netsim.trajectory import LegTable
 
@@ -76,7 +76,7 @@ def link_events(
     # Writable C-ordered copies whatever pandas handed over: the compiled crossings are
     # compiled (and cached) for that one layout.
     L.t, L.p, L.v = (np.array(x, float, order="C") for x in (L.t, L.p, L.v))
-    v_max = float(np.hypot(L.v[:, 0], L.v[:, 1]).max()) if len(L.v) else 0.0
+    v_max = float(speeds_mps(L.v).max()) if len(L.v) else 0.0
     r_max = float(ranges.max())
     if window_s is not None:
         window = float(window_s)

@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from netsim.compiled import load
+from netsim.geometry import speeds_mps
 from netsim.radio.propagation import Pairs, effective_range_m
 from netsim.trajectory import points_on_legs
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
@@ -136,7 +137,7 @@ class Stretches:
         self.u = np.asarray(u, float)
         self.pa, self.va, self.ta = pa, va, np.asarray(ta, float)
         self.pb, self.vb, self.tb = pb, vb, np.asarray(tb, float)
-        speed = np.maximum(np.hypot(va[:, 0], va[:, 1]), np.hypot(vb[:, 0], vb[:, 1]))
+        speed = np.maximum(speeds_mps(va), speeds_mps(vb))
         self.h = np.where(speed > 0, CHUNK_M / np.where(speed > 0, speed, 1.0), np.inf)
         m = len(self.u)
         legs = np.arange(m)
