@@ -188,37 +188,35 @@ def measured_range_m(x_db, measured_s, travel_m, fade):
     than ``measured_s`` can surely be now (0: no measurement): the length at which its
     margin meets the sensitivity after the plausible change of the shadowing over the
     pair's largest travel since, ``travel_m`` (each end's by :func:`largest_travel_m`).
-    ``fade``: ``(on, sigma_db, decorrelation_m, budget_db, reference_distance_m, exponent)``."""
-    on, sigma_db, decorrelation_m, budget_db, d0_m, exponent = fade
-    if not on or math.isnan(x_db) or not measured_s > -math.inf:
+    ``fade``: the shadowing's rule, read by name (:class:`netsim.mobility.local.FadeRule`)."""
+    if not fade.on or math.isnan(x_db) or not measured_s > -math.inf:
         return 0.0
-    change = plausible_change_db(travel_m, x_db, sigma_db, decorrelation_m)
-    return range_at_m(x_db + change, budget_db, d0_m, exponent)
+    change = plausible_change_db(travel_m, x_db, fade.sigma_db, fade.decorrelation_m)
+    return range_at_m(x_db + change, fade.budget_db, fade.reference_distance_m, fade.exponent)
 
 
 @jit(nogil=True)
-def let_go(pos, memory, lists, rule, walls, out, fade, measured):
+def let_go(pos, memory, heard, rule, walls, out, fade):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
-    through robots it remembers (:func:`netsim.mobility.local.let_go`). ``memory``: what the
-    robots remember, ``(xy, sent_s, known, silent)``, ``silent[i, j]``: ``i``'s link to ``j``
-    was down in the window (:class:`netsim.mobility.local.Silence`), never a detour's link
-    (``j`` still a node); ``lists``: the lists they hold from each other
-    (:class:`netsim.mobility.local.Heard`), ``(which, start, other, sent_s)``; ``rule``: the
-    step's ``(t0_s, speed_mps, band_m, range_m, release_s, window_s)``, a detour's link
-    certified up over ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): each end farther from
-    where it is at ``t0_s`` by its largest travel over the window, and a measured link's
-    pair travel counted from the window's start where that is earlier than the measurement
-    (:func:`largest_travel_m`); ``fade``: the shadowing's rule
-    (:func:`measured_range_m`, ``on`` False: none); ``measured``: the shadowing each robot
-    measured on each robot's latest Ack and when it can have been sent, ``(x_db (n, n),
-    measured_s (n, n), listed_x_db (M,), leg_speed_mps (n, n), leg_from_s (n, n))``, the
-    third for the lists' entries, the last two the speeds each robot knows (its own on the
-    diagonal; :func:`largest_travel_m`)."""
-    xy, sent_s, known, silent = memory
-    which, start, other, listed_s = lists
-    t0_s, speed_mps, band_m, range_m, release_s, window_s = rule
+    through robots it remembers (:func:`netsim.mobility.local.let_go`). Records read by
+    name: ``memory``, what the robots remember and measured
+    (:class:`netsim.mobility.local.Remembered`; ``silent[i, j]``: ``i``'s link to ``j`` was
+    down in the window, :class:`netsim.mobility.local.Silence`, never a detour's link, ``j``
+    still a node); ``heard``, the lists they hold from each other
+    (:class:`netsim.mobility.local.Heard`, its ``x_db`` given); ``rule``, the step's
+    (:class:`netsim.mobility.local.DetourRule`), a detour's link certified up over
+    ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): each end farther from where it is at
+    ``t0_s`` by its largest travel over the window, and a measured link's pair travel
+    counted from the window's start where that is earlier than the measurement
+    (:func:`largest_travel_m`); ``fade``: the shadowing's rule (:func:`measured_range_m`,
+    ``on`` False: none)."""
+    xy, sent_s, known, silent = memory.xy, memory.sent_s, memory.known, memory.silent
+    x_db, measured_s = memory.x_db, memory.measured_s
+    leg_speed, leg_from = memory.leg_speed_mps, memory.leg_from_s
+    which, start, other, listed_s, listed_x = heard.which, heard.start, heard.other, heard.sent_s, heard.x_db
+    t0_s, speed_mps, band_m, range_m = rule.t0_s, rule.speed_mps, rule.band_m, rule.range_m
+    release_s, window_s = heard.release_s, rule.window_s
     opens_s = t0_s - window_s
-    x_db, measured_s, listed_x, leg_speed, leg_from = measured
     n = pos.shape[0]
     nn = float(n * n)
     node = np.empty(n, np.int64)

@@ -513,16 +513,46 @@ def let_go(
     """
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
-    known = heard.known
-    rule = (float(t0_s), float(speed_mps), float(band_m), float(range_m), heard.release_s, float(window_s))
-    lists = (heard.which, heard.start, heard.other, heard.sent_s)
+    rule = DetourRule(float(t0_s), float(speed_mps), float(band_m), float(range_m), float(window_s))
     kernels = load("netsim.mobility._local_kernels", n)
     listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
-    measured = (memory.x_db, memory.measured_s, listed_x, memory.leg_speed_mps, memory.leg_from_s)
-    rule_of_fade = NO_FADE if fade is None else fade.rule
+    heard = heard._replace(x_db=listed_x, release_s=float(heard.release_s))
     quiet = np.zeros((n, n), dtype=bool) if silent_of is None else np.ascontiguousarray(silent_of, dtype=bool)
-    kernels.let_go(pos, (memory.xy, memory.sent_s, known, quiet), lists, rule, walls, out, rule_of_fade, measured)
+    remembered = Remembered(
+        memory.xy,
+        memory.sent_s,
+        heard.known,
+        quiet,
+        memory.x_db,
+        memory.measured_s,
+        memory.leg_speed_mps,
+        memory.leg_from_s,
+    )
+    kernels.let_go(pos, remembered, heard, rule, walls, out, NO_FADE if fade is None else fade.rule)
     return out
+
+
+class Remembered(NamedTuple):
+    """What rule 1's kernel reads of the robots' memories, ``[i, j]``: robot ``i``'s of ``j``."""
+
+    xy: np.ndarray  # (n, n, 2): the position j's latest Ack carried
+    sent_s: np.ndarray  # (n, n): the earliest time it can have been sent
+    known: np.ndarray  # (n, n) bool: i remembers j
+    silent: np.ndarray  # (n, n) bool: their link was down in the window (Silence)
+    x_db: np.ndarray  # (n, n): the shadowing i measured on it (NaN: none)
+    measured_s: np.ndarray  # (n, n): the earliest time that Ack can have been sent
+    leg_speed_mps: np.ndarray  # (n, n): j's speed as i knows it (its own on the diagonal)
+    leg_from_s: np.ndarray  # (n, n): when that leg started (largest_travel_m)
+
+
+class DetourRule(NamedTuple):
+    """The step's constants of rule 1 (a detour's links certified over ``[t0_s - window_s, t0_s]``)."""
+
+    t0_s: float
+    speed_mps: float
+    band_m: float
+    range_m: float
+    window_s: float
 
 
 # How much longer than the largest gap between two Acks a robot waits before it counts a
@@ -859,7 +889,18 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
 
 
 # The fade rule switched off (:func:`netsim.mobility._local_kernels.let_go`).
-NO_FADE = (False, 0.0, 1.0, 0.0, 1.0, 1.0)
+class FadeRule(NamedTuple):
+    """The shadowing's rule as the kernels read it (:func:`netsim.mobility._local_kernels.measured_range_m`)."""
+
+    on: bool
+    sigma_db: float
+    decorrelation_m: float
+    budget_db: float
+    reference_distance_m: float
+    exponent: float
+
+
+NO_FADE = FadeRule(False, 0.0, 1.0, 0.0, 1.0, 1.0)
 
 
 class Halves(NamedTuple):
@@ -937,7 +978,7 @@ class Fade:
         self.fade_margin_db = float(fade_margin_db)
         self.sure_m = float(sure_m)
         self.margin_m = float(margin_m)
-        self.rule = (
+        self.rule = FadeRule(
             True,
             self.sigma_db,
             self.decorrelation_m,

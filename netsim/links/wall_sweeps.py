@@ -45,6 +45,7 @@ from netsim.geometry import speeds_mps
 from netsim.radio.propagation import Pairs, effective_range_m
 from netsim.trajectory import points_on_legs
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
+from netsim.world.sweep import MapGrid, PairMotion, map_grid
 
 if TYPE_CHECKING:
     from netsim.radio.reception import Reception
@@ -79,13 +80,12 @@ def linked(
 
 
 class MapRadio(NamedTuple):
-    """What a chunk's solution needs of the radio: the map's walls (``grid``, the plain
-    tuple of a :class:`~netsim.world.sweep.MapGrid`, as the kernels take it) and, per count
+    """What a chunk's solution needs of the radio: the map's walls (``grid``) and, per count
     of walls crossed, the squared distance within which the link is up (``inf``: anywhere
     in the envelope; counts beyond the table: never); ``kernels``: the sweep's loops for
     the run (:mod:`netsim.world._sweep_kernels`, as :func:`netsim.compiled.load` gives them)."""
 
-    grid: tuple
+    grid: MapGrid
     radius_sq: np.ndarray
     kernels: Any
 
@@ -93,8 +93,6 @@ class MapRadio(NamedTuple):
 def map_radio(reception: Reception) -> MapRadio:
     """The :class:`MapRadio` of a channel on a map without shadowing: the unit disk with line
     of sight (no wall at all), or log-distance with ``wall_loss_db`` per wall."""
-    from netsim.world.sweep import map_grid
-
     chain = reception.compiled
     occupancy = reception.map
     if occupancy is None:
@@ -110,7 +108,7 @@ def map_radio(reception: Reception) -> MapRadio:
     else:
         radius_sq = np.array([np.inf])
     kernels = load("netsim.world._sweep_kernels", reception.state.n)
-    return MapRadio(tuple(map_grid(occupancy)), radius_sq, kernels)
+    return MapRadio(map_grid(occupancy), radius_sq, kernels)
 
 
 class Stretches:
@@ -215,7 +213,7 @@ class Stretches:
         # A map's links walk its cells compiled at any team size: so do their points.
         p0 = points_on_legs(self.pa, self.va, self.ta, r, lo, None)
         q0 = points_on_legs(self.pb, self.vb, self.tb, r, lo, None)
-        motion = (p0, np.ascontiguousarray(self.va[r]), q0, np.ascontiguousarray(self.vb[r]))
+        motion = PairMotion(p0, np.ascontiguousarray(self.va[r]), q0, np.ascontiguousarray(self.vb[r]))
         first, c_chunk, c_t, c_up = link_chunks(radio.grid, motion, span, VERTEX_TOLERANCE_CELLS, radio.radius_sq)
         first[dead] = False
         chunk, t, up, start_state, end_state = assemble(first, c_chunk, c_t, c_up, lo, count, before, s0 is not None)

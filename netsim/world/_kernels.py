@@ -175,8 +175,8 @@ def free_point(cells, grid, draw_cell, draw_uv):
     """A point uniform over the free cells ``cells`` from the uniforms ``draw_cell`` and
     ``draw_uv`` (a cell by area, a point in it); a point that rounding put outside a free
     cell moved to its cell's centre. ``cells`` and ``grid`` as in :func:`free_destinations`."""
-    cdf, x0, x1, y0, y1 = cells
-    free_flat, _, h, w, ox, oy, res = grid
+    cdf, x0, x1, y0, y1 = cells.cdf, cells.x0, cells.x1, cells.y0, cells.y1
+    free_flat, h, w, ox, oy, res = grid.free_flat, grid.h, grid.w, grid.origin_x, grid.origin_y, grid.resolution_m
     last = cdf.shape[0] - 1
     cell = min(first_above(cdf, draw_cell * cdf[last]), last)
     x = x0[cell] + draw_uv[0] * (x1[cell] - x0[cell])
@@ -210,10 +210,12 @@ def free_destinations(cells, grid, draws, here, batch, eps, out):
     (:func:`free_point`), and the first whose straight leg from ``here[k]`` stays in free
     cells is kept (``got[k]``). Legs after the first free one are not traced.
 
-    ``cells``: the free cells to draw from, ``(cdf, x0, x1, y0, y1)`` (cumulative area,
-    bounds in metres); ``grid``: the map's ``(free_flat, not_free_flat, h, w, ox, oy,
-    res)``; ``draws``: ``(draw_cell, draw_uv)``; ``out``: ``(picked, got)``, filled."""
-    _, not_free_flat, h, w, ox, oy, res = grid
+    Read by name: ``cells``, the free cells to draw from
+    (:class:`netsim.world.free_space.FreeCells`), and ``grid``, the map
+    (:class:`netsim.world.free_space.DrawGrid`); ``draws``: ``(draw_cell, draw_uv)``;
+    ``out``: ``(picked, got)``, filled."""
+    not_free_flat, h, w = grid.not_free_flat, grid.h, grid.w
+    ox, oy, res = grid.origin_x, grid.origin_y, grid.resolution_m
     draw_cell, draw_uv = draws
     picked, got = out
     for k in range(here.shape[0]):

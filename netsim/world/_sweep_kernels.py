@@ -3,14 +3,16 @@
 They call :func:`netsim.world._kernels.walls_one` (numba does not track callees across
 files: :mod:`netsim.kernel_cache` keys this module's cache by that one's source too).
 
-What they take, by name: ``grid``, the map's ``(flat, h, w, row_ptr, cols, origin_x,
-origin_y, resolution_m)`` (:class:`netsim.world.sweep.MapGrid`: the occupied cells row-major,
-the vertices where blocked and clear cells meet, the grid's origin and cell size); its
-first three, ``cells``, are what a cell's lookup reads. ``motion``: the two robots of each
-pair on straight legs, ``(p0, vp, q0, vq)`` (metres, m/s).
+What they read by name: ``grid``, the map (:class:`netsim.world.sweep.MapGrid`: the
+occupied cells row-major, the vertices where blocked and clear cells meet, the grid's origin
+and cell size), whose first three fields, ``cells``, are what a cell's lookup reads;
+``motion``, the two robots of each pair on straight legs (:class:`netsim.world.sweep.PairMotion`,
+metres and m/s); a :class:`Segment` between two moving points.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -24,6 +26,19 @@ _DEGENERATE = 1e-12
 # How close to a grid line, in cells, an end's crossing of the other axis is taken as a
 # crossing at a vertex (then a candidate whatever the cells).
 _NEAR_LINE_CELLS = 1e-6
+
+
+class Segment(NamedTuple):
+    """The segment from ``a + va t`` to ``b + vb t`` (grid units, relative to a vertex)."""
+
+    ax: float
+    ay: float
+    vax: float
+    vay: float
+    bx: float
+    by: float
+    vbx: float
+    vby: float
 
 
 @jit(nogil=True)
@@ -143,10 +158,11 @@ def _changes_count(cells, vertex, p, q):
 @jit(nogil=True)
 def _vertex_roots(cells, vertex, segment, duration, buf, n):
     """When the segment from ``a + va t`` to ``b + vb t`` (relative to ``vertex``, ``(i,
-    j)``; ``segment``: ``(ax, ay, vax, vay, bx, by, vbx, vby)``) passes through the vertex:
+    j)``; ``segment``: a :class:`Segment`) passes through the vertex:
     ``cross(a + va t, b + vb t) = 0`` with the vertex between the ends; those at which the
     walls crossed cannot change left out (:func:`_changes_count`)."""
-    ax, ay, vax, vay, bx, by, vbx, vby = segment
+    ax, ay, vax, vay = segment.ax, segment.ay, segment.vax, segment.vay
+    bx, by, vbx, vby = segment.bx, segment.by, segment.vbx, segment.vby
     c0 = ax * by - ay * bx
     c1 = ax * vby - ay * vbx + vax * by - vay * bx
     c2 = vax * vby - vay * vbx
@@ -202,8 +218,8 @@ def _vertex_roots(cells, vertex, segment, duration, buf, n):
 def candidates(grid, g0, gv, k0, kv, duration):
     """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
     ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
-    flat, h, w, row_ptr, cols, _ox, _oy, _res = grid
-    cells = (flat, h, w)
+    h, row_ptr, cols = grid.h, grid.row_ptr, grid.cols
+    cells = (grid.flat, h, grid.w)
     buf = np.empty(64)
     n = int(0)  # a value, not a literal (docs/architecture.md, the compiled cache)
     ax, ay, vax, vay = g0[0], g0[1], gv[0], gv[1]
@@ -241,7 +257,7 @@ def candidates(grid, g0, gv, k0, kv, duration):
             x = float(cols[m])
             if x > hi + margin:
                 break
-            segment = (ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+            segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
             buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
     return buf[:n]
 
@@ -250,9 +266,9 @@ def candidates(grid, g0, gv, k0, kv, duration):
 def sweep(grid, motion, duration, eps, limit):
     """Rows ``(pair, t0, t1, walls)`` of every pair (:func:`netsim.world.sweep.sweep_walls`);
     the counts stop at ``limit + 1``."""
-    flat, h, w, _row_ptr, _cols, origin_x, origin_y, res = grid
-    cells = (flat, h, w)
-    p0, vp, q0, vq = motion
+    origin_x, origin_y, res = grid.origin_x, grid.origin_y, grid.resolution_m
+    cells = (grid.flat, grid.h, grid.w)
+    p0, vp, q0, vq = motion.p0, motion.vp, motion.q0, motion.vq
     k = p0.shape[0]
     cap = 4 * k + 16
     pair = np.empty(cap, np.int64)
@@ -310,7 +326,7 @@ def link_chunks(grid, motion, duration, eps, radius_sq):
     times from the chunk's start): up while ``|q - p| <= sqrt(radius_sq[walls])`` (``inf``: up whatever the
     distance; walls beyond the table: down). Returns each chunk's state just after its start
     and the changes inside it ``(chunk, t, up)``, in order."""
-    p0, vp, q0, vq = motion
+    p0, vp, q0, vq = motion.p0, motion.vp, motion.q0, motion.vq
     limit = radius_sq.shape[0] - 1
     pair, t0, t1, walls = sweep(grid, motion, duration, eps, limit)
     k = p0.shape[0]

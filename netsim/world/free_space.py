@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -75,7 +76,31 @@ def _eligible_cells_now(m: OccupancyMap, b: Bounds, clearance_m: float):
     y1 = np.minimum(m.origin_m[1] + (j + 1) * r, b.y_max)
     keep = (x1 > x0) & (y1 > y0)
     x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
-    return x0, x1, y0, y1, np.cumsum((x1 - x0) * (y1 - y0))
+    return FreeCells(np.cumsum((x1 - x0) * (y1 - y0)), x0, x1, y0, y1)
+
+
+class FreeCells(NamedTuple):
+    """The cells a robot may be drawn in, as the draw kernels read them: the cumulative
+    area, then each cell's rectangle within the area (metres)."""
+
+    cdf: np.ndarray
+    x0: np.ndarray
+    x1: np.ndarray
+    y0: np.ndarray
+    y1: np.ndarray
+
+
+class DrawGrid(NamedTuple):
+    """The map as the draw kernels read it: its free and its not-free cells row-major, its
+    size in cells, origin and cell size (metres)."""
+
+    free_flat: np.ndarray
+    not_free_flat: np.ndarray
+    h: int
+    w: int
+    origin_x: float
+    origin_y: float
+    resolution_m: float
 
 
 def _where(area: float | Bounds) -> str:
@@ -89,21 +114,22 @@ def sample_free(
     """``n`` positions uniform over the free part of the area (``Bounds``, or the side of
     the square ``[0, side]^2``; with ``clearance_m`` from anything not free, conservatively
     to within 1.4 cells), shape ``(n, 2)``."""
-    x0, x1, y0, y1, cdf = _eligible_cells(m, area, clearance_m)
-    if len(x0) == 0:
+    cells = _eligible_cells(m, area, clearance_m)
+    if len(cells.cdf) == 0:
         extra = f" with a clearance of {clearance_m:g} m" if clearance_m > 0 else ""
         raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area {_where(area)}{extra}")
     draw_cell = rng.random(n)
     draw_uv = rng.random((n, 2))
     pos = np.empty((n, 2))
-    kernels_for("netsim.world._kernels").free_points((cdf, x0, x1, y0, y1), _grid(m), draw_cell, draw_uv, pos)
+    kernels_for("netsim.world._kernels").free_points(cells, _grid(m), draw_cell, draw_uv, pos)
     return pos
 
 
-def _grid(m: OccupancyMap) -> tuple:
-    """The map as the draw kernels read it: ``(free_flat, not_free_flat, h, w, ox, oy, res)``."""
+def _grid(m: OccupancyMap) -> DrawGrid:
+    """The map as the draw kernels read it."""
     h, w = m.shape
-    return (m.free.ravel(), m.not_free.ravel(), h, w, float(m.origin_m[0]), float(m.origin_m[1]), m.resolution_m)
+    ox, oy = float(m.origin_m[0]), float(m.origin_m[1])
+    return DrawGrid(m.free.ravel(), m.not_free.ravel(), int(h), int(w), ox, oy, float(m.resolution_m))
 
 
 def _cells_in_area(m: OccupancyMap, area: float | Bounds) -> np.ndarray:
@@ -250,15 +276,15 @@ def draw_destinations(
 def _round(kernel, m: OccupancyMap, rng, here, area: float | Bounds, batch: int, out, todo) -> np.ndarray:
     """One round of :func:`draw_destinations`: the same draws from ``rng`` as
     :func:`sample_free` makes, the same points and legs, the first free leg kept."""
-    x0, x1, y0, y1, cdf = _eligible_cells(m, area, 0.0)
-    if len(x0) == 0:
+    cells = _eligible_cells(m, area, 0.0)
+    if len(cells.cdf) == 0:
         raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area {_where(area)}")
     n = len(here) * batch
     draw_cell = rng.random(n)
     draw_uv = rng.random((n, 2))
     picked = np.empty((len(here), 2))
     got = np.empty(len(here), dtype=bool)
-    kernel((cdf, x0, x1, y0, y1), _grid(m), (draw_cell, draw_uv), here, batch, VERTEX_TOLERANCE_CELLS, (picked, got))
+    kernel(cells, _grid(m), (draw_cell, draw_uv), here, batch, VERTEX_TOLERANCE_CELLS, (picked, got))
     out[todo[got]] = picked[got]
     return got
 

@@ -91,7 +91,7 @@ def cached_vertex_index(blocked: np.ndarray) -> VertexIndex:
 
 class MapGrid(NamedTuple):
     """A map as the sweep's kernels read it (:mod:`netsim.world._sweep_kernels`' ``grid``,
-    passed as a plain tuple): the cells that block, row-major, of an ``h`` by ``w`` grid,
+    read by name): the cells that block, row-major, of an ``h`` by ``w`` grid,
     the vertices where blocked and clear cells meet (:class:`VertexIndex`), the grid's
     origin and cell size (metres)."""
 
@@ -105,13 +105,23 @@ class MapGrid(NamedTuple):
     resolution_m: float
 
 
+class PairMotion(NamedTuple):
+    """The two robots of each pair on straight legs, as the sweep's kernels read them:
+    ``p0[k] + vp[k] t`` and ``q0[k] + vq[k] t`` (metres, m/s; rows of shape ``(k, 2)``)."""
+
+    p0: np.ndarray
+    vp: np.ndarray
+    q0: np.ndarray
+    vq: np.ndarray
+
+
 def map_grid(occupancy, blocked: np.ndarray | None = None) -> MapGrid:
     """The :class:`MapGrid` of a map; ``blocked`` replaces its occupied cells."""
     grid = np.ascontiguousarray(occupancy.occupied if blocked is None else blocked)
     index = cached_vertex_index(occupancy.occupied if blocked is None else blocked)
     h, w = grid.shape
     ox, oy = (float(c) for c in occupancy.origin_m)
-    return MapGrid(grid.ravel(), h, w, index.row_ptr, index.cols, ox, oy, float(occupancy.resolution_m))
+    return MapGrid(grid.ravel(), int(h), int(w), index.row_ptr, index.cols, ox, oy, float(occupancy.resolution_m))
 
 
 def sweep_walls(
@@ -137,7 +147,7 @@ def sweep_walls(
     grid = map_grid(occupancy, blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
     duration = np.ascontiguousarray(np.broadcast_to(np.asarray(duration_s, float), (len(p0),)))
-    motion = (p0, vp, q0, vq)
+    motion = PairMotion(p0, vp, q0, vq)
     limit = NO_LIMIT if limit is None else int(limit)
-    pair, t0, t1, walls = sweep(tuple(grid), motion, duration, VERTEX_TOLERANCE_CELLS, limit)
+    pair, t0, t1, walls = sweep(grid, motion, duration, VERTEX_TOLERANCE_CELLS, limit)
     return Sweep(pair, t0, t1, walls)
