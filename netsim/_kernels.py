@@ -422,6 +422,34 @@ def grown(a, extra):
 
 
 @jit(nogil=True)
+def _dot(x0, x1, y0, y1):
+    # numpy's einsum over a row of two: a sum started at zero, term by term.
+    s = 0.0
+    s += x0 * y0
+    s += x1 * y1
+    return s
+
+
+@jit(nogil=True)
+def disk_crossing_times(origin, dx, dy, wx, wy, radius):
+    """The instants the path ``(dx, dy) + (wx, wy) (t - origin)`` enters and leaves the disk
+    of ``radius``: NaN when it does not cross it (at rest, or passing by). The link solvers'
+    one rule of when a pair on straight legs comes into range and leaves it
+    (:mod:`netsim.links._kernels`, :func:`netsim.world._sweep_kernels.link_chunks`)."""
+    a = _dot(wx, wy, wx, wy)
+    b = 2.0 * _dot(dx, dy, wx, wy)
+    c = _dot(dx, dy, dx, dy) - radius * radius
+    disc = b * b - 4.0 * a * c
+    if not (a > 0 and disc > 0):
+        return np.nan, np.nan
+    # The numerically stable pair of roots: q / A and C / q.
+    q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+    r1 = q / a
+    r2 = c / q if q != 0 else -r1
+    return origin + min(r1, r2), origin + max(r1, r2)
+
+
+@jit(nogil=True)
 def reaches(ddx, ddy, lim, box):
     """Whether a robot at ``(ddx, ddy)`` from another (the nearest image on a torus of side
     ``box > 0``) is within ``lim`` of it: ``hypot(ddx, ddy) <= lim``, the one rule of "in

@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 
+from netsim._kernels import disk_crossing_times, nearest_image, position
 from netsim._kernels import in_range as in_range  # the solvers' state test, through this module
-from netsim._kernels import nearest_image, position
 from netsim.compiled import jit
 
 EDGE_S = 1e-10
@@ -33,15 +33,6 @@ EDGE_S = 1e-10
 # Order of events at the same instant for one pair: a crossing at the end of a piece, then
 # the state set at a jump (or at t = 0), then a crossing at the start of the next piece.
 PHASE_END, PHASE_STATE, PHASE_START = 0, 1, 2
-
-
-@jit(nogil=True)
-def _dot(x0, x1, y0, y1):
-    # numpy's einsum over a row of two: a sum started at zero, term by term.
-    s = 0.0
-    s += x0 * y0
-    s += x1 * y1
-    return s
 
 
 @jit(nogil=True)
@@ -53,23 +44,6 @@ def _relative(leg_t, leg_p, leg_v, i, j, box):
     xj, yj = position(leg_p, leg_v, leg_t, j, origin, False, 0.0)
     dx, dy = nearest_image(xi - xj, yi - yj, box)
     return origin, dx, dy
-
-
-@jit(nogil=True)
-def _times(origin, dx, dy, wx, wy, radius):
-    """The instants the path ``(dx, dy) + (wx, wy) (t - origin)`` enters and leaves the disk
-    of ``radius``: NaN when it does not cross it."""
-    a = _dot(wx, wy, wx, wy)
-    b = 2.0 * _dot(dx, dy, wx, wy)
-    c = _dot(dx, dy, dx, dy) - radius * radius
-    disc = b * b - 4.0 * a * c
-    if not (a > 0 and disc > 0):
-        return np.nan, np.nan
-    # The numerically stable pair of roots: q / A and C / q.
-    q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
-    r1 = q / a
-    r2 = c / q if q != 0 else -r1
-    return origin + min(r1, r2), origin + max(r1, r2)
 
 
 @jit(nogil=True)
@@ -101,7 +75,7 @@ def crossing_times(leg_t, leg_p, leg_v, la, lb, radius):
         i, j = la[k], lb[k]
         origin, dx, dy = _relative(leg_t, leg_p, leg_v, i, j, 0.0)
         wx, wy = leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1]
-        at_in[k], at_out[k] = _times(origin, dx, dy, wx, wy, radius[k])
+        at_in[k], at_out[k] = disk_crossing_times(origin, dx, dy, wx, wy, radius[k])
     return at_in, at_out
 
 
@@ -168,7 +142,7 @@ def crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length, box):
                 sel[k] = (kx == 0 and ky == 0) or np.hypot(ex, ey) <= reach[k] * (1 + 1e-9)
                 if sel[k]:
                     wx, wy = leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1]
-                    in_t[k], out_t[k] = _times(origin[k], ex, ey, wx, wy, radius[k])
+                    in_t[k], out_t[k] = disk_crossing_times(origin[k], ex, ey, wx, wy, radius[k])
             for k in range(n):
                 if sel[k]:
                     m = _keep(in_t[k], t_start[k], length[k], k, int(1), pair, times, phase, kinds, m)

@@ -81,12 +81,12 @@ def linked(
 
 class MapRadio(NamedTuple):
     """What a chunk's solution needs of the radio: the map's walls (``grid``) and, per count
-    of walls crossed, the squared distance within which the link is up (``inf``: anywhere
+    of walls crossed, the distance within which the link is up (``inf``: anywhere
     in the envelope; counts beyond the table: never); ``kernels``: the sweep's loops for
     the run (:mod:`netsim.world._sweep_kernels`, as :func:`netsim.compiled.load` gives them)."""
 
     grid: MapGrid
-    radius_sq: np.ndarray
+    radii_m: np.ndarray
     kernels: Any
 
 
@@ -103,12 +103,12 @@ def map_radio(reception: Reception) -> MapRadio:
         walls = np.arange(1, most + 1)
         r = effective_range_m(params, 0.0, walls)
         # Within the envelope (the range without walls) no wall: up.
-        radius_sq = np.r_[np.inf, np.where(r > 0, r * r, -1.0)]
-        radius_sq = radius_sq[: int(np.flatnonzero(radius_sq >= 0).max()) + 1]
+        radii = np.r_[np.inf, np.where(r > 0, r, -1.0)]
+        radii = radii[: int(np.flatnonzero(radii >= 0).max()) + 1]
     else:
-        radius_sq = np.array([np.inf])
+        radii = np.array([np.inf])
     kernels = load("netsim.world._sweep_kernels", reception.state.n)
-    return MapRadio(map_grid(occupancy), radius_sq, kernels)
+    return MapRadio(map_grid(occupancy), radii, kernels)
 
 
 class Stretches:
@@ -214,7 +214,7 @@ class Stretches:
         p0 = points_on_legs(self.pa, self.va, self.ta, r, lo, None)
         q0 = points_on_legs(self.pb, self.vb, self.tb, r, lo, None)
         motion = PairMotion(p0, np.ascontiguousarray(self.va[r]), q0, np.ascontiguousarray(self.vb[r]))
-        first, c_chunk, c_t, c_up = link_chunks(radio.grid, motion, span, VERTEX_TOLERANCE_CELLS, radio.radius_sq)
+        first, c_chunk, c_t, c_up = link_chunks(radio.grid, motion, span, VERTEX_TOLERANCE_CELLS, radio.radii_m)
         first[dead] = False
         chunk, t, up, start_state, end_state = assemble(first, c_chunk, c_t, c_up, lo, count, before, s0 is not None)
         return r[chunk], t, up, start_state, end_state

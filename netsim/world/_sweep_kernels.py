@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import grown
+from netsim._kernels import disk_crossing_times, grown, reaches
 from netsim.compiled import jit
 from netsim.world._kernels import on_grid, walls_one
 
@@ -321,13 +321,15 @@ def sweep(grid, motion, duration, eps, limit):
 
 
 @jit(nogil=True)
-def link_chunks(grid, motion, duration, eps, radius_sq):
+def link_chunks(grid, motion, duration, eps, radii):
     """The link's state over each chunk (the two robots of ``motion`` on straight legs,
-    times from the chunk's start): up while ``|q - p| <= sqrt(radius_sq[walls])`` (``inf``: up whatever the
-    distance; walls beyond the table: down). Returns each chunk's state just after its start
+    times from the chunk's start): up while ``|q - p| <= radii[walls]`` (``inf``: up whatever
+    the distance; walls beyond the table, or a negative radius: down), its crossings
+    :func:`netsim._kernels.disk_crossing_times`, a pair at rest in range by
+    :func:`netsim._kernels.reaches`. Returns each chunk's state just after its start
     and the changes inside it ``(chunk, t, up)``, in order."""
     p0, vp, q0, vq = motion.p0, motion.vp, motion.q0, motion.vq
-    limit = radius_sq.shape[0] - 1
+    limit = radii.shape[0] - 1
     pair, t0, t1, walls = sweep(grid, motion, duration, eps, limit)
     k = p0.shape[0]
     first = np.zeros(k, np.bool_)
@@ -343,32 +345,24 @@ def link_chunks(grid, motion, duration, eps, radius_sq):
         if r == 0 or pair[r - 1] != s:
             started = False
         ta, tb, wr = t0[r], t1[r], walls[r]
-        rsq = radius_sq[wr] if wr <= limit else -1.0
+        radius = radii[wr] if wr <= limit else -1.0
         # The row's pieces: (start, state) at most three (down, up, down).
         m = 1
         s0, u0 = ta, False
         s1, u1 = np.inf, False
         s2, u2 = np.inf, False
-        if rsq == np.inf:
+        if radius == np.inf:
             u0 = True
-        elif rsq >= 0.0:
+        elif radius >= 0.0:
             dx = q0[s, 0] - p0[s, 0]
             dy = q0[s, 1] - p0[s, 1]
             wx = vq[s, 0] - vp[s, 0]
             wy = vq[s, 1] - vp[s, 1]
-            a = wx * wx + wy * wy
-            b = 2.0 * (dx * wx + dy * wy)
-            c = dx * dx + dy * dy - rsq
-            if a == 0.0:
-                u0 = c <= 0.0
+            if wx * wx + wy * wy == 0.0:
+                u0 = reaches(dx, dy, radius, 0.0)
             else:
-                disc = b * b - 4.0 * a * c
-                if disc > 0.0:
-                    sq = np.sqrt(disc)
-                    q = -0.5 * (b + sq) if b >= 0.0 else -0.5 * (b - sq)
-                    ra = q / a
-                    rb = c / q if q != 0.0 else -ra
-                    r_in, r_out = min(ra, rb), max(ra, rb)
+                r_in, r_out = disk_crossing_times(0.0, dx, dy, wx, wy, radius)
+                if r_in == r_in:  # not NaN: the path crosses the disk
                     u0 = r_in <= ta and (ta < r_out or (ta == tb and ta <= r_out))
                     if ta < r_in and r_in < tb:
                         s1, u1 = r_in, True
