@@ -127,6 +127,7 @@ from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
+from netsim.geometry import speeds_mps
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
@@ -531,7 +532,7 @@ class CoverageController:
             pos_now, leaders, neighbours, self.cfg.law, self.range_m, self.cfg.gain, self.limits.box
         )
         wished += self._wall_push(pos_now[leaders])
-        speed = np.hypot(*wished.T) if len(leaders) else np.zeros(0)
+        speed = speeds_mps(wished) if len(leaders) else np.zeros(0)
         quiet = speed < self.cfg.stop_speed_mps
         wished[quiet] = 0.0
         step.velocity_mps[:] = 0.0
@@ -570,7 +571,7 @@ class CoverageController:
                 wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
         wished = self._slide(pos_now, wished)
         wished[group < 0] = 0.0
-        speed = np.hypot(*wished.T)
+        speed = speeds_mps(wished)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
         self._max_wish = float(speed[group >= 0].max()) if (group >= 0).any() else 0.0
@@ -597,7 +598,7 @@ class CoverageController:
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
         wished = self._slide(pos, wished)
-        speed = np.hypot(*wished.T)
+        speed = speeds_mps(wished)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
         self._max_wish = float(speed.max(initial=0.0))
@@ -720,7 +721,7 @@ class CoverageController:
     def _stopping_rule(self, plan: Plan) -> None:
         """Control ends once no robot has moved faster than ``stop_speed_mps`` for ``stop_hold_s``."""
         now = self.env.now
-        if np.hypot(*plan.velocity_mps.T).max(initial=0.0) >= self.cfg.stop_speed_mps:
+        if speeds_mps(plan.velocity_mps).max(initial=0.0) >= self.cfg.stop_speed_mps:
             self.all_quiet_since = math.nan
             return
         if math.isnan(self.all_quiet_since):
@@ -732,7 +733,7 @@ class CoverageController:
     def _record(self, step: ControlStep, plan: Plan) -> StepRecord:
         """The step's row, its components counted when the step takes effect (:meth:`obey`)."""
         leaders = leads_itself(step.leader)
-        moving = np.hypot(*plan.velocity_mps.T) > 0
+        moving = speeds_mps(plan.velocity_mps) > 0
         return StepRecord(
             step.t_s,
             int(leaders.sum()),

@@ -48,6 +48,7 @@ from netsim.mobility._fade_kernels import FADE_SIGMAS as FADE_SIGMAS
 from netsim.mobility.steps import Candidates
 
 from netsim.compiled import load
+from netsim.geometry import speeds_mps
 from netsim.topology import geometric_pairs
 from netsim.trajectory import points_on_legs
 
@@ -272,7 +273,7 @@ class LinkRules:
                 return scale
             # Stopped short of the loss by CUT_BACKOFF_M of the faster robot's path: a step
             # ending on the very instant of a loss would lose the link by rounding.
-            fast = np.maximum(np.hypot(*va[bad].T), np.hypot(*vb[bad].T))
+            fast = np.maximum(speeds_mps(va[bad]), speeds_mps(vb[bad]))
             early = t_bad[bad] - CUT_BACKOFF_M / np.maximum(fast, 1e-12)
             cut = np.clip(early / period_s, 0.0, 1.0) if round_ < CUT_ROUNDS else np.zeros(len(bad))
             for robots, held in ((a[bad], ha[bad]), (b[bad], hb[bad])):

@@ -369,7 +369,7 @@ class Memory:
         with np.errstate(invalid="ignore"):
             span = np.where(heard, np.clip(np.minimum(t0_s, self.until_s) - self.sent_s, 0.0, None), 0.0)
         out.xy = self.xy + self.vel * span[..., None]
-        error = np.hypot(self.vel[..., 0], self.vel[..., 1]) * jitter_s
+        error = speeds_mps(self.vel).reshape(self.vel.shape[:-1]) * jitter_s
         error = error + speed_mps * np.maximum(t0_s - np.where(heard, self.until_s, -np.inf), 0.0)
         with np.errstate(invalid="ignore"):
             out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)

@@ -50,6 +50,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
+from netsim.geometry import speeds_mps
 
 _NODE = re.compile(r"\(([^()]*)\)")
 _COORDS = ("X_", "Y_", "Z_")
@@ -423,8 +424,9 @@ def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float
         x, y = p[first].tolist()
         lines += [f"$node_({i}) set X_ {x!r}", f"$node_({i}) set Y_ {y!r}", f"$node_({i}) set Z_ 0.0"]
     events = []
+    speeds = speeds_mps(v)
     for k in range(len(t)):
-        speed = math.hypot(v[k, 0], v[k, 1])
+        speed = float(speeds[k])
         if speed == 0.0 or t[k] >= duration_s:
             continue
         last = k + 1 >= len(t) or robot[k + 1] != robot[k]

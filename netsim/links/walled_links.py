@@ -259,8 +259,7 @@ class WalledLinks:
     def _window(self) -> float:
         if self.window_s is not None:
             return float(self.window_s)
-        v = self.state.velocity_mps
-        top = float(np.sqrt((v * v).sum(axis=1).max())) if self.state.n else 0.0
+        top = float(self.state.speed_mps.max()) if self.state.n else 0.0
         return WINDOW_CHUNKS * CHUNK_M / top if top > 0 else 1.0
 
     def _solve(self, slots: np.ndarray) -> None:
