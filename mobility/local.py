@@ -603,16 +603,6 @@ def silent(memory: Memory, now_s: float, lead_s: float, silence: Silence | None)
         return heard & (now_s - (memory.sent_s + lead_s) > silence.gap_s)
 
 
-def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> np.ndarray:
-    """A link's place in the order every robot uses: by band of length (``band_m`` wide),
-    then by the pair of ids (``min n + max``); one number, exact in a float.
-
-    >>> link_rank(np.array([5.0, 15.0, 5.0]), np.array([7, 1, 9]), 10.0, 4).tolist()
-    [7.0, 17.0, 9.0]
-    """
-    return np.floor(length_m / band_m) * (n * n) + pair
-
-
 def leash_radius(memory: Memory, t1_s: float, limits: StepLimits) -> np.ndarray:
     """``(n, n)``: how far from ``q_j`` robot ``i`` may end the step (rule 2): what it
     answers for (``memory.keep_m``, or the plan's range less its margin) less ``j``'s largest

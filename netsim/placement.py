@@ -250,30 +250,12 @@ def _start_space(
     hi = np.minimum(start + half, [area.x_max, area.y_max])
     if occupancy is None:
         return lambda rng, k: lo + rng.uniform(0.0, 1.0, size=(k, 2)) * (hi - lo)
-    from netsim.world.free_space import free_region
+    from netsim.world.free_space import draw_free, free_cells, free_region
 
     if not occupancy.is_free(start[None, :])[0]:
         raise ConfigError(
             "world.start_m", [float(v) for v in start], f"is not in a free cell of world.map ({occupancy.source})"
         )
     region = free_region(occupancy, area, start[None, :])
-    j, i = np.nonzero(region)
-    r = occupancy.resolution_m
-    x0 = np.maximum(occupancy.origin_m[0] + i * r, lo[0])
-    x1 = np.minimum(occupancy.origin_m[0] + (i + 1) * r, hi[0])
-    y0 = np.maximum(occupancy.origin_m[1] + j * r, lo[1])
-    y1 = np.minimum(occupancy.origin_m[1] + (j + 1) * r, hi[1])
-    keep = (x1 > x0) & (y1 > y0)
-    x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
-    cdf = np.cumsum((x1 - x0) * (y1 - y0))
-
-    def draw(rng: np.random.Generator, k: int) -> np.ndarray:
-        c = np.minimum(np.searchsorted(cdf, rng.random(k) * cdf[-1], side="right"), len(cdf) - 1)
-        u = rng.random((k, 2))
-        pos = np.column_stack([x0[c] + u[:, 0] * (x1[c] - x0[c]), y0[c] + u[:, 1] * (y1[c] - y0[c])])
-        # A point rounded onto a cell's upper edge belongs to the next cell: keep it inside.
-        bad = ~occupancy.is_free(pos)
-        pos[bad] = np.column_stack([0.5 * (x0[c[bad]] + x1[c[bad]]), 0.5 * (y0[c[bad]] + y1[c[bad]])])
-        return pos
-
-    return draw
+    cells = free_cells(occupancy, region, Bounds(float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])))
+    return lambda rng, k: draw_free(occupancy, cells, rng, k)

@@ -339,8 +339,8 @@ def join_choice(table, i, now, rules, exclude, motion, first_heard):
     """Rule 2 from robot ``i``'s row of the ``table``
     (:meth:`netsim.protocols.clustering.Clustering._rule2_join`): the leader that ``i``, where
     ``motion`` places it at ``now``, joins among its live two-way neighbours whose last Ack said they were
-    leaders, but ``exclude``, by the join policy of the ``rules`` (its code, that of
-    :func:`netsim.protocols.clustering.choose_leader`'s policy; ``first_heard``: the leader
+    leaders, but ``exclude``, by the join policy of the ``rules`` (its code,
+    :data:`netsim.protocols.clustering.JOIN_CODES`; ``first_heard``: the leader
     whose Ack triggered the join, or negative), and the first slot of that leader in the
     row; ``(-1, -1)`` when it knows no leader."""
     table, m = Table(*table), Motion(*motion)
@@ -383,7 +383,7 @@ def elected_in_row(table, i, now, rules, old, degree):
     (:meth:`netsim.protocols.clustering.Clustering._rule6_reaffiliate`): whether ``i``, of
     announced ``degree``, takes over from its lost leader ``old`` among the live two-way
     neighbours whose last Ack said they were members of ``old``, by the election policy of
-    the ``rules`` (its code, that of :func:`netsim.protocols.clustering.elected`'s policy)."""
+    the ``rules`` (its code, :data:`netsim.protocols.clustering.ELECTION_CODES`)."""
     table = Table(*table)
     ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     c = rules[0]

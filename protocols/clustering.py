@@ -21,10 +21,11 @@ robots build a two-level network:
    leader (lowest id by default; vacuously when there are none), it becomes ``alpha`` at
    once; otherwise it stays ``gamma`` (and rule 2 or 4 follows).
 
-The decisions are pure functions of small values (:func:`choose_leader`,
-:func:`merge_loser`, :func:`elected`, :data:`TRANSITIONS`), testable without the kernel;
-:class:`Clustering` is the runner that feeds them from Ack deliveries and timers. Where
-each rule lives:
+The decisions are small functions: the kernels' :func:`~netsim.protocols._kernels.join_choice`
+(rule 2) and :func:`~netsim.protocols._kernels.elected_in_row` (rule 6) over a robot's row of
+its neighbour table, and :func:`merge_loser` and :data:`TRANSITIONS`, pure functions of small
+values; :class:`Clustering` is the runner that feeds them from Ack deliveries and timers.
+Where each rule lives:
 
 - rule 1: :meth:`Clustering.start`;
 - rule 2: :func:`netsim.protocols._kernels.join_choice` (which leader),
@@ -140,43 +141,8 @@ class ElectionPolicy(StrEnum):
     NONE = "none"
 
 
-def _nearest(candidates: list[Candidate], first_heard: int | None) -> int:
-    return min(candidates, key=lambda c: (c.distance_m, c.id)).id
-
-
-def _first_heard(candidates: list[Candidate], first_heard: int | None) -> int:
-    if first_heard is not None and any(c.id == first_heard for c in candidates):
-        return first_heard
-    return _nearest(candidates, first_heard)
-
-
-JOIN: dict[JoinPolicy, Callable[[list[Candidate], int | None], int]] = {
-    JoinPolicy.NEAREST: _nearest,
-    JoinPolicy.FIRST_HEARD: _first_heard,
-    JoinPolicy.LOWEST_ID: lambda candidates, first_heard: min(c.id for c in candidates),
-}
-
-
 # The join policies' codes in the compiled join_choice (netsim.protocols._kernels).
 JOIN_CODES = {JoinPolicy.NEAREST: 0, JoinPolicy.FIRST_HEARD: 1, JoinPolicy.LOWEST_ID: 2}
-
-
-def choose_leader(policy: str, candidates: list[Candidate], first_heard: int | None = None) -> int:
-    """Rule 2: which of the candidate leaders to join.
-
-    ``nearest`` (ties to the lowest id), ``lowest_id``, or ``first_heard`` (the leader
-    whose Ack triggered the join; the nearest when there is none). An unknown policy is
-    a ValueError.
-
-    >>> choose_leader("nearest", [Candidate(4, 10.0), Candidate(2, 10.0), Candidate(7, 3.0)])
-    7
-    >>> choose_leader("lowest_id", [Candidate(4, 10.0), Candidate(2, 12.0)])
-    2
-    """
-    rule = JOIN[JoinPolicy(policy)]
-    if not candidates:
-        raise ValueError("no candidate leader")
-    return rule(candidates, first_heard)
 
 
 # Rule 5: the order in which leaders win (the larger key wins; on equal keys, the higher
@@ -203,29 +169,8 @@ def merge_loser(policy: str, a: Candidate, b: Candidate) -> int:
     return a.id if key(a) < key(b) else b.id
 
 
-ELECTION: dict[ElectionPolicy, Callable[[Candidate, list[Candidate]], bool]] = {
-    ElectionPolicy.LOWEST_ID: lambda me, rivals: all(me.id < r.id for r in rivals),
-    ElectionPolicy.HIGHEST_DEGREE: lambda me, rivals: all((me.degree, -me.id) > (r.degree, -r.id) for r in rivals),
-    ElectionPolicy.NONE: lambda me, rivals: False,
-}
-
-
 # The election policies' codes in the compiled elected_in_row (netsim.protocols._kernels).
 ELECTION_CODES = {ElectionPolicy.LOWEST_ID: 0, ElectionPolicy.HIGHEST_DEGREE: 1, ElectionPolicy.NONE: 2}
-
-
-def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
-    """Rule 6: whether ``me`` takes over among the former members ``rivals`` it can hear.
-
-    ``lowest_id`` (the default priority), ``highest_degree`` (ties to the lowest id), or
-    ``none`` (no election: wait for rule 2 or 4). An unknown policy is a ValueError.
-
-    >>> elected("lowest_id", Candidate(3), [Candidate(5), Candidate(8)])
-    True
-    >>> elected("lowest_id", Candidate(3), [Candidate(2)])
-    False
-    """
-    return ELECTION[ElectionPolicy(policy)](me, rivals)
 
 
 # The clustering's constants, one record read by name in the compiled rules

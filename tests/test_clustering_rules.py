@@ -10,7 +10,7 @@ started more than a period after it.
 
 import numpy as np
 import pytest
-from netsim.protocols.clustering import TRANSITIONS, Candidate, choose_leader, elected, merge_loser, transition
+from netsim.protocols.clustering import TRANSITIONS, Candidate, merge_loser, rules_record, transition
 from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
 from tests.fixtures import clustering
@@ -318,12 +318,57 @@ def test_transition_table_names_a_rule_for_every_change():
         transition(LEADER, "leader_heard")
 
 
-def test_choose_leader_policies():
-    c = [Candidate(4, 10.0), Candidate(2, 10.0), Candidate(7, 3.0)]
-    assert choose_leader("nearest", c) == 7
-    assert choose_leader("nearest", c[:2]) == 2  # tie: lowest id
-    assert choose_leader("lowest_id", c) == 2
-    assert choose_leader("first_heard", c, first_heard=4) == 4
+PROTOCOL_KERNELS = "netsim.protocols._kernels"
+
+
+@pytest.fixture(params=["plain", "compiled"])
+def rule_kernels(request):
+    """The protocols' kernels as a small run calls them (plain Python) and compiled."""
+    import importlib
+
+    from netsim.compiled import compiled_copy
+
+    return importlib.import_module(PROTOCOL_KERNELS) if request.param == "plain" else compiled_copy(PROTOCOL_KERNELS)
+
+
+def _row(entries, n):
+    """Robot 0's neighbour table (the other rows empty): one live two-way entry per ``(id,
+    role, leader, x, y, degree)``, heard just now."""
+    from netsim.protocols._kernels import DEGREE, EMPTY_RECORD, HEARS_ME, LAST_HEARD, ROLE, X, Y
+    from netsim.protocols._kernels import LEADER as LEADER_FIELD
+
+    ids = np.full((n, max(len(entries), 1)), -1, dtype=np.int64)
+    records = np.broadcast_to(EMPTY_RECORD, (*ids.shape, len(EMPTY_RECORD))).copy()
+    for s, (j, role, leader, x, y, degree) in enumerate(entries):
+        ids[0, s] = j
+        records[0, s, [LAST_HEARD, HEARS_ME, ROLE, LEADER_FIELD, X, Y, DEGREE]] = [NOW_S, 1, role, leader, x, y, degree]
+    return ids, records
+
+
+NOW_S, TAU = 10.0, 3.0
+
+
+def _joins(kernels, policy, leaders, first_heard=-1):
+    """Rule 2 by the kernel: robot 0, still at the origin, hears each ``(id, x)`` as a leader
+    at ``(x, 0)``; the leader it joins."""
+    n = 1 + max(j for j, _ in leaders)
+    ids, records = _row([(j, LEADER, j, x, 0.0, 0) for j, x in leaders], n)
+    rules = rules_record(TAU, 1.0, False, policy, "lowest_id")
+    motion = (np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n), False, 0.0)
+    leader, slot = kernels.join_choice((ids, records, TAU), 0, NOW_S, rules, -1, motion, first_heard)
+    assert ids[0, slot] == leader
+    return leader
+
+
+def test_join_policies_choose_the_leader_the_model_names(rule_kernels):
+    """Rule 2's policies: the nearest known leader (ties of distance to the lowest id), the
+    lowest id, or the leader whose Ack triggered the join (the nearest when it is not known)."""
+    leaders = [(4, 10.0), (2, -10.0), (7, 3.0)]
+    assert _joins(rule_kernels, "nearest", leaders) == 7
+    assert _joins(rule_kernels, "nearest", leaders[:2]) == 2  # tie: lowest id
+    assert _joins(rule_kernels, "lowest_id", leaders) == 2
+    assert _joins(rule_kernels, "first_heard", leaders, first_heard=4) == 4
+    assert _joins(rule_kernels, "first_heard", leaders, first_heard=5) == 7
 
 
 def test_merge_loser_is_the_same_seen_from_both_sides():
@@ -334,10 +379,25 @@ def test_merge_loser_is_the_same_seen_from_both_sides():
     assert merge_loser("highest_degree_wins", a, b) == 1
 
 
-def test_election_policies():
-    assert elected("lowest_id", Candidate(2), []) is True
-    assert elected("none", Candidate(2), []) is False
-    assert elected("highest_degree", Candidate(5, degree=4), [Candidate(1, degree=3)]) is True
+def _elected(kernels, policy, me, degree, rivals):
+    """Rule 6 by the kernel: whether robot ``me`` (announcing ``degree``; it is robot 0's row
+    that is read, so ``me`` is 0) takes over from leader 9 among its former members
+    ``rivals``, ``(id, degree)``."""
+    assert me == 0
+    ids, records = _row([(j, MEMBER, 9, 0.0, 0.0, d) for j, d in rivals], 10)
+    rules = rules_record(TAU, 1.0, False, "nearest", policy)
+    return bool(kernels.elected_in_row((ids, records, TAU), 0, NOW_S, rules, 9, degree))
+
+
+def test_election_policies(rule_kernels):
+    """Rule 6's policies: the lowest id (vacuously with no rival), the highest degree (ties
+    to the lowest id), or none."""
+    assert _elected(rule_kernels, "lowest_id", 0, 0, []) is True
+    assert _elected(rule_kernels, "lowest_id", 0, 0, [(3, 0), (5, 0)]) is True
+    assert _elected(rule_kernels, "none", 0, 0, []) is False
+    assert _elected(rule_kernels, "highest_degree", 0, 4, [(1, 3)]) is True
+    assert _elected(rule_kernels, "highest_degree", 0, 3, [(1, 4)]) is False
+    assert _elected(rule_kernels, "highest_degree", 0, 3, [(1, 3)]) is True  # tie: lowest id
 
 
 def test_roles_table_is_the_frame_of_its_records():

@@ -3,7 +3,7 @@ or with --set is the same object, validated when made; derived defaults are deri
 wherever it is made; an unknown name is an error everywhere."""
 
 import pytest
-from netsim.protocols.clustering import Candidate, choose_leader
+from netsim.protocols.clustering import rules_record
 from netsim.protocols.stack import ClusteringParams
 
 from netsim import config as cfgmod
@@ -61,6 +61,8 @@ def test_an_unknown_choice_is_a_config_error_naming_what_is_allowed(key, value):
 
 def test_a_policy_name_is_checked_where_it_is_used_too():
     with pytest.raises(ValueError):
-        choose_leader("neerest", [Candidate(4, 10.0), Candidate(7, 3.0)])
+        rules_record(3.0, 1.0, False, "neerest", "lowest_id")
+    with pytest.raises(ValueError):
+        rules_record(3.0, 1.0, False, "nearest", "lowest")
     with pytest.raises(ConfigError):
         resolve(LOSS, "rayleigh", "channel.loss_model")

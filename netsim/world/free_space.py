@@ -68,7 +68,13 @@ def _eligible_cells_now(m: OccupancyMap, b: Bounds, clearance_m: float):
         # Any point of the cell is then at least clearance_m from any point of a cell that is
         # not free (each point lies within res / sqrt(2) of its cell's centre).
         ok &= clearance_field_m(m) - math.sqrt(2.0) * m.resolution_m >= clearance_m
-    j, i = np.nonzero(ok)
+    return free_cells(m, ok, b)
+
+
+def free_cells(m: OccupancyMap, cells: np.ndarray, b: Bounds) -> FreeCells:
+    """The rectangles the map's cells ``cells`` (a mask ``(H, W)``) share with ``b``, those of
+    positive size, and their cumulative area: what :func:`draw_free` draws from."""
+    j, i = np.nonzero(cells)
     r = m.resolution_m
     x0 = np.maximum(m.origin_m[0] + i * r, b.x_min)
     x1 = np.minimum(m.origin_m[0] + (i + 1) * r, b.x_max)
@@ -77,6 +83,16 @@ def _eligible_cells_now(m: OccupancyMap, b: Bounds, clearance_m: float):
     keep = (x1 > x0) & (y1 > y0)
     x0, x1, y0, y1 = x0[keep], x1[keep], y0[keep], y1[keep]
     return FreeCells(np.cumsum((x1 - x0) * (y1 - y0)), x0, x1, y0, y1)
+
+
+def draw_free(m: OccupancyMap, cells: FreeCells, rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` points uniform over ``cells`` (not empty): a cell by area, a point in it, its
+    centre where rounding left the cell (the kernel :func:`netsim.world._kernels.free_points`)."""
+    draw_cell = rng.random(n)
+    draw_uv = rng.random((n, 2))
+    pos = np.empty((n, 2))
+    kernels_for("netsim.world._kernels").free_points(cells, _grid(m), draw_cell, draw_uv, pos)
+    return pos
 
 
 class FreeCells(NamedTuple):
@@ -118,11 +134,7 @@ def sample_free(
     if len(cells.cdf) == 0:
         extra = f" with a clearance of {clearance_m:g} m" if clearance_m > 0 else ""
         raise ConfigError(MAP_KEY, m.source or "<map>", f"has no free cell in the area {_where(area)}{extra}")
-    draw_cell = rng.random(n)
-    draw_uv = rng.random((n, 2))
-    pos = np.empty((n, 2))
-    kernels_for("netsim.world._kernels").free_points(cells, _grid(m), draw_cell, draw_uv, pos)
-    return pos
+    return draw_free(m, cells, rng, n)
 
 
 def _grid(m: OccupancyMap) -> DrawGrid:

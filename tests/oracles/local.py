@@ -6,7 +6,17 @@ import math
 
 import numpy as np
 from netsim.mobility._local_kernels import REGION_SCAN_CELLS
-from netsim.mobility.local import Heard, Memory, Walls, link_rank, reported
+from netsim.mobility.local import Heard, Memory, Walls, reported
+
+
+def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> np.ndarray:
+    """A link's place in the order every robot uses: by band of length (``band_m`` wide),
+    then by the pair of ids (``min n + max``); one number, exact in a float.
+
+    >>> link_rank(np.array([5.0, 15.0, 5.0]), np.array([7, 1, 9]), 10.0, 4).tolist()
+    [7.0, 17.0, 9.0]
+    """
+    return np.floor(length_m / band_m) * (n * n) + pair
 
 
 def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:

@@ -5,11 +5,12 @@ beside the truth. Each states its rule in array operations, independently of the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 from netsim.protocols import _kernels as K
-from netsim.protocols.clustering import ELECTION_CODES, JOIN_CODES, Candidate, choose_leader, elected
+from netsim.protocols.clustering import ELECTION_CODES, JOIN_CODES, Candidate, ElectionPolicy, JoinPolicy
 from netsim.protocols.neighbours import NeighbourTable
 from netsim.protocols.roles import LEADER as ALPHA
 from netsim.protocols.roles import MEMBER, NO_LEADER, UNDECIDED
@@ -17,6 +18,63 @@ from netsim.protocols.roles import MEMBER, NO_LEADER, UNDECIDED
 _NONE = np.empty(0, dtype=np.int64)
 _JOIN_BY_CODE = {code: policy for policy, code in JOIN_CODES.items()}
 _ELECTION_BY_CODE = {code: policy for policy, code in ELECTION_CODES.items()}
+
+
+# Rules 2 and 6 as pure functions of the candidates: the policies as written in docs/model.md 4.2.
+def _nearest(candidates: list[Candidate], first_heard: int | None) -> int:
+    return min(candidates, key=lambda c: (c.distance_m, c.id)).id
+
+
+def _first_heard(candidates: list[Candidate], first_heard: int | None) -> int:
+    if first_heard is not None and any(c.id == first_heard for c in candidates):
+        return first_heard
+    return _nearest(candidates, first_heard)
+
+
+JOIN: dict[JoinPolicy, Callable[[list[Candidate], int | None], int]] = {
+    JoinPolicy.NEAREST: _nearest,
+    JoinPolicy.FIRST_HEARD: _first_heard,
+    JoinPolicy.LOWEST_ID: lambda candidates, first_heard: min(c.id for c in candidates),
+}
+
+
+def choose_leader(policy: str, candidates: list[Candidate], first_heard: int | None = None) -> int:
+    """Rule 2: which of the candidate leaders to join.
+
+    ``nearest`` (ties to the lowest id), ``lowest_id``, or ``first_heard`` (the leader
+    whose Ack triggered the join; the nearest when there is none). An unknown policy is
+    a ValueError.
+
+    >>> choose_leader("nearest", [Candidate(4, 10.0), Candidate(2, 10.0), Candidate(7, 3.0)])
+    7
+    >>> choose_leader("lowest_id", [Candidate(4, 10.0), Candidate(2, 12.0)])
+    2
+    """
+    rule = JOIN[JoinPolicy(policy)]
+    if not candidates:
+        raise ValueError("no candidate leader")
+    return rule(candidates, first_heard)
+
+
+ELECTION: dict[ElectionPolicy, Callable[[Candidate, list[Candidate]], bool]] = {
+    ElectionPolicy.LOWEST_ID: lambda me, rivals: all(me.id < r.id for r in rivals),
+    ElectionPolicy.HIGHEST_DEGREE: lambda me, rivals: all((me.degree, -me.id) > (r.degree, -r.id) for r in rivals),
+    ElectionPolicy.NONE: lambda me, rivals: False,
+}
+
+
+def elected(policy: str, me: Candidate, rivals: list[Candidate]) -> bool:
+    """Rule 6: whether ``me`` takes over among the former members ``rivals`` it can hear.
+
+    ``lowest_id`` (the default priority), ``highest_degree`` (ties to the lowest id), or
+    ``none`` (no election: wait for rule 2 or 4). An unknown policy is a ValueError.
+
+    >>> elected("lowest_id", Candidate(3), [Candidate(5), Candidate(8)])
+    True
+    >>> elected("lowest_id", Candidate(3), [Candidate(2)])
+    False
+    """
+    return ELECTION[ElectionPolicy(policy)](me, rivals)
 
 
 # -- neighbour tables ------------------------------------------------------------------
