@@ -202,9 +202,9 @@ def _receive(table, now, sender, receivers, record, power_dbm, fresh, hears_me, 
                 break
         found = slot >= 0
         if not found:
-            # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
+            # A slot that no Ack can continue any more (an Ack at the instant of expiry may).
             for s in range(slots):
-                if ids[r, s] == EMPTY or now - records[r, s, LAST_HEARD] > tau_s:
+                if ids[r, s] == EMPTY or not continues(records[r, s, LAST_HEARD], now, tau_s):
                     slot = s
                     break
             if slot < 0:
@@ -218,7 +218,7 @@ def _receive(table, now, sender, receivers, record, power_dbm, fresh, hears_me, 
             continue
         if fresh is not None:
             fresh[k] = True
-        was_live = found and now - old[LAST_HEARD] <= tau_s
+        was_live = found and continues(old[LAST_HEARD], now, tau_s)
         live_since = old[LIVE_SINCE] if was_live else now
         if hm:
             bidir_since = old[BIDIR_SINCE] if was_live and old[HEARS_ME] != 0 else now
@@ -521,6 +521,14 @@ def is_live(last_heard_s, now, tau_s):
     """An entry is live while the last Ack that told it arrived less than ``tau_s`` ago: the
     timeout rule, read by every use of the table."""
     return now - last_heard_s < tau_s
+
+
+@jit(nogil=True, inline="always")
+def continues(last_heard_s, now, tau_s):
+    """Whether an Ack arriving ``now`` continues an entry last told at ``last_heard_s``: up to
+    ``tau_s`` after it, the instant of expiry included (an Ack at exactly ``tau`` keeps the
+    entry's history, docs/model.md section 4), where :func:`is_live` has already ended."""
+    return now - last_heard_s <= tau_s
 
 
 @jit(nogil=True)
