@@ -177,7 +177,6 @@ class LinkRules:
 
     def _power_candidates(self, pos, t_s, i, j, d, walls) -> Candidates:
         p = self.log
-        wall_db = self.wall_loss_db * walls
         x = np.zeros(len(i))
         travel = np.full(len(i), np.inf)
         if self.shadow is not None:
@@ -188,9 +187,9 @@ class LinkRules:
             seen = np.ones(len(i), bool)
         # Summed as a frame's loss is, so that a link is a candidate exactly when the radio
         # would hear a frame across it.
-        loss = (p.path_loss_db(d) + x) + wall_db
+        loss = p.loss_db(d, x, walls)
         ok = seen & p.radio.hears(loss)
-        margin = np.maximum(p.radio.budget_db - loss, 0.0)
+        margin = np.maximum(p.radio.margin_db(loss), 0.0)
         i, j, d, walls, x, margin = i[ok], j[ok], d[ok], walls[ok], x[ok], margin[ok]
         travel = travel[ok]
         if self.shadow is None:

@@ -1056,7 +1056,7 @@ class Fade:
             exact = knows.sent_s >= t0_s
             seen = np.isfinite(x) & np.isfinite(since) & exact
             x0 = np.where(seen, x, 0.0)
-            m0 = np.where(seen, r.tx_power_dbm - r.path_loss_db(np.maximum(d0, 1e-9)) - x0 - r.sensitivity_dbm, 0.0)
+            m0 = np.where(seen, r.margin_db(np.maximum(d0, 1e-9), x0), 0.0)
             budget, length, left = self._allowance(knows, m0, x0, since, t0_s, speed_mps)
             # B <= m0: the margin at d0 is at least B (max: the inverse's rounding).
             length = np.maximum(length, d0)

@@ -50,6 +50,15 @@ class Radio(NamedTuple):
         """Whether a frame after ``loss_db`` arrives at or above the sensitivity."""
         return self.tx_power_dbm - loss_db >= self.sensitivity_dbm
 
+    def margin_db(self, loss_db):
+        """How far above the sensitivity a frame after ``loss_db`` arrives: ``(P_t -
+        sensitivity) - loss`` (negative: not heard).
+
+        >>> Radio(20.0, -80.0).margin_db(np.array([99.0, 100.0, 101.0])).tolist()
+        [1.0, 0.0, -1.0]
+        """
+        return self.budget_db - loss_db
+
 
 # The unit disk has no power: its chain adds 0 dB within range and infinity beyond, heard
 # with a budget of 0 dB.

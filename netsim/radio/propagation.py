@@ -163,6 +163,15 @@ class LogDistanceParams(RadioParams):
         """:func:`path_loss_db` under these parameters."""
         return path_loss_db(distance_m, self)
 
+    def loss_db(self, distance_m, shadowing_db=0.0, walls=0) -> np.ndarray:
+        """A pair's loss as a frame's decision sums it: ``(PL(d) + X) + W``, ``W`` the loss
+        of ``walls`` walls crossed."""
+        return (self.path_loss_db(distance_m) + shadowing_db) + self.wall_loss_db * np.asarray(walls)
+
+    def margin_db(self, distance_m, shadowing_db=0.0, walls=0) -> np.ndarray:
+        """The pair's power margin over the sensitivity, ``Radio.margin_db`` of :meth:`loss_db`."""
+        return self.radio.margin_db(self.loss_db(distance_m, shadowing_db, walls))
+
     def implied_range_m(self) -> float:
         """:func:`implied_range_m` under these parameters."""
         return implied_range_m(self)
