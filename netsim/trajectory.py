@@ -73,11 +73,6 @@ class LegTable:
         has[has] &= self.t[nxt[has]] < b
         return has
 
-    def leg_at(self, i: int, t: float) -> int:
-        """Index of robot ``i``'s leg current at ``t``."""
-        lo, hi = self.first[i], self.end[i]
-        return lo + int(np.searchsorted(self.t[lo:hi], t, "right")) - 1
-
 
 def sample_positions(
     legs: pd.DataFrame, n: int, times_s: npt.ArrayLike, side_m: float | None = None, torus: bool = False

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from netsim.errors import ConfigError
-from netsim.radio.shadowing import PairShadowing, pair_keys, split_keys, travel_steps
+from netsim.radio.shadowing import PairShadowing, pair_keys, split_keys
 from netsim.tools.radio_checks import correlation_table
 
 
@@ -106,13 +106,6 @@ def test_pair_keys_round_trip():
     a, b = np.array([5, 0, 2**31 - 1]), np.array([3, 9, 7])
     lo, hi = split_keys(pair_keys(a, b))
     assert lo.tolist() == [3, 0, 7] and hi.tolist() == [5, 9, 2**31 - 1]
-
-
-def test_travel_steps_are_exact_crossings():
-    pair, t = travel_steps([0.5, 1.0, 7.9], [2.0, 1.0, 0.0], 10.0, 12.0, 1.0)
-    # Pair 0: travel 0.5 -> 4.5, steps at 1, 2, 3, 4; pair 1: 1 -> 3, at 2 and 3 (1 is not after t0).
-    assert pair.tolist() == [0, 0, 0, 0, 1, 1]
-    assert t == pytest.approx([10.25, 10.75, 11.25, 11.75, 11.0, 12.0])
 
 
 @pytest.mark.parametrize(

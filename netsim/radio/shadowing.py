@@ -48,7 +48,7 @@ Two ways to say when a link is up, with their exactness:
   changes of the walls crossed) a link is the distance threshold
   :func:`~netsim.radio.propagation.effective_range_m` of the pair's ``X`` and walls, so its up
   and down times are the roots of the same quadratic as a unit disk's, solved exactly; the
-  step times are exact too (:func:`travel_steps`: ``s_ij`` is piecewise linear in time). The
+  step times are exact too (``s_ij`` is piecewise linear in time). The
   values at consecutive steps are the process sampled every ``step_m``: correlation exactly
   ``exp(-m step / d_corr)`` at ``m`` steps, and between grid points the linear interpolation
   of the exponential (at ``step_m = d_corr / 10``, within 0.0012 of ``exp(-delta / d_corr)``).
@@ -264,30 +264,3 @@ class PairShadowing:
             keep = ~stale
             self._keys, self._x, self._s = self._keys[keep], self._x[keep], self._s[keep]
         return int(stale.sum())
-
-
-def travel_steps(travel0_m, rate_mps, t0_s, t1_s, step_m: float):
-    """Times in ``(t0, t1]`` at which a pair's travel crosses a multiple of ``step_m``.
-
-    ``travel0_m`` is each pair's travel at ``t0_s`` and ``rate_mps`` the sum of the two
-    robots' speeds (constant while both keep their legs). Returns ``(pair, t_s)`` arrays,
-    grouped by pair in time order: the instants where a piecewise-constant shadowing value
-    changes, between which a link is a fixed distance threshold.
-
-    >>> pair, t = travel_steps([0.5, 3.0], [1.0, 0.0], 0.0, 2.0, 1.0)
-    >>> pair.tolist(), t.tolist()
-    ([0, 0], [0.5, 1.5])
-    """
-    s0 = np.asarray(travel0_m, dtype=float)
-    rate = np.broadcast_to(np.asarray(rate_mps, dtype=float), s0.shape)
-    t0 = np.broadcast_to(np.asarray(t0_s, dtype=float), s0.shape)
-    t1 = np.broadcast_to(np.asarray(t1_s, dtype=float), s0.shape)
-    s1 = s0 + rate * (t1 - t0)
-    first = np.floor(s0 / step_m) + 1
-    last = np.floor(s1 / step_m)
-    n = np.maximum(last - first + 1, 0).astype(np.int64)
-    pair = np.repeat(np.arange(len(s0)), n)
-    offset = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
-    level = (first[pair] + offset) * step_m
-    t = t0[pair] + (level - s0[pair]) / rate[pair]
-    return pair, t

@@ -360,6 +360,7 @@ def check_exact_links(seed: int | None = None) -> list[Check]:
     just before and after every jump), and on the smallest torus allowed (side just above
     twice the range, where other images come into range within a piece)."""
     from netsim.links.lifetimes import jump_times
+    from netsim.links.radio_links import leg_index
     from netsim.trajectory import LegTable
 
     out = []
@@ -381,8 +382,9 @@ def check_exact_links(seed: int | None = None) -> list[Check]:
     for col, flag in (("t_up_s", "censored_start"), ("t_down_s", "censored_end")):
         done = links[~links[flag]]
         for t, a, b in zip(done[col].tolist(), done["a"].tolist(), done["b"].tolist()):
-            la, lb = table.leg_at(a, t), table.leg_at(b, t)
-            d = table.p[la] + table.v[la] * (t - table.t[la]) - table.p[lb] - table.v[lb] * (t - table.t[lb])
+            la, lb = leg_index(table, np.array([a, b]), np.array([t, t]))
+            pa, pb = table.at(np.array([la, lb]), t)
+            d = pa - pb
             dist = math.hypot(*d)
             radial = abs(float(np.dot(d, table.v[la] - table.v[lb]))) / dist
             if radial > 0.01:  # a grazing pass has no well-defined time error
