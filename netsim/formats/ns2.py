@@ -51,6 +51,7 @@ import pandas as pd
 
 from netsim.errors import NetsimInputError
 from netsim.geometry import speeds_mps
+from netsim.trajectory import points_on_legs
 
 _NODE = re.compile(r"\(([^()]*)\)")
 _COORDS = ("X_", "Y_", "Z_")
@@ -425,13 +426,15 @@ def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float
         lines += [f"$node_({i}) set X_ {x!r}", f"$node_({i}) set Y_ {y!r}", f"$node_({i}) set Z_ 0.0"]
     events = []
     speeds = speeds_mps(v)
+    # Each leg's end: the next leg's start, or the run's end.
+    last = np.r_[robot[1:] != robot[:-1], True]
+    t_end = np.minimum(np.where(last, duration_s, np.r_[t[1:], duration_s]), duration_s)
+    ends = points_on_legs(p, v, t, np.arange(len(t)), t_end, None)
     for k in range(len(t)):
         speed = float(speeds[k])
         if speed == 0.0 or t[k] >= duration_s:
             continue
-        last = k + 1 >= len(t) or robot[k + 1] != robot[k]
-        t_end = duration_s if last else min(t[k + 1], duration_s)
-        dx, dy = (p[k] + v[k] * (t_end - t[k])).tolist()
+        dx, dy = ends[k].tolist()
         tk, rk = float(t[k]), int(robot[k])
         events.append((tk, rk, f'$ns_ at {tk!r} "$node_({rk}) setdest {dx!r} {dy!r} {speed!r}"'))
     events.sort(key=lambda e: (e[0], e[1]))

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
+from netsim.trajectory import points_on_legs
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,7 @@ def from_legs(legs: pd.DataFrame, n_robots: int, duration_s: float) -> Waypoints
     xy = legs[["x_m", "y_m"]].to_numpy(float)
     v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
     last = np.r_[robot[1:] != robot[:-1], True]
-    end = xy[last] + v[last] * (duration_s - t[last])[:, None]
+    end = points_on_legs(xy, v, t, np.flatnonzero(last), duration_s, None)
     rows_r = np.concatenate([robot, robot[last]])
     rows_t = np.concatenate([t, np.full(int(last.sum()), duration_s)])
     rows_xy = np.concatenate([xy, end])
