@@ -28,6 +28,7 @@ import pandas as pd
 
 from netsim.config import from_dict
 from netsim.errors import NetsimInputError
+from netsim.geometry import speeds_mps
 from netsim.groups import in_a_group, leads_itself
 from netsim.links.lifetimes import link_lifetimes
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
@@ -108,7 +109,7 @@ def completed_leg_lengths(legs: pd.DataFrame) -> np.ndarray:
     by the stationary start) left out."""
     t, r = legs["t_s"].to_numpy(), legs["robot"].to_numpy()
     same = r[1:] == r[:-1]
-    speed = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()[:-1]
+    speed = speeds_mps(legs[["vx_mps", "vy_mps"]].to_numpy(float))[:-1]
     first = np.r_[True, r[1:-1] != r[:-2]]
     lengths = (speed * np.diff(t))[same & ~first & (speed > 0)]
     return lengths
@@ -122,7 +123,7 @@ def leg_lengths_from_third(legs: pd.DataFrame, before_s: float) -> tuple[np.ndar
     sqrt 2 over the lowest speed before its end): then which legs count does not depend on
     how long they are, as it would if legs were kept for having ended."""
     t, r = legs["t_s"].to_numpy(), legs["robot"].to_numpy()
-    speed = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()
+    speed = speeds_mps(legs[["vx_mps", "vy_mps"]].to_numpy(float))
     same = np.r_[r[1:] == r[:-1], False]
     moving = same & (speed > 0)
     rank = pd.Series(moving.astype(int)).groupby(r).cumsum().to_numpy()
@@ -211,7 +212,7 @@ def check_stationary_start(seed: int | None = None) -> list[Check]:
                 "per unit area",
             )
         )
-    speeds = np.hypot(*sim.state.velocity_mps.T)
+    speeds = sim.state.speed_mps
     out.append(
         Check(
             "1, 4",
@@ -1017,7 +1018,7 @@ def check_rpgm(seed: int | None = None) -> list[Check]:
             distance.extend((np.hypot(*new.T) / radius).tolist())
             dot.extend(((old * new).sum(axis=1) / radius**2).tolist())
             member.extend([i] * len(new))
-    speed = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()
+    speed = speeds_mps(legs[["vx_mps", "vy_mps"]].to_numpy(float))
     faster = int((speed > vmax * (1 + 1e-9)).sum())
     distance_a, dot_a, member_a = np.array(distance), np.array(dot), np.array(member)
     return [
