@@ -53,9 +53,11 @@ def finite_positions(pos_m: np.ndarray) -> None:
 
 
 def in_box(pos: np.ndarray, box: float | None) -> np.ndarray:
-    """Positions folded into ``[0, box)`` on a torus (unchanged on the plane)."""
+    """Positions ``(..., 2)`` folded into ``[0, box)`` on a torus, as a robot's position is
+    (:func:`netsim._kernels.fold`); unchanged on the plane."""
     if box is None:
         return pos
-    # The torus's grid wants coordinates in [0, box).
-    pos = np.mod(pos, box)
-    return np.where(pos >= box, 0.0, pos)
+    flat = np.ascontiguousarray(pos, dtype=float).reshape(-1, 2)
+    out = np.empty_like(flat)
+    load("netsim._kernels", len(flat)).folded(flat, float(box), out)
+    return out.reshape(np.shape(pos))

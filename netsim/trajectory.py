@@ -7,6 +7,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from netsim.compiled import load
+from netsim.geometry import in_box
 
 
 def points_on_legs(
@@ -85,7 +86,7 @@ def sample_positions(
         table.advance(t)
         xy[k] = table.at(table.cur, t)
     if torus:
-        xy = np.mod(xy, side_m)  # type: ignore[arg-type]  # side_m is given with torus
+        xy = in_box(xy, side_m)
     return pd.DataFrame(
         {
             "t_s": np.repeat(times_s, n),

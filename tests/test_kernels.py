@@ -83,6 +83,20 @@ def test_positions_are_each_legs_law(monkeypatch, torus, compiled):
         st.positions_at(t, np.ones(st.n, bool))
 
 
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_a_position_on_a_torus_has_one_representation(monkeypatch, compiled):
+    """On a torus a coordinate is in ``[0, side)``: a point a hair below 0, whose remainder
+    rounds up to the side, is at 0, for the state and for the positions folded in bulk."""
+    from netsim.geometry import in_box
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    st = RobotState(2, 10.0, 1.0, torus=True)
+    st.origin_m[:] = [[-1e-17, 5.0], [3.0, -1e-300]]
+    assert (-1e-17) % 10.0 == 10.0  # the case: the remainder rounds up to the side
+    assert st.positions_at(0.0).tolist() == [[0.0, 5.0], [3.0, 0.0]]
+    assert in_box(st.origin_m, 10.0).tolist() == [[0.0, 5.0], [3.0, 0.0]]
+
+
 def test_the_odometer_is_the_sum_of_each_legs_travel():
     """A robot's path length is the sum over its legs of ``|v|`` times the leg's time, with
     the one ``|v|`` the shadowing's clock takes (numpy's complex abs), whichever way its legs

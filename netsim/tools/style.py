@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from netsim.geometry import in_box
+
 # Kelly (1965), colours of maximum contrast, in his order (grey, white, black left out).
 GROUP_PALETTE = (
     "#BE0032",  # vivid red
@@ -100,7 +102,7 @@ def _near_pairs(xy: np.ndarray, range_m: float, side_m: float | None) -> np.ndar
     from scipy.spatial import cKDTree
 
     if side_m is not None:
-        xy = np.mod(xy, side_m)
+        xy = in_box(xy, side_m)
     tree = cKDTree(xy, boxsize=side_m)
     return tree.query_pairs(NEIGHBOUR_RANGES * range_m, output_type="ndarray")
 

@@ -19,12 +19,16 @@ def _wrap(d: np.ndarray, side: float) -> np.ndarray:
 
 def positions(st, t: float, idx=None, fold: bool = True) -> np.ndarray:
     """Every robot's (or rows ``idx``') position at ``t`` on its current leg, in numpy
-    operations: ``origin + velocity * (t - t0)``, folded onto the torus by ``np.mod``."""
+    operations: ``origin + velocity * (t - t0)``, folded onto the torus by ``np.mod`` into
+    ``[0, side)`` (a remainder that rounds up to the side is 0)."""
     if idx is None:
         p = st.origin_m + st.velocity_mps * (t - st.t0_s)[:, None]
     else:
         p = st.origin_m[idx] + st.velocity_mps[idx] * (t - st.t0_s[idx])[..., None]
-    return np.mod(p, st.side_m) if st.torus and fold else p
+    if not (st.torus and fold):
+        return p
+    p = np.mod(p, st.side_m)
+    return np.where(p >= st.side_m, 0.0, p)
 
 
 def within(st, t: float, i: int, r: float, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
