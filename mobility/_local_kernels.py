@@ -182,6 +182,20 @@ def largest_travels_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
     return out
 
 
+@jit(nogil=True, inline="always")
+def remembers(sent_s, now_s, release_s):
+    """A robot still remembers another at ``now_s`` when the latest Ack of it it heard was
+    sent less than ``release_s`` before (docs/model.md 5.1): the one rule of memory."""
+    return now_s - sent_s < release_s
+
+
+@jit(nogil=True)
+def remembered(sent_s, now_s, release_s, out):
+    """:func:`remembers` of every time of ``sent_s`` (1-d) into ``out``."""
+    for k in range(sent_s.shape[0]):
+        out[k] = remembers(sent_s[k], now_s, release_s)
+
+
 @jit(nogil=True)
 def measured_range_m(x_db, measured_s, travel_m, fade):
     """How long a link whose shadowing was measured at ``x_db`` on a frame sent no earlier
@@ -274,7 +288,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 continue
             for p in range(start[s, u], start[s, u + 1]):
                 b = local[other[p]]
-                if b >= 0 and t0_s - listed_s[p] < release_s:
+                if b >= 0 and remembers(listed_s[p], t0_s, release_s):
                     certain[a, b] = True
                     s_p = min(listed_s[p], opens_s) if window_s > 0 else listed_s[p]
                     listed = node[b]

@@ -356,7 +356,7 @@ class Memory:
 
     def known(self, now_s: float, release_s: float) -> np.ndarray:
         """``(n, n)``: ``i`` remembers ``j`` (heard an Ack of it sent less than ``release_s`` ago)."""
-        return now_s - self.sent_s < release_s
+        return remembered(self.sent_s, now_s, release_s)
 
     def at(self, t0_s: float, speed_mps: float, jitter_s: float) -> Memory:
         """What the robots know of each other at ``t0_s``, as a memory of Acks without
@@ -463,6 +463,16 @@ class Lists:
         return Heard(known, which.astype(np.int64), start, other.astype(np.int64), sent, xy, float(release_s), x)
 
 
+def remembered(sent_s: np.ndarray, now_s: float, release_s: float) -> np.ndarray:
+    """Whether each Ack sent at ``sent_s`` is still remembered at ``now_s`` (the kernel
+    :func:`netsim.mobility._local_kernels.remembers`), in the shape of ``sent_s``."""
+    sent = np.ascontiguousarray(sent_s, dtype=float)
+    out = np.empty(sent.shape, dtype=bool)
+    kernels = load("netsim.mobility._local_kernels", sent.shape[0])
+    kernels.remembered(sent.reshape(-1), float(now_s), float(release_s), out.reshape(-1))
+    return out
+
+
 def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Entries (indices into ``heard``) of the list ``i`` holds from ``u`` that still stand at
     ``t_s``: ``u`` remembers those robots then (a robot's memory only refreshes)."""
@@ -470,7 +480,7 @@ def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.n
     if k < 0:
         return np.empty(0, np.int64), np.empty(0, np.int64)
     entries = np.arange(heard.start[k, u], heard.start[k, u + 1])
-    entries = entries[t_s - heard.sent_s[entries] < heard.release_s]
+    entries = entries[remembered(heard.sent_s[entries], t_s, heard.release_s)]
     return entries, heard.other[entries]
 
 
