@@ -86,7 +86,11 @@ _LOW = np.int64((1 << 32) - 1)
 
 def pair_keys(a, b) -> np.ndarray:
     """One int64 key per unordered pair: ``min << 32 | max`` (robot ids below 2**31), the
-    key a frame's decision gives the pair (:func:`netsim.radio._kernels.pair_key`)."""
+    key a frame's decision gives the pair (:func:`netsim.radio._kernels.pair_key`).
+
+    >>> pair_keys([5, 0], [3, 9]).tolist() == [(3 << 32) | 5, 9]
+    True
+    """
     a, b = np.broadcast_arrays(np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64))
     flat_a, flat_b = np.ascontiguousarray(a).reshape(-1), np.ascontiguousarray(b).reshape(-1)
     out = np.empty(flat_a.shape[0], np.int64)
