@@ -182,18 +182,12 @@ def largest_travels_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
     return out
 
 
-@jit(nogil=True, inline="always")
+@jit(nogil=True)
 def remembers(sent_s, now_s, release_s):
     """A robot still remembers another at ``now_s`` when the latest Ack of it it heard was
-    sent less than ``release_s`` before (docs/model.md 5.1): the one rule of memory."""
+    sent less than ``release_s`` before (docs/model.md 5.1): the one rule of memory, for
+    one sending time or an array of them."""
     return now_s - sent_s < release_s
-
-
-@jit(nogil=True)
-def remembered(sent_s, now_s, release_s, out):
-    """:func:`remembers` of every time of ``sent_s`` (1-d) into ``out``."""
-    for k in range(sent_s.shape[0]):
-        out[k] = remembers(sent_s[k], now_s, release_s)
 
 
 @jit(nogil=True)

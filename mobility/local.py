@@ -466,11 +466,8 @@ class Lists:
 def remembered(sent_s: np.ndarray, now_s: float, release_s: float) -> np.ndarray:
     """Whether each Ack sent at ``sent_s`` is still remembered at ``now_s`` (the kernel
     :func:`netsim.mobility._local_kernels.remembers`), in the shape of ``sent_s``."""
-    sent = np.ascontiguousarray(sent_s, dtype=float)
-    out = np.empty(sent.shape, dtype=bool)
-    kernels = load("netsim.mobility._local_kernels", sent.shape[0])
-    kernels.remembered(sent.reshape(-1), float(now_s), float(release_s), out.reshape(-1))
-    return out
+    sent = np.asarray(sent_s, dtype=float)
+    return load("netsim.mobility._local_kernels", sent.shape[0]).remembers(sent, float(now_s), float(release_s))
 
 
 def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -528,7 +525,7 @@ def let_go(
     listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
     heard = heard._replace(x_db=listed_x, release_s=float(heard.release_s))
     quiet = np.zeros((n, n), dtype=bool) if silent_of is None else np.ascontiguousarray(silent_of, dtype=bool)
-    remembered = Remembered(
+    memories = Remembered(
         memory.xy,
         memory.sent_s,
         heard.known,
@@ -538,7 +535,7 @@ def let_go(
         memory.leg_speed_mps,
         memory.leg_from_s,
     )
-    kernels.let_go(pos, remembered, heard, rule, walls, out, NO_FADE if fade is None else fade.rule)
+    kernels.let_go(pos, memories, heard, rule, walls, out, NO_FADE if fade is None else fade.rule)
     return out
 
 
@@ -888,7 +885,6 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
     return np.concatenate(robots), np.concatenate(xys)
 
 
-# The fade rule switched off (:func:`netsim.mobility._local_kernels.let_go`).
 class FadeRule(NamedTuple):
     """The shadowing's rule as the kernels read it (:func:`netsim.mobility._local_kernels.measured_range_m`)."""
 
@@ -900,6 +896,7 @@ class FadeRule(NamedTuple):
     exponent: float
 
 
+# The fade rule switched off (:func:`netsim.mobility._local_kernels.let_go`).
 NO_FADE = FadeRule(False, 0.0, 1.0, 0.0, 1.0, 1.0)
 
 

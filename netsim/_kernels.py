@@ -42,22 +42,14 @@ def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
     return x, y
 
 
-@jit(nogil=True, inline="always")
+@jit(nogil=True)
 def fold(x, side_m):
     """A coordinate on a torus of side ``side_m``, in ``[0, side_m)``: ``x mod side``, and 0
     where that rounds up to the side itself (a tiny negative ``x``), so that a point has one
-    representation."""
-    r = x % side_m
-    return 0.0 if r >= side_m else r
-
-
-@jit(nogil=True)
-def folded(pos, side_m, out):
-    """:func:`fold` of every coordinate of ``pos`` (``(k, 2)``) into ``out``
+    representation. One expression for a number or an array of them
     (:func:`netsim.geometry.in_box`)."""
-    for k in range(pos.shape[0]):
-        out[k, 0] = fold(pos[k, 0], side_m)
-        out[k, 1] = fold(pos[k, 1], side_m)
+    r = x % side_m
+    return r - side_m * (r >= side_m)
 
 
 @jit(nogil=True)

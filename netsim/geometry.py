@@ -52,12 +52,11 @@ def finite_positions(pos_m: np.ndarray) -> None:
         raise ValueError("robot positions must be finite to find the pairs in range")
 
 
-def in_box(pos: np.ndarray, box: float | None) -> np.ndarray:
-    """Positions ``(..., 2)`` folded into ``[0, box)`` on a torus, as a robot's position is
-    (:func:`netsim._kernels.fold`); unchanged on the plane."""
+def in_box(pos: np.ndarray, box: float | None, n_robots: int | None = None) -> np.ndarray:
+    """Positions folded into ``[0, box)`` on a torus, as a robot's position is
+    (:func:`netsim._kernels.fold`), for a team of ``n_robots`` (None: one per row);
+    unchanged on the plane."""
     if box is None:
         return pos
-    flat = np.ascontiguousarray(pos, dtype=float).reshape(-1, 2)
-    out = np.empty_like(flat)
-    load("netsim._kernels", len(flat)).folded(flat, float(box), out)
-    return out.reshape(np.shape(pos))
+    pos = np.asarray(pos, dtype=float)
+    return load("netsim._kernels", len(pos) if n_robots is None else n_robots).fold(pos, float(box))

@@ -86,7 +86,7 @@ def sample_positions(
         table.advance(t)
         xy[k] = table.at(table.cur, t)
     if torus:
-        xy = in_box(xy, side_m)
+        xy = in_box(xy, side_m, n)
     return pd.DataFrame(
         {
             "t_s": np.repeat(times_s, n),

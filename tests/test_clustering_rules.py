@@ -331,17 +331,18 @@ def rule_kernels(request):
     return importlib.import_module(PROTOCOL_KERNELS) if request.param == "plain" else compiled_copy(PROTOCOL_KERNELS)
 
 
-def _row(entries, n):
-    """Robot 0's neighbour table (the other rows empty): one live two-way entry per ``(id,
-    role, leader, x, y, degree)``, heard just now."""
+def _row(entries, n, row=0):
+    """Robot ``row``'s neighbour table (the other rows empty): one live two-way entry per
+    ``(id, role, leader, x, y, degree)``, heard just now."""
     from netsim.protocols._kernels import DEGREE, EMPTY_RECORD, HEARS_ME, LAST_HEARD, ROLE, X, Y
     from netsim.protocols._kernels import LEADER as LEADER_FIELD
 
     ids = np.full((n, max(len(entries), 1)), -1, dtype=np.int64)
     records = np.broadcast_to(EMPTY_RECORD, (*ids.shape, len(EMPTY_RECORD))).copy()
     for s, (j, role, leader, x, y, degree) in enumerate(entries):
-        ids[0, s] = j
-        records[0, s, [LAST_HEARD, HEARS_ME, ROLE, LEADER_FIELD, X, Y, DEGREE]] = [NOW_S, 1, role, leader, x, y, degree]
+        ids[row, s] = j
+        fields = [LAST_HEARD, HEARS_ME, ROLE, LEADER_FIELD, X, Y, DEGREE]
+        records[row, s, fields] = [NOW_S, 1, role, leader, x, y, degree]
     return ids, records
 
 
@@ -380,24 +381,24 @@ def test_merge_loser_is_the_same_seen_from_both_sides():
 
 
 def _elected(kernels, policy, me, degree, rivals):
-    """Rule 6 by the kernel: whether robot ``me`` (announcing ``degree``; it is robot 0's row
-    that is read, so ``me`` is 0) takes over from leader 9 among its former members
-    ``rivals``, ``(id, degree)``."""
-    assert me == 0
-    ids, records = _row([(j, MEMBER, 9, 0.0, 0.0, d) for j, d in rivals], 10)
+    """Rule 6 by the kernel: whether robot ``me`` (announcing ``degree``) takes over from
+    leader 9 among its former members ``rivals``, ``(id, degree)``."""
+    ids, records = _row([(j, MEMBER, 9, 0.0, 0.0, d) for j, d in rivals], 10, row=me)
     rules = rules_record(TAU, 1.0, False, "nearest", policy)
-    return bool(kernels.elected_in_row((ids, records, TAU), 0, NOW_S, rules, 9, degree))
+    return bool(kernels.elected_in_row((ids, records, TAU), me, NOW_S, rules, 9, degree))
 
 
 def test_election_policies(rule_kernels):
     """Rule 6's policies: the lowest id (vacuously with no rival), the highest degree (ties
     to the lowest id), or none."""
-    assert _elected(rule_kernels, "lowest_id", 0, 0, []) is True
-    assert _elected(rule_kernels, "lowest_id", 0, 0, [(3, 0), (5, 0)]) is True
-    assert _elected(rule_kernels, "none", 0, 0, []) is False
-    assert _elected(rule_kernels, "highest_degree", 0, 4, [(1, 3)]) is True
-    assert _elected(rule_kernels, "highest_degree", 0, 3, [(1, 4)]) is False
-    assert _elected(rule_kernels, "highest_degree", 0, 3, [(1, 3)]) is True  # tie: lowest id
+    assert _elected(rule_kernels, "lowest_id", 3, 0, []) is True
+    assert _elected(rule_kernels, "lowest_id", 3, 0, [(5, 0), (8, 0)]) is True
+    assert _elected(rule_kernels, "lowest_id", 3, 0, [(5, 0), (1, 0)]) is False
+    assert _elected(rule_kernels, "none", 3, 0, []) is False
+    assert _elected(rule_kernels, "highest_degree", 5, 4, [(1, 3)]) is True
+    assert _elected(rule_kernels, "highest_degree", 5, 3, [(1, 4)]) is False
+    assert _elected(rule_kernels, "highest_degree", 1, 3, [(5, 3)]) is True  # tie: lowest id
+    assert _elected(rule_kernels, "highest_degree", 5, 3, [(1, 3)]) is False
 
 
 def test_roles_table_is_the_frame_of_its_records():

@@ -620,3 +620,19 @@ def test_bad_plan_is_one_line_exit_2_nothing_written(tmp_path, capsys, overrides
     assert msg.startswith(f"netsim: error: {key} = "), msg
     assert "\n" not in msg
     assert not out.exists()
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_a_robot_remembers_another_while_its_latest_ack_is_younger_than_release_s(monkeypatch, compiled):
+    """Rule of memory: an Ack sent exactly ``release_s`` ago is forgotten, one a hair younger
+    remembered, one never heard (sent at minus infinity) never; the same for a number, a
+    row and the robots' (n, n) memory, whose shape it keeps."""
+    from netsim.mobility.local import Memory, remembered
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    release_s, now = 20.0, 50.0
+    sent = np.array([now - release_s, np.nextafter(now - release_s, now), now, -np.inf])
+    assert remembered(sent, now, release_s).tolist() == [False, True, True, False]
+    m = Memory(2)
+    m.sent_s[:] = [[-np.inf, now - release_s], [np.nextafter(now - release_s, now), -np.inf]]
+    assert m.known(now, release_s).tolist() == [[False, False], [True, False]]

@@ -10,14 +10,16 @@ import pytest
 
 
 @pytest.mark.slow
-def test_small_run_imports_no_graph_jit_or_plotting(tmp_path):
-    """``netsim run`` with 10 robots: networkx, numba and matplotlib stay unloaded."""
+@pytest.mark.parametrize("world", [[], ["--set", "world.torus=true"]], ids=["plane", "torus"])
+def test_small_run_imports_no_graph_jit_or_plotting(tmp_path, world):
+    """``netsim run`` with 10 robots, on the plane and on a torus (whose positions are folded
+    for the sampled tables too): networkx, numba and matplotlib stay unloaded."""
     code = (
         "import sys\n"
         "from netsim.tools.cli import main\n"
         "try:\n"
         f"    main(['run', '--out', {str(tmp_path)!r}, '--no-progress', '--quiet',"
-        " '--set', 'world.n_robots=10', '--set', 'duration_s=5'])\n"
+        f" '--set', 'world.n_robots=10', '--set', 'duration_s=5', *{world!r}])\n"
         "except SystemExit as exc:\n"
         "    assert not exc.code, exc.code\n"
         "print(sorted(m for m in ('networkx', 'numba', 'matplotlib') if m in sys.modules))\n"

@@ -2,6 +2,8 @@
 oracle's (tests/oracles/links.py), compared with ``==``, on the plane and on a torus; and
 link lifetimes are the same either way."""
 
+import math
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -143,3 +145,19 @@ def test_in_range_equals_numpy(box, kind):
     want = in_range(pos, a, b, radius, box)
     assert (got == want).all()
     assert 0.2 < want.mean() < 0.95
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_pair_comes_into_range_and_leaves_it_at_the_roots_of_its_path(compiled):
+    """``disk_crossing_times``, the one rule of when a pair on straight legs enters and
+    leaves the disk (the link solvers and the walls' chunks): the two roots of ``|d + w t| =
+    r`` counted from the origin given, entry first; NaN for a pair at rest (in range or not)
+    and for a path that only touches the disk or misses it."""
+    from netsim import _kernels as core
+
+    k = compiled_copy("netsim._kernels") if compiled else core
+    assert k.disk_crossing_times(2.0, -10.0, 0.0, 1.0, 0.0, 5.0) == (7.0, 17.0)
+    assert k.disk_crossing_times(0.0, 10.0, 0.0, -2.0, 0.0, 5.0) == (2.5, 7.5)
+    for args in ((0.0, 1.0, 1.0, 0.0, 0.0, 5.0), (0.0, 9.0, 9.0, 0.0, 0.0, 5.0), (0.0, -10.0, 5.0, 1.0, 0.0, 5.0)):
+        assert all(math.isnan(t) for t in k.disk_crossing_times(*args)), args
+    assert all(math.isnan(t) for t in k.disk_crossing_times(0.0, -10.0, 6.0, 1.0, 0.0, 5.0))

@@ -158,3 +158,18 @@ def test_timeout_an_entry_is_live_while_its_last_ack_is_younger_than_tau(kernels
     rng = np.random.default_rng(3)
     last = rng.uniform(0.0, now, 500)
     assert kernels.live_entries(last, now, tau_s).tolist() == (now - last < tau_s).tolist()
+
+
+def test_an_ack_at_the_instant_of_expiry_continues_the_entry(kernels):
+    """An Ack up to tau after the entry's last one continues it (its history kept), the
+    instant of expiry included, where the entry is no longer live; a hair later it starts
+    afresh."""
+    tau_s, now = 2.5, 10.0
+    for last, live, continued in (
+        (now - tau_s, False, True),
+        (np.nextafter(now - tau_s, -np.inf), False, False),
+        (np.nextafter(now - tau_s, now), True, True),
+        (now, True, True),
+    ):
+        assert bool(kernels.is_live(float(last), now, tau_s)) is live
+        assert bool(kernels.continues(float(last), now, tau_s)) is continued

@@ -198,3 +198,23 @@ def test_a_waypoint_on_a_map_is_uniform_over_the_free_space_visible_from_the_rob
     if (~pooled).any():
         exp, obs = np.append(exp, expected[seen][~pooled].sum()), np.append(obs, got[seen][~pooled].sum())
     assert chisquare(obs, exp / exp.sum() * obs.sum()).pvalue > 1e-4
+
+
+def test_a_draw_from_free_cells_lands_in_their_part_of_the_box_and_refuses_none(rng):
+    """``free_cells`` keeps the free cells' parts inside the box (positive area only) and
+    ``draw_free`` draws in them (a start on a map, waypoints alike); no cell to draw from is
+    an error, not a read past the cells."""
+    from netsim.area import Bounds
+    from netsim.world.free_space import draw_free, free_cells
+
+    m = _rooms()
+    mask = np.zeros(m.shape, dtype=bool)
+    mask[2, 3] = True  # the cell [1.5, 2) x [1, 1.5)
+    mask[5, 30] = True  # outside the box below
+    cells = free_cells(m, mask, Bounds(1.75, 0.0, 10.0, 10.0))
+    assert cells.x0.tolist() == [1.75] and cells.x1.tolist() == [2.0] and cells.cdf.tolist() == [0.125]
+    p = draw_free(m, cells, rng, 200)
+    assert ((p[:, 0] >= 1.75) & (p[:, 0] <= 2.0) & (p[:, 1] >= 1.0) & (p[:, 1] <= 1.5)).all()
+    empty = free_cells(m, np.zeros(m.shape, dtype=bool), Bounds(0.0, 0.0, 20.0, 10.0))
+    with pytest.raises(ValueError, match="no free cell"):
+        draw_free(m, empty, rng, 1)

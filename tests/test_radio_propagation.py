@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+import netsim.radio.chain
 import netsim.radio.propagation
 import netsim.radio.shadowing
 import netsim.world.los
@@ -28,7 +29,7 @@ from netsim.world.maps import OccupancyMap
 
 @pytest.mark.parametrize(
     "module",
-    [netsim.radio.propagation, netsim.radio.shadowing, netsim.world.maps, netsim.world.los],
+    [netsim.radio.chain, netsim.radio.propagation, netsim.radio.shadowing, netsim.world.maps, netsim.world.los],
 )
 def test_docstring_examples(module):
     result = doctest.testmod(module)
@@ -181,3 +182,16 @@ def test_sensitivity_above_reference_power_is_refused():
     """If nothing links even at d0, the parameters are a mistake."""
     with pytest.raises(ConfigError, match="channel.sensitivity_dbm"):
         LogDistanceParams(tx_power_dbm=20.0, reference_loss_db=40.0, sensitivity_dbm=-20.0)
+
+
+def test_a_pairs_loss_and_margin_are_summed_as_a_frames_decision_sums_them():
+    """``loss_db`` is ``(PL(d) + X) + W`` in that order, the order of a frame's decision, and
+    ``margin_db`` the budget ``P_t - sensitivity`` less it: 17 dB at 10 m (PL 70 dB) with 3
+    dB of shadowing and two 5 dB walls."""
+    p = LogDistanceParams(shadowing_sigma_db=4.0)
+    assert float(p.loss_db(10.0, 3.0, 2)) == 83.0 and float(p.margin_db(10.0, 3.0, 2)) == 17.0
+    rng = np.random.default_rng(5)
+    d, x, w = rng.uniform(0.5, 300.0, 20000), rng.normal(0.0, 4.0, 20000), rng.integers(0, 4, 20000)
+    loss = p.loss_db(d, x, w)
+    assert loss.tobytes() == ((p.path_loss_db(d) + x) + 5.0 * w).tobytes()
+    assert p.margin_db(d, x, w).tobytes() == (p.radio.budget_db - loss).tobytes()

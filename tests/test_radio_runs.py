@@ -322,6 +322,7 @@ def test_positions_at_many_instants_follow_the_legs():
     L = LegTable(legs, 20)
     robots, times = rng.integers(0, 20, 3000), rng.uniform(0, 100, 3000)
     robots[:40], times[:40] = legs.robot.to_numpy()[:40], legs.t_s.to_numpy()[:40]
+
     def leg_at(i, t):  # the oracle: robot i's last leg starting at or before t
         lo, hi = L.first[i], L.end[i]
         return lo + int(np.searchsorted(L.t[lo:hi], t, "right")) - 1

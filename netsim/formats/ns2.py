@@ -429,7 +429,7 @@ def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float
     # Each leg's end: the next leg's start, or the run's end.
     last = np.r_[robot[1:] != robot[:-1], True]
     t_end = np.minimum(np.where(last, duration_s, np.r_[t[1:], duration_s]), duration_s)
-    ends = points_on_legs(p, v, t, np.arange(len(t)), t_end, None)
+    ends = points_on_legs(p, v, t, np.arange(len(t)), t_end, n_robots)
     for k in range(len(t)):
         speed = float(speeds[k])
         if speed == 0.0 or t[k] >= duration_s:

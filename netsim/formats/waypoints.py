@@ -95,7 +95,7 @@ def from_legs(legs: pd.DataFrame, n_robots: int, duration_s: float) -> Waypoints
     xy = legs[["x_m", "y_m"]].to_numpy(float)
     v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
     last = np.r_[robot[1:] != robot[:-1], True]
-    end = points_on_legs(xy, v, t, np.flatnonzero(last), duration_s, None)
+    end = points_on_legs(xy, v, t, np.flatnonzero(last), duration_s, n_robots)
     rows_r = np.concatenate([robot, robot[last]])
     rows_t = np.concatenate([t, np.full(int(last.sum()), duration_s)])
     rows_xy = np.concatenate([xy, end])

@@ -46,9 +46,7 @@ Two ways to say when a link is up, with their exactness:
 - **Piecewise constant in travel** (``step_m > 0``, e.g. ``d_corr / 10``). ``X_ij`` only
   changes when ``s_ij`` crosses a multiple of ``step_m``; between such steps (and between
   changes of the walls crossed) a link is the distance threshold
-  :func:`~netsim.radio.propagation.effective_range_m` of the pair's ``X`` and walls, so its up
-  and down times are the roots of the same quadratic as a unit disk's, solved exactly; the
-  step times are exact too (``s_ij`` is piecewise linear in time). The
+  :func:`~netsim.radio.propagation.effective_range_m` of the pair's ``X`` and walls. The
   values at consecutive steps are the process sampled every ``step_m``: correlation exactly
   ``exp(-m step / d_corr)`` at ``m`` steps, and between grid points the linear interpolation
   of the exponential (at ``step_m = d_corr / 10``, within 0.0012 of ``exp(-delta / d_corr)``).

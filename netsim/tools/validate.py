@@ -928,9 +928,10 @@ def check_gauss_markov(seed: int | None = None) -> list[Check]:
     reach = []
     for _, g in legs.groupby("robot"):
         v = g[["vx_mps", "vy_mps"]].to_numpy()
-        reach.append(np.hypot(*v.T).sum() * sim.config.mobility.update_interval_s)
+        speeds = speeds_mps(v)
+        reach.append(speeds.sum() * sim.config.mobility.update_interval_s)
         # The first updates leave the start at the means: the processes are stationary after.
-        s = np.hypot(*v.T)[1:][skip:]
+        s = speeds[1:][skip:]
         d = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))[1:][skip:]
         means.append(s.mean())
         for name, x in (("speed", s), ("direction", d)):

@@ -86,8 +86,11 @@ def free_cells(m: OccupancyMap, cells: np.ndarray, b: Bounds) -> FreeCells:
 
 
 def draw_free(m: OccupancyMap, cells: FreeCells, rng: np.random.Generator, n: int) -> np.ndarray:
-    """``n`` points uniform over ``cells`` (not empty): a cell by area, a point in it, its
-    centre where rounding left the cell (the kernel :func:`netsim.world._kernels.free_points`)."""
+    """``n`` points uniform over ``cells``: a cell by area, a point in it, its centre where
+    rounding left the cell (the kernel :func:`netsim.world._kernels.free_points`). No cells
+    is a ``ValueError``: there is nowhere to draw from."""
+    if len(cells.cdf) == 0:
+        raise ValueError("no free cell to draw a point in")
     draw_cell = rng.random(n)
     draw_uv = rng.random((n, 2))
     pos = np.empty((n, 2))

@@ -216,7 +216,7 @@ def group_size(records_row, now, tau_s, symmetric, i) -> int:
 
 
 def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard) -> tuple[int, int]:
-    """Rule 2 from robot ``i``'s row: :func:`netsim.protocols.clustering.choose_leader` over
+    """Rule 2 from robot ``i``'s row: :func:`choose_leader` over
     its live two-way leaders but ``exclude``, and the chosen one's first slot."""
     ids_all, records, tau_s = table
     ids_row, records_row = ids_all[i], records[i]
@@ -234,7 +234,7 @@ def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard) -> tuple[i
 
 
 def elected_in_row(table, i, now, rules, old, degree) -> bool:
-    """Rule 6 from robot ``i``'s row: :func:`netsim.protocols.clustering.elected` among the
+    """Rule 6 from robot ``i``'s row: :func:`elected` among the
     former members of ``old`` it knows, each with the degree its last Ack announced."""
     ids_all, records, tau_s = table
     records_row = records[i]
