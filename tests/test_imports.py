@@ -8,12 +8,15 @@ import sys
 
 import pytest
 
+SHADOWING = ["--set", "channel.propagation=log_distance", "--set", "channel.shadowing_sigma_db=4"]
+
 
 @pytest.mark.slow
-@pytest.mark.parametrize("world", [[], ["--set", "world.torus=true"]], ids=["plane", "torus"])
+@pytest.mark.parametrize("world", [[], ["--set", "world.torus=true"], SHADOWING], ids=["plane", "torus", "shadowing"])
 def test_small_run_imports_no_graph_jit_or_plotting(tmp_path, world):
-    """``netsim run`` with 10 robots, on the plane and on a torus (whose positions are folded
-    for the sampled tables too): networkx, numba and matplotlib stay unloaded."""
+    """``netsim run`` with 10 robots, on the plane, on a torus (whose positions are folded
+    for the sampled tables too) and under shadowing (whose pairs are keyed as the team's):
+    networkx, numba and matplotlib stay unloaded."""
     code = (
         "import sys\n"
         "from netsim.tools.cli import main\n"

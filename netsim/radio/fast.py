@@ -146,7 +146,7 @@ class CompiledChain:
     def receivable(self, pairs: Pairs) -> np.ndarray:
         keys = s_new = None
         if self.shadow is not None and len(pairs.a):
-            keys = pair_keys(pairs.a, pairs.b)
+            keys = pair_keys(pairs.a, pairs.b, self.shadow.n_robots)
             travel = np.zeros(len(pairs.a)) if pairs.travel_m is None else np.asarray(pairs.travel_m, dtype=float)
             s_new = self.shadow.anchor(travel)
         return self._receivable(pairs, keys, s_new)

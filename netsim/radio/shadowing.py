@@ -82,9 +82,10 @@ _SHIFT = np.int64(32)
 _LOW = np.int64((1 << 32) - 1)
 
 
-def pair_keys(a, b) -> np.ndarray:
+def pair_keys(a, b, n_robots: int | None = None) -> np.ndarray:
     """One int64 key per unordered pair: ``min << 32 | max`` (robot ids below 2**31), the
-    key a frame's decision gives the pair (:func:`netsim.radio._kernels.pair_key`).
+    key a frame's decision gives the pair (:func:`netsim.radio._kernels.pair_key`), for a
+    team of ``n_robots`` (None: one per pair).
 
     >>> pair_keys([5, 0], [3, 9]).tolist() == [(3 << 32) | 5, 9]
     True
@@ -92,7 +93,7 @@ def pair_keys(a, b) -> np.ndarray:
     a, b = np.broadcast_arrays(np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64))
     flat_a, flat_b = np.ascontiguousarray(a).reshape(-1), np.ascontiguousarray(b).reshape(-1)
     out = np.empty(flat_a.shape[0], np.int64)
-    load("netsim.radio._kernels", flat_a.shape[0]).pair_keys_of(flat_a, flat_b, out)
+    load("netsim.radio._kernels", flat_a.shape[0] if n_robots is None else n_robots).pair_keys_of(flat_a, flat_b, out)
     return out.reshape(a.shape)
 
 
@@ -137,6 +138,7 @@ class PairShadowing:
         self.decorrelation_m = float(decorrelation_m)
         self.step_m = float(step_m)
         self.rng = rng
+        self.n_robots = n_robots
         kernels = load("netsim.radio._kernels", n_robots)
         self._step, self._anchors = kernels.shadow_step, kernels.anchors
         self._states, self._terms = kernels.stored_states, kernels.shadow_terms
@@ -149,7 +151,7 @@ class PairShadowing:
         self.dense_n = int(n_robots or 0) if self.dense else 0
         if self.dense:
             i, j = np.triu_indices(self.dense_n, 1)
-            self._keys = pair_keys(i, j)  # ascending: i major, j minor
+            self._keys = pair_keys(i, j, n_robots)  # ascending: i major, j minor
             self._x = np.full(len(self._keys), np.nan)
             self._s = np.zeros(len(self._keys))
         self.draws = 0
@@ -194,7 +196,7 @@ class PairShadowing:
 
     def state(self, a, b) -> tuple[np.ndarray, np.ndarray]:
         """Stored (unclipped) value and anchor travel of each pair; NaN for pairs never seen."""
-        keys = pair_keys(a, b)
+        keys = pair_keys(a, b, self.n_robots)
         x, s = np.empty(len(keys)), np.empty(len(keys))
         table_keys, table_x, table_s = self.table()
         self._states(table_keys, table_x, table_s, self.dense_n, keys, x, s)
@@ -220,7 +222,7 @@ class PairShadowing:
         k = len(a)
         if self.sigma_db == 0.0 or k == 0:
             return np.zeros(k)
-        keys = pair_keys(a, b)
+        keys = pair_keys(a, b, self.n_robots)
         s_new = self.anchor(np.array(np.broadcast_to(np.asarray(travel_m, dtype=float), (k,))))
         z = self.normals(k)[:k]
         self.consume(k)
