@@ -193,6 +193,21 @@ def shadow_step(shadow, law, pairs, out):
 
 
 @jit(nogil=True)
+def received_dbm(tx_dbm, loss_db):
+    """The power a frame arrives with, ``P_t - loss`` (dBm): one expression for a number
+    or an array of them (:meth:`netsim.radio.chain.Radio.received_dbm` calls it too)."""
+    return tx_dbm - loss_db
+
+
+@jit(nogil=True)
+def heard(tx_dbm, loss_db, sensitivity_dbm):
+    """The radio's decision: a frame after ``loss_db`` is received when its power is at
+    least the sensitivity. One expression for a number or an array (a frame's pass, and
+    :meth:`netsim.radio.chain.Radio.hears` for every other caller)."""
+    return received_dbm(tx_dbm, loss_db) >= sensitivity_dbm
+
+
+@jit(nogil=True)
 def path_loss_db(distance_m, d0_m, pl0_db, n10):
     """The log-distance law, the one place it is computed: ``PL(d0) + 10 n log10(d / d0)``,
     and ``PL(d0)`` below ``d0`` (at ``d = 0`` too); ``n10`` is ``10 n``."""
@@ -265,7 +280,7 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
             limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
             walls = walls_one(cells, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
             total = total + wall_db * walls
-        receivable[m] = tx_dbm - total >= sensitivity_dbm
+        receivable[m] = heard(tx_dbm, total, sensitivity_dbm)
 
 
 @jit(nogil=True)
@@ -292,7 +307,7 @@ def received_pass(frame, t, sender, receivers, d, x, motion, flat, out):
             g0, g1, no_limit = ends.g0, ends.g1, int(NO_LIMIT)
             walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, no_limit)
             total = total + c.wall_db * walls
-        out[m] = c.tx_dbm - total
+        out[m] = received_dbm(c.tx_dbm, total)
 
 
 @jit(nogil=True, inline="always")

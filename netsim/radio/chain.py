@@ -22,6 +22,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from netsim.compiled import load
+from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole arrays
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
 
 
@@ -43,12 +44,13 @@ class Radio(NamedTuple):
         return self.tx_power_dbm - self.sensitivity_dbm
 
     def received_dbm(self, loss_db):
-        """``P_r = P_t - loss``."""
-        return self.tx_power_dbm - loss_db
+        """``P_r = P_t - loss`` (:func:`netsim.radio._kernels.received_dbm`)."""
+        return laws.received_dbm(self.tx_power_dbm, loss_db)
 
     def hears(self, loss_db):
-        """Whether a frame after ``loss_db`` arrives at or above the sensitivity."""
-        return self.tx_power_dbm - loss_db >= self.sensitivity_dbm
+        """Whether a frame after ``loss_db`` arrives at or above the sensitivity: the decision
+        of a frame's compiled pass (:func:`netsim.radio._kernels.heard`)."""
+        return laws.heard(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
 
     def margin_db(self, loss_db):
         """How far above the sensitivity a frame after ``loss_db`` arrives: ``(P_t -
