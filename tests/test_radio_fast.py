@@ -93,6 +93,33 @@ def test_unknown_chain_is_refused():
         CompiledChain(Propagation(LossChain(ShadowingLoss(sh)), Radio(0.0, -1.0), 1.0, 1.0), 1)
 
 
+def test_a_chain_of_built_in_terms_is_decided_by_the_compiled_pass_whoever_built_it():
+    """A chain of the built-in terms takes the compiled pass even when the propagation that
+    holds it names no ``fast`` (a rule is never decided by two paths); a chain with a
+    model's own term takes the generic one."""
+    from netsim.radio.fast import GenericChain, one_pass
+    from netsim.radio.propagation import LogDistanceLoss, LossChain, Propagation, RangeLoss
+    from netsim.radio.reception import Reception
+    from netsim.state import RobotState
+
+    class Own:
+        lowest_db = 0.0
+
+        def loss_db(self, pairs):
+            return np.zeros(len(pairs.a))
+
+    p = LogDistanceParams()
+    st = RobotState(3, 100.0, 100.0)
+    for chain, compiled in (
+        (LossChain(LogDistanceLoss(p)), True),
+        (LossChain(RangeLoss(30.0)), True),
+        (LossChain(LogDistanceLoss(p), Own()), False),
+    ):
+        prop = Propagation(chain, p.radio, 100.0, 100.0)
+        assert (one_pass(prop) is CompiledChain) is compiled
+        assert isinstance(Reception(prop, st).compiled, CompiledChain if compiled else GenericChain)
+
+
 def _moving_state(seed, n=150, side=400.0, legs=4):
     """Robots on a few legs each, the last ones still running: odometers and leg starts differ."""
     from netsim.state import RobotState

@@ -78,21 +78,10 @@ class CompiledChain:
     def __init__(self, propagation: Propagation, n_robots: int):
         self.propagation = propagation
         self.k = load("netsim.radio._kernels", n_robots)
-        terms = list(propagation.chain.terms)
-        kinds = [type(t) for t in terms]
-        self.log = self.shadow = self.walls = self.range = self.sight = None
-        if kinds and kinds[0] is LogDistanceLoss:
-            self.log = terms.pop(0)
-            if terms and isinstance(terms[0], ShadowingLoss):
-                self.shadow = terms.pop(0).shadowing
-            if terms and isinstance(terms[0], WallLoss):
-                self.walls = terms.pop(0)
-        elif kinds and kinds[0] is RangeLoss:
-            self.range = terms.pop(0)
-            if terms and isinstance(terms[0], LineOfSightLoss):
-                self.sight = terms.pop(0)
-        if terms or (self.log is None and self.range is None):
-            raise ValueError(f"no compiled form for the chain {[k.__name__ for k in kinds]}")
+        parts = _built_in(propagation.chain)
+        if parts is None:
+            raise ValueError(f"no compiled form for the chain {[type(t).__name__ for t in propagation.chain.terms]}")
+        self.log, self.shadow, self.walls, self.range, self.sight = parts
         budget = propagation.radio.budget_db
         # The chain's own early-drop rule, slack included.
         self.budget_slack = budget + 1e-9 * (1.0 + abs(budget))
@@ -226,6 +215,36 @@ class CompiledChain:
         if len(uniq) < len(idx):
             raise ValueError("the pairs of one batch must be distinct")
         self.shadow.insert(uniq, x_new[idx[first]], s_new[idx[first]])  # type: ignore[union-attr]
+
+
+def _built_in(chain) -> tuple | None:
+    """The built-in terms of a chain that has a compiled form, ``(log, shadowing, walls,
+    range, sight)`` (None where absent): log-distance, then shadowing, then walls; or the
+    unit disk, then line of sight. None: the chain has other terms, or another order."""
+    terms = list(chain.terms)
+    log = shadow = walls = disk = sight = None
+    if terms and type(terms[0]) is LogDistanceLoss:
+        log = terms.pop(0)
+        if terms and isinstance(terms[0], ShadowingLoss):
+            shadow = terms.pop(0).shadowing
+        if terms and isinstance(terms[0], WallLoss):
+            walls = terms.pop(0)
+    elif terms and type(terms[0]) is RangeLoss:
+        disk = terms.pop(0)
+        if terms and isinstance(terms[0], LineOfSightLoss):
+            sight = terms.pop(0)
+    if terms or (log is None and disk is None):
+        return None
+    return log, shadow, walls, disk, sight
+
+
+def one_pass(propagation: Propagation):
+    """The one-pass path of a propagation: its own (``fast``), or :class:`CompiledChain`
+    when its chain is made of built-in terms (whoever built it), so that a built-in rule is
+    never decided twice; None: a model's own terms (:class:`GenericChain`)."""
+    if propagation.fast is not None:
+        return propagation.fast
+    return CompiledChain if _built_in(propagation.chain) is not None else None
 
 
 class GenericChain:

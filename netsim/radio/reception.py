@@ -24,7 +24,7 @@ import pandas as pd
 from netsim._kernels import Motion
 from netsim.compiled import load
 from netsim.radio.chain import Propagation
-from netsim.radio.fast import GenericChain
+from netsim.radio.fast import GenericChain, one_pass
 from netsim.state import RobotState
 
 # What a pass reads where a run has no shadowing or no walls.
@@ -146,7 +146,7 @@ class Reception:
 
     def __init__(self, propagation: Propagation, state: RobotState, record: bool = False):
         self.propagation = propagation
-        fast = propagation.fast
+        fast = one_pass(propagation)
         # The model's compiled path (CompiledChain for the built-in chains), or the generic one.
         self.compiled: Any = fast(propagation, state.n) if fast is not None else GenericChain(propagation)
         self.state = state
