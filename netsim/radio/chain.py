@@ -242,13 +242,10 @@ class Propagation:
     def receivable(self, pairs: Pairs) -> np.ndarray:
         """Mask of the pairs the radio hears: the model's compiled pass where it has one
         (``fast``), else its chain term by term (:meth:`LossChain.receivable`)."""
-        from netsim.radio.fast import one_pass  # the compiled passes build on this module
-
-        fast = one_pass(self)
-        if fast is not None:
+        if self.fast is not None:
             # The team is known only by the ids the pairs name: the robots up to the largest.
             n_robots = int(max(pairs.a.max(), pairs.b.max())) + 1 if len(pairs.a) else 0
-            return fast(self, n_robots).receivable(pairs)
+            return self.fast(self, n_robots).receivable(pairs)
         return self.chain.receivable(pairs, self.radio)
 
     def received_dbm(self, pairs: Pairs) -> np.ndarray:

@@ -239,9 +239,10 @@ def _built_in(chain) -> tuple | None:
 
 
 def one_pass(propagation: Propagation):
-    """The one-pass path of a propagation: its own (``fast``), or :class:`CompiledChain`
-    when its chain is made of built-in terms (whoever built it), so that a built-in rule is
-    never decided twice; None: a model's own terms (:class:`GenericChain`)."""
+    """The one-pass path a run's channel takes for a propagation (:class:`~netsim.radio.reception.Reception`):
+    its own (``fast``), or :class:`CompiledChain` when its chain is made of built-in terms
+    (whoever built it), so that a run never decides a built-in rule in numpy; None: a
+    model's own terms (:class:`GenericChain`)."""
     if propagation.fast is not None:
         return propagation.fast
     return CompiledChain if _built_in(propagation.chain) is not None else None
