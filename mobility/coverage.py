@@ -490,6 +490,7 @@ class CoverageController:
             self.local_limits.range_m,
             self.cfg.margin_m,
             self.cfg.control_period_s,
+            self.state.n,
         )
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:

@@ -58,16 +58,15 @@ CUT_ROUNDS = 8
 CUT_BACKOFF_M = 0.05
 
 
-def _fade_kernels(rows: int):
-    return load("netsim.mobility._fade_kernels", rows)
-
-
-def plausible_change_db(travel_m: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float) -> np.ndarray:
+def plausible_change_db(
+    travel_m: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float, n_robots: int | None = None
+) -> np.ndarray:
     """How far the shadowing measured at ``x_db`` plausibly moved (against the link) over a
     pair travel ``travel_m``: ``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2)``
     at ``rho = exp(-travel / d_corr)``, the drift of the shadowing back to 0 from a
     favourable ``x`` and :data:`FADE_SIGMAS` of its spread (the rule both plans use,
-    :func:`netsim.mobility._fade_kernels.plausible_change_db`).
+    :func:`netsim.mobility._fade_kernels.plausible_change_db`, run as a team of
+    ``n_robots`` runs it; None: as many as the values).
 
     >>> plausible_change_db(np.array([0.0, 1.438]), np.zeros(2), 4.0, 10.0).round(2).tolist()
     [0.0, 8.0]
@@ -76,15 +75,19 @@ def plausible_change_db(travel_m: np.ndarray, x_db: np.ndarray, sigma_db: float,
     shape = travel.shape
     travel, x = np.ascontiguousarray(travel.ravel()), np.ascontiguousarray(x.ravel())
     out = np.empty(len(travel))
-    _fade_kernels(len(out)).plausible_change_many(travel, x, float(sigma_db), float(decorrelation_m), out)
+    kernels = load("netsim.mobility._fade_kernels", len(out) if n_robots is None else n_robots)
+    kernels.plausible_change_many(travel, x, float(sigma_db), float(decorrelation_m), out)
     return out.reshape(shape)
 
 
-def fade_travel_m(budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float) -> np.ndarray:
+def fade_travel_m(
+    budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, decorrelation_m: float, n_robots: int | None = None
+) -> np.ndarray:
     """The largest pair travel ``delta`` over which the shadowing's plausible change stays
     within ``budget_db``: ``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2) <=
     budget``, ``rho = exp(-delta / d_corr)`` (0 for a budget <= 0; inf when even complete
-    decorrelation stays within it; :func:`netsim.mobility._fade_kernels.fade_travel_m`).
+    decorrelation stays within it; :func:`netsim.mobility._fade_kernels.fade_travel_m`, run
+    as a team of ``n_robots`` runs it; None: as many as the values).
 
     >>> fade_travel_m(np.array([0.0, 8.0, 100.0]), np.zeros(3), 4.0, 10.0).round(3).tolist()
     [0.0, 1.438, inf]
@@ -93,7 +96,8 @@ def fade_travel_m(budget_db: np.ndarray, x_db: np.ndarray, sigma_db: float, deco
     shape = budget.shape
     budget, x = np.ascontiguousarray(budget.ravel()), np.ascontiguousarray(x.ravel())
     out = np.empty(len(budget))
-    _fade_kernels(len(out)).fade_travel_many(budget, x, float(sigma_db), float(decorrelation_m), out)
+    kernels = load("netsim.mobility._fade_kernels", len(out) if n_robots is None else n_robots)
+    kernels.fade_travel_many(budget, x, float(sigma_db), float(decorrelation_m), out)
     return out.reshape(shape)
 
 
@@ -176,7 +180,7 @@ class LinkRules:
         return np.asarray(walls_crossed(self.walls, pos[i], pos[j]), np.int64)
 
     def _power_candidates(self, pos, t_s, i, j, d, walls) -> Candidates:
-        p = self.log
+        p, n = self.log, self.state.n
         x = np.zeros(len(i))
         travel = np.full(len(i), np.inf)
         if self.shadow is not None:
@@ -187,34 +191,34 @@ class LinkRules:
             seen = np.ones(len(i), bool)
         # Summed as a frame's loss is, so that a link is a candidate exactly when the radio
         # would hear a frame across it.
-        loss = p.loss_db(d, x, walls)
+        loss = p.loss_db(d, x, walls, n)
         ok = seen & p.radio.hears(loss)
         margin = np.maximum(p.radio.margin_db(loss), 0.0)
         i, j, d, walls, x, margin = i[ok], j[ok], d[ok], walls[ok], x[ok], margin[ok]
         travel = travel[ok]
         if self.shadow is None:
-            r = p.effective_range_m(0.0, walls)
+            r = p.effective_range_m(0.0, walls, n)
             reserve = np.zeros(len(i))
             keep = r - self.margin_m
         else:
             sh = self.shadow
             budget = np.minimum(self.fade_margin_db, margin)
-            keep = np.maximum(p.effective_range_m(x + budget, walls), d)
+            keep = np.maximum(p.effective_range_m(x + budget, walls, n), d)
             pair_travel = self.state.travelled_m(t_s, i) + self.state.travelled_m(t_s, j)
             _, anchor = sh.state(i, j)
             since = np.maximum(pair_travel - anchor, 0.0)
-            travel = np.maximum(fade_travel_m(budget, x, sh.sigma_db, sh.decorrelation_m) - since, 0.0)
+            travel = np.maximum(fade_travel_m(budget, x, sh.sigma_db, sh.decorrelation_m, n) - since, 0.0)
             # What is left of the margin after the plausible change since X was measured: a
             # link the pair has moved on from since (not kept then) is weaker than it looks.
-            left = margin - plausible_change_db(since, x, sh.sigma_db, sh.decorrelation_m)
+            left = margin - plausible_change_db(since, x, sh.sigma_db, sh.decorrelation_m, n)
             reserve = x + budget
             # Within the sure distance even the worst shadowing leaves the link up.
-            sure_r = p.effective_range_m(sh.clip_db, walls)
+            sure_r = p.effective_range_m(sh.clip_db, walls, n)
             sure = (d <= sure_r) & (sure_r - self.margin_m >= keep)
             keep = np.where(sure, sure_r - self.margin_m, keep)
             travel = np.where(sure, np.inf, travel)
             reserve = np.where(sure, sh.clip_db, reserve)
-            r = p.effective_range_m(reserve, walls)
+            r = p.effective_range_m(reserve, walls, n)
             margin = np.where(sure, margin, left)
         # The forest prefers the links with the largest margin (left).
         weight = float(margin.max(initial=0.0)) + 1.0 - margin
@@ -227,7 +231,7 @@ class LinkRules:
         if self.log is None:
             return np.where(walls == 0, links.range_m[k], -1.0)
         # The law's range is d0 or more wherever the margin at d0 is not negative, else 0.
-        r = self.log.effective_range_m(links.reserve_db[k], walls)
+        r = self.log.effective_range_m(links.reserve_db[k], walls, self.state.n)
         return np.where(r > 0.0, r, -1.0)
 
     def cut_for_walls(

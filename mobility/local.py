@@ -968,8 +968,10 @@ class Fade:
         sure_m: float,
         margin_m: float,
         period_s: float,
+        n_robots: int,
     ):
         self.radio = radio
+        self.n_robots = int(n_robots)  # the team's size: whether the radio's laws run compiled
         self.sigma_db = float(sigma_db)
         self.decorrelation_m = float(decorrelation_m)
         self.fade_margin_db = float(fade_margin_db)
@@ -987,7 +989,9 @@ class Fade:
         # at the cap, stays within what a full budget allows at X = 0 (an Ack each period
         # then leaves every kept link some travel in each step).
         travel = float(
-            fade_travel_m(np.array([self.fade_margin_db]), np.zeros(1), self.sigma_db, self.decorrelation_m)[0]
+            fade_travel_m(
+                np.array([self.fade_margin_db]), np.zeros(1), self.sigma_db, self.decorrelation_m, self.n_robots
+            )[0]
         )
         self.speed_mps = travel / (4.0 * float(period_s))
 
@@ -1002,7 +1006,7 @@ class Fade:
         ``margin = P_r - sensitivity``."""
         d = np.hypot(*(heard_xy - own_xy).T) - speed_mps * np.maximum(age_s, 0.0) if len(own_xy) else np.zeros(0)
         r = self.radio
-        x = r.tx_power_dbm - r.path_loss_db(np.maximum(d, 0.0)) - power_dbm
+        x = r.tx_power_dbm - r.path_loss_db(np.maximum(d, 0.0), self.n_robots) - power_dbm
         return x, power_dbm - r.sensitivity_dbm
 
     def limits(self, knows: Memory, t0_s: float, t1_s: float, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
@@ -1036,13 +1040,13 @@ class Fade:
         the robot knows it (its own leg, the other's from its Acks, :meth:`Memory.travel_m`;
         ``speed``: the cap, where no velocity is known)."""
         budget = np.minimum(self.fade_margin_db, margin_db)
-        length = self.radio.effective_range_m(x0_db + budget, 0)
+        length = self.radio.effective_range_m(x0_db + budget, 0, self.n_robots)
         own = np.arange(len(since_s))
         own_travel = largest_travel_m(
             knows.leg_speed_mps[own, own][:, None], knows.leg_from_s[own, own][:, None], since_s, t0_s, speed
         )
         with np.errstate(invalid="ignore"):
-            travel = fade_travel_m(budget, x0_db, self.sigma_db, self.decorrelation_m)
+            travel = fade_travel_m(budget, x0_db, self.sigma_db, self.decorrelation_m, self.n_robots)
             left = travel - own_travel - knows.travel_m(since_s, t0_s, speed)
         return budget, length, left
 
@@ -1063,7 +1067,7 @@ class Fade:
             exact = knows.sent_s >= t0_s
             seen = np.isfinite(x) & np.isfinite(since) & exact
             x0 = np.where(seen, x, 0.0)
-            m0 = np.where(seen, r.margin_db(np.maximum(d0, 1e-9), x0), 0.0)
+            m0 = np.where(seen, r.margin_db(np.maximum(d0, 1e-9), x0, 0, self.n_robots), 0.0)
             budget, length, left = self._allowance(knows, m0, x0, since, t0_s, speed_mps)
             # B <= m0: the margin at d0 is at least B (max: the inverse's rounding).
             length = np.maximum(length, d0)

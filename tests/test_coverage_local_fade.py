@@ -20,7 +20,7 @@ T0 = 10.0
 
 
 def fade() -> Fade:
-    return Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, PERIOD)
+    return Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, PERIOD, 3)
 
 
 def limits(f: Fade) -> StepLimits:

@@ -196,7 +196,7 @@ def shadowed_rules(pos, x_db, anchor_m, travelled_m, fade_margin_db=8.0, margin_
     compiled = SimpleNamespace(log=SimpleNamespace(params=params), shadow=shadow, walls=None)
     reception = SimpleNamespace(compiled=compiled, map=None)
     robots = SimpleNamespace(
-        range_m=np.full(n, 100.0), travelled_m=lambda t, idx: np.asarray(travelled_m, float)[np.asarray(idx)]
+        n=n, range_m=np.full(n, 100.0), travelled_m=lambda t, idx: np.asarray(travelled_m, float)[np.asarray(idx)]
     )
     links = SimpleNamespace(up_pairs=lambda: (np.zeros(n - 1, np.int64), np.arange(1, n)))
     return LinkRules(reception, robots, links, margin_m, fade_margin_db), params
@@ -337,7 +337,7 @@ def wall_rules(blocks, resolution_m=0.5, side_m=40.0):
         occupied[rows, int(x0 / resolution_m) : int(x1 / resolution_m)] = True
     m = OccupancyMap(occupied, ~occupied, resolution_m, (0.0, 0.0))
     compiled = SimpleNamespace(log=None, shadow=None, walls=None)
-    robots = SimpleNamespace(range_m=np.full(2, 30.0))
+    robots = SimpleNamespace(n=2, range_m=np.full(2, 30.0))
     return LinkRules(SimpleNamespace(compiled=compiled, map=m), robots, None, 1.0, 8.0), m
 
 

@@ -9,14 +9,25 @@ import sys
 import pytest
 
 SHADOWING = ["--set", "channel.propagation=log_distance", "--set", "channel.shadowing_sigma_db=4"]
+# The local plan under shadowing: its fade-margin rule asks the radio's laws of (n, n) pairs.
+LOCAL_FADE = [
+    *SHADOWING,
+    *("--set coverage.enabled=true --set mobility.model=static --set coverage.plan=local".split()),
+    *("--set channel.loss_probability=0 --set duration_s=40".split()),
+]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("world", [[], ["--set", "world.torus=true"], SHADOWING], ids=["plane", "torus", "shadowing"])
+@pytest.mark.parametrize(
+    "world",
+    [[], ["--set", "world.torus=true"], SHADOWING, LOCAL_FADE],
+    ids=["plane", "torus", "shadowing", "local-plan-shadowing"],
+)
 def test_small_run_imports_no_graph_jit_or_plotting(tmp_path, world):
     """``netsim run`` with 10 robots, on the plane, on a torus (whose positions are folded
     for the sampled tables too) and under shadowing (whose pairs are keyed as the team's):
-    networkx, numba and matplotlib stay unloaded."""
+    networkx, numba and matplotlib stay unloaded; and a local plan's coverage under shadowing
+    (whose laws run over pairs of the team)."""
     code = (
         "import sys\n"
         "from netsim.tools.cli import main\n"

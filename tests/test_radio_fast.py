@@ -93,7 +93,7 @@ def test_unknown_chain_is_refused():
         CompiledChain(Propagation(LossChain(ShadowingLoss(sh)), Radio(0.0, -1.0), 1.0, 1.0), 1)
 
 
-def test_a_chain_of_built_in_terms_is_decided_by_the_compiled_pass_whoever_built_it():
+def test_a_chain_of_built_in_terms_is_decided_by_the_compiled_pass_whoever_built_it(monkeypatch):
     """A chain of the built-in terms takes the compiled pass even when the propagation that
     holds it names no ``fast`` (a rule is never decided by two paths); a chain with a
     model's own term takes the generic one."""
@@ -118,6 +118,14 @@ def test_a_chain_of_built_in_terms_is_decided_by_the_compiled_pass_whoever_built
         prop = Propagation(chain, p.radio, 100.0, 100.0)
         assert (one_pass(prop) is CompiledChain) is compiled
         assert isinstance(Reception(prop, st).compiled, CompiledChain if compiled else GenericChain)
+        # A library call decides as the run's channel does: term by term only for a model's own terms.
+        pairs = Pairs.between([0, 0], [1, 2], [[0.0, 0.0], [20.0, 0.0], [120.0, 0.0]])
+        with monkeypatch.context() as m:
+            m.setattr(LossChain, "receivable", lambda *a: pytest.fail("a built-in chain decided term by term"))
+            if compiled:
+                assert prop.receivable(pairs).tolist() == [True, False]
+        if not compiled:
+            assert prop.receivable(pairs).tolist() == [True, False]
 
 
 def _moving_state(seed, n=150, side=400.0, legs=4):

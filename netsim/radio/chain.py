@@ -15,8 +15,6 @@ call it. The models that build chains are :mod:`netsim.radio.propagation`'s.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -67,14 +65,15 @@ class Radio(NamedTuple):
 NO_POWER = Radio(0.0, 0.0)
 
 
-def path_loss_db(distance_m, params: Any) -> np.ndarray:
+def path_loss_db(distance_m, params: Any, n_robots: int | None = None) -> np.ndarray:
     """``PL(d0) + 10 n log10(d / d0)``, and ``PL(d0)`` below ``d0`` (also at ``d = 0``), of
     every distance, under ``params`` (``reference_distance_m``, ``reference_loss_db``,
-    ``path_loss_exponent``): the kernel :func:`netsim.radio._kernels.path_loss_db`."""
+    ``path_loss_exponent``): the kernel :func:`netsim.radio._kernels.path_loss_db`, as a run
+    of ``n_robots`` calls it (None: as many as the distances)."""
     d = np.asarray(distance_m, dtype=float)
     flat = d.reshape(-1)
     out = np.empty(flat.shape[0])
-    kernels = load("netsim.radio._kernels", flat.shape[0])
+    kernels = load("netsim.radio._kernels", flat.shape[0] if n_robots is None else n_robots)
     n10 = 10.0 * params.path_loss_exponent
     kernels.path_losses_db(flat, params.reference_distance_m, params.reference_loss_db, n10, out)
     return out.reshape(d.shape)
@@ -106,6 +105,10 @@ class Pairs(NamedTuple):
         travel = None if travel_m is None else np.asarray(travel_m, dtype=float)[a] + np.asarray(travel_m)[b]
         return cls(a, b, pa, pb, d, travel)
 
+    def team_size(self) -> int:
+        """The robots the pairs name, as far as a batch knows the team: up to the largest id."""
+        return int(max(self.a.max(), self.b.max())) + 1 if len(self.a) else 0
+
     def take(self, idx) -> Pairs:
         t = None if self.travel_m is None else self.travel_m[idx]
         pa = None if self.pos_a is None else self.pos_a[idx]
@@ -121,7 +124,7 @@ class LogDistanceLoss:
         self.lowest_db = params.reference_loss_db
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
-        return path_loss_db(pairs.distance_m, self.params)
+        return path_loss_db(pairs.distance_m, self.params, pairs.team_size())
 
 
 class ShadowingLoss:
@@ -162,7 +165,7 @@ class RangeLoss:
         """The kernel :func:`netsim.radio._kernels.disk_losses`, the compiled pass's rule."""
         d = np.asarray(pairs.distance_m, dtype=float)
         out = np.empty(d.shape[0])
-        load("netsim.radio._kernels", d.shape[0]).disk_losses(d, pairs.a, np.atleast_1d(self.range_m), out)
+        load("netsim.radio._kernels", pairs.team_size()).disk_losses(d, pairs.a, np.atleast_1d(self.range_m), out)
         return out
 
 
@@ -219,35 +222,3 @@ class LossChain:
         mask = np.zeros(k, dtype=bool)
         mask[alive[radio.hears(loss)]] = True
         return mask
-
-
-@dataclass(frozen=True)
-class Propagation:
-    """A loss chain and the radio it is heard with: what the channel asks who hears a frame.
-
-    ``radio`` is the robots' :class:`Radio` (every robot sends with the same power);
-    ``range_m`` is the implied range (no shadowing, no walls); ``reach_m`` the distance
-    beyond which no pair is ever receivable (the neighbour search radius). A chain of any
-    terms works: without ``fast`` the channel evaluates it term by term.
-    """
-
-    chain: LossChain
-    radio: Radio
-    range_m: float
-    reach_m: float
-    # The model's one-pass path, ``fast(propagation, n_robots)`` (:class:`netsim.radio.fast.CompiledChain`
-    # for the built-in chains); None: the generic one (:class:`netsim.radio.fast.GenericChain`).
-    fast: Callable[[Propagation, int], Any] | None = None
-
-    def receivable(self, pairs: Pairs) -> np.ndarray:
-        """Mask of the pairs the radio hears: the model's compiled pass where it has one
-        (``fast``), else its chain term by term (:meth:`LossChain.receivable`)."""
-        if self.fast is not None:
-            # The team is known only by the ids the pairs name: the robots up to the largest.
-            n_robots = int(max(pairs.a.max(), pairs.b.max())) + 1 if len(pairs.a) else 0
-            return self.fast(self, n_robots).receivable(pairs)
-        return self.chain.receivable(pairs, self.radio)
-
-    def received_dbm(self, pairs: Pairs) -> np.ndarray:
-        """``P_r`` of every pair (``-inf`` where a term blocks): for interference sums."""
-        return self.radio.received_dbm(self.chain.loss_db(pairs))

@@ -18,6 +18,8 @@ evaluates it with numpy, term by term.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from netsim._kernels import Motion
@@ -27,7 +29,6 @@ from netsim.radio.chain import (
     LineOfSightLoss,
     LogDistanceLoss,
     Pairs,
-    Propagation,
     RangeLoss,
     ShadowingLoss,
     WallLoss,
@@ -75,7 +76,7 @@ class CompiledChain:
     """``receivable(pairs)`` of a :class:`~netsim.radio.propagation.Propagation` in one
     pass, for a run of ``n_robots`` robots."""
 
-    def __init__(self, propagation: Propagation, n_robots: int):
+    def __init__(self, propagation: Any, n_robots: int):
         self.propagation = propagation
         self.k = load("netsim.radio._kernels", n_robots)
         parts = _built_in(propagation.chain)
@@ -238,7 +239,7 @@ def _built_in(chain) -> tuple | None:
     return log, shadow, walls, disk, sight
 
 
-def one_pass(propagation: Propagation):
+def one_pass(propagation: Any):
     """The one-pass path a run's channel takes for a propagation (:class:`~netsim.radio.reception.Reception`):
     its own (``fast``), or :class:`CompiledChain` when its chain is made of built-in terms
     (whoever built it), so that a run never decides a built-in rule in numpy; None: a
@@ -259,7 +260,7 @@ class GenericChain:
     # map, shadowing, walls or path loss of the built-in kinds.
     occupancy = shadow = walls = log = None
 
-    def __init__(self, propagation: Propagation):
+    def __init__(self, propagation: Any):
         self.propagation = propagation
 
     def receivable(self, pairs: Pairs) -> np.ndarray:

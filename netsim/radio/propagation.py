@@ -34,7 +34,9 @@ implied range is exactly ``1 m * 10^(60 / 30) = 100 m``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -47,14 +49,13 @@ from netsim.radio.chain import (
     LogDistanceLoss,
     LossChain,
     Pairs,
-    Propagation,
     Radio,
     RangeLoss,
     ShadowingLoss,
     WallLoss,
     path_loss_db,
 )
-from netsim.radio.fast import CompiledChain
+from netsim.radio.fast import CompiledChain, one_pass
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
 
 __all__ = [
@@ -77,6 +78,39 @@ __all__ = [
     "reach_m",
     "unit_disk",
 ]
+
+
+@dataclass(frozen=True)
+class Propagation:
+    """A loss chain and the radio it is heard with: what the channel asks who hears a frame.
+
+    ``radio`` is the robots' :class:`Radio` (every robot sends with the same power);
+    ``range_m`` is the implied range (no shadowing, no walls); ``reach_m`` the distance
+    beyond which no pair is ever receivable (the neighbour search radius). A chain of any
+    terms works: one of a model's own terms, with no ``fast``, is evaluated term by term.
+    """
+
+    chain: LossChain
+    radio: Radio
+    range_m: float
+    reach_m: float
+    # The model's one-pass path, ``fast(propagation, n_robots)`` (:class:`netsim.radio.fast.CompiledChain`
+    # for the built-in chains); None: the generic one (:class:`netsim.radio.fast.GenericChain`).
+    fast: Callable[[Propagation, int], Any] | None = None
+
+    def receivable(self, pairs: Pairs) -> np.ndarray:
+        """Mask of the pairs the radio hears: the one pass a run's channel takes
+        (:func:`netsim.radio.fast.one_pass`: the model's ``fast``, or the compiled pass of a
+        chain of built-in terms, whoever built it), else, for a model's own terms, its chain
+        term by term (:meth:`LossChain.receivable`)."""
+        path = one_pass(self)
+        if path is None:
+            return self.chain.receivable(pairs, self.radio)
+        return path(self, pairs.team_size()).receivable(pairs)
+
+    def received_dbm(self, pairs: Pairs) -> np.ndarray:
+        """``P_r`` of every pair (``-inf`` where a term blocks): for interference sums."""
+        return self.radio.received_dbm(self.chain.loss_db(pairs))
 
 
 def _within(low: float, high: float, low_open: bool, unit: str):
@@ -159,26 +193,27 @@ class LogDistanceParams(RadioParams):
 
     # The law's distances, asked of the parameters by the models that are handed them (the
     # mobility models plan on the radio without importing it).
-    def path_loss_db(self, distance_m) -> np.ndarray:
-        """:func:`path_loss_db` under these parameters."""
-        return path_loss_db(distance_m, self)
+    def path_loss_db(self, distance_m, n_robots: int | None = None) -> np.ndarray:
+        """:func:`path_loss_db` under these parameters (``n_robots``: the team's size, which
+        decides whether the law runs compiled; None: as many as the distances)."""
+        return path_loss_db(distance_m, self, n_robots)
 
-    def loss_db(self, distance_m, shadowing_db=0.0, walls=0) -> np.ndarray:
+    def loss_db(self, distance_m, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """A pair's loss as a frame's decision sums it: ``(PL(d) + X) + W``, ``W`` the loss
         of ``walls`` walls crossed."""
-        return (self.path_loss_db(distance_m) + shadowing_db) + self.wall_loss_db * np.asarray(walls)
+        return (self.path_loss_db(distance_m, n_robots) + shadowing_db) + self.wall_loss_db * np.asarray(walls)
 
-    def margin_db(self, distance_m, shadowing_db=0.0, walls=0) -> np.ndarray:
+    def margin_db(self, distance_m, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """The pair's power margin over the sensitivity, ``Radio.margin_db`` of :meth:`loss_db`."""
-        return self.radio.margin_db(self.loss_db(distance_m, shadowing_db, walls))
+        return self.radio.margin_db(self.loss_db(distance_m, shadowing_db, walls, n_robots))
 
     def implied_range_m(self) -> float:
         """:func:`implied_range_m` under these parameters."""
         return implied_range_m(self)
 
-    def effective_range_m(self, shadowing_db=0.0, walls=0) -> np.ndarray:
+    def effective_range_m(self, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """:func:`effective_range_m` under these parameters."""
-        return effective_range_m(self, shadowing_db, walls)
+        return effective_range_m(self, shadowing_db, walls, n_robots)
 
 
 def implied_range_m(params: LogDistanceParams) -> float:
@@ -189,8 +224,10 @@ def implied_range_m(params: LogDistanceParams) -> float:
     )
 
 
-def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0) -> np.ndarray:
-    """The range of a pair whose shadowing is ``shadowing_db`` and whose line crosses ``walls``.
+def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
+    """The range of a pair whose shadowing is ``shadowing_db`` and whose line crosses ``walls``
+    (``n_robots``: the team's size, which decides whether the law runs compiled; None: as
+    many as the values).
 
     While these stay constant, the pair is linked exactly when its distance is at most this
     range: what a link solver needs to turn a shadowing value into a distance threshold.
@@ -205,7 +242,7 @@ def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0) -> n
     flat = np.ascontiguousarray(margin, dtype=float).reshape(-1)
     out = np.empty(flat.shape[0])
     with np.errstate(over="ignore"):
-        kernels = load("netsim._kernels", flat.shape[0])
+        kernels = load("netsim._kernels", flat.shape[0] if n_robots is None else n_robots)
         kernels.ranges_at_margin_m(flat, params.reference_distance_m, params.path_loss_exponent, out)
     return out.reshape(np.shape(margin))
 

@@ -23,8 +23,8 @@ import pandas as pd
 
 from netsim._kernels import Motion
 from netsim.compiled import load
-from netsim.radio.chain import Propagation
 from netsim.radio.fast import GenericChain, one_pass
+from netsim.radio.propagation import Propagation
 from netsim.state import RobotState
 
 # What a pass reads where a run has no shadowing or no walls.
