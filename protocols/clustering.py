@@ -188,7 +188,9 @@ RULES = np.dtype(
 
 def rules_record(tau_s: float, merge_delay_s: float, symmetric: bool, join_policy: str, election_policy: str):
     """The clustering's constants as one :data:`RULES` record (an array of one row)."""
-    rules = np.zeros(1, dtype=RULES).view(np.recarray)
+    # Records read by field name, in an array that is not a recarray: numba types a
+    # recarray through its attribute lookups at every call.
+    rules = np.zeros(1, dtype=np.dtype((np.record, RULES)))
     row = rules[0]
     row["tau_s"], row["merge_delay_s"], row["symmetric"] = tau_s, merge_delay_s, symmetric
     row["join_policy"] = JOIN_CODES[JoinPolicy(join_policy)]

@@ -93,7 +93,8 @@ class CompiledChain:
 
     def _frame_record(self) -> np.ndarray:
         """The run's constants that the compiled passes read (:data:`FRAME`), one row."""
-        frame = np.zeros(1, dtype=FRAME).view(np.recarray)
+        # Read by field name, not a recarray (numba would type it through attribute lookups).
+        frame = np.zeros(1, dtype=np.dtype((np.record, FRAME)))
         row = frame[0]
         row["budget_slack"] = self.budget_slack
         row["tx_dbm"] = self.propagation.radio.tx_power_dbm
