@@ -473,7 +473,7 @@ class CoverageController:
         if log is None:
             return self.range_m
         worst = self.rules.shadow.clip_db if self.rules.shadow is not None else 0.0
-        return min(self.range_m, float(log.effective_range_m(worst, 0)))
+        return min(self.range_m, float(log.effective_range_m(worst, 0, self.state.n)))
 
     def _local_fade(self) -> Fade | None:
         """The local plan's fade-margin rule: under shadowing (log-distance, sigma > 0) in

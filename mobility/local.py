@@ -108,7 +108,7 @@ from netsim.mobility.keep import fade_travel_m
 from netsim.mobility.spread import project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
-from netsim.compiled import load
+from netsim.compiled import filled, load
 from netsim.geometry import speeds_mps
 
 
@@ -393,8 +393,8 @@ def largest_travel_m(
     where that is known, at the speed cap before it, and at the cap all along where no
     speed is known (NaN) (:func:`netsim.mobility._local_kernels.largest_travel_m`)."""
     since = np.ascontiguousarray(since_s, float)
-    speed = np.ascontiguousarray(np.broadcast_to(leg_speed_mps, since.shape), float)
-    start = np.ascontiguousarray(np.broadcast_to(leg_from_s, since.shape), float)
+    speed = filled(leg_speed_mps, since.shape)
+    start = filled(leg_from_s, since.shape)
     kernels = load("netsim.mobility._local_kernels", since.shape[0])
     return kernels.largest_travels_m(speed, start, since, float(t0_s), float(speed_mps))
 
@@ -702,7 +702,7 @@ def shared_regions(walls: Walls, pos: np.ndarray, q: np.ndarray, e_m: np.ndarray
     if not walls.on or len(p) == 0:
         return out
     q = np.ascontiguousarray(np.asarray(q, float).reshape(-1, 2))
-    e = np.ascontiguousarray(np.broadcast_to(np.asarray(e_m, float), (len(p),)))
+    e = filled(e_m, (len(p),))
     load("netsim.mobility._local_kernels", None).shared_regions(walls, p, q, e, out)
     return out
 
@@ -717,8 +717,8 @@ def in_one_region(walls: Walls, a: np.ndarray, b: np.ndarray, e_a_m: np.ndarray,
     out = np.zeros(len(a), dtype=bool)
     if not walls.on or len(a) == 0:
         return np.ones(len(a), dtype=bool) if not walls.on else out
-    ea = np.ascontiguousarray(np.broadcast_to(np.asarray(e_a_m, float), (len(a),)))
-    eb = np.ascontiguousarray(np.broadcast_to(np.asarray(e_b_m, float), (len(a),)))
+    ea = filled(e_a_m, (len(a),))
+    eb = filled(e_b_m, (len(a),))
     load("netsim.mobility._local_kernels", None).in_one_region_many(walls, a, b, ea, eb, out)
     return out
 

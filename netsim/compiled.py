@@ -22,6 +22,8 @@ from collections.abc import Callable
 from types import ModuleType
 from typing import Any, TypeVar
 
+import numpy as np
+
 # numba vectorises loops with Intel's SVML where that library is installed (icc_rt), whose
 # functions round their own way: a compiled kernel would then differ from its plain run.
 os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")
@@ -200,6 +202,14 @@ def _numba_without_blas_probe() -> None:
         importlib.import_module("numba.np.arraymath")
     finally:
         del sys.modules[probe]
+
+
+def filled(values: Any, shape: Any, dtype: Any = float) -> np.ndarray:
+    """``values`` broadcast to ``shape``, as a new writable C-contiguous array: what a kernel
+    is handed. numba compiles a kernel once for each array type, and a read-only view (what
+    broadcasting gives where no copy is needed) is a type of its own: a second compiled copy
+    to load for the same call."""
+    return np.array(np.broadcast_to(np.asarray(values, dtype), shape), dtype=dtype, order="C")
 
 
 def cores() -> int:

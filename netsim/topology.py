@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from netsim.compiled import load
+from netsim.compiled import filled, load
 from netsim.geometry import near_pairs
 from netsim.groups import GroupView
 from netsim.state import RobotState
@@ -49,7 +49,7 @@ def geometric_pairs(
     """
     positions_m = np.ascontiguousarray(positions_m, dtype=float)
     n = len(positions_m)
-    ranges = np.ascontiguousarray(np.broadcast_to(np.asarray(range_m, dtype=float), (n,)))
+    ranges = filled(range_m, (n,))
     if n < 2:
         return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
     pairs = near_pairs(positions_m, float(ranges.max()), side_m)
@@ -74,7 +74,7 @@ def reach_keys(positions_m: np.ndarray, range_m: float | np.ndarray, side_m: flo
     n = len(positions_m)
     if n < 2:
         return np.empty(0, np.int64)
-    ranges = np.ascontiguousarray(np.broadcast_to(np.asarray(range_m, dtype=float), (n,)))
+    ranges = filled(range_m, (n,))
     kernels = load("netsim._kernels", n)
     indptr, indices = kernels.neighbour_lists(near_pairs(positions_m, float(ranges.max()), side_m), n)
     return kernels.reach_keys_in_lists(positions_m, ranges, float(side_m or 0.0), indptr, indices)

@@ -6,7 +6,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from netsim.compiled import load
+from netsim.compiled import filled, load
 from netsim.geometry import in_box
 
 
@@ -22,8 +22,7 @@ def points_on_legs(
     at ``times_s[k]`` (one time for all, or one per row), unfolded, shape ``(k, 2)``: the
     position rule the state and the compiled loops use (:func:`netsim._kernels.points_on_legs`)."""
     rows = np.ascontiguousarray(rows, np.int64).reshape(-1)
-    # A copy: a view of the caller's times would be read-only, another type to compile for.
-    times = np.array(np.broadcast_to(np.asarray(times_s, float), rows.shape))
+    times = filled(times_s, rows.shape)
     out = np.empty((rows.size, 2))
     load("netsim._kernels", n_robots).points_on_legs(
         np.ascontiguousarray(origin_m, float),

@@ -33,3 +33,18 @@ def test_a_kernel_marked_walks_is_called_compiled_from_the_plain_copy():
     let_go = plain.let_go
     assert let_go.__code__ is source.let_go.__code__
     assert let_go.__globals__["clear"] is plain.clear
+
+
+def test_a_kernels_argument_has_one_type_whether_broadcast_or_given_whole():
+    """numba compiles a kernel once per array type, and a read-only view is a type of its
+    own: an argument made from a number and one made from a whole array of the caller's
+    must come out the same type (writable, C-contiguous), and not share the caller's memory."""
+    import numba
+    import numpy as np
+
+    whole = np.arange(4.0)
+    from_number, from_whole = compiled.filled(2.0, (4,)), compiled.filled(whole, (4,))
+    assert numba.typeof(from_number) == numba.typeof(from_whole)
+    assert from_whole.flags.writeable and from_whole.flags.c_contiguous
+    assert not np.shares_memory(from_whole, whole)
+    assert from_number.tolist() == [2.0] * 4 and from_whole.tolist() == whole.tolist()

@@ -73,9 +73,10 @@ def linked(
     and the walls crossed (with unequal ranges both must hear each other)."""
     d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
     chain = reception.compiled
-    up = chain.receivable(Pairs(a, b, pa, pb, d))
+    n = reception.state.n
+    up = chain.receivable(Pairs(a, b, pa, pb, d, None, n))
     if not equal_ranges:
-        up &= chain.receivable(Pairs(b, a, pb, pa, d))
+        up &= chain.receivable(Pairs(b, a, pb, pa, d, None, n))
     return up
 
 
@@ -101,7 +102,7 @@ def map_radio(reception: Reception) -> MapRadio:
         params = chain.log.params  # type: ignore[union-attr]  # walls come after a log-distance term
         most = int(np.floor(params.budget_db / chain.walls.wall_loss_db)) + 1
         walls = np.arange(1, most + 1)
-        r = effective_range_m(params, 0.0, walls)
+        r = effective_range_m(params, 0.0, walls, reception.state.n)
         # Within the envelope (the range without walls) no wall: up.
         radii = np.r_[np.inf, np.where(r > 0, r, -1.0)]
         radii = radii[: int(np.flatnonzero(radii >= 0).max()) + 1]

@@ -92,28 +92,32 @@ class Pairs(NamedTuple):
     pos_b: np.ndarray | None
     distance_m: np.ndarray
     travel_m: np.ndarray | None = None
+    n_robots: int | None = None  # the team's size (None: the robots up to the largest id named)
 
     @classmethod
     def between(cls, a, b, positions_m, travel_m=None) -> Pairs:
-        """Pairs ``(a[k], b[k])`` of robots at ``positions_m`` (plane, not a torus);
-        ``travel_m`` is per robot (odometers) and summed per pair."""
+        """Pairs ``(a[k], b[k])`` of the team whose robots are at ``positions_m`` (plane, not
+        a torus); ``travel_m`` is per robot (odometers) and summed per pair."""
         a = np.asarray(a, dtype=np.int64)
         b = np.asarray(b, dtype=np.int64)
         positions_m = np.asarray(positions_m, dtype=float)
         pa, pb = positions_m[a], positions_m[b]
         d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
         travel = None if travel_m is None else np.asarray(travel_m, dtype=float)[a] + np.asarray(travel_m)[b]
-        return cls(a, b, pa, pb, d, travel)
+        return cls(a, b, pa, pb, d, travel, len(positions_m))
 
     def team_size(self) -> int:
-        """The robots the pairs name, as far as a batch knows the team: up to the largest id."""
-        return int(max(self.a.max(), self.b.max())) + 1 if len(self.a) else 0
+        """The team's size, which decides whether the laws run compiled: ``n_robots``, else
+        the robots up to the largest id the pairs name."""
+        if self.n_robots is not None:
+            return self.n_robots
+        return int(max(np.max(self.a), np.max(self.b))) + 1 if len(self.a) else 0
 
     def take(self, idx) -> Pairs:
         t = None if self.travel_m is None else self.travel_m[idx]
         pa = None if self.pos_a is None else self.pos_a[idx]
         pb = None if self.pos_b is None else self.pos_b[idx]
-        return Pairs(self.a[idx], self.b[idx], pa, pb, self.distance_m[idx], t)
+        return Pairs(self.a[idx], self.b[idx], pa, pb, self.distance_m[idx], t, self.n_robots)
 
 
 class LogDistanceLoss:

@@ -251,8 +251,8 @@ def one_pass(propagation: Any):
 
 
 class GenericChain:
-    """``receivable(pairs)`` of any :class:`~netsim.radio.propagation.Propagation`, with
-    numpy: the path of a model that brings no compiled one. Every pair carries both
+    """``receivable(pairs)`` of a :class:`~netsim.radio.propagation.Propagation` with a
+    model's own terms, with numpy: the path of a model that brings no compiled one. Every pair carries both
     robots' positions and their travel (what any term may read); the chain is evaluated as
     :meth:`~netsim.radio.propagation.LossChain.receivable` does, pairs dropped as soon as
     they cannot make it."""
@@ -274,5 +274,5 @@ class GenericChain:
         a = np.full(k, sender, dtype=np.int64)
         pos_a = np.broadcast_to(state.positions_at(t, [sender]), (k, 2))
         travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
-        pairs = Pairs(a, receivers, pos_a, state.positions_at(t, receivers), distances_m, travel)
+        pairs = Pairs(a, receivers, pos_a, state.positions_at(t, receivers), distances_m, travel, state.n)
         return self.propagation.receivable(pairs)

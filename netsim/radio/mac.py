@@ -129,8 +129,9 @@ class PowerModel:
             kernels.range_at_margin_m(float(margin), params.reference_distance_m, params.path_loss_exponent)
         )
 
-    def received_mw(self, distance_m: np.ndarray) -> np.ndarray:
-        return 10.0 ** (self.radio.received_dbm(path_loss_db(distance_m, self.params)) / 10.0)
+    def received_mw(self, distance_m: np.ndarray, n_robots: int | None = None) -> np.ndarray:
+        """Mean power (mW) at each distance, as a team of ``n_robots`` computes it."""
+        return 10.0 ** (self.radio.received_dbm(path_loss_db(distance_m, self.params, n_robots)) / 10.0)
 
 
 class Aloha:
@@ -430,7 +431,7 @@ class Medium:
         self.transmitting[i] = True
         self.tx_seq[i] = seq
         if self.power is not None:
-            frame.power_mw = self.power.received_mw(ddist)
+            frame.power_mw = self.power.received_mw(ddist, self.state.n)
             self.load_mw[disturbed] += frame.power_mw
             at = np.searchsorted(disturbed, receivers)
             frame.signal_mw = frame.rx_mw = frame.power_mw[at]

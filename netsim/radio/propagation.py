@@ -13,8 +13,9 @@ The chain, its terms and the :class:`~netsim.radio.chain.Radio` that hears it (t
 power and sensitivity, the same for every model with a notion of power: their keys are
 :class:`RadioParams`') are :mod:`netsim.radio.chain`'s, re-exported here; the law ``PL(d)``
 is computed by one kernel, :func:`netsim.radio._kernels.path_loss_db`. This module holds
-the log-distance model's parameters, its distances (implied range, effective range, reach)
-and the two built-in chains.
+:class:`Propagation` (a chain and its radio: what the channel asks who hears a frame), the
+log-distance model's parameters, its distances (implied range, effective range, reach) and
+the two built-in chains.
 
 The unit disk (the paper's model) is a chain too: a range term (0 within range, infinite
 beyond) and, on a map, a line-of-sight term (infinite when any occupied cell lies between
@@ -95,14 +96,16 @@ class Propagation:
     range_m: float
     reach_m: float
     # The model's one-pass path, ``fast(propagation, n_robots)`` (:class:`netsim.radio.fast.CompiledChain`
-    # for the built-in chains); None: the generic one (:class:`netsim.radio.fast.GenericChain`).
+    # for the built-in chains); None: netsim.radio.fast.one_pass decides (the compiled pass
+    # for a chain of built-in terms, else the generic one, :class:`netsim.radio.fast.GenericChain`).
     fast: Callable[[Propagation, int], Any] | None = None
 
     def receivable(self, pairs: Pairs) -> np.ndarray:
         """Mask of the pairs the radio hears: the one pass a run's channel takes
         (:func:`netsim.radio.fast.one_pass`: the model's ``fast``, or the compiled pass of a
         chain of built-in terms, whoever built it), else, for a model's own terms, its chain
-        term by term (:meth:`LossChain.receivable`)."""
+        term by term (:meth:`LossChain.receivable`). The pairs of one batch must be distinct
+        (a broadcast's receivers are): the compiled pass draws each pair's shadowing once."""
         path = one_pass(self)
         if path is None:
             return self.chain.receivable(pairs, self.radio)

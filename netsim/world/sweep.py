@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from netsim.compiled import filled
 from netsim.world._kernels import NO_LIMIT
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
@@ -146,7 +147,7 @@ def sweep_walls(
 
     grid = map_grid(occupancy, blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
-    duration = np.ascontiguousarray(np.broadcast_to(np.asarray(duration_s, float), (len(p0),)))
+    duration = filled(duration_s, (len(p0),))
     motion = PairMotion(p0, vp, q0, vq)
     limit = NO_LIMIT if limit is None else int(limit)
     pair, t0, t1, walls = sweep(grid, motion, duration, VERTEX_TOLERANCE_CELLS, limit)
