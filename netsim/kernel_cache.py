@@ -20,6 +20,13 @@ ones are deleted when a module is keyed. Only the kernels' own functions are poi
 there, while :func:`key` runs: the rest of the process's numba settings are left as they
 were.
 
+What a source file gives the hash (its digest and the modules it imports from) is kept
+beside the directories, in ``sources.json``, by the file's path, modification time (ns) and
+size, so that a process does not read and scan every source again: a file whose time or
+size differs is read again. A file changed in the last ``SETTLE_S`` seconds is not kept
+there (an edit within the same tick of a coarse clock, at the same size, would otherwise
+look unchanged), as git treats a file changed in the second its index was written.
+
 A directory with no compiled code in it means the module's loops will be compiled, not
 loaded, which takes a while the first time a version runs on a machine: a command that
 wants to say so asks :func:`when_cold` to be told.
@@ -29,11 +36,13 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import json
 import os
 import re
 import shutil
 import sys
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -44,6 +53,10 @@ KEPT_VERSIONS = 4
 _PATHS: dict[str, str | None] = {}  # module not loaded -> its file, None if no module
 _SOURCES: dict[str, tuple[tuple[str, int, int], bytes, list[str]]] = {}  # module -> (file's stamp, digest, imports)
 _ON_COLD: list[Callable[[Path], object]] = []  # told once, of the first cold directory (when_cold)
+SOURCES_FILE = "sources.json"
+SETTLE_S = 2.0
+_KEPT: dict[str, list] = {}  # "module file" -> [mtime_ns, size, digest (hex), imports], as in SOURCES_FILE
+_KEPT_STATE = {"read": False, "new": False}
 
 
 def base_directory() -> Path:
@@ -129,16 +142,59 @@ def _module_path(name: str) -> str | None:
 
 def _read(name: str, file: str) -> tuple[bytes, list[str]]:
     """The digest of a source file and the modules it imports from, read once per version
-    of the file in a process (many kernel modules reach the same sources)."""
+    of the file (many kernel modules reach the same sources): in this process, or kept in
+    :data:`SOURCES_FILE` (module notes)."""
     stat = os.stat(file)
     stamp = (file, stat.st_mtime_ns, stat.st_size)
     if _SOURCES.get(name, (None,))[0] != stamp:
-        with open(file, "rb") as f:
-            source = f.read()
-        package = name if os.path.basename(file) == "__init__.py" else name.rpartition(".")[0]
-        _SOURCES[name] = (stamp, hashlib.sha256(source).digest(), imported_modules(source.decode(), package))
+        entry = f"{name} {file}"
+        kept = _kept().get(entry)
+        if kept is not None and kept[:2] == [stat.st_mtime_ns, stat.st_size]:
+            _SOURCES[name] = (stamp, bytes.fromhex(kept[2]), list(kept[3]))
+        else:
+            with open(file, "rb") as f:
+                source = f.read()
+            package = name if os.path.basename(file) == "__init__.py" else name.rpartition(".")[0]
+            _SOURCES[name] = (stamp, hashlib.sha256(source).digest(), imported_modules(source.decode(), package))
+            if time.time_ns() - stat.st_mtime_ns > SETTLE_S * 1e9:
+                _KEPT[entry] = [stat.st_mtime_ns, stat.st_size, _SOURCES[name][1].hex(), _SOURCES[name][2]]
+                _KEPT_STATE["new"] = True
     _, digest, imports = _SOURCES[name]
     return digest, imports
+
+
+def _kept() -> dict[str, list]:
+    """What :data:`SOURCES_FILE` holds, read once per process (nothing where it cannot be read)."""
+    if not _KEPT_STATE["read"]:
+        _KEPT_STATE["read"] = True
+        try:
+            kept = json.loads((base_directory() / SOURCES_FILE).read_text())
+        except (OSError, ValueError):
+            kept = {}
+        if isinstance(kept, dict):
+            _KEPT.update(
+                (k, v)
+                for k, v in kept.items()
+                if isinstance(v, list) and len(v) == 4 and isinstance(v[2], str) and isinstance(v[3], list)
+            )
+    return _KEPT
+
+
+def _keep_sources() -> None:
+    """Write :data:`SOURCES_FILE` when this process read a source it did not hold, whole or
+    not at all (another process reads it meanwhile); a directory that cannot be written
+    only costs the next process the reading."""
+    if not _KEPT_STATE["new"]:
+        return
+    _KEPT_STATE["new"] = False
+    path = base_directory() / SOURCES_FILE
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(f"{SOURCES_FILE}.{os.getpid()}.{threading.get_ident()}")
+        partial.write_text(json.dumps(_KEPT))
+        os.replace(partial, path)
+    except OSError:
+        pass
 
 
 def source_key(module_name: str) -> str:
@@ -191,6 +247,7 @@ def key(namespace: dict[str, Any]) -> Path:
     name = namespace["__name__"]
     with _LOCK:
         module_key = source_key(name)
+        _keep_sources()
         directory = base_directory() / f"{name}-{module_key}"
         _prune(name, directory)
         # numba's settings are set from the environment when it loads: untyped.

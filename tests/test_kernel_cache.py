@@ -2,6 +2,7 @@
 module and of every module it imports from (netsim.kernel_cache)."""
 
 import importlib
+import json
 import os
 import shutil
 import subprocess
@@ -65,6 +66,56 @@ def test_a_modules_key_follows_what_it_imports_from(tmp_path, monkeypatch):
     assert kernel_cache.source_key("keyprobe.user") != first
     (pkg / "user.py").write_text("from .constants import EDGE  # edited\n")
     _forget("keyprobe")
+
+
+def _new_process(monkeypatch, cache) -> None:
+    """kernel_cache as a fresh process finds it: nothing read yet, the kept sources on disk."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    monkeypatch.setattr(kernel_cache, "_SOURCES", {})
+    monkeypatch.setattr(kernel_cache, "_KEPT", {})
+    monkeypatch.setattr(kernel_cache, "_KEPT_STATE", {"read": False, "new": False})
+
+
+def _age(path: Path, seconds: float) -> None:
+    then = path.stat().st_mtime_ns - int(seconds * 1e9)
+    os.utime(path, ns=(then, then))
+
+
+def test_a_kept_source_is_used_only_at_the_same_time_and_size(tmp_path, monkeypatch):
+    """A source read by one process is kept (sources.json) and not read again by the next
+    while its time and size stay; an edit at the same size but a later time is read again,
+    and a file changed less than SETTLE_S ago is never kept."""
+    pkg = _package(
+        tmp_path, monkeypatch, "keptprobe", {"constants.py": "EDGE = 1.0\n", "user.py": "from .constants import EDGE\n"}
+    )
+    for f in pkg.iterdir():
+        _age(f, 60.0)
+    importlib.import_module("keptprobe.user")
+    cache = tmp_path / "cache"
+    _new_process(monkeypatch, cache)
+    first = kernel_cache.source_key("keptprobe.user")
+    kernel_cache._keep_sources()
+    assert (cache / kernel_cache.SOURCES_FILE).exists()
+
+    _new_process(monkeypatch, cache)
+    opened = []
+    real_open = open
+    monkeypatch.setattr("builtins.open", lambda file, *a, **k: opened.append(str(file)) or real_open(file, *a, **k))
+    assert kernel_cache.source_key("keptprobe.user") == first
+    assert not [f for f in opened if "keptprobe" in f]
+
+    (pkg / "constants.py").write_text("EDGE = 2.0\n")  # the same size, a later time
+    _new_process(monkeypatch, cache)
+    second = kernel_cache.source_key("keptprobe.user")
+    assert second != first
+    kernel_cache._keep_sources()
+    kept = json.loads((cache / kernel_cache.SOURCES_FILE).read_text())
+    now = (pkg / "constants.py").stat()
+    stamps = [v[:2] for k, v in kept.items() if k.startswith("keptprobe.constants ")]
+    assert [now.st_mtime_ns, now.st_size] not in stamps  # changed just now: this version not kept
+    _new_process(monkeypatch, cache)
+    assert kernel_cache.source_key("keptprobe.user") == second
+    _forget("keptprobe")
 
 
 def test_a_constant_re_exported_through_a_plain_module_is_in_the_key(tmp_path, monkeypatch):
