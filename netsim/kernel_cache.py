@@ -191,6 +191,9 @@ def _keep_sources() -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         partial = path.with_name(f"{SOURCES_FILE}.{os.getpid()}.{threading.get_ident()}")
+        # Sources that are gone (a removed checkout, a test's copy) leave the file.
+        for entry in [e for e in _KEPT if not os.path.exists(e.partition(" ")[2])]:
+            del _KEPT[entry]
         partial.write_text(json.dumps(_KEPT))
         os.replace(partial, path)
     except OSError:

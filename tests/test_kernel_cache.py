@@ -115,6 +115,14 @@ def test_a_kept_source_is_used_only_at_the_same_time_and_size(tmp_path, monkeypa
     assert [now.st_mtime_ns, now.st_size] not in stamps  # changed just now: this version not kept
     _new_process(monkeypatch, cache)
     assert kernel_cache.source_key("keptprobe.user") == second
+    # A source that is gone leaves the file at its next write.
+    _age(pkg / "constants.py", 60.0)
+    (pkg / "user.py").unlink()
+    _new_process(monkeypatch, cache)
+    kernel_cache.source_key("keptprobe.constants")
+    kernel_cache._keep_sources()
+    kept = json.loads((cache / kernel_cache.SOURCES_FILE).read_text())
+    assert [k.partition(" ")[0] for k in kept if k.startswith("keptprobe.")] == ["keptprobe.constants"]
     _forget("keptprobe")
 
 
