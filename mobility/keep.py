@@ -75,7 +75,7 @@ def plausible_change_db(
     shape = travel.shape
     travel, x = np.ascontiguousarray(travel.ravel()), np.ascontiguousarray(x.ravel())
     out = np.empty(len(travel))
-    kernels = load("netsim.mobility._fade_kernels", len(out) if n_robots is None else n_robots)
+    kernels = load("netsim.mobility._fade_kernels", n_robots, values=len(out))
     kernels.plausible_change_many(travel, x, float(sigma_db), float(decorrelation_m), out)
     return out.reshape(shape)
 
@@ -96,7 +96,7 @@ def fade_travel_m(
     shape = budget.shape
     budget, x = np.ascontiguousarray(budget.ravel()), np.ascontiguousarray(x.ravel())
     out = np.empty(len(budget))
-    kernels = load("netsim.mobility._fade_kernels", len(out) if n_robots is None else n_robots)
+    kernels = load("netsim.mobility._fade_kernels", n_robots, values=len(out))
     kernels.fade_travel_many(budget, x, float(sigma_db), float(decorrelation_m), out)
     return out.reshape(shape)
 

@@ -75,12 +75,13 @@ def compiled_wanted(n_robots: int | None) -> bool:
     return n_robots is None or n_robots >= SMALL_RUN_ROBOTS
 
 
-def load(module: str, n_robots: int | None) -> ModuleType:
+def load(module: str, n_robots: int | None, values: int | None = None) -> ModuleType:
     """The kernel module ``module`` as a run of ``n_robots`` robots (None: not known) calls
     it: its compiled copy when wanted (:func:`compiled_wanted`, or a module of
     :data:`WALKS_MAPS` unless ``NETSIM_COMPILED=0``) and numba is there, else the module in
-    plain Python (:func:`plain_copy`)."""
-    size = n_robots
+    plain Python (:func:`plain_copy`). ``values``: for a law called on a batch of values
+    whose caller may not know the team, the batch's length stands for an unknown size."""
+    size = values if n_robots is None and values is not None else n_robots
     if module in WALKS_MAPS and n_robots is not None:
         size = max(n_robots, SMALL_RUN_ROBOTS)
     if compiled_wanted(size):

@@ -59,4 +59,4 @@ def in_box(pos: np.ndarray, box: float | None, n_robots: int | None = None) -> n
     if box is None:
         return pos
     pos = np.asarray(pos, dtype=float)
-    return load("netsim._kernels", len(pos) if n_robots is None else n_robots).fold(pos, float(box))
+    return load("netsim._kernels", n_robots, values=len(pos)).fold(pos, float(box))

@@ -48,3 +48,13 @@ def test_a_kernels_argument_has_one_type_whether_broadcast_or_given_whole():
     assert from_whole.flags.writeable and from_whole.flags.c_contiguous
     assert not np.shares_memory(from_whole, whole)
     assert from_number.tolist() == [2.0] * 4 and from_whole.tolist() == whole.tolist()
+
+
+def test_a_batch_of_values_stands_for_an_unknown_team_only():
+    """A law called on a batch: the team's size decides when known; else the batch's length."""
+    module = "netsim.radio._kernels"
+    small, large = compiled.SMALL_RUN_ROBOTS - 1, compiled.SMALL_RUN_ROBOTS
+    assert compiled.load(module, small, values=large) is compiled.plain_copy(module)
+    assert compiled.load(module, large, values=small) is compiled.compiled_copy(module)
+    assert compiled.load(module, None, values=small) is compiled.plain_copy(module)
+    assert compiled.load(module, None, values=large) is compiled.compiled_copy(module)

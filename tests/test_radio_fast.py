@@ -254,3 +254,15 @@ def test_link_changes_equal_the_oracle(compiled, monkeypatch):
     assert a.equals(b)
     touches = got.touches()
     assert 20 < len(touches) and touches.equals(want.touches())
+
+
+def test_the_early_drop_keeps_a_pair_the_whole_sum_would_hear():
+    """One rule of early drop for the compiled pass and the chain term by term: a pair whose
+    loss so far, plus the least the terms left can add, is the budget up to rounding stays;
+    one clearly over it leaves; on a number or an array alike."""
+    from netsim.radio._kernels import may_be_heard, with_slack
+
+    budget = 100.0
+    assert may_be_heard(100.0 + 1e-12, 0.0, with_slack(budget))
+    assert not may_be_heard(100.001, 0.0, with_slack(budget))
+    assert may_be_heard(np.array([90.0, 95.0]), 6.0, with_slack(budget)).tolist() == [True, False]

@@ -208,6 +208,23 @@ def heard(tx_dbm, loss_db, sensitivity_dbm):
 
 
 @jit(nogil=True)
+def with_slack(budget_db):
+    """The budget a pair is dropped against before its last terms are added: ``budget_db``
+    and a slack of its rounding, so that dropping a pair early never disagrees with the
+    decision (:func:`heard`) the whole sum would give."""
+    return budget_db + 1e-9 * (1.0 + abs(budget_db))
+
+
+@jit(nogil=True)
+def may_be_heard(loss_db, rest_db, slack_budget_db):
+    """The early drop: whether a pair whose terms so far cost ``loss_db`` can still be heard
+    when the terms left add at least ``rest_db`` (``slack_budget_db``: :func:`with_slack`).
+    One expression for a number or an array (a frame's compiled pass, and the loss chain
+    term by term, :meth:`netsim.radio.chain.LossChain.receivable`)."""
+    return loss_db + rest_db <= slack_budget_db
+
+
+@jit(nogil=True)
 def path_loss_db(distance_m, d0_m, pl0_db, n10):
     """The log-distance law, the one place it is computed: ``PL(d0) + 10 n log10(d / d0)``,
     and ``PL(d0)`` below ``d0`` (at ``d = 0`` too); ``n10`` is ``10 n``."""
@@ -230,7 +247,7 @@ def path_loss_pass(frame, d, loss, alive):
     count = 0
     for m in range(d.shape[0]):
         loss[m] = 0.0 + path_loss_db(d[m], d0, pl0, n10)
-        ok = loss[m] + rest_db <= budget_slack
+        ok = may_be_heard(loss[m], rest_db, budget_slack)
         alive[m] = ok
         if ok:
             count += 1
@@ -272,7 +289,7 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
             j += 1
             total = total + shadow_term(v, clip_db)
         if wall_db > 0.0:
-            if total > budget_slack:
+            if not may_be_heard(total, 0.0, budget_slack):
                 continue
             # Counting stops two walls past what the margin affords: the pair is then out,
             # whatever rounding the division made.

@@ -73,7 +73,7 @@ def path_loss_db(distance_m, params: Any, n_robots: int | None = None) -> np.nda
     d = np.asarray(distance_m, dtype=float)
     flat = d.reshape(-1)
     out = np.empty(flat.shape[0])
-    kernels = load("netsim.radio._kernels", flat.shape[0] if n_robots is None else n_robots)
+    kernels = load("netsim.radio._kernels", n_robots, values=flat.shape[0])
     n10 = 10.0 * params.path_loss_exponent
     kernels.path_losses_db(flat, params.reference_distance_m, params.reference_loss_db, n10, out)
     return out.reshape(d.shape)
@@ -210,13 +210,12 @@ class LossChain:
         and shadowing draws, are spent only on pairs still in the running.
         """
         k = len(pairs.a)
-        budget = radio.budget_db
+        slack_budget = laws.with_slack(radio.budget_db)
         alive = np.arange(k)
         loss = np.zeros(k)
         sub = pairs
         for i, term in enumerate(self.terms):
-            # A small slack: dropping here must never disagree with the exact test below.
-            keep = loss + self._rest[i] <= budget + 1e-9 * (1.0 + abs(budget))
+            keep = laws.may_be_heard(loss, self._rest[i], slack_budget)
             if not keep.all():
                 alive, loss = alive[keep], loss[keep]
                 sub = sub.take(keep)

@@ -24,7 +24,7 @@ import numpy as np
 
 from netsim._kernels import Motion
 from netsim.compiled import load
-from netsim.radio._kernels import Decided, PathLoss, Points, Robots, Shadow
+from netsim.radio._kernels import Decided, PathLoss, Points, Robots, Shadow, with_slack
 from netsim.radio.chain import (
     LineOfSightLoss,
     LogDistanceLoss,
@@ -84,8 +84,8 @@ class CompiledChain:
             raise ValueError(f"no compiled form for the chain {[type(t).__name__ for t in propagation.chain.terms]}")
         self.log, self.shadow, self.walls, self.range, self.sight = parts
         budget = propagation.radio.budget_db
-        # The chain's own early-drop rule, slack included.
-        self.budget_slack = budget + 1e-9 * (1.0 + abs(budget))
+        # The chain's own early-drop budget (the same function as LossChain.receivable's).
+        self.budget_slack = with_slack(budget)
         term = self.walls or self.sight
         occupancy = term.occupancy if term is not None else None
         self.occupancy = occupancy

@@ -473,8 +473,10 @@ class Medium:
             self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
             interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
             col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
+        else:
+            interference = None
         if frame.rows is not None:
-            self._record(frame, rx, hd, col)
+            self._record(frame, rx, hd, col, interference)
         ok = ~(hd | col)
         c, binned = frame.counters, frame.binned
         for cause, lost in (("half_duplex", hd), ("collision", col)):
@@ -497,13 +499,15 @@ class Medium:
             self._notify(i, got, frame.payload, frame.deliver, frame.kind, c, binned, power)
         self.access.ended(i, newly, now)
 
-    def _record(self, frame: Frame, rx: np.ndarray, hd: np.ndarray, col: np.ndarray) -> None:
+    def _record(
+        self, frame: Frame, rx: np.ndarray, hd: np.ndarray, col: np.ndarray, interference: np.ndarray | None
+    ) -> None:
         """Close the rows of ``frame`` (netsim.radio.receptions): the receptions it lost at its
         end, and under a power model each receiver's SINR, its signal over the noise and the
-        peak interference of the frame (what the capture threshold is compared with)."""
+        peak interference of the frame (``interference``, what the capture threshold is
+        compared with; None without a power model)."""
         rows, frame.rows = frame.rows, None
-        if self.power is not None and len(rx):
-            interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
+        if interference is not None and len(rx):
             rows.set_sinr(rx, 10.0 * np.log10(frame.rx_mw / (self.power.noise_mw + interference)))
         rows.mark(rx[hd], self.causes.index("half_duplex"))
         rows.mark(rx[col], self.causes.index("collision"))

@@ -245,7 +245,7 @@ def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0, n_ro
     flat = np.ascontiguousarray(margin, dtype=float).reshape(-1)
     out = np.empty(flat.shape[0])
     with np.errstate(over="ignore"):
-        kernels = load("netsim._kernels", flat.shape[0] if n_robots is None else n_robots)
+        kernels = load("netsim._kernels", n_robots, values=flat.shape[0])
         kernels.ranges_at_margin_m(flat, params.reference_distance_m, params.path_loss_exponent, out)
     return out.reshape(np.shape(margin))
 

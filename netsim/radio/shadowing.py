@@ -93,7 +93,7 @@ def pair_keys(a, b, n_robots: int | None = None) -> np.ndarray:
     a, b = np.broadcast_arrays(np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64))
     flat_a, flat_b = np.ascontiguousarray(a).reshape(-1), np.ascontiguousarray(b).reshape(-1)
     out = np.empty(flat_a.shape[0], np.int64)
-    load("netsim.radio._kernels", flat_a.shape[0] if n_robots is None else n_robots).pair_keys_of(flat_a, flat_b, out)
+    load("netsim.radio._kernels", n_robots, values=flat_a.shape[0]).pair_keys_of(flat_a, flat_b, out)
     return out.reshape(a.shape)
 
 
