@@ -507,7 +507,7 @@ class Medium:
         peak interference of the frame (``interference``, what the capture threshold is
         compared with; None without a power model)."""
         rows, frame.rows = frame.rows, None
-        if interference is not None and len(rx):
+        if self.power is not None and interference is not None and len(rx):
             rows.set_sinr(rx, 10.0 * np.log10(frame.rx_mw / (self.power.noise_mw + interference)))
         rows.mark(rx[hd], self.causes.index("half_duplex"))
         rows.mark(rx[col], self.causes.index("collision"))
