@@ -53,8 +53,9 @@ best: on seeds 1 to ``--seeds`` (each ``--n``, default 20) it runs the global pl
 local plan, and the local plan with rule 1 replaced by an oracle that reads the true
 network: a robot lets go of a link when the links up at the step join its ends through
 links that come before it, by length or by the global plan's order (the margin left after
-the plausible change of the shadowing), over the robots it remembers or over the whole
-team (then with every other rule of the local plan, its own limits and leashes, unchanged).
+the plausible change of the shadowing), over the robots it remembers, over those and the
+robots they remember (two hops), or over the whole team (then with every other rule of the
+local plan, its own limits and leashes, unchanged).
 Not a plan (no robot knows the true network): a bound. Prints each run's covered fraction
 of the bound over the global plan's on the same seed, and how far any run's real network
 grew.
@@ -257,6 +258,8 @@ def why(n: int, seed: int, duration_s: float) -> dict:
 ORACLES = {
     "length, remembered": ("length", "remembered"),
     "margin, remembered": ("margin", "remembered"),
+    "length, two hops": ("length", "two hops"),
+    "margin, two hops": ("margin", "two hops"),
     "margin, team": ("margin", "team"),
 }
 
@@ -266,9 +269,11 @@ def oracle_let_go(controller, order: str, over: str):
     when the links up at the step (the true network, :meth:`LinkRules.candidates`) join
     them through links that come before ``(i, j)`` in ``order`` (``"length"``: the true
     lengths; ``"margin"``: the global plan's weights, the margin left after the plausible
-    change of the shadowing), over the robots ``i`` remembers (``over = "remembered"``) or
-    over the whole team (``"team"``, then only robots ``i`` remembers are let go of). Not
-    a plan: it reads the true positions and shadowing."""
+    change of the shadowing), over the robots ``i`` remembers (``over = "remembered"``),
+    over those and the robots they remember (``"two hops"``: what ``i`` would know if each
+    list also carried its sender's neighbours' lists) or over the whole team (``"team"``);
+    only robots ``i`` remembers are let go of. Not a plan: it reads the true positions,
+    shadowing and memories."""
     import numpy as np
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
@@ -281,7 +286,14 @@ def oracle_let_go(controller, order: str, over: str):
         weight[links.i, links.j] = weight[links.j, links.i] = key
         out = np.zeros((n, n), dtype=bool)
         for i in range(n):
-            others = np.flatnonzero(heard.known[i]) if over == "remembered" else np.flatnonzero(np.arange(n) != i)
+            if over == "remembered":
+                others = np.flatnonzero(heard.known[i])
+            elif over == "two hops":
+                near = heard.known[i] | heard.known[heard.known[i]].any(axis=0)
+                near[i] = False
+                others = np.flatnonzero(near)
+            else:
+                others = np.flatnonzero(np.arange(n) != i)
             nodes = np.r_[i, others]
             sub = weight[np.ix_(nodes, nodes)]
             a, b = np.nonzero(np.triu(np.isfinite(sub), 1))
@@ -364,7 +376,7 @@ def main(argv=None) -> int:
     p.add_argument("--csv", help="also write the table here (with --shadowing, --bound: every run, as it ends)")
     p.add_argument("--shadowing", action="store_true", help="the targets under 4 dB shadowing (module notes)")
     p.add_argument(
-        "--seeds", type=int, default=20, help="--shadowing, --bound: seeds 1 to this (--bound runs five plans a seed)"
+        "--seeds", type=int, default=20, help="--shadowing, --bound: seeds 1 to this (--bound runs seven plans a seed)"
     )
     p.add_argument("--why", action="store_true", help="where the local plan loses under shadowing (module notes)")
     p.add_argument("--bound", action="store_true", help="what rule 1 could give at best under shadowing (module notes)")

@@ -56,6 +56,20 @@ def test_bound_oracle_lets_go_of_a_link_joined_through_links_before_it_over_the_
     assert not t.oracle_let_go(controller(), "margin", "team")(POS, None, heard(only_1), 10.0)[0, 2]
 
 
+def test_bound_oracle_over_two_hops_reaches_the_robots_remembered_by_those_it_remembers():
+    """Over two hops robot 0's graph holds the robots it remembers and those they remember: it
+    lets go of 1 through 2, which it does not remember but 1 does; not when no robot it
+    remembers remembers 2 (then 2 is out of its graph, as over the robots it remembers)."""
+    t = targets()
+    memories = ~np.eye(3, dtype=bool)
+    memories[0, 2] = False
+    out = t.oracle_let_go(controller(), "length", "two hops")(POS, None, heard(memories), 10.0)
+    assert out[0, 1] and not out[0, 2]
+    assert not t.oracle_let_go(controller(), "length", "remembered")(POS, None, heard(memories), 10.0)[0, 1]
+    memories[1, 2] = False
+    assert not t.oracle_let_go(controller(), "length", "two hops")(POS, None, heard(memories), 10.0)[0, 1]
+
+
 def test_bound_oracle_by_margin_lets_go_of_a_short_link_in_a_deep_fade():
     """In the global plan's order (the margin left, as its weights) robot 0 lets go of its short
     link to 2, the weakest, through 0-1-2, and keeps the long 0-1, which no detour of
