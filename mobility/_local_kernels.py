@@ -1,6 +1,7 @@
 """The local plan's loops (compiled or plain, :func:`netsim.compiled.load`): rule 1
 (:func:`netsim.mobility.local.let_go`), per robot the bottleneck of its certified detours,
-by a widest-path search over the robots it remembers, a link surely up within the plan's
+by a widest-path search over the robots it remembers and those two hops out, a link surely
+up within the plan's
 range or, under shadowing, within the range its measured shadowing allows over the pair's
 travel since, as far as the robot knows it (:func:`measured_range_m`,
 :func:`largest_travel_m`); and the walls' test
@@ -203,25 +204,59 @@ def measured_range_m(x_db, measured_s, travel_m, fade):
     return range_at_m(x_db + change, fade.budget_db, fade.reference_distance_m, fade.exponent)
 
 
+# The last band of rule 1's order under shadowing: links without a record, and links too long
+# at zero shadowing for any earlier band (ordered among themselves by their ids).
+LAST_BAND = 1048576.0
+
+
+@jit(nogil=True)
+def link_band(length_m, record_db, band_m, fade):
+    """A link's band in rule 1's order: ``floor(length / band_m)``; under shadowing
+    (``fade.on``) of its length at zero shadowing under its record, ``length R(0) / R(X)``
+    (the length at which, with no shadowing, the link would have the margin its record ``X``
+    gives it at ``length``), a link without a record (NaN) or beyond every range in the last
+    band, :data:`LAST_BAND`."""
+    if not fade.on:
+        return float(math.floor(length_m / band_m))
+    if math.isnan(record_db):
+        return LAST_BAND
+    reach_m = range_at_m(record_db, fade.budget_db, fade.reference_distance_m, fade.exponent)
+    if not reach_m > 0:
+        return LAST_BAND
+    at_zero_m = length_m * (range_at_m(0.0, fade.budget_db, fade.reference_distance_m, fade.exponent) / reach_m)
+    return float(math.floor(at_zero_m / band_m)) if at_zero_m / band_m < LAST_BAND else LAST_BAND
+
+
+@jit(nogil=True)
+def in_epoch(heard, version):
+    """Whether a list of snapshot ``version`` (an index of ``heard``'s snapshots, -1: none)
+    carries the records rule 1 orders by at this step (:class:`netsim.mobility.local.Lists`)."""
+    return version >= 0 and heard.records_from <= heard.steps[version] < heard.records_to
+
+
 @jit(nogil=True)
 def let_go(pos, memory, heard, rule, walls, out, fade):
     """Fill ``out[i, j]`` (False on entry): robot ``i`` knows a certified detour to ``j``
-    through robots it remembers (:func:`netsim.mobility.local.let_go`). Records read by
-    name: ``memory``, what the robots remember and measured
-    (:class:`netsim.mobility.local.Remembered`; ``silent[i, j]``: ``i``'s link to ``j`` was
-    down in the window, :class:`netsim.mobility.local.Silence`, never a detour's link, ``j``
-    still a node); ``heard``, the lists they hold from each other
-    (:class:`netsim.mobility.local.Heard`, its ``x_db`` given); ``rule``, the step's
+    through robots it remembers and the robots their lists name
+    (:func:`netsim.mobility.local.let_go`). Read by field name: ``memory``, what the
+    robots remember and measured (:class:`netsim.mobility.local.Remembered`; ``silent[i,
+    j]``: ``i``'s link to ``j`` was down in the window, :class:`netsim.mobility.local.Silence`,
+    never a detour's link, ``j`` still a node); ``heard``, the lists they hold from each
+    other and the lists those lists' senders held (:class:`netsim.mobility.local.Heard`, its
+    ``x_db``, ``held`` and ``records_db`` given); ``rule``, the step's
     (:class:`netsim.mobility.local.DetourRule`), a detour's link certified up over
     ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): each end farther from where it is at
     ``t0_s`` by its largest travel over the window, and a measured link's pair travel
     counted from the window's start where that is earlier than the measurement
     (:func:`largest_travel_m`); ``fade``: the shadowing's rule (:func:`measured_range_m`,
-    ``on`` False: none)."""
+    :func:`link_band`; ``on`` False: none)."""
     xy, sent_s, known, silent = memory.xy, memory.sent_s, memory.known, memory.silent
     x_db, measured_s = memory.x_db, memory.measured_s
     leg_speed, leg_from = memory.leg_speed_mps, memory.leg_from_s
-    which, start, other, listed_s, listed_x = heard.which, heard.start, heard.other, heard.sent_s, heard.x_db
+    which, start, other, listed_s = heard.which, heard.start, heard.other, heard.sent_s
+    held, records_db = heard.held, heard.records_db
+    # Without the lists' senders' lists (``held`` empty) the graph ends at the robots i remembers.
+    two_hops = held.shape[0] == start.shape[0] and start.shape[0] > 0
     t0_s, speed_mps, band_m, range_m = rule.t0_s, rule.speed_mps, rule.band_m, rule.range_m
     release_s, window_s = heard.release_s, rule.window_s
     opens_s = t0_s - window_s
@@ -236,6 +271,12 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     qx = np.empty(n)
     qy = np.empty(n)
     e = np.empty(n)
+    # beyond[a]: node a is two hops out (named by lists, not remembered), known since heard_s[a].
+    beyond = np.zeros(n, np.bool_)
+    heard_s = np.empty(n)
+    # record_db[a, b]: the link's record in the epoch ordered by (readable[a, b]: i holds it).
+    record_db = np.empty((n, n))
+    readable = np.zeros((n, n), np.bool_)
     # sweep[a]: node a's largest travel over the window, as i knows it.
     sweep = np.zeros(n)
     worst = np.empty(n)
@@ -245,7 +286,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
         node[0] = i
         qx[0], qy[0], e[0] = pos[i, 0], pos[i, 1], 0.0
         for j in range(n):
-            if known[i, j]:
+            if known[i, j] and j != i:
                 node[k] = j
                 qx[k], qy[k] = xy[i, j, 0], xy[i, j, 1]
                 e[k] = speed_mps * max(t0_s - sent_s[i, j], 0.0)
@@ -253,17 +294,45 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
         m = k - 1
         if m < 2:
             continue
+        for a in range(k):
+            local[node[a]] = a
+            beyond[a] = False
+        if two_hops:
+            # Two hops out: the robots the lists i holds name (their senders still remember
+            # them at t0), where the freshest of those lists puts them.
+            for a in range(1, m + 1):
+                u = node[a]
+                s = which[i, u]
+                if s < 0:
+                    continue
+                for p in range(start[s, u], start[s, u + 1]):
+                    w = other[p]
+                    if not remembers(listed_s[p], t0_s, release_s):
+                        continue
+                    b = local[w]
+                    if b < 0:
+                        b = k
+                        node[k] = w
+                        local[w] = k
+                        beyond[k] = True
+                        heard_s[k] = -np.inf
+                        k += 1
+                    if beyond[b] and listed_s[p] > heard_s[b]:
+                        heard_s[b] = listed_s[p]
+                        qx[b], qy[b] = heard.xy[p, 0], heard.xy[p, 1]
+                        e[b] = speed_mps * max(t0_s - listed_s[p], 0.0)
         if window_s > 0:
             for a in range(k):
                 u = node[a]
-                sweep[a] = largest_travel_m(leg_speed[i, u], leg_from[i, u], opens_s, t0_s, speed_mps)
+                # Of a robot two hops out i knows no leg: the cap all along.
+                speed_u = np.nan if beyond[a] else leg_speed[i, u]
+                sweep[a] = largest_travel_m(speed_u, leg_from[i, u], opens_s, t0_s, speed_mps)
         # certain[a, b]: i can tell that node a remembers node b at t0 (from a's list).
         for a in range(k):
-            local[node[a]] = a
             for b in range(k):
-                certain[a, b] = a == 0 and b > 0 and not silent[i, node[b]]
+                certain[a, b] = a == 0 and 0 < b <= m and not silent[i, node[b]]
                 sure[a, b] = range_m
-        for b in range(1, k):
+        for b in range(1, m + 1):
             # The pair's travel since the measurement: each end's, as far as i knows it; over
             # a window, from its start if earlier (an instant of the window before the
             # measurement is within the window's travel of it: the shadowing's change
@@ -275,22 +344,45 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
             r = measured_range_m(x_db[i, j], s_ij, travel, fade)
             sure[0, b] = max(sure[0, b], r)
             sure[b, 0] = sure[0, b]
-        for a in range(1, k):
+        for a in range(1, m + 1):
             u = node[a]
             s = which[i, u]
             if s < 0:
                 continue
-            for p in range(start[s, u], start[s, u + 1]):
-                b = local[other[p]]
-                if b >= 0 and remembers(listed_s[p], t0_s, release_s):
-                    certain[a, b] = True
-                    s_p = min(listed_s[p], opens_s) if window_s > 0 else listed_s[p]
-                    listed = node[b]
-                    travel = largest_travel_m(leg_speed[i, u], leg_from[i, u], s_p, t0_s, speed_mps)
-                    travel += largest_travel_m(leg_speed[i, listed], leg_from[i, listed], s_p, t0_s, speed_mps)
-                    r = measured_range_m(listed_x[p], s_p, travel, fade)
-                    sure[a, b] = max(sure[a, b], r)
-                    sure[b, a] = max(sure[b, a], r)
+            listed_lists(i, a, s, u, node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure)
+            if two_hops:
+                # The lists of the robots u's list names, as u held them at its snapshot s.
+                for p in range(start[s, u], start[s, u + 1]):
+                    b = local[other[p]]
+                    if b >= 0 and beyond[b] and held[s, u, node[b]] >= 0:
+                        w = node[b]
+                        h = held[s, u, w]
+                        args = (node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure)
+                        listed_lists(i, b, h, w, *args)
+        if fade.on:
+            # The records rule 1 orders by: the smaller id's, as a list i holds of it carries
+            # them (its own list always).
+            for a in range(k):
+                for b in range(k):
+                    record_db[a, b] = np.nan
+                    readable[a, b] = False
+            for a in range(k):
+                u = node[a]
+                ok = a == 0 or (a <= m and in_epoch(heard, which[i, u]))
+                if not ok and two_hops:
+                    for c in range(1, m + 1):
+                        s = which[i, node[c]]
+                        if s >= 0 and in_epoch(heard, held[s, node[c], u]):
+                            ok = True
+                            break
+                if not ok:
+                    continue
+                for b in range(k):
+                    if node[b] > u:
+                        readable[a, b] = True
+                        readable[b, a] = True
+                        record_db[a, b] = records_db[u, node[b]]
+                        record_db[b, a] = record_db[a, b]
         for a in range(k):
             local[node[a]] = -1
         for a in range(k):
@@ -310,6 +402,8 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 nv = node[v]
                 if done[v] or not (certain[u, v] and certain[v, u]):
                     continue
+                if fade.on and not readable[u, v]:
+                    continue
                 longest = np.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 if longest + sweep[u] + sweep[v] > sure[u, v]:
                     continue
@@ -321,12 +415,41 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                         walls, qx[a], qy[a], ea, qx[b], qy[b], eb
                     ):
                         continue
-                rank = math.floor(longest / band_m) * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
+                band = link_band(longest, record_db[u, v] if fade.on else np.nan, band_m, fade)
+                rank = band * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)
                 if w < worst[v]:
                     worst[v] = w
         for a in range(1, m + 1):
             j = node[a]
+            if fade.on and not readable[0, a]:
+                continue
             shortest = max(np.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
-            rank = math.floor(shortest / band_m) * nn + float(min(i, j) * n + max(i, j)) + 1.0
+            band = link_band(shortest, record_db[0, a] if fade.on else np.nan, band_m, fade)
+            rank = band * nn + float(min(i, j) * n + max(i, j)) + 1.0
             out[i, j] = worst[a] < rank
+
+
+@jit(nogil=True)
+def listed_lists(i, a, s, u, node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure):
+    """What ``u`` (node ``a`` of robot ``i``'s graph) remembers at ``t0`` by its list of
+    snapshot ``s``: ``certain[a, b]`` for each node ``b`` it names (still remembered then),
+    and the range the shadowing it measured on ``b`` allows, ``sure[a, b]``, over the pair's
+    largest travel since as ``i`` knows it (a robot two hops out at the cap all along)."""
+    start, other, listed_s, listed_x = heard.start, heard.other, heard.sent_s, heard.x_db
+    t0_s, speed_mps, window_s = rule.t0_s, rule.speed_mps, rule.window_s
+    opens_s = t0_s - window_s
+    for p in range(start[s, u], start[s, u + 1]):
+        b = local[other[p]]
+        if b < 0 or not remembers(listed_s[p], t0_s, heard.release_s):
+            continue
+        certain[a, b] = True
+        s_p = min(listed_s[p], opens_s) if window_s > 0 else listed_s[p]
+        listed = node[b]
+        travel = 0.0
+        for c, robot in ((a, u), (b, listed)):
+            speed_c = np.nan if beyond[c] else leg_speed[i, robot]
+            travel += largest_travel_m(speed_c, leg_from[i, robot], s_p, t0_s, speed_mps)
+        r = measured_range_m(listed_x[p], s_p, travel, fade)
+        sure[a, b] = max(sure[a, b], r)
+        sure[b, a] = max(sure[b, a], r)

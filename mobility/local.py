@@ -7,20 +7,22 @@ largest delay). It keeps that after its neighbour table lets the entry expire, f
 ``release_s`` after the Ack was sent; then it forgets the robot. Every robot moves at most
 ``speed_max_mps``, so a robot last heard at ``q`` at time ``s`` is, at time ``t``, within
 ``v (t - s)`` of ``q``. An Ack also carries its sender's list of the robots it remembers
-(:class:`Lists`): from those a robot learns which robots its neighbours remember, and
-where they heard them.
+(:class:`Lists`), the lists it holds of them and its records of the shadowing: from those a
+robot learns which robots its neighbours remember, whom those remember, and where they
+heard them.
 
 The rules, for robot ``i`` deciding the step that runs over ``[t0, t1]`` (``t1 = t0 +
 period``), its own position ``p`` at ``t0`` exact:
 
 1. **Detour.** ``i`` lets go of a remembered robot ``j`` only if it knows a *certified
-   detour*: a path from ``i`` to ``j`` through robots it remembers, each link of which
-   joins two robots that remember each other (as the lists ``i`` holds from them show)
-   and is, whatever the true positions at
-   ``t0``, shorter than the link ``(i, j)``: its longest possible length (``|q_a - q_b| +
-   e_a + e_b``, ``e = v (t0 - s)``; ``|p - q_a| + e_a`` from ``i``) below the shortest
-   possible length of ``(i, j)`` (``|p - q_j| - e_j``). Every other remembered robot is
-   *kept*. (With detours of two links this is the relative neighbourhood graph; with
+   detour*: a path from ``i`` to ``j`` through robots it remembers and robots two hops out
+   (named by the lists it holds), each link of which joins two robots that remember each
+   other (as the lists ``i`` holds of them, or their senders held, show) and is, whatever
+   the true positions at ``t0``, shorter than the link ``(i, j)``: its longest possible
+   length (``|q_a - q_b| + e_a + e_b``, ``e = v (t0 - s)``; ``|p - q_a| + e_a`` from ``i``)
+   below the shortest possible length of ``(i, j)`` (``|p - q_j| - e_j``); under shadowing
+   each length is taken at zero shadowing under the link's record (:class:`Lists`). Every
+   other remembered robot is *kept*. (With detours of two links this is the relative neighbourhood graph; with
    any, the local minimum spanning tree.)
 2. **Leash.** ``i`` ends the step within ``r - margin - v (t1 - s_j)`` of ``q_j`` for
    every kept ``j``; as ``q_j`` is fixed, the distance is convex in time and the radius
@@ -413,28 +415,60 @@ class Heard(NamedTuple):
     xy: np.ndarray  # (M, 2): the position that Ack carried
     release_s: float
     x_db: np.ndarray | None = None  # (M,): the shadowing the sender measured on that Ack (NaN: none)
+    # held[k, u, w]: the snapshot of w's list that u held when it made its list of snapshot k
+    # (-1: none); empty: not known (rule 1's graph then ends at the robots i remembers).
+    held: np.ndarray | None = None
+    steps: np.ndarray | None = None  # (K,) int64: each snapshot's step (lists taken before it)
+    records_db: np.ndarray | None = None  # (n, n): the records rule 1 orders by (NaN: none)
+    records_from: int = -1  # the steps whose lists carry them: [records_from, records_to)
+    records_to: int = -1
+
+
+# Rule 1's order under shadowing reads records taken every RECORD_EPOCH_STEPS-th list, those
+# of the epoch of the list taken RECORD_DELAY_STEPS steps before the latest (Lists): late
+# enough that the lists a robot holds mostly carry them (a list carries its epoch's and the
+# previous one's), early enough that they are still close to the shadowing they order by.
+RECORD_EPOCH_STEPS = 3
+RECORD_DELAY_STEPS = 2
 
 
 class Lists:
     """What an Ack carries of its sender's memory: the robots it remembers, each with the
-    position and the earliest sending time of the latest Ack of it the sender heard.
+    position, the earliest sending time and the shadowing measured (NaN: none) of the latest
+    Ack of it the sender heard; the lists the sender holds of them (so a robot also learns
+    whom the robots two hops out remember); and the *records* of the current and the previous
+    epoch (below).
 
     A robot's memory changes at control steps alone (:meth:`Memory.hear`), and only
     refreshes there: an Ack sent after a step carries at least the list of that step. So
     ``i``, holding an Ack of ``u`` sent no earlier than ``s``, holds at least ``u``'s list
     as of its latest step before ``s`` (:meth:`take` keeps the last ``depth`` of them; with
     none old enough, ``i`` counts the list as empty). The lists start with control: an Ack
-    sent before the first step carries none."""
+    sent before the first step carries none.
+
+    Records (rule 1's order under shadowing, docs/model.md 5.1): every
+    :data:`RECORD_EPOCH_STEPS`-th list starts an epoch, and each robot's records of that epoch
+    are the shadowing it had measured then on each robot it remembered. A list carries its
+    epoch's records and the previous epoch's, so every robot holding a list of the epoch
+    being read, or of the next, reads the same numbers. At each step rule 1 reads the epoch
+    of the list taken :data:`RECORD_DELAY_STEPS` steps before the latest."""
 
     def __init__(self, n: int, depth: int):
         self.n = n
         self.depth = int(depth)
-        self._taken: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._taken: list[tuple] = []
+        self._steps = 0  # lists taken so far: the next list's step
+        self._records: dict[int, np.ndarray] = {}
 
     def take(self, memory: Memory, now_s: float, release_s: float) -> None:
         """Every robot's list from now on: the robots it remembers (:meth:`Memory.known`)."""
-        robot, other = np.nonzero(memory.known(now_s, release_s))
+        known = memory.known(now_s, release_s)
+        robot, other = np.nonzero(known)
         start = np.searchsorted(robot, np.arange(self.n + 1))
+        # The step of the list each robot holds of each other one now (-1: none).
+        version = self._versions(memory.sent_s)
+        # An Ack carries the lists its sender holds of the robots its list names, no others.
+        held = np.where(known & (version >= 0), version + (self._steps - len(self._taken)), -1).astype(np.int32)
         self._taken.append(
             (
                 float(now_s),
@@ -443,16 +477,29 @@ class Lists:
                 memory.sent_s[robot, other],
                 memory.xy[robot, other],
                 memory.x_db[robot, other],
+                held,
             )
         )
         del self._taken[: -self.depth]
+        if self._steps % RECORD_EPOCH_STEPS == 0:
+            epoch = self._steps // RECORD_EPOCH_STEPS
+            self._records[epoch] = np.where(known, memory.x_db, np.nan)
+            for old in [e for e in self._records if e < epoch - 1]:
+                del self._records[old]
+        self._steps += 1
+
+    def _versions(self, sent_s: np.ndarray) -> np.ndarray:
+        """For Acks sent no earlier than ``sent_s``: the index, among the lists kept, of the
+        latest list taken strictly before (-1: none)."""
+        taken_s = np.array([t[0] for t in self._taken])
+        return np.searchsorted(taken_s, sent_s, side="left") - 1
 
     def heard(self, known: np.ndarray, sent_s: np.ndarray, release_s: float) -> Heard:
         """What each robot holds: its own memory ``known`` and, for each robot ``u`` whose
         latest Ack it heard can have been sent no earlier than ``sent_s[i, u]``, ``u``'s list of
-        its latest step strictly before then."""
-        taken_s = np.array([t[0] for t in self._taken])
-        which = np.searchsorted(taken_s, sent_s, side="left") - 1
+        its latest step strictly before then, with the lists ``u`` held then and the records
+        rule 1 reads at this step."""
+        which = self._versions(sent_s)
         sizes = np.array([len(t[2]) for t in self._taken], dtype=np.int64)
         offset = np.r_[0, np.cumsum(sizes)[:-1]] if len(sizes) else sizes
         start = np.array([t[1] + o for t, o in zip(self._taken, offset)], dtype=np.int64).reshape(-1, self.n + 1)
@@ -460,7 +507,32 @@ class Lists:
         sent = np.concatenate([t[3] for t in self._taken]) if self._taken else np.empty(0)
         xy = np.concatenate([t[4] for t in self._taken]) if self._taken else np.empty((0, 2))
         x = np.concatenate([t[5] for t in self._taken]) if self._taken else np.empty(0)
-        return Heard(known, which.astype(np.int64), start, other.astype(np.int64), sent, xy, float(release_s), x)
+        first = self._steps - len(self._taken)
+        steps = np.arange(first, self._steps, dtype=np.int64)
+        if self._taken:
+            held = np.stack([t[6] for t in self._taken]).astype(np.int64)
+            held = np.where(held >= first, held - first, -1)
+        else:
+            held = np.empty((0, self.n, self.n), np.int64)
+        epoch = (self._steps - 1 - RECORD_DELAY_STEPS) // RECORD_EPOCH_STEPS
+        records_db = self._records.get(epoch)
+        span = (epoch * RECORD_EPOCH_STEPS, (epoch + 2) * RECORD_EPOCH_STEPS) if records_db is not None else (-1, -1)
+        if records_db is None:
+            records_db = np.full((self.n, self.n), np.nan)
+        return Heard(
+            known,
+            which.astype(np.int64),
+            start,
+            other.astype(np.int64),
+            sent,
+            xy,
+            float(release_s),
+            x,
+            held,
+            steps,
+            records_db,
+            *span,
+        )
 
 
 def remembered(sent_s: np.ndarray, now_s: float, release_s: float) -> np.ndarray:
@@ -498,25 +570,30 @@ def let_go(
 
     ``pos``: every robot's own position at ``t0_s``; ``heard``: each robot's memory and the
     lists it holds (:class:`Lists`); ``band_m``: the width of the length bands of the links'
-    order. Robot ``i``'s graph: itself and the robots it remembers (at the positions it
-    heard), joined where ``i`` can certify that the two remember each other at ``t0_s``
-    (``i`` remembers the robots of its graph; ``u`` remembers ``v`` if the list ``i`` holds
-    from ``u`` names ``v`` with an Ack sent less than ``release_s`` before ``t0_s``) and they
-    are surely within ``range_m`` and (on a map) surely clear of ``walls``
+    order. Robot ``i``'s graph: itself, the robots it remembers (at the positions it heard)
+    and, when ``heard`` carries the lists their senders held, the robots two hops out that
+    the lists it holds name (at the freshest position they give), joined where ``i`` can
+    certify that the two remember each other at ``t0_s`` (``i`` is one of them and
+    remembers the other; or a list ``i`` holds of ``u``, or that a robot ``i`` remembers
+    held of it, names ``v`` with an Ack sent less than ``release_s`` before ``t0_s``) and
+    they are surely within ``range_m`` and (on a map) surely clear of ``walls``
     (:func:`clear_of_walls` with the larger of the two uncertainties), each link at the
-    largest rank it can have at ``t0``. A robot two links out is no node: ``i`` heard
-    nothing of it. A detour's worst link is the bottleneck of ``i``'s path to ``j`` in a
-    minimum spanning tree of that graph, computed by
-    :func:`netsim.mobility._local_kernels.let_go`. ``window_s``: a detour's links are
-    certified up over ``[t0_s - window_s, t0_s]``, not at ``t0_s`` alone (each end farther
-    from where it is known to be by its largest travel over the window; :class:`Silence`).
+    largest rank it can have at ``t0``. Under shadowing (``fade``) a link's band is that of
+    its length at zero shadowing under its record of the step's epoch (:class:`Lists`), and
+    a link whose record ``i`` cannot read is neither a detour's link nor let go of. A
+    detour's worst link is the bottleneck of ``i``'s path to ``j`` in a minimum spanning
+    tree of that graph, computed by :func:`netsim.mobility._local_kernels.let_go`.
+    ``window_s``: a detour's links are certified up over ``[t0_s - window_s, t0_s]``, not
+    at ``t0_s`` alone (each end farther from where it is known to be by its largest travel
+    over the window; :class:`Silence`).
     ``silent_of``: ``(n, n)``, the robots each robot has heard nothing of for longer than
     the largest gap between two Acks (:func:`silent`): their link was down in the window,
     so it is no detour's link, though the robot is still a node.
 
     Notes
     -----
-    ``O(k^2 + l)`` per robot with ``k`` robots it remembers, whose lists hold ``l`` entries.
+    ``O(k^2 + l)`` per robot with ``k`` robots in its graph (it remembers them, or two hops
+    out), whose lists hold ``l`` entries.
     """
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
@@ -524,6 +601,17 @@ def let_go(
     kernels = load("netsim.mobility._local_kernels", n)
     listed_x = heard.x_db if heard.x_db is not None else np.full(len(heard.other), np.nan)
     heard = heard._replace(x_db=listed_x, release_s=float(heard.release_s))
+    if heard.held is None:
+        # Lists without the lists their senders held: a graph of the robots i remembers.
+        heard = heard._replace(held=np.empty((0, 0, 0), np.int64))
+    if heard.steps is None or heard.records_db is None:
+        # No records: under shadowing no link's place in the order is known.
+        heard = heard._replace(
+            steps=np.zeros(max(len(heard.start), 1), np.int64),
+            records_db=np.full((n, n), np.nan),
+            records_from=-1,
+            records_to=-1,
+        )
     quiet = np.zeros((n, n), dtype=bool) if silent_of is None else np.ascontiguousarray(silent_of, dtype=bool)
     memories = Remembered(
         memory.xy,

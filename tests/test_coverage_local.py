@@ -180,6 +180,60 @@ def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(se
     assert gone.sum() > n // 2  # the rule lets go of links at all
 
 
+def test_detour_through_a_robot_two_hops_out_that_the_lists_show():
+    """Rule 1 over two hops: robot 0 remembers 1 and 2, which do not remember each other;
+    both remember 3, which 0 never heard. Their lists name 3 and carry the list of 3 they
+    held, which names them: 0 lets go of 1 (90 m) through 2 and 3 (45, 40 and 54 m). Without
+    the lists their senders held, 3's memory is unknown to 0 and 0 keeps 1."""
+    pos = np.array([[0.0, 0.0], [90.0, 0.0], [20.0, 40.0], [60.0, 45.0]])
+    sent = np.full((4, 4), -np.inf)
+    for a, b in ((0, 1), (0, 2), (1, 3), (2, 3)):
+        sent[a, b] = sent[b, a] = T0 - 0.5
+    m = memory_of(np.broadcast_to(pos[None], (4, 4, 2)).copy(), sent)
+    lists = Lists(4, 3)
+    for taken in (T0 - 3.0, T0 - 2.0, T0 - 1.0):
+        lists.take(m, taken, 20.0)
+    heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    assert let_go(pos, m, heard, T0, V, 10.0, RC)[0, 1]
+    assert not let_go(pos, m, heard._replace(held=None), T0, V, 10.0, RC)[0, 1]
+    assert (let_go(pos, m, heard, T0, V, 10.0, RC) == oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS)).all()
+
+
+@pytest.mark.slow
+def test_detour_over_two_hops_agrees_with_its_oracle(monkeypatch):
+    """Rule 1's kernel over two hops, plain and compiled, lets go of exactly the links its
+    oracle does, with lists taken at several steps that carry the lists their senders held
+    (some robots two hops out known, some not); and the lists of two hops change what some
+    robot lets go of."""
+    rng = np.random.default_rng(11)
+    changed = False
+    for seed in range(8):
+        pos, m = random_scene(seed, n=40)
+        lists = Lists(len(pos), 4)
+        for taken in (T0 - 4.5, T0 - 3.5, T0 - 2.5, T0 - 1.5):
+            heard_then = np.where(rng.random(m.sent_s.shape) < 0.8, np.minimum(m.sent_s, taken - 0.2), -np.inf)
+            lists.take(memory_of(m.xy, heard_then), taken, 20.0)
+        heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+        assert (heard.held >= 0).any()
+        monkeypatch.setenv("NETSIM_COMPILED", "0")
+        a = let_go(pos, m, heard, T0, V, 10.0, RC)
+        monkeypatch.setenv("NETSIM_COMPILED", "1")
+        b = let_go(pos, m, heard, T0, V, 10.0, RC)
+        want = oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS)
+        assert (a == want).all() and (b == want).all() and a.any()
+        changed |= bool((a != let_go(pos, m, heard._replace(held=None), T0, V, 10.0, RC)).any())
+        # Over a window, with legs told (a robot two hops out has none i knows: the cap) and
+        # silent robots.
+        m.leg_speed_mps[:] = np.where(rng.random(m.sent_s.shape) < 0.7, 0.0, V)
+        m.leg_from_s[:] = T0 - 20.0
+        quiet = rng.random(m.sent_s.shape) < 0.1
+        for compiled in ("0", "1"):
+            monkeypatch.setenv("NETSIM_COMPILED", compiled)
+            got = let_go(pos, m, heard, T0, V, 10.0, RC, window_s=3.0, silent_of=quiet)
+            assert (got == oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS, 3.0, quiet)).all()
+    assert changed
+
+
 @pytest.mark.slow
 def test_detour_kernel_agrees_with_its_oracle(monkeypatch):
     """Rule 1's kernel, plain and compiled, lets go of exactly the links its numpy oracle

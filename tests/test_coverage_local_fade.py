@@ -152,6 +152,16 @@ def test_a_robot_uses_only_the_powers_it_received():
             assert held.x_db[p] == m.x_db[u, held.other[p]]
 
 
+def heard_over_steps(m: Memory, steps: int = 3):
+    """What the robots hold after lists of the memory ``m`` taken at ``steps`` steps a second
+    apart, the last at ``T0 - 1``: enough steps for the records rule 1 orders by under
+    shadowing (netsim.mobility.local.Lists)."""
+    lists = Lists(len(m.sent_s), steps)
+    for k in range(steps):
+        lists.take(m, T0 - steps + k, 20.0)
+    return lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+
+
 def test_detour_through_a_measured_link_beyond_the_sure_distance():
     """Rule 1 under shadowing: a detour's link longer than the sure distance is certified
     when the shadowing measured on it (by its own ends, told in their Acks' lists) leaves it
@@ -167,24 +177,18 @@ def test_detour_through_a_measured_link_beyond_the_sure_distance():
     m.sent_s[:] = sent
     m.measured_s[:] = sent
     record_margins(m, pos, -2.0)  # the margins the Acks came with, the shadowing unknown
-    lists = Lists(n, 2)
-    lists.take(m, T0 - 1.0, 20.0)
-    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    held = heard_over_steps(m)
     v = f.speed_mps
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     m.x_db[:] = -2.0  # a favourable shadowing, measured on every Ack
     np.fill_diagonal(m.x_db, np.nan)
     record_margins(m, pos)
-    lists = Lists(n, 2)
-    lists.take(m, T0 - 1.0, 20.0)
-    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    held = heard_over_steps(m)
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     # A shadowing that leaves the detour's links too short at t0 certifies nothing.
     m.x_db[:] = 14.0
     record_margins(m, pos)
-    lists = Lists(n, 2)
-    lists.take(m, T0 - 1.0, 20.0)
-    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    held = heard_over_steps(m)
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
 
 
@@ -276,9 +280,7 @@ def test_detour_certified_over_the_travel_the_acks_tell():
     m.x_db[:] = 6.0  # an adverse shadowing: the 43 m links are up out to 63 m
     np.fill_diagonal(m.x_db, np.nan)
     record_margins(m, pos)
-    lists = Lists(n, 2)
-    lists.take(m, T0 - 2.0, 20.0)
-    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    held = heard_over_steps(m)
     v = f.speed_mps
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     m.leg_speed_mps[:] = 0.0  # every Ack said its sender held, since before it was sent
@@ -397,3 +399,89 @@ def test_halves_keep_the_link_within_its_length_and_the_pair_travel_within_its_b
         assert np.hypot(*(pos[0] + step[0] - pos[1] - step[1])) <= length * (1 + 1e-9)
         assert np.hypot(*step.T).sum() <= allowed * (1 + 1e-9)
     assert tried >= 10
+
+
+def faded_triangle() -> tuple[np.ndarray, Memory]:
+    """Robots 0 and 1 40 m apart in a deep fade (10 dB), robot 2 50 m from each on strong
+    links (-6 dB); every robot heard the others' Acks sent at ``T0 - 0.5`` and measured it."""
+    pos = np.array([[0.0, 0.0], [40.0, 0.0], [20.0, float(np.sqrt(50.0**2 - 20.0**2))]])
+    m = Memory(3)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((3, 3), T0 - 0.5)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = sent
+    m.measured_s[:] = sent
+    m.x_db[:] = -6.0
+    m.x_db[0, 1] = m.x_db[1, 0] = 10.0
+    np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
+    return pos, m
+
+
+def test_detour_order_under_shadowing_is_the_length_at_zero_shadowing_under_the_records():
+    """Rule 1's order under shadowing: a link's band is that of its length at zero shadowing
+    under its record (40 m at 10 dB: 86 m; 50 m at -6 dB: 32 m), so robots 0 and 1 let go of
+    their short link in a deep fade through 2 and its strong links, which by length alone
+    come after it; 2 keeps both."""
+    f = fade()
+    pos, m = faded_triangle()
+    out = let_go(pos, m, heard_over_steps(m), T0, f.speed_mps, 7.5, SURE, fade=f)
+    assert out[0, 1] and out[1, 0]
+    assert not out[0, 2] and not out[2, 0] and not out[1, 2] and not out[2, 1]
+    # As strong as the others (-6 dB: 25 m at zero shadowing), the short link comes first.
+    m.x_db[0, 1] = m.x_db[1, 0] = -6.0
+    assert not let_go(pos, m, heard_over_steps(m), T0, f.speed_mps, 7.5, SURE, fade=f)[0, 1]
+
+
+def test_detour_under_shadowing_needs_the_records_of_the_epoch():
+    """A robot orders links by the records of the epoch only where it holds them: robot 2,
+    whose latest Ack of 1 is older than that epoch's lists, as is 0's (so 0 held no list of
+    1 of that epoch either), cannot read their short link's record (1's) and keeps 1,
+    though a detour through 0 on strong links exists; robot 1 reads it (its own) and lets
+    go of 2. Once 0 has heard 1 lately, 2 reads the record in the list 0 held of 1 and lets
+    go of 1 too. From lists of a single step (no epoch's records yet) neither lets go."""
+    f = fade()
+    pos, m = faded_triangle()
+    order = [1, 2, 0]  # robot 1 where 0 was, 2 where 1 was, 0 the strong corner
+    pos, m = pos[np.argsort(order)], relabel(m, order)
+    m.sent_s[2, 1] = m.measured_s[2, 1] = m.sent_s[0, 1] = m.measured_s[0, 1] = T0 - 5.5
+    heard = heard_over_steps(m, steps=6)
+    assert heard.steps[heard.which[2, 1]] < heard.records_from <= heard.steps[heard.which[2, 0]]
+    out = let_go(pos, m, heard, T0, f.speed_mps, 7.5, SURE, fade=f)
+    assert out[1, 2] and not out[2, 1]
+    m.sent_s[0, 1] = m.measured_s[0, 1] = T0 - 0.5
+    assert let_go(pos, m, heard_over_steps(m, steps=6), T0, f.speed_mps, 7.5, SURE, fade=f)[2, 1]
+    assert not let_go(pos, m, heard_over_steps(m, steps=1), T0, f.speed_mps, 7.5, SURE, fade=f)[[1, 2], [2, 1]].any()
+
+
+def relabel(m: Memory, order: list[int]) -> Memory:
+    """The memory ``m`` with robot ``k`` renamed ``order[k]`` (every field of a pair)."""
+    inverse = np.argsort(order)
+    out = Memory(len(order))
+    for name, value in vars(m).items():
+        if isinstance(value, np.ndarray):
+            setattr(out, name, value[np.ix_(inverse, inverse)].copy())
+    return out
+
+
+def test_lists_carry_the_records_of_an_epoch_read_a_delay_later():
+    """Records are taken at every RECORD_EPOCH_STEPS-th list (the shadowing each robot had
+    measured then on the robots it remembered); rule 1 reads those of the epoch of the list
+    taken RECORD_DELAY_STEPS steps before the latest, from lists of that epoch or the next."""
+    from netsim.mobility.local import RECORD_DELAY_STEPS, RECORD_EPOCH_STEPS
+
+    _, m = faded_triangle()
+    lists = Lists(3, 10)
+    seen = []
+    for k in range(2 * RECORD_EPOCH_STEPS + RECORD_DELAY_STEPS + 1):
+        m.x_db[0, 1] = m.x_db[1, 0] = float(k)  # the shadowing measured at the k-th step
+        lists.take(m, T0 - 10.0 + k, 20.0)
+        heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+        seen.append((heard.records_db[0, 1], heard.records_from, heard.records_to))
+    for k, (record, lo, hi) in enumerate(seen):
+        epoch = (k - RECORD_DELAY_STEPS) // RECORD_EPOCH_STEPS
+        if epoch < 0:
+            assert np.isnan(record) and lo < 0
+        else:
+            assert record == epoch * RECORD_EPOCH_STEPS  # measured at the epoch's first list
+            assert (lo, hi) == (epoch * RECORD_EPOCH_STEPS, (epoch + 2) * RECORD_EPOCH_STEPS)

@@ -203,7 +203,7 @@ def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windo
     measurement: two robots at the speed cap travel 0.14 m in the 0.2 s since their Acks,
     0.76 m over the window, enough for the shadowing's plausible change to shorten links
     of about 43 m measured at 6 dB below their length."""
-    from tests.test_coverage_local_fade import SURE, fade, record_margins
+    from tests.test_coverage_local_fade import SURE, fade, heard_over_steps, record_margins
 
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     f = fade()
@@ -220,9 +220,7 @@ def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windo
     record_margins(m, pos)
     m.leg_speed_mps[:] = v  # every robot at the cap since before the window
     m.leg_from_s[:] = T0 - 5.0
-    lists = Lists(n, 2)
-    lists.take(m, T0 - 1.0, 20.0)
-    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    held = heard_over_steps(m)
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f, window_s=SILENCE.window_s)[0, 1]
 

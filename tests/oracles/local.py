@@ -112,44 +112,71 @@ def let_go(
     window_s: float = 0.0,
     silent_of: np.ndarray | None = None,
 ) -> np.ndarray:
-    """:func:`netsim.mobility.local.let_go`: per robot, the minimum spanning tree of its
-    certified graph by scipy, and the bottleneck of its path to each remembered robot; a
-    link certified up over the window before ``t0_s`` (each end farther by its largest
-    travel over the window as the robot knows it); a silent robot's link (``silent_of``) no
-    detour's link."""
+    """:func:`netsim.mobility.local.let_go` without shadowing: per robot, the minimum
+    spanning tree of its certified graph by scipy, and the bottleneck of its path to each
+    remembered robot; the graph's nodes the robot, the robots it remembers and (when
+    ``heard`` carries the lists their senders held) the robots two hops out that their lists
+    name, each where the freshest list puts it; a link certified up over the window before
+    ``t0_s`` (each end farther by its largest travel over the window as the robot knows it,
+    at the cap for a robot two hops out); a silent robot's link (``silent_of``) no detour's
+    link."""
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
     known = heard.known
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
-    local = np.full(n, -1)
+    two_hops = heard.held is not None and len(heard.held) == len(heard.start) > 0
     for i in range(n):
-        nb = np.flatnonzero(known[i])
+        nb = np.flatnonzero(known[i] & (np.arange(n) != i))
         m = len(nb)
         if m < 2:
             continue
-        node = np.r_[i, nb]
-        local[node] = np.arange(m + 1)
+        # Two hops out: every robot a remembered robot's list names (still remembered by its
+        # sender at t0), at the position of the freshest such entry.
+        far: dict[int, tuple[float, np.ndarray]] = {}
+        if two_hops:
+            for u in nb.tolist():
+                entries, named = reported(heard, i, u, t0_s)
+                for p, w in zip(entries.tolist(), named.tolist()):
+                    if w != i and not known[i, w] and (w not in far or heard.sent_s[p] > far[w][0]):
+                        far[w] = (float(heard.sent_s[p]), heard.xy[p])
+        beyond = np.array(sorted(far), dtype=int)
+        node = np.r_[i, nb, beyond]
+        k = len(node)
+        at = {int(v): a for a, v in enumerate(node)}
         # certain[a, b]: i can tell that node a remembers node b at t0.
-        certain = np.zeros((m + 1, m + 1), dtype=bool)
-        certain[0, 1:] = True if silent_of is None else ~silent_of[i, nb]
+        certain = np.zeros((k, k), dtype=bool)
+        certain[0, 1 : m + 1] = True if silent_of is None else ~silent_of[i, nb]
         for a in range(1, m + 1):
-            b = local[reported(heard, i, node[a], t0_s)[1]]
-            certain[a, b[b >= 0]] = True
-        local[node] = -1
-        q = np.concatenate([pos[i : i + 1], memory.xy[i, nb]])
-        sent = np.r_[t0_s, memory.sent_s[i, nb]]
+            u = int(node[a])
+            for w in reported(heard, i, u, t0_s)[1].tolist():
+                if w in at:
+                    certain[a, at[w]] = True
+            s = heard.which[i, u]
+            if two_hops and s >= 0:
+                # The lists u held of the robots two hops out that its list names (whether u
+                # still remembers them or not, they tell whom those robots remember).
+                for w in heard.other[heard.start[s, u] : heard.start[s, u + 1]].tolist():
+                    if w in far and heard.held[s, u, w] >= 0:
+                        h = heard.held[s, u, w]
+                        entries = np.arange(heard.start[h, w], heard.start[h, w + 1])
+                        still = t0_s - heard.sent_s[entries] < heard.release_s
+                        for x in heard.other[entries[still]].tolist():
+                            if x in at:
+                                certain[at[w], at[x]] = True
+        q = np.concatenate([pos[i : i + 1], memory.xy[i, nb], np.array([far[w][1] for w in beyond]).reshape(-1, 2)])
+        sent = np.r_[t0_s, memory.sent_s[i, nb], [far[w][0] for w in beyond]]
         e = speed_mps * np.maximum(t0_s - sent, 0.0)
         centre = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
         pair = np.minimum.outer(node, node) * n + np.maximum.outer(node, node)
         longest = centre + e[:, None] + e[None, :]
         rank = link_rank(longest, pair, band_m, n) + 1.0
-        sweep = np.zeros(m + 1)
+        sweep = np.zeros(k)
         if window_s > 0:
             sweep = largest_travel_m(
-                memory.leg_speed_mps[i, node],
+                np.where(np.arange(k) > m, np.nan, memory.leg_speed_mps[i, node]),
                 memory.leg_from_s[i, node],
-                np.full(m + 1, t0_s - window_s),
+                np.full(k, t0_s - window_s),
                 t0_s,
                 speed_mps,
             )
