@@ -180,6 +180,18 @@ def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(se
     assert gone.sum() > n // 2  # the rule lets go of links at all
 
 
+def agreed(monkeypatch, pos, m, heard, window_s=0.0, silent_of=None):
+    """Rule 1's kernel, plain and compiled, and its oracle (tests/oracles/local.py) on one
+    scene: asserts the three agree, returns what they let go of."""
+    out = []
+    for compiled in ("0", "1"):
+        monkeypatch.setenv("NETSIM_COMPILED", compiled)
+        out.append(let_go(pos, m, heard, T0, V, 10.0, RC, window_s=window_s, silent_of=silent_of))
+    want = oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS, window_s, silent_of)
+    assert (out[0] == want).all() and (out[1] == want).all()
+    return want
+
+
 def test_detour_through_a_robot_two_hops_out_that_the_lists_show():
     """Rule 1 over two hops: robot 0 remembers 1 and 2, which do not remember each other;
     both remember 3, which 0 never heard. Their lists name 3 and carry the list of 3 they
@@ -215,22 +227,15 @@ def test_detour_over_two_hops_agrees_with_its_oracle(monkeypatch):
             lists.take(memory_of(m.xy, heard_then), taken, 20.0)
         heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
         assert (heard.held >= 0).any()
-        monkeypatch.setenv("NETSIM_COMPILED", "0")
-        a = let_go(pos, m, heard, T0, V, 10.0, RC)
-        monkeypatch.setenv("NETSIM_COMPILED", "1")
-        b = let_go(pos, m, heard, T0, V, 10.0, RC)
-        want = oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS)
-        assert (a == want).all() and (b == want).all() and a.any()
+        a = agreed(monkeypatch, pos, m, heard)
+        assert a.any()
         changed |= bool((a != let_go(pos, m, heard._replace(held=None), T0, V, 10.0, RC)).any())
         # Over a window, with legs told (a robot two hops out has none i knows: the cap) and
         # silent robots.
         m.leg_speed_mps[:] = np.where(rng.random(m.sent_s.shape) < 0.7, 0.0, V)
         m.leg_from_s[:] = T0 - 20.0
         quiet = rng.random(m.sent_s.shape) < 0.1
-        for compiled in ("0", "1"):
-            monkeypatch.setenv("NETSIM_COMPILED", compiled)
-            got = let_go(pos, m, heard, T0, V, 10.0, RC, window_s=3.0, silent_of=quiet)
-            assert (got == oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS, 3.0, quiet)).all()
+        agreed(monkeypatch, pos, m, heard, window_s=3.0, silent_of=quiet)
     assert changed
 
 
@@ -248,19 +253,16 @@ def test_detour_kernel_agrees_with_its_oracle(monkeypatch):
             lists.take(some, taken, 20.0)
         heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
         assert len(np.unique(heard.which)) == 4  # every list, and none
-        monkeypatch.setenv("NETSIM_COMPILED", "0")
-        a = let_go(pos, m, heard, T0, V, 10.0, RC)
-        monkeypatch.setenv("NETSIM_COMPILED", "1")
-        b = let_go(pos, m, heard, T0, V, 10.0, RC)
-        want = oracle.let_go(pos, m, heard, T0, V, 10.0, RC, NO_WALLS)
-        assert (a == want).all() and (b == want).all() and a.any()
+        a = agreed(monkeypatch, pos, m, heard)
+        assert a.any()
         assert (a != let_go(pos, m, told(m), T0, V, 10.0, RC)).any()
 
 
 @pytest.mark.parametrize("compiled", [pytest.param("0", marks=pytest.mark.slow), "1"])
 def test_detour_a_robot_decides_from_what_it_heard_alone(monkeypatch, compiled):
-    """Rule 1 reads nothing of the robots i does not remember: whatever they remember and
-    wherever the others are, i lets go of the same robots (both twins)."""
+    """Rule 1 reads nothing of the robots i does not remember but what the lists of those it
+    remembers carry: whatever they remember and wherever the others are, i lets go of the
+    same robots (plain and compiled)."""
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     rng = np.random.default_rng(7)
     for seed in range(4):
