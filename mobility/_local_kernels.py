@@ -228,6 +228,16 @@ def link_band(length_m, record_db, band_m, fade):
 
 
 @jit(nogil=True)
+def held_list(heard, s, u, w):
+    """The snapshot (an index of ``heard``'s, -1: none) of ``w``'s list that ``u`` held when
+    it made its list of snapshot ``s``: ``heard.held`` keeps each list's holdings by step in
+    a ring (:class:`netsim.mobility.local.Heard`)."""
+    first = heard.steps[0]
+    step = heard.held[(first + s) % heard.held.shape[0], u, w]
+    return step - first if step >= first else -1
+
+
+@jit(nogil=True)
 def in_epoch(heard, version):
     """Whether a list of snapshot ``version`` (an index of ``heard``'s snapshots, -1: none)
     carries the records rule 1 orders by at this step (:class:`netsim.mobility.local.Lists`)."""
@@ -256,7 +266,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     which, start, other, listed_s = heard.which, heard.start, heard.other, heard.sent_s
     held, records_db = heard.held, heard.records_db
     # Without the lists' senders' lists (``held`` empty) the graph ends at the robots i remembers.
-    two_hops = held.shape[0] == start.shape[0] and start.shape[0] > 0
+    two_hops = held.shape[0] > 0 and start.shape[0] > 0
     t0_s, speed_mps, band_m, range_m = rule.t0_s, rule.speed_mps, rule.band_m, rule.range_m
     release_s, window_s = heard.release_s, rule.window_s
     opens_s = t0_s - window_s
@@ -354,9 +364,9 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 # The lists of the robots u's list names, as u held them at its snapshot s.
                 for p in range(start[s, u], start[s, u + 1]):
                     b = local[other[p]]
-                    if b >= 0 and beyond[b] and held[s, u, node[b]] >= 0:
+                    if b >= 0 and beyond[b] and held_list(heard, s, u, node[b]) >= 0:
                         w = node[b]
-                        h = held[s, u, w]
+                        h = held_list(heard, s, u, w)
                         args = (node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure)
                         listed_lists(i, b, h, w, *args)
         if fade.on:
@@ -372,7 +382,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 if not ok and two_hops:
                     for c in range(1, m + 1):
                         s = which[i, node[c]]
-                        if s >= 0 and in_epoch(heard, held[s, node[c], u]):
+                        if s >= 0 and in_epoch(heard, held_list(heard, s, node[c], u)):
                             ok = True
                             break
                 if not ok:

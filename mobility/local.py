@@ -415,8 +415,9 @@ class Heard(NamedTuple):
     xy: np.ndarray  # (M, 2): the position that Ack carried
     release_s: float
     x_db: np.ndarray | None = None  # (M,): the shadowing the sender measured on that Ack (NaN: none)
-    # held[k, u, w]: the snapshot of w's list that u held when it made its list of snapshot k
-    # (-1: none); empty: not known (rule 1's graph then ends at the robots i remembers).
+    # held[t % R, u, w] (int32, a ring of R slots): the step of w's list that u held when it
+    # made its list of step t (-1: none); empty: not known (rule 1's graph then ends at the
+    # robots i remembers). netsim.mobility._local_kernels.held_list reads it.
     held: np.ndarray | None = None
     steps: np.ndarray | None = None  # (K,) int64: each snapshot's step (lists taken before it)
     records_db: np.ndarray | None = None  # (n, n): the records rule 1 orders by (NaN: none)
@@ -459,6 +460,9 @@ class Lists:
         self._taken: list[tuple] = []
         self._steps = 0  # lists taken so far: the next list's step
         self._records: dict[int, np.ndarray] = {}
+        # Each list's holdings, by step, in a ring one longer than the lists kept: the list
+        # taken after a step's Heard (rule 1 reads it after) never overwrites one it names.
+        self._held: np.ndarray | None = None
 
     def take(self, memory: Memory, now_s: float, release_s: float) -> None:
         """Every robot's list from now on: the robots it remembers (:meth:`Memory.known`)."""
@@ -468,7 +472,11 @@ class Lists:
         # The step of the list each robot holds of each other one now (-1: none).
         version = self._versions(memory.sent_s)
         # An Ack carries the lists its sender holds of the robots its list names, no others.
-        held = np.where(known & (version >= 0), version + (self._steps - len(self._taken)), -1).astype(np.int32)
+        if self._held is None:
+            self._held = np.full((self.depth + 1, self.n, self.n), -1, np.int32)
+        self._held[self._steps % len(self._held)] = np.where(
+            known & (version >= 0), version + (self._steps - len(self._taken)), -1
+        )
         self._taken.append(
             (
                 float(now_s),
@@ -477,7 +485,6 @@ class Lists:
                 memory.sent_s[robot, other],
                 memory.xy[robot, other],
                 memory.x_db[robot, other],
-                held,
             )
         )
         del self._taken[: -self.depth]
@@ -509,11 +516,7 @@ class Lists:
         x = np.concatenate([t[5] for t in self._taken]) if self._taken else np.empty(0)
         first = self._steps - len(self._taken)
         steps = np.arange(first, self._steps, dtype=np.int64)
-        if self._taken:
-            held = np.stack([t[6] for t in self._taken]).astype(np.int64)
-            held = np.where(held >= first, held - first, -1)
-        else:
-            held = np.empty((0, self.n, self.n), np.int64)
+        held = self._held if self._taken and self._held is not None else np.empty((0, self.n, self.n), np.int32)
         epoch = (self._steps - 1 - RECORD_DELAY_STEPS) // RECORD_EPOCH_STEPS
         records_db = self._records.get(epoch)
         span = (epoch * RECORD_EPOCH_STEPS, (epoch + 2) * RECORD_EPOCH_STEPS) if records_db is not None else (-1, -1)
@@ -603,7 +606,7 @@ def let_go(
     heard = heard._replace(x_db=listed_x, release_s=float(heard.release_s))
     if heard.held is None:
         # Lists without the lists their senders held: a graph of the robots i remembers.
-        heard = heard._replace(held=np.empty((0, 0, 0), np.int64))
+        heard = heard._replace(held=np.empty((0, 0, 0), np.int32))
     if heard.steps is None or heard.records_db is None:
         # No records: under shadowing no link's place in the order is known.
         heard = heard._replace(

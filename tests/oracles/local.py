@@ -125,7 +125,13 @@ def let_go(
     known = heard.known
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
-    two_hops = heard.held is not None and len(heard.held) == len(heard.start) > 0
+    two_hops = heard.held is not None and len(heard.held) > 0 and len(heard.start) > 0
+
+    def held_list(s, u, w):
+        # The snapshot of w's list u held at its snapshot s, from the ring of holdings by step.
+        step = int(heard.held[(heard.steps[0] + s) % len(heard.held), u, w])
+        return step - int(heard.steps[0]) if step >= heard.steps[0] else -1
+
     for i in range(n):
         nb = np.flatnonzero(known[i] & (np.arange(n) != i))
         m = len(nb)
@@ -157,8 +163,8 @@ def let_go(
                 # The lists u held of the robots two hops out that its list names (whether u
                 # still remembers them or not, they tell whom those robots remember).
                 for w in heard.other[heard.start[s, u] : heard.start[s, u + 1]].tolist():
-                    if w in far and heard.held[s, u, w] >= 0:
-                        h = heard.held[s, u, w]
+                    if w in far and held_list(s, u, w) >= 0:
+                        h = held_list(s, u, w)
                         entries = np.arange(heard.start[h, w], heard.start[h, w + 1])
                         still = t0_s - heard.sent_s[entries] < heard.release_s
                         for x in heard.other[entries[still]].tolist():
