@@ -210,12 +210,12 @@ LAST_BAND = 1048576.0
 
 
 @jit(nogil=True)
-def link_band(length_m, record_db, band_m, fade):
+def link_band(length_m, record_db, band_m, fade, nominal_m):
     """A link's band in rule 1's order: ``floor(length / band_m)``; under shadowing
     (``fade.on``) of its length at zero shadowing under its record, ``length R(0) / R(X)``
     (the length at which, with no shadowing, the link would have the margin its record ``X``
-    gives it at ``length``), a link without a record (NaN) or beyond every range in the last
-    band, :data:`LAST_BAND`."""
+    gives it at ``length``; ``nominal_m``: ``R(0)``), a link without a record (NaN) or
+    beyond every range in the last band, :data:`LAST_BAND`."""
     if not fade.on:
         return float(math.floor(length_m / band_m))
     if math.isnan(record_db):
@@ -223,7 +223,7 @@ def link_band(length_m, record_db, band_m, fade):
     reach_m = range_at_m(record_db, fade.budget_db, fade.reference_distance_m, fade.exponent)
     if not reach_m > 0:
         return LAST_BAND
-    at_zero_m = length_m * (range_at_m(0.0, fade.budget_db, fade.reference_distance_m, fade.exponent) / reach_m)
+    at_zero_m = length_m * (nominal_m / reach_m)
     return float(math.floor(at_zero_m / band_m)) if at_zero_m / band_m < LAST_BAND else LAST_BAND
 
 
@@ -285,7 +285,8 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     beyond = np.zeros(n, np.bool_)
     heard_s = np.empty(n)
     # record_db[a, b]: the link's record in the epoch ordered by (readable[a, b]: i holds it).
-    record_db = np.empty((n, n))
+    record_db = np.full((n, n), np.nan)
+    nominal_m = range_at_m(0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
     readable = np.zeros((n, n), np.bool_)
     # sweep[a]: node a's largest travel over the window, as i knows it.
     sweep = np.zeros(n)
@@ -364,9 +365,11 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 # The lists of the robots u's list names, as u held them at its snapshot s.
                 for p in range(start[s, u], start[s, u + 1]):
                     b = local[other[p]]
-                    if b >= 0 and beyond[b] and held_list(heard, s, u, node[b]) >= 0:
-                        w = node[b]
-                        h = held_list(heard, s, u, w)
+                    if b < 0 or not beyond[b]:
+                        continue
+                    w = node[b]
+                    h = held_list(heard, s, u, w)
+                    if h >= 0:
                         args = (node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure)
                         listed_lists(i, b, h, w, *args)
         if fade.on:
@@ -425,7 +428,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                         walls, qx[a], qy[a], ea, qx[b], qy[b], eb
                     ):
                         continue
-                band = link_band(longest, record_db[u, v] if fade.on else np.nan, band_m, fade)
+                band = link_band(longest, record_db[u, v], band_m, fade, nominal_m)
                 rank = band * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)
                 if w < worst[v]:
@@ -435,7 +438,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
             if fade.on and not readable[0, a]:
                 continue
             shortest = max(np.hypot(qx[a] - qx[0], qy[a] - qy[0]) - e[a], 0.0)
-            band = link_band(shortest, record_db[0, a] if fade.on else np.nan, band_m, fade)
+            band = link_band(shortest, record_db[0, a], band_m, fade, nominal_m)
             rank = band * nn + float(min(i, j) * n + max(i, j)) + 1.0
             out[i, j] = worst[a] < rank
 
