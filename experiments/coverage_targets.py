@@ -52,8 +52,10 @@ detour of stronger links.
 best: on seeds 1 to ``--seeds`` (each ``--n``, default 20) it runs the global plan, the
 local plan, and the local plan with rule 1 replaced by an oracle that reads the true
 network: a robot lets go of a link when the links up at the step join its ends through
-links that come before it, by length or by the global plan's order (the margin left after
-the plausible change of the shadowing), over the robots it remembers, over those and the
+links that come before it, by length, by the global plan's order (the margin left after
+the plausible change of the shadowing) or by rule 1's own order (bands of the length at zero
+shadowing under the epoch's records, every record read), over the robots it remembers, over
+those and the
 robots they remember (two hops), or over the whole team (then with every other rule of the
 local plan, its own limits and leashes, unchanged).
 Not a plan (no robot knows the true network): a bound. Prints each run's covered fraction
@@ -261,6 +263,7 @@ ORACLES = {
     "length, two hops": ("length", "two hops"),
     "margin, two hops": ("margin", "two hops"),
     "margin, team": ("margin", "team"),
+    "records, two hops": ("records", "two hops"),
 }
 
 
@@ -269,7 +272,9 @@ def oracle_let_go(controller, order: str, over: str):
     when the links up at the step (the true network, :meth:`LinkRules.candidates`) join
     them through links that come before ``(i, j)`` in ``order`` (``"length"``: the true
     lengths; ``"margin"``: the global plan's weights, the margin left after the plausible
-    change of the shadowing), over the robots ``i`` remembers (``over = "remembered"``),
+    change of the shadowing; ``"records"``: rule 1's order, bands of the length at zero
+    shadowing under the records of the step's epoch and then the ends' ids, every record
+    read as if every list had arrived), over the robots ``i`` remembers (``over = "remembered"``),
     over those and the robots they remember (``"two hops"``: what ``i`` would know if each
     list also carried its sender's neighbours' lists) or over the whole team (``"team"``);
     only robots ``i`` remembers are let go of. Not a plan: it reads the true positions,
@@ -278,10 +283,25 @@ def oracle_let_go(controller, order: str, over: str):
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
+    from netsim.compiled import load
+
+    def rule_1_order(pos, links, records_db):
+        # Rule 1's band of each link (its own kernel), then the ends' ids: one total order.
+        n = len(pos)
+        kernels = load("netsim.mobility._local_kernels", n)
+        fade, band_m = controller.fade.rule, controller.cfg.band_m
+        nominal_m = kernels.range_at_m(0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
+        lo, hi = np.minimum(links.i, links.j), np.maximum(links.i, links.j)
+        length = np.hypot(*(pos[links.i] - pos[links.j]).T)
+        band = [kernels.link_band(d, records_db[a, b], band_m, fade, nominal_m) for d, a, b in zip(length, lo, hi)]
+        return np.array(band, dtype=float) + (lo * n + hi + 1) / (n * n + 1)
+
     def let_go(pos, knows, heard, t0_s, *args, **kwargs):
         n = len(pos)
         links = controller.rules.candidates(pos, t0_s)
         key = np.hypot(*(pos[links.i] - pos[links.j]).T) if order == "length" else links.weight
+        if order == "records":
+            key = rule_1_order(pos, links, heard.records_db)
         weight = np.full((n, n), np.inf)
         weight[links.i, links.j] = weight[links.j, links.i] = key
         out = np.zeros((n, n), dtype=bool)

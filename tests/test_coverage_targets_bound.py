@@ -81,6 +81,37 @@ def test_bound_oracle_by_margin_lets_go_of_a_short_link_in_a_deep_fade():
     assert out[2, 0] and not out[1, 0] and not out[1, 2]
 
 
+def test_bound_oracle_by_records_orders_as_rule_1_does():
+    """In rule 1's own order (bands of the length at zero shadowing under the records, then the
+    ends' ids): with every record at 0 dB robot 0 lets go of 1 (80 m) through 2, as by length;
+    a deep fade recorded on 0-2 (+12 dB: 43 m is 107 m at zero shadowing) puts that link last,
+    and 0 lets go of 2 through 1 instead; a link without a record comes after every other."""
+    from netsim.mobility.local import FadeRule
+
+    t = targets()
+    everyone = ~np.eye(3, dtype=bool)
+    rule = FadeRule(True, 4.0, 10.0, 60.0, 1.0, 3.0)  # nominal reach 100 m
+    ctl = controller()
+    ctl.fade, ctl.cfg = SimpleNamespace(rule=rule), SimpleNamespace(band_m=7.5)
+
+    def oracle(records_db):
+        return t.oracle_let_go(ctl, "records", "two hops")(
+            POS, None, SimpleNamespace(known=everyone, records_db=records_db), 10.0
+        )
+
+    flat = np.zeros((3, 3))
+    out = oracle(flat)
+    assert out[0, 1] and not out[0, 2] and not out[1, 2]
+    fade = flat.copy()
+    fade[0, 2] = 12.0
+    out = oracle(fade)
+    assert out[0, 2] and out[2, 0] and not out[0, 1] and not out[1, 2]
+    unread = flat.copy()
+    unread[1, 2] = np.nan
+    out = oracle(unread)
+    assert out[1, 2] and out[2, 1] and not out[0, 1] and not out[0, 2]
+
+
 @pytest.mark.slow
 def test_bound_runs_every_plan_and_oracle_on_each_seed_and_prints_their_ratios(tmp_path):
     """``--bound`` runs, on each seed, the global plan, the local plan and the local plan with
