@@ -85,7 +85,8 @@ def test_bound_oracle_by_records_orders_as_rule_1_does():
     """In rule 1's own order (bands of the length at zero shadowing under the records, then the
     ends' ids): with every record at 0 dB robot 0 lets go of 1 (80 m) through 2, as by length;
     a deep fade recorded on 0-2 (+12 dB: 43 m is 107 m at zero shadowing) puts that link last,
-    and 0 lets go of 2 through 1 instead; a link without a record comes after every other."""
+    and 0 lets go of 2 through 1 instead; a link without a record comes after every other; links
+    of one band come in the order of their ends' ids."""
     from netsim.mobility.local import FadeRule
 
     t = targets()
@@ -109,6 +110,12 @@ def test_bound_oracle_by_records_orders_as_rule_1_does():
     unread = flat.copy()
     unread[1, 2] = np.nan
     out = oracle(unread)
+    assert out[1, 2] and out[2, 1] and not out[0, 1] and not out[0, 2]
+    # Three links of one band (40 m apart each) are ordered by their ends' ids: 1-2 comes last.
+    triangle = np.array([[0.0, 0.0], [40.0, 0.0], [20.0, 34.64]])
+    out = t.oracle_let_go(ctl, "records", "two hops")(
+        triangle, None, SimpleNamespace(known=everyone, records_db=flat), 10.0
+    )
     assert out[1, 2] and out[2, 1] and not out[0, 1] and not out[0, 2]
 
 
