@@ -35,6 +35,11 @@ least 19 of 20 seeds (95 % of the seeds run).
     python experiments/coverage_targets.py --shadowing --workers 2
     python experiments/coverage_targets.py --shadowing --seeds 3 --n 20 60   # a quick look
 
+``--set KEY=VALUE`` (repeatable) puts a setting over the scenario's in both plans' runs of
+``--shadowing``; a bad one is an error before any run (exit 2).
+
+    python experiments/coverage_targets.py --shadowing --set coverage.detour_sigmas=2
+
 ``--why`` runs the local plan under 4 dB shadowing on one seed (``--seed``, each ``--n``)
 and prints where it loses to the global plan: per control step, how many robots moved,
 held by rule 3 (a kept link they cannot answer for, alone or by halves) or wished
@@ -73,7 +78,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pandas as pd
 
-from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run
+from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
 
 
 def scenarios(sizes: list[int], radios: bool) -> list[tuple[str, str, int, float]]:
@@ -110,9 +115,9 @@ SHARE = 0.8  # the local plan covers at least this share of what the global plan
 WHOLE = 0.95  # of the seeds, in which a plan's real network gains no component
 
 
-def shadowing_one(job: tuple[str, int, int], duration_s: float) -> dict:
-    plan, n, seed = job
-    o = coverage_run(SHADOWING, plan, n, 0.0, seed, duration_s)
+def shadowing_one(job: tuple[str, int, int, tuple[str, ...]], duration_s: float) -> dict:
+    plan, n, seed, extra = job
+    o = coverage_run(SHADOWING, plan, n, 0.0, seed, duration_s, extra)
     return {
         "plan": plan,
         "N": n,
@@ -164,8 +169,9 @@ def run_jobs(one, jobs: list, args) -> pd.DataFrame:
 
 def main_shadowing(args) -> int:
     sizes = args.n or SHADOWING_SIZES
+    extra = tuple(args.set or ())
     # Seed by seed, both plans side by side: a run cut short still has whole seeds.
-    jobs = [(plan, n, seed) for seed in range(1, args.seeds + 1) for n in sizes for plan in ("global", "local")]
+    jobs = [(plan, n, seed, extra) for seed in range(1, args.seeds + 1) for n in sizes for plan in ("global", "local")]
     runs = run_jobs(shadowing_one, jobs, args)
     table = shadowing_table(runs)
     with pd.option_context("display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format):
@@ -403,7 +409,22 @@ def main(argv=None) -> int:
     )
     p.add_argument("--why", action="store_true", help="where the local plan loses under shadowing (module notes)")
     p.add_argument("--bound", action="store_true", help="what rule 1 could give at best under shadowing (module notes)")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="--shadowing: a setting over the scenario's, for both plans' runs (repeatable)",
+    )
     args = p.parse_args(argv)
+    if args.set:
+        from netsim.config import load
+        from netsim.errors import NetsimInputError
+
+        try:
+            load(None, coverage_settings(SHADOWING, "local", 20, 0.0, 1, args.duration, args.set))
+        except NetsimInputError as e:
+            print(f"coverage_targets.py: error: {e}", file=sys.stderr)
+            return 2
     if args.bound:
         return main_bound(args)
     if args.why:

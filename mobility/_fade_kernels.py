@@ -30,8 +30,15 @@ BISECTIONS = 60
 @jit(nogil=True)
 def change_at_rho_db(rho, x_db, sigma_db):
     """``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2)`` at a correlation ``rho``."""
+    return change_within_sigmas_db(rho, x_db, sigma_db, FADE_SIGMAS)
+
+
+@jit(nogil=True)
+def change_within_sigmas_db(rho, x_db, sigma_db, sigmas):
+    """``(1 - rho) max(-x, 0) + sigmas sigma sqrt(1 - rho^2)``: the change covered up to
+    ``sigmas`` standard deviations (a kept link's budget covers :data:`FADE_SIGMAS`)."""
     drift = max(-x_db, 0.0)
-    return (1.0 - rho) * drift + FADE_SIGMAS * sigma_db * math.sqrt(max(1.0 - rho * rho, 0.0))
+    return (1.0 - rho) * drift + sigmas * sigma_db * math.sqrt(max(1.0 - rho * rho, 0.0))
 
 
 @jit(nogil=True)
@@ -40,6 +47,13 @@ def plausible_change_db(travel_m, x_db, sigma_db, decorrelation_m):
     pair travel ``travel_m`` (module notes)."""
     rho = shadow_correlation(travel_m, decorrelation_m)
     return change_at_rho_db(rho, x_db, sigma_db)
+
+
+@jit(nogil=True)
+def plausible_change_within_db(travel_m, x_db, sigma_db, decorrelation_m, sigmas):
+    """:func:`plausible_change_db` covering ``sigmas`` standard deviations of the change in
+    place of :data:`FADE_SIGMAS` (rule 1's detours, ``coverage.detour_sigmas``)."""
+    return change_within_sigmas_db(shadow_correlation(travel_m, decorrelation_m), x_db, sigma_db, sigmas)
 
 
 @jit(nogil=True)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from netsim.mobility._fade_kernels import plausible_change_db, range_at_m
+from netsim.mobility._fade_kernels import plausible_change_within_db, range_at_m
 
 from netsim.compiled import jit
 from netsim.world._kernels import on_grid
@@ -200,7 +200,7 @@ def measured_range_m(x_db, measured_s, travel_m, fade):
     ``fade``: the shadowing's rule, read by name (:class:`netsim.mobility.local.FadeRule`)."""
     if not fade.on or math.isnan(x_db) or not measured_s > -math.inf:
         return 0.0
-    change = plausible_change_db(travel_m, x_db, fade.sigma_db, fade.decorrelation_m)
+    change = plausible_change_within_db(travel_m, x_db, fade.sigma_db, fade.decorrelation_m, fade.detour_sigmas)
     return range_at_m(x_db + change, fade.budget_db, fade.reference_distance_m, fade.exponent)
 
 

@@ -103,7 +103,7 @@ from netsim.mobility.forces import (
     resultant,
 )
 from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide, within_reach
-from netsim.mobility.keep import LinkRules, prefer
+from netsim.mobility.keep import FADE_SIGMAS, LinkRules, prefer
 from netsim.mobility.local import (
     Fade,
     Heard,
@@ -223,6 +223,13 @@ class CoverageParams(Params):
         8.0,
         non_negative,
         "shadowing: kept links keep this much power margin against the change of their shadowing, dB",
+    )
+    detour_sigmas: float = param(
+        FADE_SIGMAS,
+        positive,
+        "local plan under shadowing: rule 1 certifies a detour's measured link up within this many standard"
+        " deviations of its shadowing's change (4: as kept links are kept; fewer: more links let go, a larger"
+        " chance of a split)",
     )
     expansion: float = param(
         None,
@@ -491,6 +498,7 @@ class CoverageController:
             self.cfg.margin_m,
             self.cfg.control_period_s,
             self.state.n,
+            self.cfg.detour_sigmas,
         )
 
     def _wall_push(self, pos: np.ndarray) -> np.ndarray:

@@ -106,7 +106,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from netsim.mobility.keep import fade_travel_m
+from netsim.mobility.keep import FADE_SIGMAS, fade_travel_m
 from netsim.mobility.spread import project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
@@ -985,6 +985,9 @@ class FadeRule(NamedTuple):
     budget_db: float
     reference_distance_m: float
     exponent: float
+    # Standard deviations of its shadowing's change within which rule 1 certifies a detour's
+    # measured link up (coverage.detour_sigmas).
+    detour_sigmas: float = FADE_SIGMAS
 
 
 # The fade rule switched off (:func:`netsim.mobility._local_kernels.let_go`).
@@ -1047,7 +1050,9 @@ class Fade:
     ``path_loss_db``, ``budget_db``, ...); ``sigma_db``, ``decorrelation_m``: the
     shadowing's; ``fade_margin_db``: the budget a kept link keeps against the change of its
     shadowing; ``sure_m``: the plan's range without a measurement (the sure distance);
-    ``margin_m``: the plan's distance margin; ``period_s``: the control period.
+    ``margin_m``: the plan's distance margin; ``period_s``: the control period;
+    ``detour_sigmas``: the standard deviations of a measured link's change of shadowing
+    within which rule 1 certifies it up as a detour's link.
     """
 
     def __init__(
@@ -1060,6 +1065,7 @@ class Fade:
         margin_m: float,
         period_s: float,
         n_robots: int,
+        detour_sigmas: float = FADE_SIGMAS,
     ):
         self.radio = radio
         self.n_robots = int(n_robots)  # the team's size: whether the radio's laws run compiled
@@ -1075,6 +1081,7 @@ class Fade:
             float(radio.budget_db),
             float(radio.reference_distance_m),
             float(radio.path_loss_exponent),
+            float(detour_sigmas),
         )
         # The speed cap known to all: a pair's travel over two control periods, both robots
         # at the cap, stays within what a full budget allows at X = 0 (an Ack each period

@@ -288,6 +288,32 @@ def test_detour_certified_over_the_travel_the_acks_tell():
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
 
 
+def test_detour_certified_within_the_detour_sigmas():
+    """Rule 1 with ``coverage.detour_sigmas``: a detour's measured link counts as up at t0 when
+    its shadowing, plus that many standard deviations of its change over the pair's largest
+    travel since, leaves it in range. At the kept links' four the 43 m links of an adverse
+    shadowing measured 1.5 s ago with the cap's travel are too short for the detour; at two
+    they carry it. The links kept (the cap known to all, the travel a budget allows) do not
+    change."""
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])  # 0-1 80 m; 0-2, 2-1 about 43 m
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - 1.5)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = sent
+    m.measured_s[:] = sent
+    m.x_db[:] = 6.0
+    np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
+    held = heard_over_steps(m)
+    four, two = fade(), Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, PERIOD, 3, detour_sigmas=2.0)
+    assert two.speed_mps == four.speed_mps
+    v = four.speed_mps
+    assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=four)[0, 1]
+    assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=two)[0, 1]
+
+
 def held_pair(distance_m: float, x_db: float, measured_s: float, exact: bool = True, x_larger_db: float | None = None):
     """Two robots 0 and 1 ``distance_m`` apart that have held since ``T0 - 5``, each having
     heard the other's Ack sent at ``measured_s`` (the pair's shadowing ``x_db``), which robot

@@ -1,6 +1,6 @@
 """experiments/coverage_targets.py ``--bound`` (docs/model.md 5.2, "Under 4 dB shadowing"):
 rule 1 replaced by an oracle that reads the true network, to bound what rule 1 could give.
-One test per rule of the oracle."""
+One test per rule of the oracle; and the script's refusal of a bad ``--set``."""
 
 from __future__ import annotations
 
@@ -134,3 +134,14 @@ def test_bound_runs_every_plan_and_oracle_on_each_seed_and_prints_their_ratios(t
     runs = pd.read_csv(tmp_path / "b.csv")
     assert sorted(runs["plan"]) == sorted(["global", "local", *targets().ORACLES])
     assert "margin, team" in run.stdout and "least" in run.stdout
+
+
+@pytest.mark.parametrize("setting", ["coverage.nonsense=1", "coverage.detour_sigmas=-1", "coverage.detour_sigmas"])
+def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, setting):
+    """``--shadowing --set``: a setting the configuration refuses stops the script before any
+    run, with one line on stderr and exit 2, and no CSV."""
+    csv = tmp_path / "s.csv"
+    code = targets().main(["--shadowing", "--seeds", "1", "--n", "8", "--set", setting, "--csv", str(csv)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "coverage_targets.py: error:" in err
+    assert not csv.exists()

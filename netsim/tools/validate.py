@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -1064,10 +1064,13 @@ COVERAGE_RADIOS = {
 }
 
 
-def coverage_settings(radio: str, plan: str, n: int, loss: float, seed: int, duration_s: float) -> list[str]:
+def coverage_settings(
+    radio: str, plan: str, n: int, loss: float, seed: int, duration_s: float, extra: Sequence[str] = ()
+) -> list[str]:
     """A coverage run from a dense start (a central square of side ``40 sqrt(N)`` m, about
     twenty neighbours each; 40 m on the office map) on an area large enough that a connected
-    team cannot cover it (``500 sqrt(N)`` m a side in open space)."""
+    team cannot cover it (``500 sqrt(N)`` m a side in open space); ``extra``: ``KEY=VALUE``
+    settings over these."""
     on_map = radio.startswith("office")
     return [
         f"seed={seed}",
@@ -1083,6 +1086,7 @@ def coverage_settings(radio: str, plan: str, n: int, loss: float, seed: int, dur
         f"channel.loss_probability={loss}",
         f"duration_s={duration_s}",
         *COVERAGE_RADIOS[radio],
+        *extra,
     ]
 
 
@@ -1106,12 +1110,14 @@ def coverage_outcome(frames: dict[str, pd.DataFrame], summary: dict, n: int, sta
     }
 
 
-def coverage_run(radio: str, plan: str, n: int, loss: float, seed: int, duration_s: float) -> dict:
+def coverage_run(
+    radio: str, plan: str, n: int, loss: float, seed: int, duration_s: float, extra: Sequence[str] = ()
+) -> dict:
     """One coverage run (:func:`coverage_settings`) and its outcome (:func:`coverage_outcome`)."""
     from netsim.config import load
     from netsim.run import execute
 
-    config = load(None, coverage_settings(radio, plan, n, loss, seed, duration_s))
+    config = load(None, coverage_settings(radio, plan, n, loss, seed, duration_s, extra))
     result = execute(config)
     return coverage_outcome(result.frames, result.summary, n, config.coverage.start_s, duration_s)
 
