@@ -162,20 +162,31 @@ def heard_over_steps(m: Memory, steps: int = 3):
     return lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
 
 
+def triangle(sent_ago_s: float, x_db: float | None) -> tuple[np.ndarray, Memory]:
+    """Robots 0 and 1 80 m apart, 2 about 43 m from each (a detour 0-2-1 for the link 0-1),
+    each having heard every other's Ack sent ``sent_ago_s`` before ``T0``, with the pair's
+    shadowing ``x_db`` measured on it (None: not measured)."""
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - sent_ago_s)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = sent
+    m.measured_s[:] = sent
+    if x_db is not None:
+        m.x_db[:] = x_db
+        np.fill_diagonal(m.x_db, np.nan)
+    return pos, m
+
+
 def test_detour_through_a_measured_link_beyond_the_sure_distance():
     """Rule 1 under shadowing: a detour's link longer than the sure distance is certified
     when the shadowing measured on it (by its own ends, told in their Acks' lists) leaves it
     up at t0 after the plausible change over the pair's largest travel since; not without
     a measurement."""
     f = fade()
-    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])  # 0-1 80 m; 0-2, 2-1 about 43 m
-    n = 3
-    m = Memory(n)
-    m.xy[:] = pos[None, :, :]
-    sent = np.full((n, n), T0 - 0.5)
-    np.fill_diagonal(sent, -np.inf)
-    m.sent_s[:] = sent
-    m.measured_s[:] = sent
+    pos, m = triangle(0.5, None)
     record_margins(m, pos, -2.0)  # the margins the Acks came with, the shadowing unknown
     held = heard_over_steps(m)
     v = f.speed_mps
@@ -269,16 +280,7 @@ def test_detour_certified_over_the_travel_the_acks_tell():
     held, by their Acks: no change of the shadowing), where the speed cap's worst case
     (both ends at the cap since) would leave it too short."""
     f = fade()
-    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])  # 0-1 80 m; 0-2, 2-1 about 43 m
-    n = 3
-    m = Memory(n)
-    m.xy[:] = pos[None, :, :]
-    sent = np.full((n, n), T0 - 1.5)
-    np.fill_diagonal(sent, -np.inf)
-    m.sent_s[:] = sent
-    m.measured_s[:] = sent
-    m.x_db[:] = 6.0  # an adverse shadowing: the 43 m links are up out to 63 m
-    np.fill_diagonal(m.x_db, np.nan)
+    pos, m = triangle(1.5, 6.0)  # an adverse shadowing: the 43 m links are up out to 63 m
     record_margins(m, pos)
     held = heard_over_steps(m)
     v = f.speed_mps
@@ -295,16 +297,7 @@ def test_detour_certified_within_the_detour_sigmas():
     shadowing measured 1.5 s ago with the cap's travel are too short for the detour; at two
     they carry it. The links kept (the cap known to all, the travel a budget allows) do not
     change."""
-    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])  # 0-1 80 m; 0-2, 2-1 about 43 m
-    n = 3
-    m = Memory(n)
-    m.xy[:] = pos[None, :, :]
-    sent = np.full((n, n), T0 - 1.5)
-    np.fill_diagonal(sent, -np.inf)
-    m.sent_s[:] = sent
-    m.measured_s[:] = sent
-    m.x_db[:] = 6.0
-    np.fill_diagonal(m.x_db, np.nan)
+    pos, m = triangle(1.5, 6.0)
     record_margins(m, pos)
     held = heard_over_steps(m)
     four, two = fade(), Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, PERIOD, 3, detour_sigmas=2.0)
