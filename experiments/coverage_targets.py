@@ -36,7 +36,8 @@ least 19 of 20 seeds (95 % of the seeds run).
     python experiments/coverage_targets.py --shadowing --seeds 3 --n 20 60   # a quick look
 
 ``--set KEY=VALUE`` (repeatable) puts a setting over the scenario's in both plans' runs of
-``--shadowing``; a bad one is an error before any run (exit 2).
+``--shadowing``; a bad one, or ``--set`` with any other mode, is an error before any run
+(exit 2).
 
     python experiments/coverage_targets.py --shadowing --set coverage.detour_sigmas=2
 
@@ -413,13 +414,16 @@ def main(argv=None) -> int:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="--shadowing: a setting over the scenario's, for both plans' runs (repeatable)",
+        help="--shadowing only: a setting over the scenario's, for both plans' runs (repeatable)",
     )
     args = p.parse_args(argv)
     if args.set:
         from netsim.config import load
         from netsim.errors import NetsimInputError
 
+        if not args.shadowing or args.bound or args.why:
+            print("coverage_targets.py: error: --set applies to --shadowing runs only", file=sys.stderr)
+            return 2
         try:
             load(None, coverage_settings(SHADOWING, "local", 20, 0.0, 1, args.duration, args.set))
         except NetsimInputError as e:

@@ -145,3 +145,14 @@ def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "coverage_targets.py: error:" in err
     assert not csv.exists()
+
+
+@pytest.mark.parametrize("mode", [[], ["--bound"], ["--why"], ["--shadowing", "--bound"]])
+def test_set_outside_shadowing_is_one_line_exit_2(tmp_path, capsys, mode):
+    """``--set`` acts on ``--shadowing`` runs alone: elsewhere it would be ignored, so it is
+    refused (one line, exit 2, no CSV)."""
+    csv = tmp_path / "s.csv"
+    code = targets().main([*mode, "--set", "coverage.detour_sigmas=2", "--csv", str(csv)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--shadowing runs only" in err
+    assert not csv.exists()
