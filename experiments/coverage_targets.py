@@ -424,6 +424,12 @@ def main(argv=None) -> int:
         if not args.shadowing or args.bound or args.why:
             print("coverage_targets.py: error: --set applies to --shadowing runs only", file=sys.stderr)
             return 2
+        # The keys that name a run in the table are the script's to set.
+        own = {"seed", "duration_s", "world.n_robots", "coverage.plan"}
+        taken = sorted({item.split("=", 1)[0].strip() for item in args.set} & own)
+        if taken:
+            print(f"coverage_targets.py: error: --set cannot set {', '.join(taken)} (the runs' own)", file=sys.stderr)
+            return 2
         try:
             load(None, coverage_settings(SHADOWING, "local", 20, 0.0, 1, args.duration, args.set))
         except NetsimInputError as e:

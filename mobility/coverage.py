@@ -227,9 +227,9 @@ class CoverageParams(Params):
     detour_sigmas: float = param(
         FADE_SIGMAS,
         positive,
-        "local plan under shadowing: rule 1 certifies a detour's measured link up within this many standard"
-        " deviations of its shadowing's change (4: as kept links are kept; fewer: more links let go, a larger"
-        " chance of a split)",
+        "local plan under shadowing in open space (with fade_margin_db > 0; else unused): rule 1 certifies a"
+        " detour's measured link up within this many standard deviations of its shadowing's change (4: as kept"
+        " links are kept; fewer: more links let go, a larger chance of a split)",
     )
     expansion: float = param(
         None,

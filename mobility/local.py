@@ -72,7 +72,8 @@ robot's speed as its latest Ack carried it (with the time its leg started: veloc
 change only at control steps), the cap only before that or where no velocity is known. An
 Ack's list carries the shadowing its sender measured on each robot it lists, so rule 1
 certifies a detour's link by a measurement too: up at ``t0`` unless the shadowing moved
-beyond ``FADE_SIGMAS`` standard deviations over the pair's largest travel since. Both
+beyond ``coverage.detour_sigmas`` standard deviations (default ``FADE_SIGMAS``) over the
+pair's largest travel since. Both
 make the guarantee below probabilistic for the links longer than the sure distance, as the
 global plan's. A link whose two robots hold does not
 change (the shadowing runs in the pair's travel). A robot that cannot answer for a kept

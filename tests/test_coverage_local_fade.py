@@ -295,8 +295,7 @@ def test_detour_certified_within_the_detour_sigmas():
     its shadowing, plus that many standard deviations of its change over the pair's largest
     travel since, leaves it in range. At the kept links' four the 43 m links of an adverse
     shadowing measured 1.5 s ago with the cap's travel are too short for the detour; at two
-    they carry it. The links kept (the cap known to all, the travel a budget allows) do not
-    change."""
+    they carry it. The speed cap known to all does not change."""
     pos, m = triangle(1.5, 6.0)
     record_margins(m, pos)
     held = heard_over_steps(m)

@@ -136,7 +136,12 @@ def test_bound_runs_every_plan_and_oracle_on_each_seed_and_prints_their_ratios(t
     assert "margin, team" in run.stdout and "least" in run.stdout
 
 
-@pytest.mark.parametrize("setting", ["coverage.nonsense=1", "coverage.detour_sigmas=-1", "coverage.detour_sigmas"])
+# Unknown, out of range, without a value, and two keys that name a run in the table.
+BAD_SETTINGS = ["coverage.nonsense=1", "coverage.detour_sigmas=-1", "coverage.detour_sigmas"]
+BAD_SETTINGS += ["coverage.plan=local", "seed=3"]
+
+
+@pytest.mark.parametrize("setting", BAD_SETTINGS)
 def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, setting):
     """``--shadowing --set``: a setting the configuration refuses stops the script before any
     run, with one line on stderr and exit 2, and no CSV."""
