@@ -357,7 +357,7 @@ def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> lis
 
 
 def sources_true(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs ``(robot, true position of another robot closer than 2 r_c)``: the forces'
+    """Pairs ``(robot, true position of another robot within 2 r_c)``: the forces'
     sources with ``knowledge = "global"``."""
     a, b, _ = geometric_pairs(pos, 2 * range_m)
     return np.r_[a, b], pos[np.r_[b, a]]

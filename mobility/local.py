@@ -539,11 +539,13 @@ class Lists:
         )
 
 
-def remembered(sent_s: np.ndarray, now_s: float, release_s: float) -> np.ndarray:
+def remembered(sent_s: np.ndarray, now_s: float, release_s: float, n_robots: int | None = None) -> np.ndarray:
     """Whether each Ack sent at ``sent_s`` is still remembered at ``now_s`` (the kernel
-    :func:`netsim.mobility._local_kernels.remembers`), in the shape of ``sent_s``."""
+    :func:`netsim.mobility._local_kernels.remembers`, as a team of ``n_robots`` calls it;
+    None: the rows of ``sent_s``, a team's memory), in the shape of ``sent_s``."""
     sent = np.asarray(sent_s, dtype=float)
-    return load("netsim.mobility._local_kernels", sent.shape[0]).remembers(sent, float(now_s), float(release_s))
+    kernels = load("netsim.mobility._local_kernels", n_robots, values=sent.shape[0])
+    return kernels.remembers(sent, float(now_s), float(release_s))
 
 
 def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -553,7 +555,7 @@ def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.n
     if k < 0:
         return np.empty(0, np.int64), np.empty(0, np.int64)
     entries = np.arange(heard.start[k, u], heard.start[k, u + 1])
-    entries = entries[remembered(heard.sent_s[entries], t_s, heard.release_s)]
+    entries = entries[remembered(heard.sent_s[entries], t_s, heard.release_s, heard.which.shape[1])]
     return entries, heard.other[entries]
 
 
@@ -969,12 +971,17 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
         own = known[i]
         xy[own] = memory.xy[i, own]
         have = np.flatnonzero(own | fresh)
-        near = have[np.hypot(*(xy[have] - pos[i]).T) < reach_m]
-        robots.append(np.full(len(near), i))
-        xys.append(xy[near])
+        robots.append(np.full(len(have), i))
+        xys.append(xy[have])
     if not robots:
         return np.empty(0, np.int64), np.empty((0, 2))
-    return np.concatenate(robots), np.concatenate(xys)
+    robot, xy = np.concatenate(robots), np.concatenate(xys)
+    # Within reach as everywhere in the engine (the global plan's sources are the pairs in
+    # range): robot k's own position against the point heard, row n + k.
+    points = np.concatenate([np.asarray(pos, float), xy])
+    rows = np.arange(len(robot))
+    near = load("netsim._kernels", n).in_range(points, robot, n + rows, np.full(len(robot), float(reach_m)), 0.0)
+    return robot[near], xy[near]
 
 
 class FadeRule(NamedTuple):

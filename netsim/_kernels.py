@@ -733,3 +733,18 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box):
                         if d <= reach_m and d < out[row, col]:
                             out[row, col] = d
     return out
+
+
+@jit(nogil=True)
+def share_within(distance_m, radius_m):
+    """The share of the distances (one dimension) at most ``radius_m``: of a grid's cells,
+    by :func:`grid_nearest_m`, the covered fraction (the coverage table's and the
+    environments' score); NaN of none."""
+    n = distance_m.shape[0]
+    if n == 0:
+        return np.nan
+    count = 0
+    for k in range(n):
+        if distance_m[k] <= radius_m:
+            count += 1
+    return count / n

@@ -231,7 +231,7 @@ def covered_fraction(
     box = side_m if torus else 0.0
     dist = kernels.grid_nearest_m(centres, radius_m + half_diagonal, b.x_min, b.y_min, b.width, b.height, cells, box)
     dist = dist.ravel()[inside]
-    fraction = float(np.mean(dist <= radius_m))
+    fraction = float(kernels.share_within(np.ascontiguousarray(dist), float(radius_m)))
     uncertain = (np.abs(dist - radius_m) <= half_diagonal) | edge
     return fraction, float(np.mean(uncertain))
 

@@ -159,6 +159,20 @@ def test_forces_a_robot_knows_a_robot_two_links_out_from_the_lists_it_heard_alon
     assert xy[robot == 0].tolist() == [[90.0, 0.0]]
 
 
+def test_forces_a_source_at_the_reach_is_in_reach_as_everywhere_in_the_engine():
+    """A robot heard exactly ``reach_m`` away is a source, as the global plan's sources
+    (the pairs in range, ``d <= r``) count it: one rule of "within reach"."""
+    from netsim.mobility.coverage import sources_true
+
+    pos = np.array([[0.0, 0.0], [180.0, 0.0], [90.0, 0.0]])
+    everyone = {(r, o) for r in range(3) for o in range(3) if r != o}
+    m, heard = heard_over_steps(pos, lambda r, o, t: (r, o) in everyone)
+    robot, xy = sources_heard(m, heard, T0, 180.0, pos)
+    assert [90.0, 0.0] in xy[robot == 0].tolist() and [180.0, 0.0] in xy[robot == 0].tolist()
+    target, _ = sources_true(pos, 90.0)
+    assert np.count_nonzero(target == 0) == 2
+
+
 @pytest.mark.parametrize("seed", range(30))
 def test_detour_links_nobody_lets_go_of_join_every_robot_the_known_links_join(seed):
     """The argument of rule 1: of the links in range that both ends remember (``K``), those

@@ -690,3 +690,14 @@ def test_a_pairs_key_is_its_lower_id_then_its_higher(monkeypatch, compiled):
     assert keys.tolist() == [(min(x, y) << 32) | max(x, y) for x, y in zip(a.tolist(), b.tolist())]
     low, high = split_keys(keys)
     assert low.tolist() == np.minimum(a, b).tolist() and high.tolist() == np.maximum(a, b).tolist()
+
+
+@BOTH
+def test_a_cell_at_the_radius_is_covered_and_the_share_counts_every_cell(kind):
+    """The covered fraction's last step, the one rule both the coverage table and the
+    environments' score use: a distance equal to the radius counts, the share is of every
+    cell given, and no cell gives NaN."""
+    share = core(kind).share_within
+    assert share(np.array([1.0, 2.0, 3.0, np.inf]), 2.0) == 0.5
+    assert share(np.array([2.0 + 1e-12]), 2.0) == 0.0
+    assert np.isnan(share(np.zeros(0), 2.0))

@@ -128,6 +128,44 @@ def test_a_chain_of_built_in_terms_is_decided_by_the_compiled_pass_whoever_built
             assert prop.receivable(pairs).tolist() == [True, False]
 
 
+@pytest.mark.parametrize("term", ["shadowing", "walls", "sight"])
+def test_a_subclass_of_a_built_in_term_is_decided_by_its_own_law(term):
+    """A term that subclasses a built-in one brings its own ``loss_db``: the run's channel
+    evaluates it term by term, never by the compiled pass of the class it extends."""
+    from netsim.radio.fast import GenericChain, one_pass
+    from netsim.radio.propagation import (
+        LineOfSightLoss,
+        LogDistanceLoss,
+        LossChain,
+        Propagation,
+        RangeLoss,
+        ShadowingLoss,
+        WallLoss,
+    )
+    from netsim.radio.reception import Reception
+    from netsim.state import RobotState
+
+    def deafening(base):
+        class Own(base):
+            def loss_db(self, pairs):
+                return np.full(len(pairs.a), np.inf)
+
+        return Own
+
+    p = LogDistanceParams(shadowing_sigma_db=4.0)
+    office = load_map("office")
+    first, own = {
+        "shadowing": (LogDistanceLoss(p), deafening(ShadowingLoss)(PairShadowing(4.0, 10.0, np.random.default_rng(1)))),
+        "walls": (LogDistanceLoss(p), deafening(WallLoss)(office, 5.0)),
+        "sight": (RangeLoss(30.0), deafening(LineOfSightLoss)(office)),
+    }[term]
+    prop = Propagation(LossChain(first, own), p.radio, 100.0, 100.0)
+    assert one_pass(prop) is None
+    assert isinstance(Reception(prop, RobotState(3, 100.0, 100.0)).compiled, GenericChain)
+    pairs = Pairs.between([0], [1], [[50.0, 50.0], [51.0, 50.0]])
+    assert prop.receivable(pairs).tolist() == [False]
+
+
 def _moving_state(seed, n=150, side=400.0, legs=4):
     """Robots on a few legs each, the last ones still running: odometers and leg starts differ."""
     from netsim.state import RobotState

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim._kernels import grid_nearest_m
+from netsim._kernels import grid_nearest_m, share_within
 from netsim.compiled import jit
 
 
@@ -20,7 +20,7 @@ def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
     if p.shape[0] == 0:
         return 0.0
     nearest = grid_nearest_m(p, radius_m, x0_m, y0_m, width_m, height_m, cells, 0.0)
-    return (nearest <= radius_m).sum() / (cells * cells)
+    return share_within(nearest.ravel(), radius_m)
 
 
 @jit(nogil=True)

@@ -225,6 +225,14 @@ def may_be_heard(loss_db, rest_db, slack_budget_db):
 
 
 @jit(nogil=True)
+def through_walls_db(loss_db, wall_db, walls):
+    """A pair's loss after the walls its segment crosses, ``wall_db`` each: one expression
+    for a number or an array (a frame's passes, the chain's wall term, and
+    :meth:`netsim.radio.propagation.LogDistanceParams.loss_db` for the plans)."""
+    return loss_db + wall_db * walls
+
+
+@jit(nogil=True)
 def path_loss_db(distance_m, d0_m, pl0_db, n10):
     """The log-distance law, the one place it is computed: ``PL(d0) + 10 n log10(d / d0)``,
     and ``PL(d0)`` below ``d0`` (at ``d = 0`` too); ``n10`` is ``10 n``."""
@@ -296,7 +304,7 @@ def budget_pass(frame, sigma, path, shadow, flat, points, pairs):
             affordable = (budget_slack - total) / wall_db
             limit = np.int64(affordable) + 1 if affordable < 1e18 else np.iinfo(np.int64).max
             walls = walls_one(cells, g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], eps, limit)
-            total = total + wall_db * walls
+            total = through_walls_db(total, wall_db, walls)
         receivable[m] = heard(tx_dbm, total, sensitivity_dbm)
 
 
@@ -323,7 +331,7 @@ def received_pass(frame, t, sender, receivers, d, x, motion, flat, out):
         if c.wall_db > 0.0:
             g0, g1, no_limit = ends.g0, ends.g1, int(NO_LIMIT)
             walls = walls_one((flat, c.map_h, c.map_w), g0[m, 0], g0[m, 1], g1[m, 0], g1[m, 1], c.eps, no_limit)
-            total = total + c.wall_db * walls
+            total = through_walls_db(total, c.wall_db, walls)
         out[m] = received_dbm(c.tx_dbm, total)
 
 

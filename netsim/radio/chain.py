@@ -155,7 +155,7 @@ class WallLoss:
         from netsim.world.los import walls_crossed
 
         walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
-        return self.wall_loss_db * walls
+        return laws.through_walls_db(0.0, self.wall_loss_db, walls)
 
 
 class RangeLoss:

@@ -225,15 +225,17 @@ def _built_in(chain) -> tuple | None:
     unit disk, then line of sight. None: the chain has other terms, or another order."""
     terms = list(chain.terms)
     log = shadow = walls = disk = sight = None
+    # The classes themselves: a subclass may bring a law of its own, which only the chain
+    # term by term evaluates.
     if terms and type(terms[0]) is LogDistanceLoss:
         log = terms.pop(0)
-        if terms and isinstance(terms[0], ShadowingLoss):
+        if terms and type(terms[0]) is ShadowingLoss:
             shadow = terms.pop(0).shadowing
-        if terms and isinstance(terms[0], WallLoss):
+        if terms and type(terms[0]) is WallLoss:
             walls = terms.pop(0)
     elif terms and type(terms[0]) is RangeLoss:
         disk = terms.pop(0)
-        if terms and isinstance(terms[0], LineOfSightLoss):
+        if terms and type(terms[0]) is LineOfSightLoss:
             sight = terms.pop(0)
     if terms or (log is None and disk is None):
         return None

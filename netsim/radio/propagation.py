@@ -44,6 +44,7 @@ import numpy as np
 from netsim.compiled import load
 from netsim.errors import ConfigError
 from netsim.params import Params, param
+from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole arrays
 from netsim.radio.chain import (
     NO_POWER,
     LineOfSightLoss,
@@ -204,7 +205,9 @@ class LogDistanceParams(RadioParams):
     def loss_db(self, distance_m, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """A pair's loss as a frame's decision sums it: ``(PL(d) + X) + W``, ``W`` the loss
         of ``walls`` walls crossed."""
-        return (self.path_loss_db(distance_m, n_robots) + shadowing_db) + self.wall_loss_db * np.asarray(walls)
+        return laws.through_walls_db(
+            self.path_loss_db(distance_m, n_robots) + shadowing_db, self.wall_loss_db, np.asarray(walls)
+        )
 
     def margin_db(self, distance_m, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """The pair's power margin over the sensitivity, ``Radio.margin_db`` of :meth:`loss_db`."""
