@@ -743,8 +743,5 @@ def share_within(distance_m, radius_m):
     n = distance_m.shape[0]
     if n == 0:
         return np.nan
-    count = 0
-    for k in range(n):
-        if distance_m[k] <= radius_m:
-            count += 1
-    return count / n
+    # One array expression: as fast in plain Python (a small team's path) as compiled.
+    return np.count_nonzero(distance_m <= radius_m) / n
