@@ -23,7 +23,7 @@ The architecture (docs/model.md section 5)
   Ack brings its knowledge to its leader). The relation is symmetric (i knows j if and
   only if j knows i), as it must be: with one-sided knowledge the forces are not
   reciprocal and the team drifts for ever. ``knowledge = "global"``: the true positions of
-  every robot closer than ``2 r_c``, for comparison.
+  every robot within ``2 r_c``, for comparison.
 - Members move only by their leader's commands, sent over the channel; a member that
   misses its command holds for that step.
 - The step is made safe for connectivity by :func:`netsim.mobility.spread.plan_spread`: a

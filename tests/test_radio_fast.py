@@ -128,7 +128,7 @@ def test_a_chain_of_built_in_terms_is_decided_by_the_compiled_pass_whoever_built
             assert prop.receivable(pairs).tolist() == [True, False]
 
 
-@pytest.mark.parametrize("term", ["shadowing", "walls", "sight"])
+@pytest.mark.parametrize("term", ["log-distance", "shadowing", "walls", "unit disk", "sight"])
 def test_a_subclass_of_a_built_in_term_is_decided_by_its_own_law(term):
     """A term that subclasses a built-in one brings its own ``loss_db``: the run's channel
     evaluates it term by term, never by the compiled pass of the class it extends."""
@@ -154,12 +154,14 @@ def test_a_subclass_of_a_built_in_term_is_decided_by_its_own_law(term):
 
     p = LogDistanceParams(shadowing_sigma_db=4.0)
     office = load_map("office")
-    first, own = {
+    terms = {
+        "log-distance": (deafening(LogDistanceLoss)(p),),
         "shadowing": (LogDistanceLoss(p), deafening(ShadowingLoss)(PairShadowing(4.0, 10.0, np.random.default_rng(1)))),
         "walls": (LogDistanceLoss(p), deafening(WallLoss)(office, 5.0)),
+        "unit disk": (deafening(RangeLoss)(30.0),),
         "sight": (RangeLoss(30.0), deafening(LineOfSightLoss)(office)),
     }[term]
-    prop = Propagation(LossChain(first, own), p.radio, 100.0, 100.0)
+    prop = Propagation(LossChain(*terms), p.radio, 100.0, 100.0)
     assert one_pass(prop) is None
     assert isinstance(Reception(prop, RobotState(3, 100.0, 100.0)).compiled, GenericChain)
     pairs = Pairs.between([0], [1], [[50.0, 50.0], [51.0, 50.0]])

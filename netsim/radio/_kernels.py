@@ -227,8 +227,9 @@ def may_be_heard(loss_db, rest_db, slack_budget_db):
 @jit(nogil=True)
 def through_walls_db(loss_db, wall_db, walls):
     """A pair's loss after the walls its segment crosses, ``wall_db`` each: one expression
-    for a number or an array (a frame's passes, the chain's wall term, and
-    :meth:`netsim.radio.propagation.LogDistanceParams.loss_db` for the plans)."""
+    for a number or an array (a frame's passes, the chain's wall term,
+    :meth:`netsim.radio.propagation.LogDistanceParams.loss_db` for the plans, and the inverse
+    law :func:`netsim.radio.propagation.effective_range_m`)."""
     return loss_db + wall_db * walls
 
 

@@ -222,7 +222,8 @@ class CompiledChain:
 def _built_in(chain) -> tuple | None:
     """The built-in terms of a chain that has a compiled form, ``(log, shadowing, walls,
     range, sight)`` (None where absent): log-distance, then shadowing, then walls; or the
-    unit disk, then line of sight. None: the chain has other terms, or another order."""
+    unit disk, then line of sight. None: the chain has other terms (a subclass of a built-in
+    term is one: its ``loss_db`` is its own law), or another order."""
     terms = list(chain.terms)
     log = shadow = walls = disk = sight = None
     # The classes themselves: a subclass may bring a law of its own, which only the chain

@@ -244,7 +244,8 @@ def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0, n_ro
     >>> [round(float(r), 6) for r in effective_range_m(p, [0.0, 30.0, 61.0])]
     [100.0, 10.0, 0.0]
     """
-    margin = params.budget_db - np.asarray(shadowing_db, dtype=float) - params.wall_loss_db * np.asarray(walls)
+    walls_db = laws.through_walls_db(0.0, params.wall_loss_db, np.asarray(walls))
+    margin = params.budget_db - np.asarray(shadowing_db, dtype=float) - walls_db
     flat = np.ascontiguousarray(margin, dtype=float).reshape(-1)
     out = np.empty(flat.shape[0])
     with np.errstate(over="ignore"):
