@@ -18,4 +18,6 @@ class ConfigError(NetsimInputError):
         self.allowed = allowed
         # A key read from a file may hold any character: keep the message on one line.
         shown = key if key.isprintable() else repr(key)
-        super().__init__(f"{shown} = {value!r}: {allowed}")
+        # A truth value as the configuration file spells it.
+        given = str(value).lower() if isinstance(value, bool) else repr(value)
+        super().__init__(f"{shown} = {given}: {allowed}")

@@ -65,7 +65,9 @@ def from_csv(path: str, n: int, area: float | Bounds) -> np.ndarray:
     b = as_bounds(area)
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(key, path, 'must be "uniform", "grid", "centre" or the path of an existing CSV file')
+        raise ConfigError(
+            key, path, 'must be "uniform", "grid", "centre", "connected" or the path of an existing CSV file'
+        )
     try:
         df = pd.read_csv(p)
     except Exception as exc:  # pandas raises several parser errors; all mean a bad file

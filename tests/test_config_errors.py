@@ -43,6 +43,13 @@ def test_bad_value_names_key_value_and_rule(override, key, words):
     assert words in str(err.value)
 
 
+def test_a_truth_value_in_an_error_is_spelt_as_in_the_file():
+    """``coverage.enabled = true``, as TOML writes it, not Python's ``True``."""
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, ["coverage.enabled=true", "world.torus=true"])
+    assert str(err.value).startswith("coverage.enabled = true: "), err.value
+
+
 def test_config_file_values_and_overrides(tmp_path):
     f = tmp_path / "s.toml"
     f.write_text("seed = 4\n[world]\nn_robots = 7\n[mobility]\nspeed_max_mps = 3\nstationary_start = false\n")

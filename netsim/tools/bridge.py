@@ -7,6 +7,7 @@ and every table is written up to that instant, with the summary; the exit status
 
 from __future__ import annotations
 
+import importlib.util
 import signal
 import sys
 import time
@@ -19,9 +20,23 @@ import tomli_w
 
 from netsim.bridge.loop import Pacer
 from netsim.bridge.settings import BridgeSettings
+from netsim.errors import NetsimInputError
 
 # Wall-clock steps of `netsim run --live`, s of simulated time.
 LIVE_STEP_S = 0.1
+# The libraries of the optional extra `ros` (pyproject.toml) that each live command loads.
+DDS, LIVE_VIEW = "cyclonedds", "foxglove"
+
+
+def check_extra(command: str, modules: tuple[str, ...]) -> None:
+    """Refuse ``command`` in one line, before anything is written, when a library of the
+    optional extra ``ros`` it needs is not installed."""
+    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    if missing:
+        raise NetsimInputError(
+            f"{command} needs {' and '.join(missing)}, of the optional extra 'ros': "
+            "pip install 'netsim-robots[ros]' (in a clone: pip install -e '.[ros]')"
+        )
 
 
 @contextmanager

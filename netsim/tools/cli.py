@@ -155,6 +155,10 @@ def cmd_run(args) -> int:
         overrides.append(f"seed={args.seed}")
     config = cfgmod.load(args.config, overrides)
     check_fits_in_memory(config)
+    if args.live is not None:
+        from netsim.tools.bridge import LIVE_VIEW, check_extra
+
+        check_extra("netsim run --live", (LIVE_VIEW,))
     say_when_compiling("netsim run", not args.quiet)
     with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
         # Each table is written as soon as it is made, while the next is made.
@@ -215,12 +219,13 @@ def _in_flags(exc: ConfigError) -> NetsimInputError:
 
 def cmd_bridge(args) -> int:
     from netsim.bridge.settings import check_rate, load
-    from netsim.tools.bridge import bridge
+    from netsim.tools.bridge import DDS, LIVE_VIEW, bridge, check_extra
 
     check_set_pairs(args.set, args.config)
     rate = check_rate(args.rate)
     config, settings = load(args.config, list(args.set or []))
     check_fits_in_memory(config)
+    check_extra("netsim bridge", (DDS,) if args.live is None else (DDS, LIVE_VIEW))
     summary, out, written = bridge(args, config, settings, rate)
     if not args.quiet:
         print(summary_table(summary))
