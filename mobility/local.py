@@ -977,7 +977,7 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
         return np.empty(0, np.int64), np.empty((0, 2))
     robot, xy = np.concatenate(robots), np.concatenate(xys)
     # Within reach as everywhere in the engine (the global plan's sources are the pairs in
-    # range): robot k's own position against the point heard, row n + k.
+    # range): entry k's robot (row robot[k]) against the point it heard (row n + k).
     points = np.concatenate([np.asarray(pos, float), xy])
     rows = np.arange(len(robot))
     near = load("netsim._kernels", n).in_range(points, robot, n + rows, np.full(len(robot), float(reach_m)), 0.0)

@@ -495,7 +495,7 @@ def in_range(pos, a, b, radius, box):
     """Whether robots ``a[k]`` and ``b[k]`` at positions ``pos`` are within ``radius[k]`` of
     each other (:func:`reaches`, the nearest image on a torus of side ``box > 0``): the
     state a link solver sets at the start and at a jump, a connected placement's links, a
-    member within its leader's range."""
+    member within its leader's range, the local plan's force sources."""
     n = len(a)
     out = np.empty(n, np.bool_)
     for k in range(n):

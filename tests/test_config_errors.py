@@ -46,8 +46,8 @@ def test_bad_value_names_key_value_and_rule(override, key, words):
 def test_a_truth_value_in_an_error_is_spelt_as_in_the_file():
     """``coverage.enabled = true``, as TOML writes it, not Python's ``True``."""
     with pytest.raises(ConfigError) as err:
-        cfgmod.load(None, ["coverage.enabled=true", "world.torus=true"])
-    assert str(err.value).startswith("coverage.enabled = true: "), err.value
+        cfgmod.load(None, ["coverage.enabled=true", "mobility.model=random_waypoint"])
+    assert str(err.value).startswith("coverage.enabled = true: needs mobility.model = 'static'"), err.value
 
 
 def test_config_file_values_and_overrides(tmp_path):

@@ -15,7 +15,7 @@ REAL_FIND_SPEC = importlib.util.find_spec
 def without(monkeypatch, *modules: str) -> None:
     """The machine as if ``modules`` were not installed."""
     monkeypatch.setattr(
-        importlib.util, "find_spec", lambda name, *a: None if name in modules else REAL_FIND_SPEC(name, *a)
+        importlib.util, "find_spec", lambda name, *a, **k: None if name in modules else REAL_FIND_SPEC(name, *a, **k)
     )
 
 

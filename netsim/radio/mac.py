@@ -44,6 +44,7 @@ import pandas as pd
 import simpy
 
 from netsim.compiled import load
+from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole arrays
 from netsim.radio._mac_kernels import Ends, Leaving, MediumArrays
 from netsim.radio.chain import Radio, path_loss_db
 from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
@@ -120,8 +121,8 @@ class PowerModel:
         self.params = params
         self.radio: Radio = params.radio
         self.sensitivity_dbm = self.radio.sensitivity_dbm
-        self.noise_mw = 10.0 ** (noise_floor_dbm / 10.0)
-        self.capture = 10.0 ** (capture_threshold_db / 10.0)
+        self.noise_mw = laws.linear(noise_floor_dbm)
+        self.capture = laws.linear(capture_threshold_db)
         # Where the mean received power falls to the noise floor.
         margin = self.radio.tx_power_dbm - params.reference_loss_db - noise_floor_dbm
         kernels = load("netsim._kernels", 1)
@@ -131,7 +132,7 @@ class PowerModel:
 
     def received_mw(self, distance_m: np.ndarray, n_robots: int | None = None) -> np.ndarray:
         """Mean power (mW) at each distance, as a team of ``n_robots`` computes it."""
-        return 10.0 ** (self.radio.received_dbm(path_loss_db(distance_m, self.params, n_robots)) / 10.0)
+        return laws.linear(self.radio.received_dbm(path_loss_db(distance_m, self.params, n_robots)))
 
 
 class Aloha:
@@ -438,7 +439,7 @@ class Medium:
             if self.actual_power and len(receivers):
                 # The signal is the power the radio found for each pair (shadowing, walls);
                 # the frame's share of the interference stays the mean (docs/radio.md).
-                frame.rx_mw = 10.0 ** (ch.reception.received_dbm(now, i, receivers, dist) / 10.0)
+                frame.rx_mw = laws.linear(ch.reception.received_dbm(now, i, receivers, dist))
             for other in self.on_air.values():
                 other.peak_mw = np.maximum(other.peak_mw, self.load_mw[other.receivers])
             frame.peak_mw = self.load_mw[receivers]
@@ -508,7 +509,7 @@ class Medium:
         compared with; None without a power model)."""
         rows, frame.rows = frame.rows, None
         if self.power is not None and interference is not None and len(rx):
-            rows.set_sinr(rx, 10.0 * np.log10(frame.rx_mw / (self.power.noise_mw + interference)))
+            rows.set_sinr(rx, laws.in_db(frame.rx_mw / (self.power.noise_mw + interference)))
         rows.mark(rx[hd], self.causes.index("half_duplex"))
         rows.mark(rx[col], self.causes.index("collision"))
         self.channel.receptions.close(rows)
