@@ -402,7 +402,7 @@ def test_tau_set_in_netsim_bounds_the_ages_observed():
             {"events": {"runtime_links": "off"}, "channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0}},
             "events.runtime_links = 'off'",
         ),
-        ({"world": {"torus": True}}, "world.torus = True"),
+        ({"world": {"torus": True}}, "world.torus = true"),
     ],
 )
 def test_setting_the_environment_cannot_honour_is_refused(netsim, key):

@@ -701,13 +701,3 @@ def test_a_cell_at_the_radius_is_covered_and_the_share_counts_every_cell(kind):
     assert share(np.array([1.0, 2.0, 3.0, np.inf]), 2.0) == 0.5
     assert share(np.array([2.0 + 1e-12]), 2.0) == 0.0
     assert np.isnan(share(np.zeros(0), 2.0))
-
-
-def test_ten_db_is_a_factor_of_ten_and_in_db_undoes_linear():
-    """The shared medium's units: ``linear`` turns dBm into mW (dB into a factor) and
-    ``in_db`` turns a factor back, on numbers and on arrays alike."""
-    from netsim.radio import _kernels as laws
-
-    assert laws.linear(10.0) == 10.0 and laws.linear(-30.0) == pytest.approx(1e-3)
-    db = np.array([-95.0, -3.0, 0.0, 20.0])
-    np.testing.assert_allclose(laws.in_db(laws.linear(db)), db, rtol=0, atol=1e-12)

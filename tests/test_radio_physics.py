@@ -53,3 +53,13 @@ def test_transmit_power_and_sensitivity_are_the_radios():
     )
     assert config.channel.radio.radio == Radio(23.0, -71.5)
     assert log_distance(config.channel.radio).radio == Radio(23.0, -71.5)
+
+
+def test_ten_db_is_a_factor_of_ten_and_in_db_undoes_linear():
+    """The shared medium's units: ``linear`` turns dBm into mW (dB into a factor) and
+    ``in_db`` turns a factor back, on numbers and on arrays alike."""
+    from netsim.radio.chain import in_db, linear
+
+    assert linear(10.0) == 10.0 and abs(linear(-30.0) - 1e-3) < 1e-15
+    db = np.array([-95.0, -3.0, 0.0, 20.0])
+    np.testing.assert_allclose(in_db(linear(db)), db, rtol=0, atol=1e-12)

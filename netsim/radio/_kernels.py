@@ -200,19 +200,6 @@ def received_dbm(tx_dbm, loss_db):
 
 
 @jit(nogil=True)
-def linear(db):
-    """``10^(dB / 10)``: a power in dBm as mW, or a ratio in dB as a factor. One expression
-    for a number or an array (the shared medium's powers and thresholds)."""
-    return 10.0 ** (db / 10.0)
-
-
-@jit(nogil=True)
-def in_db(factor):
-    """``10 log10(factor)``: :func:`linear`'s inverse (a receiver's SINR, dB)."""
-    return 10.0 * np.log10(factor)
-
-
-@jit(nogil=True)
 def heard(tx_dbm, loss_db, sensitivity_dbm):
     """The radio's decision: a frame after ``loss_db`` is received when its power is at
     least the sensitivity. One expression for a number or an array (a frame's pass, and

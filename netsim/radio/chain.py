@@ -24,6 +24,17 @@ from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
 
 
+def linear(db):
+    """``10^(dB / 10)``: a power in dBm as mW, or a ratio in dB as a factor (the shared
+    medium's powers and thresholds; no kernel needs it)."""
+    return 10.0 ** (db / 10.0)
+
+
+def in_db(factor):
+    """``10 log10(factor)``: :func:`linear`'s inverse (a receiver's SINR, dB)."""
+    return 10.0 * np.log10(factor)
+
+
 class Radio(NamedTuple):
     """A robot's radio: the power it sends with and the weakest power it hears, dBm. The
     same for every propagation model that has a notion of power (the keys

@@ -44,9 +44,8 @@ import pandas as pd
 import simpy
 
 from netsim.compiled import load
-from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole arrays
 from netsim.radio._mac_kernels import Ends, Leaving, MediumArrays
-from netsim.radio.chain import Radio, path_loss_db
+from netsim.radio.chain import Radio, in_db, linear, path_loss_db
 from netsim.radio.channel import DROP_CAUSES, Channel, SendTimeBins
 from netsim.radio.spatial import RangeIndex
 from netsim.scheduling import URGENT, scheduled_event
@@ -121,8 +120,8 @@ class PowerModel:
         self.params = params
         self.radio: Radio = params.radio
         self.sensitivity_dbm = self.radio.sensitivity_dbm
-        self.noise_mw = laws.linear(noise_floor_dbm)
-        self.capture = laws.linear(capture_threshold_db)
+        self.noise_mw = linear(noise_floor_dbm)
+        self.capture = linear(capture_threshold_db)
         # Where the mean received power falls to the noise floor.
         margin = self.radio.tx_power_dbm - params.reference_loss_db - noise_floor_dbm
         kernels = load("netsim._kernels", 1)
@@ -132,7 +131,7 @@ class PowerModel:
 
     def received_mw(self, distance_m: np.ndarray, n_robots: int | None = None) -> np.ndarray:
         """Mean power (mW) at each distance, as a team of ``n_robots`` computes it."""
-        return laws.linear(self.radio.received_dbm(path_loss_db(distance_m, self.params, n_robots)))
+        return linear(self.radio.received_dbm(path_loss_db(distance_m, self.params, n_robots)))
 
 
 class Aloha:
@@ -439,7 +438,7 @@ class Medium:
             if self.actual_power and len(receivers):
                 # The signal is the power the radio found for each pair (shadowing, walls);
                 # the frame's share of the interference stays the mean (docs/radio.md).
-                frame.rx_mw = laws.linear(ch.reception.received_dbm(now, i, receivers, dist))
+                frame.rx_mw = linear(ch.reception.received_dbm(now, i, receivers, dist))
             for other in self.on_air.values():
                 other.peak_mw = np.maximum(other.peak_mw, self.load_mw[other.receivers])
             frame.peak_mw = self.load_mw[receivers]
@@ -509,7 +508,7 @@ class Medium:
         compared with; None without a power model)."""
         rows, frame.rows = frame.rows, None
         if self.power is not None and interference is not None and len(rx):
-            rows.set_sinr(rx, laws.in_db(frame.rx_mw / (self.power.noise_mw + interference)))
+            rows.set_sinr(rx, in_db(frame.rx_mw / (self.power.noise_mw + interference)))
         rows.mark(rx[hd], self.causes.index("half_duplex"))
         rows.mark(rx[col], self.causes.index("collision"))
         self.channel.receptions.close(rows)
