@@ -395,7 +395,7 @@ def run_sweep(
             finished = done_ids(out)
             todo = [r for r in runs if r.run_id not in finished]
             failed: list[dict] = []
-            bar = progress_bar(len(runs), sweep.name, "run", enabled=progress, initial=len(runs) - len(todo), lines=10)
+            bar = progress_bar(len(runs), sweep.name, "runs", enabled=progress, initial=len(runs) - len(todo), lines=10)
 
             def account(run: Run, outcome: dict) -> None:
                 _record(out, run, outcome)
