@@ -100,6 +100,15 @@ SCENARIOS: dict[str, list[str]] = {
         "protocol.message_rate_hz=1",
         "output.receptions=true",
     ],
+    # The shared medium: collisions on the unit disk; SINR and capture under a power radio.
+    "mac_aloha": ["channel.mac=aloha", "protocol.message_rate_hz=1"],
+    "mac_csma_power_receptions": [
+        "channel.mac=csma",
+        "channel.propagation=log_distance",
+        "channel.shadowing_sigma_db=6",
+        "protocol.message_rate_hz=1",
+        "output.receptions=true",
+    ],
     "office_unit_disk": OFFICE,
     "office_log_distance_shadowing": OFFICE
     + ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4", "channel.sensitivity_dbm=-68"],
