@@ -300,7 +300,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
             if known[i, j] and j != i:
                 node[k] = j
                 qx[k], qy[k] = xy[i, j, 0], xy[i, j, 1]
-                e[k] = speed_mps * max(t0_s - sent_s[i, j], 0.0)
+                e[k] = largest_travel_m(np.nan, np.nan, sent_s[i, j], t0_s, speed_mps)
                 k += 1
         m = k - 1
         if m < 2:
@@ -331,7 +331,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                     if beyond[b] and listed_s[p] > heard_s[b]:
                         heard_s[b] = listed_s[p]
                         qx[b], qy[b] = heard.xy[p, 0], heard.xy[p, 1]
-                        e[b] = speed_mps * max(t0_s - listed_s[p], 0.0)
+                        e[b] = largest_travel_m(np.nan, np.nan, listed_s[p], t0_s, speed_mps)
         if window_s > 0:
             for a in range(k):
                 u = node[a]

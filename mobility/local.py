@@ -395,11 +395,20 @@ def largest_travel_m(
     Ack carried (its leg's, which holds from ``leg_from_s`` until the step at ``t0_s``)
     where that is known, at the speed cap before it, and at the cap all along where no
     speed is known (NaN) (:func:`netsim.mobility._local_kernels.largest_travel_m`)."""
-    since = np.ascontiguousarray(since_s, float)
-    speed = filled(leg_speed_mps, since.shape)
-    start = filled(leg_from_s, since.shape)
+    shape = np.shape(since_s)
+    if np.size(since_s) == 0:
+        return np.zeros(shape)
+    since = np.ascontiguousarray(since_s, float).reshape(shape[0], -1)
+    speed = filled(leg_speed_mps, shape).reshape(since.shape)
+    start = filled(leg_from_s, shape).reshape(since.shape)
     kernels = load("netsim.mobility._local_kernels", since.shape[0])
-    return kernels.largest_travels_m(speed, start, since, float(t0_s), float(speed_mps))
+    return kernels.largest_travels_m(speed, start, since, float(t0_s), float(speed_mps)).reshape(shape)
+
+
+def travel_at_cap_m(since_s: np.ndarray, t_s: float, speed_mps: float) -> np.ndarray:
+    """:func:`largest_travel_m` of robots whose legs are not known: the cap all along, from
+    ``since_s`` (any shape) to ``t_s``; what a robot answers for against another's motion."""
+    return largest_travel_m(np.nan, np.nan, since_s, t_s, speed_mps)
 
 
 class Heard(NamedTuple):
@@ -709,7 +718,7 @@ def leash_radius(memory: Memory, t1_s: float, limits: StepLimits) -> np.ndarray:
     answers for (``memory.keep_m``, or the plan's range less its margin) less ``j``'s largest
     motion since its Ack."""
     keep = limits.keep_m if memory.keep_m is None else memory.keep_m
-    return keep - limits.speed_max_mps * (t1_s - memory.sent_s)
+    return keep - travel_at_cap_m(memory.sent_s, t1_s, limits.speed_max_mps)
 
 
 def plan_local(
@@ -847,8 +856,8 @@ def cut_for_walls(
     robot, other = np.nonzero(kept & (length > 0)[:, None])
     centre = memory.xy[robot, other]
     v = limits.speed_max_mps
-    e = np.maximum(v * (t1_s - memory.sent_s[robot, other]), 0.0)
-    e0 = np.maximum(v * (t1_s - limits.period_s - memory.sent_s[robot, other]), 0.0)
+    e = travel_at_cap_m(memory.sent_s[robot, other], t1_s, v)
+    e0 = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, v)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
     region = np.full(len(robot), -1, np.int64)
     alone = clear_of_walls(walls, pos[robot], centre, length[robot], e)
