@@ -390,6 +390,37 @@ def main_bound(args) -> int:
     return 0
 
 
+# The keys that name a run in the table: the script's to set.
+RUNS_OWN = ("seed", "duration_s", "world.n_robots", "coverage.plan")
+
+
+def check_settings(args: argparse.Namespace) -> None:
+    """Refuse ``--set`` (NetsimInputError) outside ``--shadowing``, on a key that names a run
+    however it is written (``coverage.plan=...`` or ``coverage={plan=...}``), or where the
+    configuration refuses it for either plan at any size the table runs."""
+    from netsim.config import load, read_tree
+    from netsim.errors import NetsimInputError
+
+    if not args.shadowing or args.bound or args.why:
+        raise NetsimInputError("--set applies to --shadowing runs only")
+    tree = read_tree(None, args.set)
+
+    def given(key: str) -> bool:
+        node = tree
+        for part in key.split("."):
+            if not isinstance(node, dict) or part not in node:
+                return False
+            node = node[part]
+        return True
+
+    taken = [key for key in RUNS_OWN if given(key)]
+    if taken:
+        raise NetsimInputError(f"--set cannot set {', '.join(taken)} (the runs' own)")
+    for plan in ("global", "local"):
+        for n in args.n or SHADOWING_SIZES:
+            load(None, coverage_settings(SHADOWING, plan, n, 0.0, 1, args.duration, args.set))
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="unit disk at N = 20 and 60 only, and the radio rows")
@@ -418,20 +449,10 @@ def main(argv=None) -> int:
     )
     args = p.parse_args(argv)
     if args.set:
-        from netsim.config import load
         from netsim.errors import NetsimInputError
 
-        if not args.shadowing or args.bound or args.why:
-            print("coverage_targets.py: error: --set applies to --shadowing runs only", file=sys.stderr)
-            return 2
-        # The keys that name a run in the table are the script's to set.
-        own = {"seed", "duration_s", "world.n_robots", "coverage.plan"}
-        taken = sorted({item.split("=", 1)[0].strip() for item in args.set} & own)
-        if taken:
-            print(f"coverage_targets.py: error: --set cannot set {', '.join(taken)} (the runs' own)", file=sys.stderr)
-            return 2
         try:
-            load(None, coverage_settings(SHADOWING, "local", 20, 0.0, 1, args.duration, args.set))
+            check_settings(args)
         except NetsimInputError as e:
             print(f"coverage_targets.py: error: {e}", file=sys.stderr)
             return 2

@@ -28,12 +28,6 @@ BISECTIONS = 60
 
 
 @jit(nogil=True)
-def change_at_rho_db(rho, x_db, sigma_db):
-    """``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2)`` at a correlation ``rho``."""
-    return change_within_sigmas_db(rho, x_db, sigma_db, FADE_SIGMAS)
-
-
-@jit(nogil=True)
 def change_within_sigmas_db(rho, x_db, sigma_db, sigmas):
     """``(1 - rho) max(-x, 0) + sigmas sigma sqrt(1 - rho^2)``: the change covered up to
     ``sigmas`` standard deviations (a kept link's budget covers :data:`FADE_SIGMAS`)."""
@@ -44,9 +38,8 @@ def change_within_sigmas_db(rho, x_db, sigma_db, sigmas):
 @jit(nogil=True)
 def plausible_change_db(travel_m, x_db, sigma_db, decorrelation_m):
     """How far the shadowing measured at ``x_db`` plausibly moved against the link over a
-    pair travel ``travel_m`` (module notes)."""
-    rho = shadow_correlation(travel_m, decorrelation_m)
-    return change_at_rho_db(rho, x_db, sigma_db)
+    pair travel ``travel_m`` (module notes), within :data:`FADE_SIGMAS` standard deviations."""
+    return plausible_change_within_db(travel_m, x_db, sigma_db, decorrelation_m, FADE_SIGMAS)
 
 
 @jit(nogil=True)
@@ -63,12 +56,12 @@ def fade_travel_m(budget_db, x_db, sigma_db, decorrelation_m):
     falls as ``rho`` grows: bisection for the smallest ``rho`` within the budget."""
     if not budget_db > 0:
         return 0.0
-    if change_at_rho_db(0.0, x_db, sigma_db) <= budget_db:
+    if change_within_sigmas_db(0.0, x_db, sigma_db, FADE_SIGMAS) <= budget_db:
         return math.inf
     lo, hi = 0.0, 1.0
     for _ in range(BISECTIONS):
         mid = 0.5 * (lo + hi)
-        if change_at_rho_db(mid, x_db, sigma_db) <= budget_db:
+        if change_within_sigmas_db(mid, x_db, sigma_db, FADE_SIGMAS) <= budget_db:
             hi = mid
         else:
             lo = mid

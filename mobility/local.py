@@ -1004,11 +1004,11 @@ class FadeRule(NamedTuple):
     exponent: float
     # Standard deviations of its shadowing's change within which rule 1 certifies a detour's
     # measured link up (coverage.detour_sigmas).
-    detour_sigmas: float = FADE_SIGMAS
+    detour_sigmas: float
 
 
 # The fade rule switched off (:func:`netsim.mobility._local_kernels.let_go`).
-NO_FADE = FadeRule(False, 0.0, 1.0, 0.0, 1.0, 1.0)
+NO_FADE = FadeRule(False, 0.0, 1.0, 0.0, 1.0, 1.0, FADE_SIGMAS)
 
 
 class Halves(NamedTuple):
@@ -1082,7 +1082,7 @@ class Fade:
         margin_m: float,
         period_s: float,
         n_robots: int,
-        detour_sigmas: float = FADE_SIGMAS,
+        detour_sigmas: float,
     ):
         self.radio = radio
         self.n_robots = int(n_robots)  # the team's size: whether the radio's laws run compiled

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from netsim.mobility.keep import fade_travel_m, plausible_change_db
+from netsim.mobility.keep import FADE_SIGMAS, fade_travel_m, plausible_change_db
 from netsim.mobility.local import Fade, Lists, Memory, answered_by_halves, let_go, plan_local
 from netsim.mobility.steps import StepLimits
 
@@ -20,7 +20,7 @@ T0 = 10.0
 
 
 def fade() -> Fade:
-    return Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, PERIOD, 3)
+    return Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, PERIOD, 3, FADE_SIGMAS)
 
 
 def limits(f: Fade) -> StepLimits:

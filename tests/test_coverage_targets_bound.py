@@ -87,11 +87,12 @@ def test_bound_oracle_by_records_orders_as_rule_1_does():
     a deep fade recorded on 0-2 (+12 dB: 43 m is 107 m at zero shadowing) puts that link last,
     and 0 lets go of 2 through 1 instead; a link without a record comes after every other; links
     of one band come in the order of their ends' ids."""
+    from netsim.mobility.keep import FADE_SIGMAS
     from netsim.mobility.local import FadeRule
 
     t = targets()
     everyone = ~np.eye(3, dtype=bool)
-    rule = FadeRule(True, 4.0, 10.0, 60.0, 1.0, 3.0)  # nominal reach 100 m
+    rule = FadeRule(True, 4.0, 10.0, 60.0, 1.0, 3.0, FADE_SIGMAS)  # nominal reach 100 m
     ctl = controller()
     ctl.fade, ctl.cfg = SimpleNamespace(rule=rule), SimpleNamespace(band_m=7.5)
 
@@ -136,9 +137,9 @@ def test_bound_runs_every_plan_and_oracle_on_each_seed_and_prints_their_ratios(t
     assert "margin, team" in run.stdout and "least" in run.stdout
 
 
-# Unknown, out of range, without a value, and two keys that name a run in the table.
+# Unknown, out of range, without a value, and keys that name a run in the table (dotted or as a table).
 BAD_SETTINGS = ["coverage.nonsense=1", "coverage.detour_sigmas=-1", "coverage.detour_sigmas"]
-BAD_SETTINGS += ["coverage.plan=local", "seed=3"]
+BAD_SETTINGS += ["coverage.plan=local", "seed=3", 'coverage={plan="global"}', "world={n_robots=5}"]
 
 
 @pytest.mark.parametrize("setting", BAD_SETTINGS)
