@@ -114,6 +114,17 @@ SCENARIOS: dict[str, list[str]] = {
     + ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4", "channel.sensitivity_dbm=-68"],
     "office_random_direction_log_distance": OFFICE
     + ["mobility.model=random_direction", "channel.propagation=log_distance", "channel.sensitivity_dbm=-68"],
+    "office_coverage_local": COVERAGE
+    + [
+        "world.n_robots=12",
+        "world.map=office",
+        "world.side_m=200",
+        "world.placement=connected",
+        "world.centre_side_m=60",
+        "channel.range_m=30",
+        "coverage.plan=local",
+        "duration_s=60",
+    ],
     "cave_coverage": COVERAGE
     + ["world.map=cave", "world.side_m=200", "world.centre_side_m=60", "channel.range_m=30", "duration_s=40"],
 }
