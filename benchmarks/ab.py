@@ -165,6 +165,7 @@ def main(argv=None) -> int:
                     for case in args.cases:
                         cache = work / (f"cold-{side}" if case == "cold" else f"cache-{side}")
                         took = one(pythons[side], trees[side], case, cache, work / "out")
+                        print(f"  {side} {case}: {took[0]:.3f} s, {took[1]:.3f} s CPU", file=sys.stderr, flush=True)
                         times.setdefault((side, case), []).append(took)
         finally:
             if not args.base_python:
