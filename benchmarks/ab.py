@@ -170,7 +170,7 @@ def main(argv=None) -> int:
         finally:
             if not args.base_python:
                 git("worktree", "remove", "--force", str(base_tree))
-    head = git("rev-parse", "--short", "HEAD")
+    head = git("rev-parse", "--short", "HEAD") + (" with uncommitted changes" if git("status", "--porcelain") else "")
     print(f"before: {base[:9]} ({args.base}); after: the working tree of {ROOT} at {head}")
     print(f"{os.cpu_count()} cores, {platform.machine()}, Python {platform.python_version()}; {args.rounds} rounds")
     print(f"command: python benchmarks/ab.py {' '.join(argv if argv is not None else sys.argv[1:])}")
