@@ -54,7 +54,8 @@ import importlib.util, os, sys, tomllib
 root = sys.argv.pop(1)
 sys.path.insert(0, root)
 with open(root + "/pyproject.toml", "rb") as f:
-    dirs = tomllib.load(f).get("tool", {}).get("setuptools", {}).get("package-dir", {})
+    project = tomllib.load(f)
+dirs = project.get("tool", {}).get("setuptools", {}).get("package-dir", {})
 import netsim
 for name, folder in dirs.items():
     where = root + "/" + folder
@@ -65,9 +66,9 @@ for name, folder in dirs.items():
     sys.modules[name] = module
     setattr(netsim, name.rpartition(".")[2], module)
     spec.loader.exec_module(module)
-from netsim.tools.command import command
+where, _, name = project["project"]["scripts"]["netsim"].partition(":")
 sys.argv[0] = "netsim"
-sys.exit(command())
+sys.exit(getattr(importlib.import_module(where), name)())
 """
 
 CASES = {
@@ -95,22 +96,36 @@ def installed_tree(python: str) -> Path:
     """The tree whose ``netsim`` ``python`` imports."""
     code = "import netsim, os; print(os.path.dirname(os.path.dirname(os.path.realpath(netsim.__file__))))"
     done = subprocess.run([python, "-c", code], capture_output=True, text=True, check=True, cwd="/")
-    return Path(done.stdout.strip())
+    tree = done.stdout.strip()
+    if not tree or not (Path(tree) / "pyproject.toml").is_file() or not (Path(tree) / "netsim").is_dir():
+        raise OSError(tree)
+    return Path(tree)
 
 
 def one(python: str, tree: Path, case: str, cache: Path, out: Path) -> tuple[float, float]:
     """Wall and CPU seconds of one ``netsim run`` of ``case`` from ``tree``."""
     if case == "cold":
         shutil.rmtree(cache, ignore_errors=True)
+    shutil.rmtree(out, ignore_errors=True)
     cmd = ["env", f"NUMBA_CACHE_DIR={cache}", python, "-c", START, str(tree), "run"]
     cmd += ["--quiet", "--no-progress", "--out", str(out)]
     for item in CASES[case]:
         cmd += ["--set", item]
     wall, _, _, cpu = measured(cmd)
+    if not (out / "manifest.json").is_file():
+        raise SystemExit(f"ab.py: {python} ran no netsim run from {tree} (no manifest.json written)")
     return wall, cpu
 
 
 def main(argv=None) -> int:
+    try:
+        return measure(argv)
+    except KeyboardInterrupt:
+        print("ab.py: interrupted; nothing measured is printed", file=sys.stderr)
+        return 130
+
+
+def measure(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", required=True, help="the commit to measure this working tree against")
     ap.add_argument("--base-python", help="a Python in which the base commit is installed (other entry points)")
@@ -125,6 +140,8 @@ def main(argv=None) -> int:
     except subprocess.CalledProcessError:
         print(f"ab.py: --base {args.base}: not a commit of {ROOT}", file=sys.stderr)
         return 2
+    if args.base_python:
+        args.base_python = os.path.abspath(args.base_python)
     pythons = {"before": args.base_python or sys.executable, "after": sys.executable}
     if args.base_python:
         try:
@@ -148,16 +165,15 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="netsim-ab-") as tmp:
         work = Path(tmp)
         base_tree = installed if args.base_python else work / "base"
-        if not args.base_python:
-            git("worktree", "add", "--detach", str(base_tree), base)
         try:
+            if not args.base_python:
+                git("worktree", "add", "--detach", str(base_tree), base)
             trees = {"before": base_tree, "after": ROOT}
             times: dict[tuple[str, str], list[tuple[float, float]]] = {}
             for side, tree in trees.items():
-                for case in args.cases:
+                for case in dict.fromkeys(c if c != "cold" else "clustering-1k" for c in args.cases):
                     print(f"warming {side}: {case}", file=sys.stderr, flush=True)
-                    warm = case if case != "cold" else "clustering-1k"
-                    one(pythons[side], tree, warm, work / f"cache-{side}", work / "out")
+                    one(pythons[side], tree, case, work / f"cache-{side}", work / "out")
             for r in range(args.rounds):
                 print(f"round {r + 1}/{args.rounds}", file=sys.stderr, flush=True)
                 order = list(trees) if r % 2 == 0 else list(trees)[::-1]
@@ -169,7 +185,8 @@ def main(argv=None) -> int:
                         times.setdefault((side, case), []).append(took)
         finally:
             if not args.base_python:
-                git("worktree", "remove", "--force", str(base_tree))
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base_tree)], check=False)
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "prune"], check=False)
     head = git("rev-parse", "--short", "HEAD") + (" with uncommitted changes" if git("status", "--porcelain") else "")
     print(f"before: {base[:9]} ({args.base}); after: the working tree of {ROOT} at {head}")
     print(f"{os.cpu_count()} cores, {platform.machine()}, Python {platform.python_version()}; {args.rounds} rounds")

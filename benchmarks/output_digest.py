@@ -2,7 +2,7 @@
 change that must not change behaviour (a refactor, a speed-up, a new model whose default
 must reproduce today's runs).
 
-Each scenario is small (30 robots, 60 simulated seconds) and the set covers every mobility
+Each scenario is small (most have 30 robots and 60 simulated seconds) and the set covers every mobility
 model, placement, protocol, policy, loss model, propagation model (log-distance, shadowing,
 walls from the office and cave maps), coverage mode (spread and follow, exact and grid
 area) and controller, and every table (the replay's ``legs`` and ``hops`` included).
