@@ -23,7 +23,10 @@ a second, 100 simulated seconds):
 One unmeasured run of each case warms each side's caches; then every round runs each case
 on both sides, the side that goes first alternating between rounds. The table gives the
 median wall and CPU seconds of each side and the ratios after/before (below 1: faster).
-CPU time is the steadier figure on a shared machine.
+CPU time is the steadier figure on a shared machine. The last column pairs each round's two
+CPU times: the median of the per-round ratios, and the interval between order statistics
+that holds that median with at least 95 % confidence whatever the law of the noise (from
+6 rounds on). An interval containing 1 is a change within the noise this machine showed.
 
     python benchmarks/ab.py --base HEAD~1                      # small, ack-1k, clustering-1k
     python benchmarks/ab.py --base d200a91 --base-python ../d200/.venv/bin/python --rounds 7 \
@@ -33,6 +36,7 @@ CPU time is the steadier figure on a shared machine.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import platform
 import shutil
@@ -117,6 +121,21 @@ def one(python: str, tree: Path, case: str, cache: Path, out: Path) -> tuple[flo
     return wall, cpu
 
 
+def median_interval(values: list[float], confidence: float = 0.95) -> tuple[float, float] | None:
+    """The distribution-free interval of order statistics around the median of ``values``
+    (covers it with at least ``confidence``), or ``None`` when there are too few values."""
+    n = len(values)
+    ranked = sorted(values)
+
+    def coverage(k: int) -> float:  # of [k-th smallest, k-th largest]: 1 - 2 P(Binomial(n, 1/2) < k)
+        return 1 - 2 * sum(math.comb(n, i) for i in range(k)) / 2**n
+
+    k = 0
+    while k + 1 <= (n + 1) // 2 and coverage(k + 1) >= confidence:
+        k += 1
+    return (ranked[k - 1], ranked[n - k]) if k else None
+
+
 def main(argv=None) -> int:
     try:
         return measure(argv)
@@ -192,13 +211,20 @@ def measure(argv=None) -> int:
     print(f"{os.cpu_count()} cores, {platform.machine()}, Python {platform.python_version()}; {args.rounds} rounds")
     print(f"command: python benchmarks/ab.py {' '.join(argv if argv is not None else sys.argv[1:])}")
     print()
-    print("| case | before wall s | after wall s | after/before | before CPU s | after CPU s | after/before |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print(
+        "| case | before wall s | after wall s | after/before | before CPU s | after CPU s | after/before"
+        " | CPU after/before by round, 95 % interval |"
+    )
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for case in args.cases:
         b, a = times[("before", case)], times[("after", case)]
         bw, aw = statistics.median(t[0] for t in b), statistics.median(t[0] for t in a)
         bc, ac = statistics.median(t[1] for t in b), statistics.median(t[1] for t in a)
-        print(f"| {case} | {bw:.3f} | {aw:.3f} | {aw / bw:.3f} | {bc:.3f} | {ac:.3f} | {ac / bc:.3f} |")
+        paired = [after[1] / before[1] for before, after in zip(b, a)]
+        interval = median_interval(paired)
+        spread = f"[{interval[0]:.3f}, {interval[1]:.3f}]" if interval else "(6 rounds or more)"
+        ratios = f"{statistics.median(paired):.3f} {spread}"
+        print(f"| {case} | {bw:.3f} | {aw:.3f} | {aw / bw:.3f} | {bc:.3f} | {ac:.3f} | {ac / bc:.3f} | {ratios} |")
     return 0
 
 
