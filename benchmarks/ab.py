@@ -25,11 +25,13 @@ on both sides, the side that goes first alternating between rounds. The table gi
 median wall and CPU seconds of each side and the ratios after/before (below 1: faster).
 CPU time is the steadier figure on a shared machine. The last column pairs each round's two
 CPU times: the median of the per-round ratios, and the interval between order statistics
-that holds that median with at least 95 % confidence whatever the law of the noise (from
-6 rounds on). An interval containing 1 is a change within the noise this machine showed.
+that holds that median with at least 95 % confidence, whatever the noise's law as long as
+the rounds are independent and alike (from 6 rounds on: with fewer, not even the smallest
+and largest ratios hold it at 95 %). An interval containing 1 is a change within the noise
+this machine showed.
 
     python benchmarks/ab.py --base HEAD~1                      # small, ack-1k, clustering-1k
-    python benchmarks/ab.py --base d200a91 --base-python ../d200/.venv/bin/python --rounds 7 \
+    python benchmarks/ab.py --base d200a91 --base-python ../d200/.venv/bin/python --rounds 10 \
         --cases small ack-1k clustering-1k ack-10k clustering-10k cold
 """
 
@@ -148,7 +150,7 @@ def measure(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", required=True, help="the commit to measure this working tree against")
     ap.add_argument("--base-python", help="a Python in which the base commit is installed (other entry points)")
-    ap.add_argument("--rounds", type=int, default=5, help="measured rounds, alternated (default 5)")
+    ap.add_argument("--rounds", type=int, default=7, help="measured rounds, alternated (default 7)")
     ap.add_argument("--cases", nargs="+", default=["small", "ack-1k", "clustering-1k"], choices=list(CASES))
     args = ap.parse_args(argv)
     if args.rounds < 1:
@@ -213,7 +215,7 @@ def measure(argv=None) -> int:
     print()
     print(
         "| case | before wall s | after wall s | after/before | before CPU s | after CPU s | after/before"
-        " | CPU after/before by round, 95 % interval |"
+        " | median of per-round CPU after/before [95 % interval] |"
     )
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for case in args.cases:
@@ -222,7 +224,7 @@ def measure(argv=None) -> int:
         bc, ac = statistics.median(t[1] for t in b), statistics.median(t[1] for t in a)
         paired = [after[1] / before[1] for before, after in zip(b, a)]
         interval = median_interval(paired)
-        spread = f"[{interval[0]:.3f}, {interval[1]:.3f}]" if interval else "(6 rounds or more)"
+        spread = f"[{interval[0]:.3f}, {interval[1]:.3f}]" if interval else "[no interval: --rounds 6 or more]"
         ratios = f"{statistics.median(paired):.3f} {spread}"
         print(f"| {case} | {bw:.3f} | {aw:.3f} | {aw / bw:.3f} | {bc:.3f} | {ac:.3f} | {ac / bc:.3f} | {ratios} |")
     return 0
