@@ -50,6 +50,7 @@ import tomllib
 from pathlib import Path
 
 from compare import measured, netsim_settings
+from scipy.stats import quantile_test
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -126,16 +127,10 @@ def one(python: str, tree: Path, case: str, cache: Path, out: Path) -> tuple[flo
 def median_interval(values: list[float], confidence: float = 0.95) -> tuple[float, float] | None:
     """The distribution-free interval of order statistics around the median of ``values``
     (covers it with at least ``confidence``), or ``None`` when there are too few values."""
-    n = len(values)
-    ranked = sorted(values)
-
-    def coverage(k: int) -> float:  # of [k-th smallest, k-th largest]: 1 - 2 P(Binomial(n, 1/2) < k)
-        return 1 - 2 * sum(math.comb(n, i) for i in range(k)) / 2**n
-
-    k = 0
-    while k + 1 <= (n + 1) // 2 and coverage(k + 1) >= confidence:
-        k += 1
-    return (ranked[k - 1], ranked[n - k]) if k else None
+    interval = quantile_test(values, q=statistics.median(values), p=0.5).confidence_interval(confidence)
+    return (
+        None if math.isnan(interval.low) or math.isnan(interval.high) else (float(interval.low), float(interval.high))
+    )
 
 
 def main(argv=None) -> int:
