@@ -595,8 +595,7 @@ class CoverageController:
         if self.fade is not None:
             # Each robot's own measurement: the power it received each Ack at.
             own = st.positions_at(self.env.now)[robot]
-            age = self.env.now - (heard_s - self.loop.lead_s)
-            x_db, margin_db = self.fade.measure(own, xy, power_dbm, age, speed)
+            x_db, margin_db = self.fade.measure(own, xy, power_dbm, heard_s - self.loop.lead_s, self.env.now, speed)
         memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s, x_db, margin_db)
         self.knows = memory.at(step.t_s, speed, self.jitter_s)
         pos = step.positions_m

@@ -306,13 +306,15 @@ class LinkRules:
         # Distance is convex in time: its largest value on a stretch is at an end. The legs
         # start at the step's start (time 0).
         start, n = np.zeros(len(pa)), len(pa)
+        r = np.ascontiguousarray(self._range_with(links, k[pair], walls), dtype=float)
+        rows, in_range = np.arange(len(pair)), load("netsim._kernels", n).in_range
 
-        def apart(t: np.ndarray) -> np.ndarray:
-            ends = points_on_legs(pa, va, start, pair, t, n) - points_on_legs(pb, vb, start, pair, t, n)
-            return np.hypot(*ends.T)
+        def within(t: np.ndarray) -> np.ndarray:
+            ends = np.r_[points_on_legs(pa, va, start, pair, t, n), points_on_legs(pb, vb, start, pair, t, n)]
+            return in_range(ends, rows, rows + len(pair), r, 0.0)
 
-        d0, d1 = apart(t0), apart(t1)
-        lost = np.maximum(d0, d1) > self._range_with(links, k[pair], walls)
+        # -1 (never up) is tested apart: "in range" squares the range.
+        lost = (r < 0.0) | ~(within(t0) & within(t1))
         first = np.full(len(pa), np.inf)
         np.minimum.at(first, pair[lost], t0[lost])
         return first

@@ -373,7 +373,7 @@ class Memory:
             span = np.where(heard, np.clip(np.minimum(t0_s, self.until_s) - self.sent_s, 0.0, None), 0.0)
         out.xy = self.xy + self.vel * span[..., None]
         error = speeds_mps(self.vel).reshape(self.vel.shape[:-1]) * jitter_s
-        error = error + speed_mps * np.maximum(t0_s - np.where(heard, self.until_s, -np.inf), 0.0)
+        error = error + travel_at_cap_m(np.where(heard, self.until_s, -np.inf), t0_s, speed_mps)
         with np.errstate(invalid="ignore"):
             out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)
         out.until_s = out.sent_s.copy()
@@ -1111,15 +1111,22 @@ class Fade:
         self.speed_mps = travel / (4.0 * float(period_s))
 
     def measure(
-        self, own_xy: np.ndarray, heard_xy: np.ndarray, power_dbm: np.ndarray, age_s: np.ndarray, speed_mps: float
+        self,
+        own_xy: np.ndarray,
+        heard_xy: np.ndarray,
+        power_dbm: np.ndarray,
+        sent_s: np.ndarray,
+        now_s: float,
+        speed_mps: float,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The shadowing each robot measured on each Ack it heard, and the margin it heard
         it with (dB; NaN where no power was measured): ``X = P_t - PL(d) - P_r``, ``d`` the
         shortest the distance can have been when the Ack was sent (the position it carried
-        to the robot's own position now, less the robot's largest motion since ``age_s``
-        ago): an ``X`` no lower than the true one, which only shortens the links kept.
-        ``margin = P_r - sensitivity``."""
-        d = np.hypot(*(heard_xy - own_xy).T) - speed_mps * np.maximum(age_s, 0.0) if len(own_xy) else np.zeros(0)
+        to the robot's own position at ``now_s``, less the robot's largest motion since
+        ``sent_s``, the earliest the Ack can have been sent): an ``X`` no lower than the true
+        one, which only shortens the links kept. ``margin = P_r - sensitivity``."""
+        moved = travel_at_cap_m(np.asarray(sent_s, float), now_s, speed_mps)
+        d = np.hypot(*(heard_xy - own_xy).T) - moved if len(own_xy) else np.zeros(0)
         r = self.radio
         x = r.tx_power_dbm - r.path_loss_db(np.maximum(d, 0.0), self.n_robots) - power_dbm
         return x, power_dbm - r.sensitivity_dbm
@@ -1139,7 +1146,7 @@ class Fade:
         x0 = np.where(measured, x, 0.0)
         _, reach, left = self._allowance(knows, np.where(measured, margin, 0.0), x0, s, t0_s, speed_mps)
         with np.errstate(invalid="ignore"):
-            left = left - speed_mps * (t1_s - t0_s)
+            left = left - travel_at_cap_m(np.array([t0_s]), t1_s, speed_mps)[0]
         usable = measured & (reach > self.sure_m) & (left > 0)
         keep = np.where(usable, reach, self.sure_m) - self.margin_m
         return keep, np.where(usable, left, np.inf)

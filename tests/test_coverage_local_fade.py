@@ -114,16 +114,16 @@ def test_shadowing_is_measured_from_the_power_the_robot_received():
     x_true = rng.normal(0, SIGMA, k)
     d = np.hypot(*(sender - at_send).T)
     power = RADIO.tx_power_dbm - RADIO.path_loss_db(d) - x_true
-    x, margin = f.measure(at_send, sender, power, np.zeros(k), 0.5)
+    x, margin = f.measure(at_send, sender, power, np.zeros(k), 0.0, 0.5)
     assert np.allclose(x, x_true, atol=1e-9)
     assert np.allclose(margin, power - RADIO.sensitivity_dbm)
     age = rng.uniform(0, 2, k)
     angle = rng.uniform(0, 2 * np.pi, k)
     moved = at_send + (0.5 * age * rng.random(k))[:, None] * np.c_[np.cos(angle), np.sin(angle)]
-    x_moved, _ = f.measure(moved, sender, power, age, 0.5)
+    x_moved, _ = f.measure(moved, sender, power, -age, 0.0, 0.5)
     assert (x_moved >= x_true - 1e-9).all()
     # No power received, nothing measured.
-    x_none, _ = f.measure(at_send[:3], sender[:3], np.full(3, np.nan), np.zeros(3), 0.5)
+    x_none, _ = f.measure(at_send[:3], sender[:3], np.full(3, np.nan), np.zeros(3), 0.0, 0.5)
     assert np.isnan(x_none).all()
 
 

@@ -149,7 +149,8 @@ class Stretches:
         # edge the distance is the radius itself, which rounding may put on either side.
         ua = points_on_legs(pa, va, self.ta, legs, self.u, n_robots)
         ub = points_on_legs(pb, vb, self.tb, legs, self.u, n_robots)
-        far = np.hypot(ub[:, 0] - ua[:, 0], ub[:, 1] - ua[:, 1]) > np.asarray(radius, float) * (1.0 + 1e-9)
+        edge = np.ascontiguousarray(np.broadcast_to(np.asarray(radius, float) * (1.0 + 1e-9), (m,)))
+        far = ~load("netsim._kernels", n_robots).in_range(np.r_[ua, ub], legs, legs + m, edge, 0.0)
         self.out = far.astype(float)
         self.nc = np.maximum(count_below(self.u, self.h, self.x), 1.0)
 

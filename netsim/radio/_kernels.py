@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import Motion, position, shadow_correlation, travel
+from netsim._kernels import Motion, position, reaches, shadow_correlation, travel
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -338,8 +338,9 @@ def received_pass(frame, t, sender, receivers, d, x, motion, flat, out):
 
 @jit(nogil=True, inline="always")
 def in_disk(distance_m, range_m):
-    """The unit disk's rule: a pair at ``distance_m`` links when within the range."""
-    return distance_m <= range_m
+    """The unit disk's rule: a pair at ``distance_m`` links when within the range (the one
+    "in range", :func:`netsim._kernels.reaches`, of a distance already known)."""
+    return reaches(distance_m, 0.0, range_m, 0.0)
 
 
 @jit(nogil=True)
