@@ -99,3 +99,14 @@ def test_the_forest_prefers_the_links_that_last_over_the_wished_step():
     assert sorted(forest_rows(3, links).tolist()) == [0, 1]
     lasting = np.array([False, True, True])
     assert sorted(forest_rows(3, prefer(links, lasting)).tolist()) == [1, 2]
+
+
+def test_a_link_through_a_wall_does_not_last_however_short():
+    """LinkRules.lasting under line of sight: a link whose segment crosses a wall is never up
+    ("not up at any length"), even between two robots closer than a metre, where a range of
+    -1 squared would pass for a metre's reach."""
+    from tests.test_coverage_radio import one_link, wall_rules
+
+    rules, _ = wall_rules([(10.0, 10.5, 0.0, 40.0)])
+    pos = np.array([[9.8, 5.0], [10.7, 5.0]])
+    assert rules.lasting(pos, np.zeros((2, 2)), one_link(pos), 1.0).tolist() == [False]
