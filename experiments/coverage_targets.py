@@ -79,6 +79,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pandas as pd
 
+from netsim.errors import NetsimInputError
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
 
 
@@ -394,12 +395,24 @@ def main_bound(args) -> int:
 RUNS_OWN = ("seed", "duration_s", "world.n_robots", "coverage.plan")
 
 
+def check_options(args: argparse.Namespace) -> None:
+    """Refuse (NetsimInputError) sizes, workers or seeds below 1, a duration that is not
+    positive, and a bad ``--set`` (:func:`check_settings`), before any run."""
+    for option, values in (("--n", args.n or []), ("--workers", [args.workers]), ("--seeds", [args.seeds])):
+        for value in values:
+            if value < 1:
+                raise NetsimInputError(f"{option} {value}: at least 1")
+    if not args.duration > 0:
+        raise NetsimInputError(f"--duration {args.duration:g}: must be positive")
+    if args.set:
+        check_settings(args)
+
+
 def check_settings(args: argparse.Namespace) -> None:
     """Refuse ``--set`` (NetsimInputError) outside ``--shadowing``, on a key that names a run
     however it is written (``coverage.plan=...`` or ``coverage={plan=...}``), or where the
     configuration refuses it for either plan at any size the table runs."""
     from netsim.config import load, read_tree
-    from netsim.errors import NetsimInputError
 
     if not args.shadowing or args.bound or args.why:
         raise NetsimInputError("--set applies to --shadowing runs only")
@@ -448,14 +461,11 @@ def main(argv=None) -> int:
         help="--shadowing only: a setting over the scenario's, for both plans' runs (repeatable)",
     )
     args = p.parse_args(argv)
-    if args.set:
-        from netsim.errors import NetsimInputError
-
-        try:
-            check_settings(args)
-        except NetsimInputError as e:
-            print(f"coverage_targets.py: error: {e}", file=sys.stderr)
-            return 2
+    try:
+        check_options(args)
+    except NetsimInputError as e:
+        print(f"coverage_targets.py: error: {e}", file=sys.stderr)
+        return 2
     if args.bound:
         return main_bound(args)
     if args.why:

@@ -9,6 +9,10 @@ import pandas as pd
 from netsim.compiled import filled, load
 from netsim.geometry import in_box
 
+# A leg that starts farther than this from where the robot's previous leg put it is a jump
+# (a placement, a trace's repeated instant): the writers of movement files must say so.
+JUMP_M = 1e-6
+
 
 def points_on_legs(
     origin_m: np.ndarray,
@@ -46,6 +50,7 @@ class LegTable:
         self.p = np.ascontiguousarray(legs[["x_m", "y_m"]].to_numpy(float))
         self.v = np.ascontiguousarray(legs[["vx_mps", "vy_mps"]].to_numpy(float))
         robots = legs["robot"].to_numpy(np.int64)
+        self.robot = robots
         self.n = n
         self.first = np.searchsorted(robots, np.arange(n), "left")
         self.end = np.searchsorted(robots, np.arange(n), "right")
@@ -66,6 +71,19 @@ class LegTable:
     def at(self, legs: np.ndarray, t: npt.ArrayLike) -> np.ndarray:
         """Where legs ``legs`` put their robots at ``t`` (one time, or one per leg)."""
         return points_on_legs(self.p, self.v, self.t, legs, t, self.n)
+
+    def ends(self, duration_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each leg's end, in the table's order: its time (the robot's next leg's start, or
+        ``duration_s``, whichever is first), where the leg puts its robot then, and whether
+        the robot's next leg starts elsewhere (a jump; never on a robot's last leg)."""
+        k = np.arange(len(self.t))
+        last = np.zeros(len(k), bool)
+        last[self.end - 1] = True
+        nxt = np.where(last, k, k + 1)
+        t_end = np.minimum(np.where(last, duration_s, self.t[nxt]), duration_s)
+        xy = self.at(k, t_end)
+        jump = ~last & (np.hypot(*(self.p[nxt] - xy).T) > JUMP_M)
+        return t_end, xy, jump
 
     def changes_in(self, a: float, b: float) -> np.ndarray:
         """Robots that start a new leg in (a, b)."""

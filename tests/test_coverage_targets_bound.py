@@ -153,6 +153,26 @@ def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_
     assert not csv.exists()
 
 
+@pytest.mark.parametrize(
+    "args, said",
+    [
+        (["--n", "20", "0"], "--n 0: at least 1"),
+        (["--shadowing", "--seeds", "0"], "--seeds 0: at least 1"),
+        (["--workers", "0"], "--workers 0: at least 1"),
+        (["--duration", "-1"], "--duration -1: must be positive"),
+        (["--why", "--duration", "nan"], "--duration nan: must be positive"),
+    ],
+)
+def test_bad_sizes_seeds_workers_or_duration_are_one_line_exit_2(tmp_path, capsys, args, said):
+    """Refused before any run (a run of 0 robots or a pool of 0 workers would end in a
+    traceback): one line naming the option, exit 2, no CSV."""
+    csv = tmp_path / "s.csv"
+    code = targets().main([*args, "--csv", str(csv)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.strip().splitlines() == [f"coverage_targets.py: error: {said}"]
+    assert not csv.exists()
+
+
 @pytest.mark.parametrize("mode", [[], ["--bound"], ["--why"], ["--shadowing", "--bound"]])
 def test_set_outside_shadowing_is_one_line_exit_2(tmp_path, capsys, mode):
     """``--set`` acts on ``--shadowing`` runs alone: elsewhere it would be ignored, so it is

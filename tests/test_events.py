@@ -459,6 +459,34 @@ def test_the_live_graph_equals_the_snapshot_at_random_instants():
     assert {"alpha", "beta"} <= {live.graph.nodes[i]["role"] for i in live.graph.nodes}
 
 
+def test_the_live_graph_equals_the_snapshot_of_the_channels_links_under_shadowing():
+    """Under shadowing the live graph is the channel's network: the snapshot given the
+    run's links (``links=sim.link_events()``) at every instant tried, where the plain
+    snapshot, a unit disk, differs at some of them (docs/events.md)."""
+    config = load(
+        None,
+        ["world.n_robots=20", "duration_s=40", "world.side_m=300"]
+        + ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4", "protocol.model=none"],
+    )
+    sim = build(config)
+    live = sim.live_topology()
+    links = sim.link_events()
+    same, disk_differs = [], 0
+
+    def compare():
+        nonlocal disk_differs
+        for t in np.linspace(2.5, 37.5, 15).tolist():
+            yield sim.env.timeout(t - sim.env.now)
+            edges = set(map(frozenset, live.graph.edges))
+            same.append(edges == set(map(frozenset, snapshot(sim.state, sim.now, links=links).edges)))
+            disk_differs += edges != set(map(frozenset, snapshot(sim.state, sim.now).edges))
+
+    sim.env.process(compare())
+    sim.run()
+    assert len(same) == 15 and all(same)
+    assert disk_differs > 0
+
+
 def test_time_weighted_levels_match_brute_force_sampling():
     config = load(
         None,

@@ -87,6 +87,36 @@ def test_bonnmotion_export_round_trips_the_positions(run_dir, tmp_path):
         assert np.allclose(_positions(frames["legs"], t, 8), _positions(legs, t, 8), atol=1e-6), t
 
 
+# Two robots that jump: robot 0 stands, jumps, moves, jumps at the end of a move, moves on;
+# robot 1 moves, jumps, stands. Links (range 30 m) open and close at the jumps.
+JUMPS = "0 10 10 5 10 10 5 50 50 10 50 50 12 70 50 12 20 80 20 20 90 24 20 90\n0 60 60 8 60 20 8 30 30 24 30 30\n"
+
+
+@pytest.mark.parametrize("fmt, name", [("bonnmotion", "j.movements"), ("ns2", "j.ns2")])
+def test_export_of_a_run_with_jumps_replays_its_positions_and_links(tmp_path, fmt, name):
+    """A run whose robots jump (a trace's repeated instant, an ns-2 scheduled ``set``, a
+    placement), exported and replayed, gives its positions back at every instant, just
+    before and after each jump too, and its links at the same instants: the writers say
+    where a leg ended before the jump, not only where the next one starts."""
+    trace = tmp_path / "jumps.movements"
+    trace.write_text(JUMPS)
+    (tmp_path / "jumps.params").write_text("x=100\ny=100\nduration=24\nnn=2\n")
+    sets = ["duration_s=24", "world.n_robots=2", "world.side_m=100", "channel.range_m=30", "protocol.model=none"]
+    run = tmp_path / "run"
+    argv = ["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--set", "mobility.model=trace"]
+    assert main([*argv, "--set", f"mobility.trace_file={trace}", "--out", str(run)]) == 0
+    out = tmp_path / name
+    assert main(["export", str(run), "--format", fmt, "--out", str(out)]) == 0
+    _config, frames = _run([*sets, "mobility.model=trace", f"mobility.trace_file={out}"])
+    legs = pd.read_parquet(run / "legs.parquet")
+    for t in [*np.linspace(0.0, 23.99, 97), 4.999999, 5.0, 7.999999, 8.0, 11.999999, 12.0]:
+        assert np.allclose(_positions(frames["legs"], t, 2), _positions(legs, t, 2), atol=1e-6), t
+    links = pd.read_parquet(run / "links.parquet")
+    assert len(links) == 2
+    cols = ["a", "b", "t_up_s", "t_down_s"]
+    assert np.allclose(frames["links"][cols].to_numpy(float), links[cols].to_numpy(float), atol=1e-6)
+
+
 def test_bonnmotion_reads_3d_files_with_their_params(tmp_path):
     """``J=3D`` in the ``.params`` beside: four numbers a waypoint, z dropped."""
     (tmp_path / "d.params").write_text("model=RandomWaypoint3D\nx=100.0\ny=100.0\nnn=1\nJ=3D\n")
@@ -277,6 +307,17 @@ def test_export_refuses_an_existing_output_and_a_non_run(run_dir, tmp_path, caps
     assert main(["export", str(tmp_path), "--format", "ns2", "--out", str(tmp_path / "x.tcl")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and "exists already" in err[0] and "not a run directory" in err[1]
+
+
+def test_bonnmotion_export_refuses_an_existing_params_file(run_dir, tmp_path, capsys):
+    """The .params written beside NAME.movements is an output too: one that exists is one
+    line, exit 2, and neither file is written."""
+    params = tmp_path / "p.params"
+    params.write_text("mine")
+    assert main(["export", str(run_dir), "--format", "bonnmotion", "--out", str(tmp_path / "p.movements")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "p.params" in err[0] and "exists already" in err[0]
+    assert params.read_text() == "mine" and sorted(tmp_path.iterdir()) == [params]
 
 
 def test_waypoints_from_legs_reproduce_the_legs(run_dir):

@@ -11,7 +11,7 @@
 The lines are understood as ns-3's helper understands them, line for line; what they
 then do follows ns-2 by default (``semantics = "ns2"``) or ns-3 (``"ns3"``, so that a file
 replays to the positions ns-3 gives: the tests compare with ns-3 itself). The two differ in
-a scheduled ``set X_`` and in lines out of time order:
+a scheduled ``set X_``, a ``setdest`` to where the node is and lines out of time order:
 
 - Everything after a ``#`` is a comment; blanks and ``;`` at a line's ends are dropped. A
   line is then split on blanks and understood only in one of three shapes (the quotes may
@@ -24,12 +24,16 @@ a scheduled ``set X_`` and in lines out of time order:
   or is negative. ``Z_`` is ignored.
 - ``setdest X Y S`` at ``T``: the node leaves at ``T`` toward ``(X, Y)`` at ``S`` m/s and
   stops on arrival. A later ``setdest`` starts from where the node is then (if it had not
-  arrived) or from where it was heading. ``S = 0`` stops the node at ``T``; a ``setdest``
-  to where the node already is, or with a negative speed, does nothing.
-- ``set X_ x`` at ``T`` (ns-3's handling, which differs from ns-2's): the coordinate is
-  changed at once, when the file is read, so the node starts there; at ``T`` the node is
-  put at that position again (its other coordinate as it was when the line was read) and
-  stops. A later ``setdest`` leaves from there.
+  arrived) or from where it was heading. ``S = 0`` stops the node at ``T``; a negative
+  speed does nothing. A ``setdest`` to where the node already is stops it (``"ns2"``) or
+  does nothing (``"ns3"``).
+- ``set X_ x`` at ``T``: with ``"ns2"`` the node jumps at ``T`` (its other coordinate
+  where it is then) and stops. With ``"ns3"`` (ns-3's handling) the coordinate is changed
+  at once, when the file is read, so the node starts there; at ``T`` the node is put at
+  that position again (its other coordinate as it was when the line was read) and stops.
+  Either way a later ``setdest`` leaves from there.
+- Lines out of time order: applied in time order (``"ns2"``, as ns-2's scheduler does;
+  equal times in file order) or in file order (``"ns3"``).
 - Nodes are 0 to the highest id the file names (ns-3 uses the nodes it is given); a node
   that is never given an initial ``X_`` or ``Y_`` starts at 0 on that axis, and a warning
   names those nodes. A file with initial positions only is a team standing still. A file
@@ -51,7 +55,7 @@ import pandas as pd
 
 from netsim.errors import NetsimInputError
 from netsim.geometry import speeds_mps
-from netsim.trajectory import points_on_legs
+from netsim.trajectory import LegTable
 
 _NODE = re.compile(r"\(([^()]*)\)")
 _COORDS = ("X_", "Y_", "Z_")
@@ -411,32 +415,34 @@ def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float
     """Write legs (as :meth:`RobotState.legs` gives) as an ns-2 movement file.
 
     Each moving leg becomes a ``setdest`` toward where the leg ends (the start of the
-    robot's next leg, or its position at ``duration_s``). Numbers are written with
-    Python's shortest round-trip ``repr``, so a replay reproduces the positions.
+    robot's next leg, or its position at ``duration_s``). A leg that starts elsewhere than
+    where the robot's previous leg put it (a jump) starts with a scheduled ``set X_`` and
+    ``set Y_``, which ns-2, and this reader by default, take as a jump at that instant
+    (``semantics = "ns3"`` does not: ns-3 places the node when it reads the file). Numbers
+    are written with Python's shortest round-trip ``repr``, so a replay reproduces the
+    positions.
     """
     lines = [f"# {line}" for line in header.splitlines()]
-    legs = legs.sort_values(["robot", "t_s"], kind="stable")
-    t = legs["t_s"].to_numpy(float)
-    robot = legs["robot"].to_numpy(np.int64)
-    p = legs[["x_m", "y_m"]].to_numpy(float)
-    v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
+    table = LegTable(legs, n_robots)
+    t, robot, p = table.t, table.robot, table.p
     for i in range(n_robots):
-        first = np.searchsorted(robot, i)
-        x, y = p[first].tolist()
+        x, y = p[table.first[i]].tolist()
         lines += [f"$node_({i}) set X_ {x!r}", f"$node_({i}) set Y_ {y!r}", f"$node_({i}) set Z_ 0.0"]
-    events = []
-    speeds = speeds_mps(v)
-    # Each leg's end: the next leg's start, or the run's end.
-    last = np.r_[robot[1:] != robot[:-1], True]
-    t_end = np.minimum(np.where(last, duration_s, np.r_[t[1:], duration_s]), duration_s)
-    ends = points_on_legs(p, v, t, np.arange(len(t)), t_end, n_robots)
+    events: list[tuple[float, int, int, str]] = []
+    speeds = speeds_mps(table.v)
+    _, ends, jump = table.ends(duration_s)
     for k in range(len(t)):
-        speed = float(speeds[k])
-        if speed == 0.0 or t[k] >= duration_s:
-            continue
-        dx, dy = ends[k].tolist()
         tk, rk = float(t[k]), int(robot[k])
-        events.append((tk, rk, f'$ns_ at {tk!r} "$node_({rk}) setdest {dx!r} {dy!r} {speed!r}"'))
-    events.sort(key=lambda e: (e[0], e[1]))
-    lines += [e[2] for e in events]
+        if tk >= duration_s:
+            continue
+        at = f'$ns_ at {tk!r} "$node_({rk})'
+        if k > table.first[rk] and jump[k - 1]:
+            x, y = p[k].tolist()
+            events += [(tk, rk, len(events), f'{at} set X_ {x!r}"'), (tk, rk, len(events) + 1, f'{at} set Y_ {y!r}"')]
+        speed = float(speeds[k])
+        if speed != 0.0:
+            dx, dy = ends[k].tolist()
+            events.append((tk, rk, len(events), f'{at} setdest {dx!r} {dy!r} {speed!r}"'))
+    events.sort(key=lambda e: e[:3])
+    lines += [e[3] for e in events]
     Path(path).write_text("\n".join(lines) + "\n")

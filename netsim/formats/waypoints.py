@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
-from netsim.trajectory import points_on_legs
+from netsim.trajectory import LegTable
 
 
 @dataclass(frozen=True)
@@ -87,16 +87,17 @@ class Waypoints:
 
 
 def from_legs(legs: pd.DataFrame, n_robots: int, duration_s: float) -> Waypoints:
-    """The waypoints of a run's legs (``legs.parquet``): each leg's start, and where each
-    robot is at ``duration_s``."""
-    legs = legs[legs["t_s"] <= duration_s].sort_values(["robot", "t_s"], kind="stable")
-    robot = legs["robot"].to_numpy(np.int64)
-    t = legs["t_s"].to_numpy(float)
-    xy = legs[["x_m", "y_m"]].to_numpy(float)
-    v = legs[["vx_mps", "vy_mps"]].to_numpy(float)
-    last = np.r_[robot[1:] != robot[:-1], True]
-    end = points_on_legs(xy, v, t, np.flatnonzero(last), duration_s, n_robots)
-    rows_r = np.concatenate([robot, robot[last]])
-    rows_t = np.concatenate([t, np.full(int(last.sum()), duration_s)])
-    rows_xy = np.concatenate([xy, end])
-    return Waypoints.of(rows_r, rows_t, rows_xy[:, 0], rows_xy[:, 1], "legs")
+    """The waypoints of a run's legs (``legs.parquet``): each leg's start, where each robot
+    is at ``duration_s``, and where a leg that ends in a jump put its robot at the jump's
+    instant (two waypoints at one instant)."""
+    table = LegTable(legs[legs["t_s"] <= duration_s], n_robots)
+    t_end, end, jump = table.ends(duration_s)
+    last = np.zeros(len(table.t), bool)
+    last[table.end - 1] = True
+    # Each leg's start, then its end where that is a waypoint of its own; a stable sort by
+    # robot and time keeps a jump's two waypoints in that order.
+    keep = np.column_stack([np.ones(len(last), bool), jump | last]).ravel()
+    robot = np.repeat(table.robot, 2)[keep]
+    t = np.column_stack([table.t, t_end]).ravel()[keep]
+    xy = np.stack([table.p, end], axis=1).reshape(-1, 2)[keep]
+    return Waypoints.of(robot, t, xy[:, 0], xy[:, 1], "legs")

@@ -48,8 +48,14 @@ def check_out(out: Path, fmt: str) -> None:
         Path(probe).rmdir()
     except OSError as exc:
         raise NetsimInputError(f"--out {out}: cannot write in {parent} ({exc.strerror or exc})") from None
-    if fmt == "bonnmotion" and not out.name.endswith((".movements", ".movements.gz")):
-        raise NetsimInputError(f"--out {out}: a BonnMotion file is named NAME.movements or NAME.movements.gz")
+    if fmt == "bonnmotion":
+        from netsim.formats.bonnmotion import params_path
+
+        if not out.name.endswith((".movements", ".movements.gz")):
+            raise NetsimInputError(f"--out {out}: a BonnMotion file is named NAME.movements or NAME.movements.gz")
+        params = params_path(out)
+        if params.exists():
+            raise NetsimInputError(f"--out {out}: {params}, written beside it, exists already; give a new name")
 
 
 def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
