@@ -38,8 +38,10 @@ PROTOCOLS = {
 }
 
 
-def ci95(values) -> tuple[float, float, float]:
-    """Mean and the half-width's ends of a 95 % Student's t interval (NaN with one value)."""
+def ci95(values, within: tuple[float, float] = (-np.inf, np.inf)) -> tuple[float, float, float]:
+    """Mean and the ends of a 95 % Student's t interval (NaN with one value), cut to
+    ``within``, where the mean must lie (a ratio's [0, 1]): a few replications give the t
+    interval ends a ratio cannot have, and cutting them off keeps its coverage."""
     v = np.asarray([x for x in values if np.isfinite(x)], dtype=float)
     if len(v) == 0:
         return np.nan, np.nan, np.nan
@@ -47,7 +49,7 @@ def ci95(values) -> tuple[float, float, float]:
     if len(v) < 2:
         return m, np.nan, np.nan
     h = float(stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
-    return m, m - h, m + h
+    return m, max(m - h, within[0]), min(m + h, within[1])
 
 
 def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | None, n: int, duration_s: float):
@@ -122,8 +124,12 @@ def main(argv=None) -> None:
         figures = per_run(runs, sweepmod.load_table(out / name, "packets"), control, args.n, args.duration)
         for speed, g in figures.groupby("speed_mps"):
             row = {"protocol": name, "speed_mps": speed, "runs": len(g)}
-            for col in ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s"):
-                row[col], row[f"{col}_ci_low"], row[f"{col}_ci_high"] = ci95(g[col])
+            for col, within in (
+                ("delivery_ratio", (0.0, 1.0)),
+                ("latency_p50_s", (0.0, np.inf)),
+                ("control_per_robot_per_s", (0.0, np.inf)),
+            ):
+                row[col], row[f"{col}_ci_low"], row[f"{col}_ci_high"] = ci95(g[col], within)
             rows.append(row)
     table = pd.DataFrame(rows)
     out.mkdir(parents=True, exist_ok=True)

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 from netsim import plugins
 from netsim.area import KEY, Bounds, parse_bounds, parse_start
-from netsim.errors import ConfigError
+from netsim.errors import ConfigError, NetsimInputError
 from netsim.params import (
     NoParams,
     Params,
@@ -695,6 +695,8 @@ def from_dict(raw: Mapping) -> Config:
     owners = section_owners(control)
     allowed = ["seed", "duration_s", *ENGINE_SECTIONS, *owners]
     for key, value in raw.items():
+        if key == "bridge":
+            raise NetsimInputError("[bridge]: a table of `netsim bridge` (docs/ros2.md); run this scenario with it")
         if key not in allowed:
             raise _unknown(key, value, allowed)
     values: dict[str, Any] = {k: raw[k] for k in ("seed", "duration_s") if k in raw}
@@ -848,9 +850,10 @@ def _rule(params_cls: type, name: str) -> str:
     return next(rule for key, _, _, rule in describe_params(params_cls) if key == name)
 
 
-def _other_models(section: str) -> list[tuple[str, str, Any, str]]:
-    """(model, key, default, meaning) of the keys of the models a section could name but
-    does not by default: the other registered mobility models, protocols, loss models."""
+def _other_models(section: str) -> list[tuple[str, str, Any, str, str]]:
+    """(model, key, default, meaning, rule) of the keys of the models a section could name
+    but does not by default: the other registered mobility models, protocols, loss models
+    (``rule``: how a derived default is derived, else "")."""
     if section in ("mobility", "protocol"):
         group = plugins.MOBILITY if section == "mobility" else plugins.PROTOCOLS
         models = {name: p.Params for name, p in plugins.registered(group).items()}
@@ -860,7 +863,7 @@ def _other_models(section: str) -> list[tuple[str, str, Any, str]]:
             models.update({name: m.Params for name, m in plugins.registered(group).items()})
     else:
         return []
-    return [(model, k, d, doc) for model, cls in models.items() for k, d, doc, _ in describe_params(cls)]
+    return [(model, k, d, doc, rule) for model, cls in models.items() for k, d, doc, rule in describe_params(cls)]
 
 
 def commented_toml(config: Config | None = None) -> str:
@@ -917,13 +920,13 @@ def commented_toml(config: Config | None = None) -> str:
             out += ["", f"# keys of the other {what} names one of them:"]
             if section == "channel":
                 # A key several media share (aloha's and csma's) is listed once.
-                merged: dict[str, tuple[list[str], Any, str]] = {}
-                for model, key, default, doc in others:
-                    merged.setdefault(key, ([], default, doc))[0].append(model)
-                others = [(", ".join(models), key, default, doc) for key, (models, default, doc) in merged.items()]
-            for model, key, default, doc in others:
+                merged: dict[str, tuple[list[str], Any, str, str]] = {}
+                for model, key, default, doc, rule in others:
+                    merged.setdefault(key, ([], default, doc, rule))[0].append(model)
+                others = [(", ".join(m), key, d, doc, rule) for key, (m, d, doc, rule) in merged.items()]
+            for model, key, default, doc, rule in others:
                 shown = tomli_w.dumps({key: plain(default)}).strip() if default is not None else f"{key} = ..."
-                out.append(f"# {shown}    # ({model}) {doc}")
+                out.append(f"# {shown}    # ({model}) {doc}" + (f" (default: {rule})" if rule else ""))
     return "\n".join(out + tables) + "\n"
 
 
@@ -946,7 +949,7 @@ def all_keys(config: Config | None = None) -> list[str]:
     registered model of its sections."""
     keys = [k for k, _, _ in describe(config)]
     for section in ("mobility", "channel", "protocol"):
-        keys += [f"{section}.{k}" for _, k, _, _ in _other_models(section)]
+        keys += [f"{section}.{k}" for _, k, _, _, _ in _other_models(section)]
     return list(dict.fromkeys(keys))
 
 

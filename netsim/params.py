@@ -49,6 +49,11 @@ def non_negative(v: float) -> str | None:
     return None if v >= 0 else "must be >= 0"
 
 
+def ttl_field(v: int) -> str | None:
+    """A TTL as an IP header or a routing message carries it: one octet."""
+    return None if 1 <= v <= 255 else "must be in 1 .. 255 (a TTL is one octet)"
+
+
 def probability(v: float) -> str | None:
     return None if 0 <= v <= 1 else "must be a probability in [0, 1]"
 

@@ -26,7 +26,7 @@ import numpy as np
 from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
 from netsim.errors import ConfigError
-from netsim.params import finite, non_negative, param, positive
+from netsim.params import finite, non_negative, param, positive, ttl_field
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -46,23 +46,24 @@ class AodvParams(RoutingParams):
     hello: bool = param(True, None, "send hello messages (false: neighbours from the link layer alone)")
     hello_interval_s: float = param(1.0, finite(positive), "HELLO_INTERVAL, s")
     allowed_hello_loss: int = param(2, positive, "ALLOWED_HELLO_LOSS: hellos missed before a link is broken")
-    net_diameter: int = param(35, positive, "NET_DIAMETER: the largest TTL of a RREQ, hops")
+    net_diameter: int = param(35, ttl_field, "NET_DIAMETER: the largest TTL of a RREQ, hops")
     node_traversal_time_s: float = param(0.04, finite(positive), "NODE_TRAVERSAL_TIME, s")
     rreq_retries: int = param(2, non_negative, "RREQ_RETRIES: RREQs at NET_DIAMETER after the first")
-    ttl_start: int = param(1, positive, "TTL_START: the TTL of the first RREQ")
-    ttl_increment: int = param(2, positive, "TTL_INCREMENT: added to the TTL of each new ring")
-    ttl_threshold: int = param(7, positive, "TTL_THRESHOLD: past it, the RREQ's TTL is NET_DIAMETER")
+    ttl_start: int = param(1, ttl_field, "TTL_START: the TTL of the first RREQ")
+    ttl_increment: int = param(2, ttl_field, "TTL_INCREMENT: added to the TTL of each new ring")
+    ttl_threshold: int = param(7, ttl_field, "TTL_THRESHOLD: past it, the RREQ's TTL is NET_DIAMETER")
     timeout_buffer: int = param(2, non_negative, "TIMEOUT_BUFFER of RING_TRAVERSAL_TIME, hops")
     queue_packets: int = param(64, positive, "packets buffered per robot while a route is sought")
     jitter_s: float = param(0.01, non_negative, "forwarded broadcasts wait U(0, jitter), s (RFC 5148)")
 
     def check(self) -> None:
-        if self.ttl_start > self.net_diameter or self.ttl_threshold > self.net_diameter:
-            raise ConfigError(
-                "protocol.ttl_threshold",
-                self.ttl_threshold,
-                f"TTL_START and TTL_THRESHOLD must not exceed protocol.net_diameter = {self.net_diameter}",
-            )
+        for key in ("ttl_start", "ttl_threshold"):
+            if getattr(self, key) > self.net_diameter:
+                raise ConfigError(
+                    f"protocol.{key}",
+                    getattr(self, key),
+                    f"must not exceed protocol.net_diameter = {self.net_diameter}",
+                )
 
     @property
     def net_traversal_time_s(self) -> float:

@@ -28,7 +28,7 @@ import numpy as np
 from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
 
 from netsim.errors import ConfigError
-from netsim.params import finite, non_negative, param, positive
+from netsim.params import finite, non_negative, param, positive, ttl_field
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -56,7 +56,7 @@ class OlsrParams(RoutingParams):
         None, positive, "TOP_HOLD_TIME, s", kind=float, derive=lambda p: 3.0 * p.tc_interval_s, rule="3 x tc"
     )
     dup_hold_time_s: float = param(30.0, finite(positive), "DUP_HOLD_TIME: a message is remembered this long, s")
-    ttl: int = param(255, positive, "TTL of a TC and hops a data packet may take")
+    ttl: int = param(255, ttl_field, "TTL of a TC and hops a data packet may take")
     start_spread_s: float = param(
         None,
         non_negative,

@@ -30,6 +30,30 @@ def test_the_configuration_page_names_every_key_with_its_default():
     assert rows["protocol.tau_s"].startswith("3 x ack_period_s")
 
 
+@pytest.mark.parametrize("section", ["mobility", "channel", "protocol"])
+def test_every_other_models_default_is_on_its_row(section):
+    """Each model's own default of each of its keys is on the page, on its key's row of the
+    other models' table (or, where it is the built-in configuration's, on that key's row
+    there): a key two models share with different defaults (aodv's and olsr's
+    hello_interval_s), a default derived by a rule, a default another model changes
+    (message_rate_hz under the routing protocols)."""
+    keys, other = config_docs.PAGE.read_text().split("## Keys of the other built-in models")
+    chosen = dict(re.findall(r"^\| `([\w.]+)` \| (.*?) \| ", keys, re.M))
+    others = {k: (models, d) for k, models, d in re.findall(r"^\| `([\w.]+)` \| (`.*?`) \| (.*?) \| ", other, re.M)}
+    missing = []
+    for model, key, default, _doc, rule in cfgmod._other_models(section):
+        dotted = f"{section}.{key}"
+        shown = rule if default is None and rule else f"`{config_docs._value(cfgmod.plain(default))}`"
+        if dotted in others and f"`{model}`" in others[dotted][0]:
+            where = others[dotted][1]
+            ok = where == shown or f"{shown} (`{model}`)" in where
+        else:
+            ok = chosen.get(dotted, "").removesuffix(config_docs.FOLLOWS) == shown
+        if not ok:
+            missing.append((model, dotted, shown))
+    assert missing == []
+
+
 def test_the_check_fails_on_a_stale_page(tmp_path, monkeypatch, capsys):
     """`--check` exits 1 on a page whose tables differ, and writes nothing."""
     stale = config_docs.PAGE.read_text().replace('| `"auto"` |', "| `true` |")

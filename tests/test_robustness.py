@@ -457,6 +457,49 @@ def test_printed_configuration_derives_tau_and_merge_delay_from_the_ack_period(t
     assert cfgmod.load(None, ["protocol.ack_period_s=5"]) == c
 
 
+BRIDGE_SCENARIO = """duration_s = 60
+[mobility]
+model = "external"
+[bridge]
+domain_id = 7
+odom_hz = 20
+relay = [{name = "chat", type = "std_msgs/msg/String"}]
+"""
+
+
+def test_printed_configuration_of_a_bridge_scenario_keeps_its_bridge_table(tmp_path, capsys):
+    """`netsim config` reads a `netsim bridge` scenario (docs/ros2.md): its [bridge] keys are
+    printed with their meaning and values, and the printed file reads back as the same
+    run and bridge; without a file the [bridge] keys are listed, commented out."""
+    from netsim.bridge import settings
+
+    (tmp_path / "b.toml").write_text(BRIDGE_SCENARIO)
+    assert main(["config", str(tmp_path / "b.toml")]) == 0
+    text = capsys.readouterr().out
+    assert "\n[bridge]\n" in text and "ROS_DOMAIN_ID" in text
+    (tmp_path / "printed.toml").write_text(text)
+    assert settings.load(str(tmp_path / "printed.toml"), []) == settings.load(str(tmp_path / "b.toml"), [])
+    assert main(["config"]) == 0
+    default = capsys.readouterr().out
+    assert "\n# [bridge]\n# the DDS domain" in default and "\n[bridge]" not in default
+
+
+def test_a_bridge_scenario_given_to_run_names_the_bridge_in_one_line(tmp_path, capfd):
+    (tmp_path / "b.toml").write_text(BRIDGE_SCENARIO)
+    assert main(["run", str(tmp_path / "b.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "netsim bridge" in err[0] and not (tmp_path / "out").exists()
+
+
+def test_printed_configuration_refuses_a_bad_bridge_key_in_one_line(tmp_path, capfd):
+    (tmp_path / "b.toml").write_text(BRIDGE_SCENARIO.replace("domain_id = 7", "domain_id = 300"))
+    assert main(["config", str(tmp_path / "b.toml")]) == 2
+    out, err = capfd.readouterr()
+    assert out == "" and err.strip().splitlines() == [
+        "netsim: error: bridge.domain_id = 300: must be an integer from 0 to 232"
+    ]
+
+
 # -- progress in a log file ----------------------------------------------------------------
 def test_progress_in_a_log_file_is_a_few_plain_lines():
     log = io.StringIO()  # not a terminal

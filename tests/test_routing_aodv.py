@@ -98,10 +98,15 @@ def test_aodv_delivers_along_a_static_line_with_control_frames_of_the_rfc_sizes(
     assert (control["sent"] > 0).all()
 
 
-def test_aodv_parameter_out_of_range_is_refused():
-    """A TTL threshold beyond the network diameter is refused, naming the key."""
-    with pytest.raises(ConfigError, match="protocol.ttl_threshold = 40"):
-        make_config(protocol={"model": "aodv", "ttl_threshold": 40})
+@pytest.mark.parametrize(
+    "key, value",
+    [("ttl_threshold", 40), ("ttl_start", 40), ("net_diameter", 256), ("ttl_increment", 0), ("ttl_start", 256)],
+)
+def test_aodv_parameter_out_of_range_is_refused(key, value):
+    """A TTL beyond the network diameter, or beyond the one octet a RREQ's TTL field holds,
+    is refused, naming the key at fault."""
+    with pytest.raises(ConfigError, match=f"protocol.{key} = {value}:"):
+        make_config(protocol={"model": "aodv", key: value})
 
 
 BREAK = """$node_(0) set X_ 50.0

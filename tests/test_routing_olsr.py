@@ -152,10 +152,12 @@ def test_olsr_routes_shortest_paths_on_a_static_grid(tmp_path):
     assert set(frames["control"]["kind"]) <= {"hello", "tc", "hello+tc"}
 
 
-def test_olsr_parameter_out_of_range_is_refused():
-    """A neighbour hold time not longer than the HELLO interval is refused, naming the key."""
-    with pytest.raises(ConfigError, match="protocol.neighb_hold_time_s = 2.0"):
-        make_config(protocol={"model": "olsr", "neighb_hold_time_s": 2.0})
+@pytest.mark.parametrize("key, value", [("neighb_hold_time_s", 2.0), ("ttl", 256), ("ttl", 0)])
+def test_olsr_parameter_out_of_range_is_refused(key, value):
+    """A neighbour hold time not longer than the HELLO interval, or a TTL that one octet
+    cannot hold, is refused, naming the key."""
+    with pytest.raises(ConfigError, match=f"protocol.{key} = {value}:"):
+        make_config(protocol={"model": "olsr", key: value})
 
 
 def test_olsr_tc_is_considered_for_forwarding_once_at_its_first_copy(tmp_path):

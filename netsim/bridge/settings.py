@@ -98,6 +98,32 @@ def settings(raw: Any) -> BridgeSettings:
     return BridgeSettings(domain, float(hz), relay)
 
 
+# The [bridge] keys as `netsim config` explains them (docs/ros2.md).
+KEY_DOCS = {
+    "domain_id": f"the DDS domain of your ROS 2 nodes (ROS_DOMAIN_ID), 0 to {DOMAIN_ID_MAX}",
+    "odom_hz": "bridge steps per simulated second: odometry, /clock and the network topics each step, Hz",
+    "relay": 'topics relayed through the network: {name = "...", type = "pkg/msg/Type"}',
+}
+
+
+def commented(bridge: BridgeSettings | None) -> str:
+    """The ``[bridge]`` table with every key explained: ``bridge``'s values, or, without
+    it, the defaults commented out (a run's scenario has no such table)."""
+    import tomli_w
+
+    values = (bridge or BridgeSettings()).as_dict()
+    head = "# read by `netsim bridge` alone (docs/ros2.md)"
+    out = ["", head, "[bridge]" if bridge else "# [bridge]"]
+    for key in _KEYS:
+        if key == "relay":
+            items = ", ".join(f"{{name = {r['name']!r}, type = {r['type']!r}}}" for r in values[key])
+            line = f"relay = [{items}]".replace("'", '"')
+        else:
+            line = tomli_w.dumps({key: values[key]}).strip()
+        out += [f"# {KEY_DOCS[key]}", line if bridge else f"# {line}"]
+    return "\n".join(out) + "\n"
+
+
 def check_rate(rate: float) -> float:
     if not (math.isfinite(rate) and rate > 0):
         raise NetsimInputError(f"--rate {rate:g}: must be a positive number of simulated seconds per wall second")

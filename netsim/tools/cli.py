@@ -403,9 +403,17 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_config(args) -> int:
+    from netsim.bridge import settings as bridge_settings
+
     check_set_pairs(args.set, args.config)
-    config = cfgmod.load(args.config, list(args.set or [])) if args.config or args.set else None
-    print(cfgmod.commented_toml(config), end="")
+    config, bridge = None, None
+    if args.config or args.set:
+        # A bridge scenario's [bridge] table is the bridge's: checked as `netsim bridge`
+        # checks it, and shown after the run's keys.
+        raw = cfgmod.read_tree(args.config, list(args.set or []))
+        bridge = bridge_settings.settings(raw.pop("bridge")) if "bridge" in raw else None
+        config = cfgmod.from_dict(raw)
+    print(cfgmod.commented_toml(config) + bridge_settings.commented(bridge), end="")
     return 0
 
 

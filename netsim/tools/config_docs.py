@@ -47,6 +47,9 @@ def _owners(value: Any) -> list:
     return [value]
 
 
+FOLLOWS = " (follows; set it to fix it)"
+
+
 def default_rows() -> list[tuple[str, str, str]]:
     """(key, default, meaning) of every key of the built-in configuration; a default that
     follows another key is its rule."""
@@ -60,7 +63,7 @@ def default_rows() -> list[tuple[str, str, str]]:
         for key, v, doc, derived in cfgmod._section_rows(section, value):
             if derived:
                 owner = next(p for p in _owners(value) if key in cfgmod.names(type(p)))
-                shown = f"{cfgmod._rule(type(owner), key)} (follows; set it to fix it)"
+                shown = f"{cfgmod._rule(type(owner), key)}{FOLLOWS}"
             else:
                 shown = f"`{_value(v)}`"
             rows.append((f"{section}.{key}", shown, doc))
@@ -69,18 +72,26 @@ def default_rows() -> list[tuple[str, str, str]]:
 
 def other_model_rows() -> list[tuple[str, str, str, str]]:
     """(key, models, default, meaning) of the keys of the built-in models the default
-    configuration does not choose (a key several of them share: once, naming them all)."""
-    chosen = {k for k, _, _ in default_rows()}
-    merged: dict[str, tuple[list[str], Any, str]] = {}
+    configuration does not choose (a key several of them share: once, naming them all, with
+    each model's default where they differ), and the keys of the built-in configuration that
+    another model gives another default. A default derived from other keys is its rule."""
+    chosen = {k: shown.removesuffix(FOLLOWS) for k, shown, _ in default_rows()}
+    merged: dict[str, tuple[list[tuple[str, str]], str]] = {}
     for section in ("mobility", "channel", "protocol"):
-        for model, key, default, doc in cfgmod._other_models(section):
+        for model, key, default, doc, rule in cfgmod._other_models(section):
             dotted = f"{section}.{key}"
-            if dotted not in chosen:
-                merged.setdefault(dotted, ([], default, doc))[0].append(model)
-    return [
-        (key, ", ".join(f"`{m}`" for m in models), f"`{_value(cfgmod.plain(default))}`", doc)
-        for key, (models, default, doc) in merged.items()
-    ]
+            shown = rule if default is None and rule else f"`{_value(cfgmod.plain(default))}`"
+            if chosen.get(dotted) != shown:
+                merged.setdefault(dotted, ([], doc))[0].append((model, shown))
+    rows = []
+    for key, (per_model, doc) in merged.items():
+        models = ", ".join(f"`{m}`" for m, _ in per_model)
+        if len({shown for _, shown in per_model}) == 1:
+            default = per_model[0][1]
+        else:
+            default = ", ".join(f"{shown} (`{m}`)" for m, shown in per_model)
+        rows.append((key, models, default, doc))
+    return rows
 
 
 def tables() -> str:
