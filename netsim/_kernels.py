@@ -695,7 +695,7 @@ def component_count(n, a, b):
 
 
 @jit(nogil=True)
-def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box):
+def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box, any_within):
     """The distance from each centre of the ``cells x cells`` grid of cells of the rectangle
     ``[x0, x0 + width] x [y0, y0 + height]`` (``[row, col]``: row along y) to the nearest of
     the points ``p`` within ``reach_m`` of it (``inf`` where none is): the one rule of "a
@@ -703,10 +703,19 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box):
     The distance is ``np.hypot`` of the offset, the nearest image on a torus of side
     ``box > 0`` (the rectangle is then the square ``[0, box]^2``). Each point visits, in
     each grid row its disk of radius ``reach_m`` reaches, the run of cells the disk can
-    cover there, one more at each end."""
+    cover there, one more at each end.
+
+    ``any_within``: only whether a cell is within ``reach_m`` of some point is wanted (a
+    covered share, :func:`share_within` at ``reach_m``): a cell's entry is then some
+    distance within the reach, not the nearest, and a cell that has one is not visited
+    again. The test stays the hypot's: only where the squared offset is within a relative
+    ``1e-12`` of the reach's square (far beyond the rounding of either) is the hypot taken,
+    elsewhere the squared offset decides alike."""
     out = np.full((cells, cells), np.inf)
     hx = width_m / cells
     hy = height_m / cells
+    inside_m2 = reach_m * reach_m * (1.0 - 1e-12)
+    outside_m2 = reach_m * reach_m * (1.0 + 1e-12)
     for k in range(p.shape[0]):
         x, y = p[k, 0] - x0_m, p[k, 1] - y0_m
         if box > 0.0:
@@ -729,7 +738,17 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box):
                     first = max(int(math.floor((sx - half) / hx - 0.5)), 0)
                     last = min(int(math.ceil((sx + half) / hx - 0.5)), cells - 1)
                     for col in range(first, last + 1):
-                        d = np.hypot((col + 0.5) * hx - sx, dy)
+                        dx = (col + 0.5) * hx - sx
+                        if any_within:
+                            if out[row, col] <= reach_m:
+                                continue
+                            s2 = dx * dx + dy * dy
+                            if s2 < inside_m2:
+                                out[row, col] = math.sqrt(s2)
+                                continue
+                            if s2 > outside_m2:
+                                continue
+                        d = np.hypot(dx, dy)
                         if d <= reach_m and d < out[row, col]:
                             out[row, col] = d
     return out

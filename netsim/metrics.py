@@ -229,7 +229,9 @@ def covered_fraction(
         return 0.0, float(np.mean(edge)) if len(edge) else 0.0
     kernels = load("netsim._kernels", n_robots)
     box = side_m if torus else 0.0
-    dist = kernels.grid_nearest_m(centres, radius_m + half_diagonal, b.x_min, b.y_min, b.width, b.height, cells, box)
+    dist = kernels.grid_nearest_m(
+        centres, radius_m + half_diagonal, b.x_min, b.y_min, b.width, b.height, cells, box, False
+    )
     dist = dist.ravel()[inside]
     fraction = float(kernels.share_within(np.ascontiguousarray(dist), float(radius_m)))
     uncertain = (np.abs(dist - radius_m) <= half_diagonal) | edge

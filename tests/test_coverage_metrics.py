@@ -300,10 +300,43 @@ def test_grid_cell_nearest_centre_is_every_cell_against_every_centre(kind, shape
         x0, y0, w, h, box = 0.0, 0.0, 100.0, 100.0, (100.0 if shape == "torus" else 0.0)
     p = np.column_stack([rng.uniform(x0 - 10, x0 + w + 10, 25), rng.uniform(y0 - 10, y0 + h + 10, 25)])
     for reach in (3.7, 18.0, 60.0):
-        got = kernels.grid_nearest_m(p, reach, x0, y0, w, h, 64, box)
+        got = kernels.grid_nearest_m(p, reach, x0, y0, w, h, 64, box, False)
         want = oracle.grid_nearest_m(p, reach, x0, y0, w, h, 64, box)
         assert got.tobytes() == want.tobytes()
         assert np.isfinite(got).any()
+
+
+@pytest.mark.parametrize("kind", ["plain", "compiled"])
+@pytest.mark.parametrize("shape", ["plane", "torus", "rectangle"])
+def test_grid_cells_within_reach_of_any_point_are_those_of_the_nearest(kind, shape):
+    """``any_within`` (the environments' covered share) marks within the reach exactly the
+    cells the nearest distance puts there: on random points, and on points placed so that
+    cell centres lie at the reach itself and a few ulps inside and outside it, where the
+    squared offset alone would decide some of them wrongly."""
+    from netsim import _kernels
+    from netsim.compiled import compiled_copy
+
+    kernels = compiled_copy("netsim._kernels") if kind == "compiled" else _kernels
+    rng = np.random.default_rng(12)
+    if shape == "rectangle":
+        x0, y0, w, h, box = -30.0, 12.5, 140.0, 90.0, 0.0
+    else:
+        x0, y0, w, h, box = 0.0, 0.0, 100.0, 100.0, (100.0 if shape == "torus" else 0.0)
+    hx, hy = w / 64, h / 64
+    centre = np.array([x0 + (20 + 0.5) * hx, y0 + (30 + 0.5) * hy])
+    checked = 0
+    for k in range(40):
+        scale = rng.uniform(0.3, 6.0)
+        # a point 3 and 4 units (x scale) from a cell centre: that centre is 5 x scale from it
+        exact = centre + scale * np.array([3.0 * hx, 4.0 * hy]) / np.hypot(hx, hy) * np.sqrt(hx * hy)
+        p = np.vstack([exact, np.column_stack([rng.uniform(x0, x0 + w, 8), rng.uniform(y0, y0 + h, 8)])])
+        d_exact = float(np.hypot(*(centre - exact)))
+        for reach in (d_exact, np.nextafter(d_exact, 0), np.nextafter(d_exact, np.inf), rng.uniform(2.0, 40.0)):
+            nearest = kernels.grid_nearest_m(p, reach, x0, y0, w, h, 64, box, False)
+            some = kernels.grid_nearest_m(p, reach, x0, y0, w, h, 64, box, True)
+            assert ((some <= reach) == (nearest <= reach)).all(), (k, reach)
+            checked += int((nearest <= reach).sum())
+    assert checked > 10_000
 
 
 @pytest.mark.parametrize("shape", ["plane", "torus", "rectangle", "region"])
