@@ -4,6 +4,10 @@ in one line."""
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+
 import numpy as np
 from netsim.protocols.stack import ClusteringParams, Stack
 
@@ -12,7 +16,19 @@ from netsim.run import simulation
 from netsim.sim import Simulation
 from netsim.tools.validate import rwp_density
 
-__all__ = ["clustering", "make_config", "rwp_density", "static_core"]
+__all__ = ["clustering", "make_config", "rwp_density", "script", "static_core"]
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def script(path: str) -> ModuleType:
+    """A script of the repository (``"experiments/coverage_targets.py"``) as a module, its
+    ``main`` not run."""
+    spec = importlib.util.spec_from_file_location(Path(path).stem, ROOT / path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def make_config(**tree) -> Config:

@@ -281,6 +281,14 @@ def test_a_disconnected_pair_can_exceed_the_bound():
     assert lower > connected_coverage_bound(2, 10.0)
 
 
+def _grid_area(shape: str) -> tuple[float, float, float, float, float]:
+    """``(x0, y0, width, height, box)`` of the grid kernel's area: the plane's and the
+    torus's square, or an offset rectangle."""
+    if shape == "rectangle":
+        return -30.0, 12.5, 140.0, 90.0, 0.0
+    return 0.0, 0.0, 100.0, 100.0, (100.0 if shape == "torus" else 0.0)
+
+
 @pytest.mark.parametrize("kind", ["plain", "compiled"])
 @pytest.mark.parametrize("shape", ["plane", "torus", "rectangle"])
 def test_grid_cell_nearest_centre_is_every_cell_against_every_centre(kind, shape):
@@ -294,10 +302,7 @@ def test_grid_cell_nearest_centre_is_every_cell_against_every_centre(kind, shape
 
     kernels = compiled_copy("netsim._kernels") if kind == "compiled" else _kernels
     rng = np.random.default_rng(11)
-    if shape == "rectangle":
-        x0, y0, w, h, box = -30.0, 12.5, 140.0, 90.0, 0.0
-    else:
-        x0, y0, w, h, box = 0.0, 0.0, 100.0, 100.0, (100.0 if shape == "torus" else 0.0)
+    x0, y0, w, h, box = _grid_area(shape)
     p = np.column_stack([rng.uniform(x0 - 10, x0 + w + 10, 25), rng.uniform(y0 - 10, y0 + h + 10, 25)])
     for reach in (3.7, 18.0, 60.0):
         got = kernels.grid_nearest_m(p, reach, x0, y0, w, h, 64, box, False)
@@ -318,10 +323,7 @@ def test_grid_cells_within_reach_of_any_point_are_those_of_the_nearest(kind, sha
 
     kernels = compiled_copy("netsim._kernels") if kind == "compiled" else _kernels
     rng = np.random.default_rng(12)
-    if shape == "rectangle":
-        x0, y0, w, h, box = -30.0, 12.5, 140.0, 90.0, 0.0
-    else:
-        x0, y0, w, h, box = 0.0, 0.0, 100.0, 100.0, (100.0 if shape == "torus" else 0.0)
+    x0, y0, w, h, box = _grid_area(shape)
     hx, hy = w / 64, h / 64
     centre = np.array([x0 + (20 + 0.5) * hx, y0 + (30 + 0.5) * hy])
     checked = 0

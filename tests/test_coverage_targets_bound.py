@@ -4,7 +4,6 @@ One test per rule of the oracle; and the script's refusal of a bad ``--set``."""
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -14,14 +13,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests.fixtures import script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def targets():
-    spec = importlib.util.spec_from_file_location("coverage_targets", ROOT / "experiments" / "coverage_targets.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return script("experiments/coverage_targets.py")
 
 
 # Robot 0 at the origin, 1 at 80 m, 2 between them (about 43 m from each): the link 0-1 is the

@@ -174,11 +174,9 @@ def test_coverage_on_map_refuses_bad_options_in_one_line(tmp_path):
 def test_routing_compare_intervals_of_a_ratio_stay_within_0_and_1():
     """A delivery ratio's Student-t interval from two replications (1.0 and 0.5) reaches
     far beyond [0, 1]; the printed one is cut there, and an interval inside is untouched."""
-    import importlib.util
+    from tests.fixtures import script
 
-    spec = importlib.util.spec_from_file_location("routing_compare", ROOT / "experiments" / "routing_compare.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = script("experiments/routing_compare.py")
     assert module.ci95([1.0, 0.5], (0.0, 1.0)) == (0.75, 0.0, 1.0)
     mean, low, high = module.ci95([0.50, 0.52, 0.51, 0.49], (0.0, 1.0))
     assert 0.0 < low < mean < high < 1.0 and mean == pytest.approx(0.505)

@@ -6,18 +6,12 @@ with ns-3 (this machine's tests do not need the ns-3 wheel)."""
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import re
 from pathlib import Path
 
+from tests.fixtures import script
+
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def comparison():
-    spec = importlib.util.spec_from_file_location("routing_ns3", ROOT / "benchmarks" / "routing_ns3.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def quoted() -> dict[tuple[str, str], tuple[float, float, float, float]]:
@@ -30,7 +24,7 @@ def quoted() -> dict[tuple[str, str], tuple[float, float, float, float]]:
 
 
 def test_netsims_side_of_the_ns3_comparison_gives_the_quoted_figures(tmp_path):
-    module = comparison()
+    module = script("benchmarks/routing_ns3.py")
     table = quoted()
     assert len(table) == 6
     args = argparse.Namespace(duration=100.0, start=30.0, interval=1.0, packet_bytes=512, seed=1)
