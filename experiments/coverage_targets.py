@@ -27,8 +27,10 @@ disk) its fraction reaches the floor.
 ``--shadowing`` prints instead the targets under 4 dB shadowing (log-distance, nominal
 reach 100 m) at N = 20, 60, 100 over ``--seeds`` seeds (default 20), both plans on each
 seed: per N, how many seeds the local plan covers at least 80 % of what the global plan
-covers on the same seed (the least ratio beside), and in how many seeds each plan's real
-network (``links.parquet``) gained no component after control started. A row passes when
+covers on the same seed (the least ratio beside), in how many seeds each plan's real
+network (``links.parquet``) gained no component after control started, and in how many
+each plan's control ended before the run did (``settled``: the team stopped spreading;
+otherwise ``--duration`` cut it while it still spread). A row passes when
 the local plan reaches 80 % on every seed and each plan's network gained nothing in at
 least 19 of 20 seeds (95 % of the seeds run).
 
@@ -126,6 +128,7 @@ def shadowing_one(job: tuple[str, int, int, tuple[str, ...]], duration_s: float)
         "seed": seed,
         "of bound": o["of_bound"],
         "grew": max(o["components_max"] - o["components_at_start"], 0),
+        "settled s": o["settled_s"],
     }
 
 
@@ -135,6 +138,7 @@ def shadowing_table(runs: pd.DataFrame) -> pd.DataFrame:
     for n, g in runs.groupby("N"):
         both = g.pivot(index="seed", columns="plan", values="of bound")
         grew = g.pivot(index="seed", columns="plan", values="grew")
+        settled = g.pivot(index="seed", columns="plan", values="settled s").notna()
         ratio = both["local"] / both["global"]
         seeds = len(both)
         whole_g, whole_l = int((grew["global"] == 0).sum()), int((grew["local"] == 0).sum())
@@ -150,6 +154,8 @@ def shadowing_table(runs: pd.DataFrame) -> pd.DataFrame:
                 "seeds >= 80 %": int((ratio >= SHARE).sum()),
                 "global whole": whole_g,
                 "local whole": whole_l,
+                "global settled": int(settled["global"].sum()),
+                "local settled": int(settled["local"].sum()),
                 "pass": bool((ratio >= SHARE).all() and whole_g >= need and whole_l >= need),
             }
         )

@@ -180,3 +180,25 @@ def test_set_outside_shadowing_is_one_line_exit_2(tmp_path, capsys, mode):
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--shadowing runs only" in err
     assert not csv.exists()
+
+
+def test_shadowing_table_counts_ratios_whole_networks_and_settled_runs():
+    """One row per N from both plans' runs: the local plan's share of the global plan's
+    coverage on the same seed (least, mean, seeds at 80 % or more), the seeds whose network
+    gained nothing, and the runs whose control ended before the run (NaN: cut while still
+    spreading); the row passes only when every seed reaches 80 %."""
+    runs = pd.DataFrame(
+        {
+            "plan": ["global", "local"] * 3,
+            "N": [20] * 6,
+            "seed": [1, 1, 2, 2, 3, 3],
+            "of bound": [0.5, 0.45, 0.6, 0.42, 0.4, 0.36],
+            "grew": [0, 0, 0, 1, 0, 0],
+            "settled s": [400.0, 300.0, np.nan, 500.0, 350.0, np.nan],
+        }
+    )
+    row = targets().shadowing_table(runs).iloc[0]
+    assert row["local/global least"] == pytest.approx(0.7) and row["seeds >= 80 %"] == 2
+    assert (row["global whole"], row["local whole"]) == (3, 2)
+    assert (row["global settled"], row["local settled"]) == (2, 2)
+    assert not row["pass"]

@@ -1093,8 +1093,9 @@ def coverage_settings(
 def coverage_outcome(frames: dict[str, pd.DataFrame], summary: dict, n: int, start_s: float, end_s: float) -> dict:
     """What a coverage run showed: the components of the real network (``links.parquet``) at
     control start and their largest number at any link event after it, whether the
-    coverage table's ``components`` equals that network's at every sample, and the covered
-    fraction of the bound at the end."""
+    coverage table's ``components`` equals that network's at every sample, the covered
+    fraction of the bound at the end, and when the stopping rule ended control (NaN: the
+    run ended first, the team still spreading)."""
     from netsim.metrics import components_in_links_table
 
     links, cov = frames["links"], frames["coverage"]
@@ -1107,6 +1108,7 @@ def coverage_outcome(frames: dict[str, pd.DataFrame], summary: dict, n: int, sta
         "components_max": int(comps.max()),
         "table_true": bool((cov["components"].to_numpy() == at_samples).all()),
         "of_bound": float(summary["covered_of_bound_all_final"]),
+        "settled_s": float(summary["control_settled_s"]),
     }
 
 
