@@ -11,6 +11,7 @@ components).
 
     python benchmarks/cosim_env.py                   # N = 20
     python benchmarks/cosim_env.py --n 20 50 --episodes 3
+    python benchmarks/cosim_env.py --gc-freeze       # the imports frozen out of the collector
 """
 
 from __future__ import annotations
@@ -21,7 +22,9 @@ import time
 import numpy as np
 
 
-def measure_rate(n: int, cycles: int, episodes: int) -> dict:
+def measure_rate(n: int, cycles: int, episodes: int, freeze: bool = False) -> dict:
+    import gc
+
     from netsim.envs import coverage_v0
 
     env = coverage_v0.parallel_env(n_robots=n, max_cycles=cycles)
@@ -38,6 +41,10 @@ def measure_rate(n: int, cycles: int, episodes: int) -> dict:
         return k
 
     episode(0)
+    if freeze:
+        # What the imports and the first episode left (numba, pandas, ...) out of the
+        # collector's passes, once, as a training script may do after making its environment.
+        gc.freeze()
     start, cpu = time.perf_counter(), time.process_time()
     steps = sum(episode(1 + e) for e in range(episodes))
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
@@ -79,10 +86,13 @@ def main() -> None:
     parser.add_argument("--n", type=int, nargs="+", default=[20])
     parser.add_argument("--cycles", type=int, default=200)
     parser.add_argument("--episodes", type=int, default=5)
+    parser.add_argument(
+        "--gc-freeze", action="store_true", help="gc.freeze() once after the warm-up episode (docs/cosim.md, Speed)"
+    )
     args = parser.parse_args()
     print("N  agent-steps/s  per CPU s  step us  network us  observations us  measures us")
     for n in args.n:
-        r = measure_rate(n, args.cycles, args.episodes)
+        r = measure_rate(n, args.cycles, args.episodes, args.gc_freeze)
         print(
             f"{r['n']:<3d}{r['agent_steps_per_s']:>13,.0f}  {r['agent_steps_per_cpu_s']:>9,.0f}  "
             f"{r['step_us']:>7.0f}  {r['network_us']:>10.0f}  "
