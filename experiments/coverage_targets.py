@@ -81,6 +81,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pandas as pd
 
+from netsim.config import Config
 from netsim.errors import NetsimInputError
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
 
@@ -403,13 +404,17 @@ RUNS_OWN = ("seed", "duration_s", "world.n_robots", "coverage.plan")
 
 def check_options(args: argparse.Namespace) -> None:
     """Refuse (NetsimInputError) sizes, workers or seeds below 1, a duration that is not
-    positive, and a bad ``--set`` (:func:`check_settings`), before any run."""
+    finite or ends before control starts, a negative seed, and a bad ``--set``
+    (:func:`check_settings`), before any run."""
     for option, values in (("--n", args.n or []), ("--workers", [args.workers]), ("--seeds", [args.seeds])):
         for value in values:
             if value < 1:
                 raise NetsimInputError(f"{option} {value}: at least 1")
-    if not args.duration > 0:
-        raise NetsimInputError(f"--duration {args.duration:g}: must be positive")
+    start_s = Config().coverage.start_s
+    if not (math.isfinite(args.duration) and args.duration > start_s):
+        raise NetsimInputError(f"--duration {args.duration:g}: must be finite and after control starts ({start_s:g} s)")
+    if args.seed < 0:
+        raise NetsimInputError(f"--seed {args.seed}: must be >= 0")
     if args.set:
         check_settings(args)
 

@@ -21,3 +21,8 @@ class ConfigError(NetsimInputError):
         # A truth value as the configuration file spells it.
         given = str(value).lower() if isinstance(value, bool) else repr(value)
         super().__init__(f"{shown} = {given}: {allowed}")
+
+    def __reduce__(self):
+        # Raised in a worker process (a sweep's, an experiment's pool), it must cross back
+        # whole: the default pickling would call __init__ with the message alone.
+        return type(self), (self.key, self.value, self.allowed)

@@ -68,3 +68,21 @@ def test_command_freezes_what_the_build_loaded_and_the_library_does_not(tmp_path
     monkeypatch.setattr(cli, "_OWN_PROCESS", True)
     assert main([*args, "--out", str(tmp_path / "b")]) == 0
     assert frozen == [True]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("unbuffered", [False, True])
+def test_a_reader_that_goes_away_ends_the_command_quietly_with_the_run_written(tmp_path, unbuffered):
+    """``netsim run ... | head``: the reader of stdout closes it before the run prints its
+    last lines (which then fail as they are printed, unbuffered, or when they are flushed).
+    The run's tables are all written, nothing but the run's own lines reaches stderr (no
+    traceback), and the status is that of a command ended by SIGPIPE (141)."""
+    out = tmp_path / "run"
+    argv = [COMMAND, "run", "--out", str(out), "--no-progress", "--set", "world.n_robots=8", "--set", "duration_s=5"]
+    env = {**ENV, "PYTHONUNBUFFERED": "1"} if unbuffered else ENV
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait() == 141, err
+    assert "Traceback" not in err and "BrokenPipeError" not in err
+    assert (out / "manifest.json").exists() and (out / "summary.json").exists()

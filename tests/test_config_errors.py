@@ -263,3 +263,22 @@ def test_printed_configuration_loads_back_unchanged(tmp_path):
     path = tmp_path / "c.toml"
     path.write_text(cfgmod.commented_toml(c))
     assert cfgmod.load(path) == c
+
+
+def test_a_configuration_error_crosses_a_process_pool_whole():
+    """A ConfigError raised in a worker (a sweep's, an experiment's pool) is pickled back to
+    the parent: it must come back as itself, key, value and message, not as a broken pool."""
+    import pickle
+    from concurrent.futures import ProcessPoolExecutor
+
+    err = ConfigError("coverage.fade_margin_db", -1.0, "must be >= 0")
+    back = pickle.loads(pickle.dumps(err))
+    assert (type(back), back.key, back.value, back.allowed, str(back)) == (
+        ConfigError,
+        err.key,
+        err.value,
+        err.allowed,
+        str(err),
+    )
+    with ProcessPoolExecutor(1) as pool, pytest.raises(ConfigError, match="duration_s = inf: must be finite"):
+        pool.submit(cfgmod.load, None, ["duration_s=inf"]).result()

@@ -157,8 +157,11 @@ def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_
         (["--n", "20", "0"], "--n 0: at least 1"),
         (["--shadowing", "--seeds", "0"], "--seeds 0: at least 1"),
         (["--workers", "0"], "--workers 0: at least 1"),
-        (["--duration", "-1"], "--duration -1: must be positive"),
-        (["--why", "--duration", "nan"], "--duration nan: must be positive"),
+        (["--duration", "-1"], "--duration -1: must be finite and after control starts (10 s)"),
+        (["--why", "--duration", "nan"], "--duration nan: must be finite and after control starts (10 s)"),
+        (["--why", "--duration", "inf"], "--duration inf: must be finite and after control starts (10 s)"),
+        (["--why", "--duration", "5"], "--duration 5: must be finite and after control starts (10 s)"),
+        (["--why", "--seed", "-1"], "--seed -1: must be >= 0"),
     ],
 )
 def test_bad_sizes_seeds_workers_or_duration_are_one_line_exit_2(tmp_path, capsys, args, said):

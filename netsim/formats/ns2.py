@@ -25,8 +25,9 @@ a scheduled ``set X_``, a ``setdest`` to where the node is and lines out of time
 - ``setdest X Y S`` at ``T``: the node leaves at ``T`` toward ``(X, Y)`` at ``S`` m/s and
   stops on arrival. A later ``setdest`` starts from where the node is then (if it had not
   arrived) or from where it was heading. ``S = 0`` stops the node at ``T``; a negative
-  speed does nothing. A ``setdest`` to where the node already is stops it (``"ns2"``) or
-  does nothing (``"ns3"``).
+  speed does nothing. A ``setdest`` to where the node already is stops it (``"ns2"``); with
+  ``"ns3"`` it schedules nothing but still cancels the stop of the ``setdest`` before it, so
+  a node still moving moves on past that stop (as ns-3's helper does).
 - ``set X_ x`` at ``T``: with ``"ns2"`` the node jumps at ``T`` (its other coordinate
   where it is then) and stops. With ``"ns3"`` (ns-3's handling) the coordinate is changed
   at once, when the file is read, so the node starts there; at ``T`` the node is put at

@@ -597,6 +597,10 @@ def main(argv=None) -> int:
         return EXIT_INTERRUPTED
 
 
+# The status of a command whose stdout's reader went away: 128 + SIGPIPE, as the shell
+# reports a command that signal ended.
+EXIT_BROKEN_PIPE = 141
+
 # Whether this process is the command's own (command()): only then is the collector's state changed.
 _OWN_PROCESS = False
 
@@ -624,11 +628,21 @@ def command() -> None:
     global _OWN_PROCESS
     _OWN_PROCESS = True
     gc.freeze()
-    code = main()
+    try:
+        code = main()
+    except BrokenPipeError:
+        # The reader of stdout went away (`netsim run | head`): what it asked for is done
+        # and written; end as a command killed by SIGPIPE would, without a traceback, and
+        # send the rest of stdout nowhere so that the flush below cannot raise again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = EXIT_BROKEN_PIPE
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
-        except (OSError, ValueError):  # a closed pipe or stream: nothing more can reach it
+        except BrokenPipeError:  # the reader went away: nothing more can reach it
+            if stream is sys.stdout and code == 0:
+                code = EXIT_BROKEN_PIPE
+        except (OSError, ValueError):  # a closed stream
             pass
     if "logging" in sys.modules:
         sys.modules["logging"].shutdown()
