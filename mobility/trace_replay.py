@@ -10,7 +10,6 @@ naming the robot, the time and the file's line, and nothing is simulated."""
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 from enum import StrEnum
@@ -27,6 +26,7 @@ from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param
 from netsim.plugins import Parts, PluginSpec
 from netsim.state import MotionError, RobotState
+from netsim.trajectory import jumped
 
 
 class Ns2Semantics(StrEnum):
@@ -239,7 +239,7 @@ def follow(env: simpy.Environment, st: RobotState, wp: Waypoints):
             if moving or here[0] != x or here[1] != y:
                 st.arrive(i, env.now, np.array([x, y]), cause="trace")
             continue
-        if math.hypot(here[0] - x, here[1] - y) > 1e-6 * max(1.0, abs(x), abs(y)):
+        if jumped(here, (x, y)):
             st.set_leg(i, env.now, (vx, vy), start_m=(x, y), cause="jump")
         else:
             st.arrive(i, env.now, np.array([x, y]), log=False)

@@ -9,9 +9,17 @@ import pandas as pd
 from netsim.compiled import filled, load
 from netsim.geometry import in_box
 
-# A leg that starts farther than this from where the robot's previous leg put it is a jump
-# (a placement, a trace's repeated instant): the writers of movement files must say so.
+# A robot put farther than this (times its coordinates' size, at least 1 m) from where it
+# was has jumped (a placement, a trace's repeated instant): closer, it is the rounding of a
+# leg's end. The writers of movement files must say where it jumped.
 JUMP_M = 1e-6
+
+
+def jumped(was_m: npt.ArrayLike, now_m: npt.ArrayLike) -> np.ndarray:
+    """Whether a robot at ``was_m`` put at ``now_m`` (``(..., 2)`` each) jumped."""
+    was_m, now_m = np.asarray(was_m, float), np.asarray(now_m, float)
+    d = was_m - now_m
+    return np.hypot(d[..., 0], d[..., 1]) > JUMP_M * np.maximum(1.0, np.abs(now_m).max(axis=-1))
 
 
 def points_on_legs(
@@ -82,7 +90,7 @@ class LegTable:
         nxt = np.where(last, k, k + 1)
         t_end = np.minimum(np.where(last, duration_s, self.t[nxt]), duration_s)
         xy = self.at(k, t_end)
-        jump = ~last & (np.hypot(*(self.p[nxt] - xy).T) > JUMP_M)
+        jump = ~last & jumped(xy, self.p[nxt])
         return t_end, xy, jump
 
     def changes_in(self, a: float, b: float) -> np.ndarray:
