@@ -25,7 +25,7 @@ from netsim.formats import ns2
 from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param
 from netsim.plugins import Parts, PluginSpec
-from netsim.state import MotionError, RobotState
+from netsim.state import BORDER_TOLERANCE, MotionError, RobotState
 from netsim.trajectory import jumped
 
 
@@ -97,18 +97,20 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) ->
     """Every position of the trace lies in the world's area (``world.bounds_m``)."""
     x, y = x_m[~np.isnan(x_m)], y_m[~np.isnan(y_m)]
     area = world_bounds(world)
+    # As the run checks its robots' motion: a position past a border by its rounding is on it.
+    tol = BORDER_TOLERANCE * max(1.0, area.width, area.height)
     if area.is_square_at_origin:
         xy = np.concatenate([x, y])
         side = world.side_m
-        if len(xy) and (xy.min() < 0 or xy.max() > side):
+        if len(xy) and (xy.min() < -tol or xy.max() > side + tol):
             raise ConfigError(
                 "world.side_m",
                 side,
                 f"is smaller than the area of {params.trace_file} (coordinates from {xy.min():g} to {xy.max():g})",
             )
         return
-    if (len(x) and (x.min() < area.x_min or x.max() > area.x_max)) or (
-        len(y) and (y.min() < area.y_min or y.max() > area.y_max)
+    if (len(x) and (x.min() < area.x_min - tol or x.max() > area.x_max + tol)) or (
+        len(y) and (y.min() < area.y_min - tol or y.max() > area.y_max + tol)
     ):
         raise ConfigError(
             "world.bounds_m",

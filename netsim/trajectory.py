@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
@@ -83,14 +85,15 @@ class LegTable:
     def ends(self, duration_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each leg's end, in the table's order: its time (the robot's next leg's start, or
         ``duration_s``, whichever is first), where the leg puts its robot then, and whether
-        the robot's next leg starts elsewhere (a jump; never on a robot's last leg)."""
+        the robot's next leg, by ``duration_s``, starts elsewhere (a jump; never on a
+        robot's last leg)."""
         k = np.arange(len(self.t))
         last = np.zeros(len(k), bool)
         last[self.end - 1] = True
         nxt = np.where(last, k, k + 1)
         t_end = np.minimum(np.where(last, duration_s, self.t[nxt]), duration_s)
         xy = self.at(k, t_end)
-        jump = ~last & jumped(xy, self.p[nxt])
+        jump = ~last & (self.t[nxt] <= duration_s) & jumped(xy, self.p[nxt])
         return t_end, xy, jump
 
     def changes_in(self, a: float, b: float) -> np.ndarray:
@@ -99,6 +102,43 @@ class LegTable:
         has = nxt < self.end
         has[has] &= self.t[nxt[has]] < b
         return has
+
+
+def folded_legs(legs: pd.DataFrame, n: int, side_m: float, duration_s: float) -> pd.DataFrame:
+    """A torus run's legs (each runs on past the borders, unfolded) as legs inside the square
+    ``[0, side]^2``, up to ``duration_s``: each cut where it reaches a border, the robot put
+    on that border (a leg of no duration) and, at the same instant, on the opposite one, from
+    where the rest of the leg goes on: a jump, which the movement files' writers write."""
+    legs = legs[legs["t_s"] <= duration_s]
+    table = LegTable(legs, n)
+    t_end, _, _ = table.ends(duration_s)
+    side = float(side_m)
+    rows: list[tuple[float, int, float, float, float, float, str]] = []
+    # LegTable's order: by robot, then time, stable.
+    causes = legs.sort_values(["robot", "t_s"], kind="stable")["cause"].tolist()
+    for k in range(len(table.t)):
+        t0, t1, robot = float(table.t[k]), float(t_end[k]), int(table.robot[k])
+        p0, v = table.p[k], table.v[k]
+        here = p0 - side * np.floor(p0 / side)
+        # A robot on a border, leaving the square across it, starts on the opposite one.
+        here = np.where((here == 0.0) & (v < 0.0), side, here)
+        rows.append((t0, robot, *here.tolist(), *v.tolist(), causes[k]))
+        cuts = []
+        for a in (0, 1):
+            if v[a] != 0.0:
+                lo, hi = sorted((p0[a], p0[a] + v[a] * (t1 - t0)))
+                for m in range(math.floor(lo / side) + 1, math.ceil(hi / side) + 1):
+                    tc = t0 + (m * side - p0[a]) / v[a]
+                    if t0 < tc <= t1:
+                        cuts.append((tc, a))
+        for tc, a in sorted(cuts):
+            u = p0 + v * (tc - t0)
+            at = u - side * np.floor(u / side)
+            border, opposite = at.copy(), at.copy()
+            border[a], opposite[a] = (side, 0.0) if v[a] > 0 else (0.0, side)
+            rows.append((tc, robot, *border.tolist(), 0.0, 0.0, "wrap"))
+            rows.append((tc, robot, *opposite.tolist(), *v.tolist(), "wrap"))
+    return pd.DataFrame(rows, columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"])
 
 
 def sample_positions(

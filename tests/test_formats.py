@@ -4,6 +4,7 @@ or matches its reference (the waypoints' linear interpolation, the written poses
 from __future__ import annotations
 
 import gzip
+import re
 from pathlib import Path
 
 import numpy as np
@@ -115,6 +116,44 @@ def test_export_of_a_run_with_jumps_replays_its_positions_and_links(tmp_path, fm
     assert len(links) == 2
     cols = ["a", "b", "t_up_s", "t_down_s"]
     assert np.allclose(frames["links"][cols].to_numpy(float), links[cols].to_numpy(float), atol=1e-6)
+
+
+@pytest.mark.parametrize("fmt, name", [("bonnmotion", "t.movements"), ("ns2", "t.ns2")])
+def test_export_of_a_torus_run_stays_in_the_square_and_replays_on_the_torus(tmp_path, fmt, name):
+    """A torus run's legs run on past the borders; the formats know no torus, so the export
+    cuts each leg at the border and jumps the robot to the opposite one. Every written
+    coordinate lies in the square, and the file replayed on the same torus gives the run's
+    positions (folded) and links back."""
+    from netsim.trajectory import sample_positions
+
+    sets = ["world.torus=true", "world.n_robots=5", "duration_s=200", "world.side_m=200", "channel.range_m=60"]
+    sets += ["protocol.model=none"]
+    moves = ["mobility.model=random_direction", "mobility.speed_min_mps=3", "mobility.speed_max_mps=5"]
+    moves += ["mobility.turn_interval_s=40"]
+    run = tmp_path / "run"
+    argv = ["run", "--quiet", *(a for s in sets + moves for a in ("--set", s))]
+    assert main([*argv, "--out", str(run)]) == 0
+    legs = pd.read_parquet(run / "legs.parquet")
+    assert legs["x_m"].min() < 0 or legs["x_m"].max() > 200  # the run did cross a border
+    out = tmp_path / name
+    assert main(["export", str(run), "--format", fmt, "--out", str(out)]) == 0
+    text = out.read_text()
+    if fmt == "bonnmotion":
+        coords = [v for line in text.splitlines() for k, v in enumerate(map(float, line.split())) if k % 3]
+    else:
+        coords = [float(v) for v in re.findall(r"set [XY]_ ([-+\d.e]+)", text)]
+        coords += [float(v) for pair in re.findall(r"setdest ([-+\d.e]+) ([-+\d.e]+)", text) for v in pair]
+    # In the square, but for the rounding of a leg's end at a border (the run's own tolerance).
+    assert len(coords) > 20 and min(coords) >= -2e-7 and max(coords) <= 200.0 + 2e-7
+    _config, frames = _run([*sets, "mobility.model=trace", f"mobility.trace_file={out}"])
+    times = np.linspace(0.0, 199.99, 401)
+    want = sample_positions(legs, 5, times, 200.0, True)[["x_m", "y_m"]].to_numpy()
+    got = sample_positions(frames["legs"], 5, times, 200.0, True)[["x_m", "y_m"]].to_numpy()
+    off = np.abs(want - got)
+    assert np.minimum(off, 200.0 - off).max() < 1e-6
+    links = pd.read_parquet(run / "links.parquet")
+    cols = ["a", "b", "t_up_s", "t_down_s"]
+    assert len(links) > 5 and np.allclose(frames["links"][cols].to_numpy(float), links[cols].to_numpy(float), atol=1e-6)
 
 
 def test_bonnmotion_reads_3d_files_with_their_params(tmp_path):

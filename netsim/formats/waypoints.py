@@ -94,9 +94,11 @@ def from_legs(legs: pd.DataFrame, n_robots: int, duration_s: float) -> Waypoints
     t_end, end, jump = table.ends(duration_s)
     last = np.zeros(len(table.t), bool)
     last[table.end - 1] = True
-    # Each leg's start, then its end where that is a waypoint of its own; a stable sort by
-    # robot and time keeps a jump's two waypoints in that order.
-    keep = np.column_stack([np.ones(len(last), bool), jump | last]).ravel()
+    # Each leg's start, then its end where that is a waypoint of its own (not a leg of no
+    # duration's, its start already); a stable sort by robot and time keeps a jump's two
+    # waypoints in that order.
+    instant = (t_end == table.t) & (end == table.p).all(axis=1)
+    keep = np.column_stack([np.ones(len(last), bool), (jump | last) & ~instant]).ravel()
     robot = np.repeat(table.robot, 2)[keep]
     t = np.column_stack([table.t, t_end]).ravel()[keep]
     xy = np.stack([table.p, end], axis=1).reshape(-1, 2)[keep]

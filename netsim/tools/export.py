@@ -89,6 +89,12 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
             shutil.rmtree(tmp, ignore_errors=True)
         return out
     legs = _table(run_dir, "legs")
+    if config.world.torus:
+        # The formats know no torus: legs that run on past a border are cut there, and the
+        # robot jumps to the opposite one.
+        from netsim.trajectory import folded_legs
+
+        legs = folded_legs(legs, n, config.world.side_m, duration)
     fd, name = tempfile.mkstemp(
         prefix=f".{out.name}.", suffix=".gz" if out.name.endswith(".gz") else "", dir=out.parent
     )
