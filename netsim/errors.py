@@ -22,7 +22,8 @@ class ConfigError(NetsimInputError):
         given = str(value).lower() if isinstance(value, bool) else repr(value)
         super().__init__(f"{shown} = {given}: {allowed}")
 
-    def __reduce__(self) -> tuple[type, tuple[str, object, str]]:
+    def __reduce__(self) -> tuple[type, tuple[str, object, str], dict]:
         # Raised in a worker process (a sweep's, an experiment's pool), it must cross back
-        # whole: the default pickling would call __init__ with the message alone.
-        return type(self), (self.key, self.value, self.allowed)
+        # whole (notes included): the default pickling would call __init__ with the
+        # message alone.
+        return ConfigError, (self.key, self.value, self.allowed), self.__dict__

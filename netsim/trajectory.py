@@ -131,13 +131,17 @@ def folded_legs(legs: pd.DataFrame, n: int, side_m: float, duration_s: float) ->
                     tc = t0 + (m * side - p0[a]) / v[a]
                     if t0 < tc <= t1:
                         cuts.append((tc, a))
+        # Each piece from where the one before it jumped to: at a corner both axes are cut at
+        # one instant, the second from where the first put the robot.
+        ts = t0
         for tc, a in sorted(cuts):
-            u = p0 + v * (tc - t0)
-            at = u - side * np.floor(u / side)
-            border, opposite = at.copy(), at.copy()
-            border[a], opposite[a] = (side, 0.0) if v[a] > 0 else (0.0, side)
+            border = here + v * (tc - ts)
+            border[a] = side if v[a] > 0 else 0.0
+            here = border.copy()
+            here[a] = 0.0 if v[a] > 0 else side
+            ts = tc
             rows.append((tc, robot, *border.tolist(), 0.0, 0.0, "wrap"))
-            rows.append((tc, robot, *opposite.tolist(), *v.tolist(), "wrap"))
+            rows.append((tc, robot, *here.tolist(), *v.tolist(), "wrap"))
     return pd.DataFrame(rows, columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"])
 
 

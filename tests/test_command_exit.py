@@ -86,3 +86,13 @@ def test_a_reader_that_goes_away_ends_the_command_quietly_with_the_run_written(t
     assert proc.wait() == 141, err
     assert "Traceback" not in err and "BrokenPipeError" not in err
     assert (out / "manifest.json").exists() and (out / "summary.json").exists()
+
+
+def test_a_broken_pipe_other_than_stdout_is_a_failure_not_a_quiet_end():
+    """Only stdout's reader going away ends the command quietly (141): a broken pipe of
+    anything else (a worker's, an output's) is the failure it is, with its traceback."""
+    code = "import netsim.tools.cli as c\n"
+    code += "def b(argv=None): raise BrokenPipeError(32, 'a worker pipe')\n"
+    code += "c.main = b\nc.command()"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV)
+    assert run.returncode == 1 and "BrokenPipeError: [Errno 32] a worker pipe" in run.stderr

@@ -272,7 +272,9 @@ def test_a_configuration_error_crosses_a_process_pool_whole():
     from concurrent.futures import ProcessPoolExecutor
 
     err = ConfigError("coverage.fade_margin_db", -1.0, "must be >= 0")
+    err.add_note("in the sweep's point 3")
     back = pickle.loads(pickle.dumps(err))
+    assert back.__notes__ == ["in the sweep's point 3"]
     assert (type(back), back.key, back.value, back.allowed, str(back)) == (
         ConfigError,
         err.key,

@@ -156,6 +156,27 @@ def test_export_of_a_torus_run_stays_in_the_square_and_replays_on_the_torus(tmp_
     assert len(links) > 5 and np.allclose(frames["links"][cols].to_numpy(float), links[cols].to_numpy(float), atol=1e-6)
 
 
+@pytest.mark.parametrize("velocity", [(-1.0, -1.0), (2.0, 2.0), (-1.0, 2.0), (3.0, -7.0), (0.0, -4.0)])
+def test_torus_legs_folded_at_corners_and_borders_stay_in_the_square(velocity):
+    """Legs cut at each border they reach, corners included (both axes at one instant, either
+    way): every piece starts in the square, and the pieces put the robot where the torus
+    does at every instant."""
+    from netsim.trajectory import folded_legs, sample_positions
+
+    legs = pd.DataFrame(
+        {"t_s": [0.0, 0.0], "robot": [0, 1], "x_m": [50.0, 0.0], "y_m": [50.0, 200.0]}
+        | {"vx_mps": [velocity[0]] * 2, "vy_mps": [velocity[1]] * 2, "cause": ["start"] * 2}
+    )
+    folded = folded_legs(legs, 2, 200.0, 180.0)
+    assert folded[["x_m", "y_m"]].to_numpy().min() >= 0.0 and folded[["x_m", "y_m"]].to_numpy().max() <= 200.0
+    times = np.linspace(0.0, 180.0, 721)
+    want = sample_positions(legs, 2, times, 200.0, True)[["x_m", "y_m"]].to_numpy()
+    got = sample_positions(folded, 2, times)[["x_m", "y_m"]].to_numpy()
+    off = np.abs(want - got)
+    assert np.minimum(off, 200.0 - off).max() < 1e-9
+    assert got.min() >= -1e-9 and got.max() <= 200.0 + 1e-9
+
+
 def test_bonnmotion_reads_3d_files_with_their_params(tmp_path):
     """``J=3D`` in the ``.params`` beside: four numbers a waypoint, z dropped."""
     (tmp_path / "d.params").write_text("model=RandomWaypoint3D\nx=100.0\ny=100.0\nnn=1\nJ=3D\n")

@@ -610,6 +610,28 @@ def _freeze_if_own(_sim: object = None) -> None:
         gc.freeze()
 
 
+def _stdout_gone() -> bool:
+    """Whether stdout's reader went away: a pipe with no reader left reports an error to a
+    poll of its writing end (where poll is missing: flushing stdout fails)."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):
+        return False
+    import select
+
+    if hasattr(select, "poll"):
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poller.poll(0))
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        return True
+    except (OSError, ValueError):
+        pass
+    return False
+
+
 def command() -> None:
     """The ``netsim`` command: :func:`main`, in a process of its own. Its two process-wide
     switches are made here, and nowhere in the library (importing netsim or running a
@@ -631,6 +653,8 @@ def command() -> None:
     try:
         code = main()
     except BrokenPipeError:
+        if not _stdout_gone():
+            raise  # another pipe (a worker's, an output's): a failure of its own
         # The reader of stdout went away (`netsim run | head`): what it asked for is done
         # and written; end as a command killed by SIGPIPE would, without a traceback, and
         # send the rest of stdout nowhere so that the flush below cannot raise again.
