@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from netsim.tools import sweep as sweepmod
 from netsim.tools.figures import pyplot
@@ -42,14 +41,9 @@ def ci95(values, within: tuple[float, float] = (-np.inf, np.inf)) -> tuple[float
     """Mean and the ends of a 95 % Student's t interval (NaN with one value), cut to
     ``within``, where the mean must lie (a ratio's [0, 1]): a few replications give the t
     interval ends a ratio cannot have, and cutting them off keeps its coverage."""
-    v = np.asarray([x for x in values if np.isfinite(x)], dtype=float)
-    if len(v) == 0:
-        return np.nan, np.nan, np.nan
-    m = float(v.mean())
-    if len(v) < 2:
-        return m, np.nan, np.nan
-    h = float(stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
-    return m, max(m - h, within[0]), min(m + h, within[1])
+    mean, _sd, low, high = sweepmod.t_interval([x for x in values if np.isfinite(x)])
+    # max and min keep a NaN given first
+    return mean, max(low, float(within[0])), min(high, float(within[1]))
 
 
 def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | None, n: int, duration_s: float):

@@ -25,7 +25,7 @@ from netsim.formats import ns2
 from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, param
 from netsim.plugins import Parts, PluginSpec
-from netsim.state import BORDER_TOLERANCE, MotionError, RobotState
+from netsim.state import MotionError, RobotState, border_tolerance_m
 from netsim.trajectory import jumped
 
 
@@ -98,7 +98,7 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) ->
     x, y = x_m[~np.isnan(x_m)], y_m[~np.isnan(y_m)]
     area = world_bounds(world)
     # As the run checks its robots' motion: a position past a border by its rounding is on it.
-    tol = BORDER_TOLERANCE * max(1.0, area.width, area.height)
+    tol = border_tolerance_m(area)
     if area.is_square_at_origin:
         xy = np.concatenate([x, y])
         side = world.side_m

@@ -706,16 +706,12 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box, any_wi
     cover there, one more at each end.
 
     ``any_within``: only whether a cell is within ``reach_m`` of some point is wanted (a
-    covered share, :func:`share_within` at ``reach_m``): a cell's entry is then some
-    distance within the reach, not the nearest, and a cell that has one is not visited
-    again. The test stays the hypot's: only where the squared offset is within a relative
-    ``1e-12`` of the reach's square (far beyond the rounding of either) is the hypot taken,
-    elsewhere the squared offset decides alike."""
+    covered share, :func:`share_within` at ``reach_m``): a cell's entry is then ``reach_m``
+    where some point is within it, decided by :func:`reaches` (the same answer as the
+    hypot's, mostly without the root), and a cell that has one is not visited again."""
     out = np.full((cells, cells), np.inf)
     hx = width_m / cells
     hy = height_m / cells
-    inside_m2 = reach_m * reach_m * (1.0 - 1e-12)
-    outside_m2 = reach_m * reach_m * (1.0 + 1e-12)
     for k in range(p.shape[0]):
         x, y = p[k, 0] - x0_m, p[k, 1] - y0_m
         if box > 0.0:
@@ -740,14 +736,9 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box, any_wi
                     for col in range(first, last + 1):
                         dx = (col + 0.5) * hx - sx
                         if any_within:
-                            if out[row, col] <= reach_m:
-                                continue
-                            s2 = dx * dx + dy * dy
-                            if s2 < inside_m2:
-                                out[row, col] = math.sqrt(s2)
-                                continue
-                            if s2 > outside_m2:
-                                continue
+                            if out[row, col] > reach_m and reaches(dx, dy, reach_m, 0.0):
+                                out[row, col] = reach_m
+                            continue
                         d = np.hypot(dx, dy)
                         if d <= reach_m and d < out[row, col]:
                             out[row, col] = d

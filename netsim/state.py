@@ -42,6 +42,12 @@ LEG_COLUMNS = ["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"]
 BORDER_TOLERANCE = 1e-9
 
 
+def border_tolerance_m(bounds: Bounds) -> float:
+    """How far past ``bounds``' border a position computed on a leg may lie and count as on
+    it: the rounding of a leg's end, relative to the area's size (at least 1 m)."""
+    return BORDER_TOLERANCE * max(1.0, bounds.width, bounds.height)
+
+
 class MotionError(NetsimInputError):
     """A robot left the area or crossed a wall: the model or the trace that moved it is wrong."""
 
@@ -331,7 +337,7 @@ class RobotState:
         position is inside."""
         self.checked = not self.torus
         b = self.bounds
-        self._tolerance_m = BORDER_TOLERANCE * max(1.0, b.width, b.height)
+        self._tolerance_m = border_tolerance_m(b)
         self._walls = walls
 
     def check_until(self, t: float) -> None:
@@ -355,9 +361,7 @@ class RobotState:
     def _check_ends(self, idx: np.ndarray, t: float, ends: np.ndarray) -> None:
         """Robots ``idx``'s current legs, ending at ``ends`` at ``t``, stay in the area and (on a
         map) in free cells: as the area is convex, their ends tell."""
-        b, tol = self.bounds, self._tolerance_m
-        x, y = ends[:, 0], ends[:, 1]
-        out = ~((x >= b.x_min - tol) & (x <= b.x_max + tol) & (y >= b.y_min - tol) & (y <= b.y_max + tol))
+        out = ~self.bounds.contains(ends, self._tolerance_m)
         if out.any():
             k = int(np.flatnonzero(out)[0])
             self._refuse_leg(int(idx[k]), t, ends[k], "leaves the area")

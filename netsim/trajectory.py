@@ -83,18 +83,26 @@ class LegTable:
         return points_on_legs(self.p, self.v, self.t, legs, t, self.n)
 
     def ends(self, duration_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Each leg's end, in the table's order: its time (the robot's next leg's start, or
-        ``duration_s``, whichever is first), where the leg puts its robot then, and whether
-        the robot's next leg, by ``duration_s``, starts elsewhere (a jump; never on a
-        robot's last leg)."""
+        """Each leg's end, in the table's order: its time (:meth:`end_times`), where the leg
+        puts its robot then, and whether the robot's next leg, by ``duration_s``, starts
+        elsewhere (a jump; never on a robot's last leg)."""
+        last, nxt = self._next()
+        t_end = self.end_times(duration_s)
+        xy = self.at(np.arange(len(self.t)), t_end)
+        jump = ~last & (self.t[nxt] <= duration_s) & jumped(xy, self.p[nxt])
+        return t_end, xy, jump
+
+    def end_times(self, duration_s: float) -> np.ndarray:
+        """When each leg ends: the robot's next leg's start, or ``duration_s``, whichever is first."""
+        last, nxt = self._next()
+        return np.minimum(np.where(last, duration_s, self.t[nxt]), duration_s)
+
+    def _next(self) -> tuple[np.ndarray, np.ndarray]:
+        """Whether each leg is its robot's last, and the row of the leg after it (itself if last)."""
         k = np.arange(len(self.t))
         last = np.zeros(len(k), bool)
         last[self.end - 1] = True
-        nxt = np.where(last, k, k + 1)
-        t_end = np.minimum(np.where(last, duration_s, self.t[nxt]), duration_s)
-        xy = self.at(k, t_end)
-        jump = ~last & (self.t[nxt] <= duration_s) & jumped(xy, self.p[nxt])
-        return t_end, xy, jump
+        return last, np.where(last, k, k + 1)
 
     def changes_in(self, a: float, b: float) -> np.ndarray:
         """Robots that start a new leg in (a, b)."""
@@ -111,22 +119,24 @@ def folded_legs(legs: pd.DataFrame, n: int, side_m: float, duration_s: float) ->
     where the rest of the leg goes on: a jump, which the movement files' writers write."""
     legs = legs[legs["t_s"] <= duration_s]
     table = LegTable(legs, n)
-    t_end, _, _ = table.ends(duration_s)
+    t_end = table.end_times(duration_s)
     side = float(side_m)
+    legs_k = np.arange(len(table.t))
+    reached = table.at(legs_k, t_end)  # each leg's unfolded end
+    starts = in_box(table.p, side)
     rows: list[tuple[float, int, float, float, float, float, str]] = []
     # LegTable's order: by robot, then time, stable.
     causes = legs.sort_values(["robot", "t_s"], kind="stable")["cause"].tolist()
-    for k in range(len(table.t)):
+    for k in legs_k.tolist():
         t0, t1, robot = float(table.t[k]), float(t_end[k]), int(table.robot[k])
         p0, v = table.p[k], table.v[k]
-        here = p0 - side * np.floor(p0 / side)
         # A robot on a border, leaving the square across it, starts on the opposite one.
-        here = np.where((here == 0.0) & (v < 0.0), side, here)
+        here = np.where((starts[k] == 0.0) & (v < 0.0), side, starts[k])
         rows.append((t0, robot, *here.tolist(), *v.tolist(), causes[k]))
         cuts = []
         for a in (0, 1):
             if v[a] != 0.0:
-                lo, hi = sorted((p0[a], p0[a] + v[a] * (t1 - t0)))
+                lo, hi = sorted((p0[a], reached[k, a]))
                 for m in range(math.floor(lo / side) + 1, math.ceil(hi / side) + 1):
                     tc = t0 + (m * side - p0[a]) / v[a]
                     if t0 < tc <= t1:
@@ -135,13 +145,13 @@ def folded_legs(legs: pd.DataFrame, n: int, side_m: float, duration_s: float) ->
         # one instant, the second from where the first put the robot.
         ts = t0
         for tc, a in sorted(cuts):
-            border = here + v * (tc - ts)
+            border = points_on_legs(here[None], v[None], np.array([ts]), [0], tc, 1)[0]
             border[a] = side if v[a] > 0 else 0.0
             here = border.copy()
             here[a] = 0.0 if v[a] > 0 else side
             ts = tc
-            rows.append((tc, robot, *border.tolist(), 0.0, 0.0, "wrap"))
-            rows.append((tc, robot, *here.tolist(), *v.tolist(), "wrap"))
+            rows.append((tc, robot, *border.tolist(), 0.0, 0.0, "border"))
+            rows.append((tc, robot, *here.tolist(), *v.tolist(), "jump"))
     return pd.DataFrame(rows, columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"])
 
 

@@ -130,14 +130,20 @@ def check_rate(rate: float) -> float:
     return rate
 
 
+def read(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeSettings | None]:
+    """The run's configuration and, when the scenario has a ``[bridge]`` table (or
+    ``bridge.*`` overrides), the bridge's settings, each checked."""
+    raw = cfgmod.read_tree(path, overrides)
+    bridge = settings(raw.pop("bridge")) if "bridge" in raw else None
+    return cfgmod.from_dict(raw), bridge
+
+
 def load(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeSettings]:
     """The run's configuration and the bridge's settings from a scenario file and
     ``--set`` overrides (``bridge.*`` keys included)."""
-    raw = cfgmod.read_tree(path, overrides)
-    bridge = settings(raw.pop("bridge", {}))
-    config = cfgmod.from_dict(raw)
+    config, bridge = read(path, overrides)
     if config.mobility.model != "external":
         raise ConfigError(
             "mobility.model", config.mobility.model, "the bridge moves robots as ROS 2 nodes tell: must be 'external'"
         )
-    return config, bridge
+    return config, bridge or BridgeSettings()

@@ -408,11 +408,9 @@ def cmd_config(args) -> int:
     check_set_pairs(args.set, args.config)
     config, bridge = None, None
     if args.config or args.set:
-        # A bridge scenario's [bridge] table is the bridge's: checked as `netsim bridge`
-        # checks it, and shown after the run's keys.
-        raw = cfgmod.read_tree(args.config, list(args.set or []))
-        bridge = bridge_settings.settings(raw.pop("bridge")) if "bridge" in raw else None
-        config = cfgmod.from_dict(raw)
+        # A bridge scenario's [bridge] table is checked as `netsim bridge` checks it, and
+        # shown after the run's keys.
+        config, bridge = bridge_settings.read(args.config, list(args.set or []))
     print(cfgmod.commented_toml(config) + bridge_settings.commented(bridge), end="")
     return 0
 

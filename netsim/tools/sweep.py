@@ -47,6 +47,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from netsim import config as cfgmod
@@ -478,29 +479,29 @@ def load_table(out_dir: str | Path, table: str) -> pd.DataFrame:
     return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
 
 
+def t_interval(values: npt.ArrayLike, level: float = 0.95) -> tuple[float, float, float, float]:
+    """Mean, standard deviation and the ends of the Student-t confidence interval of the mean
+    of ``values`` (NaN where too few: no mean without values, no spread with one)."""
+    from scipy import stats
+
+    v = np.asarray(values, dtype=float)
+    n = len(v)
+    mean = float(v.mean()) if n else float("nan")
+    sd = float(v.std(ddof=1)) if n > 1 else float("nan")
+    half = float(stats.t.ppf(0.5 + level / 2, n - 1) * sd / np.sqrt(n)) if n > 1 else float("nan")
+    return mean, sd, mean - half, mean + half
+
+
 def aggregate(df: pd.DataFrame, by: list[str], metrics: list[str], level: float = 0.95) -> pd.DataFrame:
     """Mean, standard deviation, count and Student-t confidence interval of each metric over
     the replications of each group."""
-    from scipy import stats
-
     rows = []
     for key, g in df.groupby(by, sort=True):
         key = key if isinstance(key, tuple) else (key,)
         row = dict(zip(by, key))
         for m in metrics:
             v = g[m].dropna().to_numpy(float)
-            n = len(v)
-            mean = float(v.mean()) if n else float("nan")
-            sd = float(v.std(ddof=1)) if n > 1 else float("nan")
-            half = float(stats.t.ppf(0.5 + level / 2, n - 1) * sd / np.sqrt(n)) if n > 1 else float("nan")
-            row.update(
-                {
-                    f"{m}_mean": mean,
-                    f"{m}_std": sd,
-                    f"{m}_n": n,
-                    f"{m}_ci_low": mean - half,
-                    f"{m}_ci_high": mean + half,
-                }
-            )
+            mean, sd, low, high = t_interval(v, level)
+            row.update({f"{m}_mean": mean, f"{m}_std": sd, f"{m}_n": len(v), f"{m}_ci_low": low, f"{m}_ci_high": high})
         rows.append(row)
     return pd.DataFrame(rows)
