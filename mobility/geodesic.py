@@ -26,8 +26,7 @@ from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
 
 from netsim.compiled import load
-from netsim.world.free_space import free_fraction, legs_free, short_of_walls
-from netsim.world.maps import grid_coords
+from netsim.world.free_space import free_fraction, legs_free, nearest_free_cells, short_of_walls
 
 # The side of the grid the distances are computed on, m (at least one map cell): fine
 # enough to keep a 1.5 m door open, coarse enough to be cheap at every step.
@@ -68,26 +67,9 @@ class FreeGrid:
 
     def cells(self, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The grid cell of each point, or the nearest free one within :data:`NEAR_CELLS`
-        when its own is not free (-1, -1: none)."""
-        p = np.asarray(points_m, float).reshape(-1, 2)
-        u, v = grid_coords(p, self.origin_m, self.cell_m)
-        x, y = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
-        out_x, out_y = np.full(len(p), -1), np.full(len(p), -1)
-        best = np.full(len(p), np.inf)
-        r = NEAR_CELLS
-        for dy in range(-r, r + 1):
-            for dx in range(-r, r + 1):
-                cx, cy = x + dx, y + dy
-                inside = (cx >= 0) & (cy >= 0) & (cx < self.w) & (cy < self.h)
-                ok = inside.copy()
-                ok[inside] = self.free[cy[inside] * self.w + cx[inside]]
-                centre_x = self.origin_m[0] + (cx + 0.5) * self.cell_m
-                centre_y = self.origin_m[1] + (cy + 0.5) * self.cell_m
-                d = np.hypot(centre_x - p[:, 0], centre_y - p[:, 1])
-                better = ok & (d < best)
-                best[better] = d[better]
-                out_x[better], out_y[better] = cx[better], cy[better]
-        return out_x, out_y
+        when its own is not free (-1, -1: none; netsim.world.free_space.nearest_free_cells)."""
+        free = self.free.reshape(self.h, self.w)
+        return nearest_free_cells(free, self.origin_m, self.cell_m, points_m, NEAR_CELLS)
 
     def field(self, source_m) -> np.ndarray:
         """Distances (m) through free space from the grid cell of the point ``source_m`` to

@@ -10,6 +10,7 @@ from netsim.world.free_space import (
     draw_destinations,
     free_fraction,
     legs_free,
+    nearest_free_cells,
     obstacle_field,
     sample_free,
     wall_forces,
@@ -99,6 +100,21 @@ def test_wall_forces_push_away_within_the_margin():
     assert f[1, 0] > 0  # right of it: pushed right
     assert np.array_equal(f[2], [0.0, 0.0])  # beyond the margin: nothing
     assert abs(f[0, 0]) > abs(wall_forces(m, field, [[8.5, 8.0]], 2.0, 1.0)[0, 0])  # stronger closer
+
+
+def test_wall_forces_push_a_robot_on_the_wall_face():
+    """A step that ends against a wall ends on its face, or a hair beyond it by rounding:
+    the point then lies in the wall's cell, whose field is flat. The robot is read from the
+    free cell it touches and feels the strongest push, not none."""
+    m = _rooms()
+    field = obstacle_field(m)
+    near = wall_forces(m, field, [[9.9, 8.0]], 2.0, 1.0)[0]
+    for x in (10.0, 10.0 + 1e-7):  # the wall's left face, and just inside the wall
+        f = wall_forces(m, field, [[x, 8.0]], 2.0, 1.0)[0]
+        assert f[0] < 0 and f[0] <= near[0]
+    assert wall_forces(m, field, [[10.5 - 1e-7, 8.0]], 2.0, 1.0)[0, 0] > 0  # the right face, from inside
+    i, j = nearest_free_cells(m.free, m.origin_m, m.resolution_m, [[10.0, 8.2], [10.5 - 1e-7, 2.2], [3.1, 3.1]], 1)
+    assert i.tolist() == [19, 21, 6] and j.tolist() == [16, 4, 6]
 
 
 def test_clearance_field_is_distance_to_nearest_non_free_cell():

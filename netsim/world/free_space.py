@@ -38,7 +38,7 @@ import numpy as np
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
 from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, kernels_for, line_of_sight
-from netsim.world.maps import MAP_KEY, OccupancyMap
+from netsim.world.maps import MAP_KEY, OccupancyMap, grid_coords
 
 
 def clearance_field_m(m: OccupancyMap) -> np.ndarray:
@@ -323,13 +323,49 @@ def obstacle_field(m: OccupancyMap) -> ObstacleField:
     return ObstacleField(d, away)
 
 
+def nearest_free_cells(free, origin_m, cell_m: float, points_m, radius_cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each point, the free cell of the grid ``free`` (``(h, w)``, cells ``cell_m``
+    wide, corner at ``origin_m``) within ``radius_cells`` of the point's own cell whose
+    centre is nearest the point (the first found, rows then columns from the lowest, on a
+    tie); ``(-1, -1)`` when none is. A robot's own cell can count as blocked: it may stand
+    on a wall's face, where a step against the wall ends, or a hair beyond it by rounding."""
+    p = np.asarray(points_m, float).reshape(-1, 2)
+    h, w = free.shape
+    u, v = grid_coords(p, origin_m, cell_m)
+    x, y = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
+    out_x, out_y = np.full(len(p), -1), np.full(len(p), -1)
+    best = np.full(len(p), np.inf)
+    r = radius_cells
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            cx, cy = x + dx, y + dy
+            inside = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
+            ok = inside.copy()
+            ok[inside] = free[cy[inside], cx[inside]]
+            centre_x = origin_m[0] + (cx + 0.5) * cell_m
+            centre_y = origin_m[1] + (cy + 0.5) * cell_m
+            d = np.hypot(centre_x - p[:, 0], centre_y - p[:, 1])
+            better = ok & (d < best)
+            best[better] = d[better]
+            out_x[better], out_y[better] = cx[better], cy[better]
+    return out_x, out_y
+
+
 def wall_forces(m: OccupancyMap, field: ObstacleField, positions_m, margin_m: float, gain: float) -> np.ndarray:
     """Push from walls on robots at ``positions_m``: ``gain * (margin_m - d)`` away from the
     nearest cell that is not free when ``d < margin_m``, as the border force of coverage
-    does for the area's edges. Shape ``(k, 2)``."""
+    does for the area's edges. Shape ``(k, 2)``.
+
+    A robot whose own cell is not free (against a wall) is read from the free cell nearest
+    it (:func:`nearest_free_cells`), so it feels the strongest push, not none."""
     i, j = m.cells(positions_m)
     h, w = m.shape
     i, j = np.clip(i, 0, w - 1), np.clip(j, 0, h - 1)
+    inside = np.flatnonzero(~m.free[j, i])
+    if len(inside):
+        fi, fj = nearest_free_cells(m.free, m.origin_m, m.resolution_m, np.asarray(positions_m, float)[inside], 1)
+        found = fi >= 0
+        i[inside[found]], j[inside[found]] = fi[found], fj[found]
     d = field.distance_m[j, i]
     push = np.where(d < margin_m, gain * (margin_m - d), 0.0)
     return push[:, None] * field.away[j, i]
