@@ -37,7 +37,6 @@ this machine showed.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import platform
@@ -51,6 +50,8 @@ from pathlib import Path
 
 from compare import measured, netsim_settings
 from scipy.stats import quantile_test
+
+from netsim.tools.args import Parser
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -142,7 +143,7 @@ def main(argv=None) -> int:
 
 
 def measure(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", required=True, help="the commit to measure this working tree against")
     ap.add_argument("--base-python", help="a Python in which the base commit is installed (other entry points)")
     ap.add_argument("--rounds", type=int, default=7, help="measured rounds, alternated (default 7)")

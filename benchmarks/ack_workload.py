@@ -25,6 +25,8 @@ import subprocess
 import sys
 import time
 
+from netsim.tools.args import Parser
+
 RANGE_M = 100.0
 DEGREE = 10.0
 DURATION_S = 100.0
@@ -141,7 +143,7 @@ def measure(case: str, n: int) -> dict:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, nargs="+", default=[100, 1000, 10_000])
     p.add_argument("--protocol", nargs="+", default=["ack"], help="netsim protocol stacks to measure")
     p.add_argument(

@@ -39,7 +39,6 @@ as runs per minute (0 leaves it out). ``--repeat K`` runs each N's cases K times
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -47,6 +46,8 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from netsim.tools.args import Parser
 
 HERE = Path(__file__).resolve().parent
 RANGE_M, DEGREE, DURATION_S, PERIOD_S = 100.0, 10.0, 100.0, 1.0
@@ -188,7 +189,7 @@ def small_case() -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, nargs="+", default=[100, 1000])
     ap.add_argument("--simpy-max-n", type=int, default=1000, help="largest N for the O(N^2) SimPy reference")
     ap.add_argument("--ns3-max-n", type=int, default=10000, help="largest N for ns-3 (an O(N) scan per send)")

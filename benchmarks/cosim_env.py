@@ -16,10 +16,11 @@ components).
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
+
+from netsim.tools.args import Parser
 
 
 def measure_rate(n: int, cycles: int, episodes: int, freeze: bool = False) -> dict:
@@ -82,7 +83,7 @@ def measure_rate(n: int, cycles: int, episodes: int, freeze: bool = False) -> di
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, nargs="+", default=[20])
     parser.add_argument("--cycles", type=int, default=200)
     parser.add_argument("--episodes", type=int, default=5)

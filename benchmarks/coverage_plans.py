@@ -19,6 +19,7 @@ import time
 
 from netsim import config as cfgmod
 from netsim.run import execute
+from netsim.tools.args import Parser
 from netsim.tools.validate import coverage_outcome, coverage_settings
 
 
@@ -42,7 +43,7 @@ def one_run(plan: str, n: int, loss: float, seed: int, duration_s: float, extra:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, nargs="+", default=[20, 60, 100, 200])
     ap.add_argument("--loss", type=float, nargs="+", default=[0.0, 0.3])
     ap.add_argument("--plans", nargs="+", default=["local"])

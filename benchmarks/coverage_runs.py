@@ -26,8 +26,8 @@ import time
 
 from netsim import config as cfgmod
 from netsim import metrics as metrics
-from netsim.control import control_loop
 from netsim.run import build
+from netsim.tools.args import Parser
 
 SIDE_M = {200: 2500.0, 1000: 5000.0}
 
@@ -60,7 +60,7 @@ def one_run(n: int, duration_s: float, seed: int) -> dict:
     start = time.perf_counter()
     sim = build(cfgmod.load(None, overrides))
     ctl = sim.models["coverage"]
-    loop = control_loop(sim)
+    loop = sim.models["control"]
     control_s, sampling_s = [0.0], [0.0]
     loop._controllers = [(o, k, timed(c, control_s)) for o, k, c in loop._controllers]
     sample = ctl.sample
@@ -96,7 +96,7 @@ def one_run(n: int, duration_s: float, seed: int) -> dict:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, nargs="+", default=[200, 1000])
     p.add_argument("--duration", type=float, default=1500.0, help="simulated seconds per run")
     p.add_argument("--seed", type=int, default=1)

@@ -40,6 +40,8 @@ import time
 
 from workload import DEGREE, workload_config
 
+from netsim.tools.args import Parser
+
 MAP_SIDE_M = 200.0
 
 
@@ -103,7 +105,7 @@ def _case(n: int, protocol: str, mode: str, world_map: str) -> dict:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = Parser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, nargs="*", default=[1000, 10000])
     p.add_argument("--protocol", nargs="*", default=["none", "ack"])
     p.add_argument("--live", action="store_true", help="also measure the live topology")

@@ -23,6 +23,8 @@ import time
 
 from workload import DURATION_S, workload_config
 
+from netsim.tools.args import Parser
+
 
 def run_case(n: int, mac: str, duration_s: float) -> dict:
     from netsim.run import build, collect, summarize
@@ -50,7 +52,7 @@ def run_case(n: int, mac: str, duration_s: float) -> dict:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = Parser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, nargs="+", default=[1000, 10_000])
     p.add_argument("--mac", nargs="+", default=["none", "csma"])
     p.add_argument("--repeat", type=int, default=2)

@@ -24,13 +24,14 @@ or a summary figure and must leave everything else as it was.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import io
 import json
 import sys
 import tempfile
 from pathlib import Path
+
+from netsim.tools.args import Parser
 
 BASE = ["world.n_robots=30", "duration_s=60", "world.side_m=500", "channel.range_m=120"]
 COVERAGE = [
@@ -181,7 +182,7 @@ def digest(name: str, directory: Path, ignore: tuple[str, ...] = ()) -> dict[str
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = Parser(description=__doc__.splitlines()[0])
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--write", metavar="FILE", help="write the digests of every scenario to FILE")
     g.add_argument("--check", metavar="FILE", help="compare with FILE; exit 1 on any difference")

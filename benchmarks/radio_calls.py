@@ -12,7 +12,6 @@ each other on the office map's free space.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
@@ -20,6 +19,7 @@ import numpy as np
 from netsim.radio.fast import CompiledChain
 from netsim.radio.propagation import LogDistanceParams, Pairs, log_distance, unit_disk
 from netsim.radio.shadowing import PairShadowing
+from netsim.tools.args import Parser
 from netsim.world.free_space import sample_free
 from netsim.world.los import walls_crossed
 from netsim.world.maps import load_map
@@ -84,7 +84,7 @@ def measure(m, rng, k: int, length_m: float) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--length", type=float, nargs="*", default=[30.0, 100.0], help="largest pair distance, m")
     ap.add_argument("--k", type=int, nargs="*", default=[10, 100, 1000])
     args = ap.parse_args()

@@ -27,10 +27,11 @@ Prints a table with each case's ratios to the baseline.
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 import warnings
+
+from netsim.tools.args import Parser
 
 DEGREE = 10.0
 
@@ -91,7 +92,7 @@ def timed(cfg) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--duration", type=float, default=100.0)
     ap.add_argument("--n-building", type=int, default=100)

@@ -14,7 +14,6 @@ software, so this is a floor for what a laptop's browser does.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import statistics
@@ -22,6 +21,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from netsim.tools.args import Parser
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = [
@@ -106,7 +107,7 @@ def play(html: Path, seconds: float, width: int, height: int, hide=()) -> dict:
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = Parser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=1000, help="robots")
     p.add_argument("--duration", type=float, default=120.0, help="simulated seconds")
     p.add_argument("--seconds", type=float, default=6.0, help="wall seconds of playing")

@@ -27,12 +27,13 @@ one per packet.
 
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from netsim.tools.args import Parser
 
 SCENARIOS = {
     # name: (positions, range_m, src, dsts: a flow to each); positions None: the mobile
@@ -253,7 +254,7 @@ def within(name: str, ours: float, theirs: float) -> bool:
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = Parser(description=__doc__.split("\n\n")[0])
     p.add_argument("--side", choices=["both", "netsim", "ns3"], default="both")
     p.add_argument("--ns3-python", default=".ns3venv/bin/python")
     p.add_argument("--only", nargs="*", default=list(SCENARIOS))

@@ -9,15 +9,16 @@ tables written). Prints one line of wall seconds per phase and the process's CPU
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
+
+from netsim.tools.args import Parser
 
 T0 = time.perf_counter()
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--protocol", default="ack")
     ap.add_argument("--duration", type=float, default=100.0)

@@ -15,14 +15,15 @@ namespace from their folders, so ``PYTHONPATH`` alone would mix the two trees), 
 
 from __future__ import annotations
 
-import argparse
 import resource
 import tempfile
 import time
 
+from netsim.tools.args import Parser
+
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=10000)
     ap.add_argument("--duration", type=float, default=100.0)
     args = ap.parse_args()

@@ -17,10 +17,11 @@ import tempfile
 import time
 
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--runs", type=int, default=200)
     p.add_argument("--duration", type=float, default=150.0, help="simulated seconds per run (about 1 s of wall)")
     args = p.parse_args()

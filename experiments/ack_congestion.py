@@ -37,6 +37,7 @@ from netsim.protocols.ack import AckParams
 from netsim.radio.mac import airtime_s
 from netsim.radio.mac_models import CsmaParams
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 RANGE_M = 100.0
@@ -61,7 +62,7 @@ def spurious_changes(roles: pd.DataFrame, run_ids, n: int, warmup_s: float, dura
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=80, help="robots")
     p.add_argument("--densities", type=float, nargs="+", default=[10.0, 25.0, 50.0], help="robots in range D")
     p.add_argument("--periods", type=float, nargs="+", default=[1.0, 0.25, 0.1, 0.05, 0.025], help="Ack periods t, s")

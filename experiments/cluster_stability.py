@@ -20,6 +20,7 @@ import argparse
 from pathlib import Path
 
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 METRICS = {
@@ -54,7 +55,7 @@ def plot(agg, path: Path, title: str) -> None:
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=50, help="robots")
     p.add_argument("--side", type=float, default=1000.0, help="side of the area, m")
     p.add_argument("--range", type=float, default=150.0, help="communication range, m")

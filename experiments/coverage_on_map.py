@@ -30,6 +30,7 @@ from concurrent.futures import ProcessPoolExecutor
 import pandas as pd
 
 from netsim.errors import NetsimInputError
+from netsim.tools.args import Parser
 from netsim.tools.sweep import run_script
 from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_settings
 
@@ -82,7 +83,7 @@ def table(runs: pd.DataFrame) -> pd.DataFrame:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=40, help="robots (default 40)")
     p.add_argument("--seeds", type=int, default=5, help="seeds per row, 1 .. SEEDS (default 5)")
     p.add_argument("--radios", nargs="+", default=MAP_RADIOS, help=f"of {MAP_RADIOS}")

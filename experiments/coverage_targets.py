@@ -83,6 +83,7 @@ import pandas as pd
 
 from netsim.config import Config
 from netsim.errors import NetsimInputError
+from netsim.tools.args import Parser
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
 
 
@@ -446,7 +447,7 @@ def check_settings(args: argparse.Namespace) -> None:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="unit disk at N = 20 and 60 only, and the radio rows")
     p.add_argument(
         "--n",

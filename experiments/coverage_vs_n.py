@@ -50,6 +50,7 @@ import pandas as pd
 from netsim.config import parse_override
 from netsim.errors import NetsimInputError
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_settings
 
@@ -119,7 +120,7 @@ def plot(agg: pd.DataFrame, path: Path, radios: list[str], title: str) -> None:
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, nargs="+", default=[20, 60, 100, 200], help="numbers of robots in open space")
     p.add_argument("--map-n", type=int, nargs="+", default=[10, 20, 40], help="numbers of robots on the office map")
     p.add_argument("--modes", nargs="+", default=list(MODES), help=f"of {list(MODES)}")

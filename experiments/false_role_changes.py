@@ -24,11 +24,12 @@ from netsim.protocols.roles import LABELS
 
 from netsim.tools import analysis
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--pairs", type=int, default=200)
     p.add_argument("--losses", type=float, nargs="+", default=[0.2, 0.3, 0.4, 0.5, 0.6])
     p.add_argument("--taus", type=float, nargs="+", default=[1.5, 2.5, 3.5], help="tau in Ack periods (1 s)")

@@ -23,7 +23,6 @@ Each policy runs ``--episodes`` episodes of ``--cycles`` steps (seeds 0, 1, ...)
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -34,6 +33,7 @@ import pandas as pd
 from netsim import metrics
 from netsim.envs import coverage_v0
 from netsim.errors import NetsimInputError
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 Policy = Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]]
@@ -100,7 +100,7 @@ def episode(env, policy: Policy, seed: int) -> tuple[list[float], dict, float, n
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=20, help="robots")
     parser.add_argument("--cycles", type=int, default=300, help="steps per episode")
     parser.add_argument("--episodes", type=int, default=3, help="episodes per policy (seeds 0, 1, ...)")

@@ -25,6 +25,7 @@ import pandas as pd
 
 from netsim.tools import analysis
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 
@@ -35,7 +36,7 @@ def run(name, base, grid, reps, out, args):
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=100)
     p.add_argument("--side", type=float, default=1000.0)
     p.add_argument("--range", type=float, default=100.0)

@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 PROTOCOLS = {
@@ -69,7 +70,7 @@ def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | N
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=40)
     p.add_argument("--side", type=float, default=600.0)
     p.add_argument("--range", type=float, default=150.0)

@@ -25,6 +25,7 @@ import math
 from pathlib import Path
 
 from netsim.tools import sweep as sweepmod
+from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 METRICS = {
@@ -66,7 +67,7 @@ def plot(agg, path: Path, title: str) -> None:
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=60, help="robots")
     p.add_argument("--side", type=float, default=200.0, help="side of the area, m (at most the map's 200 m)")
     p.add_argument("--range", type=float, default=40.0, help="implied range of the radio, m")

@@ -47,6 +47,7 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import ns2
+from netsim.tools.args import Parser
 from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, interrupted
 
 EXIT_INPUT = 2
@@ -429,7 +430,7 @@ def _port(text: str) -> int:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="netsim", description="Discrete-event simulator of multi-robot ad-hoc networks.")
+    p = Parser(prog="netsim", description="Discrete-event simulator of multi-robot ad-hoc networks.")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="simulate a scenario and write its results")

@@ -9,12 +9,12 @@ its two markers (``--check``: exit status 1 if it is stale, writing nothing);
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 from typing import Any
 
 from netsim import config as cfgmod
+from netsim.tools.args import Parser
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "configuration.md"
 COMMAND = "python -m netsim.tools.config_docs"
@@ -130,7 +130,7 @@ def render(page: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog=COMMAND, description="Remake the tables of keys of docs/configuration.md.")
+    p = Parser(prog=COMMAND, description="Remake the tables of keys of docs/configuration.md.")
     p.add_argument("--check", action="store_true", help="exit status 1 if the page is stale; write nothing")
     args = p.parse_args(argv)
     page = PAGE.read_text()

@@ -1,0 +1,69 @@
+"""A malformed command line, to ``netsim`` or to any script of experiments/ and benchmarks/,
+is one line on stderr and exit status 2, nothing written (netsim.tools.args.Parser): the
+same as every other bad input. Running each script also shows that it still imports."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from netsim.tools.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+# Scripts with a command line of their own; the ns-3 and plain-SimPy reference workloads
+# run without netsim (in ns-3's Python), so they keep argparse's own messages.
+SCRIPTS = sorted(
+    str(p.relative_to(ROOT))
+    for folder in ("experiments", "benchmarks")
+    for p in (ROOT / folder).glob("*.py")
+    if '__name__ == "__main__"' in p.read_text() and "from netsim" in p.read_text()
+)
+COMMANDS = ["run", "bridge", "scenario", "scenario generate", "sweep", "validate", "figures", "view", "export"]
+COMMANDS += ["config", "calibrate"]
+
+
+def test_every_script_with_a_command_line_is_checked():
+    assert "experiments/coverage_targets.py" in SCRIPTS and "benchmarks/ab.py" in SCRIPTS
+    assert len(SCRIPTS) >= 25
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", SCRIPTS)
+def test_a_scripts_unknown_option_is_one_line_exit_2_nothing_written(tmp_path, path):
+    run = subprocess.run(
+        [sys.executable, str(ROOT / path), "--no-such-option"], capture_output=True, text=True, cwd=tmp_path
+    )
+    name = Path(path).name
+    assert run.returncode == 2, run.stderr
+    lines = run.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"{name}: error: "), run.stderr
+    assert f"({name} --help lists the options)" in lines[0]
+    assert run.stdout == "" and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("bad", [["--no-such-option"], ["--seed", "x"]])
+def test_a_netsim_usage_error_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, command, bad):
+    monkeypatch.chdir(tmp_path)
+    assert status([*command.split(), *bad]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and err.startswith("netsim"), err
+    assert "error: " in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv", [[], ["no-such-command"], ["scenario"]])
+def test_a_missing_or_unknown_command_is_one_line(capsys, argv):
+    assert status(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "--help lists the options" in err, err
+
+
+def status(argv: list[str]) -> int:
+    """The exit status of ``netsim ARGV``: a usage error exits, other bad input returns 2."""
+    try:
+        return main(argv)
+    except SystemExit as exit_:
+        assert isinstance(exit_.code, int)
+        return exit_.code
