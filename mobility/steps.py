@@ -107,7 +107,8 @@ def box_limit(pos: np.ndarray, move: np.ndarray, area: float | Bounds) -> np.nda
     """Largest ``s`` in [0, 1] keeping ``pos + s move`` inside the area (Bounds, or the side
     of the square ``[0, side]^2``), row-wise."""
     b = as_bounds(area)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # A move of a few ulps overflows the quotient to inf, which is right: it stays inside.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         hi = np.where(move > 0, (b.hi - pos) / move, np.where(move < 0, -(pos - b.lo) / move, np.inf))
     return np.clip(hi.min(axis=1) * SAFETY, 0.0, 1.0)
 

@@ -347,6 +347,12 @@ def test_box_limit_stops_steps_at_the_rectangle_border():
     assert s == pytest.approx([0.5, 0.25])
 
 
+def test_box_limit_of_a_move_of_a_few_ulps_is_the_whole_move_without_a_warning():
+    """The quotient overflows to inf (the suite turns a RuntimeWarning into an error)."""
+    s = box_limit(np.array([[0.0, 250.0], [0.0, 250.0]]), np.array([[1e-310, 0.0], [-1e-310, 1e-310]]), Bounds(*RECT))
+    assert s.tolist() == [1.0, 1.0]
+
+
 @pytest.mark.slow
 def test_coverage_run_on_a_rectangle_reports_the_rectangle_bound_and_stays_inside():
     """The coverage controller's ``coverage_bound`` is ``min(1, U(N) / A)`` for the
