@@ -28,6 +28,7 @@ Prints a table with each case's ratios to the baseline.
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 import warnings
 
@@ -57,16 +58,14 @@ def config(n: int, duration: float, side: float, channel: dict, world: dict | No
         )
 
 
-def building_yaml():
-    """The building floor written as a ``map_saver`` map in a temporary folder."""
-    import tempfile
+def building_yaml(folder):
+    """The building floor written as a ``map_saver`` map in ``folder``."""
     from pathlib import Path
 
     from netsim.world.examples import BUILDING_RESOLUTION_M, building_floor
     from netsim.world.maps import save_map
 
-    folder = Path(tempfile.mkdtemp(prefix="netsim-bench-"))
-    return save_map(folder / "building.yaml", *building_floor(), BUILDING_RESOLUTION_M)
+    return save_map(Path(folder) / "building.yaml", *building_floor(), BUILDING_RESOLUTION_M)
 
 
 def timed(cfg) -> dict:
@@ -98,6 +97,12 @@ def main() -> None:
     ap.add_argument("--n-building", type=int, default=100)
     ap.add_argument("--only", default="", help="run only the cases whose name contains this (and the baseline)")
     args = ap.parse_args()
+    with tempfile.TemporaryDirectory(prefix="netsim-bench-") as folder:
+        measure_all(args, folder)
+
+
+def measure_all(args, folder) -> None:
+    """Every case, the building's map written in ``folder``; prints the table."""
     n, T = args.n, args.duration
     side = 100.0 * math.sqrt(n * math.pi / DEGREE)
     office_side = 200.0
@@ -121,7 +126,7 @@ def main() -> None:
     r_b = b_side * math.sqrt(DEGREE / (nb * math.pi))
     sens_b = 20.0 - 40.0 - 30.0 * math.log10(r_b)
     slow = {"speed_min_mps": 0.1, "speed_max_mps": 0.5, "pause_s": 2.0, "stationary_start": False}
-    building = {"map": str(building_yaml())}
+    building = {"map": str(building_yaml(folder))}
     cases += [
         (
             f"building map (5 cm), {nb} robots, log_distance",

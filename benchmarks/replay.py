@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import statistics
 import sys
 import tempfile
@@ -116,6 +117,10 @@ def main() -> int:
     p.add_argument("--run", help="replay this run directory instead of simulating one")
     p.add_argument("--hide", nargs="*", default=[], choices=["links", "hops"], help="layers to switch off")
     args = p.parse_args()
+    if not re.fullmatch(r"[1-9][0-9]*x[1-9][0-9]*", args.size):
+        p.error(f"--size {args.size!r}: WIDTHxHEIGHT in pixels, such as 1280x800")
+    if not args.no_browser and not Path(CHROMIUM).is_file():
+        p.error(f"no {CHROMIUM} to play the replay in (apt-get install chromium), or --no-browser")
 
     from netsim.tools import viewer
 

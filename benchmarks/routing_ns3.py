@@ -266,6 +266,11 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--trace", default="", help="the mobile team's ns-2 trace (default: written anew)")
     args = p.parse_args()
+    if args.side == "both" and not Path(args.ns3_python).is_file():
+        p.error(
+            f"--ns3-python {args.ns3_python}: no such file (bash benchmarks/ns3_env.sh .ns3venv makes it;"
+            " --side netsim runs netsim's side alone)"
+        )
     if "mobile" in args.only and not args.trace:
         with tempfile.TemporaryDirectory() as tmp:
             args.trace = str(Path(tmp) / "mobile.ns2")

@@ -94,10 +94,15 @@ def main(argv=None) -> None:
     left.set(
         xlabel="link lifetime (s)",
         ylabel="survival P(T > t)",
-        xscale="log",
         title=f"random waypoint, pause {args.pauses[0]:g} s (Kaplan-Meier, 95 % CI)",
     )
-    left.legend()
+    # A short or sparse run may see no link end: its curves are empty, and a log axis of
+    # nothing cannot be drawn.
+    if any((km.t_s > 0).any() for km in curves.values()):
+        left.set_xscale("log")
+        left.legend()
+    else:
+        left.text(0.5, 0.5, "no link ended within the runs", ha="center", transform=left.transAxes)
     for (model, pause), g in df.groupby(["model", "pause_s"]):
         err = [g.mean_s - g.mean_ci_low_s, g.mean_ci_high_s - g.mean_s]
         right.errorbar(g.speed_mps, g.mean_s, yerr=err, marker="o", capsize=3, label=f"{model}, pause {pause:g} s")
@@ -109,7 +114,7 @@ def main(argv=None) -> None:
         xlabel="speed (m/s)",
         ylabel="mean link lifetime, restricted to the run (s)",
         xscale="log",
-        yscale="log",
+        yscale="log" if (df.mean_s > 0).any() else "linear",
         title=f"{args.n} robots, range {args.range:g} m",
     )
     right.legend(fontsize=8)

@@ -78,6 +78,22 @@ def test_a_bad_scheduler_is_one_line_exit_2_nothing_written(tmp_path, script):
     assert not out.exists()
 
 
+@pytest.mark.slow
+def test_link_lifetime_draws_its_figure_when_no_link_ends(tmp_path):
+    """20 robots on the default square for 60 s: the few links that form outlast the run,
+    so the survival curves are empty; the figure says so instead of failing."""
+    args = ["--n", "20", "--speeds", "2", "--pauses", "0", "--duration", "60", "--reps", "1", "--workers", "1"]
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / "link_lifetime.py"), *args, "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert pd.read_csv(tmp_path / "link_lifetime.csv")["mean_s"].isna().all()  # no link ended
+    assert (tmp_path / "link_lifetime.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 @pytest.mark.parametrize("script, args, csv", CASES)
 @pytest.mark.slow
 def test_experiment_writes_csv_and_png(tmp_path, script, args, csv):

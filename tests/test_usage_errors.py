@@ -67,3 +67,17 @@ def status(argv: list[str]) -> int:
     except SystemExit as exit_:
         assert isinstance(exit_.code, int)
         return exit_.code
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "path, args, said",
+    [
+        ("benchmarks/routing_ns3.py", ["--ns3-python", "no/such/python"], "--ns3-python no/such/python: no such file"),
+        ("benchmarks/replay.py", ["--size", "12x", "--no-browser"], "--size '12x': WIDTHxHEIGHT"),
+    ],
+)
+def test_a_benchmark_refuses_what_it_cannot_run_in_one_line(tmp_path, path, args, said):
+    run = subprocess.run([sys.executable, str(ROOT / path), *args], capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 2 and len(run.stderr.splitlines()) == 1 and said in run.stderr, run.stderr
+    assert list(tmp_path.iterdir()) == []
