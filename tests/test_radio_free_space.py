@@ -102,10 +102,10 @@ def test_wall_forces_push_away_within_the_margin():
     assert abs(f[0, 0]) > abs(wall_forces(m, field, [[8.5, 8.0]], 2.0, 1.0)[0, 0])  # stronger closer
 
 
-def test_wall_forces_push_a_robot_on_the_wall_face():
-    """A step that ends against a wall ends on its face, or a hair beyond it by rounding:
-    the point then lies in the wall's cell, whose field is flat. The robot is read from the
-    free cell it touches and feels the strongest push, not none."""
+def test_wall_forces_push_a_point_on_the_wall_face():
+    """A point on a wall's left face lies, by the floor, in the wall's cell, whose field is
+    flat (so is a point a hair inside it). It is read from the free cell nearest it and
+    feels the strongest push, not none."""
     m = _rooms()
     field = obstacle_field(m)
     near = wall_forces(m, field, [[9.9, 8.0]], 2.0, 1.0)[0]

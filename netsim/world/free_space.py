@@ -327,8 +327,9 @@ def nearest_free_cells(free, origin_m, cell_m: float, points_m, radius_cells: in
     """For each point, the free cell of the grid ``free`` (``(h, w)``, cells ``cell_m``
     wide, corner at ``origin_m``) within ``radius_cells`` of the point's own cell whose
     centre is nearest the point (the first found, rows then columns from the lowest, on a
-    tie); ``(-1, -1)`` when none is. A robot's own cell can count as blocked: it may stand
-    on a wall's face, where a step against the wall ends, or a hair beyond it by rounding."""
+    tie); ``(-1, -1)`` when none is. A free point's own cell can count as blocked: on a
+    coarser grid, a cell that holds a wall's edge; on any grid, a point on a wall's lower or
+    left face, which the floor puts in the wall's cell."""
     p = np.asarray(points_m, float).reshape(-1, 2)
     h, w = free.shape
     u, v = grid_coords(p, origin_m, cell_m)
@@ -356,8 +357,9 @@ def wall_forces(m: OccupancyMap, field: ObstacleField, positions_m, margin_m: fl
     nearest cell that is not free when ``d < margin_m``, as the border force of coverage
     does for the area's edges. Shape ``(k, 2)``.
 
-    A robot whose own cell is not free (against a wall) is read from the free cell nearest
-    it (:func:`nearest_free_cells`), so it feels the strongest push, not none."""
+    A point whose own cell is not free (on a wall's lower or left face) is read from the
+    free cell nearest it (:func:`nearest_free_cells`), so it feels the strongest push, not
+    none."""
     i, j = m.cells(positions_m)
     h, w = m.shape
     i, j = np.clip(i, 0, w - 1), np.clip(j, 0, h - 1)
