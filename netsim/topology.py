@@ -3,6 +3,7 @@ pairs of robots within range."""
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -104,8 +105,11 @@ def snapshot(
     Nodes carry ``pos`` (x, y) and, only when given the protocol's ``groups``
     (``snapshot(sim.state, sim.now, groups=sim.groups)``), ``role`` (its label, as
     "alpha", "beta", "gamma") and ``leader``; edges carry ``distance``. Positions are
-    those at ``t``; roles and leaders are the current ones, so take the snapshot while the
-    run is at ``t`` for a consistent picture.
+    those of the robots' current legs at ``t``; roles and leaders are the current ones, so
+    take the snapshot while the run is at ``t`` (``sim.now``) for a consistent picture. A
+    ``t`` before some robot's current leg began is refused (ValueError): the state no
+    longer holds where that robot was (a past instant: :func:`netsim.tools.figures.snapshot`
+    reads a run's tables). A later ``t`` carries every current leg on unchanged.
 
     The edges are the links as the channel makes them: with ``links`` (the run's runtime
     link solver, ``sim.link_events()``), the links up now, whatever the radio (shadowing,
@@ -116,6 +120,12 @@ def snapshot(
     range (one-way links appear once; the links of a solver, always two-way, appear both
     ways).
     """
+    began = float(state.t0_s.max(initial=-math.inf))
+    if t < began:
+        raise ValueError(
+            f"snapshot at t = {t:g} s: a robot's current leg began at {began:g} s, so its position then is not "
+            "held; take the snapshot while the run is at t"
+        )
     pos = state.positions_at(t)
     import networkx as nx
 

@@ -374,8 +374,9 @@ class Stack(AckTiming):
         roles = frames["roles"]
         out = leader_statistics(roles, n, duration_s)
         groups = frames["groups"]
-        if len(groups):
-            out["gateways_mean"] = gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy())
+        if len(self._groups):
+            samples = len(self._groups)
+            out["gateways_mean"] = gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy(), samples)
         acks = self.channel.counters_for("ack").sent.sum()
         data = self.channel.counters_for("data").sent.sum()
         out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
@@ -406,14 +407,14 @@ def ended_at(times: list[float], end_s: float) -> bool:
     return bool(times) and times[-1] >= end_s - 1e-9 * max(1.0, abs(end_s))
 
 
-def gateways_mean(t_s: np.ndarray, robot: np.ndarray) -> float:
-    """The mean number of robots in two groups or more per sample, over the samples of the
-    ``groups`` table with any row (its columns ``t_s`` and ``robot``: samples in time
-    order, each ordered by robot): a robot's rows of one sample are consecutive."""
+def gateways_mean(t_s: np.ndarray, robot: np.ndarray, samples: int) -> float:
+    """The mean number of robots in two groups or more per sample, over all ``samples``
+    the ``groups`` table was sampled at, those where no group existed (no row) counting 0
+    (its columns ``t_s`` and ``robot``: samples in time order, each ordered by robot): a
+    robot's rows of one sample are consecutive."""
     same = (t_s[1:] == t_s[:-1]) & (robot[1:] == robot[:-1])
     # A gateway's rows after its first: each run of them is one gateway.
     gateways = int(np.count_nonzero(same[1:] & ~same[:-1])) + int(same[:1].sum())
-    samples = int(np.count_nonzero(t_s[1:] != t_s[:-1])) + 1
     return gateways / samples
 
 

@@ -14,7 +14,7 @@ from netsim.protocols.clustering import ElectionPolicy, JoinPolicy, rules_record
 from netsim.protocols.roles import LEADER as ALPHA
 from netsim.protocols.roles import MEMBER, UNDECIDED
 
-from tests.fixtures import clustering
+from tests.fixtures import clustering, make_config
 from tests.oracles.protocols import (
     ack_effects,
     belief_counts,
@@ -451,21 +451,33 @@ def test_sample_in_two_halves_equals_one_pass(monkeypatch, radio):
 
 def test_gateways_mean_counts_robots_in_two_groups_per_sample():
     """``gateways_mean`` (the summary figure) is the mean over the sampled instants of the
-    robots with two rows or more in the ``groups`` table, as a groupby counts them; samples
-    without rows do not count."""
+    robots with two rows or more in the ``groups`` table, as a groupby counts them; a
+    sample without rows (no group yet) counts 0."""
     from netsim.protocols.stack import gateways_mean
 
     rng = np.random.default_rng(23)
+    times = np.arange(10.0)
     for _ in range(30):
         rows = []
-        for t in rng.choice(np.arange(10.0), int(rng.integers(1, 6)), replace=False).tolist():
+        for t in np.sort(rng.choice(times, int(rng.integers(1, 6)), replace=False)).tolist():
             for r in np.sort(rng.choice(20, int(rng.integers(1, 8)), replace=False)).tolist():
                 rows += [(t, r)] * int(rng.choice([1, 1, 2, 3]))
-        rows.sort(key=lambda x: x[0])
         groups = pd.DataFrame(rows, columns=["t_s", "robot"])
         per_robot = groups.groupby(["t_s", "robot"]).size()
-        expected = float((per_robot > 1).groupby(level="t_s").sum().mean())
-        assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy()) == expected
+        expected = float((per_robot > 1).groupby(level="t_s").sum().reindex(times, fill_value=0).mean())
+        assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy(), len(times)) == expected
+
+
+def test_gateways_mean_of_a_run_counts_the_samples_before_the_groups_formed(tmp_path):
+    """The first samples of a run come before any group: each counts 0 gateways."""
+    from netsim.run import execute
+
+    result = execute(make_config(world={"n_robots": 30}, duration_s=5.0, output={"position_interval_s": 1.0}))
+    groups, beliefs = result.frames["groups"], result.frames["beliefs"]
+    instants = np.unique(beliefs["t_s"])
+    assert len(instants) == 6 and groups["t_s"].min() > 0  # no group at t = 0
+    per = groups.groupby(["t_s", "robot"]).size().gt(1).groupby(level="t_s").sum()
+    assert result.summary["gateways_mean"] == pytest.approx(per.reindex(instants, fill_value=0).mean(), abs=1e-12)
 
 
 def _clustering_after(monkeypatch, seconds: float, compiled: bool, rows: bool = False, radio: bool = False):

@@ -1224,3 +1224,19 @@ def test_snapshot_nodes_carry_role_and_leader_only_with_groups():
         assert set(attrs) == {"pos", "role", "leader"}
         assert attrs["role"] == sim.groups.role_names[sim.groups.role[i]] and attrs["leader"] == sim.groups.leader[i]
     assert {attrs["role"] for _, attrs in full.nodes(data=True)} & {"alpha", "beta"}
+
+
+def test_a_snapshot_of_an_instant_the_state_no_longer_holds_is_refused():
+    """After the run, a robot's current leg began after 5 s: a snapshot at 5 s would place
+    it on that leg carried backwards (wrong by tens of metres), so it is refused; at the
+    run's present it is the positions table's last sample."""
+    keys = ["world.n_robots=30", "duration_s=60", "world.side_m=500", "mobility.speed_max_mps=10"]
+    sim = build(load(None, [*keys, "output.position_interval_s=5"]))
+    sim.run()
+    assert sim.state.t0_s.max() > 5.0
+    with pytest.raises(ValueError, match=r"snapshot at t = 5 s: a robot's current leg began at"):
+        snapshot(sim.state, 5.0)
+    p = collect(sim)["positions"]
+    last = p[p.t_s == p.t_s.max()].sort_values("robot")[["x_m", "y_m"]].to_numpy()
+    g = snapshot(sim.state, sim.now)
+    assert np.allclose([g.nodes[i]["pos"] for i in range(30)], last, atol=1e-9)
