@@ -369,6 +369,20 @@ def test_sweep_results_follow_the_umask(tmp_path):
         assert stat.S_IMODE(p.stat().st_mode) == 0o644, p
 
 
+@pytest.mark.parametrize("umask, mode", [(0o077, 0o600), (0o002, 0o664)])
+def test_the_replay_file_follows_the_umask(tmp_path, small_run, umask, mode):
+    """view.html is as readable as the run's other outputs: private under 077, group
+    writable under 002 (it was 0644 whatever the umask)."""
+    from netsim.tools import viewer
+
+    old = os.umask(umask)
+    try:
+        page = viewer.write(small_run, tmp_path / "view.html")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(page.stat().st_mode) == mode
+
+
 # -- traces, --set values ----------------------------------------------------------------
 def test_trace_node_beyond_n_robots_is_named(tmp_path, capfd):
     trace = tmp_path / "t.tcl"

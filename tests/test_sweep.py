@@ -183,6 +183,95 @@ def test_a_failing_run_is_recorded_and_the_others_finish(tmp_path):
     assert len(sweepmod.load(tmp_path)) == 1
 
 
+def test_a_directory_run_by_another_sweep_loads_the_latest_sweeps_runs_only(tmp_path):
+    """A script run again with other options into its folder: its table must hold this
+    sweep's runs, not the earlier ones pooled in; those stay, and are reused when their
+    sweep comes back."""
+    base = {**BASE, "duration_s": 5.0}
+
+    def sweep(speeds):
+        tree = {"name": "s", "tables": ["links"], "base": base, "grid": {"mobility.speed_max_mps": speeds}}
+        return sweepmod.parse(tree)
+
+    first, second = sweep([2.0, 4.0]), sweep([8.0])
+    sweepmod.run_sweep(first, tmp_path, progress=False)
+    sweepmod.run_sweep(second, tmp_path, progress=False)
+    assert sweepmod.load(tmp_path)["mobility.speed_max_mps"].tolist() == [8.0]
+    assert set(sweepmod.load_table(tmp_path, "links")["run_id"]) <= {r.run_id for r in second.runs()}
+    again = sweepmod.run_sweep(first, tmp_path, progress=False)
+    assert again.skipped == 2 and again.done == 0
+    assert sorted(sweepmod.load(tmp_path)["mobility.speed_max_mps"]) == [2.0, 4.0]
+
+
+@pytest.mark.parametrize("folder", ["runs", "tables/links"])
+def test_a_sweep_folder_whose_runs_cannot_be_written_is_refused_before_any_run(tmp_path, folder):
+    """A sweep resumed in a directory an earlier one made (a collaborator's, say) whose
+    folders it cannot write: refused in one line before a run is computed, not after."""
+    tree = {"name": "s", "tables": ["links"], "base": {**BASE, "duration_s": 5.0}}
+    sweepmod.run_sweep(sweepmod.parse({**tree, "grid": {"mobility.speed_max_mps": [2.0]}}), tmp_path, progress=False)
+    blocked = tmp_path / folder
+    for f in blocked.iterdir():
+        f.unlink()
+    blocked.rmdir()
+    blocked.write_text("in the way")  # as root, a mode would not bind; a file does
+    more = sweepmod.parse({**tree, "grid": {"mobility.speed_max_mps": [2.0, 4.0]}})
+    with pytest.raises(NetsimInputError, match=f"cannot be resumed: {blocked} cannot be written"):
+        sweepmod.run_sweep(more, tmp_path, progress=False)
+    other = tmp_path / ("tables/links" if folder == "runs" else "runs")
+    assert len(list(other.iterdir())) == 1  # the first sweep's run, and no other computed
+
+
+def test_ctrl_c_in_a_sweep_says_the_finished_runs_are_kept(tmp_path, monkeypatch, capsys):
+    from netsim.tools.cli import main
+
+    sweep_file = tmp_path / "s.toml"
+    sweep_file.write_text(
+        'name = "c"\n[base]\nduration_s = 5.0\n[base.world]\nn_robots = 8\n'
+        '[grid]\n"mobility.speed_max_mps" = [1.0, 2.0, 3.0]\n'
+    )
+    execute, calls = sweepmod._safe_execute, []
+
+    def interrupted_at_the_second(run, tables):
+        calls.append(run)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return execute(run, tables)
+
+    monkeypatch.setattr(sweepmod, "_safe_execute", interrupted_at_the_second)
+    out = tmp_path / "out"
+    code = main(["sweep", str(sweep_file), "--out", str(out), "--workers", "1", "--no-progress"])
+    err = capsys.readouterr().err
+    assert (
+        code == 130 and err == f"netsim: interrupted; the runs finished are kept in {out}/ (the same command resumes)\n"
+    )
+    assert len(list((out / "runs").iterdir())) == 1
+
+
+def test_random_integer_points_drawn_twice_run_once():
+    tree = {"base": BASE, "random": {"samples": 20, "seed": 1, "ranges": {"world.n_robots": [10, 100]}}}
+    with pytest.warns(UserWarning, match=r"\[random\] 20 samples drew 19 distinct points; each is run once"):
+        points = sweepmod.parse(tree).points
+    values = [p["world.n_robots"] for p in points]
+    assert len(values) == len(set(values)) == 19
+
+
+@pytest.mark.parametrize(
+    "axis, table",
+    [
+        ({"events.hooks": [[], ["link_breaks"]]}, "link_breaks"),
+        ({"channel.mac": ["none", "aloha"]}, "medium"),
+        ({"output.receptions": [False, True]}, "receptions"),
+    ],
+)
+def test_a_sweep_keeps_a_table_its_axis_switches_on(tmp_path, axis, table):
+    base = {**BASE, "duration_s": 5.0, "protocol": {"model": "ack"}}
+    sweep = sweepmod.parse({"name": "k", "tables": [table], "base": base, "grid": axis})
+    report = sweepmod.run_sweep(sweep, tmp_path, progress=False)
+    assert report.done == 2 and not report.failed
+    kept = sweepmod.load_table(tmp_path, table)
+    assert kept["run_id"].nunique() == 1  # the point that switched it on
+
+
 def test_aggregate_gives_means_and_t_intervals():
     df = pd.DataFrame({"v": [1, 1, 1, 2, 2, 2], "m": [1.0, 2.0, 3.0, 10.0, 10.0, 10.0]})
     agg = sweepmod.aggregate(df, ["v"], ["m"]).set_index("v")

@@ -313,14 +313,21 @@ def cmd_sweep(args) -> int:
     workers = args.workers or (os.cpu_count() or 1)
     if args.connect_timeout is not None and not args.connect_timeout > 0:
         raise NetsimInputError(f"--connect-timeout {args.connect_timeout}: must be > 0 seconds")
-    report = sweepmod.run_sweep(
-        sweep,
-        out,
-        workers=workers,
-        scheduler=args.scheduler,
-        progress=not args.no_progress,
-        connect_timeout_s=args.connect_timeout or sweepmod.CONNECT_TIMEOUT_S,
-    )
+    try:
+        report = sweepmod.run_sweep(
+            sweep,
+            out,
+            workers=workers,
+            scheduler=args.scheduler,
+            progress=not args.no_progress,
+            connect_timeout_s=args.connect_timeout or sweepmod.CONNECT_TIMEOUT_S,
+        )
+    except BaseException as exc:
+        # Every finished run is written as it ends, so an interrupted sweep did write.
+        if not interrupted(exc) or not (out / "sweep.json").is_file():
+            raise
+        print(f"netsim: interrupted; the runs finished are kept in {out}/ (the same command resumes)", file=sys.stderr)
+        return EXIT_INTERRUPTED
     print(report.text())
     print(f"results: {out}/ (load with netsim.tools.sweep.load({str(out)!r}))")
     return 1 if report.failed else 0

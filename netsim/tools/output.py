@@ -18,12 +18,13 @@ from __future__ import annotations
 import json
 import os
 import platform
+import secrets
 import shutil
 import signal
 import sys
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from importlib import metadata
@@ -161,9 +162,11 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Ite
             d.mkdir()
             created.append(d)
         doing = "cannot be written"
-        fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX, dir=out)
-        os.close(fd)
-        os.unlink(tmp)
+        _probe(out)
+        # A sweep resumed writes into the folders an earlier one made, perhaps someone else's.
+        for sub in _sweep_folders(out) if kind == "sweep" else ():
+            doing = f"cannot be resumed: {sub} cannot be written"
+            _probe(sub)
     except OSError as exc:
         _remove_empty(created)
         raise _unwritable(option, out, f"{doing} ({exc.strerror or exc})") from None
@@ -172,6 +175,23 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Ite
     except BaseException:
         _remove_empty(created)
         raise
+
+
+def _probe(folder: Path) -> None:
+    """Write and remove a file in ``folder``: raises the OSError that writing there would."""
+    fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX, dir=folder)
+    os.close(fd)
+    os.unlink(tmp)
+
+
+def _sweep_folders(out: Path) -> list[Path]:
+    """The folders of a sweep directory that already exist (or something else in their
+    place): ``runs``, ``failed``, ``tables`` and each table's."""
+    subs = [out / name for name in ("runs", "failed", "tables") if (out / name).exists()]
+    tables = out / "tables"
+    if tables.is_dir():
+        subs += sorted(p for p in tables.iterdir())
+    return subs
 
 
 def _missing_dirs(out: Path, option: str) -> list[Path]:
@@ -341,3 +361,16 @@ def manifest(config: Config, run: int, wall_s: float, argv=None) -> dict:
         "platform": platform.platform(),
         "versions": versions(),
     }
+
+
+def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
+    """Write through a temporary file beside ``path`` and rename it into place. The
+    temporary file is created by ``write`` itself, so it gets the mode every other output
+    gets (from the umask), not the private 0600 of :func:`tempfile.mkstemp`."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(6)}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -36,7 +36,6 @@ import itertools
 import json
 import math
 import os
-import secrets
 import signal
 import sys
 import tomllib
@@ -52,6 +51,7 @@ import pandas as pd
 
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
+from netsim.tools.output import write_atomically
 
 MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
 SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
@@ -160,15 +160,21 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
 
 def known_tables(base: cfgmod.Config) -> set[str]:
     """The tables a sweep on ``base`` may keep: those its runs write (the engine's and its
-    models', a user's controller's included), and those of every registered model, which
-    an axis may switch on."""
+    models', a user's controller's included), and those of every registered model, hook and
+    medium and the receptions, which an axis may switch on."""
     from netsim import plugins
+    from netsim.radio.models import MAC
+    from netsim.radio.receptions import RECEPTIONS_SCHEMA
     from netsim.run import tables
 
-    out = set(tables(base))
-    for group in (plugins.MOBILITY, plugins.PROTOCOLS, plugins.CONTROLLERS):
+    schemas = dict(tables(base))
+    schemas["receptions"] = dict(RECEPTIONS_SCHEMA)
+    for group in (plugins.MOBILITY, plugins.PROTOCOLS, plugins.CONTROLLERS, plugins.HOOKS):
         for plugin in plugins.registered(group).values():
-            out.update(plugin.tables)
+            schemas.update(plugin.tables)
+    out = set(schemas)
+    for mac in plugins.registered(MAC).values():
+        out.update(mac.tables(dict(schemas)))
     return out
 
 
@@ -226,7 +232,16 @@ def _random(spec, known: set[str]) -> list[dict]:
                 raise _err(f"[random.ranges] {key} = {bounds!r}: low and high must be finite (within ±1e308)")
             # Equal bounds (0.0 and -0.0 included, which numpy's uniform refuses) fix the value.
             columns[key] = [float(lo)] * samples if lo == hi else rng.uniform(lo, hi, samples).tolist()
-    return [{k: columns[k][i] for k in columns} for i in range(samples)]
+    points = [{k: columns[k][i] for k in columns} for i in range(samples)]
+    # Integer ranges draw the same point again: one run of it (replications repeat runs).
+    distinct = list({json.dumps(p, sort_keys=True): p for p in points}.values())
+    if len(distinct) < samples:
+        warnings.warn(
+            f"[random] {samples} samples drew {len(distinct)} distinct points; each is run once",
+            cfgmod.ConfigWarning,
+            stacklevel=2,
+        )
+    return distinct
 
 
 def load_file(path: str | Path) -> Sweep:
@@ -282,19 +297,6 @@ def _safe_execute(run: Run, tables) -> dict:
 
 
 # -- persistence ---------------------------------------------------------------------------
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Write through a temporary file beside ``path`` and rename it into place. The
-    temporary file is created by ``write`` itself, so it gets the mode every other output
-    gets (from the umask), not the private 0600 of :func:`tempfile.mkstemp`."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(6)}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def done_ids(out_dir: Path) -> set[str]:
     return {p.stem for p in (out_dir / "runs").glob("*.parquet")}
 
@@ -303,11 +305,11 @@ def _record(out_dir: Path, run: Run, outcome: dict) -> None:
     if outcome["ok"]:
         for name, frame in outcome["tables"].items():
             frame = frame.assign(run_id=run.run_id)
-            _atomic_write(
+            write_atomically(
                 out_dir / "tables" / name / f"{run.run_id}.parquet", lambda p, f=frame: f.to_parquet(p, index=False)
             )
         row = pd.DataFrame([outcome["row"]])
-        _atomic_write(out_dir / "runs" / f"{run.run_id}.parquet", lambda p: row.to_parquet(p, index=False))
+        write_atomically(out_dir / "runs" / f"{run.run_id}.parquet", lambda p: row.to_parquet(p, index=False))
         (out_dir / "failed" / f"{run.run_id}.json").unlink(missing_ok=True)
     else:
         info = {
@@ -317,7 +319,7 @@ def _record(out_dir: Path, run: Run, outcome: dict) -> None:
             "error": outcome["error"],
             "traceback": outcome["traceback"],
         }
-        _atomic_write(
+        write_atomically(
             out_dir / "failed" / f"{run.run_id}.json", lambda p: p.write_text(json.dumps(info, indent=2, default=str))
         )
 
@@ -391,8 +393,9 @@ def run_sweep(
                 "tables": list(sweep.tables),
                 "base": sweep.base,
                 "points": list(sweep.points),
+                "run_ids": ids,
             }
-            _atomic_write(out / "sweep.json", lambda p: p.write_text(json.dumps(description, indent=2, default=str)))
+            write_atomically(out / "sweep.json", lambda p: p.write_text(json.dumps(description, indent=2, default=str)))
             finished = done_ids(out)
             todo = [r for r in runs if r.run_id not in finished]
             failed: list[dict] = []
@@ -461,9 +464,24 @@ def run_script(main: Callable[[], object]) -> None:
         raise SystemExit(2) from None
 
 
+def _files(out_dir: Path, folder: Path) -> list[Path]:
+    """The run files in ``folder`` of the sweep last run in ``out_dir``. A directory keeps
+    the runs of every sweep run in it (run ids are content addresses, so a sweep run there
+    again reuses them), and ``sweep.json`` lists the latest sweep's; a directory from
+    before that list reads whole."""
+    files = sorted(folder.glob("*.parquet"))
+    try:
+        ids = json.loads((out_dir / "sweep.json").read_text())["run_ids"]
+    except (FileNotFoundError, KeyError):
+        return files
+    wanted = set(ids)
+    return [f for f in files if f.stem in wanted]
+
+
 def load(out_dir: str | Path) -> pd.DataFrame:
-    """Every finished run of a sweep as one tidy frame, one row per run, sorted by run id."""
-    files = sorted((Path(out_dir) / "runs").glob("*.parquet"))
+    """Every finished run of the sweep last run in ``out_dir`` as one tidy frame, one row
+    per run, sorted by run id (not the runs of other sweeps the directory keeps)."""
+    files = _files(Path(out_dir), Path(out_dir) / "runs")
     if not files:
         return pd.DataFrame()
     return (
@@ -472,8 +490,9 @@ def load(out_dir: str | Path) -> pd.DataFrame:
 
 
 def load_table(out_dir: str | Path, table: str) -> pd.DataFrame:
-    """A kept per-run table of every finished run, with its ``run_id``."""
-    files = sorted((Path(out_dir) / "tables" / table).glob("*.parquet"))
+    """A kept per-run table of every finished run of the sweep last run in ``out_dir``,
+    with its ``run_id``."""
+    files = _files(Path(out_dir), Path(out_dir) / "tables" / table)
     if not files:
         return pd.DataFrame()
     return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import html
 import json
-import os
 import re
-import tempfile
 from importlib import resources
 from pathlib import Path
 
+from netsim.tools.output import write_atomically
 from netsim.tools.viewer.data import MapGrid, pack
 
 __all__ = ["MapGrid", "page", "write"]
@@ -51,14 +50,5 @@ def write(run_dir: str | Path, out: str | Path | None = None, map_grid: MapGrid 
     """Write the replay of ``run_dir`` to ``out`` (default ``run_dir/view.html``)."""
     target = Path(out) if out is not None else Path(run_dir) / "view.html"
     text = page(run_dir, map_grid)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomically(target, lambda p: p.write_text(text, encoding="utf-8"))
     return target
