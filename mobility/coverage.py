@@ -135,10 +135,9 @@ from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import geometric_pairs
 from netsim.world.free_space import (
     free_fraction,
-    free_region,
     obstacle_field,
-    region_polygon,
     short_of_walls,
+    team_region,
     wall_forces,
 )
 
@@ -430,9 +429,7 @@ class CoverageController:
         # (docs/model.md 5.3): the covered fractions and the bound are over its area.
         self.region = None
         if parts.occupancy is not None:
-            cells = free_region(parts.occupancy, self.limits.box, st.positions_at(parts.env.now))
-            region = region_polygon(parts.occupancy, self.limits.box, cells)
-            self.region = region if region.area > 0 else None
+            self.region = team_region(parts.occupancy, self.limits.box, st.positions_at(parts.env.now))
         # The local plan: what each robot heard (netsim.mobility.local), the distance within which
         # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None

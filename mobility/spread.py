@@ -217,7 +217,11 @@ def plan_spread(
     centre = np.concatenate([centre, pos[movers]])
     radius = np.concatenate([radius, reach[movers]])
 
-    wanted = pass_on_pulls(pos, desired_mps, mobile, (i, j, d), np.maximum(keep, d), limits.period_s)
+    # A wish to move farther than the range in one step says only "away": a law that grows
+    # without bound at short range (inverse_square) would otherwise pull the whole team
+    # after one close pair, step after step.
+    bounded_mps = cap_length(desired_mps.copy(), limits.range_m / limits.period_s)
+    wanted = pass_on_pulls(pos, bounded_mps, mobile, (i, j, d), np.maximum(keep, d), limits.period_s)
     wish = np.zeros((n, 2))
     wish[movers] = cap_length(wanted[movers] * limits.period_s, reach[movers])
     end = project_into(pos + wish, robot, centre, radius, limits.box)

@@ -106,6 +106,22 @@ def test_both_ends_of_a_link_keep_to_their_half():
     assert plan.velocity_mps[:, 0] == pytest.approx([-0.5, 0.5], abs=1e-6)
 
 
+def test_pulls_count_a_wish_up_to_the_range_per_period():
+    """A chain A - B - C, taut: A wishes away from B a million m/s (the inverse-square law
+    between two robots a hair apart), C wishes sideways. A's wish counts up to the range
+    per period, so C still goes sideways as much as it is pulled, instead of being dragged
+    wholly after A's one close pair."""
+    pos = np.array([[500.0, 500.0], [598.0, 500.0], [696.0, 500.0]])
+    mobile, commander = np.ones(3, bool), np.full(3, -1)
+    limits = StepLimits(1.0, RC, 1.0, 2.0, 1000.0)
+    plans = [
+        plan_spread(pos, mobile, commander, np.array([[-a, 0.0], [0.0, 0.0], [0.0, 50.0]]), limits) for a in (RC, 1e6)
+    ]
+    v = plans[1].velocity_mps[2]
+    assert v[1] / np.hypot(*v) > 0.3
+    assert np.array_equal(plans[0].velocity_mps, plans[1].velocity_mps)
+
+
 def test_robots_stay_inside_the_area():
     pos = np.array([[3.0, 500.0]])
     wish = np.array([[-2.0, 1.0]])

@@ -152,3 +152,35 @@ def test_figures_draw_the_map_under_the_robots(tmp_path, capsys):
     open_space = grey_pixels(common, tmp_path / "open")
     # Antialiased text and lines have a few such pixels; walls have thousands.
     assert min(on_map) > 10 * max(open_space), (on_map, open_space)
+
+
+@pytest.mark.slow
+def test_fig8_on_a_map_gives_the_runs_own_covered_fraction_of_the_free_region(tmp_path, monkeypatch):
+    """On a map coverage is of the free region the team started in (docs/model.md 5.3): Fig. 8
+    says what the run's summary says, not the share of the whole square, walls included."""
+    import json
+    import re
+
+    import matplotlib.axes
+
+    titles = []
+    set_title = matplotlib.axes.Axes.set_title
+    monkeypatch.setattr(
+        matplotlib.axes.Axes,
+        "set_title",
+        lambda ax, text, *a, **k: (titles.append(text), set_title(ax, text, *a, **k))[1],
+    )
+    run = ["world.map=cave", "world.side_m=200", "world.n_robots=12", "duration_s=20", "mobility.model=static"]
+    run += ["coverage.enabled=true", "channel.range_m=40", "world.placement=uniform", "protocol.message_rate_hz=0"]
+    out = tmp_path / "cave"
+    assert (
+        main(["run", "--quiet", "--no-progress", "--out", str(out), "--seed", "2", *[f"--set={k}" for k in run]]) == 0
+    )
+    assert main(["figures", str(out), "--out", str(tmp_path / "figs")]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    title = next(t for t in titles if t.startswith("Fig. 8"))
+    covered, bound = (
+        float(x) for x in re.search(r"([\d.]+) % of the free region covered.* at most (\d+) %", title, re.S).groups()
+    )
+    assert covered == pytest.approx(100 * summary["covered_fraction_all_final"], abs=0.05)
+    assert bound == round(100 * summary["coverage_bound"])

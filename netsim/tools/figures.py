@@ -407,11 +407,19 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     if radius > 0:
-        covered, err = metrics.covered_fraction_exact(end.pos, radius, area)
-        bound = metrics.bound_fraction(n, radius, area, config.ranges_m())
+        # On a map, of the free region the team started in, as the run's coverage table.
+        region = None
+        if occupancy is not None:
+            from netsim.world.free_space import team_region
+
+            region = team_region(occupancy, area, snapshot(run, first).pos)
+        covered, err = metrics.covered_fraction_exact(end.pos, radius, area, region=region)
+        free_m2 = None if region is None else float(region.area)
+        bound = metrics.bound_fraction(n, radius, area, config.ranges_m(), free_area_m2=free_m2)
+        of = "the area" if region is None else "the free region"
         ax.set_title(
             f"Fig. 8  Deployment at t = {end.t_s:g} s with every robot's disk (r = {radius:g} m):\n"
-            f"{100 * covered:.1f} % of the area covered; a connected team covers at most {100 * bound:.0f} %"
+            f"{100 * covered:.1f} % of {of} covered; a connected team covers at most {100 * bound:.0f} %"
         )
         note = ""
     else:

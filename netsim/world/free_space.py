@@ -174,6 +174,13 @@ def free_region(m: OccupancyMap, area: float | Bounds, points_m) -> np.ndarray:
     return np.isin(labels, seeds[seeds > 0])
 
 
+def team_region(m: OccupancyMap, area: float | Bounds, points_m):
+    """The free region of a team standing at ``points_m`` as one shapely geometry, or None
+    when it has no area: what coverage on a map is judged over (docs/model.md 5.3)."""
+    region = region_polygon(m, area, free_region(m, area, points_m))
+    return region if region.area > 0 else None
+
+
 def region_polygon(m: OccupancyMap, area: float | Bounds, region: np.ndarray):
     """The cells of ``region`` (a mask of :func:`free_region`) clipped to the area, as one
     shapely geometry: a rectangle per run of cells in a row, runs equal in consecutive rows
