@@ -14,7 +14,7 @@ The covered fraction is sampled exactly (``coverage.area_method = "exact"``) at 
 robots and on the grid at 1,000 (an exact sample takes about 0.7 s there); the final
 value in the table is exact in both cases.
 
-    python benchmarks/coverage_runs.py                 # N = 200 and 1000 (a minute or two)
+    python benchmarks/coverage_runs.py                 # N = 200 and 1000
     python benchmarks/coverage_runs.py --n 200 --duration 900
 """
 

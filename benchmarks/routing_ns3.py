@@ -33,7 +33,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-from netsim.tools.args import Parser
+try:
+    from netsim.tools.args import Parser
+except ImportError:  # ns-3's own Python, where this script also runs (--side ns3), has no netsim
+    from argparse import ArgumentParser as Parser
 
 SCENARIOS = {
     # name: (positions, range_m, src, dsts: a flow to each); positions None: the mobile
@@ -266,10 +269,12 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--trace", default="", help="the mobile team's ns-2 trace (default: written anew)")
     args = p.parse_args()
+    if args.side != "both" and (len(args.only) != 1 or len(args.protocols) != 1):
+        p.error(f"--side {args.side} runs one scenario and one protocol: give --only NAME --protocols NAME")
     if args.side == "both" and not Path(args.ns3_python).is_file():
         p.error(
             f"--ns3-python {args.ns3_python}: no such file (bash benchmarks/ns3_env.sh .ns3venv makes it;"
-            " --side netsim runs netsim's side alone)"
+            " --side netsim --only NAME --protocols NAME runs netsim's side alone)"
         )
     if "mobile" in args.only and not args.trace:
         with tempfile.TemporaryDirectory() as tmp:

@@ -124,4 +124,4 @@ def main(argv=None) -> None:
 
 
 if __name__ == "__main__":
-    sweepmod.run_script(main)
+    sweepmod.run_script(main, resumable=True)

@@ -197,7 +197,7 @@ def test_a_directory_run_by_another_sweep_loads_the_latest_sweeps_runs_only(tmp_
     sweepmod.run_sweep(first, tmp_path, progress=False)
     sweepmod.run_sweep(second, tmp_path, progress=False)
     assert sweepmod.load(tmp_path)["mobility.speed_max_mps"].tolist() == [8.0]
-    assert set(sweepmod.load_table(tmp_path, "links")["run_id"]) <= {r.run_id for r in second.runs()}
+    assert set(sweepmod.load_table(tmp_path, "links")["run_id"]) == {r.run_id for r in second.runs()}
     again = sweepmod.run_sweep(first, tmp_path, progress=False)
     assert again.skipped == 2 and again.done == 0
     assert sorted(sweepmod.load(tmp_path)["mobility.speed_max_mps"]) == [2.0, 4.0]
@@ -245,6 +245,41 @@ def test_ctrl_c_in_a_sweep_says_the_finished_runs_are_kept(tmp_path, monkeypatch
         code == 130 and err == f"netsim: interrupted; the runs finished are kept in {out}/ (the same command resumes)\n"
     )
     assert len(list((out / "runs").iterdir())) == 1
+
+
+@pytest.mark.parametrize(
+    "resumable, said", [(True, "; the runs finished are kept (the same command resumes)"), (False, "")]
+)
+def test_ctrl_c_in_an_experiment_script_is_one_line_and_130(monkeypatch, capsys, resumable, said):
+    monkeypatch.setattr(sys, "argv", ["cluster_stability.py"])
+
+    def main():
+        raise KeyboardInterrupt
+
+    with pytest.raises(SystemExit) as exit_:
+        sweepmod.run_script(main, resumable=resumable)
+    assert exit_.value.code == 130
+    assert capsys.readouterr().err == f"cluster_stability.py: interrupted{said}\n"
+
+
+@pytest.mark.parametrize("text", ["[]", "", '{"run_ids": null}', "{not json"])
+def test_a_sweep_json_that_lists_no_runs_loads_the_whole_folder(tmp_path, text):
+    """A sweep.json from before it listed the runs, or one damaged: every run is read."""
+    sweep = sweepmod.parse(
+        {"name": "s", "base": {**BASE, "duration_s": 5.0}, "grid": {"mobility.speed_max_mps": [2.0]}}
+    )
+    sweepmod.run_sweep(sweep, tmp_path, progress=False)
+    (tmp_path / "sweep.json").write_text(text)
+    assert len(sweepmod.load(tmp_path)) == 1
+
+
+def test_a_stray_file_among_the_tables_does_not_stop_a_resume(tmp_path):
+    tree = {"name": "s", "tables": ["links"], "base": {**BASE, "duration_s": 5.0}}
+    sweepmod.run_sweep(sweepmod.parse({**tree, "grid": {"mobility.speed_max_mps": [2.0]}}), tmp_path, progress=False)
+    (tmp_path / "tables" / "NOTES.txt").write_text("mine")
+    more = sweepmod.parse({**tree, "grid": {"mobility.speed_max_mps": [2.0, 4.0]}})
+    report = sweepmod.run_sweep(more, tmp_path, progress=False)
+    assert report.skipped == 1 and report.done == 1
 
 
 def test_random_integer_points_drawn_twice_run_once():

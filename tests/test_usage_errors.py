@@ -75,9 +75,20 @@ def status(argv: list[str]) -> int:
     [
         ("benchmarks/routing_ns3.py", ["--ns3-python", "no/such/python"], "--ns3-python no/such/python: no such file"),
         ("benchmarks/replay.py", ["--size", "12x", "--no-browser"], "--size '12x': WIDTHxHEIGHT"),
+        ("benchmarks/routing_ns3.py", ["--side", "netsim"], "--side netsim runs one scenario and one protocol"),
     ],
 )
 def test_a_benchmark_refuses_what_it_cannot_run_in_one_line(tmp_path, path, args, said):
     run = subprocess.run([sys.executable, str(ROOT / path), *args], capture_output=True, text=True, cwd=tmp_path)
     assert run.returncode == 2 and len(run.stderr.splitlines()) == 1 and said in run.stderr, run.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_ns3_side_of_the_routing_comparison_runs_without_netsim():
+    """benchmarks/routing_ns3.py runs itself in ns-3's own Python, which has no netsim."""
+    code = (
+        "import runpy, sys; sys.modules['netsim'] = None; sys.argv = ['routing_ns3.py', '--help']; "
+        f"runpy.run_path({str(ROOT / 'benchmarks' / 'routing_ns3.py')!r}, run_name='__main__')"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0 and "--ns3-python" in run.stdout, run.stderr

@@ -283,7 +283,7 @@ def check_out_file(path: Path, option: str, make_parents: bool = False, replace:
     file is never overwritten silently. With ``make_parents`` the directory may be missing,
     to be made by the writer: then its nearest existing ancestor must be a writable
     directory."""
-    import tempfile
+    from netsim.tools.output import probe_writable
 
     if path.is_dir():
         raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
@@ -296,9 +296,7 @@ def check_out_file(path: Path, option: str, make_parents: bool = False, replace:
         what = "is a file" if parent.exists() else "does not exist"
         raise NetsimInputError(f"{option} {path}: the directory {parent} {what}")
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", dir=parent)
-        os.close(fd)
-        os.unlink(probe)
+        probe_writable(parent)
     except OSError as exc:
         raise NetsimInputError(f"{option} {path}: cannot write in {parent} ({exc.strerror or exc})") from None
 

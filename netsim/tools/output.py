@@ -24,7 +24,7 @@ import signal
 import sys
 import tempfile
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from importlib import metadata
@@ -135,14 +135,16 @@ def _unwritable(option: str, path: Path, why: str) -> NetsimInputError:
 
 
 @contextmanager
-def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Iterator[Path]:
+def claim_dir(path: str | Path, option: str = "--out", kind: str = "any", tables: Sequence[str] = ()) -> Iterator[Path]:
     """Make sure ``path`` can take results before the work starts; undo on failure.
 
     The directory (and any missing parents) is created and a probe file written and
     removed in it, so every reason it could not take the results (a file in the way, no
     permission, a read-only file system) shows now, as a :class:`NetsimInputError`,
     instead of after the work. ``kind = "run"`` also refuses a non-empty directory that
-    holds no run (:func:`check_run_dir`), ``"sweep"`` one that holds no sweep. If the
+    holds no run (:func:`check_run_dir`), ``"sweep"`` one that holds no sweep (and probes
+    the folders a sweep resumed there writes: ``runs``, ``failed`` and the kept ``tables``'
+    own, those that exist). If the
     body raises, the directories created here are removed again (when empty), so a
     failed command leaves nothing behind.
     """
@@ -162,11 +164,11 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Ite
             d.mkdir()
             created.append(d)
         doing = "cannot be written"
-        _probe(out)
+        probe_writable(out)
         # A sweep resumed writes into the folders an earlier one made, perhaps someone else's.
-        for sub in _sweep_folders(out) if kind == "sweep" else ():
+        for sub in _sweep_folders(out, tables) if kind == "sweep" else ():
             doing = f"cannot be resumed: {sub} cannot be written"
-            _probe(sub)
+            probe_writable(sub)
     except OSError as exc:
         _remove_empty(created)
         raise _unwritable(option, out, f"{doing} ({exc.strerror or exc})") from None
@@ -177,21 +179,18 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any") -> Ite
         raise
 
 
-def _probe(folder: Path) -> None:
+def probe_writable(folder: Path) -> None:
     """Write and remove a file in ``folder``: raises the OSError that writing there would."""
     fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX, dir=folder)
     os.close(fd)
     os.unlink(tmp)
 
 
-def _sweep_folders(out: Path) -> list[Path]:
-    """The folders of a sweep directory that already exist (or something else in their
-    place): ``runs``, ``failed``, ``tables`` and each table's."""
-    subs = [out / name for name in ("runs", "failed", "tables") if (out / name).exists()]
-    tables = out / "tables"
-    if tables.is_dir():
-        subs += sorted(p for p in tables.iterdir())
-    return subs
+def _sweep_folders(out: Path, tables: Sequence[str]) -> list[Path]:
+    """The folders a sweep resumed in ``out`` writes that already exist (or something else
+    in their place): ``runs``, ``failed``, ``tables`` and the kept ``tables``' own."""
+    names = ["runs", "failed", "tables", *(f"tables/{t}" for t in tables)]
+    return [out / name for name in names if (out / name).exists()]
 
 
 def _missing_dirs(out: Path, option: str) -> list[Path]:

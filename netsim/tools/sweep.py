@@ -41,7 +41,7 @@ import sys
 import tomllib
 import traceback
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,20 +79,24 @@ class Sweep:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", cfgmod.ConfigWarning)
             for point in self.points:
-                tree = self.base
-                for key, value in point.items():
-                    tree = cfgmod.merge(tree, cfgmod.nest(key, value))
-                try:
-                    config = cfgmod.from_dict(tree)
-                except ConfigError as exc:
-                    raise NetsimInputError(f"sweep point {point}: {exc}") from None
-                resolved = cfgmod.to_dict(config)
+                resolved = cfgmod.to_dict(point_config(self.base, point))
                 for rep in range(self.replications):
                     out.append(Run(run_id(resolved, rep), point, rep, resolved))
         # The keys a point's model does not use: said once, not once per point.
         for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, cfgmod.ConfigWarning)):
             warnings.warn(message, cfgmod.ConfigWarning, stacklevel=2)
         return out
+
+
+def point_config(base: dict, point: dict) -> cfgmod.Config:
+    """The configuration of ``point`` (dotted keys and values) over the scenario tree ``base``."""
+    tree = base
+    for key, value in point.items():
+        tree = cfgmod.merge(tree, cfgmod.nest(key, value))
+    try:
+        return cfgmod.from_dict(tree)
+    except ConfigError as exc:
+        raise NetsimInputError(f"sweep point {point}: {exc}") from None
 
 
 def run_id(resolved_config: dict, replication: int) -> str:
@@ -148,33 +152,28 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
         raise _err(f"[base] {exc}") from None
     if ("grid" in tree) == ("random" in tree):
         raise _err("give exactly one of [grid] and [random]")
-    writable = known_tables(base_config)
-    if any(t not in writable for t in tables):
-        raise _err(f"tables = {tables!r}: must be a list drawn from {sorted(writable)}")
     known = set(cfgmod.all_keys(base_config))
     points = _grid(tree["grid"], known) if "grid" in tree else _random(tree["random"], known)
+    if tables:
+        writable = known_tables(base, points)
+        if any(t not in writable for t in tables):
+            raise _err(f"tables = {tables!r}: must be a list drawn from {sorted(writable)}")
     if len(points) * reps > MAX_RUNS:
         raise _err(f"{len(points):,} points x {reps:,} replications: at most {MAX_RUNS:,} runs in one sweep")
     return Sweep(name, reps, tuple(tables), base, tuple(points))
 
 
-def known_tables(base: cfgmod.Config) -> set[str]:
-    """The tables a sweep on ``base`` may keep: those its runs write (the engine's and its
-    models', a user's controller's included), and those of every registered model, hook and
-    medium and the receptions, which an axis may switch on."""
-    from netsim import plugins
-    from netsim.radio.models import MAC
-    from netsim.radio.receptions import RECEPTIONS_SCHEMA
+def known_tables(base: dict, points: Sequence[dict] = ()) -> set[str]:
+    """The tables a sweep on the scenario tree ``base`` may keep: those its runs write, over
+    the base and every point (a point may switch on a model, a hook, a medium or the
+    receptions)."""
     from netsim.run import tables
 
-    schemas = dict(tables(base))
-    schemas["receptions"] = dict(RECEPTIONS_SCHEMA)
-    for group in (plugins.MOBILITY, plugins.PROTOCOLS, plugins.CONTROLLERS, plugins.HOOKS):
-        for plugin in plugins.registered(group).values():
-            schemas.update(plugin.tables)
-    out = set(schemas)
-    for mac in plugins.registered(MAC).values():
-        out.update(mac.tables(dict(schemas)))
+    out = set(tables(point_config(base, {})))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", cfgmod.ConfigWarning)  # said once, by Sweep.runs
+        for point in points:
+            out.update(tables(point_config(base, point)))
     return out
 
 
@@ -237,7 +236,8 @@ def _random(spec, known: set[str]) -> list[dict]:
     distinct = list({json.dumps(p, sort_keys=True): p for p in points}.values())
     if len(distinct) < samples:
         warnings.warn(
-            f"[random] {samples} samples drew {len(distinct)} distinct points; each is run once",
+            f"[random] {samples} samples drew {len(distinct)} distinct point{'s' if len(distinct) != 1 else ''};"
+            " each is run once",
             cfgmod.ConfigWarning,
             stacklevel=2,
         )
@@ -384,7 +384,7 @@ def run_sweep(
     ids = [r.run_id for r in runs]
     if len(set(ids)) != len(ids):
         raise _err("two points resolve to the same configuration (duplicate values in [grid]?)")
-    with claim_dir(out_dir, "--out", kind="sweep") as out:
+    with claim_dir(out_dir, "--out", kind="sweep", tables=sweep.tables) as out:
         client = connect(scheduler, connect_timeout_s) if isinstance(scheduler, str) else scheduler
         try:
             description = {
@@ -454,14 +454,24 @@ def add_runner_arguments(parser, name: str, reps: int) -> None:
     parser.add_argument("--out", default=f"experiments-out/{name}", help="output directory")
 
 
-def run_script(main: Callable[[], object]) -> None:
-    """Run a sweep script's ``main``: bad input (a malformed option, an unreachable
-    scheduler) is one line on stderr and exit status 2, as with ``netsim``."""
+def run_script(main: Callable[[], object], resumable: bool = False) -> None:
+    """Run a script's ``main``: bad input (a malformed option, an unreachable scheduler) is
+    one line on stderr and exit status 2, and Ctrl-C one line and status 130, as with
+    ``netsim``; ``resumable``: the script runs sweeps, whose finished runs are kept."""
+    from netsim.tools.interrupt import EXIT_INTERRUPTED, interrupted
+
+    name = Path(sys.argv[0]).name
     try:
         main()
     except NetsimInputError as exc:
-        print(f"{Path(sys.argv[0]).name}: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
+    except BaseException as exc:
+        if isinstance(exc, SystemExit) or not interrupted(exc):
+            raise
+        kept = "; the runs finished are kept (the same command resumes)" if resumable else ""
+        print(f"{name}: interrupted{kept}", file=sys.stderr)
+        raise SystemExit(EXIT_INTERRUPTED) from None
 
 
 def _files(out_dir: Path, folder: Path) -> list[Path]:
@@ -471,10 +481,12 @@ def _files(out_dir: Path, folder: Path) -> list[Path]:
     before that list reads whole."""
     files = sorted(folder.glob("*.parquet"))
     try:
-        ids = json.loads((out_dir / "sweep.json").read_text())["run_ids"]
-    except (FileNotFoundError, KeyError):
+        ids = json.loads((out_dir / "sweep.json").read_text()).get("run_ids")
+    except (OSError, ValueError, AttributeError):  # none, unreadable, not JSON, not a table
         return files
-    wanted = set(ids)
+    if not isinstance(ids, list):
+        return files
+    wanted = set(map(str, ids))
     return [f for f in files if f.stem in wanted]
 
 
