@@ -16,13 +16,16 @@ sensitivity. The truncated log keeps the received rows; the censored one keeps e
 
 from __future__ import annotations
 
-import argparse
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from netsim.errors import NetsimInputError
 from netsim.radio.propagation import LogDistanceParams, path_loss_db
 from netsim.radio.shadowing import PairShadowing
+from netsim.tools.args import Parser
+from netsim.tools.cli import check_out_file
 
 TRUTH = LogDistanceParams(
     tx_power_dbm=20.0,
@@ -143,11 +146,17 @@ def comparison(seeds: int) -> str:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3, help="logs of each kind to fit (seeds 0, 1, ...)")
     ap.add_argument("--write", metavar="FILE.csv", help="only write the received-only log of seed 0 as CSV")
     args = ap.parse_args(argv)
+    if args.seeds < 1:
+        ap.error(f"--seeds {args.seeds}: at least 1")
     if args.write:
+        try:
+            check_out_file(Path(args.write), "--write")
+        except NetsimInputError as exc:
+            ap.error(str(exc))
         synth_log(0).to_csv(args.write, index=False)
         print(f"wrote {args.write}")
         return

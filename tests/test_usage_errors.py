@@ -92,3 +92,25 @@ def test_the_ns3_side_of_the_routing_comparison_runs_without_netsim():
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.returncode == 0 and "--ns3-python" in run.stdout, run.stderr
+
+
+@pytest.mark.parametrize(
+    "argv, said",
+    [
+        (["--seeds", "0"], "--seeds 0: at least 1"),
+        (["--write", "no/such/dir/site.csv"], "the directory no/such/dir does not exist"),
+        (["--write", "mine.csv"], "--write mine.csv: exists already"),
+    ],
+)
+def test_the_calibration_log_maker_refuses_bad_input_in_one_line(tmp_path, monkeypatch, capsys, argv, said):
+    """`python -m tests.calibration_logs`, which the README runs to make a log."""
+    from tests.calibration_logs import main as make_logs
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.csv").write_text("a user's file")
+    with pytest.raises(SystemExit) as exit_:
+        make_logs(argv)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and len(err.splitlines()) == 1 and said in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.csv"]
+    assert (tmp_path / "mine.csv").read_text() == "a user's file"
