@@ -135,6 +135,14 @@ EVENT_NAMES = (
 LINK_EVENTS = ("link_up", "link_down")
 
 
+def notify(subscribers: list[Callable], event: object) -> None:
+    """Call each of ``subscribers`` with ``event``. The list is read before the first call,
+    so a subscriber that unsubscribes itself (or another) while called makes none of the
+    others miss the event."""
+    for fn in tuple(subscribers):
+        fn(event)
+
+
 class EventBus:
     """Subscribers by event name; components emit, subscribers are called in the order
     they subscribed, at the simulated instant of the event (``sim.now``)."""
@@ -160,7 +168,11 @@ class EventBus:
         return fn
 
     def off(self, name: str, fn: Callable) -> None:
-        """Stop calling ``fn`` on ``name``."""
+        """Stop calling ``fn`` on ``name`` (also from inside a subscriber: :func:`notify`)."""
+        if name not in self._subscribers:
+            raise ValueError(f"unknown event {name!r}; events are " + ", ".join(EVENT_NAMES))
+        if fn not in self._subscribers[name]:
+            raise ValueError(f"{getattr(fn, '__name__', fn)!r} is not subscribed to {name!r}")
         self._subscribers[name].remove(fn)
 
     def wants(self, name: str) -> bool:
@@ -173,5 +185,4 @@ class EventBus:
         return self._subscribers[name]
 
     def emit(self, name: str, event: object) -> None:
-        for fn in self._subscribers[name]:
-            fn(event)
+        notify(self._subscribers[name], event)

@@ -83,6 +83,9 @@ class Simulation:
         self.driver: Driver | None = None
         self.neighbour_view: NeighbourView | None = None
         self.messenger: Messenger | None = None
+        # Why the run cannot go on: an exception escaped it (a subscriber's, say) and left
+        # its events half made.
+        self._stopped_by: str | None = None
 
     @property
     def models(self) -> MappingProxyType:
@@ -190,6 +193,9 @@ class Simulation:
         if self._live is None:
             from netsim.live import LiveTopology
 
+            if self.events.started:
+                # Built from the link events as they come: begun late it would lack the links up.
+                raise RuntimeError("the live topology must be asked for before the run starts")
             self.link_events()
             self._live = LiveTopology(self.env, self.state, self.events, self.groups)
             self.add_model("live_topology", self._live)
@@ -233,9 +239,23 @@ class Simulation:
 
         ``until_s`` must lie in ``[now, duration_s]``: anything else (later than the run's
         end, earlier than now, NaN) raises :class:`~netsim.cosim.CommandError` (a
-        ``ValueError``) naming it, and the run is left as it was.
+        ``ValueError``) naming it, and the run is left as it was. An exception raised inside
+        the run (by a subscriber, say, or Ctrl-C) ends it: the event it interrupted was made
+        only in part, so a later ``run`` raises :class:`~netsim.cosim.CommandError`;
+        :func:`netsim.run.collect` still gives the tables as they stood.
         """
+        if self._stopped_by is not None:
+            raise CommandError(f"the run cannot go on: {self._stopped_by}; build it again")
         until = self.duration_s if until_s is None else self._until(until_s)
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise CommandError(f"steps = {steps!r}: must be a whole number >= 1")
+        try:
+            self._advance(until, progress, steps)
+        except BaseException as exc:
+            self._stopped_by = f"{type(exc).__name__} was raised inside it at t = {self.env.now:g} s"
+            raise
+
+    def _advance(self, until: float, progress: bool, steps: int) -> None:
         if not self.events.started:
             self._begin()
         start = self.env.now

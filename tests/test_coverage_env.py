@@ -481,3 +481,17 @@ def test_link_quality_without_a_power_is_refused():
     with pytest.raises(ConfigError, match="link_quality") as err:
         coverage_v0.parallel_env(n_robots=4, link_quality=True)
     assert "\n" not in str(err.value)
+
+
+def test_a_refused_reset_leaves_the_environment_as_it_was():
+    """reset(seed=-1) is refused; the next reset() is the next episode of the seed given
+    before, as if the refused call had not been made."""
+    env = coverage_v0.parallel_env(n_robots=6, max_cycles=5)
+    env.reset(seed=3)
+    with pytest.raises(ConfigError, match="seed = -1"):
+        env.reset(seed=-1)
+    obs, _ = env.reset()
+    again = coverage_v0.parallel_env(n_robots=6, max_cycles=5)
+    again.reset(seed=3)
+    expected, _ = again.reset()
+    assert all(np.array_equal(obs[a], expected[a]) for a in obs)

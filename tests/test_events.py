@@ -1240,3 +1240,73 @@ def test_a_snapshot_of_an_instant_the_state_no_longer_holds_is_refused():
     last = p[p.t_s == p.t_s.max()].sort_values("robot")[["x_m", "y_m"]].to_numpy()
     g = snapshot(sim.state, sim.now)
     assert np.allclose([g.nodes[i]["pos"] for i in range(30)], last, atol=1e-9)
+
+
+KEYS_15 = ["world.n_robots=15", "world.side_m=300", "world.placement='centre'", "world.centre_side_m=60"]
+KEYS_15 += ["channel.range_m=40", "protocol.message_rate_hz=0", "duration_s=60"]
+
+
+def test_a_run_a_subscriber_raised_in_cannot_go_on():
+    """The event it interrupted was made in part (the other subscribers and the rest of the
+    instant never saw it): going on would stop early and lose events silently, so a later
+    run refuses in one line; collect still gives the tables."""
+    from netsim.cosim import CommandError
+
+    sim = build(load(None, KEYS_15))
+    downs = []
+
+    def on_down(ev):
+        downs.append(ev)
+        if len(downs) == 1:
+            raise RuntimeError("a bug in my callback")
+
+    sim.events.on("link_down", on_down)
+    with pytest.raises(RuntimeError, match="a bug in my callback"):
+        sim.run(until_s=20)
+    stopped = sim.now
+    with pytest.raises(CommandError, match=r"the run cannot go on: RuntimeError was raised inside it at t = "):
+        sim.run(until_s=60)
+    assert sim.now == stopped
+    assert len(collect(sim)["links"]) > 0
+
+
+def test_a_subscriber_that_unsubscribes_while_called_makes_no_other_miss_the_event():
+    sim = build(load(None, KEYS_15))
+    got_a, got_b = [], []
+
+    def a(ev):
+        got_a.append(ev)
+        sim.events.off("course_change", a)
+
+    sim.events.on("course_change", a)
+    sim.events.on("course_change", got_b.append)
+    sim.run(until_s=5)
+    assert len(got_a) == 1 and got_b[0] == got_a[0]
+
+
+def test_unsubscribing_what_is_not_subscribed_is_one_clear_error():
+    sim = build(load(None, KEYS_15))
+    with pytest.raises(ValueError, match="unknown event 'linkdown'"):
+        sim.events.off("linkdown", print)
+    with pytest.raises(ValueError, match="is not subscribed to 'link_down'"):
+        sim.events.off("link_down", print)
+
+
+def test_a_live_topology_asked_for_after_the_run_started_is_refused_even_with_runtime_links_on():
+    """It is built from the link events as they come: begun late it would lack every link
+    already up (and give the summary wrong averages)."""
+    sim = build(load(None, [*KEYS_15, "events.runtime_links='on'"]))
+    sim.run(until_s=2)
+    with pytest.raises(RuntimeError, match="the live topology must be asked for before the run starts"):
+        sim.live_topology()
+
+
+@pytest.mark.parametrize("steps", [0, -5, 2.5])
+def test_run_with_progress_refuses_steps_below_one(steps):
+    from netsim.cosim import CommandError
+
+    sim = build(load(None, KEYS_15))
+    with pytest.raises(CommandError, match="steps = "):
+        sim.run(until_s=10, progress=True, steps=steps)
+    sim.run(until_s=10)  # a refused call leaves the run able to go on
+    assert sim.now == 10

@@ -164,16 +164,16 @@ class CoverageEnv(ParallelEnv):
         """A new episode: the run of ``(seed, episode)``, ``episode`` counting the resets
         since the last seed given (so ``reset()`` after ``reset(seed=s)`` is a new episode,
         the same on every replay)."""
-        if seed is not None:
-            self._seed, self._episode = int(seed), 0
-        else:
-            self._episode += 1
-        config = self._config(self._seed)
+        # Nothing changes until the new episode is known to be good: a refused reset leaves
+        # the environment as it was.
+        seed_, episode = (int(seed), 0) if seed is not None else (self._seed, self._episode + 1)
+        config = self._config(seed_)
         # max_cycles may have changed since the environment was made: checked again.
         problem = refused(config, dataclasses.replace(self.params, max_cycles=self.max_cycles))
         if problem is not None:
             raise ConfigError(*problem)
-        self.sim = sim = build(config, run=self._episode)
+        self.sim = sim = build(config, run=episode)
+        self._seed, self._episode = seed_, episode
         if sim.groups is not None:
             self.role_names = tuple(sim.groups.role_names)
         if sim.link_solver is not None:

@@ -41,7 +41,7 @@ import numpy as np
 import simpy
 
 from netsim.compiled import load
-from netsim.events import EventBus, LinkDown, LinkUp
+from netsim.events import EventBus, LinkDown, LinkUp, notify
 from netsim.geometry import near_pairs
 from netsim.links._kernels import PHASE_STATE
 from netsim.scheduling import FIRST, LAST, advance_clock, kernel_queue, scheduled_event
@@ -440,14 +440,12 @@ class RuntimeLinks:
                 up[key] = t
                 if on_up:
                     up_event = new(LinkUp, (t, a, b))
-                    for fn in on_up:
-                        fn(up_event)
+                    notify(on_up, up_event)
             else:
                 t_up = up.pop(key, None)
                 if t_up is None:
                     continue
                 if on_down:
                     down_event = new(LinkDown, (t, a, b, t_up))
-                    for fn in on_down:
-                        fn(down_event)
+                    notify(on_down, down_event)
         self._qi = qi

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import simpy
 
-from netsim.events import EventBus, LinkDown, LinkUp
+from netsim.events import EventBus, LinkDown, LinkUp, notify
 from netsim.links.kinetic import RuntimeLinks, up_pairs
 from netsim.radio.reception import LinkRecorder
 from netsim.state import RobotState
@@ -79,8 +79,7 @@ class ShadowedLinks:
     def _end(self, key: int, t_up: float, t_down: float) -> None:
         if self._on_down:
             event = LinkDown(t_down, *divmod(key, self.n), t_up)
-            for fn in self._on_down:
-                fn(event)
+            notify(self._on_down, event)
 
     def _decided(self, t: float, sender: int, robots: list[int], now_up: list[bool], touched: list[int]) -> None:
         n, up = self.n, self.up
@@ -100,8 +99,7 @@ class ShadowedLinks:
         if self._on_up:
             a, b = divmod(key, self.n)
             event = LinkUp(t, a, b)
-            for fn in self._on_up:
-                fn(event)
+            notify(self._on_up, event)
         since = self.envelope.up.get(key)
         if since is None and key in self._left:
             # Up while the pair is beyond the reach by the envelope's account (by rounding, at

@@ -36,7 +36,7 @@ from typing import cast
 import numpy as np
 import simpy
 
-from netsim.events import EventBus, LinkDown, LinkUp
+from netsim.events import EventBus, LinkDown, LinkUp, notify
 from netsim.links.kinetic import RuntimeLinks, up_pairs
 from netsim.links.wall_sweeps import CHUNK_M, Stretches, count_below, envelope_radii, map_radio
 from netsim.radio.reception import Reception
@@ -135,16 +135,14 @@ class WalledLinks:
             self.up[key] = t
             if self.on_up and not self._quiet:
                 event = LinkUp(t, *divmod(key, self.n))
-                for fn in self.on_up:
-                    fn(event)
+                notify(self.on_up, event)
             return
         t_up = self.up.pop(key, None)
         if t_up is None:
             return
         if self.on_down and not self._quiet:
             down = LinkDown(t, *divmod(key, self.n), t_up)
-            for fn in self.on_down:
-                fn(down)
+            notify(self.on_down, down)
 
     # -- the envelope ------------------------------------------------------------------
     def _entered(self, event: LinkUp) -> None:

@@ -49,7 +49,7 @@ import pandas as pd
 import simpy
 
 from netsim.agenda import Agenda
-from netsim.events import Delivery, Drop, EventBus
+from netsim.events import Delivery, Drop, EventBus, notify
 from netsim.radio.loss import Survives
 from netsim.radio.spatial import RangeIndex
 from netsim.scheduling import URGENT
@@ -543,8 +543,7 @@ class Channel:
         on_delivery = self.on_delivery
         if on_delivery:
             delivery = Delivery(self.env.now, kind, sender, receivers, payload)
-            for fn in on_delivery:
-                fn(delivery)
+            notify(on_delivery, delivery)
         deliver(sender, receivers, payload)
 
     def _arrive_measured(
