@@ -114,6 +114,22 @@ def test_wall_loss_recovered_with_map(tmp_path, capsys):
     assert abs(channel["wall_loss_db"] - 6.0) < 1.5
 
 
+def test_a_log_off_the_map_is_refused_in_one_line(tmp_path, capsys):
+    """Positions in another frame than the map's (odometry against the map, say) would
+    count walls that are not between the robots: one line, exit 2, nothing written."""
+    from netsim.tools.radio_checks import wall_test_map
+    from netsim.world.maps import save_map
+
+    m = wall_test_map()
+    yaml = save_map(tmp_path / "walls.yaml", m.occupied, m.free, m.resolution_m, (-500.0, -500.0))
+    log = synth_log(6, side_m=40.0, duration_s=60.0, step_s=1.0)
+    path, toml = write_csv(tmp_path, log), tmp_path / "site.toml"
+    code = main(["calibrate", str(path), "--map", str(yaml), "--out", str(toml)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and "frames have an end off the map" in err, err
+    assert not toml.exists()
+
+
 def _coverage(censored: bool) -> dict[str, int]:
     hits = dict.fromkeys(
         ("reference_loss_db", "path_loss_exponent", "shadowing_sigma_db", "shadowing_decorrelation_m"), 0

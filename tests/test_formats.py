@@ -118,6 +118,18 @@ def test_export_of_a_run_with_jumps_replays_its_positions_and_links(tmp_path, fm
     assert np.allclose(frames["links"][cols].to_numpy(float), links[cols].to_numpy(float), atol=1e-6)
 
 
+def test_a_torus_runs_bag_export_says_a_trace_replay_of_it_crosses_the_square(tmp_path, capsys):
+    """A bag holds sampled poses: replayed as a trace, a robot goes straight from the sample
+    before a border to the one after it, across the square. The export says so."""
+    sets = ["world.torus=true", "world.n_robots=3", "duration_s=20", "world.side_m=200", "channel.range_m=60"]
+    sets += ["protocol.model=none"]
+    run = tmp_path / "run"
+    assert main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(run)]) == 0
+    assert main(["export", str(run), "--format", "rosbag2", "--out", str(tmp_path / "bag")]) == 0
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "replay a torus run from --format ns2 or bonnmotion" in err, err
+
+
 @pytest.mark.parametrize("fmt, name", [("bonnmotion", "t.movements"), ("ns2", "t.ns2")])
 def test_export_of_a_torus_run_stays_in_the_square_and_replays_on_the_torus(tmp_path, fmt, name):
     """A torus run's legs run on past the borders; the formats know no torus, so the export

@@ -376,7 +376,20 @@ def command(args) -> int:
         from netsim.world.maps import load_map
 
         occupancy = load_map(args.map, "--map")
-        walls = walls_crossed(occupancy, frames.positions[:, :2], frames.positions[:, 2:]).astype(float)
+        src, dst = frames.positions[:, :2], frames.positions[:, 2:]
+        off = ~(occupancy.contains(src) & occupancy.contains(dst))
+        if off.any():
+            # A log in another frame than the map's (odometry against the map, say) would
+            # count walls that are not between the robots.
+            x0, x1, y0, y1 = occupancy.extent_m
+            first = int(np.flatnonzero(off)[0])
+            raise NetsimInputError(
+                f"{path}: {int(off.sum())} of {len(off)} frames have an end off the map {args.map} "
+                f"(x {x0:g} to {x1:g} m, y {y0:g} to {y1:g} m), the first from ({src[first, 0]:g}, "
+                f"{src[first, 1]:g}) to ({dst[first, 0]:g}, {dst[first, 1]:g}): "
+                "the positions must be in the map's frame"
+            )
+        walls = walls_crossed(occupancy, src, dst).astype(float)
     result = calibrate_frames(
         frames, args.sensitivity_dbm, args.tx_power_dbm, args.reference_distance_m, walls, where=str(path)
     )

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+import warnings
 from pathlib import Path
 
 import pandas as pd
@@ -72,6 +73,12 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     config = load_config(run_dir)
     n, duration, area = config.world.n_robots, config.duration_s, world_bounds(config.world)
     if fmt == "rosbag2":
+        if config.world.torus:
+            warnings.warn(
+                "a torus run's bag holds its sampled poses only: replayed as a trace, a robot goes straight across "
+                "the square between the two samples about a border; replay a torus run from --format ns2 or bonnmotion",
+                stacklevel=2,
+            )
         frames = {
             name: _table(run_dir, name, name == "positions") for name in ("positions", "links", "roles", "messages")
         }
