@@ -1,6 +1,7 @@
 """ns-2 movement files: generate, parse (setdest, BonnMotion), replay exactly."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from netsim.errors import NetsimInputError
@@ -346,3 +347,25 @@ def test_skipped_lines_are_counted_in_one_warning(tmp_path):
     with pytest.warns(UserWarning, match=r"2 movement line\(s\) not understood .* line\(s\) 4, 6$") as caught:
         ns2.read(f)
     assert len(caught) == 1
+
+
+SETDEST_FAR = '$node_(0) set X_ 10\n$node_(0) set Y_ 10\n$ns_ at 1 "$node_(0) setdest {x} 10 {v}"\n'
+
+
+def test_a_setdest_toward_a_point_beyond_the_area_is_judged_by_the_motion_up_to_the_end(tmp_path, capsys):
+    """Heading for x = 1000 at 1 m/s, the robot is at x = 29 when the 20 s run ends: the run
+    goes ahead. At 50 m/s toward x = 400 it leaves at 6.8 s: one line naming the robot, the
+    time and the line (both were refused by the destination, without either)."""
+    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", "world.n_robots=1"]
+    base += ["--set", "duration_s=20", "--set", "world.side_m=300"]
+    slow, fast = tmp_path / "far.tcl", tmp_path / "leave.tcl"
+    slow.write_text(SETDEST_FAR.format(x=1000, v=1))
+    fast.write_text(SETDEST_FAR.format(x=400, v=50))
+    assert main([*base, "--set", f"mobility.trace_file={slow}", "--out", str(tmp_path / "a")]) == 0
+    legs = pd.read_parquet(tmp_path / "a" / "legs.parquet")
+    assert legs.x_m.max() <= 300
+    capsys.readouterr()
+    assert main([*base, "--set", f"mobility.trace_file={fast}", "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "robot 0 leaves the area" in err[0] and "at t = 6.8 s" in err[0] and f"{fast}:3" in err[0]
+    assert not (tmp_path / "b").exists()
