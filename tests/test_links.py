@@ -259,3 +259,41 @@ def test_jumps_and_tori_match_brute_force_for_any_window(seed, side, torus, wind
     assert np.abs(links[["t_up_s", "t_down_s"]].to_numpy() - reference[["t_up_s", "t_down_s"]].to_numpy()).max() < 1e-9
     times = np.sort(rng.uniform(0, duration, 1500))
     assert brute_force_mismatches(legs, links, ranges, times, side if torus else None) == 0
+
+
+def test_a_fast_short_leg_widens_its_windows_only(monkeypatch):
+    """A recorded trace's near-equal stamps make legs of a metre in a microsecond. Sizing
+    every window by the run's fastest leg cut a 60 s run into millions of windows; now such
+    a leg only widens the candidate pairs of the windows it falls in. The links still agree
+    with brute force, around the fast legs too."""
+    import netsim.links.lifetimes as lifetimes
+
+    rng = np.random.default_rng(5)
+    legs = random_legs(rng, 20, 60.0, 200.0, 3.0)
+    # Robot 0 darts 100 m in 0.1 ms at t = 20 s, and robot 1 back and forth at 1e300 m/s.
+    p0 = legs[legs.robot == 0].iloc[0]
+    dart = [
+        (20.0, 0, 50.0, 50.0, 1e6, 0.0),
+        (20.0001, 0, 150.0, 50.0, 0.0, 0.0),
+        (30.0, 1, 10.0, 10.0, 1e300, 0.0),
+        (30.0 + 90.0 / 1e300, 1, 100.0, 10.0, 0.0, 0.0),
+    ]
+    extra = pd.DataFrame(dart, columns=legs.columns)
+    legs = pd.concat([legs[(legs.robot > 1) | (legs.t_s < 20.0)], extra], ignore_index=True)
+    legs.loc[(legs.robot == 1) & (legs.t_s < 20.0), ["vx_mps", "vy_mps"]] = 0.0
+    legs.loc[legs.robot == 1, ["x_m", "y_m"]] = [10.0, 10.0]
+    legs.loc[(legs.robot == 1) & (legs.t_s == 30.0 + 90.0 / 1e300), ["x_m", "y_m"]] = [100.0, 10.0]
+    assert p0.robot == 0
+
+    calls = [0]
+    near_pairs = lifetimes.near_pairs
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        assert calls[0] <= 10_000, "the run was cut into tiny windows"
+        return near_pairs(*args, **kwargs)
+
+    monkeypatch.setattr(lifetimes, "near_pairs", counted)
+    links = link_lifetimes(legs, 40.0, 60.0)
+    times = np.r_[np.linspace(0.05, 59.95, 300), 19.99999, 20.00005, 20.0002, 29.99999, 30.00001]
+    assert brute_force_mismatches(legs, links, np.full(20, 40.0), times) == 0

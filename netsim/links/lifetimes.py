@@ -5,12 +5,14 @@ Two robots on straight legs have relative position ``d + w t``; they are linked 
 and goes down at the roots of ``|w|^2 t^2 + 2 (d.w) t + |d|^2 - R^2 = 0``. Nothing is
 sampled: the times are as exact as floating point allows, whatever the output interval.
 
-The run is cut into windows short enough that no robot moves more than half a range in
-one, and at every jump (a leg that does not start where the previous one ended: a trace's
-``set X_``, or any model that places a robot); the candidate pairs of a window are those
-within ``R_max + 2 v_max W`` at its start (no other pair can meet during it), found with
-:func:`netsim.geometry.near_pairs`. Pairs whose robots keep their legs through the window are solved in one
-vectorised step; pairs where a robot changes course are solved leg piece by leg piece.
+The run is cut into windows: each as long as half a range at the speed of the fastest
+leg current at its start, ended where a faster leg begins, and cut at every jump (a leg
+that does not start where the previous one ended: a trace's ``set X_``, or any model that
+places a robot). The candidate pairs of a window are those within ``R_max + 2 D`` at its
+start, ``D`` the longest path a robot can travel in it (no other pair can meet during
+it), found with :func:`netsim.geometry.near_pairs`. Pairs whose robots keep their legs
+through the window are solved in one vectorised step; pairs where a robot changes course
+are solved leg piece by leg piece.
 At a jump the links of the robots that jumped are judged afresh on their new positions:
 a link opens or closes at the jump instant exactly.
 
@@ -76,12 +78,15 @@ def link_events(
     # Writable C-ordered copies whatever pandas handed over: the compiled crossings are
     # compiled (and cached) for that one layout.
     L.t, L.p, L.v = (np.array(x, float, order="C") for x in (L.t, L.p, L.v))
-    v_max = float(speeds_mps(L.v).max()) if len(L.v) else 0.0
-    r_max = float(ranges.max())
-    if window_s is not None:
-        window = float(window_s)
-    else:
-        window = duration_s if v_max == 0 else max(0.5 * float(ranges.min()) / v_max, 1e-6)
+    speed = speeds_mps(L.v) if len(L.v) else np.zeros(0)
+    r_max, r_half = float(ranges.max()), 0.5 * float(ranges.min())
+    # Each window is sized by the legs current at its start, and ends where a faster leg
+    # begins: a fast leg (a metre between two near-equal stamps of a recorded trace, a
+    # robot driven at any speed) shortens only the windows it is current in, instead of
+    # cutting the whole run into microseconds.
+    by_start = np.argsort(L.t, kind="stable")
+    leg_start, leg_robot = L.t[by_start], L.robot[by_start]
+    leg_speed, leg_stop = speed[by_start], L.end_times(duration_s)[by_start]
     box = float(side_m) if torus else None  # type: ignore[arg-type]  # side_m is given with torus
     jt, jr = jump_times(L, box)
     inside = (jt > 0) & (jt < duration_s)
@@ -107,15 +112,28 @@ def link_events(
     start = 0.0
     first = True
     while start < duration_s or first:
-        stop = min(start + window, duration_s)
+        L.advance(start)
+        v_now = float(speed[L.cur].max(initial=0.0))
+        if window_s is not None:
+            stop = min(start + float(window_s), duration_s)
+        else:
+            stop = duration_s if v_now == 0 else min(start + max(r_half / v_now, 1e-6), duration_s)
+            lo, hi = int(np.searchsorted(leg_start, start, "right")), int(np.searchsorted(leg_start, stop, "left"))
+            faster = np.flatnonzero(leg_speed[lo:hi] > v_now)
+            if len(faster):
+                stop = float(leg_start[lo + faster[0]])
         nxt = int(np.searchsorted(cuts, start, "right"))
         if nxt < len(cuts):
             stop = min(stop, float(cuts[nxt]))
-        L.advance(start)
         pos = L.at(L.cur, start)
         if not first and nxt > 0 and cuts[nxt - 1] == start:
             _jump_state(L, jr[jt == start], start, pos, ranges, r_max, box, emit, kernels)
-        reach = r_max + 2.0 * v_max * (stop - start)
+        # How far any robot can go in the window: its current leg at v_now at most, and
+        # every leg it starts in the window, each for the part of it the window holds.
+        lo, hi = int(np.searchsorted(leg_start, start, "right")), int(np.searchsorted(leg_start, stop, "left"))
+        later = leg_speed[lo:hi] * (np.minimum(leg_stop[lo:hi], stop) - leg_start[lo:hi])
+        path = v_now * (stop - start) + float(np.bincount(leg_robot[lo:hi], later, L.n).max(initial=0.0))
+        reach = r_max + 2.0 * path
         pairs = near_pairs(pos, reach, box)
         if len(pairs):
             i, j = pairs[:, 0], pairs[:, 1]
