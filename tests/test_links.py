@@ -297,3 +297,35 @@ def test_a_fast_short_leg_widens_its_windows_only(monkeypatch):
     links = link_lifetimes(legs, 40.0, 60.0)
     times = np.r_[np.linspace(0.05, 59.95, 300), 19.99999, 20.00005, 20.0002, 29.99999, 30.00001]
     assert brute_force_mismatches(legs, links, np.full(20, 40.0), times) == 0
+
+
+@pytest.mark.parametrize("speed_mps", [1e7, 1e100])
+def test_a_robot_driven_at_any_speed_leaves_the_runtime_windows_as_they_were(monkeypatch, speed_mps):
+    """A drive is not capped in speed: the robot reaches the border at once and stops. The
+    runtime solver's windows follow the speeds of the moment, so that one instant does not
+    cut the rest of the run into microseconds, and its events still make links.parquet."""
+    import netsim.links.kinetic as kinetic
+    from netsim import load
+
+    calls = [0]
+    near_pairs = kinetic.near_pairs
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        assert calls[0] <= 10_000, "the run was cut into tiny windows"
+        return near_pairs(*args, **kwargs)
+
+    monkeypatch.setattr(kinetic, "near_pairs", counted)
+    keys = ["world.n_robots=10", "world.side_m=300", "world.placement='centre'", "world.centre_side_m=60"]
+    keys += ["channel.range_m=40", "mobility.model='external'", "protocol.message_rate_hz=0", "duration_s=60"]
+    sim = build(load(None, keys))
+    ups, downs = [], []
+    sim.events.on("link_up", ups.append)
+    sim.events.on("link_down", downs.append)
+    sim.run(until_s=2.0)
+    sim.drive([4], [[speed_mps, 0.0]])
+    sim.run()
+    assert sim.positions()[4][0] == 300.0
+    links = collect(sim)["links"]
+    assert len(downs) == int((~links.censored_end).sum()) > 0
+    assert len(ups) == len(links)  # those up at t = 0 are announced then too

@@ -8,7 +8,7 @@ run's event bus at the instant they happen: the live feed of the links whose tab
 ``links.parquet``, the post-hoc solver writes (the feed's events are its rows, bit for bit).
 
 The run is cut into windows no longer than half the smallest range over the highest speed
-seen so far (``v_bound``); at a window's start the candidate pairs are those within
+at the window's start (``v_bound``); at a window's start the candidate pairs are those within
 ``R_max + 2 v_bound W`` (:func:`netsim.geometry.near_pairs`; no other pair can meet during the window), and
 every candidate's crossings within the window are solved in one vectorised step and queued.
 When a robot changes course, only its candidate pairs are solved again from that instant
@@ -186,7 +186,10 @@ class RuntimeLinks:
         # list (walked in order), later re-solves into a small heap beside it.
         self._heap = []
         self._batch = []
-        self.v_bound = max(self.v_bound, float(st.speed_mps.max()) if n else 0.0)
+        # The fastest robot now: one that speeds up past it starts a new window (_flush), so
+        # no robot goes faster within this one. (The fastest ever seen would let one fast
+        # moment, a drive at any speed, cut the rest of the run into microseconds.)
+        self.v_bound = float(st.speed_mps.max()) if n else 0.0
         if self.v_bound > 0:
             self._w_end = t + max(0.5 * self.r_min / self.v_bound, 1e-6)
             reach = self.r_max + 2.0 * self.v_bound * (self._w_end - t)
