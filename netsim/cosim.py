@@ -122,6 +122,9 @@ def robot_ids(robots: Any, n: int) -> np.ndarray:
     return ids
 
 
+SPEED_OF_LIGHT_MPS = 299_792_458.0
+
+
 def velocities(velocities_mps: Any, k: int) -> np.ndarray:
     """``velocities_mps`` as a float ``(k, 2)`` array of finite values (one row may be given
     as a pair when ``k == 1``)."""
@@ -136,6 +139,11 @@ def velocities(velocities_mps: Any, k: int) -> np.ndarray:
     if not np.isfinite(v).all():
         row = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise CommandError(f"velocities_mps[{row}] = {v[row].tolist()}: must be finite, m/s")
+    # Past light speed the crossing times' squares overflow; no robot gets near it.
+    fast = np.hypot(v[:, 0], v[:, 1]) > SPEED_OF_LIGHT_MPS
+    if fast.any():
+        row = int(np.flatnonzero(fast)[0])
+        raise CommandError(f"velocities_mps[{row}] = {v[row].tolist()}: faster than light ({SPEED_OF_LIGHT_MPS:g} m/s)")
     return v
 
 

@@ -190,6 +190,7 @@ def good_play(tmp_path_factory):
         (lambda s: s.drive([-1], [[1.0, 0.0]]), "-1"),
         (lambda s: s.drive([0], [[math.nan, 0.0]]), "nan"),
         (lambda s: s.drive([0], [[math.inf, 0.0]]), "inf"),
+        (lambda s: s.drive([0], [[3e8, 1e300]]), "faster than light"),
         (lambda s: s.drive([0, 1], [[1.0, 0.0]]), "(1, 2)"),
         (lambda s: s.drive([0, 0], [[1.0, 0.0], [2.0, 0.0]]), "[0, 0]"),
         (lambda s: s.drive(["a"], [[1.0, 0.0]]), "'a'"),
