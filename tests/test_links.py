@@ -299,7 +299,7 @@ def test_a_fast_short_leg_widens_its_windows_only(monkeypatch):
     assert brute_force_mismatches(legs, links, np.full(20, 40.0), times) == 0
 
 
-@pytest.mark.parametrize("speed_mps", [1e7, 1e100])
+@pytest.mark.parametrize("speed_mps", [1e7, 2.9e8])
 def test_a_robot_driven_at_any_speed_leaves_the_runtime_windows_as_they_were(monkeypatch, speed_mps):
     """A drive is not capped in speed: the robot reaches the border at once and stops. The
     runtime solver's windows follow the speeds of the moment, so that one instant does not
