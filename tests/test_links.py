@@ -261,6 +261,19 @@ def test_jumps_and_tori_match_brute_force_for_any_window(seed, side, torus, wind
     assert brute_force_mismatches(legs, links, ranges, times, side if torus else None) == 0
 
 
+def few_windows(monkeypatch, solver, most: int = 10_000) -> None:
+    """Fail a link solver's run that opens more than ``most`` windows (each asks
+    ``near_pairs`` for its candidates): a hang becomes a failure."""
+    near_pairs, calls = solver.near_pairs, [0]
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        assert calls[0] <= most, "the run was cut into tiny windows"
+        return near_pairs(*args, **kwargs)
+
+    monkeypatch.setattr(solver, "near_pairs", counted)
+
+
 def test_a_fast_short_leg_widens_its_windows_only(monkeypatch):
     """A recorded trace's near-equal stamps make legs of a metre in a microsecond. Sizing
     every window by the run's fastest leg cut a 60 s run into millions of windows; now such
@@ -285,15 +298,7 @@ def test_a_fast_short_leg_widens_its_windows_only(monkeypatch):
     legs.loc[(legs.robot == 1) & (legs.t_s == 30.0 + 90.0 / 1e300), ["x_m", "y_m"]] = [100.0, 10.0]
     assert p0.robot == 0
 
-    calls = [0]
-    near_pairs = lifetimes.near_pairs
-
-    def counted(*args, **kwargs):
-        calls[0] += 1
-        assert calls[0] <= 10_000, "the run was cut into tiny windows"
-        return near_pairs(*args, **kwargs)
-
-    monkeypatch.setattr(lifetimes, "near_pairs", counted)
+    few_windows(monkeypatch, lifetimes)
     links = link_lifetimes(legs, 40.0, 60.0)
     times = np.r_[np.linspace(0.05, 59.95, 300), 19.99999, 20.00005, 20.0002, 29.99999, 30.00001]
     assert brute_force_mismatches(legs, links, np.full(20, 40.0), times) == 0
@@ -307,15 +312,7 @@ def test_a_robot_driven_at_any_speed_leaves_the_runtime_windows_as_they_were(mon
     import netsim.links.kinetic as kinetic
     from netsim import load
 
-    calls = [0]
-    near_pairs = kinetic.near_pairs
-
-    def counted(*args, **kwargs):
-        calls[0] += 1
-        assert calls[0] <= 10_000, "the run was cut into tiny windows"
-        return near_pairs(*args, **kwargs)
-
-    monkeypatch.setattr(kinetic, "near_pairs", counted)
+    few_windows(monkeypatch, kinetic)
     keys = ["world.n_robots=10", "world.side_m=300", "world.placement='centre'", "world.centre_side_m=60"]
     keys += ["channel.range_m=40", "mobility.model='external'", "protocol.message_rate_hz=0", "duration_s=60"]
     sim = build(load(None, keys))
