@@ -131,7 +131,7 @@ def leader_step_factors(
     k = np.concatenate(rows_k).astype(np.int64)
     s = np.ones(n)
     if len(k):
-        np.minimum.at(s, k, step_limit(np.concatenate(rows_off), np.concatenate(rows_r), move[k]))
+        np.minimum.at(s, k, step_limit(np.concatenate(rows_off), np.concatenate(rows_r), move[k], n))
     # Members translate with their leader: the whole group stays inside the area.
     r_idx = np.flatnonzero(rigid)
     np.minimum.at(s, group[r_idx], box_limit(pos[r_idx], move[group[r_idx]], limits.box))
@@ -153,7 +153,7 @@ def gateway_steps(pos: np.ndarray, move: np.ndarray, gw: np.ndarray, br: Bridges
     full = np.zeros((n, 2))
     full[gw] = want
     o = pos[br.gw_robot] - planned
-    lim = step_limit(o, np.maximum(limits.keep_m, np.hypot(*o.T)), full[br.gw_robot])
+    lim = step_limit(o, np.maximum(limits.keep_m, np.hypot(*o.T)), full[br.gw_robot], n)
     sg = np.ones(n)
     np.minimum.at(sg, br.gw_robot, lim)
     sg[gw] = np.minimum(sg[gw], box_limit(pos[gw], want, limits.box))

@@ -778,7 +778,8 @@ def plan_local(
     inside = ~outside[robot]
     s = np.ones(n)
     if len(robot):
-        np.minimum.at(s, robot[inside], step_limit(pos[robot[inside]] - centre[inside], r[inside], move[robot[inside]]))
+        rows = robot[inside]
+        np.minimum.at(s, rows, step_limit(pos[rows] - centre[inside], r[inside], move[rows], n))
         missed = np.hypot(*(pos[robot] + move[robot] - centre).T) > r
         s[robot[~inside & missed]] = 0.0
     s = np.minimum(s, box_limit(pos, move, limits.box))

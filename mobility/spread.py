@@ -229,7 +229,7 @@ def plan_spread(
     move[~mobile] = 0.0
     s = np.ones(n)
     if len(robot):
-        np.minimum.at(s, robot, step_limit(pos[robot] - centre, radius, move[robot]))
+        np.minimum.at(s, robot, step_limit(pos[robot] - centre, radius, move[robot], n))
     s = np.minimum(s, box_limit(pos, move, limits.box))
     move *= s[:, None]
 

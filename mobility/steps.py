@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from netsim.area import Bounds, as_bounds
+from netsim.compiled import filled, load
 
 # Steps are cut a hair short of a constraint's boundary, against rounding.
 SAFETY = 1.0 - 1e-9
@@ -87,20 +88,21 @@ class Candidates(NamedTuple):
     reserve_db: np.ndarray | None = None
 
 
-def step_limit(offset: np.ndarray, radius: np.ndarray, move: np.ndarray) -> np.ndarray:
+def step_limit(offset: np.ndarray, radius: np.ndarray, move: np.ndarray, n_robots: int | None = None) -> np.ndarray:
     """Largest ``s`` in [0, 1] with ``|offset + s move| <= radius``, row-wise (``|offset|
-    <= radius`` holds: standing still is always allowed).
+    <= radius`` holds: standing still is always allowed), cut by :data:`SAFETY`: the link
+    solvers' rule of when a straight leg leaves a disk (:func:`netsim._kernels.disk_exits`).
+    ``n_robots``: the team's size, which decides whether it runs compiled (None: as many as
+    the rows).
 
     >>> step_limit(np.array([[0.0, 0.0]]), np.array([1.0]), np.array([[4.0, 0.0]])).round(6)
     array([0.25])
     """
-    a = np.einsum("ij,ij->i", move, move)
-    b = np.einsum("ij,ij->i", offset, move)
-    c = np.einsum("ij,ij->i", offset, offset) - radius**2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (-b + np.sqrt(np.maximum(b * b - a * c, 0.0))) / a
-    s = np.where(a > 0, s, 1.0)
-    return np.clip(s * SAFETY, 0.0, 1.0)
+    k = len(move)
+    out = np.empty(k)
+    kernels = load("netsim._kernels", n_robots, values=k)
+    kernels.disk_exits(filled(offset, (k, 2)), filled(radius, k), filled(move, (k, 2)), SAFETY, out)
+    return out
 
 
 def box_limit(pos: np.ndarray, move: np.ndarray, area: float | Bounds) -> np.ndarray:

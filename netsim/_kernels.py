@@ -460,6 +460,23 @@ def disk_crossing_times(origin, dx, dy, wx, wy, radius):
 
 
 @jit(nogil=True)
+def disk_exits(offset, radius, move, safety, out):
+    """Row by row, the largest ``s`` in [0, 1] with ``|offset + s move| <= radius``, times
+    ``safety`` (a hair short of the circle, against rounding), into ``out``: when a straight
+    step from inside a disk leaves it, by :func:`disk_crossing_times`. A row that does not
+    move may take its whole step (times ``safety``, as every row); one whose path does not
+    cross the circle (outside the disk, or touching it) none."""
+    for k in range(out.shape[0]):
+        wx, wy = move[k, 0], move[k, 1]
+        if _dot(wx, wy, wx, wy) > 0:
+            leave = disk_crossing_times(0.0, offset[k, 0], offset[k, 1], wx, wy, radius[k])[1]
+            s = leave if leave == leave else 0.0
+        else:
+            s = 1.0
+        out[k] = min(max(s * safety, 0.0), 1.0)
+
+
+@jit(nogil=True)
 def reaches(ddx, ddy, lim, box):
     """Whether a robot at ``(ddx, ddy)`` from another (the nearest image on a torus of side
     ``box > 0``) is within ``lim`` of it: ``hypot(ddx, ddy) <= lim``, the one rule of "in
@@ -633,6 +650,13 @@ def shadow_correlation(travel_m, decorrelation_m):
     (``netsim.radio._kernels.moved_on``) and the plans' fade rule bounds its change by it
     (``netsim.mobility._fade_kernels``)."""
     return math.exp(-max(travel_m, 0.0) / decorrelation_m)
+
+
+@jit(nogil=True)
+def shadow_correlations(travel_m, decorrelation_m, out):
+    """:func:`shadow_correlation` of each travel, into ``out``: for the channel's fit."""
+    for k in range(out.shape[0]):
+        out[k] = shadow_correlation(travel_m[k], decorrelation_m)
 
 
 @jit(nogil=True)

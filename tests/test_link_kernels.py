@@ -161,3 +161,26 @@ def test_a_pair_comes_into_range_and_leaves_it_at_the_roots_of_its_path(compiled
     for args in ((0.0, 1.0, 1.0, 0.0, 0.0, 5.0), (0.0, 9.0, 9.0, 0.0, 0.0, 5.0), (0.0, -10.0, 5.0, 1.0, 0.0, 5.0)):
         assert all(math.isnan(t) for t in k.disk_crossing_times(*args)), args
     assert all(math.isnan(t) for t in k.disk_crossing_times(0.0, -10.0, 6.0, 1.0, 0.0, 5.0))
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_step_leaves_its_disk_where_a_pair_leaves_range(compiled, monkeypatch):
+    """A plan's step from inside a disk is cut where the path leaves it by the link solvers'
+    own roots (``disk_crossing_times``), to the bit, a hair short (``SAFETY``) and clipped to
+    [0, 1]: a robot at rest may take its whole step, a path that only touches the circle none."""
+    from netsim.mobility.steps import SAFETY, step_limit
+
+    from netsim import _kernels as core
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
+    offset = np.array([[0.0, 0.0], [3.0, 4.0], [5.0, 0.0], [5.0, 0.0]])
+    radius = np.array([1.0, 5.0, 5.0, 5.0])
+    move = np.array([[4.0, 0.0], [0.0, 0.0], [0.0, 3.0], [-20.0, 0.0]])
+    assert step_limit(offset, radius, move).tolist() == [0.25 * SAFETY, SAFETY, 0.0, 0.5 * SAFETY]
+    rng = np.random.default_rng(7)
+    radius = rng.uniform(1.0, 200.0, 2000)
+    angle = rng.uniform(0.0, 2 * np.pi, 2000)
+    offset = (radius * rng.uniform(0.0, 1.0, 2000))[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    move = rng.normal(0.0, 1.0, (2000, 2)) * 10 ** rng.uniform(-3.0, 3.0, (2000, 1))
+    roots = [core.disk_crossing_times(0.0, *o, *m, r)[1] for o, m, r in zip(offset, move, radius)]
+    assert np.array_equal(step_limit(offset, radius, move), np.clip(np.array(roots) * SAFETY, 0.0, 1.0))

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, special, stats
 
+from netsim.compiled import load
+
 Z95 = float(stats.norm.ppf(0.975))
 
 # Frames whose predicted power is this many sigma above the sensitivity are received with
@@ -263,9 +265,11 @@ def ar1_steps(residual_db, travel_m, cluster, usable):
 
 
 def _ar1_loglik(theta, r0, r1, delta):
-    sigma, d = np.exp(theta[0]), np.exp(theta[1])
-    rho = np.exp(-delta / d)
-    var = sigma**2 * -np.expm1(-2.0 * delta / d)
+    sigma, d = np.exp(theta[0]), float(np.exp(theta[1]))
+    # The correlation the channel draws shadowing by (netsim._kernels.shadow_correlation).
+    rho = np.empty(len(delta))
+    load("netsim._kernels", None, values=len(delta)).shadow_correlations(delta, d, rho)
+    var = sigma**2 * (1.0 - rho * rho)
     return -0.5 * (np.log(2 * np.pi * var) + (r1 - rho * r0) ** 2 / var)
 
 
