@@ -83,6 +83,39 @@ def test_receptions_table_with_received_column_is_censored(tmp_path, capsys):
 
 
 @pytest.mark.slow
+def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path, capsys):
+    """A run's receptions.parquet is a log as it is: a frame the loss model dropped after
+    the radio heard it cleared the sensitivity, so it counts at its logged power (not as
+    censored below it, which would fit a channel of far more loss); each parameter comes
+    back within its interval."""
+    truth = {"reference_loss_db": 35.0, "path_loss_exponent": 3.5, "shadowing_sigma_db": 6.0}
+    run = tmp_path / "run"
+    settings = [
+        "world.n_robots=20",
+        "world.side_m=250",
+        "duration_s=60",
+        "output.receptions=true",
+        "protocol.message_rate_hz=0",
+        "channel.propagation=log_distance",
+        "channel.sensitivity_dbm=-85",
+        "channel.loss_probability=0.3",
+        *(f"channel.{k}={v}" for k, v in truth.items()),
+    ]
+    flags = [a for s in settings for a in ("--set", s)]
+    assert main(["run", *flags, "--no-progress", "--quiet", "--out", str(run)]) == 0
+    table = pd.read_parquet(run / "receptions.parquet")
+    lost = int((table["cause"] == "loss").sum())
+    assert lost > 100
+    capsys.readouterr()
+    assert main(["calibrate", str(run / "receptions.parquet"), "--sensitivity-dbm", "-85"]) == 0
+    printed = capsys.readouterr().out
+    assert f"{lost:,} of the received frames were lost after the radio heard them" in printed
+    result = calibrate_frame(table, sensitivity_dbm=-85.0)
+    for key, value in truth.items():
+        assert getattr(result.fit, key).covers(value), (key, getattr(result.fit, key))
+
+
+@pytest.mark.slow
 def test_naive_fit_underestimates_exponent_and_sigma_when_truncated():
     """Least squares through the received frames alone underestimates the path-loss
     exponent and the shadowing sigma (docs/radio.md): below the ML fit's interval."""
@@ -168,6 +201,19 @@ def _non_numeric(good: pd.DataFrame) -> pd.DataFrame:
     return log
 
 
+def _on_the_law(good: pd.DataFrame) -> pd.DataFrame:
+    """Every power exactly the law's at its distance: a channel without shadowing."""
+    d0 = TRUTH.reference_distance_m
+    loss = TRUTH.reference_loss_db + 10 * TRUTH.path_loss_exponent * np.log10(np.maximum(good["distance_m"], d0) / d0)
+    return good.assign(rssi_dbm=TRUTH.tx_power_dbm - loss)
+
+
+def _empty_position(good: pd.DataFrame) -> pd.DataFrame:
+    log = good.copy()
+    log.loc[6, "src_x_m"] = np.nan
+    return log
+
+
 # Each bad log: a table written as CSV, or the bytes of a file (name, content).
 BAD_LOGS = {
     "no_rssi": lambda g: g.drop(columns=["rssi_dbm"]),
@@ -178,6 +224,8 @@ BAD_LOGS = {
     "negative_distance": lambda g: _no_positions(g, 3, -2.0),
     "zero_distance": lambda g: _no_positions(g, 3, 0.0),
     "too_few": lambda g: g.iloc[:20],
+    "no_shadowing": _on_the_law,
+    "empty_position": _empty_position,
     "missing": lambda g: ("nowhere.csv", None),
     "unknown_format": lambda g: ("log.txt", b"t_s,src\n"),
     "broken_parquet": lambda g: ("broken.parquet", b"PAR1 not really parquet"),
@@ -205,6 +253,9 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("negative_distance", [], "every distance must be > 0 m"),
         ("zero_distance", [], "every distance must be > 0 m"),
         ("too_few", [], "too few frames to fit"),
+        ("no_shadowing", [], "no shadowing to fit"),
+        ("no_shadowing", ["--sensitivity-dbm", "-120"], "no shadowing to fit"),
+        ("empty_position", [], "column src_x_m row 7: nan is not a finite number (1 such row)"),
         ("good", ["--sensitivity-dbm", "-1"], "above every logged power"),
         ("good", ["--sensitivity-dbm", "-75"], "were received below it"),
         ("good", ["--sensitivity-dbm", "5"], "must be in [-200, 0] dBm"),

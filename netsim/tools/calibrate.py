@@ -24,6 +24,9 @@ from netsim.tools import channel_fit as cf
 
 POSITIONS = ("src_x_m", "src_y_m", "dst_x_m", "dst_y_m")
 POWER_COLUMNS = ("rssi_dbm", "rx_power_dbm")
+# Below this spread about the law (dB) a log has no shadowing to fit: a radio's RSSI is
+# quantised far more coarsely, so only a log of a channel without shadowing comes here.
+NO_SPREAD_DB = 1e-6
 MIN_FRAMES = 30
 MIN_PAIRS = 5
 
@@ -43,6 +46,7 @@ class Calibration:
     received: int
     pairs: int
     robots: int
+    lost_measured: int = 0  # of ``received``: frames lost after the radio heard them
 
     def channel(self) -> dict:
         """The ``[channel]`` keys, as ``netsim run`` reads them."""
@@ -83,6 +87,11 @@ def read_log(path: Path) -> pd.DataFrame:
     raise NetsimInputError(f"{path}: unknown format {suffix or '(no suffix)'!r}; give a .csv or .parquet log")
 
 
+def _shown(value: object) -> str:
+    """A cell as a user wrote it: ``'abc'`` for text, ``nan`` or ``inf`` for a number."""
+    return repr(value) if isinstance(value, str) else str(value.item() if isinstance(value, np.generic) else value)
+
+
 def _numbers(log: pd.DataFrame, column: str, where: str, missing_ok: bool = False) -> np.ndarray:
     """A column as floats; a cell that is not a number (or missing, unless allowed) is refused."""
     raw = log[column]
@@ -93,8 +102,8 @@ def _numbers(log: pd.DataFrame, column: str, where: str, missing_ok: bool = Fals
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise NetsimInputError(
-            f"{where}: column {column} row {i + 1}: {raw.iloc[i]!r} is not a finite number "
-            f"({int(bad.sum()):,} such rows)"
+            f"{where}: column {column} row {i + 1}: {_shown(raw.iloc[i])} is not a finite number "
+            f"({int(bad.sum()):,} such row{'s' if bad.sum() > 1 else ''})"
         )
     return values
 
@@ -110,6 +119,7 @@ class Frames:
     src: np.ndarray  # robot index
     dst: np.ndarray
     robots: int
+    lost_measured: int = 0  # rows lost after the radio heard them, read at their power
 
     @property
     def pair(self) -> np.ndarray:
@@ -136,6 +146,24 @@ class Frames:
         return odo[:n] + odo[n:]
 
 
+# The cause a run's receptions.parquet gives a frame its radio did not hear: the one cause
+# that says the power fell below the sensitivity (or a wall or the range stopped it).
+BELOW_SENSITIVITY = "out_of_range"
+
+
+def _lost_after_the_radio(log: pd.DataFrame, received: np.ndarray, power_dbm: np.ndarray) -> np.ndarray:
+    """The rows not received for a ``cause`` other than :data:`BELOW_SENSITIVITY` (the loss
+    model, a collision, a receiver switched off) with a logged power: frames that cleared
+    the sensitivity, so their power is a measurement like a received frame's. Counting them
+    as censored below it, or dropping them, would bias the fit toward more loss."""
+    if "cause" not in log.columns:
+        return np.zeros(len(log), bool)
+    cause = log["cause"]
+    named = cause.notna().to_numpy() & (cause.astype(str).str.strip() != "").to_numpy()
+    other = named & (cause.astype(str).str.strip() != BELOW_SENSITIVITY).to_numpy()
+    return ~received & other & ~np.isnan(power_dbm)
+
+
 def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
     """The log's columns checked and read: one line naming the problem otherwise."""
     cols = set(log.columns)
@@ -156,6 +184,7 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         raise NetsimInputError(f"{where}: has no frames (only a header)")
     t_s = _numbers(log, "t_s", where)
     power_dbm = _numbers(log, power, where, missing_ok=True)
+    lost_measured = 0
     if "received" in cols:
         words = {"true": True, "false": False}
         received = log["received"].map(lambda v: words.get(v.lower(), v) if isinstance(v, str) else v)
@@ -166,7 +195,9 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         if lacking.any():
             i = int(np.flatnonzero(lacking)[0])
             raise NetsimInputError(f"{where}: row {i + 1} is received but its {power} is empty")
-        power_dbm = np.where(received, power_dbm, np.nan)
+        lost = _lost_after_the_radio(log, received, power_dbm)
+        lost_measured = int(lost.sum())
+        power_dbm = np.where(received | lost, power_dbm, np.nan)
     for c in ("src", "dst"):
         if log[c].isna().any():
             i = int(np.flatnonzero(log[c].isna().to_numpy())[0])
@@ -191,7 +222,7 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
             f"{where}: row {i + 1}: {what} is {distance[i]:g}; every distance must be > 0 m "
             f"({int(bad.sum()):,} such rows)"
         )
-    return Frames(t_s, power_dbm, distance, positions, src, dst, len(names))
+    return Frames(t_s, power_dbm, distance, positions, src, dst, len(names), lost_measured)
 
 
 def check_sensitivity(power_dbm: np.ndarray, sensitivity_dbm: float | None, where: str) -> None:
@@ -249,8 +280,14 @@ def calibrate_frames(
     design = cf.Design(frames.power_dbm, g, walls, pair, float(tx_power_dbm))
     censored = bool((~seen).any())
     try:
-        fit = cf.fit_censored(design, s) if censored else cf.fit_truncated(design, s)
         naive = cf.fit_naive(design)
+        if naive.shadowing_sigma_db.value < NO_SPREAD_DB:
+            raise cf.FitError(
+                f"every received frame's power lies on the law (reference_loss_db {naive.reference_loss_db.value:.6g}, "
+                f"path_loss_exponent {naive.path_loss_exponent.value:.6g}) within {NO_SPREAD_DB:g} dB: "
+                "no shadowing to fit a spread or intervals by (a log of a channel without shadowing?)"
+            )
+        fit = cf.fit_censored(design, s) if censored else cf.fit_truncated(design, s)
     except cf.FitError as exc:
         raise NetsimInputError(f"{where}: {exc}") from None
     if frames.positions is None:
@@ -274,6 +311,7 @@ def calibrate_frames(
         int(seen.sum()),
         len(np.unique(pair)),
         frames.robots,
+        frames.lost_measured,
     )
 
 
@@ -293,6 +331,11 @@ def report(c: Calibration, where: str) -> str:
         f"netsim calibrate: {where}: {c.frames:,} frames ({c.received:,} received) between {c.pairs:,} pairs "
         f"of {c.robots:,} robots",
     ]
+    if c.lost_measured:
+        lines.append(
+            f"{c.lost_measured:,} of the received frames were lost after the radio heard them (their cause: the loss "
+            "model, a collision, ...): they cleared the sensitivity and count at their logged power"
+        )
     if fit.likelihood == "censored":
         lines.append(
             f"likelihood: censored (Tobit): {c.frames - c.received:,} frames sent but not received count as "

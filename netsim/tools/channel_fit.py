@@ -210,6 +210,8 @@ def _ml(
         cov = sandwich(scores, info, design.cluster)
     except np.linalg.LinAlgError:
         raise FitError("the fit is singular: the log does not determine every parameter") from None
+    if not np.all(np.isfinite(cov)):
+        raise FitError("the fit's intervals cannot be computed: the log does not determine every parameter")
     return _estimates(theta, cov, design.walls is not None, likelihood)
 
 
