@@ -214,7 +214,8 @@ class LinkRules:
             reserve = x + budget
             # Within the sure distance even the worst shadowing leaves the link up.
             sure_r = p.effective_range_m(sh.clip_db, walls, n)
-            sure = (d <= sure_r) & (sure_r - self.margin_m >= keep)
+            near = load("netsim._kernels", n).in_range(pos, i, j, np.ascontiguousarray(sure_r, float), 0.0)
+            sure = near & (sure_r - self.margin_m >= keep)
             keep = np.where(sure, sure_r - self.margin_m, keep)
             travel = np.where(sure, np.inf, travel)
             reserve = np.where(sure, sh.clip_db, reserve)

@@ -113,6 +113,7 @@ from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_lengt
 
 from netsim.compiled import filled, load
 from netsim.geometry import speeds_mps
+from netsim.trajectory import points_on_legs
 
 
 class Walls(NamedTuple):
@@ -371,7 +372,11 @@ class Memory:
         heard = np.isfinite(self.sent_s)
         with np.errstate(invalid="ignore"):
             span = np.where(heard, np.clip(np.minimum(t0_s, self.until_s) - self.sent_s, 0.0, None), 0.0)
-        out.xy = self.xy + self.vel * span[..., None]
+        # Carried along the leg by the position rule itself, a leg per pair from time 0.
+        n = len(self.sent_s)
+        pairs = n * n
+        legs = (self.xy.reshape(pairs, 2), self.vel.reshape(pairs, 2), np.zeros(pairs))
+        out.xy = points_on_legs(*legs, np.arange(pairs), span.reshape(pairs), n).reshape(self.xy.shape)
         error = speeds_mps(self.vel).reshape(self.vel.shape[:-1]) * jitter_s
         error = error + travel_at_cap_m(np.where(heard, self.until_s, -np.inf), t0_s, speed_mps)
         with np.errstate(invalid="ignore"):

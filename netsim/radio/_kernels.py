@@ -344,6 +344,13 @@ def in_disk(distance_m, range_m):
 
 
 @jit(nogil=True)
+def in_disks(distance_m, range_m, out):
+    """:func:`in_disk` of each distance, one range for all, into ``out``."""
+    for m in range(distance_m.shape[0]):
+        out[m] = in_disk(distance_m[m], range_m)
+
+
+@jit(nogil=True)
 def disk_losses(distance_m, a, range_m, out):
     """The unit disk as a loss (dB) of each pair: 0 within the range of its sender
     (``range_m[a[m]]``, or ``range_m[0]`` for all when it has one item), infinite beyond."""

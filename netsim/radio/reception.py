@@ -155,6 +155,14 @@ class Reception:
         self.shadowing = self.compiled.shadow
         self.recorder = LinkRecorder(state.n, state.t0_s, state.torus) if record else None
 
+    def within_reach(self, distances_m: np.ndarray) -> np.ndarray:
+        """Whether each distance is within the radio's reach (:attr:`reach_m`), by the one
+        rule of in range (:func:`netsim.radio._kernels.in_disk`)."""
+        d = np.ascontiguousarray(distances_m, float)
+        out = np.empty(d.shape[0], bool)
+        load("netsim.radio._kernels", self.state.n).in_disks(d, self.reach_m, out)
+        return out
+
     def decide(
         self, t: float, sender: int, receivers: np.ndarray, distances_m: np.ndarray, every_pair: bool = True
     ) -> np.ndarray:

@@ -106,7 +106,7 @@ class ReceptionLog:
         power = np.full(k, math.nan)
         if self.powered and k:
             rec = self.channel.reception
-            within = distances_m <= rec.reach_m
+            within = rec.within_reach(distances_m)
             if heard is None or within.all():
                 power = rec.received_dbm(t, sender, candidates, distances_m)
             elif within.any():
