@@ -74,12 +74,12 @@ class DeadlineTimers:
             for i, d in zip(idx[early].tolist(), deadline[early].tolist()):
                 self._arm(i, d)
 
-    def arm(self, idx: np.ndarray, deadline_s: float) -> None:
-        """Schedule the events of timers ``idx`` whose deadlines were set to ``deadline_s``
-        elsewhere (a compiled loop) and fall before their armed events: the second half of
+    def arm(self, idx: np.ndarray) -> None:
+        """Schedule the events of timers ``idx`` whose deadlines were set elsewhere (a
+        compiled loop) and fall before their armed events: the second half of
         :meth:`restart`."""
-        for i in idx.tolist():
-            self._arm(i, deadline_s)
+        for i, d in zip(idx.tolist(), self.deadline_s[idx].tolist()):
+            self._arm(i, d)
 
     def cancel(self, idx: int | np.ndarray) -> None:
         self.deadline_s[idx] = np.inf

@@ -331,11 +331,11 @@ class Clustering:
         self.timers.restart(i, table.data[i, slot, LAST_HEARD] + self.tau_s)
         return True
 
-    def _rule3_renew(self, to_arm: np.ndarray, renewed_s: float) -> None:
-        """Rule 3, on a leading Ack: its members' deadlines were set to ``renewed_s``
-        (:func:`netsim.protocols._kernels.ack_effects`); the events of those timers
-        ``to_arm`` are scheduled."""
-        self.timers.arm(to_arm, renewed_s)
+    def _rule3_renew(self, to_arm: np.ndarray) -> None:
+        """Rule 3, on a leading Ack: its members' deadlines were renewed (by
+        :func:`netsim.protocols._kernels.ack_effects`, to ``now + tau``); the events of those
+        timers ``to_arm`` are scheduled."""
+        self.timers.arm(to_arm)
 
     def _rule3_leader_lost(self, i: int, now: float) -> None:
         """Rule 3: member ``i`` heard no Ack from its leader for ``tau``; rule 6 follows."""
@@ -455,7 +455,7 @@ class Clustering:
                     self._rule5_leader_resigned(r, now)
             return
         if to_arm:
-            self._rule3_renew(effects.to_arm[:to_arm], renewed_s=now + self.tau_s)
+            self._rule3_renew(effects.to_arm[:to_arm])
         if not (may_join or may_merge):
             return  # most leaders' Acks: their members' timers renewed, nothing else
         # The lists are reused: read them now.
