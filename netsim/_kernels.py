@@ -464,11 +464,11 @@ def disk_exits(offset, radius, move, safety, out):
     """Row by row, the largest ``s`` in [0, 1] with ``|offset + s move| <= radius``, times
     ``safety`` (a hair short of the circle, against rounding), into ``out``: when a straight
     step from inside a disk leaves it, by :func:`disk_crossing_times`. A row that does not
-    move may take its whole step (times ``safety``, as every row); one whose path does not
-    cross the circle (outside the disk, or touching it) none."""
+    move, or whose disk is unbounded, may take its whole step (times ``safety``, as every
+    row); one whose path misses the circle or only touches it, none."""
     for k in range(out.shape[0]):
         wx, wy = move[k, 0], move[k, 1]
-        if _dot(wx, wy, wx, wy) > 0:
+        if _dot(wx, wy, wx, wy) > 0 and radius[k] < np.inf:
             leave = disk_crossing_times(0.0, offset[k, 0], offset[k, 1], wx, wy, radius[k])[1]
             s = leave if leave == leave else 0.0
         else:
@@ -652,11 +652,21 @@ def shadow_correlation(travel_m, decorrelation_m):
     return math.exp(-max(travel_m, 0.0) / decorrelation_m)
 
 
+@jit(nogil=True, inline="always")
+def shadow_renewal(travel_m, decorrelation_m):
+    """``1 - shadow_correlation^2``, the share of the shadowing's variance that a pair travel
+    ``travel_m`` renews, to full precision where the travel is short (where ``1 - rho^2``
+    of a correlation rounded near 1 is not)."""
+    return -math.expm1(-2.0 * max(travel_m, 0.0) / decorrelation_m)
+
+
 @jit(nogil=True)
-def shadow_correlations(travel_m, decorrelation_m, out):
-    """:func:`shadow_correlation` of each travel, into ``out``: for the channel's fit."""
-    for k in range(out.shape[0]):
-        out[k] = shadow_correlation(travel_m[k], decorrelation_m)
+def shadow_steps(travel_m, decorrelation_m, correlation, renewal):
+    """:func:`shadow_correlation` and :func:`shadow_renewal` of each travel, into
+    ``correlation`` and ``renewal``: the steps of the shadowing's AR(1) for the channel's fit."""
+    for k in range(correlation.shape[0]):
+        correlation[k] = shadow_correlation(travel_m[k], decorrelation_m)
+        renewal[k] = shadow_renewal(travel_m[k], decorrelation_m)
 
 
 @jit(nogil=True)

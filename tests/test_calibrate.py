@@ -109,10 +109,27 @@ def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path
     capsys.readouterr()
     assert main(["calibrate", str(run / "receptions.parquet"), "--sensitivity-dbm", "-85"]) == 0
     printed = capsys.readouterr().out
-    assert f"{lost:,} of the received frames were lost after the radio heard them" in printed
+    assert f"{lost:,} lost after the radio heard them) between" in printed
     result = calibrate_frame(table, sensitivity_dbm=-85.0)
     for key, value in truth.items():
         assert getattr(result.fit, key).covers(value), (key, getattr(result.fit, key))
+
+
+def test_a_cause_is_read_as_the_channel_spells_it_and_a_lost_frame_without_power_left_out(small_log):
+    """``cause`` as a user may write it (any case, spaces for underscores) means what the
+    channel's causes mean: ``out_of_range`` rows are censored below the sensitivity, a frame
+    lost after the radio heard it counts at its power, and one such without a power is left
+    out (not read as below the sensitivity)."""
+    log = synth_log(4, censored=True, **SMALL)[["t_s", "src", "dst", "distance_m", "rssi_dbm", "received"]]
+    lost = log.index[log["received"]][:30]
+    unmeasured = log.index[log["received"]][30:40]
+    log = log.assign(cause=np.where(log["received"], "", "Out of Range"))
+    log.loc[lost, ["received", "cause"]] = [False, "LOSS"]
+    log.loc[unmeasured, ["received", "cause", "rssi_dbm"]] = [False, "collision", np.nan]
+    result = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
+    assert result.lost_measured == 30 and result.lost_unmeasured == 10
+    assert result.frames == len(log) - 10 and result.received == int(log["rssi_dbm"].notna().sum())
+    assert result.fit.likelihood == "censored"
 
 
 @pytest.mark.slow
@@ -208,6 +225,12 @@ def _on_the_law(good: pd.DataFrame) -> pd.DataFrame:
     return good.assign(rssi_dbm=TRUTH.tx_power_dbm - loss)
 
 
+def _unknown_cause(good: pd.DataFrame) -> pd.DataFrame:
+    log = good.assign(received=True, cause="")
+    log.loc[4, ["received", "cause"]] = [False, "interference"]
+    return log
+
+
 def _empty_position(good: pd.DataFrame) -> pd.DataFrame:
     log = good.copy()
     log.loc[6, "src_x_m"] = np.nan
@@ -226,6 +249,7 @@ BAD_LOGS = {
     "too_few": lambda g: g.iloc[:20],
     "no_shadowing": _on_the_law,
     "empty_position": _empty_position,
+    "unknown_cause": _unknown_cause,
     "missing": lambda g: ("nowhere.csv", None),
     "unknown_format": lambda g: ("log.txt", b"t_s,src\n"),
     "broken_parquet": lambda g: ("broken.parquet", b"PAR1 not really parquet"),
@@ -256,6 +280,7 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("no_shadowing", [], "no shadowing to fit"),
         ("no_shadowing", ["--sensitivity-dbm", "-120"], "no shadowing to fit"),
         ("empty_position", [], "column src_x_m row 7: nan is not a finite number (1 such row)"),
+        ("unknown_cause", [], "column cause row 5: 'interference' is not a cause of the channel's"),
         ("good", ["--sensitivity-dbm", "-1"], "above every logged power"),
         ("good", ["--sensitivity-dbm", "-75"], "were received below it"),
         ("good", ["--sensitivity-dbm", "5"], "must be in [-200, 0] dBm"),

@@ -167,16 +167,17 @@ def test_a_pair_comes_into_range_and_leaves_it_at_the_roots_of_its_path(compiled
 def test_a_step_leaves_its_disk_where_a_pair_leaves_range(compiled, monkeypatch):
     """A plan's step from inside a disk is cut where the path leaves it by the link solvers'
     own roots (``disk_crossing_times``), to the bit, a hair short (``SAFETY``) and clipped to
-    [0, 1]: a robot at rest may take its whole step, a path that only touches the circle none."""
+    [0, 1]: a robot at rest or on an unbounded leash may take its whole step, a path that only
+    touches the circle none."""
     from netsim.mobility.steps import SAFETY, step_limit
 
     from netsim import _kernels as core
 
     monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
-    offset = np.array([[0.0, 0.0], [3.0, 4.0], [5.0, 0.0], [5.0, 0.0]])
-    radius = np.array([1.0, 5.0, 5.0, 5.0])
-    move = np.array([[4.0, 0.0], [0.0, 0.0], [0.0, 3.0], [-20.0, 0.0]])
-    assert step_limit(offset, radius, move).tolist() == [0.25 * SAFETY, SAFETY, 0.0, 0.5 * SAFETY]
+    offset = np.array([[0.0, 0.0], [3.0, 4.0], [5.0, 0.0], [5.0, 0.0], [3.0, 0.0]])
+    radius = np.array([1.0, 5.0, 5.0, 5.0, np.inf])
+    move = np.array([[4.0, 0.0], [0.0, 0.0], [0.0, 3.0], [-20.0, 0.0], [7.0, 1.0]])
+    assert step_limit(offset, radius, move).tolist() == [0.25 * SAFETY, SAFETY, 0.0, 0.5 * SAFETY, SAFETY]
     rng = np.random.default_rng(7)
     radius = rng.uniform(1.0, 200.0, 2000)
     angle = rng.uniform(0.0, 2 * np.pi, 2000)

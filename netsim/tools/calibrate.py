@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
+from netsim.radio.mac import MAC_DROP_CAUSES
 from netsim.radio.propagation import LogDistanceParams
 from netsim.tools import channel_fit as cf
 
@@ -47,6 +48,7 @@ class Calibration:
     pairs: int
     robots: int
     lost_measured: int = 0  # of ``received``: frames lost after the radio heard them
+    lost_unmeasured: int = 0  # frames lost so without a logged power, left out
 
     def channel(self) -> dict:
         """The ``[channel]`` keys, as ``netsim run`` reads them."""
@@ -89,7 +91,7 @@ def read_log(path: Path) -> pd.DataFrame:
 
 def _shown(value: object) -> str:
     """A cell as a user wrote it: ``'abc'`` for text, ``nan`` or ``inf`` for a number."""
-    return repr(value) if isinstance(value, str) else str(value.item() if isinstance(value, np.generic) else value)
+    return repr(str(value)) if isinstance(value, str) else str(value.item() if isinstance(value, np.generic) else value)
 
 
 def _numbers(log: pd.DataFrame, column: str, where: str, missing_ok: bool = False) -> np.ndarray:
@@ -120,6 +122,7 @@ class Frames:
     dst: np.ndarray
     robots: int
     lost_measured: int = 0  # rows lost after the radio heard them, read at their power
+    lost_unmeasured: int = 0  # rows lost so without a power: left out
 
     @property
     def pair(self) -> np.ndarray:
@@ -147,21 +150,26 @@ class Frames:
 
 
 # The cause a run's receptions.parquet gives a frame its radio did not hear: the one cause
-# that says the power fell below the sensitivity (or a wall or the range stopped it).
+# that says the power fell below the sensitivity (or a wall or the range stopped it). Every
+# other cause the channel and its medium give drops a frame the radio heard.
 BELOW_SENSITIVITY = "out_of_range"
+CAUSES = MAC_DROP_CAUSES
 
 
-def _lost_after_the_radio(log: pd.DataFrame, received: np.ndarray, power_dbm: np.ndarray) -> np.ndarray:
-    """The rows not received for a ``cause`` other than :data:`BELOW_SENSITIVITY` (the loss
-    model, a collision, a receiver switched off) with a logged power: frames that cleared
-    the sensitivity, so their power is a measurement like a received frame's. Counting them
-    as censored below it, or dropping them, would bias the fit toward more loss."""
-    if "cause" not in log.columns:
-        return np.zeros(len(log), bool)
+def _causes(log: pd.DataFrame, where: str) -> np.ndarray:
+    """The ``cause`` column as the channel spells its causes ("" where none is given);
+    a cause it does not know is refused."""
     cause = log["cause"]
-    named = cause.notna().to_numpy() & (cause.astype(str).str.strip() != "").to_numpy()
-    other = named & (cause.astype(str).str.strip() != BELOW_SENSITIVITY).to_numpy()
-    return ~received & other & ~np.isnan(power_dbm)
+    words = cause.where(cause.notna(), "").astype(str).str.strip().str.lower()
+    words = words.str.replace(" ", "_").str.replace("-", "_").to_numpy()
+    unknown = (words != "") & ~np.isin(words, CAUSES)
+    if unknown.any():
+        i = int(np.flatnonzero(unknown)[0])
+        raise NetsimInputError(
+            f"{where}: column cause row {i + 1}: {_shown(cause.iloc[i])} is not a cause of the channel's "
+            f"({', '.join(CAUSES)}; empty for a frame received)"
+        )
+    return words
 
 
 def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
@@ -184,7 +192,8 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         raise NetsimInputError(f"{where}: has no frames (only a header)")
     t_s = _numbers(log, "t_s", where)
     power_dbm = _numbers(log, power, where, missing_ok=True)
-    lost_measured = 0
+    lost_measured = lost_unmeasured = 0
+    keep = np.ones(len(log), bool)
     if "received" in cols:
         words = {"true": True, "false": False}
         received = log["received"].map(lambda v: words.get(v.lower(), v) if isinstance(v, str) else v)
@@ -195,9 +204,17 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         if lacking.any():
             i = int(np.flatnonzero(lacking)[0])
             raise NetsimInputError(f"{where}: row {i + 1} is received but its {power} is empty")
-        lost = _lost_after_the_radio(log, received, power_dbm)
-        lost_measured = int(lost.sum())
-        power_dbm = np.where(received | lost, power_dbm, np.nan)
+        if "cause" in cols:
+            # A frame lost after the radio heard it cleared the sensitivity: its power is a
+            # measurement like a received frame's. Read as censored below the sensitivity it
+            # would bias the fit toward more loss; one without a logged power is left out.
+            words = _causes(log, where)
+            lost = ~received & (words != "") & (words != BELOW_SENSITIVITY)
+            keep &= ~(lost & np.isnan(power_dbm))
+            lost &= keep
+            lost_measured, lost_unmeasured = int(lost.sum()), int((~keep).sum())
+            received = received | lost
+        power_dbm = np.where(received, power_dbm, np.nan)
     for c in ("src", "dst"):
         if log[c].isna().any():
             i = int(np.flatnonzero(log[c].isna().to_numpy())[0])
@@ -220,9 +237,12 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         i = int(np.flatnonzero(bad)[0])
         raise NetsimInputError(
             f"{where}: row {i + 1}: {what} is {distance[i]:g}; every distance must be > 0 m "
-            f"({int(bad.sum()):,} such rows)"
+            f"({int(bad.sum()):,} such row{'s' if bad.sum() > 1 else ''})"
         )
-    return Frames(t_s, power_dbm, distance, positions, src, dst, len(names), lost_measured)
+    if not keep.all():
+        t_s, power_dbm, distance, src, dst = (v[keep] for v in (t_s, power_dbm, distance, src, dst))
+        positions = None if positions is None else positions[keep]
+    return Frames(t_s, power_dbm, distance, positions, src, dst, len(names), lost_measured, lost_unmeasured)
 
 
 def check_sensitivity(power_dbm: np.ndarray, sensitivity_dbm: float | None, where: str) -> None:
@@ -312,6 +332,7 @@ def calibrate_frames(
         len(np.unique(pair)),
         frames.robots,
         frames.lost_measured,
+        frames.lost_unmeasured,
     )
 
 
@@ -327,14 +348,22 @@ def _cell(e: cf.Estimate | None) -> str:
 def report(c: Calibration, where: str) -> str:
     """The printed table: each estimate with its 95 % interval, the naive fit beside."""
     fit, naive = c.fit, c.naive
+    heard = (
+        f"{c.received:,} received"
+        if not c.lost_measured
+        else f"{c.received - c.lost_measured:,} received, {c.lost_measured:,} lost after the radio heard them"
+    )
     lines = [
-        f"netsim calibrate: {where}: {c.frames:,} frames ({c.received:,} received) between {c.pairs:,} pairs "
-        f"of {c.robots:,} robots",
+        f"netsim calibrate: {where}: {c.frames:,} frames ({heard}) between {c.pairs:,} pairs of {c.robots:,} robots"
     ]
     if c.lost_measured:
         lines.append(
-            f"{c.lost_measured:,} of the received frames were lost after the radio heard them (their cause: the loss "
-            "model, a collision, ...): they cleared the sensitivity and count at their logged power"
+            f"the {c.lost_measured:,} frames lost after the radio heard them (to the loss model, a collision, ...) "
+            "cleared the sensitivity: they count at their logged power"
+        )
+    if c.lost_unmeasured:
+        lines.append(
+            f"{c.lost_unmeasured:,} frames lost after the radio heard them without a logged power are left out"
         )
     if fit.likelihood == "censored":
         lines.append(

@@ -269,9 +269,9 @@ def ar1_steps(residual_db, travel_m, cluster, usable):
 def _ar1_loglik(theta, r0, r1, delta):
     sigma, d = np.exp(theta[0]), float(np.exp(theta[1]))
     # The correlation the channel draws shadowing by (netsim._kernels.shadow_correlation).
-    rho = np.empty(len(delta))
-    load("netsim._kernels", None, values=len(delta)).shadow_correlations(delta, d, rho)
-    var = sigma**2 * (1.0 - rho * rho)
+    rho, renewal = np.empty(len(delta)), np.empty(len(delta))
+    load("netsim._kernels", None, values=len(delta)).shadow_steps(delta, d, rho, renewal)
+    var = sigma**2 * renewal
     return -0.5 * (np.log(2 * np.pi * var) + (r1 - rho * r0) ** 2 / var)
 
 
