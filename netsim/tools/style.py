@@ -99,12 +99,14 @@ def _greedy(ids: np.ndarray, pairs: np.ndarray) -> np.ndarray:
 
 
 def _near_pairs(xy: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
-    from scipy.spatial import cKDTree
+    """Index pairs of ``xy`` within ``NEIGHBOUR_RANGES x range_m`` (on a torus of side
+    ``side_m``), by the engine's rule of in range."""
+    from netsim.topology import geometric_pairs
 
     if side_m is not None:
         xy = in_box(xy, side_m)
-    tree = cKDTree(xy, boxsize=side_m)
-    return tree.query_pairs(NEIGHBOUR_RANGES * range_m, output_type="ndarray")
+    i, j, _ = geometric_pairs(np.ascontiguousarray(xy, float), NEIGHBOUR_RANGES * range_m, side_m)
+    return np.column_stack([i, j])
 
 
 def group_colours(leaders, leader_positions_m, range_m: float) -> dict[int, str]:
