@@ -70,7 +70,7 @@ REDUCED = {
         "netsim figures --set duration_s=60",
         "the built-in coverage scenario, 60 simulated seconds instead of 300",
     ),
-    "python -m tests.calibration_logs --write site.csv": (
+    "python -m tests.calibration_logs --write site.csv      # from the repository's folder": (
         f"PYTHONPATH={shlex.quote(str(ROOT))} {PY} -m tests.calibration_logs --write site.csv",
         "the test helpers are the repository's, not the install's: found from the repository's root",
     ),
