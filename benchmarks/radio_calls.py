@@ -35,14 +35,23 @@ def per_call_us(fn, min_time_s=0.3) -> float:
 
 
 def batch(m, rng, k, length_m, n_robots=1000):
-    """k pairs among n_robots robots placed in free space, each at most length_m apart."""
+    """k distinct pairs (a radio call's pairs are) among n_robots robots placed in free
+    space, each at most length_m apart."""
     pos = sample_free(m, rng, n_robots, 200.0)
-    a = rng.integers(0, n_robots, 20 * k)
-    b = rng.integers(0, n_robots, 20 * k)
-    d = np.hypot(*(pos[a] - pos[b]).T)
-    ok = (d <= length_m) & (a != b)
-    a, b = a[ok][:k], b[ok][:k]
-    return pos, a, b
+    draws = 20 * k
+    while True:
+        a = rng.integers(0, n_robots, draws)
+        b = rng.integers(0, n_robots, draws)
+        d = np.hypot(*(pos[a] - pos[b]).T)
+        ok = np.flatnonzero((d <= length_m) & (a != b))
+        key = np.minimum(a[ok], b[ok]) * n_robots + np.maximum(a[ok], b[ok])
+        ok = ok[np.sort(np.unique(key, return_index=True)[1])]
+        if len(ok) >= k or draws >= 2_000 * k:
+            break
+        draws *= 4
+    if len(ok) < k:
+        raise SystemExit(f"radio_calls.py: error: only {len(ok)} distinct pairs within {length_m:g} m; asked for {k}")
+    return pos, a[ok[:k]], b[ok[:k]]
 
 
 def measure(m, rng, k: int, length_m: float) -> dict:
