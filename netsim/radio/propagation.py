@@ -113,7 +113,10 @@ class Propagation:
         return path(self, pairs.team_size()).receivable(pairs)
 
     def received_dbm(self, pairs: Pairs) -> np.ndarray:
-        """``P_r`` of every pair (``-inf`` where a term blocks): for interference sums."""
+        """``P_r`` of every pair (``-inf`` where a term blocks), term by term. Like
+        :meth:`receivable`, a call steps the pairs' shadowing to their travel (a draw for a
+        pair not seen yet): the power of a run's frame as its channel decided it is
+        :meth:`netsim.radio.reception.Reception.received_dbm`, which reads it."""
         return self.radio.received_dbm(self.chain.loss_db(pairs))
 
 
