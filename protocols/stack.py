@@ -352,22 +352,35 @@ class Stack(AckTiming):
         return df
 
     def beliefs_frame(self) -> pd.DataFrame:
-        self._sample_at_end()
-        if not self._beliefs:
+        kept, now = self._beliefs, self._sample_now()
+        if not kept and now is None:
             return pd.DataFrame(columns=BELIEF_COLUMNS)
-        return beliefs_table(self._beliefs)
+        return _joined([beliefs_table(s) for s in (kept, now and now[2]) if s])
 
     def neighbour_beliefs_frame(self) -> pd.DataFrame:
-        self._sample_at_end()
-        if not self._neighbour_beliefs:
+        kept, now = self._neighbour_beliefs, self._sample_now()
+        if not kept and now is None:
             return pd.DataFrame({c: pd.Series(dtype=t) for c, t in NEIGHBOUR_BELIEFS_SCHEMA.items()})
-        return self._neighbour_beliefs.frame()
+        return _joined([s.frame() for s in (kept, now and now[1]) if s])
 
     def groups_frame(self) -> pd.DataFrame:
-        self._sample_at_end()
-        if not self._groups:
+        kept, now = self._groups, self._sample_now()
+        if not kept and now is None:
             return pd.DataFrame(columns=["t_s", "robot", "group", "primary"])
-        return self._groups.frame()
+        return _joined([s.frame() for s in (kept, now and now[0]) if s])
+
+    def _sample_now(self) -> tuple[Samples, Samples, Samples] | None:
+        """The sampled tables end where the run stands: at its end, the last sample, kept
+        (:meth:`_sample_at_end`); before it (a table asked for mid-run), a sample at ``now``
+        when the latest is older, as the end's would be (every event before ``now``, none
+        at it), handed out but not kept, so that the run records what it would have."""
+        self._sample_at_end()
+        now = float(self.env.now)
+        if now >= self.duration_s or ended_at(self._groups.times, now):
+            return None
+        groups, pairs, counts = Samples(), Samples(), Samples()
+        self._sample_into(now, groups, pairs, counts)
+        return groups, pairs, counts
 
     def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         n = self.state.n
@@ -399,6 +412,10 @@ BELIEF_COLUMNS = [
     "stale_neighbours",
     "missing_neighbours",
 ]
+
+
+def _joined(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    return frames[0] if len(frames) == 1 else pd.concat(frames, ignore_index=True)
 
 
 def ended_at(times: list[float], end_s: float) -> bool:

@@ -53,10 +53,12 @@ def test_collect_before_the_end_keeps_robots_in_the_area(stopped):
 
 
 def test_collect_before_the_end_is_the_run_that_ended_there(stopped):
-    """Positions and links collected at ``now`` are those of a run whose duration is now:
-    links still up are censored at now."""
+    """Positions, links and the sampled tables collected at ``now`` are those of a run whose
+    duration is now: links still up are censored at now, and groups and beliefs have their
+    sample at now, as an ended run has at its end."""
     ended = _collected(STOP_S)
-    for name in ("positions", "links"):
+    assert stopped["groups"]["t_s"].max() == STOP_S
+    for name in ("positions", "links", "groups", "beliefs", "neighbour_beliefs"):
         pd.testing.assert_frame_equal(stopped[name], ended[name])
     assert stopped["links"]["censored_end"].any()
     assert (stopped["links"].loc[stopped["links"]["censored_end"], "t_down_s"] == STOP_S).all()
@@ -125,8 +127,9 @@ def test_run_to_now_and_to_the_end_are_allowed():
 )
 def test_collect_mid_run_leaves_the_rest_of_the_run_as_it_was(radio):
     """Collecting the tables mid-run changes nothing after it: a run collected at 40 s and
-    then run to its end announces the same link events, and writes the same links and
-    link_breaks tables, as the same run never collected before its end."""
+    then run to its end announces the same link events, and writes the same links,
+    link_breaks and sampled tables (a sample taken for the collection is not kept), as the
+    same run never collected before its end."""
     config = {**CONFIG, **radio, "events": {"hooks": ["link_breaks"], "runtime_links": "on"}}
     if "world" in radio:
         config["world"] = {**CONFIG["world"], **radio["world"]}
@@ -146,5 +149,5 @@ def test_collect_mid_run_leaves_the_rest_of_the_run_as_it_was(radio):
     (ups_once, once), (ups_twice, twice) = run(None), run(40.0)
     assert len(ups_once) > 10
     assert ups_twice == ups_once
-    for table in ("links", "link_breaks"):
+    for table in ("links", "link_breaks", "groups", "beliefs", "neighbour_beliefs"):
         pd.testing.assert_frame_equal(twice[table], once[table])
