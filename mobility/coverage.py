@@ -848,12 +848,19 @@ class CoverageController:
     def coverage_frame(self) -> pd.DataFrame:
         # The last sample at the run's end T, once the run has reached it: the sampler's
         # next event is due at T or after, and never processed (events due exactly at the
-        # end are not).
-        # The sum of many intervals may fall a rounding error short of T: that sample is it.
-        end = self.duration_s
-        if self.env.now >= end and not (self.samples and self.samples[-1]["t_s"] >= end - 1e-9 * max(1.0, end)):
+        # end are not). Asked for before the end, the table ends at now the same way, by a
+        # sample handed out but not kept: the run goes on recording what it would have.
+        end, now = self.duration_s, float(self.env.now)
+        if now >= end and not self._sampled_at(end):
             self.samples.append(self.sample(end))
+        if now < end and not self._sampled_at(now):
+            return pd.DataFrame([*self.samples, self.sample(now)])
         return pd.DataFrame(self.samples)
+
+    def _sampled_at(self, t: float) -> bool:
+        """Whether the latest sample is at ``t`` (the sum of many intervals may fall a
+        rounding error short of it: that sample is it)."""
+        return bool(self.samples) and self.samples[-1]["t_s"] >= t - 1e-9 * max(1.0, t)
 
     def travel_frame(self) -> pd.DataFrame:
         """Distance each robot travelled over the run (the energy it spent moving)."""

@@ -151,3 +151,28 @@ def test_collect_mid_run_leaves_the_rest_of_the_run_as_it_was(radio):
     assert ups_twice == ups_once
     for table in ("links", "link_breaks", "groups", "beliefs", "neighbour_beliefs"):
         pd.testing.assert_frame_equal(twice[table], once[table])
+
+
+def test_a_coverage_table_collected_mid_run_ends_at_now_and_is_not_kept():
+    """The coverage table collected at ``now`` is that of a run that ended at now (its
+    sample at now included), and the run, continued, writes the table it would have."""
+    coverage = dict(
+        world={"n_robots": 20, "side_m": 800.0, "placement": "centre", "centre_side_m": 200.0},
+        mobility={"model": "static"},
+        channel={"range_m": 100.0},
+        protocol={"message_rate_hz": 0.0},
+        coverage={"enabled": True},
+    )
+
+    def sim(duration_s: float):
+        return build(make_config(duration_s=duration_s, seed=3, **coverage))
+
+    stopped, ended, whole = sim(100.0), sim(52.0), sim(100.0)
+    stopped.run(until_s=52.0)
+    ended.run()
+    mid = collect(stopped)["coverage"]
+    assert mid["t_s"].max() == 52.0
+    pd.testing.assert_frame_equal(mid, collect(ended)["coverage"])
+    stopped.run()
+    whole.run()
+    pd.testing.assert_frame_equal(collect(stopped)["coverage"], collect(whole)["coverage"])
