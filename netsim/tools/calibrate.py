@@ -101,13 +101,18 @@ def _numbers(log: pd.DataFrame, column: str, where: str, missing_ok: bool = Fals
     bad = (np.isnan(values) & raw.notna().to_numpy()) | np.isinf(values)
     if not missing_ok:
         bad |= np.isnan(values)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise NetsimInputError(
-            f"{where}: column {column} row {i + 1}: {_shown(raw.iloc[i])} is not a finite number "
-            f"({int(bad.sum()):,} such row{'s' if bad.sum() > 1 else ''})"
-        )
+    _refuse_cells(bad, raw, where, "is not a finite number")
     return values
+
+
+def _refuse_cells(bad: np.ndarray, column: pd.Series, where: str, why: str) -> None:
+    """Refuse a log whose ``column`` has ``bad`` cells, in one line naming the first."""
+    if bad.any():
+        i, count = int(np.flatnonzero(bad)[0]), int(bad.sum())
+        raise NetsimInputError(
+            f"{where}: column {column.name} row {i + 1}: {_shown(column.iloc[i])} {why} "
+            f"({count:,} such row{'s' if count > 1 else ''})"
+        )
 
 
 @dataclass(frozen=True)
@@ -162,13 +167,8 @@ def _causes(log: pd.DataFrame, where: str) -> np.ndarray:
     cause = log["cause"]
     words = cause.where(cause.notna(), "").astype(str).str.strip().str.lower()
     words = words.str.replace(" ", "_").str.replace("-", "_").to_numpy()
-    unknown = (words != "") & ~np.isin(words, CAUSES)
-    if unknown.any():
-        i = int(np.flatnonzero(unknown)[0])
-        raise NetsimInputError(
-            f"{where}: column cause row {i + 1}: {_shown(cause.iloc[i])} is not a cause of the channel's "
-            f"({', '.join(CAUSES)}; empty for a frame received)"
-        )
+    known = f"is not a cause of the channel's ({', '.join(CAUSES)}; empty for a frame received)"
+    _refuse_cells((words != "") & ~np.isin(words, CAUSES), cause, where, known)
     return words
 
 
