@@ -112,7 +112,7 @@ from netsim.mobility.spread import project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
 from netsim.compiled import filled, load
-from netsim.geometry import speeds_mps
+from netsim.geometry import beyond, speeds_mps
 from netsim.trajectory import points_on_legs
 
 
@@ -758,12 +758,11 @@ def plan_local(
         half = halves.usable[robot, other]
         centre[half] = halves.centre_m[robot[half], other[half]]
         now_m[half] = r[half] = halves.radius_m[robot[half], other[half]]
-    dist = np.hypot(*(pos[robot] - centre).T)
     # Rule 3: a robot that cannot answer for a kept link now holds.
     cannot = np.zeros(n, dtype=bool)
-    cannot[robot[dist > now_m]] = True
+    cannot[robot[beyond(pos[robot], centre, now_m, n)]] = True
     outside = np.zeros(n, dtype=bool)
-    outside[robot[dist > r]] = True
+    outside[robot[beyond(pos[robot], centre, r, n)]] = True
     wants = np.hypot(*desired_mps.T) > 0
     cannot |= reach <= 0
     movers = np.flatnonzero(~cannot & wants)
@@ -785,7 +784,7 @@ def plan_local(
     if len(robot):
         rows = robot[inside]
         np.minimum.at(s, rows, step_limit(pos[rows] - centre[inside], r[inside], move[rows], n))
-        missed = np.hypot(*(pos[robot] + move[robot] - centre).T) > r
+        missed = beyond(pos[robot] + move[robot], centre, r, n)
         s[robot[~inside & missed]] = 0.0
     s = np.minimum(s, box_limit(pos, move, limits.box))
     s[outside & (s < 1.0)] = 0.0
@@ -878,7 +877,7 @@ def cut_for_walls(
     inner_hi = np.maximum(hi - REGION_CLAMP_M, pos)
     slid = np.clip(pos + move, inner_lo, inner_hi) - pos
     off_leash = np.zeros(n, dtype=bool)
-    off_leash[robot[np.hypot(*(pos[robot] + slid[robot] - centre).T) > leash]] = True
+    off_leash[robot[beyond(pos[robot] + slid[robot], centre, leash, n)]] = True
     # Where sliding leaves a leash, the step stops at the regions' border instead.
     with np.errstate(divide="ignore", invalid="ignore"):
         reach = np.where(move > 0, (inner_hi - pos) / move, np.where(move < 0, (inner_lo - pos) / move, np.inf))
@@ -896,7 +895,7 @@ def cut_for_walls(
         r = robot[rows]
         end = pos[r] + s * move[r]
         ok = boxed[rows] | clear_of_walls(walls, pos[r], centre[rows], s * length[r], e[rows])
-        ok &= np.hypot(*(end - centre[rows]).T) <= leash[rows]
+        ok &= ~beyond(end, centre[rows], leash[rows], n)
         failed = np.zeros(n, dtype=bool)
         failed[r[~ok]] = True
         done = undecided & ~failed
@@ -1060,8 +1059,8 @@ def answered_by_halves(
 ) -> np.ndarray:
     """``(n, n)``: the kept links each robot answers for by its half (rule 2, "Halves"): those
     it cannot answer for alone now (rule 3) and can by its half."""
-    dist = np.hypot(*(pos[:, None, :] - memory.xy).transpose(2, 0, 1))
-    return kept & halves.usable & (dist > leash_radius(memory, t0_s, limits))
+    far = beyond(pos[:, None, :], memory.xy, leash_radius(memory, t0_s, limits), len(pos))
+    return kept & halves.usable & far
 
 
 class Fade:

@@ -491,6 +491,21 @@ def reaches(ddx, ddy, lim, box):
     return hit
 
 
+@jit(nogil=True)
+def beyond_disks(points, centres, radius, out):
+    """Whether each point lies farther than ``radius`` from its centre (``hypot > r``), into
+    ``out``: by :func:`reaches` for a radius of 0 or more; a negative radius has every point
+    beyond it, and a NaN anywhere none, as the comparison has."""
+    for k in range(out.shape[0]):
+        dx = points[k, 0] - centres[k, 0]
+        dy = points[k, 1] - centres[k, 1]
+        r = radius[k]
+        if r >= 0.0 and dx == dx and dy == dy:
+            out[k] = not reaches(dx, dy, r, 0.0)
+        else:
+            out[k] = np.hypot(dx, dy) > r
+
+
 @jit(nogil=True, inline="always")
 def _reach_band(ddx, ddy, lim, box):
     """:func:`reaches`'s arithmetic: the offset (folded to the nearest image on a torus),

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim.compiled import load
+from netsim.compiled import filled, load
 
 
 def wrap(d: np.ndarray, box: float | None, n_robots: int) -> np.ndarray:
@@ -16,6 +16,18 @@ def wrap(d: np.ndarray, box: float | None, n_robots: int) -> np.ndarray:
         return d
     rows = np.ascontiguousarray(d, dtype=float).reshape(-1, 2)
     return load("netsim._kernels", n_robots).nearest_images(rows, float(box)).reshape(np.shape(d))
+
+
+def beyond(points_m: np.ndarray, centres_m: np.ndarray, radius_m: np.ndarray, n_robots: int) -> np.ndarray:
+    """Whether each point (rows, or any shape ending in 2) lies farther than its radius from
+    its centre, in a run of ``n_robots``: the rule of in range
+    (:func:`netsim._kernels.beyond_disks`)."""
+    shape = np.broadcast_shapes(np.shape(points_m), np.shape(centres_m))[:-1]
+    points = filled(points_m, (*shape, 2)).reshape(-1, 2)
+    centres = filled(centres_m, (*shape, 2)).reshape(-1, 2)
+    out = np.empty(len(points), bool)
+    load("netsim._kernels", n_robots).beyond_disks(points, centres, filled(radius_m, shape).reshape(-1), out)
+    return out.reshape(shape)
 
 
 def speeds_mps(velocity_mps: np.ndarray) -> np.ndarray:

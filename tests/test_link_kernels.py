@@ -185,3 +185,26 @@ def test_a_step_leaves_its_disk_where_a_pair_leaves_range(compiled, monkeypatch)
     move = rng.normal(0.0, 1.0, (2000, 2)) * 10 ** rng.uniform(-3.0, 3.0, (2000, 1))
     roots = [core.disk_crossing_times(0.0, *o, *m, r)[1] for o, m, r in zip(offset, move, radius)]
     assert np.array_equal(step_limit(offset, radius, move), np.clip(np.array(roots) * SAFETY, 0.0, 1.0))
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_point_is_beyond_its_disk_as_the_rule_of_in_range_says(compiled, monkeypatch):
+    """``beyond`` (the local plan's leashes) decides ``hypot(p - c) > r`` by ``reaches``:
+    the same answer as the comparison at the disk's edge (within a few ulps of it), for a
+    negative radius (every point beyond) and where a NaN enters (none)."""
+    from netsim.geometry import beyond
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1" if compiled else "0")
+    rng = np.random.default_rng(11)
+    centres = rng.uniform(-500.0, 500.0, (3000, 2))
+    points = rng.uniform(-500.0, 500.0, (3000, 2))
+    radius = np.hypot(*(points - centres).T) * (1.0 + rng.integers(-3, 4, 3000) * 2.0**-52)
+    radius[:300] = rng.uniform(-50.0, 800.0, 300)
+    radius[300:320] = np.nan
+    points[320:340, 0] = np.nan
+    radius[340:360] = -1.0
+    got = beyond(points, centres, radius, 3000)
+    with np.errstate(invalid="ignore"):
+        want = np.hypot(*(points - centres).T) > radius
+    assert np.array_equal(got, want)
+    assert 0.2 < want[360:].mean() < 0.8 and want[340:360].all() and not got[300:340].any()
