@@ -12,6 +12,7 @@ each other on the office map's free space.
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -34,6 +35,10 @@ def per_call_us(fn, min_time_s=0.3) -> float:
     return (time.perf_counter() - t0) / n * 1e6
 
 
+# Enough draws for any batch the table asks; a batch the map cannot give is refused.
+DRAWS_MAX = 4_000_000
+
+
 def batch(m, rng, k, length_m, n_robots=1000):
     """k distinct pairs (a radio call's pairs are) among n_robots robots placed in free
     space, each at most length_m apart."""
@@ -46,11 +51,13 @@ def batch(m, rng, k, length_m, n_robots=1000):
         ok = np.flatnonzero((d <= length_m) & (a != b))
         key = np.minimum(a[ok], b[ok]) * n_robots + np.maximum(a[ok], b[ok])
         ok = ok[np.sort(np.unique(key, return_index=True)[1])]
-        if len(ok) >= k or draws >= 2_000 * k:
+        if len(ok) >= k or draws >= min(2_000 * k, DRAWS_MAX):
             break
         draws *= 4
     if len(ok) < k:
-        raise SystemExit(f"radio_calls.py: error: only {len(ok)} distinct pairs within {length_m:g} m; asked for {k}")
+        found = f"only {len(ok)} distinct pairs within {length_m:g} m"
+        print(f"radio_calls.py: error: {found}; asked for {k}", file=sys.stderr)
+        raise SystemExit(2)
     return pos, a[ok[:k]], b[ok[:k]]
 
 
