@@ -31,13 +31,15 @@ The architecture (docs/model.md section 5)
   step within its half of the link's allowed length (module notes there). Because each end
   keeps to its own half, a robot that holds instead of moving never breaks a kept link:
   the network stays connected at every instant even when commands are lost.
-- The team unfolds (``plan = "global"``). Forces among neighbours alone balance inside
+- The team unfolds. Forces among neighbours alone balance inside
   the team: it grows into a disk of evenly spaced robots whose kept tree is taut and
   folded, far below the bound. So every robot is also pushed away from the centre of its
   component of the network, in proportion to its distance from it (``expansion``, a
   centrifugal field, capped): the kept tree straightens into branches that run outwards
   and part, and the inside of the team empties where no robot adds area. The centre is
-  knowledge of the whole team, which the global plan has and the local plan does not.
+  knowledge of the whole team, which the global plan has; with the local plan each robot
+  pushes from the centre it estimates with the robots it hears
+  (:func:`netsim.mobility.local.centre_estimates`).
 - A link is what the channel makes under the run's radio, the same as ``links.parquet``:
   the controller gets the run's link state when built (``parts.links``), counts the
   components of its links in the ``coverage`` and ``control`` tables, and its plan keeps
@@ -110,6 +112,7 @@ from netsim.mobility.local import (
     Lists,
     Memory,
     answered_by_halves,
+    centre_estimates,
     cut_for_walls,
     latest_pulls,
     let_go,
@@ -144,8 +147,9 @@ from netsim.world.free_space import (
 # The stopping rule's default windows (coverage.stop_hold_s = 0), s.
 GLOBAL_HOLD_S = 20.0
 LOCAL_HOLD_S = 60.0
-# The expansion's push with the global plan (the local plan has none).
-GLOBAL_EXPANSION = 0.1
+# The expansion's push (the global plan's from its components' centres, the local plan's
+# from the centre each robot estimates).
+EXPANSION = 0.1
 
 
 class Members(StrEnum):
@@ -231,13 +235,11 @@ class CoverageParams(Params):
         " links are kept; fewer: more links let go, a larger chance of a split)",
     )
     expansion: float = param(
-        None,
+        EXPANSION,
         finite(non_negative),
-        "spread, plan = 'global': every robot is also pushed away from the centre of its component with"
-        " expansion x its distance from it, at most sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off)",
-        kind=float,
-        derive=lambda p: 0.0 if p.plan is PlanScope.LOCAL else GLOBAL_EXPANSION,
-        rule="0.1 with plan = 'global', 0 with 'local'",
+        "spread: every robot is also pushed away from the centre of its component (plan = 'local': from the"
+        " centre it estimates with the robots it hears) with expansion x its distance from it, at most"
+        " sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off)",
     )
     stop_speed_mps: float = param(
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
@@ -269,10 +271,6 @@ class CoverageParams(Params):
         if self.plan is PlanScope.LOCAL and self.knowledge is Knowledge.GLOBAL:
             raise ConfigError(
                 "coverage.plan", "local", "needs coverage.knowledge = 'acks' (a robot uses only what it heard)"
-            )
-        if self.plan is PlanScope.LOCAL and self.expansion > 0:
-            raise ConfigError(
-                "coverage.expansion", self.expansion, "needs coverage.plan = 'global' (the local plan knows no centre)"
             )
         if self.plan is PlanScope.LOCAL and self.members is Members.FOLLOW:
             raise ConfigError("coverage.plan", "local", "needs coverage.members = 'spread', not 'follow'")
@@ -467,6 +465,11 @@ class CoverageController:
         self.announced_s = math.inf
         self.earlier_mps = np.zeros((st.n, 2))
         self.earlier_s = math.inf
+        # The local plan's expansion (rule 6): each robot's estimate of its team's centre,
+        # and the estimates announced at the last two steps (none before the first).
+        self.centre_m: np.ndarray | None = None
+        self.centre_said = (np.zeros((st.n, 2)), math.inf)
+        self.centre_said_earlier = (np.zeros((st.n, 2)), math.inf)
 
     def _sure_range_m(self) -> float:
         """The local plan's range: a link clear of walls is up at every transmission while
@@ -602,11 +605,24 @@ class CoverageController:
         target, source_xy = self._in_sight(pos, target, source_xy)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
+        if c.expansion > 0:
+            wished += expansion_forces(pos, self._centre_estimates(pos), c.expansion, self.range_m, c.gain)
         wished = self._slide(pos, wished)
         speed = speeds_mps(wished)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
         self._max_wish = float(speed.max(initial=0.0))
+
+    def _centre_estimates(self, pos: np.ndarray) -> np.ndarray:
+        """Rule 6's centres at this step, each robot's from its own and those it heard
+        announced; the Acks sent from now on carry them."""
+        memory, now = self.memory, self.env.now
+        assert memory is not None
+        own = pos if self.centre_m is None else self.centre_m
+        known = memory.known(now, self.cfg.release_s)
+        self.centre_m = centre_estimates(own, known, memory.sent_s, self.centre_said, self.centre_said_earlier)
+        self.centre_said_earlier, self.centre_said = self.centre_said, (self.centre_m.copy(), now)
+        return self.centre_m
 
     def _plan_local(self, step: ControlStep) -> Plan:
         """Each robot keeps what it cannot let go of and answers for those links itself."""

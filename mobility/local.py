@@ -43,6 +43,11 @@ period``), its own position ``p`` at ``t0`` exact:
    surely clear of walls too (:func:`clear_of_walls`, or one region holds both ends,
    :func:`in_one_region`).
 
+6. **Expansion** (:func:`centre_estimates`). Each robot estimates its team's centre as
+   the mean of its own estimate and those the robots it heard announced at their latest
+   steps (a consensus: over a connected team the estimates meet), and adds the global
+   plan's push away from it to its wish.
+
 **Release** (:class:`Silence`, on a channel that loses no frame): ``i`` lets go of a robot
 it has heard no Ack of for longer than the largest gap between two (``ack_period_s +
 ack_jitter_s`` plus the channel's delay jitter): an Ack of it due before the step did not
@@ -954,6 +959,36 @@ def latest_pulls(
     return pulls(pos, memory, kept, *announced, t0_s, limits, sent_s) + pulls(
         pos, memory, older, *earlier, t0_s, limits, sent_s
     )
+
+
+def centre_estimates(
+    centre_m: np.ndarray,
+    known: np.ndarray,
+    sent_s: np.ndarray,
+    announced: tuple[np.ndarray, float],
+    earlier: tuple[np.ndarray, float],
+) -> np.ndarray:
+    """The expansion's centre (rule 6): each robot's estimate of its team's centre, the
+    mean of its own estimate ``centre_m`` and the estimates its ``known`` robots announced
+    at their latest step before the Ack of theirs it heard (sent at ``sent_s``): those
+    ``announced`` at the last step (and when), else those announced a step ``earlier``;
+    a robot whose latest Ack left before both counts with neither.
+
+    Averaging with every neighbour at each step is a consensus: the estimates of a
+    connected team meet at one point, a mean of where its robots stood when control
+    started, so the team spreads away from its own middle, not from one a robot guessed.
+
+    >>> known = np.array([[False, True], [True, False]])
+    >>> sent = np.array([[0.0, 1.5], [0.5, 0.0]])
+    >>> said = (np.array([[0.0, 0.0], [4.0, 0.0]]), 1.0), (np.array([[2.0, 0.0], [8.0, 0.0]]), 0.0)
+    >>> centre_estimates(np.array([[0.0, 0.0], [4.0, 0.0]]), known, sent, *said).tolist()
+    [[2.0, 0.0], [3.0, 0.0]]
+    """
+    latest = known & (sent_s >= announced[1])
+    older = known & (sent_s < announced[1]) & (sent_s >= earlier[1])
+    total = centre_m + latest.astype(float) @ announced[0] + older.astype(float) @ earlier[0]
+    count = 1.0 + latest.sum(axis=1) + older.sum(axis=1)
+    return total / count[:, None]
 
 
 def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos: np.ndarray):

@@ -14,6 +14,7 @@ from netsim.mobility.local import (
     NO_WALLS,
     Lists,
     Memory,
+    centre_estimates,
     clear_of_walls,
     cut_for_walls,
     latest_pulls,
@@ -419,6 +420,53 @@ def test_pull_a_robot_that_missed_the_latest_ack_uses_the_wish_of_the_one_before
     assert (latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s) == 0).all()
     m.sent_s[0, 1] = T0 - 0.5
     assert (latest_pulls(pos, m, kept, last, before, T0, LIMITS, m.sent_s) == 0).all()
+
+
+# -- rule 6: expansion --------------------------------------------------------------------
+
+
+def test_expansion_a_robot_averages_its_centre_with_those_announced_in_the_acks_it_heard():
+    """Rule 6: robot 0 heard robot 1 after robot 1's last announcement (its latest centre
+    counts), robot 2 between the two announcements (its earlier centre counts), robot 3
+    before both (neither counts), and robot 4 not at all."""
+    known = np.zeros((5, 5), bool)
+    known[0, 1:4] = True
+    sent = np.full((5, 5), -np.inf)
+    sent[0, 1:4] = [T0 - 0.5, T0 - 1.5, T0 - 2.5]
+    last = np.array([[0.0, 0.0], [10.0, 0.0], [100.0, 0.0], [1e3, 0.0], [1e4, 0.0]])
+    earlier = np.array([[0.0, 0.0], [100.0, 0.0], [20.0, 0.0], [1e3, 0.0], [1e4, 0.0]])
+    own = np.array([[0.0, 3.0], [7.0, 7.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    c = centre_estimates(own, known, sent, (last, T0 - 1.0), (earlier, T0 - 2.0))
+    assert c[0].tolist() == pytest.approx([10.0, 1.0])  # (0 + 10 + 20) / 3, (3 + 0 + 0) / 3
+    assert c[1:].tolist() == own[1:].tolist()  # who heard nobody keeps its own
+
+
+def test_expansion_the_centres_of_a_connected_team_meet_inside_it():
+    """Rule 6 as a consensus: on a chain, every robot hearing its neighbours at every step,
+    the estimates, started at the robots' own positions, meet at one point inside the team."""
+    n = 8
+    pos = np.column_stack([np.arange(n) * 90.0, np.zeros(n)])
+    known = np.abs(np.subtract.outer(np.arange(n), np.arange(n))) == 1
+    sent = np.where(known, 0.0, -np.inf)
+    centre, said, earlier = pos.copy(), (pos.copy(), -1.0), (pos.copy(), -2.0)
+    for _ in range(400):
+        centre = centre_estimates(centre, known, sent, said, earlier)
+        said, earlier = (centre.copy(), -1.0), said
+    assert np.ptp(centre[:, 0]) < 1e-6
+    assert 0.0 < centre[0, 0] < pos[-1, 0] and (centre[:, 1] == 0).all()
+
+
+@pytest.mark.slow
+def test_expansion_unfolds_the_local_plans_team_past_its_even_disk():
+    """From the dense start of ``netsim validate`` (100 robots, no loss): with rule 6 the
+    local plan covers more of min(1, U(N) / A) than without it (``coverage.expansion = 0``),
+    and its network never splits."""
+    n = 100
+    r = local_run(n, 1, 0.0)
+    times, counts = true_components(r, n)
+    assert counts[times > r.sim.config.coverage.start_s].max() == 1
+    off = local_run(n, 1, 0.0, **{"coverage.expansion": 0.0})
+    assert r.summary["covered_of_bound_all_final"] >= off.summary["covered_of_bound_all_final"] + 0.04
 
 
 # -- rule 5: walls -------------------------------------------------------------------------

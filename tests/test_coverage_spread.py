@@ -13,7 +13,6 @@ from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 from netsim import config
 from netsim.metrics import components, components_at_link_events, connected_coverage_bound
 from netsim.run import execute
-from netsim.tools.cli import main
 from netsim.tools.validate import coverage_settings
 from netsim.topology import geometric_pairs
 
@@ -325,25 +324,13 @@ def test_expansion_unfolds_the_team_far_past_the_even_disk():
     assert off.summary["covered_of_bound_all_final"] < 0.85
 
 
-def test_expansion_with_the_local_plan_is_one_line_exit_2_nothing_written(tmp_path, capsys):
-    """No robot of the local plan knows a centre to push from: asking for one is an error."""
-    out = tmp_path / "out"
-    argv = ["run", "--quiet", "--out", str(out), "--set", "coverage.plan=local", "--set", "coverage.expansion=0.1"]
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("netsim: error: coverage.expansion = 0.1"), err
-    assert "\n" not in err
-    assert not out.exists()
-
-
-def test_expansion_defaults_to_the_plans_from_a_file_too(tmp_path):
-    """Unset, ``expansion`` follows the plan (0.1 global, 0 local), from a file as from --set."""
+def test_expansion_defaults_to_0_1_with_either_plan_from_a_file_too(tmp_path):
+    """Unset, ``expansion`` is 0.1 with either plan, from a file as from --set; 0 turns it off."""
     scenario = tmp_path / "s.toml"
     scenario.write_text('[coverage]\nplan = "local"\n')
-    assert config.load(scenario, []).coverage.expansion == 0.0
+    assert config.load(scenario, []).coverage.expansion == 0.1
     assert config.load(scenario, ["coverage.plan=global"]).coverage.expansion == 0.1
-    assert config.load(None, []).coverage.expansion == 0.1
-    assert config.load(scenario, ["coverage.plan=global", "coverage.expansion=0.3"]).coverage.expansion == 0.3
+    assert config.load(scenario, ["coverage.expansion=0"]).coverage.expansion == 0.0
 
 
 @pytest.mark.slow
