@@ -160,3 +160,24 @@ def test_no_import_cycles_between_modules():
             src = module_name(f)
             graph.add_edges_from((src, m) for m in imports(f) if m != src)
     assert list(nx.simple_cycles(graph)) == []
+
+
+@pytest.mark.parametrize("folder", ["mobility", "protocols"])
+def test_a_plugin_folder_imports_only_as_the_package_it_is(folder):
+    """``mobility/`` and ``protocols/`` are ``netsim.mobility`` and ``netsim.protocols``:
+    imported by the folder's name from the repository's root (a script or pytest run
+    there) they refuse, in one line, instead of loading their modules a second time (whose
+    types numba's kernel cache would keep, and a later run could not load)."""
+    import subprocess
+    import sys
+
+    run = subprocess.run(
+        [sys.executable, "-c", f"import {folder}.{'local' if folder == 'mobility' else 'clustering'}"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 1
+    assert run.stderr.strip().splitlines()[-1] == (
+        f"ImportError: '{folder}' is the package netsim.{folder}: import it by that name"
+    )
