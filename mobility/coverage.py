@@ -465,11 +465,11 @@ class CoverageController:
         self.announced_s = math.inf
         self.earlier_mps = np.zeros((st.n, 2))
         self.earlier_s = math.inf
-        # The local plan's expansion (rule 6): each robot's estimate of its team's centre,
-        # and the estimates announced at the last two steps (none before the first).
+        # The local plan's expansion (rule 6): each robot's estimate of its team's centre
+        # (m), and the estimates announced at the last two steps with when (none before the first).
         self.centre_m: np.ndarray | None = None
-        self.centre_said = (np.zeros((st.n, 2)), math.inf)
-        self.centre_said_earlier = (np.zeros((st.n, 2)), math.inf)
+        self.centre_announced = (np.zeros((st.n, 2)), math.inf)
+        self.centre_earlier = (np.zeros((st.n, 2)), math.inf)
 
     def _sure_range_m(self) -> float:
         """The local plan's range: a link clear of walls is up at every transmission while
@@ -599,29 +599,29 @@ class CoverageController:
         memory.hear(robot, other, xy, heard_s, self.loop.lead_s, st.velocity_mps, st.t0_s, step.t_s, x_db, margin_db)
         self.knows = memory.at(step.t_s, speed, self.jitter_s)
         pos = step.positions_m
-        self.heard = self.lists.heard(memory.known(self.env.now, c.release_s), memory.sent_s, c.release_s)
+        known = memory.known(self.env.now, c.release_s)
+        self.heard = self.lists.heard(known, memory.sent_s, c.release_s)
         self.lists.take(memory, self.env.now, c.release_s)
         target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)
         target, source_xy = self._in_sight(pos, target, source_xy)
         wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos)
         if c.expansion > 0:
-            wished += expansion_forces(pos, self._centre_estimates(pos), c.expansion, self.range_m, c.gain)
+            wished += expansion_forces(pos, self._centre_estimates(pos, known), c.expansion, self.range_m, c.gain)
         wished = self._slide(pos, wished)
         speed = speeds_mps(wished)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
         self._max_wish = float(speed.max(initial=0.0))
 
-    def _centre_estimates(self, pos: np.ndarray) -> np.ndarray:
-        """Rule 6's centres at this step, each robot's from its own and those it heard
-        announced; the Acks sent from now on carry them."""
-        memory, now = self.memory, self.env.now
+    def _centre_estimates(self, pos: np.ndarray, known: np.ndarray) -> np.ndarray:
+        """Rule 6's centres at this step, each robot's from its own and those the robots it
+        remembers (``known``) announced; the Acks sent from now on carry them."""
+        memory = self.memory
         assert memory is not None
         own = pos if self.centre_m is None else self.centre_m
-        known = memory.known(now, self.cfg.release_s)
-        self.centre_m = centre_estimates(own, known, memory.sent_s, self.centre_said, self.centre_said_earlier)
-        self.centre_said_earlier, self.centre_said = self.centre_said, (self.centre_m.copy(), now)
+        self.centre_m = centre_estimates(own, known, memory.sent_s, self.centre_announced, self.centre_earlier)
+        self.centre_earlier, self.centre_announced = self.centre_announced, (self.centre_m.copy(), self.env.now)
         return self.centre_m
 
     def _plan_local(self, step: ControlStep) -> Plan:

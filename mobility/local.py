@@ -955,10 +955,20 @@ def latest_pulls(
     step (and when), carried by the Acks sent since; for a kept robot whose latest Ack heard
     was sent before that, the wishes announced a step ``earlier``, which that Ack carried.
     ``sent_s``: when the Acks were sent."""
-    older = kept & (sent_s < announced[1])
-    return pulls(pos, memory, kept, *announced, t0_s, limits, sent_s) + pulls(
+    latest, older = carried(kept, sent_s, announced[1], earlier[1])
+    return pulls(pos, memory, latest, *announced, t0_s, limits, sent_s) + pulls(
         pos, memory, older, *earlier, t0_s, limits, sent_s
     )
+
+
+def carried(known: np.ndarray, sent_s: np.ndarray, announced_s: float, earlier_s: float):
+    """Which announcement the latest Ack each robot heard of each ``known`` robot carried
+    (rules 4 and 6): masks ``(latest, older)``, the one made at the last step (at
+    ``announced_s``) for an Ack sent at it or after (``sent_s``, its earliest sending time),
+    the one made a step earlier (``earlier_s``) for an Ack sent between the two; an Ack
+    sent before both carried neither."""
+    latest = known & (sent_s >= announced_s)
+    return latest, known & ~latest & (sent_s >= earlier_s)
 
 
 def centre_estimates(
@@ -971,12 +981,13 @@ def centre_estimates(
     """The expansion's centre (rule 6): each robot's estimate of its team's centre, the
     mean of its own estimate ``centre_m`` and the estimates its ``known`` robots announced
     at their latest step before the Ack of theirs it heard (sent at ``sent_s``): those
-    ``announced`` at the last step (and when), else those announced a step ``earlier``;
-    a robot whose latest Ack left before both counts with neither.
+    ``announced`` at the last step (and when), else those announced a step ``earlier``
+    (:func:`carried`).
 
-    Averaging with every neighbour at each step is a consensus: the estimates of a
+    Averaging with every robot it hears at each step is a consensus: the estimates of a
     connected team meet at one point, a mean of where its robots stood when control
-    started, so the team spreads away from its own middle, not from one a robot guessed.
+    started, each weighted by how many robots it heard (not the team's plain mean), so the
+    team spreads away from about its middle, not from a point a robot guessed alone.
 
     >>> known = np.array([[False, True], [True, False]])
     >>> sent = np.array([[0.0, 1.5], [0.5, 0.0]])
@@ -984,8 +995,7 @@ def centre_estimates(
     >>> centre_estimates(np.array([[0.0, 0.0], [4.0, 0.0]]), known, sent, *said).tolist()
     [[2.0, 0.0], [3.0, 0.0]]
     """
-    latest = known & (sent_s >= announced[1])
-    older = known & (sent_s < announced[1]) & (sent_s >= earlier[1])
+    latest, older = carried(known, sent_s, announced[1], earlier[1])
     total = centre_m + latest.astype(float) @ announced[0] + older.astype(float) @ earlier[0]
     count = 1.0 + latest.sum(axis=1) + older.sum(axis=1)
     return total / count[:, None]

@@ -14,6 +14,7 @@ from netsim.mobility.local import (
     NO_WALLS,
     Lists,
     Memory,
+    carried,
     centre_estimates,
     clear_of_walls,
     cut_for_walls,
@@ -426,34 +427,61 @@ def test_pull_a_robot_that_missed_the_latest_ack_uses_the_wish_of_the_one_before
 
 
 def test_expansion_a_robot_averages_its_centre_with_those_announced_in_the_acks_it_heard():
-    """Rule 6: robot 0 heard robot 1 after robot 1's last announcement (its latest centre
-    counts), robot 2 between the two announcements (its earlier centre counts), robot 3
-    before both (neither counts), and robot 4 not at all."""
-    known = np.zeros((5, 5), bool)
-    known[0, 1:4] = True
-    sent = np.full((5, 5), -np.inf)
-    sent[0, 1:4] = [T0 - 0.5, T0 - 1.5, T0 - 2.5]
-    last = np.array([[0.0, 0.0], [10.0, 0.0], [100.0, 0.0], [1e3, 0.0], [1e4, 0.0]])
-    earlier = np.array([[0.0, 0.0], [100.0, 0.0], [20.0, 0.0], [1e3, 0.0], [1e4, 0.0]])
-    own = np.array([[0.0, 3.0], [7.0, 7.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    """Rule 6: robot 0 heard robot 1 after robot 1's last announcement and robot 4 at its
+    very instant (their latest centres count), robot 2 between the two announcements (its
+    earlier centre counts), robot 3 before both (neither counts); robot 5 it never heard."""
+    known = np.zeros((6, 6), bool)
+    known[0, 1:5] = True
+    sent = np.full((6, 6), -np.inf)
+    sent[0, 1:5] = [T0 - 0.5, T0 - 1.5, T0 - 2.5, T0 - 1.0]
+    last = np.array([[0.0, 0.0], [10.0, 0.0], [100.0, 0.0], [1e3, 0.0], [30.0, 0.0], [1e4, 0.0]])
+    earlier = np.array([[0.0, 0.0], [100.0, 0.0], [20.0, 0.0], [1e3, 0.0], [1e3, 0.0], [1e4, 0.0]])
+    own = np.array([[0.0, 4.0], [7.0, 7.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
     c = centre_estimates(own, known, sent, (last, T0 - 1.0), (earlier, T0 - 2.0))
-    assert c[0].tolist() == pytest.approx([10.0, 1.0])  # (0 + 10 + 20) / 3, (3 + 0 + 0) / 3
+    assert c[0].tolist() == pytest.approx([15.0, 1.0])  # (0 + 10 + 20 + 30) / 4, (4 + 0 + 0 + 0) / 4
     assert c[1:].tolist() == own[1:].tolist()  # who heard nobody keeps its own
 
 
 def test_expansion_the_centres_of_a_connected_team_meet_inside_it():
-    """Rule 6 as a consensus: on a chain, every robot hearing its neighbours at every step,
-    the estimates, started at the robots' own positions, meet at one point inside the team."""
-    n = 8
-    pos = np.column_stack([np.arange(n) * 90.0, np.zeros(n)])
-    known = np.abs(np.subtract.outer(np.arange(n), np.arange(n))) == 1
-    sent = np.where(known, 0.0, -np.inf)
-    centre, said, earlier = pos.copy(), (pos.copy(), -1.0), (pos.copy(), -2.0)
-    for _ in range(400):
+    """Rule 6 as a consensus: on a star (one robot hearing four, each of them hearing it),
+    Acks sent before the last announcement every other step (so the earlier announcement
+    is used too), the estimates, started at the robots' own positions, meet at one point
+    inside the team, nearer the robot that hears most than the plain mean is."""
+    pos = np.array([[1000.0, 1000.0], [1090.0, 1000.0], [1000.0, 1090.0], [910.0, 1000.0], [1000.0, 950.0]])
+    known = np.zeros((5, 5), bool)
+    known[0, 1:] = known[1:, 0] = True
+    centre, said, earlier = pos.copy(), (pos.copy(), -np.inf), (pos.copy(), -np.inf)
+    for k in range(400):
+        sent = np.where(known, k - (0.5 if k % 2 else 1.5), -np.inf)
         centre = centre_estimates(centre, known, sent, said, earlier)
-        said, earlier = (centre.copy(), -1.0), said
-    assert np.ptp(centre[:, 0]) < 1e-6
-    assert 0.0 < centre[0, 0] < pos[-1, 0] and (centre[:, 1] == 0).all()
+        said, earlier = (centre.copy(), float(k)), said
+    assert np.ptp(centre, axis=0).max() < 1e-9
+    point = centre[0]
+    assert (pos.min(axis=0) < point).all() and (point < pos.max(axis=0)).all()
+    assert np.hypot(*(point - pos[0])) < np.hypot(*(pos.mean(axis=0) - pos[0]))
+
+
+def test_expansion_a_robot_starts_from_its_own_position_and_goes_on_from_its_estimate():
+    """Rule 6 in the controller: at the first control step each robot's estimate is its own
+    position; at the next its previous estimate averaged with those announced at the first
+    step, as the Acks it heard since carried them; and each step's estimate is what its
+    Acks announce next, as of the step's instant."""
+    from netsim.run import build
+
+    sim = build(config.load(None, coverage_settings("unit disk", "local", 5, 0.0, 1, 13.0)))
+    cov = sim.models["coverage"]
+    start = sim.config.coverage.start_s
+    sim.run(until_s=start + 0.5)
+    first = cov.centre_m.copy()
+    np.testing.assert_array_equal(first, sim.state.positions_at(start + cov.loop.lead_s))  # where the step starts
+    assert cov.centre_announced[1] == start and np.isinf(cov.centre_earlier[1])
+    sim.run(until_s=start + 1.5)
+    known, sent = cov.heard.known, cov.memory.sent_s
+    latest, older = carried(known, sent, start, math.inf)
+    assert latest.any() and not older.any()
+    expected = (first + latest.astype(float) @ first) / (1.0 + latest.sum(axis=1))[:, None]
+    np.testing.assert_allclose(cov.centre_m, expected, rtol=1e-12)
+    assert cov.centre_announced[1] == start + 1.0 and cov.centre_earlier[1] == start
 
 
 @pytest.mark.slow
