@@ -665,7 +665,10 @@ def true_components(r, n):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n,loss,floor", [(20, 0.0, 0.6), (20, 0.3, 0.6), (60, 0.0, 0.6), (60, 0.3, 0.6)])
+@pytest.mark.parametrize(
+    "n,loss,floor",
+    [(20, 0.0, 0.6), (20, 0.3, 0.6), (60, 0.0, 0.6), (60, 0.3, 0.6), (200, 0.0, 0.6), (200, 0.3, 0.6)],
+)
 def test_local_plan_never_splits_the_network_and_covers_the_bound(n, loss, floor):
     """From a dense start, with 0 or 30 % of receptions lost: the true network (the links of
     links.parquet) has one component when control starts and at every link event after;
