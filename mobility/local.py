@@ -961,7 +961,9 @@ def latest_pulls(
     )
 
 
-def carried(known: np.ndarray, sent_s: np.ndarray, announced_s: float, earlier_s: float):
+def carried(
+    known: np.ndarray, sent_s: np.ndarray, announced_s: float, earlier_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Which announcement the latest Ack each robot heard of each ``known`` robot carried
     (rules 4 and 6): masks ``(latest, older)``, the one made at the last step (at
     ``announced_s``) for an Ack sent at it or after (``sent_s``, its earliest sending time),

@@ -162,22 +162,19 @@ def test_no_import_cycles_between_modules():
     assert list(nx.simple_cycles(graph)) == []
 
 
-@pytest.mark.parametrize("folder", ["mobility", "protocols"])
-def test_a_plugin_folder_imports_only_as_the_package_it_is(folder):
-    """``mobility/`` and ``protocols/`` are ``netsim.mobility`` and ``netsim.protocols``:
-    imported by the folder's name from the repository's root (a script or pytest run
-    there) they refuse, in one line, instead of loading their modules a second time (whose
-    types numba's kernel cache would keep, and a later run could not load)."""
-    import subprocess
+@pytest.mark.parametrize("folder", ["mobility", "protocols", "hooks"])
+def test_a_plugin_folder_imports_only_as_the_package_it_is(folder, monkeypatch):
+    """``mobility/``, ``protocols/`` and ``hooks/`` are ``netsim.mobility``,
+    ``netsim.protocols`` and ``netsim.hooks``: imported by the folder's name from the
+    repository's root (a script or pytest run there) they refuse, in one line, instead of
+    loading their modules a second time (whose types numba's kernel cache would keep, and a
+    later run could not load)."""
+    import importlib
     import sys
 
-    run = subprocess.run(
-        [sys.executable, "-c", f"import {folder}.{'local' if folder == 'mobility' else 'clustering'}"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-    )
-    assert run.returncode == 1
-    assert run.stderr.strip().splitlines()[-1] == (
-        f"ImportError: '{folder}' is the package netsim.{folder}: import it by that name"
-    )
+    monkeypatch.syspath_prepend(str(ROOT))
+    monkeypatch.delitem(sys.modules, folder, raising=False)
+    with pytest.raises(ImportError) as refused:
+        importlib.import_module(folder)
+    assert str(refused.value) == f"'{folder}' is the package netsim.{folder}: import it by that name"
+    assert folder not in sys.modules
