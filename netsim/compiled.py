@@ -42,7 +42,9 @@ F = TypeVar("F", bound=Callable[..., Any])
 _JIT = "__netsim_jit__"  # a kernel's numba options, set by jit
 _WALKS = "__netsim_walks__"  # set by jit on a kernel that walks a map (jit's walks)
 _COPIES: dict[str, ModuleType] = {}  # kernel module -> its compiled copy
-_PLAIN: dict[str, ModuleType] = {}  # kernel module -> itself, or its plain copy (plain_copy)
+# (kernel module, whether its map walks may run compiled) -> itself, or its plain copy
+# (plain_copy): NETSIM_COMPILED set or cleared within a process gives the other one.
+_PLAIN: dict[tuple[str, bool], ModuleType] = {}
 _COPY_LOCK = threading.RLock()
 
 
@@ -98,7 +100,8 @@ def plain_copy(module: str) -> ModuleType:
     :func:`jit`'s ``walks``), which even a plain loop calls compiled (numba loaded at the
     first such call, not before: a run without a map never makes one). Then a copy of the
     module whose kernels see those kernels compiled."""
-    copy = _PLAIN.get(module)
+    walks_compiled = compiled_wanted(SMALL_RUN_ROBOTS)
+    copy = _PLAIN.get((module, walks_compiled))
     if copy is not None:
         return copy
     plain = importlib.import_module(module)
@@ -108,8 +111,8 @@ def plain_copy(module: str) -> ModuleType:
         if is_kernel(value)
         and ((value.__module__ != module and value.__module__ in WALKS_MAPS) or getattr(value, _WALKS, False))
     }
-    if not walks or not compiled_wanted(SMALL_RUN_ROBOTS):
-        _PLAIN[module] = plain
+    if not walks or not walks_compiled:
+        _PLAIN[module, walks_compiled] = plain
         return plain
     copy = ModuleType(module, plain.__doc__)
     namespace = copy.__dict__
@@ -119,7 +122,7 @@ def plain_copy(module: str) -> ModuleType:
             namespace[key] = _compiled_on_call(value)
         elif is_kernel(value) and value.__module__ == module:
             namespace[key] = _rebound(value, namespace)
-    _PLAIN[module] = copy
+    _PLAIN[module, walks_compiled] = copy
     return copy
 
 

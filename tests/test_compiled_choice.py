@@ -19,6 +19,18 @@ def test_a_small_team_gets_the_plain_module_and_a_large_or_unknown_one_the_compi
     assert compiled.load(module, None) is compiled.compiled_copy(module)
 
 
+def test_the_plain_copy_follows_netsim_compiled_set_within_the_process(monkeypatch):
+    """With ``NETSIM_COMPILED=0`` a small run's loops are all plain Python, map walks too (the
+    module itself); cleared again in the same process, the walks are compiled again (the
+    copy): the choice made first is not kept for the other setting."""
+    module = "netsim.mobility._local_kernels"
+    source = importlib.import_module(module)
+    monkeypatch.setenv("NETSIM_COMPILED", "0")
+    assert compiled.load(module, 2) is source
+    monkeypatch.delenv("NETSIM_COMPILED")
+    assert compiled.load(module, 2) is not source
+
+
 def test_a_kernel_marked_walks_is_called_compiled_from_the_plain_copy():
     """A kernel that walks a map (jit's walks) runs compiled even for a small team: the plain
     copy holds a caller of the compiled kernel, and its other kernels call that one."""
