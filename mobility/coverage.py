@@ -134,6 +134,7 @@ from netsim.geometry import speeds_mps
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
+from netsim.samples import ended_at
 from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import geometric_pairs
 from netsim.world.free_space import (
@@ -465,9 +466,8 @@ class CoverageController:
         self.announced_s = math.inf
         self.earlier_mps = np.zeros((st.n, 2))
         self.earlier_s = math.inf
-        # The local plan's expansion (rule 6): each robot's estimate of its team's centre
-        # (m), and the estimates announced at the last two steps with when (none before the first).
-        self.centre_m: np.ndarray | None = None
+        # The local plan's expansion (rule 6): each robot's estimate of its team's centre (m)
+        # announced at the last two steps, with when (none before the first).
         self.centre_announced = (np.zeros((st.n, 2)), math.inf)
         self.centre_earlier = (np.zeros((st.n, 2)), math.inf)
 
@@ -614,15 +614,22 @@ class CoverageController:
         step.velocity_mps[:] = wished
         self._max_wish = float(speed.max(initial=0.0))
 
+    @property
+    def centre_m(self) -> np.ndarray | None:
+        """Each robot's estimate of its team's centre at the latest step (rule 6; None
+        before the first)."""
+        centre, at_s = self.centre_announced
+        return None if math.isinf(at_s) else centre
+
     def _centre_estimates(self, pos: np.ndarray, known: np.ndarray) -> np.ndarray:
         """Rule 6's centres at this step, each robot's from its own and those the robots it
         remembers (``known``) announced; the Acks sent from now on carry them."""
         memory = self.memory
         assert memory is not None
         own = pos if self.centre_m is None else self.centre_m
-        self.centre_m = centre_estimates(own, known, memory.sent_s, self.centre_announced, self.centre_earlier)
-        self.centre_earlier, self.centre_announced = self.centre_announced, (self.centre_m.copy(), self.env.now)
-        return self.centre_m
+        centre = centre_estimates(own, known, memory.sent_s, self.centre_announced, self.centre_earlier)
+        self.centre_earlier, self.centre_announced = self.centre_announced, (centre, self.env.now)
+        return centre
 
     def _plan_local(self, step: ControlStep) -> Plan:
         """Each robot keeps what it cannot let go of and answers for those links itself."""
@@ -867,16 +874,12 @@ class CoverageController:
         # end are not). Asked for before the end, the table ends at now the same way, by a
         # sample handed out but not kept: the run goes on recording what it would have.
         end, now = self.duration_s, float(self.env.now)
-        if now >= end and not self._sampled_at(end):
+        times = [s["t_s"] for s in self.samples[-1:]]
+        if now >= end and not ended_at(times, end):
             self.samples.append(self.sample(end))
-        if now < end and not self._sampled_at(now):
+        if now < end and not ended_at(times, now):
             return pd.DataFrame([*self.samples, self.sample(now)])
         return pd.DataFrame(self.samples)
-
-    def _sampled_at(self, t: float) -> bool:
-        """Whether the latest sample is at ``t`` (the sum of many intervals may fall a
-        rounding error short of it: that sample is it)."""
-        return bool(self.samples) and self.samples[-1]["t_s"] >= t - 1e-9 * max(1.0, t)
 
     def travel_frame(self) -> pd.DataFrame:
         """Distance each robot travelled over the run (the energy it spent moving)."""

@@ -11,6 +11,12 @@ import numpy as np
 import pandas as pd
 
 
+def ended_at(times: list[float], end_s: float) -> bool:
+    """Whether sampling ``times`` already hold the instant ``end_s`` (the sum of many
+    intervals may fall a rounding error short of it: that sample is it)."""
+    return bool(times) and times[-1] >= end_s - 1e-9 * max(1.0, abs(end_s))
+
+
 class Samples:
     """A table sampled during the run: each sample's columns (arrays of one length) and its
     time ``t_s``, written as they come into one buffer per column, so that the table at the

@@ -36,7 +36,7 @@ from netsim.compiled import cores, load, side_by_side
 from netsim.cosim import Arrival
 from netsim.params import non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
-from netsim.samples import Samples
+from netsim.samples import Samples, ended_at
 from netsim.topology import reach_lists
 
 # From this many robots on, a compiled sample is taken in two halves at once, in two threads
@@ -416,12 +416,6 @@ BELIEF_COLUMNS = [
 
 def _joined(frames: list[pd.DataFrame]) -> pd.DataFrame:
     return frames[0] if len(frames) == 1 else pd.concat(frames, ignore_index=True)
-
-
-def ended_at(times: list[float], end_s: float) -> bool:
-    """Whether sampling ``times`` already hold the end ``end_s`` (the sum of many intervals
-    may fall a rounding error short of it)."""
-    return bool(times) and times[-1] >= end_s - 1e-9 * max(1.0, abs(end_s))
 
 
 def gateways_mean(t_s: np.ndarray, robot: np.ndarray, samples: int) -> float:

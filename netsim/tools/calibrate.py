@@ -105,13 +105,16 @@ def _numbers(log: pd.DataFrame, column: str, where: str, missing_ok: bool = Fals
     return values
 
 
+def _such_rows(count: int) -> str:
+    return f"{count:,} such row{'s' if count > 1 else ''}"
+
+
 def _refuse_cells(bad: np.ndarray, column: pd.Series, where: str, why: str) -> None:
     """Refuse a log whose ``column`` has ``bad`` cells, in one line naming the first."""
     if bad.any():
         i, count = int(np.flatnonzero(bad)[0]), int(bad.sum())
         raise NetsimInputError(
-            f"{where}: column {column.name} row {i + 1}: {_shown(column.iloc[i])} {why} "
-            f"({count:,} such row{'s' if count > 1 else ''})"
+            f"{where}: column {column.name} row {i + 1}: {_shown(column.iloc[i])} {why} ({_such_rows(count)})"
         )
 
 
@@ -158,7 +161,6 @@ class Frames:
 # that says the power fell below the sensitivity (or a wall or the range stopped it). Every
 # other cause the channel and its medium give drops a frame the radio heard.
 BELOW_SENSITIVITY = "out_of_range"
-CAUSES = MAC_DROP_CAUSES
 
 
 def _causes(log: pd.DataFrame, where: str) -> np.ndarray:
@@ -167,8 +169,8 @@ def _causes(log: pd.DataFrame, where: str) -> np.ndarray:
     cause = log["cause"]
     words = cause.where(cause.notna(), "").astype(str).str.strip().str.lower()
     words = words.str.replace(" ", "_").str.replace("-", "_").to_numpy()
-    known = f"is not a cause of the channel's ({', '.join(CAUSES)}; empty for a frame received)"
-    _refuse_cells((words != "") & ~np.isin(words, CAUSES), cause, where, known)
+    known = f"is not a cause of the channel's ({', '.join(MAC_DROP_CAUSES)}; empty for a frame received)"
+    _refuse_cells((words != "") & ~np.isin(words, MAC_DROP_CAUSES), cause, where, known)
     return words
 
 
@@ -237,7 +239,7 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         i = int(np.flatnonzero(bad)[0])
         raise NetsimInputError(
             f"{where}: row {i + 1}: {what} is {distance[i]:g}; every distance must be > 0 m "
-            f"({int(bad.sum()):,} such row{'s' if bad.sum() > 1 else ''})"
+            f"({_such_rows(int(bad.sum()))})"
         )
     if not keep.all():
         t_s, power_dbm, distance, src, dst = (v[keep] for v in (t_s, power_dbm, distance, src, dst))
