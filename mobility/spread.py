@@ -38,6 +38,7 @@ import numpy as np
 from netsim.mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_length, step_limit
 
 from netsim.area import Bounds, as_bounds
+from netsim.compiled import load
 from netsim.topology import geometric_pairs
 
 # Rounds of cyclic projection onto a robot's disks; the exact cut after them makes any
@@ -145,13 +146,19 @@ def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radi
     first = np.r_[0, np.flatnonzero(robot[1:] != robot[:-1]) + 1] if len(robot) else np.empty(0, np.int64)
     rank = np.arange(len(robot)) - np.repeat(first, np.diff(np.r_[first, len(robot)]))
     layers = [np.flatnonzero(rank == k) for k in range(int(rank.max()) + 1 if len(rank) else 0)]
+    # Each layer's disks, and where the rule of in range keeps its answers.
+    disks = [
+        (robot[rows], centre[rows], np.ascontiguousarray(radius[rows], float), np.empty(len(rows), bool))
+        for rows in layers
+    ]
+    beyond_disks = load("netsim._kernels", len(target)).beyond_disks
     for _ in range(PROJECTION_ROUNDS):
-        for rows in layers:
-            x = robot[rows]
-            off = target[x] - centre[rows]
-            dist = np.hypot(*off.T)
-            out = dist > radius[rows]
-            target[x[out]] = centre[rows[out]] + off[out] * (radius[rows[out]] / dist[out])[:, None]
+        for x, c, r, out in disks:
+            points = target[x]
+            beyond_disks(points, c, r, out)
+            off = points - c
+            dist = np.hypot(*off[out].T)
+            target[x[out]] = c[out] + off[out] * (r[out] / dist)[:, None]
         np.clip(target, box.lo, box.hi, out=target)
     return target
 

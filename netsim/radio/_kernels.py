@@ -110,6 +110,13 @@ def slot(table_keys, dense_n, key):
     return np.searchsorted(table_keys, key)
 
 
+@jit(nogil=True)
+def slots(table_keys, dense_n, keys, out):
+    """:func:`slot` of every key, into ``out``."""
+    for k in range(keys.shape[0]):
+        out[k] = slot(table_keys, dense_n, keys[k])
+
+
 @jit(nogil=True, inline="always")
 def stored_slot(table_keys, table_x, dense_n, key):
     """The slot of the pair ``key`` in the table when the pair has a stored value, else the

@@ -140,7 +140,7 @@ class PairShadowing:
         self.rng = rng
         self.n_robots = n_robots
         kernels = load("netsim.radio._kernels", n_robots)
-        self._step, self._anchors = kernels.shadow_step, kernels.anchors
+        self._step, self._anchors, self._slots = kernels.shadow_step, kernels.anchors, kernels.slots
         self._states, self._terms = kernels.stored_states, kernels.shadow_terms
         self.clip_db = TRUNCATION_SIGMAS * self.sigma_db
         self._keys = np.empty(0, dtype=np.int64)
@@ -242,7 +242,9 @@ class PairShadowing:
 
     def insert(self, keys, x, s) -> None:
         """Record pairs seen for the first time (``keys`` ascending, none recorded yet)."""
-        at = np.searchsorted(self._keys, keys)
+        keys = np.ascontiguousarray(keys, np.int64)
+        at = np.empty(len(keys), np.int64)
+        self._slots(self._keys, self.dense_n, keys, at)
         if self.dense:
             self._x[at] = x
             self._s[at] = s

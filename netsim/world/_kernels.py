@@ -31,6 +31,38 @@ def grid_coords(points_m, ox, oy, resolution_m, u, v):
 
 
 @jit(nogil=True)
+def on_map(u, v, h, w):
+    """Whether grid coordinates ``(u, v)`` lie on a map of ``h`` rows and ``w`` columns (its
+    closed extent)."""
+    return u >= 0 and u <= w and v >= 0 and v <= h
+
+
+@jit(nogil=True)
+def cell_index(u, size):
+    """The cell of a grid coordinate on an axis of ``size`` cells, the far edge in the last."""
+    return min(np.int64(np.floor(u)), size - 1)
+
+
+@jit(nogil=True)
+def free_at(free_flat, h, w, u, v):
+    """Whether grid coordinates ``(u, v)`` lie on the map in a free cell."""
+    if not on_map(u, v, h, w):
+        return False
+    return free_flat[cell_index(v, h) * w + cell_index(u, w)]
+
+
+@jit(nogil=True)
+def map_cells(free_flat, h, w, u, v, on, free, i, j):
+    """For every point's grid coordinates: on the map (:func:`on_map`), in a free cell
+    (:func:`free_at`), and its cell's column and row (:func:`cell_index`)."""
+    for k in range(u.shape[0]):
+        on[k] = on_map(u[k], v[k], h, w)
+        free[k] = free_at(free_flat, h, w, u[k], v[k])
+        i[k] = cell_index(u[k], w)
+        j[k] = cell_index(v[k], h)
+
+
+@jit(nogil=True)
 def cell(flat, w, half, pc, sc, p_max, s_max):
     pc = min(max(pc, 0), p_max)
     sc = min(max(sc, 0), s_max)
@@ -181,14 +213,7 @@ def free_point(cells, grid, draw_cell, draw_uv):
     cell = min(first_above(cdf, draw_cell * cdf[last]), last)
     x = x0[cell] + draw_uv[0] * (x1[cell] - x0[cell])
     y = y0[cell] + draw_uv[1] * (y1[cell] - y0[cell])
-    u = on_grid(x, ox, res)
-    v = on_grid(y, oy, res)
-    free = False
-    if u >= 0 and u <= w and v >= 0 and v <= h:
-        i = min(np.int64(np.floor(u)), w - 1)
-        j = min(np.int64(np.floor(v)), h - 1)
-        free = free_flat[j * w + i]
-    if not free:
+    if not free_at(free_flat, h, w, on_grid(x, ox, res), on_grid(y, oy, res)):
         x = 0.5 * (x0[cell] + x1[cell])
         y = 0.5 * (y0[cell] + y1[cell])
     return x, y

@@ -91,27 +91,30 @@ class OccupancyMap:
         """Grid coordinates ``(u, v)`` of points: cell ``(floor(u), floor(v))``, in cell units."""
         return grid_coords(points_m, self.origin_m, self.resolution_m)
 
+    def _where(self, points_m) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Of each point: on the map, in a free cell, its cell's column and row (the map
+        loops' rules, :func:`netsim.world._kernels.map_cells`)."""
+        u, v = self.to_grid(points_m)
+        k = len(u)
+        on, free = np.empty(k, bool), np.empty(k, bool)
+        i, j = np.empty(k, np.int64), np.empty(k, np.int64)
+        h, w = self.shape
+        flat = np.ascontiguousarray(self.free).reshape(-1)
+        kernels_for("netsim.world._kernels").map_cells(flat, h, w, u, v, on, free, i, j)
+        return on, free, i, j
+
     def cells(self, points_m) -> tuple[np.ndarray, np.ndarray]:
         """Column ``i`` and row ``j`` of the cell of each point (far edges in the last cell)."""
-        u, v = self.to_grid(points_m)
-        h, w = self.shape
-        i = np.minimum(np.floor(u), w - 1).astype(np.int64)
-        j = np.minimum(np.floor(v), h - 1).astype(np.int64)
+        _, _, i, j = self._where(points_m)
         return i, j
 
     def contains(self, points_m) -> np.ndarray:
         """Whether each point lies on the map (its closed extent)."""
-        u, v = self.to_grid(points_m)
-        h, w = self.shape
-        return (u >= 0) & (u <= w) & (v >= 0) & (v <= h)
+        return self._where(points_m)[0]
 
     def is_free(self, points_m) -> np.ndarray:
         """Whether each point lies on the map in a free cell."""
-        inside = self.contains(points_m)
-        i, j = self.cells(points_m)
-        out = np.zeros(len(i), dtype=bool)
-        out[inside] = self.free[j[inside], i[inside]]
-        return out
+        return self._where(points_m)[1]
 
     def cell_centres_m(self) -> tuple[np.ndarray, np.ndarray]:
         """World ``x`` of every column's centre and ``y`` of every row's centre."""
