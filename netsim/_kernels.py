@@ -153,6 +153,22 @@ def points_on_legs(origin_m, velocity_mps, t0_s, rows, times_s, out):
 
 
 @jit(nogil=True)
+def legs_at(first, end, leg_t, robots, times, out):
+    """For each query, the last leg of ``robots[k]`` (its legs ``first[r]`` to ``end[r]``, in
+    time order) that starts at or before ``times[k]``; its first leg when none does."""
+    for k in range(robots.shape[0]):
+        r = robots[k]
+        lo, hi = first[r], end[r]
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if leg_t[mid] <= times[k]:
+                lo = mid + 1
+            else:
+                hi = mid
+        out[k] = max(lo - 1, first[r])
+
+
+@jit(nogil=True)
 def pair_reach(motion, i, j, t, r):
     """Whether robot ``j`` is within ``r`` of robot ``i`` at ``t``, and their distance, as
     :func:`within` measures a candidate (a unicast's one receiver)."""

@@ -68,15 +68,19 @@ class LegTable:
             raise ValueError("every robot needs at least one leg (its initial position)")
         self.cur = self.first.copy()
 
+    def legs_at(self, robots: npt.ArrayLike, times_s: npt.ArrayLike) -> np.ndarray:
+        """The leg of ``robots[k]`` current at ``times_s[k]`` (one time for all, or one per
+        robot): its last leg that starts at or before it, its first when none does
+        (:func:`netsim._kernels.legs_at`)."""
+        robots = np.ascontiguousarray(robots, np.int64).reshape(-1)
+        leg = np.empty(robots.shape[0], np.int64)
+        times = filled(times_s, robots.shape)
+        load("netsim._kernels", self.n).legs_at(self.first, self.end, self.t, robots, times, leg)
+        return leg
+
     def advance(self, t: float) -> None:
         """Make ``cur`` the leg of each robot that is current at time ``t``."""
-        while True:
-            nxt = self.cur + 1
-            move = nxt < self.end
-            move[move] &= self.t[nxt[move]] <= t
-            if not move.any():
-                return
-            self.cur[move] += 1
+        self.cur = self.legs_at(np.arange(self.n), t)
 
     def at(self, legs: np.ndarray, t: npt.ArrayLike) -> np.ndarray:
         """Where legs ``legs`` put their robots at ``t`` (one time, or one per leg)."""

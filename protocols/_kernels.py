@@ -438,7 +438,7 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
     group, to_arm, may_join, may_merge = effects.group, effects.to_arm, effects.may_join, effects.may_merge
     c = rules[0]
     symmetric, merge_delay_s = c.symmetric, c.merge_delay_s
-    renewed_s = now + c.tau_s
+    renewed_s = deadline_after(now, c.tau_s)
     n_group = n_arm = n_join = n_merge = 0
     for k in range(len(receivers)):
         r = receivers[k]
@@ -514,6 +514,13 @@ def group_size(records_row, now, tau_s, symmetric, i):
         if _two_way(rec, now, tau_s, symmetric) and rec[ROLE] == MEMBER and rec[LEADER] == i:
             size += 1
     return size
+
+
+@jit(nogil=True)
+def deadline_after(from_s, tau_s):
+    """When a timer of rules 3 and 4 runs out: ``tau_s`` after the instant it runs from (the
+    leader's Ack a member last heard, a robot's first Ack, the event that restarted it)."""
+    return from_s + tau_s
 
 
 @jit(nogil=True)

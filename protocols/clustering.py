@@ -309,6 +309,11 @@ class Clustering:
             return pd.DataFrame([], columns=list(RoleChange._fields))
         return pd.DataFrame(dict(zip(RoleChange._fields, self._changes)))
 
+    def _run_timer(self, i, from_s) -> None:
+        """Restart robot ``i``'s timer (rules 3 and 4) to run out ``tau`` after ``from_s``,
+        as a leading Ack renews it (:func:`netsim.protocols._kernels.deadline_after`)."""
+        self.timers.restart(i, self.kernels.deadline_after(from_s, self.tau_s))
+
     # -- the rules of docs/model.md 4.2, in its order ------------------------------------
     def start(self) -> None:
         """Rule 1: every robot starts undecided; its timer (rule 4) runs from its first Ack."""
@@ -317,7 +322,7 @@ class Clustering:
         roles.leader[:] = NO_LEADER
         for i in range(self.state.n):
             self._record(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START)
-        self.timers.restart(np.arange(self.state.n), self.beacon.phase_s + self.tau_s)
+        self._run_timer(np.arange(self.state.n), self.beacon.phase_s)
 
     def _rule2_join(self, i: int, now: float, first_heard: int = NO_LEADER, exclude: int = NO_LEADER) -> bool:
         """Rule 2 for robot ``i`` (undecided) from what its table knows: it joins a leader
@@ -328,7 +333,7 @@ class Clustering:
         if leader < 0:
             return False
         self._set(i, "leader_heard", leader, now)
-        self.timers.restart(i, table.data[i, slot, LAST_HEARD] + self.tau_s)
+        self._run_timer(i, table.data[i, slot, LAST_HEARD])
         return True
 
     def _rule3_renew(self, to_arm: np.ndarray) -> None:
@@ -357,7 +362,7 @@ class Clustering:
         if merge_loser(self.merge_policy, me, other) == r:
             self._set(r, "merge_lost", ack.sender, now)
             self.beacon.resign_pending[r] = True
-            self.timers.restart(r, now + self.tau_s)
+            self._run_timer(r, now)
 
     def _rule5_leader_resigned(self, r: int, now: float) -> None:
         """Rule 5: member ``r``'s leader resigned (or its Ack no longer says leader): ``r``
@@ -373,7 +378,7 @@ class Clustering:
             self.timers.cancel(r)
         elif two_way:
             # The other is about to lead again: its Ack shows the link alive meanwhile.
-            self.timers.restart(r, now + self.tau_s)
+            self._run_timer(r, now)
 
     def _rule6_reaffiliate(self, i: int, now: float, event: str) -> None:
         """Rule 6: ``i`` lost its leader (``event``: timeout or resignation): it joins another
@@ -390,7 +395,7 @@ class Clustering:
             self._set(i, "elected", i, now)
             self.timers.cancel(i)
         else:
-            self.timers.restart(i, now + self.tau_s)
+            self._run_timer(i, now)
 
     # -- the runner: timers and Acks to the rules ------------------------------------------
     def _expire(self, i: int, now: float) -> None:

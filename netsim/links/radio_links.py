@@ -29,26 +29,15 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from netsim.compiled import load
 from netsim.links.lifetimes import COLUMNS, link_lifetimes
 from netsim.links.wall_sweeps import Stretches, count_below, envelope_radii, map_radio
 from netsim.trajectory import LegTable
 
 
-def leg_index(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """The leg of ``robots[k]`` current at ``times[k]``: its last leg that starts at or
-    before it (each robot's legs are contiguous and in time order)."""
-    robots = np.asarray(robots, np.int64)
-    times = np.asarray(times, float)
-    leg = np.empty(len(robots), np.int64)
-    load("netsim.radio._kernels", len(L.first)).legs_at(L.first, L.end, L.t, robots, times, leg)
-    return leg
-
-
 def positions(L: LegTable, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Positions of ``robots[k]`` at ``times[k]`` (exact, from the legs), shape ``(k, 2)``."""
     times = np.asarray(times, float)
-    leg = leg_index(L, robots, times)
+    leg = L.legs_at(robots, times)
     return L.at(leg, times)
 
 
@@ -164,8 +153,8 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     before_end = np.nextafter(t1, -np.inf)
     starts_t, starts_iv = [t0], [np.arange(m)]
     for robot in (a_env, b_env):
-        first = leg_index(L, robot, t0)
-        count = np.maximum(leg_index(L, robot, before_end) - first, 0)
+        first = L.legs_at(robot, t0)
+        count = np.maximum(L.legs_at(robot, before_end) - first, 0)
         iv = np.repeat(np.arange(m), count)
         offset = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
         starts_t.append(L.t[first[iv] + 1 + offset])
@@ -177,7 +166,7 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     u, iv = u[keep], iv[keep]
     e = np.where(np.r_[iv[1:] == iv[:-1], False], np.r_[u[1:], 0.0], t1[iv])
     a, b = a_env[iv], b_env[iv]
-    la, lb = leg_index(L, a, u), leg_index(L, b, u)
+    la, lb = L.legs_at(a, u), L.legs_at(b, u)
     s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]), n)
     rows = np.arange(len(s))
     k1 = np.minimum(np.maximum(count_below(u, s.h, e), 1.0), s.nc)

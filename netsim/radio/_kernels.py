@@ -558,19 +558,3 @@ def disk_frame(frame, t, sender, receivers, distance_m, range_m, robots, flat, r
         points = Points(none, none)
     senders = np.full(k, sender, dtype=np.int64)
     disk_pass(frame, distance_m, senders, range_m, flat, points, receivable)
-
-
-@jit(nogil=True)
-def legs_at(first, end, leg_t, robots, times, out):
-    """For each query, the last leg of ``robots[k]`` (its legs ``first[r]`` to ``end[r]``, in
-    time order) that starts at or before ``times[k]``; its first leg when none does."""
-    for k in range(robots.shape[0]):
-        r = robots[k]
-        lo, hi = first[r], end[r]
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if leg_t[mid] <= times[k]:
-                lo = mid + 1
-            else:
-                hi = mid
-        out[k] = max(lo - 1, first[r])

@@ -361,7 +361,6 @@ def check_exact_links(seed: int | None = None) -> list[Check]:
     just before and after every jump), and on the smallest torus allowed (side just above
     twice the range, where other images come into range within a piece)."""
     from netsim.links.lifetimes import jump_times
-    from netsim.links.radio_links import leg_index
     from netsim.trajectory import LegTable
 
     out = []
@@ -383,7 +382,7 @@ def check_exact_links(seed: int | None = None) -> list[Check]:
     for col, flag in (("t_up_s", "censored_start"), ("t_down_s", "censored_end")):
         done = links[~links[flag]]
         for t, a, b in zip(done[col].tolist(), done["a"].tolist(), done["b"].tolist()):
-            la, lb = leg_index(table, np.array([a, b]), np.array([t, t]))
+            la, lb = table.legs_at(np.array([a, b]), np.array([t, t]))
             pa, pb = table.at(np.array([la, lb]), t)
             d = pa - pb
             dist = math.hypot(*d)

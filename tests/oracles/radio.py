@@ -236,7 +236,7 @@ def draw_destinations(m, rng, here_m, area, batch: int = 64, max_rounds: int = 1
     return out
 
 
-# -- legs of a trajectory (netsim.radio._kernels.legs_at) --------------------------------
+# -- legs of a trajectory (netsim._kernels.legs_at) --------------------------------
 def leg_index(L, robots: np.ndarray, times: np.ndarray) -> np.ndarray:
     """The leg of ``robots[k]`` current at ``times[k]``, by one sort of legs and queries."""
     robots = np.asarray(robots, np.int64)
