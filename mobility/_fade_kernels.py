@@ -9,7 +9,7 @@ back to 0 from a favourable ``x`` and :data:`FADE_SIGMAS` standard deviations of
 spread: ``(1 - rho) max(-x, 0) + FADE_SIGMAS sigma sqrt(1 - rho^2)``, ``rho = exp(-delta /
 d_corr)`` (:func:`plausible_change_db`). A budget ``B`` of power margin then allows a pair
 travel :func:`fade_travel_m`, and a link kept at the length where its margin with ``x`` is
-``B`` (:func:`range_at_m`) stays up at every look of the channel over that travel unless
+``B`` (:func:`netsim._kernels.range_at_loss_m`) stays up at every look of the channel over that travel unless
 the shadowing moves by more.
 """
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from netsim._kernels import range_at_margin_m, shadow_correlation
+from netsim._kernels import shadow_correlation
 from netsim.compiled import jit
 
 # Standard deviations of the shadowing's change that a kept link's budget covers (a
@@ -68,14 +68,6 @@ def fade_travel_m(budget_db, x_db, sigma_db, decorrelation_m):
     if hi <= 0.0:
         return math.inf
     return -decorrelation_m * math.log(hi)
-
-
-@jit(nogil=True)
-def range_at_m(loss_db, budget_db, reference_distance_m, exponent):
-    """The distance at which a link whose shadowing (and walls) cost ``loss_db`` meets the
-    sensitivity under log-distance (``budget_db = P_t - PL(d0) - sensitivity``); 0 when
-    even ``d0`` is too far."""
-    return range_at_margin_m(budget_db - loss_db, reference_distance_m, exponent)
 
 
 @jit(nogil=True)

@@ -716,10 +716,19 @@ def range_at_margin_m(margin_db, d0_m, exponent):
 
 
 @jit(nogil=True)
-def ranges_at_margin_m(margin_db, d0_m, exponent, out):
-    """:func:`range_at_margin_m` of every margin of ``margin_db`` (1-d), written to ``out``."""
-    for m in range(margin_db.shape[0]):
-        out[m] = range_at_margin_m(margin_db[m], d0_m, exponent)
+def range_at_loss_m(loss_db, budget_db, d0_m, exponent):
+    """The distance at which a pair whose shadowing and walls cost ``loss_db`` meets the
+    sensitivity under log-distance (``budget_db = P_t - PL(d0) - sensitivity``): the range
+    a link solver, a plan's kept link and a measured link all read; 0 when even ``d0`` is
+    too far."""
+    return range_at_margin_m(budget_db - loss_db, d0_m, exponent)
+
+
+@jit(nogil=True)
+def ranges_at_loss_m(loss_db, budget_db, d0_m, exponent, out):
+    """:func:`range_at_loss_m` of every loss of ``loss_db`` (1-d), written to ``out``."""
+    for m in range(loss_db.shape[0]):
+        out[m] = range_at_loss_m(loss_db[m], budget_db, d0_m, exponent)
 
 
 @jit(nogil=True)

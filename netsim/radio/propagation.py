@@ -247,14 +247,15 @@ def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0, n_ro
     >>> [round(float(r), 6) for r in effective_range_m(p, [0.0, 30.0, 61.0])]
     [100.0, 10.0, 0.0]
     """
-    walls_db = laws.through_walls_db(0.0, params.wall_loss_db, np.asarray(walls))
-    margin = params.budget_db - np.asarray(shadowing_db, dtype=float) - walls_db
-    flat = np.ascontiguousarray(margin, dtype=float).reshape(-1)
+    loss = laws.through_walls_db(np.asarray(shadowing_db, dtype=float), params.wall_loss_db, np.asarray(walls))
+    flat = np.ascontiguousarray(loss, dtype=float).reshape(-1)
     out = np.empty(flat.shape[0])
     with np.errstate(over="ignore"):
         kernels = load("netsim._kernels", n_robots, values=flat.shape[0])
-        kernels.ranges_at_margin_m(flat, params.reference_distance_m, params.path_loss_exponent, out)
-    return out.reshape(np.shape(margin))
+        kernels.ranges_at_loss_m(
+            flat, float(params.budget_db), params.reference_distance_m, params.path_loss_exponent, out
+        )
+    return out.reshape(np.shape(loss))
 
 
 def reach_m(params: LogDistanceParams) -> float:
