@@ -126,6 +126,19 @@ SCENARIOS: dict[str, list[str]] = {
         "coverage.plan=local",
         "duration_s=60",
     ],
+    # The global plan's kept links under shadowing and walls together (the range at both).
+    "office_coverage_walls_shadowing": COVERAGE
+    + [
+        "world.n_robots=20",
+        "world.map=office",
+        "world.side_m=200",
+        "world.centre_side_m=40",
+        "channel.propagation=log_distance",
+        "channel.shadowing_sigma_db=4",
+        "channel.wall_loss_db=5",
+        "channel.sensitivity_dbm=-64.3",
+        "duration_s=60",
+    ],
     "cave_coverage": COVERAGE
     + ["world.map=cave", "world.side_m=200", "world.centre_side_m=60", "channel.range_m=30", "duration_s=40"],
 }

@@ -306,7 +306,7 @@ def oracle_let_go(controller, order: str, over: str):
         n = len(pos)
         kernels = load("netsim.mobility._local_kernels", n)
         fade, band_m = controller.fade.rule, controller.cfg.band_m
-        nominal_m = kernels.range_at_loss_m(0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
+        nominal_m = kernels.range_at_loss_m(0.0, 0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
         lo, hi = np.minimum(links.i, links.j), np.maximum(links.i, links.j)
         length = np.hypot(*(pos[links.i] - pos[links.j]).T)
         band = [kernels.link_band(d, records_db[a, b], band_m, fade, nominal_m) for d, a, b in zip(length, lo, hi)]

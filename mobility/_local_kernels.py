@@ -202,7 +202,7 @@ def measured_range_m(x_db, measured_s, travel_m, fade):
     if not fade.on or math.isnan(x_db) or not measured_s > -math.inf:
         return 0.0
     change = plausible_change_within_db(travel_m, x_db, fade.sigma_db, fade.decorrelation_m, fade.detour_sigmas)
-    return range_at_loss_m(x_db + change, fade.budget_db, fade.reference_distance_m, fade.exponent)
+    return range_at_loss_m(x_db + change, 0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
 
 
 # The last band of rule 1's order under shadowing: links without a record, and links too long
@@ -221,7 +221,7 @@ def link_band(length_m, record_db, band_m, fade, nominal_m):
         return float(math.floor(length_m / band_m))
     if math.isnan(record_db):
         return LAST_BAND
-    reach_m = range_at_loss_m(record_db, fade.budget_db, fade.reference_distance_m, fade.exponent)
+    reach_m = range_at_loss_m(record_db, 0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
     if not reach_m > 0:
         return LAST_BAND
     at_zero_m = length_m * (nominal_m / reach_m)
@@ -287,7 +287,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     heard_s = np.empty(n)
     # record_db[a, b]: the link's record in the epoch ordered by (readable[a, b]: i holds it).
     record_db = np.full((n, n), np.nan)
-    nominal_m = range_at_loss_m(0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
+    nominal_m = range_at_loss_m(0.0, 0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
     readable = np.zeros((n, n), np.bool_)
     # sweep[a]: node a's largest travel over the window, as i knows it.
     sweep = np.zeros(n)

@@ -716,19 +716,20 @@ def range_at_margin_m(margin_db, d0_m, exponent):
 
 
 @jit(nogil=True)
-def range_at_loss_m(loss_db, budget_db, d0_m, exponent):
-    """The distance at which a pair whose shadowing and walls cost ``loss_db`` meets the
-    sensitivity under log-distance (``budget_db = P_t - PL(d0) - sensitivity``): the range
-    a link solver, a plan's kept link and a measured link all read; 0 when even ``d0`` is
-    too far."""
-    return range_at_margin_m(budget_db - loss_db, d0_m, exponent)
+def range_at_loss_m(shadowing_db, walls_db, budget_db, d0_m, exponent):
+    """The distance at which a pair whose shadowing costs ``shadowing_db`` and whose walls
+    ``walls_db`` meets the sensitivity under log-distance (``budget_db = P_t - PL(d0) -
+    sensitivity``): the range a link solver, a plan's kept link and a measured link all
+    read; 0 when even ``d0`` is too far. The margin is ``(budget - X) - W``, in that order."""
+    return range_at_margin_m(budget_db - shadowing_db - walls_db, d0_m, exponent)
 
 
 @jit(nogil=True)
-def ranges_at_loss_m(loss_db, budget_db, d0_m, exponent, out):
-    """:func:`range_at_loss_m` of every loss of ``loss_db`` (1-d), written to ``out``."""
-    for m in range(loss_db.shape[0]):
-        out[m] = range_at_loss_m(loss_db[m], budget_db, d0_m, exponent)
+def ranges_at_loss_m(shadowing_db, walls_db, budget_db, d0_m, exponent, out):
+    """:func:`range_at_loss_m` of every pair of ``shadowing_db`` and ``walls_db`` (1-d, of
+    one length), written to ``out``."""
+    for m in range(shadowing_db.shape[0]):
+        out[m] = range_at_loss_m(shadowing_db[m], walls_db[m], budget_db, d0_m, exponent)
 
 
 @jit(nogil=True)

@@ -54,11 +54,13 @@ class LegTable:
 
     def __init__(self, legs: pd.DataFrame, n: int):
         legs = legs.sort_values(["robot", "t_s"], kind="stable")
-        self.t = legs["t_s"].to_numpy(float)
-        # Row-major, as the kernels take them (a frame's columns come out column-major, and
-        # each call would copy the whole log).
-        self.p = np.ascontiguousarray(legs[["x_m", "y_m"]].to_numpy(float))
-        self.v = np.ascontiguousarray(legs[["vx_mps", "vy_mps"]].to_numpy(float))
+        # Writable and row-major, as the kernels take them: a frame's columns come out
+        # column-major or read-only, each a type numba compiles a kernel for again (and each
+        # call would copy the whole log).
+        k = len(legs)
+        self.t = filled(legs["t_s"].to_numpy(float), (k,))
+        self.p = filled(legs[["x_m", "y_m"]].to_numpy(float), (k, 2))
+        self.v = filled(legs[["vx_mps", "vy_mps"]].to_numpy(float), (k, 2))
         robots = legs["robot"].to_numpy(np.int64)
         self.robot = robots
         self.n = n
@@ -72,7 +74,8 @@ class LegTable:
         """The leg of ``robots[k]`` current at ``times_s[k]`` (one time for all, or one per
         robot): its last leg that starts at or before it, its first when none does
         (:func:`netsim._kernels.legs_at`)."""
-        robots = np.ascontiguousarray(robots, np.int64).reshape(-1)
+        robots = np.asarray(robots).reshape(-1)
+        robots = filled(robots, robots.shape, np.int64)
         leg = np.empty(robots.shape[0], np.int64)
         times = filled(times_s, robots.shape)
         load("netsim._kernels", self.n).legs_at(self.first, self.end, self.t, robots, times, leg)

@@ -309,7 +309,7 @@ class Clustering:
             return pd.DataFrame([], columns=list(RoleChange._fields))
         return pd.DataFrame(dict(zip(RoleChange._fields, self._changes)))
 
-    def _run_timer(self, i, from_s) -> None:
+    def _run_timer(self, i: int | np.ndarray, from_s: float | np.ndarray) -> None:
         """Restart robot ``i``'s timer (rules 3 and 4) to run out ``tau`` after ``from_s``,
         as a leading Ack renews it (:func:`netsim.protocols._kernels.deadline_after`)."""
         self.timers.restart(i, self.kernels.deadline_after(from_s, self.tau_s))

@@ -624,12 +624,12 @@ def test_range_at_margin_inverts_the_path_loss_law(kind):
         d = k.range_at_margin_m(margin, 1.0, 3.0)
         assert path_loss_db(d, 1.0, 40.0, 30.0) - 40.0 == pytest.approx(margin, abs=1e-9)
     assert k.range_at_margin_m(0.0, 2.0, 3.0) == 2.0
-    # Losses against a budget of 30 dB: margins of -0.1 dB, NaN and 10 dB.
-    losses = np.array([30.1, np.nan, 20.0])
+    # Shadowing and walls against a budget of 30 dB: margins of -0.1 dB, NaN and 10 dB.
+    shadowing, walls = np.array([25.1, np.nan, 15.0]), np.array([5.0, 0.0, 5.0])
     out = np.empty(3)
-    k.ranges_at_loss_m(losses, 30.0, 1.0, 2.0, out)
+    k.ranges_at_loss_m(shadowing, walls, 30.0, 1.0, 2.0, out)
     assert out.tolist() == [0.0, 0.0, 10.0**0.5]
-    assert k.range_at_loss_m(20.0, 30.0, 1.0, 2.0) == 10.0**0.5
+    assert k.range_at_loss_m(15.0, 5.0, 30.0, 1.0, 2.0) == 10.0**0.5
 
 
 @BOTH

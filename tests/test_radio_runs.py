@@ -357,3 +357,8 @@ def test_leg_lookup_equals_the_oracle(compiled, monkeypatch):
     leg = oracle.leg_index(L, robots, times)
     assert np.array_equal(got, L.p[leg] + L.v[leg] * (times - L.t[leg])[:, None])
     assert np.array_equal(got[-1], [20.0, 20.0])
+    # Every robot's current leg at an instant, as the sampled positions and the link
+    # solvers advance to it: the same legs, also when the instants go back.
+    for t in (7.5, 50.0, 3.0):
+        L.advance(t)
+        assert np.array_equal(L.cur, oracle.leg_index(L, np.arange(30), np.full(30, t)))

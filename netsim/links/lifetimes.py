@@ -75,9 +75,6 @@ def link_events(
     ranges = np.broadcast_to(np.asarray(range_m, float), (n,))
     L = LegTable(legs, n)
     kernels = load("netsim.links._kernels", n)
-    # Writable C-ordered copies whatever pandas handed over: the compiled crossings are
-    # compiled (and cached) for that one layout.
-    L.t, L.p, L.v = (np.array(x, float, order="C") for x in (L.t, L.p, L.v))
     speed = speeds_mps(L.v) if len(L.v) else np.zeros(0)
     r_max, r_half = float(ranges.max()), 0.5 * float(ranges.min())
     # Each window is sized by the legs current at its start, and ends where a faster leg
@@ -185,10 +182,8 @@ def _jump_state(
     that change nothing are dropped later)."""
     jumpers = np.unique(jumpers)
     before = pos.copy()
-    for r in jumpers.tolist():  # the leg that was current just before t
-        lo, hi = L.first[r], L.end[r]
-        leg = max(lo, lo + int(np.searchsorted(L.t[lo:hi], t, "left")) - 1)
-        before[r] = L.at(np.array([leg]), t)[0]
+    # The legs that were current just before t.
+    before[jumpers] = L.at(L.legs_at(jumpers, np.nextafter(t, -np.inf)), t)
     a1, b1 = _near(before, jumpers, r_max, box)
     a2, b2 = _near(pos, jumpers, r_max, box)
     a, b = np.r_[a1, a2], np.r_[b1, b2]
@@ -213,10 +208,9 @@ def _solve_changing(
     """Pairs where a robot changes course within ``[start, stop)``: cut each pair's window
     at both robots' course changes and solve every piece, all pairs in one pass."""
     n_pairs = len(a)
-    # Each robot's course changes in the window are its legs cur+1 .. cur+count: those
-    # starting before stop (a robot's legs are in time order, so a count of all of them).
-    before = np.r_[0, np.cumsum(L.t < stop)]
-    count = before[L.end] - before[np.minimum(L.cur + 1, L.end)]
+    # Each robot's course changes in the window are its legs cur+1 .. cur+count: up to the
+    # last that starts before stop.
+    count = np.maximum(L.legs_at(np.arange(L.n), np.nextafter(stop, -np.inf)) - L.cur, 0)
     pid = np.arange(n_pairs)
     parts_p, parts_leg, parts_from = [pid], [np.full(n_pairs, -1)], [np.zeros(n_pairs, np.int8)]
     for robot, tag in ((a, 1), (b, 2)):

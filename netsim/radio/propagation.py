@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from netsim.compiled import load
+from netsim.compiled import filled, load
 from netsim.errors import ConfigError
 from netsim.params import Params, param
 from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole arrays
@@ -247,15 +247,18 @@ def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0, n_ro
     >>> [round(float(r), 6) for r in effective_range_m(p, [0.0, 30.0, 61.0])]
     [100.0, 10.0, 0.0]
     """
-    loss = laws.through_walls_db(np.asarray(shadowing_db, dtype=float), params.wall_loss_db, np.asarray(walls))
-    flat = np.ascontiguousarray(loss, dtype=float).reshape(-1)
-    out = np.empty(flat.shape[0])
+    x_db, walls_db = np.broadcast_arrays(
+        np.asarray(shadowing_db, dtype=float), laws.through_walls_db(0.0, params.wall_loss_db, np.asarray(walls))
+    )
+    shape = x_db.shape
+    x_flat, w_flat = (filled(a, shape).reshape(-1) for a in (x_db, walls_db))
+    out = np.empty(x_flat.shape[0])
     with np.errstate(over="ignore"):
-        kernels = load("netsim._kernels", n_robots, values=flat.shape[0])
+        kernels = load("netsim._kernels", n_robots, values=x_flat.shape[0])
         kernels.ranges_at_loss_m(
-            flat, float(params.budget_db), params.reference_distance_m, params.path_loss_exponent, out
+            x_flat, w_flat, float(params.budget_db), params.reference_distance_m, params.path_loss_exponent, out
         )
-    return out.reshape(np.shape(loss))
+    return out.reshape(shape)
 
 
 def reach_m(params: LogDistanceParams) -> float:
