@@ -111,13 +111,6 @@ class LegTable:
         last[self.end - 1] = True
         return last, np.where(last, k, k + 1)
 
-    def changes_in(self, a: float, b: float) -> np.ndarray:
-        """Robots that start a new leg in (a, b)."""
-        nxt = self.cur + 1
-        has = nxt < self.end
-        has[has] &= self.t[nxt[has]] < b
-        return has
-
 
 def folded_legs(legs: pd.DataFrame, n: int, side_m: float, duration_s: float) -> pd.DataFrame:
     """A torus run's legs (each runs on past the borders, unfolded) as legs inside the square

@@ -140,12 +140,14 @@ def link_events(
             if first:
                 up = kernels.in_range(pos, i, j, radius, box or 0.0)
                 emit(np.zeros(int(up.sum())), i[up], j[up], 1, PHASE_STATE)
-            changing = L.changes_in(start, stop)
-            simple = ~(changing[i] | changing[j])
+            # Each robot's course changes in the window are its legs cur+1 .. cur+count: up
+            # to the last that starts before stop.
+            count = np.maximum(L.legs_at(np.arange(L.n), np.nextafter(stop, -np.inf)) - L.cur, 0)
+            simple = (count[i] == 0) & (count[j] == 0)
             li, lj = L.cur[i[simple]], L.cur[j[simple]]
             _solve_legs(L, li, lj, radius[simple], start, stop - start, i[simple], j[simple], emit, box, kernels)
             if (~simple).any():
-                _solve_changing(L, i[~simple], j[~simple], radius[~simple], start, stop, box, emit, kernels)
+                _solve_changing(L, count, i[~simple], j[~simple], radius[~simple], start, stop, box, emit, kernels)
         first = False
         if stop >= duration_s:
             break
@@ -196,6 +198,7 @@ def _jump_state(
 
 def _solve_changing(
     L: LegTable,
+    count: np.ndarray,
     a: np.ndarray,
     b: np.ndarray,
     radius: np.ndarray,
@@ -205,38 +208,27 @@ def _solve_changing(
     emit: Callable[..., None],
     kernels: ModuleType,
 ) -> None:
-    """Pairs where a robot changes course within ``[start, stop)``: cut each pair's window
-    at both robots' course changes and solve every piece, all pairs in one pass."""
+    """Pairs where a robot changes course within ``[start, stop)`` (``count``: each robot's
+    changes there): cut each pair's window at both robots' course changes and solve every
+    piece, all pairs in one pass."""
     n_pairs = len(a)
-    # Each robot's course changes in the window are its legs cur+1 .. cur+count: up to the
-    # last that starts before stop.
-    count = np.maximum(L.legs_at(np.arange(L.n), np.nextafter(stop, -np.inf)) - L.cur, 0)
     pid = np.arange(n_pairs)
-    parts_p, parts_leg, parts_from = [pid], [np.full(n_pairs, -1)], [np.zeros(n_pairs, np.int8)]
-    for robot, tag in ((a, 1), (b, 2)):
+    parts_p, parts_t = [pid], [np.full(n_pairs, start)]
+    for robot in (a, b):
         c = count[robot]
         p = np.repeat(pid, c)
         offset = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
         parts_p.append(p)
-        parts_leg.append(L.cur[robot][p] + 1 + offset)
-        parts_from.append(np.full(len(p), tag, np.int8))
+        parts_t.append(L.t[L.cur[robot][p] + 1 + offset])
     p = np.concatenate(parts_p)
-    leg = np.concatenate(parts_leg)
-    frm = np.concatenate(parts_from)
-    t = np.where(leg >= 0, L.t[np.maximum(leg, 0)], start)
+    t = np.concatenate(parts_t)
     order = np.lexsort((t, p))
-    p, t, frm = p[order], t[order], frm[order]
-    group_start = np.searchsorted(p, pid)
-    # Legs of a and b current on each piece: how many of their changes came so far.
-    ca = np.cumsum(frm == 1)
-    cb = np.cumsum(frm == 2)
-    ca -= np.repeat(ca[group_start] - (frm[group_start] == 1), np.diff(np.r_[group_start, len(p)]))
-    cb -= np.repeat(cb[group_start] - (frm[group_start] == 2), np.diff(np.r_[group_start, len(p)]))
-    # Changes at the same instant make one cut: keep the last, which has seen them all.
+    p, t = p[order], t[order]
+    # Changes at the same instant make one cut.
     last = np.r_[(p[1:] != p[:-1]) | (t[1:] != t[:-1]), True]
-    p, t, ca, cb = p[last], t[last], ca[last], cb[last]
+    p, t = p[last], t[last]
     end = np.where(np.r_[p[1:] == p[:-1], False], np.r_[t[1:], stop], stop)
-    la, lb = L.cur[a[p]] + ca, L.cur[b[p]] + cb
+    la, lb = L.legs_at(a[p], t), L.legs_at(b[p], t)
     _solve_legs(L, la, lb, radius[p], t, end - t, a[p], b[p], emit, box, kernels)
 
 
