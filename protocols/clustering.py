@@ -309,7 +309,7 @@ class Clustering:
             return pd.DataFrame([], columns=list(RoleChange._fields))
         return pd.DataFrame(dict(zip(RoleChange._fields, self._changes)))
 
-    def _run_timer(self, i: int | np.ndarray, from_s: float | np.ndarray) -> None:
+    def _run_timer(self, i: int, from_s: float) -> None:
         """Restart robot ``i``'s timer (rules 3 and 4) to run out ``tau`` after ``from_s``,
         as a leading Ack renews it (:func:`netsim.protocols._kernels.deadline_after`)."""
         self.timers.restart(i, self.kernels.deadline_after(from_s, self.tau_s))
@@ -322,7 +322,9 @@ class Clustering:
         roles.leader[:] = NO_LEADER
         for i in range(self.state.n):
             self._record(now, i, ROLE_NAMES[UNDECIDED], NO_LEADER, START)
-        self._run_timer(np.arange(self.state.n), self.beacon.phase_s)
+        # One deadline at a time: the kernel is then compiled for numbers alone.
+        for i, phase_s in enumerate(self.beacon.phase_s.tolist()):
+            self._run_timer(i, phase_s)
 
     def _rule2_join(self, i: int, now: float, first_heard: int = NO_LEADER, exclude: int = NO_LEADER) -> bool:
         """Rule 2 for robot ``i`` (undecided) from what its table knows: it joins a leader
