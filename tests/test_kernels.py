@@ -630,6 +630,10 @@ def test_range_at_margin_inverts_the_path_loss_law(kind):
     k.ranges_at_loss_m(shadowing, walls, 30.0, 1.0, 2.0, out)
     assert out.tolist() == [0.0, 0.0, 10.0**0.5]
     assert k.range_at_loss_m(15.0, 5.0, 30.0, 1.0, 2.0) == 10.0**0.5
+    # The margin is (budget - X) - W, the order the link solvers' ranges were always
+    # computed in: with these numbers budget - (X + W) differs in its last bit.
+    assert (35.3 - -0.09) - 10.0 != 35.3 - (-0.09 + 10.0)
+    assert k.range_at_loss_m(-0.09, 10.0, 35.3, 1.0, 2.0) == k.range_at_margin_m((35.3 - -0.09) - 10.0, 1.0, 2.0)
 
 
 @BOTH
