@@ -27,6 +27,9 @@ size differs is read again. A file changed in the last ``SETTLE_S`` seconds is n
 there (an edit within the same tick of a coarse clock, at the same size, would otherwise
 look unchanged), as git treats a file changed in the second its index was written.
 
+An index that cannot be read (it names a type whose module this process cannot import)
+is a miss, not an error: the kernel is compiled again and the index written anew.
+
 A directory with no compiled code in it means the module's loops will be compiled, not
 loaded, which takes a while the first time a version runs on a machine: a command that
 wants to say so asks :func:`when_cold` to be told.
@@ -240,6 +243,26 @@ def _prune(module_name: str, kept: Path) -> None:
             shutil.rmtree(old, ignore_errors=True)
 
 
+def _read_index_or_miss(cache: Any) -> None:
+    """Make a function's cache index that cannot be read a miss, not an error. numba pickles
+    the argument types of every compiled signature into the index, so a type from a module
+    that a later process cannot import (a user's tuple handed to a kernel, a module loaded
+    under a second name) would make every later call of that kernel fail to load it. As a
+    miss, the kernel is compiled again and the index written anew with what can be read."""
+    index_file: Any = getattr(cache, "_cache_file", None)
+    load_index = getattr(index_file, "_load_index", None)
+    if load_index is None:  # pragma: no cover  (another numba's layout: its own behaviour)
+        return
+
+    def read_or_miss() -> dict:
+        try:
+            return load_index()
+        except Exception:  # unpickling runs the code of any class named in the file
+            return {}
+
+    index_file._load_index = read_or_miss
+
+
 def key(namespace: dict[str, Any]) -> Path:
     """Point the cache of every compiled function defined in the module whose globals are
     ``namespace`` at its keyed directory; returns that directory. Called once, at the end
@@ -260,6 +283,7 @@ def key(namespace: dict[str, Any]) -> Path:
             for value in list(namespace.values()):
                 if isinstance(value, Dispatcher) and value.py_func.__module__ == name:
                     value.enable_caching()  # a cache located under config.CACHE_DIR now
+                    _read_index_or_miss(getattr(value, "_cache", None))
         finally:
             config.CACHE_DIR = kept  # type: ignore[attr-defined]
         _KEYS[name] = module_key

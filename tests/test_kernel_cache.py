@@ -228,3 +228,54 @@ def test_an_edited_callee_in_another_module_changes_its_callers_result(tmp_path)
     assert edited != source
     callee.write_text(edited)
     assert x_of_the_ack() == 1010.0
+
+
+USER_TYPE = """
+from typing import NamedTuple
+import numpy as np
+
+class Motion(NamedTuple):
+    origin_m: np.ndarray
+    velocity_mps: np.ndarray
+    t0_s: np.ndarray
+    torus: bool
+    side_m: float
+"""
+
+PAIR_REACH = """
+import sys
+import numpy as np
+from netsim.compiled import load
+
+kind = sys.argv[1]
+k = load("netsim._kernels", 10**6)
+parts = (np.zeros((2, 2)), np.zeros((2, 2)), np.zeros(2), False, 0.0)
+if kind == "user":
+    sys.path.insert(0, sys.argv[2])
+    import userplug
+
+    parts = userplug.Motion(*parts)
+print(k.pair_reach(parts, 0, 1, 0.0, 1.0)[0])
+"""
+
+
+@pytest.mark.slow
+def test_an_index_naming_a_module_gone_is_a_miss(tmp_path):
+    """A user's tuple type handed to a kernel lands in the kernel's cache index; a later
+    process that cannot import that type's module compiles the kernel again (and rewrites
+    the index) instead of failing on every call."""
+    plug = tmp_path / "plug"
+    plug.mkdir()
+    (plug / "userplug.py").write_text(USER_TYPE)
+    (tmp_path / "probe.py").write_text(PAIR_REACH)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+
+    def reach(*args: str) -> str:
+        run = subprocess.run([sys.executable, "probe.py", *args], cwd=tmp_path, env=env, capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr[-2000:]
+        return run.stdout.split()[-1]
+
+    assert reach("user", str(plug)) == "True"
+    assert reach("plain") == "True"  # the index names userplug, which this process cannot import
+    assert reach("plain") == "True"
+    assert reach("user", str(plug)) == "True"
