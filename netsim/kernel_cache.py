@@ -28,7 +28,8 @@ there (an edit within the same tick of a coarse clock, at the same size, would o
 look unchanged), as git treats a file changed in the second its index was written.
 
 An index that cannot be read (it names a type whose module this process cannot import)
-is a miss, not an error: the kernel is compiled again and the index written anew.
+is a miss, not an error: the kernel is compiled again and the index written anew, with
+this signature alone (the others are compiled again when next asked for).
 
 A directory with no compiled code in it means the module's loops will be compiled, not
 loaded, which takes a while the first time a version runs on a machine: a command that
@@ -41,6 +42,7 @@ import hashlib
 import importlib.util
 import json
 import os
+import pickle
 import re
 import shutil
 import sys
@@ -257,7 +259,9 @@ def _read_index_or_miss(cache: Any) -> None:
     def read_or_miss() -> dict:
         try:
             return load_index()
-        except Exception:  # unpickling runs the code of any class named in the file
+        # What unpickling raises for a class it cannot find or rebuild, or for a truncated
+        # file; a disk's error (OSError) still stops the call.
+        except (ImportError, AttributeError, TypeError, ValueError, EOFError, pickle.UnpicklingError):
             return {}
 
     index_file._load_index = read_or_miss

@@ -117,15 +117,6 @@ def test_wall_forces_push_a_point_on_the_wall_face():
     assert i.tolist() == [19, 21, 6] and j.tolist() == [16, 4, 6]
 
 
-def test_nearest_free_cell_starts_from_the_maps_cell_of_a_point():
-    """A point on the grid's far edges is in the last cell, as the map puts it: with no
-    neighbours searched, that free cell is its own (the floor alone would put it beyond
-    the grid, and find none)."""
-    free = np.ones((3, 4), bool)
-    i, j = nearest_free_cells(free, (0.0, 0.0), 1.0, [[4.0, 1.5], [2.5, 3.0], [4.0, 3.0], [1.5, 1.5]], 0)
-    assert i.tolist() == [3, 2, 3, 1] and j.tolist() == [1, 2, 2, 1]
-
-
 def test_clearance_field_is_distance_to_nearest_non_free_cell():
     m = _rooms()
     d = clearance_field_m(m)

@@ -334,18 +334,16 @@ def nearest_free_cells(free, origin_m, cell_m: float, points_m, radius_cells: in
     """For each point, the free cell of the grid ``free`` (``(h, w)``, cells ``cell_m``
     wide, corner at ``origin_m``) within ``radius_cells`` of the point's own cell whose
     centre is nearest the point (the first found, rows then columns from the lowest, on a
-    tie); ``(-1, -1)`` when none is. A point's own cell is the map's rule
-    (:func:`netsim.world._kernels.cell_index`: the floor, far edges in the last cell). A free
-    point's own cell can count as blocked: on a coarser grid, a cell that holds a wall's
-    edge; on any grid, a point on a wall's lower or left face, which the floor puts in the
-    wall's cell."""
+    tie); ``(-1, -1)`` when none is. A free point's own cell can count as blocked: on a
+    coarser grid, a cell that holds a wall's edge; on any grid, a point on a wall's lower or
+    left face, which the floor puts in the wall's cell. The own cell is the floor on the
+    unbounded grid, not the map's cell of a point (which puts every point beyond the far
+    edges in the last cell): a point off the grid stays off it, so that the radius bounds
+    how far the cell found is, on every side alike."""
     p = np.asarray(points_m, float).reshape(-1, 2)
     h, w = free.shape
     u, v = grid_coords(p, origin_m, cell_m)
-    k = len(p)
-    x, y = np.empty(k, np.int64), np.empty(k, np.int64)
-    flat = np.ascontiguousarray(free, dtype=bool).reshape(-1)
-    kernels_for("netsim.world._kernels").map_cells(flat, h, w, u, v, np.empty(k, bool), np.empty(k, bool), x, y)
+    x, y = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
     out_x, out_y = np.full(len(p), -1), np.full(len(p), -1)
     best = np.full(len(p), np.inf)
     r = radius_cells
