@@ -117,3 +117,41 @@ def test_numba_is_told_not_to_use_intel_svml():
     env["NUMBA_DISABLE_INTEL_SVML"] = "0"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "0"
+
+
+def kernels_called_around_load(path: Path) -> list[str]:
+    """Kernels that a module outside the kernel modules takes by import, or kernel modules it
+    imports whole: a call of either runs the plain source whatever the run's size, where
+    netsim.compiled.load alone decides between compiled and plain."""
+    import importlib
+
+    from netsim.compiled import is_kernel
+
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found += [alias.name for alias in node.names if alias.name.endswith("kernels")]
+            continue
+        if not isinstance(node, ast.ImportFrom) or not node.module:
+            continue
+        module = node.module
+        for alias in node.names:
+            if alias.name.endswith("kernels"):
+                found.append(f"{module}.{alias.name}")
+            elif module.rpartition(".")[2].endswith("kernels"):
+                if is_kernel(getattr(importlib.import_module(module), alias.name, None)):
+                    found.append(f"{module}.{alias.name}")
+    return found
+
+
+def test_kernels_are_called_only_through_load():
+    """Outside the kernel modules, a kernel is reached through netsim.compiled.load: a module
+    imports only the kernel modules' records and constants."""
+    kernels = set(kernel_modules())
+    bad = {
+        str(p.relative_to(ROOT)): found
+        for top in ("netsim", "protocols", "mobility", "hooks")
+        for p in sorted((ROOT / top).rglob("*.py"))
+        if p not in kernels and (found := kernels_called_around_load(p))
+    }
+    assert not bad

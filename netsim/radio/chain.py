@@ -20,8 +20,14 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from netsim.compiled import load
-from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole arrays
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
+
+
+def laws(values: int) -> Any:
+    """The radio's laws (:mod:`netsim.radio._kernels`), each one expression for a number or
+    an array, for a batch of ``values`` of them: compiled or plain as
+    :func:`netsim.compiled.load` decides for any kernel."""
+    return load("netsim.radio._kernels", None, values=values)
 
 
 def linear(db):
@@ -54,12 +60,12 @@ class Radio(NamedTuple):
 
     def received_dbm(self, loss_db):
         """``P_r = P_t - loss`` (:func:`netsim.radio._kernels.received_dbm`)."""
-        return laws.received_dbm(self.tx_power_dbm, loss_db)
+        return laws(np.size(loss_db)).received_dbm(self.tx_power_dbm, loss_db)
 
     def hears(self, loss_db):
         """Whether a frame after ``loss_db`` arrives at or above the sensitivity: the decision
         of a frame's compiled pass (:func:`netsim.radio._kernels.heard`)."""
-        return laws.heard(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
+        return laws(np.size(loss_db)).heard(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
 
     def margin_db(self, loss_db):
         """How far above the sensitivity a frame after ``loss_db`` arrives: ``(P_t -
@@ -166,7 +172,7 @@ class WallLoss:
         from netsim.world.los import walls_crossed
 
         walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
-        return laws.through_walls_db(0.0, self.wall_loss_db, walls)
+        return laws(len(walls)).through_walls_db(0.0, self.wall_loss_db, walls)
 
 
 class RangeLoss:
@@ -221,12 +227,13 @@ class LossChain:
         and shadowing draws, are spent only on pairs still in the running.
         """
         k = len(pairs.a)
-        slack_budget = laws.with_slack(radio.budget_db)
+        law = laws(k)
+        slack_budget = law.with_slack(radio.budget_db)
         alive = np.arange(k)
         loss = np.zeros(k)
         sub = pairs
         for i, term in enumerate(self.terms):
-            keep = laws.may_be_heard(loss, self._rest[i], slack_budget)
+            keep = law.may_be_heard(loss, self._rest[i], slack_budget)
             if not keep.all():
                 alive, loss = alive[keep], loss[keep]
                 sub = sub.take(keep)

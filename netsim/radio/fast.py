@@ -24,7 +24,7 @@ import numpy as np
 
 from netsim._kernels import Motion
 from netsim.compiled import load
-from netsim.radio._kernels import Decided, PathLoss, Points, Robots, Shadow, with_slack
+from netsim.radio._kernels import Decided, PathLoss, Points, Robots, Shadow
 from netsim.radio.chain import (
     LineOfSightLoss,
     LogDistanceLoss,
@@ -85,7 +85,7 @@ class CompiledChain:
         self.log, self.shadow, self.walls, self.range, self.sight = parts
         budget = propagation.radio.budget_db
         # The chain's own early-drop budget (the same function as LossChain.receivable's).
-        self.budget_slack = with_slack(budget)
+        self.budget_slack = self.k.with_slack(budget)
         term = self.walls or self.sight
         occupancy = term.occupancy if term is not None else None
         self.occupancy = occupancy

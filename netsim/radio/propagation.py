@@ -44,7 +44,6 @@ import numpy as np
 from netsim.compiled import filled, load
 from netsim.errors import ConfigError
 from netsim.params import Params, param
-from netsim.radio import _kernels as laws  # the plain laws, on numbers or whole arrays
 from netsim.radio.chain import (
     NO_POWER,
     LineOfSightLoss,
@@ -208,9 +207,9 @@ class LogDistanceParams(RadioParams):
     def loss_db(self, distance_m, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """A pair's loss as a frame's decision sums it: ``(PL(d) + X) + W``, ``W`` the loss
         of ``walls`` walls crossed."""
-        return laws.through_walls_db(
-            self.path_loss_db(distance_m, n_robots) + shadowing_db, self.wall_loss_db, np.asarray(walls)
-        )
+        loss = self.path_loss_db(distance_m, n_robots) + shadowing_db
+        law = load("netsim.radio._kernels", n_robots, values=np.size(loss))
+        return law.through_walls_db(loss, self.wall_loss_db, np.asarray(walls))
 
     def margin_db(self, distance_m, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """The pair's power margin over the sensitivity, ``Radio.margin_db`` of :meth:`loss_db`."""
@@ -248,7 +247,10 @@ def effective_range_m(params: LogDistanceParams, shadowing_db=0.0, walls=0, n_ro
     [100.0, 10.0, 0.0]
     """
     x_db, walls_db = np.broadcast_arrays(
-        np.asarray(shadowing_db, dtype=float), laws.through_walls_db(0.0, params.wall_loss_db, np.asarray(walls))
+        np.asarray(shadowing_db, dtype=float),
+        load("netsim.radio._kernels", n_robots, values=np.size(walls)).through_walls_db(
+            0.0, params.wall_loss_db, np.asarray(walls)
+        ),
     )
     shape = x_db.shape
     x_flat, w_flat = (filled(a, shape).reshape(-1) for a in (x_db, walls_db))
