@@ -306,7 +306,7 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     if sim.channel.mac is not None:
         add("medium", sim.channel.mac.frame())
     if sim.channel.receptions is not None:
-        add("receptions", sim.channel.receptions.frame())
+        add("receptions", sim.channel.receptions.frame(legs, sim.state.n, side, torus))
     return frames
 
 

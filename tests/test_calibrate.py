@@ -113,6 +113,8 @@ def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path
     result = calibrate_frame(table, sensitivity_dbm=-85.0)
     for key, value in truth.items():
         assert getattr(result.fit, key).covers(value), (key, getattr(result.fit, key))
+    # The table's ends' positions give each pair's travel: the decorrelation too.
+    assert result.decorrelation.estimate.covers(LogDistanceParams.shadowing_decorrelation_m), result.decorrelation
 
 
 def test_a_cause_is_read_as_the_channel_spells_it_and_a_lost_frame_without_power_left_out(small_log):
@@ -237,6 +239,24 @@ def _empty_position(good: pd.DataFrame) -> pd.DataFrame:
     return log
 
 
+def _repeated_parquet(g: pd.DataFrame):
+    import io
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    columns = ["t_s", "src", "dst", "rssi_dbm", "distance_m", "distance_m"]
+    buffer = io.BytesIO()
+    pq.write_table(pa.table([g[c].to_numpy() for c in columns], names=columns), buffer)
+    return ("repeated.parquet", buffer.getvalue())
+
+
+def _above_tx_power(g: pd.DataFrame) -> pd.DataFrame:
+    g = g.copy()
+    g.loc[4, "rssi_dbm"] = TRUTH.tx_power_dbm + 30.0
+    return g
+
+
 # Each bad log: a table written as CSV, or the bytes of a file (name, content).
 BAD_LOGS = {
     "no_rssi": lambda g: g.drop(columns=["rssi_dbm"]),
@@ -253,6 +273,10 @@ BAD_LOGS = {
     "missing": lambda g: ("nowhere.csv", None),
     "unknown_format": lambda g: ("log.txt", b"t_s,src\n"),
     "broken_parquet": lambda g: ("broken.parquet", b"PAR1 not really parquet"),
+    "repeated_column": lambda g: pd.concat([g, 10 * g[["distance_m"]]], axis=1),
+    "repeated_column_parquet": _repeated_parquet,
+    "above_tx_power": _above_tx_power,
+    "no_power": lambda g: g.assign(rssi_dbm=np.nan),
 }
 
 
@@ -284,12 +308,18 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("good", ["--sensitivity-dbm", "-1"], "above every logged power"),
         ("good", ["--sensitivity-dbm", "-75"], "were received below it"),
         ("good", ["--sensitivity-dbm", "5"], "must be in [-200, 0] dBm"),
-        ("good", ["--tx-power-dbm", "-60"], "the fitted channel is not one netsim runs: channel.reference_loss_db"),
+        ("good", ["--tx-power-dbm", "-24"], "the fitted channel is not one netsim runs: channel.reference_loss_db"),
+        ("good", ["--tx-power-dbm", "-60"], "logged above it (the strongest at -24.3373 dBm)"),
         ("good", ["--map", "nowhere.yaml"], "--map = 'nowhere.yaml'"),
         ("no_distance", ["--map", "office"], "--map needs the positions"),
         ("missing", [], "no such file"),
         ("unknown_format", [], "unknown format '.txt'"),
         ("broken_parquet", [], "cannot be read as Parquet"),
+        ("repeated_column", [], "column distance_m appears more than once"),
+        ("repeated_column_parquet", [], "column distance_m appears more than once"),
+        ("above_tx_power", [], "1 frame of"),
+        ("no_power", [], "column rssi_dbm is empty in every row"),
+        ("good", ["--sensitivity-dbm", "-inf"], "--sensitivity-dbm -inf: must be in [-200, 0] dBm"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_log, case, extra, words):

@@ -154,6 +154,31 @@ def test_receptions_under_the_unit_disk_have_no_power():
     assert list(r.columns) == list(RECEPTIONS_SCHEMA)
 
 
+@pytest.mark.parametrize("torus", [False, True], ids=["plane", "torus"])
+def test_receptions_ends_are_where_the_robots_stood_at_the_frames_start(torus):
+    """``src_x_m`` ... ``dst_y_m`` are both robots' positions at the row's ``t_s`` (moving
+    robots: at another instant they would be elsewhere): their distance, the nearest
+    image's on a torus, is the channel's ``distance_m``; on a torus they lie in the square,
+    as in positions.parquet."""
+    config = make_config(
+        seed=4,
+        duration_s=20.0,
+        world={"n_robots": 16, "side_m": 250.0, "torus": torus},
+        mobility={"model": "random_waypoint", "speed_min_mps": 5.0, "speed_max_mps": 10.0},
+        channel={"latency_s": LATENCY_S, "range_m": 80.0},
+        protocol={"model": "clustering"},
+        output={"position_interval_s": 1.0, "receptions": True},
+    )
+    r = execute(config).frames["receptions"]
+    ends = r[["src_x_m", "src_y_m", "dst_x_m", "dst_y_m"]].to_numpy()
+    off = ends[:, 2:] - ends[:, :2]
+    if torus:
+        assert ((ends >= 0.0) & (ends < 250.0)).all()
+        off -= 250.0 * np.rint(off / 250.0)
+    assert len(r) > 100
+    np.testing.assert_allclose(np.hypot(*off.T), r["distance_m"], rtol=0, atol=1e-9)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "channel", [{"loss_model": "bernoulli", "loss_probability": 0.2}, {**SHADOWED, "mac": "aloha"}]

@@ -23,6 +23,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from netsim.geometry import in_box
+from netsim.trajectory import LegTable
+
 RECEPTIONS_SCHEMA = {
     "t_s": "float64",
     "src": "int64",
@@ -33,6 +36,10 @@ RECEPTIONS_SCHEMA = {
     "sinr_db": "float64",
     "received": "bool",
     "cause": "object",
+    "src_x_m": "float64",
+    "src_y_m": "float64",
+    "dst_x_m": "float64",
+    "dst_y_m": "float64",
 }
 
 # A row's cause while nothing dropped it (received, once the frame is decided).
@@ -121,9 +128,11 @@ class ReceptionLog:
         if len(rows.dst):
             self._frames.append(rows)
 
-    def frame(self) -> pd.DataFrame:
+    def frame(self, legs: pd.DataFrame, n: int, side_m: float | None = None, torus: bool = False) -> pd.DataFrame:
         """The table (:data:`RECEPTIONS_SCHEMA`), in order of the frames' start (a frame's
-        rows in the order of its receivers)."""
+        rows in the order of its receivers), with both ends' positions at ``t_s`` from the
+        run's ``legs`` (of ``n`` robots; folded into the square of ``side_m`` on a torus, as
+        ``positions.parquet``): what ``netsim calibrate`` reads a pair's travel and walls from."""
         fs = self._frames
         if not fs:
             return pd.DataFrame({c: pd.Series(dtype=t) for c, t in RECEPTIONS_SCHEMA.items()})
@@ -145,4 +154,12 @@ class ReceptionLog:
         )
         # Under a medium a frame is decided at its end: back in order of the starts.
         order = np.argsort(df["t_s"].to_numpy(), kind="stable")
-        return df.iloc[order].reset_index(drop=True)
+        df = df.iloc[order].reset_index(drop=True)
+        t, k = df["t_s"].to_numpy(), len(df)
+        table = LegTable(legs, n)
+        robots, times = np.r_[df["src"].to_numpy(), df["dst"].to_numpy()], np.r_[t, t]
+        xy = table.at(table.legs_at(robots, times), times)
+        if torus:
+            xy = in_box(xy, side_m)
+        df["src_x_m"], df["src_y_m"], df["dst_x_m"], df["dst_y_m"] = xy[:k, 0], xy[:k, 1], xy[k:, 0], xy[k:, 1]
+        return df

@@ -9,11 +9,22 @@ status 2, before anything is written. Its sub-command parsers are of the same cl
 from __future__ import annotations
 
 import argparse
-from typing import NoReturn
+import re
+from typing import Any, NoReturn
+
+# Every number a float option takes, with a minus: argparse's own test knows only "-80" and
+# "-.5", so "--sensitivity-dbm -8e1" or "-inf" read as an unknown option and left the
+# option without its value.
+NEGATIVE_NUMBER = re.compile(r"^-((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity|nan)$", re.IGNORECASE)
 
 
 class Parser(argparse.ArgumentParser):
-    """:class:`argparse.ArgumentParser` with one-line usage errors (module notes)."""
+    """:class:`argparse.ArgumentParser` with one-line usage errors (module notes), and every
+    negative number (``-8e1``, ``-inf``) read as a value, not an option."""
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str) -> NoReturn:
         line = " ".join(message.split())

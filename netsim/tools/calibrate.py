@@ -11,6 +11,7 @@ writes the ``[channel]`` fragment.
 
 from __future__ import annotations
 
+import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -77,8 +78,13 @@ def read_log(path: Path) -> pd.DataFrame:
     suffix = path.suffix.lower()
     try:
         if suffix == ".csv":
+            with path.open(newline="") as f:
+                _refuse_repeated(next(csv.reader(f), []), path)
             return pd.read_csv(path)
         if suffix in (".parquet", ".pq"):
+            import pyarrow.parquet as pq
+
+            _refuse_repeated(pq.read_schema(path).names, path)
             return pd.read_parquet(path)
     except pd.errors.EmptyDataError:
         raise NetsimInputError(f"{path}: is empty (no header, no frames)") from None
@@ -87,6 +93,15 @@ def read_log(path: Path) -> pd.DataFrame:
         kind = "CSV" if suffix == ".csv" else "Parquet"
         raise NetsimInputError(f"{path}: cannot be read as {kind} ({first})") from None
     raise NetsimInputError(f"{path}: unknown format {suffix or '(no suffix)'!r}; give a .csv or .parquet log")
+
+
+def _refuse_repeated(names: list[str], path: Path) -> None:
+    """A column named twice is refused: which of the two a fit read would be a guess."""
+    seen: set[str] = set()
+    for name in (n.strip() for n in names):
+        if name in seen:
+            raise NetsimInputError(f"{path}: column {name} appears more than once; give each column once")
+        seen.add(name)
 
 
 def _shown(value: object) -> str:
@@ -194,6 +209,11 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         raise NetsimInputError(f"{where}: has no frames (only a header)")
     t_s = _numbers(log, "t_s", where)
     power_dbm = _numbers(log, power, where, missing_ok=True)
+    if np.isnan(power_dbm).all():
+        raise NetsimInputError(
+            f"{where}: column {power} is empty in every row: no frame's power to fit (a run records one only "
+            "under channel.propagation = log_distance; under the unit disk rx_power_dbm is NaN)"
+        )
     lost_measured = lost_unmeasured = 0
     keep = np.ones(len(log), bool)
     if "received" in cols:
@@ -229,11 +249,14 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
     positions = None
     if has_positions:
         positions = np.column_stack([_numbers(log, c, where) for c in POSITIONS])
-        distance = np.hypot(positions[:, 2] - positions[:, 0], positions[:, 3] - positions[:, 1])
-        what = "the distance between the two ends' positions"
-    else:
+    # distance_m where the log gives it (a run's on a torus is the nearest image's), else
+    # the straight distance between the two ends' positions.
+    if "distance_m" in cols:
         distance = _numbers(log, "distance_m", where)
         what = "distance_m"
+    else:
+        distance = np.hypot(positions[:, 2] - positions[:, 0], positions[:, 3] - positions[:, 1])
+        what = "the distance between the two ends' positions"
     bad = ~(distance > 0)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -266,6 +289,20 @@ def check_sensitivity(power_dbm: np.ndarray, sensitivity_dbm: float | None, wher
         )
 
 
+def check_tx_power(power_dbm: np.ndarray, tx_power_dbm: float, where: str) -> None:
+    """Every logged power must lie at or below the transmit power: a frame arrives weaker
+    than it was sent (a path loss is never a gain), so a log holding a stronger one is in
+    another unit or of another radio."""
+    above = power_dbm > tx_power_dbm
+    if above.any():
+        count = int(above.sum())
+        raise NetsimInputError(
+            f"--tx-power-dbm {tx_power_dbm:g}: {count:,} frame{'s' if count > 1 else ''} of {where} logged above it "
+            f"(the strongest at {np.nanmax(power_dbm):g} dBm); a frame arrives weaker than it was sent: "
+            "give the radio's transmit power"
+        )
+
+
 def calibrate_frames(
     frames: Frames,
     sensitivity_dbm: float | None = None,
@@ -283,6 +320,7 @@ def calibrate_frames(
             f"{where}: too few frames to fit: {int(seen.sum()):,} received frames from {received_pairs} pairs; "
             f"need at least {MIN_FRAMES} from {MIN_PAIRS} pairs of robots"
         )
+    check_tx_power(frames.power_dbm, tx_power_dbm, where)
     check_sensitivity(frames.power_dbm, sensitivity_dbm, where)
     given = sensitivity_dbm is not None
     s = float(sensitivity_dbm) if given else float(frames.power_dbm[seen].min())
@@ -413,7 +451,7 @@ def report(c: Calibration, where: str) -> str:
 
 def toml_fragment(c: Calibration, where: str) -> str:
     lines = [
-        f"# netsim calibrate {where}: {c.received:,} received frames of {c.pairs:,} pairs, "
+        f"# netsim calibrate {where}: {c.received:,} frames the radio heard of {c.pairs:,} pairs, "
         f"{c.fit.likelihood} likelihood",
         "[channel]",
     ]
