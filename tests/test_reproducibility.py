@@ -145,6 +145,23 @@ def test_tables_are_the_files_pandas_writes(tmp_path, rows):
         assert (tmp_path / "run" / "t.parquet").read_bytes() == (tmp_path / "pandas.parquet").read_bytes()
 
 
+def test_a_text_column_with_no_value_is_written_as_text(tmp_path):
+    """A text column (object) with no value in any row is written as Arrow text, not
+    Arrow's null type: one table of two runs, one where nothing was dropped (every
+    ``cause`` empty), reads as one dataset, whichever file comes first."""
+    import pyarrow.dataset as ds
+
+    from netsim.tools.output import write_table
+
+    none = pd.DataFrame({"t_s": [2.0], "cause": pd.Series([None], dtype=object)})
+    some = pd.DataFrame({"t_s": [0.0, 1.0], "cause": pd.Series(["loss", None], dtype=object)})
+    write_table(none, tmp_path / "a.parquet")
+    write_table(some, tmp_path / "b.parquet")
+    table = ds.dataset([str(tmp_path / "a.parquet"), str(tmp_path / "b.parquet")]).to_table()
+    assert table.column("cause").to_pylist() == [None, "loss", None]
+    assert pd.read_parquet(tmp_path / "a.parquet")["cause"].isna().all()
+
+
 def test_tables_written_together_are_the_files_written_one_at_a_time(tmp_path, monkeypatch, seed_7):
     """write_run writes its tables a few at a time: every file is the one it writes alone."""
     from netsim.tools import output

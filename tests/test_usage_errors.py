@@ -114,3 +114,26 @@ def test_the_calibration_log_maker_refuses_bad_input_in_one_line(tmp_path, monke
     assert exit_.value.code == 2 and len(err.splitlines()) == 1 and said in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.csv"]
     assert (tmp_path / "mine.csv").read_text() == "a user's file"
+
+
+@pytest.mark.parametrize("command", ["view", "export", "figures"])
+def test_a_missing_run_directory_is_one_line_alike_for_every_command(tmp_path, capsys, command):
+    """Every command that reads a run refuses a directory that is not there in the same
+    words, writing nothing."""
+    missing, out = tmp_path / "nowhere", tmp_path / "out"
+    extra = {"view": [], "export": ["--format", "bonnmotion", "--out", str(out)], "figures": ["--out", str(out)]}
+    assert main([command, str(missing), *extra[command]]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"netsim: error: {missing}: no such run directory (the --out of a `netsim run`)"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("value, number", [("-8e1", -80.0), ("-1E-3", -0.001), ("-inf", float("-inf"))])
+def test_a_negative_number_in_any_spelling_is_an_options_value(value, number):
+    """A float option takes a negative number written with an exponent or as ``-inf``, as it
+    takes ``-80`` (argparse alone reads those as an unknown option)."""
+    from netsim.tools.args import Parser
+
+    p = Parser(prog="x")
+    p.add_argument("--level", type=float)
+    assert p.parse_args(["--level", value]).level == number

@@ -347,15 +347,13 @@ def cmd_validate(args) -> int:
 def cmd_figures(args) -> int:
     from netsim.run import execute
     from netsim.tools import figures
-    from netsim.tools.output import claim_dir, is_run_dir, manifest, write_run
+    from netsim.tools.output import claim_dir, existing_dir, is_run_dir, manifest, write_run
 
     check_set_pairs(args.set, args.run_dir)
     if args.run_dir:
         if args.config or args.set:
             raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
-        run_dir = Path(args.run_dir)
-        if not run_dir.is_dir():
-            raise NetsimInputError(f"{run_dir}: no such run directory (the --out of a `netsim run`)")
+        run_dir = existing_dir(args.run_dir)
         if not (run_dir / "config.toml").is_file() and not is_run_dir(run_dir):
             raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml or manifest.json)")
         with claim_dir(args.out or run_dir, "--out") as out:

@@ -22,7 +22,7 @@ import pandas as pd
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.formats import ns2
-from netsim.tools.output import is_run_dir
+from netsim.tools.output import existing_dir, is_run_dir
 
 FORMATS = ("bonnmotion", "ns2", "rosbag2")
 
@@ -64,10 +64,11 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     from netsim.formats import waypoints
     from netsim.tools.viewer.data import load_config
 
-    run_dir, out = Path(run_dir), Path(out)
+    out = Path(out)
     if fmt not in FORMATS:
         raise NetsimInputError(f"--format {fmt}: must be one of {', '.join(FORMATS)}")
-    if not run_dir.is_dir() or not is_run_dir(run_dir):
+    run_dir = existing_dir(run_dir)
+    if not is_run_dir(run_dir):
         raise NetsimInputError(f"{run_dir}: not a run directory (no manifest.json)")
     check_out(out, fmt)
     config = load_config(run_dir)

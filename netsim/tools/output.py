@@ -86,6 +86,15 @@ def is_run_dir(path: str | Path) -> bool:
     return (Path(path) / "manifest.json").is_file()
 
 
+def existing_dir(run_dir: str | Path) -> Path:
+    """``run_dir`` as a path; one that is no directory is refused alike by every command
+    that reads a run (:class:`NetsimInputError`)."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise NetsimInputError(f"{run_dir}: no such run directory (the --out of a `netsim run`)")
+    return run_dir
+
+
 def earlier_run_files(out: Path) -> list[Path]:
     """The files of the run already in ``out``: ``config.toml``, ``manifest.json``,
     ``summary.json``, the tables (``*.parquet``), the replay (``view.html``) and the figures
@@ -338,10 +347,16 @@ def write_table(frame: pd.DataFrame, path: Path) -> None:
 
 
 def arrow_table(frame: pd.DataFrame):
-    """``frame`` as the Arrow table pandas would write (its metadata included)."""
+    """``frame`` as the Arrow table pandas would write (its metadata included), but that a
+    text column (object) with no value in any row is text, not Arrow's ``null`` type: so
+    that one table of two runs has one schema, and the runs read as one dataset."""
     import pyarrow as pa
 
-    return pa.Table.from_pandas(frame, preserve_index=False)
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    for i, field in enumerate(table.schema):
+        if pa.types.is_null(field.type) and frame[field.name].dtype == object:
+            table = table.set_column(i, pa.field(field.name, pa.string()), table.column(i).cast(pa.string()))
+    return table
 
 
 def write_arrow(table, path: Path) -> None:

@@ -51,7 +51,7 @@ import pandas as pd
 
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
-from netsim.tools.output import write_atomically
+from netsim.tools.output import write_atomically, write_table
 
 MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
 SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
@@ -305,11 +305,9 @@ def _record(out_dir: Path, run: Run, outcome: dict) -> None:
     if outcome["ok"]:
         for name, frame in outcome["tables"].items():
             frame = frame.assign(run_id=run.run_id)
-            write_atomically(
-                out_dir / "tables" / name / f"{run.run_id}.parquet", lambda p, f=frame: f.to_parquet(p, index=False)
-            )
+            write_atomically(out_dir / "tables" / name / f"{run.run_id}.parquet", lambda p, f=frame: write_table(f, p))
         row = pd.DataFrame([outcome["row"]])
-        write_atomically(out_dir / "runs" / f"{run.run_id}.parquet", lambda p: row.to_parquet(p, index=False))
+        write_atomically(out_dir / "runs" / f"{run.run_id}.parquet", lambda p: write_table(row, p))
         (out_dir / "failed" / f"{run.run_id}.json").unlink(missing_ok=True)
     else:
         info = {

@@ -39,6 +39,7 @@ from netsim.errors import NetsimInputError
 from netsim.metrics import components_in_links_table
 from netsim.plugins import RoleLabels
 from netsim.tools import style
+from netsim.tools.output import existing_dir
 from netsim.trajectory import sample_positions
 
 
@@ -252,9 +253,7 @@ def _empty_links() -> pd.DataFrame:
 
 def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     """Everything the page shows of the run in ``run_dir``: ``{"meta": ..., "blob": ...}``."""
-    run_dir = Path(run_dir)
-    if not run_dir.is_dir():
-        raise NetsimInputError(f"{run_dir}: no such run directory")
+    run_dir = existing_dir(run_dir)
     config = load_config(run_dir)
     n, duration = config.world.n_robots, config.duration_s
     blob = Blob()
