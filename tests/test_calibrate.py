@@ -166,6 +166,40 @@ def test_wall_loss_recovered_with_map(tmp_path, capsys):
     assert abs(channel["wall_loss_db"] - 6.0) < 1.5
 
 
+@pytest.mark.slow
+def test_a_runs_own_receptions_on_a_map_give_back_its_walls_and_decorrelation(tmp_path, capsys):
+    """A run on the office map writes both ends' positions in receptions.parquet: with
+    --map the wall loss is fitted from them, and the decorrelation from the pairs' travel,
+    each within its interval, as every other parameter of the run's channel."""
+    truth = {"shadowing_sigma_db": 4.0, "wall_loss_db": 5.0}
+    run = tmp_path / "run"
+    settings = ["world.map=office", "world.side_m=200", "world.n_robots=30", "duration_s=120"]
+    settings += ["output.receptions=true", "channel.propagation=log_distance"]
+    settings += [f"channel.{k}={v}" for k, v in truth.items()]
+    assert main(["run", *[a for s in settings for a in ("--set", s)], "--quiet", "--out", str(run)]) == 0
+    toml = tmp_path / "site.toml"
+    argv = ["calibrate", str(run / "receptions.parquet"), "--map", "office", "--sensitivity-dbm", "-80"]
+    assert main([*argv, "--out", str(toml)]) == 0
+    table = pd.read_parquet(run / "receptions.parquet")
+    from netsim.world.los import walls_crossed
+    from netsim.world.maps import load_map
+
+    ends = table[["src_x_m", "src_y_m", "dst_x_m", "dst_y_m"]].to_numpy()
+    walls = walls_crossed(load_map("office", "--map"), ends[:, :2], ends[:, 2:]).astype(float)
+    result = calibrate_frame(table, sensitivity_dbm=-80.0, walls=walls)
+    params = LogDistanceParams()
+    expected = {
+        "reference_loss_db": params.reference_loss_db,
+        "path_loss_exponent": params.path_loss_exponent,
+        **truth,
+    }
+    for key, value in expected.items():
+        assert getattr(result.fit, key).covers(value), (key, getattr(result.fit, key))
+    assert result.decorrelation.estimate.covers(params.shadowing_decorrelation_m), result.decorrelation
+    channel = tomllib.loads(toml.read_text())["channel"]
+    assert channel["wall_loss_db"] == result.fit.wall_loss_db.value
+
+
 def test_a_log_off_the_map_is_refused_in_one_line(tmp_path, capsys):
     """Positions in another frame than the map's (odometry against the map, say) would
     count walls that are not between the robots: one line, exit 2, nothing written."""
