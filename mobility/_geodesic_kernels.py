@@ -43,22 +43,43 @@ def move_ok(free, w, h, x, y, dx, dy):
 
 
 @jit(walks=True, nogil=True)
-def distance_field(free, w, h, source, cell_m, moves_x, moves_y, out):
-    """Shortest path lengths (m) over free cells from cell ``source`` (row-major index) to
-    every cell, into ``out`` (inf: not reached); Dijkstra's algorithm with an indexed
-    binary heap."""
+def distance_field(free, w, h, sources, cell_m, moves_x, moves_y, within, targets, out):
+    """Shortest path lengths (m) over free cells from the nearest of the cells ``sources``
+    (row-major indices; those not free are left out) to every cell, into ``out`` (inf: not
+    reached); Dijkstra's algorithm with an indexed binary heap, every source at 0. Paths
+    leave the sources only through the cells ``within`` marks, each move's end cell (a
+    move's geometry is still :func:`move_ok`'s, over ``free``: a knight's move may pass
+    beside a cell left out).
+
+    With ``targets`` (cells), the search stops once every free one of them is settled:
+    their values are then final, and so is every value below the largest of theirs (the
+    cells settled before), the others upper bounds or inf. Without, every cell is settled."""
     n = w * h
     for k in range(n):
         out[k] = math.inf
-    if source < 0 or source >= n or not free[source]:
-        return
     heap = np.empty(n, np.int64)  # cells, a binary heap on out[]
     where = np.full(n, -1, np.int64)  # a cell's slot in the heap (-1: not in it)
     done = np.zeros(n, np.bool_)
-    size = 1
-    heap[0] = source
-    where[source] = 0
-    out[source] = 0.0
+    size = 0
+    for k in range(len(sources)):
+        c = sources[k]
+        if 0 <= c < n and free[c] and where[c] < 0:
+            # All at 0: any order is a heap.
+            heap[size] = c
+            where[c] = size
+            out[c] = 0.0
+            size += 1
+    wanted = np.zeros(n, np.bool_)
+    pending = -1  # no targets: never stop early
+    if len(targets) > 0:
+        pending = 0
+        for k in range(len(targets)):
+            c = targets[k]
+            if 0 <= c < n and free[c] and not wanted[c]:
+                wanted[c] = True
+                pending += 1
+        if pending == 0:
+            return
     lengths = np.empty(len(moves_x))
     for m in range(len(moves_x)):
         lengths[m] = cell_m * math.sqrt(moves_x[m] * moves_x[m] + moves_y[m] * moves_y[m])
@@ -84,12 +105,16 @@ def distance_field(free, w, h, source, cell_m, moves_x, moves_y, out):
             heap[slot] = last
             where[last] = slot
         done[c] = True
+        if wanted[c]:
+            pending -= 1
+            if pending == 0:
+                return
         x, y = c % w, c // w
         for m in range(len(moves_x)):
             if not move_ok(free, w, h, x, y, moves_x[m], moves_y[m]):
                 continue
             nb = (y + moves_y[m]) * w + x + moves_x[m]
-            if done[nb]:
+            if done[nb] or not within[nb]:
                 continue
             d = out[c] + lengths[m]
             if d >= out[nb]:
@@ -135,3 +160,25 @@ def ascent(free, w, h, field, cell_x, cell_y, cell_m, moves_x, moves_y, out_dir,
                 best = slope
                 out_dir[k, 0] = moves_x[m] * cell_m / length
                 out_dir[k, 1] = moves_y[m] * cell_m / length
+
+
+@jit(walks=True, nogil=True)
+def frontier(free, w, h, covered, moves_x, moves_y):
+    """The free cells not ``covered`` that a move (:func:`move_ok`) joins to a covered free
+    cell, ascending: where the free space not yet covered begins, seen from the covered
+    part (a path from a covered cell to any cell not covered passes one of them first)."""
+    out = np.empty(w * h, np.int64)
+    k = 0
+    for c in range(w * h):
+        if not free[c] or covered[c]:
+            continue
+        x, y = c % w, c // w
+        for m in range(len(moves_x)):
+            nx, ny = x + moves_x[m], y + moves_y[m]
+            # The cheap test first: far from the covered part, no neighbour is covered.
+            near = 0 <= nx < w and 0 <= ny < h and covered[ny * w + nx]
+            if near and move_ok(free, w, h, x, y, moves_x[m], moves_y[m]):
+                out[k] = c
+                k += 1
+                break
+    return out[:k]

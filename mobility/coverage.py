@@ -47,7 +47,8 @@ The architecture (docs/model.md section 5)
   fade margin and a bound on travel; walls swept exactly over the step).
 - On a map (docs/model.md 5.3, :mod:`netsim.mobility.geodesic`) walls push as borders do,
   robots push each other only in sight, wishes that run into a wall slide along it, and
-  with the global plan the expansion runs along free space, the planned step slides too
+  with the global plan the expansion pushes every robot through free space toward the
+  nearest free cell no robot covers yet, the planned step slides too
   before the exact cut, and the forest prefers the links that last over the wished step
   (:func:`netsim.mobility.keep.prefer`).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
@@ -104,7 +105,7 @@ from netsim.mobility.forces import (
     pair_resultants,
     resultant,
 )
-from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide, within_reach
+from netsim.mobility.geodesic import FreeGrid, expansion_to_uncovered, in_sight, slide, within_reach
 from netsim.mobility.keep import FADE_SIGMAS, LinkRules, prefer
 from netsim.mobility.local import (
     Fade,
@@ -240,7 +241,8 @@ class CoverageParams(Params):
         finite(non_negative),
         "spread: every robot is also pushed away from the centre of its component (plan = 'local': from the"
         " centre it estimates with the robots it hears) with expansion x its distance from it, at most"
-        " sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off)",
+        " sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off); on a map the global plan's push is"
+        " that cap, through free space toward the nearest free cell no robot covers (docs/model.md 5.3)",
     )
     stop_speed_mps: float = param(
         0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
@@ -570,14 +572,13 @@ class CoverageController:
         target, source_xy = self._in_sight(pos_now, target, source_xy)
         wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
         wished += self._wall_push(pos_now)
-        if c.expansion > 0:
+        if c.expansion > 0 and self.grid is not None:
+            wished += expansion_to_uncovered(self.grid, pos_now, self.radius_m, self.range_m, c.gain)
+        elif c.expansion > 0:
             a, b = self.link_state.up_pairs()
             component = metrics.components_of_links(self.state.n, a, b)
-            if self.grid is not None:
-                wished += expansion_along_free_space(self.grid, pos_now, component, c.expansion, self.range_m, c.gain)
-            else:
-                centre = component_centres(pos_now, component)
-                wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
+            centre = component_centres(pos_now, component)
+            wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
         wished = self._slide(pos_now, wished)
         wished[group < 0] = 0.0
         speed = speeds_mps(wished)

@@ -8,11 +8,11 @@ team's map is known to every robot):
   straight segment between them is free. A push through a wall could only press a robot
   against that wall (its step is cut there); robots that see each other push along the
   free segment between them.
-- **Expansion along free space** (the global plan): the push away from the centre of a
-  component is along the steepest ascent of the distance *through free space* from the
-  centre (:class:`FreeGrid`: shortest paths on the map's free cells), its size growing
-  with that distance. It leads robots out of a room through its door and along corridors,
-  where the straight push would press them against the room's far wall.
+- **Expansion toward free space not yet covered** (the global plan): every robot is
+  pushed down the distance *through free space* (:class:`FreeGrid`: shortest paths on the
+  map's free cells) to the nearest free cell that no robot covers. It leads robots out of a
+  room through its door and along corridors to where coverage can still grow, where a push
+  away from the team's centre presses them into the rooms' far corners.
 - **Sliding** (:func:`slide`): a wished step that would run into a wall is replaced by
   the longer of its two components along the grid's axes, the walls of a grid map being
   its cells' sides, when that gets farther in the wished direction: a robot pushed
@@ -34,10 +34,6 @@ GRID_CELL_M = 0.5
 # How far (in grid cells) a position whose own cell is not free looks for a free one: a
 # robot may stand within a map cell of a wall, whose grid cell then counts as blocked.
 NEAR_CELLS = 2
-# Distance fields kept for reuse.
-FIELDS_KEPT = 8
-# The expansion's source: the component's centre on a lattice of this spacing, m.
-SOURCE_M = 2.0
 
 
 def _kernels():
@@ -63,7 +59,6 @@ class FreeGrid:
         self.origin_m = (float(m.origin_m[0]), float(m.origin_m[1]))
         kern = _kernels()
         self.moves = (kern.MOVES_X, kern.MOVES_Y)
-        self._fields: dict[int, np.ndarray] = {}  # source cell -> field, oldest first
 
     def cells(self, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The grid cell of each point, or the nearest free one within :data:`NEAR_CELLS`
@@ -71,21 +66,34 @@ class FreeGrid:
         free = self.free.reshape(self.h, self.w)
         return nearest_free_cells(free, self.origin_m, self.cell_m, points_m, NEAR_CELLS)
 
-    def field(self, source_m) -> np.ndarray:
-        """Distances (m) through free space from the grid cell of the point ``source_m`` to
-        every grid cell (inf: not reachable; all inf when the point has no free cell near).
-        The latest :data:`FIELDS_KEPT` fields are kept (read only)."""
-        sx, sy = self.cells(np.asarray(source_m, float).reshape(1, 2))
-        source = int(sy[0] * self.w + sx[0]) if sx[0] >= 0 else -1
-        out = self._fields.pop(source, None)
-        if out is None:
-            out = np.empty(self.w * self.h)
-            _kernels().distance_field(self.free, self.w, self.h, source, self.cell_m, *self.moves, out)
-            out.flags.writeable = False
-            if len(self._fields) >= FIELDS_KEPT:
-                self._fields.pop(next(iter(self._fields)))
-        self._fields[source] = out
-        return out
+    def covered(self, points_m: np.ndarray, radius_m: float) -> np.ndarray:
+        """Whether each grid cell's centre (row-major) lies within ``radius_m`` of some
+        point: the covered fraction's rule (:func:`netsim._kernels.grid_nearest_m`)."""
+        cells = max(self.w, self.h)
+        side = cells * self.cell_m
+        x0, y0 = self.origin_m
+        p = np.ascontiguousarray(points_m, dtype=float).reshape(-1, 2)
+        near = load("netsim._kernels", None).grid_nearest_m(p, float(radius_m), x0, y0, side, side, cells, 0.0, True)
+        return np.ascontiguousarray(np.isfinite(near[: self.h, : self.w])).ravel()
+
+    def to_uncovered(self, points_m: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """At each point, the unit direction of the steepest descent of the distance
+        through free space to the nearest free cell that no point covers (within
+        ``radius_m``), and that distance (inf, and no direction, where none can be reached
+        or the point has no free cell near)."""
+        x, y = self.cells(points_m)
+        kern = _kernels()
+        covered = self.covered(points_m, radius_m)
+        sources = kern.frontier(self.free, self.w, self.h, covered, *self.moves)
+        # A path from a covered cell first leaves the covered part at a source: the search
+        # keeps to the covered part, and stops once the points' own cells are settled (the
+        # cells their descent reads are then final).
+        targets = (y * self.w + x)[x >= 0].astype(np.int64)
+        field = np.empty(self.w * self.h)
+        kern.distance_field(self.free, self.w, self.h, sources, self.cell_m, *self.moves, covered, targets, field)
+        # The steepest descent of the distance is the steepest ascent of its negative.
+        direction, value = self.ascent(np.negative(field, out=field), points_m)
+        return direction, np.where(np.isfinite(value), -value, np.inf)
 
     def ascent(self, field: np.ndarray, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """At each point, the unit direction of the field's steepest ascent through free
@@ -140,28 +148,14 @@ def slide(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, rea
     return out
 
 
-def expansion_along_free_space(
-    grid: FreeGrid, pos: np.ndarray, component: np.ndarray, factor: float, range_m: float, gain: float
-) -> np.ndarray:
-    """The expansion on a map (module notes): for every robot ``gain x min(factor x D,
-    EXPANSION_CAP x r_c)`` along the steepest ascent of ``D``, the distance through free
-    space from the robot of its component nearest the component's centre (mean position).
-    A robot alone in its component, or at a dead end of the field, feels none."""
-    out = np.zeros((len(pos), 2))
-    for c in np.unique(component).tolist():
-        rows = np.flatnonzero(component == c)
-        if len(rows) < 2:
-            continue
-        centre = pos[rows].mean(axis=0)
-        # The centre on a lattice of SOURCE_M (the field is then computed again only when
-        # the centre moves to another lattice point), or, in a wall, the robot nearest it.
-        source = (np.floor(centre / SOURCE_M) + 0.5) * SOURCE_M
-        if grid.cells(source)[0][0] < 0:
-            source = pos[rows[int(np.argmin(np.hypot(*(pos[rows] - centre).T)))]]
-        direction, d = grid.ascent(grid.field(source), pos[rows])
-        size = gain * np.minimum(factor * np.where(np.isfinite(d), d, 0.0), EXPANSION_CAP * range_m)
-        out[rows] = size[:, None] * direction
-    return out
+def expansion_to_uncovered(grid: FreeGrid, pos: np.ndarray, radius_m: float, range_m: float, gain: float) -> np.ndarray:
+    """The expansion on a map (module notes): for every robot ``gain x EXPANSION_CAP x
+    r_c`` down the distance through free space to the nearest free cell that no robot
+    covers (within ``radius_m``, :meth:`FreeGrid.to_uncovered`); none where no such cell can
+    be reached (the team's free region all covered)."""
+    direction, d = grid.to_uncovered(pos, radius_m)
+    size = gain * EXPANSION_CAP * range_m * np.isfinite(d)
+    return size[:, None] * direction
 
 
 def within_reach(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, reach_m: float) -> np.ndarray:

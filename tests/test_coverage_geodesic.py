@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from netsim.mobility.geodesic import FreeGrid, expansion_along_free_space, in_sight, slide
+from netsim.mobility.geodesic import FreeGrid, _kernels, expansion_to_uncovered, in_sight, slide
 
 from netsim.area import Bounds
 from netsim.world.maps import OccupancyMap
@@ -22,11 +22,21 @@ def room_with_a_door() -> OccupancyMap:
     return OccupancyMap(occupied, ~occupied, RES_M, (0.0, 0.0))
 
 
+def _field(grid: FreeGrid, sources_m, targets=None, within=None) -> np.ndarray:
+    """Distances through free space from the grid cells of ``sources_m``."""
+    targets = np.zeros(0, np.int64) if targets is None else targets
+    x, y = grid.cells(np.asarray(sources_m, float).reshape(-1, 2))
+    out = np.empty(grid.w * grid.h)
+    within = grid.free if within is None else within
+    _kernels().distance_field(grid.free, grid.w, grid.h, y * grid.w + x, grid.cell_m, *grid.moves, within, targets, out)
+    return out
+
+
 def test_distance_through_free_space_goes_round_the_wall_through_the_door():
     """The field is the length of the shortest path through free cells: from one side of a
     wall to the point straight across it, the way through the door, not the straight 4 m."""
     grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
-    field = grid.field([8.0, 15.0])
+    field = _field(grid, [8.0, 15.0])
     _, d = grid.ascent(field, np.array([[12.0, 15.0], [8.0, 12.0]]))
     through_door = np.hypot(2.2, 11.0) + np.hypot(1.8, 11.0)  # via (10.1, 4)
     assert through_door - 1.0 < d[0] < 1.05 * through_door + 1.0
@@ -34,18 +44,55 @@ def test_distance_through_free_space_goes_round_the_wall_through_the_door():
     assert 3.0 - 0.5 < d[1] < 1.03 * 3.0 + 0.5
 
 
-def test_the_expansion_on_a_map_pushes_on_along_the_path_from_the_centre():
-    """A robot that went through the door is pushed on along the path through free space
-    from its component's centre (away from the door, right), not straight away from the
-    centre (down, into the floor's edge); in the centre's own room the push is straight
-    away from the centre."""
-    m = room_with_a_door()
-    grid = FreeGrid(m, Bounds.square(SIDE_M))
-    pos = np.array([[5.0, 15.0], [9.0, 11.0], [9.0, 19.0], [12.0, 3.0]])
-    push = expansion_along_free_space(grid, pos, np.zeros(4, np.int64), 0.1, 30.0, 1.0)
-    assert push[3, 0] > 2 * abs(push[3, 1])  # right, along the path
-    away = pos[0] - pos.mean(axis=0)
-    assert push[0] @ away > 0.9 * np.hypot(*push[0]) * np.hypot(*away)  # straight from the centre
+def test_distances_from_several_sources_are_to_the_nearest_and_final_at_the_targets():
+    """From several sources each cell's distance is to the nearest of them (the minimum of
+    the single fields); a search stopped once its targets are settled gives them, and every
+    cell nearer the sources than the farthest target, the same values."""
+    grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
+    sources = [[2.0, 18.0], [18.0, 2.0], [12.0, 15.0]]
+    both = _field(grid, sources)
+    np.testing.assert_array_equal(both, np.minimum.reduce([_field(grid, s) for s in sources]))
+    x, y = grid.cells(np.array([[5.0, 5.0], [15.0, 18.0]]))
+    targets = (y * grid.w + x).astype(np.int64)
+    stopped = _field(grid, sources, targets)
+    settled = both <= both[targets].max() - 1e-9
+    assert settled.sum() > 100 and (stopped[targets] == both[targets]).all()
+    np.testing.assert_array_equal(stopped[settled], both[settled])
+    assert (stopped >= both).all()
+
+
+def test_distances_keep_to_the_cells_within():
+    """Paths leave the sources only through the cells ``within`` marks: with the cells in
+    and beside the door left out (a knight's move passes beside a cell), the far side of
+    the wall is not reached."""
+    grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
+    within = grid.free.copy()
+    door_x, door_y = grid.cells(np.array([[10.1, 3.0]]))
+    for dy in range(-5, 6):
+        for dx in (-1, 0, 1):
+            within[(door_y[0] + dy) * grid.w + door_x[0] + dx] = False
+    field = _field(grid, [8.0, 15.0], within=within)
+    _, d = grid.ascent(field, np.array([[12.0, 15.0], [5.0, 5.0]]))
+    assert np.isinf(d[0]) and np.isfinite(d[1])
+
+
+def test_the_expansion_on_a_map_leads_through_the_door_to_the_free_space_not_yet_covered():
+    """With the first room all covered, each robot is pushed, at the expansion's cap, along
+    the path through free space to the nearest free cell no robot covers (through the door,
+    on the other side of the wall), not straight at that cell through the wall; once every
+    free cell is covered, none is pushed."""
+    from netsim.mobility.forces import EXPANSION_CAP
+
+    grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
+    pos = np.array([[5.0, 15.0], [5.0, 5.0]])
+    push = expansion_to_uncovered(grid, pos, 12.0, 30.0, 1.0)
+    np.testing.assert_allclose(np.hypot(*push.T), EXPANSION_CAP * 30.0)
+    to_door = np.array([10.0, 3.0]) - pos[0]
+    assert push[0] @ to_door > 0.95 * np.hypot(*push[0]) * np.hypot(*to_door)  # down, to the door
+    assert push[1, 0] > 2 * abs(push[1, 1])  # right, through it
+    direction, d = grid.to_uncovered(pos, 12.0)
+    assert 12.0 < d[1] < 14.0 and d[0] > d[1] + 5.0
+    assert (expansion_to_uncovered(grid, pos, 40.0, 30.0, 1.0) == 0.0).all()
 
 
 def test_robots_push_each_other_only_in_sight():
