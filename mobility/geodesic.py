@@ -12,7 +12,7 @@ team's map is known to every robot):
   pushed down the distance *through free space* (:class:`FreeGrid`: shortest paths on the
   map's free cells) to the nearest free cell that no robot covers. It leads robots out of a
   room through its door and along corridors to where coverage can still grow, where a push
-  away from the team's centre presses them into the rooms' far corners.
+  away from the team's centre would press them into the rooms' far corners (its dead ends).
 - **Sliding** (:func:`slide`): a wished step that would run into a wall is replaced by
   the longer of its two components along the grid's axes, the walls of a grid map being
   its cells' sides, when that gets farther in the wished direction: a robot pushed
@@ -79,9 +79,14 @@ class FreeGrid:
     def to_uncovered(self, points_m: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
         """At each point, the unit direction of the steepest descent of the distance
         through free space to the nearest free cell that no point covers (within
-        ``radius_m``), and that distance (inf, and no direction, where none can be reached
-        or the point has no free cell near)."""
+        ``radius_m``), and that distance. Inf, and no direction, where none can be reached,
+        where the point has no free cell near, and where the point's own cell is not
+        covered (a radius under the grid's half diagonal, or a point off its cell): the
+        distance is then 0, and there is nothing to descend."""
         x, y = self.cells(points_m)
+        if not (x >= 0).any():
+            # No target: the search would settle every cell for nothing.
+            return np.zeros((len(x), 2)), np.full(len(x), np.inf)
         kern = _kernels()
         covered = self.covered(points_m, radius_m)
         sources = kern.frontier(self.free, self.w, self.h, covered, *self.moves)

@@ -818,11 +818,11 @@ def read_tree(path: str | Path | None = None, overrides: Iterable[str] = ()) -> 
     if path is not None:
         p = Path(path)
         if not p.is_file():
-            raise NetsimInputError(f"{p}: no such file (the scenario, a TOML file)")
+            raise ConfigError("scenario file", str(p), "no such file")
         try:
             raw = tomllib.loads(p.read_text())
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise NetsimInputError(f"{p}: is not valid TOML: {exc}") from None
+            raise ConfigError("scenario file", str(p), f"is not valid TOML: {exc}") from None
     for text in overrides:
         raw = merge(raw, parse_override(text))
     return raw

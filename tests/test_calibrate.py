@@ -309,7 +309,6 @@ BAD_LOGS = {
     "broken_parquet": lambda g: ("broken.parquet", b"PAR1 not really parquet"),
     "repeated_column": lambda g: pd.concat([g, 10 * g[["distance_m"]]], axis=1),
     "repeated_column_parquet": _repeated_parquet,
-    "above_tx_power": _above_tx_power,
     "no_power": lambda g: g.assign(rssi_dbm=np.nan),
 }
 
@@ -343,7 +342,6 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("good", ["--sensitivity-dbm", "-75"], "were received below it"),
         ("good", ["--sensitivity-dbm", "5"], "must be in [-200, 0] dBm"),
         ("good", ["--tx-power-dbm", "-24"], "the fitted channel is not one netsim runs: channel.reference_loss_db"),
-        ("good", ["--tx-power-dbm", "-60"], "logged above it (the strongest at -24.3373 dBm)"),
         ("good", ["--map", "nowhere.yaml"], "--map = 'nowhere.yaml'"),
         ("no_distance", ["--map", "office"], "--map needs the positions"),
         ("missing", [], "no such file"),
@@ -351,7 +349,6 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("broken_parquet", [], "cannot be read as Parquet"),
         ("repeated_column", [], "column distance_m appears more than once"),
         ("repeated_column_parquet", [], "column distance_m appears more than once"),
-        ("above_tx_power", [], "1 frame of"),
         ("no_power", [], "column rssi_dbm is empty in every row"),
         ("good", ["--sensitivity-dbm", "-inf"], "--sensitivity-dbm -inf: must be in [-200, 0] dBm"),
     ],
@@ -368,6 +365,20 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_lo
     assert words in err, err
     assert not out.exists()
     assert "[channel]" not in captured.out
+
+
+def test_a_power_above_the_transmit_power_is_fitted_with_a_warning(tmp_path, capsys, small_log):
+    """A logged power above --tx-power-dbm is a path loss below 0 dB, which netsim's own
+    shadowing can give near the reference distance: the fit goes on, and one warning line
+    names how many, and the strongest."""
+    path, out = write_csv(tmp_path, _above_tx_power(small_log)), tmp_path / "site.toml"
+    assert main(["calibrate", str(path), "--out", str(out)]) == 0
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        f"netsim: warning: 1 frame of {path} logged above --tx-power-dbm 20 (the strongest at 50 dBm): "
+        "a path loss below 0 dB; if the transmit power is not the radio's, give it"
+    )
+    assert out.is_file()
 
 
 def test_out_refuses_an_existing_file(tmp_path, capsys, small_log):

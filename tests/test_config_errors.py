@@ -145,7 +145,7 @@ def _cli(tmp_path, capsys, *args):
             ["--set", "channel.mac=csma", "--set", "channel.data_rate_bps=1"],
             "channel.data_rate_bps = 1.0: gives an Ack",
         ),
-        (["/nonexistent/scenario.toml"], "no such file"),
+        (["/nonexistent/scenario.toml"], "scenario file = '/nonexistent/scenario.toml': no such file"),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args, fragment):

@@ -157,3 +157,27 @@ def test_a_link_through_a_wall_does_not_last_however_short():
     rules, _ = wall_rules([(10.0, 10.5, 0.0, 40.0)])
     pos = np.array([[9.8, 5.0], [10.7, 5.0]])
     assert rules.lasting(pos, np.zeros((2, 2)), one_link(pos), 1.0).tolist() == [False]
+
+
+def test_the_push_to_the_uncovered_is_the_descent_of_the_whole_field():
+    """``FreeGrid.to_uncovered`` searches from the frontier alone, through covered cells
+    alone, and stops at the robots' own cells: on the office map, for teams crowded and
+    spread, its directions and distances are those of the whole field from every free cell
+    not covered, searched over all free space."""
+    from netsim.world.maps import load_map
+
+    grid = FreeGrid(load_map("office", "world.map"), Bounds.square(200.0))
+    rng = np.random.default_rng(3)
+    kern = _kernels()
+    for n, spread_m, radius_m in ((40, 30.0, 30.0), (12, 90.0, 20.0), (3, 5.0, 8.0)):
+        pos = np.array([100.0, 100.0]) + rng.uniform(-spread_m, spread_m, (n, 2))
+        direction, d = grid.to_uncovered(pos, radius_m)
+        uncovered = np.flatnonzero(grid.free & ~grid.covered(pos, radius_m))
+        whole = np.empty(grid.w * grid.h)
+        everywhere, none = grid.free, np.zeros(0, np.int64)
+        kern.distance_field(grid.free, grid.w, grid.h, uncovered, grid.cell_m, *grid.moves, everywhere, none, whole)
+        want_direction, want = grid.ascent(-whole, pos)
+        reached = np.isfinite(d)
+        assert reached.sum() >= n - 2
+        np.testing.assert_array_equal(direction, want_direction)
+        np.testing.assert_array_equal(d[reached], -want[reached])

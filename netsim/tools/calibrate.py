@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -289,17 +290,24 @@ def check_sensitivity(power_dbm: np.ndarray, sensitivity_dbm: float | None, wher
         )
 
 
+class CalibrationWarning(UserWarning):
+    """A log that the fit takes, but that may not be what the user meant."""
+
+
 def check_tx_power(power_dbm: np.ndarray, tx_power_dbm: float, where: str) -> None:
-    """Every logged power must lie at or below the transmit power: a frame arrives weaker
-    than it was sent (a path loss is never a gain), so a log holding a stronger one is in
-    another unit or of another radio."""
+    """Warn of logged powers above the transmit power: a path loss below 0 dB, which only
+    a favourable shadowing within the first metres gives (netsim's own channel can, its
+    shadowing clipped at 4 sigma); many of them, or far above, are a log in another unit
+    or a transmit power that is not the radio's, and they move the fit."""
     above = power_dbm > tx_power_dbm
     if above.any():
         count = int(above.sum())
-        raise NetsimInputError(
-            f"--tx-power-dbm {tx_power_dbm:g}: {count:,} frame{'s' if count > 1 else ''} of {where} logged above it "
-            f"(the strongest at {np.nanmax(power_dbm):g} dBm); a frame arrives weaker than it was sent: "
-            "give the radio's transmit power"
+        warnings.warn(
+            f"{count:,} frame{'s' if count > 1 else ''} of {where} logged above --tx-power-dbm {tx_power_dbm:g} "
+            f"(the strongest at {np.nanmax(power_dbm):g} dBm): a path loss below 0 dB; "
+            "if the transmit power is not the radio's, give it",
+            CalibrationWarning,
+            stacklevel=2,
         )
 
 
