@@ -46,6 +46,15 @@ def test_figures_of_a_run_without_coverage_say_what_they_cannot_show(waypoint_ru
         assert (tmp_path / name).read_bytes()[:8] == PNG
 
 
+def test_figures_quiet_print_nothing_and_draw_all_three(waypoint_run, tmp_path, capsys):
+    """``--quiet``, as `netsim run`'s: nothing on either stream, the three figures drawn."""
+    assert main(["figures", str(waypoint_run), "--out", str(tmp_path), "--quiet"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err == ""
+    for name in ("fig6_initial_deployment.png", "fig7_leader_paths.png", "fig8_final_deployment.png"):
+        assert (tmp_path / name).read_bytes()[:8] == PNG
+
+
 @pytest.mark.slow
 def test_figures_of_a_run_without_coverage_draw_fig6_when_every_robot_is_in_a_group(waypoint_run, tmp_path, capsys):
     """Without coverage (no control start to draw at), Fig. 6 is drawn at the first sample

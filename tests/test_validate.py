@@ -357,3 +357,12 @@ def test_half_duplex_pair_fails_by_many_standard_errors_without_half_duplex(monk
     assert len(pair) == 1 and not pair[0].passed
     c = pair[0]
     assert c.measured == 1.0 and abs(c.measured - c.theory) >= 5 * c.tolerance / 4
+
+
+def test_coverage_rows_list_item_30_before_item_31(monkeypatch):
+    """The coverage check's rows come in item order, as the table lists items: every row
+    of item 30 (each radio and plan) before the floors of item 31."""
+    outcome = {"components_max": 1, "components_at_start": 1, "table_true": True, "of_bound": 0.9}
+    monkeypatch.setattr(validate, "coverage_run", lambda *args: outcome)
+    items = [c.item for c in validate.check_coverage()]
+    assert items == sorted(items) and items.count("31") == 2 and items[0] == "30"

@@ -366,13 +366,14 @@ def cmd_figures(args) -> int:
                 f"--at = {args.at:g}: must be a time between 0 and duration_s = {config.duration_s:g} s"
             )
         check_fits_in_memory(config)
-        say_when_compiling("netsim figures", True)
+        say_when_compiling("netsim figures", not args.quiet)
         with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
-            result = execute(config, progress=not args.no_progress)
+            result = execute(config, progress=not args.quiet and not args.no_progress)
             write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
-            print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
+            if not args.quiet:
+                print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
             drawn = figures.draw(out, at_s=args.at)
-    for d in drawn:
+    for d in drawn if not args.quiet else []:
         print(f"wrote {d.path}" + (f" ({d.note})" if d.note else ""))
     return 0
 
@@ -532,6 +533,7 @@ def parser() -> argparse.ArgumentParser:
         "the first sample with every robot in a group)",
     )
     f.add_argument("--no-progress", action="store_true", help="no progress bar")
+    f.add_argument("--quiet", action="store_true", help="print nothing but errors")
     f.set_defaults(func=cmd_figures)
 
     vw = sub.add_parser("view", help="write an interactive replay of a run: one self-contained HTML file")

@@ -1151,7 +1151,8 @@ def check_coverage(seed: int | None = None) -> list[Check]:
                         (1.0 - floor) / 2,
                     )
                 )
-    return out
+    # Item 30's rows, then item 31's, as the table lists items.
+    return sorted(out, key=lambda c: c.item)
 
 
 CHECKS: list[Item] = [
