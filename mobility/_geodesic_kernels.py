@@ -43,13 +43,31 @@ def move_ok(free, w, h, x, y, dx, dy):
 
 
 @jit(walks=True, nogil=True)
-def distance_field(free, w, h, sources, cell_m, moves_x, moves_y, within, targets, out):
+def allowed_moves(free, w, h, moves_x, moves_y):
+    """Per cell, the moves :func:`move_ok` allows from it, bit ``m`` for move ``m`` (0 for a
+    cell not free): the rule read once per grid, not at every step of every search."""
+    out = np.zeros(w * h, np.int32)
+    for c in range(w * h):
+        if not free[c]:
+            continue
+        x, y = c % w, c // w
+        bits = 0
+        for m in range(len(moves_x)):
+            if move_ok(free, w, h, x, y, moves_x[m], moves_y[m]):
+                bits |= 1 << m
+        out[c] = bits
+    return out
+
+
+@jit(walks=True, nogil=True)
+def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, out):
     """Shortest path lengths (m) over free cells from the nearest of the cells ``sources``
     (row-major indices; those not free are left out) to every cell, into ``out`` (inf: not
-    reached); Dijkstra's algorithm with an indexed binary heap, every source at 0. Paths
-    leave the sources only through the cells ``within`` marks, each move's end cell (a
-    move's geometry is still :func:`move_ok`'s, over ``free``: a knight's move may pass
-    beside a cell left out).
+    reached); Dijkstra's algorithm with an indexed binary heap, every source at 0. The
+    moves from each cell are ``allowed``'s (:func:`allowed_moves` of ``free``). Paths leave
+    the sources only through the cells ``within`` marks, each move's end cell (a move's
+    geometry is still :func:`move_ok`'s, over ``free``: a knight's move may pass beside a
+    cell left out).
 
     With ``targets`` (cells), the search stops once every free one of them is settled:
     their values are then final, and so is every value below the largest of theirs (the
@@ -81,8 +99,10 @@ def distance_field(free, w, h, sources, cell_m, moves_x, moves_y, within, target
         if pending == 0:
             return
     lengths = np.empty(len(moves_x))
+    offsets = np.empty(len(moves_x), np.int64)  # in row-major cells
     for m in range(len(moves_x)):
         lengths[m] = cell_m * math.sqrt(moves_x[m] * moves_x[m] + moves_y[m] * moves_y[m])
+        offsets[m] = moves_y[m] * w + moves_x[m]
     while size > 0:
         c = heap[0]
         where[c] = -1
@@ -109,11 +129,11 @@ def distance_field(free, w, h, sources, cell_m, moves_x, moves_y, within, target
             pending -= 1
             if pending == 0:
                 return
-        x, y = c % w, c // w
+        bits = allowed[c]
         for m in range(len(moves_x)):
-            if not move_ok(free, w, h, x, y, moves_x[m], moves_y[m]):
+            if not (bits >> m) & 1:
                 continue
-            nb = (y + moves_y[m]) * w + x + moves_x[m]
+            nb = c + offsets[m]
             if done[nb] or not within[nb]:
                 continue
             d = out[c] + lengths[m]

@@ -59,6 +59,7 @@ class FreeGrid:
         self.origin_m = (float(m.origin_m[0]), float(m.origin_m[1]))
         kern = _kernels()
         self.moves = (kern.MOVES_X, kern.MOVES_Y)
+        self.allowed = kern.allowed_moves(self.free, self.w, self.h, *self.moves)
 
     def cells(self, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The grid cell of each point, or the nearest free one within :data:`NEAR_CELLS`
@@ -95,7 +96,9 @@ class FreeGrid:
         # cells their descent reads are then final).
         targets = (y * self.w + x)[x >= 0].astype(np.int64)
         field = np.empty(self.w * self.h)
-        kern.distance_field(self.free, self.w, self.h, sources, self.cell_m, *self.moves, covered, targets, field)
+        kern.distance_field(
+            self.free, self.allowed, self.w, self.h, sources, self.cell_m, *self.moves, covered, targets, field
+        )
         # The steepest descent of the distance is the steepest ascent of its negative.
         direction, value = self.ascent(np.negative(field, out=field), points_m)
         return direction, np.where(np.isfinite(value), -value, np.inf)

@@ -28,7 +28,10 @@ def _field(grid: FreeGrid, sources_m, targets=None, within=None) -> np.ndarray:
     x, y = grid.cells(np.asarray(sources_m, float).reshape(-1, 2))
     out = np.empty(grid.w * grid.h)
     within = grid.free if within is None else within
-    _kernels().distance_field(grid.free, grid.w, grid.h, y * grid.w + x, grid.cell_m, *grid.moves, within, targets, out)
+    kern = _kernels()
+    kern.distance_field(
+        grid.free, grid.allowed, grid.w, grid.h, y * grid.w + x, grid.cell_m, *grid.moves, within, targets, out
+    )
     return out
 
 
@@ -175,7 +178,9 @@ def test_the_push_to_the_uncovered_is_the_descent_of_the_whole_field():
         uncovered = np.flatnonzero(grid.free & ~grid.covered(pos, radius_m))
         whole = np.empty(grid.w * grid.h)
         everywhere, none = grid.free, np.zeros(0, np.int64)
-        kern.distance_field(grid.free, grid.w, grid.h, uncovered, grid.cell_m, *grid.moves, everywhere, none, whole)
+        kern.distance_field(
+            grid.free, grid.allowed, grid.w, grid.h, uncovered, grid.cell_m, *grid.moves, everywhere, none, whole
+        )
         want_direction, want = grid.ascent(-whole, pos)
         reached = np.isfinite(d)
         assert reached.sum() >= n - 2
