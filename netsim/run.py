@@ -276,8 +276,13 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     positions are sampled up to now, links still up are censored at now, as the end of a
     finished run censors them (docs/python.md)."""
     frames: dict[str, pd.DataFrame] = {}
+    declared = tables(sim.config)
 
     def add(name: str, frame: pd.DataFrame) -> None:
+        if len(frame) == 0 and name in declared:
+            # A table without rows takes its columns' declared types, not pandas' object for
+            # all: one table of two runs has one schema whether or not either wrote a row.
+            frame = frame.astype({c: t for c, t in declared[name].items() if c in frame.columns})
         frames[name] = frame
         if emit is not None:
             emit(name, frame)

@@ -150,16 +150,43 @@ def test_a_text_column_with_no_value_is_written_as_text(tmp_path):
     Arrow's null type: one table of two runs, one where nothing was dropped (every
     ``cause`` empty), reads as one dataset, whichever file comes first."""
     import pyarrow.dataset as ds
+    import pyarrow.parquet as pq
 
     from netsim.tools.output import write_table
 
     none = pd.DataFrame({"t_s": [2.0], "cause": pd.Series([None], dtype=object)})
-    some = pd.DataFrame({"t_s": [0.0, 1.0], "cause": pd.Series(["loss", None], dtype=object)})
+    some = pd.DataFrame({"t_s": [0.0, 1.0], "cause": pd.Series(["loss", None])})
     write_table(none, tmp_path / "a.parquet")
     write_table(some, tmp_path / "b.parquet")
+    assert pq.read_schema(tmp_path / "a.parquet").types == pq.read_schema(tmp_path / "b.parquet").types
     table = ds.dataset([str(tmp_path / "a.parquet"), str(tmp_path / "b.parquet")]).to_table()
     assert table.column("cause").to_pylist() == [None, "loss", None]
     assert pd.read_parquet(tmp_path / "a.parquet")["cause"].isna().all()
+
+
+def test_a_table_without_rows_has_its_declared_column_types(tmp_path):
+    """A run whose model wrote no row of a table it declares (no role change under the Ack
+    protocol, no message at a message rate of 0) writes that table with the declared
+    types, as a run with rows does: numbers as numbers, so the runs of a sweep read as one
+    dataset with numeric columns."""
+    import pyarrow.parquet as pq
+
+    from netsim.run import execute, tables
+    from netsim.tools.output import write_run
+    from tests.fixtures import make_config
+
+    for protocol, table in (({"model": "ack"}, "roles"), ({"model": "clustering", "message_rate_hz": 0.0}, "messages")):
+        out = tmp_path / table
+        config = make_config(duration_s=5.0, world={"n_robots": 4}, protocol=protocol)
+        result = execute(config)
+        assert len(result.frames[table]) == 0
+        write_run(out, config, result.frames, result.summary, {})
+        schema = pq.read_schema(out / f"{table}.parquet")
+        declared = tables(config)[table]
+        for name, dtype in declared.items():
+            arrow = {"object": "large_string", "float64": "double", "int64": "int64", "bool": "bool"}
+            want = arrow[dtype]
+            assert str(schema.field(name).type) == want, (table, name, schema.field(name).type)
 
 
 def test_tables_written_together_are_the_files_written_one_at_a_time(tmp_path, monkeypatch, seed_7):

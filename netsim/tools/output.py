@@ -348,14 +348,16 @@ def write_table(frame: pd.DataFrame, path: Path) -> None:
 
 def arrow_table(frame: pd.DataFrame):
     """``frame`` as the Arrow table pandas would write (its metadata included), but that a
-    text column (object) with no value in any row is text, not Arrow's ``null`` type: so
-    that one table of two runs has one schema, and the runs read as one dataset."""
+    text column (object) with no value in any row is text as pandas writes text (Arrow's
+    ``large_string``), not Arrow's ``null`` type: so that one table of two runs has one
+    schema, and the runs read as one dataset."""
     import pyarrow as pa
 
     table = pa.Table.from_pandas(frame, preserve_index=False)
     for i, field in enumerate(table.schema):
         if pa.types.is_null(field.type) and frame[field.name].dtype == object:
-            table = table.set_column(i, pa.field(field.name, pa.string()), table.column(i).cast(pa.string()))
+            text = pa.large_string()
+            table = table.set_column(i, pa.field(field.name, text), table.column(i).cast(text))
     return table
 
 
