@@ -182,11 +182,32 @@ def test_action_for_an_unknown_agent_is_refused():
 
 
 def test_bad_parameter_is_a_config_error():
-    """A bad keyword value raises ConfigError naming the key and the value."""
+    """A bad keyword value raises ConfigError naming the key and the value; so does an
+    unknown keyword (with the keys allowed), a ``netsim`` that is not a table, a seed in
+    ``netsim`` (the episodes' seeds are the environment's) and a seed that is no whole
+    number."""
     with pytest.raises(ConfigError, match="coverage_v0.n_robots = 0"):
         coverage_v0.parallel_env(n_robots=0)
     with pytest.raises(ConfigError, match="render_mode = 'human'"):
         coverage_v0.parallel_env(render_mode="human")
+    with pytest.raises(ConfigError, match="n_robot = 4: unknown key; allowed: .*n_robots"):
+        coverage_v0.parallel_env(n_robot=4)
+    with pytest.raises(ConfigError, match=r"netsim = \[1\]: must be a table"):
+        coverage_v0.parallel_env(**SMALL, netsim=[1])
+    with pytest.raises(ConfigError, match="seed = 5: the environment's"):
+        coverage_v0.parallel_env(**SMALL, netsim={"seed": 5})
+    env = coverage_v0.parallel_env(**SMALL)
+    for seed in (1.5, "3", True):
+        with pytest.raises(ConfigError, match="seed = .*: must be a whole number"):
+            env.reset(seed=seed)
+
+
+def test_the_link_quality_recipe_warns_of_nothing(recwarn):
+    """The documented way to offer link quality (a log-distance radio in ``netsim``) warns
+    of no setting the user did not make (the unit disk's range is not passed to it)."""
+    env = coverage_v0.parallel_env(n_robots=4, max_cycles=3, link_quality=True, netsim=LOG_DISTANCE)
+    env.reset(seed=1)
+    assert [str(w.message) for w in recwarn] == []
 
 
 @pytest.mark.slow

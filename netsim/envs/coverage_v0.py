@@ -94,6 +94,11 @@ class CoverageEnv(ParallelEnv):
             raise ConfigError("render_mode", render_mode, "must be None or 'rgb_array'")
         self.params = p = params
         self.render_mode = render_mode
+        if netsim is not None and not isinstance(netsim, Mapping):
+            raise ConfigError("netsim", netsim, "must be a table of configuration keys (a dict)")
+        if netsim is not None and "seed" in netsim:
+            # The episodes' seeds are the environment's: reset(seed=...) would not hold.
+            raise ConfigError("seed", netsim["seed"], "the environment's: give it as seed= or reset(seed=...)")
         self.netsim = dict(netsim or {})
         self.possible_agents = [f"robot_{i}" for i in range(p.n_robots)]
         self.agents: list[str] = []
@@ -152,7 +157,8 @@ class CoverageEnv(ParallelEnv):
                 "placement": p.placement,
                 "centre_side_m": min(p.centre_side_m, p.side_m),
             },
-            "channel": {"range_m": p.range_m},
+            # A log-distance radio's range is implied by its law: range_m would be unused.
+            "channel": {} if self._log_distance() else {"range_m": p.range_m},
             "mobility": {"model": "external"},
             "protocol": {"model": "clustering", "ack_period_s": p.ack_period_s, "message_rate_hz": 0.0},
             # The protocol's tables are sampled at this interval: once an episode is enough.
@@ -160,12 +166,18 @@ class CoverageEnv(ParallelEnv):
         }
         return cfgmod.from_dict(cfgmod.merge(raw, self.netsim))
 
+    def _log_distance(self) -> bool:
+        channel = self.netsim.get("channel")
+        return isinstance(channel, Mapping) and channel.get("propagation") == "log_distance"
+
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """A new episode: the run of ``(seed, episode)``, ``episode`` counting the resets
         since the last seed given (so ``reset()`` after ``reset(seed=s)`` is a new episode,
         the same on every replay)."""
         # Nothing changes until the new episode is known to be good: a refused reset leaves
         # the environment as it was.
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
+            raise ConfigError("seed", seed, "must be a whole number >= 0")
         seed_, episode = (int(seed), 0) if seed is not None else (self._seed, self._episode + 1)
         config = self._config(seed_)
         # max_cycles may have changed since the environment was made: checked again.
@@ -390,6 +402,10 @@ def parallel_env(render_mode: str | None = None, netsim: Mapping | None = None, 
     """The environment, from the keys of :class:`CoverageEnvParams` (a bad value raises
     :class:`~netsim.errors.ConfigError` naming it); ``netsim`` adds keys to the runs'
     configuration; ``render_mode``: None or ``"rgb_array"``."""
+    allowed = [f.name for f in dataclasses.fields(CoverageEnvParams)]
+    for key, value in params.items():
+        if key not in allowed:
+            raise ConfigError(key, value, "unknown key; allowed: " + ", ".join(sorted(allowed)))
     return CoverageEnv(CoverageEnvParams(**params), netsim, render_mode)
 
 
