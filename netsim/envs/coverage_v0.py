@@ -34,6 +34,7 @@ cell centres; ``components`` those of the links the channel makes (those of
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -157,18 +158,21 @@ class CoverageEnv(ParallelEnv):
                 "placement": p.placement,
                 "centre_side_m": min(p.centre_side_m, p.side_m),
             },
-            # A log-distance radio's range is implied by its law: range_m would be unused.
-            "channel": {} if self._log_distance() else {"range_m": p.range_m},
+            "channel": {},
             "mobility": {"model": "external"},
             "protocol": {"model": "clustering", "ack_period_s": p.ack_period_s, "message_rate_hz": 0.0},
             # The protocol's tables are sampled at this interval: once an episode is enough.
             "output": {"position_interval_s": self.max_cycles * p.step_s},
         }
+        raw["channel"] = {"range_m": p.range_m}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", cfgmod.ConfigWarning)
+            channel = cfgmod.from_dict(cfgmod.merge(raw, self.netsim)).channel
+        if channel.propagation_model.ranges(channel.radio) is not None:
+            # A model whose law implies the ranges (log-distance) takes no range_m: passing
+            # the unit disk's would only warn of a key the user never set.
+            raw["channel"] = {}
         return cfgmod.from_dict(cfgmod.merge(raw, self.netsim))
-
-    def _log_distance(self) -> bool:
-        channel = self.netsim.get("channel")
-        return isinstance(channel, Mapping) and channel.get("propagation") == "log_distance"
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """A new episode: the run of ``(seed, episode)``, ``episode`` counting the resets
