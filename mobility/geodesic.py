@@ -100,14 +100,15 @@ class FreeGrid:
             self.free, self.allowed, self.w, self.h, sources, self.cell_m, *self.moves, covered, targets, field
         )
         # The steepest descent of the distance is the steepest ascent of its negative.
-        direction, value = self.ascent(np.negative(field, out=field), points_m)
+        direction, value = self.ascent(np.negative(field, out=field), points_m, (x, y))
         return direction, np.where(np.isfinite(value), -value, np.inf)
 
-    def ascent(self, field: np.ndarray, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def ascent(self, field: np.ndarray, points_m: np.ndarray, cells=None) -> tuple[np.ndarray, np.ndarray]:
         """At each point, the unit direction of the field's steepest ascent through free
         space (zero at a dead end, where no free move ascends, or where the field is not
-        reached) and the field's value (inf: not reached)."""
-        x, y = self.cells(points_m)
+        reached) and the field's value (inf: not reached). ``cells``: the points' own
+        (:meth:`cells`), when the caller has them already."""
+        x, y = self.cells(points_m) if cells is None else cells
         direction = np.zeros((len(x), 2))
         value = np.full(len(x), np.inf)
         ok = np.flatnonzero(x >= 0)

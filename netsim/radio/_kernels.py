@@ -104,8 +104,7 @@ def slot(table_keys, dense_n, key):
     """Where ``key`` is (or would go) in the table: computed when every pair of ``dense_n``
     robots has its slot (keys in ascending order, lower id major), else a binary search."""
     if dense_n > 0:
-        i = key >> 32
-        j = key & 0xFFFFFFFF
+        i, j = pair_of(key)
         return i * dense_n - (i * (i + 1)) // 2 + (j - i - 1)
     return np.searchsorted(table_keys, key)
 
@@ -400,6 +399,19 @@ def pair_key(a, b):
     """The key of the unordered pair of robots ``a``, ``b``: the lower id in the high 32
     bits, the higher in the low ones (ids below 2**31)."""
     return (min(a, b) << 32) | max(a, b)
+
+
+@jit(nogil=True, inline="always")
+def pair_of(key):
+    """The two robots of the pair ``key`` (:func:`pair_key`), lower id first."""
+    return key >> 32, key & 0xFFFFFFFF
+
+
+@jit(nogil=True)
+def pairs_of(keys, a, b):
+    """:func:`pair_of` of each key into ``a`` and ``b``."""
+    for m in range(keys.shape[0]):
+        a[m], b[m] = pair_of(keys[m])
 
 
 @jit(nogil=True)

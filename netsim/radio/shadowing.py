@@ -78,9 +78,6 @@ NORMALS_BLOCK = 4096
 # Above this many robots pairs get slots as they are first seen (see PairShadowing).
 DENSE_MAX_ROBOTS = 3000
 
-_SHIFT = np.int64(32)
-_LOW = np.int64((1 << 32) - 1)
-
 
 def pair_keys(a, b, n_robots: int | None = None) -> np.ndarray:
     """One int64 key per unordered pair: ``min << 32 | max`` (robot ids below 2**31), the
@@ -97,9 +94,12 @@ def pair_keys(a, b, n_robots: int | None = None) -> np.ndarray:
     return out.reshape(a.shape)
 
 
-def split_keys(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The two robots of each key, lower id first."""
-    return keys >> _SHIFT, keys & _LOW
+def split_keys(keys: np.ndarray, n_robots: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The two robots of each key, lower id first (:func:`netsim.radio._kernels.pair_of`)."""
+    keys = np.ascontiguousarray(keys, dtype=np.int64).reshape(-1)
+    low, high = np.empty_like(keys), np.empty_like(keys)
+    load("netsim.radio._kernels", n_robots, values=keys.shape[0]).pairs_of(keys, low, high)
+    return low, high
 
 
 class PairShadowing:
@@ -261,7 +261,7 @@ class PairShadowing:
         if len(self._keys) == 0:
             return 0
         odo = np.asarray(odometer_m, dtype=float)
-        lo, hi = split_keys(self._keys)
+        lo, hi = split_keys(self._keys, self.n_robots)
         stale = odo[lo] + odo[hi] - self._s > horizon * self.decorrelation_m
         stale &= ~np.isnan(self._x)
         if stale.any() and self.dense:
