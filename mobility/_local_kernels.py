@@ -18,7 +18,7 @@ from netsim.mobility._fade_kernels import plausible_change_within_db
 
 from netsim._kernels import range_at_loss_m
 from netsim.compiled import jit
-from netsim.world._kernels import on_grid
+from netsim.world._kernels import clamped_cell, on_grid
 
 
 @jit(nogil=True, walks=True)
@@ -35,8 +35,8 @@ def clear(walls, ax, ay, bx, by, ea, eb):
         f = t / length if length > 0 else 0.0
         u = on_grid(ax + f * (bx - ax), walls.origin_x_m, res)
         v = on_grid(ay + f * (by - ay), walls.origin_y_m, res)
-        ci = min(max(math.floor(u), 0), w - 1)
-        cj = min(max(math.floor(v), 0), h - 1)
+        ci = clamped_cell(u, w)
+        cj = clamped_cell(v, h)
         radius = ea + f * (eb - ea) if length > 0 else max(ea, eb)
         gap = field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
         if gap <= walls.step_m:
@@ -94,6 +94,13 @@ def region_holds(walls, r, qx, qy, e):
     return 1
 
 
+@jit(nogil=True)
+def bucket_index(i, j, w, k):
+    """The bucket of cell ``(i, j)`` (column, row) of a map ``w`` cells wide, cut into
+    buckets of ``k x k`` cells numbered row by row."""
+    return (j // k) * ((w + k - 1) // k) + i // k
+
+
 @jit(nogil=True, walks=True)
 def bucket_of(walls, px, py):
     """The index of the bucket of regions that holds the point (-1: off the map)."""
@@ -102,8 +109,7 @@ def bucket_of(walls, px, py):
     j = math.floor(on_grid(py, walls.origin_y_m, walls.resolution_m))
     if i < 0 or j < 0 or i >= w or j >= h:
         return -1
-    k = walls.bucket_cells
-    return (j // k) * ((w + k - 1) // k) + i // k
+    return bucket_index(i, j, w, walls.bucket_cells)
 
 
 @jit(nogil=True, walks=True)

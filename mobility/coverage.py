@@ -98,12 +98,10 @@ from netsim.mobility.forces import (
     LAWS,
     SQRT3,
     Law,
-    border_force,
     border_forces,
     component_centres,
     expansion_forces,
     pair_resultants,
-    resultant,
 )
 from netsim.mobility.geodesic import FreeGrid, expansion_to_uncovered, in_sight, slide, within_reach
 from netsim.mobility.keep import FADE_SIGMAS, LinkRules, prefer
@@ -337,14 +335,12 @@ def wished_velocities(
     gain: float,
     area: float | Bounds,
 ) -> np.ndarray:
-    """``gain x (resultant + border push)`` for each leader, from the neighbour positions it knows."""
-    law = LAWS[law_name]
-    out = np.zeros((len(leaders), 2))
-    for k, (i, nb) in enumerate(zip(leaders.tolist(), neighbours)):
-        p = pos_now[i]
-        # Every law is zero from 2 r_c on, so farther leaders need no filtering here.
-        out[k] = resultant(p, nb, law, range_m, gain) + border_force(p, area, range_m, gain)
-    return out
+    """``gain x (resultant + border push)`` for each leader, from the neighbour positions it
+    knows (:func:`spreading_forces` over the leaders)."""
+    # Every law is zero from 2 r_c on, so farther leaders need no filtering here.
+    target = np.repeat(np.arange(len(leaders)), [len(nb) for nb in neighbours]).astype(np.int64)
+    source_xy = np.concatenate([np.reshape(nb, (-1, 2)) for nb in neighbours]) if neighbours else np.zeros((0, 2))
+    return spreading_forces(pos_now[leaders], target, source_xy, law_name, range_m, gain, area)
 
 
 def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> list[np.ndarray]:

@@ -24,6 +24,7 @@ from enum import StrEnum
 import numpy as np
 
 from netsim.area import Bounds, as_bounds
+from netsim.world.free_space import edge_push
 
 SQRT3 = math.sqrt(3.0)
 # The expansion's cap, as a fraction of r_c: half the border's strongest push, so that the
@@ -56,45 +57,6 @@ class Law(StrEnum):
 
 
 LAWS = {Law.SPRING: spring, Law.REPULSION: repulsion, Law.INVERSE_SQUARE: inverse_square}
-
-
-def pair_force(p_i, p_j, law, range_m: float, gain: float) -> np.ndarray:
-    """The force on ``i`` from ``j`` (a 2-vector)."""
-    delta = np.asarray(p_i, dtype=float) - np.asarray(p_j, dtype=float)
-    d = float(np.hypot(*delta))
-    if d == 0.0:
-        return np.zeros(2)
-    return float(law(d, range_m, gain)) * delta / d
-
-
-def resultant(p_i, neighbours_m, law, range_m: float, gain: float) -> np.ndarray:
-    """Sum of the forces on a leader at ``p_i`` from leaders at ``neighbours_m`` (k, 2)."""
-    nb = np.asarray(neighbours_m, dtype=float).reshape(-1, 2)
-    if len(nb) == 0:
-        return np.zeros(2)
-    delta = np.asarray(p_i, dtype=float) - nb
-    d = np.hypot(delta[:, 0], delta[:, 1])
-    ok = d > 0
-    mag = law(d[ok], range_m, gain)
-    return (mag[:, None] * delta[ok] / d[ok, None]).sum(axis=0)
-
-
-def border_force(p, area: float | Bounds, range_m: float, gain: float) -> np.ndarray:
-    """Push back from the borders of the area (Bounds, or the side of the square ``[0,
-    side]^2``): ``k (m - distance)`` inward within a margin ``m = sqrt(3) r_c / 2`` of a
-    border (half the target spacing: a leader there covers up to the border with the least
-    waste)."""
-    b = as_bounds(area)
-    lo, hi = (b.x_min, b.y_min), (b.x_max, b.y_max)
-    margin = SQRT3 * range_m / 2
-    p = np.asarray(p, dtype=float)
-    f = np.zeros(2)
-    for k in range(2):
-        if p[k] - lo[k] < margin:
-            f[k] += gain * (margin - (p[k] - lo[k]))
-        if hi[k] - p[k] < margin:
-            f[k] -= gain * (margin - (hi[k] - p[k]))
-    return f
 
 
 def pair_resultants(n: int, target: np.ndarray, delta: np.ndarray, law, range_m: float, gain: float) -> np.ndarray:
@@ -137,8 +99,11 @@ def expansion_forces(p: np.ndarray, centre: np.ndarray, factor: float, range_m: 
 
 
 def border_forces(p: np.ndarray, area: float | Bounds, range_m: float, gain: float) -> np.ndarray:
-    """:func:`border_force` for every row of ``p`` (k, 2) at once."""
+    """Push back from the borders of the area (Bounds, or the side of the square ``[0,
+    side]^2``) on every row of ``p`` (k, 2): ``k (m - distance)`` inward within a margin
+    ``m = sqrt(3) r_c / 2`` of a border (half the target spacing: a robot there covers up
+    to the border with the least waste)."""
     b = as_bounds(area)
     margin = SQRT3 * range_m / 2
     p = np.asarray(p, dtype=float).reshape(-1, 2)
-    return gain * (np.clip(margin - (p - b.lo), 0.0, None) - np.clip(margin - (b.hi - p), 0.0, None))
+    return edge_push(p - b.lo, margin, gain) - edge_push(b.hi - p, margin, gain)

@@ -26,6 +26,7 @@ from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
 
 from netsim.compiled import load
+from netsim.geometry import cell_centres_m
 from netsim.world.free_space import free_fraction, legs_free, nearest_free_cells, short_of_walls
 
 # The side of the grid the distances are computed on, m (at least one map cell): fine
@@ -50,8 +51,8 @@ class FreeGrid:
         h, w = m.shape
         free = np.zeros(((h + k - 1) // k * k, (w + k - 1) // k * k), bool)
         free[:h, :w] = m.free
-        xs = m.origin_m[0] + (np.arange(free.shape[1]) + 0.5) * m.resolution_m
-        ys = m.origin_m[1] + (np.arange(free.shape[0]) + 0.5) * m.resolution_m
+        xs = cell_centres_m(m.origin_m[0], m.resolution_m, np.arange(free.shape[1]))
+        ys = cell_centres_m(m.origin_m[1], m.resolution_m, np.arange(free.shape[0]))
         free &= ((ys >= box.y_min) & (ys <= box.y_max))[:, None] & ((xs >= box.x_min) & (xs <= box.x_max))[None, :]
         self.h, self.w = free.shape[0] // k, free.shape[1] // k
         self.free = np.ascontiguousarray(free.reshape(self.h, k, self.w, k).all(axis=(1, 3)).ravel())

@@ -48,7 +48,7 @@ from netsim.mobility._fade_kernels import FADE_SIGMAS as FADE_SIGMAS
 from netsim.mobility.steps import Candidates
 
 from netsim.compiled import load
-from netsim.geometry import speeds_mps
+from netsim.geometry import link_ranges_m, speeds_mps
 from netsim.topology import geometric_pairs
 from netsim.trajectory import points_on_legs
 
@@ -145,7 +145,7 @@ class LinkRules:
         if self.disk:
             ranges = self.state.range_m
             i, j, d = geometric_pairs(pos, ranges)
-            r = np.minimum(ranges[i], ranges[j])
+            r = link_ranges_m(ranges, i, j)
             # The forest prefers short links; the shift keeps zero lengths (robots at one
             # spot) in the graph.
             return Candidates(i, j, d, d + float(ranges.min()), r - self.margin_m, np.full(len(i), np.inf), r)
@@ -160,7 +160,7 @@ class LinkRules:
         walls = self._walls_now(pos, i, j)
         if self.log is None:
             # The unit disk with line of sight.
-            r = np.minimum(self.state.range_m[i], self.state.range_m[j])
+            r = link_ranges_m(self.state.range_m, i, j)
             ok = load("netsim._kernels", len(pos)).in_range(pos, i, j, r, 0.0) & (walls == 0)
             i, j, d, r = i[ok], j[ok], d[ok], r[ok]
             return Candidates(i, j, d, d + float(r.max(initial=0.0)), r - self.margin_m, np.full(len(i), np.inf), r)
@@ -204,7 +204,7 @@ class LinkRules:
             sh = self.shadow
             budget = np.minimum(self.fade_margin_db, margin)
             keep = np.maximum(p.effective_range_m(x + budget, walls, n), d)
-            pair_travel = self.state.travelled_m(t_s, i) + self.state.travelled_m(t_s, j)
+            pair_travel = self.state.pair_travelled_m(t_s, i, j)
             _, anchor = sh.state(i, j)
             since = np.maximum(pair_travel - anchor, 0.0)
             travel = np.maximum(fade_travel_m(budget, x, sh.sigma_db, sh.decorrelation_m, n) - since, 0.0)

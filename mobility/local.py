@@ -113,9 +113,10 @@ from typing import NamedTuple
 
 import numpy as np
 from netsim.mobility.keep import FADE_SIGMAS, fade_travel_m
-from netsim.mobility.spread import project_into
+from netsim.mobility.spread import add_pulls, project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
+from netsim.area import exit_times
 from netsim.compiled import filled, load
 from netsim.geometry import beyond, speeds_mps
 from netsim.trajectory import points_on_legs
@@ -237,12 +238,12 @@ def walls_of(
     ).reshape(-1, 4)
     k = max(1, int(round(REGION_BUCKET_M / res)))
     h, w = occupied.shape
-    bw, bh = (w + k - 1) // k, (h + k - 1) // k
-    members: list[list[int]] = [[] for _ in range(bw * bh)]
+    bucket = load("netsim.mobility._local_kernels", None).bucket_index
+    members: list[list[int]] = [[] for _ in range(bucket(w - 1, h - 1, w, k) + 1)]
     for r, (i0, i1, j0, j1) in enumerate(cells.tolist()):
-        for by in range(j0 // k, j1 // k + 1):
-            for bx in range(i0 // k, i1 // k + 1):
-                members[by * bw + bx].append(r)
+        for j in range(j0 // k * k, j1 + 1, k):
+            for i in range(i0 // k * k, i1 + 1, k):
+                members[bucket(i, j, w, k)].append(r)
     start = np.r_[0, np.cumsum([len(m) for m in members])].astype(np.int64)
     flat = np.array([r for m in members for r in m], np.int64)
     return Walls(
@@ -884,9 +885,7 @@ def cut_for_walls(
     off_leash = np.zeros(n, dtype=bool)
     off_leash[robot[beyond(pos[robot] + slid[robot], centre, leash, n)]] = True
     # Where sliding leaves a leash, the step stops at the regions' border instead.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        reach = np.where(move > 0, (inner_hi - pos) / move, np.where(move < 0, (inner_lo - pos) / move, np.inf))
-    cut = np.clip(reach.min(axis=1), 0.0, 1.0)
+    cut = np.clip(exit_times(pos, move, inner_lo, inner_hi), 0.0, 1.0)
     move = np.where(off_leash[:, None], move * cut[:, None], slid)
     length = np.hypot(*move.T)
     scale = np.ones(n)
@@ -935,10 +934,7 @@ def pulls(
     d = np.hypot(*off.T)
     along = off / np.maximum(d, 1e-12)[:, None]
     slack = np.maximum(leash_radius(memory, t0_s + limits.period_s, limits)[robot, other] - d, 0.0) / limits.period_s
-    excess = np.maximum(np.einsum("ij,ij->i", announced_mps[other], along) - slack, 0.0)
-    out = np.zeros_like(pos)
-    np.add.at(out, robot, excess[:, None] * along)
-    return out
+    return add_pulls(np.zeros_like(pos), robot, along, announced_mps[other], slack)
 
 
 def latest_pulls(
@@ -1180,7 +1176,7 @@ class Fade:
         moved = travel_at_cap_m(np.asarray(sent_s, float), now_s, speed_mps)
         d = np.hypot(*(heard_xy - own_xy).T) - moved if len(own_xy) else np.zeros(0)
         r = self.radio
-        x = r.tx_power_dbm - r.path_loss_db(np.maximum(d, 0.0), self.n_robots) - power_dbm
+        x = r.radio.shadowing_db(r.path_loss_db(np.maximum(d, 0.0), self.n_robots), power_dbm)
         return x, power_dbm - r.sensitivity_dbm
 
     def limits(self, knows: Memory, t0_s: float, t1_s: float, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:

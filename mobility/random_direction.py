@@ -21,7 +21,7 @@ import numpy as np
 import simpy
 from netsim.mobility.speeds import SpeedParams
 
-from netsim.area import Bounds
+from netsim.area import Bounds, exit_times
 from netsim.errors import ConfigError
 from netsim.params import param, positive
 from netsim.placement import initial_positions
@@ -47,14 +47,7 @@ def check(params: RandomDirectionParams, config) -> None:
 
 
 def _time_to_border(p: np.ndarray, v: np.ndarray, area: Bounds) -> float:
-    lo, hi = (area.x_min, area.y_min), (area.x_max, area.y_max)
-    times = []
-    for k in range(2):
-        if v[k] > 0:
-            times.append((hi[k] - p[k]) / v[k])
-        elif v[k] < 0:
-            times.append(-(p[k] - lo[k]) / v[k])
-    return max(0.0, min(times)) if times else math.inf
+    return max(0.0, float(exit_times(p[None], v[None], area.lo, area.hi)[0]))
 
 
 def _inward_heading(rng, p: np.ndarray, area: Bounds) -> np.ndarray:

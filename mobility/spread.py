@@ -125,14 +125,22 @@ def pass_on_pulls(
     total = np.where(mobile[:, None], wish_mps, 0.0)
     pull = total.copy()
     for _ in range(TENSION_HOPS):
-        away_from_i = np.maximum(np.einsum("ij,ij->i", pull[j], along) - slack, 0.0)
-        away_from_j = np.maximum(-np.einsum("ij,ij->i", pull[i], along) - slack, 0.0)
         nxt = np.zeros_like(pull)
-        np.add.at(nxt, i, away_from_i[:, None] * along)
-        np.add.at(nxt, j, -away_from_j[:, None] * along)
+        add_pulls(nxt, i, along, pull[j], slack)
+        add_pulls(nxt, j, -along, pull[i], slack)
         total += nxt
         pull = nxt
     return total
+
+
+def add_pulls(out: np.ndarray, robot: np.ndarray, along: np.ndarray, wish_mps: np.ndarray, slack_mps) -> np.ndarray:
+    """The pull (rule of the leash's tension): to row ``robot[k]`` of ``out`` add, along the
+    unit vector ``along[k]`` toward the robot it is linked to, the excess of that robot's
+    wish ``wish_mps[k]`` along it over the slack ``slack_mps[k]`` (m/s), if any. Returns
+    ``out``."""
+    excess = np.maximum(np.einsum("ij,ij->i", wish_mps, along) - slack_mps, 0.0)
+    np.add.at(out, robot, excess[:, None] * along)
+    return out
 
 
 def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radius: np.ndarray, area: float | Bounds):

@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim.area import Bounds, as_bounds
+from netsim.area import Bounds, as_bounds, exit_times
 from netsim.compiled import filled, load
 
 # Steps are cut a hair short of a constraint's boundary, against rounding.
@@ -109,10 +109,7 @@ def box_limit(pos: np.ndarray, move: np.ndarray, area: float | Bounds) -> np.nda
     """Largest ``s`` in [0, 1] keeping ``pos + s move`` inside the area (Bounds, or the side
     of the square ``[0, side]^2``), row-wise."""
     b = as_bounds(area)
-    # A move of a few ulps overflows the quotient to inf, which is right: it stays inside.
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        hi = np.where(move > 0, (b.hi - pos) / move, np.where(move < 0, -(pos - b.lo) / move, np.inf))
-    return np.clip(hi.min(axis=1) * SAFETY, 0.0, 1.0)
+    return np.clip(exit_times(pos, move, b.lo, b.hi) * SAFETY, 0.0, 1.0)
 
 
 def cap_length(move: np.ndarray, cap_m: float | np.ndarray) -> np.ndarray:

@@ -90,6 +90,20 @@ def travels(odometer_m, speed_mps, t0_s, rows, t, out):
     return -1
 
 
+@jit(nogil=True, inline="always")
+def pair_travel(odometer_m, speed_mps, t0_s, a, b, t):
+    """A pair's travel at ``t``: the :func:`travel` of its two robots summed, the clock its
+    shadowing runs on (``netsim.radio._kernels.pair_clock``)."""
+    return travel(odometer_m, speed_mps, t0_s, b, t) + travel(odometer_m, speed_mps, t0_s, a, t)
+
+
+@jit(nogil=True)
+def pair_travels(odometer_m, speed_mps, t0_s, a, b, t, out):
+    """:func:`pair_travel` of each pair ``(a[m], b[m])`` at ``t`` into ``out``."""
+    for m in range(a.shape[0]):
+        out[m] = pair_travel(odometer_m, speed_mps, t0_s, a[m], b[m], t)
+
+
 @jit(nogil=True)
 def offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m):
     """Robot ``j``'s position at ``t`` (:func:`position`, on its unfolded leg) minus ``(x,
@@ -551,6 +565,20 @@ def in_range(pos, a, b, radius, box):
     return out
 
 
+@jit(nogil=True, inline="always")
+def link_range(r_a, r_b):
+    """A pair's range: the smaller of its robots' ranges (a link needs both to hear each
+    other)."""
+    return min(r_a, r_b)
+
+
+@jit(nogil=True)
+def link_ranges(ranges, a, b, out):
+    """:func:`link_range` of each pair ``(a[m], b[m])`` into ``out``."""
+    for m in range(a.shape[0]):
+        out[m] = link_range(ranges[a[m]], ranges[b[m]])
+
+
 @jit(nogil=True)
 def pairs_in_range(pos, i, j, ranges, box, directed):
     """Of the candidate pairs ``(i[k], j[k])`` (:func:`near_pairs`), those in range
@@ -570,7 +598,7 @@ def pairs_in_range(pos, i, j, ranges, box, directed):
             forward = reaches(dx, dy, ranges[p], 0.0)
             back = reaches(dx, dy, ranges[o], 0.0)
         else:
-            forward = reaches(dx, dy, min(ranges[p], ranges[o]), 0.0)
+            forward = reaches(dx, dy, link_range(ranges[p], ranges[o]), 0.0)
             back = False
         if forward or back:
             d = np.hypot(dx, dy)
@@ -769,6 +797,35 @@ def component_count(n, a, b):
     return component_labels(n, a, b).max() + 1
 
 
+@jit(nogil=True, inline="always")
+def cell_centre(k, h_m):
+    """Where cell ``k`` of a row of cells of size ``h_m`` has its centre, from the row's
+    start: the grid's one rule of where a cell is (:func:`grid_nearest_m`,
+    :func:`grid_centres`)."""
+    return (k + 0.5) * h_m
+
+
+@jit(nogil=True)
+def cell_centres(x0_m, h_m, k, out):
+    """``x0_m`` plus :func:`cell_centre` of each cell index of ``k`` (1-d) into ``out``: the
+    centres of cells ``k`` of a row of cells of size ``h_m`` starting at ``x0_m``."""
+    for m in range(k.shape[0]):
+        out[m] = x0_m + cell_centre(k[m], h_m)
+
+
+@jit(nogil=True)
+def grid_centres(x0_m, y0_m, width_m, height_m, cells, gx, gy):
+    """The centres of the ``cells x cells`` grid of the rectangle ``[x0, x0 + width] x [y0,
+    y0 + height]`` into ``gx``, ``gy`` (``[row, col]``: row along y), as
+    :func:`grid_nearest_m` measures from them."""
+    hx = width_m / cells
+    hy = height_m / cells
+    for row in range(cells):
+        for col in range(cells):
+            gx[row, col] = x0_m + cell_centre(col, hx)
+            gy[row, col] = y0_m + cell_centre(row, hy)
+
+
 @jit(nogil=True)
 def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box, any_within):
     """The distance from each centre of the ``cells x cells`` grid of cells of the rectangle
@@ -804,12 +861,12 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box, any_wi
                     continue
                 sx = x - ix * box
                 for row in range(lo, hi + 1):
-                    dy = (row + 0.5) * hy - sy
+                    dy = cell_centre(row, hy) - sy
                     half = math.sqrt(max(reach_m * reach_m - dy * dy, 0.0))
                     first = max(int(math.floor((sx - half) / hx - 0.5)), 0)
                     last = min(int(math.ceil((sx + half) / hx - 0.5)), cells - 1)
                     for col in range(first, last + 1):
-                        dx = (col + 0.5) * hx - sx
+                        dx = cell_centre(col, hx) - sx
                         if any_within:
                             if out[row, col] > reach_m and reaches(dx, dy, reach_m, 0.0):
                                 out[row, col] = reach_m

@@ -108,6 +108,25 @@ def as_bounds(area: float | Bounds) -> Bounds:
     return area if isinstance(area, Bounds) else Bounds.square(float(area))
 
 
+def exit_times(p: np.ndarray, v: np.ndarray, lo: Any, hi: Any) -> np.ndarray:
+    """For each row of ``p`` (k, 2) moving by ``v`` (k, 2) per unit of time, when it leaves the
+    box ``[lo, hi]`` (rows, or one box for all): ``(hi - p) / v`` along an axis it moves up,
+    ``-(p - lo) / v`` along one it moves down, the least of the two axes; ``inf`` at rest,
+    negative when already outside on the way out.
+
+    >>> p, v = np.array([[1.0, 5.0], [5.0, 5.0]]), np.array([[-0.5, 0.0], [0.0, 0.0]])
+    >>> exit_times(p, v, (0.0, 0.0), (10.0, 10.0)).tolist()
+    [2.0, inf]
+    """
+    p, v = np.asarray(p, dtype=float), np.asarray(v, dtype=float)
+    t = np.full(np.broadcast_shapes(p.shape, v.shape), math.inf)
+    # A move of a few ulps overflows the quotient to inf, which is right: it stays inside.
+    with np.errstate(over="ignore"):
+        np.divide(np.subtract(hi, p), v, out=t, where=v > 0)
+        np.divide(-np.subtract(p, lo), v, out=t, where=v < 0)
+    return t.min(axis=1)
+
+
 def parse_bounds(key: str, value: Any) -> tuple[float, float, float, float] | str:
     """A configuration value of ``world.bounds_m``: ``"map"``, or four finite numbers
     ``[x_min, y_min, x_max, y_max]`` with ``x_max > x_min`` and ``y_max > y_min``."""

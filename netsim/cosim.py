@@ -18,12 +18,11 @@ call leaves the run as it was.
 
 from __future__ import annotations
 
-import math
 from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from netsim.area import Bounds, as_bounds
+from netsim.area import Bounds, as_bounds, exit_times
 from netsim.errors import NetsimInputError
 
 
@@ -155,8 +154,5 @@ def time_to_border(p: np.ndarray, v: np.ndarray, area: float | Bounds) -> np.nda
     >>> time_to_border(np.array([[1.0, 5.0]]), np.array([[-0.5, 0.0]]), 10.0).tolist()
     [2.0]
     """
-    t = np.full(p.shape, math.inf)
     b = as_bounds(area)
-    np.divide(b.hi - p, v, out=t, where=v > 0)
-    np.divide(-(p - b.lo), v, out=t, where=v < 0)
-    return np.maximum(t.min(axis=1), 0.0)
+    return np.maximum(exit_times(p, v, b.lo, b.hi), 0.0)

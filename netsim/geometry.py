@@ -30,6 +30,33 @@ def beyond(points_m: np.ndarray, centres_m: np.ndarray, radius_m: np.ndarray, n_
     return out.reshape(shape)
 
 
+def link_ranges_m(range_m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The range of each pair ``(a[m], b[m])`` of robots whose ranges are ``range_m``: the
+    smaller of the two (:func:`netsim._kernels.link_range`).
+
+    >>> link_ranges_m(np.array([30.0, 50.0, 40.0]), np.array([0, 1]), np.array([1, 2])).tolist()
+    [30.0, 40.0]
+    """
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    out = np.empty(len(a))
+    load("netsim._kernels", len(range_m)).link_ranges(np.asarray(range_m, float), a, b, out)
+    return out
+
+
+def cell_centres_m(x0_m: float, h_m: float, k: np.ndarray) -> np.ndarray:
+    """The centres of cells ``k`` (any shape) of a row of cells of size ``h_m`` starting at
+    ``x0_m``: ``x0 + (k + 1/2) h`` (:func:`netsim._kernels.cell_centre`, the grid's one
+    rule of where a cell is).
+
+    >>> cell_centres_m(10.0, 2.0, np.arange(3)).tolist()
+    [11.0, 13.0, 15.0]
+    """
+    k = np.asarray(k)
+    out = np.empty(k.shape)
+    load("netsim._kernels", None, values=k.size).cell_centres(float(x0_m), float(h_m), k.reshape(-1), out.reshape(-1))
+    return out
+
+
 def speeds_mps(velocity_mps: np.ndarray) -> np.ndarray:
     """The speed of each row ``(vx, vy)``: numpy's ``abs`` of ``vx + i vy``, the one law of a
     robot's speed (its odometer and the shadowing's clock run on it, the local plan bounds

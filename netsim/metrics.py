@@ -209,15 +209,10 @@ def covered_fraction(
     centres = np.asarray(centres_m, dtype=float).reshape(-1, 2)
     b = as_bounds(area)
     side_m = b.width
-    if b.is_square_at_origin:
-        h = side_m / cells
-        axis = (np.arange(cells) + 0.5) * h
-        gx, gy = np.meshgrid(axis, axis)
-        half_diagonal = h / math.sqrt(2)
-    else:
-        hx, hy = b.width / cells, b.height / cells
-        gx, gy = np.meshgrid(b.x_min + (np.arange(cells) + 0.5) * hx, b.y_min + (np.arange(cells) + 0.5) * hy)
-        half_diagonal = 0.5 * math.hypot(hx, hy)
+    kernels = load("netsim._kernels", n_robots)
+    gx, gy = np.empty((cells, cells)), np.empty((cells, cells))
+    kernels.grid_centres(b.x_min, b.y_min, b.width, b.height, cells, gx, gy)
+    half_diagonal = 0.5 * math.hypot(b.width / cells, b.height / cells)
     inside = slice(None)
     edge = np.zeros(cells * cells, dtype=bool)
     if region is not None:
@@ -227,7 +222,6 @@ def covered_fraction(
         edge = shapely.dwithin(region.boundary, shapely.points(gx.ravel()[inside], gy.ravel()[inside]), half_diagonal)
     if len(centres) == 0 or len(edge) == 0:
         return 0.0, float(np.mean(edge)) if len(edge) else 0.0
-    kernels = load("netsim._kernels", n_robots)
     box = side_m if torus else 0.0
     dist = kernels.grid_nearest_m(
         centres, radius_m + half_diagonal, b.x_min, b.y_min, b.width, b.height, cells, box, False

@@ -18,6 +18,7 @@ from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
 from netsim.config import world_bounds
 from netsim.errors import ConfigError
+from netsim.geometry import cell_centres_m, link_ranges_m
 from netsim.rng import Streams
 
 if TYPE_CHECKING:
@@ -54,10 +55,9 @@ def grid(n: int, area: float | Bounds) -> np.ndarray:
     b = as_bounds(area)
     k = math.ceil(math.sqrt(n))
     idx = np.arange(n)
-    if b.is_square_at_origin:
-        cell = b.width / k
-        return np.column_stack(((idx % k + 0.5) * cell, (idx // k + 0.5) * cell))
-    return np.column_stack((b.x_min + (idx % k + 0.5) * (b.width / k), b.y_min + (idx // k + 0.5) * (b.height / k)))
+    return np.column_stack(
+        (cell_centres_m(b.x_min, b.width / k, idx % k), cell_centres_m(b.y_min, b.height / k, idx // k))
+    )
 
 
 def from_csv(path: str, n: int, area: float | Bounds) -> np.ndarray:
@@ -222,7 +222,7 @@ def _linked(channel: Any) -> Callable[..., np.ndarray]:
             m = len(a)
             ends = np.concatenate([pa, pb]).astype(float)
             rows = np.arange(m)
-            radius = np.minimum(ranges[a], ranges[b]).astype(float)
+            radius = link_ranges_m(ranges, a, b)
             return load("netsim._kernels", len(ranges)).in_range(ends, rows, rows + m, radius, 0.0)
 
         return disk

@@ -183,6 +183,16 @@ class RobotState:
             raise IndexError(f"robot index {rows.reshape(-1)[bad]} out of range for {self.n} robots")
         return out
 
+    def pair_travelled_m(self, t: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Each pair's travel at ``t`` (``t`` on the robots' current legs): the two robots'
+        :meth:`travelled_m` summed (:func:`netsim._kernels.pair_travel`), the clock a pair's
+        shadowing runs on."""
+        a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+        out = np.empty(len(a))
+        kernels = self._core or self._load_core()
+        kernels.pair_travels(self.odometer_m, self.speed_mps, self.t0_s, a, b, float(t), out)
+        return out
+
     def _log_travel(self, i: int, t: float) -> None:
         kernels = self._core or self._load_core()
         self.odometer_m[i] = kernels.travel(self.odometer_m, self.speed_mps, self.t0_s, i, float(t))

@@ -19,6 +19,7 @@ from netsim.mobility.local import (
 )
 from netsim.mobility.steps import StepLimits
 
+from netsim.compiled import load
 from tests.oracles import local as oracle
 
 RES = 0.5
@@ -323,3 +324,28 @@ def test_a_local_run_on_a_map_uses_the_map_rules(monkeypatch):
         *(links[c].to_numpy() for c in ("a", "b", "t_up_s", "t_down_s", "censored_end")), 20
     )
     assert counts.max() == 1
+
+
+def test_each_bucket_lists_exactly_the_regions_that_meet_it():
+    """A region is found from any point in it through its cells' buckets (bucket_of), so
+    every bucket a region's cells fall in lists it, and no other bucket does."""
+    rng = np.random.default_rng(5)
+    occupied = rng.random((29, 41)) < 0.2
+    res = 0.5
+    walls = walls_of(occupied, (3.0, -2.0), res)
+    k = walls.bucket_cells
+    assert k > 1  # buckets of several cells, so that a region's span may start mid-bucket
+    kernels = load("netsim.mobility._local_kernels", None)
+    h, w = occupied.shape
+    listed = {
+        b: set(walls.bucket_regions[walls.bucket_start[b] : walls.bucket_start[b + 1]].tolist())
+        for b in range(len(walls.bucket_start) - 1)
+    }
+    meets: dict[int, set[int]] = {b: set() for b in listed}
+    for r, (i0, i1, j0, j1) in enumerate(free_rectangles(~occupied).tolist()):
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                x, y = 3.0 + (i + 0.5) * res, -2.0 + (j + 0.5) * res
+                meets[kernels.bucket_of(walls, x, y)].add(r)
+    assert listed == meets
+    assert len(listed) == ((h + k - 1) // k) * ((w + k - 1) // k)

@@ -195,8 +195,9 @@ def shadowed_rules(pos, x_db, anchor_m, travelled_m, fade_margin_db=8.0, margin_
     )
     compiled = SimpleNamespace(log=SimpleNamespace(params=params), shadow=shadow, walls=None)
     reception = SimpleNamespace(compiled=compiled, map=None)
+    travel = np.asarray(travelled_m, float)
     robots = SimpleNamespace(
-        n=n, range_m=np.full(n, 100.0), travelled_m=lambda t, idx: np.asarray(travelled_m, float)[np.asarray(idx)]
+        n=n, range_m=np.full(n, 100.0), pair_travelled_m=lambda t, a, b: travel[np.asarray(b)] + travel[np.asarray(a)]
     )
     links = SimpleNamespace(up_pairs=lambda: (np.zeros(n - 1, np.int64), np.arange(1, n)))
     return LinkRules(reception, robots, links, margin_m, fade_margin_db), params

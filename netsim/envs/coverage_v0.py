@@ -356,7 +356,7 @@ def power_bounds_dbm(config: cfgmod.Config) -> tuple[float, float]:
     less the path loss at the reference distance (the least there is: nearer, the loss
     stays PL(d0)) plus the strongest shadowing (clipped at 4 sigma); walls only take."""
     radio: Any = config.channel.radio  # LogDistanceParams (refused otherwise)
-    strongest = radio.tx_power_dbm - radio.reference_loss_db + TRUNCATION_SIGMAS * radio.shadowing_sigma_db
+    strongest = radio.radio.received_dbm(radio.reference_loss_db - TRUNCATION_SIGMAS * radio.shadowing_sigma_db)
     return float(radio.sensitivity_dbm), float(strongest)
 
 

@@ -42,7 +42,7 @@ import simpy
 
 from netsim.compiled import load
 from netsim.events import EventBus, LinkDown, LinkUp, notify
-from netsim.geometry import near_pairs
+from netsim.geometry import link_ranges_m, near_pairs
 from netsim.links._kernels import PHASE_STATE
 from netsim.scheduling import FIRST, LAST, advance_clock, kernel_queue, scheduled_event
 from netsim.state import RobotState
@@ -202,7 +202,7 @@ class RuntimeLinks:
         keys = np.sort(np.minimum(pairs[:, 0], pairs[:, 1]) * n + np.maximum(pairs[:, 0], pairs[:, 1]))
         ca, cb = np.divmod(keys, n) if n else (keys, keys)
         self._ca, self._cb = ca, cb
-        self._cr = np.minimum(self.ranges[ca], self.ranges[cb])
+        self._cr = link_ranges_m(self.ranges, ca, cb)
         m = len(ca)
         self._csr_ready = False
         self._gen = np.zeros(m, np.int64)
@@ -276,7 +276,7 @@ class RuntimeLinks:
         if len(old):
             a = np.r_[a, old // n]
             b = np.r_[b, old % n]
-        inside = self._solver.in_range(pos, a, b, np.minimum(self.ranges[a], self.ranges[b]), self.box or 0.0)
+        inside = self._solver.in_range(pos, a, b, link_ranges_m(self.ranges, a, b), self.box or 0.0)
         self._push(np.full(int(inside.sum()), t), a[inside], b[inside], 1, PHASE_STATE)
         self._push(np.full(int((~inside).sum()), t), a[~inside], b[~inside], -1, PHASE_STATE)
 

@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.geometry import near_pairs, speeds_mps, wrap
+from netsim.geometry import link_ranges_m, near_pairs, speeds_mps, wrap
 from netsim.links._kernels import PHASE_STATE
 from netsim.trajectory import LegTable
 
@@ -136,7 +136,7 @@ def link_events(
             i, j = pairs[:, 0], pairs[:, 1]
             swap = i > j
             i, j = np.where(swap, j, i), np.where(swap, i, j)
-            radius = np.minimum(ranges[i], ranges[j])
+            radius = link_ranges_m(ranges, i, j)
             if first:
                 up = kernels.in_range(pos, i, j, radius, box or 0.0)
                 emit(np.zeros(int(up.sum())), i[up], j[up], 1, PHASE_STATE)
@@ -191,7 +191,7 @@ def _jump_state(
     a, b = np.r_[a1, a2], np.r_[b1, b2]
     keep = a != b
     a, b = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
-    up = kernels.in_range(pos, a, b, np.minimum(ranges[a], ranges[b]), box or 0.0)
+    up = kernels.in_range(pos, a, b, link_ranges_m(ranges, a, b), box or 0.0)
     emit(np.full(int(up.sum()), t), a[up], b[up], 1, PHASE_STATE)
     emit(np.full(int((~up).sum()), t), a[~up], b[~up], -1, PHASE_STATE)
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from netsim.geometry import link_ranges_m
 from netsim.links.lifetimes import COLUMNS, link_lifetimes
 from netsim.links.wall_sweeps import Stretches, count_below, envelope_radii, map_radio
 from netsim.trajectory import LegTable
@@ -167,7 +168,7 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     e = np.where(np.r_[iv[1:] == iv[:-1], False], np.r_[u[1:], 0.0], t1[iv])
     a, b = a_env[iv], b_env[iv]
     la, lb = L.legs_at(a, u), L.legs_at(b, u)
-    s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], np.minimum(radii[a], radii[b]), n)
+    s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], link_ranges_m(radii, a, b), n)
     rows = np.arange(len(s))
     k1 = np.minimum(np.maximum(count_below(u, s.h, e), 1.0), s.nc)
     row, t_chg, up_chg, s0, _ = s.take(map_radio(reception), rows, np.zeros(len(s)), k1, None)

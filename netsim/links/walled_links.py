@@ -37,6 +37,7 @@ import numpy as np
 import simpy
 
 from netsim.events import EventBus, LinkDown, LinkUp, notify
+from netsim.geometry import link_ranges_m
 from netsim.links.kinetic import RuntimeLinks, up_pairs
 from netsim.links.wall_sweeps import CHUNK_M, Stretches, count_below, envelope_radii, map_radio
 from netsim.radio.reception import Reception
@@ -210,7 +211,7 @@ class WalledLinks:
         st = self.state
         a, b = self._stretch.a[slots], self._stretch.b[slots]
         o, v, t0 = st.origin_m, st.velocity_mps, st.t0_s
-        new = Stretches(a, b, u, o[a], v[a], t0[a], o[b], v[b], t0[b], np.minimum(self.radii[a], self.radii[b]), self.n)
+        new = Stretches(a, b, u, o[a], v[a], t0[a], o[b], v[b], t0[b], link_ranges_m(self.radii, a, b), self.n)
         self._stretch.put(slots, new)
         for s in slots.tolist():
             self._gen[s] += 1

@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import Motion, position, reaches, shadow_correlation, travel
+from netsim._kernels import Motion, pair_travel, position, reaches, shadow_correlation
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -99,13 +99,29 @@ class Robots(NamedTuple):
     velocity_mps: np.ndarray
 
 
+@jit(nogil=True, inline="always")
+def dense_slot(i, j, dense_n):
+    """The slot of the pair ``(i, j)``, ``i < j``, in a table that lists every pair of
+    ``dense_n`` robots, lower id major."""
+    return i * dense_n - (i * (i + 1)) // 2 + (j - i - 1)
+
+
+@jit(nogil=True)
+def dense_keys(dense_n, out):
+    """Every pair's key (:func:`pair_key`) of ``dense_n`` robots, each at its
+    :func:`dense_slot`, into ``out``."""
+    for i in range(dense_n):
+        for j in range(i + 1, dense_n):
+            out[dense_slot(i, j, dense_n)] = pair_key(i, j)
+
+
 @jit(nogil=True)
 def slot(table_keys, dense_n, key):
     """Where ``key`` is (or would go) in the table: computed when every pair of ``dense_n``
     robots has its slot (keys in ascending order, lower id major), else a binary search."""
     if dense_n > 0:
         i, j = pair_of(key)
-        return i * dense_n - (i * (i + 1)) // 2 + (j - i - 1)
+        return dense_slot(i, j, dense_n)
     return np.searchsorted(table_keys, key)
 
 
@@ -203,6 +219,14 @@ def received_dbm(tx_dbm, loss_db):
     """The power a frame arrives with, ``P_t - loss`` (dBm): one expression for a number
     or an array of them (:meth:`netsim.radio.chain.Radio.received_dbm` calls it too)."""
     return tx_dbm - loss_db
+
+
+@jit(nogil=True)
+def shadowing_of(tx_dbm, path_loss_db, received_dbm):
+    """The shadowing a frame had that arrived with ``received_dbm`` after ``path_loss_db``:
+    :func:`received_dbm`'s law solved for it, ``P_t - PL - P_r`` (dB). One expression for a
+    number or an array."""
+    return tx_dbm - path_loss_db - received_dbm
 
 
 @jit(nogil=True)
@@ -428,10 +452,9 @@ def pair_clock(sender, receivers, odometer, speed, t0, t, step_m, keys, s_new):
     :func:`netsim._kernels.travel` summed, ``speed`` the state's ``speed_mps``), floored to
     a multiple of ``step_m`` when ``step_m`` > 0
     (:meth:`~netsim.radio.shadowing.PairShadowing.anchor`)."""
-    own = travel(odometer, speed, t0, sender, t)
     for m in range(receivers.shape[0]):
         r = receivers[m]
-        s_new[m] = anchored(travel(odometer, speed, t0, r, t) + own, step_m)
+        s_new[m] = anchored(pair_travel(odometer, speed, t0, sender, r, t), step_m)
         keys[m] = pair_key(sender, r)
 
 

@@ -62,6 +62,15 @@ class Radio(NamedTuple):
         """``P_r = P_t - loss`` (:func:`netsim.radio._kernels.received_dbm`)."""
         return laws(np.size(loss_db)).received_dbm(self.tx_power_dbm, loss_db)
 
+    def shadowing_db(self, path_loss_db, received_dbm):
+        """The shadowing of a frame received at ``received_dbm`` after ``path_loss_db``:
+        ``P_t - PL - P_r`` (:func:`netsim.radio._kernels.shadowing_of`).
+
+        >>> Radio(20.0, -80.0).shadowing_db(np.array([90.0]), np.array([-72.0])).tolist()
+        [2.0]
+        """
+        return laws(np.size(received_dbm)).shadowing_of(self.tx_power_dbm, path_loss_db, received_dbm)
+
     def hears(self, loss_db):
         """Whether a frame after ``loss_db`` arrives at or above the sensitivity: the decision
         of a frame's compiled pass (:func:`netsim.radio._kernels.heard`)."""

@@ -276,6 +276,6 @@ class GenericChain:
         k = len(receivers)
         a = np.full(k, sender, dtype=np.int64)
         pos_a = np.broadcast_to(state.positions_at(t, [sender]), (k, 2))
-        travel = state.travelled_m(t, receivers) + float(state.travelled_m(t, [sender])[0])
+        travel = state.pair_travelled_m(t, a, receivers)
         pairs = Pairs(a, receivers, pos_a, state.positions_at(t, receivers), distances_m, travel, state.n)
         return self.propagation.receivable(pairs)

@@ -150,8 +150,8 @@ class PairShadowing:
         # Robots whose pairs all have slots (their place then computed, not searched); 0: none.
         self.dense_n = int(n_robots or 0) if self.dense else 0
         if self.dense:
-            i, j = np.triu_indices(self.dense_n, 1)
-            self._keys = pair_keys(i, j, n_robots)  # ascending: i major, j minor
+            self._keys = np.empty(self.dense_n * (self.dense_n - 1) // 2, np.int64)
+            kernels.dense_keys(self.dense_n, self._keys)  # ascending: lower id major
             self._x = np.full(len(self._keys), np.nan)
             self._s = np.zeros(len(self._keys))
         self.draws = 0

@@ -43,6 +43,28 @@ def cell_index(u, size):
     return min(np.int64(np.floor(u)), size - 1)
 
 
+@jit(nogil=True, inline="always")
+def clamped(k, size):
+    """Index ``k`` moved onto an axis of ``size`` cells: into ``0 .. size - 1``."""
+    return min(max(k, 0), size - 1)
+
+
+@jit(nogil=True)
+def clamped_cell(u, size):
+    """The cell of a grid coordinate on an axis of ``size`` cells, a coordinate off the grid
+    in the nearest cell at its edge."""
+    return clamped(np.int64(np.floor(u)), size)
+
+
+@jit(nogil=True)
+def clamped_cells(u, v, h, w, i, j):
+    """:func:`clamped_cell` of every point's grid coordinates ``(u, v)`` on a map of ``h``
+    rows and ``w`` columns: its column into ``i`` and row into ``j``."""
+    for k in range(u.shape[0]):
+        i[k] = clamped_cell(u[k], w)
+        j[k] = clamped_cell(v[k], h)
+
+
 @jit(nogil=True)
 def free_at(free_flat, h, w, u, v):
     """Whether grid coordinates ``(u, v)`` lie on the map in a free cell."""
@@ -64,8 +86,8 @@ def map_cells(free_flat, h, w, u, v, on, free, i, j):
 
 @jit(nogil=True)
 def cell(flat, w, half, pc, sc, p_max, s_max):
-    pc = min(max(pc, 0), p_max)
-    sc = min(max(sc, 0), s_max)
+    pc = clamped(pc, p_max + 1)
+    sc = clamped(sc, s_max + 1)
     return flat[pc * w + sc] if half == 1 else flat[sc * w + pc]
 
 
@@ -83,8 +105,8 @@ def trace_one(cells, u0, v0, u1, v1, eps, limit):
     Stops as soon as the count exceeds ``limit`` (it only grows): enough to decide a link.
     """
     flat, h, w = cells
-    i0 = min(max(np.int64(np.floor(u0)), 0), w - 1)
-    j0 = min(max(np.int64(np.floor(v0)), 0), h - 1)
+    i0 = clamped_cell(u0, w)
+    j0 = clamped_cell(v0, h)
     count = 0
     ft = np.inf
     if flat[j0 * w + i0]:

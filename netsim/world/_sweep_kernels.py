@@ -18,7 +18,7 @@ import numpy as np
 
 from netsim._kernels import disk_crossing_times, grown, reaches
 from netsim.compiled import jit
-from netsim.world._kernels import on_grid, walls_one
+from netsim.world._kernels import clamped, on_grid, walls_one
 
 # Where a vertex lies on the segment's line for every t (both factors of the cross product
 # vanish): relative to the size of each coefficient.
@@ -52,9 +52,7 @@ def _push(buf, n, t):
 @jit(nogil=True)
 def _cell(cells, i, j):
     flat, h, w = cells
-    i = min(max(i, 0), w - 1)
-    j = min(max(j, 0), h - 1)
-    return flat[j * w + i]
+    return flat[clamped(j, h) * w + clamped(i, w)]
 
 
 @jit(nogil=True)

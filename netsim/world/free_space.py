@@ -37,6 +37,7 @@ import numpy as np
 
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
+from netsim.geometry import cell_centres_m
 from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, kernels_for, line_of_sight
 from netsim.world.maps import MAP_KEY, OccupancyMap, grid_coords
 
@@ -353,8 +354,8 @@ def nearest_free_cells(free, origin_m, cell_m: float, points_m, radius_cells: in
             inside = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
             ok = inside.copy()
             ok[inside] = free[cy[inside], cx[inside]]
-            centre_x = origin_m[0] + (cx + 0.5) * cell_m
-            centre_y = origin_m[1] + (cy + 0.5) * cell_m
+            centre_x = cell_centres_m(origin_m[0], cell_m, cx)
+            centre_y = cell_centres_m(origin_m[1], cell_m, cy)
             d = np.hypot(centre_x - p[:, 0], centre_y - p[:, 1])
             better = ok & (d < best)
             best[better] = d[better]
@@ -370,14 +371,20 @@ def wall_forces(m: OccupancyMap, field: ObstacleField, positions_m, margin_m: fl
     A point whose own cell is not free (on a wall's lower or left face) is read from the
     free cell nearest it (:func:`nearest_free_cells`), so it feels the strongest push, not
     none."""
-    i, j = m.cells(positions_m)
-    h, w = m.shape
-    i, j = np.clip(i, 0, w - 1), np.clip(j, 0, h - 1)
+    i, j = m.nearest_cells(positions_m)
     inside = np.flatnonzero(~m.free[j, i])
     if len(inside):
         fi, fj = nearest_free_cells(m.free, m.origin_m, m.resolution_m, np.asarray(positions_m, float)[inside], 1)
         found = fi >= 0
         i[inside[found]], j[inside[found]] = fi[found], fj[found]
-    d = field.distance_m[j, i]
-    push = np.where(d < margin_m, gain * (margin_m - d), 0.0)
-    return push[:, None] * field.away[j, i]
+    return edge_push(field.distance_m[j, i], margin_m, gain)[:, None] * field.away[j, i]
+
+
+def edge_push(d_m, margin_m: float, gain: float) -> np.ndarray:
+    """The push (m) away from an edge (a wall, the area's border) on a robot ``d_m`` from
+    it: ``gain (margin - d)`` within the margin, none beyond.
+
+    >>> edge_push(np.array([0.0, 5.0, 20.0]), 10.0, 2.0).tolist()
+    [20.0, 10.0, 0.0]
+    """
+    return gain * np.maximum(margin_m - np.asarray(d_m, dtype=float), 0.0)

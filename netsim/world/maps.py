@@ -48,6 +48,7 @@ import numpy as np
 from netsim.area import KEY as BOUNDS_KEY
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
+from netsim.geometry import cell_centres_m
 from netsim.world.los import kernels_for
 
 MAP_KEY = "world.map"
@@ -108,6 +109,15 @@ class OccupancyMap:
         _, _, i, j = self._where(points_m)
         return i, j
 
+    def nearest_cells(self, points_m) -> tuple[np.ndarray, np.ndarray]:
+        """Column ``i`` and row ``j`` of the cell of each point, a point off the map in the
+        nearest cell at its edge (:func:`netsim.world._kernels.clamped_cell`)."""
+        u, v = self.to_grid(points_m)
+        i, j = np.empty(len(u), np.int64), np.empty(len(u), np.int64)
+        h, w = self.shape
+        kernels_for("netsim.world._kernels").clamped_cells(u, v, h, w, i, j)
+        return i, j
+
     def contains(self, points_m) -> np.ndarray:
         """Whether each point lies on the map (its closed extent)."""
         return self._where(points_m)[0]
@@ -120,7 +130,7 @@ class OccupancyMap:
         """World ``x`` of every column's centre and ``y`` of every row's centre."""
         h, w = self.shape
         r = self.resolution_m
-        return self.origin_m[0] + (np.arange(w) + 0.5) * r, self.origin_m[1] + (np.arange(h) + 0.5) * r
+        return cell_centres_m(self.origin_m[0], r, np.arange(w)), cell_centres_m(self.origin_m[1], r, np.arange(h))
 
     def check_area(self, area: float | Bounds, bounds_given: bool = False) -> None:
         """Refuse a map that does not cover the area (``Bounds``, or the side of the square
