@@ -338,8 +338,9 @@ def wished_velocities(
     """``gain x (resultant + border push)`` for each leader, from the neighbour positions it
     knows (:func:`spreading_forces` over the leaders)."""
     # Every law is zero from 2 r_c on, so farther leaders need no filtering here.
-    target = np.repeat(np.arange(len(leaders)), [len(nb) for nb in neighbours]).astype(np.int64)
-    source_xy = np.concatenate([np.reshape(nb, (-1, 2)) for nb in neighbours]) if neighbours else np.zeros((0, 2))
+    rows = [np.reshape(np.asarray(nb, dtype=float), (-1, 2)) for nb in neighbours]
+    target = np.repeat(np.arange(len(leaders), dtype=np.int64), [len(r) for r in rows])
+    source_xy = np.concatenate(rows) if rows else np.zeros((0, 2))
     return spreading_forces(pos_now[leaders], target, source_xy, law_name, range_m, gain, area)
 
 

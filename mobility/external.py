@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import simpy
 
-from netsim.cosim import time_to_border
+from netsim.area import time_to_border
 from netsim.params import NoParams
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec

@@ -24,7 +24,7 @@ from enum import StrEnum
 import numpy as np
 
 from netsim.area import Bounds, as_bounds
-from netsim.world.free_space import edge_push
+from netsim.geometry import inside_margin_m
 
 SQRT3 = math.sqrt(3.0)
 # The expansion's cap, as a fraction of r_c: half the border's strongest push, so that the
@@ -106,4 +106,4 @@ def border_forces(p: np.ndarray, area: float | Bounds, range_m: float, gain: flo
     b = as_bounds(area)
     margin = SQRT3 * range_m / 2
     p = np.asarray(p, dtype=float).reshape(-1, 2)
-    return edge_push(p - b.lo, margin, gain) - edge_push(b.hi - p, margin, gain)
+    return gain * (inside_margin_m(p - b.lo, margin) - inside_margin_m(b.hi - p, margin))

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import simpy
 
-from netsim.area import Bounds, as_bounds
+from netsim.area import Bounds, as_bounds, exit_times
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive, probability
 from netsim.placement import initial_positions
@@ -67,12 +67,7 @@ def _clamped_legs(
     legs = [(0.0, v.copy())]
     t, here, vel = 0.0, p.copy(), v.copy()
     while True:
-        hit = math.inf
-        for k in range(2):
-            if vel[k] > 0:
-                hit = min(hit, (hi[k] - here[k]) / vel[k])
-            elif vel[k] < 0:
-                hit = min(hit, -(here[k] - lo[k]) / vel[k])
+        hit = float(exit_times(here[None], vel[None], area.lo, area.hi)[0])
         if t + hit >= duration_s:
             return legs
         t += hit

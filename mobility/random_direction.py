@@ -21,7 +21,7 @@ import numpy as np
 import simpy
 from netsim.mobility.speeds import SpeedParams
 
-from netsim.area import Bounds, exit_times
+from netsim.area import Bounds, time_to_border
 from netsim.errors import ConfigError
 from netsim.params import param, positive
 from netsim.placement import initial_positions
@@ -44,10 +44,6 @@ class RandomDirectionParams(SpeedParams):
 def check(params: RandomDirectionParams, config) -> None:
     if params.speed_max_mps <= 0:
         raise ConfigError("mobility.speed_max_mps", params.speed_max_mps, "must be > 0 for random direction")
-
-
-def _time_to_border(p: np.ndarray, v: np.ndarray, area: Bounds) -> float:
-    return max(0.0, float(exit_times(p[None], v[None], area.lo, area.hi)[0]))
 
 
 def _inward_heading(rng, p: np.ndarray, area: Bounds) -> np.ndarray:
@@ -83,14 +79,14 @@ def direction_robot(
             cause = "turn"
             continue
         v = speed * _inward_heading(rng, here, area)
-        travel = _time_to_border(here, v, area)
+        travel = float(time_to_border(here[None], v[None], area)[0])
         if occupancy is not None and speed > 0 and not math.isinf(travel):
             for _ in range(_HEADING_TRIES):
                 f = float(free_fraction(occupancy, here[None], (here + v * travel)[None])[0])
                 if f * travel * speed > _MIN_LEG_M:
                     break
                 v = speed * _inward_heading(rng, here, area)
-                travel = _time_to_border(here, v, area)
+                travel = float(time_to_border(here[None], v[None], area)[0])
             else:
                 f = 0.0
             travel *= f

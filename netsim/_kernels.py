@@ -99,9 +99,15 @@ def pair_travel(odometer_m, speed_mps, t0_s, a, b, t):
 
 @jit(nogil=True)
 def pair_travels(odometer_m, speed_mps, t0_s, a, b, t, out):
-    """:func:`pair_travel` of each pair ``(a[m], b[m])`` at ``t`` into ``out``."""
+    """:func:`pair_travel` of each pair ``(a[m], b[m])`` at ``t`` into ``out``
+    (:meth:`netsim.state.RobotState.pair_travelled_m`). Returns the first ``m`` whose pair
+    names no robot (-1: none); nothing is written from there."""
+    n = t0_s.shape[0]
     for m in range(a.shape[0]):
+        if a[m] < -n or a[m] >= n or b[m] < -n or b[m] >= n:
+            return m
         out[m] = pair_travel(odometer_m, speed_mps, t0_s, a[m], b[m], t)
+    return -1
 
 
 @jit(nogil=True)
@@ -234,6 +240,8 @@ def all_set(mask, ids):
 
 @jit(nogil=True)
 def _cell_of(v, lo, size, cells):
+    # The map's clamped_cell in effect (below the grid is cell 0 either way), kept here: a
+    # map kernel imported into this module would compile in every run that has no map.
     c = int((v - lo) / size)
     return min(max(c, 0), cells - 1)
 
@@ -801,7 +809,7 @@ def component_count(n, a, b):
 def cell_centre(k, h_m):
     """Where cell ``k`` of a row of cells of size ``h_m`` has its centre, from the row's
     start: the grid's one rule of where a cell is (:func:`grid_nearest_m`,
-    :func:`grid_centres`)."""
+    :func:`cell_centres`)."""
     return (k + 0.5) * h_m
 
 
@@ -811,19 +819,6 @@ def cell_centres(x0_m, h_m, k, out):
     centres of cells ``k`` of a row of cells of size ``h_m`` starting at ``x0_m``."""
     for m in range(k.shape[0]):
         out[m] = x0_m + cell_centre(k[m], h_m)
-
-
-@jit(nogil=True)
-def grid_centres(x0_m, y0_m, width_m, height_m, cells, gx, gy):
-    """The centres of the ``cells x cells`` grid of the rectangle ``[x0, x0 + width] x [y0,
-    y0 + height]`` into ``gx``, ``gy`` (``[row, col]``: row along y), as
-    :func:`grid_nearest_m` measures from them."""
-    hx = width_m / cells
-    hy = height_m / cells
-    for row in range(cells):
-        for col in range(cells):
-            gx[row, col] = x0_m + cell_centre(col, hx)
-            gy[row, col] = y0_m + cell_centre(row, hy)
 
 
 @jit(nogil=True)

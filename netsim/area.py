@@ -124,7 +124,21 @@ def exit_times(p: np.ndarray, v: np.ndarray, lo: Any, hi: Any) -> np.ndarray:
     with np.errstate(over="ignore"):
         np.divide(np.subtract(hi, p), v, out=t, where=v > 0)
         np.divide(-np.subtract(p, lo), v, out=t, where=v < 0)
-    return t.min(axis=1)
+    # + 0: a robot on the border, moving out, leaves at time +0, never -0, whose sign a
+    # step scaled by it would carry into the tables.
+    return t.min(axis=1) + 0.0
+
+
+def time_to_border(p: np.ndarray, v: np.ndarray, area: float | Bounds) -> np.ndarray:
+    """Time for each robot at ``p`` (k, 2) moving at ``v`` (k, 2) to reach the border of the
+    area (Bounds, or the side of the square ``[0, side]^2``; ``inf`` at rest; 0 when on the
+    border and heading out).
+
+    >>> time_to_border(np.array([[1.0, 5.0]]), np.array([[-0.5, 0.0]]), 10.0).tolist()
+    [2.0]
+    """
+    b = as_bounds(area)
+    return np.maximum(exit_times(p, v, b.lo, b.hi), 0.0)
 
 
 def parse_bounds(key: str, value: Any) -> tuple[float, float, float, float] | str:

@@ -22,7 +22,6 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from netsim.area import Bounds, as_bounds, exit_times
 from netsim.errors import NetsimInputError
 
 
@@ -144,15 +143,3 @@ def velocities(velocities_mps: Any, k: int) -> np.ndarray:
         row = int(np.flatnonzero(fast)[0])
         raise CommandError(f"velocities_mps[{row}] = {v[row].tolist()}: faster than light ({SPEED_OF_LIGHT_MPS:g} m/s)")
     return v
-
-
-def time_to_border(p: np.ndarray, v: np.ndarray, area: float | Bounds) -> np.ndarray:
-    """Time for each robot at ``p`` (k, 2) moving at ``v`` (k, 2) to reach the border of the
-    area (Bounds, or the side of the square ``[0, side]^2``; ``inf`` at rest; 0 when on the
-    border and heading out).
-
-    >>> time_to_border(np.array([[1.0, 5.0]]), np.array([[-0.5, 0.0]]), 10.0).tolist()
-    [2.0]
-    """
-    b = as_bounds(area)
-    return np.maximum(exit_times(p, v, b.lo, b.hi), 0.0)

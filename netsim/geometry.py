@@ -57,6 +57,17 @@ def cell_centres_m(x0_m: float, h_m: float, k: np.ndarray) -> np.ndarray:
     return out
 
 
+def inside_margin_m(d_m: np.ndarray, margin_m: float) -> np.ndarray:
+    """How far inside a margin of ``margin_m`` about an edge (a wall, the area's border) a
+    robot ``d_m`` from it stands: ``margin - d`` within it, 0 beyond. The edges push with
+    ``gain`` times it.
+
+    >>> inside_margin_m(np.array([0.0, 5.0, 20.0]), 10.0).tolist()
+    [10.0, 5.0, 0.0]
+    """
+    return np.maximum(margin_m - np.asarray(d_m, dtype=float), 0.0)
+
+
 def speeds_mps(velocity_mps: np.ndarray) -> np.ndarray:
     """The speed of each row ``(vx, vy)``: numpy's ``abs`` of ``vx + i vy``, the one law of a
     robot's speed (its odometer and the shadowing's clock run on it, the local plan bounds

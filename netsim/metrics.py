@@ -26,6 +26,7 @@ import numpy.typing as npt
 
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
+from netsim.geometry import cell_centres_m
 from netsim.topology import geometric_pairs
 
 # Mean distance between two uniform points of the unit square (docs/validation.md item 2):
@@ -209,19 +210,21 @@ def covered_fraction(
     centres = np.asarray(centres_m, dtype=float).reshape(-1, 2)
     b = as_bounds(area)
     side_m = b.width
-    kernels = load("netsim._kernels", n_robots)
-    gx, gy = np.empty((cells, cells)), np.empty((cells, cells))
-    kernels.grid_centres(b.x_min, b.y_min, b.width, b.height, cells, gx, gy)
-    half_diagonal = 0.5 * math.hypot(b.width / cells, b.height / cells)
+    hx, hy = b.width / cells, b.height / cells
+    # h / sqrt(2) for square cells, to the last bit the bound the runs' tables carry.
+    half_diagonal = hx / math.sqrt(2) if hx == hy else 0.5 * math.hypot(hx, hy)
     inside = slice(None)
     edge = np.zeros(cells * cells, dtype=bool)
     if region is not None:
         import shapely
 
+        axes = (cell_centres_m(b.x_min, hx, np.arange(cells)), cell_centres_m(b.y_min, hy, np.arange(cells)))
+        gx, gy = np.meshgrid(*axes)
         inside = shapely.contains_xy(region, gx.ravel(), gy.ravel())
         edge = shapely.dwithin(region.boundary, shapely.points(gx.ravel()[inside], gy.ravel()[inside]), half_diagonal)
     if len(centres) == 0 or len(edge) == 0:
         return 0.0, float(np.mean(edge)) if len(edge) else 0.0
+    kernels = load("netsim._kernels", n_robots)
     box = side_m if torus else 0.0
     dist = kernels.grid_nearest_m(
         centres, radius_m + half_diagonal, b.x_min, b.y_min, b.width, b.height, cells, box, False

@@ -187,10 +187,17 @@ class RobotState:
         """Each pair's travel at ``t`` (``t`` on the robots' current legs): the two robots'
         :meth:`travelled_m` summed (:func:`netsim._kernels.pair_travel`), the clock a pair's
         shadowing runs on."""
-        a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
-        out = np.empty(len(a))
+        (a, _), (b, _) = self._rows(a), self._rows(b)
+        if a.shape != b.shape:
+            raise ValueError(f"pairs need as many first robots as second ones, got {a.shape} and {b.shape}")
+        out = np.empty(a.size)
         kernels = self._core or self._load_core()
-        kernels.pair_travels(self.odometer_m, self.speed_mps, self.t0_s, a, b, float(t), out)
+        bad = kernels.pair_travels(
+            self.odometer_m, self.speed_mps, self.t0_s, a.reshape(-1), b.reshape(-1), float(t), out
+        )
+        if bad >= 0:
+            pair = (int(a.reshape(-1)[bad]), int(b.reshape(-1)[bad]))
+            raise IndexError(f"robot pair {pair} out of range for {self.n} robots")
         return out
 
     def _log_travel(self, i: int, t: float) -> None:

@@ -443,3 +443,16 @@ def test_replay_data_carries_the_bounds(tmp_path):
     sets = [f"world.bounds_m={RECT}", "world.n_robots=4", "duration_s=10"]
     assert main(["run", "--quiet", "--out", str(out), *(a for s in sets for a in ("--set", s))]) == 0
     assert pack(out)["meta"]["bounds_m"] == RECT
+
+
+def test_a_robot_on_the_border_moving_out_leaves_at_plus_zero():
+    """The time to leave a box is +0 for a robot on its border heading out, -0 coordinate
+    included: a step scaled by it must not carry a negative zero into the tables."""
+    from netsim.area import exit_times, time_to_border
+
+    p = np.array([[-0.0, 5.0], [0.0, 5.0], [10.0, 5.0]])
+    v = np.array([[-1.0, 0.0], [-2.0, 0.0], [3.0, 0.0]])
+    t = exit_times(p, v, (0.0, 0.0), (10.0, 10.0))
+    assert t.tolist() == [0.0, 0.0, 0.0] and not np.signbit(t).any()
+    assert not np.signbit(time_to_border(p, v, 10.0)).any()
+    assert exit_times(np.array([[5.0, 5.0]]), np.zeros((1, 2)), (0.0, 0.0), (10.0, 10.0)).tolist() == [math.inf]

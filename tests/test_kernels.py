@@ -97,6 +97,23 @@ def test_a_position_on_a_torus_has_one_representation(monkeypatch, compiled):
     assert in_box(st.origin_m, 10.0).tolist() == [[0.0, 5.0], [3.0, 0.0]]
 
 
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_a_pairs_travel_is_its_two_robots_travel_summed(monkeypatch, compiled):
+    """The shadowing's clock of a pair is the sum of its robots' path lengths, in either
+    order, bit for bit; a pair that names no robot is refused, not read out of bounds."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    rng = np.random.default_rng(7)
+    st = _moving_state(rng, 12, 300.0, False)
+    st.set_legs(np.arange(12), 3.0, rng.uniform(-8, 8, (12, 2)))
+    a, b = rng.integers(0, 12, 40), rng.integers(0, 12, 40)
+    each = st.travelled_m(9.5, slice(None))
+    pair = st.pair_travelled_m(9.5, a, b)
+    assert pair.tobytes() == (each[a] + each[b]).tobytes()
+    assert pair.tobytes() == st.pair_travelled_m(9.5, b, a).tobytes()
+    with pytest.raises(IndexError, match=r"\(3, 12\) out of range for 12 robots"):
+        st.pair_travelled_m(9.5, [0, 3], [1, 12])
+
+
 def test_the_odometer_is_the_sum_of_each_legs_travel():
     """A robot's path length is the sum over its legs of ``|v|`` times the leg's time, with
     the one ``|v|`` the shadowing's clock takes (numpy's complex abs), whichever way its legs

@@ -117,6 +117,21 @@ def test_wall_forces_push_a_point_on_the_wall_face():
     assert i.tolist() == [19, 21, 6] and j.tolist() == [16, 4, 6]
 
 
+def test_wall_forces_read_a_point_off_the_map_from_the_nearest_cell_at_its_edge():
+    """A point beyond any edge of the map (below and left of its origin too) feels the push
+    of the map's cell nearest it, the same as a point just inside that cell."""
+    m = _rooms()
+    field = obstacle_field(m)
+    x_max, y_max = m.shape[1] * m.resolution_m, m.shape[0] * m.resolution_m
+    off = [[-3.0, 2.5], [x_max + 3.0, 8.0], [9.6, -3.0], [10.9, y_max + 3.0], [-1.0, -1.0]]
+    inside = [[0.1, 2.5], [x_max - 0.1, 8.0], [9.6, 0.1], [10.9, y_max - 0.1], [0.1, 0.1]]
+    i, j = m.nearest_cells(off)
+    assert i.tolist() == [0, m.shape[1] - 1, 19, 21, 0] and j.tolist() == [5, 16, 0, m.shape[0] - 1, 0]
+    f_off = wall_forces(m, field, off, 2.0, 1.0)
+    assert np.array_equal(f_off, wall_forces(m, field, inside, 2.0, 1.0))
+    assert f_off[0, 1] > 0 and f_off[2, 0] < 0 and f_off[3, 0] > 0  # pushed off the corner, the wall
+
+
 def test_clearance_field_is_distance_to_nearest_non_free_cell():
     m = _rooms()
     d = clearance_field_m(m)

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from netsim.geometry import cell_centres_m
 from netsim.world.maps import save_map
 
 RESOLUTION_M = 0.25
@@ -126,7 +127,7 @@ def cave() -> tuple[np.ndarray, np.ndarray]:
         dist, (jj, ii) = distance_transform_edt(~centre, return_indices=True)
         free |= dist * RESOLUTION_M < radius[jj, ii]
     # Two chambers at the galleries' ends.
-    yc, xc = (np.arange(n) + 0.5) * RESOLUTION_M, (np.arange(n) + 0.5) * RESOLUTION_M
+    yc = xc = cell_centres_m(0.0, RESOLUTION_M, np.arange(n))
     for (cx, cy), chamber_m in ((north[-1], 9.0), (south[-1], 7.0)):
         free |= (xc[None, :] - cx) ** 2 + (yc[:, None] - cy) ** 2 < chamber_m * chamber_m
     t = _px(0.5)

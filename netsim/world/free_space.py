@@ -37,7 +37,7 @@ import numpy as np
 
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
-from netsim.geometry import cell_centres_m
+from netsim.geometry import cell_centres_m, inside_margin_m
 from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, kernels_for, line_of_sight
 from netsim.world.maps import MAP_KEY, OccupancyMap, grid_coords
 
@@ -348,15 +348,17 @@ def nearest_free_cells(free, origin_m, cell_m: float, points_m, radius_cells: in
     out_x, out_y = np.full(len(p), -1), np.full(len(p), -1)
     best = np.full(len(p), np.inf)
     r = radius_cells
+    steps = np.arange(-r, r + 1)
+    # The centres of every column and row searched, (points, 2r + 1) each.
+    centres_x = cell_centres_m(origin_m[0], cell_m, x[:, None] + steps)
+    centres_y = cell_centres_m(origin_m[1], cell_m, y[:, None] + steps)
     for dy in range(-r, r + 1):
         for dx in range(-r, r + 1):
             cx, cy = x + dx, y + dy
             inside = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
             ok = inside.copy()
             ok[inside] = free[cy[inside], cx[inside]]
-            centre_x = cell_centres_m(origin_m[0], cell_m, cx)
-            centre_y = cell_centres_m(origin_m[1], cell_m, cy)
-            d = np.hypot(centre_x - p[:, 0], centre_y - p[:, 1])
+            d = np.hypot(centres_x[:, dx + r] - p[:, 0], centres_y[:, dy + r] - p[:, 1])
             better = ok & (d < best)
             best[better] = d[better]
             out_x[better], out_y[better] = cx[better], cy[better]
@@ -377,14 +379,5 @@ def wall_forces(m: OccupancyMap, field: ObstacleField, positions_m, margin_m: fl
         fi, fj = nearest_free_cells(m.free, m.origin_m, m.resolution_m, np.asarray(positions_m, float)[inside], 1)
         found = fi >= 0
         i[inside[found]], j[inside[found]] = fi[found], fj[found]
-    return edge_push(field.distance_m[j, i], margin_m, gain)[:, None] * field.away[j, i]
-
-
-def edge_push(d_m, margin_m: float, gain: float) -> np.ndarray:
-    """The push (m) away from an edge (a wall, the area's border) on a robot ``d_m`` from
-    it: ``gain (margin - d)`` within the margin, none beyond.
-
-    >>> edge_push(np.array([0.0, 5.0, 20.0]), 10.0, 2.0).tolist()
-    [20.0, 10.0, 0.0]
-    """
-    return gain * np.maximum(margin_m - np.asarray(d_m, dtype=float), 0.0)
+    push = gain * inside_margin_m(field.distance_m[j, i], margin_m)
+    return push[:, None] * field.away[j, i]
