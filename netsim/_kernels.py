@@ -91,10 +91,24 @@ def travels(odometer_m, speed_mps, t0_s, rows, t, out):
 
 
 @jit(nogil=True, inline="always")
-def pair_travel(odometer_m, speed_mps, t0_s, a, b, t):
-    """A pair's travel at ``t``: the :func:`travel` of its two robots summed, the clock its
+def pair_total(travel_a_m, travel_b_m):
+    """A pair's travel from its two robots' path lengths: their sum, the clock its
     shadowing runs on (``netsim.radio._kernels.pair_clock``)."""
-    return travel(odometer_m, speed_mps, t0_s, b, t) + travel(odometer_m, speed_mps, t0_s, a, t)
+    return travel_b_m + travel_a_m
+
+
+@jit(nogil=True)
+def pair_totals(travel_m, a, b, out):
+    """:func:`pair_total` of each pair ``(a[m], b[m])`` of robots whose path lengths are
+    ``travel_m``, into ``out``."""
+    for m in range(a.shape[0]):
+        out[m] = pair_total(travel_m[a[m]], travel_m[b[m]])
+
+
+@jit(nogil=True, inline="always")
+def pair_travel(odometer_m, speed_mps, t0_s, a, b, t):
+    """A pair's travel at ``t``: :func:`pair_total` of its two robots' :func:`travel`."""
+    return pair_total(travel(odometer_m, speed_mps, t0_s, a, t), travel(odometer_m, speed_mps, t0_s, b, t))
 
 
 @jit(nogil=True)

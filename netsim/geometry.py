@@ -43,6 +43,20 @@ def link_ranges_m(range_m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarr
     return out
 
 
+def pair_travels_m(travel_m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The travel of each pair ``(a[m], b[m])`` of robots whose path lengths are
+    ``travel_m``: their sum (:func:`netsim._kernels.pair_total`), the clock a pair's
+    shadowing runs on.
+
+    >>> pair_travels_m(np.array([1.0, 2.5, 4.0]), np.array([0, 2]), np.array([1, 1])).tolist()
+    [3.5, 6.5]
+    """
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    out = np.empty(len(a))
+    load("netsim._kernels", len(travel_m)).pair_totals(np.asarray(travel_m, float), a, b, out)
+    return out
+
+
 def cell_centres_m(x0_m: float, h_m: float, k: np.ndarray) -> np.ndarray:
     """The centres of cells ``k`` (any shape) of a row of cells of size ``h_m`` starting at
     ``x0_m``: ``x0 + (k + 1/2) h`` (:func:`netsim._kernels.cell_centre`, the grid's one

@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from netsim.compiled import load
+from netsim.geometry import pair_travels_m
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
 
 
@@ -129,7 +130,7 @@ class Pairs(NamedTuple):
         positions_m = np.asarray(positions_m, dtype=float)
         pa, pb = positions_m[a], positions_m[b]
         d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
-        travel = None if travel_m is None else np.asarray(travel_m, dtype=float)[a] + np.asarray(travel_m)[b]
+        travel = None if travel_m is None else pair_travels_m(travel_m, a, b)
         return cls(a, b, pa, pb, d, travel, len(positions_m))
 
     def team_size(self) -> int:

@@ -65,6 +65,7 @@ import numpy as np
 
 from netsim.compiled import load
 from netsim.errors import ConfigError
+from netsim.geometry import pair_travels_m
 from netsim.radio._kernels import Clocks, Drawn, Shadow, ShadowLaw
 
 # Shadowing is used clipped to +-4 sigma (its state is not: see PairShadowing), so that no
@@ -262,7 +263,7 @@ class PairShadowing:
             return 0
         odo = np.asarray(odometer_m, dtype=float)
         lo, hi = split_keys(self._keys, self.n_robots)
-        stale = odo[lo] + odo[hi] - self._s > horizon * self.decorrelation_m
+        stale = pair_travels_m(odo, lo, hi) - self._s > horizon * self.decorrelation_m
         stale &= ~np.isnan(self._x)
         if stale.any() and self.dense:
             self._x[stale] = np.nan
