@@ -349,7 +349,7 @@ def nearest_free_cells(free, origin_m, cell_m: float, points_m, radius_cells: in
     best = np.full(len(p), np.inf)
     r = radius_cells
     steps = np.arange(-r, r + 1)
-    # The centres of every column and row searched, (points, 2r + 1) each.
+    # Every column and row searched, their centres found once rather than at each offset.
     centres_x = cell_centres_m(origin_m[0], cell_m, x[:, None] + steps)
     centres_y = cell_centres_m(origin_m[1], cell_m, y[:, None] + steps)
     for dy in range(-r, r + 1):
