@@ -3,6 +3,8 @@ range index, the topology snapshots and the link solvers share."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from netsim.compiled import filled, load
@@ -30,6 +32,14 @@ def beyond(points_m: np.ndarray, centres_m: np.ndarray, radius_m: np.ndarray, n_
     return out.reshape(shape)
 
 
+def _per_pair(kernel: Callable[..., object], per_robot: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``kernel(per_robot, a, b, out)`` of a rule of a pair's two robots' values, ``out``
+    returned."""
+    out = np.empty(len(a))
+    kernel(np.asarray(per_robot, float), np.asarray(a, np.int64), np.asarray(b, np.int64), out)
+    return out
+
+
 def link_ranges_m(range_m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The range of each pair ``(a[m], b[m])`` of robots whose ranges are ``range_m``: the
     smaller of the two (:func:`netsim._kernels.link_range`).
@@ -37,10 +47,7 @@ def link_ranges_m(range_m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarr
     >>> link_ranges_m(np.array([30.0, 50.0, 40.0]), np.array([0, 1]), np.array([1, 2])).tolist()
     [30.0, 40.0]
     """
-    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
-    out = np.empty(len(a))
-    load("netsim._kernels", len(range_m)).link_ranges(np.asarray(range_m, float), a, b, out)
-    return out
+    return _per_pair(load("netsim._kernels", len(range_m)).link_ranges, range_m, a, b)
 
 
 def pair_travels_m(travel_m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -51,10 +58,7 @@ def pair_travels_m(travel_m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nda
     >>> pair_travels_m(np.array([1.0, 2.5, 4.0]), np.array([0, 2]), np.array([1, 1])).tolist()
     [3.5, 6.5]
     """
-    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
-    out = np.empty(len(a))
-    load("netsim._kernels", len(travel_m)).pair_totals(np.asarray(travel_m, float), a, b, out)
-    return out
+    return _per_pair(load("netsim._kernels", len(travel_m)).pair_totals, travel_m, a, b)
 
 
 def cell_centres_m(x0_m: float, h_m: float, k: np.ndarray) -> np.ndarray:

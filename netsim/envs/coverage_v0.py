@@ -158,13 +158,12 @@ class CoverageEnv(ParallelEnv):
                 "placement": p.placement,
                 "centre_side_m": min(p.centre_side_m, p.side_m),
             },
-            "channel": {},
+            "channel": {"range_m": p.range_m},
             "mobility": {"model": "external"},
             "protocol": {"model": "clustering", "ack_period_s": p.ack_period_s, "message_rate_hz": 0.0},
             # The protocol's tables are sampled at this interval: once an episode is enough.
             "output": {"position_interval_s": self.max_cycles * p.step_s},
         }
-        raw["channel"] = {"range_m": p.range_m}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", cfgmod.ConfigWarning)
             channel = cfgmod.from_dict(cfgmod.merge(raw, self.netsim)).channel
