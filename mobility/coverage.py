@@ -562,26 +562,38 @@ class CoverageController:
         pos_now = self.state.positions_at(now)
         # The leader whose decisions each robot carries out (-1: none).
         group = step.leader
-        if c.knowledge is Knowledge.GLOBAL:
-            target, source_xy = sources_true(pos_now, self.range_m)
-        else:
-            target, _, source_xy = self.view.neighbourhood(now)
-        target, source_xy = self._in_sight(pos_now, target, source_xy)
-        wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
-        wished += self._wall_push(pos_now)
         if c.expansion > 0 and self.grid is not None:
-            wished += expansion_to_uncovered(self.grid, pos_now, self.radius_m, self.range_m, c.gain)
-        elif c.expansion > 0:
-            a, b = self.link_state.up_pairs()
-            component = metrics.components_of_links(self.state.n, a, b)
-            centre = component_centres(pos_now, component)
-            wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
+            # On a map the expansion alone moves the team (docs/model.md 5.3): the pushes
+            # of the robots in sight, summed over a room's crowd, press it into the room's
+            # corners, and the walls' push, felt everywhere in an office and turning about
+            # at every corridor's and door's middle, throws robots from side to side of a
+            # door instead of through it.
+            wished = expansion_to_uncovered(self.grid, pos_now, self.radius_m, self.range_m, c.gain)
+        else:
+            wished = self._pushes(pos_now)
+            if c.expansion > 0:
+                a, b = self.link_state.up_pairs()
+                component = metrics.components_of_links(self.state.n, a, b)
+                centre = component_centres(pos_now, component)
+                wished += expansion_forces(pos_now, centre, c.expansion, self.range_m, c.gain)
         wished = self._slide(pos_now, wished)
         wished[group < 0] = 0.0
         speed = speeds_mps(wished)
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
         self._max_wish = float(speed[group >= 0].max()) if (group >= 0).any() else 0.0
+
+    def _pushes(self, pos_now: np.ndarray) -> np.ndarray:
+        """The global plan's pushes: of the robots each knows of (in sight, on a map) and
+        of the walls."""
+        c, now = self.cfg, self.env.now
+        if c.knowledge is Knowledge.GLOBAL:
+            target, source_xy = sources_true(pos_now, self.range_m)
+        else:
+            target, _, source_xy = self.view.neighbourhood(now)
+        target, source_xy = self._in_sight(pos_now, target, source_xy)
+        wished = spreading_forces(pos_now, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
+        return wished + self._wall_push(pos_now)
 
     def _propose_local(self, step: ControlStep) -> None:
         """Every robot's wish from its own position and the positions it heard."""

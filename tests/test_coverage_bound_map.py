@@ -106,3 +106,32 @@ def test_coverage_run_on_a_map_reports_fractions_and_bound_of_the_free_region(tm
     f, err = covered_fraction_exact(start, r, ROOM)
     assert abs(first["covered_fraction_all"] - f) <= err + first["covered_error_bound_all"]
     assert first["covered_of_bound_all"] == pytest.approx(first["covered_fraction_all"] / first["coverage_bound"])
+
+
+@pytest.mark.parametrize("expansion, moves", [(0.1, False), (0.0, True)])
+def test_on_a_map_the_global_plan_moves_by_the_expansion_alone(tmp_path, expansion, moves):
+    """On a map the global plan's wish is its expansion toward the free space not yet
+    covered, with no pushes of robots or walls (docs/model.md 5.3): a team that covers its
+    whole room from the start stays where it is. With the expansion off, the pushes move
+    it as in open space."""
+    from netsim.config import load
+    from netsim.run import execute
+
+    keys = [
+        f"world.map={rectangle_map(tmp_path)}",
+        "world.bounds_m=map",
+        "world.n_robots=5",
+        "world.placement=connected",
+        "world.start_m=[45.0, 25.0]",
+        "world.centre_side_m=10",
+        "channel.range_m=40",
+        "mobility.model=static",
+        "coverage.enabled=true",
+        "coverage.plan=global",
+        f"coverage.expansion={expansion}",
+        "protocol.message_rate_hz=0",
+        "duration_s=40",
+    ]
+    summary = execute(load(None, keys)).summary
+    assert summary["covered_of_bound_all_start"] == 1.0
+    assert (summary["distance_mean_m"] > 1.0) is moves
