@@ -46,11 +46,11 @@ The architecture (docs/model.md section 5)
   them up by the radio's rules (:mod:`netsim.mobility.keep`: the disk exactly; shadowing with a
   fade margin and a bound on travel; walls swept exactly over the step).
 - On a map (docs/model.md 5.3, :mod:`netsim.mobility.geodesic`) walls push as borders do,
-  robots push each other only in sight, wishes that run into a wall slide along it, and
-  with the global plan the expansion pushes every robot through free space toward the
-  nearest free cell no robot covers yet, the planned step slides too
-  before the exact cut, and the forest prefers the links that last over the wished step
-  (:func:`netsim.mobility.keep.prefer`).
+  robots push each other only in sight, and wishes that run into a wall slide along it.
+  The global plan moves there by its expansion alone, with neither push: every robot
+  down the distance through free space to the nearest free cell no robot covers yet; its
+  planned step slides too before the exact cut, and the forest prefers the links that
+  last over the wished step (:func:`netsim.mobility.keep.prefer`).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
   3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
@@ -61,7 +61,8 @@ The architecture (docs/model.md section 5)
   its leader.
 
 Stopping: in ``"spread"`` control ends once the covered fraction of ``min(1, U(N) / A)``
-(the coverage samples) has risen less than ``stop_gain`` over ``stop_hold_s``, or no robot
+(the coverage samples) has risen less than ``stop_gain`` over ``stop_hold_s`` (and, on a map,
+the global plan's robots came no nearer the free space not yet covered), or no robot
 has moved faster than ``stop_speed_mps`` for ``stop_hold_s``. (Under the Ack-based
 knowledge the net keeps creeping at a few centimetres per second long after it has
 stopped gaining area; a motion-only rule would not end.)
@@ -414,6 +415,9 @@ class CoverageController:
         self.steps: list[StepRecord] = []
         self._pending: StepRecord | None = None
         self.samples: list[dict] = []
+        # On a map, the global plan's steps: (t_s, the robots' mean distance through free
+        # space to the free space not yet covered), its expansion's own progress.
+        self.to_uncovered: list[tuple[float, float]] = []
         self.duration_s = float(parts.duration_s)
         self._max_wish = 0.0
         self.sample_at_start: dict | None = None
@@ -568,7 +572,10 @@ class CoverageController:
             # corners, and the walls' push, felt everywhere in an office and turning about
             # at every corridor's and door's middle, throws robots from side to side of a
             # door instead of through it.
-            wished = expansion_to_uncovered(self.grid, pos_now, self.radius_m, self.range_m, c.gain)
+            wished, to_uncovered_m = expansion_to_uncovered(self.grid, pos_now, self.radius_m, self.range_m, c.gain)
+            reached = to_uncovered_m[np.isfinite(to_uncovered_m)]
+            if len(reached):
+                self.to_uncovered.append((now, float(reached.mean())))
         else:
             wished = self._pushes(pos_now)
             if c.expansion > 0:
@@ -867,15 +874,26 @@ class CoverageController:
 
     def _coverage_stopping_rule(self) -> None:
         """Spread: control ends once the covered fraction of ``min(1, U(N) / A)`` has not
-        risen ``stop_gain`` above its value ``stop_hold_s`` ago (the team stopped spreading)."""
+        risen ``stop_gain`` above its value ``stop_hold_s`` ago (the team stopped spreading),
+        nor, on a map, the global plan's robots come nearer the free space not yet covered
+        (:meth:`_nearing_uncovered`)."""
         c, now = self.cfg, self.env.now
         loop = self.loop
         if loop.stopped or c.stop_gain <= 0 or now < c.start_s + c.hold_s - 1e-9:
             return
         window = [s["covered_of_bound_all"] for s in self.samples if s["t_s"] >= now - c.hold_s - 1e-9]
-        if len(window) > 1 and max(window[1:]) - window[0] < c.stop_gain:
+        if len(window) > 1 and max(window[1:]) - window[0] < c.stop_gain and not self._nearing_uncovered():
             self.settled_s = now
             loop.stop()
+
+    def _nearing_uncovered(self) -> bool:
+        """Whether the robots' mean distance through free space to the free space not yet
+        covered (what the expansion on a map descends) fell by more than ``stop_speed_mps
+        x stop_hold_s`` within the stopping rule's window: robots that file through a door
+        toward it raise the coverage only once they are through."""
+        c, now = self.cfg, self.env.now
+        window = [d for t, d in self.to_uncovered if t >= now - c.hold_s - 1e-9]
+        return len(window) > 1 and window[0] - min(window[1:]) > c.stop_speed_mps * c.hold_s
 
     # -- outputs -----------------------------------------------------------------------
     def coverage_frame(self) -> pd.DataFrame:

@@ -4,13 +4,13 @@ Straight-line pushes know nothing of doors: a robot pushed at a wall has its ste
 there and stays. On a map the plans therefore use three rules, from the map alone (the
 team's map is known to every robot):
 
-- **Pushes in sight** (:func:`in_sight`): two robots push each other only when the
-  straight segment between them is free. A push through a wall could only press a robot
-  against that wall (its step is cut there); robots that see each other push along the
-  free segment between them.
-- **Expansion toward free space not yet covered** (the global plan): every robot is
-  pushed down the distance *through free space* (:class:`FreeGrid`: shortest paths on the
-  map's free cells) to the nearest free cell that no robot covers. It leads robots out of a
+- **Pushes in sight** (:func:`in_sight`; the local plan, and the global plan with its
+  expansion off): two robots push each other only when the straight segment between them
+  is free. A push through a wall could only press a robot against that wall (its step is
+  cut there); robots that see each other push along the free segment between them.
+- **Expansion toward free space not yet covered** (the global plan, its only push on a
+  map): every robot is pushed down the distance *through free space* (:class:`FreeGrid`:
+  shortest paths on the map's free cells) to the nearest free cell that no robot covers. It leads robots out of a
   room through its door and along corridors to where coverage can still grow, where a push
   away from the team's centre would press them into the rooms' far corners (its dead ends).
 - **Sliding** (:func:`slide`): a wished step that would run into a wall is replaced by
@@ -158,14 +158,16 @@ def slide(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, rea
     return out
 
 
-def expansion_to_uncovered(grid: FreeGrid, pos: np.ndarray, radius_m: float, range_m: float, gain: float) -> np.ndarray:
+def expansion_to_uncovered(
+    grid: FreeGrid, pos: np.ndarray, radius_m: float, range_m: float, gain: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The expansion on a map (module notes): for every robot ``gain x EXPANSION_CAP x
     r_c`` down the distance through free space to the nearest free cell that no robot
     covers (within ``radius_m``, :meth:`FreeGrid.to_uncovered`); none where no such cell can
-    be reached (the team's free region all covered)."""
+    be reached (the team's free region all covered). And that distance (m; inf: none)."""
     direction, d = grid.to_uncovered(pos, radius_m)
     size = gain * EXPANSION_CAP * range_m * np.isfinite(d)
-    return size[:, None] * direction
+    return size[:, None] * direction, d
 
 
 def within_reach(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, reach_m: float) -> np.ndarray:
