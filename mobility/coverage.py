@@ -47,10 +47,10 @@ The architecture (docs/model.md section 5)
   fade margin and a bound on travel; walls swept exactly over the step).
 - On a map (docs/model.md 5.3, :mod:`netsim.mobility.geodesic`) walls push as borders do,
   robots push each other only in sight, and wishes that run into a wall slide along it.
-  The global plan moves there by its expansion alone, with neither push: every robot
-  down the distance through free space to the nearest free cell no robot covers yet; its
-  planned step slides too before the exact cut, and the forest prefers the links that
-  last over the wished step (:func:`netsim.mobility.keep.prefer`).
+  The global plan moves there by its expansion alone (unless ``expansion = 0``), with
+  neither push: every robot down the distance through free space to the nearest free cell
+  no robot covers yet; its planned step slides too before the exact cut, and the forest
+  prefers the links that last over the wished step (:func:`netsim.mobility.keep.prefer`).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
   3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
@@ -61,8 +61,9 @@ The architecture (docs/model.md section 5)
   its leader.
 
 Stopping: in ``"spread"`` control ends once the covered fraction of ``min(1, U(N) / A)``
-(the coverage samples) has risen less than ``stop_gain`` over ``stop_hold_s`` (and, on a map,
-the global plan's robots came no nearer the free space not yet covered), or no robot
+(the coverage samples) has risen less than ``stop_gain`` over ``stop_hold_s`` (and, on a map
+with the expansion on, the global plan's robots came no nearer the free space not yet
+covered), or no robot
 has moved faster than ``stop_speed_mps`` for ``stop_hold_s``. (Under the Ack-based
 knowledge the net keeps creeping at a few centimetres per second long after it has
 stopped gaining area; a motion-only rule would not end.)
@@ -87,6 +88,7 @@ or holds; no command is sent.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from enum import StrEnum
@@ -199,7 +201,8 @@ class CoverageParams(Params):
         Knowledge.ACKS,
         None,
         "positions the forces among neighbours use: as heard in Acks (stale), or the true ones (the global"
-        " plan's expansion and limits use the true ones either way)",
+        " plan's expansion and limits use the true ones either way; on a map, with expansion > 0, the global"
+        " plan has no such forces)",
     )
     plan: PlanScope = param(
         PlanScope.GLOBAL,
@@ -241,10 +244,15 @@ class CoverageParams(Params):
         "spread: every robot is also pushed away from the centre of its component (plan = 'local': from the"
         " centre it estimates with the robots it hears) with expansion x its distance from it, at most"
         " sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off); on a map the global plan's push is"
-        " that cap, through free space toward the nearest free cell no robot covers (docs/model.md 5.3)",
+        " that cap, through free space toward the nearest free cell no robot covers, and its only push"
+        " (no pushes of robots or walls; docs/model.md 5.3)",
     )
     stop_speed_mps: float = param(
-        0.02, non_negative, "a robot (follow: a leader) whose force asks for less than this holds, m/s"
+        0.02,
+        non_negative,
+        "a robot (follow: a leader) whose force asks for less than this holds, m/s; on a map the global"
+        " plan's team still nears the uncovered while its mean distance to it falls by more than this x"
+        " stop_hold_s",
     )
     stop_hold_s: float = param(
         0.0,
@@ -417,7 +425,7 @@ class CoverageController:
         self.samples: list[dict] = []
         # On a map, the global plan's steps: (t_s, the robots' mean distance through free
         # space to the free space not yet covered), its expansion's own progress.
-        self.to_uncovered: list[tuple[float, float]] = []
+        self._mean_to_uncovered_m: deque[tuple[float, float]] = deque()
         self.duration_s = float(parts.duration_s)
         self._max_wish = 0.0
         self.sample_at_start: dict | None = None
@@ -575,7 +583,10 @@ class CoverageController:
             wished, to_uncovered_m = expansion_to_uncovered(self.grid, pos_now, self.radius_m, self.range_m, c.gain)
             reached = to_uncovered_m[np.isfinite(to_uncovered_m)]
             if len(reached):
-                self.to_uncovered.append((now, float(reached.mean())))
+                steps = self._mean_to_uncovered_m
+                steps.append((now, float(reached.mean())))
+                while steps[0][0] < now - c.hold_s - 1e-9:
+                    steps.popleft()  # before every stopping window still to come
         else:
             wished = self._pushes(pos_now)
             if c.expansion > 0:
@@ -892,7 +903,7 @@ class CoverageController:
         x stop_hold_s`` within the stopping rule's window: robots that file through a door
         toward it raise the coverage only once they are through."""
         c, now = self.cfg, self.env.now
-        window = [d for t, d in self.to_uncovered if t >= now - c.hold_s - 1e-9]
+        window = [d for t, d in self._mean_to_uncovered_m if t >= now - c.hold_s - 1e-9]
         return len(window) > 1 and window[0] - min(window[1:]) > c.stop_speed_mps * c.hold_s
 
     # -- outputs -----------------------------------------------------------------------

@@ -10,9 +10,10 @@ team's map is known to every robot):
   cut there); robots that see each other push along the free segment between them.
 - **Expansion toward free space not yet covered** (the global plan, its only push on a
   map): every robot is pushed down the distance *through free space* (:class:`FreeGrid`:
-  shortest paths on the map's free cells) to the nearest free cell that no robot covers. It leads robots out of a
-  room through its door and along corridors to where coverage can still grow, where a push
-  away from the team's centre would press them into the rooms' far corners (its dead ends).
+  shortest paths on the map's free cells) to the nearest free cell that no robot covers.
+  It leads robots out of a room through its door and along corridors to where coverage
+  can still grow, where a push away from the team's centre would press them into the
+  rooms' far corners (its dead ends).
 - **Sliding** (:func:`slide`): a wished step that would run into a wall is replaced by
   the longer of its two components along the grid's axes, the walls of a grid map being
   its cells' sides, when that gets farther in the wished direction: a robot pushed

@@ -196,8 +196,7 @@ def test_control_goes_on_while_the_robots_near_the_free_space_not_yet_covered():
     """On the office map, 40 robots from a connected 40 m start: through the first
     stopping window the global plan's robots file toward the doors and the coverage does
     not rise, but their distance to the free space not yet covered falls, so control goes
-    on until they have spread (docs/model.md 5.3). Judged by the coverage alone, control
-    ended at the first window's end with a tenth of the free region covered."""
+    on until they have spread (docs/model.md 5.3)."""
     from netsim.config import load
     from netsim.run import execute
     from netsim.tools.validate import coverage_settings
