@@ -207,3 +207,29 @@ def test_control_goes_on_while_the_robots_near_the_free_space_not_yet_covered():
     c = config.coverage
     assert summary["control_settled_s"] > c.start_s + 3 * c.hold_s
     assert summary["covered_of_bound_all_final"] > 0.5
+
+
+def test_the_team_nears_the_uncovered_while_its_mean_distance_falls_by_the_stop_speed_over_the_window():
+    """The stopping rule's reading of the expansion on a map: the robots' mean distance to
+    the free space not yet covered fell by more than ``stop_speed_mps x stop_hold_s``
+    (here 0.4 m) from the window's first step to some later one; steps before the window
+    do not count, nor does a rise, nor a single step."""
+    from collections import deque
+    from types import SimpleNamespace
+
+    from netsim.mobility.coverage import CoverageController
+
+    def nearing(steps, now=30.0):
+        ctl = SimpleNamespace(
+            cfg=SimpleNamespace(hold_s=20.0, stop_speed_mps=0.02),
+            env=SimpleNamespace(now=now),
+            _mean_to_uncovered_m=deque(steps),
+        )
+        return CoverageController._nearing_uncovered(ctl)
+
+    assert not nearing([])
+    assert not nearing([(30.0, 10.0)])
+    assert nearing([(10.0, 10.0), (20.0, 9.5), (30.0, 9.8)])
+    assert not nearing([(10.0, 10.0), (20.0, 9.7), (30.0, 9.65)])
+    assert not nearing([(9.0, 50.0), (10.0, 10.0), (30.0, 9.7)])
+    assert not nearing([(10.0, 10.0), (20.0, 12.0), (30.0, 14.0)])
