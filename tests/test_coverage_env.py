@@ -516,3 +516,18 @@ def test_a_refused_reset_leaves_the_environment_as_it_was():
     again.reset(seed=3)
     expected, _ = again.reset()
     assert all(np.array_equal(obs[a], expected[a]) for a in obs)
+
+
+def test_a_reset_builds_the_configuration_once(monkeypatch):
+    """Whether the channel's law implies the ranges is read once, at construction: every
+    later reset builds its episode's configuration once, not twice."""
+    import netsim.config as cfgmod
+    from netsim.envs.coverage_v0 import parallel_env
+
+    env = parallel_env(netsim={"channel": {"propagation": "log_distance"}})
+    built = []
+    real = cfgmod.from_dict
+    monkeypatch.setattr(cfgmod, "from_dict", lambda *a, **k: built.append(1) or real(*a, **k))
+    env.reset(seed=1)
+    env.reset(seed=2)
+    assert len(built) == 2

@@ -108,6 +108,8 @@ class CoverageEnv(ParallelEnv):
         self._seed = int(p.seed)
         # Steps before truncation, for the next episodes (PettingZoo's tests set it).
         self.max_cycles = p.max_cycles
+        # Whether the channel's law implies the ranges: the same for every episode.
+        self._ranges_implied: bool | None = None
         # A bad key of ``netsim``, or one the environment cannot honour, is refused now,
         # not at the first reset.
         config = self._config(self._seed)
@@ -164,10 +166,12 @@ class CoverageEnv(ParallelEnv):
             # The protocol's tables are sampled at this interval: once an episode is enough.
             "output": {"position_interval_s": self.max_cycles * p.step_s},
         }
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", cfgmod.ConfigWarning)
-            channel = cfgmod.from_dict(cfgmod.merge(raw, self.netsim)).channel
-        if channel.propagation_model.ranges(channel.radio) is not None:
+        if self._ranges_implied is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", cfgmod.ConfigWarning)
+                channel = cfgmod.from_dict(cfgmod.merge(raw, self.netsim)).channel
+            self._ranges_implied = channel.propagation_model.ranges(channel.radio) is not None
+        if self._ranges_implied:
             # A model whose law implies the ranges (log-distance) takes no range_m: passing
             # the unit disk's would only warn of a key the user never set.
             raw["channel"] = {}
