@@ -14,11 +14,16 @@ Columns, over the seeds of a row: ``comp0`` the most components the real network
 mean covered fraction of the free-area bound ``min(1, U(N) / A_free)`` (``covered_of_bound_all``,
 docs/model.md 5.3) at control start and at the end, ``final min`` its least; ``split`` in
 how many seeds the real network ever had more components after control started than at
-its start (checked at every link event); ``moved_m`` the mean distance a robot travelled.
+its start (checked at every link event); ``moved_m`` the mean distance a robot travelled;
+``unsettled`` in how many seeds the stopping rule had not ended control when the run did.
 A row passes when every seed ends at 0.5 of the bound or more and none split.
+
+``--figure FILE`` (``.png``, ``.svg`` or ``.pdf``) also draws, for the lowest seed of each
+row, the map with where the robots ended and the disk each covers.
 
     python experiments/coverage_on_map.py --workers 2
     python experiments/coverage_on_map.py --seeds 2 --radios "office, line of sight"
+    python experiments/coverage_on_map.py --figure office.png
 """
 
 from __future__ import annotations
@@ -26,7 +31,9 @@ from __future__ import annotations
 import argparse
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
@@ -36,6 +43,7 @@ from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_se
 
 MAP_RADIOS = [r for r in COVERAGE_RADIOS if r.startswith("office")]
 TARGET = 0.5
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
 
 
 def settings(radio: str, plan: str, n: int, seed: int, duration_s: float, start_side_m: float) -> list[str]:
@@ -64,6 +72,9 @@ def one(radio: str, plan: str, n: int, seed: int, duration_s: float, start_side_
         "final": o["of_bound"],
         "split": o["components_max"] > o["components_at_start"],
         "moved_m": float(summary["distance_mean_m"]),
+        "settled_s": float(summary["control_settled_s"]),
+        "final_xy": result.sim.positions().tolist(),
+        "radius_m": float(config.coverage.radius_m or min(config.ranges_m())),
     }
 
 
@@ -77,9 +88,36 @@ def table(runs: pd.DataFrame) -> pd.DataFrame:
         final_min=("final", "min"),
         split=("split", "sum"),
         moved_m=("moved_m", "mean"),
+        unsettled=("settled_s", lambda s: int(s.isna().sum())),
     ).reset_index()
     out["pass"] = (out["final_min"] >= TARGET) & (out["split"] == 0)
     return out.rename(columns={"final_min": "final min"})
+
+
+def figure(runs: pd.DataFrame, start_side_m: float, path: str) -> None:
+    """For the lowest seed of each radio and plan, the map with where the robots ended and
+    the disk each covers, titled with the covered fraction of the free-area bound."""
+    from matplotlib.patches import Circle
+
+    from netsim.config import load
+    from netsim.tools.figures import draw_map, pyplot, run_map
+
+    plt = pyplot()
+    first = runs.sort_values("seed", kind="stable").groupby(["radio", "plan"], sort=False).head(1)
+    fig, axes = plt.subplots(1, len(first), figsize=(4.2 * len(first), 4.6), squeeze=False)
+    for ax, row in zip(axes[0], first.itertuples()):
+        occupancy = run_map(load(None, settings(row.radio, row.plan, row.N, row.seed, 1.0, start_side_m)))
+        draw_map(ax, occupancy)
+        xy = np.asarray(row.final_xy)
+        for p in xy:
+            ax.add_patch(Circle(p, row.radius_m, alpha=0.05, lw=0, color="tab:blue"))
+        ax.plot(xy[:, 0], xy[:, 1], ".", color="tab:red", ms=4)
+        x0, x1, y0, y1 = occupancy.extent_m
+        ax.set(xlim=(x0, x1), ylim=(y0, y1), aspect="equal", xlabel="x (m)", ylabel="y (m)")
+        ax.set_title(f"{row.radio}, {row.plan}, seed {row.seed}: {row.final:.3f}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def main(argv=None) -> int:
@@ -92,6 +130,7 @@ def main(argv=None) -> int:
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--csv", help="also write every run's row here")
+    p.add_argument("--figure", help=f"also draw where the robots ended ({', '.join(FIGURE_SUFFIXES)})")
     args = p.parse_args(argv)
     for option, given, known in (("--radios", args.radios, MAP_RADIOS), ("--plans", args.plans, ["global", "local"])):
         unknown = [x for x in given if x not in known]
@@ -103,6 +142,11 @@ def main(argv=None) -> int:
     for option, value in (("--start-side", args.start_side), ("--duration", args.duration)):
         if not value > 0:
             raise NetsimInputError(f"{option} {value:g}: must be positive")
+    for option, path in (("--csv", args.csv), ("--figure", args.figure)):
+        if path is not None and not Path(path).parent.is_dir():
+            raise NetsimInputError(f"{option} {path!r}: no such folder {str(Path(path).parent)!r}")
+    if args.figure is not None and Path(args.figure).suffix.lower() not in FIGURE_SUFFIXES:
+        raise NetsimInputError(f"--figure {args.figure!r}: must end in one of {', '.join(FIGURE_SUFFIXES)}")
     seeds = range(1, args.seeds + 1)
     jobs = [
         (radio, plan, args.n, seed, args.duration, args.start_side)
@@ -113,7 +157,9 @@ def main(argv=None) -> int:
     with ProcessPoolExecutor(args.workers) as pool:
         runs = pd.DataFrame(list(pool.map(one, *zip(*jobs))))
     if args.csv:
-        runs.to_csv(args.csv, index=False)
+        runs.drop(columns=["final_xy", "radius_m"]).to_csv(args.csv, index=False)
+    if args.figure:
+        figure(runs, args.start_side, args.figure)
     out = table(runs)
     with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
         print(out.to_string(index=False))

@@ -160,7 +160,8 @@ def test_coverage_on_map_prints_its_table(tmp_path):
     of the free-area bound, the seeds that split and the verdict."""
     run = subprocess.run(
         [sys.executable, str(ROOT / "experiments" / "coverage_on_map.py"), "--n", "8", "--seeds", "1"]
-        + ["--radios", "office, line of sight", "--duration", "30", "--workers", "1", "--csv", str(tmp_path / "r.csv")],
+        + ["--radios", "office, line of sight", "--duration", "30", "--workers", "1", "--csv", str(tmp_path / "r.csv")]
+        + ["--figure", str(tmp_path / "ended.png")],
         capture_output=True,
         text=True,
         cwd=tmp_path,
@@ -170,13 +171,25 @@ def test_coverage_on_map_prints_its_table(tmp_path):
     assert len(runs) == 2 and set(runs["plan"]) == {"global", "local"}
     assert (runs["comp0"] == 1).all() and not runs["split"].any()
     assert ((runs["final"] > 0) & (runs["final"] <= 1.0 + 1e-9)).all()
-    assert "rows pass" in run.stdout
+    # Control ran to the end (30 s is less than a stopping window after control starts).
+    assert runs["settled_s"].isna().all()
+    assert "rows pass" in run.stdout and "unsettled" in run.stdout
+    assert (tmp_path / "ended.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.mark.slow
 def test_coverage_on_map_refuses_bad_options_in_one_line(tmp_path):
-    """An unknown radio or no seeds: one line on stderr naming the option, exit status 2."""
-    for args, said in ((["--radios", "moon"], "--radios 'moon'"), (["--seeds", "0"], "--seeds 0")):
+    """An unknown radio, no seeds, a figure or table in a folder that is not there, a figure
+    of a kind it cannot draw: one line on stderr naming the option, exit status 2, nothing
+    written."""
+    cases = (
+        (["--radios", "moon"], "--radios 'moon'"),
+        (["--seeds", "0"], "--seeds 0"),
+        (["--figure", "nowhere/ended.png"], "--figure 'nowhere/ended.png': no such folder"),
+        (["--csv", "nowhere/runs.csv"], "--csv 'nowhere/runs.csv': no such folder"),
+        (["--figure", "ended.gif"], "--figure 'ended.gif': must end in one of .png, .svg, .pdf"),
+    )
+    for args, said in cases:
         run = subprocess.run(
             [sys.executable, str(ROOT / "experiments" / "coverage_on_map.py"), *args],
             capture_output=True,
@@ -185,6 +198,7 @@ def test_coverage_on_map_refuses_bad_options_in_one_line(tmp_path):
         )
         assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
         assert said in run.stderr
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_routing_compare_intervals_of_a_ratio_stay_within_0_and_1():
