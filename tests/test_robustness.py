@@ -209,6 +209,16 @@ def test_scenario_generate_refuses_an_existing_file(tmp_path, capfd, monkeypatch
     assert (tmp_path / "s.tcl").read_text() == "the user's own scenario\n", line
 
 
+def test_scenario_generate_quiet_prints_nothing_and_writes_the_file(tmp_path, capfd, monkeypatch):
+    """`--quiet` leaves out the line naming the file written; the file is the same."""
+    monkeypatch.chdir(tmp_path)
+    assert main([*GENERATE, "-o", "loud.tcl"]) == 0
+    assert capfd.readouterr().out == "wrote loud.tcl\n"
+    assert main([*GENERATE, "-o", "quiet.tcl", "--quiet"]) == 0
+    assert capfd.readouterr() == ("", "")
+    assert (tmp_path / "quiet.tcl").read_text() == (tmp_path / "loud.tcl").read_text()
+
+
 def test_view_out_refuses_an_existing_file(tmp_path, capfd, small_run):
     """`netsim view RUN --out FILE` never overwrites a file that exists: one line, exit 2,
     the file untouched."""

@@ -272,7 +272,8 @@ def cmd_scenario_generate(args) -> int:
         tmp.replace(out)
     finally:
         tmp.unlink(missing_ok=True)
-    print(f"wrote {out}")
+    if not args.quiet:
+        print(f"wrote {out}")
     return 0
 
 
@@ -493,6 +494,7 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--seed", type=int, default=1)
     g.add_argument("--no-stationary-start", action="store_true", help="start from uniform positions at rest")
     g.add_argument("-o", "--output", required=True, help="file to write (a new path: an existing file is refused)")
+    g.add_argument("--quiet", action="store_true", help="print nothing but errors")
     g.set_defaults(func=cmd_scenario_generate)
 
     w = sub.add_parser("sweep", help="run a parameter sweep (resumable; local pool or Dask cluster)")
