@@ -16,10 +16,16 @@ docs/model.md 5.3) at control start and at the end, ``final min`` its least; ``s
 how many seeds the real network ever had more components after control started than at
 its start (checked at every link event); ``moved_m`` the mean distance a robot travelled;
 ``unsettled`` in how many seeds the stopping rule had not ended control when the run did.
-A row passes when every seed ends at 0.5 of the bound or more and none split.
+A row passes when every seed ends at 0.5 of the bound or more and none split; the
+command exits 1 when a row fails (as ``netsim validate`` does), 0 when every row passes.
 
-``--figure FILE`` (``.png``, ``.svg`` or ``.pdf``) also draws, for the lowest seed of each
-row, the map with where the robots ended and the disk each covers.
+``--csv FILE`` writes every run's row: ``radio``, ``plan``, ``N``, ``seed``, ``comp0``,
+``start``, ``final``, ``split`` (True or False), ``moved_m`` and ``settled_s`` (when the
+stopping rule ended control; empty when it never did). ``--figure FILE`` (``.png``,
+``.svg`` or ``.pdf``) also draws, for the lowest seed of each row, the map (walls dark)
+with where the robots ended (red) and the disk of ``coverage.radius_m`` each covers
+(blue; darker where disks overlap, as where several robots stand on one spot), each panel
+titled with its radio, plan, seed and covered fraction of the bound at the end.
 
     python experiments/coverage_on_map.py --workers 2
     python experiments/coverage_on_map.py --seeds 2 --radios "office, line of sight"
@@ -29,6 +35,7 @@ row, the map with where the robots ended and the disk each covers.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -38,6 +45,7 @@ import pandas as pd
 
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
+from netsim.tools.cli import check_out_file
 from netsim.tools.sweep import run_script
 from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_settings
 
@@ -127,8 +135,8 @@ def main(argv=None) -> int:
     p.add_argument("--radios", nargs="+", default=MAP_RADIOS, help=f"of {MAP_RADIOS}")
     p.add_argument("--plans", nargs="+", default=["global", "local"], help="of global, local")
     p.add_argument("--start-side", type=float, default=60.0, help="side of the start square, m (default 60)")
-    p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run (default 600)")
+    p.add_argument("--workers", type=int, default=2, help="runs at a time, one process each (default 2)")
     p.add_argument("--csv", help="also write every run's row here")
     p.add_argument("--figure", help=f"also draw where the robots ended ({', '.join(FIGURE_SUFFIXES)})")
     args = p.parse_args(argv)
@@ -143,8 +151,12 @@ def main(argv=None) -> int:
         if not value > 0:
             raise NetsimInputError(f"{option} {value:g}: must be positive")
     for option, path in (("--csv", args.csv), ("--figure", args.figure)):
-        if path is not None and not Path(path).parent.is_dir():
-            raise NetsimInputError(f"{option} {path!r}: no such folder {str(Path(path).parent)!r}")
+        if path is None:
+            continue
+        if path.endswith(("/", os.sep)):
+            raise NetsimInputError(f"{option} {path}: names a directory; give the path of a file")
+        # Before any run: a file that cannot be written would lose them all.
+        check_out_file(Path(path), option, replace=True)
     if args.figure is not None and Path(args.figure).suffix.lower() not in FIGURE_SUFFIXES:
         raise NetsimInputError(f"--figure {args.figure!r}: must end in one of {', '.join(FIGURE_SUFFIXES)}")
     seeds = range(1, args.seeds + 1)

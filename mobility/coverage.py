@@ -200,9 +200,9 @@ class CoverageParams(Params):
     knowledge: Knowledge = param(
         Knowledge.ACKS,
         None,
-        "positions the forces among neighbours use: as heard in Acks (stale), or the true ones (the global"
-        " plan's expansion and limits use the true ones either way; on a map, with expansion > 0, the global"
-        " plan has no such forces)",
+        "positions the forces among neighbours use: 'acks', as heard in Acks (stale; the local plan needs"
+        " it), or 'global', the true ones (the global plan's expansion and limits use the true ones either"
+        " way; on a map, with expansion > 0, the global plan has no such forces)",
     )
     plan: PlanScope = param(
         PlanScope.GLOBAL,
@@ -244,15 +244,15 @@ class CoverageParams(Params):
         "spread: every robot is also pushed away from the centre of its component (plan = 'local': from the"
         " centre it estimates with the robots it hears) with expansion x its distance from it, at most"
         " sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off); on a map the global plan's push is"
-        " that cap, through free space toward the nearest free cell no robot covers, and its only push"
-        " (no pushes of robots or walls; docs/model.md 5.3)",
+        " that cap, through free space toward the nearest free cell no robot covers, whatever the value"
+        " above 0, and its only push: no pushes of robots or walls, which 0 brings back (docs/model.md 5.3)",
     )
     stop_speed_mps: float = param(
         0.02,
         non_negative,
-        "a robot (follow: a leader) whose force asks for less than this holds, m/s; on a map the global"
-        " plan's team still nears the uncovered while its mean distance to it falls by more than this x"
-        " stop_hold_s",
+        "a robot (follow: a leader) whose force asks for less than this holds, m/s; on a map with"
+        " expansion > 0 the global plan's team counts as still spreading (stop_gain) while its robots' mean"
+        " distance to the free space not yet covered falls by more than this x stop_hold_s",
     )
     stop_hold_s: float = param(
         0.0,
@@ -261,7 +261,11 @@ class CoverageParams(Params):
         " (0: 20 s, 60 s with plan = 'local', whose team creeps slower)",
     )
     stop_gain: float = param(
-        0.002, non_negative, "spread: control ends once coverage gains less than this in stop_hold_s (0: off)"
+        0.002,
+        non_negative,
+        "spread: control ends once covered_of_bound_all gains less than this in stop_hold_s and, on a map"
+        " with expansion > 0, the global plan's robots came no nearer the free space not yet covered"
+        " (stop_speed_mps); 0: off",
     )
     radius_m: float = param(0.0, non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
     metrics_interval_s: float = param(5.0, positive, "coverage metrics sampling interval, s")

@@ -179,14 +179,16 @@ def test_coverage_on_map_prints_its_table(tmp_path):
 
 @pytest.mark.slow
 def test_coverage_on_map_refuses_bad_options_in_one_line(tmp_path):
-    """An unknown radio, no seeds, a figure or table in a folder that is not there, a figure
-    of a kind it cannot draw: one line on stderr naming the option, exit status 2, nothing
-    written."""
+    """An unknown radio, no seeds, a figure or table in a folder that is not there or named
+    as a folder, a figure of a kind it cannot draw: one line on stderr naming the option,
+    exit status 2, nothing written, before any run."""
     cases = (
         (["--radios", "moon"], "--radios 'moon'"),
         (["--seeds", "0"], "--seeds 0"),
-        (["--figure", "nowhere/ended.png"], "--figure 'nowhere/ended.png': no such folder"),
-        (["--csv", "nowhere/runs.csv"], "--csv 'nowhere/runs.csv': no such folder"),
+        (["--figure", "nowhere/ended.png"], "--figure nowhere/ended.png: the directory nowhere does not exist"),
+        (["--csv", "nowhere/runs.csv"], "--csv nowhere/runs.csv: the directory nowhere does not exist"),
+        (["--csv", "."], "--csv .: is a directory"),
+        (["--figure", "sub.png/"], "--figure sub.png/: names a directory"),
         (["--figure", "ended.gif"], "--figure 'ended.gif': must end in one of .png, .svg, .pdf"),
     )
     for args, said in cases:
