@@ -208,10 +208,11 @@ class LineOfSightLoss:
         self.lowest_db = 0.0
 
     def loss_db(self, pairs: Pairs) -> np.ndarray:
-        from netsim.world.los import walls_crossed
+        """The compiled pass's rule (:func:`netsim.radio._kernels.disk_pass`): the trace
+        stops at the first wall."""
+        from netsim.world.los import line_of_sight
 
-        walls = walls_crossed(self.occupancy, pairs.pos_a, pairs.pos_b)
-        return np.where(walls == 0, 0.0, np.inf)
+        return np.where(line_of_sight(self.occupancy, pairs.pos_a, pairs.pos_b), 0.0, np.inf)
 
 
 class LossChain:
