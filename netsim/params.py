@@ -31,9 +31,12 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import numbers
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
+
+import numpy as np
 
 from netsim.errors import ConfigError
 
@@ -91,16 +94,18 @@ def param(
 
 def coerce_value(key: str, value: Any, kind: type) -> Any:
     """``value`` as ``kind`` (bool, int, float, str or a str enum), or ConfigError."""
+    # numpy's scalars are accepted as the Python numbers they stand for: a value computed in
+    # a script (np.int64 from a sweep's array) is as good as one typed.
     if kind is bool:
-        if not isinstance(value, bool):
+        if not isinstance(value, (bool, np.bool_)):
             raise ConfigError(key, value, "must be true or false")
-        return value
+        return bool(value)
     if kind is int:
-        if isinstance(value, bool) or not isinstance(value, int):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
             raise ConfigError(key, value, "must be an integer")
-        return value
+        return int(value)
     if kind is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
             raise ConfigError(key, value, "must be a number")
         try:
             value = float(value)

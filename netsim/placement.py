@@ -97,6 +97,14 @@ PLACEMENTS: dict[str, Callable[[Any, Bounds, Streams], np.ndarray]] = {
 }
 
 
+def check_placement(world: WorldParams) -> None:
+    """Raise, before any run, the :class:`ConfigError` a run would raise for
+    ``world.placement`` naming no placement and no usable CSV file (a CSV file is read and
+    checked against the team and the area as a run reads it)."""
+    if world.placement != "connected" and world.placement not in PLACEMENTS:
+        from_csv(world.placement, world.n_robots, world_bounds(world))
+
+
 def initial_positions(world: WorldParams, streams: Streams, occupancy: Any = None, channel: Any = None) -> np.ndarray:
     """The placement ``world.placement`` names (``world``: the world's parameters) in the
     world's area (``world.bounds_m``), its random draws from the stream ``"placement"``. On

@@ -4,6 +4,7 @@ random streams, event bus) and a record of the models built on it."""
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
@@ -214,10 +215,10 @@ class Simulation:
 
     def _until(self, until_s: Any) -> float:
         """``until_s`` as a float, checked against the run's clock and end."""
-        try:
-            until = float(until_s)
-        except (TypeError, ValueError):
-            raise CommandError(f"until_s = {until_s!r}: must be a time in seconds") from None
+        # A string or a bool is a mistake even where float() would take it.
+        if isinstance(until_s, (bool, np.bool_)) or not isinstance(until_s, numbers.Real):
+            raise CommandError(f"until_s = {until_s!r}: must be a time in seconds (a number)")
+        until = float(until_s)
         if math.isnan(until):
             raise CommandError(f"until_s = {until_s!r}: must be a time in seconds, not NaN")
         if until > self.duration_s:

@@ -199,6 +199,8 @@ def good_play(tmp_path_factory):
         (lambda s: s.send(1.5, 2, "x"), "1.5"),
         (lambda s: s.neighbours(12), "12"),
         (lambda s: s.inbox(-3), "-3"),
+        (lambda s: s.run(until_s="20"), "'20'"),
+        (lambda s: s.run(until_s=True), "True"),
     ],
 )
 def test_bad_call_names_the_value_and_changes_nothing(tmp_path, good_play, call, named):

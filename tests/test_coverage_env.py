@@ -202,6 +202,69 @@ def test_bad_parameter_is_a_config_error():
             env.reset(seed=seed)
 
 
+def test_keywords_take_numpy_numbers_and_the_unknown_key_lists_every_keyword():
+    """A keyword given as a numpy number (a sweep's array element) is the Python number it
+    holds; an unknown keyword's message lists every documented keyword, ``netsim`` and
+    ``render_mode`` among them; a negative seed is refused when the environment is made."""
+    env = coverage_v0.parallel_env(n_robots=np.int64(4), step_s=np.float32(0.5), seed=np.int64(3))
+    assert (env.params.n_robots, env.params.step_s, env.params.seed) == (4, 0.5, 3)
+    assert type(env.params.n_robots) is int and type(env.params.step_s) is float
+    with pytest.raises(ConfigError, match="allowed: .*netsim.*render_mode"):
+        coverage_v0.parallel_env(n_robot=4)
+    with pytest.raises(ConfigError, match="seed = -1: must be >= 0"):
+        coverage_v0.parallel_env(seed=-1)
+
+
+@pytest.mark.parametrize("netsim", [None, {"world": {"placement": "middle"}}])
+def test_a_placement_that_names_nothing_is_refused_when_the_environment_is_made(netsim):
+    """A ``placement`` that is no placement's name and no CSV file is refused by
+    ``parallel_env`` itself (given as the keyword or through ``netsim``), not at reset."""
+    keywords = {"placement": "middle"} if netsim is None else {"netsim": netsim}
+    with pytest.raises(ConfigError, match="world.placement = 'middle': must be"):
+        coverage_v0.parallel_env(**SMALL, **keywords)
+
+
+def test_actions_that_are_not_a_dict_are_refused_in_one_line():
+    """Actions given as an array (one row per agent) instead of a dict raise a CommandError
+    that says what the actions must be, not numpy's truth-value error."""
+    env = coverage_v0.parallel_env(**SMALL)
+    env.reset(seed=0)
+    with pytest.raises(CommandError, match="actions must be a dict from agent name to velocity"):
+        env.step(np.zeros((SMALL["n_robots"], 2), np.float32))
+
+
+@pytest.mark.parametrize("action", [np.array([9.0, 0.0], np.float32), np.zeros(3, np.float32)])
+def test_a_bad_action_in_turns_raises_when_given_and_the_agent_gives_another(action):
+    """In the AEC API a bad action raises at the agent's own step and is not kept: the same
+    agent then gives a good one and the episode goes on as if the bad one had not been given
+    (the plain conversion kept it, and every later step raised)."""
+
+    def play(bad: bool):
+        env = coverage_v0.env(**SMALL)
+        env.reset(seed=4)
+        rng = np.random.default_rng(9)
+        out = []
+        for k in range(3 * SMALL["n_robots"]):
+            if bad and k == 1:
+                with pytest.raises(CommandError, match="robot_1"):
+                    env.step(action)
+                assert env.agent_selection == "robot_1"
+            env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+            out.append(env.last()[:2])
+        return out
+
+    good, bad = play(False), play(True)
+    assert all(np.array_equal(og, ob) and rg == rb for (og, rg), (ob, rb) in zip(good, bad))
+
+
+def test_render_without_a_render_mode_warns():
+    """render() of an environment made without render_mode draws nothing and says why."""
+    env = coverage_v0.parallel_env(**SMALL)
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="render_mode='rgb_array'"):
+        assert env.render() is None
+
+
 def test_the_link_quality_recipe_warns_of_nothing(recwarn):
     """The documented way to offer link quality (a log-distance radio in ``netsim``) warns
     of no setting the user did not make (the unit disk's range is not passed to it)."""

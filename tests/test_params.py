@@ -2,6 +2,7 @@
 or with --set is the same object, validated when made; derived defaults are derived
 wherever it is made; an unknown name is an error everywhere."""
 
+import numpy as np
 import pytest
 from netsim.protocols.clustering import rules_record
 from netsim.protocols.stack import ClusteringParams
@@ -30,6 +31,17 @@ def test_replace_derives_again_what_was_derived_and_keeps_what_was_given():
     given = cfgmod.from_dict({"protocol": {"tau_s": 4.0}}).replace(protocol={"ack_period_s": 2.0})
     assert given.protocol.tau_s == 4.0
     assert ClusteringParams(ack_period_s=1.0).replace(ack_period_s=3.0).tau_s == 9.0
+
+
+def test_numpy_numbers_are_the_python_numbers_they_hold():
+    """A value computed with numpy (``np.int64``, ``np.float32``, ``np.bool_``) is taken as the
+    int, float or bool it holds, and stored as one; a bool is still no number."""
+    world = WorldParams(n_robots=np.int64(7), side_m=np.float32(250.0), torus=np.bool_(True))
+    assert (world.n_robots, world.side_m, world.torus) == (7, 250.0, True)
+    assert [type(v) for v in (world.n_robots, world.side_m, world.torus)] == [int, float, bool]
+    for value in (np.bool_(True), True, 7.0):
+        with pytest.raises(ConfigError, match="world.n_robots = .*: must be an integer"):
+            WorldParams(n_robots=value)
 
 
 def test_a_bad_value_is_refused_when_the_object_is_made():

@@ -37,11 +37,13 @@ import dataclasses
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from netsim import config as cfgmod
 from netsim import metrics
@@ -50,6 +52,7 @@ from netsim.compiled import load
 from netsim.cosim import CommandError, LinkQualityView
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
+from netsim.placement import check_placement
 from netsim.radio.propagation import TRUNCATION_SIGMAS, LogDistanceParams
 from netsim.run import build
 from netsim.sim import Simulation
@@ -80,7 +83,7 @@ class CoverageEnvParams(Params):
     max_cycles: int = param(200, positive, "steps before the episode is truncated")
     component_penalty: float = param(0.01, finite(non_negative), "reward lost per component beyond one")
     grid_cells: int = param(100, positive, "the covered fraction's grid: cells per side")
-    seed: int = param(0, None, "seed of the first episode when reset() is given none")
+    seed: int = param(0, non_negative, "seed of the first episode when reset() is given none")
 
 
 class CoverageEnv(ParallelEnv):
@@ -116,6 +119,7 @@ class CoverageEnv(ParallelEnv):
         problem = refused(config, p)
         if problem is not None:
             raise ConfigError(*problem)
+        check_placement(config.world)
         # The run's area, ranges and tau, whatever set them (the keywords or ``netsim``).
         self.area: Bounds = cfgmod.world_bounds(config.world)
         self.range_m = float(min(config.ranges_m()))
@@ -238,7 +242,7 @@ class CoverageEnv(ParallelEnv):
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if self.sim is None or not self.agents:
             raise RuntimeError("the episode is over (or not begun): call reset()")
-        robots, velocities = self._checked(actions)
+        robots, velocities = self.checked_actions(actions)
         sim, p = self.sim, self.params
         if len(robots):
             sim.drive(robots, velocities)
@@ -262,8 +266,13 @@ class CoverageEnv(ParallelEnv):
             self._live = set()
         return obs, rewards, terminations, truncations, infos
 
-    def _checked(self, actions: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    def checked_actions(self, actions: Mapping[str, Any] | None) -> tuple[np.ndarray, np.ndarray]:
         """The robots and velocities of ``actions``, all checked before any is applied."""
+        if actions is not None and not isinstance(actions, Mapping):
+            raise CommandError(
+                f"actions must be a dict from agent name to velocity (vx, vy), as {{'robot_0': (1.0, 0.0)}}; "
+                f"got {type(actions).__name__}"
+            )
         if not actions:  # a step without actions: every robot keeps its velocity
             return np.empty(0, np.int64), np.empty((0, 2))
         live = self._live
@@ -323,7 +332,13 @@ class CoverageEnv(ParallelEnv):
     def render(self) -> np.ndarray | None:
         """With ``render_mode = "rgb_array"``: the team now, as the figures draw a deployment
         (netsim.tools.figures), an ``(H, W, 3)`` uint8 array."""
-        if self.render_mode is None or self.sim is None:
+        if self.render_mode is None:
+            warnings.warn(
+                "render() draws only in render_mode 'rgb_array': make the environment with render_mode='rgb_array'",
+                stacklevel=2,
+            )
+            return None
+        if self.sim is None:
             return None
         from netsim.envs.drawing import frame
 
@@ -412,12 +427,23 @@ def parallel_env(render_mode: str | None = None, netsim: Mapping | None = None, 
     allowed = [f.name for f in dataclasses.fields(CoverageEnvParams)]
     for key, value in params.items():
         if key not in allowed:
-            raise ConfigError(key, value, "unknown key; allowed: " + ", ".join(sorted(allowed)))
+            keywords = sorted([*allowed, "netsim", "render_mode"])
+            raise ConfigError(key, value, "unknown key; allowed: " + ", ".join(keywords))
     return CoverageEnv(CoverageEnvParams(**params), netsim, render_mode)
+
+
+class CoverageTurns(parallel_to_aec_wrapper):
+    """PettingZoo's conversion of the environment to turns, each action checked when it is
+    given: a bad one raises there and is not kept, so the agent can give another. (The
+    conversion alone keeps it and fails at the turn's last agent, at every step after.)"""
+
+    def step(self, action: Any) -> None:
+        agent = self.agent_selection
+        if action is not None and not (self.terminations[agent] or self.truncations[agent]):
+            cast(CoverageEnv, self.env).checked_actions({agent: action})
+        super().step(action)
 
 
 def env(**params: Any) -> Any:
     """The environment in PettingZoo's AEC API (turns), converted from the parallel one."""
-    from pettingzoo.utils.conversions import parallel_to_aec
-
-    return parallel_to_aec(parallel_env(**params))
+    return OrderEnforcingWrapper(CoverageTurns(parallel_env(**params)))
