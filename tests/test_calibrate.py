@@ -82,6 +82,19 @@ def test_receptions_table_with_received_column_is_censored(tmp_path, capsys):
     assert abs(channel["path_loss_exponent"] - TRUTH.path_loss_exponent) < 0.3
 
 
+def test_a_frame_not_received_that_logs_a_clear_power_is_noted(tmp_path, capsys):
+    """A row marked not received, with no cause column, whose logged power clears the
+    sensitivity contradicts itself: it is read as below the sensitivity (nothing says why
+    it was lost), and the printout says how many such rows there are."""
+    log = synth_log(4, censored=True, **SMALL)[["t_s", "src", "dst", "distance_m", "rssi_dbm", "received"]]
+    flipped = log.index[log["received"]][:7]
+    log.loc[flipped, "received"] = False
+    path = tmp_path / "log.csv"
+    log.to_csv(path, index=False)
+    assert main(["calibrate", str(path), "--sensitivity-dbm", "-80"]) == 0
+    assert "note: 7 frames marked not received log a power at or above the sensitivity" in capsys.readouterr().out
+
+
 @pytest.mark.slow
 def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path, capsys):
     """A run's receptions.parquet is a log as it is: a frame the loss model dropped after
@@ -117,11 +130,11 @@ def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path
     assert result.decorrelation.estimate.covers(LogDistanceParams.shadowing_decorrelation_m), result.decorrelation
 
 
-def test_a_cause_is_read_as_the_channel_spells_it_and_a_lost_frame_without_power_left_out(small_log):
+def test_a_cause_is_read_as_the_channel_spells_it(small_log):
     """``cause`` as a user may write it (any case, spaces for underscores) means what the
     channel's causes mean: ``out_of_range`` rows are censored below the sensitivity, a frame
-    lost after the radio heard it counts at its power, and one such without a power is left
-    out (not read as below the sensitivity)."""
+    lost after the radio heard it counts at its power, and one such without a power as at or
+    above the sensitivity (not below it)."""
     log = synth_log(4, censored=True, **SMALL)[["t_s", "src", "dst", "distance_m", "rssi_dbm", "received"]]
     lost = log.index[log["received"]][:30]
     unmeasured = log.index[log["received"]][30:40]
@@ -130,8 +143,25 @@ def test_a_cause_is_read_as_the_channel_spells_it_and_a_lost_frame_without_power
     log.loc[unmeasured, ["received", "cause", "rssi_dbm"]] = [False, "collision", np.nan]
     result = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
     assert result.lost_measured == 30 and result.lost_unmeasured == 10
-    assert result.frames == len(log) - 10 and result.received == int(log["rssi_dbm"].notna().sum())
+    assert result.frames == len(log) and result.received == int(log["rssi_dbm"].notna().sum())
     assert result.fit.likelihood == "censored"
+
+
+def test_frames_lost_without_a_power_count_as_above_the_sensitivity_in_a_censored_fit():
+    """A frame lost after the radio heard it (to a loss model, whatever its power) whose
+    power the log does not give still cleared the sensitivity: the censored fit counts it as
+    at or above it and gives the channel back. Left out, the log's frames below the
+    sensitivity weigh more than they did, and the fit finds a lossier channel (reference
+    loss and exponent outside their intervals)."""
+    log = synth_log(1, censored=True)[["t_s", "src", "dst", "distance_m", "rssi_dbm", "received"]]
+    heard = log["received"].to_numpy()
+    lost = heard & (np.random.default_rng(1).random(len(log)) < 0.3)
+    log = log.assign(cause=np.where(heard, "", "out_of_range"))
+    log.loc[lost, ["received", "cause", "rssi_dbm"]] = [False, "loss", np.nan]
+    result = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
+    assert result.fit.likelihood == "censored" and result.lost_unmeasured == int(lost.sum())
+    for key in ("reference_loss_db", "path_loss_exponent", "shadowing_sigma_db"):
+        assert getattr(result.fit, key).covers(getattr(TRUTH, key)), (key, getattr(result.fit, key))
 
 
 @pytest.mark.slow
@@ -285,6 +315,16 @@ def _repeated_parquet(g: pd.DataFrame):
     return ("repeated.parquet", buffer.getvalue())
 
 
+def _same_ends(g: pd.DataFrame) -> pd.DataFrame:
+    g = g.copy()
+    g.loc[5, "dst"] = g.loc[5, "src"]
+    return g
+
+
+def _received_with_a_cause(g: pd.DataFrame) -> pd.DataFrame:
+    return g.assign(received=True, cause=np.where(np.arange(len(g)) == 3, "loss", ""))
+
+
 def _above_tx_power(g: pd.DataFrame) -> pd.DataFrame:
     g = g.copy()
     g.loc[4, "rssi_dbm"] = TRUTH.tx_power_dbm + 30.0
@@ -310,6 +350,9 @@ BAD_LOGS = {
     "repeated_column": lambda g: pd.concat([g, 10 * g[["distance_m"]]], axis=1),
     "repeated_column_parquet": _repeated_parquet,
     "no_power": lambda g: g.assign(rssi_dbm=np.nan),
+    "same_ends": _same_ends,
+    "received_with_a_cause": _received_with_a_cause,
+    "semicolons": lambda g: ("semicolons.csv", g.to_csv(index=False, sep=";").encode()),
 }
 
 
@@ -350,6 +393,10 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("repeated_column", [], "column distance_m appears more than once"),
         ("repeated_column_parquet", [], "column distance_m appears more than once"),
         ("no_power", [], "column rssi_dbm is empty in every row"),
+        ("same_ends", [], "row 6 has src = dst = 0: a frame goes from one robot to another"),
+        ("received_with_a_cause", [], "row 4 is received but gives the cause 'loss'"),
+        ("semicolons", [], "one column holding ';': a CSV log is separated by commas"),
+        ("no_rssi", [], "rssi_dbm (or rx_power_dbm)"),
         ("good", ["--sensitivity-dbm", "-inf"], "--sensitivity-dbm -inf: must be in [-200, 0] dBm"),
     ],
 )

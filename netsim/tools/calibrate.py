@@ -50,7 +50,11 @@ class Calibration:
     pairs: int
     robots: int
     lost_measured: int = 0  # of ``received``: frames lost after the radio heard them
-    lost_unmeasured: int = 0  # frames lost so without a logged power, left out
+    # Frames lost so without a logged power: at or above the sensitivity in a censored fit;
+    # a truncated fit, which takes every frame as clearing it, has nothing to learn from them.
+    lost_unmeasured: int = 0
+    # Frames not received whose logged power clears the sensitivity: read as below it all the same.
+    unread_above: int = 0
 
     def channel(self) -> dict:
         """The ``[channel]`` keys, as ``netsim run`` reads them."""
@@ -146,7 +150,10 @@ class Frames:
     dst: np.ndarray
     robots: int
     lost_measured: int = 0  # rows lost after the radio heard them, read at their power
-    lost_unmeasured: int = 0  # rows lost so without a power: left out
+    lost_unmeasured: int = 0  # rows lost so without a power (``unmeasured``)
+    unmeasured: np.ndarray | None = None  # bool per row: lost after the radio heard it, no power logged
+    # Per row: a power logged beside received = false (and no cause that counts it), NaN otherwise.
+    unread_dbm: np.ndarray | None = None
 
     @property
     def pair(self) -> np.ndarray:
@@ -201,10 +208,14 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
     elif not has_positions and "distance_m" not in cols:
         missing.append(f"distance_m (or {', '.join(POSITIONS)})")
     if missing:
+        # One column whose name holds another separator: a CSV file written with it.
+        names = [str(c) for c in log.columns]
+        split = next((sep for sep in (";", "\t", "|") if len(names) == 1 and sep in names[0]), None)
+        hint = f"; its header is one column holding {split!r}: a CSV log is separated by commas" if split else ""
         raise NetsimInputError(
             f"{where}: lacks the column{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
-            f"(a log needs t_s, src, dst, rssi_dbm and distance_m or {', '.join(POSITIONS)}"
-            f"{'; --map needs the positions' if need_positions else ''})"
+            f"(a log needs t_s, src, dst, rssi_dbm (or rx_power_dbm) and distance_m or {', '.join(POSITIONS)}"
+            f"{'; --map needs the positions' if need_positions else ''}{hint})"
         )
     if len(log) == 0:
         raise NetsimInputError(f"{where}: has no frames (only a header)")
@@ -216,7 +227,8 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
             "under channel.propagation = log_distance; under the unit disk rx_power_dbm is NaN)"
         )
     lost_measured = lost_unmeasured = 0
-    keep = np.ones(len(log), bool)
+    unmeasured = np.zeros(len(log), bool)
+    unread_dbm = None
     if "received" in cols:
         words = {"true": True, "false": False}
         received = log["received"].map(lambda v: words.get(v.lower(), v) if isinstance(v, str) else v)
@@ -230,13 +242,22 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         if "cause" in cols:
             # A frame lost after the radio heard it cleared the sensitivity: its power is a
             # measurement like a received frame's. Read as censored below the sensitivity it
-            # would bias the fit toward more loss; one without a logged power is left out.
+            # would bias the fit toward more loss; one without a logged power is known to be
+            # at or above it (censored from above).
             words = _causes(log, where)
+            contradicts = received & (words != "")
+            if contradicts.any():
+                i = int(np.flatnonzero(contradicts)[0])
+                raise NetsimInputError(
+                    f"{where}: row {i + 1} is received but gives the cause {words[i]!r} (a cause says why a frame "
+                    f"was lost; empty for a frame received) ({_such_rows(int(contradicts.sum()))})"
+                )
             lost = ~received & (words != "") & (words != BELOW_SENSITIVITY)
-            keep &= ~(lost & np.isnan(power_dbm))
-            lost &= keep
-            lost_measured, lost_unmeasured = int(lost.sum()), int((~keep).sum())
+            unmeasured = lost & np.isnan(power_dbm)
+            lost &= ~unmeasured
+            lost_measured, lost_unmeasured = int(lost.sum()), int(unmeasured.sum())
             received = received | lost
+        unread_dbm = np.where(received, np.nan, power_dbm)
         power_dbm = np.where(received, power_dbm, np.nan)
     for c in ("src", "dst"):
         if log[c].isna().any():
@@ -246,7 +267,9 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
     src, dst = ids[: len(log)].astype(np.int64), ids[len(log) :].astype(np.int64)
     if (src == dst).any():
         i = int(np.flatnonzero(src == dst)[0])
-        raise NetsimInputError(f"{where}: row {i + 1} has src = dst = {log['src'].iloc[i]!r}")
+        raise NetsimInputError(
+            f"{where}: row {i + 1} has src = dst = {_shown(log['src'].iloc[i])}: a frame goes from one robot to another"
+        )
     positions = None
     if has_positions:
         positions = np.column_stack([_numbers(log, c, where) for c in POSITIONS])
@@ -265,10 +288,19 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
             f"{where}: row {i + 1}: {what} is {distance[i]:g}; every distance must be > 0 m "
             f"({_such_rows(int(bad.sum()))})"
         )
-    if not keep.all():
-        t_s, power_dbm, distance, src, dst = (v[keep] for v in (t_s, power_dbm, distance, src, dst))
-        positions = None if positions is None else positions[keep]
-    return Frames(t_s, power_dbm, distance, positions, src, dst, len(names), lost_measured, lost_unmeasured)
+    return Frames(
+        t_s,
+        power_dbm,
+        distance,
+        positions,
+        src,
+        dst,
+        len(names),
+        lost_measured,
+        lost_unmeasured,
+        unmeasured,
+        unread_dbm,
+    )
 
 
 def check_sensitivity(power_dbm: np.ndarray, sensitivity_dbm: float | None, where: str) -> None:
@@ -345,8 +377,9 @@ def calibrate_frames(
             f"{where}: every received frame crosses {int(walls[seen][0])} walls of the map: "
             "the wall loss cannot be fitted apart from the reference loss"
         )
-    design = cf.Design(frames.power_dbm, g, walls, pair, float(tx_power_dbm))
-    censored = bool((~seen).any())
+    above = np.zeros(len(seen), bool) if frames.unmeasured is None else frames.unmeasured
+    design = cf.Design(frames.power_dbm, g, walls, pair, float(tx_power_dbm), above)
+    censored = bool((~seen & ~above).any())
     try:
         naive = cf.fit_naive(design)
         if naive.shadowing_sigma_db.value < NO_SPREAD_DB:
@@ -381,6 +414,7 @@ def calibrate_frames(
         frames.robots,
         frames.lost_measured,
         frames.lost_unmeasured,
+        0 if frames.unread_dbm is None else int((frames.unread_dbm >= s).sum()),
     )
 
 
@@ -409,14 +443,25 @@ def report(c: Calibration, where: str) -> str:
             f"the {c.lost_measured:,} frames lost after the radio heard them (to the loss model, a collision, ...) "
             "cleared the sensitivity: they count at their logged power"
         )
-    if c.lost_unmeasured:
+    if c.lost_unmeasured and fit.likelihood == "censored":
         lines.append(
-            f"{c.lost_unmeasured:,} frames lost after the radio heard them without a logged power are left out"
+            f"the {c.lost_unmeasured:,} frames lost after the radio heard them without a logged power count as "
+            "at or above the sensitivity"
+        )
+    elif c.lost_unmeasured:
+        lines.append(
+            f"the {c.lost_unmeasured:,} frames lost after the radio heard them without a logged power are left out: "
+            "a truncated fit takes every frame as clearing the sensitivity, so they tell it nothing"
+        )
+    if c.unread_above:
+        lines.append(
+            f"note: {c.unread_above:,} frames marked not received log a power at or above the sensitivity; they are "
+            "read as below it all the same (a cause column saying why each was lost lets it count at its power)"
         )
     if fit.likelihood == "censored":
         lines.append(
-            f"likelihood: censored (Tobit): {c.frames - c.received:,} frames sent but not received count as "
-            "below the sensitivity"
+            f"likelihood: censored (Tobit): {c.frames - c.received - c.lost_unmeasured:,} frames sent but not "
+            "received count as below the sensitivity"
         )
     else:
         lines.append("likelihood: truncated at the sensitivity (the log lists received frames only)")
@@ -504,7 +549,7 @@ def command(args) -> int:
             x0, x1, y0, y1 = occupancy.extent_m
             first = int(np.flatnonzero(off)[0])
             raise NetsimInputError(
-                f"{path}: {int(off.sum())} of {len(off)} frames have an end off the map {args.map} "
+                f"{path}: {int(off.sum()):,} of {len(off):,} frames have an end off the map {args.map} "
                 f"(x {x0:g} to {x1:g} m, y {y0:g} to {y1:g} m), the first from ({src[first, 0]:g}, "
                 f"{src[first, 1]:g}) to ({dst[first, 0]:g}, {dst[first, 1]:g}): "
                 "the positions must be in the map's frame"

@@ -10,7 +10,8 @@ received iff ``y >= S`` (the sensitivity). A robot logs only what it received, s
 - with only received rows, each row's power follows the normal *truncated* at ``S``
   (:func:`fit_truncated`);
 - when the log also lists frames sent but not received (power unknown), those rows say only
-  ``y < S``: a *censored* regression, Tobit's (:func:`fit_censored`).
+  ``y < S``: a *censored* regression, Tobit's (:func:`fit_censored`); a frame lost after the
+  radio heard it (to a loss model or a collision) with no power logged says ``y >= S``.
 
 The rows of one pair are not independent (a pair's shadowing is an Ornstein-Uhlenbeck
 process in its travel), so the likelihood above is a composite one: still consistent, but
@@ -59,7 +60,8 @@ class Design:
 
     ``y_dbm`` is the logged power (NaN: sent, not received), ``g_db`` the distance term
     ``10 log10(max(d, d0) / d0)``, ``walls`` the walls crossed (None: no map), ``cluster``
-    an integer per unordered pair.
+    an integer per unordered pair; ``above`` (None: none) the rows without a power known to
+    have cleared the sensitivity (lost after the radio heard them).
     """
 
     y_dbm: np.ndarray
@@ -67,6 +69,7 @@ class Design:
     walls: np.ndarray | None
     cluster: np.ndarray
     tx_power_dbm: float
+    above: np.ndarray | None = None
 
     @property
     def received(self) -> np.ndarray:
@@ -121,12 +124,21 @@ def _loglik_and_scores(theta, design: Design, sensitivity_dbm: float, censored: 
     a_mu[seen] = z / sigma
     a_sigma[seen] = (z * z - 1.0) / sigma
     if censored:
-        cm = c[~seen]
+        above = np.zeros(len(mu), bool) if design.above is None else design.above & ~seen
+        below = ~seen & ~above
+        cm = c[below]
         log_cdf = special.log_ndtr(cm)
         mills = np.exp(stats.norm.logpdf(cm) - log_cdf)
-        ll[~seen] = log_cdf
-        a_mu[~seen] = -mills / sigma
-        a_sigma[~seen] = -mills * cm / sigma
+        ll[below] = log_cdf
+        a_mu[below] = -mills / sigma
+        a_sigma[below] = -mills * cm / sigma
+        # Known to have cleared the sensitivity, power not logged: P(y >= S).
+        ca = c[above]
+        log_sf = special.log_ndtr(-ca)
+        hazard = np.exp(stats.norm.logpdf(ca) - log_sf)
+        ll[above] = log_sf
+        a_mu[above] = hazard / sigma
+        a_sigma[above] = hazard * ca / sigma
     elif np.isfinite(sensitivity_dbm):
         cs = c[seen]
         log_sf = special.log_ndtr(-cs)
