@@ -215,10 +215,13 @@ class Simulation:
 
     def _until(self, until_s: Any) -> float:
         """``until_s`` as a float, checked against the run's clock and end."""
-        # A string or a bool is a mistake even where float() would take it.
-        if isinstance(until_s, (bool, np.bool_)) or not isinstance(until_s, numbers.Real):
+        # Text and truth values are mistakes even where float() would take them ("20", True).
+        if isinstance(until_s, (str, bytes, bool, np.bool_)):
             raise CommandError(f"until_s = {until_s!r}: must be a time in seconds (a number)")
-        until = float(until_s)
+        try:
+            until = float(until_s)
+        except (TypeError, ValueError, OverflowError):
+            raise CommandError(f"until_s = {until_s!r}: must be a time in seconds (a number)") from None
         if math.isnan(until):
             raise CommandError(f"until_s = {until_s!r}: must be a time in seconds, not NaN")
         if until > self.duration_s:
@@ -238,9 +241,10 @@ class Simulation:
         output is computed for the interval ``[0, until_s]`` from exact trajectories. With
         ``progress``, the advance is made in ``steps`` parts, each reported.
 
-        ``until_s`` must lie in ``[now, duration_s]``: anything else (later than the run's
-        end, earlier than now, NaN) raises :class:`~netsim.cosim.CommandError` (a
-        ``ValueError``) naming it, and the run is left as it was. An exception raised inside
+        ``until_s`` must be a number (text such as ``"20"`` is refused) in ``[now,
+        duration_s]``: anything else (later than the run's end, earlier than now, NaN)
+        raises :class:`~netsim.cosim.CommandError` (a ``ValueError``) naming it, and the run
+        is left as it was. An exception raised inside
         the run (by a subscriber, say, or Ctrl-C) ends it: the event it interrupted was made
         only in part, so a later ``run`` raises :class:`~netsim.cosim.CommandError`;
         :func:`netsim.run.collect` still gives the tables as they stood.
@@ -248,10 +252,10 @@ class Simulation:
         if self._stopped_by is not None:
             raise CommandError(f"the run cannot go on: {self._stopped_by}; build it again")
         until = self.duration_s if until_s is None else self._until(until_s)
-        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+        if isinstance(steps, (bool, np.bool_)) or not isinstance(steps, numbers.Integral) or steps < 1:
             raise CommandError(f"steps = {steps!r}: must be a whole number >= 1")
         try:
-            self._advance(until, progress, steps)
+            self._advance(until, progress, int(steps))
         except BaseException as exc:
             self._stopped_by = f"{type(exc).__name__} was raised inside it at t = {self.env.now:g} s"
             raise

@@ -95,6 +95,53 @@ def test_a_frame_not_received_that_logs_a_clear_power_is_noted(tmp_path, capsys)
     assert "note: 7 frames marked not received log a power at or above the sensitivity" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("censored", [True, False], ids=["censored", "truncated"])
+def test_the_printout_counts_each_kind_of_frame(tmp_path, capsys, censored):
+    """The first line counts the frames received, lost after the radio heard them (with a
+    power or without) and not received; frames that tell nothing of the channel (never sent,
+    a unicast's retries failed with no power) are left out and counted; frames lost without
+    a power count as at or above the sensitivity in a censored fit and are left out of a
+    truncated one; the fragment's header counts every frame the radio heard."""
+    log = synth_log(4, censored=True, **SMALL)[["t_s", "src", "dst", "distance_m", "rssi_dbm", "received"]]
+    if not censored:
+        log = log[log["received"]].reset_index(drop=True)
+    log = log.assign(cause=np.where(log["received"], "", "out_of_range"))
+    heard = log.index[log["received"]]
+    log.loc[heard[:20], ["received", "cause"]] = [False, "loss"]
+    log.loc[heard[20:50], ["received", "cause", "rssi_dbm"]] = [False, "collision", np.nan]
+    log.loc[heard[50:55], ["received", "cause", "rssi_dbm"]] = [False, "queue_full", np.nan]
+    log.loc[heard[55:58], ["received", "cause", "rssi_dbm"]] = [False, "retry_limit", np.nan]
+    path, out = tmp_path / "log.csv", tmp_path / "site.toml"
+    log.to_csv(path, index=False)
+    assert main(["calibrate", str(path), "--sensitivity-dbm", "-80", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    received = int(log["received"].sum())
+    below = int((log["cause"] == "out_of_range").sum())
+    first = f"{len(log) - 8:,} frames ({received:,} received, 50 lost after the radio heard them"
+    assert first + (f", {below:,} not received)" if censored else ")") in printed
+    assert "the 8 frames that tell nothing of the channel are left out" in printed
+    if censored:
+        assert "the 30 frames lost after the radio heard them without a logged power count as at or above" in printed
+        assert f"censored (Tobit): {below:,} frames sent but not received count as below" in printed
+    else:
+        assert "the 30 frames lost after the radio heard them without a logged power are left out" in printed
+        assert "truncated at the sensitivity (the log lists no frame that fell short of it)" in printed
+    assert f"{received + 50:,} frames the radio heard" in out.read_text()
+
+
+def test_an_out_of_range_frame_logged_above_the_sensitivity_is_noted(small_log, capsys, tmp_path):
+    """A frame of cause out_of_range whose logged power clears the sensitivity given is read
+    as below it, and a note asks whether the sensitivity given is the radio's."""
+    log = small_log.assign(received=True, cause="")
+    log.loc[[3, 8], ["received", "cause"]] = [False, "out_of_range"]
+    path = tmp_path / "log.csv"
+    log.to_csv(path, index=False)
+    assert main(["calibrate", str(path), "--sensitivity-dbm", "-80"]) == 0
+    printed = capsys.readouterr().out
+    assert "note: 2 frames of cause out_of_range log a power at or above the sensitivity" in printed
+    assert "frames marked not received log a power" not in printed
+
+
 @pytest.mark.slow
 def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path, capsys):
     """A run's receptions.parquet is a log as it is: a frame the loss model dropped after
@@ -122,7 +169,7 @@ def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path
     capsys.readouterr()
     assert main(["calibrate", str(run / "receptions.parquet"), "--sensitivity-dbm", "-85"]) == 0
     printed = capsys.readouterr().out
-    assert f"{lost:,} lost after the radio heard them) between" in printed
+    assert f"{lost:,} lost after the radio heard them, " in printed and " not received) between " in printed
     result = calibrate_frame(table, sensitivity_dbm=-85.0)
     for key, value in truth.items():
         assert getattr(result.fit, key).covers(value), (key, getattr(result.fit, key))
@@ -130,7 +177,7 @@ def test_a_runs_own_receptions_give_back_its_channel_under_a_loss_model(tmp_path
     assert result.decorrelation.estimate.covers(LogDistanceParams.shadowing_decorrelation_m), result.decorrelation
 
 
-def test_a_cause_is_read_as_the_channel_spells_it(small_log):
+def test_a_cause_is_read_as_the_channel_spells_it():
     """``cause`` as a user may write it (any case, spaces for underscores) means what the
     channel's causes mean: ``out_of_range`` rows are censored below the sensitivity, a frame
     lost after the radio heard it counts at its power, and one such without a power as at or

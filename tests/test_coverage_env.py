@@ -233,7 +233,7 @@ def test_actions_that_are_not_a_dict_are_refused_in_one_line():
         env.step(np.zeros((SMALL["n_robots"], 2), np.float32))
 
 
-@pytest.mark.parametrize("action", [np.array([9.0, 0.0], np.float32), np.zeros(3, np.float32)])
+@pytest.mark.parametrize("action", [np.array([9.0, 0.0], np.float32), np.zeros(3, np.float32), None])
 def test_a_bad_action_in_turns_raises_when_given_and_the_agent_gives_another(action):
     """In the AEC API a bad action raises at the agent's own step and is not kept: the same
     agent then gives a good one and the episode goes on as if the bad one had not been given
@@ -281,7 +281,8 @@ def test_render_draws_an_rgb_frame():
     img = env.render()
     assert img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8
     assert len(np.unique(img.reshape(-1, 3), axis=0)) > 10
-    assert coverage_v0.parallel_env(**SMALL).render() is None
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert coverage_v0.parallel_env(**SMALL).render() is None
 
 
 @pytest.mark.parametrize("compiled", [False, True], ids=["plain", "compiled"])

@@ -434,12 +434,13 @@ def parallel_env(render_mode: str | None = None, netsim: Mapping | None = None, 
 
 class CoverageTurns(parallel_to_aec_wrapper):
     """PettingZoo's conversion of the environment to turns, each action checked when it is
-    given: a bad one raises there and is not kept, so the agent can give another. (The
-    conversion alone keeps it and fails at the turn's last agent, at every step after.)"""
+    given: a bad one (None included, for an agent still in the episode) raises there and is
+    not kept, so the agent can give another. (The conversion alone keeps it and fails at the
+    turn's last agent, at every step after.)"""
 
     def step(self, action: Any) -> None:
         agent = self.agent_selection
-        if action is not None and not (self.terminations[agent] or self.truncations[agent]):
+        if not (self.terminations[agent] or self.truncations[agent]):
             cast(CoverageEnv, self.env).checked_actions({agent: action})
         super().step(action)
 

@@ -12,6 +12,7 @@ writes the ``[channel]`` fragment.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -53,8 +54,11 @@ class Calibration:
     # Frames lost so without a logged power: at or above the sensitivity in a censored fit;
     # a truncated fit, which takes every frame as clearing it, has nothing to learn from them.
     lost_unmeasured: int = 0
-    # Frames not received whose logged power clears the sensitivity: read as below it all the same.
+    # Frames not received whose logged power clears the sensitivity: read as below it all the
+    # same; of them, those whose cause says below it (out_of_range).
     unread_above: int = 0
+    unread_out_of_range: int = 0
+    left_out: int = 0  # rows that tell nothing of the channel (never sent, ...)
 
     def channel(self) -> dict:
         """The ``[channel]`` keys, as ``netsim run`` reads them."""
@@ -154,6 +158,17 @@ class Frames:
     unmeasured: np.ndarray | None = None  # bool per row: lost after the radio heard it, no power logged
     # Per row: a power logged beside received = false (and no cause that counts it), NaN otherwise.
     unread_dbm: np.ndarray | None = None
+    caused: np.ndarray | None = None  # bool per row: the log gives a cause
+    left_out: int = 0  # rows that tell nothing of the channel (NEVER_SENT, NO_TELLING), not in the arrays
+
+    def rows(self, keep: np.ndarray) -> Frames:
+        """These frames but for the rows ``keep`` leaves out."""
+
+        def cut(a):
+            return None if a is None else a[keep]
+
+        names = ("t_s", "power_dbm", "distance_m", "positions", "src", "dst", "unmeasured", "unread_dbm", "caused")
+        return dataclasses.replace(self, **{name: cut(getattr(self, name)) for name in names})
 
     @property
     def pair(self) -> np.ndarray:
@@ -184,6 +199,11 @@ class Frames:
 # that says the power fell below the sensitivity (or a wall or the range stopped it). Every
 # other cause the channel and its medium give drops a frame the radio heard.
 BELOW_SENSITIVITY = "out_of_range"
+# Causes of a log's rows that tell nothing of the channel, left out: a frame never sent (a
+# full queue), and a unicast whose every try failed with no power logged (out of range or
+# lost after, no telling which).
+NEVER_SENT = "queue_full"
+NO_TELLING = "retry_limit"
 
 
 def _causes(log: pd.DataFrame, where: str) -> np.ndarray:
@@ -229,6 +249,9 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
     lost_measured = lost_unmeasured = 0
     unmeasured = np.zeros(len(log), bool)
     unread_dbm = None
+    # Rows that tell nothing of the channel are left out (NEVER_SENT, NO_TELLING).
+    keep = np.ones(len(log), bool)
+    caused = np.zeros(len(log), bool)
     if "received" in cols:
         words = {"true": True, "false": False}
         received = log["received"].map(lambda v: words.get(v.lower(), v) if isinstance(v, str) else v)
@@ -252,7 +275,9 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
                     f"{where}: row {i + 1} is received but gives the cause {words[i]!r} (a cause says why a frame "
                     f"was lost; empty for a frame received) ({_such_rows(int(contradicts.sum()))})"
                 )
-            lost = ~received & (words != "") & (words != BELOW_SENSITIVITY)
+            keep = ~((words == NEVER_SENT) | ((words == NO_TELLING) & np.isnan(power_dbm)))
+            caused = words != ""
+            lost = ~received & caused & (words != BELOW_SENSITIVITY) & keep
             unmeasured = lost & np.isnan(power_dbm)
             lost &= ~unmeasured
             lost_measured, lost_unmeasured = int(lost.sum()), int(unmeasured.sum())
@@ -288,7 +313,7 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
             f"{where}: row {i + 1}: {what} is {distance[i]:g}; every distance must be > 0 m "
             f"({_such_rows(int(bad.sum()))})"
         )
-    return Frames(
+    frames = Frames(
         t_s,
         power_dbm,
         distance,
@@ -300,7 +325,10 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         lost_unmeasured,
         unmeasured,
         unread_dbm,
+        caused,
+        int((~keep).sum()),
     )
+    return frames if keep.all() else frames.rows(keep)
 
 
 def check_sensitivity(power_dbm: np.ndarray, sensitivity_dbm: float | None, where: str) -> None:
@@ -414,8 +442,19 @@ def calibrate_frames(
         frames.robots,
         frames.lost_measured,
         frames.lost_unmeasured,
-        0 if frames.unread_dbm is None else int((frames.unread_dbm >= s).sum()),
+        *_unread_above(frames, s),
+        frames.left_out,
     )
+
+
+def _unread_above(frames: Frames, sensitivity_dbm: float) -> tuple[int, int]:
+    """Rows marked not received whose logged power clears the sensitivity: without a cause,
+    and with the cause ``out_of_range``."""
+    if frames.unread_dbm is None:
+        return 0, 0
+    above = frames.unread_dbm >= sensitivity_dbm
+    caused = np.zeros(len(above), bool) if frames.caused is None else frames.caused
+    return int((above & ~caused).sum()), int((above & caused).sum())
 
 
 def calibrate_frame(log: pd.DataFrame, sensitivity_dbm: float | None = None, where: str = "the log", **kw):
@@ -430,14 +469,19 @@ def _cell(e: cf.Estimate | None) -> str:
 def report(c: Calibration, where: str) -> str:
     """The printed table: each estimate with its 95 % interval, the naive fit beside."""
     fit, naive = c.fit, c.naive
-    heard = (
-        f"{c.received:,} received"
-        if not c.lost_measured
-        else f"{c.received - c.lost_measured:,} received, {c.lost_measured:,} lost after the radio heard them"
-    )
+    lost = c.lost_measured + c.lost_unmeasured
+    below = c.frames - c.received - c.lost_unmeasured
+    heard = f"{c.received - c.lost_measured:,} received"
+    heard += f", {lost:,} lost after the radio heard them" if lost else ""
+    heard += f", {below:,} not received" if below else ""
     lines = [
         f"netsim calibrate: {where}: {c.frames:,} frames ({heard}) between {c.pairs:,} pairs of {c.robots:,} robots"
     ]
+    if c.left_out:
+        lines.append(
+            f"the {c.left_out:,} frames that tell nothing of the channel are left out ({NEVER_SENT}: never sent; "
+            f"{NO_TELLING} without a power: out of range or lost after, no telling which)"
+        )
     if c.lost_measured:
         lines.append(
             f"the {c.lost_measured:,} frames lost after the radio heard them (to the loss model, a collision, ...) "
@@ -458,13 +502,18 @@ def report(c: Calibration, where: str) -> str:
             f"note: {c.unread_above:,} frames marked not received log a power at or above the sensitivity; they are "
             "read as below it all the same (a cause column saying why each was lost lets it count at its power)"
         )
+    if c.unread_out_of_range:
+        lines.append(
+            f"note: {c.unread_out_of_range:,} frames of cause {BELOW_SENSITIVITY} log a power at or above the "
+            "sensitivity; they are read as below it all the same (is the sensitivity given below the radio's?)"
+        )
     if fit.likelihood == "censored":
         lines.append(
             f"likelihood: censored (Tobit): {c.frames - c.received - c.lost_unmeasured:,} frames sent but not "
             "received count as below the sensitivity"
         )
     else:
-        lines.append("likelihood: truncated at the sensitivity (the log lists received frames only)")
+        lines.append("likelihood: truncated at the sensitivity (the log lists no frame that fell short of it)")
     if c.sensitivity_given:
         lines.append(f"sensitivity_dbm: {c.sensitivity_dbm:g} (given)")
     else:
@@ -504,7 +553,7 @@ def report(c: Calibration, where: str) -> str:
 
 def toml_fragment(c: Calibration, where: str) -> str:
     lines = [
-        f"# netsim calibrate {where}: {c.received:,} frames the radio heard of {c.pairs:,} pairs, "
+        f"# netsim calibrate {where}: {c.received + c.lost_unmeasured:,} frames the radio heard of {c.pairs:,} pairs, "
         f"{c.fit.likelihood} likelihood",
         "[channel]",
     ]
