@@ -102,7 +102,17 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) ->
     if area.is_square_at_origin:
         xy = np.concatenate([x, y])
         side = world.side_m
-        if len(xy) and (xy.min() < -tol or xy.max() > side + tol):
+        if len(xy) and xy.min() < -tol:
+            # A square side can only grow to the right and up: a trace below 0 needs a frame.
+            bounds = [float(x.min()), float(y.min()), float(x.max()), float(y.max())]
+            raise ConfigError(
+                "world.side_m",
+                side,
+                f"gives the area [0, {side:g}]^2, and {params.trace_file} has coordinates below 0 (x from "
+                f"{x.min():g} to {x.max():g}, y from {y.min():g} to {y.max():g}): set world.bounds_m to a "
+                f"frame holding them (they span [{', '.join(f'{b:g}' for b in bounds)}])",
+            )
+        if len(xy) and xy.max() > side + tol:
             raise ConfigError(
                 "world.side_m",
                 side,

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 from netsim import plugins
 from netsim.area import KEY, Bounds, parse_bounds, parse_start
-from netsim.errors import ConfigError, NetsimInputError
+from netsim.errors import ConfigError, NetsimInputError, not_a_file
 from netsim.params import (
     NoParams,
     Params,
@@ -818,7 +818,7 @@ def read_tree(path: str | Path | None = None, overrides: Iterable[str] = ()) -> 
     if path is not None:
         p = Path(path)
         if not p.is_file():
-            raise ConfigError("scenario file", str(p), "no such file")
+            raise ConfigError("scenario file", str(p), not_a_file(p))
         try:
             raw = tomllib.loads(p.read_text())
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

@@ -1,5 +1,7 @@
 """Errors that reach users. The CLI turns these into one line and exit status 2."""
 
+import os
+
 
 class NetsimInputError(Exception):
     """Bad input from the user: a configuration value, a file, a command-line option."""
@@ -27,3 +29,9 @@ class ConfigError(NetsimInputError):
         # whole (notes included): the default pickling would call __init__ with the
         # message alone.
         return ConfigError, (self.key, self.value, self.allowed), self.__dict__
+
+
+def not_a_file(path: str | os.PathLike) -> str:
+    """Why ``path``, expected to be a file, is not one: ``"is a directory, not a file"`` or
+    ``"no such file"``; the words every reader of a user's file gives."""
+    return "is a directory, not a file" if os.path.isdir(path) else "no such file"

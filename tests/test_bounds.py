@@ -456,3 +456,22 @@ def test_a_robot_on_the_border_moving_out_leaves_at_plus_zero():
     assert t.tolist() == [0.0, 0.0, 0.0] and not np.signbit(t).any()
     assert not np.signbit(time_to_border(p, v, 10.0)).any()
     assert exit_times(np.array([[5.0, 5.0]]), np.zeros((1, 2)), (0.0, 0.0), (10.0, 10.0)).tolist() == [math.inf]
+
+
+def test_a_trace_below_zero_on_the_default_square_names_world_bounds_m(tmp_path, capsys):
+    """A trace recorded in a map's frame (coordinates below 0) on the default square: the
+    error says the square cannot hold it and names world.bounds_m with the least frame that
+    does; with those bounds the run goes ahead."""
+    trace = tmp_path / "frame.tcl"
+    trace.write_text(
+        "$node_(0) set X_ -10.5\n$node_(0) set Y_ 4.0\n$node_(1) set X_ 20.0\n$node_(1) set Y_ -3.25\n"
+        '$ns_ at 1.0 "$node_(0) setdest 0.0 2.0 2.0"\n'
+    )
+    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    base += ["--set", "world.n_robots=2", "--set", "duration_s=5"]
+    assert main([*base, "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "has coordinates below 0" in err and "set world.bounds_m to a frame holding them" in err, err
+    assert "(they span [-10.5, -3.25, 20, 4])" in err, err
+    assert not (tmp_path / "a").exists()
+    assert main([*base, "--set", "world.bounds_m=[-10.5, -3.25, 20, 4]", "--out", str(tmp_path / "b")]) == 0

@@ -1,5 +1,7 @@
 """ns-2 movement files: generate, parse (setdest, BonnMotion), replay exactly."""
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -347,6 +349,24 @@ def test_skipped_lines_are_counted_in_one_warning(tmp_path):
     with pytest.warns(UserWarning, match=r"2 movement line\(s\) not understood .* line\(s\) 4, 6$") as caught:
         ns2.read(f)
     assert len(caught) == 1
+
+
+@pytest.mark.parametrize(
+    "last", ['$ns_ at 9.0 "', '$ns_ at 9.0 "$node_(1', '$ns_ at 9.0 "$node_(0) setd', "$ns_ at 9.", "$node_(0) se"]
+)
+def test_a_file_cut_anywhere_in_its_last_line_warns_of_it(tmp_path, last):
+    """A file cut short (as ``head -c`` cuts it) ends inside a line, without a newline, or
+    leaves a quote open: that line is counted in the warning wherever the cut falls, not
+    skipped without a word as other Tcl is (a whole line of other Tcl still is)."""
+    f = tmp_path / "cut.tcl"
+    body = '$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\n$ns_ at 0.5 "$god_ set-dist 0 1 2"\n'
+    f.write_text(body + '$ns_ at 2.0 "$node_(0) setdest 5.0 5.0 1.0"\n' + last)
+    with pytest.warns(UserWarning, match=r"1 movement line\(s\) not understood \(a line cut short.* line\(s\) 5$"):
+        ns2.read(f)
+    f.write_text(body + '$ns_ at 2.0 "$node_(0) setdest 5.0 5.0 1.0"\n' + '$ns_ at 9.0 "$god_ set-dist 0 1 3"\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ns2.read(f)
 
 
 SETDEST_FAR = '$node_(0) set X_ 10\n$node_(0) set Y_ 10\n$ns_ at 1 "$node_(0) setdest {x} 10 {v}"\n'

@@ -2,6 +2,7 @@
 is one line on stderr and exit status 2, nothing written (netsim.tools.args.Parser): the
 same as every other bad input. Running each script also shows that it still imports."""
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -126,6 +127,73 @@ def test_a_missing_run_directory_is_one_line_alike_for_every_command(tmp_path, c
     err = capsys.readouterr().err.strip()
     assert err == f"netsim: error: {missing}: no such run directory (the --out of a `netsim run`)"
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "run"
+    settings = ["world.n_robots=4", "duration_s=5"]
+    assert main(["run", "--quiet", *(a for s in settings for a in ("--set", s)), "--out", str(out)]) == 0
+    return out
+
+
+READERS = {"view": [], "export": ["--format", "bonnmotion"], "figures": []}
+
+
+@pytest.mark.parametrize("command", list(READERS))
+@pytest.mark.parametrize(
+    "damage, said",
+    [("file", "is a file, not a run directory"), ("table", "cannot be read as Parquet"), ("config", "as TOML")],
+)
+def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, small_run, command, damage, said):
+    """A file given as the run, a run whose tables were cut short, or whose config.toml is
+    not TOML: one line naming the file for every command that reads a run, nothing written
+    (a traceback from pyarrow or tomllib before)."""
+    run, out = tmp_path / "run", tmp_path / ("out.movements" if command == "export" else "out")
+    if damage == "file":
+        run.write_text("not a run")
+    else:
+        shutil.copytree(small_run, run)
+        if damage == "table":
+            for table in run.glob("*.parquet"):
+                table.write_bytes(table.read_bytes()[:100])
+        else:
+            (run / "config.toml").write_text("[world\n")
+    assert main([command, str(run), *READERS[command], "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and err.count("\n") == 1 and said in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "args, said",
+    [
+        (["run", "--quiet", "{d}"], "is a directory, not a file"),
+        (["run", "--quiet", "--set", "world.map={d}"], "is a directory, not a file"),
+        (
+            ["run", "--quiet", "--set", "mobility.model=trace", "--set", "mobility.trace_file={d}.movements"],
+            "is a directory, not a file",
+        ),
+        (
+            ["run", "--quiet", "--set", "mobility.model=trace", "--set", "mobility.trace_file={d}.tcl"],
+            "has no metadata.yaml",
+        ),
+        (["sweep", "{d}"], "is a directory, not a file"),
+    ],
+    ids=["scenario", "map", "bonnmotion", "ns2", "sweep"],
+)
+def test_a_directory_given_for_a_file_is_named_a_directory(tmp_path, capsys, args, said):
+    """A directory where a file is expected is refused as a directory (not as a file that
+    does not exist), in one line, nothing written; a trace that is a directory is read as a
+    rosbag2 bag, and one without metadata.yaml is refused as such."""
+    d = tmp_path / "given"
+    for suffix in ("", ".movements", ".tcl"):
+        Path(f"{d}{suffix}").mkdir()
+    out = tmp_path / "out"
+    assert main([a.format(d=d) for a in args] + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and err.count("\n") == 1 and said in err, err
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("value, number", [("-8e1", -80.0), ("-1E-3", -0.001), ("-inf", float("-inf"))])

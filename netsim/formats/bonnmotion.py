@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from netsim.area import Bounds, as_bounds
-from netsim.errors import NetsimInputError
+from netsim.errors import NetsimInputError, not_a_file
 from netsim.formats.waypoints import Waypoints
 
 
@@ -58,7 +58,7 @@ def read(path: str | Path) -> tuple[Waypoints, dict[str, str]]:
     it, if any); :class:`NetsimInputError` naming the file and line for a malformed one."""
     path = Path(path)
     if not path.is_file():
-        raise NetsimInputError(f"{str(path)!r}: no such file")
+        raise NetsimInputError(f"{str(path)!r}: {not_a_file(path)}")
     params = read_params(params_path(path))
     width = 4 if params.get("J", "").upper() == "3D" else 3
     robots, times, xs, ys = [], [], [], []

@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from netsim.errors import NetsimInputError
+from netsim.errors import NetsimInputError, not_a_file
 from netsim.geometry import speeds_mps
 from netsim.trajectory import LegTable
 
@@ -62,7 +62,8 @@ _NODE = re.compile(r"\(([^()]*)\)")
 _COORDS = ("X_", "Y_", "Z_")
 SEMANTICS = ("ns2", "ns3")
 # A line that names a node's movement (a setdest, or a set of a coordinate): one not
-# understood is counted in a warning, where other Tcl is skipped without a word.
+# understood is counted in a warning, as is a line cut short (a quote left open, or the
+# file's last line without its newline), where other Tcl is skipped without a word.
 _MOVEMENT = re.compile(r"setdest|\$node_\([^)]*\)\s+set\s+[XYZ]_")
 # Lines named in a warning, at most.
 _SHOWN = 5
@@ -173,11 +174,14 @@ def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") 
     as_ns2 = semantics == "ns2"
     path = Path(path)
     if not path.is_file():
-        raise NetsimInputError(f"{str(path)!r}: no such file")
+        raise NetsimInputError(f"{str(path)!r}: {not_a_file(path)}")
     try:
-        lines = path.read_text().splitlines()
+        text = path.read_text()
     except UnicodeDecodeError:
         raise NetsimInputError(f"{path}: not a text file") from None
+    lines = text.splitlines()
+    # A file cut short ends inside its last line, without the newline that ends every line.
+    cut_short = len(lines) if text and not text.endswith(("\n", "\r")) else 0
 
     def node(text: str, lineno: int) -> int:
         if len(text) > 9:
@@ -206,7 +210,9 @@ def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") 
     for lineno, raw in enumerate(lines, 1):
         if _understood(_tokens(raw), lineno, parsed, node, finite, as_ns2):
             continue
-        if _MOVEMENT.search(raw.split("#", 1)[0]):
+        code = raw.split("#", 1)[0]
+        # A quote left open is a line cut short, whatever it was to say.
+        if _MOVEMENT.search(code) or code.count('"') % 2 or (lineno == cut_short and code.strip()):
             skipped.append(lineno)
     if not parsed:
         raise NetsimInputError(
@@ -269,8 +275,8 @@ def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") 
     if skipped:
         skipped.sort()
         warn(
-            f"{len(skipped)} movement line(s) not understood (a word missing or extra, a time or number "
-            f"that is not one, a negative speed) are skipped: line(s) {_lines_named(skipped)}"
+            f"{len(skipped)} movement line(s) not understood (a line cut short, a word missing or extra, a time "
+            f"or number that is not one, a negative speed) are skipped: line(s) {_lines_named(skipped)}"
         )
     live = sorted((e for e in events if not e[6]), key=lambda e: (e[0], e[1]))
     frame = pd.DataFrame(

@@ -84,6 +84,8 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
     source = str(path)
     if not path.is_dir():
         raise NetsimInputError(f"{source!r}: not a rosbag2 folder (a folder with metadata.yaml)")
+    if not (path / "metadata.yaml").is_file():
+        raise NetsimInputError(f"{source}: a folder is read as a rosbag2 bag, and this one has no metadata.yaml")
     try:
         reader = Reader(path)
         reader.open()

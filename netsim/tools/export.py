@@ -22,18 +22,16 @@ import pandas as pd
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.formats import ns2
-from netsim.tools.output import existing_dir, is_run_dir
+from netsim.tools.output import existing_dir, is_run_dir, read_run_table
 
 FORMATS = ("bonnmotion", "ns2", "rosbag2")
 
 
 def _table(run_dir: Path, name: str, needed: bool = True) -> pd.DataFrame | None:
-    path = run_dir / f"{name}.parquet"
-    if not path.is_file():
-        if needed:
-            raise NetsimInputError(f"{run_dir}: the run has no {name}.parquet, which this export needs")
-        return None
-    return pd.read_parquet(path)
+    table = read_run_table(run_dir, name)
+    if table is None and needed:
+        raise NetsimInputError(f"{run_dir}: the run has no {name}.parquet, which this export needs")
+    return table
 
 
 def check_out(out: Path, fmt: str) -> None:

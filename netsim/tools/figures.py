@@ -26,7 +26,6 @@ Only the run's files are read (``config.toml``, ``positions.parquet``, ``roles.p
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import NamedTuple
 
@@ -39,6 +38,7 @@ from netsim.area import Bounds
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.tools import style
+from netsim.tools.output import read_run_config, read_run_table
 from netsim.topology import geometric_pairs
 
 # The built-in coverage scenario: a dense random start in the middle of the area, as the
@@ -80,13 +80,13 @@ def read_run(run_dir: Path) -> Run:
     missing = [f for f in needed if not (run_dir / f).is_file()]
     if missing:
         raise NetsimInputError(f"{run_dir}: not a run directory with positions (missing {', '.join(missing)})")
-    config = cfgmod.from_dict(tomllib.loads((run_dir / "config.toml").read_text()))
-    positions = pd.read_parquet(run_dir / "positions.parquet")
+    config = cfgmod.from_dict(read_run_config(run_dir))
+    positions = read_run_table(run_dir, "positions")
+    roles = read_run_table(run_dir, "roles")
+    assert positions is not None and roles is not None  # checked above
     if positions.empty:
         raise NetsimInputError(f"{run_dir}: positions were not sampled (output.position_interval_s = 0)")
-    roles = pd.read_parquet(run_dir / "roles.parquet")
-    groups = pd.read_parquet(run_dir / "groups.parquet") if (run_dir / "groups.parquet").is_file() else None
-    return Run(config, positions, roles, groups)
+    return Run(config, positions, roles, read_run_table(run_dir, "groups"))
 
 
 def _sample_time(frame: pd.DataFrame, t: float) -> float:

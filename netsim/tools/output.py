@@ -24,6 +24,7 @@ import signal
 import sys
 import tempfile
 import threading
+import tomllib
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
@@ -90,9 +91,36 @@ def existing_dir(run_dir: str | Path) -> Path:
     """``run_dir`` as a path; one that is no directory is refused alike by every command
     that reads a run (:class:`NetsimInputError`)."""
     run_dir = Path(run_dir)
+    if run_dir.exists() and not run_dir.is_dir():
+        raise NetsimInputError(f"{run_dir}: is a file, not a run directory (the --out of a `netsim run`)")
     if not run_dir.is_dir():
         raise NetsimInputError(f"{run_dir}: no such run directory (the --out of a `netsim run`)")
     return run_dir
+
+
+def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
+    """The run's table ``name`` (``name.parquet``), None where the run has none; a file
+    that cannot be read as Parquet (cut short, overwritten) is refused in one line."""
+    path = run_dir / f"{name}.parquet"
+    if not path.is_file():
+        return None
+    try:
+        return pd.read_parquet(path)
+    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise NetsimInputError(f"{path}: cannot be read as Parquet ({first})") from None
+
+
+def read_run_config(run_dir: Path) -> dict:
+    """The run's ``config.toml`` as a table; a run without one, or one that is not
+    TOML, is refused in one line."""
+    path = run_dir / "config.toml"
+    if not path.is_file():
+        raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml)")
+    try:
+        return tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise NetsimInputError(f"{path}: cannot be read as TOML ({exc})") from None
 
 
 def earlier_run_files(out: Path) -> list[Path]:

@@ -50,7 +50,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from netsim import config as cfgmod
-from netsim.errors import ConfigError, NetsimInputError
+from netsim.errors import ConfigError, NetsimInputError, not_a_file
 from netsim.tools.output import write_atomically, write_table
 
 MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
@@ -141,7 +141,7 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
         if where is not None and not path.is_absolute():
             path = where.parent / path
         if not path.is_file():
-            raise _err(f"base_file = {str(path)!r}: no such file")
+            raise _err(f"base_file = {str(path)!r}: {not_a_file(path)}")
         try:
             base = cfgmod.merge(tomllib.loads(path.read_text()), base)
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
@@ -247,7 +247,7 @@ def _random(spec, known: set[str]) -> list[dict]:
 def load_file(path: str | Path) -> Sweep:
     p = Path(path)
     if not p.is_file():
-        raise _err(f"{str(p)!r}: no such file")
+        raise _err(f"{str(p)!r}: {not_a_file(p)}")
     try:
         tree = tomllib.loads(p.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

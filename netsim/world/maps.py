@@ -47,7 +47,7 @@ import numpy as np
 
 from netsim.area import KEY as BOUNDS_KEY
 from netsim.area import Bounds, as_bounds
-from netsim.errors import ConfigError
+from netsim.errors import ConfigError, not_a_file
 from netsim.geometry import cell_centres_m
 from netsim.world.los import kernels_for
 
@@ -239,7 +239,9 @@ def load_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
     path = example_path(where) if where in EXAMPLES else Path(where)
     if not path.is_file():
         raise ConfigError(
-            key, where, f"must be the path of a map_server YAML file or one of {', '.join(EXAMPLES)} (no such file)"
+            key,
+            where,
+            f"must be the path of a map_server YAML file or one of {', '.join(EXAMPLES)} ({not_a_file(path)})",
         )
     try:
         meta = yaml.safe_load(path.read_text())
@@ -283,7 +285,7 @@ def load_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
         raise ConfigError(key, where, f"'image: {image!r}' must name the map's image file")
     image_path = Path(image) if Path(image).is_absolute() else path.parent / image
     if not image_path.is_file():
-        raise ConfigError(key, where, f"'image: {image}': no such file ({image_path})")
+        raise ConfigError(key, where, f"'image: {image}': {not_a_file(image_path)} ({image_path})")
     try:
         with Image.open(image_path) as img:
             img.load()

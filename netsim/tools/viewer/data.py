@@ -26,7 +26,6 @@ import base64
 import gzip
 import json
 import math
-import tomllib
 from pathlib import Path
 from typing import NamedTuple
 
@@ -39,7 +38,7 @@ from netsim.errors import NetsimInputError
 from netsim.metrics import components_in_links_table
 from netsim.plugins import RoleLabels
 from netsim.tools import style
-from netsim.tools.output import existing_dir
+from netsim.tools.output import existing_dir, read_run_config, read_run_table
 from netsim.trajectory import sample_positions
 
 
@@ -98,15 +97,11 @@ def _small_uint(values: np.ndarray) -> str:
 
 
 def _read(run_dir: Path, name: str) -> pd.DataFrame | None:
-    path = run_dir / f"{name}.parquet"
-    return pd.read_parquet(path) if path.is_file() else None
+    return read_run_table(run_dir, name)
 
 
 def load_config(run_dir: Path) -> cfgmod.Config:
-    path = run_dir / "config.toml"
-    if not path.is_file():
-        raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml)")
-    return cfgmod.from_dict(tomllib.loads(path.read_text()))
+    return cfgmod.from_dict(read_run_config(run_dir))
 
 
 def leaders_series(roles: pd.DataFrame, leader_label: str) -> tuple[np.ndarray, np.ndarray]:
