@@ -247,6 +247,75 @@ def test_ctrl_c_in_a_sweep_says_the_finished_runs_are_kept(tmp_path, monkeypatch
     assert len(list((out / "runs").iterdir())) == 1
 
 
+def started_execute(run, tables):
+    """The sweep's own run, leaving a mark (in NETSIM_TEST_MARKS) that it started: a worker
+    process imports this module to call it."""
+    (Path(os.environ["NETSIM_TEST_MARKS"]) / run.run_id).touch()
+    return SAFE_EXECUTE(run, tables)
+
+
+SAFE_EXECUTE = sweepmod._safe_execute
+
+
+def test_ctrl_c_with_local_workers_drops_the_runs_not_begun(tmp_path, monkeypatch):
+    """Ctrl-C in a sweep on a local pool stops it: the runs not yet begun are never started
+    (the pool ran every queued run before giving the interrupt up), and the runs that were
+    running when it came and finished are kept."""
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    monkeypatch.setenv("NETSIM_TEST_MARKS", str(marks))
+    monkeypatch.setattr(sweepmod, "_safe_execute", started_execute)
+    record, calls = sweepmod._record, []
+
+    def interrupted_at_the_first(out, run, outcome):
+        calls.append(run.run_id)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        record(out, run, outcome)
+
+    monkeypatch.setattr(sweepmod, "_record", interrupted_at_the_first)
+    sweep = small_sweep(replications=3)  # 12 runs
+    with pytest.raises(KeyboardInterrupt):
+        sweepmod.run_sweep(sweep, tmp_path / "out", workers=2, progress=False)
+    started = len(list(marks.iterdir()))
+    assert started <= 6, started
+    kept = {p.stem for p in (tmp_path / "out" / "runs").iterdir()}
+    assert kept == set(calls[1:]) and kept <= {p.name for p in marks.iterdir()}
+
+
+def test_a_table_whose_run_has_no_row_is_not_loaded(tmp_path):
+    """A run interrupted between writing its tables and its row is not finished: its
+    tables are left out of load_table as its row is out of load."""
+    sweepmod.run_sweep(small_sweep(), tmp_path, progress=False)
+    row = sorted((tmp_path / "runs").iterdir())[0]
+    row.unlink()
+    assert row.stem not in set(sweepmod.load_table(tmp_path, "links")["run_id"])
+    assert set(sweepmod.load_table(tmp_path, "links")["run_id"]) == set(sweepmod.load(tmp_path)["run_id"])
+
+
+def test_a_directory_of_a_sweep_of_another_name_is_refused(tmp_path):
+    """Run into the directory of another sweep (by name), a sweep would hide that one's
+    runs from load: refused in one line, nothing written."""
+    tree = {"name": "first", "tables": ["links"], "base": {**BASE, "duration_s": 5.0}}
+    sweepmod.run_sweep(sweepmod.parse({**tree, "grid": {"mobility.speed_max_mps": [2.0]}}), tmp_path, progress=False)
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    other = sweepmod.parse({**tree, "name": "second", "grid": {"mobility.speed_max_mps": [4.0]}})
+    with pytest.raises(NetsimInputError, match="holds the sweep 'first', not 'second'"):
+        sweepmod.run_sweep(other, tmp_path, progress=False)
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_ctrl_c_is_ignored_while_an_interrupt_is_reported():
+    """Within ignoring_interrupts a SIGINT does nothing (a second Ctrl-C cannot cut the
+    line that reports the first); the handler is back after it."""
+    from netsim.tools.interrupt import ignoring_interrupts
+
+    before = signal.getsignal(signal.SIGINT)
+    with ignoring_interrupts():
+        os.kill(os.getpid(), signal.SIGINT)
+    assert signal.getsignal(signal.SIGINT) is before
+
+
 @pytest.mark.parametrize(
     "resumable, said", [(True, "; the runs finished are kept (the same command resumes)"), (False, "")]
 )

@@ -48,7 +48,7 @@ from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import ns2
 from netsim.tools.args import Parser
-from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, interrupted
+from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, ignoring_interrupts, interrupted
 
 EXIT_INPUT = 2
 
@@ -325,7 +325,10 @@ def cmd_sweep(args) -> int:
         # Every finished run is written as it ends, so an interrupted sweep did write.
         if not interrupted(exc) or not (out / "sweep.json").is_file():
             raise
-        print(f"netsim: interrupted; the runs finished are kept in {out}/ (the same command resumes)", file=sys.stderr)
+        with ignoring_interrupts():  # a second Ctrl-C would add "nothing written" to this line
+            print(
+                f"netsim: interrupted; the runs finished are kept in {out}/ (the same command resumes)", file=sys.stderr
+            )
         return EXIT_INTERRUPTED
     print(report.text())
     print(f"results: {out}/ (load with netsim.tools.sweep.load({str(out)!r}))")

@@ -5,7 +5,11 @@ from the command and the modules that give a run up, so that both may ask it."""
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 INTERRUPTED_LINE = "netsim: interrupted; nothing written"
 EXIT_INTERRUPTED = 130
@@ -29,6 +33,20 @@ def interrupted(exc: BaseException | None = None) -> bool:
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
     return _INTERRUPTED
+
+
+@contextmanager
+def ignoring_interrupts() -> Iterator[None]:
+    """Ctrl-C ignored within (in the main thread; elsewhere no signal arrives): what reports
+    an interrupt is printed whole, not cut by a second one."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def exit_interrupted() -> None:

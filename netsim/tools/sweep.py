@@ -382,6 +382,7 @@ def run_sweep(
     ids = [r.run_id for r in runs]
     if len(set(ids)) != len(ids):
         raise _err("two points resolve to the same configuration (duplicate values in [grid]?)")
+    _refuse_another_sweeps_dir(Path(out_dir), sweep.name)
     with claim_dir(out_dir, "--out", kind="sweep", tables=sweep.tables) as out:
         client = connect(scheduler, connect_timeout_s) if isinstance(scheduler, str) else scheduler
         try:
@@ -422,15 +423,43 @@ def run_sweep(
             else:
                 from concurrent.futures import ProcessPoolExecutor, as_completed
 
-                with ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent) as pool:
+                pool = ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent)
+                futures: dict = {}
+                accounted: set = set()
+                try:
                     futures = {pool.submit(_safe_execute, run, sweep.tables): run for run in todo}
                     for fut in as_completed(futures):
                         account(futures[fut], fut.result())
+                        accounted.add(fut)
+                    pool.shutdown()
+                except BaseException:
+                    # Ctrl-C: the runs not begun are dropped at once (a plain shutdown would run
+                    # them all first); those running end, and are kept if they finished.
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    for fut, run in futures.items():
+                        if fut not in accounted and fut.done() and not fut.cancelled() and fut.exception() is None:
+                            account(run, fut.result())
+                    raise
             bar.close()
         finally:
             if isinstance(scheduler, str) and client is not None:
                 client.close()
     return Report(len(runs), len(runs) - len(todo), len(todo) - len(failed), failed)
+
+
+def _refuse_another_sweeps_dir(out: Path, name: str) -> None:
+    """A directory holding a sweep of another name is refused: run into it, this sweep's
+    runs would hide that one's from :func:`load` (a sweep of the same name resumes there,
+    whatever points it adds)."""
+    try:
+        held = json.loads((out / "sweep.json").read_text()).get("name")
+    except (OSError, ValueError, AttributeError):
+        return
+    if isinstance(held, str) and held != name:
+        raise NetsimInputError(
+            f"--out {out}: holds the sweep {held!r}, not {name!r}; give another directory "
+            f"(or name this sweep {held!r} to add its runs to that one)"
+        )
 
 
 def _run_dask(todo: list[Run], tables, client, account) -> None:
@@ -501,8 +530,11 @@ def load(out_dir: str | Path) -> pd.DataFrame:
 
 def load_table(out_dir: str | Path, table: str) -> pd.DataFrame:
     """A kept per-run table of every finished run of the sweep last run in ``out_dir``,
-    with its ``run_id``."""
-    files = _files(Path(out_dir), Path(out_dir) / "tables" / table)
+    with its ``run_id``. A run is finished once its row is in ``runs/`` (its tables are
+    written first): a table whose run was interrupted before its row is left out."""
+    out = Path(out_dir)
+    finished = done_ids(out)
+    files = [f for f in _files(out, out / "tables" / table) if f.stem in finished]
     if not files:
         return pd.DataFrame()
     return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
