@@ -584,7 +584,19 @@ def _table(raw: Mapping, name: str) -> dict:
 
 
 def _unknown(key: str, value: Any, allowed: Iterable[str]) -> ConfigError:
-    return ConfigError(key, value, "unknown key; allowed: " + ", ".join(sorted(allowed)))
+    allowed = sorted(allowed)
+    return ConfigError(
+        key, value, f"unknown key{did_you_mean(key.rsplit('.', 1)[-1], allowed)}; allowed: " + ", ".join(allowed)
+    )
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` naming the known name closest to a misspelt ``name``, or
+    nothing where none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def _plain_section(cls: type[Params], raw: dict) -> Params:

@@ -43,6 +43,22 @@ def test_bad_value_names_key_value_and_rule(override, key, words):
     assert words in str(err.value)
 
 
+@pytest.mark.parametrize(
+    "override, said",
+    [
+        ("mobility.speed_maxx_mps=3", "unknown key (did you mean 'speed_max_mps'?); allowed: "),
+        ("world.n_robot=3", "unknown key (did you mean 'n_robots'?); allowed: "),
+        ("world.colour=3", "unknown key; allowed: "),
+    ],
+)
+def test_a_misspelt_key_is_named_with_the_closest_key(override, said):
+    """An unknown key close to a known one says which one it may be; one close to none
+    lists the keys alone."""
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, [override])
+    assert said in str(err.value)
+
+
 def test_a_truth_value_in_an_error_is_spelt_as_in_the_file():
     """``coverage.enabled = true``, as TOML writes it, not Python's ``True``."""
     with pytest.raises(ConfigError) as err:

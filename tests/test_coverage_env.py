@@ -190,7 +190,9 @@ def test_bad_parameter_is_a_config_error():
         coverage_v0.parallel_env(n_robots=0)
     with pytest.raises(ConfigError, match="render_mode = 'human'"):
         coverage_v0.parallel_env(render_mode="human")
-    with pytest.raises(ConfigError, match="n_robot = 4: unknown key; allowed: .*n_robots"):
+    with pytest.raises(
+        ConfigError, match=r"n_robot = 4: unknown key \(did you mean 'n_robots'\?\); allowed: .*n_robots"
+    ):
         coverage_v0.parallel_env(n_robot=4)
     with pytest.raises(ConfigError, match=r"netsim = \[1\]: must be a table"):
         coverage_v0.parallel_env(**SMALL, netsim=[1])

@@ -405,6 +405,13 @@ def test_bad_sweep_files(tree, words):
         sweep.runs()
 
 
+def test_a_misspelt_sweep_key_is_named_with_the_closest_key():
+    """A grid axis that is no configuration key, but close to one, says which."""
+    tree = {"name": "s", "base": BASE, "grid": {"mobility.speed_maxx_mps": [1.0]}}
+    with pytest.raises(NetsimInputError, match=r"\(did you mean 'mobility.speed_max_mps'\?\)"):
+        sweepmod.parse(tree)
+
+
 def test_cli_bad_sweep_file_exits_2(tmp_path, capsys):
     from netsim.tools.cli import main
 

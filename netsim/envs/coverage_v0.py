@@ -428,7 +428,9 @@ def parallel_env(render_mode: str | None = None, netsim: Mapping | None = None, 
     for key, value in params.items():
         if key not in allowed:
             keywords = sorted([*allowed, "netsim", "render_mode"])
-            raise ConfigError(key, value, "unknown key; allowed: " + ", ".join(keywords))
+            raise ConfigError(
+                key, value, f"unknown key{cfgmod.did_you_mean(key, keywords)}; allowed: " + ", ".join(keywords)
+            )
     return CoverageEnv(CoverageEnvParams(**params), netsim, render_mode)
 
 

@@ -179,7 +179,7 @@ def known_tables(base: dict, points: Sequence[dict] = ()) -> set[str]:
 
 def _check_key(key: str, known: set[str]) -> None:
     if key not in known:
-        raise _err(f"{key!r} is not a configuration key (see `netsim config`)")
+        raise _err(f"{key!r} is not a configuration key{cfgmod.did_you_mean(key, known)} (see `netsim config`)")
 
 
 def _grid(grid, known: set[str]) -> list[dict]:
