@@ -132,7 +132,8 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) ->
 
 def _check_count(n: int, params: TraceParams, world) -> None:
     if n != world.n_robots:
-        raise ConfigError("world.n_robots", world.n_robots, f"must equal the {n} nodes of {params.trace_file}")
+        nodes = f"{n} node{'s' if n != 1 else ''}"
+        raise ConfigError("world.n_robots", world.n_robots, f"must equal the {nodes} of {params.trace_file}")
 
 
 def _read(params: TraceParams, fmt: TraceFormat, world) -> ns2.Scenario | Waypoints:

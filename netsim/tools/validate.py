@@ -1246,7 +1246,7 @@ def run_all(progress: bool = True, seed: int | None = None, only: Iterable[str] 
 
     checks = select(only)
     results = []
-    with progress_bar(len(checks), "netsim validate", "checks", enabled=progress, lines=5, leave=False) as bar:
+    with progress_bar(len(checks), "netsim validate", "experiments", enabled=progress, lines=5, leave=False) as bar:
         for c in checks:
             results.extend(c.check(seed))
             bar.update(1)
