@@ -104,7 +104,13 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) ->
         side = world.side_m
         if len(xy) and xy.min() < -tol:
             # A square side can only grow to the right and up: a trace below 0 needs a frame.
-            bounds = [float(x.min()), float(y.min()), float(x.max()), float(y.max())]
+            # A frame needs some width: a trace that stays on one line gets a metre across it.
+            bounds = [
+                float(x.min()),
+                float(y.min()),
+                float(max(x.max(), x.min() + 1.0)),
+                float(max(y.max(), y.min() + 1.0)),
+            ]
             raise ConfigError(
                 "world.side_m",
                 side,

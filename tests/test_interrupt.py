@@ -118,6 +118,28 @@ def test_ctrl_c_is_one_line_exit_130_nothing_written(tmp_path, stop, mode):
     assert not out.exists()
 
 
+def test_the_commands_own_exit_after_an_interrupt_is_not_reported_again(monkeypatch, capsys):
+    """A command that said what an interrupt left (a sweep: the runs kept) and exits with
+    130 from a thread-holding process (sys.exit) is not followed by "nothing written"."""
+    from netsim.tools import command as commandmod
+    from netsim.tools import interrupt
+
+    def sweep_interrupted():
+        print("netsim: interrupted; the runs finished are kept in out/", file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
+
+    def reported_again():
+        raise AssertionError("the interrupt was reported again")
+
+    monkeypatch.setattr(interrupt, "_INTERRUPTED", True)
+    monkeypatch.setattr(cli, "command", sweep_interrupted)
+    monkeypatch.setattr(commandmod, "exit_interrupted", reported_again)
+    with pytest.raises(SystemExit) as exit_:
+        commandmod.command()
+    assert exit_.value.code == EXIT_INTERRUPTED
+    assert capsys.readouterr().err.splitlines() == ["netsim: interrupted; the runs finished are kept in out/"]
+
+
 def test_system_error_from_an_interrupt_is_an_interrupt(monkeypatch, tmp_path, capsys):
     """In ``main``, an exception raised because of a KeyboardInterrupt (a compiled call's
     SystemError) is the interrupt: one line, exit 130."""

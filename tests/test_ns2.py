@@ -369,6 +369,32 @@ def test_a_file_cut_anywhere_in_its_last_line_warns_of_it(tmp_path, last):
         ns2.read(f)
 
 
+@pytest.mark.parametrize(
+    "tcl",
+    ['set t "Run #1"', 'puts "a 5\\" screen"', "set s {say hi}", "$ns_ run", "}", "# the end"],
+)
+def test_other_tcl_is_skipped_without_a_word_even_as_the_last_line_without_newline(tmp_path, tcl):
+    """Tcl that is no movement line (quotes in a string, an escaped quote, the script's
+    last command) warns of nothing, also as the file's last line without its newline."""
+    f = tmp_path / "ok.tcl"
+    body = '$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\n$ns_ at 2.0 "$node_(0) setdest 5.0 5.0 1.0"\n'
+    for text in (f"{body}{tcl}\n", f"{body}{tcl}"):
+        f.write_text(text)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            ns2.read(f)
+
+
+def test_a_movement_line_read_as_the_last_without_newline_warns_it_may_be_cut(tmp_path):
+    """A last movement line that reads (its number may be cut: 12 of 12.5) but ends the
+    file without a newline is used, and a warning says it may be cut."""
+    f = tmp_path / "cut.tcl"
+    f.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 12")
+    with pytest.warns(UserWarning, match=r"line 2, the last, ends the file without a newline"):
+        scenario = ns2.read(f)
+    assert scenario.initial_m[0].tolist() == [1.0, 12.0]
+
+
 SETDEST_FAR = '$node_(0) set X_ 10\n$node_(0) set Y_ 10\n$ns_ at 1 "$node_(0) setdest {x} 10 {v}"\n'
 
 

@@ -257,30 +257,44 @@ def started_execute(run, tables):
 SAFE_EXECUTE = sweepmod._safe_execute
 
 
-def test_ctrl_c_with_local_workers_drops_the_runs_not_begun(tmp_path, monkeypatch):
-    """Ctrl-C in a sweep on a local pool stops it: the runs not yet begun are never started
-    (the pool ran every queued run before giving the interrupt up), and the runs that were
-    running when it came and finished are kept."""
+def test_ctrl_c_with_local_workers_stops_them_at_once(tmp_path, monkeypatch):
+    """Ctrl-C in a sweep on a local pool ends its workers at once: the runs not begun are
+    never started, the runs recorded before it are kept, and none is recorded after it."""
     marks = tmp_path / "marks"
     marks.mkdir()
     monkeypatch.setenv("NETSIM_TEST_MARKS", str(marks))
     monkeypatch.setattr(sweepmod, "_safe_execute", started_execute)
     record, calls = sweepmod._record, []
 
-    def interrupted_at_the_first(out, run, outcome):
+    def interrupted_at_the_second(out, run, outcome):
         calls.append(run.run_id)
-        if len(calls) == 1:
+        if len(calls) == 2:
             raise KeyboardInterrupt
         record(out, run, outcome)
 
-    monkeypatch.setattr(sweepmod, "_record", interrupted_at_the_first)
+    monkeypatch.setattr(sweepmod, "_record", interrupted_at_the_second)
     sweep = small_sweep(replications=3)  # 12 runs
     with pytest.raises(KeyboardInterrupt):
         sweepmod.run_sweep(sweep, tmp_path / "out", workers=2, progress=False)
     started = len(list(marks.iterdir()))
-    assert started <= 6, started
-    kept = {p.stem for p in (tmp_path / "out" / "runs").iterdir()}
-    assert kept == set(calls[1:]) and kept <= {p.name for p in marks.iterdir()}
+    assert started <= 7, started
+    assert len(calls) == 2
+    assert {p.stem for p in (tmp_path / "out" / "runs").iterdir()} == {calls[0]}
+
+
+def test_an_error_recording_a_run_ends_the_workers_and_is_raised_once(tmp_path, monkeypatch):
+    """A run whose files cannot be written (a full disk, say) ends the sweep with that error,
+    raised once; no other run is recorded after it."""
+    calls = []
+
+    def disk_full(out, run, outcome):
+        calls.append(run.run_id)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(sweepmod, "_record", disk_full)
+    with pytest.raises(OSError, match="No space left") as err:
+        sweepmod.run_sweep(small_sweep(), tmp_path / "out", workers=2, progress=False)
+    assert len(calls) == 1 and err.value.__context__ is None
 
 
 def test_a_table_whose_run_has_no_row_is_not_loaded(tmp_path):

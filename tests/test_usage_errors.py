@@ -147,8 +147,7 @@ READERS = {"view": [], "export": ["--format", "bonnmotion"], "figures": []}
 )
 def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, small_run, command, damage, said):
     """A file given as the run, a run whose tables were cut short, or whose config.toml is
-    not TOML: one line naming the file for every command that reads a run, nothing written
-    (a traceback from pyarrow or tomllib before)."""
+    not TOML: one line naming the file for every command that reads a run, nothing written."""
     run, out = tmp_path / "run", tmp_path / ("out.movements" if command == "export" else "out")
     if damage == "file":
         run.write_text("not a run")

@@ -62,9 +62,12 @@ _NODE = re.compile(r"\(([^()]*)\)")
 _COORDS = ("X_", "Y_", "Z_")
 SEMANTICS = ("ns2", "ns3")
 # A line that names a node's movement (a setdest, or a set of a coordinate): one not
-# understood is counted in a warning, as is a line cut short (a quote left open, or the
-# file's last line without its newline), where other Tcl is skipped without a word.
+# understood is counted in a warning, as is a movement line cut short, where other Tcl is
+# skipped without a word.
 _MOVEMENT = re.compile(r"setdest|\$node_\([^)]*\)\s+set\s+[XYZ]_")
+# How a node's movement line begins: a scheduled command, or a node's own set.
+_MOVEMENT_START = re.compile(r"\s*(\$ns_\s+at\b|\$node_\()")
+_QUOTE = re.compile(r'(?<!\\)"')  # a quote not escaped
 # Lines named in a warning, at most.
 _SHOWN = 5
 # Without world.n_robots the team is 0 to the highest node the file names: a bound on that
@@ -207,12 +210,16 @@ def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") 
     # The lines understood, in file order: ("init" | "setdest" | "set", lineno, node, values).
     parsed: list[tuple[str, int, int, tuple[Any, ...]]] = []
     skipped: list[int] = []
+    ends_open = False  # the file's last line is a movement line understood, without its newline
     for lineno, raw in enumerate(lines, 1):
+        movement_like = _MOVEMENT_START.match(raw) is not None
         if _understood(_tokens(raw), lineno, parsed, node, finite, as_ns2):
+            ends_open = lineno == cut_short and movement_like
             continue
-        code = raw.split("#", 1)[0]
-        # A quote left open is a line cut short, whatever it was to say.
-        if _MOVEMENT.search(code) or code.count('"') % 2 or (lineno == cut_short and code.strip()):
+        # A movement line cut short: a scheduled command whose quote is left open, or the
+        # file's last line begun as a movement line (other Tcl is skipped without a word).
+        cut = movement_like and (len(_QUOTE.findall(raw)) % 2 == 1 or lineno == cut_short)
+        if _MOVEMENT.search(raw.split("#", 1)[0]) or cut:
             skipped.append(lineno)
     if not parsed:
         raise NetsimInputError(
@@ -271,6 +278,11 @@ def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") 
         warn(
             f"line(s) {_lines_named(lines_late)} (node(s) {nodes[:10]}) are earlier than a line before "
             f"them for the same node: {how}"
+        )
+    if ends_open:
+        warn(
+            f"line {cut_short}, the last, ends the file without a newline: if the file was cut short there, "
+            "its values may be cut too"
         )
     if skipped:
         skipped.sort()

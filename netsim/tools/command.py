@@ -39,6 +39,7 @@ def command() -> None:
                 gc.enable()
         cli.command()
     except BaseException as exc:
-        if not interrupted(exc):
+        # The command's own exit (after it said what an interrupt left) is not to be reported again.
+        if isinstance(exc, SystemExit) or not interrupted(exc):
             raise
         exit_interrupted()

@@ -37,16 +37,17 @@ def interrupted(exc: BaseException | None = None) -> bool:
 
 @contextmanager
 def ignoring_interrupts() -> Iterator[None]:
-    """Ctrl-C ignored within (in the main thread; elsewhere no signal arrives): what reports
-    an interrupt is printed whole, not cut by a second one."""
+    """Ctrl-C held off within: one that comes meanwhile is dropped, so that what runs within
+    (files moved into place, the line that reports an interrupt) is done whole. (Off the main
+    thread, where no handler can be set, nothing changes.)"""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    kept = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.signal(signal.SIGINT, signal.SIG_DFL if kept is None else kept)
 
 
 def exit_interrupted() -> None:

@@ -20,10 +20,8 @@ import os
 import platform
 import secrets
 import shutil
-import signal
 import sys
 import tempfile
-import threading
 import tomllib
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -36,7 +34,7 @@ import tomli_w
 
 from netsim.config import Config, to_dict
 from netsim.errors import NetsimInputError
-from netsim.tools.interrupt import interrupted
+from netsim.tools.interrupt import ignoring_interrupts, interrupted
 
 # The distributions named in a manifest, with the module each installs.
 VERSIONED = {
@@ -106,7 +104,7 @@ def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
         return None
     try:
         return pd.read_parquet(path)
-    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+    except (OSError, ValueError, TypeError, NotImplementedError) as exc:  # pyarrow's errors derive from these
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise NetsimInputError(f"{path}: cannot be read as Parquet ({first})") from None
 
@@ -119,7 +117,7 @@ def read_run_config(run_dir: Path) -> dict:
         raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml)")
     try:
         return tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
         raise NetsimInputError(f"{path}: cannot be read as TOML ({exc})") from None
 
 
@@ -334,7 +332,9 @@ class RunWriter:
         tmp, out = self._start(), self.out
         (tmp / "summary.json").write_text(json.dumps({k: _plain(v) for k, v in summary.items()}, indent=2) + "\n")
         (tmp / "manifest.json").write_text(json.dumps({k: _plain(v) for k, v in manifest.items()}, indent=2) + "\n")
-        with _ctrl_c_held():
+        # Ctrl-C held off: an interrupt never leaves half of one run and half of the other;
+        # one that comes meanwhile comes too late, and the command ends as a finished run does.
+        with ignoring_interrupts():
             # The earlier run goes as a whole, its manifest first: a directory with a manifest
             # always holds one complete run, and never tables of two runs side by side.
             old = earlier_run_files(out)
@@ -347,22 +347,6 @@ class RunWriter:
                 os.replace(f, out / f.name)
                 written.append(out / f.name)
         return sorted(written)
-
-
-@contextmanager
-def _ctrl_c_held():
-    """Ctrl-C held off while the finished run's files move into place, so that an
-    interrupt never leaves half of one run and half of the other. One that came meanwhile
-    came too late: it is dropped, and the command ends as a finished run does. (Off the
-    main thread, where no handler can be set, nothing changes.)"""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    kept = signal.signal(signal.SIGINT, lambda signum, frame: None)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_DFL if kept is None else kept)
 
 
 def write_table(frame: pd.DataFrame, path: Path) -> None:

@@ -44,6 +44,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -51,6 +52,7 @@ import pandas as pd
 
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError, not_a_file
+from netsim.tools.interrupt import interrupted
 from netsim.tools.output import write_atomically, write_table
 
 MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
@@ -280,8 +282,10 @@ def execute_run(run: Run, tables: tuple[str, ...] = ()) -> dict:
 
 
 def _die_with_parent() -> None:
-    """Pool initializer: on Linux, a worker is killed when the sweep process dies, so a
-    killed sweep leaves no orphaned workers behind."""
+    """Pool initializer: a worker leaves Ctrl-C to the sweep process, which ends the workers
+    (a worker stopped by it would report a failed run); on Linux, a worker is killed when
+    the sweep process dies, so a killed sweep leaves no orphaned workers behind."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     if sys.platform.startswith("linux"):
         import ctypes
 
@@ -401,6 +405,9 @@ def run_sweep(
             bar = progress_bar(len(runs), sweep.name, "runs", enabled=progress, initial=len(runs) - len(todo), lines=10)
 
             def account(run: Run, outcome: dict) -> None:
+                if not outcome["ok"] and interrupted():
+                    # A run that Ctrl-C reached in its worker did not fail: it was stopped.
+                    raise KeyboardInterrupt
                 _record(out, run, outcome)
                 if not outcome["ok"]:
                     failed.append(
@@ -421,25 +428,7 @@ def run_sweep(
                 for run in todo:
                     account(run, _safe_execute(run, sweep.tables))
             else:
-                from concurrent.futures import ProcessPoolExecutor, as_completed
-
-                pool = ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent)
-                futures: dict = {}
-                accounted: set = set()
-                try:
-                    futures = {pool.submit(_safe_execute, run, sweep.tables): run for run in todo}
-                    for fut in as_completed(futures):
-                        account(futures[fut], fut.result())
-                        accounted.add(fut)
-                    pool.shutdown()
-                except BaseException:
-                    # Ctrl-C: the runs not begun are dropped at once (a plain shutdown would run
-                    # them all first); those running end, and are kept if they finished.
-                    pool.shutdown(wait=True, cancel_futures=True)
-                    for fut, run in futures.items():
-                        if fut not in accounted and fut.done() and not fut.cancelled() and fut.exception() is None:
-                            account(run, fut.result())
-                    raise
+                _run_pool(todo, sweep.tables, workers, account)
             bar.close()
         finally:
             if isinstance(scheduler, str) and client is not None:
@@ -447,19 +436,41 @@ def run_sweep(
     return Report(len(runs), len(runs) - len(todo), len(todo) - len(failed), failed)
 
 
+def _numbered_execute(job: tuple[int, Run, Any]) -> tuple[int, dict]:
+    k, run, tables = job
+    return k, _safe_execute(run, tables)
+
+
+def _run_pool(todo: list[Run], tables, workers: int, account) -> None:
+    """The runs on a pool of ``workers`` local processes, each accounted as it ends.
+    Whatever ends the loop early (Ctrl-C, a run's files that cannot be written) ends the
+    workers at once; a run not accounted yet is run again by the same command."""
+    import multiprocessing
+
+    pool = multiprocessing.Pool(workers, initializer=_die_with_parent)
+    try:
+        jobs = [(k, run, tables) for k, run in enumerate(todo)]
+        for k, outcome in pool.imap_unordered(_numbered_execute, jobs):
+            account(todo[k], outcome)
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
+
+
 def _refuse_another_sweeps_dir(out: Path, name: str) -> None:
     """A directory holding a sweep of another name is refused: run into it, this sweep's
-    runs would hide that one's from :func:`load` (a sweep of the same name resumes there,
-    whatever points it adds)."""
+    runs would hide that one's from :func:`load`. (A sweep of the same name, its points
+    changed, is that sweep run again: :func:`load` gives its runs, and the others stay on
+    disk for when those points come back.)"""
     try:
         held = json.loads((out / "sweep.json").read_text()).get("name")
     except (OSError, ValueError, AttributeError):
         return
     if isinstance(held, str) and held != name:
-        raise NetsimInputError(
-            f"--out {out}: holds the sweep {held!r}, not {name!r}; give another directory "
-            f"(or name this sweep {held!r} to add its runs to that one)"
-        )
+        raise NetsimInputError(f"--out {out}: holds the sweep {held!r}, not {name!r}; give another directory")
 
 
 def _run_dask(todo: list[Run], tables, client, account) -> None:
