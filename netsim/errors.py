@@ -32,6 +32,9 @@ class ConfigError(NetsimInputError):
 
 
 def not_a_file(path: str | os.PathLike) -> str:
-    """Why ``path``, expected to be a file, is not one: ``"is a directory, not a file"`` or
-    ``"no such file"``; the words every reader of a user's file gives."""
-    return "is a directory, not a file" if os.path.isdir(path) else "no such file"
+    """Why ``path``, expected to be a file, is not one: ``"is a directory, not a file"``,
+    ``"is not a regular file"`` (a pipe, a device) or ``"no such file"``; the words every
+    reader of a user's file gives."""
+    if os.path.isdir(path):
+        return "is a directory, not a file"
+    return "is not a regular file" if os.path.exists(path) else "no such file"

@@ -143,7 +143,11 @@ READERS = {"view": [], "export": ["--format", "bonnmotion"], "figures": []}
 @pytest.mark.parametrize("command", list(READERS))
 @pytest.mark.parametrize(
     "damage, said",
-    [("file", "is a file, not a run directory"), ("table", "cannot be read as Parquet"), ("config", "as TOML")],
+    [
+        ("file", "is a file, not a run directory"),
+        ("table", "cannot be read as Parquet"),
+        ("config", "as TOML"),
+    ],
 )
 def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, small_run, command, damage, said):
     """A file given as the run, a run whose tables were cut short, or whose config.toml is
@@ -161,6 +165,32 @@ def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, sma
     assert main([command, str(run), *READERS[command], "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("netsim: error: ") and err.count("\n") == 1 and said in err, err
+    assert not out.exists()
+
+
+def test_not_a_file_names_what_the_path_is(tmp_path):
+    """The words for a path that is not a readable file: a directory, something else that
+    exists (a pipe), or nothing."""
+    import os
+
+    from netsim.errors import not_a_file
+
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    assert not_a_file(tmp_path) == "is a directory, not a file"
+    assert not_a_file(pipe) == "is not a regular file"
+    assert not_a_file(tmp_path / "nowhere") == "no such file"
+
+
+def test_a_run_whose_summary_is_not_json_is_one_line_for_view(tmp_path, capsys, small_run):
+    """netsim view reads the run's summary.json: one that is cut short is refused in one
+    line naming it, nothing written."""
+    run, out = tmp_path / "run", tmp_path / "v.html"
+    shutil.copytree(small_run, run)
+    (run / "summary.json").write_text('{"n_robots": 4,')
+    assert main(["view", str(run), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and err.count("\n") == 1 and "summary.json: cannot be read as JSON" in err
     assert not out.exists()
 
 

@@ -109,6 +109,21 @@ def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
         raise NetsimInputError(f"{path}: cannot be read as Parquet ({first})") from None
 
 
+def read_run_summary(run_dir: Path) -> dict:
+    """The run's ``summary.json`` ({} where the run has none); one that is not JSON is
+    refused in one line."""
+    path = run_dir / "summary.json"
+    if not path.is_file():
+        return {}
+    try:
+        summary = json.loads(path.read_text())
+    except (ValueError, OSError) as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+        raise NetsimInputError(f"{path}: cannot be read as JSON ({exc})") from None
+    if not isinstance(summary, dict):
+        raise NetsimInputError(f"{path}: holds no table of the run's measures")
+    return summary
+
+
 def read_run_config(run_dir: Path) -> dict:
     """The run's ``config.toml`` as a table; a run without one, or one that is not
     TOML, is refused in one line."""

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import base64
 import gzip
-import json
 import math
 from pathlib import Path
 from typing import NamedTuple
@@ -38,7 +37,7 @@ from netsim.errors import NetsimInputError
 from netsim.metrics import components_in_links_table
 from netsim.plugins import RoleLabels
 from netsim.tools import style
-from netsim.tools.output import existing_dir, read_run_config, read_run_table
+from netsim.tools.output import existing_dir, read_run_config, read_run_summary, read_run_table
 from netsim.trajectory import sample_positions
 
 
@@ -352,8 +351,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
             "origin_m": [float(map_grid.origin_m[0]), float(map_grid.origin_m[1])],
         }
 
-    summary_path = run_dir / "summary.json"
-    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    summary = read_run_summary(run_dir)
     interval = config.output.position_interval_s
     # Keys of the run's models, where they have them.
     tree = cfgmod.to_dict(config)
