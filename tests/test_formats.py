@@ -327,6 +327,45 @@ def test_rosbag2_topics_key_chooses_each_robots_topic(tmp_path):
         rosbag2.read(bag)
 
 
+def _mixed_bag(path: Path, pose_topics: list[str], string_topics: list[str]) -> None:
+    """A bag with one PoseStamped on each of ``pose_topics`` and one String on each of
+    ``string_topics``."""
+    from rosbags.rosbag2 import Writer
+
+    store = rosbag2._typestore()
+    with Writer(path, version=8) as w:
+        for topic in pose_topics:
+            conn = w.add_connection(topic, "geometry_msgs/msg/PoseStamped", typestore=store)
+            point = rosbag2._make(store, "geometry_msgs/msg/Point", x=1.0, y=1.0)
+            pose = rosbag2._make(store, "geometry_msgs/msg/Pose", position=point)
+            header = rosbag2._make(store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, 0.0))
+            msg = rosbag2._make(store, "geometry_msgs/msg/PoseStamped", header=header, pose=pose)
+            w.write(conn, 0, store.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped"))
+        for topic in string_topics:
+            conn = w.add_connection(topic, "std_msgs/msg/String", typestore=store)
+            msg = rosbag2._make(store, "std_msgs/msg/String", data="hi")
+            w.write(conn, 0, store.serialize_cdr(msg, "std_msgs/msg/String"))
+
+
+def test_a_bags_topic_of_another_type_is_named_with_its_type(tmp_path):
+    """A robot whose only topic holds no pose is not read, and a warning says so with the
+    topic's type; a topic of mobility.topics that holds no pose names its type; an unknown
+    one lists at most ten of the bag's pose topics, /robot_2 before /robot_10."""
+    bag = tmp_path / "mixed"
+    _mixed_bag(bag, [f"/robot_{i}/pose" for i in (0, 1, 2, 10, 3, 4, 5, 6, 7, 8, 9, 11)], ["/robot_12/pose"])
+    with pytest.warns(
+        UserWarning,
+        match=r"robot\(s\) \[12\] have topics but none holding a pose \(/robot_12/pose: std_msgs/msg/String",
+    ):
+        assert len(rosbag2.read(bag).initial_m()) == 12
+    with pytest.raises(NetsimInputError, match="topic '/robot_12/pose' of mobility.topics holds std_msgs/msg/String"):
+        rosbag2.read(bag, ["/robot_0/pose", "/robot_12/pose"])
+    with pytest.raises(NetsimInputError) as err:
+        rosbag2.read(bag, ["/nowhere"])
+    assert "(pose topics in the bag: /robot_0/pose, /robot_1/pose, /robot_2/pose, /robot_3/pose" in str(err.value)
+    assert str(err.value).endswith("/robot_9/pose and 2 more)")
+
+
 def test_bag_without_pose_topics_exits_2_one_line(tmp_path, capsys):
     bag = tmp_path / "empty"
     _bag(bag, {"/chatter": []}, "geometry_msgs/msg/PoseStamped")

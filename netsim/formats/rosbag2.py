@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -42,32 +43,58 @@ def _typestore() -> Any:
     return get_typestore(Stores.ROS2_HUMBLE)
 
 
+def _natural(name: str) -> list:
+    """A sort key that puts /robot_2 before /robot_10."""
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part) for part in re.split(r"(\d+)", name)]
+
+
+def _listed(names: list[str], most: int = 10) -> str:
+    """At most ``most`` names, and how many more."""
+    shown = ", ".join(names[:most])
+    return f"{shown} and {len(names) - most} more" if len(names) > most else shown
+
+
 def _robot_topics(connections: Any, topics: Sequence[str], source: str) -> dict[str, int]:
     """Which topic each robot follows: ``{topic: robot}``."""
-    pose_topics = {c.topic: c.msgtype for c in connections if c.msgtype in POSE_TYPES}
+    types = {c.topic: c.msgtype for c in connections}
+    pose_topics = {t: ty for t, ty in types.items() if ty in POSE_TYPES}
     if topics:
         missing = [t for t in topics if t not in pose_topics]
         if missing:
-            have = sorted(pose_topics) or "none"
+            first = missing[0]
+            if first in types:
+                raise NetsimInputError(
+                    f"{source}: topic {first!r} of mobility.topics holds {types[first]}, not {' or '.join(POSE_TYPES)}"
+                )
+            have = _listed(sorted(pose_topics, key=_natural)) or "none"
             raise NetsimInputError(
-                f"{source}: topic {missing[0]!r} of mobility.topics has no {' or '.join(POSE_TYPES)} messages "
-                f"(pose topics in the bag: {have})"
+                f"{source}: topic {first!r} of mobility.topics is not in the bag (pose topics in the bag: {have})"
             )
         return {t: i for i, t in enumerate(topics)}
     chosen: dict[int, list[str]] = {}
     for topic in pose_topics:
         if m := _ROBOT_TOPIC.match(topic):
             chosen.setdefault(int(m[1]), []).append(topic)
+    # A robot whose topics hold no pose is not read: said, as the team's size then differs.
+    posed = {int(m[1]) for t in types if (m := _ROBOT_TOPIC.match(t)) and t not in pose_topics} - set(chosen)
+    if posed:
+        others = sorted((t for t in types if (m := _ROBOT_TOPIC.match(t)) and int(m[1]) in posed), key=_natural)
+        warnings.warn(
+            f"{source}: robot(s) {sorted(posed)[:10]} have topics but none holding a pose ("
+            + _listed([f"{t}: {types[t]}" for t in others], 5)
+            + f"; a pose is {' or '.join(POSE_TYPES)}): they are not read",
+            stacklevel=3,
+        )
     if not chosen:
         raise NetsimInputError(
             f"{source}: no pose topic /robot_<i>/... of type {' or '.join(POSE_TYPES)} "
-            f"(topics: {sorted(c.topic for c in connections) or 'none'}); name them in mobility.topics"
+            f"(topics: {_listed(sorted(types, key=_natural)) or 'none'}); name them in mobility.topics"
         )
     twice = {i: t for i, t in chosen.items() if len(t) > 1}
     if twice:
-        i, t = next(iter(sorted(twice.items())))
+        i, several = next(iter(sorted(twice.items())))
         raise NetsimInputError(
-            f"{source}: robot {i} has several pose topics {sorted(t)}; name one per robot in mobility.topics"
+            f"{source}: robot {i} has several pose topics {sorted(several)}; name one per robot in mobility.topics"
         )
     lacking = sorted(set(range(max(chosen) + 1)) - set(chosen))
     if lacking:
