@@ -366,6 +366,31 @@ def test_a_bags_topic_of_another_type_is_named_with_its_type(tmp_path):
     assert str(err.value).endswith("/robot_9/pose and 2 more)")
 
 
+def test_a_bags_stamps_that_go_back_or_repeat_are_read_in_order_with_a_warning(tmp_path):
+    """Poses whose header stamps, in the bag's order, go back are read in stamp order, and
+    ones that repeat a stamp put the robot where the last of them does: each said in a
+    warning (both were silent)."""
+    from rosbags.rosbag2 import Writer
+
+    store = rosbag2._typestore()
+    bag = tmp_path / "stamps"
+    with Writer(bag, version=8) as w:
+        conn = w.add_connection("/robot_0/pose", "geometry_msgs/msg/PoseStamped", typestore=store)
+        # (log time, header stamp, x): the third pose is stamped before the second, the last repeats.
+        for k, (stamp, x) in enumerate([(0.0, 0.0), (2.0, 2.0), (1.0, 1.0), (3.0, 3.0), (3.0, 4.0)]):
+            point = rosbag2._make(store, "geometry_msgs/msg/Point", x=x, y=0.0)
+            pose = rosbag2._make(store, "geometry_msgs/msg/Pose", position=point)
+            header = rosbag2._make(store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, stamp))
+            msg = rosbag2._make(store, "geometry_msgs/msg/PoseStamped", header=header, pose=pose)
+            w.write(conn, k * 1_000_000_000, store.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped"))
+    with pytest.warns(UserWarning) as caught:
+        wp = rosbag2.read(bag)
+    said = [str(c.message) for c in caught]
+    assert any("1 pose(s) have a header stamp earlier than the pose before them" in m for m in said), said
+    assert any("1 pose(s) repeat the header stamp of the pose before them" in m for m in said), said
+    assert wp.t_s.tolist() == [0.0, 1.0, 2.0, 3.0, 3.0] and wp.x_m.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0]
+
+
 def test_bag_without_pose_topics_exits_2_one_line(tmp_path, capsys):
     bag = tmp_path / "empty"
     _bag(bag, {"/chatter": []}, "geometry_msgs/msg/PoseStamped")

@@ -134,10 +134,32 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
     finally:
         reader.close()
     stamps_ns = np.array(stamps, dtype=np.int64)
+    _warn_of_stamps(np.array(robots, dtype=np.int64), stamps_ns, source)
     t = (stamps_ns - stamps_ns.min()) / 1e9 if len(stamps_ns) else stamps_ns.astype(float)
     if len(xs) and not np.isfinite(np.r_[xs, ys]).all():
         raise NetsimInputError(f"{source}: a pose has a non-finite position")
     return Waypoints.of(robots, t, xs, ys, source)
+
+
+def _warn_of_stamps(robots: np.ndarray, stamps_ns: np.ndarray, source: str) -> None:
+    """Say where a robot's header stamps, in the bag's order, go back or repeat: its poses
+    are read in stamp order, and at a repeated stamp the last read puts it."""
+    order = np.argsort(robots, kind="stable")
+    same = robots[order][1:] == robots[order][:-1]
+    step = np.diff(stamps_ns[order])
+    back, repeated = int((same & (step < 0)).sum()), int((same & (step == 0)).sum())
+    if back:
+        warnings.warn(
+            f"{source}: {back:,} pose(s) have a header stamp earlier than the pose before them on their robot's "
+            "topic (in the bag's order): the poses are read in stamp order",
+            stacklevel=3,
+        )
+    if repeated:
+        warnings.warn(
+            f"{source}: {repeated:,} pose(s) repeat the header stamp of the pose before them on their robot's "
+            "topic: the robot is where the last of them puts it",
+            stacklevel=3,
+        )
 
 
 def _make(store: Any, typename: str, **given: Any) -> Any:
