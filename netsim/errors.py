@@ -1,6 +1,8 @@
 """Errors that reach users. The CLI turns these into one line and exit status 2."""
 
 import os
+from collections.abc import Iterable
+from typing import Any
 
 
 class NetsimInputError(Exception):
@@ -38,3 +40,11 @@ def not_a_file(path: str | os.PathLike) -> str:
     if os.path.isdir(path):
         return "is a directory, not a file"
     return "is not a regular file" if os.path.exists(path) else "no such file"
+
+
+def listed(items: Iterable[Any], most: int = 10) -> str:
+    """At most ``most`` of ``items``, comma-separated, and how many more: a message names a
+    few of many, not all."""
+    names = [str(item) for item in items]
+    shown = ", ".join(names[:most])
+    return f"{shown} and {len(names) - most} more" if len(names) > most else shown

@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from netsim.errors import NetsimInputError, not_a_file
+from netsim.errors import NetsimInputError, listed, not_a_file
 from netsim.geometry import speeds_mps
 from netsim.trajectory import LegTable
 
@@ -156,11 +156,6 @@ class _Heading:
     stop_event: int = -1
     travel_start_s: float = 0.0
     arrival_s: float = 0.0
-
-
-def _lines_named(lines: list[int]) -> str:
-    shown = ", ".join(map(str, lines[:_SHOWN]))
-    return f"{shown} and {len(lines) - _SHOWN} more" if len(lines) > _SHOWN else shown
 
 
 def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") -> Scenario:
@@ -276,7 +271,7 @@ def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") 
             "a setdest read after a later one cancels that one's stop"
         )
         warn(
-            f"line(s) {_lines_named(lines_late)} (node(s) {nodes[:10]}) are earlier than a line before "
+            f"line(s) {listed(lines_late, _SHOWN)} (node(s) {nodes[:10]}) are earlier than a line before "
             f"them for the same node: {how}"
         )
     if ends_open:
@@ -288,7 +283,7 @@ def read(path: str | Path, n_robots: int | None = None, semantics: str = "ns2") 
         skipped.sort()
         warn(
             f"{len(skipped)} movement line(s) not understood (a line cut short, a word missing or extra, a time "
-            f"or number that is not one, a negative speed) are skipped: line(s) {_lines_named(skipped)}"
+            f"or number that is not one, a negative speed) are skipped: line(s) {listed(skipped, _SHOWN)}"
         )
     live = sorted((e for e in events if not e[6]), key=lambda e: (e[0], e[1]))
     frame = pd.DataFrame(

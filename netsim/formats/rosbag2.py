@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from netsim.errors import NetsimInputError
+from netsim.errors import NetsimInputError, listed
 from netsim.formats.waypoints import Waypoints
 from netsim.metrics import links_up_at
 
@@ -48,12 +48,6 @@ def _natural(name: str) -> list:
     return [(0, int(part), "") if part.isdigit() else (1, 0, part) for part in re.split(r"(\d+)", name)]
 
 
-def _listed(names: list[str], most: int = 10) -> str:
-    """At most ``most`` names, and how many more."""
-    shown = ", ".join(names[:most])
-    return f"{shown} and {len(names) - most} more" if len(names) > most else shown
-
-
 def _robot_topics(connections: Any, topics: Sequence[str], source: str) -> dict[str, int]:
     """Which topic each robot follows: ``{topic: robot}``."""
     types = {c.topic: c.msgtype for c in connections}
@@ -66,7 +60,7 @@ def _robot_topics(connections: Any, topics: Sequence[str], source: str) -> dict[
                 raise NetsimInputError(
                     f"{source}: topic {first!r} of mobility.topics holds {types[first]}, not {' or '.join(POSE_TYPES)}"
                 )
-            have = _listed(sorted(pose_topics, key=_natural)) or "none"
+            have = listed(sorted(pose_topics, key=_natural)) or "none"
             raise NetsimInputError(
                 f"{source}: topic {first!r} of mobility.topics is not in the bag (pose topics in the bag: {have})"
             )
@@ -81,14 +75,14 @@ def _robot_topics(connections: Any, topics: Sequence[str], source: str) -> dict[
         others = sorted((t for t in types if (m := _ROBOT_TOPIC.match(t)) and int(m[1]) in posed), key=_natural)
         warnings.warn(
             f"{source}: robot(s) {sorted(posed)[:10]} have topics but none holding a pose ("
-            + _listed([f"{t}: {types[t]}" for t in others], 5)
+            + listed([f"{t}: {types[t]}" for t in others], 5)
             + f"; a pose is {' or '.join(POSE_TYPES)}): they are not read",
             stacklevel=3,
         )
     if not chosen:
         raise NetsimInputError(
             f"{source}: no pose topic /robot_<i>/... of type {' or '.join(POSE_TYPES)} "
-            f"(topics: {_listed(sorted(types, key=_natural)) or 'none'}); name them in mobility.topics"
+            f"(topics: {listed(sorted(types, key=_natural)) or 'none'}); name them in mobility.topics"
         )
     twice = {i: t for i, t in chosen.items() if len(t) > 1}
     if twice:
