@@ -43,7 +43,7 @@ from netsim.params import (
     describe as describe_params,
 )
 from netsim.radio.models import LOSS, MAC, PROPAGATION
-from netsim.traffic import TrafficParams, check_robots
+from netsim.traffic import TrafficParams, check_flows
 
 
 class ConfigWarning(UserWarning):
@@ -430,7 +430,7 @@ class Config(Params):
         if self.world.map:
             _check_map(self)
         if self.traffic.flows:
-            check_robots(self.traffic, self.world.n_robots)
+            check_flows(self.traffic, self.world.n_robots, self.duration_s, self.channel.max_frame_bytes)
             if not getattr(self.protocol.plugin, "carries_flows", False):
                 raise ConfigError(
                     "traffic.flows",
@@ -516,30 +516,45 @@ def _enabled_by_section(plugin: Any) -> bool:
     return "enabled" in names(plugin.Params)
 
 
+def _section_taken(section: str) -> bool:
+    return section in ENGINE_SECTIONS or section in ("seed", "duration_s") or hasattr(Config, section)
+
+
 def section_owners(control: ControlParams) -> dict[str, Any]:
-    """The plugins that own a section, by section name: every registered controller that
-    does (switched on by its ``enabled`` key), then the controllers ``control.controllers``
-    names that do."""
+    """The plugins that own a section, by section name: the controllers ``control.controllers``
+    names that do, then every installed controller that does (switched on by its ``enabled``
+    key). An installed controller the configuration does not name, whose section the engine
+    or another controller already uses, is left out with a warning: a plugin that cannot be
+    offered stops no run that does not name it."""
     owners: dict[str, Any] = {}
-    candidates = list(plugins.registered(plugins.CONTROLLERS).items())
-    registered = {id(p) for _, p in candidates}
+    owner_name: dict[str, str] = {}
+    installed = list(plugins.registered(plugins.CONTROLLERS).items())
+    registered = {id(p) for _, p in installed}
+    key = "control.controllers"
     for name in control.controllers:
-        key = "control.controllers"
         plugin = plugins.resolve(plugins.CONTROLLERS, name, key)
-        if id(plugin) in registered and plugin.Params.section and _enabled_by_section(plugin):
-            section = plugin.Params.section
-            raise ConfigError(key, name, f"is switched on by {section}.enabled = true, not listed here")
-        candidates.append((name, plugin))
-    for name, plugin in candidates:
         section = plugin.Params.section
+        if id(plugin) in registered and section and _enabled_by_section(plugin):
+            raise ConfigError(key, name, f"is switched on by {section}.enabled = true, not listed here")
         if not section:
             continue
-        if section in ENGINE_SECTIONS or section in ("seed", "duration_s") or hasattr(Config, section):
-            raise ConfigError("control.controllers", name, f"declares the section [{section}], a name the engine uses")
-        other = owners.get(section)
-        if other is not None and other is not plugin:
-            raise ConfigError("control.controllers", name, f"declares the section [{section}], as another plugin does")
-        owners[section] = plugin
+        if _section_taken(section):
+            raise ConfigError(key, name, f"declares the section [{section}], a name the engine uses")
+        if owners.get(section, plugin) is not plugin:
+            raise ConfigError(key, name, f"declares the section [{section}], as {owner_name[section]!r} does")
+        owners[section], owner_name[section] = plugin, name
+    for name, plugin in installed:
+        section = plugin.Params.section
+        if not section or owners.get(section) is plugin:
+            continue
+        if _section_taken(section) or section in owners:
+            other = "the engine" if _section_taken(section) else repr(owner_name[section])
+            warnings.warn(
+                f"installed controller {name!r} is left out: its section [{section}] is used by {other}",
+                stacklevel=2,
+            )
+            continue
+        owners[section], owner_name[section] = plugin, name
     return owners
 
 

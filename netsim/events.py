@@ -143,6 +143,14 @@ def notify(subscribers: list[Callable], event: object) -> None:
         fn(event)
 
 
+class UnknownEvent(ValueError):
+    """A subscription to an event name that no component emits."""
+
+
+class NotASubscriber(TypeError):
+    """A subscription of something that cannot be called."""
+
+
 class EventBus:
     """Subscribers by event name; components emit, subscribers are called in the order
     they subscribed, at the simulated instant of the event (``sim.now``)."""
@@ -156,9 +164,9 @@ class EventBus:
     def on(self, name: str, fn: Callable) -> Callable:
         """Call ``fn(event)`` on every event ``name``; returns ``fn``."""
         if name not in self._subscribers:
-            raise ValueError(f"unknown event {name!r}; events are " + ", ".join(EVENT_NAMES))
+            raise UnknownEvent(f"unknown event {name!r}; events are " + ", ".join(EVENT_NAMES))
         if not callable(fn):
-            raise TypeError(f"a subscriber to {name!r} must be callable, not {type(fn).__name__}")
+            raise NotASubscriber(f"a subscriber to {name!r} must be callable, not {type(fn).__name__}")
         if name in LINK_EVENTS and self.started and not self.link_events_on:
             raise RuntimeError(
                 f"subscribe to {name!r} before the run starts (or set events.runtime_links = 'on'): "

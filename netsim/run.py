@@ -27,7 +27,7 @@ from netsim.config import Config, world_bounds
 from netsim.control import ControlLoop
 from netsim.cosim import AckSchedule, Driver, Messenger, NeighbourView
 from netsim.errors import ConfigError, NetsimInputError
-from netsim.events import EventBus
+from netsim.events import EventBus, NotASubscriber, UnknownEvent
 from netsim.groups import GroupView
 from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.shadowed_links import ShadowedLinks
@@ -35,6 +35,7 @@ from netsim.links.walled_links import WalledLinks
 from netsim.params import Params
 from netsim.plugins import AckTiming, Parts, Reports, Schema
 from netsim.radio.channel import Channel
+from netsim.radio.loss import CheckedLoss
 from netsim.radio.reception import Reception
 from netsim.radio.receptions import RECEPTIONS_SCHEMA, ReceptionLog
 from netsim.rng import Streams
@@ -81,6 +82,8 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     state.events = events
     ch = config.channel
     survives = ch.loss_plugin.make(ch.loss, state.range_m, streams.get("channel.loss"))
+    if not type(survives).__module__.startswith("netsim."):
+        survives = CheckedLoss(survives, ch.loss_model)
     occupancy = world_map(config)
     radio = ch.propagation_model
     propagation = radio.make(ch.radio, state.range_m, occupancy, streams.get("channel.shadowing"))
@@ -161,8 +164,13 @@ def ack_timing(protocol: object, channel: Any) -> AckTiming | None:
     return AckTiming(float(protocol.ack_period_s), float(protocol.ack_jitter_s), bool(lossless))
 
 
-def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts) -> object:
-    component = plugin.build(params, parts)
+def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts, key: str) -> object:
+    """``plugin`` built; a subscription it makes to an event that does not exist, or of
+    something that cannot be called, is refused naming its configuration ``key``."""
+    try:
+        component = plugin.build(params, parts)
+    except (UnknownEvent, NotASubscriber) as exc:
+        raise ConfigError(key, name, f"subscribes wrongly: {exc}") from None
     sim.add_model(name, component)
     return component
 
@@ -189,9 +197,9 @@ def build(config: Config, run: int = 0) -> Simulation:
 
         walls = Walls(parts.occupancy)
     sim.state.check_motion(walls)
-    mobility = _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts)
+    mobility = _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts, "mobility.model")
     sim.driver = mobility if isinstance(mobility, Driver) else None
-    protocol = _build_model(sim, "protocol", config.protocol.plugin, config.protocol.params, parts)
+    protocol = _build_model(sim, "protocol", config.protocol.plugin, config.protocol.params, parts, "protocol.model")
     sim.groups = protocol if isinstance(protocol, GroupView) else None
     sim.neighbour_view = protocol if isinstance(protocol, NeighbourView) else None
     sim.messenger = protocol if isinstance(protocol, Messenger) else None
@@ -216,21 +224,21 @@ def build(config: Config, run: int = 0) -> Simulation:
         acks = ack_timing(protocol, config.channel)
         with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links, acks=acks)
         for name, plugin, params in chosen:
-            component = _build_model(sim, name, plugin, params, with_loop)
+            component = _build_model(sim, name, plugin, params, with_loop, "control.controllers")
             if callable(component):
                 loop.add(component)
     events = config.events
     if events.live_topology:
         sim.live_topology()
-    for name in events.hooks:
-        hook = plugins.resolve(plugins.HOOKS, name, "events.hooks")
+    for k, name in enumerate(events.hooks):
+        hook = plugins.resolve(plugins.HOOKS, name, f"events.hooks[{k}]")
         with_groups = dataclasses.replace(
             sim.parts,
             groups=sim.groups,
             control=sim.models.get("control"),
             links=sim.link_events if sim.runtime_links != "off" else None,
         )
-        _build_model(sim, name, hook, hook.Params(), with_groups)
+        _build_model(sim, name, hook, hook.Params(), with_groups, f"events.hooks[{k}]")
     # Link events are solved during the run if asked for now (a hook subscribed) or later,
     # before the run starts (Simulation.run).
     return sim

@@ -19,6 +19,7 @@ leg (and one traversal of the grid per leg on a map).
 
 from __future__ import annotations
 
+import math
 import types
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -219,9 +220,17 @@ class RobotState:
     # -- motion ----------------------------------------------------------------------
     def place(self, positions_m: np.ndarray) -> None:
         """Initial positions at t = 0, everyone at rest (cause ``"start"``)."""
-        positions_m = np.asarray(positions_m, dtype=float)
+        try:
+            positions_m = np.asarray(positions_m, dtype=float)
+        except (TypeError, ValueError):
+            raise MotionError(f"the robots are placed at positions that are not numbers: {positions_m!r:.80}") from None
         if positions_m.shape != (self.n, 2):
-            raise ValueError(f"expected positions of shape ({self.n}, 2), got {positions_m.shape}")
+            raise MotionError(f"{self.n} robots need positions of shape ({self.n}, 2), not {positions_m.shape}")
+        bad = ~np.isfinite(positions_m).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            x, y = positions_m[i]
+            raise MotionError(f"robot {i} is placed at ({x:g}, {y:g}): a position must be finite")
         self.origin_m[:] = positions_m
         self.velocity_mps[:] = 0.0
         self.speed_mps[:] = 0.0
@@ -261,13 +270,23 @@ class RobotState:
                 self._check_end(i, t, start)
         else:
             start = np.asarray(start_m, dtype=float)
+            if start.shape != (2,) or not np.isfinite(start).all():
+                where = f"{start_m!r:.60}"
+                raise MotionError(f"robot {i} jumps to {where} at t = {t:.9g} s: a position is two finite numbers")
             self.jumps += 1
             if self.checked:
                 self._check_end(i, t, self.positions_at(t, i, fold=False))
                 self._check_jump(i, t, start)
         if cause is None:
             cause = "command" if start_m is None else "jump"
+        if len(velocity_mps) != 2:
+            k = len(velocity_mps)
+            raise MotionError(f"robot {i} is given a velocity of {k} components at t = {t:.9g} s, not 2")
         vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
+        if not (math.isfinite(vx) and math.isfinite(vy)):
+            raise MotionError(
+                f"robot {i} is given the velocity ({vx:g}, {vy:g}) m/s at t = {t:.9g} s: it must be finite"
+            )
         self._log_travel(i, t)
         self.origin_m[i] = start
         self.velocity_mps[i] = (vx, vy)
@@ -283,9 +302,19 @@ class RobotState:
         are, with the rows of ``velocities_mps``: what :meth:`set_leg` does for each, in
         order, computed for all at once. ``cause``: one for all, or one per robot."""
         idx = np.asarray(idx, dtype=np.int64)
-        v = np.asarray(velocities_mps, dtype=float).reshape(len(idx), 2)
+        v = np.asarray(velocities_mps, dtype=float)
+        if v.shape != (len(idx), 2):
+            n = len(idx)
+            raise MotionError(f"{n} robots are given velocities of shape {v.shape} at t = {t:.9g} s, not ({n}, 2)")
         if len(idx) == 0:
             return
+        finite = np.isfinite(v).all(axis=1)
+        if not finite.all():
+            k = int(np.flatnonzero(~finite)[0])
+            vx, vy = v[k]
+            raise MotionError(
+                f"robot {int(idx[k])} is given the velocity ({vx:g}, {vy:g}) m/s at t = {t:.9g} s: it must be finite"
+            )
         start = self.positions_at(t, idx, fold=False)
         if self.checked:
             self._check_ends(idx, t, start)

@@ -13,6 +13,7 @@ them (``PluginSpec.carries_flows``) and writes ``flows.parquet`` and ``packets.p
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -88,14 +89,38 @@ class TrafficParams(Params):
         return [Flow(**f) for f in self.flows]
 
 
-def check_robots(params: TrafficParams, n_robots: int) -> None:
-    """Every flow names robots of the team."""
+# The most frames one flow may send in a run: beyond, its schedule alone would take
+# gigabytes (a rate or size mistyped by orders of magnitude), and no run ends.
+MAX_FRAMES_PER_FLOW = 10_000_000
+
+
+def check_flows(params: TrafficParams, n_robots: int, duration_s: float, max_frame_bytes: int) -> None:
+    """Every flow names robots of the team and sends at most :data:`MAX_FRAMES_PER_FLOW`
+    frames in the run; a flow that starts at or after the run's end is told (it sends
+    nothing)."""
     for i, f in enumerate(params.flows):
         for k in ("src", "dst"):
             if f[k] >= n_robots:
                 raise ConfigError(
                     f"traffic.flows[{i}].{k}", f[k], f"no such robot: ids are 0 to {n_robots - 1} (world.n_robots)"
                 )
+        flow = Flow(**f)
+        if flow.start_s >= duration_s:
+            warnings.warn(
+                f"traffic.flows[{i}] starts at {flow.start_s:g} s, at or after the run's end "
+                f"(duration_s = {duration_s:g}): it sends nothing",
+                stacklevel=2,
+            )
+            continue
+        packets = math.ceil((min(flow.stop_s, duration_s) - flow.start_s) / flow.interval_s)
+        frames = packets * -(-flow.packet_bytes // max_frame_bytes)
+        if frames > MAX_FRAMES_PER_FLOW:
+            raise ConfigError(
+                f"traffic.flows[{i}]",
+                f,
+                f"would send {frames:.3g} frames in the run ({packets:.3g} packets of {flow.packet_bytes} bytes, "
+                f"channel.max_frame_bytes = {max_frame_bytes}); at most {MAX_FRAMES_PER_FLOW:,} a flow",
+            )
 
 
 class Traffic(NamedTuple):

@@ -207,3 +207,35 @@ def test_the_engine_compares_against_no_channel_model_name():
                 if names & built_in:
                     found.append((f.relative_to(root), node.lineno))
     assert found == []
+
+
+@pytest.mark.parametrize(
+    "answer, got",
+    [
+        ("np.full(len(receivers), 1.5)", "float64 array of shape"),
+        ("np.zeros(len(receivers), dtype=int)", "int64 array of shape"),
+        ("np.ones(len(receivers) - 1, dtype=bool)", "bool array of shape"),
+        ("[True] * len(receivers)", "not a list"),
+    ],
+)
+def test_a_user_loss_model_answering_other_than_a_mask_is_refused_naming_it(tmp_path, monkeypatch, answer, got):
+    """A user's loss model whose answer is not None or one bool a receiver (a probability, an
+    integer array read as indices, a short mask, a list) is refused naming
+    channel.loss_model: it was taken as it was, and the counts went wrong without a word."""
+    from netsim.errors import ConfigError
+
+    module = f"bad_loss_{abs(hash(answer))}"
+    (tmp_path / f"{module}.py").write_text(
+        "import numpy as np\n"
+        "from netsim.params import Params\n"
+        "from netsim.radio.models import LossModel\n"
+        "def survives(sender, receivers, distances_m):\n"
+        f"    return {answer}\n"
+        "PLUGIN = LossModel(Params, lambda params, range_m, rng: survives)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = cfgmod.load(None, [*SMALL, f"channel.loss_model={module}:PLUGIN"])
+    refused = rf"^channel.loss_model = '{module}:PLUGIN': .*must return None or a bool array"
+    with pytest.raises(ConfigError, match=refused) as e:
+        execute(config)
+    assert got in str(e.value)

@@ -1310,3 +1310,37 @@ def test_run_with_progress_refuses_steps_below_one(steps):
         sim.run(until_s=10, progress=True, steps=steps)
     sim.run(until_s=10)  # a refused call leaves the run able to go on
     assert sim.now == 10
+
+
+@pytest.mark.parametrize(
+    "subscription, fragment",
+    [
+        ('parts.events.on("link_dwn", print)', "unknown event 'link_dwn'; events are"),
+        ('parts.events.on("link_down", "not a function")', "must be callable, not str"),
+    ],
+)
+def test_cli_a_hook_that_subscribes_wrongly_is_one_line_naming_it(
+    tmp_path, monkeypatch, capsys, subscription, fragment
+):
+    """A hook subscribing to an event that does not exist, or subscribing what cannot be
+    called, is refused as the run is built: one line naming its key, exit 2, nothing
+    written (it was a traceback)."""
+    from netsim.tools.cli import main
+
+    module = f"typo_hook_{len(fragment)}"  # one module a case: imports are cached
+    (tmp_path / f"{module}.py").write_text(
+        "from netsim.params import Params\n"
+        "from netsim.plugins import PluginSpec\n"
+        "def build(params, parts):\n"
+        f"    {subscription}\n"
+        "TYPO = PluginSpec(Params=Params, build=build)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out = tmp_path / "out"
+    hooks = f'events.hooks=["{module}:TYPO"]'
+    code = main(["run", "--quiet", "--out", str(out), "--set", "duration_s=5", "--set", hooks])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2, lines
+    assert len(lines) == 1 and lines[0].startswith(f"netsim: error: events.hooks[0] = '{module}:TYPO': ")
+    assert fragment in lines[0]
+    assert not out.exists()

@@ -134,6 +134,11 @@ BAD_FLOWS = [
     ({**FLOW, "rate_bps": 0}, "traffic.flows[0].rate_bps = 0.0: must be > 0"),
     ({**FLOW, "packet_bytes": -5}, "traffic.flows[0].packet_bytes = -5: must be > 0"),
     ({**FLOW, "colour": 1}, "traffic.flows[0].colour"),
+    (
+        {**FLOW, "rate_bps": 1e12, "packet_bytes": 1},
+        "would send 1.25e+12 frames in the run (1.25e+12 packets of 1 bytes",
+    ),
+    ({**FLOW, "packet_bytes": 10**12}, "at most 10,000,000 a flow"),
 ]
 
 
@@ -160,3 +165,12 @@ def test_cli_bad_flow_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys)
     assert code == 2 and len(lines) == 1
     assert lines[0].startswith("netsim: error: traffic.flows[0].dst = 99")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_flow_that_starts_after_the_run_ends_is_told():
+    """A flow starting at or after duration_s sends nothing: a warning says so (it was
+    silent, its row all NaN)."""
+    late = {**FLOW, "start_s": 30.0, "stop_s": 40.0}
+    told = r"traffic.flows\[0\] starts at 30 s, at or after the run's end \(duration_s = 20\)"
+    with pytest.warns(UserWarning, match=told):
+        make_config(duration_s=20.0, world={"n_robots": 5}, traffic={"flows": [late]})

@@ -126,3 +126,63 @@ def test_a_state_without_the_check_holds_any_position():
     st.set_leg(0, 5.0, (0.0, 0.0))
     st.check_until(10.0)
     assert st.positions_at(10.0).tolist() == [[510.0, 10.0]]
+
+
+@pytest.mark.parametrize(
+    "positions, fragment",
+    [
+        ([[1.0, 2.0]], r"^2 robots need positions of shape \(2, 2\), not \(1, 2\)$"),
+        ([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]], r"^2 robots need positions of shape \(2, 2\), not \(2, 3\)$"),
+        ([[1.0, 2.0], [np.nan, 5.0]], r"^robot 1 is placed at \(nan, 5\): a position must be finite$"),
+        ([[np.inf, 2.0], [4.0, 5.0]], r"^robot 0 is placed at \(inf, 2\): a position must be finite$"),
+        ([["a", "b"], ["c", "d"]], r"^the robots are placed at positions that are not numbers"),
+    ],
+)
+def test_a_placement_that_is_no_position_is_refused_naming_it(positions, fragment):
+    """Positions of the wrong shape, not numbers, or not finite are refused where they are
+    placed (MotionError, one line: a NaN was carried through the run, then reported as
+    leaving the area at the run's end)."""
+    st = RobotState(2, 100.0, 10.0)
+    with pytest.raises(MotionError, match=fragment):
+        st.place(positions)
+
+
+def test_a_velocity_that_is_not_finite_or_not_two_numbers_is_refused_where_it_is_set():
+    """set_leg and set_legs refuse a velocity that is not finite, or not of two components
+    (a third was dropped without a word), at the time it is set."""
+    st = RobotState(3, 100.0, 10.0)
+    st.place(np.full((3, 2), 50.0))
+    with pytest.raises(MotionError, match=r"^robot 1 is given the velocity \(nan, 0\) m/s at t = 1 s: it must be fin"):
+        st.set_leg(1, 1.0, (np.nan, 0.0))
+    with pytest.raises(MotionError, match=r"^robot 2 is given a velocity of 3 components at t = 1 s, not 2$"):
+        st.set_leg(2, 1.0, (1.0, 0.0, 0.0))
+    with pytest.raises(MotionError, match=r"^robot 2 is given the velocity \(0, inf\) m/s at t = 2 s"):
+        st.set_legs(np.array([0, 2]), 2.0, np.array([[0.0, 1.0], [0.0, np.inf]]))
+    with pytest.raises(MotionError, match=r"^2 robots are given velocities of shape \(3,\) at t = 2 s, not \(2, 2\)$"):
+        st.set_legs(np.array([0, 2]), 2.0, np.zeros(3))
+    with pytest.raises(MotionError, match=r"^robot 0 jumps to \(nan, 1\.0\) at t = 3 s: a position is two finite"):
+        st.set_leg(0, 3.0, (0.0, 0.0), start_m=(np.nan, 1.0))
+    assert st.legs()["cause"].tolist() == ["start"] * 3  # nothing was kept of the refused legs
+
+
+def _nan_controller(params, parts: Parts):
+    def control(step):
+        step.velocity_mps[0] = np.nan
+
+    return control
+
+
+NAN_CONTROLLER = PluginSpec(Params=NoParams, build=_nan_controller)
+
+
+def test_a_controller_setting_a_nan_velocity_is_one_line_at_that_step(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(
+        ["run", "--quiet", "--set", 'control.controllers=["tests.test_motion_checks:NAN_CONTROLLER"]']
+        + ["--set", "world.n_robots=3", "--set", "duration_s=50", "--set", "protocol.model=none"]
+        + ["--set", "mobility.model=static", "--out", str(out)]
+    )
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert err[0].startswith("netsim: error: robot 0 is given the velocity (nan, nan) m/s at t = 10.001 s")
+    assert not out.exists()

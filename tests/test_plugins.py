@@ -193,3 +193,51 @@ def test_a_users_module_named_like_a_model_package_shadows_nothing(tmp_path, own
     )
     assert run.returncode == 0, run.stderr
     assert (tmp_path / "out" / "positions.parquet").is_file()
+
+
+def _controller(section: str):
+    from dataclasses import dataclass
+
+    from netsim.params import Params, param, positive
+    from netsim.plugins import PluginSpec
+
+    params = dataclass(frozen=True)(
+        type(
+            "P",
+            (Params,),
+            {"section": section, "__annotations__": {"gap_m": float}, "gap_m": param(1.0, positive, "m")},
+        )
+    )
+    return PluginSpec(Params=params, build=lambda params, parts: None)
+
+
+def test_an_installed_controller_whose_section_is_taken_stops_no_run_that_does_not_name_it(monkeypatch):
+    """An installed controller whose section the engine uses ([mobility]), or a controller
+    the configuration names already declares, is left out with a warning naming it, not a
+    refusal of every run; two controllers the configuration names with one section are
+    refused, naming the other."""
+    import netsim.config as cfgmod
+    from netsim.config import load
+
+    named = _controller("separation")
+    installed = {**plugins.registered(plugins.CONTROLLERS), "badsec": _controller("mobility")}
+    installed["separation"] = _controller("separation")
+    real_registered = plugins.registered
+    monkeypatch.setattr(
+        plugins, "registered", lambda group: installed if group == plugins.CONTROLLERS else real_registered(group)
+    )
+    real_resolve = plugins.resolve
+    users = {"mine:SEP": named, "yours:SEP": _controller("separation")}
+    monkeypatch.setattr(
+        plugins, "resolve", lambda group, name, key: users[name] if name in users else real_resolve(group, name, key)
+    )
+    with pytest.warns(UserWarning, match=r"'badsec' is left out: its section \[mobility\] is used by the engine"):
+        config = load(None, ["duration_s=5"])
+    assert "separation" in config.sections  # the installed one, named by nobody, owns it
+    with pytest.warns(UserWarning) as caught:
+        owners = cfgmod.section_owners(cfgmod.ControlParams(controllers=("mine:SEP",)))
+    told = [str(w.message) for w in caught]
+    assert "installed controller 'separation' is left out: its section [separation] is used by 'mine:SEP'" in told
+    assert owners["separation"] is named
+    with pytest.raises(ConfigError, match=r"declares the section \[separation\], as 'mine:SEP' does"):
+        cfgmod.section_owners(cfgmod.ControlParams(controllers=("mine:SEP", "yours:SEP")))

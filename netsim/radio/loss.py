@@ -18,8 +18,35 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from netsim.errors import ConfigError
 from netsim.params import Params, param, positive, probability
 from netsim.radio.models import LossModel
+
+
+class CheckedLoss:
+    """A loss model from outside netsim, whose every answer is checked: None, or a boolean
+    mask with one entry per receiver (an integer array would be read as indices, a
+    probability as a mask of all True, a short mask would drop nothing). A wrong answer
+    raises :class:`~netsim.errors.ConfigError` naming ``channel.loss_model``."""
+
+    def __init__(self, survives: Callable, name: str):
+        self.survives = survives
+        self.name = name
+        self.uses_distances = getattr(survives, "uses_distances", True)
+
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray | None) -> np.ndarray | None:
+        keep = self.survives(sender, receivers, distances_m)
+        if keep is None:
+            return None
+        if not isinstance(keep, np.ndarray) or keep.dtype != np.bool_ or keep.shape != receivers.shape:
+            got = f"{keep.dtype} array of shape {keep.shape}" if isinstance(keep, np.ndarray) else type(keep).__name__
+            raise ConfigError(
+                "channel.loss_model",
+                self.name,
+                f"its survives(sender, receivers, distances_m) must return None or a bool array of shape "
+                f"{receivers.shape} (one entry a receiver), not a {got}",
+            )
+        return keep
 
 
 class BernoulliLoss:
