@@ -135,7 +135,7 @@ LOOPBACK_XML = """<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInte
 </Domain></CycloneDDS>"""
 
 # Each test its own domain: bridges of tests run side by side never meet.
-DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64, "bytes": 65, "markers": 66}
+DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64, "bytes": 65, "markers": 66, "bad_uri": 67}
 
 
 @pytest.fixture(autouse=True)
@@ -197,15 +197,18 @@ def test_twist_on_cmd_vel_moves_robot_at_that_velocity(tmp_path):
     """A Twist on /robot_0/cmd_vel moves robot 0 at its linear.x, linear.y (world frame, m/s)
     from the simulated instant the bridge takes it: its odometry tells that velocity and
     positions that advance by it, and legs.parquet holds the commanded leg. A Twist that is
-    not a finite velocity (robot 1's) is dropped and counted, and the session goes on."""
+    not a finite velocity (robot 1's), or is faster than light (robot 2's; it ended the
+    session, every table lost), is dropped and counted, and the session goes on."""
     config = scenario(tmp_path, DOMAINS["twist"], duration_s=6.0)
     proc = start_bridge(config, tmp_path / "out", "--rate", "2")
     dp = DomainParticipant(DOMAINS["twist"])
     odom = DataReader(dp, Topic(dp, "rt/robot_0/odom", Odometry), qos=RELIABLE)
     cmd = DataWriter(dp, Topic(dp, "rt/robot_0/cmd_vel", Twist), qos=RELIABLE)
     cmd_1 = DataWriter(dp, Topic(dp, "rt/robot_1/cmd_vel", Twist), qos=RELIABLE)
+    cmd_2 = DataWriter(dp, Topic(dp, "rt/robot_2/cmd_vel", Twist), qos=RELIABLE)
     wait_for(odom, proc, "odometry")
     cmd_1.write(Twist(linear=Vector3(x=float("nan"), y=1.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)))
+    cmd_2.write(Twist(linear=Vector3(x=4e8, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)))
     twist = Twist(linear=Vector3(x=1.5, y=-0.5, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
     moving: list[Odometry] = []
     while proc.poll() is None and len(moving) < 5:
@@ -228,7 +231,7 @@ def test_twist_on_cmd_vel_moves_robot_at_that_velocity(tmp_path):
     assert commanded[["vx_mps", "vy_mps"]].iloc[0].tolist() == [1.5, -0.5]
     assert not len(legs[(legs["robot"] != 0) & (legs["cause"] == "command")])
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert summary["bridge_commands_refused"] == 1
+    assert summary["bridge_commands_refused"] == 2
 
 
 @pytest.mark.slow
@@ -390,6 +393,8 @@ def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
         ([], ["--rate", "0"], "--rate 0: must be a positive"),
         ([], ["--rate", "-2"], "--rate -2: must be a positive"),
         (["mobility.model=random_waypoint"], [], "mobility.model = 'random_waypoint'"),
+        (["events.runtime_links=off"], [], "events.runtime_links = 'off': netsim bridge draws the links as they"),
+        (["events.runtime_links=off"], ["--live", "0"], "events.runtime_links = 'off': netsim bridge draws the links"),
     ],
     ids=[
         "unknown_relay_type",
@@ -398,11 +403,15 @@ def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
         "rate_zero",
         "rate_negative",
         "not_external",
+        "no_runtime_links",
+        "no_runtime_links_live",
     ],
 )
 def test_bad_bridge_input_is_one_line_and_exit_2(tmp_path, capsys, sets, flags, message):
     """An unknown relay type, a domain id outside 0..232, a --rate not positive, a mobility
-    model other than external: one line on standard error, exit status 2, nothing written."""
+    model other than external, no link solved during the run (/network/links drew none;
+    with --live it was refused late, blaming a hook): one line on standard error, exit
+    status 2, nothing written."""
     from netsim.tools.cli import main
 
     args = ["bridge", "--out", str(tmp_path / "out"), "--set", "mobility.model=external"]
@@ -430,3 +439,24 @@ def test_netsim_run_loads_neither_dds_nor_foxglove(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "NETSIM_COMPILED"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_a_cyclone_configuration_that_does_not_parse_is_refused_naming_it(tmp_path, monkeypatch):
+    """CYCLONEDDS_URI naming a file Cyclone cannot parse: the bridge ends with one line of
+    its own naming that variable (after Cyclone's own line), exit 2, nothing written (it was
+    a traceback)."""
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<CycloneDDS><Domain\n")
+    monkeypatch.setenv("CYCLONEDDS_URI", broken.as_uri())
+    run = subprocess.run(
+        [COMMAND, "bridge", str(scenario(tmp_path, DOMAINS["bad_uri"])), "--out", str(tmp_path / "out"), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 2, run.stderr
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"netsim: error: bridge.domain_id = {DOMAINS['bad_uri']}: Cyclone DDS cannot start")
+    assert f"CYCLONEDDS_URI = '{broken.as_uri()}'" in last
+    assert "Traceback" not in run.stderr
+    assert not (tmp_path / "out").exists()

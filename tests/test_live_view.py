@@ -115,3 +115,42 @@ def test_live_scene_robots_and_links_show_with_the_whole_area_in_view():
         view.close()
     assert "size: Some(Vector3 { x: 5.0, y: 5.0, z: 5.0 })" in sent[0]  # the 500 m area
     assert f"thickness: {LINK_WIDTH_PX}, scale_invariant: true" in sent[0]
+
+
+def test_a_live_port_in_use_is_one_line_exit_2_nothing_written(tmp_path):
+    """`--live PORT` on a port another server holds: one line naming it, exit 2, nothing
+    written (it was a traceback from the WebSocket library)."""
+    import socket
+
+    holder = socket.socket()
+    holder.bind(("127.0.0.1", 0))
+    holder.listen()
+    port = holder.getsockname()[1]
+    try:
+        out = tmp_path / "out"
+        run = subprocess.run(
+            [COMMAND, "run", "--quiet", "--live", str(port), "--set", "duration_s=2", "--out", str(out)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    finally:
+        holder.close()
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2, run.stderr
+    assert len(lines) == 1 and lines[0].startswith(f"netsim: error: --live {port}: cannot serve on 127.0.0.1:{port}")
+    assert not out.exists()
+
+
+def test_live_without_runtime_links_is_refused_before_anything_starts(tmp_path, capsys):
+    """`netsim run --live` with events.runtime_links = "off": one line saying the live view
+    draws the links as they change, exit 2, nothing written, before the server starts (it
+    was refused after, blaming a hook)."""
+    from netsim.tools.cli import main
+
+    out = tmp_path / "out"
+    code = main(["run", "--live", "0", "--set", "events.runtime_links=off", "--set", "duration_s=2", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("netsim: error: events.runtime_links = 'off': netsim run --live draws the links as they")
+    assert not out.exists()

@@ -234,3 +234,18 @@ def test_a_negative_number_in_any_spelling_is_an_options_value(value, number):
     p = Parser(prog="x")
     p.add_argument("--level", type=float)
     assert p.parse_args(["--level", value]).level == number
+
+
+def test_a_bag_whose_metadata_is_not_yaml_is_one_line(tmp_path, capsys):
+    """A bag folder whose metadata.yaml does not parse is refused in one line (the YAML
+    parser's message, which spans lines, was printed as it was), nothing written."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("garbage: [\n")
+    out = tmp_path / "out"
+    args = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={bag}"]
+    assert main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and err.count("\n") == 1, err
+    assert "cannot be read as a rosbag2 bag" in err
+    assert not out.exists()

@@ -40,6 +40,7 @@ from foxglove.messages import (
 
 from netsim.bridge.look import LINK_RGBA, robot_diameter_m, robot_rgba
 from netsim.config import world_bounds
+from netsim.errors import NetsimInputError
 
 # Links are drawn in screen pixels: in metres they would vanish when the whole area is in view.
 LINK_WIDTH_PX = 2.0
@@ -97,9 +98,12 @@ class LiveView:
 
     def __init__(self, sim: Any, port: int, host: str = "127.0.0.1"):
         self.sim = sim
-        self.server = foxglove.start_server(
-            name="netsim", host=host, port=port, capabilities=[foxglove.Capability.Time]
-        )
+        try:
+            self.server = foxglove.start_server(
+                name="netsim", host=host, port=port, capabilities=[foxglove.Capability.Time]
+            )
+        except RuntimeError as exc:  # the port taken, or not ours to bind
+            raise NetsimInputError(f"--live {port}: cannot serve on {host}:{port} ({exc})") from None
         self.port = self.server.port
         self.scene = SceneUpdateChannel("/netsim/scene")
         self.poses = foxglove.Channel("/netsim/poses", schema=POSES_SCHEMA)

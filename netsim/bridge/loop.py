@@ -11,12 +11,14 @@ goes on the air then. The lag is how late the wall clock is when a step is done 
 summary's ``bridge_lag_*``. The schedule starts when the first step is out: that step
 carries the start-up's one-time costs, which are no lag.
 
-The loop ends at ``duration_s`` or when :attr:`Pacer.stop` is set (Ctrl-C).
+The loop ends at ``duration_s`` or when :attr:`Pacer.stop` is set (Ctrl-C): at once, also
+while it waits for the wall clock (a step not yet due is then not published).
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -57,7 +59,19 @@ class Pacer:
     def __init__(self, sim: Any, period_s: float, rate: float, clock: Callable[[], float] = time.monotonic):
         self.sim, self.period_s, self.rate, self.clock = sim, float(period_s), float(rate), clock
         self.lag = Lag()
-        self.stop = False
+        self._stopped = threading.Event()
+
+    @property
+    def stop(self) -> bool:
+        """Whether the run is to end; setting it ends a wait for the wall clock at once."""
+        return self._stopped.is_set()
+
+    @stop.setter
+    def stop(self, value: bool) -> None:
+        if value:
+            self._stopped.set()
+        else:
+            self._stopped.clear()
 
     def run(self, step_end: Callable[[float], None], step_start: Callable[[float], None]) -> None:
         """Advance to the run's end (or :attr:`stop`): ``step_start(t)`` at each step's start
@@ -80,8 +94,8 @@ class Pacer:
             else:
                 late = self.clock() - (wall0 + (t - t0_sim) / self.rate)
                 self.lag.add(max(late, 0.0), t)
-                if late < 0:
-                    time.sleep(-late)
+                if late < 0 and self._stopped.wait(-late):
+                    break
                 step_end(t)
             if t < end:
                 step_start(t)

@@ -8,12 +8,13 @@ effort, volatile, keep last 1), as ``rclcpp`` gives it to ``use_sim_time``.
 
 from __future__ import annotations
 
+import os
 import struct
 from collections.abc import Callable
 from typing import Any
 
 from cyclonedds._clayer import ddspy_write
-from cyclonedds.core import Policy, Qos
+from cyclonedds.core import DDSException, Policy, Qos
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.internal import InvalidSample
 from cyclonedds.pub import DataWriter
@@ -22,6 +23,7 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
 from netsim.bridge.messages import idl_type
+from netsim.errors import NetsimInputError
 
 DEFAULT_QOS = Qos(
     Policy.Reliability.Reliable(duration(milliseconds=100)),
@@ -40,7 +42,14 @@ class Node:
     """One DDS participant on ``domain_id``, its topics made once each."""
 
     def __init__(self, domain_id: int):
-        self.participant = DomainParticipant(domain_id)
+        try:
+            self.participant = DomainParticipant(domain_id)
+        except DDSException as exc:
+            # Cyclone reads its configuration (CYCLONEDDS_URI) as the participant is made.
+            uri = os.environ.get("CYCLONEDDS_URI")
+            cause = f"CYCLONEDDS_URI = {uri!r} may be wrong" if uri else "no CYCLONEDDS_URI set"
+            text = f"bridge.domain_id = {domain_id}: Cyclone DDS cannot start ({cause}): {exc}"
+            raise NetsimInputError(text) from None
         self._topics: dict[str, Topic] = {}
 
     def topic(self, name: str, msgtype: str) -> Topic:

@@ -111,7 +111,8 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
         reader = Reader(path)
         reader.open()
     except Exception as exc:  # the library's errors name the problem; one line for the user
-        raise NetsimInputError(f"{source}: cannot be read as a rosbag2 bag ({exc})") from None
+        why = " ".join(str(exc).split())  # a YAML parser's message spans lines
+        raise NetsimInputError(f"{source}: cannot be read as a rosbag2 bag ({why})") from None
     try:
         which = _robot_topics(reader.connections, topics, source)
         store = _typestore()

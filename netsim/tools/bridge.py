@@ -20,7 +20,7 @@ import tomli_w
 
 from netsim.bridge.loop import Pacer
 from netsim.bridge.settings import BridgeSettings
-from netsim.errors import NetsimInputError
+from netsim.errors import ConfigError, NetsimInputError
 
 # Wall-clock steps of `netsim run --live`, s of simulated time.
 LIVE_STEP_S = 0.1
@@ -37,6 +37,14 @@ def check_extra(command: str, modules: tuple[str, ...]) -> None:
             f"{command} needs {' and '.join(missing)}, of the optional extra 'ros': "
             "pip install 'netsim-robots[ros]' (in a clone: pip install -e '.[ros]')"
         )
+
+
+def check_links_on(config: Any, command: str) -> None:
+    """Refuse ``command``, which draws the links as they change (the live view, the
+    bridge's ``/network/links``), when the run solves no link during the run."""
+    if config.events.runtime_links == "off":
+        why = f"{command} draws the links as they change: set 'auto' or 'on'"
+        raise ConfigError("events.runtime_links", "off", why)
 
 
 @contextmanager

@@ -157,8 +157,9 @@ def cmd_run(args) -> int:
     config = cfgmod.load(args.config, overrides)
     check_fits_in_memory(config)
     if args.live is not None:
-        from netsim.tools.bridge import LIVE_VIEW, check_extra
+        from netsim.tools.bridge import LIVE_VIEW, check_extra, check_links_on
 
+        check_links_on(config, "netsim run --live")
         check_extra("netsim run --live", (LIVE_VIEW,))
     say_when_compiling("netsim run", not args.quiet)
     with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
@@ -220,13 +221,15 @@ def _in_flags(exc: ConfigError) -> NetsimInputError:
 
 def cmd_bridge(args) -> int:
     from netsim.bridge.settings import check_rate, load
-    from netsim.tools.bridge import DDS, LIVE_VIEW, bridge, check_extra
+    from netsim.tools.bridge import DDS, LIVE_VIEW, bridge, check_extra, check_links_on
 
     check_set_pairs(args.set, args.config)
     rate = check_rate(args.rate)
     config, settings = load(args.config, list(args.set or []))
     check_fits_in_memory(config)
+    check_links_on(config, "netsim bridge")
     check_extra("netsim bridge", (DDS,) if args.live is None else (DDS, LIVE_VIEW))
+    say_when_compiling("netsim bridge", not args.quiet)
     summary, out, written = bridge(args, config, settings, rate)
     if not args.quiet:
         print(summary_table(summary))
