@@ -663,6 +663,10 @@ def _model_section(cls: type[ModelSection], raw: dict) -> ModelSection:
     if not isinstance(model, str):
         raise ConfigError(key, model, "must be a string")
     plugin = plugins.resolve(cls.group, model, key)
+    declared = plugin.Params.section
+    if declared and declared != cls.section:
+        # Its keys live in another section: a model of another kind, named here by mistake.
+        raise ConfigError(key, model, f"its keys are of [{declared}]: not a {cls.section} model")
     group = {name: p.Params for name, p in plugins.registered(cls.group).items()}
     taken = _split(cls.section, raw, ["model"], model, plugin.Params, _other_keys(group, model))
     return cls(model, plugin.Params(**taken))

@@ -25,7 +25,7 @@ import os
 import sys
 import traceback
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cache
 from importlib.metadata import entry_points
 from types import ModuleType
@@ -225,7 +225,9 @@ def _plugin(group: str, name: str) -> Any:
     if isinstance(obj, PluginSpec):
         return obj
     if all(hasattr(obj, m) for m in _MEMBERS):
-        return PluginSpec(Params=obj.Params, build=obj.build, tables=obj.tables, check=obj.check)
+        # Every member a PluginSpec has, the flags too (moves_robots, respects_map, ...).
+        given = {f.name: getattr(obj, f.name) for f in fields(PluginSpec) if hasattr(obj, f.name)}
+        return PluginSpec(**given)
     raise TypeError("is not a netsim plugin (a PluginSpec, or an object with " + ", ".join(_MEMBERS) + ")")
 
 
@@ -293,6 +295,8 @@ def resolve(group: str, name: str, key: str) -> Any:
     """The plugin ``name`` of ``group``; ``key`` is the configuration key, for errors."""
     if not isinstance(name, str) or not name:
         raise ConfigError(key, name, "must be the name of a plugin (a non-empty string)")
+    if ":" in name and not all(name.partition(":")[::2]):
+        raise ConfigError(key, name, "must be 'package.module:attr', both parts given")
     try:
         return _plugin(group, name)
     except LookupError:

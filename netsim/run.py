@@ -185,9 +185,28 @@ def control_timing(config: Config) -> tuple[float, float]:
     )
 
 
+# Tables netsim writes itself: no model may declare or write one of these names.
+RESERVED_TABLES = frozenset(ENGINE_TABLES) | {"medium", "receptions"}
+
+
+def check_declared_tables(config: Config) -> None:
+    """No model of ``config`` declares a table named like one netsim writes itself: refused
+    naming its key, before the run (a table written so is refused after it, :func:`collect`)."""
+    named = [("mobility.model", config.mobility.model, config.mobility.plugin)]
+    named.append(("protocol.model", config.protocol.model, config.protocol.plugin))
+    named += [("control.controllers", name, plugin) for name, plugin, _ in cfgmod.controllers(config)]
+    for k, name in enumerate(config.events.hooks):
+        named.append((f"events.hooks[{k}]", name, plugins.resolve(plugins.HOOKS, name, f"events.hooks[{k}]")))
+    for key, name, plugin in named:
+        clash = sorted(set(plugin.tables) & RESERVED_TABLES)
+        if clash:
+            raise ConfigError(key, name, f"declares {', '.join(clash)}, a table netsim writes itself: rename it")
+
+
 def build(config: Config, run: int = 0) -> Simulation:
     """A :class:`Simulation` with every model of ``config`` built from its own section:
     the mobility model, the protocol, then the controllers (module notes)."""
+    check_declared_tables(config)
     sim = simulation(config, run)
     parts = sim.parts
     # The models' motion is checked (a bare core's scripted robots go where a test sends them).
@@ -295,7 +314,7 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
         if emit is not None:
             emit(name, frame)
 
-    clash = sorted(set(sim.trace.names()) & (set(ENGINE_TABLES) | {"medium", "receptions"}))
+    clash = sorted(set(sim.trace.names()) & RESERVED_TABLES)
     if clash:
         raise NetsimInputError(
             f"a model's table is named like one netsim writes itself ({', '.join(clash)}): rename it in its plugin"
@@ -360,9 +379,17 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
         summary.update(sim.channel.mac.summary(duration))
     if config is not None and config.world.map:
         summary["map"] = config.world.map
-    for component in sim.models.values():
+    for name, component in sim.models.items():
         if isinstance(component, Reports):
-            summary.update(component.summary(frames, duration))
+            told = component.summary(frames, duration)
+            if not isinstance(told, dict):
+                raise NetsimInputError(f"{name}: its summary() must return a dict, not {type(told).__name__}")
+            taken = sorted(set(told) & set(summary))
+            if taken:
+                raise NetsimInputError(
+                    f"{name}: its summary() gives {', '.join(taken)}, already in the summary: rename them in its plugin"
+                )
+            summary.update(told)
     return summary
 
 

@@ -241,3 +241,79 @@ def test_an_installed_controller_whose_section_is_taken_stops_no_run_that_does_n
     assert owners["separation"] is named
     with pytest.raises(ConfigError, match=r"declares the section \[separation\], as 'mine:SEP' does"):
         cfgmod.section_owners(cfgmod.ControlParams(controllers=("mine:SEP", "yours:SEP")))
+
+
+def test_a_plugin_object_keeps_every_flag_a_pluginspec_has(tmp_path, monkeypatch):
+    """An object with a PluginSpec's members (not a PluginSpec) keeps its flags as well:
+    a mobility model that leaves the robots where they are (``moves_robots = False``) lets a
+    controller move them (the flags were dropped, and it was refused)."""
+    (tmp_path / "duck_models.py").write_text(
+        "from netsim.params import NoParams\n"
+        "class Still:\n"
+        "    Params = NoParams\n"
+        "    tables = {}\n"
+        "    moves_robots = False\n"
+        "    respects_map = True\n"
+        "    @staticmethod\n"
+        "    def check(params, config):\n"
+        "        pass\n"
+        "    @staticmethod\n"
+        "    def build(params, parts):\n"
+        "        parts.state.place([[500.0, 500.0]] * parts.state.n)\n"
+        "STILL = Still()\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    spec = plugins.resolve(plugins.MOBILITY, "duck_models:STILL", "mobility.model")
+    assert spec.moves_robots is False and spec.respects_map is True
+
+
+def test_a_model_whose_keys_live_in_another_section_is_refused_as_another_kind(tmp_path, monkeypatch):
+    """The docs' mobility model CIRCLE (its keys in [mobility]) named as the protocol is
+    refused in one line (it was accepted: its radius went under [protocol], and the robots
+    moved by the default mobility)."""
+    from netsim.config import load
+
+    (tmp_path / "mymodels.py").write_text(_doc_block("# mymodels.py"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ConfigError, match=r"^protocol.model = 'mymodels:CIRCLE': its keys are of \[mobility\]"):
+        load(None, ["protocol.model=mymodels:CIRCLE"])
+
+
+@pytest.mark.parametrize(
+    "summary, said",
+    [
+        ('{"mean_degree": -1.0}', "its summary() gives mean_degree, already in the summary"),
+        ("[1, 2]", "its summary() must return a dict, not list"),
+    ],
+)
+def test_a_hooks_summary_cannot_overwrite_the_engines_figures(tmp_path, monkeypatch, capsys, summary, said):
+    """A hook whose summary() gives a figure the summary already holds (it silently replaced
+    the engine's mean degree), or no dict, is refused in one line naming it, nothing
+    written."""
+    from netsim.tools.cli import main
+
+    module = f"loud_hook_{len(said)}"
+    (tmp_path / f"{module}.py").write_text(
+        "from netsim.params import Params\n"
+        "from netsim.plugins import PluginSpec\n"
+        "class Loud:\n"
+        "    def summary(self, frames, duration_s):\n"
+        f"        return {summary}\n"
+        "LOUD = PluginSpec(Params=Params, build=lambda params, parts: Loud())\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out = tmp_path / "out"
+    hooks = f'events.hooks=["{module}:LOUD"]'
+    code = main(["run", "--quiet", "--set", "duration_s=5", "--set", hooks, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"netsim: error: {module}:LOUD: {said}")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name", [":CIRCLE", "mymodels:"])
+def test_a_plugin_path_missing_its_module_or_attribute_is_named_so(name):
+    """``:CIRCLE`` and ``mymodels:`` are refused as paths missing a part (the first named
+    netsim's own file as if the user's code had failed)."""
+    with pytest.raises(ConfigError, match=r"must be 'package.module:attr', both parts given$"):
+        plugins.resolve(plugins.MOBILITY, name, "mobility.model")

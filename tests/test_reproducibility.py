@@ -290,3 +290,22 @@ def test_a_plugin_table_named_like_an_engine_table_is_one_line_and_exit_2(tmp_pa
     assert code == 2
     assert len(err) == 1 and "links" in err[0]
     assert not out.exists()
+
+
+def test_a_plugin_declaring_a_table_named_like_an_engine_table_is_refused_before_the_run(tmp_path, monkeypatch):
+    """A hook that declares a table named like one netsim writes is refused as the run is
+    built, naming its key, before any simulated second (it was refused after the whole run,
+    naming nobody)."""
+    from netsim.errors import ConfigError
+    from netsim.run import build
+    from tests.fixtures import make_config
+
+    (tmp_path / "declares_links.py").write_text(
+        "from netsim.params import NoParams\n"
+        "from netsim.plugins import PluginSpec\n"
+        "HOOK = PluginSpec(Params=NoParams, build=lambda params, parts: None, tables={'links': {'a': 'int64'}})\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = make_config(duration_s=5.0, world={"n_robots": 5}, events={"hooks": ["declares_links:HOOK"]})
+    with pytest.raises(ConfigError, match=r"^events.hooks\[0\] = 'declares_links:HOOK': declares links, a table"):
+        build(config)
