@@ -219,9 +219,13 @@ def _plugin(group: str, name: str) -> Any:
     obj = _load(group, name)
     if group in CHANNEL_GROUPS:
         wanted = wants_members(group)
+        kind = CHANNEL_GROUPS[group]
         if not all(hasattr(obj, m) for m in wanted):
-            raise TypeError(f"is not a {CHANNEL_GROUPS[group].__name__} (an object with " + ", ".join(wanted) + ")")
-        return obj
+            raise TypeError(f"is not a {kind.__name__} (an object with " + ", ".join(wanted) + ")")
+        if isinstance(obj, kind):
+            return obj
+        # An object with the members: the kind's defaults for those it lacks (tables, check).
+        return kind(**{f.name: getattr(obj, f.name) for f in fields(kind) if hasattr(obj, f.name)})
     if isinstance(obj, PluginSpec):
         return obj
     if all(hasattr(obj, m) for m in _MEMBERS):

@@ -239,3 +239,19 @@ def test_a_user_loss_model_answering_other_than_a_mask_is_refused_naming_it(tmp_
     with pytest.raises(ConfigError, match=refused) as e:
         execute(config)
     assert got in str(e.value)
+
+
+def test_a_mac_without_airtime_is_refused_when_named(tmp_path, monkeypatch):
+    """A plugin with a MAC's Params and build but no airtime_s (the docs' mobility model, a
+    PluginSpec) is refused as not a MacModel when named (it passed, then the protocol's
+    check failed with a traceback)."""
+    from netsim.errors import ConfigError
+
+    (tmp_path / "not_a_mac.py").write_text(
+        "from netsim.params import NoParams\n"
+        "from netsim.plugins import PluginSpec\n"
+        "MAC = PluginSpec(Params=NoParams, build=lambda params, parts: None)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ConfigError, match=r"is not a MacModel \(an object with Params, build, airtime_s\)"):
+        cfgmod.load(None, [*SMALL, "channel.mac=not_a_mac:MAC"])

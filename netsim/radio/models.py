@@ -120,7 +120,7 @@ class MacModel:
 
 def wants_members(group: str) -> tuple[str, ...]:
     """The members a plugin of ``group`` must have."""
-    return {PROPAGATION: ("Params", "make"), LOSS: ("Params", "make"), MAC: ("Params", "build")}[group]
+    return {PROPAGATION: ("Params", "make"), LOSS: ("Params", "make"), MAC: ("Params", "build", "airtime_s")}[group]
 
 
 @dataclass(frozen=True)
