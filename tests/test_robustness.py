@@ -710,3 +710,17 @@ def test_the_least_memory_grows_with_the_team_and_the_samples():
     assert ten == 10 * one
     sampled = cli.least_memory_bytes(cfgmod.load(None, ["world.n_robots=10", "duration_s=9"]))
     assert sampled == ten + 10 * 10 * 32  # 10 samples (0..9 s) of 4 eight-byte columns
+
+
+def test_two_commands_never_write_one_directory_at_once(tmp_path):
+    """While one command holds its output directory, a second one given it is refused in one
+    line before any work (two bridges on one --out: the second silently replaced the
+    first's results); once the first is done, the directory can be claimed again."""
+    out = tmp_path / "out"
+    with claim_dir(out, "--out", kind="run"):
+        with pytest.raises(NetsimInputError, match=r"^--out .*out: another netsim command is writing there now"):
+            with claim_dir(out, "--out", kind="run"):
+                pass
+        assert out.is_dir()  # the refusal removed nothing of the first's
+    with claim_dir(out, "--out", kind="run"):
+        pass

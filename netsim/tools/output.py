@@ -222,11 +222,35 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any", tables
     except OSError as exc:
         _remove_empty(created)
         raise _unwritable(option, out, f"{doing} ({exc.strerror or exc})") from None
+    lock = _lock_dir(out)
+    if lock is None:
+        _remove_empty(created)
+        raise NetsimInputError(f"{option} {out}: another netsim command is writing there now; choose another")
     try:
         yield out
     except BaseException:
         _remove_empty(created)
         raise
+    finally:
+        if lock >= 0:
+            os.close(lock)
+
+
+def _lock_dir(folder: Path) -> int | None:
+    """An open descriptor of ``folder`` holding its lock (``flock``, released when closed
+    or when the process ends, however it ends), so that two commands never write one
+    directory at once; None when another holds it. Where ``flock`` is missing, no lock (-1)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        return -1
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return None
+    return fd
 
 
 def probe_writable(folder: Path) -> None:
