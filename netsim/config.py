@@ -520,6 +520,9 @@ def _section_taken(section: str) -> bool:
     return section in ENGINE_SECTIONS or section in ("seed", "duration_s") or hasattr(Config, section)
 
 
+_LEFT_OUT_TOLD: set[str] = set()
+
+
 def section_owners(control: ControlParams) -> dict[str, Any]:
     """The plugins that own a section, by section name: the controllers ``control.controllers``
     names that do, then every installed controller that does (switched on by its ``enabled``
@@ -549,10 +552,10 @@ def section_owners(control: ControlParams) -> dict[str, Any]:
             continue
         if _section_taken(section) or section in owners:
             other = "the engine" if _section_taken(section) else repr(owner_name[section])
-            warnings.warn(
-                f"installed controller {name!r} is left out: its section [{section}] is used by {other}",
-                stacklevel=2,
-            )
+            told = f"installed controller {name!r} is left out: its section [{section}] is used by {other}"
+            if told not in _LEFT_OUT_TOLD:  # once a process: the owners are asked for often
+                _LEFT_OUT_TOLD.add(told)
+                warnings.warn(told, stacklevel=2)
             continue
         owners[section], owner_name[section] = plugin, name
     return owners
@@ -579,9 +582,12 @@ def controllers(config: Config) -> list[tuple[str, Any, Params]]:
     controllers whose section has an ``enabled`` key, when it is true; then those
     ``control.controllers`` names."""
     out = []
+    owners = section_owners(config.control)
     for plugin in plugins.registered(plugins.CONTROLLERS).values():
         section = plugin.Params.section
-        if section and _enabled_by_section(plugin) and config.sections[section].enabled:  # type: ignore[attr-defined]
+        if not (section and _enabled_by_section(plugin) and owners.get(section) is plugin):
+            continue  # no switch of its own, or left out (section_owners)
+        if config.sections[section].enabled:  # type: ignore[attr-defined]
             out.append((section, plugin, config.sections[section]))
     for name in config.control.controllers:
         plugin = plugins.resolve(plugins.CONTROLLERS, name, "control.controllers")
@@ -664,8 +670,8 @@ def _model_section(cls: type[ModelSection], raw: dict) -> ModelSection:
         raise ConfigError(key, model, "must be a string")
     plugin = plugins.resolve(cls.group, model, key)
     declared = plugin.Params.section
-    if declared and declared != cls.section:
-        # Its keys live in another section: a model of another kind, named here by mistake.
+    if declared in ENGINE_SECTIONS and declared != cls.section:
+        # Its keys live in another model's section: a model of another kind, named here by mistake.
         raise ConfigError(key, model, f"its keys are of [{declared}]: not a {cls.section} model")
     group = {name: p.Params for name, p in plugins.registered(cls.group).items()}
     taken = _split(cls.section, raw, ["model"], model, plugin.Params, _other_keys(group, model))

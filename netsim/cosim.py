@@ -23,6 +23,7 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable
 import numpy as np
 
 from netsim.errors import NetsimInputError
+from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable
 
 
 class CommandError(NetsimInputError, ValueError):
@@ -120,9 +121,6 @@ def robot_ids(robots: Any, n: int) -> np.ndarray:
     return ids
 
 
-SPEED_OF_LIGHT_MPS = 299_792_458.0
-
-
 def velocities(velocities_mps: Any, k: int) -> np.ndarray:
     """``velocities_mps`` as a float ``(k, 2)`` array of finite values (one row may be given
     as a pair when ``k == 1``)."""
@@ -137,8 +135,7 @@ def velocities(velocities_mps: Any, k: int) -> np.ndarray:
     if not np.isfinite(v).all():
         row = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise CommandError(f"velocities_mps[{row}] = {v[row].tolist()}: must be finite, m/s")
-    # Past light speed the crossing times' squares overflow; no robot gets near it.
-    fast = np.hypot(v[:, 0], v[:, 1]) > SPEED_OF_LIGHT_MPS
+    fast = ~drivable(np.hypot(v[:, 0], v[:, 1]))
     if fast.any():
         row = int(np.flatnonzero(fast)[0])
         raise CommandError(f"velocities_mps[{row}] = {v[row].tolist()}: faster than light ({SPEED_OF_LIGHT_MPS:g} m/s)")

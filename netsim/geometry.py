@@ -4,6 +4,7 @@ range index, the topology snapshots and the link solvers share."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -128,3 +129,13 @@ def in_box(pos: np.ndarray, box: float | None, n_robots: int | None = None) -> n
         return pos
     pos = np.asarray(pos, dtype=float)
     return load("netsim._kernels", n_robots, values=len(pos)).fold(pos, float(box))
+
+
+# No robot is driven faster than light: past it the legs' crossing times' squares overflow.
+SPEED_OF_LIGHT_MPS = 299_792_458.0
+
+
+def drivable(speed_mps: Any) -> Any:
+    """Whether a robot can be driven at ``speed_mps`` (a float or an array): finite and no
+    faster than light (NaN compares false, so a NaN velocity is not drivable)."""
+    return speed_mps <= SPEED_OF_LIGHT_MPS

@@ -164,13 +164,13 @@ def ack_timing(protocol: object, channel: Any) -> AckTiming | None:
     return AckTiming(float(protocol.ack_period_s), float(protocol.ack_jitter_s), bool(lossless))
 
 
-def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts, key: str) -> object:
+def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts, key: str, value: Any) -> object:
     """``plugin`` built; a subscription it makes to an event that does not exist, or of
-    something that cannot be called, is refused naming its configuration ``key``."""
+    something that cannot be called, is refused naming its configuration ``key = value``."""
     try:
         component = plugin.build(params, parts)
     except (UnknownEvent, NotASubscriber) as exc:
-        raise ConfigError(key, name, f"subscribes wrongly: {exc}") from None
+        raise ConfigError(key, value, f"subscribes wrongly: {exc}") from None
     sim.add_model(name, component)
     return component
 
@@ -185,6 +185,21 @@ def control_timing(config: Config) -> tuple[float, float]:
     )
 
 
+def _model_label(config: Config, name: str) -> str:
+    """How a built component ``name`` is named in messages: the key that chose it."""
+    if name in ("mobility", "protocol"):
+        return f"{name}.model = {getattr(config, name).model!r}"
+    return name
+
+
+def _controller_key(config: Config, name: str) -> tuple[str, Any]:
+    """The configuration key and value that switch controller ``name`` on: its place in
+    ``control.controllers``, or its section's ``enabled``."""
+    if name in config.control.controllers:
+        return "control.controllers", name
+    return f"{name}.enabled", True
+
+
 # Tables netsim writes itself: no model may declare or write one of these names.
 RESERVED_TABLES = frozenset(ENGINE_TABLES) | {"medium", "receptions"}
 
@@ -194,7 +209,7 @@ def check_declared_tables(config: Config) -> None:
     naming its key, before the run (a table written so is refused after it, :func:`collect`)."""
     named = [("mobility.model", config.mobility.model, config.mobility.plugin)]
     named.append(("protocol.model", config.protocol.model, config.protocol.plugin))
-    named += [("control.controllers", name, plugin) for name, plugin, _ in cfgmod.controllers(config)]
+    named += [(*_controller_key(config, name), plugin) for name, plugin, _ in cfgmod.controllers(config)]
     for k, name in enumerate(config.events.hooks):
         named.append((f"events.hooks[{k}]", name, plugins.resolve(plugins.HOOKS, name, f"events.hooks[{k}]")))
     for key, name, plugin in named:
@@ -216,9 +231,10 @@ def build(config: Config, run: int = 0) -> Simulation:
 
         walls = Walls(parts.occupancy)
     sim.state.check_motion(walls)
-    mobility = _build_model(sim, "mobility", config.mobility.plugin, config.mobility.params, parts, "mobility.model")
+    m, p = config.mobility, config.protocol
+    mobility = _build_model(sim, "mobility", m.plugin, m.params, parts, "mobility.model", m.model)
     sim.driver = mobility if isinstance(mobility, Driver) else None
-    protocol = _build_model(sim, "protocol", config.protocol.plugin, config.protocol.params, parts, "protocol.model")
+    protocol = _build_model(sim, "protocol", p.plugin, p.params, parts, "protocol.model", p.model)
     sim.groups = protocol if isinstance(protocol, GroupView) else None
     sim.neighbour_view = protocol if isinstance(protocol, NeighbourView) else None
     sim.messenger = protocol if isinstance(protocol, Messenger) else None
@@ -243,7 +259,7 @@ def build(config: Config, run: int = 0) -> Simulation:
         acks = ack_timing(protocol, config.channel)
         with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links, acks=acks)
         for name, plugin, params in chosen:
-            component = _build_model(sim, name, plugin, params, with_loop, "control.controllers")
+            component = _build_model(sim, name, plugin, params, with_loop, *_controller_key(config, name))
             if callable(component):
                 loop.add(component)
     events = config.events
@@ -257,7 +273,7 @@ def build(config: Config, run: int = 0) -> Simulation:
             control=sim.models.get("control"),
             links=sim.link_events if sim.runtime_links != "off" else None,
         )
-        _build_model(sim, name, hook, hook.Params(), with_groups, f"events.hooks[{k}]")
+        _build_model(sim, name, hook, hook.Params(), with_groups, f"events.hooks[{k}]", name)
     # Link events are solved during the run if asked for now (a hook subscribed) or later,
     # before the run starts (Simulation.run).
     return sim
@@ -382,12 +398,13 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
     for name, component in sim.models.items():
         if isinstance(component, Reports):
             told = component.summary(frames, duration)
+            who = _model_label(sim.config, name)
             if not isinstance(told, dict):
-                raise NetsimInputError(f"{name}: its summary() must return a dict, not {type(told).__name__}")
+                raise NetsimInputError(f"{who}: its summary() must return a dict, not {type(told).__name__}")
             taken = sorted(set(told) & set(summary))
             if taken:
                 raise NetsimInputError(
-                    f"{name}: its summary() gives {', '.join(taken)}, already in the summary: rename them in its plugin"
+                    f"{who}: its summary() gives {', '.join(taken)}, already in the summary: rename them in its plugin"
                 )
             summary.update(told)
     return summary

@@ -31,7 +31,7 @@ from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.errors import NetsimInputError
 from netsim.events import CourseChange, EventBus
-from netsim.geometry import speeds_mps, wrap
+from netsim.geometry import drivable, speeds_mps, wrap
 
 # Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
 # waypoint (or a trace's destination) reached, the end of a pause, the border reached
@@ -283,9 +283,10 @@ class RobotState:
             k = len(velocity_mps)
             raise MotionError(f"robot {i} is given a velocity of {k} components at t = {t:.9g} s, not 2")
         vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
-        if not (math.isfinite(vx) and math.isfinite(vy)):
+        if not drivable(math.hypot(vx, vy)):
             raise MotionError(
-                f"robot {i} is given the velocity ({vx:g}, {vy:g}) m/s at t = {t:.9g} s: it must be finite"
+                f"robot {i} is given the velocity ({vx:g}, {vy:g}) m/s at t = {t:.9g} s: it must be finite, "
+                "and slower than light"
             )
         self._log_travel(i, t)
         self.origin_m[i] = start
@@ -308,12 +309,13 @@ class RobotState:
             raise MotionError(f"{n} robots are given velocities of shape {v.shape} at t = {t:.9g} s, not ({n}, 2)")
         if len(idx) == 0:
             return
-        finite = np.isfinite(v).all(axis=1)
-        if not finite.all():
-            k = int(np.flatnonzero(~finite)[0])
+        ok = drivable(np.hypot(v[:, 0], v[:, 1]))
+        if not ok.all():
+            k = int(np.flatnonzero(~ok)[0])
             vx, vy = v[k]
             raise MotionError(
-                f"robot {int(idx[k])} is given the velocity ({vx:g}, {vy:g}) m/s at t = {t:.9g} s: it must be finite"
+                f"robot {int(idx[k])} is given the velocity ({vx:g}, {vy:g}) m/s at t = {t:.9g} s: it must be "
+                "finite, and slower than light"
             )
         start = self.positions_at(t, idx, fold=False)
         if self.checked:

@@ -89,15 +89,16 @@ class TrafficParams(Params):
         return [Flow(**f) for f in self.flows]
 
 
-# The most frames one flow may send in a run: beyond, its schedule alone would take
-# gigabytes (a rate or size mistyped by orders of magnitude), and no run ends.
-MAX_FRAMES_PER_FLOW = 10_000_000
+# The most frames the flows may send in one run: beyond, their schedules alone take
+# gigabytes and no run ends (a rate or size mistyped by orders of magnitude).
+MAX_FRAMES_PER_RUN = 100_000_000
 
 
 def check_flows(params: TrafficParams, n_robots: int, duration_s: float, max_frame_bytes: int) -> None:
-    """Every flow names robots of the team and sends at most :data:`MAX_FRAMES_PER_FLOW`
-    frames in the run; a flow that starts at or after the run's end is told (it sends
-    nothing)."""
+    """Every flow names robots of the team, and the flows send at most
+    :data:`MAX_FRAMES_PER_RUN` frames in the run; a flow that starts at or after the run's
+    end is told (it sends nothing)."""
+    frames = 0
     for i, f in enumerate(params.flows):
         for k in ("src", "dst"):
             if f[k] >= n_robots:
@@ -112,14 +113,15 @@ def check_flows(params: TrafficParams, n_robots: int, duration_s: float, max_fra
                 stacklevel=2,
             )
             continue
-        packets = math.ceil((min(flow.stop_s, duration_s) - flow.start_s) / flow.interval_s)
-        frames = packets * -(-flow.packet_bytes // max_frame_bytes)
-        if frames > MAX_FRAMES_PER_FLOW:
+        packets = packet_count(flow, duration_s)
+        frames += packets * frame_count(flow.packet_bytes, max_frame_bytes)
+        if frames > MAX_FRAMES_PER_RUN:
             raise ConfigError(
                 f"traffic.flows[{i}]",
                 f,
-                f"would send {frames:.3g} frames in the run ({packets:.3g} packets of {flow.packet_bytes} bytes, "
-                f"channel.max_frame_bytes = {max_frame_bytes}); at most {MAX_FRAMES_PER_FLOW:,} a flow",
+                f"the flows up to this one would send {frames:,} frames in the run (this one {packets:,} packets "
+                f"of {flow.packet_bytes:,} bytes, channel.max_frame_bytes = {max_frame_bytes}); "
+                f"at most {MAX_FRAMES_PER_RUN:,}",
             )
 
 
@@ -143,6 +145,26 @@ def fragment_bytes(packet_bytes: int, max_frame_bytes: int) -> list[int]:
     return [max_frame_bytes] * full + ([rest] if rest else [])
 
 
+def frame_count(packet_bytes: int, max_frame_bytes: int) -> int:
+    """How many frames a packet travels as (:func:`fragment_bytes`' length).
+
+    >>> frame_count(4000, 1500), frame_count(512, 1500), frame_count(3000, 1500)
+    (3, 1, 2)
+    """
+    return -(-packet_bytes // max_frame_bytes)
+
+
+def packet_count(flow: Flow, end_s: float) -> int:
+    """How many packets ``flow`` sends before ``stop_s`` and the run's end ``end_s``
+    (:func:`send_times`' length)."""
+    end = min(flow.stop_s, end_s)
+    if not flow.start_s < end:
+        return 0
+    count = math.ceil((end - flow.start_s) / flow.interval_s)
+    # start + k * interval rounds: the last may land on the end, which is not sent.
+    return count - (flow.start_s + (count - 1) * flow.interval_s >= end)
+
+
 def send_times(flow: Flow, end_s: float) -> list[float]:
     """When ``flow``'s packets leave its source, up to (not including) ``stop_s`` and the
     run's end ``end_s``; computed as ``start + k * interval`` (no rounding drift).
@@ -150,10 +172,5 @@ def send_times(flow: Flow, end_s: float) -> list[float]:
     >>> send_times(Flow(0, 1, 1.0, 2.0, 8000.0, 250), 10.0)
     [1.0, 1.25, 1.5, 1.75]
     """
-    end = min(flow.stop_s, end_s)
-    if not flow.start_s < end:
-        return []
     step = flow.interval_s
-    count = math.ceil((end - flow.start_s) / step)
-    times = [flow.start_s + k * step for k in range(count)]
-    return [t for t in times if t < end]
+    return [flow.start_s + k * step for k in range(packet_count(flow, end_s))]

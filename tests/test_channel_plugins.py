@@ -255,3 +255,22 @@ def test_a_mac_without_airtime_is_refused_when_named(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(ConfigError, match=r"is not a MacModel \(an object with Params, build, airtime_s\)"):
         cfgmod.load(None, [*SMALL, "channel.mac=not_a_mac:MAC"])
+
+
+def test_a_user_loss_model_is_still_reachable_through_the_channel():
+    """The check around a user's loss model hands on its attributes (a Python user reads
+    the model's own figures through sim.channel.survives) and takes an empty answer when
+    there is nobody to decide for."""
+    from netsim.radio.loss import CheckedLoss
+
+    class Counting:
+        calls = 0
+
+        def __call__(self, sender, receivers, distances_m):
+            self.calls += 1
+            return np.array([True] * len(receivers)) if len(receivers) else np.array([])
+
+    checked = CheckedLoss(Counting(), "mine:COUNTING")
+    assert checked(0, np.array([1, 2]), None).tolist() == [True, True]
+    assert checked(0, np.array([], dtype=np.int64), None).tolist() == []
+    assert checked.calls == 2

@@ -1344,3 +1344,22 @@ def test_cli_a_hook_that_subscribes_wrongly_is_one_line_naming_it(
     assert len(lines) == 1 and lines[0].startswith(f"netsim: error: events.hooks[0] = '{module}:TYPO': ")
     assert fragment in lines[0]
     assert not out.exists()
+
+
+def test_a_mobility_model_that_subscribes_wrongly_is_named_by_its_key_and_value(tmp_path, monkeypatch):
+    """The refusal names the model's key and the model given (it named the value 'mobility')."""
+    from netsim.errors import ConfigError
+    from netsim.run import build
+
+    (tmp_path / "typo_mobility.py").write_text(
+        "from netsim.params import Params\n"
+        "from netsim.plugins import PluginSpec\n"
+        "def build(params, parts):\n"
+        "    parts.state.place([[1.0, 1.0]] * parts.state.n)\n"
+        "    parts.events.on('link_dwn', print)\n"
+        "STILL = PluginSpec(Params=Params, build=build, moves_robots=False)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = load(None, ["mobility.model=typo_mobility:STILL", "world.n_robots=3", "duration_s=5"])
+    with pytest.raises(ConfigError, match=r"^mobility.model = 'typo_mobility:STILL': subscribes wrongly: unknown"):
+        build(config)

@@ -136,9 +136,9 @@ BAD_FLOWS = [
     ({**FLOW, "colour": 1}, "traffic.flows[0].colour"),
     (
         {**FLOW, "rate_bps": 1e12, "packet_bytes": 1},
-        "would send 1.25e+12 frames in the run (1.25e+12 packets of 1 bytes",
+        "would send 1,250,000,000,000 frames in the run (this one 1,250,000,000,000 packets of 1 bytes",
     ),
-    ({**FLOW, "packet_bytes": 10**12}, "at most 10,000,000 a flow"),
+    ({**FLOW, "packet_bytes": 10**12}, "frames in the run (this one 1 packets of 1,000,000,000,000 bytes"),
 ]
 
 
@@ -174,3 +174,28 @@ def test_a_flow_that_starts_after_the_run_ends_is_told():
     told = r"traffic.flows\[0\] starts at 30 s, at or after the run's end \(duration_s = 20\)"
     with pytest.warns(UserWarning, match=told):
         make_config(duration_s=20.0, world={"n_robots": 5}, traffic={"flows": [late]})
+
+
+def test_the_frame_cap_counts_every_flow_of_the_run():
+    """Flows that each stay under the cap but together pass it are refused at the flow
+    that passes it (a cap by flow let a hundred flows under it pass)."""
+    big = {**FLOW, "start_s": 0.0, "stop_s": 100.0, "rate_bps": 6.4e7, "packet_bytes": 1}  # 8e8 a flow
+    small = {**big, "rate_bps": 4.0e6}  # 5e7 frames
+    make_config(duration_s=100.0, world={"n_robots": 5}, traffic={"flows": [small]})
+    with pytest.raises(ConfigError, match=r"^traffic.flows\[2\] = .*would send 150,000,000 frames"):
+        make_config(duration_s=100.0, world={"n_robots": 5}, traffic={"flows": [small, small, small]})
+    with pytest.raises(ConfigError, match=r"at most 100,000,000$"):
+        make_config(duration_s=100.0, world={"n_robots": 5}, traffic={"flows": [big]})
+
+
+def test_packet_count_is_the_number_of_send_times():
+    """The count the cap uses is the schedule's length, at the run's end and at stop_s."""
+    from netsim.traffic import packet_count
+
+    cases = [
+        (Flow(0, 1, 1.0, 2.0, 8000.0, 250), 10.0, 4),  # 1, 1.25, 1.5, 1.75 s: stop_s ends it
+        (Flow(0, 1, 0.1, 0.7, 80.0, 1), 0.7, 6),  # 0.1 to 0.6 s, 0.1 s apart
+        (Flow(0, 1, 0.0, 30.0, 8.0, 1), 10.0, 10),  # one a second, 0 to 9 s: the run's end ends it
+    ]
+    for flow, end, count in cases:
+        assert packet_count(flow, end) == len(send_times(flow, end)) == count

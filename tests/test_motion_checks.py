@@ -154,6 +154,8 @@ def test_a_velocity_that_is_not_finite_or_not_two_numbers_is_refused_where_it_is
     st.place(np.full((3, 2), 50.0))
     with pytest.raises(MotionError, match=r"^robot 1 is given the velocity \(nan, 0\) m/s at t = 1 s: it must be fin"):
         st.set_leg(1, 1.0, (np.nan, 0.0))
+    with pytest.raises(MotionError, match=r"^robot 0 is given the velocity \(4e\+08, 0\) m/s .*slower than light"):
+        st.set_leg(0, 1.0, (4e8, 0.0))
     with pytest.raises(MotionError, match=r"^robot 2 is given a velocity of 3 components at t = 1 s, not 2$"):
         st.set_leg(2, 1.0, (1.0, 0.0, 0.0))
     with pytest.raises(MotionError, match=r"^robot 2 is given the velocity \(0, inf\) m/s at t = 2 s"):

@@ -1,8 +1,6 @@
 """The bridge's pace against the wall clock (netsim.bridge.loop.Pacer) and its Ctrl-C."""
 
-import os
 import signal
-import threading
 
 from netsim.bridge.loop import Pacer
 from netsim.tools.bridge import _stop_on_signals
@@ -19,19 +17,22 @@ class _Sim:
 
 
 def test_ctrl_c_ends_a_wait_for_the_wall_clock_at_once():
-    """Each step is due 30 wall seconds after the last (``--rate`` 1/30); Ctrl-C during the
-    wait for the second ends the run there, that step unpublished. (The wait was a sleep
-    that went on after the signal's handler: Ctrl-C waited out the step, and the step was
-    published.)"""
+    """Each step is due half a wall second after the last (``--rate 2``, a clock that
+    stands still); Ctrl-C, arriving as the second step is found early, ends the run there,
+    that step unpublished. (The wait was a sleep that went on after the signal's handler:
+    Ctrl-C waited out the step, and the step was published.)"""
     sim = _Sim()
-    pacer = Pacer(sim, 1.0, 1.0 / 30.0)
+    calls = []
+
+    def clock() -> float:
+        calls.append(None)
+        if len(calls) == 2:  # the second step's check of the wall clock, just before its wait
+            signal.raise_signal(signal.SIGINT)
+        return 0.0
+
+    pacer = Pacer(sim, 1.0, 2.0, clock=clock)
     published: list[float] = []
-
-    def step_start(t_s: float) -> None:
-        if t_s == 1.0:  # the first step is out: the second now waits for the wall clock
-            threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT)).start()
-
     with _stop_on_signals(pacer):
-        pacer.run(published.append, step_start)
+        pacer.run(published.append, lambda t_s: None)
     assert pacer.stop
     assert published == [1.0] and sim.now == 2.0

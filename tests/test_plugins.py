@@ -195,19 +195,18 @@ def test_a_users_module_named_like_a_model_package_shadows_nothing(tmp_path, own
     assert (tmp_path / "out" / "positions.parquet").is_file()
 
 
-def _controller(section: str):
+def _controller(section: str, switched: bool = False):
+    """A controller with a section of its own; ``switched``: with an ``enabled`` key, true."""
     from dataclasses import dataclass
 
     from netsim.params import Params, param, positive
     from netsim.plugins import PluginSpec
 
-    params = dataclass(frozen=True)(
-        type(
-            "P",
-            (Params,),
-            {"section": section, "__annotations__": {"gap_m": float}, "gap_m": param(1.0, positive, "m")},
-        )
-    )
+    keys = {"section": section, "__annotations__": {"gap_m": float}, "gap_m": param(1.0, positive, "m")}
+    if switched:
+        keys["__annotations__"]["enabled"] = bool
+        keys["enabled"] = param(True, None, "on")
+    params = dataclass(frozen=True)(type("P", (Params,), keys))
     return PluginSpec(Params=params, build=lambda params, parts: None)
 
 
@@ -220,7 +219,8 @@ def test_an_installed_controller_whose_section_is_taken_stops_no_run_that_does_n
     from netsim.config import load
 
     named = _controller("separation")
-    installed = {**plugins.registered(plugins.CONTROLLERS), "badsec": _controller("mobility")}
+    cfgmod._LEFT_OUT_TOLD.clear()
+    installed = {**plugins.registered(plugins.CONTROLLERS), "badsec": _controller("mobility", switched=True)}
     installed["separation"] = _controller("separation")
     real_registered = plugins.registered
     monkeypatch.setattr(
@@ -232,8 +232,12 @@ def test_an_installed_controller_whose_section_is_taken_stops_no_run_that_does_n
         plugins, "resolve", lambda group, name, key: users[name] if name in users else real_resolve(group, name, key)
     )
     with pytest.warns(UserWarning, match=r"'badsec' is left out: its section \[mobility\] is used by the engine"):
-        config = load(None, ["duration_s=5"])
+        config = load(None, ["duration_s=5", "world.n_robots=5"])
     assert "separation" in config.sections  # the installed one, named by nobody, owns it
+    assert [name for name, _, _ in cfgmod.controllers(config)] == []  # badsec, switched on, is not built
+    from netsim.run import execute
+
+    execute(config)  # a run that names neither (it ended in a KeyError with badsec left out)
     with pytest.warns(UserWarning) as caught:
         owners = cfgmod.section_owners(cfgmod.ControlParams(controllers=("mine:SEP",)))
     told = [str(w.message) for w in caught]
@@ -277,6 +281,11 @@ def test_a_model_whose_keys_live_in_another_section_is_refused_as_another_kind(t
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(ConfigError, match=r"^protocol.model = 'mymodels:CIRCLE': its keys are of \[mobility\]"):
         load(None, ["protocol.model=mymodels:CIRCLE"])
+    # A section no other model uses says no kind: its keys are read from [mobility], as ever.
+    own = _doc_block("# mymodels.py").replace('section = "mobility"', 'section = "circle"')
+    (tmp_path / "own_section.py").write_text(own)
+    config = load(None, ["mobility.model=own_section:CIRCLE", "mobility.radius_m=150"])
+    assert config.mobility.params.radius_m == 150
 
 
 @pytest.mark.parametrize(

@@ -29,7 +29,7 @@ from netsim.bridge.node import CLOCK_QOS, Node, Template, serialized, take_all, 
 from netsim.bridge.relay import ChannelRelay
 from netsim.bridge.settings import BridgeSettings
 from netsim.config import world_bounds
-from netsim.cosim import SPEED_OF_LIGHT_MPS
+from netsim.geometry import drivable
 
 FRAME = "world"
 TWIST = "geometry_msgs/msg/Twist"
@@ -109,7 +109,7 @@ class RosBridge:
             # The latest command holds; one that is not a finite velocity below light speed is
             # dropped (counted), as a robot cannot be driven at it (NaN fails the comparison).
             good = [(float(c.linear.x), float(c.linear.y)) for c in got]
-            good = [v for v in good if math.hypot(*v) <= SPEED_OF_LIGHT_MPS]
+            good = [v for v in good if drivable(math.hypot(*v))]
             self.refused += len(got) - len(good)
             if good:
                 robots.append(i)

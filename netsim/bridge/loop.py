@@ -17,8 +17,10 @@ while it waits for the wall clock (a step not yet due is then not published).
 
 from __future__ import annotations
 
+import contextlib
 import math
-import threading
+import os
+import select
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -59,23 +61,44 @@ class Pacer:
     def __init__(self, sim: Any, period_s: float, rate: float, clock: Callable[[], float] = time.monotonic):
         self.sim, self.period_s, self.rate, self.clock = sim, float(period_s), float(rate), clock
         self.lag = Lag()
-        self._stopped = threading.Event()
+        self._stop = False
+        # A wait for the wall clock watches this pipe, which setting stop writes to: a
+        # signal handler may write to a pipe, where taking a lock could deadlock.
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_w, False)
 
     @property
     def stop(self) -> bool:
         """Whether the run is to end; setting it ends a wait for the wall clock at once."""
-        return self._stopped.is_set()
+        return self._stop
 
     @stop.setter
     def stop(self, value: bool) -> None:
-        if value:
-            self._stopped.set()
-        else:
-            self._stopped.clear()
+        self._stop = bool(value)
+        if value and self._wake_w >= 0:
+            with contextlib.suppress(BlockingIOError):  # the pipe full: already woken
+                os.write(self._wake_w, b"x")
+
+    def _wait(self, seconds: float) -> bool:
+        """Wait ``seconds`` of wall time, or less if stopped meanwhile; whether stopped."""
+        if not self._stop:
+            select.select([self._wake_r], [], [], seconds)
+        return self._stop
+
+    def _close(self) -> None:
+        fds, self._wake_r, self._wake_w = (self._wake_r, self._wake_w), -1, -1
+        for fd in fds:
+            os.close(fd)
 
     def run(self, step_end: Callable[[float], None], step_start: Callable[[float], None]) -> None:
         """Advance to the run's end (or :attr:`stop`): ``step_start(t)`` at each step's start
         (commands), ``step_end(t)`` once its end is due on the wall clock (outputs)."""
+        try:
+            self._run(step_end, step_start)
+        finally:
+            self._close()
+
+    def _run(self, step_end: Callable[[float], None], step_start: Callable[[float], None]) -> None:
         sim, end = self.sim, self.sim.duration_s
         t0_sim = sim.now
         wall0 = math.nan
@@ -94,7 +117,7 @@ class Pacer:
             else:
                 late = self.clock() - (wall0 + (t - t0_sim) / self.rate)
                 self.lag.add(max(late, 0.0), t)
-                if late < 0 and self._stopped.wait(-late):
+                if late < 0 and self._wait(-late):
                     break
                 step_end(t)
             if t < end:

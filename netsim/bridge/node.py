@@ -47,8 +47,8 @@ class Node:
         except DDSException as exc:
             # Cyclone reads its configuration (CYCLONEDDS_URI) as the participant is made.
             uri = os.environ.get("CYCLONEDDS_URI")
-            cause = f"CYCLONEDDS_URI = {uri!r} may be wrong" if uri else "no CYCLONEDDS_URI set"
-            text = f"bridge.domain_id = {domain_id}: Cyclone DDS cannot start ({cause}): {exc}"
+            where = f"CYCLONEDDS_URI = {uri!r}" if uri else f"bridge.domain_id = {domain_id}"
+            text = f"{where}: Cyclone DDS cannot start on domain {domain_id} with it: {exc}"
             raise NetsimInputError(text) from None
         self._topics: dict[str, Topic] = {}
 

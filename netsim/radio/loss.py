@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +39,8 @@ class CheckedLoss:
         keep = self.survives(sender, receivers, distances_m)
         if keep is None:
             return None
+        if isinstance(keep, np.ndarray) and keep.size == 0 and len(receivers) == 0:
+            return keep.astype(bool)  # nobody to decide for: any empty array says so
         if not isinstance(keep, np.ndarray) or keep.dtype != np.bool_ or keep.shape != receivers.shape:
             got = f"{keep.dtype} array of shape {keep.shape}" if isinstance(keep, np.ndarray) else type(keep).__name__
             raise ConfigError(
@@ -47,6 +50,13 @@ class CheckedLoss:
                 f"{receivers.shape} (one entry a receiver), not a {got}",
             )
         return keep
+
+    def __getattr__(self, name: str) -> Any:
+        # The user's model as they wrote it (its counters, its parameters), through the check.
+        survives = self.__dict__.get("survives")  # absent while a copy is being made
+        if survives is None:
+            raise AttributeError(name)
+        return getattr(survives, name)
 
 
 class BernoulliLoss:

@@ -194,7 +194,8 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any", tables
     instead of after the work. ``kind = "run"`` also refuses a non-empty directory that
     holds no run (:func:`check_run_dir`), ``"sweep"`` one that holds no sweep (and probes
     the folders a sweep resumed there writes: ``runs``, ``failed`` and the kept ``tables``'
-    own, those that exist). If the
+    own, those that exist). While the body runs the directory is locked (:func:`_lock_dir`):
+    a second command given it is refused. If the
     body raises, the directories created here are removed again (when empty), so a
     failed command leaves nothing behind.
     """
@@ -222,7 +223,11 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any", tables
     except OSError as exc:
         _remove_empty(created)
         raise _unwritable(option, out, f"{doing} ({exc.strerror or exc})") from None
-    lock = _lock_dir(out)
+    try:
+        lock = _lock_dir(out)
+    except OSError as exc:
+        _remove_empty(created)
+        raise _unwritable(option, out, f"cannot be opened ({exc.strerror or exc})") from None
     if lock is None:
         _remove_empty(created)
         raise NetsimInputError(f"{option} {out}: another netsim command is writing there now; choose another")
@@ -250,6 +255,9 @@ def _lock_dir(folder: Path) -> int | None:
     except BlockingIOError:
         os.close(fd)
         return None
+    except OSError:  # a file system without locks: write unlocked, as where flock is missing
+        os.close(fd)
+        return -1
     return fd
 
 
