@@ -222,10 +222,13 @@ def _plugin(group: str, name: str) -> Any:
         kind = CHANNEL_GROUPS[group]
         if not all(hasattr(obj, m) for m in wanted):
             raise TypeError(f"is not a {kind.__name__} (an object with " + ", ".join(wanted) + ")")
-        if isinstance(obj, kind):
-            return obj
-        # An object with the members: the kind's defaults for those it lacks (tables, check).
-        return kind(**{f.name: getattr(obj, f.name) for f in fields(kind) if hasattr(obj, f.name)})
+        if not isinstance(obj, kind):
+            # An object with the members: the kind's defaults for those it lacks (tables, check).
+            obj = kind(**{f.name: getattr(obj, f.name) for f in fields(kind) if hasattr(obj, f.name)})
+        if getattr(obj, "build", None) is not None and getattr(obj, "airtime_s", False) is None:
+            # The protocols' checks read a frame's airtime from a medium; None means none.
+            raise TypeError("is a medium (it has a build) without airtime_s(params, nbytes)")
+        return obj
     if isinstance(obj, PluginSpec):
         return obj
     if all(hasattr(obj, m) for m in _MEMBERS):

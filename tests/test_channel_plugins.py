@@ -274,3 +274,17 @@ def test_a_user_loss_model_is_still_reachable_through_the_channel():
     assert checked(0, np.array([1, 2]), None).tolist() == [True, True]
     assert checked(0, np.array([], dtype=np.int64), None).tolist() == []
     assert checked.calls == 2
+
+
+def test_a_medium_without_airtime_is_refused_when_named(tmp_path, monkeypatch):
+    """A MacModel with a build but airtime_s None (None means no medium) is refused in one
+    line: the protocols' airtime checks would have been skipped without a word."""
+    from netsim.errors import ConfigError
+
+    (tmp_path / "half_mac.py").write_text(
+        "from netsim.radio.models import MacModel, NoMacParams\n"
+        "MAC = MacModel(NoMacParams, build=lambda params, channel, rng, power: None)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ConfigError, match=r"^channel.mac = 'half_mac:MAC': is a medium .* without airtime_s"):
+        cfgmod.load(None, [*SMALL, "channel.mac=half_mac:MAC"])

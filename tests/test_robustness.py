@@ -721,6 +721,12 @@ def test_two_commands_never_write_one_directory_at_once(tmp_path):
         with pytest.raises(NetsimInputError, match=r"^--out .*out: another netsim command is writing there now"):
             with claim_dir(out, "--out", kind="run"):
                 pass
+        # A table moved in before the manifest: still told as busy, not as a folder of no run.
+        (out / "links.parquet").write_bytes(b"")
+        with pytest.raises(NetsimInputError, match=r"another netsim command is writing there now"):
+            with claim_dir(out, "--out", kind="run"):
+                pass
         assert out.is_dir()  # the refusal removed nothing of the first's
+        (out / "links.parquet").unlink()
     with claim_dir(out, "--out", kind="run"):
         pass
