@@ -6,6 +6,7 @@ as ``"package.module:attr"``. Each runs, decides what it should, shows its keys 
 import contextlib
 import io
 import math
+import re
 import tomllib
 
 import numpy as np
@@ -288,3 +289,32 @@ def test_a_medium_without_airtime_is_refused_when_named(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(ConfigError, match=r"^channel.mac = 'half_mac:MAC': is a medium .* without airtime_s"):
         cfgmod.load(None, [*SMALL, "channel.mac=half_mac:MAC"])
+
+
+@pytest.mark.parametrize(
+    "answer, said", [("np.full(len(pairs.a), np.nan)", "gave NaN"), ("np.zeros(2)", "gave shape (2,)")]
+)
+def test_a_user_loss_term_giving_nan_or_the_wrong_shape_is_refused(tmp_path, monkeypatch, answer, said):
+    """A propagation term of a user's whose loss is NaN (every frame went unheard without a
+    word) or of the wrong shape (a broadcasting traceback) is refused in one line naming
+    channel.propagation."""
+    from netsim.errors import NetsimInputError
+
+    module = f"bad_term_{len(said)}"
+    (tmp_path / f"{module}.py").write_text(
+        "import numpy as np\n"
+        "from tests.two_ray_plugin import PLUGIN as TWO_RAY, TwoRayLoss\n"
+        "from netsim.radio.models import PropagationModel\n"
+        "from netsim.radio.propagation import LossChain, Propagation\n"
+        "class Bad(TwoRayLoss):\n"
+        "    def loss_db(self, pairs):\n"
+        f"        return {answer}\n"
+        "def make(params, range_m, occupancy, rng):\n"
+        "    good = TWO_RAY.make(params, range_m, occupancy, rng)\n"
+        "    return Propagation(LossChain(Bad(params)), good.radio, good.range_m, good.reach_m)\n"
+        "PLUGIN = PropagationModel(TWO_RAY.Params, make, ranges=TWO_RAY.ranges, reach=TWO_RAY.reach)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = cfgmod.load(None, [*SMALL, f"channel.propagation={module}:PLUGIN"])
+    with pytest.raises(NetsimInputError, match=rf"^channel.propagation: Bad.loss_db {re.escape(said)}"):
+        execute(config)

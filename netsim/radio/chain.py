@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from netsim.compiled import load
+from netsim.errors import NetsimInputError
 from netsim.geometry import pair_travels_m
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
 
@@ -250,7 +251,24 @@ class LossChain:
                 sub = sub.take(keep)
                 if len(alive) == 0:
                     break
-            loss = loss + term.loss_db(sub)
+            loss = loss + _checked_loss_db(term, sub)
         mask = np.zeros(k, dtype=bool)
         mask[alive[radio.hears(loss)]] = True
         return mask
+
+
+def _checked_loss_db(term: Any, pairs: Pairs) -> np.ndarray:
+    """``term.loss_db(pairs)``, refused in one line unless it is a loss a pair (or one for
+    all) that is a number: a NaN would make the pair unheard without a word (``inf``, not
+    NaN, blocks a pair)."""
+    loss = np.asarray(term.loss_db(pairs), dtype=float)
+    k = len(pairs.a)
+    if loss.shape not in ((), (k,)):
+        raise NetsimInputError(
+            f"channel.propagation: {type(term).__name__}.loss_db gave shape {loss.shape} for {k} pairs, not ({k},)"
+        )
+    if np.isnan(loss).any():
+        raise NetsimInputError(
+            f"channel.propagation: {type(term).__name__}.loss_db gave NaN (a pair it blocks takes inf, dB)"
+        )
+    return loss
