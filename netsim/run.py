@@ -204,18 +204,25 @@ def _controller_key(config: Config, name: str) -> tuple[str, Any]:
 RESERVED_TABLES = frozenset(ENGINE_TABLES) | {"medium", "receptions"}
 
 
-def check_declared_tables(config: Config) -> None:
-    """No model of ``config`` declares a table named like one netsim writes itself: refused
-    naming its key, before the run (a table written so is refused after it, :func:`collect`)."""
+def _declaring(config: Config) -> list[tuple[str, Any, Any]]:
+    """``(key, value, plugin)`` of every model of ``config`` that may declare tables: the
+    mobility model, the protocol, the controllers and the hooks, each with the key that
+    chose it."""
     named = [("mobility.model", config.mobility.model, config.mobility.plugin)]
     named.append(("protocol.model", config.protocol.model, config.protocol.plugin))
     named += [(*_controller_key(config, name), plugin) for name, plugin, _ in cfgmod.controllers(config)]
     for k, name in enumerate(config.events.hooks):
         named.append((f"events.hooks[{k}]", name, plugins.resolve(plugins.HOOKS, name, f"events.hooks[{k}]")))
-    for key, name, plugin in named:
+    return named
+
+
+def check_declared_tables(config: Config) -> None:
+    """No model of ``config`` declares a table named like one netsim writes itself: refused
+    naming its key, before the run (a table written so is refused after it, :func:`collect`)."""
+    for key, value, plugin in _declaring(config):
         clash = sorted(set(plugin.tables) & RESERVED_TABLES)
         if clash:
-            raise ConfigError(key, name, f"declares {', '.join(clash)}, a table netsim writes itself: rename it")
+            raise ConfigError(key, value, f"declares {', '.join(clash)}, a table netsim writes itself: rename it")
 
 
 def build(config: Config, run: int = 0) -> Simulation:
@@ -283,12 +290,8 @@ def tables(config: Config) -> dict[str, Schema]:
     """Every table a run of ``config`` writes, with its columns: the engine's, and those its
     models declare."""
     out = dict(ENGINE_TABLES)
-    out.update(config.mobility.plugin.tables)
-    out.update(config.protocol.plugin.tables)
-    for _, plugin, _ in cfgmod.controllers(config):
+    for _, _, plugin in _declaring(config):
         out.update(plugin.tables)
-    for name in config.events.hooks:
-        out.update(plugins.resolve(plugins.HOOKS, name, "events.hooks").tables)
     if config.output.receptions:
         out["receptions"] = dict(RECEPTIONS_SCHEMA)
     return config.channel.mac_model.tables(out)

@@ -200,42 +200,38 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any", tables
     failed command leaves nothing behind.
     """
     out = Path(path)
-    # A directory that exists is locked before its content is judged: a command writing
-    # there now is told as such, not as files that hold no run.
-    held = _claim_lock(out, option) if out.is_dir() else None
+    created: list[Path] = []
+    lock: int | None = -1
+    doing = "cannot be used"  # what failed, should an OSError come
     try:
-        try:
-            missing = _missing_dirs(out, option)
-            if kind == "run":
-                check_run_dir(out, option)
-            elif kind == "sweep":
-                check_sweep_dir(out, option)
-        except OSError as exc:  # e.g. a parent we may not look into
-            raise _unwritable(option, out, f"cannot be used ({exc.strerror or exc})") from None
-        created: list[Path] = []
+        missing = _missing_dirs(out, option)
         doing = "cannot be created"
-        try:
-            for d in reversed(missing):
-                d.mkdir()
-                created.append(d)
-            doing = "cannot be written"
-            probe_writable(out)
-            # A sweep resumed writes into the folders an earlier one made, perhaps someone else's.
-            for sub in _sweep_folders(out, tables) if kind == "sweep" else ():
-                doing = f"cannot be resumed: {sub} cannot be written"
-                probe_writable(sub)
-        except OSError as exc:
-            _remove_empty(created)
+        for d in reversed(missing):
+            d.mkdir()
+            created.append(d)
+        # Locked before its content is judged: a command writing there now is told as
+        # such, not as files that hold no run.
+        doing = "cannot be opened"
+        lock = _lock_dir(out)
+        if lock is None:
+            raise NetsimInputError(f"{option} {out}: another netsim command is writing there now; choose another")
+        doing = "cannot be used"
+        if kind == "run":
+            check_run_dir(out, option)
+        elif kind == "sweep":
+            check_sweep_dir(out, option)
+        doing = "cannot be written"
+        probe_writable(out)
+        # A sweep resumed writes into the folders an earlier one made, perhaps someone else's.
+        for sub in _sweep_folders(out, tables) if kind == "sweep" else ():
+            doing = f"cannot be resumed: {sub} cannot be written"
+            probe_writable(sub)
+    except BaseException as exc:
+        _remove_empty(created)
+        if lock is not None and lock >= 0:
+            os.close(lock)
+        if isinstance(exc, OSError):
             raise _unwritable(option, out, f"{doing} ({exc.strerror or exc})") from None
-        if held is None:
-            try:
-                held = _claim_lock(out, option)
-            except NetsimInputError:
-                _remove_empty(created)
-                raise
-    except BaseException:
-        if held is not None and held >= 0:
-            os.close(held)
         raise
     try:
         yield out
@@ -243,19 +239,8 @@ def claim_dir(path: str | Path, option: str = "--out", kind: str = "any", tables
         _remove_empty(created)
         raise
     finally:
-        if held >= 0:
-            os.close(held)
-
-
-def _claim_lock(out: Path, option: str) -> int:
-    """``out``'s lock (:func:`_lock_dir`; -1: none to take), or the refusal in one line."""
-    try:
-        lock = _lock_dir(out)
-    except OSError as exc:
-        raise _unwritable(option, out, f"cannot be opened ({exc.strerror or exc})") from None
-    if lock is None:
-        raise NetsimInputError(f"{option} {out}: another netsim command is writing there now; choose another")
-    return lock
+        if lock >= 0:
+            os.close(lock)
 
 
 def _lock_dir(folder: Path) -> int | None:
