@@ -62,7 +62,7 @@ def one_run(n: int, duration_s: float, seed: int) -> dict:
     ctl = sim.models["coverage"]
     loop = sim.models["control"]
     control_s, sampling_s = [0.0], [0.0]
-    loop._controllers = [(o, k, timed(c, control_s)) for o, k, c in loop._controllers]
+    loop._controllers = [(o, k, w, timed(c, control_s)) for o, k, w, c in loop._controllers]
     sample = ctl.sample
 
     def timed_sample(t):

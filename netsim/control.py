@@ -24,6 +24,7 @@ Roles come from the protocol's :class:`~netsim.groups.GroupView`, when it forms 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any
@@ -120,7 +121,7 @@ class ControlLoop:
         self.options = options if options is not None else {}
         # The world's map (netsim.world.maps.OccupancyMap) or None: robots stay in free cells.
         self.occupancy = occupancy
-        self._controllers: list[tuple[int, int, Controller]] = []
+        self._controllers: list[tuple[int, int, str | None, Controller]] = []
         # Called as fn(step) at t_s, after commands have arrived, before velocities apply.
         self.before_apply: list[Controller] = []
         self.records: dict[str, list[dict]] = {}
@@ -129,8 +130,10 @@ class ControlLoop:
         self.stopped = False
         self._process: simpy.Process | None = None
 
-    def add(self, controller: Controller, order: int = 50) -> None:
-        self._controllers.append((order, len(self._controllers), controller))
+    def add(self, controller: Controller, order: int = 50, owner: str | None = None) -> None:
+        """Call ``controller`` at every step, in ``order``; the tables it records are
+        ``owner``'s (a user's model: the key that chose it; see Trace.written_by)."""
+        self._controllers.append((order, len(self._controllers), owner, controller))
         self._controllers.sort(key=lambda c: c[:2])
         if self._process is None:
             self._process = self.env.process(self._run())
@@ -139,10 +142,19 @@ class ControlLoop:
         """End the loop after the current step (the robots stop where they are)."""
         self.stopped = True
 
-    def _register(self, table: str) -> None:
-        if table not in self._registered:
-            self._registered.add(table)
-            self.trace.add_frame(table, lambda: pd.DataFrame(self.records.get(table, [])))
+    def _register(self, owner: str | None = None) -> None:
+        """Register the tables recorded for the first time (the last controller's, if
+        ``owner`` is given)."""
+        if len(self.records) == len(self._registered):
+            return
+        trace = self.trace if owner is None else self.trace.written_by(owner)
+        for table in self.records:
+            if table not in self._registered:
+                self._registered.add(table)
+                trace.add_frame(table, functools.partial(self._frame, table))
+
+    def _frame(self, table: str) -> pd.DataFrame:
+        return pd.DataFrame(self.records.get(table, []))
 
     def _roles(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
         if self.groups is None:
@@ -174,13 +186,14 @@ class ControlLoop:
             if self.stopped:
                 step.velocity_mps[:] = 0.0
             else:
-                for _, _, controller in self._controllers:
+                self._register()  # what the last step's before_apply recorded first
+                for _, _, owner, controller in self._controllers:
                     controller(step)
+                    self._register(owner)
                 if self.stopped:
                     # Stopping everyone at once is always safe: no kept link can break.
                     step.velocity_mps[:] = 0.0
-            for table in self.records:
-                self._register(table)
+            self._register()
             if self.lead_s > 0:
                 yield env.timeout(self.lead_s)
             for fn in self.before_apply:

@@ -9,6 +9,15 @@ class NetsimInputError(Exception):
     """Bad input from the user: a configuration value, a file, a command-line option."""
 
 
+def setting(key: str, value: object) -> str:
+    """``key = value`` as messages name a configuration setting."""
+    # A key read from a file may hold any character: keep the message on one line.
+    shown = key if key.isprintable() else repr(key)
+    # A truth value as the configuration file spells it.
+    given = str(value).lower() if isinstance(value, bool) else repr(value)
+    return f"{shown} = {given}"
+
+
 class ConfigError(NetsimInputError):
     """A configuration value that is not allowed.
 
@@ -20,11 +29,7 @@ class ConfigError(NetsimInputError):
         self.key = key
         self.value = value
         self.allowed = allowed
-        # A key read from a file may hold any character: keep the message on one line.
-        shown = key if key.isprintable() else repr(key)
-        # A truth value as the configuration file spells it.
-        given = str(value).lower() if isinstance(value, bool) else repr(value)
-        super().__init__(f"{shown} = {given}: {allowed}")
+        super().__init__(f"{setting(key, value)}: {allowed}")
 
     def __reduce__(self) -> tuple[type, tuple[str, object, str], dict]:
         # Raised in a worker process (a sweep's, an experiment's pool), it must cross back

@@ -20,13 +20,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import simpy
+from pandas.api.types import pandas_dtype
 
 from netsim import config as cfgmod
 from netsim import plugins
 from netsim.config import Config, world_bounds
 from netsim.control import ControlLoop
 from netsim.cosim import AckSchedule, Driver, Messenger, NeighbourView
-from netsim.errors import ConfigError, NetsimInputError
+from netsim.errors import ConfigError, NetsimInputError, setting
 from netsim.events import EventBus, NotASubscriber, UnknownEvent
 from netsim.groups import GroupView
 from netsim.links.radio_links import radio_link_lifetimes
@@ -42,7 +43,7 @@ from netsim.rng import Streams
 from netsim.sim import Simulation
 from netsim.state import RobotState
 from netsim.survival import lifetime_summary
-from netsim.trace import Trace
+from netsim.trace import Trace, conform, empty_table
 from netsim.traffic import Traffic
 from netsim.trajectory import sample_positions
 
@@ -166,7 +167,10 @@ def ack_timing(protocol: object, channel: Any) -> AckTiming | None:
 
 def _build_model(sim: Simulation, name: str, plugin: Any, params: Params, parts: Parts, key: str, value: Any) -> object:
     """``plugin`` built; a subscription it makes to an event that does not exist, or of
-    something that cannot be called, is refused naming its configuration ``key = value``."""
+    something that cannot be called, is refused naming its configuration ``key = value``.
+    A user's model writes through a trace that records its tables as its own."""
+    if _users(plugin):
+        parts = dataclasses.replace(parts, trace=parts.trace.written_by(setting(key, value)))
     try:
         component = plugin.build(params, parts)
     except (UnknownEvent, NotASubscriber) as exc:
@@ -190,6 +194,12 @@ def _model_label(config: Config, name: str) -> str:
     if name in ("mobility", "protocol"):
         return f"{name}.model = {getattr(config, name).model!r}"
     return name
+
+
+def _users(plugin: Any) -> bool:
+    """Whether ``plugin`` is a user's, not one shipped with netsim: its tables are held to
+    its declaration as the run is collected (netsim's own are, by the tests)."""
+    return not getattr(plugin.build, "__module__", "").startswith("netsim.")
 
 
 def _controller_key(config: Config, name: str) -> tuple[str, Any]:
@@ -217,12 +227,45 @@ def _declaring(config: Config) -> list[tuple[str, Any, Any]]:
 
 
 def check_declared_tables(config: Config) -> None:
-    """No model of ``config`` declares a table named like one netsim writes itself: refused
-    naming its key, before the run (a table written so is refused after it, :func:`collect`)."""
+    """No model of ``config`` declares a table named like one netsim writes itself, or a
+    column of a type that is not one: refused naming its key, before the run (a table
+    written so is refused after it, :func:`collect`)."""
     for key, value, plugin in _declaring(config):
         clash = sorted(set(plugin.tables) & RESERVED_TABLES)
         if clash:
             raise ConfigError(key, value, f"declares {', '.join(clash)}, a table netsim writes itself: rename it")
+        for table, schema in plugin.tables.items():
+            for column, dtype in schema.items():
+                if not _is_dtype(dtype):
+                    why = f"declares {table}.{column} as {dtype!r}, not a dtype (as 'float64', 'int64', 'object')"
+                    raise ConfigError(key, value, why)
+
+
+def _is_dtype(name: str) -> bool:
+    try:
+        pandas_dtype(name)
+    except TypeError:
+        return False
+    return True
+
+
+def _users_tables(config: Config) -> dict[str, set[str]]:
+    """The tables each user's model of ``config`` declares, by the key that chose it."""
+    return {setting(key, value): set(plugin.tables) for key, value, plugin in _declaring(config) if _users(plugin)}
+
+
+def check_owned_tables(sim: Simulation) -> None:
+    """Every table a user's model has registered so far is one its plugin declares, and not
+    one netsim writes itself: otherwise refused in one line naming its key and the table
+    (as the run is built, or after it for a table first written during the run)."""
+    declared = _users_tables(sim.config)
+    for name, who in sim.trace.owners.items():
+        if name in RESERVED_TABLES:
+            raise NetsimInputError(f"{who}: writes table {name!r}, a table netsim writes itself: rename it")
+        if name not in declared.get(who, ()):
+            raise NetsimInputError(
+                f"{who}: writes table {name!r}, which its plugin does not declare: declare it, with its columns"
+            )
 
 
 def build(config: Config, run: int = 0) -> Simulation:
@@ -266,9 +309,10 @@ def build(config: Config, run: int = 0) -> Simulation:
         acks = ack_timing(protocol, config.channel)
         with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links, acks=acks)
         for name, plugin, params in chosen:
-            component = _build_model(sim, name, plugin, params, with_loop, *_controller_key(config, name))
+            key = _controller_key(config, name)
+            component = _build_model(sim, name, plugin, params, with_loop, *key)
             if callable(component):
-                loop.add(component)
+                loop.add(component, owner=setting(*key) if _users(plugin) else None)
     events = config.events
     if events.live_topology:
         sim.live_topology()
@@ -281,6 +325,7 @@ def build(config: Config, run: int = 0) -> Simulation:
             links=sim.link_events if sim.runtime_links != "off" else None,
         )
         _build_model(sim, name, hook, hook.Params(), with_groups, f"events.hooks[{k}]", name)
+    check_owned_tables(sim)
     # Link events are solved during the run if asked for now (a hook subscribed) or later,
     # before the run starts (Simulation.run).
     return sim
@@ -320,19 +365,26 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
 
     The tables end at ``sim.now``, whether or not the run has reached ``duration_s``:
     positions are sampled up to now, links still up are censored at now, as the end of a
-    finished run censors them (docs/python.md)."""
+    finished run censors them (docs/python.md).
+
+    A user's model's tables are held to its declaration (:func:`netsim.trace.conform`); one it
+    declares and never wrote is written empty."""
     frames: dict[str, pd.DataFrame] = {}
     declared = tables(sim.config)
+    users = {name: who for who, names in _users_tables(sim.config).items() for name in names}
 
     def add(name: str, frame: pd.DataFrame) -> None:
         if len(frame) == 0 and name in declared:
             # A table without rows takes its columns' declared types, not pandas' object for
             # all: one table of two runs has one schema whether or not either wrote a row.
             frame = frame.astype({c: t for c, t in declared[name].items() if c in frame.columns})
+        if name in users:
+            frame = conform(frame, declared[name], users[name], name)
         frames[name] = frame
         if emit is not None:
             emit(name, frame)
 
+    check_owned_tables(sim)
     clash = sorted(set(sim.trace.names()) & RESERVED_TABLES)
     if clash:
         raise NetsimInputError(
@@ -342,6 +394,9 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     side, torus = sim.state.side_m, sim.state.torus
     for name in sim.trace.names():
         add(name, sim.trace.frame(name))
+    for name in sorted(set(users) - set(frames)):
+        # Declared and never written: a script reading it finds it, with no rows.
+        add(name, empty_table(declared[name]))
     times = position_times(sim.parts.output.position_interval_s, sim.env.now)
     add("positions", sample_positions(legs, sim.state.n, times, side, torus))
     if sim.links is not None and sim.env.now >= sim.duration_s:
