@@ -54,6 +54,17 @@ def test_a_netsim_usage_error_is_one_line_exit_2_nothing_written(tmp_path, monke
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("command", COMMANDS)
+def test_an_unknown_option_of_a_command_is_refused_in_the_commands_name(capsys, command):
+    """`netsim bridge --bogus` names `netsim bridge`, as a bad value to one of its options
+    does (it said `netsim: error:`, argparse leaving a sub-command's unknown options to the
+    top parser)."""
+    assert status([*command.split(), "--no-such-option"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"netsim {command}: error: "), err
+    assert err.rstrip().endswith(f"(netsim {command} --help lists the options)"), err
+
+
 @pytest.mark.parametrize("argv", [[], ["no-such-command"], ["scenario"]])
 def test_a_missing_or_unknown_command_is_one_line(capsys, argv):
     assert status(argv) == 2

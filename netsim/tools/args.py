@@ -3,7 +3,8 @@
 argparse prints its usage block before an error, three lines or more; a user's script or a
 sweep's log then holds a block where one line says what was wrong. :class:`Parser` prints
 ``PROG: error: MESSAGE (PROG --help lists the options)`` on stderr, one line, and exits with
-status 2, before anything is written. Its sub-command parsers are of the same class.
+status 2, before anything is written. Its sub-command parsers (:class:`SubcommandParser`)
+name themselves in every error, an unknown option's included.
 """
 
 from __future__ import annotations
@@ -29,3 +30,19 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         line = " ".join(message.split())
         self.exit(2, f"{self.prog}: error: {line} ({self.prog} --help lists the options)\n")
+
+    def add_subparsers(self, **kwargs: Any) -> Any:
+        kwargs.setdefault("parser_class", SubcommandParser)
+        return super().add_subparsers(**kwargs)
+
+
+class SubcommandParser(Parser):
+    """A sub-command's parser (``netsim run``): an option it does not know is refused in its
+    own name, as a bad value to one of its options is. argparse leaves a sub-command's
+    unknown options to the top parser, whose error names the program alone."""
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> tuple[Any, list[str]]:
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace, extras
