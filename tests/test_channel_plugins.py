@@ -213,10 +213,10 @@ def test_the_engine_compares_against_no_channel_model_name():
 @pytest.mark.parametrize(
     "answer, got",
     [
-        ("np.full(len(receivers), 1.5)", "float64 array of shape"),
-        ("np.zeros(len(receivers), dtype=int)", "int64 array of shape"),
-        ("np.ones(len(receivers) - 1, dtype=bool)", "bool array of shape"),
-        ("[True] * len(receivers)", "not a list"),
+        ("np.full(len(receivers), 1.5)", "not an array of dtype float64 and shape ("),
+        ("np.zeros(len(receivers), dtype=int)", "not an array of dtype int64 and shape ("),
+        ("np.ones(len(receivers) - 1, dtype=bool)", "not an array of dtype bool and shape ("),
+        ("[True] * len(receivers)", "not an object of type list"),
     ],
 )
 def test_a_user_loss_model_answering_other_than_a_mask_is_refused_naming_it(tmp_path, monkeypatch, answer, got):

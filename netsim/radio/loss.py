@@ -42,12 +42,15 @@ class CheckedLoss:
         if isinstance(keep, np.ndarray) and keep.size == 0 and len(receivers) == 0:
             return keep.astype(bool)  # nobody to decide for: any empty array says so
         if not isinstance(keep, np.ndarray) or keep.dtype != np.bool_ or keep.shape != receivers.shape:
-            got = f"{keep.dtype} array of shape {keep.shape}" if isinstance(keep, np.ndarray) else type(keep).__name__
+            if isinstance(keep, np.ndarray):
+                got = f"an array of dtype {keep.dtype} and shape {keep.shape}"
+            else:
+                got = f"an object of type {type(keep).__name__}"
             raise ConfigError(
                 "channel.loss_model",
                 self.name,
                 f"its survives(sender, receivers, distances_m) must return None or a bool array of shape "
-                f"{receivers.shape} (one entry a receiver), not a {got}",
+                f"{receivers.shape} (one entry a receiver), not {got}",
             )
         return keep
 
