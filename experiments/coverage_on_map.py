@@ -54,17 +54,22 @@ TARGET = 0.5
 FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
 
 
-def settings(radio: str, plan: str, n: int, seed: int, duration_s: float, start_side_m: float) -> list[str]:
-    """The validate office scenario, started connected in the square about the centre."""
+def settings(
+    radio: str, plan: str, n: int, seed: int, duration_s: float, start_side_m: float, extra: tuple[str, ...] = ()
+) -> list[str]:
+    """The validate office scenario, started connected in the square about the centre
+    (``extra``: more ``key=value`` settings)."""
     keys = coverage_settings(radio, plan, n, 0.0, seed, duration_s)
-    return [*keys, "world.placement=connected", f"world.centre_side_m={start_side_m:g}"]
+    return [*keys, "world.placement=connected", f"world.centre_side_m={start_side_m:g}", *extra]
 
 
-def one(radio: str, plan: str, n: int, seed: int, duration_s: float, start_side_m: float) -> dict:
+def one(
+    radio: str, plan: str, n: int, seed: int, duration_s: float, start_side_m: float, extra: tuple[str, ...] = ()
+) -> dict:
     from netsim.config import load
     from netsim.run import execute
 
-    config = load(None, settings(radio, plan, n, seed, duration_s, start_side_m))
+    config = load(None, settings(radio, plan, n, seed, duration_s, start_side_m, extra))
     result = execute(config)
     frames, summary = result.frames, result.summary
     o = coverage_outcome(frames, summary, n, config.coverage.start_s, duration_s)

@@ -212,3 +212,45 @@ def test_routing_compare_intervals_of_a_ratio_stay_within_0_and_1():
     assert module.ci95([1.0, 0.5], (0.0, 1.0)) == (0.75, 0.0, 1.0)
     mean, low, high = module.ci95([0.50, 0.52, 0.51, 0.49], (0.0, 1.0))
     assert 0.0 < low < mean < high < 1.0 and mean == pytest.approx(0.505)
+
+
+@pytest.mark.slow
+def test_turns_on_map_prints_a_row_per_variant(tmp_path):
+    """experiments/turns_on_map.py (docs/experiments.md, "What a plan of turns would reach")
+    runs each variant of the prototype on the office and prints its row: the covered
+    fraction of the free-area bound and the seeds that split, which turns never do here."""
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / "turns_on_map.py"), "--variants", "oracle", "plan"]
+        + ["--n", "8", "--seeds", "1", "--duration", "30", "--workers", "1"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    rows = [line.split() for line in run.stdout.splitlines()[1:]]
+    assert [r[0] for r in rows] == ["oracle", "plan"]
+    for _, seeds, final, _least, split, _moved in rows:
+        assert seeds == "1" and 0.0 < float(final) <= 1.0 and split == "0"
+    # The oracle's robots move through free space: the prototype replaced the plan's step.
+    assert float(rows[0][5]) > 0.0
+
+
+def test_turns_on_map_refuses_bad_options_in_one_line(tmp_path):
+    """An unknown variant or radio, no seeds, a duration that is not positive: one line on
+    stderr naming the option, exit status 2, before any run."""
+    cases = (
+        (["--variants", "oracle", "magic"], "--variants 'magic'"),
+        (["--radio", "moon"], "--radio 'moon'"),
+        (["--seeds", "0"], "--seeds 0"),
+        (["--duration", "-1"], "--duration -1"),
+    )
+    for args, said in cases:
+        run = subprocess.run(
+            [sys.executable, str(ROOT / "experiments" / "turns_on_map.py"), *args],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+        )
+        assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+        assert said in run.stderr
+    assert list(tmp_path.iterdir()) == []
