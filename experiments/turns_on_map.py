@@ -26,7 +26,10 @@ plan:
   map 4 or 8 times finer: sound, a smaller half diagonal);
 - the wish: through free space toward the free cells no robot covers, from every robot's
   true position (oracle: :func:`netsim.mobility.geodesic.expansion_to_uncovered`), in
-  every variant.
+  every variant but the last two: ``fine8-known``, through free space toward the free
+  cells that neither the robot nor a robot it remembers covers, where it knows them to be
+  (one search a robot and step: these runs are slow); ``fine8-plan``, the plan's own
+  wish (rule 6's expansion in straight lines, the pushes, the pulls).
 
 The coverage stopping rule's gain test is off (``coverage.stop_gain = 0``): with turns a
 robot moves at one step in several, and the test ended runs that were still spreading.
@@ -61,6 +64,7 @@ class Variant(NamedTuple):
     rule1: str  # "tree", "plan" or "plan-true"
     test: str  # "sight" or "walls"
     walls: str  # "map", "exact", "fine4" or "fine8"
+    wish: str = "free"  # "free" (oracle), "known" or "plan"
 
 
 VARIANTS = {
@@ -74,6 +78,8 @@ VARIANTS = {
     "fine4": Variant("remembered", "plan", "walls", "fine4"),
     "fine8": Variant("remembered", "plan", "walls", "fine8"),
     "plan": Variant("remembered", "plan", "walls", "map"),
+    "fine8-known": Variant("remembered", "plan", "walls", "fine8", "known"),
+    "fine8-plan": Variant("remembered", "plan", "walls", "fine8", "plan"),
 }
 # A team of turns moves a robot in several at each step: the plan's stopping rule, which ends
 # control once the covered fraction stops rising by coverage.stop_gain over its window,
@@ -88,17 +94,22 @@ def install(variant: Variant) -> None:
     """Replace the local plan's wish and step in this process by the prototype's."""
     from netsim.mobility import coverage
 
-    coverage.CoverageController._propose_local = _wish_through_free_space(coverage.CoverageController._propose_local)
+    if variant.wish != "plan":
+        propose = coverage.CoverageController._propose_local
+        coverage.CoverageController._propose_local = _wish_through_free_space(propose, variant.wish)
     coverage.CoverageController._plan_local = lambda self, step: _turns(self, step, variant)
 
 
-def _wish_through_free_space(propose):
+def _wish_through_free_space(propose, knowing: str):
     from netsim.mobility.geodesic import expansion_to_uncovered
 
     def wish(self, step) -> None:
         propose(self, step)  # the robots' memories and lists, as the plan takes them
         pos = step.positions_m
-        wished, _ = expansion_to_uncovered(self.grid, pos, self.radius_m, self.range_m, self.cfg.gain)
+        if knowing == "known":
+            wished = _known_expansion(self, pos)
+        else:
+            wished, _ = expansion_to_uncovered(self.grid, pos, self.radius_m, self.range_m, self.cfg.gain)
         wished = self._slide(pos, wished)
         speed = np.hypot(*wished.T)
         wished[speed < self.cfg.stop_speed_mps] = 0.0
@@ -106,6 +117,21 @@ def _wish_through_free_space(propose):
         self._max_wish = float(speed.max(initial=0.0))
 
     return wish
+
+
+def _known_expansion(self, pos: np.ndarray) -> np.ndarray:
+    """Each robot's expansion down the distance through free space to the nearest free cell
+    that neither it nor a robot it remembers (where it knows it to be) covers: the global
+    plan's push on a map (:func:`netsim.mobility.geodesic.expansion_to_uncovered`), one
+    search per robot from what it knows."""
+    from netsim.mobility.geodesic import expansion_to_uncovered
+
+    known = self.memory.known(self.env.now, self.cfg.release_s)
+    out = np.zeros((len(pos), 2))
+    for i in range(len(pos)):
+        points = np.concatenate([pos[i : i + 1], self.knows.xy[i, known[i]]])
+        out[i] = expansion_to_uncovered(self.grid, points, self.radius_m, self.range_m, self.cfg.gain)[0][0]
+    return out
 
 
 def _in_sight(occupancy, pos: np.ndarray) -> np.ndarray:
@@ -136,16 +162,13 @@ def _walls(self, kind: str):
         occupied = np.kron(self.occupancy.occupied, np.ones((k, k), bool))
         res = walls.resolution_m / k
         field = distance_transform_edt(~occupied) * res - res * np.sqrt(0.5)
-        # No regions: the prototype's mover needs none, and rule 1's region test finds none.
+        # The same regions, their buckets as many fine cells wide as the map's were.
         _FINE[id(self), k] = walls._replace(
             field=np.ascontiguousarray(field),
             resolution_m=res,
             step_m=0.01 * res,
-            open=np.ascontiguousarray(~occupied),
-            rects=np.zeros((0, 4)),
-            bucket_cells=2 * occupied.shape[1],
-            bucket_start=np.zeros(2, np.int64),
-            bucket_regions=np.zeros(0, np.int64),
+            open=np.ascontiguousarray(np.kron(walls.open, np.ones((k, k), bool))),
+            bucket_cells=k * walls.bucket_cells,
         )
     return _FINE[id(self), k]
 
@@ -179,6 +202,18 @@ def _kept(self, step, variant: Variant) -> tuple[np.ndarray, np.ndarray]:
     return heard.known & ~quiet & ~gone, quiet
 
 
+def ranks(t_s: float, n: int) -> np.ndarray:
+    """Each robot's rank at the step at ``t_s``: a permutation every robot can compute."""
+    return np.random.default_rng(int(round(t_s * 1000))).permutation(n)
+
+
+def turn_takers(group: np.ndarray, rank: np.ndarray) -> np.ndarray:
+    """The robots that move at a step: those that outrank every robot of their turn group
+    (``group``, ``(n, n)``, symmetric), so that of two robots in each other's group at most
+    one moves."""
+    return ~(group & (rank[None, :] > rank[:, None])).any(axis=1)
+
+
 def _turns(self, step, variant: Variant):
     from netsim.mobility import local
     from netsim.mobility.geodesic import short_of_walls, within_reach
@@ -193,15 +228,15 @@ def _turns(self, step, variant: Variant):
     self.earlier_mps, self.earlier_s = self.announced_mps, self.announced_s
     self.announced_mps = within_reach(self.occupancy, pos, wish, limits.period_s, limits.reach_m)
     self.announced_s = self.env.now
-    rank = np.random.default_rng(int(round(t0 * 1000))).permutation(n)
     group = (kept | kept.T) if variant.turns == "kept" else (heard.known | heard.known.T)
-    moves = ~(group & (rank[None, :] > rank[:, None])).any(axis=1)
+    moves = turn_takers(group, ranks(t0, n))
     plan = local.plan_local(pos, wish * moves[:, None], knows, kept, t0, limits)
     move = short_of_walls(self.occupancy, pos, plan.velocity_mps * limits.period_s, 1.0)
     planned = move.copy()
     robot, other = np.nonzero(kept & (np.hypot(*move.T) > 0)[:, None])
     length = np.hypot(*move.T)
-    best = np.where(length > 0, 0.0, 1.0)
+    best = np.ones(n)
+    best[robot] = 0.0  # a mover with kept links takes the largest fraction they all pass
     for s in sorted(x for x in local.WALL_TRIES if x > 0):
         if len(robot) == 0:
             break
@@ -221,7 +256,9 @@ def _turns(self, step, variant: Variant):
                 ok &= local.clear_of_walls(walls, pos[robot] + f * s * move[robot], q, half, e0)
         failed = np.zeros(n, dtype=bool)
         failed[robot[~ok]] = True
-        best = np.where(~failed & (length > 0), s, best)
+        passed = np.zeros(n, dtype=bool)
+        passed[robot] = True
+        best = np.where(passed & ~failed, s, best)
     move = move * best[:, None]
     changed = np.hypot(*(move - planned).T) > 1e-9 * limits.range_m
     held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & changed)

@@ -4,6 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -231,8 +232,25 @@ def test_turns_on_map_prints_a_row_per_variant(tmp_path):
     assert [r[0] for r in rows] == ["oracle", "plan"]
     for _, seeds, final, _least, split, _moved in rows:
         assert seeds == "1" and 0.0 < float(final) <= 1.0 and split == "0"
-    # The oracle's robots move through free space: the prototype replaced the plan's step.
-    assert float(rows[0][5]) > 0.0
+
+
+def test_turns_on_map_moves_one_robot_of_two_in_each_others_turn_group(monkeypatch):
+    """The prototype's turns: of two robots in each other's turn group at most one moves,
+    the robot of highest rank always moves, and so does a robot whose group is empty."""
+    from tests.fixtures import script
+
+    monkeypatch.syspath_prepend(str(ROOT / "experiments"))  # the script imports its neighbour
+    module = script("experiments/turns_on_map.py")
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        n = 12
+        group = np.triu(rng.random((n, n)) < 0.3, 1)
+        group = group | group.T
+        rank = module.ranks(float(rng.integers(1000)), n)
+        moves = module.turn_takers(group, rank)
+        assert not (group & moves[:, None] & moves[None, :]).any()
+        assert moves[np.argmax(rank)]
+        assert moves[~group.any(axis=1)].all()
 
 
 def test_turns_on_map_refuses_bad_options_in_one_line(tmp_path):
