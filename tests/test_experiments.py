@@ -192,16 +192,7 @@ def test_coverage_on_map_refuses_bad_options_in_one_line(tmp_path):
         (["--figure", "sub.png/"], "--figure sub.png/: names a directory"),
         (["--figure", "ended.gif"], "--figure 'ended.gif': must end in one of .png, .svg, .pdf"),
     )
-    for args, said in cases:
-        run = subprocess.run(
-            [sys.executable, str(ROOT / "experiments" / "coverage_on_map.py"), *args],
-            capture_output=True,
-            text=True,
-            cwd=tmp_path,
-        )
-        assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
-        assert said in run.stderr
-    assert list(tmp_path.iterdir()) == []
+    refused_in_one_line("coverage_on_map.py", cases, tmp_path)
 
 
 def test_routing_compare_intervals_of_a_ratio_stay_within_0_and_1():
@@ -262,13 +253,19 @@ def test_turns_on_map_refuses_bad_options_in_one_line(tmp_path):
         (["--seeds", "0"], "--seeds 0"),
         (["--duration", "-1"], "--duration -1"),
     )
+    refused_in_one_line("turns_on_map.py", cases, tmp_path)
+
+
+def refused_in_one_line(script: str, cases, folder) -> None:
+    """Each ``(args, said)`` of ``cases`` run as ``experiments/SCRIPT args`` in ``folder``:
+    one line on stderr holding ``said``, exit status 2, nothing written."""
     for args, said in cases:
         run = subprocess.run(
-            [sys.executable, str(ROOT / "experiments" / "turns_on_map.py"), *args],
+            [sys.executable, str(ROOT / "experiments" / script), *args],
             capture_output=True,
             text=True,
-            cwd=tmp_path,
+            cwd=folder,
         )
         assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
         assert said in run.stderr
-    assert list(tmp_path.iterdir()) == []
+    assert list(folder.iterdir()) == []
