@@ -26,7 +26,7 @@ import numpy as np
 from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
 
-from netsim.compiled import load
+from netsim.compiled import load, map_walker
 from netsim.geometry import cell_centres_m
 from netsim.world.free_space import free_fraction, legs_free, nearest_free_cells, short_of_walls
 
@@ -39,7 +39,7 @@ NEAR_CELLS = 2
 
 
 def _kernels():
-    return load("netsim.mobility._geodesic_kernels", None)
+    return map_walker("netsim.mobility._geodesic_kernels")
 
 
 class FreeGrid:
@@ -76,7 +76,8 @@ class FreeGrid:
         side = cells * self.cell_m
         x0, y0 = self.origin_m
         p = np.ascontiguousarray(points_m, dtype=float).reshape(-1, 2)
-        near = load("netsim._kernels", None).grid_nearest_m(p, float(radius_m), x0, y0, side, side, cells, 0.0, True)
+        grid = load("netsim._kernels", None, values=cells * cells)  # one batch: every cell of the grid
+        near = grid.grid_nearest_m(p, float(radius_m), x0, y0, side, side, cells, 0.0, True)
         return np.ascontiguousarray(np.isfinite(near[: self.h, : self.w])).ravel()
 
     def to_uncovered(self, points_m: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray]:

@@ -117,7 +117,7 @@ from netsim.mobility.spread import add_pulls, project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
 from netsim.area import exit_times
-from netsim.compiled import filled, load
+from netsim.compiled import filled, load, map_walker
 from netsim.geometry import beyond, speeds_mps
 from netsim.trajectory import points_on_legs
 
@@ -238,7 +238,7 @@ def walls_of(
     ).reshape(-1, 4)
     k = max(1, int(round(REGION_BUCKET_M / res)))
     h, w = occupied.shape
-    bucket = load("netsim.mobility._local_kernels", None).bucket_index
+    bucket = map_walker("netsim.mobility._local_kernels").bucket_index
     members: list[list[int]] = [[] for _ in range(bucket(w - 1, h - 1, w, k) + 1)]
     for r, (i0, i1, j0, j1) in enumerate(cells.tolist()):
         for j in range(j0 // k * k, j1 + 1, k):
@@ -287,8 +287,7 @@ def clear_of_walls(
     if not walls.on or len(a) == 0:
         return np.ones(len(a), dtype=bool)
     out = np.empty(len(a), dtype=bool)
-    # The walls' test walks the map: compiled whatever the team's size (jit's walks).
-    kernels = load("netsim.mobility._local_kernels", None)
+    kernels = map_walker("netsim.mobility._local_kernels")
     kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
     return out
 
@@ -817,7 +816,7 @@ def shared_regions(walls: Walls, pos: np.ndarray, q: np.ndarray, e_m: np.ndarray
         return out
     q = np.ascontiguousarray(np.asarray(q, float).reshape(-1, 2))
     e = filled(e_m, (len(p),))
-    load("netsim.mobility._local_kernels", None).shared_regions(walls, p, q, e, out)
+    map_walker("netsim.mobility._local_kernels").shared_regions(walls, p, q, e, out)
     return out
 
 
@@ -833,7 +832,7 @@ def in_one_region(walls: Walls, a: np.ndarray, b: np.ndarray, e_a_m: np.ndarray,
         return np.ones(len(a), dtype=bool) if not walls.on else out
     ea = filled(e_a_m, (len(a),))
     eb = filled(e_b_m, (len(a),))
-    load("netsim.mobility._local_kernels", None).in_one_region_many(walls, a, b, ea, eb, out)
+    map_walker("netsim.mobility._local_kernels").in_one_region_many(walls, a, b, ea, eb, out)
     return out
 
 

@@ -94,6 +94,14 @@ def load(module: str, n_robots: int | None, values: int | None = None) -> Module
     return plain_copy(module)
 
 
+def map_walker(module: str) -> ModuleType:
+    """The kernel module ``module`` as code that walks a map calls it, whatever the team's
+    size: :func:`load` of a team too small to compile, so that the marks decide (the
+    kernels that walk a map, :func:`jit`'s ``walks`` and :data:`WALKS_MAPS`, compiled; the
+    others plain, as a small run calls them)."""
+    return load(module, 0)
+
+
 def plain_copy(module: str) -> ModuleType:
     """The kernel module ``module`` in plain Python: the module itself, unless it holds a
     kernel that walks a map (a kernel of a module of :data:`WALKS_MAPS`, or one marked by

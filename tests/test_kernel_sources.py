@@ -155,3 +155,31 @@ def test_kernels_are_called_only_through_load():
         if p not in kernels and (found := kernels_called_around_load(p))
     }
     assert not bad
+
+
+def loads_deciding_for_themselves(source: str) -> list[int]:
+    """Lines of ``source`` that call ``load(module, None)`` without ``values``: a call site
+    choosing the compiled copy whatever the team, beside the one place that decides
+    (:func:`netsim.compiled.load`; a map's walks go through ``map_walker``, where the
+    kernels' marks decide)."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if not (isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", "")) == "load"):
+            continue
+        unknown = len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) and node.args[1].value is None
+        if unknown and len(node.args) < 3 and not any(k.arg == "values" for k in node.keywords):
+            found.append(node.lineno)
+    return found
+
+
+def test_loads_deciding_for_themselves_are_found():
+    source = 'a = load("m", None)\nb = load("m", n)\nc = load("m", None, values=3)\nd = compiled.load("m", None)\n'
+    assert loads_deciding_for_themselves(source) == [1, 4]
+
+
+def test_no_call_site_decides_compiled_for_itself():
+    """Whether a call runs compiled is decided in netsim.compiled (by the team's size, a
+    batch's length or a kernel's walks mark), not at the call site."""
+    sources = sorted(p for top in ("netsim", "protocols", "mobility") for p in (ROOT / top).rglob("*.py"))
+    found = [f"{p.relative_to(ROOT)}:{line}" for p in sources for line in loads_deciding_for_themselves(p.read_text())]
+    assert found == []

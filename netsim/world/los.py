@@ -43,16 +43,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim.compiled import load
+from netsim.compiled import map_walker
 from netsim.world._kernels import NO_LIMIT
 
 VERTEX_TOLERANCE_CELLS = 1e-9
 
 
 def kernels_for(module: str):
-    """The world's kernel module ``module`` (:func:`netsim.compiled.load`: compiled at any
-    team size, :data:`netsim.compiled.WALKS_MAPS`)."""
-    return load(module, 0)
+    """The world's kernel module ``module`` (:func:`netsim.compiled.map_walker`: compiled at
+    any team size, :data:`netsim.compiled.WALKS_MAPS`)."""
+    return map_walker(module)
 
 
 def _trace(
