@@ -13,23 +13,17 @@ stands, along its own step. Each variant then takes each rule from an oracle or 
 plan:
 
 - ``rule1``: ``tree``, the minimum spanning tree of the true clear links (oracle); or
-  ``plan``, the plan's rule 1 (:func:`netsim.mobility.local.let_go`) on what the robots
-  heard, or ``plan-true`` on their true positions; each with the walls' test of
-  ``walls`` below;
+  ``plan``, the plan's rule 1 (:func:`netsim.mobility.local.let_go`, with its walls'
+  test) on what the robots heard, or ``plan-true`` on their true positions;
 - ``test``: ``sight``, true line of sight to the holder's true position at 25 points
-  along the step (oracle); or ``walls``, the plan's walls' test
-  (:func:`netsim.mobility.local.clear_of_walls`) of the disk where the holder can be
-  against 9 points of the step;
-- ``walls``: the walls' test's map: ``map`` (each cell's clearance less half its
-  diagonal, :class:`netsim.mobility.local.Walls`), ``exact`` (the clearance taken as
-  exact: optimistic, it can pass a link a wall cuts), or ``fine4``/``fine8`` (the same
-  map 4 or 8 times finer: sound, a smaller half diagonal);
+  along the step (oracle); or ``walls``, the plan's walls' test of the step and the disk
+  where the holder can be (:func:`netsim.mobility.local.step_clear_of_walls`, exact);
 - the wish: through free space toward the free cells no robot covers, from every robot's
   true position (oracle: :func:`netsim.mobility.geodesic.expansion_to_uncovered`), in
-  every variant but the last two: ``fine8-known``, through free space toward the free
-  cells that neither the robot nor a robot it remembers covers, where it knows them to be
-  (one search a robot and step: these runs are slow); ``fine8-plan``, the plan's own
-  wish (rule 6's expansion in straight lines, the pushes, the pulls).
+  every variant but the last two: ``known``, through free space toward the free cells
+  that neither the robot nor a robot it remembers covers, where it knows them to be (one
+  search a robot and step: these runs are slow); ``plan-wish``, the plan's own wish
+  (rule 6's expansion in straight lines, the pushes, the pulls).
 
 The coverage stopping rule's gain test is off (``coverage.stop_gain = 0``): with turns a
 robot moves at one step in several, and the test ended runs that were still spreading.
@@ -63,31 +57,24 @@ class Variant(NamedTuple):
     turns: str  # "kept" or "remembered"
     rule1: str  # "tree", "plan" or "plan-true"
     test: str  # "sight" or "walls"
-    walls: str  # "map", "exact", "fine4" or "fine8"
     wish: str = "free"  # "free" (oracle), "known" or "plan"
 
 
 VARIANTS = {
-    "oracle-kept": Variant("kept", "tree", "sight", "map"),
-    "oracle": Variant("remembered", "tree", "sight", "map"),
-    "rule1-true-exact": Variant("remembered", "plan-true", "sight", "exact"),
-    "rule1-true": Variant("remembered", "plan-true", "sight", "map"),
-    "rule1-exact": Variant("remembered", "plan", "sight", "exact"),
-    "rule1": Variant("remembered", "plan", "sight", "map"),
-    "exact": Variant("remembered", "plan", "walls", "exact"),
-    "fine4": Variant("remembered", "plan", "walls", "fine4"),
-    "fine8": Variant("remembered", "plan", "walls", "fine8"),
-    "plan": Variant("remembered", "plan", "walls", "map"),
-    "fine8-known": Variant("remembered", "plan", "walls", "fine8", "known"),
-    "fine8-plan": Variant("remembered", "plan", "walls", "fine8", "plan"),
+    "oracle-kept": Variant("kept", "tree", "sight"),
+    "oracle": Variant("remembered", "tree", "sight"),
+    "rule1-true": Variant("remembered", "plan-true", "sight"),
+    "rule1": Variant("remembered", "plan", "sight"),
+    "plan": Variant("remembered", "plan", "walls"),
+    "known": Variant("remembered", "plan", "walls", "known"),
+    "plan-wish": Variant("remembered", "plan", "walls", "plan"),
 }
 # A team of turns moves a robot in several at each step: the plan's stopping rule, which ends
 # control once the covered fraction stops rising by coverage.stop_gain over its window,
 # would end runs that are still spreading, so it is off (control runs to the end).
 STOPPING = ("coverage.stop_gain=0",)
-# Points along the mover's step at which the oracle and the walls' test look.
+# Points along the mover's step at which the oracle looks.
 SIGHT_POINTS = 25
-WALL_POINTS = 9
 
 
 def install(variant: Variant) -> None:
@@ -145,34 +132,6 @@ def _in_sight(occupancy, pos: np.ndarray) -> np.ndarray:
     return out | out.T
 
 
-_FINE: dict[tuple[int, int], object] = {}
-
-
-def _walls(self, kind: str):
-    """The walls' test's map of ``kind`` (module notes)."""
-    walls = self.local_walls
-    if kind == "map":
-        return walls
-    if kind == "exact":
-        return walls._replace(field=walls.field + walls.resolution_m * np.sqrt(0.5) * 0.98)
-    k = int(kind.removeprefix("fine"))
-    if (id(self), k) not in _FINE:
-        from scipy.ndimage import distance_transform_edt
-
-        occupied = np.kron(self.occupancy.occupied, np.ones((k, k), bool))
-        res = walls.resolution_m / k
-        field = distance_transform_edt(~occupied) * res - res * np.sqrt(0.5)
-        # The same regions, their buckets as many fine cells wide as the map's were.
-        _FINE[id(self), k] = walls._replace(
-            field=np.ascontiguousarray(field),
-            resolution_m=res,
-            step_m=0.01 * res,
-            open=np.ascontiguousarray(np.kron(walls.open, np.ones((k, k), bool))),
-            bucket_cells=k * walls.bucket_cells,
-        )
-    return _FINE[id(self), k]
-
-
 def _kept(self, step, variant: Variant) -> tuple[np.ndarray, np.ndarray]:
     """Rule 1 of ``variant``: who keeps whom, and who is silent."""
     import copy
@@ -196,9 +155,8 @@ def _kept(self, step, variant: Variant) -> tuple[np.ndarray, np.ndarray]:
         knows.leg_speed_mps = np.zeros_like(knows.leg_speed_mps)
         knows.leg_from_s = np.full_like(knows.leg_from_s, -np.inf)
         window = 0.0
-    walls = _walls(self, variant.walls)
     speed = limits.speed_max_mps
-    gone = local.let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, walls, None, window, quiet)
+    gone = local.let_go(pos, knows, heard, t0, speed, c.band_m, limits.range_m, self.local_walls, None, window, quiet)
     return heard.known & ~quiet & ~gone, quiet
 
 
@@ -234,7 +192,6 @@ def _turns(self, step, variant: Variant):
     move = short_of_walls(self.occupancy, pos, plan.velocity_mps * limits.period_s, 1.0)
     planned = move.copy()
     robot, other = np.nonzero(kept & (np.hypot(*move.T) > 0)[:, None])
-    length = np.hypot(*move.T)
     best = np.ones(n)
     best[robot] = 0.0  # a mover with kept links takes the largest fraction they all pass
     for s in sorted(x for x in local.WALL_TRIES if x > 0):
@@ -247,13 +204,9 @@ def _turns(self, step, variant: Variant):
             for f in np.linspace(0.0, 1.0, SIGHT_POINTS):
                 ok &= line_of_sight(self.occupancy, pos[robot] + f * s * move[robot], pos[other])
         else:
-            walls = _walls(self, variant.walls)
             q = knows.xy[robot, other]
             e0 = local.travel_at_cap_m(knows.sent_s[robot, other], t0, limits.speed_max_mps)
-            # Points a gap apart, each with a disk of half the gap: together the whole step.
-            half = s * length[robot] / (WALL_POINTS - 1) / 2 + 1e-9
-            for f in np.linspace(0.0, 1.0, WALL_POINTS):
-                ok &= local.clear_of_walls(walls, pos[robot] + f * s * move[robot], q, half, e0)
+            ok &= local.step_clear_of_walls(self.local_walls, pos[robot], s * move[robot], q, e0)
         failed = np.zeros(n, dtype=bool)
         failed[robot[~ok]] = True
         passed = np.zeros(n, dtype=bool)

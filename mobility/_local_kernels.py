@@ -21,29 +21,153 @@ from netsim.compiled import jit
 from netsim.world._kernels import clamped_cell, on_grid
 
 
+@jit(nogil=True)
+def apart_along(dx, dy, disks, k, x0, x1, y0, y1, tol):
+    """Whether, along the unit direction ``(dx, dy)``, the convex hull of the ``k`` disks
+    ``disks[:k]`` (rows ``x, y, radius``) and the box ``[x0, x1] x [y0, y1]`` lie more than
+    ``tol`` apart (their shadows on the line, which are never farther apart than the sets)."""
+    lo = np.inf
+    hi = -np.inf
+    for m in range(k):
+        c = dx * disks[m, 0] + dy * disks[m, 1]
+        lo = min(lo, c - disks[m, 2])
+        hi = max(hi, c + disks[m, 2])
+    box_lo = min(dx * x0, dx * x1) + min(dy * y0, dy * y1)
+    box_hi = max(dx * x0, dx * x1) + max(dy * y0, dy * y1)
+    return box_lo - hi > tol or lo - box_hi > tol
+
+
+@jit(nogil=True)
+def hull_near_box(disks, k, x0, x1, y0, y1, tol):
+    """Whether the convex hull of the ``k`` disks ``disks[:k]`` (rows ``x, y, radius``) comes
+    within ``tol`` of the box ``[x0, x1] x [y0, y1]`` (a closed cell), exactly: the two are
+    farther apart iff their shadows are on the line through their closest points, whose
+    direction is one of the box's sides' normals, a normal of one of the hull's straight
+    sides (each an outer tangent of two of the disks), or the direction from a disk's centre
+    to a corner of the box."""
+    for dx, dy in ((1.0, 0.0), (0.0, 1.0)):
+        if apart_along(dx, dy, disks, k, x0, x1, y0, y1, tol):
+            return False
+    for m in range(k):
+        ax, ay, ea = disks[m, 0], disks[m, 1], disks[m, 2]
+        for n in range(m + 1, k):
+            bx, by, eb = disks[n, 0], disks[n, 1], disks[n, 2]
+            length = np.hypot(bx - ax, by - ay)
+            if not length > abs(ea - eb):
+                continue
+            ux, uy = (bx - ax) / length, (by - ay) / length
+            s = (ea - eb) / length
+            c = math.sqrt(max(1.0 - s * s, 0.0))
+            for side in (-1.0, 1.0):
+                if apart_along(s * ux - side * c * uy, s * uy + side * c * ux, disks, k, x0, x1, y0, y1, tol):
+                    return False
+        for kx, ky in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+            d = np.hypot(kx - ax, ky - ay)
+            if d > 0 and apart_along((kx - ax) / d, (ky - ay) / d, disks, k, x0, x1, y0, y1, tol):
+                return False
+    return True
+
+
 @jit(nogil=True, walks=True)
-def clear(walls, ax, ay, bx, by, ea, eb):
-    """The convex hull of the disks of radius ``ea`` around ``(ax, ay)`` and ``eb`` around
-    ``(bx, by)`` meets no wall (:func:`netsim.mobility.local.clear_of_walls`, one pair)."""
+def near_walls(walls, disks, k):
+    """Whether some occupied cell comes within ``walls.step_m`` of the convex hull of the
+    ``k`` disks ``disks[:k]``: each occupied cell of the map under the hull's bounding box,
+    tested exactly (:func:`hull_near_box`)."""
+    res, ox, oy, tol = walls.resolution_m, walls.origin_x_m, walls.origin_y_m, walls.step_m
+    h, w = walls.open.shape
+    x_lo, x_hi, y_lo, y_hi = np.inf, -np.inf, np.inf, -np.inf
+    for m in range(k):
+        x_lo = min(x_lo, disks[m, 0] - disks[m, 2])
+        x_hi = max(x_hi, disks[m, 0] + disks[m, 2])
+        y_lo = min(y_lo, disks[m, 1] - disks[m, 2])
+        y_hi = max(y_hi, disks[m, 1] + disks[m, 2])
+    i0 = max(math.floor(on_grid(x_lo - tol, ox, res)), 0)
+    i1 = min(math.floor(on_grid(x_hi + tol, ox, res)), w - 1)
+    j0 = max(math.floor(on_grid(y_lo - tol, oy, res)), 0)
+    j1 = min(math.floor(on_grid(y_hi + tol, oy, res)), h - 1)
+    for j in range(j0, j1 + 1):
+        for i in range(i0, i1 + 1):
+            if walls.open[j, i]:
+                continue
+            x0, y0 = ox + i * res, oy + j * res
+            if hull_near_box(disks, k, x0, x0 + res, y0, y0 + res, tol):
+                return True
+    return False
+
+
+# Where the clearance field leaves less than this many cells between the walls and the
+# swept set, the walls' test looks at the cells themselves, this many cells of motion at a
+# time.
+EXACT_WITHIN_CELLS = 1.0
+EXACT_SPAN_CELLS = 2.0
+
+
+@jit(nogil=True)
+def _capsule_ends(disks, row, ax, ay, ea, bx, by, eb, hx, hy, f):
+    """The two end disks of the family's member at ``f`` (:func:`swept_clear`) into
+    ``disks[row]`` and ``disks[row + 1]``."""
+    cx, cy, r = ax + f * (bx - ax), ay + f * (by - ay), ea + f * (eb - ea)
+    disks[row, 0], disks[row, 1], disks[row, 2] = cx - f * hx, cy - f * hy, r
+    disks[row + 1, 0], disks[row + 1, 1], disks[row + 1, 2] = cx + f * hx, cy + f * hy, r
+
+
+@jit(nogil=True, walks=True)
+def swept_clear(walls, ax, ay, ea, bx, by, eb, hx, hy):
+    """Whether the union over ``f`` in [0, 1] of the capsules ``C_f`` keeps more than
+    ``walls.step_m`` from every wall: ``C_f`` is the set of points within ``(1 - f) ea + f
+    eb`` of the segment from ``c_f - f h`` to ``c_f + f h``, ``c_f = a + f (b - a)``. With
+    ``h = 0`` that union is the convex hull of the disks ``D(a, ea)`` and ``D(b, eb)``; with
+    ``eb = 0`` and ``b ± h`` the ends of a segment, the convex hull of that segment and
+    ``D(a, ea)``. ``C_f = (1 - f) C_0 + f C_1`` (Minkowski), so the members between two
+    values of ``f`` fill the convex hull of theirs, four disks. The test walks ``f`` by the
+    clearance at ``c_f`` (:attr:`netsim.mobility.local.Walls.field`, less the distance to
+    the cell's centre, a lower bound) less the member's reach from ``c_f``, and where that
+    leaves less than a cell it tests the hull of the next span's two members against the
+    occupied cells near it (:func:`near_walls`): exact, up to rounding."""
     field = walls.field
     h, w = field.shape
     res = walls.resolution_m
-    length = np.hypot(bx - ax, by - ay)
-    growth = abs(eb - ea) / length if length > 0 else 0.0
-    t = 0.0
+    half = np.hypot(hx, hy)
+    speed = np.hypot(bx - ax, by - ay) + half + abs(eb - ea)  # how fast a member's reach moves with f
+    disks = np.empty((4, 3))
+    if speed == 0.0:
+        _capsule_ends(disks, 0, ax, ay, ea, bx, by, eb, hx, hy, 0.0)
+        return not near_walls(walls, disks, 1)
+    k = 4 if half > 0 else 2
+    f = 0.0
     while True:
-        f = t / length if length > 0 else 0.0
-        u = on_grid(ax + f * (bx - ax), walls.origin_x_m, res)
-        v = on_grid(ay + f * (by - ay), walls.origin_y_m, res)
+        px, py = ax + f * (bx - ax), ay + f * (by - ay)
+        u = on_grid(px, walls.origin_x_m, res)
+        v = on_grid(py, walls.origin_y_m, res)
         ci = clamped_cell(u, w)
         cj = clamped_cell(v, h)
-        radius = ea + f * (eb - ea) if length > 0 else max(ea, eb)
-        gap = field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
-        if gap <= walls.step_m:
+        reach = ea + f * (eb - ea) + f * half
+        gap = field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - reach
+        if gap > EXACT_WITHIN_CELLS * res:
+            if f >= 1.0:
+                return True
+            f = min(f + gap / speed, 1.0)
+            continue
+        f2 = min(f + EXACT_SPAN_CELLS * res / speed, 1.0)
+        if half > 0:
+            _capsule_ends(disks, 0, ax, ay, ea, bx, by, eb, hx, hy, f)
+            _capsule_ends(disks, 2, ax, ay, ea, bx, by, eb, hx, hy, f2)
+        else:
+            _capsule_ends(disks, 0, ax, ay, ea, bx, by, eb, hx, hy, f)
+            _capsule_ends(disks, 1, ax, ay, ea, bx, by, eb, hx, hy, f2)
+        if near_walls(walls, disks, k):
             return False
-        if t >= length:
+        if f2 >= 1.0:
             return True
-        t = min(t + gap / (1.0 + growth), length)
+        f = f2
+
+
+@jit(nogil=True, walks=True)
+def clear(walls, ax, ay, bx, by, ea, eb):
+    """The convex hull of the disks of radius ``ea`` around ``(ax, ay)`` and ``eb`` around
+    ``(bx, by)`` keeps more than ``walls.step_m`` from every wall
+    (:func:`netsim.mobility.local.clear_of_walls`, one pair; :func:`swept_clear`)."""
+    return swept_clear(walls, ax, ay, ea, bx, by, eb, 0.0, 0.0)
 
 
 @jit(nogil=True, walks=True)
@@ -51,6 +175,15 @@ def clear_many(walls, a, b, ea, eb, out):
     """:func:`clear` for every row."""
     for k in range(a.shape[0]):
         out[k] = clear(walls, a[k, 0], a[k, 1], b[k, 0], b[k, 1], ea[k], eb[k])
+
+
+@jit(nogil=True, walks=True)
+def steps_clear(walls, p, move, q, e, out):
+    """For every row, whether the convex hull of the step from ``p`` to ``p + move`` and
+    the disk ``D(q, e)`` keeps off the walls (:func:`swept_clear`)."""
+    for k in range(p.shape[0]):
+        hx, hy = 0.5 * move[k, 0], 0.5 * move[k, 1]
+        out[k] = swept_clear(walls, q[k, 0], q[k, 1], e[k], p[k, 0] + hx, p[k, 1] + hy, 0.0, hx, hy)
 
 
 # A region's test scans the cells under a disk only up to this many; a larger disk is
@@ -141,29 +274,6 @@ def shared_regions(walls, p, q, e, out):
     """:func:`shared_region` for every row."""
     for k in range(p.shape[0]):
         out[k] = shared_region(walls, p[k, 0], p[k, 1], q[k, 0], q[k, 1], e[k])
-
-
-@jit(nogil=True, walks=True)
-def in_one_region(walls, ax, ay, ea, bx, by, eb):
-    """Some region holds the point ``a`` and both disks' points that are not in walls
-    (every segment between two robots in them is then clear of walls)."""
-    b = bucket_of(walls, ax, ay)
-    if b < 0:
-        return False
-    for k in range(walls.bucket_start[b], walls.bucket_start[b + 1]):
-        r = walls.bucket_regions[k]
-        if not (walls.rects[r, 0] <= ax <= walls.rects[r, 1] and walls.rects[r, 2] <= ay <= walls.rects[r, 3]):
-            continue
-        if region_holds(walls, r, ax, ay, ea) == 1 and region_holds(walls, r, bx, by, eb) == 1:
-            return True
-    return False
-
-
-@jit(nogil=True, walks=True)
-def in_one_region_many(walls, a, b, ea, eb, out):
-    """:func:`in_one_region` for every row."""
-    for k in range(a.shape[0]):
-        out[k] = in_one_region(walls, a[k, 0], a[k, 1], ea[k], b[k, 0], b[k, 1], eb[k])
 
 
 @jit(nogil=True)
@@ -430,10 +540,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
                 if walls.on:
-                    ea, eb = e[a] + sweep[a], e[b] + sweep[b]
-                    if not clear(walls, qx[a], qy[a], qx[b], qy[b], ea, eb) and not in_one_region(
-                        walls, qx[a], qy[a], ea, qx[b], qy[b], eb
-                    ):
+                    if not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep[a], e[b] + sweep[b]):
                         continue
                 band = link_band(longest, record_db[u, v], band_m, fade, nominal_m)
                 rank = band * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0

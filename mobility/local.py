@@ -33,15 +33,14 @@ period``), its own position ``p`` at ``t0`` exact:
 4. **Pull** (:func:`pulls`). On a map a robot announces its wish as it could carry it out
    (:func:`netsim.mobility.geodesic.within_reach`), not a wish into a wall.
 5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j`` alone
-   (the convex hull of the disk of radius ``|step|`` around ``p`` and of the disk where
-   ``j`` can be during the step, ``e_j(t1)`` around ``q_j``, meets no wall, so every
+   (the convex hull of the straight step and of the disk where ``j`` can be during the
+   step, ``e_j(t1)`` around ``q_j``, meets no wall, so every
    segment between the two robots during the step is clear of walls whatever ``j`` does)
    or *by region*: the map's regions (:func:`free_rectangles`, convex and free, one order
    every robot computes) give the link the first region, in order, holding both robots
    at ``t0`` (:func:`shared_regions`; ``j``, from its side, names the same or none), and
    ``i`` ends its step in it; else a shorter step, or it holds. A detour's link must be
-   surely clear of walls too (:func:`clear_of_walls`, or one region holds both ends,
-   :func:`in_one_region`).
+   surely clear of walls too (:func:`clear_of_walls`).
 
 6. **Expansion** (:func:`centre_estimates`). Each robot estimates its team's centre as
    the mean of its own estimate and those the robots it heard announced at their latest
@@ -132,7 +131,7 @@ class Walls(NamedTuple):
     origin_x_m: float
     origin_y_m: float
     resolution_m: float
-    step_m: float  # a test comes this close to a wall only to give up
+    step_m: float  # a link clear of walls keeps more than this from every wall, m
     open: np.ndarray  # (H, W) bool: cells that are not walls (where a robot may be)
     rects: np.ndarray  # (R, 4): each region's x0, x1, y0, y1, m (its free cells, shrunk by REGION_INSET_M)
     bucket_cells: int  # the side of a bucket of the regions' index, in cells
@@ -265,14 +264,15 @@ def clear_of_walls(
     walls: Walls, a: np.ndarray, b: np.ndarray, e_a_m: np.ndarray, e_b_m: np.ndarray | None = None
 ) -> np.ndarray:
     """Whether the convex hull of the disk of radius ``e_a_m`` around ``a`` and the disk of
-    radius ``e_b_m`` (default ``e_a_m``) around ``b`` (row-wise) is clear of every wall
-    cell: then every segment between a point of the one and a point of the other is clear
-    of walls. The hull lies in the disks of radius ``(1 - f) e_a + f e_b`` around the
-    points ``a + f (b - a)``, ``f`` in [0, 1] (a convex combination of two points of the
-    disks is within that of the combination of the centres). Conservative: the test walks
-    the segment, each step the clearance there (:attr:`Walls.field`, less the distance to
-    the cell's centre) less that radius, shortened by the radius's growth, and gives up
-    within :attr:`Walls.step_m` of a wall.
+    radius ``e_b_m`` (default ``e_a_m``) around ``b`` (row-wise) keeps more than
+    :attr:`Walls.step_m` from every wall cell (closed squares): then every segment between a
+    point of the one and a point of the other is clear of walls. Exact, up to rounding: the
+    hull is the union of the disks of radius ``(1 - f) e_a + f e_b`` around the points
+    ``a + f (b - a)``, ``f`` in [0, 1]; the test walks the segment in steps of the clearance
+    there (:attr:`Walls.field`, less the distance to the cell's centre, a lower bound) less
+    that radius, and where that leaves less than a cell it tests the occupied cells near the
+    next stretch of the hull one by one, with the separating axes of a box and the hull of
+    two disks.
 
     >>> w = walls_of(np.eye(4, dtype=bool)[::-1], resolution_m=1.0)
     >>> clear_of_walls(w, np.array([[0.2, 0.2], [3.8, 3.5]]), np.array([[0.2, 3.5], [3.8, 0.2]]), np.zeros(2)).tolist()
@@ -289,6 +289,29 @@ def clear_of_walls(
     out = np.empty(len(a), dtype=bool)
     kernels = map_walker("netsim.mobility._local_kernels")
     kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
+    return out
+
+
+def step_clear_of_walls(walls: Walls, p: np.ndarray, move: np.ndarray, q: np.ndarray, e_m: np.ndarray) -> np.ndarray:
+    """Whether the convex hull of the straight step from ``p`` to ``p + move`` and the disk
+    of radius ``e_m`` around ``q`` (row-wise) keeps more than :attr:`Walls.step_m` from
+    every wall cell: then every segment between a point of the step and a point of the disk
+    is clear of walls. Exact, up to rounding, as :func:`clear_of_walls`.
+
+    >>> w = walls_of(np.eye(4, dtype=bool)[::-1], resolution_m=1.0)
+    >>> p, q = np.array([[0.5, 2.5]]), np.array([[0.5, 0.5]])
+    >>> step_clear_of_walls(w, p, np.array([[0.0, -1.5]]), q, np.zeros(1)).tolist()
+    [True]
+    >>> step_clear_of_walls(w, p, np.array([[2.0, 0.0]]), q, np.zeros(1)).tolist()
+    [False]
+    """
+    p = np.ascontiguousarray(np.asarray(p, float).reshape(-1, 2))
+    move = np.ascontiguousarray(np.asarray(move, float).reshape(-1, 2))
+    q = np.ascontiguousarray(np.asarray(q, float).reshape(-1, 2))
+    if not walls.on or len(p) == 0:
+        return np.ones(len(p), dtype=bool)
+    out = np.empty(len(p), dtype=bool)
+    map_walker("netsim.mobility._local_kernels").steps_clear(walls, p, move, q, filled(e_m, (len(p),)), out)
     return out
 
 
@@ -820,31 +843,15 @@ def shared_regions(walls: Walls, pos: np.ndarray, q: np.ndarray, e_m: np.ndarray
     return out
 
 
-def in_one_region(walls: Walls, a: np.ndarray, b: np.ndarray, e_a_m: np.ndarray, e_b_m: np.ndarray) -> np.ndarray:
-    """Whether some region holds every point not in a wall of the disk of radius ``e_a_m``
-    around ``a`` and of the disk of radius ``e_b_m`` around ``b`` (row-wise): then every
-    segment between two robots in them is clear of walls
-    (:func:`netsim.mobility._local_kernels.in_one_region`)."""
-    a = np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2))
-    b = np.ascontiguousarray(np.asarray(b, float).reshape(-1, 2))
-    out = np.zeros(len(a), dtype=bool)
-    if not walls.on or len(a) == 0:
-        return np.ones(len(a), dtype=bool) if not walls.on else out
-    ea = filled(e_a_m, (len(a),))
-    eb = filled(e_b_m, (len(a),))
-    map_walker("netsim.mobility._local_kernels").in_one_region_many(walls, a, b, ea, eb, out)
-    return out
-
-
 def cut_for_walls(
     pos: np.ndarray, move: np.ndarray, memory: Memory, kept: np.ndarray, t1_s: float, limits: StepLimits, walls: Walls
 ) -> np.ndarray:
     """Rule 5 (walls): each robot's step, such that every kept link is surely clear of walls
     over it, and still ending within its leashes (rule 2). A link is answered for
 
-    - *alone*, whatever the other end does: the convex hull of the disk of radius
-      ``|step|`` around ``p`` and of the disk of radius ``e_j(t1)`` around ``q_j``, which
-      holds the step and where ``j`` can be, meets no wall (:func:`clear_of_walls`);
+    - *alone*, whatever the other end does: the convex hull of the step and of the disk
+      of radius ``e_j(t1)`` around ``q_j``, which holds the step and where ``j`` can be,
+      meets no wall (:func:`step_clear_of_walls`);
     - or *by region*, where that fails for the whole ``move``: both ends share a region
       (:func:`shared_regions`, from ``j``'s place at ``t0``, within ``e_j(t0)`` of ``q_j``),
       and the robot ends its step in it. The other end holds there, answers alone, or ends
@@ -870,7 +877,7 @@ def cut_for_walls(
     e0 = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, v)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
     region = np.full(len(robot), -1, np.int64)
-    alone = clear_of_walls(walls, pos[robot], centre, length[robot], e)
+    alone = step_clear_of_walls(walls, pos[robot], move[robot], centre, e)
     region[~alone] = shared_regions(walls, pos[robot[~alone]], centre[~alone], e0[~alone])
     boxed = region >= 0
     lo = np.full((n, 2), -np.inf)
@@ -897,7 +904,7 @@ def cut_for_walls(
             break
         r = robot[rows]
         end = pos[r] + s * move[r]
-        ok = boxed[rows] | clear_of_walls(walls, pos[r], centre[rows], s * length[r], e[rows])
+        ok = boxed[rows] | step_clear_of_walls(walls, pos[r], s * move[r], centre[rows], e[rows])
         ok &= ~beyond(end, centre[rows], leash[rows], n)
         failed = np.zeros(n, dtype=bool)
         failed[r[~ok]] = True

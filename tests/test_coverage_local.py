@@ -23,6 +23,7 @@ from netsim.mobility.local import (
     plan_local,
     pulls,
     sources_heard,
+    step_clear_of_walls,
     walls_of,
 )
 from netsim.mobility.steps import StepLimits
@@ -527,20 +528,21 @@ def wall_shapes(occ):
     return unary_union([box(a, b, a + RES, b + RES) for a, b in zip(x0, y0)])
 
 
-def disks_hull(a, ea, b, eb):
-    """The convex hull of two disks, as a shapely polygon a hair larger than the true one."""
+def disks_hull(a, ea, b, eb, outer=True):
+    """The convex hull of two disks, as a shapely polygon a hair larger than the true one
+    (``outer``) or a hair smaller."""
     from shapely import GeometryCollection, Point
 
-    grow = 1.0 / math.cos(math.pi / 256) + 1e-9  # 64 segments a quarter: circumscribed
+    grow = 1.0 / math.cos(math.pi / 256) + 1e-9 if outer else 1.0  # 64 segments a quarter
     return GeometryCollection([Point(a).buffer(ea * grow, 64), Point(b).buffer(eb * grow, 64)]).convex_hull
 
 
 @pytest.mark.slow
-def test_walls_a_pair_of_disks_said_clear_has_a_hull_clear_of_every_wall():
-    """The walls' test is never wrong when it says clear: the convex hull of the two disks
-    meets no occupied cell (closed squares, shapely); and it says clear for most hulls
-    well away from walls. Disks of equal and unequal radii, and segments grazing a wall's
-    side and corner within a cell of their radius."""
+def test_walls_a_pair_of_disks_is_clear_exactly_when_its_hull_keeps_off_every_wall():
+    """The walls' test is exact: it says clear exactly when the convex hull of the two disks
+    keeps more than ``step_m`` from every occupied cell (closed squares, shapely, its
+    polygons a hair outside and inside the true hull). Disks of equal and unequal radii,
+    and segments grazing a wall's side and corner within a cell of their radius."""
     rng = np.random.default_rng(5)
     occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (200, 200, 201, 201), (60, 150, 150, 151)], 250.0, 250.0)
     walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
@@ -555,9 +557,44 @@ def test_walls_a_pair_of_disks_said_clear_has_a_hull_clear_of_every_wall():
     ea, eb = np.r_[ea, graze], np.r_[eb, graze]
     said = clear_of_walls(walls, a, b, ea, eb)
     gap = np.array([disks_hull(p, u, q, w).distance(shapes) for p, u, q, w in zip(a, ea, b, eb)])
+    inner = np.array([disks_hull(p, u, q, w, outer=False).distance(shapes) for p, u, q, w in zip(a, ea, b, eb)])
     assert (gap[said] > 0).all()
-    assert said[gap > 2 * RES].mean() > 0.95
+    assert said[inner > walls.step_m + 1e-6].all()
+    assert ((inner > walls.step_m + 1e-6) & (inner < RES)).sum() > 50
     assert said.sum() > 100 and (~said).sum() > 20
+
+
+def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_every_wall(monkeypatch):
+    """Rule 5's walls' test of a step is exact: it says clear exactly when the convex hull of
+    the step (a segment) and the disk where the other end can be keeps more than ``step_m``
+    from every occupied cell (shapely, the disk's polygon a hair outside and inside the
+    true disk), plain and compiled; steps grazing a wall's side within a cell."""
+    from shapely import GeometryCollection, LineString, Point
+
+    rng = np.random.default_rng(8)
+    occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (60, 150, 150, 151)], 250.0, 250.0)
+    walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
+    n = 150
+    p = np.r_[rng.uniform(0, 220, (n, 2)), np.c_[42.0 + rng.uniform(0, 1.0, n), rng.uniform(20, 140, n)]]
+    move = rng.normal(0, 2.0, (2 * n, 2))
+    q = p + rng.normal(0, 20, (2 * n, 2))
+    e = rng.uniform(0, 3, 2 * n)
+    e[::7] = 0.0
+    grow = 1.0 / math.cos(math.pi / 256) + 1e-9
+
+    def gap(k, scale):
+        disk = Point(q[k]).buffer(e[k] * scale, 64) if e[k] > 0 else Point(q[k])
+        return GeometryCollection([LineString([p[k], p[k] + move[k]]), disk]).convex_hull.distance(shapes)
+
+    outer = np.array([gap(k, grow) for k in range(2 * n)])
+    inner = np.array([gap(k, 1.0) for k in range(2 * n)])
+    for flag in ("0", "1"):
+        monkeypatch.setenv("NETSIM_COMPILED", flag)
+        said = step_clear_of_walls(walls, p, move, q, e)
+        assert (outer[said] > 0).all()
+        assert said[inner > walls.step_m + 1e-6].all()
+    assert ((inner > walls.step_m + 1e-6) & (inner < RES)).sum() > 10
+    assert said.sum() > 50 and (~said).sum() > 20
 
 
 def test_walls_kernel_agrees_with_its_oracle(monkeypatch):
@@ -607,22 +644,25 @@ def without_regions(walls):
 
 def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():
     """Rule 5, answering alone (no region to share): robot 0 keeps robot 1, 20 m east (heard
-    0.1 s ago: within 2.2 m of where it was heard until the step's end). With no wall near,
-    it makes its whole 2 m step; with a pillar 2.5 m off the link's middle, a part of it;
-    with a pillar 1 m off, it holds."""
+    0.1 s ago: within 2.2 m of where it was heard until the step's end), and steps 2 m
+    south. The hull of its step and of that disk passes 1.1 m north of the link's middle
+    and 2.1 m south of it. With no wall near, or a pillar 1.5 m north of the link's middle
+    (which a disk of the step's length about the robot would meet), it makes its whole
+    step; with a pillar 2 m south, half of it; with a pillar 1 m north, it holds."""
     pos = np.array([[0.0, 0.0], [20.0, 0.0]])
     m = all_heard(pos, T0 - 0.1)
     kept = m.known(T0, 20.0)
     move = np.array([[0.0, -2.0], [0.0, 0.0]])
     t1 = T0 + LIMITS.period_s
 
-    def scale(y):
-        walls = without_regions(walls_of(blocks_map([(10.0, y, 10.5, y + 0.5)], 60.0, 40.0), ORIGIN, RES))
+    def scale(y0, y1):
+        walls = without_regions(walls_of(blocks_map([(10.0, y0, 10.5, y1)], 60.0, 40.0), ORIGIN, RES))
         return cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[0, 1] / move[0, 1]
 
-    assert scale(15.0) == 1.0
-    assert 0.0 < scale(2.5) < 1.0
-    assert scale(1.0) == 0.0
+    assert scale(15.0, 15.5) == 1.0
+    assert scale(1.5, 2.0) == 1.0
+    assert scale(-2.5, -2.0) == 0.5
+    assert scale(1.0, 1.5) == 0.0
     assert (cut_for_walls(pos, move, m, kept, t1, LIMITS, NO_WALLS) == move).all()
 
 

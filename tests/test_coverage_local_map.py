@@ -12,7 +12,6 @@ from netsim.mobility.local import (
     Memory,
     cut_for_walls,
     free_rectangles,
-    in_one_region,
     let_go,
     shared_regions,
     walls_of,
@@ -244,24 +243,31 @@ def test_walls_a_link_both_ends_keep_stays_clear_of_walls_at_every_instant_of_th
     assert region_pairs >= 1
 
 
-def test_detour_on_a_map_a_link_held_by_one_region_is_surely_clear():
-    """Rule 1 on a map: robot 0 lets go of robot 1 (25 m along the corridor) through robot 2
-    between them, whose links lie in the corridor: a disk of their uncertainty fits no hull
-    test in a 3 m corridor, but the corridor holds both ends of each. Without regions the
-    link is kept; the kernels agree with the oracle."""
+def test_detour_on_a_map_through_a_door_passing_its_frame_by_centimetres():
+    """Rule 1 on a map: robot 0, in a room, lets go of robot 1, in the corridor, through
+    robot 2, whose link to robot 0 passes the door's frame 12 cm off (the walls' test is
+    exact: within half a cell's diagonal of a wall is not "near"); with robot 2 a little
+    farther along, that link meets the frame and the link (0, 1) is kept. The kernels agree
+    with the oracle."""
     walls = walls_of(floor_plan(), ORIGIN, RES)
-    pos = np.array([[20.0, 30.0], [45.0, 30.0], [32.0, 30.0]])
-    m = Memory(3)
-    m.xy[:] = pos[None, :, :]
-    m.sent_s[:] = T0 - 0.6
-    np.fill_diagonal(m.sent_s, -np.inf)
-    lists = Lists(3, 1)
-    lists.take(m, T0 - 1.0, 20.0)
-    heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
-    assert let_go(pos, m, heard, T0, V, 7.5, RC, walls)[0, 1]
-    assert not let_go(pos, m, heard, T0, V, 7.5, RC, without_regions(walls))[0, 1]
-    assert (let_go(pos, m, heard, T0, V, 7.5, RC, walls) == oracle.let_go(pos, m, heard, T0, V, 7.5, RC, walls)).all()
-    assert in_one_region(walls, pos[[0]], pos[[2]], np.array([1.2]), np.array([1.2]))[0]
+
+    def lets_go(x2):
+        pos = np.array([[4.1, 24.0], [20.0, 30.0], [x2, 30.0]])
+        m = Memory(3)
+        m.xy[:] = pos[None, :, :]
+        m.sent_s[:] = T0 - 0.01
+        np.fill_diagonal(m.sent_s, -np.inf)
+        lists = Lists(3, 1)
+        lists.take(m, T0 - 1.0, 20.0)
+        heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+        out = let_go(pos, m, heard, T0, V, 7.5, RC, walls)
+        assert (out == oracle.let_go(pos, m, heard, T0, V, 7.5, RC, walls)).all()
+        return out[0, 1]
+
+    # The frame's corner (5.5, 28.5) from the line (4.1, 24) -> (5.8, 30): |(1.4, 4.5) x (1.7, 6)| / |(1.7, 6)|.
+    assert 0.1 < abs(1.4 * 6.0 - 4.5 * 1.7) / np.hypot(1.7, 6.0) < 0.15
+    assert lets_go(5.8)
+    assert not lets_go(6.2)
 
 
 def test_pull_on_a_map_announces_the_step_the_robot_can_make():

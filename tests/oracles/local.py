@@ -20,36 +20,52 @@ def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> 
 
 
 def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
-    """:func:`netsim.mobility.local.clear_of_walls`, every segment marched in lockstep."""
+    """:func:`netsim.mobility.local.clear_of_walls` by its definition: the hull of the two
+    disks is the union of the disks of radius ``(1 - f) ea + f eb`` around ``a + f (b -
+    a)``, so its distance to an occupied cell is the least over ``f`` of the distance from
+    that centre to the cell less that radius, a convex function of ``f`` (minimised by
+    ternary search); clear when every occupied cell of the map is farther than
+    ``walls.step_m``."""
     a = np.asarray(a, float).reshape(-1, 2)
     b = np.asarray(b, float).reshape(-1, 2)
-    ea = np.broadcast_to(np.asarray(ea, float), (len(a),)).copy()
-    eb = np.broadcast_to(np.asarray(eb, float), (len(a),)).copy()
-    out = np.empty(len(a), dtype=bool)
-    h, w = walls.field.shape
+    ea = np.broadcast_to(np.asarray(ea, float), (len(a),))
+    eb = np.broadcast_to(np.asarray(eb, float), (len(a),))
     res = walls.resolution_m
-    length = np.hypot(*(b - a).T)
-    some = length > 0
-    growth = np.where(some, np.abs(eb - ea) / np.where(some, length, 1.0), 0.0)
-    t = np.zeros(len(a))
-    active = np.ones(len(a), dtype=bool)
-    out[:] = True
-    while active.any():
-        k = np.flatnonzero(active)
-        f = np.where(some[k], t[k] / np.where(some[k], length[k], 1.0), 0.0)
-        u = (a[k, 0] + f * (b[k, 0] - a[k, 0]) - walls.origin_x_m) / res
-        v = (a[k, 1] + f * (b[k, 1] - a[k, 1]) - walls.origin_y_m) / res
-        ci = np.clip(np.floor(u), 0, w - 1).astype(np.int64)
-        cj = np.clip(np.floor(v), 0, h - 1).astype(np.int64)
-        radius = np.where(some[k], ea[k] + f * (eb[k] - ea[k]), np.maximum(ea[k], eb[k]))
-        gap = walls.field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - radius
-        blocked = gap <= walls.step_m
-        out[k[blocked]] = False
-        done = blocked | (t[k] >= length[k])
-        active[k[done]] = False
-        go = k[~done]
-        t[go] = np.minimum(t[go] + gap[~done] / (1.0 + growth[go]), length[go])
+    rows, cols = np.nonzero(~walls.open)
+    x0 = walls.origin_x_m + cols * res
+    y0 = walls.origin_y_m + rows * res
+    out = np.ones(len(a), dtype=bool)
+    for k in range(len(a)):
+        reach = max(ea[k], eb[k]) + walls.step_m
+        near = (
+            (x0 <= max(a[k, 0], b[k, 0]) + reach)
+            & (x0 + res >= min(a[k, 0], b[k, 0]) - reach)
+            & (y0 <= max(a[k, 1], b[k, 1]) + reach)
+            & (y0 + res >= min(a[k, 1], b[k, 1]) - reach)
+        )
+        cells = (x0[near], y0[near], res)
+        ends = (a[k], b[k], ea[k], eb[k])
+        lo, hi = np.zeros(len(cells[0])), np.ones(len(cells[0]))
+        for _ in range(100):
+            m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
+            left = _gap(cells, ends, m1) <= _gap(cells, ends, m2)
+            hi = np.where(left, m2, hi)
+            lo = np.where(left, lo, m1)
+        least = np.minimum(np.minimum(_gap(cells, ends, lo), _gap(cells, ends, 0.0)), _gap(cells, ends, 1.0))
+        out[k] = not (least <= walls.step_m).any()
     return out
+
+
+def _gap(cells, ends, f):
+    """The distance from each cell (``x0, y0, side``) to the disk at ``f`` of the two disks'
+    hull (``a, b, ea, eb``), less its radius."""
+    x0, y0, res = cells
+    a, b, ea, eb = ends
+    px = a[0] + f * (b[0] - a[0])
+    py = a[1] + f * (b[1] - a[1])
+    dx = np.maximum(np.maximum(x0 - px, 0.0), px - x0 - res)
+    dy = np.maximum(np.maximum(y0 - py, 0.0), py - y0 - res)
+    return np.hypot(dx, dy) - (ea + f * (eb - ea))
 
 
 def region_holds(walls: Walls, r: int, q, e) -> int:
@@ -84,20 +100,6 @@ def region_holds(walls: Walls, r: int, q, e) -> int:
         | (np.minimum(cy0 + res, q[1] + e) > y1)
     )
     return 1 if inside or not (meet & out).any() else -1
-
-
-def in_one_region(walls: Walls, a, b, ea, eb) -> np.ndarray:
-    """:func:`netsim.mobility.local.in_one_region`, every region tried: one whose rectangle
-    holds the point ``a`` and that holds both disks."""
-    out = np.zeros(len(a), dtype=bool)
-    for k in range(len(a)):
-        for r in range(len(walls.rects)):
-            x0, x1, y0, y1 = walls.rects[r]
-            if x0 <= a[k, 0] <= x1 and y0 <= a[k, 1] <= y1:
-                if region_holds(walls, r, a[k], ea[k]) == 1 and region_holds(walls, r, b[k], eb[k]) == 1:
-                    out[k] = True
-                    break
-    return out
 
 
 def let_go(
@@ -191,7 +193,6 @@ def let_go(
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
             ok = clear_of_walls(walls, q[a], q[b], e[a] + sweep[a], e[b] + sweep[b])
-            ok |= in_one_region(walls, q[a], q[b], e[a] + sweep[a], e[b] + sweep[b])
             usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
