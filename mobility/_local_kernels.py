@@ -70,10 +70,10 @@ def hull_near_box(disks, k, x0, x1, y0, y1, tol):
 
 @jit(nogil=True, walks=True)
 def near_walls(walls, disks, k):
-    """Whether some occupied cell comes within ``walls.step_m`` of the convex hull of the
+    """Whether some occupied cell comes within ``walls.clearance_m`` of the convex hull of the
     ``k`` disks ``disks[:k]``: each occupied cell of the map under the hull's bounding box,
     tested exactly (:func:`hull_near_box`)."""
-    res, ox, oy, tol = walls.resolution_m, walls.origin_x_m, walls.origin_y_m, walls.step_m
+    res, ox, oy, tol = walls.resolution_m, walls.origin_x_m, walls.origin_y_m, walls.clearance_m
     h, w = walls.open.shape
     x_lo, x_hi, y_lo, y_hi = np.inf, -np.inf, np.inf, -np.inf
     for m in range(k):
@@ -102,38 +102,46 @@ EXACT_WITHIN_CELLS = 1.0
 EXACT_SPAN_CELLS = 2.0
 
 
+# The shape of a family whose members are disks (:func:`swept_clear`).
+_POINT = np.zeros((1, 2))
+
+
 @jit(nogil=True)
-def _capsule_ends(disks, row, ax, ay, ea, bx, by, eb, hx, hy, f):
-    """The two end disks of the family's member at ``f`` (:func:`swept_clear`) into
-    ``disks[row]`` and ``disks[row + 1]``."""
+def _member(disks, row, ax, ay, ea, bx, by, eb, shape, k, f):
+    """The disks whose hull is the family's member at ``f`` (:func:`swept_clear`), into
+    ``disks[row:row + k]``."""
     cx, cy, r = ax + f * (bx - ax), ay + f * (by - ay), ea + f * (eb - ea)
-    disks[row, 0], disks[row, 1], disks[row, 2] = cx - f * hx, cy - f * hy, r
-    disks[row + 1, 0], disks[row + 1, 1], disks[row + 1, 2] = cx + f * hx, cy + f * hy, r
+    for m in range(k):
+        disks[row + m, 0] = cx + f * shape[m, 0]
+        disks[row + m, 1] = cy + f * shape[m, 1]
+        disks[row + m, 2] = r
 
 
 @jit(nogil=True, walks=True)
-def swept_clear(walls, ax, ay, ea, bx, by, eb, hx, hy):
-    """Whether the union over ``f`` in [0, 1] of the capsules ``C_f`` keeps more than
-    ``walls.step_m`` from every wall: ``C_f`` is the set of points within ``(1 - f) ea + f
-    eb`` of the segment from ``c_f - f h`` to ``c_f + f h``, ``c_f = a + f (b - a)``. With
-    ``h = 0`` that union is the convex hull of the disks ``D(a, ea)`` and ``D(b, eb)``; with
-    ``eb = 0`` and ``b ± h`` the ends of a segment, the convex hull of that segment and
-    ``D(a, ea)``. ``C_f = (1 - f) C_0 + f C_1`` (Minkowski), so the members between two
-    values of ``f`` fill the convex hull of theirs, four disks. The test walks ``f`` by the
-    clearance at ``c_f`` (:attr:`netsim.mobility.local.Walls.field`, less the distance to
-    the cell's centre, a lower bound) less the member's reach from ``c_f``, and where that
-    leaves less than a cell it tests the hull of the next span's two members against the
-    occupied cells near it (:func:`near_walls`): exact, up to rounding."""
+def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
+    """Whether the union over ``f`` in [0, 1] of the sets ``C_f`` keeps more than
+    ``walls.clearance_m`` from every wall: ``C_f`` is the convex polygon of vertices ``c_f + f
+    shape[m]`` (``m < k``, at most 4), ``c_f = a + f (b - a)``, grown by the radius ``(1 -
+    f) ea + f eb``. With one vertex at 0 the union is the convex hull of the disks ``D(a,
+    ea)`` and ``D(b, eb)``; with ``eb = 0`` and ``b + shape`` the ends of a segment (or the
+    corners of a box), the convex hull of that segment (box) and ``D(a, ea)``. ``C_f = (1 -
+    f) C_0 + f C_1`` (Minkowski), so the members between two values of ``f`` fill the convex
+    hull of theirs, a hull of disks. The test walks ``f`` by the clearance at ``c_f``
+    (:attr:`netsim.mobility.local.Walls.field`, less the distance to the cell's centre, a
+    lower bound) less the member's reach from ``c_f``, and where that leaves less than a
+    cell it tests the hull of the next span's two members against the occupied cells near
+    it (:func:`near_walls`): exact, up to rounding."""
     field = walls.field
     h, w = field.shape
     res = walls.resolution_m
-    half = np.hypot(hx, hy)
+    half = 0.0
+    for m in range(k):
+        half = max(half, np.hypot(shape[m, 0], shape[m, 1]))
     speed = np.hypot(bx - ax, by - ay) + half + abs(eb - ea)  # how fast a member's reach moves with f
-    disks = np.empty((4, 3))
+    disks = np.empty((2 * k, 3))
     if speed == 0.0:
-        _capsule_ends(disks, 0, ax, ay, ea, bx, by, eb, hx, hy, 0.0)
-        return not near_walls(walls, disks, 1)
-    k = 4 if half > 0 else 2
+        _member(disks, 0, ax, ay, ea, bx, by, eb, shape, k, 0.0)
+        return not near_walls(walls, disks, k)
     f = 0.0
     while True:
         px, py = ax + f * (bx - ax), ay + f * (by - ay)
@@ -149,13 +157,9 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, hx, hy):
             f = min(f + gap / speed, 1.0)
             continue
         f2 = min(f + EXACT_SPAN_CELLS * res / speed, 1.0)
-        if half > 0:
-            _capsule_ends(disks, 0, ax, ay, ea, bx, by, eb, hx, hy, f)
-            _capsule_ends(disks, 2, ax, ay, ea, bx, by, eb, hx, hy, f2)
-        else:
-            _capsule_ends(disks, 0, ax, ay, ea, bx, by, eb, hx, hy, f)
-            _capsule_ends(disks, 1, ax, ay, ea, bx, by, eb, hx, hy, f2)
-        if near_walls(walls, disks, k):
+        _member(disks, 0, ax, ay, ea, bx, by, eb, shape, k, f)
+        _member(disks, k, ax, ay, ea, bx, by, eb, shape, k, f2)
+        if near_walls(walls, disks, 2 * k):
             return False
         if f2 >= 1.0:
             return True
@@ -165,9 +169,9 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, hx, hy):
 @jit(nogil=True, walks=True)
 def clear(walls, ax, ay, bx, by, ea, eb):
     """The convex hull of the disks of radius ``ea`` around ``(ax, ay)`` and ``eb`` around
-    ``(bx, by)`` keeps more than ``walls.step_m`` from every wall
+    ``(bx, by)`` keeps more than ``walls.clearance_m`` from every wall
     (:func:`netsim.mobility.local.clear_of_walls`, one pair; :func:`swept_clear`)."""
-    return swept_clear(walls, ax, ay, ea, bx, by, eb, 0.0, 0.0)
+    return swept_clear(walls, ax, ay, ea, bx, by, eb, _POINT, 1)
 
 
 @jit(nogil=True, walks=True)
@@ -178,12 +182,18 @@ def clear_many(walls, a, b, ea, eb, out):
 
 
 @jit(nogil=True, walks=True)
-def steps_clear(walls, p, move, q, e, out):
-    """For every row, whether the convex hull of the step from ``p`` to ``p + move`` and
-    the disk ``D(q, e)`` keeps off the walls (:func:`swept_clear`)."""
+def steps_clear(walls, p, move, q, e, box, out):
+    """For every row, whether the convex hull of the step from ``p`` to ``p + move`` (with
+    ``box``, of the box with sides along the axes that it spans, which holds every step
+    whose coordinates each go part of the way) and the disk ``D(q, e)`` keeps off the walls
+    (:func:`swept_clear`)."""
+    shape = np.empty((4, 2))
     for k in range(p.shape[0]):
         hx, hy = 0.5 * move[k, 0], 0.5 * move[k, 1]
-        out[k] = swept_clear(walls, q[k, 0], q[k, 1], e[k], p[k, 0] + hx, p[k, 1] + hy, 0.0, hx, hy)
+        shape[0, 0], shape[0, 1], shape[1, 0], shape[1, 1] = -hx, -hy, hx, hy
+        shape[2, 0], shape[2, 1], shape[3, 0], shape[3, 1] = -hx, hy, hx, -hy
+        corners = 4 if box and hx != 0.0 and hy != 0.0 else 2
+        out[k] = swept_clear(walls, q[k, 0], q[k, 1], e[k], p[k, 0] + hx, p[k, 1] + hy, 0.0, shape, corners)
 
 
 # A region's test scans the cells under a disk only up to this many; a larger disk is

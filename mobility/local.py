@@ -33,8 +33,8 @@ period``), its own position ``p`` at ``t0`` exact:
 4. **Pull** (:func:`pulls`). On a map a robot announces its wish as it could carry it out
    (:func:`netsim.mobility.geodesic.within_reach`), not a wish into a wall.
 5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j`` alone
-   (the convex hull of the straight step and of the disk where ``j`` can be during the
-   step, ``e_j(t1)`` around ``q_j``, meets no wall, so every
+   (the convex hull of the straight step, or of the box it spans, and of the disk where
+   ``j`` can be during the step, ``e_j(t1)`` around ``q_j``, meets no wall, so every
    segment between the two robots during the step is clear of walls whatever ``j`` does)
    or *by region*: the map's regions (:func:`free_rectangles`, convex and free, one order
    every robot computes) give the link the first region, in order, holding both robots
@@ -131,7 +131,7 @@ class Walls(NamedTuple):
     origin_x_m: float
     origin_y_m: float
     resolution_m: float
-    step_m: float  # a link clear of walls keeps more than this from every wall, m
+    clearance_m: float  # a hull clear of walls keeps more than this from every wall, m
     open: np.ndarray  # (H, W) bool: cells that are not walls (where a robot may be)
     rects: np.ndarray  # (R, 4): each region's x0, x1, y0, y1, m (its free cells, shrunk by REGION_INSET_M)
     bucket_cells: int  # the side of a bucket of the regions' index, in cells
@@ -153,6 +153,12 @@ NO_WALLS = Walls(
     np.zeros(0, np.int64),
 )
 
+# How far from every wall a hull must keep to be clear of walls, m: less than the hair by
+# which the control loop stops a robot short of a wall (netsim.world.free_space.free_fraction)
+# and than REGION_INSET_M, so that a link from a robot standing there along the wall is
+# clear; more than the rounding of the test, and than the tolerance within which line of
+# sight puts a point on a grid line (netsim.world.los).
+WALL_CLEARANCE_M = 1e-8
 # The side of a bucket of the regions' index, m.
 REGION_BUCKET_M = 4.0
 # How far inside its free cells a region's rectangle ends, m: a segment in it then keeps off
@@ -251,7 +257,7 @@ def walls_of(
         ox,
         oy,
         res,
-        0.01 * res,
+        WALL_CLEARANCE_M,
         np.ascontiguousarray(~occupied),
         np.ascontiguousarray(rects, float),
         k,
@@ -265,7 +271,7 @@ def clear_of_walls(
 ) -> np.ndarray:
     """Whether the convex hull of the disk of radius ``e_a_m`` around ``a`` and the disk of
     radius ``e_b_m`` (default ``e_a_m``) around ``b`` (row-wise) keeps more than
-    :attr:`Walls.step_m` from every wall cell (closed squares): then every segment between a
+    :attr:`Walls.clearance_m` from every wall cell (closed squares): then every segment between a
     point of the one and a point of the other is clear of walls. Exact, up to rounding: the
     hull is the union of the disks of radius ``(1 - f) e_a + f e_b`` around the points
     ``a + f (b - a)``, ``f`` in [0, 1]; the test walks the segment in steps of the clearance
@@ -292,11 +298,16 @@ def clear_of_walls(
     return out
 
 
-def step_clear_of_walls(walls: Walls, p: np.ndarray, move: np.ndarray, q: np.ndarray, e_m: np.ndarray) -> np.ndarray:
+def step_clear_of_walls(
+    walls: Walls, p: np.ndarray, move: np.ndarray, q: np.ndarray, e_m: np.ndarray, box: bool = False
+) -> np.ndarray:
     """Whether the convex hull of the straight step from ``p`` to ``p + move`` and the disk
-    of radius ``e_m`` around ``q`` (row-wise) keeps more than :attr:`Walls.step_m` from
+    of radius ``e_m`` around ``q`` (row-wise) keeps more than :attr:`Walls.clearance_m` from
     every wall cell: then every segment between a point of the step and a point of the disk
-    is clear of walls. Exact, up to rounding, as :func:`clear_of_walls`.
+    is clear of walls. With ``box``, the hull of the disk and of the box with sides along
+    the axes that the step spans: it holds every step from ``p`` whose end is in that box
+    (each coordinate going part of the way: a step slid along a wall, or cut short).
+    Exact, up to rounding, as :func:`clear_of_walls`.
 
     >>> w = walls_of(np.eye(4, dtype=bool)[::-1], resolution_m=1.0)
     >>> p, q = np.array([[0.5, 2.5]]), np.array([[0.5, 0.5]])
@@ -311,7 +322,7 @@ def step_clear_of_walls(walls: Walls, p: np.ndarray, move: np.ndarray, q: np.nda
     if not walls.on or len(p) == 0:
         return np.ones(len(p), dtype=bool)
     out = np.empty(len(p), dtype=bool)
-    map_walker("netsim.mobility._local_kernels").steps_clear(walls, p, move, q, filled(e_m, (len(p),)), out)
+    map_walker("netsim.mobility._local_kernels").steps_clear(walls, p, move, q, filled(e_m, (len(p),)), box, out)
     return out
 
 
@@ -849,9 +860,10 @@ def cut_for_walls(
     """Rule 5 (walls): each robot's step, such that every kept link is surely clear of walls
     over it, and still ending within its leashes (rule 2). A link is answered for
 
-    - *alone*, whatever the other end does: the convex hull of the step and of the disk
-      of radius ``e_j(t1)`` around ``q_j``, which holds the step and where ``j`` can be,
-      meets no wall (:func:`step_clear_of_walls`);
+    - *alone*, whatever the other end does: the convex hull of the box with sides along
+      the axes that the step spans (it holds the step, and every step the regions make of
+      it) and of the disk of radius ``e_j(t1)`` around ``q_j``, where ``j`` can be, meets
+      no wall (:func:`step_clear_of_walls`); the step finally made is tested again;
     - or *by region*, where that fails for the whole ``move``: both ends share a region
       (:func:`shared_regions`, from ``j``'s place at ``t0``, within ``e_j(t0)`` of ``q_j``),
       and the robot ends its step in it. The other end holds there, answers alone, or ends
@@ -877,7 +889,8 @@ def cut_for_walls(
     e0 = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, v)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
     region = np.full(len(robot), -1, np.int64)
-    alone = step_clear_of_walls(walls, pos[robot], move[robot], centre, e)
+    # Alone for every step the regions below may make of this one (slid, or cut short).
+    alone = step_clear_of_walls(walls, pos[robot], move[robot], centre, e, box=True)
     region[~alone] = shared_regions(walls, pos[robot[~alone]], centre[~alone], e0[~alone])
     boxed = region >= 0
     lo = np.full((n, 2), -np.inf)

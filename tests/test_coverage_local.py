@@ -540,7 +540,7 @@ def disks_hull(a, ea, b, eb, outer=True):
 @pytest.mark.slow
 def test_walls_a_pair_of_disks_is_clear_exactly_when_its_hull_keeps_off_every_wall():
     """The walls' test is exact: it says clear exactly when the convex hull of the two disks
-    keeps more than ``step_m`` from every occupied cell (closed squares, shapely, its
+    keeps more than ``clearance_m`` from every occupied cell (closed squares, shapely, its
     polygons a hair outside and inside the true hull). Disks of equal and unequal radii,
     and segments grazing a wall's side and corner within a cell of their radius."""
     rng = np.random.default_rng(5)
@@ -559,17 +559,20 @@ def test_walls_a_pair_of_disks_is_clear_exactly_when_its_hull_keeps_off_every_wa
     gap = np.array([disks_hull(p, u, q, w).distance(shapes) for p, u, q, w in zip(a, ea, b, eb)])
     inner = np.array([disks_hull(p, u, q, w, outer=False).distance(shapes) for p, u, q, w in zip(a, ea, b, eb)])
     assert (gap[said] > 0).all()
-    assert said[inner > walls.step_m + 1e-6].all()
-    assert ((inner > walls.step_m + 1e-6) & (inner < RES)).sum() > 50
+    assert said[inner > walls.clearance_m + 1e-6].all()
+    assert ((inner > walls.clearance_m + 1e-6) & (inner < RES)).sum() > 50
     assert said.sum() > 100 and (~said).sum() > 20
 
 
-def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_every_wall(monkeypatch):
+@pytest.mark.parametrize("box", [False, True])
+def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_every_wall(monkeypatch, box):
     """Rule 5's walls' test of a step is exact: it says clear exactly when the convex hull of
-    the step (a segment) and the disk where the other end can be keeps more than ``step_m``
-    from every occupied cell (shapely, the disk's polygon a hair outside and inside the
-    true disk), plain and compiled; steps grazing a wall's side within a cell."""
+    the step (a segment; with ``box``, the box with sides along the axes that it spans) and
+    the disk where the other end can be keeps more than ``clearance_m`` from every occupied cell
+    (shapely, the disk's polygon a hair outside and inside the true disk), plain and
+    compiled; steps grazing a wall's side within a cell."""
     from shapely import GeometryCollection, LineString, Point
+    from shapely import box as rectangle
 
     rng = np.random.default_rng(8)
     occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (60, 150, 150, 151)], 250.0, 250.0)
@@ -577,6 +580,7 @@ def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_eve
     n = 150
     p = np.r_[rng.uniform(0, 220, (n, 2)), np.c_[42.0 + rng.uniform(0, 1.0, n), rng.uniform(20, 140, n)]]
     move = rng.normal(0, 2.0, (2 * n, 2))
+    move[::5, 1] = 0.0
     q = p + rng.normal(0, 20, (2 * n, 2))
     e = rng.uniform(0, 3, 2 * n)
     e[::7] = 0.0
@@ -584,16 +588,21 @@ def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_eve
 
     def gap(k, scale):
         disk = Point(q[k]).buffer(e[k] * scale, 64) if e[k] > 0 else Point(q[k])
-        return GeometryCollection([LineString([p[k], p[k] + move[k]]), disk]).convex_hull.distance(shapes)
+        end = p[k] + move[k]
+        if box and (move[k] != 0).all():
+            step = rectangle(*np.minimum(p[k], end), *np.maximum(p[k], end))
+        else:
+            step = LineString([p[k], end])
+        return GeometryCollection([step, disk]).convex_hull.distance(shapes)
 
     outer = np.array([gap(k, grow) for k in range(2 * n)])
     inner = np.array([gap(k, 1.0) for k in range(2 * n)])
     for flag in ("0", "1"):
         monkeypatch.setenv("NETSIM_COMPILED", flag)
-        said = step_clear_of_walls(walls, p, move, q, e)
+        said = step_clear_of_walls(walls, p, move, q, e, box=box)
         assert (outer[said] > 0).all()
-        assert said[inner > walls.step_m + 1e-6].all()
-    assert ((inner > walls.step_m + 1e-6) & (inner < RES)).sum() > 10
+        assert said[inner > walls.clearance_m + 1e-6].all()
+    assert ((inner > walls.clearance_m + 1e-6) & (inner < RES)).sum() > 10
     assert said.sum() > 50 and (~said).sum() > 20
 
 

@@ -25,7 +25,7 @@ def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
     a)``, so its distance to an occupied cell is the least over ``f`` of the distance from
     that centre to the cell less that radius, a convex function of ``f`` (minimised by
     ternary search); clear when every occupied cell of the map is farther than
-    ``walls.step_m``."""
+    ``walls.clearance_m``."""
     a = np.asarray(a, float).reshape(-1, 2)
     b = np.asarray(b, float).reshape(-1, 2)
     ea = np.broadcast_to(np.asarray(ea, float), (len(a),))
@@ -36,7 +36,7 @@ def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
     y0 = walls.origin_y_m + rows * res
     out = np.ones(len(a), dtype=bool)
     for k in range(len(a)):
-        reach = max(ea[k], eb[k]) + walls.step_m
+        reach = max(ea[k], eb[k]) + walls.clearance_m
         near = (
             (x0 <= max(a[k, 0], b[k, 0]) + reach)
             & (x0 + res >= min(a[k, 0], b[k, 0]) - reach)
@@ -52,7 +52,7 @@ def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
             hi = np.where(left, m2, hi)
             lo = np.where(left, lo, m1)
         least = np.minimum(np.minimum(_gap(cells, ends, lo), _gap(cells, ends, 0.0)), _gap(cells, ends, 1.0))
-        out[k] = not (least <= walls.step_m).any()
+        out[k] = not (least <= walls.clearance_m).any()
     return out
 
 
