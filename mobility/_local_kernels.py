@@ -138,6 +138,8 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
     for m in range(k):
         half = max(half, np.hypot(shape[m, 0], shape[m, 1]))
     speed = np.hypot(bx - ax, by - ay) + half + abs(eb - ea)  # how fast a member's reach moves with f
+    if not math.isfinite(speed + ax + ay + ea):
+        return False  # nowhere known: no proof (and the walk would not end)
     disks = np.empty((2 * k, 3))
     if speed == 0.0:
         _member(disks, 0, ax, ay, ea, bx, by, eb, shape, k, 0.0)

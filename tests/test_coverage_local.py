@@ -606,6 +606,19 @@ def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_eve
     assert said.sum() > 50 and (~said).sum() > 20
 
 
+def test_walls_a_hull_of_unknown_extent_is_not_clear():
+    """The walls' test proves nothing of a disk of infinite radius or a point not a number
+    (and ends: its walk steps by the clearance less the reach)."""
+    walls = walls_of(blocks_map([(40, 40, 42, 120)], 100.0, 100.0), ORIGIN, RES)
+    a = np.array([[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    b = np.array([[10.0, 0.0], [np.nan, 0.0], [10.0, 0.0]])
+    assert clear_of_walls(walls, a, b, np.array([np.inf, 0.1, 0.1])).tolist() == [False, False, True]
+    said = step_clear_of_walls(
+        walls, a, np.array([[np.inf, 0.0], [1.0, 0.0], [1.0, 0.0]]), b, np.array([0.1, 0.1, np.inf])
+    )
+    assert said.tolist() == [False, False, False]
+
+
 def test_walls_kernel_agrees_with_its_oracle(monkeypatch):
     """The walls' test, plain and compiled, says exactly what its numpy oracle says."""
     rng = np.random.default_rng(6)
