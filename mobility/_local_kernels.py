@@ -121,10 +121,10 @@ def _member(disks, row, ax, ay, ea, bx, by, eb, shape, k, f):
 def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
     """Whether the union over ``f`` in [0, 1] of the sets ``C_f`` keeps more than
     ``walls.clearance_m`` from every wall: ``C_f`` is the convex polygon of vertices ``c_f + f
-    shape[m]`` (``m < k``, at most 4), ``c_f = a + f (b - a)``, grown by the radius ``(1 -
-    f) ea + f eb``. With one vertex at 0 the union is the convex hull of the disks ``D(a,
-    ea)`` and ``D(b, eb)``; with ``eb = 0`` and ``b + shape`` the ends of a segment (or the
-    corners of a box), the convex hull of that segment (box) and ``D(a, ea)``. ``C_f = (1 -
+    shape[m]`` (``m < k``), ``c_f = a + f (b - a)``, grown by the radius ``(1 - f) ea + f
+    eb``. With one vertex at 0 the union is the convex hull of the disks ``D(a, ea)`` and
+    ``D(b, eb)``; with ``eb = 0`` and ``b + shape`` the ends of a segment, the convex hull
+    of that segment and ``D(a, ea)``. ``C_f = (1 -
     f) C_0 + f C_1`` (Minkowski), so the members between two values of ``f`` fill the convex
     hull of theirs, a hull of disks. The test walks ``f`` by the clearance at ``c_f``
     (:attr:`netsim.mobility.local.Walls.field`, less the distance to the cell's centre, a
@@ -134,14 +134,14 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
     field = walls.field
     h, w = field.shape
     res = walls.resolution_m
-    half = 0.0
+    half_m = 0.0
     for m in range(k):
-        half = max(half, np.hypot(shape[m, 0], shape[m, 1]))
-    speed = np.hypot(bx - ax, by - ay) + half + abs(eb - ea)  # how fast a member's reach moves with f
-    if not math.isfinite(speed + ax + ay + ea):
+        half_m = max(half_m, np.hypot(shape[m, 0], shape[m, 1]))
+    per_f_m = np.hypot(bx - ax, by - ay) + half_m + abs(eb - ea)  # how fast a member's reach moves with f
+    if not math.isfinite(per_f_m + ax + ay + ea):
         return False  # nowhere known: no proof (and the walk would not end)
     disks = np.empty((2 * k, 3))
-    if speed == 0.0:
+    if per_f_m == 0.0:
         _member(disks, 0, ax, ay, ea, bx, by, eb, shape, k, 0.0)
         return not near_walls(walls, disks, k)
     f = 0.0
@@ -151,14 +151,14 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
         v = on_grid(py, walls.origin_y_m, res)
         ci = clamped_cell(u, w)
         cj = clamped_cell(v, h)
-        reach = ea + f * (eb - ea) + f * half
-        gap = field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - reach
-        if gap > EXACT_WITHIN_CELLS * res:
+        reach_m = ea + f * (eb - ea) + f * half_m
+        gap_m = field[cj, ci] - np.hypot(u - ci - 0.5, v - cj - 0.5) * res - reach_m
+        if gap_m > EXACT_WITHIN_CELLS * res:
             if f >= 1.0:
                 return True
-            f = min(f + gap / speed, 1.0)
+            f = min(f + (gap_m - walls.clearance_m) / per_f_m, 1.0)
             continue
-        f2 = min(f + EXACT_SPAN_CELLS * res / speed, 1.0)
+        f2 = min(f + EXACT_SPAN_CELLS * res / per_f_m, 1.0)
         _member(disks, 0, ax, ay, ea, bx, by, eb, shape, k, f)
         _member(disks, k, ax, ay, ea, bx, by, eb, shape, k, f2)
         if near_walls(walls, disks, 2 * k):
@@ -184,18 +184,14 @@ def clear_many(walls, a, b, ea, eb, out):
 
 
 @jit(nogil=True, walks=True)
-def steps_clear(walls, p, move, q, e, box, out):
-    """For every row, whether the convex hull of the step from ``p`` to ``p + move`` (with
-    ``box``, of the box with sides along the axes that it spans, which holds every step
-    whose coordinates each go part of the way) and the disk ``D(q, e)`` keeps off the walls
-    (:func:`swept_clear`)."""
-    shape = np.empty((4, 2))
+def steps_clear(walls, p, move, q, e, out):
+    """For every row, whether the convex hull of the step from ``p`` to ``p + move`` and the
+    disk ``D(q, e)`` keeps off the walls (:func:`swept_clear`)."""
+    ends = np.empty((2, 2))
     for k in range(p.shape[0]):
         hx, hy = 0.5 * move[k, 0], 0.5 * move[k, 1]
-        shape[0, 0], shape[0, 1], shape[1, 0], shape[1, 1] = -hx, -hy, hx, hy
-        shape[2, 0], shape[2, 1], shape[3, 0], shape[3, 1] = -hx, hy, hx, -hy
-        corners = 4 if box and hx != 0.0 and hy != 0.0 else 2
-        out[k] = swept_clear(walls, q[k, 0], q[k, 1], e[k], p[k, 0] + hx, p[k, 1] + hy, 0.0, shape, corners)
+        ends[0, 0], ends[0, 1], ends[1, 0], ends[1, 1] = -hx, -hy, hx, hy
+        out[k] = swept_clear(walls, q[k, 0], q[k, 1], e[k], p[k, 0] + hx, p[k, 1] + hy, 0.0, ends, 2)
 
 
 # A region's test scans the cells under a disk only up to this many; a larger disk is

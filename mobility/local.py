@@ -33,8 +33,8 @@ period``), its own position ``p`` at ``t0`` exact:
 4. **Pull** (:func:`pulls`). On a map a robot announces its wish as it could carry it out
    (:func:`netsim.mobility.geodesic.within_reach`), not a wish into a wall.
 5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j`` alone
-   (the convex hull of the straight step, or of the box it spans, and of the disk where
-   ``j`` can be during the step, ``e_j(t1)`` around ``q_j``, meets no wall, so every
+   (the convex hull of the straight step and of the disk where ``j`` can be during the
+   step, ``e_j(t1)`` around ``q_j``, keeps off the walls, so every
    segment between the two robots during the step is clear of walls whatever ``j`` does)
    or *by region*: the map's regions (:func:`free_rectangles`, convex and free, one order
    every robot computes) give the link the first region, in order, holding both robots
@@ -154,10 +154,11 @@ NO_WALLS = Walls(
 )
 
 # How far from every wall a hull must keep to be clear of walls, m: less than the hair by
-# which the control loop stops a robot short of a wall (netsim.world.free_space.free_fraction)
-# and than REGION_INSET_M, so that a link from a robot standing there along the wall is
-# clear; more than the rounding of the test, and than the tolerance within which line of
-# sight puts a point on a grid line (netsim.world.los).
+# which the control loop stops a robot short of a wall head-on (free_space.free_fraction
+# stops it that far along its leg, so a grazing approach ends nearer) and than
+# REGION_INSET_M, so that a link from a robot standing there along the wall is clear; more
+# than the rounding of the test, and than the tolerance within which line of sight puts a
+# point on a grid line (netsim.world.los).
 WALL_CLEARANCE_M = 1e-8
 # The side of a bucket of the regions' index, m.
 REGION_BUCKET_M = 4.0
@@ -298,16 +299,11 @@ def clear_of_walls(
     return out
 
 
-def step_clear_of_walls(
-    walls: Walls, p: np.ndarray, move: np.ndarray, q: np.ndarray, e_m: np.ndarray, box: bool = False
-) -> np.ndarray:
+def step_clear_of_walls(walls: Walls, p: np.ndarray, move: np.ndarray, q: np.ndarray, e_m: np.ndarray) -> np.ndarray:
     """Whether the convex hull of the straight step from ``p`` to ``p + move`` and the disk
     of radius ``e_m`` around ``q`` (row-wise) keeps more than :attr:`Walls.clearance_m` from
     every wall cell: then every segment between a point of the step and a point of the disk
-    is clear of walls. With ``box``, the hull of the disk and of the box with sides along
-    the axes that the step spans: it holds every step from ``p`` whose end is in that box
-    (each coordinate going part of the way: a step slid along a wall, or cut short).
-    Exact, up to rounding, as :func:`clear_of_walls`.
+    is clear of walls. Exact, up to rounding, as :func:`clear_of_walls`.
 
     >>> w = walls_of(np.eye(4, dtype=bool)[::-1], resolution_m=1.0)
     >>> p, q = np.array([[0.5, 2.5]]), np.array([[0.5, 0.5]])
@@ -322,7 +318,7 @@ def step_clear_of_walls(
     if not walls.on or len(p) == 0:
         return np.ones(len(p), dtype=bool)
     out = np.empty(len(p), dtype=bool)
-    map_walker("netsim.mobility._local_kernels").steps_clear(walls, p, move, q, filled(e_m, (len(p),)), box, out)
+    map_walker("netsim.mobility._local_kernels").steps_clear(walls, p, move, q, filled(e_m, (len(p),)), out)
     return out
 
 
@@ -636,7 +632,7 @@ def let_go(
     remembers the other; or a list ``i`` holds of ``u``, or that a robot ``i`` remembers
     held of it, names ``v`` with an Ack sent less than ``release_s`` before ``t0_s``) and
     they are surely within ``range_m`` and (on a map) surely clear of ``walls``
-    (:func:`clear_of_walls` with the larger of the two uncertainties), each link at the
+    (:func:`clear_of_walls`, each end with its own uncertainty), each link at the
     largest rank it can have at ``t0``. Under shadowing (``fade``) a link's band is that of
     its length at zero shadowing under its record of the step's epoch (:class:`Lists`), and
     a link whose record ``i`` cannot read is neither a detour's link nor let go of. A
@@ -860,10 +856,10 @@ def cut_for_walls(
     """Rule 5 (walls): each robot's step, such that every kept link is surely clear of walls
     over it, and still ending within its leashes (rule 2). A link is answered for
 
-    - *alone*, whatever the other end does: the convex hull of the box with sides along
-      the axes that the step spans (it holds the step, and every step the regions make of
-      it) and of the disk of radius ``e_j(t1)`` around ``q_j``, where ``j`` can be, meets
-      no wall (:func:`step_clear_of_walls`); the step finally made is tested again;
+    - *alone*, whatever the other end does: the convex hull of the step and of the disk
+      of radius ``e_j(t1)`` around ``q_j``, which holds the step and where ``j`` can be,
+      keeps off the walls (:func:`step_clear_of_walls`); the step finally made (slid or
+      cut for the regions of other links) is tested again;
     - or *by region*, where that fails for the whole ``move``: both ends share a region
       (:func:`shared_regions`, from ``j``'s place at ``t0``, within ``e_j(t0)`` of ``q_j``),
       and the robot ends its step in it. The other end holds there, answers alone, or ends
@@ -889,8 +885,7 @@ def cut_for_walls(
     e0 = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, v)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
     region = np.full(len(robot), -1, np.int64)
-    # Alone for every step the regions below may make of this one (slid, or cut short).
-    alone = step_clear_of_walls(walls, pos[robot], move[robot], centre, e, box=True)
+    alone = step_clear_of_walls(walls, pos[robot], move[robot], centre, e)
     region[~alone] = shared_regions(walls, pos[robot[~alone]], centre[~alone], e0[~alone])
     boxed = region >= 0
     lo = np.full((n, 2), -np.inf)
@@ -908,7 +903,9 @@ def cut_for_walls(
     move = np.where(off_leash[:, None], move * cut[:, None], slid)
     length = np.hypot(*move.T)
     scale = np.ones(n)
+    # A robot that keeps no link moves as it wished: there is nothing to answer for.
     undecided = length > 0
+    undecided[np.setdiff1d(np.arange(n), robot)] = False
     for s in WALL_TRIES:
         if s == 0.0:
             break

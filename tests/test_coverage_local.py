@@ -564,15 +564,13 @@ def test_walls_a_pair_of_disks_is_clear_exactly_when_its_hull_keeps_off_every_wa
     assert said.sum() > 100 and (~said).sum() > 20
 
 
-@pytest.mark.parametrize("box", [False, True])
-def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_every_wall(monkeypatch, box):
+def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_every_wall(monkeypatch):
     """Rule 5's walls' test of a step is exact: it says clear exactly when the convex hull of
-    the step (a segment; with ``box``, the box with sides along the axes that it spans) and
-    the disk where the other end can be keeps more than ``clearance_m`` from every occupied cell
+    the step (a segment) and the disk where the other end can be keeps more than
+    ``clearance_m`` from every occupied cell
     (shapely, the disk's polygon a hair outside and inside the true disk), plain and
     compiled; steps grazing a wall's side within a cell."""
     from shapely import GeometryCollection, LineString, Point
-    from shapely import box as rectangle
 
     rng = np.random.default_rng(8)
     occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (60, 150, 150, 151)], 250.0, 250.0)
@@ -588,18 +586,14 @@ def test_walls_a_step_and_a_disk_are_clear_exactly_when_their_hull_keeps_off_eve
 
     def gap(k, scale):
         disk = Point(q[k]).buffer(e[k] * scale, 64) if e[k] > 0 else Point(q[k])
-        end = p[k] + move[k]
-        if box and (move[k] != 0).all():
-            step = rectangle(*np.minimum(p[k], end), *np.maximum(p[k], end))
-        else:
-            step = LineString([p[k], end])
+        step = LineString([p[k], p[k] + move[k]])
         return GeometryCollection([step, disk]).convex_hull.distance(shapes)
 
     outer = np.array([gap(k, grow) for k in range(2 * n)])
     inner = np.array([gap(k, 1.0) for k in range(2 * n)])
     for flag in ("0", "1"):
         monkeypatch.setenv("NETSIM_COMPILED", flag)
-        said = step_clear_of_walls(walls, p, move, q, e, box=box)
+        said = step_clear_of_walls(walls, p, move, q, e)
         assert (outer[said] > 0).all()
         assert said[inner > walls.clearance_m + 1e-6].all()
     assert ((inner > walls.clearance_m + 1e-6) & (inner < RES)).sum() > 10
@@ -620,20 +614,63 @@ def test_walls_a_hull_of_unknown_extent_is_not_clear():
 
 
 def test_walls_kernel_agrees_with_its_oracle(monkeypatch):
-    """The walls' test, plain and compiled, says exactly what its numpy oracle says."""
+    """The walls' test, plain and compiled, says exactly what its oracle (the least distance
+    over the hull's disks, by ternary search) says: on random hulls, and on hulls whose
+    straight side passes a wall's corner within 30 nm to 0.3 m."""
     rng = np.random.default_rng(6)
     occ = blocks_map([(40, 40, 42, 120), (100, 0, 160, 3), (60, 150, 150, 151)], 250.0, 250.0)
     walls = walls_of(occ, ORIGIN, RES)
     a = rng.uniform(0, 220, (300, 2))
     b = a + rng.normal(0, 30, (300, 2))
     ea, eb = rng.uniform(0, 5, (2, 300))
+    corners = np.array([[40, 40], [42, 40], [42, 120], [40, 120], [100, 3], [160, 3], [60, 151], [150, 150]], float)
+    n = 300
+    corner = corners[rng.integers(len(corners), size=n)]
+    angle = rng.uniform(0, 2 * np.pi, n)
+    along = np.c_[np.cos(angle), np.sin(angle)]
+    side = rng.choice([-1.0, 1.0], n)[:, None] * np.c_[-along[:, 1], along[:, 0]]
+    graze_ea = np.where(rng.random(n) < 0.4, 0.0, rng.uniform(0, 2, n))
+    graze_eb = np.where(rng.random(n) < 0.5, graze_ea, rng.uniform(0, 2, n))
+    centre = corner + side * (10 ** rng.uniform(-7.5, -0.5, n) + 0.5 * (graze_ea + graze_eb))[:, None]
+    a = np.r_[a, centre - along * rng.uniform(0.5, 15, n)[:, None]]
+    b = np.r_[b, centre + along * rng.uniform(0.5, 15, n)[:, None]]
+    ea, eb = np.r_[ea, graze_ea], np.r_[eb, graze_eb]
     want = oracle.clear_of_walls(walls, a, b, ea, eb)
-    assert 0 < want.sum() < len(want)
+    assert 0 < want[:300].sum() < 300 and 0 < want[300:].sum() < n
     assert (want == clear_of_walls(walls, a, b, ea, eb)).all()
     plain = importlib.import_module("netsim.mobility._local_kernels")
     out = np.empty(len(a), dtype=bool)
     plain.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
     assert (want == out).all()
+
+
+def test_walls_a_robot_stopped_at_a_wall_keeps_its_links_along_it():
+    """The control loop stops a robot a hair short of a wall (netsim.world.free_space); a
+    link from there along the wall, to a robot known exactly, is clear (its hull keeps more
+    than ``clearance_m`` from the wall), and the robot may step away along it."""
+    from netsim.world.free_space import short_of_walls
+    from netsim.world.maps import OccupancyMap
+
+    occ = blocks_map([(0, 20, 100, 21)], 100.0, 60.0)
+    walls = walls_of(occ, ORIGIN, RES)
+    grid = OccupancyMap(occ, ~occ, RES, ORIGIN)
+    start = np.array([[30.0, 19.0]])
+    stopped = start + short_of_walls(grid, start, np.array([[0.0, 5.0]]), 1.0)
+    assert 19.999 < stopped[0, 1] < 20.0
+    other = stopped + [[15.0, 0.0]]
+    assert clear_of_walls(walls, stopped, other, np.zeros(1))[0]
+    assert step_clear_of_walls(walls, stopped, np.array([[2.0, -1.0]]), other, np.zeros(1))[0]
+    assert not clear_of_walls(walls, stopped, other + [[0.0, 0.01]], np.zeros(1))[0]
+
+
+def test_walls_a_robot_that_keeps_no_link_moves_as_it_wished():
+    """Rule 5 asks nothing of a robot that keeps no link, even when no robot keeps one."""
+    pos = np.array([[0.0, 0.0], [50.0, 0.0]])
+    m = all_heard(pos, T0 - 0.1)
+    kept = np.zeros((2, 2), dtype=bool)
+    move = np.array([[0.0, -2.0], [1.0, 0.0]])
+    walls = walls_of(blocks_map([(10.0, -5.0, 10.5, 5.0)], 80.0, 40.0), ORIGIN, RES)
+    assert (cut_for_walls(pos, move, m, kept, T0 + LIMITS.period_s, LIMITS, walls) == move).all()
 
 
 @pytest.mark.slow
