@@ -140,8 +140,8 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
     per_f_m = np.hypot(bx - ax, by - ay) + half_m + abs(eb - ea)  # how fast a member's reach moves with f
     if not math.isfinite(per_f_m + ax + ay + ea):
         return False  # nowhere known: no proof (and the walk would not end)
-    disks = np.empty((2 * k, 3))
     if per_f_m == 0.0:
+        disks = np.empty((k, 3))
         _member(disks, 0, ax, ay, ea, bx, by, eb, shape, k, 0.0)
         return not near_walls(walls, disks, k)
     f = 0.0
@@ -159,6 +159,7 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
             f = min(f + (gap_m - walls.clearance_m) / per_f_m, 1.0)
             continue
         f2 = min(f + EXACT_SPAN_CELLS * res / per_f_m, 1.0)
+        disks = np.empty((2 * k, 3))  # only near a wall: most tests never get here
         _member(disks, 0, ax, ay, ea, bx, by, eb, shape, k, f)
         _member(disks, k, ax, ay, ea, bx, by, eb, shape, k, f2)
         if near_walls(walls, disks, 2 * k):

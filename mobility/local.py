@@ -904,8 +904,8 @@ def cut_for_walls(
     length = np.hypot(*move.T)
     scale = np.ones(n)
     # A robot that keeps no link moves as it wished: there is nothing to answer for.
-    undecided = length > 0
-    undecided[np.setdiff1d(np.arange(n), robot)] = False
+    undecided = np.zeros(n, dtype=bool)
+    undecided[robot] = length[robot] > 0
     for s in WALL_TRIES:
         if s == 0.0:
             break
