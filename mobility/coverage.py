@@ -51,6 +51,9 @@ The architecture (docs/model.md section 5)
   neither push: every robot down the distance through free space to the nearest free cell
   no robot covers yet; its planned step slides too before the exact cut, and the forest
   prefers the links that last over the wished step (:func:`netsim.mobility.keep.prefer`).
+  The local plan's robots move the same way toward the nearest free cell none they know
+  of has covered (:mod:`netsim.mobility.explored`), and take turns
+  (:func:`netsim.mobility.local.turn_takers`).
 - The hierarchy adapts. A member that its forces carry beyond its leader's range is
   released: it hears no more commands and holds; after ``tau`` it leaves the group (rule
   3) and joins a leader it hears, or is elected leader (rule 6), or becomes leader after
@@ -62,8 +65,8 @@ The architecture (docs/model.md section 5)
 
 Stopping: in ``"spread"`` control ends once the covered fraction of ``min(1, U(N) / A)``
 (the coverage samples) has risen less than ``stop_gain`` over ``stop_hold_s`` (and, on a map
-with the expansion on, the global plan's robots came no nearer the free space not yet
-covered), or no robot
+with the expansion on, the robots came no nearer the free space their expansion seeks),
+or no robot
 has moved faster than ``stop_speed_mps`` for ``stop_hold_s``. (Under the Ack-based
 knowledge the net keeps creeping at a few centimetres per second long after it has
 stopped gaining area; a motion-only rule would not end.)
@@ -97,6 +100,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 from netsim.mobility.bridges import plan_follow
+from netsim.mobility.explored import Explored
 from netsim.mobility.forces import (
     LAWS,
     SQRT3,
@@ -122,6 +126,7 @@ from netsim.mobility.local import (
     silence_of,
     silent,
     sources_heard,
+    turn_takers,
     walls_of,
 )
 from netsim.mobility.spread import plan_spread
@@ -243,16 +248,17 @@ class CoverageParams(Params):
         finite(non_negative),
         "spread: every robot is also pushed away from the centre of its component (plan = 'local': from the"
         " centre it estimates with the robots it hears) with expansion x its distance from it, at most"
-        " sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off); on a map the global plan's push is"
-        " that cap, through free space toward the nearest free cell no robot covers, whatever the value"
-        " above 0, and its only push: no pushes of robots or walls, which 0 brings back (docs/model.md 5.3)",
+        " sqrt(3) r_c / 4 (a pure number: forces in metres; 0: off); on a map the push is that cap,"
+        " through free space toward the nearest free cell no robot covers (plan = 'local': none the robot"
+        " knows its team to have covered), whatever the value above 0, and its only push: no pushes of"
+        " robots or walls, which 0 brings back (docs/model.md 5.1, 5.3)",
     )
     stop_speed_mps: float = param(
         0.02,
         non_negative,
         "a robot (follow: a leader) whose force asks for less than this holds, m/s; on a map with"
-        " expansion > 0 the global plan's team counts as still spreading (stop_gain) while its robots' mean"
-        " distance to the free space not yet covered falls by more than this x stop_hold_s",
+        " expansion > 0 the team counts as still spreading (stop_gain) while its robots' mean distance to"
+        " the free space their expansion seeks falls by more than this x stop_hold_s",
     )
     stop_hold_s: float = param(
         0.0,
@@ -264,7 +270,7 @@ class CoverageParams(Params):
         0.002,
         non_negative,
         "spread: control ends once covered_of_bound_all gains less than this in stop_hold_s and, on a map"
-        " with expansion > 0, the global plan's robots came no nearer the free space not yet covered"
+        " with expansion > 0, the robots came no nearer the free space their expansion seeks"
         " (stop_speed_mps); 0: off",
     )
     radius_m: float = param(0.0, non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
@@ -462,7 +468,6 @@ class CoverageController:
         self.local_walls = walls_of(
             parts.occupancy.occupied if on_map else None,
             *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
-            free=parts.occupancy.free if on_map else None,
         )
         # On a channel that loses no frame a missed Ack means the link was down: a robot lets
         # go of a robot it has not heard for longer than the largest gap between two Acks
@@ -482,9 +487,13 @@ class CoverageController:
         self.earlier_mps = np.zeros((st.n, 2))
         self.earlier_s = math.inf
         # The local plan's expansion (rule 6): each robot's estimate of its team's centre (m)
-        # announced at the last two steps, with when (none before the first).
+        # announced at the last two steps, with when (none before the first); on a map,
+        # the cells each robot knows its team has covered.
         self.centre_announced = (np.zeros((st.n, 2)), math.inf)
         self.centre_earlier = (np.zeros((st.n, 2)), math.inf)
+        self.explored = Explored(self.grid, st.n) if self.memory is not None and self.grid is not None else None
+        # Rule 7 on a map: the order of the robots' turns at each step, drawn alike by all.
+        self.turns = parts.streams.get("coverage.turns") if on_map else None
 
     def _sure_range_m(self) -> float:
         """The local plan's range: a link clear of walls is up at every transmission while
@@ -585,12 +594,7 @@ class CoverageController:
             # at every corridor's and door's middle, throws robots from side to side of a
             # door instead of through it.
             wished, to_uncovered_m = expansion_to_uncovered(self.grid, pos_now, self.radius_m, self.range_m, c.gain)
-            reached = to_uncovered_m[np.isfinite(to_uncovered_m)]
-            if len(reached):
-                steps = self._mean_to_uncovered_m
-                steps.append((now, float(reached.mean())))
-                while steps[0][0] < now - c.hold_s - 1e-9:
-                    steps.popleft()  # before every stopping window still to come
+            self._expansion_progress(to_uncovered_m)
         else:
             wished = self._pushes(pos_now)
             if c.expansion > 0:
@@ -604,6 +608,16 @@ class CoverageController:
         wished[speed < c.stop_speed_mps] = 0.0
         step.velocity_mps[:] = wished
         self._max_wish = float(speed[group >= 0].max()) if (group >= 0).any() else 0.0
+
+    def _expansion_progress(self, to_uncovered_m: np.ndarray) -> None:
+        """Keep the robots' mean distance to the free space their expansion seeks, over the
+        stopping rule's window (:meth:`_nearing_uncovered`)."""
+        reached = to_uncovered_m[np.isfinite(to_uncovered_m)]
+        if len(reached):
+            now, steps = self.env.now, self._mean_to_uncovered_m
+            steps.append((now, float(reached.mean())))
+            while steps[0][0] < now - self.cfg.hold_s - 1e-9:
+                steps.popleft()  # before every stopping window still to come
 
     def _pushes(self, pos_now: np.ndarray) -> np.ndarray:
         """The global plan's pushes: of the robots each knows of (in sight, on a map) and
@@ -634,12 +648,20 @@ class CoverageController:
         known = memory.known(self.env.now, c.release_s)
         self.heard = self.lists.heard(known, memory.sent_s, c.release_s)
         self.lists.take(memory, self.env.now, c.release_s)
-        target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)
-        target, source_xy = self._in_sight(pos, target, source_xy)
-        wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
-        wished += self._wall_push(pos)
-        if c.expansion > 0:
-            wished += expansion_forces(pos, self._centre_estimates(pos, known), c.expansion, self.range_m, c.gain)
+        if self.explored is not None and c.expansion > 0:
+            # On a map the expansion alone moves the team, as in the global plan, toward
+            # the free space each robot knows its team has not covered (rule 6).
+            cells = self.explored.step(pos, self.radius_m, known, memory.sent_s, self.env.now)
+            wished, to_unexplored_m = self.explored.expansion(cells, pos, self.range_m, c.gain)
+            self._expansion_progress(to_unexplored_m)
+        else:
+            target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)
+            target, source_xy = self._in_sight(pos, target, source_xy)
+            wished = spreading_forces(pos, target, source_xy, c.law, self.range_m, c.gain, self.limits.box)
+            wished += self._wall_push(pos)
+            if c.expansion > 0:
+                centre = self._centre_estimates(pos, known)
+                wished += expansion_forces(pos, centre, c.expansion, self.range_m, c.gain)
         wished = self._slide(pos, wished)
         speed = speeds_mps(wished)
         wished[speed < c.stop_speed_mps] = 0.0
@@ -698,14 +720,17 @@ class CoverageController:
             travel = np.where(used, halves.travel_m, travel)
             reach = fade.reach(travel, kept)
         self.halves = halves
-        plan = plan_local(pos, wish, knows, kept, step.t_s, limits, reach, halves)
         if not walls.on:
-            return plan
+            return plan_local(pos, wish, knows, kept, step.t_s, limits, reach, halves)
+        # Rule 7: a robot moves only in its turn, so the robots it keeps hold while it moves.
+        assert self.turns is not None
+        turn = turn_takers(kept, self.turns.permutation(len(pos)))
+        plan = plan_local(pos, wish * turn[:, None], knows, kept, t0, limits, reach, halves)
         # Rule 5: the step ends short of the walls (as the control loop would make it), then
         # keeps every kept link clear of them.
         move = short_of_walls(self.occupancy, pos, plan.velocity_mps * limits.period_s, 1.0)
         planned = move.copy()
-        move = cut_for_walls(pos, move, knows, kept, step.t_s + limits.period_s, limits, walls)
+        move = cut_for_walls(pos, move, knows, kept, t1, limits, walls)
         changed = np.hypot(*(move - planned).T) > 1e-9 * limits.range_m
         held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & changed)
         return plan._replace(velocity_mps=move / limits.period_s, held=held)
@@ -890,7 +915,7 @@ class CoverageController:
     def _coverage_stopping_rule(self) -> None:
         """Spread: control ends once the covered fraction of ``min(1, U(N) / A)`` has not
         risen ``stop_gain`` above its value ``stop_hold_s`` ago (the team stopped spreading),
-        nor, on a map, the global plan's robots come nearer the free space not yet covered
+        nor, on a map, the robots come nearer the free space their expansion seeks
         (:meth:`_nearing_uncovered`)."""
         c, now = self.cfg, self.env.now
         loop = self.loop
@@ -902,10 +927,11 @@ class CoverageController:
             loop.stop()
 
     def _nearing_uncovered(self) -> bool:
-        """Whether the robots' mean distance through free space to the free space not yet
-        covered (what the expansion on a map descends) fell by more than ``stop_speed_mps
-        x stop_hold_s`` within the stopping rule's window: robots that file through a door
-        toward it raise the coverage only once they are through."""
+        """Whether the robots' mean distance through free space to the free space their
+        expansion seeks (not yet covered; with the local plan, not known to be explored: what
+        the expansion on a map descends) fell by more than ``stop_speed_mps x stop_hold_s``
+        within the stopping rule's window: robots that file through a door toward it raise
+        the coverage only once they are through."""
         c, now = self.cfg, self.env.now
         window = [d for t, d in self._mean_to_uncovered_m if t >= now - c.hold_s - 1e-9]
         return len(window) > 1 and window[0] - min(window[1:]) > c.stop_speed_mps * c.hold_s

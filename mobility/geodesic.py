@@ -87,12 +87,40 @@ class FreeGrid:
         where the point has no free cell near, and where the point's own cell is not
         covered (a radius under the grid's half diagonal, or a point off its cell): the
         distance is then 0, and there is nothing to descend."""
+        return self.to_outside(points_m, lambda: self.covered(points_m, radius_m))
+
+    def covered_each(self, points_m: np.ndarray, radius_m: float) -> np.ndarray:
+        """``(n, cells)``: the cells each point alone covers (:meth:`covered`'s rule, asked of
+        the part of the grid the point's disk can reach, whole cells from the grid's
+        origin)."""
+        p = np.asarray(points_m, dtype=float).reshape(-1, 2)
+        out = np.zeros((len(p), self.h, self.w), bool)
+        grid = load("netsim._kernels", None, values=len(p))
+        x0, y0 = self.origin_m
+        # One cell more on each side: the kernel, not the rounding of this bound, decides.
+        lo = np.floor((p - (x0, y0) - radius_m) / self.cell_m).astype(np.int64) - 1
+        hi = np.ceil((p - (x0, y0) + radius_m) / self.cell_m).astype(np.int64) + 1
+        lo = np.clip(lo, 0, (self.w, self.h))
+        hi = np.clip(hi, 0, (self.w, self.h))
+        for k in np.flatnonzero(np.isfinite(p).all(axis=1) & (hi > lo).all(axis=1)):
+            (c0, r0), (c1, r1) = lo[k], hi[k]
+            side = int(max(c1 - c0, r1 - r0))
+            near = grid.grid_nearest_m(
+                p[k : k + 1], float(radius_m), x0 + c0 * self.cell_m, y0 + r0 * self.cell_m,
+                side * self.cell_m, side * self.cell_m, side, 0.0, True,
+            )  # fmt: skip
+            out[k, r0:r1, c0:c1] = np.isfinite(near[: r1 - r0, : c1 - c0])
+        return out.reshape(len(p), -1)
+
+    def to_outside(self, points_m: np.ndarray, covered) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`to_uncovered` with the cells ``covered()`` gives (row-major bools; a
+        callable, asked only when some point has a free cell near) as those covered."""
         x, y = self.cells(points_m)
         if not (x >= 0).any():
             # No target: the search would settle every cell for nothing.
             return np.zeros((len(x), 2)), np.full(len(x), np.inf)
         kern = _kernels()
-        covered = self.covered(points_m, radius_m)
+        covered = np.ascontiguousarray(covered())
         sources = kern.frontier(self.free, self.w, self.h, covered, *self.moves)
         # A path from a covered cell first leaves the covered part at a source: the search
         # keeps to the covered part, and stops once the points' own cells are settled (the
@@ -168,6 +196,27 @@ def expansion_to_uncovered(
     covers (within ``radius_m``, :meth:`FreeGrid.to_uncovered`); none where no such cell can
     be reached (the team's free region all covered). And that distance (m; inf: none)."""
     direction, d = grid.to_uncovered(pos, radius_m)
+    size = gain * EXPANSION_CAP * range_m * np.isfinite(d)
+    return size[:, None] * direction, d
+
+
+def expansion_to_unexplored(
+    grid: FreeGrid, pos: np.ndarray, explored: np.ndarray, range_m: float, gain: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The local plan's expansion on a map (docs/model.md 5.1, rule 6): each robot pushed as
+    :func:`expansion_to_uncovered` pushes it, toward the nearest free cell outside its own
+    ``explored`` cells (``(n, cells)`` bools, packed by ``np.packbits`` along the cells: what
+    it knows its team has covered), and that distance (m; inf: none). Robots that know the
+    same cells share one search."""
+    direction, d = np.zeros((len(pos), 2)), np.full(len(pos), np.inf)
+    cells = grid.w * grid.h
+    groups: dict[bytes, list[int]] = {}
+    for i, row in enumerate(explored):
+        groups.setdefault(row.tobytes(), []).append(i)
+    for rows in groups.values():
+        members = np.array(rows)
+        own = np.unpackbits(explored[rows[0]], count=cells).astype(bool)
+        direction[members], d[members] = grid.to_outside(pos[members], lambda own=own: own)
     size = gain * EXPANSION_CAP * range_m * np.isfinite(d)
     return size[:, None] * direction, d
 

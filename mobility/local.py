@@ -32,20 +32,23 @@ period``), its own position ``p`` at ``t0`` exact:
    knowledge of ``j`` is too old for it to answer for the link), ``i`` holds.
 4. **Pull** (:func:`pulls`). On a map a robot announces its wish as it could carry it out
    (:func:`netsim.mobility.geodesic.within_reach`), not a wish into a wall.
-5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j`` alone
-   (the convex hull of the straight step and of the disk where ``j`` can be during the
-   step, ``e_j(t1)`` around ``q_j``, keeps off the walls, so every
-   segment between the two robots during the step is clear of walls whatever ``j`` does)
-   or *by region*: the map's regions (:func:`free_rectangles`, convex and free, one order
-   every robot computes) give the link the first region, in order, holding both robots
-   at ``t0`` (:func:`shared_regions`; ``j``, from its side, names the same or none), and
-   ``i`` ends its step in it; else a shorter step, or it holds. A detour's link must be
-   surely clear of walls too (:func:`clear_of_walls`).
-
-6. **Expansion** (:func:`centre_estimates`). Each robot estimates its team's centre as
-   the mean of its own estimate and those the robots it heard announced at their latest
-   steps (a consensus: over a connected team the estimates meet), and adds the global
-   plan's push away from it to its wish.
+5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j``: the
+   convex hull of the straight step and of the disk where ``j`` stands (``e_j(t0)`` around
+   ``q_j``: ``j`` holds, rule 7) keeps off the walls, so every segment between the two
+   robots during the step is clear of walls; else a shorter step, or it holds. A detour's
+   link must be surely clear of walls too (:func:`clear_of_walls`).
+6. **Expansion.** In open space (:func:`centre_estimates`) each robot estimates its
+   team's centre as the mean of its own estimate and those the robots it heard announced
+   at their latest steps (a consensus: over a connected team the estimates meet), and adds
+   the global plan's push away from it to its wish. On a map (:mod:`netsim.mobility.explored`)
+   each robot keeps the cells it knows its team has covered, its own and those the Acks it
+   heard carried, and is pushed through free space toward the nearest free cell outside
+   them, as the global plan's robots are toward the nearest no robot covers.
+7. **Turns** (on a map, :func:`turn_takers`). At each step every robot draws the same
+   order of the robots (a stream of the run's seed), and a robot moves only if it outranks
+   every robot it keeps: of two robots that keep each other, one holds. So a robot answers
+   for a kept link against the other end holding where it stands (rule 5): if that end
+   keeps it too, it holds; if not, the link is none the argument below needs.
 
 **Release** (:class:`Silence`, on a channel that loses no frame): ``i`` lets go of a robot
 it has heard no Ack of for longer than the largest gap between two (``ack_period_s +
@@ -94,9 +97,9 @@ whose links are in ``K`` and truly shorter; by induction on length (the true len
 at ``t0``: one order for every robot), the ends of every link of ``K`` stay joined by
 links neither end lets go of. Each of those is kept by both ends; over the step an end
 that moves keeps it up whatever the other does (rules 2 and 5 alone), or keeps its half
-while the other keeps its half, answers alone or holds (halves), or keeps to the link's
-region while the other keeps to the same region, answers alone or holds in it (rule 5 by
-region: a region is convex and clear of walls), an end that cannot holds (rules 3 and 5),
+while the other keeps its half, answers alone or holds (halves), or, on a map, keeps it
+clear of walls against the other end holding, which the other then does (rules 5 and 7:
+of two robots that keep each other one holds), an end that cannot holds (rules 3 and 5),
 and a link whose ends hold does not change, so it is up at every instant of the step, so
 up over the next step's window, and at the next ``t0`` it is in ``K`` again while both
 ends still remember each other. So the components of ``K`` never grow,
@@ -115,7 +118,6 @@ from netsim.mobility.keep import FADE_SIGMAS, fade_travel_m
 from netsim.mobility.spread import add_pulls, project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
-from netsim.area import exit_times
 from netsim.compiled import filled, load, map_walker
 from netsim.geometry import beyond, speeds_mps
 from netsim.trajectory import points_on_legs
@@ -123,8 +125,8 @@ from netsim.trajectory import points_on_legs
 
 class Walls(NamedTuple):
     """What a robot knows of the walls: its team's map, as a lower bound of the distance from
-    a cell's points to the nearest occupied cell, and as convex *regions* of free space
-    (:func:`walls_of`). ``on``: False where there is no map (then nothing is a wall)."""
+    a cell's points to the nearest occupied cell (:func:`walls_of`). ``on``: False where there
+    is no map (then nothing is a wall)."""
 
     on: bool
     field: np.ndarray  # (H, W): the distance from the cell's centre to the nearest wall, less half a diagonal, m
@@ -133,95 +135,26 @@ class Walls(NamedTuple):
     resolution_m: float
     clearance_m: float  # a hull clear of walls keeps more than this from every wall, m
     open: np.ndarray  # (H, W) bool: cells that are not walls (where a robot may be)
-    rects: np.ndarray  # (R, 4): each region's x0, x1, y0, y1, m (its free cells, shrunk by REGION_INSET_M)
-    bucket_cells: int  # the side of a bucket of the regions' index, in cells
-    bucket_start: np.ndarray  # (B + 1,) int64: bucket b's regions are bucket_regions[start[b]:start[b + 1]]
-    bucket_regions: np.ndarray  # (M,) int64: the regions meeting each bucket, in the regions' order
 
 
-NO_WALLS = Walls(
-    False,
-    np.full((1, 1), np.inf),
-    0.0,
-    0.0,
-    1.0,
-    0.0,
-    np.ones((1, 1), bool),
-    np.zeros((0, 4)),
-    1,
-    np.zeros(2, np.int64),
-    np.zeros(0, np.int64),
-)
+NO_WALLS = Walls(False, np.full((1, 1), np.inf), 0.0, 0.0, 1.0, 0.0, np.ones((1, 1), bool))
 
 # How far from every wall a hull must keep to be clear of walls, m: less than the hair by
 # which the control loop stops a robot short of a wall head-on (free_space.free_fraction
-# stops it that far along its leg, so a grazing approach ends nearer) and than
-# REGION_INSET_M, so that a link from a robot standing there along the wall is clear; more
+# stops it that far along its leg, so a grazing approach ends nearer), so that a link from a
+# robot standing there along the wall is clear; more
 # than the rounding of the test, and than the tolerance within which line of sight puts a
 # point on a grid line (netsim.world.los).
 WALL_CLEARANCE_M = 1e-8
-# The side of a bucket of the regions' index, m.
-REGION_BUCKET_M = 4.0
-# How far inside its free cells a region's rectangle ends, m: a segment in it then keeps off
-# the grid lines of its border, beyond the tolerance within which line of sight puts a
-# point on a grid line (netsim.world.los), yet a robot stopped short of a wall by the
-# control loop (netsim.world.free_space.free_fraction) still stands in it.
-REGION_INSET_M = 1e-7
-# A step brought into a region ends this much farther inside, so that the robot, moved along
-# the step with rounding, still stands in the region at the next step.
-REGION_CLAMP_M = 1e-8
-
-
-def free_rectangles(free: np.ndarray) -> np.ndarray:
-    """``(R, 4)`` int64, each row ``(i0, i1, j0, j1)`` (columns and rows, inclusive): the
-    rectangles of free cells that a run of free cells along a row (or a column) spans when
-    it is stretched across the rows (columns) where the whole run is free. On a floor plan
-    these are its rooms, its corridors and the strips through its doors. Ordered by area,
-    largest first, then by position: one order every robot computes from the map.
-
-    >>> free = np.ones((3, 5), bool); free[1, 1:4] = False
-    >>> free_rectangles(free).tolist()
-    [[0, 4, 0, 0], [0, 4, 2, 2], [0, 0, 0, 2], [4, 4, 0, 2]]
-    """
-    found = set()
-    for grid, flip in ((free, False), (free.T, True)):
-        h, w = grid.shape
-        prefix = np.zeros((h, w + 1), np.int64)
-        prefix[:, 1:] = np.cumsum(grid, axis=1)
-        last: dict[tuple[int, int], int] = {}
-        for y in range(h):
-            edges = np.diff(np.r_[0, grid[y].astype(np.int8), 0])
-            for x0, x1 in zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist()):
-                if last.get((x0, x1), -1) >= y:
-                    continue
-                full = (prefix[:, x1 + 1] - prefix[:, x0]) == x1 - x0 + 1
-                below = np.flatnonzero(~full[:y])
-                above = np.flatnonzero(~full[y:])
-                y0 = int(below[-1]) + 1 if len(below) else 0
-                y1 = y + int(above[0]) - 1 if len(above) else h - 1
-                last[(x0, x1)] = y1
-                found.add((y0, y1, x0, x1) if flip else (x0, x1, y0, y1))
-    if not found:
-        return np.zeros((0, 4), np.int64)
-    rects = np.array(sorted(found), np.int64)
-    area = (rects[:, 1] - rects[:, 0] + 1) * (rects[:, 3] - rects[:, 2] + 1)
-    order = np.lexsort((rects[:, 1], rects[:, 3], rects[:, 0], rects[:, 2], -area))
-    return rects[order]
 
 
 def walls_of(
-    occupied: np.ndarray | None,
-    origin_m: tuple[float, float] = (0.0, 0.0),
-    resolution_m: float = 1.0,
-    free: np.ndarray | None = None,
+    occupied: np.ndarray | None, origin_m: tuple[float, float] = (0.0, 0.0), resolution_m: float = 1.0
 ) -> Walls:
     """The walls of a map (``occupied``: ``(H, W)`` bool, row 0 at the bottom), or
     :data:`NO_WALLS` (None). A point ``x`` in the cell of centre ``c`` is at least
     ``field - |x - c|`` from every occupied cell (closed squares): a cell's points lie within
-    half a diagonal of its centre. The regions are :func:`free_rectangles` of the ``free``
-    cells (default: those not occupied), each shrunk by :data:`REGION_INSET_M` so that a
-    segment in it keeps clear of the grid lines of its border (convex: a segment between two
-    of its points lies in it, clear of walls)."""
+    half a diagonal of its centre."""
     if occupied is None:
         return NO_WALLS
     from scipy.ndimage import distance_transform_edt
@@ -231,40 +164,9 @@ def walls_of(
         field = np.full(occupied.shape, np.inf)
     else:
         field = distance_transform_edt(~occupied) * resolution_m - half
-    cells = free_rectangles(~occupied if free is None else free & ~occupied)
     ox, oy, res = float(origin_m[0]), float(origin_m[1]), float(resolution_m)
-    inset = REGION_INSET_M
-    rects = np.column_stack(
-        [
-            ox + cells[:, 0] * res + inset,
-            ox + (cells[:, 1] + 1) * res - inset,
-            oy + cells[:, 2] * res + inset,
-            oy + (cells[:, 3] + 1) * res - inset,
-        ]
-    ).reshape(-1, 4)
-    k = max(1, int(round(REGION_BUCKET_M / res)))
-    h, w = occupied.shape
-    bucket = map_walker("netsim.mobility._local_kernels").bucket_index
-    members: list[list[int]] = [[] for _ in range(bucket(w - 1, h - 1, w, k) + 1)]
-    for r, (i0, i1, j0, j1) in enumerate(cells.tolist()):
-        for j in range(j0 // k * k, j1 + 1, k):
-            for i in range(i0 // k * k, i1 + 1, k):
-                members[bucket(i, j, w, k)].append(r)
-    start = np.r_[0, np.cumsum([len(m) for m in members])].astype(np.int64)
-    flat = np.array([r for m in members for r in m], np.int64)
-    return Walls(
-        True,
-        np.ascontiguousarray(field, float),
-        ox,
-        oy,
-        res,
-        WALL_CLEARANCE_M,
-        np.ascontiguousarray(~occupied),
-        np.ascontiguousarray(rects, float),
-        k,
-        start,
-        flat,
-    )
+    field = np.ascontiguousarray(field, float)
+    return Walls(True, field, ox, oy, res, WALL_CLEARANCE_M, np.ascontiguousarray(~occupied))
 
 
 def clear_of_walls(
@@ -753,6 +655,13 @@ def silent(memory: Memory, now_s: float, lead_s: float, silence: Silence | None)
         return heard & (now_s - (memory.sent_s + lead_s) > silence.gap_s)
 
 
+def turn_takers(kept: np.ndarray, rank: np.ndarray) -> np.ndarray:
+    """Rule 7 (turns, on a map): the robots that may move at a step, those that outrank
+    (``rank``, one permutation every robot draws alike) every robot they keep (``kept``): of
+    two robots that keep each other, one holds."""
+    return ~(kept & (rank[None, :] > rank[:, None])).any(axis=1)
+
+
 def leash_radius(memory: Memory, t1_s: float, limits: StepLimits) -> np.ndarray:
     """``(n, n)``: how far from ``q_j`` robot ``i`` may end the step (rule 2): what it
     answers for (``memory.keep_m``, or the plan's range less its margin) less ``j``'s largest
@@ -834,78 +743,28 @@ def plan_local(
 WALL_TRIES = (1.0, 0.5, 0.25, 0.125, 0.0)
 
 
-def shared_regions(walls: Walls, pos: np.ndarray, q: np.ndarray, e_m: np.ndarray) -> np.ndarray:
-    """For each row, the region a robot at ``pos`` (exact) and the other end of its link,
-    within ``e_m`` of ``q``, share: the first region in the regions' order that holds both
-    (-1: none, or the robot cannot tell;
-    :func:`netsim.mobility._local_kernels.shared_region`). Both ends that can tell compute
-    the same region."""
-    p = np.ascontiguousarray(np.asarray(pos, float).reshape(-1, 2))
-    out = np.full(len(p), -1, np.int64)
-    if not walls.on or len(p) == 0:
-        return out
-    q = np.ascontiguousarray(np.asarray(q, float).reshape(-1, 2))
-    e = filled(e_m, (len(p),))
-    map_walker("netsim.mobility._local_kernels").shared_regions(walls, p, q, e, out)
-    return out
-
-
 def cut_for_walls(
     pos: np.ndarray, move: np.ndarray, memory: Memory, kept: np.ndarray, t1_s: float, limits: StepLimits, walls: Walls
 ) -> np.ndarray:
     """Rule 5 (walls): each robot's step, such that every kept link is surely clear of walls
-    over it, and still ending within its leashes (rule 2). A link is answered for
-
-    - *alone*, whatever the other end does: the convex hull of the step and of the disk
-      of radius ``e_j(t1)`` around ``q_j``, which holds the step and where ``j`` can be,
-      keeps off the walls (:func:`step_clear_of_walls`); the step finally made (slid or
-      cut for the regions of other links) is tested again;
-    - or *by region*, where that fails for the whole ``move``: both ends share a region
-      (:func:`shared_regions`, from ``j``'s place at ``t0``, within ``e_j(t0)`` of ``q_j``),
-      and the robot ends its step in it. The other end holds there, answers alone, or ends
-      its step in the same region (both compute the same one); a region is convex and free,
-      so the segment between the two stays clear of walls throughout.
-
-    The step's end is brought into the regions of its links (each coordinate clamped into
-    their common rectangle, so a robot slides along a corridor), or, where that leaves a
-    leash, the step is cut at their border; then the largest fraction of
-    :data:`WALL_TRIES` with which the links answered for alone pass and the leashes hold is
+    over it while the other end holds (rule 7), and still ending within its leashes (rule
+    2). The convex hull of the step and of the disk of radius ``e_j(t0)`` around ``q_j``
+    (where ``j`` stands) keeps off the walls (:func:`step_clear_of_walls`). The largest
+    fraction of :data:`WALL_TRIES` with which every link passes and the leashes hold is
     taken. 0: the robot holds (then it answers for nothing: the other end, or no motion,
-    keeps the link)."""
+    keeps the link); a robot that keeps no link moves as it wished."""
     n = len(pos)
     move = np.array(move, float)
     length = np.hypot(*move.T)
-    movers = np.flatnonzero(length > 0)
-    if not walls.on or len(movers) == 0:
+    if not walls.on or not (length > 0).any():
         return move
     robot, other = np.nonzero(kept & (length > 0)[:, None])
     centre = memory.xy[robot, other]
-    v = limits.speed_max_mps
-    e = travel_at_cap_m(memory.sent_s[robot, other], t1_s, v)
-    e0 = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, v)
+    e = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, limits.speed_max_mps)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
-    region = np.full(len(robot), -1, np.int64)
-    alone = step_clear_of_walls(walls, pos[robot], move[robot], centre, e)
-    region[~alone] = shared_regions(walls, pos[robot[~alone]], centre[~alone], e0[~alone])
-    boxed = region >= 0
-    lo = np.full((n, 2), -np.inf)
-    hi = np.full((n, 2), np.inf)
-    for axis, (low, high) in enumerate(((0, 1), (2, 3))):
-        np.maximum.at(lo[:, axis], robot[boxed], walls.rects[region[boxed], low])
-        np.minimum.at(hi[:, axis], robot[boxed], walls.rects[region[boxed], high])
-    inner_lo = np.minimum(lo + REGION_CLAMP_M, pos)
-    inner_hi = np.maximum(hi - REGION_CLAMP_M, pos)
-    slid = np.clip(pos + move, inner_lo, inner_hi) - pos
-    off_leash = np.zeros(n, dtype=bool)
-    off_leash[robot[beyond(pos[robot] + slid[robot], centre, leash, n)]] = True
-    # Where sliding leaves a leash, the step stops at the regions' border instead.
-    cut = np.clip(exit_times(pos, move, inner_lo, inner_hi), 0.0, 1.0)
-    move = np.where(off_leash[:, None], move * cut[:, None], slid)
-    length = np.hypot(*move.T)
     scale = np.ones(n)
-    # A robot that keeps no link moves as it wished: there is nothing to answer for.
     undecided = np.zeros(n, dtype=bool)
-    undecided[robot] = length[robot] > 0
+    undecided[robot] = True
     for s in WALL_TRIES:
         if s == 0.0:
             break
@@ -913,9 +772,8 @@ def cut_for_walls(
         if len(rows) == 0:
             break
         r = robot[rows]
-        end = pos[r] + s * move[r]
-        ok = boxed[rows] | step_clear_of_walls(walls, pos[r], s * move[r], centre[rows], e[rows])
-        ok &= ~beyond(end, centre[rows], leash[rows], n)
+        ok = step_clear_of_walls(walls, pos[r], s * move[r], centre[rows], e[rows])
+        ok &= ~beyond(pos[r] + s * move[r], centre[rows], leash[rows], n)
         failed = np.zeros(n, dtype=bool)
         failed[r[~ok]] = True
         done = undecided & ~failed

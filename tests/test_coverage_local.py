@@ -696,18 +696,14 @@ def test_detour_on_a_map_needs_links_surely_clear_of_walls(monkeypatch):
         assert (out[0] == want).all() and (out[1] == want).all()
 
 
-def without_regions(walls):
-    """The walls with no region (rule 5 and rule 1 answer alone)."""
-    return walls._replace(bucket_start=np.zeros_like(walls.bucket_start), bucket_regions=np.zeros(0, np.int64))
-
-
 def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():
-    """Rule 5, answering alone (no region to share): robot 0 keeps robot 1, 20 m east (heard
-    0.1 s ago: within 2.2 m of where it was heard until the step's end), and steps 2 m
-    south. The hull of its step and of that disk passes 1.1 m north of the link's middle
-    and 2.1 m south of it. With no wall near, or a pillar 1.5 m north of the link's middle
-    (which a disk of the step's length about the robot would meet), it makes its whole
-    step; with a pillar 2 m south, half of it; with a pillar 1 m north, it holds."""
+    """Rule 5: robot 0 keeps robot 1, 20 m east, heard 0.1 s ago, so standing within 0.2 m of
+    where it was heard (it holds, rule 7), and steps 2 m south. The hull of its step and of
+    that disk spans, where a pillar stands 10 m east, from 0.1 m north of the link to 1.1 m
+    south of it. With no wall near, or a pillar 0.3 m north of the link (which the hull with
+    the disk of 2.2 m where robot 1 could be by the step's end, were it moving, would meet),
+    it makes its whole step; with a pillar 1 m south, half of it; with a pillar touching the
+    link from the south, it holds."""
     pos = np.array([[0.0, 0.0], [20.0, 0.0]])
     m = all_heard(pos, T0 - 0.1)
     kept = m.known(T0, 20.0)
@@ -715,27 +711,29 @@ def test_walls_a_robot_moves_only_while_its_kept_links_stay_clear_of_walls():
     t1 = T0 + LIMITS.period_s
 
     def scale(y0, y1):
-        walls = without_regions(walls_of(blocks_map([(10.0, y0, 10.5, y1)], 60.0, 40.0), ORIGIN, RES))
+        walls = walls_of(blocks_map([(10.0, y0, 10.5, y1)], 60.0, 40.0), ORIGIN, RES)
         return cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[0, 1] / move[0, 1]
 
     assert scale(15.0, 15.5) == 1.0
-    assert scale(1.5, 2.0) == 1.0
-    assert scale(-2.5, -2.0) == 0.5
-    assert scale(1.0, 1.5) == 0.0
+    assert scale(0.5, 1.0) == 1.0
+    walls = walls_of(blocks_map([(10.0, 0.5, 10.5, 1.0)], 60.0, 40.0), ORIGIN, RES)
+    assert not step_clear_of_walls(walls, pos[:1], move[:1], pos[1:], np.array([2.2]))[0]
+    assert scale(-1.5, -1.0) == 0.5
+    assert scale(-0.5, 0.0) == 0.0
     assert (cut_for_walls(pos, move, m, kept, t1, LIMITS, NO_WALLS) == move).all()
 
 
 @pytest.mark.parametrize("seed", range(8))
-def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_whatever_the_other_does(seed):
-    """Rule 5 answering alone, the argument: for every link a moving robot keeps, the convex
-    hull of its step and of the disk where the other end can be at the step's end (every
-    segment between them at every instant) meets no wall (shapely, exact), and the leash of
-    rule 2 still holds at the step's end (rule 5 by region: tests/test_coverage_local_map.py)."""
+def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_while_the_other_holds(seed):
+    """Rule 5, the argument: for every link a moving robot keeps, the convex hull of its step
+    and of the disk where the other end stands (it holds: rule 7; every segment between
+    them at every instant) meets no wall (shapely, exact), and the leash of rule 2 still
+    holds at the step's end (both ends moving in turns: tests/test_coverage_local_map.py)."""
     from shapely import GeometryCollection, LineString, Point
 
     pos, m = random_scene(seed, n=30)
     occ = blocks_map([(100, 50, 102, 250), (150, 100, 300, 101), (40, 200, 80, 204)])
-    walls, shapes = without_regions(walls_of(occ, ORIGIN, RES)), wall_shapes(occ)
+    walls, shapes = walls_of(occ, ORIGIN, RES), wall_shapes(occ)
     known = m.known(T0, 20.0)
     kept = known & ~let_go(pos, m, told(m), T0, V, 10.0, RC, walls)
     wish = np.random.default_rng(seed).normal(0, 3.0, pos.shape)
@@ -745,9 +743,9 @@ def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_whatever_the_o
     i, j = np.nonzero(kept & (np.hypot(*move.T) > 0)[:, None])
     assert len(i) > 10
     for a, b in zip(i.tolist(), j.tolist()):
-        e = V * (t1 - m.sent_s[a, b])
+        e = V * (T0 - m.sent_s[a, b])
         step = LineString([pos[a], pos[a] + move[a]]) if (move[a] != 0).any() else Point(pos[a])
-        hull = GeometryCollection([step, Point(m.xy[a, b]).buffer(e * 1.001, 64)]).convex_hull
+        hull = GeometryCollection([step, Point(m.xy[a, b]).buffer(e * 1.001 + 1e-9, 64)]).convex_hull
         assert not hull.intersects(shapes)
         assert np.hypot(*(pos[a] + move[a] - m.xy[a, b])) + e <= RC - LIMITS.margin_m + 1e-6
 

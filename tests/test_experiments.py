@@ -4,7 +4,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
 
@@ -207,55 +206,6 @@ def test_routing_compare_intervals_of_a_ratio_stay_within_0_and_1():
 
 
 @pytest.mark.slow
-def test_turns_on_map_prints_a_row_per_variant(tmp_path):
-    """experiments/turns_on_map.py (docs/experiments.md, "What a plan of turns would reach")
-    runs each variant of the prototype on the office and prints its row: the covered
-    fraction of the free-area bound and the seeds that split, which turns never do here."""
-    run = subprocess.run(
-        [sys.executable, str(ROOT / "experiments" / "turns_on_map.py"), "--variants", "oracle", "plan"]
-        + ["--n", "8", "--seeds", "1", "--duration", "30", "--workers", "1"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-    )
-    assert run.returncode == 0, run.stderr[-2000:]
-    rows = [line.split() for line in run.stdout.splitlines()[1:]]
-    assert [r[0] for r in rows] == ["oracle", "plan"]
-    for _, seeds, final, _least, split, _moved in rows:
-        assert seeds == "1" and 0.0 < float(final) <= 1.0 and split == "0"
-
-
-def test_turns_on_map_moves_one_robot_of_two_in_each_others_turn_group(monkeypatch):
-    """The prototype's turns: of two robots in each other's turn group at most one moves,
-    the robot of highest rank always moves, and so does a robot whose group is empty."""
-    from tests.fixtures import script
-
-    monkeypatch.syspath_prepend(str(ROOT / "experiments"))  # the script imports its neighbour
-    module = script("experiments/turns_on_map.py")
-    rng = np.random.default_rng(3)
-    for _ in range(50):
-        n = 12
-        group = np.triu(rng.random((n, n)) < 0.3, 1)
-        group = group | group.T
-        rank = module.ranks(float(rng.integers(1000)), n)
-        moves = module.turn_takers(group, rank)
-        assert not (group & moves[:, None] & moves[None, :]).any()
-        assert moves[np.argmax(rank)]
-        assert moves[~group.any(axis=1)].all()
-
-
-def test_turns_on_map_refuses_bad_options_in_one_line(tmp_path):
-    """An unknown variant or radio, no seeds, a duration that is not positive: one line on
-    stderr naming the option, exit status 2, before any run."""
-    cases = (
-        (["--variants", "oracle", "magic"], "--variants 'magic'"),
-        (["--radio", "moon"], "--radio 'moon'"),
-        (["--seeds", "0"], "--seeds 0"),
-        (["--duration", "-1"], "--duration -1"),
-    )
-    refused_in_one_line("turns_on_map.py", cases, tmp_path)
-
-
 def refused_in_one_line(script: str, cases, folder) -> None:
     """Each ``(args, said)`` of ``cases`` run as ``experiments/SCRIPT args`` in ``folder``:
     one line on stderr holding ``said``, exit status 2, nothing written."""

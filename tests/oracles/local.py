@@ -2,10 +2,7 @@
 the same rules in numpy array operations, written independently of the loops, for the
 tests to compare the kernels with (plain and compiled)."""
 
-import math
-
 import numpy as np
-from netsim.mobility._local_kernels import REGION_SCAN_CELLS
 from netsim.mobility.local import Heard, Memory, Walls, reported
 
 
@@ -66,40 +63,6 @@ def _gap(cells, ends, f):
     dx = np.maximum(np.maximum(x0 - px, 0.0), px - x0 - res)
     dy = np.maximum(np.maximum(y0 - py, 0.0), py - y0 - res)
     return np.hypot(dx, dy) - (ea + f * (eb - ea))
-
-
-def region_holds(walls: Walls, r: int, q, e) -> int:
-    """:func:`netsim.mobility._local_kernels.region_holds` in numpy: 0 if the disk misses
-    the region's rectangle, 1 if each cell that is not a wall meets the disk only inside the
-    rectangle (the cell's box clipped to the disk's), else -1 (also for a disk of more cells
-    than the kernel scans)."""
-    x0, x1, y0, y1 = walls.rects[r]
-    if math.hypot(max(x0 - q[0], 0.0, q[0] - x1), max(y0 - q[1], 0.0, q[1] - y1)) > e:
-        return 0
-    res, h, w = walls.resolution_m, *walls.open.shape
-    lo = np.floor((np.asarray(q) - e - (walls.origin_x_m, walls.origin_y_m)) / res).astype(int)
-    hi = np.floor((np.asarray(q) + e - (walls.origin_x_m, walls.origin_y_m)) / res).astype(int)
-    lo, hi = np.maximum(lo, 0), np.minimum(hi, (w - 1, h - 1))
-    inside = q[0] - e >= x0 and q[0] + e <= x1 and q[1] - e >= y0 and q[1] + e <= y1
-    if not inside and (hi - lo + 1).prod() > REGION_SCAN_CELLS:
-        return -1
-    jj, ii = np.mgrid[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
-    cx0, cy0 = walls.origin_x_m + ii * res, walls.origin_y_m + jj * res
-    near = (
-        np.hypot(
-            np.maximum.reduce([cx0 - q[0], 0 * cx0, q[0] - cx0 - res]),
-            np.maximum.reduce([cy0 - q[1], 0 * cy0, q[1] - cy0 - res]),
-        )
-        <= e
-    )
-    meet = walls.open[jj, ii] & near
-    out = (
-        (np.maximum(cx0, q[0] - e) < x0)
-        | (np.minimum(cx0 + res, q[0] + e) > x1)
-        | (np.maximum(cy0, q[1] - e) < y0)
-        | (np.minimum(cy0 + res, q[1] + e) > y1)
-    )
-    return 1 if inside or not (meet & out).any() else -1
 
 
 def let_go(
