@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from netsim.mobility.explored import Explored
 from netsim.mobility.geodesic import FreeGrid, expansion_to_unexplored
-from tests.test_coverage_geodesic import SIDE_M, room_with_a_door
 
 from netsim.area import Bounds
+from tests.test_coverage_geodesic import SIDE_M, room_with_a_door
 
 
 def grid() -> FreeGrid:
