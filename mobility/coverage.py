@@ -110,7 +110,14 @@ from netsim.mobility.forces import (
     expansion_forces,
     pair_resultants,
 )
-from netsim.mobility.geodesic import FreeGrid, expansion_to_uncovered, in_sight, slide, within_reach
+from netsim.mobility.geodesic import (
+    FreeGrid,
+    expansion_to_uncovered,
+    expansion_to_unexplored,
+    in_sight,
+    slide,
+    within_reach,
+)
 from netsim.mobility.keep import FADE_SIGMAS, LinkRules, prefer
 from netsim.mobility.local import (
     Fade,
@@ -652,7 +659,7 @@ class CoverageController:
             # On a map the expansion alone moves the team, as in the global plan, toward
             # the free space each robot knows its team has not covered (rule 6).
             cells = self.explored.step(pos, self.radius_m, known, memory.sent_s, self.env.now)
-            wished, to_unexplored_m = self.explored.expansion(cells, pos, self.range_m, c.gain)
+            wished, to_unexplored_m = expansion_to_unexplored(self.grid, pos, cells, self.range_m, c.gain)
             self._expansion_progress(to_unexplored_m)
         else:
             target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)

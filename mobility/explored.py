@@ -7,7 +7,8 @@ when it sent the Ack: each Ack carries its sender's explored cells as of its lat
 before it (:func:`netsim.mobility.local.carried`, as for the wish and the centre). The cells
 only accumulate, so what a robot knows spreads over the team an Ack period a hop, and
 whatever an Ack is late with, a later one brings. The plan pushes each robot toward the
-nearest free cell outside its own explored cells (:func:`expansion_to_unexplored`): where
+nearest free cell outside its own explored cells
+(:func:`netsim.mobility.geodesic.expansion_to_unexplored`): where
 its team has not been, as far as it knows, where the global plan's push goes where no
 robot stands now.
 
@@ -20,7 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from netsim.mobility.geodesic import FreeGrid, expansion_to_unexplored
+from netsim.mobility.geodesic import FreeGrid
 from netsim.mobility.local import carried
 
 
@@ -47,10 +48,3 @@ class Explored:
                 cells[i] |= np.bitwise_or.reduce(said[heard[i]], axis=0)
         self.earlier, self.announced = self.announced, (cells, float(now_s))
         return cells
-
-    def expansion(
-        self, cells: np.ndarray, pos: np.ndarray, range_m: float, gain: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Each robot's push toward the nearest free cell outside its explored ``cells``, and
-        its distance to it through free space (m; inf: none)."""
-        return expansion_to_unexplored(self.grid, pos, cells, range_m, gain)

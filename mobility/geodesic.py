@@ -196,8 +196,13 @@ def expansion_to_uncovered(
     covers (within ``radius_m``, :meth:`FreeGrid.to_uncovered`); none where no such cell can
     be reached (the team's free region all covered). And that distance (m; inf: none)."""
     direction, d = grid.to_uncovered(pos, radius_m)
-    size = gain * EXPANSION_CAP * range_m * np.isfinite(d)
-    return size[:, None] * direction, d
+    return _capped_push(direction, d, range_m, gain), d
+
+
+def _capped_push(direction: np.ndarray, d: np.ndarray, range_m: float, gain: float) -> np.ndarray:
+    """The expansion's push on a map: ``gain x EXPANSION_CAP x r_c`` along ``direction``
+    where a target was reached (``d`` finite), none elsewhere."""
+    return (gain * EXPANSION_CAP * range_m * np.isfinite(d))[:, None] * direction
 
 
 def expansion_to_unexplored(
@@ -217,8 +222,7 @@ def expansion_to_unexplored(
         members = np.array(rows)
         own = np.unpackbits(explored[rows[0]], count=cells).astype(bool)
         direction[members], d[members] = grid.to_outside(pos[members], lambda own=own: own)
-    size = gain * EXPANSION_CAP * range_m * np.isfinite(d)
-    return size[:, None] * direction, d
+    return _capped_push(direction, d, range_m, gain), d
 
 
 def within_reach(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, reach_m: float) -> np.ndarray:
