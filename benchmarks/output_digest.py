@@ -126,6 +126,20 @@ SCENARIOS: dict[str, list[str]] = {
         "coverage.plan=local",
         "duration_s=60",
     ],
+    # The local plan's links certified through walls (log-distance, 5 dB a wall).
+    "office_coverage_local_through_walls": COVERAGE
+    + [
+        "world.n_robots=12",
+        "world.map=office",
+        "world.side_m=200",
+        "world.placement=connected",
+        "world.centre_side_m=60",
+        "channel.propagation=log_distance",
+        "channel.wall_loss_db=5",
+        "channel.sensitivity_dbm=-64.3",
+        "coverage.plan=local",
+        "duration_s=60",
+    ],
     # The global plan's kept links under shadowing and walls together (the range at both).
     "office_coverage_walls_shadowing": COVERAGE
     + [

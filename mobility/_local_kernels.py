@@ -196,6 +196,55 @@ def steps_clear(walls, p, move, q, e, out):
 
 
 @jit(nogil=True)
+def boxes_met(rects, disks, k, tol):
+    """How many of the boxes ``rects`` (rows ``x0, x1, y0, y1``) come within ``tol`` of the
+    convex hull of the ``k`` disks ``disks[:k]`` (:func:`hull_near_box`)."""
+    x_lo, x_hi, y_lo, y_hi = np.inf, -np.inf, np.inf, -np.inf
+    for m in range(k):
+        x_lo = min(x_lo, disks[m, 0] - disks[m, 2])
+        x_hi = max(x_hi, disks[m, 0] + disks[m, 2])
+        y_lo = min(y_lo, disks[m, 1] - disks[m, 2])
+        y_hi = max(y_hi, disks[m, 1] + disks[m, 2])
+    met = 0
+    for b in range(rects.shape[0]):
+        x0, x1, y0, y1 = rects[b, 0], rects[b, 1], rects[b, 2], rects[b, 3]
+        if x0 - x_hi > tol or x_lo - x1 > tol or y0 - y_hi > tol or y_lo - y1 > tol:
+            continue
+        if hull_near_box(disks, k, x0, x1, y0, y1, tol):
+            met += 1
+    return met
+
+
+@jit(nogil=True)
+def through(walls, ax, ay, ea, bx, by, eb, longest_m):
+    """Whether a link between a point of ``D(a, ea)`` and one of ``D(b, eb)``, at most
+    ``longest_m`` long, is surely up though walls stand between (rule 1's detour link on a
+    map whose walls let power through): the hull of the two disks meets ``k >= 1`` of the
+    walls' boxes, and ``longest_m`` is within the plan's range through ``k`` walls
+    (:attr:`netsim.mobility.local.Walls.through_m`)."""
+    if walls.through_m.shape[0] == 0:
+        return False
+    disks = np.empty((2, 3))
+    disks[0, 0], disks[0, 1], disks[0, 2] = ax, ay, ea
+    disks[1, 0], disks[1, 1], disks[1, 2] = bx, by, eb
+    k = boxes_met(walls.rects, disks, 2, walls.clearance_m)
+    return 0 < k <= walls.through_m.shape[0] and longest_m <= walls.through_m[k - 1]
+
+
+@jit(nogil=True)
+def steps_walls(walls, p, move, q, e, out):
+    """For every row, how many of the walls' boxes (:attr:`netsim.mobility.local.Walls.rects`)
+    the convex hull of the step from ``p`` to ``p + move`` and the disk ``D(q, e)`` meets: no
+    segment between a point of the step and a point of the disk crosses more walls."""
+    disks = np.zeros((3, 3))
+    for k in range(p.shape[0]):
+        disks[0, 0], disks[0, 1] = p[k, 0], p[k, 1]
+        disks[1, 0], disks[1, 1] = p[k, 0] + move[k, 0], p[k, 1] + move[k, 1]
+        disks[2, 0], disks[2, 1], disks[2, 2] = q[k, 0], q[k, 1], e[k]
+        out[k] = boxes_met(walls.rects, disks, 3, walls.clearance_m)
+
+
+@jit(nogil=True)
 def largest_travel_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
     """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
     Ack carried from ``leg_from_s`` on (NaN: unknown), at the speed cap before
@@ -459,8 +508,10 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
                 if walls.on:
-                    if not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a] + sweep[a], e[b] + sweep[b]):
-                        continue
+                    ea, eb = e[a] + sweep[a], e[b] + sweep[b]
+                    if not clear(walls, qx[a], qy[a], qx[b], qy[b], ea, eb):
+                        if not through(walls, qx[a], qy[a], ea, qx[b], qy[b], eb, longest + sweep[u] + sweep[v]):
+                            continue
                 band = link_band(longest, record_db[u, v], band_m, fade, nominal_m)
                 rank = band * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)

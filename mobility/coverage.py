@@ -475,6 +475,7 @@ class CoverageController:
         self.local_walls = walls_of(
             parts.occupancy.occupied if on_map else None,
             *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
+            self._through_walls_m() if on_map else (),
         )
         # On a channel that loses no frame a missed Ack means the link was down: a robot lets
         # go of a robot it has not heard for longer than the largest gap between two Acks
@@ -512,6 +513,20 @@ class CoverageController:
             return self.range_m
         worst = self.rules.shadow.clip_db if self.rules.shadow is not None else 0.0
         return min(self.range_m, float(log.effective_range_m(worst, 0, self.state.n)))
+
+    def _through_walls_m(self) -> np.ndarray:
+        """The local plan's range through 1, 2, ... walls (:attr:`netsim.mobility.local.Walls.through_m`):
+        under log-distance with ``wall_loss_db`` per wall, the sure range of a link that
+        crosses that many, as long as it leaves more than the margin; none where a wall cuts
+        every link (the unit disk)."""
+        rules = self.rules
+        if rules.log is None or not rules.wall_loss_db < math.inf:
+            return np.empty(0)
+        worst = rules.shadow.clip_db if rules.shadow is not None else 0.0
+        most = int(np.floor(rules.log.budget_db / rules.wall_loss_db)) if rules.wall_loss_db > 0 else 0
+        walls = np.arange(1, most + 1)
+        r = np.minimum(self.range_m, rules.log.effective_range_m(worst, walls, self.state.n))
+        return np.ascontiguousarray(r[: int(np.sum(r > self.cfg.margin_m))])
 
     def _local_fade(self) -> Fade | None:
         """The local plan's fade-margin rule: under shadowing (log-distance, sigma > 0) in

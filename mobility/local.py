@@ -135,9 +135,15 @@ class Walls(NamedTuple):
     resolution_m: float
     clearance_m: float  # a hull clear of walls keeps more than this from every wall, m
     open: np.ndarray  # (H, W) bool: cells that are not walls (where a robot may be)
+    # Where walls let some power through (log-distance, wall_loss_db): through_m[k - 1], the
+    # plan's range for a link that crosses at most k walls (empty: a wall cuts every link).
+    through_m: np.ndarray
+    rects: np.ndarray  # (R, 4): the occupied cells as boxes x0, x1, y0, y1 (m), for counting walls
 
 
-NO_WALLS = Walls(False, np.full((1, 1), np.inf), 0.0, 0.0, 1.0, 0.0, np.ones((1, 1), bool))
+NO_WALLS = Walls(
+    False, np.full((1, 1), np.inf), 0.0, 0.0, 1.0, 0.0, np.ones((1, 1), bool), np.empty(0), np.empty((0, 4))
+)
 
 # How far from every wall a hull must keep to be clear of walls, m: less than the hair by
 # which the control loop stops a robot short of a wall head-on (free_space.free_fraction
@@ -149,14 +155,19 @@ WALL_CLEARANCE_M = 1e-8
 
 
 def walls_of(
-    occupied: np.ndarray | None, origin_m: tuple[float, float] = (0.0, 0.0), resolution_m: float = 1.0
+    occupied: np.ndarray | None,
+    origin_m: tuple[float, float] = (0.0, 0.0),
+    resolution_m: float = 1.0,
+    through_m: np.ndarray | tuple = (),
 ) -> Walls:
     """The walls of a map (``occupied``: ``(H, W)`` bool, row 0 at the bottom), or
     :data:`NO_WALLS` (None). A point ``x`` in the cell of centre ``c`` is at least
     ``field - |x - c|`` from every occupied cell (closed squares): a cell's points lie within
-    half a diagonal of its centre."""
+    half a diagonal of its centre. ``through_m``: the plan's range through 1, 2, ... walls
+    (:attr:`Walls.through_m`)."""
     if occupied is None:
         return NO_WALLS
+    through = np.ascontiguousarray(through_m, float).reshape(-1)
     from scipy.ndimage import distance_transform_edt
 
     half = resolution_m * math.sqrt(0.5)
@@ -166,7 +177,36 @@ def walls_of(
         field = distance_transform_edt(~occupied) * resolution_m - half
     ox, oy, res = float(origin_m[0]), float(origin_m[1]), float(resolution_m)
     field = np.ascontiguousarray(field, float)
-    return Walls(True, field, ox, oy, res, WALL_CLEARANCE_M, np.ascontiguousarray(~occupied))
+    rects = wall_boxes(occupied, (ox, oy), res) if len(through) else np.empty((0, 4))
+    return Walls(True, field, ox, oy, res, WALL_CLEARANCE_M, np.ascontiguousarray(~occupied), through, rects)
+
+
+def wall_boxes(occupied: np.ndarray, origin_m: tuple[float, float], resolution_m: float) -> np.ndarray:
+    """The occupied cells as boxes ``x0, x1, y0, y1`` (m) that cover them exactly: each row's
+    runs of occupied cells, a run grown upward while the rows above hold the same run. A
+    segment meets a box in one stretch (boxes are convex), so it crosses no more walls (runs
+    of occupied cells, :mod:`netsim.world.los`) than the boxes it meets.
+
+    >>> wall_boxes(np.array([[1, 1, 0], [1, 1, 0], [0, 1, 1]], bool), (0.0, 0.0), 1.0).tolist()
+    [[0.0, 2.0, 0.0, 2.0], [1.0, 3.0, 2.0, 3.0]]
+    """
+    h, w = occupied.shape
+    growing: dict[tuple[int, int], int] = {}
+    boxes = []
+    for j in range(h + 1):
+        row = occupied[j] if j < h else np.zeros(w, bool)
+        edges = np.diff(np.r_[0, row.astype(np.int8), 0])
+        runs = list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+        ended = [run for run in growing if run not in set(runs)]
+        for run in sorted(ended, key=lambda r: (growing[r], r)):
+            boxes.append((run[0], run[1], growing.pop(run), j))
+        for run in runs:
+            growing.setdefault(run, j)
+    cells = np.array(boxes, float).reshape(-1, 4)
+    out = np.empty_like(cells)
+    out[:, :2] = origin_m[0] + cells[:, :2] * resolution_m
+    out[:, 2:] = origin_m[1] + cells[:, 2:] * resolution_m
+    return np.ascontiguousarray(out)
 
 
 def clear_of_walls(
@@ -762,6 +802,7 @@ def cut_for_walls(
     centre = memory.xy[robot, other]
     e = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, limits.speed_max_mps)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
+    fall = limits.keep_m - leash  # j's largest travel by t1, which rule 2's leash takes off
     scale = np.ones(n)
     undecided = np.zeros(n, dtype=bool)
     undecided[robot] = True
@@ -774,6 +815,10 @@ def cut_for_walls(
         r = robot[rows]
         ok = step_clear_of_walls(walls, pos[r], s * move[r], centre[rows], e[rows])
         ok &= ~beyond(pos[r] + s * move[r], centre[rows], leash[rows], n)
+        if len(walls.through_m):
+            late = rows[~ok]
+            step = s * move[robot[late]]
+            ok[~ok] = through_walls(walls, pos[robot[late]], step, centre[late], e[late], limits, fall[late])
         failed = np.zeros(n, dtype=bool)
         failed[r[~ok]] = True
         done = undecided & ~failed
@@ -781,6 +826,37 @@ def cut_for_walls(
         undecided &= failed
     scale[undecided] = 0.0
     return move * scale[:, None]
+
+
+def through_walls(
+    walls: Walls,
+    p: np.ndarray,
+    move: np.ndarray,
+    q: np.ndarray,
+    e_m: np.ndarray,
+    limits: StepLimits,
+    fall_m: np.ndarray,
+) -> np.ndarray:
+    """Rule 5 through walls (log-distance, :attr:`Walls.through_m`): whether a link is surely
+    up over the step from ``p`` to ``p + move`` against the other end standing in the disk
+    ``D(q, e_m)``, though walls stand between them. The hull of the step and the disk meets
+    ``k`` of the walls' boxes (:func:`netsim.mobility._local_kernels.steps_walls`), so no
+    segment between the two robots crosses more than ``k`` walls; every such segment is at
+    most ``max(|p - q|, |p + move - q|) + e_m`` long (the distance to a point is convex along
+    the step), and each end must keep the margin within the range through ``k`` walls as
+    rule 2 keeps it within the range: ``|p - q| + e_m`` and ``|p + move - q| + fall_m``
+    within ``through_m[k - 1] - margin``, ``fall_m`` being the other end's largest travel by
+    the step's end (``e_m`` grown to ``t1``, as rule 2's leash counts it). No wall met
+    (``k = 0``) is rule 5's own test: False here."""
+    k = np.empty(len(p), np.int64)
+    if len(p):
+        rows = (np.ascontiguousarray(a, float) for a in (p, move, q))
+        map_walker("netsim.mobility._local_kernels").steps_walls(walls, *rows, filled(e_m, (len(p),)), k)
+    through = np.r_[-np.inf, walls.through_m, -np.inf]
+    r = through[np.minimum(k, len(through) - 1)] - limits.margin_m
+    start = np.hypot(*(p - q).T) + e_m
+    end = np.hypot(*(p + move - q).T) + fall_m
+    return (start <= r) & (end <= r)
 
 
 def pulls(

@@ -23,45 +23,58 @@ def clear_of_walls(walls: Walls, a, b, ea, eb) -> np.ndarray:
     that centre to the cell less that radius, a convex function of ``f`` (minimised by
     ternary search); clear when every occupied cell of the map is farther than
     ``walls.clearance_m``."""
-    a = np.asarray(a, float).reshape(-1, 2)
-    b = np.asarray(b, float).reshape(-1, 2)
-    ea = np.broadcast_to(np.asarray(ea, float), (len(a),))
-    eb = np.broadcast_to(np.asarray(eb, float), (len(a),))
     res = walls.resolution_m
     rows, cols = np.nonzero(~walls.open)
     x0 = walls.origin_x_m + cols * res
     y0 = walls.origin_y_m + rows * res
-    out = np.ones(len(a), dtype=bool)
+    boxes = np.stack([x0, x0 + res, y0, y0 + res], axis=1)
+    return boxes_near_hull(boxes, a, b, ea, eb, walls.clearance_m) == 0
+
+
+def walls_met(walls: Walls, a, b, ea, eb) -> np.ndarray:
+    """How many of the walls' boxes (:attr:`netsim.mobility.local.Walls.rects`) come within
+    the clearance of the hull of the two disks (the kernels' ``boxes_met``), by the same
+    definition as :func:`clear_of_walls`."""
+    return boxes_near_hull(walls.rects, a, b, ea, eb, walls.clearance_m)
+
+
+def boxes_near_hull(boxes: np.ndarray, a, b, ea, eb, tol: float) -> np.ndarray:
+    """For each row, how many ``boxes`` (rows ``x0, x1, y0, y1``) lie within ``tol`` of the hull
+    of ``D(a, ea)`` and ``D(b, eb)``."""
+    a = np.asarray(a, float).reshape(-1, 2)
+    b = np.asarray(b, float).reshape(-1, 2)
+    ea = np.broadcast_to(np.asarray(ea, float), (len(a),))
+    eb = np.broadcast_to(np.asarray(eb, float), (len(a),))
+    out = np.zeros(len(a), dtype=np.int64)
     for k in range(len(a)):
-        reach = max(ea[k], eb[k]) + walls.clearance_m
+        reach = max(ea[k], eb[k]) + tol
         near = (
-            (x0 <= max(a[k, 0], b[k, 0]) + reach)
-            & (x0 + res >= min(a[k, 0], b[k, 0]) - reach)
-            & (y0 <= max(a[k, 1], b[k, 1]) + reach)
-            & (y0 + res >= min(a[k, 1], b[k, 1]) - reach)
+            (boxes[:, 0] <= max(a[k, 0], b[k, 0]) + reach)
+            & (boxes[:, 1] >= min(a[k, 0], b[k, 0]) - reach)
+            & (boxes[:, 2] <= max(a[k, 1], b[k, 1]) + reach)
+            & (boxes[:, 3] >= min(a[k, 1], b[k, 1]) - reach)
         )
-        cells = (x0[near], y0[near], res)
+        box = boxes[near]
         ends = (a[k], b[k], ea[k], eb[k])
-        lo, hi = np.zeros(len(cells[0])), np.ones(len(cells[0]))
+        lo, hi = np.zeros(len(box)), np.ones(len(box))
         for _ in range(100):
             m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
-            left = _gap(cells, ends, m1) <= _gap(cells, ends, m2)
+            left = _gap(box, ends, m1) <= _gap(box, ends, m2)
             hi = np.where(left, m2, hi)
             lo = np.where(left, lo, m1)
-        least = np.minimum(np.minimum(_gap(cells, ends, lo), _gap(cells, ends, 0.0)), _gap(cells, ends, 1.0))
-        out[k] = not (least <= walls.clearance_m).any()
+        least = np.minimum(np.minimum(_gap(box, ends, lo), _gap(box, ends, 0.0)), _gap(box, ends, 1.0))
+        out[k] = int((least <= tol).sum())
     return out
 
 
-def _gap(cells, ends, f):
-    """The distance from each cell (``x0, y0, side``) to the disk at ``f`` of the two disks'
-    hull (``a, b, ea, eb``), less its radius."""
-    x0, y0, res = cells
+def _gap(boxes, ends, f):
+    """The distance from each box (rows ``x0, x1, y0, y1``) to the disk at ``f`` of the two
+    disks' hull (``a, b, ea, eb``), less its radius."""
     a, b, ea, eb = ends
     px = a[0] + f * (b[0] - a[0])
     py = a[1] + f * (b[1] - a[1])
-    dx = np.maximum(np.maximum(x0 - px, 0.0), px - x0 - res)
-    dy = np.maximum(np.maximum(y0 - py, 0.0), py - y0 - res)
+    dx = np.maximum(np.maximum(boxes[:, 0] - px, 0.0), px - boxes[:, 1])
+    dy = np.maximum(np.maximum(boxes[:, 2] - py, 0.0), py - boxes[:, 3])
     return np.hypot(dx, dy) - (ea + f * (eb - ea))
 
 
@@ -155,7 +168,12 @@ def let_go(
         np.fill_diagonal(usable, False)
         if walls.on:
             a, b = np.nonzero(np.triu(usable, 1))
-            ok = clear_of_walls(walls, q[a], q[b], e[a] + sweep[a], e[b] + sweep[b])
+            ea, eb = e[a] + sweep[a], e[b] + sweep[b]
+            ok = clear_of_walls(walls, q[a], q[b], ea, eb)
+            if len(walls.through_m):
+                met = walls_met(walls, q[a], q[b], ea, eb)
+                through = np.r_[-np.inf, walls.through_m, -np.inf][np.minimum(met, len(walls.through_m) + 1)]
+                ok |= (met > 0) & (longest[a, b] + sweep[a] + sweep[b] <= through)
             usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
