@@ -195,7 +195,7 @@ def steps_clear(walls, p, move, q, e, out):
         out[k] = swept_clear(walls, q[k, 0], q[k, 1], e[k], p[k, 0] + hx, p[k, 1] + hy, 0.0, ends, 2)
 
 
-@jit(nogil=True)
+@jit(nogil=True, walks=True)
 def boxes_met(rects, disks, k, tol):
     """How many of the boxes ``rects`` (rows ``x0, x1, y0, y1``) come within ``tol`` of the
     convex hull of the ``k`` disks ``disks[:k]`` (:func:`hull_near_box`)."""
@@ -215,7 +215,7 @@ def boxes_met(rects, disks, k, tol):
     return met
 
 
-@jit(nogil=True)
+@jit(nogil=True, walks=True)
 def through(walls, ax, ay, ea, bx, by, eb, longest_m):
     """Whether a link between a point of ``D(a, ea)`` and one of ``D(b, eb)``, at most
     ``longest_m`` long, is surely up though walls stand between (rule 1's detour link on a
@@ -231,7 +231,7 @@ def through(walls, ax, ay, ea, bx, by, eb, longest_m):
     return 0 < k <= walls.through_m.shape[0] and longest_m <= walls.through_m[k - 1]
 
 
-@jit(nogil=True)
+@jit(nogil=True, walks=True)
 def steps_walls(walls, p, move, q, e, out):
     """For every row, how many of the walls' boxes (:attr:`netsim.mobility.local.Walls.rects`)
     the convex hull of the step from ``p`` to ``p + move`` and the disk ``D(q, e)`` meets: no
