@@ -752,7 +752,7 @@ class CoverageController:
         # keeps every kept link clear of them.
         move = short_of_walls(self.occupancy, pos, plan.velocity_mps * limits.period_s, 1.0)
         planned = move.copy()
-        move = cut_for_walls(pos, move, knows, kept, t1, limits, walls)
+        move = cut_for_walls(pos, move, knows, kept, t1, limits, walls, self.occupancy)
         changed = np.hypot(*(move - planned).T) > 1e-9 * limits.range_m
         held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & changed)
         return plan._replace(velocity_mps=move / limits.period_s, held=held)

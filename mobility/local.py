@@ -35,8 +35,12 @@ period``), its own position ``p`` at ``t0`` exact:
 5. **Walls** (on a map, :func:`cut_for_walls`). ``i`` answers for every kept ``j``: the
    convex hull of the straight step and of the disk where ``j`` stands (``e_j(t0)`` around
    ``q_j``: ``j`` holds, rule 7) keeps off the walls, so every segment between the two
-   robots during the step is clear of walls; else a shorter step, or it holds. A detour's
-   link must be surely clear of walls too (:func:`clear_of_walls`).
+   robots during the step is clear of walls; else a shorter step, else its step's part
+   along either axis of the map's grid (x first) tested alike, or it holds. A detour's
+   link must be surely clear of walls too (:func:`clear_of_walls`). Where walls let power
+   through (log-distance with ``wall_loss_db``), a link whose hull meets ``k`` of the
+   walls' boxes crosses at most ``k`` walls and is certified within the range at ``k``
+   walls instead (:func:`through_walls`, :attr:`Walls.through_m`).
 6. **Expansion.** In open space (:func:`centre_estimates`) each robot estimates its
    team's centre as the mean of its own estimate and those the robots it heard announced
    at their latest steps (a consensus: over a connected team the estimates meet), and adds
@@ -62,8 +66,9 @@ nothing of the link: no release, ``W = 0``.
 
 ``r`` is the plan's range: the range on a disk (the implied range under log-distance;
 on a map, for a link clear of walls), and under shadowing the *sure* distance, where even
-the clipped worst shadowing (``+4 sigma``) leaves a link up. A link through a wall is never
-certified: a robot that keeps it holds, and a link whose two robots hold does not change.
+the clipped worst shadowing (``+4 sigma``) leaves a link up. Under the unit disk a link
+through a wall is never certified: a robot that keeps it holds, and a link whose two robots
+hold does not change.
 
 **Shadowing** (in open space, :class:`Fade`): each robot measures the pair's shadowing
 ``X`` on every Ack it hears, from the power it received it at, ``X = P_t - PL(d) - P_r``
@@ -121,6 +126,7 @@ from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_lengt
 from netsim.compiled import filled, load, map_walker
 from netsim.geometry import beyond, speeds_mps
 from netsim.trajectory import points_on_legs
+from netsim.world.free_space import short_of_walls
 
 
 class Walls(NamedTuple):
@@ -784,7 +790,14 @@ WALL_TRIES = (1.0, 0.5, 0.25, 0.125, 0.0)
 
 
 def cut_for_walls(
-    pos: np.ndarray, move: np.ndarray, memory: Memory, kept: np.ndarray, t1_s: float, limits: StepLimits, walls: Walls
+    pos: np.ndarray,
+    move: np.ndarray,
+    memory: Memory,
+    kept: np.ndarray,
+    t1_s: float,
+    limits: StepLimits,
+    walls: Walls,
+    occupancy=None,
 ) -> np.ndarray:
     """Rule 5 (walls): each robot's step, such that every kept link is surely clear of walls
     over it while the other end holds (rule 7), and still ending within its leashes (rule
@@ -792,7 +805,30 @@ def cut_for_walls(
     (where ``j`` stands) keeps off the walls (:func:`step_clear_of_walls`). The largest
     fraction of :data:`WALL_TRIES` with which every link passes and the leashes hold is
     taken. 0: the robot holds (then it answers for nothing: the other end, or no motion,
-    keeps the link); a robot that keeps no link moves as it wished."""
+    keeps the link); a robot that keeps no link moves as it wished. With ``occupancy`` (the
+    map), a robot that would hold tries its step's part along x, then along y, each ended
+    short of the walls (:func:`netsim.world.free_space.short_of_walls`) and tested alike:
+    along a corridor it may keep in sight a robot that its whole step would leave behind a
+    door's frame."""
+    out = _cut_straight(pos, move, memory, kept, t1_s, limits, walls)
+    if occupancy is None or not walls.on:
+        return out
+    planned = np.asarray(move, float)
+    for axis in (0, 1):
+        held = ~(out != 0).any(axis=1) & (planned != 0).any(axis=1)
+        if not held.any():
+            break
+        along = np.zeros_like(planned)
+        along[held, axis] = planned[held, axis]
+        along = _cut_straight(pos, short_of_walls(occupancy, pos, along, 1.0), memory, kept, t1_s, limits, walls)
+        out[held] = along[held]
+    return out
+
+
+def _cut_straight(
+    pos: np.ndarray, move: np.ndarray, memory: Memory, kept: np.ndarray, t1_s: float, limits: StepLimits, walls: Walls
+) -> np.ndarray:
+    """:func:`cut_for_walls` along the step as given."""
     n = len(pos)
     move = np.array(move, float)
     length = np.hypot(*move.T)

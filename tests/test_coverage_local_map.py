@@ -96,6 +96,29 @@ def test_walls_a_robot_moves_along_the_corridor_against_a_neighbour_that_holds()
     assert (cut_for_walls(pos, move, m, kept, t1, LIMITS, walls)[0] == 0).all()
 
 
+def test_walls_a_robot_held_by_a_doors_frame_slides_along_the_corridor():
+    """Rule 5's slide: robot 0, in the corridor, sees robot 1 in the room below through its
+    door. Its step up and to the right, and every fraction of it tried, would put the
+    door's frame between them; its part to the right alone too. Without the map the robot
+    holds; with it, it makes its step's part up the corridor, along which robot 1 stays in
+    sight."""
+    from netsim.world.maps import OccupancyMap
+
+    occ = floor_plan()
+    walls = walls_of(occ, ORIGIN, RES)
+    pos = np.array([[15.55, 30.0], [14.75, 20.0]])
+    m = Memory(2)
+    m.xy[:] = pos[None, :, :]
+    m.sent_s[:] = T0
+    np.fill_diagonal(m.sent_s, -np.inf)
+    kept = m.known(T0, 20.0)
+    move = np.array([[1.6, 1.0], [0.0, 0.0]])
+    t1 = T0 + LIMITS.period_s
+    assert (cut_for_walls(pos, move, m, kept, t1, LIMITS, walls) == 0).all()
+    slid = cut_for_walls(pos, move, m, kept, t1, LIMITS, walls, OccupancyMap(occ, ~occ, RES, ORIGIN))
+    assert slid[0] == pytest.approx([0.0, 1.0]) and (slid[1] == 0).all()
+
+
 def test_turns_of_two_robots_that_keep_each_other_the_outranked_one_holds():
     """Rule 7: a robot moves only if it outranks every robot it keeps. Robots 0 and 1 keep
     each other, 2 keeps 1 alone, 3 nobody: of 0 and 1 the higher ranked moves, 2 moves only
@@ -113,7 +136,8 @@ def test_walls_a_link_both_ends_keep_stays_clear_of_walls_at_every_instant_of_th
     it knows no certified detour to (rule 1); the robots that take their turn move, each
     step cut by rule 5 from what the robot knows. For every link both ends keep, the
     segment between the two robots, moving along their steps, is clear of walls at every
-    instant (shapely, 41 instants) and within range at the step's end; and links whose
+    instant (shapely, 41 instants) and within range at the step's end, a robot that would
+    hold trying its step's part along each axis (the slide); and links whose
     mover answered against the other holding, where answering whatever the other does would
     not pass, are among them."""
     from shapely import LineString
@@ -142,7 +166,9 @@ def test_walls_a_link_both_ends_keep_stays_clear_of_walls_at_every_instant_of_th
     kept = heard & ~let_go(pos, m, held, T0, V, 7.5, RC, walls)
     wish = rng.normal(0, 2.0, (n, 2)) * turn_takers(kept, rng.permutation(n))[:, None]
     t1 = T0 + LIMITS.period_s
-    move = cut_for_walls(pos, wish, m, kept, t1, LIMITS, walls)
+    from netsim.world.maps import OccupancyMap
+
+    move = cut_for_walls(pos, wish, m, kept, t1, LIMITS, walls, OccupancyMap(occ, ~occ, RES, ORIGIN))
     free = ~kept.any(axis=1)
     assert (move[free] == wish[free]).all()  # a robot keeping no link moves as it wished
     against_holder = 0

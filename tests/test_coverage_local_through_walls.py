@@ -152,7 +152,7 @@ def test_walls_a_link_both_ends_keep_stays_up_through_walls_at_every_instant_of_
     assert (gone == oracle.let_go(pos, m, held, T0, V, 7.5, RC, walls)).all()
     kept = heard & ~gone
     wish = rng.normal(0, 2.0, (n, 2)) * turn_takers(kept, rng.permutation(n))[:, None]
-    move = cut_for_walls(pos, wish, m, kept, T0 + LIMITS.period_s, LIMITS, walls)
+    move = cut_for_walls(pos, wish, m, kept, T0 + LIMITS.period_s, LIMITS, walls, office)
     through = 0
     for i, j in zip(*np.nonzero(np.triu(kept & kept.T, 1))):
         if not (move[i] != 0).any() and not (move[j] != 0).any():
