@@ -68,6 +68,18 @@ def hull_near_box(disks, k, x0, x1, y0, y1, tol):
     return True
 
 
+@jit(nogil=True)
+def bounding_box(disks, k):
+    """``x_lo, x_hi, y_lo, y_hi``: the bounding box of the ``k`` disks ``disks[:k]``."""
+    x_lo, x_hi, y_lo, y_hi = np.inf, -np.inf, np.inf, -np.inf
+    for m in range(k):
+        x_lo = min(x_lo, disks[m, 0] - disks[m, 2])
+        x_hi = max(x_hi, disks[m, 0] + disks[m, 2])
+        y_lo = min(y_lo, disks[m, 1] - disks[m, 2])
+        y_hi = max(y_hi, disks[m, 1] + disks[m, 2])
+    return x_lo, x_hi, y_lo, y_hi
+
+
 @jit(nogil=True, walks=True)
 def near_walls(walls, disks, k):
     """Whether some occupied cell comes within ``walls.clearance_m`` of the convex hull of the
@@ -75,12 +87,7 @@ def near_walls(walls, disks, k):
     tested exactly (:func:`hull_near_box`)."""
     res, ox, oy, tol = walls.resolution_m, walls.origin_x_m, walls.origin_y_m, walls.clearance_m
     h, w = walls.open.shape
-    x_lo, x_hi, y_lo, y_hi = np.inf, -np.inf, np.inf, -np.inf
-    for m in range(k):
-        x_lo = min(x_lo, disks[m, 0] - disks[m, 2])
-        x_hi = max(x_hi, disks[m, 0] + disks[m, 2])
-        y_lo = min(y_lo, disks[m, 1] - disks[m, 2])
-        y_hi = max(y_hi, disks[m, 1] + disks[m, 2])
+    x_lo, x_hi, y_lo, y_hi = bounding_box(disks, k)
     i0 = max(math.floor(on_grid(x_lo - tol, ox, res)), 0)
     i1 = min(math.floor(on_grid(x_hi + tol, ox, res)), w - 1)
     j0 = max(math.floor(on_grid(y_lo - tol, oy, res)), 0)
@@ -199,12 +206,7 @@ def steps_clear(walls, p, move, q, e, out):
 def boxes_met(rects, disks, k, tol):
     """How many of the boxes ``rects`` (rows ``x0, x1, y0, y1``) come within ``tol`` of the
     convex hull of the ``k`` disks ``disks[:k]`` (:func:`hull_near_box`)."""
-    x_lo, x_hi, y_lo, y_hi = np.inf, -np.inf, np.inf, -np.inf
-    for m in range(k):
-        x_lo = min(x_lo, disks[m, 0] - disks[m, 2])
-        x_hi = max(x_hi, disks[m, 0] + disks[m, 2])
-        y_lo = min(y_lo, disks[m, 1] - disks[m, 2])
-        y_hi = max(y_hi, disks[m, 1] + disks[m, 2])
+    x_lo, x_hi, y_lo, y_hi = bounding_box(disks, k)
     met = 0
     for b in range(rects.shape[0]):
         x0, x1, y0, y1 = rects[b, 0], rects[b, 1], rects[b, 2], rects[b, 3]

@@ -36,7 +36,8 @@ period``), its own position ``p`` at ``t0`` exact:
    convex hull of the straight step and of the disk where ``j`` stands (``e_j(t0)`` around
    ``q_j``: ``j`` holds, rule 7) keeps off the walls, so every segment between the two
    robots during the step is clear of walls; else a shorter step, else its step's part
-   along either axis of the map's grid (x first) tested alike, or it holds. A detour's
+   along either axis of the map's grid or the step turned (:data:`SLIDES`) tested alike,
+   or it holds. A detour's
    link must be surely clear of walls too (:func:`clear_of_walls`). Where walls let power
    through (log-distance with ``wall_loss_db``), a link whose hull meets ``k`` of the
    walls' boxes crosses at most ``k`` walls and is certified within the range at ``k``
@@ -806,7 +807,8 @@ def cut_for_walls(
     fraction of :data:`WALL_TRIES` with which every link passes and the leashes hold is
     taken. 0: the robot holds (then it answers for nothing: the other end, or no motion,
     keeps the link); a robot that keeps no link moves as it wished. With ``occupancy`` (the
-    map), a robot that would hold tries its step's part along x, then along y, each ended
+    map), a robot that would hold tries the steps of :data:`SLIDES` in turn (its step's part
+    along x, along y, then the step turned by 45 and 90 degrees either way), each ended
     short of the walls (:func:`netsim.world.free_space.short_of_walls`) and tested alike:
     along a corridor it may keep in sight a robot that its whole step would leave behind a
     door's frame."""
@@ -814,15 +816,26 @@ def cut_for_walls(
     if occupancy is None or not walls.on:
         return out
     planned = np.asarray(move, float)
-    for axis in (0, 1):
+    for other_way in SLIDES:
         held = ~(out != 0).any(axis=1) & (planned != 0).any(axis=1)
         if not held.any():
             break
-        along = np.zeros_like(planned)
-        along[held, axis] = planned[held, axis]
-        along = _cut_straight(pos, short_of_walls(occupancy, pos, along, 1.0), memory, kept, t1_s, limits, walls)
-        out[held] = along[held]
+        step = np.zeros_like(planned)
+        step[held] = planned[held] @ other_way
+        step = _cut_straight(pos, short_of_walls(occupancy, pos, step, 1.0), memory, kept, t1_s, limits, walls)
+        out[held] = step[held]
     return out
+
+
+def _turned(degrees: float) -> np.ndarray:
+    """The matrix that turns a row vector by ``degrees`` counterclockwise."""
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    return np.array([[c, s], [-s, c]])
+
+
+# The steps a robot that rule 5 holds tries in turn, as matrices of its planned step: its
+# part along x, along y, then the step turned by 45 and 90 degrees either way.
+SLIDES = (np.diag([1.0, 0.0]), np.diag([0.0, 1.0]), _turned(45), _turned(-45), _turned(90), _turned(-90))
 
 
 def _cut_straight(

@@ -70,6 +70,22 @@ def near_point(rng, p, e):
     return p + np.c_[r * np.cos(a), r * np.sin(a)]
 
 
+def heard_scene(rng, pos, heard):
+    """What robots at ``pos`` heard of each other where ``heard``: Acks sent up to 0.2 s
+    before ``T0``, each robot then within ``V (T0 - s)`` of where it was heard; and the
+    lists they hold (:class:`Lists`, taken 3 s before)."""
+    n = len(pos)
+    sent = np.where(heard, T0 - rng.choice([0.0, 0.0, 0.05, 0.2], (n, n)), -np.inf)
+    m = Memory(n)
+    m.sent_s[:] = sent
+    m.xy[:] = near_point(
+        rng, np.broadcast_to(pos[None], (n, n, 2)).reshape(-1, 2), V * np.where(heard, T0 - sent, 0.0).ravel()
+    ).reshape(n, n, 2)
+    lists = Lists(n, 1)
+    lists.take(m, T0 - 3.0, 20.0)
+    return m, lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+
+
 def corridor_pair(sent_s):
     """Robot 0 at (20, 30) and robot 1 at (40, 30), in the floor plan's corridor, each heard
     by the other at its true position in an Ack sent at ``sent_s``."""
@@ -153,16 +169,7 @@ def test_walls_a_link_both_ends_keep_stays_clear_of_walls_at_every_instant_of_th
         [[LineString([pos[i], pos[j]]).intersects(shapes) if i != j else True for j in range(n)] for i in range(n)]
     )
     heard = (d <= RC - 2.0) & clear
-    sent = np.where(heard, T0 - rng.choice([0.0, 0.0, 0.05, 0.2], (n, n)), -np.inf)
-    m = Memory(n)
-    m.sent_s[:] = sent
-    # Robot j was within V (T0 - s) of where i heard it.
-    m.xy[:] = near_point(
-        rng, np.broadcast_to(pos[None], (n, n, 2)).reshape(-1, 2), V * np.where(heard, T0 - sent, 0.0).ravel()
-    ).reshape(n, n, 2)
-    lists = Lists(n, 1)
-    lists.take(m, T0 - 3.0, 20.0)
-    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    m, held = heard_scene(rng, pos, heard)
     kept = heard & ~let_go(pos, m, held, T0, V, 7.5, RC, walls)
     wish = rng.normal(0, 2.0, (n, 2)) * turn_takers(kept, rng.permutation(n))[:, None]
     t1 = T0 + LIMITS.period_s

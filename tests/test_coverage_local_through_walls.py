@@ -13,7 +13,7 @@ from netsim.compiled import map_walker
 from netsim.world.los import walls_crossed
 from netsim.world.maps import OccupancyMap, load_map
 from tests.oracles import local as oracle
-from tests.test_coverage_local_map import LIMITS, ORIGIN, RC, RES, T0, V, floor_plan, free_points, near_point
+from tests.test_coverage_local_map import LIMITS, ORIGIN, RC, RES, T0, V, floor_plan, free_points, heard_scene
 
 # The plan's range through 1, 2 and 3 walls (5 dB a wall, exponent 3: 30 m / 10^(5k/30)).
 THROUGH_M = RC / 10 ** (5.0 * np.arange(1, 4) / 30.0)
@@ -139,15 +139,7 @@ def test_walls_a_link_both_ends_keep_stays_up_through_walls_at_every_instant_of_
     d = np.hypot(*(pos[a] - pos[b]).T)
     up[a, b] = d <= ranges(walls_crossed(office, pos[a], pos[b])) - 2.0
     heard = up | up.T
-    sent = np.where(heard, T0 - rng.choice([0.0, 0.0, 0.05, 0.2], (n, n)), -np.inf)
-    m = Memory(n)
-    m.sent_s[:] = sent
-    m.xy[:] = near_point(
-        rng, np.broadcast_to(pos[None], (n, n, 2)).reshape(-1, 2), V * np.where(heard, T0 - sent, 0.0).ravel()
-    ).reshape(n, n, 2)
-    lists = Lists(n, 1)
-    lists.take(m, T0 - 3.0, 20.0)
-    held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
+    m, held = heard_scene(rng, pos, heard)
     gone = let_go(pos, m, held, T0, V, 7.5, RC, walls)
     assert (gone == oracle.let_go(pos, m, held, T0, V, 7.5, RC, walls)).all()
     kept = heard & ~gone
