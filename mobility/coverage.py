@@ -84,7 +84,8 @@ limits then use only the current positions of its kept neighbours, and under sha
 shadowing measured on those links). With ``plan = "local"`` (:mod:`netsim.mobility.local`) every
 robot decides its own step from the Acks it heard, keeps the links it cannot certify a
 detour for, and answers for each against the other end's largest motion since its Ack
-(under shadowing by the shadowing it measured on the link's Acks, on a map clear of walls),
+(under shadowing by the shadowing it measured on the link's Acks, on a map clear of walls or
+within the range through the walls it can cross),
 or holds; no command is sent.
 """
 
@@ -475,7 +476,7 @@ class CoverageController:
         self.local_walls = walls_of(
             parts.occupancy.occupied if on_map else None,
             *(() if parts.occupancy is None else (parts.occupancy.origin_m, parts.occupancy.resolution_m)),
-            self._through_walls_m() if on_map else (),
+            through_m=self._through_walls_m() if on_map else (),
         )
         # On a channel that loses no frame a missed Ack means the link was down: a robot lets
         # go of a robot it has not heard for longer than the largest gap between two Acks

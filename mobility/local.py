@@ -104,8 +104,9 @@ at ``t0``: one order for every robot), the ends of every link of ``K`` stay join
 links neither end lets go of. Each of those is kept by both ends; over the step an end
 that moves keeps it up whatever the other does (rules 2 and 5 alone), or keeps its half
 while the other keeps its half, answers alone or holds (halves), or, on a map, keeps it
-clear of walls against the other end holding, which the other then does (rules 5 and 7:
-of two robots that keep each other one holds), an end that cannot holds (rules 3 and 5),
+clear of walls (or within the range through the walls it can cross) against the other
+end holding, which the other then does (rules 5 and 7: of two robots that keep each
+other one holds), an end that cannot holds (rules 3 and 5),
 and a link whose ends hold does not change, so it is up at every instant of the step, so
 up over the next step's window, and at the next ``t0`` it is in ``K`` again while both
 ends still remember each other. So the components of ``K`` never grow,
@@ -128,6 +129,7 @@ from netsim.compiled import filled, load, map_walker
 from netsim.geometry import beyond, speeds_mps
 from netsim.trajectory import points_on_legs
 from netsim.world.free_space import short_of_walls
+from netsim.world.maps import OccupancyMap
 
 
 class Walls(NamedTuple):
@@ -580,7 +582,8 @@ def let_go(
     certify that the two remember each other at ``t0_s`` (``i`` is one of them and
     remembers the other; or a list ``i`` holds of ``u``, or that a robot ``i`` remembers
     held of it, names ``v`` with an Ack sent less than ``release_s`` before ``t0_s``) and
-    they are surely within ``range_m`` and (on a map) surely clear of ``walls``
+    they are surely within ``range_m`` and (on a map) surely clear of ``walls`` or within the
+    range through the walls they can cross (:attr:`Walls.through_m`)
     (:func:`clear_of_walls`, each end with its own uncertainty), each link at the
     largest rank it can have at ``t0``. Under shadowing (``fade``) a link's band is that of
     its length at zero shadowing under its record of the step's epoch (:class:`Lists`), and
@@ -798,18 +801,20 @@ def cut_for_walls(
     t1_s: float,
     limits: StepLimits,
     walls: Walls,
-    occupancy=None,
+    occupancy: OccupancyMap | None = None,
 ) -> np.ndarray:
     """Rule 5 (walls): each robot's step, such that every kept link is surely clear of walls
-    over it while the other end holds (rule 7), and still ending within its leashes (rule
-    2). The convex hull of the step and of the disk of radius ``e_j(t0)`` around ``q_j``
+    over it while the other end holds (rule 7), or (:attr:`Walls.through_m`) within the
+    range through the walls it can cross (:func:`through_walls`), and still ending within
+    its leashes (rule 2). The convex hull of the step and of the disk of radius ``e_j(t0)`` around ``q_j``
     (where ``j`` stands) keeps off the walls (:func:`step_clear_of_walls`). The largest
     fraction of :data:`WALL_TRIES` with which every link passes and the leashes hold is
     taken. 0: the robot holds (then it answers for nothing: the other end, or no motion,
     keeps the link); a robot that keeps no link moves as it wished. With ``occupancy`` (the
     map), a robot that would hold tries the steps of :data:`SLIDES` in turn (its step's part
     along x, along y, then the step turned by 45 and 90 degrees either way), each ended
-    short of the walls (:func:`netsim.world.free_space.short_of_walls`) and tested alike:
+    short of the walls (:func:`netsim.world.free_space.short_of_walls`) and inside the area,
+    and tested alike:
     along a corridor it may keep in sight a robot that its whole step would leave behind a
     door's frame."""
     out = _cut_straight(pos, move, memory, kept, t1_s, limits, walls)
@@ -822,7 +827,9 @@ def cut_for_walls(
             break
         step = np.zeros_like(planned)
         step[held] = planned[held] @ other_way
-        step = _cut_straight(pos, short_of_walls(occupancy, pos, step, 1.0), memory, kept, t1_s, limits, walls)
+        step = short_of_walls(occupancy, pos, step, 1.0)
+        step *= box_limit(pos, step, limits.box)[:, None]
+        step = _cut_straight(pos, step, memory, kept, t1_s, limits, walls)
         out[held] = step[held]
     return out
 
@@ -851,7 +858,7 @@ def _cut_straight(
     centre = memory.xy[robot, other]
     e = travel_at_cap_m(memory.sent_s[robot, other], t1_s - limits.period_s, limits.speed_max_mps)
     leash = leash_radius(memory, t1_s, limits)[robot, other]
-    fall = limits.keep_m - leash  # j's largest travel by t1, which rule 2's leash takes off
+    fall = travel_at_cap_m(memory.sent_s[robot, other], t1_s, limits.speed_max_mps)
     scale = np.ones(n)
     undecided = np.zeros(n, dtype=bool)
     undecided[robot] = True

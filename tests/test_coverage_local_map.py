@@ -153,7 +153,7 @@ def test_walls_a_link_both_ends_keep_stays_clear_of_walls_at_every_instant_of_th
     step cut by rule 5 from what the robot knows. For every link both ends keep, the
     segment between the two robots, moving along their steps, is clear of walls at every
     instant (shapely, 41 instants) and within range at the step's end, a robot that would
-    hold trying its step's part along each axis (the slide); and links whose
+    hold trying the steps of SLIDES (its step's part along each axis, the step turned); and links whose
     mover answered against the other holding, where answering whatever the other does would
     not pass, are among them."""
     from shapely import LineString
@@ -284,3 +284,26 @@ def test_a_local_run_on_a_map_uses_the_map_rules(monkeypatch):
         *(links[c].to_numpy() for c in ("a", "b", "t_up_s", "t_down_s", "censored_end")), 20
     )
     assert counts.max() == 1
+
+
+def test_walls_a_slide_stays_inside_the_area():
+    """Rule 5's slide keeps the area: robot 0, 0.5 m from the area's east side, keeps robot
+    1 far west along a line that a wall cell just south of it would cut were robot 0 to
+    step south. Its step south and every fraction of it are held; of the slides, the
+    step's part along y is the same step and the step turned toward the east would leave
+    the area: what it makes ends inside the area."""
+    from netsim.world.maps import OccupancyMap
+
+    occ = np.zeros((120, 120), bool)
+    occ[19, 20] = True  # x 10-10.5 m, y 9.5-10 m
+    limits = StepLimits(period_s=1.0, range_m=RC, margin_m=1.0, speed_max_mps=V, side_m=20.0)
+    walls = walls_of(occ, ORIGIN, RES)
+    pos = np.array([[19.5, 10.01], [0.5, 10.01]])
+    m = Memory(2)
+    m.xy[:] = pos[None, :, :]
+    m.sent_s[:] = T0
+    np.fill_diagonal(m.sent_s, -np.inf)
+    move = np.array([[0.0, -1.5], [0.0, 0.0]])
+    slid = cut_for_walls(pos, move, m, m.known(T0, 20.0), T0 + 1.0, limits, walls, OccupancyMap(occ, ~occ, RES, ORIGIN))
+    end = pos[0] + slid[0]
+    assert (slid[0] != 0).any() and 0.0 <= end[0] <= 20.0 and 0.0 <= end[1] <= 20.0

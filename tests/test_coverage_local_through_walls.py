@@ -97,6 +97,24 @@ def test_walls_a_robot_moves_keeping_a_link_through_a_wall_within_its_range_thro
     assert cut_for_walls(pos, long_, m, kept, t1, LIMITS, through)[0] == pytest.approx([-3.5, 0.0])
 
 
+def test_walls_a_link_through_a_wall_beyond_its_range_at_the_start_holds_its_robot():
+    """Rule 5 through walls answers for the whole step, its start too: robot 0 starts 19.8 m
+    from robot 1 through one wall, beyond 20 m less the margin (1 m), and its step would
+    end 17.1 m off, within it even with robot 1's travel by the step's end (2 m). Every
+    segment from the step's first instants is too long: it holds."""
+    occ = floor_plan()
+    pos = np.array([[0.55, 10.0], [19.9, 14.0]])
+    m = Memory(2)
+    m.xy[:] = pos[None, :, :]
+    m.sent_s[:] = T0
+    np.fill_diagonal(m.sent_s, -np.inf)
+    move = np.array([[2.5, 1.0], [0.0, 0.0]])
+    walls = walls_of(occ, ORIGIN, RES, THROUGH_M)
+    assert np.hypot(*(pos[0] - pos[1])) > THROUGH_M[0] - LIMITS.margin_m
+    assert np.hypot(*(pos[0] + move[0] - pos[1])) + 2.0 < THROUGH_M[0] - LIMITS.margin_m
+    assert (cut_for_walls(pos, move, m, m.known(T0, 20.0), T0 + LIMITS.period_s, LIMITS, walls) == 0).all()
+
+
 def test_detour_through_a_wall_lets_go_of_a_longer_link_through_walls():
     """Rule 1 through walls: robot 0 (room A) and robot 1 (room B, 16 m east through one
     wall) have a detour through robot 2, in room A 6 m from robot 0 and 10 m from robot 1
