@@ -240,8 +240,9 @@ def test_pull_on_a_map_announces_the_step_the_robot_can_make():
 @pytest.mark.slow
 def test_a_local_run_on_a_map_uses_the_map_rules(monkeypatch):
     """The controller's wiring: a local-plan run on the office map, from a connected start,
-    gives rule 1 and rule 5 the map's walls, robots take turns, every robot announces its
-    wish as it can carry it out (within its reach), and the real network never splits."""
+    gives rule 1 and rule 5 the map's walls (rule 5 the map too, for its slides), robots take
+    turns, every robot announces its wish as it can carry it out (within its reach), and the
+    real network never splits."""
     import netsim.mobility.coverage as coverage
 
     from netsim import config
@@ -257,9 +258,9 @@ def test_a_local_run_on_a_map_uses_the_map_rules(monkeypatch):
         seen["let_go"] += walls.on and walls.field.size > 10_000
         return let_go_(pos, knows, heard, t0, speed, band, range_m, walls, *rest)
 
-    def spy_cut(pos, move, knows, kept, t1, limits, walls):
-        seen["cut"] = seen.get("cut", 0) + walls.on
-        return cut_(pos, move, knows, kept, t1, limits, walls)
+    def spy_cut(pos, move, knows, kept, t1, limits, walls, occupancy=None):
+        seen["cut"] = seen.get("cut", 0) + (walls.on and occupancy is not None)
+        return cut_(pos, move, knows, kept, t1, limits, walls, occupancy)
 
     def spy_turns(known, rank):
         out = turns_(known, rank)
