@@ -46,6 +46,17 @@ COVERAGE = [
     "protocol.message_rate_hz=0",
 ]
 
+# The local plan on the office map from a connected start.
+OFFICE_LOCAL = COVERAGE + [
+    "world.n_robots=12",
+    "world.map=office",
+    "world.side_m=200",
+    "world.placement=connected",
+    "world.centre_side_m=60",
+    "coverage.plan=local",
+    "duration_s=60",
+]
+
 OFFICE = ["world.map=office", "world.side_m=200", "channel.range_m=40", "mobility.stationary_start=false"]
 
 SCENARIOS: dict[str, list[str]] = {
@@ -115,31 +126,10 @@ SCENARIOS: dict[str, list[str]] = {
     + ["channel.propagation=log_distance", "channel.shadowing_sigma_db=4", "channel.sensitivity_dbm=-68"],
     "office_random_direction_log_distance": OFFICE
     + ["mobility.model=random_direction", "channel.propagation=log_distance", "channel.sensitivity_dbm=-68"],
-    "office_coverage_local": COVERAGE
-    + [
-        "world.n_robots=12",
-        "world.map=office",
-        "world.side_m=200",
-        "world.placement=connected",
-        "world.centre_side_m=60",
-        "channel.range_m=30",
-        "coverage.plan=local",
-        "duration_s=60",
-    ],
+    "office_coverage_local": OFFICE_LOCAL + ["channel.range_m=30"],
     # The local plan's links certified through walls (log-distance, 5 dB a wall).
-    "office_coverage_local_through_walls": COVERAGE
-    + [
-        "world.n_robots=12",
-        "world.map=office",
-        "world.side_m=200",
-        "world.placement=connected",
-        "world.centre_side_m=60",
-        "channel.propagation=log_distance",
-        "channel.wall_loss_db=5",
-        "channel.sensitivity_dbm=-64.3",
-        "coverage.plan=local",
-        "duration_s=60",
-    ],
+    "office_coverage_local_through_walls": OFFICE_LOCAL
+    + ["channel.propagation=log_distance", "channel.wall_loss_db=5", "channel.sensitivity_dbm=-64.3"],
     # The global plan's kept links under shadowing and walls together (the range at both).
     "office_coverage_walls_shadowing": COVERAGE
     + [

@@ -229,8 +229,24 @@ def through(walls, ax, ay, ea, bx, by, eb, longest_m):
     disks = np.empty((2, 3))
     disks[0, 0], disks[0, 1], disks[0, 2] = ax, ay, ea
     disks[1, 0], disks[1, 1], disks[1, 2] = bx, by, eb
-    k = boxes_met(walls.rects, disks, 2, walls.clearance_m)
-    return 0 < k <= walls.through_m.shape[0] and longest_m <= walls.through_m[k - 1]
+    return longest_m <= range_through_m(walls, boxes_met(walls.rects, disks, 2, walls.clearance_m))
+
+
+@jit(nogil=True)
+def range_through_m(walls, k):
+    """The plan's range for a link that crosses at most ``k`` walls where walls let power
+    through (:attr:`netsim.mobility.local.Walls.through_m`); ``-inf`` for none (``k = 0`` is
+    a link clear of walls, rule 5's and rule 1's own test) and beyond the table."""
+    if 0 < k <= walls.through_m.shape[0]:
+        return walls.through_m[k - 1]
+    return -np.inf
+
+
+@jit(nogil=True)
+def ranges_through_m(walls, k, out):
+    """:func:`range_through_m` of every count ``k``."""
+    for row in range(k.shape[0]):
+        out[row] = range_through_m(walls, k[row])
 
 
 @jit(nogil=True, walks=True)

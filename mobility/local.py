@@ -905,11 +905,13 @@ def through_walls(
     the step's end (``e_m`` grown to ``t1``, as rule 2's leash counts it). No wall met
     (``k = 0``) is rule 5's own test: False here."""
     k = np.empty(len(p), np.int64)
+    r = np.empty(len(p))
     if len(p):
+        kernels = map_walker("netsim.mobility._local_kernels")
         rows = (np.ascontiguousarray(a, float) for a in (p, move, q))
-        map_walker("netsim.mobility._local_kernels").steps_walls(walls, *rows, filled(e_m, (len(p),)), k)
-    through = np.r_[-np.inf, walls.through_m, -np.inf]
-    r = through[np.minimum(k, len(through) - 1)] - limits.margin_m
+        kernels.steps_walls(walls, *rows, filled(e_m, (len(p),)), k)
+        kernels.ranges_through_m(walls, k, r)
+    r -= limits.margin_m
     start = np.hypot(*(p - q).T) + e_m
     end = np.hypot(*(p + move - q).T) + fall_m
     return (start <= r) & (end <= r)

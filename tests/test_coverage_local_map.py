@@ -86,14 +86,21 @@ def heard_scene(rng, pos, heard):
     return m, lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
 
 
+def heard_at(pos, sent_s):
+    """Each robot's memory of the others at their true positions ``pos``, in Acks sent at
+    ``sent_s``."""
+    m = Memory(len(pos))
+    m.xy[:] = pos[None, :, :]
+    m.sent_s[:] = sent_s
+    np.fill_diagonal(m.sent_s, -np.inf)
+    return m
+
+
 def corridor_pair(sent_s):
     """Robot 0 at (20, 30) and robot 1 at (40, 30), in the floor plan's corridor, each heard
     by the other at its true position in an Ack sent at ``sent_s``."""
     pos = np.array([[20.0, 30.0], [40.0, 30.0]])
-    m = Memory(2)
-    m.xy[:] = pos[None, :, :]
-    m.sent_s[:] = sent_s
-    np.fill_diagonal(m.sent_s, -np.inf)
+    m = heard_at(pos, sent_s)
     return pos, m, m.known(T0, 20.0)
 
 
@@ -123,10 +130,7 @@ def test_walls_a_robot_held_by_a_doors_frame_slides_along_the_corridor():
     occ = floor_plan()
     walls = walls_of(occ, ORIGIN, RES)
     pos = np.array([[15.55, 30.0], [14.75, 20.0]])
-    m = Memory(2)
-    m.xy[:] = pos[None, :, :]
-    m.sent_s[:] = T0
-    np.fill_diagonal(m.sent_s, -np.inf)
+    m = heard_at(pos, T0)
     kept = m.known(T0, 20.0)
     move = np.array([[1.6, 1.0], [0.0, 0.0]])
     t1 = T0 + LIMITS.period_s
@@ -203,10 +207,7 @@ def test_detour_on_a_map_through_a_door_passing_its_frame_by_centimetres():
 
     def lets_go(x2):
         pos = np.array([[4.1, 24.0], [20.0, 30.0], [x2, 30.0]])
-        m = Memory(3)
-        m.xy[:] = pos[None, :, :]
-        m.sent_s[:] = T0 - 0.01
-        np.fill_diagonal(m.sent_s, -np.inf)
+        m = heard_at(pos, T0 - 0.01)
         lists = Lists(3, 1)
         lists.take(m, T0 - 1.0, 20.0)
         heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
@@ -300,10 +301,7 @@ def test_walls_a_slide_stays_inside_the_area():
     limits = StepLimits(period_s=1.0, range_m=RC, margin_m=1.0, speed_max_mps=V, side_m=20.0)
     walls = walls_of(occ, ORIGIN, RES)
     pos = np.array([[19.5, 10.01], [0.5, 10.01]])
-    m = Memory(2)
-    m.xy[:] = pos[None, :, :]
-    m.sent_s[:] = T0
-    np.fill_diagonal(m.sent_s, -np.inf)
+    m = heard_at(pos, T0)
     move = np.array([[0.0, -1.5], [0.0, 0.0]])
     slid = cut_for_walls(pos, move, m, m.known(T0, 20.0), T0 + 1.0, limits, walls, OccupancyMap(occ, ~occ, RES, ORIGIN))
     end = pos[0] + slid[0]

@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from netsim.mobility.local import Lists, Memory, cut_for_walls, let_go, turn_takers, wall_boxes, walls_of
+from netsim.mobility.local import Lists, cut_for_walls, let_go, turn_takers, wall_boxes, walls_of
 
 from netsim.compiled import map_walker
 from netsim.world.los import walls_crossed
 from netsim.world.maps import OccupancyMap, load_map
 from tests.oracles import local as oracle
-from tests.test_coverage_local_map import LIMITS, ORIGIN, RC, RES, T0, V, floor_plan, free_points, heard_scene
+from tests.test_coverage_local_map import LIMITS, ORIGIN, RC, RES, T0, V, floor_plan, free_points, heard_at, heard_scene
 
 # The plan's range through 1, 2 and 3 walls (5 dB a wall, exponent 3: 30 m / 10^(5k/30)).
 THROUGH_M = RC / 10 ** (5.0 * np.arange(1, 4) / 30.0)
@@ -84,10 +84,7 @@ def test_walls_a_robot_moves_keeping_a_link_through_a_wall_within_its_range_thro
     the margin (1 m) and robot 1's travel by the step's end (2 m): half of it is made."""
     occ = floor_plan()
     pos = np.array([[8.0, 10.0], [19.0, 10.0]])
-    m = Memory(2)
-    m.xy[:] = pos[None, :, :]
-    m.sent_s[:] = T0
-    np.fill_diagonal(m.sent_s, -np.inf)
+    m = heard_at(pos, T0)
     kept = m.known(T0, 20.0)
     t1 = T0 + LIMITS.period_s
     short, long_ = np.array([[0.0, 1.5], [0.0, 0.0]]), np.array([[-7.0, 0.0], [0.0, 0.0]])
@@ -104,10 +101,7 @@ def test_walls_a_link_through_a_wall_beyond_its_range_at_the_start_holds_its_rob
     segment from the step's first instants is too long: it holds."""
     occ = floor_plan()
     pos = np.array([[0.55, 10.0], [19.9, 14.0]])
-    m = Memory(2)
-    m.xy[:] = pos[None, :, :]
-    m.sent_s[:] = T0
-    np.fill_diagonal(m.sent_s, -np.inf)
+    m = heard_at(pos, T0)
     move = np.array([[2.5, 1.0], [0.0, 0.0]])
     walls = walls_of(occ, ORIGIN, RES, THROUGH_M)
     assert np.hypot(*(pos[0] - pos[1])) > THROUGH_M[0] - LIMITS.margin_m
@@ -122,10 +116,7 @@ def test_detour_through_a_wall_lets_go_of_a_longer_link_through_walls():
     keeps it when a wall cuts every link. The kernels agree with the oracle."""
     occ = floor_plan()
     pos = np.array([[2.0, 10.0], [18.0, 10.0], [8.0, 12.0]])
-    m = Memory(3)
-    m.xy[:] = pos[None, :, :]
-    m.sent_s[:] = T0 - 0.01
-    np.fill_diagonal(m.sent_s, -np.inf)
+    m = heard_at(pos, T0 - 0.01)
     lists = Lists(3, 1)
     lists.take(m, T0 - 1.0, 20.0)
     heard = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
