@@ -509,11 +509,9 @@ class CoverageController:
         its robots are this close (the range; under log-distance the implied range, and
         with shadowing the distance at which even the clipped worst, ``+4 sigma``, leaves
         it up)."""
-        log = self.rules.log
-        if log is None:
+        if self.rules.log is None:
             return self.range_m
-        worst = self.rules.shadow.clip_db if self.rules.shadow is not None else 0.0
-        return min(self.range_m, float(log.effective_range_m(worst, 0, self.state.n)))
+        return float(self._sure_ranges_m(np.zeros(1, dtype=np.int64))[0])
 
     def _through_walls_m(self) -> np.ndarray:
         """The local plan's range through 1, 2, ... walls (:attr:`netsim.mobility.local.Walls.through_m`):
@@ -523,11 +521,16 @@ class CoverageController:
         rules = self.rules
         if rules.log is None or not rules.wall_loss_db < math.inf:
             return np.empty(0)
-        worst = rules.shadow.clip_db if rules.shadow is not None else 0.0
         most = int(np.floor(rules.log.budget_db / rules.wall_loss_db)) if rules.wall_loss_db > 0 else 0
-        walls = np.arange(1, most + 1)
-        r = np.minimum(self.range_m, rules.log.effective_range_m(worst, walls, self.state.n))
+        r = self._sure_ranges_m(np.arange(1, most + 1))
         return np.ascontiguousarray(r[: int(np.sum(r > self.cfg.margin_m))])
+
+    def _sure_ranges_m(self, walls: np.ndarray) -> np.ndarray:
+        """Under log-distance, the distance within which a link crossing ``walls`` walls is up
+        whatever the shadowing (its clipped worst), at most the range."""
+        rules = self.rules
+        worst = rules.shadow.clip_db if rules.shadow is not None else 0.0
+        return np.minimum(self.range_m, rules.log.effective_range_m(worst, walls, self.state.n))
 
     def _local_fade(self) -> Fade | None:
         """The local plan's fade-margin rule: under shadowing (log-distance, sigma > 0) in

@@ -94,6 +94,24 @@ def test_walls_a_robot_moves_keeping_a_link_through_a_wall_within_its_range_thro
     assert cut_for_walls(pos, long_, m, kept, t1, LIMITS, through)[0] == pytest.approx([-3.5, 0.0])
 
 
+def test_walls_a_link_through_more_walls_than_the_table_holds_its_robot():
+    """A link whose hull meets more walls' boxes than the plan has a range for is not
+    answered for: robot 0 keeps robot 1 two rooms east, 17 m off through two walls. With a
+    range through two walls of 22 m its short step is made; with a table that stops at one
+    wall (however long that range) it holds, rather than take the last range there is."""
+    occ = floor_plan()
+    pos = np.array([[8.0, 10.0], [25.0, 10.0]])
+    m = heard_at(pos, T0)
+    kept = m.known(T0, 20.0)
+    t1 = T0 + LIMITS.period_s
+    move = np.array([[0.0, 1.5], [0.0, 0.0]])
+    two = walls_of(occ, ORIGIN, RES, np.array([25.0, 22.0]))
+    assert boxes_met(two, pos[:1], move[:1], pos[1:], np.zeros(1))[0] == 2
+    assert cut_for_walls(pos, move, m, kept, t1, LIMITS, two)[0] == pytest.approx([0.0, 1.5])
+    one = walls_of(occ, ORIGIN, RES, np.array([25.0]))
+    assert (cut_for_walls(pos, move, m, kept, t1, LIMITS, one)[0] == 0).all()
+
+
 def test_walls_a_link_through_a_wall_beyond_its_range_at_the_start_holds_its_robot():
     """Rule 5 through walls answers for the whole step, its start too: robot 0 starts 19.8 m
     from robot 1 through one wall, beyond 20 m less the margin (1 m), and its step would
