@@ -72,12 +72,42 @@ def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, withi
     With ``targets`` (cells), the search stops once every free one of them is settled:
     their values are then final, and so is every value below the largest of theirs (the
     cells settled before), the others upper bounds or inf. Without, every cell is settled."""
+    out[:] = math.inf
+    none = np.empty(0)
+    work = search_work(w * h)
+    search(free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, out, work, none, none, none)
+
+
+@jit(walks=True, nogil=True)
+def search_work(n):
+    """The arrays :func:`search` works in, as it wants them: a heap of cells, each cell's
+    slot in it (-1: none), whether it is settled, whether it is a target, and the cells it
+    gave a value (to put back)."""
+    return (
+        np.empty(n, np.int64),
+        np.full(n, -1, np.int64),
+        np.zeros(n, np.bool_),
+        np.zeros(n, np.bool_),
+        np.empty(n, np.int64),
+    )
+
+
+@jit(walks=True, nogil=True)
+def search(
+    free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, out, work, centre_x, centre_y, bound_m
+):
+    """:func:`distance_field` into ``out`` (inf on every cell it does not reach, as given)
+    with ``work`` (:func:`search_work`, as it gives them); returns how many cells it gave a
+    value, listed first in ``work[4]``. :func:`forget` puts both back.
+
+    With ``bound_m``, no path is followed beyond a settled cell from which every point
+    ``(centre_x[k], centre_y[k])`` (in cells) lies farther in a straight line than
+    ``bound_m[k]`` less the cell's distance: no path through it reaches one of them within
+    its bound, so a cell's value within its bound is as without (a search toward points
+    whose distances are known to lie within those bounds)."""
+    heap, where, done, wanted, touched = work
     n = w * h
-    for k in range(n):
-        out[k] = math.inf
-    heap = np.empty(n, np.int64)  # cells, a binary heap on out[]
-    where = np.full(n, -1, np.int64)  # a cell's slot in the heap (-1: not in it)
-    done = np.zeros(n, np.bool_)
+    used = 0
     size = 0
     for k in range(len(sources)):
         c = sources[k]
@@ -86,8 +116,9 @@ def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, withi
             heap[size] = c
             where[c] = size
             out[c] = 0.0
+            touched[used] = c
+            used += 1
             size += 1
-    wanted = np.zeros(n, np.bool_)
     pending = -1  # no targets: never stop early
     if len(targets) > 0:
         pending = 0
@@ -97,7 +128,7 @@ def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, withi
                 wanted[c] = True
                 pending += 1
         if pending == 0:
-            return
+            size = 0
     lengths = np.empty(len(moves_x))
     offsets = np.empty(len(moves_x), np.int64)  # in row-major cells
     for m in range(len(moves_x)):
@@ -128,7 +159,16 @@ def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, withi
         if wanted[c]:
             pending -= 1
             if pending == 0:
-                return
+                break
+        if len(bound_m) > 0:
+            cx, cy = c % w, c // w
+            onward = False
+            for k in range(len(bound_m)):
+                if out[c] + cell_m * math.hypot(cx - centre_x[k], cy - centre_y[k]) <= bound_m[k]:
+                    onward = True
+                    break
+            if not onward:
+                continue
         bits = allowed[c]
         for m in range(len(moves_x)):
             if not (bits >> m) & 1:
@@ -139,6 +179,9 @@ def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, withi
             d = out[c] + lengths[m]
             if d >= out[nb]:
                 continue
+            if out[nb] == math.inf:
+                touched[used] = nb
+                used += 1
             out[nb] = d
             slot = where[nb]
             if slot < 0:
@@ -154,6 +197,24 @@ def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, withi
                 slot = parent
             heap[slot] = nb
             where[nb] = slot
+    # The heap's slots are put back now; the values, by forget, once they are read.
+    for k in range(size):
+        where[heap[k]] = -1
+    for k in range(len(targets)):
+        c = targets[k]
+        if 0 <= c < n:
+            wanted[c] = False
+    return used
+
+
+@jit(walks=True, nogil=True)
+def forget(out, work, used):
+    """Puts back what :func:`search` changed: ``out`` to inf and nothing settled."""
+    touched, done = work[4], work[2]
+    for k in range(used):
+        c = touched[k]
+        out[c] = math.inf
+        done[c] = False
 
 
 @jit(walks=True, nogil=True)
@@ -183,22 +244,64 @@ def ascent(free, w, h, field, cell_x, cell_y, cell_m, moves_x, moves_y, out_dir,
 
 
 @jit(walks=True, nogil=True)
-def frontier(free, w, h, covered, moves_x, moves_y):
+def descend(
+    free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, cell_x, cell_y, bound_m,
+    field, work, out_dir, out_d,
+):  # fmt: skip
+    """At each cell ``(cell_x[k], cell_y[k])``, the direction of steepest descent of the
+    distance :func:`search` finds from ``sources`` toward ``targets`` and that distance
+    (inf: not reached), into ``out_dir`` and ``out_d`` (:func:`ascent` of its negative),
+    following no path beyond ``bound_m`` of every cell; ``field`` and ``work`` are left as
+    they were given."""
+    cx, cy = cell_x.astype(np.float64), cell_y.astype(np.float64)
+    used = search(free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, field, work, cx, cy, bound_m)
+    touched = work[4]
+    for k in range(used):
+        field[touched[k]] = -field[touched[k]]
+    ascent(free, w, h, field, cell_x, cell_y, cell_m, moves_x, moves_y, out_dir, out_d)
+    for k in range(len(out_d)):
+        out_d[k] = -out_d[k] if math.isfinite(out_d[k]) else math.inf
+    forget(field, work, used)
+
+
+@jit(walks=True, nogil=True)
+def frontier(free, w, h, covered, moves_x, moves_y, centre_x, centre_y, reach_cells):
     """The free cells not ``covered`` that a move (:func:`move_ok`) joins to a covered free
     cell, ascending: where the free space not yet covered begins, seen from the covered
-    part (a path from a covered cell to any cell not covered passes one of them first)."""
-    out = np.empty(w * h, np.int64)
+    part (a path from a covered cell to any cell not covered passes one of them first).
+    Only those within ``reach_cells[k]`` cells of some ``(centre_x[k], centre_y[k])`` (an
+    infinite reach: every one)."""
+    x0, y0, x1, y1 = w, h, -1, -1
+    for k in range(len(centre_x)):
+        r = reach_cells[k]
+        if not r < math.inf:
+            x0, y0, x1, y1 = 0, 0, w - 1, h - 1
+            break
+        x0 = min(x0, max(0, int(math.floor(centre_x[k] - r))))
+        y0 = min(y0, max(0, int(math.floor(centre_y[k] - r))))
+        x1 = max(x1, min(w - 1, int(math.ceil(centre_x[k] + r))))
+        y1 = max(y1, min(h - 1, int(math.ceil(centre_y[k] + r))))
+    out = np.empty(max(0, (x1 - x0 + 1) * (y1 - y0 + 1)), np.int64)
     k = 0
-    for c in range(w * h):
-        if not free[c] or covered[c]:
-            continue
-        x, y = c % w, c // w
-        for m in range(len(moves_x)):
-            nx, ny = x + moves_x[m], y + moves_y[m]
-            # The cheap test first: far from the covered part, no neighbour is covered.
-            near = 0 <= nx < w and 0 <= ny < h and covered[ny * w + nx]
-            if near and move_ok(free, w, h, x, y, moves_x[m], moves_y[m]):
-                out[k] = c
-                k += 1
-                break
+    for y in range(y0, y1 + 1):
+        for x in range(x0, x1 + 1):
+            c = y * w + x
+            if not free[c] or covered[c]:
+                continue
+            near = False
+            for j in range(len(centre_x)):
+                dx, dy = x - centre_x[j], y - centre_y[j]
+                if dx * dx + dy * dy <= reach_cells[j] * reach_cells[j]:
+                    near = True
+                    break
+            if not near:
+                continue
+            for m in range(len(moves_x)):
+                nx, ny = x + moves_x[m], y + moves_y[m]
+                # The cheap test first: far from the covered part, no neighbour is covered.
+                joined = 0 <= nx < w and 0 <= ny < h and covered[ny * w + nx]
+                if joined and move_ok(free, w, h, x, y, moves_x[m], moves_y[m]):
+                    out[k] = c
+                    k += 1
+                    break
     return out[:k]

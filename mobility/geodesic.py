@@ -22,6 +22,8 @@ team's map is known to every robot):
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
@@ -36,6 +38,14 @@ GRID_CELL_M = 0.5
 # How far (in grid cells) a position whose own cell is not free looks for a free one: a
 # robot may stand within a map cell of a wall, whose grid cell then counts as blocked.
 NEAR_CELLS = 2
+# How far beyond a point's nearest way out of the covered cells (in grid cells) the sources
+# that can decide the distances its descent reads may lie: a knight's move, rounded up.
+REACH_MARGIN_CELLS = 3.0
+# The guess of how far a point's search must look (FreeGrid.to_outside): the latest distance
+# found in its block of grid cells, a little more.
+GUESS_BLOCK_CELLS = 8
+GUESS_FACTOR = 1.02
+GUESS_MARGIN_M = 0.5
 
 
 def _kernels():
@@ -62,6 +72,13 @@ class FreeGrid:
         kern = _kernels()
         self.moves = (kern.MOVES_X, kern.MOVES_Y)
         self.allowed = kern.allowed_moves(self.free, self.w, self.h, *self.moves)
+        # What the searches toward the free space not yet covered work in, kept between them
+        # (each puts back what it changed), and the latest distance found in each block of
+        # cells: a guess of how far to look, which changes no result.
+        self.field = np.full(self.w * self.h, np.inf)
+        self.work = kern.search_work(self.w * self.h)
+        self.blocks_w = -(-self.w // GUESS_BLOCK_CELLS)
+        self.recent_m = np.full(self.blocks_w * -(-self.h // GUESS_BLOCK_CELLS), np.inf)
 
     def cells(self, points_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The grid cell of each point, or the nearest free one within :data:`NEAR_CELLS`
@@ -112,27 +129,52 @@ class FreeGrid:
             out[k, r0:r1, c0:c1] = np.isfinite(near[: r1 - r0, : c1 - c0])
         return out.reshape(len(p), -1)
 
-    def to_outside(self, points_m: np.ndarray, covered) -> tuple[np.ndarray, np.ndarray]:
+    def to_outside(self, points_m: np.ndarray, covered, cells=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`to_uncovered` with the cells ``covered()`` gives (row-major bools; a
-        callable, asked only when some point has a free cell near) as those covered."""
-        x, y = self.cells(points_m)
-        if not (x >= 0).any():
+        callable, asked only when some point has a free cell near) as those covered.
+        ``cells``: the points' own (:meth:`cells`), when the caller has them already."""
+        x, y = self.cells(points_m) if cells is None else cells
+        direction, value = np.zeros((len(x), 2)), np.full(len(x), np.inf)
+        ok = np.flatnonzero(x >= 0)
+        if len(ok) == 0:
             # No target: the search would settle every cell for nothing.
-            return np.zeros((len(x), 2)), np.full(len(x), np.inf)
+            return direction, value
         kern = _kernels()
         covered = np.ascontiguousarray(covered())
-        sources = kern.frontier(self.free, self.w, self.h, covered, *self.moves)
+        cx, cy = x[ok], y[ok]
+        targets = (cy * self.w + cx).astype(np.int64)
         # A path from a covered cell first leaves the covered part at a source: the search
         # keeps to the covered part, and stops once the points' own cells are settled (the
-        # cells their descent reads are then final).
-        targets = (y * self.w + x)[x >= 0].astype(np.int64)
-        field = np.empty(self.w * self.h)
-        kern.distance_field(
-            self.free, self.allowed, self.w, self.h, sources, self.cell_m, *self.moves, covered, targets, field
-        )
-        # The steepest descent of the distance is the steepest ascent of its negative.
-        direction, value = self.ascent(np.negative(field, out=field), points_m, (x, y))
-        return direction, np.where(np.isfinite(value), -value, np.inf)
+        # cells their descent reads are then final). Those cells' values come from paths no
+        # longer than each point's own distance and a knight's move (REACH_MARGIN_CELLS): the
+        # search takes the sources and follows the paths that can be that short, within a
+        # guess of that distance (the latest found near each point), and searches again
+        # for a point found farther than its guess, within what was found (an upper bound).
+        # The relative margin is for the rounding of a sum of moves.
+        block = self._block_of(cx, cy)
+        reach_m = self.recent_m[block] * GUESS_FACTOR + GUESS_MARGIN_M
+        for attempt in itertools.count():
+            bound_m = reach_m * (1.0 + 1e-9) + REACH_MARGIN_CELLS * self.cell_m
+            sources = kern.frontier(self.free, self.w, self.h, covered, *self.moves, cx, cy, bound_m / self.cell_m)
+            d, v = np.zeros((len(ok), 2)), np.empty(len(ok))
+            kern.descend(
+                self.free, self.allowed, self.w, self.h, sources, self.cell_m, *self.moves,
+                covered, targets, cx, cy, bound_m, self.field, self.work, d, v,
+            )  # fmt: skip
+            short = ~(v <= reach_m)
+            if not short.any():
+                break
+            # A point found farther than its guess: what was found bounds its distance. One
+            # found nowhere within it may lie farther, or out of reach: twice as far, then anywhere.
+            wider = np.where(np.isfinite(v), v, 2.0 * reach_m if attempt == 0 else np.inf)
+            reach_m = np.where(short, wider, reach_m)
+        direction[ok], value[ok] = d, v
+        reached = np.isfinite(v)
+        self.recent_m[block[reached]] = v[reached]
+        return direction, value
+
+    def _block_of(self, cx: np.ndarray, cy: np.ndarray) -> np.ndarray:
+        return (cy // GUESS_BLOCK_CELLS) * self.blocks_w + cx // GUESS_BLOCK_CELLS
 
     def ascent(self, field: np.ndarray, points_m: np.ndarray, cells=None) -> tuple[np.ndarray, np.ndarray]:
         """At each point, the unit direction of the field's steepest ascent through free
@@ -218,10 +260,11 @@ def expansion_to_unexplored(
     groups: dict[bytes, list[int]] = {}
     for i, row in enumerate(explored):
         groups.setdefault(row.tobytes(), []).append(i)
+    x, y = grid.cells(pos)
     for rows in groups.values():
         members = np.array(rows)
         own = np.unpackbits(explored[rows[0]], count=cells).astype(bool)
-        direction[members], d[members] = grid.to_outside(pos[members], lambda own=own: own)
+        direction[members], d[members] = grid.to_outside(pos[members], lambda own=own: own, (x[members], y[members]))
     return _capped_push(direction, d, range_m, gain), d
 
 

@@ -191,6 +191,44 @@ def test_the_push_to_the_uncovered_is_the_descent_of_the_whole_field():
         np.testing.assert_array_equal(d[reached], -want[reached])
 
 
+@pytest.mark.parametrize("guess", ["none", "latest", "too short", "too long"])
+def test_the_push_to_the_uncovered_searches_near_the_robots_and_gives_the_whole_fields_descent(guess):
+    """``FreeGrid.to_outside`` leaves out the sources too far from every robot to decide the
+    distances its descent reads, from a guess of how far that is (the latest found nearby,
+    none, or one wrong either way, which it must find out and mend): for robots deep inside
+    a wide covered part and near its edge, it gives exactly what the whole field gives."""
+    from netsim.world.maps import load_map
+
+    grid = FreeGrid(load_map("office", "world.map"), Bounds.square(200.0))
+    rng = np.random.default_rng(5)
+    kern = _kernels()
+    for _ in range(6):
+        # A wide covered part about a few places, and robots inside it and at its edge.
+        walkers = np.array([100.0, 100.0]) + rng.uniform(-80.0, 80.0, (60, 2))
+        covered = grid.covered(walkers, 15.0)
+        pos = np.r_[walkers[:6], walkers[6:9] + rng.uniform(-20.0, 20.0, (3, 2))]
+        if guess == "none":
+            grid.recent_m[:] = np.inf
+        elif guess == "too short":
+            grid.recent_m[:] = 0.5
+        elif guess == "too long":
+            grid.recent_m[:] = 1e4
+        direction, d = grid.to_outside(pos, lambda covered=covered: covered)
+        whole = np.empty(grid.w * grid.h)
+        sources = np.flatnonzero(grid.free & ~covered)
+        kern.distance_field(
+            grid.free, grid.allowed, grid.w, grid.h, sources, grid.cell_m, *grid.moves, grid.free,
+            np.zeros(0, np.int64), whole,
+        )  # fmt: skip
+        want_direction, want = grid.ascent(-whole, pos)
+        reached = np.isfinite(d)
+        assert reached.sum() >= len(pos) - 2
+        assert d[reached].max() > 10.0  # some robot deep inside: the leaving out matters
+        np.testing.assert_array_equal(direction, want_direction)
+        np.testing.assert_array_equal(d[reached], -want[reached])
+        assert (grid.field == np.inf).all()  # the search put back what it changed
+
+
 @pytest.mark.slow
 def test_control_goes_on_while_the_robots_near_the_free_space_not_yet_covered():
     """On the office map, 40 robots from a connected 40 m start: through the first
