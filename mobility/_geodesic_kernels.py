@@ -127,14 +127,14 @@ def search(
             if 0 <= c < n and free[c] and not wanted[c]:
                 wanted[c] = True
                 pending += 1
-        if pending == 0:
-            size = 0
+    # No free target: nothing to search for (the sources stay at 0).
+    searching = pending != 0
     lengths = np.empty(len(moves_x))
     offsets = np.empty(len(moves_x), np.int64)  # in row-major cells
     for m in range(len(moves_x)):
         lengths[m] = cell_m * math.sqrt(moves_x[m] * moves_x[m] + moves_y[m] * moves_y[m])
         offsets[m] = moves_y[m] * w + moves_x[m]
-    while size > 0:
+    while searching and size > 0:
         c = heap[0]
         where[c] = -1
         size -= 1
@@ -160,15 +160,8 @@ def search(
             pending -= 1
             if pending == 0:
                 break
-        if len(bound_m) > 0:
-            cx, cy = c % w, c // w
-            onward = False
-            for k in range(len(bound_m)):
-                if out[c] + cell_m * math.hypot(cx - centre_x[k], cy - centre_y[k]) <= bound_m[k]:
-                    onward = True
-                    break
-            if not onward:
-                continue
+        if len(bound_m) > 0 and not leads_within(c % w, c // w, out[c], cell_m, centre_x, centre_y, bound_m):
+            continue
         bits = allowed[c]
         for m in range(len(moves_x)):
             if not (bits >> m) & 1:
@@ -205,6 +198,17 @@ def search(
         if 0 <= c < n:
             wanted[c] = False
     return used
+
+
+@jit(walks=True, nogil=True)
+def leads_within(x, y, distance_m, cell_m, centre_x, centre_y, bound_m):
+    """Whether a path that reaches cell ``(x, y)`` after ``distance_m`` can still reach some
+    point ``(centre_x[k], centre_y[k])`` (in cells) within ``bound_m[k]``: no path is
+    shorter than the straight line."""
+    for k in range(len(bound_m)):
+        if distance_m + cell_m * math.hypot(x - centre_x[k], y - centre_y[k]) <= bound_m[k]:
+            return True
+    return False
 
 
 @jit(walks=True, nogil=True)
@@ -251,8 +255,8 @@ def descend(
     """At each cell ``(cell_x[k], cell_y[k])``, the direction of steepest descent of the
     distance :func:`search` finds from ``sources`` toward ``targets`` and that distance
     (inf: not reached), into ``out_dir`` and ``out_d`` (:func:`ascent` of its negative),
-    following no path beyond ``bound_m`` of every cell; ``field`` and ``work`` are left as
-    they were given."""
+    following no path that cannot reach some cell within its ``bound_m[k]``; ``field`` and
+    ``work`` are left as they were given."""
     cx, cy = cell_x.astype(np.float64), cell_y.astype(np.float64)
     used = search(free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, field, work, cx, cy, bound_m)
     touched = work[4]

@@ -41,8 +41,12 @@ NEAR_CELLS = 2
 # How far beyond a point's nearest way out of the covered cells (in grid cells) the sources
 # that can decide the distances its descent reads may lie: a knight's move, rounded up.
 REACH_MARGIN_CELLS = 3.0
+# Relative: a path's length summed in another order of its moves differs by less.
+ROUNDING = 1e-9
 # The guess of how far a point's search must look (FreeGrid.to_outside): the latest distance
-# found in its block of grid cells, a little more.
+# found in its block of grid cells, a little more. A guess too short costs a second search,
+# one too long a wider one; robots move little between steps, so near the latest is cheapest.
+# Any values give the same results.
 GUESS_BLOCK_CELLS = 8
 GUESS_FACTOR = 1.02
 GUESS_MARGIN_M = 0.5
@@ -74,7 +78,8 @@ class FreeGrid:
         self.allowed = kern.allowed_moves(self.free, self.w, self.h, *self.moves)
         # What the searches toward the free space not yet covered work in, kept between them
         # (each puts back what it changed), and the latest distance found in each block of
-        # cells: a guess of how far to look, which changes no result.
+        # cells: a guess of how far to look, which changes no result. So one grid serves
+        # one search at a time.
         self.field = np.full(self.w * self.h, np.inf)
         self.work = kern.search_work(self.w * self.h)
         self.blocks_w = -(-self.w // GUESS_BLOCK_CELLS)
@@ -150,11 +155,10 @@ class FreeGrid:
         # search takes the sources and follows the paths that can be that short, within a
         # guess of that distance (the latest found near each point), and searches again
         # for a point found farther than its guess, within what was found (an upper bound).
-        # The relative margin is for the rounding of a sum of moves.
         block = self._block_of(cx, cy)
         reach_m = self.recent_m[block] * GUESS_FACTOR + GUESS_MARGIN_M
         for attempt in itertools.count():
-            bound_m = reach_m * (1.0 + 1e-9) + REACH_MARGIN_CELLS * self.cell_m
+            bound_m = reach_m * (1.0 + ROUNDING) + REACH_MARGIN_CELLS * self.cell_m
             sources = kern.frontier(self.free, self.w, self.h, covered, *self.moves, cx, cy, bound_m / self.cell_m)
             d, v = np.zeros((len(ok), 2)), np.empty(len(ok))
             kern.descend(
@@ -169,11 +173,12 @@ class FreeGrid:
             wider = np.where(np.isfinite(v), v, 2.0 * reach_m if attempt == 0 else np.inf)
             reach_m = np.where(short, wider, reach_m)
         direction[ok], value[ok] = d, v
-        reached = np.isfinite(v)
-        self.recent_m[block[reached]] = v[reached]
+        # Where none was reached, the next search near there looks everywhere at once.
+        self.recent_m[block] = v
         return direction, value
 
     def _block_of(self, cx: np.ndarray, cy: np.ndarray) -> np.ndarray:
+        """The block of :data:`GUESS_BLOCK_CELLS` cells a side each cell lies in."""
         return (cy // GUESS_BLOCK_CELLS) * self.blocks_w + cx // GUESS_BLOCK_CELLS
 
     def ascent(self, field: np.ndarray, points_m: np.ndarray, cells=None) -> tuple[np.ndarray, np.ndarray]:

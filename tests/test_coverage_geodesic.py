@@ -191,42 +191,98 @@ def test_the_push_to_the_uncovered_is_the_descent_of_the_whole_field():
         np.testing.assert_array_equal(d[reached], -want[reached])
 
 
-@pytest.mark.parametrize("guess", ["none", "latest", "too short", "too long"])
-def test_the_push_to_the_uncovered_searches_near_the_robots_and_gives_the_whole_fields_descent(guess):
-    """``FreeGrid.to_outside`` leaves out the sources too far from every robot to decide the
-    distances its descent reads, from a guess of how far that is (the latest found nearby,
-    none, or one wrong either way, which it must find out and mend): for robots deep inside
-    a wide covered part and near its edge, it gives exactly what the whole field gives."""
+def _whole_descent(grid: FreeGrid, covered: np.ndarray, pos: np.ndarray):
+    """The descent of the field searched from every free cell not covered over all free space."""
+    whole = np.empty(grid.w * grid.h)
+    kern = _kernels()
+    sources = np.flatnonzero(grid.free & ~covered)
+    kern.distance_field(
+        grid.free, grid.allowed, grid.w, grid.h, sources, grid.cell_m, *grid.moves, grid.free,
+        np.zeros(0, np.int64), whole,
+    )  # fmt: skip
+    direction, value = grid.ascent(-whole, pos)
+    return direction, np.where(np.isfinite(value), -value, np.inf)
+
+
+def _assert_put_back(grid: FreeGrid) -> None:
+    _, where, done, wanted, _ = grid.work
+    assert (grid.field == np.inf).all() and (where == -1).all() and not done.any() and not wanted.any()
+
+
+@pytest.mark.parametrize("guess", ["none", "latest", "just short", "too short", "too long"])
+def test_the_push_to_the_uncovered_searches_near_the_robots_and_gives_the_whole_fields_descent(guess, monkeypatch):
+    """``FreeGrid.to_outside`` leaves out the sources and paths too far from every robot to
+    decide the distances its descent reads, from a guess of how far that is (the latest
+    found nearby, none, or one wrong either way, which it must find out and mend): for
+    robots deep inside a wide covered part, near its edge, and in a part all covered, it
+    gives exactly what the whole field gives, and puts back what it worked in."""
     from netsim.world.maps import load_map
 
     grid = FreeGrid(load_map("office", "world.map"), Bounds.square(200.0))
     rng = np.random.default_rng(5)
     kern = _kernels()
-    for _ in range(6):
-        # A wide covered part about a few places, and robots inside it and at its edge.
+    calls: list[tuple[int, int]] = []  # (sources taken, the whole frontier)
+
+    class Counting:
+        def __getattr__(self, name):
+            return getattr(kern, name)
+
+        def frontier(self, free, w, h, covered, mx, my, cx, cy, reach):
+            out = kern.frontier(free, w, h, covered, mx, my, cx, cy, reach)
+            every = np.full(1, np.inf)
+            calls.append((len(out), len(kern.frontier(free, w, h, covered, mx, my, cx[:1], cy[:1], every))))
+            return out
+
+    monkeypatch.setattr("netsim.mobility.geodesic._kernels", Counting)
+    left_out = []  # whether a case's first search left sources out
+    for case in range(7):
         walkers = np.array([100.0, 100.0]) + rng.uniform(-80.0, 80.0, (60, 2))
-        covered = grid.covered(walkers, 15.0)
+        covered = grid.covered(walkers, 15.0) if case < 6 else grid.free.copy()  # the last: all covered
         pos = np.r_[walkers[:6], walkers[6:9] + rng.uniform(-20.0, 20.0, (3, 2))]
+        want_direction, want = _whole_descent(grid, covered, pos)
+        block = grid._block_of(*grid.cells(pos))
         if guess == "none":
             grid.recent_m[:] = np.inf
+        elif guess == "just short":
+            grid.recent_m[:] = np.inf
+            grid.recent_m[block] = np.where(np.isfinite(want), np.maximum(want - 1.0, 0.0), np.inf)
         elif guess == "too short":
             grid.recent_m[:] = 0.5
         elif guess == "too long":
             grid.recent_m[:] = 1e4
+        calls.clear()
         direction, d = grid.to_outside(pos, lambda covered=covered: covered)
-        whole = np.empty(grid.w * grid.h)
-        sources = np.flatnonzero(grid.free & ~covered)
-        kern.distance_field(
-            grid.free, grid.allowed, grid.w, grid.h, sources, grid.cell_m, *grid.moves, grid.free,
-            np.zeros(0, np.int64), whole,
-        )  # fmt: skip
-        want_direction, want = grid.ascent(-whole, pos)
-        reached = np.isfinite(d)
-        assert reached.sum() >= len(pos) - 2
-        assert d[reached].max() > 10.0  # some robot deep inside: the leaving out matters
+        reached = np.isfinite(d)  # a robot whose own cell is not covered has nothing to descend
         np.testing.assert_array_equal(direction, want_direction)
-        np.testing.assert_array_equal(d[reached], -want[reached])
-        assert (grid.field == np.inf).all()  # the search put back what it changed
+        np.testing.assert_array_equal(d[reached], want[reached])
+        _assert_put_back(grid)
+        if case < 6:
+            assert reached.sum() >= len(pos) - 2 and d[reached].max() > 10.0
+            left_out.append(calls[0][0] < calls[0][1])
+            if guess == "just short":
+                assert len(calls) >= 2  # found beyond the guess, searched again
+        else:
+            assert not reached.any() and not np.isfinite(want).any() and not direction.any()
+    if guess != "latest":
+        assert any(left_out) == (guess in ("just short", "too short"))
+
+
+def test_a_search_with_no_free_target_puts_back_what_it_worked_in():
+    """A search whose targets are all walls settles nothing and leaves its work as it found
+    it: the next search from the same sources finds them."""
+    grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
+    kern = _kernels()
+    sources = np.flatnonzero(grid.free)[:3]
+    wall = np.flatnonzero(~grid.free)[:1]
+    none = np.empty(0)
+    for targets in (wall, sources[2:]):
+        used = kern.search(
+            grid.free, grid.allowed, grid.w, grid.h, sources, grid.cell_m, *grid.moves, grid.free,
+            targets, grid.field, grid.work, none, none, none,
+        )  # fmt: skip
+        assert used >= 3 and (grid.field[sources] == 0).all()
+        kern.forget(grid.field, grid.work, used)
+        _assert_put_back(grid)
 
 
 @pytest.mark.slow
