@@ -206,7 +206,8 @@ def leads_within(x, y, distance_m, cell_m, centre_x, centre_y, bound_m):
     point ``(centre_x[k], centre_y[k])`` (in cells) within ``bound_m[k]``: no path is
     shorter than the straight line."""
     for k in range(len(bound_m)):
-        if distance_m + cell_m * math.hypot(x - centre_x[k], y - centre_y[k]) <= bound_m[k]:
+        dx, dy = x - centre_x[k], y - centre_y[k]
+        if distance_m + cell_m * math.sqrt(dx * dx + dy * dy) <= bound_m[k]:
             return True
     return False
 
