@@ -60,25 +60,6 @@ def allowed_moves(free, w, h, moves_x, moves_y):
 
 
 @jit(walks=True, nogil=True)
-def distance_field(free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, out):
-    """Shortest path lengths (m) over free cells from the nearest of the cells ``sources``
-    (row-major indices; those not free are left out) to every cell, into ``out`` (inf: not
-    reached); Dijkstra's algorithm with an indexed binary heap, every source at 0. The
-    moves from each cell are ``allowed``'s (:func:`allowed_moves` of ``free``). Paths leave
-    the sources only through the cells ``within`` marks, each move's end cell (a move's
-    geometry is still :func:`move_ok`'s, over ``free``: a knight's move may pass beside a
-    cell left out).
-
-    With ``targets`` (cells), the search stops once every free one of them is settled:
-    their values are then final, and so is every value below the largest of theirs (the
-    cells settled before), the others upper bounds or inf. Without, every cell is settled."""
-    out[:] = math.inf
-    none = np.empty(0)
-    work = search_work(w * h)
-    search(free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, out, work, none, none, none)
-
-
-@jit(walks=True, nogil=True)
 def search_work(n):
     """The arrays :func:`search` works in, as it wants them: a heap of cells, each cell's
     slot in it (-1: none), whether it is settled, whether it is a target, and the cells it
@@ -96,9 +77,18 @@ def search_work(n):
 def search(
     free, allowed, w, h, sources, cell_m, moves_x, moves_y, within, targets, out, work, centre_x, centre_y, bound_m
 ):
-    """:func:`distance_field` into ``out`` (inf on every cell it does not reach, as given)
-    with ``work`` (:func:`search_work`, as it gives them); returns how many cells it gave a
-    value, listed first in ``work[4]``. :func:`forget` puts both back.
+    """Shortest path lengths (m) over free cells from the nearest of the cells ``sources``
+    (row-major indices; those not free are left out) into ``out`` (inf on every cell, as
+    given; inf where not reached); Dijkstra's algorithm with an indexed binary heap, every
+    source at 0. The moves from each cell are ``allowed``'s (:func:`allowed_moves` of
+    ``free``). Paths leave the sources only through the cells ``within`` marks, each move's
+    end cell (a move's geometry is still :func:`move_ok`'s, over ``free``: a knight's move
+    may pass beside a cell left out). With ``targets`` (cells), the search stops once every
+    free one of them is settled: their values are then final, and so is every value below
+    the largest of theirs (the cells settled before), the others upper bounds or inf.
+    Without, every cell is settled. It works in ``work`` (:func:`search_work`, as it gives
+    them) and returns how many cells it gave a value, listed first in ``work[4]``;
+    :func:`forget` puts both back.
 
     With ``bound_m``, no path is followed beyond a settled cell from which every point
     ``(centre_x[k], centre_y[k])`` (in cells) lies farther in a straight line than

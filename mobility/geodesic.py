@@ -181,21 +181,6 @@ class FreeGrid:
         """The block of :data:`GUESS_BLOCK_CELLS` cells a side each cell lies in."""
         return (cy // GUESS_BLOCK_CELLS) * self.blocks_w + cx // GUESS_BLOCK_CELLS
 
-    def ascent(self, field: np.ndarray, points_m: np.ndarray, cells=None) -> tuple[np.ndarray, np.ndarray]:
-        """At each point, the unit direction of the field's steepest ascent through free
-        space (zero at a dead end, where no free move ascends, or where the field is not
-        reached) and the field's value (inf: not reached). ``cells``: the points' own
-        (:meth:`cells`), when the caller has them already."""
-        x, y = self.cells(points_m) if cells is None else cells
-        direction = np.zeros((len(x), 2))
-        value = np.full(len(x), np.inf)
-        ok = np.flatnonzero(x >= 0)
-        if len(ok):
-            d, v = np.zeros((len(ok), 2)), np.empty(len(ok))
-            _kernels().ascent(self.free, self.w, self.h, field, x[ok], y[ok], self.cell_m, *self.moves, d, v)
-            direction[ok], value[ok] = d, v
-        return direction, value
-
 
 def in_sight(occupancy, a_m: np.ndarray, b_m: np.ndarray) -> np.ndarray:
     """Whether each straight segment ``a_m[k] -> b_m[k]`` stays in free cells: the pairs of

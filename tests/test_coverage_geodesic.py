@@ -23,16 +23,36 @@ def room_with_a_door() -> OccupancyMap:
     return OccupancyMap(occupied, ~occupied, RES_M, (0.0, 0.0))
 
 
+def distance_field(grid: FreeGrid, sources, within, targets, out) -> None:
+    """The search of ``FreeGrid.to_outside`` (the kernel ``search``), over the whole grid."""
+    out[:] = np.inf
+    none = np.empty(0)
+    kern = _kernels()
+    kern.search(
+        grid.free, grid.allowed, grid.w, grid.h, np.asarray(sources, np.int64), grid.cell_m, *grid.moves,
+        within, targets, out, kern.search_work(grid.w * grid.h), none, none, none,
+    )  # fmt: skip
+
+
+def ascent(grid: FreeGrid, field: np.ndarray, points_m: np.ndarray):
+    """At each point, the direction of the field's steepest ascent over the grid's moves
+    from its cell and the field's value there (inf: not reached or no cell)."""
+    x, y = grid.cells(points_m)
+    direction, value = np.zeros((len(x), 2)), np.full(len(x), np.inf)
+    ok = np.flatnonzero(x >= 0)
+    d, v = np.zeros((len(ok), 2)), np.empty(len(ok))
+    _kernels().ascent(grid.free, grid.w, grid.h, field, x[ok], y[ok], grid.cell_m, *grid.moves, d, v)
+    direction[ok], value[ok] = d, v
+    return direction, value
+
+
 def _field(grid: FreeGrid, sources_m, targets=None, within=None) -> np.ndarray:
     """Distances through free space from the grid cells of ``sources_m``."""
     targets = np.zeros(0, np.int64) if targets is None else targets
     x, y = grid.cells(np.asarray(sources_m, float).reshape(-1, 2))
     out = np.empty(grid.w * grid.h)
     within = grid.free if within is None else within
-    kern = _kernels()
-    kern.distance_field(
-        grid.free, grid.allowed, grid.w, grid.h, y * grid.w + x, grid.cell_m, *grid.moves, within, targets, out
-    )
+    distance_field(grid, y * grid.w + x, within, targets, out)
     return out
 
 
@@ -41,7 +61,7 @@ def test_distance_through_free_space_goes_round_the_wall_through_the_door():
     wall to the point straight across it, the way through the door, not the straight 4 m."""
     grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
     field = _field(grid, [8.0, 15.0])
-    _, d = grid.ascent(field, np.array([[12.0, 15.0], [8.0, 12.0]]))
+    _, d = ascent(grid, field, np.array([[12.0, 15.0], [8.0, 12.0]]))
     through_door = np.hypot(2.2, 11.0) + np.hypot(1.8, 11.0)  # via (10.1, 4)
     assert through_door - 1.0 < d[0] < 1.05 * through_door + 1.0
     # In sight: the straight distance, to within the grid's moves.
@@ -76,7 +96,7 @@ def test_distances_keep_to_the_cells_within():
         for dx in (-1, 0, 1):
             within[(door_y[0] + dy) * grid.w + door_x[0] + dx] = False
     field = _field(grid, [8.0, 15.0], within=within)
-    _, d = grid.ascent(field, np.array([[12.0, 15.0], [5.0, 5.0]]))
+    _, d = ascent(grid, field, np.array([[12.0, 15.0], [5.0, 5.0]]))
     assert np.isinf(d[0]) and np.isfinite(d[1])
 
 
@@ -174,17 +194,14 @@ def test_the_push_to_the_uncovered_is_the_descent_of_the_whole_field():
 
     grid = FreeGrid(load_map("office", "world.map"), Bounds.square(200.0))
     rng = np.random.default_rng(3)
-    kern = _kernels()
     for n, spread_m, radius_m in ((40, 30.0, 30.0), (12, 90.0, 20.0), (3, 5.0, 8.0)):
         pos = np.array([100.0, 100.0]) + rng.uniform(-spread_m, spread_m, (n, 2))
         direction, d = grid.to_uncovered(pos, radius_m)
         uncovered = np.flatnonzero(grid.free & ~grid.covered(pos, radius_m))
         whole = np.empty(grid.w * grid.h)
         everywhere, none = grid.free, np.zeros(0, np.int64)
-        kern.distance_field(
-            grid.free, grid.allowed, grid.w, grid.h, uncovered, grid.cell_m, *grid.moves, everywhere, none, whole
-        )
-        want_direction, want = grid.ascent(-whole, pos)
+        distance_field(grid, uncovered, everywhere, none, whole)
+        want_direction, want = ascent(grid, -whole, pos)
         reached = np.isfinite(d)
         assert reached.sum() >= n - 2
         np.testing.assert_array_equal(direction, want_direction)
@@ -194,13 +211,9 @@ def test_the_push_to_the_uncovered_is_the_descent_of_the_whole_field():
 def _whole_descent(grid: FreeGrid, covered: np.ndarray, pos: np.ndarray):
     """The descent of the field searched from every free cell not covered over all free space."""
     whole = np.empty(grid.w * grid.h)
-    kern = _kernels()
     sources = np.flatnonzero(grid.free & ~covered)
-    kern.distance_field(
-        grid.free, grid.allowed, grid.w, grid.h, sources, grid.cell_m, *grid.moves, grid.free,
-        np.zeros(0, np.int64), whole,
-    )  # fmt: skip
-    direction, value = grid.ascent(-whole, pos)
+    distance_field(grid, sources, grid.free, np.zeros(0, np.int64), whole)
+    direction, value = ascent(grid, -whole, pos)
     return direction, np.where(np.isfinite(value), -value, np.inf)
 
 
