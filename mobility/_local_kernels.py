@@ -358,14 +358,14 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     other and the lists those lists' senders held (:class:`netsim.mobility.local.Heard`, its
     ``x_db``, ``held`` and ``records_db`` given); ``rule``, the step's
     (:class:`netsim.mobility.local.DetourRule`), a detour's link certified up over
-    ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): each end farther from where it is at
-    ``t0_s`` by its largest travel over the window, and a measured link's pair travel
+    ``[t0_s - window_s, t0_s]`` (0: at ``t0_s``): on each piece of it each end where its
+    known leg puts it (:func:`up_over_window`), and a measured link's pair travel
     counted from the window's start where that is earlier than the measurement
     (:func:`largest_travel_m`); ``fade``: the shadowing's rule (:func:`measured_range_m`,
     :func:`link_band`; ``on`` False: none)."""
     xy, sent_s, known, silent = memory.xy, memory.sent_s, memory.known, memory.silent
     x_db, measured_s = memory.x_db, memory.measured_s
-    leg_speed, leg_from = memory.leg_speed_mps, memory.leg_from_s
+    leg_speed, leg_from, leg_velocity = memory.leg_speed_mps, memory.leg_from_s, memory.leg_velocity_mps
     which, start, other, listed_s = heard.which, heard.start, heard.other, heard.sent_s
     held, records_db = heard.held, heard.records_db
     # Without the lists' senders' lists (``held`` empty) the graph ends at the robots i remembers.
@@ -393,6 +393,11 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     readable = np.zeros((n, n), np.bool_)
     # sweep[a]: node a's largest travel over the window, as i knows it.
     sweep = np.zeros(n)
+    # Node a's known leg over the window: its velocity from leg_s[a] to t0 (up_over_window).
+    leg_s = np.empty(n)
+    vx = np.zeros(n)
+    vy = np.zeros(n)
+    vs = np.zeros(n)
     worst = np.empty(n)
     done = np.empty(n, np.bool_)
     for i in range(n):
@@ -441,6 +446,12 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 # Of a robot two hops out i knows no leg: the cap all along.
                 speed_u = np.nan if beyond[a] else leg_speed[i, u]
                 sweep[a] = largest_travel_m(speed_u, leg_from[i, u], opens_s, t0_s, speed_mps)
+                # Its known leg, from leg_s[a] on; none: the leg "starts" at t0.
+                if math.isnan(speed_u):
+                    leg_s[a], vx[a], vy[a], vs[a] = t0_s, 0.0, 0.0, 0.0
+                else:
+                    leg_s[a] = min(max(leg_from[i, u], opens_s), t0_s)
+                    vx[a], vy[a], vs[a] = leg_velocity[i, u, 0], leg_velocity[i, u, 1], speed_u
         # certain[a, b]: i can tell that node a remembers node b at t0 (from a's list).
         for a in range(k):
             for b in range(k):
@@ -521,15 +532,17 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 if fade.on and not readable[u, v]:
                     continue
                 longest = np.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
-                if longest + sweep[u] + sweep[v] > sure[u, v]:
-                    continue
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
-                if walls.on:
-                    ea, eb = e[a] + sweep[a], e[b] + sweep[b]
-                    if not clear(walls, qx[a], qy[a], qx[b], qy[b], ea, eb):
-                        if not through(walls, qx[a], qy[a], ea, qx[b], qy[b], eb, longest + sweep[u] + sweep[v]):
-                            continue
+                if sweep[a] + sweep[b] > 0:
+                    ends = (qx, qy, e, vx, vy, vs, leg_s)
+                    if not up_over_window(walls, a, b, ends, sure[u, v], opens_s, t0_s, speed_mps):
+                        continue
+                elif longest > sure[u, v]:
+                    continue
+                elif walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a], e[b]):
+                    if not through(walls, qx[a], qy[a], e[a], qx[b], qy[b], e[b], longest):
+                        continue
                 band = link_band(longest, record_db[u, v], band_m, fade, nominal_m)
                 rank = band * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)
@@ -543,6 +556,48 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
             band = link_band(shortest, record_db[0, a], band_m, fade, nominal_m)
             rank = band * nn + float(min(i, j) * n + max(i, j)) + 1.0
             out[i, j] = worst[a] < rank
+
+
+# How many equal pieces rule 1 cuts the window into where an end of a detour's link moved in
+# it: each piece certified with both ends where their known legs put them over the piece,
+# so that a robot that moved along a corridor is not taken to have swept across it.
+WINDOW_PIECES = 8
+
+
+@jit(nogil=True)
+def at_over(qx, qy, e, vx, vy, speed, leg_s, s0, s1, t0_s, speed_mps):
+    """Where one end is over ``[s0, s1]`` of the window, as a disk ``(x, y, radius)``: at an
+    instant ``t`` of its known leg (from ``leg_s`` on) within ``e`` of ``q - v (t0 - t)``,
+    before the leg within the cap's travel of where the leg started (``speed``: the leg's)."""
+    if s0 >= leg_s:
+        back = t0_s - 0.5 * (s0 + s1)
+        return qx - vx * back, qy - vy * back, e + speed * 0.5 * (s1 - s0)
+    back = t0_s - leg_s
+    return qx - vx * back, qy - vy * back, e + max(speed_mps * (leg_s - s0), speed * max(s1 - leg_s, 0.0))
+
+
+@jit(nogil=True)
+def up_over_window(walls, a, b, ends, sure_m, opens_s, t0_s, speed_mps):
+    """Rule 1's detour link between nodes ``a`` and ``b`` (``ends``: the nodes' positions
+    ``qx, qy`` at ``t0``, uncertainties ``e``, known legs' velocities ``vx, vy`` and speeds
+    ``vs`` from ``leg_s``) surely up at every instant of ``[opens_s, t0_s]``: over each of
+    :data:`WINDOW_PIECES` pieces, each end within a disk about where its leg puts it
+    (:func:`at_over`), the two disks at most ``sure_m`` apart at their farthest and their
+    hull clear of walls (or within the range through the walls it meets)."""
+    qx, qy, e, vx, vy, vs, leg_s = ends
+    span = (t0_s - opens_s) / WINDOW_PIECES
+    for p in range(WINDOW_PIECES):
+        s0 = opens_s + p * span
+        s1 = t0_s if p == WINDOW_PIECES - 1 else s0 + span
+        ax, ay, ra = at_over(qx[a], qy[a], e[a], vx[a], vy[a], vs[a], leg_s[a], s0, s1, t0_s, speed_mps)
+        bx, by, rb = at_over(qx[b], qy[b], e[b], vx[b], vy[b], vs[b], leg_s[b], s0, s1, t0_s, speed_mps)
+        longest = np.hypot(ax - bx, ay - by) + ra + rb
+        if longest > sure_m:
+            return False
+        if walls.on and not clear(walls, ax, ay, bx, by, ra, rb):
+            if not through(walls, ax, ay, ra, bx, by, rb, longest):
+                return False
+    return True
 
 
 @jit(nogil=True)

@@ -60,9 +60,10 @@ it has heard no Ack of for longer than the largest gap between two (``ack_period
 ack_jitter_s`` plus the channel's delay jitter): an Ack of it due before the step did not
 arrive, so the link was down at an instant of the *window* ``[t0 - W, t0]``
 (:func:`silence_of`); the robot stays a node of rule 1's graph, but that link is no
-detour's link. Rule 1 then certifies a detour's links up over the whole window: each
-end farther from where ``i`` knows it at ``t0`` by its largest travel over the window, a
-measured link's pair travel counted from the window's start. Under loss a missed Ack says
+detour's link. Rule 1 then certifies a detour's links up over the whole window: on each
+of its pieces (:data:`netsim.mobility._local_kernels.WINDOW_PIECES`) each end within a
+disk about where its known leg puts it (the cap's travel where it knows none), a measured
+link's pair travel counted from the window's start. Under loss a missed Ack says
 nothing of the link: no release, ``W = 0``.
 
 ``r`` is the plan's range: the range on a disk (the implied range under log-distance;
@@ -294,10 +295,11 @@ class Memory:
         # How far from ``q_j`` robot ``i`` answers for the link (:func:`leash_radius`); None:
         # the plan's range less its margin for every link.
         self.keep_m: np.ndarray | None = None
-        # The speed at which ``i`` knows ``j`` moves from ``leg_from_s[i, j]`` until the step
-        # being planned (the velocity of ``j``'s Ack sent on its current leg; ``i``'s own on
-        # the diagonal), NaN: unknown (:func:`largest_travel_m`).
-        self.leg_speed_mps = np.full((n, n), np.nan)
+        # The velocity with which ``i`` knows ``j`` moves from ``leg_from_s[i, j]`` until the
+        # step being planned (that of ``j``'s Ack sent on its current leg; ``i``'s own on the
+        # diagonal), NaN: unknown (:func:`largest_travel_m`; rule 1 follows ``j`` back along
+        # it over its window).
+        self.leg_velocity_mps = np.full((n, n, 2), np.nan)
         self.leg_from_s = np.full((n, n), np.inf)
 
     def hear(
@@ -330,19 +332,24 @@ class Memory:
         if leg_velocity_mps is None or leg_start_s is None:
             self.vel[r, o] = 0.0
             self.until_s[r, o] = sent
-            self.leg_speed_mps[r, o] = np.nan
+            self.leg_velocity_mps[r, o] = np.nan
             self.leg_from_s[r, o] = np.inf
             return
         on_leg = sent >= leg_start_s[o]
         self.vel[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], 0.0)
         self.until_s[r, o] = np.where(on_leg, leg_until_s, sent)
-        self.leg_speed_mps[r, o] = np.where(on_leg, speeds_mps(leg_velocity_mps[o]), np.nan)
+        self.leg_velocity_mps[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], np.nan)
         # An Ack carries its sender's velocity and when its leg started.
         self.leg_from_s[r, o] = np.where(on_leg, leg_start_s[o], np.inf)
         # Each robot knows its own leg: its velocity since the leg started.
         own = np.arange(len(self.sent_s))
-        self.leg_speed_mps[own, own] = speeds_mps(leg_velocity_mps)
+        self.leg_velocity_mps[own, own] = leg_velocity_mps
         self.leg_from_s[own, own] = leg_start_s
+
+    @property
+    def leg_speed_mps(self) -> np.ndarray:
+        """``(n, n)``: the speed of :attr:`leg_velocity_mps` (NaN: unknown)."""
+        return speeds_mps(self.leg_velocity_mps).reshape(self.leg_from_s.shape)
 
     def known(self, now_s: float, release_s: float) -> np.ndarray:
         """``(n, n)``: ``i`` remembers ``j`` (heard an Ack of it sent less than ``release_s`` ago)."""
@@ -369,7 +376,7 @@ class Memory:
             out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)
         out.until_s = out.sent_s.copy()
         out.x_db, out.margin_db, out.measured_s = self.x_db, self.margin_db, self.measured_s
-        out.leg_speed_mps, out.leg_from_s = self.leg_speed_mps, self.leg_from_s
+        out.leg_velocity_mps, out.leg_from_s = self.leg_velocity_mps, self.leg_from_s
         return out
 
     def travel_m(self, since_s: np.ndarray, t0_s: float, speed_mps: float) -> np.ndarray:
@@ -591,8 +598,8 @@ def let_go(
     detour's worst link is the bottleneck of ``i``'s path to ``j`` in a minimum spanning
     tree of that graph, computed by :func:`netsim.mobility._local_kernels.let_go`.
     ``window_s``: a detour's links are certified up over ``[t0_s - window_s, t0_s]``, not
-    at ``t0_s`` alone (each end farther from where it is known to be by its largest travel
-    over the window; :class:`Silence`).
+    at ``t0_s`` alone (each end where its known leg puts it over each piece of the window,
+    :func:`netsim.mobility._local_kernels.up_over_window`; :class:`Silence`).
     ``silent_of``: ``(n, n)``, the robots each robot has heard nothing of for longer than
     the largest gap between two Acks (:func:`silent`): their link was down in the window,
     so it is no detour's link, though the robot is still a node.
@@ -629,6 +636,7 @@ def let_go(
         memory.measured_s,
         memory.leg_speed_mps,
         memory.leg_from_s,
+        memory.leg_velocity_mps,
     )
     kernels.let_go(pos, memories, heard, rule, walls, out, NO_FADE if fade is None else fade.rule)
     return out
@@ -645,6 +653,7 @@ class Remembered(NamedTuple):
     measured_s: np.ndarray  # (n, n): the earliest time that Ack can have been sent
     leg_speed_mps: np.ndarray  # (n, n): j's speed as i knows it (its own on the diagonal)
     leg_from_s: np.ndarray  # (n, n): when that leg started (largest_travel_m)
+    leg_velocity_mps: np.ndarray  # (n, n, 2): that leg's velocity (NaN: unknown)
 
 
 class DetourRule(NamedTuple):

@@ -249,7 +249,9 @@ def test_detour_over_two_hops_agrees_with_its_oracle(monkeypatch):
         changed |= bool((a != let_go(pos, m, heard._replace(held=None), T0, V, 10.0, RC)).any())
         # Over a window, with legs told (a robot two hops out has none i knows: the cap) and
         # silent robots.
-        m.leg_speed_mps[:] = np.where(rng.random(m.sent_s.shape) < 0.7, 0.0, V)
+        heading = rng.uniform(0.0, 2 * np.pi, m.sent_s.shape)
+        speed = np.where(rng.random(m.sent_s.shape) < 0.7, 0.0, V)
+        m.leg_velocity_mps[:] = (speed * np.stack([np.cos(heading), np.sin(heading)])).transpose(1, 2, 0)
         m.leg_from_s[:] = T0 - 20.0
         quiet = rng.random(m.sent_s.shape) < 0.1
         agreed(monkeypatch, pos, m, heard, window_s=3.0, silent_of=quiet)

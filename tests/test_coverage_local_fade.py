@@ -267,7 +267,7 @@ def test_fade_step_counts_the_travel_the_acks_tell_not_the_cap():
     _, blind = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
     assert blind[0, 1] == pytest.approx(allowed - f.speed_mps * ((T0 - sent) + (T0 + PERIOD - sent)))
     # Both held on legs that started before the Ack (what Memory.hear records).
-    m.leg_speed_mps[:] = 0.0
+    m.leg_velocity_mps[:] = 0.0
     m.leg_from_s[:] = T0 - 5.0
     _, told = f.limits(m, T0, T0 + PERIOD, f.speed_mps)
     assert told[0, 1] == pytest.approx(allowed - f.speed_mps * PERIOD)
@@ -285,7 +285,7 @@ def test_detour_certified_over_the_travel_the_acks_tell():
     held = heard_over_steps(m)
     v = f.speed_mps
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
-    m.leg_speed_mps[:] = 0.0  # every Ack said its sender held, since before it was sent
+    m.leg_velocity_mps[:] = 0.0  # every Ack said its sender held, since before it was sent
     m.leg_from_s[:] = T0 - 5.0
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
 
@@ -321,13 +321,13 @@ def held_pair(distance_m: float, x_db: float, measured_s: float, exact: bool = T
     m.x_db[0, 1] = x_db
     m.x_db[1, 0] = x_db if x_larger_db is None else x_larger_db
     record_margins(m, pos)
-    m.leg_speed_mps[:] = 0.0
+    m.leg_velocity_mps[:] = 0.0
     m.leg_from_s[:] = T0 - 5.0
     lists = Lists(2, 2)
     lists.take(m, T0 - 1.0, 20.0)
     held = lists.heard(m.known(T0, 20.0), m.sent_s, 20.0)
     knows = Memory(2)
-    for name in ("xy", "x_db", "margin_db", "measured_s", "leg_speed_mps", "leg_from_s"):
+    for name in ("xy", "x_db", "margin_db", "measured_s", "leg_velocity_mps", "leg_from_s"):
         setattr(knows, name, getattr(m, name).copy())
     knows.sent_s = np.where(np.isfinite(m.sent_s), T0 if exact else measured_s, -np.inf)
     return pos, knows, held

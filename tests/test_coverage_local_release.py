@@ -133,7 +133,7 @@ def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypat
     assert let_go(near, m2, told(m2), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
     # Robots whose Acks (and robot 0's own leg) say they have held since before the window
     # travelled nothing over it: certified as at t0.
-    m.leg_speed_mps[:] = 0.0
+    m.leg_velocity_mps[:] = 0.0
     m.leg_from_s[:] = T0 - 5.0
     assert let_go(pos, m, told(m), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
 
@@ -141,22 +141,63 @@ def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypat
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_detour_kernel_over_a_window_agrees_with_its_oracle(monkeypatch, compiled):
     """Rule 1's kernel with a window lets go of exactly the links its numpy oracle does, in
-    open space and on a map (a detour's link surely clear of walls over the window)."""
+    open space and on a map (a detour's link surely clear of walls over the window), with
+    no leg known (the cap all along) and with legs known that started before and within
+    the window, in every direction, some robots holding."""
     from netsim.mobility.local import walls_of
 
     from tests.test_coverage_local import ORIGIN, RES, blocks_map, random_scene
 
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     map_walls = walls_of(blocks_map([(100, 50, 102, 250), (150, 100, 300, 101)]), ORIGIN, RES)
-    differs = False
-    for seed in range(4):
+    rng = np.random.default_rng(5)
+    differs = legs_matter = False
+    for seed in range(6):
         pos, m = random_scene(seed, n=30)
         heard = told(m)
+        blind = let_go(pos, m, heard, T0, V, 10.0, RC, map_walls, window_s=3.0)
+        if seed >= 2:
+            heading = rng.uniform(0.0, 2 * np.pi, m.sent_s.shape)
+            speed = V * np.where(rng.random(m.sent_s.shape) < 0.3, 0.0, rng.random(m.sent_s.shape))
+            m.leg_velocity_mps[:] = (speed * np.stack([np.cos(heading), np.sin(heading)])).transpose(1, 2, 0)
+            m.leg_from_s[:] = T0 - rng.uniform(0.0, 4.0, m.sent_s.shape)
+            legs_matter |= bool((let_go(pos, m, heard, T0, V, 10.0, RC, map_walls, window_s=3.0) != blind).any())
         for walls in (NO_WALLS, map_walls):
             got = let_go(pos, m, heard, T0, V, 10.0, RC, walls, window_s=3.0)
             assert (got == oracle.let_go(pos, m, heard, T0, V, 10.0, RC, walls, 3.0)).all()
             differs |= bool((got != let_go(pos, m, heard, T0, V, 10.0, RC, walls)).any())
-    assert differs
+    assert differs and legs_matter
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_robot_that_moved_along_a_corridor_is_followed_along_its_leg_over_the_window(monkeypatch, compiled):
+    """Rule 1 with the release on a map: robots 0, 2 and 1 stand 15 m apart on the middle
+    line of a 2 m corridor, and 2 has moved along it at the cap since the step before. Over
+    the window each end of a detour's link is where its known leg puts it, so 0 lets go of 1
+    through 2; had 2's leg been unknown, it might have swept 2.1 m across the corridor and
+    0 keeps 1."""
+    from netsim.mobility.local import walls_of
+
+    from tests.test_coverage_local import ORIGIN, RES, blocks_map
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    walls = walls_of(blocks_map([(0, -2, 100, 0), (0, 2, 100, 4)]), ORIGIN, RES)
+    pos = np.array([[10.0, 1.0], [40.0, 1.0], [25.0, 1.0]])
+    sent = np.full((3, 3), T0)
+    np.fill_diagonal(sent, -np.inf)
+    m = memory_of(np.broadcast_to(pos[None], (3, 3, 2)).copy(), sent)
+    m.leg_velocity_mps[:] = 0.0
+    m.leg_velocity_mps[:, 2] = (V, 0.0)
+    m.leg_from_s[:] = T0 - PERIOD_S
+    window = SILENCE.window_s
+    assert let_go(pos, m, told(m), T0, V, 10.0, 30.0, walls)[0, 1]
+    assert let_go(pos, m, told(m), T0, V, 10.0, 30.0, walls, window_s=window)[0, 1]
+    assert (
+        let_go(pos, m, told(m), T0, V, 10.0, 30.0, walls, window_s=window)
+        == oracle.let_go(pos, m, told(m), T0, V, 10.0, 30.0, walls, window)
+    ).all()
+    m.leg_velocity_mps[:, 2] = np.nan
+    assert not let_go(pos, m, told(m), T0, V, 10.0, 30.0, walls, window_s=window)[0, 1]
 
 
 @pytest.mark.slow
@@ -218,7 +259,7 @@ def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windo
     m.x_db[:] = 6.0
     np.fill_diagonal(m.x_db, np.nan)
     record_margins(m, pos)
-    m.leg_speed_mps[:] = v  # every robot at the cap since before the window
+    m.leg_velocity_mps[:] = (v, 0.0)  # every robot at the cap since before the window
     m.leg_from_s[:] = T0 - 5.0
     held = heard_over_steps(m)
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]

@@ -95,8 +95,8 @@ def let_go(
     remembered robot; the graph's nodes the robot, the robots it remembers and (when
     ``heard`` carries the lists their senders held) the robots two hops out that their lists
     name, each where the freshest list puts it; a link certified up over the window before
-    ``t0_s`` (each end farther by its largest travel over the window as the robot knows it,
-    at the cap for a robot two hops out); a silent robot's link (``silent_of``) no detour's
+    ``t0_s`` (on each piece of the window each end where its known leg puts it, at the cap
+    for a robot two hops out: :func:`up_over_window`); a silent robot's link (``silent_of``) no detour's
     link."""
     n = len(pos)
     out = np.zeros((n, n), dtype=bool)
@@ -164,17 +164,17 @@ def let_go(
                 t0_s,
                 speed_mps,
             )
-        usable = certain & certain.T & (longest + sweep[:, None] + sweep[None, :] <= range_m)
+        usable = certain & certain.T
         np.fill_diagonal(usable, False)
+        a, b = np.nonzero(np.triu(usable, 1))
+        moving = sweep[a] + sweep[b] > 0
+        ok = longest[a, b] <= range_m
         if walls.on:
-            a, b = np.nonzero(np.triu(usable, 1))
-            ea, eb = e[a] + sweep[a], e[b] + sweep[b]
-            ok = clear_of_walls(walls, q[a], q[b], ea, eb)
-            if len(walls.through_m):
-                met = walls_met(walls, q[a], q[b], ea, eb)
-                through = np.r_[-np.inf, walls.through_m, -np.inf][np.minimum(met, len(walls.through_m) + 1)]
-                ok |= (met > 0) & (longest[a, b] + sweep[a] + sweep[b] <= through)
-            usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
+            ok &= up_by_walls(walls, q[a], q[b], e[a], e[b], longest[a, b])
+        if moving.any():
+            legs = window_legs(memory, i, node, m, t0_s, window_s)
+            ok[moving] = up_over_window(q, e, legs, a[moving], b[moving], t0_s, window_s, speed_mps, range_m, walls)
+        usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
         worst = np.full(len(node), np.inf)
@@ -184,6 +184,56 @@ def let_go(
         shortest = np.maximum(centre[0, 1 : m + 1] - e[1 : m + 1], 0.0)
         out[i, nb] = worst[1 : m + 1] < link_rank(shortest, pair[0, 1 : m + 1], band_m, n) + 1.0
     return out
+
+
+def up_by_walls(walls: Walls, qa, qb, ea, eb, longest) -> np.ndarray:
+    """A link between the disks ``D(qa, ea)`` and ``D(qb, eb)``, at most ``longest`` long, is
+    surely clear of walls or within the range through the walls its hull meets."""
+    ok = clear_of_walls(walls, qa, qb, ea, eb)
+    if len(walls.through_m):
+        met = walls_met(walls, qa, qb, ea, eb)
+        through = np.r_[-np.inf, walls.through_m, -np.inf][np.minimum(met, len(walls.through_m) + 1)]
+        ok |= (met > 0) & (longest <= through)
+    return ok
+
+
+# As the kernel cuts the window (netsim.mobility._local_kernels.WINDOW_PIECES).
+WINDOW_PIECES = 8
+
+
+def window_legs(memory: Memory, i: int, node: np.ndarray, m: int, t0_s: float, window_s: float):
+    """Each node's known leg over the window as robot ``i`` knows it: when it starts (the
+    window's opening at the earliest), its velocity and its speed; none (a robot two hops out, or a
+    speed unknown): starting at ``t0_s`` with no velocity."""
+    known = (np.arange(len(node)) <= m) & ~np.isnan(memory.leg_speed_mps[i, node])
+    start = np.where(known, np.clip(memory.leg_from_s[i, node], t0_s - window_s, t0_s), t0_s)
+    velocity = np.where(known[:, None], memory.leg_velocity_mps[i, node], 0.0)
+    return start, velocity, np.where(known, memory.leg_speed_mps[i, node], 0.0)
+
+
+def up_over_window(q, e, legs, a, b, t0_s, window_s, speed_mps, range_m, walls: Walls) -> np.ndarray:
+    """The links ``(a, b)`` up at every instant of the window: on each of its
+    :data:`WINDOW_PIECES` pieces, each end within the disk that holds it over the piece (on
+    its known leg, about where the leg puts it at the piece's middle; before the leg, about
+    where the leg starts, widened by the cap's travel), the disks within the range and
+    clear of walls (or within the range through them)."""
+    start, velocity, speed = legs
+    opens = t0_s - window_s
+    span = (t0_s - opens) / WINDOW_PIECES
+    ok = np.ones(len(a), dtype=bool)
+    for p in range(WINDOW_PIECES):
+        s0 = opens + p * span
+        s1 = t0_s if p == WINDOW_PIECES - 1 else s0 + span
+        on_leg = s0 >= start
+        back = np.where(on_leg, t0_s - 0.5 * (s0 + s1), t0_s - start)
+        centre = q - velocity * back[:, None]
+        before = np.maximum(speed_mps * (start - s0), speed * np.maximum(s1 - start, 0.0))
+        radius = e + np.where(on_leg, speed * 0.5 * (s1 - s0), before)
+        longest = np.hypot(*(centre[a] - centre[b]).T) + radius[a] + radius[b]
+        ok &= longest <= range_m
+        if walls.on:
+            ok &= up_by_walls(walls, centre[a], centre[b], radius[a], radius[b], longest)
+    return ok
 
 
 def largest_travel_m(
