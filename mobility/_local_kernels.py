@@ -391,7 +391,8 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     record_db = np.full((n, n), np.nan)
     nominal_m = range_at_loss_m(0.0, 0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
     readable = np.zeros((n, n), np.bool_)
-    # sweep[a]: node a's largest travel over the window, as i knows it.
+    # sweep[a]: node a's largest travel over the window, as i knows it (0: it cannot have
+    # moved in it, and a detour's link is certified as at t0).
     sweep = np.zeros(n)
     # Node a's known leg over the window: its velocity from leg_s[a] to t0 (up_over_window).
     leg_s = np.empty(n)
@@ -534,15 +535,20 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                 longest = np.hypot(qx[u] - qx[v], qy[u] - qy[v]) + e[u] + e[v]
                 # From the node met first in the list (the order the oracle walks too).
                 a, b = min(u, v), max(u, v)
-                if sweep[a] + sweep[b] > 0:
+                # Each end anywhere within its whole travel over the window of where it is at t0.
+                swept = longest + sweep[u] + sweep[v]
+                up = swept <= sure[u, v]
+                if up and walls.on:
+                    ea, eb = e[a] + sweep[a], e[b] + sweep[b]
+                    if not clear(walls, qx[a], qy[a], qx[b], qy[b], ea, eb):
+                        up = through(walls, qx[a], qy[a], ea, qx[b], qy[b], eb, swept)
+                if not up and sweep[a] + sweep[b] > 0:
+                    # That disk takes a robot that moved along a corridor to have swept across
+                    # it: follow each end along its leg.
                     ends = (qx, qy, e, vx, vy, vs, leg_s)
-                    if not up_over_window(walls, a, b, ends, sure[u, v], opens_s, t0_s, speed_mps):
-                        continue
-                elif longest > sure[u, v]:
+                    up = up_over_window(walls, a, b, ends, sure[u, v], opens_s, t0_s, speed_mps)
+                if not up:
                     continue
-                elif walls.on and not clear(walls, qx[a], qy[a], qx[b], qy[b], e[a], e[b]):
-                    if not through(walls, qx[a], qy[a], e[a], qx[b], qy[b], e[b], longest):
-                        continue
                 band = link_band(longest, record_db[u, v], band_m, fade, nominal_m)
                 rank = band * nn + float(min(nu, nv) * n + max(nu, nv)) + 1.0
                 w = max(worst[u], rank)
@@ -588,7 +594,7 @@ def up_over_window(walls, a, b, ends, sure_m, opens_s, t0_s, speed_mps):
     span = (t0_s - opens_s) / WINDOW_PIECES
     for p in range(WINDOW_PIECES):
         s0 = opens_s + p * span
-        s1 = t0_s if p == WINDOW_PIECES - 1 else s0 + span
+        s1 = t0_s if p == WINDOW_PIECES - 1 else opens_s + (p + 1) * span
         ax, ay, ra = at_over(qx[a], qy[a], e[a], vx[a], vy[a], vs[a], leg_s[a], s0, s1, t0_s, speed_mps)
         bx, by, rb = at_over(qx[b], qy[b], e[b], vx[b], vy[b], vs[b], leg_s[b], s0, s1, t0_s, speed_mps)
         longest = np.hypot(ax - bx, ay - by) + ra + rb

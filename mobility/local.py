@@ -295,10 +295,10 @@ class Memory:
         # How far from ``q_j`` robot ``i`` answers for the link (:func:`leash_radius`); None:
         # the plan's range less its margin for every link.
         self.keep_m: np.ndarray | None = None
-        # The velocity with which ``i`` knows ``j`` moves from ``leg_from_s[i, j]`` until the
-        # step being planned (that of ``j``'s Ack sent on its current leg; ``i``'s own on the
-        # diagonal), NaN: unknown (:func:`largest_travel_m`; rule 1 follows ``j`` back along
-        # it over its window).
+        # The velocity with which ``i`` knows ``j`` moved from ``leg_from_s[i, j]`` until its
+        # next step (that of the latest Ack of ``j`` it heard, if sent on a leg; ``i``'s own on
+        # the diagonal), NaN: unknown (:func:`largest_travel_m`; rule 1 follows ``j`` back
+        # along it over its window, :meth:`at`'s uncertainty counting the cap after that step).
         self.leg_velocity_mps = np.full((n, n, 2), np.nan)
         self.leg_from_s = np.full((n, n), np.inf)
 

@@ -119,8 +119,8 @@ def triangle(sent_s):
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypatch, compiled):
     """Rule 1 with the release: a detour's link counts only if it is surely up over the whole
-    window before t0, each end farther than at t0 by its largest travel over the window as
-    the robot knows it (the speed cap, or the speed its Acks carried). Links of 98.5 m at
+    window before t0, each end anywhere it may have been over the window as the robot knows
+    it (the speed cap, or the leg its Acks carried). Links of 98.5 m at
     most at t0 are surely up then, not over a window of about a second at 2 m/s, unless
     the robots held."""
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
@@ -288,3 +288,80 @@ def test_detour_a_silent_robots_link_is_no_detours_link_though_the_robot_is_stil
         oracle.let_go(pos, m, told(m), T0, V, 10.0, RC, NO_WALLS, 0.0, quiet)
         == let_go(pos, m, told(m), T0, V, 10.0, RC, silent_of=quiet)
     ).all()
+
+
+def test_detour_a_window_piece_holds_every_position_its_end_can_have_had():
+    """Rule 1's pieces of the window: wherever an end truly was at an instant of a piece
+    (the cap before its leg, the leg's velocity from the leg's start until its next step,
+    which may come before t0, the cap after), it lies in the disk the piece gives it from
+    what the robot knows (the position carried along the leg to t0 and its uncertainty
+    there, :meth:`Memory.at`), on sampled trajectories of every kind: leg started before,
+    within and at the end of the window, and no leg known."""
+    from netsim.mobility import _local_kernels as kernels
+
+    rng = np.random.default_rng(3)
+    pieces = kernels.WINDOW_PIECES
+    t0 = T0
+    for _ in range(400):
+        cap = rng.uniform(0.5, 3.0)
+        window = rng.choice([rng.uniform(0.01, 3.0), SILENCE.window_s])
+        opens = t0 - window
+        kind = rng.integers(4)
+        leg_from = [opens - rng.uniform(0.0, 3.0), rng.uniform(opens, t0), t0, np.inf][kind]
+        known = kind != 3
+        v = rng.normal(size=2)
+        v *= rng.uniform(0.0, cap) / np.hypot(*v) if known else 0.0
+        # The leg ends at the robot's next step: at t0, or earlier for a stale Ack.
+        until = t0 if rng.random() < 0.5 or not known else rng.uniform(min(leg_from, t0), t0)
+        start = min(leg_from, t0)
+        at_until = rng.normal(size=2) * 10.0
+        after, before = (u / np.hypot(*u) for u in rng.normal(size=(2, 2)))
+
+        def truly(t, at_until=at_until, v=v, until=until, start=start, cap=cap, after=after, before=before):
+            if t >= until:
+                return at_until + cap * rng.uniform(0.0, 1.0) * after * (t - until)
+            if t >= start:
+                return at_until - v * (until - t)
+            return at_until - v * (until - start) - cap * rng.uniform(0.0, 1.0) * before * (start - t)
+
+        if known:
+            # What Memory.at gives: the Ack's position carried along the leg to its end (off
+            # by the send time's jitter along it), and the uncertainty that covers the rest.
+            jitter = rng.uniform(0.0, 0.05)
+            q = at_until + v * jitter * rng.uniform(-1.0, 1.0)
+            e = np.hypot(*v) * jitter + cap * (t0 - until)
+            leg_s, speed = min(max(leg_from, opens), t0), np.hypot(*v)
+        else:
+            e = cap * rng.uniform(0.0, 2.0)
+            off = rng.normal(size=2)
+            q = truly(t0) + e * rng.uniform(0.0, 1.0) * off / np.hypot(*off)
+            leg_s, speed = t0, 0.0
+        span = (t0 - opens) / pieces
+        for p in range(pieces):
+            s0 = opens + p * span
+            s1 = t0 if p == pieces - 1 else opens + (p + 1) * span
+            x, y, r = kernels.at_over(q[0], q[1], e, v[0], v[1], speed, leg_s, s0, s1, t0, cap)
+            for t in np.linspace(s0, s1, 17):
+                assert np.hypot(*(truly(t) - (x, y))) <= r + 1e-9, (kind, p, t)
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_the_legs_over_the_window_certify_every_link_the_whole_travel_does(monkeypatch, compiled):
+    """Rule 1 over the window: following the ends along their legs only adds to what the
+    disk of each end's whole travel certifies. Robot 2 moved at the cap toward 0 since the
+    step before, 97.85 m from 0 at t0: within the whole travel's disk the link (0, 2) is
+    surely within 100 m over the window, though on the piece where 2's leg started the
+    leg's travel, counted both ways, would reach past it; 0 lets go of 1 through 2."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    pos = np.array([[0.0, 0.0], [137.85, 0.0], [97.85, 0.0]])
+    sent = np.full((3, 3), T0)
+    np.fill_diagonal(sent, -np.inf)
+    m = memory_of(np.broadcast_to(pos[None], (3, 3, 2)).copy(), sent)
+    m.leg_velocity_mps[:] = 0.0
+    m.leg_from_s[:] = T0 - 5.0
+    m.leg_velocity_mps[:, 2] = (-V, 0.0)
+    m.leg_from_s[:, 2] = T0 - PERIOD_S
+    window = SILENCE.window_s
+    got = let_go(pos, m, told(m), T0, V, 10.0, 100.0, window_s=window)
+    assert got[0, 1]
+    assert (got == oracle.let_go(pos, m, told(m), T0, V, 10.0, 100.0, NO_WALLS, window)).all()

@@ -167,13 +167,16 @@ def let_go(
         usable = certain & certain.T
         np.fill_diagonal(usable, False)
         a, b = np.nonzero(np.triu(usable, 1))
-        moving = sweep[a] + sweep[b] > 0
-        ok = longest[a, b] <= range_m
+        # Up with each end anywhere within its whole travel over the window, or followed
+        # along its leg piece by piece where an end may have moved.
+        swept = longest[a, b] + sweep[a] + sweep[b]
+        ok = swept <= range_m
         if walls.on:
-            ok &= up_by_walls(walls, q[a], q[b], e[a], e[b], longest[a, b])
-        if moving.any():
+            ok &= up_by_walls(walls, q[a], q[b], e[a] + sweep[a], e[b] + sweep[b], swept)
+        retry = ~ok & (sweep[a] + sweep[b] > 0)
+        if retry.any():
             legs = window_legs(memory, i, node, m, t0_s, window_s)
-            ok[moving] = up_over_window(q, e, legs, a[moving], b[moving], t0_s, window_s, speed_mps, range_m, walls)
+            ok[retry] = up_over_window(q, e, legs, a[retry], b[retry], t0_s, window_s, speed_mps, range_m, walls)
         usable[a[~ok], b[~ok]] = usable[b[~ok], a[~ok]] = False
         tree = minimum_spanning_tree(np.where(usable, rank, 0.0))
         order, pred = breadth_first_order(tree + tree.T, 0, directed=False, return_predecessors=True)
@@ -223,7 +226,7 @@ def up_over_window(q, e, legs, a, b, t0_s, window_s, speed_mps, range_m, walls: 
     ok = np.ones(len(a), dtype=bool)
     for p in range(WINDOW_PIECES):
         s0 = opens + p * span
-        s1 = t0_s if p == WINDOW_PIECES - 1 else s0 + span
+        s1 = t0_s if p == WINDOW_PIECES - 1 else opens + (p + 1) * span
         on_leg = s0 >= start
         back = np.where(on_leg, t0_s - 0.5 * (s0 + s1), t0_s - start)
         centre = q - velocity * back[:, None]
