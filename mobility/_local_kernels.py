@@ -221,15 +221,24 @@ def boxes_met(rects, disks, k, tol):
 def through(walls, ax, ay, ea, bx, by, eb, longest_m):
     """Whether a link between a point of ``D(a, ea)`` and one of ``D(b, eb)``, at most
     ``longest_m`` long, is surely up though walls stand between (rule 1's detour link on a
-    map whose walls let power through): the hull of the two disks meets ``k >= 1`` of the
-    walls' boxes, and ``longest_m`` is within the plan's range through ``k`` walls
-    (:attr:`netsim.mobility.local.Walls.through_m`)."""
+    map whose walls let power through): ``longest_m`` is within :func:`hull_range_through_m`
+    of the two disks."""
     if walls.through_m.shape[0] == 0:
         return False
     disks = np.empty((2, 3))
     disks[0, 0], disks[0, 1], disks[0, 2] = ax, ay, ea
     disks[1, 0], disks[1, 1], disks[1, 2] = bx, by, eb
-    return longest_m <= range_through_m(walls, boxes_met(walls.rects, disks, 2, walls.clearance_m))
+    return longest_m <= hull_range_through_m(walls, disks, 2)
+
+
+@jit(nogil=True, walks=True)
+def hull_range_through_m(walls, disks, k):
+    """The plan's range for a link between two points of the convex hull of the ``k`` disks
+    ``disks[:k]`` (rows ``x, y, radius``) where walls let power through: the hull meets ``c``
+    of the walls' boxes (:func:`boxes_met`), so no such segment crosses more than ``c``
+    walls, and the range through ``c`` walls holds it (:func:`range_through_m`: ``-inf`` for
+    ``c = 0``, a link clear of walls, which rules 1 and 5 test on their own)."""
+    return range_through_m(walls, boxes_met(walls.rects, disks, k, walls.clearance_m))
 
 
 @jit(nogil=True)
@@ -242,24 +251,23 @@ def range_through_m(walls, k):
     return -np.inf
 
 
-@jit(nogil=True)
-def ranges_through_m(walls, k, out):
-    """:func:`range_through_m` of every count ``k``."""
-    for row in range(k.shape[0]):
-        out[row] = range_through_m(walls, k[row])
-
-
 @jit(nogil=True, walks=True)
-def steps_walls(walls, p, move, q, e, out):
-    """For every row, how many of the walls' boxes (:attr:`netsim.mobility.local.Walls.rects`)
-    the convex hull of the step from ``p`` to ``p + move`` and the disk ``D(q, e)`` meets: no
-    segment between a point of the step and a point of the disk crosses more walls."""
+def steps_through(walls, p, move, q, e, fall, margin_m, out):
+    """Rule 5 through walls, for every row: whether a link is surely up over the step from
+    ``p`` to ``p + move`` against the other end standing in ``D(q, e)`` (``fall`` by the
+    step's end), though walls stand between (:func:`netsim.mobility.local.through_walls`):
+    both ``|p - q| + e`` and ``|p + move - q| + fall`` within :func:`hull_range_through_m`
+    of the step and the disk, less ``margin_m``."""
     disks = np.zeros((3, 3))
     for k in range(p.shape[0]):
+        bx, by = p[k, 0] + move[k, 0], p[k, 1] + move[k, 1]
         disks[0, 0], disks[0, 1] = p[k, 0], p[k, 1]
-        disks[1, 0], disks[1, 1] = p[k, 0] + move[k, 0], p[k, 1] + move[k, 1]
+        disks[1, 0], disks[1, 1] = bx, by
         disks[2, 0], disks[2, 1], disks[2, 2] = q[k, 0], q[k, 1], e[k]
-        out[k] = boxes_met(walls.rects, disks, 3, walls.clearance_m)
+        r = hull_range_through_m(walls, disks, 3) - margin_m
+        start = np.hypot(p[k, 0] - q[k, 0], p[k, 1] - q[k, 1]) + e[k]
+        end = np.hypot(bx - q[k, 0], by - q[k, 1]) + fall[k]
+        out[k] = start <= r and end <= r
 
 
 @jit(nogil=True)

@@ -48,7 +48,7 @@ from netsim.mobility._fade_kernels import FADE_SIGMAS as FADE_SIGMAS
 from netsim.mobility.steps import Candidates
 
 from netsim.compiled import load
-from netsim.geometry import link_ranges_m, speeds_mps
+from netsim.geometry import distances_m, link_ranges_m, speeds_mps
 from netsim.topology import geometric_pairs
 from netsim.trajectory import points_on_legs
 
@@ -153,10 +153,10 @@ class LinkRules:
             # On a map without shadowing a link is a function of the two positions: the
             # pairs the channel would link at t_s, exactly (links.parquet samples the same
             # rule along the legs, docs/radio.md).
-            i, j, _ = geometric_pairs(pos, self._largest_range())
+            i, j, d = geometric_pairs(pos, self._largest_range())
         else:
             i, j = self.link_state.up_pairs()
-        d = np.hypot(*(pos[i] - pos[j]).T) if len(i) else np.zeros(0)
+            d = distances_m(pos[i], pos[j], None, len(pos))
         walls = self._walls_now(pos, i, j)
         if self.log is None:
             # The unit disk with line of sight.

@@ -905,7 +905,7 @@ def through_walls(
     """Rule 5 through walls (log-distance, :attr:`Walls.through_m`): whether a link is surely
     up over the step from ``p`` to ``p + move`` against the other end standing in the disk
     ``D(q, e_m)``, though walls stand between them. The hull of the step and the disk meets
-    ``k`` of the walls' boxes (:func:`netsim.mobility._local_kernels.steps_walls`), so no
+    ``k`` of the walls' boxes (:func:`netsim.mobility._local_kernels.hull_range_through_m`), so no
     segment between the two robots crosses more than ``k`` walls; every such segment is at
     most ``max(|p - q|, |p + move - q|) + e_m`` long (the distance to a point is convex along
     the step), and each end must keep the margin within the range through ``k`` walls as
@@ -913,17 +913,12 @@ def through_walls(
     within ``through_m[k - 1] - margin``, ``fall_m`` being the other end's largest travel by
     the step's end (``e_m`` grown to ``t1``, as rule 2's leash counts it). No wall met
     (``k = 0``) is rule 5's own test: False here."""
-    k = np.empty(len(p), np.int64)
-    r = np.empty(len(p))
+    out = np.zeros(len(p), bool)
     if len(p):
-        kernels = map_walker("netsim.mobility._local_kernels")
         rows = (np.ascontiguousarray(a, float) for a in (p, move, q))
-        kernels.steps_walls(walls, *rows, filled(e_m, (len(p),)), k)
-        kernels.ranges_through_m(walls, k, r)
-    r -= limits.margin_m
-    start = np.hypot(*(p - q).T) + e_m
-    end = np.hypot(*(p + move - q).T) + fall_m
-    return (start <= r) & (end <= r)
+        ends = (filled(x, (len(p),)) for x in (e_m, fall_m))
+        map_walker("netsim.mobility._local_kernels").steps_through(walls, *rows, *ends, limits.margin_m, out)
+    return out
 
 
 def pulls(

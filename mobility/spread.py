@@ -50,31 +50,6 @@ PROJECTION_ROUNDS = 8
 TENSION_HOPS = 30
 
 
-def spanning_forest(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A minimum spanning forest (by length) of the network of range ``range_m``:
-    arrays ``(i, j, distance_m)`` of its links.
-
-    >>> i, j, d = spanning_forest(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.5], [9.0, 9.0]]), 2.0)
-    >>> sorted(zip(i.tolist(), j.tolist()))
-    [(0, 1), (0, 2)]
-    """
-    n = len(pos)
-    a, b, d = geometric_pairs(pos, range_m)
-    if len(a) == 0:
-        return a, b, d
-    # scipy drops zero weights (robots at one spot); every spanning tree of a component
-    # has the same number of links, so a constant shift leaves the choice unchanged.
-    from scipy.sparse import coo_matrix  # imported when asked: a run without it does not load it
-    from scipy.sparse.csgraph import minimum_spanning_tree
-
-    graph = coo_matrix((d + range_m, (a, b)), shape=(n, n)).tocsr()
-    tree = minimum_spanning_tree(graph).tocoo()
-    i, j = np.minimum(tree.row, tree.col).astype(np.int64), np.maximum(tree.row, tree.col).astype(np.int64)
-    order = np.lexsort((j, i))
-    i, j = i[order], j[order]
-    return i, j, np.hypot(*(pos[i] - pos[j]).T)
-
-
 def link_disks(pos: np.ndarray, mobile: np.ndarray, i: np.ndarray, j: np.ndarray, d: np.ndarray, keep_m):
     """The disk each moving end of each kept link must end the step in: arrays
     ``(robot, centre (k, 2), radius)`` (module notes); ``keep_m`` one for all links or one
@@ -215,8 +190,7 @@ def plan_spread(
     if links is None:
         links = disk_links(pos, limits)
     kept = forest_rows(n, links)
-    i, j = links.i[kept], links.j[kept]
-    d = np.hypot(*(pos[i] - pos[j]).T)
+    i, j, d = links.i[kept], links.j[kept], links.d[kept]
     keep = links.keep_m[kept]
     robot, centre, radius = link_disks(pos, mobile, i, j, d, keep)
     reach = np.full(n, limits.reach_m)

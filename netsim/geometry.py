@@ -21,6 +21,24 @@ def wrap(d: np.ndarray, box: float | None, n_robots: int) -> np.ndarray:
     return load("netsim._kernels", n_robots).nearest_images(rows, float(box)).reshape(np.shape(d))
 
 
+def distances_m(
+    p_m: np.ndarray, q_m: np.ndarray, side_m: float | None = None, n_robots: int | None = None
+) -> np.ndarray:
+    """The length of each segment from row ``p_m[k]`` to row ``q_m[k]``: on a torus of side
+    ``side_m`` its nearest image (None: the plane), in a run of ``n_robots`` (None: as many
+    as the rows) (:func:`netsim._kernels.distances`, the engine's one rule of a link's
+    length).
+
+    >>> distances_m(np.array([[0.0, 0.0], [1.0, 1.0]]), np.array([[3.0, 4.0], [9.0, 1.0]]), 10.0).tolist()
+    [5.0, 2.0]
+    """
+    p = filled(p_m, (len(p_m), 2))
+    q = filled(q_m, (len(p_m), 2))
+    out = np.empty(len(p))
+    load("netsim._kernels", n_robots, values=len(p)).distances(p, q, float(side_m or 0.0), out)
+    return out
+
+
 def beyond(points_m: np.ndarray, centres_m: np.ndarray, radius_m: np.ndarray, n_robots: int) -> np.ndarray:
     """Whether each point (rows, or any shape ending in 2) lies farther than its radius from
     its centre, in a run of ``n_robots``: the rule of in range

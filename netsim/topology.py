@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netsim.compiled import filled, load
-from netsim.geometry import near_pairs
+from netsim.geometry import distances_m, near_pairs
 from netsim.groups import GroupView
 from netsim.state import RobotState
 
@@ -138,8 +138,7 @@ def snapshot(
     side = state.side_m if state.torus else None
     if links is not None:
         a, b = links.up_pairs()
-        d = state.displacement(pos[a], pos[b])
-        dist = np.hypot(d[:, 0], d[:, 1])
+        dist = distances_m(pos[a], pos[b], side, state.n)
         if directed:
             a, b, dist = np.r_[a, b], np.r_[b, a], np.r_[dist, dist]
     else:

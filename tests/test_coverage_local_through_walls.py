@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from netsim.mobility.local import Lists, cut_for_walls, let_go, turn_takers, wall_boxes, walls_of
+from netsim.mobility.local import Lists, cut_for_walls, let_go, through_walls, turn_takers, wall_boxes, walls_of
 
 from netsim.compiled import map_walker
 from netsim.world.los import walls_crossed
@@ -25,9 +25,13 @@ def ranges(k: np.ndarray) -> np.ndarray:
 
 
 def boxes_met(walls, p, move, q, e) -> np.ndarray:
+    """How many of the walls' boxes the hull of each step from ``p`` to ``p + move`` and
+    the disk ``D(q, e)`` meets, as rule 5 counts them."""
+    kernel = map_walker("netsim.mobility._local_kernels").boxes_met
     out = np.empty(len(p), np.int64)
-    kernel = map_walker("netsim.mobility._local_kernels").steps_walls
-    kernel(walls, *(np.ascontiguousarray(a, float) for a in (p, move, q, np.broadcast_to(e, (len(p),)))), out)
+    for k, (a, m, c, r) in enumerate(zip(p, move, q, np.broadcast_to(e, (len(p),)))):
+        disks = np.array([[a[0], a[1], 0.0], [a[0] + m[0], a[1] + m[1], 0.0], [c[0], c[1], r]])
+        out[k] = kernel(walls.rects, disks, 3, walls.clearance_m)
     return out
 
 
@@ -74,6 +78,28 @@ def test_walls_the_boxes_a_hull_meets_agree_with_the_oracle():
     want = oracle.walls_met(walls, p, q, 0.0, e)
     assert (boxes_met(walls, p, np.zeros_like(p), q, e) == want).all()
     assert len(np.unique(want)) >= 4
+
+
+def test_walls_rule_5_through_walls_is_its_definition():
+    """Rule 5 through walls (:func:`through_walls`) against its statement, on random steps
+    and disks across the floor plan: both ``|p - q| + e`` and ``|p + move - q| + fall``
+    within the range through as many walls as the hull of the step and the disk meets, less
+    the margin. The cases hold a mix of answers, with ``e`` and ``fall`` apart."""
+    occ = floor_plan()
+    walls = walls_of(occ, ORIGIN, RES, THROUGH_M)
+    rng = np.random.default_rng(11)
+    p = free_points(occ, rng, 600)
+    q = free_points(occ, rng, 600)
+    q = p + (q - p) * np.minimum(1.0, rng.uniform(6.0, 18.0, 600) / np.hypot(*(q - p).T))[:, None]
+    move = rng.uniform(-2.0, 2.0, (600, 2))
+    e = rng.uniform(0.0, 1.5, 600)
+    fall = e + rng.uniform(0.0, 3.0, 600)
+    met = boxes_met(walls, p, move, q, e)
+    r = np.where(met == 0, -np.inf, ranges(met)) - LIMITS.margin_m
+    start = np.hypot(*(p - q).T) + e <= r
+    end = np.hypot(*(p + move - q).T) + fall <= r
+    assert (through_walls(walls, p, move, q, e, LIMITS, fall) == (start & end)).all()
+    assert (start & end).sum() > 100 and (start & ~end).sum() > 10 and len(np.unique(met)) >= 4
 
 
 def test_walls_a_robot_moves_keeping_a_link_through_a_wall_within_its_range_through_walls():

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 from netsim.mobility.forces import border_forces, component_centres, expansion_forces
-from netsim.mobility.spread import pass_on_pulls, plan_spread, spanning_forest
+from netsim.mobility.spread import disk_links, forest_rows, pass_on_pulls, plan_spread
 from netsim.mobility.steps import StepLimits
 from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
@@ -73,7 +73,9 @@ def test_plan_keeps_the_network_connected_throughout_the_step_whoever_holds(seed
 def test_spanning_forest_has_the_components_of_the_network():
     rng = np.random.default_rng(3)
     pos = rng.uniform(0, 600, size=(150, 2))
-    i, j, d = spanning_forest(pos, RC)
+    links = disk_links(pos, StepLimits(1.0, RC, 1.0, 2.0, 1000.0))
+    kept = forest_rows(len(pos), links)
+    i, j, d = links.i[kept], links.j[kept], links.d[kept]
     labels = components(pos, RC)
     assert len(i) == len(pos) - (labels.max() + 1)
     assert (d <= RC).all() and (labels[i] == labels[j]).all()

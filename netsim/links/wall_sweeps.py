@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from netsim.compiled import load
-from netsim.geometry import speeds_mps
+from netsim.geometry import distances_m, speeds_mps
 from netsim.radio.propagation import Pairs, effective_range_m
 from netsim.trajectory import points_on_legs
 from netsim.world.los import VERTEX_TOLERANCE_CELLS
@@ -71,9 +71,9 @@ def linked(
 ) -> np.ndarray:
     """The link's state of pairs ``a, b`` at positions ``pa, pb``: range or received power,
     and the walls crossed (with unequal ranges both must hear each other)."""
-    d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
     chain = reception.compiled
     n = reception.state.n
+    d = distances_m(pa, pb, None, n)
     up = chain.receivable(Pairs(a, b, pa, pb, d, None, n))
     if not equal_ranges:
         up &= chain.receivable(Pairs(b, a, pb, pa, d, None, n))

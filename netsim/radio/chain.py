@@ -21,7 +21,7 @@ import numpy as np
 
 from netsim.compiled import load
 from netsim.errors import NetsimInputError
-from netsim.geometry import pair_travels_m
+from netsim.geometry import distances_m, pair_travels_m
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
 
 
@@ -130,7 +130,7 @@ class Pairs(NamedTuple):
         b = np.asarray(b, dtype=np.int64)
         positions_m = np.asarray(positions_m, dtype=float)
         pa, pb = positions_m[a], positions_m[b]
-        d = np.hypot(pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1])
+        d = distances_m(pa, pb, None, len(positions_m))
         travel = None if travel_m is None else pair_travels_m(travel_m, a, b)
         return cls(a, b, pa, pb, d, travel, len(positions_m))
 
