@@ -40,39 +40,38 @@ def walls_met(walls: Walls, a, b, ea, eb) -> np.ndarray:
 
 def boxes_near_hull(boxes: np.ndarray, a, b, ea, eb, tol: float) -> np.ndarray:
     """For each row, how many ``boxes`` (rows ``x0, x1, y0, y1``) lie within ``tol`` of the hull
-    of ``D(a, ea)`` and ``D(b, eb)``."""
+    of ``D(a, ea)`` and ``D(b, eb)``: the least gap over the hull's disks of each (row, box)
+    pair near enough to matter, found by ternary search on all the pairs at once."""
     a = np.asarray(a, float).reshape(-1, 2)
     b = np.asarray(b, float).reshape(-1, 2)
     ea = np.broadcast_to(np.asarray(ea, float), (len(a),))
     eb = np.broadcast_to(np.asarray(eb, float), (len(a),))
-    out = np.zeros(len(a), dtype=np.int64)
-    for k in range(len(a)):
-        reach = max(ea[k], eb[k]) + tol
-        near = (
-            (boxes[:, 0] <= max(a[k, 0], b[k, 0]) + reach)
-            & (boxes[:, 1] >= min(a[k, 0], b[k, 0]) - reach)
-            & (boxes[:, 2] <= max(a[k, 1], b[k, 1]) + reach)
-            & (boxes[:, 3] >= min(a[k, 1], b[k, 1]) - reach)
-        )
-        box = boxes[near]
-        ends = (a[k], b[k], ea[k], eb[k])
-        lo, hi = np.zeros(len(box)), np.ones(len(box))
-        for _ in range(100):
-            m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
-            left = _gap(box, ends, m1) <= _gap(box, ends, m2)
-            hi = np.where(left, m2, hi)
-            lo = np.where(left, lo, m1)
-        least = np.minimum(np.minimum(_gap(box, ends, lo), _gap(box, ends, 0.0)), _gap(box, ends, 1.0))
-        out[k] = int((least <= tol).sum())
-    return out
+    reach = (np.maximum(ea, eb) + tol)[:, None]
+    near = (
+        (boxes[:, 0] <= np.maximum(a[:, 0], b[:, 0])[:, None] + reach)
+        & (boxes[:, 1] >= np.minimum(a[:, 0], b[:, 0])[:, None] - reach)
+        & (boxes[:, 2] <= np.maximum(a[:, 1], b[:, 1])[:, None] + reach)
+        & (boxes[:, 3] >= np.minimum(a[:, 1], b[:, 1])[:, None] - reach)
+    )
+    row, col = np.nonzero(near)
+    box = boxes[col]
+    ends = (a[row], b[row], ea[row], eb[row])
+    lo, hi = np.zeros(len(row)), np.ones(len(row))
+    for _ in range(100):
+        m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
+        left = _gap(box, ends, m1) <= _gap(box, ends, m2)
+        hi = np.where(left, m2, hi)
+        lo = np.where(left, lo, m1)
+    least = np.minimum(np.minimum(_gap(box, ends, lo), _gap(box, ends, 0.0)), _gap(box, ends, 1.0))
+    return np.bincount(row[least <= tol], minlength=len(a)).astype(np.int64)
 
 
 def _gap(boxes, ends, f):
-    """The distance from each box (rows ``x0, x1, y0, y1``) to the disk at ``f`` of the two
-    disks' hull (``a, b, ea, eb``), less its radius."""
+    """The distance from each box (rows ``x0, x1, y0, y1``) to the disk at ``f`` of its row's
+    two disks' hull (``a, b, ea, eb``, one row per box), less its radius."""
     a, b, ea, eb = ends
-    px = a[0] + f * (b[0] - a[0])
-    py = a[1] + f * (b[1] - a[1])
+    px = a[:, 0] + f * (b[:, 0] - a[:, 0])
+    py = a[:, 1] + f * (b[:, 1] - a[:, 1])
     dx = np.maximum(np.maximum(boxes[:, 0] - px, 0.0), px - boxes[:, 1])
     dy = np.maximum(np.maximum(boxes[:, 2] - py, 0.0), py - boxes[:, 3])
     return np.hypot(dx, dy) - (ea + f * (eb - ea))
