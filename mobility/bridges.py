@@ -26,6 +26,7 @@ import numpy as np
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
 from netsim.compiled import load
+from netsim.geometry import distances_m
 from netsim.groups import in_a_group, leads_itself
 from netsim.topology import geometric_pairs
 
@@ -77,7 +78,7 @@ def bridges_to_keep(pos: np.ndarray, g: Groups, range_m: float) -> Bridges:
     mid = 0.5 * (pos[group[cand_u]] + pos[group[cand_v]])
     weight = np.where(
         is_gw,
-        _GATEWAY_WEIGHT * (1.0 + np.hypot(*(pos[cand_u] - mid).T) / range_m),
+        _GATEWAY_WEIGHT * (1.0 + distances_m(pos[cand_u], mid, None, len(pos)) / range_m),
         _LINK_WEIGHT + np.concatenate([d[gw_a], d[gw_b], d]) / range_m,
     )
     ga, gb = group[cand_u], group[cand_v]
@@ -116,7 +117,7 @@ def leader_step_factors(
     off = pos[br.gw_leader] - pos[br.gw_robot]
     rows_k.append(br.gw_leader)
     rows_off.append(off)
-    rows_r.append(np.maximum(keep_m, np.hypot(*off.T)))
+    rows_r.append(np.maximum(keep_m, distances_m(pos[br.gw_leader], pos[br.gw_robot], None, n)))
     both = rigid[link_u] & rigid[link_v]
     m = 0.5 * (pos[link_u] + pos[link_v])
     for x, y in ((link_u, link_v), (link_v, link_u)):
@@ -127,7 +128,8 @@ def leader_step_factors(
         o = pos[x[sel]] - centre[sel]
         rows_k.append(group[x[sel]])
         rows_off.append(o)
-        rows_r.append(np.maximum(np.where(half[sel], keep_m / 2, keep_m), np.hypot(*o.T)))
+        length = distances_m(pos[x[sel]], centre[sel], None, n)
+        rows_r.append(np.maximum(np.where(half[sel], keep_m / 2, keep_m), length))
     k = np.concatenate(rows_k).astype(np.int64)
     s = np.ones(n)
     if len(k):
@@ -153,7 +155,8 @@ def gateway_steps(pos: np.ndarray, move: np.ndarray, gw: np.ndarray, br: Bridges
     full = np.zeros((n, 2))
     full[gw] = want
     o = pos[br.gw_robot] - planned
-    lim = step_limit(o, np.maximum(limits.keep_m, np.hypot(*o.T)), full[br.gw_robot], n)
+    leash = np.maximum(limits.keep_m, distances_m(pos[br.gw_robot], planned, None, n))
+    lim = step_limit(o, leash, full[br.gw_robot], n)
     sg = np.ones(n)
     np.minimum.at(sg, br.gw_robot, lim)
     sg[gw] = np.minimum(sg[gw], box_limit(pos[gw], want, limits.box))

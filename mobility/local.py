@@ -905,7 +905,7 @@ def through_walls(
     """Rule 5 through walls (log-distance, :attr:`Walls.through_m`): whether a link is surely
     up over the step from ``p`` to ``p + move`` against the other end standing in the disk
     ``D(q, e_m)``, though walls stand between them. The hull of the step and the disk meets
-    ``k`` of the walls' boxes (:func:`netsim.mobility._local_kernels.hull_range_through_m`), so no
+    ``k`` of the walls' boxes (:func:`netsim.mobility._local_kernels.boxes_met`), so no
     segment between the two robots crosses more than ``k`` walls; every such segment is at
     most ``max(|p - q|, |p + move - q|) + e_m`` long (the distance to a point is convex along
     the step), and each end must keep the margin within the range through ``k`` walls as
@@ -917,7 +917,7 @@ def through_walls(
     if len(p):
         rows = (np.ascontiguousarray(a, float) for a in (p, move, q))
         ends = (filled(x, (len(p),)) for x in (e_m, fall_m))
-        map_walker("netsim.mobility._local_kernels").steps_through(walls, *rows, *ends, limits.margin_m, out)
+        map_walker("netsim.mobility._local_kernels").steps_through(walls, *rows, *ends, float(limits.margin_m), out)
     return out
 
 

@@ -39,6 +39,7 @@ from netsim.mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_l
 
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
+from netsim.geometry import distances_m
 from netsim.topology import geometric_pairs
 
 # Rounds of cyclic projection onto a robot's disks; the exact cut after them makes any
@@ -63,7 +64,7 @@ def link_disks(pos: np.ndarray, mobile: np.ndarray, i: np.ndarray, j: np.ndarray
         centre = np.where(both[:, None], mid[sel], pos[y[sel]])
         radius = np.where(both, limit[sel] / 2, limit[sel])
         # Never smaller than the distance now (rounding): standing still stays allowed.
-        radius = np.maximum(radius, np.hypot(*(pos[x[sel]] - centre).T))
+        radius = np.maximum(radius, distances_m(pos[x[sel]], centre, None, len(pos)))
         robots.append(x[sel])
         centres.append(centre)
         radii.append(radius)
@@ -183,7 +184,8 @@ def plan_spread(
     ``mobile``: who may move; ``commander_of``: for each robot, whose command it needs to
     move (-1: its own decision, as a leader); ``desired_mps``: the wished velocities (rows
     of robots that may not move are ignored); ``links``: the links up now, with what keeps
-    each up (:mod:`netsim.mobility.keep`; default: the disk of ``limits.range_m``).
+    each up and their lengths at ``pos`` (:mod:`netsim.mobility.keep`; default: the disk of
+    ``limits.range_m``).
     """
     n = len(pos)
     movers = np.flatnonzero(mobile)

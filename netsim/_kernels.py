@@ -547,8 +547,8 @@ def reaches(ddx, ddy, lim, box):
 def distances(p, q, box, out):
     """The length of each segment from ``p[k]`` to ``q[k]`` into ``out``: ``np.hypot`` of the
     nearest image on a torus of side ``box > 0`` (:func:`nearest_image`), the plane's
-    straight line for ``box = 0``; the one rule of how long a link is, as
-    :func:`pairs_in_range` measures the pairs it finds."""
+    straight line for ``box = 0``: a link's length as :func:`pairs_in_range` and
+    :func:`within` measure the pairs they find, for pairs already known."""
     for k in range(out.shape[0]):
         dx, dy = nearest_image(p[k, 0] - q[k, 0], p[k, 1] - q[k, 1], box)
         out[k] = np.hypot(dx, dy)

@@ -32,8 +32,8 @@ def distances_m(
     >>> distances_m(np.array([[0.0, 0.0], [1.0, 1.0]]), np.array([[3.0, 4.0], [9.0, 1.0]]), 10.0).tolist()
     [5.0, 2.0]
     """
-    p = filled(p_m, (len(p_m), 2))
-    q = filled(q_m, (len(p_m), 2))
+    p = filled(np.reshape(p_m, (-1, 2)), (np.size(p_m) // 2, 2))
+    q = filled(np.reshape(q_m, (-1, 2)), (len(p), 2))
     out = np.empty(len(p))
     load("netsim._kernels", n_robots, values=len(p)).distances(p, q, float(side_m or 0.0), out)
     return out

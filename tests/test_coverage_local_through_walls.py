@@ -102,6 +102,20 @@ def test_walls_rule_5_through_walls_is_its_definition():
     assert (start & end).sum() > 100 and (start & ~end).sum() > 10 and len(np.unique(met)) >= 4
 
 
+def test_walls_rule_5_through_walls_answers_for_a_link_exactly_at_its_range():
+    """At the boundary: robot 1 stands 11 m east of robot 0 through one wall, known within
+    0.5 m, and the range through one wall is 12.5 m, so with the 1 m margin both ends of
+    the step are exactly at the range: answered for. A hair more uncertainty is not."""
+    walls = walls_of(floor_plan(), ORIGIN, RES, np.array([12.5]))
+    p, q, move = np.array([[8.0, 10.0]]), np.array([[19.0, 10.0]]), np.zeros((1, 2))
+    e = np.array([0.5])
+    assert boxes_met(walls, p, move, q, e)[0] == 1
+    assert 11.0 + e[0] == 12.5 - LIMITS.margin_m
+    assert through_walls(walls, p, move, q, e, LIMITS, e)[0]
+    assert not through_walls(walls, p, move, q, e, LIMITS, e + 1e-12)[0]
+    assert not through_walls(walls, p, move, q, e + 1e-12, LIMITS, e)[0]
+
+
 def test_walls_a_robot_moves_keeping_a_link_through_a_wall_within_its_range_through_walls():
     """Rule 5 through walls: robot 0 keeps robot 1 in the next room, 11 m east through one
     wall (20 m reach through one). A step along the room keeps every segment to where robot

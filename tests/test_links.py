@@ -38,6 +38,32 @@ def test_unit_disk_on_a_torus_uses_the_shortest_image():
     assert geometric_edges(np.array([[1.0, 50.0], [99.0, 50.0]]), 5.0) == []
 
 
+def test_a_snapshot_of_a_runs_links_on_a_torus_measures_them_by_the_shortest_image():
+    """Given the run's links, a snapshot on a torus weighs each link by its shortest image,
+    as the unit disk's snapshot does: the same edges with the same distances, some of them
+    across the torus's edge."""
+    sim = build(
+        make_config(
+            duration_s=20.0,
+            world={"n_robots": 30, "side_m": 300.0, "torus": True},
+            mobility={"model": "random_direction"},
+            channel={"range_m": 80.0},
+            protocol={"model": "none"},
+        )
+    )
+    links = sim.link_events()
+    sim.run()
+    given = snapshot(sim.state, sim.now, links=links)
+    disk = snapshot(sim.state, sim.now)
+    assert set(map(frozenset, given.edges)) == set(map(frozenset, disk.edges))
+    pos = sim.state.positions_at(sim.now)
+    across = 0
+    for a, b, d in given.edges(data="distance"):
+        assert d == disk.edges[a, b]["distance"]
+        across += bool(np.hypot(*(pos[a] - pos[b])) > 80.0)
+    assert across > 0
+
+
 def test_unequal_ranges_make_one_way_links():
     """i reaches j when d <= r_i; the undirected graph keeps only two-way links."""
     pos = np.array([[0.0, 0.0], [10.0, 0.0]])
