@@ -303,6 +303,29 @@ def remembers(sent_s, now_s, release_s):
 
 
 @jit(nogil=True)
+def heard_sources(known, which, start, other, sent_s, release_s, t0_s, out):
+    """Where each robot ``i`` knows each robot ``j`` from, into ``out[i, j]`` (the forces'
+    sources in the local plan, :func:`netsim.mobility.local.sources_heard`): -1, its own
+    memory (it remembers ``j``); else the entry of the freshest Ack of ``j`` that the lists
+    it holds from the robots it remembers still report at ``t0_s`` (the first, by the id of
+    the robot whose list it is, on a tie); -2, nowhere."""
+    n = known.shape[0]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = -1 if known[i, j] else -2
+        for u in range(n):
+            k = which[i, u]
+            if not known[i, u] or k < 0:
+                continue
+            for p in range(start[k, u], start[k, u + 1]):
+                j = other[p]
+                if j == i or known[i, j] or not remembers(sent_s[p], t0_s, release_s):
+                    continue
+                if out[i, j] == -2 or sent_s[p] > sent_s[out[i, j]]:
+                    out[i, j] = p
+
+
+@jit(nogil=True)
 def measured_range_m(x_db, measured_s, travel_m, fade):
     """How long a link whose shadowing was measured at ``x_db`` on a frame sent no earlier
     than ``measured_s`` can surely be now (0: no measurement): the length at which its

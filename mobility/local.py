@@ -555,17 +555,6 @@ def remembered(sent_s: np.ndarray, now_s: float, release_s: float, n_robots: int
     return kernels.remembers(sent, float(now_s), float(release_s))
 
 
-def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Entries (indices into ``heard``) of the list ``i`` holds from ``u`` that still stand at
-    ``t_s``: ``u`` remembers those robots then (a robot's memory only refreshes)."""
-    k = heard.which[i, u]
-    if k < 0:
-        return np.empty(0, np.int64), np.empty(0, np.int64)
-    entries = np.arange(heard.start[k, u], heard.start[k, u + 1])
-    entries = entries[remembered(heard.sent_s[entries], t_s, heard.release_s, heard.which.shape[1])]
-    return entries, heard.other[entries]
-
-
 def let_go(
     pos: np.ndarray,
     memory: Memory,
@@ -1016,35 +1005,21 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
     sources in the local plan. A robot knows the robots it remembers, at the position it
     heard (``memory``), and those named in the lists it holds from them (:class:`Lists`;
     still remembered at ``t0_s``), at the position of the freshest Ack any of those lists
-    reports (the first of the robots it remembers, by id, on a tie)."""
+    reports (the first of the robots it remembers, by id, on a tie): the kernel
+    :func:`netsim.mobility._local_kernels.heard_sources`."""
     n = len(pos)
-    known = heard.known
-    robots, xys = [], []
-    for i in range(n):
-        nb = np.flatnonzero(known[i])
-        if len(nb) == 0:
-            continue
-        xy = np.zeros((n, 2))
-        fresh = np.zeros(n, dtype=bool)
-        entries = [reported(heard, i, u, t0_s)[0] for u in nb.tolist()]
-        rows = np.concatenate(entries)
-        if len(rows):
-            other, sent = heard.other[rows], heard.sent_s[rows]
-            # Entries are in the order of the robots i remembers (ids ascending); a stable
-            # sort keeps the first on a tie.
-            order = np.lexsort((-sent, other))
-            first = order[np.r_[True, other[order][1:] != other[order][:-1]]]
-            fresh[other[first]] = True
-            xy[other[first]] = heard.xy[rows[first]]
-        fresh[i] = False
-        own = known[i]
-        xy[own] = memory.xy[i, own]
-        have = np.flatnonzero(own | fresh)
-        robots.append(np.full(len(have), i))
-        xys.append(xy[have])
-    if not robots:
+    kernels = load("netsim.mobility._local_kernels", n)
+    pick = np.empty((n, n), np.int64)
+    kernels.heard_sources(
+        heard.known, heard.which, heard.start, heard.other, heard.sent_s, float(heard.release_s), float(t0_s), pick
+    )
+    robot, other = np.nonzero(pick != -2)
+    if len(robot) == 0:
         return np.empty(0, np.int64), np.empty((0, 2))
-    robot, xy = np.concatenate(robots), np.concatenate(xys)
+    entry = pick[robot, other]
+    xy = memory.xy[robot, other]
+    listed = entry >= 0
+    xy[listed] = heard.xy[entry[listed]]
     # Within reach as everywhere in the engine (the global plan's sources are the pairs in
     # range): entry k's robot (row robot[k]) against the point it heard (row n + k).
     points = np.concatenate([np.asarray(pos, float), xy])

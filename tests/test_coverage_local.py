@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from netsim.mobility.local import (
     NO_WALLS,
+    Heard,
     Lists,
     Memory,
     carried,
@@ -160,6 +161,42 @@ def test_forces_a_robot_knows_a_robot_two_links_out_from_the_lists_it_heard_alon
     assert m.known(T0, 20.0)[2, 1]
     robot, xy = sources_heard(m, heard, T0, 2 * RC, pos)
     assert xy[robot == 0].tolist() == [[90.0, 0.0]]
+
+
+def random_heard(seed, n=25, snapshots=3):
+    """A memory and random lists (not made by hearing): robots listing themselves and robots
+    the holder remembers, entries past the release, and sending times from a few values, so
+    that two lists often report the same robot as fresh as each other."""
+    rng = np.random.default_rng(seed)
+    sent = np.where(rng.random((n, n)) < 0.4, T0 - rng.uniform(0.0, 5.0, (n, n)), -np.inf)
+    np.fill_diagonal(sent, -np.inf)
+    m = memory_of(rng.uniform(0.0, 300.0, (n, n, 2)), sent)
+    known = m.known(T0, 20.0)
+    which = np.where(known & (rng.random((n, n)) < 0.8), rng.integers(0, snapshots, (n, n)), -1)
+    counts = rng.integers(0, 8, (snapshots, n))
+    start = np.zeros((snapshots, n + 1), np.int64)
+    start[:, 1:] = np.cumsum(counts, axis=1) + (np.arange(snapshots) * counts.sum(axis=1).max())[:, None]
+    size = int(start[-1, -1])
+    heard = Heard(
+        known, which, start, rng.integers(0, n, size),
+        T0 - rng.choice([0.5, 1.0, 3.0, 25.0], size), rng.uniform(0.0, 300.0, (size, 2)), 20.0,
+    )  # fmt: skip
+    return rng.uniform(0.0, 300.0, (n, 2)), m, heard
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_forces_sources_heard_agree_with_their_oracle(monkeypatch, compiled):
+    """The forces' sources (one kernel pass, keeping each robot's freshest report) are those
+    of the oracle (sorting every robot's reports), to the last bit, on random lists where
+    two lists often report a robot at the same time (the first list, by its holder's id,
+    wins) and some reports are past the release."""
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    for seed in range(8):
+        pos, m, heard = random_heard(seed)
+        robot, xy = sources_heard(m, heard, T0, 150.0, pos)
+        want_robot, want_xy = oracle.sources_heard(m, heard, T0, 150.0, pos)
+        assert robot.tolist() == want_robot.tolist() and xy.tolist() == want_xy.tolist(), seed
+        assert 0 < len(robot) < len(sources_heard(m, heard, T0, 1e9, pos)[0])
 
 
 def test_forces_a_source_at_the_reach_is_in_reach_as_everywhere_in_the_engine():

@@ -3,7 +3,7 @@ the same rules in numpy array operations, written independently of the loops, fo
 tests to compare the kernels with (plain and compiled)."""
 
 import numpy as np
-from netsim.mobility.local import Heard, Memory, Walls, reported
+from netsim.mobility.local import Heard, Memory, Walls
 
 
 def link_rank(length_m: np.ndarray, pair: np.ndarray, band_m: float, n: int) -> np.ndarray:
@@ -41,7 +41,8 @@ def walls_met(walls: Walls, a, b, ea, eb) -> np.ndarray:
 def boxes_near_hull(boxes: np.ndarray, a, b, ea, eb, tol: float) -> np.ndarray:
     """For each row, how many ``boxes`` (rows ``x0, x1, y0, y1``) lie within ``tol`` of the hull
     of ``D(a, ea)`` and ``D(b, eb)``: the least gap over the hull's disks of each (row, box)
-    pair near enough to matter, found by ternary search on all the pairs at once."""
+    pair near enough to matter, found by golden-section search (one new point a round) on all
+    the pairs at once."""
     a = np.asarray(a, float).reshape(-1, 2)
     b = np.asarray(b, float).reshape(-1, 2)
     ea = np.broadcast_to(np.asarray(ea, float), (len(a),))
@@ -57,11 +58,18 @@ def boxes_near_hull(boxes: np.ndarray, a, b, ea, eb, tol: float) -> np.ndarray:
     box = boxes[col]
     ends = (a[row], b[row], ea[row], eb[row])
     lo, hi = np.zeros(len(row)), np.ones(len(row))
-    for _ in range(100):
-        m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
-        left = _gap(box, ends, m1) <= _gap(box, ends, m2)
+    r = (np.sqrt(5.0) - 1.0) / 2.0
+    m1, m2 = hi - r, lo + r
+    g1, g2 = _gap(box, ends, m1), _gap(box, ends, m2)
+    # 0.618^90 of the unit interval: below the last bit of any f in it.
+    for _ in range(90):
+        left = g1 <= g2
         hi = np.where(left, m2, hi)
         lo = np.where(left, lo, m1)
+        m = np.where(left, hi - r * (hi - lo), lo + r * (hi - lo))
+        g = _gap(box, ends, m)
+        m1, m2 = np.where(left, m, m2), np.where(left, m1, m)
+        g1, g2 = np.where(left, g, g2), np.where(left, g1, g)
     least = np.minimum(np.minimum(_gap(box, ends, lo), _gap(box, ends, 0.0)), _gap(box, ends, 1.0))
     return np.bincount(row[least <= tol], minlength=len(a)).astype(np.int64)
 
@@ -75,6 +83,58 @@ def _gap(boxes, ends, f):
     dx = np.maximum(np.maximum(boxes[:, 0] - px, 0.0), px - boxes[:, 1])
     dy = np.maximum(np.maximum(boxes[:, 2] - py, 0.0), py - boxes[:, 3])
     return np.hypot(dx, dy) - (ea + f * (eb - ea))
+
+
+def reported(heard: Heard, i: int, u: int, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Entries (indices into ``heard``) of the list ``i`` holds from ``u`` that still stand at
+    ``t_s`` (``u`` remembers those robots then), and the robots they name."""
+    k = heard.which[i, u]
+    if k < 0:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    entries = np.arange(heard.start[k, u], heard.start[k, u + 1])
+    entries = entries[t_s - heard.sent_s[entries] < heard.release_s]
+    return entries, heard.other[entries]
+
+
+def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos: np.ndarray):
+    """Pairs ``(robot, position it knows of another robot within reach_m)``: the forces'
+    sources in the local plan. A robot knows the robots it remembers, at the position it
+    heard (``memory``), and those named in the lists it holds from them (:class:`Lists`;
+    still remembered at ``t0_s``), at the position of the freshest Ack any of those lists
+    reports (the first of the robots it remembers, by id, on a tie). By sorting the entries
+    of each robot's lists, where the kernel keeps the freshest in one pass."""
+    n = len(pos)
+    known = heard.known
+    robots, xys = [], []
+    for i in range(n):
+        nb = np.flatnonzero(known[i])
+        if len(nb) == 0:
+            continue
+        xy = np.zeros((n, 2))
+        fresh = np.zeros(n, dtype=bool)
+        entries = [reported(heard, i, u, t0_s)[0] for u in nb.tolist()]
+        rows = np.concatenate(entries)
+        if len(rows):
+            other, sent = heard.other[rows], heard.sent_s[rows]
+            # Entries are in the order of the robots i remembers (ids ascending); a stable
+            # sort keeps the first on a tie.
+            order = np.lexsort((-sent, other))
+            first = order[np.r_[True, other[order][1:] != other[order][:-1]]]
+            fresh[other[first]] = True
+            xy[other[first]] = heard.xy[rows[first]]
+        fresh[i] = False
+        own = known[i]
+        xy[own] = memory.xy[i, own]
+        have = np.flatnonzero(own | fresh)
+        robots.append(np.full(len(have), i))
+        xys.append(xy[have])
+    if not robots:
+        return np.empty(0, np.int64), np.empty((0, 2))
+    robot, xy = np.concatenate(robots), np.concatenate(xys)
+    # Within reach: d <= r, as the engine's pairs in range.
+    d = np.hypot(*(xy - np.asarray(pos, float)[robot]).T)
+    near = d <= reach_m
+    return robot[near], xy[near]
 
 
 def let_go(
