@@ -415,7 +415,7 @@ def test_sample_into_loop_equals_the_oracle(torus, symmetric, kernels):
 
 
 @pytest.mark.parametrize("radio", [False, True], ids=["unit disk", "log-distance"])
-@pytest.mark.parametrize("compiled", [False, True])
+@pytest.mark.parametrize("compiled", [pytest.param(False, marks=pytest.mark.slow), True])
 def test_sampler_tables_written_in_place_equal_those_made_of_rows(monkeypatch, compiled, radio):
     """A run's sampled tables (groups, beliefs, neighbour_beliefs), written in place by one
     pass (sample_into) over neighbour lists, the channel's range index's or (under a radio)

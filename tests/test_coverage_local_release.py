@@ -138,6 +138,7 @@ def test_detour_links_are_certified_up_over_the_window_before_the_step(monkeypat
     assert let_go(pos, m, told(m), T0, V, 10.0, RC, window_s=SILENCE.window_s)[0, 1]
 
 
+@pytest.mark.slow
 def test_detour_kernel_over_a_window_agrees_with_its_oracle(monkeypatch):
     """Rule 1's kernel with a window, plain and compiled, lets go of exactly the links its
     numpy oracle does, in open space and on a map (a detour's link surely clear of walls

@@ -80,6 +80,7 @@ def test_walls_the_boxes_a_hull_meets_agree_with_the_oracle():
     assert len(np.unique(want)) >= 4
 
 
+@pytest.mark.slow
 def test_walls_rule_5_through_walls_is_its_definition():
     """Rule 5 through walls (:func:`through_walls`) against its statement, on random steps
     and disks across the floor plan: both ``|p - q| + e`` and ``|p + move - q| + fall``

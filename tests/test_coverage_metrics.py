@@ -311,7 +311,7 @@ def test_grid_cell_nearest_centre_is_every_cell_against_every_centre(kind, shape
         assert np.isfinite(got).any()
 
 
-@pytest.mark.parametrize("kind", ["plain", "compiled"])
+@pytest.mark.parametrize("kind", [pytest.param("plain", marks=pytest.mark.slow), "compiled"])
 @pytest.mark.parametrize("shape", ["plane", "torus", "rectangle"])
 def test_grid_cells_within_reach_of_any_point_are_those_of_the_nearest(kind, shape):
     """``any_within`` (the environments' covered share) marks within the reach exactly the

@@ -9,6 +9,8 @@ import argparse
 import re
 from pathlib import Path
 
+import pytest
+
 from tests.fixtures import script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,6 +25,7 @@ def quoted() -> dict[tuple[str, str], tuple[float, float, float, float]]:
     return {(s, p): tuple(float(v) for v in values) for s, p, *values in rows}
 
 
+@pytest.mark.slow
 def test_netsims_side_of_the_ns3_comparison_gives_the_quoted_figures(tmp_path):
     module = script("benchmarks/routing_ns3.py")
     table = quoted()

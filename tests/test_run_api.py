@@ -153,6 +153,7 @@ def test_collect_mid_run_leaves_the_rest_of_the_run_as_it_was(radio):
         pd.testing.assert_frame_equal(twice[table], once[table])
 
 
+@pytest.mark.slow
 def test_a_coverage_table_collected_mid_run_ends_at_now_and_is_not_kept():
     """The coverage table collected at ``now`` is that of a run that ended at now (its
     sample at now included), and the run, continued, writes the table it would have."""

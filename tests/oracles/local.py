@@ -42,7 +42,7 @@ def boxes_near_hull(boxes: np.ndarray, a, b, ea, eb, tol: float) -> np.ndarray:
     """For each row, how many ``boxes`` (rows ``x0, x1, y0, y1``) lie within ``tol`` of the hull
     of ``D(a, ea)`` and ``D(b, eb)``: the least gap over the hull's disks of each (row, box)
     pair near enough to matter, found by golden-section search (one new point a round) on all
-    the pairs at once."""
+    the pairs at once, where neither a bound nor a witness decides it first."""
     a = np.asarray(a, float).reshape(-1, 2)
     b = np.asarray(b, float).reshape(-1, 2)
     ea = np.broadcast_to(np.asarray(ea, float), (len(a),))
@@ -56,8 +56,26 @@ def boxes_near_hull(boxes: np.ndarray, a, b, ea, eb, tol: float) -> np.ndarray:
     )
     row, col = np.nonzero(near)
     box = boxes[col]
+    # No disk of the hull comes nearer the box than the line through a and b does, less
+    # the larger radius: pairs farther than that are not near.
+    centre_x, centre_y = (box[:, 0] + box[:, 1]) / 2, (box[:, 2] + box[:, 3]) / 2
+    half = np.hypot(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]) / 2
+    d = b[row] - a[row]
+    length = np.hypot(d[:, 0], d[:, 1])
+    span = np.where(length > 0, length, 1.0)
+    line = np.abs((centre_x - a[row, 0]) * d[:, 1] - (centre_y - a[row, 1]) * d[:, 0]) / span
+    keep = ~((length > 0) & (line - half - np.maximum(ea, eb)[row] > tol + 1e-9))
+    row, box, d, span = row[keep], box[keep], d[keep], span[keep]
+    centre_x, centre_y = centre_x[keep], centre_y[keep]
     ends = (a[row], b[row], ea[row], eb[row])
-    lo, hi = np.zeros(len(row)), np.ones(len(row))
+    # A disk of the hull within tol is a witness: the ends, and the one nearest the box's
+    # centre; the least gap is searched for where none is.
+    nearest = np.clip(((centre_x - ends[0][:, 0]) * d[:, 0] + (centre_y - ends[0][:, 1]) * d[:, 1]) / span**2, 0.0, 1.0)
+    hit = (_gap(box, ends, 0.0) <= tol) | (_gap(box, ends, 1.0) <= tol) | (_gap(box, ends, nearest) <= tol)
+    open_ = np.flatnonzero(~hit)
+    box = box[open_]
+    ends = tuple(e[open_] for e in ends)
+    lo, hi = np.zeros(len(open_)), np.ones(len(open_))
     r = (np.sqrt(5.0) - 1.0) / 2.0
     m1, m2 = hi - r, lo + r
     g1, g2 = _gap(box, ends, m1), _gap(box, ends, m2)
@@ -70,8 +88,8 @@ def boxes_near_hull(boxes: np.ndarray, a, b, ea, eb, tol: float) -> np.ndarray:
         g = _gap(box, ends, m)
         m1, m2 = np.where(left, m, m2), np.where(left, m1, m)
         g1, g2 = np.where(left, g, g2), np.where(left, g1, g)
-    least = np.minimum(np.minimum(_gap(box, ends, lo), _gap(box, ends, 0.0)), _gap(box, ends, 1.0))
-    return np.bincount(row[least <= tol], minlength=len(a)).astype(np.int64)
+    hit[open_] = _gap(box, ends, lo) <= tol
+    return np.bincount(row[hit], minlength=len(a)).astype(np.int64)
 
 
 def _gap(boxes, ends, f):
