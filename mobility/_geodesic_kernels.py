@@ -61,14 +61,16 @@ def allowed_moves(free, w, h, moves_x, moves_y):
 
 @jit(walks=True, nogil=True)
 def search_work(n):
-    """The arrays :func:`search` works in, as it wants them: a heap of cells, each cell's
-    slot in it (-1: none), whether it is settled, whether it is a target, and the cells it
-    gave a value (to put back)."""
+    """The arrays :func:`search` works in, as it wants them: the next cell in each queued
+    cell's bucket, each cell's bucket (-1: not queued), whether it is settled, whether it is
+    a target, the cells it gave a value (to put back), and the previous cell in each queued
+    cell's bucket."""
     return (
         np.empty(n, np.int64),
         np.full(n, -1, np.int64),
         np.zeros(n, np.bool_),
         np.zeros(n, np.bool_),
+        np.empty(n, np.int64),
         np.empty(n, np.int64),
     )
 
@@ -79,13 +81,15 @@ def search(
 ):
     """Shortest path lengths (m) over free cells from the nearest of the cells ``sources``
     (row-major indices; those not free are left out) into ``out`` (inf on every cell, as
-    given; inf where not reached); Dijkstra's algorithm with an indexed binary heap, every
-    source at 0. The moves from each cell are ``allowed``'s (:func:`allowed_moves` of
+    given; inf where not reached); Dijkstra's algorithm with a bucket queue (Dial's), every
+    source at 0: a cell's value is the least over the cells settled in earlier buckets,
+    whatever the order within a bucket, so the values are those a binary heap gives. The
+    moves from each cell are ``allowed``'s (:func:`allowed_moves` of
     ``free``). Paths leave the sources only through the cells ``within`` marks, each move's
     end cell (a move's geometry is still :func:`move_ok`'s, over ``free``: a knight's move
     may pass beside a cell left out). With ``targets`` (cells), the search stops once every
     free one of them is settled: their values are then final, and so is every value below
-    the largest of theirs (the cells settled before), the others upper bounds or inf.
+    the largest of theirs, the others upper bounds or inf.
     Without, every cell is settled. It works in ``work`` (:func:`search_work`, as it gives
     them) and returns how many cells it gave a value, listed first in ``work[4]``;
     :func:`forget` puts both back.
@@ -95,20 +99,39 @@ def search(
     ``bound_m[k]`` less the cell's distance: no path through it reaches one of them within
     its bound, so a cell's value within its bound is as without (a search toward points
     whose distances are known to lie within those bounds)."""
-    heap, where, done, wanted, touched = work
+    after, where, done, wanted, touched, before = work
     n = w * h
     used = 0
-    size = 0
+    lengths = np.empty(len(moves_x))
+    offsets = np.empty(len(moves_x), np.int64)  # in row-major cells
+    for m in range(len(moves_x)):
+        lengths[m] = cell_m * math.sqrt(moves_x[m] * moves_x[m] + moves_y[m] * moves_y[m])
+        offsets[m] = moves_y[m] * w + moves_x[m]
+    # A bucket queue: cell values in buckets of half a cell's side, each a linked list
+    # (after, before); a move is at least a side long, so a cell's value comes from cells of
+    # buckets at least two before its own, settled before it in any order within a bucket.
+    # The queued buckets lie within the longest move of the one being settled: a ring of
+    # more slots than that (a power of two, for a cheap remainder) holds them apart.
+    width = 0.5 * cell_m
+    ring = 1
+    while ring < (int(lengths.max() / width) + 3 if len(lengths) > 0 else 1):
+        ring *= 2
+    mask = ring - 1
+    head = np.full(ring, -1, np.int64)
+    queued = 0
     for k in range(len(sources)):
         c = sources[k]
         if 0 <= c < n and free[c] and where[c] < 0:
-            # All at 0: any order is a heap.
-            heap[size] = c
-            where[c] = size
+            after[c] = head[0]
+            before[c] = -1
+            if head[0] >= 0:
+                before[head[0]] = c
+            head[0] = c
+            where[c] = 0
             out[c] = 0.0
             touched[used] = c
             used += 1
-            size += 1
+            queued += 1
     pending = -1  # no targets: never stop early
     if len(targets) > 0:
         pending = 0
@@ -119,32 +142,17 @@ def search(
                 pending += 1
     # No free target: nothing to search for (the sources stay at 0).
     searching = pending != 0
-    lengths = np.empty(len(moves_x))
-    offsets = np.empty(len(moves_x), np.int64)  # in row-major cells
-    for m in range(len(moves_x)):
-        lengths[m] = cell_m * math.sqrt(moves_x[m] * moves_x[m] + moves_y[m] * moves_y[m])
-        offsets[m] = moves_y[m] * w + moves_x[m]
-    while searching and size > 0:
-        c = heap[0]
+    current = 0
+    while searching and queued > 0:
+        while head[current & mask] < 0:
+            current += 1
+        slot = current & mask
+        c = head[slot]
+        head[slot] = after[c]
+        if after[c] >= 0:
+            before[after[c]] = -1
         where[c] = -1
-        size -= 1
-        if size > 0:
-            # The last cell to the root, sifted down.
-            last = heap[size]
-            slot = 0
-            while True:
-                child = 2 * slot + 1
-                if child >= size:
-                    break
-                if child + 1 < size and out[heap[child + 1]] < out[heap[child]]:
-                    child += 1
-                if out[heap[child]] >= out[last]:
-                    break
-                heap[slot] = heap[child]
-                where[heap[slot]] = slot
-                slot = child
-            heap[slot] = last
-            where[last] = slot
+        queued -= 1
         done[c] = True
         if wanted[c]:
             pending -= 1
@@ -166,23 +174,31 @@ def search(
                 touched[used] = nb
                 used += 1
             out[nb] = d
-            slot = where[nb]
-            if slot < 0:
-                slot = size
-                size += 1
-            # Sift up.
-            while slot > 0:
-                parent = (slot - 1) // 2
-                if out[heap[parent]] <= d:
-                    break
-                heap[slot] = heap[parent]
-                where[heap[slot]] = slot
-                slot = parent
-            heap[slot] = nb
-            where[nb] = slot
-    # The heap's slots are put back now; the values, by forget, once they are read.
-    for k in range(size):
-        where[heap[k]] = -1
+            b = where[nb]
+            if b >= 0:
+                # Out of the bucket it was in.
+                if before[nb] >= 0:
+                    after[before[nb]] = after[nb]
+                else:
+                    head[b & mask] = after[nb]
+                if after[nb] >= 0:
+                    before[after[nb]] = before[nb]
+            else:
+                queued += 1
+            b = int(d / width)
+            slot = b & mask
+            after[nb] = head[slot]
+            before[nb] = -1
+            if head[slot] >= 0:
+                before[head[slot]] = nb
+            head[slot] = nb
+            where[nb] = b
+    # The buckets are put back now; the values, by forget, once they are read.
+    for slot in range(ring):
+        c = head[slot]
+        while c >= 0:
+            where[c] = -1
+            c = after[c]
     for k in range(len(targets)):
         c = targets[k]
         if 0 <= c < n:

@@ -85,6 +85,40 @@ def test_distances_from_several_sources_are_to_the_nearest_and_final_at_the_targ
     assert (stopped >= both).all()
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_distances_are_the_shortest_paths_over_the_moves_to_the_last_bit(seed):
+    """The search's values are the shortest paths over the grid's moves (each into a cell
+    ``within`` marks) from the nearest source, as scipy's Dijkstra finds them on the same
+    graph, to the last bit: on a random floor of blocks, from many sources, every cell."""
+    from scipy.sparse import csr_array
+    from scipy.sparse.csgraph import dijkstra
+
+    rng = np.random.default_rng(seed)
+    n = 120
+    occupied = np.zeros((n, n), bool)
+    for x, y, w, h in zip(*rng.integers(0, n, (2, 40)), *rng.integers(1, 12, (2, 40))):
+        occupied[y : y + h, x : x + w] = True
+    grid = FreeGrid(OccupancyMap(occupied, ~occupied, RES_M, (0.0, 0.0)), Bounds.square(n * RES_M))
+    cells = grid.w * grid.h
+    within = grid.free & (rng.random(cells) < 0.9)
+    sources = rng.choice(np.flatnonzero(grid.free), 6, replace=False).astype(np.int64)
+    got = np.empty(cells)
+    distance_field(grid, sources, within, np.zeros(0, np.int64), got)
+    moves_x, moves_y = grid.moves
+    rows, cols, lengths = [], [], []
+    for m in range(len(moves_x)):
+        start = np.flatnonzero(grid.allowed >> m & 1)
+        end = start + moves_y[m] * grid.w + moves_x[m]
+        into = within[end]
+        rows.append(start[into])
+        cols.append(end[into])
+        lengths.append(np.full(into.sum(), grid.cell_m * np.sqrt(float(moves_x[m] ** 2 + moves_y[m] ** 2))))
+    graph = csr_array((np.concatenate(lengths), (np.concatenate(rows), np.concatenate(cols))), shape=(cells, cells))
+    want = dijkstra(graph, indices=sources, min_only=True)
+    assert np.isfinite(want).sum() > cells // 4 and np.isinf(want).any()
+    np.testing.assert_array_equal(got, want)
+
+
 def test_distances_keep_to_the_cells_within():
     """Paths leave the sources only through the cells ``within`` marks: with the cells in
     and beside the door left out (a knight's move passes beside a cell), the far side of
@@ -218,7 +252,7 @@ def _whole_descent(grid: FreeGrid, covered: np.ndarray, pos: np.ndarray):
 
 
 def _assert_put_back(grid: FreeGrid) -> None:
-    _, where, done, wanted, _ = grid.work
+    _, where, done, wanted, _, _ = grid.work
     assert (grid.field == np.inf).all() and (where == -1).all() and not done.any() and not wanted.any()
 
 
