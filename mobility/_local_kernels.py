@@ -303,12 +303,14 @@ def remembers(sent_s, now_s, release_s):
 
 
 @jit(nogil=True)
-def heard_sources(known, which, start, other, sent_s, release_s, t0_s, out):
+def heard_sources(heard, t0_s, out):
     """Where each robot ``i`` knows each robot ``j`` from, into ``out[i, j]`` (the forces'
     sources in the local plan, :func:`netsim.mobility.local.sources_heard`): -1, its own
-    memory (it remembers ``j``); else the entry of the freshest Ack of ``j`` that the lists
-    it holds from the robots it remembers still report at ``t0_s`` (the first, by the id of
-    the robot whose list it is, on a tie); -2, nowhere."""
+    memory (it remembers ``j``, ``heard.known``); else the entry of ``heard`` of the freshest
+    Ack of ``j`` that the lists it holds from the robots it remembers still report at
+    ``t0_s`` (the first, by the id of the robot whose list it is, on a tie); -2, nowhere."""
+    known, which, start, other, sent_s = heard.known, heard.which, heard.start, heard.other, heard.sent_s
+    release_s = heard.release_s
     n = known.shape[0]
     for i in range(n):
         for j in range(n):

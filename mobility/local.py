@@ -1010,9 +1010,7 @@ def sources_heard(memory: Memory, heard: Heard, t0_s: float, reach_m: float, pos
     n = len(pos)
     kernels = load("netsim.mobility._local_kernels", n)
     pick = np.empty((n, n), np.int64)
-    kernels.heard_sources(
-        heard.known, heard.which, heard.start, heard.other, heard.sent_s, float(heard.release_s), float(t0_s), pick
-    )
+    kernels.heard_sources(heard._replace(release_s=float(heard.release_s)), float(t0_s), pick)
     robot, other = np.nonzero(pick != -2)
     if len(robot) == 0:
         return np.empty(0, np.int64), np.empty((0, 2))
