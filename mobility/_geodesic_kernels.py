@@ -83,7 +83,7 @@ def search(
     (row-major indices; those not free are left out) into ``out`` (inf on every cell, as
     given; inf where not reached); Dijkstra's algorithm with a bucket queue (Dial's), every
     source at 0: a cell's value is the least over the cells settled in earlier buckets,
-    whatever the order within a bucket, so the values are those a binary heap gives. The
+    whatever the order within a bucket, so no value depends on that order. The
     moves from each cell are ``allowed``'s (:func:`allowed_moves` of
     ``free``). Paths leave the sources only through the cells ``within`` marks, each move's
     end cell (a move's geometry is still :func:`move_ok`'s, over ``free``: a knight's move
@@ -109,12 +109,12 @@ def search(
         offsets[m] = moves_y[m] * w + moves_x[m]
     # A bucket queue: cell values in buckets of half a cell's side, each a linked list
     # (after, before); a move is at least a side long, so a cell's value comes from cells of
-    # buckets at least two before its own, settled before it in any order within a bucket.
+    # earlier buckets, settled before it in any order within a bucket.
     # The queued buckets lie within the longest move of the one being settled: a ring of
     # more slots than that (a power of two, for a cheap remainder) holds them apart.
-    width = 0.5 * cell_m
+    width_m = 0.5 * cell_m
     ring = 1
-    while ring < (int(lengths.max() / width) + 3 if len(lengths) > 0 else 1):
+    while ring < (int(lengths.max() / width_m) + 3 if len(lengths) > 0 else 1):
         ring *= 2
     mask = ring - 1
     head = np.full(ring, -1, np.int64)
@@ -176,7 +176,7 @@ def search(
             out[nb] = d
             b = where[nb]
             if b >= 0:
-                # Out of the bucket it was in.
+                # A shorter path: out of the later bucket it was queued in.
                 if before[nb] >= 0:
                     after[before[nb]] = after[nb]
                 else:
@@ -185,7 +185,7 @@ def search(
                     before[after[nb]] = before[nb]
             else:
                 queued += 1
-            b = int(d / width)
+            b = int(d / width_m)
             slot = b & mask
             after[nb] = head[slot]
             before[nb] = -1

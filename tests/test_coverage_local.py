@@ -172,7 +172,8 @@ def random_heard(seed, n=25, snapshots=3):
     np.fill_diagonal(sent, -np.inf)
     m = memory_of(rng.uniform(0.0, 300.0, (n, n, 2)), sent)
     known = m.known(T0, 20.0)
-    which = np.where(known & (rng.random((n, n)) < 0.8), rng.integers(0, snapshots, (n, n)), -1)
+    # Lists of robots not remembered too, as Lists.heard gives them: they are not read.
+    which = np.where(rng.random((n, n)) < 0.8, rng.integers(0, snapshots, (n, n)), -1)
     counts = rng.integers(0, 8, (snapshots, n))
     start = np.zeros((snapshots, n + 1), np.int64)
     start[:, 1:] = np.cumsum(counts, axis=1) + (np.arange(snapshots) * counts.sum(axis=1).max())[:, None]
