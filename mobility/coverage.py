@@ -393,7 +393,7 @@ def spreading_forces(
     """``gain x (resultant + border push)`` on every robot (rows of robots without
     sources are the border push alone), from the pairs ``(target, source position)``."""
     n = len(pos)
-    f = pair_resultants(n, target, pos[target] - source_xy, LAWS[law_name], range_m, gain)
+    f = pair_resultants(n, target, pos[target], source_xy, LAWS[law_name], range_m, gain)
     return f + border_forces(pos, area, range_m, gain)
 
 

@@ -24,7 +24,7 @@ from enum import StrEnum
 import numpy as np
 
 from netsim.area import Bounds, as_bounds
-from netsim.geometry import inside_margin_m
+from netsim.geometry import distances_m, inside_margin_m
 
 SQRT3 = math.sqrt(3.0)
 # The expansion's cap, as a fraction of r_c: half the border's strongest push, so that the
@@ -59,11 +59,16 @@ class Law(StrEnum):
 LAWS = {Law.SPRING: spring, Law.REPULSION: repulsion, Law.INVERSE_SQUARE: inverse_square}
 
 
-def pair_resultants(n: int, target: np.ndarray, delta: np.ndarray, law, range_m: float, gain: float) -> np.ndarray:
+def pair_resultants(
+    n: int, target: np.ndarray, at_xy: np.ndarray, source_xy: np.ndarray, law, range_m: float, gain: float
+) -> np.ndarray:
     """Resultant forces on ``n`` robots from pairs: row ``k`` is the force on robot
-    ``target[k]`` from a robot at ``delta[k]`` (its position minus the other's) away.
-    Pairs at distance 0 push nowhere."""
-    d = np.hypot(*np.asarray(delta, dtype=float).reshape(-1, 2).T)
+    ``target[k]``, at ``at_xy[k]``, from a robot at ``source_xy[k]``, the two a link's
+    length apart (:func:`netsim.geometry.distances_m`). Pairs at distance 0 push nowhere."""
+    at_xy = np.asarray(at_xy, dtype=float).reshape(-1, 2)
+    source_xy = np.asarray(source_xy, dtype=float).reshape(-1, 2)
+    delta = at_xy - source_xy
+    d = distances_m(at_xy, source_xy, None, n)
     ok = d > 0
     mag = law(d[ok], range_m, gain) / d[ok]
     fx = np.bincount(target[ok], weights=mag * delta[ok, 0], minlength=n)
@@ -92,8 +97,9 @@ def expansion_forces(p: np.ndarray, centre: np.ndarray, factor: float, range_m: 
     >>> expansion_forces(p, np.array([5.0, 0.0]), 0.1, 40.0, 1.0).round(2).tolist()
     [[-0.5, 0.0], [0.5, 0.0], [0.0, 17.32]]
     """
-    off = np.asarray(p, dtype=float).reshape(-1, 2) - centre
-    d = np.hypot(*off.T)
+    p = np.asarray(p, dtype=float).reshape(-1, 2)
+    off = p - centre
+    d = distances_m(p, centre, None, len(p))
     scale = np.minimum(factor, EXPANSION_CAP * range_m / np.maximum(d, 1e-300))
     return gain * scale[:, None] * off
 

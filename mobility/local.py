@@ -127,7 +127,7 @@ from netsim.mobility.spread import add_pulls, project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
 from netsim.compiled import filled, load, map_walker
-from netsim.geometry import beyond, speeds_mps
+from netsim.geometry import beyond, distances_m, speeds_mps
 from netsim.trajectory import points_on_legs
 from netsim.world.free_space import short_of_walls
 from netsim.world.maps import OccupancyMap
@@ -932,7 +932,7 @@ def pulls(
     robot, other = np.nonzero(kept & (heard >= announced_s))
     q = memory.xy[robot, other]
     off = q - pos[robot]
-    d = np.hypot(*off.T)
+    d = distances_m(pos[robot], q, None, len(pos))
     along = off / np.maximum(d, 1e-12)[:, None]
     slack = np.maximum(leash_radius(memory, t0_s + limits.period_s, limits)[robot, other] - d, 0.0) / limits.period_s
     return add_pulls(np.zeros_like(pos), robot, along, announced_mps[other], slack)
@@ -1159,7 +1159,7 @@ class Fade:
         ``sent_s``, the earliest the Ack can have been sent): an ``X`` no lower than the true
         one, which only shortens the links kept. ``margin = P_r - sensitivity``."""
         moved = travel_at_cap_m(np.asarray(sent_s, float), now_s, speed_mps)
-        d = np.hypot(*(heard_xy - own_xy).T) - moved if len(own_xy) else np.zeros(0)
+        d = distances_m(own_xy, heard_xy, None, self.n_robots) - moved
         r = self.radio
         x = r.radio.shadowing_db(r.path_loss_db(np.maximum(d, 0.0), self.n_robots), power_dbm)
         return x, power_dbm - r.sensitivity_dbm
@@ -1216,7 +1216,7 @@ class Fade:
         n = len(pos)
         x, since = link_records(heard, n)
         q = knows.xy
-        d0 = np.hypot(*(pos[:, None, :] - q).transpose(2, 0, 1))
+        d0 = distances_m(np.repeat(pos, n, axis=0), q, None, n).reshape(n, n)
         r = self.radio
         with np.errstate(invalid="ignore"):
             exact = knows.sent_s >= t0_s

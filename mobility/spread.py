@@ -141,7 +141,7 @@ def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radi
             points = target[x]
             beyond_disks(points, c, r, out)
             off = points - c
-            dist = np.hypot(*off[out].T)
+            dist = distances_m(points[out], c[out], None, len(target))
             target[x[out]] = c[out] + off[out] * (r[out] / dist)[:, None]
         np.clip(target, box.lo, box.hi, out=target)
     return target

@@ -19,6 +19,7 @@ from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingPara
 
 from netsim.compiled import load
 from netsim.errors import ConfigError
+from netsim.geometry import distances_m
 from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
@@ -58,10 +59,13 @@ class GreedyParams(RoutingParams):
             )
 
 
-def greedy_next_hop(own_xy: np.ndarray, dst_xy: np.ndarray, nbr_ids: np.ndarray, nbr_xy: np.ndarray) -> int:
+def greedy_next_hop(
+    own_xy: np.ndarray, dst_xy: np.ndarray, nbr_ids: np.ndarray, nbr_xy: np.ndarray, n_robots: int | None = None
+) -> int:
     """The greedy rule: the neighbour (of ``nbr_ids`` at ``nbr_xy``) closest to ``dst_xy``,
     if strictly closer than ``own_xy``; -1 if none is (a local maximum). Ties go to the
-    lowest id.
+    lowest id. Lengths are :func:`netsim.geometry.distances_m`'s, as a team of ``n_robots``
+    measures them.
 
     >>> greedy_next_hop(np.array([0.0, 0]), np.array([10.0, 0]), np.array([3, 5]), np.array([[4.0, 0], [-4, 0]]))
     3
@@ -70,10 +74,11 @@ def greedy_next_hop(own_xy: np.ndarray, dst_xy: np.ndarray, nbr_ids: np.ndarray,
     """
     if len(nbr_ids) == 0:
         return -1
-    d = np.hypot(nbr_xy[:, 0] - dst_xy[0], nbr_xy[:, 1] - dst_xy[1])
+    ends = np.vstack([np.reshape(own_xy, (1, 2)), np.reshape(nbr_xy, (-1, 2))])
+    lengths = distances_m(ends, dst_xy, None, n_robots)
+    own, d = float(lengths[0]), lengths[1:]
     order = np.lexsort((nbr_ids, d))
     best = int(order[0])
-    own = float(np.hypot(own_xy[0] - dst_xy[0], own_xy[1] - dst_xy[1]))
     return int(nbr_ids[best]) if d[best] < own else -1
 
 
@@ -135,7 +140,7 @@ class Greedy(Router):
             return pkt.dst, ""
         own = self.state.positions_at(self.env.now, [holder])[0]
         assert pkt.dst_xy is not None
-        nxt = greedy_next_hop(own, np.asarray(pkt.dst_xy), nbrs, self.heard_xy[holder, nbrs])
+        nxt = greedy_next_hop(own, np.asarray(pkt.dst_xy), nbrs, self.heard_xy[holder, nbrs], self.state.n)
         return (nxt, "") if nxt >= 0 else (-1, "local_maximum")
 
     def link_failed(self, holder: int, nxt: int, pkt: Packet) -> None:

@@ -11,7 +11,7 @@ RC = 10.0
 
 def pair_force(p_i, p_j, law, range_m, gain):
     """The force on a robot at ``p_i`` from one at ``p_j``, through :func:`pair_resultants`."""
-    return pair_resultants(1, np.zeros(1, np.int64), np.subtract([p_i], [p_j]), law, range_m, gain)[0]
+    return pair_resultants(1, np.zeros(1, np.int64), [p_i], [p_j], law, range_m, gain)[0]
 
 
 @pytest.mark.parametrize("name", sorted(LAWS))
@@ -53,12 +53,12 @@ def test_inverse_square_is_zero_at_target_and_strong_up_close():
 
 def test_resultant_of_a_hexagonal_ring_is_zero():
     ring = [SQRT3 * RC * np.array([math.cos(a), math.sin(a)]) for a in np.arange(6) * math.pi / 3]
-    f = pair_resultants(1, np.zeros(6, np.int64), -np.array(ring), LAWS["spring"], RC, 1.0)[0]
+    f = pair_resultants(1, np.zeros(6, np.int64), np.zeros((6, 2)), np.array(ring), LAWS["spring"], RC, 1.0)[0]
     assert f == pytest.approx([0.0, 0.0], abs=1e-9)
 
 
 def test_robots_at_one_point_push_nowhere():
-    f = pair_resultants(2, np.array([0, 1]), np.zeros((2, 2)), LAWS["inverse_square"], RC, 1.0)
+    f = pair_resultants(2, np.array([0, 1]), np.ones((2, 2)), np.ones((2, 2)), LAWS["inverse_square"], RC, 1.0)
     assert np.isfinite(f).all() and (f == 0).all()
 
 

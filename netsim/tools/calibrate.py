@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
+from netsim.geometry import distances_m
 from netsim.radio.mac import MAC_DROP_CAUSES
 from netsim.radio.propagation import LogDistanceParams
 from netsim.tools import channel_fit as cf
@@ -304,7 +305,7 @@ def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
         distance = _numbers(log, "distance_m", where)
         what = "distance_m"
     else:
-        distance = np.hypot(positions[:, 2] - positions[:, 0], positions[:, 3] - positions[:, 1])
+        distance = distances_m(positions[:, 0:2], positions[:, 2:4])
         what = "the distance between the two ends' positions"
     bad = ~(distance > 0)
     if bad.any():

@@ -32,7 +32,6 @@ from netsim.radio.propagation import (
     Pairs,
     implied_range_m,
     log_distance,
-    path_loss_db,
     reach_m,
     unit_disk,
 )
@@ -76,7 +75,7 @@ def check_unit_disk_equivalence(params: LogDistanceParams | None = None, n: int 
 
 def link_probability(distance_m, params: LogDistanceParams) -> np.ndarray:
     """``P(P_r >= sensitivity)`` at distance ``d`` under shadowing clipped at 4 sigma."""
-    margin = params.tx_power_dbm - path_loss_db(distance_m, params) - params.sensitivity_dbm
+    margin = params.margin_db(distance_m)
     sigma = params.shadowing_sigma_db
     clip = TRUNCATION_SIGMAS * sigma
     return np.where(margin >= clip, 1.0, np.where(margin < -clip, 0.0, ndtr(margin / sigma)))
@@ -275,7 +274,7 @@ def check_walls(params: LogDistanceParams | None = None):
     def pair(p, q):
         p, q = np.atleast_2d(p).astype(float), np.atleast_2d(q).astype(float)
         k = len(p)
-        return Pairs(np.arange(k), np.arange(k) + k, p, q, np.hypot(*(q - p).T))
+        return Pairs.between(np.arange(k), np.arange(k) + k, np.vstack([p, q]))
 
     across = disk.receivable(pair([15.0, 15.0], [25.0, 15.0]))[0]
     door = disk.receivable(pair([15.0, 3.0], [25.0, 3.0]))[0]
