@@ -368,7 +368,7 @@ def wished_velocities(
     rows = [np.reshape(np.asarray(nb, dtype=float), (-1, 2)) for nb in neighbours]
     target = np.repeat(np.arange(len(leaders), dtype=np.int64), [len(r) for r in rows])
     source_xy = np.concatenate(rows) if rows else np.zeros((0, 2))
-    return spreading_forces(pos_now[leaders], target, source_xy, law_name, range_m, gain, area)
+    return spreading_forces(pos_now[leaders], target, source_xy, law_name, range_m, gain, area, len(pos_now))
 
 
 def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> list[np.ndarray]:
@@ -388,12 +388,20 @@ def sources_true(pos: np.ndarray, range_m: float) -> tuple[np.ndarray, np.ndarra
 
 
 def spreading_forces(
-    pos: np.ndarray, target: np.ndarray, source_xy: np.ndarray, law_name: str, range_m: float, gain: float, area
+    pos: np.ndarray,
+    target: np.ndarray,
+    source_xy: np.ndarray,
+    law_name: str,
+    range_m: float,
+    gain: float,
+    area,
+    n_robots: int | None = None,
 ) -> np.ndarray:
-    """``gain x (resultant + border push)`` on every robot (rows of robots without
-    sources are the border push alone), from the pairs ``(target, source position)``."""
+    """``gain x (resultant + border push)`` on every robot of ``pos`` (rows of robots without
+    sources are the border push alone), from the pairs ``(target, source position)``;
+    ``n_robots``: the team's size (None: the rows of ``pos``)."""
     n = len(pos)
-    f = pair_resultants(n, target, pos[target], source_xy, LAWS[law_name], range_m, gain)
+    f = pair_resultants(n, target, pos[target], source_xy, LAWS[law_name], range_m, gain, n_robots)
     return f + border_forces(pos, area, range_m, gain)
 
 

@@ -60,15 +60,23 @@ LAWS = {Law.SPRING: spring, Law.REPULSION: repulsion, Law.INVERSE_SQUARE: invers
 
 
 def pair_resultants(
-    n: int, target: np.ndarray, at_xy: np.ndarray, source_xy: np.ndarray, law, range_m: float, gain: float
+    n: int,
+    target: np.ndarray,
+    at_xy: np.ndarray,
+    source_xy: np.ndarray,
+    law,
+    range_m: float,
+    gain: float,
+    n_robots: int | None = None,
 ) -> np.ndarray:
-    """Resultant forces on ``n`` robots from pairs: row ``k`` is the force on robot
-    ``target[k]``, at ``at_xy[k]``, from a robot at ``source_xy[k]``, the two a link's
-    length apart (:func:`netsim.geometry.distances_m`). Pairs at distance 0 push nowhere."""
+    """Resultant forces on ``n`` robots (row ``i``: robot ``i``) from pairs: pair ``k`` adds
+    the force on robot ``target[k]``, at ``at_xy[k]``, from a robot (or a position heard of
+    one) at ``source_xy[k]``, at the distance :func:`netsim.geometry.distances_m` measures
+    (in a team of ``n_robots``; None: ``n``). Pairs at distance 0 push nowhere."""
     at_xy = np.asarray(at_xy, dtype=float).reshape(-1, 2)
     source_xy = np.asarray(source_xy, dtype=float).reshape(-1, 2)
     delta = at_xy - source_xy
-    d = distances_m(at_xy, source_xy, None, n)
+    d = distances_m(at_xy, source_xy, None, n if n_robots is None else n_robots)
     ok = d > 0
     mag = law(d[ok], range_m, gain) / d[ok]
     fx = np.bincount(target[ok], weights=mag * delta[ok, 0], minlength=n)

@@ -1216,11 +1216,14 @@ class Fade:
         n = len(pos)
         x, since = link_records(heard, n)
         q = knows.xy
-        d0 = distances_m(np.repeat(pos, n, axis=0), q, None, n).reshape(n, n)
         r = self.radio
         with np.errstate(invalid="ignore"):
             exact = knows.sent_s >= t0_s
             seen = np.isfinite(x) & np.isfinite(since) & exact
+            # Only the lengths of links with a record are read.
+            d0 = np.zeros((n, n))
+            i, j = np.nonzero(seen)
+            d0[i, j] = distances_m(pos[i], q[i, j], None, self.n_robots)
             x0 = np.where(seen, x, 0.0)
             m0 = np.where(seen, r.margin_db(np.maximum(d0, 1e-9), x0, 0, self.n_robots), 0.0)
             budget, length, left = self._allowance(knows, m0, x0, since, t0_s, speed_mps)

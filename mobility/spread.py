@@ -140,9 +140,11 @@ def project_into(target: np.ndarray, robot: np.ndarray, centre: np.ndarray, radi
         for x, c, r, out in disks:
             points = target[x]
             beyond_disks(points, c, r, out)
-            off = points - c
-            dist = distances_m(points[out], c[out], None, len(target))
-            target[x[out]] = c[out] + off[out] * (r[out] / dist)[:, None]
+            if not out.any():
+                continue
+            at, centre_at = points[out], c[out]
+            dist = distances_m(at, centre_at, None, len(target))
+            target[x[out]] = centre_at + (at - centre_at) * (r[out] / dist)[:, None]
         np.clip(target, box.lo, box.hi, out=target)
     return target
 

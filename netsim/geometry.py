@@ -24,7 +24,8 @@ def wrap(d: np.ndarray, box: float | None, n_robots: int) -> np.ndarray:
 def distances_m(
     p_m: np.ndarray, q_m: np.ndarray, side_m: float | None = None, n_robots: int | None = None
 ) -> np.ndarray:
-    """The length of each segment from row ``p_m[k]`` to row ``q_m[k]``: on a torus of side
+    """The length of each segment from row ``p_m[k]`` to row ``q_m[k]`` (``q_m``: one row per
+    row of ``p_m``, or one point for every row): on a torus of side
     ``side_m`` its nearest image (None: the plane), in a run of ``n_robots`` (None: as many
     as the rows) (:func:`netsim._kernels.distances`, the engine's one rule of a link's
     length).
@@ -32,11 +33,23 @@ def distances_m(
     >>> distances_m(np.array([[0.0, 0.0], [1.0, 1.0]]), np.array([[3.0, 4.0], [9.0, 1.0]]), 10.0).tolist()
     [5.0, 2.0]
     """
-    p = filled(np.reshape(p_m, (-1, 2)), (np.size(p_m) // 2, 2))
-    q = filled(np.reshape(q_m, (-1, 2)), (len(p), 2))
+    p = _rows(p_m, np.size(p_m) // 2)
+    q = _rows(q_m, len(p))
     out = np.empty(len(p))
     load("netsim._kernels", n_robots, values=len(p)).distances(p, q, float(side_m or 0.0), out)
     return out
+
+
+def _rows(values_m: Any, k: int) -> np.ndarray:
+    """``values_m`` as ``k`` rows of two floats that a kernel reads: itself when it already
+    is such an array (writable, C-contiguous: one compiled type), else a new one (one point
+    broadcast to every row)."""
+    a = np.asarray(values_m, dtype=float)
+    if a.shape == (k, 2) and a.flags.c_contiguous and a.flags.writeable:
+        return a
+    rows = np.empty((k, 2))
+    rows[...] = np.reshape(a, (-1, 2))
+    return rows
 
 
 def beyond(points_m: np.ndarray, centres_m: np.ndarray, radius_m: np.ndarray, n_robots: int) -> np.ndarray:

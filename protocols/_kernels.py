@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import Motion, longest_list, position, reaches_robot, senders_in_list, sort_range
+from netsim._kernels import Motion, longest_list, nearest_image, position, reaches_robot, senders_in_list, sort_range
 from netsim.compiled import jit
 
 # Columns of a neighbour table's packed record (netsim.protocols.neighbours). BIDIR_SINCE:
@@ -361,7 +361,10 @@ def join_choice(table, i, now, rules, exclude, motion, first_heard):
         if policy == JOIN_FIRST_HEARD and j == first_heard:
             best = j
             break
-        d = np.hypot(rec[X] - x_m, rec[Y] - y_m)
+        # On a torus the leader's nearest image: a leader across the seam is as near as the
+        # link to it is short.
+        dx, dy = nearest_image(rec[X] - x_m, rec[Y] - y_m, m.side_m if m.torus else 0.0)
+        d = np.hypot(dx, dy)
         if best < 0 or d < best_d or (d == best_d and j < best):
             best, best_d = j, d
     if best < 0:

@@ -74,7 +74,8 @@ def greedy_next_hop(
     """
     if len(nbr_ids) == 0:
         return -1
-    ends = np.vstack([np.reshape(own_xy, (1, 2)), np.reshape(nbr_xy, (-1, 2))])
+    ends = np.empty((len(nbr_ids) + 1, 2))
+    ends[0], ends[1:] = own_xy, nbr_xy
     lengths = distances_m(ends, dst_xy, None, n_robots)
     own, d = float(lengths[0]), lengths[1:]
     order = np.lexsort((nbr_ids, d))

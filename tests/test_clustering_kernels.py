@@ -548,12 +548,14 @@ def test_sized_acks_plain_and_compiled_are_the_same(monkeypatch):
     assert max(sizes) > 3 and sizes.count(1) > 50
 
 
+@pytest.mark.parametrize("torus", [False, True])
 @pytest.mark.parametrize("policy", list(JoinPolicy))
 @pytest.mark.parametrize("symmetric", [False, True])
-def test_join_choice_loop_equals_the_oracle(policy, symmetric, kernels):
+def test_join_choice_loop_equals_the_oracle(policy, symmetric, torus, kernels):
     """Rule 2 from a row of the table (the leader joined among the known ones but the one
     excluded, by each join policy, and its slot) is the oracle's choice; ties of distance go
-    to the lowest id as there."""
+    to the lowest id as there. On a torus (of side 4 m, the grid's) distances are to the
+    nearest image."""
     rng = np.random.default_rng(11)
     now, joined = 10.0, 0
     for _ in range(60):
@@ -570,9 +572,9 @@ def test_join_choice_loop_equals_the_oracle(policy, symmetric, kernels):
             # Robot i stands still at (x, y) (the kernel places it from the robots' motion).
             origin = np.zeros((6, 2))
             origin[i] = x, y
-            motion = (origin, np.zeros((6, 2)), np.zeros(6), False, 0.0)
+            motion = (origin, np.zeros((6, 2)), np.zeros(6), torus, 4.0 if torus else 0.0)
             a = kernels.join_choice(table, i, now, rules, exclude, motion, first)
-            b = join_choice(table, i, now, rules, exclude, x, y, first)
+            b = join_choice(table, i, now, rules, exclude, x, y, first, 4.0 if torus else None)
             assert a == b
             joined += a[0] >= 0
     assert joined > 50

@@ -349,13 +349,13 @@ def _row(entries, n, row=0):
 NOW_S, TAU = 10.0, 3.0
 
 
-def _joins(kernels, policy, leaders, first_heard=-1):
+def _joins(kernels, policy, leaders, first_heard=-1, side_m=None):
     """Rule 2 by the kernel: robot 0, still at the origin, hears each ``(id, x)`` as a leader
-    at ``(x, 0)``; the leader it joins."""
+    at ``(x, 0)``; the leader it joins (on a torus of side ``side_m``; None: the plane)."""
     n = 1 + max(j for j, _ in leaders)
     ids, records = _row([(j, LEADER, j, x, 0.0, 0) for j, x in leaders], n)
     rules = rules_record(TAU, 1.0, False, policy, "lowest_id")
-    motion = (np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n), False, 0.0)
+    motion = (np.zeros((n, 2)), np.zeros((n, 2)), np.zeros(n), side_m is not None, side_m or 0.0)
     leader, slot = kernels.join_choice((ids, records, TAU), 0, NOW_S, rules, -1, motion, first_heard)
     assert ids[0, slot] == leader
     return leader
@@ -370,6 +370,15 @@ def test_join_policies_choose_the_leader_the_model_names(rule_kernels):
     assert _joins(rule_kernels, "lowest_id", leaders) == 2
     assert _joins(rule_kernels, "first_heard", leaders, first_heard=4) == 4
     assert _joins(rule_kernels, "first_heard", leaders, first_heard=5) == 7
+
+
+def test_join_nearest_leader_is_measured_across_the_torus_seam(rule_kernels):
+    """Rule 2's nearest leader on a torus is the nearest image's: from the origin of a
+    100 m torus a leader at x = 97 m is 3 m away, nearer than one at x = 10 m (on the plane
+    it is the farther)."""
+    leaders = [(4, 97.0), (2, 10.0)]
+    assert _joins(rule_kernels, "nearest", leaders, side_m=100.0) == 4
+    assert _joins(rule_kernels, "nearest", leaders) == 2
 
 
 def test_merge_loser_is_the_same_seen_from_both_sides():

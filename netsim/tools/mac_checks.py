@@ -26,7 +26,6 @@ import numpy as np
 from scipy.optimize import brentq
 
 from netsim.config import from_dict
-from netsim.geometry import distances_m
 from netsim.radio.mac_models import CsmaParams
 
 
@@ -388,8 +387,9 @@ def interference_sum(
     wrong = differs = 0
     for c in range(cells):
         b = pos[c * k + 1]
-        signal = float(power_mw(distances_m(pos[c * k], b)[0]))
-        d_i = distances_m(pos[c * k + 2 : c * k + k], b)
+        # Distances measured apart from the engine's kernel: the reference stays independent.
+        signal = float(power_mw(np.hypot(*(pos[c * k] - b))))
+        d_i = np.hypot(*(pos[c * k + 2 : c * k + k] - b).T)
         p_i = np.where(d_i <= medium.interference_range_m, power_mw(d_i), 0.0)
         for r in range(rounds):
             s_i = offsets[c, r]  # the interferers' starts, relative to A's

@@ -32,6 +32,7 @@ from netsim.radio.propagation import (
     Pairs,
     implied_range_m,
     log_distance,
+    path_loss_db,
     reach_m,
     unit_disk,
 )
@@ -75,7 +76,8 @@ def check_unit_disk_equivalence(params: LogDistanceParams | None = None, n: int 
 
 def link_probability(distance_m, params: LogDistanceParams) -> np.ndarray:
     """``P(P_r >= sensitivity)`` at distance ``d`` under shadowing clipped at 4 sigma."""
-    margin = params.margin_db(distance_m)
+    # The closed form, written out: the theory the channel's decisions are checked against.
+    margin = params.tx_power_dbm - path_loss_db(distance_m, params) - params.sensitivity_dbm
     sigma = params.shadowing_sigma_db
     clip = TRUNCATION_SIGMAS * sigma
     return np.where(margin >= clip, 1.0, np.where(margin < -clip, 0.0, ndtr(margin / sigma)))

@@ -215,9 +215,10 @@ def group_size(records_row, now, tau_s, symmetric, i) -> int:
     return len(mate_slots(records_row, now, tau_s, symmetric, i)) + 1
 
 
-def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard) -> tuple[int, int]:
+def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard, side_m=None) -> tuple[int, int]:
     """Rule 2 from robot ``i``'s row: :func:`choose_leader` over
-    its live two-way leaders but ``exclude``, and the chosen one's first slot."""
+    its live two-way leaders but ``exclude``, and the chosen one's first slot; distances
+    to the nearest image on a torus of side ``side_m`` (None: the plane)."""
     ids_all, records, tau_s = table
     ids_row, records_row = ids_all[i], records[i]
     c = rules[0]
@@ -225,7 +226,10 @@ def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard) -> tuple[i
     slots = np.flatnonzero(mask & (ids_row != exclude))
     if not len(slots):
         return NO_LEADER, -1
-    dist = np.hypot(records_row[slots, K.X] - x_m, records_row[slots, K.Y] - y_m)
+    dx, dy = records_row[slots, K.X] - x_m, records_row[slots, K.Y] - y_m
+    if side_m is not None:
+        dx, dy = dx - side_m * np.round(dx / side_m), dy - side_m * np.round(dy / side_m)
+    dist = np.hypot(dx, dy)
     ids = ids_row[slots].tolist()
     candidates = [Candidate(int(j), float(d)) for j, d in zip(ids, dist.tolist())]
     policy = _JOIN_BY_CODE[int(c["join_policy"])]
