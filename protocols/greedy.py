@@ -60,12 +60,18 @@ class GreedyParams(RoutingParams):
 
 
 def greedy_next_hop(
-    own_xy: np.ndarray, dst_xy: np.ndarray, nbr_ids: np.ndarray, nbr_xy: np.ndarray, n_robots: int | None = None
+    own_xy: np.ndarray,
+    dst_xy: np.ndarray,
+    nbr_ids: np.ndarray,
+    nbr_xy: np.ndarray,
+    side_m: float | None = None,
+    n_robots: int | None = None,
 ) -> int:
     """The greedy rule: the neighbour (of ``nbr_ids`` at ``nbr_xy``) closest to ``dst_xy``,
     if strictly closer than ``own_xy``; -1 if none is (a local maximum). Ties go to the
-    lowest id. Lengths are :func:`netsim.geometry.distances_m`'s, as a team of ``n_robots``
-    measures them.
+    lowest id. Lengths are :func:`netsim.geometry.distances_m`'s: to the nearest image on a
+    torus of side ``side_m`` (None: the plane), as a team of ``n_robots`` (None: as many as
+    the neighbours) measures them.
 
     >>> greedy_next_hop(np.array([0.0, 0]), np.array([10.0, 0]), np.array([3, 5]), np.array([[4.0, 0], [-4, 0]]))
     3
@@ -76,7 +82,7 @@ def greedy_next_hop(
         return -1
     ends = np.empty((len(nbr_ids) + 1, 2))
     ends[0], ends[1:] = own_xy, nbr_xy
-    lengths = distances_m(ends, dst_xy, None, n_robots)
+    lengths = distances_m(ends, dst_xy, side_m, n_robots)
     own, d = float(lengths[0]), lengths[1:]
     order = np.lexsort((nbr_ids, d))
     best = int(order[0])
@@ -141,7 +147,9 @@ class Greedy(Router):
             return pkt.dst, ""
         own = self.state.positions_at(self.env.now, [holder])[0]
         assert pkt.dst_xy is not None
-        nxt = greedy_next_hop(own, np.asarray(pkt.dst_xy), nbrs, self.heard_xy[holder, nbrs], self.state.n)
+        st = self.state
+        side = st.side_m if st.torus else None
+        nxt = greedy_next_hop(own, np.asarray(pkt.dst_xy), nbrs, self.heard_xy[holder, nbrs], side, st.n)
         return (nxt, "") if nxt >= 0 else (-1, "local_maximum")
 
     def link_failed(self, holder: int, nxt: int, pkt: Packet) -> None:

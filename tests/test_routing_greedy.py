@@ -13,13 +13,13 @@ from tests.fixtures import make_config
 FLOW = {"src": 0, "dst": 4, "start_s": 10.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 1000}
 
 
-def _run(tmp_path, xy, flows, duration_s=30.0, **protocol):
+def _run(tmp_path, xy, flows, duration_s=30.0, torus=False, **protocol):
     path = tmp_path / "robots.csv"
     path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
     config = make_config(
         seed=4,
         duration_s=duration_s,
-        world={"n_robots": len(xy), "side_m": 1000.0, "placement": str(path)},
+        world={"n_robots": len(xy), "side_m": 1000.0, "placement": str(path), "torus": torus},
         mobility={"model": "static"},
         channel={"range_m": 120.0},
         protocol={"model": "greedy", **protocol},
@@ -89,6 +89,26 @@ def test_local_maximum_drops_the_packet_there(tmp_path):
     assert len(packets) == 10 and not packets["delivered"].any()
     assert (packets["drop_cause"] == "local_maximum").all() and (packets["drop_robot"] == 0).all()
     assert sim.models["protocol"].data_transmissions == 0
+
+
+def test_on_a_torus_greedy_measures_to_the_nearest_image(tmp_path):
+    """On a torus the distances to the destination are to its nearest image: from x = 900 m
+    of a 1000 m torus a destination at x = 60 m is 160 m ahead across the seam, so the
+    packet goes to the neighbour toward the seam and arrives in two hops (measured on the
+    plane it would go back to the neighbour behind, 760 m from it, and die there at a
+    local maximum). The plain rule, the same with the side."""
+    xy = [(900, 500), (980, 500), (60, 500), (820, 500)]
+    _, frames = _run(tmp_path, xy, [{**FLOW, "dst": 2}], torus=True)
+    packets = frames["packets"]
+    assert len(packets) == 10 and packets["delivered"].all() and (packets["hops"] == 2).all()
+    own, dst, ids, nbr = (
+        np.array(xy[0], float),
+        np.array(xy[2], float),
+        np.array([1, 3]),
+        np.array([xy[1], xy[3]], float),
+    )
+    assert greedy_next_hop(own, dst, ids, nbr, 1000.0) == 1
+    assert greedy_next_hop(own, dst, ids, nbr) == 3
 
 
 @pytest.mark.parametrize(
