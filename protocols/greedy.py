@@ -145,9 +145,9 @@ class Greedy(Router):
         nbrs = self.neighbours(holder)
         if pkt.dst in nbrs.tolist():
             return pkt.dst, ""
-        own = self.state.positions_at(self.env.now, [holder])[0]
-        assert pkt.dst_xy is not None
         st = self.state
+        own = st.positions_at(self.env.now, [holder])[0]
+        assert pkt.dst_xy is not None
         side = st.side_m if st.torus else None
         nxt = greedy_next_hop(own, np.asarray(pkt.dst_xy), nbrs, self.heard_xy[holder, nbrs], side, st.n)
         return (nxt, "") if nxt >= 0 else (-1, "local_maximum")
