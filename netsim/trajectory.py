@@ -9,19 +9,24 @@ import numpy.typing as npt
 import pandas as pd
 
 from netsim.compiled import filled, load
-from netsim.geometry import in_box
+from netsim.geometry import in_box, wrap
 
-# A robot put farther than this (times its coordinates' size, at least 1 m) from where it
-# was has jumped (a placement, a trace's repeated instant): closer, it is the rounding of a
-# leg's end. The writers of movement files must say where it jumped.
-JUMP_M = 1e-6
+# A robot put farther than this, times 1 m plus the size of both positions' coordinates, from where
+# it was has jumped (a placement, a trace's repeated instant, a border of a folded torus run):
+# closer, it is the rounding of a leg's end. The link solvers judge a jump's links afresh,
+# and the writers of movement files must say where it jumped: one rule for both.
+JUMP_M = 1e-9
 
 
-def jumped(was_m: npt.ArrayLike, now_m: npt.ArrayLike) -> np.ndarray:
-    """Whether a robot at ``was_m`` put at ``now_m`` (``(..., 2)`` each) jumped."""
+def jumped(
+    was_m: npt.ArrayLike, now_m: npt.ArrayLike, side_m: float | None = None, n_robots: int | None = None
+) -> np.ndarray:
+    """Whether a robot at ``was_m`` put at ``now_m`` (``(..., 2)`` each) jumped; on a torus of
+    side ``side_m`` (None: the plane) a move by whole sides is none, in a run of ``n_robots``."""
     was_m, now_m = np.asarray(was_m, float), np.asarray(now_m, float)
-    d = was_m - now_m
-    return np.hypot(d[..., 0], d[..., 1]) > JUMP_M * np.maximum(1.0, np.abs(now_m).max(axis=-1))
+    d = wrap(now_m - was_m, side_m, n_robots if n_robots is not None else max(len(now_m), 1))
+    scale = 1.0 + np.abs(was_m).max(axis=-1, initial=0.0) + np.abs(now_m).max(axis=-1, initial=0.0)
+    return np.hypot(d[..., 0], d[..., 1]) > JUMP_M * scale
 
 
 def points_on_legs(
@@ -96,7 +101,7 @@ class LegTable:
         last, nxt = self._next()
         t_end = self.end_times(duration_s)
         xy = self.at(np.arange(len(self.t)), t_end)
-        jump = ~last & (self.t[nxt] <= duration_s) & jumped(xy, self.p[nxt])
+        jump = ~last & (self.t[nxt] <= duration_s) & jumped(xy, self.p[nxt], None, self.n)
         return t_end, xy, jump
 
     def end_times(self, duration_s: float) -> np.ndarray:

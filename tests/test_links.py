@@ -6,11 +6,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from netsim.links.lifetimes import link_lifetimes
+from netsim.links.lifetimes import jump_times, link_lifetimes
 from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.tools.validate import brute_force_mismatches, random_legs
 from netsim.topology import geometric_edges, snapshot
+from netsim.trajectory import LegTable
 from tests.fixtures import make_config
 
 
@@ -233,6 +234,27 @@ def test_jump_within_range_and_simultaneous_jumps():
     )
     links = link_lifetimes(legs, 5.0, 20.0)
     assert links[["t_up_s", "t_down_s"]].values.tolist() == [[0.0, 9.0]]
+
+
+def test_a_jump_is_one_rule_for_the_link_solver_and_the_writers():
+    """The link solver (``jump_times``) and the writers of movement files
+    (``LegTable.ends``) call the same placements jumps: a micrometre at 50 m is one, for
+    both; the rounding of a leg's end is none; on a torus a move by a whole side is none
+    for the links (the writers see folded legs, where the border's jump is written)."""
+    legs = _legs(
+        [
+            (0.0, 0, 50.0, 0.0, 0.0, 0.0),
+            (2.0, 0, 50.0 + 1e-6, 0.0, 0.0, 0.0),  # put a micrometre away
+            (4.0, 0, 50.0 + 1e-6 + 1e-14, 0.0, 0.0, 0.0),  # the rounding of a leg's end
+            (6.0, 0, 50.0 + 1e-6 + 100.0, 0.0, 0.0, 0.0),  # a whole side of a 100 m torus
+        ]
+    )
+    table = LegTable(legs, 1)
+    t, _ = jump_times(table)
+    _, _, written = table.ends(10.0)
+    assert t.tolist() == [2.0, 6.0] and table.t[1:][written[:-1]].tolist() == [2.0, 6.0]
+    t_torus, _ = jump_times(table, 100.0)
+    assert t_torus.tolist() == [2.0]
 
 
 def test_trace_jump_opens_and_closes_links_in_links_parquet(tmp_path):

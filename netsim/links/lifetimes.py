@@ -34,9 +34,9 @@ import numpy as np
 import pandas as pd
 
 from netsim.compiled import load
-from netsim.geometry import link_ranges_m, near_pairs, speeds_mps, wrap
+from netsim.geometry import link_ranges_m, near_pairs, speeds_mps
 from netsim.links._kernels import PHASE_STATE
-from netsim.trajectory import LegTable
+from netsim.trajectory import LegTable, jumped
 
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
 
@@ -51,10 +51,7 @@ def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.nd
     same = np.r_[False, robot[1:] == robot[:-1]]
     k = np.flatnonzero(same)
     prev = k - 1
-    reached = L.at(prev, L.t[k])
-    gap = wrap(L.p[k] - reached, box, len(L.first))
-    scale = 1.0 + np.abs(L.p[k]).max(axis=1) + np.abs(reached).max(axis=1)
-    jump = np.hypot(gap[:, 0], gap[:, 1]) > 1e-9 * scale
+    jump = jumped(L.at(prev, L.t[k]), L.p[k], box, len(L.first))
     return L.t[k[jump]], robot[k[jump]]
 
 
