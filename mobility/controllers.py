@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.control import ControlStep
+from netsim.geometry import in_box
 from netsim.params import NoParams
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import geometric_pairs
@@ -24,6 +25,11 @@ from netsim.topology import geometric_pairs
 
 def _min_separation_m(step: ControlStep) -> float:
     return float(step.options.get("min_separation_m", 1.0))
+
+
+def _torus_side_m(step: ControlStep) -> float | None:
+    """The side robots' distances wrap at (None: the plane)."""
+    return step.side_m if step.torus else None
 
 
 def avoid_collisions(params: NoParams, parts: Parts):
@@ -35,11 +41,11 @@ def avoid_collisions(params: NoParams, parts: Parts):
     always safe for connectivity."""
 
     def controller(step: ControlStep) -> None:
-        sep = _min_separation_m(step)
+        sep, side = _min_separation_m(step), _torus_side_m(step)
         for _ in range(3):  # a robot that holds can stop another: settle in a few passes
-            end = step.positions_m + step.velocity_mps * step.period_s
+            end = in_box(step.positions_m + step.velocity_mps * step.period_s, side, len(step.positions_m))
             moving = np.hypot(*step.velocity_mps.T) > 0
-            i, j, _ = geometric_pairs(end, sep)
+            i, j, _ = geometric_pairs(end, sep, side)
             if len(i) == 0:
                 return
             stop = np.unique(np.concatenate([i[moving[i]], j[moving[j]]]))
@@ -58,13 +64,14 @@ def log_separation(params: NoParams, parts: Parts):
     def hook(step: ControlStep) -> None:
         from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
 
-        sep = _min_separation_m(step)
-        tree = cKDTree(step.positions_m)
+        sep, side = _min_separation_m(step), _torus_side_m(step)
+        # Positions are folded into [0, side) on a torus, as the periodic tree wants them.
+        tree = cKDTree(step.positions_m, boxsize=side)
         d, _ = tree.query(step.positions_m, k=2)
         step.record(
             "separation",
             min_distance_m=float(d[:, 1].min()),
-            pairs_closer_than_min=len(geometric_pairs(step.positions_m, sep)[0]),
+            pairs_closer_than_min=len(geometric_pairs(step.positions_m, sep, side)[0]),
         )
 
     return hook

@@ -56,6 +56,9 @@ class ControlStep:
         clustering protocol; empty when the protocol forms no groups).
     range_m : ``(N,)`` communication ranges.
     side_m : side of the square area.
+    torus : whether that square wraps (``world.torus``): distances between robots are
+        then measured to the nearest image (``side_m if step.torus else None`` is the
+        ``side_m`` of :func:`netsim.topology.geometric_pairs`).
     options : the ``[control.options]`` table.
     bounds : the area robots move in (``world.bounds_m``; default ``[0, side_m]^2``).
     """
@@ -71,6 +74,7 @@ class ControlStep:
     options: dict
     role_names: tuple[str, ...] = ()
     bounds: Bounds | None = None
+    torus: bool = False
     _records: dict[str, list[dict]] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -181,6 +185,7 @@ class ControlLoop:
                 options=self.options,
                 role_names=role_names,
                 bounds=st.bounds,
+                torus=st.torus,
                 _records=self.records,
             )
             if self.stopped:

@@ -27,7 +27,21 @@ def _head_on(params, parts):
 HEAD_ON = PluginSpec(Params=NoParams, build=_head_on)
 
 
-def two_robots(tmp_path, controllers, mobility="static"):
+def _outward(params, parts):
+    """A user controller: every robot heads along x away from the middle at 2 m/s (on a
+    torus the two robots of ``two_robots`` meet across the seam)."""
+
+    def controller(step):
+        step.velocity_mps[:] = 0.0
+        step.velocity_mps[:, 0] = np.where(step.positions_m[:, 0] < step.side_m / 2, -2.0, 2.0)
+
+    return controller
+
+
+OUTWARD = PluginSpec(Params=NoParams, build=_outward)
+
+
+def two_robots(tmp_path, controllers, mobility="static", torus=False):
     csv = tmp_path / "two.csv"
     csv.write_text("x_m,y_m\n100,500\n900,500\n")
     return config.load(
@@ -42,6 +56,7 @@ def two_robots(tmp_path, controllers, mobility="static"):
             "coverage.start_s=0",
             f"control.controllers={controllers!r}".replace("'", '"'),
             "control.options={min_separation_m=5.0}",
+            f"world.torus={str(torus).lower()}",
         ],
     )
 
@@ -53,6 +68,22 @@ def test_avoid_collisions_stops_robots_short_of_the_minimum_separation(tmp_path)
     assert sep["min_distance_m"].min() >= 5.0
     assert sep["min_distance_m"].iloc[-1] < 10.0  # they did come close
     assert (sep["pairs_closer_than_min"] == 0).all()
+
+
+def test_on_a_torus_avoidance_and_separation_measure_across_the_seam(tmp_path):
+    """Two robots meeting across a torus' seam: the avoidance holds them short of the
+    separation and the log measures them to the nearest image (on the plane they stay
+    800 m or more apart, and would pass through each other)."""
+    r = execute(
+        two_robots(tmp_path, ["tests.test_controllers:OUTWARD", "avoid_collisions", "log_separation"], torus=True)
+    )
+    sep = r.frames["separation"]
+    assert sep["min_distance_m"].min() >= 5.0
+    assert sep["min_distance_m"].iloc[-1] < 10.0  # they did come close, across the seam
+    assert (sep["pairs_closer_than_min"] == 0).all()
+    r = execute(two_robots(tmp_path, ["tests.test_controllers:OUTWARD", "log_separation"], torus=True))
+    sep = r.frames["separation"]
+    assert sep["min_distance_m"].min() < 5.0 and (sep["pairs_closer_than_min"] > 0).any()
 
 
 def test_without_avoidance_the_same_robots_come_closer(tmp_path):
