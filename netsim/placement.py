@@ -222,16 +222,17 @@ def _ranges(channel: Any, n: int) -> np.ndarray:
 def _linked(channel: Any) -> Callable[..., np.ndarray]:
     """The link's state of pairs ``a, b`` at positions ``pa, pb`` as the channel decides it
     at ``t = 0``: the unit disk of the ranges in open space, else the radio's own decision
-    (:func:`netsim.links.wall_sweeps.linked`)."""
+    (:func:`netsim.links.wall_sweeps.linked`); on a torus over the nearest image."""
     reception = None if channel is None else channel.reception
     if reception is None:
+        box = float(channel.state.side_m) if channel is not None and channel.state.torus else 0.0
 
         def disk(a: np.ndarray, b: np.ndarray, pa: np.ndarray, pb: np.ndarray, ranges: np.ndarray) -> np.ndarray:
             m = len(a)
             ends = np.concatenate([pa, pb]).astype(float)
             rows = np.arange(m)
             radius = link_ranges_m(ranges, a, b)
-            return load("netsim._kernels", len(ranges)).in_range(ends, rows, rows + m, radius, 0.0)
+            return load("netsim._kernels", len(ranges)).in_range(ends, rows, rows + m, radius, box)
 
         return disk
     shadow = reception.shadowing

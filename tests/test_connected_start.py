@@ -111,6 +111,28 @@ def test_connected_start_is_one_network_in_open_space():
     assert len(np.unique(components_of_links(30, a[near], b[near]))) == 1
 
 
+@pytest.mark.parametrize("channel", [{"range_m": 100.0}, {"propagation": "log_distance"}])
+def test_connected_start_on_a_torus_links_across_the_seam(channel):
+    """On a torus a robot may be placed linked to the team across the seam only: the
+    placement measures links to the nearest image, as the channel does (on the plane it
+    would never place one there). Robot 1 of two, over a whole 1,000 m torus, reach 100 m."""
+    across = 0
+    for seed in range(100):
+        config = make_config(
+            seed=seed,
+            world={"n_robots": 2, "side_m": 1000.0, "torus": True, "placement": "connected", "centre_side_m": 2000.0},
+            mobility={"model": "static"},
+            channel=channel,
+            protocol={"model": "none"},
+        )
+        pos = _placed(config)
+        on_plane = float(np.hypot(*(pos[0] - pos[1])))
+        offset = (pos[0] - pos[1] + 500.0) % 1000.0 - 500.0
+        assert np.hypot(*offset) <= 100.0
+        across += on_plane > 100.0
+    assert across > 0
+
+
 @pytest.mark.slow
 def test_connected_start_is_one_network_on_the_office_links(tmp_path):
     """On the office map (40 robots, range 30 m, a 60 m start square) the run's own links

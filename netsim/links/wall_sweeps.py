@@ -70,10 +70,12 @@ def linked(
     reception: Reception, equal_ranges: bool, a: np.ndarray, b: np.ndarray, pa: np.ndarray, pb: np.ndarray
 ) -> np.ndarray:
     """The link's state of pairs ``a, b`` at positions ``pa, pb``: range or received power,
-    and the walls crossed (with unequal ranges both must hear each other)."""
+    and the walls crossed (with unequal ranges both must hear each other); on a torus over
+    the nearest image."""
     chain = reception.compiled
-    n = reception.state.n
-    d = distances_m(pa, pb, None, n)
+    st = reception.state
+    d = distances_m(pa, pb, st.side_m if st.torus else None, st.n)
+    n = st.n
     up = chain.receivable(Pairs(a, b, pa, pb, d, None, n))
     if not equal_ranges:
         up &= chain.receivable(Pairs(b, a, pb, pa, d, None, n))
