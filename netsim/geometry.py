@@ -21,6 +21,22 @@ def wrap(d: np.ndarray, box: float | None, n_robots: int) -> np.ndarray:
     return load("netsim._kernels", n_robots).nearest_images(rows, float(box)).reshape(np.shape(d))
 
 
+def link_segments_m(pa_m: np.ndarray, pb_m: np.ndarray, side_m: float | None = None) -> np.ndarray:
+    """The segments that draw the links from ``pa_m[k]`` to ``pb_m[k]``, shape ``(m, 2, 2)``:
+    on the plane each link itself; on a torus of side ``side_m`` a link across the border
+    is two segments, one from each end toward the other's nearest image, each leaving the
+    square where the link does (a drawing clips them at its border), as the replay draws it.
+
+    >>> link_segments_m(np.array([[1.0, 5.0]]), np.array([[9.0, 5.0]]), 10.0).tolist()
+    [[[1.0, 5.0], [-1.0, 5.0]], [[11.0, 5.0], [9.0, 5.0]]]
+    """
+    pa, pb = np.asarray(pa_m, float).reshape(-1, 2), np.asarray(pb_m, float).reshape(-1, 2)
+    raw = pb - pa
+    d = wrap(raw, side_m, max(len(pa), 1))
+    seam = (d != raw).any(axis=1)
+    return np.concatenate([np.stack([pa, pa + d], axis=1), np.stack([pb[seam] - d[seam], pb[seam]], axis=1)])
+
+
 def distances_m(
     p_m: np.ndarray, q_m: np.ndarray, side_m: float | None = None, n_robots: int | None = None
 ) -> np.ndarray:

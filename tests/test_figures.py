@@ -193,3 +193,59 @@ def test_fig8_on_a_map_gives_the_runs_own_covered_fraction_of_the_free_region(tm
     )
     assert covered == pytest.approx(100 * summary["covered_fraction_all_final"], abs=0.05)
     assert bound == round(100 * summary["coverage_bound"])
+
+
+def _torus_run(out, placement, model, **extra):
+    """A 100 m torus run of the robots at ``placement`` (rows of x_m, y_m), range 10 m."""
+    csv = out / "start.csv"
+    csv.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in placement))
+    overrides = {"world.n_robots": len(placement), "world.side_m": 100, "world.torus": "true"}
+    overrides |= {"world.placement": f'"{csv}"', "mobility.model": model, "channel.range_m": 10, "duration_s": 20}
+    overrides |= extra
+    args = [a for k, v in overrides.items() for a in ("--set", f"{k}={v}")]
+    assert main(["run", "--quiet", "--no-progress", "--out", str(out / "run"), *args]) == 0
+    from netsim.tools import figures
+
+    return figures, figures.read_run(out / "run")
+
+
+def _drawn_segments(ax) -> list[np.ndarray]:
+    return [np.asarray(s) for c in ax.collections if hasattr(c, "get_segments") for s in c.get_segments()]
+
+
+def test_figures_on_a_torus_draw_a_link_across_the_seam_from_both_ends(tmp_path):
+    """Robots 3 m apart across the seam of a 100 m torus are linked: Figs. 6 and 8 draw
+    that link as two 3 m segments, one from each robot toward the border (not a 97 m line
+    across the area, nor nothing)."""
+    figures, run = _torus_run(tmp_path, [(1.0, 50.0), (98.0, 50.0), (50.0, 10.0)], "static")
+    plt = figures.pyplot()
+    fig, ax = plt.subplots()
+    snap = figures.snapshot(run, 19.0)
+    figures.draw_deployment(ax, snap, figures.run_colours(run), 10.0, side_m=100.0)
+    segs = _drawn_segments(ax)
+    plt.close(fig)
+    assert len(segs) == 2
+    inside = [tuple(p) for s in segs for p in s if 0.0 <= p[0] < 100.0]
+    assert sorted(inside) == [(1.0, 50.0), (98.0, 50.0)]
+    assert all(np.hypot(*(s[1] - s[0])) == pytest.approx(3.0) for s in segs)
+
+
+def test_figures_on_a_torus_cut_a_path_where_it_crosses_the_seam(tmp_path):
+    """A robot driving at 2 m/s across the seam: Fig. 7 draws no step longer than its
+    travel between two samples, and counts its travel across the seam."""
+    figures, run = _torus_run(
+        tmp_path,
+        [(95.0, 50.0), (5.0, 50.0)],
+        "random_direction",
+        **{"mobility.speed_min_mps": 2, "mobility.speed_max_mps": 2, "output.position_interval_s": 1.0},
+    )
+    plt = figures.pyplot()
+    fig, ax = plt.subplots()
+    end = figures.snapshot(run, float(run.positions.t_s.max()))
+    note = figures.draw_paths(ax, run, 0.0, end.t_s, end, figures.run_colours(run), 10.0)
+    segs = _drawn_segments(ax)
+    plt.close(fig)
+    longest = max(float(np.hypot(*np.diff(s, axis=0).T).max()) for s in segs if len(s) > 1)
+    assert note == "" and longest <= 2.0 + 1e-9
+    wrapped = run.positions.groupby("robot")["x_m"].agg(lambda x: np.abs(np.diff(x)).max()).max()
+    assert wrapped > 50.0  # the run did cross the seam

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from netsim.bridge.look import LINK_RGBA, robot_diameter_m, robot_rgba
+from netsim.bridge.look import LINK_RGBA, link_line_list, robot_diameter_m, robot_rgba
 from netsim.bridge.messages import idl_type, stamp, zero
 from netsim.bridge.node import CLOCK_QOS, Node, Template, serialized, take_all, write_bytes
 from netsim.bridge.relay import ChannelRelay
@@ -166,7 +166,7 @@ class RosBridge:
         r, g, b, a = LINK_RGBA
         links.color = colour(r=r, g=g, b=b, a=a)
         if self.topology is not None:
-            ends = [p for a, b in self.topology.graph.edges for p in (a, b)]
-            links.points = [point(x=float(pos[k, 0]), y=float(pos[k, 1]), z=0.0) for k in ends]
+            pairs = [(int(a), int(b)) for a, b in self.topology.graph.edges]
+            links.points = [point(x=x, y=y, z=0.0) for x, y in link_line_list(pos, pairs, self.sim.state)]
         out = self._types[MARKERS](markers=[robots, links])
         return out

@@ -38,7 +38,7 @@ from foxglove.messages import (
     Vector3,
 )
 
-from netsim.bridge.look import LINK_RGBA, robot_diameter_m, robot_rgba
+from netsim.bridge.look import LINK_RGBA, link_line_list, robot_diameter_m, robot_rgba
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 
@@ -169,7 +169,7 @@ class LiveView:
             )
             for (x, y), c in zip(pos.tolist(), rgba, strict=True)
         ]
-        points = [Point3(x=float(pos[k, 0]), y=float(pos[k, 1]), z=0.0) for ab in sorted(self.up) for k in ab]
+        points = [Point3(x=x, y=y, z=0.0) for x, y in link_line_list(pos, sorted(self.up), sim.state)]
         lines = [
             LinePrimitive(
                 type=LinePrimitiveLineType.LineList,

@@ -6,7 +6,10 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from netsim.area import Bounds
+from netsim.geometry import link_segments_m
 
 GREY = (0.6, 0.6, 0.6, 1.0)
 # Keyed by the clustering protocol's role labels: leader (alpha), member (beta), undecided
@@ -27,3 +30,14 @@ def robot_diameter_m(bounds: Bounds) -> float:
     """A robot's sphere: 1/100 of the area's longer side, so that the team shows when the
     whole area is in view, whatever its size."""
     return max(bounds.width, bounds.height) / 100.0
+
+
+def link_line_list(pos_m: np.ndarray, pairs: list[tuple[int, int]], state: Any) -> list[tuple[float, float]]:
+    """The points of the links ``pairs`` of robots at ``pos_m`` as a line list (two points
+    a segment): on a torus (``state.torus``) a link across the border is drawn from both
+    ends toward it (:func:`netsim.geometry.link_segments_m`), not across the area."""
+    if not pairs:
+        return []
+    a, b = np.array(pairs, np.int64).T
+    segments = link_segments_m(pos_m[a], pos_m[b], state.side_m if state.torus else None)
+    return [(float(x), float(y)) for x, y in segments.reshape(-1, 2).tolist()]

@@ -37,6 +37,7 @@ from netsim import metrics
 from netsim.area import Bounds
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
+from netsim.geometry import link_segments_m, wrap
 from netsim.tools import style
 from netsim.tools.output import read_run_config, read_run_table
 from netsim.topology import geometric_pairs
@@ -164,14 +165,28 @@ def _colour(colours: dict[int, str], leader: int) -> str:
     return colours.get(int(leader), style.NO_GROUP)
 
 
-def draw_deployment(ax, snap: Snapshot, colours: dict[int, str], range_m: float, disks_m: float = 0.0) -> None:
-    """Links, (disks,) members, gateways, undecided robots and leaders, with a legend."""
+def _clipped_to_torus(ax, artist, side_m: float | None):
+    """``artist`` clipped at the border of a torus of side ``side_m`` (None: the plane, as it is)."""
+    if side_m is not None:
+        import matplotlib.patches as mpatches
+
+        artist.set_clip_path(mpatches.Rectangle((0.0, 0.0), side_m, side_m, transform=ax.transData))
+    return artist
+
+
+def draw_deployment(
+    ax, snap: Snapshot, colours: dict[int, str], range_m: float, disks_m: float = 0.0, side_m: float | None = None
+) -> None:
+    """Links, (disks,) members, gateways, undecided robots and leaders, with a legend.
+    ``side_m``: a torus of that side (None: the plane), whose links across the border are
+    drawn to it from both ends."""
     import matplotlib.patches as mpatches
     from matplotlib.collections import LineCollection, PatchCollection
 
     pos, role = snap.pos, snap.role
-    a, b, _ = geometric_pairs(pos, range_m)
-    ax.add_collection(LineCollection(np.stack([pos[a], pos[b]], axis=1), colors=style.LINK, lw=0.5, zorder=1))
+    a, b, _ = geometric_pairs(pos, range_m, side_m)
+    links = LineCollection(link_segments_m(pos[a], pos[b], side_m), colors=style.LINK, lw=0.5, zorder=1)
+    ax.add_collection(_clipped_to_torus(ax, links, side_m))
     group_of = np.where(role == "alpha", np.arange(len(pos)), snap.leader)
     if disks_m > 0:
         disks = [mpatches.Circle(p, disks_m) for p in pos]
@@ -251,6 +266,25 @@ def _extent(xy: np.ndarray, margin_m: float, area: Bounds):
     return (mid[0] - half, mid[0] + half), (mid[1] - half, mid[1] + half)
 
 
+def _path_pieces(xy: np.ndarray, colours: list[str], side_m: float | None) -> tuple[list[np.ndarray], list[str]]:
+    """The polylines that draw the paths ``xy`` (robots x samples x 2), each in its robot's
+    colour: on a torus each path is cut where it crosses the border, and the step across
+    is drawn to the border from both sides (:func:`netsim.geometry.link_segments_m`)."""
+    if side_m is None:
+        return list(xy), list(colours)
+    pieces: list[np.ndarray] = []
+    out: list[str] = []
+    for path, colour in zip(xy, colours):
+        steps = np.diff(path, axis=0)
+        across = np.flatnonzero((wrap(steps, side_m, len(xy)) != steps).any(axis=1))
+        cuts = np.r_[0, across + 1, len(path)]
+        for lo, hi in zip(cuts[:-1], cuts[1:]):
+            pieces.append(path[lo:hi])
+        pieces.extend(link_segments_m(path[across], path[across + 1], side_m))
+        out += [colour] * (len(cuts) - 1 + 2 * len(across))
+    return pieces, out
+
+
 def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[int, str], range_m: float) -> str:
     """Every robot's path over ``[t0, t1]``, in its final group's colour; the final
     leaders' paths thick. Returns a note if nobody moved."""
@@ -259,6 +293,7 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
     p = run.positions[(run.positions["t_s"] >= t0 - 1e-9) & (run.positions["t_s"] <= t1 + 1e-9)]
     p = p.sort_values(["robot", "t_s"])
     n = run.config.world.n_robots
+    side = run.config.world.side_m if run.config.world.torus else None
     xy = p[["x_m", "y_m"]].to_numpy().reshape(n, -1, 2)
     group_of = np.where(end.role == "alpha", np.arange(n), end.leader)
     colour = [_colour(colours, g) for g in group_of]
@@ -267,16 +302,16 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
     # Each layer only if it has someone (an empty one breaks the legend).
     for group, width, what in ((~lead, 0.8, "path of a robot"), (lead, 2.2, "path of a robot leading at the end")):
         if group.any():
-            ax.add_collection(
-                LineCollection(
-                    list(xy[group]),
-                    colors=[c for c, g in zip(colour, group) if g],
-                    lw=width,
-                    alpha=0.7 if width < 1 else 1.0,
-                    zorder=1 if width < 1 else 2,
-                    label=what,
-                )
+            pieces, piece_colours = _path_pieces(xy[group], [c for c, g in zip(colour, group) if g], side)
+            paths = LineCollection(
+                pieces,
+                colors=piece_colours,
+                lw=width,
+                alpha=0.7 if width < 1 else 1.0,
+                zorder=1 if width < 1 else 2,
+                label=what,
             )
+            ax.add_collection(_clipped_to_torus(ax, paths, side))
     ax.scatter(*xy[:, 0].T, s=10, facecolors="none", edgecolors=style.NO_GROUP, lw=0.6, zorder=3, label=f"at {t0:g} s")
     if (~lead).any():
         ax.scatter(
@@ -296,7 +331,8 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
             zorder=5,
             label=f"leader at {t1:g} s",
         )
-    travelled = np.hypot(*np.diff(xy, axis=1).transpose(2, 0, 1)).sum(axis=1)
+    steps = np.diff(xy, axis=1)
+    travelled = np.hypot(*wrap(steps, side, n).transpose(2, 0, 1)).sum(axis=1)
     area = world_bounds(run.config.world)
     xlim, ylim = _extent(xy.reshape(-1, 2), range_m, area)
     _axes(ax, xlim, ylim, area)
@@ -349,6 +385,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     config = run.config
     n, area = config.world.n_robots, world_bounds(config.world)
     whole = ((area.x_min, area.x_max), (area.y_min, area.y_max))
+    torus_side = config.world.side_m if config.world.torus else None
     range_m = float(min(config.ranges_m()))
     occupancy = run_map(config)
     # Keys of the run's models, where they have them.
@@ -377,7 +414,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     colours = run_colours(run)
-    draw_deployment(ax, start, colours, range_m)
+    draw_deployment(ax, start, colours, range_m, side_m=torus_side)
     _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     groups_n = int((start.role == "alpha").sum())
@@ -403,7 +440,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
-    draw_deployment(ax, end, colours, range_m, disks_m=radius)
+    draw_deployment(ax, end, colours, range_m, disks_m=radius, side_m=torus_side)
     _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     if radius > 0:
