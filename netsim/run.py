@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -350,13 +351,19 @@ class RunResult:
     wall_s: float
 
 
+def position_count(interval_s: float, duration_s: float) -> int:
+    """How many instants :func:`position_times` gives, counted without making them (a
+    count past any memory is still a number to refuse)."""
+    if interval_s <= 0:
+        return 0
+    # The small tolerance keeps the last sample when duration is a multiple of dt.
+    k = duration_s / interval_s + 1e-9
+    return int(math.floor(k)) + 1 if math.isfinite(k) else sys.maxsize
+
+
 def position_times(interval_s: float, duration_s: float) -> np.ndarray:
     """Sampling instants of ``positions.parquet``: every ``interval_s`` from 0 to the end."""
-    if interval_s <= 0:
-        return np.empty(0)
-    # The small tolerance keeps the last sample when duration is a multiple of dt.
-    k = int(math.floor(duration_s / interval_s + 1e-9))
-    return np.arange(k + 1) * interval_s
+    return np.arange(position_count(interval_s, duration_s)) * interval_s
 
 
 def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None = None) -> dict[str, pd.DataFrame]:

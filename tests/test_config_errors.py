@@ -198,6 +198,8 @@ def test_set_with_a_space_for_the_equals_sign_gives_the_meant_form(tmp_path, cap
         (["--duration", "0"], "--duration 0.0: must be > 0"),
         (["--seed", "-1"], "--seed -1: must be >= 0"),
         (["--speed-min", "0"], "--speed-min 0.0: must be > 0 without --no-stationary-start"),
+        (["--n", "100000000000"], "--n 100000000000: the run would hold at least"),
+        (["--duration", "1e15"], "--duration 1000000000000000.0: the scenario would hold at least"),
     ],
 )
 def test_scenario_generate_errors_name_its_flags(tmp_path, capsys, monkeypatch, flags, message):

@@ -700,6 +700,24 @@ def test_a_team_that_cannot_fit_in_memory_is_refused_up_front(tmp_path, capfd, m
     assert "GiB" in line
 
 
+@pytest.mark.parametrize("override", ["duration_s=1e300", "output.position_interval_s=1e-9"])
+def test_samples_past_any_memory_are_refused_without_making_them(tmp_path, capfd, monkeypatch, no_simulation, override):
+    """A positions table past any memory (a duration of 1e300 s, a sample every ns) is one
+    line, exit 2, nothing written: its rows are counted, never made (making the instants
+    first was a traceback of a numpy allocation error)."""
+    monkeypatch.setattr(runmod, "position_times", lambda *a: pytest.fail("made the instants to count them"))
+    monkeypatch.chdir(tmp_path)
+    before = tree(tmp_path)
+    refused(
+        capfd,
+        main(["run", "--set", "world.n_robots=5", "--set", override]),
+        before,
+        tmp_path,
+        "world.n_robots = 5: the run would hold at least",
+        "of memory",
+    )
+
+
 def test_the_least_memory_grows_with_the_team_and_the_samples():
     """The memory floor counts each robot's state and each row of positions.parquet."""
     from netsim.tools import cli

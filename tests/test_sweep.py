@@ -435,3 +435,34 @@ def test_cli_bad_sweep_file_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("netsim: error: sweep file:")
     assert not (tmp_path / "o").exists()
+
+
+def test_more_workers_than_the_machine_can_use_is_one_line(tmp_path, capsys):
+    """`--workers` beyond four a core is refused in one line, exit 2, nothing written (it
+    started thousands of processes that Ctrl-C could not stop)."""
+    from netsim.tools.cli import WORKERS_PER_CORE, main
+
+    sweep_file = tmp_path / "s.toml"
+    sweep_file.write_text('name = "w"\n[grid]\n"mobility.speed_max_mps" = [1.0, 2.0]\n')
+    too_many = WORKERS_PER_CORE * (os.cpu_count() or 1) + 1
+    code = main(["sweep", str(sweep_file), "--out", str(tmp_path / "out"), "--workers", str(too_many)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0].startswith(f"netsim: error: --workers {too_many}: at most {too_many - 1} on this machine")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_a_local_pool_starts_no_more_workers_than_runs(tmp_path, monkeypatch):
+    """Two runs on eight workers start two processes."""
+    import multiprocessing
+
+    sizes, pool = [], multiprocessing.Pool
+
+    def counted(processes, *args, **kwargs):
+        sizes.append(processes)
+        return pool(processes, *args, **kwargs)
+
+    monkeypatch.setattr(multiprocessing, "Pool", counted)
+    sweep = small_sweep(replications=1, grid={"mobility.speed_max_mps": [2.0, 6.0]})
+    report = sweepmod.run_sweep(sweep, tmp_path / "out", workers=8, progress=False)
+    assert sizes == [2] and len(sweepmod.load(tmp_path / "out")) == 2, report

@@ -101,14 +101,19 @@ def least_memory_bytes(config: cfgmod.Config) -> int:
     per robot and sample). The models, the trace and the other tables come on top."""
     import numpy as np
 
-    from netsim.run import ENGINE_TABLES, position_times
+    from netsim.run import ENGINE_TABLES, position_count
     from netsim.state import RobotState
 
     state = RobotState(1, 1.0, 1.0)
     per_robot = sum(v.nbytes for v in vars(state).values() if isinstance(v, np.ndarray) and v.base is None)
     row = sum(np.dtype(t).itemsize for t in ENGINE_TABLES["positions"].values())
-    samples = len(position_times(config.output.position_interval_s, config.duration_s))
+    samples = position_count(config.output.position_interval_s, config.duration_s)
     return config.world.n_robots * (per_robot + samples * row)
+
+
+def _gib(nbytes: int) -> str:
+    gib = nbytes / 2**30
+    return f"{gib:,.1f}" if gib < 1e6 else f"{gib:.2g}"
 
 
 def check_fits_in_memory(config: cfgmod.Config) -> None:
@@ -118,13 +123,38 @@ def check_fits_in_memory(config: cfgmod.Config) -> None:
     if have is None or need <= have:
         return
     n = config.world.n_robots
+    sampled = config.output.position_interval_s > 0
+    held = "the robots' state and positions.parquet's rows" if sampled else "the robots' state"
+    advice = "or duration_s, or raise output.position_interval_s (0: no positions table)" if sampled else ""
     raise ConfigError(
         "world.n_robots",
         n,
-        f"the run would hold at least {need / 2**30:,.1f} GiB (the robots' state and positions.parquet's "
-        f"rows, before any model's), more than this machine's {have / 2**30:,.1f} GiB of memory; lower it, "
-        "or duration_s, or raise output.position_interval_s (0: no positions table)",
+        f"the run would hold at least {_gib(need)} GiB ({held}, before any model's), more than this "
+        f"machine's {_gib(have)} GiB of memory; lower it{', ' if advice else ''}{advice}",
     )
+
+
+# What a course change held in memory costs at least (a row of the leg log).
+LEG_BYTES = 100
+
+
+def check_legs_fit_in_memory(config: cfgmod.Config) -> None:
+    """Refuse, before any work, a random waypoint run whose course changes cannot fit
+    in memory: each robot changes course at least once per longest leg (the area's diagonal
+    at the least speed, and a pause), so ``duration_s`` bounds their number from below."""
+    m = config.mobility
+    have = machine_memory_bytes()
+    if have is None or m.speed_min_mps <= 0:
+        return
+    longest_s = cfgmod.world_bounds(config.world).diagonal / m.speed_min_mps + m.pause_s
+    legs = config.world.n_robots * (config.duration_s / longest_s)
+    if legs * LEG_BYTES > have:
+        raise ConfigError(
+            "duration_s",
+            config.duration_s,
+            f"the scenario would hold at least {_gib(int(legs * LEG_BYTES))} GiB of course changes, more than "
+            f"this machine's {_gib(have)} GiB of memory; shorten it",
+        )
 
 
 def say_when_compiling(command: str, enabled: bool) -> None:
@@ -252,11 +282,14 @@ def cmd_scenario_generate(args) -> int:
             "stationary_start": not args.no_stationary_start,
         },
         "protocol": {"model": "none"},
+        "output": {"position_interval_s": 0.0},  # the legs are the scenario: no samples
     }
     out = Path(args.output)
     try:
         with warnings.catch_warnings(record=True) as caught:
             config = cfgmod.from_dict(tree)
+            check_fits_in_memory(config)
+            check_legs_fit_in_memory(config)
             check_out_file(out, "-o")
             sim = build(config)
     except ConfigError as exc:
@@ -305,14 +338,24 @@ def check_out_file(path: Path, option: str, make_parents: bool = False, replace:
         raise NetsimInputError(f"{option} {path}: cannot write in {parent} ({exc.strerror or exc})") from None
 
 
+# The most local worker processes a sweep may ask for, per core.
+WORKERS_PER_CORE = 4
+
+
 def cmd_sweep(args) -> int:
     from netsim.tools import sweep as sweepmod
 
     sweep = sweepmod.load_file(args.sweep)
+    cores = os.cpu_count() or 1
     if args.workers is not None and args.workers < 1:
         raise NetsimInputError(f"--workers {args.workers}: must be at least 1")
+    if args.workers is not None and args.workers > WORKERS_PER_CORE * cores:
+        raise NetsimInputError(
+            f"--workers {args.workers}: at most {WORKERS_PER_CORE * cores} on this machine ({WORKERS_PER_CORE} a core: "
+            "more processes than cores only slow runs that compute); a Dask cluster (--scheduler) spreads further"
+        )
     out = Path(args.out) if args.out else Path("sweep-out") / sweep.name
-    workers = args.workers or (os.cpu_count() or 1)
+    workers = args.workers or cores
     if args.connect_timeout is not None and not args.connect_timeout > 0:
         raise NetsimInputError(f"--connect-timeout {args.connect_timeout}: must be > 0 seconds")
     try:

@@ -447,7 +447,8 @@ def _run_pool(todo: list[Run], tables, workers: int, account) -> None:
     workers at once; a run not accounted yet is run again by the same command."""
     import multiprocessing
 
-    pool = multiprocessing.Pool(workers, initializer=_die_with_parent)
+    # No more processes than runs: each costs an interpreter and the model's imports.
+    pool = multiprocessing.Pool(max(1, min(workers, len(todo))), initializer=_die_with_parent)
     try:
         jobs = [(k, run, tables) for k, run in enumerate(todo)]
         for k, outcome in pool.imap_unordered(_numbered_execute, jobs):
