@@ -230,14 +230,16 @@ class CoverageParams(Params):
         positive,
         "plan = 'local': links are ordered by bands of length this wide, then by their robots' ids, m",
     )
-    control_period_s: float = param(1.0, positive, "time between control steps, s (also for control.controllers)")
+    control_period_s: float = param(
+        1.0, finite(positive), "time between control steps, s (also for control.controllers)"
+    )
     start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
     gain: float = param(
         0.1,
-        positive,
+        finite(positive),
         "a controlled robot's velocity (follow: a leader's) is gain x resultant force, 1/s (forces in metres)",
     )
-    speed_max_mps: float = param(2.0, positive, "speed cap of every controlled robot, m/s")
+    speed_max_mps: float = param(2.0, finite(positive), "speed cap of every controlled robot, m/s")
     margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")
     fade_margin_db: float = param(
         8.0,

@@ -59,7 +59,7 @@ class OlsrParams(RoutingParams):
     ttl: int = param(255, ttl_field, "TTL of a TC and hops a data packet may take")
     start_spread_s: float = param(
         None,
-        non_negative,
+        finite(non_negative),
         "each robot starts its HELLO and TC timers at U(0, spread) (0: all at t = 0, as ns-3's nodes), s",
         kind=float,
         derive=lambda p: p.hello_interval_s,

@@ -20,7 +20,7 @@ from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
-from netsim.params import Params, non_negative, param, positive
+from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts
 from netsim.traffic import Traffic
 
@@ -45,7 +45,7 @@ class RoutingParams(Params):
     pairs, as the clustering's (its default rate is 0.2 /s; here none unless asked)."""
 
     section = "protocol"
-    message_rate_hz: float = param(0.0, non_negative, "messages sent per second, network-wide (random pairs)")
+    message_rate_hz: float = param(0.0, finite(non_negative), "messages sent per second, network-wide (random pairs)")
     message_bytes: int = param(
         512, positive, "size of a random pair's message, bytes (over channel.max_frame_bytes: several frames)"
     )

@@ -34,7 +34,7 @@ from netsim.protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCH
 
 from netsim.compiled import cores, load, side_by_side
 from netsim.cosim import Arrival
-from netsim.params import non_negative, param, positive
+from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.samples import Samples, ended_at
 from netsim.topology import reach_lists
@@ -83,7 +83,7 @@ class ClusteringParams(AckParams):
         True, None, "members next to a member of another group relay too (keeps flooding connected)"
     )
     message_ttl: int = param(32, positive, "hops a relayed message may take")
-    message_rate_hz: float = param(0.2, non_negative, "messages sent per second, network-wide (random pairs)")
+    message_rate_hz: float = param(0.2, finite(non_negative), "messages sent per second, network-wide (random pairs)")
     message_bytes: int = param(
         512, positive, "size of a message (and leader command) frame on a shared medium (channel.mac), bytes"
     )

@@ -34,6 +34,11 @@ from netsim.tools.cli import main
         ("mobility.model=trace", "mobility.trace_file", "must name a file"),
         ("duration_s=inf", "duration_s", "finite"),
         ("coverage.expansion=inf", "coverage.expansion", "finite"),
+        # Accepted, these hung a run (a message rate) or ended it in NaN velocities.
+        ("protocol.message_rate_hz=inf", "protocol.message_rate_hz", "finite"),
+        ("coverage.gain=inf", "coverage.gain", "finite"),
+        ("coverage.speed_max_mps=inf", "coverage.speed_max_mps", "finite"),
+        ("coverage.control_period_s=inf", "coverage.control_period_s", "finite"),
     ],
 )
 def test_bad_value_names_key_value_and_rule(override, key, words):
@@ -41,6 +46,15 @@ def test_bad_value_names_key_value_and_rule(override, key, words):
         cfgmod.load(None, [override])
     assert err.value.key == key
     assert words in str(err.value)
+
+
+@pytest.mark.parametrize("model, key", [("olsr", "protocol.start_spread_s"), ("aodv", "protocol.message_rate_hz")])
+def test_a_routing_protocols_infinite_timing_is_refused(model, key):
+    """An infinite start spread (a traceback of numpy's uniform draw) or message rate (a
+    run that never ends) is refused when the configuration is made."""
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, [f'protocol.model="{model}"', f"{key}=inf"])
+    assert err.value.key == key and "must be finite" in str(err.value)
 
 
 @pytest.mark.parametrize(
