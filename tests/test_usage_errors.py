@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from netsim.tools.cli import main
@@ -158,11 +159,14 @@ READERS = {"view": [], "export": ["--format", "bonnmotion"], "figures": []}
         ("file", "is a file, not a run directory"),
         ("table", "cannot be read as Parquet"),
         ("config", "as TOML"),
+        ("columns", "lacks the column"),
+        ("empty config", "holds no run's configuration"),
     ],
 )
 def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, small_run, command, damage, said):
-    """A file given as the run, a run whose tables were cut short, or whose config.toml is
-    not TOML: one line naming the file for every command that reads a run, nothing written."""
+    """A file given as the run, a run whose tables were cut short or lack their columns, or
+    whose config.toml is not TOML or empty: one line naming the file for every command
+    that reads a run, nothing written (a KeyError's or numpy's traceback before)."""
     run, out = tmp_path / "run", tmp_path / ("out.movements" if command == "export" else "out")
     if damage == "file":
         run.write_text("not a run")
@@ -171,6 +175,11 @@ def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, sma
         if damage == "table":
             for table in run.glob("*.parquet"):
                 table.write_bytes(table.read_bytes()[:100])
+        elif damage == "columns":
+            for table in run.glob("*.parquet"):
+                pd.DataFrame({"other": [1.0]}).to_parquet(table)
+        elif damage == "empty config":
+            (run / "config.toml").write_text("")
         else:
             (run / "config.toml").write_text("[world\n")
     assert main([command, str(run), *READERS[command], "--out", str(out)]) == 2

@@ -103,10 +103,30 @@ def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
     if not path.is_file():
         return None
     try:
-        return pd.read_parquet(path)
+        table = pd.read_parquet(path)
     except (OSError, ValueError, TypeError, NotImplementedError) as exc:  # pyarrow's errors derive from these
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise NetsimInputError(f"{path}: cannot be read as Parquet ({first})") from None
+    missing = [c for c in _declared_columns(run_dir, name) if c not in table.columns]
+    if missing:
+        raise NetsimInputError(
+            f"{path}: lacks the column{'s' if len(missing) > 1 else ''} {', '.join(missing)} of the run's "
+            f"{name} table (changed since the run wrote it?)"
+        )
+    return table
+
+
+def _declared_columns(run_dir: Path, name: str) -> list[str]:
+    """The columns a run of the directory's configuration writes in its table ``name``
+    (none for a table no model of it declares)."""
+    from netsim import config as cfgmod
+    from netsim.run import tables
+
+    try:
+        config = cfgmod.from_dict(read_run_config(run_dir))
+    except (NetsimInputError, ValueError):
+        return []  # refused, where it matters, by the reader of the configuration
+    return list(tables(config).get(name, {}))
 
 
 def read_run_summary(run_dir: Path) -> dict:
@@ -131,9 +151,14 @@ def read_run_config(run_dir: Path) -> dict:
     if not path.is_file():
         raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml)")
     try:
-        return tomllib.loads(path.read_text())
+        table = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
         raise NetsimInputError(f"{path}: cannot be read as TOML ({exc})") from None
+    # A run writes its whole configuration: without these it is not a run's.
+    missing = [k for k in ("duration_s", "world") if k not in table]
+    if missing:
+        raise NetsimInputError(f"{path}: holds no run's configuration (no {' or '.join(missing)})")
+    return table
 
 
 def earlier_run_files(out: Path) -> list[Path]:
