@@ -143,6 +143,7 @@ from netsim.mobility.steps import Plan, StepLimits, cap_length
 from netsim import metrics
 from netsim.area import Bounds
 from netsim.compiled import load
+from netsim.config import world_bounds
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.geometry import speeds_mps
@@ -288,7 +289,7 @@ class CoverageParams(Params):
     area_method: AreaMethod = param(
         AreaMethod.EXACT, None, "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"
     )
-    grid_cells: int = param(200, positive, "area_method = 'grid': grid cells per side (error bound reported)")
+    grid_cells: int = param(200, metrics.grid_side, "area_method = 'grid': grid cells per side (error bound reported)")
 
     @property
     def hold_s(self) -> float:
@@ -324,6 +325,10 @@ def check(params: CoverageParams, config) -> None:
         )
     if not params.enabled:
         return
+    diagonal = world_bounds(config.world).diagonal
+    if params.radius_m > diagonal:
+        # Each disk covers the whole area: the union of such disks is past what floats hold.
+        raise ConfigError("coverage.radius_m", params.radius_m, f"must not exceed the area's diagonal ({diagonal:g} m)")
     if params.plan is PlanScope.LOCAL and ch.mac != "none":
         raise ConfigError(
             "coverage.plan",

@@ -180,6 +180,18 @@ def covered_fraction_exact(
     return value / a, max(value - lower, upper - value) / a
 
 
+# The most cells a side of a covered fraction's grid may have, as a configuration allows:
+# every sample holds arrays of their square (4,000 a side: hundreds of MiB).
+MAX_GRID_CELLS = 4_000
+
+
+def grid_side(cells: int) -> str | None:
+    """The check of a configuration's cells per side of the covered fraction's grid."""
+    if cells <= 0:
+        return "must be > 0"
+    return None if cells <= MAX_GRID_CELLS else f"must be at most {MAX_GRID_CELLS:,}"
+
+
 def covered_fraction(
     centres_m: npt.ArrayLike,
     radius_m: float,

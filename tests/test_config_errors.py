@@ -39,6 +39,8 @@ from netsim.tools.cli import main
         ("coverage.gain=inf", "coverage.gain", "finite"),
         ("coverage.speed_max_mps=inf", "coverage.speed_max_mps", "finite"),
         ("coverage.control_period_s=inf", "coverage.control_period_s", "finite"),
+        # A grid past memory (an allocation's traceback).
+        ("coverage.grid_cells=4001", "coverage.grid_cells", "must be at most 4,000"),
     ],
 )
 def test_bad_value_names_key_value_and_rule(override, key, words):
@@ -316,3 +318,13 @@ def test_a_configuration_error_crosses_a_process_pool_whole():
     )
     with ProcessPoolExecutor(1) as pool, pytest.raises(ConfigError, match="duration_s = inf: must be finite"):
         pool.submit(cfgmod.load, None, ["duration_s=inf"]).result()
+
+
+def test_coverage_disks_wider_than_the_area_are_refused():
+    """A coverage radius beyond the area's diagonal covers it all with one disk, and at
+    1e300 m ended the run in a traceback of shapely's union: refused by name."""
+    keys = ["coverage.enabled=true", 'mobility.model="static"', "world.side_m=100"]
+    assert cfgmod.load(None, [*keys, "coverage.radius_m=141"]).coverage.radius_m == 141.0
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, [*keys, "coverage.radius_m=1e300"])
+    assert err.value.key == "coverage.radius_m" and "must not exceed the area's diagonal (141.421 m)" in str(err.value)
