@@ -269,3 +269,12 @@ def test_a_bag_whose_metadata_is_not_yaml_is_one_line(tmp_path, capsys):
     assert err.startswith("netsim: error: ") and err.count("\n") == 1, err
     assert "cannot be read as a rosbag2 bag" in err
     assert not out.exists()
+
+
+def test_version_prints_the_installed_version(capsys):
+    """`netsim --version`: one line, exit 0 (it was an error asking for a command)."""
+    from netsim import __version__
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out == f"netsim {__version__}\n"

@@ -484,7 +484,10 @@ def _port(text: str) -> int:
 
 
 def parser() -> argparse.ArgumentParser:
+    from netsim import __version__
+
     p = Parser(prog="netsim", description="Discrete-event simulator of multi-robot ad-hoc networks.")
+    p.add_argument("--version", action="version", version=f"netsim {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="simulate a scenario and write its results")
