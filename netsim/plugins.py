@@ -101,7 +101,7 @@ class Parts:
     events: EventBus | None = None
     # The world's occupancy map (netsim.world.maps.OccupancyMap), None in open space.
     occupancy: Any = None
-    # For controllers and hooks: the links as the channel makes them (the same as
+    # For protocols, controllers and hooks: the links as the channel makes them (the same as
     # links.parquet), solved during the run. Call it while building (it starts the runtime
     # link solver); None when the run solves no link events during the run.
     links: Callable[[], LinkState] | None = None

@@ -285,7 +285,9 @@ def build(config: Config, run: int = 0) -> Simulation:
     m, p = config.mobility, config.protocol
     mobility = _build_model(sim, "mobility", m.plugin, m.params, parts, "mobility.model", m.model)
     sim.driver = mobility if isinstance(mobility, Driver) else None
-    protocol = _build_model(sim, "protocol", p.plugin, p.params, parts, "protocol.model", p.model)
+    # A protocol may search the links as the channel makes them (a radio's), solved during the run.
+    with_links = dataclasses.replace(parts, links=sim.link_events if sim.runtime_links != "off" else None)
+    protocol = _build_model(sim, "protocol", p.plugin, p.params, with_links, "protocol.model", p.model)
     sim.groups = protocol if isinstance(protocol, GroupView) else None
     sim.neighbour_view = protocol if isinstance(protocol, NeighbourView) else None
     sim.messenger = protocol if isinstance(protocol, Messenger) else None

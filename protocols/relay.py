@@ -79,16 +79,24 @@ class Outcome(NamedTuple):
     shortest_hops: float  # on the true topology at send time (inf: no path)
 
 
-def hop_distances(state, now: float, node: int, towards: bool = False, index=None) -> np.ndarray:
+def hop_distances(state, now: float, node: int, towards: bool = False, index=None, links=None) -> np.ndarray:
     """Hops from ``node`` to every robot over the true directed unit-disk links now
     (``towards=True``: from every robot to ``node``, a search on the reversed links), as
     floats, ``inf`` where there is no path: one compiled search
     (:func:`netsim._kernels.hops_in_lists`) over the channel's range index's neighbour lists
     (``index``: a unit disk), or, without one, over lists of the pairs within the largest
-    range built for the search."""
+    range built for the search. ``links``: the links up now, arrays ``(a, b)``, as a radio
+    decides them (shadowing, walls: no range circle gives them), searched instead, each both
+    ways."""
+    kernels = load("netsim._kernels", state.n)
+    if links is not None:
+        indptr, indices = kernels.neighbour_lists(np.column_stack(links).astype(np.int64), state.n)
+        # Every listed pair is a link: no range to test it by.
+        everywhere = np.full(state.n, np.inf)
+        return kernels.hops_in_lists(np.zeros((state.n, 2)), everywhere, 0.0, indptr, indices, node, towards)
     pos, indptr, indices = reach_lists(state, now, index)
     side = state.side_m if state.torus else 0.0
-    return load("netsim._kernels", state.n).hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
+    return kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
 
 
 class Relay:
@@ -130,6 +138,11 @@ class Relay:
         # The channel's range index, whose neighbour lists the searches for shortest paths
         # use (a unit disk only: a radio decides its links otherwise).
         self._index = self.channel.reach_lists
+        # Under a radio, the links as the channel decides them, tracked during the run (the
+        # links of links.parquet): the true topology the oracle routes on and the shortest
+        # paths are measured on. Without them (events.runtime_links = "off"), the implied
+        # range's disk.
+        self._live = parts.links() if self._index is None and parts.links is not None else None
         # Messages sent from outside (sim.send): what each carries until it arrives, and
         # what has arrived at each robot.
         self._payloads: dict[int, object] = {}
@@ -173,7 +186,7 @@ class Relay:
             "hops": 0,
             "latency_s": np.nan,
             "transmissions": 0,
-            "shortest_hops": float(hop_distances(st, now, src, index=self._index)[dst]),
+            "shortest_hops": float(self._hops_from(src)[dst]),
         }
         self._pending[mid] = 0
         if carried or payload is not None:
@@ -239,10 +252,15 @@ class Relay:
             self._dropped(msg, now, "ttl" if mid in self._ttl_cut else "died_out")
             del self._seen[mid]  # the flood is over: no copy of it is in flight
 
+    def _hops_from(self, node: int, towards: bool = False) -> np.ndarray:
+        """:func:`hop_distances` now, over the channel's links."""
+        links = self._live.up_pairs() if self._live is not None else None
+        return hop_distances(self.state, self.env.now, node, towards, index=self._index, links=links)
+
     # -- oracle shortest path ----------------------------------------------------------
     def _forward_oracle(self, holder: int, msg: Message) -> None:
-        st, now = self.state, self.env.now
-        to_dst = hop_distances(st, now, msg.dst, towards=True, index=self._index)
+        now = self.env.now
+        to_dst = self._hops_from(msg.dst, towards=True)
         nbrs, _ = self.channel.in_range(holder)
         if len(nbrs) == 0 or not np.isfinite(to_dst[nbrs]).any():
             self._dropped(msg, now, "no_route", holder)  # no route now: the message is lost

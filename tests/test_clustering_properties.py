@@ -210,6 +210,47 @@ def test_every_message_arrives_on_a_static_connected_lossless_network(routing):
     assert (msgs.latency_s > 0).all()
 
 
+def _hops_on_links_table(links, n: int, t: float, src: int, dst: int) -> float:
+    """Hops from ``src`` to ``dst`` over the links of links.parquet up at ``t``."""
+    import networkx as nx
+
+    up = links[(links.t_up_s <= t) & (links.t_down_s > t)]
+    g = nx.Graph()
+    g.add_nodes_from(range(n))
+    g.add_edges_from(zip(up.a.tolist(), up.b.tolist()))
+    try:
+        return float(nx.shortest_path_length(g, src, dst))
+    except nx.NetworkXNoPath:
+        return math.inf
+
+
+@pytest.mark.slow
+def test_through_walls_the_oracle_routes_and_measures_on_the_channels_links():
+    """On the office map, where walls decide the links, the oracle forwards over the links
+    the channel makes and the shortest path is measured on them (links.parquet's): on a
+    static connected team every message arrives in exactly its shortest path's hops. On the
+    range circles a message bounced between two robots to the hop limit."""
+    config = from_dict(
+        {
+            "seed": 1,
+            "duration_s": 20.0,
+            "world": {"n_robots": 12, "map": "office", "bounds_m": "map", "placement": "connected"},
+            "mobility": {"model": "static"},
+            "channel": {"propagation": "log_distance"},
+            "protocol": {"routing": "oracle", "message_rate_hz": 2.0},
+        }
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    msgs, links = frames["messages"], frames["links"]
+    assert len(msgs) >= 30 and msgs.delivered.all()
+    assert msgs.shortest_hops.max() >= 3  # paths around walls, longer than the range circles give
+    truth = [_hops_on_links_table(links, 12, m.t_sent_s, m.src, m.dst) for m in msgs.itertuples()]
+    assert msgs.shortest_hops.tolist() == truth
+    assert (msgs.hops == msgs.shortest_hops).all() and (msgs.transmissions == msgs.hops).all()
+
+
 def test_strict_backbone_can_miss_what_distributed_gateways_reach():
     """Two groups that touch only through two members: leaders and gateways alone do not
     connect them."""
