@@ -138,11 +138,12 @@ class Relay:
         # The channel's range index, whose neighbour lists the searches for shortest paths
         # use (a unit disk only: a radio decides its links otherwise).
         self._index = self.channel.reach_lists
-        # Under a radio, the links as the channel decides them, tracked during the run (the
-        # links of links.parquet): the true topology the oracle routes on and the shortest
-        # paths are measured on. Without them (events.runtime_links = "off"), the implied
-        # range's disk.
-        self._live = parts.links() if self._index is None and parts.links is not None else None
+        # Under a radio the oracle routes on the links as the channel decides them, tracked
+        # during the run (links.parquet's), and measures the shortest paths on them. The
+        # other routings measure them on the implied range's disks: tracking a radio's links
+        # during the run costs a walled run more than the run itself.
+        oracle_on_a_radio = self.routing is Routing.ORACLE and self._index is None
+        self._live = parts.links() if oracle_on_a_radio and parts.links is not None else None
         # Messages sent from outside (sim.send): what each carries until it arrives, and
         # what has arrived at each robot.
         self._payloads: dict[int, object] = {}
