@@ -12,13 +12,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 import pandas as pd
 import simpy
 from pandas.api.types import pandas_dtype
@@ -41,6 +39,7 @@ from netsim.radio.loss import CheckedLoss
 from netsim.radio.reception import Reception
 from netsim.radio.receptions import RECEPTIONS_SCHEMA, ReceptionLog
 from netsim.rng import Streams
+from netsim.samples import sample_times
 from netsim.sim import Simulation
 from netsim.state import RobotState
 from netsim.survival import lifetime_summary
@@ -353,21 +352,6 @@ class RunResult:
     wall_s: float
 
 
-def position_count(interval_s: float, duration_s: float) -> int:
-    """How many instants :func:`position_times` gives, counted without making them (a
-    count past any memory is still a number to refuse)."""
-    if interval_s <= 0:
-        return 0
-    # The small tolerance keeps the last sample when duration is a multiple of dt.
-    k = duration_s / interval_s + 1e-9
-    return int(math.floor(k)) + 1 if math.isfinite(k) else sys.maxsize
-
-
-def position_times(interval_s: float, duration_s: float) -> np.ndarray:
-    """Sampling instants of ``positions.parquet``: every ``interval_s`` from 0 to the end."""
-    return np.arange(position_count(interval_s, duration_s)) * interval_s
-
-
 def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None = None) -> dict[str, pd.DataFrame]:
     """Every output table of the run so far; each is also passed to ``emit(name, table)``
     as soon as it is made (a writer starts on it while the next is made).
@@ -406,7 +390,7 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     for name in sorted(set(users) - set(frames)):
         # Declared and never written: a script reading it finds it, with no rows.
         add(name, empty_table(declared[name]))
-    times = position_times(sim.parts.output.position_interval_s, sim.env.now)
+    times = sample_times(sim.parts.output.position_interval_s, sim.env.now)
     add("positions", sample_positions(legs, sim.state.n, times, side, torus))
     if sim.links is not None and sim.env.now >= sim.duration_s:
         # The changes due at the run's end, which the kernel does not process, are applied

@@ -4,11 +4,42 @@ the end the buffers' filled part."""
 
 from __future__ import annotations
 
+import math
 import mmap
+import sys
 from collections.abc import Callable, Mapping
 
 import numpy as np
 import pandas as pd
+
+
+def _multiples(interval_s: float, end_s: float) -> tuple[int, bool]:
+    """How many multiples of ``interval_s`` from 0 reach to ``end_s`` (a rounding error past
+    it counts: the instant at the end), and whether ``end_s`` needs an instant of its own."""
+    if interval_s <= 0:
+        return 0, False
+    k = end_s / interval_s + 1e-9
+    if not math.isfinite(k):
+        return sys.maxsize, False
+    k = int(math.floor(k)) + 1
+    return k, not ended_at([(k - 1) * interval_s], end_s)
+
+
+def sample_count(interval_s: float, end_s: float) -> int:
+    """How many instants :func:`sample_times` gives, counted without making them (a count
+    past any memory is still a number to refuse)."""
+    k, end = _multiples(interval_s, end_s)
+    return k + end
+
+
+def sample_times(interval_s: float, end_s: float) -> np.ndarray:
+    """The instants of every table sampled over a run (positions, a protocol's groups and
+    beliefs): ``k interval_s`` from 0 (a product, never a sum of intervals, so that every
+    table names an instant alike), and ``end_s``, where the run ends, when the last falls
+    short of it. None for an interval of 0."""
+    k, end = _multiples(interval_s, end_s)
+    times = np.arange(k, dtype=float) * interval_s
+    return np.append(times, end_s) if end else times
 
 
 def ended_at(times: list[float], end_s: float) -> bool:

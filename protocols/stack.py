@@ -276,10 +276,15 @@ class Stack(AckTiming):
         return samples.frame()
 
     def _sampler(self, interval: float):
-        env = self.env
+        # At k x interval, as positions.parquet is sampled (netsim.samples.sample_times): a
+        # sum of intervals would name an instant a rounding error away from its table's.
+        env, k = self.env, 0
         while True:
-            self._take_sample(float(env.now))  # 0 (an int) at the start: one compiled version, not two
-            yield env.timeout(interval)
+            t = k * interval
+            if t > env.now:
+                yield env.timeout(t - env.now)
+            self._take_sample(float(t))
+            k += 1
 
     def _take_sample(self, now: float) -> None:
         self._sample_into(now, self._groups, self._neighbour_beliefs, self._beliefs)

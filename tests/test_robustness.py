@@ -705,7 +705,9 @@ def test_samples_past_any_memory_are_refused_without_making_them(tmp_path, capfd
     """A positions table past any memory (a duration of 1e300 s, a sample every ns) is one
     line, exit 2, nothing written: its rows are counted, never made (making the instants
     first was a traceback of a numpy allocation error)."""
-    monkeypatch.setattr(runmod, "position_times", lambda *a: pytest.fail("made the instants to count them"))
+    from netsim import samples
+
+    monkeypatch.setattr(samples, "sample_times", lambda *a: pytest.fail("made the instants to count them"))
     monkeypatch.chdir(tmp_path)
     before = tree(tmp_path)
     refused(

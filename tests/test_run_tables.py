@@ -104,3 +104,25 @@ def test_a_sample_the_intervals_bring_to_the_end_is_not_taken_twice():
     for name in ("beliefs", "coverage"):
         times = np.unique(frames[name]["t_s"].to_numpy())
         assert len(times) == 11 and times[-1] == pytest.approx(1.0) and np.diff(times).min() > 0.09, name
+
+
+def test_every_sampled_table_names_the_same_instants():
+    """positions, beliefs, neighbour_beliefs and groups, sampled every 0.7 s over 5 s, name
+    the same instants, k x 0.7 (not a sum of intervals) and the run's end: a join on
+    ``(t_s, robot)`` keeps every row (the beliefs said 4.2 where positions said
+    4.199999999999999, and positions had no sample at the end)."""
+    cfg = make_config(
+        seed=1,
+        duration_s=5.0,
+        world={"n_robots": 5, "side_m": 300.0},
+        output={"position_interval_s": 0.7},
+    )
+    frames = execute(cfg).frames
+    expected = [k * 0.7 for k in range(8)] + [5.0]
+    assert np.unique(frames["positions"]["t_s"]).tolist() == expected
+    for name in ("beliefs", "neighbour_beliefs"):
+        assert np.unique(frames[name]["t_s"]).tolist() == expected, name
+    groups = np.unique(frames["groups"]["t_s"]).tolist()
+    assert groups and set(groups) <= set(expected)
+    joined = frames["beliefs"].merge(frames["positions"], on=["t_s", "robot"])
+    assert len(joined) == len(frames["beliefs"])

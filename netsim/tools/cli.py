@@ -101,13 +101,14 @@ def least_memory_bytes(config: cfgmod.Config) -> int:
     per robot and sample). The models, the trace and the other tables come on top."""
     import numpy as np
 
-    from netsim.run import ENGINE_TABLES, position_count
+    from netsim.run import ENGINE_TABLES
+    from netsim.samples import sample_count
     from netsim.state import RobotState
 
     state = RobotState(1, 1.0, 1.0)
     per_robot = sum(v.nbytes for v in vars(state).values() if isinstance(v, np.ndarray) and v.base is None)
     row = sum(np.dtype(t).itemsize for t in ENGINE_TABLES["positions"].values())
-    samples = position_count(config.output.position_interval_s, config.duration_s)
+    samples = sample_count(config.output.position_interval_s, config.duration_s)
     return config.world.n_robots * (per_robot + samples * row)
 
 
