@@ -68,6 +68,9 @@ class LegTable:
         self.v = filled(legs[["vx_mps", "vy_mps"]].to_numpy(float), (k, 2))
         robots = legs["robot"].to_numpy(np.int64)
         self.robot = robots
+        # Legs logged as a jump (a placement: netsim.state.RobotState.set_leg's start_m): a
+        # jump however short, as the run took it; a table without causes has none.
+        self.logged_jump = legs["cause"].to_numpy() == "jump" if "cause" in legs.columns else np.zeros(k, bool)
         self.n = n
         self.first = np.searchsorted(robots, np.arange(n), "left")
         self.end = np.searchsorted(robots, np.arange(n), "right")
@@ -94,6 +97,15 @@ class LegTable:
         """Where legs ``legs`` put their robots at ``t`` (one time, or one per leg)."""
         return points_on_legs(self.p, self.v, self.t, legs, t, self.n)
 
+    def jumps(self, side_m: float | None = None) -> np.ndarray:
+        """Whether each leg starts with a jump: logged as one, or away from where the robot's
+        previous leg had it then (:func:`jumped`; on a torus of side ``side_m`` by the
+        nearest image). A robot's first leg never does."""
+        k = np.flatnonzero(np.r_[False, self.robot[1:] == self.robot[:-1]])
+        out = np.zeros(len(self.t), bool)
+        out[k] = self.logged_jump[k] | jumped(self.at(k - 1, self.t[k]), self.p[k], side_m, self.n)
+        return out
+
     def ends(self, duration_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each leg's end, in the table's order: its time (:meth:`end_times`), where the leg
         puts its robot then, and whether the robot's next leg, by ``duration_s``, starts
@@ -101,7 +113,7 @@ class LegTable:
         last, nxt = self._next()
         t_end = self.end_times(duration_s)
         xy = self.at(np.arange(len(self.t)), t_end)
-        jump = ~last & (self.t[nxt] <= duration_s) & jumped(xy, self.p[nxt], None, self.n)
+        jump = ~last & (self.t[nxt] <= duration_s) & self.jumps()[nxt]
         return t_end, xy, jump
 
     def end_times(self, duration_s: float) -> np.ndarray:

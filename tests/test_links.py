@@ -257,6 +257,19 @@ def test_a_jump_is_one_rule_for_the_link_solver_and_the_writers():
     assert t_torus.tolist() == [2.0]
 
 
+def test_a_logged_jump_however_short_is_one_for_the_links():
+    """A robot put 1.1e-7 m across the range's edge (a trace's ``set X_``, logged as a
+    jump) takes its link down at that instant, as the run's radio did: shorter than the
+    rounding a distance can tell from a leg's end, it is a jump by its cause."""
+    rows = [(0.0, 0, 0.0, 0.0, 0.0, 0.0, "start"), (0.0, 1, 149.99999999, 0.0, 0.0, 0.0, "start")]
+    jump = (5.0, 1, 150.0000001, 0.0, 0.0, 0.0, "jump")
+    legs = pd.DataFrame([*rows, jump], columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps", "cause"])
+    links = link_lifetimes(legs, 150.0, 10.0)
+    assert links[["t_up_s", "t_down_s"]].values.tolist() == [[0.0, 5.0]]
+    table = LegTable(legs, 2)
+    assert table.jumps().tolist() == [False, False, True] and table.ends(10.0)[2].tolist() == [False, True, False]
+
+
 def test_trace_jump_opens_and_closes_links_in_links_parquet(tmp_path):
     """ns-2 ``set X_`` at T: the link appears in the run's links table from T exactly."""
     f = tmp_path / "jump.tcl"

@@ -36,23 +36,16 @@ import pandas as pd
 from netsim.compiled import load
 from netsim.geometry import link_ranges_m, near_pairs, speeds_mps
 from netsim.links._kernels import PHASE_STATE
-from netsim.trajectory import LegTable, jumped
+from netsim.trajectory import LegTable
 
 COLUMNS = ["a", "b", "t_up_s", "t_down_s", "censored", "censored_start", "censored_end"]
 
 
 def jump_times(L: LegTable, box: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Legs that start away from where the robot was (a jump), as ``(t, robot)``.
-
-    A leg is a jump when its start differs from the previous leg's position at that time
-    by more than rounding (on a torus, by more than a whole number of sides).
-    """
-    robot = np.repeat(np.arange(len(L.first)), L.end - L.first)
-    same = np.r_[False, robot[1:] == robot[:-1]]
-    k = np.flatnonzero(same)
-    prev = k - 1
-    jump = jumped(L.at(prev, L.t[k]), L.p[k], box, len(L.first))
-    return L.t[k[jump]], robot[k[jump]]
+    """Legs that start with a jump (:meth:`~netsim.trajectory.LegTable.jumps`; on a torus of
+    side ``box``), as ``(t, robot)``."""
+    k = np.flatnonzero(L.jumps(box))
+    return L.t[k], L.robot[k]
 
 
 def link_events(
