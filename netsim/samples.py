@@ -13,39 +13,51 @@ import numpy as np
 import pandas as pd
 
 
-def _multiples(interval_s: float, end_s: float) -> tuple[int, bool]:
-    """How many multiples of ``interval_s`` from 0 reach to ``end_s`` (a rounding error past
-    it counts: the instant at the end), and whether ``end_s`` needs an instant of its own."""
+def _multiples(interval_s: float, end_s: float) -> int:
+    """How many multiples of ``interval_s`` from 0 fall short of ``end_s`` by more than a
+    rounding error (:func:`ended_at`: one within it is the instant at the end)."""
     if interval_s <= 0:
-        return 0, False
-    k = end_s / interval_s + 1e-9
+        return 0
+    k = (end_s - _rounding(end_s)) / interval_s
     if not math.isfinite(k):
-        return sys.maxsize, False
-    k = int(math.floor(k)) + 1
-    return k, not ended_at([(k - 1) * interval_s], end_s)
+        return sys.maxsize
+    k = max(int(math.ceil(k)), 0)
+    if k > 2**52:
+        return k  # past any memory: a count to refuse, where one more or less is no matter
+    # The quotient's own rounding: step to the first multiple that reaches the end's band.
+    while k > 0 and ended_at([(k - 1) * interval_s], end_s):
+        k -= 1
+    while not ended_at([k * interval_s], end_s):
+        k += 1
+    return k
 
 
 def sample_count(interval_s: float, end_s: float) -> int:
     """How many instants :func:`sample_times` gives, counted without making them (a count
     past any memory is still a number to refuse)."""
-    k, end = _multiples(interval_s, end_s)
-    return k + end
+    k = _multiples(interval_s, end_s)
+    return k + 1 if interval_s > 0 and k < sys.maxsize else k
 
 
 def sample_times(interval_s: float, end_s: float) -> np.ndarray:
     """The instants of every table sampled over a run (positions, a protocol's groups and
     beliefs): ``k interval_s`` from 0 (a product, never a sum of intervals, so that every
-    table names an instant alike), and ``end_s``, where the run ends, when the last falls
-    short of it. None for an interval of 0."""
-    k, end = _multiples(interval_s, end_s)
-    times = np.arange(k, dtype=float) * interval_s
-    return np.append(times, end_s) if end else times
+    table names an instant alike) while short of ``end_s``, then ``end_s`` itself, where the
+    run ends (a multiple within a rounding error of it is that instant). None for an
+    interval of 0."""
+    if interval_s <= 0:
+        return np.empty(0)
+    return np.append(np.arange(_multiples(interval_s, end_s), dtype=float) * interval_s, end_s)
+
+
+def _rounding(end_s: float) -> float:
+    return 1e-9 * max(1.0, abs(end_s))
 
 
 def ended_at(times: list[float], end_s: float) -> bool:
-    """Whether sampling ``times`` already hold the instant ``end_s`` (the sum of many
-    intervals may fall a rounding error short of it: that sample is it)."""
-    return bool(times) and times[-1] >= end_s - 1e-9 * max(1.0, abs(end_s))
+    """Whether sampling ``times`` already hold the instant ``end_s`` (a multiple of an
+    interval may fall a rounding error short of it: that sample is it)."""
+    return bool(times) and times[-1] >= end_s - _rounding(end_s)
 
 
 class Samples:

@@ -276,10 +276,11 @@ class Stack(AckTiming):
         return samples.frame()
 
     def _sampler(self, interval: float):
-        # At k x interval, as positions.parquet is sampled (netsim.samples.sample_times): a
-        # sum of intervals would name an instant a rounding error away from its table's.
+        # The instants of netsim.samples.sample_times, as positions.parquet's: k x interval
+        # (a sum of intervals would name an instant a rounding error away), and the run's
+        # end, whose sample _sample_at_end takes.
         env, k = self.env, 0
-        while True:
+        while not ended_at([k * interval], self.duration_s):
             t = k * interval
             if t > env.now:
                 yield env.timeout(t - env.now)
