@@ -278,3 +278,14 @@ def test_version_prints_the_installed_version(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["--version"])
     assert exit_.value.code == 0 and capsys.readouterr().out == f"netsim {__version__}\n"
+
+
+def test_a_run_written_before_a_table_gained_a_column_is_still_read(tmp_path, capsys, small_run):
+    """legs.parquet without its `cause` column (as runs were written before it): the
+    export, which does not need it, still writes the file."""
+    run, out = tmp_path / "run", tmp_path / "out.movements"
+    shutil.copytree(small_run, run)
+    legs = pd.read_parquet(run / "legs.parquet")
+    legs.drop(columns=["cause"]).to_parquet(run / "legs.parquet")
+    assert main(["export", str(run), "--format", "bonnmotion", "--out", str(out)]) == 0
+    assert out.is_file()

@@ -96,6 +96,16 @@ def existing_dir(run_dir: str | Path) -> Path:
     return run_dir
 
 
+# The columns the readers of a run (view, export, figures) take from its tables by name:
+# a run written before a table gained another column is read all the same.
+READ_COLUMNS = {
+    "positions": ("t_s", "robot", "x_m", "y_m"),
+    "legs": ("t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"),
+    "links": ("a", "b", "t_up_s", "t_down_s"),
+    "roles": ("t_s", "robot", "role", "leader"),
+}
+
+
 def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
     """The run's table ``name`` (``name.parquet``), None where the run has none; a file
     that cannot be read as Parquet (cut short, overwritten) is refused in one line."""
@@ -107,26 +117,13 @@ def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
     except (OSError, ValueError, TypeError, NotImplementedError) as exc:  # pyarrow's errors derive from these
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise NetsimInputError(f"{path}: cannot be read as Parquet ({first})") from None
-    missing = [c for c in _declared_columns(run_dir, name) if c not in table.columns]
+    missing = [c for c in READ_COLUMNS.get(name, ()) if c not in table.columns]
     if missing:
         raise NetsimInputError(
             f"{path}: lacks the column{'s' if len(missing) > 1 else ''} {', '.join(missing)} of the run's "
             f"{name} table (changed since the run wrote it?)"
         )
     return table
-
-
-def _declared_columns(run_dir: Path, name: str) -> list[str]:
-    """The columns a run of the directory's configuration writes in its table ``name``
-    (none for a table no model of it declares)."""
-    from netsim import config as cfgmod
-    from netsim.run import tables
-
-    try:
-        config = cfgmod.from_dict(read_run_config(run_dir))
-    except (NetsimInputError, ValueError):
-        return []  # refused, where it matters, by the reader of the configuration
-    return list(tables(config).get(name, {}))
 
 
 def read_run_summary(run_dir: Path) -> dict:
