@@ -29,6 +29,7 @@ from netsim.cosim import Arrival
 from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
 from netsim.rng import Streams
+from netsim.scheduling import LAST, scheduled_event
 from netsim.topology import reach_lists
 
 
@@ -201,7 +202,11 @@ class Relay:
         if on_outcome is not None:
             self._watched[mid] = on_outcome
         msg = Message(mid, src, dst, self.ttl, 1, now)
-        if self.routing is Routing.ORACLE:
+        if self.routing is Routing.ORACLE and not self._links_solved():
+            # Sent at t = 0, before the channel's links are first solved (after everything
+            # else due then): routed, and its shortest path measured, once they are.
+            scheduled_event(self.env, 0.0, LAST, lambda _event: self._first_oracle_hop(src, msg))
+        elif self.routing is Routing.ORACLE:
             self._forward_oracle(src, msg)
         else:
             seen = self._seen[mid] = np.zeros(st.n, dtype=bool)
@@ -252,6 +257,14 @@ class Relay:
         if self._pending[mid] == 0:
             self._dropped(msg, now, "ttl" if mid in self._ttl_cut else "died_out")
             del self._seen[mid]  # the flood is over: no copy of it is in flight
+
+    def _links_solved(self) -> bool:
+        """Whether the links the oracle routes on are known now (always on a unit disk)."""
+        return self._live is None or self._live.started
+
+    def _first_oracle_hop(self, src: int, msg: Message) -> None:
+        self._outcomes[msg.id]["shortest_hops"] = float(self._hops_from(src)[msg.dst])
+        self._forward_oracle(src, msg)
 
     def _hops_from(self, node: int, towards: bool = False) -> np.ndarray:
         """:func:`hop_distances` now, over the channel's links."""

@@ -34,6 +34,7 @@ from netsim.protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCH
 
 from netsim.compiled import cores, load, side_by_side
 from netsim.cosim import Arrival
+from netsim.errors import ConfigError
 from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.samples import Samples, ended_at
@@ -505,6 +506,21 @@ NEIGHBOUR_BELIEFS_SCHEMA = {
 GROUPS_SCHEMA = {"t_s": "float64", "robot": "int64", "group": "int64", "primary": "bool"}
 
 
+def check(params: ClusteringParams, config) -> None:
+    """The Ack's rules (:func:`~netsim.protocols.ack.check_tau`), and the oracle's: where
+    shadowing or walls decide the links, it routes on them as the run tracks them."""
+    check_tau(params, config)
+    channel = config.channel
+    decided = config.world.map or channel.propagation_model.shadowed(channel.radio)
+    if params.routing == "oracle" and decided and config.events.runtime_links == "off":
+        raise ConfigError(
+            "events.runtime_links",
+            "off",
+            "protocol.routing = 'oracle' routes on the links the channel makes under shadowing or walls, "
+            "tracked during the run: set it to 'auto' or 'on'",
+        )
+
+
 def build(params: ClusteringParams, parts: Parts) -> Stack:
     stack = Stack(params, parts)
     stack.start()
@@ -514,7 +530,7 @@ def build(params: ClusteringParams, parts: Parts) -> Stack:
 PLUGIN = PluginSpec(
     Params=ClusteringParams,
     build=build,
-    check=check_tau,
+    check=check,
     tables={
         "roles": ROLES_SCHEMA,
         "acks": ACKS_SCHEMA,

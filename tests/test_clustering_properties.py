@@ -251,6 +251,29 @@ def test_through_walls_the_oracle_routes_and_measures_on_the_channels_links():
     assert (msgs.hops == msgs.shortest_hops).all() and (msgs.transmissions == msgs.hops).all()
 
 
+@pytest.mark.slow
+def test_an_oracle_message_sent_at_t0_under_a_radio_waits_for_the_links():
+    """Sent at t = 0, before the channel's links are first solved (after everything else
+    due then), an oracle message through walls is routed once they are: delivered in its
+    shortest path's hops, not dropped for want of a route."""
+    config = from_dict(
+        {
+            "seed": 1,
+            "duration_s": 5.0,
+            "world": {"n_robots": 12, "map": "office", "bounds_m": "map", "placement": "connected"},
+            "mobility": {"model": "static"},
+            "channel": {"propagation": "log_distance"},
+            "protocol": {"routing": "oracle", "message_rate_hz": 0.0},
+        }
+    )
+    sim = build(config)
+    sim.send(0, 11)
+    sim.run()
+    msgs, links = (frame := collect(sim))["messages"], frame["links"]
+    assert msgs.delivered.tolist() == [True]
+    assert msgs.shortest_hops.iloc[0] == _hops_on_links_table(links, 12, 0.0, 0, 11) == msgs.hops.iloc[0]
+
+
 def test_strict_backbone_can_miss_what_distributed_gateways_reach():
     """Two groups that touch only through two members: leaders and gateways alone do not
     connect them."""

@@ -328,3 +328,16 @@ def test_coverage_disks_wider_than_the_area_are_refused():
     with pytest.raises(ConfigError) as err:
         cfgmod.load(None, [*keys, "coverage.radius_m=1e300"])
     assert err.value.key == "coverage.radius_m" and "must not exceed the area's diagonal (141.421 m)" in str(err.value)
+
+
+def test_the_oracle_through_walls_needs_the_links_tracked_during_the_run():
+    """With events.runtime_links = "off" the oracle could not see the links walls or
+    shadowing decide (it fell back to range circles and bounced messages): refused by name.
+    On a plain log-distance radio the links are the implied range's disks: allowed."""
+    keys = ['channel.propagation="log_distance"', 'protocol.routing="oracle"', 'events.runtime_links="off"']
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, [*keys, 'world.map="office"', 'world.bounds_m="map"'])
+    assert err.value.key == "events.runtime_links" and "protocol.routing = 'oracle'" in str(err.value)
+    with pytest.raises(ConfigError):
+        cfgmod.load(None, [*keys, "channel.shadowing_sigma_db=4"])
+    assert cfgmod.load(None, keys).protocol.routing == "oracle"

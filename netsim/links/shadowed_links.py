@@ -69,6 +69,10 @@ class ShadowedLinks:
     def windows(self) -> int:
         return self.envelope.windows
 
+    @property
+    def started(self) -> bool:
+        return self.envelope.started
+
     def start(self) -> None:
         self.envelope.start()
 
