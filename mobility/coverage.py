@@ -143,7 +143,6 @@ from netsim.mobility.steps import Plan, StepLimits, cap_length
 from netsim import metrics
 from netsim.area import Bounds
 from netsim.compiled import load
-from netsim.config import world_bounds
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.geometry import speeds_mps
@@ -289,7 +288,9 @@ class CoverageParams(Params):
     area_method: AreaMethod = param(
         AreaMethod.EXACT, None, "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"
     )
-    grid_cells: int = param(200, metrics.grid_side, "area_method = 'grid': grid cells per side (error bound reported)")
+    grid_cells: int = param(
+        200, metrics.grid_side, "area_method = 'grid': grid cells per side, at most 4,000 (error bound reported)"
+    )
 
     @property
     def hold_s(self) -> float:
@@ -325,10 +326,6 @@ def check(params: CoverageParams, config) -> None:
         )
     if not params.enabled:
         return
-    diagonal = world_bounds(config.world).diagonal
-    if params.radius_m > diagonal:
-        # Each disk covers the whole area: the union of such disks is past what floats hold.
-        raise ConfigError("coverage.radius_m", params.radius_m, f"must not exceed the area's diagonal ({diagonal:g} m)")
     if params.plan is PlanScope.LOCAL and ch.mac != "none":
         raise ConfigError(
             "coverage.plan",
@@ -444,7 +441,10 @@ class CoverageController:
         self.link_state = parts.links()
         self.rules = LinkRules(parts.channel.reception, st, self.link_state, params.margin_m, params.fade_margin_db)
         self.range_m = float(np.min(st.range_m))
-        self.radius_m = self.cfg.radius_m or self.range_m
+        # Past twice the area's diagonal a disk about a robot covers the whole area, as do
+        # the polygons that measure it: the same coverage, bound and wishes, where a radius
+        # near the floats' limit overflows their squares.
+        self.radius_m = min(self.cfg.radius_m or self.range_m, 2.0 * self.state.bounds.diagonal)
         self.limits = StepLimits(
             self.cfg.control_period_s, self.range_m, self.cfg.margin_m, self.cfg.speed_max_mps, st.side_m, st.bounds
         )

@@ -181,7 +181,7 @@ def covered_fraction_exact(
 
 
 # The most cells a side of a covered fraction's grid may have, as a configuration allows:
-# every sample holds arrays of their square (4,000 a side: hundreds of MiB).
+# every sample holds arrays of their square, which past this outgrow a machine's memory.
 MAX_GRID_CELLS = 4_000
 
 

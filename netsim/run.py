@@ -284,8 +284,10 @@ def build(config: Config, run: int = 0) -> Simulation:
     m, p = config.mobility, config.protocol
     mobility = _build_model(sim, "mobility", m.plugin, m.params, parts, "mobility.model", m.model)
     sim.driver = mobility if isinstance(mobility, Driver) else None
-    # A protocol may search the links as the channel makes them (a radio's), solved during the run.
-    with_links = dataclasses.replace(parts, links=sim.link_events if sim.runtime_links != "off" else None)
+    # The links as the channel makes them, solved during the run, for the protocol, the
+    # controllers and the hooks that ask (None: events.runtime_links = "off").
+    links = sim.link_events if sim.runtime_links != "off" else None
+    with_links = dataclasses.replace(parts, links=links)
     protocol = _build_model(sim, "protocol", p.plugin, p.params, with_links, "protocol.model", p.model)
     sim.groups = protocol if isinstance(protocol, GroupView) else None
     sim.neighbour_view = protocol if isinstance(protocol, NeighbourView) else None
@@ -307,7 +309,6 @@ def build(config: Config, run: int = 0) -> Simulation:
             occupancy=parts.occupancy,
         )
         sim.add_model("control", loop)
-        links = sim.link_events if sim.runtime_links != "off" else None
         acks = ack_timing(protocol, config.channel)
         with_loop = dataclasses.replace(parts, control=loop, groups=sim.groups, links=links, acks=acks)
         for name, plugin, params in chosen:
@@ -324,7 +325,7 @@ def build(config: Config, run: int = 0) -> Simulation:
             sim.parts,
             groups=sim.groups,
             control=sim.models.get("control"),
-            links=sim.link_events if sim.runtime_links != "off" else None,
+            links=links,
         )
         _build_model(sim, name, hook, hook.Params(), with_groups, f"events.hooks[{k}]", name)
     check_owned_tables(sim)

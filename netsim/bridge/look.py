@@ -35,7 +35,8 @@ def robot_diameter_m(bounds: Bounds) -> float:
 def link_line_list(pos_m: np.ndarray, pairs: list[tuple[int, int]], state: Any) -> list[tuple[float, float]]:
     """The points of the links ``pairs`` of robots at ``pos_m`` as a line list (two points
     a segment): on a torus (``state.torus``) a link across the border is drawn from both
-    ends toward it (:func:`netsim.geometry.link_segments_m`), not across the area."""
+    ends toward it (:func:`netsim.geometry.link_segments_m`), not across the area. The
+    viewers do not clip: each half runs past the border by the rest of the link."""
     if not pairs:
         return []
     a, b = np.array(pairs, np.int64).T

@@ -82,7 +82,7 @@ class CoverageEnvParams(Params):
     )
     max_cycles: int = param(200, positive, "steps before the episode is truncated")
     component_penalty: float = param(0.01, finite(non_negative), "reward lost per component beyond one")
-    grid_cells: int = param(100, metrics.grid_side, "the covered fraction's grid: cells per side")
+    grid_cells: int = param(100, metrics.grid_side, "the covered fraction's grid: cells per side, at most 4,000")
     seed: int = param(0, non_negative, "seed of the first episode when reset() is given none")
 
 

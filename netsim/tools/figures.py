@@ -385,7 +385,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     config = run.config
     n, area = config.world.n_robots, world_bounds(config.world)
     whole = ((area.x_min, area.x_max), (area.y_min, area.y_max))
-    torus_side = config.world.side_m if config.world.torus else None
+    torus_side_m = config.world.side_m if config.world.torus else None
     range_m = float(min(config.ranges_m()))
     occupancy = run_map(config)
     # Keys of the run's models, where they have them.
@@ -414,7 +414,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     colours = run_colours(run)
-    draw_deployment(ax, start, colours, range_m, side_m=torus_side)
+    draw_deployment(ax, start, colours, range_m, side_m=torus_side_m)
     _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     groups_n = int((start.role == "alpha").sum())
@@ -440,7 +440,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
-    draw_deployment(ax, end, colours, range_m, disks_m=radius, side_m=torus_side)
+    draw_deployment(ax, end, colours, range_m, disks_m=radius, side_m=torus_side_m)
     _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     if radius > 0:
