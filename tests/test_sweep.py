@@ -444,7 +444,7 @@ def test_more_workers_than_the_machine_can_use_is_one_line(tmp_path, capsys):
 
     sweep_file = tmp_path / "s.toml"
     sweep_file.write_text('name = "w"\n[grid]\n"mobility.speed_max_mps" = [1.0, 2.0]\n')
-    too_many = WORKERS_PER_CORE * (os.cpu_count() or 1) + 1
+    too_many = WORKERS_PER_CORE * len(os.sched_getaffinity(0)) + 1
     code = main(["sweep", str(sweep_file), "--out", str(tmp_path / "out"), "--workers", str(too_many)])
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(lines) == 1

@@ -347,7 +347,8 @@ def cmd_sweep(args) -> int:
     from netsim.tools import sweep as sweepmod
 
     sweep = sweepmod.load_file(args.sweep)
-    cores = os.cpu_count() or 1
+    # The cores this process may run on (a container's share, not the host's).
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if args.workers is not None and args.workers < 1:
         raise NetsimInputError(f"--workers {args.workers}: must be at least 1")
     if args.workers is not None and args.workers > WORKERS_PER_CORE * cores:
