@@ -251,6 +251,22 @@ def test_through_walls_the_oracle_routes_and_measures_on_the_channels_links():
     assert (msgs.hops == msgs.shortest_hops).all() and (msgs.transmissions == msgs.hops).all()
 
 
+@pytest.mark.parametrize("routing, tracked", [("backbone", False), ("oracle", True)])
+def test_only_the_oracle_tracks_a_radios_links_during_the_run(routing, tracked):
+    """Tracking the links walls decide during the run costs a walled run more than the run:
+    the oracle, which routes on them, starts it; backbone routing does not."""
+    config = from_dict(
+        {
+            "duration_s": 5.0,
+            "world": {"n_robots": 6, "map": "office", "bounds_m": "map"},
+            "mobility": {"model": "static"},
+            "channel": {"propagation": "log_distance"},
+            "protocol": {"routing": routing},
+        }
+    )
+    assert (build(config).links is not None) is tracked
+
+
 @pytest.mark.slow
 def test_an_oracle_message_sent_at_t0_under_a_radio_waits_for_the_links():
     """Sent at t = 0, before the channel's links are first solved (after everything else
