@@ -470,6 +470,12 @@ class Config(Params):
             )
         return from_dict(tree)
 
+    def radio_decides_links(self) -> bool:
+        """Whether the channel's links are decided by more than the robots' ranges: walls (a
+        map) or shadowing, so that only the run's own decisions give them."""
+        channel = self.channel
+        return bool(self.world.map) or bool(channel.propagation_model.shadowed(channel.radio))
+
     def ranges_m(self) -> tuple[float, ...]:
         """Per-robot ranges as a tuple of floats, one per robot."""
         implied = self.channel.propagation_model.ranges(self.channel.radio)

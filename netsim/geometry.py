@@ -31,10 +31,22 @@ def link_segments_m(pa_m: np.ndarray, pb_m: np.ndarray, side_m: float | None = N
     [[[1.0, 5.0], [-1.0, 5.0]], [[11.0, 5.0], [9.0, 5.0]]]
     """
     pa, pb = np.asarray(pa_m, float).reshape(-1, 2), np.asarray(pb_m, float).reshape(-1, 2)
+    d, seam = _across_border(pa, pb, side_m)
+    return np.concatenate([np.stack([pa, pa + d], axis=1), np.stack([pb[seam] - d[seam], pb[seam]], axis=1)])
+
+
+def crosses_border(pa_m: np.ndarray, pb_m: np.ndarray, side_m: float | None = None) -> np.ndarray:
+    """Whether the segment from each ``pa_m[k]`` to the nearest image of ``pb_m[k]`` crosses
+    the border of a torus of side ``side_m`` (never on the plane, None)."""
+    pa, pb = np.asarray(pa_m, float).reshape(-1, 2), np.asarray(pb_m, float).reshape(-1, 2)
+    return _across_border(pa, pb, side_m)[1]
+
+
+def _across_border(pa: np.ndarray, pb: np.ndarray, side_m: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest image's offset of each row, and whether it is not the plain one."""
     raw = pb - pa
     d = wrap(raw, side_m, max(len(pa), 1))
-    seam = (d != raw).any(axis=1)
-    return np.concatenate([np.stack([pa, pa + d], axis=1), np.stack([pb[seam] - d[seam], pb[seam]], axis=1)])
+    return d, (d != raw).any(axis=1)
 
 
 def distances_m(

@@ -9,7 +9,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from netsim.compiled import filled, load
-from netsim.geometry import in_box, wrap
+from netsim.geometry import distances_m, in_box
 
 # A robot put farther than this, times 1 m plus the size of both positions' coordinates, from where
 # it was has jumped (a placement, a trace's repeated instant, a border of a folded torus run):
@@ -21,12 +21,11 @@ JUMP_M = 1e-9
 def jumped(
     was_m: npt.ArrayLike, now_m: npt.ArrayLike, side_m: float | None = None, n_robots: int | None = None
 ) -> np.ndarray:
-    """Whether a robot at ``was_m`` put at ``now_m`` (``(..., 2)`` each) jumped; on a torus of
+    """Whether a robot at ``was_m`` put at ``now_m`` (``(k, 2)`` each) jumped; on a torus of
     side ``side_m`` (None: the plane) a move by whole sides is none, in a run of ``n_robots``."""
-    was_m, now_m = np.asarray(was_m, float), np.asarray(now_m, float)
-    d = wrap(now_m - was_m, side_m, n_robots if n_robots is not None else max(len(now_m), 1))
+    was_m, now_m = np.asarray(was_m, float).reshape(-1, 2), np.asarray(now_m, float).reshape(-1, 2)
     scale = 1.0 + np.abs(was_m).max(axis=-1, initial=0.0) + np.abs(now_m).max(axis=-1, initial=0.0)
-    return np.hypot(d[..., 0], d[..., 1]) > JUMP_M * scale
+    return distances_m(was_m, now_m, side_m, n_robots) > JUMP_M * scale
 
 
 def points_on_legs(

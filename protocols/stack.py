@@ -510,9 +510,7 @@ def check(params: ClusteringParams, config) -> None:
     """The Ack's rules (:func:`~netsim.protocols.ack.check_tau`), and the oracle's: where
     shadowing or walls decide the links, it routes on them as the run tracks them."""
     check_tau(params, config)
-    channel = config.channel
-    decided = config.world.map or channel.propagation_model.shadowed(channel.radio)
-    if params.routing == "oracle" and decided and config.events.runtime_links == "off":
+    if params.routing == "oracle" and config.radio_decides_links() and config.events.runtime_links == "off":
         raise ConfigError(
             "events.runtime_links",
             "off",

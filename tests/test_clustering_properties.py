@@ -224,23 +224,28 @@ def _hops_on_links_table(links, n: int, t: float, src: int, dst: int) -> float:
         return math.inf
 
 
+def office_team(duration_s: float, protocol: dict):
+    """12 static robots from a connected start on the office map, under log-distance
+    through its walls, with the clustering's ``protocol`` keys."""
+    return from_dict(
+        {
+            "seed": 1,
+            "duration_s": duration_s,
+            "world": {"n_robots": 12, "map": "office", "bounds_m": "map", "placement": "connected"},
+            "mobility": {"model": "static"},
+            "channel": {"propagation": "log_distance"},
+            "protocol": protocol,
+        }
+    )
+
+
 @pytest.mark.slow
 def test_through_walls_the_oracle_routes_and_measures_on_the_channels_links():
     """On the office map, where walls decide the links, the oracle forwards over the links
     the channel makes and the shortest path is measured on them (links.parquet's): on a
     static connected team every message arrives in exactly its shortest path's hops. On the
     range circles a message bounced between two robots to the hop limit."""
-    config = from_dict(
-        {
-            "seed": 1,
-            "duration_s": 20.0,
-            "world": {"n_robots": 12, "map": "office", "bounds_m": "map", "placement": "connected"},
-            "mobility": {"model": "static"},
-            "channel": {"propagation": "log_distance"},
-            "protocol": {"routing": "oracle", "message_rate_hz": 2.0},
-        }
-    )
-    sim = build(config)
+    sim = build(office_team(20.0, {"routing": "oracle", "message_rate_hz": 2.0}))
     sim.run()
     frames = collect(sim)
     msgs, links = frames["messages"], frames["links"]
@@ -255,16 +260,7 @@ def test_through_walls_the_oracle_routes_and_measures_on_the_channels_links():
 def test_only_the_oracle_tracks_a_radios_links_during_the_run(routing, tracked):
     """Tracking the links walls decide during the run costs a walled run more than the run:
     the oracle, which routes on them, starts it; backbone routing does not."""
-    config = from_dict(
-        {
-            "duration_s": 5.0,
-            "world": {"n_robots": 6, "map": "office", "bounds_m": "map"},
-            "mobility": {"model": "static"},
-            "channel": {"propagation": "log_distance"},
-            "protocol": {"routing": routing},
-        }
-    )
-    assert (build(config).links is not None) is tracked
+    assert (build(office_team(5.0, {"routing": routing})).links is not None) is tracked
 
 
 @pytest.mark.slow
@@ -272,17 +268,7 @@ def test_an_oracle_message_sent_at_t0_under_a_radio_waits_for_the_links():
     """Sent at t = 0, before the channel's links are first solved (after everything else
     due then), an oracle message through walls is routed once they are: delivered in its
     shortest path's hops, not dropped for want of a route."""
-    config = from_dict(
-        {
-            "seed": 1,
-            "duration_s": 5.0,
-            "world": {"n_robots": 12, "map": "office", "bounds_m": "map", "placement": "connected"},
-            "mobility": {"model": "static"},
-            "channel": {"propagation": "log_distance"},
-            "protocol": {"routing": "oracle", "message_rate_hz": 0.0},
-        }
-    )
-    sim = build(config)
+    sim = build(office_team(5.0, {"routing": "oracle", "message_rate_hz": 0.0}))
     sim.send(0, 11)
     sim.run()
     msgs, links = (frame := collect(sim))["messages"], frame["links"]

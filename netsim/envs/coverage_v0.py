@@ -401,8 +401,7 @@ def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, obje
     if config.duration_s != params.max_cycles * params.step_s:
         return "duration_s", config.duration_s, "is max_cycles x step_s in the environment: set those"
     channel = config.channel
-    decided = world.map or channel.propagation_model.shadowed(channel.radio)
-    if decided and config.events.runtime_links == "off":
+    if config.radio_decides_links() and config.events.runtime_links == "off":
         return (
             "events.runtime_links",
             "off",

@@ -37,7 +37,7 @@ from netsim import metrics
 from netsim.area import Bounds
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
-from netsim.geometry import link_segments_m, wrap
+from netsim.geometry import crosses_border, distances_m, link_segments_m
 from netsim.tools import style
 from netsim.tools.output import read_run_config, read_run_table
 from netsim.topology import geometric_pairs
@@ -275,8 +275,7 @@ def _path_pieces(xy: np.ndarray, colours: list[str], side_m: float | None) -> tu
     pieces: list[np.ndarray] = []
     out: list[str] = []
     for path, colour in zip(xy, colours):
-        steps = np.diff(path, axis=0)
-        across = np.flatnonzero((wrap(steps, side_m, len(xy)) != steps).any(axis=1))
+        across = np.flatnonzero(crosses_border(path[:-1], path[1:], side_m))
         cuts = np.r_[0, across + 1, len(path)]
         for lo, hi in zip(cuts[:-1], cuts[1:]):
             pieces.append(path[lo:hi])
@@ -331,8 +330,8 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
             zorder=5,
             label=f"leader at {t1:g} s",
         )
-    steps = np.diff(xy, axis=1)
-    travelled = np.hypot(*wrap(steps, side, n).transpose(2, 0, 1)).sum(axis=1)
+    steps_m = distances_m(xy[:, :-1].reshape(-1, 2), xy[:, 1:].reshape(-1, 2), side, n)
+    travelled = steps_m.reshape(n, -1).sum(axis=1)
     area = world_bounds(run.config.world)
     xlim, ylim = _extent(xy.reshape(-1, 2), range_m, area)
     _axes(ax, xlim, ylim, area)
