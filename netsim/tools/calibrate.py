@@ -186,7 +186,7 @@ class Frames:
         order = np.lexsort((t, robot))
         step = np.zeros(2 * n)
         same = robot[order[1:]] == robot[order[:-1]]
-        step[1:] = np.where(same, np.hypot(*(xy[order[1:]] - xy[order[:-1]]).T), 0.0)
+        step[1:] = np.where(same, distances_m(xy[order[:-1]], xy[order[1:]]), 0.0)
         # Cumulative per robot: the running sum restarted at each robot's first observation.
         run = np.cumsum(step)
         first = np.r_[True, ~same]
