@@ -400,6 +400,7 @@ BAD_LOGS = {
     "same_ends": _same_ends,
     "received_with_a_cause": _received_with_a_cause,
     "semicolons": lambda g: ("semicolons.csv", g.to_csv(index=False, sep=";").encode()),
+    "above_tx_power": _above_tx_power,
 }
 
 
@@ -445,6 +446,8 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("semicolons", [], "one column holding ';': a CSV log is separated by commas"),
         ("no_rssi", [], "rssi_dbm (or rx_power_dbm)"),
         ("good", ["--sensitivity-dbm", "-inf"], "--sensitivity-dbm -inf: must be in [-200, 0] dBm"),
+        # a refused log is warned of nothing, however strong its frames
+        ("above_tx_power", ["--sensitivity-dbm", "-75"], "were received below it"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_log, case, extra, words):

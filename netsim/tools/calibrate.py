@@ -389,7 +389,6 @@ def calibrate_frames(
             f"{where}: too few frames to fit: {int(seen.sum()):,} received frames from {received_pairs} pairs; "
             f"need at least {MIN_FRAMES} from {MIN_PAIRS} pairs of robots"
         )
-    check_tx_power(frames.power_dbm, tx_power_dbm, where)
     check_sensitivity(frames.power_dbm, sensitivity_dbm, where)
     given = sensitivity_dbm is not None
     s = float(sensitivity_dbm) if given else float(frames.power_dbm[seen].min())
@@ -429,6 +428,8 @@ def calibrate_frames(
         mean = fit.mean_dbm(design)
         clear = seen & (mean - s > cf.CLEAR_SIGMAS * sigma)
         decorrelation = cf.fit_decorrelation(frames.power_dbm - mean, frames.travel_m(), pair, clear, sigma)
+    # Warned only of a log that fits: a refused one is one line, the refusal's.
+    check_tx_power(frames.power_dbm, tx_power_dbm, where)
     return Calibration(
         fit,
         naive,
