@@ -203,6 +203,19 @@ def test_set_with_a_space_for_the_equals_sign_gives_the_meant_form(tmp_path, cap
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("seeds", [["--seed", "3", "--set", "seed=4"], ["--set", "seed = 3", "--seed", "3"]])
+def test_run_refuses_a_seed_given_twice(tmp_path, capsys, monkeypatch, seeds):
+    """`--seed` and `--set seed=` together: one of them would be dropped without a word, so
+    the run is refused on one line, exit 2, nothing written (equal values too: the
+    command line says the seed twice)."""
+    monkeypatch.chdir(tmp_path)
+    code = main(["run", "--quiet", *seeds])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0].startswith("netsim: error: --seed 3 and --set seed") and lines[0].endswith("give the seed once")
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize(
     "flags, message",
     [

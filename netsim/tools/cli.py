@@ -184,6 +184,10 @@ def cmd_run(args) -> int:
     check_set_pairs(args.set, args.config)
     overrides = list(args.set or [])
     if args.seed is not None:
+        # Two seeds on one command line: neither may silently lose.
+        for given in overrides:
+            if given.partition("=")[0].strip() == "seed":
+                raise NetsimInputError(f"--seed {args.seed} and --set {given}: give the seed once")
         overrides.append(f"seed={args.seed}")
     config = cfgmod.load(args.config, overrides)
     check_fits_in_memory(config)
