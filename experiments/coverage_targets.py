@@ -200,6 +200,8 @@ def why(n: int, seed: int, duration_s: float) -> dict:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
+    from netsim.geometry import in_motion
+
     counts = dict.fromkeys(
         ["robot-steps", "moved", "held, rule 3", "held, no travel", "no wish", "let go as silent", "holding links",
          "weak", "down", "shorter detour", "stronger detour only", "no detour", "stronger detour"], 0)  # fmt: skip
@@ -241,8 +243,8 @@ def why(n: int, seed: int, duration_s: float) -> dict:
             holding &= ~self.halves.usable
             # the travel the plan used: a half's, where the robot answered by halves
             travel = np.where(self.halves.usable, self.halves.travel_m, travel)
-        moved = np.hypot(*plan.velocity_mps.T) > 0
-        wish = np.hypot(*step.velocity_mps.T) > 0
+        moved = in_motion(plan.velocity_mps)
+        wish = in_motion(step.velocity_mps)
         no_travel = fade.reach(travel, kept) <= 0
         counts["robot-steps"] += size
         counts["moved"] += int(moved.sum())

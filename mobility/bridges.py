@@ -26,7 +26,7 @@ import numpy as np
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
 
 from netsim.compiled import load
-from netsim.geometry import distances_m
+from netsim.geometry import distances_m, in_motion
 from netsim.groups import in_a_group, leads_itself
 from netsim.topology import geometric_pairs
 
@@ -185,8 +185,7 @@ def plan_follow(pos: np.ndarray, leader: np.ndarray, desired_mps: np.ndarray, li
     move[g.is_leader] = desired_mps[g.is_leader] * limits.period_s
     cap_length(move, limits.reach_m)
     s = leader_step_factors(pos, move, g, br, rigid, limits)
-    wished = np.hypot(*move.T) > 0
-    held = g.is_leader & wished & (s < SAFETY)
+    held = g.is_leader & in_motion(move) & (s < SAFETY)
     move *= s[:, None]
 
     step = np.zeros((n, 2))
@@ -195,6 +194,5 @@ def plan_follow(pos: np.ndarray, leader: np.ndarray, desired_mps: np.ndarray, li
     if len(gw):
         step[gw] = gateway_steps(pos, move, gw, br, limits)
     velocity = step / limits.period_s
-    moving = np.hypot(*velocity.T) > 0
-    commander = np.where(moving & ~g.is_leader, g.group, -1)
+    commander = np.where(in_motion(velocity) & ~g.is_leader, g.group, -1)
     return Plan(velocity, commander, held, br.count)

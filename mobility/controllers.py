@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from netsim.control import ControlStep
-from netsim.geometry import in_box
+from netsim.geometry import in_box, in_motion
 from netsim.params import NoParams
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import geometric_pairs
@@ -25,11 +25,6 @@ from netsim.topology import geometric_pairs
 
 def _min_separation_m(step: ControlStep) -> float:
     return float(step.options.get("min_separation_m", 1.0))
-
-
-def _torus_side_m(step: ControlStep) -> float | None:
-    """The side robots' distances wrap at (None: the plane)."""
-    return step.side_m if step.torus else None
 
 
 def avoid_collisions(params: NoParams, parts: Parts):
@@ -41,10 +36,10 @@ def avoid_collisions(params: NoParams, parts: Parts):
     always safe for connectivity."""
 
     def controller(step: ControlStep) -> None:
-        sep, side = _min_separation_m(step), _torus_side_m(step)
+        sep, side = _min_separation_m(step), step.torus_side_m
         for _ in range(3):  # a robot that holds can stop another: settle in a few passes
             end = in_box(step.positions_m + step.velocity_mps * step.period_s, side, len(step.positions_m))
-            moving = np.hypot(*step.velocity_mps.T) > 0
+            moving = in_motion(step.velocity_mps)
             i, j, _ = geometric_pairs(end, sep, side)
             if len(i) == 0:
                 return
@@ -64,7 +59,7 @@ def log_separation(params: NoParams, parts: Parts):
     def hook(step: ControlStep) -> None:
         from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
 
-        sep, side = _min_separation_m(step), _torus_side_m(step)
+        sep, side = _min_separation_m(step), step.torus_side_m
         # Positions are folded into [0, side) on a torus, as the periodic tree wants them.
         tree = cKDTree(step.positions_m, boxsize=side)
         d, _ = tree.query(step.positions_m, k=2)

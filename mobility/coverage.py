@@ -138,14 +138,14 @@ from netsim.mobility.local import (
     walls_of,
 )
 from netsim.mobility.spread import plan_spread
-from netsim.mobility.steps import Plan, StepLimits, cap_length
+from netsim.mobility.steps import Plan, StepLimits, cap_length, fell_short
 
 from netsim import metrics
 from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
-from netsim.geometry import speeds_mps
+from netsim.geometry import in_motion, speeds_mps
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
@@ -772,8 +772,7 @@ class CoverageController:
         move = short_of_walls(self.occupancy, pos, plan.velocity_mps * limits.period_s, 1.0)
         planned = move.copy()
         move = cut_for_walls(pos, move, knows, kept, t1, limits, walls, self.occupancy)
-        changed = np.hypot(*(move - planned).T) > 1e-9 * limits.range_m
-        held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & changed)
+        held = plan.held | fell_short(planned, move, limits.range_m)
         return plan._replace(velocity_mps=move / limits.period_s, held=held)
 
     def secure(self, step: ControlStep) -> None:
@@ -829,7 +828,7 @@ class CoverageController:
         """On a map: each step ends short of the walls (as the control loop would make it),
         then is cut before the first instant a kept link would be lost (netsim.mobility.keep)."""
         move = plan.velocity_mps * self.limits.period_s
-        moving = np.flatnonzero((move != 0).any(axis=1))
+        moving = np.flatnonzero(in_motion(move))
         if len(moving) == 0:
             return plan
         # A planned step that runs into a wall slides along it instead: the exact cut below
@@ -840,9 +839,9 @@ class CoverageController:
         scale = self.rules.cut_for_walls(pos, move, commanded, links, plan.kept, self.limits.period_s)
         move *= scale[:, None]
         velocity = move / self.limits.period_s
-        now_moving = (velocity != 0).any(axis=1)
-        held = plan.held | ((plan.velocity_mps != 0).any(axis=1) & (scale < 1))
-        return plan._replace(velocity_mps=velocity, commander=np.where(now_moving, plan.commander, -1), held=held)
+        held = plan.held | (in_motion(plan.velocity_mps) & (scale < 1))
+        commander = np.where(in_motion(velocity), plan.commander, -1)
+        return plan._replace(velocity_mps=velocity, commander=commander, held=held)
 
     def _stopping_rule(self, plan: Plan) -> None:
         """Control ends once no robot has moved faster than ``stop_speed_mps`` for ``stop_hold_s``."""

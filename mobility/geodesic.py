@@ -29,7 +29,7 @@ from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
 
 from netsim.compiled import load, map_walker
-from netsim.geometry import cell_centres_m
+from netsim.geometry import cell_centres_m, in_motion
 from netsim.world.free_space import free_fraction, legs_free, nearest_free_cells, short_of_walls
 
 # The side of the grid the distances are computed on, m (at least one map cell): fine
@@ -195,7 +195,7 @@ def slide(occupancy, pos: np.ndarray, wish_mps: np.ndarray, period_s: float, rea
     its component along one axis when that one, cut at the walls too, gets farther along
     the wish (module notes). Other rows are returned as they are."""
     out = wish_mps.copy()
-    rows = np.flatnonzero((wish_mps != 0).any(axis=1))
+    rows = np.flatnonzero(in_motion(wish_mps))
     if len(rows) == 0:
         return out
     p = pos[rows]

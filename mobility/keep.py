@@ -48,7 +48,7 @@ from netsim.mobility._fade_kernels import FADE_SIGMAS as FADE_SIGMAS
 from netsim.mobility.steps import Candidates
 
 from netsim.compiled import load
-from netsim.geometry import distances_m, link_ranges_m, speeds_mps
+from netsim.geometry import distances_m, in_motion, link_ranges_m, speeds_mps
 from netsim.topology import geometric_pairs
 from netsim.trajectory import points_on_legs
 
@@ -257,7 +257,7 @@ class LinkRules:
         i, j = links.i[kept], links.j[kept]
         for round_ in range(CUT_ROUNDS + n + 1):
             v = move * (scale / period_s)[:, None]
-            moving = (v != 0).any(axis=1)
+            moving = in_motion(v)
             # Scenarios: both move; i holds (missed command); j holds.
             rows_k = [np.arange(len(i))] * 3
             hold_a = [np.zeros(len(i), bool), commanded[i] & moving[i], np.zeros(len(i), bool)]

@@ -124,10 +124,10 @@ from typing import NamedTuple
 import numpy as np
 from netsim.mobility.keep import FADE_SIGMAS, fade_travel_m
 from netsim.mobility.spread import add_pulls, project_into
-from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, step_limit
+from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, fell_short, step_limit
 
 from netsim.compiled import filled, load, map_walker
-from netsim.geometry import beyond, distances_m, speeds_mps
+from netsim.geometry import beyond, distances_m, in_motion, speeds_mps
 from netsim.trajectory import points_on_legs
 from netsim.world.free_space import short_of_walls
 from netsim.world.maps import OccupancyMap
@@ -755,7 +755,7 @@ def plan_local(
     cannot[robot[beyond(pos[robot], centre, now_m, n)]] = True
     outside = np.zeros(n, dtype=bool)
     outside[robot[beyond(pos[robot], centre, r, n)]] = True
-    wants = np.hypot(*desired_mps.T) > 0
+    wants = in_motion(desired_mps)
     cannot |= reach <= 0
     movers = np.flatnonzero(~cannot & wants)
     mobile = np.zeros(n, dtype=bool)
@@ -781,8 +781,7 @@ def plan_local(
     s = np.minimum(s, box_limit(pos, move, limits.box))
     s[outside & (s < 1.0)] = 0.0
     move *= s[:, None]
-    wished = np.hypot(*wish.T)
-    held = (cannot & wants) | (mobile & (wished > 0) & (np.hypot(*(move - wish).T) > 1e-9 * limits.range_m))
+    held = (cannot & wants) | (mobile & fell_short(wish, move, limits.range_m))
     both = kept & kept.T
     return Plan(move / limits.period_s, np.full(n, -1), held, int(np.triu(both, 1).sum()))
 
@@ -820,7 +819,7 @@ def cut_for_walls(
         return out
     planned = np.asarray(move, float)
     for other_way in SLIDES:
-        held = ~(out != 0).any(axis=1) & (planned != 0).any(axis=1)
+        held = ~in_motion(out) & in_motion(planned)
         if not held.any():
             break
         step = np.zeros_like(planned)

@@ -35,11 +35,11 @@ links to them are kept from the moving end alone.
 from __future__ import annotations
 
 import numpy as np
-from netsim.mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_length, step_limit
+from netsim.mobility.steps import Candidates, Plan, StepLimits, box_limit, cap_length, fell_short, step_limit
 
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
-from netsim.geometry import distances_m
+from netsim.geometry import distances_m, in_motion
 from netsim.topology import geometric_pairs
 
 # Rounds of cyclic projection onto a robot's disks; the exact cut after them makes any
@@ -226,9 +226,7 @@ def plan_spread(
     s = np.minimum(s, box_limit(pos, move, limits.box))
     move *= s[:, None]
 
-    wished = np.hypot(*wish.T)
-    held = mobile & (wished > 0) & (np.hypot(*(move - wish).T) > 1e-9 * limits.range_m)
+    held = mobile & fell_short(wish, move, limits.range_m)
     velocity = move / limits.period_s
-    moving = np.hypot(*velocity.T) > 0
-    commander = np.where(moving, commander_of, -1)
+    commander = np.where(in_motion(velocity), commander_of, -1)
     return Plan(velocity, commander, held, len(i), kept)

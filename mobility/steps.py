@@ -16,6 +16,7 @@ import numpy as np
 
 from netsim.area import Bounds, as_bounds, exit_times
 from netsim.compiled import filled, load
+from netsim.geometry import in_motion
 
 # Steps are cut a hair short of a constraint's boundary, against rounding.
 SAFETY = 1.0 - 1e-9
@@ -103,6 +104,12 @@ def step_limit(offset: np.ndarray, radius: np.ndarray, move: np.ndarray, n_robot
     kernels = load("netsim._kernels", n_robots, values=k)
     kernels.disk_exits(filled(offset, (k, 2)), filled(radius, k), filled(move, (k, 2)), SAFETY, out)
     return out
+
+
+def fell_short(wish: np.ndarray, move: np.ndarray, range_m: float) -> np.ndarray:
+    """Which robots a plan held: those that wished to move (:func:`in_motion`) and whose
+    step ``move`` ends farther from their ``wish`` than rounding (a billionth of the range)."""
+    return in_motion(wish) & (np.hypot(*(move - wish).T) > 1e-9 * range_m)
 
 
 def box_limit(pos: np.ndarray, move: np.ndarray, area: float | Bounds) -> np.ndarray:

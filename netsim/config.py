@@ -104,6 +104,12 @@ class WorldParams(Params):
         coerce=_map_path,
     )
 
+    @property
+    def torus_side_m(self) -> float | None:
+        """The side of the torus distances are measured on (to the nearest image), None on
+        the plane: the ``side_m`` of :func:`netsim.geometry.distances_m` and its kin."""
+        return self.side_m if self.torus else None
+
     def check(self) -> None:
         bounds = self.bounds_m
         if bounds == "map" and not self.map:

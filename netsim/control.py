@@ -57,8 +57,8 @@ class ControlStep:
     range_m : ``(N,)`` communication ranges.
     side_m : side of the square area.
     torus : whether that square wraps (``world.torus``): distances between robots are
-        then measured to the nearest image (``side_m if step.torus else None`` is the
-        ``side_m`` of :func:`netsim.topology.geometric_pairs`).
+        then measured to the nearest image (:attr:`torus_side_m` is the ``side_m`` of
+        :func:`netsim.topology.geometric_pairs`).
     options : the ``[control.options]`` table.
     bounds : the area robots move in (``world.bounds_m``; default ``[0, side_m]^2``).
     """
@@ -80,6 +80,12 @@ class ControlStep:
     def __post_init__(self) -> None:
         if self.bounds is None:
             self.bounds = Bounds.square(self.side_m)
+
+    @property
+    def torus_side_m(self) -> float | None:
+        """The side of the torus distances are measured on (to the nearest image), None on
+        the plane: the ``side_m`` of :func:`netsim.geometry.distances_m` and its kin."""
+        return self.side_m if self.torus else None
 
     def record(self, table: str, **values: object) -> None:
         """Add a row ``{t_s, **values}`` to output table ``table`` (``<table>.parquet``)."""

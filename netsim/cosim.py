@@ -135,7 +135,7 @@ def velocities(velocities_mps: Any, k: int) -> np.ndarray:
     if not np.isfinite(v).all():
         row = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise CommandError(f"velocities_mps[{row}] = {v[row].tolist()}: must be finite, m/s")
-    fast = ~drivable(np.hypot(v[:, 0], v[:, 1]))
+    fast = ~drivable(v)
     if fast.any():
         row = int(np.flatnonzero(fast)[0])
         raise CommandError(f"velocities_mps[{row}] = {v[row].tolist()}: faster than light ({SPEED_OF_LIGHT_MPS:g} m/s)")

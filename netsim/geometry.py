@@ -159,6 +159,16 @@ def speeds_mps(velocity_mps: np.ndarray) -> np.ndarray:
     return np.abs(v.view(np.complex128)[:, 0])
 
 
+def in_motion(velocity_mps: np.ndarray) -> np.ndarray:
+    """Which rows ``(vx, vy)`` (a velocity, a step or a wish) ask a robot to move at all:
+    those not both zero.
+
+    >>> in_motion(np.array([[0.0, 0.0], [0.0, -1e-300]])).tolist()
+    [False, True]
+    """
+    return (np.asarray(velocity_mps) != 0).any(axis=1)
+
+
 def near_pairs(pos_m: np.ndarray, range_m: float, side_m: float | None) -> np.ndarray:
     """Pairs ``(i, j)``, ``i < j``, of positions within ``range_m`` (periodic on a torus of
     side ``side_m``), as an ``(m, 2)`` array in the grid's fixed order
@@ -194,7 +204,12 @@ def in_box(pos: np.ndarray, box: float | None, n_robots: int | None = None) -> n
 SPEED_OF_LIGHT_MPS = 299_792_458.0
 
 
-def drivable(speed_mps: Any) -> Any:
-    """Whether a robot can be driven at ``speed_mps`` (a float or an array): finite and no
-    faster than light (NaN compares false, so a NaN velocity is not drivable)."""
-    return speed_mps <= SPEED_OF_LIGHT_MPS
+def drivable(velocity_mps: Any) -> np.ndarray:
+    """Whether a robot can be driven at each row ``(vx, vy)`` of ``velocity_mps`` (or at one
+    such pair): its speed (:func:`speeds_mps`) finite and no faster than light (NaN compares
+    false, so a NaN velocity is not drivable).
+
+    >>> drivable([[3.0, 4.0], [float("nan"), 0.0], [0.0, 3e8]]).tolist()
+    [True, False, False]
+    """
+    return speeds_mps(np.asarray(velocity_mps, dtype=float)) <= SPEED_OF_LIGHT_MPS

@@ -19,7 +19,6 @@ leg (and one traversal of the grid per leg on a map).
 
 from __future__ import annotations
 
-import math
 import types
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -116,6 +115,12 @@ class RobotState:
         self._every_robot = np.arange(self.n)
 
     # -- positions -------------------------------------------------------------------
+    @property
+    def torus_side_m(self) -> float | None:
+        """The side of the torus distances are measured on (to the nearest image), None on
+        the plane: the ``side_m`` of :func:`netsim.geometry.distances_m` and its kin."""
+        return self.side_m if self.torus else None
+
     def positions_at(
         self, t: float, idx: int | Sequence[int] | np.ndarray | None = None, fold: bool = True
     ) -> np.ndarray:
@@ -215,7 +220,7 @@ class RobotState:
     def displacement(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vectors from positions ``b`` to ``a``; the shortest image on a torus
         (:func:`netsim.geometry.wrap`)."""
-        return wrap(a - b, self.side_m if self.torus else None, self.n)
+        return wrap(a - b, self.torus_side_m, self.n)
 
     # -- motion ----------------------------------------------------------------------
     def place(self, positions_m: np.ndarray) -> None:
@@ -283,7 +288,7 @@ class RobotState:
             k = len(velocity_mps)
             raise MotionError(f"robot {i} is given a velocity of {k} components at t = {t:.9g} s, not 2")
         vx, vy = float(velocity_mps[0]), float(velocity_mps[1])
-        if not drivable(math.hypot(vx, vy)):
+        if not drivable((vx, vy))[0]:
             raise MotionError(
                 f"robot {i} is given the velocity ({vx:g}, {vy:g}) m/s at t = {t:.9g} s: it must be finite, "
                 "and slower than light"
@@ -309,7 +314,7 @@ class RobotState:
             raise MotionError(f"{n} robots are given velocities of shape {v.shape} at t = {t:.9g} s, not ({n}, 2)")
         if len(idx) == 0:
             return
-        ok = drivable(np.hypot(v[:, 0], v[:, 1]))
+        ok = drivable(v)
         if not ok.all():
             k = int(np.flatnonzero(~ok)[0])
             vx, vy = v[k]

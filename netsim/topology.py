@@ -29,7 +29,7 @@ def reach_lists(state: RobotState, now: float, index: Any = None) -> tuple[np.nd
     if index is not None:
         indptr, indices = index.lists(now)
         return pos, indptr, indices
-    pairs = near_pairs(pos, float(state.range_m.max()), state.side_m if state.torus else None)
+    pairs = near_pairs(pos, float(state.range_m.max()), state.torus_side_m)
     indptr, indices = load("netsim._kernels", state.n).neighbour_lists(pairs, state.n)
     return pos, indptr, indices
 
@@ -135,7 +135,7 @@ def snapshot(
     if groups is not None:
         for i, (code, leader) in enumerate(zip(groups.role.tolist(), groups.leader.tolist())):
             g.nodes[i].update(role=groups.role_names[code], leader=int(leader))
-    side = state.side_m if state.torus else None
+    side = state.torus_side_m
     if links is not None:
         a, b = links.up_pairs()
         dist = distances_m(pos[a], pos[b], side, state.n)

@@ -148,7 +148,7 @@ class Greedy(Router):
         st = self.state
         own = st.positions_at(self.env.now, [holder])[0]
         assert pkt.dst_xy is not None
-        side = st.side_m if st.torus else None
+        side = st.torus_side_m
         nxt = greedy_next_hop(own, np.asarray(pkt.dst_xy), nbrs, self.heard_xy[holder, nbrs], side, st.n)
         return (nxt, "") if nxt >= 0 else (-1, "local_maximum")
 

@@ -126,13 +126,11 @@ def test_live_views_draw_a_link_across_a_torus_seam_from_both_ends():
     from netsim.bridge.look import link_line_list
 
     pos = np.array([[1.0, 50.0], [98.0, 50.0], [50.0, 10.0], [52.0, 10.0]])
-    torus = SimpleNamespace(torus=True, side_m=100.0)
-    points = np.array(link_line_list(pos, [(0, 1), (2, 3)], torus)).reshape(-1, 2, 2)
+    points = np.array(link_line_list(pos, [(0, 1), (2, 3)], 100.0)).reshape(-1, 2, 2)
     assert np.hypot(*(points[:, 1] - points[:, 0]).T).tolist() == [3.0, 2.0, 3.0]
     assert points.tolist() == [[[1, 50], [-2, 50]], [[50, 10], [52, 10]], [[101, 50], [98, 50]]]
-    plane = SimpleNamespace(torus=False, side_m=100.0)
-    assert link_line_list(pos, [(0, 1)], plane) == [(1.0, 50.0), (98.0, 50.0)]
-    assert link_line_list(pos, [], torus) == []
+    assert link_line_list(pos, [(0, 1)], None) == [(1.0, 50.0), (98.0, 50.0)]
+    assert link_line_list(pos, [], 100.0) == []
 
 
 def test_a_live_port_in_use_is_one_line_exit_2_nothing_written(tmp_path):

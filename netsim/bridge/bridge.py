@@ -18,7 +18,6 @@ Robots have no heading: a Twist's ``linear.x`` and ``linear.y`` are the world fr
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -109,7 +108,7 @@ class RosBridge:
             # The latest command holds; one that is not a finite velocity below light speed is
             # dropped (counted), as a robot cannot be driven at it (NaN fails the comparison).
             good = [(float(c.linear.x), float(c.linear.y)) for c in got]
-            good = [v for v in good if drivable(math.hypot(*v))]
+            good = [v for v in good if drivable(v)[0]]
             self.refused += len(got) - len(good)
             if good:
                 robots.append(i)
@@ -167,6 +166,6 @@ class RosBridge:
         links.color = colour(r=r, g=g, b=b, a=a)
         if self.topology is not None:
             pairs = [(int(a), int(b)) for a, b in self.topology.graph.edges]
-            links.points = [point(x=x, y=y, z=0.0) for x, y in link_line_list(pos, pairs, self.sim.state)]
+            links.points = [point(x=x, y=y, z=0.0) for x, y in link_line_list(pos, pairs, self.sim.state.torus_side_m)]
         out = self._types[MARKERS](markers=[robots, links])
         return out

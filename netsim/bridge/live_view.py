@@ -169,7 +169,7 @@ class LiveView:
             )
             for (x, y), c in zip(pos.tolist(), rgba, strict=True)
         ]
-        points = [Point3(x=x, y=y, z=0.0) for x, y in link_line_list(pos, sorted(self.up), sim.state)]
+        points = [Point3(x=x, y=y, z=0.0) for x, y in link_line_list(pos, sorted(self.up), sim.state.torus_side_m)]
         lines = [
             LinePrimitive(
                 type=LinePrimitiveLineType.LineList,

@@ -32,13 +32,14 @@ def robot_diameter_m(bounds: Bounds) -> float:
     return max(bounds.width, bounds.height) / 100.0
 
 
-def link_line_list(pos_m: np.ndarray, pairs: list[tuple[int, int]], state: Any) -> list[tuple[float, float]]:
+def link_line_list(pos_m: np.ndarray, pairs: list[tuple[int, int]], side_m: float | None) -> list[tuple[float, float]]:
     """The points of the links ``pairs`` of robots at ``pos_m`` as a line list (two points
-    a segment): on a torus (``state.torus``) a link across the border is drawn from both
-    ends toward it (:func:`netsim.geometry.link_segments_m`), not across the area. The
-    viewers do not clip: each half runs past the border by the rest of the link."""
+    a segment): on a torus of side ``side_m`` (None: the plane) a link across the border is
+    drawn from both ends toward it (:func:`netsim.geometry.link_segments_m`), not across
+    the area. The viewers do not clip: each half runs past the border by the rest of the
+    link."""
     if not pairs:
         return []
     a, b = np.array(pairs, np.int64).T
-    segments = link_segments_m(pos_m[a], pos_m[b], state.side_m if state.torus else None)
+    segments = link_segments_m(pos_m[a], pos_m[b], side_m)
     return [(float(x), float(y)) for x, y in segments.reshape(-1, 2).tolist()]

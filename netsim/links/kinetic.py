@@ -79,7 +79,7 @@ class RuntimeLinks:
         self.ranges = state.range_m if range_m is None else np.asarray(range_m, float)
         self.r_min = float(self.ranges.min()) if state.n else 0.0
         self.r_max = float(self.ranges.max()) if state.n else 0.0
-        self.box = float(state.side_m) if state.torus else None
+        self.box = state.torus_side_m
         # Links up now: key a n + b -> since when.
         self.up: dict[int, float] = {}
         self.started = False

@@ -74,7 +74,7 @@ def linked(
     the nearest image."""
     chain = reception.compiled
     st = reception.state
-    d = distances_m(pa, pb, st.side_m if st.torus else None, st.n)
+    d = distances_m(pa, pb, st.torus_side_m, st.n)
     n = st.n
     up = chain.receivable(Pairs(a, b, pa, pb, d, None, n))
     if not equal_ranges:

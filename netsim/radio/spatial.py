@@ -50,7 +50,7 @@ class RangeIndex:
     def _build(self, t: float) -> None:
         st = self.state
         pos = st.positions_at(t)
-        pairs = near_pairs(pos, self.reach_m + 2 * self.slack_m, st.side_m if st.torus else None)
+        pairs = near_pairs(pos, self.reach_m + 2 * self.slack_m, st.torus_side_m)
         self._indptr, self._indices = self.kernels.neighbour_lists(pairs, st.n)
         # The same offsets as Python ints: read once per query, cheaper than numpy scalars.
         self._bounds = self._indptr.tolist()

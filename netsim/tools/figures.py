@@ -156,7 +156,7 @@ def run_colours(run: Run) -> dict[int, str]:
     labels = config.protocol.plugin.role_labels
     if labels is None:
         return {}
-    side = config.world.side_m if config.world.torus else None
+    side = config.world.torus_side_m
     slots = style.run_group_slots(run.roles, run.positions, labels.leader, float(min(config.ranges_m())), side)
     return {leader: style.GROUP_PALETTE[s] for leader, s in slots.items()}
 
@@ -292,7 +292,7 @@ def draw_paths(ax, run: Run, t0: float, t1: float, end: Snapshot, colours: dict[
     p = run.positions[(run.positions["t_s"] >= t0 - 1e-9) & (run.positions["t_s"] <= t1 + 1e-9)]
     p = p.sort_values(["robot", "t_s"])
     n = run.config.world.n_robots
-    side = run.config.world.side_m if run.config.world.torus else None
+    side = run.config.world.torus_side_m
     xy = p[["x_m", "y_m"]].to_numpy().reshape(n, -1, 2)
     group_of = np.where(end.role == "alpha", np.arange(n), end.leader)
     colour = [_colour(colours, g) for g in group_of]
@@ -384,7 +384,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     config = run.config
     n, area = config.world.n_robots, world_bounds(config.world)
     whole = ((area.x_min, area.x_max), (area.y_min, area.y_max))
-    torus_side_m = config.world.side_m if config.world.torus else None
+    torus_side_m = config.world.torus_side_m
     range_m = float(min(config.ranges_m()))
     occupancy = run_map(config)
     # Keys of the run's models, where they have them.

@@ -37,7 +37,7 @@ import numpy as np
 
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
-from netsim.geometry import cell_centres_m, inside_margin_m
+from netsim.geometry import cell_centres_m, in_motion, inside_margin_m
 from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, kernels_for, line_of_sight
 from netsim.world.maps import MAP_KEY, OccupancyMap, grid_coords
 
@@ -240,7 +240,7 @@ def short_of_walls(m: OccupancyMap, starts_m: np.ndarray, velocity_mps: np.ndarr
     just short of the first cell that is not free (:func:`free_fraction`), in place; rows
     of zero velocity are not traced. What a robot can carry out on a map: the control loop
     makes every step so, and the plans plan with it."""
-    moving = np.flatnonzero((velocity_mps != 0).any(axis=1))
+    moving = np.flatnonzero(in_motion(velocity_mps))
     if len(moving):
         here = starts_m[moving]
         velocity_mps[moving] *= free_fraction(m, here, here + velocity_mps[moving] * period_s)[:, None]

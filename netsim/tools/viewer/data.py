@@ -193,7 +193,7 @@ def _motion(run_dir: Path, n: int, blob: Blob) -> str:
 
 
 def _torus_side(config: cfgmod.Config) -> float | None:
-    return config.world.side_m if config.world.torus else None
+    return config.world.torus_side_m
 
 
 def _colouring_positions(run_dir: Path, config: cfgmod.Config) -> pd.DataFrame:
