@@ -200,7 +200,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
-    from netsim.geometry import in_motion
+    from netsim.geometry import distances_m, in_motion
 
     counts = dict.fromkeys(
         ["robot-steps", "moved", "held, rule 3", "held, no travel", "no wish", "let go as silent", "holding links",
@@ -229,7 +229,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         _, travel = fade.limits(knows, t0, t0 + limits.period_s, speed)
         kept = self.kept
         links = self.rules.candidates(pos, t0)
-        length = np.hypot(*(pos[links.i] - pos[links.j]).T)
+        length = distances_m(pos[links.i], pos[links.j])
         size = len(pos)
         shorter = bottleneck(size, links.i, links.j, length + 1e-9)
         stronger = bottleneck(size, links.i, links.j, links.weight)
@@ -237,7 +237,7 @@ def why(n: int, seed: int, duration_s: float) -> dict:
         own_len[links.i, links.j] = own_len[links.j, links.i] = length
         own_w = np.full((size, size), np.inf)
         own_w[links.i, links.j] = own_w[links.j, links.i] = links.weight
-        dist = np.hypot(*(pos[:, None, :] - knows.xy).transpose(2, 0, 1))
+        dist = distances_m(np.repeat(pos, size, axis=0), knows.xy.reshape(-1, 2)).reshape(size, size)
         holding = kept & (dist > leash_radius(knows, t0, limits))
         if self.halves is not None:
             holding &= ~self.halves.usable
@@ -301,6 +301,7 @@ def oracle_let_go(controller, order: str, over: str):
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
     from netsim.compiled import load
+    from netsim.geometry import distances_m
 
     def rule_1_order(pos, links, records_db):
         # Rule 1's own kernel gives the bands, so the oracle orders exactly as rule 1 would
@@ -310,7 +311,7 @@ def oracle_let_go(controller, order: str, over: str):
         fade, band_m = controller.fade.rule, controller.cfg.band_m
         nominal_m = kernels.range_at_loss_m(0.0, 0.0, fade.budget_db, fade.reference_distance_m, fade.exponent)
         lo, hi = np.minimum(links.i, links.j), np.maximum(links.i, links.j)
-        length = np.hypot(*(pos[links.i] - pos[links.j]).T)
+        length = distances_m(pos[links.i], pos[links.j])
         band = [kernels.link_band(d, records_db[a, b], band_m, fade, nominal_m) for d, a, b in zip(length, lo, hi)]
         return np.array(band, dtype=float) + (lo * n + hi + 1) / (n * n + 1)
 
@@ -318,7 +319,7 @@ def oracle_let_go(controller, order: str, over: str):
         n = len(pos)
         links = controller.rules.candidates(pos, t0_s)
         if order == "length":
-            key = np.hypot(*(pos[links.i] - pos[links.j]).T)
+            key = distances_m(pos[links.i], pos[links.j])
         elif order == "records":
             key = rule_1_order(pos, links, heard.records_db)
         else:
