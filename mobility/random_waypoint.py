@@ -25,6 +25,7 @@ from netsim.mobility.speeds import SpeedParams
 
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
+from netsim.geometry import distances_m
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.params import param
 from netsim.placement import initial_positions
@@ -160,7 +161,7 @@ def stationary_start(
         batch = max(2 * need, 16)
         p1 = b.uniform(rng, batch)
         p2 = b.uniform(rng, batch)
-        accept = rng.random(batch) * diagonal < np.hypot(*(p2 - p1).T)
+        accept = rng.random(batch) * diagonal < distances_m(p1, p2, None, n)
         starts.append(p1[accept][:need])
         ends.append(p2[accept][:need])
         need -= int(min(accept.sum(), need))

@@ -34,6 +34,7 @@ from netsim.mobility.speeds import SpeedParams
 from netsim.area import Bounds
 from netsim.config import world_bounds
 from netsim.errors import ConfigError
+from netsim.geometry import distances_m
 from netsim.params import finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.state import RobotState
@@ -153,7 +154,7 @@ def group_process(
             for i in members.tolist():
                 st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
             return  # a speed of exactly zero: the group never arrives
-        travel_s = float(np.hypot(*(dest - ref))) / speed
+        travel_s = float(distances_m(ref, dest, None, st.n)[0]) / speed
         offsets = np.array(
             [member_offset(rng, m, offsets[k], dest - ref, travel_s) for k, rng in enumerate(member_rngs)]
         )

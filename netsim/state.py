@@ -30,7 +30,7 @@ from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.errors import NetsimInputError
 from netsim.events import CourseChange, EventBus
-from netsim.geometry import drivable, speeds_mps, wrap
+from netsim.geometry import distances_m, drivable, speeds_mps, wrap
 
 # Why a leg starts (the ``cause`` column of legs.parquet): the initial placement, a
 # waypoint (or a trace's destination) reached, the end of a pause, the border reached
@@ -355,8 +355,9 @@ class RobotState:
         case the robot stops).
         """
         here = self.positions_at(t, i, fold=False)
-        delta = np.asarray(dest_m, dtype=float) - here
-        dist = float(np.hypot(delta[0], delta[1]))
+        dest = np.asarray(dest_m, dtype=float)
+        delta = dest - here
+        dist = float(distances_m(here, dest, None, self.n)[0])
         if dist == 0.0 or speed_mps <= 0.0:
             self.set_leg(i, t, (0.0, 0.0), cause=cause)
             return 0.0

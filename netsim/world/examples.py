@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from netsim.geometry import cell_centres_m
+from netsim.geometry import cell_centres_m, distances_m
 from netsim.world.maps import save_map
 
 RESOLUTION_M = 0.25
@@ -94,7 +94,7 @@ def _polyline(points, step_m=0.25):
     pts = np.asarray(points, dtype=float)
     out = []
     for a, b in zip(pts[:-1], pts[1:]):
-        k = max(int(np.ceil(np.hypot(*(b - a)) / step_m)), 1)
+        k = max(int(np.ceil(distances_m(a, b)[0] / step_m)), 1)
         out.append(a + (b - a) * (np.arange(k) / k)[:, None])
     out.append(pts[-1:])
     return np.concatenate(out)

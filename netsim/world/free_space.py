@@ -37,7 +37,7 @@ import numpy as np
 
 from netsim.area import Bounds, as_bounds
 from netsim.errors import ConfigError
-from netsim.geometry import cell_centres_m, in_motion, inside_margin_m
+from netsim.geometry import cell_centres_m, distances_m, in_motion, inside_margin_m
 from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, kernels_for, line_of_sight
 from netsim.world.maps import MAP_KEY, OccupancyMap, grid_coords
 
@@ -254,7 +254,7 @@ def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6) -> np.n
     s = np.asarray(starts, dtype=float).reshape(-1, 2)
     e = np.asarray(ends, dtype=float).reshape(-1, 2)
     t = first_blocked(m, s, e, blocked=m.not_free)
-    length = np.hypot(*(e - s).T)
+    length = distances_m(s, e)
     f = np.where(np.isinf(t), 1.0, np.maximum(t - margin_m / np.maximum(length, 1e-300), 0.0))
     for _ in range(60):
         stop = s + f[:, None] * (e - s)
@@ -358,7 +358,7 @@ def nearest_free_cells(free, origin_m, cell_m: float, points_m, radius_cells: in
             inside = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
             ok = inside.copy()
             ok[inside] = free[cy[inside], cx[inside]]
-            d = np.hypot(centres_x[:, dx + r] - p[:, 0], centres_y[:, dy + r] - p[:, 1])
+            d = distances_m(np.column_stack([centres_x[:, dx + r], centres_y[:, dy + r]]), p)
             better = ok & (d < best)
             best[better] = d[better]
             out_x[better], out_y[better] = cx[better], cy[better]
