@@ -108,11 +108,16 @@ class LegTable:
     def ends(self, duration_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each leg's end, in the table's order: its time (:meth:`end_times`), where the leg
         puts its robot then, and whether the robot's next leg, by ``duration_s``, starts
-        elsewhere (a jump; never on a robot's last leg)."""
+        elsewhere (a jump; never on a robot's last leg). Where the next leg follows by then
+        without a jump, the end is that leg's start as logged (a waypoint, a wall the robot
+        turned at), not the leg's motion recomputed to that instant."""
         last, nxt = self._next()
         t_end = self.end_times(duration_s)
         xy = self.at(np.arange(len(self.t)), t_end)
-        jump = ~last & (self.t[nxt] <= duration_s) & self.jumps()[nxt]
+        follows = ~last & (self.t[nxt] <= duration_s)
+        jump = follows & self.jumps()[nxt]
+        joined = follows & ~jump
+        xy[joined] = self.p[nxt[joined]]
         return t_end, xy, jump
 
     def end_times(self, duration_s: float) -> np.ndarray:

@@ -168,6 +168,32 @@ def test_export_of_a_torus_run_stays_in_the_square_and_replays_on_the_torus(tmp_
     assert len(links) > 5 and np.allclose(frames["links"][cols].to_numpy(float), links[cols].to_numpy(float), atol=1e-6)
 
 
+@pytest.mark.parametrize("torus", [False, True])
+def test_ns2_export_heads_for_no_destination_on_the_border_as_ns2_refuses_it(tmp_path, torus):
+    """ns-2's ``set_destination`` refuses a destination with x <= 0, x >= X (and so on y):
+    robots that turn at a wall (random direction) or wrap (a torus) end legs on the border,
+    and each such ``setdest`` is written just inside it, never on or past it (a leg's end
+    recomputed from its motion fell 1.4e-14 m outside). The file still replays the run."""
+    from netsim.trajectory import sample_positions
+
+    sets = ["world.n_robots=3", "duration_s=60", "world.side_m=200", "channel.range_m=60", "protocol.model=none"]
+    sets += ["mobility.model=random_direction", "mobility.speed_max_mps=10", *(["world.torus=true"] if torus else [])]
+    run, out = tmp_path / "run", tmp_path / "run.tcl"
+    assert main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(run)]) == 0
+    assert main(["export", str(run), "--format", "ns2", "--out", str(out)]) == 0
+    dest = np.array(re.findall(r"setdest ([-+\d.e]+) ([-+\d.e]+)", out.read_text()), float)
+    assert len(dest) > 5 and (dest > 0).all() and (dest < 200).all()
+    legs = pd.read_parquet(run / "legs.parquet")
+    p = legs[["x_m", "y_m"]].to_numpy()
+    assert torus or ((p == 0) | (p == 200)).any()  # the run did turn on a border
+    _config, frames = _run([*sets, "mobility.model=trace", f"mobility.trace_file={out}"])
+    times = np.linspace(0.0, 59.99, 301)
+    want = sample_positions(legs, 3, times, 200.0, torus)[["x_m", "y_m"]].to_numpy()
+    got = sample_positions(frames["legs"], 3, times, 200.0, torus)[["x_m", "y_m"]].to_numpy()
+    off = np.abs(want - got)
+    assert np.minimum(off, 200.0 - off).max() < 1e-6
+
+
 @pytest.mark.parametrize("velocity", [(-1.0, -1.0), (2.0, 2.0), (-1.0, 2.0), (3.0, -7.0), (0.0, -4.0)])
 def test_torus_legs_folded_at_corners_and_borders_stay_in_the_square(velocity):
     """Legs cut at each border they reach, corners included (both axes at one instant, either

@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from netsim.area import Bounds, as_bounds
 from netsim.errors import NetsimInputError, listed, not_a_file
 from netsim.geometry import speeds_mps
 from netsim.trajectory import LegTable
@@ -425,11 +426,26 @@ def _ns3_events(scheduled: list, heading: dict[int, _Heading], now: np.ndarray) 
     return events
 
 
-def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float, header: str = "") -> None:
+# How far inside the area a destination on its border is written: ns-2 refuses the border
+# itself, and a subnormal float (the least one inside) is one that some readers refuse.
+BORDER_GAP_M = 1e-9
+
+
+def write(
+    path: str | Path,
+    legs: pd.DataFrame,
+    n_robots: int,
+    duration_s: float,
+    header: str = "",
+    area: float | Bounds | None = None,
+) -> None:
     """Write legs (as :meth:`RobotState.legs` gives) as an ns-2 movement file.
 
     Each moving leg becomes a ``setdest`` toward where the leg ends (the start of the
-    robot's next leg, or its position at ``duration_s``). A leg that starts elsewhere than
+    robot's next leg, or its position at ``duration_s``). ns-2 refuses a destination on
+    its area's border or beyond (``MobileNode::set_destination``): with ``area`` (the
+    run's), a destination on a border (a robot that turned at a wall) is written
+    :data:`BORDER_GAP_M` inside it. A leg that starts elsewhere than
     where the robot's previous leg put it (a jump) starts with a scheduled ``set X_`` and
     ``set Y_``, which ns-2, and this reader by default, take as a jump at that instant
     (``semantics = "ns3"`` does not: ns-3 places the node when it reads the file). Numbers
@@ -445,6 +461,10 @@ def write(path: str | Path, legs: pd.DataFrame, n_robots: int, duration_s: float
     events: list[tuple[float, int, int, str]] = []
     speeds = speeds_mps(table.v)
     _, ends, jump = table.ends(duration_s)
+    if area is not None:
+        b = as_bounds(area)
+        inside = np.maximum(BORDER_GAP_M, 4 * np.spacing(np.abs(np.r_[b.lo, b.hi]).max()))
+        ends = np.clip(ends, b.lo + inside, b.hi - inside)
     for k in range(len(t)):
         tk, rk = float(t[k]), int(robot[k])
         if tk >= duration_s:

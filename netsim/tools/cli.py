@@ -309,7 +309,7 @@ def cmd_scenario_generate(args) -> int:
     )
     tmp = out.with_name(f".{out.name}.tmp")
     try:
-        ns2.write(tmp, sim.state.legs(), config.world.n_robots, config.duration_s, header)
+        ns2.write(tmp, sim.state.legs(), config.world.n_robots, config.duration_s, header, config.world.side_m)
         tmp.replace(out)
     finally:
         tmp.unlink(missing_ok=True)

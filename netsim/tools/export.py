@@ -108,7 +108,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     tmp = Path(name)
     try:
         if fmt == "ns2":
-            ns2.write(tmp, legs, n, duration, f"netsim export of {run_dir}")
+            ns2.write(tmp, legs, n, duration, f"netsim export of {run_dir}", area)
         else:
             from netsim.formats import bonnmotion
 
