@@ -75,15 +75,24 @@ class FlowTraffic:
         self.max_frame_bytes = traffic.max_frame_bytes
         self.env, self.send = env, send
         self.frame_bytes = frame_bytes
+        # The channel's kinds of the frames sent (frame_kind of each size).
+        self.kinds: set[str] = set()
         # One entry per packet, in order of sending: its row (a dict of PACKETS_SCHEMA).
         self._packets: list[dict] = []
+
+    def _sizes(self, nbytes: int) -> list[int]:
+        """The frames' sizes of a packet of ``nbytes``, each size's kind made known to the
+        channel (a medium's airtime follows it) and kept in :attr:`kinds`."""
+        sizes = fragment_bytes(nbytes, self.max_frame_bytes)
+        for size in set(sizes):
+            self.frame_bytes[frame_kind(size)] = size
+            self.kinds.add(frame_kind(size))
+        return sizes
 
     def start(self, end_s: float) -> None:
         """Start every flow's packets, up to the run's end ``end_s``."""
         for k, flow in enumerate(self.flows):
-            sizes = fragment_bytes(flow.packet_bytes, self.max_frame_bytes)
-            for nbytes in set(sizes):
-                self.frame_bytes[frame_kind(nbytes)] = nbytes
+            sizes = self._sizes(flow.packet_bytes)
             times = send_times(flow, end_s)
             if times:
                 self.env.process(self._source(k, flow, times, sizes))
@@ -95,9 +104,7 @@ class FlowTraffic:
         :data:`PAIRS_FLOW`. A team of one robot sends nothing (and draws nothing)."""
         if n < 2:
             return
-        sizes = fragment_bytes(message_bytes, self.max_frame_bytes)
-        for nbytes in set(sizes):
-            self.frame_bytes[frame_kind(nbytes)] = nbytes
+        sizes = self._sizes(message_bytes)
         self.env.process(self._pairs(n, rate_hz, message_bytes, sizes, rng))
 
     def _pairs(self, n: int, rate_hz: float, message_bytes: int, sizes: list[int], rng: np.random.Generator):

@@ -398,7 +398,9 @@ class Stack(AckTiming):
             samples = len(self._groups)
             out["gateways_mean"] = gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy(), samples)
         acks = self.channel.counters_for("ack").sent.sum()
-        data = self.channel.counters_for("data").sent.sum()
+        # Every frame a robot relays: the random pairs' messages and the flows' frames.
+        kinds = ["data", *sorted(self.flows.kinds if self.flows is not None else ())]
+        data = sum(self.channel.counters_for(kind).sent.sum() for kind in kinds)
         out["acks_per_robot_per_s"] = float(acks / (n * duration_s)) if duration_s else math.nan
         out.update(self.beacon.summary(frames, duration_s))
         out["relays_per_robot_per_s"] = float(data / (n * duration_s)) if duration_s else math.nan

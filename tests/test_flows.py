@@ -84,6 +84,33 @@ def test_flow_on_a_static_line_is_delivered_over_its_hops(tmp_path, routing):
     ]
 
 
+@pytest.mark.parametrize("routing", ["oracle", "backbone"])
+def test_relays_per_robot_per_s_counts_the_flows_frames(tmp_path, routing):
+    """The summary's relays_per_robot_per_s counts every frame relayed, the flows' as the
+    random pairs' messages: 10 packets of 4000 bytes (3 frames each) over the 4 hops of a
+    static line, 120 transmissions, are 1.2 a robot a second over 20 s (it said 0)."""
+    from netsim.run import summarize
+
+    flow = {**FLOW, "start_s": 2.0, "stop_s": 12.0, "rate_bps": 32000.0, "packet_bytes": 4000}
+    config = make_config(
+        seed=2,
+        duration_s=20.0,
+        world={"n_robots": 5, "side_m": 1000.0, "placement": _line_csv(tmp_path, 5, 100.0)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"message_rate_hz": 0.0, "routing": routing},
+        traffic={"flows": [flow]},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    relays = summarize(sim, frames, 0.0)["relays_per_robot_per_s"]
+    assert relays == pytest.approx(frames["messages"]["transmissions"].sum() / (5 * 20.0))
+    if routing == "oracle":
+        assert relays == pytest.approx(1.2)
+
+
 def test_packet_is_delivered_only_whole(tmp_path):
     """A packet split into frames counts as delivered only if every frame arrives: with a
     lossy channel, a packet some of whose frames arrived and others not is not delivered,
