@@ -286,13 +286,19 @@ class Aodv(Router):
         return p.hello and heard is not None and now - heard > p.allowed_hello_loss * p.hello_interval_s
 
     # -- data -------------------------------------------------------------------------
+    def _route(self, i: int, dst: int, now: float) -> Route | None:
+        """``i``'s active route to ``dst``, None where there is none or where its next hop
+        was lost by missed hellos (the link is then broken: section 6.11)."""
+        r = self.tables[i].active(dst, now)
+        if r is not None and self._neighbour_lost(i, r.next_hop, now):
+            self._link_broken(i, r.next_hop)
+            return None
+        return r
+
     def next_hop(self, holder: int, pkt: Packet) -> tuple[int, str]:
         now, p = self.env.now, self.params
         table = self.tables[holder]
-        r = table.active(pkt.dst, now)
-        if r is not None and self._neighbour_lost(holder, r.next_hop, now):
-            self._link_broken(holder, r.next_hop)
-            r = None
+        r = self._route(holder, pkt.dst, now)
         if r is None:
             if holder != pkt.src:
                 # Section 6.11 (ii): data for a destination with no active route.
@@ -312,9 +318,7 @@ class Aodv(Router):
         return r.seq if r is not None else 0
 
     def originate(self, src: int, pkt: Packet) -> None:
-        now = self.env.now
-        r = self.tables[src].active(pkt.dst, now)
-        if r is not None and not self._neighbour_lost(src, r.next_hop, now):
+        if self._route(src, pkt.dst, self.env.now) is not None:
             self.forward(src, pkt)
             return
         d = self.discoveries[src].get(pkt.dst)

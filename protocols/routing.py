@@ -62,6 +62,7 @@ class Packet(NamedTuple):
     kind: str  # the channel's kind of its frame (its size)
     t_sent_s: float
     dst_xy: tuple[float, float] | None = None  # where the destination was (geographic routing)
+    to: int = -1  # the next hop it was last sent to
 
 
 class Router:
@@ -144,14 +145,15 @@ class Router:
             self.dropped(pkt, holder, cause)
             return
         self.data_transmissions += 1
+        pkt = pkt._replace(to=nxt)
         if not self.channel.unicast(holder, nxt, pkt, self._on_data, kind=pkt.kind):
             self.link_failed(holder, nxt, pkt)
             self.dropped(pkt, holder, "lost")
 
     def _on_data(self, sender: int, receivers: np.ndarray, pkt: Packet) -> None:
         if not len(receivers):
-            # A shared medium: the frame did not get through.
-            self.link_failed(sender, -1, pkt)
+            # A shared medium: the frame did not get through to its next hop.
+            self.link_failed(sender, pkt.to, pkt)
             self.dropped(pkt, sender, "lost")
             return
         holder = int(receivers[0])

@@ -121,11 +121,14 @@ $ns_ at 15.0 "$node_(2) setdest 250.0 900.0 50.0"
 """
 
 
-def test_route_error_reaches_the_source_when_a_link_of_its_route_breaks(tmp_path):
+@pytest.mark.parametrize("channel, hello", [({}, {}), ({"mac": "csma"}, {"hello": False})])
+def test_route_error_reaches_the_source_when_a_link_of_its_route_breaks(tmp_path, channel, hello):
     """Robot 2 of the line 0-1-2-3 walks away while 0 sends to 3: robot 1 finds the link
     broken when a packet does not get through (link-layer detection), drops that packet
     there, invalidates its routes through 2 and sends a RERR to its precursor 0, whose
-    route to 3 becomes invalid too; later packets wait for a new route."""
+    route to 3 becomes invalid too; later packets wait for a new route. On a shared medium
+    without hellos the unicast that fails after its retries is what says so (it was lost to
+    the router, which then lost every later packet on the dead route)."""
     trace = tmp_path / "break.ns2"
     trace.write_text(BREAK)
     config = make_config(
@@ -133,8 +136,8 @@ def test_route_error_reaches_the_source_when_a_link_of_its_route_breaks(tmp_path
         duration_s=30.0,
         world={"n_robots": 4, "side_m": 1000.0},
         mobility={"model": "trace", "trace_file": str(trace)},
-        channel={"range_m": 120.0},
-        protocol={"model": "aodv"},
+        channel={"range_m": 120.0, **channel},
+        protocol={"model": "aodv", **hello},
         traffic={
             "flows": [{"src": 0, "dst": 3, "start_s": 10.0, "stop_s": 25.0, "rate_bps": 8000.0, "packet_bytes": 1000}]
         },
@@ -152,3 +155,43 @@ def test_route_error_reaches_the_source_when_a_link_of_its_route_breaks(tmp_path
     assert len(lost) == 1 and lost["drop_robot"].iloc[0] == 1
     assert packets[packets["t_sent_s"] < 15.0]["delivered"].all()
     assert (packets[packets["t_sent_s"] > lost["t_sent_s"].iloc[0]]["drop_cause"] == "in_flight").all()
+
+
+DIAMOND = """$node_(0) set X_ 100.0
+$node_(0) set Y_ 500.0
+$node_(1) set X_ 200.0
+$node_(1) set Y_ 550.0
+$node_(2) set X_ 200.0
+$node_(2) set Y_ 900.0
+$node_(3) set X_ 300.0
+$node_(3) set Y_ 500.0
+$ns_ at 2.5 "$node_(2) setdest 200.0 450.0 1000.0"
+$ns_ at 4.6 "$node_(1) setdest 200.0 950.0 1000.0"
+"""
+
+
+def test_a_source_whose_next_hop_missed_its_hellos_breaks_the_link_before_it_rediscovers(tmp_path):
+    """Source 0 reaches 3 through 1; 2 joins as another relay, then 1 walks away. Its
+    hellos stop, so 0's next packet starts a route discovery: 0 must first break the link
+    to 1 (section 6.11: its route becomes invalid, its sequence number increased), or the
+    reply through 2, as fresh and as short, cannot replace the stale route, and the packet
+    that waited for it follows that route into the void (it was dropped no_route at 0)."""
+    trace = tmp_path / "diamond.ns2"
+    trace.write_text(DIAMOND)
+    config = make_config(
+        seed=1,
+        duration_s=14.0,
+        world={"n_robots": 4, "side_m": 1000.0},
+        mobility={"model": "trace", "trace_file": str(trace)},
+        channel={"range_m": 150.0},
+        protocol={"model": "aodv"},
+        traffic={
+            "flows": [{"src": 0, "dst": 3, "start_s": 2.0, "stop_s": 13.0, "rate_bps": 1600, "packet_bytes": 500}]
+        },
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    packets = collect(sim)["packets"]
+    assert len(packets) == 5 and packets["delivered"].all(), packets[["t_sent_s", "delivered", "drop_cause"]]
+    assert sim.models["protocol"].tables[0].routes[3].next_hop == 2

@@ -135,3 +135,44 @@ def test_cli_greedy_parameter_out_of_range_exits_2(tmp_path, capsys):
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and lines[0].startswith("netsim: error: protocol.hop_limit = 0")
     assert not out.exists()
+
+
+LEAVES = """$node_(0) set X_ 100.0
+$node_(0) set Y_ 500.0
+$node_(1) set X_ 200.0
+$node_(1) set Y_ 500.0
+$node_(2) set X_ 300.0
+$node_(2) set Y_ 500.0
+$node_(3) set X_ 400.0
+$node_(3) set Y_ 500.0
+$node_(4) set X_ 500.0
+$node_(4) set Y_ 500.0
+$ns_ at 8.0 "$node_(4) setdest 900.0 500.0 100.0"
+"""
+
+
+@pytest.mark.parametrize("mac", ["none", "csma"])
+def test_a_unicast_that_does_not_get_through_forgets_its_neighbour_at_once(tmp_path, mac):
+    """The destination of the line 0-1-2-3-4 walks away at 8 s. The packet robot 3 sends it
+    then does not get through, and 3 forgets 4 at once: that one packet is lost, the later
+    ones end at 3 as a local maximum. On a shared medium the unicast that fails after its
+    retries says so too (3 kept sending to 4 until its timeout: 10 packets lost)."""
+    trace = tmp_path / "leaves.ns2"
+    trace.write_text(LEAVES)
+    config = make_config(
+        seed=1,
+        duration_s=20.0,
+        world={"n_robots": 5, "side_m": 1000.0},
+        mobility={"model": "trace", "trace_file": str(trace)},
+        channel={"range_m": 150.0, "mac": mac},
+        protocol={"model": "greedy"},
+        traffic={
+            "flows": [{"src": 0, "dst": 4, "start_s": 2.0, "stop_s": 12.0, "rate_bps": 16000, "packet_bytes": 500}]
+        },
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    packets = collect(sim)["packets"]
+    causes = packets.loc[~packets["delivered"], "drop_cause"].value_counts().to_dict()
+    assert causes == {"local_maximum": 13, "lost": 1}, causes
