@@ -53,7 +53,9 @@ class AodvParams(RoutingParams):
     ttl_increment: int = param(2, ttl_field, "TTL_INCREMENT: added to the TTL of each new ring")
     ttl_threshold: int = param(7, ttl_field, "TTL_THRESHOLD: past it, the RREQ's TTL is NET_DIAMETER")
     timeout_buffer: int = param(2, non_negative, "TIMEOUT_BUFFER of RING_TRAVERSAL_TIME, hops")
-    queue_packets: int = param(64, positive, "packets buffered per robot while a route is sought")
+    queue_packets: int = param(
+        64, positive, "packets buffered per robot while a route is sought (each frame of a flow's packet one)"
+    )
     jitter_s: float = param(0.01, non_negative, "forwarded broadcasts wait U(0, jitter), s (RFC 5148)")
 
     def check(self) -> None:
@@ -321,14 +323,17 @@ class Aodv(Router):
         if self._route(src, pkt.dst, self.env.now) is not None:
             self.forward(src, pkt)
             return
+        # One buffer a robot, whatever the destinations its packets wait for.
+        buffered = sum(len(d.waiting) for d in self.discoveries[src].values())
         d = self.discoveries[src].get(pkt.dst)
-        if d is None:
-            known = self.tables[src].routes.get(pkt.dst)
-            d = self.discoveries[src][pkt.dst] = Discovery(ring_ttls(self.params, known.hops if known else None))
-            d.waiting.append(pkt)
-            self._send_rreq(src, pkt.dst, d)
-        elif len(d.waiting) < self.params.queue_packets:
-            d.waiting.append(pkt)
+        if buffered < self.params.queue_packets:
+            if d is None:
+                known = self.tables[src].routes.get(pkt.dst)
+                d = self.discoveries[src][pkt.dst] = Discovery(ring_ttls(self.params, known.hops if known else None))
+                d.waiting.append(pkt)
+                self._send_rreq(src, pkt.dst, d)
+            else:
+                d.waiting.append(pkt)
         else:
             self.dropped(pkt, src, "queue_full")
 

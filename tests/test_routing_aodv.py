@@ -195,3 +195,17 @@ def test_a_source_whose_next_hop_missed_its_hellos_breaks_the_link_before_it_red
     packets = collect(sim)["packets"]
     assert len(packets) == 5 and packets["delivered"].all(), packets[["t_sent_s", "delivered", "drop_cause"]]
     assert sim.models["protocol"].tables[0].routes[3].next_hop == 2
+
+
+def test_a_robots_buffer_holds_queue_packets_whatever_their_destinations(tmp_path):
+    """Robot 0 sends 10 packets to each of two robots no route reaches, with room for 4:
+    4 wait in all (then no_route when discovery gives up) and the other 16 are queue_full
+    (each destination had a buffer of its own: 8 waited)."""
+    xy = [(100, 500), (200, 500), (300, 500), (900, 100), (900, 900)]
+    flows = [
+        {"src": 0, "dst": dst, "start_s": 1.0, "stop_s": 2.0, "rate_bps": 40000.0, "packet_bytes": 500}
+        for dst in (3, 4)
+    ]
+    _sim, frames = _run(tmp_path, xy, flows, duration_s=30.0, queue_packets=4)
+    causes = frames["packets"]["drop_cause"].value_counts().to_dict()
+    assert causes == {"queue_full": 16, "no_route": 4}, causes
