@@ -80,6 +80,10 @@ def test_round_trip_with_save_map(tmp_path):
     m = load_map(y)
     assert np.array_equal(m.occupied, occ) and np.array_equal(m.free, free)
     assert m.origin_m == (3.0, 4.0) and m.resolution_m == 0.1
+    # A georeferenced origin and a fine resolution come back exactly (six digits put the
+    # origin 0.32 m off).
+    m = load_map(save_map(tmp_path / "geo.yaml", occ, free, 0.0123456789, (512345.678, -1234.5678), 0.7, 0.2))
+    assert m.origin_m == (512345.678, -1234.5678) and m.resolution_m == 0.0123456789
 
 
 @pytest.mark.parametrize("name", EXAMPLES)

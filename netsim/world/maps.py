@@ -325,7 +325,8 @@ def save_map(
     occupied_thresh: float = 0.65,
     free_thresh: float = 0.196,
 ) -> Path:
-    """Write a map as ``map_saver`` does: a PGM (occupied 0, free 254, unknown 205) and its YAML.
+    """Write a map as ``map_saver`` does: a PGM (occupied 0, free 254, unknown 205) and its
+    YAML, its numbers in their shortest exact form (a georeferenced origin read back as given).
 
     ``occupied`` and ``free`` are in grid order (row 0 at the bottom). Returns the YAML path.
     """
@@ -339,11 +340,11 @@ def save_map(
     Image.fromarray(px[::-1]).save(image)
     path.write_text(
         f"image: {image.name}\n"
-        f"resolution: {resolution_m:g}\n"
-        f"origin: [{float(origin_m[0]):g}, {float(origin_m[1]):g}, 0.0]\n"
+        f"resolution: {float(resolution_m)!r}\n"
+        f"origin: [{float(origin_m[0])!r}, {float(origin_m[1])!r}, 0.0]\n"
         "negate: 0\n"
-        f"occupied_thresh: {occupied_thresh:g}\n"
-        f"free_thresh: {free_thresh:g}\n"
+        f"occupied_thresh: {float(occupied_thresh)!r}\n"
+        f"free_thresh: {float(free_thresh)!r}\n"
     )
     return path
 
