@@ -6,7 +6,8 @@ numbers each; four, ``t x y z``, for a 3D scenario, whose ``z`` is dropped), tim
 non-decreasing. The node moves in a straight line between consecutive waypoints and stays
 at its last one. BonnMotion writes its parameters beside it, in ``NAME.params`` (``x=``,
 ``y=``: the area's size, ``duration=``, ``nn=``: the number of nodes, ``J=3D`` for 3D);
-when that file is there its area and node count are checked against the run's.
+when that file is there its node count is checked against the run's. Its area is not: the
+run's own area (``world``) holds the robots, and every position is checked against it.
 """
 
 from __future__ import annotations
