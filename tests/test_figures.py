@@ -221,7 +221,7 @@ def test_figures_on_a_torus_draw_a_link_across_the_seam_from_both_ends(tmp_path)
     plt = figures.pyplot()
     fig, ax = plt.subplots()
     snap = figures.snapshot(run, 19.0)
-    figures.draw_deployment(ax, snap, figures.run_colours(run), 10.0, side_m=100.0)
+    figures.draw_deployment(ax, snap, figures.run_colours(run), figures.links_at(run, snap), side_m=100.0)
     segs = _drawn_segments(ax)
     plt.close(fig)
     assert len(segs) == 2
@@ -249,3 +249,48 @@ def test_figures_on_a_torus_cut_a_path_where_it_crosses_the_seam(tmp_path):
     assert note == "" and longest <= 2.0 + 1e-9
     wrapped = run.positions.groupby("robot")["x_m"].agg(lambda x: np.abs(np.diff(x)).max()).max()
     assert wrapped > 50.0  # the run did cross the seam
+
+
+@pytest.mark.parametrize(
+    "sets",
+    [
+        ["channel.range_m=[80.0, 160.0, 80.0, 160.0, 80.0, 160.0, 80.0, 160.0]", "world.side_m=400"],
+        ["channel.propagation=log_distance", "channel.shadowing_sigma_db=6", "world.side_m=200"],
+    ],
+)
+def test_deployment_figures_draw_the_runs_own_links(tmp_path, sets):
+    """Figs. 6 and 8 draw the links the run had at their instant: with unequal ranges each
+    pair within both ends' ranges (the least range for all drew 9 of 15), under shadowing
+    the channel's links of links.parquet (the implied range's disks drew 26 of 30)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pandas as pd
+    from matplotlib.collections import LineCollection
+
+    from netsim.metrics import links_up_at
+    from netsim.tools import figures
+
+    base = ["world.n_robots=8", "duration_s=30", "mobility.speed_max_mps=8"]
+    out = tmp_path / "run"
+    assert main(["run", "--quiet", "--out", str(out), *(a for s in base + sets for a in ("--set", s))]) == 0
+    run = figures.read_run(out)
+    snap = figures.snapshot(run, 20.0)
+    links = pd.read_parquet(out / "links.parquet")
+    up = links_up_at(
+        links["t_up_s"].to_numpy(), links["t_down_s"].to_numpy(), links["censored_end"].to_numpy(), snap.t_s
+    )
+    want = {(int(a), int(b)) for a, b in zip(links["a"][up], links["b"][up])}
+    if "channel.propagation" not in sets[0]:
+        d = np.hypot(*(snap.pos[:, None] - snap.pos[None]).transpose(2, 0, 1))
+        r = np.array([80.0, 160.0] * 4)
+        assert want == {(a, b) for a in range(8) for b in range(a + 1, 8) if d[a, b] <= min(r[a], r[b])}
+    assert len(want) >= 3
+    fig, ax = plt.subplots()
+    figures.draw_deployment(ax, snap, {}, figures.links_at(run, snap))
+    drawn = next(c for c in ax.collections if isinstance(c, LineCollection)).get_segments()
+    plt.close(fig)
+    # Each segment's ends are its robots' positions (to rounding: a link is drawn as a + (b - a)).
+    ends = {tuple(sorted(int(np.argmin(np.hypot(*(snap.pos - p).T))) for p in seg)) for seg in drawn}
+    assert ends == want

@@ -227,17 +227,21 @@ class CoverageEnv(ParallelEnv):
             self._measures.covered_fraction_grid(pos, self.radius_m, a.x_min, a.y_min, a.width, a.height, cells)
         )
 
-    def _components(self, pos: np.ndarray) -> int:
-        """Components of the network of the links the channel has up now: on the unit disk
-        the pairs within both robots' ranges (the rule of its link solver), else those its
-        link solver holds."""
+    def _links_up(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The links the channel has up now, as pairs ``(a, b)``: on the unit disk the pairs
+        within both robots' ranges (the rule of its link solver), else those its link solver
+        holds."""
         sim = self.sim
         assert sim is not None
         if sim.links is None:
             a, b, _ = geometric_pairs(pos, sim.state.range_m)
-        else:
-            a, b = sim.links.up_pairs()
-        return metrics.component_count(sim.state.n, a, b)
+            return a, b
+        return sim.links.up_pairs()
+
+    def _components(self, pos: np.ndarray) -> int:
+        """Components of the network of the links the channel has up now."""
+        assert self.sim is not None
+        return metrics.component_count(self.sim.state.n, *self._links_up(pos))
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if self.sim is None or not self.agents:
@@ -342,7 +346,7 @@ class CoverageEnv(ParallelEnv):
             return None
         from netsim.envs.drawing import frame
 
-        return frame(self.sim, self.radius_m, self.range_m, self.covered)
+        return frame(self.sim, self._links_up(self.sim.positions()), self.radius_m, self.range_m, self.covered)
 
     def close(self) -> None:
         self.sim = None

@@ -8,8 +8,16 @@ import numpy as np
 from netsim.sim import Simulation
 
 
-def frame(sim: Simulation, radius_m: float, range_m: float, covered: float, size_px: int = 480) -> np.ndarray:
-    """The team at ``sim.now`` as an ``(size_px, size_px, 3)`` uint8 image."""
+def frame(
+    sim: Simulation,
+    links: tuple[np.ndarray, np.ndarray],
+    radius_m: float,
+    range_m: float,
+    covered: float,
+    size_px: int = 480,
+) -> np.ndarray:
+    """The team at ``sim.now``, its links up then ``links`` (pairs ``(a, b)``), as an
+    ``(size_px, size_px, 3)`` uint8 image."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -30,7 +38,7 @@ def frame(sim: Simulation, radius_m: float, range_m: float, covered: float, size
     dpi = 100
     fig = Figure(figsize=(size_px / dpi, size_px / dpi), dpi=dpi)
     ax = fig.add_axes((0.13, 0.1, 0.84, 0.84))
-    draw_deployment(ax, snap, colours, range_m, disks_m=radius_m)
+    draw_deployment(ax, snap, colours, links, disks_m=radius_m)
     x0, y0, x1, y1 = area.x_min, area.y_min, area.x_max, area.y_max
     ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color=style.BORDER, lw=0.8, zorder=0)
     margin = 0.02 * max(area.width, area.height)

@@ -61,6 +61,7 @@ class Run(NamedTuple):
     positions: pd.DataFrame
     roles: pd.DataFrame
     groups: pd.DataFrame | None
+    links: pd.DataFrame | None = None  # links.parquet, where the run wrote it
 
 
 class Snapshot(NamedTuple):
@@ -87,7 +88,7 @@ def read_run(run_dir: Path) -> Run:
     assert positions is not None and roles is not None  # checked above
     if positions.empty:
         raise NetsimInputError(f"{run_dir}: positions were not sampled (output.position_interval_s = 0)")
-    return Run(config, positions, roles, read_run_table(run_dir, "groups"))
+    return Run(config, positions, roles, read_run_table(run_dir, "groups"), read_run_table(run_dir, "links"))
 
 
 def _sample_time(frame: pd.DataFrame, t: float) -> float:
@@ -115,6 +116,20 @@ def snapshot(run: Run, t: float) -> Snapshot:
         g = style.other_group(run.groups[run.groups["t_s"] == _sample_time(run.groups, when)])
         other[g.index.to_numpy()] = g.to_numpy()
     return Snapshot(when, snap[["x_m", "y_m"]].to_numpy(), role, leader, other)
+
+
+def links_at(run: Run, snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``(a, b)`` linked at ``snap``'s instant: the run's own links
+    (``links.parquet``: the channel's, under shadowing or walls too), else the pairs within
+    both ends' ranges at its positions."""
+    if run.links is not None:
+        lk = run.links
+        open_end = lk["censored_end"].to_numpy(bool) if "censored_end" in lk else np.zeros(len(lk), bool)
+        up = metrics.links_up_at(lk["t_up_s"].to_numpy(float), lk["t_down_s"].to_numpy(float), open_end, snap.t_s)
+        return lk["a"].to_numpy(np.int64)[up], lk["b"].to_numpy(np.int64)[up]
+    config = run.config
+    a, b, _ = geometric_pairs(snap.pos, np.asarray(config.ranges_m(), float), config.world.torus_side_m)
+    return a, b
 
 
 def undecided_at(run: Run, times: np.ndarray) -> np.ndarray:
@@ -175,16 +190,21 @@ def _clipped_to_torus(ax, artist, side_m: float | None):
 
 
 def draw_deployment(
-    ax, snap: Snapshot, colours: dict[int, str], range_m: float, disks_m: float = 0.0, side_m: float | None = None
+    ax,
+    snap: Snapshot,
+    colours: dict[int, str],
+    pairs: tuple[np.ndarray, np.ndarray],
+    disks_m: float = 0.0,
+    side_m: float | None = None,
 ) -> None:
-    """Links, (disks,) members, gateways, undecided robots and leaders, with a legend.
-    ``side_m``: a torus of that side (None: the plane), whose links across the border are
-    drawn to it from both ends."""
+    """The links ``pairs`` (:func:`links_at`), (disks,) members, gateways, undecided robots
+    and leaders, with a legend. ``side_m``: a torus of that side (None: the plane), whose
+    links across the border are drawn to it from both ends."""
     import matplotlib.patches as mpatches
     from matplotlib.collections import LineCollection, PatchCollection
 
     pos, role = snap.pos, snap.role
-    a, b, _ = geometric_pairs(pos, range_m, side_m)
+    a, b = pairs
     links = LineCollection(link_segments_m(pos[a], pos[b], side_m), colors=style.LINK, lw=0.5, zorder=1)
     ax.add_collection(_clipped_to_torus(ax, links, side_m))
     group_of = np.where(role == "alpha", np.arange(len(pos)), snap.leader)
@@ -413,7 +433,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     colours = run_colours(run)
-    draw_deployment(ax, start, colours, range_m, side_m=torus_side_m)
+    draw_deployment(ax, start, colours, links_at(run, start), side_m=torus_side_m)
     _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     groups_n = int((start.role == "alpha").sum())
@@ -439,7 +459,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
 
     fig, ax = plt.subplots(figsize=(8.6, 7))
     radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
-    draw_deployment(ax, end, colours, range_m, disks_m=radius, side_m=torus_side_m)
+    draw_deployment(ax, end, colours, links_at(run, end), disks_m=radius, side_m=torus_side_m)
     _axes(ax, *whole, area)
     draw_map(ax, occupancy)
     if radius > 0:
