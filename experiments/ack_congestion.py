@@ -61,6 +61,17 @@ def spurious_changes(roles: pd.DataFrame, run_ids, n: int, warmup_s: float, dura
     return counts / (n * (duration_s - warmup_s) / 60.0)
 
 
+def knees(df: pd.DataFrame) -> dict[str, float]:
+    """Each medium's knee: the offered load at which the carried load peaks, where it falls
+    past it within the grid; ``inf`` where it still rises at the grid's last point (or the
+    grid has one point): no point is saturated then."""
+    out = {}
+    for mac, g in df.sort_values("offered_ack_load").groupby("mac"):
+        top = int(np.argmax(g.carried_ack_load.to_numpy()))
+        out[mac] = float(g.offered_ack_load.iloc[top]) if top < len(g) - 1 else math.inf
+    return out
+
+
 def main(argv=None) -> None:
     p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--n", type=int, default=80, help="robots")
@@ -133,16 +144,14 @@ def main(argv=None) -> None:
             values = g[col].astype(float) if col in g else pd.Series([np.nan] * len(g))
             row[col] = values.mean()
             if col in METRICS:
-                row[col + "_ci95"] = 1.96 * values.std() / np.sqrt(len(values)) if len(values) > 1 else np.nan
+                # Student's t with n - 1 degrees of freedom: a few replications need it.
+                mean, _sd, _low, high = sweepmod.t_interval(values.dropna())
+                row[col + "_ci95"] = high - mean
         rows.append(row)
     df = pd.DataFrame(rows).sort_values(["mac", "offered_ack_load"]).reset_index(drop=True)
     df["carried_ack_load"] = df.offered_ack_load * df.ack_delivery_ratio
-    knee = {mac: float(g.offered_ack_load[g.carried_ack_load.idxmax()]) for mac, g in df.groupby("mac")}
-    # Without a medium the carried load grows with the offered load: no saturation.
-    df["saturated"] = [
-        mac != "none" and load >= knee[mac] and len(df[df.mac == mac]) > 1
-        for mac, load in zip(df.mac, df.offered_ack_load)
-    ]
+    knee = knees(df)
+    df["saturated"] = [mac != "none" and load >= knee[mac] for mac, load in zip(df.mac, df.offered_ack_load)]
     df.to_csv(out / "ack_congestion.csv", index=False)
 
     panels = {**METRICS, "carried_ack_load": "carried Ack load G x delivery ratio"}

@@ -107,3 +107,37 @@ def test_printed_summary_names_the_complete_links_mean_for_what_it_is(default_ru
     lines = summary_table(default_run.summary).splitlines()
     assert any(ln.split()[:4] == ["mean_link_duration_s", "(complete", "links", "only)"] for ln in lines)
     assert any(ln.split()[:2] == ["link_duration_km_mean_s", "(Kaplan-Meier)"] for ln in lines)
+
+
+def test_acks_waited_counts_a_member_still_waiting_at_the_end_as_censored():
+    """Robot 1 joins at 10 s and times out at 20.5 s (tau 2.5 s, period 1 s, k = 2): 8 + 2
+    Acks; robot 3 joins at 12 s and is still waiting at the run's end, 40 s: 28 Acks so
+    far, right-censored; robot 0 never became a member."""
+    from netsim.protocols.roles import LABELS
+
+    from netsim.tools.analysis import acks_until_leader_loss, acks_waited
+
+    roles = pd.DataFrame(
+        {
+            "t_s": [0.0, 10.0, 20.5, 12.0],
+            "robot": [0, 1, 1, 3],
+            "role": [LABELS.leader, LABELS.member, LABELS.undecided, LABELS.member],
+            "cause": ["", "", LABELS.leader_lost, ""],
+        }
+    )
+    waited = acks_waited(roles, 2.5, 1.0, LABELS, 40.0)
+    assert waited["acks"].tolist() == [10.0, 28.0] and waited["lost"].tolist() == [True, False]
+    assert acks_until_leader_loss(roles, 2.5, 1.0, LABELS).tolist() == [10.0]
+
+
+def test_mean_wait_counts_the_waits_cut_by_the_end():
+    """Memoryless waits of mean 100 Acks cut at 150: the mean of the completed waits falls
+    short (about 56), the waits so far counted give the mean back within its interval."""
+    from netsim.tools.analysis import mean_acks_until_leader_loss
+
+    rng = np.random.default_rng(3)
+    wait = rng.geometric(1 / 100.0, 2000).astype(float)
+    waited = pd.DataFrame({"acks": np.minimum(wait, 150.0), "lost": wait <= 150.0})
+    mean, low, high = mean_acks_until_leader_loss(waited)
+    assert low < 100.0 < high and high - low < 15.0
+    assert waited.loc[waited["lost"], "acks"].mean() < 60.0

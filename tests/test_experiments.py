@@ -1,5 +1,6 @@
 """Each experiment script runs end to end at a tiny size and writes its CSV and PNG."""
 
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -219,3 +220,19 @@ def refused_in_one_line(script: str, cases, folder) -> None:
         assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
         assert said in run.stderr
     assert list(folder.iterdir()) == []
+
+
+def test_ack_congestion_marks_no_saturation_where_the_carried_load_still_rises():
+    """A medium whose carried load rises over the whole grid has no knee (its last point
+    was marked saturated); one that peaks inside the grid has its knee at the peak."""
+    from tests.fixtures import script
+
+    ack = script("experiments/ack_congestion.py")
+    df = pd.DataFrame(
+        {
+            "mac": ["aloha"] * 3 + ["csma"] * 3,
+            "offered_ack_load": [0.1, 0.2, 0.4] * 2,
+            "carried_ack_load": [0.09, 0.17, 0.30, 0.09, 0.15, 0.12],
+        }
+    )
+    assert ack.knees(df) == {"aloha": math.inf, "csma": 0.2}

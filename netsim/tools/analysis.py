@@ -6,6 +6,7 @@ sweep, and the closed forms the validation compares with.
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 import numpy as np
 import pandas as pd
@@ -15,11 +16,13 @@ from netsim.survival import kaplan_meier, lifetime_summary, link_durations, medi
 
 __all__ = [
     "acks_until_leader_loss",
+    "acks_waited",
     "compare_lifetimes",
     "expected_acks_until_spurious_timeout",
     "kaplan_meier",
     "lifetime_summary",
     "link_durations",
+    "mean_acks_until_leader_loss",
     "median",
     "restricted_mean",
     "spurious_timeout_window",
@@ -46,15 +49,28 @@ def torus_link_duration_mean(range_m: float, speed_mps: float) -> float:
 
 
 def acks_until_leader_loss(roles: pd.DataFrame, tau_s: float, period_s: float, labels: RoleLabels) -> np.ndarray:
-    """For each robot that became a member, the number of its leader's Acks from the one
-    it joined on to its first rule-3 timeout: the trials until ``k`` consecutive losses
-    (docs/validation.md item 9). Assumes static robots and periodic Acks without jitter, so
-    that every leader loss is spurious and the timeout comes ``tau`` after the last Ack
-    heard: the count is ``floor((t_timeout - t_join - tau) / period) + k``, with ``k`` the
-    number of Ack instants strictly inside the ``tau`` window. ``labels``: how the run's
-    protocol writes roles and the leader's loss (its plugin's ``role_labels``)."""
+    """For each robot that became a member and lost its leader in the run, the number of
+    its leader's Acks from the one it joined on to its first rule-3 timeout: the trials
+    until ``k`` consecutive losses (docs/validation.md item 9); :func:`acks_waited`'s
+    ``acks`` of the robots that did."""
+    waited = acks_waited(roles, tau_s, period_s, labels)
+    return waited["acks"].to_numpy(float)
+
+
+def acks_waited(
+    roles: pd.DataFrame, tau_s: float, period_s: float, labels: RoleLabels, end_s: float | None = None
+) -> pd.DataFrame:
+    """For each robot that became a member, ``acks``: its leader's Acks from the one it
+    joined on to its first rule-3 timeout, and ``lost`` True; for one still waiting at
+    ``end_s`` (the run's end; None: left out), the Acks after its joining one by then, and
+    ``lost`` False (right-censored: its wait is longer). Assumes static robots and periodic
+    Acks without jitter, so that every leader loss is spurious and the timeout comes
+    ``tau`` after the last Ack heard: the count is ``floor((t_timeout - t_join - tau) /
+    period) + k``, with ``k`` the number of Ack instants strictly inside the ``tau``
+    window. ``labels``: how the run's protocol writes roles and the leader's loss (its
+    plugin's ``role_labels``)."""
     k = spurious_timeout_window(tau_s, period_s)
-    counts = []
+    rows = []
     for _, rec in roles.groupby("robot"):
         joins = rec[rec["role"] == labels.member]
         if joins.empty:
@@ -62,8 +78,25 @@ def acks_until_leader_loss(roles: pd.DataFrame, tau_s: float, period_s: float, l
         t_join = joins["t_s"].iloc[0]
         lost = rec[(rec["cause"] == labels.leader_lost) & (rec["t_s"] > t_join)]
         if len(lost):
-            counts.append(math.floor((lost["t_s"].iloc[0] - t_join - tau_s) / period_s + 1e-9) + k)
-    return np.array(counts, dtype=float)
+            rows.append((math.floor((lost["t_s"].iloc[0] - t_join - tau_s) / period_s + 1e-9) + k, True))
+        elif end_s is not None:
+            rows.append((math.floor((end_s - t_join) / period_s + 1e-9), False))
+    return pd.DataFrame({"acks": [float(a) for a, _ in rows], "lost": [bool(b) for _, b in rows]})
+
+
+def mean_acks_until_leader_loss(waited: pd.DataFrame, level: float = 0.95) -> tuple[float, float, float]:
+    """The mean wait of :func:`acks_waited` with the waits still running at the end
+    counted (a mean of the completed ones alone leaves the long waits out, and falls short):
+    every Ack waited over the leader losses seen, the maximum-likelihood mean of a
+    memoryless wait, which the wait for ``k`` consecutive losses nearly is once it is much
+    longer than ``k``. Its interval is that of an exponential wait's mean, ``mean
+    exp(-+z / sqrt(losses))``. NaN without a loss."""
+    losses = int(waited["lost"].sum())
+    if losses == 0:
+        return math.nan, math.nan, math.nan
+    mean = float(waited["acks"].sum()) / losses
+    z = NormalDist().inv_cdf(0.5 + level / 2)
+    return mean, mean * math.exp(-z / math.sqrt(losses)), mean * math.exp(z / math.sqrt(losses))
 
 
 def spurious_timeout_window(tau_s: float, period_s: float) -> int:
