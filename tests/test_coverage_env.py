@@ -530,11 +530,13 @@ def test_a_duration_that_no_longer_matches_max_cycles_is_refused_at_reset():
 LOG_DISTANCE = {"channel": {"propagation": "log_distance", "shadowing_sigma_db": 4.0}}
 
 
-def test_link_quality_observes_the_strongest_live_neighbours_at_the_documented_index():
+@pytest.mark.parametrize("k", [4, 20])
+def test_link_quality_observes_the_strongest_live_neighbours_at_the_documented_index(k):
     """With link_quality, an agent's observation holds from index 7 + 4K on its K strongest
     live entries of sim.link_quality (power dBm, age s, 1), strongest first, padded with
-    (sensitivity, 0, 0), inside the observation space; the fields before are unchanged."""
-    k = 4
+    (sensitivity, 0, 0), inside the observation space; the fields before are unchanged.
+    K past the neighbour table's first 16 slots is padded alike (it was left 0 dBm, outside
+    the space)."""
     env = coverage_v0.parallel_env(n_robots=8, max_cycles=6, max_neighbours=k, link_quality=True, netsim=LOG_DISTANCE)
     plain = coverage_v0.parallel_env(n_robots=8, max_cycles=6, max_neighbours=k, netsim=LOG_DISTANCE)
     start = 7 + 4 * k

@@ -57,7 +57,7 @@ def nearest_told(out, start, pos, ids, told, heard_s, now, k):
 
 @jit(nogil=True)
 def strongest_heard(out, start, ids, power_dbm, heard_s, now, k, low_dbm, high_dbm):
-    """Write into ``out[i, start:start + 3 min(k, slots)]`` robot ``i``'s ``k`` strongest live
+    """Write into ``out[i, start:start + 3 k]`` robot ``i``'s ``k`` strongest live
     table entries by the power it got their last Acks at (ties: the lower slot first;
     entries without a power left out): that power (dBm, kept within ``[low_dbm,
     high_dbm]``, the observation's bounds, against float32's rounding there), the age of
@@ -82,3 +82,9 @@ def strongest_heard(out, start, ids, power_dbm, heard_s, now, k, low_dbm, high_d
                 out[i, c] = low_dbm
                 out[i, c + 1] = 0.0
                 out[i, c + 2] = 0.0
+        # Places past the table's slots (a table grows as it needs): nothing heard.
+        for m in range(min(k, slots), k):
+            c = start + 3 * m
+            out[i, c] = low_dbm
+            out[i, c + 1] = 0.0
+            out[i, c + 2] = 0.0

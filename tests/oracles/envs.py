@@ -110,7 +110,7 @@ def strongest_heard(
     low_dbm: float,
     high_dbm: float,
 ) -> None:
-    """Write into ``out[i, start:start + 3 min(k, slots)]`` robot ``i``'s ``k`` strongest live
+    """Write into ``out[i, start:start + 3 k]`` robot ``i``'s ``k`` strongest live
     table entries with a power (ties: the lower slot first): the power clipped to
     ``[low_dbm, high_dbm]``, the age of the Ack and 1; ``(low_dbm, 0, 0)`` where fewer are live."""
     n, slots = ids.shape
@@ -125,3 +125,4 @@ def strongest_heard(
     block[:, :, 2] = 1.0
     block[~valid[rows, order]] = (low_dbm, 0.0, 0.0)
     out[:, start : start + 3 * take] = block.reshape(n, -1)
+    out[:, start + 3 * take : start + 3 * k] = np.tile((low_dbm, 0.0, 0.0), k - take)
