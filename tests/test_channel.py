@@ -166,6 +166,18 @@ def test_distance_loss_follows_its_law():
         assert keep.mean() == pytest.approx(p, abs=4 * math.sqrt(p * (1 - p) / 50_000) + 1e-9)
 
 
+def test_distance_loss_under_shadowing_is_refused_by_name():
+    """The distance law falls to no reception at the range; a shadowed radio hears beyond
+    it, and every such frame was lost: refused, naming the key. Log-distance without
+    shadowing (whose reach is the range) keeps it."""
+    from netsim.errors import ConfigError
+
+    shadowed = {"propagation": "log_distance", "shadowing_sigma_db": 6.0, "loss_model": "distance"}
+    with pytest.raises(ConfigError, match=r"channel.loss_model = 'distance': falls to no reception at the range"):
+        make_config(channel=shadowed)
+    make_config(channel={"propagation": "log_distance", "loss_model": "distance"})
+
+
 @pytest.mark.slow
 def test_gilbert_elliott_loss_is_bursty_with_the_right_mean():
     """Long-run loss = pi_bad * loss_bad + pi_good * loss_good; losses cluster."""

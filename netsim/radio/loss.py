@@ -173,8 +173,22 @@ BERNOULLI = LossModel(
 )
 """``channel.loss_model = "bernoulli"``."""
 
+def _within_the_range(params: DistanceParams, channel: Any) -> None:
+    """The law falls to no reception at the range: a radio that hears beyond it (shadowing)
+    would have every such frame lost, its shadowing's links undone without a word."""
+    if channel.propagation_model.shadowed(channel.radio):
+        raise ConfigError(
+            "channel.loss_model",
+            "distance",
+            "falls to no reception at the range: with channel.shadowing_sigma_db > 0 every frame heard "
+            "beyond it would be lost; use 'bernoulli' or 'gilbert_elliott' beside the shadowing",
+        )
+
+
 DISTANCE = LossModel(
-    DistanceParams, lambda p, range_m, rng: DistanceLoss(p.loss_probability, p.loss_distance_exponent, range_m, rng)
+    DistanceParams,
+    lambda p, range_m, rng: DistanceLoss(p.loss_probability, p.loss_distance_exponent, range_m, rng),
+    check=_within_the_range,
 )
 """``channel.loss_model = "distance"``."""
 
