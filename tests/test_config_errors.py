@@ -355,3 +355,18 @@ def test_the_oracle_through_walls_needs_the_links_tracked_during_the_run():
     with pytest.raises(ConfigError):
         cfgmod.load(None, [*keys, "channel.shadowing_sigma_db=4"])
     assert cfgmod.load(None, keys).protocol.routing == "oracle"
+
+
+def test_a_wall_loss_without_a_map_is_warned_of(tmp_path):
+    """A wall loss set where no map puts walls (a `netsim calibrate --map` fit run in open
+    space) is one warning naming it; its default (as a run's own config.toml writes it),
+    and any value on a map, are not."""
+    import warnings
+
+    overrides = ['channel.propagation="log_distance"', "channel.wall_loss_db=7.5"]
+    with pytest.warns(cfgmod.ConfigWarning, match=r"^channel.wall_loss_db = 7.5: no walls without a map"):
+        cfgmod.load(None, overrides)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cfgmod.load(None, ['channel.propagation="log_distance"', "channel.wall_loss_db=5.0"])
+        cfgmod.load(None, [*overrides, 'world.map="office"', 'world.bounds_m="map"', "world.n_robots=10"])
