@@ -173,6 +173,7 @@ BERNOULLI = LossModel(
 )
 """``channel.loss_model = "bernoulli"``."""
 
+
 def _within_the_range(params: DistanceParams, channel: Any) -> None:
     """The law falls to no reception at the range: a radio that hears beyond it (shadowing)
     would have every such frame lost, its shadowing's links undone without a word."""
