@@ -16,8 +16,9 @@ from netsim.tools.cli import main
 ASSETS = resources.files("netsim.tools.viewer").joinpath("assets")
 HEX = re.compile(r"(?<![&\w])#([0-9a-fA-F]{8}|[0-9a-fA-F]{6}|[0-9a-fA-F]{3,4})\b")
 FUNCTIONS = re.compile(r"\b(rgba?|hsla?|hwb|lab|lch|color)\(")
+# A colour's name in quotes; not a table's column (``frame["b"]``: a link's end).
 NAMES = re.compile(
-    r"""["'`](black|white|red|green|blue|grey|gray|orange|yellow|purple|pink|magenta|cyan|brown|k|r|g|b)["'`]"""
+    r"""(?<!\[)["'`](black|white|red|green|blue|grey|gray|orange|yellow|purple|pink|magenta|cyan|brown|k|r|g|b)["'`]"""
 )
 
 
