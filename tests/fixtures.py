@@ -70,6 +70,30 @@ def clustering(positions, phases=None, start=True, core: dict | None = None, **p
     return sim, stack
 
 
+def flow_over_trace(
+    tmp_path: Path, trace: str, n: int, flow: dict, duration_s: float, seed: int, channel: dict, protocol: dict
+) -> tuple[Simulation, dict]:
+    """A run of ``n`` robots moving as the ns-2 text ``trace`` says, carrying one flow (a
+    routing protocol's test on a scripted team): the simulation and its tables."""
+    from netsim.run import build, collect
+
+    path = tmp_path / "team.ns2"
+    path.write_text(trace)
+    config = make_config(
+        seed=seed,
+        duration_s=duration_s,
+        world={"n_robots": n, "side_m": 1000.0},
+        mobility={"model": "trace", "trace_file": str(path)},
+        channel=channel,
+        protocol=protocol,
+        traffic={"flows": [flow]},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    return sim, collect(sim)
+
+
 def check_refused(tmp_path, capsys, overrides: list[str], key: str, words: str) -> None:
     """``netsim run --set ...overrides`` is refused: exit 2, one line on standard error
     naming ``key`` and saying ``words``, no output directory."""

@@ -7,7 +7,7 @@ from netsim.protocols.aodv import AodvParams, RouteTable, ring_ttls, seq_newer
 
 from netsim.errors import ConfigError
 from netsim.run import build, collect
-from tests.fixtures import make_config
+from tests.fixtures import flow_over_trace, make_config
 
 
 def _run(tmp_path, xy, flows, duration_s=30.0, **protocol):
@@ -129,23 +129,9 @@ def test_route_error_reaches_the_source_when_a_link_of_its_route_breaks(tmp_path
     route to 3 becomes invalid too; later packets wait for a new route. On a shared medium
     without hellos the unicast that fails after its retries is what says so (it was lost to
     the router, which then lost every later packet on the dead route)."""
-    trace = tmp_path / "break.ns2"
-    trace.write_text(BREAK)
-    config = make_config(
-        seed=2,
-        duration_s=30.0,
-        world={"n_robots": 4, "side_m": 1000.0},
-        mobility={"model": "trace", "trace_file": str(trace)},
-        channel={"range_m": 120.0, **channel},
-        protocol={"model": "aodv", **hello},
-        traffic={
-            "flows": [{"src": 0, "dst": 3, "start_s": 10.0, "stop_s": 25.0, "rate_bps": 8000.0, "packet_bytes": 1000}]
-        },
-        output={"position_interval_s": 0.0},
-    )
-    sim = build(config)
-    sim.run()
-    frames = collect(sim)
+    flow = {"src": 0, "dst": 3, "start_s": 10.0, "stop_s": 25.0, "rate_bps": 8000.0, "packet_bytes": 1000}
+    protocol = {"model": "aodv", **hello}
+    sim, frames = flow_over_trace(tmp_path, BREAK, 4, flow, 30.0, 2, {"range_m": 120.0, **channel}, protocol)
     aodv = sim.models["protocol"]
     assert not aodv.tables[1].routes[3].valid and not aodv.tables[0].routes[3].valid
     control = frames["control"].set_index("kind")
@@ -176,23 +162,9 @@ def test_a_source_whose_next_hop_missed_its_hellos_breaks_the_link_before_it_red
     to 1 (section 6.11: its route becomes invalid, its sequence number increased), or the
     reply through 2, as fresh and as short, cannot replace the stale route, and the packet
     that waited for it follows that route into the void (it was dropped no_route at 0)."""
-    trace = tmp_path / "diamond.ns2"
-    trace.write_text(DIAMOND)
-    config = make_config(
-        seed=1,
-        duration_s=14.0,
-        world={"n_robots": 4, "side_m": 1000.0},
-        mobility={"model": "trace", "trace_file": str(trace)},
-        channel={"range_m": 150.0},
-        protocol={"model": "aodv"},
-        traffic={
-            "flows": [{"src": 0, "dst": 3, "start_s": 2.0, "stop_s": 13.0, "rate_bps": 1600, "packet_bytes": 500}]
-        },
-        output={"position_interval_s": 0.0},
-    )
-    sim = build(config)
-    sim.run()
-    packets = collect(sim)["packets"]
+    flow = {"src": 0, "dst": 3, "start_s": 2.0, "stop_s": 13.0, "rate_bps": 1600, "packet_bytes": 500}
+    sim, frames = flow_over_trace(tmp_path, DIAMOND, 4, flow, 14.0, 1, {"range_m": 150.0}, {"model": "aodv"})
+    packets = frames["packets"]
     assert len(packets) == 5 and packets["delivered"].all(), packets[["t_sent_s", "delivered", "drop_cause"]]
     assert sim.models["protocol"].tables[0].routes[3].next_hop == 2
 

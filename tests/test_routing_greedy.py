@@ -8,7 +8,7 @@ from netsim.protocols.greedy import greedy_next_hop
 from netsim.errors import ConfigError
 from netsim.run import build, collect
 from netsim.tools.cli import main
-from tests.fixtures import make_config
+from tests.fixtures import flow_over_trace, make_config
 
 FLOW = {"src": 0, "dst": 4, "start_s": 10.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 1000}
 
@@ -157,22 +157,9 @@ def test_a_unicast_that_does_not_get_through_forgets_its_neighbour_at_once(tmp_p
     then does not get through, and 3 forgets 4 at once: that one packet is lost, the later
     ones end at 3 as a local maximum. On a shared medium the unicast that fails after its
     retries says so too (3 kept sending to 4 until its timeout: 10 packets lost)."""
-    trace = tmp_path / "leaves.ns2"
-    trace.write_text(LEAVES)
-    config = make_config(
-        seed=1,
-        duration_s=20.0,
-        world={"n_robots": 5, "side_m": 1000.0},
-        mobility={"model": "trace", "trace_file": str(trace)},
-        channel={"range_m": 150.0, "mac": mac},
-        protocol={"model": "greedy"},
-        traffic={
-            "flows": [{"src": 0, "dst": 4, "start_s": 2.0, "stop_s": 12.0, "rate_bps": 16000, "packet_bytes": 500}]
-        },
-        output={"position_interval_s": 0.0},
-    )
-    sim = build(config)
-    sim.run()
-    packets = collect(sim)["packets"]
+    flow = {"src": 0, "dst": 4, "start_s": 2.0, "stop_s": 12.0, "rate_bps": 16000, "packet_bytes": 500}
+    channel = {"range_m": 150.0, "mac": mac}
+    _sim, frames = flow_over_trace(tmp_path, LEAVES, 5, flow, 20.0, 1, channel, {"model": "greedy"})
+    packets = frames["packets"]
     causes = packets.loc[~packets["delivered"], "drop_cause"].value_counts().to_dict()
     assert causes == {"local_maximum": 13, "lost": 1}, causes
