@@ -14,7 +14,8 @@ delivery ratio, the channel utilisation and collision ratio, and the offered Ack
 its neighbours would occupy the medium, and the carried Ack load ``G x`` the Ack delivery
 ratio. The channel saturates where the carried load stops growing with the offered load:
 for each medium, the points at or beyond the offered load of its largest carried load are
-marked ``saturated`` (dashed line in the figure). Queue overflows are counted too
+marked ``saturated`` (dashed line in the figure), unless that largest load is the grid's
+last point (the carried load still rises there). Queue overflows are counted too
 (``frames_dropped_queue_full``): broadcast frames, never retried, rarely overflow CSMA's
 queues; they collide instead.
 

@@ -758,24 +758,28 @@ def from_dict(raw: Mapping) -> Config:
     values["events"] = _plain_section(EventsParams, _table(raw, "events"))
     values["output"] = _plain_section(OutputParams, _table(raw, "output"))
     values["sections"] = {name: _plain_section(plugin.Params, _table(raw, name)) for name, plugin in owners.items()}
-    config = Config(**values)
-    _warn_of_walls_without_a_map(config, _table(raw, "channel"))
-    return config
+    values["channel"] = _without_walls_unless_a_map(values["channel"], values["world"])
+    return Config(**values)
 
 
-def _warn_of_walls_without_a_map(config: Config, channel: Mapping) -> None:
-    """A wall loss set (other than its default) where no map puts walls: a channel fitted
-    on a map (`netsim calibrate --map`) run in open space would lose its walls unsaid."""
-    radio = config.channel.radio
+def _without_walls_unless_a_map(channel: ChannelParams, world: WorldParams) -> ChannelParams:
+    """A wall loss set (other than its default) where no map puts walls is warned of and
+    taken out, as other ignored keys are: a channel fitted on a map (`netsim calibrate
+    --map`) run in open space would lose its walls unsaid, and the run's config.toml keeps
+    no value that did nothing."""
+    radio = channel.radio
     wall_loss_db = getattr(radio, "wall_loss_db", None)
-    if "wall_loss_db" not in channel or config.world.map or wall_loss_db is None:
-        return
-    if wall_loss_db != getattr(type(radio)(), "wall_loss_db", None):
-        warnings.warn(
-            f"channel.wall_loss_db = {wall_loss_db:g}: no walls without a map (world.map); ignored",
-            ConfigWarning,
-            stacklevel=3,
-        )
+    if world.map or wall_loss_db is None:
+        return channel
+    default = getattr(type(radio)(), "wall_loss_db", None)
+    if wall_loss_db == default:
+        return channel
+    warnings.warn(
+        f"channel.wall_loss_db = {wall_loss_db:g}: no walls without a map (world.map); ignored",
+        ConfigWarning,
+        stacklevel=3,
+    )
+    return dataclasses.replace(channel, radio=dataclasses.replace(radio, **{"wall_loss_db": default}))
 
 
 # -- to TOML ---------------------------------------------------------------------------------

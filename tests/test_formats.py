@@ -534,3 +534,16 @@ def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys)
     assert "ends at 40 s (duration=40.0 in r.params), before duration_s = 60" in err[0]
     assert main([*replay, "--set", "duration_s=40", "--out", str(tmp_path / "b")]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_ns2_export_of_an_area_below_zero_warns_that_ns2_refuses_it(tmp_path, capsys):
+    """ns-2's topography starts at 0: a run whose area reaches below it is exported (netsim
+    and ns-3 read it back) with one warning that says so and names BonnMotion's corner."""
+    sets = ["world.n_robots=3", "duration_s=20", "world.bounds_m=[-100.0, -100.0, 100.0, 100.0]", "protocol.model=none"]
+    run, out = tmp_path / "run", tmp_path / "run.tcl"
+    assert main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(run)]) == 0
+    capsys.readouterr()
+    assert main(["export", str(run), "--format", "ns2", "--out", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "reaches below 0, where ns-2's topography starts" in err[0], err
+    assert out.is_file()

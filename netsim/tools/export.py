@@ -108,6 +108,13 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     tmp = Path(name)
     try:
         if fmt == "ns2":
+            if area.x_min < 0 or area.y_min < 0:
+                warnings.warn(
+                    f"the run's area [{area.x_min:g}, {area.y_min:g}, {area.x_max:g}, {area.y_max:g}] reaches below 0, "
+                    "where ns-2's topography starts: ns-2 refuses those destinations (netsim and ns-3 read them); "
+                    "BonnMotion's x_min, y_min carry it",
+                    stacklevel=2,
+                )
             ns2.write(tmp, legs, n, duration, f"netsim export of {run_dir}", area)
         else:
             from netsim.formats import bonnmotion

@@ -120,8 +120,11 @@ def snapshot(run: Run, t: float) -> Snapshot:
 
 def links_at(run: Run, snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
     """The pairs ``(a, b)`` linked at ``snap``'s instant: the run's own links
-    (``links.parquet``: the channel's, under shadowing or walls too), else the pairs within
-    both ends' ranges at its positions."""
+    (``links.parquet``: the channel's, under shadowing or walls too); without that table,
+    the pairs within both ends' ranges at its positions on the unit disk, and none where
+    walls or shadowing decided the links (no range would say which)."""
+    if run.links is None and run.config.radio_decides_links():
+        return np.empty(0, np.int64), np.empty(0, np.int64)
     if run.links is not None:
         lk = run.links
         open_end = lk["censored_end"].to_numpy(bool) if "censored_end" in lk else np.zeros(len(lk), bool)
