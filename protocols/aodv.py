@@ -338,8 +338,7 @@ class Aodv(Router):
             self.dropped(pkt, src, "queue_full")
 
     def link_failed(self, holder: int, nxt: int, pkt: Packet) -> None:
-        if nxt >= 0:
-            self._link_broken(holder, nxt)
+        self._link_broken(holder, nxt)
 
     # -- route discovery (sections 6.3 to 6.7) -------------------------------------------
     def _send_rreq(self, src: int, dst: int, d: Discovery) -> None:

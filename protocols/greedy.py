@@ -153,8 +153,7 @@ class Greedy(Router):
         return (nxt, "") if nxt >= 0 else (-1, "local_maximum")
 
     def link_failed(self, holder: int, nxt: int, pkt: Packet) -> None:
-        if nxt >= 0:
-            self.heard_t[holder, nxt] = -np.inf
+        self.heard_t[holder, nxt] = -np.inf
 
 
 def build(params: GreedyParams, parts: Parts) -> Greedy:

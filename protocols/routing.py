@@ -146,7 +146,8 @@ class Router:
             return
         self.data_transmissions += 1
         pkt = pkt._replace(to=nxt)
-        if not self.channel.unicast(holder, nxt, pkt, self._on_data, kind=pkt.kind):
+        if not self.channel.unicast(holder, nxt, pkt, self._on_data, kind=pkt.kind) and not self.channel.deferred:
+            # Under a medium the frame's notice says it did not get through (_on_data), once.
             self.link_failed(holder, nxt, pkt)
             self.dropped(pkt, holder, "lost")
 

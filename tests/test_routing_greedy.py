@@ -163,3 +163,36 @@ def test_a_unicast_that_does_not_get_through_forgets_its_neighbour_at_once(tmp_p
     packets = frames["packets"]
     causes = packets.loc[~packets["delivered"], "drop_cause"].value_counts().to_dict()
     assert causes == {"local_maximum": 13, "lost": 1}, causes
+
+
+def test_a_frame_that_does_not_get_through_a_medium_is_one_link_failure(tmp_path, monkeypatch):
+    """Under a medium each frame the router hands over and that does not get through (its
+    queue full, or its retries spent) tells the router once, by the medium's notice: as
+    many link failures as frames dropped, and as many packets lost (the refusal at the
+    queue told it a second time)."""
+    from netsim.protocols.greedy import Greedy
+
+    calls = []
+    real = Greedy.link_failed
+    monkeypatch.setattr(Greedy, "link_failed", lambda self, h, n, p: (calls.append((h, n)), real(self, h, n, p)))
+    flow = {**FLOW, "start_s": 5.0, "stop_s": 10.0, "rate_bps": 400000.0, "packet_bytes": 1000}
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{50 + 100 * i},500\n" for i in range(5)))
+    config = make_config(
+        seed=4,
+        duration_s=12.0,
+        world={"n_robots": 5, "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0, "mac": "csma", "queue_frames": 1},
+        protocol={"model": "greedy"},
+        traffic={"flows": [flow]},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    medium = frames["medium"]
+    flow_rows = medium[medium["kind"].str.startswith("flow_")]
+    dropped = int(flow_rows["dropped_queue_full"].sum() + flow_rows["dropped_retry_limit"].sum())
+    lost = int((frames["packets"]["drop_cause"] == "lost").sum())
+    assert dropped > 0 and len(calls) == dropped == lost
