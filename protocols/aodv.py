@@ -54,7 +54,10 @@ class AodvParams(RoutingParams):
     ttl_threshold: int = param(7, ttl_field, "TTL_THRESHOLD: past it, the RREQ's TTL is NET_DIAMETER")
     timeout_buffer: int = param(2, non_negative, "TIMEOUT_BUFFER of RING_TRAVERSAL_TIME, hops")
     queue_packets: int = param(
-        64, positive, "packets buffered per robot while a route is sought (each frame of a flow's packet one)"
+        64,
+        positive,
+        "packets buffered per robot while a route is sought (each frame of a flow's packet one); "
+        "full, the oldest is dropped",
     )
     jitter_s: float = param(0.01, non_negative, "forwarded broadcasts wait U(0, jitter), s (RFC 5148)")
 
@@ -323,19 +326,21 @@ class Aodv(Router):
         if self._route(src, pkt.dst, self.env.now) is not None:
             self.forward(src, pkt)
             return
-        # One buffer a robot, whatever the destinations its packets wait for.
-        buffered = sum(len(d.waiting) for d in self.discoveries[src].values())
-        d = self.discoveries[src].get(pkt.dst)
-        if buffered < self.params.queue_packets:
-            if d is None:
-                known = self.tables[src].routes.get(pkt.dst)
-                d = self.discoveries[src][pkt.dst] = Discovery(ring_ttls(self.params, known.hops if known else None))
-                d.waiting.append(pkt)
-                self._send_rreq(src, pkt.dst, d)
-            else:
-                d.waiting.append(pkt)
+        # One buffer a robot, whatever the destinations its packets wait for. Full, its most
+        # aged packet makes room, as in ns-3's request queue: the newest is the likelier to
+        # be still worth delivering once the route comes.
+        discoveries = self.discoveries[src]
+        if sum(len(d.waiting) for d in discoveries.values()) >= self.params.queue_packets:
+            oldest = min((d for d in discoveries.values() if d.waiting), key=lambda d: d.waiting[0].id)
+            self.dropped(oldest.waiting.pop(0), src, "queue_full")
+        d = discoveries.get(pkt.dst)
+        if d is None:
+            known = self.tables[src].routes.get(pkt.dst)
+            d = discoveries[pkt.dst] = Discovery(ring_ttls(self.params, known.hops if known else None))
+            d.waiting.append(pkt)
+            self._send_rreq(src, pkt.dst, d)
         else:
-            self.dropped(pkt, src, "queue_full")
+            d.waiting.append(pkt)
 
     def link_failed(self, holder: int, nxt: int, pkt: Packet) -> None:
         self._link_broken(holder, nxt)

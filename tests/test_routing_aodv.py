@@ -172,12 +172,16 @@ def test_a_source_whose_next_hop_missed_its_hellos_breaks_the_link_before_it_red
 def test_a_robots_buffer_holds_queue_packets_whatever_their_destinations(tmp_path):
     """Robot 0 sends 10 packets to each of two robots no route reaches, with room for 4:
     4 wait in all (then no_route when discovery gives up) and the other 16 are queue_full
-    (each destination had a buffer of its own: 8 waited)."""
+    (each destination had a buffer of its own: 8 waited). A full buffer drops its most aged
+    packet, as ns-3's request queue does: the 4 sent last are the ones that waited."""
     xy = [(100, 500), (200, 500), (300, 500), (900, 100), (900, 900)]
     flows = [
         {"src": 0, "dst": dst, "start_s": 1.0, "stop_s": 2.0, "rate_bps": 40000.0, "packet_bytes": 500}
         for dst in (3, 4)
     ]
     _sim, frames = _run(tmp_path, xy, flows, duration_s=30.0, queue_packets=4)
-    causes = frames["packets"]["drop_cause"].value_counts().to_dict()
+    packets = frames["packets"]
+    causes = packets["drop_cause"].value_counts().to_dict()
     assert causes == {"queue_full": 16, "no_route": 4}, causes
+    waited = packets.sort_values(["t_sent_s", "flow"]).tail(4)
+    assert (waited["drop_cause"] == "no_route").all(), packets[["flow", "t_sent_s", "drop_cause"]]
