@@ -135,7 +135,16 @@ LOOPBACK_XML = """<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInte
 </Domain></CycloneDDS>"""
 
 # Each test its own domain: bridges of tests run side by side never meet.
-DOMAINS = {"twist": 61, "clock": 62, "relay": 63, "ctrl_c": 64, "bytes": 65, "markers": 66, "bad_uri": 67}
+DOMAINS = {
+    "twist": 61,
+    "clock": 62,
+    "relay": 63,
+    "ctrl_c": 64,
+    "bytes": 65,
+    "markers": 66,
+    "bad_uri": 67,
+    "burst": 68,
+}
 
 
 @pytest.fixture(autouse=True)
@@ -308,6 +317,33 @@ def test_relayed_message_arrives_with_the_channel_latency_while_the_link_is_up_a
 
 
 @pytest.mark.slow
+def test_every_message_a_node_sends_in_one_step_is_taken_past_ten(tmp_path):
+    """A node that sends 30 messages to relay and 15 commands at once, within one step, has
+    every one taken: 30 relayed (rows of relay.parquet for the robot in range) and 15
+    commands counted. (netsim's readers kept the last 10: 20 messages were dropped
+    uncounted.)"""
+    relay = "relay = [{name = 'chat', type = 'std_msgs/msg/String'}]\n"
+    config = scenario(tmp_path, DOMAINS["burst"], extra=relay, n=2, duration_s=3.0)
+    proc = start_bridge(config, tmp_path / "out", "--rate", "2")
+    dp = DomainParticipant(DOMAINS["burst"])
+    keep_all = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.Durability.Volatile, Policy.History.KeepAll)
+    tx = DataWriter(dp, Topic(dp, "rt/robot_0/tx/chat", String), qos=keep_all)
+    cmd = DataWriter(dp, Topic(dp, "rt/robot_1/cmd_vel", Twist), qos=keep_all)
+    clock = DataReader(dp, Topic(dp, "rt/clock", Clock), qos=CLOCK_QOS)
+    wait_for(clock, proc, "/clock")
+    for k in range(30):
+        tx.write(String(data=f"m{k}"))
+    for k in range(15):
+        cmd.write(Twist(linear=Vector3(x=0.01 * k, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)))
+    finish(proc)
+    out = tmp_path / "out"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["bridge_relayed_sent"] == 30 and summary["bridge_commands"] == 15, summary
+    rows = pd.read_parquet(out / "relay.parquet")
+    assert sorted(rows.loc[rows["dst"] == 1, "msg_id"]) == list(range(30))
+
+
+@pytest.mark.slow
 def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
     """SIGINT (Ctrl-C) ends a bridge (here with its live view) before duration_s with exit
     status 0 and the run's tables written up to that instant."""
@@ -351,6 +387,24 @@ def test_odometry_bytes_are_the_serializers_own():
     )
     assert got == serialized(writer, msg)
     assert Odometry.deserialize(got) == msg
+
+
+@pytest.mark.parametrize("odom_hz", [1.0, 3.0, 4.0, 10.0, 20.0])
+def test_the_links_go_out_twice_a_simulated_second_whatever_the_steps(odom_hz):
+    """``/network/links`` goes out at the first step and the first step of each half
+    second: twice in every simulated second when steps are at most half a second, every
+    step when they are longer. (It went out every round(odom_hz / 2) steps: 1.5 times a
+    second at 3 Hz.)"""
+    from netsim.bridge.bridge import links_period
+
+    steps = [k / odom_hz for k in range(1, int(6 * odom_hz) + 1)]
+    sent, last = [], None
+    for t in steps:
+        if links_period(t) != last:
+            sent.append(t)
+            last = links_period(t)
+    per_second = [sum(k <= t < k + 1 for t in sent) for k in range(1, 6)]
+    assert per_second == [min(2, int(odom_hz))] * 5, sent
 
 
 def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():

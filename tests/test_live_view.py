@@ -117,6 +117,25 @@ def test_live_scene_robots_and_links_show_with_the_whole_area_in_view():
     assert f"thickness: {LINK_WIDTH_PX}, scale_invariant: true" in sent[0]
 
 
+def test_a_dropped_message_is_strict_json_on_the_messages_channel():
+    """A dropped message has no latency: the channel says null, which JSON has and its
+    schema allows, not NaN, which a client's strict parser (a browser's ``JSON.parse``, as
+    the Foxglove app's) refuses: every drop was unreadable there."""
+    from netsim.bridge.live_view import MESSAGES_SCHEMA, LiveView
+
+    sim = _clustered_sim()
+    view = LiveView(sim, 0)
+    sent = []
+    try:
+        view.messages = SimpleNamespace(log=lambda row, log_time: sent.append(row))
+        view._dropped(SimpleNamespace(t_s=1.5, msg_id=3, src=0, dst=4, hops=2, cause="ttl"))
+    finally:
+        view.close()
+    (row,) = sent
+    assert json.loads(json.dumps(row, allow_nan=False))["latency_s"] is None
+    assert "null" in MESSAGES_SCHEMA["properties"]["latency_s"]["type"]
+
+
 def test_live_views_draw_a_link_across_a_torus_seam_from_both_ends():
     """The live scene and the bridge's markers draw a link 3 m long across the seam of a
     100 m torus as two 3 m segments toward the border, not one 97 m across the area; on

@@ -2,6 +2,8 @@
 
 import signal
 
+import pytest
+
 from netsim.bridge.loop import Pacer
 from netsim.tools.bridge import _stop_on_signals
 
@@ -19,8 +21,10 @@ class _Sim:
 def test_ctrl_c_ends_a_wait_for_the_wall_clock_at_once():
     """Each step is due half a wall second after the last (``--rate 2``, a clock that
     stands still); Ctrl-C, arriving as the second step is found early, ends the run there,
-    that step unpublished. (The wait was a sleep that went on after the signal's handler:
-    Ctrl-C waited out the step, and the step was published.)"""
+    that step published at once: the run has computed it, and its tables must end at the
+    last instant the nodes were told. (The wait was a sleep that went on after the
+    signal's handler; later the step was left unpublished, and the tables held an instant
+    no node had seen.)"""
     sim = _Sim()
     calls = []
 
@@ -35,4 +39,43 @@ def test_ctrl_c_ends_a_wait_for_the_wall_clock_at_once():
     with _stop_on_signals(pacer):
         pacer.run(published.append, lambda t_s: None)
     assert pacer.stop
-    assert published == [1.0] and sim.now == 2.0
+    assert published == [1.0, 2.0] and sim.now == 2.0
+
+
+def test_ctrl_c_before_the_first_step_is_out_is_an_interrupt():
+    """Ctrl-C while the first step computes (the start-up) ends the bridge as it ends
+    ``netsim run``: an interrupt, nothing published (the step was published and every table
+    written, with exit status 0)."""
+
+    class Starting(_Sim):
+        def run(self, until_s: float) -> None:
+            signal.raise_signal(signal.SIGINT)
+            self.now = until_s
+
+    pacer = Pacer(Starting(), 1.0, 2.0, clock=lambda: 0.0)
+    published: list[float] = []
+    with _stop_on_signals(pacer), pytest.raises(KeyboardInterrupt):
+        pacer.run(published.append, lambda t_s: None)
+    assert published == []
+
+
+def test_a_command_answering_a_step_is_applied_at_the_next_step():
+    """A node that answers each step's odometry at once (here, within the publication
+    itself: the fastest node there is) has its answer taken at the next step, every time:
+    commands are taken before a step is published, so the control delay is one period,
+    not one or none as the microseconds fall. (They were taken right after it: an answer
+    quick enough was applied at the step it answered.)"""
+    sim = _Sim()
+    sim.duration_s = 5.0
+    inbox: list[float] = []
+    applied: list[tuple[float, float]] = []
+
+    def publish(t_s: float) -> None:
+        inbox.append(t_s)  # the node's answer to the odometry of t_s
+
+    def take(t_s: float) -> None:
+        applied.extend((answer, t_s) for answer in inbox)
+        inbox.clear()
+
+    Pacer(sim, 1.0, 1e9, clock=lambda: 0.0).run(publish, take)
+    assert applied == [(1.0, 2.0), (2.0, 3.0), (3.0, 4.0)]  # the run ends at 5: no step after it

@@ -18,6 +18,7 @@ Robots have no heading: a Twist's ``linear.x`` and ``linear.y`` are the world fr
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -40,6 +41,15 @@ LINKS_TOPIC = "/network/links"
 # The links' markers per simulated second (at most one per step): Cyclone's Python
 # serializer takes longer over a MarkerArray than over everything else a step publishes.
 LINKS_HZ = 2.0
+
+
+def links_period(t_s: float) -> int:
+    """Which of the periods of ``1 / LINKS_HZ`` s the instant ``t_s`` falls in: the links go
+    out at a run's first step and at the first step of each period after (every step when
+    steps are longer than a period), so LINKS_HZ times a simulated second whatever
+    ``odom_hz``. Rounded first, so that a step's end a rounding error short of a period's
+    start (3 x 0.1 s is 0.30000000000000004) counts as reaching it."""
+    return math.floor(round(t_s * LINKS_HZ, 9))
 
 
 def _set(path: str) -> Any:
@@ -94,8 +104,7 @@ class RosBridge:
         self.topology = sim.live_topology() if sim.config.events.runtime_links != "off" else None
         self.commands = 0
         self.refused = 0
-        self._links_every = max(1, round(settings.odom_hz / LINKS_HZ))
-        self._steps = 0
+        self._links_period: int | None = None  # the period the links last went out in
         self._types = {name: idl_type(name) for name in (ODOM, CLOCK, NEIGHBOURS, MARKERS)}
 
     # -- in ------------------------------------------------------------------------------
@@ -139,9 +148,10 @@ class RosBridge:
                     msg.data = list(ids)
                     sent = self._neigh_sent[i] = (ids, serialized(writer, msg))
                 write_bytes(writer, sent[1])
-        if self._steps % self._links_every == 0:
+        period = links_period(t_s)
+        if period != self._links_period:
             self.links.write(self._markers(now, pos))
-        self._steps += 1
+            self._links_period = period
         for robot, name, message in self.relay.take():
             self.rx[name][robot].write(message)
 

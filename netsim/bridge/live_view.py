@@ -11,7 +11,8 @@ app the simulated time):
 - ``/netsim/roles``: JSON ``{t_s, robot, role, leader, cause}``; at each role change;
 - ``/netsim/links``: JSON ``{t_s, a, b, up}``; as each link comes up or goes down;
 - ``/netsim/messages``: JSON ``{t_s, msg_id, src, dst, hops, delivered, latency_s,
-  cause}``; as each protocol message is delivered or dropped end to end.
+  cause}``; as each protocol message is delivered or dropped end to end (``latency_s``
+  null for a dropped one: JSON has no NaN, and a client's strict parser refuses it).
 
 A step is ``1 / bridge.odom_hz`` simulated seconds in ``netsim bridge``, 0.1 s in
 ``netsim run --live``.
@@ -19,7 +20,6 @@ A step is ``1 / bridge.odom_hz`` simulated seconds in ``netsim bridge``, 0.1 s i
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import foxglove
@@ -41,6 +41,7 @@ from foxglove.messages import (
 from netsim.bridge.look import LINK_RGBA, link_line_list, robot_diameter_m, robot_rgba
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
+from netsim.stamps import ns, sec_nanosec
 
 # Links are drawn in screen pixels: in metres they would vanish when the whole area is in view.
 LINK_WIDTH_PX = 2.0
@@ -78,14 +79,10 @@ MESSAGES_SCHEMA = {
         "dst": {"type": "integer"},
         "hops": {"type": "integer"},
         "delivered": {"type": "boolean"},
-        "latency_s": {"type": "number"},
+        "latency_s": {"type": ["number", "null"]},
         "cause": {"type": "string"},
     },
 }
-
-
-def _ns(t_s: float) -> int:
-    return int(round(t_s * 1e9))
 
 
 def _colour(rgba: tuple[float, float, float, float]) -> Color:
@@ -122,33 +119,33 @@ class LiveView:
     # -- as they happen --------------------------------------------------------------
     def _link_up(self, e: Any) -> None:
         self.up.add((e.a, e.b))
-        self.links.log({"t_s": e.t_s, "a": e.a, "b": e.b, "up": True}, log_time=_ns(e.t_s))
+        self.links.log({"t_s": e.t_s, "a": e.a, "b": e.b, "up": True}, log_time=ns(e.t_s))
 
     def _link_down(self, e: Any) -> None:
         self.up.discard((e.a, e.b))
-        self.links.log({"t_s": e.t_s, "a": e.a, "b": e.b, "up": False}, log_time=_ns(e.t_s))
+        self.links.log({"t_s": e.t_s, "a": e.a, "b": e.b, "up": False}, log_time=ns(e.t_s))
 
     def _role(self, e: Any) -> None:
         t = float(e.t_s)
         row = {"t_s": t, "robot": int(e.robot), "role": str(e.role), "leader": int(e.leader), "cause": str(e.cause)}
-        self.roles.log(row, log_time=_ns(t))
+        self.roles.log(row, log_time=ns(t))
 
     def _delivered(self, e: Any) -> None:
         row = {"t_s": e.t_s, "msg_id": e.msg_id, "src": e.src, "dst": e.dst, "hops": e.hops, "delivered": True}
         row.update(latency_s=e.latency_s, cause="")
-        self.messages.log(row, log_time=_ns(e.t_s))
+        self.messages.log(row, log_time=ns(e.t_s))
 
     def _dropped(self, e: Any) -> None:
         row = {"t_s": e.t_s, "msg_id": e.msg_id, "src": e.src, "dst": e.dst, "hops": e.hops, "delivered": False}
-        row.update(latency_s=math.nan, cause=e.cause)
-        self.messages.log(row, log_time=_ns(e.t_s))
+        row.update(latency_s=None, cause=e.cause)
+        self.messages.log(row, log_time=ns(e.t_s))
 
     # -- every step ------------------------------------------------------------------
     def publish(self, t_s: float) -> None:
-        sim, ns = self.sim, _ns(t_s)
+        sim, t_ns = self.sim, ns(t_s)
         pos = sim.positions()
         vel = sim.state.velocity_mps
-        self.server.broadcast_time(ns)
+        self.server.broadcast_time(t_ns)
         self.poses.log(
             {
                 "t_s": t_s,
@@ -157,10 +154,10 @@ class LiveView:
                 "vx_mps": vel[:, 0].tolist(),
                 "vy_mps": vel[:, 1].tolist(),
             },
-            log_time=ns,
+            log_time=t_ns,
         )
         rgba = robot_rgba(sim.groups, len(pos))
-        stamp = Timestamp(int(t_s // 1), _ns(t_s % 1.0) % 1_000_000_000)
+        stamp = Timestamp(*sec_nanosec(t_s))
         d = self.robot_m
         size = Vector3(x=d, y=d, z=d)
         spheres = [
@@ -184,7 +181,7 @@ class LiveView:
             SceneEntity(timestamp=stamp, frame_id="world", id="robots", spheres=spheres),
             SceneEntity(timestamp=stamp, frame_id="world", id="links", lines=lines),
         ]
-        self.scene.log(SceneUpdate(entities=entities), log_time=ns)
+        self.scene.log(SceneUpdate(entities=entities), log_time=t_ns)
 
     def close(self) -> None:
         self.server.stop()

@@ -2,17 +2,22 @@
 
 The run advances in control periods of ``1 / bridge.odom_hz`` simulated seconds. At each
 step's end, once the wall clock has reached it (``--rate R``: the simulated instant ``t``
-is due at ``t / R`` wall seconds after the start), the bridge publishes ``/clock`` and each
-robot's odometry, neighbours and the links, then the relayed messages that arrived during
-the step; then it takes the commands and messages ROS 2 nodes sent meanwhile and applies
-them at that instant: a Twist drives its robot from then on, a message on a ``tx`` topic
-goes on the air then. The lag is how late the wall clock is when a step is done computing
-(0 while the run keeps up): its largest value (and when), its mean and its last are the
-summary's ``bridge_lag_*``. The schedule starts when the first step is out: that step
-carries the start-up's one-time costs, which are no lag.
+is due at ``t / R`` wall seconds after the start), the bridge first takes the commands and
+messages ROS 2 nodes sent meanwhile and applies them at that instant (a Twist drives its
+robot from then on, a message on a ``tx`` topic goes on the air then), then publishes
+``/clock`` and each robot's odometry, neighbours and the links, and the relayed messages
+that arrived during the step. Taken before the step is published, no command can answer
+that step: a node's answer to the odometry of ``t`` is applied at the next step, whatever
+the microseconds it took, so the same node gives the same run. The lag is how late the
+wall clock is when a step is done computing (0 while the run keeps up): its largest value
+(and when), its mean and its last are the summary's ``bridge_lag_*``. The schedule starts
+when the first step is out: that step carries the start-up's one-time costs, which are no
+lag.
 
 The loop ends at ``duration_s`` or when :attr:`Pacer.stop` is set (Ctrl-C): at once, also
-while it waits for the wall clock (a step not yet due is then not published).
+while it waits for the wall clock, the step computed then published at once, so that the
+run's tables end at the last instant the nodes were told. Stopped before its first step is
+out, it raises :class:`KeyboardInterrupt`: nothing was published.
 """
 
 from __future__ import annotations
@@ -92,7 +97,8 @@ class Pacer:
 
     def run(self, step_end: Callable[[float], None], step_start: Callable[[float], None]) -> None:
         """Advance to the run's end (or :attr:`stop`): ``step_start(t)`` at each step's start
-        (commands), ``step_end(t)`` once its end is due on the wall clock (outputs)."""
+        (commands), taken just before ``step_end`` of the step before (outputs), once that
+        step's end is due on the wall clock."""
         try:
             self._run(step_end, step_start)
         finally:
@@ -104,21 +110,27 @@ class Pacer:
         wall0 = math.nan
         k = 0
         step_start(sim.now)
-        while not self.stop and sim.now < end:
+        while sim.now < end:
             k += 1
             t = min(t0_sim + k * self.period_s, end)
             sim.run(until_s=t)
             if k == 1:
+                if self.stop:
+                    raise KeyboardInterrupt  # stopped while starting: nothing is out yet
                 # The first step carries the start-up's one-time costs (the run's first
                 # events, the first messages' serializers): the schedule starts when it is
                 # out, and the lag is counted from the second step on.
+                if t < end:
+                    step_start(t)
                 step_end(t)
                 wall0 = self.clock() - (t - t0_sim) / self.rate
             else:
                 late = self.clock() - (wall0 + (t - t0_sim) / self.rate)
                 self.lag.add(max(late, 0.0), t)
-                if late < 0 and self._wait(-late):
-                    break
+                if late < 0:
+                    self._wait(-late)
+                if t < end and not self.stop:
+                    step_start(t)
                 step_end(t)
-            if t < end:
-                step_start(t)
+            if self.stop:
+                break

@@ -19,6 +19,7 @@ from cyclonedds.idl import IdlStruct
 from cyclonedds.idl import types as t
 
 from netsim.bridge.settings import typestore
+from netsim.stamps import sec_nanosec
 
 _BASE = {
     "bool": bool,
@@ -106,5 +107,5 @@ def _zero(tp: Any) -> Any:
 
 def stamp(t_s: float) -> Any:
     """builtin_interfaces/Time of ``t_s`` seconds."""
-    sec = int(t_s // 1)
-    return idl_type("builtin_interfaces/msg/Time")(sec=sec, nanosec=min(int(round((t_s - sec) * 1e9)), 999_999_999))
+    sec, nanosec = sec_nanosec(t_s)
+    return idl_type("builtin_interfaces/msg/Time")(sec=sec, nanosec=nanosec)

@@ -1,9 +1,10 @@
 """The bridge's DDS participant, on ROS 2's wire conventions.
 
 Topics are ROS 2's: ``/robot_0/odom`` is the DDS topic ``rt/robot_0/odom``; types carry
-ROS 2's DDS names (:mod:`netsim.bridge.messages`). Every topic has ROS 2's default QoS
+ROS 2's DDS names (:mod:`netsim.bridge.messages`). Every topic netsim publishes has ROS 2's default QoS
 (reliable, volatile, keep last 10) but ``/clock``, which has ROS 2's clock QoS (best
-effort, volatile, keep last 1), as ``rclcpp`` gives it to ``use_sim_time``.
+effort, volatile, keep last 1), as ``rclcpp`` gives it to ``use_sim_time``; netsim reads
+what nodes send reliably and keeps it all until it is taken (:data:`INBOX_QOS`).
 """
 
 from __future__ import annotations
@@ -31,6 +32,12 @@ DEFAULT_QOS = Qos(
     Policy.History.KeepLast(10),
 )
 CLOCK_QOS = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(1))
+# What nodes send netsim (commands, messages to relay) is taken once a step: a reader keeping
+# the last 10 would drop, uncounted, what a node sent beyond 10 in one step. History is not
+# matched between writer and reader, so any ROS 2 publisher still matches.
+INBOX_QOS = Qos(
+    Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepAll
+)
 
 
 def dds_topic(name: str) -> str:
@@ -61,7 +68,7 @@ class Node:
     def writer(self, name: str, msgtype: str, qos: Qos = DEFAULT_QOS) -> DataWriter:
         return DataWriter(self.participant, self.topic(name, msgtype), qos=qos)
 
-    def reader(self, name: str, msgtype: str, qos: Qos = DEFAULT_QOS) -> DataReader:
+    def reader(self, name: str, msgtype: str, qos: Qos = INBOX_QOS) -> DataReader:
         return DataReader(self.participant, self.topic(name, msgtype), qos=qos)
 
 

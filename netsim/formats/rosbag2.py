@@ -31,6 +31,7 @@ import pandas as pd
 from netsim.errors import NetsimInputError, listed
 from netsim.formats.waypoints import Waypoints
 from netsim.metrics import links_up_at
+from netsim.stamps import ns, sec_nanosec
 
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
 _ROBOT_TOPIC = re.compile(r"^/robot_(\d+)/")
@@ -185,8 +186,8 @@ def _dtype(base: str) -> Any:
 
 
 def _stamp(store: Any, t_s: float) -> Any:
-    ns = int(round(t_s * 1e9))
-    return _make(store, "builtin_interfaces/msg/Time", sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+    sec, nanosec = sec_nanosec(t_s)
+    return _make(store, "builtin_interfaces/msg/Time", sec=sec, nanosec=nanosec)
 
 
 def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
@@ -202,9 +203,6 @@ def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
 
     def point(x: float, y: float) -> Any:
         return _make(store, "geometry_msgs/msg/Point", x=float(x), y=float(y))
-
-    def ns(t_s: float) -> int:
-        return int(round(t_s * 1e9))
 
     positions = frames["positions"]
     for t, robot, x, y in positions[["t_s", "robot", "x_m", "y_m"]].to_numpy().tolist():
