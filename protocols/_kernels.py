@@ -529,16 +529,22 @@ def deadline_after(from_s, tau_s):
 @jit(nogil=True)
 def is_live(last_heard_s, now, tau_s):
     """An entry is live while the last Ack that told it arrived less than ``tau_s`` ago: the
-    timeout rule, read by every use of the table."""
-    return now - last_heard_s < tau_s
+    timeout rule, read by every use of the table. Read against the deadline a timer of the
+    same entry runs out at (:func:`deadline_after`, the same rounding), not as ``now -
+    last_heard_s < tau_s``: in floating point ``(a + tau) - a`` may fall short of ``tau``,
+    and an entry would still be live at its own timer's instant (a member whose leader timed
+    out then joined it again at that instant, its timer already due: the run went round at
+    one instant for ever)."""
+    return now < deadline_after(last_heard_s, tau_s)
 
 
 @jit(nogil=True, inline="always")
 def continues(last_heard_s, now, tau_s):
     """Whether an Ack arriving ``now`` continues an entry last told at ``last_heard_s``: up to
     ``tau_s`` after it, the instant of expiry included (an Ack at exactly ``tau`` keeps the
-    entry's history, docs/model.md section 4), where :func:`is_live` has already ended."""
-    return now - last_heard_s <= tau_s
+    entry's history, docs/model.md section 4), where :func:`is_live` has already ended; the
+    same deadline as :func:`is_live`'s."""
+    return now <= deadline_after(last_heard_s, tau_s)
 
 
 @jit(nogil=True)
@@ -593,7 +599,16 @@ def _membership_row(table, r, now, symmetric, roles, groups, m):
         return m + 1
     if role != MEMBER:
         return m
-    # The robot's groups, ascending, inserted in place (a gateway has two or three).
+    # The robot's groups, ascending, inserted in place (a gateway has two or three). A
+    # group holds the members its leader has a two-way link with: a member whose link to
+    # its own leader is one-way now (unequal ranges) is in no group, and no gateway.
+    own_two_way = False
+    for s in range(len(ids_row)):
+        if ids_row[s] == own and _two_way(records_row[s], now, tau_s, symmetric):
+            own_two_way = True
+            break
+    if not own_two_way:
+        return m
     m0 = m
     group[m] = own
     m += 1
@@ -615,9 +630,9 @@ def _membership_row(table, r, now, symmetric, roles, groups, m):
 @jit(nogil=True)
 def relays(table, now, symmetric, roles, receivers, distributed_gateways):
     """The ``receivers`` of a flooded message that relay it (:mod:`netsim.protocols.relay`):
-    leaders, and gateways, the members with a live two-way neighbour in another group (a
-    leader other than their own or, with ``distributed_gateways``, a member of another
-    leader)."""
+    leaders, and gateways, the members with a live two-way link to their own leader and a
+    live two-way neighbour in another group (a leader other than their own or, with
+    ``distributed_gateways``, a member of another leader)."""
     table, roles = Table(*table), RoleArrays(*roles)
     ids, records, tau_s = table.ids, table.records, table.tau_s
     role, leader = roles.role, roles.leader
@@ -629,17 +644,20 @@ def relays(table, now, symmetric, roles, receivers, distributed_gateways):
         if ro == MEMBER:
             own = leader[r]
             row = records[r]
+            own_two_way = other = False
             for s in range(len(row)):
                 if ids[r, s] == EMPTY:
                     continue  # the empty record, never live: not read
                 rec = row[s]
                 if not _two_way(rec, now, tau_s, symmetric):
                     continue
+                if ids[r, s] == own:
+                    own_two_way = True
                 if distributed_gateways:
-                    other = rec[ROLE] != UNDECIDED and rec[LEADER] != own
+                    other = other or (rec[ROLE] != UNDECIDED and rec[LEADER] != own)
                 else:
-                    other = rec[ROLE] == LEADER_ROLE and ids[r, s] != own
-                if other:
+                    other = other or (rec[ROLE] == LEADER_ROLE and ids[r, s] != own)
+                if own_two_way and other:
                     relay = True
                     break
         if relay:

@@ -55,6 +55,15 @@ def random_tables(rng, n, slots, now):
     return ids, records
 
 
+def leaders_in_rows(rng, ids):
+    """A leader for each robot: most often one its own row holds (so that its link to its
+    leader is in the table, as a member's is), else any id, -1 included."""
+    n = len(ids)
+    picked = ids[np.arange(n), rng.integers(0, ids.shape[1], n)]
+    anyone = rng.integers(-1, 6, n)
+    return np.where((picked >= 0) & (rng.random(n) < 0.8), picked, anyone).astype(np.int64)
+
+
 @pytest.mark.parametrize("symmetric", [False, True])
 def test_ack_effects_loop_equals_the_oracle(symmetric, kernels):
     """An Ack's effects (its group's members; for a leading Ack the timers it renews, which
@@ -237,7 +246,7 @@ def test_relays_loop_equals_the_oracle(symmetric, distributed_gateways, kernels)
         n, now = 12, 10.0
         ids, records = random_tables(rng, n, 6, now)
         role = rng.integers(0, 3, n).astype(np.int8)
-        leader = rng.integers(-1, 6, n).astype(np.int64)
+        leader = leaders_in_rows(rng, ids)
         receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
         args = ((ids, records, TAU_S), now, symmetric, (role, leader), receivers, distributed_gateways)
         a, b = kernels.relays(*args), relays(*args)
@@ -255,7 +264,7 @@ def test_flood_step_loop_equals_the_oracle(kernels):
         n, now = 12, 10.0
         ids, records = random_tables(rng, n, 6, now)
         role = rng.integers(0, 3, n).astype(np.int8)
-        leader = rng.integers(-1, 6, n).astype(np.int64)
+        leader = leaders_in_rows(rng, ids)
         seen = rng.random(n) < 0.4
         receivers = np.sort(rng.choice(n, int(rng.integers(0, n)), replace=False)).astype(np.int64)
         seen_a, seen_b = seen.copy(), seen.copy()
@@ -271,33 +280,43 @@ def test_flood_step_loop_equals_the_oracle(kernels):
 
 
 def test_relays_are_leaders_and_members_next_to_another_group(kernels):
-    """Leaders relay; a member relays when a live two-way neighbour is in another group: a
-    member of another leader (distributed gateways) or another leader (strict backbone);
-    undecided robots, one-way and expired neighbours do not count."""
+    """Leaders relay; a member relays when its link to its own leader is two-way and a live
+    two-way neighbour is in another group: a member of another leader (distributed
+    gateways) or another leader (strict backbone); undecided robots, one-way and expired
+    neighbours do not count, and a member whose own leader does not hear it is no gateway
+    (MODEL 4.1: it belongs to no group; it relayed all the same)."""
     now = 10.0
     # Robot 0: leader. 1: member of 0 hearing a member of leader 5 over a two-way link.
     # 2: member of 0 hearing leader 5 one way only. 3: member of 0 hearing leader 5 two-way.
     # 4: member of 0 hearing undecided 7, and 5's member 6 too long ago. 7: undecided.
-    role = np.array([ALPHA, MEMBER, MEMBER, MEMBER, MEMBER, ALPHA, MEMBER, UNDECIDED], dtype=np.int8)
-    leader = np.array([0, 0, 0, 0, 0, 5, 5, -1], dtype=np.int64)
-    ids = np.full((8, 2), -1, dtype=np.int64)
-    records = np.broadcast_to(EMPTY_RECORD, (8, 2, len(EMPTY_RECORD))).copy()
+    # 8: member of 0 that 0 no longer hears (one way), hearing leader 5 two-way.
+    # Every member but 8 has a two-way link to its leader.
+    role = np.array([ALPHA, MEMBER, MEMBER, MEMBER, MEMBER, ALPHA, MEMBER, UNDECIDED, MEMBER], dtype=np.int8)
+    leader = np.array([0, 0, 0, 0, 0, 5, 5, -1, 0], dtype=np.int64)
+    ids = np.full((9, 3), -1, dtype=np.int64)
+    records = np.broadcast_to(EMPTY_RECORD, (9, 3, len(EMPTY_RECORD))).copy()
 
     def entry(i, slot, j, heard_s, hears_me):
         ids[i, slot] = j
         records[i, slot, [LAST_HEARD, HEARS_ME, ROLE, LEADER]] = [now - heard_s, hears_me, role[j], leader[j]]
 
+    for member in (1, 2, 3, 4, 6):
+        entry(member, 2, leader[member], 1.0, 1)
+    entry(8, 2, 0, 1.0, 0)
     entry(1, 0, 6, 1.0, 1)
     entry(2, 0, 5, 1.0, 0)
     entry(3, 0, 5, 1.0, 1)
     entry(4, 0, 7, 1.0, 1)
     entry(4, 1, 6, TAU_S, 1)
-    everyone = np.arange(8)
+    entry(8, 0, 5, 1.0, 1)
+    everyone = np.arange(9)
     table, roles = (ids, records, TAU_S), (role, leader)
     for fn in (relays, kernels.relays):
         assert fn(table, now, False, roles, everyone, True).tolist() == [0, 1, 3, 5]
-        assert fn(table, now, True, roles, everyone, True).tolist() == [0, 1, 2, 3, 5]
+        assert fn(table, now, True, roles, everyone, True).tolist() == [0, 1, 2, 3, 5, 8]
         assert fn(table, now, False, roles, everyone, False).tolist() == [0, 3, 5]
+    robot, group, _ = kernels.membership(table, now, False, roles)
+    assert 8 not in robot.tolist() and group[robot == 3].tolist() == [0, 5]
 
 
 def test_members_counted_as_roles_change():
@@ -328,7 +347,7 @@ def test_membership_loop_equals_the_oracle(symmetric, kernels):
         n, now = 12, 10.0
         ids, records = random_tables(rng, n, 6, now)
         role = rng.integers(0, 3, n).astype(np.int8)
-        leader = np.where(role == MEMBER, rng.integers(0, 6, n), np.where(role == ALPHA, np.arange(n), -1))
+        leader = np.where(role == MEMBER, leaders_in_rows(rng, ids), np.where(role == ALPHA, np.arange(n), -1))
         args = ((ids, records, TAU_S), now, symmetric, (role, leader))
         a, b = kernels.membership(*args), membership(*args)
         assert [x.tolist() for x in a] == [x.tolist() for x in b]

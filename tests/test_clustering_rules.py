@@ -121,6 +121,10 @@ def test_rule3_member_whose_leader_leaves_becomes_undecided_exactly_tau_after_la
         # 2.5, first hear each other as leaders at 3.5 (their first Acks as leaders), and
         # merge merge_delay (2 s) after that, not at once.
         ([0.5, 0.5], ["rule4_no_leader", "rule5_merge_yield"], [2.5, 5.5]),
+        # A phase no binary fraction holds: an Ack tau after the last reaches the member at
+        # its timer's instant to the last bit, and the table, which read ``now - last <
+        # tau``, must not end the entry there (it restarted it, from 8.1 on, then 16.1).
+        ([0.1, 1.35], ["rule2_join"], [3.1]),
     ],
 )
 def test_ack_at_the_deadline_instant_counts(phases, causes, times):
@@ -130,7 +134,7 @@ def test_ack_at_the_deadline_instant_counts(phases, causes, times):
     sim, stack, deliveries = scripted([[0, 0], [5, 0]], phases, tau_s=2.0, latency_s=0.0)
 
     def every_other(sender, receivers, distances):
-        odd = sim.env.now > 7 and int(round(sim.env.now - 0.5)) % 2 == 1
+        odd = sim.env.now > 7 and int(round(sim.env.now - phases[0])) % 2 == 1
         return np.zeros(len(receivers), dtype=bool) if sender == 0 and odd else None
 
     sim.channel.survives = every_other
@@ -144,6 +148,33 @@ def test_ack_at_the_deadline_instant_counts(phases, causes, times):
     assert stack.table.live_since_s[1, stack.table.entry(1, 0)] < 7.0
     assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
     assert stack.role.tolist() == [LEADER, MEMBER]
+
+
+def test_rule3_a_timer_and_the_table_agree_on_when_an_entry_ends():
+    """Member 2 hears leaders 0 and 1 at one instant ``a``; both leave. At its timer's
+    instant ``a + tau`` no entry of either may still be live: in floating point ``(a + tau)
+    - a`` falls short of ``tau`` for this ``a``, and the table, read as ``now - a < tau``,
+    held leader 1 live, so rule 6 joined it with its timer already due, which fired at
+    once, and the member went from leader to leader at that instant for ever (the run hung)."""
+    a_phase = 0.8958384524320082
+    sim, stack, _ = scripted([[-8, 0], [8, 0], [0, 0]], [a_phase, a_phase, a_phase + 1.3])
+    changes: list[float] = []
+
+    def at_one_instant(event):
+        changes.append(event.t_s)
+        if changes.count(event.t_s) > 10:
+            raise AssertionError(f"robot roles go round at t = {event.t_s!r}")
+
+    sim.events.on("role_change", at_one_instant)
+    for leader in (0, 1):
+        move_away(sim, leader, 7.0 - a_phase / 2)
+    sim.run(until_s=8.8)
+    a = stack.table.last_heard_s[2, stack.table.entry(2, 1)]
+    assert (a + TAU) - a < TAU  # the rounding this test is about
+    sim.run(until_s=20)
+    rec = records(sim, 2)
+    assert rec.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected"], rec
+    assert rec.t_s.iloc[-2] == stack.table.last_heard_s[2, stack.table.entry(2, 0)] + TAU
 
 
 def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():

@@ -148,16 +148,31 @@ def test_acks_built_plain_and_compiled_are_the_same(monkeypatch):
     assert max(degrees) > 3 and a.resign_pending.sum() < 30
 
 
+def _first_after(now, tau_s, last, step):
+    """The float nearest ``last`` on the side of ``step`` whose deadline ``last + tau_s``
+    (as a timer computes it) is past ``now`` (step +inf) or before it (step -inf)."""
+    while not (last + tau_s > now if step > 0 else last + tau_s < now):
+        last = np.nextafter(last, step)
+    return last
+
+
 def test_timeout_an_entry_is_live_while_its_last_ack_is_younger_than_tau(kernels):
-    """The timeout rule, one kernel for every reader of the table: an entry whose last Ack
-    arrived exactly ``tau_s`` ago or earlier is not live; one a hair younger is; an empty
-    slot (last heard at minus infinity) never is."""
+    """The timeout rule, one kernel for every reader of the table: an entry is live while
+    its deadline, its last Ack's instant plus ``tau_s`` as a timer computes it, is still to
+    come: not at its deadline or past it, but one a hair younger is; an empty slot (last
+    heard at minus infinity) never is. Read as ``now - last < tau_s`` instead, an entry could
+    still be live at its own timer's instant (``(a + tau) - a`` may fall short of ``tau``)."""
     tau_s, now = 2.5, 10.0
-    last = np.array([now - tau_s, np.nextafter(now - tau_s, now), now, -np.inf, 0.0, 9.0])
+    younger = _first_after(now, tau_s, now - tau_s, np.inf)
+    last = np.array([now - tau_s, younger, now, -np.inf, 0.0, 9.0])
     assert kernels.live_entries(last, now, tau_s).tolist() == [False, True, True, False, False, True]
     rng = np.random.default_rng(3)
     last = rng.uniform(0.0, now, 500)
-    assert kernels.live_entries(last, now, tau_s).tolist() == (now - last < tau_s).tolist()
+    assert kernels.live_entries(last, now, tau_s).tolist() == (now < last + tau_s).tolist()
+    # An instant whose rounding puts the two readings apart: only the deadline's agrees
+    # with the timer of the same entry.
+    a = 5.896838452432008
+    assert bool(kernels.is_live(a, a + 3.0, 3.0)) is False and (a + 3.0) - a < 3.0
 
 
 def test_an_ack_at_the_instant_of_expiry_continues_the_entry(kernels):
@@ -167,8 +182,8 @@ def test_an_ack_at_the_instant_of_expiry_continues_the_entry(kernels):
     tau_s, now = 2.5, 10.0
     for last, live, continued in (
         (now - tau_s, False, True),
-        (np.nextafter(now - tau_s, -np.inf), False, False),
-        (np.nextafter(now - tau_s, now), True, True),
+        (_first_after(now, tau_s, now - tau_s, -np.inf), False, False),
+        (_first_after(now, tau_s, now - tau_s, np.inf), True, True),
         (now, True, True),
     ):
         assert bool(kernels.is_live(float(last), now, tau_s)) is live

@@ -99,7 +99,7 @@ def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
 
 def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
     """Which ``records`` (any leading shape) are live neighbours over a two-way link."""
-    live = now - records[..., K.LAST_HEARD] < tau_s
+    live = now < records[..., K.LAST_HEARD] + tau_s  # against the deadline, as a timer
     if not symmetric:
         live &= records[..., K.HEARS_ME] != 0
     return live
@@ -112,7 +112,7 @@ class NumpyTable(NeighbourTable):
 
     def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
         # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
-        return (self.id[rows] == K.EMPTY) | (now - self.data[rows, :, K.LAST_HEARD] > self.tau_s)
+        return (self.id[rows] == K.EMPTY) | (now > self.data[rows, :, K.LAST_HEARD] + self.tau_s)
 
     def _place(self, now, sender, receivers, found):
         """Give ``sender`` a slot in the rows of the receivers that have none for it."""
@@ -140,7 +140,7 @@ class NumpyTable(NeighbourTable):
         if power_dbm is not None:
             rec[:, K.RX_POWER] = np.asarray(power_dbm)[fresh]
         rec[:, K.LAST_HEARD] = now
-        was_live = found & (now - old[:, K.LAST_HEARD] <= self.tau_s)
+        was_live = found & (now <= old[:, K.LAST_HEARD] + self.tau_s)
         rec[:, K.LIVE_SINCE] = np.where(was_live, old[:, K.LIVE_SINCE], now)
         rec[:, K.HEARS_ME] = hears_me
         still_two_way = was_live & (old[:, K.HEARS_ME] != 0)
@@ -157,7 +157,7 @@ class NumpyTable(NeighbourTable):
         return fresh, hears_me, len(fresh) - int(fresh.sum())
 
     def live_mask(self, now: float, i: int) -> np.ndarray:
-        return now - self.data[i, :, K.LAST_HEARD] < self.tau_s
+        return now < self.data[i, :, K.LAST_HEARD] + self.tau_s
 
     def announce(self, now, i, seq, role, leader, x_m, y_m, group_size) -> np.ndarray:
         """Robot ``i``'s Ack's packed record, with its two-way degree, then its live ids."""
@@ -253,13 +253,16 @@ def membership(table, now, symmetric, roles) -> tuple[np.ndarray, np.ndarray, np
     """Everyone's groups ``(robot, group, primary)``, ordered by robot and group."""
     ids, records, tau_s = table
     role, leader = roles
-    rows, slots = np.nonzero(two_way(records, now, tau_s, symmetric) & (records[:, :, K.ROLE] == ALPHA))
+    linked = two_way(records, now, tau_s, symmetric)
+    # A member is in a group only over a two-way link to its own leader.
+    own_linked = (linked & (ids == leader[:, None])).any(axis=1)
+    rows, slots = np.nonzero(linked & (records[:, :, K.ROLE] == ALPHA))
     other = ids[rows, slots]
-    member = role[rows] == MEMBER
+    member = (role[rows] == MEMBER) & own_linked[rows]
     rows, other = rows[member], other[member]
     secondary = other != leader[rows]
     leaders = np.flatnonzero(role == ALPHA)
-    members = np.flatnonzero(role == MEMBER)
+    members = np.flatnonzero((role == MEMBER) & own_linked)
     robot = np.concatenate([leaders, members, rows[secondary]])
     group = np.concatenate([leaders, leader[members], other[secondary]])
     primary = np.concatenate([np.ones(len(leaders) + len(members), bool), np.zeros(int(secondary.sum()), bool)])
@@ -270,7 +273,7 @@ def membership(table, now, symmetric, roles) -> tuple[np.ndarray, np.ndarray, np
 # -- relaying ----------------------------------------------------------------------------
 def relays(table, now, symmetric, roles, receivers, distributed_gateways) -> np.ndarray:
     """The receivers of a flooded message that relay it: leaders, and members with a live
-    two-way neighbour in another group."""
+    two-way link to their own leader and a live two-way neighbour in another group."""
     ids, records, tau_s = table
     role, leader = roles
     rows = records[receivers]
@@ -280,7 +283,9 @@ def relays(table, now, symmetric, roles, receivers, distributed_gateways) -> np.
     else:
         other = (rows[:, :, K.ROLE] == ALPHA) & (ids[receivers] != own)
     r_role = role[receivers]
-    gateway = (two_way(rows, now, tau_s, symmetric) & other).any(axis=1)
+    linked = two_way(rows, now, tau_s, symmetric)
+    own_linked = (linked & (ids[receivers] == own)).any(axis=1)
+    gateway = own_linked & (linked & other).any(axis=1)
     return receivers[(r_role == ALPHA) | ((r_role == MEMBER) & gateway)]
 
 
