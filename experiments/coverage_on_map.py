@@ -113,13 +113,14 @@ def figure(runs: pd.DataFrame, start_side_m: float, path: str) -> None:
     from matplotlib.patches import Circle
 
     from netsim.config import load
-    from netsim.tools.figures import draw_map, pyplot, run_map
+    from netsim.tools.figures import draw_map, pyplot
+    from netsim.world.maps import cached_map
 
     plt = pyplot()
     first = runs.sort_values("seed", kind="stable").groupby(["radio", "plan"], sort=False).head(1)
     fig, axes = plt.subplots(1, len(first), figsize=(4.2 * len(first), 4.6), squeeze=False)
     for ax, row in zip(axes[0], first.itertuples()):
-        occupancy = run_map(load(None, settings(row.radio, row.plan, row.N, row.seed, 1.0, start_side_m)))
+        occupancy = cached_map(load(None, settings(row.radio, row.plan, row.N, row.seed, 1.0, start_side_m)).world.map)
         draw_map(ax, occupancy)
         xy = np.asarray(row.final_xy)
         for p in xy:

@@ -408,6 +408,43 @@ def test_torus_positions_wrap(tmp_path, open_page):
         assert_matches(page, run, 15, t, side=400.0)
         drawn = np.array(page.js("netsimView.positions()"))
         assert ((drawn >= 0) & (drawn < 400)).all()
+    _links_across_the_seam_end_at_the_border(page, 400.0)
+
+
+def _links_across_the_seam_end_at_the_border(page, side_m):
+    """At an instant with a link across the seam, nothing is drawn outside the area but the
+    markers of robots near the border: the link's halves stop at the border (they ran on to
+    the other robot's image, up to a range past it)."""
+    from PIL import Image
+
+    def past_the_border_m(a, b):
+        """How far past the border the halves of a link across the seam reach (0: none)."""
+        crossed = np.abs(pos[a] - pos[b]) > side_m / 2
+        to_border = np.minimum(pos[[a, b]], side_m - pos[[a, b]])  # each end, each axis
+        return float(to_border[:, crossed].min()) if crossed.any() else 0.0
+
+    for t in np.linspace(0.0, 60.0, 241):
+        page.js(f"netsimView.seek({float(t)!r})")
+        pos = np.array(page.js("netsimView.positions()"))
+        if max((past_the_border_m(a, b) for a, b in page.js("netsimView.links()")), default=0.0) > 30.0:
+            break
+    else:
+        pytest.fail("no link across the seam reaching 30 m past the border in the run")
+    box = page.page.locator("#field").bounding_box()
+    img = np.asarray(Image.open(io.BytesIO(page.page.locator("#field").screenshot())).convert("RGB"))
+    scale = img.shape[1] / box["width"]  # device pixels per CSS pixel
+    (x0, y0), (x1, y1) = page.js("netsimView.toScreen(0, 0)"), page.js(f"netsimView.toScreen({side_m}, {side_m})")
+    margin = 12  # CSS pixels: a robot's marker at the border reaches past it
+    cols = np.arange(img.shape[1]) / scale
+    rows = np.arange(img.shape[0]) / scale
+    outside = (
+        (cols[None, :] < min(x0, x1) - margin)
+        | (cols[None, :] > max(x0, x1) + margin)
+        | (rows[:, None] < min(y0, y1) - margin)
+        | (rows[:, None] > max(y0, y1) + margin)
+    )
+    background = img[0, 0]
+    assert (img[outside] == background).all(), f"drawn outside the area at t = {t}"
 
 
 @pytest.mark.slow
@@ -421,8 +458,9 @@ def test_older_run_without_legs_uses_the_sampled_positions(moving_run, tmp_path,
     pos = pd.read_parquet(old / "positions.parquet")
     page.js("netsimView.seek(12)")
     sample = pos[pos["t_s"] == 12.0].sort_values("robot")[["x_m", "y_m"]].to_numpy()
-    # Sampled positions travel as 32-bit floats: a few micrometres.
-    np.testing.assert_allclose(np.array(page.js("netsimView.positions()")), sample, atol=1e-3)
+    # Exact at a sample (they travelled as 32-bit floats: micrometres off in a small
+    # area, 0.1 m in a georeferenced one).
+    np.testing.assert_allclose(np.array(page.js("netsimView.positions()")), sample, rtol=0, atol=1e-9)
 
 
 @pytest.mark.slow
@@ -566,6 +604,18 @@ def test_the_form_shows_the_command_for_another_scenario(moving_run, open_page):
     assert "--seed 3" in command and command.rstrip().endswith("--view")
 
 
+def test_the_form_keeps_a_runs_ranges_one_a_robot(tmp_path, open_page):
+    """A run of per-robot ranges: the form leaves the range empty (the command keeps the
+    run's list) until a range for all is typed. (It filled in the least range, and the
+    command, run as shown, gave every robot 100 m.)"""
+    run = _run(tmp_path / "ranges", "world.n_robots=3", "channel.range_m=[100.0, 150.0, 120.0]", "duration_s=5")
+    page = open_page(run / "view.html")
+    page.page.click("#workflow summary")
+    assert "channel.range_m" not in page.page.inner_text("#command")
+    page.page.fill("#form input[name=range_m]", "90")
+    assert "--set channel.range_m=90" in page.page.inner_text("#command")
+
+
 @pytest.mark.slow
 def test_a_run_without_roles_is_drawn_as_in_the_figures(tmp_path, open_page):
     """The Ack beacon alone: no roles, so plain grey dots in both drawings; the chart
@@ -583,3 +633,42 @@ def test_a_run_without_roles_is_drawn_as_in_the_figures(tmp_path, open_page):
     assert "robot (no roles)" in page.page.locator("#legend").inner_text()
     d = pd.read_parquet(run / "ack_delivery.parquet")
     assert page.js("netsimView.series()")["ack_delivery"] == d.loc[d["t_s"] <= 10, "delivery_ratio"].iloc[-1]
+
+
+def test_the_delivered_series_counts_a_message_once_it_has_arrived():
+    """The strip chart's delivered fraction at t: of the messages sent by t, those arrived
+    by t (the side panel's count). Messages sent at 1, 2 and 3 s; the first arrives at
+    1.5 s, the second never, the third at 3.4 s. (The chart counted a message from its
+    sending on, if it arrived at all: 1 at 1 s, while the panel said none had arrived.)"""
+    from netsim.tools.viewer.data import Blob, series
+    from tests.fixtures import make_config
+
+    messages = pd.DataFrame(
+        {"t_sent_s": [1.0, 2.0, 3.0], "delivered": [True, False, True], "t_delivered_s": [1.5, np.nan, 3.4]}
+    )
+    links = pd.DataFrame({"a": [], "b": [], "t_up_s": [], "t_down_s": [], "censored_end": []})
+    blob = Blob()
+    series(make_config(duration_s=5.0, world={"n_robots": 2}), links, pd.DataFrame(), None, messages, None, blob)
+    arrays = {}
+    data = b"".join(blob.parts)
+    for name, (_code, offset, size) in blob.index.items():
+        if name.startswith("s_delivered"):
+            arrays[name] = np.frombuffer(data, "<f8", size, offset)
+    assert arrays["s_delivered_t"].tolist() == [1.0, 1.5, 2.0, 3.0, 3.4]
+    assert arrays["s_delivered_v"].tolist() == [0.0, 1.0, 0.5, 1 / 3, 2 / 3]
+
+
+def test_a_run_named_like_markup_still_loads(moving_run, tmp_path, open_page):
+    """The run directory's name goes into the page's data (its title): a name holding
+    ``<!--<script>`` must stay text. (Only ``</`` was escaped: the parser took the rest of
+    the page as the script, and it stayed on "loading..." with no error.)"""
+    odd = tmp_path / "r<!--<script>"
+    shutil.copytree(moving_run, odd)
+    (odd / "view.html").unlink()
+    assert main(["view", str(odd)]) == 0
+    text = (odd / "view.html").read_text()
+    meta = text[text.index('id="netsim-meta">') + len('id="netsim-meta">') :]
+    assert "<" not in meta[: meta.index("</script>")]  # no markup in the data: nothing to parse
+    page = open_page(odd / "view.html")
+    assert page.js("netsimView.ready") and page.js("netsimView.n") == 40
+    assert "r<!--<script>" in page.js("JSON.parse(document.getElementById('netsim-meta').textContent).title")

@@ -161,11 +161,13 @@ READERS = {"view": [], "export": ["--format", "bonnmotion"], "figures": []}
         ("config", "as TOML"),
         ("columns", "lacks the column"),
         ("empty config", "holds no run's configuration"),
+        ("fewer robots", "names robot 3 (robot), but config.toml has 3 robots"),
     ],
 )
 def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, small_run, command, damage, said):
-    """A file given as the run, a run whose tables were cut short or lack their columns, or
-    whose config.toml is not TOML or empty: one line naming the file for every command
+    """A file given as the run, a run whose tables were cut short, lack their columns or
+    name robots its config.toml does not have, or whose config.toml is not TOML or empty:
+    one line naming the file for every command
     that reads a run, nothing written (a KeyError's or numpy's traceback before)."""
     run, out = tmp_path / "run", tmp_path / ("out.movements" if command == "export" else "out")
     if damage == "file":
@@ -180,6 +182,10 @@ def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, sma
                 pd.DataFrame({"other": [1.0]}).to_parquet(table)
         elif damage == "empty config":
             (run / "config.toml").write_text("")
+        elif damage == "fewer robots":  # its tables name robot 3 (an IndexError's traceback)
+            text = (run / "config.toml").read_text()
+            assert "n_robots = 4" in text
+            (run / "config.toml").write_text(text.replace("n_robots = 4", "n_robots = 3"))
         else:
             (run / "config.toml").write_text("[world\n")
     assert main([command, str(run), *READERS[command], "--out", str(out)]) == 2
@@ -289,3 +295,30 @@ def test_a_run_written_before_a_table_gained_a_column_is_still_read(tmp_path, ca
     legs.drop(columns=["cause"]).to_parquet(run / "legs.parquet")
     assert main(["export", str(run), "--format", "bonnmotion", "--out", str(out)]) == 0
     assert out.is_file()
+
+
+@pytest.mark.parametrize("command", ["view", "figures"])
+def test_a_map_edited_since_the_run_is_one_line_for_the_drawing_commands(tmp_path, capsys, command):
+    """A run on a map file records the map's fingerprint; a drawing of the run after the
+    file was edited is refused in one line, nothing written (the replay drew walls the run
+    never had, from the file as it is now)."""
+    import numpy as np
+
+    from netsim.world.maps import save_map
+
+    occ = np.zeros((40, 40), dtype=bool)
+    occ[:, 20] = True  # a wall across the middle
+    occ[18:22, 20] = False  # with a door
+    yaml = save_map(tmp_path / "floor.yaml", occ, ~occ, 1.0)
+    run = tmp_path / "run"
+    settings = ["world.n_robots=4", "duration_s=5", f"world.map='{yaml}'", "world.side_m=40", "channel.range_m=10"]
+    assert main(["run", "--quiet", *(a for s in settings for a in ("--set", s)), "--out", str(run)]) == 0
+    assert main([command, str(run), "--out", str(tmp_path / "before")]) == 0
+    occ[18:22, 20] = True  # the door walled up
+    save_map(yaml, occ, ~occ, 1.0)
+    capsys.readouterr()
+    out = tmp_path / "after"
+    assert main([command, str(run), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and err.count("\n") == 1 and "are not those the run" in err, err
+    assert not out.exists()

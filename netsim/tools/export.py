@@ -27,8 +27,8 @@ from netsim.tools.output import existing_dir, is_run_dir, read_run_table
 FORMATS = ("bonnmotion", "ns2", "rosbag2")
 
 
-def _table(run_dir: Path, name: str, needed: bool = True) -> pd.DataFrame | None:
-    table = read_run_table(run_dir, name)
+def _table(run_dir: Path, name: str, n_robots: int, needed: bool = True) -> pd.DataFrame | None:
+    table = read_run_table(run_dir, name, n_robots)
     if table is None and needed:
         raise NetsimInputError(f"{run_dir}: the run has no {name}.parquet, which this export needs")
     return table
@@ -79,7 +79,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
                 stacklevel=2,
             )
         frames = {
-            name: _table(run_dir, name, name == "positions") for name in ("positions", "links", "roles", "messages")
+            name: _table(run_dir, name, n, name == "positions") for name in ("positions", "links", "roles", "messages")
         }
         if frames["positions"] is not None and frames["positions"].empty:
             raise NetsimInputError(f"{run_dir}: positions.parquet is empty (set output.position_interval_s > 0)")
@@ -94,7 +94,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         return out
-    legs = _table(run_dir, "legs")
+    legs = _table(run_dir, "legs", n)
     if config.world.torus:
         # The formats know no torus: legs that run on past a border are cut there, and the
         # robot jumps to the opposite one.

@@ -39,7 +39,7 @@ from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.geometry import crosses_border, distances_m, link_segments_m
 from netsim.tools import style
-from netsim.tools.output import read_run_config, read_run_table
+from netsim.tools.output import read_run_config, read_run_table, run_map
 from netsim.topology import geometric_pairs
 
 # The built-in coverage scenario: a dense random start in the middle of the area, as the
@@ -83,12 +83,13 @@ def read_run(run_dir: Path) -> Run:
     if missing:
         raise NetsimInputError(f"{run_dir}: not a run directory with positions (missing {', '.join(missing)})")
     config = cfgmod.from_dict(read_run_config(run_dir))
-    positions = read_run_table(run_dir, "positions")
-    roles = read_run_table(run_dir, "roles")
+    n = config.world.n_robots
+    positions = read_run_table(run_dir, "positions", n)
+    roles = read_run_table(run_dir, "roles", n)
     assert positions is not None and roles is not None  # checked above
     if positions.empty:
         raise NetsimInputError(f"{run_dir}: positions were not sampled (output.position_interval_s = 0)")
-    return Run(config, positions, roles, read_run_table(run_dir, "groups"), read_run_table(run_dir, "links"))
+    return Run(config, positions, roles, read_run_table(run_dir, "groups", n), read_run_table(run_dir, "links", n))
 
 
 def _sample_time(frame: pd.DataFrame, t: float) -> float:
@@ -375,15 +376,6 @@ def draw_map(ax, occupancy) -> None:
     ax.imshow(shade, extent=(x0, x1, y0, y1), origin="lower", interpolation="nearest", zorder=-1)
 
 
-def run_map(config):
-    """The run's occupancy map, or None in open space."""
-    if not config.world.map:
-        return None
-    from netsim.world.maps import cached_map
-
-    return cached_map(config.world.map)
-
-
 def pyplot():
     """matplotlib's pyplot drawing to files (the Agg backend), imported when a figure is
     drawn rather than when a command starts: importing it costs more than a small run."""
@@ -409,7 +401,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     whole = ((area.x_min, area.x_max), (area.y_min, area.y_max))
     torus_side_m = config.world.torus_side_m
     range_m = float(min(config.ranges_m()))
-    occupancy = run_map(config)
+    occupancy = run_map(run_dir, config)
     # Keys of the run's models, where they have them.
     tree = cfgmod.to_dict(config)
     protocol, cover = tree["protocol"], tree.get("coverage", {})

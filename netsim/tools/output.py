@@ -106,9 +106,25 @@ READ_COLUMNS = {
 }
 
 
-def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
+# The columns of a run's tables that hold robot ids, each within the run's team.
+ROBOT_COLUMNS = {
+    "positions": ("robot",),
+    "legs": ("robot",),
+    "links": ("a", "b"),
+    "roles": ("robot",),
+    "groups": ("robot", "group"),
+    "beliefs": ("robot",),
+    "neighbour_beliefs": ("robot", "neighbour"),
+    "messages": ("src", "dst"),
+    "hops": ("sender", "receiver"),
+}
+
+
+def read_run_table(run_dir: Path, name: str, n_robots: int) -> pd.DataFrame | None:
     """The run's table ``name`` (``name.parquet``), None where the run has none; a file
-    that cannot be read as Parquet (cut short, overwritten) is refused in one line."""
+    that cannot be read as Parquet (cut short, overwritten), lacks a column the tools
+    read, or names a robot outside the run's ``n_robots`` (a table of another run, or a
+    config.toml edited since) is refused in one line."""
     path = run_dir / f"{name}.parquet"
     if not path.is_file():
         return None
@@ -123,6 +139,16 @@ def read_run_table(run_dir: Path, name: str) -> pd.DataFrame | None:
             f"{path}: lacks the column{'s' if len(missing) > 1 else ''} {', '.join(missing)} of the run's "
             f"{name} table (changed since the run wrote it?)"
         )
+    for column in ROBOT_COLUMNS.get(name, ()):
+        if column in table.columns and len(table):
+            ids = table[column].to_numpy()
+            low, high = ids.min(), ids.max()
+            if low < 0 or high >= n_robots:
+                bad = low if low < 0 else high
+                raise NetsimInputError(
+                    f"{path}: names robot {bad} ({column}), but config.toml has {n_robots} robots "
+                    "(a table of another run, or the configuration edited since?)"
+                )
     return table
 
 
@@ -452,7 +478,7 @@ def write_arrow(table, path: Path) -> None:
 
 
 def manifest(config: Config, run: int, wall_s: float, argv=None) -> dict:
-    return {
+    out = {
         "seed": config.seed,
         "run": run,
         "wall_s": round(wall_s, 3),
@@ -460,6 +486,30 @@ def manifest(config: Config, run: int, wall_s: float, argv=None) -> dict:
         "platform": platform.platform(),
         "versions": versions(),
     }
+    if config.world.map:
+        from netsim.world.maps import cached_map
+
+        out["map_sha256"] = cached_map(config.world.map).sha256
+    return out
+
+
+def run_map(run_dir: Path, config: Config):
+    """The run's occupancy map (None in open space), read again from ``world.map``; refused
+    in one line when its cells are not those the run had (the fingerprint its manifest
+    recorded): the walls drawn would be walls the run never met."""
+    if not config.world.map:
+        return None
+    from netsim.world.maps import cached_map
+
+    occupancy = cached_map(config.world.map)
+    path = run_dir / "manifest.json"
+    recorded = json.loads(path.read_text()).get("map_sha256") if path.is_file() else None
+    if recorded is not None and recorded != occupancy.sha256:
+        raise NetsimInputError(
+            f"world.map {config.world.map!r}: its cells are not those the run {run_dir} had "
+            "(edited since?): restore the map the run used"
+        )
+    return occupancy
 
 
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:

@@ -37,6 +37,7 @@ whole extent, in its own frame) must lie inside the map: :meth:`OccupancyMap.che
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
@@ -75,6 +76,17 @@ class OccupancyMap:
     @property
     def shape(self) -> tuple[int, int]:
         return self.occupied.shape
+
+    @cached_property
+    def sha256(self) -> str:
+        """A fingerprint of what a run takes from the map (its cells, free and occupied,
+        their size and where they lie): a run records it, so that a tool reading the run
+        later can tell a map file edited since from the one the run had."""
+        digest = hashlib.sha256()
+        digest.update(repr((self.shape, float(self.resolution_m), tuple(map(float, self.origin_m)))).encode())
+        digest.update(np.packbits(self.occupied).tobytes())
+        digest.update(np.packbits(self.free).tobytes())
+        return digest.hexdigest()
 
     @cached_property
     def not_free(self) -> np.ndarray:

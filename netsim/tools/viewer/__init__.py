@@ -30,6 +30,14 @@ def _script_safe(text: str) -> str:
     return text.replace("</", "<\\/")
 
 
+def _json_in_script(value: object) -> str:
+    """``value`` as JSON that no text in it (a run directory's name in the title) can turn
+    into markup inside ``<script>``: every ``<`` written as ``\\u003c``, which JSON reads
+    back as ``<``. Escaping ``</`` alone left ``<!--<script``, which sends the parser into
+    the script's escaped states, where the page's own ``</script>`` no longer ends it."""
+    return json.dumps(value, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
+
+
 def page(run_dir: str | Path, map_grid: MapGrid | None = None) -> str:
     """The replay page of the run in ``run_dir``, as one string of HTML."""
     data = pack(run_dir, map_grid)
@@ -37,7 +45,7 @@ def page(run_dir: str | Path, map_grid: MapGrid | None = None) -> str:
     parts = {
         "__TITLE__": html.escape(f"netsim replay: {meta['title']}"),
         "/*__STYLE__*/": _asset("replay.css"),
-        "__META__": _script_safe(json.dumps(meta, separators=(",", ":"), allow_nan=False)),
+        "__META__": _json_in_script(meta),
         "__BLOB__": data["blob"],
         "/*__SCRIPT__*/": _script_safe(_asset("replay.js")),
     }

@@ -37,7 +37,7 @@ from netsim.errors import NetsimInputError
 from netsim.metrics import components_in_links_table
 from netsim.plugins import RoleLabels
 from netsim.tools import style
-from netsim.tools.output import existing_dir, read_run_config, read_run_summary, read_run_table
+from netsim.tools.output import existing_dir, read_run_config, read_run_summary, read_run_table, run_map
 from netsim.trajectory import sample_positions
 
 
@@ -95,8 +95,8 @@ def _small_uint(values: np.ndarray) -> str:
     return "<u2" if values.size == 0 or int(values.max()) < 2**16 else "<i4"
 
 
-def _read(run_dir: Path, name: str) -> pd.DataFrame | None:
-    return read_run_table(run_dir, name)
+def _read(run_dir: Path, name: str, n: int) -> pd.DataFrame | None:
+    return read_run_table(run_dir, name, n)
 
 
 def load_config(run_dir: Path) -> cfgmod.Config:
@@ -151,9 +151,12 @@ def series(
         t = ack_delivery["t_s"].to_numpy(float)
         add("ack_delivery", "Ack delivery ratio", t, ack_delivery["delivery_ratio"], "step", "fraction")
     if messages is not None and len(messages):
-        m = messages.sort_values("msg_id", kind="stable")
-        t = m["t_sent_s"].to_numpy(float)
-        ratio = np.cumsum(m["delivered"].to_numpy(bool)) / np.arange(1, len(m) + 1)
+        # At each send and each arrival: of the messages sent by then, those arrived by then
+        # (a message counts once it has arrived, not from its sending on, as the side panel).
+        sent = np.sort(messages["t_sent_s"].to_numpy(float))
+        arrived = np.sort(messages.loc[messages["delivered"].to_numpy(bool), "t_delivered_s"].to_numpy(float))
+        t = np.unique(np.concatenate([sent, arrived]))
+        ratio = np.searchsorted(arrived, t, "right") / np.searchsorted(sent, t, "right")
         add("delivered", "messages delivered (of those sent so far)", t, ratio, "step", "fraction")
     return out
 
@@ -169,7 +172,7 @@ def first_receptions(hops: pd.DataFrame, messages: pd.DataFrame) -> pd.DataFrame
 
 
 def _motion(run_dir: Path, n: int, blob: Blob) -> str:
-    legs = _read(run_dir, "legs")
+    legs = _read(run_dir, "legs", n)
     if legs is not None and len(legs):
         legs = legs.sort_values(["robot", "t_s"], kind="stable")
         robot = legs["robot"].to_numpy(np.int64)
@@ -180,7 +183,7 @@ def _motion(run_dir: Path, n: int, blob: Blob) -> str:
         for col, name in (("t_s", "t"), ("x_m", "x"), ("y_m", "y"), ("vx_mps", "vx"), ("vy_mps", "vy")):
             blob.add(f"legs_{name}", legs[col], "<f8")
         return "legs"
-    pos = _read(run_dir, "positions")
+    pos = _read(run_dir, "positions", n)
     if pos is None or pos.empty:
         raise NetsimInputError(f"{run_dir}: no legs.parquet and no sampled positions.parquet to draw robots from")
     pos = pos.sort_values(["t_s", "robot"], kind="stable")
@@ -188,7 +191,7 @@ def _motion(run_dir: Path, n: int, blob: Blob) -> str:
     if len(pos) != len(times) * n:
         raise NetsimInputError(f"{run_dir}/positions.parquet: expected {n} robots at every sample")
     blob.add("pos_t", times, "<f8")
-    blob.add("pos_xy", pos[["x_m", "y_m"]].to_numpy(), "<f4")
+    blob.add("pos_xy", pos[["x_m", "y_m"]].to_numpy(), "<f8")
     return "positions"
 
 
@@ -199,15 +202,16 @@ def _torus_side(config: cfgmod.Config) -> float | None:
 def _colouring_positions(run_dir: Path, config: cfgmod.Config) -> pd.DataFrame:
     """The instants the groups' colours are decided at: the sampled positions, as the
     figures use (the legs at every Ack period when positions were not sampled)."""
-    pos = _read(run_dir, "positions")
+    n = config.world.n_robots
+    pos = _read(run_dir, "positions", n)
     if pos is not None and len(pos):
         return pos
-    legs = _read(run_dir, "legs")
+    legs = _read(run_dir, "legs", n)
     if legs is None or legs.empty:
         return pd.DataFrame({"t_s": [], "robot": [], "x_m": [], "y_m": []})
     step = cfgmod.to_dict(config)["protocol"].get("ack_period_s", 1.0)
     times = np.arange(int(math.floor(config.duration_s / step + 1e-9)) + 1) * step
-    return sample_positions(legs, config.world.n_robots, times, config.world.side_m, config.world.torus)
+    return sample_positions(legs, n, times, config.world.side_m, config.world.torus)
 
 
 def _pack_neighbour_beliefs(run_dir: Path, nb: pd.DataFrame, times: np.ndarray, n: int, blob: Blob) -> None:
@@ -256,14 +260,14 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     ranges = np.broadcast_to(np.asarray(config.ranges_m(), float), (n,))
     blob.add("range_m", ranges, "<f8")
 
-    links = _read(run_dir, "links")
+    links = _read(run_dir, "links", n)
     links = _empty_links() if links is None or links.empty else links.sort_values("t_up_s", kind="stable")
     blob.add("link_a", links["a"], "<i4")
     blob.add("link_b", links["b"], "<i4")
     blob.add("link_up", links["t_up_s"], "<f8")
     blob.add("link_down", np.where(links["censored_end"].to_numpy(bool), np.inf, links["t_down_s"]), "<f8")
 
-    roles = _read(run_dir, "roles")
+    roles = _read(run_dir, "roles", n)
     if roles is None:
         roles = pd.DataFrame({"t_s": [], "robot": [], "role": [], "leader": []})
     roles = roles.sort_values("t_s", kind="stable")
@@ -280,7 +284,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         colour_of[list(slots)] = list(slots.values())
     blob.add("colour_of", colour_of, "<i2")
 
-    groups = _read(run_dir, "groups")
+    groups = _read(run_dir, "groups", n)
     has_groups = groups is not None and len(groups) > 0
     if has_groups:
         times = np.unique(groups["t_s"].to_numpy(float))
@@ -292,7 +296,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         blob.add("grp_group", gw["group"], "<i4")
         blob.add("grp_primary", gw["primary"].to_numpy(bool), "u1")
 
-    beliefs = _read(run_dir, "beliefs")
+    beliefs = _read(run_dir, "beliefs", n)
     has_beliefs = beliefs is not None and len(beliefs) > 0
     if has_beliefs:
         b = beliefs.sort_values(["t_s", "robot"], kind="stable")
@@ -304,12 +308,12 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
             v = b[f"{col}_neighbours"].to_numpy(np.int64)
             blob.add(f"bel_{col}", v, _small_uint(v))
         blob.add("bel_leader_in_range", b["leader_in_range"].to_numpy(bool), "u1")
-    nb = _read(run_dir, "neighbour_beliefs") if has_beliefs else None
+    nb = _read(run_dir, "neighbour_beliefs", n) if has_beliefs else None
     has_neighbour_beliefs = nb is not None
     if has_neighbour_beliefs:
         _pack_neighbour_beliefs(run_dir, nb, bel_times, n, blob)
 
-    messages = _read(run_dir, "messages")
+    messages = _read(run_dir, "messages", n)
     has_messages = messages is not None and len(messages) > 0
     if has_messages:
         m = messages.sort_values("msg_id", kind="stable")
@@ -318,7 +322,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         blob.add("msg_t", m["t_sent_s"], "<f8")
         blob.add("msg_delivered", m["delivered"].to_numpy(bool), "u1")
         blob.add("msg_t_delivered", m["t_delivered_s"].astype(float), "<f8")
-    hops = _read(run_dir, "hops")
+    hops = _read(run_dir, "hops", n)
     has_hops = has_messages and hops is not None and len(hops) > 0
     if has_hops:
         h = first_receptions(hops, messages)
@@ -329,15 +333,13 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         blob.add("hop_t_sent", h["t_sent_s"], "<f8")
         blob.add("hop_t_received", h["t_received_s"], "<f8")
 
-    coverage = _read(run_dir, "coverage")
-    ack_delivery = _read(run_dir, "ack_delivery")
+    coverage = _read(run_dir, "coverage", n)
+    ack_delivery = _read(run_dir, "ack_delivery", n)
     chart = series(config, links, roles, ack_delivery, messages, coverage, blob, labels)
 
     map_meta = None
     if map_grid is None and config.world.map:
-        from netsim.world.maps import cached_map
-
-        m = cached_map(config.world.map)
+        m = run_map(run_dir, config)
         map_grid = MapGrid(m.occupied, m.resolution_m, m.origin_m)
     if map_grid is not None:
         occ = np.asarray(map_grid.occupied, dtype=bool)

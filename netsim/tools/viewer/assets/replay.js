@@ -496,16 +496,18 @@
 
     drawn.links = 0;
     if (ui.links.checked && model.nActive > 0) {
-      ctx.strokeStyle = PAL.link;
-      ctx.lineWidth = 1;
-      ctx.beginPath();
-      for (let k = 0; k < model.nActive; k++) segment(A.link_a[model.active[k]], A.link_b[model.active[k]], 1);
-      ctx.stroke();
+      inArea(() => {
+        ctx.strokeStyle = PAL.link;
+        ctx.lineWidth = 1;
+        ctx.beginPath();
+        for (let k = 0; k < model.nActive; k++) segment(A.link_a[model.active[k]], A.link_b[model.active[k]], 1);
+        ctx.stroke();
+      });
       drawn.links = model.nActive;
     }
 
     drawn.hops = 0;
-    if (ui.hops.checked && META.has.hops) drawHops(t);
+    if (ui.hops.checked && META.has.hops) inArea(() => drawHops(t));
 
     const r = robotRadius();
     for (const role of NO_ROLES ? ["none"] : ["beta", "gamma", "gateway", "alpha"]) drawRole(role, r);
@@ -515,13 +517,31 @@
       const i = drawn.hovered;
       ctx.strokeStyle = PAL.outline;
       ctx.lineWidth = 2;
-      ctx.beginPath();
-      for (const j of model.neighbours(i)) segment(i, j, 1);
-      ctx.stroke();
+      inArea(() => {
+        ctx.beginPath();
+        for (const j of model.neighbours(i)) segment(i, j, 1);
+        ctx.stroke();
+      });
       ctx.beginPath();
       ctx.arc(SX(x[i]), SY(y[i]), 2.5 * r + 3, 0, 2 * Math.PI);
       ctx.stroke();
     }
+  }
+
+  // draw() with the canvas clipped to the area on a torus: a segment across the seam runs
+  // to the other robot's image past the border, and shows only up to the border, from
+  // both sides (as the figures draw it). On a plane every segment lies inside the area.
+  function inArea(draw) {
+    if (!META.torus) {
+      draw();
+      return;
+    }
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(SX(AREA[0]), SY(AREA[3]), (AREA[2] - AREA[0]) * cam.scale, (AREA[3] - AREA[1]) * cam.scale);
+    ctx.clip();
+    draw();
+    ctx.restore();
   }
 
   // The segment from robot a toward b (the shortest image on a torus), a fraction f of the way.
@@ -917,7 +937,12 @@
     const sc = META.scenario;
     for (const el of form.elements) {
       const v = sc[el.name];
-      el.value = Array.isArray(v) ? Math.min(...v) : v;
+      if (Array.isArray(v)) {
+        // One value a robot (ranges): left empty, so that the command keeps the run's own
+        // list unless a value for all is typed in.
+        el.value = "";
+        el.placeholder = `per robot, ${Math.min(...v)}-${Math.max(...v)}`;
+      } else el.value = v;
     }
     const keys = {
       n_robots: "world.n_robots",
