@@ -292,6 +292,29 @@ def test_strict_backbone_can_miss_what_distributed_gateways_reach():
         assert bool(stack.messages_frame().delivered.iloc[0]) is expect
 
 
+@pytest.mark.parametrize("ttl, delivered", [(6, True), (5, False)])
+def test_relay_a_message_takes_at_most_message_ttl_hops_and_its_destination_relays_nothing(ttl, delivered):
+    """On a line of 7 robots 9 m apart (range 10 m), a message from one end to the other
+    needs 6 hops: with message_ttl = 6 it arrives in 6, with 5 it is dropped for the hop
+    limit; and no copy is ever sent by its destination, which has it (the flood stops there,
+    even where the destination is a leader or a gateway)."""
+    pos = [[9.0 * k, 0.0] for k in range(7)]
+    sim, stack = static_run(pos, duration=40.0, run=False, message_ttl=ttl)
+    dropped = []
+    sim.events.on("message_dropped", lambda e: dropped.append((e.msg_id, e.cause)))
+    sim.run(until_s=15.0)
+    stack.relay.send(0, 6)
+    stack.relay.send(6, 3)
+    sim.run()
+    msgs = stack.messages_frame().set_index("msg_id")
+    first = msgs.iloc[0]
+    assert bool(first.delivered) is delivered
+    assert first.hops == 6 if delivered else (int(msgs.index[0]), "ttl") in dropped
+    hops = sim.trace.frame("hops")
+    assert len(hops) and not ((hops.msg_id == msgs.index[1]) & (hops.sender == 3)).any()
+    assert not ((hops.msg_id == msgs.index[0]) & (hops.sender == 6)).any()
+
+
 @pytest.mark.slow
 def test_delivery_ratio_falls_with_loss():
     pos = connected_positions(60, 5, 45.0)

@@ -150,6 +150,24 @@ def test_ack_at_the_deadline_instant_counts(phases, causes, times):
     assert stack.role.tolist() == [LEADER, MEMBER]
 
 
+def test_rule6_a_member_that_joins_another_leader_at_once_times_out_from_that_leaders_last_ack():
+    """Member 2 of leader 1 also hears leader 0. Leader 1 leaves: at 2's deadline it
+    joins leader 0 at once (rule 6, then rule 2), its timer running from leader 0's last
+    Ack, not from the instant it joined: leader 0 leaves too, and 2 becomes undecided
+    exactly tau after the last Ack it had from 0 (a timer from the join ran nearly a period
+    longer)."""
+    sim, stack, deliveries = scripted([[-9, 0], [6, 0], [0, 0]], [0.1, 0.05, 1.6])
+    move_away(sim, 1, 10.5)
+    move_away(sim, 0, 12.5)
+    sim.run(until_s=30)
+    rec = records(sim, 2)
+    assert rec.cause.tolist()[:4] == ["rule2_join", "rule3_leader_lost", "rule2_join", "rule3_leader_lost"], rec
+    assert rec.leader.tolist()[:3] == [1, -1, 0]
+    assert rec.t_s[1] == last_delivery(deliveries, 1, 2, before=10.5) + TAU
+    assert rec.t_s[2] == rec.t_s[1]  # joined at once
+    assert rec.t_s[3] == last_delivery(deliveries, 0, 2, before=12.5) + TAU < rec.t_s[2] + TAU
+
+
 def test_rule3_a_timer_and_the_table_agree_on_when_an_entry_ends():
     """Member 2 hears leaders 0 and 1 at one instant ``a``; both leave. At its timer's
     instant ``a + tau`` no entry of either may still be live: in floating point ``(a + tau)
@@ -418,6 +436,9 @@ def test_merge_loser_is_the_same_seen_from_both_sides():
         assert merge_loser(policy, a, b) == merge_loser(policy, b, a)
     assert merge_loser("smaller_group_yields", a, b) == 5  # tie: higher id yields
     assert merge_loser("highest_degree_wins", a, b) == 1
+    # Equal degrees: the higher id yields, as for equal groups.
+    tied = Candidate(5, group_size=3, degree=5)
+    assert merge_loser("highest_degree_wins", a, tied) == merge_loser("highest_degree_wins", tied, a) == 5
 
 
 def _elected(kernels, policy, me, degree, rivals):
