@@ -532,9 +532,8 @@ def is_live(last_heard_s, now, tau_s):
     timeout rule, read by every use of the table. Read against the deadline a timer of the
     same entry runs out at (:func:`deadline_after`, the same rounding), not as ``now -
     last_heard_s < tau_s``: in floating point ``(a + tau) - a`` may fall short of ``tau``,
-    and an entry would still be live at its own timer's instant (a member whose leader timed
-    out then joined it again at that instant, its timer already due: the run went round at
-    one instant for ever)."""
+    and an entry would be live at its own timer's instant, where the timer has ended it (a
+    member could join a leader whose timer is already due, and time out again at once)."""
     return now < deadline_after(last_heard_s, tau_s)
 
 
@@ -566,8 +565,9 @@ def _two_way(rec, now, tau_s, symmetric):
 def membership(table, now, symmetric, roles):
     """Group membership of every robot, as arrays ``(robot, group, primary)`` ordered by
     robot and group (:meth:`netsim.protocols.clustering.Clustering.membership`): a leader in
-    its own group, a member in its leader's (primary) and in those of the other leaders it
-    knows over a live two-way link."""
+    its own group, a member with a live two-way link to its leader in its leader's
+    (primary) and in those of the other leaders it knows over a live two-way link, a member
+    whose link to its leader is one-way in none."""
     table, roles = Table(*table), RoleArrays(*roles)
     n, slots = table.ids.shape
     groups = _group_arrays(n, slots)
@@ -583,6 +583,16 @@ def _group_arrays(n, slots):
     robot's own group."""
     size = n * (slots + 1)
     return Groups(np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64), np.empty(size, dtype=np.bool_))
+
+
+@jit(nogil=True, inline="always")
+def _linked_to_leader(ids_row, records_row, own, now, tau_s, symmetric):
+    """Whether a member's row holds a live two-way link to its leader ``own``: what puts it
+    in its leader's group (MODEL 4.1), and so what a gateway and a relaying member need."""
+    for s in range(len(ids_row)):
+        if ids_row[s] == own and _two_way(records_row[s], now, tau_s, symmetric):
+            return True
+    return False
 
 
 @jit(nogil=True, inline="always")
@@ -602,12 +612,7 @@ def _membership_row(table, r, now, symmetric, roles, groups, m):
     # The robot's groups, ascending, inserted in place (a gateway has two or three). A
     # group holds the members its leader has a two-way link with: a member whose link to
     # its own leader is one-way now (unequal ranges) is in no group, and no gateway.
-    own_two_way = False
-    for s in range(len(ids_row)):
-        if ids_row[s] == own and _two_way(records_row[s], now, tau_s, symmetric):
-            own_two_way = True
-            break
-    if not own_two_way:
+    if not _linked_to_leader(ids_row, records_row, own, now, tau_s, symmetric):
         return m
     m0 = m
     group[m] = own
@@ -641,23 +646,20 @@ def relays(table, now, symmetric, roles, receivers, distributed_gateways):
     for r in receivers:
         ro = role[r]
         relay = ro == LEADER_ROLE
-        if ro == MEMBER:
+        if ro == MEMBER and _linked_to_leader(ids[r], records[r], leader[r], now, tau_s, symmetric):
             own = leader[r]
             row = records[r]
-            own_two_way = other = False
             for s in range(len(row)):
                 if ids[r, s] == EMPTY:
                     continue  # the empty record, never live: not read
                 rec = row[s]
                 if not _two_way(rec, now, tau_s, symmetric):
                     continue
-                if ids[r, s] == own:
-                    own_two_way = True
                 if distributed_gateways:
-                    other = other or (rec[ROLE] != UNDECIDED and rec[LEADER] != own)
+                    other = rec[ROLE] != UNDECIDED and rec[LEADER] != own
                 else:
-                    other = other or (rec[ROLE] == LEADER_ROLE and ids[r, s] != own)
-                if own_two_way and other:
+                    other = rec[ROLE] == LEADER_ROLE and ids[r, s] != own
+                if other:
                     relay = True
                     break
         if relay:

@@ -262,9 +262,10 @@ class Clustering:
     def membership(self, now: float):
         """Group membership of every robot now, as arrays ``(robot, group, primary)``.
 
-        A leader is in its own group; a member in its leader's (primary) and, if it is a
-        gateway, in those of the other leaders it has a live two-way link with; an
-        undecided robot in none. One pass over all neighbour tables
+        A leader is in its own group; a member with a live two-way link to its leader in
+        its leader's (primary) and, if it is a gateway, in those of the other leaders it
+        has a live two-way link with; an undecided robot, or a member its leader does not
+        hear (a one-way link), in none. One pass over all neighbour tables
         (:func:`netsim.protocols._kernels.membership`).
         """
         return self.kernels.membership(self.table.view, now, self.symmetric, self._roles)

@@ -3,9 +3,9 @@
 Row ``i`` holds what robot ``i`` learnt from the Acks it heard: for each neighbour, the
 time of its last Ack, when the entry became live, whether the neighbour hears ``i``, and
 the Ack's fields. An entry is live while its last Ack is younger than ``tau``
-(``now - last < tau``); at exactly ``tau`` it has expired, but an Ack that arrives at that
-very instant continues it (arrivals come before deadlines: the entry keeps its
-``live_since`` and two-way start). An Ack older (by sequence number) than the one an
+(``now < last + tau``, the sum its timer runs out at); at exactly ``tau`` it has expired,
+but an Ack that arrives at that very instant continues it (arrivals come before
+deadlines: the entry keeps its ``live_since`` and two-way start). An Ack older (by sequence number) than the one an
 entry holds, overtaken in flight by a newer one, is ignored.
 
 The table is a fixed number of slots per robot, doubled when a robot hears more

@@ -322,3 +322,10 @@ def test_a_map_edited_since_the_run_is_one_line_for_the_drawing_commands(tmp_pat
     err = capsys.readouterr().err
     assert err.startswith("netsim: error: ") and err.count("\n") == 1 and "are not those the run" in err, err
     assert not out.exists()
+    # The fingerprint is read from manifest.json: one damaged is one line too.
+    for damaged, said in (("{not json", "cannot be read as JSON"), ("[1, 2]", "holds no table of what the run was")):
+        (run / "manifest.json").write_text(damaged)
+        assert main([command, str(run), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("netsim: error: ") and err.count("\n") == 1 and said in err, err
+        assert not out.exists()

@@ -155,16 +155,25 @@ def read_run_table(run_dir: Path, name: str, n_robots: int) -> pd.DataFrame | No
 def read_run_summary(run_dir: Path) -> dict:
     """The run's ``summary.json`` ({} where the run has none); one that is not JSON is
     refused in one line."""
-    path = run_dir / "summary.json"
+    return _read_run_json(run_dir / "summary.json", "the run's measures")
+
+
+def read_run_manifest(run_dir: Path) -> dict:
+    """The run's ``manifest.json`` ({} where the run has none); one that is not JSON is
+    refused in one line."""
+    return _read_run_json(run_dir / "manifest.json", "what the run was")
+
+
+def _read_run_json(path: Path, what: str) -> dict:
     if not path.is_file():
         return {}
     try:
-        summary = json.loads(path.read_text())
+        table = json.loads(path.read_text())
     except (ValueError, OSError) as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
         raise NetsimInputError(f"{path}: cannot be read as JSON ({exc})") from None
-    if not isinstance(summary, dict):
-        raise NetsimInputError(f"{path}: holds no table of the run's measures")
-    return summary
+    if not isinstance(table, dict):
+        raise NetsimInputError(f"{path}: holds no table of {what}")
+    return table
 
 
 def read_run_config(run_dir: Path) -> dict:
@@ -502,8 +511,7 @@ def run_map(run_dir: Path, config: Config):
     from netsim.world.maps import cached_map
 
     occupancy = cached_map(config.world.map)
-    path = run_dir / "manifest.json"
-    recorded = json.loads(path.read_text()).get("map_sha256") if path.is_file() else None
+    recorded = read_run_manifest(run_dir).get("map_sha256")
     if recorded is not None and recorded != occupancy.sha256:
         raise NetsimInputError(
             f"world.map {config.world.map!r}: its cells are not those the run {run_dir} had "

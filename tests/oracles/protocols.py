@@ -308,7 +308,7 @@ def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
 
 def believed_keys(ids, records, now, tau_s) -> np.ndarray:
     """``robot * n + other`` for every live entry of the tables, ascending."""
-    live = now - records[:, :, K.LAST_HEARD] < tau_s
+    live = now < records[:, :, K.LAST_HEARD] + tau_s
     return np.sort(np.nonzero(live)[0] * len(ids) + ids[live])
 
 

@@ -33,8 +33,8 @@ def _script_safe(text: str) -> str:
 def _json_in_script(value: object) -> str:
     """``value`` as JSON that no text in it (a run directory's name in the title) can turn
     into markup inside ``<script>``: every ``<`` written as ``\\u003c``, which JSON reads
-    back as ``<``. Escaping ``</`` alone left ``<!--<script``, which sends the parser into
-    the script's escaped states, where the page's own ``</script>`` no longer ends it."""
+    back as ``<``. Escaping ``</`` is not enough: ``<!--<script`` sends the parser into the
+    script's escaped states, where the page's own ``</script>`` no longer ends it."""
     return json.dumps(value, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
 
 
