@@ -329,3 +329,36 @@ def test_a_map_edited_since_the_run_is_one_line_for_the_drawing_commands(tmp_pat
         err = capsys.readouterr().err
         assert err.startswith("netsim: error: ") and err.count("\n") == 1 and said in err, err
         assert not out.exists()
+
+
+def test_a_runs_map_fingerprint_is_of_the_map_it_was_built_on(tmp_path, monkeypatch):
+    """The fingerprint `netsim run` records is that of the map the run was built on, not of
+    the file as it is when the run ends: a map edited during a run is then refused by the
+    drawing commands, not taken for the run's (the file was read again at the end)."""
+    import json
+
+    import numpy as np
+
+    import netsim.run
+    from netsim.world.maps import load_map, save_map
+
+    occ = np.zeros((40, 40), dtype=bool)
+    occ[:, 20] = True
+    occ[18:22, 20] = False
+    yaml = save_map(tmp_path / "floor.yaml", occ, ~occ, 1.0)
+    built_on = load_map(yaml).sha256
+    execute = netsim.run.execute
+
+    def edited_while_running(*args, **kwargs):
+        result = execute(*args, **kwargs)
+        occ[18:22, 20] = True
+        save_map(yaml, occ, ~occ, 1.0)
+        return result
+
+    monkeypatch.setattr(netsim.run, "execute", edited_while_running)
+    run = tmp_path / "run"
+    settings = ["world.n_robots=3", "duration_s=2", f"world.map='{yaml}'", "world.side_m=40", "channel.range_m=10"]
+    assert main(["run", "--quiet", *(a for s in settings for a in ("--set", s)), "--out", str(run)]) == 0
+    assert load_map(yaml).sha256 != built_on
+    assert json.loads((run / "manifest.json").read_text())["map_sha256"] == built_on
+    assert main(["view", str(run), "--out", str(tmp_path / "v.html")]) == 2

@@ -100,7 +100,7 @@ def bridge(args: Any, config: Any, settings: BridgeSettings, rate: float) -> tup
         summary["bridge_commands_refused"] = ros.refused
         summary["bridge_relayed_sent"] = ros.relay.sent
         (writer._start() / "bridge.toml").write_text(tomli_w.dumps(settings.as_dict()))
-        written = writer.finish(summary, manifest(config, 0, wall))
+        written = writer.finish(summary, manifest(config, 0, wall, occupancy=sim.parts.occupancy))
         if live is not None:
             live.close()
     lag = pacer.lag.summary()

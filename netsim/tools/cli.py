@@ -209,7 +209,9 @@ def cmd_run(args) -> int:
             result = execute(
                 config, progress=not args.quiet and not args.no_progress, emit=writer.table, built=_freeze_if_own
             )
-        written = writer.finish(result.summary, manifest(config, 0, result.wall_s))
+        written = writer.finish(
+            result.summary, manifest(config, 0, result.wall_s, occupancy=result.sim.parts.occupancy)
+        )
         if args.view:
             from netsim.tools import viewer
 
@@ -425,7 +427,10 @@ def cmd_figures(args) -> int:
         say_when_compiling("netsim figures", not args.quiet)
         with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
             result = execute(config, progress=not args.quiet and not args.no_progress)
-            write_run(out, config, result.frames, result.summary, manifest(config, 0, result.wall_s))
+            occupancy = result.sim.parts.occupancy
+            write_run(
+                out, config, result.frames, result.summary, manifest(config, 0, result.wall_s, occupancy=occupancy)
+            )
             if not args.quiet:
                 print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
             drawn = figures.draw(out, at_s=args.at)

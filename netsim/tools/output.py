@@ -486,7 +486,10 @@ def write_arrow(table, path: Path) -> None:
     pq.write_table(table, str(path), compression="snappy")
 
 
-def manifest(config: Config, run: int, wall_s: float, argv=None) -> dict:
+def manifest(config: Config, run: int, wall_s: float, argv=None, occupancy=None) -> dict:
+    """What a run was: its seed, index, wall time, command, platform and versions; on a map,
+    the fingerprint of ``occupancy``, the map the run was built on (its ``parts``'), read
+    from ``world.map`` again where not given."""
     out = {
         "seed": config.seed,
         "run": run,
@@ -495,10 +498,12 @@ def manifest(config: Config, run: int, wall_s: float, argv=None) -> dict:
         "platform": platform.platform(),
         "versions": versions(),
     }
-    if config.world.map:
+    if occupancy is None and config.world.map:
         from netsim.world.maps import cached_map
 
-        out["map_sha256"] = cached_map(config.world.map).sha256
+        occupancy = cached_map(config.world.map)
+    if occupancy is not None:
+        out["map_sha256"] = occupancy.sha256
     return out
 
 
