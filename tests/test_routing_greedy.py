@@ -33,14 +33,17 @@ def _run(tmp_path, xy, flows, duration_s=30.0, torus=False, **protocol):
 
 def test_a_neighbour_not_heard_for_the_timeout_is_forgotten(tmp_path):
     """A neighbour heard exactly ``neighbour_timeout_s`` ago is forgotten, one heard a
-    moment later is not (the neighbour entry's rule: live while heard less than the
-    timeout ago)."""
+    moment later is not (the neighbour entry's rule: live while its deadline, when it was
+    heard plus the timeout, is still to come)."""
     sim, _ = _run(tmp_path, [(0, 0), (50, 0), (100, 0)], [], duration_s=5.0)
     greedy, now = sim.models["protocol"], sim.env.now
     timeout = greedy.params.neighbour_timeout_s
-    assert now - (now - timeout) == timeout  # the tie is exact
+    assert (now - timeout) + timeout == now  # the tie is exact
+    later = now - timeout
+    while not later + timeout > now:  # the first instant whose deadline is past now
+        later = np.nextafter(later, np.inf)
     greedy.heard_t[0, 1] = now - timeout
-    greedy.heard_t[0, 2] = np.nextafter(now - timeout, np.inf)
+    greedy.heard_t[0, 2] = later
     assert greedy.neighbours(0).tolist() == [2]
 
 
