@@ -20,6 +20,21 @@ from netsim.errors import ConfigError
 KEY = "world.bounds_m"
 
 
+class OnTorus:
+    """What has a square of side ``side_m`` that wraps when ``torus`` (the world's
+    configuration, the robots' state, a control step): the side its distances are measured
+    on, :attr:`torus_side_m`."""
+
+    side_m: float
+    torus: bool
+
+    @property
+    def torus_side_m(self) -> float | None:
+        """The side of the torus distances are measured on (to the nearest image), None on
+        the plane: the ``side_m`` of :func:`netsim.geometry.distances_m` and its kin."""
+        return self.side_m if self.torus else None
+
+
 @dataclass(frozen=True)
 class Bounds:
     """The rectangle ``[x_min, x_max] x [y_min, y_max]``, metres.

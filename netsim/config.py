@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from netsim import plugins
-from netsim.area import KEY, Bounds, parse_bounds, parse_start
+from netsim.area import KEY, Bounds, OnTorus, parse_bounds, parse_start
 from netsim.errors import ConfigError, NetsimInputError, not_a_file
 from netsim.params import (
     NoParams,
@@ -65,7 +65,7 @@ def _map_path(key: str, value: Any) -> str:
 
 
 @dataclass(frozen=True)
-class WorldParams(Params):
+class WorldParams(Params, OnTorus):
     section = "world"
     n_robots: int = param(50, positive, "number of robots N")
     side_m: float = param(1000.0, finite(positive), "side of the square area A, metres")
@@ -103,12 +103,6 @@ class WorldParams(Params):
         'occupancy map: a ROS map_server YAML file, or "office" / "cave" (shipped examples); "" for open space',
         coerce=_map_path,
     )
-
-    @property
-    def torus_side_m(self) -> float | None:
-        """The side of the torus distances are measured on (to the nearest image), None on
-        the plane: the ``side_m`` of :func:`netsim.geometry.distances_m` and its kin."""
-        return self.side_m if self.torus else None
 
     def check(self) -> None:
         bounds = self.bounds_m

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.area import Bounds
+from netsim.area import Bounds, OnTorus
 from netsim.errors import NetsimInputError
 from netsim.groups import GroupView
 from netsim.state import RobotState
@@ -41,7 +41,7 @@ from netsim.trace import Trace
 
 
 @dataclass
-class ControlStep:
+class ControlStep(OnTorus):
     """One control step: the state a controller sees and the velocities it may change.
 
     Attributes
@@ -80,12 +80,6 @@ class ControlStep:
     def __post_init__(self) -> None:
         if self.bounds is None:
             self.bounds = Bounds.square(self.side_m)
-
-    @property
-    def torus_side_m(self) -> float | None:
-        """The side of the torus distances are measured on (to the nearest image), None on
-        the plane: the ``side_m`` of :func:`netsim.geometry.distances_m` and its kin."""
-        return self.side_m if self.torus else None
 
     def record(self, table: str, **values: object) -> None:
         """Add a row ``{t_s, **values}`` to output table ``table`` (``<table>.parquet``)."""

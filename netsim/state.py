@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from netsim.area import Bounds
+from netsim.area import Bounds, OnTorus
 from netsim.compiled import load
 from netsim.errors import NetsimInputError
 from netsim.events import CourseChange, EventBus
@@ -52,7 +52,7 @@ class MotionError(NetsimInputError):
     """A robot left the area or crossed a wall: the model or the trace that moved it is wrong."""
 
 
-class RobotState:
+class RobotState(OnTorus):
     """Positions, velocities and ranges of ``n`` robots (roles are the protocol's).
 
     Parameters
@@ -115,12 +115,6 @@ class RobotState:
         self._every_robot = np.arange(self.n)
 
     # -- positions -------------------------------------------------------------------
-    @property
-    def torus_side_m(self) -> float | None:
-        """The side of the torus distances are measured on (to the nearest image), None on
-        the plane: the ``side_m`` of :func:`netsim.geometry.distances_m` and its kin."""
-        return self.side_m if self.torus else None
-
     def positions_at(
         self, t: float, idx: int | Sequence[int] | np.ndarray | None = None, fold: bool = True
     ) -> np.ndarray:
