@@ -104,8 +104,7 @@ def direction_robot(
             return
         st.set_leg(i, env.now, v, cause=cause)
         yield env.timeout(travel)
-        # Land exactly on the border, not a rounding error outside it.
-        st.arrive(i, env.now, area.clip(here + v * travel), log=m.pause_s > 0, cause="border")
+        st.arrive(i, env.now, area.landing(here, v, travel), log=m.pause_s > 0, cause="border")
         cause = "border"
         if m.pause_s > 0:
             yield env.timeout(m.pause_s)

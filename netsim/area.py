@@ -117,6 +117,25 @@ class Bounds:
         """Points moved to the nearest point of the rectangle (a copy)."""
         return np.clip(np.asarray(points_m, dtype=float), self.lo, self.hi)
 
+    def landing(self, p_m: Any, v_mps: Any, travel_s: float) -> np.ndarray:
+        """Where a point at ``p_m`` (2,) moving by ``v_mps`` meets the border after
+        ``travel_s``, :func:`time_to_border`'s time: exactly on the border along the axis
+        (or both) it runs out at. ``p + v t`` can fall a rounding error inside, and a point
+        not on the border is free to head out of the area again.
+
+        >>> Bounds.square(10.0).landing([1.0, 5.0], [-0.5, 0.25], 2.0).tolist()
+        [0.0, 5.5]
+        """
+        p, v = np.asarray(p_m, dtype=float), np.asarray(v_mps, dtype=float)
+        end = self.clip(p + v * travel_s)
+        for k, (lo, hi) in enumerate(zip(self.lo, self.hi, strict=True)):
+            # Each axis' exit time as exit_times computes it: the least is travel_s itself.
+            if v[k] > 0 and (hi - p[k]) / v[k] <= travel_s:
+                end[k] = hi
+            elif v[k] < 0 and -(p[k] - lo) / v[k] <= travel_s:
+                end[k] = lo
+        return end
+
 
 def as_bounds(area: float | Bounds) -> Bounds:
     """``area`` as Bounds: a number is the side of the square ``[0, side]^2``."""

@@ -458,6 +458,28 @@ def test_a_robot_on_the_border_moving_out_leaves_at_plus_zero():
     assert exit_times(np.array([[5.0, 5.0]]), np.zeros((1, 2)), (0.0, 0.0), (10.0, 10.0)).tolist() == [math.inf]
 
 
+@pytest.mark.parametrize("pause_s", [0.0, 5.0])
+def test_random_direction_stops_exactly_on_the_border_and_leaves_inward(pause_s):
+    """Every leg random direction logs at the border starts on it to the bit (along the axis
+    it ran out at), so the heading it then takes points inward and no leg is a sliver: a
+    robot put down a rounding error inside (1.1e-13 m) could head out again, reach the
+    border picoseconds later, and pause there a second time."""
+    settings = ["seed=1", "protocol.model=none", "world.n_robots=20", "duration_s=600"]
+    settings += ["mobility.model=random_direction", f"mobility.pause_s={pause_s}", "mobility.speed_max_mps=20"]
+    sim = build(load(None, settings))
+    sim.run()
+    legs = collect(sim)["legs"].sort_values(["robot", "t_s"], kind="stable")
+    side = sim.config.world.side_m
+    at_border = legs[legs["cause"].isin(["border", "pause_end"])]
+    assert len(at_border) > 50
+    p, v = at_border[["x_m", "y_m"]].to_numpy(), at_border[["vx_mps", "vy_mps"]].to_numpy()
+    assert ((p == 0.0) | (p == side)).any(axis=1).all()
+    assert not (((p == 0.0) & (v < 0)) | ((p == side) & (v > 0))).any()
+    t, robot = legs["t_s"].to_numpy(), legs["robot"].to_numpy()
+    later = (np.diff(robot) == 0) & (t[1:] > 0)  # the placement at t = 0 logs two rows
+    assert (np.diff(t)[later] > 1e-6).all()
+
+
 def test_a_trace_below_zero_on_the_default_square_names_world_bounds_m(tmp_path, capsys):
     """A trace recorded in a map's frame (coordinates below 0) on the default square: the
     error says the square cannot hold it and names world.bounds_m with the least frame that
