@@ -202,8 +202,9 @@ class Clustering:
     """Runs rules 1-6 for all robots on top of an :class:`AckBeacon`, writing their roles
     in ``roles`` (the beacon's, which its Acks announce).
 
-    ``params`` holds ``tau_s``, ``merge_delay_s`` and the three policies (the clustering
-    protocol's parameters, :class:`netsim.protocols.stack.ClusteringParams`)."""
+    ``params`` holds ``tau_s``, ``merge_delay_s``, the three policies and
+    ``join_before_election`` (the clustering protocol's parameters,
+    :class:`netsim.protocols.stack.ClusteringParams`)."""
 
     def __init__(self, params, parts: Parts, beacon: AckBeacon):
         self.env, self.state, self.trace = parts.env, parts.state, parts.trace
@@ -216,6 +217,7 @@ class Clustering:
         self.join_policy = JoinPolicy(params.join_policy)
         self.merge_policy = MergePolicy(params.merge_policy)
         self.election_policy = ElectionPolicy(params.election_policy)
+        self.join_before_election = bool(params.join_before_election)
         st = parts.state
         # With equal ranges hearing an Ack implies the link is two-way (docs/model.md 4.1).
         self.symmetric = bool(np.all(st.range_m == st.range_m[0])) if st.n else True
@@ -384,12 +386,16 @@ class Clustering:
             self._run_timer(r, now)
 
     def _rule6_reaffiliate(self, i: int, now: float, event: str) -> None:
-        """Rule 6: ``i`` lost its leader (``event``: timeout or resignation): it joins another
-        known leader (rule 2), else wins the election among its former group's members it
-        knows and leads, else stays undecided (rule 4's timer running)."""
+        """Rule 6: ``i`` lost its leader (``event``: timeout or resignation). A group whose
+        leader timed out elects a new one among its members: ``i`` leads at once if it wins
+        the election among the former members it knows, else stays undecided until a
+        leader's Ack (rule 2) or rule 4's timer. A resigned leader's members re-affiliate
+        at once (rule 5), and so does every member with ``join_before_election``: ``i``
+        first joins another known leader (rule 2), then holds the election."""
         old = int(self.roles.leader[i])
         self._set(i, event, NO_LEADER, now)
-        if self._rule2_join(i, now, exclude=old):
+        join_first = self.join_before_election or event == "leader_resigned"
+        if join_first and self._rule2_join(i, now, exclude=old):
             return
         # Like with like: my degree as I announced it, beside theirs as they announced them
         # (all counted before the leader was lost).

@@ -79,6 +79,12 @@ class ClusteringParams(AckParams):
         rule="2 x ack_period_s",
     )
     election_policy: ElectionPolicy = param(ElectionPolicy.LOWEST_ID, None, "rule 6: who replaces a lost leader")
+    join_before_election: bool = param(
+        False,
+        None,
+        "rule 6: a member whose leader timed out first joins another leader it knows, and holds the "
+        "election only if it knows none (false: the election comes first)",
+    )
     routing: Routing = param(Routing.BACKBONE, None, "message relaying: backbone flooding or oracle")
     distributed_gateways: bool = param(
         True, None, "members next to a member of another group relay too (keeps flooding connected)"

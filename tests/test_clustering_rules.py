@@ -88,9 +88,9 @@ def test_rule2_undecided_robot_joins_the_leader_it_hears():
 @pytest.mark.parametrize("policy, expected", [("nearest", 1), ("lowest_id", 0)])
 def test_rule2_join_policy_chooses_among_known_leaders(policy, expected):
     """Member 3 of leader 2 also hears leaders 0 (10 m away) and 1 (8 m away); when 2
-    leaves, it joins the leader its policy picks, at once."""
+    leaves, it joins the leader its policy picks, at once (rule 6 joining first)."""
     pos = [[18, 0], [0, 0], [8, -9], [8, 0]]  # ids: 0 = B (far), 1 = A (near), 2 = X, 3 = m
-    sim, stack, deliveries = scripted(pos, [0.6, 0.3, 0.0, 1.9], join_policy=policy)
+    sim, stack, deliveries = scripted(pos, [0.6, 0.3, 0.0, 1.9], join_policy=policy, join_before_election=True)
     move_away(sim, 2, 10.0)
     sim.run(until_s=20)
     rec = records(sim, 3)
@@ -152,11 +152,11 @@ def test_ack_at_the_deadline_instant_counts(phases, causes, times):
 
 def test_rule6_a_member_that_joins_another_leader_at_once_times_out_from_that_leaders_last_ack():
     """Member 2 of leader 1 also hears leader 0. Leader 1 leaves: at 2's deadline it
-    joins leader 0 at once (rule 6, then rule 2), its timer running from leader 0's last
-    Ack, not from the instant it joined: leader 0 leaves too, and 2 becomes undecided
-    exactly tau after the last Ack it had from 0 (a timer from the join ran nearly a period
-    longer)."""
-    sim, stack, deliveries = scripted([[-9, 0], [6, 0], [0, 0]], [0.1, 0.05, 1.6])
+    joins leader 0 at once (rule 6 joining first, then rule 2), its timer running from
+    leader 0's last Ack, not from the instant it joined: leader 0 leaves too, and 2 becomes
+    undecided exactly tau after the last Ack it had from 0 (a timer from the join ran nearly
+    a period longer)."""
+    sim, stack, deliveries = scripted([[-9, 0], [6, 0], [0, 0]], [0.1, 0.05, 1.6], join_before_election=True)
     move_away(sim, 1, 10.5)
     move_away(sim, 0, 12.5)
     sim.run(until_s=30)
@@ -339,6 +339,39 @@ def test_rule6_group_that_lost_its_leader_elects_the_lowest_id(policy):
     assert r2.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"]
     assert r2.t_s[1] == deadline and r2.leader[2] == 1
     assert r2.t_s[2] == pytest.approx(min(t for t, s, r in deliveries if s == 1 and t > deadline))
+
+
+def test_rule6_the_election_comes_before_joining_another_leader():
+    """Leader 3 leads 0 and 1; 0 also hears leader 4, 1 does not. Leader 3 leaves: its group
+    elects 0 (the lowest id) at once, though 0 knows another leader, and 1 joins 0 on
+    hearing it. Joining leader 4 first would leave 1 without a leader until rule 4."""
+    pos = [[4, 0], [-4, 0], [0, 100], [0, 0], [13, 0]]
+    sim, stack, deliveries = scripted(pos, [1.5, 1.6, 0.9, 0.1, 0.2])
+    move_away(sim, 3, 10.0)
+    sim.run(until_s=14.0)
+    r0, r1 = records(sim, 0), records(sim, 1)
+    deadline = last_delivery(deliveries, 3, 0, before=10.0) + TAU
+    assert r0.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected"], r0
+    assert r0.leader.tolist() == [3, -1, 0] and r0.t_s[2] == deadline
+    assert r1.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"], r1
+    assert r1.leader[2] == 0
+    assert r1.t_s[2] == min(t for t, s, r in deliveries if s == 0 and 1 in r and t > deadline)
+
+
+def test_rule6_a_member_that_loses_the_election_joins_on_hearing_a_leader_not_at_once():
+    """Leader 3 leads 0 and 1; 1 also hears leader 4. Leader 3 leaves: 1 loses the election
+    to 0 and becomes undecided; it joins 4, the only leader it knows, when 4's next Ack
+    arrives (rule 2), not at the instant it lost its leader."""
+    pos = [[-4, 0], [4, 0], [0, 100], [0, 0], [13, 0]]
+    sim, stack, deliveries = scripted(pos, [1.5, 1.6, 0.9, 0.1, 0.2])
+    move_away(sim, 3, 10.0)
+    sim.run(until_s=14.0)
+    r1 = records(sim, 1)
+    deadline = last_delivery(deliveries, 3, 1, before=10.0) + TAU
+    assert r1.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"], r1
+    assert r1.t_s[1] == deadline and r1.leader[2] == 4
+    assert r1.t_s[2] == min(t for t, s, r in deliveries if s == 4 and 1 in r and t > deadline) > deadline
+    assert records(sim, 0).cause.tolist()[-1] == "rule6_elected"
 
 
 def test_one_way_link_is_never_joined():

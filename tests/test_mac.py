@@ -405,16 +405,15 @@ def test_a_frame_the_radio_keeps_never_fails_on_noise_alone_under_shadowing(mac)
 
 def test_mac_none_reproduces_the_channel_before_the_medium():
     """channel.mac = "none" is the channel of infinite capacity as it was before the medium
-    (commit 724cc35): a clustering run's Ack counts, role changes and every table's row count
-    equal the record of that commit (tests/data/mac_none_724cc35.json)."""
+    (commit 724cc35, with rule 6 in its order): a clustering run's Ack counts, role changes
+    and every table's row count equal the record of that commit
+    (tests/data/mac_none_724cc35.json)."""
     from netsim.config import from_dict
-    from netsim.tools.validate import mac_none_mismatches, mac_none_record
+    from netsim.tools.validate import mac_none_mismatches, mac_none_record, mac_none_tree
 
     record = mac_none_record()
     assert record is not None
-    tree = {k: dict(v) if isinstance(v, dict) else v for k, v in record["config"].items()}
-    tree["channel"]["mac"] = "none"
-    res = execute(from_dict(tree))
+    res = execute(from_dict(mac_none_tree(record)))
     assert res.sim.channel.mac is None
     assert mac_none_mismatches(record, res.frames) == []
 

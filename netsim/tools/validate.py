@@ -816,6 +816,15 @@ def mac_none_record() -> dict | None:
     return json.loads(path.read_text()) if path.is_file() else None
 
 
+def mac_none_tree(record: dict) -> dict:
+    """The configuration of :func:`mac_none_record`'s run, with ``channel.mac = "none"``, and
+    rule 6 in that commit's order (``protocol.join_before_election``)."""
+    tree = {k: dict(v) if isinstance(v, dict) else v for k, v in record["config"].items()}
+    tree["channel"]["mac"] = "none"
+    tree["protocol"]["join_before_election"] = True
+    return tree
+
+
 # The record's sampled tables have no sample at the run's end, which runs now take: their
 # rows before the end are compared.
 RECORDED_BEFORE_END = ("groups", "beliefs", "neighbour_beliefs")
@@ -850,9 +859,7 @@ def check_medium_none(seed: int | None = None) -> list[Check]:
     label = 'channel.mac = "none": Ack counts, role changes and row counts as recorded before the medium'
     if record is None:
         return [Check("25", label + f" ({MAC_NONE_RECORD} not found: needs a source checkout)", 1.0, math.nan, 0.0)]
-    tree = {k: dict(v) if isinstance(v, dict) else v for k, v in record["config"].items()}
-    tree["channel"]["mac"] = "none"
-    sim = build(from_dict(tree))
+    sim = build(from_dict(mac_none_tree(record)))
     sim.run()
     same = float(not mac_none_mismatches(record, collect(sim)))
     return [Check("25", label, 1.0, same, 0.0)]
