@@ -36,12 +36,14 @@ from netsim.compiled import jit
 # continuously told the role they tell now. RX_POWER: the power (dBm) at which the receiver
 # got the Ack the entry holds, NaN when the channel measures none (no log-distance law): the
 # receiver's own measurement, written on receipt, never carried by an Ack (its record holds
-# NaN there).
+# NaN there). MEMBER_OF: the leader the neighbour named in the latest of its Acks the
+# receiver took that said member (EMPTY before any): the group it had, once it leads or is
+# undecided (rule 6's election); the receiver's own reading, never carried by an Ack.
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
-RX_POWER = 12
+RX_POWER, MEMBER_OF = 12, 13
 EMPTY = -1  # the id of an empty slot
 # An empty slot's record (never live), a constant of the compiled code (not an argument per Ack).
-EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf, np.nan], dtype=float)
+EMPTY_RECORD = np.array([-np.inf, np.inf, 0, np.inf, 0, 0, EMPTY, 0, 0, 0, 0, np.inf, np.nan, EMPTY], dtype=float)
 FIELDS = len(EMPTY_RECORD)  # an Ack's record: these fields, then the ids it heard
 # Columns of the Ack beacon's per-robot (n, 3) array of what each robot sent last
 # (netsim.protocols.ack.AckBeacon.sent): its sequence number, role and two-way degree.
@@ -225,8 +227,10 @@ def _receive(table, now, sender, receivers, record, power_dbm, fresh, hears_me, 
         else:
             bidir_since = np.inf
         role_since = old[ROLE_SINCE] if was_live and old[ROLE] == record[ROLE] else now
+        member_of = record[LEADER] if record[ROLE] == MEMBER else (old[MEMBER_OF] if found else EMPTY)
         for c in range(FIELDS):
             old[c] = record[c]
+        old[MEMBER_OF] = member_of
         old[LAST_HEARD] = now
         old[LIVE_SINCE] = live_since
         old[HEARS_ME] = 1.0 if hm else 0.0
@@ -385,8 +389,10 @@ def elected_in_row(table, i, now, rules, old, degree):
     """Rule 6 from robot ``i``'s row of the ``table``
     (:meth:`netsim.protocols.clustering.Clustering._rule6_reaffiliate`): whether ``i``, of
     announced ``degree``, takes over from its lost leader ``old`` among the live two-way
-    neighbours whose last Ack said they were members of ``old``, by the election policy of
-    the ``rules`` (its code, :data:`netsim.protocols.clustering.ELECTION_CODES`)."""
+    neighbours that had ``old`` as their leader (the last of their Acks that said member
+    named ``old``: members of ``old``, and former members that lead or are undecided since),
+    by the election policy of the ``rules`` (its code,
+    :data:`netsim.protocols.clustering.ELECTION_CODES`)."""
     table = Table(*table)
     ids_row, records_row, tau_s = table.ids[i], table.records[i], table.tau_s
     c = rules[0]
@@ -395,7 +401,7 @@ def elected_in_row(table, i, now, rules, old, degree):
         return False
     for s in range(len(ids_row)):
         rec = records_row[s]
-        if not (_two_way(rec, now, tau_s, symmetric) and rec[ROLE] == MEMBER and rec[LEADER] == old):
+        if not (_two_way(rec, now, tau_s, symmetric) and rec[MEMBER_OF] == old):
             continue
         j = ids_row[s]
         if policy == ELECT_LOWEST_ID:

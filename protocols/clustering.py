@@ -16,10 +16,12 @@ robots build a two-level network:
    degree), so both reach the same verdict from the same information once it has
    travelled; if stale information still makes each yield to the other, the lower id
    takes the lead back on hearing it and the other stays its member.
-6. A robot whose leader timed out (or resigned) joins another known leader if it can;
-   otherwise, if it has the highest priority among the live neighbours that had the same
-   leader (lowest id by default; vacuously when there are none), it becomes ``alpha`` at
-   once; otherwise it stays ``gamma`` (and rule 2 or 4 follows).
+6. A robot whose leader timed out becomes ``alpha`` at once if it has the highest priority
+   among the live neighbours that had the same leader (lowest id by default; vacuously
+   when there are none, even if it hears another leader); otherwise it stays ``gamma``
+   (and rule 2 or 4 follows). A robot whose leader resigned joins another known leader if
+   it can, and only then holds the election (so does every robot with
+   ``join_before_election``).
 
 The decisions are small functions: the kernels' :func:`~netsim.protocols._kernels.join_choice`
 (rule 2) and :func:`~netsim.protocols._kernels.elected_in_row` (rule 6) over a robot's row of

@@ -35,6 +35,7 @@ from netsim.protocols._kernels import (
     LAST_HEARD,
     LEADER,
     LIVE_SINCE,
+    MEMBER_OF,
     ROLE,
     ROLE_SINCE,
     RX_POWER,
@@ -72,6 +73,7 @@ class NeighbourTable:
     bidir_since_s = property(lambda self: self.data[:, :, BIDIR_SINCE])
     role_since_s = property(lambda self: self.data[:, :, ROLE_SINCE])
     rx_power_dbm = property(lambda self: self.data[:, :, RX_POWER])
+    member_of = property(lambda self: self.data[:, :, MEMBER_OF].astype(np.int64))
 
     @property
     def slots(self) -> int:

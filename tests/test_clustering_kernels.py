@@ -605,14 +605,14 @@ def test_elected_in_row_loop_equals_the_oracle(policy, symmetric, kernels):
     """Rule 6 from a row of the table (whether a robot takes over among the former members
     of its lost leader it knows, by each election policy; ties of degree to the lowest id)
     is the oracle's verdict."""
-    from netsim.protocols.neighbours import DEGREE
+    from netsim.protocols.neighbours import DEGREE, MEMBER_OF
 
     rng = np.random.default_rng(12)
     now, verdicts = 10.0, []
     for _ in range(80):
         ids, records = random_tables(rng, 8, 6, now)
         records[:, :, DEGREE] = rng.integers(0, 4, (8, 6))
-        records[:, :, LEADER] = rng.integers(0, 3, (8, 6))  # mates of a few leaders
+        records[:, :, MEMBER_OF] = rng.integers(-1, 3, (8, 6))  # former mates of a few leaders
         for i in range(8):
             old, degree = int(rng.integers(0, 3)), int(rng.integers(0, 4))
             rules = rules_record(TAU_S, 1.0, symmetric, "nearest", policy)

@@ -374,6 +374,45 @@ def test_rule6_a_member_that_loses_the_election_joins_on_hearing_a_leader_not_at
     assert records(sim, 0).cause.tolist()[-1] == "rule6_elected"
 
 
+def test_rule6_a_former_member_that_already_leads_counts_in_the_election():
+    """Leader 3 of 0 and 1 drives slowly away: 0 loses it first and is elected; 1 loses it
+    8 s later, hearing 0 lead. 0 had the same leader and has the lower id, so 1 loses the
+    election and joins 0 on hearing it, rather than leading beside it until a merge."""
+    sim, stack, deliveries = scripted([[-4, 0], [4, 0], [0, 100], [0, 0]], [1.5, 1.6, 0.9, 0.1])
+
+    def drive():
+        yield sim.env.timeout(10.0)
+        sim.state.set_leg(3, sim.env.now, (1.0, 0.0))
+
+    sim.env.process(drive())
+    sim.run(until_s=40)
+    r0, r1 = records(sim, 0), records(sim, 1)
+    assert r0.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected"], r0
+    assert r1.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"], r1
+    lost = r1.t_s[1]
+    assert lost > r0.t_s[2] + PERIOD  # 1 heard 0's Acks as a leader before it lost 3
+    assert r1.leader[2] == 0
+    assert r1.t_s[2] == min(t for t, s, r in deliveries if s == 0 and 1 in r and t > lost)
+
+
+def test_rule6_a_resigned_leaders_member_that_knows_no_other_leader_holds_the_election():
+    """Leader 1 (member 2) merges into leader 0 and resigns (lowest id wins); 2 does not hear
+    0. On hearing the resignation it knows no leader to join, so it holds the election and,
+    with no rival, leads at once instead of waiting tau for rule 4."""
+    sim, stack, deliveries = scripted([[100, 0], [8, 0], [16, 0]], [0.2, 0.1, 1.6], merge_policy="lowest_id_wins")
+
+    def bring():
+        yield sim.env.timeout(10.0)
+        sim.state.set_leg(0, 10.0, (0.0, 0.0), start_m=(0.0, 0.0))
+
+    sim.env.process(bring())
+    sim.run(until_s=30)
+    assert records(sim, 1).cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"]
+    r2 = records(sim, 2)
+    assert r2.cause.tolist() == ["rule2_join", "rule5_leader_resigned", "rule6_elected"], r2
+    assert r2.t_s[1] == r2.t_s[2] == min(t for t, s, r in deliveries if s == 1 and t > records(sim, 1).t_s[1])
+
+
 def test_one_way_link_is_never_joined():
     """With unequal ranges robot 1 hears leader 0 but 0 cannot hear 1: 1 must not join."""
     sim, stack, deliveries = scripted([[0, 0], [10, 0]], [0.1, 0.6], range_m=[15.0, 5.0])
@@ -415,16 +454,18 @@ def rule_kernels(request):
 
 def _row(entries, n, row=0):
     """Robot ``row``'s neighbour table (the other rows empty): one live two-way entry per
-    ``(id, role, leader, x, y, degree)``, heard just now."""
-    from netsim.protocols._kernels import DEGREE, EMPTY_RECORD, HEARS_ME, LAST_HEARD, ROLE, X, Y
+    ``(id, role, leader, x, y, degree[, member_of])``, heard just now (``member_of``: the
+    leader its last Ack that said member named; by default its leader if it is a member)."""
+    from netsim.protocols._kernels import DEGREE, EMPTY_RECORD, HEARS_ME, LAST_HEARD, MEMBER_OF, ROLE, X, Y
     from netsim.protocols._kernels import LEADER as LEADER_FIELD
 
     ids = np.full((n, max(len(entries), 1)), -1, dtype=np.int64)
     records = np.broadcast_to(EMPTY_RECORD, (*ids.shape, len(EMPTY_RECORD))).copy()
-    for s, (j, role, leader, x, y, degree) in enumerate(entries):
+    for s, (j, role, leader, x, y, degree, *had) in enumerate(entries):
         ids[row, s] = j
-        fields = [LAST_HEARD, HEARS_ME, ROLE, LEADER_FIELD, X, Y, DEGREE]
-        records[row, s, fields] = [NOW_S, 1, role, leader, x, y, degree]
+        member_of = had[0] if had else (leader if role == MEMBER else -1)
+        fields = [LAST_HEARD, HEARS_ME, ROLE, LEADER_FIELD, X, Y, DEGREE, MEMBER_OF]
+        records[row, s, fields] = [NOW_S, 1, role, leader, x, y, degree, member_of]
     return ids, records
 
 
@@ -476,8 +517,13 @@ def test_merge_loser_is_the_same_seen_from_both_sides():
 
 def _elected(kernels, policy, me, degree, rivals):
     """Rule 6 by the kernel: whether robot ``me`` (announcing ``degree``) takes over from
-    leader 9 among its former members ``rivals``, ``(id, degree)``."""
-    ids, records = _row([(j, MEMBER, 9, 0.0, 0.0, d) for j, d in rivals], 10, row=me)
+    leader 9 among its neighbours ``rivals``, ``(id, degree)`` members of 9, or ``(id,
+    degree, role, member_of)``."""
+    entries = []
+    for j, d, *told in rivals:
+        role, member_of = told or (MEMBER, 9)
+        entries.append((j, role, 9 if role == MEMBER else j, 0.0, 0.0, d, member_of))
+    ids, records = _row(entries, 10, row=me)
     rules = rules_record(TAU, 1.0, False, "nearest", policy)
     return bool(kernels.elected_in_row((ids, records, TAU), me, NOW_S, rules, 9, degree))
 
@@ -493,6 +539,12 @@ def test_election_policies(rule_kernels):
     assert _elected(rule_kernels, "highest_degree", 5, 3, [(1, 4)]) is False
     assert _elected(rule_kernels, "highest_degree", 1, 3, [(5, 3)]) is True  # tie: lowest id
     assert _elected(rule_kernels, "highest_degree", 5, 3, [(1, 3)]) is False
+    # A neighbour that had leader 9 counts when it leads or is undecided since; one that
+    # leads and was last a member of another leader does not.
+    assert _elected(rule_kernels, "lowest_id", 3, 0, [(1, 0, LEADER, 9)]) is False
+    assert _elected(rule_kernels, "lowest_id", 3, 0, [(1, 0, UNDECIDED, 9)]) is False
+    assert _elected(rule_kernels, "lowest_id", 3, 0, [(1, 0, LEADER, 4)]) is True
+    assert _elected(rule_kernels, "lowest_id", 3, 0, [(1, 0, LEADER, -1)]) is True
 
 
 def test_roles_table_is_the_frame_of_its_records():

@@ -147,6 +147,8 @@ class NumpyTable(NeighbourTable):
         rec[:, K.BIDIR_SINCE] = np.where(hears_me, np.where(still_two_way, old[:, K.BIDIR_SINCE], now), np.inf)
         same_role = was_live & (old[:, K.ROLE] == record[K.ROLE])
         rec[:, K.ROLE_SINCE] = np.where(same_role, old[:, K.ROLE_SINCE], now)
+        said_member = record[K.ROLE] == MEMBER
+        rec[:, K.MEMBER_OF] = record[K.LEADER] if said_member else np.where(found, old[:, K.MEMBER_OF], K.EMPTY)
         records[flat] = rec
         return fresh
 
@@ -238,12 +240,14 @@ def join_choice(table, i, now, rules, exclude, x_m, y_m, first_heard, side_m=Non
 
 
 def elected_in_row(table, i, now, rules, old, degree) -> bool:
-    """Rule 6 from robot ``i``'s row: :func:`elected` among the
-    former members of ``old`` it knows, each with the degree its last Ack announced."""
+    """Rule 6 from robot ``i``'s row: :func:`elected` among the live two-way neighbours
+    whose last Ack that said member named ``old``, each with the degree its last Ack
+    announced."""
     ids_all, records, tau_s = table
     records_row = records[i]
     c = rules[0]
-    mates = mate_slots(records_row, now, tau_s, bool(c["symmetric"]), old)
+    had_old = two_way(records_row, now, tau_s, bool(c["symmetric"])) & (records_row[:, K.MEMBER_OF] == old)
+    mates = np.flatnonzero(had_old)
     ids, degrees = ids_all[i][mates].tolist(), records_row[mates, K.DEGREE].tolist()
     rivals = [Candidate(int(j), degree=int(d)) for j, d in zip(ids, degrees)]
     return elected(_ELECTION_BY_CODE[int(c["election_policy"])], Candidate(i, degree=degree), rivals)
