@@ -36,9 +36,11 @@ from netsim.compiled import jit
 # continuously told the role they tell now. RX_POWER: the power (dBm) at which the receiver
 # got the Ack the entry holds, NaN when the channel measures none (no log-distance law): the
 # receiver's own measurement, written on receipt, never carried by an Ack (its record holds
-# NaN there). MEMBER_OF: the leader the neighbour named in the latest of its Acks the
-# receiver took that said member (EMPTY before any): the group it had, once it leads or is
-# undecided (rule 6's election); the receiver's own reading, never carried by an Ack.
+# NaN there). MEMBER_OF: the leader the neighbour named in the latest of the Acks of its
+# live entry that said member (EMPTY before any): the group it had, once it leads or is
+# undecided (rule 6's election); like the other histories, it starts afresh with the
+# entry, so a slot kept or reused after an expiry reads the same; the receiver's own
+# reading, never carried by an Ack.
 LAST_HEARD, LIVE_SINCE, HEARS_ME, BIDIR_SINCE, SEQ, ROLE, LEADER, X, Y, GROUP_SIZE, DEGREE, ROLE_SINCE = range(12)
 RX_POWER, MEMBER_OF = 12, 13
 EMPTY = -1  # the id of an empty slot
@@ -227,7 +229,7 @@ def _receive(table, now, sender, receivers, record, power_dbm, fresh, hears_me, 
         else:
             bidir_since = np.inf
         role_since = old[ROLE_SINCE] if was_live and old[ROLE] == record[ROLE] else now
-        member_of = record[LEADER] if record[ROLE] == MEMBER else (old[MEMBER_OF] if found else EMPTY)
+        member_of = record[LEADER] if record[ROLE] == MEMBER else (old[MEMBER_OF] if was_live else EMPTY)
         for c in range(FIELDS):
             old[c] = record[c]
         old[MEMBER_OF] = member_of

@@ -156,6 +156,23 @@ def _first_after(now, tau_s, last, step):
     return last
 
 
+def test_member_of_is_the_group_a_live_entry_last_named_and_starts_afresh_with_it(kernels):
+    """Rule 6's rivals: an entry keeps the leader its latest member Ack named once the
+    neighbour leads, while the entry lives; a neighbour back after its entry expired starts
+    with none, whether its slot was kept or another sender took it meanwhile."""
+    member, leader = 1, 2
+    for taken_meanwhile in (False, True):
+        table = _table(kernels, 4, 3.0, 1)
+        r = np.array([0])
+        table.receive(0.0, 1, r, ack_record(1, member, 2, 0.0, 0.0, 1))
+        table.receive(1.0, 1, r, ack_record(2, leader, 1, 0.0, 0.0, 1))
+        assert table.member_of[0, table.entry(0, 1)] == 2
+        if taken_meanwhile:
+            table.receive(5.0, 3, r, ack_record(1, leader, 3, 0.0, 0.0, 1))
+        table.receive(100.0, 1, r, ack_record(3, leader, 1, 0.0, 0.0, 1))
+        assert table.member_of[0, table.entry(0, 1)] == -1
+
+
 def test_timeout_an_entry_is_live_while_its_last_ack_is_younger_than_tau(kernels):
     """The timeout rule, one kernel for every reader of the table: an entry is live while
     its deadline, its last Ack's instant plus ``tau_s`` as a timer computes it, is still to

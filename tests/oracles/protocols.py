@@ -148,7 +148,7 @@ class NumpyTable(NeighbourTable):
         same_role = was_live & (old[:, K.ROLE] == record[K.ROLE])
         rec[:, K.ROLE_SINCE] = np.where(same_role, old[:, K.ROLE_SINCE], now)
         said_member = record[K.ROLE] == MEMBER
-        rec[:, K.MEMBER_OF] = record[K.LEADER] if said_member else np.where(found, old[:, K.MEMBER_OF], K.EMPTY)
+        rec[:, K.MEMBER_OF] = record[K.LEADER] if said_member else np.where(was_live, old[:, K.MEMBER_OF], K.EMPTY)
         records[flat] = rec
         return fresh
 
