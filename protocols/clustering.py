@@ -400,7 +400,8 @@ class Clustering:
         if join_first and self._rule2_join(i, now, exclude=old):
             return
         # Like with like: my degree as I announced it, beside theirs as they announced them
-        # (all counted before the leader was lost).
+        # (a rival still naming the leader counted it before the loss; one that leads since,
+        # after).
         degree = int(self.beacon.degree_sent[i])
         if self.kernels.elected_in_row(self.table.view, i, now, self.rules, old, degree):
             self._set(i, "elected", i, now)
