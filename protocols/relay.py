@@ -266,16 +266,25 @@ class Relay:
         self._outcomes[msg.id]["shortest_hops"] = float(self._hops_from(src)[msg.dst])
         self._forward_oracle(src, msg)
 
-    def _hops_from(self, node: int, towards: bool = False) -> np.ndarray:
-        """:func:`hop_distances` now, over the channel's links."""
-        links = self._live.up_pairs() if self._live is not None else None
+    def _hops_from(self, node: int, towards: bool = False, links=None) -> np.ndarray:
+        """:func:`hop_distances` now, over the channel's links (``links``: the tracked links
+        up now, if already read)."""
+        if links is None and self._live is not None:
+            links = self._live.up_pairs()
         return hop_distances(self.state, self.env.now, node, towards, index=self._index, links=links)
 
     # -- oracle shortest path ----------------------------------------------------------
     def _forward_oracle(self, holder: int, msg: Message) -> None:
         now = self.env.now
-        to_dst = self._hops_from(msg.dst, towards=True)
-        nbrs, _ = self.channel.in_range(holder)
+        if self._live is None:
+            to_dst = self._hops_from(msg.dst, towards=True)
+            nbrs, _ = self.channel.in_range(holder)
+        else:
+            # The next hop from the very links the distances are measured on: asking the
+            # channel would draw its shadowing afresh and offer links the table has down.
+            a, b = links = self._live.up_pairs()
+            to_dst = self._hops_from(msg.dst, towards=True, links=links)
+            nbrs = np.unique(np.concatenate((b[a == holder], a[b == holder])))
         if len(nbrs) == 0 or not np.isfinite(to_dst[nbrs]).any():
             self._dropped(msg, now, "no_route", holder)  # no route now: the message is lost
             return

@@ -256,6 +256,38 @@ def test_through_walls_the_oracle_routes_and_measures_on_the_channels_links():
     assert (msgs.hops == msgs.shortest_hops).all() and (msgs.transmissions == msgs.hops).all()
 
 
+def test_under_shadowing_the_oracle_forwards_over_the_links_it_measures_on():
+    """Under shadowing a link's state is the channel's last decision on it (links.parquet):
+    the oracle picks its next hop among the holder's links up there, the links it measures
+    the hops to the destination on. Every hop then goes over a pair up in the table just
+    before it, and no message visits a robot twice. Asking the channel for the holder's
+    hearers instead drew the shadowing afresh and offered robots the table had out of reach:
+    hops over links down in the table, loops, fewer hops than the shortest path."""
+    sim = build(
+        from_dict(
+            {
+                "seed": 1,
+                "duration_s": 60.0,
+                "world": {"n_robots": 30, "side_m": 600.0},
+                "channel": {"propagation": "log_distance", "shadowing_sigma_db": 4.0},
+                "protocol": {"routing": "oracle", "message_rate_hz": 1.0},
+            }
+        )
+    )
+    sim.run()
+    frames = collect(sim)
+    hops, links, msgs = frames["hops"], frames["links"], frames["messages"]
+    assert len(hops) >= 50
+    a, b = np.minimum(hops.sender, hops.receiver), np.maximum(hops.sender, hops.receiver)
+    pairs = links.set_index(["a", "b"]).sort_index()
+    for x, y, t in zip(a.tolist(), b.tolist(), hops.t_sent_s.tolist()):
+        g = pairs.loc[(x, y)] if (x, y) in pairs.index else pairs.iloc[:0]
+        assert ((g.t_up_s < t) & (g.t_down_s >= t)).any(), f"hop {x}-{y} at {t} over a link down"
+    assert (hops.groupby(["msg_id", "receiver"]).size() == 1).all()
+    done = msgs[msgs.delivered]
+    assert len(done) >= 20 and (done.hops >= done.shortest_hops).all()
+
+
 @pytest.mark.parametrize("routing, tracked", [("backbone", False), ("oracle", True)])
 def test_only_the_oracle_tracks_a_radios_links_during_the_run(routing, tracked):
     """Tracking the links walls decide during the run costs a walled run more than the run:
