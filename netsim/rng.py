@@ -9,6 +9,7 @@ component's draws (as ns-3's ``AssignStreams``). Replications keep the seed and 
 from __future__ import annotations
 
 import zlib
+from typing import Any
 
 import numpy as np
 
@@ -34,3 +35,30 @@ class Streams:
 
     def get(self, name: str, index: int = 0) -> np.random.Generator:
         return stream(self.seed, self.run, name, index)
+
+
+class KindStreams:
+    """One stream per kind of frame, named ``<name>.<kind>``, behind one generator's face.
+
+    A component that draws for every frame (the channel's loss model, its latency jitter)
+    draws from the stream of the frame's kind, chosen by :meth:`use` before it draws; any
+    :class:`numpy.random.Generator` method reaches the chosen stream. So traffic of one kind
+    (messages, a routing protocol's hellos) never changes the draws of another (the Acks).
+    """
+
+    def __init__(self, streams: Streams, name: str):
+        self._streams = streams
+        self._name = name
+        self._by_kind: dict[str, np.random.Generator] = {}
+        self.current = self.use("ack")
+
+    def use(self, kind: str) -> np.random.Generator:
+        """Make the stream of frames of ``kind`` the one drawn from, and return it."""
+        g = self._by_kind.get(kind)
+        if g is None:
+            g = self._by_kind[kind] = self._streams.get(f"{self._name}.{kind}")
+        self.current = g
+        return g
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.current, name)

@@ -38,7 +38,7 @@ from netsim.radio.channel import Channel
 from netsim.radio.loss import CheckedLoss
 from netsim.radio.reception import Reception
 from netsim.radio.receptions import RECEPTIONS_SCHEMA, ReceptionLog
-from netsim.rng import Streams
+from netsim.rng import KindStreams, Streams
 from netsim.samples import sample_times
 from netsim.sim import Simulation
 from netsim.state import RobotState
@@ -82,7 +82,8 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus, world_bounds(w))
     state.events = events
     ch = config.channel
-    survives = ch.loss_plugin.make(ch.loss, state.range_m, streams.get("channel.loss"))
+    loss_rng = KindStreams(streams, "channel.loss")
+    survives = ch.loss_plugin.make(ch.loss, state.range_m, loss_rng)
     if not type(survives).__module__.startswith("netsim."):
         survives = CheckedLoss(survives, ch.loss_model)
     occupancy = world_map(config)
@@ -98,9 +99,10 @@ def simulation(config: Config, run: int = 0) -> Simulation:
         survives,
         ch.latency_s,
         ch.latency_jitter_s,
-        streams.get("channel.latency"),
+        KindStreams(streams, "channel.latency"),
         reception,
         events=events,
+        loss_rng=loss_rng,
     )
     mac = ch.mac_model
     if mac.build is not None:

@@ -121,7 +121,7 @@ def test_packet_is_delivered_only_whole(tmp_path):
         [big],
         n=3,
         protocol={"routing": "oracle"},
-        channel={"loss_probability": 0.2},
+        channel={"loss_probability": 0.1},
     )
     packets = frames["packets"]
     assert (packets["frames"] == 4).all()

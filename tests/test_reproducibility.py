@@ -63,6 +63,21 @@ def test_protocol_parameters_leave_positions_unchanged(tmp_path, seed_7):
     assert not pd.read_parquet(a / "acks.parquet").equals(pd.read_parquet(b / "acks.parquet"))
 
 
+@pytest.mark.parametrize("jitter", [None, "channel.latency_jitter_s=0.05"])
+def test_messages_leave_the_acks_draws_unchanged(tmp_path, jitter):
+    """Each kind of frame draws its loss and its latency from a stream of its own
+    (``channel.loss.<kind>``, ``channel.latency.<kind>``): without a shared medium, sending
+    more messages changes no Ack's fate, so the clustering is the same."""
+    extra = ["--seed", "7", "--set", "world.n_robots=12", "--set", "duration_s=20"] + (
+        ["--set", jitter] if jitter else []
+    )
+    a = _run(tmp_path, "a", *extra, "--set", "protocol.message_rate_hz=0.2")
+    b = _run(tmp_path, "b", *extra, "--set", "protocol.message_rate_hz=2")
+    assert len(pd.read_parquet(a / "messages.parquet")) < len(pd.read_parquet(b / "messages.parquet"))
+    for name in ("acks", "roles", "groups", "beliefs"):
+        assert (a / f"{name}.parquet").read_bytes() == (b / f"{name}.parquet").read_bytes(), name
+
+
 def test_output_directory_contents_and_schema(tmp_path):
     out = _run(tmp_path, "a")
     names = {p.name for p in out.iterdir()}

@@ -52,6 +52,7 @@ from netsim.agenda import Agenda
 from netsim.events import Delivery, Drop, EventBus, notify
 from netsim.radio.loss import Survives
 from netsim.radio.spatial import RangeIndex
+from netsim.rng import KindStreams
 from netsim.scheduling import URGENT
 from netsim.state import RobotState
 
@@ -167,9 +168,10 @@ class Channel:
         survives: Survives,
         latency_s: float,
         latency_jitter_s: float = 0.0,
-        latency_rng: np.random.Generator | None = None,
+        latency_rng: KindStreams | None = None,
         reception: Any = None,
         events: EventBus | None = None,
+        loss_rng: KindStreams | None = None,
     ):
         self.env = env
         self.state = state
@@ -183,7 +185,9 @@ class Channel:
         self.survives = survives
         self.latency_s = float(latency_s)
         self.latency_jitter_s = float(latency_jitter_s)
+        # Per kind of frame (netsim.rng.KindStreams): one kind's traffic leaves another's draws.
         self.latency_rng = latency_rng
+        self.loss_rng = loss_rng
         if self.latency_jitter_s > 0 and latency_rng is None:
             raise ValueError("latency jitter needs a random stream")
         self.counters: dict[str, Counters] = {}
@@ -287,7 +291,7 @@ class Channel:
         delay = self.latency_s
         if self.latency_jitter_s > 0:
             assert self.latency_rng is not None  # checked when built
-            delay += self.latency_rng.random() * self.latency_jitter_s
+            delay += self.latency_rng.use(kind).random() * self.latency_jitter_s
         if len(receivers):
             self._at(delay, deliver, sender, receivers, payload, c, kind, binned, power)
         elif kind in self.notify_empty:
@@ -450,7 +454,7 @@ class Channel:
         power = self.power_dbm(sender, kind, receivers, dist) if self.measured else None
         if self.latency_jitter_s > 0:
             assert self.latency_rng is not None  # checked when built
-            delays = self.latency_s + self.latency_rng.random(len(receivers)) * self.latency_jitter_s
+            delays = self.latency_s + self.latency_rng.use(kind).random(len(receivers)) * self.latency_jitter_s
             for k, (r, delay) in enumerate(zip(receivers.tolist(), delays.tolist())):
                 one = None if power is None else power[k : k + 1]
                 self._at(delay, deliver, sender, np.array([r]), payload, c, kind, binned, one)
@@ -487,6 +491,8 @@ class Channel:
                     dist = dist[alive]
         if binned is not None:
             binned.row[SendTimeBins.IN_RANGE] += len(receivers)
+        if self.loss_rng is not None:
+            self.loss_rng.use(kind)
         keep = self._survives(sender, receivers, dist)
         if keep is not None and not keep.all():
             np.add.at(c.dropped[0], receivers[~keep], 1)

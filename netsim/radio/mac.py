@@ -518,7 +518,7 @@ class Medium:
         delay = ch.latency_s
         if ch.latency_jitter_s > 0:
             assert ch.latency_rng is not None
-            delay += ch.latency_rng.random() * ch.latency_jitter_s
+            delay += ch.latency_rng.use(kind).random() * ch.latency_jitter_s
         if len(got):
             ch._at(delay, deliver, sender, got, payload, c, kind, binned, power_dbm)
         elif kind in ch.notify_empty:
