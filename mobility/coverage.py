@@ -231,7 +231,7 @@ class CoverageParams(Params):
         "plan = 'local': links are ordered by bands of length this wide, then by their robots' ids, m",
     )
     control_period_s: float = param(
-        1.0, finite(positive), "time between control steps, s (also for control.controllers)"
+        1.0, finite(positive), "time between control steps, s (also for control.controllers)", schedules="run"
     )
     start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
     gain: float = param(
@@ -284,7 +284,7 @@ class CoverageParams(Params):
         " (stop_speed_mps); 0: off",
     )
     radius_m: float = param(0.0, non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
-    metrics_interval_s: float = param(5.0, positive, "coverage metrics sampling interval, s")
+    metrics_interval_s: float = param(5.0, positive, "coverage metrics sampling interval, s", schedules="run")
     area_method: AreaMethod = param(
         AreaMethod.EXACT, None, "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"
     )
@@ -477,8 +477,10 @@ class CoverageController:
         # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
         # What the Acks carry of their senders' memories: a list per control step, as many
-        # as an Ack still remembered can date from.
-        self.lists = Lists(st.n, math.ceil(params.release_s / params.control_period_s) + 2)
+        # as an Ack still remembered can date from (none from before the run: a release_s
+        # beyond duration_s keeps no more).
+        kept_s = min(params.release_s, parts.duration_s)
+        self.lists = Lists(st.n, math.ceil(kept_s / params.control_period_s) + 2)
         self.heard: Heard | None = None  # what each robot holds as of the step being planned
         self.local_limits = replace(self.limits, range_m=self._sure_range_m())
         # Under shadowing in open space the local plan keeps links by the shadowing each

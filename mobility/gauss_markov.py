@@ -48,7 +48,9 @@ class GaussMarkovParams(Params):
     mean_speed_mps: float = param(1.0, finite(non_negative), "mean speed, m/s")
     speed_sigma_mps: float = param(0.2, finite(non_negative), "standard deviation of the speed, m/s")
     direction_sigma_rad: float = param(0.4, finite(non_negative), "standard deviation of the direction, rad")
-    update_interval_s: float = param(1.0, finite(positive), "time between updates of speed and direction, s")
+    update_interval_s: float = param(
+        1.0, finite(positive), "time between updates of speed and direction, s", schedules="robot"
+    )
 
 
 def check(params: GaussMarkovParams, config) -> None:

@@ -182,6 +182,10 @@ class Agenda:
                 self._arm(first)
 
 
+# A slice number above that of every finite time (floor of the largest double, 2**1024).
+_BEYOND = 2**1025
+
+
 class Calendar:
     """Entries (tuples, ordered by their first items, the first a time) taken in order: the
     order of a heap of them. Each goes to the list of its slice of ``slice_s`` of time,
@@ -202,7 +206,10 @@ class Calendar:
         # floor(t * per_s) never decreases as t grows (IEEE products are monotonic): the
         # slices keep the entries' order.
         self._size += 1
-        k = math.floor(entry[0] * self._per_s)
+        try:
+            k = math.floor(entry[0] * self._per_s)
+        except OverflowError:
+            k = _BEYOND  # a time so late that the product overflows: after every finite slice
         current = self._current
         if current is not None:
             if k == self._number:

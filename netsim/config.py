@@ -45,6 +45,10 @@ from netsim.params import (
 from netsim.radio.models import LOSS, MAC, PROPAGATION
 from netsim.traffic import TrafficParams, check_flows
 
+# The shortest range a run takes: below, a link's events come closer together than the
+# solver's least window (a range mistyped by orders of magnitude).
+MIN_RANGE_M = 0.01
+
 
 class ConfigWarning(UserWarning):
     """A key that is accepted but not used (it belongs to another model)."""
@@ -417,6 +421,16 @@ class Config(Params):
         if self.world.torus and self.world.side_m <= 2 * max(self.ranges_m(), default=0.0):
             raise ConfigError("world.side_m", self.world.side_m, "on a torus must exceed twice the largest range_m")
         radio, propagation = self.channel.radio, self.channel.propagation_model
+        implied_m, r = self.channel.propagation_model.ranges(self.channel.radio), self.channel.range_m
+        least = float(implied_m) if implied_m is not None else min(r) if isinstance(r, tuple) else float(r)
+        if least < MIN_RANGE_M:
+            implied = implied_m is not None
+            raise ConfigError(
+                "channel.propagation" if implied else "channel.range_m",
+                self.channel.propagation if implied else least,
+                (f"the radio's implied range, {least:.3g} m, is" if implied else "is")
+                + f" below {MIN_RANGE_M} m: no link lasts long enough for its events to be solved",
+            )
         if self.world.torus and propagation.shadowed(radio):
             # The reach's disks around a robot's images must be disjoint, as the range's are:
             # the cut of a shadowed link where its pair leaves the reach is solved on one image.

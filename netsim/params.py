@@ -80,13 +80,24 @@ def param(
     derive: Callable[[Any], Any] | None = None,
     rule: str = "",
     default_factory: Callable[[], Any] | None = None,
+    schedules: str = "",
 ) -> Any:
     """A configuration key: its ``default``, a ``check`` (returns what is wrong, or None),
     its meaning ``doc`` (with the unit). The value's type is that of the default unless
     ``kind`` says otherwise; ``coerce(key, value)`` replaces the standard coercion;
     ``derive(params)`` gives the default from the other values when none is given (None),
-    and ``rule`` says how, in words (``"3 x ack_period_s"``)."""
-    meta = {"check": check, "doc": doc, "kind": kind, "coerce": coerce, "derive": derive, "rule": rule}
+    and ``rule`` says how, in words (``"3 x ack_period_s"``). ``schedules``: the key is a
+    period (``_s``) or a rate (``_hz``) of events of each ``"robot"`` or of the ``"run"``,
+    whose count :func:`check_schedules` bounds."""
+    meta = {
+        "check": check,
+        "doc": doc,
+        "kind": kind,
+        "coerce": coerce,
+        "derive": derive,
+        "rule": rule,
+        "schedules": schedules,
+    }
     if default_factory is not None:
         return field(default_factory=default_factory, metadata=meta)
     return field(default=default, metadata=meta)
@@ -229,3 +240,28 @@ def plain(value: Any) -> Any:
     if isinstance(value, dict):
         return {k: plain(v) for k, v in value.items()}
     return value
+
+
+# The most events one key may schedule in a run: beyond, the schedule alone outlasts any
+# session (a period or a rate mistyped by orders of magnitude).
+MAX_EVENTS_PER_RUN = 100_000_000
+
+
+def check_schedules(params: Params, duration_s: float, n_robots: int) -> None:
+    """Refuse a key marked ``schedules`` (:func:`param`) that would schedule more than
+    :data:`MAX_EVENTS_PER_RUN` events in a run of ``duration_s`` of ``n_robots`` robots."""
+    for f in _keys(type(params)):
+        who = f.metadata.get("schedules", "")
+        value = getattr(params, f.name)
+        if not who or value is None:
+            continue
+        per_s = value if f.name.endswith("_hz") else 1.0 / value
+        count = duration_s * per_s * (n_robots if who == "robot" else 1)
+        if count > MAX_EVENTS_PER_RUN:
+            each = f"{n_robots} robots each" if who == "robot" else "the run"
+            raise ConfigError(
+                f"{params.section}.{f.name}",
+                value,
+                f"{each} would make {count:.3g} events of it in duration_s = {duration_s:g} s; "
+                f"at most {MAX_EVENTS_PER_RUN:,}",
+            )

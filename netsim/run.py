@@ -32,7 +32,7 @@ from netsim.groups import GroupView
 from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.shadowed_links import ShadowedLinks
 from netsim.links.walled_links import WalledLinks
-from netsim.params import Params
+from netsim.params import Params, check_schedules
 from netsim.plugins import AckTiming, Parts, Reports, Schema
 from netsim.radio.channel import Channel
 from netsim.radio.loss import CheckedLoss
@@ -274,6 +274,9 @@ def build(config: Config, run: int = 0) -> Simulation:
     """A :class:`Simulation` with every model of ``config`` built from its own section:
     the mobility model, the protocol, then the controllers (module notes)."""
     check_declared_tables(config)
+    for _, params in config.models():
+        if getattr(params, "enabled", True):  # a section switched off schedules nothing
+            check_schedules(params, config.duration_s, config.world.n_robots)
     sim = simulation(config, run)
     parts = sim.parts
     # The models' motion is checked (a bare core's scripted robots go where a test sends them).

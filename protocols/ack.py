@@ -45,7 +45,7 @@ class AckParams(Params):
     """The Ack beacon's keys of ``[protocol]``."""
 
     section = "protocol"
-    ack_period_s: float = param(1.0, finite(positive), "Ack period t, s")
+    ack_period_s: float = param(1.0, finite(positive), "Ack period t, s", schedules="robot")
     ack_jitter_s: float = param(0.05, non_negative, "each period is t + U(-jitter, +jitter), s")
     ack_bytes: int = param(64, positive, "size of an Ack frame on a shared medium (channel.mac), bytes")
     tau_s: float = param(

@@ -44,7 +44,7 @@ class AodvParams(RoutingParams):
     section = "protocol"
     active_route_timeout_s: float = param(3.0, finite(positive), "ACTIVE_ROUTE_TIMEOUT: a route unused this long, s")
     hello: bool = param(True, None, "send hello messages (false: neighbours from the link layer alone)")
-    hello_interval_s: float = param(1.0, finite(positive), "HELLO_INTERVAL, s")
+    hello_interval_s: float = param(1.0, finite(positive), "HELLO_INTERVAL, s", schedules="robot")
     allowed_hello_loss: int = param(2, positive, "ALLOWED_HELLO_LOSS: hellos missed before a link is broken")
     net_diameter: int = param(35, ttl_field, "NET_DIAMETER: the largest TTL of a RREQ, hops")
     node_traversal_time_s: float = param(0.04, finite(positive), "NODE_TRAVERSAL_TIME, s")

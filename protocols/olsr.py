@@ -47,8 +47,8 @@ class OlsrParams(RoutingParams):
     """OLSR's keys of ``[protocol]``, with RFC 3626's defaults (section 18)."""
 
     section = "protocol"
-    hello_interval_s: float = param(2.0, finite(positive), "HELLO_INTERVAL, s")
-    tc_interval_s: float = param(5.0, finite(positive), "TC_INTERVAL, s")
+    hello_interval_s: float = param(2.0, finite(positive), "HELLO_INTERVAL, s", schedules="robot")
+    tc_interval_s: float = param(5.0, finite(positive), "TC_INTERVAL, s", schedules="robot")
     neighb_hold_time_s: float = param(
         None, positive, "NEIGHB_HOLD_TIME, s", kind=float, derive=lambda p: 3.0 * p.hello_interval_s, rule="3 x hello"
     )

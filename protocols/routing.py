@@ -45,7 +45,9 @@ class RoutingParams(Params):
     pairs, as the clustering's (its default rate is 0.2 /s; here none unless asked)."""
 
     section = "protocol"
-    message_rate_hz: float = param(0.0, finite(non_negative), "messages sent per second, network-wide (random pairs)")
+    message_rate_hz: float = param(
+        0.0, finite(non_negative), "messages sent per second, network-wide (random pairs)", schedules="run"
+    )
     message_bytes: int = param(
         512, positive, "size of a random pair's message, bytes (over channel.max_frame_bytes: several frames)"
     )

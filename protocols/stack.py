@@ -90,7 +90,9 @@ class ClusteringParams(AckParams):
         True, None, "members next to a member of another group relay too (keeps flooding connected)"
     )
     message_ttl: int = param(32, positive, "hops a relayed message may take")
-    message_rate_hz: float = param(0.2, finite(non_negative), "messages sent per second, network-wide (random pairs)")
+    message_rate_hz: float = param(
+        0.2, finite(non_negative), "messages sent per second, network-wide (random pairs)", schedules="run"
+    )
     message_bytes: int = param(
         512, positive, "size of a message (and leader command) frame on a shared medium (channel.mac), bytes"
     )

@@ -178,6 +178,47 @@ def _cli(tmp_path, capsys, *args):
             "channel.data_rate_bps = 1.0: gives an Ack",
         ),
         (["/nonexistent/scenario.toml"], "scenario file = '/nonexistent/scenario.toml': no such file"),
+        # Keys that schedule events (param(schedules=...)): at most MAX_EVENTS_PER_RUN each.
+        (
+            ["--set", "protocol.model=aodv", "--set", "protocol.hello_interval_s=1e-9"],
+            "protocol.hello_interval_s = 1e-09: 50 robots each would make 1.5e+13 events",
+        ),
+        (["--set", "protocol.model=olsr", "--set", "protocol.tc_interval_s=1e-9"], "protocol.tc_interval_s = 1e-09"),
+        (
+            ["--set", "mobility.model=gauss_markov", "--set", "mobility.update_interval_s=1e-9"],
+            "mobility.update_interval_s = 1e-09",
+        ),
+        (["--set", "protocol.message_rate_hz=1e12"], "protocol.message_rate_hz = 1000000000000.0: the run would make"),
+        (["--set", "protocol.ack_period_s=1e-9"], "protocol.ack_period_s = 1e-09"),
+        (
+            [
+                "--set",
+                "coverage.enabled=true",
+                "--set",
+                "mobility.model=static",
+                "--set",
+                "coverage.metrics_interval_s=1e-9",
+            ],
+            "coverage.metrics_interval_s = 1e-09: the run would make 3e+11 events",
+        ),
+        (
+            [
+                "--set",
+                "coverage.enabled=true",
+                "--set",
+                "mobility.model=static",
+                "--set",
+                "coverage.control_period_s=1e-9",
+            ],
+            "coverage.control_period_s = 1e-09",
+        ),
+        # A range so short that no link's events can be solved in a run's time.
+        (["--set", "channel.range_m=1e-9"], "channel.range_m = 1e-09: is below 0.01 m"),
+        (["--set", "channel.range_m=[100, 0.001]", "--set", "world.n_robots=2"], "channel.range_m = 0.001"),
+        (
+            ["--set", "channel.propagation=log_distance", "--set", "channel.reference_distance_m=1e-12"],
+            "channel.propagation = 'log_distance': the radio's implied range, 1e-10 m, is below 0.01 m",
+        ),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args, fragment):

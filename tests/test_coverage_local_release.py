@@ -371,3 +371,16 @@ def test_detour_the_legs_over_the_window_certify_every_link_the_whole_travel_doe
     got = let_go(pos, m, told(m), T0, V, 10.0, 100.0, window_s=window)
     assert got[0, 1]
     assert (got == oracle.let_go(pos, m, told(m), T0, V, 10.0, 100.0, NO_WALLS, window)).all()
+
+
+@pytest.mark.parametrize("release_s", ["inf", "1e12"])
+def test_release_s_beyond_the_run_keeps_lists_back_to_its_start_and_no_more(release_s):
+    """No Ack dates from before the run: a release_s longer than it (infinite: a robot
+    never forgets) holds the lists of every control step of the run, not room for
+    release_s / control_period_s of them, which overflowed or filled the memory."""
+    overrides = coverage_settings("unit disk", "local", 5, 0.1, 1, 6.0, extra=[f"coverage.release_s={release_s}"])
+    sim = build(config.load(None, overrides))
+    cov = sim.models["coverage"]
+    assert cov.lists.depth == 6 + 2
+    sim.run()
+    assert sim.now == 6.0

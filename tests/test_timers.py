@@ -1,5 +1,7 @@
 """Deadline timers: exact expiry, O(1) restart, and the tie rule."""
 
+import math
+
 import numpy as np
 import simpy
 
@@ -118,6 +120,20 @@ def test_timers_on_an_agenda_fire_as_kernel_events():
     kernel, agenda = _timer_script(False), _timer_script(True)
     assert kernel == agenda
     assert [e[0] for e in kernel].count("expire") == 4
+
+
+def test_calendar_takes_entries_too_late_for_a_slice_number_after_every_other():
+    """A time whose slice number overflows (a timer of protocol.tau_s = 1e308, or infinite)
+    goes after every finite slice, and such entries among themselves in time order; it
+    raised OverflowError."""
+    from netsim.agenda import Calendar
+
+    entries = [(1e308, 0, 1), (2.0, 0, 2), (math.inf, 0, 3), (1.7e308, 0, 4), (1e306, 0, 5), (0.01, 0, 6)]
+    calendar = Calendar(0.05)
+    for e in entries:
+        calendar.push(e)
+    assert [calendar.pop() for _ in entries] == sorted(entries)
+    assert calendar.first() is None
 
 
 def test_calendar_takes_entries_in_the_order_of_a_heap():
