@@ -64,7 +64,7 @@ command()
 RUN = ["run", "--set", "world.n_robots=20", "--set", "world.side_m=500", "--set", "channel.range_m=120"]
 
 
-def _interrupt(tmp_path, stop: str, mode: str = "raise", duration_s: float = 30.0):
+def _interrupt(tmp_path, stop: str, mode: str = "raise", duration_s: float = 30.0, sig=signal.SIGINT):
     out = tmp_path / "out"
     args = [*RUN, "--set", f"duration_s={duration_s}", "--out", str(out)]
     if stop != "progress":
@@ -85,7 +85,7 @@ def _interrupt(tmp_path, stop: str, mode: str = "raise", duration_s: float = 30.
         progress.append(line)
     else:
         assert child.stdout.readline() == "ready\n"
-    child.send_signal(signal.SIGINT)
+    child.send_signal(sig)
     child.wait(timeout=600)  # stdin stays open: only the signal ends the child's wait
     stderr = child.stderr.read()
     child.stdin.close()
@@ -114,6 +114,17 @@ def test_ctrl_c_is_one_line_exit_130_nothing_written(tmp_path, stop, mode):
     directory."""
     duration = 3000.0 if stop == "progress" else 30.0
     code, lines, out = _interrupt(tmp_path, stop, mode, duration)
+    assert (code, lines) == (EXIT_INTERRUPTED, [INTERRUPTED_LINE])
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("stop", ["progress", "write"])
+def test_sigterm_is_given_up_as_ctrl_c(tmp_path, stop):
+    """SIGTERM (a timeout, a batch scheduler) during the run or while the tables are
+    written: one line, exit 130, no output directory, as Ctrl-C; Python's default ended
+    the process at once and left the run directory it had made."""
+    duration = 3000.0 if stop == "progress" else 30.0
+    code, lines, out = _interrupt(tmp_path, stop, "raise", duration, sig=signal.SIGTERM)
     assert (code, lines) == (EXIT_INTERRUPTED, [INTERRUPTED_LINE])
     assert not out.exists()
 

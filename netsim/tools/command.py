@@ -6,7 +6,8 @@ again as they are made. So the collector is paused while they load, then
 :func:`netsim.tools.cli.command` freezes them out of its passes for good. This module
 imports nothing heavy itself, and neither does importing the ``netsim`` package.
 
-Ctrl-C is one line and exit status 130 wherever it lands: while the libraries load, in
+Ctrl-C (or SIGTERM, as a timeout or a batch scheduler sends) is one line and exit status
+130 wherever it lands: while the libraries load, in
 the run, inside a compiled (numba) call, while the tables are written. The command's own
 handler of SIGINT notes the interrupt before raising ``KeyboardInterrupt`` as Python's
 does; a compiled call or a C library that the ``KeyboardInterrupt`` crosses may turn it
@@ -29,6 +30,10 @@ def command() -> None:
     the collector paused, Ctrl-C one line and exit status 130 wherever it lands."""
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not ignored by the parent
         signal.signal(signal.SIGINT, on_sigint)
+    # A timeout or a batch scheduler ends a command with SIGTERM: given up as Ctrl-C gives it
+    # up (nothing written), where Python's default would leave the run directory behind.
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, on_sigint)
     try:
         was_enabled = gc.isenabled()
         gc.disable()

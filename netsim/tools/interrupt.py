@@ -1,4 +1,4 @@
-"""Ctrl-C in the ``netsim`` command: the note that the user interrupted it, and the one
+"""Ctrl-C (and SIGTERM) in the ``netsim`` command: the note that the user interrupted it, and the one
 line and exit status 130 that say so (module notes of :mod:`netsim.tools.command`). Apart
 from the command and the modules that give a run up, so that both may ask it."""
 
@@ -43,11 +43,12 @@ def ignoring_interrupts() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    kept = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    kept = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_DFL if kept is None else kept)
+        for sig, handler in kept.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
 
 
 def exit_interrupted() -> None:
