@@ -39,6 +39,11 @@ from netsim.plugins import Parts, PluginSpec
 from netsim.state import RobotState
 
 
+def _at_most_a_hundred_radians(v: float) -> str | None:
+    # Far below where the direction's arithmetic overflows, far above where it is uniform.
+    return None if 0 <= v <= 100 else "must be in [0, 100] rad (beyond a few radians the direction is uniform)"
+
+
 @dataclass(frozen=True)
 class GaussMarkovParams(Params):
     """Gauss-Markov's keys of ``[mobility]``."""
@@ -47,7 +52,9 @@ class GaussMarkovParams(Params):
     alpha: float = param(0.75, probability, "memory of speed and direction, in [0, 1] (0: random walk)")
     mean_speed_mps: float = param(1.0, finite(non_negative), "mean speed, m/s")
     speed_sigma_mps: float = param(0.2, finite(non_negative), "standard deviation of the speed, m/s")
-    direction_sigma_rad: float = param(0.4, finite(non_negative), "standard deviation of the direction, rad")
+    direction_sigma_rad: float = param(
+        0.4, _at_most_a_hundred_radians, "standard deviation of the direction, rad, in [0, 100]"
+    )
     update_interval_s: float = param(
         1.0, finite(positive), "time between updates of speed and direction, s", schedules="robot"
     )

@@ -311,7 +311,12 @@ class EventsParams(Params):
 @dataclass(frozen=True)
 class OutputParams(Params):
     section = "output"
-    position_interval_s: float = param(1.0, finite(non_negative), "positions sampling interval (0: off)")
+    position_interval_s: float = param(
+        1.0,
+        finite(non_negative),
+        "sampling interval of positions.parquet (0: none) and of the protocol's samples "
+        "(groups, beliefs, neighbour_beliefs, ack_delivery; 0: every ack_period_s), s",
+    )
     receptions: bool = param(
         False,
         None,
@@ -744,7 +749,17 @@ def _channel_section(raw: dict) -> ChannelParams:
 
 
 def from_dict(raw: Mapping) -> Config:
-    """Build and validate a :class:`Config` from a nested dict (as TOML gives)."""
+    """Build and validate a :class:`Config` from a nested dict (as TOML gives). Its
+    warnings (keys ignored) are given once it is valid: a refused configuration is one
+    error, not warnings about keys of a run that will not be."""
+    with warnings.catch_warnings(record=True) as caught:
+        config = _from_dict(raw)
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return config
+
+
+def _from_dict(raw: Mapping) -> Config:
     if not isinstance(raw, dict):
         raise ConfigError("<config>", raw, "must be a table")
     control = _plain_section(ControlParams, _table(raw, "control"))

@@ -171,6 +171,8 @@ class FlowTraffic:
         df = df.astype(PACKETS_SCHEMA)
         pending = ~df["delivered"] & (df["drop_cause"] == "")
         df.loc[pending, "drop_cause"] = IN_FLIGHT
+        # A delivered packet has no cause: missing, as receptions.parquet's `cause` of a reception.
+        df.loc[df["delivered"], "drop_cause"] = None
         df.loc[~df["delivered"], "hops"] = 0
         return df
 

@@ -212,6 +212,22 @@ def _cli(tmp_path, capsys, *args):
             ],
             "coverage.control_period_s = 1e-09",
         ),
+        (
+            ["--set", "mobility.model=gauss_markov", "--set", "mobility.direction_sigma_rad=1e308"],
+            "mobility.direction_sigma_rad = 1e+308: must be in [0, 100] rad",
+        ),
+        # Refused after a key was found ignored: the refusal alone, no warning before it.
+        (
+            [
+                "--set",
+                "channel.loss_model=gilbert_elliott",
+                "--set",
+                "channel.loss_probability=0.5",
+                "--set",
+                "world.map=office",
+            ],
+            "world.map = 'office': covers 200 m x 200 m",
+        ),
         # A range so short that no link's events can be solved in a run's time.
         (["--set", "channel.range_m=1e-9"], "channel.range_m = 1e-09: is below 0.01 m"),
         (["--set", "channel.range_m=[100, 0.001]", "--set", "world.n_robots=2"], "channel.range_m = 0.001"),
