@@ -197,6 +197,12 @@ class AreaMethod(StrEnum):
     GRID = "grid"
 
 
+def _gain_check(v: float) -> str | None:
+    # Past it a force of a micrometre already drives a robot at its speed cap; far past it
+    # the forces' sums overflow.
+    return None if 0 < v <= 1e6 else "must be in (0, 1e6] (1/s)"
+
+
 @dataclass(frozen=True)
 class CoverageParams(Params):
     """The coverage controller's section, ``[coverage]`` (it also sets the control loop's
@@ -236,8 +242,9 @@ class CoverageParams(Params):
     start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
     gain: float = param(
         0.1,
-        finite(positive),
-        "a controlled robot's velocity (follow: a leader's) is gain x resultant force, 1/s (forces in metres)",
+        _gain_check,
+        "a controlled robot's velocity (follow: a leader's) is gain x resultant force, 1/s (forces in metres), "
+        "in (0, 1e6]",
     )
     speed_max_mps: float = param(2.0, finite(positive), "speed cap of every controlled robot, m/s")
     margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")

@@ -36,7 +36,7 @@ from netsim.tools.cli import main
         ("coverage.expansion=inf", "coverage.expansion", "finite"),
         # Accepted, these hung a run (a message rate) or ended it in NaN velocities.
         ("protocol.message_rate_hz=inf", "protocol.message_rate_hz", "finite"),
-        ("coverage.gain=inf", "coverage.gain", "finite"),
+        ("coverage.gain=inf", "coverage.gain", "(0, 1e6]"),
         ("coverage.speed_max_mps=inf", "coverage.speed_max_mps", "finite"),
         ("coverage.control_period_s=inf", "coverage.control_period_s", "finite"),
         # A grid past memory (an allocation's traceback).
@@ -215,6 +215,10 @@ def _cli(tmp_path, capsys, *args):
         (
             ["--set", "mobility.model=gauss_markov", "--set", "mobility.direction_sigma_rad=1e308"],
             "mobility.direction_sigma_rad = 1e+308: must be in [0, 100] rad",
+        ),
+        (
+            ["--set", "coverage.enabled=true", "--set", "mobility.model=static", "--set", "coverage.gain=1e308"],
+            "coverage.gain = 1e+308: must be in (0, 1e6]",
         ),
         # Refused after a key was found ignored: the refusal alone, no warning before it.
         (
