@@ -166,7 +166,7 @@ def test_connected_start_is_one_network_on_the_office_links(tmp_path):
             "is not in a free cell of world.map",
         ),
         (
-            ["world.placement=connected", "channel.range_m=0.001", "world.n_robots=3", "world.centre_side_m=900"],
+            ["world.placement=connected", "channel.range_m=0.02", "world.n_robots=3", "world.centre_side_m=900"],
             "world.placement",
             "found no place for robot 1",
         ),
