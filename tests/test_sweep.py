@@ -466,3 +466,38 @@ def test_a_local_pool_starts_no_more_workers_than_runs(tmp_path, monkeypatch):
     sweep = small_sweep(replications=1, grid={"mobility.speed_max_mps": [2.0, 6.0]})
     report = sweepmod.run_sweep(sweep, tmp_path / "out", workers=8, progress=False)
     assert sizes == [2] and len(sweepmod.load(tmp_path / "out")) == 2, report
+
+
+POOL_ENDED_BY_TERMINATE = r"""
+import multiprocessing, signal
+from netsim.tools.interrupt import on_sigint
+from netsim.tools.sweep import _die_with_parent
+
+started = multiprocessing.SimpleQueue()
+
+
+def busy(_):
+    started.put(True)
+    while True:  # a run under way, ended only by the pool
+        pass
+
+
+if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, on_sigint)  # as the netsim command sets it
+    pool = multiprocessing.Pool(1, initializer=_die_with_parent)
+    pool.map_async(busy, [0])
+    started.get()
+    pool.terminate()  # SIGTERM to the worker, as a sweep that stops ends its pool
+    pool.join()
+"""
+
+
+def test_a_sweeps_workers_end_quietly_when_the_pool_is_terminated():
+    """A worker inherits the command's SIGTERM handler (a sweep stopped ends its pool with
+    SIGTERM): the pool's initializer gives it back the default, so each worker dies at once
+    and says nothing, where each printed a KeyboardInterrupt traceback."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", POOL_ENDED_BY_TERMINATE], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stderr == "", done.stderr

@@ -283,9 +283,12 @@ def execute_run(run: Run, tables: tuple[str, ...] = ()) -> dict:
 
 def _die_with_parent() -> None:
     """Pool initializer: a worker leaves Ctrl-C to the sweep process, which ends the workers
-    (a worker stopped by it would report a failed run); on Linux, a worker is killed when
-    the sweep process dies, so a killed sweep leaves no orphaned workers behind."""
+    (a worker stopped by it would report a failed run), and dies at once of SIGTERM, as
+    the pool ends it (the command's handler, inherited by the fork, would print its
+    traceback); on Linux, a worker is killed when the sweep process dies, so a killed sweep
+    leaves no orphaned workers behind."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if sys.platform.startswith("linux"):
         import ctypes
 
