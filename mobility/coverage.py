@@ -130,6 +130,8 @@ from netsim.mobility.local import (
     cut_for_walls,
     latest_pulls,
     let_go,
+    lists_bytes,
+    lists_depth,
     plan_local,
     silence_of,
     silent,
@@ -147,6 +149,7 @@ from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.geometry import in_motion, speeds_mps
 from netsim.groups import GroupView, in_a_group, leads_itself
+from netsim.machine import gib, machine_memory_bytes
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.samples import ended_at
@@ -333,6 +336,17 @@ def check(params: CoverageParams, config) -> None:
         )
     if not params.enabled:
         return
+    if params.plan is PlanScope.LOCAL:
+        depth = lists_depth(params.release_s, config.duration_s, params.control_period_s)
+        need, have = lists_bytes(config.world.n_robots, depth), machine_memory_bytes()
+        if have is not None and need > have:
+            raise ConfigError(
+                "coverage.release_s",
+                params.release_s,
+                f"the local plan would hold {gib(need)} GiB of the lists the Acks carry (one per control step "
+                f"an Ack it remembers can date from, n_robots^2 entries each), more than this machine's "
+                f"{gib(have)} GiB of memory; lower it, or duration_s, or world.n_robots",
+            )
     if params.plan is PlanScope.LOCAL and ch.mac != "none":
         raise ConfigError(
             "coverage.plan",
@@ -484,10 +498,8 @@ class CoverageController:
         # a link is up whatever the shadowing, and the walls it must keep clear of.
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
         # What the Acks carry of their senders' memories: a list per control step, as many
-        # as an Ack still remembered can date from (none from before the run: a release_s
-        # beyond duration_s keeps no more).
-        kept_s = min(params.release_s, parts.duration_s)
-        self.lists = Lists(st.n, math.ceil(kept_s / params.control_period_s) + 2)
+        # as an Ack still remembered can date from.
+        self.lists = Lists(st.n, lists_depth(params.release_s, parts.duration_s, params.control_period_s))
         self.heard: Heard | None = None  # what each robot holds as of the step being planned
         self.local_limits = replace(self.limits, range_m=self._sure_range_m())
         # Under shadowing in open space the local plan keeps links by the shadowing each

@@ -441,6 +441,18 @@ RECORD_EPOCH_STEPS = 3
 RECORD_DELAY_STEPS = 2
 
 
+def lists_depth(release_s: float, duration_s: float, control_period_s: float) -> int:
+    """The lists :class:`Lists` keeps: one per control step an Ack still remembered can
+    date from (none from before the run: a ``release_s`` beyond ``duration_s`` keeps no
+    more)."""
+    return math.ceil(min(release_s, duration_s) / control_period_s) + 2
+
+
+def lists_bytes(n: int, depth: int) -> int:
+    """Memory of the holdings of :class:`Lists` of ``n`` robots keeping ``depth`` lists."""
+    return (depth + 1) * n * n * np.dtype(np.int32).itemsize
+
+
 class Lists:
     """What an Ack carries of its sender's memory: the robots it remembers, each with the
     position, the earliest sending time and the shadowing measured (NaN: none) of the latest

@@ -38,7 +38,9 @@ _MIN_LEG_M = 1e-3
 class RandomDirectionParams(SpeedParams):
     """Random direction's keys of ``[mobility]``."""
 
-    turn_interval_s: float = param(math.inf, positive, "random direction on a torus: time between turns (inf: never)")
+    turn_interval_s: float = param(
+        math.inf, positive, "random direction on a torus: time between turns (inf: never)", schedules="robot"
+    )
 
 
 def check(params: RandomDirectionParams, config) -> None:

@@ -31,6 +31,7 @@ from netsim.errors import ConfigError, NetsimInputError, not_a_file
 from netsim.params import (
     NoParams,
     Params,
+    check_schedules,
     coerce_value,
     finite,
     names,
@@ -426,10 +427,10 @@ class Config(Params):
         if self.world.torus and self.world.side_m <= 2 * max(self.ranges_m(), default=0.0):
             raise ConfigError("world.side_m", self.world.side_m, "on a torus must exceed twice the largest range_m")
         radio, propagation = self.channel.radio, self.channel.propagation_model
-        implied_m, r = self.channel.propagation_model.ranges(self.channel.radio), self.channel.range_m
-        least = float(implied_m) if implied_m is not None else min(r) if isinstance(r, tuple) else float(r)
+        r = self._range_m()
+        least = min(r) if isinstance(r, tuple) else r
         if least < MIN_RANGE_M:
-            implied = implied_m is not None
+            implied = propagation.ranges(radio) is not None
             raise ConfigError(
                 "channel.propagation" if implied else "channel.range_m",
                 self.channel.propagation if implied else least,
@@ -458,6 +459,8 @@ class Config(Params):
                 )
         for plugin, params in self.models():
             plugin.check(params, self)
+        for params in self._scheduling():
+            check_schedules(params, self.duration_s, self.world.n_robots)
         for k, name in enumerate(self.events.hooks):
             hook = plugins.resolve(plugins.HOOKS, name, f"events.hooks[{k}]")
             if hook.Params.section:
@@ -465,6 +468,18 @@ class Config(Params):
             hook.check(hook.Params(), self)
         if self.events.runtime_links == "off" and self.events.live_topology:
             raise ConfigError("events.live_topology", True, "needs link events during the run (events.runtime_links)")
+
+    def _scheduling(self) -> list[Params]:
+        """The sections of the models the run builds, whose keys may schedule events: the
+        mobility model's, the protocol's, the controllers' and, with any controller, the
+        section that sets the control loop's period."""
+        out = [self.mobility.params, self.protocol.params]
+        chosen = controllers(self)
+        out += [params for _, _, params in chosen]
+        if chosen:
+            owners = section_owners(self.control)
+            out += [self.sections[name] for name, plugin in owners.items() if plugin.timing is not None]
+        return out
 
     def models(self) -> list[tuple[Any, Params]]:
         """``(plugin, params)`` of every model of the run with a section: the mobility model,
@@ -497,13 +512,17 @@ class Config(Params):
 
     def ranges_m(self) -> tuple[float, ...]:
         """Per-robot ranges as a tuple of floats, one per robot."""
+        r = self._range_m()
+        return r if isinstance(r, tuple) else (r,) * self.world.n_robots
+
+    def _range_m(self) -> float | tuple[float, ...]:
+        """Every robot's range (a radio's implied range, or ``channel.range_m``), or each
+        robot's (a tuple)."""
         implied = self.channel.propagation_model.ranges(self.channel.radio)
         if implied is not None:
-            return (float(implied),) * self.world.n_robots
+            return float(implied)
         r = self.channel.range_m
-        if isinstance(r, tuple):
-            return r
-        return (float(r),) * self.world.n_robots
+        return r if isinstance(r, tuple) else float(r)
 
 
 def world_bounds(world: Any) -> Bounds:
@@ -755,7 +774,8 @@ def from_dict(raw: Mapping) -> Config:
     with warnings.catch_warnings(record=True) as caught:
         config = _from_dict(raw)
     for w in caught:
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        # Given from the caller's line, as a warning of from_dict's own: once per place.
+        warnings.warn(w.message, w.category, stacklevel=2)
     return config
 
 

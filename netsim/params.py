@@ -259,9 +259,11 @@ def check_schedules(params: Params, duration_s: float, n_robots: int) -> None:
         count = duration_s * per_s * (n_robots if who == "robot" else 1)
         if count > MAX_EVENTS_PER_RUN:
             each = f"{n_robots} robots each" if who == "robot" else "the run"
+            change = "lower" if f.name.endswith("_hz") else "raise"
+            others = "duration_s or world.n_robots" if who == "robot" else "duration_s"
             raise ConfigError(
                 f"{params.section}.{f.name}",
                 value,
-                f"{each} would make {count:.3g} events of it in duration_s = {duration_s:g} s; "
-                f"at most {MAX_EVENTS_PER_RUN:,}",
+                f"{each} would make {count:.3g} events of it in duration_s = {duration_s:g} s, more than "
+                f"{MAX_EVENTS_PER_RUN:,}; {change} it, or lower {others}",
             )

@@ -61,4 +61,6 @@ class KindStreams:
         return g
 
     def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):  # not a generator's method (copy and pickle look for these)
+            raise AttributeError(name)
         return getattr(self.current, name)

@@ -32,7 +32,7 @@ from netsim.groups import GroupView
 from netsim.links.radio_links import radio_link_lifetimes
 from netsim.links.shadowed_links import ShadowedLinks
 from netsim.links.walled_links import WalledLinks
-from netsim.params import Params, check_schedules
+from netsim.params import Params
 from netsim.plugins import AckTiming, Parts, Reports, Schema
 from netsim.radio.channel import Channel
 from netsim.radio.loss import CheckedLoss
@@ -82,8 +82,10 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     state = RobotState(w.n_robots, w.side_m, config.ranges_m(), w.torus, world_bounds(w))
     state.events = events
     ch = config.channel
-    loss_rng = KindStreams(streams, "channel.loss")
-    survives = ch.loss_plugin.make(ch.loss, state.range_m, loss_rng)
+    # The built-in loss models draw each kind of frame from its own stream; a plugin's model
+    # is handed a plain generator, one stream for every frame (docs/plugins.md).
+    loss_rng = KindStreams(streams, "channel.loss") if ch.loss_plugin.make.__module__.startswith("netsim.") else None
+    survives = ch.loss_plugin.make(ch.loss, state.range_m, loss_rng or streams.get("channel.loss"))
     if not type(survives).__module__.startswith("netsim."):
         survives = CheckedLoss(survives, ch.loss_model)
     occupancy = world_map(config)
@@ -274,9 +276,6 @@ def build(config: Config, run: int = 0) -> Simulation:
     """A :class:`Simulation` with every model of ``config`` built from its own section:
     the mobility model, the protocol, then the controllers (module notes)."""
     check_declared_tables(config)
-    for _, params in config.models():
-        if getattr(params, "enabled", True):  # a section switched off schedules nothing
-            check_schedules(params, config.duration_s, config.world.n_robots)
     sim = simulation(config, run)
     parts = sim.parts
     # The models' motion is checked (a bare core's scripted robots go where a test sends them).

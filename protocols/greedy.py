@@ -30,7 +30,7 @@ class GreedyParams(RoutingParams):
     """Greedy geographic forwarding's keys of ``[protocol]``."""
 
     section = "protocol"
-    beacon_period_s: float = param(1.0, finite(positive), "period of the position beacons, s")
+    beacon_period_s: float = param(1.0, finite(positive), "period of the position beacons, s", schedules="robot")
     beacon_jitter_s: float = param(0.1, non_negative, "each period is the period + U(-jitter, +jitter), s")
     beacon_bytes: int = param(24, positive, "size of a position beacon frame (id, x, y, time), bytes")
     neighbour_timeout_s: float = param(

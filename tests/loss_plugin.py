@@ -27,3 +27,21 @@ class EdgeLoss:
 
 
 PLUGIN = LossModel(EdgeParams, lambda params, range_m, rng: EdgeLoss(params.edge_fraction, range_m))
+
+
+class CoinLoss:
+    """Each reception lost with probability one half, drawn as a library would draw it:
+    from the numpy ``Generator`` the model is handed."""
+
+    uses_distances = False
+
+    def __init__(self, rng: np.random.Generator):
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"a loss model's rng is a numpy Generator, not {type(rng).__name__}")
+        self.random = rng.random  # bound once: every frame draws from this one stream
+
+    def __call__(self, sender: int, receivers: np.ndarray, distances_m: np.ndarray | None) -> np.ndarray:
+        return self.random(len(receivers)) >= 0.5
+
+
+COIN = LossModel(EdgeParams, lambda params, range_m, rng: CoinLoss(rng))

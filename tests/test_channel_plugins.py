@@ -183,6 +183,22 @@ def test_a_user_loss_model_drops_what_it_says():
     assert result.summary["acks_dropped_loss"] > 0 and result.summary["acks_received"] > 0
 
 
+def test_a_user_loss_model_is_handed_a_numpy_generator_on_the_channels_loss_stream():
+    """A plugin's ``rng`` is a numpy Generator (a library may take it, a model may bind its
+    methods once): the channel's stream ``channel.loss``, shared by every kind of frame. The
+    built-in models draw each kind from its own stream instead."""
+    from netsim.rng import KindStreams, stream
+
+    config = cfgmod.load(None, [*SMALL, "channel.loss_model=tests.loss_plugin:COIN"])
+    sim = build(config)
+    model = sim.channel.survives.survives  # inside the check of a plugin's answers
+    expected = stream(config.seed, 0, "channel.loss").random(3)
+    assert model.random(3).tolist() == expected.tolist()
+    assert sim.channel.loss_rng is None
+    builtin = build(cfgmod.load(None, [*SMALL, "channel.loss_probability=0.1"])).channel
+    assert isinstance(builtin.loss_rng, KindStreams) and builtin.survives.rng is builtin.loss_rng
+
+
 @pytest.mark.slow
 def test_the_engine_compares_against_no_channel_model_name():
     """No comparison in the engine (netsim/ but its tools) or the protocols names a

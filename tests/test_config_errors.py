@@ -232,6 +232,65 @@ def _cli(tmp_path, capsys, *args):
             ],
             "world.map = 'office': covers 200 m x 200 m",
         ),
+        (
+            ["--set", "protocol.model=greedy", "--set", "protocol.beacon_period_s=1e-7"],
+            "protocol.beacon_period_s = 1e-07",
+        ),
+        (
+            [
+                "--set",
+                "mobility.model=random_direction",
+                "--set",
+                "world.torus=true",
+                "--set",
+                "mobility.turn_interval_s=1e-7",
+            ],
+            "mobility.turn_interval_s = 1e-07",
+        ),
+        # The control loop's period, set by coverage's section, with another controller alone.
+        (
+            [
+                "--set",
+                'control.controllers=["log_separation"]',
+                "--set",
+                "coverage.control_period_s=2e-6",
+                "--set",
+                "channel.latency_s=1e-6",
+                "--set",
+                "duration_s=1000",
+            ],
+            "coverage.control_period_s = 2e-06: the run would make 5e+08 events",
+        ),
+        # A refusal of a scheduling key after an ignored key: the refusal alone.
+        (
+            [
+                "--set",
+                "channel.loss_model=gilbert_elliott",
+                "--set",
+                "channel.loss_probability=0.5",
+                "--set",
+                "protocol.message_rate_hz=1e12",
+            ],
+            "protocol.message_rate_hz = 1000000000000.0",
+        ),
+        # The local plan's lists of a release_s as long as the run, more than any machine holds.
+        (
+            [
+                "--set",
+                "coverage.enabled=true",
+                "--set",
+                "mobility.model=static",
+                "--set",
+                "coverage.plan=local",
+                "--set",
+                "coverage.release_s=inf",
+                "--set",
+                "world.n_robots=3000",
+                "--set",
+                "duration_s=86400",
+            ],
+            "coverage.release_s = inf: the local plan would hold",
+        ),
         # A range so short that no link's events can be solved in a run's time.
         (["--set", "channel.range_m=1e-9"], "channel.range_m = 1e-09: is below 0.01 m"),
         (["--set", "channel.range_m=[100, 0.001]", "--set", "world.n_robots=2"], "channel.range_m = 0.001"),

@@ -130,6 +130,7 @@ def test_packet_is_delivered_only_whole(tmp_path):
     assert len(partial) > 0 and not partial["delivered"].any()
     assert (partial["drop_cause"] == "lost").all()
     assert packets["delivered"].any()
+    assert packets.loc[packets["delivered"], "drop_cause"].isna().all()  # no cause, as receptions' cause
 
 
 def test_dropped_packet_says_where_and_why(tmp_path):

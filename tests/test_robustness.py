@@ -684,14 +684,15 @@ def test_a_team_that_cannot_fit_in_memory_is_refused_up_front(tmp_path, capfd, m
     monkeypatch.setattr(runmod, "build", lambda *a, **k: pytest.fail("built before checking the memory"))
     monkeypatch.chdir(tmp_path)
     n = 100_000_000
-    config = cfgmod.load(None, [f"world.n_robots={n}"])
+    # No protocol: the Acks of 10^8 robots would be refused first, as too many events.
+    config = cfgmod.load(None, [f"world.n_robots={n}", "protocol.model=none"])
     memory = cli.machine_memory_bytes()
     if memory is None or cli.least_memory_bytes(config) <= memory:
         pytest.skip("this machine could hold the state of 10^8 robots")
     before = tree(tmp_path)
     line = refused(
         capfd,
-        main(["run", "--set", f"world.n_robots={n}"]),
+        main(["run", "--set", f"world.n_robots={n}", "--set", "protocol.model=none"]),
         before,
         tmp_path,
         f"world.n_robots = {n}: the run would hold at least",
@@ -712,7 +713,7 @@ def test_samples_past_any_memory_are_refused_without_making_them(tmp_path, capfd
     before = tree(tmp_path)
     refused(
         capfd,
-        main(["run", "--set", "world.n_robots=5", "--set", override]),
+        main(["run", "--set", "world.n_robots=5", "--set", "protocol.model=none", "--set", override]),
         before,
         tmp_path,
         "world.n_robots = 5: the run would hold at least",

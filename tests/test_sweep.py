@@ -411,6 +411,8 @@ def test_aggregate_gives_means_and_t_intervals():
         ({"base": {"world": {"n_robots": -3}}, "grid": {"seed": [1]}}, "[base] world.n_robots"),
         ({"base": BASE, "random": {"samples": 3, "ranges": {"seed": [5, 1]}}}, "low must not exceed"),
         ({"base": BASE, "grid": {"seed": [1]}, "tables": ["everything"]}, "tables"),
+        # A point no run could finish is refused with the others, before any run.
+        ({"base": BASE, "grid": {"protocol.message_rate_hz": [0.2, 1e12]}}, "protocol.message_rate_hz"),
     ],
 )
 def test_bad_sweep_files(tree, words):

@@ -82,7 +82,9 @@ class PropagationModel:
 class LossModel:
     """A reception loss model: ``make(params, range_m, rng)`` returns the callable
     ``survives(sender, receivers, distances_m) -> mask or None`` (:mod:`netsim.radio.loss`),
-    drawing from ``rng`` (the channel's stream ``channel.loss``). ``lossless(params)``:
+    drawing from ``rng``: for a plugin the channel's stream ``channel.loss``, a numpy
+    generator; for the built-in models a :class:`~netsim.rng.KindStreams`, a stream per kind
+    of frame (``channel.loss.<kind>``). ``lossless(params)``:
     whether under these keys it never drops a frame (then a frame the radio lets through
     arrives, unless a medium loses it); by default it may."""
 

@@ -47,6 +47,7 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import ns2
+from netsim.machine import gib, machine_memory_bytes
 from netsim.tools.args import Parser
 from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, ignoring_interrupts, interrupted
 
@@ -87,14 +88,6 @@ def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None
         )
 
 
-def machine_memory_bytes() -> int | None:
-    """The machine's physical memory, None where the system does not say."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
 def least_memory_bytes(config: cfgmod.Config) -> int:
     """Memory a run of ``config`` holds whatever its models: the robots' state (every
     array RobotState keeps per robot) and, made at the end, the positions table (a row
@@ -112,11 +105,6 @@ def least_memory_bytes(config: cfgmod.Config) -> int:
     return config.world.n_robots * (per_robot + samples * row)
 
 
-def _gib(nbytes: int) -> str:
-    gib = nbytes / 2**30
-    return f"{gib:,.1f}" if gib < 1e6 else f"{gib:.2g}"
-
-
 def check_fits_in_memory(config: cfgmod.Config) -> None:
     """Refuse, before any work, a run that cannot fit in the machine's memory (rather than
     build it for minutes and fail)."""
@@ -130,8 +118,8 @@ def check_fits_in_memory(config: cfgmod.Config) -> None:
     raise ConfigError(
         "world.n_robots",
         n,
-        f"the run would hold at least {_gib(need)} GiB ({held}, before any model's), more than this "
-        f"machine's {_gib(have)} GiB of memory; lower it{', ' if advice else ''}{advice}",
+        f"the run would hold at least {gib(need)} GiB ({held}, before any model's), more than this "
+        f"machine's {gib(have)} GiB of memory; lower it{', ' if advice else ''}{advice}",
     )
 
 
@@ -153,8 +141,8 @@ def check_legs_fit_in_memory(config: cfgmod.Config) -> None:
         raise ConfigError(
             "duration_s",
             config.duration_s,
-            f"the scenario would hold at least {_gib(int(legs * LEG_BYTES))} GiB of course changes, more than "
-            f"this machine's {_gib(have)} GiB of memory; shorten it",
+            f"the scenario would hold at least {gib(int(legs * LEG_BYTES))} GiB of course changes, more than "
+            f"this machine's {gib(have)} GiB of memory; shorten it",
         )
 
 
