@@ -547,3 +547,44 @@ def test_ns2_export_of_an_area_below_zero_warns_that_ns2_refuses_it(tmp_path, ca
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "reaches below 0, where ns-2's topography starts" in err[0], err
     assert out.is_file()
+
+
+@pytest.mark.parametrize("fmt", ["ns2", "bonnmotion"])
+@pytest.mark.parametrize(
+    "damage, says",
+    [
+        (lambda legs: legs[legs["robot"] != 7], "robot 7 has no leg"),
+        (lambda legs: legs.iloc[:0], "robot 0 has no leg"),
+        (lambda legs: legs.assign(t_s=legs["t_s"].where(legs.index != 3, np.nan)), "not a finite number"),
+        (lambda legs: legs.assign(t_s=legs["t_s"] - 5.0), "a time before 0"),
+    ],
+)
+def test_export_of_damaged_legs_is_one_line_and_writes_nothing(run_dir, tmp_path, capsys, fmt, damage, says):
+    """A legs table without a robot's leg (config.toml's n_robots raised since), or with a
+    time or position that is no number, or a time before 0: one line, exit 2, nothing
+    written; a robot without a leg was a traceback, a NaN time a file no reader takes."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    damage(pd.read_parquet(run / "legs.parquet")).to_parquet(run / "legs.parquet")
+    out = tmp_path / ("x.tcl" if fmt == "ns2" else "x.movements")
+    assert main(["export", str(run), "--format", fmt, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_a_bonnmotion_params_file_that_is_not_text_is_one_line(tmp_path, capsys):
+    """A .params beside the movements that is not UTF-8: one line naming it, exit 2 (a
+    UnicodeDecodeError traceback)."""
+    movements = tmp_path / "s.movements"
+    movements.write_text("0 10 10 5 20 20\n0 30 30\n")
+    (tmp_path / "s.params").write_bytes(b"model=R\xe9\xff\nnn=2\n")
+    code = main(
+        ["run", "--out", str(tmp_path / "o"), "--quiet", "--set", "world.n_robots=2", "--set", "duration_s=5"]
+        + ["--set", "mobility.model=trace", "--set", f"mobility.trace_file={movements}"]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "s.params: cannot be read" in err[0], err
+    assert not (tmp_path / "o").exists()

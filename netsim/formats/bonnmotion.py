@@ -36,8 +36,12 @@ def read_params(path: Path) -> dict[str, str]:
     """The ``key=value`` lines of a ``.params`` file (empty when there is none)."""
     if not path.is_file():
         return {}
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise NetsimInputError(f"{path}: cannot be read as a BonnMotion parameters file ({exc})") from None
     out = {}
-    for line in path.read_text().splitlines():
+    for line in text.splitlines():
         if "=" in line and not line.lstrip().startswith("#"):
             key, value = line.split("=", 1)
             out[key.strip()] = value.strip()

@@ -29,6 +29,7 @@ from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import tomli_w
 
@@ -149,7 +150,23 @@ def read_run_table(run_dir: Path, name: str, n_robots: int) -> pd.DataFrame | No
                     f"{path}: names robot {bad} ({column}), but config.toml has {n_robots} robots "
                     "(a table of another run, or the configuration edited since?)"
                 )
+    if name == "legs":
+        _check_legs(path, table, n_robots)
     return table
+
+
+def _check_legs(path: Path, legs: pd.DataFrame, n_robots: int) -> None:
+    """A legs table the tools can follow: every robot has a leg (its start), and every
+    time, position and velocity is a number, no time before the run."""
+    missing = np.setdiff1d(np.arange(n_robots), legs["robot"].to_numpy())
+    if len(missing):
+        raise NetsimInputError(
+            f"{path}: robot {missing[0]} has no leg, but config.toml has {n_robots} robots "
+            "(a table of another run, or the configuration edited since?)"
+        )
+    values = legs[["t_s", "x_m", "y_m", "vx_mps", "vy_mps"]].to_numpy(dtype=float)
+    if not np.isfinite(values).all() or (legs["t_s"].to_numpy() < 0).any():
+        raise NetsimInputError(f"{path}: holds a time before 0 or a value that is not a finite number (damaged?)")
 
 
 def read_run_summary(run_dir: Path) -> dict:
