@@ -167,15 +167,21 @@ def _read(params: TraceParams, fmt: TraceFormat, world) -> ns2.Scenario | Waypoi
 def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
     """The motion of ``params.trace_file``, checked against the world's size."""
     fmt = trace_format(params)
-    scen = _read(params, fmt, world)
-    _check_count(scen.n_robots, params, world)
-    if isinstance(scen, ns2.Scenario):
-        # Where the robots start; the motion after is checked as replayed, up to the run's
-        # end (check_motion), not by where a setdest heads, which the run may never reach.
-        xy = scen.initial_m.reshape(-1, 2)
-        _check_area(xy[:, 0], xy[:, 1], params, world)
-    else:
-        _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world)
+    # The reader's warnings (lines skipped) are given once the file is taken: a file refused
+    # is its one error line.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scen = _read(params, fmt, world)
+        _check_count(scen.n_robots, params, world)
+        if isinstance(scen, ns2.Scenario):
+            # Where the robots start; the motion after is checked as replayed, up to the run's
+            # end (check_motion), not by where a setdest heads, which the run may never reach.
+            xy = scen.initial_m.reshape(-1, 2)
+            _check_area(xy[:, 0], xy[:, 1], params, world)
+        else:
+            _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world)
+    for w in caught:
+        warnings.warn(w.message, w.category, stacklevel=2)
     return scen
 
 

@@ -588,3 +588,17 @@ def test_a_bonnmotion_params_file_that_is_not_text_is_one_line(tmp_path, capsys)
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "s.params: cannot be read" in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_refused_trace_is_its_one_error_line_without_the_readers_warnings(tmp_path, capsys):
+    """An ns-2 file with a line the reader skips (a warning) and too few nodes for the team:
+    the refusal alone, one line, exit 2; the skipped line's warnings came first."""
+    trace = tmp_path / "s.tcl"
+    trace.write_text('$node_(1) set X_ 1\n$node_(1) set Y_ 1\n$ns_ at -1 "$node_(1) setdest 5 5 1"\n')
+    code = main(
+        ["run", "--out", str(tmp_path / "o"), "--no-progress", "--set", "world.n_robots=5", "--set", "duration_s=5"]
+        + ["--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "must equal the 2 nodes" in err[0], err
+    assert not (tmp_path / "o").exists()
