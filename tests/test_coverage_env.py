@@ -12,6 +12,7 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
 from netsim import _kernels as core_kernels  # noqa: E402
 from netsim import metrics  # noqa: E402
 from netsim.compiled import compiled_copy  # noqa: E402
+from netsim.config import ConfigWarning  # noqa: E402
 from netsim.cosim import CommandError  # noqa: E402
 from netsim.envs import _kernels, coverage_v0  # noqa: E402
 from netsim.errors import ConfigError  # noqa: E402
@@ -490,6 +491,8 @@ def test_tau_set_in_netsim_bounds_the_ages_observed():
             "events.runtime_links = 'off'",
         ),
         ({"world": {"torus": True}}, "world.torus = true"),
+        ({"protocol": {"model": "aodv"}}, "protocol.model = 'aodv'"),
+        ({"protocol": {"model": "none"}}, "protocol.model = 'none'"),
     ],
 )
 def test_setting_the_environment_cannot_honour_is_refused(netsim, key):
@@ -599,3 +602,13 @@ def test_a_reset_builds_the_configuration_once(monkeypatch):
     env.reset(seed=1)
     env.reset(seed=2)
     assert len(built) == 2
+
+
+def test_a_range_the_radio_overrides_is_said_to_be_ignored():
+    """range_m given with a log-distance radio in ``netsim``, whose law implies the range:
+    a ConfigWarning says it is ignored (it was dropped unsaid), and the range is the radio's."""
+    with pytest.warns(ConfigWarning, match="range_m = 30: not used"):
+        env = coverage_v0.parallel_env(
+            **{**SMALL, "range_m": 30.0}, netsim={"channel": {"propagation": "log_distance"}}
+        )
+    assert env.range_m != 30.0

@@ -120,6 +120,15 @@ class CoverageEnv(ParallelEnv):
         if problem is not None:
             raise ConfigError(*problem)
         check_placement(config.world)
+        if self._ranges_implied and p.range_m != type(p)().range_m:
+            # A range the user gave, that the radio's law overrides: said, as netsim says it of
+            # channel.range_m.
+            warnings.warn(
+                f"range_m = {p.range_m:g}: not used by netsim's channel.propagation = "
+                f"{config.channel.propagation!r} (its law implies the range); ignored",
+                cfgmod.ConfigWarning,
+                stacklevel=2,
+            )
         # The run's area, ranges and tau, whatever set them (the keywords or ``netsim``).
         self.area: Bounds = cfgmod.world_bounds(config.world)
         self.range_m = float(min(config.ranges_m()))
@@ -398,6 +407,12 @@ def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, obje
             "mobility.model",
             config.mobility.model,
             "the environment's agents move the robots: it must be 'external'",
+        )
+    if config.protocol.model != "clustering":
+        return (
+            "protocol.model",
+            config.protocol.model,
+            "the environment's observations are the clustering's roles and neighbour table: it must be 'clustering'",
         )
     for name, *_ in cfgmod.controllers(config):
         key, value = ("control.controllers", name) if name in config.control.controllers else (f"{name}.enabled", True)
