@@ -294,3 +294,14 @@ def test_deployment_figures_draw_the_runs_own_links(tmp_path, sets):
     # Each segment's ends are its robots' positions (to rounding: a link is drawn as a + (b - a)).
     ends = {tuple(sorted(int(np.argmin(np.hypot(*(snap.pos - p).T))) for p in seg)) for seg in drawn}
     assert ends == want
+
+
+def test_figures_that_cannot_all_be_written_leave_none(waypoint_run, tmp_path, capsys):
+    """A figure's name taken by a directory in --out: one line naming it, exit 2, and no
+    figure written (Fig. 6 was left behind, with a traceback)."""
+    out = tmp_path / "o"
+    (out / "fig7_leader_paths.png").mkdir(parents=True)
+    assert main(["figures", str(waypoint_run), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fig7_leader_paths.png is a directory" in err[0], err
+    assert [p.name for p in out.iterdir()] == ["fig7_leader_paths.png"]

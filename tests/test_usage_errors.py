@@ -194,6 +194,31 @@ def test_a_damaged_run_is_one_line_alike_for_every_command(tmp_path, capsys, sma
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    "command, table",
+    [
+        ("view", "groups"),
+        ("figures", "groups"),
+        ("view", "hops"),
+        ("view", "messages"),
+        ("view", "beliefs"),
+        ("view", "neighbour_beliefs"),
+        ("view", "ack_delivery"),
+    ],
+)
+def test_a_protocol_table_without_its_columns_is_one_line(tmp_path, capsys, small_run, command, table):
+    """One protocol table replaced by another (acks.parquet): the command that reads it
+    refuses it in one line naming it, nothing written (a KeyError's traceback before)."""
+    run, out = tmp_path / "run", tmp_path / "out"
+    shutil.copytree(small_run, run)
+    assert (run / f"{table}.parquet").is_file()
+    shutil.copy(run / "acks.parquet", run / f"{table}.parquet")
+    assert main([command, str(run), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"netsim: error: {run / table}.parquet: lacks the column") and err.count("\n") == 1, err
+    assert not out.exists()
+
+
 def test_not_a_file_names_what_the_path_is(tmp_path):
     """The words for a path that is not a readable file: a directory, something else that
     exists (a pipe), or nothing."""

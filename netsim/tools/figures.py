@@ -26,6 +26,7 @@ Only the run's files are read (``config.toml``, ``positions.parquet``, ``roles.p
 from __future__ import annotations
 
 import math
+import tempfile
 from pathlib import Path
 from typing import NamedTuple
 
@@ -423,62 +424,82 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
             f"--at = {at_s:g}: must be a time between {first:g} and {last:g} s (the positions sampled)"
         )
     out.mkdir(parents=True, exist_ok=True)
-    start, end = snapshot(run, at_s), snapshot(run, last)
-    drawn = []
+    # Drawn beside the results, moved into place together once all are: a figure that
+    # cannot be made or written leaves none of them.
+    with tempfile.TemporaryDirectory(prefix=".figures.", dir=out) as staging:
+        staged = Path(staging)
+        start, end = snapshot(run, at_s), snapshot(run, last)
+        drawn = []
 
-    fig, ax = plt.subplots(figsize=(8.6, 7))
-    colours = run_colours(run)
-    draw_deployment(ax, start, colours, links_at(run, start), side_m=torus_side_m)
-    _axes(ax, *whole, area)
-    draw_map(ax, occupancy)
-    groups_n = int((start.role == "alpha").sum())
-    ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
-    _legend_outside(ax)
-    note = chosen
-    if config.protocol.plugin.role_labels is None:
-        note = f"no roles: the run had protocol.model = {config.protocol.model!r}"
-    elif groups_n == 0:
-        tau = protocol["tau_s"]
-        note = (
-            f"no groups yet at t = {start.t_s:g} s: every robot is undecided "
-            f"(groups form after tau = {tau:g} s; see --at)"
-        )
-    drawn.append(_save(fig, out / "fig6_initial_deployment.png", note))
+        fig, ax = plt.subplots(figsize=(8.6, 7))
+        colours = run_colours(run)
+        draw_deployment(ax, start, colours, links_at(run, start), side_m=torus_side_m)
+        _axes(ax, *whole, area)
+        draw_map(ax, occupancy)
+        groups_n = int((start.role == "alpha").sum())
+        ax.set_title(f"Fig. 6  Deployment at t = {start.t_s:g} s: {n} robots, {groups_n} groups")
+        _legend_outside(ax)
+        note = chosen
+        if config.protocol.plugin.role_labels is None:
+            note = f"no roles: the run had protocol.model = {config.protocol.model!r}"
+        elif groups_n == 0:
+            tau = protocol["tau_s"]
+            note = (
+                f"no groups yet at t = {start.t_s:g} s: every robot is undecided "
+                f"(groups form after tau = {tau:g} s; see --at)"
+            )
+        drawn.append(_save(fig, staged / "fig6_initial_deployment.png", note))
 
-    fig, ax = plt.subplots(figsize=(8.6, 7))
-    note = draw_paths(ax, run, start.t_s, end.t_s, end, colours, range_m)
-    draw_map(ax, occupancy)
-    ax.set_title(f"Fig. 7  Paths of all {n} robots, {start.t_s:g} s to {end.t_s:g} s")
-    _legend_outside(ax)
-    drawn.append(_save(fig, out / "fig7_leader_paths.png", note))
+        fig, ax = plt.subplots(figsize=(8.6, 7))
+        note = draw_paths(ax, run, start.t_s, end.t_s, end, colours, range_m)
+        draw_map(ax, occupancy)
+        ax.set_title(f"Fig. 7  Paths of all {n} robots, {start.t_s:g} s to {end.t_s:g} s")
+        _legend_outside(ax)
+        drawn.append(_save(fig, staged / "fig7_leader_paths.png", note))
 
-    fig, ax = plt.subplots(figsize=(8.6, 7))
-    radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
-    draw_deployment(ax, end, colours, links_at(run, end), disks_m=radius, side_m=torus_side_m)
-    _axes(ax, *whole, area)
-    draw_map(ax, occupancy)
-    if radius > 0:
-        # On a map, of the free region the team started in, as the run's coverage table.
-        region = None
-        if occupancy is not None:
-            from netsim.world.free_space import team_region
+        fig, ax = plt.subplots(figsize=(8.6, 7))
+        radius = (cover["radius_m"] or range_m) if cover.get("enabled") else 0.0
+        draw_deployment(ax, end, colours, links_at(run, end), disks_m=radius, side_m=torus_side_m)
+        _axes(ax, *whole, area)
+        draw_map(ax, occupancy)
+        if radius > 0:
+            # On a map, of the free region the team started in, as the run's coverage table.
+            region = None
+            if occupancy is not None:
+                from netsim.world.free_space import team_region
 
-            region = team_region(occupancy, area, snapshot(run, first).pos)
-        covered, err = metrics.covered_fraction_exact(end.pos, radius, area, region=region)
-        free_m2 = None if region is None else float(region.area)
-        bound = metrics.bound_fraction(n, radius, area, config.ranges_m(), free_area_m2=free_m2)
-        of = "the area" if region is None else "the free region"
-        ax.set_title(
-            f"Fig. 8  Deployment at t = {end.t_s:g} s with every robot's disk (r = {radius:g} m):\n"
-            f"{100 * covered:.1f} % of {of} covered; a connected team covers at most {100 * bound:.0f} %"
-        )
-        note = ""
-    else:
-        ax.set_title(f"Fig. 8  Deployment at t = {end.t_s:g} s")
-        note = "no coverage disks: the run had coverage.enabled = false"
-    _legend_outside(ax)
-    drawn.append(_save(fig, out / "fig8_final_deployment.png", note))
-    return drawn
+                region = team_region(occupancy, area, snapshot(run, first).pos)
+            covered, err = metrics.covered_fraction_exact(end.pos, radius, area, region=region)
+            free_m2 = None if region is None else float(region.area)
+            bound = metrics.bound_fraction(n, radius, area, config.ranges_m(), free_area_m2=free_m2)
+            of = "the area" if region is None else "the free region"
+            ax.set_title(
+                f"Fig. 8  Deployment at t = {end.t_s:g} s with every robot's disk (r = {radius:g} m):\n"
+                f"{100 * covered:.1f} % of {of} covered; a connected team covers at most {100 * bound:.0f} %"
+            )
+            note = ""
+        else:
+            ax.set_title(f"Fig. 8  Deployment at t = {end.t_s:g} s")
+            note = "no coverage disks: the run had coverage.enabled = false"
+        _legend_outside(ax)
+        drawn.append(_save(fig, staged / "fig8_final_deployment.png", note))
+        return _placed(drawn, out)
+
+
+def _placed(drawn: list[Drawn], out: Path) -> list[Drawn]:
+    """``drawn`` moved into ``out``, each under its name; a name a directory holds is one
+    line, before any is moved."""
+    for d in drawn:
+        if (out / d.path.name).is_dir():
+            raise NetsimInputError(f"--out {out}: {d.path.name} is a directory; the figure cannot be written there")
+    placed = []
+    for d in drawn:
+        try:
+            d.path.replace(out / d.path.name)
+        except OSError as exc:
+            raise NetsimInputError(f"--out {out}: {d.path.name} cannot be written ({exc.strerror})") from None
+        placed.append(Drawn(out / d.path.name, d.note))
+    return placed
 
 
 def _save(fig, path: Path, note: str) -> Drawn:

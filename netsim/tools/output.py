@@ -104,6 +104,21 @@ READ_COLUMNS = {
     "legs": ("t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"),
     "links": ("a", "b", "t_up_s", "t_down_s"),
     "roles": ("t_s", "robot", "role", "leader"),
+    "groups": ("t_s", "robot", "group", "primary"),
+    "beliefs": (
+        "t_s",
+        "robot",
+        "believed_neighbours",
+        "true_neighbours",
+        "stale_neighbours",
+        "missing_neighbours",
+        "leader_in_range",
+    ),
+    "neighbour_beliefs": ("t_s", "robot", "neighbour", "believed", "in_range"),
+    "messages": ("msg_id", "src", "dst", "t_sent_s", "delivered", "t_delivered_s"),
+    "hops": ("msg_id", "hop", "sender", "receiver", "t_sent_s", "t_received_s"),
+    "ack_delivery": ("t_s", "delivery_ratio"),
+    "coverage": ("t_s", "covered_fraction_leaders", "covered_fraction_all"),
 }
 
 
