@@ -145,10 +145,39 @@ def comparison(seeds: int) -> str:
     return "\n".join(lines)
 
 
+def coverage(seeds: int, durations_s: tuple[float, ...]) -> str:
+    """How often each ML interval holds the truth, over the truncated logs of ``seeds``
+    seeds of each duration (seeds 0, 1, ...): the intervals' real coverage against 95 %."""
+    from netsim.tools.calibrate import calibrate_frame
+
+    lines = [f"{'duration_s':>10} {'seeds':>5}" + "".join(f"{k:>28}" for k in KEYS)]
+    for duration_s in durations_s:
+        held = dict.fromkeys(KEYS, 0)
+        fitted = dict.fromkeys(KEYS, 0)
+        for seed in range(seeds):
+            log = synth_log(seed, duration_s=duration_s)
+            result = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
+            for k in KEYS:
+                e = result.decorrelation.estimate if k == "shadowing_decorrelation_m" else getattr(result.fit, k)
+                if e is not None:
+                    fitted[k] += 1
+                    held[k] += e.covers(getattr(TRUTH, k))
+        cells = [f"{held[k] / fitted[k]:.2f} of {fitted[k]}" if fitted[k] else "-" for k in KEYS]
+        lines.append(f"{duration_s:>10g} {seeds:>5}" + "".join(f"{c:>28}" for c in cells))
+    return "\n".join(lines)
+
+
 def main(argv=None) -> None:
     ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3, help="logs of each kind to fit (seeds 0, 1, ...)")
     ap.add_argument("--write", metavar="FILE.csv", help="only write the received-only log of seed 0 as CSV")
+    ap.add_argument(
+        "--coverage",
+        type=float,
+        nargs="+",
+        metavar="DURATION_S",
+        help="instead: how often the intervals hold the truth over --seeds truncated logs of each duration",
+    )
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error(f"--seeds {args.seeds}: at least 1")
@@ -159,6 +188,9 @@ def main(argv=None) -> None:
             ap.error(str(exc))
         synth_log(0).to_csv(args.write, index=False)
         print(f"wrote {args.write}")
+        return
+    if args.coverage:
+        print(coverage(args.seeds, tuple(args.coverage)))
         return
     print(comparison(args.seeds))
 
