@@ -336,17 +336,6 @@ def check(params: CoverageParams, config) -> None:
         )
     if not params.enabled:
         return
-    if params.plan is PlanScope.LOCAL:
-        depth = lists_depth(params.release_s, config.duration_s, params.control_period_s)
-        need, have = lists_bytes(config.world.n_robots, depth), machine_memory_bytes()
-        if have is not None and need > have:
-            raise ConfigError(
-                "coverage.release_s",
-                params.release_s,
-                f"the local plan would hold {gib(need)} GiB of the lists the Acks carry (one per control step "
-                f"an Ack it remembers can date from, n_robots^2 entries each), more than this machine's "
-                f"{gib(have)} GiB of memory; lower it, or duration_s, or world.n_robots",
-            )
     if params.plan is PlanScope.LOCAL and ch.mac != "none":
         raise ConfigError(
             "coverage.plan",
@@ -499,7 +488,20 @@ class CoverageController:
         self.memory = Memory(st.n) if params.plan is PlanScope.LOCAL else None
         # What the Acks carry of their senders' memories: a list per control step, as many
         # as an Ack still remembered can date from.
-        self.lists = Lists(st.n, lists_depth(params.release_s, parts.duration_s, params.control_period_s))
+        depth = lists_depth(params.release_s, parts.duration_s, params.control_period_s)
+        if params.plan is PlanScope.LOCAL:
+            # Of the machine that runs it, when it is built: a run's config.toml stays readable
+            # on a smaller one.
+            need, have = lists_bytes(st.n, depth), machine_memory_bytes()
+            if have is not None and need > have:
+                raise ConfigError(
+                    "coverage.release_s",
+                    params.release_s,
+                    f"the local plan would hold {gib(need)} GiB of the lists the Acks carry (one per control "
+                    f"step an Ack it remembers can date from, n_robots^2 entries each), more than this "
+                    f"machine's {gib(have)} GiB of memory; lower it, or duration_s, or world.n_robots",
+                )
+        self.lists = Lists(st.n, depth)
         self.heard: Heard | None = None  # what each robot holds as of the step being planned
         self.local_limits = replace(self.limits, range_m=self._sure_range_m())
         # Under shadowing in open space the local plan keeps links by the shadowing each

@@ -287,7 +287,7 @@ def _cli(tmp_path, capsys, *args):
                 "--set",
                 "world.n_robots=3000",
                 "--set",
-                "duration_s=86400",
+                "duration_s=30000",
             ],
             "coverage.release_s = inf: the local plan would hold",
         ),

@@ -384,3 +384,13 @@ def test_release_s_beyond_the_run_keeps_lists_back_to_its_start_and_no_more(rele
     assert cov.lists.depth == 6 + 2
     sim.run()
     assert sim.now == 6.0
+
+
+def test_a_local_plan_too_large_for_this_machine_is_refused_when_built_not_when_read():
+    """The lists' memory is the running machine's concern: the configuration loads (a run's
+    config.toml stays readable by view, figures and export on a smaller machine), and
+    building the run refuses it naming coverage.release_s."""
+    overrides = coverage_settings("unit disk", "local", 3000, 0.0, 1, 30000.0, extra=["coverage.release_s=inf"])
+    cfg = config.load(None, overrides)
+    with pytest.raises(config.ConfigError, match="coverage.release_s = inf: the local plan would hold"):
+        build(cfg)

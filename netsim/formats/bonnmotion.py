@@ -37,7 +37,7 @@ def read_params(path: Path) -> dict[str, str]:
     if not path.is_file():
         return {}
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise NetsimInputError(f"{path}: cannot be read as a BonnMotion parameters file ({exc})") from None
     out = {}

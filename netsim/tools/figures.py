@@ -40,7 +40,7 @@ from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.geometry import crosses_border, distances_m, link_segments_m
 from netsim.tools import style
-from netsim.tools.output import read_run_config, read_run_table, run_map
+from netsim.tools.output import TMP_PREFIX, read_run_config, read_run_table, run_map
 from netsim.topology import geometric_pairs
 
 # The built-in coverage scenario: a dense random start in the middle of the area, as the
@@ -426,7 +426,7 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
     out.mkdir(parents=True, exist_ok=True)
     # Drawn beside the results, moved into place together once all are: a figure that
     # cannot be made or written leaves none of them.
-    with tempfile.TemporaryDirectory(prefix=".figures.", dir=out) as staging:
+    with tempfile.TemporaryDirectory(prefix=TMP_PREFIX, dir=out) as staging:
         staged = Path(staging)
         start, end = snapshot(run, at_s), snapshot(run, last)
         drawn = []
