@@ -236,6 +236,28 @@ def within_alive(cand, lo, hi, motion, i, t, r, alive):
 
 
 @jit(nogil=True)
+def restarted(deadline_s, armed_s, i, at_s):
+    """Restart timer ``i`` to run out at ``at_s``: its deadline written; whether an event
+    must be armed for it (the new deadline comes before the event armed at ``armed_s[i]``,
+    or none is). The one rule of a restart (:class:`netsim.timers.DeadlineTimers`, and
+    the clustering's rule 3 inside its compiled loop)."""
+    deadline_s[i] = at_s
+    return at_s < armed_s[i]
+
+
+@jit(nogil=True)
+def restarts(deadline_s, armed_s, ids, at_s, to_arm):
+    """:func:`restarted` of timer ``ids[k]`` to ``at_s[k]``, for each ``k`` in order; the
+    ``k`` whose events must be armed into ``to_arm``, their count returned."""
+    m = 0
+    for k in range(ids.shape[0]):
+        if restarted(deadline_s, armed_s, ids[k], at_s[k]):
+            to_arm[m] = k
+            m += 1
+    return m
+
+
+@jit(nogil=True)
 def count_each(counts, ids):
     """``counts[ids] += 1`` for distinct ``ids`` (the channel's per-robot reception count):
     for the tens of receivers of one delivery, a loop costs less than numpy's fancy index."""

@@ -234,8 +234,8 @@ def covered_fraction(
         gx, gy = np.meshgrid(*axes)
         inside = shapely.contains_xy(region, gx.ravel(), gy.ravel())
         edge = shapely.dwithin(region.boundary, shapely.points(gx.ravel()[inside], gy.ravel()[inside]), half_diagonal)
-    if len(centres) == 0 or len(edge) == 0:
-        return 0.0, float(np.mean(edge)) if len(edge) else 0.0
+    if len(edge) == 0:
+        return 0.0, 0.0  # a region that holds no cell's centre
     kernels = load("netsim._kernels", n_robots)
     box = side_m if torus else 0.0
     dist = kernels.grid_nearest_m(

@@ -27,6 +27,7 @@ import numpy as np
 import simpy
 
 from netsim.agenda import Agenda
+from netsim.compiled import filled, load
 from netsim.scheduling import NORMAL, scheduled_event
 from netsim.simpy_internals import now as clock
 
@@ -50,29 +51,24 @@ class DeadlineTimers:
         # An agenda with a calendar takes the events there (module notes); another (the
         # tests' reference, a kernel event per entry) one entry each.
         self._ahead = getattr(agenda, "ahead", None)
+        self._kernels = load("netsim._kernels", n)
 
     def restart(self, idx: int | np.ndarray, deadline_s: float | np.ndarray) -> None:
-        """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s``."""
-        if isinstance(deadline_s, float | int):
-            # One deadline for all (the common case, per Ack): no broadcast array.
+        """Set the deadline of timers ``idx`` (an int or an array) to ``deadline_s`` (one
+        for all, or one each), arming an event where it comes first
+        (:func:`netsim._kernels.restarted`)."""
+        if isinstance(idx, int | np.integer) and isinstance(deadline_s, float | int):
+            # One timer (the common case, a role's change): no arrays.
             d = float(deadline_s)
-            if isinstance(idx, int | np.integer):
-                self.deadline_s[idx] = d
-                if d < self.armed_s[idx]:
-                    self._arm(int(idx), d)
-                return
-            idx = np.asarray(idx, dtype=np.int64)
-            self.deadline_s[idx] = d
-            for i in idx[d < self.armed_s[idx]].tolist():
-                self._arm(i, d)
+            if self._kernels.restarted(self.deadline_s, self.armed_s, int(idx), d):
+                self._arm(int(idx), d)
             return
-        idx = np.atleast_1d(np.asarray(idx, dtype=np.int64))
-        deadline = np.broadcast_to(np.asarray(deadline_s, dtype=float), idx.shape)
-        self.deadline_s[idx] = deadline
-        early = deadline < self.armed_s[idx]
-        if early.any():
-            for i, d in zip(idx[early].tolist(), deadline[early].tolist()):
-                self._arm(i, d)
+        ids = np.atleast_1d(np.asarray(idx, dtype=np.int64))
+        at = filled(deadline_s, ids.shape)
+        to_arm = np.empty(len(ids), dtype=np.int64)
+        m = self._kernels.restarts(self.deadline_s, self.armed_s, ids, at, to_arm)
+        for k in to_arm[:m].tolist():
+            self._arm(int(ids[k]), float(at[k]))
 
     def arm(self, idx: np.ndarray) -> None:
         """Schedule the events of timers ``idx`` whose deadlines were set elsewhere (a

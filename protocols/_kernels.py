@@ -27,7 +27,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import Motion, longest_list, nearest_image, position, reaches_robot, senders_in_list, sort_range
+from netsim._kernels import (
+    Motion,
+    longest_list,
+    nearest_image,
+    position,
+    reaches_robot,
+    restarted,
+    senders_in_list,
+    sort_range,
+)
 from netsim.compiled import jit
 
 # Columns of a neighbour table's packed record (netsim.protocols.neighbours). BIDIR_SINCE:
@@ -459,11 +468,9 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects):
             # Rules 3, 5 and 6: a member of the sender's group.
             group[n_group] = k
             n_group += 1
-            if leads and two_way:
-                deadline_s[r] = renewed_s
-                if renewed_s < armed_s[r]:
-                    to_arm[n_arm] = r
-                    n_arm += 1
+            if leads and two_way and restarted(deadline_s, armed_s, r, renewed_s):
+                to_arm[n_arm] = r
+                n_arm += 1
         elif leads and two_way and ro == UNDECIDED:
             may_join[n_join] = r  # rule 2
             n_join += 1

@@ -259,6 +259,29 @@ def test_frame_end_equals_the_oracle():
             assert out1[2][:m1].tolist() == out2[2][:m2].tolist()
 
 
+@pytest.mark.parametrize("which", ["plain", "compiled"])
+def test_busy_time_counts_the_stretch_still_sensed(which):
+    """The medium's busy time through now (Medium.busy_fraction's, _mac_kernels.busy_times):
+    a robot sensing a frame or sending one has the stretch since it began added, the same
+    sum a frame's end adds when it falls idle; an idle robot has its total alone."""
+    from netsim.radio import _mac_kernels
+
+    kernels = _mac_kernels if which == "plain" else compiled_copy("netsim.radio._mac_kernels")
+    rng = np.random.default_rng(8)
+    n = 40
+    cover = rng.integers(0, 2, n)
+    transmitting = rng.random(n) < 0.3
+    busy_s, busy_since = rng.random(n), rng.random(n)
+    medium = (cover, transmitting, np.zeros(n, np.int64), np.zeros(n, np.int64), busy_s, busy_since)
+    out = np.empty(n)
+    now = 1.0 + rng.random()
+    kernels.busy_times(medium, now, out)
+    on = (cover > 0) | transmitting
+    assert on.any() and (~on).any()
+    assert np.array_equal(out[on], busy_s[on] + (now - busy_since[on]))
+    assert np.array_equal(out[~on], busy_s[~on])
+
+
 @pytest.mark.slow
 def test_medium_runs_equal_plain_and_compiled(monkeypatch):
     """A run on a CSMA medium under the unit disk gives the same tables with its loops

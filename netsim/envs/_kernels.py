@@ -17,8 +17,6 @@ def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
     """Fraction of the ``cells x cells`` grid of cell centres of the rectangle ``[x0, x0 +
     width] x [y0, y0 + height]`` that lie within ``radius_m`` of some centre of ``p``
     (:func:`netsim._kernels.grid_nearest_m`, the rule of :func:`netsim.metrics.covered_fraction`)."""
-    if p.shape[0] == 0:
-        return 0.0
     nearest = grid_nearest_m(p, radius_m, x0_m, y0_m, width_m, height_m, cells, 0.0, True)
     return share_within(nearest.ravel(), radius_m)
 

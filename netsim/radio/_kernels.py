@@ -133,6 +133,22 @@ def slots(table_keys, dense_n, keys, out):
 
 
 @jit(nogil=True, inline="always")
+def record(table_keys, table_x, table_s, dense_n, key, x, s):
+    """Record the pair ``key`` seen for the first time, its shadowing ``x`` at travel ``s``,
+    in its slot of a table that lists every pair (``dense_n`` > 0)."""
+    pos = slot(table_keys, dense_n, key)
+    table_x[pos] = x
+    table_s[pos] = s
+
+
+@jit(nogil=True)
+def records(table_keys, table_x, table_s, dense_n, keys, x, s):
+    """:func:`record` of every pair ``keys[k]``."""
+    for k in range(keys.shape[0]):
+        record(table_keys, table_x, table_s, dense_n, keys[k], x[k], s[k])
+
+
+@jit(nogil=True, inline="always")
 def stored_slot(table_keys, table_x, dense_n, key):
     """The slot of the pair ``key`` in the table when the pair has a stored value, else the
     table's length. A slot holding NaN is a pair listed in advance but never seen yet; with
@@ -571,9 +587,7 @@ def log_frame(frame, t, sender, receivers, distance_m, robots, shadow, flat, out
     if dense_n > 0 and sigma > 0.0:
         for m in range(k):
             if new[m]:
-                pos = slot(table_keys, dense_n, keys[m])
-                table_x[pos] = x_new[m]
-                table_s[pos] = s_new[m]
+                record(table_keys, table_x, table_s, dense_n, keys[m], x_new[m], s_new[m])
                 new[m] = False
     return count if sigma > 0.0 else 0
 

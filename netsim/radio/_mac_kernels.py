@@ -49,6 +49,25 @@ class Ends(NamedTuple):
     newly: np.ndarray
 
 
+@jit(nogil=True, inline="always")
+def busy_through(busy_s, busy_since, c, now):
+    """Robot ``c``'s time sensed busy through ``now``, the stretch begun at ``busy_since[c]``
+    counted: the one rule of the medium's busy time."""
+    return busy_s[c] + (now - busy_since[c])
+
+
+@jit(nogil=True)
+def busy_times(medium, now, out):
+    """Each robot's time sensed busy through ``now`` (:func:`busy_through` while it senses
+    a frame or sends one), into ``out``. ``medium``: :class:`MediumArrays`."""
+    md = MediumArrays(*medium)
+    for c in range(out.shape[0]):
+        if md.cover[c] > 0 or md.transmitting[c]:
+            out[c] = busy_through(md.busy_s, md.busy_since, c, now)
+        else:
+            out[c] = md.busy_s[c]
+
+
 @jit(nogil=True)
 def end_unit_disk(medium, frame, out):
     """Frame ``seq`` of robot ``i`` leaves the air at ``now``: the robots it disturbed sense one
@@ -83,5 +102,5 @@ def end_unit_disk(medium, frame, out):
             m += 1
     for k in range(m):
         c = newly[k]
-        busy_s[c] += now - busy_since[c]
+        busy_s[c] = busy_through(busy_s, busy_since, c, now)
     return m

@@ -479,23 +479,22 @@ class Channel:
             all_alive = self.kernels.all_set(self.state.alive, receivers)
         if not all_alive:
             alive = self.state.alive[receivers]
-            if not alive.all():
-                np.add.at(c.dropped[1], receivers[~alive], 1)
-                if binned is not None:
-                    binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
-                if self._rows is not None:
-                    self._rows.mark(receivers[~alive], 1)
-                self._dropped(kind, sender, receivers[~alive], "not_alive")
-                receivers = receivers[alive]
-                if dist is not None:
-                    dist = dist[alive]
+            self.kernels.count_each(c.dropped[1], receivers[~alive])
+            if binned is not None:
+                binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
+            if self._rows is not None:
+                self._rows.mark(receivers[~alive], 1)
+            self._dropped(kind, sender, receivers[~alive], "not_alive")
+            receivers = receivers[alive]
+            if dist is not None:
+                dist = dist[alive]
         if binned is not None:
             binned.row[SendTimeBins.IN_RANGE] += len(receivers)
         if self.loss_rng is not None:
             self.loss_rng.use(kind)
         keep = self._survives(sender, receivers, dist)
         if keep is not None and not keep.all():
-            np.add.at(c.dropped[0], receivers[~keep], 1)
+            self.kernels.count_each(c.dropped[0], receivers[~keep])
             if binned is not None:
                 binned.add(SendTimeBins.DROPPED, int((~keep).sum()))
             if self._rows is not None:

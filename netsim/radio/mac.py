@@ -482,7 +482,7 @@ class Medium:
         for cause, lost in (("half_duplex", hd), ("collision", col)):
             if lost.any():
                 k = self.causes.index(cause)
-                c.dropped[k, rx[lost]] += 1
+                self.channel.kernels.count_each(c.dropped[k], rx[lost])
                 if binned is not None:
                     binned.add(SendTimeBins.DROPPED + k, int(lost.sum()))
                 self.channel._dropped(frame.kind, i, rx[lost], cause)
@@ -527,9 +527,8 @@ class Medium:
     # -- what the run reports ------------------------------------------------------------
     def busy_fraction(self, now: float) -> np.ndarray:
         """Share of ``[0, now]`` each robot sensed the medium busy (its own frames included)."""
-        busy = self.busy_s.copy()
-        on = (self.cover > 0) | self.transmitting
-        busy[on] += now - self.busy_since[on]
+        busy = np.empty(len(self.busy_s))
+        self._kernels.busy_times(self._medium, float(now), busy)
         return busy / now if now > 0 else np.full(len(busy), math.nan)
 
     def summary(self, now: float) -> dict:

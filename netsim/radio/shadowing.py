@@ -142,6 +142,7 @@ class PairShadowing:
         self.n_robots = n_robots
         kernels = load("netsim.radio._kernels", n_robots)
         self._step, self._anchors, self._slots = kernels.shadow_step, kernels.anchors, kernels.slots
+        self._records = kernels.records
         self._states, self._terms = kernels.stored_states, kernels.shadow_terms
         self.clip_db = TRUNCATION_SIGMAS * self.sigma_db
         self._keys = np.empty(0, dtype=np.int64)
@@ -244,12 +245,12 @@ class PairShadowing:
     def insert(self, keys, x, s) -> None:
         """Record pairs seen for the first time (``keys`` ascending, none recorded yet)."""
         keys = np.ascontiguousarray(keys, np.int64)
+        if self.dense:
+            x, s = np.ascontiguousarray(x, float), np.ascontiguousarray(s, float)
+            self._records(self._keys, self._x, self._s, self.dense_n, keys, x, s)
+            return
         at = np.empty(len(keys), np.int64)
         self._slots(self._keys, self.dense_n, keys, at)
-        if self.dense:
-            self._x[at] = x
-            self._s[at] = s
-            return
         self._keys = np.insert(self._keys, at, keys)
         self._x = np.insert(self._x, at, x)
         self._s = np.insert(self._s, at, s)
