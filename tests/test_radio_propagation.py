@@ -174,12 +174,33 @@ def test_sensitivity_above_reference_power_is_refused():
 
 def test_a_pairs_loss_and_margin_are_summed_as_a_frames_decision_sums_them():
     """``loss_db`` is ``(PL(d) + X) + W`` in that order, the order of a frame's decision, and
-    ``margin_db`` the budget ``P_t - sensitivity`` less it: 17 dB at 10 m (PL 70 dB) with 3
-    dB of shadowing and two 5 dB walls."""
+    ``margin_db`` the power ``P_t`` less it, less the sensitivity: 17 dB at 10 m (PL 70 dB)
+    with 3 dB of shadowing and two 5 dB walls."""
     p = LogDistanceParams(shadowing_sigma_db=4.0)
     assert float(p.loss_db(10.0, 3.0, 2)) == 83.0 and float(p.margin_db(10.0, 3.0, 2)) == 17.0
     rng = np.random.default_rng(5)
     d, x, w = rng.uniform(0.5, 300.0, 20000), rng.normal(0.0, 4.0, 20000), rng.integers(0, 4, 20000)
     loss = p.loss_db(d, x, w)
     assert loss.tobytes() == ((p.path_loss_db(d) + x) + 5.0 * w).tobytes()
-    assert p.margin_db(d, x, w).tobytes() == (p.radio.budget_db - loss).tobytes()
+    assert p.margin_db(d, x, w).tobytes() == ((p.tx_power_dbm - loss) - p.sensitivity_dbm).tobytes()
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_a_frame_is_heard_exactly_when_its_margin_is_not_negative(monkeypatch, compiled):
+    """The margin a plan keeps links by and the radio's decision are one law: heard iff the
+    margin is at least 0, to the last bit. Written as the budget less the loss, the margin
+    of the first case below is negative while the frame is heard."""
+    from netsim.radio.chain import Radio
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    cases = [(-4.973827848471961, -67.04947567172289, np.array([62.07564782325093]))]
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        tx, sens = rng.uniform(-10.0, 30.0), rng.uniform(-100.0, -60.0)
+        cases.append((tx, sens, (tx - sens) + rng.integers(-4, 5, 2000) * np.spacing(tx - sens)))
+    for tx, sens, loss in cases:
+        radio = Radio(tx, sens)
+        heard = radio.hears(loss)
+        assert heard.any() and (~heard).any() or len(loss) == 1
+        assert np.array_equal(heard, radio.margin_db(loss) >= 0.0)
+    assert Radio(*cases[0][:2]).hears(cases[0][2]).all()

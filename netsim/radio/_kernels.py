@@ -246,11 +246,29 @@ def shadowing_of(tx_dbm, path_loss_db, received_dbm):
 
 
 @jit(nogil=True)
+def above_sensitivity_db(received_dbm, sensitivity_dbm):
+    """How far above the sensitivity a frame arrives with ``received_dbm`` (dB; negative:
+    not heard). One expression for a number or an array: the margin a robot measures on
+    an Ack (the local plan) and, by :func:`margin_db`, the one a loss gives."""
+    return received_dbm - sensitivity_dbm
+
+
+@jit(nogil=True)
+def margin_db(tx_dbm, loss_db, sensitivity_dbm):
+    """A frame's margin after ``loss_db``: :func:`above_sensitivity_db` of its power
+    (:func:`received_dbm`). The radio hears it exactly when the margin is not negative
+    (:func:`heard`: the sign of a rounded difference is the difference's), so a plan that
+    keeps links by their margin and the channel never disagree at the edge."""
+    return above_sensitivity_db(received_dbm(tx_dbm, loss_db), sensitivity_dbm)
+
+
+@jit(nogil=True)
 def heard(tx_dbm, loss_db, sensitivity_dbm):
-    """The radio's decision: a frame after ``loss_db`` is received when its power is at
-    least the sensitivity. One expression for a number or an array (a frame's pass, and
-    :meth:`netsim.radio.chain.Radio.hears` for every other caller)."""
-    return received_dbm(tx_dbm, loss_db) >= sensitivity_dbm
+    """The radio's decision: a frame after ``loss_db`` is received when its margin
+    (:func:`margin_db`) is not negative, its power at least the sensitivity. One expression
+    for a number or an array (a frame's pass, and :meth:`netsim.radio.chain.Radio.hears`
+    for every other caller)."""
+    return margin_db(tx_dbm, loss_db, sensitivity_dbm) >= 0.0
 
 
 @jit(nogil=True)

@@ -79,13 +79,19 @@ class Radio(NamedTuple):
         return laws(np.size(loss_db)).heard(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
 
     def margin_db(self, loss_db):
-        """How far above the sensitivity a frame after ``loss_db`` arrives: ``(P_t -
-        sensitivity) - loss`` (negative: not heard).
+        """How far above the sensitivity a frame after ``loss_db`` arrives: ``(P_t - loss) -
+        sensitivity`` (:func:`netsim.radio._kernels.margin_db`; negative: not heard, and
+        only then).
 
         >>> Radio(20.0, -80.0).margin_db(np.array([99.0, 100.0, 101.0])).tolist()
         [1.0, 0.0, -1.0]
         """
-        return self.budget_db - loss_db
+        return laws(np.size(loss_db)).margin_db(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
+
+    def above_sensitivity_db(self, received_dbm):
+        """How far above the sensitivity a frame received at ``received_dbm`` arrived
+        (:func:`netsim.radio._kernels.above_sensitivity_db`)."""
+        return laws(np.size(received_dbm)).above_sensitivity_db(received_dbm, self.sensitivity_dbm)
 
 
 # The unit disk has no power: its chain adds 0 dB within range and infinity beyond, heard
