@@ -18,6 +18,7 @@ import numpy as np
 
 from netsim.control import ControlStep
 from netsim.geometry import in_box, in_motion
+from netsim.metrics import nearest_spacing
 from netsim.params import NoParams
 from netsim.plugins import Parts, PluginSpec
 from netsim.topology import geometric_pairs
@@ -57,15 +58,11 @@ def log_separation(params: NoParams, parts: Parts):
     ``separation`` (``separation.parquet``)."""
 
     def hook(step: ControlStep) -> None:
-        from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
-
         sep, side = _min_separation_m(step), step.torus_side_m
-        # Positions are folded into [0, side) on a torus, as the periodic tree wants them.
-        tree = cKDTree(step.positions_m, boxsize=side)
-        d, _ = tree.query(step.positions_m, k=2)
+        # A step's positions are folded into [0, side) on a torus, as nearest_spacing takes them.
         step.record(
             "separation",
-            min_distance_m=float(d[:, 1].min()),
+            min_distance_m=float(nearest_spacing(step.positions_m, side).min()),
             pairs_closer_than_min=len(geometric_pairs(step.positions_m, sep, side)[0]),
         )
 

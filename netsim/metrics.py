@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
-from netsim.geometry import cell_centres_m
+from netsim.geometry import cell_centres_m, distances_m
 from netsim.topology import geometric_pairs
 
 # Mean distance between two uniform points of the unit square (docs/validation.md item 2):
@@ -340,15 +340,22 @@ def components_in_links_table(links: Any, n: int, times_s: npt.ArrayLike) -> np.
     return np.array(out, np.int64)
 
 
-def nearest_spacing(positions_m: npt.ArrayLike) -> np.ndarray:
-    """Distance from each point to its nearest other point (NaN with fewer than two)."""
+def nearest_spacing(positions_m: npt.ArrayLike, side_m: float | None = None) -> np.ndarray:
+    """Distance from each point to its nearest other point (NaN with fewer than two), on a
+    torus of side ``side_m`` (None: the plane; points folded into ``[0, side)``): the
+    nearest found by a k-d tree, its distance by the engine's one rule of a link's length
+    (:func:`netsim.geometry.distances_m`), as every other distance in the tables.
+
+    >>> nearest_spacing([[0.0, 0.0], [3.0, 4.0], [3.0, 5.0]]).tolist()
+    [5.0, 1.0, 1.0]
+    """
     from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
 
     p = np.asarray(positions_m, dtype=float).reshape(-1, 2)
     if len(p) < 2:
         return np.full(len(p), np.nan)
-    d, _ = cKDTree(p).query(p, k=2)
-    return d[:, 1]
+    _, k = cKDTree(p, boxsize=side_m).query(p, k=2)
+    return distances_m(p, p[k[:, 1]], side_m, len(p))
 
 
 def hexagonality(positions_m: npt.ArrayLike, spacing_m: float) -> float:

@@ -362,3 +362,19 @@ def test_covered_fraction_and_its_bound_are_the_search_trees(shape):
     for radius in (4.0, 11.5):
         args = (p, radius, area, 150, shape == "torus", region)
         assert covered_fraction(*args) == covered_fraction_kd(*args)
+
+
+@pytest.mark.parametrize("side_m", [None, 1000.0])
+def test_nearest_spacing_is_the_least_distance_by_the_engines_rule(side_m):
+    """Each point's spacing is its least distance to another point as the engine measures a
+    link's length (netsim.geometry.distances_m), to the last bit, on the plane and on a
+    torus: the same number a table of pairs in range would give."""
+    from netsim.geometry import distances_m
+
+    rng = np.random.default_rng(3)
+    p = rng.uniform(0.0, 1000.0, (60, 2))
+    i, j = np.triu_indices(len(p), 1)
+    d = distances_m(p[i], p[j], side_m)
+    least = np.full((len(p), len(p)), np.inf)
+    least[i, j] = least[j, i] = d
+    assert np.array_equal(nearest_spacing(p, side_m), least.min(axis=1))
