@@ -206,6 +206,9 @@ class LinkRules:
             keep = np.maximum(p.effective_range_m(x + budget, walls, n), d)
             pair_travel = self.state.pair_travelled_m(t_s, i, j)
             _, anchor = sh.state(i, j)
+            # The raw travel since the look, not the channel's clock (which steps it down to
+            # a multiple of its step, radio._kernels.anchored): never less, so the change
+            # the plan allows for is never less than the channel's next look can draw.
             since = np.maximum(pair_travel - anchor, 0.0)
             travel = np.maximum(fade_travel_m(budget, x, sh.sigma_db, sh.decorrelation_m, n) - since, 0.0)
             # What is left of the margin after the plausible change since X was measured: a

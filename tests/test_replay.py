@@ -409,6 +409,18 @@ def test_torus_positions_wrap(tmp_path, open_page):
         drawn = np.array(page.js("netsimView.positions()"))
         assert ((drawn >= 0) & (drawn < 400)).all()
     _links_across_the_seam_end_at_the_border(page, 400.0)
+    # The page folds and takes nearest images as the engine does, ties and the edge
+    # included: a half side rounds to even, a tiny negative coordinate folds to 0.
+    from netsim import _kernels
+
+    side = 400.0
+    offsets = [k * side / 2 for k in range(-5, 6)] + [-1e-300, -1e-14, 399.9999999999, 123.4, -777.7, 1e6 + 0.3]
+    laws = [
+        page.js(f"[netsimView.torusLaws.nearestImage({d!r}, {side}), netsimView.torusLaws.wrap({d!r}, {side})]")
+        for d in offsets
+    ]
+    engine = [[_kernels.nearest_image(d, 0.0, side)[0], float(_kernels.fold(d, side))] for d in offsets]
+    assert laws == engine
 
 
 def _links_across_the_seam_end_at_the_border(page, side_m):

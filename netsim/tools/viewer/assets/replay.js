@@ -39,10 +39,25 @@
     return lo - 1;
   }
 
+  // The nearest image of an offset on a torus of side `side`, as the engine takes it
+  // (numpy's rint: a half rounds to even, where Math.round rounds it up), so that a link
+  // exactly half a side long is drawn the way the tables measure it.
+  function nearestImage(d, side) {
+    const q = d / side;
+    let k = Math.round(q);
+    if (k - q === 0.5 && k % 2 !== 0) k -= 1;
+    return d - side * k;
+  }
+
+  // A coordinate folded into [0, side), as the engine folds it (a tiny negative one that
+  // rounds up to the side itself is 0).
   function wrap(v, side) {
     const w = v % side;
-    return w < 0 ? w + side : w;
+    const r = w < 0 ? w + side : w;
+    return r >= side ? r - side : r;
   }
+  // The torus's laws, for the tests to compare with the engine's.
+  view.torusLaws = { nearestImage, wrap };
 
   // ---------------------------------------------------------------- the run at time t
   class Model {
@@ -111,8 +126,8 @@
           const a = 2 * (k * n + i), b = 2 * (k1 * n + i);
           let dx = xy[b] - xy[a], dy = xy[b + 1] - xy[a + 1];
           if (this.torus) {
-            dx -= this.side * Math.round(dx / this.side);
-            dy -= this.side * Math.round(dy / this.side);
+            dx = nearestImage(dx, this.side);
+            dy = nearestImage(dy, this.side);
           }
           x[i] = xy[a] + f * dx;
           y[i] = xy[a + 1] + f * dy;
@@ -549,8 +564,8 @@
     const x = model.x, y = model.y, side = META.side_m;
     let dx = x[b] - x[a], dy = y[b] - y[a];
     if (META.torus) {
-      dx -= side * Math.round(dx / side);
-      dy -= side * Math.round(dy / side);
+      dx = nearestImage(dx, side);
+      dy = nearestImage(dy, side);
       if (f >= 1 && (dx !== x[b] - x[a] || dy !== y[b] - y[a])) {
         // Across the border: draw both halves, each from its own end.
         ctx.moveTo(SX(x[b]), SY(y[b]));
