@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from netsim._kernels import shadow_correlation
+from netsim._kernels import innovation_scale, shadow_correlation
 from netsim.compiled import jit
 
 # Standard deviations of the shadowing's change that a kept link's budget covers (a
@@ -32,7 +32,7 @@ def change_within_sigmas_db(rho, x_db, sigma_db, sigmas):
     """``(1 - rho) max(-x, 0) + sigmas sigma sqrt(1 - rho^2)``: the change covered up to
     ``sigmas`` standard deviations (a kept link's budget covers :data:`FADE_SIGMAS`)."""
     drift = max(-x_db, 0.0)
-    return (1.0 - rho) * drift + sigmas * sigma_db * math.sqrt(max(1.0 - rho * rho, 0.0))
+    return (1.0 - rho) * drift + sigmas * sigma_db * innovation_scale(rho)
 
 
 @jit(nogil=True)

@@ -767,6 +767,16 @@ def shadow_correlation(travel_m, decorrelation_m):
 
 
 @jit(nogil=True, inline="always")
+def innovation_scale(rho):
+    """``sqrt(1 - rho^2)``: how much of the shadowing's standard deviation a step of
+    correlation ``rho`` (:func:`shadow_correlation`, in [0, 1]) draws anew, the rest carried
+    by ``rho``. The channel's step scales its innovation by it
+    (``netsim.radio._kernels.moved_on``) and the fade rule bounds the change with it
+    (``netsim.mobility._fade_kernels``)."""
+    return math.sqrt(1.0 - rho * rho)
+
+
+@jit(nogil=True, inline="always")
 def shadow_renewal(travel_m, decorrelation_m):
     """``1 - shadow_correlation^2``, the share of the shadowing's variance that a pair travel
     ``travel_m`` renews, to full precision where the travel is short (where ``1 - rho^2``

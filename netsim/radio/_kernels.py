@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import Motion, pair_travel, position, reaches, shadow_correlation
+from netsim._kernels import Motion, innovation_scale, pair_travel, position, reaches, shadow_correlation
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -166,7 +166,7 @@ def moved_on(table_x, table_s, pos, s_new, sigma, decorrelation_m, z):
     the stored value by ``exp(-travel / decorrelation)`` (Gudmundson), the innovation ``z``
     (a standard normal) scaled to keep the variance ``sigma^2``; the slot updated in place."""
     rho = shadow_correlation(s_new - table_s[pos], decorrelation_m)
-    v = rho * table_x[pos] + sigma * np.sqrt(1.0 - rho * rho) * z
+    v = rho * table_x[pos] + sigma * innovation_scale(rho) * z
     table_x[pos] = v
     table_s[pos] = max(s_new, table_s[pos])
     return v
