@@ -565,6 +565,16 @@ def reaches(ddx, ddy, lim, box):
     return hit
 
 
+@jit(nogil=True, inline="always")
+def length(dx, dy, box):
+    """The length of the offset ``(dx, dy)``: ``np.hypot`` of its nearest image on a torus
+    of side ``box > 0`` (:func:`nearest_image`), of itself on the plane (``box = 0``). The
+    engine's one rule of a link's length (:func:`distances`, and the clustering's nearest
+    leader)."""
+    dx, dy = nearest_image(dx, dy, box)
+    return np.hypot(dx, dy)
+
+
 @jit(nogil=True)
 def distances(p, q, box, out):
     """The length of each segment from ``p[k]`` to ``q[k]`` into ``out``: ``np.hypot`` of the
@@ -572,8 +582,7 @@ def distances(p, q, box, out):
     straight line for ``box = 0``: a link's length as :func:`pairs_in_range` and
     :func:`within` measure the pairs they find, for pairs already known."""
     for k in range(out.shape[0]):
-        dx, dy = nearest_image(p[k, 0] - q[k, 0], p[k, 1] - q[k, 1], box)
-        out[k] = np.hypot(dx, dy)
+        out[k] = length(p[k, 0] - q[k, 0], p[k, 1] - q[k, 1], box)
 
 
 @jit(nogil=True)
@@ -899,7 +908,7 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box, any_wi
     for k in range(p.shape[0]):
         x, y = p[k, 0] - x0_m, p[k, 1] - y0_m
         if box > 0.0:
-            x, y = x % box, y % box
+            x, y = fold(x, box), fold(y, box)
         for iy in range(-1, 2):
             if iy != 0 and (box <= 0.0 or (iy < 0 and y - reach_m > 0.0) or (iy > 0 and y + reach_m < box)):
                 continue

@@ -29,8 +29,8 @@ import numpy as np
 
 from netsim._kernels import (
     Motion,
+    length,
     longest_list,
-    nearest_image,
     position,
     reaches_robot,
     restarted,
@@ -378,8 +378,7 @@ def join_choice(table, i, now, rules, exclude, motion, first_heard):
             break
         # On a torus the leader's nearest image: a leader across the seam is as near as the
         # link to it is short.
-        dx, dy = nearest_image(rec[X] - x_m, rec[Y] - y_m, m.side_m if m.torus else 0.0)
-        d = np.hypot(dx, dy)
+        d = length(rec[X] - x_m, rec[Y] - y_m, m.side_m if m.torus else 0.0)
         if best < 0 or d < best_d or (d == best_d and j < best):
             best, best_d = j, d
     if best < 0:
