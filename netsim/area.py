@@ -18,6 +18,20 @@ import numpy as np
 from netsim.errors import ConfigError
 
 KEY = "world.bounds_m"
+# The farthest a coordinate of the area may lie from the origin (metres). Beyond it a
+# double's spacing of positions grows past a tenth of a millimetre, and the areas and
+# squared distances the engine forms head for overflow.
+MAX_COORDINATE_M = 1e12
+
+
+def within_reach_of_doubles(v: float) -> str | None:
+    """A length or coordinate of the area: at most :data:`MAX_COORDINATE_M` in size."""
+    return None if abs(v) <= MAX_COORDINATE_M else f"must be at most {MAX_COORDINATE_M:g} m in size"
+
+
+def area_side(v: float) -> str | None:
+    """The side of the square area: positive, at most :data:`MAX_COORDINATE_M`."""
+    return None if v > 0 and v <= MAX_COORDINATE_M else f"must be in (0, {MAX_COORDINATE_M:g}] (metres)"
 
 
 class OnTorus:
@@ -191,6 +205,9 @@ def parse_bounds(key: str, value: Any) -> tuple[float, float, float, float] | st
     x0, y0, x1, y1 = out
     if not (x1 > x0 and y1 > y0):
         raise ConfigError(key, list(value), allowed)
+    for v in out:
+        if within_reach_of_doubles(v):
+            raise ConfigError(key, list(value), f"each coordinate {within_reach_of_doubles(v)}")
     return x0, y0, x1, y1
 
 
