@@ -343,7 +343,7 @@ def test_run_refuses_a_seed_given_twice(tmp_path, capsys, monkeypatch, seeds):
     "flags, message",
     [
         (["--n", "0"], "--n 0: must be > 0"),
-        (["--side", "-1"], "--side -1.0: must be > 0"),
+        (["--side", "-1"], "--side -1.0: must be in (0, 1e+12] (metres)"),
         (["--speed-min", "10"], "--speed-min 10.0: must not exceed --speed-max = 5.0"),
         (["--speed-max", "nan"], "--speed-max nan: must be a number"),
         (["--pause", "-1"], "--pause -1.0: must be >= 0"),
