@@ -170,7 +170,7 @@ def within(cand, motion, i, t, r):
         dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
         if reaches(dx, dy, r, 0.0):
             ids[k] = j
-            dist[k] = np.hypot(dx, dy)
+            dist[k] = length_m(dx, dy, 0.0)  # the offset is the nearest image already
             k += 1
     return ids[:k], dist[:k]
 
@@ -210,7 +210,7 @@ def pair_reach(motion, i, j, t, r):
     origin_m, velocity_mps, t0_s, torus, side_m = mo.origin_m, mo.velocity_mps, mo.t0_s, mo.torus, mo.side_m
     x, y = position(origin_m, velocity_mps, t0_s, i, t, torus, side_m)
     dx, dy = offset(origin_m, velocity_mps, t0_s, j, t, x, y, torus, side_m)
-    return reaches(dx, dy, r, 0.0), np.hypot(dx, dy)
+    return reaches(dx, dy, r, 0.0), length_m(dx, dy, 0.0)  # the offset is the nearest image already
 
 
 @jit(nogil=True)
@@ -259,8 +259,9 @@ def restarts(deadline_s, armed_s, ids, at_s, to_arm):
 
 @jit(nogil=True)
 def count_each(counts, ids):
-    """``counts[ids] += 1`` for distinct ``ids`` (the channel's per-robot reception count):
-    for the tens of receivers of one delivery, a loop costs less than numpy's fancy index."""
+    """``counts[ids] += 1``, an id named twice counted twice (the channel's and the medium's
+    per-robot reception and drop counts): for the tens of receivers of one delivery, a loop
+    costs less than numpy's fancy index."""
     for j in ids:
         counts[j] += 1
 
@@ -561,16 +562,16 @@ def reaches(ddx, ddy, lim, box):
     ddx, ddy, d2, sure, unsure = _reach_band(ddx, ddy, lim, box)
     hit = d2 <= sure
     if (d2 > sure) & (d2 <= unsure):
-        hit = np.hypot(ddx, ddy) <= lim
+        hit = length_m(ddx, ddy, 0.0) <= lim  # _reach_band took the nearest image
     return hit
 
 
 @jit(nogil=True, inline="always")
-def length(dx, dy, box):
+def length_m(dx, dy, box):
     """The length of the offset ``(dx, dy)``: ``np.hypot`` of its nearest image on a torus
-    of side ``box > 0`` (:func:`nearest_image`), of itself on the plane (``box = 0``). The
-    engine's one rule of a link's length (:func:`distances`, and the clustering's nearest
-    leader)."""
+    of side ``box > 0`` (:func:`nearest_image`), of itself on the plane (``box = 0``, also
+    for an offset already folded). The engine's one rule of a length: a link's, a robot's
+    distance to a disk's centre or a grid's cell, the clustering's nearest leader."""
     dx, dy = nearest_image(dx, dy, box)
     return np.hypot(dx, dy)
 
@@ -582,7 +583,7 @@ def distances(p, q, box, out):
     straight line for ``box = 0``: a link's length as :func:`pairs_in_range` and
     :func:`within` measure the pairs they find, for pairs already known."""
     for k in range(out.shape[0]):
-        out[k] = length(p[k, 0] - q[k, 0], p[k, 1] - q[k, 1], box)
+        out[k] = length_m(p[k, 0] - q[k, 0], p[k, 1] - q[k, 1], box)
 
 
 @jit(nogil=True)
@@ -597,7 +598,7 @@ def beyond_disks(points, centres, radius, out):
         if r >= 0.0 and dx == dx and dy == dy:
             out[k] = not reaches(dx, dy, r, 0.0)
         else:
-            out[k] = np.hypot(dx, dy) > r
+            out[k] = length_m(dx, dy, 0.0) > r
 
 
 @jit(nogil=True, inline="always")
@@ -665,7 +666,7 @@ def pairs_in_range(pos, i, j, ranges, box, directed):
             forward = reaches(dx, dy, link_range(ranges[p], ranges[o]), 0.0)
             back = False
         if forward or back:
-            d = np.hypot(dx, dy)
+            d = length_m(dx, dy, 0.0)  # the offset is the nearest image already
             if forward:
                 a[k], b[k], dist[k] = p, o, d
                 k += 1
@@ -932,7 +933,7 @@ def grid_nearest_m(p, reach_m, x0_m, y0_m, width_m, height_m, cells, box, any_wi
                             if out[row, col] > reach_m and reaches(dx, dy, reach_m, 0.0):
                                 out[row, col] = reach_m
                             continue
-                        d = np.hypot(dx, dy)
+                        d = length_m(dx, dy, 0.0)  # the image is chosen above
                         if d <= reach_m and d < out[row, col]:
                             out[row, col] = d
     return out

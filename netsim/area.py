@@ -18,9 +18,9 @@ import numpy as np
 from netsim.errors import ConfigError
 
 KEY = "world.bounds_m"
-# The farthest a coordinate of the area may lie from the origin (metres). Beyond it a
-# double's spacing of positions grows past a tenth of a millimetre, and the areas and
-# squared distances the engine forms head for overflow.
+# The farthest a coordinate of the area may lie from the origin (metres): far beyond any
+# team's area, yet where a double still resolves a position to well under a millimetre
+# and the areas and squared distances the engine forms are far from overflow.
 MAX_COORDINATE_M = 1e12
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from netsim import plugins
-from netsim.area import KEY, Bounds, OnTorus, area_side, parse_bounds, parse_start
+from netsim.area import KEY, MAX_COORDINATE_M, Bounds, OnTorus, area_side, parse_bounds, parse_start
 from netsim.errors import ConfigError, NetsimInputError, not_a_file
 from netsim.params import (
     NoParams,
@@ -73,7 +73,7 @@ def _map_path(key: str, value: Any) -> str:
 class WorldParams(Params, OnTorus):
     section = "world"
     n_robots: int = param(50, positive, "number of robots N")
-    side_m: float = param(1000.0, area_side, "side of the square area A, metres, at most 1e12")
+    side_m: float = param(1000.0, area_side, f"side of the square area A, metres, at most {MAX_COORDINATE_M:g}")
     bounds_m: tuple[float, float, float, float] | str = param(
         None,
         None,

@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any
 
@@ -26,7 +27,7 @@ import numpy.typing as npt
 
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
-from netsim.geometry import cell_centres_m, distances_m
+from netsim.geometry import cell_centres_m, distances_m, in_box
 from netsim.topology import geometric_pairs
 
 # Mean distance between two uniform points of the unit square (docs/validation.md item 2):
@@ -351,11 +352,23 @@ def nearest_spacing(positions_m: npt.ArrayLike, side_m: float | None = None) -> 
     """
     from scipy.spatial import cKDTree  # imported when asked: a run without it does not load it
 
-    p = np.asarray(positions_m, dtype=float).reshape(-1, 2)
+    p = in_box(np.asarray(positions_m, dtype=float).reshape(-1, 2), side_m)
     if len(p) < 2:
         return np.full(len(p), np.nan)
-    _, k = cKDTree(p, boxsize=side_m).query(p, k=2)
-    return distances_m(p, p[k[:, 1]], side_m, len(p))
+    tree = cKDTree(p, boxsize=side_m)
+    d, _ = tree.query(p, k=2)
+    # The tree measures by its own arithmetic: of neighbours nearly as near (a lattice's
+    # six), the one it names may be the longer by the engine's. So every point within a
+    # hair of the tree's nearest is measured by the engine's rule, and the least kept.
+    near = tree.query_ball_point(p, d[:, 1] * (1.0 + 1e-9), return_sorted=False)
+    count = np.fromiter(map(len, near), np.int64, len(p))
+    i = np.repeat(np.arange(len(p)), count)
+    j = np.fromiter(itertools.chain.from_iterable(near), np.int64, int(count.sum()))
+    other = i != j
+    i, j = i[other], j[other]
+    out = np.full(len(p), np.inf)
+    np.minimum.at(out, i, distances_m(p[i], p[j], side_m, len(p)))
+    return out
 
 
 def hexagonality(positions_m: npt.ArrayLike, spacing_m: float) -> float:

@@ -29,7 +29,7 @@ import numpy as np
 
 from netsim._kernels import (
     Motion,
-    length,
+    length_m,
     longest_list,
     position,
     reaches_robot,
@@ -378,7 +378,7 @@ def join_choice(table, i, now, rules, exclude, motion, first_heard):
             break
         # On a torus the leader's nearest image: a leader across the seam is as near as the
         # link to it is short.
-        d = length(rec[X] - x_m, rec[Y] - y_m, m.side_m if m.torus else 0.0)
+        d = length_m(rec[X] - x_m, rec[Y] - y_m, m.side_m if m.torus else 0.0)
         if best < 0 or d < best_d or (d == best_d and j < best):
             best, best_d = j, d
     if best < 0:

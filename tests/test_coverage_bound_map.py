@@ -67,6 +67,22 @@ def test_covered_fraction_of_a_rectangular_region_is_that_of_the_rectangle(tmp_p
     assert abs(f - g) <= err
 
 
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_no_robot_covers_nothing_and_the_regions_edge_stays_uncertain(tmp_path, monkeypatch, compiled):
+    """The grid's covered fraction of no robot, in a region: 0, with the error bound of the
+    cells the region's boundary crosses, as for a robot that covers none of them; and the
+    environments' grid fraction of no robot is 0."""
+    from netsim.compiled import load
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    region = _region(tmp_path)
+    none = covered_fraction(np.empty((0, 2)), 12.0, AREA, 400, region=region, n_robots=30)
+    far = covered_fraction([[-1e6, -1e6]], 12.0, AREA, 400, region=region, n_robots=30)
+    assert none == far and none[0] == 0.0 and none[1] > 0.0
+    env = load("netsim.envs._kernels", 30)
+    assert env.covered_fraction_grid(np.empty((0, 2)), 12.0, 0.0, 0.0, 100.0, 60.0, 50) == 0.0
+
+
 def test_free_region_leaves_out_free_space_the_team_cannot_reach(tmp_path):
     """Free cells that no free path joins to the team's start are not in its region; a
     start in both rooms takes both."""

@@ -57,6 +57,19 @@ def test_a_frame_is_delivered_at_its_end_plus_the_latency():
     assert log == [(pytest.approx(0.5 + T + 0.002), 0, [1, 2])]
 
 
+def test_the_busy_fraction_counts_a_frame_still_on_the_air():
+    """Medium.busy_fraction: the share of the run each robot sensed the medium busy, its own
+    frame and the stretch not over yet included; a robot out of range never."""
+    sim = _medium([0, 10, 100])
+    _send_at(sim, 0.5, 0)
+    sim.env.run(until=0.5 + T / 2)
+    now = sim.env.now
+    busy = sim.channel.mac.busy_fraction(now)
+    assert busy.tolist() == [(now - 0.5) / now, (now - 0.5) / now, 0.0]
+    sim.env.run(until=1.0)
+    assert sim.channel.mac.busy_fraction(1.0).tolist() == pytest.approx([T, T, 0.0], rel=1e-12)
+
+
 def test_overlapping_frames_collide_at_a_common_receiver():
     """Unit disk: a receiver in range of two overlapping transmissions loses both."""
     sim = _medium([0, 40, 80])  # 0 and 2 out of each other's range, 1 hears both

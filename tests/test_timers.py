@@ -165,3 +165,15 @@ def test_calendar_takes_entries_in_the_order_of_a_heap():
             expected.append(heapq.heappop(heap))
         assert taken == expected and calendar.first() is None
         assert len({e[0] for e in taken}) < len(taken) - 100  # ties happened
+
+
+def test_a_restart_of_one_timer_twice_in_one_call_keeps_the_last_deadline():
+    """Restarting timers by arrays with a deadline each, one timer named twice: its last
+    deadline holds, and it runs out there, whether that comes before or after the other."""
+    for deadlines, expected in (([5.0, 2.0, 3.0], [(0, 2.0), (1, 3.0)]), ([2.0, 5.0, 3.0], [(1, 3.0), (0, 5.0)])):
+        env = simpy.Environment()
+        fired = []
+        timers = DeadlineTimers(env, 2, lambda i, now, fired=fired: fired.append((i, now)))
+        timers.restart(np.array([0, 0, 1]), np.array(deadlines))
+        env.run(until=10)
+        assert fired == expected

@@ -57,7 +57,8 @@ class Radio(NamedTuple):
 
     @property
     def budget_db(self) -> float:
-        """The most loss a frame can take and still be heard: ``P_t - sensitivity``."""
+        """The most loss a frame can take and still be heard, ``P_t - sensitivity``, up to
+        its rounding (the decision itself is the margin's sign, :meth:`margin_db`)."""
         return self.tx_power_dbm - self.sensitivity_dbm
 
     def received_dbm(self, loss_db):
