@@ -479,31 +479,38 @@ class Channel:
             all_alive = self.kernels.all_set(self.state.alive, receivers)
         if not all_alive:
             alive = self.state.alive[receivers]
-            self.kernels.count_each(c.dropped[1], receivers[~alive])
-            if binned is not None:
-                binned.add(SendTimeBins.DROPPED + 1, int((~alive).sum()))
-            if self._rows is not None:
-                self._rows.mark(receivers[~alive], 1)
-            self._dropped(kind, sender, receivers[~alive], "not_alive")
-            receivers = receivers[alive]
-            if dist is not None:
-                dist = dist[alive]
+            receivers, dist = self._drop_all_but(alive, "not_alive", sender, receivers, dist, c, kind, binned)
         if binned is not None:
             binned.row[SendTimeBins.IN_RANGE] += len(receivers)
         if self.loss_rng is not None:
             self.loss_rng.use(kind)
         keep = self._survives(sender, receivers, dist)
         if keep is not None and not keep.all():
-            self.kernels.count_each(c.dropped[0], receivers[~keep])
-            if binned is not None:
-                binned.add(SendTimeBins.DROPPED, int((~keep).sum()))
-            if self._rows is not None:
-                self._rows.mark(receivers[~keep], 0)
-            self._dropped(kind, sender, receivers[~keep], "loss")
-            receivers = receivers[keep]
-            if dist is not None:
-                dist = dist[keep]
+            receivers, dist = self._drop_all_but(keep, "loss", sender, receivers, dist, c, kind, binned)
         return receivers, dist
+
+    def _drop_all_but(
+        self,
+        keep: np.ndarray,
+        cause: str,
+        sender: int,
+        receivers: np.ndarray,
+        dist: np.ndarray | None,
+        c: Counters,
+        kind: str,
+        binned: _Bin | None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The receivers (and distances) where ``keep``; the others counted and told as
+        dropped for ``cause``."""
+        k = DROP_CAUSES.index(cause)
+        lost = receivers[~keep]
+        self.kernels.count_each(c.dropped[k], lost)
+        if binned is not None:
+            binned.add(SendTimeBins.DROPPED + k, len(lost))
+        if self._rows is not None:
+            self._rows.mark(lost, k)
+        self._dropped(kind, sender, lost, cause)
+        return receivers[keep], (dist[keep] if dist is not None else None)
 
     def _at(
         self,
