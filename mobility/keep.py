@@ -192,8 +192,8 @@ class LinkRules:
         # Summed as a frame's loss is, so that a link is a candidate exactly when the radio
         # would hear a frame across it.
         loss = p.loss_db(d, x, walls, n)
-        ok = seen & p.radio.hears(loss)
-        margin = np.maximum(p.radio.margin_db(loss), 0.0)
+        ok = seen & p.radio.hears(loss, n)
+        margin = np.maximum(p.radio.margin_db(loss, n), 0.0)
         i, j, d, walls, x, margin = i[ok], j[ok], d[ok], walls[ok], x[ok], margin[ok]
         travel = travel[ok]
         if self.shadow is None:

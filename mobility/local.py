@@ -1173,7 +1173,7 @@ class Fade:
         d = distances_m(own_xy, heard_xy, None, self.n_robots) - moved
         r = self.radio
         x = r.radio.shadowing_db(r.path_loss_db(np.maximum(d, 0.0), self.n_robots), power_dbm)
-        return x, r.radio.above_sensitivity_db(power_dbm)
+        return x, r.radio.above_sensitivity_db(power_dbm, self.n_robots)
 
     def limits(self, knows: Memory, t0_s: float, t1_s: float, speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
         """``(keep_m, travel_m)``, ``(n, n)``: how far from ``q_j`` robot ``i`` answers for

@@ -25,11 +25,11 @@ from netsim.geometry import distances_m, pair_travels_m
 from netsim.radio.shadowing import TRUNCATION_SIGMAS
 
 
-def laws(values: int) -> Any:
+def laws(values: int, n_robots: int | None = None) -> Any:
     """The radio's laws (:mod:`netsim.radio._kernels`), each one expression for a number or
-    an array, for a batch of ``values`` of them: compiled or plain as
-    :func:`netsim.compiled.load` decides for any kernel."""
-    return load("netsim.radio._kernels", None, values=values)
+    an array, for a batch of ``values`` of them in a run of ``n_robots`` (None: not known):
+    compiled or plain as :func:`netsim.compiled.load` decides for any kernel."""
+    return load("netsim.radio._kernels", n_robots, values=values)
 
 
 def linear(db):
@@ -74,12 +74,13 @@ class Radio(NamedTuple):
         """
         return laws(np.size(received_dbm)).shadowing_of(self.tx_power_dbm, path_loss_db, received_dbm)
 
-    def hears(self, loss_db):
+    def hears(self, loss_db, n_robots: int | None = None):
         """Whether a frame after ``loss_db`` arrives at or above the sensitivity: the decision
-        of a frame's compiled pass (:func:`netsim.radio._kernels.heard`)."""
-        return laws(np.size(loss_db)).heard(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
+        of a frame's compiled pass (:func:`netsim.radio._kernels.heard`), in a run of
+        ``n_robots``."""
+        return laws(np.size(loss_db), n_robots).heard(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
 
-    def margin_db(self, loss_db):
+    def margin_db(self, loss_db, n_robots: int | None = None):
         """How far above the sensitivity a frame after ``loss_db`` arrives: ``(P_t - loss) -
         sensitivity`` (:func:`netsim.radio._kernels.margin_db`; negative: not heard, and
         only then).
@@ -87,12 +88,12 @@ class Radio(NamedTuple):
         >>> Radio(20.0, -80.0).margin_db(np.array([99.0, 100.0, 101.0])).tolist()
         [1.0, 0.0, -1.0]
         """
-        return laws(np.size(loss_db)).margin_db(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
+        return laws(np.size(loss_db), n_robots).margin_db(self.tx_power_dbm, loss_db, self.sensitivity_dbm)
 
-    def above_sensitivity_db(self, received_dbm):
+    def above_sensitivity_db(self, received_dbm, n_robots: int | None = None):
         """How far above the sensitivity a frame received at ``received_dbm`` arrived
-        (:func:`netsim.radio._kernels.above_sensitivity_db`)."""
-        return laws(np.size(received_dbm)).above_sensitivity_db(received_dbm, self.sensitivity_dbm)
+        (:func:`netsim.radio._kernels.above_sensitivity_db`), in a run of ``n_robots``."""
+        return laws(np.size(received_dbm), n_robots).above_sensitivity_db(received_dbm, self.sensitivity_dbm)
 
 
 # The unit disk has no power: its chain adds 0 dB within range and infinity beyond, heard

@@ -213,7 +213,7 @@ class LogDistanceParams(RadioParams):
 
     def margin_db(self, distance_m, shadowing_db=0.0, walls=0, n_robots: int | None = None) -> np.ndarray:
         """The pair's power margin over the sensitivity, ``Radio.margin_db`` of :meth:`loss_db`."""
-        return self.radio.margin_db(self.loss_db(distance_m, shadowing_db, walls, n_robots))
+        return self.radio.margin_db(self.loss_db(distance_m, shadowing_db, walls, n_robots), n_robots)
 
     def implied_range_m(self) -> float:
         """:func:`implied_range_m` under these parameters."""
