@@ -437,6 +437,11 @@ class Config(Params):
                 (f"the radio's implied range, {least:.3g} m, is" if implied else "is")
                 + f" below {MIN_RANGE_M} m: no link lasts long enough for its events to be solved",
             )
+        most = max(r) if isinstance(r, tuple) else r
+        if most > MAX_COORDINATE_M and propagation.ranges(radio) is None:
+            # A range past any area's size: its square, which the range tests form, heads for
+            # overflow. (An implied range is the radio's, bounded by its power budget.)
+            raise ConfigError("channel.range_m", most, f"must be at most {MAX_COORDINATE_M:g} m")
         if self.world.torus and propagation.shadowed(radio):
             # The reach's disks around a robot's images must be disjoint, as the range's are:
             # the cut of a shadowed link where its pair leaves the reach is solved on one image.

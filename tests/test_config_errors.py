@@ -295,6 +295,8 @@ def _cli(tmp_path, capsys, *args):
         (["--set", "channel.range_m=1e-9"], "channel.range_m = 1e-09: is below 0.01 m"),
         # An area whose squares overflow (numpy's overflow warnings, then a run of infinities).
         (["--set", "world.side_m=1e300"], "world.side_m = 1e+300: must be in (0, 1e+12]"),
+        (["--set", "channel.range_m=1e300"], "channel.range_m = 1e+300: must be at most 1e+12 m"),
+        (["--set", "channel.range_m=[100, 1e13]", "--set", "world.n_robots=2"], "channel.range_m = 10000000000000.0"),
         (["--set", "world.bounds_m=[0, 0, 1e13, 5]"], "world.bounds_m = [0, 0, 10000000000000.0, 5]: each"),
         (["--set", "channel.range_m=[100, 0.001]", "--set", "world.n_robots=2"], "channel.range_m = 0.001"),
         (
