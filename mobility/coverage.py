@@ -147,7 +147,7 @@ from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
-from netsim.geometry import in_motion, speeds_mps
+from netsim.geometry import SPEED_OF_LIGHT_MPS, in_motion, speeds_mps
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.machine import gib, machine_memory_bytes
 from netsim.params import Params, finite, non_negative, param, positive
@@ -206,6 +206,15 @@ def _gain_check(v: float) -> str | None:
     return None if 0 < v <= 1e6 else "must be in (0, 1e6] (1/s)"
 
 
+def _speed_cap_check(v: float) -> str | None:
+    # As every robot's velocity (netsim.geometry.drivable): far past it a step's squares overflow.
+    if not math.isfinite(v):
+        return "must be finite"
+    if v > 0 and v <= SPEED_OF_LIGHT_MPS:
+        return None
+    return f"must be in (0, {SPEED_OF_LIGHT_MPS:g}] (m/s, no faster than light)"
+
+
 @dataclass(frozen=True)
 class CoverageParams(Params):
     """The coverage controller's section, ``[coverage]`` (it also sets the control loop's
@@ -249,7 +258,7 @@ class CoverageParams(Params):
         "a controlled robot's velocity (follow: a leader's) is gain x resultant force, 1/s (forces in metres), "
         "in (0, 1e6]",
     )
-    speed_max_mps: float = param(2.0, finite(positive), "speed cap of every controlled robot, m/s")
+    speed_max_mps: float = param(2.0, _speed_cap_check, "speed cap of every controlled robot, m/s")
     margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")
     fade_margin_db: float = param(
         8.0,

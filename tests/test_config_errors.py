@@ -296,6 +296,17 @@ def _cli(tmp_path, capsys, *args):
         # An area whose squares overflow (numpy's overflow warnings, then a run of infinities).
         (["--set", "world.side_m=1e300"], "world.side_m = 1e+300: must be in (0, 1e+12]"),
         (["--set", "channel.range_m=1e300"], "channel.range_m = 1e+300: must be at most 1e+12 m"),
+        (
+            [
+                "--set",
+                "coverage.enabled=true",
+                "--set",
+                'mobility.model="static"',
+                "--set",
+                "coverage.speed_max_mps=1e300",
+            ],
+            "coverage.speed_max_mps = 1e+300: must be in (0, 2.99792e+08]",
+        ),
         (["--set", "channel.range_m=[100, 1e13]", "--set", "world.n_robots=2"], "channel.range_m = 10000000000000.0"),
         (["--set", "world.bounds_m=[0, 0, 1e13, 5]"], "world.bounds_m = [0, 0, 10000000000000.0, 5]: each"),
         (["--set", "channel.range_m=[100, 0.001]", "--set", "world.n_robots=2"], "channel.range_m = 0.001"),
