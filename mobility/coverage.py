@@ -147,7 +147,7 @@ from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
-from netsim.geometry import SPEED_OF_LIGHT_MPS, in_motion, speeds_mps
+from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable, in_motion, speeds_mps
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.machine import gib, machine_memory_bytes
 from netsim.params import Params, finite, non_negative, param, positive
@@ -207,10 +207,10 @@ def _gain_check(v: float) -> str | None:
 
 
 def _speed_cap_check(v: float) -> str | None:
-    # As every robot's velocity (netsim.geometry.drivable): far past it a step's squares overflow.
+    # Every robot's velocity must be drivable (netsim.geometry): far past it a step's squares overflow.
     if not math.isfinite(v):
         return "must be finite"
-    if v > 0 and v <= SPEED_OF_LIGHT_MPS:
+    if v > 0 and drivable((v, 0.0)):
         return None
     return f"must be in (0, {SPEED_OF_LIGHT_MPS:g}] (m/s, no faster than light)"
 

@@ -31,7 +31,7 @@ def within_reach_of_doubles(v: float) -> str | None:
 
 def area_side(v: float) -> str | None:
     """The side of the square area: positive, at most :data:`MAX_COORDINATE_M`."""
-    return None if v > 0 and v <= MAX_COORDINATE_M else f"must be in (0, {MAX_COORDINATE_M:g}] (metres)"
+    return None if v > 0 and not within_reach_of_doubles(v) else f"must be in (0, {MAX_COORDINATE_M:g}] (metres)"
 
 
 class OnTorus:

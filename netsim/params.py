@@ -256,7 +256,7 @@ def check_schedules(params: Params, duration_s: float, n_robots: int) -> None:
         if not who or value is None:
             continue
         per_s = value if f.name.endswith("_hz") else 1.0 / value
-        # A team too large for a float (the fuzzer's 10^400) counts as 10^300: refused alike.
+        # A team too large for a float counts as 10^300: refused alike, not an overflow.
         count = duration_s * per_s * (float(min(n_robots, 10**300)) if who == "robot" else 1.0)
         if count > MAX_EVENTS_PER_RUN:
             each = f"{n_robots} robots each" if who == "robot" else "the run"

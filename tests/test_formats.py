@@ -581,13 +581,19 @@ def test_a_bonnmotion_params_file_that_is_not_text_is_one_line(tmp_path, capsys)
     movements = tmp_path / "s.movements"
     movements.write_text("0 10 10 5 20 20\n0 30 30\n")
     (tmp_path / "s.params").write_bytes(b"model=R\xe9\xff\nnn=2\n")
-    code = main(
-        ["run", "--out", str(tmp_path / "o"), "--quiet", "--set", "world.n_robots=2", "--set", "duration_s=5"]
-        + ["--set", "mobility.model=trace", "--set", f"mobility.trace_file={movements}"]
-    )
-    err = capsys.readouterr().err.strip().splitlines()
+    code, err = _run_trace(tmp_path, capsys, movements, 2)
     assert code == 2 and len(err) == 1 and "s.params: cannot be read" in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+def _run_trace(tmp_path, capsys, trace, n_robots):
+    """``netsim run`` of ``n_robots`` on the trace file ``trace`` into ``tmp_path / "o"``: its
+    exit status and the lines it printed on stderr."""
+    code = main(
+        ["run", "--out", str(tmp_path / "o"), "--no-progress", "--set", f"world.n_robots={n_robots}"]
+        + ["--set", "duration_s=5", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    )
+    return code, capsys.readouterr().err.strip().splitlines()
 
 
 def test_a_refused_trace_is_its_one_error_line_without_the_readers_warnings(tmp_path, capsys):
@@ -595,10 +601,6 @@ def test_a_refused_trace_is_its_one_error_line_without_the_readers_warnings(tmp_
     the refusal alone, one line, exit 2; the skipped line's warnings came first."""
     trace = tmp_path / "s.tcl"
     trace.write_text('$node_(1) set X_ 1\n$node_(1) set Y_ 1\n$ns_ at -1 "$node_(1) setdest 5 5 1"\n')
-    code = main(
-        ["run", "--out", str(tmp_path / "o"), "--no-progress", "--set", "world.n_robots=5", "--set", "duration_s=5"]
-        + ["--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
-    )
-    err = capsys.readouterr().err.strip().splitlines()
+    code, err = _run_trace(tmp_path, capsys, trace, 5)
     assert code == 2 and len(err) == 1 and "must equal the 2 nodes" in err[0], err
     assert not (tmp_path / "o").exists()
