@@ -438,10 +438,23 @@ class Config(Params):
                 + f" below {MIN_RANGE_M} m: no link lasts long enough for its events to be solved",
             )
         most = max(r) if isinstance(r, tuple) else r
-        if most > MAX_COORDINATE_M and propagation.ranges(radio) is None:
-            # A range past any area's size: its square, which the range tests form, heads for
-            # overflow. (An implied range is the radio's, bounded by its power budget.)
-            raise ConfigError("channel.range_m", most, f"must be at most {MAX_COORDINATE_M:g} m")
+        # A range past any area's size: its square, which the range tests form, heads for
+        # overflow. A radio's implied range, and its reach under the strongest shadowing, are
+        # as unbounded: a small exponent or a low sensitivity puts them anywhere.
+        if propagation.ranges(radio) is None:
+            if most > MAX_COORDINATE_M:
+                raise ConfigError("channel.range_m", most, f"must be at most {MAX_COORDINATE_M:g} m")
+        else:
+            shadowed = propagation.shadowed(radio)
+            farthest = propagation.reach(radio) if shadowed else most
+            if not farthest <= MAX_COORDINATE_M:
+                what = "reach under its strongest shadowing" if shadowed else "implied range"
+                raise ConfigError(
+                    "channel.propagation",
+                    self.channel.propagation,
+                    f"the radio's {what}, {farthest:.3g} m, is above {MAX_COORDINATE_M:g} m: raise "
+                    f"path_loss_exponent or sensitivity_dbm, or lower tx_power_dbm{' or the shadowing' * shadowed}",
+                )
         if self.world.torus and propagation.shadowed(radio):
             # The reach's disks around a robot's images must be disjoint, as the range's are:
             # the cut of a shadowed link where its pair leaves the reach is solved on one image.

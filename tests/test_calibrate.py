@@ -378,6 +378,12 @@ def _above_tx_power(g: pd.DataFrame) -> pd.DataFrame:
     return g
 
 
+def _nearly_flat(g: pd.DataFrame) -> pd.DataFrame:
+    """Powers that barely fall with distance: an exponent near 0, so a far implied range."""
+    noise = np.random.default_rng(5).normal(0.0, 4.0, len(g))
+    return g.assign(rssi_dbm=-60.0 - 0.4 * 10 * np.log10(np.maximum(g["distance_m"], 1.0)) + noise)
+
+
 # Each bad log: a table written as CSV, or the bytes of a file (name, content).
 BAD_LOGS = {
     "no_rssi": lambda g: g.drop(columns=["rssi_dbm"]),
@@ -401,6 +407,7 @@ BAD_LOGS = {
     "received_with_a_cause": _received_with_a_cause,
     "semicolons": lambda g: ("semicolons.csv", g.to_csv(index=False, sep=";").encode()),
     "above_tx_power": _above_tx_power,
+    "nearly_flat": _nearly_flat,
 }
 
 
@@ -448,6 +455,8 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("good", ["--sensitivity-dbm", "-inf"], "--sensitivity-dbm -inf: must be in [-200, 0] dBm"),
         # a refused log is warned of nothing, however strong its frames
         ("above_tx_power", ["--sensitivity-dbm", "-75"], "were received below it"),
+        ("above_tx_power", ["--tx-power-dbm", "-24"], "the fitted channel is not one netsim runs"),
+        ("nearly_flat", ["--sensitivity-dbm", "-120"], "the radio's reach under its strongest shadowing"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_log, case, extra, words):
@@ -509,3 +518,18 @@ def test_a_log_short_against_the_decorrelation_is_said_to_have_narrow_intervals(
     assert short.shadowing_draws < SHORT_LOG_DRAWS < long.shadowing_draws
     assert "short log: about 482 independent draws" in report(short, "log")
     assert "short log" not in report(long, "log")
+
+
+def test_a_categorical_cause_is_read_as_a_plain_one(tmp_path, capsys):
+    """A ``cause`` column that pandas holds as categorical (and writes to Parquet as a
+    dictionary-encoded column), empty where a frame was received, is read as the same
+    words in plain strings: the same fit."""
+    log = synth_log(4, censored=True, **SMALL)[["t_s", "src", "dst", "distance_m", "rssi_dbm", "received"]]
+    log = log.assign(cause=np.where(log["received"], None, "out_of_range"))
+    plain = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
+    path = tmp_path / "log.parquet"
+    log.astype({"cause": "category"}).to_parquet(path)
+    assert pd.read_parquet(path)["cause"].dtype == "category"
+    assert main(["calibrate", str(path), "--sensitivity-dbm", str(TRUTH.sensitivity_dbm)]) == 0
+    printed = capsys.readouterr().out
+    assert f"path_loss_exponent = {plain.fit.path_loss_exponent.value!r}" in printed

@@ -299,6 +299,28 @@ def _cli(tmp_path, capsys, *args):
         (
             [
                 "--set",
+                "channel.propagation=log_distance",
+                "--set",
+                "channel.path_loss_exponent=0.1",
+                "--set",
+                "channel.sensitivity_dbm=-200",
+            ],
+            "channel.propagation = 'log_distance': the radio's implied range, 1e+180 m, is above 1e+12 m",
+        ),
+        (
+            [
+                "--set",
+                "channel.propagation=log_distance",
+                "--set",
+                "channel.path_loss_exponent=1",
+                "--set",
+                "channel.shadowing_sigma_db=20",
+            ],
+            "the radio's reach under its strongest shadowing, 1e+14 m, is above 1e+12 m",
+        ),
+        (
+            [
+                "--set",
                 "coverage.enabled=true",
                 "--set",
                 'mobility.model="static"',
