@@ -235,3 +235,20 @@ def test_receptions_power_on_a_map_is_the_law_less_every_wall_crossed():
     walls = walls_crossed(sim.channel.reception.map, pos[r["src"].to_numpy()], pos[r["dst"].to_numpy()])
     assert np.allclose(r["rx_power_dbm"].to_numpy(), law - wall_db * walls, rtol=0, atol=1e-9)
     assert (walls >= 3).sum() > 10 and len(np.unique(walls)) >= 5  # many walls, of many counts
+
+
+@pytest.mark.parametrize("mac", ["aloha", "csma"])
+def test_receptions_of_a_frame_on_the_air_at_the_end_are_its_counted_drops(mac):
+    """A run that ends while a frame is on the air: the receivers it lost where it went on
+    the air (to the loss model) were counted as drops, so they have their rows; those left
+    to its end, which never came, have none. Found by cutting a run just after a frame
+    with a loss went on the air."""
+    channel = {**MEDIUM, "mac": mac, "loss_model": "bernoulli", "loss_probability": 0.3}
+    whole = _run(_config(channel, n=19, side_m=150.0, duration_s=8.0))[0].frames["receptions"]
+    t0 = float(whole["t_s"][(whole["cause"] == "loss") & (whole["t_s"] > 5.0)].iloc[0])
+    result, deliveries, drops = _run(_config(channel, n=19, side_m=150.0, duration_s=t0 + 1e-6))
+    assert len(result.sim.channel.mac.on_air) == 1
+    r = result.frames["receptions"]
+    last = r[r["t_s"] == t0]
+    assert (last["cause"] == "loss").any() and not last["received"].any()
+    _check_rows_are_the_channels(result, deliveries, drops)

@@ -75,6 +75,17 @@ class FrameRows:
         hit = np.isin(self.dst, robots) & (self.cause == NO_CAUSE)
         self.cause[hit] = cause
 
+    def failed(self) -> FrameRows:
+        """These rows but those not decided yet: a frame still on the air when the run ends
+        has dropped some receivers where it went on the air (the drops counted) and left the
+        others to an end that never came."""
+        out = object.__new__(FrameRows)
+        out.t_s, out.src, out.kind = self.t_s, self.src, self.kind
+        keep = self.cause != NO_CAUSE
+        for name in ("dst", "distance_m", "power_dbm", "sinr_db", "cause"):
+            setattr(out, name, getattr(self, name)[keep])
+        return out
+
     def set_sinr(self, robots: np.ndarray, sinr_db: np.ndarray) -> None:
         """The SINR (dB) the medium found at ``robots`` (among ``dst``) at the frame's end."""
         at = {int(r): k for k, r in enumerate(self.dst.tolist())}
@@ -93,6 +104,8 @@ class ReceptionLog:
         self.powered = rec is not None and rec.compiled.log is not None
         self.out_of_range = self.causes.index("out_of_range")
         self._frames: list[FrameRows] = []
+        # Frames opened and not closed yet, by identity: under a medium, those on the air.
+        self._open: dict[int, FrameRows] = {}
 
     def code(self, cause: str) -> int:
         return self.causes.index(cause)
@@ -121,10 +134,12 @@ class ReceptionLog:
         rows = FrameRows(t, sender, kind, candidates, distances_m, power, sinr_db)
         if heard is not None:
             rows.cause[~np.asarray(heard, dtype=bool)] = self.out_of_range
+        self._open[id(rows)] = rows
         return rows
 
     def close(self, rows: FrameRows) -> None:
         """``rows``' frame is decided: keep them."""
+        del self._open[id(rows)]
         if len(rows.dst):
             self._frames.append(rows)
 
@@ -132,8 +147,11 @@ class ReceptionLog:
         """The table (:data:`RECEPTIONS_SCHEMA`), in order of the frames' start (a frame's
         rows in the order of its receivers), with both ends' positions at ``t_s`` from the
         run's ``legs`` (of ``n`` robots; folded into the square of ``side_m`` on a torus, as
-        ``positions.parquet``): what ``netsim calibrate`` reads a pair's travel and walls from."""
-        fs = self._frames
+        ``positions.parquet``): what ``netsim calibrate`` reads a pair's travel and walls from.
+        A frame still on the air at the end gives the rows of the receivers it had dropped."""
+        # A frame the run's end cut short keeps the rows its drops were counted for.
+        cut = [f for f in (rows.failed() for rows in self._open.values()) if len(f.dst)]
+        fs = self._frames + cut
         if not fs:
             return pd.DataFrame({c: pd.Series(dtype=t) for c, t in RECEPTIONS_SCHEMA.items()})
         counts = [len(f.dst) for f in fs]
