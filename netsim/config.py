@@ -903,11 +903,11 @@ def parse_override(text: str) -> dict:
     or a quoted string but does not parse is an error, not a string.
     """
     if "=" not in text:
-        raise ConfigError("--set", text, "must look like section.key=value")
+        raise ConfigError("--set", text, "must look like key=value or section.key=value")
     key, _, raw = text.partition("=")
     key = key.strip()
     if not key or any(not part for part in key.split(".")):
-        raise ConfigError("--set", text, "must look like section.key=value")
+        raise ConfigError("--set", text, "must look like key=value or section.key=value")
     raw = raw.strip()
     try:
         parsed: Any = tomllib.loads(f"v = {raw}")

@@ -115,6 +115,8 @@ def _cli(tmp_path, capsys, *args):
     "args, fragment",
     [
         (["--set", "channel.range_m=-5"], "channel.range_m = -5.0"),
+        (["--set", "duration_s"], "--set = 'duration_s': must look like key=value or section.key=value"),
+        (["--set", "world..n_robots=3"], "must look like key=value or section.key=value"),
         (["--set", "world.n_robots=0"], "world.n_robots = 0"),
         (["--set", "protocol.tau_s=0.5"], "protocol.tau_s = 0.5"),
         (["--set", "protocol.tau_s=1.04"], "protocol.tau_s = 1.04: must be greater than protocol.ack_period_s"),

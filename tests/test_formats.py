@@ -75,11 +75,13 @@ def test_bonnmotion_equal_times_are_a_jump(tmp_path):
 
 
 @pytest.mark.slow
-def test_bonnmotion_export_round_trips_the_positions(run_dir, tmp_path):
+def test_bonnmotion_export_round_trips_the_positions(run_dir, tmp_path, capsys):
     """``netsim export --format bonnmotion`` then replaying the file gives the run's
-    positions at every instant (checked on a fine grid) to 1e-6 m, gzip included."""
+    positions at every instant (checked on a fine grid) to 1e-6 m, gzip included; it says
+    it wrote both files."""
     out = tmp_path / "r.movements.gz"
     assert main(["export", str(run_dir), "--format", "bonnmotion", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {out} and {tmp_path / 'r.params'}"
     assert (tmp_path / "r.params").read_text().count("nn=8") == 1
     assert gzip.open(out, "rt").read().count("\n") == 8
     legs = pd.read_parquet(run_dir / "legs.parquet")

@@ -444,7 +444,12 @@ def cmd_export(args) -> int:
     from netsim.tools.export import export
 
     out = export(args.run_dir, args.format, args.out)
-    print(f"wrote {out}")
+    if args.format == "bonnmotion":
+        from netsim.formats.bonnmotion import params_path
+
+        print(f"wrote {out} and {params_path(out)}")
+    else:
+        print(f"wrote {out}")
     return 0
 
 
