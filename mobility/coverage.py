@@ -143,7 +143,7 @@ from netsim.mobility.spread import plan_spread
 from netsim.mobility.steps import Plan, StepLimits, cap_length, fell_short
 
 from netsim import metrics
-from netsim.area import Bounds
+from netsim.area import MAX_COORDINATE_M, Bounds, within_reach_of_doubles
 from netsim.compiled import load
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
@@ -325,6 +325,15 @@ class CoverageParams(Params):
             )
         if self.plan is PlanScope.LOCAL and self.members is Members.FOLLOW:
             raise ConfigError("coverage.plan", "local", "needs coverage.members = 'spread', not 'follow'")
+        step_m = self.speed_max_mps * self.control_period_s
+        if self.enabled and within_reach_of_doubles(step_m):
+            # A step past any area: its square, which the step limits form, heads for overflow.
+            raise ConfigError(
+                "coverage.control_period_s",
+                self.control_period_s,
+                f"a step at coverage.speed_max_mps = {self.speed_max_mps:g} m/s would reach {step_m:.3g} m, past "
+                f"any area ({MAX_COORDINATE_M:g} m): lower either",
+            )
         if self.enabled and self.members is Members.SPREAD and self.metrics_interval_s > self.hold_s:
             raise ConfigError(
                 "coverage.metrics_interval_s",

@@ -331,6 +331,17 @@ def _cli(tmp_path, capsys, *args):
             ],
             "coverage.speed_max_mps = 1e+300: must be in (0, 2.99792e+08]",
         ),
+        (
+            [
+                "--set",
+                "coverage.enabled=true",
+                "--set",
+                'mobility.model="static"',
+                "--set",
+                "coverage.control_period_s=1e300",
+            ],
+            "coverage.control_period_s = 1e+300: a step at coverage.speed_max_mps = 2 m/s would reach 2e+300 m",
+        ),
         (["--set", "channel.range_m=[100, 1e13]", "--set", "world.n_robots=2"], "channel.range_m = 10000000000000.0"),
         (["--set", "world.bounds_m=[0, 0, 1e13, 5]"], "world.bounds_m = [0, 0, 10000000000000.0, 5]: each"),
         (["--set", "channel.range_m=[100, 0.001]", "--set", "world.n_robots=2"], "channel.range_m = 0.001"),
