@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -493,15 +495,32 @@ def test_tau_set_in_netsim_bounds_the_ages_observed():
         ({"world": {"torus": True}}, "world.torus = true"),
         ({"protocol": {"model": "aodv"}}, "protocol.model = 'aodv'"),
         ({"protocol": {"model": "none"}}, "protocol.model = 'none'"),
+        ({"protocol": {"model": "ack"}}, "protocol.model = 'ack'"),
     ],
 )
 def test_setting_the_environment_cannot_honour_is_refused(netsim, key):
     """A setting of ``netsim`` the environment cannot honour (another number of robots,
     robots moved by a model, another duration, no link events under shadowing, a torus) raises a
-    one-line ConfigError naming it when the environment is made."""
-    with pytest.raises(ConfigError, match=key.replace("(", r"\(")) as err:
-        coverage_v0.parallel_env(**SMALL, netsim=netsim)
+    one-line ConfigError naming it when the environment is made, and nothing else is said
+    (no warning of the keys that setting leaves unused: the protocol's Ack keys)."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        with pytest.raises(ConfigError, match=key.replace("(", r"\(")) as err:
+            coverage_v0.parallel_env(**SMALL, netsim=netsim)
     assert "\n" not in str(err.value)
+    assert [str(w.message) for w in said] == []
+
+
+def test_a_key_ignored_is_said_once_for_the_environment_not_at_every_reset():
+    """A key of ``netsim`` that the run does not use is warned of when the environment is
+    made, once; the resets, which build the same configuration, say nothing more."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        env = coverage_v0.parallel_env(**SMALL, netsim={"mobility": {"speed_max_mps": 3.0}})
+        env.reset(seed=1)
+        env.reset()
+    told = [str(w.message) for w in said if issubclass(w.category, ConfigWarning)]
+    assert len(told) == 1 and told[0].startswith("mobility.speed_max_mps: not used by 'external'")
 
 
 def test_step_without_actions_keeps_every_velocity():

@@ -115,11 +115,15 @@ class CoverageEnv(ParallelEnv):
         self._ranges_implied: bool | None = None
         # A bad key of ``netsim``, or one the environment cannot honour, is refused now,
         # not at the first reset.
-        config = self._config(self._seed)
+        # What the configuration warns of (keys ignored) is said once a setting is known to
+        # be good, and once for the environment's life, not again at every reset.
+        self._told: set[str] = set()
+        config, said = self._config_told(self._seed)
         problem = refused(config, p)
         if problem is not None:
             raise ConfigError(*problem)
         check_placement(config.world)
+        self._tell(said)
         if self._ranges_implied and p.range_m != type(p)().range_m:
             # A range the user gave, that the radio's law overrides: said, as netsim says it of
             # channel.range_m.
@@ -190,6 +194,19 @@ class CoverageEnv(ParallelEnv):
             raw["channel"] = {}
         return cfgmod.from_dict(cfgmod.merge(raw, self.netsim))
 
+    def _config_told(self, seed: int) -> tuple[cfgmod.Config, list[warnings.WarningMessage]]:
+        """:meth:`_config`, and the warnings it gave, held back."""
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            config = self._config(seed)
+        return config, said
+
+    def _tell(self, said: list[warnings.WarningMessage]) -> None:
+        for w in said:
+            if str(w.message) not in self._told:
+                self._told.add(str(w.message))
+                warnings.warn(w.message, w.category, stacklevel=3)
+
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """A new episode: the run of ``(seed, episode)``, ``episode`` counting the resets
         since the last seed given (so ``reset()`` after ``reset(seed=s)`` is a new episode,
@@ -199,11 +216,12 @@ class CoverageEnv(ParallelEnv):
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
             raise ConfigError("seed", seed, "must be a whole number >= 0")
         seed_, episode = (int(seed), 0) if seed is not None else (self._seed, self._episode + 1)
-        config = self._config(seed_)
+        config, said = self._config_told(seed_)
         # max_cycles may have changed since the environment was made: checked again.
         problem = refused(config, dataclasses.replace(self.params, max_cycles=self.max_cycles))
         if problem is not None:
             raise ConfigError(*problem)
+        self._tell(said)
         self.sim = sim = build(config, run=episode)
         self._seed, self._episode = seed_, episode
         if sim.groups is not None:
