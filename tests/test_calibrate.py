@@ -520,6 +520,22 @@ def test_a_log_short_against_the_decorrelation_is_said_to_have_narrow_intervals(
     assert "short log" not in report(long, "log")
 
 
+def test_a_log_without_positions_is_said_to_leave_its_draws_uncounted():
+    """Without both ends' positions the decorrelation, so the draws, are unknown: the
+    report says so when the pairs alone (one draw each at least) are under the short-log
+    line, and that the intervals may then be too narrow."""
+    from netsim.tools.calibrate import SHORT_LOG_DRAWS, calibrate_frame, report
+
+    log = synth_log(0, duration_s=30.0).drop(columns=["src_x_m", "src_y_m", "dst_x_m", "dst_y_m"])
+    result = calibrate_frame(log, sensitivity_dbm=TRUTH.sensitivity_dbm)
+    assert result.shadowing_draws is None and result.pairs < SHORT_LOG_DRAWS
+    printed = report(result, "log")
+    assert (
+        f"short log?: the independent draws of the shadowing are not counted without d_corr; at least {result.pairs}"
+        in printed
+    )
+
+
 def test_a_categorical_cause_is_read_as_a_plain_one(tmp_path, capsys):
     """A ``cause`` column that pandas holds as categorical (and writes to Parquet as a
     dictionary-encoded column), empty where a frame was received, is read as the same

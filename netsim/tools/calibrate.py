@@ -572,6 +572,13 @@ def report(c: Calibration, where: str) -> str:
             f"travel / d_corr), under {SHORT_LOG_DRAWS:,}: the intervals hold the truth less often than 95 % "
             '(docs/radio.md, "Intervals"); log for longer'
         )
+    elif c.shadowing_draws is None and c.pairs < SHORT_LOG_DRAWS:
+        # Without d_corr the draws cannot be counted; each pair is one at least.
+        lines.append(
+            f"  short log?: the independent draws of the shadowing are not counted without d_corr; at least "
+            f"{c.pairs:,} (one a pair), under {SHORT_LOG_DRAWS:,}: if the robots moved little against d_corr, "
+            'the intervals hold the truth less often than 95 % (docs/radio.md, "Intervals")'
+        )
     d = c.decorrelation
     if d.estimate is None:
         lines.append(f"shadowing_decorrelation_m: not estimated ({d.reason}); left out of the fragment")
