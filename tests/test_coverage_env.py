@@ -631,3 +631,20 @@ def test_a_range_the_radio_overrides_is_said_to_be_ignored():
             **{**SMALL, "range_m": 30.0}, netsim={"channel": {"propagation": "log_distance"}}
         )
     assert env.range_m != 30.0
+
+
+@pytest.mark.parametrize("speed_max_mps", [0.7, 0.1])
+def test_an_action_at_the_speed_bound_is_taken_in_either_precision(speed_max_mps):
+    """An action whose component is the bound, as speed_max_mps (0.7: float32 rounds the
+    action space's bound below it) or as the action space's float32 bound (0.1: rounded
+    above it), is taken, and the robot moves at speed_max_mps; beyond both it is refused."""
+    env = coverage_v0.parallel_env(**{**SMALL, "speed_max_mps": speed_max_mps})
+    env.reset(seed=3)
+    high = float(env.action_space("robot_0").high[0])
+    assert high != speed_max_mps
+    env.step({"robot_0": (speed_max_mps, 0.0), "robot_1": (0.0, -high)})
+    assert env.sim.state.velocity_mps[0, 0] == speed_max_mps
+    assert env.sim.state.velocity_mps[1, 1] == -min(high, speed_max_mps)
+    beyond = np.nextafter(max(high, speed_max_mps), np.inf)
+    with pytest.raises(CommandError, match="must be finite and within"):
+        env.step({"robot_0": (beyond, 0.0)})

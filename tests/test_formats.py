@@ -606,3 +606,27 @@ def test_a_refused_trace_is_its_one_error_line_without_the_readers_warnings(tmp_
     code, err = _run_trace(tmp_path, capsys, trace, 5)
     assert code == 2 and len(err) == 1 and "must equal the 2 nodes" in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("fmt", ["ns2", "bonnmotion"])
+def test_a_session_ended_early_is_exported_to_where_it_ended(tmp_path, fmt):
+    """A bridge session stopped by Ctrl-C keeps its planned duration_s in config.toml and
+    ends its tables (and summary.json's duration_s) where it stopped: the export ends there
+    too, not carrying every robot's last leg on to the plan's end."""
+    run = tmp_path / "session"
+    sets = ["duration_s=6", "world.n_robots=4", "mobility.stationary_start=false", "mobility.pause_s=0"]
+    assert main(["run", *(a for s in sets for a in ("--set", s)), "--out", str(run), "--quiet"]) == 0
+    config = run / "config.toml"
+    config.write_text(config.read_text().replace("duration_s = 6.0", "duration_s = 30.0", 1))
+    out = tmp_path / ("s.tcl" if fmt == "ns2" else "s.movements")
+    assert main(["export", str(run), "--format", fmt, "--out", str(out)]) == 0
+    legs = pd.read_parquet(run / "legs.parquet")
+    replayed = tmp_path / "replayed"
+    sets = ["mobility.model=trace", f"mobility.trace_file={out}", "world.n_robots=4", "duration_s=30"]
+    sets.append("protocol.model=none")
+    assert main(["run", *(a for s in sets for a in ("--set", s)), "--out", str(replayed), "--quiet"]) == 0
+    again = pd.read_parquet(replayed / "legs.parquet")
+    # The robots stand still from where the session ended: at 29 s where they were at 6 s.
+    assert np.allclose(_positions(again, 29.0, 4), _positions(legs, 6.0, 4), atol=1e-6)
+    if fmt == "bonnmotion":
+        assert "duration=6.0" in (tmp_path / "s.params").read_text()

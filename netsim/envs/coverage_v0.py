@@ -153,7 +153,9 @@ class CoverageEnv(ParallelEnv):
         self._observation_space = observation_space(
             self.area, p.speed_max_mps, len(self.role_names), p.max_neighbours, self.tau_s, self.power_bounds_dbm
         )
-        self._high = self._action_space.high.astype(float)
+        # An action may reach the bound as either precision gives it: speed_max_mps, or the
+        # action space's float32 bound (rounded up or down); it is then held to the former.
+        self._high = np.maximum(self._action_space.high.astype(float), p.speed_max_mps)
         # The measures' kernels, compiled or plain as the run's own loops (netsim.compiled.load).
         self._measures: Any = load("netsim.envs._kernels", p.n_robots)
 
@@ -332,6 +334,7 @@ class CoverageEnv(ParallelEnv):
                 f"action of {agent} = {v[bad][0].tolist()}: each component must be finite and within "
                 f"[-{vmax:g}, {vmax:g}] m/s"
             )
+        v = np.clip(v, -self.params.speed_max_mps, self.params.speed_max_mps)
         return np.array(robots, dtype=np.int64), v.reshape(-1, 2)
 
     # -- what agents see ------------------------------------------------------------------

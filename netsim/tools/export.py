@@ -12,6 +12,7 @@ Written to a temporary name first and moved into place, so a failure leaves noth
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 import warnings
@@ -104,6 +105,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     fd, name = tempfile.mkstemp(
         prefix=f".{out.name}.", suffix=".gz" if out.name.endswith(".gz") else "", dir=out.parent
     )
+    os.close(fd)
     Path(name).unlink()
     tmp = Path(name)
     try:

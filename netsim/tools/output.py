@@ -209,8 +209,11 @@ def _read_run_json(path: Path, what: str) -> dict:
 
 
 def read_run_config(run_dir: Path) -> dict:
-    """The run's ``config.toml`` as a table; a run without one, or one that is not
-    TOML, is refused in one line."""
+    """The run's ``config.toml`` as a table, ``duration_s`` where the run ended: a session
+    ended before its planned end (a bridge's Ctrl-C) has its tables end at its summary's
+    ``duration_s``, and what reads them (export, replay, figures) must end there too, not
+    carry the robots' last legs on to the plan's. A run without a config, or one that is
+    not TOML, is refused in one line."""
     path = run_dir / "config.toml"
     if not path.is_file():
         raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml)")
@@ -222,6 +225,11 @@ def read_run_config(run_dir: Path) -> dict:
     missing = [k for k in ("duration_s", "world") if k not in table]
     if missing:
         raise NetsimInputError(f"{path}: holds no run's configuration (no {' or '.join(missing)})")
+    ended = read_run_summary(run_dir).get("duration_s")
+    planned = table["duration_s"]
+    numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (ended, planned))
+    if numbers and 0 < ended < planned:
+        table["duration_s"] = float(ended)
     return table
 
 
