@@ -23,7 +23,7 @@ from netsim.config import world_bounds
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import ns2
 from netsim.formats.waypoints import Waypoints
-from netsim.params import Params, param
+from netsim.params import Params, coerce_value, param
 from netsim.plugins import Parts, PluginSpec
 from netsim.state import MotionError, RobotState, border_tolerance_m
 from netsim.trajectory import jumped
@@ -53,13 +53,23 @@ def _topics(key: str, value: Any) -> tuple[str, ...]:
     return tuple(value)
 
 
+def _trace_path(key: str, value: Any) -> str:
+    """A trace's path made absolute, as a map's (a run directory's config.toml then finds
+    it from anywhere); "" (none) as given."""
+    value = coerce_value(key, value, str)
+    return str(Path(value).expanduser().absolute()) if value.strip() else value
+
+
 @dataclass(frozen=True)
 class TraceParams(Params):
     """The trace replay's keys of ``[mobility]``."""
 
     section = "mobility"
     trace_file: str = param(
-        "", None, "ns-2 or BonnMotion movement file, or rosbag2 folder, replayed by model = 'trace'"
+        "",
+        None,
+        "ns-2 or BonnMotion movement file, or rosbag2 folder, replayed by model = 'trace'",
+        coerce=_trace_path,
     )
     trace_format: TraceFormat = param(
         TraceFormat.AUTO,

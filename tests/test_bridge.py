@@ -449,6 +449,7 @@ def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
         (["mobility.model=random_waypoint"], [], "mobility.model = 'random_waypoint'"),
         (["events.runtime_links=off"], [], "events.runtime_links = 'off': netsim bridge draws the links as they"),
         (["events.runtime_links=off"], ["--live", "0"], "events.runtime_links = 'off': netsim bridge draws the links"),
+        (["bridge.odom_hz=1e9"], [], "bridge.odom_hz = 1000000000.0: would make 3e+11 steps in duration_s = 300 s"),
     ],
     ids=[
         "unknown_relay_type",
@@ -459,6 +460,7 @@ def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
         "not_external",
         "no_runtime_links",
         "no_runtime_links_live",
+        "odom_hz_too_many_steps",
     ],
 )
 def test_bad_bridge_input_is_one_line_and_exit_2(tmp_path, capsys, sets, flags, message):

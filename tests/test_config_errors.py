@@ -543,3 +543,18 @@ def test_a_wall_loss_without_a_map_is_warned_of(tmp_path):
         assert cfgmod.from_dict(cfgmod.to_dict(config)).channel.radio.wall_loss_db == 5.0
         cfgmod.load(None, ['channel.propagation="log_distance"', "channel.wall_loss_db=5.0"])
         cfgmod.load(None, [*overrides, 'world.map="office"', 'world.bounds_m="map"', "world.n_robots=10"])
+
+
+@pytest.mark.parametrize("name", ["s.movements", "s.movements.gz"])
+def test_scenario_generate_refuses_a_bonnmotion_name(tmp_path, capsys, monkeypatch, name):
+    """`netsim scenario generate` writes ns-2; a file named .movements would be read back
+    as BonnMotion (and fail on its first line): refused in one line, exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["scenario", "generate", "--n", "3", "--side", "100", "--speed-max", "2", "--duration", "5", "-o", name]
+    assert main(argv) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines == [
+        f"netsim: error: -o {name}: writes ns-2, and a .movements name is read as BonnMotion; give another name "
+        "(netsim export --format bonnmotion writes BonnMotion from a run)"
+    ]
+    assert list(tmp_path.iterdir()) == []

@@ -630,3 +630,19 @@ def test_a_session_ended_early_is_exported_to_where_it_ended(tmp_path, fmt):
     assert np.allclose(_positions(again, 29.0, 4), _positions(legs, 6.0, 4), atol=1e-6)
     if fmt == "bonnmotion":
         assert "duration=6.0" in (tmp_path / "s.params").read_text()
+
+
+def test_a_run_of_a_relative_trace_repeats_from_its_config_anywhere(tmp_path, monkeypatch):
+    """A trace named relative to the working directory is kept absolute in the run's
+    config.toml: that file, run from another directory, replays the same trace."""
+    here, elsewhere = tmp_path / "here", tmp_path / "elsewhere"
+    here.mkdir()
+    elsewhere.mkdir()
+    (here / "s.movements").write_text("0 10 10 10 20 10\n0 30 30 10 40 30\n")
+    monkeypatch.chdir(here)
+    sets = ["mobility.model=trace", "mobility.trace_file=s.movements", "world.n_robots=2", "duration_s=10"]
+    assert main(["run", *(a for s in sets for a in ("--set", s)), "--out", "first", "--quiet"]) == 0
+    monkeypatch.chdir(elsewhere)
+    assert main(["run", str(here / "first" / "config.toml"), "--out", "again", "--quiet"]) == 0
+    first, again = (pd.read_parquet(d / "legs.parquet") for d in (here / "first", elsewhere / "again"))
+    pd.testing.assert_frame_equal(first, again)

@@ -286,6 +286,12 @@ def cmd_scenario_generate(args) -> int:
             check_fits_in_memory(config)
             check_legs_fit_in_memory(config)
             check_out_file(out, "-o")
+            if out.name.endswith((".movements", ".movements.gz")):
+                # A trace is read by its name: this one would be read as BonnMotion.
+                raise NetsimInputError(
+                    f"-o {out}: writes ns-2, and a .movements name is read as BonnMotion; give another name "
+                    "(netsim export --format bonnmotion writes BonnMotion from a run)"
+                )
             sim = build(config)
     except ConfigError as exc:
         raise _in_flags(exc) from None
