@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams, check_pairs
 
 from netsim.errors import ConfigError
 from netsim.params import finite, non_negative, param, positive, ttl_field
@@ -168,6 +168,19 @@ class RouteTable:
             known.expires_s = max(known.expires_s, expires_s)
         return False
 
+    def neighbour(self, nbr: int, seq: int, valid_seq: bool, expires_s: float, at_least: bool) -> None:
+        """``nbr`` was heard directly: its route is made one hop through itself and valid,
+        whatever sequence number the table held (a hello, section 6.9: "SHOULD make sure
+        that it has an active route to the neighbor"; a RREQ's previous hop, section 6.5),
+        as ns-3's ProcessHello and RecvRequest do. It holds ``seq`` (``valid_seq``) and
+        lives until ``expires_s`` (``at_least``: or longer, if it would)."""
+        known = self.routes.get(nbr)
+        if known is None:
+            self.routes[nbr] = Route(nbr, 1, seq, valid_seq, expires_s)
+            return
+        known.next_hop, known.hops, known.seq, known.valid_seq, known.valid = nbr, 1, seq, valid_seq, True
+        known.expires_s = max(known.expires_s, expires_s) if at_least else expires_s
+
     def break_link(self, next_hop: int, now: float, delete_period_s: float) -> list[tuple[int, int, set[int]]]:
         """The link to ``next_hop`` is broken: every valid route through it becomes invalid,
         its sequence number increased (section 6.11); returns ``(dst, seq, precursors)`` of
@@ -282,7 +295,7 @@ class Aodv(Router):
         now = self.env.now
         for r in receivers.tolist():
             self.hello_heard[r][sender] = now
-            self.tables[r].offer(sender, sender, 1, hello.dst_seq, True, now + hello.lifetime_s)
+            self.tables[r].neighbour(sender, hello.dst_seq, True, now + hello.lifetime_s, at_least=True)
 
     def _neighbour_lost(self, i: int, nbr: int, now: float) -> bool:
         """Whether ``i`` has missed ALLOWED_HELLO_LOSS hellos of ``nbr`` it used to hear."""
@@ -386,7 +399,7 @@ class Aodv(Router):
         now, p = self.env.now, self.params
         for r in receivers.tolist():
             table = self.tables[r]
-            table.offer(sender, sender, 1, 0, False, now + p.active_route_timeout_s)
+            table.neighbour(sender, rreq.orig_seq, False, now + p.active_route_timeout_s, at_least=False)
             key = (rreq.orig, rreq.rreq_id)
             if self.seen[r].get(key, -1.0) >= now:
                 continue
@@ -499,4 +512,4 @@ def build(params: AodvParams, parts: Parts) -> Aodv:
     return router
 
 
-PLUGIN = PluginSpec(Params=AodvParams, build=build, tables=dict(ROUTING_TABLES), carries_flows=True)
+PLUGIN = PluginSpec(Params=AodvParams, build=build, tables=dict(ROUTING_TABLES), carries_flows=True, check=check_pairs)

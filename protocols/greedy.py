@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams, check_pairs
 
 from netsim.compiled import load
 from netsim.errors import ConfigError
@@ -162,4 +162,6 @@ def build(params: GreedyParams, parts: Parts) -> Greedy:
     return router
 
 
-PLUGIN = PluginSpec(Params=GreedyParams, build=build, tables=dict(ROUTING_TABLES), carries_flows=True)
+PLUGIN = PluginSpec(
+    Params=GreedyParams, build=build, tables=dict(ROUTING_TABLES), carries_flows=True, check=check_pairs
+)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams
+from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams, check_pairs
 
 from netsim.errors import ConfigError
 from netsim.params import finite, non_negative, param, positive, ttl_field
@@ -341,4 +341,4 @@ def build(params: OlsrParams, parts: Parts) -> Olsr:
     return router
 
 
-PLUGIN = PluginSpec(Params=OlsrParams, build=build, tables=dict(ROUTING_TABLES), carries_flows=True)
+PLUGIN = PluginSpec(Params=OlsrParams, build=build, tables=dict(ROUTING_TABLES), carries_flows=True, check=check_pairs)

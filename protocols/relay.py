@@ -292,7 +292,9 @@ class Relay:
         nxt = int(nbrs[int(np.argmin(to_dst[nbrs]))])
         self._outcomes[msg.id]["transmissions"] += 1
         kind = self._kinds.get(msg.id, "data")
-        if not self.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind=kind):
+        sent = self.channel.unicast(holder, nxt, msg._replace(t_tx_s=now), self._on_oracle, kind=kind)
+        # A medium tells a frame it could not queue through _on_oracle, with no receiver.
+        if not sent and not self.channel.deferred:
             self._dropped(msg, now, "lost", holder)
 
     def _on_oracle(self, sender: int, receivers: np.ndarray, msg: Message) -> None:

@@ -20,9 +20,10 @@ from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
+from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts
-from netsim.traffic import Traffic
+from netsim.traffic import MAX_FRAMES_PER_RUN, Traffic, frame_count
 
 # The tables every routing protocol writes (the flows' when there are flows), and its
 # control frames: per kind, the frames sent, their bytes, their receptions, and the
@@ -51,6 +52,24 @@ class RoutingParams(Params):
     message_bytes: int = param(
         512, positive, "size of a random pair's message, bytes (over channel.max_frame_bytes: several frames)"
     )
+
+
+def check_pairs(params: RoutingParams, config) -> None:
+    """The random pairs' messages send at most :data:`MAX_FRAMES_PER_RUN` frames in the
+    run, as the flows (:func:`netsim.traffic.check_flows`): a size mistyped by orders of
+    magnitude is refused, not split into a list of frames no memory holds."""
+    per_message = frame_count(params.message_bytes, config.channel.max_frame_bytes)
+    # One message at least, however short the run: its frames are listed when it is sent.
+    messages = max(params.message_rate_hz * config.duration_s, 1.0) if params.message_rate_hz > 0 else 0.0
+    frames = messages * per_message
+    if frames > MAX_FRAMES_PER_RUN:
+        raise ConfigError(
+            "protocol.message_bytes",
+            params.message_bytes,
+            f"the random pairs' messages would send {frames:.3g} frames in the run ({per_message:,} a message, "
+            f"channel.max_frame_bytes = {config.channel.max_frame_bytes}); at most {MAX_FRAMES_PER_RUN:,}: "
+            "lower it, or protocol.message_rate_hz",
+        )
 
 
 class Packet(NamedTuple):

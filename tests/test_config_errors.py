@@ -191,6 +191,28 @@ def _cli(tmp_path, capsys, *args):
             "mobility.update_interval_s = 1e-09",
         ),
         (["--set", "protocol.message_rate_hz=1e12"], "protocol.message_rate_hz = 1000000000000.0: the run would make"),
+        (
+            [
+                "--set",
+                "protocol.model=greedy",
+                "--set",
+                "protocol.message_rate_hz=1",
+                "--set",
+                "protocol.message_bytes=1000000000000",
+            ],
+            "protocol.message_bytes = 1000000000000: the random pairs' messages would send 2e+11 frames in the run",
+        ),
+        (
+            [
+                "--set",
+                "protocol.model=aodv",
+                "--set",
+                "protocol.message_rate_hz=1e-6",
+                "--set",
+                "protocol.message_bytes=1000000000000",
+            ],
+            "protocol.message_bytes = 1000000000000: the random pairs' messages would send 6.67e+08 frames",
+        ),
         (["--set", "protocol.ack_period_s=1e-9"], "protocol.ack_period_s = 1e-09"),
         (
             [

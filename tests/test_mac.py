@@ -512,3 +512,27 @@ def test_coverage_runs_on_csma():
     assert by_kind.loc["command", "sent"] > 0 and by_kind.loc["command", "received"] > 0
     assert s["mac_frames"] + s["frames_dropped_queue_full"] == medium["sent"].sum()
     assert len(res.frames["coverage"]) > 0
+
+
+def test_an_oracle_message_a_full_queue_refuses_is_dropped_once():
+    """Oracle routing on a medium whose queue holds one frame, fed faster than it drains: a
+    message whose next hop's frame the full queue refuses is told dropped once (the medium
+    tells it through the delivery with no receiver; the refused unicast said it again)."""
+    flow = {"src": 0, "dst": 5, "start_s": 1.0, "stop_s": 10.0, "rate_bps": 200000.0, "packet_bytes": 4000}
+    cfg = make_config(
+        world={"n_robots": 10, "side_m": 400.0},
+        duration_s=10.0,
+        channel={"mac": "csma", "queue_frames": 1},
+        protocol={"routing": "oracle"},
+        traffic={"flows": [flow]},
+    )
+    dropped: list[tuple[int, str]] = []
+
+    def built(sim):
+        sim.events.on("message_dropped", lambda e: dropped.append((e.msg_id, e.cause)))
+
+    res = execute(cfg, built=built)
+    full = res.sim.channel.causes.index("queue_full")
+    assert sum(int(c.dropped[full].sum()) for c in res.sim.channel.counters.values()) > 10
+    ids = [m for m, _ in dropped]
+    assert len(ids) > 10 and len(ids) == len(set(ids))

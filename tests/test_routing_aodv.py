@@ -185,3 +185,44 @@ def test_a_robots_buffer_holds_queue_packets_whatever_their_destinations(tmp_pat
     assert causes == {"queue_full": 16, "no_route": 4}, causes
     waited = packets.sort_values(["t_sent_s", "flow"]).tail(4)
     assert (waited["drop_cause"] == "no_route").all(), packets[["flow", "t_sent_s", "drop_cause"]]
+
+
+def test_a_hello_or_a_rreq_makes_the_route_to_its_sender_active_whatever_its_sequence_number():
+    """A robot heard directly is a neighbour: its hello makes the route to it one hop and
+    active (section 6.9), with the hello's sequence number, even where a broken link had
+    raised the table's number above it; a RREQ does the same for its previous hop (section
+    6.5), without a valid number, as ns-3's ProcessHello and RecvRequest do. (The table's
+    freshness rule refused both, so the neighbour stayed unreachable until a discovery.)"""
+    t = RouteTable()
+    t.offer(1, 1, 1, 0, True, 10.0)
+    t.break_link(1, now=5.0, delete_period_s=15.0)
+    assert not t.routes[1].valid and t.routes[1].seq == 1
+    t.neighbour(1, seq=0, valid_seq=True, expires_s=10.0, at_least=True)
+    r = t.routes[1]
+    assert r.valid and (r.next_hop, r.hops, r.seq, r.valid_seq) == (1, 1, 0, True) and r.expires_s == 20.0
+    t.break_link(1, now=21.0, delete_period_s=15.0)
+    t.neighbour(1, seq=7, valid_seq=False, expires_s=24.0, at_least=False)
+    r = t.routes[1]
+    assert r.valid and (r.hops, r.seq, r.valid_seq) == (1, 7, False) and r.expires_s == 24.0
+
+
+BACK_AGAIN = """$node_(0) set X_ 100.0
+$node_(0) set Y_ 500.0
+$node_(1) set X_ 200.0
+$node_(1) set Y_ 500.0
+$ns_ at 5.0 "$node_(1) setdest 200.0 900.0 400.0"
+$ns_ at 7.0 "$node_(1) setdest 200.0 500.0 400.0"
+"""
+
+
+def test_a_neighbour_back_in_range_is_reached_once_its_hello_is_heard(tmp_path):
+    """Robot 1 leaves robot 0's range and comes back: once 0 hears its hellos again, the
+    packets 0 sends it go straight (they waited for the next route discovery, seconds
+    later, because the broken link had raised the route's sequence number above the
+    hello's)."""
+    flow = {"src": 0, "dst": 1, "start_s": 1.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 500}
+    sim, frames = flow_over_trace(tmp_path, BACK_AGAIN, 2, flow, 20.0, 1, {"range_m": 150.0}, {"model": "aodv"})
+    packets = frames["packets"]
+    back = packets[packets["t_sent_s"] >= 9.5]
+    assert len(back) > 10 and back["delivered"].all()
+    assert back["latency_s"].max() < 0.1, back[["t_sent_s", "latency_s"]]
