@@ -115,12 +115,14 @@ def fresher(known: Route | None, seq: int, valid_seq: bool, hops: int) -> bool:
 
 
 def ring_ttls(p: AodvParams, last_hops: int | None = None) -> list[int]:
-    """The TTLs of a route discovery's RREQs, in order (section 6.4): from TTL_START (or the
-    last known hop count + TTL_INCREMENT), + TTL_INCREMENT while not past TTL_THRESHOLD,
-    then NET_DIAMETER, tried 1 + RREQ_RETRIES times."""
-    ttl = p.ttl_start if last_hops is None else min(last_hops + p.ttl_increment, p.net_diameter)
+    """The TTLs of a route discovery's RREQs, in order (section 6.4): TTL_START (or the last
+    known hop count + TTL_INCREMENT), tried whatever TTL_THRESHOLD is, as ns-3 does; then +
+    TTL_INCREMENT while not past TTL_THRESHOLD; then NET_DIAMETER, tried 1 + RREQ_RETRIES
+    times."""
+    first = p.ttl_start if last_hops is None else min(last_hops + p.ttl_increment, p.net_diameter)
     out = []
-    while ttl <= p.ttl_threshold:
+    ttl = first
+    while ttl < p.net_diameter and (ttl <= p.ttl_threshold or ttl == first):
         out.append(ttl)
         ttl += p.ttl_increment
     return out + [p.net_diameter] * (1 + p.rreq_retries)

@@ -213,7 +213,8 @@ class Relay:
             seen[src] = True
             self._broadcast(src, msg)
             if self._pending[mid] == 0:
-                self._dropped(msg, now, "died_out", src)  # nobody received the source's broadcast
+                # Nobody received the source's broadcast: a flood that ended, held by no one robot.
+                self._dropped(msg, now, "died_out")
                 del self._seen[mid]
         return mid
 

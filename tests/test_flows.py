@@ -156,6 +156,30 @@ def test_dropped_packet_says_where_and_why(tmp_path):
     assert (packets["drop_cause"] == "no_route").all() and (packets["drop_robot"] == 0).all()
 
 
+@pytest.mark.parametrize("mac", ["none", "aloha"])
+def test_a_flood_no_one_hears_is_dropped_by_no_one_robot(tmp_path, mac):
+    """Backbone flooding from a source no robot hears: its packets die out as a flood does,
+    drop_robot -1, with or without a shared medium (without one it named the source)."""
+    flow = {**FLOW, "src": 2, "dst": 0}
+    path = tmp_path / "alone.csv"
+    path.write_text("x_m,y_m\n100,500\n200,500\n900,900\n")
+    config = make_config(
+        seed=2,
+        duration_s=20.0,
+        world={"n_robots": 3, "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0, "mac": mac},
+        protocol={"message_rate_hz": 0.0, "routing": "backbone"},
+        traffic={"flows": [flow]},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    packets = collect(sim)["packets"]
+    assert len(packets) > 5 and not packets["delivered"].any()
+    assert (packets["drop_cause"] == "died_out").all() and (packets["drop_robot"] == -1).all()
+
+
 BAD_FLOWS = [
     ({**FLOW, "dst": 9}, "traffic.flows[0].dst = 9: no such robot"),
     ({**FLOW, "stop_s": 1.0}, "traffic.flows[0].stop_s = 1.0: must be after"),

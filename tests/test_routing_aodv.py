@@ -78,6 +78,10 @@ def test_expanding_ring_ttls(tmp_path):
     every ring, dropping its packets for want of a route."""
     assert ring_ttls(AodvParams()) == [1, 3, 5, 7, 35, 35, 35]
     assert ring_ttls(AodvParams(ttl_start=2, ttl_increment=3, ttl_threshold=9, rreq_retries=1)) == [2, 5, 8, 35, 35]
+    # The first ring is tried past the threshold too (ns-3's SendRequest): it skipped to 35.
+    assert ring_ttls(AodvParams(ttl_start=9)) == [9, 35, 35, 35]
+    assert ring_ttls(AodvParams(), last_hops=6) == [8, 35, 35, 35]
+    assert ring_ttls(AodvParams(), last_hops=40) == [35, 35, 35]
     flow = {"src": 0, "dst": 5, "start_s": 10.0, "stop_s": 10.5, "rate_bps": 8000.0, "packet_bytes": 1000}
     sim, frames = _run(tmp_path, [(50 + 100 * i, 500) for i in range(6)], [flow])
     assert [ttl for _, _, _, ttl in sim.models["protocol"].rreqs_originated] == [1, 3, 5]
