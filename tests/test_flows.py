@@ -133,25 +133,29 @@ def test_packet_is_delivered_only_whole(tmp_path):
     assert packets.loc[packets["delivered"], "drop_cause"].isna().all()  # no cause, as receptions' cause
 
 
-def test_dropped_packet_says_where_and_why(tmp_path):
-    """A packet that cannot reach its destination (a gap in the line) is dropped at the
-    robot that held it, for want of a route (oracle routing)."""
-    flow = {**FLOW, "dst": 2}
-    path = tmp_path / "gap.csv"
-    path.write_text("x_m,y_m\n100,500\n200,500\n600,500\n")
+def _three_robots_run(tmp_path, xy: str, flow: dict, routing: str, mac: str = "none"):
+    """The packets of ``flow`` among three static robots at ``xy`` (CSV rows)."""
+    path = tmp_path / "three.csv"
+    path.write_text("x_m,y_m\n" + xy)
     config = make_config(
         seed=2,
         duration_s=20.0,
         world={"n_robots": 3, "side_m": 1000.0, "placement": str(path)},
         mobility={"model": "static"},
-        channel={"range_m": 120.0},
-        protocol={"message_rate_hz": 0.0, "routing": "oracle"},
+        channel={"range_m": 120.0, "mac": mac},
+        protocol={"message_rate_hz": 0.0, "routing": routing},
         traffic={"flows": [flow]},
         output={"position_interval_s": 0.0},
     )
     sim = build(config)
     sim.run()
-    packets = collect(sim)["packets"]
+    return collect(sim)["packets"]
+
+
+def test_dropped_packet_says_where_and_why(tmp_path):
+    """A packet that cannot reach its destination (a gap in the line) is dropped at the
+    robot that held it, for want of a route (oracle routing)."""
+    packets = _three_robots_run(tmp_path, "100,500\n200,500\n600,500\n", {**FLOW, "dst": 2}, "oracle")
     assert not packets["delivered"].any()
     assert (packets["drop_cause"] == "no_route").all() and (packets["drop_robot"] == 0).all()
 
@@ -161,21 +165,7 @@ def test_a_flood_no_one_hears_is_dropped_by_no_one_robot(tmp_path, mac):
     """Backbone flooding from a source no robot hears: its packets die out as a flood does,
     drop_robot -1, with or without a shared medium (without one it named the source)."""
     flow = {**FLOW, "src": 2, "dst": 0}
-    path = tmp_path / "alone.csv"
-    path.write_text("x_m,y_m\n100,500\n200,500\n900,900\n")
-    config = make_config(
-        seed=2,
-        duration_s=20.0,
-        world={"n_robots": 3, "side_m": 1000.0, "placement": str(path)},
-        mobility={"model": "static"},
-        channel={"range_m": 120.0, "mac": mac},
-        protocol={"message_rate_hz": 0.0, "routing": "backbone"},
-        traffic={"flows": [flow]},
-        output={"position_interval_s": 0.0},
-    )
-    sim = build(config)
-    sim.run()
-    packets = collect(sim)["packets"]
+    packets = _three_robots_run(tmp_path, "100,500\n200,500\n900,900\n", flow, "backbone", mac)
     assert len(packets) > 5 and not packets["delivered"].any()
     assert (packets["drop_cause"] == "died_out").all() and (packets["drop_robot"] == -1).all()
 
