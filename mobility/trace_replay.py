@@ -57,7 +57,11 @@ def _trace_path(key: str, value: Any) -> str:
     """A trace's path made absolute, as a map's (a run directory's config.toml then finds
     it from anywhere); "" (none) as given."""
     value = coerce_value(key, value, str)
-    return str(Path(value).expanduser().absolute()) if value.strip() else value
+    if value == "":
+        return value
+    if not value.strip() or not value.isprintable():
+        raise ConfigError(key, value, 'must be the path of a movement file or a rosbag2 folder, or ""')
+    return str(Path(value).expanduser().absolute())
 
 
 @dataclass(frozen=True)

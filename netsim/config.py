@@ -446,7 +446,10 @@ class Config(Params):
                 raise ConfigError("channel.range_m", most, f"must be at most {MAX_COORDINATE_M:g} m")
         else:
             shadowed = propagation.shadowed(radio)
-            farthest = propagation.reach(radio) if shadowed else most
+            # A model may leave its reach unsaid (None): its range then.
+            reach = propagation.reach(radio) if shadowed else None
+            shadowed = reach is not None
+            farthest = max(reach, most) if reach is not None else most
             if not farthest <= MAX_COORDINATE_M:
                 what = "reach under its strongest shadowing" if shadowed else "implied range"
                 raise ConfigError(

@@ -257,14 +257,27 @@ def check_schedules(params: Params, duration_s: float, n_robots: int) -> None:
             continue
         per_s = value if f.name.endswith("_hz") else 1.0 / value
         # A team too large for a float counts as 10^300: refused alike, not an overflow.
-        count = duration_s * per_s * (float(min(n_robots, 10**300)) if who == "robot" else 1.0)
-        if count > MAX_EVENTS_PER_RUN:
-            each = f"{n_robots} robots each" if who == "robot" else "the run"
-            change = "lower" if f.name.endswith("_hz") else "raise"
-            others = "duration_s or world.n_robots" if who == "robot" else "duration_s"
-            raise ConfigError(
-                f"{params.section}.{f.name}",
-                value,
-                f"{each} would make {count:.3g} events of it in duration_s = {duration_s:g} s, more than "
-                f"{MAX_EVENTS_PER_RUN:,}; {change} it, or lower {others}",
-            )
+        robots = who == "robot"
+        count = duration_s * per_s * (float(min(n_robots, 10**300)) if robots else 1.0)
+        refuse_events(
+            f"{params.section}.{f.name}",
+            value,
+            count,
+            duration_s,
+            f"{n_robots} robots each" if robots else "the run",
+            "duration_s or world.n_robots" if robots else "duration_s",
+        )
+
+
+def refuse_events(key: str, value: Any, count: float, duration_s: float, each: str, others: str) -> None:
+    """Refuse ``key`` (a period, or a rate named ``_hz``) if ``each`` (``"the run"``, or the
+    robots) would make more than :data:`MAX_EVENTS_PER_RUN` events of it in ``duration_s``;
+    the message says to change it or lower ``others``."""
+    if count > MAX_EVENTS_PER_RUN:
+        change = "lower" if key.endswith("_hz") else "raise"
+        raise ConfigError(
+            key,
+            value,
+            f"{each} would make {count:.3g} events of it in duration_s = {duration_s:g} s, more than "
+            f"{MAX_EVENTS_PER_RUN:,}; {change} it, or lower {others}",
+        )

@@ -170,18 +170,20 @@ class RouteTable:
             known.expires_s = max(known.expires_s, expires_s)
         return False
 
-    def neighbour(self, nbr: int, seq: int, valid_seq: bool, expires_s: float, at_least: bool) -> None:
-        """``nbr`` was heard directly: its route is made one hop through itself and valid,
-        whatever sequence number the table held (a hello, section 6.9: "SHOULD make sure
-        that it has an active route to the neighbor"; a RREQ's previous hop, section 6.5),
-        as ns-3's ProcessHello and RecvRequest do. It holds ``seq`` (``valid_seq``) and
-        lives until ``expires_s`` (``at_least``: or longer, if it would)."""
+    def neighbour(self, nbr: int, seq: int | None, expires_s: float) -> None:
+        """``nbr`` was heard directly: its route is made one hop through itself and active,
+        whatever sequence number the table held, living until ``expires_s`` at least. A hello
+        (section 6.9: "SHOULD make sure that it has an active route to the neighbor") brings
+        its sender's sequence number, ``seq``; a RREQ's previous hop (section 6.5: "without a
+        valid sequence number") brings none (None), and a number already known is kept."""
         known = self.routes.get(nbr)
         if known is None:
-            self.routes[nbr] = Route(nbr, 1, seq, valid_seq, expires_s)
+            self.routes[nbr] = Route(nbr, 1, 0 if seq is None else seq, seq is not None, expires_s)
             return
-        known.next_hop, known.hops, known.seq, known.valid_seq, known.valid = nbr, 1, seq, valid_seq, True
-        known.expires_s = max(known.expires_s, expires_s) if at_least else expires_s
+        known.next_hop, known.hops, known.valid = nbr, 1, True
+        if seq is not None:
+            known.seq, known.valid_seq = seq, True
+        known.expires_s = max(known.expires_s, expires_s)
 
     def break_link(self, next_hop: int, now: float, delete_period_s: float) -> list[tuple[int, int, set[int]]]:
         """The link to ``next_hop`` is broken: every valid route through it becomes invalid,
@@ -297,7 +299,7 @@ class Aodv(Router):
         now = self.env.now
         for r in receivers.tolist():
             self.hello_heard[r][sender] = now
-            self.tables[r].neighbour(sender, hello.dst_seq, True, now + hello.lifetime_s, at_least=True)
+            self.tables[r].neighbour(sender, hello.dst_seq, now + hello.lifetime_s)
 
     def _neighbour_lost(self, i: int, nbr: int, now: float) -> bool:
         """Whether ``i`` has missed ALLOWED_HELLO_LOSS hellos of ``nbr`` it used to hear."""
@@ -401,7 +403,7 @@ class Aodv(Router):
         now, p = self.env.now, self.params
         for r in receivers.tolist():
             table = self.tables[r]
-            table.neighbour(sender, rreq.orig_seq, False, now + p.active_route_timeout_s, at_least=False)
+            table.neighbour(sender, None, now + p.active_route_timeout_s)
             key = (rreq.orig, rreq.rreq_id)
             if self.seen[r].get(key, -1.0) >= now:
                 continue

@@ -449,7 +449,11 @@ def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
         (["mobility.model=random_waypoint"], [], "mobility.model = 'random_waypoint'"),
         (["events.runtime_links=off"], [], "events.runtime_links = 'off': netsim bridge draws the links as they"),
         (["events.runtime_links=off"], ["--live", "0"], "events.runtime_links = 'off': netsim bridge draws the links"),
-        (["bridge.odom_hz=1e9"], [], "bridge.odom_hz = 1000000000.0: would make 3e+11 steps in duration_s = 300 s"),
+        (
+            ["bridge.odom_hz=1e9"],
+            [],
+            "bridge.odom_hz = 1000000000.0: the run would make 3e+11 events of it in duration_s = 300 s",
+        ),
     ],
     ids=[
         "unknown_relay_type",

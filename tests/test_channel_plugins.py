@@ -334,3 +334,18 @@ def test_a_user_loss_term_giving_nan_or_the_wrong_shape_is_refused(tmp_path, mon
     config = cfgmod.load(None, [*SMALL, f"channel.propagation={module}:PLUGIN"])
     with pytest.raises(NetsimInputError, match=rf"^channel.propagation: Bad.loss_db {re.escape(said)}"):
         execute(config)
+
+
+def test_a_shadowed_user_model_that_leaves_its_reach_unsaid_is_taken_at_its_range(tmp_path, monkeypatch):
+    """A user's propagation model may say it is shadowed and leave its reach unsaid (None,
+    the plugin contract's default): the configuration's check of a reach past any area
+    takes its range then, and the run is built."""
+    (tmp_path / "unsaid_reach.py").write_text(
+        "import dataclasses\n"
+        "from netsim.radio.propagation_models import LOG_DISTANCE\n"
+        "PLUGIN = dataclasses.replace(LOG_DISTANCE, reach=lambda params: None)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = cfgmod.load(None, [*SMALL, "channel.propagation=unsaid_reach:PLUGIN", "channel.shadowing_sigma_db=4"])
+    assert config.channel.propagation_model.reach(config.channel.radio) is None
+    assert build(config).channel is not None

@@ -115,6 +115,14 @@ def _cli(tmp_path, capsys, *args):
     "args, fragment",
     [
         (["--set", "channel.range_m=-5"], "channel.range_m = -5.0"),
+        (
+            ["--set", "mobility.model=trace", "--set", 'mobility.trace_file="  "'],
+            "mobility.trace_file = '  ': must be the path of a movement file or a rosbag2 folder",
+        ),
+        (
+            ["--set", "mobility.model=trace", "--set", 'mobility.trace_file="a\\nb.tcl"'],
+            "mobility.trace_file = 'a\\nb.tcl': must be the path",
+        ),
         (["--set", "duration_s"], "--set = 'duration_s': must look like key=value or section.key=value"),
         (["--set", "world..n_robots=3"], "must look like key=value or section.key=value"),
         (["--set", "world.n_robots=0"], "world.n_robots = 0"),

@@ -648,3 +648,22 @@ def test_an_action_at_the_speed_bound_is_taken_in_either_precision(speed_max_mps
     beyond = np.nextafter(max(high, speed_max_mps), np.inf)
     with pytest.raises(CommandError, match="must be finite and within"):
         env.step({"robot_0": (beyond, 0.0)})
+
+
+def test_a_warning_not_of_the_configuration_goes_on_as_it_came(monkeypatch):
+    """Only the configuration's own warnings are held back until the setting is known to be
+    good; any other warning raised while the runs' configuration is made goes on at once,
+    from where it was raised."""
+    real = coverage_v0.CoverageEnv._config
+
+    def noisy(self, seed):
+        warnings.warn("a library's own warning", DeprecationWarning, stacklevel=1)
+        return real(self, seed)
+
+    monkeypatch.setattr(coverage_v0.CoverageEnv, "_config", noisy)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        coverage_v0.parallel_env(**SMALL)
+    others = [w for w in said if w.category is DeprecationWarning]
+    assert [str(w.message) for w in others] == ["a library's own warning"]
+    assert others[0].filename == __file__

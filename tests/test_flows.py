@@ -163,7 +163,7 @@ def test_dropped_packet_says_where_and_why(tmp_path):
 @pytest.mark.parametrize("mac", ["none", "aloha"])
 def test_a_flood_no_one_hears_is_dropped_by_no_one_robot(tmp_path, mac):
     """Backbone flooding from a source no robot hears: its packets die out as a flood does,
-    drop_robot -1, with or without a shared medium (without one it named the source)."""
+    drop_robot -1, with or without a shared medium."""
     flow = {**FLOW, "src": 2, "dst": 0}
     packets = _three_robots_run(tmp_path, "100,500\n200,500\n900,900\n", flow, "backbone", mac)
     assert len(packets) > 5 and not packets["delivered"].any()

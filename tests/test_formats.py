@@ -609,17 +609,21 @@ def test_a_refused_trace_is_its_one_error_line_without_the_readers_warnings(tmp_
 
 
 @pytest.mark.parametrize("fmt", ["ns2", "bonnmotion"])
-def test_a_session_ended_early_is_exported_to_where_it_ended(tmp_path, fmt):
+def test_a_session_ended_early_is_exported_to_where_it_ended(tmp_path, capsys, fmt):
     """A bridge session stopped by Ctrl-C keeps its planned duration_s in config.toml and
     ends its tables (and summary.json's duration_s) where it stopped: the export ends there
     too, not carrying every robot's last leg on to the plan's end."""
     run = tmp_path / "session"
-    sets = ["duration_s=6", "world.n_robots=4", "mobility.stationary_start=false", "mobility.pause_s=0"]
+    # A flow planned after where the session ended: the export says nothing of it.
+    flow = "traffic.flows=[{src=0, dst=1, start_s=20, stop_s=25, rate_bps=800, packet_bytes=100}]"
+    sets = ["duration_s=6", "world.n_robots=4", "mobility.stationary_start=false", "mobility.pause_s=0", flow]
     assert main(["run", *(a for s in sets for a in ("--set", s)), "--out", str(run), "--quiet"]) == 0
+    assert "traffic.flows[0] starts at 20 s" in capsys.readouterr().err
     config = run / "config.toml"
     config.write_text(config.read_text().replace("duration_s = 6.0", "duration_s = 30.0", 1))
     out = tmp_path / ("s.tcl" if fmt == "ns2" else "s.movements")
     assert main(["export", str(run), "--format", fmt, "--out", str(out)]) == 0
+    assert capsys.readouterr().err == ""
     legs = pd.read_parquet(run / "legs.parquet")
     replayed = tmp_path / "replayed"
     sets = ["mobility.model=trace", f"mobility.trace_file={out}", "world.n_robots=4", "duration_s=30"]
@@ -630,6 +634,9 @@ def test_a_session_ended_early_is_exported_to_where_it_ended(tmp_path, fmt):
     assert np.allclose(_positions(again, 29.0, 4), _positions(legs, 6.0, 4), atol=1e-6)
     if fmt == "bonnmotion":
         assert "duration=6.0" in (tmp_path / "s.params").read_text()
+    # A damaged summary leaves the plan's end, as before the summary was read: no refusal.
+    (run / "summary.json").write_text("not JSON")
+    assert main(["export", str(run), "--format", fmt, "--out", str(tmp_path / ("t" + out.name[1:]))]) == 0
 
 
 def test_a_run_of_a_relative_trace_repeats_from_its_config_anywhere(tmp_path, monkeypatch):

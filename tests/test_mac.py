@@ -517,7 +517,8 @@ def test_coverage_runs_on_csma():
 def test_an_oracle_message_a_full_queue_refuses_is_dropped_once():
     """Oracle routing on a medium whose queue holds one frame, fed faster than it drains: a
     message whose next hop's frame the full queue refuses is told dropped once (the medium
-    tells it through the delivery with no receiver; the refused unicast said it again)."""
+    tells it through the delivery with no receiver, and the refused unicast must not tell
+    it again)."""
     flow = {"src": 0, "dst": 5, "start_s": 1.0, "stop_s": 10.0, "rate_bps": 200000.0, "packet_bytes": 4000}
     cfg = make_config(
         world={"n_robots": 10, "side_m": 400.0},

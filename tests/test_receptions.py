@@ -241,8 +241,8 @@ def test_receptions_power_on_a_map_is_the_law_less_every_wall_crossed():
 def test_receptions_of_a_frame_on_the_air_at_the_end_are_its_counted_drops(mac):
     """A run that ends while a frame is on the air: the receivers it lost where it went on
     the air (to the loss model) were counted as drops, so they have their rows; those left
-    to its end, which never came, have none. Found by cutting a run just after a frame
-    with a loss went on the air."""
+    to its end, which never came, have none. The run is cut just after a frame with a loss
+    went on the air."""
     channel = {**MEDIUM, "mac": mac, "loss_model": "bernoulli", "loss_probability": 0.3}
     whole = _run(_config(channel, n=19, side_m=150.0, duration_s=8.0))[0].frames["receptions"]
     t0 = float(whole["t_s"][(whole["cause"] == "loss") & (whole["t_s"] > 5.0)].iloc[0])

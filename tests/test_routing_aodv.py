@@ -78,7 +78,7 @@ def test_expanding_ring_ttls(tmp_path):
     every ring, dropping its packets for want of a route."""
     assert ring_ttls(AodvParams()) == [1, 3, 5, 7, 35, 35, 35]
     assert ring_ttls(AodvParams(ttl_start=2, ttl_increment=3, ttl_threshold=9, rreq_retries=1)) == [2, 5, 8, 35, 35]
-    # The first ring is tried past the threshold too (ns-3's SendRequest): it skipped to 35.
+    # The first ring is tried past the threshold too (ns-3's SendRequest).
     assert ring_ttls(AodvParams(ttl_start=9)) == [9, 35, 35, 35]
     assert ring_ttls(AodvParams(), last_hops=6) == [8, 35, 35, 35]
     assert ring_ttls(AodvParams(), last_hops=40) == [35, 35, 35]
@@ -193,21 +193,23 @@ def test_a_robots_buffer_holds_queue_packets_whatever_their_destinations(tmp_pat
 
 def test_a_hello_or_a_rreq_makes_the_route_to_its_sender_active_whatever_its_sequence_number():
     """A robot heard directly is a neighbour: its hello makes the route to it one hop and
-    active (section 6.9), with the hello's sequence number, even where a broken link had
-    raised the table's number above it; a RREQ does the same for its previous hop (section
-    6.5), without a valid number, as ns-3's ProcessHello and RecvRequest do. (The table's
-    freshness rule refused both, so the neighbour stayed unreachable until a discovery.)"""
+    active (section 6.9), with the hello's sequence number, even where a broken link raised
+    the table's number above it; a RREQ does the same for its previous hop (section 6.5),
+    bringing no sequence number: a known one is kept, valid if it was. Neither shortens the
+    route's life."""
     t = RouteTable()
     t.offer(1, 1, 1, 0, True, 10.0)
     t.break_link(1, now=5.0, delete_period_s=15.0)
     assert not t.routes[1].valid and t.routes[1].seq == 1
-    t.neighbour(1, seq=0, valid_seq=True, expires_s=10.0, at_least=True)
+    t.neighbour(1, seq=0, expires_s=10.0)
     r = t.routes[1]
     assert r.valid and (r.next_hop, r.hops, r.seq, r.valid_seq) == (1, 1, 0, True) and r.expires_s == 20.0
     t.break_link(1, now=21.0, delete_period_s=15.0)
-    t.neighbour(1, seq=7, valid_seq=False, expires_s=24.0, at_least=False)
+    t.neighbour(1, seq=None, expires_s=24.0)
     r = t.routes[1]
-    assert r.valid and (r.hops, r.seq, r.valid_seq) == (1, 7, False) and r.expires_s == 24.0
+    assert r.valid and (r.hops, r.seq, r.valid_seq) == (1, 1, True) and r.expires_s == 36.0
+    t.neighbour(2, seq=None, expires_s=24.0)
+    assert (t.routes[2].hops, t.routes[2].valid, t.routes[2].valid_seq) == (1, True, False)
 
 
 BACK_AGAIN = """$node_(0) set X_ 100.0
@@ -221,9 +223,8 @@ $ns_ at 7.0 "$node_(1) setdest 200.0 500.0 400.0"
 
 def test_a_neighbour_back_in_range_is_reached_once_its_hello_is_heard(tmp_path):
     """Robot 1 leaves robot 0's range and comes back: once 0 hears its hellos again, the
-    packets 0 sends it go straight (they waited for the next route discovery, seconds
-    later, because the broken link had raised the route's sequence number above the
-    hello's)."""
+    packets 0 sends it go straight, though the broken link raised the route's sequence
+    number above the hello's."""
     flow = {"src": 0, "dst": 1, "start_s": 1.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 500}
     sim, frames = flow_over_trace(tmp_path, BACK_AGAIN, 2, flow, 20.0, 1, {"range_m": 150.0}, {"model": "aodv"})
     packets = frames["packets"]

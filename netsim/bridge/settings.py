@@ -14,7 +14,7 @@ from typing import Any
 
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
-from netsim.params import MAX_EVENTS_PER_RUN
+from netsim.params import refuse_events
 
 # DDS maps a domain id to UDP ports (7400 + 250 x id, and up): ids above 232 overflow them.
 DOMAIN_ID_MAX = 232
@@ -148,14 +148,9 @@ def load(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeS
             "mobility.model", config.mobility.model, "the bridge moves robots as ROS 2 nodes tell: must be 'external'"
         )
     settings = bridge or BridgeSettings()
-    steps = config.duration_s * settings.odom_hz
-    if steps > MAX_EVENTS_PER_RUN:
-        # As a key that schedules events (netsim.params.check_schedules): past this the
-        # session's steps alone outlast any session.
-        raise ConfigError(
-            "bridge.odom_hz",
-            settings.odom_hz,
-            f"would make {steps:.3g} steps in duration_s = {config.duration_s:g} s, more than "
-            f"{MAX_EVENTS_PER_RUN:,}; lower it, or duration_s",
-        )
+    # A key that schedules events, as those of the configuration (netsim.params.check_schedules).
+    duration_s = config.duration_s
+    refuse_events(
+        "bridge.odom_hz", settings.odom_hz, duration_s * settings.odom_hz, duration_s, "the run", "duration_s"
+    )
     return config, settings

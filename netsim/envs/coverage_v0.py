@@ -197,11 +197,16 @@ class CoverageEnv(ParallelEnv):
         return cfgmod.from_dict(cfgmod.merge(raw, self.netsim))
 
     def _config_told(self, seed: int) -> tuple[cfgmod.Config, list[warnings.WarningMessage]]:
-        """:meth:`_config`, and the warnings it gave, held back."""
+        """:meth:`_config`, and the configuration's warnings it gave (keys ignored), held
+        back; any other warning goes on as it came."""
         with warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always")
             config = self._config(seed)
-        return config, said
+        held = [w for w in said if issubclass(w.category, cfgmod.ConfigWarning)]
+        for w in said:
+            if not issubclass(w.category, cfgmod.ConfigWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+        return config, held
 
     def _tell(self, said: list[warnings.WarningMessage]) -> None:
         for w in said:

@@ -23,7 +23,7 @@ import pandas as pd
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.formats import ns2
-from netsim.tools.output import existing_dir, is_run_dir, read_run_table
+from netsim.tools.output import existing_dir, is_run_dir, load_run_config, read_run_table
 
 FORMATS = ("bonnmotion", "ns2", "rosbag2")
 
@@ -61,7 +61,6 @@ def check_out(out: Path, fmt: str) -> None:
 def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     """Write ``run_dir`` as ``fmt`` to ``out``; returns ``out``."""
     from netsim.formats import waypoints
-    from netsim.tools.viewer.data import load_config
 
     out = Path(out)
     if fmt not in FORMATS:
@@ -70,7 +69,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     if not is_run_dir(run_dir):
         raise NetsimInputError(f"{run_dir}: not a run directory (no manifest.json)")
     check_out(out, fmt)
-    config = load_config(run_dir)
+    config = load_run_config(run_dir)
     n, duration, area = config.world.n_robots, config.duration_s, world_bounds(config.world)
     if fmt == "rosbag2":
         if config.world.torus:

@@ -40,7 +40,7 @@ from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.geometry import crosses_border, distances_m, link_segments_m
 from netsim.tools import style
-from netsim.tools.output import TMP_PREFIX, read_run_config, read_run_table, run_map
+from netsim.tools.output import TMP_PREFIX, load_run_config, read_run_table, run_map
 from netsim.topology import geometric_pairs
 
 # The built-in coverage scenario: a dense random start in the middle of the area, as the
@@ -83,7 +83,7 @@ def read_run(run_dir: Path) -> Run:
     missing = [f for f in needed if not (run_dir / f).is_file()]
     if missing:
         raise NetsimInputError(f"{run_dir}: not a run directory with positions (missing {', '.join(missing)})")
-    config = cfgmod.from_dict(read_run_config(run_dir))
+    config = load_run_config(run_dir)
     n = config.world.n_robots
     positions = read_run_table(run_dir, "positions", n)
     roles = read_run_table(run_dir, "roles", n)

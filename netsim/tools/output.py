@@ -23,6 +23,7 @@ import shutil
 import sys
 import tempfile
 import tomllib
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
@@ -33,7 +34,7 @@ import numpy as np
 import pandas as pd
 import tomli_w
 
-from netsim.config import Config, to_dict
+from netsim.config import Config, from_dict, to_dict
 from netsim.errors import NetsimInputError
 from netsim.tools.interrupt import ignoring_interrupts, interrupted
 
@@ -225,12 +226,24 @@ def read_run_config(run_dir: Path) -> dict:
     missing = [k for k in ("duration_s", "world") if k not in table]
     if missing:
         raise NetsimInputError(f"{path}: holds no run's configuration (no {' or '.join(missing)})")
-    ended = read_run_summary(run_dir).get("duration_s")
+    try:
+        ended = read_run_summary(run_dir).get("duration_s")
+    except NetsimInputError:
+        ended = None  # a damaged summary: the plan's end, as before the summary was read
     planned = table["duration_s"]
     numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (ended, planned))
     if numbers and 0 < ended < planned:
         table["duration_s"] = float(ended)
     return table
+
+
+def load_run_config(run_dir: Path) -> Config:
+    """The run's configuration (:func:`read_run_config`), checked and resolved, without
+    the warnings a run gives of it: they were given when it ran, and a session ended early
+    would be warned of what its shorter end leaves out (a flow that starts after it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return from_dict(read_run_config(run_dir))
 
 
 def earlier_run_files(out: Path) -> list[Path]:

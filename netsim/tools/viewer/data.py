@@ -37,7 +37,7 @@ from netsim.errors import NetsimInputError
 from netsim.metrics import components_in_links_table
 from netsim.plugins import RoleLabels
 from netsim.tools import style
-from netsim.tools.output import existing_dir, read_run_config, read_run_summary, read_run_table, run_map
+from netsim.tools.output import existing_dir, load_run_config, read_run_summary, read_run_table, run_map
 from netsim.trajectory import sample_positions
 
 
@@ -97,10 +97,6 @@ def _small_uint(values: np.ndarray) -> str:
 
 def _read(run_dir: Path, name: str, n: int) -> pd.DataFrame | None:
     return read_run_table(run_dir, name, n)
-
-
-def load_config(run_dir: Path) -> cfgmod.Config:
-    return cfgmod.from_dict(read_run_config(run_dir))
 
 
 def leaders_series(roles: pd.DataFrame, leader_label: str) -> tuple[np.ndarray, np.ndarray]:
@@ -252,7 +248,7 @@ def _empty_links() -> pd.DataFrame:
 def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
     """Everything the page shows of the run in ``run_dir``: ``{"meta": ..., "blob": ...}``."""
     run_dir = existing_dir(run_dir)
-    config = load_config(run_dir)
+    config = load_run_config(run_dir)
     n, duration = config.world.n_robots, config.duration_s
     blob = Blob()
     motion = _motion(run_dir, n, blob)
