@@ -424,8 +424,9 @@ class Aodv(Router):
             if (
                 fwd is not None
                 and fwd.valid_seq
-                and not rreq.unknown_seq
-                and not seq_newer(rreq.dst_seq, fwd.seq)
+                # A RREQ that knows no number for the destination asks for none: any valid one
+                # is fresh enough (ns-3's RecvRequest).
+                and (rreq.unknown_seq or not seq_newer(rreq.dst_seq, fwd.seq))
                 and fwd.next_hop != sender
             ):
                 # Section 6.6.2: an intermediate robot with a fresh enough route answers.

@@ -231,3 +231,25 @@ def test_a_neighbour_back_in_range_is_reached_once_its_hello_is_heard(tmp_path):
     back = packets[packets["t_sent_s"] >= 9.5]
     assert len(back) > 10 and back["delivered"].all()
     assert back["latency_s"].max() < 0.1, back[["t_sent_s", "latency_s"]]
+
+
+def test_an_intermediate_robot_answers_a_rreq_that_knows_no_destination_number(tmp_path, monkeypatch):
+    """Section 6.6.2 with the RREQ's unknown-number flag: robot 1 holds a valid route to 3
+    (its own flow found it); robot 0, which knows no number for 3, asks, and robot 1 answers
+    from its route (two hops to go) instead of passing the RREQ on to 3, as ns-3 does."""
+    from netsim.protocols.aodv import Aodv
+
+    answers: list[tuple[int, int, int, int]] = []
+    real = Aodv._send_rrep
+
+    def recorded(self, r, rrep):
+        answers.append((r, rrep.orig, rrep.dst, rrep.hops))
+        return real(self, r, rrep)
+
+    monkeypatch.setattr(Aodv, "_send_rrep", recorded)
+    first = {"src": 1, "dst": 3, "start_s": 10.0, "stop_s": 10.5, "rate_bps": 8000.0, "packet_bytes": 1000}
+    then = {**first, "src": 0, "start_s": 11.0, "stop_s": 11.5}
+    sim, frames = _run(tmp_path, [(50 + 100 * i, 500) for i in range(4)], [first, then], duration_s=15.0)
+    asked = [(r, hops) for r, orig, dst, hops in answers if orig == 0 and dst == 3]
+    assert asked and asked[0] == (1, 2), answers
+    assert frames["packets"]["delivered"].all()
