@@ -50,6 +50,10 @@ def _topics(key: str, value: Any) -> tuple[str, ...]:
         value = [value]
     if not isinstance(value, (list, tuple)) or not all(isinstance(t, str) and t for t in value):
         raise ConfigError(key, value, "must be a list of topic names, robot i following topics[i]")
+    twice = next((t for k, t in enumerate(value) if t in value[:k]), None)
+    if twice is not None:
+        # Two robots cannot follow one topic's poses.
+        raise ConfigError(key, list(value), f"names {twice!r} twice: each robot follows a topic of its own")
     return tuple(value)
 
 

@@ -116,6 +116,10 @@ def _cli(tmp_path, capsys, *args):
     [
         (["--set", "channel.range_m=-5"], "channel.range_m = -5.0"),
         (
+            ["--set", "mobility.model=trace", "--set", 'mobility.topics=["/a/odom", "/b/odom", "/a/odom"]'],
+            "mobility.topics = ['/a/odom', '/b/odom', '/a/odom']: names '/a/odom' twice",
+        ),
+        (
             ["--set", "mobility.model=trace", "--set", 'mobility.trace_file="  "'],
             "mobility.trace_file = '  ': must be the path of a movement file or a rosbag2 folder",
         ),

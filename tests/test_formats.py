@@ -355,6 +355,15 @@ def test_rosbag2_topics_key_chooses_each_robots_topic(tmp_path):
         rosbag2.read(bag)
 
 
+def test_a_bags_pose_topic_without_a_message_is_named(tmp_path):
+    """A robot's pose topic that holds no message leaves it without a position: one line
+    naming the topic and the robot, not a count of nodes that disagrees with the team."""
+    bag = tmp_path / "quiet"
+    _bag(bag, {"/robot_0/pose": [(0.0, 1, 1)], "/robot_1/pose": []}, "geometry_msgs/msg/PoseStamped")
+    with pytest.raises(NetsimInputError, match=r"topic '/robot_1/pose' of robot 1 holds no pose message$"):
+        rosbag2.read(bag)
+
+
 def _mixed_bag(path: Path, pose_topics: list[str], string_topics: list[str]) -> None:
     """A bag with one PoseStamped on each of ``pose_topics`` and one String on each of
     ``string_topics``."""

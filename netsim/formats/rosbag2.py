@@ -129,6 +129,13 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
             ys.append(pose.position.y)
     finally:
         reader.close()
+    posed = set(robots)
+    silent = sorted((i, t) for t, i in which.items() if i not in posed)
+    if silent:
+        # A robot with no pose has no position to start from.
+        i, topic = silent[0]
+        more = f" ({len(silent)} such topics)" if len(silent) > 1 else ""
+        raise NetsimInputError(f"{source}: topic {topic!r} of robot {i} holds no pose message{more}")
     stamps_ns = np.array(stamps, dtype=np.int64)
     _warn_of_stamps(np.array(robots, dtype=np.int64), stamps_ns, source)
     t = (stamps_ns - stamps_ns.min()) / 1e9 if len(stamps_ns) else stamps_ns.astype(float)
