@@ -231,6 +231,7 @@ def test_bonnmotion_reads_3d_files_with_their_params(tmp_path):
     [
         ("0 1 2 3 4\n", ":1: 5 numbers do not make whole waypoints"),
         ("0 1 2\n0 1 x\n", ":2: 'x' is not a number"),
+        ("0 1_0 2\n", ":1: '1_0' is not a number"),
         ("5 1 2 3 4 5\n", ":1: waypoint 2: time 3 goes back"),
         ("0 1 2 inf 3 4\n", ":1: numbers must be finite"),
         ("\n", "no movement line"),

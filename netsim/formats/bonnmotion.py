@@ -73,7 +73,7 @@ def read(path: str | Path) -> tuple[Waypoints, dict[str, str]]:
         if not fields or line.lstrip().startswith("#"):
             continue
         try:
-            values = np.array([float(f) for f in fields])
+            values = np.array([_number(f) for f in fields])
         except ValueError:
             bad = next(f for f in fields if not _is_number(f))
             raise NetsimInputError(f"{path}:{lineno}: {bad!r} is not a number") from None
@@ -103,9 +103,17 @@ def read(path: str | Path) -> tuple[Waypoints, dict[str, str]]:
     return wp, params
 
 
+def _number(text: str) -> float:
+    """``text`` as BonnMotion (Java's ``Double.parseDouble``) reads it: Python's ``float``
+    alone also takes digits grouped by underscores, ``1_0``, which BonnMotion refuses."""
+    if "_" in text:
+        raise ValueError(text)
+    return float(text)
+
+
 def _is_number(text: str) -> bool:
     try:
-        float(text)
+        _number(text)
     except ValueError:
         return False
     return True
