@@ -260,7 +260,12 @@ class ChannelParams(Params):
 def _controllers(key: str, value: Any) -> tuple[str, ...]:
     if not isinstance(value, list | tuple):
         raise ConfigError(key, value, "must be a list of plugin names")
-    return tuple(coerce_value(f"{key}[{i}]", v, str) for i, v in enumerate(value))
+    names = tuple(coerce_value(f"{key}[{i}]", v, str) for i, v in enumerate(value))
+    twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
+    if twice is not None:
+        # Built twice, the second would take the first's tables and summary keys unsaid.
+        raise ConfigError(key, list(names), f"names {twice!r} twice: each plugin runs once")
+    return names
 
 
 def _options(key: str, value: Any) -> dict:

@@ -116,6 +116,10 @@ def _cli(tmp_path, capsys, *args):
     [
         (["--set", "channel.range_m=-5"], "channel.range_m = -5.0"),
         (
+            ["--set", 'events.hooks=["link_breaks", "link_breaks"]'],
+            "events.hooks = ['link_breaks', 'link_breaks']: names 'link_breaks' twice: each plugin runs once",
+        ),
+        (
             ["--set", "mobility.model=trace", "--set", 'mobility.topics=["/a/odom", "/b/odom", "/a/odom"]'],
             "mobility.topics = ['/a/odom', '/b/odom', '/a/odom']: names '/a/odom' twice",
         ),

@@ -428,6 +428,38 @@ def test_a_misspelt_sweep_key_is_named_with_the_closest_key():
         sweepmod.parse(tree)
 
 
+def test_an_unquoted_dotted_sweep_key_is_told_to_be_quoted(tmp_path, capsys):
+    """TOML reads an unquoted `mobility.speed_max_mps = [...]` under [grid] as a table named
+    mobility: the one line says to quote the key, naming the key meant."""
+    from netsim.tools.cli import main
+
+    f = tmp_path / "s.toml"
+    f.write_text("[grid]\nmobility.speed_max_mps = [1.0, 2.0]\n")
+    assert main(["sweep", str(f), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "netsim: error: sweep file: 'mobility' is not a configuration key: a dotted key is quoted in TOML "
+        '("mobility.speed_max_mps" = [...]), else it is read as a table'
+    ]
+    assert not (tmp_path / "o").exists()
+
+
+def test_workers_and_a_scheduler_together_are_refused(tmp_path, capsys):
+    """--workers counts local processes, --scheduler hands the runs to a cluster: given
+    both, the count would be dropped unsaid; one line, exit 2, nothing written."""
+    from netsim.tools.cli import main
+
+    f = tmp_path / "s.toml"
+    f.write_text('[grid]\n"seed" = [1]\n')
+    code = main(["sweep", str(f), "--out", str(tmp_path / "o"), "--workers", "2", "--scheduler", "tcp://h:8786"])
+    assert code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "netsim: error: --workers 2 and --scheduler tcp://h:8786: give one (local worker processes, or a "
+        "Dask cluster's)"
+    ]
+    assert not (tmp_path / "o").exists()
+
+
 def test_cli_bad_sweep_file_exits_2(tmp_path, capsys):
     from netsim.tools.cli import main
 

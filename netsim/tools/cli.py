@@ -349,6 +349,12 @@ def cmd_sweep(args) -> int:
     sweep = sweepmod.load_file(args.sweep)
     # The cores this process may run on (a container's share, not the host's).
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if args.workers is not None and args.scheduler is not None:
+        # The scheduler's cluster decides how many workers run: a count here would be dropped unsaid.
+        raise NetsimInputError(
+            f"--workers {args.workers} and --scheduler {args.scheduler}: give one (local worker processes, or a "
+            "Dask cluster's)"
+        )
     if args.workers is not None and args.workers < 1:
         raise NetsimInputError(f"--workers {args.workers}: must be at least 1")
     if args.workers is not None and args.workers > WORKERS_PER_CORE * cores:

@@ -179,8 +179,15 @@ def known_tables(base: dict, points: Sequence[dict] = ()) -> set[str]:
     return out
 
 
-def _check_key(key: str, known: set[str]) -> None:
+def _check_key(key: str, known: set[str], value: object = None) -> None:
     if key not in known:
+        if isinstance(value, dict) and any(k.startswith(f"{key}.") for k in known):
+            # TOML reads an unquoted dotted key as a table: the key the user meant is inside.
+            inner = next(iter(value), "")
+            raise _err(
+                f"{key!r} is not a configuration key: a dotted key is quoted in TOML "
+                f'("{key}.{inner}" = [...]), else it is read as a table'
+            )
         raise _err(f"{key!r} is not a configuration key{cfgmod.did_you_mean(key, known)} (see `netsim config`)")
 
 
@@ -188,7 +195,7 @@ def _grid(grid, known: set[str]) -> list[dict]:
     if not isinstance(grid, dict) or not grid:
         raise _err("[grid] must map configuration keys to lists of values")
     for key, values in grid.items():
-        _check_key(key, known)
+        _check_key(key, known, values)
         if not isinstance(values, list) or not values:
             raise _err(f"[grid] {key} = {values!r}: must be a non-empty list")
     keys = list(grid)
@@ -214,7 +221,7 @@ def _random(spec, known: set[str]) -> list[dict]:
     rng = np.random.default_rng(seed)
     columns = {}
     for key, bounds in ranges.items():
-        _check_key(key, known)
+        _check_key(key, known, bounds)
         if not (
             isinstance(bounds, list)
             and len(bounds) == 2
