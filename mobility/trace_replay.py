@@ -23,7 +23,7 @@ from netsim.config import world_bounds
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import ns2
 from netsim.formats.waypoints import Waypoints
-from netsim.params import Params, coerce_value, param
+from netsim.params import Params, each_once, file_path, param
 from netsim.plugins import Parts, PluginSpec
 from netsim.state import MotionError, RobotState, border_tolerance_m
 from netsim.trajectory import jumped
@@ -50,22 +50,12 @@ def _topics(key: str, value: Any) -> tuple[str, ...]:
         value = [value]
     if not isinstance(value, (list, tuple)) or not all(isinstance(t, str) and t for t in value):
         raise ConfigError(key, value, "must be a list of topic names, robot i following topics[i]")
-    twice = next((t for k, t in enumerate(value) if t in value[:k]), None)
-    if twice is not None:
-        # Two robots cannot follow one topic's poses.
-        raise ConfigError(key, list(value), f"names {twice!r} twice: each robot follows a topic of its own")
-    return tuple(value)
+    return each_once(key, tuple(value), "each robot follows a topic of its own")
 
 
 def _trace_path(key: str, value: Any) -> str:
-    """A trace's path made absolute, as a map's (a run directory's config.toml then finds
-    it from anywhere); "" (none) as given."""
-    value = coerce_value(key, value, str)
-    if value == "":
-        return value
-    if not value.strip() or not value.isprintable():
-        raise ConfigError(key, value, 'must be the path of a movement file or a rosbag2 folder, or ""')
-    return str(Path(value).expanduser().absolute())
+    """A trace's path made absolute, as a map's; "" (none) as given."""
+    return file_path(key, value, 'must be the path of a movement file or a rosbag2 folder, or ""')
 
 
 @dataclass(frozen=True)

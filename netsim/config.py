@@ -33,6 +33,8 @@ from netsim.params import (
     Params,
     check_schedules,
     coerce_value,
+    each_once,
+    file_path,
     finite,
     names,
     non_negative,
@@ -57,16 +59,10 @@ class ConfigWarning(UserWarning):
 
 # -- the engine's sections -------------------------------------------------------------------
 def _map_path(key: str, value: Any) -> str:
-    """A map's YAML path made absolute (a run directory's config.toml then finds it from
-    anywhere); an example's name and "" (no map) as given."""
+    """A map's YAML path made absolute; an example's name and "" (no map) as given."""
     from netsim.world.maps import EXAMPLES
 
-    value = coerce_value(key, value, str)
-    if value == "" or value in EXAMPLES:
-        return value
-    if not value.strip() or not value.isprintable():
-        raise ConfigError(key, value, 'must be the path of a map_server YAML file, "office", "cave", or ""')
-    return str(Path(value).expanduser().absolute())
+    return file_path(key, value, 'must be the path of a map_server YAML file, "office", "cave", or ""', EXAMPLES)
 
 
 @dataclass(frozen=True)
@@ -260,12 +256,9 @@ class ChannelParams(Params):
 def _controllers(key: str, value: Any) -> tuple[str, ...]:
     if not isinstance(value, list | tuple):
         raise ConfigError(key, value, "must be a list of plugin names")
-    names = tuple(coerce_value(f"{key}[{i}]", v, str) for i, v in enumerate(value))
-    twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
-    if twice is not None:
-        # Built twice, the second would take the first's tables and summary keys unsaid.
-        raise ConfigError(key, list(names), f"names {twice!r} twice: each plugin runs once")
-    return names
+    given = tuple(coerce_value(f"{key}[{i}]", v, str) for i, v in enumerate(value))
+    # Built twice, the second would take the first's tables and summary keys unsaid.
+    return each_once(key, given, "each plugin runs once")
 
 
 def _options(key: str, value: Any) -> dict:

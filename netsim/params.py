@@ -34,6 +34,7 @@ import math
 import numbers
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -204,6 +205,26 @@ class Params:
 @dataclass(frozen=True)
 class NoParams(Params):
     """The parameters of a model that has none."""
+
+
+def file_path(key: str, value: Any, allowed: str, names: tuple[str, ...] = ()) -> str:
+    """A file's path made absolute (a run directory's config.toml then finds it from
+    anywhere); "" (none) and the ``names`` of shipped examples as given; a blank or
+    non-printable value refused, ``allowed`` saying what is."""
+    value = coerce_value(key, value, str)
+    if value == "" or value in names:
+        return value
+    if not value.strip() or not value.isprintable():
+        raise ConfigError(key, value, allowed)
+    return str(Path(value).expanduser().absolute())
+
+
+def each_once(key: str, names: tuple[str, ...], why: str) -> tuple[str, ...]:
+    """``names`` (a list of a key), refused if one is given twice (``why`` says why not)."""
+    twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
+    if twice is not None:
+        raise ConfigError(key, list(names), f"names {twice!r} twice: {why}")
+    return names
 
 
 def _keys(cls: type) -> list[dataclasses.Field]:

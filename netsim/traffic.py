@@ -115,14 +115,20 @@ def check_flows(params: TrafficParams, n_robots: int, duration_s: float, max_fra
             continue
         packets = packet_count(flow, duration_s)
         frames += packets * frame_count(flow.packet_bytes, max_frame_bytes)
-        if frames > MAX_FRAMES_PER_RUN:
-            raise ConfigError(
-                f"traffic.flows[{i}]",
-                f,
-                f"the flows up to this one would send {frames:,} frames in the run (this one {packets:,} packets "
-                f"of {flow.packet_bytes:,} bytes, channel.max_frame_bytes = {max_frame_bytes}); "
-                f"at most {MAX_FRAMES_PER_RUN:,}",
-            )
+        refuse_frames(
+            f"traffic.flows[{i}]",
+            f,
+            frames,
+            f"the flows up to this one would send {frames:,} frames in the run (this one {packets:,} packets "
+            f"of {flow.packet_bytes:,} bytes, channel.max_frame_bytes = {max_frame_bytes})",
+        )
+
+
+def refuse_frames(key: str, value: object, frames: float, would: str, change: str = "") -> None:
+    """Refuse ``key`` when its traffic ``would`` send more than :data:`MAX_FRAMES_PER_RUN`
+    frames (``frames``) in the run; ``change`` says what to change, if anything."""
+    if frames > MAX_FRAMES_PER_RUN:
+        raise ConfigError(key, value, f"{would}; at most {MAX_FRAMES_PER_RUN:,}{change}")
 
 
 class Traffic(NamedTuple):

@@ -20,10 +20,9 @@ from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
-from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts
-from netsim.traffic import MAX_FRAMES_PER_RUN, Traffic, frame_count
+from netsim.traffic import Traffic, frame_count, refuse_frames
 
 # The tables every routing protocol writes (the flows' when there are flows), and its
 # control frames: per kind, the frames sent, their bytes, their receptions, and the
@@ -62,14 +61,14 @@ def check_pairs(params: RoutingParams, config) -> None:
     # One message at least, however short the run: its frames are listed when it is sent.
     messages = max(params.message_rate_hz * config.duration_s, 1.0) if params.message_rate_hz > 0 else 0.0
     frames = messages * per_message
-    if frames > MAX_FRAMES_PER_RUN:
-        raise ConfigError(
-            "protocol.message_bytes",
-            params.message_bytes,
-            f"the random pairs' messages would send {frames:.3g} frames in the run ({per_message:,} a message, "
-            f"channel.max_frame_bytes = {config.channel.max_frame_bytes}); at most {MAX_FRAMES_PER_RUN:,}: "
-            "lower it, or protocol.message_rate_hz",
-        )
+    refuse_frames(
+        "protocol.message_bytes",
+        params.message_bytes,
+        frames,
+        f"the random pairs' messages would send {frames:.3g} frames in the run ({per_message:,} a message, "
+        f"channel.max_frame_bytes = {config.channel.max_frame_bytes})",
+        ": lower it, or protocol.message_rate_hz",
+    )
 
 
 class Packet(NamedTuple):
