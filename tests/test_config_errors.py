@@ -189,6 +189,17 @@ def _cli(tmp_path, capsys, *args):
             ],
             "channel.noise_floor_dbm = -85.0",
         ),
+        # Levels whose mW a float cannot hold (10^(v / 10) overflows): a traceback before.
+        (
+            ["--set", "channel.mac=aloha", "--set", "channel.propagation=log_distance"]
+            + ["--set", "channel.capture_threshold_db=1e5"],
+            "channel.capture_threshold_db = 100000.0: must be at most 3000",
+        ),
+        (
+            ["--set", "channel.mac=csma", "--set", "channel.propagation=log_distance"]
+            + ["--set", "channel.noise_floor_dbm=1e308"],
+            "channel.noise_floor_dbm = 1e+308: must be at most 3000",
+        ),
         (["--set", "channel.mac=csma", "--set", "protocol.ack_bytes=0"], "protocol.ack_bytes = 0"),
         (["--set", "channel.mac=csma", "--set", "protocol.message_bytes=0"], "protocol.message_bytes = 0"),
         (

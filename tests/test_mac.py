@@ -112,6 +112,21 @@ def test_a_larger_interference_range_disturbs_beyond_the_range():
         assert _dropped(sim, "collision", robot=1) == lost
 
 
+def test_the_default_interference_range_covers_the_reach_under_shadowing():
+    """log_distance, interference_range_m = 0: the range where the mean power meets the noise
+    floor, or the radio's reach where that is farther (strong shadowing): a robot the frame
+    could reach is among those it disturbs, and the medium says which range it uses."""
+    for sigma_db, beyond in ((0.0, False), (6.0, True)):
+        sim = _medium([0, 600], propagation="log_distance", shadowing_sigma_db=sigma_db)
+        medium, reach = sim.channel.mac, sim.channel.reception.reach_m
+        noise_range = medium.power.noise_range_m
+        assert medium.interference_range_m == max(noise_range, reach)
+        assert (reach > noise_range) == beyond  # 6 dB: reach 631 m, noise floor at 316 m
+        _send_at(sim, 0.0, 0)
+        sim.env.run(until=T / 2)
+        assert medium.cover[1] == int(beyond)  # robot 1, 600 m away, senses the frame
+
+
 def test_the_stronger_frame_survives_under_log_distance():
     """log_distance: reception needs SINR >= capture threshold; the near sender captures."""
     keys = {"propagation": "log_distance", "capture_threshold_db": 10.0}

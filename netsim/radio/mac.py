@@ -317,18 +317,21 @@ class Medium:
         varies = rec is not None and (rec.shadowing is not None or rec.compiled.walls is not None)
         self.actual_power = self.power is not None and varies
         default = self.power.noise_range_m if self.power is not None else largest
-        self.interference_range_m = float(params.interference_range_m) or default
         reach = channel.reception.reach_m if channel.reception is not None else largest
-        # Receivers must be among the robots the frame disturbs: the radius covers both.
-        self.radius_m = max(self.interference_range_m, reach)
+        # Receivers must be among the robots a frame disturbs, so the range the medium
+        # uses covers the radio's reach (a set value is refused below it; the default,
+        # under shadowing, can be shorter than the reach).
+        self.interference_range_m = max(float(params.interference_range_m) or default, reach)
         # Unit disk, one range, interference range = range: the hearers are the disturbed.
         self.same_as_hearers = (
-            channel.reception is None and self.radius_m == largest and bool((self.state.range_m == largest).all())
+            channel.reception is None
+            and self.interference_range_m == largest
+            and bool((self.state.range_m == largest).all())
         )
         if self.same_as_hearers:
             self.index = channel.index
         else:
-            self.index = RangeIndex(self.state, reach_m=self.radius_m)
+            self.index = RangeIndex(self.state, reach_m=self.interference_range_m)
         self.queue: list[deque[Frame]] = [deque() for _ in range(n)]
         self.transmitting = np.zeros(n, dtype=bool)
         # Frames of other senders on the air within interference range of each robot.
@@ -412,7 +415,7 @@ class Medium:
         if self.same_as_hearers and frame.dest < 0:
             disturbed, ddist = receivers, dist
         else:
-            disturbed, ddist = self.index.within(now, i, self.radius_m)
+            disturbed, ddist = self.index.within(now, i, self.interference_range_m)
         if len(receivers):
             receivers, kept = ch._decide(i, receivers, dist, c, frame.kind, frame.binned)
             assert kept is not None  # measured distances in, measured distances out

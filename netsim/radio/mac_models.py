@@ -39,16 +39,28 @@ def _interference_range() -> Any:
         0.0,
         finite(non_negative),
         "robots within this distance of a sender are disturbed and sense it busy, m (0: the range;"
-        " log_distance: where the mean received power falls to noise_floor_dbm)",
+        " log_distance: where the mean received power falls to noise_floor_dbm, or the radio's reach"
+        " where that is farther)",
     )
 
 
+# A level in dB(m) the medium can hold as a power in mW or a factor (10^300).
+LARGEST_DB = 3000.0
+
+
+def _in_mw(value: float) -> str | None:
+    # The medium adds powers in mW: a level whose 10^(dB / 10) no float holds cannot be one.
+    if value <= LARGEST_DB:
+        return None
+    return f"must be at most {LARGEST_DB:g} (its linear value, 10^(v / 10), must be a number)"
+
+
 def _capture() -> Any:
-    return param(10.0, finite(non_negative), "log_distance: SINR a reception needs, dB")
+    return param(10.0, finite(lambda v: non_negative(v) or _in_mw(v)), "log_distance: SINR a reception needs, dB")
 
 
 def _noise_floor() -> Any:
-    return param(-95.0, finite(lambda v: None), "log_distance: thermal noise at the receiver, dBm")
+    return param(-95.0, finite(_in_mw), "log_distance: thermal noise at the receiver, dBm")
 
 
 def _queue() -> Any:
