@@ -29,13 +29,12 @@ class ConfigError(NetsimInputError):
         self.key = key
         self.value = value
         self.allowed = allowed
-        super().__init__(f"{setting(key, value)}: {allowed}")
+        # Its arguments make it anew: SimPy copies an error raised in a process as
+        # type(e)(*e.args), and pickling (a worker process's error) does the same.
+        super().__init__(key, value, allowed)
 
-    def __reduce__(self) -> tuple[type, tuple[str, object, str], dict]:
-        # Raised in a worker process (a sweep's, an experiment's pool), it must cross back
-        # whole (notes included): the default pickling would call __init__ with the
-        # message alone.
-        return ConfigError, (self.key, self.value, self.allowed), self.__dict__
+    def __str__(self) -> str:
+        return f"{setting(self.key, self.value)}: {self.allowed}"
 
 
 def not_a_file(path: str | os.PathLike) -> str:

@@ -553,6 +553,28 @@ def test_a_configuration_error_crosses_a_process_pool_whole():
         pool.submit(cfgmod.load, None, ["duration_s=inf"]).result()
 
 
+def test_a_configuration_error_raised_in_a_simpy_process_reaches_the_caller_whole():
+    """SimPy re-raises a process's error as ``type(e)(*e.args)``: a ConfigError raised in a
+    motion process (a robot on a map that sees no destination) must come out as itself,
+    not as a TypeError of its constructor (a traceback, exit 1)."""
+    import simpy
+
+    def proc(env):
+        yield env.timeout(1.0)
+        raise ConfigError("world.map", "closet.yaml", "robot 0 sees no free destination")
+
+    env = simpy.Environment()
+    env.process(proc(env))
+    with pytest.raises(ConfigError) as err:
+        env.run()
+    assert (err.value.key, err.value.value, err.value.allowed) == (
+        "world.map",
+        "closet.yaml",
+        "robot 0 sees no free destination",
+    )
+    assert str(err.value) == "world.map = 'closet.yaml': robot 0 sees no free destination"
+
+
 def test_coverage_disks_wider_than_the_area_cover_it_whole():
     """A coverage radius of 1e300 m (a traceback of shapely's union) covers the whole area,
     exactly, as any disk past the area's diagonal does."""

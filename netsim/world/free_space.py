@@ -266,6 +266,10 @@ def free_fraction(m: OccupancyMap, starts, ends, margin_m: float = 1e-6) -> np.n
     return np.where(legs_free(m, s, s + f[:, None] * (e - s)), f, 0.0)
 
 
+# Draws a robot in the largest round of :func:`draw_destinations`.
+BATCH_MOST = 1 << 16
+
+
 def draw_destinations(
     m: OccupancyMap,
     rng: np.random.Generator,
@@ -273,26 +277,36 @@ def draw_destinations(
     area: float | Bounds,
     batch: int = 64,
     max_rounds: int = 100,
+    max_tries: int = 10_000_000,
 ) -> np.ndarray:
     """A random waypoint for each robot at ``here_m``: uniform over the free space, redrawn
-    until the straight leg to it is free (see the module notes). Shape ``(k, 2)``."""
+    until the straight leg to it is free (see the module notes). Shape ``(k, 2)``.
+
+    ``max_rounds`` rounds of ``batch`` draws a robot, then rounds twice as large each time,
+    up to ``max_tries`` draws a robot: a robot in a pocket or behind a bend sees a small
+    part of the free space, but never none (its own cell), so the draws go on rather than
+    give up on it."""
     here = np.asarray(here_m, dtype=float).reshape(-1, 2)
     k = len(here)
     out = np.empty((k, 2))
     todo = np.arange(k)
     kernel = kernels_for("netsim.world._kernels").free_destinations
-    for _ in range(max_rounds):
-        if len(todo) == 0:
-            return out
+    tries = rounds = 0
+    while len(todo) and tries < max_tries:
+        if rounds >= max_rounds:
+            batch = min(2 * batch, BATCH_MOST)
         got = _round(kernel, m, rng, here[todo], area, batch, out, todo)
         todo = todo[~got]
+        tries += batch
+        rounds += 1
     if len(todo) == 0:
         return out
     x, y = here[todo[0]]
     raise ConfigError(
         MAP_KEY,
         m.source or "<map>",
-        f"a robot at ({x:g}, {y:g}) sees no free destination in {batch * max_rounds} tries: is it walled in?",
+        f"a robot at ({x:g}, {y:g}) found no destination it can reach in a straight line in {tries:,} tries:"
+        " it sees almost none of the free space",
     )
 
 
