@@ -93,13 +93,16 @@ def direction_robot(
                 f = 0.0
             travel *= f
             if travel <= 0.0:
-                st.set_leg(i, env.now, (0.0, 0.0))
+                st.set_leg(i, env.now, (0.0, 0.0), cause=cause)
                 return  # walled in: no heading leads anywhere
-            st.set_leg(i, env.now, v)
+            st.set_leg(i, env.now, v, cause=cause)
             yield env.timeout(travel)
-            st.arrive(i, env.now, here + v * travel, log=m.pause_s > 0)
+            # The wall it headed for is its border.
+            st.arrive(i, env.now, here + v * travel, log=m.pause_s > 0, cause="border")
+            cause = "border"
             if m.pause_s > 0:
                 yield env.timeout(m.pause_s)
+                cause = "pause_end"
             continue
         if speed <= 0 or math.isinf(travel):
             st.set_leg(i, env.now, (0.0, 0.0), cause=cause)

@@ -1363,3 +1363,26 @@ def test_a_mobility_model_that_subscribes_wrongly_is_named_by_its_key_and_value(
     config = load(None, ["mobility.model=typo_mobility:STILL", "world.n_robots=3", "duration_s=5"])
     with pytest.raises(ConfigError, match=r"^mobility.model = 'typo_mobility:STILL': subscribes wrongly: unknown"):
         build(config)
+
+
+@pytest.mark.parametrize("pause_s", [0.0, 1.0])
+def test_random_direction_on_a_map_gives_its_legs_its_own_causes(pause_s):
+    """On a map a random-direction robot heads for a wall as for the border: its legs are
+    `start`, `border` and `pause_end` (docs/events.md), never `command` (the control loop's)
+    or `waypoint`, as they once were."""
+    config = load(
+        None,
+        [
+            "mobility.model=random_direction",
+            f"mobility.pause_s={pause_s}",
+            "world.map=cave",
+            "world.side_m=200",
+            "world.n_robots=6",
+            "duration_s=60",
+            "protocol.model=none",
+        ],
+    )
+    legs = execute(config).frames["legs"]
+    causes = set(legs["cause"].astype(str))
+    expected = {"start", "border", "pause_end"} if pause_s else {"start", "border"}
+    assert causes == expected
