@@ -2,7 +2,7 @@
 
 Pairs of static robots, far from each other, each pair a leader and its member, so that
 every leader loss is false: the member times out only when ``k`` consecutive Acks of its
-leader are lost (``k`` = Ack instants strictly inside the ``tau`` window). A sweep of
+leader are lost (``k`` = Ack instants in the ``tau`` window, its end included). A sweep of
 ``channel.loss_probability`` x ``protocol.tau_s`` (Ack period 1 s, no jitter) measures the
 leader's Acks until the first false timeout, against the theory
 ``(1 - p^k) / ((1 - p) p^k)``, and the false role changes per robot per minute. A member

@@ -533,11 +533,19 @@ def group_size(records_row, now, tau_s, symmetric, i):
     return size
 
 
+# A run's instants are floats: periods and a latency that add up to exactly ``tau`` in the
+# model can add up to a few 1e-14 s more (each sum rounds on its own), which would make an
+# Ack due at its deadline miss it by rounding alone. Instants this close count as one
+# (ns-3's time resolution).
+TIE_S = 1e-9
+
+
 @jit(nogil=True)
 def deadline_after(from_s, tau_s):
     """When a timer of rules 3 and 4 runs out: ``tau_s`` after the instant it runs from (the
-    leader's Ack a member last heard, a robot's first Ack, the event that restarted it)."""
-    return from_s + tau_s
+    leader's Ack a member last heard, a robot's first Ack, the event that restarted it),
+    :data:`TIE_S` included, so that an Ack at the deadline counts however it rounds."""
+    return (from_s + tau_s) + TIE_S
 
 
 @jit(nogil=True)

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from netsim.protocols._kernels import TIE_S
 from netsim.protocols.neighbours import NeighbourTable
 
 from netsim.run import build
@@ -82,7 +83,8 @@ def test_neighbour_entry_lives_for_tau_after_the_last_ack():
     slot = table.entry(1, 0)
     last = table.last_heard_s[1, slot]
     assert table.live_mask(last + 2.999, 1)[slot]
-    assert not table.live_mask(last + 3.0, 1)[slot]
+    assert table.live_mask(last + 3.0, 1)[slot]  # an Ack due now still counts (TIE_S)
+    assert not table.live_mask(last + 3.0 + 2 * TIE_S, 1)[slot]
 
 
 def test_one_way_link_is_not_reported_as_heard():

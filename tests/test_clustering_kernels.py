@@ -9,7 +9,18 @@ import importlib
 import numpy as np
 import pandas as pd
 import pytest
-from netsim.protocols._kernels import EMPTY_RECORD, GROUP_SIZE, HEARS_ME, LAST_HEARD, LEADER, ROLE, AckEffects, X, Y
+from netsim.protocols._kernels import (
+    EMPTY_RECORD,
+    GROUP_SIZE,
+    HEARS_ME,
+    LAST_HEARD,
+    LEADER,
+    ROLE,
+    TIE_S,
+    AckEffects,
+    X,
+    Y,
+)
 from netsim.protocols.clustering import ElectionPolicy, JoinPolicy, rules_record
 from netsim.protocols.roles import LEADER as ALPHA
 from netsim.protocols.roles import MEMBER, UNDECIDED
@@ -307,7 +318,7 @@ def test_relays_are_leaders_and_members_next_to_another_group(kernels):
     entry(2, 0, 5, 1.0, 0)
     entry(3, 0, 5, 1.0, 1)
     entry(4, 0, 7, 1.0, 1)
-    entry(4, 1, 6, TAU_S, 1)
+    entry(4, 1, 6, TAU_S + 2 * TIE_S, 1)  # just past its deadline
     entry(8, 0, 5, 1.0, 1)
     everyone = np.arange(9)
     table, roles = (ids, records, TAU_S), (role, leader)

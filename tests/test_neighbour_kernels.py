@@ -9,7 +9,7 @@ import pytest
 from netsim.protocols.neighbours import DEGREE, NeighbourTable, heard_in
 
 from netsim.simpy_internals import set_now
-from tests.oracles.protocols import NumpyTable, ack_record
+from tests.oracles.protocols import NumpyTable, ack_record, deadline
 
 pytest.importorskip("numba")
 
@@ -149,10 +149,20 @@ def test_acks_built_plain_and_compiled_are_the_same(monkeypatch):
 
 
 def _first_after(now, tau_s, last, step):
-    """The float nearest ``last`` on the side of ``step`` whose deadline ``last + tau_s``
-    (as a timer computes it) is past ``now`` (step +inf) or before it (step -inf)."""
-    while not (last + tau_s > now if step > 0 else last + tau_s < now):
+    """The float nearest ``last`` on the side of ``step`` whose deadline (``tau_s`` later, as
+    a timer computes it: :func:`tests.oracles.protocols.deadline`) is past ``now`` (step
+    +inf) or before it (step -inf)."""
+    while not (deadline(last, tau_s) > now if step > 0 else deadline(last, tau_s) < now):
         last = np.nextafter(last, step)
+    return last
+
+
+def _at(now, tau_s):
+    """A last Ack's instant whose deadline is ``now`` to the last bit."""
+    last = _first_after(now, tau_s, now - tau_s, -np.inf)
+    while deadline(last, tau_s) < now:
+        last = np.nextafter(last, np.inf)
+    assert deadline(last, tau_s) == now
     return last
 
 
@@ -180,16 +190,16 @@ def test_timeout_an_entry_is_live_while_its_last_ack_is_younger_than_tau(kernels
     heard at minus infinity) never is. Read as ``now - last < tau_s`` instead, an entry could
     still be live at its own timer's instant (``(a + tau) - a`` may fall short of ``tau``)."""
     tau_s, now = 2.5, 10.0
-    younger = _first_after(now, tau_s, now - tau_s, np.inf)
-    last = np.array([now - tau_s, younger, now, -np.inf, 0.0, 9.0])
+    younger = _first_after(now, tau_s, _at(now, tau_s), np.inf)
+    last = np.array([_at(now, tau_s), younger, now, -np.inf, 0.0, 9.0])
     assert kernels.live_entries(last, now, tau_s).tolist() == [False, True, True, False, False, True]
     rng = np.random.default_rng(3)
     last = rng.uniform(0.0, now, 500)
-    assert kernels.live_entries(last, now, tau_s).tolist() == (now < last + tau_s).tolist()
+    assert kernels.live_entries(last, now, tau_s).tolist() == (now < deadline(last, tau_s)).tolist()
     # An instant whose rounding puts the two readings apart: only the deadline's agrees
     # with the timer of the same entry.
     a = 5.896838452432008
-    assert bool(kernels.is_live(a, a + 3.0, 3.0)) is False and (a + 3.0) - a < 3.0
+    assert bool(kernels.is_live(a, deadline(a, 3.0), 3.0)) is False and (a + 3.0) - a < 3.0
 
 
 def test_an_ack_at_the_instant_of_expiry_continues_the_entry(kernels):
@@ -198,9 +208,9 @@ def test_an_ack_at_the_instant_of_expiry_continues_the_entry(kernels):
     afresh."""
     tau_s, now = 2.5, 10.0
     for last, live, continued in (
-        (now - tau_s, False, True),
-        (_first_after(now, tau_s, now - tau_s, -np.inf), False, False),
-        (_first_after(now, tau_s, now - tau_s, np.inf), True, True),
+        (_at(now, tau_s), False, True),
+        (_first_after(now, tau_s, _at(now, tau_s), -np.inf), False, False),
+        (_first_after(now, tau_s, _at(now, tau_s), np.inf), True, True),
         (now, True, True),
     ):
         assert bool(kernels.is_live(float(last), now, tau_s)) is live

@@ -3,12 +3,14 @@ documented behaviour at a local maximum, and its parameters' ranges."""
 
 import numpy as np
 import pytest
+from netsim.protocols._kernels import TIE_S
 from netsim.protocols.greedy import greedy_next_hop
 
 from netsim.errors import ConfigError
 from netsim.run import build, collect
 from netsim.tools.cli import main
 from tests.fixtures import flow_over_trace, make_config
+from tests.oracles.protocols import deadline
 
 FLOW = {"src": 0, "dst": 4, "start_s": 10.0, "stop_s": 20.0, "rate_bps": 8000.0, "packet_bytes": 1000}
 
@@ -32,17 +34,20 @@ def _run(tmp_path, xy, flows, duration_s=30.0, torus=False, **protocol):
 
 
 def test_a_neighbour_not_heard_for_the_timeout_is_forgotten(tmp_path):
-    """A neighbour heard exactly ``neighbour_timeout_s`` ago is forgotten, one heard a
-    moment later is not (the neighbour entry's rule: live while its deadline, when it was
-    heard plus the timeout, is still to come)."""
+    """A neighbour whose deadline (when it was heard, plus the timeout, plus the instants
+    that round into it) is now is forgotten, one heard a moment later is not (the neighbour
+    entry's rule: live while its deadline is still to come)."""
     sim, _ = _run(tmp_path, [(0, 0), (50, 0), (100, 0)], [], duration_s=5.0)
     greedy, now = sim.models["protocol"], sim.env.now
     timeout = greedy.params.neighbour_timeout_s
-    assert (now - timeout) + timeout == now  # the tie is exact
-    later = now - timeout
-    while not later + timeout > now:  # the first instant whose deadline is past now
+    at = now - timeout - TIE_S
+    while deadline(at, timeout) < now:
+        at = np.nextafter(at, np.inf)
+    assert deadline(at, timeout) == now  # the tie is exact
+    later = at
+    while not deadline(later, timeout) > now:  # the first instant whose deadline is past now
         later = np.nextafter(later, np.inf)
-    greedy.heard_t[0, 1] = now - timeout
+    greedy.heard_t[0, 1] = at
     greedy.heard_t[0, 2] = later
     assert greedy.neighbours(0).tolist() == [2]
 

@@ -159,7 +159,7 @@ def test_reference_density_in_validate_matches_published_values():
 
 
 def test_spurious_timeout_window_and_expectation():
-    assert [spurious_timeout_window(t, 1.0) for t in (1.5, 2.5, 3.0, 3.5)] == [1, 2, 2, 3]
+    assert [spurious_timeout_window(t, 1.0) for t in (1.5, 2.5, 3.0, 3.5, 0.3 / 0.1)] == [1, 2, 3, 3, 3]
     assert expected_acks_until_spurious_timeout(0.3, 3) == pytest.approx(51.48, abs=0.01)
 
 

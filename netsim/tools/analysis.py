@@ -66,9 +66,9 @@ def acks_waited(
     ``lost`` False (right-censored: its wait is longer). Assumes static robots and periodic
     Acks without jitter, so that every leader loss is spurious and the timeout comes
     ``tau`` after the last Ack heard: the count is ``floor((t_timeout - t_join - tau) /
-    period) + k``, with ``k`` the number of Ack instants strictly inside the ``tau``
-    window. ``labels``: how the run's protocol writes roles and the leader's loss (its
-    plugin's ``role_labels``)."""
+    period) + k``, with ``k`` the number of Ack instants in the ``tau`` window, its end
+    included (:func:`spurious_timeout_window`). ``labels``: how the run's protocol writes
+    roles and the leader's loss (its plugin's ``role_labels``)."""
     k = spurious_timeout_window(tau_s, period_s)
     rows = []
     for _, rec in roles.groupby("robot"):
@@ -100,8 +100,10 @@ def mean_acks_until_leader_loss(waited: pd.DataFrame, level: float = 0.95) -> tu
 
 
 def spurious_timeout_window(tau_s: float, period_s: float) -> int:
-    """``k``: Ack instants strictly inside a window of ``tau`` after an Ack."""
-    return math.ceil(tau_s / period_s - 1e-9) - 1
+    """``k``: Ack instants in a window of ``tau`` after an Ack, its end included: an Ack
+    due exactly ``tau`` later still counts (docs/model.md 4.2), so with ``tau`` a whole
+    number of periods the member waits for that many losses, not one fewer."""
+    return math.floor(tau_s / period_s + 1e-9)
 
 
 def expected_acks_until_spurious_timeout(p: float, k: int) -> float:

@@ -97,9 +97,14 @@ def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
     return heard[at] == receivers
 
 
+def deadline(last_heard_s, tau_s):
+    """``tau`` after the last Ack, and the instants that round into it (``K.TIE_S``)."""
+    return last_heard_s + tau_s + K.TIE_S
+
+
 def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
     """Which ``records`` (any leading shape) are live neighbours over a two-way link."""
-    live = now < records[..., K.LAST_HEARD] + tau_s  # against the deadline, as a timer
+    live = now < deadline(records[..., K.LAST_HEARD], tau_s)  # against the deadline, as a timer
     if not symmetric:
         live &= records[..., K.HEARS_ME] != 0
     return live
@@ -112,7 +117,7 @@ class NumpyTable(NeighbourTable):
 
     def _free_slots(self, now: float, rows: np.ndarray) -> np.ndarray:
         # Strictly after tau: an Ack at the instant of expiry may still continue the entry.
-        return (self.id[rows] == K.EMPTY) | (now > self.data[rows, :, K.LAST_HEARD] + self.tau_s)
+        return (self.id[rows] == K.EMPTY) | (now > deadline(self.data[rows, :, K.LAST_HEARD], self.tau_s))
 
     def _place(self, now, sender, receivers, found):
         """Give ``sender`` a slot in the rows of the receivers that have none for it."""
@@ -140,7 +145,7 @@ class NumpyTable(NeighbourTable):
         if power_dbm is not None:
             rec[:, K.RX_POWER] = np.asarray(power_dbm)[fresh]
         rec[:, K.LAST_HEARD] = now
-        was_live = found & (now <= old[:, K.LAST_HEARD] + self.tau_s)
+        was_live = found & (now <= deadline(old[:, K.LAST_HEARD], self.tau_s))
         rec[:, K.LIVE_SINCE] = np.where(was_live, old[:, K.LIVE_SINCE], now)
         rec[:, K.HEARS_ME] = hears_me
         still_two_way = was_live & (old[:, K.HEARS_ME] != 0)
@@ -159,7 +164,7 @@ class NumpyTable(NeighbourTable):
         return fresh, hears_me, len(fresh) - int(fresh.sum())
 
     def live_mask(self, now: float, i: int) -> np.ndarray:
-        return now < self.data[i, :, K.LAST_HEARD] + self.tau_s
+        return now < deadline(self.data[i, :, K.LAST_HEARD], self.tau_s)
 
     def announce(self, now, i, seq, role, leader, x_m, y_m, group_size) -> np.ndarray:
         """Robot ``i``'s Ack's packed record, with its two-way degree, then its live ids."""
@@ -177,7 +182,7 @@ def ack_effects(now, told, hears_me, robots, table, rules, effects) -> tuple[int
     ids, records, _ = table
     c = rules[0]
     symmetric, merge_delay_s = bool(c["symmetric"]), float(c["merge_delay_s"])
-    renewed_s = now + float(c["tau_s"])
+    renewed_s = deadline(now, float(c["tau_s"]))
     r_role = role[receivers]
     mine = (r_role == MEMBER) & (leader[receivers] == sender)
     found = [np.flatnonzero(mine), _NONE, _NONE, _NONE, _NONE]
@@ -312,7 +317,7 @@ def in_sorted(values: np.ndarray, pool: np.ndarray) -> np.ndarray:
 
 def believed_keys(ids, records, now, tau_s) -> np.ndarray:
     """``robot * n + other`` for every live entry of the tables, ascending."""
-    live = now < records[:, :, K.LAST_HEARD] + tau_s
+    live = now < deadline(records[:, :, K.LAST_HEARD], tau_s)
     return np.sort(np.nonzero(live)[0] * len(ids) + ids[live])
 
 
