@@ -124,6 +124,11 @@ class LinkState(Protocol):
         """Arrays ``(a, b)``, ``a < b``: the links up now."""
         ...
 
+    @property
+    def now_s(self) -> float:
+        """The instant they are up at: the run's present."""
+        ...
+
 
 class Plugin(Protocol):
     """A model: its own parameters, its tables, its rules across sections, how it is built."""

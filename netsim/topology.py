@@ -113,7 +113,8 @@ def snapshot(
 
     The edges are the links as the channel makes them: with ``links`` (the run's runtime
     link solver, ``sim.link_events()``), the links up now, whatever the radio (shadowing,
-    walls: the same links as ``links.parquet``), so ``t`` must be the run's present;
+    walls: the same links as ``links.parquet``), so ``t`` must be the run's present
+    (another is refused, ValueError);
     without it, the unit disk of the robots' ranges at ``t``, which are the channel's links
     only under the unit disk (or log-distance path loss alone) in open space. With
     ``directed=True`` the graph is a DiGraph with an edge i -> j when j is within i's
@@ -125,6 +126,11 @@ def snapshot(
         raise ValueError(
             f"snapshot at t = {t:g} s: a robot's current leg began at {began:g} s, so its position then is not "
             "held; take the snapshot while the run is at t"
+        )
+    if links is not None and t != links.now_s:
+        raise ValueError(
+            f"snapshot at t = {t:g} s with links: they are the links up now, at t = {links.now_s:g} s; take the "
+            "snapshot at the run's present (sim.now), or leave links out for the unit disk at t"
         )
     pos = state.positions_at(t)
     import networkx as nx

@@ -65,6 +65,26 @@ def test_a_snapshot_of_a_runs_links_on_a_torus_measures_them_by_the_shortest_ima
     assert across > 0
 
 
+def test_a_snapshot_with_the_runs_links_is_refused_at_another_instant():
+    """The links a solver gives are those up now: a snapshot of them at another instant
+    would draw the positions of one time with the links of another (edges longer than the
+    range), so it is refused; without links the unit disk is drawn at any later t."""
+    sim = build(
+        make_config(
+            duration_s=30.0,
+            world={"n_robots": 40, "side_m": 600.0},
+            channel={"range_m": 150.0},
+            protocol={"model": "none"},
+        )
+    )
+    links = sim.link_events()
+    sim.run(until_s=20.0)
+    with pytest.raises(ValueError, match=r"snapshot at t = 45 s with links: they are the links up now, at t = 20 s"):
+        snapshot(sim.state, sim.now + 25.0, links=links)
+    assert snapshot(sim.state, sim.now, links=links).number_of_edges() > 0
+    assert snapshot(sim.state, sim.now + 25.0).number_of_nodes() == 40
+
+
 def test_unequal_ranges_make_one_way_links():
     """i reaches j when d <= r_i; the undirected graph keeps only two-way links."""
     pos = np.array([[0.0, 0.0], [10.0, 0.0]])

@@ -135,6 +135,11 @@ class RuntimeLinks:
         """The links up now: arrays ``(a, b)``, ``a < b``."""
         return up_pairs(self.up, self._n)
 
+    @property
+    def now_s(self) -> float:
+        """The instant the links of :meth:`up_pairs` are up at: the run's present."""
+        return float(self.env.now)
+
     # -- course changes ------------------------------------------------------------------
     def _on_leg(self, i: int, t: float, jump: bool) -> None:
         if not self.started:

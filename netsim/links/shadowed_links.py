@@ -131,3 +131,8 @@ class ShadowedLinks:
     def up_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """The links up now: arrays ``(a, b)``, ``a < b``."""
         return up_pairs(self.up, self.n)
+
+    @property
+    def now_s(self) -> float:
+        """The instant the links of :meth:`up_pairs` are up at: the run's present."""
+        return float(self.env.now)
