@@ -65,6 +65,20 @@ def _map_path(key: str, value: Any) -> str:
     return file_path(key, value, 'must be the path of a map_server YAML file, "office", "cave", or ""', EXAMPLES)
 
 
+def _placement(key: str, value: Any) -> str:
+    """A placement's name as given; a CSV file that exists made absolute, as a map's path is
+    (a run's config.toml, a learning environment's next episode, find it from anywhere).
+    Anything else stays as given, for the placement's own check to name."""
+    value = coerce_value(key, value, str)
+    if value in NAMED_PLACEMENTS or not Path(value).expanduser().is_file():
+        return value
+    return file_path(key, value, "")
+
+
+# The placements named by a word (netsim.placement.PLACEMENTS, and "connected").
+NAMED_PLACEMENTS = ("uniform", "grid", "centre", "connected")
+
+
 @dataclass(frozen=True)
 class WorldParams(Params, OnTorus):
     section = "world"
@@ -83,7 +97,8 @@ class WorldParams(Params, OnTorus):
         "uniform",
         None,
         '"uniform", "grid", "centre", "connected" (a start whose links at t = 0 form one network), '
-        "or a path to a CSV file with columns x_m,y_m",
+        "or a path to a CSV file with columns x_m,y_m (made absolute, as a map's)",
+        coerce=_placement,
     )
     centre_side_m: float = param(
         250.0,
@@ -122,7 +137,7 @@ class WorldParams(Params, OnTorus):
         """``placement = "centre"``: the central square fits in the area."""
         if self.centre_side_m <= min(area.width, area.height):
             return
-        if area.is_square_at_origin:
+        if area.is_square_at_origin and area.width == self.side_m:
             raise ConfigError(
                 "world.centre_side_m", self.centre_side_m, f"must not exceed world.side_m = {self.side_m}"
             )

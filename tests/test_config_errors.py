@@ -189,6 +189,12 @@ def _cli(tmp_path, capsys, *args):
             ],
             "channel.noise_floor_dbm = -85.0",
         ),
+        # A square at the origin that is not world.side_m's: the message names the bounds.
+        (
+            ["--set", "world.bounds_m=[0,0,60,60]", "--set", "world.placement=centre"]
+            + ["--set", "world.centre_side_m=100"],
+            "world.centre_side_m = 100.0: must not exceed the area's shorter side (60 m, world.bounds_m)",
+        ),
         # Levels whose mW a float cannot hold (10^(v / 10) overflows): a traceback before.
         (
             ["--set", "channel.mac=aloha", "--set", "channel.propagation=log_distance"]

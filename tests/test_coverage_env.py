@@ -152,6 +152,7 @@ def test_infos_give_the_team_positions():
         (np.array([2.5, 0.0]), r"\[2\.5, 0\.0\]"),
         (np.array([np.nan, 0.0]), "nan"),
         ("fast", "'fast'"),
+        (("1", "2"), r"\('1', '2'\): must be a velocity \(vx, vy\) of numbers"),  # once taken as (1, 2)
     ],
 )
 def test_bad_action_names_it_and_changes_nothing(action, named):
@@ -667,3 +668,31 @@ def test_a_warning_not_of_the_configuration_goes_on_as_it_came(monkeypatch):
     others = [w for w in said if w.category is DeprecationWarning]
     assert [str(w.message) for w in others] == ["a library's own warning"]
     assert others[0].filename == __file__
+
+
+def test_the_netsim_tables_area_holds_the_default_central_square():
+    """An area set through ``netsim=`` smaller than the default central square (100 m) holds
+    it, as the keyword ``side_m`` does; it was refused, naming world.centre_side_m, which
+    the user never set."""
+    for world in ({"side_m": 50}, {"bounds_m": [0, 0, 60, 60]}):
+        env = coverage_v0.parallel_env(n_robots=4, max_cycles=2, netsim={"world": world})
+        env.reset(seed=0)
+        assert env.sim.config.world.centre_side_m == min(env.area.width, env.area.height)
+    env = coverage_v0.parallel_env(n_robots=4, max_cycles=2, netsim={"world": {"side_m": 50, "centre_side_m": 20}})
+    env.reset(seed=0)
+    assert env.sim.config.world.centre_side_m == 20.0
+
+
+def test_a_relative_placement_file_is_found_at_every_reset(tmp_path, monkeypatch):
+    """A CSV placement given relative to the working directory is the one every episode
+    reads, wherever the working directory is when it starts (keyword or ``netsim=``)."""
+    (tmp_path / "three.csv").write_text("x_m,y_m\n10,10\n20,20\n30,30\n")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    for kwargs in ({"placement": "three.csv"}, {"netsim": {"world": {"placement": "three.csv"}}}):
+        monkeypatch.chdir(tmp_path)
+        env = coverage_v0.parallel_env(n_robots=3, max_cycles=2, **kwargs)
+        env.reset(seed=0)
+        monkeypatch.chdir(elsewhere)
+        env.reset(seed=0)
+        assert env.sim.positions().tolist() == [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0]]

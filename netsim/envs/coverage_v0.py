@@ -62,6 +62,19 @@ FIELDS_PER_NEIGHBOUR = 4  # dx, dy, age, present
 FIELDS_PER_LINK = 3  # rx_power_dbm, age, present (link_quality)
 
 
+def _shorter_side(world: dict, side_m: float) -> float:
+    """The shorter side of the area the run's ``world`` table (``netsim=``) sets, else of
+    the keywords' square: the default central square is held within it."""
+    bounds = world.get("bounds_m")
+    if isinstance(bounds, list | tuple) and len(bounds) == 4:
+        try:
+            return min(float(bounds[2]) - float(bounds[0]), float(bounds[3]) - float(bounds[1]))
+        except (TypeError, ValueError):
+            return side_m  # the configuration's check says what is wrong with it
+    side = world.get("side_m", side_m)
+    return side if isinstance(side, int | float) and not isinstance(side, bool) else side_m
+
+
 @dataclass(frozen=True)
 class CoverageEnvParams(Params):
     """The environment's parameters (the keywords of :func:`parallel_env`)."""
@@ -123,6 +136,7 @@ class CoverageEnv(ParallelEnv):
         if problem is not None:
             raise ConfigError(*problem)
         check_placement(config.world)
+        self._hold_paths(config.world)
         self._tell(said)
         if self._ranges_implied and p.range_m != type(p)().range_m:
             # A range the user gave, that the radio's law overrides: said, as netsim says it of
@@ -168,6 +182,18 @@ class CoverageEnv(ParallelEnv):
         return self._action_space
 
     # -- episodes -------------------------------------------------------------------------
+    def _hold_paths(self, world: Any) -> None:
+        """The files the setting names, as the configuration made them absolute: every
+        episode finds them, whatever the working directory is when it starts."""
+        given = dict(self.netsim.get("world", {}))
+        for key in ("placement", "map"):
+            if key in given:
+                given[key] = getattr(world, key)
+        if given:
+            self.netsim["world"] = given
+        if "placement" not in given:
+            self.params = dataclasses.replace(self.params, placement=world.placement)
+
     def _config(self, seed: int) -> cfgmod.Config:
         p = self.params
         raw = {
@@ -177,7 +203,7 @@ class CoverageEnv(ParallelEnv):
                 "n_robots": p.n_robots,
                 "side_m": p.side_m,
                 "placement": p.placement,
-                "centre_side_m": min(p.centre_side_m, p.side_m),
+                "centre_side_m": min(p.centre_side_m, _shorter_side(self.netsim.get("world", {}), p.side_m)),
             },
             "channel": {"range_m": p.range_m},
             "mobility": {"model": "external"},
@@ -320,17 +346,22 @@ class CoverageEnv(ParallelEnv):
         index = self._index
         robots = [index[agent] for agent in actions]
         try:
-            v = np.array(list(actions.values()), dtype=float)
+            given = np.asarray(list(actions.values()))
+            # Numbers only: text that reads as one ("1") is not a velocity.
+            v = given.astype(float) if given.dtype.kind in "iuf" else np.empty(0)
         except (TypeError, ValueError):
             v = np.empty(0)
         if v.shape != (len(robots), 2):
             for agent, action in actions.items():  # which one is wrong
                 try:
-                    shape = np.asarray(action, dtype=float).shape
+                    one = np.asarray(action)
+                    shape = one.shape if one.dtype.kind in "iuf" else None
                 except (TypeError, ValueError):
                     shape = None
                 if shape != (2,):
-                    raise CommandError(f"action of {agent} = {action!r}: must be a velocity (vx, vy), shape (2,)")
+                    raise CommandError(
+                        f"action of {agent} = {action!r}: must be a velocity (vx, vy) of numbers, shape (2,)"
+                    )
         bad = ~(np.isfinite(v) & (np.abs(v) <= self._high)).all(axis=1)
         if bad.any():
             agent = list(actions)[int(np.flatnonzero(bad)[0])]
