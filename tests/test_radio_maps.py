@@ -45,8 +45,19 @@ def test_colour_channels_are_averaged_and_alpha_too_in_trinary_mode():
     rgba = np.array([[[255, 255, 255, 0]]], dtype=np.uint8)  # trinary: mean 191.25 -> p = 0.25
     occ, free = occupancy_from_pixels(rgba, False, 0.65, 0.196, "trinary", has_alpha=True)
     assert not occ[0, 0] and not free[0, 0]
-    occ, free = occupancy_from_pixels(rgba, False, 0.65, 0.196, "scale", has_alpha=True)
+    opaque = np.array([[[255, 255, 255, 255]]], dtype=np.uint8)
+    occ, free = occupancy_from_pixels(opaque, False, 0.65, 0.196, "scale", has_alpha=True)
     assert free[0, 0]  # scale: alpha left out of the mean
+
+
+def test_a_pixel_not_fully_opaque_is_unknown_in_scale_mode():
+    """ROS 2's map_server in scale mode: a pixel that is not fully opaque is unknown,
+    whatever its colour (map_saver writes unknown cells so); a transparent black pixel was
+    read as a wall, a transparent white one as free."""
+    rgba = np.array([[[0, 0, 0, 0], [255, 255, 255, 0], [255, 255, 255, 254], [0, 0, 0, 255]]], dtype=np.uint8)
+    occ, free = occupancy_from_pixels(rgba, False, 0.65, 0.196, "scale", has_alpha=True)
+    assert occ.tolist() == [[False, False, False, True]]
+    assert free.tolist() == [[False, False, False, False]]
 
 
 def test_loaded_map_geometry(tmp_path):

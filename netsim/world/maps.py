@@ -10,9 +10,9 @@ The format a robot team's SLAM already writes (``map_saver``)::
     free_thresh: 0.196
     mode: trinary              # optional: trinary (default) or scale
 
-Pixels are read exactly as ``map_server`` reads them: the mean of the channels ``c``
-(in ``trinary`` mode an alpha channel is averaged in too; in ``scale`` mode it is not, and a
-fully transparent pixel is unknown), ``p = (255 - c) / 255`` (``p = c / 255`` with
+Pixels are read exactly as ROS 2's ``map_server`` (Nav2) reads them: the mean of the
+channels ``c`` (in ``trinary`` mode an alpha channel is averaged in too; in ``scale`` mode it
+is not, and a pixel that is not fully opaque is unknown), ``p = (255 - c) / 255`` (``p = c / 255`` with
 ``negate``); a cell is **occupied** when ``p > occupied_thresh``, **free** when
 ``p < free_thresh``, and **unknown** otherwise (``scale`` mode's intermediate values
 count as unknown here). Row 0 of the image is the top of the map: the grid here is flipped
@@ -215,14 +215,20 @@ def occupancy_from_pixels(
     if px.ndim == 2:
         px = px[:, :, None]
     c = px.shape[2]
-    # As map_server: trinary mode averages an alpha channel in; scale mode leaves it out (and
-    # makes a transparent pixel unknown, which the thresholds below leave unknown anyway).
-    colour = (px[:, :, : c - 1] if has_alpha and mode != "trinary" else px).astype(float).mean(axis=2)
+    # As ROS 2's map_server (Nav2): trinary mode averages an alpha channel in; scale mode
+    # leaves it out, and a pixel not fully opaque is unknown whatever its colour (the
+    # unknown cells map_saver writes in scale mode are transparent).
+    scale_alpha = has_alpha and mode != "trinary"
+    colour = (px[:, :, : c - 1] if scale_alpha else px).astype(float).mean(axis=2)
     if negate:
         colour = 255.0 - colour
     p = (255.0 - colour) / 255.0
     occupied = p > occupied_thresh
     free = (p < free_thresh) & ~occupied
+    if scale_alpha:
+        opaque = px[:, :, c - 1] == 255
+        occupied &= opaque
+        free &= opaque
     return occupied, free
 
 
