@@ -420,7 +420,8 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
     links = frames["links"]
     life = links["t_down_s"] - links["t_up_s"]
     done = ~links["censored"]
-    distance = sim.state.travelled_m(duration, slice(None))
+    # Path length: the travel less what jumps (a trace's set X_) made of it.
+    distance = sim.state.travelled_m(duration, slice(None)) - sim.state.jumped_m
     km = lifetime_summary(links)
     config = sim.config
     summary = {

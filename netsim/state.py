@@ -91,10 +91,13 @@ class RobotState(OnTorus):
         self.speed_high_water_mps = 0.0
         # Bumped when a robot jumps (a trace's "set X_" at t > 0): the index must rebuild.
         self.jumps = 0
-        # Path length of each robot up to the start of its current leg (jumps add nothing),
-        # and its speed on the leg (numpy's abs of its velocity): the robot's travel
+        # Travel of each robot up to the start of its current leg, a jump counted as the
+        # straight line it jumped (a robot put elsewhere stands among other obstacles), and
+        # its speed on the leg (numpy's abs of its velocity): the robot's travel
         # (travelled_m), the clock of the radio's shadowing (a pair's travel).
         self.odometer_m = np.zeros(self.n)
+        # The part of it that jumps made: the path length is the travel less this.
+        self.jumped_m = np.zeros(self.n)
         self.speed_mps = np.zeros(self.n)
         self._legs: list[tuple] = []
         # Told of every change of a robot's leg as fn(robot, t, jump), logged or not.
@@ -172,9 +175,10 @@ class RobotState(OnTorus):
         return self._core
 
     def travelled_m(self, t: float, idx: np.ndarray | Sequence[int] | slice) -> np.ndarray:
-        """Path length of robots ``idx`` (ids, or a slice: ``slice(None)``, every robot)
-        from t = 0 to ``t`` (``t`` on their current leg): :func:`netsim._kernels.travel`,
-        the law the shadowing's clock runs on."""
+        """Travel of robots ``idx`` (ids, or a slice: ``slice(None)``, every robot) from t =
+        0 to ``t`` (``t`` on their current leg), a jump counted as the straight line it
+        jumped (``jumped_m`` holds those): :func:`netsim._kernels.travel`, the law the
+        shadowing's clock runs on."""
         rows, _ = self._rows(idx)
         out = np.empty(rows.size)
         kernels = self._core or self._load_core()
@@ -235,6 +239,7 @@ class RobotState(OnTorus):
         self.speed_mps[:] = 0.0
         self.t0_s[:] = 0.0
         self.odometer_m[:] = 0.0
+        self.jumped_m[:] = 0.0
         self._legs = [(0.0, i, x, y, 0.0, 0.0, "start") for i, (x, y) in enumerate(positions_m.tolist())]
         for w in self.watchers:
             for i in range(self.n):
@@ -288,6 +293,11 @@ class RobotState(OnTorus):
                 "and slower than light"
             )
         self._log_travel(i, t)
+        if start_m is not None:
+            here = self.positions_at(t, i, fold=False)
+            gap = float(distances_m(here.reshape(1, 2), start.reshape(1, 2), self.torus_side_m, self.n)[0])
+            self.odometer_m[i] += gap
+            self.jumped_m[i] += gap
         self.origin_m[i] = start
         self.velocity_mps[i] = (vx, vy)
         self.t0_s[i] = t

@@ -174,3 +174,32 @@ def test_pairs_listed_in_advance_give_the_same_values(compiled, monkeypatch):
         out.append((np.concatenate(vals), len(s)))
     assert out[1][0].tolist() == out[0][0].tolist()
     assert out[1][1] == out[0][1]
+
+
+def test_a_jump_counts_as_travel_for_the_shadowing():
+    """A robot put elsewhere (a trace's set X_) stands among other obstacles: its jump
+    counts in the pair's travel, the shadowing's clock, as the straight line it jumped (the
+    pair's value decorrelates: exp(-94 / 10) here), while the summary's speed, a path
+    length, leaves it out. Before, a jump added nothing and the shadowing stayed the same."""
+    from netsim.config import from_dict
+    from netsim.run import build, collect, summarize
+
+    cfg = from_dict(
+        {
+            "seed": 1,
+            "duration_s": 10.0,
+            "world": {"n_robots": 2, "side_m": 1000.0},
+            "mobility": {"model": "static"},
+            "channel": {"propagation": "log_distance", "shadowing_sigma_db": 6.0},
+            "protocol": {"model": "none"},
+        }
+    )
+    sim = build(cfg)
+    sim.state.place(np.array([[100.0, 500.0], [150.0, 500.0]]))
+    sim.state.set_leg(1, 1.0, (0.0, 0.0), start_m=(100.0, 420.0))  # from (150, 500): 94.3 m
+    travel = sim.state.pair_travelled_m(2.0, np.array([0]), np.array([1]))
+    assert travel.tolist() == [pytest.approx(np.hypot(50.0, 80.0), rel=1e-12)]
+    sim.state.set_leg(1, 2.0, (1.0, 0.0))
+    sim.run()
+    summary = summarize(sim, collect(sim), 0.0)
+    assert summary["mean_speed_mps"] == pytest.approx(8.0 / (2 * 10.0), rel=1e-12)  # 8 m driven, no jump
