@@ -145,7 +145,7 @@ def gateway_steps(pos: np.ndarray, move: np.ndarray, gw: np.ndarray, br: Bridges
     planned positions, as far as they can while staying within ``r_c - margin`` of each
     and inside the area."""
     n = len(pos)
-    cap = limits.reach_m
+    cap = limits.reach_m * SAFETY  # a step at the reach, over the period, rounds past the speed cap
     planned = pos[br.gw_leader] + move[br.gw_leader]
     cnt = np.bincount(br.gw_robot, minlength=n)
     cx = np.bincount(br.gw_robot, weights=planned[:, 0], minlength=n)
@@ -183,7 +183,7 @@ def plan_follow(pos: np.ndarray, leader: np.ndarray, desired_mps: np.ndarray, li
 
     move = np.zeros((n, 2))
     move[g.is_leader] = desired_mps[g.is_leader] * limits.period_s
-    cap_length(move, limits.reach_m)
+    cap_length(move, limits.reach_m * SAFETY)  # a step at the reach, over the period, rounds past the cap
     s = leader_step_factors(pos, move, g, br, rigid, limits)
     held = g.is_leader & in_motion(move) & (s < SAFETY)
     move *= s[:, None]

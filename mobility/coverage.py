@@ -92,6 +92,7 @@ or holds; no command is sent.
 from __future__ import annotations
 
 import math
+import warnings
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -379,6 +380,20 @@ def check(params: CoverageParams, config) -> None:
             "coverage.enabled",
             True,
             f"needs a protocol that forms groups (protocol.model = 'clustering'), not {config.protocol.model!r}",
+        )
+    smallest = min(config.ranges_m())
+    if not params.margin_m < smallest:
+        # Kept links stay margin_m inside the range: no link could be kept, nobody moves.
+        raise ConfigError(
+            "coverage.margin_m",
+            params.margin_m,
+            f"must be below the smallest range ({smallest:g} m): kept links stay this far inside it",
+        )
+    if params.start_s >= config.duration_s:
+        warnings.warn(
+            f"coverage.start_s = {params.start_s:g}: at or after the run's end (duration_s = "
+            f"{config.duration_s:g}): no control step is made",
+            stacklevel=2,
         )
 
 
@@ -1011,11 +1026,18 @@ class CoverageController:
         """Whether the robots' mean distance through free space to the free space their
         expansion seeks (not yet covered; with the local plan, not known to be explored: what
         the expansion on a map descends) fell by more than ``stop_speed_mps x stop_hold_s``
-        within the stopping rule's window: robots that file through a door toward it raise
-        the coverage only once they are through."""
+        within the stopping rule's window, from any of its instants to a later one: robots
+        that file through a door toward it raise the coverage only once they are through.
+        Any instant, not only the window's first: the distance also rises, as robots of the
+        local plan learn of cells their team explored (at the first step each knows only its
+        own), and a rise is no arrival."""
         c, now = self.cfg, self.env.now
-        window = [d for t, d in self._mean_to_uncovered_m if t >= now - c.hold_s - 1e-9]
-        return len(window) > 1 and window[0] - min(window[1:]) > c.stop_speed_mps * c.hold_s
+        peak = fall = 0.0
+        for t, d in self._mean_to_uncovered_m:
+            if t >= now - c.hold_s - 1e-9:
+                peak = max(peak, d)
+                fall = max(fall, peak - d)
+        return fall > c.stop_speed_mps * c.hold_s
 
     # -- outputs -----------------------------------------------------------------------
     def coverage_frame(self) -> pd.DataFrame:

@@ -605,6 +605,19 @@ def test_the_oracle_through_walls_needs_the_links_tracked_during_the_run():
     assert cfgmod.load(None, keys).protocol.routing == "oracle"
 
 
+def test_a_coverage_margin_at_the_range_is_refused_and_a_start_after_the_end_told():
+    """Kept links stay coverage.margin_m inside the range: at the range or past it no link
+    can be kept and no robot moves (it ran silently); a control start at or after the run's
+    end makes no step, and is told."""
+    base = ["coverage.enabled=true", "mobility.model=static", "channel.range_m=100"]
+    for margin in ("100", "inf"):
+        with pytest.raises(ConfigError) as err:
+            cfgmod.load(None, [*base, f"coverage.margin_m={margin}"])
+        assert err.value.key == "coverage.margin_m" and "below the smallest range (100 m)" in str(err.value)
+    with pytest.warns(UserWarning, match=r"^coverage.start_s = 1000: at or after the run's end \(duration_s = 30\)"):
+        cfgmod.load(None, [*base, "duration_s=30", "coverage.start_s=1000"])
+
+
 def test_a_wall_loss_without_a_map_is_warned_of(tmp_path):
     """A wall loss set where no map puts walls (a `netsim calibrate --map` fit run in open
     space) is one warning naming it; its default (as a run's own config.toml writes it),

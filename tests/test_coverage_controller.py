@@ -318,3 +318,26 @@ def test_leaders_hear_of_leaders_beyond_range_through_their_gateways(tmp_path, b
     assert xy[0] == pytest.approx([270.0, 500.0])
     ids3, _ = sim.groups.heard_leaders(3, sim.now)
     assert ids3.tolist() == []
+
+
+def test_follow_never_drives_a_robot_past_the_speed_cap():
+    """Follow: a leader's step capped at the reach, over the control period, gave speeds
+    of 2.0000000000000004 m/s against a cap of 2; steps are cut a hair short of the reach,
+    as the spread plans' are."""
+    from netsim.config import load
+    from netsim.run import execute
+
+    keys = [
+        "world.n_robots=30",
+        "world.placement=centre",
+        "mobility.model=static",
+        "coverage.enabled=true",
+        "coverage.members=follow",
+        "duration_s=200",
+        "protocol.message_rate_hz=0",
+    ]
+    config = load(None, keys)
+    legs = execute(config, run=0).frames["legs"]
+    speeds = np.hypot(legs["vx_mps"].to_numpy(), legs["vy_mps"].to_numpy())
+    assert speeds.max() <= config.coverage.speed_max_mps
+    assert speeds.max() > 0.99 * config.coverage.speed_max_mps  # robots do reach the cap
