@@ -146,6 +146,7 @@ from netsim.mobility.steps import Plan, StepLimits, cap_length, fell_short
 from netsim import metrics
 from netsim.area import MAX_COORDINATE_M, Bounds, within_reach_of_doubles
 from netsim.compiled import load
+from netsim.config import ConfigWarning
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable, in_motion, speeds_mps
@@ -252,7 +253,11 @@ class CoverageParams(Params):
     control_period_s: float = param(
         1.0, finite(positive), "time between control steps, s (also for control.controllers)", schedules="run"
     )
-    start_s: float = param(10.0, non_negative, "first control step, s (after the groups have formed)")
+    start_s: float = param(
+        10.0,
+        non_negative,
+        "first control step, s (after the groups have formed; at or after duration_s: none, and a warning)",
+    )
     gain: float = param(
         0.1,
         _gain_check,
@@ -260,7 +265,9 @@ class CoverageParams(Params):
         "in (0, 1e6]",
     )
     speed_max_mps: float = param(2.0, _speed_cap_check, "speed cap of every controlled robot, m/s")
-    margin_m: float = param(1.0, non_negative, "kept links stay this far inside the range, m")
+    margin_m: float = param(
+        1.0, non_negative, "kept links stay this far inside the range, m (below the smallest range)"
+    )
     fade_margin_db: float = param(
         8.0,
         non_negative,
@@ -393,6 +400,7 @@ def check(params: CoverageParams, config) -> None:
         warnings.warn(
             f"coverage.start_s = {params.start_s:g}: at or after the run's end (duration_s = "
             f"{config.duration_s:g}): no control step is made",
+            ConfigWarning,
             stacklevel=2,
         )
 
@@ -750,7 +758,11 @@ class CoverageController:
             # the free space each robot knows its team has not covered (rule 6).
             cells = self.explored.step(pos, self.radius_m, known, memory.sent_s, self.env.now)
             wished, to_unexplored_m = expansion_to_unexplored(self.grid, pos, cells, self.range_m, c.gain)
-            self._expansion_progress(to_unexplored_m)
+            if self.env.now > c.start_s:
+                # At the first step each robot knows only the cells it explored itself: the
+                # distance to unexplored space then rises as Acks tell of the team's, which
+                # the stopping rule would read as a team coming no nearer.
+                self._expansion_progress(to_unexplored_m)
         else:
             target, source_xy = sources_heard(self.knows, self.heard, step.t_s, 2 * self.range_m, pos)
             target, source_xy = self._in_sight(pos, target, source_xy)
@@ -1026,18 +1038,11 @@ class CoverageController:
         """Whether the robots' mean distance through free space to the free space their
         expansion seeks (not yet covered; with the local plan, not known to be explored: what
         the expansion on a map descends) fell by more than ``stop_speed_mps x stop_hold_s``
-        within the stopping rule's window, from any of its instants to a later one: robots
-        that file through a door toward it raise the coverage only once they are through.
-        Any instant, not only the window's first: the distance also rises, as robots of the
-        local plan learn of cells their team explored (at the first step each knows only its
-        own), and a rise is no arrival."""
+        within the stopping rule's window: robots that file through a door toward it raise
+        the coverage only once they are through."""
         c, now = self.cfg, self.env.now
-        peak = fall = 0.0
-        for t, d in self._mean_to_uncovered_m:
-            if t >= now - c.hold_s - 1e-9:
-                peak = max(peak, d)
-                fall = max(fall, peak - d)
-        return fall > c.stop_speed_mps * c.hold_s
+        window = [d for t, d in self._mean_to_uncovered_m if t >= now - c.hold_s - 1e-9]
+        return len(window) > 1 and window[0] - min(window[1:]) > c.stop_speed_mps * c.hold_s
 
     # -- outputs -----------------------------------------------------------------------
     def coverage_frame(self) -> pd.DataFrame:

@@ -75,7 +75,8 @@ def _placement(key: str, value: Any) -> str:
     return file_path(key, value, "")
 
 
-# The placements named by a word (netsim.placement.PLACEMENTS, and "connected").
+# The placements named by a word (netsim.placement.PLACEMENTS, and "connected"); any other
+# value of world.placement is the path of a CSV file.
 NAMED_PLACEMENTS = ("uniform", "grid", "centre", "connected")
 
 

@@ -121,11 +121,22 @@ def robot_ids(robots: Any, n: int) -> np.ndarray:
     return ids
 
 
+def as_numbers(value: Any) -> np.ndarray:
+    """``value`` as a float array, if it holds numbers: text that reads as a number ("1")
+    and truth values are not velocities (ValueError), whether alone or beside numbers (each
+    row of a list is looked at)."""
+    a = np.asarray(value)
+    rows = value if isinstance(value, list | tuple) else (value,)
+    if a.dtype.kind not in "iuf" or any(np.asarray(row).dtype.kind not in "iuf" for row in rows):
+        raise ValueError(f"not numbers: {value!r:.60}")
+    return a.astype(float)
+
+
 def velocities(velocities_mps: Any, k: int) -> np.ndarray:
     """``velocities_mps`` as a float ``(k, 2)`` array of finite values (one row may be given
     as a pair when ``k == 1``)."""
     try:
-        v = np.array(velocities_mps, dtype=float)
+        v = as_numbers(velocities_mps)
     except (TypeError, ValueError):
         raise CommandError(f"velocities_mps = {velocities_mps!r}: must be numbers, shape ({k}, 2)") from None
     if k == 1 and v.shape == (2,):

@@ -16,7 +16,7 @@ import pandas as pd
 
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
-from netsim.config import world_bounds
+from netsim.config import NAMED_PLACEMENTS, world_bounds
 from netsim.errors import ConfigError
 from netsim.geometry import cell_centres_m, link_ranges_m
 from netsim.rng import Streams
@@ -65,9 +65,8 @@ def from_csv(path: str, n: int, area: float | Bounds) -> np.ndarray:
     b = as_bounds(area)
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(
-            key, path, 'must be "uniform", "grid", "centre", "connected" or the path of an existing CSV file'
-        )
+        named = ", ".join(f'"{name}"' for name in NAMED_PLACEMENTS)
+        raise ConfigError(key, path, f"must be {named} or the path of an existing CSV file")
     try:
         df = pd.read_csv(p)
     except Exception as exc:  # pandas raises several parser errors; all mean a bad file
@@ -101,7 +100,7 @@ def check_placement(world: WorldParams) -> None:
     """Raise, before any run, the :class:`ConfigError` a run would raise for
     ``world.placement`` naming no placement and no usable CSV file (a CSV file is read and
     checked against the team and the area as a run reads it)."""
-    if world.placement != "connected" and world.placement not in PLACEMENTS:
+    if world.placement not in NAMED_PLACEMENTS:
         from_csv(world.placement, world.n_robots, world_bounds(world))
 
 

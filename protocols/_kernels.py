@@ -23,6 +23,7 @@ join and election policies' codes).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -534,18 +535,24 @@ def group_size(records_row, now, tau_s, symmetric, i):
 
 
 # A run's instants are floats: periods and a latency that add up to exactly ``tau`` in the
-# model can add up to a few 1e-14 s more (each sum rounds on its own), which would make an
-# Ack due at its deadline miss it by rounding alone. Instants this close count as one
-# (ns-3's time resolution).
+# model can add up to a few units in the last place more (each sum rounds on its own),
+# which would make an Ack due at its deadline miss it by rounding alone. Instants this
+# close count as one: within a nanosecond (ns-3's time resolution), or, past 10^6 s, where
+# a nanosecond is below the times' own rounding, within a few units in the last place.
 TIE_S = 1e-9
+TIE_RELATIVE = 2.0**-50
 
 
 @jit(nogil=True)
 def deadline_after(from_s, tau_s):
     """When a timer of rules 3 and 4 runs out: ``tau_s`` after the instant it runs from (the
     leader's Ack a member last heard, a robot's first Ack, the event that restarted it),
-    :data:`TIE_S` included, so that an Ack at the deadline counts however it rounds."""
-    return (from_s + tau_s) + TIE_S
+    and the instants that round into it (:data:`TIE_S`), so that an Ack at the deadline
+    counts however it rounds."""
+    due = from_s + tau_s
+    slack = abs(due) * TIE_RELATIVE
+    # An empty entry's -inf stays -inf (not -inf + inf).
+    return due + (slack if TIE_S < slack < math.inf else TIE_S)
 
 
 @jit(nogil=True)

@@ -52,7 +52,8 @@ receivers are the sender's members, which timers to arm, who may join, who may m
 (:data:`RULES`) and the effects' lists.
 
 Timers are exact: a member's deadline is ``tau`` after the last two-way Ack from its
-leader; an undecided robot's is ``tau`` after it became undecided or last heard a leader
+leader (and the instants that round into it: :data:`netsim.protocols._kernels.TIE_S`); an
+undecided robot's is ``tau`` after it became undecided or last heard a leader
 over a two-way link (one-way links are not links). Deliveries precede timers due at the
 same instant, so an Ack arriving exactly at a deadline counts, and so do Acks sent at
 that instant (sends too run ahead of timers), always.

@@ -3,7 +3,8 @@
 Row ``i`` holds what robot ``i`` learnt from the Acks it heard: for each neighbour, the
 time of its last Ack, when the entry became live, whether the neighbour hears ``i``, and
 the Ack's fields. An entry is live while its last Ack is younger than ``tau``
-(``now < last + tau``, the sum its timer runs out at); at exactly ``tau`` it has expired,
+(``now < last + tau`` and the instants that round into it, the deadline its timer runs out
+at: :func:`netsim.protocols._kernels.deadline_after`); at that deadline it has expired,
 but an Ack that arrives at that very instant continues it (arrivals come before
 deadlines: the entry keeps its ``live_since`` and two-way start). An Ack older (by sequence number) than the one an
 entry holds, overtaken in flight by a newer one, is ignored.

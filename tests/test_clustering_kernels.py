@@ -30,6 +30,7 @@ from tests.oracles.protocols import (
     ack_effects,
     belief_counts,
     believed_keys,
+    deadline,
     elected_in_row,
     flood_step,
     group_size,
@@ -55,11 +56,17 @@ def kernels(request):
 
 def random_tables(rng, n, slots, now):
     """Neighbour tables ``(ids, records)`` with random entries: live, expired, exactly tau
-    old (expired), empty; one-way and two-way; any role and leader."""
+    old (live: its deadline takes the instants that round into it), at their deadline to
+    the last bit (expired), empty; one-way and two-way; any role and leader."""
     ids = np.where(rng.random((n, slots)) < 0.8, rng.integers(0, n, (n, slots)), -1).astype(np.int64)
     records = np.broadcast_to(EMPTY_RECORD, (n, slots, len(EMPTY_RECORD))).copy()
     used = ids >= 0
-    records[:, :, LAST_HEARD] = np.where(used, now - rng.choice([0.0, 0.5, 2.9, TAU_S, 4.0], (n, slots)), -np.inf)
+    at_deadline = now - TAU_S - TIE_S
+    while deadline(at_deadline, TAU_S) < now:
+        at_deadline = np.nextafter(at_deadline, np.inf)
+    assert deadline(at_deadline, TAU_S) == now
+    heard_s = np.array([now - age for age in (0.0, 0.5, 2.9, TAU_S, 4.0)] + [at_deadline])
+    records[:, :, LAST_HEARD] = np.where(used, heard_s[rng.integers(0, len(heard_s), (n, slots))], -np.inf)
     records[:, :, HEARS_ME] = used & (rng.random((n, slots)) < 0.7)
     records[:, :, ROLE] = np.where(used, rng.integers(0, 3, (n, slots)), 0)
     records[:, :, LEADER] = np.where(used, rng.integers(-1, 6, (n, slots)), -1)

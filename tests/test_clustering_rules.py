@@ -10,18 +10,13 @@ started more than a period after it.
 
 import numpy as np
 import pytest
-from netsim.protocols._kernels import TIE_S
 from netsim.protocols.clustering import TRANSITIONS, Candidate, merge_loser, rules_record, transition
 from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
 
 from tests.fixtures import clustering
+from tests.oracles.protocols import deadline
 
 TAU, PERIOD, LATENCY = 3.0, 1.0, 0.001
-
-
-def deadline(from_s, tau_s=TAU):
-    """A timer's instant: ``tau`` after ``from_s``, and instants that round into it (TIE_S)."""
-    return from_s + tau_s + TIE_S
 
 
 def scripted(positions, phases, range_m=10.0, latency_s=LATENCY, **protocol):
@@ -71,7 +66,7 @@ def test_rule4_undecided_robot_that_hears_no_leader_becomes_leader_after_tau():
     for i, phase in enumerate([0.25, 0.6]):
         rec = records(sim, i)
         assert rec.cause.tolist() == ["rule4_no_leader"]
-        assert rec.t_s[0] == deadline(phase)
+        assert rec.t_s[0] == deadline(phase, TAU)
         assert rec.role[0] == "alpha" and rec.leader[0] == i
 
 
@@ -86,7 +81,7 @@ def test_rule2_undecided_robot_joins_the_leader_it_hears():
     assert (joined.role[0], joined.leader[0]) == ("beta", 0)
     # Robot 0 became alpha at 3.1, after its Ack of that instant; it joined on the first
     # Ack robot 0 sent as a leader (sent at 4.1, delivered 1 ms later).
-    assert records(sim, 0).t_s[0] == deadline(0.1)
+    assert records(sim, 0).t_s[0] == deadline(0.1, TAU)
     assert joined.t_s[0] == pytest.approx(4.1 + LATENCY, abs=1e-12)
     assert (stack.role == [LEADER, MEMBER]).all()
 
@@ -112,9 +107,9 @@ def test_rule3_member_whose_leader_leaves_becomes_undecided_exactly_tau_after_la
     rec = records(sim, 1)
     assert rec.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule4_no_leader"]
     last = last_delivery(deliveries, 0, 1, before=10.0)
-    assert rec.t_s[1] == deadline(last)  # exact to the instant
+    assert rec.t_s[1] == deadline(last, TAU)  # exact to the instant
     assert rec.role[1] == "gamma"
-    assert rec.t_s[2] == deadline(deadline(last))  # then rule 4, tau later
+    assert rec.t_s[2] == deadline(deadline(last, TAU), TAU)  # then rule 4, tau later
 
 
 @pytest.mark.parametrize(
@@ -161,7 +156,7 @@ def test_an_ack_due_at_the_deadline_counts_however_its_instant_rounds(latency_s)
     """With latency, the deadline (the last Ack's arrival plus tau) and the arrival of the
     Ack sent tau later are sums rounded apart: the arrival may fall a few 1e-14 s past the
     deadline. It still counts (TIE_S): a member that hears its leader every third Ack, tau =
-    3 periods, never times out, at any phase. Before, about half the phases timed out."""
+    3 periods, never times out, at any phase."""
     timeouts = []
     for phase in np.random.default_rng(0).uniform(0.0, 0.5, 12).tolist():
         sim, stack, _ = scripted([[0, 0], [5, 0]], [phase, phase + 1.2], latency_s=latency_s, election_policy="none")
@@ -192,9 +187,9 @@ def test_rule6_a_member_that_joins_another_leader_at_once_times_out_from_that_le
     rec = records(sim, 2)
     assert rec.cause.tolist()[:4] == ["rule2_join", "rule3_leader_lost", "rule2_join", "rule3_leader_lost"], rec
     assert rec.leader.tolist()[:3] == [1, -1, 0]
-    assert rec.t_s[1] == deadline(last_delivery(deliveries, 1, 2, before=10.5))
+    assert rec.t_s[1] == deadline(last_delivery(deliveries, 1, 2, before=10.5), TAU)
     assert rec.t_s[2] == rec.t_s[1]  # joined at once
-    assert rec.t_s[3] == deadline(last_delivery(deliveries, 0, 2, before=12.5)) < deadline(rec.t_s[2])
+    assert rec.t_s[3] == deadline(last_delivery(deliveries, 0, 2, before=12.5), TAU) < deadline(rec.t_s[2], TAU)
 
 
 def test_rule3_a_timer_and_the_table_agree_on_when_an_entry_ends():
@@ -221,7 +216,7 @@ def test_rule3_a_timer_and_the_table_agree_on_when_an_entry_ends():
     sim.run(until_s=20)
     rec = records(sim, 2)
     assert rec.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected"], rec
-    assert rec.t_s.iloc[-2] == deadline(stack.table.last_heard_s[2, stack.table.entry(2, 0)])
+    assert rec.t_s.iloc[-2] == deadline(stack.table.last_heard_s[2, stack.table.entry(2, 0)], TAU)
 
 
 def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():
@@ -363,7 +358,7 @@ def test_rule6_group_that_lost_its_leader_elects_the_lowest_id(policy):
     sim.run(until_s=30)
     r1, r2 = records(sim, 1), records(sim, 2)
     assert r1.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected"]
-    deadline_s = deadline(last_delivery(deliveries, 0, 1, before=10.0))
+    deadline_s = deadline(last_delivery(deliveries, 0, 1, before=10.0), TAU)
     assert r1.t_s[1] == r1.t_s[2] == deadline_s
     assert r2.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"]
     assert r2.t_s[1] == deadline_s and r2.leader[2] == 1
@@ -379,7 +374,7 @@ def test_rule6_the_election_comes_before_joining_another_leader():
     move_away(sim, 3, 10.0)
     sim.run(until_s=14.0)
     r0, r1 = records(sim, 0), records(sim, 1)
-    deadline_s = deadline(last_delivery(deliveries, 3, 0, before=10.0))
+    deadline_s = deadline(last_delivery(deliveries, 3, 0, before=10.0), TAU)
     assert r0.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected"], r0
     assert r0.leader.tolist() == [3, -1, 0] and r0.t_s[2] == deadline_s
     assert r1.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"], r1
@@ -396,7 +391,7 @@ def test_rule6_a_member_that_loses_the_election_joins_on_hearing_a_leader_not_at
     move_away(sim, 3, 10.0)
     sim.run(until_s=14.0)
     r1 = records(sim, 1)
-    deadline_s = deadline(last_delivery(deliveries, 3, 1, before=10.0))
+    deadline_s = deadline(last_delivery(deliveries, 3, 1, before=10.0), TAU)
     assert r1.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"], r1
     assert r1.t_s[1] == deadline_s and r1.leader[2] == 4
     assert r1.t_s[2] == min(t for t, s, r in deliveries if s == 4 and 1 in r and t > deadline_s) > deadline_s

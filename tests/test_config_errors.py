@@ -195,7 +195,7 @@ def _cli(tmp_path, capsys, *args):
             + ["--set", "world.centre_side_m=100"],
             "world.centre_side_m = 100.0: must not exceed the area's shorter side (60 m, world.bounds_m)",
         ),
-        # Levels whose mW a float cannot hold (10^(v / 10) overflows): a traceback before.
+        # Levels whose mW a float cannot hold (10^(v / 10) overflows).
         (
             ["--set", "channel.mac=aloha", "--set", "channel.propagation=log_distance"]
             + ["--set", "channel.capture_threshold_db=1e5"],
@@ -614,7 +614,8 @@ def test_a_coverage_margin_at_the_range_is_refused_and_a_start_after_the_end_tol
         with pytest.raises(ConfigError) as err:
             cfgmod.load(None, [*base, f"coverage.margin_m={margin}"])
         assert err.value.key == "coverage.margin_m" and "below the smallest range (100 m)" in str(err.value)
-    with pytest.warns(UserWarning, match=r"^coverage.start_s = 1000: at or after the run's end \(duration_s = 30\)"):
+    late = r"^coverage.start_s = 1000: at or after the run's end \(duration_s = 30\)"
+    with pytest.warns(cfgmod.ConfigWarning, match=late):
         cfgmod.load(None, [*base, "duration_s=30", "coverage.start_s=1000"])
 
 
@@ -648,3 +649,11 @@ def test_scenario_generate_refuses_a_bonnmotion_name(tmp_path, capsys, monkeypat
         "(netsim export --format bonnmotion writes BonnMotion from a run)"
     ]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_placements_named_by_a_word_are_the_ones_the_engine_places():
+    """A name the configuration keeps as given (not a file's path to make absolute) is one
+    the engine places by: the two lists cannot drift apart."""
+    from netsim.placement import PLACEMENTS
+
+    assert set(cfgmod.NAMED_PLACEMENTS) == set(PLACEMENTS) | {"connected"}

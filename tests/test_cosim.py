@@ -194,6 +194,8 @@ def good_play(tmp_path_factory):
         (lambda s: s.drive([0, 1], [[1.0, 0.0]]), "(1, 2)"),
         (lambda s: s.drive([0, 0], [[1.0, 0.0], [2.0, 0.0]]), "[0, 0]"),
         (lambda s: s.drive(["a"], [[1.0, 0.0]]), "'a'"),
+        (lambda s: s.drive([0], [["1", "0"]]), "[['1', '0']]: must be numbers"),
+        (lambda s: s.drive([0, 1], [[1.0, 0.0], [True, False]]), "[True, False]]: must be numbers"),
         (lambda s: s.send(0, 9, "x"), "9"),
         (lambda s: s.send(0, 0, "x"), "0"),
         (lambda s: s.send(1.5, 2, "x"), "1.5"),

@@ -152,7 +152,8 @@ def test_infos_give_the_team_positions():
         (np.array([2.5, 0.0]), r"\[2\.5, 0\.0\]"),
         (np.array([np.nan, 0.0]), "nan"),
         ("fast", "'fast'"),
-        (("1", "2"), r"\('1', '2'\): must be a velocity \(vx, vy\) of numbers"),  # once taken as (1, 2)
+        (("1", "2"), r"\('1', '2'\): must be a velocity \(vx, vy\) of numbers"),
+        ((True, False), r"\(True, False\): must be a velocity \(vx, vy\) of numbers"),
     ],
 )
 def test_bad_action_names_it_and_changes_nothing(action, named):
@@ -314,15 +315,15 @@ def test_measure_kernels_equal_the_numpy_oracles(compiled):
         heard = rng.uniform(0.0, 3.0, (n, slots))
         for k in (0, 3, 10):
             a, b = np.zeros((n, 40), np.float32), np.zeros((n, 40), np.float32)
-            kernels.nearest_told(a, 2, pos, ids, told, heard, 3.5, k)
-            oracle.nearest_told(b, 2, pos, ids, told, heard, 3.5, k)
+            kernels.nearest_told(a, 2, pos, ids, told, heard, 3.5, k, 3.0)
+            oracle.nearest_told(b, 2, pos, ids, told, heard, 3.5, k, 3.0)
             assert a.tobytes() == b.tobytes()
         power = np.where(rng.random((n, slots)) < 0.9, rng.uniform(-85.0, -30.0, (n, slots)), np.nan)
         power[:, 2] = power[:, 3]  # ties: the lower slot first
         for k in (0, 3, 10):
             a, b = np.zeros((n, 40), np.float32), np.zeros((n, 40), np.float32)
-            kernels.strongest_heard(a, 2, ids, power, heard, 3.5, k, -80.0, -35.0)
-            oracle.strongest_heard(b, 2, ids, power, heard, 3.5, k, -80.0, -35.0)
+            kernels.strongest_heard(a, 2, ids, power, heard, 3.5, k, -80.0, -35.0, 3.0)
+            oracle.strongest_heard(b, 2, ids, power, heard, 3.5, k, -80.0, -35.0, 3.0)
             assert a.tobytes() == b.tobytes()
 
 
@@ -670,11 +671,15 @@ def test_a_warning_not_of_the_configuration_goes_on_as_it_came(monkeypatch):
     assert others[0].filename == __file__
 
 
-def test_the_netsim_tables_area_holds_the_default_central_square():
-    """An area set through ``netsim=`` smaller than the default central square (100 m) holds
-    it, as the keyword ``side_m`` does; it was refused, naming world.centre_side_m, which
-    the user never set."""
-    for world in ({"side_m": 50}, {"bounds_m": [0, 0, 60, 60]}):
+def test_the_netsim_tables_area_holds_the_default_central_square(tmp_path):
+    """An area set through ``netsim=`` (a side, bounds, a map's extent) smaller than the
+    default central square (100 m) holds it, as the keyword ``side_m`` does, rather than
+    refuse a centre_side_m the user never set."""
+    from netsim.world.maps import save_map
+
+    occupied = np.zeros((60, 60), dtype=bool)
+    small_map = save_map(tmp_path / "small.yaml", occupied, ~occupied, 1.0)
+    for world in ({"side_m": 50}, {"bounds_m": [0, 0, 60, 60]}, {"map": str(small_map), "bounds_m": "map"}):
         env = coverage_v0.parallel_env(n_robots=4, max_cycles=2, netsim={"world": world})
         env.reset(seed=0)
         assert env.sim.config.world.centre_side_m == min(env.area.width, env.area.height)

@@ -1369,7 +1369,7 @@ def test_a_mobility_model_that_subscribes_wrongly_is_named_by_its_key_and_value(
 def test_random_direction_on_a_map_gives_its_legs_its_own_causes(pause_s):
     """On a map a random-direction robot heads for a wall as for the border: its legs are
     `start`, `border` and `pause_end` (docs/events.md), never `command` (the control loop's)
-    or `waypoint`, as they once were."""
+    or `waypoint`."""
     config = load(
         None,
         [

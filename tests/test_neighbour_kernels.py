@@ -215,3 +215,14 @@ def test_an_ack_at_the_instant_of_expiry_continues_the_entry(kernels):
     ):
         assert bool(kernels.is_live(float(last), now, tau_s)) is live
         assert bool(kernels.continues(float(last), now, tau_s)) is continued
+
+
+def test_a_deadline_takes_the_instants_that_round_into_it_at_any_time_of_a_run(kernels):
+    """A deadline is tau and a nanosecond after its start; past 10^6 s, where a nanosecond is
+    below the times' own rounding (at 10^8 s, t + 1e-9 == t), a few units in the last
+    place. An empty entry's -inf stays -inf."""
+    for t in (10.0, 1e6, 1e8, 1e12):
+        due = t + 3.0
+        d = kernels.deadline_after(t, 3.0)
+        assert due < d <= due + max(1e-9, 2**-49 * due)
+    assert kernels.deadline_after(-np.inf, 3.0) == -np.inf

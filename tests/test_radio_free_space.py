@@ -92,8 +92,8 @@ def _pocket() -> OccupancyMap:
 
 def test_a_robot_that_sees_little_free_space_still_gets_a_destination():
     """A robot in a pocket sees 1 of the 71 free cells: once the first rounds miss, the draws
-    go on (in larger rounds) until one is visible, uniform over what it sees, its pocket. A
-    robot behind a bend once stopped the run after 6,400 misses."""
+    go on (in larger rounds) until one is visible, uniform over what it sees, its pocket,
+    rather than give up on a robot that does see free space."""
     m = _pocket()
     dest = draw_destinations(m, np.random.default_rng(1), [[9.5, 9.5]] * 3, 10.0, batch=2, max_rounds=2)
     assert ((dest >= 9.0) & (dest <= 10.0)).all()

@@ -180,7 +180,7 @@ def test_a_jump_counts_as_travel_for_the_shadowing():
     """A robot put elsewhere (a trace's set X_) stands among other obstacles: its jump
     counts in the pair's travel, the shadowing's clock, as the straight line it jumped (the
     pair's value decorrelates: exp(-94 / 10) here), while the summary's speed, a path
-    length, leaves it out. Before, a jump added nothing and the shadowing stayed the same."""
+    length, leaves it out."""
     from netsim.config import from_dict
     from netsim.run import build, collect, summarize
 

@@ -22,11 +22,13 @@ def covered_fraction_grid(p, radius_m, x0_m, y0_m, width_m, height_m, cells):
 
 
 @jit(nogil=True)
-def nearest_told(out, start, pos, ids, told, heard_s, now, k):
+def nearest_told(out, start, pos, ids, told, heard_s, now, k, age_max_s):
     """Write into ``out[i, start:start + 4 min(k, slots)]`` robot ``i``'s ``k`` nearest live
     table entries by told position (ties: the lower slot first): ``dx, dy`` (told position
-    minus ``pos[i]``), the age of the Ack that told it (``now - heard_s``) and 1; zeros where
-    fewer are live. ``ids, told, heard_s``: a :class:`netsim.cosim.NeighbourView`'s arrays."""
+    minus ``pos[i]``), the age of the Ack that told it (``now - heard_s``, at most
+    ``age_max_s``: tau, the observation's bound, which an entry outlives by the instants that
+    round into its deadline) and 1; zeros where fewer are live. ``ids, told, heard_s``: a
+    :class:`netsim.cosim.NeighbourView`'s arrays."""
     n, slots = ids.shape
     d2 = np.empty(slots)
     for i in range(n):
@@ -44,7 +46,7 @@ def nearest_told(out, start, pos, ids, told, heard_s, now, k):
             if ids[i, s] >= 0:
                 out[i, c] = told[i, s, 0] - pos[i, 0]
                 out[i, c + 1] = told[i, s, 1] - pos[i, 1]
-                out[i, c + 2] = now - heard_s[i, s]
+                out[i, c + 2] = min(now - heard_s[i, s], age_max_s)
                 out[i, c + 3] = 1.0
             else:
                 out[i, c] = 0.0
@@ -54,14 +56,14 @@ def nearest_told(out, start, pos, ids, told, heard_s, now, k):
 
 
 @jit(nogil=True)
-def strongest_heard(out, start, ids, power_dbm, heard_s, now, k, low_dbm, high_dbm):
+def strongest_heard(out, start, ids, power_dbm, heard_s, now, k, low_dbm, high_dbm, age_max_s):
     """Write into ``out[i, start:start + 3 k]`` robot ``i``'s ``k`` strongest live
     table entries by the power it got their last Acks at (ties: the lower slot first;
     entries without a power left out): that power (dBm, kept within ``[low_dbm,
     high_dbm]``, the observation's bounds, against float32's rounding there), the age of
-    the Ack (``now - heard_s``) and 1; where fewer are live, ``low_dbm`` (nothing heard:
-    the floor, inside the bounds), 0 and 0. ``ids, power_dbm,
-    heard_s``: a :class:`netsim.cosim.LinkQualityView`'s arrays."""
+    the Ack (``now - heard_s``, at most ``age_max_s``, as in :func:`nearest_told`) and 1;
+    where fewer are live, ``low_dbm`` (nothing heard: the floor, inside the bounds), 0 and
+    0. ``ids, power_dbm, heard_s``: a :class:`netsim.cosim.LinkQualityView`'s arrays."""
     n, slots = ids.shape
     key = np.empty(slots)
     for i in range(n):
@@ -74,7 +76,7 @@ def strongest_heard(out, start, ids, power_dbm, heard_s, now, k, low_dbm, high_d
             c = start + 3 * m
             if key[s] < np.inf:
                 out[i, c] = min(max(power_dbm[i, s], low_dbm), high_dbm)
-                out[i, c + 1] = now - heard_s[i, s]
+                out[i, c + 1] = min(now - heard_s[i, s], age_max_s)
                 out[i, c + 2] = 1.0
             else:
                 out[i, c] = low_dbm

@@ -49,7 +49,7 @@ from netsim import config as cfgmod
 from netsim import metrics
 from netsim.area import Bounds
 from netsim.compiled import load
-from netsim.cosim import CommandError, LinkQualityView
+from netsim.cosim import CommandError, LinkQualityView, as_numbers
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.placement import check_placement
@@ -60,19 +60,6 @@ from netsim.topology import geometric_pairs
 
 FIELDS_PER_NEIGHBOUR = 4  # dx, dy, age, present
 FIELDS_PER_LINK = 3  # rx_power_dbm, age, present (link_quality)
-
-
-def _shorter_side(world: dict, side_m: float) -> float:
-    """The shorter side of the area the run's ``world`` table (``netsim=``) sets, else of
-    the keywords' square: the default central square is held within it."""
-    bounds = world.get("bounds_m")
-    if isinstance(bounds, list | tuple) and len(bounds) == 4:
-        try:
-            return min(float(bounds[2]) - float(bounds[0]), float(bounds[3]) - float(bounds[1]))
-        except (TypeError, ValueError):
-            return side_m  # the configuration's check says what is wrong with it
-    side = world.get("side_m", side_m)
-    return side if isinstance(side, int | float) and not isinstance(side, bool) else side_m
 
 
 @dataclass(frozen=True)
@@ -126,6 +113,7 @@ class CoverageEnv(ParallelEnv):
         self.max_cycles = p.max_cycles
         # Whether the channel's law implies the ranges: the same for every episode.
         self._ranges_implied: bool | None = None
+        self._shorter_side: float | None = None
         # A bad key of ``netsim``, or one the environment cannot honour, is refused now,
         # not at the first reset.
         # What the configuration warns of (keys ignored) is said once a setting is known to
@@ -194,23 +182,35 @@ class CoverageEnv(ParallelEnv):
         if "placement" not in given:
             self.params = dataclasses.replace(self.params, placement=world.placement)
 
+    def _shorter_side_m(self, raw: dict) -> float:
+        """The shorter side of the run's area (the same for every episode)."""
+        if self._shorter_side is None:
+            probe = cfgmod.merge(raw, self.netsim)
+            # Any placement and square will do to learn the area.
+            probe["world"] = {**probe["world"], "placement": "uniform"}
+            probe["world"].pop("centre_side_m", None)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", cfgmod.ConfigWarning)
+                area = cfgmod.world_bounds(cfgmod.from_dict(probe).world)
+            self._shorter_side = min(area.width, area.height)
+        return self._shorter_side
+
     def _config(self, seed: int) -> cfgmod.Config:
         p = self.params
-        raw = {
+        world: dict[str, Any] = {"n_robots": p.n_robots, "side_m": p.side_m, "placement": p.placement}
+        raw: dict[str, Any] = {
             "seed": seed,
             "duration_s": self.max_cycles * p.step_s,
-            "world": {
-                "n_robots": p.n_robots,
-                "side_m": p.side_m,
-                "placement": p.placement,
-                "centre_side_m": min(p.centre_side_m, _shorter_side(self.netsim.get("world", {}), p.side_m)),
-            },
+            "world": world,
             "channel": {"range_m": p.range_m},
             "mobility": {"model": "external"},
             "protocol": {"model": "clustering", "ack_period_s": p.ack_period_s, "message_rate_hz": 0.0},
             # The protocol's tables are sampled at this interval: once an episode is enough.
             "output": {"position_interval_s": self.max_cycles * p.step_s},
         }
+        # The keyword's central square, held within the run's area, whatever set it (side_m,
+        # netsim's side_m or bounds_m, a map's extent); netsim's own centre_side_m wins.
+        world["centre_side_m"] = min(p.centre_side_m, self._shorter_side_m(raw))
         if self._ranges_implied is None:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", cfgmod.ConfigWarning)
@@ -346,16 +346,13 @@ class CoverageEnv(ParallelEnv):
         index = self._index
         robots = [index[agent] for agent in actions]
         try:
-            given = np.asarray(list(actions.values()))
-            # Numbers only: text that reads as one ("1") is not a velocity.
-            v = given.astype(float) if given.dtype.kind in "iuf" else np.empty(0)
+            v = as_numbers(list(actions.values()))
         except (TypeError, ValueError):
             v = np.empty(0)
         if v.shape != (len(robots), 2):
             for agent, action in actions.items():  # which one is wrong
                 try:
-                    one = np.asarray(action)
-                    shape = one.shape if one.dtype.kind in "iuf" else None
+                    shape = as_numbers(action).shape
                 except (TypeError, ValueError):
                     shape = None
                 if shape != (2,):
@@ -386,12 +383,12 @@ class CoverageEnv(ParallelEnv):
             out[np.arange(n), 4 + sim.groups.role] = 1.0
         if k and sim.neighbour_view is not None:
             ids, told, heard_s = sim.neighbour_view.heard(sim.now)
-            self._measures.nearest_told(out, 4 + roles, pos, ids, told, heard_s, sim.now, k)
+            self._measures.nearest_told(out, 4 + roles, pos, ids, told, heard_s, sim.now, k, self.tau_s)
         bounds = self.power_bounds_dbm
         if k and bounds is not None and isinstance(sim.neighbour_view, LinkQualityView):
             ids, power, heard_s = sim.neighbour_view.link_quality(sim.now)
             start = self.link_quality_start
-            self._measures.strongest_heard(out, start, ids, power, heard_s, sim.now, k, *bounds)
+            self._measures.strongest_heard(out, start, ids, power, heard_s, sim.now, k, *bounds, self.tau_s)
         return {a: out[i] for i, a in enumerate(self.agents)}
 
     def _infos(self, pos: np.ndarray) -> dict[str, dict]:
@@ -427,7 +424,7 @@ def observation_space(
     power_bounds_dbm: tuple[float, float] | None = None,
 ) -> spaces.Box:
     """The box of an agent's observation (module notes) in the run's ``area``, with
-    ``roles`` roles, ``k`` neighbours and Acks live for less than ``tau_s``; with the link
+    ``roles`` roles, ``k`` neighbours and Acks' ages at most ``tau_s``; with the link
     quality of ``k`` neighbours when ``power_bounds_dbm`` (their power's) are given."""
     v, w, h = speed_max_mps, area.width, area.height
     low = [area.x_min, area.y_min, -v, -v] + [0.0] * roles + [-w, -h, 0.0, 0.0] * k

@@ -258,7 +258,7 @@ class PairShadowing:
     def forget(self, odometer_m, horizon: float = 20.0) -> int:
         """Drop pairs whose travel since their last look exceeds ``horizon`` ``d_corr``.
 
-        ``odometer_m`` is every robot's path length now. Returns the number dropped.
+        ``odometer_m`` is every robot's travel now (its jumps counted). Returns the number dropped.
         """
         if len(self._keys) == 0:
             return 0

@@ -79,6 +79,7 @@ def nearest_told(
     heard_s: np.ndarray,
     now: float,
     k: int,
+    age_max_s: float,
 ) -> None:
     """Write into ``out[i, start:start + 4 min(k, slots)]`` robot ``i``'s ``k`` nearest live
     table entries by told position (ties: the lower slot first): ``dx, dy`` (told position
@@ -93,7 +94,7 @@ def nearest_told(
     rows = np.arange(n)[:, None]
     block = np.zeros((n, take, 4))
     block[:, :, 0:2] = rel[rows, order]
-    block[:, :, 2] = now - heard_s[rows, order]
+    block[:, :, 2] = np.minimum(now - heard_s[rows, order], age_max_s)
     block[:, :, 3] = 1.0
     block[~live[rows, order]] = 0.0
     out[:, start : start + 4 * take] = block.reshape(n, -1)
@@ -109,6 +110,7 @@ def strongest_heard(
     k: int,
     low_dbm: float,
     high_dbm: float,
+    age_max_s: float,
 ) -> None:
     """Write into ``out[i, start:start + 3 k]`` robot ``i``'s ``k`` strongest live
     table entries with a power (ties: the lower slot first): the power clipped to
@@ -121,7 +123,7 @@ def strongest_heard(
     rows = np.arange(n)[:, None]
     block = np.zeros((n, take, 3))
     block[:, :, 0] = np.clip(power_dbm[rows, order], low_dbm, high_dbm)
-    block[:, :, 1] = now - heard_s[rows, order]
+    block[:, :, 1] = np.minimum(now - heard_s[rows, order], age_max_s)
     block[:, :, 2] = 1.0
     block[~valid[rows, order]] = (low_dbm, 0.0, 0.0)
     out[:, start : start + 3 * take] = block.reshape(n, -1)

@@ -98,8 +98,11 @@ def hears(heard: np.ndarray, receivers: np.ndarray) -> np.ndarray:
 
 
 def deadline(last_heard_s, tau_s):
-    """``tau`` after the last Ack, and the instants that round into it (``K.TIE_S``)."""
-    return last_heard_s + tau_s + K.TIE_S
+    """``tau`` after the last Ack, and the instants that round into it (``K.TIE_S``, or
+    ``K.TIE_RELATIVE`` of the time past 10^6 s)."""
+    due = last_heard_s + tau_s
+    slack = np.abs(due) * K.TIE_RELATIVE
+    return due + np.where((slack > K.TIE_S) & np.isfinite(slack), slack, K.TIE_S)
 
 
 def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
