@@ -23,7 +23,6 @@ join and election policies' codes).
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -541,6 +540,8 @@ def group_size(records_row, now, tau_s, symmetric, i):
 # a nanosecond is below the times' own rounding, within a few units in the last place.
 TIE_S = 1e-9
 TIE_RELATIVE = 2.0**-50
+# Where the relative slack overtakes the nanosecond.
+TIE_RELATIVE_FROM_S = TIE_S / TIE_RELATIVE
 
 
 @jit(nogil=True)
@@ -550,9 +551,9 @@ def deadline_after(from_s, tau_s):
     and the instants that round into it (:data:`TIE_S`), so that an Ack at the deadline
     counts however it rounds."""
     due = from_s + tau_s
-    slack = abs(due) * TIE_RELATIVE
-    # An empty entry's -inf stays -inf (not -inf + inf).
-    return due + (slack if TIE_S < slack < math.inf else TIE_S)
+    if due < TIE_RELATIVE_FROM_S:  # an empty entry's -inf too, which stays -inf
+        return due + TIE_S
+    return due + due * TIE_RELATIVE
 
 
 @jit(nogil=True)

@@ -101,8 +101,7 @@ def deadline(last_heard_s, tau_s):
     """``tau`` after the last Ack, and the instants that round into it (``K.TIE_S``, or
     ``K.TIE_RELATIVE`` of the time past 10^6 s)."""
     due = last_heard_s + tau_s
-    slack = np.abs(due) * K.TIE_RELATIVE
-    return due + np.where((slack > K.TIE_S) & np.isfinite(slack), slack, K.TIE_S)
+    return np.where(due < K.TIE_RELATIVE_FROM_S, due + K.TIE_S, due + due * K.TIE_RELATIVE)
 
 
 def two_way(records: np.ndarray, now: float, tau_s: float, symmetric: bool) -> np.ndarray:
