@@ -278,9 +278,11 @@ class RobotState(OnTorus):
                 where = f"{start_m!r:.60}"
                 raise MotionError(f"robot {i} jumps to {where} at t = {t:.9g} s: a position is two finite numbers")
             self.jumps += 1
+            here = self.positions_at(t, i, fold=False)
             if self.checked:
-                self._check_end(i, t, self.positions_at(t, i, fold=False))
+                self._check_end(i, t, here)
                 self._check_jump(i, t, start)
+            jumped_m = float(distances_m(here.reshape(1, 2), start.reshape(1, 2), self.torus_side_m, self.n)[0])
         if cause is None:
             cause = "command" if start_m is None else "jump"
         if len(velocity_mps) != 2:
@@ -294,10 +296,8 @@ class RobotState(OnTorus):
             )
         self._log_travel(i, t)
         if start_m is not None:
-            here = self.positions_at(t, i, fold=False)
-            gap = float(distances_m(here.reshape(1, 2), start.reshape(1, 2), self.torus_side_m, self.n)[0])
-            self.odometer_m[i] += gap
-            self.jumped_m[i] += gap
+            self.odometer_m[i] += jumped_m
+            self.jumped_m[i] += jumped_m
         self.origin_m[i] = start
         self.velocity_mps[i] = (vx, vy)
         self.t0_s[i] = t
