@@ -254,12 +254,13 @@ def follow(env: simpy.Environment, st: RobotState, wp: Waypoints):
             yield env.timeout(t - env.now)
         here = st.positions_at(env.now, [i])[0]
         moving = bool(st.velocity_mps[i].any())
-        if vx == 0.0 and vy == 0.0:
+        if jumped(here, (x, y)):
+            # A jump is one whether the robot moves on or stands there: the link solvers
+            # rebuild their pairs for a jump only.
+            st.set_leg(i, env.now, (vx, vy), start_m=(x, y), cause="jump")
+        elif vx == 0.0 and vy == 0.0:
             if moving or here[0] != x or here[1] != y:
                 st.arrive(i, env.now, np.array([x, y]), cause="trace")
-            continue
-        if jumped(here, (x, y)):
-            st.set_leg(i, env.now, (vx, vy), start_m=(x, y), cause="jump")
         else:
             st.arrive(i, env.now, np.array([x, y]), log=False)
             st.set_leg(i, env.now, (vx, vy), cause="trace")

@@ -194,6 +194,35 @@ def test_runtime_links_equal_posthoc_on_a_trace_with_jumps(tmp_path):
     assert set(legs["cause"]) == {"start", "trace", "waypoint", "jump"}
 
 
+def test_a_trace_jump_to_a_standstill_is_a_jump_for_the_runtime_links(tmp_path):
+    """A robot put somewhere at an instant and left standing (a BonnMotion pause after a
+    repeated instant, the shape an exported ``set X_`` takes) jumped: its leg says so, and
+    the link it opens is announced at that instant, as the table after the run has it."""
+    path = tmp_path / "jump_then_stand.movements"
+    path.write_text("0 10 10 40 10 10\n0 180 180 5 180 180 5 20 10 10 20 10 30 150 10\n")
+    config = load(
+        None,
+        [
+            "world.n_robots=2",
+            "world.side_m=200",
+            "duration_s=40",
+            "channel.range_m=50",
+            "mobility.model=trace",
+            f"mobility.trace_file={path}",
+            "protocol.model=none",
+            "events.runtime_links=on",
+        ],
+    )
+    result = execute(config, built=_fed)
+    legs = result.frames["legs"]
+    at_jump = legs[(legs["robot"] == 1) & (legs["t_s"] == 5.0)]
+    assert list(at_jump["cause"]) == ["jump"]
+    assert result.sim.state.jumps == 1
+    posthoc = link_lifetimes(legs, result.sim.state.range_m, 40.0)
+    assert list(posthoc["t_up_s"]) == [5.0]
+    _assert_same_links(_announced(result.sim), posthoc)
+
+
 # -- course changes ----------------------------------------------------------------------------
 def test_legs_record_every_course_change_with_its_cause():
     result = execute(load(None, ["world.n_robots=20", "duration_s=200", "world.side_m=300", "protocol.model=none"]))

@@ -50,6 +50,22 @@ def test_colour_channels_are_averaged_and_alpha_too_in_trinary_mode():
     assert free[0, 0]  # scale: alpha left out of the mean
 
 
+def test_a_gray_pixel_with_alpha_is_read_as_its_rgba_twin():
+    """Nav2 averages red, green, blue (a gray value is all three) and, in trinary mode, the
+    alpha: an opaque black gray+alpha pixel has p = 0.75, a wall, as its RGBA twin; a mean
+    over the two channels gave 0.5, unknown, and every wall of such a map vanished."""
+    gray = np.array([[0, 100, 254, 205]], dtype=np.uint8)
+    la = np.stack([gray, np.full_like(gray, 255)], axis=2)
+    rgba = np.concatenate([np.repeat(gray[:, :, None], 3, axis=2), la[:, :, 1:]], axis=2)
+    for mode in ("trinary", "scale"):
+        got = occupancy_from_pixels(la, False, 0.65, 0.196, mode, has_alpha=True)
+        want = occupancy_from_pixels(rgba, False, 0.65, 0.196, mode, has_alpha=True)
+        assert [g.tolist() for g in got] == [w.tolist() for w in want], mode
+    assert occupancy_from_pixels(la, False, 0.65, 0.196, "trinary", has_alpha=True)[0].tolist() == [
+        [True, False, False, False]
+    ]
+
+
 def test_a_pixel_not_fully_opaque_is_unknown_in_scale_mode():
     """ROS 2's map_server in scale mode: a pixel that is not fully opaque is unknown,
     whatever its colour (map_saver writes unknown cells so); a transparent black pixel was
@@ -74,6 +90,16 @@ def test_loaded_map_geometry(tmp_path):
     # The bottom-left pixel covers x in [-1, -0.5), y in [-2, -1.5).
     assert m.is_free([[-0.75, -1.75], [-0.5, -1.75], [1.9, -0.1], [5.0, 5.0]]).tolist() == [False, True, False, False]
     assert m.cells([[2.0, 0.0]]) == ([5], [3])  # the far corner belongs to the last cell
+
+
+def test_numbers_as_map_saver_writes_them_are_numbers(tmp_path):
+    """yaml-cpp writes -1000 at map_saver's precision as -1e+03, which YAML 1.1 reads as
+    text; map_server reads it as a number, and so does netsim (it was refused)."""
+    px = np.full((4, 6), 254, dtype=np.uint8)
+    m = load_map(_write(tmp_path, px, resolution="5e-01", origin="[-1e+03, 2E3, 0]"))
+    assert m.origin_m == (-1000.0, 2000.0) and m.resolution_m == 0.5
+    with pytest.raises(ConfigError, match=r"'origin: \['1e', 0, 0\]' must be \[x, y, yaw\]"):
+        load_map(_write(tmp_path, px, origin="[1e, 0, 0]"))
 
 
 def test_png_and_rgb_images(tmp_path):

@@ -387,3 +387,23 @@ def test_a_runs_map_fingerprint_is_of_the_map_it_was_built_on(tmp_path, monkeypa
     assert load_map(yaml).sha256 != built_on
     assert json.loads((run / "manifest.json").read_text())["map_sha256"] == built_on
     assert main(["view", str(run), "--out", str(tmp_path / "v.html")]) == 2
+
+
+def test_a_bag_message_that_does_not_decode_is_one_line(tmp_path, capsys):
+    """A bag whose odometry message is not CDR of its declared type is refused in one line
+    naming the topic (the library's SerdeError was a traceback, exit 1), nothing written."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    bag, out = tmp_path / "garbled", tmp_path / "out"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(bag, version=8) as w:
+        for i in range(2):
+            conn = w.add_connection(f"/robot_{i}/odom", "nav_msgs/msg/Odometry", typestore=store)
+            w.write(conn, 1, b"\x00\x01\x00\x00garbage")
+    args = ["run", "--quiet", "--set", "world.n_robots=2", "--set", "mobility.model=trace"]
+    assert main([*args, "--set", f"mobility.trace_file={bag}", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: ") and err.count("\n") == 1, err
+    assert "a message on '/robot_0/odom' is not a nav_msgs/msg/Odometry" in err
+    assert not out.exists()

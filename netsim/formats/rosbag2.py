@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import re
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -97,10 +97,20 @@ def _robot_topics(connections: Any, topics: Sequence[str], source: str) -> dict[
     return {t[0]: i for i, t in chosen.items()}
 
 
+def _messages(reader: Any, conns: list[Any], source: str, reader_error: type[Exception]) -> Iterator[Any]:
+    """The bag's messages on ``conns``; a storage the library cannot read on is one line."""
+    try:
+        yield from reader.messages(connections=conns)
+    except reader_error as exc:
+        why = " ".join(str(exc).split())
+        raise NetsimInputError(f"{source}: cannot be read as a rosbag2 bag ({why})") from None
+
+
 def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
     """The robots' tracks recorded in the bag at ``path`` (module notes); one line naming
     the bag and what is wrong otherwise."""
-    from rosbags.rosbag2 import Reader  # imported when asked: an optional dependency
+    from rosbags.rosbag2 import Reader, ReaderError  # imported when asked: an optional dependency
+    from rosbags.serde import SerdeError
 
     path = Path(path)
     source = str(path)
@@ -119,8 +129,14 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
         store = _typestore()
         conns = [c for c in reader.connections if c.topic in which]
         robots, stamps, xs, ys = [], [], [], []
-        for conn, _t, raw in reader.messages(connections=conns):
-            msg = store.deserialize_cdr(raw, conn.msgtype)
+        for conn, _t, raw in _messages(reader, conns, source, ReaderError):
+            try:
+                msg = store.deserialize_cdr(raw, conn.msgtype)
+            except SerdeError as exc:
+                why = " ".join(str(exc).split())
+                raise NetsimInputError(
+                    f"{source}: a message on {conn.topic!r} is not a {conn.msgtype} ({why})"
+                ) from None
             pose = msg.pose.pose if conn.msgtype == "nav_msgs/msg/Odometry" else msg.pose
             stamp = msg.header.stamp
             robots.append(which[conn.topic])

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from importlib import resources
@@ -215,11 +216,17 @@ def occupancy_from_pixels(
     if px.ndim == 2:
         px = px[:, :, None]
     c = px.shape[2]
-    # As ROS 2's map_server (Nav2): trinary mode averages an alpha channel in; scale mode
-    # leaves it out, and a pixel not fully opaque is unknown whatever its colour (the
+    # As ROS 2's map_server (Nav2): the shade is the mean of red, green and blue (a gray
+    # channel is all three), and trinary mode averages an alpha channel in as a fourth; scale
+    # mode leaves it out, and a pixel not fully opaque is unknown whatever its colour (the
     # unknown cells map_saver writes in scale mode are transparent).
+    n_colour = c - 1 if has_alpha else c
+    rgb_sum = px[:, :, :n_colour].astype(float).sum(axis=2) * (3 // n_colour)
     scale_alpha = has_alpha and mode != "trinary"
-    colour = (px[:, :, : c - 1] if scale_alpha else px).astype(float).mean(axis=2)
+    if has_alpha and not scale_alpha:
+        colour = (rgb_sum + px[:, :, c - 1]) / 4.0
+    else:
+        colour = rgb_sum / 3.0
     if negate:
         colour = 255.0 - colour
     p = (255.0 - colour) / 255.0
@@ -232,9 +239,24 @@ def occupancy_from_pixels(
     return occupied, free
 
 
-def _number(key, where, name, value, check, allowed):
+# YAML 1.1 (PyYAML) reads an exponent without a dot, as yaml-cpp writes -1000 at map_saver's
+# precision (-1e+03), as text; YAML 1.2 and map_server read it as a number.
+_EXPONENT_NUMBER = re.compile(r"[-+]?[0-9]+[eE][-+]?[0-9]+")
+
+
+def _yaml_number(value):
+    """``value`` as map_server reads a YAML scalar: a number, or None when it is not one."""
+    if isinstance(value, str) and _EXPONENT_NUMBER.fullmatch(value.strip()):
+        return float(value)
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ConfigError(key, where, f"'{name}: {value!r}' {allowed}")
+        return None
+    return value
+
+
+def _number(key, where, name, value, check, allowed):
+    given, value = value, _yaml_number(value)
+    if value is None:
+        raise ConfigError(key, where, f"'{name}: {given!r}' {allowed}")
     if not (math.isfinite(value) and check(value)):
         raise ConfigError(key, where, f"'{name}: {value!r}' {allowed}")
     return float(value)
@@ -274,6 +296,8 @@ def load_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
 
     resolution = _number(key, where, "resolution", meta["resolution"], lambda v: v > 0, "must be a number > 0 (m)")
     origin = meta["origin"]
+    if isinstance(origin, list | tuple):
+        origin = [o if _yaml_number(o) is None else _yaml_number(o) for o in origin]
     if (
         not isinstance(origin, list | tuple)
         or len(origin) != 3
