@@ -243,6 +243,27 @@ def test_wall_loss_recovered_with_map(tmp_path, capsys):
     assert abs(channel["wall_loss_db"] - 6.0) < 1.5
 
 
+def test_a_wall_loss_is_held_at_zero_or_more():
+    """Walls that take no power (a light partition, furniture on a SLAM map): the fitted wall
+    loss, and its interval, stay at 0 or more, and the fragment runs. The likelihood's peak
+    on this log lies at -0.08 dB a wall, which refused the whole calibration."""
+    from netsim.tools.calibrate import calibrate_frames, check_log
+    from netsim.tools.radio_checks import wall_test_map
+    from netsim.world.los import walls_crossed
+
+    m = wall_test_map()
+    params = LogDistanceParams(
+        reference_loss_db=40.0, path_loss_exponent=3.0, shadowing_sigma_db=4.0, wall_loss_db=0.0, sensitivity_dbm=-80.0
+    )
+    log = synth_log(1, params, side_m=40.0, duration_s=200.0, step_s=0.5, occupancy=m)
+    frames = check_log(log, "log", need_positions=True)
+    walls = walls_crossed(m, frames.positions[:, :2], frames.positions[:, 2:]).astype(float)
+    result = calibrate_frames(frames, -80.0, walls=walls, where="log")
+    wall = result.fit.wall_loss_db
+    assert wall is not None and wall.value == 0.0 and wall.low == 0.0 < wall.high
+    assert result.fit.path_loss_exponent.covers(3.0) and result.fit.shadowing_sigma_db.covers(4.0)
+
+
 @pytest.mark.slow
 def test_a_runs_own_receptions_on_a_map_give_back_its_walls_and_decorrelation(tmp_path, capsys):
     """A run on the office map writes both ends' positions in receptions.parquet: with
@@ -453,6 +474,7 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("semicolons", [], "one column holding ';': a CSV log is separated by commas"),
         ("no_rssi", [], "rssi_dbm (or rx_power_dbm)"),
         ("good", ["--sensitivity-dbm", "-inf"], "--sensitivity-dbm -inf: must be in [-200, 0] dBm"),
+        ("good", ["--reference-distance-m", "2e6"], "--reference-distance-m 2e+06: must be in (0, 1e6] m"),
         # a refused log is warned of nothing, however strong its frames
         ("above_tx_power", ["--sensitivity-dbm", "-75"], "were received below it"),
         ("above_tx_power", ["--tx-power-dbm", "-24"], "the fitted channel is not one netsim runs"),
@@ -471,6 +493,29 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_lo
     assert words in err, err
     assert not out.exists()
     assert "[channel]" not in captured.out
+
+
+def test_a_log_named_with_a_newline_gives_a_fragment_that_runs(tmp_path, capsys, small_log):
+    """The fragment's comment names the log with its control characters escaped: a newline
+    in the name broke the comment, and `netsim run` refused the file."""
+    path, toml = write_csv(tmp_path, small_log, "we\nird.csv"), tmp_path / "site.toml"
+    assert main(["calibrate", str(path), "--sensitivity-dbm", "-80", "--out", str(toml)]) == 0
+    text = toml.read_text()
+    assert "we\\x0aird.csv" in text.splitlines()[0]
+    assert tomllib.loads(text)["channel"]["propagation"] == "log_distance"
+    assert cfgmod.load(toml).channel.radio.sensitivity_dbm == -80.0
+
+
+def test_a_header_with_spaces_after_its_commas_is_read(tmp_path, capsys, small_log):
+    """A header written by hand, `t_s, src, dst, ...`, names the columns it has: the same
+    fit as without the spaces (it was refused as lacking them)."""
+    plain, spaced = write_csv(tmp_path, small_log), tmp_path / "spaced.csv"
+    lines = plain.read_text().splitlines(keepends=True)
+    spaced.write_text(lines[0].replace(",", ", ") + "".join(lines[1:]))
+    assert main(["calibrate", str(plain), "--sensitivity-dbm", "-80"]) == 0
+    want = capsys.readouterr().out
+    assert main(["calibrate", str(spaced), "--sensitivity-dbm", "-80"]) == 0
+    assert capsys.readouterr().out.replace(str(spaced), str(plain)) == want
 
 
 def test_a_power_above_the_transmit_power_is_fitted_with_a_warning(tmp_path, capsys, small_log):

@@ -224,6 +224,8 @@ def _causes(log: pd.DataFrame, where: str) -> np.ndarray:
 
 def check_log(log: pd.DataFrame, where: str, need_positions: bool) -> Frames:
     """The log's columns checked and read: one line naming the problem otherwise."""
+    # A header written by hand ("t_s, src, dst") names its columns with the spaces around.
+    log = log.rename(columns=lambda c: c.strip() if isinstance(c, str) else c)
     cols = set(log.columns)
     power = next((c for c in POWER_COLUMNS if c in cols), None)
     missing = [c for c in ("t_s", "src", "dst") if c not in cols] + ([] if power else ["rssi_dbm"])
@@ -591,10 +593,15 @@ def report(c: Calibration, where: str) -> str:
     return "\n".join(lines)
 
 
+def _printable(text: str) -> str:
+    """``text`` with its control characters escaped: a TOML comment may hold none but tab."""
+    return "".join(ch if ch == "\t" or (ch >= " " and ch != "\x7f") else f"\\x{ord(ch):02x}" for ch in text)
+
+
 def toml_fragment(c: Calibration, where: str) -> str:
     lines = [
-        f"# netsim calibrate {where}: {c.received + c.lost_unmeasured:,} frames the radio heard of {c.pairs:,} pairs, "
-        f"{c.fit.likelihood} likelihood",
+        f"# netsim calibrate {_printable(where)}: {c.received + c.lost_unmeasured:,} frames the radio heard of "
+        f"{c.pairs:,} pairs, {c.fit.likelihood} likelihood",
         "[channel]",
     ]
     for k, v in c.channel().items():
@@ -623,7 +630,9 @@ def command(args) -> int:
     """``netsim calibrate`` (:mod:`netsim.tools.cli` checks ``--out`` first)."""
     _check_flag("--sensitivity-dbm", args.sensitivity_dbm, lambda v: -200 <= v <= 0, "must be in [-200, 0] dBm")
     _check_flag("--tx-power-dbm", args.tx_power_dbm, lambda v: -60 <= v <= 60, "must be in [-60, 60] dBm")
-    _check_flag("--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be > 0 m")
+    _check_flag(
+        "--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be in (0, 1e6] m"
+    )
     path = Path(args.log)
     log = read_log(path)
     frames = check_log(log, str(path), need_positions=args.map is not None)

@@ -177,13 +177,15 @@ def _information(total_score, theta: np.ndarray) -> np.ndarray:
 def _estimates(theta: np.ndarray, cov: np.ndarray, walls: bool, likelihood: str) -> ChannelFit:
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
 
-    def wald(j):
-        return Estimate(float(theta[j]), float(theta[j] - Z95 * se[j]), float(theta[j] + Z95 * se[j]))
+    def wald(j, floor=-np.inf):
+        low = max(floor, theta[j] - Z95 * se[j])
+        return Estimate(float(theta[j]), float(low), float(theta[j] + Z95 * se[j]))
 
     u, su = theta[-1], se[-1]
     # sigma's interval from log sigma's: it stays positive and is closer to its real coverage.
     sigma = Estimate(float(np.exp(u)), float(np.exp(u - Z95 * su)), float(np.exp(u + Z95 * su)))
-    return ChannelFit(wald(0), wald(1), wald(2) if walls else None, sigma, likelihood)
+    # A wall takes power, it gives none: the wall loss and its interval are held at 0 or more.
+    return ChannelFit(wald(0), wald(1), wald(2, floor=0.0) if walls else None, sigma, likelihood)
 
 
 def fit_naive(design: Design) -> ChannelFit:
@@ -210,6 +212,15 @@ def _ml(
     if optimise:
         res = optimize.minimize(negll, theta, jac=True, method="BFGS", options={"gtol": 1e-8, "maxiter": 2000})
         theta = res.x
+        if design.walls is not None and theta[2] < 0.0:
+            # The likelihood's peak lies at a wall that gives power (walls that barely take
+            # any, and the shadowing's scatter): the maximum over the walls there are is at 0.
+            bounds = [(None, None), (None, None), (0.0, None), (None, None)]
+            at_zero = np.r_[theta[:2], 0.0, theta[3:]]
+            res = optimize.minimize(
+                negll, at_zero, jac=True, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-15, "gtol": 1e-8}
+            )
+            theta = res.x
         if not np.all(np.isfinite(theta)) or not np.isfinite(res.fun):
             raise FitError("the maximum-likelihood fit did not converge")
 
