@@ -630,9 +630,7 @@ def command(args) -> int:
     """``netsim calibrate`` (:mod:`netsim.tools.cli` checks ``--out`` first)."""
     _check_flag("--sensitivity-dbm", args.sensitivity_dbm, lambda v: -200 <= v <= 0, "must be in [-200, 0] dBm")
     _check_flag("--tx-power-dbm", args.tx_power_dbm, lambda v: -60 <= v <= 60, "must be in [-60, 60] dBm")
-    _check_flag(
-        "--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be in (0, 1e6] m"
-    )
+    _check_flag("--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be in (0, 1e6] m")
     path = Path(args.log)
     log = read_log(path)
     frames = check_log(log, str(path), need_positions=args.map is not None)
