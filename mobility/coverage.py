@@ -310,7 +310,9 @@ class CoverageParams(Params):
         " with expansion > 0, the robots came no nearer the free space their expansion seeks"
         " (stop_speed_mps); 0: off",
     )
-    radius_m: float = param(0.0, non_negative, "radius of the coverage disks, m (0: the communication range r_c)")
+    radius_m: float = param(
+        0.0, finite(non_negative), "radius of the coverage disks, m (0: the communication range r_c)"
+    )
     metrics_interval_s: float = param(5.0, positive, "coverage metrics sampling interval, s", schedules="run")
     area_method: AreaMethod = param(
         AreaMethod.EXACT, None, "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"

@@ -88,6 +88,9 @@ class TraceParams(Params):
         if not self.trace_file:
             raise ConfigError("mobility.trace_file", self.trace_file, "must name a file when model = 'trace'")
 
+    def inputs(self) -> dict[str, str]:
+        return {"mobility.trace_file": self.trace_file}
+
 
 def trace_format(params: TraceParams) -> TraceFormat:
     """The format of the trace: the one set, or the one its name tells."""

@@ -395,12 +395,17 @@ def _nested(cls: type) -> Any:
 ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "traffic", "control", "events", "output")
 
 
+def seed_range(v: int) -> str | None:
+    # A seed is stored in 64 bits where runs are tabled (a sweep's rows).
+    return None if 0 <= v < 2**64 else "must be from 0 to 2^64 - 1"
+
+
 @dataclass(frozen=True)
 class Config(Params):
     """A whole run's configuration. ``sections`` holds the sections that controllers own
     (``[coverage]``, or a user's), read as attributes (``config.coverage``)."""
 
-    seed: int = param(1, non_negative, "seed of every random stream")
+    seed: int = param(1, seed_range, "seed of every random stream")
     duration_s: float = param(300.0, finite(positive), "simulated time, s")
     world: WorldParams = _nested(WorldParams)
     mobility: MobilitySection = _nested(MobilitySection)
@@ -1092,6 +1097,20 @@ def describe(config: Config | None = None) -> list[tuple[str, object, str]]:
     return rows
 
 
+def check_inputs(config: Config) -> None:
+    """Refuse (:class:`ConfigError`) a file a section's model will read that is not there
+    (:meth:`netsim.params.Params.inputs`)."""
+    for value in (getattr(config, f.name) for f in dataclasses.fields(config)):
+        sections = value.values() if isinstance(value, Mapping) else [value]
+        for section in sections:
+            params = section.params if isinstance(section, ModelSection) else section
+            if not isinstance(params, Params):
+                continue
+            for key, path in params.inputs().items():
+                if not Path(path).expanduser().exists():
+                    raise ConfigError(key, path, not_a_file(Path(path).expanduser()))
+
+
 def all_keys(config: Config | None = None) -> list[str]:
     """Every key a configuration may set: those of ``config`` and the keys of every
     registered model of its sections."""
@@ -1114,6 +1133,7 @@ __all__ = [
     "ProtocolSection",
     "WorldParams",
     "all_keys",
+    "check_inputs",
     "commented_toml",
     "controllers",
     "describe",

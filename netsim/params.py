@@ -179,6 +179,12 @@ class Params:
     def check(self) -> None:
         """Rules between this section's keys (raise ConfigError); none by default."""
 
+    def inputs(self) -> dict[str, str]:
+        """The files (or folders) this section's model will read, by key: a run checks that
+        they are there before it starts (a sweep, before its first run); none by default.
+        Not checked when a configuration is only read (a finished run's, to draw it)."""
+        return {}
+
     @classmethod
     def key(cls, name: str) -> str:
         """The configuration key of field ``name``: ``section.name``."""

@@ -59,7 +59,7 @@ class AodvParams(RoutingParams):
         "packets buffered per robot while a route is sought (each frame of a flow's packet one); "
         "full, the oldest is dropped",
     )
-    jitter_s: float = param(0.01, non_negative, "forwarded broadcasts wait U(0, jitter), s (RFC 5148)")
+    jitter_s: float = param(0.01, finite(non_negative), "forwarded broadcasts wait U(0, jitter), s (RFC 5148)")
 
     def check(self) -> None:
         for key in ("ttl_start", "ttl_threshold"):

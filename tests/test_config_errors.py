@@ -39,6 +39,8 @@ from netsim.tools.cli import main
         ("coverage.gain=inf", "coverage.gain", "(0, 1e6]"),
         ("coverage.speed_max_mps=inf", "coverage.speed_max_mps", "finite"),
         ("coverage.control_period_s=inf", "coverage.control_period_s", "finite"),
+        # Accepted, an infinite disk covered the whole area, whatever the team did.
+        ("coverage.radius_m=inf", "coverage.radius_m", "finite"),
         # A grid past memory (an allocation's traceback).
         ("coverage.grid_cells=4001", "coverage.grid_cells", "must be at most 4,000"),
     ],
@@ -50,7 +52,10 @@ def test_bad_value_names_key_value_and_rule(override, key, words):
     assert words in str(err.value)
 
 
-@pytest.mark.parametrize("model, key", [("olsr", "protocol.start_spread_s"), ("aodv", "protocol.message_rate_hz")])
+@pytest.mark.parametrize(
+    "model, key",
+    [("olsr", "protocol.start_spread_s"), ("aodv", "protocol.message_rate_hz"), ("aodv", "protocol.jitter_s")],
+)
 def test_a_routing_protocols_infinite_timing_is_refused(model, key):
     """An infinite start spread (a traceback of numpy's uniform draw) or message rate (a
     run that never ends) is refused when the configuration is made."""
@@ -451,7 +456,7 @@ def test_run_refuses_a_seed_given_twice(tmp_path, capsys, monkeypatch, seeds):
         (["--speed-max", "nan"], "--speed-max nan: must be a number"),
         (["--pause", "-1"], "--pause -1.0: must be >= 0"),
         (["--duration", "0"], "--duration 0.0: must be > 0"),
-        (["--seed", "-1"], "--seed -1: must be >= 0"),
+        (["--seed", "-1"], "--seed -1: must be from 0 to 2^64 - 1"),
         (["--speed-min", "0"], "--speed-min 0.0: must be > 0 without --no-stationary-start"),
         (["--n", "100000000000"], "--n 100000000000: the run would hold at least"),
         (["--duration", "1e15"], "--duration 1000000000000000.0: the scenario would hold at least"),

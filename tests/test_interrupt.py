@@ -206,3 +206,25 @@ def test_ctrl_c_while_the_run_moves_into_place_never_leaves_half_a_run(tmp_path,
     assert after.keys() == before.keys()
     assert after["positions.parquet"] != before["positions.parquet"]
     assert '"seed": 2' in after["config.toml"].decode() or "seed = 2" in after["config.toml"].decode()
+
+
+@pytest.mark.parametrize(
+    "command, draw, words", [("run", "viewer", "its view.html is not"), ("figures", "figures", "its figures are not")]
+)
+def test_ctrl_c_after_the_run_is_in_place_says_it_is_kept(tmp_path, monkeypatch, capsys, command, draw, words):
+    """Ctrl-C while the replay or the figures are drawn, the run already in place: exit 130
+    and a line that says the run is written (it said nothing was, with the run there)."""
+    import importlib
+
+    drawing = importlib.import_module(f"netsim.tools.{draw}")
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(drawing, "write" if draw == "viewer" else "draw", interrupt)
+    out = tmp_path / "out"
+    small = ["--set", "world.n_robots=5", "--set", "duration_s=15", "--no-progress", "--quiet", "--out", str(out)]
+    argv = ["run", "--view", *small] if command == "run" else ["figures", *small]
+    assert cli.main(argv) == EXIT_INTERRUPTED
+    assert capsys.readouterr().err.splitlines()[-1:] == [f"netsim: interrupted; the run is written in {out}/, {words}"]
+    assert (out / "summary.json").is_file() and (out / "positions.parquet").is_file()

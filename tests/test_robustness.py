@@ -357,13 +357,15 @@ def test_sweep_refuses_a_directory_that_holds_something_else(tmp_path, capfd):
 
 def test_sweep_results_follow_the_umask(tmp_path):
     """runs/, tables/ and failed/ are as readable as every other output (not 0600)."""
+    bad = tmp_path / "t.tcl"
+    bad.write_text("not a trace\n")
     sweep = sweepmod.parse(
         {
             "name": "m",
             "tables": ["links"],
             "base": {"duration_s": 5.0, "world": {"n_robots": 3}, "output": {"position_interval_s": 0.0}},
-            # The trace run fails (no such file) and is recorded under failed/.
-            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": ["/nonexistent/t.tcl"]},
+            # The trace run fails (no movement line in the file) and is recorded under failed/.
+            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": [str(bad)]},
         }
     )
     old = os.umask(0o022)
@@ -679,7 +681,7 @@ def test_a_team_that_cannot_fit_in_memory_is_refused_up_front(tmp_path, capfd, m
     """`world.n_robots` beyond what the machine's memory can hold (the robots' state and the
     positions table alone) is one line naming the key, exit 2, before any work, nothing
     written."""
-    from netsim.tools import cli
+    from netsim.tools import cli, preflight
 
     monkeypatch.setattr(runmod, "build", lambda *a, **k: pytest.fail("built before checking the memory"))
     monkeypatch.chdir(tmp_path)
@@ -687,7 +689,7 @@ def test_a_team_that_cannot_fit_in_memory_is_refused_up_front(tmp_path, capfd, m
     # No protocol: the Acks of 10^8 robots would be refused first, as too many events.
     config = cfgmod.load(None, [f"world.n_robots={n}", "protocol.model=none"])
     memory = cli.machine_memory_bytes()
-    if memory is None or cli.least_memory_bytes(config) <= memory:
+    if memory is None or preflight.least_memory_bytes(config) <= memory:
         pytest.skip("this machine could hold the state of 10^8 robots")
     before = tree(tmp_path)
     line = refused(
@@ -723,13 +725,13 @@ def test_samples_past_any_memory_are_refused_without_making_them(tmp_path, capfd
 
 def test_the_least_memory_grows_with_the_team_and_the_samples():
     """The memory floor counts each robot's state and each row of positions.parquet."""
-    from netsim.tools import cli
+    from netsim.tools import preflight
 
-    one = cli.least_memory_bytes(cfgmod.load(None, ["world.n_robots=1", "output.position_interval_s=0"]))
+    one = preflight.least_memory_bytes(cfgmod.load(None, ["world.n_robots=1", "output.position_interval_s=0"]))
     assert one > 0
-    ten = cli.least_memory_bytes(cfgmod.load(None, ["world.n_robots=10", "output.position_interval_s=0"]))
+    ten = preflight.least_memory_bytes(cfgmod.load(None, ["world.n_robots=10", "output.position_interval_s=0"]))
     assert ten == 10 * one
-    sampled = cli.least_memory_bytes(cfgmod.load(None, ["world.n_robots=10", "duration_s=9"]))
+    sampled = preflight.least_memory_bytes(cfgmod.load(None, ["world.n_robots=10", "duration_s=9"]))
     assert sampled == ten + 10 * 10 * 32  # 10 samples (0..9 s) of 4 eight-byte columns
 
 

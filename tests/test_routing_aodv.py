@@ -104,7 +104,14 @@ def test_aodv_delivers_along_a_static_line_with_control_frames_of_the_rfc_sizes(
 
 @pytest.mark.parametrize(
     "key, value",
-    [("ttl_threshold", 40), ("ttl_start", 40), ("net_diameter", 256), ("ttl_increment", 0), ("ttl_start", 256)],
+    [
+        ("ttl_threshold", 40),
+        ("ttl_start", 40),
+        ("net_diameter", 256),
+        ("ttl_increment", 0),
+        ("ttl_start", 256),
+        ("jitter_s", float("inf")),  # accepted, it ended the run in a traceback at the first rebroadcast
+    ],
 )
 def test_aodv_parameter_out_of_range_is_refused(key, value):
     """A TTL beyond the network diameter, or beyond the one octet a RREQ's TTL field holds,

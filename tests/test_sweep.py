@@ -12,8 +12,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from netsim import config as cfgmod
 from netsim.errors import NetsimInputError
 from netsim.tools import sweep as sweepmod
+from netsim.tools.cli import main
 
 BASE = {
     "duration_s": 20.0,
@@ -168,19 +170,99 @@ def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
 
 
 def test_a_failing_run_is_recorded_and_the_others_finish(tmp_path):
+    bad = tmp_path / "scenario.tcl"
+    bad.write_text("not a trace\n")
     sweep = sweepmod.parse(
         {
             "name": "f",
             "base": BASE,
-            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": ["/nonexistent/scenario.tcl"]},
+            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": [str(bad)]},
         }
     )
-    report = sweepmod.run_sweep(sweep, tmp_path, workers=1, progress=False)
+    out = tmp_path / "out"
+    report = sweepmod.run_sweep(sweep, out, workers=1, progress=False)
     assert report.done == 1 and len(report.failed) == 1
-    failed = json.loads(next((tmp_path / "failed").glob("*.json")).read_text())
-    assert "no such file" in failed["error"] and failed["point"]["mobility.model"] == "trace"
-    assert "failed" in report.text() and "no such file" in report.text()
-    assert len(sweepmod.load(tmp_path)) == 1
+    failed = json.loads(next((out / "failed").glob("*.json")).read_text())
+    assert "no ns-2 movement line" in failed["error"] and failed["point"]["mobility.model"] == "trace"
+    assert "failed" in report.text() and "no ns-2 movement line" in report.text()
+    assert len(sweepmod.load(out)) == 1
+
+
+def test_a_point_naming_a_missing_file_is_refused_before_any_run(tmp_path, capsys):
+    """A trace file that is not there is refused as `netsim run` refuses it: one line, exit
+    2, nothing written (the sweep ran the other points and failed that one, exit 1)."""
+    (tmp_path / "s.toml").write_text(
+        'name = "m"\n[base]\nduration_s = 5.0\n[base.world]\nn_robots = 3\n[grid]\n'
+        '"mobility.model" = ["static", "trace"]\n"mobility.trace_file" = ["/nonexistent/t.tcl"]\n'
+    )
+    out = tmp_path / "out"
+    assert main(["sweep", str(tmp_path / "s.toml"), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "mobility.trace_file = '/nonexistent/t.tcl': no such file" in err, err
+    assert not out.exists()
+
+
+def test_a_point_past_the_machines_memory_is_refused_before_any_run(tmp_path, capsys):
+    """As `netsim run` refuses a run that cannot fit in memory, so a sweep refuses a point
+    that cannot, before its first run (the run died of an allocation error)."""
+    (tmp_path / "s.toml").write_text(
+        'name = "m"\n[base]\nduration_s = 300.0\n[grid]\n"output.position_interval_s" = [1.0, 1e-9]\n'
+    )
+    out = tmp_path / "out"
+    assert main(["sweep", str(tmp_path / "s.toml"), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "'output.position_interval_s': 1e-09" in err and "of memory" in err, err
+    assert not out.exists()
+
+
+def test_a_table_added_to_the_list_runs_the_finished_runs_again(tmp_path):
+    """Runs finished without a table the sweep now keeps are run again to keep it (they
+    counted as done, and the table stayed empty); a table a run's models do not write is
+    kept as none, so the run is not run again for it."""
+    base = {**BASE, "duration_s": 5.0, "protocol": {"model": "ack"}}
+    grid = {"channel.mac": ["none", "aloha"]}
+    first = sweepmod.parse({"name": "t", "tables": ["links"], "base": base, "grid": grid})
+    assert sweepmod.run_sweep(first, tmp_path, workers=1, progress=False).done == 2
+    second = sweepmod.parse({"name": "t", "tables": ["links", "medium"], "base": base, "grid": grid})
+    report = sweepmod.run_sweep(second, tmp_path, workers=1, progress=False)
+    assert (report.skipped, report.done) == (0, 2)
+    medium = sweepmod.load_table(tmp_path, "medium")
+    runs = sweepmod.load(tmp_path)
+    assert list(medium["run_id"].unique()) == list(runs.loc[runs["channel.mac"] == "aloha", "run_id"])
+    assert sweepmod.run_sweep(second, tmp_path, workers=1, progress=False).skipped == 2
+    assert sweepmod.load_table(tmp_path, "links")["run_id"].nunique() == 2
+
+
+def test_points_that_resolve_to_one_configuration_run_once_with_a_warning(tmp_path):
+    """Comparing two models over a key only one of them reads: the other model's points
+    are one configuration, run once, and a warning says so (the sweep was refused)."""
+    sweep = sweepmod.parse(
+        {
+            "name": "a",
+            "base": {**BASE, "duration_s": 5.0},
+            "grid": {"mobility.model": ["random_waypoint", "gauss_markov"], "mobility.alpha": [0.5, 0.75]},
+        }
+    )
+    with pytest.warns(cfgmod.ConfigWarning, match="1 of 4 points resolve to the configuration of a point before"):
+        runs = sweep.runs()
+    assert len(runs) == 3 and len({r.run_id for r in runs}) == 3
+
+
+def test_a_base_may_leave_to_the_grid_a_key_its_model_needs(tmp_path):
+    """A trace model in [base] with its files in [grid]: every point is whole, so the
+    sweep runs (the base was checked alone and refused for its empty trace_file)."""
+    traces = []
+    for k in range(2):
+        path = tmp_path / f"t{k}.tcl"
+        path.write_text(
+            f"$node_(0) set X_ {10 + k}.0\n$node_(0) set Y_ 10.0\n$node_(1) set X_ 50.0\n$node_(1) set Y_ 10.0\n"
+        )
+        traces.append(str(path))
+    base = {"duration_s": 5.0, "world": {"n_robots": 2, "side_m": 100.0}, "mobility": {"model": "trace"}}
+    sweep = sweepmod.parse({"name": "b", "base": base, "grid": {"mobility.trace_file": traces}})
+    assert len(sweep.runs()) == 2
+    with pytest.raises(NetsimInputError, match=r"\[base\] mobility.trace_file = '': must name a file"):
+        sweepmod.parse({"name": "b", "base": base, "grid": {"world.n_robots": [2]}})
 
 
 def test_a_directory_run_by_another_sweep_loads_the_latest_sweeps_runs_only(tmp_path):

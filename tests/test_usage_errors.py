@@ -407,3 +407,32 @@ def test_a_bag_message_that_does_not_decode_is_one_line(tmp_path, capsys):
     assert err.startswith("netsim: error: ") and err.count("\n") == 1, err
     assert "a message on '/robot_0/odom' is not a nav_msgs/msg/Odometry" in err
     assert not out.exists()
+
+
+def test_a_full_disk_is_one_line_and_nothing_is_left(tmp_path, capsys, monkeypatch):
+    """A disk that fills while the tables are written: one line, exit 2, no directory
+    left (it was the traceback of pyarrow's OSError, exit 1)."""
+    import errno
+
+    from netsim.tools import output
+
+    def full(table, path):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(output, "write_arrow", full)
+    out = tmp_path / "out"
+    argv = ["run", "--quiet", "--set", "world.n_robots=4", "--set", "duration_s=5", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("netsim: error: cannot write: No space left on device (") and err.count("\n") == 1, err
+    assert not out.exists()
+
+
+def test_a_seed_past_64_bits_is_one_line(tmp_path, capsys):
+    """A seed is stored in 64 bits (a sweep's rows): a larger one is refused as every
+    other bad value is (a sweep ended in a traceback of an OverflowError)."""
+    out = tmp_path / "out"
+    assert main(["run", "--quiet", "--seed", str(2**64), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"netsim: error: seed = {2**64}: must be from 0 to 2^64 - 1 (seed of every random stream)\n"
+    assert not out.exists()

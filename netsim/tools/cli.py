@@ -36,6 +36,7 @@ paths and the scheduler are checked before any simulation starts.
 from __future__ import annotations
 
 import argparse
+import errno
 import gc
 import math
 import os
@@ -49,7 +50,15 @@ from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import ns2
 from netsim.machine import gib, machine_memory_bytes
 from netsim.tools.args import Parser
-from netsim.tools.interrupt import EXIT_INTERRUPTED, INTERRUPTED_LINE, ignoring_interrupts, interrupted
+from netsim.tools.interrupt import (
+    EXIT_INTERRUPTED,
+    INTERRUPTED_LINE,
+    KeptOnInterrupt,
+    ignoring_interrupts,
+    interrupted,
+    kept_if_interrupted,
+)
+from netsim.tools.preflight import check_run
 
 EXIT_INPUT = 2
 
@@ -86,41 +95,6 @@ def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None
         raise NetsimInputError(
             f"--set {key} {positional}: --set takes KEY=VALUE; did you mean --set {key}={positional}?"
         )
-
-
-def least_memory_bytes(config: cfgmod.Config) -> int:
-    """Memory a run of ``config`` holds whatever its models: the robots' state (every
-    array RobotState keeps per robot) and, made at the end, the positions table (a row
-    per robot and sample). The models, the trace and the other tables come on top."""
-    import numpy as np
-
-    from netsim.run import ENGINE_TABLES
-    from netsim.samples import sample_count
-    from netsim.state import RobotState
-
-    state = RobotState(1, 1.0, 1.0)
-    per_robot = sum(v.nbytes for v in vars(state).values() if isinstance(v, np.ndarray) and v.base is None)
-    row = sum(np.dtype(t).itemsize for t in ENGINE_TABLES["positions"].values())
-    samples = sample_count(config.output.position_interval_s, config.duration_s)
-    return config.world.n_robots * (per_robot + samples * row)
-
-
-def check_fits_in_memory(config: cfgmod.Config) -> None:
-    """Refuse, before any work, a run that cannot fit in the machine's memory (rather than
-    build it for minutes and fail)."""
-    have, need = machine_memory_bytes(), least_memory_bytes(config)
-    if have is None or need <= have:
-        return
-    n = config.world.n_robots
-    sampled = config.output.position_interval_s > 0
-    held = "the robots' state and positions.parquet's rows" if sampled else "the robots' state"
-    advice = "or duration_s, or raise output.position_interval_s (0: no positions table)" if sampled else ""
-    raise ConfigError(
-        "world.n_robots",
-        n,
-        f"the run would hold at least {gib(need)} GiB ({held}, before any model's), more than this "
-        f"machine's {gib(have)} GiB of memory; lower it{', ' if advice else ''}{advice}",
-    )
 
 
 # What a course change held in memory costs at least (a row of the leg log).
@@ -178,7 +152,7 @@ def cmd_run(args) -> int:
                 raise NetsimInputError(f"--seed {args.seed} and --set {given}: give the seed once")
         overrides.append(f"seed={args.seed}")
     config = cfgmod.load(args.config, overrides)
-    check_fits_in_memory(config)
+    check_run(config)
     if args.live is not None:
         from netsim.tools.bridge import LIVE_VIEW, check_extra, check_links_on
 
@@ -203,12 +177,14 @@ def cmd_run(args) -> int:
         if args.view:
             from netsim.tools import viewer
 
-            written.append(viewer.write(out))
-    if not args.quiet:
-        n, duration = config.world.n_robots, config.duration_s
-        print(f"netsim run: {n} robots, {duration:g} s simulated in {result.wall_s:.2f} s wall")
-        print(summary_table(result.summary))
-        print(f"results: {out}/ ({', '.join(p.name for p in written)})")
+            with kept_if_interrupted(f"netsim: interrupted; the run is written in {out}/, its view.html is not"):
+                written.append(viewer.write(out))
+    with kept_if_interrupted(f"netsim: interrupted; the run is written in {out}/"):
+        if not args.quiet:
+            n, duration = config.world.n_robots, config.duration_s
+            print(f"netsim run: {n} robots, {duration:g} s simulated in {result.wall_s:.2f} s wall")
+            print(summary_table(result.summary))
+            print(f"results: {out}/ ({', '.join(p.name for p in written)})")
     return 0
 
 
@@ -251,7 +227,7 @@ def cmd_bridge(args) -> int:
     check_set_pairs(args.set, args.config)
     rate = check_rate(args.rate)
     config, settings = load(args.config, list(args.set or []))
-    check_fits_in_memory(config)
+    check_run(config)
     check_links_on(config, "netsim bridge")
     check_extra("netsim bridge", (DDS,) if args.live is None else (DDS, LIVE_VIEW))
     say_when_compiling("netsim bridge", not args.quiet)
@@ -283,7 +259,7 @@ def cmd_scenario_generate(args) -> int:
     try:
         with warnings.catch_warnings(record=True) as caught:
             config = cfgmod.from_dict(tree)
-            check_fits_in_memory(config)
+            check_run(config)
             check_legs_fit_in_memory(config)
             check_out_file(out, "-o")
             if out.name.endswith((".movements", ".movements.gz")):
@@ -423,7 +399,7 @@ def cmd_figures(args) -> int:
             raise NetsimInputError(
                 f"--at = {args.at:g}: must be a time between 0 and duration_s = {config.duration_s:g} s"
             )
-        check_fits_in_memory(config)
+        check_run(config)
         say_when_compiling("netsim figures", not args.quiet)
         with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
             result = execute(config, progress=not args.quiet and not args.no_progress)
@@ -431,9 +407,10 @@ def cmd_figures(args) -> int:
             write_run(
                 out, config, result.frames, result.summary, manifest(config, 0, result.wall_s, occupancy=occupancy)
             )
-            if not args.quiet:
-                print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
-            drawn = figures.draw(out, at_s=args.at)
+            with kept_if_interrupted(f"netsim: interrupted; the run is written in {out}/, its figures are not"):
+                if not args.quiet:
+                    print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
+                drawn = figures.draw(out, at_s=args.at)
     for d in drawn if not args.quiet else []:
         print(f"wrote {d.path}" + (f" ({d.note})" if d.note else ""))
     return 0
@@ -652,6 +629,10 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+# A disk or a quota that is full: the user's to fix, said in one line.
+FULL_DISK = (errno.ENOSPC, errno.EDQUOT)
+
+
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
     print(f"netsim: warning: {message}", file=sys.stderr)
 
@@ -663,6 +644,16 @@ def main(argv=None) -> int:
         return args.func(args)
     except NetsimInputError as exc:
         print(f"netsim: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeptOnInterrupt as exc:
+        print(exc.args[0], file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except OSError as exc:
+        if exc.errno not in FULL_DISK:
+            raise
+        # What was being written is given up whole (netsim.tools.output), as on any error.
+        where = f" ({exc.filename})" if exc.filename else ""
+        print(f"netsim: error: cannot write: {os.strerror(exc.errno)}{where}; nothing written", file=sys.stderr)
         return EXIT_INPUT
     except BaseException as exc:  # Ctrl-C, or what a compiled call made of it (netsim.tools.command)
         if not interrupted(exc):

@@ -35,6 +35,23 @@ def interrupted(exc: BaseException | None = None) -> bool:
     return _INTERRUPTED
 
 
+class KeptOnInterrupt(KeyboardInterrupt):
+    """Ctrl-C after the command's results were put in place: they are kept, and the one
+    line (``args[0]``) says what is there."""
+
+
+@contextmanager
+def kept_if_interrupted(line: str) -> Iterator[None]:
+    """Within, the command's results are in place: an interrupt becomes :class:`KeptOnInterrupt`
+    with ``line``, not the line that says nothing was written."""
+    try:
+        yield
+    except BaseException as exc:
+        if isinstance(exc, KeptOnInterrupt) or not interrupted(exc):
+            raise
+        raise KeptOnInterrupt(line) from None
+
+
 @contextmanager
 def ignoring_interrupts() -> Iterator[None]:
     """Ctrl-C held off within: one that comes meanwhile is dropped, so that what runs within

@@ -54,6 +54,7 @@ from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError, not_a_file
 from netsim.tools.interrupt import interrupted
 from netsim.tools.output import write_atomically, write_table
+from netsim.tools.preflight import check_run
 
 MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
 SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
@@ -76,18 +77,37 @@ class Sweep:
     points: tuple[dict, ...]
 
     def runs(self) -> list[Run]:
-        """Every run, each point's configuration resolved and checked."""
-        out = []
+        """Every run, each point's configuration resolved and checked as ``netsim run``
+        checks it before it starts; points that resolve to one configuration run once."""
+        out: dict[str, Run] = {}
+        repeated = 0
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", cfgmod.ConfigWarning)
             for point in self.points:
-                resolved = cfgmod.to_dict(point_config(self.base, point))
+                config = point_config(self.base, point)
+                try:
+                    check_run(config)
+                except ConfigError as exc:
+                    raise NetsimInputError(f"sweep point {point}: {exc}") from None
+                resolved = cfgmod.to_dict(config)
+                if run_id(resolved, 0) in out:
+                    repeated += 1
+                    continue
                 for rep in range(self.replications):
-                    out.append(Run(run_id(resolved, rep), point, rep, resolved))
+                    key = run_id(resolved, rep)
+                    out[key] = Run(key, point, rep, resolved)
         # The keys a point's model does not use: said once, not once per point.
         for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, cfgmod.ConfigWarning)):
             warnings.warn(message, cfgmod.ConfigWarning, stacklevel=2)
-        return out
+        if repeated:
+            # Comparing models over a key only one of them reads gives such points.
+            warnings.warn(
+                f"{repeated} of {len(self.points)} points resolve to the configuration of a point before them (a "
+                "value listed twice, or a key their model does not use): each configuration is run once",
+                cfgmod.ConfigWarning,
+                stacklevel=2,
+            )
+        return list(out.values())
 
 
 def point_config(base: dict, point: dict) -> cfgmod.Config:
@@ -148,12 +168,17 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
             base = cfgmod.merge(tomllib.loads(path.read_text()), base)
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise _err(f"base_file = {str(path)!r} is not valid TOML: {exc}") from None
+    if ("grid" in tree) == ("random" in tree):
+        raise _err("give exactly one of [grid] and [random]")
     try:
         base_config = cfgmod.from_dict(base)
     except ConfigError as exc:
-        raise _err(f"[base] {exc}") from None
-    if ("grid" in tree) == ("random" in tree):
-        raise _err("give exactly one of [grid] and [random]")
+        # A key the points give may be one another rule of the base needs (the trace file
+        # of a trace model): the base is then checked with the first point.
+        try:
+            base_config = point_config(base, _first_point(tree))
+        except (NetsimInputError, TypeError, ValueError):
+            raise _err(f"[base] {exc}") from None
     known = set(cfgmod.all_keys(base_config))
     points = _grid(tree["grid"], known) if "grid" in tree else _random(tree["random"], known)
     if tables:
@@ -189,6 +214,15 @@ def _check_key(key: str, known: set[str], value: object = None) -> None:
                 f'("{key}.{inner}" = [...]), else it is read as a table'
             )
         raise _err(f"{key!r} is not a configuration key{cfgmod.did_you_mean(key, known)} (see `netsim config`)")
+
+
+def _first_point(tree: dict) -> dict:
+    """The first value of each axis of ``[grid]`` (the low end of each range of ``[random]``),
+    as far as they are given as lists; every point is checked in full later."""
+    axes = tree.get("grid") if "grid" in tree else (tree.get("random") or {}).get("ranges")
+    if not isinstance(axes, dict):
+        return {}
+    return {k: v[0] for k, v in axes.items() if isinstance(k, str) and isinstance(v, list) and v}
 
 
 def _grid(grid, known: set[str]) -> list[dict]:
@@ -277,7 +311,8 @@ def flatten(tree: dict, prefix: str = "") -> dict:
 
 
 def execute_run(run: Run, tables: tuple[str, ...] = ()) -> dict:
-    """Run one point (in whatever process or machine): returns its row and kept tables."""
+    """Run one point (in whatever process or machine): returns its row and kept tables, a
+    table its models do not write as an empty one (so that the run is known to have kept it)."""
     from netsim.run import execute
 
     result = execute(cfgmod.from_dict(run.config), run=run.replication)
@@ -285,7 +320,7 @@ def execute_run(run: Run, tables: tuple[str, ...] = ()) -> dict:
     for key, value in result.summary.items():
         if key not in ("seed", "mobility", "protocol", "robots", "duration_s"):
             row[key] = value
-    return {"row": row, "tables": {t: result.frames[t] for t in tables if t in result.frames}}
+    return {"row": row, "tables": {t: result.frames.get(t, pd.DataFrame()) for t in tables}}
 
 
 def _die_with_parent() -> None:
@@ -311,8 +346,13 @@ def _safe_execute(run: Run, tables) -> dict:
 
 
 # -- persistence ---------------------------------------------------------------------------
-def done_ids(out_dir: Path) -> set[str]:
-    return {p.stem for p in (out_dir / "runs").glob("*.parquet")}
+def done_ids(out_dir: Path, tables: Sequence[str] = ()) -> set[str]:
+    """The runs finished in ``out_dir``: their row is written (last), and each of ``tables``
+    was kept (a table added to a sweep's list runs its finished runs again)."""
+    done = {p.stem for p in (out_dir / "runs").glob("*.parquet")}
+    for table in tables:
+        done &= {p.stem for p in (out_dir / "tables" / table).glob("*.parquet")}
+    return done
 
 
 def _record(out_dir: Path, run: Run, outcome: dict) -> None:
@@ -394,8 +434,6 @@ def run_sweep(
 
     runs = sweep.runs()
     ids = [r.run_id for r in runs]
-    if len(set(ids)) != len(ids):
-        raise _err("two points resolve to the same configuration (duplicate values in [grid]?)")
     _refuse_another_sweeps_dir(Path(out_dir), sweep.name)
     with claim_dir(out_dir, "--out", kind="sweep", tables=sweep.tables) as out:
         client = connect(scheduler, connect_timeout_s) if isinstance(scheduler, str) else scheduler
@@ -409,7 +447,7 @@ def run_sweep(
                 "run_ids": ids,
             }
             write_atomically(out / "sweep.json", lambda p: p.write_text(json.dumps(description, indent=2, default=str)))
-            finished = done_ids(out)
+            finished = done_ids(out, sweep.tables)
             todo = [r for r in runs if r.run_id not in finished]
             failed: list[dict] = []
             bar = progress_bar(len(runs), sweep.name, "runs", enabled=progress, initial=len(runs) - len(todo), lines=10)
@@ -557,9 +595,12 @@ def load_table(out_dir: str | Path, table: str) -> pd.DataFrame:
     out = Path(out_dir)
     finished = done_ids(out)
     files = [f for f in _files(out, out / "tables" / table) if f.stem in finished]
-    if not files:
+    frames = [pd.read_parquet(f) for f in files]
+    # A run whose models write no such table kept an empty one of its run_id alone.
+    frames = [f for f in frames if list(f.columns) != ["run_id"]]
+    if not frames:
         return pd.DataFrame()
-    return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+    return pd.concat(frames, ignore_index=True)
 
 
 def t_interval(values: npt.ArrayLike, level: float = 0.95) -> tuple[float, float, float, float]:
