@@ -366,3 +366,30 @@ def test_coverage_rows_list_item_30_before_item_31(monkeypatch):
     monkeypatch.setattr(validate, "coverage_run", lambda *args: outcome)
     items = [c.item for c in validate.check_coverage()]
     assert items == sorted(items) and items.count("31") == 2 and items[0] == "30"
+
+
+@pytest.mark.slow
+def test_stationary_start_items_see_a_start_without_length_bias_or_pauses(monkeypatch):
+    """Items 3 and 4 see a stationary start whose legs are drawn without their length bias
+    (every pair of points kept) and one that never starts a robot paused: the central
+    density and the paused share fail (both passed the checks of boxes of side 0.05)."""
+    import netsim.mobility.random_waypoint as rwp
+
+    monkeypatch.setattr(rwp, "distances_m", lambda p1, p2, side, n: np.full(len(p1), np.inf))
+    monkeypatch.setattr(rwp, "paused_fraction", lambda *args: 0.0)
+    rows = validate.check_stationary_start()
+    assert _failed(rows, "at (0.5, 0.5)") and _failed(rows, "paused")
+
+
+@pytest.mark.slow
+def test_delivery_item_sees_one_loss_draw_for_all_of_an_acks_robots(monkeypatch):
+    """Item 10 sees losses drawn once per Ack for all its robots: the delivered fraction
+    stays 1 - p, the variance of an Ack's receptions does not."""
+    from netsim.radio import loss
+
+    def together(self, sender, receivers, distances_m):
+        return np.full(len(receivers), self.rng.random() >= self.p)
+
+    monkeypatch.setattr(loss.BernoulliLoss, "__call__", together)
+    rows = validate.check_delivery_ratio()
+    assert not _failed(rows, "delivered fraction") and _failed(rows, "variance")
