@@ -238,6 +238,27 @@ def test_a_unicast_is_retried_up_to_the_retry_limit():
     assert log and log[0][2] == []
 
 
+class _Highs:
+    """A stand-in for the medium's generator that records each backoff's range and draws 0."""
+
+    def __init__(self):
+        self.highs = []
+
+    def integers(self, high):
+        self.highs.append(int(high))
+        return 0
+
+
+def test_csma_backoff_is_uniform_on_0_to_cw_and_cw_doubles_per_failed_try():
+    """802.11's backoff: uniform on 0..CW, both ends included (cw_min = 31 gives 32 values),
+    CW doubling (2 CW + 1) after each failed try of a unicast, up to cw_max."""
+    sim = _medium([0, 10, 200], mac="csma", retry_limit=3, cw_min=15, cw_max=63)
+    sim.channel.mac.rng = draws = _Highs()
+    _send_at(sim, 0.0, 0, dest=2)  # out of range: every try fails
+    sim.env.run()
+    assert draws.highs == [16, 32, 64, 64]
+
+
 def test_aloha_sends_a_failed_unicast_once():
     """ALOHA: a unicast that reaches nobody is not sent again, and counts no retry_limit drop."""
     sim = _medium([0, 10, 200], mac="aloha")
