@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from netsim.mobility.forces import border_forces, component_centres, expansion_forces
+from netsim.mobility.forces import SQRT3, border_forces, component_centres, expansion_forces
 from netsim.mobility.spread import disk_links, forest_rows, pass_on_pulls, plan_spread
 from netsim.mobility.steps import StepLimits
 from netsim.protocols.roles import LEADER, MEMBER, UNDECIDED
@@ -186,6 +186,48 @@ def test_leaders_know_their_two_hop_neighbourhood_from_acks(build_sim):
     assert xy == pytest.approx(pos[other])
 
 
+def test_a_wished_speed_below_stop_speed_mps_is_a_wish_to_hold(tmp_path, build_sim):
+    """docs/model.md 5: a robot whose wished speed (gain x resultant force) is below
+    ``coverage.stop_speed_mps`` wishes to hold: its velocity is exactly 0. Two lone leaders
+    near opposite borders, out of each other's reach: the border pushes robot 0 at half the
+    stop speed and robot 1 at twice it. Robot 1 moves; robot 0 never does (the wish kept,
+    it crept along at 0.01 m/s)."""
+    margin = SQRT3 * RC / 2  # the borders push within this, by (margin - distance) x gain
+    xy = [(margin - 0.1, 500.0), (1000.0 - margin + 0.4, 500.0)]
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{x!r},{y!r}\n" for x, y in xy))
+    sim = build_sim(
+        duration_s=14.0,
+        world={"n_robots": 2, "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": RC},
+        protocol={"message_rate_hz": 0.0},
+        coverage={"enabled": True, "expansion": 0.0},
+        output={"position_interval_s": 0.0},
+    )
+    cov = sim.models["coverage"]
+    c = sim.config.coverage
+    wished = np.hypot(*border_forces(np.array(xy), 1000.0, RC, c.gain).T)
+    assert wished == pytest.approx([0.5 * c.stop_speed_mps, 2.0 * c.stop_speed_mps])
+    proposed: list[np.ndarray] = []
+    propose = cov._propose_spread  # the wishes, before the plan keeps links (none here)
+
+    def recorded(step):
+        propose(step)
+        assert (step.leader == [0, 1]).all()  # both lead themselves: both may move
+        proposed.append(step.velocity_mps.copy())
+
+    cov._propose_spread = recorded
+    sim.run()
+    speeds = np.hypot(*np.array(proposed).transpose(2, 0, 1))  # (steps, robots)
+    assert len(speeds) >= 3
+    assert (speeds[:, 0] == 0.0).all() and (speeds[:, 1] > c.stop_speed_mps).all(), speeds
+    legs = sim.state.legs()
+    assert (legs.loc[legs["robot"] == 0, ["vx_mps", "vy_mps"]] == 0.0).all().all()
+    assert (legs.loc[legs["robot"] == 1, "vx_mps"] < 0.0).any()
+    assert (sim.state.positions_at(sim.now)[0] == xy[0]).all()
+
+
 # -- whole runs ------------------------------------------------------------------------
 
 
@@ -266,6 +308,40 @@ def test_control_stops_when_coverage_stops_growing():
     assert legs[legs["t_s"] > settled + 1.5].empty
     # One odometer: the coverage table's last sample and the travel table read the same law.
     assert r.frames["coverage"]["distance_mean_m"].iloc[-1] == r.frames["travel"]["distance_m"].mean()
+
+
+def test_any_motion_starts_the_quiet_over_so_control_stops_stop_hold_s_after_the_last():
+    """Spread's motion stopping rule (docs/model.md 5, "Stopping"): control ends once no
+    robot's planned speed has reached stop_speed_mps for stop_hold_s, so any robot's motion
+    starts the quiet over. With the coverage rule off (stop_gain = 0) and stop_hold_s = 5 s,
+    plans quiet at 10 and 11 s, one robot moving at 12 and 14 s, quiet in between and from
+    15 s on: control stops at 20 s, stop_hold_s after the first quiet step that follows the
+    last motion (without the reset the quiet counted from 10 s and control stopped at 15 s,
+    a robot having moved 1 s before)."""
+    from types import SimpleNamespace
+
+    from netsim.mobility.coverage import CoverageController, CoverageParams
+
+    cfg = CoverageParams(stop_gain=0.0, stop_hold_s=5.0)
+    stops: list[float] = []
+    clock = SimpleNamespace(now=0.0)
+    ctl = SimpleNamespace(
+        cfg=cfg,
+        env=clock,
+        all_quiet_since=math.nan,
+        settled_s=math.nan,
+        loop=SimpleNamespace(stop=lambda: stops.append(clock.now)),
+    )
+    quiet = np.zeros((3, 2))
+    moving = quiet.copy()
+    moving[1] = [0.3, 0.4]
+    for t in range(10, 40):
+        clock.now = float(t)
+        CoverageController._stopping_rule(ctl, SimpleNamespace(velocity_mps=moving if t in (12, 14) else quiet))
+        if stops:
+            break
+    assert stops == [20.0] and ctl.settled_s == 20.0
+    assert ctl.settled_s >= 14.0 + cfg.hold_s
 
 
 @pytest.mark.slow

@@ -3,7 +3,7 @@ ring; and a flow over a static line."""
 
 import numpy as np
 import pytest
-from netsim.protocols.aodv import AodvParams, RouteTable, ring_ttls, seq_newer
+from netsim.protocols.aodv import AodvParams, Route, RouteTable, fresher, ring_ttls, seq_newer
 
 from netsim.errors import ConfigError
 from netsim.run import build, collect
@@ -49,6 +49,20 @@ def test_stale_sequence_number_never_replaces_fresher_route():
         t.offer(5, int(rng.integers(10)), int(rng.integers(1, 10)), seq, True, 100.0)
         best = seq if best is None or seq > best else best
         assert t.routes[5].seq == best
+
+
+def test_same_sequence_number_replaces_a_route_only_if_strictly_shorter():
+    """RFC 3561 6.2: an offer with the known route's own destination sequence number
+    replaces a valid route only if its hop count is smaller; one as long does not, and
+    the table keeps its next hop and lifetime (a tie taken, ``<=``, would let every equally
+    long reply move the route to another next hop: routes flapping between equal paths)."""
+    known = Route(next_hop=1, hops=4, seq=10, valid_seq=True, expires_s=100.0)
+    assert not fresher(known, 10, True, 4)
+    assert fresher(known, 10, True, 3)
+    t = RouteTable()
+    t.offer(9, next_hop=1, hops=4, seq=10, valid_seq=True, expires_s=100.0)
+    assert not t.offer(9, 2, 4, 10, True, 200.0)
+    assert (t.routes[9].next_hop, t.routes[9].hops, t.routes[9].expires_s) == (1, 4, 100.0)
 
 
 def test_route_error_invalidates_routes_through_the_broken_link():

@@ -45,6 +45,17 @@ def test_mprs_take_a_neighbour_that_alone_reaches_a_two_hop_neighbour():
     assert select_mprs(via, set(range(10, 16))) == {2, 3}
 
 
+def test_mprs_tie_on_coverage_goes_to_the_neighbour_reaching_most_then_the_lowest_id():
+    """RFC 3626 8.3.1 as docs/routing.md states it: of the neighbours covering most of the
+    two-hop neighbours still uncovered, the one reaching most of them all is chosen, then
+    the lowest id. Here 5 alone reaches 13; 1 and 3 then each cover both of 10 and 11, and
+    3, which reaches three, is chosen over the lower id 1, which reaches two (going to the
+    lowest id at once, the reach left out, took 1)."""
+    assert select_mprs({1: {10, 11}, 3: {10, 11, 12}, 5: {12, 13}}, {10, 11, 12, 13}) == {3, 5}
+    # Tied on the reach too: the lowest id.
+    assert select_mprs({4: {10, 11}, 2: {10, 11}, 5: {12}}, {10, 11, 12}) == {2, 5}
+
+
 def _run(tmp_path, xy, flows, duration_s=40.0, channel=None, watch=None, **protocol):
     path = tmp_path / "robots.csv"
     path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
@@ -190,3 +201,33 @@ def test_olsr_tc_is_considered_for_forwarding_once_at_its_first_copy(tmp_path):
     assert len(forwarded) == len(set(forwarded))
     assert set(forwarded) == {k for k, go in expected.items() if go}
     assert sum(expected.values()) > 50 and not all(expected.values())
+
+
+def test_olsr_tc_from_a_robot_that_is_not_a_symmetric_neighbour_is_discarded(tmp_path):
+    """RFC 3626 3.4 (step 1): a TC that comes from a robot that is not a symmetric
+    neighbour is discarded, neither processed nor forwarded. Robot 3 (range 50 m) hears
+    robot 1, the MPR of the line 0 - 1 - 2, 100 m away, but 1 does not hear 3: 1's TCs reach
+    3 over a one-way link, and 3's topology must hold nothing of them (without the check
+    it took them, learning links over a robot it cannot reach), while 0, a symmetric
+    neighbour of 1, does."""
+    xy = [(100, 500), (200, 500), (300, 500), (200, 600)]
+    forwarded: list[tuple] = []
+
+    def watch(olsr):
+        queue = olsr.queue
+
+        def queued(i, message):
+            if message.__class__.__name__ == "Tc" and message.orig != i:
+                forwarded.append((i, message.orig, message.ansn))
+            queue(i, message)
+
+        olsr.queue = queued
+
+    sim, _ = _run(tmp_path, xy, [], duration_s=20.0, channel={"range_m": [120.0, 120.0, 120.0, 50.0]}, watch=watch)
+    olsr = sim.models["protocol"]
+    now = sim.now
+    assert 1 in olsr.heard_until[3] and 3 not in olsr.heard_until[1]  # 3 hears 1, one way
+    assert 1 not in olsr.symmetric(3, now)
+    assert olsr.ansn[1] >= 2 and 1 in olsr.topology[0]  # 1 sent TCs; its symmetric neighbours took them
+    assert olsr.topology[3] == {} and not any(orig == 1 for orig, _ in olsr.duplicates[3])
+    assert not any(r == 3 for r, _, _ in forwarded)
