@@ -219,6 +219,36 @@ def test_rule3_a_timer_and_the_table_agree_on_when_an_entry_ends():
     assert rec.t_s.iloc[-2] == deadline(stack.table.last_heard_s[2, stack.table.entry(2, 0)], TAU)
 
 
+def test_rule3_only_two_way_acks_renew_a_member():
+    """Rule 3: only the leader's Acks over a two-way link renew a member (docs/model.md
+    4.1). Member 1 (range 5 m) joins leader 0 (range 15 m) at 4 m, then stands 10 m away at
+    t = 10: it still hears every Ack of 0, but 0 no longer hears it, and once 0's entry of
+    1 expires its Acks stop listing 1. Those one-way Acks must not renew 1: it becomes
+    undecided exactly tau after the last Ack that listed it. A member renewed by any Ack of
+    its leader stayed in a group its leader knew nothing of, for ever."""
+    sim, stack, deliveries = scripted([[0, 0], [4, 0]], [0.1, 1.6], range_m=[15.0, 5.0])
+    two_way = []  # when 0's Acks reached 1, and whether they listed it
+
+    def listed(now, ack, receivers, hears_me):
+        if ack.sender == 0 and 1 in receivers:
+            two_way.append((now, bool(hears_me[receivers.tolist().index(1)])))
+
+    stack.beacon.listeners.append(listed)
+
+    def step_back():
+        yield sim.env.timeout(10.0)
+        sim.state.set_leg(1, sim.env.now, (0.0, 0.0), start_m=(10.0, 0.0))
+
+    sim.env.process(step_back())
+    sim.run(until_s=25)
+    rec = records(sim, 1)
+    assert rec.cause.tolist()[:2] == ["rule2_join", "rule3_leader_lost"], rec
+    last = max(t for t, listed in two_way if listed)
+    one_way = [t for t, listed in two_way if not listed and last < t < rec.t_s[1]]
+    assert len(one_way) >= 2  # 1 heard 0's one-way Acks meanwhile
+    assert rec.t_s[1] == deadline(last, TAU)
+
+
 def test_rule5_neighbouring_leaders_merge_and_the_smaller_group_yields():
     """Group {0, 1, 2} (leader 0) and group {3, 4} (leader 3) come into range at t = 10;
     after merge_delay the smaller group's leader yields and its member re-affiliates at once."""
@@ -319,6 +349,46 @@ def test_rule5_leaders_that_yield_to_each_other_settle_on_the_lower_id(monkeypat
     assert r1.t_s[1] < r0.t_s[1] < r1.t_s[1] + 1.3
     assert r0.t_s[2] == pytest.approx(min(t for t, s, rec in deliveries if s == 1 and t > r1.t_s[1] + 1.3))
     assert stack.role.tolist() == [LEADER, MEMBER] and stack.leader.tolist() == [0, 0]
+
+
+def test_rule5_the_merge_delay_counts_from_the_robots_own_leadership():
+    """Rule 5 counts merge_delay from the latest of the link known two-way, the other's
+    Acks saying alpha and the robot's own becoming alpha. Member 2 of leader 1 has heard
+    leader 0 over a two-way link since t = 4; leader 1 leaves and 2 is elected (rule 6) at
+    its deadline. Link and 0's leadership are old news, so only 2's own leadership holds
+    the merge back: 2 yields (equal groups: the higher id) on the first Ack of 0 it gets
+    merge_delay after its election, not on the first it gets once it has announced itself
+    (a period later), as a merge delay counted without it did."""
+    sim, stack, deliveries = scripted([[9, 0], [-6, 0], [0, 0]], [0.2, 0.1, 1.6])
+    move_away(sim, 1, 10.0)
+    sim.run(until_s=20)
+    rec = records(sim, 2)
+    assert rec.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected", "rule5_merge_yield"], rec
+    elected, yielded = rec.t_s[2], rec.t_s[3]
+    assert rec.leader[3] == 0 and records(sim, 0).cause.tolist() == ["rule4_no_leader"]
+    merge_delay = 2 * PERIOD
+    assert min(t for t, s, r in deliveries if s == 0 and 2 in r) < elected - merge_delay  # an old link
+    assert yielded >= elected + merge_delay
+    assert yielded == min(t for t, s, r in deliveries if s == 0 and 2 in r and t >= elected + merge_delay)
+
+
+def test_rule5_a_yielding_leader_resigns_in_its_next_ack():
+    """Rule 5: the leader that yields sets the resign flag in its next Ack, which says beta
+    and names the leader it joined; its later Acks do not (the flag is sent once). Leaders 0
+    and 1 merge; 1 (the higher id, equal groups) yields. A yield that left the flag unset
+    told nobody that it resigned."""
+    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.1, 0.2])
+    acks = []  # (arrival, Ack) of robot 1
+    stack.beacon.listeners.append(lambda now, ack, rec, hm: acks.append((now, ack)) if ack.sender == 1 else None)
+    sim.run(until_s=10)
+    rec = records(sim, 1)
+    assert rec.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"], rec
+    yielded = rec.t_s[1]
+    before = [a for t, a in acks if t < yielded]
+    (t_next, next_ack), *later = [(t, a) for t, a in acks if t > yielded]
+    assert t_next < yielded + PERIOD + LATENCY
+    assert (next_ack.role, next_ack.leader, next_ack.resign) == (MEMBER, 0, True)
+    assert len(later) >= 2 and not any(a.resign for _, a in later) and not any(a.resign for a in before)
 
 
 def test_an_overtaken_ack_does_not_undo_a_resignation():
@@ -443,6 +513,37 @@ def test_one_way_link_is_never_joined():
     sim.run(until_s=20)
     assert stack.role.tolist() == [LEADER, LEADER]
     assert records(sim, 1).cause.tolist() == ["rule4_no_leader"]
+
+
+def test_group_size_counts_two_way_members_only():
+    """A leader's Ack announces 1 + its live two-way neighbours whose last Ack named it
+    their leader (docs/model.md 4). Member 1 (range 15 m) of leader 0 (range 5 m) stands 10 m
+    away from t = 10: 0 still hears it, it no longer hears 0. Its Ack at its own deadline
+    (tau after 0's last Ack it heard; Acks go before timers) still says beta of 0 but no
+    longer lists 0: 0 hears a member over a one-way link. 0's next Ack must announce a
+    group of 1, not 2 (counted once the member's Acks name the leader, whether or not they
+    list it, the size takes in members the leader cannot reach)."""
+    lost = float(deadline(9.5, TAU))  # 1's deadline: tau after 0's Ack at 9.5 (no latency)
+    # 1's Acks are due at its deadline, to the last bit (dyadic instants: exact sums).
+    sim, stack, _ = scripted([[0, 0], [4, 0]], [0.5, lost - 11.0], range_m=[5.0, 15.0], latency_s=0.0)
+    heard = []  # 1's Acks as 0 got them
+    stack.beacon.listeners.append(lambda now, ack, rec, hm: heard.append((now, ack)) if ack.sender == 1 else None)
+
+    def step_back():
+        yield sim.env.timeout(10.0)
+        sim.state.set_leg(1, sim.env.now, (0.0, 0.0), start_m=(10.0, 0.0))
+
+    sim.env.process(step_back())
+    sim.run(until_s=13.0)
+    assert stack.beacon.group_size[0] == 2  # 0's Ack at 12.5: 1 still lists it
+    rec = records(sim, 1)
+    assert rec.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule6_elected"], rec
+    assert rec.t_s[1] == lost
+    last = next(a for t, a in heard if t == lost)
+    assert (last.role, last.leader) == (MEMBER, 0) and 0 not in last.heard.tolist()
+    sim.run(until_s=13.75)  # 0's Ack at 13.5, before 1's next (as a leader)
+    assert min(t for t, _ in heard if t > lost) > 13.5
+    assert stack.beacon.group_size[0] == 1
 
 
 def test_gateway_belongs_to_two_groups():

@@ -8,6 +8,7 @@ import pytest
 from netsim.errors import ConfigError
 from netsim.radio.channel import DROP_CAUSES
 from netsim.radio.mac import MAC_DROP_CAUSES, airtime_s
+from netsim.radio.receptions import ReceptionLog
 from netsim.run import execute, tables
 from netsim.simpy_internals import kernel_queue
 from netsim.tools import mac_checks
@@ -143,6 +144,38 @@ def test_the_stronger_frame_survives_under_log_distance():
     _send_at(sim, T / 2, 2)
     sim.env.run()
     assert _dropped(sim, "collision", robot=1) == 2
+
+
+def test_capture_counts_the_noise_floor_in_the_sinr():
+    """log_distance: a frame is received iff rx / (noise + interference) >= capture
+    threshold. Robot 1 gets 0's frame 1.4 dB above the sensitivity (-80 dBm), 16.4 dB over
+    the noise floor (-95 dBm); a far sender, 2, overlaps it and reaches 1 at -94.7 dBm,
+    about the noise floor. With the threshold at its largest (15 dB: sensitivity less
+    noise), 0's frame alone is received, but noise plus 2's frame gives an SINR of 13.2 dB:
+    a collision. Over the interference alone (16.1 dB) it would pass: a medium that left the
+    noise out of the SINR received it."""
+    keys = {"propagation": "log_distance", "sensitivity_dbm": -80.0, "noise_floor_dbm": -95.0}
+    keys["capture_threshold_db"] = 15.0
+    sim = _medium([0, 90, 400], **keys)  # 1 is 90 m from 0, 310 m from 2; 0 and 2 are 400 m apart
+    assert sim.channel.mac.interference_range_m > 310.0  # 2's frame counts at 1
+    _send_at(sim, 0.0, 0)
+    sim.env.run()
+    assert sim.channel.counters_for("f").received.tolist() == [0, 1, 0]  # noise alone: kept
+    sim = _medium([0, 90, 400], **keys)
+    sim.channel.receptions = log = ReceptionLog(sim.channel)
+    got = []
+    _send_at(sim, 0.0, 0, got)
+    _send_at(sim, T / 2, 2, got)
+    sim.env.run()
+    assert got == [] and sim.channel.counters_for("f").received.sum() == 0
+    assert _dropped(sim, "collision", robot=1) == 1
+    rows = log.frame(sim.state.legs(), sim.state.n)
+    assert rows[["src", "dst", "cause"]].values.tolist() == [[0, 1, "collision"]]
+    signal, sinr = rows.rx_power_dbm[0], rows.sinr_db[0]
+    jam_dbm = 20.0 - 40.0 - 30.0 * np.log10(310.0)  # 2's frame at 1: P_t, loss at 1 m, exponent 3
+    assert signal == pytest.approx(20.0 - 40.0 - 30.0 * np.log10(90.0), abs=1e-9)
+    assert sinr == pytest.approx(signal - 10 * np.log10(10 ** (-9.5) + 10 ** (jam_dbm / 10)), abs=1e-9)
+    assert sinr < 15.0 < signal - jam_dbm  # below the threshold with the noise, above it without
 
 
 class _Draws:
