@@ -119,9 +119,15 @@ def check_flows(params: TrafficParams, n_robots: int, duration_s: float, max_fra
             f"traffic.flows[{i}]",
             f,
             frames,
-            f"the flows up to this one would send {frames:,} frames in the run (this one {packets:,} packets "
-            f"of {flow.packet_bytes:,} bytes, channel.max_frame_bytes = {max_frame_bytes})",
+            f"the flows up to this one would send {_count(frames)} frames in the run (this one "
+            f"{_count(packets)} packets of {flow.packet_bytes:,} bytes, channel.max_frame_bytes = {max_frame_bytes})",
         )
+
+
+def _count(n: float) -> str:
+    """A count as a reader takes it in: digits with separators, or three significant ones
+    past a thousand million million."""
+    return f"{n:,}" if n < 1e15 else f"{n:.3g}"
 
 
 def refuse_frames(key: str, value: object, frames: float, would: str, change: str = "") -> None:

@@ -181,6 +181,8 @@ BAD_FLOWS = [
         "would send 1,250,000,000,000 frames in the run (this one 1,250,000,000,000 packets of 1 bytes",
     ),
     ({**FLOW, "packet_bytes": 10**12}, "frames in the run (this one 1 packets of 1,000,000,000,000 bytes"),
+    # A count past 10^15 in three digits (a rate of 1e300 printed a count of 298 digits).
+    ({**FLOW, "rate_bps": 1e300, "packet_bytes": 100}, "would send 1.25e+298 frames in the run (this one 1.25e+298"),
 ]
 
 
