@@ -396,8 +396,9 @@ ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "traffic", "contr
 
 
 def seed_range(v: int) -> str | None:
-    # A seed is stored in 64 bits where runs are tabled (a sweep's rows).
-    return None if 0 <= v < 2**64 else "must be from 0 to 2^64 - 1"
+    # Where runs are tabled (a sweep's rows) a seed is a signed 64-bit integer: past it the
+    # column would turn to floats, and the seed stored would not be the one that ran.
+    return None if 0 <= v < 2**63 else "must be from 0 to 2^63 - 1"
 
 
 @dataclass(frozen=True)

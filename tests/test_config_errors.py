@@ -456,7 +456,7 @@ def test_run_refuses_a_seed_given_twice(tmp_path, capsys, monkeypatch, seeds):
         (["--speed-max", "nan"], "--speed-max nan: must be a number"),
         (["--pause", "-1"], "--pause -1.0: must be >= 0"),
         (["--duration", "0"], "--duration 0.0: must be > 0"),
-        (["--seed", "-1"], "--seed -1: must be from 0 to 2^64 - 1"),
+        (["--seed", "-1"], "--seed -1: must be from 0 to 2^63 - 1"),
         (["--speed-min", "0"], "--speed-min 0.0: must be > 0 without --no-stationary-start"),
         (["--n", "100000000000"], "--n 100000000000: the run would hold at least"),
         (["--duration", "1e15"], "--duration 1000000000000000.0: the scenario would hold at least"),

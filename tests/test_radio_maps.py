@@ -50,6 +50,13 @@ def test_colour_channels_are_averaged_and_alpha_too_in_trinary_mode():
     assert free[0, 0]  # scale: alpha left out of the mean
 
 
+def test_pixels_of_other_channel_counts_are_refused():
+    """Gray or RGB, with or without alpha: four channels without an alpha were read as a
+    shade of 0, every cell a wall."""
+    with pytest.raises(ValueError, match="1 \\(gray\\) or 3 \\(RGB\\) colour channels"):
+        occupancy_from_pixels(np.zeros((1, 1, 4), np.uint8), False, 0.65, 0.196)
+
+
 def test_a_gray_pixel_with_alpha_is_read_as_its_rgba_twin():
     """Nav2 averages red, green, blue (a gray value is all three) and, in trinary mode, the
     alpha: an opaque black gray+alpha pixel has p = 0.75, a wall, as its RGBA twin; a mean
@@ -98,6 +105,7 @@ def test_numbers_as_map_saver_writes_them_are_numbers(tmp_path):
     px = np.full((4, 6), 254, dtype=np.uint8)
     m = load_map(_write(tmp_path, px, resolution="5e-01", origin="[-1e+03, 2E3, 0]"))
     assert m.origin_m == (-1000.0, 2000.0) and m.resolution_m == 0.5
+    assert load_map(_write(tmp_path, px, origin="[1.5e3, .5e1, 0]")).origin_m == (1500.0, 5.0)
     with pytest.raises(ConfigError, match=r"'origin: \['1e', 0, 0\]' must be \[x, y, yaw\]"):
         load_map(_write(tmp_path, px, origin="[1e, 0, 0]"))
 

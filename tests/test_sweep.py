@@ -263,6 +263,42 @@ def test_a_base_may_leave_to_the_grid_a_key_its_model_needs(tmp_path):
     assert len(sweep.runs()) == 2
     with pytest.raises(NetsimInputError, match=r"\[base\] mobility.trace_file = '': must name a file"):
         sweepmod.parse({"name": "b", "base": base, "grid": {"world.n_robots": [2]}})
+    # The tables it may keep are its points' (the base alone was built for them, and refused).
+    kept = sweepmod.parse({"name": "b", "base": base, "tables": ["links"], "grid": {"mobility.trace_file": traces}})
+    assert kept.tables == ("links",)
+    # A [random] that is not a table is named in one line (a traceback of an AttributeError).
+    with pytest.raises(NetsimInputError, match=r"^sweep file: \[base\] mobility.trace_file"):
+        sweepmod.parse({"name": "b", "base": base, "random": [1, 2]})
+
+
+def test_a_full_disk_in_a_sweep_says_the_finished_runs_are_kept(tmp_path, capsys, monkeypatch):
+    """A disk that fills after a run is written: one line that says the finished runs are
+    kept and the command resumes (it said nothing was written), exit 2."""
+    import errno
+
+    from netsim.tools import output
+
+    real, calls = output.write_arrow, []
+
+    def fills(table, path):
+        calls.append(path)
+        if len(calls) > 2:  # the first run's table and row are written
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        real(table, path)
+
+    monkeypatch.setattr(output, "write_arrow", fills)
+    (tmp_path / "s.toml").write_text(
+        'name = "d"\ntables = ["links"]\n[base]\nduration_s = 5.0\n[base.world]\nn_robots = 4\n'
+        '[grid]\n"world.side_m" = [100.0, 200.0]\n'
+    )
+    out = tmp_path / "out"
+    assert main(["sweep", str(tmp_path / "s.toml"), "--out", str(out), "--workers", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"netsim: error: cannot write: No space left on device; the runs finished are kept in {out}/ (the same "
+        "command resumes)\n"
+    )
+    assert len(sweepmod.load(out)) == 1
 
 
 def test_a_directory_run_by_another_sweep_loads_the_latest_sweeps_runs_only(tmp_path):

@@ -424,15 +424,36 @@ def test_a_full_disk_is_one_line_and_nothing_is_left(tmp_path, capsys, monkeypat
     argv = ["run", "--quiet", "--set", "world.n_robots=4", "--set", "duration_s=5", "--out", str(out)]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.startswith("netsim: error: cannot write: No space left on device (") and err.count("\n") == 1, err
-    assert not out.exists()
+    assert err.startswith(f"netsim: error: cannot write in {tmp_path}") and err.endswith(": No space left on device\n")
+    assert err.count("\n") == 1 and not out.exists()
 
 
-def test_a_seed_past_64_bits_is_one_line(tmp_path, capsys):
-    """A seed is stored in 64 bits (a sweep's rows): a larger one is refused as every
-    other bad value is (a sweep ended in a traceback of an OverflowError)."""
+def test_a_full_disk_once_the_run_is_in_place_says_it_is_kept(tmp_path, capsys, monkeypatch):
+    """A disk that fills while the replay is written, the run already in place: the line
+    says the run is written and its view.html is not (it said nothing was written)."""
+    import errno
+
+    from netsim.tools import viewer
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", "view.html")
+
+    monkeypatch.setattr(viewer, "write", full)
     out = tmp_path / "out"
-    assert main(["run", "--quiet", "--seed", str(2**64), "--out", str(out)]) == 2
+    argv = ["run", "--quiet", "--view", "--set", "world.n_robots=4", "--set", "duration_s=5", "--out", str(out)]
+    assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err == f"netsim: error: seed = {2**64}: must be from 0 to 2^64 - 1 (seed of every random stream)\n"
+    want = f"netsim: error: cannot write: No space left on device; the run is written in {out}/, its view.html is not\n"
+    assert err == want
+    assert (out / "summary.json").is_file()
+
+
+def test_a_seed_past_63_bits_is_one_line(tmp_path, capsys):
+    """A seed is a signed 64-bit integer where runs are tabled (a sweep's rows): a larger
+    one is refused as every other bad value is (past 2^64 a sweep ended in a traceback of
+    an OverflowError; past 2^63 its rows held the seed as a float, not the one that ran)."""
+    out = tmp_path / "out"
+    assert main(["run", "--quiet", "--seed", str(2**63), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"netsim: error: seed = {2**63}: must be from 0 to 2^63 - 1 (seed of every random stream)\n"
     assert not out.exists()

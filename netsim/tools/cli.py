@@ -43,6 +43,8 @@ import os
 import re
 import sys
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from netsim import config as cfgmod
@@ -61,6 +63,9 @@ from netsim.tools.interrupt import (
 from netsim.tools.preflight import check_run
 
 EXIT_INPUT = 2
+
+# A disk or a quota that is full: the user's to fix, said in one line.
+FULL_DISK = (errno.ENOSPC, errno.EDQUOT)
 
 
 def _format_value(v) -> str:
@@ -120,6 +125,20 @@ def check_legs_fit_in_memory(config: cfgmod.Config) -> None:
         )
 
 
+@contextmanager
+def kept(out: Path, missing: str = "", results: str = "the run is") -> Iterator[None]:
+    """Within, the ``results`` are in place in ``out``: a Ctrl-C, or a disk that fills, says
+    they are kept (and what is ``missing``), not that nothing was written."""
+    what = f"{results} written in {out}/" + (f", {missing}" if missing else "")
+    try:
+        with kept_if_interrupted(f"netsim: interrupted; {what}"):
+            yield
+    except OSError as exc:
+        if exc.errno not in FULL_DISK:
+            raise
+        raise NetsimInputError(f"cannot write: {os.strerror(exc.errno)}; {what}") from None
+
+
 def say_when_compiling(command: str, enabled: bool) -> None:
     """The first run of a version of netsim on a machine compiles its loops, and prints
     nothing meanwhile (the progress bar starts with the simulation): say so on standard
@@ -177,9 +196,9 @@ def cmd_run(args) -> int:
         if args.view:
             from netsim.tools import viewer
 
-            with kept_if_interrupted(f"netsim: interrupted; the run is written in {out}/, its view.html is not"):
+            with kept(out, "its view.html is not"):
                 written.append(viewer.write(out))
-    with kept_if_interrupted(f"netsim: interrupted; the run is written in {out}/"):
+    with kept(out):
         if not args.quiet:
             n, duration = config.world.n_robots, config.duration_s
             print(f"netsim run: {n} robots, {duration:g} s simulated in {result.wall_s:.2f} s wall")
@@ -353,8 +372,14 @@ def cmd_sweep(args) -> int:
         )
     except BaseException as exc:
         # Every finished run is written as it ends, so an interrupted sweep did write.
-        if not interrupted(exc) or not (out / "sweep.json").is_file():
+        full = isinstance(exc, OSError) and exc.errno in FULL_DISK
+        if not (interrupted(exc) or full) or not (out / "sweep.json").is_file():
             raise
+        if full:
+            raise NetsimInputError(
+                f"cannot write: {os.strerror(exc.errno)}; the runs finished are kept in {out}/ (the same command "
+                "resumes)"
+            ) from None
         with ignoring_interrupts():  # a second Ctrl-C would add "nothing written" to this line
             print(
                 f"netsim: interrupted; the runs finished are kept in {out}/ (the same command resumes)", file=sys.stderr
@@ -407,12 +432,13 @@ def cmd_figures(args) -> int:
             write_run(
                 out, config, result.frames, result.summary, manifest(config, 0, result.wall_s, occupancy=occupancy)
             )
-            with kept_if_interrupted(f"netsim: interrupted; the run is written in {out}/, its figures are not"):
+            with kept(out, "its figures are not"):
                 if not args.quiet:
                     print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
                 drawn = figures.draw(out, at_s=args.at)
-    for d in drawn if not args.quiet else []:
-        print(f"wrote {d.path}" + (f" ({d.note})" if d.note else ""))
+    with kept(out, results="the figures are"):
+        for d in drawn if not args.quiet else []:
+            print(f"wrote {d.path}" + (f" ({d.note})" if d.note else ""))
     return 0
 
 
@@ -629,10 +655,6 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-# A disk or a quota that is full: the user's to fix, said in one line.
-FULL_DISK = (errno.ENOSPC, errno.EDQUOT)
-
-
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
     print(f"netsim: warning: {message}", file=sys.stderr)
 
@@ -646,14 +668,15 @@ def main(argv=None) -> int:
         print(f"netsim: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except KeptOnInterrupt as exc:
-        print(exc.args[0], file=sys.stderr)
+        with ignoring_interrupts():  # a second Ctrl-C would add "nothing written" to this line
+            print(exc.args[0], file=sys.stderr)
         return EXIT_INTERRUPTED
     except OSError as exc:
         if exc.errno not in FULL_DISK:
             raise
-        # What was being written is given up whole (netsim.tools.output), as on any error.
-        where = f" ({exc.filename})" if exc.filename else ""
-        print(f"netsim: error: cannot write: {os.strerror(exc.errno)}{where}; nothing written", file=sys.stderr)
+        # A file being written goes to a hidden temporary beside it: name its folder.
+        where = f" in {Path(exc.filename).parent}" if exc.filename else ""
+        print(f"netsim: error: cannot write{where}: {os.strerror(exc.errno)}", file=sys.stderr)
         return EXIT_INPUT
     except BaseException as exc:  # Ctrl-C, or what a compiled call made of it (netsim.tools.command)
         if not interrupted(exc):

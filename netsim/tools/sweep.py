@@ -196,7 +196,9 @@ def known_tables(base: dict, points: Sequence[dict] = ()) -> set[str]:
     receptions)."""
     from netsim.run import tables
 
-    out = set(tables(point_config(base, {})))
+    out: set[str] = set()
+    if not points:
+        out.update(tables(point_config(base, {})))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", cfgmod.ConfigWarning)  # said once, by Sweep.runs
         for point in points:
@@ -219,7 +221,8 @@ def _check_key(key: str, known: set[str], value: object = None) -> None:
 def _first_point(tree: dict) -> dict:
     """The first value of each axis of ``[grid]`` (the low end of each range of ``[random]``),
     as far as they are given as lists; every point is checked in full later."""
-    axes = tree.get("grid") if "grid" in tree else (tree.get("random") or {}).get("ranges")
+    spec = tree.get("random")
+    axes = tree.get("grid") if "grid" in tree else spec.get("ranges") if isinstance(spec, dict) else None
     if not isinstance(axes, dict):
         return {}
     return {k: v[0] for k, v in axes.items() if isinstance(k, str) and isinstance(v, list) and v}

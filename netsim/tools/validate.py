@@ -197,8 +197,8 @@ def _box_check(p: np.ndarray, centre, h: float, density, label: str) -> Check:
     )
 
 
-# Boxes this large see the start's length bias: a point uniform on a leg drawn without it
-# lies in the central box 8 % less often, two tolerances of 10^5 robots.
+# Boxes this large see the start's length bias (docs/validation.md, item 4), which boxes a
+# quarter as wide let through.
 DENSITY_BOX = 0.2
 
 

@@ -221,6 +221,8 @@ def occupancy_from_pixels(
     # mode leaves it out, and a pixel not fully opaque is unknown whatever its colour (the
     # unknown cells map_saver writes in scale mode are transparent).
     n_colour = c - 1 if has_alpha else c
+    if n_colour not in (1, 3):
+        raise ValueError(f"pixels of {c} channels: 1 (gray) or 3 (RGB) colour channels, besides an alpha")
     rgb_sum = px[:, :, :n_colour].astype(float).sum(axis=2) * (3 // n_colour)
     scale_alpha = has_alpha and mode != "trinary"
     if has_alpha and not scale_alpha:
@@ -239,9 +241,9 @@ def occupancy_from_pixels(
     return occupied, free
 
 
-# YAML 1.1 (PyYAML) reads an exponent without a dot, as yaml-cpp writes -1000 at map_saver's
-# precision (-1e+03), as text; YAML 1.2 and map_server read it as a number.
-_EXPONENT_NUMBER = re.compile(r"[-+]?[0-9]+[eE][-+]?[0-9]+")
+# YAML 1.1 (PyYAML) reads an exponent without a dot (as yaml-cpp writes -1000 at map_saver's
+# precision: -1e+03), or without a sign, as text; YAML 1.2 and map_server read a number.
+_EXPONENT_NUMBER = re.compile(r"[-+]?([0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+")
 
 
 def _yaml_number(value):
