@@ -760,6 +760,15 @@ def _model_section(cls: type[ModelSection], raw: dict) -> ModelSection:
         raise ConfigError(key, model, f"its keys are of [{declared}]: not a {cls.section} model")
     group = {name: p.Params for name, p in plugins.registered(cls.group).items()}
     taken = _split(cls.section, raw, ["model"], model, plugin.Params, _other_keys(group, model))
+    required = [
+        f.name
+        for f in dataclasses.fields(plugin.Params)
+        if f.init and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    ]
+    for name in required:
+        if name not in taken:
+            # A plugin's key without a default is the user's to give.
+            raise ConfigError(f"{cls.section}.{name}", None, f"must be set: {key} = {model!r} gives it no default")
     return cls(model, plugin.Params(**taken))
 
 

@@ -25,7 +25,7 @@ import os
 import sys
 import traceback
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, is_dataclass
 from functools import cache
 from importlib.metadata import entry_points
 from types import ModuleType
@@ -235,12 +235,24 @@ def _plugin(group: str, name: str) -> Any:
             raise TypeError("is a medium (it has a build) without airtime_s(params, nbytes)")
         return obj
     if isinstance(obj, PluginSpec):
-        return obj
+        return _checked_params(obj)
     if all(hasattr(obj, m) for m in _MEMBERS):
         # Every member a PluginSpec has, the flags too (moves_robots, respects_map, ...).
         given = {f.name: getattr(obj, f.name) for f in fields(PluginSpec) if hasattr(obj, f.name)}
-        return PluginSpec(**given)
+        return _checked_params(PluginSpec(**given))
     raise TypeError("is not a netsim plugin (a PluginSpec, or an object with " + ", ".join(_MEMBERS) + ")")
+
+
+def _checked_params(spec: PluginSpec) -> PluginSpec:
+    """``spec``, once its ``Params`` is what the configuration reads keys into."""
+    p = spec.Params
+    frozen = getattr(getattr(p, "__dataclass_params__", None), "frozen", False)
+    if not (isinstance(p, type) and issubclass(p, Params) and is_dataclass(p) and frozen):
+        raise TypeError(
+            f"its Params ({getattr(p, '__name__', repr(p))}) must be a frozen dataclass deriving from "
+            "netsim.params.Params (NoParams for none)"
+        )
+    return spec
 
 
 class PluginImportError(ImportError):

@@ -20,6 +20,7 @@ from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
+from netsim.events import MessageDelivered, MessageDropped
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts
 from netsim.traffic import Traffic, frame_count, refuse_frames
@@ -91,6 +92,7 @@ class Router:
     def __init__(self, parts: Parts, ttl: int, pairs: RoutingParams | None = None):
         self.env, self.state, self.channel = parts.env, parts.state, parts.channel
         self.streams, self.trace = parts.streams, parts.trace
+        self.events = parts.events
         self.ttl = ttl
         self._next_id = 0
         self._told: dict[int, Outcome] = {}
@@ -182,7 +184,11 @@ class Router:
         if holder == pkt.dst:
             told = self._told.pop(pkt.id, None)
             if told is not None:
-                told(pkt.id, True, self.env.now, pkt.hops, -1, "")
+                now = self.env.now
+                told(pkt.id, True, now, pkt.hops, -1, "")
+                if self.events is not None and self.events.wants("message_delivered"):
+                    delivered = MessageDelivered(now, pkt.id, pkt.src, pkt.dst, pkt.hops, now - pkt.t_sent_s)
+                    self.events.emit("message_delivered", delivered)
         else:
             self.forward(holder, pkt)
 
@@ -190,7 +196,10 @@ class Router:
         """``pkt`` is lost at ``robot`` for ``cause``."""
         told = self._told.pop(pkt.id, None)
         if told is not None:
-            told(pkt.id, False, self.env.now, pkt.hops, robot, cause)
+            now = self.env.now
+            told(pkt.id, False, now, pkt.hops, robot, cause)
+            if self.events is not None and self.events.wants("message_dropped"):
+                self.events.emit("message_dropped", MessageDropped(now, pkt.id, pkt.src, pkt.dst, pkt.hops, cause))
 
     # -- control ------------------------------------------------------------------------
     def control_kind(self, kind: str, nbytes: int, label: str = "") -> None:

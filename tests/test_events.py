@@ -705,6 +705,34 @@ def test_messages_end_to_end_are_announced_once_with_their_outcome(overrides):
     assert len(times) > 20
 
 
+@pytest.mark.parametrize("model", ["aodv", "olsr", "greedy"])
+def test_routed_packets_are_announced_end_to_end_with_their_rows_figures(model):
+    """Under a routing protocol each packet's frame gets message_delivered or message_dropped
+    (a one-frame packet: its row of packets.parquet), none in flight at the end; they
+    never fired there."""
+    config = load(
+        None,
+        ["world.n_robots=25", "duration_s=60", "seed=4", f"protocol.model={model}", "protocol.message_rate_hz=0.5"],
+    )
+    sim = build(config)
+    delivered, dropped = [], []
+    sim.events.on("message_delivered", delivered.append)
+    sim.events.on("message_dropped", dropped.append)
+    sim.run()
+    packets = collect(sim)["packets"]
+    assert (packets["frames"] == 1).all()
+    ids = [e.msg_id for e in delivered + dropped]
+    assert len(ids) == len(set(ids))
+    rows = packets[packets["delivered"]]
+    assert len(rows) > 0
+    got = sorted((e.src, e.dst, e.t_s, e.hops, e.latency_s) for e in delivered)
+    assert got == sorted(zip(rows["src"], rows["dst"], rows["t_delivered_s"], rows["hops"], rows["latency_s"]))
+    rows = packets[~packets["delivered"] & (packets["drop_cause"] != "in_flight")]
+    assert len(rows) > 0
+    lost = sorted((e.src, e.dst, e.t_s, e.cause) for e in dropped)
+    assert lost == sorted(zip(rows["src"], rows["dst"], rows["t_dropped_s"], rows["drop_cause"]))
+
+
 @pytest.mark.slow
 def test_runtime_links_under_log_distance_without_shadowing_or_walls():
     """Path loss alone is the unit disk of the implied range: its link events run live."""

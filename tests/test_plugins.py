@@ -120,6 +120,57 @@ def test_a_plugin_module_that_fails_to_import_is_one_line_naming_file_and_line(
     assert not out.exists()
 
 
+PARAMS_MISTAKES = """
+from dataclasses import dataclass
+from netsim.params import Params
+from netsim.plugins import PluginSpec
+
+def build(params, parts):
+    return None
+
+@dataclass
+class Loose:
+    radius_m: float = 1.0
+
+class Plain:
+    radius_m = 1.0
+
+@dataclass(frozen=True)
+class Needs(Params):
+    section = "mobility"
+    radius_m: float
+
+LOOSE = PluginSpec(Params=Loose, build=build, moves_robots=False)
+PLAIN = PluginSpec(Params=Plain, build=build, moves_robots=False)
+NEEDS = PluginSpec(Params=Needs, build=build, moves_robots=False)
+"""
+
+
+@pytest.mark.parametrize(
+    "attr, words",
+    [
+        ("LOOSE", "its Params (Loose) must be a frozen dataclass deriving from netsim.params.Params"),
+        ("PLAIN", "its Params (Plain) must be a frozen dataclass deriving from netsim.params.Params"),
+        ("NEEDS", "mobility.radius_m = None: must be set: mobility.model = '{name}:NEEDS' gives it no default"),
+    ],
+)
+def test_a_plugins_params_that_cannot_hold_its_keys_are_one_line(tmp_path, capfd, monkeypatch, attr, words):
+    """A plugin's Params that is not a frozen Params dataclass, or a key of it without a
+    default that the user did not set: one line naming it, exit 2, nothing written (they were
+    tracebacks of an AttributeError or a TypeError inside netsim, exit 1)."""
+    from netsim.tools.cli import main
+
+    name = f"params_mistakes_{tmp_path.name.replace('-', '_')}"
+    (tmp_path / f"{name}.py").write_text(PARAMS_MISTAKES)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out = tmp_path / "out"
+    code = main(["run", "--quiet", "--out", str(out), "--set", f"mobility.model={name}:{attr}"])
+    err = capfd.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert words.format(name=name) in err, err
+    assert not out.exists()
+
+
 def test_the_docs_moving_model_runs_as_shown(tmp_path, monkeypatch):
     """docs/plugins.md's model that moves robots (set_leg, arrive), as the page shows it:
     each robot walks its own line between the turning points, at the speed set."""

@@ -387,6 +387,15 @@ def test_one_robot_run(tmp_path, open_page):
     assert page.js("netsimView.roles()") == ["alpha"]
 
 
+def test_the_header_names_the_square_the_robots_move_in(tmp_path, open_page):
+    """A square area from the origin other than world.side_m's: the header gives its side
+    (it gave side_m's, 1000 m, beside a 500 m field)."""
+    run = _run(tmp_path / "sq", "world.n_robots=3", "duration_s=5", "world.bounds_m=[0, 0, 500, 500]")
+    page = open_page(run / "view.html")
+    text = page.js("document.body.innerText")
+    assert "500 m square" in text and "1000 m square" not in text
+
+
 @pytest.mark.slow
 def test_torus_positions_wrap(tmp_path, open_page):
     """On a torus the drawn positions wrap into the square (this run has no protocol:

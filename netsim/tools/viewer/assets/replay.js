@@ -1067,7 +1067,7 @@
     const facts = [
       `${META.n} robot${META.n === 1 ? "" : "s"}`,
       META.torus || (AREA[0] === 0 && AREA[1] === 0 && AREA[2] === AREA[3])
-        ? `${fmt(META.side_m)} m ${META.torus ? "torus" : "square"}`
+        ? `${fmt(META.torus ? META.side_m : AREA[2])} m ${META.torus ? "torus" : "square"}`
         : `area x ${fmt(AREA[0])} to ${fmt(AREA[2])} m, y ${fmt(AREA[1])} to ${fmt(AREA[3])} m`,
       `${fmt(META.duration_s)} s`,
       `${META.mobility}`,
