@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 from netsim.protocols.ack import AckParams
 
+from netsim.errors import NetsimInputError
 from netsim.radio.mac import airtime_s
 from netsim.radio.mac_models import CsmaParams
 from netsim.tools import sweep as sweepmod
@@ -85,10 +86,15 @@ def main(argv=None) -> None:
     sweepmod.add_runner_arguments(p, "ack_congestion", reps=2)
     args = p.parse_args(argv)
     if max(args.densities) >= args.n * math.pi / 4:
-        raise SystemExit(f"ack_congestion.py: error: --densities must stay below n pi / 4 = {args.n * math.pi / 4:g}")
+        raise NetsimInputError(f"--densities must stay below n pi / 4 = {args.n * math.pi / 4:g}")
+    if not 0 <= args.warmup < args.duration:
+        raise NetsimInputError(f"--warmup {args.warmup:g}: must be at least 0 and shorter than --duration")
+    # A value given twice is one point, run once (each would add the same runs again).
+    args.densities, args.periods, args.macs = (
+        list(dict.fromkeys(v)) for v in (args.densities, args.periods, args.macs)
+    )
     scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     frames, roles = [], []
     for period in args.periods:
         name = f"period_{period:g}"

@@ -76,14 +76,17 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import pandas as pd
 
 from netsim.config import Config
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
+from netsim.tools.cli import check_out_file
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
 
 
@@ -421,6 +424,11 @@ def check_options(args: argparse.Namespace) -> None:
         raise NetsimInputError(f"--seed {args.seed}: must be >= 0")
     if args.set:
         check_settings(args)
+    if args.csv is not None:
+        if args.csv.endswith(("/", os.sep)):
+            raise NetsimInputError(f"--csv {args.csv}: names a directory; give the path of a file")
+        # Before any run: a file that cannot be written would lose them all.
+        check_out_file(Path(args.csv), "--csv", replace=True)
 
 
 def check_settings(args: argparse.Namespace) -> None:

@@ -120,20 +120,17 @@ def median(km: pd.DataFrame) -> tuple[float, float, float]:
     return first_below("survival"), first_below("ci_low"), first_below("ci_high")
 
 
+def no_lifetimes(links: int = 0, censored: int = 0) -> dict:
+    """:func:`lifetime_summary` of links none of which ended: counts, and no figure."""
+    figures = ("mean_s", "mean_ci_low_s", "mean_ci_high_s", "median_s", "median_ci_low_s", "median_ci_high_s")
+    return {"links": links, "censored": censored, **dict.fromkeys(figures, math.nan)}
+
+
 def lifetime_summary(links: pd.DataFrame, level: float = 0.95) -> dict:
     """Mean (restricted) and median link lifetime with confidence intervals, and counts."""
     ld = link_durations(links)
     if ld.empty or not ld["observed"].any():
-        return {
-            "links": len(ld),
-            "censored": int((~ld["observed"]).sum()),
-            "mean_s": math.nan,
-            "mean_ci_low_s": math.nan,
-            "mean_ci_high_s": math.nan,
-            "median_s": math.nan,
-            "median_ci_low_s": math.nan,
-            "median_ci_high_s": math.nan,
-        }
+        return no_lifetimes(len(ld), int((~ld["observed"]).sum()))
     km = kaplan_meier(ld["duration_s"], ld["observed"], level)
     mean, lo, hi = restricted_mean(km, ld["duration_s"], ld["observed"], level=level)
     med, med_lo, med_hi = median(km)

@@ -236,3 +236,56 @@ def test_ack_congestion_marks_no_saturation_where_the_carried_load_still_rises()
         }
     )
     assert ack.knees(df) == {"aloha": math.inf, "csma": 0.2}
+
+
+def _script(tmp_path, script, *args):
+    return subprocess.run(
+        [sys.executable, str(ROOT / "experiments" / script), *args],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+
+
+@pytest.mark.slow
+def test_link_lifetime_writes_its_table_when_no_link_forms(tmp_path):
+    """Five robots on a 5 km square: no link ever forms; the table has its rows, with no
+    figures (it ended in a KeyError, its folder half written)."""
+    args = ["--n", "5", "--side", "5000", "--speeds", "1", "--pauses", "0", "--duration", "20", "--reps", "1"]
+    run = _script(tmp_path, "link_lifetime.py", *args, "--workers", "1", "--out", str(tmp_path / "o"))
+    assert run.returncode == 0, run.stderr[-2000:]
+    table = pd.read_csv(tmp_path / "o" / "link_lifetime.csv")
+    assert list(table["links"]) == [0, 0] and table["mean_s"].isna().all()
+
+
+@pytest.mark.slow
+def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
+    """`--periods 1 1` is one point: one replication, the same figures as `--periods 1`
+    (its runs and role changes were counted twice)."""
+    args = ["--n", "20", "--densities", "5", "--macs", "none", "--duration", "20", "--warmup", "5", "--reps", "1"]
+    tables = []
+    for name, periods in (("twice", ["1", "1"]), ("once", ["1"])):
+        run = _script(tmp_path, "ack_congestion.py", *args, "--periods", *periods, "--workers", "1", "--out", name)
+        assert run.returncode == 0, run.stderr[-2000:]
+        tables.append(pd.read_csv(tmp_path / name / "ack_congestion.csv"))
+    assert list(tables[0]["replications"]) == [1]
+    pd.testing.assert_frame_equal(tables[0], tables[1])
+
+
+@pytest.mark.parametrize(
+    "script, args, said",
+    [
+        ("cluster_stability.py", ["--workers", "0"], "--workers 0: must be at least 1"),
+        ("ack_congestion.py", ["--warmup", "40", "--duration", "40"], "--warmup 40: must be at least 0 and shorter"),
+        ("ack_congestion.py", ["--warmup", "-5"], "--warmup -5: must be at least 0"),
+        ("coverage_targets.py", ["--csv", "/nonexistent/f.csv"], "--csv /nonexistent/f.csv: the directory"),
+    ],
+)
+def test_experiment_options_refused_before_any_run(tmp_path, script, args, said):
+    """Options that would run nothing useful, or lose the runs at the end, are one line,
+    exit 2, before any run (they ran serially, gave figures of NaN, or failed after every
+    run with a traceback)."""
+    out = [] if script == "coverage_targets.py" else ["--out", str(tmp_path / "o")]  # it writes no folder
+    run = _script(tmp_path, script, *args, *out)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1 and said in run.stderr, run.stderr
+    assert not (tmp_path / "o").exists()

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.plugins import RoleLabels
-from netsim.survival import kaplan_meier, lifetime_summary, link_durations, median, restricted_mean
+from netsim.survival import kaplan_meier, lifetime_summary, link_durations, median, no_lifetimes, restricted_mean
 
 __all__ = [
     "acks_until_leader_loss",
@@ -34,11 +34,13 @@ def compare_lifetimes(runs: pd.DataFrame, links: pd.DataFrame, by: list[str]) ->
     """Lifetime summary per parameter combination across a sweep: ``runs`` is
     :func:`netsim.tools.sweep.load`, ``links`` is :func:`netsim.tools.sweep.load_table` of ``links``;
     replications are pooled."""
-    joined = links.merge(runs[["run_id", *by]], on="run_id")
+    joined = links.merge(runs[["run_id", *by]], on="run_id") if len(links) else None
     rows = []
-    for key, g in joined.groupby(by, sort=True):
+    for key, _ in runs.groupby(by, sort=True):
         key = key if isinstance(key, tuple) else (key,)
-        rows.append({**dict(zip(by, key)), **lifetime_summary(g)})
+        g = None if joined is None else joined[(joined[by] == pd.Series(key, index=by)).all(axis=1)]
+        # A combination whose runs saw no link (a sparse team) has its row, without figures.
+        rows.append({**dict(zip(by, key)), **(no_lifetimes() if g is None or g.empty else lifetime_summary(g))})
     return pd.DataFrame(rows)
 
 

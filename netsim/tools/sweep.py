@@ -435,6 +435,8 @@ def run_sweep(
     from netsim.progress import progress_bar
     from netsim.tools.output import claim_dir
 
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise NetsimInputError(f"--workers {workers}: must be at least 1")
     runs = sweep.runs()
     ids = [r.run_id for r in runs]
     _refuse_another_sweeps_dir(Path(out_dir), sweep.name)
