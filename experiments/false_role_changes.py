@@ -19,12 +19,12 @@ Writes ``false_role_changes.csv`` and ``false_role_changes.png``.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from netsim.protocols.roles import LABELS
 
+from netsim.errors import NetsimInputError
 from netsim.tools import analysis
 from netsim.tools import sweep as sweepmod
 from netsim.tools.args import Parser
@@ -40,9 +40,13 @@ def main(argv=None) -> None:
     sweepmod.add_runner_arguments(p, "false_role_changes", reps=1)
     args = p.parse_args(argv)
     # Connect before anything is written: a bad scheduler leaves no output behind.
+    if args.pairs < 1:
+        raise NetsimInputError(f"--pairs {args.pairs}: at least 1")
+    for loss in args.losses:
+        if not 0 <= loss < 1:
+            raise NetsimInputError(f"--losses {loss:g}: each a probability in [0, 1)")
     scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = sweepmod.out_folder(args.out)
     pos = np.zeros((2 * args.pairs, 2))
     pos[0::2, 0] = pos[1::2, 0] = np.arange(args.pairs) * 100.0
     pos[1::2, 1] = 5.0

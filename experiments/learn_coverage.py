@@ -35,6 +35,7 @@ from netsim.envs import coverage_v0
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
+from netsim.tools.sweep import out_folder
 
 Policy = Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]]
 
@@ -110,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
         env = coverage_v0.parallel_env(n_robots=args.n, max_cycles=args.cycles, render_mode="rgb_array")
         if args.episodes < 1:
             raise NetsimInputError(f"--episodes {args.episodes}: must be at least 1")
+        args.out = out_folder(args.out)  # before the episodes: a file there would lose them
     except NetsimInputError as exc:
         print(f"learn_coverage.py: {exc}", file=sys.stderr)
         return 2
@@ -124,7 +126,6 @@ def main(argv: list[str] | None = None) -> int:
             frame = last if name == "forces" else frame
         curves[name] = np.mean(runs, axis=0)
     table = pd.DataFrame(rows)
-    args.out.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.out / "learn_coverage.csv", index=False)
     bound = metrics.bound_fraction(args.n, env.radius_m, env.params.side_m, env.params.range_m)
     print(f"N = {args.n}, {args.cycles} steps of {env.params.step_s:g} s; bound min(1, U(N)/A) = {bound:.3f}")

@@ -279,6 +279,9 @@ def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
         ("ack_congestion.py", ["--warmup", "40", "--duration", "40"], "--warmup 40: must be at least 0 and shorter"),
         ("ack_congestion.py", ["--warmup", "-5"], "--warmup -5: must be at least 0"),
         ("coverage_targets.py", ["--csv", "/nonexistent/f.csv"], "--csv /nonexistent/f.csv: the directory"),
+        # Its placement file was written first, then the sweep refused.
+        ("false_role_changes.py", ["--losses", "1.5"], "--losses 1.5: each a probability in [0, 1)"),
+        ("false_role_changes.py", ["--pairs", "0"], "--pairs 0: at least 1"),
     ],
 )
 def test_experiment_options_refused_before_any_run(tmp_path, script, args, said):
@@ -289,3 +292,13 @@ def test_experiment_options_refused_before_any_run(tmp_path, script, args, said)
     run = _script(tmp_path, script, *args, *out)
     assert run.returncode == 2 and run.stderr.count("\n") == 1 and said in run.stderr, run.stderr
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("script", ["false_role_changes.py", "learn_coverage.py"])
+def test_an_out_that_is_a_file_is_one_line(tmp_path, script):
+    """--out naming a file: one line, exit 2 (a FileExistsError traceback; learn_coverage
+    met it after its episodes)."""
+    (tmp_path / "afile").write_text("")
+    run = _script(tmp_path, script, "--out", str(tmp_path / "afile"))
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert f"--out {tmp_path / 'afile'}: is a file; give a folder" in run.stderr

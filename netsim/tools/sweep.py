@@ -546,6 +546,16 @@ def add_runner_arguments(parser, name: str, reps: int) -> None:
     parser.add_argument("--out", default=f"experiments-out/{name}", help="output directory")
 
 
+def out_folder(path: str | Path, option: str = "--out") -> Path:
+    """``path`` as a script's output folder, made; one that is a file is refused in one line
+    (before any run: a script writes its folder last)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise NetsimInputError(f"{option} {path}: is a file; give a folder")
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
 def run_script(main: Callable[[], object], resumable: bool = False) -> None:
     """Run a script's ``main``: bad input (a malformed option, an unreachable scheduler) is
     one line on stderr and exit status 2, and Ctrl-C one line and status 130, as with
