@@ -178,6 +178,37 @@ def test_capture_counts_the_noise_floor_in_the_sinr():
     assert sinr < 15.0 < signal - jam_dbm  # below the threshold with the noise, above it without
 
 
+def test_capture_decides_on_the_sinr_it_records():
+    """log_distance: the SINR a reception records is the number the capture threshold is
+    compared with, so a frame whose SINR equals the threshold is received and its row says
+    so (received iff sinr_db >= capture_threshold_db, to the last bit). Robot 2's frame
+    overlaps 0's at 1; the threshold is set to 0's SINR there, at a position of 2 where
+    comparing the powers in mW instead (rx < capture (noise + I)) rounds the other way."""
+    keys = {"propagation": "log_distance", "sensitivity_dbm": -80.0, "noise_floor_dbm": -95.0}
+    power = _medium([0, 90], **keys).channel.mac.power
+    signal = float(power.received_mw(np.array([90.0]))[0])
+    for far in np.arange(300.0, 330.0, 0.01):
+        jam = float(power.received_mw(np.array([far]))[0])
+        # The medium's sums: the load at 1 while both frames are on the air, less 0's own.
+        interference = max((signal + jam) - signal, 0.0)
+        sinr_db = float(10.0 * np.log10(signal / (power.noise_mw + interference)))
+        if signal < 10.0 ** (sinr_db / 10.0) * (power.noise_mw + interference):
+            break
+    else:
+        pytest.fail("no position where the two comparisons round apart")
+    assert 0.0 < sinr_db < 15.0
+    sim = _medium([0, 90, 90 + far], capture_threshold_db=sinr_db, **keys)
+    assert sim.channel.mac.interference_range_m > far  # 2's frame counts at 1
+    sim.channel.receptions = log = ReceptionLog(sim.channel)
+    _send_at(sim, 0.0, 0)
+    _send_at(sim, T / 2, 2)
+    sim.env.run()
+    rows = log.frame(sim.state.legs(), sim.state.n)
+    row = rows[(rows["src"] == 0) & (rows["dst"] == 1)].iloc[0]
+    assert row["sinr_db"] == sinr_db
+    assert bool(row["received"]) and sim.channel.counters_for("f").received[1] == 1
+
+
 class _Draws:
     """A stand-in for the CSMA stream: hands out the given backoffs in order."""
 

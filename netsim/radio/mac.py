@@ -121,7 +121,7 @@ class PowerModel:
         self.radio: Radio = params.radio
         self.sensitivity_dbm = self.radio.sensitivity_dbm
         self.noise_mw = linear(noise_floor_dbm)
-        self.capture = linear(capture_threshold_db)
+        self.capture_threshold_db = float(capture_threshold_db)
         # Where the mean received power falls to the noise floor.
         margin = self.radio.tx_power_dbm - params.reference_loss_db - noise_floor_dbm
         kernels = load("netsim._kernels", 1)
@@ -475,11 +475,13 @@ class Medium:
             quiet = disturbed[self.cover[disturbed] == 0]
             self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
             interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
-            col = ~hd & (frame.rx_mw < self.power.capture * (self.power.noise_mw + interference))
+            # One SINR per receiver, the number the decision compares and the one recorded.
+            sinr_db = in_db(frame.rx_mw / (self.power.noise_mw + interference))
+            col = ~hd & (sinr_db < self.power.capture_threshold_db)
         else:
-            interference = None
+            sinr_db = None
         if frame.rows is not None:
-            self._record(frame, rx, hd, col, interference)
+            self._record(frame, rx, hd, col, sinr_db)
         ok = ~(hd | col)
         c, binned = frame.counters, frame.binned
         for cause, lost in (("half_duplex", hd), ("collision", col)):
@@ -503,15 +505,15 @@ class Medium:
         self.access.ended(i, newly, now)
 
     def _record(
-        self, frame: Frame, rx: np.ndarray, hd: np.ndarray, col: np.ndarray, interference: np.ndarray | None
+        self, frame: Frame, rx: np.ndarray, hd: np.ndarray, col: np.ndarray, sinr_db: np.ndarray | None
     ) -> None:
         """Close the rows of ``frame`` (netsim.radio.receptions): the receptions it lost at its
-        end, and under a power model each receiver's SINR, its signal over the noise and the
-        peak interference of the frame (``interference``, what the capture threshold is
-        compared with; None without a power model)."""
+        end, and under a power model each receiver's SINR (``sinr_db``: its signal over the
+        noise and the peak interference of the frame, the number the capture threshold
+        decided on; None without a power model)."""
         rows, frame.rows = frame.rows, None
-        if self.power is not None and interference is not None and len(rx):
-            rows.set_sinr(rx, in_db(frame.rx_mw / (self.power.noise_mw + interference)))
+        if sinr_db is not None and len(rx):
+            rows.set_sinr(rx, sinr_db)
         rows.mark(rx[hd], self.causes.index("half_duplex"))
         rows.mark(rx[col], self.causes.index("collision"))
         self.channel.receptions.close(rows)
