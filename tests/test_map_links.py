@@ -191,3 +191,20 @@ def test_a_nearly_parallel_pair_does_not_hang_the_chunk_count():
     assert got[1] == 20.0
     fine = count_below(np.array([1e6]), np.array([1e-12]), np.array([1e6 + 1.0]))
     assert fine[0] == pytest.approx(1e12, rel=1e-3)
+
+
+def test_a_tiny_wall_loss_keeps_the_table_of_wall_counts_to_the_map():
+    """A wall loss so small that the budget affords billions of walls: the table of ranges
+    per wall count stops at the most walls a segment on the map can cross (it held one
+    entry per affordable wall: terabytes), and the links still equal the radio's."""
+    from netsim.links.wall_sweeps import map_radio
+
+    channel = {"propagation": "log_distance", "sensitivity_dbm": -64.0, "wall_loss_db": 1e-9}
+    n, duration = 6, 4.0
+    sim = _core(n, duration, "office", 200.0, channel)
+    occupancy = sim.channel.reception.map
+    assert len(map_radio(sim.channel.reception).radii_m) <= sum(occupancy.shape) + 2
+    points = free_points(cached_map("office"), 70.0, 130.0)
+    legs = waypoint_legs(np.random.default_rng(3), n, duration, (0.5, 4.0), points)
+    wrong, seen, _ = mismatches(sim.channel.reception, legs, sim.state.range_m, duration, step_s=1e-2)
+    assert seen > 500 and wrong == 0

@@ -102,7 +102,10 @@ def map_radio(reception: Reception) -> MapRadio:
         raise ValueError("the channel has no map")
     if chain.walls is not None:
         params = chain.log.params  # type: ignore[union-attr]  # walls come after a log-distance term
-        most = int(np.floor(params.budget_db / chain.walls.wall_loss_db)) + 1
+        # A pair's segment crosses at most as many walls as the map has rows and columns of
+        # cells: a count past that never happens, however many a small loss per wall affords.
+        affordable = params.budget_db / chain.walls.wall_loss_db
+        most = int(min(np.floor(affordable) + 1, sum(occupancy.shape) + 1))
         walls = np.arange(1, most + 1)
         r = effective_range_m(params, 0.0, walls, reception.state.n)
         # Within the envelope (the range without walls) no wall: up.
