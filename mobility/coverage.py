@@ -146,7 +146,7 @@ from netsim.mobility.steps import Plan, StepLimits, cap_length, fell_short
 from netsim import metrics
 from netsim.area import MAX_COORDINATE_M, Bounds, within_reach_of_doubles
 from netsim.compiled import load
-from netsim.config import ConfigWarning
+from netsim.config import MIN_RANGE_M, ConfigWarning
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
 from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable, in_motion, speeds_mps
@@ -206,6 +206,14 @@ def _gain_check(v: float) -> str | None:
     # Past it a force of a micrometre already drives a robot at its speed cap; far past it
     # the forces' sums overflow.
     return None if 0 < v <= 1e6 else "must be in (0, 1e6] (1/s)"
+
+
+def _coverage_radius(v: float) -> str | None:
+    # As short as the shortest range a run takes: a disk of 1e-300 m covers 0 of the area
+    # and its bound 0 (covered over bound: 0 / 0).
+    if math.isfinite(v) and (v == 0 or v >= MIN_RANGE_M):
+        return None
+    return f"must be 0 (the range) or a finite radius of at least {MIN_RANGE_M:g} m"
 
 
 def _speed_cap_check(v: float) -> str | None:
@@ -310,9 +318,7 @@ class CoverageParams(Params):
         " with expansion > 0, the robots came no nearer the free space their expansion seeks"
         " (stop_speed_mps); 0: off",
     )
-    radius_m: float = param(
-        0.0, finite(non_negative), "radius of the coverage disks, m (0: the communication range r_c)"
-    )
+    radius_m: float = param(0.0, _coverage_radius, "radius of the coverage disks, m (0: the communication range r_c)")
     metrics_interval_s: float = param(5.0, positive, "coverage metrics sampling interval, s", schedules="run")
     area_method: AreaMethod = param(
         AreaMethod.EXACT, None, "covered fraction over time: 'exact' (polygon bracket) or 'grid' (cheap)"

@@ -33,7 +33,7 @@ import simpy
 
 from netsim.area import Bounds, as_bounds, exit_times
 from netsim.errors import ConfigError
-from netsim.params import Params, finite, non_negative, param, positive, probability
+from netsim.params import Params, finite, param, positive, probability, speed
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
 from netsim.state import RobotState
@@ -50,8 +50,8 @@ class GaussMarkovParams(Params):
 
     section = "mobility"
     alpha: float = param(0.75, probability, "memory of speed and direction, in [0, 1] (0: random walk)")
-    mean_speed_mps: float = param(1.0, finite(non_negative), "mean speed, m/s")
-    speed_sigma_mps: float = param(0.2, finite(non_negative), "standard deviation of the speed, m/s")
+    mean_speed_mps: float = param(1.0, speed, "mean speed, m/s")
+    speed_sigma_mps: float = param(0.2, speed, "standard deviation of the speed, m/s")
     direction_sigma_rad: float = param(
         0.4, _at_most_a_hundred_radians, "standard deviation of the direction, rad, in [0, 100]"
     )

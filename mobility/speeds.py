@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from netsim.errors import ConfigError
-from netsim.params import Params, finite, non_negative, param
+from netsim.params import Params, finite, non_negative, param, speed
 
 
 @dataclass(frozen=True)
@@ -13,8 +13,8 @@ class SpeedParams(Params):
     """Speeds drawn uniformly on ``[speed_min_mps, speed_max_mps]``, and a pause."""
 
     section = "mobility"
-    speed_min_mps: float = param(0.5, non_negative, "minimum speed, m/s")
-    speed_max_mps: float = param(5.0, finite(non_negative), "maximum speed, m/s")
+    speed_min_mps: float = param(0.5, speed, "minimum speed, m/s")
+    speed_max_mps: float = param(5.0, speed, "maximum speed, m/s")
     pause_s: float = param(2.0, finite(non_negative), "pause at each waypoint, or at the border, s")
 
     def check(self) -> None:

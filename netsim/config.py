@@ -36,6 +36,7 @@ from netsim.params import (
     each_once,
     file_path,
     finite,
+    frame_size,
     names,
     non_negative,
     param,
@@ -212,7 +213,7 @@ class ChannelParams(Params):
         coerce=_model_name(MAC, "medium access control"),
     )
     max_frame_bytes: int = param(
-        1500, positive, "largest payload of one frame, bytes: a flow's larger packets travel as several frames"
+        1500, frame_size, "largest payload of one frame, bytes: a flow's larger packets travel as several frames"
     )
     loss: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
     radio: Params = field(default=None, metadata={"nested": True})  # type: ignore[assignment]
@@ -509,6 +510,12 @@ class Config(Params):
             hook.check(hook.Params(), self)
         if self.events.runtime_links == "off" and self.events.live_topology:
             raise ConfigError("events.live_topology", True, "needs link events during the run (events.runtime_links)")
+        if self.channel.latency_s >= self.duration_s:
+            raise ConfigError(
+                "channel.latency_s",
+                self.channel.latency_s,
+                f"must be shorter than duration_s = {self.duration_s:g} s (no frame would arrive within the run)",
+            )
 
     def _scheduling(self) -> list[Params]:
         """The sections of the models the run builds, whose keys may schedule events: the
@@ -915,12 +922,16 @@ def _as_tree(value: Any) -> Any:
     return value
 
 
-def merge(base: dict, extra: dict) -> dict:
-    """Deep-merge ``extra`` into a copy of ``base``."""
+def merge(base: dict, extra: dict, prefix: str = "") -> dict:
+    """Deep-merge ``extra`` into a copy of ``base``. Keys of a section set where ``base``
+    has a value that is not a table are refused (ConfigError): the value is a mistake that
+    the merge would drop without a word."""
     out = dict(base)
     for k, v in extra.items():
         if isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = merge(out[k], v)
+            out[k] = merge(out[k], v, f"{prefix}{k}.")
+        elif isinstance(v, dict) and k in out:
+            raise ConfigError(f"{prefix}{k}", out[k], "must be a table (a [section] of keys)")
         else:
             out[k] = v
     return out

@@ -58,6 +58,27 @@ def ttl_field(v: int) -> str | None:
     return None if 1 <= v <= 255 else "must be in 1 .. 255 (a TTL is one octet)"
 
 
+# The largest frame a key may size: an 802.11 frame is under 8 KiB; past 2^31 bytes a count
+# of frames times their size leaves the tables' 64-bit integers.
+MAX_FRAME_BYTES = 2**31 - 1
+
+
+def frame_size(v: int) -> str | None:
+    """A frame's size in bytes: at least 1, at most :data:`MAX_FRAME_BYTES`."""
+    return None if 1 <= v <= MAX_FRAME_BYTES else f"must be in 1 .. {MAX_FRAME_BYTES} (bytes of one frame)"
+
+
+def speed(v: float) -> str | None:
+    """A speed in m/s: finite, at least 0, and one a robot may be driven at
+    (:func:`netsim.geometry.drivable`: no faster than light), so that a draw up to it never
+    stops the run midway."""
+    from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable
+
+    if not (math.isfinite(v) and v >= 0):
+        return "must be a finite speed >= 0"
+    return None if drivable((v, 0.0)) else f"must be at most {SPEED_OF_LIGHT_MPS:g} (m/s, no faster than light)"
+
+
 def probability(v: float) -> str | None:
     return None if 0 <= v <= 1 else "must be a probability in [0, 1]"
 

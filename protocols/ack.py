@@ -35,7 +35,7 @@ from netsim.protocols.roles import LEADER, ROLES_SCHEMA, Roles, declare_roles
 
 from netsim._kernels import Motion
 from netsim.errors import ConfigError
-from netsim.params import Params, finite, names, non_negative, param, positive
+from netsim.params import Params, finite, frame_size, names, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -47,7 +47,7 @@ class AckParams(Params):
     section = "protocol"
     ack_period_s: float = param(1.0, finite(positive), "Ack period t, s", schedules="robot")
     ack_jitter_s: float = param(0.05, non_negative, "each period is t + U(-jitter, +jitter), s")
-    ack_bytes: int = param(64, positive, "size of an Ack frame on a shared medium (channel.mac), bytes")
+    ack_bytes: int = param(64, frame_size, "size of an Ack frame on a shared medium (channel.mac), bytes")
     tau_s: float = param(
         None,
         positive,

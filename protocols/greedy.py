@@ -20,7 +20,7 @@ from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingPara
 from netsim.compiled import load
 from netsim.errors import ConfigError
 from netsim.geometry import distances_m
-from netsim.params import finite, non_negative, param, positive
+from netsim.params import finite, frame_size, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.scheduling import URGENT
 
@@ -32,7 +32,7 @@ class GreedyParams(RoutingParams):
     section = "protocol"
     beacon_period_s: float = param(1.0, finite(positive), "period of the position beacons, s", schedules="robot")
     beacon_jitter_s: float = param(0.1, non_negative, "each period is the period + U(-jitter, +jitter), s")
-    beacon_bytes: int = param(24, positive, "size of a position beacon frame (id, x, y, time), bytes")
+    beacon_bytes: int = param(24, frame_size, "size of a position beacon frame (id, x, y, time), bytes")
     neighbour_timeout_s: float = param(
         None,
         positive,

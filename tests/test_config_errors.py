@@ -409,6 +409,26 @@ def _cli(tmp_path, capsys, *args):
             ["--set", "channel.propagation=log_distance", "--set", "channel.reference_distance_m=1e-12"],
             "channel.propagation = 'log_distance': the radio's implied range, 1e-10 m, is below 0.01 m",
         ),
+        # Accepted, these stopped a run midway (a robot driven faster than light at some draw)
+        # or after it (a frame's bytes past 64 bits in the control table), measured nothing (a
+        # backoff or a latency past the run), or gave NaN (a disk too small for its area).
+        (
+            ["--set", "mobility.speed_max_mps=3.1e8"],
+            "mobility.speed_max_mps = 310000000.0: must be at most 2.99792e+08",
+        ),
+        (
+            ["--set", "mobility.model=gauss_markov", "--set", "mobility.mean_speed_mps=1e9"],
+            "mobility.mean_speed_mps = 1000000000.0: must be at most",
+        ),
+        (
+            ["--set", "protocol.model=greedy", "--set", "protocol.beacon_bytes=4611686018427387904"],
+            "protocol.beacon_bytes = 4611686018427387904: must be in 1 .. 2147483647",
+        ),
+        (["--set", "channel.max_frame_bytes=2147483648"], "channel.max_frame_bytes = 2147483648"),
+        (["--set", "channel.mac=csma", "--set", "channel.slot_s=1e308"], "channel.slot_s = 1e+308: must be in (0, 1]"),
+        (["--set", "channel.mac=csma", "--set", "channel.difs_s=2"], "channel.difs_s = 2.0: must be in [0, 1]"),
+        (["--set", "channel.latency_s=1e308"], "channel.latency_s = 1e+308: must be shorter than duration_s"),
+        (["--set", "coverage.radius_m=1e-300"], "coverage.radius_m = 1e-300: must be 0 (the range) or"),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args, fragment):
@@ -495,6 +515,13 @@ def test_cli_malformed_files(tmp_path, capsys):
         "world.n_robots=1",
     )
     assert code == 2 and "t.tcl:3" in err
+
+    # A section given a value in the file, and keys of it set on the command line: the
+    # file's value is refused, not dropped by the merge.
+    not_a_table = tmp_path / "world5.toml"
+    not_a_table.write_text("world = 5\n")
+    code, err = _cli(tmp_path, capsys, str(not_a_table), "--set", "world.n_robots=5")
+    assert code == 2 and "world = 5: must be a table" in err
 
     assert not (tmp_path / "out").exists()
 
