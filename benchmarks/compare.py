@@ -10,10 +10,16 @@ mean degree of 10, one beacon (Ack) per robot per second, 100 simulated seconds.
 - ``simpy reference``: ``simpy_reference_beacon.py``, the workload written in plain SimPy as
   a user writes it (a process per robot for motion and for beacons, an O(N) scan per send,
   one event per reception); its whole process, and its run alone;
+- ``simpy reference, numpy scan``: the same program finding a sender's receivers with one
+  numpy test over an array of the robots' legs (``--scan numpy``): the same receptions;
 - ``ns-3 direct``: ``ns3_beacon.py --mode direct`` (ns-3 3.44 through its Python wheel, a C++
   O(N) scan and one event per reception), only with ``--ns3-python`` (a Python that has
   ns-3: ``bash benchmarks/ns3_env.sh .ns3venv``); its ``Simulator::Run`` alone, and its whole
-  process (importing ns-3 takes about 13 s).
+  process (importing ns-3 and compiling the workload's C++ takes about 7-13 s, which a
+  compiled ns-3 program does not pay: the run alone is the figure to compare);
+- ``ns-3 grid``: ``--mode grid``, the same C++ with the robots filed in a grid of cells
+  once per simulated second, so that a send looks at the 3 x 3 cells around it: the same
+  receptions, the strongest reference.
 
 One unmeasured run comes first, as a user's first, which writes the bytecode and compiled
 loops' caches that later runs find (the measured processes run without
@@ -24,8 +30,9 @@ its user + system time (the machine may be shared: CPU time is the steadier figu
 table gives wall and CPU seconds, receptions per wall second, peak memory, each case's wall
 time over netsim ack's, and netsim ack's receptions per wall second over the case's (above
 1: netsim's whole process receives more per second). The plain-SimPy reference scans every
-robot on every send (O(N^2)): it runs up to ``--simpy-max-n``; ns-3 up to ``--ns3-max-n``;
-the clustering up to ``--clustering-max-n``.
+robot on every send (O(N^2) in Python): it runs up to ``--simpy-max-n``, its numpy scan up to
+``--simpy-numpy-max-n``; ns-3 grid up to ``--ns3-max-n``, ns-3 direct (O(N^2) in C++) up to
+``--ns3-direct-max-n``; the clustering up to ``--clustering-max-n``.
 
 Then a small run (``netsim run`` with 10 robots for 30 simulated seconds, three times) and
 the sweep throughput: ``--sweep-runs`` runs of the default scenario (the clustering
@@ -134,16 +141,17 @@ def netsim_case(n: int, protocol: str) -> dict:
     return {"wall_s": wall, "cpu_s": cpu, "run_s": None, "received": received, "rss_kib": rss}
 
 
-def reference_case(n: int) -> dict:
+def reference_case(n: int, scan: str = "python") -> dict:
     cmd = [sys.executable, str(HERE / "simpy_reference_beacon.py"), "--n", str(n), "--sim-time", str(DURATION_S)]
+    cmd += ["--scan", scan]
     cmd += ["--rc", str(RANGE_M), "--period", str(PERIOD_S), "--vmin", str(SPEED_MIN), "--vmax", str(SPEED_MAX)]
     wall, rss, out, cpu = measured(cmd + ["--pause", str(PAUSE_S)])
     got = json.loads(out.strip().splitlines()[-1])
     return {"wall_s": wall, "cpu_s": cpu, "run_s": got["wall_run_s"], "received": got["received"], "rss_kib": rss}
 
 
-def ns3_case(n: int, python: str) -> dict:
-    cmd = [python, str(HERE / "ns3_beacon.py"), "--n", str(n), "--sim-time", str(DURATION_S), "--mode", "direct"]
+def ns3_case(n: int, python: str, mode: str = "direct") -> dict:
+    cmd = [python, str(HERE / "ns3_beacon.py"), "--n", str(n), "--sim-time", str(DURATION_S), "--mode", mode]
     cmd += ["--rc", str(RANGE_M), "--period", str(PERIOD_S), "--vmin", str(SPEED_MIN), "--vmax", str(SPEED_MAX)]
     wall, rss, out, cpu = measured(cmd + ["--pause", str(PAUSE_S)])
     got = json.loads(out.strip().splitlines()[-1])
@@ -168,14 +176,16 @@ def sweep_case(runs: int, workers: int = 2) -> dict:
 
 
 def warm_up() -> None:
-    """A run as a user's first, unmeasured: 200 robots with the clustering, so that the
-    bytecode of every module a run imports and the compiled loops' caches are on disk."""
+    """Runs as a user's first, unmeasured: 200 robots with the clustering, then with Acks
+    alone (whose compiled loops differ), so that the bytecode of every module a run imports
+    and the compiled loops' caches are on disk."""
     netsim = str(Path(sys.executable).with_name("netsim"))
-    with tempfile.TemporaryDirectory() as out:
-        cmd = [netsim, "run", "--out", out, "--no-progress", "--quiet"]
-        for key, value in netsim_settings(200, "clustering", 10.0).items():
-            cmd += ["--set", f"{key}={value}"]
-        measured(cmd)
+    for protocol in ("clustering", "ack"):
+        with tempfile.TemporaryDirectory() as out:
+            cmd = [netsim, "run", "--out", out, "--no-progress", "--quiet"]
+            for key, value in netsim_settings(200, protocol, 10.0).items():
+                cmd += ["--set", f"{key}={value}"]
+            measured(cmd)
 
 
 def small_case() -> dict:
@@ -188,11 +198,26 @@ def small_case() -> dict:
     return {"wall_s": wall, "cpu_s": cpu, "rss_kib": rss}
 
 
+def _has_ns3(python: str) -> bool:
+    """Whether ``python`` runs and finds ns-3's package (found, not imported: that takes seconds)."""
+    probe = "import importlib.util; print(importlib.util.find_spec('ns') is not None)"
+    try:
+        return subprocess.run([python, "-c", probe], capture_output=True, text=True).stdout.strip() == "True"
+    except OSError:
+        return False
+
+
 def main() -> None:
     ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, nargs="+", default=[100, 1000])
     ap.add_argument("--simpy-max-n", type=int, default=1000, help="largest N for the O(N^2) SimPy reference")
-    ap.add_argument("--ns3-max-n", type=int, default=10000, help="largest N for ns-3 (an O(N) scan per send)")
+    ap.add_argument(
+        "--simpy-numpy-max-n", type=int, default=10000, help="largest N for the SimPy reference's numpy scan"
+    )
+    ap.add_argument("--ns3-max-n", type=int, default=10000, help="largest N for ns-3 grid")
+    ap.add_argument(
+        "--ns3-direct-max-n", type=int, default=1000, help="largest N for ns-3 direct (an O(N) scan per send)"
+    )
     ap.add_argument("--clustering-max-n", type=int, default=10000, help="largest N for netsim clustering")
     ap.add_argument("--ns3-python", default=None, help="a Python with ns-3 (bash benchmarks/ns3_env.sh .ns3venv)")
     ap.add_argument("--sweep-runs", type=int, default=8, help="runs of the sweep throughput case (0: none)")
@@ -202,8 +227,10 @@ def main() -> None:
     args = ap.parse_args()
     if any(n < 2 for n in args.n):
         ap.error("every --n must be at least 2")
-    if args.ns3_python and not Path(args.ns3_python).exists():
-        ap.error(f"--ns3-python: {args.ns3_python} does not exist")
+    if args.ns3_python and not (Path(args.ns3_python).is_file() and os.access(args.ns3_python, os.X_OK)):
+        ap.error(f"--ns3-python: {args.ns3_python} is not a Python to run (bash benchmarks/ns3_env.sh .ns3venv)")
+    if args.ns3_python and not _has_ns3(args.ns3_python):
+        ap.error(f"--ns3-python: {args.ns3_python} has no ns-3 to import (bash benchmarks/ns3_env.sh .ns3venv)")
     if args.sweep_runs < 0:
         ap.error("--sweep-runs must be at least 0")
     if args.repeat < 1:
@@ -216,8 +243,12 @@ def main() -> None:
             cases.append(("netsim clustering (whole process)", lambda n=n: netsim_case(n, "clustering")))
         if n <= args.simpy_max_n:
             cases.append(("simpy reference", lambda n=n: reference_case(n)))
-        if args.ns3_python and n <= args.ns3_max_n:
+        if n <= args.simpy_numpy_max_n:
+            cases.append(("simpy reference, numpy scan", lambda n=n: reference_case(n, "numpy")))
+        if args.ns3_python and n <= args.ns3_direct_max_n:
             cases.append(("ns-3 direct", lambda n=n: ns3_case(n, args.ns3_python)))
+        if args.ns3_python and n <= args.ns3_max_n:
+            cases.append(("ns-3 grid", lambda n=n: ns3_case(n, args.ns3_python, "grid")))
         # Rounds of all the cases in turn, so that a slow spell of a shared machine falls on
         # every case alike; each figure is then the median over the rounds.
         got: dict[str, list[dict]] = {name: [] for name, _ in cases}
