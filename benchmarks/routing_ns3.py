@@ -269,6 +269,20 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--trace", default="", help="the mobile team's ns-2 trace (default: written anew)")
     args = p.parse_args()
+    unknown = [name for name in args.only if name not in SCENARIOS]
+    if unknown or not args.only:
+        p.error(f"--only: {' '.join(unknown) or 'nothing'}: give one or more of {', '.join(SCENARIOS)}")
+    bad = [name for name in args.protocols if name not in ("aodv", "olsr")]
+    if bad or not args.protocols:
+        p.error(f"--protocols: {' '.join(bad) or 'nothing'}: give aodv, olsr or both")
+    for flag, ok in (
+        ("--duration", args.duration > 0),
+        ("--interval", args.interval > 0),
+        ("--packet-bytes", args.packet_bytes > 0),
+        ("--start", 0 <= args.start < args.duration),
+    ):
+        if not ok:
+            p.error(f"{flag} must be {'in [0, --duration)' if flag == '--start' else '> 0'}")
     if args.side != "both" and (len(args.only) != 1 or len(args.protocols) != 1):
         p.error(f"--side {args.side} runs one scenario and one protocol: give --only NAME --protocols NAME")
     if args.side == "both" and not Path(args.ns3_python).is_file():

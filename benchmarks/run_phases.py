@@ -45,10 +45,11 @@ def main() -> None:
         for key, value in netsim_settings(args.n, args.protocol, args.duration).items():
             argv += ["--set", f"{key}={value}"]
         try:
-            cli.main(argv)
+            code = cli.main(argv)
         except SystemExit as e:
-            if e.code:
-                raise
+            code = e.code
+        if code:
+            raise SystemExit(code)  # netsim said why, in one line
         end = time.perf_counter()
     print(
         f"N = {args.n}, {args.protocol}: import {t_imported - T0:.2f} s, build {box['start'] - t_imported:.2f} s, "
