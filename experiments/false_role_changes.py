@@ -31,28 +31,10 @@ from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 
-def main(argv=None) -> None:
-    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--pairs", type=int, default=200)
-    p.add_argument("--losses", type=float, nargs="+", default=[0.2, 0.3, 0.4, 0.5, 0.6])
-    p.add_argument("--taus", type=float, nargs="+", default=[1.5, 2.5, 3.5], help="tau in Ack periods (1 s)")
-    p.add_argument("--duration", type=float, default=300.0)
-    sweepmod.add_runner_arguments(p, "false_role_changes", reps=1)
-    args = p.parse_args(argv)
-    # Connect before anything is written: a bad scheduler leaves no output behind.
-    if args.pairs < 1:
-        raise NetsimInputError(f"--pairs {args.pairs}: at least 1")
-    for loss in args.losses:
-        if not 0 <= loss < 1:
-            raise NetsimInputError(f"--losses {loss:g}: each a probability in [0, 1)")
-    scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
-    out = sweepmod.out_folder(args.out)
-    pos = np.zeros((2 * args.pairs, 2))
-    pos[0::2, 0] = pos[1::2, 0] = np.arange(args.pairs) * 100.0
-    pos[1::2, 1] = 5.0
-    placement = out / "pairs.csv"
-    pd.DataFrame(pos, columns=["x_m", "y_m"]).to_csv(placement, index=False)
-    sweep = sweepmod.parse(
+def _sweep(args, placement: str):
+    """The sweep of tau and loss over pairs placed by ``placement`` (a file, or a name to
+    check the points with before the file is written)."""
+    return sweepmod.parse(
         {
             "name": "false_role_changes",
             "replications": args.reps,
@@ -63,7 +45,7 @@ def main(argv=None) -> None:
                 "world": {
                     "n_robots": 2 * args.pairs,
                     "side_m": 100.0 * args.pairs,
-                    "placement": str(placement.resolve()),
+                    "placement": placement,
                 },
                 "mobility": {"model": "static"},
                 "channel": {"range_m": 10.0},
@@ -79,6 +61,33 @@ def main(argv=None) -> None:
             "grid": {"channel.loss_probability": args.losses, "protocol.tau_s": args.taus},
         }
     )
+
+
+def main(argv=None) -> None:
+    p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--pairs", type=int, default=200)
+    p.add_argument("--losses", type=float, nargs="+", default=[0.2, 0.3, 0.4, 0.5, 0.6])
+    p.add_argument("--taus", type=float, nargs="+", default=[1.5, 2.5, 3.5], help="tau in Ack periods (1 s)")
+    p.add_argument("--duration", type=float, default=300.0)
+    sweepmod.add_runner_arguments(p, "false_role_changes", reps=1)
+    args = p.parse_args(argv)
+    if args.pairs < 1:
+        raise NetsimInputError(f"--pairs {args.pairs}: at least 1")
+    for loss in args.losses:
+        if not 0 <= loss < 1:
+            raise NetsimInputError(f"--losses {loss:g}: each a probability in [0, 1)")
+    # Every point and the workers checked, and the scheduler reached, before the placement
+    # file is written: bad input leaves no output behind.
+    sweepmod.check_workers(args.workers)
+    _sweep(args, "uniform").runs()
+    scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
+    out = sweepmod.out_folder(args.out)
+    pos = np.zeros((2 * args.pairs, 2))
+    pos[0::2, 0] = pos[1::2, 0] = np.arange(args.pairs) * 100.0
+    pos[1::2, 1] = 5.0
+    placement = out / "pairs.csv"
+    pd.DataFrame(pos, columns=["x_m", "y_m"]).to_csv(placement, index=False)
+    sweep = _sweep(args, str(placement.resolve()))
     print(sweepmod.run_sweep(sweep, out / "sweep", workers=args.workers, scheduler=scheduler).text())
     runs = sweepmod.load(out / "sweep")
     roles = sweepmod.load_table(out / "sweep", "roles")

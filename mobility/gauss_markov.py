@@ -33,6 +33,7 @@ import simpy
 
 from netsim.area import Bounds, as_bounds, exit_times
 from netsim.errors import ConfigError
+from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable
 from netsim.params import Params, finite, param, positive, probability, speed
 from netsim.placement import initial_positions
 from netsim.plugins import Parts, PluginSpec
@@ -60,9 +61,22 @@ class GaussMarkovParams(Params):
     )
 
 
+# Standard deviations of the speed's draws allowed below light: a draw past 12 of them has a
+# chance of about 1e-33, so no run is stopped midway by a speed the keys allowed.
+SPEED_SIGMAS_BELOW_LIGHT = 12.0
+
+
 def check(params: GaussMarkovParams, config) -> None:
     if config.world.torus:
         raise ConfigError("mobility.model", "gauss_markov", "moves in a bounded area; set world.torus = false")
+    top = params.mean_speed_mps + SPEED_SIGMAS_BELOW_LIGHT * params.speed_sigma_mps
+    if not drivable((top, 0.0)):
+        raise ConfigError(
+            "mobility.speed_sigma_mps",
+            params.speed_sigma_mps,
+            f"mobility.mean_speed_mps + {SPEED_SIGMAS_BELOW_LIGHT:g} x it must be at most {SPEED_OF_LIGHT_MPS:g} "
+            "(m/s: the speed drawn could pass light and stop the run)",
+        )
 
 
 def _clamped_legs(

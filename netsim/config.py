@@ -396,18 +396,12 @@ def _nested(cls: type) -> Any:
 ENGINE_SECTIONS = ("world", "mobility", "channel", "protocol", "traffic", "control", "events", "output")
 
 
-def seed_range(v: int) -> str | None:
-    # Where runs are tabled (a sweep's rows) a seed is a signed 64-bit integer: past it the
-    # column would turn to floats, and the seed stored would not be the one that ran.
-    return None if 0 <= v < 2**63 else "must be from 0 to 2^63 - 1"
-
-
 @dataclass(frozen=True)
 class Config(Params):
     """A whole run's configuration. ``sections`` holds the sections that controllers own
     (``[coverage]``, or a user's), read as attributes (``config.coverage``)."""
 
-    seed: int = param(1, seed_range, "seed of every random stream")
+    seed: int = param(1, non_negative, "seed of every random stream")
     duration_s: float = param(300.0, finite(positive), "simulated time, s")
     world: WorldParams = _nested(WorldParams)
     mobility: MobilitySection = _nested(MobilitySection)
@@ -922,19 +916,34 @@ def _as_tree(value: Any) -> Any:
     return value
 
 
-def merge(base: dict, extra: dict, prefix: str = "") -> dict:
-    """Deep-merge ``extra`` into a copy of ``base``. Keys of a section set where ``base``
-    has a value that is not a table are refused (ConfigError): the value is a mistake that
-    the merge would drop without a word."""
+def merge(base: dict, extra: dict) -> dict:
+    """Deep-merge ``extra`` into a copy of ``base``."""
     out = dict(base)
     for k, v in extra.items():
         if isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = merge(out[k], v, f"{prefix}{k}.")
-        elif isinstance(v, dict) and k in out:
-            raise ConfigError(f"{prefix}{k}", out[k], "must be a table (a [section] of keys)")
+            out[k] = merge(out[k], v)
         else:
             out[k] = v
     return out
+
+
+def _check_override_path(raw: dict, text: str) -> None:
+    """``--set a.b.c=v`` over a file where ``a`` (or ``a.b``) holds a value, not a table:
+    the merge would drop that value without a word. A section of the configuration given a
+    value in the file is the file's mistake; any other key is the ``--set``'s (it names a
+    key as if it were a section)."""
+    key = text.partition("=")[0].strip()
+    parts = key.split(".")
+    node: Any = raw
+    for depth, part in enumerate(parts[:-1]):
+        if not isinstance(node, dict) or part not in node:
+            return
+        node = node[part]
+        if not isinstance(node, dict):
+            prefix = ".".join(parts[: depth + 1])
+            if depth == 0 and part not in ("seed", "duration_s"):
+                raise ConfigError(prefix, node, "must be a table (a [section] of keys)")
+            raise ConfigError("--set", text, f"{prefix} is a key, not a section")
 
 
 def parse_override(text: str) -> dict:
@@ -998,7 +1007,9 @@ def read_tree(path: str | Path | None = None, overrides: Iterable[str] = ()) -> 
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise ConfigError("scenario file", str(p), f"is not valid TOML: {exc}") from None
     for text in overrides:
-        raw = merge(raw, parse_override(text))
+        override = parse_override(text)
+        _check_override_path(raw, text)
+        raw = merge(raw, override)
     return raw
 
 

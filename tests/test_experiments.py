@@ -282,6 +282,9 @@ def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
         # Its placement file was written first, then the sweep refused.
         ("false_role_changes.py", ["--losses", "1.5"], "--losses 1.5: each a probability in [0, 1)"),
         ("false_role_changes.py", ["--pairs", "0"], "--pairs 0: at least 1"),
+        ("false_role_changes.py", ["--pairs", "2", "--workers", "0"], "--workers 0: must be at least 1"),
+        ("false_role_changes.py", ["--pairs", "2", "--taus", "0.5"], "protocol.tau_s = 0.5"),
+        ("false_role_changes.py", ["--pairs", "2", "--duration", "-1"], "duration_s = -1.0"),
     ],
 )
 def test_experiment_options_refused_before_any_run(tmp_path, script, args, said):

@@ -303,6 +303,23 @@ def test_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, capfd, a
     assert not (out / "sweep.json").exists()
 
 
+def test_a_sweep_for_a_scheduler_is_not_held_to_this_machines_memory(tmp_path, capfd):
+    """Points run on a scheduler's workers: a sweep too large for the submitting machine
+    (its memory refused it first) goes on to the scheduler; locally it is refused."""
+    spec = tmp_path / "big.toml"
+    spec.write_text(
+        'name = "big"\n[base]\nduration_s = 12000.0\n[base.world]\nn_robots = 400000\n'
+        '[base.protocol]\nmodel = "none"\n[base.mobility]\nmodel = "static"\n'
+        "[base.output]\nposition_interval_s = 1.0\n[grid]\nseed = [1]\n"
+    )
+    code = main(["sweep", str(spec), "--out", str(tmp_path / "a"), "--scheduler", "notanaddress"])
+    err = capfd.readouterr().err
+    assert code == 2 and "not a scheduler address" in err and "memory" not in err
+    code = main(["sweep", str(spec), "--out", str(tmp_path / "b"), "--no-progress"])
+    err = capfd.readouterr().err
+    assert code == 2 and "GiB of memory" in err
+
+
 @pytest.mark.slow
 def test_scheduler_refusal_from_the_console_script_is_one_line(tmp_path):
     """As a user sees it: a separate process, its whole standard error."""

@@ -369,16 +369,26 @@ def test_coverage_rows_list_item_30_before_item_31(monkeypatch):
 
 
 @pytest.mark.slow
-def test_stationary_start_items_see_a_start_without_length_bias_or_pauses(monkeypatch):
-    """Items 3 and 4 see a stationary start whose legs are drawn without their length bias
-    (every pair of points kept) and one that never starts a robot paused: the central
-    density and the paused share fail (both passed the checks of boxes of side 0.05)."""
+def test_stationary_start_items_see_a_start_without_length_bias(monkeypatch):
+    """Item 3 sees a stationary start whose legs are drawn without their length bias (every
+    pair of points kept): the central density without pauses fails (it passed the checks
+    of boxes of side 0.05)."""
     import netsim.mobility.random_waypoint as rwp
 
     monkeypatch.setattr(rwp, "distances_m", lambda p1, p2, side, n: np.full(len(p1), np.inf))
+    rows = validate.check_stationary_start()
+    assert _failed(rows, "RWP stationary density at t = 0 in the box of side 0.2 at (0.5, 0.5)")
+
+
+@pytest.mark.slow
+def test_stationary_start_items_see_a_start_that_never_pauses(monkeypatch):
+    """Item 4 sees a stationary start that never starts a robot paused: the paused share
+    fails."""
+    import netsim.mobility.random_waypoint as rwp
+
     monkeypatch.setattr(rwp, "paused_fraction", lambda *args: 0.0)
     rows = validate.check_stationary_start()
-    assert _failed(rows, "at (0.5, 0.5)") and _failed(rows, "paused")
+    assert _failed(rows, "stationary start paused, pause 20 s (share)")
 
 
 @pytest.mark.slow

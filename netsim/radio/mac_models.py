@@ -24,19 +24,24 @@ def _contention_window(v: int) -> str | None:
     return None if v >= 1 and (v + 1) & v == 0 else "must be 2^k - 1 with k >= 1 (1, 3, 7, ..., 1023)"
 
 
-# Each key's field, made anew for each parameter set that has it (a dataclass field
-# belongs to one class).
-def _slot(low_open: bool) -> Callable[[float], str | None]:
-    """A CSMA interval: at most a second (802.11's are microseconds; more is a typo, and past
-    it a backoff's instants overflow)."""
+# The longest CSMA interval: 802.11's are microseconds, a slow radio's (LoRa, acoustic)
+# seconds; an hour is a typo, and far past it a backoff's instants overflow.
+MAX_INTERVAL_S = 3600.0
+
+
+def _interval(low_open: bool) -> Callable[[float], str | None]:
+    """A CSMA interval's check: in ``(0`` (``low_open``) or ``[0``, ``MAX_INTERVAL_S]``, s."""
+    allowed = f"must be in {'(0' if low_open else '[0'}, {MAX_INTERVAL_S:g}] (s)"
 
     def check(v: float) -> str | None:
-        ok = 0.0 < v <= 1.0 if low_open else 0.0 <= v <= 1.0
-        return None if ok else f"must be in {'(0' if low_open else '[0'}, 1] (s)"
+        ok = 0.0 < v <= MAX_INTERVAL_S if low_open else 0.0 <= v <= MAX_INTERVAL_S
+        return None if ok else allowed
 
     return check
 
 
+# Each key's field, made anew for each parameter set that has it (a dataclass field
+# belongs to one class).
 def _data_rate() -> Any:
     return param(1e6, finite(positive), "data rate of every frame's payload, bit/s")
 
@@ -101,8 +106,8 @@ class CsmaParams(Params):
     interference_range_m: float = _interference_range()
     capture_threshold_db: float = _capture()
     noise_floor_dbm: float = _noise_floor()
-    slot_s: float = param(20e-6, _slot(True), "csma: backoff slot, s, at most 1")
-    difs_s: float = param(50e-6, _slot(False), "csma: idle time sensed before the backoff counts down, s, at most 1")
+    slot_s: float = param(20e-6, _interval(True), "csma: backoff slot, s")
+    difs_s: float = param(50e-6, _interval(False), "csma: idle time sensed before the backoff counts down, s")
     cw_min: int = param(31, _contention_window, "csma: initial contention window (backoff uniform on 0..cw)")
     cw_max: int = param(1023, _contention_window, "csma: largest contention window (doubles per failed unicast)")
     retry_limit: int = param(7, non_negative, "csma: retransmissions of a unicast frame before it is dropped")

@@ -350,8 +350,8 @@ def cmd_sweep(args) -> int:
             f"--workers {args.workers} and --scheduler {args.scheduler}: give one (local worker processes, or a "
             "Dask cluster's)"
         )
-    if args.workers is not None and args.workers < 1:
-        raise NetsimInputError(f"--workers {args.workers}: must be at least 1")
+    if args.workers is not None:
+        sweepmod.check_workers(args.workers)
     if args.workers is not None and args.workers > WORKERS_PER_CORE * cores:
         raise NetsimInputError(
             f"--workers {args.workers}: at most {WORKERS_PER_CORE * cores} on this machine ({WORKERS_PER_CORE} a core: "

@@ -10,10 +10,12 @@ from netsim.errors import ConfigError
 from netsim.machine import gib, machine_memory_bytes
 
 
-def check_run(config: cfgmod.Config) -> None:
+def check_run(config: cfgmod.Config, here: bool = True) -> None:
     """Refuse ``config`` in one line (:class:`~netsim.errors.ConfigError`) if it cannot run:
-    more memory than the machine has, or a file a model reads that is not there."""
-    check_fits_in_memory(config)
+    more memory than the machine has (``here``: the run is on this machine, not on a
+    scheduler's workers), or a file a model reads that is not there."""
+    if here:
+        check_fits_in_memory(config)
     cfgmod.check_inputs(config)
 
 

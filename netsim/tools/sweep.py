@@ -57,6 +57,10 @@ from netsim.tools.output import write_atomically, write_table
 from netsim.tools.preflight import check_run
 
 MAX_RUNS = 1_000_000  # a typo in a sweep file must not ask for more memory than the machine has
+# A sweep's runs table holds seeds as signed 64-bit integers: past them the column would
+# turn to floats, and the seed stored would not be the one that ran.
+SEED_LIMIT = 2**63
+
 SWEEP_KEYS = {"name", "replications", "tables", "base", "base_file", "grid", "random"}
 
 
@@ -76,9 +80,10 @@ class Sweep:
     base: dict
     points: tuple[dict, ...]
 
-    def runs(self) -> list[Run]:
+    def runs(self, here: bool = True) -> list[Run]:
         """Every run, each point's configuration resolved and checked as ``netsim run``
-        checks it before it starts; points that resolve to one configuration run once."""
+        checks it before it starts (its memory against this machine's only when ``here``:
+        not for a scheduler's workers); points that resolve to one configuration run once."""
         out: dict[str, Run] = {}
         repeated = 0
         with warnings.catch_warnings(record=True) as caught:
@@ -86,9 +91,14 @@ class Sweep:
             for point in self.points:
                 config = point_config(self.base, point)
                 try:
-                    check_run(config)
+                    check_run(config, here)
                 except ConfigError as exc:
                     raise NetsimInputError(f"sweep point {point}: {exc}") from None
+                if config.seed >= SEED_LIMIT:
+                    raise NetsimInputError(
+                        f"sweep point {point}: seed = {config.seed}: must be below 2^63 in a sweep (its runs table "
+                        "holds seeds as 64-bit integers)"
+                    )
                 resolved = cfgmod.to_dict(config)
                 if run_id(resolved, 0) in out:
                     repeated += 1
@@ -216,6 +226,12 @@ def _check_key(key: str, known: set[str], value: object = None) -> None:
                 f'("{key}.{inner}" = [...]), else it is read as a table'
             )
         raise _err(f"{key!r} is not a configuration key{cfgmod.did_you_mean(key, known)} (see `netsim config`)")
+
+
+def check_workers(workers) -> None:
+    """Refuse a count of local worker processes below 1 in one line (it ran serially)."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise NetsimInputError(f"--workers {workers}: must be at least 1")
 
 
 def _first_point(tree: dict) -> dict:
@@ -435,9 +451,8 @@ def run_sweep(
     from netsim.progress import progress_bar
     from netsim.tools.output import claim_dir
 
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise NetsimInputError(f"--workers {workers}: must be at least 1")
-    runs = sweep.runs()
+    check_workers(workers)
+    runs = sweep.runs(here=scheduler is None)
     ids = [r.run_id for r in runs]
     _refuse_another_sweeps_dir(Path(out_dir), sweep.name)
     with claim_dir(out_dir, "--out", kind="sweep", tables=sweep.tables) as out:
