@@ -62,7 +62,8 @@ REDUCED = {
         "the suite cannot run itself, and running it already imports every test module: the command"
         " line is checked by collecting this module",
     ),
-    "netsim bridge --set mobility.model=external --set duration_s=10 --out runs/bridge": (
+    "netsim bridge --set mobility.model=external --set duration_s=10 --out runs/bridge"
+    '   # needs pip install -e ".[ros]"': (
         "netsim bridge --set mobility.model=external --set duration_s=10 --out runs/bridge --rate 20",
         "the same run, at 20 simulated seconds per wall second instead of real time",
     ),
