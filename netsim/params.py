@@ -40,6 +40,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from netsim.errors import ConfigError
+from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable
 
 Check = Callable[[Any], "str | None"]
 Coerce = Callable[[str, Any], Any]
@@ -72,8 +73,6 @@ def speed(v: float) -> str | None:
     """A speed in m/s: finite, at least 0, and one a robot may be driven at
     (:func:`netsim.geometry.drivable`: no faster than light), so that a draw up to it never
     stops the run midway."""
-    from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable
-
     if not (math.isfinite(v) and v >= 0):
         return "must be a finite speed >= 0"
     return None if drivable((v, 0.0)) else f"must be at most {SPEED_OF_LIGHT_MPS:g} (m/s, no faster than light)"

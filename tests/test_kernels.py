@@ -222,10 +222,11 @@ def test_runs_equal_with_and_without_compiled_loops(monkeypatch):
         assert frames["0"][name].equals(frames["1"][name]), name
 
 
-def test_frame_end_equals_the_oracle():
-    """A frame's end under the unit disk (netsim/radio/_mac_kernels.py, plain and compiled)
-    leaves the medium's arrays and finds the same half-duplex and collision losses and the
-    same robots newly idle, with the same busy times, as the oracle."""
+@pytest.mark.parametrize("by_power", [False, True])
+def test_frame_end_equals_the_oracle(by_power):
+    """A frame's end (netsim/radio/_mac_kernels.py, plain and compiled), by overlap or by
+    SINR, leaves the medium's arrays and finds the same half-duplex and collision losses and
+    the same robots newly idle, with the same busy times, as the oracle."""
     from netsim.radio import _mac_kernels
 
     compiled = compiled_copy("netsim.radio._mac_kernels")
@@ -243,9 +244,10 @@ def test_frame_end_equals_the_oracle():
         disturbed = np.sort(rng.choice(others, int(rng.integers(0, 20)), replace=False))
         rx = np.sort(rng.choice(disturbed, int(rng.integers(0, len(disturbed) + 1)), replace=False))
         hd_start, col_start = rng.random(len(rx)) < 0.2, rng.random(len(rx)) < 0.2
-        frame = (i, 6, 1.0 + rng.random(), disturbed, rx, hd_start, col_start)
+        sinr_db = np.round(rng.normal(10.0, 3.0, len(rx)), 1) if by_power else np.empty(0)
+        frame = (i, 6, 1.0 + rng.random(), disturbed, rx, hd_start, col_start, by_power, sinr_db, 10.0)
         runs = []
-        for end in (oracle.end_unit_disk, _mac_kernels.end_unit_disk, compiled.end_unit_disk):
+        for end in (oracle.end_frame, _mac_kernels.end_frame, compiled.end_frame):
             medium = (cover.copy(), transmitting.copy(), tx_seq, cover_seq, busy_s.copy(), busy_since)
             out = (np.zeros(n, bool), np.zeros(n, bool), np.zeros(n + 1, np.int64))
             m = end(medium, frame, out)

@@ -29,7 +29,9 @@ class MediumArrays(NamedTuple):
 
 class Leaving(NamedTuple):
     """The frame leaving the air: frame ``seq`` of robot ``i`` at ``now``, the robots it
-    disturbed, its receivers and, per receiver, whether it was lost at its start."""
+    disturbed, its receivers and, per receiver, whether it was lost at its start; under a
+    power model (``by_power``) each receiver's SINR over the frame (dB), decided against
+    ``capture_db``."""
 
     i: int
     seq: int
@@ -38,6 +40,9 @@ class Leaving(NamedTuple):
     rx: np.ndarray
     hd_start: np.ndarray
     col_start: np.ndarray
+    by_power: bool
+    sinr_db: np.ndarray
+    capture_db: float
 
 
 class Ends(NamedTuple):
@@ -69,12 +74,13 @@ def busy_times(medium, now, out):
 
 
 @jit(nogil=True)
-def end_unit_disk(medium, frame, out):
+def end_frame(medium, frame, out):
     """Frame ``seq`` of robot ``i`` leaves the air at ``now``: the robots it disturbed sense one
     frame less, ``hd``/``col`` (one per receiver in ``rx``) tell which receptions were lost to
-    half duplex and to collisions, and the robots that sense the medium idle again (the
-    disturbed, then ``i``) are written to ``newly`` with their busy time added; returns how
-    many.
+    half duplex and to collisions (under a power model an SINR below the capture threshold,
+    else another frame overlapping at the receiver), and the robots that sense the medium idle
+    again (the disturbed, then ``i``) are written to ``newly`` with their busy time added;
+    returns how many.
 
     ``medium``: :class:`MediumArrays`, updated; ``frame``: :class:`Leaving`; ``out``:
     :class:`Ends`, filled."""
@@ -85,6 +91,7 @@ def end_unit_disk(medium, frame, out):
     busy_s, busy_since = md.busy_s, md.busy_since
     i, seq, now, disturbed, rx = fr.i, fr.seq, fr.now, fr.disturbed, fr.rx
     hd_start, col_start = fr.hd_start, fr.col_start
+    by_power, sinr_db, capture_db = fr.by_power, fr.sinr_db, fr.capture_db
     hd, col, newly = en.hd, en.col, en.newly
     for k in range(len(disturbed)):
         cover[disturbed[k]] -= 1
@@ -93,7 +100,10 @@ def end_unit_disk(medium, frame, out):
         r = rx[k]
         lost_hd = hd_start[k] or tx_seq[r] > seq
         hd[k] = lost_hd
-        col[k] = (not lost_hd) and (col_start[k] or cover_seq[r] != seq)
+        if by_power:
+            col[k] = (not lost_hd) and sinr_db[k] < capture_db
+        else:
+            col[k] = (not lost_hd) and (col_start[k] or cover_seq[r] != seq)
     m = 0
     for k in range(len(disturbed) + 1):
         c = disturbed[k] if k < len(disturbed) else i

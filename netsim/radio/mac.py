@@ -58,6 +58,7 @@ MAC_DROP_CAUSES = DROP_CAUSES + MAC_CAUSES
 RECEPTION_CAUSES = ("loss", "collision", "half_duplex")
 
 _EMPTY = np.empty(0, dtype=np.int64)
+_NO_SINR = np.empty(0)  # what a frame's end reads as SINR without a power model
 # Transmit instants computed from the same idle instant and slot count are equal floats;
 # this absorbs the kernel's now + (t - now) rounding.
 _EPS_S = 1e-12
@@ -344,8 +345,8 @@ class Medium:
         self.load_mw = np.zeros(n)
         self.on_air: dict[int, Frame] = {}
         self.seq = 0
-        # A frame's end (the unit disk's decision; under a power model its SINR replaces the
-        # collisions) as one loop (netsim.radio._mac_kernels).
+        # A frame's end, its losses decided by overlap or, under a power model, by its SINR,
+        # as one loop (netsim.radio._mac_kernels).
         self._kernels = load("netsim.radio._mac_kernels", n)
         self._hd, self._col = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         self._newly = np.empty(n + 1, dtype=np.int64)
@@ -466,22 +467,24 @@ class Medium:
         i, seq = frame.sender, frame.seq
         disturbed = frame.interferers
         rx = frame.receivers
-        leaving = tuple(Leaving(i, seq, now, disturbed, rx, frame.hd_start, frame.col_start))
-        m = self._kernels.end_unit_disk(self._medium, leaving, self._end_out)
+        power = self.power
+        sinr_db, capture_db = _NO_SINR, 0.0
+        if power is not None:
+            # One SINR per receiver: the number the frame's end decides on, and the one recorded.
+            interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
+            sinr_db = in_db(frame.rx_mw / (power.noise_mw + interference))
+            capture_db = power.capture_threshold_db
+        fields = (i, seq, now, disturbed, rx, frame.hd_start, frame.col_start, power is not None)
+        leaving = tuple(Leaving(*fields, sinr_db, capture_db))
+        m = self._kernels.end_frame(self._medium, leaving, self._end_out)
         hd, col, newly = self._hd[: len(rx)], self._col[: len(rx)], self._newly[:m].copy()
-        if self.power is not None:
+        if power is not None:
             del self.on_air[seq]
             self.load_mw[disturbed] -= frame.power_mw
             quiet = disturbed[self.cover[disturbed] == 0]
             self.load_mw[quiet] = 0.0  # no drift once nothing is on the air there
-            interference = np.maximum(frame.peak_mw - frame.signal_mw, 0.0)
-            # One SINR per receiver, the number the decision compares and the one recorded.
-            sinr_db = in_db(frame.rx_mw / (self.power.noise_mw + interference))
-            col = ~hd & (sinr_db < self.power.capture_threshold_db)
-        else:
-            sinr_db = None
         if frame.rows is not None:
-            self._record(frame, rx, hd, col, sinr_db)
+            self._record(frame, rx, hd, col, sinr_db if power is not None else None)
         ok = ~(hd | col)
         c, binned = frame.counters, frame.binned
         for cause, lost in (("half_duplex", hd), ("collision", col)):

@@ -53,17 +53,18 @@ def neighbour_lists(pairs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return indptr, cols[order].astype(np.int64)
 
 
-# -- the shared medium (netsim.radio._mac_kernels.end_unit_disk) -------------------------
-def end_unit_disk(medium, frame, out):
-    """A frame's end under the unit disk: the same arguments, updated and filled the same
-    way; returns how many robots are newly idle."""
+# -- the shared medium (netsim.radio._mac_kernels.end_frame) -----------------------------
+def end_frame(medium, frame, out):
+    """A frame's end: the same arguments, updated and filled the same way; returns how many
+    robots are newly idle."""
     cover, transmitting, tx_seq, cover_seq, busy_s, busy_since = medium
-    i, seq, now, disturbed, rx, hd_start, col_start = frame
+    i, seq, now, disturbed, rx, hd_start, col_start, by_power, sinr_db, capture_db = frame
     hd, col, newly = out
     cover[disturbed] -= 1
     transmitting[i] = False
     hd[: len(rx)] = hd_start | (tx_seq[rx] > seq)
-    col[: len(rx)] = ~hd[: len(rx)] & (col_start | (cover_seq[rx] != seq))
+    lost = (sinr_db < capture_db) if by_power else (col_start | (cover_seq[rx] != seq))
+    col[: len(rx)] = ~hd[: len(rx)] & lost
     cand = np.append(disturbed, i)
     idle = cand[(cover[cand] == 0) & ~transmitting[cand]]
     newly[: len(idle)] = idle
