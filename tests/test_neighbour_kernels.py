@@ -159,9 +159,19 @@ def _first_after(now, tau_s, last, step):
 
 def _at(now, tau_s):
     """A last Ack's instant whose deadline is ``now`` to the last bit."""
-    last = _first_after(now, tau_s, now - tau_s, -np.inf)
-    while deadline(last, tau_s) < now:
-        last = np.nextafter(last, np.inf)
+    # The least float whose deadline is not before ``now``, by bisection over the floats'
+    # bit patterns (ordered as the positive floats are): a tie's nanosecond is a million of
+    # them, too many to step through one at a time.
+    lo, hi = np.float64(now - tau_s - 2e-9), np.float64(now - tau_s)
+    assert deadline(lo, tau_s) < now <= deadline(hi, tau_s)
+    lo_bits, hi_bits = int(lo.view(np.int64)), int(hi.view(np.int64))
+    while hi_bits - lo_bits > 1:
+        mid = (lo_bits + hi_bits) // 2
+        if deadline(np.int64(mid).view(np.float64), tau_s) < now:
+            lo_bits = mid
+        else:
+            hi_bits = mid
+    last = np.int64(hi_bits).view(np.float64)
     assert deadline(last, tau_s) == now
     return last
 
