@@ -43,7 +43,7 @@ from netsim.samples import sample_times
 from netsim.sim import Simulation
 from netsim.state import RobotState
 from netsim.survival import lifetime_summary
-from netsim.trace import Trace, conform, empty_table
+from netsim.trace import Trace, as_read_back, conform, empty_table
 from netsim.traffic import Traffic
 from netsim.trajectory import sample_positions
 
@@ -372,10 +372,11 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     users = {name: who for who, names in _users_tables(sim.config).items() for name in names}
 
     def add(name: str, frame: pd.DataFrame) -> None:
-        if len(frame) == 0 and name in declared:
+        if name in declared:
             # A table without rows takes its columns' declared types, not pandas' object for
-            # all: one table of two runs has one schema whether or not either wrote a row.
-            frame = frame.astype({c: t for c, t in declared[name].items() if c in frame.columns})
+            # all: one table of two runs has one schema whether or not either wrote a row;
+            # and its text is held as its file read back holds it.
+            frame = as_read_back(frame, declared[name])
         if name in users:
             frame = conform(frame, declared[name], users[name], name)
         frames[name] = frame

@@ -68,9 +68,31 @@ class Trace:
         return {name: self.frame(name) for name in self.names()}
 
 
+# The dtype pandas gives text of its own accord (str from pandas 3, object before): a
+# table's text column as a Parquet file read back holds it.
+TEXT_DTYPE = pd.Series(["text"]).dtype
+
+
+def frame_dtypes(schema: Mapping[str, str]) -> dict[str, Any]:
+    """``schema``'s dtypes as a frame holds them: its text ("object") as :data:`TEXT_DTYPE`."""
+    return {column: TEXT_DTYPE if dtype == "object" else dtype for column, dtype in schema.items()}
+
+
 def empty_table(schema: Mapping[str, str]) -> pd.DataFrame:
     """A table without rows, with the columns and dtypes of ``schema``."""
-    return pd.DataFrame({column: pd.Series(dtype=dtype) for column, dtype in schema.items()})
+    return pd.DataFrame({column: pd.Series(dtype=dtype) for column, dtype in frame_dtypes(schema).items()})
+
+
+def as_read_back(frame: pd.DataFrame, schema: Mapping[str, str]) -> pd.DataFrame:
+    """``frame`` with the dtypes its Parquet file has read back: a declared text column held
+    as object (a None in it missing, NaN) becomes :data:`TEXT_DTYPE`; a table without rows
+    takes every declared dtype."""
+    dtypes = frame_dtypes(schema)
+    if len(frame) == 0:
+        casts = {c: t for c, t in dtypes.items() if c in frame.columns}
+    else:
+        casts = {c: t for c, t in dtypes.items() if t is TEXT_DTYPE and c in frame.columns and frame[c].dtype == object}
+    return frame.astype(casts) if casts else frame
 
 
 def conform(frame: pd.DataFrame, schema: Mapping[str, str], who: str, name: str) -> pd.DataFrame:

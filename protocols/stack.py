@@ -389,21 +389,28 @@ class Stack(AckTiming):
         (:meth:`_sample_at_end`); before it (a table asked for mid-run), a sample at ``now``
         when the latest is older, as the end's would be (every event before ``now``, none
         at it), handed out but not kept, so that the run records what it would have."""
-        self._sample_at_end()
-        now = float(self.env.now)
-        if now >= self.duration_s or ended_at(self._groups.times, now):
+        if not self._samples_now():
             return None
+        now = float(self.env.now)
         groups, pairs, counts = Samples(), Samples(), Samples()
         self._sample_into(now, groups, pairs, counts)
         return groups, pairs, counts
+
+    def _samples_now(self) -> bool:
+        """Whether the sampled tables handed out now end with a sample at ``now`` that the
+        run does not keep (:meth:`_sample_now`)."""
+        self._sample_at_end()
+        now = float(self.env.now)
+        return not (now >= self.duration_s or ended_at(self._groups.times, now))
 
     def summary(self, frames: Mapping[str, pd.DataFrame], duration_s: float) -> dict:
         n = self.state.n
         roles = frames["roles"]
         out = leader_statistics(roles, n, duration_s)
         groups = frames["groups"]
-        if len(self._groups):
-            samples = len(self._groups)
+        # The samples of the groups table handed out: those kept, and mid-run the one at now.
+        samples = len(self._groups) + self._samples_now()
+        if samples:
             out["gateways_mean"] = gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy(), samples)
         acks = self.channel.counters_for("ack").sent.sum()
         # Every frame a robot relays: the random pairs' messages and the flows' frames.

@@ -689,3 +689,29 @@ def test_side_by_side_one_after_the_other_without_a_thread(monkeypatch):
     assert side_by_side(lambda: threading.get_ident(), lambda: threading.get_ident()) == (me, me)
     with pytest.raises(ValueError):
         side_by_side(lambda: 1, lambda: int("x"))
+
+
+@pytest.mark.parametrize("until_s", [17.3, 30.0])
+def test_gateways_mean_mid_run_is_the_mean_over_the_samples_handed_out(until_s):
+    """Asked for mid-run, the summary's ``gateways_mean`` is the mean over every sample of
+    the ``groups`` table handed out with it, the one at ``now`` included, and equals the
+    figure of a run that ends there. (It divided the gateways of the samples and the one
+    at ``now`` by the kept samples alone.)"""
+    from netsim.run import build, collect, execute, summarize
+
+    def config(duration_s):
+        return make_config(
+            seed=3, duration_s=duration_s, world={"n_robots": 15, "side_m": 400.0}, channel={"loss_probability": 0.05}
+        )
+
+    sim = build(config(60.0))
+    sim.run(until_s=until_s)
+    frames = collect(sim)
+    groups, beliefs = frames["groups"], frames["beliefs"]
+    instants = np.unique(beliefs["t_s"])
+    assert instants[-1] == until_s
+    per = groups.groupby(["t_s", "robot"]).size().gt(1).groupby(level="t_s").sum()
+    expected = per.reindex(instants, fill_value=0).mean()
+    assert expected > 0
+    assert summarize(sim, frames, 0.0)["gateways_mean"] == pytest.approx(expected, abs=1e-12)
+    assert execute(config(until_s)).summary["gateways_mean"] == pytest.approx(expected, abs=1e-12)
