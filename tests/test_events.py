@@ -98,6 +98,35 @@ def _runtime_vs_posthoc(legs, n, ranges, duration_s, side_m=1e6, torus=False):
     return sim
 
 
+@pytest.mark.parametrize("torus", [False, True])
+@pytest.mark.parametrize("then", ["stops", "turns back"])
+def test_a_pair_that_comes_to_rest_exactly_at_range_stays_linked(torus, then):
+    """A robot that stops exactly at the range (d = R to the last bit) is in range from then
+    on, as the channel hears it: its link is up again at that instant, in links.parquet and
+    in the live feed alike (it was down for the rest of the run, the exit found at the end
+    of the leg kept and nothing to undo it at rest). Turning back there, it comes up again
+    as it heads inward. Either way the link goes down and up at that instant (docs/events.md)."""
+    legs = pd.DataFrame(
+        [
+            (0.0, 0, 210.0, 100.0, 0.0, 0.0),
+            (0.0, 1, 10.0, 100.0, 10.0, 0.0),
+            (30.0, 1, 310.0, 100.0, 0.0 if then == "stops" else -10.0, 0.0),
+        ],
+        columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"],
+    )
+    sim = _fed(_core(2, [100.0, 100.0], 40.0, 400.0 if torus else 1e6, torus, runtime_links="on"))
+    _replay(sim, legs)
+    sim.run()
+    frames = collect(sim)
+    links = frames["links"][["t_up_s", "t_down_s", "censored_end"]].values.tolist()
+    # Turning back, it stays in range until x = 110, at t = 50, past the run's end.
+    assert links == [[10.0, 30.0, False], [30.0, 40.0, True]]
+    _assert_same_links(_announced(sim), frames["links"])
+    pd.testing.assert_frame_equal(
+        frames["links"], link_lifetimes(frames["legs"], sim.state.range_m, 40.0, sim.state.side_m, torus)
+    )
+
+
 # -- runtime link events equal the post-hoc solution -------------------------------------------
 def _random_case(seed: int, kind: str):
     """Random trajectories (speeds drawn per case) of one of four kinds, and the runtime

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from netsim._kernels import disk_crossing_times, nearest_image, position
+from netsim._kernels import disk_crossing_times, nearest_image, position, reaches
 from netsim._kernels import in_range as in_range  # the solvers' state test, through this module
 from netsim.compiled import jit
 
@@ -65,6 +65,17 @@ def _keep(at, start, length, k, kind, pair, times, phase, kinds, m):
 
 
 @jit(nogil=True)
+def _pair_crossings(origin, dx, dy, wx, wy, radius):
+    """The instants a pair enters and leaves range (:func:`netsim._kernels.disk_crossing_times`);
+    a pair at rest relative to each other in range comes up at ``origin``, where its legs
+    begin: one that came to rest exactly on the circle, its exit found at the end of the
+    leg before, is up again there (in range by :func:`netsim._kernels.reaches`)."""
+    if wx == 0.0 and wy == 0.0:
+        return (origin if reaches(dx, dy, radius, 0.0) else np.nan), np.nan
+    return disk_crossing_times(origin, dx, dy, wx, wy, radius)
+
+
+@jit(nogil=True)
 def crossing_times(leg_t, leg_p, leg_v, la, lb, radius):
     """On the plane: the instants pairs on legs ``la``, ``lb`` enter and leave the disk of
     ``radius`` (NaN: never), solved from the later of the two legs' starts."""
@@ -75,7 +86,7 @@ def crossing_times(leg_t, leg_p, leg_v, la, lb, radius):
         i, j = la[k], lb[k]
         origin, dx, dy = _relative(leg_t, leg_p, leg_v, i, j, 0.0)
         wx, wy = leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1]
-        at_in[k], at_out[k] = disk_crossing_times(origin, dx, dy, wx, wy, radius[k])
+        at_in[k], at_out[k] = _pair_crossings(origin, dx, dy, wx, wy, radius[k])
     return at_in, at_out
 
 
@@ -142,7 +153,10 @@ def crossings(leg_t, leg_p, leg_v, la, lb, radius, t_start, length, box):
                 sel[k] = (kx == 0 and ky == 0) or np.hypot(ex, ey) <= reach[k] * (1 + 1e-9)
                 if sel[k]:
                     wx, wy = leg_v[i, 0] - leg_v[j, 0], leg_v[i, 1] - leg_v[j, 1]
-                    in_t[k], out_t[k] = disk_crossing_times(origin[k], ex, ey, wx, wy, radius[k])
+                    if kx == 0 and ky == 0:  # the nearest image: the one a pair at rest is judged by
+                        in_t[k], out_t[k] = _pair_crossings(origin[k], ex, ey, wx, wy, radius[k])
+                    else:
+                        in_t[k], out_t[k] = disk_crossing_times(origin[k], ex, ey, wx, wy, radius[k])
             for k in range(n):
                 if sel[k]:
                     m = _keep(in_t[k], t_start[k], length[k], k, int(1), pair, times, phase, kinds, m)

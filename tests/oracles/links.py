@@ -68,8 +68,11 @@ def solve_piece(
     for kx in range(-K, K + 1):
         for ky in range(-K, K + 1):
             dk = d - box * np.array([kx, ky], float)
-            sel = slice(None) if kx == ky == 0 else np.hypot(dk[:, 0], dk[:, 1]) <= reach * (1 + 1e-9)
-            _solve_image(dk[sel], w[sel], radius[sel], origin[sel], t_start[sel], length[sel], a[sel], b[sel], emit)
+            nearest = kx == ky == 0
+            sel = slice(None) if nearest else np.hypot(dk[:, 0], dk[:, 1]) <= reach * (1 + 1e-9)
+            _solve_image(
+                dk[sel], w[sel], radius[sel], origin[sel], t_start[sel], length[sel], a[sel], b[sel], emit, nearest
+            )
 
 
 def _solve_image(
@@ -82,20 +85,23 @@ def _solve_image(
     a: np.ndarray,
     b: np.ndarray,
     emit: Callable[..., None],
+    nearest: bool = True,
 ) -> None:
     if len(d) == 0:
         return
-    at_in, at_out = crossing_times(d, w, radius, origin)
+    at_in, at_out = crossing_times(d, w, radius, origin, nearest)
     clip_crossings(at_in, at_out, t_start, length, a, b, emit)
 
 
 def crossing_times(
-    d: np.ndarray, w: np.ndarray, radius: np.ndarray, origin: np.ndarray
+    d: np.ndarray, w: np.ndarray, radius: np.ndarray, origin: np.ndarray, nearest: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
     """The instants the relative path ``d + w (t - origin)`` enters and leaves the disk of
-    ``radius`` (NaN when it does not cross it): ``origin`` plus the roots."""
+    ``radius`` (NaN when it does not cross it): ``origin`` plus the roots. A pair at rest
+    (``w = 0``) within ``radius`` of its nearest image enters at ``origin``."""
     t_in, t_out = roots(d, w, radius)
-    return origin + t_in, origin + t_out
+    at_rest_in = nearest & (w[:, 0] == 0) & (w[:, 1] == 0) & (np.hypot(d[:, 0], d[:, 1]) <= radius)
+    return origin + np.where(at_rest_in, 0.0, t_in), origin + t_out
 
 
 def clip_crossings(
