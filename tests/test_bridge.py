@@ -144,6 +144,7 @@ DOMAINS = {
     "markers": 66,
     "bad_uri": 67,
     "burst": 68,
+    "save": 69,
 }
 
 
@@ -363,6 +364,28 @@ def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
     assert positions["t_s"].max() <= summary["duration_s"]
 
 
+def test_a_second_ctrl_c_while_the_session_is_saved_loses_nothing(tmp_path, monkeypatch, capfd):
+    """Ctrl-C pressed again while the session's tables are being written (people press it
+    twice) is taken as the first was: the save goes on whole, exit status 0. (It raised
+    the command's interrupt: nothing written, status 130, the whole session lost.)"""
+    import netsim.run
+    from netsim.tools.cli import main
+
+    collect = netsim.run.collect
+
+    def collect_pressed_again(sim, emit=None):
+        signal.raise_signal(signal.SIGINT)
+        return collect(sim, emit)
+
+    monkeypatch.setattr(netsim.run, "collect", collect_pressed_again)
+    out = tmp_path / "out"
+    code = main(["bridge", str(scenario(tmp_path, DOMAINS["save"], duration_s=1.0)), "--out", str(out), "--quiet"])
+    assert code == 0, capfd.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["duration_s"] == 1.0 and summary["bridge_steps"] == 10
+    assert (out / "bridge.toml").is_file() and (out / "positions.parquet").is_file()
+
+
 def test_odometry_bytes_are_the_serializers_own():
     """The odometry the bridge writes as patched bytes is byte for byte what Cyclone's
     serializer makes of the same message (stamp, position, velocity, frames)."""
@@ -454,6 +477,11 @@ def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
             [],
             "bridge.odom_hz = 1000000000.0: the run would make 3e+11 events of it in duration_s = 300 s",
         ),
+        (
+            ["duration_s=3e9", "bridge.odom_hz=1e-9", "protocol.model=none", "output.position_interval_s=0"],
+            ["--rate", "1e9"],
+            "duration_s = 3000000000.0: the bridge stamps its messages in ROS 2's Time",
+        ),
     ],
     ids=[
         "unknown_relay_type",
@@ -465,6 +493,7 @@ def test_link_markers_colour_robots_by_role_and_size_them_to_the_area():
         "no_runtime_links",
         "no_runtime_links_live",
         "odom_hz_too_many_steps",
+        "duration_past_a_stamp",
     ],
 )
 def test_bad_bridge_input_is_one_line_and_exit_2(tmp_path, capsys, sets, flags, message):

@@ -30,7 +30,7 @@ def test_ctrl_c_ends_a_wait_for_the_wall_clock_at_once():
 
     def clock() -> float:
         calls.append(None)
-        if len(calls) == 2:  # the second step's check of the wall clock, just before its wait
+        if len(calls) == 3:  # the second step's check of the wall clock (after the schedule's start and the first's)
             signal.raise_signal(signal.SIGINT)
         return 0.0
 
@@ -79,3 +79,21 @@ def test_a_command_answering_a_step_is_applied_at_the_next_step():
 
     Pacer(sim, 1.0, 1e9, clock=lambda: 0.0).run(publish, take)
     assert applied == [(1.0, 2.0), (2.0, 3.0), (3.0, 4.0)]  # the run ends at 5: no step after it
+
+
+def test_the_first_step_is_published_a_period_after_the_start_up_and_every_step_is_counted():
+    """The schedule starts once the first step is computed (the start-up's costs are no
+    lag); that step is published a control period over the rate later, as each step is a
+    period after the one before, and ``bridge_steps`` counts every step published. (The
+    first was published at once, so a session ran a period short of real time, and the
+    steps counted were one fewer than those published.)"""
+    sim = _Sim()
+    sim.duration_s = 3.0
+    waits: list[float] = []
+    pacer = Pacer(sim, 1.0, 2.0, clock=lambda: 10.0)
+    pacer._wait = lambda seconds: waits.append(seconds) or False  # type: ignore[method-assign]
+    published: list[float] = []
+    pacer.run(published.append, lambda t_s: None)
+    assert published == [1.0, 2.0, 3.0]
+    assert waits == [0.5, 1.0, 1.5]  # due 0.5, 1 and 1.5 wall seconds after the schedule's start
+    assert pacer.lag.summary()["steps"] == 3

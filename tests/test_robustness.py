@@ -136,12 +136,14 @@ def _unwritable_proc(d):
         (lambda d: (d / "afile").write_text("x"), "afile/view.html", "the directory afile is a file"),
         (lambda d: (d / "afile").write_text("x"), "afile/sub/view.html", "the directory afile is a file"),
         (_unwritable_proc, "/proc/netsim-test/view.html", "cannot write in /proc"),
+        (lambda d: None, "nd2/", "names a directory"),
     ],
-    ids=["existing-directory", "under-a-file", "under-a-file-deeper", "unwritable-place"],
+    ids=["existing-directory", "under-a-file", "under-a-file-deeper", "unwritable-place", "new-directory"],
 )
 def test_view_out_that_cannot_take_the_file_is_one_line(tmp_path, capfd, monkeypatch, small_run, make, out, words):
     """`netsim view RUN --out X` where X is a directory, lies under a file, or is in a place
-    nothing can be written: one line, exit 2, nothing written."""
+    nothing can be written: one line, exit 2, nothing written. A new name ending in a
+    separator asks for a directory (it wrote a file named without it)."""
     monkeypatch.chdir(tmp_path)
     make(tmp_path)
     before, run_before = tree(tmp_path), tree(small_run)
@@ -461,10 +463,12 @@ def test_a_run_replaces_the_earlier_run_in_its_directory(tmp_path, capfd):
     assert {"coverage.parquet", "control.parquet", "travel.parquet"} <= {p.name for p in out.iterdir()}
     (out / "fig6_initial_deployment.png").write_bytes(b"drawn from the first run")
     (out / "notes.txt").write_text("the user's own")
+    (out / "bridge.toml").write_text("domain_id = 77\n")  # as a bridge session's folder holds
     assert main(["run", "--quiet", "--out", str(out), *SMALL, "--set", "protocol.model=ack"]) == 0
     names = {p.name for p in out.iterdir()}
     assert not names & {"coverage.parquet", "control.parquet", "travel.parquet", "groups.parquet"}
     assert "fig6_initial_deployment.png" not in names
+    assert "bridge.toml" not in names  # the earlier session's settings, of tables gone with it
     assert "notes.txt" in names  # not netsim's: left alone
     assert cfgmod.load(out / "config.toml").protocol.model == "ack"
     assert not [n for n in names if n.startswith(".")]

@@ -139,6 +139,10 @@ def read(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeS
     return cfgmod.from_dict(raw), bridge
 
 
+# ROS 2's builtin_interfaces/Time counts whole seconds in an int32.
+STAMP_LIMIT_S = 2.0**31
+
+
 def load(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeSettings]:
     """The run's configuration and the bridge's settings from a scenario file and
     ``--set`` overrides (``bridge.*`` keys included)."""
@@ -148,6 +152,9 @@ def load(path: str | None, overrides: list[str]) -> tuple[cfgmod.Config, BridgeS
             "mobility.model", config.mobility.model, "the bridge moves robots as ROS 2 nodes tell: must be 'external'"
         )
     settings = bridge or BridgeSettings()
+    if not config.duration_s < STAMP_LIMIT_S:
+        why = "the bridge stamps its messages in ROS 2's Time, whose seconds are a 32-bit integer: must be below 2^31 s"
+        raise ConfigError("duration_s", config.duration_s, why)
     # A key that schedules events, as those of the configuration (netsim.params.check_schedules).
     duration_s = config.duration_s
     refuse_events(

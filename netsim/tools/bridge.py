@@ -7,6 +7,7 @@ and every table is written up to that instant, with the summary; the exit status
 
 from __future__ import annotations
 
+import gc
 import importlib.util
 import signal
 import sys
@@ -77,8 +78,8 @@ def bridge(args: Any, config: Any, settings: BridgeSettings, rate: float) -> tup
         live = _live_view(sim, args.live)
         pacer = Pacer(sim, 1.0 / settings.odom_hz, rate)
 
-        def step_end(t_s: float) -> None:
-            ros.publish(t_s)
+        def step_end(t_s: float, publish: Any = ros.publish) -> None:
+            publish(t_s)
             if live is not None:
                 live.publish(t_s)
 
@@ -88,25 +89,31 @@ def bridge(args: Any, config: Any, settings: BridgeSettings, rate: float) -> tup
                 f"{rate:g} simulated s per wall s, until {config.duration_s:g} s (Ctrl-C ends it, tables kept)",
                 flush=True,
             )
+        # The session is saved whole once it ends: a second Ctrl-C while its tables are
+        # written, or while DDS shuts down, is taken as the first was (stop), not as an
+        # interrupt that would lose the session.
         with _stop_on_signals(pacer):
             pacer.run(step_end, ros.take)
-        frames = collect(sim, writer.table)
-        writer.table("relay", ros.relay.frame())
-        wall = time.perf_counter() - start
-        summary = summarize(sim, frames, wall)
-        summary.update({f"bridge_{k}": v for k, v in pacer.lag.summary().items()})
-        summary["bridge_rate"] = rate
-        summary["bridge_commands"] = ros.commands
-        summary["bridge_commands_refused"] = ros.refused
-        summary["bridge_relayed_sent"] = ros.relay.sent
-        (writer._start() / "bridge.toml").write_text(tomli_w.dumps(settings.as_dict()))
-        written = writer.finish(summary, manifest(config, 0, wall, occupancy=sim.parts.occupancy))
-        if live is not None:
-            live.close()
+            frames = collect(sim, writer.table)
+            writer.table("relay", ros.relay.frame())
+            wall = time.perf_counter() - start
+            summary = summarize(sim, frames, wall)
+            summary.update({f"bridge_{k}": v for k, v in pacer.lag.summary().items()})
+            summary["bridge_rate"] = rate
+            summary["bridge_commands"] = ros.commands
+            summary["bridge_commands_refused"] = ros.refused
+            summary["bridge_relayed_sent"] = ros.relay.sent
+            (writer._start() / "bridge.toml").write_text(tomli_w.dumps(settings.as_dict()))
+            written = writer.finish(summary, manifest(config, 0, wall, occupancy=sim.parts.occupancy))
+            if live is not None:
+                live.close()
+            del ros, step_end  # its DDS entities go now, not once the command has its handlers back
+            gc.collect()
     lag = pacer.lag.summary()
     print(
         f"netsim bridge: {sim.now:g} s simulated in {wall:.2f} s wall; lag behind --rate {rate:g}: "
-        f"max {lag['lag_max_s']:.3f} s, mean {lag['lag_mean_s']:.3f} s (control period {1 / settings.odom_hz:g} s)",
+        f"max {lag['lag_max_s']:.3f} s, mean {lag['lag_mean_s']:.3f} s of wall time "
+        f"(control period {1 / settings.odom_hz / rate:.3g} s of wall time)",
         flush=True,
     )
     return summary, out, written

@@ -280,7 +280,7 @@ def cmd_scenario_generate(args) -> int:
             config = cfgmod.from_dict(tree)
             check_run(config)
             check_legs_fit_in_memory(config)
-            check_out_file(out, "-o")
+            check_out_file(args.output, "-o")
             if out.name.endswith((".movements", ".movements.gz")):
                 # A trace is read by its name: this one would be read as BonnMotion.
                 raise NetsimInputError(
@@ -309,7 +309,7 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
-def check_out_file(path: Path, option: str, make_parents: bool = False, replace: bool = False) -> None:
+def check_out_file(path: str | Path, option: str, make_parents: bool = False, replace: bool = False) -> None:
     """Refuse, before any work, a file that could not be written: its directory must exist
     and be writable, and the path must not be a directory, nor (unless ``replace``, for a
     file netsim names itself) a file that exists, as ``netsim export`` refuses it: a user's
@@ -318,6 +318,10 @@ def check_out_file(path: Path, option: str, make_parents: bool = False, replace:
     directory."""
     from netsim.tools.output import probe_writable
 
+    if isinstance(path, str) and path.endswith(tuple(filter(None, (os.sep, os.altsep)))):
+        # Path() drops the separator that says a directory is meant.
+        raise NetsimInputError(f"{option} {path}: names a directory; give the path of a file")
+    path = Path(path)
     if path.is_dir():
         raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
     if not replace and (path.exists() or path.is_symlink()):
@@ -446,7 +450,7 @@ def cmd_view(args) -> int:
     from netsim.tools import viewer
 
     if args.out is not None:
-        check_out_file(Path(args.out), "--out", make_parents=True)
+        check_out_file(args.out, "--out", make_parents=True)
     elif Path(args.run_dir).is_dir():
         # The run's own replay (as `netsim run --view` writes it) is remade in place.
         check_out_file(Path(args.run_dir) / "view.html", "the replay", replace=True)
@@ -472,7 +476,7 @@ def cmd_calibrate(args) -> int:
     from netsim.tools import calibrate
 
     if args.out is not None:
-        check_out_file(Path(args.out), "--out")
+        check_out_file(args.out, "--out")
     return calibrate.command(args)
 
 

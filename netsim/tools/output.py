@@ -79,7 +79,7 @@ def _plain(value):
 
 
 TMP_PREFIX = ".netsim-tmp-"
-RUN_FILES = ("config.toml", "manifest.json", "summary.json", "view.html")
+RUN_FILES = ("config.toml", "manifest.json", "summary.json", "view.html", "bridge.toml")
 
 
 def is_run_dir(path: str | Path) -> bool:
@@ -248,7 +248,8 @@ def load_run_config(run_dir: Path) -> Config:
 
 def earlier_run_files(out: Path) -> list[Path]:
     """The files of the run already in ``out``: ``config.toml``, ``manifest.json``,
-    ``summary.json``, the tables (``*.parquet``), the replay (``view.html``) and the figures
+    ``summary.json``, a bridge session's ``bridge.toml``, the tables (``*.parquet``), the
+    replay (``view.html``) and the figures
     drawn from them (``fig*.png``). Empty when ``out`` holds no run."""
     if not is_run_dir(out):
         return []
