@@ -85,8 +85,8 @@ def empty_table(schema: Mapping[str, str]) -> pd.DataFrame:
 
 def as_read_back(frame: pd.DataFrame, schema: Mapping[str, str]) -> pd.DataFrame:
     """``frame`` with the dtypes its Parquet file has read back: a declared text column held
-    as object (a None in it missing, NaN) becomes :data:`TEXT_DTYPE`; a table without rows
-    takes every declared dtype."""
+    as object becomes :data:`TEXT_DTYPE` (from pandas 3 its None, missing, NaN); a table
+    without rows takes every declared dtype."""
     dtypes = frame_dtypes(schema)
     if len(frame) == 0:
         casts = {c: t for c, t in dtypes.items() if c in frame.columns}

@@ -99,22 +99,25 @@ def _runtime_vs_posthoc(legs, n, ranges, duration_s, side_m=1e6, torus=False):
 
 
 @pytest.mark.parametrize("torus", [False, True])
-@pytest.mark.parametrize("then", ["stops", "turns back"])
+@pytest.mark.parametrize("then", ["stops", "turns back", "stops as another jumps"])
 def test_a_pair_that_comes_to_rest_exactly_at_range_stays_linked(torus, then):
     """A robot that stops exactly at the range (d = R to the last bit) is in range from then
     on, as the channel hears it: its link is up again at that instant, in links.parquet and
     in the live feed alike (it was down for the rest of the run, the exit found at the end
-    of the leg kept and nothing to undo it at rest). Turning back there, it comes up again
-    as it heads inward. Either way the link goes down and up at that instant (docs/events.md)."""
-    legs = pd.DataFrame(
-        [
-            (0.0, 0, 210.0, 100.0, 0.0, 0.0),
-            (0.0, 1, 10.0, 100.0, 10.0, 0.0),
-            (30.0, 1, 310.0, 100.0, 0.0 if then == "stops" else -10.0, 0.0),
-        ],
-        columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"],
-    )
-    sim = _fed(_core(2, [100.0, 100.0], 40.0, 400.0 if torus else 1e6, torus, runtime_links="on"))
+    of the leg kept and nothing to undo it at rest), also when a far robot jumps then and
+    nobody moves after (the runtime solver's new window solves no pair). Turning back
+    there, it comes up again as it heads inward. Either way the link goes down and up at
+    that instant (docs/events.md)."""
+    rows = [
+        (0.0, 0, 210.0, 100.0, 0.0, 0.0),
+        (0.0, 1, 10.0, 100.0, 10.0, 0.0),
+        (30.0, 1, 310.0, 100.0, -10.0 if then == "turns back" else 0.0, 0.0),
+        (0.0, 2, 20.0, 380.0, 0.0, 0.0),
+    ]
+    if then == "stops as another jumps":
+        rows.append((30.0, 2, 30.0, 390.0, 0.0, 0.0))
+    legs = pd.DataFrame(rows, columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"])
+    sim = _fed(_core(3, [100.0, 100.0, 100.0], 40.0, 400.0 if torus else 1e6, torus, runtime_links="on"))
     _replay(sim, legs)
     sim.run()
     frames = collect(sim)

@@ -483,6 +483,23 @@ def test_export_refuses_an_existing_output_and_a_non_run(run_dir, tmp_path, caps
     assert len(err) == 2 and "exists already" in err[0] and "not a run directory" in err[1]
 
 
+@pytest.mark.parametrize("fmt", ["ns2", "bonnmotion"])
+@pytest.mark.parametrize("name", ["nd/", "nd/."])
+def test_export_to_a_name_that_names_a_directory_is_refused(run_dir, tmp_path, capsys, fmt, name):
+    """``--out nd/`` (or ``nd/.``) asks for a directory, where ns-2 and BonnMotion write a
+    file: one line, exit 2, nothing written (it wrote a file named ``nd``)."""
+    assert main(["export", str(run_dir), "--format", fmt, "--out", str(tmp_path) + "/" + name]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "names a directory" in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bag_named_as_a_directory_is_written_there(run_dir, tmp_path):
+    """A bag is a directory: ``--out bag/`` writes it as ``bag``."""
+    assert main(["export", str(run_dir), "--format", "rosbag2", "--out", f"{tmp_path}/bag/"]) == 0
+    assert (tmp_path / "bag").is_dir() and any((tmp_path / "bag").iterdir())
+
+
 def test_bonnmotion_export_refuses_an_existing_params_file(run_dir, tmp_path, capsys):
     """The .params written beside NAME.movements is an output too: one that exists is one
     line, exit 2, and neither file is written."""

@@ -30,7 +30,8 @@ def test_ctrl_c_ends_a_wait_for_the_wall_clock_at_once():
 
     def clock() -> float:
         calls.append(None)
-        if len(calls) == 3:  # the second step's check of the wall clock (after the schedule's start and the first's)
+        # The second step's check of the wall clock, before its wait (the first: the schedule's start).
+        if len(calls) == 2:
             signal.raise_signal(signal.SIGINT)
         return 0.0
 
@@ -82,18 +83,29 @@ def test_a_command_answering_a_step_is_applied_at_the_next_step():
 
 
 def test_the_first_step_is_published_a_period_after_the_start_up_and_every_step_is_counted():
-    """The schedule starts once the first step is computed (the start-up's costs are no
-    lag); that step is published a control period over the rate later, as each step is a
-    period after the one before, and ``bridge_steps`` counts every step published. (The
-    first was published at once, so a session ran a period short of real time, and the
-    steps counted were one fewer than those published.)"""
+    """The first step is published a control period (over the rate) after it is computed,
+    and the schedule runs from when it is out: its one-time costs (its publication's, here
+    0.3 s) are no lag. Each step after it is due a period after the one before, and
+    ``bridge_steps`` counts every step published. (The first was published at once, so a
+    session ran a period short of real time, and the steps counted were one fewer than
+    those published.)"""
     sim = _Sim()
     sim.duration_s = 3.0
-    waits: list[float] = []
-    pacer = Pacer(sim, 1.0, 2.0, clock=lambda: 10.0)
-    pacer._wait = lambda seconds: waits.append(seconds) or False  # type: ignore[method-assign]
+    now = [10.0]
+
+    def wait(seconds: float) -> bool:
+        now[0] += seconds
+        return False
+
+    pacer = Pacer(sim, 1.0, 2.0, clock=lambda: now[0])
+    pacer._wait = wait  # type: ignore[method-assign]
     published: list[float] = []
-    pacer.run(published.append, lambda t_s: None)
-    assert published == [1.0, 2.0, 3.0]
-    assert waits == [0.5, 1.0, 1.5]  # due 0.5, 1 and 1.5 wall seconds after the schedule's start
-    assert pacer.lag.summary()["steps"] == 3
+
+    def publish(t_s: float) -> None:
+        published.append(now[0])
+        if t_s == 1.0:
+            now[0] += 0.3  # the first messages' serializers
+
+    pacer.run(publish, lambda t_s: None)
+    assert published == [10.5, 11.3, 11.8]
+    assert pacer.lag.summary()["steps"] == 3 and pacer.lag.summary()["lag_max_s"] == 0.0

@@ -137,8 +137,9 @@ def _unwritable_proc(d):
         (lambda d: (d / "afile").write_text("x"), "afile/sub/view.html", "the directory afile is a file"),
         (_unwritable_proc, "/proc/netsim-test/view.html", "cannot write in /proc"),
         (lambda d: None, "nd2/", "names a directory"),
+        (lambda d: None, "nd2/.", "names a directory"),
     ],
-    ids=["existing-directory", "under-a-file", "under-a-file-deeper", "unwritable-place", "new-directory"],
+    ids=["existing-directory", "under-a-file", "under-a-file-deeper", "unwritable-place", "new-directory", "dot"],
 )
 def test_view_out_that_cannot_take_the_file_is_one_line(tmp_path, capfd, monkeypatch, small_run, make, out, words):
     """`netsim view RUN --out X` where X is a directory, lies under a file, or is in a place
@@ -463,15 +464,28 @@ def test_a_run_replaces_the_earlier_run_in_its_directory(tmp_path, capfd):
     assert {"coverage.parquet", "control.parquet", "travel.parquet"} <= {p.name for p in out.iterdir()}
     (out / "fig6_initial_deployment.png").write_bytes(b"drawn from the first run")
     (out / "notes.txt").write_text("the user's own")
-    (out / "bridge.toml").write_text("domain_id = 77\n")  # as a bridge session's folder holds
+    (out / "bridge.toml").write_text("[bridge]\n")  # a user's scenario of that name, not the run's
     assert main(["run", "--quiet", "--out", str(out), *SMALL, "--set", "protocol.model=ack"]) == 0
     names = {p.name for p in out.iterdir()}
     assert not names & {"coverage.parquet", "control.parquet", "travel.parquet", "groups.parquet"}
     assert "fig6_initial_deployment.png" not in names
-    assert "bridge.toml" not in names  # the earlier session's settings, of tables gone with it
+    assert "bridge.toml" in names
     assert "notes.txt" in names  # not netsim's: left alone
     assert cfgmod.load(out / "config.toml").protocol.model == "ack"
     assert not [n for n in names if n.startswith(".")]
+
+
+def test_a_run_over_a_bridge_sessions_folder_removes_the_sessions_settings(tmp_path, capfd):
+    """A bridge session's folder holds its ``bridge.toml`` (its DDS domain, relayed topics):
+    a run given that folder replaces the session, that file too (it was left, naming a
+    relay whose table was gone)."""
+    out = tmp_path / "o"
+    assert main(["run", "--quiet", "--out", str(out), *SMALL]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    (out / "summary.json").write_text(json.dumps({**summary, "bridge_rate": 1.0}))  # as a session's
+    (out / "bridge.toml").write_text("domain_id = 77\n")
+    assert main(["run", "--quiet", "--out", str(out), *SMALL]) == 0
+    assert not (out / "bridge.toml").exists()
 
 
 def test_a_non_empty_directory_that_holds_no_run_is_refused(tmp_path, capfd, no_simulation):

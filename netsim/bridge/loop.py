@@ -11,9 +11,9 @@ that step: a node's answer to the odometry of ``t`` is applied at the next step,
 the microseconds it took, so the same node gives the same run. The lag is how late the
 wall clock is when a step is done computing (0 while the run keeps up): its largest value
 (and when), its mean and its last are the summary's ``bridge_lag_*``, and ``bridge_steps``
-the steps published. The schedule starts once the first step is computed: that step
-carries the start-up's one-time costs, which are no lag, and is published a control
-period (over the rate) later, each step after it a period after the one before.
+the steps published. The first step carries the start-up's one-time costs, which are no
+lag: it is published a control period (over the rate) after it is computed, and the
+schedule starts when it is out, each step due a period after the one before.
 
 The loop ends at ``duration_s`` or when :attr:`Pacer.stop` is set (Ctrl-C): at once, also
 while it waits for the wall clock, the step computed then published at once, so that the
@@ -119,15 +119,21 @@ class Pacer:
                 if self.stop:
                     raise KeyboardInterrupt  # stopped while starting: nothing is out yet
                 # The first step carries the start-up's one-time costs (the run's first
-                # events, the first messages' serializers), which are no lag: the schedule
-                # starts once it is computed, the run's start then on the wall clock.
-                wall0 = self.clock()
-            late = self.clock() - (wall0 + (t - t0_sim) / self.rate)
-            self.lag.add(max(late, 0.0), t)
-            if late < 0:
-                self._wait(-late)
-            if t < end and not self.stop:
-                step_start(t)
-            step_end(t)
+                # events, the first messages' serializers), which are no lag: it is out a
+                # control period after it is computed, and the schedule runs from then.
+                self.lag.add(0.0, t)
+                self._wait((t - t0_sim) / self.rate)
+                if t < end and not self.stop:
+                    step_start(t)
+                step_end(t)
+                wall0 = self.clock() - (t - t0_sim) / self.rate
+            else:
+                late = self.clock() - (wall0 + (t - t0_sim) / self.rate)
+                self.lag.add(max(late, 0.0), t)
+                if late < 0:
+                    self._wait(-late)
+                if t < end and not self.stop:
+                    step_start(t)
+                step_end(t)
             if self.stop:
                 break

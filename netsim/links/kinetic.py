@@ -43,7 +43,7 @@ import simpy
 from netsim.compiled import load
 from netsim.events import EventBus, LinkDown, LinkUp, notify
 from netsim.geometry import link_ranges_m, near_pairs
-from netsim.links._kernels import PHASE_STATE
+from netsim.links._kernels import PHASE_START, PHASE_STATE
 from netsim.scheduling import FIRST, LAST, advance_clock, kernel_queue, scheduled_event
 from netsim.state import RobotState
 
@@ -223,9 +223,18 @@ class RuntimeLinks:
             else:
                 self._solve(np.arange(m), t)
         else:
-            # Nothing solved: no pair's crossings are known for the next window.
+            # Nothing solved: no pair's crossings are known for the next window. A pair at
+            # rest whose legs begin now comes up now if in range, as its crossings would have
+            # it (netsim.links._kernels: a robot stopped exactly at the range).
             self._keys = np.empty(0, np.int64)
             self._at_in, self._at_out = np.full(m, np.nan), np.full(m, np.nan)
+            if moved is not None and len(moved) and m:
+                began = np.zeros(n, bool)
+                began[moved] = True
+                mine = began[ca] | began[cb]
+                a, b = ca[mine], cb[mine]
+                inside = self._solver.in_range(pos, a, b, self._cr[mine], self.box or 0.0)
+                self._push(np.full(int(inside.sum()), t), a[inside], b[inside], 1, PHASE_START)
         self._sort_batch()
         if math.isfinite(self._w_end):
             wid = self._wid

@@ -316,14 +316,13 @@ def check_out_file(path: str | Path, option: str, make_parents: bool = False, re
     file is never overwritten silently. With ``make_parents`` the directory may be missing,
     to be made by the writer: then its nearest existing ancestor must be a writable
     directory."""
-    from netsim.tools.output import probe_writable
+    from netsim.tools.output import names_a_directory, probe_writable
 
-    if isinstance(path, str) and path.endswith(tuple(filter(None, (os.sep, os.altsep)))):
-        # Path() drops the separator that says a directory is meant.
+    if Path(path).is_dir():
+        raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
+    if names_a_directory(path):
         raise NetsimInputError(f"{option} {path}: names a directory; give the path of a file")
     path = Path(path)
-    if path.is_dir():
-        raise NetsimInputError(f"{option} {path}: is a directory; give the path of a file")
     if not replace and (path.exists() or path.is_symlink()):
         raise NetsimInputError(f"{option} {path}: exists already; give a new path")
     parent = path.parent

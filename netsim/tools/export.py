@@ -23,7 +23,7 @@ import pandas as pd
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
 from netsim.formats import ns2
-from netsim.tools.output import existing_dir, is_run_dir, load_run_config, read_run_table
+from netsim.tools.output import existing_dir, is_run_dir, load_run_config, names_a_directory, read_run_table
 
 FORMATS = ("bonnmotion", "ns2", "rosbag2")
 
@@ -62,9 +62,11 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
     """Write ``run_dir`` as ``fmt`` to ``out``; returns ``out``."""
     from netsim.formats import waypoints
 
-    out = Path(out)
     if fmt not in FORMATS:
         raise NetsimInputError(f"--format {fmt}: must be one of {', '.join(FORMATS)}")
+    if fmt != "rosbag2" and names_a_directory(out):  # a bag is a directory; the others are files
+        raise NetsimInputError(f"--out {out}: names a directory; give the path of a file")
+    out = Path(out)
     run_dir = existing_dir(run_dir)
     if not is_run_dir(run_dir):
         raise NetsimInputError(f"{run_dir}: not a run directory (no manifest.json)")

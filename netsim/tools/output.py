@@ -79,7 +79,17 @@ def _plain(value):
 
 
 TMP_PREFIX = ".netsim-tmp-"
-RUN_FILES = ("config.toml", "manifest.json", "summary.json", "view.html", "bridge.toml")
+RUN_FILES = ("config.toml", "manifest.json", "summary.json", "view.html")
+# What a bridge session writes besides (netsim.tools.bridge): a run's file only where the
+# run was one, so that a user's scenario of that name beside another run is left alone.
+BRIDGE_FILE = "bridge.toml"
+
+
+def names_a_directory(path: str | Path) -> bool:
+    """Whether ``path`` as typed names a directory: it ends with a separator, or its last
+    part is ``.`` or ``..`` (``Path`` drops the separator and the ``.``)."""
+    text = os.fspath(path)
+    return text.endswith(tuple(filter(None, (os.sep, os.altsep)))) or os.path.basename(text) in (".", "..")
 
 
 def is_run_dir(path: str | Path) -> bool:
@@ -248,17 +258,29 @@ def load_run_config(run_dir: Path) -> Config:
 
 def earlier_run_files(out: Path) -> list[Path]:
     """The files of the run already in ``out``: ``config.toml``, ``manifest.json``,
-    ``summary.json``, a bridge session's ``bridge.toml``, the tables (``*.parquet``), the
+    ``summary.json``, the tables (``*.parquet``), a bridge session's ``bridge.toml``, the
     replay (``view.html``) and the figures
     drawn from them (``fig*.png``). Empty when ``out`` holds no run."""
     if not is_run_dir(out):
         return []
-    return sorted(p for p in out.iterdir() if p.is_file() and _is_run_file(p.name))
+    bridge = _was_a_bridge(out)
+    ours = [p for p in out.iterdir() if p.is_file() and (_is_run_file(p.name) or bridge and p.name == BRIDGE_FILE)]
+    return sorted(ours)
 
 
 def _is_run_file(name: str) -> bool:
     # A figure drawn from the earlier run is stale with it.
     return name in RUN_FILES or name.endswith(".parquet") or (name.startswith("fig") and name.endswith(".png"))
+
+
+def _was_a_bridge(run_dir: Path) -> bool:
+    """Whether the run in ``run_dir`` was a bridge session (its summary has the bridge's
+    figures)."""
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(summary, dict) and "bridge_rate" in summary
 
 
 def _foreign_entries(out: Path) -> list[str]:
