@@ -271,6 +271,25 @@ def test_a_base_may_leave_to_the_grid_a_key_its_model_needs(tmp_path):
         sweepmod.parse({"name": "b", "base": base, "random": [1, 2]})
 
 
+@pytest.mark.parametrize("axes", ["grid", "random"])
+def test_a_base_value_under_a_swept_key_is_said_never_to_run(axes, recwarn):
+    """A [base] that sets a key an axis sweeps: the points' values run, never the base's,
+    and the sweep says so once, naming the key (it ran without a word)."""
+    base = {"duration_s": 5.0, "world": {"n_robots": 5}, "channel": {"loss_probability": 0.3}}
+    spec = (
+        {"grid": {"channel.loss_probability": [0.0, 0.1]}}
+        if axes == "grid"
+        else {"random": {"samples": 2, "ranges": {"channel.loss_probability": [0.0, 0.1]}}}
+    )
+    sweep = sweepmod.parse({"name": "c", "base": base, **spec})
+    said = [str(w.message) for w in recwarn if issubclass(w.category, cfgmod.ConfigWarning)]
+    assert said == ["[base] channel.loss_probability: swept too; each point's value is run, never the base's"]
+    assert all(r.config["channel"]["loss_probability"] != 0.3 for r in sweep.runs())
+    recwarn.clear()
+    sweepmod.parse({"name": "c", "base": {**base, "channel": {}}, **spec})
+    assert not [w for w in recwarn if issubclass(w.category, cfgmod.ConfigWarning)]
+
+
 def test_a_full_disk_in_a_sweep_says_the_finished_runs_are_kept(tmp_path, capsys, monkeypatch):
     """A disk that fills after a run is written: one line that says the finished runs are
     kept and the command resumes (it said nothing was written), exit 2."""

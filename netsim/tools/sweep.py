@@ -191,6 +191,14 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
             raise _err(f"[base] {exc}") from None
     known = set(cfgmod.all_keys(base_config))
     points = _grid(tree["grid"], known) if "grid" in tree else _random(tree["random"], known)
+    both = sorted(set(points[0]) & set(flatten(base))) if points else []
+    if both:
+        # Allowed (a scenario file's value under a swept key), but the base's value is never run.
+        warnings.warn(
+            f"[base] {', '.join(both)}: swept too; each point's value is run, never the base's",
+            cfgmod.ConfigWarning,
+            stacklevel=2,
+        )
     if tables:
         writable = known_tables(base, points)
         if any(t not in writable for t in tables):
