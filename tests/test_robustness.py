@@ -716,14 +716,15 @@ def test_a_team_that_cannot_fit_in_memory_is_refused_up_front(tmp_path, capfd, m
     """`world.n_robots` beyond what the machine's memory can hold (the robots' state and the
     positions table alone) is one line naming the key, exit 2, before any work, nothing
     written."""
-    from netsim.tools import cli, preflight
+    from netsim.machine import machine_memory_bytes
+    from netsim.tools import preflight
 
     monkeypatch.setattr(runmod, "build", lambda *a, **k: pytest.fail("built before checking the memory"))
     monkeypatch.chdir(tmp_path)
     n = 100_000_000
     # No protocol: the Acks of 10^8 robots would be refused first, as too many events.
     config = cfgmod.load(None, [f"world.n_robots={n}", "protocol.model=none"])
-    memory = cli.machine_memory_bytes()
+    memory = machine_memory_bytes()
     if memory is None or preflight.least_memory_bytes(config) <= memory:
         pytest.skip("this machine could hold the state of 10^8 robots")
     before = tree(tmp_path)
@@ -736,6 +737,26 @@ def test_a_team_that_cannot_fit_in_memory_is_refused_up_front(tmp_path, capfd, m
         "of memory",
     )
     assert "GiB" in line
+
+
+def test_course_changes_past_memory_are_refused_by_run_and_sweep(tmp_path, capfd, monkeypatch, no_simulation):
+    """A random waypoint run of motion alone whose course changes cannot fit in memory (2
+    robots for 10^12 s: no protocol's events to refuse it) is one line naming duration_s,
+    exit 2, nothing written, from `netsim run` as from `netsim sweep` and `scenario
+    generate`. (`netsim run` and a sweep started it, silent, and grew until stopped.)"""
+    from netsim.machine import machine_memory_bytes
+
+    if machine_memory_bytes() is None:
+        pytest.skip("this machine does not tell its memory")
+    monkeypatch.chdir(tmp_path)
+    sets = ["duration_s=1e12", "world.n_robots=2", "output.position_interval_s=0", "protocol.model=none"]
+    (tmp_path / "s.toml").write_text(
+        'name = "long"\n[base]\nduration_s = 1e12\n[base.protocol]\nmodel = "none"\n'
+        '[base.output]\nposition_interval_s = 0\n[grid]\n"world.n_robots" = [2, 3]\n'
+    )
+    before = tree(tmp_path)
+    for argv in (["run", *[a for s in sets for a in ("--set", s)]], ["sweep", "s.toml"]):
+        refused(capfd, main(argv), before, tmp_path, "duration_s = 1000000000000.0: the scenario would hold", "course")
 
 
 @pytest.mark.parametrize("override", ["duration_s=1e300", "output.position_interval_s=1e-9"])

@@ -50,7 +50,6 @@ from pathlib import Path
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import ns2
-from netsim.machine import gib, machine_memory_bytes
 from netsim.tools.args import Parser
 from netsim.tools.interrupt import (
     EXIT_INTERRUPTED,
@@ -99,29 +98,6 @@ def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None
         key = bare[-1]
         raise NetsimInputError(
             f"--set {key} {positional}: --set takes KEY=VALUE; did you mean --set {key}={positional}?"
-        )
-
-
-# What a course change held in memory costs at least (a row of the leg log).
-LEG_BYTES = 100
-
-
-def check_legs_fit_in_memory(config: cfgmod.Config) -> None:
-    """Refuse, before any work, a random waypoint run whose course changes cannot fit
-    in memory: each robot changes course at least once per longest leg (the area's diagonal
-    at the least speed, and a pause), so ``duration_s`` bounds their number from below."""
-    m = config.mobility
-    have = machine_memory_bytes()
-    if have is None or m.speed_min_mps <= 0:
-        return
-    longest_s = cfgmod.world_bounds(config.world).diagonal / m.speed_min_mps + m.pause_s
-    legs = config.world.n_robots * (config.duration_s / longest_s)
-    if legs * LEG_BYTES > have:
-        raise ConfigError(
-            "duration_s",
-            config.duration_s,
-            f"the scenario would hold at least {gib(int(legs * LEG_BYTES))} GiB of course changes, more than "
-            f"this machine's {gib(have)} GiB of memory; shorten it",
         )
 
 
@@ -279,7 +255,6 @@ def cmd_scenario_generate(args) -> int:
         with warnings.catch_warnings(record=True) as caught:
             config = cfgmod.from_dict(tree)
             check_run(config)
-            check_legs_fit_in_memory(config)
             check_out_file(args.output, "-o")
             if out.name.endswith((".movements", ".movements.gz")):
                 # A trace is read by its name: this one would be read as BonnMotion.

@@ -36,11 +36,37 @@ def least_memory_bytes(config: cfgmod.Config) -> int:
     return config.world.n_robots * (per_robot + samples * row)
 
 
+# What a course change held in memory costs at least (a row of the leg log).
+LEG_BYTES = 100
+
+
+def check_legs_fit_in_memory(config: cfgmod.Config) -> None:
+    """Refuse, before any work, a random waypoint run whose course changes cannot fit
+    in memory: each robot changes course at least once per longest leg (the area's diagonal
+    at the least speed, and a pause), so ``duration_s`` bounds their number from below.
+    (A protocol's events are bounded by their own rule, netsim.params.refuse_events; a
+    run of motion alone has only this.)"""
+    m = config.mobility
+    have = machine_memory_bytes()
+    if have is None or m.model != "random_waypoint" or not m.speed_min_mps > 0:
+        return
+    longest_s = cfgmod.world_bounds(config.world).diagonal / m.speed_min_mps + m.pause_s
+    legs = config.world.n_robots * (config.duration_s / longest_s)
+    if legs * LEG_BYTES > have:
+        raise ConfigError(
+            "duration_s",
+            config.duration_s,
+            f"the scenario would hold at least {gib(int(legs * LEG_BYTES))} GiB of course changes, more than "
+            f"this machine's {gib(have)} GiB of memory; shorten it",
+        )
+
+
 def check_fits_in_memory(config: cfgmod.Config) -> None:
     """Refuse, before any work, a run that cannot fit in the machine's memory (rather than
     build it for minutes and fail)."""
     have, need = machine_memory_bytes(), least_memory_bytes(config)
     if have is None or need <= have:
+        check_legs_fit_in_memory(config)
         return
     n = config.world.n_robots
     sampled = config.output.position_interval_s > 0
