@@ -183,9 +183,15 @@ def sample_positions(
     table = LegTable(legs, n)
     times_s = np.asarray(times_s, dtype=float)
     xy = np.empty((len(times_s), n, 2))
-    for k, t in enumerate(times_s.tolist()):
-        table.advance(t)
-        xy[k] = table.at(table.cur, t)
+    # Every robot at every instant in one query per block of instants (a block of about a
+    # million positions): a call per instant cost more than the positions themselves on a
+    # long run sampled finely.
+    block = max(1, (1 << 20) // max(n, 1))
+    robots = np.arange(n, dtype=np.int64)
+    for k in range(0, len(times_s), block):
+        t = np.repeat(times_s[k : k + block], n)
+        who = np.tile(robots, len(t) // n) if n else robots
+        xy[k : k + block] = table.at(table.legs_at(who, t), t).reshape(-1, n, 2)
     if torus:
         xy = in_box(xy, side_m, n)
     return pd.DataFrame(
