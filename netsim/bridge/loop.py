@@ -121,19 +121,16 @@ class Pacer:
                 # The first step carries the start-up's one-time costs (the run's first
                 # events, the first messages' serializers), which are no lag: it is out a
                 # control period after it is computed, and the schedule runs from then.
-                self.lag.add(0.0, t)
-                self._wait((t - t0_sim) / self.rate)
-                if t < end and not self.stop:
-                    step_start(t)
-                step_end(t)
-                wall0 = self.clock() - (t - t0_sim) / self.rate
+                late = -(t - t0_sim) / self.rate
             else:
                 late = self.clock() - (wall0 + (t - t0_sim) / self.rate)
-                self.lag.add(max(late, 0.0), t)
-                if late < 0:
-                    self._wait(-late)
-                if t < end and not self.stop:
-                    step_start(t)
-                step_end(t)
+            self.lag.add(max(late, 0.0), t)
+            if late < 0:
+                self._wait(-late)
+            if t < end and not self.stop:
+                step_start(t)
+            step_end(t)
+            if k == 1:
+                wall0 = self.clock() - (t - t0_sim) / self.rate
             if self.stop:
                 break

@@ -40,14 +40,13 @@ def least_memory_bytes(config: cfgmod.Config) -> int:
 LEG_BYTES = 100
 
 
-def check_legs_fit_in_memory(config: cfgmod.Config) -> None:
+def check_legs_fit_in_memory(config: cfgmod.Config, have: int | None) -> None:
     """Refuse, before any work, a random waypoint run whose course changes cannot fit
     in memory: each robot changes course at least once per longest leg (the area's diagonal
     at the least speed, and a pause), so ``duration_s`` bounds their number from below.
     (A protocol's events are bounded by their own rule, netsim.params.refuse_events; a
-    run of motion alone has only this.)"""
+    run of motion alone has only this.) ``have``: the machine's memory (None: unknown)."""
     m = config.mobility
-    have = machine_memory_bytes()
     if have is None or m.model != "random_waypoint" or not m.speed_min_mps > 0:
         return
     longest_s = cfgmod.world_bounds(config.world).diagonal / m.speed_min_mps + m.pause_s
@@ -66,7 +65,7 @@ def check_fits_in_memory(config: cfgmod.Config) -> None:
     build it for minutes and fail)."""
     have, need = machine_memory_bytes(), least_memory_bytes(config)
     if have is None or need <= have:
-        check_legs_fit_in_memory(config)
+        check_legs_fit_in_memory(config, have)
         return
     n = config.world.n_robots
     sampled = config.output.position_interval_s > 0
