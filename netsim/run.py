@@ -357,7 +357,9 @@ class RunResult:
     wall_s: float
 
 
-def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None = None) -> dict[str, pd.DataFrame]:
+def collect(
+    sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None = None, progress: bool = False
+) -> dict[str, pd.DataFrame]:
     """Every output table of the run so far; each is also passed to ``emit(name, table)``
     as soon as it is made (a writer starts on it while the next is made).
 
@@ -366,7 +368,8 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
     finished run censors them (docs/python.md).
 
     A user's model's tables are held to its declaration (:func:`netsim.trace.conform`); one it
-    declares and never wrote is written empty."""
+    declares and never wrote is written empty. ``progress``: a bar while a long solve runs
+    (a map's links for a large team)."""
     frames: dict[str, pd.DataFrame] = {}
     declared = tables(sim.config)
     users = {name: who for who, names in _users_tables(sim.config).items() for name in names}
@@ -405,7 +408,10 @@ def collect(sim: Simulation, emit: Callable[[str, pd.DataFrame], object] | None 
         sim.links.finish(sim.env.now)
     # Solved from the legs, whether or not link events were announced during the run: the
     # runtime solvers are the live feed, and their events are this table's rows.
-    add("links", radio_link_lifetimes(sim.channel.reception, legs, sim.state.range_m, sim.env.now, side, torus))
+    add(
+        "links",
+        radio_link_lifetimes(sim.channel.reception, legs, sim.state.range_m, sim.env.now, side, torus, progress),
+    )
     # Every course change: trajectories are exact from these (positions unwrapped on a torus).
     add("legs", legs)
     if sim.channel.mac is not None:
@@ -482,6 +488,6 @@ def execute(
     if built is not None:
         built(sim)
     sim.run(progress=progress)
-    frames = collect(sim, emit)
+    frames = collect(sim, emit, progress=progress)
     wall = time.perf_counter() - start
     return RunResult(sim, frames, summarize(sim, frames, wall), wall)

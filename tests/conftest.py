@@ -19,8 +19,8 @@ def _check_coverage_tables(collect):
     components of the network of its ``links`` table (one notion of link everywhere)."""
     from netsim.metrics import components_in_links_table
 
-    def checked(sim, emit=None):
-        frames = collect(sim, emit)
+    def checked(sim, emit=None, progress=False):
+        frames = collect(sim, emit, progress)
         cov, links = frames.get("coverage"), frames.get("links")
         if cov is not None and len(cov) and {"t_s", "components"} <= set(cov.columns) and links is not None:
             times = cov["t_s"].to_numpy(float)

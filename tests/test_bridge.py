@@ -373,9 +373,9 @@ def test_a_second_ctrl_c_while_the_session_is_saved_loses_nothing(tmp_path, monk
 
     collect = netsim.run.collect
 
-    def collect_pressed_again(sim, emit=None):
+    def collect_pressed_again(sim, emit=None, progress=False):
         signal.raise_signal(signal.SIGINT)
-        return collect(sim, emit)
+        return collect(sim, emit, progress)
 
     monkeypatch.setattr(netsim.run, "collect", collect_pressed_again)
     out = tmp_path / "out"

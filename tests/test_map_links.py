@@ -208,3 +208,29 @@ def test_a_tiny_wall_loss_keeps_the_table_of_wall_counts_to_the_map():
     legs = waypoint_legs(np.random.default_rng(3), n, duration, (0.5, 4.0), points)
     wrong, seen, _ = mismatches(sim.channel.reception, legs, sim.state.range_m, duration, step_s=1e-2)
     assert seen > 500 and wrong == 0
+
+
+@pytest.mark.parametrize("kind", list(BUILDING_CHANNELS))
+def test_map_links_solved_in_blocks_equal_one_solve(building_yaml, kind, monkeypatch, capsys):
+    """A map's links solved a few stretches and chunks at a time (as a team large for its
+    map is, to fit in memory) are the table solved at once, bit for bit (robots fast enough
+    for stretches of several chunks)."""
+    from netsim.links import radio_links
+
+    monkeypatch.setenv("NETSIM_COMPILED", "1")  # fine cells: as in the tests above
+    n, duration = 10, 20.0
+    sim = _core(n, duration, building_yaml, 40.0, BUILDING_CHANNELS[kind])
+    legs = waypoint_legs(np.random.default_rng(15), n, duration, (1.0, 4.0), _building_points())
+    whole = radio_link_lifetimes(sim.channel.reception, legs, sim.state.range_m, duration)
+    assert len(whole) > 10
+    blocks = radio_links._blocks(np.array([1, 2, 5, 1, 1, 1, 9]), 3)
+    assert blocks == [(0, 2), (2, 3), (3, 6), (6, 7)]
+    for stretches, chunks in ((3, 7), (40, 1), (40, 3)):
+        monkeypatch.setattr(radio_links, "BLOCK_STRETCHES", stretches)
+        monkeypatch.setattr(radio_links, "BLOCK_CHUNKS", chunks)
+        got = radio_link_lifetimes(sim.channel.reception, legs, sim.state.range_m, duration)
+        pd.testing.assert_frame_equal(got, whole)
+    assert "links on the map" not in capsys.readouterr().err
+    # More than one block: the solve reports its progress when asked to.
+    radio_link_lifetimes(sim.channel.reception, legs, sim.state.range_m, duration, progress=True)
+    assert "links on the map: 100%" in capsys.readouterr().err

@@ -244,7 +244,9 @@ def test_a_run_that_fails_after_its_first_tables_leaves_nothing(tmp_path, monkey
 
     started = []
     real = netsim.run.collect
-    monkeypatch.setattr(netsim.run, "collect", lambda sim, emit=None: real(sim, lambda *a: started.append(emit(*a))))
+    monkeypatch.setattr(
+        netsim.run, "collect", lambda sim, emit=None, progress=False: real(sim, lambda *a: started.append(emit(*a)))
+    )
     monkeypatch.setattr(netsim.run, "summarize", failing)
     with pytest.raises(RuntimeError, match="summary failed"):
         main(["run", "--out", str(tmp_path / "a"), *SMALL])

@@ -32,6 +32,7 @@ import pandas as pd
 from netsim.geometry import link_ranges_m
 from netsim.links.lifetimes import COLUMNS, link_lifetimes
 from netsim.links.wall_sweeps import Stretches, count_below, envelope_radii, map_radio
+from netsim.progress import progress_bar
 from netsim.trajectory import LegTable
 
 
@@ -57,10 +58,13 @@ def _frame(a, b, t_up, t_down, duration_s: float, open_end) -> pd.DataFrame:
     return out[COLUMNS].sort_values(["t_up_s", "a", "b"], kind="stable").reset_index(drop=True)
 
 
-def radio_link_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float, side_m=None, torus=False):
+def radio_link_lifetimes(
+    reception, legs: pd.DataFrame, ranges_m, duration_s: float, side_m=None, torus=False, progress: bool = False
+):
     """The links table (``links.parquet``) of a run whose channel decides receptions with
     ``reception`` (None: the unit disk of ``ranges_m``); whether or not link events were
-    announced during the run, this is the table's one producer."""
+    announced during the run, this is the table's one producer. ``progress``: a bar on a
+    map's solve when it is long (:func:`walled_lifetimes`)."""
     n = len(ranges_m)
     if reception is not None and reception.recorder is not None:
         return recorded_lifetimes(reception.recorder, legs, n, reception.reach_m, duration_s, side_m, torus)
@@ -68,7 +72,7 @@ def radio_link_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: fl
         # The unit disk, or log-distance without shadowing or walls: the unit disk of the
         # implied range, exactly.
         return link_lifetimes(legs, ranges_m, duration_s, side_m, torus)
-    return walled_lifetimes(reception, legs, ranges_m, duration_s)
+    return walled_lifetimes(reception, legs, ranges_m, duration_s, progress)
 
 
 def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float, side_m=None, torus=False):
@@ -137,11 +141,34 @@ def recorded_lifetimes(recorder, legs, n: int, reach_m: float, duration_s: float
     return _frame(m["a"][keep], m["b"][keep], t_up[keep], t_down[keep], duration_s, open_end[keep])
 
 
-def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float) -> pd.DataFrame:
+# How much of a map's solve is held at once: a team large for its map has nearly every pair
+# in range, and all their stretches (pairs times course changes) would not fit in memory. The
+# blocks do not change the result: every stretch, and every chunk, is solved on its own.
+BLOCK_STRETCHES = 200_000
+BLOCK_CHUNKS = 500_000
+
+
+def _blocks(sizes: np.ndarray, limit: int) -> list[tuple[int, int]]:
+    """Consecutive ranges ``[lo, hi)`` of items whose ``sizes`` add up to at most ``limit``
+    (an item larger than that alone)."""
+    ends = np.cumsum(np.asarray(sizes, float))
+    out, lo = [], 0
+    while lo < len(ends):
+        base = ends[lo - 1] if lo else 0.0
+        hi = max(int(np.searchsorted(ends, base + limit, side="right")), lo + 1)
+        out.append((lo, hi))
+        lo = hi
+    return out
+
+
+def walled_lifetimes(
+    reception, legs: pd.DataFrame, ranges_m, duration_s: float, progress: bool = False
+) -> pd.DataFrame:
     """Links on a map without shadowing: solved along stretches within the exact envelope
     (:mod:`netsim.links.wall_sweeps`); the reference the runtime solver
-    (:class:`netsim.links.walled_links.WalledLinks`) is tested against."""
-    radii, equal = envelope_radii(reception, ranges_m)
+    (:class:`netsim.links.walled_links.WalledLinks`) is tested against. ``progress``: a bar
+    when the solve takes more than a block."""
+    radii, _ = envelope_radii(reception, ranges_m)
     n = len(radii)
     env = link_lifetimes(legs, radii, duration_s)
     if len(env) == 0:
@@ -149,16 +176,45 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     L = LegTable(legs, n)
     a_env, b_env = env["a"].to_numpy(np.int64), env["b"].to_numpy(np.int64)
     t0, t1 = env["t_up_s"].to_numpy(float), env["t_down_s"].to_numpy(float)
-    m = len(env)
     # Stretch starts: the envelope's start and every leg start of either robot before its end.
     before_end = np.nextafter(t1, -np.inf)
+    first = [L.legs_at(robot, t0) for robot in (a_env, b_env)]
+    count = [np.maximum(L.legs_at(robot, before_end) - f, 0) for robot, f in zip((a_env, b_env), first, strict=True)]
+    blocks = _blocks(1 + count[0] + count[1], BLOCK_STRETCHES)
+    radio = map_radio(reception)
+    found = []
+    with progress_bar(len(env), "links on the map", "pairs in range", enabled=progress and len(blocks) > 1) as bar:
+        for lo, hi in blocks:
+            part = slice(lo, hi)
+            i, t_up, t_down = _solve_envelope(
+                radio,
+                L,
+                n,
+                radii,
+                (a_env[part], b_env[part]),
+                (t0[part], t1[part]),
+                [f[part] for f in first],
+                [c[part] for c in count],
+            )
+            found.append((i + lo, t_up, t_down))
+            bar.update(hi - lo)
+    i, t_up, t_down = (np.concatenate(column) for column in zip(*found, strict=True))
+    open_end = env["censored_end"].to_numpy(bool)[i] & (t_down >= t1[i])
+    return _frame(a_env[i], b_env[i], t_up, t_down, duration_s, open_end)
+
+
+def _solve_envelope(radio, L: LegTable, n: int, radii, pairs, span, first, count):
+    """The lifetimes within envelope intervals ``pairs`` (``a, b``) over ``span`` (``t0,
+    t1``), whose robots' legs at ``t0`` are ``first`` and which start ``count`` more legs
+    before ``t1``: each lifetime's interval (an index into them), up and down."""
+    a_env, b_env = pairs
+    t0, t1 = span
+    m = len(t0)
     starts_t, starts_iv = [t0], [np.arange(m)]
-    for robot in (a_env, b_env):
-        first = L.legs_at(robot, t0)
-        count = np.maximum(L.legs_at(robot, before_end) - first, 0)
-        iv = np.repeat(np.arange(m), count)
-        offset = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-        starts_t.append(L.t[first[iv] + 1 + offset])
+    for f, c in zip(first, count, strict=True):
+        iv = np.repeat(np.arange(m), c)
+        offset = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        starts_t.append(L.t[f[iv] + 1 + offset])
         starts_iv.append(iv)
     u, iv = np.concatenate(starts_t), np.concatenate(starts_iv)
     order = np.lexsort((u, iv))
@@ -169,13 +225,17 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     a, b = a_env[iv], b_env[iv]
     la, lb = L.legs_at(a, u), L.legs_at(b, u)
     s = Stretches(a, b, u, L.p[la], L.v[la], L.t[la], L.p[lb], L.v[lb], L.t[lb], link_ranges_m(radii, a, b), n)
-    rows = np.arange(len(s))
     k1 = np.minimum(np.maximum(count_below(u, s.h, e), 1.0), s.nc)
-    row, t_chg, up_chg, s0, _ = s.take(map_radio(reception), rows, np.zeros(len(s)), k1, None)
+    solved = []
+    for lo, hi in _blocks(k1, BLOCK_CHUNKS):
+        rows = np.arange(lo, hi)
+        solved.append(s.take(radio, rows, np.zeros(hi - lo), k1[lo:hi], None)[:4])
+    row, t_chg, up_chg, s0 = (np.concatenate(column) for column in zip(*solved, strict=True))
     kept = t_chg <= e[row]
     row, t_chg, up_chg = row[kept], t_chg[kept], up_chg[kept]
     # Events in their order: by interval, stretch (rows are in time order), then the
     # stretch's start, its changes in order, and the envelope's end last.
+    rows = np.arange(len(s))
     ev_iv = np.r_[iv, iv[row], np.arange(m)]
     ev_row = np.r_[rows, row, np.full(m, len(s))]
     ev_phase = np.r_[np.zeros(len(s)), np.ones(len(row)), np.full(m, 2)]
@@ -189,8 +249,4 @@ def walled_lifetimes(reception, legs: pd.DataFrame, ranges_m, duration_s: float)
     ev_t, ev_iv, ev_up = ev_t[keep], ev_iv[keep], ev_up[keep]
     ups = np.flatnonzero(ev_up)
     # After filtering, each up is followed by its down in the same interval.
-    downs = ups + 1
-    i = ev_iv[ups]
-    t_down = ev_t[downs]
-    open_end = env["censored_end"].to_numpy(bool)[i] & (t_down >= t1[i])
-    return _frame(a_env[i], b_env[i], ev_t[ups], t_down, duration_s, open_end)
+    return ev_iv[ups], ev_t[ups], ev_t[ups + 1]
