@@ -26,9 +26,12 @@ at t = 0, ``censored_end`` for one still up at the end.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pandas as pd
 
+from netsim.compiled import cores, side_by_side
 from netsim.geometry import link_ranges_m
 from netsim.links.lifetimes import COLUMNS, link_lifetimes
 from netsim.links.wall_sweeps import Stretches, count_below, envelope_radii, map_radio
@@ -182,22 +185,30 @@ def walled_lifetimes(
     count = [np.maximum(L.legs_at(robot, before_end) - f, 0) for robot, f in zip((a_env, b_env), first, strict=True)]
     blocks = _blocks(1 + count[0] + count[1], BLOCK_STRETCHES)
     radio = map_radio(reception)
+
+    def solve(block: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        lo, hi = block
+        part = slice(lo, hi)
+        i, t_up, t_down = _solve_envelope(
+            radio,
+            L,
+            n,
+            radii,
+            (a_env[part], b_env[part]),
+            (t0[part], t1[part]),
+            [f[part] for f in first],
+            [c[part] for c in count],
+        )
+        return i + lo, t_up, t_down
+
     found = []
+    # Two blocks at a time where there are two cores: their loops release the GIL.
+    step = 2 if cores() >= 2 else 1
     with progress_bar(len(env), "links on the map", "pairs in range", enabled=progress and len(blocks) > 1) as bar:
-        for lo, hi in blocks:
-            part = slice(lo, hi)
-            i, t_up, t_down = _solve_envelope(
-                radio,
-                L,
-                n,
-                radii,
-                (a_env[part], b_env[part]),
-                (t0[part], t1[part]),
-                [f[part] for f in first],
-                [c[part] for c in count],
-            )
-            found.append((i + lo, t_up, t_down))
-            bar.update(hi - lo)
+        for k in range(0, len(blocks), step):
+            now = blocks[k : k + step]
+            found.extend(side_by_side(*(partial(solve, block) for block in now)) if len(now) == 2 else [solve(now[0])])
+            bar.update(now[-1][1] - now[0][0])
     i, t_up, t_down = (np.concatenate(column) for column in zip(*found, strict=True))
     open_end = env["censored_end"].to_numpy(bool)[i] & (t_down >= t1[i])
     return _frame(a_env[i], b_env[i], t_up, t_down, duration_s, open_end)
