@@ -201,7 +201,7 @@ def walled_lifetimes(
         )
         return i + lo, t_up, t_down
 
-    found = []
+    found: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     # Two blocks at a time where there are two cores: their loops release the GIL.
     step = 2 if cores() >= 2 else 1
     with progress_bar(len(env), "links on the map", "pairs in range", enabled=progress and len(blocks) > 1) as bar:
