@@ -203,7 +203,7 @@ def check_motion(scen: ns2.Scenario, params: TraceParams, world, duration_s: flo
     st = RobotState(scen.n_robots, world.side_m, 1.0, world.torus, world_bounds(world))
     st.check_motion()
     st.place(scen.initial_m)
-    env = simpy.Environment()
+    env = simpy.Environment(initial_time=0.0)
     env.process(replay(env, st, scen, note=params.trace_file))
     try:
         env.run(until=duration_s)

@@ -997,6 +997,9 @@ def load(path: str | Path | None = None, overrides: Iterable[str] = ()) -> Confi
 
 def read_tree(path: str | Path | None = None, overrides: Iterable[str] = ()) -> dict:
     """A scenario file's keys as read, ``--set`` overrides merged in, not yet checked."""
+    if isinstance(overrides, (str, bytes)):
+        # A string is an iterable of its characters: each would be read as an override.
+        raise TypeError(f"overrides = {overrides!r}: must be a list of 'key=value' strings, not one string")
     raw: dict = {}
     if path is not None:
         p = Path(path)

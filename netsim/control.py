@@ -35,6 +35,7 @@ import simpy
 
 from netsim.area import Bounds, OnTorus
 from netsim.errors import NetsimInputError
+from netsim.events import read_only
 from netsim.groups import GroupView
 from netsim.state import RobotState
 from netsim.trace import Trace
@@ -54,7 +55,7 @@ class ControlStep(OnTorus):
         none), from the protocol (all 0 and -1 when it forms no groups).
     role_names : the label of each role code (``("gamma", "beta", "alpha")`` with the
         clustering protocol; empty when the protocol forms no groups).
-    range_m : ``(N,)`` communication ranges.
+    range_m : ``(N,)`` communication ranges (read only: the robots' own).
     side_m : side of the square area.
     torus : whether that square wraps (``world.torus``): distances between robots are
         then measured to the nearest image (:attr:`torus_side_m` is the ``side_m`` of
@@ -180,7 +181,7 @@ class ControlLoop:
                 velocity_mps=current.copy(),
                 role=role,
                 leader=leader,
-                range_m=st.range_m,
+                range_m=read_only(st.range_m),
                 side_m=st.side_m,
                 options=self.options,
                 role_names=role_names,

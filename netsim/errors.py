@@ -52,3 +52,15 @@ def listed(items: Iterable[Any], most: int = 10) -> str:
     names = [str(item) for item in items]
     shown = ", ".join(names[:most])
     return f"{shown} and {len(names) - most} more" if len(names) > most else shown
+
+
+def keyboard_interrupt_in(exc: BaseException | None) -> KeyboardInterrupt | None:
+    """The ``KeyboardInterrupt`` that ``exc`` is, or was raised while handling or because
+    of (numba's dispatcher wraps one raised inside a compiled call in ``SystemError``)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None

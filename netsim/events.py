@@ -69,7 +69,7 @@ class LinkDown(NamedTuple):
 
 class Delivery(NamedTuple):
     """A transmission of ``kind`` ("ack", "data", ...) from ``sender`` reaches ``receivers``
-    (ids ascending) at ``t_s``; ``payload`` is what was sent."""
+    (ids ascending, read only) at ``t_s``; ``payload`` is what was sent."""
 
     t_s: float
     kind: str
@@ -133,6 +133,14 @@ EVENT_NAMES = (
     "message_dropped",
 )
 LINK_EVENTS = ("link_up", "link_down")
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """A view of ``array`` that cannot be written: what user code is handed of the run's
+    own arrays (a subscriber or controller that wrote into one would change the run)."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def notify(subscribers: list[Callable], event: object) -> None:

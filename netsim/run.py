@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import simpy
 from pandas.api.types import pandas_dtype
@@ -75,7 +77,10 @@ def simulation(config: Config, run: int = 0) -> Simulation:
     """The core of a run with no model yet: kernel, robots (none placed), the channel and
     its loss model (``[channel]``), the trace, the random streams of ``(seed, run)`` and
     the event bus."""
-    env = simpy.Environment()
+    # Time is a float from the start: rows and figures at t = 0 are 0.0, as every later one.
+    if isinstance(run, (bool, np.bool_)) or not isinstance(run, numbers.Integral) or run < 0:
+        raise ValueError(f"run = {run!r}: must be a whole number >= 0 (a sweep point's replication)")
+    env = simpy.Environment(initial_time=0.0)
     streams = Streams(config.seed, run)
     w = config.world
     events = EventBus()

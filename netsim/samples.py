@@ -13,6 +13,12 @@ import numpy as np
 import pandas as pd
 
 
+def copy_on_write() -> bool:
+    """Whether pandas copies a table's column before writing to one it shares (always
+    from pandas 3; an option before)."""
+    return int(pd.__version__.split(".")[0]) >= 3 or pd.get_option("mode.copy_on_write") is True
+
+
 def _multiples(interval_s: float, end_s: float) -> int:
     """How many multiples of ``interval_s`` from 0 fall short of ``end_s`` by more than a
     rounding error (:func:`ended_at`: one within it is the instant at the end)."""
@@ -81,6 +87,7 @@ class Samples:
         self.last_rows = 0  # the latest sample's
         self._t = np.empty(0)
         self._buffers: dict[str, np.ndarray] = {}
+        self._handed_out: pd.DataFrame | None = None  # :meth:`frame`'s
 
     def __len__(self) -> int:
         return len(self.times)
@@ -124,6 +131,8 @@ class Samples:
 
         self._t = grown(self._t)
         self._buffers = {name: grown(buf) for name, buf in self._buffers.items()}
+        # The old buffers are no longer the run's: a table handed out may keep them alone.
+        self._handed_out = None
 
     def frame(self, convert: Mapping[str, Callable[[np.ndarray], object]] | None = None) -> pd.DataFrame:
         """All samples, in order, as one table: ``t_s`` first, then the columns (each
@@ -134,8 +143,15 @@ class Samples:
             col = buf[:rows]
             out[name] = convert[name](col) if convert and name in convert else col
         # The columns are the buffers' filled part, never written again (later samples go
-        # after it, or into a grown buffer): copying them into blocks would only cost.
-        return pd.DataFrame(out, copy=False)
+        # after it, or into a grown buffer): copying them into blocks would only cost. The
+        # caller's table must not write them either (a later collect reads them): handed
+        # out beside a table kept here, pandas' copy on write copies a column the caller
+        # writes to; without copy on write (pandas 2 by default), a copy is handed out.
+        kept = pd.DataFrame(out, copy=False)
+        if not copy_on_write():
+            return kept.copy()
+        self._handed_out = kept
+        return kept.copy(deep=False)
 
 
 def column_buffer(capacity: int, dtype: np.dtype) -> np.ndarray:

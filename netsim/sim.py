@@ -22,7 +22,7 @@ from netsim.cosim import (
     robot_ids,
     velocities,
 )
-from netsim.errors import ConfigError
+from netsim.errors import ConfigError, keyboard_interrupt_in
 from netsim.events import LINK_EVENTS, EventBus
 from netsim.groups import GroupView
 from netsim.links.kinetic import RuntimeLinks
@@ -87,6 +87,7 @@ class Simulation:
         # Why the run cannot go on: an exception escaped it (a subscriber's, say) and left
         # its events half made.
         self._stopped_by: str | None = None
+        self._running = False
 
     @property
     def models(self) -> MappingProxyType:
@@ -251,14 +252,26 @@ class Simulation:
         """
         if self._stopped_by is not None:
             raise CommandError(f"the run cannot go on: {self._stopped_by}; build it again")
+        if self._running:
+            # From a subscriber, say: the event being made would be finished after later ones.
+            raise CommandError("run was called while the run is going on (from a subscriber?): call it after")
         until = self.duration_s if until_s is None else self._until(until_s)
         if isinstance(steps, (bool, np.bool_)) or not isinstance(steps, numbers.Integral) or steps < 1:
             raise CommandError(f"steps = {steps!r}: must be a whole number >= 1")
+        self._running = True
         try:
             self._advance(until, progress, int(steps))
         except BaseException as exc:
-            self._stopped_by = f"{type(exc).__name__} was raised inside it at t = {self.env.now:g} s"
+            # Ctrl-C inside a compiled loop reaches here as numba's SystemError around it:
+            # raised as what it is, for an ``except KeyboardInterrupt`` to catch.
+            pressed = keyboard_interrupt_in(exc)
+            cause = exc if pressed is None else pressed
+            self._stopped_by = f"{type(cause).__name__} was raised inside it at t = {self.env.now:g} s"
+            if pressed is not None and pressed is not exc:
+                raise pressed from None
             raise
+        finally:
+            self._running = False
 
     def _advance(self, until: float, progress: bool, steps: int) -> None:
         if not self.events.started:
@@ -280,7 +293,8 @@ class Simulation:
             bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]",
         ) as bar:
             for k in range(1, steps + 1):
-                t = start + (until - start) * k / steps
+                # The last part ends at ``until`` itself, not at a sum that rounds near it.
+                t = until if k == steps else start + (until - start) * k / steps
                 if t > self.env.now:
                     before = self.env.now
                     self.env.run(until=t)

@@ -112,3 +112,23 @@ def test_unknown_controller_is_a_config_error(tmp_path):
     with pytest.raises(ConfigError) as err:
         execute(two_robots(tmp_path, ["steer_by_magic"]))
     assert err.value.key == "control.controllers"
+
+
+def _shrinks_the_range(params, parts):
+    """A user controller that writes into the ranges it is shown."""
+
+    def controller(step):
+        step.range_m -= 5.0
+
+    return controller
+
+
+SHRINKS = PluginSpec(Params=NoParams, build=_shrinks_the_range)
+
+
+def test_a_controller_cannot_write_the_robots_ranges(tmp_path):
+    """``step.range_m`` was the robots' own array: a controller that subtracted from it
+    shrank every robot's range during the run, and links.parquet, solved after the run
+    from the final ranges, no longer matched what the channel had done."""
+    with pytest.raises(ValueError, match="read-only"):
+        execute(two_robots(tmp_path, ["tests.test_controllers:SHRINKS"]))

@@ -1475,3 +1475,75 @@ def test_random_direction_on_a_map_gives_its_legs_its_own_causes(pause_s):
     causes = set(legs["cause"].astype(str))
     expected = {"start", "border", "pause_end"} if pause_s else {"start", "border"}
     assert causes == expected
+
+
+def test_a_run_called_from_a_subscriber_is_refused():
+    """The event being made would be finished after the later ones the inner run made (a
+    run that ended without a word, its beliefs and groups not the run's): refused, and the
+    run, stopped inside an event, cannot go on."""
+    from netsim.cosim import CommandError
+
+    sim = build(load(None, KEYS_15))
+
+    def runs_on(ev):
+        sim.run(until_s=ev.t_s + 1.0)
+
+    sim.events.on("link_down", runs_on)
+    with pytest.raises(CommandError, match=r"run was called while the run is going on \(from a subscriber\?\)"):
+        sim.run()
+    with pytest.raises(CommandError, match="the run cannot go on: CommandError was raised inside it"):
+        sim.run()
+
+
+def test_ctrl_c_inside_a_compiled_loop_is_raised_as_a_keyboard_interrupt():
+    """numba's dispatcher turns a KeyboardInterrupt raised inside a compiled call into
+    ``SystemError: ... returned a result with an exception set``: ``except
+    KeyboardInterrupt`` around ``sim.run`` missed Ctrl-C."""
+    from netsim.cosim import CommandError
+
+    sim = build(load(None, KEYS_15))
+
+    def pressed(ev):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("CPUDispatcher(<function step>) returned a result with an exception set") from None
+
+    sim.events.on("link_down", pressed)
+    with pytest.raises(KeyboardInterrupt):
+        sim.run()
+    with pytest.raises(CommandError, match="the run cannot go on: KeyboardInterrupt was raised inside it"):
+        sim.run()
+
+
+def test_a_run_with_progress_after_a_part_ends_at_the_runs_end_exactly():
+    """Its last part ended at ``start + (end - start) * k / k``, which rounds: a run of
+    0.3 s went on from 0.1 s to 0.30000000000000004 s, past its end."""
+    for duration_s, part_s in ((0.3, 0.1), (7.7, 1.3)):
+        keys = [*KEYS_15, f"duration_s={duration_s}"]
+        sim = build(load(None, keys))
+        sim.run(until_s=part_s)
+        sim.run(progress=True)
+        assert sim.now == duration_s
+        whole = build(load(None, keys))
+        whole.run()
+        for name, frame in collect(whole).items():
+            pd.testing.assert_frame_equal(collect(sim)[name], frame, obj=name)
+
+
+@pytest.mark.parametrize("event", ["delivery", "drop"])
+def test_a_subscriber_cannot_write_the_receivers_it_is_handed(event):
+    """A delivery's (a drop's) receivers were the channel's own array: a subscriber that
+    wrote into it changed who received the frame (roles, groups and messages changed, or
+    a KeyError later)."""
+    sim = build(load(None, [*KEYS_15, "channel.loss_probability=0.3"]))
+    seen = []
+
+    def writes(ev):
+        seen.append(len(ev.receivers))
+        ev.receivers[:] = 0
+
+    sim.events.on(event, writes)
+    with pytest.raises(ValueError, match="read-only"):
+        sim.run()
+    assert seen

@@ -237,3 +237,16 @@ def test_thresholds_are_strict():
     v = np.array([[205, 155]], dtype=np.uint8)
     occ, free = occupancy_from_pixels(v, False, (255 - 155) / 255, (255 - 205) / 255)
     assert occ.tolist() == [[False, False]] and free.tolist() == [[False, False]]
+
+
+def test_a_map_whose_image_was_edited_is_read_again(tmp_path):
+    """The cache of maps was keyed on the YAML file alone: an image edited (a wall drawn)
+    in the same process was not seen, and the run's map_sha256 named the stale map."""
+    from netsim.world.maps import cached_map
+
+    y = _write(tmp_path, np.full((6, 8), 254))
+    assert not cached_map(y).occupied.any()
+    walled = np.full((6, 8), 254)
+    walled[:, 4] = 0
+    Image.fromarray(walled.astype(np.uint8)).save(tmp_path / "map.pgm")
+    assert cached_map(y).occupied[:, 4].all()

@@ -204,3 +204,58 @@ def test_collect_holds_every_table_as_its_parquet_file_reads_back(tmp_path, prot
         write_table(frame, tmp_path / f"{name}.parquet")  # as netsim run writes it
         back = pd.read_parquet(tmp_path / f"{name}.parquet")
         pd.testing.assert_frame_equal(frame.reset_index(drop=True), back, obj=name)
+
+
+def test_every_time_column_is_float_in_a_run_shorter_than_its_first_change():
+    """Rows made at t = 0 held the kernel's integer start time: in a run (or a collect)
+    before any role changed, roles' t_s was int64 where a longer run's is float64, and two
+    runs' files of one sweep did not read as one dataset; the summary's duration was 0."""
+    from netsim.run import summarize
+
+    sim = build(make_config(duration_s=1.0, **CONFIG))
+    sim.run(until_s=0.0)
+    early = collect(sim)
+    assert len(early["roles"]) > 0
+    assert float(summarize(sim, early, 0.0)["duration_s"]) == 0.0
+    assert isinstance(summarize(sim, early, 0.0)["duration_s"], float)
+    sim.run()
+    for frames in (early, collect(sim)):
+        for name, frame in frames.items():
+            for column in set(TIME_COLUMNS) & set(frame.columns):
+                assert frame[column].dtype == np.float64, (name, column)
+
+
+def test_a_table_collect_handed_out_is_the_callers_to_change():
+    """The sampled tables (groups, beliefs, neighbour beliefs) were handed out over the
+    run's own buffers: a script that wrote into one changed what every later collect and
+    summary read."""
+    sim = build(make_config(duration_s=20.0, **CONFIG))
+    sim.run()
+    before = {name: table.copy() for name, table in collect(sim).items()}
+    names = ("groups", "beliefs", "neighbour_beliefs")
+    for name in names:
+        table = collect(sim)[name]
+        assert len(table) > 0, name
+        table.loc[:, "t_s"] = -1.0
+        table.iloc[0, 1] = 12345
+        table["t_s"] += 1.0
+    after = collect(sim)
+    for name in names:
+        pd.testing.assert_frame_equal(after[name], before[name], obj=name)
+
+
+@pytest.mark.parametrize("run", [-1, 1.7, True])
+def test_a_replication_that_is_not_a_whole_number_from_zero_is_refused(run):
+    """``run=1.7`` and ``run=True`` were taken as replication 1, ``-1`` failed in numpy's
+    seeding without naming ``run``."""
+    with pytest.raises(ValueError, match=r"run = .*: must be a whole number >= 0"):
+        build(make_config(duration_s=1.0, **CONFIG), run=run)
+
+
+def test_overrides_given_as_one_string_are_refused():
+    """A string is an iterable of characters: ``load(None, "world.n_robots=5")`` said that
+    ``w`` must look like key=value."""
+    from netsim.config import load
+
+    with pytest.raises(TypeError, match="must be a list of 'key=value' strings, not one string"):
+        load(None, "world.n_robots=5")

@@ -49,7 +49,7 @@ import pandas as pd
 import simpy
 
 from netsim.agenda import Agenda
-from netsim.events import Delivery, Drop, EventBus, notify
+from netsim.events import Delivery, Drop, EventBus, notify, read_only
 from netsim.radio.loss import Survives
 from netsim.radio.spatial import RangeIndex
 from netsim.rng import KindStreams
@@ -432,7 +432,7 @@ class Channel:
     def _dropped(self, kind: str, sender: int, receivers: np.ndarray, cause: str) -> None:
         ev = self.events
         if ev is not None and ev.wants("drop"):
-            ev.emit("drop", Drop(self.env.now, kind, sender, receivers, cause))
+            ev.emit("drop", Drop(self.env.now, kind, sender, read_only(receivers), cause))
 
     def _transmit(
         self,
@@ -554,7 +554,7 @@ class Channel:
             binned.row[SendTimeBins.RECEIVED] += len(receivers)
         on_delivery = self.on_delivery
         if on_delivery:
-            delivery = Delivery(self.env.now, kind, sender, receivers, payload)
+            delivery = Delivery(self.env.now, kind, sender, read_only(receivers), payload)
             notify(on_delivery, delivery)
         deliver(sender, receivers, payload)
 

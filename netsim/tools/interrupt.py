@@ -11,6 +11,8 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from netsim.errors import keyboard_interrupt_in
+
 INTERRUPTED_LINE = "netsim: interrupted; nothing written"
 EXIT_INTERRUPTED = 130
 _INTERRUPTED = False
@@ -26,13 +28,7 @@ def interrupted(exc: BaseException | None = None) -> bool:
     """Whether the user interrupted the command: Ctrl-C was pressed (in the command's own
     process), or ``exc`` is, or was raised while handling or because of, a
     ``KeyboardInterrupt``."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return _INTERRUPTED
+    return keyboard_interrupt_in(exc) is not None or _INTERRUPTED
 
 
 class KeptOnInterrupt(KeyboardInterrupt):

@@ -394,12 +394,33 @@ def save_map(
 
 
 def _stamp(value: str) -> tuple:
+    """The version of map ``value``: its YAML file's and its image's (an image edited
+    beside an unchanged YAML file is another map)."""
     path = example_path(value) if value in EXAMPLES else Path(value)
+    return (value, *_file_stamp(path), *_file_stamp(_image_named(path)))
+
+
+def _file_stamp(path: Path | None) -> tuple:
     try:
-        st = path.stat()
+        st = path.stat() if path is not None else None
     except OSError:
-        return (value, None, None)
-    return (value, st.st_mtime_ns, st.st_size)
+        st = None
+    return (None, None) if st is None else (st.st_mtime_ns, st.st_size)
+
+
+def _image_named(path: Path) -> Path | None:
+    """The image a map's YAML file names, if it names one (:func:`load_map` says what is
+    wrong with one that does not)."""
+    import yaml
+
+    try:
+        meta = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        return None
+    image = meta.get("image") if isinstance(meta, dict) else None
+    if not isinstance(image, str) or not image:
+        return None
+    return Path(image) if Path(image).is_absolute() else path.parent / image
 
 
 @lru_cache(maxsize=8)
