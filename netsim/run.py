@@ -10,6 +10,7 @@ neither ``mobility/`` nor ``protocols/``.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import numbers
@@ -314,7 +315,8 @@ def build(config: Config, run: int = 0) -> Simulation:
             lead_s=sim.channel.latency_s + sim.channel.latency_jitter_s,
             moved_by=f"mobility.model = {moved.model!r}" if moved.plugin.moves_robots else None,
             groups=sim.groups,
-            options=config.control.options,
+            # The run's own copy: the configuration a script changes after the build is not the run's.
+            options=copy.deepcopy(config.control.options),
             occupancy=parts.occupancy,
         )
         sim.add_model("control", loop)

@@ -132,3 +132,17 @@ def test_a_controller_cannot_write_the_robots_ranges(tmp_path):
     from the final ranges, no longer matched what the channel had done."""
     with pytest.raises(ValueError, match="read-only"):
         execute(two_robots(tmp_path, ["tests.test_controllers:SHRINKS"]))
+
+
+def test_control_options_changed_after_the_build_are_not_the_runs(tmp_path):
+    """The run held the configuration's own ``[control.options]`` table: a script that
+    changed it after ``build`` changed the run it had built."""
+    from netsim.run import build
+
+    cfg = two_robots(tmp_path, ["avoid_collisions"])
+    sim = build(cfg)
+    cfg.control.options["min_separation_m"] = 400.0
+    seen = []
+    sim.models["control"].before_apply.append(lambda step: seen.append(step.options["min_separation_m"]))
+    sim.run(until_s=3.0)
+    assert seen and set(seen) == {5.0}

@@ -701,3 +701,16 @@ def test_a_relative_placement_file_is_found_at_every_reset(tmp_path, monkeypatch
         monkeypatch.chdir(elsewhere)
         env.reset(seed=0)
         assert env.sim.positions().tolist() == [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0]]
+
+
+def test_each_agent_has_an_info_dict_of_its_own():
+    """One dict was handed to every agent: a training loop that wrote into one agent's
+    info wrote into all."""
+    env = coverage_v0.parallel_env(**SMALL)
+    _, infos = env.reset(seed=3)
+    first, second = env.agents[:2]
+    infos[first]["note"] = 1
+    assert "note" not in infos[second]
+    _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
+    infos[first]["note"] = 1
+    assert "note" not in infos[second]

@@ -393,7 +393,8 @@ class CoverageEnv(ParallelEnv):
 
     def _infos(self, pos: np.ndarray) -> dict[str, dict]:
         info = {"positions_m": pos, "covered_fraction": self.covered, "components": self.components}
-        return {a: info for a in self.agents}
+        # One dict each: an agent's info changed by a training loop is not another's.
+        return {a: dict(info) for a in self.agents}
 
     # -- drawing --------------------------------------------------------------------------
     def render(self) -> np.ndarray | None:
