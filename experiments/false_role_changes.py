@@ -5,7 +5,8 @@ every leader loss is false: the member times out only when ``k`` consecutive Ack
 leader are lost (``k`` = Ack instants in the ``tau`` window, its end included). A sweep of
 ``channel.loss_probability`` x ``protocol.tau_s`` (Ack period 1 s, no jitter) measures the
 leader's Acks until the first false timeout, against the theory
-``(1 - p^k) / ((1 - p) p^k)``, and the false role changes per robot per minute. A member
+``(1 - p^k) / ((1 - p) p^k)`` (infinite at ``p = 0``, its limit: no Ack is lost, no wait
+ends), and the false role changes per robot per minute. A member
 still waiting when the run ends counts its Acks so far
 (:func:`netsim.tools.analysis.mean_acks_until_leader_loss`): the completed waits alone
 leave the long ones out and fall short of the theory.

@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -305,3 +306,25 @@ def test_an_out_that_is_a_file_is_one_line(tmp_path, script):
     run = _script(tmp_path, script, "--out", str(tmp_path / "afile"))
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
     assert f"--out {tmp_path / 'afile'}: is a file; give a folder" in run.stderr
+
+
+def test_the_theory_of_false_role_changes_at_no_loss_is_its_limit():
+    """At loss 0 no Ack is lost: the mean wait for k consecutive losses is infinite, the
+    formula's limit as p falls to 0 (it divided by zero), alone and within an array."""
+    from netsim.tools.analysis import expected_acks_until_spurious_timeout as theory
+
+    assert theory(0.0, 2) == math.inf
+    got = theory(np.array([0.0, 0.5]), 2)
+    assert got[0] == math.inf and got[1] == pytest.approx(6.0)
+
+
+@pytest.mark.slow
+def test_false_role_changes_runs_at_no_loss(tmp_path):
+    """--losses 0, in the [0, 1) its message allows: its row has no false leader loss, no
+    wait ended, and the theory inf (the runs ended in a ZeroDivisionError)."""
+    args = ["--pairs", "3", "--losses", "0", "0.5", "--taus", "1.5", "--duration", "30", "--workers", "1"]
+    run = _script(tmp_path, "false_role_changes.py", *args, "--out", "o")
+    assert run.returncode == 0, run.stderr[-2000:]
+    at_0 = pd.read_csv(tmp_path / "o" / "false_role_changes.csv").set_index("loss_probability").loc[0.0]
+    assert at_0["theory"] == math.inf and at_0["false_leader_losses_per_robot_per_min"] == 0
+    assert math.isnan(at_0["acks_until_false_loss"])
