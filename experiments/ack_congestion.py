@@ -85,6 +85,9 @@ def main(argv=None) -> None:
     p.add_argument("--message-rate", type=float, default=2.0, help="messages per second, network-wide")
     sweepmod.add_runner_arguments(p, "ack_congestion", reps=2)
     args = p.parse_args(argv)
+    for density in args.densities:
+        if not (density > 0 and math.isfinite(density)):
+            raise NetsimInputError(f"--densities {density:g}: each must be > 0 (robots in range)")
     if max(args.densities) >= args.n * math.pi / 4:
         raise NetsimInputError(f"--densities must stay below n pi / 4 = {args.n * math.pi / 4:g}")
     if not 0 <= args.warmup < args.duration:

@@ -20,11 +20,13 @@ Writes ``routing_compare.csv`` (one row per protocol and speed) and
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from netsim.errors import NetsimInputError
 from netsim.tools import sweep as sweepmod
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
@@ -83,6 +85,10 @@ def main(argv=None) -> None:
     p.add_argument("--protocols", nargs="+", default=list(PROTOCOLS), choices=list(PROTOCOLS))
     sweepmod.add_runner_arguments(p, "routing_compare", reps=3)
     args = p.parse_args(argv)
+    if args.flows < 1:
+        raise NetsimInputError(f"--flows {args.flows}: at least 1 (a run without packets measures nothing)")
+    if not (args.interval > 0 and math.isfinite(args.interval)):
+        raise NetsimInputError(f"--interval {args.interval:g}: must be > 0 s")
     out = Path(args.out)
     rate = args.packet_bytes * 8 / args.interval
     flows = [

@@ -273,6 +273,10 @@ def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
     pd.testing.assert_frame_equal(tables[0], tables[1])
 
 
+# The smallest routing comparison: what an old check let run before it failed runs quickly.
+TINY_ROUTING = ["--n", "4", "--duration", "20", "--warmup", "15", "--speeds", "2", "--reps", "1", "--workers", "1"]
+
+
 @pytest.mark.parametrize(
     "script, args, said",
     [
@@ -286,6 +290,13 @@ def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
         ("false_role_changes.py", ["--pairs", "2", "--workers", "0"], "--workers 0: must be at least 1"),
         ("false_role_changes.py", ["--pairs", "2", "--taus", "0.5"], "protocol.tau_s = 0.5"),
         ("false_role_changes.py", ["--pairs", "2", "--duration", "-1"], "duration_s = -1.0"),
+        # A ZeroDivisionError and a math domain error.
+        ("ack_congestion.py", ["--densities", "0"], "--densities 0: each must be > 0"),
+        ("ack_congestion.py", ["--densities", "10", "-5"], "--densities -5: each must be > 0"),
+        # A sweep ran, then an AttributeError; a ZeroDivisionError.
+        ("routing_compare.py", ["--flows", "0", *TINY_ROUTING], "--flows 0: at least 1"),
+        ("routing_compare.py", ["--flows", "-1", *TINY_ROUTING], "--flows -1: at least 1"),
+        ("routing_compare.py", ["--interval", "0"], "--interval 0: must be > 0 s"),
     ],
 )
 def test_experiment_options_refused_before_any_run(tmp_path, script, args, said):
