@@ -102,7 +102,7 @@ def main(argv=None) -> None:
         }
         for k in range(args.flows)
     ]
-    rows = []
+    sweeps = {}
     for name in args.protocols:
         base = {
             "seed": args.seed,
@@ -113,10 +113,18 @@ def main(argv=None) -> None:
             "traffic": {"flows": flows},
             "output": {"position_interval_s": 0.0},
         }
-        clustering = PROTOCOLS[name]["model"] == "clustering"
+        tables = ["packets"] if PROTOCOLS[name]["model"] == "clustering" else ["packets", "control"]
         grid = {"mobility.speed_max_mps": args.speeds}
-        tables = ["packets"] if clustering else ["packets", "control"]
-        sweep = sweepmod.parse({"name": name, "replications": args.reps, "tables": tables, "base": base, "grid": grid})
+        sweeps[name] = sweepmod.parse(
+            {"name": name, "replications": args.reps, "tables": tables, "base": base, "grid": grid}
+        )
+    # Every point of every protocol checked before the first run: a bad one met later left the
+    # protocols before it written.
+    for sweep in sweeps.values():
+        sweep.runs(here=args.scheduler is None)
+    rows = []
+    for name, sweep in sweeps.items():
+        clustering = PROTOCOLS[name]["model"] == "clustering"
         print(sweepmod.run_sweep(sweep, out / name, workers=args.workers, scheduler=args.scheduler).text())
         runs = sweepmod.load(out / name)
         if clustering:

@@ -275,6 +275,9 @@ def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
 
 # The smallest routing comparison: what an old check let run before it failed runs quickly.
 TINY_ROUTING = ["--n", "4", "--duration", "20", "--warmup", "15", "--speeds", "2", "--reps", "1", "--workers", "1"]
+TINY_LIFETIME = ["--n", "5", "--duration", "10", "--pauses", "0", "--reps", "1", "--workers", "1"]
+TINY_CONGESTION = ["--n", "20", "--densities", "8", "--macs", "none", "--duration", "15", "--warmup", "5"]
+TINY_CONGESTION += ["--reps", "1", "--workers", "1"]
 
 
 @pytest.mark.parametrize(
@@ -297,6 +300,10 @@ TINY_ROUTING = ["--n", "4", "--duration", "20", "--warmup", "15", "--speeds", "2
         ("routing_compare.py", ["--flows", "0", *TINY_ROUTING], "--flows 0: at least 1"),
         ("routing_compare.py", ["--flows", "-1", *TINY_ROUTING], "--flows -1: at least 1"),
         ("routing_compare.py", ["--interval", "0"], "--interval 0: must be > 0 s"),
+        # Each ran and wrote the sweeps before the bad one.
+        ("link_lifetime.py", [*TINY_LIFETIME, "--speeds", "2", "-1"], "mobility.speed_min_mps = -0.5"),
+        ("link_lifetime.py", [*TINY_LIFETIME, "--side", "100", "--range", "60"], "world.side_m = 100.0: on a torus"),
+        ("ack_congestion.py", [*TINY_CONGESTION, "--periods", "1", "-0.5"], "protocol.ack_period_s = -0.5"),
     ],
 )
 def test_experiment_options_refused_before_any_run(tmp_path, script, args, said):
