@@ -20,6 +20,7 @@ Writes ``false_role_changes.csv`` and ``false_role_changes.png``.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -30,6 +31,7 @@ from netsim.tools import analysis
 from netsim.tools import sweep as sweepmod
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
+from netsim.tools.output import claim_dir
 
 
 def _sweep(args, placement: str):
@@ -77,12 +79,19 @@ def main(argv=None) -> None:
     for loss in args.losses:
         if not 0 <= loss < 1:
             raise NetsimInputError(f"--losses {loss:g}: each a probability in [0, 1)")
-    # Every point and the workers checked, and the scheduler reached, before the placement
-    # file is written: bad input leaves no output behind.
+    # Every point and the workers checked, the scheduler reached and the folders judged before
+    # the placement file is written: bad input leaves no output behind.
     sweepmod.check_workers(args.workers)
-    _sweep(args, "uniform").runs()
+    checked = _sweep(args, "uniform")
+    checked.runs()
     scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
-    out = sweepmod.out_folder(args.out)
+    with claim_dir(args.out, "--out") as out:
+        sweepmod.refuse_another_sweeps_dir(out / "sweep", checked.name)
+        measure(args, out, scheduler)
+
+
+def measure(args, out: Path, scheduler) -> None:
+    """The sweep run into ``out`` (its placement file written first), its table and figure."""
     pos = np.zeros((2 * args.pairs, 2))
     pos[0::2, 0] = pos[1::2, 0] = np.arange(args.pairs) * 100.0
     pos[1::2, 1] = 5.0

@@ -35,7 +35,8 @@ from netsim.envs import coverage_v0
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
-from netsim.tools.sweep import out_folder
+from netsim.tools.output import claim_dir
+from netsim.tools.sweep import run_script
 
 Policy = Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]]
 
@@ -107,14 +108,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=3, help="episodes per policy (seeds 0, 1, ...)")
     parser.add_argument("--out", type=Path, default=Path("learn_coverage"), help="directory for the CSV and PNG")
     args = parser.parse_args(argv)
-    try:
-        env = coverage_v0.parallel_env(n_robots=args.n, max_cycles=args.cycles, render_mode="rgb_array")
-        if args.episodes < 1:
-            raise NetsimInputError(f"--episodes {args.episodes}: must be at least 1")
-        args.out = out_folder(args.out)  # before the episodes: a file there would lose them
-    except NetsimInputError as exc:
-        print(f"learn_coverage.py: {exc}", file=sys.stderr)
-        return 2
+    env = coverage_v0.parallel_env(n_robots=args.n, max_cycles=args.cycles, render_mode="rgb_array")
+    if args.episodes < 1:
+        raise NetsimInputError(f"--episodes {args.episodes}: must be at least 1")
+    # Claimed before the episodes (a folder that cannot take the results would lose them),
+    # and given up, if they fail, as it was.
+    with claim_dir(args.out, "--out") as out:
+        return learn(env, args, out)
+
+
+def learn(env, args, out: Path) -> int:
+    """Both policies' episodes, their table and figure written in ``out``."""
     policies = {"random": random_policy(env, np.random.default_rng(0)), "forces": forces_policy(env)}
     rows, curves, frame = [], {}, None
     for name, policy in policies.items():
@@ -126,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
             frame = last if name == "forces" else frame
         curves[name] = np.mean(runs, axis=0)
     table = pd.DataFrame(rows)
-    table.to_csv(args.out / "learn_coverage.csv", index=False)
+    table.to_csv(out / "learn_coverage.csv", index=False)
     bound = metrics.bound_fraction(args.n, env.radius_m, env.params.side_m, env.params.range_m)
     print(f"N = {args.n}, {args.cycles} steps of {env.params.step_s:g} s; bound min(1, U(N)/A) = {bound:.3f}")
     summary = table.groupby("policy", sort=False).agg(
@@ -150,10 +154,10 @@ def main(argv: list[str] | None = None) -> int:
     pic.set_axis_off()
     pic.set_title("forces policy, end of the last episode", fontsize=9)
     fig.tight_layout()
-    fig.savefig(args.out / "learn_coverage.png", dpi=120)
-    print(f"wrote {args.out / 'learn_coverage.csv'} and {args.out / 'learn_coverage.png'}")
+    fig.savefig(out / "learn_coverage.png", dpi=120)
+    print(f"wrote {out / 'learn_coverage.csv'} and {out / 'learn_coverage.png'}")
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(lambda: sys.exit(main()))

@@ -317,13 +317,35 @@ def test_experiment_options_refused_before_any_run(tmp_path, script, args, said)
 
 
 @pytest.mark.parametrize("script", ["false_role_changes.py", "learn_coverage.py"])
-def test_an_out_that_is_a_file_is_one_line(tmp_path, script):
-    """--out naming a file: one line, exit 2 (a FileExistsError traceback; learn_coverage
-    met it after its episodes)."""
+@pytest.mark.parametrize(
+    "out, said",
+    [
+        ("afile", "is a file, not a directory"),
+        ("afile/sub", "cannot be created: afile is a file"),
+        ("/proc/nope", "cannot be created (No such file or directory)"),
+    ],
+)
+def test_an_out_that_cannot_be_made_is_one_line(tmp_path, script, out, said):
+    """--out naming a file, a folder under a file, or one that cannot be made: one line,
+    exit 2, nothing written (a file gave a FileExistsError traceback, learn_coverage's
+    after its episodes; the others a NotADirectoryError or FileNotFoundError traceback),
+    as the sweep runner says it."""
     (tmp_path / "afile").write_text("")
-    run = _script(tmp_path, script, "--out", str(tmp_path / "afile"))
+    run = _script(tmp_path, script, "--out", out)
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
-    assert f"--out {tmp_path / 'afile'}: is a file; give a folder" in run.stderr
+    assert f"--out {out}: {said}" in run.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["afile"]
+
+
+def test_false_role_changes_writes_nothing_into_another_sweeps_folder(tmp_path):
+    """--out whose sweep/ holds another sweep: refused in one line before the placement
+    file is written (pairs.csv was left there)."""
+    (tmp_path / "o" / "sweep").mkdir(parents=True)
+    (tmp_path / "o" / "sweep" / "sweep.json").write_text('{"name": "cluster_stability"}')
+    run = _script(tmp_path, "false_role_changes.py", "--pairs", "2", "--workers", "1", "--out", "o")
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "holds the sweep 'cluster_stability', not 'false_role_changes'" in run.stderr
+    assert [p.name for p in (tmp_path / "o").iterdir()] == ["sweep"]
 
 
 def test_the_theory_of_false_role_changes_at_no_loss_is_its_limit():
