@@ -19,10 +19,14 @@ Each policy runs ``--episodes`` episodes of ``--cycles`` steps (seeds 0, 1, ...)
 
     python experiments/learn_coverage.py
     python experiments/learn_coverage.py --n 30 --cycles 400 --episodes 5 --out results
+
+It needs the optional extra ``rl`` (PettingZoo and Gymnasium): ``pip install -e ".[rl]"`` in
+the repository's folder.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -31,7 +35,6 @@ import numpy as np
 import pandas as pd
 
 from netsim import metrics
-from netsim.envs import coverage_v0
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
@@ -39,6 +42,19 @@ from netsim.tools.output import claim_dir
 from netsim.tools.sweep import run_script
 
 Policy = Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]]
+# The libraries of the optional extra `rl` (pyproject.toml) that the environment loads.
+RL = ("gymnasium", "pettingzoo")
+
+
+def check_rl() -> None:
+    """Refuse in one line, before anything is written, when the environment's libraries are
+    not installed (their import failed in a traceback)."""
+    missing = [m for m in RL if importlib.util.find_spec(m) is None]
+    if missing:
+        raise NetsimInputError(
+            f"needs {' and '.join(missing)}, of the optional extra 'rl': pip install -e \".[rl]\" in the "
+            "repository's folder"
+        )
 
 
 def random_policy(env, rng: np.random.Generator) -> Policy:
@@ -108,6 +124,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=3, help="episodes per policy (seeds 0, 1, ...)")
     parser.add_argument("--out", type=Path, default=Path("learn_coverage"), help="directory for the CSV and PNG")
     args = parser.parse_args(argv)
+    check_rl()
+    from netsim.envs import coverage_v0
+
     env = coverage_v0.parallel_env(n_robots=args.n, max_cycles=args.cycles, render_mode="rgb_array")
     if args.episodes < 1:
         raise NetsimInputError(f"--episodes {args.episodes}: must be at least 1")

@@ -368,3 +368,25 @@ def test_false_role_changes_runs_at_no_loss(tmp_path):
     at_0 = pd.read_csv(tmp_path / "o" / "false_role_changes.csv").set_index("loss_probability").loc[0.0]
     assert at_0["theory"] == math.inf and at_0["false_leader_losses_per_robot_per_min"] == 0
     assert math.isnan(at_0["acks_until_false_loss"])
+
+
+@pytest.mark.slow
+def test_learn_coverage_without_the_rl_extra_is_one_line(tmp_path):
+    """Without gymnasium (of the optional extra rl) learn_coverage says which extra to install
+    in one line, exit 2, nothing written (a ModuleNotFoundError traceback, even for --help)."""
+    script = ROOT / "experiments" / "learn_coverage.py"
+    hidden = "import runpy, sys; sys.modules['gymnasium'] = None; sys.argv = sys.argv[1:]; "
+    hidden += "runpy.run_path(sys.argv[0], run_name='__main__')"
+    run = subprocess.run(
+        [sys.executable, "-c", hidden, str(script), "--out", "o"], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "needs gymnasium, of the optional extra 'rl': pip install -e \".[rl]\"" in run.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_docs_say_learn_coverage_needs_the_rl_extra():
+    """docs/experiments.md says, beside learn_coverage.py, how to install what it needs."""
+    text = (ROOT / "docs" / "experiments.md").read_text()
+    beside = [p for p in text.split("\n\n") if "learn_coverage.py" in p]
+    assert beside and all('pip install -e ".[rl]"' in p for p in beside)
