@@ -38,7 +38,8 @@ from netsim import metrics
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
-from netsim.tools.output import claim_dir
+from netsim.tools.interrupt import kept_if_interrupted
+from netsim.tools.output import claim_dir, write_atomically
 from netsim.tools.sweep import run_script
 
 Policy = Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]]
@@ -149,7 +150,6 @@ def learn(env, args, out: Path) -> int:
             frame = last if name == "forces" else frame
         curves[name] = np.mean(runs, axis=0)
     table = pd.DataFrame(rows)
-    table.to_csv(out / "learn_coverage.csv", index=False)
     bound = metrics.bound_fraction(args.n, env.radius_m, env.params.side_m, env.params.range_m)
     print(f"N = {args.n}, {args.cycles} steps of {env.params.step_s:g} s; bound min(1, U(N)/A) = {bound:.3f}")
     summary = table.groupby("policy", sort=False).agg(
@@ -159,10 +159,21 @@ def learn(env, args, out: Path) -> int:
         episode_return=("return", "mean"),
     )
     print(summary.to_string(float_format=lambda v: f"{v:.3f}"))
+    # Each file whole or not at all: an interrupt says which is in place.
+    csv, png = out / "learn_coverage.csv", out / "learn_coverage.png"
+    write_atomically(csv, lambda tmp: table.to_csv(tmp, index=False))
+    with kept_if_interrupted(f"{Path(__file__).name}: interrupted; {csv} is written, {png.name} is not"):
+        draw(curves, frame, env.params.step_s, png)
+    print(f"wrote {csv} and {png}")
+    return 0
+
+
+def draw(curves: dict[str, np.ndarray], frame: np.ndarray | None, step_s: float, path: Path) -> None:
+    """The covered fraction of the bound against time per policy, beside the last frame."""
     plt = pyplot()
     fig, (ax, pic) = plt.subplots(1, 2, figsize=(11, 4.6))
     for name, curve in curves.items():
-        ax.plot(np.arange(len(curve)) * env.params.step_s, curve, label=name)
+        ax.plot(np.arange(len(curve)) * step_s, curve, label=name)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("covered fraction / bound (grid)")
     ax.set_ylim(0, 1.05)
@@ -173,9 +184,7 @@ def learn(env, args, out: Path) -> int:
     pic.set_axis_off()
     pic.set_title("forces policy, end of the last episode", fontsize=9)
     fig.tight_layout()
-    fig.savefig(out / "learn_coverage.png", dpi=120)
-    print(f"wrote {out / 'learn_coverage.csv'} and {out / 'learn_coverage.png'}")
-    return 0
+    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
 
 
 if __name__ == "__main__":

@@ -370,16 +370,18 @@ def test_false_role_changes_runs_at_no_loss(tmp_path):
     assert math.isnan(at_0["acks_until_false_loss"])
 
 
+def _patched_script(tmp_path, patch: str, script: str, *args):
+    """experiments/SCRIPT run as ``python`` runs it (its ``__main__``), after ``patch``."""
+    program = f"{patch}\nimport runpy, sys\nsys.argv = sys.argv[1:]\nrunpy.run_path(sys.argv[0], run_name='__main__')"
+    command = [sys.executable, "-c", program, str(ROOT / "experiments" / script), *args]
+    return subprocess.run(command, capture_output=True, text=True, cwd=tmp_path)
+
+
 @pytest.mark.slow
 def test_learn_coverage_without_the_rl_extra_is_one_line(tmp_path):
     """Without gymnasium (of the optional extra rl) learn_coverage says which extra to install
     in one line, exit 2, nothing written (a ModuleNotFoundError traceback, even for --help)."""
-    script = ROOT / "experiments" / "learn_coverage.py"
-    hidden = "import runpy, sys; sys.modules['gymnasium'] = None; sys.argv = sys.argv[1:]; "
-    hidden += "runpy.run_path(sys.argv[0], run_name='__main__')"
-    run = subprocess.run(
-        [sys.executable, "-c", hidden, str(script), "--out", "o"], capture_output=True, text=True, cwd=tmp_path
-    )
+    run = _patched_script(tmp_path, "import sys; sys.modules['gymnasium'] = None", "learn_coverage.py", "--out", "o")
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
     assert "needs gymnasium, of the optional extra 'rl': pip install -e \".[rl]\"" in run.stderr
     assert list(tmp_path.iterdir()) == []
@@ -390,3 +392,107 @@ def test_the_docs_say_learn_coverage_needs_the_rl_extra():
     text = (ROOT / "docs" / "experiments.md").read_text()
     beside = [p for p in text.split("\n\n") if "learn_coverage.py" in p]
     assert beside and all('pip install -e ".[rl]"' in p for p in beside)
+
+
+# A process pool that runs nothing: its map hands out ROWS, then (INTERRUPT) a Ctrl-C, as
+# one that lands between two runs (the script's runs and their time are not what is tested).
+FAKE_POOL = """
+import concurrent.futures
+
+
+class Pool:
+    def __init__(self, workers):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def map(self, fn, *jobs):
+        yield from ROWS
+        if INTERRUPT:
+            raise KeyboardInterrupt
+
+
+concurrent.futures.ProcessPoolExecutor = Pool
+"""
+# Ctrl-C while a figure is drawn.
+DRAWING_INTERRUPTED = """
+import netsim.tools.figures
+
+
+def pyplot():
+    raise KeyboardInterrupt
+
+
+netsim.tools.figures.pyplot = pyplot
+"""
+SHADOWING_ROW = {"plan": "global", "N": 5, "seed": 1, "of bound": 0.5, "grew": 0, "settled s": None}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "rows, said",
+    [([], "nothing written"), ([SHADOWING_ROW], "the runs finished are in runs.csv")],
+)
+def test_ctrl_c_in_coverage_targets_is_one_line_saying_what_is_kept(tmp_path, rows, said):
+    """Ctrl-C in coverage_targets --shadowing --csv F: one line, exit 130 (a traceback),
+    saying that F holds the runs finished, when one has."""
+    patch = f"ROWS, INTERRUPT = {rows!r}, True\n{FAKE_POOL}"
+    args = ["--shadowing", "--seeds", "1", "--n", "5", "--csv", "runs.csv"]
+    run = _patched_script(tmp_path, patch, "coverage_targets.py", *args)
+    assert (run.returncode, run.stderr) == (130, f"coverage_targets.py: interrupted; {said}\n")
+    if rows:
+        assert pd.read_csv(tmp_path / "runs.csv")["plan"].tolist() == ["global"]
+    else:
+        assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_coverage_on_map_draws_says_the_table_is_kept(tmp_path):
+    """Ctrl-C while coverage_on_map draws --figure after writing --csv: the line says the
+    rows are written and the figure is not (it said "interrupted" alone)."""
+    row = {"radio": "office, line of sight", "plan": "global", "N": 5, "seed": 1, "comp0": 1, "start": 0.2}
+    row |= {"final": 0.6, "split": False, "moved_m": 9.0, "settled_s": None, "final_xy": [[1.0, 2.0]], "radius_m": 9.0}
+    patch = f"ROWS, INTERRUPT = {[row]!r}, False\n{FAKE_POOL}\n{DRAWING_INTERRUPTED}"
+    args = ["--radios", "office, line of sight", "--plans", "global", "--seeds", "1", "--n", "5"]
+    run = _patched_script(tmp_path, patch, "coverage_on_map.py", *args, "--csv", "r.csv", "--figure", "f.png")
+    said = "coverage_on_map.py: interrupted; every run's row is written in r.csv, the figure is not\n"
+    assert (run.returncode, run.stderr) == (130, said)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv"]
+    assert pd.read_csv(tmp_path / "r.csv")["final"].tolist() == [0.6]
+
+
+# Ctrl-C in an episode, as it ends.
+EPISODE_INTERRUPTED = """
+import netsim.metrics
+
+
+def covered_fraction_exact(*args):
+    raise KeyboardInterrupt
+
+
+netsim.metrics.covered_fraction_exact = covered_fraction_exact
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "patch, said, kept",
+    [
+        (EPISODE_INTERRUPTED, "nothing written", []),
+        (DRAWING_INTERRUPTED, "o/learn_coverage.csv is written, learn_coverage.png is not", ["learn_coverage.csv"]),
+    ],
+)
+def test_ctrl_c_in_learn_coverage_is_one_line_saying_what_is_kept(tmp_path, patch, said, kept):
+    """Ctrl-C in learn_coverage: one line, exit 130 (a traceback), nothing written during
+    the episodes (the folder it made removed), the table kept while the figure is drawn."""
+    args = ["--n", "3", "--cycles", "2", "--episodes", "1", "--out", "o"]
+    run = _patched_script(tmp_path, patch, "learn_coverage.py", *args)
+    assert (run.returncode, run.stderr) == (130, f"learn_coverage.py: interrupted; {said}\n")
+    if kept:
+        assert sorted(p.name for p in (tmp_path / "o").iterdir()) == kept
+    else:
+        assert not (tmp_path / "o").exists()

@@ -573,8 +573,10 @@ def add_runner_arguments(parser, name: str, reps: int) -> None:
 def run_script(main: Callable[[], object], resumable: bool = False) -> None:
     """Run a script's ``main``: bad input (a malformed option, an unreachable scheduler) is
     one line on stderr and exit status 2, and Ctrl-C one line and status 130, as with
-    ``netsim``; ``resumable``: the script runs sweeps, whose finished runs are kept."""
-    from netsim.tools.interrupt import EXIT_INTERRUPTED, interrupted
+    ``netsim``. The line says what is kept: what the script said it had put in place
+    (:func:`netsim.tools.interrupt.kept_if_interrupted`, whose line is printed as given);
+    else, ``resumable``, the finished runs of the sweeps it runs; else nothing."""
+    from netsim.tools.interrupt import EXIT_INTERRUPTED, KeptOnInterrupt, ignoring_interrupts, interrupted
 
     name = Path(sys.argv[0]).name
     try:
@@ -585,8 +587,13 @@ def run_script(main: Callable[[], object], resumable: bool = False) -> None:
     except BaseException as exc:
         if isinstance(exc, SystemExit) or not interrupted(exc):
             raise
-        kept = "; the runs finished are kept (the same command resumes)" if resumable else ""
-        print(f"{name}: interrupted{kept}", file=sys.stderr)
+        if isinstance(exc, KeptOnInterrupt):
+            line = exc.args[0]
+        else:
+            kept = "the runs finished are kept (the same command resumes)" if resumable else "nothing written"
+            line = f"{name}: interrupted; {kept}"
+        with ignoring_interrupts():  # a second Ctrl-C would cut this line
+            print(line, file=sys.stderr)
         raise SystemExit(EXIT_INTERRUPTED) from None
 
 
