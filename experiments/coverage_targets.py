@@ -52,7 +52,7 @@ that held a robot, how many were weak (margin below ``coverage.fade_margin_db``)
 down at the step (the true network), or up with a detour of truly shorter up links
 (one rule 1 could in principle certify), or only with a detour of stronger links (the
 global plan's order, by margin), or none; and, whatever their length, how many had a
-detour of stronger links.
+detour of stronger links. ``--csv FILE`` writes that table too, a row per N.
 
     python experiments/coverage_targets.py --why --n 20 60 --duration 150
 
@@ -483,7 +483,10 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
-    p.add_argument("--csv", help="also write the table here (with --shadowing, --bound: every run, as it ends)")
+    p.add_argument(
+        "--csv",
+        help="also write the table here (with --shadowing, --bound: every run, as it ends; --why: a row per N)",
+    )
     p.add_argument("--shadowing", action="store_true", help="the targets under 4 dB shadowing (module notes)")
     p.add_argument(
         "--seeds", type=int, default=20, help="--shadowing, --bound: seeds 1 to this (--bound runs eight plans a seed)"
@@ -504,6 +507,8 @@ def main(argv=None) -> int:
         table = pd.DataFrame([why(n, args.seed, args.duration) for n in args.n or [20, 60]])
         with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
             print(table.T.to_string(header=False))
+        if args.csv:
+            write_csv(table, args.csv)
         return 0
     if args.shadowing:
         return main_shadowing(args)

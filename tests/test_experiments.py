@@ -496,3 +496,15 @@ def test_ctrl_c_in_learn_coverage_is_one_line_saying_what_is_kept(tmp_path, patc
         assert sorted(p.name for p in (tmp_path / "o").iterdir()) == kept
     else:
         assert not (tmp_path / "o").exists()
+
+
+def test_coverage_targets_why_writes_its_table_to_csv(tmp_path, monkeypatch):
+    """--why --csv F writes the --why table to F, a row per N (F was never written)."""
+    from tests.fixtures import script
+
+    module = script("experiments/coverage_targets.py")
+    monkeypatch.setattr(module, "why", lambda n, seed, duration_s: {"N": n, "seed": seed, "of bound": 0.5, "moved": 3})
+    csv = tmp_path / "why.csv"
+    assert module.main(["--why", "--n", "20", "60", "--csv", str(csv)]) == 0
+    table = pd.read_csv(csv)
+    assert table["N"].tolist() == [20, 60] and list(table.columns) == ["N", "seed", "of bound", "moved"]
