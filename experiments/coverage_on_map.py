@@ -91,6 +91,7 @@ def one(
         "settled_s": float(summary["control_settled_s"]),
         "final_xy": result.sim.positions().tolist(),
         "radius_m": float(config.coverage.radius_m or min(config.ranges_m())),
+        "map": config.world.map,
     }
 
 
@@ -110,12 +111,12 @@ def table(runs: pd.DataFrame) -> pd.DataFrame:
     return out.rename(columns={"final_min": "final min"})
 
 
-def figure(runs: pd.DataFrame, start_side_m: float, path: str) -> None:
-    """For the lowest seed of each radio and plan, the map with where the robots ended and
-    the disk each covers, titled with the covered fraction of the free-area bound."""
+def figure(runs: pd.DataFrame, path: str) -> None:
+    """For the lowest seed of each radio and plan, the map its run read (``map``) with where
+    the robots ended and the disk each covers, titled with the covered fraction of the
+    free-area bound."""
     from matplotlib.patches import Circle
 
-    from netsim.config import load
     from netsim.tools.figures import draw_map, pyplot
     from netsim.world.maps import cached_map
 
@@ -123,7 +124,7 @@ def figure(runs: pd.DataFrame, start_side_m: float, path: str) -> None:
     first = runs.sort_values("seed", kind="stable").groupby(["radio", "plan"], sort=False).head(1)
     fig, axes = plt.subplots(1, len(first), figsize=(4.2 * len(first), 4.6), squeeze=False)
     for ax, row in zip(axes[0], first.itertuples()):
-        occupancy = cached_map(load(None, settings(row.radio, row.plan, row.N, row.seed, 1.0, start_side_m)).world.map)
+        occupancy = cached_map(row.map)
         draw_map(ax, occupancy)
         xy = np.asarray(row.final_xy)
         for p in xy:
@@ -185,12 +186,12 @@ def main(argv=None) -> int:
     print(f"{len(out) - failed} of {len(out)} rows pass ({rule})")
     # The files last, each whole or not at all: an interrupt says which are in place.
     if args.csv:
-        rows = runs.drop(columns=["final_xy", "radius_m"])
+        rows = runs.drop(columns=["final_xy", "radius_m", "map"])
         write_atomically(Path(args.csv), lambda tmp: rows.to_csv(tmp, index=False))
     if args.figure:
         line = f"{Path(__file__).name}: interrupted; every run's row is written in {args.csv}, the figure is not"
         with kept_if_interrupted(line) if args.csv else nullcontext():
-            figure(runs, args.start_side, args.figure)
+            figure(runs, args.figure)
     return 1 if failed else 0
 
 

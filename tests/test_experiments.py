@@ -456,6 +456,7 @@ def test_ctrl_c_while_coverage_on_map_draws_says_the_table_is_kept(tmp_path):
     rows are written and the figure is not (it said "interrupted" alone)."""
     row = {"radio": "office, line of sight", "plan": "global", "N": 5, "seed": 1, "comp0": 1, "start": 0.2}
     row |= {"final": 0.6, "split": False, "moved_m": 9.0, "settled_s": None, "final_xy": [[1.0, 2.0]], "radius_m": 9.0}
+    row["map"] = "office"
     patch = f"ROWS, INTERRUPT = {[row]!r}, False\n{FAKE_POOL}\n{DRAWING_INTERRUPTED}"
     args = ["--radios", "office, line of sight", "--plans", "global", "--seeds", "1", "--n", "5"]
     run = _patched_script(tmp_path, patch, "coverage_on_map.py", *args, "--csv", "r.csv", "--figure", "f.png")
@@ -508,3 +509,21 @@ def test_coverage_targets_why_writes_its_table_to_csv(tmp_path, monkeypatch):
     assert module.main(["--why", "--n", "20", "60", "--csv", str(csv)]) == 0
     table = pd.read_csv(csv)
     assert table["N"].tolist() == [20, 60] and list(table.columns) == ["N", "seed", "of bound", "moved"]
+
+
+def test_coverage_on_map_draws_the_map_its_runs_read_without_a_warning(tmp_path):
+    """The figure draws the map each run read (its row's ``map``), with no warning: it
+    loaded each panel's configuration again with a 1 s run to find it, and each load
+    warned that control starts after that run's end."""
+    import warnings
+
+    from tests.fixtures import script
+
+    module = script("experiments/coverage_on_map.py")
+    ended = {"plan": "global", "N": 2, "seed": 1, "final": 0.5, "final_xy": [[50.0, 50.0], [60.0, 60.0]]}
+    ended |= {"radius_m": 10.0, "map": "office"}
+    runs = pd.DataFrame([{"radio": radio, **ended} for radio in module.MAP_RADIOS])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        module.figure(runs, str(tmp_path / "ended.png"))
+    assert (tmp_path / "ended.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
