@@ -11,7 +11,8 @@ still waiting when the run ends counts its Acks so far
 (:func:`netsim.tools.analysis.mean_acks_until_leader_loss`): the completed waits alone
 leave the long ones out and fall short of the theory.
 
-Writes ``false_role_changes.csv`` and ``false_role_changes.png``.
+Writes ``false_role_changes.csv`` (its columns: docs/experiments.md) and
+``false_role_changes.png``.
 
     python experiments/false_role_changes.py
     python experiments/false_role_changes.py --losses 0.2 0.4 0.6 --taus 1.5 2.5 3.5 --pairs 300
@@ -66,6 +67,17 @@ def _sweep(args, placement: str):
     )
 
 
+def waits_by_pair(roles: pd.DataFrame, tau_s: float, end_s: float) -> pd.DataFrame:
+    """The waits of :func:`netsim.tools.analysis.acks_waited`, one per robot that became a
+    member (both robots of a pair can, one after the other), each with its ``run_id`` and
+    ``pair``: robots ``2i`` and ``2i + 1`` are pair ``i`` (the placement's order)."""
+    waits = [
+        analysis.acks_waited(rr, tau_s, 1.0, LABELS, end_s).assign(run_id=run_id, pair=pair)
+        for (run_id, pair), rr in roles.groupby(["run_id", roles["robot"] // 2])
+    ]
+    return pd.concat(waits, ignore_index=True)
+
+
 def main(argv=None) -> None:
     p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--pairs", type=int, default=200)
@@ -104,7 +116,8 @@ def measure(args, out: Path, scheduler) -> None:
     rows = []
     for (loss, tau), g in runs.groupby(["channel.loss_probability", "protocol.tau_s"]):
         r = roles[roles.run_id.isin(g.run_id)]
-        waited = pd.concat([analysis.acks_waited(rr, tau, 1.0, LABELS, args.duration) for _, rr in r.groupby("run_id")])
+        waited = waits_by_pair(r, tau, args.duration)
+        pairs = waited[["run_id", "pair"]].drop_duplicates()
         mean, low, high = analysis.mean_acks_until_leader_loss(waited)
         k = analysis.spurious_timeout_window(tau, 1.0)
         false_changes = (r.cause == LABELS.leader_lost).sum() / (len(g) * 2 * args.pairs * args.duration / 60)
@@ -113,8 +126,9 @@ def measure(args, out: Path, scheduler) -> None:
                 "loss_probability": loss,
                 "tau_over_period": tau,
                 "k": k,
-                "pairs_measured": len(waited),
-                "pairs_still_waiting": int((~waited["lost"]).sum()),
+                "pairs_measured": len(pairs),
+                "waits_measured": len(waited),
+                "pairs_still_waiting": len(waited.loc[~waited["lost"], ["run_id", "pair"]].drop_duplicates()),
                 "acks_until_false_loss": mean,
                 "ci95_low": low,
                 "ci95_high": high,

@@ -527,3 +527,23 @@ def test_coverage_on_map_draws_the_map_its_runs_read_without_a_warning(tmp_path)
         warnings.simplefilter("error")
         module.figure(runs, str(tmp_path / "ended.png"))
     assert (tmp_path / "ended.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_false_role_changes_counts_pairs_and_waits_apart(tmp_path):
+    """pairs_measured counts pairs in which a robot became a member, at most --pairs, and
+    waits_measured the waits the mean is over, one per such robot, as the roles table has
+    them (pairs_measured counted robots: 53 of 50 pairs here, where both robots of three
+    pairs became members in turn)."""
+    from netsim.protocols.roles import LABELS
+
+    from netsim.tools import sweep as sweepmod
+
+    args = ["--pairs", "50", "--losses", "0.5", "--taus", "1.5", "--duration", "60", "--workers", "1"]
+    run = _script(tmp_path, "false_role_changes.py", *args, "--out", "o")
+    assert run.returncode == 0, run.stderr[-2000:]
+    row = pd.read_csv(tmp_path / "o" / "false_role_changes.csv").iloc[0]
+    members = sweepmod.load_table(tmp_path / "o" / "sweep", "roles").query(f"role == {LABELS.member!r}")
+    robots, pairs = members["robot"].nunique(), (members["robot"] // 2).nunique()
+    assert robots > pairs  # the case counted wrong
+    assert (row["pairs_measured"], row["waits_measured"]) == (pairs, robots) and pairs <= 50
