@@ -49,6 +49,8 @@ def main(argv=None) -> None:
     p.add_argument("--spread", type=float, default=0.5, help="random waypoint speeds uniform on [spread v, v]")
     sweepmod.add_runner_arguments(p, "link_lifetime", reps=2)
     args = p.parse_args(argv)
+    # A value given twice is one point, run once (each added its rows to the table again).
+    args.speeds, args.pauses = (list(dict.fromkeys(v)) for v in (args.speeds, args.pauses))
     out = Path(args.out)
     common = {
         "seed": args.seed,

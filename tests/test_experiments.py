@@ -547,3 +547,39 @@ def test_false_role_changes_counts_pairs_and_waits_apart(tmp_path):
     robots, pairs = members["robot"].nunique(), (members["robot"] // 2).nunique()
     assert robots > pairs  # the case counted wrong
     assert (row["pairs_measured"], row["waits_measured"]) == (pairs, robots) and pairs <= 50
+
+
+def test_routing_compare_draws_latencies_alike_flat(tmp_path):
+    """Latencies and ratios alike but for their last bits are drawn flat, each tick its
+    value: the latency axis zoomed into 1e-15 s and, against an offset ("1e-15+1e-3"),
+    showed a steep fall."""
+    from tests.fixtures import script
+
+    module = script("experiments/routing_compare.py")
+    table = pd.DataFrame(
+        {
+            "protocol": ["aodv", "aodv"],
+            "speed_mps": [1.0, 5.0],
+            "delivery_ratio": [1.0, 1.0 - 1e-15],
+            "latency_p50_s": [0.0010000000000012221, 0.0009999999999994458],
+            "control_per_robot_per_s": [1.0, 1.0 + 1e-15],
+        }
+    )
+    for col in ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s"):
+        table[f"{col}_ci_low"] = table[f"{col}_ci_high"] = np.nan
+    fig = module.figure(table)
+    fig.canvas.draw()
+    for ax, col in zip(fig.axes, ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s")):
+        low, high = ax.get_ylim()
+        assert table[col].max() - table[col].min() < 1e-6 * (high - low), col
+        assert ax.yaxis.get_offset_text().get_text() == "", col
+
+
+@pytest.mark.slow
+def test_link_lifetime_runs_a_speed_given_twice_once(tmp_path):
+    """`--speeds 2 2` is one speed: a row per model, as `--speeds 2` (each was written twice)."""
+    args = ["--n", "5", "--side", "5000", "--pauses", "0", "--duration", "20", "--reps", "1", "--workers", "1"]
+    run = _script(tmp_path, "link_lifetime.py", *args, "--speeds", "2", "2", "--out", "o")
+    assert run.returncode == 0, run.stderr[-2000:]
+    table = pd.read_csv(tmp_path / "o" / "link_lifetime.csv")
+    assert table["model"].tolist() == ["random_waypoint", "random_direction_torus"]
