@@ -85,6 +85,9 @@ def main(argv=None) -> None:
     p.add_argument("--message-rate", type=float, default=2.0, help="messages per second, network-wide")
     sweepmod.add_runner_arguments(p, "ack_congestion", reps=2)
     args = p.parse_args(argv)
+    for density in args.densities:
+        if not (density > 0 and math.isfinite(density)):
+            raise NetsimInputError(f"--densities {density:g}: each must be > 0 (robots in range)")
     if max(args.densities) >= args.n * math.pi / 4:
         raise NetsimInputError(f"--densities must stay below n pi / 4 = {args.n * math.pi / 4:g}")
     if not 0 <= args.warmup < args.duration:
@@ -93,36 +96,45 @@ def main(argv=None) -> None:
     args.densities, args.periods, args.macs = (
         list(dict.fromkeys(v)) for v in (args.densities, args.periods, args.macs)
     )
+    sweeps = {}
+    for period in args.periods:
+        name = f"period_{period:g}"
+        sweeps[name] = (
+            period,
+            sweepmod.parse(
+                {
+                    "name": f"ack_congestion_{name}",
+                    "replications": args.reps,
+                    "tables": ["roles"],
+                    "base": {
+                        "seed": args.seed,
+                        "duration_s": args.duration,
+                        "world": {"n_robots": args.n, "torus": True},
+                        "mobility": {"model": "static"},
+                        "channel": {"range_m": RANGE_M},
+                        "protocol": {
+                            "model": "clustering",
+                            "ack_period_s": period,
+                            "ack_jitter_s": 0.05 * period,
+                            "message_rate_hz": args.message_rate,
+                        },
+                        "output": {"position_interval_s": 0.0},
+                    },
+                    "grid": {
+                        "channel.mac": list(args.macs),
+                        "world.side_m": [side_for(args.n, d) for d in args.densities],
+                    },
+                }
+            ),
+        )
+    # Every point of every period checked before the first run: a bad one met later left the
+    # periods before it written.
+    for _, sweep in sweeps.values():
+        sweep.runs(here=args.scheduler is None)
     scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
     out = Path(args.out)
     frames, roles = [], []
-    for period in args.periods:
-        name = f"period_{period:g}"
-        sweep = sweepmod.parse(
-            {
-                "name": f"ack_congestion_{name}",
-                "replications": args.reps,
-                "tables": ["roles"],
-                "base": {
-                    "seed": args.seed,
-                    "duration_s": args.duration,
-                    "world": {"n_robots": args.n, "torus": True},
-                    "mobility": {"model": "static"},
-                    "channel": {"range_m": RANGE_M},
-                    "protocol": {
-                        "model": "clustering",
-                        "ack_period_s": period,
-                        "ack_jitter_s": 0.05 * period,
-                        "message_rate_hz": args.message_rate,
-                    },
-                    "output": {"position_interval_s": 0.0},
-                },
-                "grid": {
-                    "channel.mac": list(args.macs),
-                    "world.side_m": [side_for(args.n, d) for d in args.densities],
-                },
-            }
-        )
+    for name, (period, sweep) in sweeps.items():
         print(sweepmod.run_sweep(sweep, out / name, workers=args.workers, scheduler=scheduler).text())
         runs = sweepmod.load(out / name)
         runs["ack_period_s"] = period

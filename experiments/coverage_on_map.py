@@ -38,6 +38,7 @@ import argparse
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,8 @@ import pandas as pd
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
 from netsim.tools.cli import check_out_file
+from netsim.tools.interrupt import kept_if_interrupted
+from netsim.tools.output import write_atomically
 from netsim.tools.sweep import run_script
 from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_settings
 
@@ -88,6 +91,7 @@ def one(
         "settled_s": float(summary["control_settled_s"]),
         "final_xy": result.sim.positions().tolist(),
         "radius_m": float(config.coverage.radius_m or min(config.ranges_m())),
+        "map": config.world.map,
     }
 
 
@@ -107,12 +111,12 @@ def table(runs: pd.DataFrame) -> pd.DataFrame:
     return out.rename(columns={"final_min": "final min"})
 
 
-def figure(runs: pd.DataFrame, start_side_m: float, path: str) -> None:
-    """For the lowest seed of each radio and plan, the map with where the robots ended and
-    the disk each covers, titled with the covered fraction of the free-area bound."""
+def figure(runs: pd.DataFrame, path: str) -> None:
+    """For the lowest seed of each radio and plan, the map its run read (``map``) with where
+    the robots ended and the disk each covers, titled with the covered fraction of the
+    free-area bound."""
     from matplotlib.patches import Circle
 
-    from netsim.config import load
     from netsim.tools.figures import draw_map, pyplot
     from netsim.world.maps import cached_map
 
@@ -120,7 +124,7 @@ def figure(runs: pd.DataFrame, start_side_m: float, path: str) -> None:
     first = runs.sort_values("seed", kind="stable").groupby(["radio", "plan"], sort=False).head(1)
     fig, axes = plt.subplots(1, len(first), figsize=(4.2 * len(first), 4.6), squeeze=False)
     for ax, row in zip(axes[0], first.itertuples()):
-        occupancy = cached_map(load(None, settings(row.radio, row.plan, row.N, row.seed, 1.0, start_side_m)).world.map)
+        occupancy = cached_map(row.map)
         draw_map(ax, occupancy)
         xy = np.asarray(row.final_xy)
         for p in xy:
@@ -130,7 +134,7 @@ def figure(runs: pd.DataFrame, start_side_m: float, path: str) -> None:
         ax.set(xlim=(x0, x1), ylim=(y0, y1), aspect="equal", xlabel="x (m)", ylabel="y (m)")
         ax.set_title(f"{row.radio}, {row.plan}, seed {row.seed}: {row.final:.3f}", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomically(Path(path), lambda tmp: fig.savefig(tmp, dpi=110, format=Path(path).suffix[1:].lower()))
     plt.close(fig)
 
 
@@ -174,16 +178,20 @@ def main(argv=None) -> int:
     ]
     with ProcessPoolExecutor(args.workers) as pool:
         runs = pd.DataFrame(list(pool.map(one, *zip(*jobs))))
-    if args.csv:
-        runs.drop(columns=["final_xy", "radius_m"]).to_csv(args.csv, index=False)
-    if args.figure:
-        figure(runs, args.start_side, args.figure)
     out = table(runs)
     with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
         print(out.to_string(index=False))
     failed = int((~out["pass"]).sum())
     rule = f"every seed at {TARGET:g} of the free-area bound or more, none split"
     print(f"{len(out) - failed} of {len(out)} rows pass ({rule})")
+    # The files last, each whole or not at all: an interrupt says which are in place.
+    if args.csv:
+        rows = runs.drop(columns=["final_xy", "radius_m", "map"])
+        write_atomically(Path(args.csv), lambda tmp: rows.to_csv(tmp, index=False))
+    if args.figure:
+        line = f"{Path(__file__).name}: interrupted; every run's row is written in {args.csv}, the figure is not"
+        with kept_if_interrupted(line) if args.csv else nullcontext():
+            figure(runs, args.figure)
     return 1 if failed else 0
 
 

@@ -52,7 +52,7 @@ that held a robot, how many were weak (margin below ``coverage.fade_margin_db``)
 down at the step (the true network), or up with a detour of truly shorter up links
 (one rule 1 could in principle certify), or only with a detour of stronger links (the
 global plan's order, by margin), or none; and, whatever their length, how many had a
-detour of stronger links.
+detour of stronger links. ``--csv FILE`` writes that table too, a row per N.
 
     python experiments/coverage_targets.py --why --n 20 60 --duration 150
 
@@ -79,6 +79,7 @@ import math
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
 from pathlib import Path
 
 import pandas as pd
@@ -87,7 +88,12 @@ from netsim.config import Config
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
 from netsim.tools.cli import check_out_file
+from netsim.tools.interrupt import kept_if_interrupted
+from netsim.tools.output import write_atomically
+from netsim.tools.sweep import run_script
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
+
+NAME = Path(__file__).name
 
 
 def scenarios(sizes: list[int], radios: bool) -> list[tuple[str, str, int, float]]:
@@ -167,16 +173,23 @@ def shadowing_table(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def write_csv(table: pd.DataFrame, path: str) -> None:
+    """``table`` written whole to ``path`` or not at all, whenever an interrupt comes."""
+    write_atomically(Path(path), lambda tmp: table.to_csv(tmp, index=False))
+
+
 def run_jobs(one, jobs: list, args) -> pd.DataFrame:
     """``one(job, duration)`` of every job over ``args.workers`` processes, each run printed
     (and the CSV written again) as it finishes: a run cut short keeps what it has."""
     done = []
-    with ProcessPoolExecutor(args.workers) as pool:
+    with ProcessPoolExecutor(args.workers) as pool, ExitStack() as kept:
         for run in pool.map(one, jobs, [args.duration] * len(jobs)):
             done.append(run)
-            print(run, flush=True)
             if args.csv:
-                pd.DataFrame(done).to_csv(args.csv, index=False)
+                write_csv(pd.DataFrame(done), args.csv)
+                if len(done) == 1:
+                    kept.enter_context(kept_if_interrupted(f"{NAME}: interrupted; the runs finished are in {args.csv}"))
+            print(run, flush=True)
     return pd.DataFrame(done)
 
 
@@ -470,7 +483,10 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
-    p.add_argument("--csv", help="also write the table here (with --shadowing, --bound: every run, as it ends)")
+    p.add_argument(
+        "--csv",
+        help="also write the table here (with --shadowing, --bound: every run, as it ends; --why: a row per N)",
+    )
     p.add_argument("--shadowing", action="store_true", help="the targets under 4 dB shadowing (module notes)")
     p.add_argument(
         "--seeds", type=int, default=20, help="--shadowing, --bound: seeds 1 to this (--bound runs eight plans a seed)"
@@ -484,17 +500,15 @@ def main(argv=None) -> int:
         help="--shadowing only: a setting over the scenario's, for both plans' runs (repeatable)",
     )
     args = p.parse_args(argv)
-    try:
-        check_options(args)
-    except NetsimInputError as e:
-        print(f"coverage_targets.py: error: {e}", file=sys.stderr)
-        return 2
+    check_options(args)
     if args.bound:
         return main_bound(args)
     if args.why:
         table = pd.DataFrame([why(n, args.seed, args.duration) for n in args.n or [20, 60]])
         with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
             print(table.T.to_string(header=False))
+        if args.csv:
+            write_csv(table, args.csv)
         return 0
     if args.shadowing:
         return main_shadowing(args)
@@ -505,12 +519,12 @@ def main(argv=None) -> int:
     table = pd.DataFrame(results)
     with pd.option_context("display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))
-    if args.csv:
-        table.to_csv(args.csv, index=False)
     failed = int((~table["pass"]).sum())
     print(f"{len(table) - failed} of {len(table)} rows pass")
+    if args.csv:
+        write_csv(table, args.csv)
     return 1 if failed else 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(lambda: sys.exit(main()))

@@ -5,12 +5,14 @@ every leader loss is false: the member times out only when ``k`` consecutive Ack
 leader are lost (``k`` = Ack instants in the ``tau`` window, its end included). A sweep of
 ``channel.loss_probability`` x ``protocol.tau_s`` (Ack period 1 s, no jitter) measures the
 leader's Acks until the first false timeout, against the theory
-``(1 - p^k) / ((1 - p) p^k)``, and the false role changes per robot per minute. A member
+``(1 - p^k) / ((1 - p) p^k)`` (infinite at ``p = 0``, its limit: no Ack is lost, no wait
+ends), and the false role changes per robot per minute. A member
 still waiting when the run ends counts its Acks so far
 (:func:`netsim.tools.analysis.mean_acks_until_leader_loss`): the completed waits alone
 leave the long ones out and fall short of the theory.
 
-Writes ``false_role_changes.csv`` and ``false_role_changes.png``.
+Writes ``false_role_changes.csv`` (its columns: docs/experiments.md) and
+``false_role_changes.png``.
 
     python experiments/false_role_changes.py
     python experiments/false_role_changes.py --losses 0.2 0.4 0.6 --taus 1.5 2.5 3.5 --pairs 300
@@ -19,6 +21,7 @@ Writes ``false_role_changes.csv`` and ``false_role_changes.png``.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -29,6 +32,7 @@ from netsim.tools import analysis
 from netsim.tools import sweep as sweepmod
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
+from netsim.tools.output import claim_dir
 
 
 def _sweep(args, placement: str):
@@ -63,6 +67,17 @@ def _sweep(args, placement: str):
     )
 
 
+def waits_by_pair(roles: pd.DataFrame, tau_s: float, end_s: float) -> pd.DataFrame:
+    """The waits of :func:`netsim.tools.analysis.acks_waited`, one per robot that became a
+    member (both robots of a pair can, one after the other), each with its ``run_id`` and
+    ``pair``: robots ``2i`` and ``2i + 1`` are pair ``i`` (the placement's order)."""
+    waits = [
+        analysis.acks_waited(rr, tau_s, 1.0, LABELS, end_s).assign(run_id=run_id, pair=pair)
+        for (run_id, pair), rr in roles.groupby(["run_id", roles["robot"] // 2])
+    ]
+    return pd.concat(waits, ignore_index=True)
+
+
 def main(argv=None) -> None:
     p = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--pairs", type=int, default=200)
@@ -76,12 +91,19 @@ def main(argv=None) -> None:
     for loss in args.losses:
         if not 0 <= loss < 1:
             raise NetsimInputError(f"--losses {loss:g}: each a probability in [0, 1)")
-    # Every point and the workers checked, and the scheduler reached, before the placement
-    # file is written: bad input leaves no output behind.
+    # Every point and the workers checked, the scheduler reached and the folders judged before
+    # the placement file is written: bad input leaves no output behind.
     sweepmod.check_workers(args.workers)
-    _sweep(args, "uniform").runs()
+    checked = _sweep(args, "uniform")
+    checked.runs()
     scheduler = sweepmod.connect(args.scheduler) if args.scheduler else None
-    out = sweepmod.out_folder(args.out)
+    with claim_dir(args.out, "--out") as out:
+        sweepmod.refuse_another_sweeps_dir(out / "sweep", checked.name)
+        measure(args, out, scheduler)
+
+
+def measure(args, out: Path, scheduler) -> None:
+    """The sweep run into ``out`` (its placement file written first), its table and figure."""
     pos = np.zeros((2 * args.pairs, 2))
     pos[0::2, 0] = pos[1::2, 0] = np.arange(args.pairs) * 100.0
     pos[1::2, 1] = 5.0
@@ -94,7 +116,8 @@ def main(argv=None) -> None:
     rows = []
     for (loss, tau), g in runs.groupby(["channel.loss_probability", "protocol.tau_s"]):
         r = roles[roles.run_id.isin(g.run_id)]
-        waited = pd.concat([analysis.acks_waited(rr, tau, 1.0, LABELS, args.duration) for _, rr in r.groupby("run_id")])
+        waited = waits_by_pair(r, tau, args.duration)
+        pairs = waited[["run_id", "pair"]].drop_duplicates()
         mean, low, high = analysis.mean_acks_until_leader_loss(waited)
         k = analysis.spurious_timeout_window(tau, 1.0)
         false_changes = (r.cause == LABELS.leader_lost).sum() / (len(g) * 2 * args.pairs * args.duration / 60)
@@ -103,8 +126,9 @@ def main(argv=None) -> None:
                 "loss_probability": loss,
                 "tau_over_period": tau,
                 "k": k,
-                "pairs_measured": len(waited),
-                "pairs_still_waiting": int((~waited["lost"]).sum()),
+                "pairs_measured": len(pairs),
+                "waits_measured": len(waited),
+                "pairs_still_waiting": len(waited.loc[~waited["lost"], ["run_id", "pair"]].drop_duplicates()),
                 "acks_until_false_loss": mean,
                 "ci95_low": low,
                 "ci95_high": high,

@@ -19,10 +19,14 @@ Each policy runs ``--episodes`` episodes of ``--cycles`` steps (seeds 0, 1, ...)
 
     python experiments/learn_coverage.py
     python experiments/learn_coverage.py --n 30 --cycles 400 --episodes 5 --out results
+
+It needs the optional extra ``rl`` (PettingZoo and Gymnasium): ``pip install -e ".[rl]"`` in
+the repository's folder.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -31,13 +35,27 @@ import numpy as np
 import pandas as pd
 
 from netsim import metrics
-from netsim.envs import coverage_v0
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
-from netsim.tools.sweep import out_folder
+from netsim.tools.interrupt import kept_if_interrupted
+from netsim.tools.output import claim_dir, write_atomically
+from netsim.tools.sweep import run_script
 
 Policy = Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]]
+# The libraries of the optional extra `rl` (pyproject.toml) that the environment loads.
+RL = ("gymnasium", "pettingzoo")
+
+
+def check_rl() -> None:
+    """Refuse in one line, before anything is written, when the environment's libraries are
+    not installed (their import failed in a traceback)."""
+    missing = [m for m in RL if importlib.util.find_spec(m) is None]
+    if missing:
+        raise NetsimInputError(
+            f"needs {' and '.join(missing)}, of the optional extra 'rl': pip install -e \".[rl]\" in the "
+            "repository's folder"
+        )
 
 
 def random_policy(env, rng: np.random.Generator) -> Policy:
@@ -107,14 +125,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=3, help="episodes per policy (seeds 0, 1, ...)")
     parser.add_argument("--out", type=Path, default=Path("learn_coverage"), help="directory for the CSV and PNG")
     args = parser.parse_args(argv)
-    try:
-        env = coverage_v0.parallel_env(n_robots=args.n, max_cycles=args.cycles, render_mode="rgb_array")
-        if args.episodes < 1:
-            raise NetsimInputError(f"--episodes {args.episodes}: must be at least 1")
-        args.out = out_folder(args.out)  # before the episodes: a file there would lose them
-    except NetsimInputError as exc:
-        print(f"learn_coverage.py: {exc}", file=sys.stderr)
-        return 2
+    check_rl()
+    from netsim.envs import coverage_v0
+
+    env = coverage_v0.parallel_env(n_robots=args.n, max_cycles=args.cycles, render_mode="rgb_array")
+    if args.episodes < 1:
+        raise NetsimInputError(f"--episodes {args.episodes}: must be at least 1")
+    # Claimed before the episodes (a folder that cannot take the results would lose them),
+    # and given up, if they fail, as it was.
+    with claim_dir(args.out, "--out") as out:
+        return learn(env, args, out)
+
+
+def learn(env, args, out: Path) -> int:
+    """Both policies' episodes, their table and figure written in ``out``."""
     policies = {"random": random_policy(env, np.random.default_rng(0)), "forces": forces_policy(env)}
     rows, curves, frame = [], {}, None
     for name, policy in policies.items():
@@ -126,7 +150,6 @@ def main(argv: list[str] | None = None) -> int:
             frame = last if name == "forces" else frame
         curves[name] = np.mean(runs, axis=0)
     table = pd.DataFrame(rows)
-    table.to_csv(args.out / "learn_coverage.csv", index=False)
     bound = metrics.bound_fraction(args.n, env.radius_m, env.params.side_m, env.params.range_m)
     print(f"N = {args.n}, {args.cycles} steps of {env.params.step_s:g} s; bound min(1, U(N)/A) = {bound:.3f}")
     summary = table.groupby("policy", sort=False).agg(
@@ -136,10 +159,21 @@ def main(argv: list[str] | None = None) -> int:
         episode_return=("return", "mean"),
     )
     print(summary.to_string(float_format=lambda v: f"{v:.3f}"))
+    # Each file whole or not at all: an interrupt says which is in place.
+    csv, png = out / "learn_coverage.csv", out / "learn_coverage.png"
+    write_atomically(csv, lambda tmp: table.to_csv(tmp, index=False))
+    with kept_if_interrupted(f"{Path(__file__).name}: interrupted; {csv} is written, {png.name} is not"):
+        draw(curves, frame, env.params.step_s, png)
+    print(f"wrote {csv} and {png}")
+    return 0
+
+
+def draw(curves: dict[str, np.ndarray], frame: np.ndarray | None, step_s: float, path: Path) -> None:
+    """The covered fraction of the bound against time per policy, beside the last frame."""
     plt = pyplot()
     fig, (ax, pic) = plt.subplots(1, 2, figsize=(11, 4.6))
     for name, curve in curves.items():
-        ax.plot(np.arange(len(curve)) * env.params.step_s, curve, label=name)
+        ax.plot(np.arange(len(curve)) * step_s, curve, label=name)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("covered fraction / bound (grid)")
     ax.set_ylim(0, 1.05)
@@ -150,10 +184,8 @@ def main(argv: list[str] | None = None) -> int:
     pic.set_axis_off()
     pic.set_title("forces policy, end of the last episode", fontsize=9)
     fig.tight_layout()
-    fig.savefig(args.out / "learn_coverage.png", dpi=120)
-    print(f"wrote {args.out / 'learn_coverage.csv'} and {args.out / 'learn_coverage.png'}")
-    return 0
+    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script(lambda: sys.exit(main()))

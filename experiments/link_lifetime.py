@@ -29,10 +29,13 @@ from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
 
 
-def run(name, base, grid, reps, out, args):
-    sweep = sweepmod.parse({"name": name, "replications": reps, "tables": ["links"], "base": base, "grid": grid})
-    print(sweepmod.run_sweep(sweep, out / name, workers=args.workers, scheduler=args.scheduler).text())
-    return sweepmod.load(out / name), sweepmod.load_table(out / name, "links")
+def sweep_of(name, base, grid, reps):
+    return sweepmod.parse({"name": name, "replications": reps, "tables": ["links"], "base": base, "grid": grid})
+
+
+def run(sweep, out, args):
+    print(sweepmod.run_sweep(sweep, out / sweep.name, workers=args.workers, scheduler=args.scheduler).text())
+    return sweepmod.load(out / sweep.name), sweepmod.load_table(out / sweep.name, "links")
 
 
 def main(argv=None) -> None:
@@ -46,6 +49,8 @@ def main(argv=None) -> None:
     p.add_argument("--spread", type=float, default=0.5, help="random waypoint speeds uniform on [spread v, v]")
     sweepmod.add_runner_arguments(p, "link_lifetime", reps=2)
     args = p.parse_args(argv)
+    # A value given twice is one point, run once (each added its rows to the table again).
+    args.speeds, args.pauses = (list(dict.fromkeys(v)) for v in (args.speeds, args.pauses))
     out = Path(args.out)
     common = {
         "seed": args.seed,
@@ -54,25 +59,35 @@ def main(argv=None) -> None:
         "protocol": {"model": "none"},
         "output": {"position_interval_s": 0.0},
     }
-    rows, curves = [], {}
+    sweeps = {}
     for v in args.speeds:
         base = {
             **common,
             "world": {"n_robots": args.n, "side_m": args.side},
             "mobility": {"speed_min_mps": args.spread * v, "speed_max_mps": v},
         }
-        runs, links = run(f"rwp_v{v:g}", base, {"mobility.pause_s": args.pauses}, args.reps, out, args)
-        for pause, g in analysis.compare_lifetimes(runs, links, ["mobility.pause_s"]).groupby("mobility.pause_s"):
-            rows.append({"model": "random_waypoint", "speed_mps": v, "pause_s": pause, **g.iloc[0].to_dict()})
-        chosen = runs[runs["mobility.pause_s"] == args.pauses[0]].run_id
-        ld = analysis.link_durations(links[links.run_id.isin(chosen)])
-        curves[v] = analysis.kaplan_meier(ld.duration_s, ld.observed)
         torus = {
             **common,
             "world": {"n_robots": args.n, "side_m": args.side, "torus": True},
             "mobility": {"model": "random_direction", "speed_min_mps": v, "speed_max_mps": v},
         }
-        runs, links = run(f"torus_v{v:g}", torus, {"mobility.pause_s": [0.0]}, args.reps, out, args)
+        sweeps[v] = (
+            sweep_of(f"rwp_v{v:g}", base, {"mobility.pause_s": args.pauses}, args.reps),
+            sweep_of(f"torus_v{v:g}", torus, {"mobility.pause_s": [0.0]}, args.reps),
+        )
+    # Every point of every sweep checked before the first run: a bad one met later left the
+    # sweeps before it written.
+    for sweep in (sweep for pair in sweeps.values() for sweep in pair):
+        sweep.runs(here=args.scheduler is None)
+    rows, curves = [], {}
+    for v, (rwp, on_torus) in sweeps.items():
+        runs, links = run(rwp, out, args)
+        for pause, g in analysis.compare_lifetimes(runs, links, ["mobility.pause_s"]).groupby("mobility.pause_s"):
+            rows.append({"model": "random_waypoint", "speed_mps": v, "pause_s": pause, **g.iloc[0].to_dict()})
+        chosen = runs[runs["mobility.pause_s"] == args.pauses[0]].run_id
+        ld = analysis.link_durations(links[links.run_id.isin(chosen)])
+        curves[v] = analysis.kaplan_meier(ld.duration_s, ld.observed)
+        runs, links = run(on_torus, out, args)
         summary = analysis.compare_lifetimes(runs, links, ["mobility.pause_s"]).iloc[0].to_dict()
         rows.append(
             {

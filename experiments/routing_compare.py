@@ -20,11 +20,13 @@ Writes ``routing_compare.csv`` (one row per protocol and speed) and
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from netsim.errors import NetsimInputError
 from netsim.tools import sweep as sweepmod
 from netsim.tools.args import Parser
 from netsim.tools.figures import pyplot
@@ -83,6 +85,12 @@ def main(argv=None) -> None:
     p.add_argument("--protocols", nargs="+", default=list(PROTOCOLS), choices=list(PROTOCOLS))
     sweepmod.add_runner_arguments(p, "routing_compare", reps=3)
     args = p.parse_args(argv)
+    if args.flows < 1:
+        raise NetsimInputError(f"--flows {args.flows}: at least 1 (a run without packets measures nothing)")
+    if not (args.interval > 0 and math.isfinite(args.interval)):
+        raise NetsimInputError(f"--interval {args.interval:g}: must be > 0 s")
+    # A value given twice is one point, run once.
+    args.speeds, args.protocols = (list(dict.fromkeys(v)) for v in (args.speeds, args.protocols))
     out = Path(args.out)
     rate = args.packet_bytes * 8 / args.interval
     flows = [
@@ -96,7 +104,7 @@ def main(argv=None) -> None:
         }
         for k in range(args.flows)
     ]
-    rows = []
+    sweeps = {}
     for name in args.protocols:
         base = {
             "seed": args.seed,
@@ -107,10 +115,18 @@ def main(argv=None) -> None:
             "traffic": {"flows": flows},
             "output": {"position_interval_s": 0.0},
         }
-        clustering = PROTOCOLS[name]["model"] == "clustering"
+        tables = ["packets"] if PROTOCOLS[name]["model"] == "clustering" else ["packets", "control"]
         grid = {"mobility.speed_max_mps": args.speeds}
-        tables = ["packets"] if clustering else ["packets", "control"]
-        sweep = sweepmod.parse({"name": name, "replications": args.reps, "tables": tables, "base": base, "grid": grid})
+        sweeps[name] = sweepmod.parse(
+            {"name": name, "replications": args.reps, "tables": tables, "base": base, "grid": grid}
+        )
+    # Every point of every protocol checked before the first run: a bad one met later left the
+    # protocols before it written.
+    for sweep in sweeps.values():
+        sweep.runs(here=args.scheduler is None)
+    rows = []
+    for name, sweep in sweeps.items():
+        clustering = PROTOCOLS[name]["model"] == "clustering"
         print(sweepmod.run_sweep(sweep, out / name, workers=args.workers, scheduler=args.scheduler).text())
         runs = sweepmod.load(out / name)
         if clustering:
@@ -130,6 +146,12 @@ def main(argv=None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     table.to_csv(out / "routing_compare.csv", index=False)
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    figure(table).savefig(out / "routing_compare.png", dpi=120)
+    print(f"wrote {out / 'routing_compare.csv'} and {out / 'routing_compare.png'}")
+
+
+def figure(table: pd.DataFrame):
+    """Delivery ratio, median latency and control frames against speed, a line per protocol."""
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, col, label in zip(
@@ -143,10 +165,19 @@ def main(argv=None) -> None:
             ax.errorbar(g["speed_mps"], g[col], yerr=[low, high], marker="o", capsize=3, label=name)
         ax.set_xlabel("maximum speed, m/s")
         ax.set_ylabel(label)
+        # The axis spans 0.9 to 1 at least for a ratio and starts at 0 for the others, and
+        # each tick is its value: values alike but for their last bits (a hop's latency
+        # each, summed in another order) are drawn flat, where the axis zoomed into those
+        # bits and, against an offset ("1e-15+1e-3"), showed a steep fall.
+        low, high = ax.get_ylim()
+        if col == "delivery_ratio":
+            ax.set_ylim(min(low, 0.9), 1.02)
+        else:
+            ax.set_ylim(0.0, 1.05 * high if high > 0 else 1.0)
+        ax.ticklabel_format(axis="y", useOffset=False)
     axes[0].legend()
     fig.tight_layout()
-    fig.savefig(out / "routing_compare.png", dpi=120)
-    print(f"wrote {out / 'routing_compare.csv'} and {out / 'routing_compare.png'}")
+    return fig
 
 
 if __name__ == "__main__":

@@ -22,6 +22,18 @@ def targets():
     return script("experiments/coverage_targets.py")
 
 
+def exit_status(monkeypatch, argv: list[str]) -> int:
+    """The exit status of ``coverage_targets.py ARGV`` as its ``__main__`` runs it: ``main``
+    within :func:`netsim.tools.sweep.run_script`, which says bad input in one line."""
+    from netsim.tools.sweep import run_script
+
+    monkeypatch.setattr(sys, "argv", ["coverage_targets.py"])
+    module = targets()
+    with pytest.raises(SystemExit) as exit_:
+        run_script(lambda: sys.exit(module.main(argv)))
+    return exit_.value.code
+
+
 # Robot 0 at the origin, 1 at 80 m, 2 between them (about 43 m from each): the link 0-1 is the
 # longest; in the global plan's order (weight) the short link 0-2 is the weakest, as if in a
 # deep fade.
@@ -141,11 +153,11 @@ BAD_SETTINGS += ["coverage.plan=local", "seed=3", 'coverage={plan="global"}', "w
 
 
 @pytest.mark.parametrize("setting", BAD_SETTINGS)
-def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, setting):
+def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, monkeypatch, setting):
     """``--shadowing --set``: a setting the configuration refuses stops the script before any
     run, with one line on stderr and exit 2, and no CSV."""
     csv = tmp_path / "s.csv"
-    code = targets().main(["--shadowing", "--seeds", "1", "--n", "8", "--set", setting, "--csv", str(csv)])
+    code = exit_status(monkeypatch, ["--shadowing", "--seeds", "1", "--n", "8", "--set", setting, "--csv", str(csv)])
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "coverage_targets.py: error:" in err
     assert not csv.exists()
@@ -164,22 +176,22 @@ def test_shadowing_with_a_bad_setting_is_one_line_exit_2_and_writes_nothing(tmp_
         (["--why", "--seed", "-1"], "--seed -1: must be >= 0"),
     ],
 )
-def test_bad_sizes_seeds_workers_or_duration_are_one_line_exit_2(tmp_path, capsys, args, said):
+def test_bad_sizes_seeds_workers_or_duration_are_one_line_exit_2(tmp_path, capsys, monkeypatch, args, said):
     """Refused before any run (a run of 0 robots or a pool of 0 workers would end in a
     traceback): one line naming the option, exit 2, no CSV."""
     csv = tmp_path / "s.csv"
-    code = targets().main([*args, "--csv", str(csv)])
+    code = exit_status(monkeypatch, [*args, "--csv", str(csv)])
     err = capsys.readouterr().err
     assert code == 2 and err.strip().splitlines() == [f"coverage_targets.py: error: {said}"]
     assert not csv.exists()
 
 
 @pytest.mark.parametrize("mode", [[], ["--bound"], ["--why"], ["--shadowing", "--bound"]])
-def test_set_outside_shadowing_is_one_line_exit_2(tmp_path, capsys, mode):
+def test_set_outside_shadowing_is_one_line_exit_2(tmp_path, capsys, monkeypatch, mode):
     """``--set`` acts on ``--shadowing`` runs alone: elsewhere it would be ignored, so it is
     refused (one line, exit 2, no CSV)."""
     csv = tmp_path / "s.csv"
-    code = targets().main([*mode, "--set", "coverage.detour_sigmas=2", "--csv", str(csv)])
+    code = exit_status(monkeypatch, [*mode, "--set", "coverage.detour_sigmas=2", "--csv", str(csv)])
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--shadowing runs only" in err
     assert not csv.exists()

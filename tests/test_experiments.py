@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -272,6 +273,13 @@ def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
     pd.testing.assert_frame_equal(tables[0], tables[1])
 
 
+# The smallest routing comparison: what an old check let run before it failed runs quickly.
+TINY_ROUTING = ["--n", "4", "--duration", "20", "--warmup", "15", "--speeds", "2", "--reps", "1", "--workers", "1"]
+TINY_LIFETIME = ["--n", "5", "--duration", "10", "--pauses", "0", "--reps", "1", "--workers", "1"]
+TINY_CONGESTION = ["--n", "20", "--densities", "8", "--macs", "none", "--duration", "15", "--warmup", "5"]
+TINY_CONGESTION += ["--reps", "1", "--workers", "1"]
+
+
 @pytest.mark.parametrize(
     "script, args, said",
     [
@@ -285,6 +293,17 @@ def test_ack_congestion_runs_a_period_given_twice_once(tmp_path):
         ("false_role_changes.py", ["--pairs", "2", "--workers", "0"], "--workers 0: must be at least 1"),
         ("false_role_changes.py", ["--pairs", "2", "--taus", "0.5"], "protocol.tau_s = 0.5"),
         ("false_role_changes.py", ["--pairs", "2", "--duration", "-1"], "duration_s = -1.0"),
+        # A ZeroDivisionError and a math domain error.
+        ("ack_congestion.py", ["--densities", "0"], "--densities 0: each must be > 0"),
+        ("ack_congestion.py", ["--densities", "10", "-5"], "--densities -5: each must be > 0"),
+        # A sweep ran, then an AttributeError; a ZeroDivisionError.
+        ("routing_compare.py", ["--flows", "0", *TINY_ROUTING], "--flows 0: at least 1"),
+        ("routing_compare.py", ["--flows", "-1", *TINY_ROUTING], "--flows -1: at least 1"),
+        ("routing_compare.py", ["--interval", "0"], "--interval 0: must be > 0 s"),
+        # Each ran and wrote the sweeps before the bad one.
+        ("link_lifetime.py", [*TINY_LIFETIME, "--speeds", "2", "-1"], "mobility.speed_min_mps = -0.5"),
+        ("link_lifetime.py", [*TINY_LIFETIME, "--side", "100", "--range", "60"], "world.side_m = 100.0: on a torus"),
+        ("ack_congestion.py", [*TINY_CONGESTION, "--periods", "1", "-0.5"], "protocol.ack_period_s = -0.5"),
     ],
 )
 def test_experiment_options_refused_before_any_run(tmp_path, script, args, said):
@@ -298,10 +317,269 @@ def test_experiment_options_refused_before_any_run(tmp_path, script, args, said)
 
 
 @pytest.mark.parametrize("script", ["false_role_changes.py", "learn_coverage.py"])
-def test_an_out_that_is_a_file_is_one_line(tmp_path, script):
-    """--out naming a file: one line, exit 2 (a FileExistsError traceback; learn_coverage
-    met it after its episodes)."""
+@pytest.mark.parametrize(
+    "out, said",
+    [
+        ("afile", "is a file, not a directory"),
+        ("afile/sub", "cannot be created: afile is a file"),
+        ("/proc/nope", "cannot be created (No such file or directory)"),
+    ],
+)
+def test_an_out_that_cannot_be_made_is_one_line(tmp_path, script, out, said):
+    """--out naming a file, a folder under a file, or one that cannot be made: one line,
+    exit 2, nothing written (a file gave a FileExistsError traceback, learn_coverage's
+    after its episodes; the others a NotADirectoryError or FileNotFoundError traceback),
+    as the sweep runner says it."""
     (tmp_path / "afile").write_text("")
-    run = _script(tmp_path, script, "--out", str(tmp_path / "afile"))
+    run = _script(tmp_path, script, "--out", out)
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
-    assert f"--out {tmp_path / 'afile'}: is a file; give a folder" in run.stderr
+    assert f"--out {out}: {said}" in run.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["afile"]
+
+
+def test_false_role_changes_writes_nothing_into_another_sweeps_folder(tmp_path):
+    """--out whose sweep/ holds another sweep: refused in one line before the placement
+    file is written (pairs.csv was left there)."""
+    (tmp_path / "o" / "sweep").mkdir(parents=True)
+    (tmp_path / "o" / "sweep" / "sweep.json").write_text('{"name": "cluster_stability"}')
+    run = _script(tmp_path, "false_role_changes.py", "--pairs", "2", "--workers", "1", "--out", "o")
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "holds the sweep 'cluster_stability', not 'false_role_changes'" in run.stderr
+    assert [p.name for p in (tmp_path / "o").iterdir()] == ["sweep"]
+
+
+def test_the_theory_of_false_role_changes_at_no_loss_is_its_limit():
+    """At loss 0 no Ack is lost: the mean wait for k consecutive losses is infinite, the
+    formula's limit as p falls to 0 (it divided by zero), alone and within an array."""
+    from netsim.tools.analysis import expected_acks_until_spurious_timeout as theory
+
+    assert theory(0.0, 2) == math.inf
+    got = theory(np.array([0.0, 0.5]), 2)
+    assert got[0] == math.inf and got[1] == pytest.approx(6.0)
+
+
+@pytest.mark.slow
+def test_false_role_changes_runs_at_no_loss(tmp_path):
+    """--losses 0, in the [0, 1) its message allows: its row has no false leader loss, no
+    wait ended, and the theory inf (the runs ended in a ZeroDivisionError)."""
+    args = ["--pairs", "3", "--losses", "0", "0.5", "--taus", "1.5", "--duration", "30", "--workers", "1"]
+    run = _script(tmp_path, "false_role_changes.py", *args, "--out", "o")
+    assert run.returncode == 0, run.stderr[-2000:]
+    at_0 = pd.read_csv(tmp_path / "o" / "false_role_changes.csv").set_index("loss_probability").loc[0.0]
+    assert at_0["theory"] == math.inf and at_0["false_leader_losses_per_robot_per_min"] == 0
+    assert math.isnan(at_0["acks_until_false_loss"])
+
+
+def _patched_script(tmp_path, patch: str, script: str, *args):
+    """experiments/SCRIPT run as ``python`` runs it (its ``__main__``), after ``patch``."""
+    program = f"{patch}\nimport runpy, sys\nsys.argv = sys.argv[1:]\nrunpy.run_path(sys.argv[0], run_name='__main__')"
+    command = [sys.executable, "-c", program, str(ROOT / "experiments" / script), *args]
+    return subprocess.run(command, capture_output=True, text=True, cwd=tmp_path)
+
+
+@pytest.mark.slow
+def test_learn_coverage_without_the_rl_extra_is_one_line(tmp_path):
+    """Without gymnasium (of the optional extra rl) learn_coverage says which extra to install
+    in one line, exit 2, nothing written (a ModuleNotFoundError traceback, even for --help)."""
+    run = _patched_script(tmp_path, "import sys; sys.modules['gymnasium'] = None", "learn_coverage.py", "--out", "o")
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "needs gymnasium, of the optional extra 'rl': pip install -e \".[rl]\"" in run.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_docs_say_learn_coverage_needs_the_rl_extra():
+    """docs/experiments.md says, beside learn_coverage.py, how to install what it needs."""
+    text = (ROOT / "docs" / "experiments.md").read_text()
+    beside = [p for p in text.split("\n\n") if "learn_coverage.py" in p]
+    assert beside and all('pip install -e ".[rl]"' in p for p in beside)
+
+
+# A process pool that runs nothing: its map hands out ROWS, then (INTERRUPT) a Ctrl-C, as
+# one that lands between two runs (the script's runs and their time are not what is tested).
+FAKE_POOL = """
+import concurrent.futures
+
+
+class Pool:
+    def __init__(self, workers):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def map(self, fn, *jobs):
+        yield from ROWS
+        if INTERRUPT:
+            raise KeyboardInterrupt
+
+
+concurrent.futures.ProcessPoolExecutor = Pool
+"""
+# Ctrl-C while a figure is drawn.
+DRAWING_INTERRUPTED = """
+import netsim.tools.figures
+
+
+def pyplot():
+    raise KeyboardInterrupt
+
+
+netsim.tools.figures.pyplot = pyplot
+"""
+SHADOWING_ROW = {"plan": "global", "N": 5, "seed": 1, "of bound": 0.5, "grew": 0, "settled s": None}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "rows, said",
+    [([], "nothing written"), ([SHADOWING_ROW], "the runs finished are in runs.csv")],
+)
+def test_ctrl_c_in_coverage_targets_is_one_line_saying_what_is_kept(tmp_path, rows, said):
+    """Ctrl-C in coverage_targets --shadowing --csv F: one line, exit 130 (a traceback),
+    saying that F holds the runs finished, when one has."""
+    patch = f"ROWS, INTERRUPT = {rows!r}, True\n{FAKE_POOL}"
+    args = ["--shadowing", "--seeds", "1", "--n", "5", "--csv", "runs.csv"]
+    run = _patched_script(tmp_path, patch, "coverage_targets.py", *args)
+    assert (run.returncode, run.stderr) == (130, f"coverage_targets.py: interrupted; {said}\n")
+    if rows:
+        assert pd.read_csv(tmp_path / "runs.csv")["plan"].tolist() == ["global"]
+    else:
+        assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_coverage_on_map_draws_says_the_table_is_kept(tmp_path):
+    """Ctrl-C while coverage_on_map draws --figure after writing --csv: the line says the
+    rows are written and the figure is not (it said "interrupted" alone)."""
+    row = {"radio": "office, line of sight", "plan": "global", "N": 5, "seed": 1, "comp0": 1, "start": 0.2}
+    row |= {"final": 0.6, "split": False, "moved_m": 9.0, "settled_s": None, "final_xy": [[1.0, 2.0]], "radius_m": 9.0}
+    row["map"] = "office"
+    patch = f"ROWS, INTERRUPT = {[row]!r}, False\n{FAKE_POOL}\n{DRAWING_INTERRUPTED}"
+    args = ["--radios", "office, line of sight", "--plans", "global", "--seeds", "1", "--n", "5"]
+    run = _patched_script(tmp_path, patch, "coverage_on_map.py", *args, "--csv", "r.csv", "--figure", "f.png")
+    said = "coverage_on_map.py: interrupted; every run's row is written in r.csv, the figure is not\n"
+    assert (run.returncode, run.stderr) == (130, said)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv"]
+    assert pd.read_csv(tmp_path / "r.csv")["final"].tolist() == [0.6]
+
+
+# Ctrl-C in an episode, as it ends.
+EPISODE_INTERRUPTED = """
+import netsim.metrics
+
+
+def covered_fraction_exact(*args):
+    raise KeyboardInterrupt
+
+
+netsim.metrics.covered_fraction_exact = covered_fraction_exact
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "patch, said, kept",
+    [
+        (EPISODE_INTERRUPTED, "nothing written", []),
+        (DRAWING_INTERRUPTED, "o/learn_coverage.csv is written, learn_coverage.png is not", ["learn_coverage.csv"]),
+    ],
+)
+def test_ctrl_c_in_learn_coverage_is_one_line_saying_what_is_kept(tmp_path, patch, said, kept):
+    """Ctrl-C in learn_coverage: one line, exit 130 (a traceback), nothing written during
+    the episodes (the folder it made removed), the table kept while the figure is drawn."""
+    args = ["--n", "3", "--cycles", "2", "--episodes", "1", "--out", "o"]
+    run = _patched_script(tmp_path, patch, "learn_coverage.py", *args)
+    assert (run.returncode, run.stderr) == (130, f"learn_coverage.py: interrupted; {said}\n")
+    if kept:
+        assert sorted(p.name for p in (tmp_path / "o").iterdir()) == kept
+    else:
+        assert not (tmp_path / "o").exists()
+
+
+def test_coverage_targets_why_writes_its_table_to_csv(tmp_path, monkeypatch):
+    """--why --csv F writes the --why table to F, a row per N (F was never written)."""
+    from tests.fixtures import script
+
+    module = script("experiments/coverage_targets.py")
+    monkeypatch.setattr(module, "why", lambda n, seed, duration_s: {"N": n, "seed": seed, "of bound": 0.5, "moved": 3})
+    csv = tmp_path / "why.csv"
+    assert module.main(["--why", "--n", "20", "60", "--csv", str(csv)]) == 0
+    table = pd.read_csv(csv)
+    assert table["N"].tolist() == [20, 60] and list(table.columns) == ["N", "seed", "of bound", "moved"]
+
+
+def test_coverage_on_map_draws_the_map_its_runs_read_without_a_warning(tmp_path):
+    """The figure draws the map each run read (its row's ``map``), with no warning: it
+    loaded each panel's configuration again with a 1 s run to find it, and each load
+    warned that control starts after that run's end."""
+    import warnings
+
+    from tests.fixtures import script
+
+    module = script("experiments/coverage_on_map.py")
+    ended = {"plan": "global", "N": 2, "seed": 1, "final": 0.5, "final_xy": [[50.0, 50.0], [60.0, 60.0]]}
+    ended |= {"radius_m": 10.0, "map": "office"}
+    runs = pd.DataFrame([{"radio": radio, **ended} for radio in module.MAP_RADIOS])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        module.figure(runs, str(tmp_path / "ended.png"))
+    assert (tmp_path / "ended.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_false_role_changes_counts_pairs_and_waits_apart(tmp_path):
+    """pairs_measured counts pairs in which a robot became a member, at most --pairs, and
+    waits_measured the waits the mean is over, one per such robot, as the roles table has
+    them (pairs_measured counted the robots, more than the pairs here: both robots of some
+    pairs became members in turn)."""
+    from netsim.protocols.roles import LABELS
+
+    from netsim.tools import sweep as sweepmod
+
+    args = ["--pairs", "50", "--losses", "0.5", "--taus", "1.5", "--duration", "60", "--workers", "1"]
+    run = _script(tmp_path, "false_role_changes.py", *args, "--out", "o")
+    assert run.returncode == 0, run.stderr[-2000:]
+    row = pd.read_csv(tmp_path / "o" / "false_role_changes.csv").iloc[0]
+    members = sweepmod.load_table(tmp_path / "o" / "sweep", "roles").query(f"role == {LABELS.member!r}")
+    robots, pairs = members["robot"].nunique(), (members["robot"] // 2).nunique()
+    assert robots > pairs  # the case counted wrong
+    assert (row["pairs_measured"], row["waits_measured"]) == (pairs, robots) and pairs <= 50
+
+
+def test_routing_compare_draws_latencies_alike_flat(tmp_path):
+    """Latencies and ratios alike but for their last bits are drawn flat, each tick its
+    value: the latency axis zoomed into 1e-15 s and, against an offset ("1e-15+1e-3"),
+    showed a steep fall."""
+    from tests.fixtures import script
+
+    module = script("experiments/routing_compare.py")
+    table = pd.DataFrame(
+        {
+            "protocol": ["aodv", "aodv"],
+            "speed_mps": [1.0, 5.0],
+            "delivery_ratio": [1.0, 1.0 - 1e-15],
+            "latency_p50_s": [0.0010000000000012221, 0.0009999999999994458],
+            "control_per_robot_per_s": [1.0, 1.0 + 1e-15],
+        }
+    )
+    for col in ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s"):
+        table[f"{col}_ci_low"] = table[f"{col}_ci_high"] = np.nan
+    fig = module.figure(table)
+    fig.canvas.draw()
+    for ax, col in zip(fig.axes, ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s")):
+        low, high = ax.get_ylim()
+        assert table[col].max() - table[col].min() < 1e-6 * (high - low), col
+        assert ax.yaxis.get_offset_text().get_text() == "", col
+
+
+@pytest.mark.slow
+def test_link_lifetime_runs_a_speed_given_twice_once(tmp_path):
+    """`--speeds 2 2` is one speed: a row per model, as `--speeds 2` (each was written twice)."""
+    args = ["--n", "5", "--side", "5000", "--pauses", "0", "--duration", "20", "--reps", "1", "--workers", "1"]
+    run = _script(tmp_path, "link_lifetime.py", *args, "--speeds", "2", "2", "--out", "o")
+    assert run.returncode == 0, run.stderr[-2000:]
+    table = pd.read_csv(tmp_path / "o" / "link_lifetime.csv")
+    assert table["model"].tolist() == ["random_waypoint", "random_direction_torus"]

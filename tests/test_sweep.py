@@ -468,7 +468,7 @@ def test_ctrl_c_is_ignored_while_an_interrupt_is_reported():
 
 
 @pytest.mark.parametrize(
-    "resumable, said", [(True, "; the runs finished are kept (the same command resumes)"), (False, "")]
+    "resumable, said", [(True, "the runs finished are kept (the same command resumes)"), (False, "nothing written")]
 )
 def test_ctrl_c_in_an_experiment_script_is_one_line_and_130(monkeypatch, capsys, resumable, said):
     monkeypatch.setattr(sys, "argv", ["cluster_stability.py"])
@@ -479,7 +479,24 @@ def test_ctrl_c_in_an_experiment_script_is_one_line_and_130(monkeypatch, capsys,
     with pytest.raises(SystemExit) as exit_:
         sweepmod.run_script(main, resumable=resumable)
     assert exit_.value.code == 130
-    assert capsys.readouterr().err == f"cluster_stability.py: interrupted{said}\n"
+    assert capsys.readouterr().err == f"cluster_stability.py: interrupted; {said}\n"
+
+
+def test_ctrl_c_after_a_script_put_results_in_place_says_what_is_kept(monkeypatch, capsys):
+    """An interrupt within kept_if_interrupted is its line, exit 130 (the script said
+    "interrupted" alone, its table written)."""
+    from netsim.tools.interrupt import kept_if_interrupted
+
+    monkeypatch.setattr(sys, "argv", ["coverage_on_map.py"])
+
+    def main():
+        with kept_if_interrupted("coverage_on_map.py: interrupted; runs.csv is written, the figure is not"):
+            raise KeyboardInterrupt
+
+    with pytest.raises(SystemExit) as exit_:
+        sweepmod.run_script(main)
+    assert exit_.value.code == 130
+    assert capsys.readouterr().err == "coverage_on_map.py: interrupted; runs.csv is written, the figure is not\n"
 
 
 @pytest.mark.parametrize("text", ["[]", "", '{"run_ids": null}', "{not json"])

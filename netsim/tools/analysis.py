@@ -108,6 +108,11 @@ def spurious_timeout_window(tau_s: float, period_s: float) -> int:
     return math.floor(tau_s / period_s + 1e-9)
 
 
-def expected_acks_until_spurious_timeout(p: float, k: int) -> float:
-    """``(1 - p^k) / ((1 - p) p^k)``: mean Acks until ``k`` consecutive losses."""
-    return (1 - p**k) / ((1 - p) * p**k)
+def expected_acks_until_spurious_timeout(p: float | np.ndarray, k: int) -> float | np.ndarray:
+    """``(1 - p^k) / ((1 - p) p^k)``: mean Acks until ``k`` consecutive losses, at a loss
+    probability ``p`` in [0, 1) (a number, or an array of them). At ``p = 0`` no Ack is lost
+    and the wait never ends: ``inf``, the formula's limit as ``p`` falls to 0."""
+    q = np.asarray(p, dtype=float)
+    with np.errstate(divide="ignore"):
+        mean = (1 - q**k) / ((1 - q) * q**k)
+    return float(mean) if mean.ndim == 0 else mean

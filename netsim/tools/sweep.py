@@ -462,7 +462,7 @@ def run_sweep(
     check_workers(workers)
     runs = sweep.runs(here=scheduler is None)
     ids = [r.run_id for r in runs]
-    _refuse_another_sweeps_dir(Path(out_dir), sweep.name)
+    refuse_another_sweeps_dir(Path(out_dir), sweep.name)
     with claim_dir(out_dir, "--out", kind="sweep", tables=sweep.tables) as out:
         client = connect(scheduler, connect_timeout_s) if isinstance(scheduler, str) else scheduler
         try:
@@ -537,11 +537,12 @@ def _run_pool(todo: list[Run], tables, workers: int, account) -> None:
         pool.join()
 
 
-def _refuse_another_sweeps_dir(out: Path, name: str) -> None:
+def refuse_another_sweeps_dir(out: Path, name: str) -> None:
     """A directory holding a sweep of another name is refused: run into it, this sweep's
     runs would hide that one's from :func:`load`. (A sweep of the same name, its points
     changed, is that sweep run again: :func:`load` gives its runs, and the others stay on
-    disk for when those points come back.)"""
+    disk for when those points come back.) :func:`run_sweep` asks it; a script that writes
+    a file its sweep reads asks it first."""
     try:
         held = json.loads((out / "sweep.json").read_text()).get("name")
     except (OSError, ValueError, AttributeError):
@@ -569,21 +570,13 @@ def add_runner_arguments(parser, name: str, reps: int) -> None:
     parser.add_argument("--out", default=f"experiments-out/{name}", help="output directory")
 
 
-def out_folder(path: str | Path, option: str = "--out") -> Path:
-    """``path`` as a script's output folder, made; one that is a file is refused in one line
-    (before any run: a script writes its folder last)."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise NetsimInputError(f"{option} {path}: is a file; give a folder")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
 def run_script(main: Callable[[], object], resumable: bool = False) -> None:
     """Run a script's ``main``: bad input (a malformed option, an unreachable scheduler) is
     one line on stderr and exit status 2, and Ctrl-C one line and status 130, as with
-    ``netsim``; ``resumable``: the script runs sweeps, whose finished runs are kept."""
-    from netsim.tools.interrupt import EXIT_INTERRUPTED, interrupted
+    ``netsim``. The line says what is kept: what the script said it had put in place
+    (:func:`netsim.tools.interrupt.kept_if_interrupted`, whose line is printed as given);
+    else, ``resumable``, the finished runs of the sweeps it runs; else nothing."""
+    from netsim.tools.interrupt import EXIT_INTERRUPTED, KeptOnInterrupt, ignoring_interrupts, interrupted
 
     name = Path(sys.argv[0]).name
     try:
@@ -594,8 +587,13 @@ def run_script(main: Callable[[], object], resumable: bool = False) -> None:
     except BaseException as exc:
         if isinstance(exc, SystemExit) or not interrupted(exc):
             raise
-        kept = "; the runs finished are kept (the same command resumes)" if resumable else ""
-        print(f"{name}: interrupted{kept}", file=sys.stderr)
+        if isinstance(exc, KeptOnInterrupt):
+            line = exc.args[0]
+        else:
+            kept = "the runs finished are kept (the same command resumes)" if resumable else "nothing written"
+            line = f"{name}: interrupted; {kept}"
+        with ignoring_interrupts():  # a second Ctrl-C would cut this line
+            print(line, file=sys.stderr)
         raise SystemExit(EXIT_INTERRUPTED) from None
 
 
