@@ -166,6 +166,26 @@ def test_distance_loss_follows_its_law():
         assert keep.mean() == pytest.approx(p, abs=4 * math.sqrt(p * (1 - p) / 50_000) + 1e-9)
 
 
+def test_distance_loss_takes_the_senders_range():
+    """With unequal ranges the law is the sender's: a sender of range 10 m reaching a
+    robot of range 20 m at 8 m gets through with 0.9 (1 - 0.64), not 0.9 (1 - 0.16)."""
+    model = DistanceLoss(0.1, 2.0, np.array([10.0, 20.0]), np.random.default_rng(3))
+    keep = model(0, np.ones(50_000, dtype=np.int64), np.full(50_000, 8.0))
+    p = 0.9 * (1 - 0.8**2)
+    assert keep.mean() == pytest.approx(p, abs=4 * math.sqrt(p * (1 - p) / 50_000))
+
+
+def test_gilbert_elliott_first_frame_on_a_link_is_lost_at_the_stationary_rate():
+    """A link's first transmission starts the chain in its stationary law (no warm-up):
+    over many links each seen once, the loss rate is pi_bad = p_gb / (p_gb + p_bg), as
+    over one link's long run."""
+    n = 50_001
+    model = GilbertElliottLoss(0.05, 0.25, 0.0, 1.0, n, np.random.default_rng(4))
+    lost = ~model(0, np.arange(1, n, dtype=np.int64), None)
+    pi_bad = 0.05 / 0.30
+    assert lost.mean() == pytest.approx(pi_bad, abs=4 * math.sqrt(pi_bad * (1 - pi_bad) / (n - 1)))
+
+
 def test_distance_loss_under_shadowing_is_refused_by_name():
     """The distance law falls to no reception at the range; a shadowed radio hears beyond
     it, and every such frame was lost: refused, naming the key. Log-distance without

@@ -107,6 +107,23 @@ def test_both_ends_of_a_link_keep_to_their_half():
     assert plan.velocity_mps[:, 0] == pytest.approx([-0.5, 0.5], abs=1e-6)
 
 
+def test_both_ends_of_a_link_share_its_allowed_travel():
+    """Under shadowing a kept link allows its pair a travel over the step (the fade
+    rule's); when both ends may move each takes half, so that the pair's travel keeps to
+    it even when both move sideways, the link's length unchanged."""
+    from netsim.mobility.steps import Candidates
+
+    pos = np.array([[500.0, 500.0], [540.0, 500.0]])
+    wish = np.array([[0.0, 2.0], [0.0, -2.0]])
+    d = np.array([40.0])
+    link = Candidates(np.array([0]), np.array([1]), d, d, np.array([99.0]), np.array([1.4]), np.array([RC]))
+    limits = StepLimits(1.0, RC, 1.0, 2.0, 1000.0)
+    plan = plan_spread(pos, np.array([True, True]), np.array([-1, -1]), wish, limits, link)
+    travel = np.hypot(*plan.velocity_mps.T) * limits.period_s
+    assert travel.sum() == pytest.approx(1.4, rel=1e-6)
+    assert travel[0] == pytest.approx(travel[1])
+
+
 def test_pulls_count_a_wish_up_to_the_range_per_period():
     """A chain A - B - C, taut: A wishes away from B a million m/s (the inverse-square law
     between two robots a hair apart), C wishes sideways. A's wish counts up to the range

@@ -93,15 +93,6 @@ def test_same_seed_same_values():
     assert np.array_equal(a, b)
 
 
-def test_forget_drops_only_pairs_decorrelated_by_travel():
-    sh = _sh(dcorr=10.0)
-    sh.sample([0, 2], [1, 3], [0.0, 0.0])
-    odometer = np.array([150.0, 60.0, 1.0, 1.0])  # pair (0,1) travelled 210 m > 20 d_corr
-    assert sh.forget(odometer) == 1
-    x, _ = sh.state([0, 2], [1, 3])
-    assert np.isnan(x[0]) and not np.isnan(x[1])
-
-
 def test_pair_keys_round_trip():
     a, b = np.array([5, 0, 2**31 - 1]), np.array([3, 9, 7])
     lo, hi = split_keys(pair_keys(a, b))

@@ -74,6 +74,31 @@ def test_paused_fraction_at_start():
     assert left.mean() == pytest.approx(15.0, abs=0.3)
 
 
+def test_the_paused_fraction_is_the_closed_form():
+    """p_p = E[T_p] / (E[T_p] + E[L] E[1/V]), with E[L] on a square of side a the known
+    (2 + sqrt 2 + 5 ln(1 + sqrt 2)) a / 15 and E[1/V] = ln(v_max / v_min) / (v_max - v_min)."""
+    mean_leg = (2 + math.sqrt(2) + 5 * math.log(1 + math.sqrt(2))) * 100.0 / 15
+    want = 30.0 / (30.0 + mean_leg * math.log(2.0) / 1.0)
+    assert paused_fraction(100.0, 1.0, 2.0, 30.0) == pytest.approx(want, rel=1e-12)
+
+
+def test_a_stationary_start_stays_stationary():
+    """As many robots end their legs in the first seconds as end their pauses: a mover is
+    anywhere along its leg (uniformly), so its distance left is as long as a stationary
+    regime has it. Checked at t = 0 alone, a start with movers too near their ends keeps
+    the positions' law and drifts at once (most with slow robots and long pauses)."""
+    n, pause_s, t_s = 200_000, 20.0, 5.0
+    s = stationary_start(np.random.default_rng(7), n, 1.0, 0.01, 0.05, pause_s)
+    paused = s.speed_mps == 0
+    # Pauses of 20 s end before 5 s at the rate 1/20 a second; a leg started after one
+    # cannot end by then (at most 0.25 m at 0.05 m/s).
+    leaving = paused & (s.pause_left_s < t_s)
+    left_m = np.hypot(*(s.destination_m - s.position_m).T)
+    arriving = ~paused & (left_m < s.speed_mps * t_s)
+    sd = math.sqrt((leaving.mean() + arriving.mean()) / n)
+    assert arriving.mean() == pytest.approx(leaving.mean(), abs=4 * sd)
+
+
 @pytest.mark.parametrize("pause_s", [0.0, 20.0])
 def test_time_average_speed_over_a_run(pause_s):
     """Item 1 over a run: total distance / (N T) = E[L] / (E[L] E[1/V] + E[T_p]), and the

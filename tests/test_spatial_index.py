@@ -52,3 +52,15 @@ def test_two_indexes_on_one_state_each_see_every_robot_in_range():
     st.set_leg(1, 0.5, np.array([-0.1, 0.0]), cause="waypoint")  # 10 m away, now slow
     second.within(0.5, 0)
     assert first.within(0.6, 0)[0].tolist() == [1]  # 9.99 m away
+
+
+def test_an_index_built_while_everyone_rests_finds_a_robot_that_starts_moving():
+    """Its lists hold while no robot moves; the first leg with a speed must make them
+    stale (the robots' speed bound rises), or a robot driven close after a rest at the
+    start (coverage before control starts, a trace that begins at rest) is never found."""
+    st = RobotState(2, 1000.0, 100.0)
+    st.place(np.array([[0.0, 0.0], [300.0, 0.0]]))
+    index = RangeIndex(st, slack_m=2.0)
+    assert index.within(10.0, 0)[0].tolist() == []
+    st.set_leg(1, 40.0, np.array([-50.0, 0.0]), cause="command")  # 50 m away at 45 s
+    assert index.within(45.0, 0)[0].tolist() == [1]

@@ -65,7 +65,6 @@ import numpy as np
 
 from netsim.compiled import load
 from netsim.errors import ConfigError
-from netsim.geometry import pair_travels_m
 from netsim.radio._kernels import Clocks, Drawn, Shadow, ShadowLaw
 
 # Shadowing is used clipped to +-4 sigma (its state is not: see PairShadowing), so that no
@@ -254,21 +253,3 @@ class PairShadowing:
         self._keys = np.insert(self._keys, at, keys)
         self._x = np.insert(self._x, at, x)
         self._s = np.insert(self._s, at, s)
-
-    def forget(self, odometer_m, horizon: float = 20.0) -> int:
-        """Drop pairs whose travel since their last look exceeds ``horizon`` ``d_corr``.
-
-        ``odometer_m`` is every robot's travel now (its jumps counted). Returns the number dropped.
-        """
-        if len(self._keys) == 0:
-            return 0
-        odo = np.asarray(odometer_m, dtype=float)
-        lo, hi = split_keys(self._keys, self.n_robots)
-        stale = pair_travels_m(odo, lo, hi) - self._s > horizon * self.decorrelation_m
-        stale &= ~np.isnan(self._x)
-        if stale.any() and self.dense:
-            self._x[stale] = np.nan
-        elif stale.any():
-            keep = ~stale
-            self._keys, self._x, self._s = self._keys[keep], self._x[keep], self._s[keep]
-        return int(stale.sum())
