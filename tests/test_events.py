@@ -1547,3 +1547,27 @@ def test_a_subscriber_cannot_write_the_receivers_it_is_handed(event):
     with pytest.raises(ValueError, match="read-only"):
         sim.run()
     assert seen
+
+
+def test_runtime_links_start_a_new_window_when_a_robot_outruns_its_speed_bound():
+    """A window is solved for the speeds of its start: a robot that speeds up past that
+    bound (here to 1.9 m/s, under twice the window's 1 m/s) may meet another before the
+    window ends, so the window must be solved again. Two robots 140 m apart (range 50 m)
+    set off towards each other at t = 1 s: the feed announces their link as the table
+    has it."""
+    legs = pd.DataFrame(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 140.0, 0.0, 0.0, 0.0),
+            (0.0, 2, 1000.0, 1000.0, 1.0, 0.0),  # the window's speed: 1 m/s
+            (1.0, 0, 0.0, 0.0, 1.9, 0.0),
+            (1.0, 1, 140.0, 0.0, -1.9, 0.0),
+        ],
+        columns=["t_s", "robot", "x_m", "y_m", "vx_mps", "vy_mps"],
+    )
+    sim = _fed(_core(3, [50.0, 50.0, 50.0], 60.0, runtime_links="on"))
+    _replay(sim, legs)
+    sim.run()
+    posthoc = collect(sim)["links"]
+    assert len(posthoc) == 1 and posthoc["t_up_s"].iloc[0] == pytest.approx(1.0 + 90.0 / 3.8)
+    _assert_same_links(_announced(sim), posthoc)
