@@ -31,3 +31,26 @@ def test_received_power_is_at_the_sensitivity_exactly_for_the_pairs_the_radio_ke
         kept_total += int(kept.sum())
         t += 0.25
     assert kept_total > 0
+
+
+def test_received_power_takes_the_shadowing_clipped_as_the_decision_does(monkeypatch):
+    """A pair's loss takes its shadowing clipped to 4 sigma (the stored state is not):
+    the power reported for a pair whose shadowing lies beyond the clip is the power at the
+    clip, so that it agrees with the decision."""
+    params = LogDistanceParams(shadowing_sigma_db=6.0, sensitivity_dbm=-70.0)
+    st, t, _ = _moving_state(4, n=20, side=400.0)
+    sh = PairShadowing(6.0, 30.0, np.random.default_rng(5), 0.0, n_robots=st.n)
+    rec = Reception(log_distance(params, sh), st)
+    ids = np.arange(1, st.n)
+    d = st.displacement(st.positions_at(t, ids), st.positions_at(t, [0]))
+    dist = np.hypot(d[:, 0], d[:, 1])
+    rec.decide(t, 0, ids, dist)
+
+    def power_at(x_db):
+        monkeypatch.setattr(rec.compiled.shadow, "state", lambda a, b: (np.full(len(b), x_db), np.zeros(len(b))))
+        return rec.received_dbm(t, 0, ids, dist)
+
+    assert sh.clip_db == 24.0
+    assert np.array_equal(power_at(1e3), power_at(24.0))
+    assert np.array_equal(power_at(-1e3), power_at(-24.0))
+    assert not np.array_equal(power_at(24.0), power_at(0.0))
