@@ -151,3 +151,42 @@ def test_on_a_map_the_global_plan_moves_by_the_expansion_alone(tmp_path, expansi
     summary = execute(load(None, keys)).summary
     assert summary["covered_of_bound_all_start"] == 1.0
     assert (summary["distance_mean_m"] > 1.0) is moves
+
+
+def test_walls_push_within_the_borders_margin(tmp_path):
+    """On a map the walls push as the area's border does: within sqrt(3) r_c / 2 of the
+    nearest wall, not within a smaller margin."""
+    from netsim import config
+    from netsim.run import build
+    from netsim.world.free_space import wall_forces
+
+    occupied = np.zeros((100, 100), bool)
+    occupied[:, 50] = True  # a wall down the middle of a 100 m square of 1 m cells
+    path = save_map(tmp_path / "wall.yaml", occupied, ~occupied, 1.0)
+    sim = build(
+        config.load(
+            None,
+            [
+                "world.n_robots=4",
+                "world.side_m=100",
+                f"world.map={str(path)!r}".replace("'", '"'),
+                "world.placement='centre'",
+                "world.centre_side_m=10",
+                "mobility.model='static'",
+                "channel.range_m=30",
+                "coverage.enabled=true",
+                "coverage.plan='global'",
+                "coverage.expansion=0",
+                "duration_s=20",
+            ],
+        )
+    )
+    cov = sim.models["coverage"]
+    margin = math.sqrt(3) * 30.0 / 2
+    # Points 20 m (within the margin, beyond r_c / 2) and 30 m (beyond it) left of the wall.
+    push = cov._wall_push(np.array([[30.5, 40.5], [20.5, 40.5]]))
+    assert push[0, 0] < 0 and push[0, 1] == 0.0
+    assert np.array_equal(
+        push, wall_forces(cov.occupancy, cov.obstacles, [[30.5, 40.5], [20.5, 40.5]], margin, cov.cfg.gain)
+    )
+    assert not push[1].any()
