@@ -327,7 +327,7 @@ def load_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
     image = meta["image"]
     if not isinstance(image, str) or not image:
         raise ConfigError(key, where, f"'image: {image!r}' must name the map's image file")
-    image_path = Path(image) if Path(image).is_absolute() else path.parent / image
+    image_path = _beside(path, image)
     if not image_path.is_file():
         raise ConfigError(key, where, f"'image: {image}': {not_a_file(image_path)} ({image_path})")
     try:
@@ -420,7 +420,12 @@ def _image_named(path: Path) -> Path | None:
     image = meta.get("image") if isinstance(meta, dict) else None
     if not isinstance(image, str) or not image:
         return None
-    return Path(image) if Path(image).is_absolute() else path.parent / image
+    return _beside(path, image)
+
+
+def _beside(yaml_path: Path, image: str) -> Path:
+    """The image a map's YAML file names: a relative name is of its folder."""
+    return Path(image) if Path(image).is_absolute() else yaml_path.parent / image
 
 
 @lru_cache(maxsize=8)
