@@ -7,6 +7,7 @@ Mobility models start from :func:`initial_positions`."""
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,7 +17,7 @@ import pandas as pd
 
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
-from netsim.config import NAMED_PLACEMENTS, world_bounds
+from netsim.config import NAMED_PLACEMENTS, ConfigWarning, world_bounds
 from netsim.errors import ConfigError
 from netsim.geometry import cell_centres_m, link_ranges_m
 from netsim.rng import Streams
@@ -85,7 +86,27 @@ def from_csv(path: str, n: int, area: float | Bounds) -> np.ndarray:
         if b.is_square_at_origin:
             raise ConfigError(key, path, f"has positions outside the area [0, {b.width}] (world.side_m)")
         raise ConfigError(key, path, f"has positions outside the area {b.as_list()} (world.bounds_m)")
+    _warn_if_shared(path, xy)
     return xy
+
+
+def _warn_if_shared(path: str, xy: np.ndarray) -> None:
+    # Two robots on one point have no direction between them: the forces that spread a team
+    # push them alike, so they move as one and never part.
+    _, first, counts = np.unique(xy, axis=0, return_index=True, return_counts=True)
+    if (counts == 1).all():
+        return
+    shared = np.flatnonzero((xy == xy[first[np.argmax(counts > 1)]]).all(axis=1))
+    x, y = xy[shared[0]]
+    more = int((counts[counts > 1] - 1).sum()) - (len(shared) - 1)
+    also = f" (and {more} more {'robot' if more == 1 else 'robots'} on other shared points)" if more else ""
+    robots = ", ".join(str(r) for r in shared[:5]) + (", ..." if len(shared) > 5 else "")
+    warnings.warn(
+        f"world.placement = '{path}': robots {robots} share the position ({x:g}, {y:g}){also}: "
+        "no direction lies between them, so coverage's forces move them as one",
+        ConfigWarning,
+        stacklevel=3,
+    )
 
 
 # The placements by name; any other value of world.placement is the path of a CSV file.

@@ -4,6 +4,7 @@ section 1, docs/radio.md "Maps")."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -16,7 +17,7 @@ from netsim.mobility.steps import box_limit
 
 from netsim import load, metrics
 from netsim.area import Bounds
-from netsim.config import world_bounds
+from netsim.config import ConfigWarning, world_bounds
 from netsim.formats import bonnmotion
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
 from netsim.placement import initial_positions
@@ -165,6 +166,21 @@ def test_csv_placement_is_in_the_world_frame_and_checked_against_the_bounds(tmp_
     assert np.array_equal(pos[pos["t_s"] == 5.0][["x_m", "y_m"]].to_numpy(), [[-250.0, 120.0], [150.0, 390.0]])
     pd.DataFrame({"x_m": [-250.0, 150.0], "y_m": [120.0, 50.0]}).to_csv(csv, index=False)
     check_refused(tmp_path, capsys, sets, "world.placement", "world.bounds_m")
+
+
+def test_csv_placement_of_two_robots_on_one_point_is_warned_naming_them(tmp_path):
+    """Robots a CSV file puts on one point are named in one warning (forces cannot part
+    them); distinct points, however close, are not warned about."""
+    csv = tmp_path / "at.csv"
+    sets = ["world.n_robots=4", f"world.placement={csv}", "mobility.model=static", "protocol.model=none"]
+    pd.DataFrame({"x_m": [10.0, 50.0, 10.0, 10.0], "y_m": [10.0, 50.0, 10.0, 20.0]}).to_csv(csv, index=False)
+    with pytest.warns(ConfigWarning, match=r"robots 0, 2 share the position \(10, 10\)") as told:
+        build(load(None, sets))
+    assert len(told) == 1
+    pd.DataFrame({"x_m": [10.0, 50.0, 10.0, 10.0], "y_m": [10.0, 50.0, 10.000001, 20.0]}).to_csv(csv, index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        build(load(None, sets))
 
 
 # -- every mobility model ------------------------------------------------------------------
