@@ -37,7 +37,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -49,7 +48,7 @@ from netsim.tools.args import Parser
 from netsim.tools.cli import check_out_file
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
-from netsim.tools.sweep import run_script
+from netsim.tools.sweep import process_pool, run_script
 from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_settings
 
 MAP_RADIOS = [r for r in COVERAGE_RADIOS if r.startswith("office")]
@@ -176,8 +175,8 @@ def main(argv=None) -> int:
         for plan in args.plans
         for seed in seeds
     ]
-    with ProcessPoolExecutor(args.workers) as pool:
-        runs = pd.DataFrame(list(pool.map(one, *zip(*jobs))))
+    with process_pool(args.workers, len(jobs)) as pool:
+        runs = pd.DataFrame(pool.starmap(one, jobs))
     out = table(runs)
     with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
         print(out.to_string(index=False))

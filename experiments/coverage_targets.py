@@ -78,8 +78,8 @@ import argparse
 import math
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import ExitStack
+from functools import partial
 from pathlib import Path
 
 import pandas as pd
@@ -90,7 +90,7 @@ from netsim.tools.args import Parser
 from netsim.tools.cli import check_out_file
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
-from netsim.tools.sweep import run_script
+from netsim.tools.sweep import process_pool, run_script
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
 
 NAME = Path(__file__).name
@@ -182,8 +182,8 @@ def run_jobs(one, jobs: list, args) -> pd.DataFrame:
     """``one(job, duration)`` of every job over ``args.workers`` processes, each run printed
     (and the CSV written again) as it finishes: a run cut short keeps what it has."""
     done = []
-    with ProcessPoolExecutor(args.workers) as pool, ExitStack() as kept:
-        for run in pool.map(one, jobs, [args.duration] * len(jobs)):
+    with process_pool(args.workers, len(jobs)) as pool, ExitStack() as kept:
+        for run in pool.imap(partial(one, duration_s=args.duration), jobs):
             done.append(run)
             if args.csv:
                 write_csv(pd.DataFrame(done), args.csv)
@@ -514,8 +514,8 @@ def main(argv=None) -> int:
         return main_shadowing(args)
     sizes = args.n or ([20, 60] if args.quick else [20, 60, 100, 200])
     rows = scenarios(sizes, not args.no_radios)
-    with ProcessPoolExecutor(args.workers) as pool:
-        results = list(pool.map(one, rows, [args.seed] * len(rows), [args.duration] * len(rows)))
+    with process_pool(args.workers, len(rows)) as pool:
+        results = pool.starmap(one, [(row, args.seed, args.duration) for row in rows])
     table = pd.DataFrame(results)
     with pd.option_context("display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))

@@ -397,26 +397,27 @@ def test_the_docs_say_learn_coverage_needs_the_rl_extra():
 # A process pool that runs nothing: its map hands out ROWS, then (INTERRUPT) a Ctrl-C, as
 # one that lands between two runs (the script's runs and their time are not what is tested).
 FAKE_POOL = """
-import concurrent.futures
+from contextlib import contextmanager
+
+import netsim.tools.sweep
 
 
 class Pool:
-    def __init__(self, workers):
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def map(self, fn, *jobs):
+    def imap(self, fn, jobs):
         yield from ROWS
         if INTERRUPT:
             raise KeyboardInterrupt
 
+    def starmap(self, fn, jobs):
+        return list(self.imap(fn, jobs))
 
-concurrent.futures.ProcessPoolExecutor = Pool
+
+@contextmanager
+def process_pool(workers, jobs):
+    yield Pool()
+
+
+netsim.tools.sweep.process_pool = process_pool
 """
 # Ctrl-C while a figure is drawn.
 DRAWING_INTERRUPTED = """

@@ -41,7 +41,8 @@ import sys
 import tomllib
 import traceback
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -517,24 +518,33 @@ def _numbered_execute(job: tuple[int, Run, Any]) -> tuple[int, dict]:
     return k, _safe_execute(run, tables)
 
 
-def _run_pool(todo: list[Run], tables, workers: int, account) -> None:
-    """The runs on a pool of ``workers`` local processes, each accounted as it ends.
-    Whatever ends the loop early (Ctrl-C, a run's files that cannot be written) ends the
-    workers at once; a run not accounted yet is run again by the same command."""
+@contextmanager
+def process_pool(workers: int, jobs: int) -> Iterator[Any]:
+    """A ``multiprocessing`` pool of ``workers`` local processes (no more than ``jobs``: each
+    costs an interpreter and the model's imports). Whatever leaves the block early (Ctrl-C,
+    an error in the caller's loop) ends the workers at once, not after the runs they hold;
+    Ctrl-C is the caller's alone (:func:`_die_with_parent`)."""
     import multiprocessing
 
-    # No more processes than runs: each costs an interpreter and the model's imports.
-    pool = multiprocessing.Pool(max(1, min(workers, len(todo))), initializer=_die_with_parent)
+    pool = multiprocessing.Pool(max(1, min(workers, jobs)), initializer=_die_with_parent)
     try:
-        jobs = [(k, run, tables) for k, run in enumerate(todo)]
-        for k, outcome in pool.imap_unordered(_numbered_execute, jobs):
-            account(todo[k], outcome)
+        yield pool
         pool.close()
     except BaseException:
         pool.terminate()
         raise
     finally:
         pool.join()
+
+
+def _run_pool(todo: list[Run], tables, workers: int, account) -> None:
+    """The runs on a pool of ``workers`` local processes, each accounted as it ends.
+    Whatever ends the loop early (Ctrl-C, a run's files that cannot be written) ends the
+    workers at once; a run not accounted yet is run again by the same command."""
+    with process_pool(workers, len(todo)) as pool:
+        jobs = [(k, run, tables) for k, run in enumerate(todo)]
+        for k, outcome in pool.imap_unordered(_numbered_execute, jobs):
+            account(todo[k], outcome)
 
 
 def refuse_another_sweeps_dir(out: Path, name: str) -> None:
