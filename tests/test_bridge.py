@@ -364,6 +364,7 @@ def test_ctrl_c_ends_the_bridge_with_every_table_written(tmp_path):
     assert positions["t_s"].max() <= summary["duration_s"]
 
 
+@pytest.mark.slow
 def test_a_second_ctrl_c_while_the_session_is_saved_loses_nothing(tmp_path, monkeypatch, capfd):
     """Ctrl-C pressed again while the session's tables are being written (people press it
     twice) is taken as the first was: the save goes on whole, exit status 0. (It raised

@@ -336,7 +336,7 @@ def _cli(tmp_path, capsys, *args):
             "protocol.message_rate_hz = 1000000000000.0",
         ),
         # The local plan's lists of a release_s as long as the run, more than any machine holds.
-        (
+        pytest.param(
             [
                 "--set",
                 "coverage.enabled=true",
@@ -352,6 +352,7 @@ def _cli(tmp_path, capsys, *args):
                 "duration_s=30000",
             ],
             "coverage.release_s = inf: the local plan would hold",
+            marks=pytest.mark.slow,
         ),
         # A range so short that no link's events can be solved in a run's time.
         (["--set", "channel.range_m=1e-9"], "channel.range_m = 1e-09: is below 0.01 m"),

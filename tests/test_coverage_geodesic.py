@@ -376,6 +376,7 @@ def test_the_team_nears_the_uncovered_while_its_mean_distance_falls_by_the_stop_
     assert not nearing([(10.0, 10.0), (20.0, 12.0), (30.0, 14.0)])
 
 
+@pytest.mark.slow
 def test_the_local_plan_on_a_map_is_not_stopped_by_what_its_robots_learn():
     """The local plan on the office map, 20 robots from a connected start: at the first
     control step each robot knows only the cells it explored itself, so the mean distance

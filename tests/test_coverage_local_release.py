@@ -386,6 +386,7 @@ def test_release_s_beyond_the_run_keeps_lists_back_to_its_start_and_no_more(rele
     assert sim.now == 6.0
 
 
+@pytest.mark.slow
 def test_a_local_plan_too_large_for_this_machine_is_refused_when_built_not_when_read():
     """The lists' memory is the running machine's concern: the configuration loads (a run's
     config.toml stays readable by view, figures and export on a smaller machine), and

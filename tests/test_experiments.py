@@ -280,6 +280,7 @@ TINY_CONGESTION = ["--n", "20", "--densities", "8", "--macs", "none", "--duratio
 TINY_CONGESTION += ["--reps", "1", "--workers", "1"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "script, args, said",
     [
@@ -316,6 +317,7 @@ def test_experiment_options_refused_before_any_run(tmp_path, script, args, said)
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("script", ["false_role_changes.py", "learn_coverage.py"])
 @pytest.mark.parametrize(
     "out, said",
@@ -337,6 +339,7 @@ def test_an_out_that_cannot_be_made_is_one_line(tmp_path, script, out, said):
     assert [p.name for p in tmp_path.iterdir()] == ["afile"]
 
 
+@pytest.mark.slow
 def test_false_role_changes_writes_nothing_into_another_sweeps_folder(tmp_path):
     """--out whose sweep/ holds another sweep: refused in one line before the placement
     file is written (pairs.csv was left there)."""
@@ -512,6 +515,7 @@ def test_coverage_targets_why_writes_its_table_to_csv(tmp_path, monkeypatch):
     assert table["N"].tolist() == [20, 60] and list(table.columns) == ["N", "seed", "of bound", "moved"]
 
 
+@pytest.mark.slow
 def test_coverage_on_map_draws_the_map_its_runs_read_without_a_warning(tmp_path):
     """The figure draws the map each run read (its row's ``map``), with no warning: it
     loaded each panel's configuration again with a 1 s run to find it, and each load

@@ -118,6 +118,7 @@ def test_ctrl_c_is_one_line_exit_130_nothing_written(tmp_path, stop, mode):
     assert not out.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("stop", ["progress", "write"])
 def test_sigterm_is_given_up_as_ctrl_c(tmp_path, stop):
     """SIGTERM (a timeout, a batch scheduler) during the run or while the tables are
