@@ -26,6 +26,10 @@ _DEGENERATE = 1e-12
 # How close to a grid line, in cells, an end's crossing of the other axis is taken as a
 # crossing at a vertex (then a candidate whatever the cells).
 _NEAR_LINE_CELLS = 1e-6
+# A segment within this share of its length of an axis is taken as along it, and a vertex
+# within this many cells (each axis) of an end as beside it (:func:`_changes_count`).
+_ALONG_AXIS = 1e-6
+_NEAR_END_CELLS = 1.5
 
 
 class Segment(NamedTuple):
@@ -122,6 +126,46 @@ def _rises(x, y, z):
 
 
 @jit(nogil=True)
+def _swap_changes(cells, i, j, bx, by):
+    """Whether the walls crossed change as a segment heading from cell ``(i + bx, j + by)``
+    to the opposite one of vertex ``(i, j)``'s four swaps the cell it visits between them
+    (one beside the diagonal step for the other)."""
+    ax = -1 - bx
+    ay = -1 - by
+    before = _cell(cells, i + bx, j + by)
+    after = _cell(cells, i + ax, j + ay)
+    side1 = _cell(cells, i + ax, j + by)
+    side2 = _cell(cells, i + bx, j + ay)
+    return _rises(before, side1, after) != _rises(before, side2, after)
+
+
+@jit(nogil=True)
+def _heading_bit(dx, dy):
+    """The bit of :func:`vertex_turns` for a segment heading ``(dx, dy)`` off the axes."""
+    return (2 if dx > 0 else 0) + (1 if dy > 0 else 0)
+
+
+@jit(nogil=True)
+def vertex_turns(cells, row_ptr, cols, turns):
+    """For each mixed vertex (:class:`netsim.world.sweep.VertexIndex`), into ``turns``: for
+    which headings of a segment (bits of :func:`_heading_bit`) sweeping across it away
+    from the ends and off the axes the walls crossed change (:func:`_swap_changes`). Along
+    a straight wall no heading does: only corners count, which lets a sweep pass over
+    the rest unsolved (:func:`candidates`)."""
+    for j in range(row_ptr.shape[0] - 1):
+        for m in range(row_ptr[j], row_ptr[j + 1]):
+            i = cols[m]
+            bits = 0
+            for dx in (-1.0, 1.0):
+                for dy in (-1.0, 1.0):
+                    bx = -1 if dx > 0 else 0
+                    by = -1 if dy > 0 else 0
+                    if _swap_changes(cells, i, j, bx, by):
+                        bits |= 1 << _heading_bit(dx, dy)
+            turns[m] = bits
+
+
+@jit(nogil=True)
 def _changes_count(cells, vertex, p, q):
     """Whether the walls crossed may change as the segment from ``p`` to ``q`` (``(x, y)``
     relative to ``vertex``, ``(i, j)``, which lies between them) sweeps across the vertex.
@@ -137,20 +181,14 @@ def _changes_count(cells, vertex, p, q):
     dx = qx - px
     dy = qy - py
     length = abs(dx) + abs(dy)
-    if abs(dx) <= 1e-6 * length or abs(dy) <= 1e-6 * length:
+    if abs(dx) <= _ALONG_AXIS * length or abs(dy) <= _ALONG_AXIS * length:
         return True
-    if max(abs(px), abs(py)) < 1.5 or max(abs(qx), abs(qy)) < 1.5:
+    if max(abs(px), abs(py)) < _NEAR_END_CELLS or max(abs(qx), abs(qy)) < _NEAR_END_CELLS:
         return True
     # Cells around the vertex, relative: (-1 or 0, -1 or 0).
     bx = -1 if dx > 0 else 0
     by = -1 if dy > 0 else 0
-    ax = -1 - bx
-    ay = -1 - by
-    before = _cell(cells, i + bx, j + by)
-    after = _cell(cells, i + ax, j + ay)
-    side1 = _cell(cells, i + ax, j + by)
-    side2 = _cell(cells, i + bx, j + ay)
-    return _rises(before, side1, after) != _rises(before, side2, after)
+    return _swap_changes(cells, i, j, bx, by)
 
 
 @jit(nogil=True)
@@ -213,10 +251,64 @@ def _vertex_roots(cells, vertex, segment, duration, buf, n):
 
 
 @jit(nogil=True)
-def candidates(grid, g0, gv, k0, kv, duration):
+def _steady_heading(segment, duration):
+    """The bit of :func:`_heading_bit` the segment keeps throughout ``(0, duration)``, or -1
+    where it may come near an axis (:func:`_changes_count`'s tolerance, widened past
+    rounding) or the duration is not finite."""
+    ax, ay, vax, vay = segment.ax, segment.ay, segment.vax, segment.vay
+    bx, by, vbx, vby = segment.bx, segment.by, segment.vbx, segment.vby
+    dx0 = bx - ax
+    dy0 = by - ay
+    dx1 = dx0 + (vbx - vax) * duration
+    dy1 = dy0 + (vby - vay) * duration
+    # |dx| and |dy| are linear in t without a sign change: least and greatest at the ends.
+    length = max(abs(dx0), abs(dx1)) + max(abs(dy0), abs(dy1))
+    scale = abs(ax) + abs(ay) + abs(bx) + abs(by) + (abs(vax) + abs(vay) + abs(vbx) + abs(vby)) * duration
+    slack = 4.0 * _ALONG_AXIS * length + 1e-12 * scale
+    # Written so that a NaN (an infinite duration) fails every test.
+    if dx0 * dx1 > 0.0 and dy0 * dy1 > 0.0 and min(abs(dx0), abs(dx1)) > slack and min(abs(dy0), abs(dy1)) > slack:
+        return _heading_bit(dx0, dy0)
+    return -1
+
+
+@jit(nogil=True)
+def _path_box(x, vx, y, vy, duration, reach):
+    """The box an end moving from ``(x, y)`` at ``(vx, vy)`` for ``duration`` stays in,
+    widened by ``reach``: ``(x_lo, x_hi, y_lo, y_hi)``."""
+    x1 = x + vx * duration
+    y1 = y + vy * duration
+    return (min(x, x1) - reach, max(x, x1) + reach, min(y, y1) - reach, max(y, y1) + reach)
+
+
+@jit(nogil=True)
+def _in_box(x, y, box):
+    return x >= box[0] and x <= box[1] and y >= box[2] and y <= box[3]
+
+
+@jit(nogil=True)
+def _parallel(segment):
+    """Whether the ends' velocities are parallel by :func:`_vertex_roots`' test (the same
+    floats): only then can a vertex stay on the segment's line."""
+    vax, vay, vbx, vby = segment.vax, segment.vay, segment.vbx, segment.vby
+    c2 = vax * vby - vay * vbx
+    return abs(c2) <= _DEGENERATE * np.hypot(vax, vay) * np.hypot(vbx, vby)
+
+
+@jit(nogil=True)
+def _maybe_on_line(segment):
+    """Whether the vertex may lie on the segment's line at ``t = 0`` by :func:`_vertex_roots`'
+    test (``|c0| <= _DEGENERATE |a| |b|``), bounding each norm by the sum of its
+    coordinates' sizes (no root taken)."""
+    ax, ay, bx, by = segment.ax, segment.ay, segment.bx, segment.by
+    c0 = ax * by - ay * bx
+    return abs(c0) <= 2.0 * _DEGENERATE * (abs(ax) + abs(ay)) * (abs(bx) + abs(by))
+
+
+@jit(nogil=True)
+def candidates(grid, g0, gv, k0, kv, duration, prune):
     """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
     ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
-    h, row_ptr, cols = grid.h, grid.row_ptr, grid.cols
+    h, row_ptr, cols, turns = grid.h, grid.row_ptr, grid.cols, grid.turns
     cells = (grid.flat, h, grid.w)
     buf = np.empty(64)
     n = int(0)  # a value, not a literal (docs/architecture.md, the compiled cache)
@@ -235,6 +327,17 @@ def candidates(grid, g0, gv, k0, kv, duration):
     xs = np.array([ax, ax + vax * duration, bx, bx + vbx * duration])
     ys = np.array([ay, ay + vay * duration, by, by + vby * duration])
     margin = 1e-6
+    # Most mixed vertices lie along straight walls, where a segment sweeping across them
+    # changes nothing (:func:`vertex_turns`): one with no bit for the segment's heading,
+    # held throughout, pushes no root unless an end passes beside it or it may stay on
+    # the segment's line, and is passed over unsolved. ``prune`` False solves every vertex
+    # (what the pruned walk must equal).
+    motion = Segment(ax, ay, vax, vay, bx, by, vbx, vby)
+    heading = _steady_heading(motion, duration) if prune else -1
+    parallel = _parallel(motion)
+    reach = _NEAR_END_CELLS + 1e-3 + 1e-12 * (abs(ax) + abs(ay) + abs(bx) + abs(by))
+    box_a = _path_box(ax, vax, ay, vay, duration, reach)
+    box_b = _path_box(bx, vbx, by, vby, duration, reach)
     j_lo = max(np.int64(np.ceil(ys.min() - margin)), 0)
     j_hi = min(np.int64(np.floor(ys.max() + margin)), h)
     for j in range(j_lo, j_hi + 1):
@@ -256,6 +359,14 @@ def candidates(grid, g0, gv, k0, kv, duration):
             if x > hi + margin:
                 break
             segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+            if (
+                heading >= 0
+                and not (turns[m] >> heading) & 1
+                and not _in_box(x, y, box_a)
+                and not _in_box(x, y, box_b)
+                and not (parallel and _maybe_on_line(segment))
+            ):
+                continue
             buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
     return buf[:n]
 
@@ -288,7 +399,7 @@ def sweep(grid, motion, duration, eps, limit):
         kv[0] = vq[s, 0] / res
         kv[1] = vq[s, 1] / res
         d = duration[s]
-        cand = np.sort(candidates(grid, g0, gv, k0, kv, d))
+        cand = np.sort(candidates(grid, g0, gv, k0, kv, d, True))
         m = cand.shape[0]
         prev = 0.0
         for c in range(m + 1):
