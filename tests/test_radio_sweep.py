@@ -234,9 +234,14 @@ def test_pruned_vertex_walk_finds_every_candidate(which, building):
     candidates of solving every vertex: for random and long pairs, pairs passing wall
     corners, ends on grid lines and vertices, and vertices staying on the segment's line."""
     occupancy = building if which == "building" else load_map("office")
+    aligned = _grid_aligned_pairs(occupancy, 0.3, 10.0, corners=4)
+    # Ends a hair off the grid's lines: rows within the span's margin of an end's height.
+    hair = np.array([[0.0, 5e-8], [-5e-8, 0.0]]) * occupancy.resolution_m
+    shifted = (aligned[0] + hair[np.arange(len(aligned[0])) % 2], aligned[1], aligned[2] - hair[0], *aligned[3:])
     motions = [
         _random_pairs(occupancy, 60, 2.0, 2.0, seed=8, corner_share=1.0),
-        _grid_aligned_pairs(occupancy, 0.3, 10.0, corners=4),
+        aligned,
+        shifted,
         _radial_pairs(occupancy, 1.5, 2.0),
         _long_pairs(occupancy, 300),
     ]

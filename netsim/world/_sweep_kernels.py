@@ -102,6 +102,13 @@ def _end_crossings(cells, end, duration, axis, buf, n):
 
 
 @jit(nogil=True)
+def _cut(x0, dx, y0, dy, y):
+    """Where the line at height ``y`` cuts the edge from ``(x0, y0)`` to ``(x0 + dx, y0 +
+    dy)`` (whose ends lie on either side of it)."""
+    return x0 + dx * (y - y0) / dy
+
+
+@jit(nogil=True)
 def _hull_span(ys, xs, y):
     """The span in x of the convex hull of four points along the line at height ``y``
     (empty: lo > hi)."""
@@ -114,9 +121,40 @@ def _hull_span(ys, xs, y):
         for k in range(i + 1, 4):
             y0, y1 = ys[i], ys[k]
             if (y0 < y and y1 > y) or (y0 > y and y1 < y):
-                x = xs[i] + (xs[k] - xs[i]) * (y - y0) / (y1 - y0)
+                x = _cut(xs[i], xs[k] - xs[i], y0, y1 - y0, y)
                 lo = min(lo, x)
                 hi = max(hi, x)
+    return lo, hi
+
+
+@jit(nogil=True)
+def _edges_across(ys, xs, below, edges):
+    """The edges ``(i, k)``, ``i < k``, between four points one of which lies below a line
+    and the other above (``below``: bit ``i`` for a point below, none on it), in
+    :func:`_hull_span`'s order, as rows ``(x0, dx, y0, dy)`` of ``edges`` (:func:`_cut`'s
+    arguments); returns how many."""
+    count = 0
+    for i in range(4):
+        for k in range(i + 1, 4):
+            if ((below >> i) & 1) != ((below >> k) & 1):
+                edges[count, 0] = xs[i]
+                edges[count, 1] = xs[k] - xs[i]
+                edges[count, 2] = ys[i]
+                edges[count, 3] = ys[k] - ys[i]
+                count += 1
+    return count
+
+
+@jit(nogil=True)
+def _span_across(edges, count, y):
+    """:func:`_hull_span` at a height ``y`` no point lies on (nor within the margin of), the
+    edges that cross it known (:func:`_edges_across`): the same cuts."""
+    lo = np.inf
+    hi = -np.inf
+    for e in range(count):
+        x = _cut(edges[e, 0], edges[e, 1], edges[e, 2], edges[e, 3], y)
+        lo = min(lo, x)
+        hi = max(hi, x)
     return lo, hi
 
 
@@ -281,8 +319,18 @@ def _path_box(x, vx, y, vy, duration, reach):
 
 
 @jit(nogil=True)
-def _in_box(x, y, box):
-    return x >= box[0] and x <= box[1] and y >= box[2] and y <= box[3]
+def _first_at_least(values, start, stop, v):
+    """The first index in ``start .. stop`` at which ascending ``values`` reach ``v`` (not
+    NaN), ``stop`` if none: ``np.searchsorted``'s left side, without slicing."""
+    lo = start
+    hi = stop
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if values[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @jit(nogil=True)
@@ -295,11 +343,10 @@ def _parallel(segment):
 
 
 @jit(nogil=True)
-def _maybe_on_line(segment):
-    """Whether the vertex may lie on the segment's line at ``t = 0`` by :func:`_vertex_roots`'
-    test (``|c0| <= _DEGENERATE |a| |b|``), bounding each norm by the sum of its
-    coordinates' sizes (no root taken)."""
-    ax, ay, bx, by = segment.ax, segment.ay, segment.bx, segment.by
+def _maybe_on_line(ax, ay, bx, by):
+    """Whether the vertex may lie on the line from ``a`` to ``b`` (relative to it) by
+    :func:`_vertex_roots`' test (``|c0| <= _DEGENERATE |a| |b|``), bounding each norm by
+    the sum of its coordinates' sizes (no root taken)."""
     c0 = ax * by - ay * bx
     return abs(c0) <= 2.0 * _DEGENERATE * (abs(ax) + abs(ay)) * (abs(bx) + abs(by))
 
@@ -331,42 +378,68 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
     # changes nothing (:func:`vertex_turns`): one with no bit for the segment's heading,
     # held throughout, pushes no root unless an end passes beside it or it may stay on
     # the segment's line, and is passed over unsolved. ``prune`` False solves every vertex
-    # (what the pruned walk must equal).
+    # and finds each row's span on its own (what the pruned walk must equal).
     motion = Segment(ax, ay, vax, vay, bx, by, vbx, vby)
     heading = _steady_heading(motion, duration) if prune else -1
+    bit = 1 << max(heading, 0)
     parallel = _parallel(motion)
     reach = _NEAR_END_CELLS + 1e-3 + 1e-12 * (abs(ax) + abs(ay) + abs(bx) + abs(by))
     box_a = _path_box(ax, vax, ay, vay, duration, reach)
     box_b = _path_box(bx, vbx, by, vby, duration, reach)
     j_lo = max(np.int64(np.ceil(ys.min() - margin)), 0)
     j_hi = min(np.int64(np.floor(ys.max() + margin)), h)
+    # Between the corners' heights the same edges of the hull cross every row: found once
+    # for each band of rows (a NaN, from an infinite duration, takes every row the long way,
+    # as does the walk unpruned).
+    finite = prune and np.isfinite(xs).all() and np.isfinite(ys).all()
+    band = -1
+    edges = np.empty((4, 4))
+    count = 0
     for j in range(j_lo, j_hi + 1):
         start, stop = row_ptr[j], row_ptr[j + 1]
         if start == stop:
             continue
         y = float(j)
-        lo, hi = _hull_span(ys, xs, y)
-        # Rows within the margin of a corner's height: take the corner's span too.
+        near = not finite
+        below = 0
         for i in range(4):
             if abs(ys[i] - y) <= margin:
-                lo = min(lo, xs[i])
-                hi = max(hi, xs[i])
-        if lo > hi:
-            continue
-        first = np.searchsorted(cols[start:stop], np.ceil(lo - margin)) + start
+                near = True
+            if ys[i] < y:
+                below |= 1 << i
+        if near:
+            lo, hi = _hull_span(ys, xs, y)
+            # Rows within the margin of a corner's height: take the corner's span too.
+            for i in range(4):
+                if abs(ys[i] - y) <= margin:
+                    lo = min(lo, xs[i])
+                    hi = max(hi, xs[i])
+            if lo > hi:
+                continue
+            first = np.searchsorted(cols[start:stop], np.ceil(lo - margin)) + start
+        else:
+            if below != band:
+                band = below
+                count = _edges_across(ys, xs, below, edges)
+            lo, hi = _span_across(edges, count, y)
+            if lo > hi:
+                continue
+            first = _first_at_least(cols, start, stop, np.ceil(lo - margin))
+        beside_a = y >= box_a[2] and y <= box_a[3]
+        beside_b = y >= box_b[2] and y <= box_b[3]
         for m in range(first, stop):
             x = float(cols[m])
             if x > hi + margin:
                 break
-            segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
             if (
                 heading >= 0
-                and not (turns[m] >> heading) & 1
-                and not _in_box(x, y, box_a)
-                and not _in_box(x, y, box_b)
-                and not (parallel and _maybe_on_line(segment))
+                and not turns[m] & bit
+                and not (beside_a and x >= box_a[0] and x <= box_a[1])
+                and not (beside_b and x >= box_b[0] and x <= box_b[1])
+                and not (parallel and _maybe_on_line(ax - x, ay - y, bx - x, by - y))
             ):
                 continue
+            segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
             buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
     return buf[:n]
 
