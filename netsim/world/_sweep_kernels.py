@@ -356,6 +356,7 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
     """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
     ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
     h, row_ptr, cols, turns = grid.h, grid.row_ptr, grid.cols, grid.turns
+    corner_ptr, corner_cols = grid.corner_ptr, grid.corner_cols
     cells = (grid.flat, h, grid.w)
     buf = np.empty(64)
     n = int(0)  # a value, not a literal (docs/architecture.md, the compiled cache)
@@ -395,11 +396,22 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
     band = -1
     edges = np.empty((4, 4))
     count = 0
+    # Off the ends' paths, only the corners with the heading's bit are solved: where nothing
+    # else can push a root (the velocities not parallel), they are walked alone, from an
+    # index of their own, and the vertices beside an end's path from the full one.
+    corners_only = heading >= 0 and not parallel
+    c_start = c_stop = 0
     for j in range(j_lo, j_hi + 1):
         start, stop = row_ptr[j], row_ptr[j + 1]
         if start == stop:
             continue
         y = float(j)
+        beside_a = y >= box_a[2] and y <= box_a[3]
+        beside_b = y >= box_b[2] and y <= box_b[3]
+        if corners_only:
+            c_start, c_stop = corner_ptr[heading, j], corner_ptr[heading, j + 1]
+            if c_start == c_stop and not beside_a and not beside_b:
+                continue
         near = not finite
         below = 0
         for i in range(4):
@@ -414,22 +426,49 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
                 if abs(ys[i] - y) <= margin:
                     lo = min(lo, xs[i])
                     hi = max(hi, xs[i])
-            if lo > hi:
-                continue
-            first = np.searchsorted(cols[start:stop], np.ceil(lo - margin)) + start
         else:
             if below != band:
                 band = below
                 count = _edges_across(ys, xs, below, edges)
             lo, hi = _span_across(edges, count, y)
-            if lo > hi:
-                continue
-            first = _first_at_least(cols, start, stop, np.ceil(lo - margin))
-        beside_a = y >= box_a[2] and y <= box_a[3]
-        beside_b = y >= box_b[2] and y <= box_b[3]
+        if lo > hi:
+            continue
+        # The vertices visited: columns from ceil(lo - margin) to hi + margin.
+        left = np.ceil(lo - margin)
+        right = hi + margin
+        if corners_only:
+            for m in range(_first_at_least(corner_cols, c_start, c_stop, left), c_stop):
+                x = float(corner_cols[m])
+                if x > right:
+                    break
+                if (beside_a and x >= box_a[0] and x <= box_a[1]) or (beside_b and x >= box_b[0] and x <= box_b[1]):
+                    continue  # solved with the end's path below
+                segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                buf, n = _vertex_roots(cells, (corner_cols[m], j), segment, duration, buf, n)
+            if beside_a:
+                for m in range(_first_at_least(cols, start, stop, max(left, np.ceil(box_a[0]))), stop):
+                    x = float(cols[m])
+                    if x > right or x > box_a[1]:
+                        break
+                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
+            if beside_b:
+                for m in range(_first_at_least(cols, start, stop, max(left, np.ceil(box_b[0]))), stop):
+                    x = float(cols[m])
+                    if x > right or x > box_b[1]:
+                        break
+                    if beside_a and x >= box_a[0] and x <= box_a[1]:
+                        continue  # solved with a's path
+                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
+            continue
+        if near:
+            first = np.searchsorted(cols[start:stop], left) + start
+        else:
+            first = _first_at_least(cols, start, stop, left)
         for m in range(first, stop):
             x = float(cols[m])
-            if x > hi + margin:
+            if x > right:
                 break
             if (
                 heading >= 0

@@ -60,11 +60,14 @@ class VertexIndex(NamedTuple):
     """The grid vertices at which blocked and clear cells meet, by row: vertex row ``j``'s
     columns are ``cols[row_ptr[j]:row_ptr[j + 1]]``, ascending; ``turns``, for each, the
     headings of a segment across it for which the walls crossed change
-    (:func:`netsim.world._sweep_kernels.vertex_turns`)."""
+    (:func:`netsim.world._sweep_kernels.vertex_turns`). The same for the vertices of each
+    heading's bit ``b`` alone: ``corner_cols[corner_ptr[b, j]:corner_ptr[b, j + 1]]``."""
 
     row_ptr: np.ndarray
     cols: np.ndarray
     turns: np.ndarray
+    corner_ptr: np.ndarray
+    corner_cols: np.ndarray
 
 
 def vertex_index(blocked: np.ndarray) -> VertexIndex:
@@ -84,7 +87,14 @@ def vertex_index(blocked: np.ndarray) -> VertexIndex:
     turns = np.zeros(len(cols), np.uint8)
     flat = np.ascontiguousarray(b).ravel()
     kernels_for("netsim.world._sweep_kernels").vertex_turns((flat, b.shape[0], b.shape[1]), row_ptr, cols, turns)
-    return VertexIndex(row_ptr, cols, turns)
+    # Each heading's corners, in one array: heading b's rows are offset past those before it.
+    has = (turns[None, :] >> np.arange(4, dtype=np.uint8)[:, None]) & 1 == 1
+    corner_ptr = np.zeros((4, mixed.shape[0] + 1), np.int64)
+    for bit in range(4):
+        corner_ptr[bit, 1:] = np.cumsum(np.bincount(rows[has[bit]], minlength=mixed.shape[0]))
+    corner_ptr += np.r_[0, np.cumsum(has.sum(axis=1))[:-1]][:, None]
+    corner_cols = np.concatenate([cols[has[bit]] for bit in range(4)])
+    return VertexIndex(row_ptr, cols, turns, corner_ptr, corner_cols)
 
 
 _INDEX: list = []
@@ -112,6 +122,8 @@ class MapGrid(NamedTuple):
     row_ptr: np.ndarray
     cols: np.ndarray
     turns: np.ndarray
+    corner_ptr: np.ndarray
+    corner_cols: np.ndarray
     origin_x: float
     origin_y: float
     resolution_m: float
@@ -134,7 +146,17 @@ def map_grid(occupancy, blocked: np.ndarray | None = None) -> MapGrid:
     h, w = grid.shape
     ox, oy = (float(c) for c in occupancy.origin_m)
     return MapGrid(
-        grid.ravel(), int(h), int(w), index.row_ptr, index.cols, index.turns, ox, oy, float(occupancy.resolution_m)
+        grid.ravel(),
+        int(h),
+        int(w),
+        index.row_ptr,
+        index.cols,
+        index.turns,
+        index.corner_ptr,
+        index.corner_cols,
+        ox,
+        oy,
+        float(occupancy.resolution_m),
     )
 
 
