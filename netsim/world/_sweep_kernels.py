@@ -384,6 +384,8 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
     heading = _steady_heading(motion, duration) if prune else -1
     bit = 1 << max(heading, 0)
     parallel = _parallel(motion)
+    # Beside an end: _changes_count's reach, widened well past the rounding of an end's
+    # position taken relative to a vertex.
     reach = _NEAR_END_CELLS + 1e-3 + 1e-12 * (abs(ax) + abs(ay) + abs(bx) + abs(by))
     box_a = _path_box(ax, vax, ay, vay, duration, reach)
     box_b = _path_box(bx, vbx, by, vby, duration, reach)
