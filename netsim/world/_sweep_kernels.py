@@ -343,6 +343,32 @@ def _parallel(segment):
 
 
 @jit(nogil=True)
+def _may_stay_on_line(xs, ys, segment, duration):
+    """Whether, the velocities parallel and the heading steady (:func:`_steady_heading`), a
+    vertex of the hull of ``xs, ys`` off both ends' paths may still push a root by
+    :func:`_vertex_roots`' branch for a vertex staying on the segment's line.
+
+    That branch's roots are where an end passes one of the vertex's grid lines, say end
+    ``a`` at ``x = 0`` (relative to the vertex). There the test bounds
+    ``|a_y b_x| <= _DEGENERATE (|a_0| + |v_a| t)(|b_0| + |v_b| t)``, each factor at most
+    the hull's size and twice the end's travel, ``(D + 2 P_a)(D + 2 P_b)``; off ``a``'s path
+    ``|a_y| >= _NEAR_END_CELLS``, so ``|dx| = |b_x|`` is at most that bound over
+    ``_NEAR_END_CELLS``, which a steady heading keeps above ``4 _ALONG_AXIS`` times the
+    length: only where the bound (doubled, past rounding) is not below half of that."""
+    vax, vay, vbx, vby = segment.vax, segment.vay, segment.vbx, segment.vby
+    dx0 = segment.bx - segment.ax
+    dy0 = segment.by - segment.ay
+    dx1 = dx0 + (vbx - vax) * duration
+    dy1 = dy0 + (vby - vay) * duration
+    length = max(abs(dx0), abs(dx1)) + max(abs(dy0), abs(dy1))
+    size = (xs.max() - xs.min()) + (ys.max() - ys.min()) + 1.0
+    travel_a = (abs(vax) + abs(vay)) * duration
+    travel_b = (abs(vbx) + abs(vby)) * duration
+    bound = 2.0 * _DEGENERATE * (size + 2.0 * travel_a) * (size + 2.0 * travel_b) / _NEAR_END_CELLS
+    return not bound <= 2.0 * _ALONG_AXIS * length
+
+
+@jit(nogil=True)
 def _maybe_on_line(ax, ay, bx, by):
     """Whether the vertex may lie on the line from ``a`` to ``b`` (relative to it) by
     :func:`_vertex_roots`' test (``|c0| <= _DEGENERATE |a| |b|``), bounding each norm by
@@ -399,9 +425,10 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
     edges = np.empty((4, 4))
     count = 0
     # Off the ends' paths, only the corners with the heading's bit are solved: where nothing
-    # else can push a root (the velocities not parallel), they are walked alone, from an
-    # index of their own, and the vertices beside an end's path from the full one.
-    corners_only = heading >= 0 and not parallel
+    # else can push a root (no vertex can stay on the segment's line), they are walked
+    # alone, from an index of their own, and the vertices beside an end's path from the
+    # full one.
+    corners_only = heading >= 0 and not (parallel and _may_stay_on_line(xs, ys, motion, duration))
     c_start = c_stop = 0
     for j in range(j_lo, j_hi + 1):
         start, stop = row_ptr[j], row_ptr[j + 1]
