@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from netsim.world.los import walls_crossed
+from netsim.world.los import kernels_for, walls_crossed
 from netsim.world.maps import OccupancyMap, load_map
-from netsim.world.sweep import sweep_walls, vertex_index
+from netsim.world.sweep import map_grid, sweep_walls, vertex_index
 from tests.building_map import building_map
 
 
@@ -175,3 +175,81 @@ def test_sweep_limit_caps_the_count(building):
     truth = _brute(building, p0, vp, q0, vq, t, capped.pair)
     assert np.array_equal(capped.walls, np.minimum(truth, 1))
     assert full.walls.max() > 1
+
+
+def _candidates(occupancy, p0, vp, q0, vq, duration, prune):
+    """Each pair's candidate instants (:func:`netsim.world._sweep_kernels.candidates`),
+    sorted, with the walk over the map's vertices pruned or not."""
+    kernels = kernels_for("netsim.world._sweep_kernels")
+    grid = map_grid(occupancy)
+    origin, res = np.asarray(occupancy.origin_m, float), occupancy.resolution_m
+    out = []
+    for k in range(len(p0)):
+        g0, k0 = (p0[k] - origin) / res, (q0[k] - origin) / res
+        found = kernels.candidates(grid, g0, vp[k] / res, k0, vq[k] / res, float(duration[k]), prune)
+        out.append(np.sort(found))
+    return out
+
+
+def _radial_pairs(occupancy, speed_mps, duration_s, count=40, seed=6):
+    """A robot at rest and one moving straight away from it, both on a line through a mixed
+    vertex (the vertex stays on the segment's line), at random headings and along the axes."""
+    rng = np.random.default_rng(seed)
+    index = vertex_index(occupancy.occupied)
+    rows = np.repeat(np.arange(occupancy.shape[0] + 1), np.diff(index.row_ptr))
+    res, origin = occupancy.resolution_m, np.asarray(occupancy.origin_m, float)
+    chosen = rng.choice(len(index.cols), count, replace=False)
+    p0, vp, q0, vq = (np.zeros((count, 2)) for _ in range(4))
+    for n, m in enumerate(chosen):
+        vertex = np.array([index.cols[m], rows[m]], float) * res + origin
+        angle = rng.uniform(0, 2 * np.pi) if n % 2 else rng.integers(4) * np.pi / 2
+        u = np.array([np.cos(angle), np.sin(angle)]).round(15 if n % 2 else 0)
+        p0[n] = vertex - u * rng.uniform(0.5, 30.0)
+        q0[n] = vertex + u * rng.uniform(-3.0, 30.0)
+        vq[n] = u * speed_mps
+    return p0, vp, q0, vq, np.full(count, duration_s)
+
+
+def _long_pairs(occupancy, count, seed=7):
+    """Pairs far apart on the whole map over a 4 m chunk at up to 5 m/s, a share with one
+    robot at rest, some turning through a heading along an axis."""
+    rng = np.random.default_rng(seed)
+    h, w = occupancy.shape
+    lo = np.asarray(occupancy.origin_m, float)
+    hi = lo + np.array([w, h]) * occupancy.resolution_m
+    p0 = rng.uniform(lo, hi, (count, 2))
+    q0 = rng.uniform(lo, hi, (count, 2))
+    vp = rng.uniform(-5.0, 5.0, (count, 2))
+    vq = rng.uniform(-5.0, 5.0, (count, 2))
+    vp[::3] = 0.0
+    # Level at mid-chunk: the heading crosses the x axis.
+    q0[1::5, 1] = p0[1::5, 1] - (vq[1::5, 1] - vp[1::5, 1]) * 0.4
+    speed = np.maximum(np.hypot(*vp.T), np.hypot(*vq.T))
+    return p0, vp, q0, vq, 4.0 / speed
+
+
+@pytest.mark.parametrize("which", ["office", "building"])
+def test_pruned_vertex_walk_finds_every_candidate(which, building):
+    """Passing over the vertices along straight walls (no root solved) leaves exactly the
+    candidates of solving every vertex: for random and long pairs, pairs passing wall
+    corners, ends on grid lines and vertices, and vertices staying on the segment's line."""
+    occupancy = building if which == "building" else load_map("office")
+    aligned = _grid_aligned_pairs(occupancy, 0.3, 10.0, corners=4)
+    # Ends a hair off the grid's lines: rows within the span's margin of an end's height.
+    hair = np.array([[0.0, 5e-8], [-5e-8, 0.0]]) * occupancy.resolution_m
+    shifted = (aligned[0] + hair[np.arange(len(aligned[0])) % 2], aligned[1], aligned[2] - hair[0], *aligned[3:])
+    motions = [
+        _random_pairs(occupancy, 60, 2.0, 2.0, seed=8, corner_share=1.0),
+        aligned,
+        shifted,
+        _radial_pairs(occupancy, 1.5, 2.0),
+        _long_pairs(occupancy, 300),
+    ]
+    found = 0
+    for motion in motions:
+        full = _candidates(occupancy, *motion, prune=False)
+        pruned = _candidates(occupancy, *motion, prune=True)
+        for a, b in zip(full, pruned, strict=True):
+            assert np.array_equal(a, b)
+        found += sum(len(a) for a in full)
+    assert found > 1000

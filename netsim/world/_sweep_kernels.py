@@ -26,6 +26,10 @@ _DEGENERATE = 1e-12
 # How close to a grid line, in cells, an end's crossing of the other axis is taken as a
 # crossing at a vertex (then a candidate whatever the cells).
 _NEAR_LINE_CELLS = 1e-6
+# A segment within this share of its length of an axis is taken as along it, and a vertex
+# within this many cells (each axis) of an end as beside it (:func:`_changes_count`).
+_ALONG_AXIS = 1e-6
+_NEAR_END_CELLS = 1.5
 
 
 class Segment(NamedTuple):
@@ -98,6 +102,13 @@ def _end_crossings(cells, end, duration, axis, buf, n):
 
 
 @jit(nogil=True)
+def _cut(x0, dx, y0, dy, y):
+    """Where the line at height ``y`` cuts the edge from ``(x0, y0)`` to ``(x0 + dx, y0 +
+    dy)`` (whose ends lie on either side of it)."""
+    return x0 + dx * (y - y0) / dy
+
+
+@jit(nogil=True)
 def _hull_span(ys, xs, y):
     """The span in x of the convex hull of four points along the line at height ``y``
     (empty: lo > hi)."""
@@ -110,15 +121,86 @@ def _hull_span(ys, xs, y):
         for k in range(i + 1, 4):
             y0, y1 = ys[i], ys[k]
             if (y0 < y and y1 > y) or (y0 > y and y1 < y):
-                x = xs[i] + (xs[k] - xs[i]) * (y - y0) / (y1 - y0)
+                x = _cut(xs[i], xs[k] - xs[i], y0, y1 - y0, y)
                 lo = min(lo, x)
                 hi = max(hi, x)
     return lo, hi
 
 
 @jit(nogil=True)
+def _edges_across(ys, xs, below, edges):
+    """The edges ``(i, k)``, ``i < k``, between four points one of which lies below a line
+    and the other above (``below``: bit ``i`` for a point below, none on it), in
+    :func:`_hull_span`'s order, as rows ``(x0, dx, y0, dy)`` of ``edges`` (:func:`_cut`'s
+    arguments); returns how many."""
+    count = 0
+    for i in range(4):
+        for k in range(i + 1, 4):
+            if ((below >> i) & 1) != ((below >> k) & 1):
+                edges[count, 0] = xs[i]
+                edges[count, 1] = xs[k] - xs[i]
+                edges[count, 2] = ys[i]
+                edges[count, 3] = ys[k] - ys[i]
+                count += 1
+    return count
+
+
+@jit(nogil=True)
+def _span_across(edges, count, y):
+    """:func:`_hull_span` at a height ``y`` no point lies on (nor within the margin of), the
+    edges that cross it known (:func:`_edges_across`): the same cuts."""
+    lo = np.inf
+    hi = -np.inf
+    for e in range(count):
+        x = _cut(edges[e, 0], edges[e, 1], edges[e, 2], edges[e, 3], y)
+        lo = min(lo, x)
+        hi = max(hi, x)
+    return lo, hi
+
+
+@jit(nogil=True)
 def _rises(x, y, z):
     return (1 if (y and not x) else 0) + (1 if (z and not y) else 0)
+
+
+@jit(nogil=True)
+def _swap_changes(cells, i, j, bx, by):
+    """Whether the walls crossed change as a segment heading from cell ``(i + bx, j + by)``
+    to the opposite one of vertex ``(i, j)``'s four swaps the cell it visits between them
+    (one beside the diagonal step for the other)."""
+    ax = -1 - bx
+    ay = -1 - by
+    before = _cell(cells, i + bx, j + by)
+    after = _cell(cells, i + ax, j + ay)
+    side1 = _cell(cells, i + ax, j + by)
+    side2 = _cell(cells, i + bx, j + ay)
+    return _rises(before, side1, after) != _rises(before, side2, after)
+
+
+@jit(nogil=True)
+def _heading_bit(dx, dy):
+    """The bit of :func:`vertex_turns` for a segment heading ``(dx, dy)`` off the axes."""
+    return (2 if dx > 0 else 0) + (1 if dy > 0 else 0)
+
+
+@jit(nogil=True)
+def vertex_turns(cells, row_ptr, cols, turns):
+    """For each mixed vertex (:class:`netsim.world.sweep.VertexIndex`), into ``turns``: for
+    which headings of a segment (bits of :func:`_heading_bit`) sweeping across it away
+    from the ends and off the axes the walls crossed change (:func:`_swap_changes`). Along
+    a straight wall no heading does: only corners count, which lets a sweep pass over
+    the rest unsolved (:func:`candidates`)."""
+    for j in range(row_ptr.shape[0] - 1):
+        for m in range(row_ptr[j], row_ptr[j + 1]):
+            i = cols[m]
+            bits = 0
+            for dx in (-1.0, 1.0):
+                for dy in (-1.0, 1.0):
+                    bx = -1 if dx > 0 else 0
+                    by = -1 if dy > 0 else 0
+                    if _swap_changes(cells, i, j, bx, by):
+                        bits |= 1 << _heading_bit(dx, dy)
+            turns[m] = bits
 
 
 @jit(nogil=True)
@@ -137,20 +219,14 @@ def _changes_count(cells, vertex, p, q):
     dx = qx - px
     dy = qy - py
     length = abs(dx) + abs(dy)
-    if abs(dx) <= 1e-6 * length or abs(dy) <= 1e-6 * length:
+    if abs(dx) <= _ALONG_AXIS * length or abs(dy) <= _ALONG_AXIS * length:
         return True
-    if max(abs(px), abs(py)) < 1.5 or max(abs(qx), abs(qy)) < 1.5:
+    if max(abs(px), abs(py)) < _NEAR_END_CELLS or max(abs(qx), abs(qy)) < _NEAR_END_CELLS:
         return True
     # Cells around the vertex, relative: (-1 or 0, -1 or 0).
     bx = -1 if dx > 0 else 0
     by = -1 if dy > 0 else 0
-    ax = -1 - bx
-    ay = -1 - by
-    before = _cell(cells, i + bx, j + by)
-    after = _cell(cells, i + ax, j + ay)
-    side1 = _cell(cells, i + ax, j + by)
-    side2 = _cell(cells, i + bx, j + ay)
-    return _rises(before, side1, after) != _rises(before, side2, after)
+    return _swap_changes(cells, i, j, bx, by)
 
 
 @jit(nogil=True)
@@ -213,10 +289,100 @@ def _vertex_roots(cells, vertex, segment, duration, buf, n):
 
 
 @jit(nogil=True)
-def candidates(grid, g0, gv, k0, kv, duration):
+def _steady_heading(segment, duration):
+    """The bit of :func:`_heading_bit` the segment keeps throughout ``(0, duration)``, or -1
+    where it may come near an axis (:func:`_changes_count`'s tolerance, widened past
+    rounding) or the duration is not finite."""
+    ax, ay, vax, vay = segment.ax, segment.ay, segment.vax, segment.vay
+    bx, by, vbx, vby = segment.bx, segment.by, segment.vbx, segment.vby
+    dx0 = bx - ax
+    dy0 = by - ay
+    dx1 = dx0 + (vbx - vax) * duration
+    dy1 = dy0 + (vby - vay) * duration
+    # |dx| and |dy| are linear in t without a sign change: least and greatest at the ends.
+    length = max(abs(dx0), abs(dx1)) + max(abs(dy0), abs(dy1))
+    scale = abs(ax) + abs(ay) + abs(bx) + abs(by) + (abs(vax) + abs(vay) + abs(vbx) + abs(vby)) * duration
+    slack = 4.0 * _ALONG_AXIS * length + 1e-12 * scale
+    # Written so that a NaN (an infinite duration) fails every test.
+    if dx0 * dx1 > 0.0 and dy0 * dy1 > 0.0 and min(abs(dx0), abs(dx1)) > slack and min(abs(dy0), abs(dy1)) > slack:
+        return _heading_bit(dx0, dy0)
+    return -1
+
+
+@jit(nogil=True)
+def _path_box(x, vx, y, vy, duration, reach):
+    """The box an end moving from ``(x, y)`` at ``(vx, vy)`` for ``duration`` stays in,
+    widened by ``reach``: ``(x_lo, x_hi, y_lo, y_hi)``."""
+    x1 = x + vx * duration
+    y1 = y + vy * duration
+    return (min(x, x1) - reach, max(x, x1) + reach, min(y, y1) - reach, max(y, y1) + reach)
+
+
+@jit(nogil=True)
+def _first_at_least(values, start, stop, v):
+    """The first index in ``start .. stop`` at which ascending ``values`` reach ``v`` (not
+    NaN), ``stop`` if none: ``np.searchsorted``'s left side, without slicing."""
+    lo = start
+    hi = stop
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if values[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@jit(nogil=True)
+def _parallel(segment):
+    """Whether the ends' velocities are parallel by :func:`_vertex_roots`' test (the same
+    floats): only then can a vertex stay on the segment's line."""
+    vax, vay, vbx, vby = segment.vax, segment.vay, segment.vbx, segment.vby
+    c2 = vax * vby - vay * vbx
+    return abs(c2) <= _DEGENERATE * np.hypot(vax, vay) * np.hypot(vbx, vby)
+
+
+@jit(nogil=True)
+def _may_stay_on_line(xs, ys, segment, duration):
+    """Whether, the velocities parallel and the heading steady (:func:`_steady_heading`), a
+    vertex of the hull of ``xs, ys`` off both ends' paths may still push a root by
+    :func:`_vertex_roots`' branch for a vertex staying on the segment's line.
+
+    That branch's roots are where an end passes one of the vertex's grid lines, say end
+    ``a`` at ``x = 0`` (relative to the vertex). There the test bounds
+    ``|a_y b_x| <= _DEGENERATE (|a_0| + |v_a| t)(|b_0| + |v_b| t)``, each factor at most
+    the hull's size and twice the end's travel, ``(D + 2 P_a)(D + 2 P_b)``; off ``a``'s path
+    ``|a_y| >= _NEAR_END_CELLS``, so ``|dx| = |b_x|`` is at most that bound over
+    ``_NEAR_END_CELLS``, which a steady heading keeps above ``4 _ALONG_AXIS`` times the
+    length: only where the bound (doubled, past rounding) is not below half of that."""
+    vax, vay, vbx, vby = segment.vax, segment.vay, segment.vbx, segment.vby
+    dx0 = segment.bx - segment.ax
+    dy0 = segment.by - segment.ay
+    dx1 = dx0 + (vbx - vax) * duration
+    dy1 = dy0 + (vby - vay) * duration
+    length = max(abs(dx0), abs(dx1)) + max(abs(dy0), abs(dy1))
+    size = (xs.max() - xs.min()) + (ys.max() - ys.min()) + 1.0
+    travel_a = (abs(vax) + abs(vay)) * duration
+    travel_b = (abs(vbx) + abs(vby)) * duration
+    bound = 2.0 * _DEGENERATE * (size + 2.0 * travel_a) * (size + 2.0 * travel_b) / _NEAR_END_CELLS
+    return not bound <= 2.0 * _ALONG_AXIS * length
+
+
+@jit(nogil=True)
+def _maybe_on_line(ax, ay, bx, by):
+    """Whether the vertex may lie on the line from ``a`` to ``b`` (relative to it) by
+    :func:`_vertex_roots`' test (``|c0| <= _DEGENERATE |a| |b|``), bounding each norm by
+    the sum of its coordinates' sizes (no root taken)."""
+    c0 = ax * by - ay * bx
+    return abs(c0) <= 2.0 * _DEGENERATE * (abs(ax) + abs(ay)) * (abs(bx) + abs(by))
+
+
+@jit(nogil=True)
+def candidates(grid, g0, gv, k0, kv, duration, prune):
     """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
     ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
-    h, row_ptr, cols = grid.h, grid.row_ptr, grid.cols
+    h, row_ptr, cols, turns = grid.h, grid.row_ptr, grid.cols, grid.turns
+    corner_ptr, corner_cols = grid.corner_ptr, grid.corner_cols
     cells = (grid.flat, h, grid.w)
     buf = np.empty(64)
     n = int(0)  # a value, not a literal (docs/architecture.md, the compiled cache)
@@ -235,26 +401,112 @@ def candidates(grid, g0, gv, k0, kv, duration):
     xs = np.array([ax, ax + vax * duration, bx, bx + vbx * duration])
     ys = np.array([ay, ay + vay * duration, by, by + vby * duration])
     margin = 1e-6
+    # Most mixed vertices lie along straight walls, where a segment sweeping across them
+    # changes nothing (:func:`vertex_turns`): one with no bit for the segment's heading,
+    # held throughout, pushes no root unless an end passes beside it or it may stay on
+    # the segment's line, and is passed over unsolved. ``prune`` False solves every vertex
+    # and finds each row's span on its own (what the pruned walk must equal).
+    motion = Segment(ax, ay, vax, vay, bx, by, vbx, vby)
+    heading = _steady_heading(motion, duration) if prune else -1
+    bit = 1 << max(heading, 0)
+    parallel = _parallel(motion)
+    # Beside an end: _changes_count's reach, widened well past the rounding of an end's
+    # position taken relative to a vertex.
+    reach = _NEAR_END_CELLS + 1e-3 + 1e-12 * (abs(ax) + abs(ay) + abs(bx) + abs(by))
+    box_a = _path_box(ax, vax, ay, vay, duration, reach)
+    box_b = _path_box(bx, vbx, by, vby, duration, reach)
     j_lo = max(np.int64(np.ceil(ys.min() - margin)), 0)
     j_hi = min(np.int64(np.floor(ys.max() + margin)), h)
+    # Between the corners' heights the same edges of the hull cross every row: found once
+    # for each band of rows (a NaN, from an infinite duration, takes every row the long way,
+    # as does the walk unpruned).
+    finite = prune and np.isfinite(xs).all() and np.isfinite(ys).all()
+    band = -1
+    edges = np.empty((4, 4))
+    count = 0
+    # Off the ends' paths, only the corners with the heading's bit are solved: where nothing
+    # else can push a root (no vertex can stay on the segment's line), they are walked
+    # alone, from an index of their own, and the vertices beside an end's path from the
+    # full one.
+    corners_only = heading >= 0 and not (parallel and _may_stay_on_line(xs, ys, motion, duration))
+    c_start = c_stop = 0
     for j in range(j_lo, j_hi + 1):
         start, stop = row_ptr[j], row_ptr[j + 1]
         if start == stop:
             continue
         y = float(j)
-        lo, hi = _hull_span(ys, xs, y)
-        # Rows within the margin of a corner's height: take the corner's span too.
+        beside_a = y >= box_a[2] and y <= box_a[3]
+        beside_b = y >= box_b[2] and y <= box_b[3]
+        if corners_only:
+            c_start, c_stop = corner_ptr[heading, j], corner_ptr[heading, j + 1]
+            if c_start == c_stop and not beside_a and not beside_b:
+                continue
+        near = not finite
+        below = 0
         for i in range(4):
             if abs(ys[i] - y) <= margin:
-                lo = min(lo, xs[i])
-                hi = max(hi, xs[i])
+                near = True
+            if ys[i] < y:
+                below |= 1 << i
+        if near:
+            lo, hi = _hull_span(ys, xs, y)
+            # Rows within the margin of a corner's height: take the corner's span too.
+            for i in range(4):
+                if abs(ys[i] - y) <= margin:
+                    lo = min(lo, xs[i])
+                    hi = max(hi, xs[i])
+        else:
+            if below != band:
+                band = below
+                count = _edges_across(ys, xs, below, edges)
+            lo, hi = _span_across(edges, count, y)
         if lo > hi:
             continue
-        first = np.searchsorted(cols[start:stop], np.ceil(lo - margin)) + start
+        # The vertices visited: columns from ceil(lo - margin) to hi + margin.
+        left = np.ceil(lo - margin)
+        right = hi + margin
+        if corners_only:
+            for m in range(_first_at_least(corner_cols, c_start, c_stop, left), c_stop):
+                x = float(corner_cols[m])
+                if x > right:
+                    break
+                if (beside_a and x >= box_a[0] and x <= box_a[1]) or (beside_b and x >= box_b[0] and x <= box_b[1]):
+                    continue  # solved with the end's path below
+                segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                buf, n = _vertex_roots(cells, (corner_cols[m], j), segment, duration, buf, n)
+            if beside_a:
+                for m in range(_first_at_least(cols, start, stop, max(left, np.ceil(box_a[0]))), stop):
+                    x = float(cols[m])
+                    if x > right or x > box_a[1]:
+                        break
+                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
+            if beside_b:
+                for m in range(_first_at_least(cols, start, stop, max(left, np.ceil(box_b[0]))), stop):
+                    x = float(cols[m])
+                    if x > right or x > box_b[1]:
+                        break
+                    if beside_a and x >= box_a[0] and x <= box_a[1]:
+                        continue  # solved with a's path
+                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
+            continue
+        if near:
+            first = np.searchsorted(cols[start:stop], left) + start
+        else:
+            first = _first_at_least(cols, start, stop, left)
         for m in range(first, stop):
             x = float(cols[m])
-            if x > hi + margin:
+            if x > right:
                 break
+            if (
+                heading >= 0
+                and not turns[m] & bit
+                and not (beside_a and x >= box_a[0] and x <= box_a[1])
+                and not (beside_b and x >= box_b[0] and x <= box_b[1])
+                and not (parallel and _maybe_on_line(ax - x, ay - y, bx - x, by - y))
+            ):
+                continue
             segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
             buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
     return buf[:n]
@@ -288,7 +540,7 @@ def sweep(grid, motion, duration, eps, limit):
         kv[0] = vq[s, 0] / res
         kv[1] = vq[s, 1] / res
         d = duration[s]
-        cand = np.sort(candidates(grid, g0, gv, k0, kv, d))
+        cand = np.sort(candidates(grid, g0, gv, k0, kv, d, True))
         m = cand.shape[0]
         prev = 0.0
         for c in range(m + 1):

@@ -15,7 +15,10 @@ segment meets change in a way that matters:
 
 Candidate vertices come from the region the segment sweeps: it lies in the convex hull of
 the ends' first and last positions, whose span along each grid row is searched among that
-row's mixed vertices (found once per grid). Each instant is solved in closed form; the count
+row's mixed vertices (found once per grid). Most of those lie along straight walls, where a
+segment sweeping across changes no count whatever its heading: unless an end passes beside
+one, or the segment turns near an axis, they are passed over without solving their instant
+(the same candidates, found with fewer roots). Each instant is solved in closed form; the count
 on each interval between consecutive candidates is the traversal's
 (:func:`netsim.world._kernels.walls_one`, the arithmetic of ``walls_crossed``) at its
 midpoint, and consecutive intervals of equal count are merged.
@@ -40,7 +43,7 @@ import numpy as np
 
 from netsim.compiled import filled
 from netsim.world._kernels import NO_LIMIT
-from netsim.world.los import VERTEX_TOLERANCE_CELLS
+from netsim.world.los import VERTEX_TOLERANCE_CELLS, kernels_for
 
 
 class Sweep(NamedTuple):
@@ -55,10 +58,16 @@ class Sweep(NamedTuple):
 
 class VertexIndex(NamedTuple):
     """The grid vertices at which blocked and clear cells meet, by row: vertex row ``j``'s
-    columns are ``cols[row_ptr[j]:row_ptr[j + 1]]``, ascending."""
+    columns are ``cols[row_ptr[j]:row_ptr[j + 1]]``, ascending; ``turns``, for each, the
+    headings of a segment across it for which the walls crossed change
+    (:func:`netsim.world._sweep_kernels.vertex_turns`). The same for the vertices of each
+    heading's bit ``b`` alone: ``corner_cols[corner_ptr[b, j]:corner_ptr[b, j + 1]]``."""
 
     row_ptr: np.ndarray
     cols: np.ndarray
+    turns: np.ndarray
+    corner_ptr: np.ndarray
+    corner_cols: np.ndarray
 
 
 def vertex_index(blocked: np.ndarray) -> VertexIndex:
@@ -74,7 +83,18 @@ def vertex_index(blocked: np.ndarray) -> VertexIndex:
     rows, cols = np.nonzero(mixed)
     row_ptr = np.zeros(mixed.shape[0] + 1, np.int64)
     np.cumsum(np.bincount(rows, minlength=mixed.shape[0]), out=row_ptr[1:])
-    return VertexIndex(row_ptr, cols.astype(np.int64))
+    cols = cols.astype(np.int64)
+    turns = np.zeros(len(cols), np.uint8)
+    flat = np.ascontiguousarray(b).ravel()
+    kernels_for("netsim.world._sweep_kernels").vertex_turns((flat, b.shape[0], b.shape[1]), row_ptr, cols, turns)
+    # Each heading's corners, in one array: heading b's rows are offset past those before it.
+    has = (turns[None, :] >> np.arange(4, dtype=np.uint8)[:, None]) & 1 == 1
+    corner_ptr = np.zeros((4, mixed.shape[0] + 1), np.int64)
+    for bit in range(4):
+        corner_ptr[bit, 1:] = np.cumsum(np.bincount(rows[has[bit]], minlength=mixed.shape[0]))
+    corner_ptr += np.r_[0, np.cumsum(has.sum(axis=1))[:-1]][:, None]
+    corner_cols = np.concatenate([cols[has[bit]] for bit in range(4)])
+    return VertexIndex(row_ptr, cols, turns, corner_ptr, corner_cols)
 
 
 _INDEX: list = []
@@ -101,6 +121,9 @@ class MapGrid(NamedTuple):
     w: int
     row_ptr: np.ndarray
     cols: np.ndarray
+    turns: np.ndarray
+    corner_ptr: np.ndarray
+    corner_cols: np.ndarray
     origin_x: float
     origin_y: float
     resolution_m: float
@@ -122,7 +145,19 @@ def map_grid(occupancy, blocked: np.ndarray | None = None) -> MapGrid:
     index = cached_vertex_index(occupancy.occupied if blocked is None else blocked)
     h, w = grid.shape
     ox, oy = (float(c) for c in occupancy.origin_m)
-    return MapGrid(grid.ravel(), int(h), int(w), index.row_ptr, index.cols, ox, oy, float(occupancy.resolution_m))
+    return MapGrid(
+        grid.ravel(),
+        int(h),
+        int(w),
+        index.row_ptr,
+        index.cols,
+        index.turns,
+        index.corner_ptr,
+        index.corner_cols,
+        ox,
+        oy,
+        float(occupancy.resolution_m),
+    )
 
 
 def sweep_walls(
@@ -141,8 +176,6 @@ def sweep_walls(
     ``blocked`` replaces the map's occupied cells; with ``limit``, counts above it are
     reported as ``limit + 1`` (enough to decide a link, and cheaper).
     """
-    from netsim.world.los import kernels_for
-
     sweep = kernels_for("netsim.world._sweep_kernels").sweep
 
     grid = map_grid(occupancy, blocked)
