@@ -594,3 +594,67 @@ def test_a_categorical_cause_is_read_as_a_plain_one(tmp_path, capsys):
     assert main(["calibrate", str(path), "--sensitivity-dbm", str(TRUTH.sensitivity_dbm)]) == 0
     printed = capsys.readouterr().out
     assert f"path_loss_exponent = {plain.fit.path_loss_exponent.value!r}" in printed
+
+
+def _tiny_log(rows):
+    """A log of ``(received, rssi_dbm, cause)`` rows between robots 0 and 1, 10 m apart."""
+    received, power, cause = zip(*rows, strict=True)
+    n = len(rows)
+    return pd.DataFrame(
+        {"t_s": np.arange(n, dtype=float), "src": 0, "dst": 1, "distance_m": 10.0}
+        | {"rssi_dbm": power, "received": received, "cause": cause}
+    )
+
+
+def test_a_unicast_given_up_is_left_out_only_without_a_logged_power():
+    """A retry_limit row that logs a power was heard by the radio and lost after: it counts
+    at its power, as a frame lost after the radio heard it; without a power it tells nothing
+    of the channel and is left out, as a frame a full queue never sent."""
+    from netsim.tools.calibrate import check_log
+
+    log = _tiny_log(
+        [
+            (True, -70.0, ""),
+            (False, -80.0, "retry_limit"),
+            (False, np.nan, "retry_limit"),
+            (False, np.nan, "queue_full"),
+        ]
+    )
+    frames = check_log(log, "the log", need_positions=False)
+    assert (frames.left_out, frames.lost_measured, frames.lost_unmeasured) == (2, 1, 0)
+    assert frames.power_dbm.tolist() == [-70.0, -80.0]
+
+
+def test_a_frame_not_received_at_the_sensitivity_exactly_is_noted_as_clearing_it():
+    """The note on frames marked not received that log a power counts those at or above the
+    sensitivity, at it included, those whose cause says out of range apart."""
+    from netsim.tools.calibrate import _unread_above, check_log
+
+    log = _tiny_log([(True, -70.0, ""), (False, -90.0, ""), (False, -90.0, "out_of_range"), (False, -90.5, "")])
+    assert _unread_above(check_log(log, "the log", need_positions=False), -90.0) == (1, 1)
+
+
+def test_a_given_sensitivity_may_equal_the_weakest_logged_power():
+    """--sensitivity-dbm must lie at or below every logged power: the weakest one itself is
+    a sensitivity the log agrees with (a frame received at it); above it is refused."""
+    from netsim.errors import NetsimInputError
+    from netsim.tools.calibrate import check_sensitivity
+
+    power = np.array([-80.0, -90.0, np.nan])
+    check_sensitivity(power, -90.0, "the log")
+    with pytest.raises(NetsimInputError, match="--sensitivity-dbm -89.5: 1 frames of the log were received below it"):
+        check_sensitivity(power, -89.5, "the log")
+
+
+def test_a_power_at_the_transmit_power_is_no_path_loss_below_0_db():
+    """The warning names frames logged above --tx-power-dbm, a path loss below 0 dB; one at
+    the transmit power exactly (0 dB) is not warned of."""
+    import warnings
+
+    from netsim.tools.calibrate import CalibrationWarning, check_tx_power
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_tx_power(np.array([20.0, -60.0, np.nan]), 20.0, "the log")
+    with pytest.warns(CalibrationWarning, match="1 frame of the log logged above --tx-power-dbm 20"):
+        check_tx_power(np.array([20.5, -60.0]), 20.0, "the log")

@@ -436,3 +436,40 @@ def test_run_outputs_for_clustering(tmp_path):
         assert not frames[name].empty, name
     assert {"msg_id", "src", "dst", "delivered", "hops", "latency_s", "transmissions"} <= set(frames["messages"])
     assert set(frames["roles"].cause) >= {"rule1_start", "rule4_no_leader", "rule2_join"}
+
+
+@pytest.mark.parametrize("ttl, delivered", [(6, True), (5, False)])
+def test_an_oracle_message_takes_at_most_message_ttl_hops(ttl, delivered):
+    """routing = oracle on the line of 7 robots 9 m apart: the message from one end to the
+    other needs 6 hops; message_ttl = 6 delivers it in 6, 5 drops it for the hop limit at
+    the fifth robot it reached (the holder forwards only while its TTL is above 1). Its
+    latency runs from its sending: 6 hops of channel.latency_s (1 ms), not the last one's."""
+    pos = [[9.0 * k, 0.0] for k in range(7)]
+    sim, stack = static_run(pos, duration=40.0, run=False, message_ttl=ttl, routing="oracle")
+    dropped = []
+    sim.events.on("message_dropped", lambda e: dropped.append((e.msg_id, e.cause)))
+    sim.run(until_s=15.0)
+    mid = stack.relay.send(0, 6)
+    sim.run()
+    first = stack.messages_frame().set_index("msg_id").loc[mid]
+    assert bool(first.delivered) is delivered
+    if delivered:
+        assert first.hops == 6 and first.latency_s == pytest.approx(6 * 0.001)
+    else:
+        assert dropped == [(mid, "ttl")]
+
+
+def test_a_flood_under_latency_jitter_waits_for_every_receivers_copy():
+    """With channel.latency_jitter_s each receiver of a broadcast gets its copy at an
+    instant of its own: the flood is over once the last copy has arrived, not the first
+    (robot 1's broadcast reaches both ends of the line 0-1-2; it was declared over at the
+    first copy, and the second found no flood to join)."""
+    pos = [[9.0 * k, 0.0] for k in range(3)]
+    sim, stack = clustering(pos, core={"duration_s": 40.0, "seed": 1, "range_m": 10.0, "latency_jitter_s": 0.05})
+    dropped = []
+    sim.events.on("message_dropped", lambda e: dropped.append(e.cause))
+    sim.run(until_s=15.0)
+    stack.relay.send(1, 0)
+    stack.relay.send(1, 2)
+    sim.run()
+    assert stack.messages_frame()["delivered"].all() and dropped == []

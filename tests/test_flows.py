@@ -173,6 +173,8 @@ def test_a_flood_no_one_hears_is_dropped_by_no_one_robot(tmp_path, mac):
 BAD_FLOWS = [
     ({**FLOW, "dst": 9}, "traffic.flows[0].dst = 9: no such robot"),
     ({**FLOW, "stop_s": 1.0}, "traffic.flows[0].stop_s = 1.0: must be after"),
+    ({**FLOW, "stop_s": 10.0}, "traffic.flows[0].stop_s = 10.0: must be after"),  # stopping as it starts
+    ({**FLOW, "dst": 5}, "traffic.flows[0].dst = 5: no such robot"),  # ids are 0 to 4
     ({**FLOW, "rate_bps": 0}, "traffic.flows[0].rate_bps = 0.0: must be > 0"),
     ({**FLOW, "packet_bytes": -5}, "traffic.flows[0].packet_bytes = -5: must be > 0"),
     ({**FLOW, "colour": 1}, "traffic.flows[0].colour"),
@@ -243,3 +245,115 @@ def test_packet_count_is_the_number_of_send_times():
     ]
     for flow, end, count in cases:
         assert packet_count(flow, end) == len(send_times(flow, end)) == count
+
+
+def test_a_packets_hops_are_its_longest_frames_path_and_it_arrives_with_its_last_frame():
+    """A packet of several frames, each relayed on its own, is delivered when its last
+    frame arrives, after the longest path any of its frames took (the first frame's 3 hops
+    here, not the last's 2); its latency runs from its sending to that arrival."""
+    from netsim.protocols.flows import FlowTraffic
+
+    row = {"frames": 2, "frames_delivered": 0, "hops": 0, "t_sent_s": 1.0, "drop_cause": ""}
+    told = FlowTraffic._teller(row)
+    told(0, True, 1.5, 3, -1, "")
+    assert not row.get("delivered")
+    told(1, True, 2.0, 2, -1, "")
+    assert (row["delivered"], row["hops"], row["t_delivered_s"], row["latency_s"]) == (True, 3, 2.0, 1.0)
+
+
+def test_a_packet_lost_is_told_where_and_why_its_first_frame_was_lost():
+    """A packet is dropped when the first of its frames is, and that frame says where, when
+    and why; a later frame lost elsewhere changes nothing."""
+    from netsim.protocols.flows import FlowTraffic
+
+    row = {"frames": 2, "frames_delivered": 0, "hops": 0, "t_sent_s": 1.0, "drop_cause": ""}
+    told = FlowTraffic._teller(row)
+    told(0, False, 1.5, 2, 2, "lost")
+    told(1, False, 2.0, 3, 4, "no_route")
+    assert (row["t_dropped_s"], row["drop_robot"], row["drop_cause"]) == (1.5, 2, "lost")
+
+
+def test_a_flows_goodput_and_latency_quantiles_over_the_time_it_was_on():
+    """The flows table: goodput is the delivered packets' bits over the time the flow was on
+    within the run (from start_s to the earlier of stop_s and the run's end, 10 s here, not
+    90 s); the latencies' 50th and 95th percentiles are numpy's (linear interpolation), and
+    the mean hops are the delivered packets'."""
+    import pandas as pd
+    from netsim.protocols.flows import flows_table
+
+    lat = np.arange(1, 21) * 0.01
+    packets = pd.DataFrame(
+        {"flow": 0, "delivered": np.arange(21) < 20, "latency_s": np.r_[lat, np.nan], "bytes": 100, "hops": 2}
+    )
+    packets.loc[19, "hops"] = 4
+    (row,) = flows_table((Flow(0, 1, 10.0, 100.0, 800.0, 100),), packets, 20.0).to_dict("records")
+    assert (row["packets_sent"], row["packets_delivered"]) == (21, 20)
+    assert row["goodput_bps"] == pytest.approx(20 * 100 * 8 / 10.0)
+    assert (row["latency_p50_s"], row["latency_p95_s"]) == pytest.approx((0.105, 0.1905))
+    assert row["mean_hops"] == pytest.approx(2.1)
+
+
+def _flow_traffic(send):
+    import simpy
+    from netsim.protocols.flows import FlowTraffic
+
+    from netsim.traffic import Traffic
+
+    env = simpy.Environment()
+    return env, FlowTraffic(Traffic((), 1500), env, {}, send)
+
+
+def test_a_packet_with_a_frame_lost_is_not_delivered_and_has_no_hops():
+    """A packet one of whose frames arrived and another was lost is dropped, where its lost
+    frame was; the packets table gives it 0 hops, as every packet not delivered (the frame
+    that arrived counts in frames_delivered alone)."""
+    outcomes = []
+    _env, flows = _flow_traffic(lambda src, dst, kind, told: outcomes.append(told) or len(outcomes))
+    flows._send_packet(0, 0, Flow(0, 1, 0.0, 1.0, 8000.0, 3000), [1500, 1500])
+    outcomes[0](1, True, 0.5, 2, -1, "")
+    outcomes[1](2, False, 0.6, 1, 1, "lost")
+    (row,) = flows.packets_frame().to_dict("records")
+    assert (row["delivered"], row["hops"], row["frames_delivered"], row["drop_cause"]) == (False, 0, 1, "lost")
+
+
+class _PairDraws:
+    """A stand-in for the traffic stream: every gap 1 s, then the given integers in turn."""
+
+    def __init__(self, *ints):
+        self.ints = list(ints)
+
+    def exponential(self, _scale):
+        return 1.0
+
+    def integers(self, _high):
+        return self.ints.pop(0)
+
+
+def test_random_pairs_never_send_a_robot_a_message_of_its_own():
+    """The random pairs' destination is drawn among the n - 1 other robots: a draw at or
+    above the source's id moves up by one, so every ordered pair comes out and no robot
+    sends to itself."""
+    sent = []
+    env, flows = _flow_traffic(lambda src, dst, kind, told: sent.append((src, dst)) or len(sent))
+    flows.start_pairs(3, 1.0, 100, _PairDraws(1, 1, 1, 0, 0, 0, 2, 1, 2, 0))
+    env.run(until=5.5)
+    assert sent == [(1, 2), (1, 0), (0, 1), (2, 1), (2, 0)]
+
+
+def test_a_packet_due_at_stop_s_is_not_sent_however_the_division_rounds():
+    """A flow sends before stop_s, never at it: from 1.0 s to 1.1 s every 0.1 s is one
+    packet, though (1.1 - 1.0) / 0.1 rounds above 1 and the count's ceiling says 2 (the
+    second would leave at 1.0 + 0.1 = 1.1 s, at stop_s)."""
+    from netsim.traffic import packet_count
+
+    flow = Flow(0, 1, 1.0, 1.1, 8000.0, 100)
+    assert (1.1 - 1.0) / flow.interval_s > 1
+    assert send_times(flow, 10.0) == [1.0] and packet_count(flow, 10.0) == 1
+
+
+def test_a_flow_that_starts_at_the_runs_end_is_told():
+    """A flow starting at duration_s exactly sends nothing either (its first packet would
+    leave as the run ends): the same warning."""
+    at_end = {**FLOW, "start_s": 20.0, "stop_s": 40.0}
+    with pytest.warns(UserWarning, match=r"traffic.flows\[0\] starts at 20 s, at or after the run's end"):
+        make_config(duration_s=20.0, world={"n_robots": 5}, traffic={"flows": [at_end]})

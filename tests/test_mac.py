@@ -399,6 +399,7 @@ def test_the_protocol_runs_on_any_mac(mac):
     [
         ({"mac": "tdma"}, "channel.mac"),
         ({"mac": "csma", "cw_min": 30}, "channel.cw_min"),
+        ({"mac": "csma", "cw_min": 0}, "channel.cw_min"),  # 2^0 - 1: no backoff at all
         ({"mac": "csma", "cw_min": 63, "cw_max": 31}, "channel.cw_max"),
         ({"mac": "csma", "range_m": 100.0, "interference_range_m": 50.0}, "channel.interference_range_m"),
         ({"mac": "aloha", "propagation": "log_distance", "noise_floor_dbm": -85.0}, "channel.noise_floor_dbm"),
@@ -637,3 +638,42 @@ def test_an_oracle_message_a_full_queue_refuses_is_dropped_once():
     assert sum(int(c.dropped[full].sum()) for c in res.sim.channel.counters.values()) > 10
     ids = [m for m, _ in dropped]
     assert len(ids) > 10 and len(ids) == len(set(ids))
+
+
+def test_the_busy_fraction_runs_on_through_a_frame_that_starts_while_the_robot_transmits():
+    """A robot busy with its own frame when another's starts within range stays busy from
+    its own frame's start until the medium is idle again at the other's end: 1.5 T for both
+    (a frame starting then restarted robot 0's busy stretch, which counted T)."""
+    sim = _medium([0, 10])
+    _send_at(sim, 0.0, 0)
+    _send_at(sim, T / 2, 1)
+    sim.env.run(until=1.0)
+    assert sim.channel.mac.busy_fraction(1.0).tolist() == pytest.approx([1.5 * T, 1.5 * T], rel=1e-12)
+
+
+def test_each_unicast_gets_its_own_retry_limit():
+    """CSMA: a frame's retries start from zero whatever the frame before it spent: two
+    unicasts to a robot out of range each take 1 + retry_limit attempts, each then dropped
+    (retry_limit); the second was dropped at its first failure, the first's retries kept."""
+    sim = _medium([0, 10, 200], mac="csma", retry_limit=3)
+    sim.channel.notify_empty.add("f")
+    _send_at(sim, 0.0, 0, dest=2)
+    _send_at(sim, 0.0, 0, dest=2)
+    sim.env.run()
+    assert sim.channel.mac.attempts == 8
+    assert _dropped(sim, "retry_limit", robot=0) == 2
+
+
+def test_a_contention_window_fixed_at_one_size_is_accepted():
+    """cw_max may equal cw_min (a window that never grows), down to the smallest window, 1
+    (k = 1 in 2^k - 1)."""
+    for cw in (1, 31, 1023):
+        assert make_config(channel={"mac": "csma", "cw_min": cw, "cw_max": cw})
+
+
+@pytest.mark.parametrize("mac", ["aloha", "csma"])
+def test_the_protocols_checks_take_the_mediums_airtime_preamble_included(mac):
+    """The airtime the protocols' checks use (an Ack against its period) is the medium's
+    own, preamble + 8 bytes / rate."""
+    channel = make_config(channel={"mac": mac, "preamble_s": 1e-3, "data_rate_bps": 1e6}).channel
+    assert channel.airtime_s(125) == pytest.approx(airtime_s(125, 1e6, 1e-3)) == pytest.approx(2e-3)

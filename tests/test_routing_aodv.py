@@ -274,3 +274,219 @@ def test_an_intermediate_robot_answers_a_rreq_that_knows_no_destination_number(t
     asked = [(r, hops) for r, orig, dst, hops in answers if orig == 0 and dst == 3]
     assert asked and asked[0] == (1, 2), answers
     assert frames["packets"]["delivered"].all()
+
+
+def test_an_offer_without_a_valid_sequence_number_keeps_the_number_the_table_holds():
+    """A route learnt without a valid sequence number (a RREP's sender, a RREQ's previous
+    hop: RFC 3561 6.2, 6.5) replaces a route whose number is not valid either, but keeps the
+    number the table held, raised by the broken link, for the RREQ and the RERR that name
+    it: the offer's placeholder 0 would send a number older than the one already lost."""
+    t = RouteTable()
+    t.neighbour(2, seq=None, expires_s=10.0)
+    t.break_link(2, now=5.0, delete_period_s=15.0)
+    assert (t.routes[2].seq, t.routes[2].valid_seq, t.routes[2].valid) == (1, False, False)
+    assert t.offer(2, next_hop=2, hops=1, seq=0, valid_seq=False, expires_s=30.0)
+    r = t.routes[2]
+    assert (r.next_hop, r.hops, r.seq, r.valid_seq, r.valid, r.expires_s) == (2, 1, 1, False, True, 30.0)
+
+
+def test_the_same_route_offered_again_only_extends_its_lifetime():
+    """An offer that is not fresher (RFC 3561 6.2) leaves the route as it is; when it is
+    the very route the table holds (same next hop, same hop count) its lifetime is the
+    longer of the two, never shortened; an offer through the same next hop but of another
+    hop count is another route and extends nothing."""
+    t = RouteTable()
+    t.offer(9, next_hop=1, hops=4, seq=10, valid_seq=True, expires_s=100.0)
+    assert not t.offer(9, 1, 4, 10, True, 200.0) and t.routes[9].expires_s == 200.0
+    assert not t.offer(9, 1, 4, 10, True, 150.0) and t.routes[9].expires_s == 200.0
+    assert not t.offer(9, 1, 5, 10, True, 300.0)
+    assert (t.routes[9].hops, t.routes[9].expires_s) == (4, 200.0)
+
+
+def test_a_rerr_gives_the_invalidated_route_its_sequence_number():
+    """RFC 3561 6.11: a route a RERR invalidates takes the destination sequence number the
+    RERR lists (not its own, older one), so that a later RREQ asks for a route at least that
+    fresh, and it is kept for DELETE_PERIOD."""
+    t = RouteTable()
+    t.offer(3, next_hop=1, hops=2, seq=10, valid_seq=True, expires_s=100.0)
+    t.on_rerr(1, [(3, 12)], now=50.0, delete_period_s=15.0)
+    r = t.routes[3]
+    assert (r.valid, r.seq, r.expires_s) == (False, 12, 65.0)
+
+
+def test_a_hello_keeps_the_route_to_its_sender_for_allowed_hello_loss_intervals(tmp_path):
+    """RFC 3561 6.9: a hello's lifetime is ALLOWED_HELLO_LOSS * HELLO_INTERVAL, and the
+    route to its sender lives that long after the last hello heard (no flow renews it)."""
+    sim, _frames = _run(tmp_path, [(100, 500), (200, 500)], [], duration_s=10.0, allowed_hello_loss=3)
+    aodv = sim.models["protocol"]
+    heard = aodv.hello_heard[0][1]
+    assert heard > 7.0 and aodv.tables[0].routes[1].expires_s == pytest.approx(heard + 3 * 1.0)
+
+
+def _aodv(n=4):
+    """An AODV router of ``n`` robots, built and not run (its clock at 0)."""
+    return build(make_config(world={"n_robots": n}, protocol={"model": "aodv"})).models["protocol"]
+
+
+def _sent(router):
+    """The control frames ``router`` sends from now on, ``(sender, payload, kind, dest)``
+    each, kept instead of put on the channel."""
+    sent = []
+
+    def control(sender, payload, deliver, kind, dest=-1, messages=1):
+        sent.append((sender, payload, kind, dest))
+
+    router.control = control
+    return sent
+
+
+def test_a_relay_with_no_route_for_a_packet_broadcasts_a_rerr_for_its_destination():
+    """RFC 3561 6.11 (ii): a robot that holds data for a destination it has no active route
+    to, and is not the data's source, broadcasts a RERR naming that destination (the source
+    seeks a route instead)."""
+    from netsim.protocols.aodv import Rerr
+    from netsim.protocols.routing import Packet
+
+    aodv = _aodv()
+    sent = _sent(aodv)
+    pkt = Packet(0, src=0, dst=3, ttl=35, hops=1, kind="data", t_sent_s=0.0)
+    assert aodv.next_hop(1, pkt) == (-1, "no_route")
+    assert sent == [(1, Rerr(((3, 0),)), "rerr_1", -1)]
+    sent.clear()
+    assert aodv.next_hop(0, pkt) == (-1, "no_route") and sent == []
+
+
+def test_forwarding_on_a_route_keeps_the_routes_to_its_next_hop_and_back_to_the_source():
+    """RFC 3561 6.2: each time a route forwards data, the routes to the destination, to the
+    next hop and back to the source live ACTIVE_ROUTE_TIMEOUT from now at least."""
+    from netsim.protocols.routing import Packet
+
+    aodv = _aodv()
+    t = aodv.tables[1]
+    for dst, nh in ((3, 2), (2, 2), (0, 0)):
+        t.offer(dst, nh, 1 + (dst == 3), 1, True, 0.5)
+    assert aodv.next_hop(1, Packet(0, src=0, dst=3, ttl=35, hops=1, kind="data", t_sent_s=0.0)) == (2, "")
+    assert [t.routes[d].expires_s for d in (3, 2, 0)] == [3.0, 3.0, 3.0]
+
+
+def test_a_route_discovery_raises_the_sources_number_and_starts_past_the_last_known_hops():
+    """RFC 3561 6.1: a source increments its own sequence number before it starts a route
+    discovery; 6.4: for a destination it had a route to, the first ring's TTL is the last
+    known hop count plus TTL_INCREMENT (4 + 2), not TTL_START."""
+    from netsim.protocols.aodv import Route
+    from netsim.protocols.routing import Packet
+
+    aodv = _aodv()
+    aodv.tables[0].routes[3] = Route(next_hop=1, hops=4, seq=5, valid_seq=True, expires_s=-1.0, valid=False)
+    # A neighbour heard in a RREQ: a route with no valid number, so the RREQ asks for none.
+    aodv.tables[0].neighbour(2, seq=None, expires_s=-1.0)
+    sent = _sent(aodv)
+    for dst in (3, 2):
+        aodv.originate(0, Packet(dst, src=0, dst=dst, ttl=35, hops=0, kind="data", t_sent_s=0.0))
+    assert [(q.ttl, q.orig_seq, q.dst_seq, q.unknown_seq) for _, q, _, _ in sent] == [(6, 1, 5, False), (3, 2, 0, True)]
+    assert aodv.own_seq[0] == 2 and aodv.rreqs_originated == [(0.0, 0, 3, 6), (0.0, 0, 2, 3)]
+
+
+def test_rreqs_wait_a_ring_traversal_time_then_double_at_net_diameter(tmp_path):
+    """RFC 3561 6.4: after a RREQ of TTL t the source waits RING_TRAVERSAL_TIME = 2
+    NODE_TRAVERSAL_TIME (t + TIMEOUT_BUFFER); at NET_DIAMETER, NET_TRAVERSAL_TIME = 2
+    NODE_TRAVERSAL_TIME NET_DIAMETER, doubled on every retry (6.3's binary exponential backoff)."""
+    p = AodvParams()
+    assert p.ring_traversal_time_s(5) == pytest.approx(2 * 0.04 * (5 + 2))
+    assert (p.net_traversal_time_s, p.path_discovery_time_s) == pytest.approx((2.8, 5.6))
+    assert (p.my_route_timeout_s, p.delete_period_s) == pytest.approx((6.0, 15.0))
+    assert AodvParams(hello_interval_s=4.0).delete_period_s == pytest.approx(20.0)
+    flow = {"src": 0, "dst": 2, "start_s": 10.0, "stop_s": 10.5, "rate_bps": 8000.0, "packet_bytes": 1000}
+    sim, _frames = _run(tmp_path, [(50, 500), (150, 500), (900, 900)], [flow], duration_s=40.0)
+    times = [t for t, _, _, _ in sim.models["protocol"].rreqs_originated]
+    assert np.diff(times) == pytest.approx([0.24, 0.40, 0.56, 0.72, 2.8, 5.6])
+
+
+def test_a_rreq_sets_the_reverse_route_for_its_minimal_lifetime():
+    """RFC 3561 6.5: a RREQ heard from a neighbour makes the route back to its originator,
+    one hop longer than the RREQ came, living at least MinimalLifetime = 2
+    NET_TRAVERSAL_TIME - 2 HopCount NODE_TRAVERSAL_TIME, with the originator's number. A
+    route back through the same neighbour that the RREQ does not replace (as fresh and
+    shorter) lives that long too: max(ExistingLifetime, MinimalLifetime)."""
+    from netsim.protocols.aodv import Rreq
+
+    aodv = _aodv()
+    rreq = Rreq(orig=0, rreq_id=1, dst=3, dst_seq=0, unknown_seq=True, orig_seq=4, hops=1, ttl=5)
+    aodv.tables[3].offer(0, next_hop=1, hops=1, seq=4, valid_seq=True, expires_s=1.0)
+    aodv._on_rreq(1, np.array([2, 3]), rreq)
+    r = aodv.tables[2].routes[0]
+    assert (r.next_hop, r.hops, r.seq, r.valid_seq) == (1, 2, 4, True)
+    assert r.expires_s == pytest.approx(2 * 2.8 - 2 * 2 * 0.04)
+    kept = aodv.tables[3].routes[0]
+    assert (kept.hops, kept.expires_s) == (1, pytest.approx(2 * 2.8 - 2 * 2 * 0.04))
+
+
+def test_an_intermediate_robot_answers_a_rreq_whose_number_its_route_matches():
+    """RFC 3561 6.6: a robot with an active route to the destination answers a RREQ when
+    its destination sequence number is at least the RREQ's, equal included; an older one
+    (the RREQ asks for 8, the route has 7) does not answer and passes the RREQ on, nor does
+    a route whose next hop is the RREQ's sender (the reply would point back the way it came)."""
+    from netsim.protocols.aodv import Rrep, Rreq
+
+    for asked, via, answers in ((7, 3, True), (6, 3, True), (8, 3, False), (7, 1, False)):
+        aodv = _aodv()
+        aodv.tables[2].offer(3, next_hop=via, hops=1, seq=7, valid_seq=True, expires_s=10.0)
+        sent = _sent(aodv)
+        aodv._on_rreq(1, np.array([2]), Rreq(0, 1, 3, asked, False, 1, 1, 5))
+        assert sent == ([(2, Rrep(3, 7, 0, 1, 10.0), "rrep", 1)] if answers else []), (asked, via, sent)
+
+
+def test_a_forwarded_rreq_asks_for_the_freshest_number_the_robot_knows():
+    """RFC 3561 6.5: a robot passing a RREQ on sets its destination sequence number to the
+    larger of the RREQ's and the one its own table holds for the destination (here an
+    invalid route with 9 against the RREQ's 7), one hop more and one TTL less."""
+    from netsim.protocols.aodv import Route, Rreq
+
+    aodv = _aodv()
+    aodv.tables[2].routes[3] = Route(next_hop=3, hops=1, seq=9, valid_seq=True, expires_s=10.0, valid=False)
+    aodv._later = lambda _delay, fn, *args: fn(*args)
+    sent = _sent(aodv)
+    aodv._on_rreq(1, np.array([2]), Rreq(0, 1, 3, 7, False, 1, 1, 5))
+    assert sent == [(2, Rreq(0, 1, 3, 9, False, 1, 2, 4), "rreq", -1)]
+
+
+def test_a_rrep_sets_the_forward_route_for_its_lifetime_and_notes_the_precursors():
+    """RFC 3561 6.7: a RREP makes the route to its destination through the robot it came
+    from, one hop longer, with its number, expiring its Lifetime from now (6 s here, not
+    ACTIVE_ROUTE_TIMEOUT); a robot passing it on toward the originator notes the next hop
+    back as a precursor of the forward route, and the forward next hop of the route back."""
+    from netsim.protocols.aodv import Rrep
+
+    aodv = _aodv()
+    aodv.tables[1].offer(0, next_hop=0, hops=1, seq=1, valid_seq=True, expires_s=1.0)
+    sent = _sent(aodv)
+    aodv._on_rrep(2, np.array([1]), Rrep(dst=3, dst_seq=5, orig=0, hops=1, lifetime_s=6.0))
+    fwd, back = aodv.tables[1].routes[3], aodv.tables[1].routes[0]
+    assert (fwd.next_hop, fwd.hops, fwd.seq, fwd.expires_s) == (2, 2, 5, 6.0)
+    assert (fwd.precursors, back.precursors) == ({0}, {2})
+    assert sent == [(1, Rrep(3, 5, 0, 2, 6.0), "rrep", 0)]
+
+
+def test_a_rerr_to_a_single_precursor_is_a_unicast_and_its_size_grows_with_its_destinations():
+    """RFC 3561 6.11: a RERR goes by unicast when the lost routes had one precursor, else by
+    broadcast, and none goes when nobody used them; it lists every unreachable destination,
+    its size RERR_BYTES_BASE + 8 bytes a destination (RFC 3561 section 5)."""
+    from netsim.protocols.aodv import Rerr
+
+    aodv = _aodv()
+    sent = _sent(aodv)
+    aodv._send_rerr(1, [(3, 11, {0}), (2, 4, {0})])
+    aodv._send_rerr(1, [(3, 11, {0, 2})])
+    aodv._send_rerr(1, [(3, 11, set())])
+    assert sent == [(1, Rerr(((3, 11), (2, 4))), "rerr_2", 0), (1, Rerr(((3, 11),)), "rerr_1", -1)]
+    assert (aodv.control_bytes["rerr_2"], aodv.control_bytes["rerr_1"]) == (20, 12)
+
+
+def test_a_route_is_active_up_to_its_expiry_instant_included():
+    """A route lives until its lifetime runs out, its expiry instant included (ns-3's
+    routing table invalidates a route when its remaining lifetime is below zero); past it,
+    the lookup makes it invalid."""
+    t = RouteTable()
+    t.offer(9, next_hop=1, hops=2, seq=1, valid_seq=True, expires_s=13.0)
+    assert t.active(9, 13.0) is t.routes[9]
+    assert t.active(9, 13.0 + 1e-9) is None and not t.routes[9].valid

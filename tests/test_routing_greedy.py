@@ -204,3 +204,59 @@ def test_a_frame_that_does_not_get_through_a_medium_is_one_link_failure(tmp_path
     dropped = int(flow_rows["dropped_queue_full"].sum() + flow_rows["dropped_retry_limit"].sum())
     lost = int((frames["packets"]["drop_cause"] == "lost").sum())
     assert dropped > 0 and len(calls) == dropped == lost
+
+
+@pytest.mark.parametrize("hop_limit", [3, 4])
+def test_a_packet_takes_at_most_hop_limit_hops(tmp_path, hop_limit):
+    """Each hop takes one from the packet's TTL (protocol.hop_limit at the source); a holder
+    that is not the destination drops a packet whose TTL is spent (drop_cause ttl): down a
+    line of five robots, four hops, a limit of 3 drops every packet at robot 3 and a limit
+    of 4 delivers every one. Every hop is one data transmission."""
+    sim, frames = _run(tmp_path, [(50 + 100 * i, 500) for i in range(5)], [FLOW], hop_limit=hop_limit)
+    packets = frames["packets"]
+    assert sim.models["protocol"].data_transmissions == min(hop_limit, 4) * len(packets) > 0
+    if hop_limit == 4:
+        assert packets["delivered"].all() and (packets["hops"] == 4).all()
+    else:
+        assert (packets["drop_cause"] == "ttl").all() and (packets["drop_robot"] == 3).all()
+
+
+def test_control_receptions_count_every_robot_that_got_a_frame(tmp_path):
+    """The control table's ``received`` counts receptions, one per robot that got a frame:
+    three robots all in range of one another receive every beacon twice."""
+    _sim, frames = _run(tmp_path, [(100, 500), (150, 500), (200, 500)], [], duration_s=10.0)
+    control = frames["control"].set_index("kind")
+    assert control.loc["beacon", "sent"] > 0
+    assert control.loc["beacon", "received"] == 2 * control.loc["beacon", "sent"]
+
+
+def test_a_neighbour_as_far_from_the_destination_as_the_holder_is_no_next_hop():
+    """Greedy forwards only to a neighbour strictly closer to the destination than the
+    holder: one exactly as far (10 m on the other side) leaves the holder a local maximum,
+    as the packet could otherwise go back and forth between the two."""
+    own, dst = np.array([0.0, 0.0]), np.array([10.0, 0.0])
+    assert greedy_next_hop(own, dst, np.array([3]), np.array([[20.0, 0.0]])) == -1
+    assert greedy_next_hop(own, dst, np.array([3]), np.array([[19.0, 0.0]])) == 3
+
+
+def test_greedy_ties_go_to_the_lowest_id():
+    """Of two neighbours equally close to the destination, the lower id is the next hop,
+    whatever their order."""
+    own, dst = np.array([0.0, 0.0]), np.array([10.0, 0.0])
+    nbr_xy = np.array([[4.0, 3.0], [4.0, -3.0]])
+    assert greedy_next_hop(own, dst, np.array([5, 3]), nbr_xy) == 3
+    assert greedy_next_hop(own, dst, np.array([3, 5]), nbr_xy) == 3
+
+
+def test_a_holder_that_hears_the_destination_sends_it_the_packet_straight():
+    """A destination among the holder's neighbours is the next hop, whatever their beaconed
+    positions say: here its last beacon is stale and another neighbour beaconed from the
+    very point the packet is bound for."""
+    from netsim.protocols.routing import Packet
+
+    greedy = build(make_config(world={"n_robots": 3}, protocol={"model": "greedy"})).models["protocol"]
+    greedy.heard_t[0, [1, 2]] = 0.0
+    greedy.heard_xy[0, 1] = (1e5, 1e5)
+    greedy.heard_xy[0, 2] = (7.0, 7.0)
+    pkt = Packet(0, src=0, dst=1, ttl=64, hops=0, kind="data", t_sent_s=0.0, dst_xy=(7.0, 7.0))
+    assert greedy.next_hop(0, pkt) == (1, "")

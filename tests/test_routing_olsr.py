@@ -231,3 +231,89 @@ def test_olsr_tc_from_a_robot_that_is_not_a_symmetric_neighbour_is_discarded(tmp
     assert olsr.ansn[1] >= 2 and 1 in olsr.topology[0]  # 1 sent TCs; its symmetric neighbours took them
     assert olsr.topology[3] == {} and not any(orig == 1 for orig, _ in olsr.duplicates[3])
     assert not any(r == 3 for r, _, _ in forwarded)
+
+
+def _olsr(n=6):
+    """An OLSR router of ``n`` robots, built and not run (its clock at 0)."""
+    return build(make_config(world={"n_robots": n}, protocol={"model": "olsr"})).models["protocol"]
+
+
+def test_a_hello_sets_the_link_its_two_hop_neighbours_and_its_mpr_selector():
+    """RFC 3626 7.1.1, 8.2.1, 8.4.1: a HELLO that lists its receiver makes the link
+    symmetric for NEIGHB_HOLD_TIME, and one that no longer lists it makes it asymmetric at
+    once; the two-hop neighbours through its sender are the sender's symmetric neighbours
+    alone (not those it only hears), the receiver excluded; its sender is the receiver's
+    MPR selector when it lists the receiver as an MPR, and only then."""
+    from netsim.protocols.olsr import Hello
+
+    olsr = _olsr()
+    hold = olsr.params.neighb_hold_time_s
+    olsr._on_hello(1, np.array([0]), Hello(1, frozenset({0, 2, 5}), frozenset({0, 2}), frozenset({0})))
+    assert olsr.symmetric(0, 0.0) == {1} and olsr.sym_until[0][1] == hold
+    assert olsr.two_hop[0][1] == (frozenset({2}), hold) and olsr.selectors[0] == {1: hold}
+    olsr._on_hello(1, np.array([0]), Hello(1, frozenset({0, 2}), frozenset({0, 2}), frozenset()))
+    assert olsr.symmetric(0, 0.0) == {1} and 1 not in olsr.selectors[0]
+    olsr._on_hello(1, np.array([0]), Hello(1, frozenset({2}), frozenset({2}), frozenset()))
+    assert olsr.symmetric(0, 0.0) == set() and 1 not in olsr.two_hop[0]
+
+
+def test_a_robots_mprs_cover_its_two_hop_neighbours_that_are_not_its_neighbours():
+    """RFC 3626 8.3.1: N2 is the robots two hops away that are neither the robot itself nor
+    one of its symmetric neighbours; robot 0's neighbours 1 and 2 hear each other, and only
+    1 reaches 3: 1 alone is an MPR (covering the neighbour 2 as well took 2 too)."""
+    olsr = _olsr()
+    olsr.sym_until[0].update({1: 10.0, 2: 10.0})
+    olsr.two_hop[0].update({1: (frozenset({2, 3}), 10.0), 2: (frozenset({1}), 10.0)})
+    olsr._select_mprs(0, 0.0)
+    assert olsr.mprs[0] == {1}
+
+
+def test_a_tc_older_than_the_one_known_from_its_originator_is_discarded():
+    """RFC 3626 9.5: a TC whose ANSN is older than the one the topology set holds for its
+    originator (a copy that took a slower path) changes nothing; a newer one replaces it."""
+    from netsim.protocols.olsr import Tc
+
+    olsr = _olsr()
+    olsr.sym_until[0][1] = 10.0
+    olsr._on_tc(1, np.array([0]), Tc(4, 5, frozenset({2, 3}), 255, 1))
+    olsr._on_tc(1, np.array([0]), Tc(4, 4, frozenset({5}), 255, 1))
+    assert olsr.topology[0][4][:2] == (5, frozenset({2, 3}))
+    olsr._on_tc(1, np.array([0]), Tc(4, 6, frozenset({5}), 255, 1))
+    assert olsr.topology[0][4][:2] == (6, frozenset({5}))
+
+
+def test_an_mpr_retransmits_a_tc_only_while_its_ttl_is_above_one():
+    """RFC 3626 3.4.1: a robot its sender chose as MPR retransmits the TC with the TTL one
+    less and the hop count one more, when the TTL it came with is greater than 1; one that
+    arrives with TTL 1 goes no further."""
+    from netsim.protocols.olsr import Tc
+
+    olsr = _olsr()
+    olsr.sym_until[0][1] = olsr.selectors[0][1] = 10.0
+    queued = []
+    olsr.queue = lambda i, message: queued.append((i, message))
+    olsr._on_tc(1, np.array([0]), Tc(4, 5, frozenset({2}), 2, 1))
+    olsr._on_tc(1, np.array([0]), Tc(3, 5, frozenset({2}), 1, 1))
+    assert queued == [(0, Tc(4, 5, frozenset({2}), 1, 2))]
+
+
+def test_the_routing_table_takes_the_two_hop_links_and_the_unexpired_topology():
+    """RFC 3626 section 10: the routes run over the symmetric links, the two-hop links
+    (through a symmetric neighbour) and the topology set's links, an expired tuple's left
+    out; every destination goes by the first hop of its shortest path."""
+    olsr = _olsr(8)
+    olsr.sym_until[0][1] = 10.0
+    olsr.two_hop[0][1] = (frozenset({2}), 10.0)
+    olsr.topology[0][2] = (1, frozenset({3}), 10.0)
+    olsr.topology[0][3] = (1, frozenset({4}), -1.0)
+    assert olsr.routes(0) == {1: 1, 2: 1, 3: 1}
+
+
+def test_a_hello_lists_each_neighbour_once_under_its_link_code():
+    """RFC 3626 6.1: a HELLO groups its neighbours by link code, each listed once: the
+    heard-only (asymmetric), the symmetric non-MPRs, the MPRs; each group a 4-byte link
+    message header and 4 bytes an address, after the 12-byte message and 4-byte HELLO headers."""
+    from netsim.protocols.olsr import Hello
+
+    hello = Hello(0, frozenset({1, 2, 3}), frozenset({1, 2}), frozenset({1}))
+    assert message_bytes(hello) == 12 + 4 + 3 * (4 + 4)
