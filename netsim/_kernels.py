@@ -31,6 +31,19 @@ class Motion(NamedTuple):
     side_m: float
 
 
+@jit(nogil=True, inline="always")
+def lower_bound(a, lo, hi, x):
+    """The first position in ascending ``a[lo:hi]`` whose item is not below ``x`` (``hi``
+    if none; ``x`` not NaN): ``lo + np.searchsorted(a[lo:hi], x)``, without making the view."""
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
 @jit(nogil=True)
 def position(origin_m, velocity_mps, t0_s, i, t, torus, side_m):
     """Robot ``i``'s position at ``t`` (:meth:`netsim.state.RobotState.position`)."""

@@ -91,19 +91,19 @@ def from_csv(path: str, n: int, area: float | Bounds) -> np.ndarray:
 
 
 def _warn_if_shared(path: str, xy: np.ndarray) -> None:
-    # Two robots on one point have no direction between them: the forces that spread a team
-    # push them alike, so they move as one and never part.
+    # No robot stands where another stands, and two on one point have no direction between
+    # them: the forces that spread a team push them alike, so they move as one.
     _, first, counts = np.unique(xy, axis=0, return_index=True, return_counts=True)
     if (counts == 1).all():
         return
     shared = np.flatnonzero((xy == xy[first[np.argmax(counts > 1)]]).all(axis=1))
     x, y = xy[shared[0]]
-    more = int((counts[counts > 1] - 1).sum()) - (len(shared) - 1)
-    also = f" (and {more} more {'robot' if more == 1 else 'robots'} on other shared points)" if more else ""
+    more = int(counts[counts > 1].sum()) - len(shared)
+    also = f" (and {more} more robots on other shared points)" if more else ""
     robots = ", ".join(str(r) for r in shared[:5]) + (", ..." if len(shared) > 5 else "")
     warnings.warn(
         f"world.placement = '{path}': robots {robots} share the position ({x:g}, {y:g}){also}: "
-        "no direction lies between them, so coverage's forces move them as one",
+        "no robot can stand where another stands, and forces that spread a team move them as one",
         ConfigWarning,
         stacklevel=3,
     )

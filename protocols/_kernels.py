@@ -31,6 +31,7 @@ from netsim._kernels import (
     Motion,
     length_m,
     longest_list,
+    lower_bound,
     position,
     reaches_robot,
     restarted,
@@ -799,23 +800,10 @@ def sample_into(table, now, symmetric, roles, truth, groups, pairs, counts, lo, 
         in_range = role[r] == LEADER_ROLE
         if role[r] == MEMBER and own >= 0:
             # Two-way: the leader among the robots that reach r, r reaching the leader.
-            at = _lower_bound(heard, int(0), h, own)
+            at = lower_bound(heard, int(0), h, own)
             if at < h and heard[at] == own:
                 first, end = near_ptr[own], near_ptr[own + 1]
-                at = _lower_bound(near, first, end, r)
+                at = lower_bound(near, first, end, r)
                 in_range = at < end and near[at] == r and reaches_robot(pos, ranges, box, own, r)
         counts.leader_in_range[r] = in_range
     return m, k
-
-
-@jit(nogil=True, inline="always")
-def _lower_bound(a, lo, hi, x):
-    """The first position in ascending ``a[lo:hi]`` whose item is not below ``x`` (``hi``
-    if none): ``lo + np.searchsorted(a[lo:hi], x)``, without making the view."""
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] < x:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo

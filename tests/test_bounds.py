@@ -174,9 +174,13 @@ def test_csv_placement_of_two_robots_on_one_point_is_warned_naming_them(tmp_path
     csv = tmp_path / "at.csv"
     sets = ["world.n_robots=4", f"world.placement={csv}", "mobility.model=static", "protocol.model=none"]
     pd.DataFrame({"x_m": [10.0, 50.0, 10.0, 10.0], "y_m": [10.0, 50.0, 10.0, 20.0]}).to_csv(csv, index=False)
-    with pytest.warns(ConfigWarning, match=r"robots 0, 2 share the position \(10, 10\)") as told:
+    with pytest.warns(ConfigWarning, match=r"robots 0, 2 share the position \(10, 10\):") as told:
         build(load(None, sets))
     assert len(told) == 1
+    # Two pairs: the second pair's two robots are the more.
+    pd.DataFrame({"x_m": [10.0, 50.0, 10.0, 50.0], "y_m": [10.0, 50.0, 10.0, 50.0]}).to_csv(csv, index=False)
+    with pytest.warns(ConfigWarning, match=r"robots 0, 2 share the position \(10, 10\) \(and 2 more robots on"):
+        build(load(None, sets))
     pd.DataFrame({"x_m": [10.0, 50.0, 10.0, 10.0], "y_m": [10.0, 50.0, 10.000001, 20.0]}).to_csv(csv, index=False)
     with warnings.catch_warnings():
         warnings.simplefilter("error")

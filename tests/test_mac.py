@@ -643,7 +643,7 @@ def test_an_oracle_message_a_full_queue_refuses_is_dropped_once():
 def test_the_busy_fraction_runs_on_through_a_frame_that_starts_while_the_robot_transmits():
     """A robot busy with its own frame when another's starts within range stays busy from
     its own frame's start until the medium is idle again at the other's end: 1.5 T for both
-    (a frame starting then restarted robot 0's busy stretch, which counted T)."""
+    (a busy stretch restarted by the second frame would count T)."""
     sim = _medium([0, 10])
     _send_at(sim, 0.0, 0)
     _send_at(sim, T / 2, 1)
@@ -668,12 +668,14 @@ def test_a_contention_window_fixed_at_one_size_is_accepted():
     """cw_max may equal cw_min (a window that never grows), down to the smallest window, 1
     (k = 1 in 2^k - 1)."""
     for cw in (1, 31, 1023):
-        assert make_config(channel={"mac": "csma", "cw_min": cw, "cw_max": cw})
+        channel = make_config(channel={"mac": "csma", "cw_min": cw, "cw_max": cw}).channel
+        assert (channel.cw_min, channel.cw_max) == (cw, cw)
 
 
 @pytest.mark.parametrize("mac", ["aloha", "csma"])
-def test_the_protocols_checks_take_the_mediums_airtime_preamble_included(mac):
-    """The airtime the protocols' checks use (an Ack against its period) is the medium's
-    own, preamble + 8 bytes / rate."""
+def test_a_frames_airtime_on_the_medium_is_its_preamble_and_its_bytes_at_the_rate(mac):
+    """The airtime the configuration gives a frame (which the protocols' checks hold an
+    Ack's period against) is the medium's own: preamble + 8 bytes / rate."""
     channel = make_config(channel={"mac": mac, "preamble_s": 1e-3, "data_rate_bps": 1e6}).channel
-    assert channel.airtime_s(125) == pytest.approx(airtime_s(125, 1e6, 1e-3)) == pytest.approx(2e-3)
+    assert channel.airtime_s(125) == pytest.approx(2e-3)
+    assert airtime_s(125, 1e6, 1e-3) == pytest.approx(2e-3)

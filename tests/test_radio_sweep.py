@@ -210,6 +210,26 @@ def _radial_pairs(occupancy, speed_mps, duration_s, count=40, seed=6):
     return p0, vp, q0, vq, np.full(count, duration_s)
 
 
+def _close_parallel_pairs(occupancy, count=40, seed=9):
+    """Two robots a tenth of a millimetre apart on a line through a mixed vertex, moving
+    alike along it across the vertex (it stays on the segment's line however short the
+    segment), at random headings off the axes."""
+    rng = np.random.default_rng(seed)
+    index = vertex_index(occupancy.occupied)
+    rows = np.repeat(np.arange(occupancy.shape[0] + 1), np.diff(index.row_ptr))
+    res, origin = occupancy.resolution_m, np.asarray(occupancy.origin_m, float)
+    chosen = rng.choice(len(index.cols), count, replace=False)
+    p0, vp, q0, vq = (np.zeros((count, 2)) for _ in range(4))
+    for n, m in enumerate(chosen):
+        vertex = np.array([index.cols[m], rows[m]], float) * res + origin
+        angle = rng.uniform(0.1, np.pi / 2 - 0.1) + rng.integers(4) * np.pi / 2
+        u = np.array([np.cos(angle), np.sin(angle)])
+        p0[n] = vertex - u * rng.uniform(0.2, 1.0)
+        q0[n] = p0[n] + u * 1e-4
+        vp[n] = vq[n] = u * 1.0
+    return p0, vp, q0, vq, np.full(count, 2.0)
+
+
 def _long_pairs(occupancy, count, seed=7):
     """Pairs far apart on the whole map over a 4 m chunk at up to 5 m/s, a share with one
     robot at rest, some turning through a heading along an axis."""
@@ -232,7 +252,8 @@ def _long_pairs(occupancy, count, seed=7):
 def test_pruned_vertex_walk_finds_every_candidate(which, building):
     """Passing over the vertices along straight walls (no root solved) leaves exactly the
     candidates of solving every vertex: for random and long pairs, pairs passing wall
-    corners, ends on grid lines and vertices, and vertices staying on the segment's line."""
+    corners, ends on grid lines and vertices, and vertices staying on the segment's line
+    (a long segment, or one so short that any vertex near its line may stay on it)."""
     occupancy = building if which == "building" else load_map("office")
     aligned = _grid_aligned_pairs(occupancy, 0.3, 10.0, corners=4)
     # Ends a hair off the grid's lines: rows within the span's margin of an end's height.
@@ -244,6 +265,7 @@ def test_pruned_vertex_walk_finds_every_candidate(which, building):
         shifted,
         _radial_pairs(occupancy, 1.5, 2.0),
         _long_pairs(occupancy, 300),
+        _close_parallel_pairs(occupancy),
     ]
     found = 0
     for motion in motions:

@@ -656,28 +656,24 @@ def test_a_local_pool_starts_no_more_workers_than_runs(tmp_path, monkeypatch):
     assert sizes == [2] and len(sweepmod.load(tmp_path / "out")) == 2, report
 
 
-_started = None  # a queue the pool's forked workers inherit
-
-
-def _run_forever(_job: int) -> None:
-    _started.put(True)
+def _run_forever(started) -> None:
+    started.put(True)
     while True:  # a run under way, ended only by its pool
         pass
 
 
 def test_leaving_a_process_pool_early_ends_its_workers_at_once():
     """Ctrl-C (or any error) in the block of :func:`process_pool`, which the experiments'
-    scripts run their seeds on, ends the workers at once, their runs under way: it did not
-    wait for them (a script went on for tens of seconds after Ctrl-C)."""
+    scripts run their seeds on, ends the workers at once, their runs under way."""
     import multiprocessing
 
-    global _started
-    _started = multiprocessing.SimpleQueue()
-    with pytest.raises(KeyboardInterrupt), sweepmod.process_pool(2, 5) as pool:
-        workers = list(pool._pool)
-        pool.map_async(_run_forever, [0, 1])
-        _started.get(), _started.get()
-        raise KeyboardInterrupt
+    with multiprocessing.Manager() as manager:
+        started = manager.Queue()
+        with pytest.raises(KeyboardInterrupt), sweepmod.process_pool(2, 5) as pool:
+            workers = list(pool._pool)
+            pool.map_async(_run_forever, [started, started], chunksize=1)
+            started.get(), started.get()
+            raise KeyboardInterrupt
     assert len(workers) == 2 and [w.exitcode for w in workers] == [-signal.SIGTERM] * 2
 
 

@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import disk_crossing_times, grown, reaches
+from netsim._kernels import disk_crossing_times, grown, lower_bound, reaches
 from netsim.compiled import jit
 from netsim.world._kernels import clamped, on_grid, walls_one
 
@@ -247,7 +247,7 @@ def _vertex_roots(cells, vertex, segment, duration, buf, n):
     if (
         abs(c0) <= _DEGENERATE * na * nb
         and abs(c1) <= _DEGENERATE * (na * nvb + nva * nb)
-        and abs(c2) <= _DEGENERATE * nva * nvb
+        and _parallel_by(c2, nva, nvb)
     ):
         # The vertex stays on the segment's line: which side of it each end is on changes
         # where an end passes the vertex's lines.
@@ -318,19 +318,11 @@ def _path_box(x, vx, y, vy, duration, reach):
     return (min(x, x1) - reach, max(x, x1) + reach, min(y, y1) - reach, max(y, y1) + reach)
 
 
-@jit(nogil=True)
-def _first_at_least(values, start, stop, v):
-    """The first index in ``start .. stop`` at which ascending ``values`` reach ``v`` (not
-    NaN), ``stop`` if none: ``np.searchsorted``'s left side, without slicing."""
-    lo = start
-    hi = stop
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if values[mid] < v:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
+@jit(nogil=True, inline="always")
+def _parallel_by(c2, nva, nvb):
+    """Whether velocities of cross product ``c2`` and norms ``nva``, ``nvb`` are parallel,
+    as :func:`_vertex_roots` tests it."""
+    return abs(c2) <= _DEGENERATE * nva * nvb
 
 
 @jit(nogil=True)
@@ -338,8 +330,7 @@ def _parallel(segment):
     """Whether the ends' velocities are parallel by :func:`_vertex_roots`' test (the same
     floats): only then can a vertex stay on the segment's line."""
     vax, vay, vbx, vby = segment.vax, segment.vay, segment.vbx, segment.vby
-    c2 = vax * vby - vay * vbx
-    return abs(c2) <= _DEGENERATE * np.hypot(vax, vay) * np.hypot(vbx, vby)
+    return _parallel_by(vax * vby - vay * vbx, np.hypot(vax, vay), np.hypot(vbx, vby))
 
 
 @jit(nogil=True)
@@ -375,6 +366,31 @@ def _maybe_on_line(ax, ay, bx, by):
     the sum of its coordinates' sizes (no root taken)."""
     c0 = ax * by - ay * bx
     return abs(c0) <= 2.0 * _DEGENERATE * (abs(ax) + abs(ay)) * (abs(bx) + abs(by))
+
+
+@jit(nogil=True, inline="always")
+def _in_box(box, x):
+    """Whether column ``x`` lies within a path box's columns (:func:`_path_box`)."""
+    return x >= box[0] and x <= box[1]
+
+
+@jit(nogil=True)
+def _walk(cells, columns, m0, stop, stop_x, box_a, skip_a, box_b, skip_b, motion, j, duration, buf, n):
+    """:func:`_vertex_roots` of row ``j``'s vertices ``columns[m0:stop]`` up to column
+    ``stop_x``, those within a box whose ``skip`` is set left out (solved with its end's
+    path); ``motion``: the segment's :class:`Segment` in grid units."""
+    y = float(j)
+    for m in range(m0, stop):
+        x = float(columns[m])
+        if x > stop_x:
+            break
+        if (skip_a and _in_box(box_a, x)) or (skip_b and _in_box(box_b, x)):
+            continue
+        segment = Segment(
+            motion.ax - x, motion.ay - y, motion.vax, motion.vay, motion.bx - x, motion.by - y, motion.vbx, motion.vby
+        )
+        buf, n = _vertex_roots(cells, (columns[m], j), segment, duration, buf, n)
+    return buf, n
 
 
 @jit(nogil=True)
@@ -466,35 +482,26 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
         left = np.ceil(lo - margin)
         right = hi + margin
         if corners_only:
-            for m in range(_first_at_least(corner_cols, c_start, c_stop, left), c_stop):
-                x = float(corner_cols[m])
-                if x > right:
-                    break
-                if (beside_a and x >= box_a[0] and x <= box_a[1]) or (beside_b and x >= box_b[0] and x <= box_b[1]):
-                    continue  # solved with the end's path below
-                segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
-                buf, n = _vertex_roots(cells, (corner_cols[m], j), segment, duration, buf, n)
+            m0 = lower_bound(corner_cols, c_start, c_stop, left)
+            # The corners off both ends' paths; then those paths' vertices, each once.
+            buf, n = _walk(
+                cells, corner_cols, m0, c_stop, right, box_a, beside_a, box_b, beside_b, motion, j, duration, buf, n
+            )
             if beside_a:
-                for m in range(_first_at_least(cols, start, stop, max(left, np.ceil(box_a[0]))), stop):
-                    x = float(cols[m])
-                    if x > right or x > box_a[1]:
-                        break
-                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
-                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
+                m0 = lower_bound(cols, start, stop, max(left, np.ceil(box_a[0])))
+                stop_x = min(right, box_a[1])
+                buf, n = _walk(cells, cols, m0, stop, stop_x, box_a, False, box_b, False, motion, j, duration, buf, n)
             if beside_b:
-                for m in range(_first_at_least(cols, start, stop, max(left, np.ceil(box_b[0]))), stop):
-                    x = float(cols[m])
-                    if x > right or x > box_b[1]:
-                        break
-                    if beside_a and x >= box_a[0] and x <= box_a[1]:
-                        continue  # solved with a's path
-                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
-                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
+                m0 = lower_bound(cols, start, stop, max(left, np.ceil(box_b[0])))
+                stop_x = min(right, box_b[1])
+                buf, n = _walk(
+                    cells, cols, m0, stop, stop_x, box_a, beside_a, box_b, False, motion, j, duration, buf, n
+                )
             continue
         if near:
             first = np.searchsorted(cols[start:stop], left) + start
         else:
-            first = _first_at_least(cols, start, stop, left)
+            first = lower_bound(cols, start, stop, left)
         for m in range(first, stop):
             x = float(cols[m])
             if x > right:
@@ -502,8 +509,8 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
             if (
                 heading >= 0
                 and not turns[m] & bit
-                and not (beside_a and x >= box_a[0] and x <= box_a[1])
-                and not (beside_b and x >= box_b[0] and x <= box_b[1])
+                and not (beside_a and _in_box(box_a, x))
+                and not (beside_b and _in_box(box_b, x))
                 and not (parallel and _maybe_on_line(ax - x, ay - y, bx - x, by - y))
             ):
                 continue
