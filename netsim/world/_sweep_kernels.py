@@ -179,13 +179,13 @@ def _swap_changes(cells, i, j, bx, by):
 
 @jit(nogil=True)
 def _heading_bit(dx, dy):
-    """The bit of :func:`vertex_turns` for a segment heading ``(dx, dy)`` off the axes."""
+    """The bit of :func:`vertex_headings` for a segment heading ``(dx, dy)`` off the axes."""
     return (2 if dx > 0 else 0) + (1 if dy > 0 else 0)
 
 
 @jit(nogil=True)
-def vertex_turns(cells, row_ptr, cols, turns):
-    """For each mixed vertex (:class:`netsim.world.sweep.VertexIndex`), into ``turns``: for
+def vertex_headings(cells, row_ptr, cols, changing_headings):
+    """For each mixed vertex (:class:`netsim.world.sweep.VertexIndex`), into ``changing_headings``: for
     which headings of a segment (bits of :func:`_heading_bit`) sweeping across it away
     from the ends and off the axes the walls crossed change (:func:`_swap_changes`). Along
     a straight wall no heading does: only corners count, which lets a sweep pass over
@@ -200,7 +200,7 @@ def vertex_turns(cells, row_ptr, cols, turns):
                     by = -1 if dy > 0 else 0
                     if _swap_changes(cells, i, j, bx, by):
                         bits |= 1 << _heading_bit(dx, dy)
-            turns[m] = bits
+            changing_headings[m] = bits
 
 
 @jit(nogil=True)
@@ -368,36 +368,13 @@ def _maybe_on_line(ax, ay, bx, by):
     return abs(c0) <= 2.0 * _DEGENERATE * (abs(ax) + abs(ay)) * (abs(bx) + abs(by))
 
 
-@jit(nogil=True, inline="always")
-def _in_box(box, x):
-    """Whether column ``x`` lies within a path box's columns (:func:`_path_box`)."""
-    return x >= box[0] and x <= box[1]
-
-
-@jit(nogil=True)
-def _walk(cells, columns, m0, stop, stop_x, box_a, skip_a, box_b, skip_b, motion, j, duration, buf, n):
-    """:func:`_vertex_roots` of row ``j``'s vertices ``columns[m0:stop]`` up to column
-    ``stop_x``, those within a box whose ``skip`` is set left out (solved with its end's
-    path); ``motion``: the segment's :class:`Segment` in grid units."""
-    y = float(j)
-    for m in range(m0, stop):
-        x = float(columns[m])
-        if x > stop_x:
-            break
-        if (skip_a and _in_box(box_a, x)) or (skip_b and _in_box(box_b, x)):
-            continue
-        segment = Segment(
-            motion.ax - x, motion.ay - y, motion.vax, motion.vay, motion.bx - x, motion.by - y, motion.vbx, motion.vby
-        )
-        buf, n = _vertex_roots(cells, (columns[m], j), segment, duration, buf, n)
-    return buf, n
-
-
 @jit(nogil=True)
 def candidates(grid, g0, gv, k0, kv, duration, prune):
     """Every instant in ``(0, duration)`` at which the walls crossed by the segment from
-    ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted."""
-    h, row_ptr, cols, turns = grid.h, grid.row_ptr, grid.cols, grid.turns
+    ``g0 + gv t`` to ``k0 + kv t`` (grid units) may change, unsorted. ``prune``: pass over
+    the vertices that cannot change the count (every run); false, solve every vertex of the
+    swept region, the reference the pruned walk must equal."""
+    h, row_ptr, cols, changing_headings = grid.h, grid.row_ptr, grid.cols, grid.changing_headings
     corner_ptr, corner_cols = grid.corner_ptr, grid.corner_cols
     cells = (grid.flat, h, grid.w)
     buf = np.empty(64)
@@ -418,7 +395,7 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
     ys = np.array([ay, ay + vay * duration, by, by + vby * duration])
     margin = 1e-6
     # Most mixed vertices lie along straight walls, where a segment sweeping across them
-    # changes nothing (:func:`vertex_turns`): one with no bit for the segment's heading,
+    # changes nothing (:func:`vertex_headings`): one with no bit for the segment's heading,
     # held throughout, pushes no root unless an end passes beside it or it may stay on
     # the segment's line, and is passed over unsolved. ``prune`` False solves every vertex
     # and finds each row's span on its own (what the pruned walk must equal).
@@ -482,21 +459,30 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
         left = np.ceil(lo - margin)
         right = hi + margin
         if corners_only:
-            m0 = lower_bound(corner_cols, c_start, c_stop, left)
-            # The corners off both ends' paths; then those paths' vertices, each once.
-            buf, n = _walk(
-                cells, corner_cols, m0, c_stop, right, box_a, beside_a, box_b, beside_b, motion, j, duration, buf, n
-            )
+            for m in range(lower_bound(corner_cols, c_start, c_stop, left), c_stop):
+                x = float(corner_cols[m])
+                if x > right:
+                    break
+                if (beside_a and x >= box_a[0] and x <= box_a[1]) or (beside_b and x >= box_b[0] and x <= box_b[1]):
+                    continue  # solved with the end's path below
+                segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                buf, n = _vertex_roots(cells, (corner_cols[m], j), segment, duration, buf, n)
             if beside_a:
-                m0 = lower_bound(cols, start, stop, max(left, np.ceil(box_a[0])))
-                stop_x = min(right, box_a[1])
-                buf, n = _walk(cells, cols, m0, stop, stop_x, box_a, False, box_b, False, motion, j, duration, buf, n)
+                for m in range(lower_bound(cols, start, stop, max(left, np.ceil(box_a[0]))), stop):
+                    x = float(cols[m])
+                    if x > right or x > box_a[1]:
+                        break
+                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
             if beside_b:
-                m0 = lower_bound(cols, start, stop, max(left, np.ceil(box_b[0])))
-                stop_x = min(right, box_b[1])
-                buf, n = _walk(
-                    cells, cols, m0, stop, stop_x, box_a, beside_a, box_b, False, motion, j, duration, buf, n
-                )
+                for m in range(lower_bound(cols, start, stop, max(left, np.ceil(box_b[0]))), stop):
+                    x = float(cols[m])
+                    if x > right or x > box_b[1]:
+                        break
+                    if beside_a and x >= box_a[0] and x <= box_a[1]:
+                        continue  # solved with a's path
+                    segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
+                    buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
             continue
         if near:
             first = np.searchsorted(cols[start:stop], left) + start
@@ -508,9 +494,9 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
                 break
             if (
                 heading >= 0
-                and not turns[m] & bit
-                and not (beside_a and _in_box(box_a, x))
-                and not (beside_b and _in_box(box_b, x))
+                and not changing_headings[m] & bit
+                and not (beside_a and x >= box_a[0] and x <= box_a[1])
+                and not (beside_b and x >= box_b[0] and x <= box_b[1])
                 and not (parallel and _maybe_on_line(ax - x, ay - y, bx - x, by - y))
             ):
                 continue

@@ -17,8 +17,9 @@ Candidate vertices come from the region the segment sweeps: it lies in the conve
 the ends' first and last positions, whose span along each grid row is searched among that
 row's mixed vertices (found once per grid). Most of those lie along straight walls, where a
 segment sweeping across changes no count whatever its heading: unless an end passes beside
-one, or the segment turns near an axis, they are passed over without solving their instant
-(the same candidates, found with fewer roots). Each instant is solved in closed form; the count
+one, the segment comes near an axis, or the ends move in parallel with the vertex perhaps
+on the segment's line, they are passed over without solving their instant (the same
+candidates, found with fewer roots). Each instant is solved in closed form; the count
 on each interval between consecutive candidates is the traversal's
 (:func:`netsim.world._kernels.walls_one`, the arithmetic of ``walls_crossed``) at its
 midpoint, and consecutive intervals of equal count are merged.
@@ -58,14 +59,14 @@ class Sweep(NamedTuple):
 
 class VertexIndex(NamedTuple):
     """The grid vertices at which blocked and clear cells meet, by row: vertex row ``j``'s
-    columns are ``cols[row_ptr[j]:row_ptr[j + 1]]``, ascending; ``turns``, for each, the
+    columns are ``cols[row_ptr[j]:row_ptr[j + 1]]``, ascending; ``changing_headings``, for each, the
     headings of a segment across it for which the walls crossed change
-    (:func:`netsim.world._sweep_kernels.vertex_turns`). The same for the vertices of each
+    (:func:`netsim.world._sweep_kernels.vertex_headings`). The same for the vertices of each
     heading's bit ``b`` alone: ``corner_cols[corner_ptr[b, j]:corner_ptr[b, j + 1]]``."""
 
     row_ptr: np.ndarray
     cols: np.ndarray
-    turns: np.ndarray
+    changing_headings: np.ndarray
     corner_ptr: np.ndarray
     corner_cols: np.ndarray
 
@@ -84,17 +85,18 @@ def vertex_index(blocked: np.ndarray) -> VertexIndex:
     row_ptr = np.zeros(mixed.shape[0] + 1, np.int64)
     np.cumsum(np.bincount(rows, minlength=mixed.shape[0]), out=row_ptr[1:])
     cols = cols.astype(np.int64)
-    turns = np.zeros(len(cols), np.uint8)
+    changing_headings = np.zeros(len(cols), np.uint8)
     flat = np.ascontiguousarray(b).ravel()
-    kernels_for("netsim.world._sweep_kernels").vertex_turns((flat, b.shape[0], b.shape[1]), row_ptr, cols, turns)
+    headings = kernels_for("netsim.world._sweep_kernels").vertex_headings
+    headings((flat, b.shape[0], b.shape[1]), row_ptr, cols, changing_headings)
     # Each heading's corners, in one array: heading b's rows are offset past those before it.
-    has = (turns[None, :] >> np.arange(4, dtype=np.uint8)[:, None]) & 1 == 1
+    has = (changing_headings[None, :] >> np.arange(4, dtype=np.uint8)[:, None]) & 1 == 1
     corner_ptr = np.zeros((4, mixed.shape[0] + 1), np.int64)
     for bit in range(4):
         corner_ptr[bit, 1:] = np.cumsum(np.bincount(rows[has[bit]], minlength=mixed.shape[0]))
     corner_ptr += np.r_[0, np.cumsum(has.sum(axis=1))[:-1]][:, None]
     corner_cols = np.concatenate([cols[has[bit]] for bit in range(4)])
-    return VertexIndex(row_ptr, cols, turns, corner_ptr, corner_cols)
+    return VertexIndex(row_ptr, cols, changing_headings, corner_ptr, corner_cols)
 
 
 _INDEX: list = []
@@ -121,7 +123,7 @@ class MapGrid(NamedTuple):
     w: int
     row_ptr: np.ndarray
     cols: np.ndarray
-    turns: np.ndarray
+    changing_headings: np.ndarray
     corner_ptr: np.ndarray
     corner_cols: np.ndarray
     origin_x: float
@@ -151,7 +153,7 @@ def map_grid(occupancy, blocked: np.ndarray | None = None) -> MapGrid:
         int(w),
         index.row_ptr,
         index.cols,
-        index.turns,
+        index.changing_headings,
         index.corner_ptr,
         index.corner_cols,
         ox,
