@@ -191,17 +191,22 @@ def _candidates(occupancy, p0, vp, q0, vq, duration, prune):
     return out
 
 
+def _mixed_vertices_m(occupancy, count, rng):
+    """``count`` of the map's mixed vertices (blocked and clear cells meet), drawn without
+    replacement, in metres."""
+    index = vertex_index(occupancy.occupied)
+    rows = np.repeat(np.arange(occupancy.shape[0] + 1), np.diff(index.row_ptr))
+    chosen = rng.choice(len(index.cols), count, replace=False)
+    cells = np.column_stack([index.cols[chosen], rows[chosen]]).astype(float)
+    return cells * occupancy.resolution_m + np.asarray(occupancy.origin_m, float)
+
+
 def _radial_pairs(occupancy, speed_mps, duration_s, count=40, seed=6):
     """A robot at rest and one moving straight away from it, both on a line through a mixed
     vertex (the vertex stays on the segment's line), at random headings and along the axes."""
     rng = np.random.default_rng(seed)
-    index = vertex_index(occupancy.occupied)
-    rows = np.repeat(np.arange(occupancy.shape[0] + 1), np.diff(index.row_ptr))
-    res, origin = occupancy.resolution_m, np.asarray(occupancy.origin_m, float)
-    chosen = rng.choice(len(index.cols), count, replace=False)
     p0, vp, q0, vq = (np.zeros((count, 2)) for _ in range(4))
-    for n, m in enumerate(chosen):
-        vertex = np.array([index.cols[m], rows[m]], float) * res + origin
+    for n, vertex in enumerate(_mixed_vertices_m(occupancy, count, rng)):
         angle = rng.uniform(0, 2 * np.pi) if n % 2 else rng.integers(4) * np.pi / 2
         u = np.array([np.cos(angle), np.sin(angle)]).round(15 if n % 2 else 0)
         p0[n] = vertex - u * rng.uniform(0.5, 30.0)
@@ -215,13 +220,8 @@ def _close_parallel_pairs(occupancy, count=40, seed=9):
     alike along it across the vertex (it stays on the segment's line however short the
     segment), at random headings off the axes."""
     rng = np.random.default_rng(seed)
-    index = vertex_index(occupancy.occupied)
-    rows = np.repeat(np.arange(occupancy.shape[0] + 1), np.diff(index.row_ptr))
-    res, origin = occupancy.resolution_m, np.asarray(occupancy.origin_m, float)
-    chosen = rng.choice(len(index.cols), count, replace=False)
     p0, vp, q0, vq = (np.zeros((count, 2)) for _ in range(4))
-    for n, m in enumerate(chosen):
-        vertex = np.array([index.cols[m], rows[m]], float) * res + origin
+    for n, vertex in enumerate(_mixed_vertices_m(occupancy, count, rng)):
         angle = rng.uniform(0.1, np.pi / 2 - 0.1) + rng.integers(4) * np.pi / 2
         u = np.array([np.cos(angle), np.sin(angle)])
         p0[n] = vertex - u * rng.uniform(0.2, 1.0)
