@@ -336,7 +336,7 @@ class OutputParams(Params):
     receptions: bool = param(
         False,
         None,
-        "write receptions.parquet: one row per robot each frame reaches above the noise floor, with its "
+        "write receptions.parquet: one row per robot within the radio's reach of each frame, with its "
         "distance, received power, SINR, and whether it was received or why not (docs/outputs.md)",
     )
 

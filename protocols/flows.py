@@ -12,7 +12,7 @@ the same way: packets of flow ``-1`` (:meth:`FlowTraffic.start_pairs`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import numpy as np
 import pandas as pd
@@ -180,6 +180,16 @@ class FlowTraffic:
         """One row per flow (FLOWS_SCHEMA); goodput is the bits of the packets delivered over
         the time the flow was on within the run (NaN if it never was)."""
         return flows_table(self.flows, self.packets_frame(), self.env.now)
+
+
+def packet_delivery(frames: Mapping[str, pd.DataFrame]) -> dict:
+    """The summary's ``packet_delivery_ratio``: the packets of ``packets.parquet`` delivered
+    whole (a packet still in flight at the end counts as not delivered); nothing when no
+    packet was sent."""
+    packets = frames.get("packets")
+    if packets is None or not len(packets):
+        return {}
+    return {"packet_delivery_ratio": float(packets["delivered"].mean())}
 
 
 def flows_table(flows: tuple[Flow, ...], packets: pd.DataFrame, end_s: float) -> pd.DataFrame:

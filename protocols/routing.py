@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 from netsim.protocols.ack import ACKS_SCHEMA
-from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
+from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic, packet_delivery
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
 from netsim.events import MessageDelivered, MessageDropped
@@ -266,7 +266,5 @@ class Router:
             "control_messages_per_s": messages / duration_s if duration_s else float("nan"),
             "data_transmissions": self.data_transmissions,
         }
-        packets = frames.get("packets")
-        if packets is not None and len(packets):
-            out["packet_delivery_ratio"] = float(packets["delivered"].mean())
+        out.update(packet_delivery(frames))
         return out

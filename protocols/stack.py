@@ -28,7 +28,7 @@ from netsim.protocols._kernels import (
 )
 from netsim.protocols.ack import ACK_DELIVERY_SCHEMA, ACKS_SCHEMA, AckBeacon, AckParams, AckTiming, check_tau
 from netsim.protocols.clustering import Clustering, ElectionPolicy, JoinPolicy, MergePolicy
-from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic
+from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic, packet_delivery
 from netsim.protocols.relay import HOPS_SCHEMA, MESSAGES_SCHEMA, Outcome, Relay, Routing, traffic
 from netsim.protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCHEMA
 
@@ -422,6 +422,7 @@ class Stack(AckTiming):
         msgs = frames["messages"]
         out["messages"] = len(msgs)
         out["message_delivery_ratio"] = float(msgs["delivered"].mean()) if len(msgs) else math.nan
+        out.update(packet_delivery(frames))
         return out
 
 

@@ -111,6 +111,37 @@ def test_relays_per_robot_per_s_counts_the_flows_frames(tmp_path, routing):
         assert relays == pytest.approx(1.2)
 
 
+@pytest.mark.parametrize("protocol", [{"routing": "oracle"}, {"model": "aodv"}])
+def test_summary_packet_delivery_ratio_is_the_packets_delivered_whole(tmp_path, protocol):
+    """The summary's packet_delivery_ratio, under the clustering's relay as under a routing
+    protocol: the packets of packets.parquet delivered whole over those sent (a lossy
+    channel, so some frames of a 3-frame packet are lost and the figure lies inside (0, 1));
+    no figure when no packet was sent."""
+    from netsim.run import summarize
+
+    def run(flows):
+        config = make_config(
+            seed=3,
+            duration_s=30.0,
+            world={"n_robots": 5, "side_m": 1000.0, "placement": _line_csv(tmp_path, 5, 100.0)},
+            mobility={"model": "static"},
+            channel={"range_m": 120.0, "loss_probability": 0.2},
+            protocol={"message_rate_hz": 0.0, **protocol},
+            traffic={"flows": flows},
+            output={"position_interval_s": 0.0},
+        )
+        sim = build(config)
+        sim.run()
+        frames = collect(sim)
+        return frames, summarize(sim, frames, 0.0)
+
+    frames, summary = run([{**FLOW, "dst": 2, "packet_bytes": 4000, "rate_bps": 32000.0}])
+    packets = frames["packets"]
+    assert 0 < summary["packet_delivery_ratio"] < 1
+    assert summary["packet_delivery_ratio"] == packets["delivered"].sum() / len(packets)
+    assert "packet_delivery_ratio" not in run([])[1]
+
+
 def test_packet_is_delivered_only_whole(tmp_path):
     """A packet split into frames counts as delivered only if every frame arrives: with a
     lossy channel, a packet some of whose frames arrived and others not is not delivered,

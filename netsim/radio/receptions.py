@@ -1,7 +1,7 @@
 """The record of every reception the channel decides: ``receptions.parquet``
 (``output.receptions = true``; docs/outputs.md, docs/radio.md "Signal columns").
 
-A frame's rows are the robots the channel decides it for, *above the noise floor*: a
+A frame's rows are the robots the channel decides it for, *within the radio's reach*: a
 broadcast's candidates (every robot within the radio's reach, the distance beyond which no
 shadowing within its clip lets a frame clear the sensitivity; under the unit disk, within
 the sender's range), and a unicast's destination (always, so that every drop the channel

@@ -547,8 +547,9 @@ def report(c: Calibration, where: str) -> str:
         lines.append(f"sensitivity_dbm: {c.sensitivity_dbm:g} (given)")
     else:
         lines.append(
-            f"sensitivity_dbm: {c.sensitivity_dbm:.4g} (estimated: the weakest logged power, the maximum-likelihood "
-            "estimate of the truncation point; give --sensitivity-dbm if the radio's is known)"
+            f"sensitivity_dbm: {c.sensitivity_dbm:.4g} (estimated: the weakest power of a received frame, the "
+            "maximum-likelihood estimate of the power below which no frame arrives; give --sensitivity-dbm if the "
+            "radio's is known)"
         )
     lines.append(f"tx_power_dbm: {c.tx_power_dbm:g}, reference_distance_m: {c.reference_distance_m:g} (used as given)")
     rows = [

@@ -612,7 +612,9 @@ def parser() -> argparse.ArgumentParser:
     )
     cal.add_argument("log", help="CSV or Parquet log: t_s, src, dst, rssi_dbm, and distance_m or both ends' positions")
     cal.add_argument(
-        "--sensitivity-dbm", type=float, help="the radio's sensitivity, dBm (default: the weakest logged power)"
+        "--sensitivity-dbm",
+        type=float,
+        help="the radio's sensitivity, dBm (default: the weakest power of a received frame)",
     )
     cal.add_argument("--map", help="occupancy map (map_server YAML, or office / cave) to fit the loss per wall")
     cal.add_argument("--out", help="TOML file to write, a new path (default: print the fragment)")
