@@ -484,17 +484,18 @@ def summarize(sim: Simulation, frames: dict[str, pd.DataFrame], wall_s: float) -
 def execute(
     config: Config,
     run: int = 0,
-    progress: bool = False,
+    progress: bool | str = False,
     emit: Callable[[str, pd.DataFrame], object] | None = None,
     built: Callable[[Simulation], object] | None = None,
 ) -> RunResult:
     """Build, run and collect (each table passed to ``emit`` as it is made: :func:`collect`),
-    timing the whole; ``built(sim)`` is called between the build and the run."""
+    timing the whole; ``built(sim)`` is called between the build and the run. ``progress``:
+    as :meth:`Simulation.run`'s."""
     start = time.perf_counter()
     sim = build(config, run)
     if built is not None:
         built(sim)
     sim.run(progress=progress)
-    frames = collect(sim, emit, progress=progress)
+    frames = collect(sim, emit, progress=bool(progress))
     wall = time.perf_counter() - start
     return RunResult(sim, frames, summarize(sim, frames, wall), wall)

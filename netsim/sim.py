@@ -235,12 +235,13 @@ class Simulation:
             raise CommandError(f"until_s = {_seconds(until)} is before now ({now} s): a run only goes forward")
         return until
 
-    def run(self, until_s: float | None = None, progress: bool = False, steps: int = 200) -> None:
+    def run(self, until_s: float | None = None, progress: bool | str = False, steps: int = 200) -> None:
         """Advance to ``until_s`` (default: the configured duration).
 
         Events due exactly at ``until_s`` are not processed (SimPy's convention); every
         output is computed for the interval ``[0, until_s]`` from exact trajectories. With
-        ``progress``, the advance is made in ``steps`` parts, each reported.
+        ``progress``, the advance is made in ``steps`` parts, each reported (on a bar named
+        ``progress`` if it is a string, else ``"netsim run"``).
 
         ``until_s`` must be a number (text such as ``"20"`` is refused) in ``[now,
         duration_s]``: anything else (later than the run's end, earlier than now, NaN)
@@ -273,7 +274,7 @@ class Simulation:
         finally:
             self._running = False
 
-    def _advance(self, until: float, progress: bool, steps: int) -> None:
+    def _advance(self, until: float, progress: bool | str, steps: int) -> None:
         if not self.events.started:
             self._begin()
         start = self.env.now
@@ -286,9 +287,9 @@ class Simulation:
             return
         with progress_bar(
             round(until - start, 6),
-            "netsim run",
+            progress if isinstance(progress, str) else "netsim run",
             "sim s",
-            enabled=progress,
+            enabled=True,
             leave=False,
             bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]",
         ) as bar:

@@ -305,3 +305,14 @@ def test_figures_that_cannot_all_be_written_leave_none(waypoint_run, tmp_path, c
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "fig7_leader_paths.png is a directory" in err[0], err
     assert [p.name for p in out.iterdir()] == ["fig7_leader_paths.png"]
+
+
+@pytest.mark.slow
+def test_figures_scenario_progress_is_named_netsim_figures(tmp_path, capsys):
+    """The run `netsim figures` makes for itself reports its progress as `netsim figures`,
+    not as a `netsim run` the user did not type (standard error is not a terminal here:
+    plain lines)."""
+    sets = ["world.n_robots=10", "duration_s=20", "coverage.enabled=false"]
+    assert main(["figures", "--out", str(tmp_path / "f"), *[a for s in sets for a in ("--set", s)]]) == 0
+    progress = [line for line in capsys.readouterr().err.splitlines() if "% (" in line]
+    assert progress and all(line.startswith("netsim figures: ") for line in progress), progress

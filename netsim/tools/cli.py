@@ -177,7 +177,7 @@ def cmd_run(args) -> int:
     with kept(out):
         if not args.quiet:
             n, duration = config.world.n_robots, config.duration_s
-            print(f"netsim run: {n} robots, {duration:g} s simulated in {result.wall_s:.2f} s wall")
+            print(f"netsim run: {n} robot{'s' * (n != 1)}, {duration:g} s simulated in {result.wall_s:.2f} s wall")
             print(summary_table(result.summary))
             print(f"results: {out}/ ({', '.join(p.name for p in written)})")
     return 0
@@ -405,14 +405,15 @@ def cmd_figures(args) -> int:
         check_run(config)
         say_when_compiling("netsim figures", not args.quiet)
         with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
-            result = execute(config, progress=not args.quiet and not args.no_progress)
+            result = execute(config, progress=not args.quiet and not args.no_progress and "netsim figures")
             occupancy = result.sim.parts.occupancy
             write_run(
                 out, config, result.frames, result.summary, manifest(config, 0, result.wall_s, occupancy=occupancy)
             )
             with kept(out, "its figures are not"):
                 if not args.quiet:
-                    print(f"netsim figures: ran {config.world.n_robots} robots for {config.duration_s:g} s -> {out}/")
+                    n = config.world.n_robots
+                    print(f"netsim figures: ran {n} robot{'s' * (n != 1)} for {config.duration_s:g} s -> {out}/")
                 drawn = figures.draw(out, at_s=args.at)
     with kept(out, results="the figures are"):
         for d in drawn if not args.quiet else []:
@@ -498,7 +499,7 @@ def parser() -> argparse.ArgumentParser:
         "a non-empty directory that holds no run is refused",
     )
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
-    r.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    r.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors")
     r.add_argument("--view", action="store_true", help="also write the replay, DIR/view.html (see netsim view)")
     r.add_argument(
         "--live",
@@ -528,7 +529,7 @@ def parser() -> argparse.ArgumentParser:
         metavar="PORT",
         help=f"also stream the run to Foxglove over a WebSocket on 127.0.0.1:PORT (default {LIVE_PORT})",
     )
-    b.add_argument("--quiet", action="store_true", help="print nothing but errors and the lag")
+    b.add_argument("--quiet", action="store_true", help="print nothing but warnings, errors and the lag")
     b.set_defaults(func=cmd_bridge)
 
     s = sub.add_parser("scenario", help="movement scenario files")
@@ -543,7 +544,7 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--seed", type=int, default=1)
     g.add_argument("--no-stationary-start", action="store_true", help="start from uniform positions at rest")
     g.add_argument("-o", "--output", required=True, help="file to write (a new path: an existing file is refused)")
-    g.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    g.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors")
     g.set_defaults(func=cmd_scenario_generate)
 
     w = sub.add_parser("sweep", help="run a parameter sweep (resumable; local pool or Dask cluster)")
@@ -584,7 +585,7 @@ def parser() -> argparse.ArgumentParser:
         "the first sample with every robot in a group)",
     )
     f.add_argument("--no-progress", action="store_true", help="no progress bar")
-    f.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    f.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors")
     f.set_defaults(func=cmd_figures)
 
     vw = sub.add_parser("view", help="write an interactive replay of a run: one self-contained HTML file")
