@@ -31,9 +31,9 @@ An index that cannot be read (it names a type whose module this process cannot i
 is a miss, not an error: the kernel is compiled again and the index written anew, with
 this signature alone (the others are compiled again when next asked for).
 
-A directory with no compiled code in it means the module's loops will be compiled, not
-loaded, which takes a while the first time a version runs on a machine: a command that
-wants to say so asks :func:`when_cold` to be told.
+A module none of whose functions has code numba can load (:func:`is_cold`) will be
+compiled, which takes a while the first time a version runs from a checkout: a command
+that wants to say so asks :func:`when_cold` to be told.
 """
 
 from __future__ import annotations
@@ -73,17 +73,25 @@ def base_directory() -> Path:
 
 
 def when_cold(callback: Callable[[Path], object] | None) -> None:
-    """Have ``callback(directory)`` called once, the next time a kernel module is keyed to
-    a directory that holds no compiled code yet (its loops are about to be compiled rather
-    than loaded); None: no call."""
+    """Have ``callback(directory)`` called once, the next time a kernel module is keyed
+    whose loops are about to be compiled rather than loaded (:func:`is_cold`); None: no
+    call."""
     with _LOCK:
         _ON_COLD[:] = [] if callback is None else [callback]
 
 
-def is_cold(directory: Path) -> bool:
-    """Whether ``directory`` (a module's keyed directory) holds no compiled code: numba
-    writes an index (``*.nbi``) beside each function's code."""
-    return not any(directory.rglob("*.nbi"))
+def is_cold(dispatchers: list[Any]) -> bool:
+    """Whether numba will compile the module of these compiled functions rather than load
+    it: none of them has an index it can use (one stamped with its source as it is now).
+    numba files a function's code under a folder named by its source file's own folder, so
+    the code another checkout compiled (the same sources at another path) is not this
+    one's, though it is in the same keyed directory."""
+    for dispatcher in dispatchers:
+        index = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+        load_index = getattr(index, "_load_index", None)
+        if load_index is None or load_index():
+            return False
+    return bool(dispatchers)
 
 
 # Import statements, read by pattern rather than by parsing the module (which costs more
@@ -283,15 +291,15 @@ def key(namespace: dict[str, Any]) -> Path:
         # numba's settings are set from the environment when it loads: untyped.
         kept = config.CACHE_DIR  # type: ignore[attr-defined]
         config.CACHE_DIR = str(directory)  # type: ignore[attr-defined]
+        own = [v for v in namespace.values() if isinstance(v, Dispatcher) and v.py_func.__module__ == name]
         try:
-            for value in list(namespace.values()):
-                if isinstance(value, Dispatcher) and value.py_func.__module__ == name:
-                    value.enable_caching()  # a cache located under config.CACHE_DIR now
-                    _read_index_or_miss(getattr(value, "_cache", None))
+            for value in own:
+                value.enable_caching()  # a cache located under config.CACHE_DIR now
+                _read_index_or_miss(getattr(value, "_cache", None))
         finally:
             config.CACHE_DIR = kept  # type: ignore[attr-defined]
         _KEYS[name] = module_key
-        told = _ON_COLD[:] if _ON_COLD and is_cold(directory) else []
+        told = _ON_COLD[:] if _ON_COLD and is_cold(own) else []
         if told:
             _ON_COLD.clear()
     for callback in told:

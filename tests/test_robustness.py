@@ -646,51 +646,69 @@ def test_the_bar_estimates_no_time_left_before_the_first_unit_of_work():
     bar.close()
 
 
-def _cold_kernel_module(tmp_path, monkeypatch, name):
-    """A module that keys its kernels' cache (as every kernel module does) under a new,
-    empty cache directory."""
-    (tmp_path / f"{name}.py").write_text("from netsim.kernel_cache import key\n\nkey(globals())\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
+KERNEL_SOURCE = "from netsim.compiled import jit\n\n\n@jit()\ndef plus_one(x):\n    return x + 1\n"
+
+
+def _cold_kernel_module(tmp_path, monkeypatch, name, folder="checkout"):
+    """A kernel module (one compiled function, keyed as every kernel module's compiled copy
+    is) in ``folder``, with a new, empty cache directory."""
+    where = tmp_path / folder
+    where.mkdir(exist_ok=True)
+    (where / f"{name}.py").write_text(KERNEL_SOURCE)
+    monkeypatch.syspath_prepend(str(where))
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.delitem(sys.modules, name, raising=False)
+    return where / f"{name}.py"
 
 
-def test_a_kernel_module_keyed_to_an_empty_directory_is_told_once(tmp_path, monkeypatch):
-    """when_cold's callback hears of the first kernel module whose keyed directory holds no
-    compiled code, once; a directory with compiled code in it is not cold."""
-    import importlib
+def _fresh_copy(name):
+    """The module's compiled copy as a new process would make it (keyed anew)."""
+    from netsim import compiled
 
-    from netsim import kernel_cache
+    compiled._COPIES.pop(name, None)
+    sys.modules.pop(name, None)
+    return compiled.compiled_copy(name)
+
+
+def test_a_kernel_module_numba_would_compile_is_told_once(tmp_path, monkeypatch):
+    """when_cold's callback hears of the first kernel module whose loops numba is about to
+    compile, once: with an empty cache; not once its code is cached; again for the same
+    source in another folder (another checkout: numba files code by the source's folder),
+    though that leaves code in the keyed directory."""
+    from netsim import compiled, kernel_cache
 
     told = []
-    kernel_cache.when_cold(told.append)
+    name = "cold_probe_a"
     try:
-        _cold_kernel_module(tmp_path, monkeypatch, "cold_probe_a")
-        importlib.import_module("cold_probe_a")
-        assert len(told) == 1 and told[0].parent == tmp_path / "cache"
-        (told[0] / "sub").mkdir(parents=True)
-        (told[0] / "sub" / "f-1.py311.nbi").write_bytes(b"")
+        _cold_kernel_module(tmp_path, monkeypatch, name)
         kernel_cache.when_cold(told.append)
-        sys.modules.pop("cold_probe_a")
-        importlib.import_module("cold_probe_a")
-        assert len(told) == 1, "a directory with compiled code is not cold"
+        assert _fresh_copy(name).plus_one(1) == 2  # compiled, and its code cached
+        assert len(told) == 1 and told[0].parent == tmp_path / "cache"
+        kernel_cache.when_cold(told.append)
+        _fresh_copy(name)
+        assert len(told) == 1, "a module whose code numba loads is not cold"
+        _cold_kernel_module(tmp_path, monkeypatch, name, "other")
+        _fresh_copy(name).plus_one(1)
+        assert len(told) == 2 and told[1] == told[0], "another checkout's code is not this one's"
+        kernel_cache.when_cold(told.append)
+        _fresh_copy(name)
+        assert len(told) == 2
     finally:
         kernel_cache.when_cold(None)
-        sys.modules.pop("cold_probe_a", None)
+        compiled._COPIES.pop(name, None)
+        sys.modules.pop(name, None)
 
 
 @pytest.mark.parametrize("quiet", [False, True], ids=["says-so", "quiet"])
 def test_netsim_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capfd, monkeypatch, quiet):
     """`netsim run` with a cold kernel cache prints one line on standard error, as the
     compiling starts, that it compiles the simulator's loops; with --quiet, nothing."""
-    import importlib
-
-    from netsim import kernel_cache
+    from netsim import compiled, kernel_cache
 
     _cold_kernel_module(tmp_path, monkeypatch, "cold_probe_b")
 
-    def execute(*a, **k):  # the build imports the kernel modules; then stop
-        importlib.import_module("cold_probe_b")
+    def execute(*a, **k):  # the build makes the kernel modules' compiled copies; then stop
+        compiled.compiled_copy("cold_probe_b")
         raise NetsimInputError("stopped after the build")
 
     monkeypatch.setattr(runmod, "execute", execute)
@@ -698,6 +716,7 @@ def test_netsim_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capfd, mon
         code = main(["run", *(["--quiet"] if quiet else []), "--out", str(tmp_path / "o"), *SMALL])
     finally:
         kernel_cache.when_cold(None)
+        compiled._COPIES.pop("cold_probe_b", None)
         sys.modules.pop("cold_probe_b", None)
     err = capfd.readouterr().err.strip().splitlines()
     assert code == 2 and err[-1] == "netsim: error: stopped after the build"
