@@ -32,6 +32,26 @@ def test_exit_status_follows_the_checks(monkeypatch, capsys):
     assert "NO" in out and "0 of 1 checks passed" in out
 
 
+def test_a_check_of_several_runs_moves_the_progress_bar_as_each_ends(monkeypatch, capsys):
+    """A check of many long runs (items 30 and 31) takes ``parts`` of the bar and ticks one
+    as each run ends, so that the bar does not stand still through its runs: here five
+    parts of six, each reported as it ends (plain lines, standard error not a terminal)."""
+    ticked = []
+
+    def runs(seed, tick):
+        for k in range(5):
+            ticked.append(k)
+            tick()
+        return [validate.Check("2", "fake", 1.0, 1.0, 0.1)]
+
+    entries = [_fake("1"), validate.Item(("2",), runs, statistical=False, parts=5)]
+    monkeypatch.setattr(validate, "CHECKS", entries)
+    results = validate.run_all(progress=True)
+    assert [c.item for c in results] == ["1", "2"] and ticked == [0, 1, 2, 3, 4]
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("netsim validate: ")]
+    assert [line.split("(")[1].split(" ")[0] for line in lines] == ["2/6", "3/6", "4/6", "5/6", "6/6"]
+
+
 def test_seed_reaches_every_check_and_none_without_it(monkeypatch, capsys):
     """`--seed N` hands N to every check; without it each check gets None (its fixed seeds)."""
     seen = []
