@@ -40,14 +40,16 @@ def static_core(
     positions, range_m=10.0, latency_s=0.001, seed=1, duration_s=100.0, side_m=1e6, **channel
 ) -> Simulation:
     """The core of a run (kernel, robots, channel, trace, streams; no model) with the robots
-    standing at ``positions``; ``channel`` adds keys of ``[channel]`` (loss, jitter)."""
+    standing at ``positions``; ``channel`` adds keys of ``[channel]`` (loss, jitter);
+    ``range_m=None`` for a propagation whose law implies the range."""
     positions = np.asarray(positions, dtype=float)
+    ranges = {} if range_m is None else {"range_m": range_m}
     config = make_config(
         seed=seed,
         duration_s=duration_s,
         world={"n_robots": len(positions), "side_m": side_m},
         mobility={"model": "static"},
-        channel={"range_m": range_m, "latency_s": latency_s, **channel},
+        channel={**ranges, "latency_s": latency_s, **channel},
         protocol={"model": "none"},
         output={"position_interval_s": 0.0},
     )

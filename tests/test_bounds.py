@@ -266,12 +266,11 @@ def test_trace_positions_must_lie_in_the_bounds(tmp_path, capsys):
     """A trace inside a negative rectangle replays as given; one leaving it is refused naming the bounds."""
     path = tmp_path / "s.movements"
     path.write_text("0 -290 110 10 190 390\n")
-    legs = _run(["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", f"world.bounds_m={RECT}"])[
-        "legs"
-    ]
+    sets = ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", f"world.bounds_m={RECT}"]
+    sets.append("duration_s=10")  # as long as the trace: no standing still after its end
+    legs = _run(sets)["legs"]
     assert legs.iloc[0][["x_m", "y_m"]].tolist() == [-290.0, 110.0]
     path.write_text("0 -290 110 10 190 410\n")
-    sets = ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", f"world.bounds_m={RECT}"]
     check_refused(tmp_path, capsys, sets, "world.bounds_m", str(path))
 
 

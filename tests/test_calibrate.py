@@ -518,6 +518,7 @@ def test_a_header_with_spaces_after_its_commas_is_read(tmp_path, capsys, small_l
     assert capsys.readouterr().out.replace(str(spaced), str(plain)) == want
 
 
+@pytest.mark.filterwarnings("always::netsim.tools.calibrate.CalibrationWarning")
 def test_a_power_above_the_transmit_power_is_fitted_with_a_warning(tmp_path, capsys, small_log):
     """A logged power above --tx-power-dbm is a path loss below 0 dB, which netsim's own
     shadowing can give near the reference distance: the fit goes on, and one warning line

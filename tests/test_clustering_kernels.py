@@ -531,7 +531,7 @@ def _clustering_after(monkeypatch, seconds: float, compiled: bool, rows: bool = 
     core: dict = {"range_m": 25.0}
     if radio:
         # About 32 m without shadowing; the channel has no range index's lists.
-        core = {"propagation": "log_distance", "path_loss_exponent": 4.0, "shadowing_sigma_db": 4.0}
+        core = {"range_m": None, "propagation": "log_distance", "path_loss_exponent": 4.0, "shadowing_sigma_db": 4.0}
     sim, stack = clustering(rng.uniform(0, 60, (30, 2)), start=False, core=core)
     assert (sim.channel.reach_lists is None) == radio
     if rows:

@@ -101,7 +101,11 @@ def test_a_rule_across_sections_is_checked_when_the_configuration_is_loaded():
 
 
 def test_resolved_config_round_trips():
-    c = cfgmod.load(None, ["channel.range_m=[10.0, 20.0]", "world.n_robots=2", "mobility.turn_interval_s=inf"])
+    c = cfgmod.load(
+        None,
+        ["channel.range_m=[10.0, 20.0]", "world.n_robots=2", "mobility.model=random_direction"]
+        + ["mobility.turn_interval_s=inf"],
+    )
     import tomllib
 
     import tomli_w
@@ -443,6 +447,8 @@ def _cli(tmp_path, capsys, *args):
         (["--set", "coverage.radius_m=1e-300"], "coverage.radius_m = 1e-300: must be 0 (the range) or"),
     ],
 )
+# Warnings shown as the command shows them: one before the refusal would be a second line.
+@pytest.mark.filterwarnings("always::UserWarning")
 def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args, fragment):
     code, err = _cli(tmp_path, capsys, *args)
     assert code == 2

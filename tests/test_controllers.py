@@ -50,7 +50,7 @@ def two_robots(tmp_path, controllers, mobility="static", torus=False):
             "world.n_robots=2",
             f'world.placement="{csv}"',
             f'mobility.model="{mobility}"',
-            "mobility.stationary_start=false",
+            *(["mobility.stationary_start=false"] if mobility == "random_waypoint" else []),
             'protocol.model="none"',
             "duration_s=300",
             "coverage.start_s=0",

@@ -795,6 +795,9 @@ def test_walls_every_kept_link_stays_clear_of_walls_over_the_step_while_the_othe
 
 def local_run(n, seed, loss=0.0, duration=600, **extra):
     overrides = coverage_settings("unit disk", "local", n, loss, seed, duration)
+    if "channel.propagation" in extra:
+        # Another radio in place of the unit disk, whose range its law would ignore.
+        overrides = [o for o in overrides if not o.startswith("channel.range_m=")]
     return execute(config.load(None, overrides + [f"{k}={v!r}".replace("'", '"') for k, v in extra.items()]))
 
 
@@ -863,6 +866,7 @@ def test_shadowing_the_local_plans_range_is_the_sure_distance():
     from netsim.radio.propagation import path_loss_db
 
     log = {"channel.propagation": "log_distance", "channel.tx_power_dbm": 23.0}
+    log["coverage.start_s"] = 0.0  # a control step inside the short run
     plain = local_run(6, 1, duration=1, **log).sim.models["coverage"]
     shadowed = local_run(6, 1, duration=1, **log, **{"channel.shadowing_sigma_db": 4.0}).sim.models["coverage"]
     r = shadowed.local_limits.range_m

@@ -378,7 +378,8 @@ def test_release_s_beyond_the_run_keeps_lists_back_to_its_start_and_no_more(rele
     """No Ack dates from before the run: a release_s longer than it (infinite: a robot
     never forgets) holds the lists of every control step of the run, not room for
     release_s / control_period_s of them, which overflowed or filled the memory."""
-    overrides = coverage_settings("unit disk", "local", 5, 0.1, 1, 6.0, extra=[f"coverage.release_s={release_s}"])
+    extra = [f"coverage.release_s={release_s}", "coverage.start_s=0"]
+    overrides = coverage_settings("unit disk", "local", 5, 0.1, 1, 6.0, extra=extra)
     sim = build(config.load(None, overrides))
     cov = sim.models["coverage"]
     assert cov.lists.depth == 6 + 2

@@ -47,9 +47,10 @@ def test_bonnmotion_file_is_followed_linearly_between_waypoints(tmp_path):
     and stays at the last; the run's legs give exactly these positions."""
     path = tmp_path / "s.movements"
     path.write_text("0 10 10 10 20 10 20 20 30\n5 100 100 15 100 200\n")
-    config, frames = _run(
-        ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=2", "protocol.model=none"]
-    )
+    with pytest.warns(UserWarning, match="ends at 20 s, before duration_s = 40: the robots stand still"):
+        config, frames = _run(
+            ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=2", "protocol.model=none"]
+        )
     legs = frames["legs"]
     expect = {
         0.0: [[10, 10], [100, 100]],
@@ -66,7 +67,7 @@ def test_bonnmotion_file_is_followed_linearly_between_waypoints(tmp_path):
 def test_bonnmotion_equal_times_are_a_jump(tmp_path):
     """Two waypoints at one instant: the node is at the second from then on."""
     path = tmp_path / "j.movements"
-    path.write_text("0 0 0 4 0 0 4 50 50\n")
+    path.write_text("0 0 0 4 0 0 4 50 50 40 50 50\n")
     _config, frames = _run(
         ["mobility.model=trace", f"mobility.trace_file={path}", "world.n_robots=1", "protocol.model=none"]
     )
@@ -120,6 +121,7 @@ def test_export_of_a_run_with_jumps_replays_its_positions_and_links(tmp_path, fm
     assert np.allclose(frames["links"][cols].to_numpy(float), links[cols].to_numpy(float), atol=1e-6)
 
 
+@pytest.mark.filterwarnings("always::UserWarning")
 def test_a_torus_runs_bag_export_says_a_trace_replay_of_it_crosses_the_square(tmp_path, capsys):
     """A bag holds sampled poses: replayed as a trace, a robot goes straight from the sample
     before a border to the one after it, across the square. The export says so."""
@@ -179,9 +181,10 @@ def test_ns2_export_heads_for_no_destination_on_the_border_as_ns2_refuses_it(tmp
     from netsim.trajectory import sample_positions
 
     sets = ["world.n_robots=3", "duration_s=60", "world.side_m=200", "channel.range_m=60", "protocol.model=none"]
-    sets += ["mobility.model=random_direction", "mobility.speed_max_mps=10", *(["world.torus=true"] if torus else [])]
+    sets += ["world.torus=true"] if torus else []
+    moves = ["mobility.model=random_direction", "mobility.speed_max_mps=10"]
     run, out = tmp_path / "run", tmp_path / "run.tcl"
-    assert main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(run)]) == 0
+    assert main(["run", "--quiet", *(a for s in sets + moves for a in ("--set", s)), "--out", str(run)]) == 0
     assert main(["export", str(run), "--format", "ns2", "--out", str(out)]) == 0
     dest = np.array(re.findall(r"setdest ([-+\d.e]+) ([-+\d.e]+)", out.read_text()), float)
     assert len(dest) > 5 and (dest > 0).all() and (dest < 200).all()
@@ -541,6 +544,7 @@ def test_a_guessed_format_is_named_in_the_error(tmp_path, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.filterwarnings("always::UserWarning")
 def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys):
     """A BonnMotion export of a 40 s run replayed for 60 s: one warning line naming the
     trace's end (its .params' duration) and duration_s; none for the run's own length."""
@@ -565,6 +569,7 @@ def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys)
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.filterwarnings("always::UserWarning")
 def test_ns2_export_of_an_area_below_zero_warns_that_ns2_refuses_it(tmp_path, capsys):
     """ns-2's topography starts at 0: a run whose area reaches below it is exported (netsim
     and ns-3 read it back) with one warning that says so and names BonnMotion's corner."""
@@ -635,6 +640,7 @@ def test_a_refused_trace_is_its_one_error_line_without_the_readers_warnings(tmp_
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.filterwarnings("always::UserWarning")
 @pytest.mark.parametrize("fmt", ["ns2", "bonnmotion"])
 def test_a_session_ended_early_is_exported_to_where_it_ended(tmp_path, capsys, fmt):
     """A bridge session stopped by Ctrl-C keeps its planned duration_s in config.toml and

@@ -30,6 +30,12 @@ QUICK = settings(max_examples=150, deadline=None, suppress_health_check=[HealthC
 THOROUGH = settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 WORKDIR = Path(tempfile.mkdtemp(prefix="netsim-fuzz-"))
+
+# Odd input netsim takes (an unused key, robots on one spot) is rightly warned of: not what fuzzing checks.
+ODD_BUT_TAKEN = pytest.mark.filterwarnings("ignore::netsim.config.ConfigWarning")
+# Likewise the ns-2 reader's warnings of a trace it takes, each naming the fuzzed file first.
+ODD_TRACE = pytest.mark.filterwarnings(r"ignore:.*/trace\.tcl:UserWarning")
+
 KEYS = [k for k, _, _ in cfgmod.describe()]
 
 # Values that have broken parsers before, or would: wrong types, out of range, huge,
@@ -175,6 +181,7 @@ def check_config_file(text):
     assert cfgmod.from_dict(cfgmod.to_dict(config)) == config
 
 
+@ODD_BUT_TAKEN
 @QUICK
 @given(st.one_of(mutate(CONFIG_SEEDS), st.text(FUZZ_CHARS, max_size=200)))
 @pytest.mark.slow
@@ -182,6 +189,7 @@ def test_fuzz_config_file(text):
     check_config_file(text)
 
 
+@ODD_BUT_TAKEN
 @QUICK
 @given(config_trees())
 @pytest.mark.slow
@@ -193,6 +201,7 @@ def test_fuzz_config_tables(tree):
     check_config_file(text)
 
 
+@ODD_BUT_TAKEN
 @pytest.mark.slow
 @THOROUGH
 @given(st.one_of(mutate(CONFIG_SEEDS), config_trees().map(lambda t: tomli_w.dumps(t)), st.text(FUZZ_CHARS)))
@@ -206,6 +215,7 @@ EDGE_VALUES = [
 ]  # fmt: skip
 
 
+@ODD_BUT_TAKEN
 @pytest.mark.parametrize("key", KEYS)
 def test_every_key_with_every_edge_value(key):
     """Not random: every configuration key with every edge value, from a file and from
@@ -236,6 +246,7 @@ def check_set(options):
     assert isinstance(config, Config)
 
 
+@ODD_BUT_TAKEN
 @QUICK
 @given(st.lists(st.one_of(set_options(), st.text(FUZZ_CHARS, max_size=30)), min_size=1, max_size=3))
 @pytest.mark.slow
@@ -243,6 +254,7 @@ def test_fuzz_set_options(options):
     check_set(options)
 
 
+@ODD_BUT_TAKEN
 @pytest.mark.slow
 @THOROUGH
 @given(st.lists(st.one_of(set_options(), st.text(FUZZ_CHARS)), min_size=1, max_size=4))
@@ -278,6 +290,7 @@ def check_trace(text, n_robots):
 TRACE_TOKENS = ODD_VALUES + ["$node_(99999)", "$node_(-1)", "$node_(2)", "setdest", "set", "X_", "Y_", '"', "$ns_"]
 
 
+@ODD_TRACE
 @QUICK
 @given(
     st.one_of(mutate(TRACE_SEEDS, TRACE_TOKENS), st.text(FUZZ_CHARS, max_size=120)), st.sampled_from([None, 1, 2, 3])
@@ -287,6 +300,7 @@ def test_fuzz_trace(text, n_robots):
     check_trace(text, n_robots)
 
 
+@ODD_TRACE
 @pytest.mark.slow
 @THOROUGH
 @given(st.one_of(mutate(TRACE_SEEDS, TRACE_TOKENS), st.text(FUZZ_CHARS)), st.sampled_from([None, 1, 2, 3]))
@@ -321,6 +335,7 @@ def check_placement(data, n):
 CSV_TOKENS = ODD_VALUES + ["x_m", "y_m", "z_m", ",", ";", '"', "\t", "NA", "", "1e2", "0b1"]
 
 
+@ODD_BUT_TAKEN
 @QUICK
 @given(
     st.one_of(mutate(CSV_SEEDS, CSV_TOKENS), st.text(FUZZ_CHARS, max_size=60), st.binary(max_size=60)),
@@ -331,6 +346,7 @@ def test_fuzz_placement_csv(data, n):
     check_placement(data, n)
 
 
+@ODD_BUT_TAKEN
 @pytest.mark.slow
 @THOROUGH
 @given(st.one_of(mutate(CSV_SEEDS, CSV_TOKENS), st.text(FUZZ_CHARS), st.binary()), st.sampled_from([1, 2, 3]))
@@ -445,6 +461,7 @@ RANGE_EDGES = [
 ]
 
 
+@ODD_BUT_TAKEN
 @pytest.mark.parametrize("low", RANGE_EDGES, ids=repr)
 def test_random_sweep_with_every_edge_range(low):
     """Not random: [random.ranges] bounds at every pair of edges."""
@@ -454,6 +471,7 @@ def test_random_sweep_with_every_edge_range(low):
             check_sweep_tree(tree)
 
 
+@ODD_BUT_TAKEN
 @QUICK
 @given(sweep_trees())
 @pytest.mark.slow
@@ -461,6 +479,7 @@ def test_fuzz_sweep_tables(tree):
     check_sweep_tree(tree)
 
 
+@ODD_BUT_TAKEN
 @pytest.mark.slow
 @THOROUGH
 @given(sweep_trees())
@@ -468,6 +487,7 @@ def test_fuzz_sweep_tables_thoroughly(tree):
     check_sweep_tree(tree)
 
 
+@ODD_BUT_TAKEN
 @QUICK
 @given(st.one_of(mutate(SWEEP_SEEDS, SWEEP_TOKENS), st.text(FUZZ_CHARS, max_size=120)))
 @pytest.mark.slow
@@ -475,6 +495,7 @@ def test_fuzz_sweep_file(text):
     check_sweep(text)
 
 
+@ODD_BUT_TAKEN
 @pytest.mark.slow
 @THOROUGH
 @given(st.one_of(mutate(SWEEP_SEEDS, SWEEP_TOKENS), st.text(FUZZ_CHARS)))

@@ -175,6 +175,7 @@ def test_nodes_without_an_initial_position_start_at_the_origin_as_in_ns3(tmp_pat
     assert pos[0, 3].tolist() == [0.0, 0.0] and pos[1, 3].tolist() == [4.0, 0.0] and pos[2, 3].tolist() == [10.0, 0.0]
 
 
+@pytest.mark.filterwarnings("always::UserWarning")
 def test_cli_warns_in_one_line_for_nodes_without_a_position(tmp_path, capsys):
     f = tmp_path / "partial.tcl"
     f.write_text('$node_(0) set X_ 5.0\n$node_(0) set Y_ 6.0\n$ns_ at 1.0 "$node_(1) setdest 10.0 0.0 2.0"\n')
@@ -319,6 +320,7 @@ def test_lines_out_of_time_order_are_named_in_a_warning_and_applied_in_time_orde
     assert scen.events.kind.tolist() == ["velocity", "velocity", "stop"]
 
 
+@pytest.mark.filterwarnings("always::UserWarning")
 def test_a_robot_that_leaves_the_area_is_one_line_naming_it_the_time_and_the_line(tmp_path, capsys):
     """Read as ns-3 reads it, the out-of-order file never stops the robot: the replayed
     motion leaves the area, which is refused before the run (robot, time, file line)."""

@@ -181,7 +181,7 @@ def test_receptions_ends_are_where_the_robots_stood_at_the_frames_start(torus):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "channel", [{"loss_model": "bernoulli", "loss_probability": 0.2}, {**SHADOWED, "mac": "aloha"}]
+    "channel", [{"loss_model": "bernoulli", "loss_probability": 0.2, "range_m": 80}, {**SHADOWED, "mac": "aloha"}]
 )
 def test_receptions_off_writes_no_file_and_changes_no_other_table(tmp_path: Path, channel):
     """With ``output.receptions`` off no receptions.parquet is written, and every other
@@ -190,7 +190,7 @@ def test_receptions_off_writes_no_file_and_changes_no_other_table(tmp_path: Path
     for on in (False, True):
         out = tmp_path / f"run-{on}"
         sets = [f"channel.{k}={v}" for k, v in channel.items()]
-        sets += ["world.n_robots=12", "world.side_m=200", "duration_s=10", "channel.range_m=80"]
+        sets += ["world.n_robots=12", "world.side_m=200", "duration_s=10"]
         sets += ["protocol.message_rate_hz=1", f"output.receptions={'true' if on else 'false'}"]
         args = ["run", "--out", str(out)] + [a for s in sets for a in ("--set", s)]
         assert main(args) in (0, None)

@@ -377,15 +377,17 @@ def test_sweep_refuses_a_directory_that_holds_something_else(tmp_path, capfd):
 
 def test_sweep_results_follow_the_umask(tmp_path):
     """runs/, tables/ and failed/ are as readable as every other output (not 0600)."""
-    bad = tmp_path / "t.tcl"
+    good, bad = tmp_path / "s.tcl", tmp_path / "t.tcl"
+    good.write_text("".join(f"$node_({i}) set X_ {10 * i + 10}.0\n$node_({i}) set Y_ 10.0\n" for i in range(3)))
     bad.write_text("not a trace\n")
+    base = {"duration_s": 5.0, "world": {"n_robots": 3}, "mobility": {"model": "trace"}}
     sweep = sweepmod.parse(
         {
             "name": "m",
             "tables": ["links"],
-            "base": {"duration_s": 5.0, "world": {"n_robots": 3}, "output": {"position_interval_s": 0.0}},
-            # The trace run fails (no movement line in the file) and is recorded under failed/.
-            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": [str(bad)]},
+            "base": {**base, "output": {"position_interval_s": 0.0}},
+            # The run of the bad trace fails (no movement line in the file) and is recorded under failed/.
+            "grid": {"mobility.trace_file": [str(good), str(bad)]},
         }
     )
     old = os.umask(0o022)
@@ -456,6 +458,7 @@ def test_bare_words_are_still_strings():
 
 # -- no stale output -----------------------------------------------------------------------
 COVERAGE_RUN = SMALL + ["--set", "mobility.model=static", "--set", "coverage.enabled=true"]
+COVERAGE_RUN += ["--set", "coverage.start_s=0"]  # control steps inside the short run
 
 
 def test_a_run_replaces_the_earlier_run_in_its_directory(tmp_path, capfd):

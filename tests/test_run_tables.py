@@ -98,7 +98,7 @@ def test_a_sample_the_intervals_bring_to_the_end_is_not_taken_twice():
         world={"n_robots": 10, "side_m": 300.0},
         mobility={"model": "static"},
         output={"position_interval_s": 0.1},
-        coverage={"enabled": True, "metrics_interval_s": 0.1, "stop_hold_s": 0.5},
+        coverage={"enabled": True, "start_s": 0.0, "metrics_interval_s": 0.1, "stop_hold_s": 0.5},
     )
     frames = execute(cfg).frames
     for name in ("beliefs", "coverage"):

@@ -37,6 +37,11 @@ def small_sweep(**extra):
     return sweepmod.parse(tree)
 
 
+def standing_trace(n: int) -> str:
+    """An ns-2 trace of ``n`` robots standing 20 m apart on a line."""
+    return "".join(f"$node_({i}) set X_ {10 + 20 * i}.0\n$node_({i}) set Y_ 10.0\n" for i in range(n))
+
+
 def metrics_frame(out):
     return sweepmod.load(out).drop(columns=["wall_s"])
 
@@ -53,7 +58,7 @@ def test_grid_expands_every_combination_with_replications():
 
 def test_random_points_are_reproducible_and_keep_integers():
     tree = {
-        "base": BASE,
+        "base": {**BASE, "world": {"side_m": 300.0}},  # n_robots swept: a base's would never run
         "random": {
             "samples": 5,
             "seed": 3,
@@ -170,20 +175,21 @@ def test_killed_sweep_restarts_and_completes_every_run_exactly_once(tmp_path):
 
 
 def test_a_failing_run_is_recorded_and_the_others_finish(tmp_path):
-    bad = tmp_path / "scenario.tcl"
+    good, bad = tmp_path / "standing.tcl", tmp_path / "scenario.tcl"
+    good.write_text(standing_trace(BASE["world"]["n_robots"]))
     bad.write_text("not a trace\n")
     sweep = sweepmod.parse(
         {
             "name": "f",
-            "base": BASE,
-            "grid": {"mobility.model": ["static", "trace"], "mobility.trace_file": [str(bad)]},
+            "base": {**BASE, "mobility": {"model": "trace"}},
+            "grid": {"mobility.trace_file": [str(good), str(bad)]},
         }
     )
     out = tmp_path / "out"
     report = sweepmod.run_sweep(sweep, out, workers=1, progress=False)
     assert report.done == 1 and len(report.failed) == 1
     failed = json.loads(next((out / "failed").glob("*.json")).read_text())
-    assert "no ns-2 movement line" in failed["error"] and failed["point"]["mobility.model"] == "trace"
+    assert "no ns-2 movement line" in failed["error"] and failed["point"]["mobility.trace_file"] == str(bad)
     assert "failed" in report.text() and "no ns-2 movement line" in report.text()
     assert len(sweepmod.load(out)) == 1
 
@@ -243,7 +249,10 @@ def test_points_that_resolve_to_one_configuration_run_once_with_a_warning(tmp_pa
             "grid": {"mobility.model": ["random_waypoint", "gauss_markov"], "mobility.alpha": [0.5, 0.75]},
         }
     )
-    with pytest.warns(cfgmod.ConfigWarning, match="1 of 4 points resolve to the configuration of a point before"):
+    with (
+        pytest.warns(cfgmod.ConfigWarning, match="mobility.alpha: not used by 'random_waypoint'"),
+        pytest.warns(cfgmod.ConfigWarning, match="1 of 4 points resolve to the configuration of a point before"),
+    ):
         runs = sweep.runs()
     assert len(runs) == 3 and len({r.run_id for r in runs}) == 3
 
@@ -520,8 +529,9 @@ def test_a_stray_file_among_the_tables_does_not_stop_a_resume(tmp_path):
 
 
 def test_random_integer_points_drawn_twice_run_once():
-    tree = {"base": BASE, "random": {"samples": 20, "seed": 1, "ranges": {"world.n_robots": [10, 100]}}}
-    with pytest.warns(UserWarning, match=r"\[random\] 20 samples drew 19 distinct points; each is run once"):
+    base = {**BASE, "world": {"side_m": 300.0}}  # n_robots swept: a base's would never run
+    tree = {"base": base, "random": {"samples": 20, "seed": 1, "ranges": {"world.n_robots": [10, 100]}}}
+    with pytest.warns(cfgmod.ConfigWarning, match=r"\[random\] 20 samples drew 19 distinct points; each is run once"):
         points = sweepmod.parse(tree).points
     values = [p["world.n_robots"] for p in points]
     assert len(values) == len(set(values)) == 19
