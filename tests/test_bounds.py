@@ -20,13 +20,13 @@ from netsim.area import Bounds
 from netsim.config import ConfigWarning, world_bounds
 from netsim.formats import bonnmotion
 from netsim.metrics import MEAN_LEG_UNIT_SQUARE, mean_distance_rectangle
-from netsim.placement import initial_positions
+from netsim.placement import grid, initial_positions
 from netsim.rng import Streams
 from netsim.run import build, collect
 from netsim.state import RobotState
 from netsim.tools.cli import main
 from netsim.tools.validate import rwp_density
-from netsim.world.maps import save_map
+from netsim.world.maps import cached_map, save_map
 from tests.fixtures import check_refused
 
 # A rectangle across the origin, wider than high, nowhere near [0, side_m]^2.
@@ -185,6 +185,22 @@ def test_csv_placement_of_two_robots_on_one_point_is_warned_naming_them(tmp_path
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         build(load(None, sets))
+
+
+def test_grid_placement_fills_the_cells_row_by_row():
+    """Grid placement: the centres of a ``ceil(sqrt(N))``-square grid of cells over the area,
+    robot ``k`` in row ``k // side`` and column ``k % side`` from the lower-left corner."""
+    xy = grid(5, Bounds(-30.0, 0.0, 30.0, 90.0))
+    assert xy.tolist() == [[-20.0, 15.0], [0.0, 15.0], [20.0, 15.0], [-20.0, 45.0], [0.0, 45.0]]
+
+
+def test_centre_placement_on_a_map_is_in_the_free_part_of_the_central_square():
+    """On a map ``centre`` draws from the free cells of the central square only."""
+    sets = ["world.map=office", "world.side_m=200", "world.placement=centre", "world.centre_side_m=60"]
+    c = load(None, [*sets, "world.n_robots=200"])
+    office = cached_map("office")
+    xy = initial_positions(c.world, Streams(1, 0), occupancy=office)
+    assert ((xy >= 70.0) & (xy <= 130.0)).all() and office.is_free(xy).all()
 
 
 # -- every mobility model ------------------------------------------------------------------

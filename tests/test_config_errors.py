@@ -550,6 +550,7 @@ def test_cli_malformed_files(tmp_path, capsys):
         ("x_m,y_m\n1,2\nthree,4\n", "not numbers"),
         ("x_m,y_m\n1,2\n", "1 rows but world.n_robots = 2"),
         ("x,y\n1,2\n3,4\n", "columns x_m,y_m"),
+        ("y_m,x_m\n1,2\n3,4\n", "columns x_m,y_m"),
         ("x_m,y_m\n1,2\n3,5000\n", "outside the area"),
         ("x_m,y_m\n1,2\n3,\n", "missing"),
     ],

@@ -111,6 +111,17 @@ def test_connected_start_is_one_network_in_open_space():
     assert len(np.unique(components_of_links(30, a[near], b[near]))) == 1
 
 
+def test_connected_start_square_is_about_the_areas_middle_and_clipped_to_the_area():
+    """By default the start square is centred on the area's middle, a rectangle in the world
+    frame included; about a start point at a corner it is clipped to the area."""
+    common = {"mobility": {"model": "static"}, "channel": {"range_m": 50.0}, "protocol": {"model": "none"}}
+    world = {"n_robots": 20, "placement": "connected", "centre_side_m": 100.0}
+    rect = _placed(make_config(seed=2, world={**world, "bounds_m": [-400.0, 100.0, 0.0, 300.0]}, **common))
+    assert (np.abs(rect - [-200.0, 200.0]) <= 50.0).all()
+    corner = _placed(make_config(seed=2, world={**world, "side_m": 1000.0, "start_m": [0.0, 0.0]}, **common))
+    assert ((corner >= 0.0) & (corner <= 50.0)).all()
+
+
 @pytest.mark.parametrize("channel", [{"range_m": 100.0}, {"propagation": "log_distance"}])
 def test_connected_start_on_a_torus_links_across_the_seam(channel):
     """On a torus a robot may be placed linked to the team across the seam only: the
@@ -160,6 +171,11 @@ def test_connected_start_is_one_network_on_the_office_links(tmp_path):
         (["world.start_m=[1.0, 2.0, 3.0]"], "world.start_m", "must be [x, y]"),
         (["world.start_m=centre2"], "world.start_m", "must be [x, y]"),
         (["world.placement=connected", "world.start_m=[5000.0, 10.0]"], "world.start_m", "is outside the area"),
+        (
+            ["world.placement=connected", "world.map=office", 'world.bounds_m="map"', "world.start_m=[500.0, 10.0]"],
+            "world.start_m",
+            "is outside the area [0.0, 0.0, 200.0, 200.0]",
+        ),
         (
             ["world.placement=connected", "world.map=office", "world.side_m=200", "world.start_m=[100.0, 0.1]"],
             "world.start_m",

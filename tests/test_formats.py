@@ -4,6 +4,7 @@ or matches its reference (the waypoints' linear interpolation, the written poses
 from __future__ import annotations
 
 import gzip
+import json
 import re
 from pathlib import Path
 
@@ -12,10 +13,13 @@ import pandas as pd
 import pytest
 
 from netsim import load
+from netsim.area import Bounds
 from netsim.errors import NetsimInputError
 from netsim.formats import bonnmotion, rosbag2, waypoints
 from netsim.run import build, collect
+from netsim.stamps import ns
 from netsim.tools.cli import main
+from netsim.tools.export import export
 
 
 def _positions(legs: pd.DataFrame, t: float, n: int) -> np.ndarray:
@@ -229,6 +233,57 @@ def test_bonnmotion_reads_3d_files_with_their_params(tmp_path):
     assert np.allclose(wp.positions_at(5.0), [[6, 7]])
 
 
+def test_bonnmotion_reads_j_3d_in_either_case_as_bonnmotion_does(tmp_path):
+    """BonnMotion takes ``J=3D`` and ``J=3d`` alike for a 3D scenario: four numbers a waypoint."""
+    (tmp_path / "d.params").write_text("nn=1\nJ=3d\n")
+    (tmp_path / "d.movements").write_text("0 1 2 3 10 11 12 13\n")
+    wp, _params = bonnmotion.read(tmp_path / "d.movements")
+    assert np.allclose(wp.positions_at(5.0), [[6, 7]])
+
+
+def test_bonnmotion_params_node_count_must_match_the_node_lines(tmp_path):
+    """``nn`` in the ``.params`` beside the file is checked against its node lines: one line
+    naming both files."""
+    (tmp_path / "n.params").write_text("x=100.0\ny=100.0\nnn=3\n")
+    path = tmp_path / "n.movements"
+    path.write_text("0 1 2\n0 3 4\n")
+    with pytest.raises(NetsimInputError, match=r"n\.params: nn = 3 but .*n\.movements has 2 node lines$"):
+        bonnmotion.read(path)
+
+
+@pytest.mark.parametrize(
+    "area, keys",
+    [
+        (100.0, {"x": "100.0", "y": "100.0"}),
+        (Bounds(10.0, 20.0, 110.0, 220.0), {"x": "110.0", "y": "220.0"}),
+        (Bounds(-10.0, 20.0, 90.0, 220.0), {"x": "100.0", "y": "200.0", "x_min": "-10.0", "y_min": "20.0"}),
+    ],
+)
+def test_bonnmotion_params_give_the_areas_far_corner_or_its_size_and_near_corner(tmp_path, area, keys):
+    """BonnMotion's area is ``[0, x] x [0, y]``: an area in the positive quadrant is written
+    as its far corner, one reaching below 0 as its size with ``x_min`` and ``y_min``."""
+    wp = waypoints.Waypoints.of([0], [0.0], [50.0], [60.0], "test")
+    bonnmotion.write(tmp_path / "a.movements", wp, area, 10.0)
+    params = bonnmotion.read_params(tmp_path / "a.params")
+    assert {k: v for k, v in params.items() if k in ("x", "y", "x_min", "y_min")} == keys
+
+
+def test_waypoints_of_robots_not_numbered_from_0_without_gaps_are_refused():
+    """Every robot from 0 to the highest named needs a waypoint: one line naming the source
+    and the robots without one."""
+    with pytest.raises(NetsimInputError, match=r"^src: robot\(s\) \[1, 3\] have no position$"):
+        waypoints.Waypoints.of([0, 2, 4], [0.0] * 3, [1.0] * 3, [1.0] * 3, "src")
+
+
+def test_waypoints_positions_follow_each_leg_and_are_at_the_second_of_a_jump():
+    """Between two waypoints a robot is on the straight line from one to the next at
+    constant speed; at an instant with two waypoints (a jump) it is at the second."""
+    wp = waypoints.Waypoints.of([0] * 5, [0, 10, 20, 20, 30], [0, 10, 10, 50, 50], [0, 0, 20, 20, 0], "test")
+    assert wp.positions_at(15.0).tolist() == [[10.0, 10.0]]
+    assert wp.positions_at(20.0).tolist() == [[50.0, 20.0]]
+    assert wp.positions_at(25.0).tolist() == [[50.0, 10.0]]
+
+
 @pytest.mark.parametrize(
     "text, says",
     [
@@ -237,6 +292,7 @@ def test_bonnmotion_reads_3d_files_with_their_params(tmp_path):
         ("0 1_0 2\n", ":1: '1_0' is not a number"),
         ("5 1 2 3 4 5\n", ":1: waypoint 2: time 3 goes back"),
         ("0 1 2 inf 3 4\n", ":1: numbers must be finite"),
+        ("-1 1 2 3 4 5\n", ":1: negative time -1"),
         ("\n", "no movement line"),
     ],
 )
@@ -432,6 +488,134 @@ def test_a_bags_stamps_that_go_back_or_repeat_are_read_in_order_with_a_warning(t
     assert wp.t_s.tolist() == [0.0, 1.0, 2.0, 3.0, 3.0] and wp.x_m.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0]
 
 
+def _stamped_bag(path: Path, rows: list[tuple[str, float, float, float, float]]) -> None:
+    """A bag of PoseStamped rows ``(topic, log time, header stamp, x, y)``, in that order."""
+    from rosbags.rosbag2 import Writer
+
+    store = rosbag2._typestore()
+    msgtype = "geometry_msgs/msg/PoseStamped"
+    with Writer(path, version=8) as w:
+        conns = {}
+        for topic, log_s, stamp_s, x, y in rows:
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, msgtype, typestore=store)
+            point = rosbag2._make(store, "geometry_msgs/msg/Point", x=x, y=y)
+            pose = rosbag2._make(store, "geometry_msgs/msg/Pose", position=point)
+            header = rosbag2._make(store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, stamp_s))
+            msg = rosbag2._make(store, msgtype, header=header, pose=pose)
+            w.write(conns[topic], ns(log_s), store.serialize_cdr(msg, msgtype))
+
+
+def test_a_bags_stamps_are_read_to_the_nanosecond(tmp_path):
+    """A header stamp is its seconds and its nanoseconds: poses 0.25 s apart are 0.25 s apart."""
+    bag = tmp_path / "fine"
+    _stamped_bag(bag, [("/robot_0/pose", 0.0, 7.0, 0.0, 0.0), ("/robot_0/pose", 1.0, 7.25, 1.0, 0.0)])
+    assert rosbag2.read(bag).t_s.tolist() == [0.0, 0.25]
+
+
+def test_a_bags_times_count_from_its_earliest_stamp(tmp_path):
+    """Times count from the earliest header stamp of all the robots' poses, not from the
+    stamp of the pose logged first."""
+    bag = tmp_path / "late"
+    _stamped_bag(bag, [("/robot_0/pose", 0.0, 10.0, 0.0, 0.0), ("/robot_1/pose", 1.0, 4.0, 5.0, 5.0)])
+    wp = rosbag2.read(bag)
+    assert wp.robot.tolist() == [0, 1] and wp.t_s.tolist() == [6.0, 0.0]
+
+
+@pytest.mark.parametrize(
+    "topics, says",
+    [
+        (["/robot_0/pose", "/robot_2/pose"], r"no pose topic for robot\(s\) \[1\] \(robots are numbered from 0\)$"),
+        (
+            ["/robot_0/odom", "/robot_0/pose", "/robot_1/pose"],
+            r"robot 0 has several pose topics \['/robot_0/odom', '/robot_0/pose'\]; name one per robot",
+        ),
+    ],
+)
+def test_a_bags_default_topics_are_one_pose_topic_per_robot_from_0(tmp_path, topics, says):
+    """Without mobility.topics, robots 0 to the highest numbered each need exactly one pose
+    topic: a gap, or a robot with two, is one line naming the robot."""
+    bag = tmp_path / "topics"
+    _stamped_bag(bag, [(topic, 0.0, 0.0, 1.0, 1.0) for topic in topics])
+    with pytest.raises(NetsimInputError, match=says):
+        rosbag2.read(bag)
+
+
+def test_a_bags_pose_that_is_not_finite_is_refused(tmp_path):
+    """A pose whose position is no finite number (a NaN of a lost fix) is one line."""
+    bag = tmp_path / "nan"
+    _stamped_bag(bag, [("/robot_0/pose", 0.0, 0.0, 1.0, 1.0), ("/robot_0/pose", 1.0, 1.0, float("nan"), 1.0)])
+    with pytest.raises(NetsimInputError, match="a pose has a non-finite position$"):
+        rosbag2.read(bag)
+
+
+def _exported_bag(run_dir: Path, out: Path, wanted) -> list[tuple[str, int, object]]:
+    """``(topic, stamp in ns, message)`` of the messages on the topics ``wanted(topic)`` of
+    the run's bag export, in the bag's order."""
+    from rosbags.rosbag2 import Reader
+
+    assert main(["export", str(run_dir), "--format", "rosbag2", "--out", str(out)]) == 0
+    store = rosbag2._typestore()
+    with Reader(out) as reader:
+        conns = [c for c in reader.connections if wanted(c.topic)]
+        return [(c.topic, stamp, store.deserialize_cdr(raw, c.msgtype)) for c, stamp, raw in reader.messages(conns)]
+
+
+def test_a_bags_poses_and_links_are_in_frame_map_with_the_identity_orientation(run_dir, tmp_path):
+    """Every exported pose and links marker is in frame ``map`` with the unit quaternion of
+    no rotation (RViz and Foxglove refuse a zero quaternion)."""
+    msgs = _exported_bag(run_dir, tmp_path / "bag", lambda topic: topic.endswith("/pose") or topic == "/links")
+    assert {topic for topic, _, _ in msgs} >= {"/robot_0/pose", "/links"}
+    for topic, _stamp, msg in msgs:
+        posed = msg.markers[0] if topic == "/links" else msg
+        q = posed.pose.orientation
+        assert posed.header.frame_id == "map" and (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 1.0), topic
+
+
+def test_rosbag2_links_are_a_line_list_joining_the_positions_of_each_linked_pair(run_dir, tmp_path):
+    """``/links`` at a sampling instant is one LINE_LIST marker (type 5): each two points
+    are the sampled positions of the two robots of a link up then."""
+    pos = pd.read_parquet(run_dir / "positions.parquet")
+    links = pd.read_parquet(run_dir / "links.parquet")
+    seen = 0
+    for _topic, stamp, msg in _exported_bag(run_dir, tmp_path / "bag", lambda topic: topic == "/links"):
+        (marker,) = msg.markers
+        assert marker.type == 5
+        at = pos[pos["t_s"].map(ns) == stamp].set_index("robot")
+        t = float(at["t_s"].iloc[0])
+        up = (links.t_up_s <= t) & ((t < links.t_down_s) | (links.censored_end & (t <= links.t_down_s)))
+        want = sorted(
+            sorted(tuple(at.loc[r, ["x_m", "y_m"]]) for r in pair) for pair in links[up][["a", "b"]].to_numpy()
+        )
+        points = [(p.x, p.y) for p in marker.points]
+        assert sorted(sorted(points[k : k + 2]) for k in range(0, len(points), 2)) == want, t
+        seen += len(want)
+    assert seen > 0
+
+
+def test_rosbag2_roles_and_messages_are_the_runs_rows_at_their_times(run_dir, tmp_path):
+    """Each role change is JSON text on ``/robot_<i>/role`` at its time (role, leader,
+    cause); each message is JSON text on ``/messages`` when it is sent and, if delivered,
+    when it is delivered (with its hops and latency)."""
+    roles = pd.read_parquet(run_dir / "roles.parquet")
+    messages = pd.read_parquet(run_dir / "messages.parquet")
+    want = [
+        (ns(t), f"/robot_{r}/role", {"role": role, "leader": int(leader), "cause": cause})
+        for t, r, role, leader, cause in roles[["t_s", "robot", "role", "leader", "cause"]].itertuples(index=False)
+    ]
+    for m in messages.itertuples(index=False):
+        ids = {"msg_id": int(m.msg_id), "src": int(m.src), "dst": int(m.dst)}
+        want.append((ns(m.t_sent_s), "/messages", {"event": "sent", **ids}))
+        if m.delivered:
+            done = {"hops": int(m.hops), "latency_s": float(m.latency_s)}
+            want.append((ns(m.t_delivered_s), "/messages", {"event": "delivered", **ids, **done}))
+    assert messages["delivered"].any() and not messages["delivered"].all()
+    wanted = lambda topic: topic.endswith("/role") or topic == "/messages"  # noqa: E731
+    got = [(stamp, topic, json.loads(msg.data)) for topic, stamp, msg in _exported_bag(run_dir, tmp_path / "b", wanted)]
+    key = lambda row: (row[0], row[1], json.dumps(row[2], sort_keys=True))  # noqa: E731
+    assert sorted(got, key=key) == sorted(want, key=key)
+
+
 def test_bag_without_pose_topics_exits_2_one_line(tmp_path, capsys):
     bag = tmp_path / "empty"
     _bag(bag, {"/chatter": []}, "geometry_msgs/msg/PoseStamped")
@@ -503,6 +687,53 @@ def test_a_bag_named_as_a_directory_is_written_there(run_dir, tmp_path):
     assert (tmp_path / "bag").is_dir() and any((tmp_path / "bag").iterdir())
 
 
+def test_a_bag_export_leaves_nothing_beside_the_bag(run_dir, tmp_path):
+    """The bag is written in a temporary folder and moved into place: only the bag is left."""
+    assert main(["export", str(run_dir), "--format", "rosbag2", "--out", str(tmp_path / "bag")]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]
+
+
+def test_a_bag_export_of_a_run_without_sampled_positions_is_one_line(tmp_path, capsys):
+    """A bag holds the sampled poses: a run that sampled none (``output.position_interval_s
+    = 0``) is refused in one line, exit 2, nothing written."""
+    sets = ["duration_s=5", "world.n_robots=2", "output.position_interval_s=0", "protocol.model=none"]
+    assert main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(tmp_path / "run")]) == 0
+    assert main(["export", str(tmp_path / "run"), "--format", "rosbag2", "--out", str(tmp_path / "bag")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "positions.parquet is empty" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_export_refuses_a_folder_without_a_manifest(run_dir, tmp_path, capsys):
+    """A run directory is one ``netsim run`` finished writing (its ``manifest.json``): a copy
+    without it is refused in one line, before anything is written."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    (run / "manifest.json").unlink()
+    assert main(["export", str(run), "--format", "ns2", "--out", str(tmp_path / "x.tcl")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a run directory (no manifest.json)" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+@pytest.mark.parametrize("fmt, name", [("ns2", "x.tcl"), ("bonnmotion", "x.movements.gz")])
+def test_an_export_that_fails_while_writing_leaves_nothing(run_dir, tmp_path, monkeypatch, fmt, name):
+    """The file is written under a temporary name and moved into place: a writer that fails
+    half-way (a full disk) leaves no file behind, temporary or not."""
+    from netsim.formats import ns2
+
+    def half_way(path, *args, **kwargs):
+        Path(path).write_text("$node_(0) set X_ 1")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(ns2 if fmt == "ns2" else bonnmotion, "write", half_way)
+    with pytest.raises(OSError):
+        export(run_dir, fmt, tmp_path / name)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_bonnmotion_export_refuses_an_existing_params_file(run_dir, tmp_path, capsys):
     """The .params written beside NAME.movements is an output too: one that exists is one
     line, exit 2, and neither file is written."""
@@ -570,10 +801,14 @@ def test_a_trace_shorter_than_the_run_is_warned_about(run_dir, tmp_path, capsys)
 
 
 @pytest.mark.filterwarnings("always::UserWarning")
-def test_ns2_export_of_an_area_below_zero_warns_that_ns2_refuses_it(tmp_path, capsys):
-    """ns-2's topography starts at 0: a run whose area reaches below it is exported (netsim
-    and ns-3 read it back) with one warning that says so and names BonnMotion's corner."""
-    sets = ["world.n_robots=3", "duration_s=20", "world.bounds_m=[-100.0, -100.0, 100.0, 100.0]", "protocol.model=none"]
+@pytest.mark.parametrize(
+    "bounds", ["[-100.0, -100.0, 100.0, 100.0]", "[0.0, -100.0, 200.0, 100.0]", "[-100.0, 0.0, 100.0, 200.0]"]
+)
+def test_ns2_export_of_an_area_below_zero_warns_that_ns2_refuses_it(tmp_path, capsys, bounds):
+    """ns-2's topography starts at 0: a run whose area reaches below it on either axis is
+    exported (netsim and ns-3 read it back) with one warning that says so and names
+    BonnMotion's corner."""
+    sets = ["world.n_robots=3", "duration_s=20", f"world.bounds_m={bounds}", "protocol.model=none"]
     run, out = tmp_path / "run", tmp_path / "run.tcl"
     assert main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(run)]) == 0
     capsys.readouterr()

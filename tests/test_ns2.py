@@ -417,3 +417,54 @@ def test_a_setdest_toward_a_point_beyond_the_area_is_judged_by_the_motion_up_to_
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "robot 0 leaves the area" in err[0] and "at t = 6.8 s" in err[0] and f"{fast}:3" in err[0]
     assert not (tmp_path / "b").exists()
+
+
+def test_a_nodes_lines_at_one_instant_are_not_out_of_time_order(tmp_path):
+    """Lines of one node at equal times (a jump's ``set X_`` and ``set Y_`` and its
+    ``setdest``, as netsim export writes them) are in time order: no warning."""
+    f = tmp_path / "same.tcl"
+    f.write_text(
+        "$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\n"
+        '$ns_ at 3.0 "$node_(0) set X_ 5.0"\n$ns_ at 3.0 "$node_(0) set Y_ 6.0"\n'
+        '$ns_ at 3.0 "$node_(0) setdest 9.0 6.0 1.0"\n'
+    )
+    for semantics in ns2.SEMANTICS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            ns2.read(f, semantics=semantics)
+
+
+@pytest.mark.parametrize("semantics", ns2.SEMANTICS)
+def test_a_scheduled_set_of_z_never_moves_the_robot_in_the_plane(tmp_path, semantics):
+    """``Z_`` is ignored: ``$ns_ at T "$node_(i) set Z_ z"`` changes neither x nor y, in
+    either reading (ns-3 still puts the node where it is at T)."""
+    f = tmp_path / "z.tcl"
+    f.write_text('$node_(0) set X_ 10.0\n$node_(0) set Y_ 20.0\n$ns_ at 5.0 "$node_(0) set Z_ 7.0"\n')
+    scen = ns2.read(f, semantics=semantics)
+    assert scen.initial_m.tolist() == [[10.0, 20.0]]
+    placed = scen.events[scen.events.kind == "position"]
+    assert (placed[["x_m", "y_m"]].to_numpy() == [10.0, 20.0]).all()
+
+
+@pytest.mark.parametrize("node", ["1.5", "-1"])
+def test_a_node_number_with_a_dot_or_a_minus_names_no_node_as_in_ns3(tmp_path, node):
+    """ns-3's helper takes ``(i)`` for a node only when ``i`` has no ``.`` and no leading
+    ``-``: such a line is skipped (and counted), not read as node 1."""
+    f = tmp_path / "ids.tcl"
+    f.write_text(f"$node_(0) set X_ 1.0\n$node_(0) set Y_ 2.0\n$node_({node}) set X_ 9.0\n")
+    with pytest.warns(UserWarning, match=r"1 movement line\(s\) not understood .* line\(s\) 3$"):
+        scen = ns2.read(f)
+    assert scen.n_robots == 1 and scen.initial_m.tolist() == [[1.0, 2.0]]
+
+
+def test_a_scheduled_set_to_a_word_is_skipped_by_ns2_and_read_as_0_by_ns3(tmp_path):
+    """ns-3's helper does not check a scheduled ``set``'s value, so a word counts as 0 (the
+    node starts at x = 0 and is put there at T); ns-2's reading skips the line."""
+    f = tmp_path / "word.tcl"
+    f.write_text('$node_(0) set X_ 10.0\n$node_(0) set Y_ 20.0\n$ns_ at 5.0 "$node_(0) set X_ abc"\n')
+    as_ns3 = ns2.read(f, semantics="ns3")
+    assert as_ns3.initial_m.tolist() == [[0.0, 20.0]]
+    assert as_ns3.events[["t_s", "kind", "x_m", "y_m"]].values.tolist() == [[5.0, "position", 0.0, 20.0]]
+    with pytest.warns(UserWarning, match=r"1 movement line\(s\) not understood .* line\(s\) 3$"):
+        as_ns2 = ns2.read(f, semantics="ns2")
+    assert as_ns2.initial_m.tolist() == [[10.0, 20.0]] and as_ns2.events.empty

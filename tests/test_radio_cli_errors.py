@@ -131,6 +131,14 @@ def test_grid_placement_into_a_wall_is_refused_before_anything_is_written(tmp_pa
     )
 
 
+def test_csv_placement_into_a_wall_is_refused_before_anything_is_written(tmp_path, capsys):
+    """A CSV placement on a map must put every robot in a free cell, as a grid must."""
+    csv = tmp_path / "at.csv"
+    csv.write_text("x_m,y_m\n100.0,100.0\n0.1,0.1\n")
+    sets = ["world.map=office", "world.side_m=200", "world.n_robots=2", f"world.placement={csv}"]
+    check_refused(tmp_path, capsys, [*sets, "mobility.model=static"], "world.placement", "puts robot 1 at (0.1, 0.1)")
+
+
 def test_a_torus_with_shadowing_must_exceed_twice_the_reach(tmp_path, capsys):
     """On a torus the reach's disks around a robot's images must be disjoint, as the range's
     are: at 6 dB the default radio reaches 631 m, so a 1,000 m torus is refused, naming the

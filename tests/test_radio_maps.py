@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from netsim.area import Bounds
 from netsim.errors import ConfigError
 from netsim.world.maps import EXAMPLES, load_map, occupancy_from_pixels, save_map
 
@@ -250,3 +251,81 @@ def test_a_map_whose_image_was_edited_is_read_again(tmp_path):
     walled[:, 4] = 0
     Image.fromarray(walled.astype(np.uint8)).save(tmp_path / "map.pgm")
     assert cached_map(y).occupied[:, 4].all()
+
+
+def test_map_saver_negate_swaps_free_and_occupied(tmp_path):
+    """With ``negate: 1`` the YAML's map reads ``p = v / 255``: a black pixel is free, a
+    white one a wall, a mid gray (p = 0.39) unknown."""
+    px = np.array([[0, 255, 100]], dtype=np.uint8)
+    m = load_map(_write(tmp_path, px, origin="[0, 0, 0]", negate=1))
+    assert m.occupied.tolist() == [[False, True, False]] and m.free.tolist() == [[True, False, False]]
+
+
+def test_equal_thresholds_are_no_bad_thresholds(tmp_path):
+    """Only ``free_thresh`` above ``occupied_thresh`` is refused: equal thresholds leave no
+    unknown shade but the threshold itself."""
+    y = _write(tmp_path, np.array([[0, 128, 254]]), origin="[0, 0, 0]")
+    y.write_text(y.read_text().replace("0.196", "0.65"))
+    m = load_map(y)
+    assert m.occupied.tolist() == [[True, False, False]] and m.free.tolist() == [[False, True, True]]
+
+
+def test_a_map_without_mode_is_read_in_trinary_mode(tmp_path):
+    """``mode`` is optional and ``trinary`` by default: the alpha of a half-transparent white
+    pixel is averaged in (p = 0.13, free), where ``scale`` would make it unknown."""
+    rgba = np.array([[[255, 255, 255, 128], [0, 0, 0, 255]]], dtype=np.uint8)
+    m = load_map(_write(tmp_path, rgba, "RGBA", ".png", origin="[0, 0, 0]"))
+    assert m.free.tolist() == [[True, False]] and m.occupied.tolist() == [[False, True]]
+
+
+def _save_image(path, mode):
+    """A 1 x 3 PNG in PIL ``mode`` (gray with alpha, or a palette) of an opaque black, an
+    opaque white and a transparent white."""
+    if mode == "LA":
+        Image.fromarray(np.array([[[0, 255], [254, 255], [255, 0]]], dtype=np.uint8), "LA").save(path)
+    else:
+        img = Image.fromarray(np.array([[0, 1, 2]], dtype=np.uint8), "P")
+        img.putpalette([0, 0, 0, 255, 255, 255, 255, 255, 255])
+        img.save(path, transparency=2)
+
+
+@pytest.mark.parametrize("mode", ["LA", "P"])
+def test_the_alpha_of_a_gray_or_palette_image_is_averaged_in_under_trinary(tmp_path, mode):
+    """A gray image's alpha, or a palette's transparent colour, is averaged in under trinary
+    as an RGBA image's is: an opaque black is a wall (p = 0.75), an opaque white free, a
+    transparent white unknown (p = 0.25)."""
+    _save_image(tmp_path / "map.png", mode)
+    y = tmp_path / "map.yaml"
+    y.write_text(YAML.format(image="map.png", resolution=1.0, origin="[0, 0, 0]", negate=0))
+    m = load_map(y)
+    assert m.occupied.tolist() == [[True, False, False]] and m.free.tolist() == [[False, True, False]]
+
+
+def test_an_area_is_judged_by_the_free_cells_inside_it(tmp_path):
+    """A map must have a free cell in the area: the columns are told by x and the rows by y,
+    so a wide area whose only free cells are at its far end is accepted, and one that holds
+    none is refused."""
+    px = np.zeros((10, 40), dtype=np.uint8)
+    px[:, 35] = 254
+    m = load_map(_write(tmp_path, px, resolution=1.0, origin="[0, 0, 0]"))
+    m.check_area(Bounds(20.0, 0.0, 40.0, 10.0), bounds_given=True)
+    _one_line_error(lambda: m.check_area(Bounds(0.0, 0.0, 20.0, 10.0), bounds_given=True), "no free cell")
+
+
+def test_an_area_the_map_covers_but_for_rounding_is_inside_it(tmp_path):
+    """18 pixels of 0.15 m reach 2.6999999999999997 m: the map covers the area [0, 2.7]^2 as
+    the user wrote it, which is not refused."""
+    m = load_map(_write(tmp_path, np.full((18, 18), 254), resolution=0.15, origin="[0, 0, 0]"))
+    assert m.extent_m[1] < 2.7
+    m.check_area(Bounds(0.0, 0.0, 2.7, 2.7), bounds_given=True)
+    m.check_area(2.7)
+
+
+def test_a_maps_fingerprint_names_its_cells_their_size_and_where_they_lie(tmp_path):
+    """The map's sha256 (recorded by a run) is the same for the same map and differs when
+    its origin or its resolution does, not only its cells."""
+    px = np.full((4, 6), 254)
+    base = load_map(_write(tmp_path, px))
+    assert load_map(_write(tmp_path, px)).sha256 == base.sha256
+    assert load_map(_write(tmp_path, px, origin="[-1.0, -1.0, 0.0]")).sha256 != base.sha256
+    assert load_map(_write(tmp_path, px, resolution=0.25)).sha256 != base.sha256
