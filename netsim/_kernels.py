@@ -34,10 +34,11 @@ class Motion(NamedTuple):
 @jit(nogil=True, inline="always")
 def lower_bound(a, lo, hi, x):
     """The first position in ascending ``a[lo:hi]`` whose item is not below ``x`` (``hi``
-    if none; ``x`` not NaN): ``lo + np.searchsorted(a[lo:hi], x)``, without making the view."""
+    if none, and for a NaN ``x``, which sorts last as in numpy): ``lo +
+    np.searchsorted(a[lo:hi], x)``, without making the view."""
     while lo < hi:
         mid = (lo + hi) >> 1
-        if a[mid] < x:
+        if not a[mid] >= x:
             lo = mid + 1
         else:
             hi = mid

@@ -205,7 +205,7 @@ def _receive(table, now, sender, receivers, record, power_dbm, fresh, hears_me, 
     stale = 0
     for k in range(start, len(receivers)):
         r = receivers[k]
-        at = np.searchsorted(heard, r)
+        at = lower_bound(heard, 0, n_heard, r)
         hm = at < n_heard and heard[at] == r
         if hears_me is not None:
             hears_me[k] = hm

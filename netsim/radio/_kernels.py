@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim._kernels import Motion, innovation_scale, pair_travel, position, reaches, shadow_correlation
+from netsim._kernels import Motion, innovation_scale, lower_bound, pair_travel, position, reaches, shadow_correlation
 from netsim.compiled import jit
 from netsim.world._kernels import NO_LIMIT, on_grid, walls_one
 
@@ -122,7 +122,7 @@ def slot(table_keys, dense_n, key):
     if dense_n > 0:
         i, j = pair_of(key)
         return dense_slot(i, j, dense_n)
-    return np.searchsorted(table_keys, key)
+    return lower_bound(table_keys, 0, table_keys.shape[0], key)
 
 
 @jit(nogil=True)

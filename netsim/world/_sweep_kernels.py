@@ -484,11 +484,7 @@ def candidates(grid, g0, gv, k0, kv, duration, prune):
                     segment = Segment(ax - x, ay - y, vax, vay, bx - x, by - y, vbx, vby)
                     buf, n = _vertex_roots(cells, (cols[m], j), segment, duration, buf, n)
             continue
-        if near:
-            first = np.searchsorted(cols[start:stop], left) + start
-        else:
-            first = lower_bound(cols, start, stop, left)
-        for m in range(first, stop):
+        for m in range(lower_bound(cols, start, stop, left), stop):
             x = float(cols[m])
             if x > right:
                 break
