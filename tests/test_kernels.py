@@ -749,3 +749,17 @@ def test_a_cell_at_the_radius_is_covered_and_the_share_counts_every_cell(kind):
     assert share(np.array([1.0, 2.0, 3.0, np.inf]), 2.0) == 0.5
     assert share(np.array([2.0 + 1e-12]), 2.0) == 0.0
     assert np.isnan(share(np.zeros(0), 2.0))
+
+
+def test_lower_bound_is_numpys_searchsorted_left_side():
+    """One lower bound for every kernel (the sweep's rows, the Acks' lists, the shadowing
+    table's slots): numpy's left side within ``[lo, hi)``, a NaN placed last as numpy
+    places it, compiled and plain alike."""
+    rng = np.random.default_rng(5)
+    for kernels in (core_kernels, compiled_copy("netsim._kernels")):
+        for _ in range(200):
+            a = np.sort(rng.integers(-5, 6, rng.integers(0, 12))).astype(float)
+            lo = int(rng.integers(0, len(a) + 1))
+            hi = int(rng.integers(lo, len(a) + 1))
+            for x in (*rng.uniform(-7, 7, 3), *a[:2], np.inf, -np.inf, np.nan):
+                assert kernels.lower_bound(a, lo, hi, x) == lo + np.searchsorted(a[lo:hi], x), (a, lo, hi, x)
