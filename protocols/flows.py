@@ -79,6 +79,8 @@ class FlowTraffic:
         self.kinds: set[str] = set()
         # One entry per packet, in order of sending: its row (a dict of PACKETS_SCHEMA).
         self._packets: list[dict] = []
+        # Per message id that ``send`` gave a frame: the flow and the packet it is of.
+        self._packet_of: dict[int, tuple[int, int]] = {}
 
     def _sizes(self, nbytes: int) -> list[int]:
         """The frames' sizes of a packet of ``nbytes``, each size's kind made known to the
@@ -147,7 +149,12 @@ class FlowTraffic:
         # The row is the outcome's state: bound to it, no lookup by message id.
         told = self._teller(row)
         for nbytes in sizes:
-            self.send(flow.src, flow.dst, frame_kind(nbytes), told)
+            self._packet_of[self.send(flow.src, flow.dst, frame_kind(nbytes), told)] = (k, p)
+
+    def packet_of(self, msg_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The flow and the packet (packets.parquet's) of each frame of ``msg_ids``."""
+        pairs = np.array([self._packet_of[int(m)] for m in msg_ids], dtype=np.int64).reshape(-1, 2)
+        return pairs[:, 0], pairs[:, 1]
 
     @staticmethod
     def _teller(row: dict) -> Outcome:

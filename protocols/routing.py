@@ -1,6 +1,7 @@
 """What the routing protocols share (docs/routing.md, "Routing protocols"): data packets
-sent hop by hop as unicast frames, each holder asking the protocol for the next hop; the
-flows of ``traffic.flows`` carried that way; control frames counted by kind.
+sent hop by hop as unicast frames, each holder asking the protocol for the next hop, every
+reception kept (the ``hops`` table); the flows of ``traffic.flows`` carried that way;
+control frames counted by kind.
 
 A protocol subclasses :class:`Router` and implements :meth:`Router.next_hop` (and, if it
 learns of broken links, :meth:`Router.link_failed`); it sends its control frames with
@@ -18,6 +19,7 @@ import numpy as np
 import pandas as pd
 from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic, packet_delivery
+from netsim.protocols.relay import HOPS_SCHEMA
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
 from netsim.events import MessageDelivered, MessageDropped
@@ -29,11 +31,14 @@ from netsim.traffic import Traffic, frame_count, refuse_frames
 # control frames: per kind, the frames sent, their bytes, their receptions, and the
 # protocol's messages they carried (one per frame but where a frame packs several: OLSR).
 CONTROL_SCHEMA = {"kind": "object", "sent": "int64", "bytes_sent": "int64", "received": "int64", "messages": "int64"}
+# The clustering's hops table, and the packet of packets.parquet each frame belongs to.
+ROUTED_HOPS_SCHEMA = {**HOPS_SCHEMA, "flow": "int64", "packet": "int64"}
 ROUTING_TABLES = {
     "roles": ROLES_SCHEMA,
     "acks": ACKS_SCHEMA,
     "flows": FLOWS_SCHEMA,
     "packets": PACKETS_SCHEMA,
+    "hops": ROUTED_HOPS_SCHEMA,
     "control": CONTROL_SCHEMA,
 }
 
@@ -84,6 +89,7 @@ class Packet(NamedTuple):
     t_sent_s: float
     dst_xy: tuple[float, float] | None = None  # where the destination was (geographic routing)
     to: int = -1  # the next hop it was last sent to
+    t_tx_s: float = 0.0  # when it was last sent
 
 
 class Router:
@@ -104,6 +110,9 @@ class Router:
         self.control_received: dict[str, int] = {}
         self.control_messages: dict[str, int] = {}
         self.data_transmissions = 0
+        # Per reception of a data frame by its next hop: the frame's id, the hops it took
+        # with this one, sender, receiver, when sent and when received (the hops table).
+        self._hops: tuple[list, ...] = tuple([] for _ in HOPS_SCHEMA)
         self.flows = None
         self.pairs = pairs if pairs is not None and pairs.message_rate_hz > 0 else None
         traffic = parts.traffic
@@ -128,6 +137,7 @@ class Router:
                 self.flows.start_pairs(self.state.n, pairs.message_rate_hz, pairs.message_bytes, rng)
             self.trace.add_frame("packets", self.flows.packets_frame)
             self.trace.add_frame("flows", self.flows.flows_frame)
+            self.trace.add_frame("hops", self.hops_frame)
 
     # -- what a protocol implements ----------------------------------------------------
     def next_hop(self, holder: int, pkt: Packet) -> tuple[int, str]:
@@ -167,7 +177,7 @@ class Router:
             self.dropped(pkt, holder, cause)
             return
         self.data_transmissions += 1
-        pkt = pkt._replace(to=nxt)
+        pkt = pkt._replace(to=nxt, t_tx_s=self.env.now)
         if not self.channel.unicast(holder, nxt, pkt, self._on_data, kind=pkt.kind) and not self.channel.deferred:
             # Under a medium the frame's notice says it did not get through (_on_data), once.
             self.link_failed(holder, nxt, pkt)
@@ -181,6 +191,8 @@ class Router:
             return
         holder = int(receivers[0])
         pkt = pkt._replace(ttl=pkt.ttl - 1, hops=pkt.hops + 1)
+        for column, value in zip(self._hops, (pkt.id, pkt.hops, sender, holder, pkt.t_tx_s, self.env.now)):
+            column.append(value)
         if holder == pkt.dst:
             told = self._told.pop(pkt.id, None)
             if told is not None:
@@ -200,6 +212,16 @@ class Router:
             told(pkt.id, False, now, pkt.hops, robot, cause)
             if self.events is not None and self.events.wants("message_dropped"):
                 self.events.emit("message_dropped", MessageDropped(now, pkt.id, pkt.src, pkt.dst, pkt.hops, cause))
+
+    def hops_frame(self) -> pd.DataFrame:
+        """Every reception of a data frame by the next hop it was sent to, in order of
+        reception (ROUTED_HOPS_SCHEMA): the clustering's hops table (``msg_id`` the frame's,
+        as in the message events; ``hop`` the transmissions up to and including this one),
+        with the ``flow`` and ``packet`` of packets.parquet it carries a frame of."""
+        assert self.flows is not None  # the table is written with the packets' only
+        flow, packet = self.flows.packet_of(np.array(self._hops[0], dtype=np.int64))
+        columns = dict(zip(HOPS_SCHEMA, self._hops))
+        return pd.DataFrame({**columns, "flow": flow, "packet": packet}).astype(ROUTED_HOPS_SCHEMA)
 
     # -- control ------------------------------------------------------------------------
     def control_kind(self, kind: str, nbytes: int, label: str = "") -> None:

@@ -693,3 +693,75 @@ def test_a_run_named_like_markup_still_loads(moving_run, tmp_path, open_page):
     page = open_page(odd / "view.html")
     assert page.js("netsimView.ready") and page.js("netsimView.n") == 40
     assert "r<!--<script>" in page.js("JSON.parse(document.getElementById('netsim-meta').textContent).title")
+
+
+@pytest.fixture(scope="module")
+def routed_run(tmp_path_factory):
+    """AODV carrying a flow of three-frame packets and random pairs' messages."""
+    out = tmp_path_factory.mktemp("replay") / "aodv"
+    return _run(
+        out,
+        "seed=5",
+        "duration_s=40",
+        "world.n_robots=30",
+        "world.side_m=500",
+        "channel.range_m=130",
+        "protocol.model=aodv",
+        "protocol.message_rate_hz=1.0",
+        "traffic.flows=[{src=0, dst=7, start_s=5, stop_s=35, rate_bps=16000, packet_bytes=4000}]",
+    )
+
+
+def test_a_routing_runs_replay_draws_its_packets_as_they_hop(routed_run):
+    """A routing protocol writes no messages table: the replay's messages are its packets
+    (packets.parquet, in order of sending) and each hop of hops.parquet is drawn under the
+    packet it carries a frame of, each robot's first reception of the packet once."""
+    from netsim.tools.viewer.data import pack
+
+    packets = pd.read_parquet(routed_run / "packets.parquet").sort_values("t_sent_s", kind="stable")
+    hops = pd.read_parquet(routed_run / "hops.parquet")
+    meta, arrays = _packed(pack(routed_run))
+    assert meta["has"]["messages"] and meta["has"]["hops"] and meta["message_noun"] == "packet"
+    assert arrays["msg_src"].tolist() == packets["src"].tolist()
+    assert arrays["msg_dst"].tolist() == packets["dst"].tolist()
+    assert arrays["msg_delivered"].astype(bool).tolist() == packets["delivered"].tolist()
+    # Each packet's first reception by each robot, by the packet's place in sending order.
+    place = {key: k for k, key in enumerate(zip(packets["flow"], packets["packet"]))}
+    first = hops.sort_values("t_received_s", kind="stable").drop_duplicates(["flow", "packet", "receiver"])
+    drawn = sorted(zip(arrays["hop_msg"].tolist(), arrays["hop_receiver"].tolist()))
+    expected = sorted((place[(f, p)], r) for f, p, r in zip(first["flow"], first["packet"], first["receiver"]))
+    assert drawn == expected and len(drawn) < len(hops)
+    assert {(m, r) for m, r in drawn if r == packets["dst"].iloc[m]} == {
+        (m, d) for m, d in enumerate(packets["dst"]) if packets["delivered"].iloc[m]
+    }
+
+
+def _packed(packed: dict) -> tuple[dict, dict[str, np.ndarray]]:
+    """The page's metadata and its arrays, decoded as the page decodes them."""
+    import base64
+    import gzip
+
+    from netsim.tools.viewer.data import Blob
+
+    dtypes = {code: dtype for dtype, code in Blob.CODES.items()}
+    meta = packed["meta"]
+    data = gzip.decompress(base64.b64decode(packed["blob"]))
+    arrays = {}
+    for name, (code, offset, size) in meta["arrays"].items():
+        arrays[name] = np.frombuffer(data, dtypes[code], size, offset)
+    return meta, arrays
+
+
+@pytest.mark.slow
+def test_a_routing_runs_packets_are_counted_and_drawn_on_the_page(routed_run, open_page):
+    """The page counts packets, not messages, names them in its legend, and draws the
+    hops of those sent within the trail."""
+    page = open_page(routed_run / "view.html")
+    packets = pd.read_parquet(routed_run / "packets.parquet")
+    page.js("netsimView.seek(20)")
+    text = page.page.locator("#now").inner_text()
+    sent = int((packets["t_sent_s"] <= 20).sum())
+    arrived = int((packets["delivered"] & (packets["t_delivered_s"] <= 20)).sum())
+    assert f"packets sent {sent}, arrived {arrived}" in text and arrived > 0
+    assert "routed packet" in page.page.locator("#legend").inner_text()
+    assert page.js("netsimView.hopsDrawn") > 0

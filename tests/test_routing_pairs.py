@@ -72,3 +72,48 @@ def test_routing_message_rate_out_of_range_is_refused():
         make_config(protocol={"model": "olsr", "message_rate_hz": -1.0})
     with pytest.raises(ConfigError, match="protocol.message_bytes"):
         make_config(protocol={"model": "greedy", "message_bytes": 0})
+
+
+@pytest.mark.parametrize("model", ["aodv", "olsr", "greedy"])
+def test_routing_hops_list_every_frames_path_from_source_to_destination(tmp_path, model):
+    """Under a routing protocol ``hops.parquet`` lists each data frame's reception by its
+    next hop: on a static, loss-free grid one row per data transmission, and each
+    delivered frame's rows are a chain from its packet's source to its destination, hop
+    1, 2, ... in time order, every frame of a delivered packet there, as many hops as the
+    packet's ``hops``; ``flow`` and ``packet`` name its row of ``packets.parquet``."""
+    flow = {"src": 0, "dst": 15, "start_s": 15.0, "stop_s": 25.0, "rate_bps": 32000.0, "packet_bytes": 4000}
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in GRID))
+    config = make_config(
+        seed=4,
+        duration_s=30.0,
+        world={"n_robots": len(GRID), "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"model": model, "message_rate_hz": 2.0},
+        traffic={"flows": [flow]},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    hops, packets = frames["hops"], frames["packets"]
+    assert list(hops.columns) == ["msg_id", "hop", "sender", "receiver", "t_sent_s", "t_received_s", "flow", "packet"]
+    assert len(hops) == sim.models["protocol"].data_transmissions > 0
+    assert hops["t_received_s"].is_monotonic_increasing
+    assert (hops["t_received_s"] > hops["t_sent_s"]).all()
+    by_packet = packets.set_index(["flow", "packet"])
+    delivered = by_packet[by_packet["delivered"]]
+    assert (delivered["frames"] == 3).sum() > 5 and (delivered["frames"] == 1).sum() > 5
+    for (f, p), row in delivered.iterrows():
+        ours = hops[(hops["flow"] == f) & (hops["packet"] == p)]
+        assert ours["msg_id"].nunique() == row["frames"]
+        longest = 0
+        for _, chain in ours.groupby("msg_id"):
+            chain = chain.sort_values("hop")
+            assert chain["hop"].tolist() == list(range(1, len(chain) + 1))
+            assert chain["sender"].iloc[0] == row["src"] and chain["receiver"].iloc[-1] == row["dst"]
+            assert chain["sender"].iloc[1:].tolist() == chain["receiver"].iloc[:-1].tolist()
+            assert (chain["t_sent_s"].iloc[1:].to_numpy() >= chain["t_received_s"].iloc[:-1].to_numpy()).all()
+            longest = max(longest, len(chain))
+        assert longest == row["hops"]

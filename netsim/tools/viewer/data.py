@@ -123,8 +123,10 @@ def series(
     coverage: pd.DataFrame | None,
     blob: Blob,
     labels: RoleLabels | None = None,
+    noun: str = "message",
 ) -> list[dict]:
-    """The strip chart: what each series is, and its arrays in ``blob``."""
+    """The strip chart: what each series is, and its arrays in ``blob``; ``noun``: what
+    ``messages`` lists (a routing protocol's packets)."""
     n, duration = config.world.n_robots, config.duration_s
     out = []
 
@@ -153,7 +155,7 @@ def series(
         arrived = np.sort(messages.loc[messages["delivered"].to_numpy(bool), "t_delivered_s"].to_numpy(float))
         t = np.unique(np.concatenate([sent, arrived]))
         ratio = np.searchsorted(arrived, t, "right") / np.searchsorted(sent, t, "right")
-        add("delivered", "messages delivered (of those sent so far)", t, ratio, "step", "fraction")
+        add("delivered", f"{noun}s delivered (of those sent so far)", t, ratio, "step", "fraction")
     return out
 
 
@@ -165,6 +167,23 @@ def first_receptions(hops: pd.DataFrame, messages: pd.DataFrame) -> pd.DataFrame
     h = hops.sort_values("t_received_s", kind="stable").drop_duplicates(["msg_id", "receiver"])
     src = messages.set_index("msg_id")["src"].reindex(h["msg_id"]).to_numpy()
     return h[h["receiver"].to_numpy() != src].sort_values(["t_sent_s", "t_received_s"], kind="stable")
+
+
+def routed_packets(run_dir: Path, hops: pd.DataFrame, n: int) -> tuple[pd.DataFrame | None, pd.DataFrame]:
+    """A routing protocol's run has no messages table: its packets (packets.parquet) are
+    the replay's messages, ``msg_id`` a packet's place in order of sending, and each hop
+    (which names its packet's ``flow`` and ``packet``) is put under its packet's id. A
+    packet of several frames shows the hops of all of them."""
+    packets = _read(run_dir, "packets", n)
+    if packets is None or not {"flow", "packet"} <= set(hops.columns):
+        return None, hops
+    packets = packets.sort_values("t_sent_s", kind="stable").reset_index(drop=True)
+    packets["msg_id"] = np.arange(len(packets), dtype=np.int64)
+    ids = packets.set_index(["flow", "packet"])["msg_id"]
+    key = pd.MultiIndex.from_frame(hops[["flow", "packet"]])
+    if not key.isin(ids.index).all():
+        raise NetsimInputError(f"{run_dir}/hops.parquet: names a packet packets.parquet does not list")
+    return packets, hops.assign(msg_id=ids.reindex(key).to_numpy())
 
 
 def _motion(run_dir: Path, n: int, blob: Blob) -> str:
@@ -310,6 +329,10 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         _pack_neighbour_beliefs(run_dir, nb, bel_times, n, blob)
 
     messages = _read(run_dir, "messages", n)
+    hops = _read(run_dir, "hops", n)
+    routed = messages is None and hops is not None
+    if routed:
+        messages, hops = routed_packets(run_dir, hops, n)
     has_messages = messages is not None and len(messages) > 0
     if has_messages:
         m = messages.sort_values("msg_id", kind="stable")
@@ -318,7 +341,6 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         blob.add("msg_t", m["t_sent_s"], "<f8")
         blob.add("msg_delivered", m["delivered"].to_numpy(bool), "u1")
         blob.add("msg_t_delivered", m["t_delivered_s"].astype(float), "<f8")
-    hops = _read(run_dir, "hops", n)
     has_hops = has_messages and hops is not None and len(hops) > 0
     if has_hops:
         h = first_receptions(hops, messages)
@@ -331,7 +353,9 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
 
     coverage = _read(run_dir, "coverage", n)
     ack_delivery = _read(run_dir, "ack_delivery", n)
-    chart = series(config, links, roles, ack_delivery, messages, coverage, blob, labels)
+    # A routing protocol's replay draws packets where the clustering's draws messages.
+    noun = "packet" if routed else "message"
+    chart = series(config, links, roles, ack_delivery, messages, coverage, blob, labels, noun)
 
     map_meta = None
     if map_grid is None and config.world.map:
@@ -369,6 +393,7 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
         "protocol": config.protocol.model,
         "mobility": config.mobility.model,
         "seed": config.seed,
+        "message_noun": noun,
         "has": {
             "roles": not roles.empty,
             "groups": has_groups,

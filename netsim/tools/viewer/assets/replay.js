@@ -813,7 +813,7 @@
       const sent = lastAtOrBefore(A.msg_t, t) + 1;
       let arrived = 0;
       for (let m = 0; m < sent; m++) if (A.msg_delivered[m] && A.msg_t_delivered[m] <= t) arrived++;
-      lines.push(`messages sent ${sent}, arrived ${arrived}`);
+      lines.push(`${META.message_noun ?? "message"}s sent ${sent}, arrived ${arrived}`);
     }
     ui.now.textContent = lines.join("\n");
     ui.chartLegend.replaceChildren(
@@ -937,7 +937,10 @@
       rows.push(row(icon(drawIcon), NO_ROLES ? `${st.label}: protocol "${META.protocol}"` : st.label));
     }
     rows.push(row(icon(line(PAL.link)), "link"));
-    if (META.has.hops) rows.push(row(icon(line(PAL.message)), "relayed message (source ring, destination dashed)"));
+    if (META.has.hops) {
+      const what = META.message_noun === "packet" ? "routed packet" : "relayed message";
+      rows.push(row(icon(line(PAL.message)), `${what} (source ring, destination dashed)`));
+    }
     if (!NO_ROLES) {
       const note = document.createElement("div");
       note.textContent = "colour: the group (its leader), the same for the whole run";
