@@ -921,3 +921,28 @@ def test_a_run_of_a_relative_trace_repeats_from_its_config_anywhere(tmp_path, mo
     assert main(["run", str(here / "first" / "config.toml"), "--out", "again", "--quiet"]) == 0
     first, again = (pd.read_parquet(d / "legs.parquet") for d in (here / "first", elsewhere / "again"))
     pd.testing.assert_frame_equal(first, again)
+
+
+def test_rosbag2_packets_are_the_runs_rows_at_their_times(tmp_path):
+    """Each packet of packets.parquet is JSON text on ``/packets`` when it is sent and, if
+    delivered, when it is delivered (with its hops and latency): a routing protocol's run,
+    which has no messages table, has its traffic in the bag too."""
+    run = tmp_path / "aodv"
+    flow = "traffic.flows=[{src=0, dst=5, start_s=2, stop_s=18, rate_bps=8000, packet_bytes=1000}]"
+    sets = ["duration_s=20", "world.n_robots=8", "protocol.model=aodv", "protocol.message_rate_hz=1", flow]
+    assert main(["run", *(a for s in sets for a in ("--set", s)), "--out", str(run), "--quiet"]) == 0
+    packets = pd.read_parquet(run / "packets.parquet")
+    want = []
+    for m in packets.itertuples(index=False):
+        ids = {"flow": int(m.flow), "packet": int(m.packet), "src": int(m.src), "dst": int(m.dst)}
+        want.append((ns(m.t_sent_s), "/packets", {"event": "sent", **ids}))
+        if m.delivered:
+            done = {"hops": int(m.hops), "latency_s": float(m.latency_s)}
+            want.append((ns(m.t_delivered_s), "/packets", {"event": "delivered", **ids, **done}))
+    assert packets["delivered"].any() and set(packets["flow"]) == {-1, 0}
+    got = [
+        (stamp, topic, json.loads(msg.data))
+        for topic, stamp, msg in _exported_bag(run, tmp_path / "b", lambda topic: topic in ("/packets", "/messages"))
+    ]
+    key = lambda row: (row[0], row[1], json.dumps(row[2], sort_keys=True))  # noqa: E731
+    assert sorted(got, key=key) == sorted(want, key=key)

@@ -13,7 +13,9 @@ simulated time: ``geometry_msgs/msg/PoseStamped`` on ``/robot_<i>/pose`` for eve
 position (``positions.parquet``), the links up at each sampling instant as one
 ``visualization_msgs/msg/MarkerArray`` on ``/links`` (a ``LINE_LIST`` marker), each role
 change as ``std_msgs/msg/String`` on ``/robot_<i>/role`` and each message sent or delivered
-on ``/messages`` (JSON text), all in frame ``map``.
+on ``/messages`` (JSON text), each packet of ``packets.parquet`` sent or delivered on
+``/packets`` (JSON text; a routing protocol's run has packets and no messages), all in
+frame ``map``.
 """
 
 from __future__ import annotations
@@ -289,6 +291,14 @@ def write(out: str | Path, frames: dict[str, pd.DataFrame]) -> int:
             if m["delivered"]:
                 extra = {"hops": int(m["hops"]), "latency_s": float(m["latency_s"])}
                 text(float(m["t_delivered_s"]), "/messages", {"event": "delivered", **ids, **extra})
+    packets = frames.get("packets")
+    if packets is not None:
+        for m in packets.to_dict("records"):
+            ids = {"flow": int(m["flow"]), "packet": int(m["packet"]), "src": int(m["src"]), "dst": int(m["dst"])}
+            text(float(m["t_sent_s"]), "/packets", {"event": "sent", **ids})
+            if m["delivered"]:
+                extra = {"hops": int(m["hops"]), "latency_s": float(m["latency_s"])}
+                text(float(m["t_delivered_s"]), "/packets", {"event": "delivered", **ids, **extra})
 
     rows.sort(key=lambda r: (r[0], r[1]))
     with Writer(Path(out), version=8) as writer:

@@ -81,7 +81,8 @@ def export(run_dir: str | Path, fmt: str, out: str | Path) -> Path:
                 stacklevel=2,
             )
         frames = {
-            name: _table(run_dir, name, n, name == "positions") for name in ("positions", "links", "roles", "messages")
+            name: _table(run_dir, name, n, name == "positions")
+            for name in ("positions", "links", "roles", "messages", "packets")
         }
         if frames["positions"] is not None and frames["positions"].empty:
             raise NetsimInputError(f"{run_dir}: positions.parquet is empty (set output.position_interval_s > 0)")

@@ -128,7 +128,7 @@ READ_COLUMNS = {
     "neighbour_beliefs": ("t_s", "robot", "neighbour", "believed", "in_range"),
     "messages": ("msg_id", "src", "dst", "t_sent_s", "delivered", "t_delivered_s"),
     "hops": ("msg_id", "hop", "sender", "receiver", "t_sent_s", "t_received_s"),
-    "packets": ("flow", "packet", "src", "dst", "t_sent_s", "delivered", "t_delivered_s"),
+    "packets": ("flow", "packet", "src", "dst", "t_sent_s", "delivered", "t_delivered_s", "hops", "latency_s"),
     "ack_delivery": ("t_s", "delivery_ratio"),
     "coverage": ("t_s", "covered_fraction_leaders", "covered_fraction_all"),
 }
