@@ -147,6 +147,32 @@ def test_bound_runs_every_plan_and_oracle_on_each_seed_and_prints_their_ratios(t
     assert "margin, team" in run.stdout and "least" in run.stdout
 
 
+def test_bound_runs_only_the_oracles_asked_and_counts_the_seeds_at_80_percent(tmp_path, monkeypatch, capsys):
+    """``--oracles`` picks rule 1's oracles by their slugs (the global and local plans run
+    always), and the table ends with the seeds at 0.8 or more of the global plan."""
+    module = targets()
+    ran = []
+
+    def fake(job, duration_s):
+        kind, n, seed = job
+        ran.append(kind)
+        of_bound = {"global": 0.5, "local": 0.35, "margin, team": 0.45}[kind] * (1.0 if seed == 1 else 0.8)
+        return {"N": n, "seed": seed, "plan": kind, "of bound": of_bound, "grew": 0}
+
+    monkeypatch.setattr(module, "run_jobs", lambda one, jobs, args: pd.DataFrame([fake(j, 0.0) for j in jobs]))
+    assert module.main(["--bound", "--seeds", "2", "--n", "8", "--oracles", "margin-team"]) == 0
+    assert sorted(set(ran)) == ["global", "local", "margin, team"]
+    last = capsys.readouterr().out.strip().splitlines()[-1].split()
+    # N, seed, global, local, margin-team, grew: the local plan at 0.7 on both seeds, the oracle at 0.9.
+    assert last[:2] == ["8", ">="] and [float(v) for v in last[-3:-1]] == [0.0, 2.0]
+
+
+def test_oracles_outside_bound_is_one_line_exit_2(capsys, monkeypatch):
+    code = exit_status(monkeypatch, ["--shadowing", "--oracles", "margin-team"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.strip().splitlines() == ["coverage_targets.py: error: --oracles applies to --bound only"]
+
+
 # Unknown, out of range, without a value, and keys that name a run in the table (dotted or as a table).
 BAD_SETTINGS = ["coverage.nonsense=1", "coverage.detour_sigmas=-1", "coverage.detour_sigmas"]
 BAD_SETTINGS += ["coverage.plan=local", "seed=3", 'coverage={plan="global"}', "world={n_robots=5}"]
