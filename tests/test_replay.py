@@ -199,6 +199,7 @@ def test_relayed_messages_are_drawn_as_they_hop(moving_run, open_page):
     """Within the message trail, one segment per robot's first reception of a message
     (hops.parquet, less the repeats and the source hearing its own message again)."""
     page = open_page(moving_run / "view.html")
+    assert page.page.locator("#hops-label").inner_text() == "relayed messages"
     hops = pd.read_parquet(moving_run / "hops.parquet")
     src = pd.read_parquet(moving_run / "messages.parquet").set_index("msg_id")["src"]
     first = hops.sort_values("t_received_s").groupby(["msg_id", "receiver"]).head(1)
@@ -764,4 +765,6 @@ def test_a_routing_runs_packets_are_counted_and_drawn_on_the_page(routed_run, op
     arrived = int((packets["delivered"] & (packets["t_delivered_s"] <= 20)).sum())
     assert f"packets sent {sent}, arrived {arrived}" in text and arrived > 0
     assert "routed packet" in page.page.locator("#legend").inner_text()
+    assert page.page.locator("#hops-label").inner_text() == "routed packets"
+    assert page.page.locator("#trail-label").inner_text() == "packet trail"
     assert page.js("netsimView.hopsDrawn") > 0

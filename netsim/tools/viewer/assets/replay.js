@@ -937,6 +937,10 @@
       rows.push(row(icon(drawIcon), NO_ROLES ? `${st.label}: protocol "${META.protocol}"` : st.label));
     }
     rows.push(row(icon(line(PAL.link)), "link"));
+    if (META.message_noun === "packet") {
+      document.getElementById("hops-label").textContent = "routed packets";
+      document.getElementById("trail-label").textContent = "packet trail";
+    }
     if (META.has.hops) {
       const what = META.message_noun === "packet" ? "routed packet" : "relayed message";
       rows.push(row(icon(line(PAL.message)), `${what} (source ring, destination dashed)`));
