@@ -167,6 +167,9 @@ def test_rpgm_members_stay_in_the_area():
     "settings, key",
     [
         (["mobility.model=rpgm", "mobility.group_radius_m=600"], "mobility.group_radius_m"),
+        # Half the side leaves the reference points no room at all.
+        (["mobility.model=rpgm", "world.side_m=1000", "mobility.group_radius_m=500"], "mobility.group_radius_m"),
+        (["mobility.model=rpgm", "world.torus=true"], "mobility.model"),
         (["mobility.model=rpgm", "mobility.group_size=0"], "mobility.group_size"),
         (["mobility.model=rpgm", "mobility.offset_law=uniform"], "mobility.offset_law"),
         (["mobility.model=gauss_markov", "mobility.alpha=1.5"], "mobility.alpha"),
@@ -373,3 +376,41 @@ def test_gauss_markov_keys_refuse_a_torus_and_allow_a_hundred_radians():
         check(GaussMarkovParams(), SimpleNamespace(world=SimpleNamespace(torus=True)))
     assert _at_most_a_hundred_radians(100.0) is None and _at_most_a_hundred_radians(0.0) is None
     assert _at_most_a_hundred_radians(100.5) is not None
+
+
+def test_rpgm_group_radius_just_under_half_the_side_is_allowed():
+    assert load(None, ["mobility.model=rpgm", "world.side_m=1000", "mobility.group_radius_m=499.9"])
+
+
+def test_rpgm_member_offset_at_exactly_the_top_speed_is_kept():
+    """BonnMotion's bound is inclusive: a member moving exactly ``speed_max_mps`` is not
+    redrawn. The reference point moves 5 m east in 10 s and the offset 5 m east: 10 m in 10 s."""
+    m = RpgmParams(speed_max_mps=1.0, group_radius_m=10.0)
+    rng = _Draws(randoms=[0.5, 0.0], angles=[0.0, 0.0])
+    new = member_offset(rng, m, np.zeros(2), np.array([5.0, 0.0]), 10.0)
+    assert new.tolist() == [5.0, 0.0] and rng.randoms == [0.0]
+
+
+def test_rpgm_reference_points_move_at_speeds_drawn_between_the_bounds_and_resume_after_a_pause():
+    """Each leg of a reference point takes its distance over a speed drawn in [speed_min,
+    speed_max] (not always the top one), and the members' legs after a pause are pause ends."""
+    frames = _run(
+        [
+            "mobility.model=rpgm",
+            "world.n_robots=6",
+            "mobility.group_size=3",
+            "duration_s=400",
+            "mobility.speed_min_mps=1",
+            "mobility.speed_max_mps=5",
+            "mobility.pause_s=2",
+            "mobility.group_radius_m=20",
+        ]
+    )
+    ref = frames["reference_points"]
+    speeds = []
+    for _, g in ref.groupby("group"):
+        xy, t = g[["x_m", "y_m"]].to_numpy(), g["t_s"].to_numpy()
+        # Rows come in pairs: a leg's start and its end.
+        speeds += (np.hypot(*(xy[1::2] - xy[0::2]).T) / (t[1::2] - t[0::2])).tolist()
+    assert 1.0 - 1e-9 <= min(speeds) and max(speeds) <= 5.0 + 1e-9 and min(speeds) < 4.0
+    assert "pause_end" in set(frames["legs"]["cause"])
