@@ -532,3 +532,72 @@ def test_a_trace_below_zero_on_the_default_square_names_world_bounds_m(tmp_path,
     assert "(they span [-10.5, -3.25, 20, 4])" in err, err
     assert not (tmp_path / "a").exists()
     assert main([*base, "--set", "world.bounds_m=[-10.5, -3.25, 20, 4]", "--out", str(tmp_path / "b")]) == 0
+
+
+# -- rules the mutation audit found unguarded ------------------------------------------------
+
+
+def test_an_area_may_reach_the_farthest_coordinate_and_no_further_and_its_side_must_be_positive():
+    """The limits of the area's keys are inclusive at the farthest coordinate, and a side of 0 is none."""
+    from netsim.area import MAX_COORDINATE_M, area_side, within_reach_of_doubles
+
+    assert within_reach_of_doubles(MAX_COORDINATE_M) is None and within_reach_of_doubles(-MAX_COORDINATE_M) is None
+    assert within_reach_of_doubles(1.000001 * MAX_COORDINATE_M) == "must be at most 1e+12 m in size"
+    assert area_side(MAX_COORDINATE_M) is None
+    assert area_side(0.0) == area_side(-1.0) == area_side(2 * MAX_COORDINATE_M) == "must be in (0, 1e+12] (metres)"
+
+
+def test_a_rectangles_diagonal_and_a_squares_are_their_lengths():
+    assert Bounds(0.0, 0.0, 3.0, 4.0).diagonal == 5.0
+    assert Bounds(-1.0, 2.0, 3.0, 6.0).diagonal == 4.0 * math.sqrt(2)
+
+
+def test_points_uniform_over_a_square_off_the_origin_lie_in_it():
+    """Only the square at the origin takes the draws of ``uniform(0, side)``: a square
+    shifted along one axis alone is drawn over itself."""
+    for b in (Bounds(0.0, 50.0, 10.0, 60.0), Bounds(50.0, 0.0, 60.0, 10.0)):
+        p = b.uniform(np.random.default_rng(0), 200)
+        assert b.contains(p).all()
+
+
+def test_the_rectangle_is_closed_on_every_side():
+    b = Bounds(-1.0, -2.0, 3.0, 4.0)
+    corners = [[-1.0, -2.0], [3.0, -2.0], [3.0, 4.0], [-1.0, 4.0]]
+    assert b.contains(corners).all()
+    assert not b.contains([[3.0, 4.0 + 1e-12]]).any()
+    assert b.contains([[3.0, 4.5]], tol_m=0.5).all()
+
+
+def test_a_robot_already_outside_on_its_way_out_reaches_the_border_at_once():
+    """``exit_times`` is negative there; the time to the border is 0, never a time past."""
+    from netsim.area import exit_times, time_to_border
+
+    p, v = np.array([[12.0, 5.0]]), np.array([[1.0, 0.0]])
+    assert exit_times(p, v, (0.0, 0.0), (10.0, 10.0)).tolist() == [-2.0]
+    assert time_to_border(p, v, 10.0).tolist() == [0.0]
+
+
+@pytest.mark.parametrize(
+    "value", [[0.0, 0.0, 0.0, 10.0], [0.0, 0.0, 10.0, 0.0], [True, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, False]]
+)
+def test_bounds_of_no_width_or_height_or_with_a_boolean_are_refused(value):
+    from netsim.area import parse_bounds
+    from netsim.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="x_max > x_min, y_max > y_min"):
+        parse_bounds("world.bounds_m", value)
+
+
+@pytest.mark.parametrize("value", [[float("nan"), 0.0], [0.0, float("inf")], [True, 0.0]])
+def test_a_start_point_not_of_two_finite_numbers_is_refused(value):
+    from netsim.area import parse_start
+    from netsim.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"must be \[x, y\]"):
+        parse_start("world.start_m", value)
+
+
+def test_a_start_point_is_read_as_x_then_y():
+    from netsim.area import parse_start
+
+    assert parse_start("world.start_m", [1, 2.5]) == (1.0, 2.5)

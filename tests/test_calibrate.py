@@ -659,3 +659,126 @@ def test_a_power_at_the_transmit_power_is_no_path_loss_below_0_db():
         check_tx_power(np.array([20.0, -60.0, np.nan]), 20.0, "the log")
     with pytest.warns(CalibrationWarning, match="1 frame of the log logged above --tx-power-dbm 20"):
         check_tx_power(np.array([20.5, -60.0]), 20.0, "the log")
+
+
+# -- the fits' rules against their closed forms (a mutation audit found them unguarded) ----
+
+
+def _design(y, g, walls=None, cluster=None, above=None):
+    from netsim.tools.channel_fit import Design
+
+    y, g = np.asarray(y, float), np.asarray(g, float)
+    cluster = np.arange(len(y)) if cluster is None else np.asarray(cluster)
+    return Design(y, g, None if walls is None else np.asarray(walls), cluster, 20.0, above)
+
+
+def test_each_rows_likelihood_is_the_normal_truncated_or_censored_at_the_sensitivity():
+    """Received rows: the normal density of the power, divided by P(y >= S) when the log
+    holds only received frames (truncated); in a censored fit a frame not received counts
+    P(y < S), and one heard but not logged P(y >= S). The scores are these' gradients."""
+    from scipy import stats
+
+    from netsim.tools.channel_fit import _loglik_and_scores
+
+    theta = np.array([40.0, 2.5, np.log(4.0)])
+    design = _design([-50.0, -62.0, np.nan, np.nan], [10.0, 14.0, 18.0, 16.0], above=[False, False, False, True])
+    mu = 20.0 - 40.0 - 2.5 * design.g_db
+    s = -65.0
+    received = design.received_only()
+    ll, _ = _loglik_and_scores(theta, received, s, censored=False)
+    truncated = stats.norm.logpdf(received.y_dbm, mu[:2], 4.0) - stats.norm.logsf(s, mu[:2], 4.0)
+    assert ll == pytest.approx(truncated, rel=1e-12)
+    ll, scores = _loglik_and_scores(theta, design, s, censored=True)
+    want = np.r_[stats.norm.logpdf(design.y_dbm[:2], mu[:2], 4.0), stats.norm.logcdf(s, mu[2], 4.0)]
+    assert ll == pytest.approx(np.r_[want, stats.norm.logsf(s, mu[3], 4.0)], rel=1e-12)
+    for censored, d in ((False, received), (True, design)):
+        _, scores = _loglik_and_scores(theta, d, s, censored)
+        for j in range(3):
+            up, down = theta.copy(), theta.copy()
+            up[j] += 1e-6
+            down[j] -= 1e-6
+            slope = (_loglik_and_scores(up, d, s, censored)[0] - _loglik_and_scores(down, d, s, censored)[0]) / 2e-6
+            assert scores[:, j] == pytest.approx(slope, rel=1e-5, abs=1e-8)
+
+
+def test_the_cluster_robust_covariance_sums_scores_by_pair_with_the_small_sample_factor():
+    """``H^-1 B H^-1 G / (G - 1)``: scores 1, 1 of one pair and 2 of another, H = 2: the
+    pairs' sums 2 and 2, B = 8, 8 / 4 = 2, times 2 / 1."""
+    from netsim.tools.channel_fit import sandwich
+
+    cov = sandwich(np.array([[1.0], [1.0], [2.0]]), np.array([[2.0]]), np.array([7, 7, 3]))
+    assert cov.tolist() == [[4.0]]
+
+
+def test_the_naive_fit_is_least_squares_with_the_maximum_likelihood_sigma():
+    """Powers 1 dB either side of the law at each distance: least squares gives the law
+    back, and sigma is the root mean square of the residuals (divided by N, not N - p)."""
+    from netsim.tools.channel_fit import fit_naive
+
+    g = np.array([0.0, 0.0, 10.0, 10.0, 20.0, 20.0])
+    y = 20.0 - 40.0 - 3.0 * g + np.array([1.0, -1.0, -1.0, 1.0, 1.0, -1.0])
+    fit = fit_naive(_design(y, g, cluster=[0, 1, 2, 0, 1, 2]))
+    assert fit.likelihood == "least squares"
+    assert fit.reference_loss_db.value == pytest.approx(40.0, abs=1e-9)
+    assert fit.path_loss_exponent.value == pytest.approx(3.0, abs=1e-9)
+    assert fit.shadowing_sigma_db.value == pytest.approx(1.0, rel=1e-12)
+    sigma = fit.shadowing_sigma_db
+    assert sigma.low < 1.0 < sigma.high and sigma.low * sigma.high == pytest.approx(1.0, rel=1e-9)
+
+
+def test_an_estimate_covers_the_ends_of_its_interval():
+    from netsim.tools.channel_fit import Estimate
+
+    e = Estimate(1.0, 0.5, 2.0)
+    assert e.covers(0.5) and e.covers(2.0) and not e.covers(2.0 + 1e-12) and not e.covers(0.5 - 1e-12)
+
+
+def test_the_decorrelation_steps_are_consecutive_frames_of_a_pair_that_moved():
+    """Rows of each pair in order of travel; a step of no travel, or between two pairs, is none."""
+    from netsim.tools.channel_fit import ar1_steps
+
+    residual = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    travel = np.array([5.0, 1.0, 1.0, 0.0, 3.0, 9.0])
+    cluster = np.array([0, 0, 0, 1, 1, 1])
+    usable = np.array([True, True, True, True, True, False])
+    r0, r1, delta, pair = ar1_steps(residual, travel, cluster, usable)
+    # Pair 0 by travel: rows 1 (or 2) at 1 m, row 2 (or 1) at 1 m, row 0 at 5 m; pair 1: rows 3, 4.
+    assert delta.tolist() == [4.0, 3.0] and pair.tolist() == [0, 1]
+    assert r1.tolist() == [1.0, 5.0] and r0[1] == 4.0 and r0[0] in (2.0, 3.0)
+
+
+def test_the_naive_fit_gives_each_wall_its_loss():
+    """Walls are the third regressor, one loss per wall crossed."""
+    from netsim.tools.channel_fit import fit_naive
+
+    g = np.array([0.0, 0.0, 10.0, 10.0, 10.0, 10.0, 20.0, 20.0])
+    walls = np.array([0, 0, 0, 0, 1, 1, 2, 2])
+    y = 20.0 - 40.0 - 3.0 * g - 5.0 * walls + np.tile([1.0, -1.0], 4)
+    fit = fit_naive(_design(y, g, walls=walls, cluster=[0, 1, 2, 3, 0, 1, 2, 3]))
+    assert fit.wall_loss_db is not None and fit.wall_loss_db.value == pytest.approx(5.0, abs=1e-9)
+    assert fit.path_loss_exponent.value == pytest.approx(3.0, abs=1e-9)
+
+
+def test_intervals_are_95_percent_wald_ones_and_sigmas_is_taken_on_its_logarithm():
+    """Value plus or minus 1.96 standard errors; sigma's interval is exp of log sigma's."""
+    from netsim.tools.channel_fit import _estimates
+
+    fit = _estimates(np.array([40.0, 3.0, np.log(2.0)]), np.diag([1.0, 4.0, 0.01]), False, "truncated")
+    z = 1.959963984540054
+    assert (fit.reference_loss_db.low, fit.reference_loss_db.high) == pytest.approx((40.0 - z, 40.0 + z))
+    assert (fit.path_loss_exponent.low, fit.path_loss_exponent.high) == pytest.approx((3.0 - 2 * z, 3.0 + 2 * z))
+    sigma = fit.shadowing_sigma_db
+    assert (sigma.low, sigma.high) == pytest.approx((2.0 * np.exp(-0.1 * z), 2.0 * np.exp(0.1 * z)))
+
+
+def test_thirty_steps_from_five_pairs_are_enough_to_try_the_decorrelation():
+    """The least the decorrelation fit asks for is enough: it is tried, not refused as too few."""
+    from netsim.tools.channel_fit import MIN_STEP_PAIRS, MIN_STEPS, fit_decorrelation
+
+    rows = MIN_STEPS // MIN_STEP_PAIRS + 1
+    rng = np.random.default_rng(2)
+    cluster = np.repeat(np.arange(MIN_STEP_PAIRS), rows)
+    travel = np.tile(np.arange(rows) * 10.0, MIN_STEP_PAIRS)
+    result = fit_decorrelation(rng.normal(0.0, 4.0, len(cluster)), travel, cluster, np.ones(len(cluster), bool), 4.0)
+    assert (result.steps, result.pairs) == (MIN_STEPS, MIN_STEP_PAIRS)
+    assert "too few" not in result.reason

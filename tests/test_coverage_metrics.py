@@ -389,3 +389,54 @@ def test_nearest_spacing_is_the_least_distance_by_the_engines_rule(side_m):
         lattice = np.c_[(col + 0.5 * (row % 2)).ravel() * r * np.sqrt(3), (row * 1.5 * r).ravel()]
         lattice += rng.uniform(0.0, 100.0, 2)
         assert np.array_equal(nearest_spacing(lattice, side_m), least_m(lattice))
+
+
+# -- rules the mutation audit found unguarded ------------------------------------------------
+
+
+def test_random_coverage_is_one_minus_the_chance_all_n_disks_miss_a_point():
+    """Item 15's closed form at sizes where it is plain: no disk covers nothing, one disk
+    covers its own share, and each further disk misses a point with that share's complement."""
+    p = math.pi * 5.0**2 / 1000.0
+    assert random_coverage(0, 5.0, 1000.0) == 0.0
+    assert random_coverage(1, 5.0, 1000.0) == pytest.approx(p, rel=1e-12)
+    assert random_coverage(3, 5.0, 1000.0) == pytest.approx(1 - (1 - p) ** 3, rel=1e-12)
+
+
+def test_grid_side_accepts_one_to_max_grid_cells_inclusive():
+    """A configuration's grid may have exactly the most cells the check names, and at least one."""
+    from netsim.metrics import MAX_GRID_CELLS, grid_side
+
+    assert grid_side(1) is None and grid_side(MAX_GRID_CELLS) is None
+    assert grid_side(MAX_GRID_CELLS + 1) == "must be at most 4,000"
+    assert grid_side(0) == "must be > 0"
+
+
+def test_a_cell_exactly_half_a_diagonal_from_the_disks_edge_counts_as_uncertain():
+    """The bound counts every cell whose centre is within h/sqrt(2) of the boundary, that
+    distance included. Cells of 3 m x 4 m: half a diagonal is 2.5 m, exactly; the cell
+    centred at (1.5, 2) is 3.5 m from the centre, 2.5 m outside a disk of 1 m, and is
+    uncertain with the two cells above, nearer the edge; the fourth, farther, is not."""
+    from netsim.area import Bounds
+
+    frac, bound = covered_fraction([[1.5, 5.5]], 1.0, Bounds(0.0, 0.0, 6.0, 8.0), cells=2)
+    assert frac == 0.25
+    assert bound == 0.75
+
+
+def test_nearest_spacing_on_a_torus_folds_points_outside_the_square_in():
+    """Points given outside ``[0, side)`` are measured as their images inside it."""
+    got = nearest_spacing([[-1.0, 0.0], [5.0, 0.0], [10.0, 3.0]], side_m=10.0)
+    # -1 folds to 9 and 10 to 0: 9 -> 0 is 1 across the edge, in x, then 3 in y.
+    assert got.tolist() == pytest.approx([math.hypot(1.0, 3.0), 4.0, math.hypot(1.0, 3.0)])
+
+
+def test_hexagonality_counts_neighbours_to_1_2_spacings_and_leaves_out_points_with_one():
+    """A square of side 1.1 spacings: each corner's two neighbours (within 1.2 spacings; the
+    diagonal is not) sit 90 degrees apart, whose sixfold phases cancel, so psi_6 is 0. A
+    pair far away has one neighbour each and is left out, not counted as a perfect 1."""
+    s = 10.0
+    square = np.array([[0.0, 0.0], [11.0, 0.0], [11.0, 11.0], [0.0, 11.0]])
+    pair = np.array([[100.0, 100.0], [111.0, 100.0]])
+    assert hexagonality(square, s) == pytest.approx(0.0, abs=1e-12)
+    assert hexagonality(np.r_[square, pair], s) == pytest.approx(0.0, abs=1e-12)

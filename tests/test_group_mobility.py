@@ -167,6 +167,9 @@ def test_rpgm_members_stay_in_the_area():
     "settings, key",
     [
         (["mobility.model=rpgm", "mobility.group_radius_m=600"], "mobility.group_radius_m"),
+        # Half the side leaves the reference points no room at all.
+        (["mobility.model=rpgm", "world.side_m=1000", "mobility.group_radius_m=500"], "mobility.group_radius_m"),
+        (["mobility.model=rpgm", "world.torus=true"], "mobility.model"),
         (["mobility.model=rpgm", "mobility.group_size=0"], "mobility.group_size"),
         (["mobility.model=rpgm", "mobility.offset_law=uniform"], "mobility.offset_law"),
         (["mobility.model=gauss_markov", "mobility.alpha=1.5"], "mobility.alpha"),
@@ -252,3 +255,162 @@ def test_rpgm_members_are_never_faster_than_speed_max():
     speed = np.hypot(legs["vx_mps"], legs["vy_mps"])
     assert speed.max() <= 2.0 * (1 + 1e-9)
     assert (speed > 1.9).sum() > 0
+
+
+class _Scripted:
+    """A stand-in random generator: uniform draws give ``u``, normal draws the pairs given,
+    then zeros."""
+
+    def __init__(self, u: float, normals):
+        self.u, self.normals = u, list(normals)
+
+    def uniform(self, lo, hi, size=None):
+        return self.u
+
+    def standard_normal(self, size):
+        return np.asarray(self.normals.pop(0), float) if self.normals else np.zeros(size)
+
+
+def _updates(params: GaussMarkovParams, rng, until_s: float) -> pd.DataFrame:
+    """One robot in the middle of a wide square: its legs, one per update."""
+    env = simpy.Environment()
+    st = RobotState(1, 10_000.0, 10.0)
+    st.place(np.array([[5000.0, 5000.0]]))
+    env.process(gauss_markov_robot(env, st, params, 10_000.0, 0, rng))
+    env.run(until=until_s)
+    legs = st.legs()
+    # The leg an update sets replaces the placement's at t = 0.
+    return legs.groupby("t_s").last()
+
+
+def test_gauss_markov_mean_speed_is_reverted_to_at_rate_alpha():
+    """A kick of one standard normal at the first update, none after: the speed starts at
+    the mean, is lifted by sqrt(1 - alpha^2) sigma, and the lift decays by alpha an update."""
+    alpha, mean, sigma = 0.75, 2.0, 0.4
+    p = GaussMarkovParams(alpha=alpha, mean_speed_mps=mean, speed_sigma_mps=sigma, direction_sigma_rad=0.3)
+    legs = _updates(p, _Scripted(0.0, [(1.0, 0.0)]), 4.5)
+    speeds = np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy()
+    lift = math.sqrt(1 - alpha**2) * sigma
+    assert speeds == pytest.approx([mean + lift * alpha**k for k in range(5)], rel=1e-12)
+    assert np.allclose(legs["vy_mps"], 0.0)  # no kick to the direction: still east
+
+
+def test_gauss_markov_direction_is_reverted_to_its_mean_at_rate_alpha_by_its_own_draw():
+    """The direction's kick is the second normal, scaled by sqrt(1 - alpha^2) times the
+    direction's sigma (not the speed's), and decays by alpha an update; the speed stays."""
+    alpha, sigma_rad = 0.75, 0.3
+    p = GaussMarkovParams(alpha=alpha, mean_speed_mps=2.0, speed_sigma_mps=0.4, direction_sigma_rad=sigma_rad)
+    legs = _updates(p, _Scripted(0.0, [(0.0, 1.0)]), 4.5)
+    headings = np.arctan2(legs["vy_mps"], legs["vx_mps"]).to_numpy()
+    kick = math.sqrt(1 - alpha**2) * sigma_rad
+    assert headings == pytest.approx([kick * alpha**k for k in range(5)], rel=1e-12)
+    assert np.hypot(legs["vx_mps"], legs["vy_mps"]).to_numpy() == pytest.approx(2.0, rel=1e-12)
+
+
+def test_gauss_markov_updates_after_the_first_are_turns():
+    p = GaussMarkovParams(alpha=0.5, mean_speed_mps=1.0, speed_sigma_mps=0.0, direction_sigma_rad=0.0)
+    legs = _one_robot((50.0, 50.0), 0.0, p, 3.5)
+    moving = legs[legs["t_s"] > 0]
+    assert legs["cause"].iloc[0] == "start" and moving["cause"].tolist() == ["turn"] * 3
+
+
+def test_gauss_markov_mean_directions_cover_the_whole_circle():
+    """Each robot's mean direction is uniform on [0, 2 pi): a team heads every way, south too."""
+    p = GaussMarkovParams(alpha=1.0, mean_speed_mps=1.0, speed_sigma_mps=0.0, direction_sigma_rad=0.0)
+    rng = np.random.default_rng(4)
+    headings = []
+    for _ in range(40):
+        legs = _updates(p, rng, 0.5)
+        headings.append(math.atan2(legs["vy_mps"].iloc[0], legs["vx_mps"].iloc[0]))
+    quadrants = np.floor(np.mod(headings, 2 * math.pi) / (math.pi / 2))
+    assert set(quadrants.tolist()) == {0.0, 1.0, 2.0, 3.0}
+
+
+def test_gauss_markov_speed_sigmas_below_light_are_twelve():
+    """The keys are refused only when the mean plus twelve standard deviations passes light."""
+    from types import SimpleNamespace
+
+    from netsim.mobility.gauss_markov import check
+
+    from netsim.geometry import SPEED_OF_LIGHT_MPS
+
+    config = SimpleNamespace(world=SimpleNamespace(torus=False))
+    sigma = SPEED_OF_LIGHT_MPS / 13
+    check(GaussMarkovParams(mean_speed_mps=0.5 * sigma, speed_sigma_mps=sigma), config)
+    with pytest.raises(ConfigError, match="12 x it"):
+        check(GaussMarkovParams(mean_speed_mps=1.5 * sigma, speed_sigma_mps=sigma), config)
+
+
+def test_gauss_markov_border_at_the_top_mirrors_the_mean_direction_downward():
+    """Heading north into the top border of a wide rectangle: the velocity's y is reversed
+    and the mean direction mirrored to -pi/2, so the following updates head south too."""
+    from netsim.area import Bounds
+
+    p = GaussMarkovParams(alpha=0.5, mean_speed_mps=2.0, speed_sigma_mps=0.0, direction_sigma_rad=0.0)
+    env = simpy.Environment()
+    st = RobotState(1, 300.0, 10.0)
+    st.place(np.array([[50.0, 97.0]]))
+    env.process(gauss_markov_robot(env, st, p, Bounds(0.0, 0.0, 300.0, 100.0), 0, _Fixed(math.pi / 2)))
+    env.run(until=10.5)
+    legs = st.legs()
+    v = legs[["vx_mps", "vy_mps"]].to_numpy()[1:]
+    assert v[0, 1] > 0 and np.all(v[1:, 1] < 0), v
+    assert np.allclose(v[:, 0], 0.0)
+
+
+def test_gauss_markov_interval_ending_exactly_on_the_border_is_not_turned():
+    """The area is closed: an update whose interval ends on the border itself goes there,
+    and only the next, which would leave, turns back."""
+    p = GaussMarkovParams(alpha=1.0, mean_speed_mps=2.0, speed_sigma_mps=0.0, direction_sigma_rad=0.0)
+    legs = _one_robot((4.0, 50.0), math.pi, p, 2.5).groupby("t_s").last()
+    assert legs.loc[[0.0, 1.0], "vx_mps"].tolist() == [-2.0, -2.0]
+    assert legs.loc[2.0, "x_m"] == 0.0 and legs.loc[2.0, "vx_mps"] == 2.0
+
+
+def test_gauss_markov_keys_refuse_a_torus_and_allow_a_hundred_radians():
+    from types import SimpleNamespace
+
+    from netsim.mobility.gauss_markov import _at_most_a_hundred_radians, check
+
+    with pytest.raises(ConfigError, match="world.torus = false"):
+        check(GaussMarkovParams(), SimpleNamespace(world=SimpleNamespace(torus=True)))
+    assert _at_most_a_hundred_radians(100.0) is None and _at_most_a_hundred_radians(0.0) is None
+    assert _at_most_a_hundred_radians(100.5) is not None
+
+
+def test_rpgm_group_radius_just_under_half_the_side_is_allowed():
+    assert load(None, ["mobility.model=rpgm", "world.side_m=1000", "mobility.group_radius_m=499.9"])
+
+
+def test_rpgm_member_offset_at_exactly_the_top_speed_is_kept():
+    """BonnMotion's bound is inclusive: a member moving exactly ``speed_max_mps`` is not
+    redrawn. The reference point moves 5 m east in 10 s and the offset 5 m east: 10 m in 10 s."""
+    m = RpgmParams(speed_max_mps=1.0, group_radius_m=10.0)
+    rng = _Draws(randoms=[0.5, 0.0], angles=[0.0, 0.0])
+    new = member_offset(rng, m, np.zeros(2), np.array([5.0, 0.0]), 10.0)
+    assert new.tolist() == [5.0, 0.0] and rng.randoms == [0.0]
+
+
+def test_rpgm_reference_points_move_at_speeds_drawn_between_the_bounds_and_resume_after_a_pause():
+    """Each leg of a reference point takes its distance over a speed drawn in [speed_min,
+    speed_max] (not always the top one), and the members' legs after a pause are pause ends."""
+    frames = _run(
+        [
+            "mobility.model=rpgm",
+            "world.n_robots=6",
+            "mobility.group_size=3",
+            "duration_s=400",
+            "mobility.speed_min_mps=1",
+            "mobility.speed_max_mps=5",
+            "mobility.pause_s=2",
+            "mobility.group_radius_m=20",
+        ]
+    )
+    ref = frames["reference_points"]
+    speeds = []
+    for _, g in ref.groupby("group"):
+        xy, t = g[["x_m", "y_m"]].to_numpy(), g["t_s"].to_numpy()
+        # Rows come in pairs: a leg's start and its end.
+        speeds += (np.hypot(*(xy[1::2] - xy[0::2]).T) / (t[1::2] - t[0::2])).tolist()
+    assert 1.0 - 1e-9 <= min(speeds) and max(speeds) <= 5.0 + 1e-9 and min(speeds) < 4.0
+    assert "pause_end" in set(frames["legs"]["cause"])

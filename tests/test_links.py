@@ -407,3 +407,93 @@ def test_a_robot_driven_at_any_speed_leaves_the_runtime_windows_as_they_were(mon
     links = collect(sim)["links"]
     assert len(downs) == int((~links.censored_end).sum()) > 0
     assert len(ups) == len(links)  # those up at t = 0 are announced then too
+
+
+def test_a_window_given_by_hand_still_counts_the_faster_legs_a_robot_starts_in_it():
+    """``window_s`` does not change the links. Over a window given by hand a robot at rest
+    at its start may set off fast within it: the candidate pairs must reach as far as it
+    can go, or a link it makes in that window is never solved."""
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 60.0, 0.0, 0.0, 0.0),
+            (10.0, 1, 60.0, 0.0, -10.0, 0.0),  # reaches x = 10, in range, at t = 15
+            (20.0, 1, -40.0, 0.0, 0.0, 0.0),  # out of range again since t = 17
+        ]
+    )
+    for window_s in (None, 100.0):
+        links = link_lifetimes(legs, 10.0, 100.0, window_s=window_s)
+        assert links[["a", "b"]].values.tolist() == [[0, 1]]
+        assert links.t_up_s.tolist() == [pytest.approx(15.0, abs=1e-9)]
+        assert links.t_down_s.tolist() == [pytest.approx(17.0, abs=1e-9)]
+
+
+def test_a_leg_too_fast_for_its_window_to_register_on_the_clock_does_not_stall_the_solver(monkeypatch):
+    """Half a range at the speed of a leg may be below the clock's resolution at its start:
+    the window then keeps a floor of length, so time moves on and the run ends."""
+    import netsim.links.lifetimes as lifetimes
+
+    ulp = math.ulp(30.0)
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 50.0, 0.0, 0.0, 0.0),
+            (30.0, 1, 50.0, 0.0, -100.0 / (2 * ulp), 0.0),  # 100 m in two ticks of the clock
+            (30.0 + 2 * ulp, 1, -50.0, 0.0, 0.0, 0.0),
+        ]
+    )
+    few_windows(monkeypatch, lifetimes)
+    links = link_lifetimes(legs, 10.0, 60.0)
+    assert len(links) == 1 and 30.0 <= links.t_up_s.iloc[0] <= links.t_down_s.iloc[0] <= 30.0 + 2 * ulp
+
+
+def test_a_link_up_just_after_the_start_is_not_censored_at_the_start():
+    """Only a link up at t = 0 itself is censored at the start: one that comes up a moment
+    later has its whole lifetime in the run."""
+    legs = _legs([(0.0, 0, 0.0, 0.0, 0.0, 0.0), (0.0, 1, 10.0 + 5e-10, 0.0, -1.0, 0.0)])
+    row = link_lifetimes(legs, 10.0, 40.0).iloc[0]
+    assert 0.0 < row.t_up_s < 1e-9 and row.t_down_s == pytest.approx(20.0)
+    assert not row.censored_start and not row.censored
+
+
+def test_link_lifetimes_rows_run_by_their_up_time_then_by_pair():
+    """links.parquet lists lifetimes in the order they began, pairs at one instant by (a, b)."""
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 3.0, 0.0, 0.0, 0.0),  # 0-1 up from the start
+            (0.0, 2, 100.0, 0.0, -1.0, 0.0),  # 1-2 up at t = 92, 0-2 at t = 95
+            (0.0, 3, 100.0, 50.0, 0.0, 0.0),
+            (0.0, 4, 100.0, 53.0, 0.0, 0.0),  # 3-4 up from the start
+        ]
+    )
+    links = link_lifetimes(legs, 5.0, 100.0)
+    assert links[["a", "b"]].values.tolist() == [[0, 1], [3, 4], [1, 2], [0, 2]]
+    assert links.t_up_s.tolist() == [0.0, 0.0, pytest.approx(92.0), pytest.approx(95.0)]
+
+
+def test_a_window_ends_where_a_faster_leg_begins_so_a_dart_widens_only_its_own_windows(monkeypatch):
+    """A window sized by the slow legs of its start ends where a faster leg begins: a dart
+    later in the run does not widen the candidate pairs of the slow windows before it."""
+    import netsim.links.lifetimes as lifetimes
+
+    reaches = []
+    near_pairs = lifetimes.near_pairs
+
+    def recorded(pos, reach, box=None):
+        reaches.append(reach)
+        return near_pairs(pos, reach, box)
+
+    monkeypatch.setattr(lifetimes, "near_pairs", recorded)
+    legs = _legs(
+        [
+            (0.0, 0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 1, 200.0, 0.0, 0.0, 0.0),
+            (20.0, 1, 200.0, 0.0, 1e6, 0.0),  # 100 m in 0.1 ms
+            (20.0001, 1, 300.0, 0.0, 0.0, 0.0),
+        ]
+    )
+    assert link_lifetimes(legs, 10.0, 60.0).empty
+    # Half a range at the dart's speed is the dart's windows' length: each reaches the range
+    # plus twice half of it.
+    assert reaches[0] == 10.0 and max(reaches) == pytest.approx(20.0, rel=1e-6)

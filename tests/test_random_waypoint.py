@@ -222,3 +222,60 @@ def test_default_random_waypoint_runs_on_a_map():
     sim = build(load(None, ["world.map=office", "world.side_m=200", "world.n_robots=5", "duration_s=20"]))
     sim.run()
     assert sim.state.legs()["vx_mps"].abs().max() > 0
+
+
+# -- rules the mutation audit found unguarded ------------------------------------------------
+
+
+def test_mean_inverse_speed_of_one_speed_is_its_inverse():
+    from netsim.mobility.random_waypoint import mean_inverse_speed
+
+    assert mean_inverse_speed(2.0, 2.0) == 0.5
+    assert mean_inverse_speed(1.0, math.e) == pytest.approx(1.0 / (math.e - 1.0), rel=1e-12)
+
+
+def test_the_paused_fraction_on_a_rectangle_takes_the_rectangles_mean_leg():
+    from netsim.area import Bounds
+    from netsim.metrics import mean_distance_rectangle
+
+    leg = mean_distance_rectangle(200.0, 100.0)
+    assert paused_fraction(Bounds(0.0, 0.0, 200.0, 100.0), 2.0, 2.0, 10.0) == pytest.approx(10.0 / (10.0 + leg / 2.0))
+
+
+def test_a_robot_paused_at_the_start_leaves_at_its_pause_end():
+    """A stationary start's paused robot waits out its residual pause; its first leg is a pause end."""
+    import simpy
+    from netsim.mobility.random_waypoint import RandomWaypointParams, Start, waypoint_robot
+
+    from netsim.area import Bounds
+    from netsim.state import RobotState
+
+    env = simpy.Environment()
+    st = RobotState(1, 100.0, 10.0)
+    here = np.array([[50.0, 50.0]])
+    st.place(here)
+    start = Start(here, here.copy(), np.zeros(1), np.array([3.0]))
+    m = RandomWaypointParams(pause_s=5.0)
+    env.process(waypoint_robot(env, st, m, Bounds.square(100.0), 0, start, np.random.default_rng(0)))
+    env.run(until=3.5)
+    legs = st.legs()
+    moving = legs[legs["t_s"] > 0]
+    assert moving["t_s"].tolist() == [3.0] and moving["cause"].tolist() == ["pause_end"]
+
+
+@pytest.mark.parametrize(
+    "settings, key",
+    [
+        (
+            ["mobility.speed_min_mps=0", "mobility.speed_max_mps=0", "mobility.stationary_start=false"],
+            "mobility.speed_max_mps",
+        ),
+        (["mobility.stationary_start=true", "world.placement='grid'"], "world.placement"),
+    ],
+)
+def test_random_waypoint_refuses_no_top_speed_and_a_stationary_start_not_uniformly_placed(settings, key):
+    from netsim import load
+
+    with pytest.raises(ConfigError) as err:
+        load(None, ["mobility.model=random_waypoint", *settings])
+    assert str(err.value).startswith(key)
