@@ -18,7 +18,9 @@ a second, 100 simulated seconds):
 - ``small``: the default scenario with 10 robots;
 - ``ack-1k``, ``clustering-1k``, ``ack-10k``, ``clustering-10k``: the workload at N = 1,000
   and 10,000 with ``protocol.model = "ack"`` and ``"clustering"``;
-- ``cold``: ``clustering-1k`` with an empty compiled-loop cache, as a machine's first run.
+- ``cold``: ``clustering-1k`` with an empty compiled-loop cache, as a machine's first run;
+- ``aodv-300``: the workload at N = 300 under AODV, carrying 50 random pairs' messages a
+  second.
 
 One unmeasured run of each case warms each side's caches; then every round runs each case
 on both sides, the side that goes first alternating between rounds. The table gives the
@@ -88,6 +90,10 @@ CASES = {
     },
 }
 CASES["cold"] = CASES["clustering-1k"]
+# Routed traffic: AODV carrying random pairs' messages across a moving team of 300.
+CASES["aodv-300"] = [
+    f"{k}={v}" for k, v in netsim_settings(300, "aodv").items() if k != "protocol.ack_period_s"
+] + ["protocol.message_rate_hz=50"]
 
 
 def git(*args: str) -> str:
