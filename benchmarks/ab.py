@@ -91,9 +91,9 @@ CASES = {
 }
 CASES["cold"] = CASES["clustering-1k"]
 # Routed traffic: AODV carrying random pairs' messages across a moving team of 300.
-CASES["aodv-300"] = [
-    f"{k}={v}" for k, v in netsim_settings(300, "aodv").items() if k != "protocol.ack_period_s"
-] + ["protocol.message_rate_hz=50"]
+CASES["aodv-300"] = [f"{k}={v}" for k, v in netsim_settings(300, "aodv").items() if k != "protocol.ack_period_s"] + [
+    "protocol.message_rate_hz=50"
+]
 
 
 def git(*args: str) -> str:

@@ -72,8 +72,8 @@ grew.
     python experiments/coverage_targets.py --bound --seeds 5 --n 20
     python experiments/coverage_targets.py --bound --oracles margin-team records-two-hops
 
-The table's last rows per N: the mean and the least over the seeds, and in how many seeds
-each run covers at least 0.8 of the global plan.
+The table's last rows per N: the mean and the least over the seeds; below it, in how many
+seeds each run covers at least 0.8 of the global plan.
 """
 
 from __future__ import annotations
@@ -422,11 +422,12 @@ def main_bound(args) -> int:
     table = pd.DataFrame(rows)
     means = table.groupby("N").mean(numeric_only=True).reset_index().assign(seed="mean")
     least = table.groupby("N").min(numeric_only=True).reset_index().assign(seed="least")
-    ratios = table[["N", *kinds[1:]]]
-    reached = (ratios[kinds[1:]] >= 0.8).groupby(ratios["N"]).sum().reset_index().assign(seed=">= 0.8")
-    table = pd.concat([table, means, least, reached], ignore_index=True)
+    reached = (table[kinds[1:]] >= 0.8).groupby(table["N"]).sum().reset_index()
+    table = pd.concat([table, means, least], ignore_index=True)
     with pd.option_context("display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))
+        print("\nseeds at 0.8 or more of the global plan:")
+        print(reached.to_string(index=False))
     return 0
 
 

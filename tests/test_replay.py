@@ -768,3 +768,20 @@ def test_a_routing_runs_packets_are_counted_and_drawn_on_the_page(routed_run, op
     assert page.page.locator("#hops-label").inner_text() == "routed packets"
     assert page.page.locator("#trail-label").inner_text() == "packet trail"
     assert page.js("netsimView.hopsDrawn") > 0
+
+
+def test_a_routing_run_without_hops_still_shows_its_packets_and_one_without_packets_none(routed_run, tmp_path):
+    """A routing run written before routing runs wrote hops.parquet still has its packets
+    as the replay's messages, without hops; without packets.parquet either, it has
+    neither, and its page speaks of messages, not of packets it does not have."""
+    from netsim.tools.viewer.data import pack
+
+    old = tmp_path / "old"
+    shutil.copytree(routed_run, old)
+    (old / "hops.parquet").unlink()
+    meta, arrays = _packed(pack(old))
+    assert meta["has"]["messages"] and not meta["has"]["hops"] and meta["message_noun"] == "packet"
+    assert len(arrays["msg_src"]) == len(pd.read_parquet(old / "packets.parquet"))
+    (old / "packets.parquet").unlink()
+    meta, _ = _packed(pack(old))
+    assert not meta["has"]["messages"] and meta["message_noun"] == "message"

@@ -20,7 +20,7 @@
 ``netsim view RUN_DIR [--out FILE.html]``
     Write the replay of a run: one self-contained HTML file (default RUN_DIR/view.html).
 ``netsim export RUN_DIR --format bonnmotion|ns2|rosbag2 --out PATH``
-    Write a run's motion (and for rosbag2 its links, roles and messages) in a format robot
+    Write a run's motion (and for rosbag2 its links, roles, messages and packets) in a format robot
     teams' tools read.
 ``netsim config [CONFIG] [--set KEY=VALUE ...]``
     Print the configuration (the built-in default, or CONFIG with the overrides), every

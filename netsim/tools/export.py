@@ -4,8 +4,9 @@
   compressed) with its ``.params`` beside it, from ``legs.parquet`` (exact: every leg's
   start and the positions at the run's end);
 - ``ns2``: the same motion as an ns-2 movement file (``setdest`` per leg);
-- ``rosbag2``: a ROS 2 bag (a new folder) with the sampled poses, the links, the roles and
-  the messages (:mod:`netsim.formats.rosbag2`), for ``ros2 bag``, RViz and Foxglove.
+- ``rosbag2``: a ROS 2 bag (a new folder) with the sampled poses, the links, the roles,
+  the messages and the packets (:mod:`netsim.formats.rosbag2`), for ``ros2 bag``, RViz and
+  Foxglove.
 
 Written to a temporary name first and moved into place, so a failure leaves nothing.
 """

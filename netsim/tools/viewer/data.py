@@ -15,7 +15,8 @@ What is packed (``N`` robots):
   (:func:`netsim.tools.style.run_group_slots`, as in the figures); ``groups``: the
   gateways' memberships per sample; ``beliefs``: believed, true, stale and missing
   neighbours of every robot per sample, and with ``neighbour_beliefs`` their ids;
-- ``messages`` and ``hops``: every relayed message and each robot's first reception of it;
+- ``messages`` and ``hops``: every relayed message and each robot's first reception of it
+  (a routing protocol's run: its packets, :func:`routed_packets`);
 - the strip chart's series (:func:`series`) and, when the run has a map, its occupancy grid
   (:class:`MapGrid`).
 """
@@ -169,16 +170,19 @@ def first_receptions(hops: pd.DataFrame, messages: pd.DataFrame) -> pd.DataFrame
     return h[h["receiver"].to_numpy() != src].sort_values(["t_sent_s", "t_received_s"], kind="stable")
 
 
-def routed_packets(run_dir: Path, hops: pd.DataFrame, n: int) -> tuple[pd.DataFrame | None, pd.DataFrame]:
+def routed_packets(run_dir: Path, hops: pd.DataFrame | None, n: int) -> tuple[pd.DataFrame | None, pd.DataFrame | None]:
     """A routing protocol's run has no messages table: its packets (packets.parquet) are
     the replay's messages, ``msg_id`` a packet's place in order of sending, and each hop
-    (which names its packet's ``flow`` and ``packet``) is put under its packet's id. A
-    packet of several frames shows the hops of all of them."""
+    (which names its packet's ``flow`` and ``packet``) is put under its packet's id; a
+    packet of several frames shows the hops of all of them. ``(None, hops)`` for a run
+    without packets; no hops for one whose hops name no packet (written before they did)."""
     packets = _read(run_dir, "packets", n)
-    if packets is None or not {"flow", "packet"} <= set(hops.columns):
+    if packets is None:
         return None, hops
     packets = packets.sort_values("t_sent_s", kind="stable").reset_index(drop=True)
     packets["msg_id"] = np.arange(len(packets), dtype=np.int64)
+    if hops is None or not {"flow", "packet"} <= set(hops.columns):
+        return packets, None
     ids = packets.set_index(["flow", "packet"])["msg_id"]
     key = pd.MultiIndex.from_frame(hops[["flow", "packet"]])
     if not key.isin(ids.index).all():
@@ -330,9 +334,10 @@ def pack(run_dir: str | Path, map_grid: MapGrid | None = None) -> dict:
 
     messages = _read(run_dir, "messages", n)
     hops = _read(run_dir, "hops", n)
-    routed = messages is None and hops is not None
-    if routed:
+    routed = False
+    if messages is None:
         messages, hops = routed_packets(run_dir, hops, n)
+        routed = messages is not None
     has_messages = messages is not None and len(messages) > 0
     if has_messages:
         m = messages.sort_values("msg_id", kind="stable")
