@@ -549,3 +549,13 @@ def test_a_cyclone_configuration_that_does_not_parse_is_refused_naming_it(tmp_pa
     assert last.startswith(f"netsim: error: CYCLONEDDS_URI = '{broken.as_uri()}': Cyclone DDS cannot start on domain")
     assert "Traceback" not in run.stderr
     assert not (tmp_path / "out").exists()
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+def test_the_highest_dds_domain_is_taken_and_a_boolean_is_no_domain():
+    from netsim.bridge.settings import DOMAIN_ID_MAX, settings
+    from netsim.errors import ConfigError
+
+    assert settings({"domain_id": DOMAIN_ID_MAX}).domain_id == DOMAIN_ID_MAX
+    with pytest.raises(ConfigError, match=f"^bridge.domain_id = true: must be an integer from 0 to {DOMAIN_ID_MAX}$"):
+        settings({"domain_id": True})

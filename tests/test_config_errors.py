@@ -708,3 +708,121 @@ def test_the_placements_named_by_a_word_are_the_ones_the_engine_places():
     from netsim.placement import PLACEMENTS
 
     assert set(cfgmod.NAMED_PLACEMENTS) == set(PLACEMENTS) | {"connected"}
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+@pytest.mark.parametrize(
+    "sets, line",
+    [
+        (
+            ["world.torus=true", "world.bounds_m=[0.0, 0.0, 500.0, 500.0]"],
+            "world.bounds_m = [0.0, 0.0, 500.0, 500.0]: cannot be set with world.torus = true",
+        ),
+        (["world.n_robots=2", "channel.range_m=[0.0, 5.0]"], "channel.range_m[0] = 0.0: must be a finite number > 0"),
+        # A range of half the side: a robot would meet its own image's links.
+        (
+            ["world.torus=true", "world.side_m=100", "channel.range_m=50"],
+            "world.side_m = 100.0: on a torus must exceed twice the largest range_m",
+        ),
+        (
+            ["events.runtime_links=off", "events.live_topology=true"],
+            "events.live_topology = true: needs link events during the run",
+        ),
+        (["duration_s=2", "channel.latency_s=2"], "channel.latency_s = 2.0: must be shorter than duration_s = 2 s"),
+        (["world.start_m=[2000.0, 10.0]"], "world.start_m = [2000.0, 10.0]: is outside the area"),
+    ],
+)
+def test_a_rule_between_keys_is_one_line_and_nothing_written(tmp_path, capsys, sets, line):
+    code, err = _cli(tmp_path, capsys, *[a for s in sets for a in ("--set", s)])
+    assert code == 2
+    (said,) = err.strip().splitlines()
+    assert said.startswith(f"netsim: error: {line}")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    "tree",
+    [
+        {"world": {"side_m": 300.0, "placement": "centre", "centre_side_m": 300.0}},
+        {"channel": {"range_m": 0.01}},
+        {"channel": {"range_m": 1e12}},
+        {"world": {"side_m": 100.0, "torus": True}, "channel": {"range_m": 49.0}},
+    ],
+)
+def test_a_value_at_the_edge_of_its_rule_is_accepted(tree):
+    """Each bound is the last value allowed: a central square as wide as the area, the
+    shortest and longest ranges, a torus just over twice the range."""
+    cfgmod.from_dict(tree)
+
+
+def test_a_section_given_a_value_is_one_line_and_nothing_written(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text("world = 5\n")
+    code, err = _cli(tmp_path, capsys, str(f))
+    assert code == 2
+    assert err.strip().splitlines() == ["netsim: error: world = 5: must be a table ([world])"]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_model_name_that_is_no_text_is_one_line_and_nothing_written(tmp_path, capsys):
+    code, err = _cli(tmp_path, capsys, "--set", "mobility.model=5")
+    assert code == 2
+    assert err.strip().splitlines() == ["netsim: error: mobility.model = 5: must be a string"]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_range_the_radios_law_overrides_is_said_to_be_ignored():
+    with pytest.warns(
+        cfgmod.ConfigWarning, match=r"^channel.range_m: not used by channel.propagation = 'log_distance'"
+    ):
+        config = cfgmod.from_dict({"channel": {"propagation": "log_distance", "range_m": 80.0}})
+    assert "range_m" not in cfgmod.to_dict(config, derived=False)["channel"]
+
+
+def test_a_bridge_table_in_a_scenario_points_to_netsim_bridge(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text("[bridge]\nrate_hz = 10.0\n")
+    code, err = _cli(tmp_path, capsys, str(f))
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert line.startswith("netsim: error: [bridge]: a table of `netsim bridge`")
+    assert not (tmp_path / "out").exists()
+
+
+def test_set_under_the_seed_blames_the_set_not_the_file(tmp_path, capsys):
+    """The file's `seed = 3` is right: `--set seed.x=1` names a key as if it were a section."""
+    f = tmp_path / "s.toml"
+    f.write_text("seed = 3\n")
+    code, err = _cli(tmp_path, capsys, str(f), "--set", "seed.x=1")
+    assert code == 2
+    assert err.strip().splitlines() == ["netsim: error: --set = 'seed.x=1': seed is a key, not a section"]
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    "value, what",
+    [("[grid", "list"), ("[1.0,\n2.0]", "list")],
+)
+def test_a_set_value_that_opens_a_list_or_spans_lines_is_refused_not_taken_as_text(tmp_path, capsys, value, what):
+    """A value that starts like a list, or breaks a line, is a mistyped TOML value: read as
+    a bare word it would be a placement file named `[grid`."""
+    code, err = _cli(tmp_path, capsys, "--set", f"world.placement={value}")
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert line.startswith(f"netsim: error: world.placement = {value!r}: is not a valid TOML {what}")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_set_bare_word_is_taken_without_the_spaces_around_it():
+    assert cfgmod.load(None, ["world.placement = grid "]).world.placement == "grid"
+
+
+def test_overrides_given_as_one_string_are_refused_as_such():
+    """Iterated, the string's characters would each be refused as a key=value."""
+    with pytest.raises(TypeError, match=r"^overrides = 'world.n_robots=5': must be a list of 'key=value' strings"):
+        cfgmod.load(None, "world.n_robots=5")
+
+
+def test_a_section_of_the_wrong_kind_made_in_python_is_refused():
+    with pytest.raises(ConfigError, match=r"^world = 5: must be a WorldParams$"):
+        cfgmod.Config(world=5)

@@ -717,3 +717,44 @@ def test_each_agent_has_an_info_dict_of_its_own():
     _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
     infos[first]["note"] = 1
     assert "note" not in infos[second]
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+def test_a_neighbours_offsets_are_bounded_by_the_areas_width_and_height():
+    env = coverage_v0.parallel_env(
+        **{**SMALL, "placement": "uniform"}, netsim={"world": {"bounds_m": [100.0, -50.0, 500.0, 250.0]}}
+    )
+    space = env.observation_space("robot_0")
+    k = env.params.max_neighbours
+    offsets_low = space.low[7 : 7 + 4 * k].reshape(k, 4)[:, :2]
+    offsets_high = space.high[7 : 7 + 4 * k].reshape(k, 4)[:, :2]
+    assert offsets_low.tolist() == [[-400.0, -300.0]] * k and offsets_high.tolist() == [[400.0, 300.0]] * k
+
+
+def test_the_strongest_power_observable_allows_for_the_strongest_shadowing():
+    """A shadowed Ack at the reference distance can arrive up to the truncation's sigmas
+    above the path loss's power: the observation space holds it."""
+
+    def highest(sigma_db):
+        netsim = {"channel": {"propagation": "log_distance", "shadowing_sigma_db": sigma_db}}
+        env = coverage_v0.parallel_env(n_robots=4, max_neighbours=2, link_quality=True, netsim=netsim)
+        return float(env.observation_space("robot_0").high[env.link_quality_start])
+
+    assert highest(4.0) - highest(0.0) == pytest.approx(coverage_v0.TRUNCATION_SIGMAS * 4.0)
+
+
+def test_a_controller_set_in_netsim_is_refused_naming_the_key_that_set_it():
+    key = "control.controllers = 'log_separation'"
+    with pytest.raises(ConfigError, match=f"^{key}: the environment's agents move the robots: no controller may$"):
+        coverage_v0.parallel_env(**SMALL, netsim={"control": {"controllers": ["log_separation"]}})
+
+
+def test_in_turns_an_agent_whose_episode_is_over_steps_with_none():
+    """PettingZoo's convention: a truncated agent's last step carries no action."""
+    env = coverage_v0.env(**{**SMALL, "max_cycles": 1})
+    env.reset(seed=0)
+    for _ in range(SMALL["n_robots"]):
+        env.step(np.zeros(2, np.float32))
+    assert all(env.truncations.values())
+    while env.agents:
+        env.step(None)

@@ -1571,3 +1571,23 @@ def test_runtime_links_start_a_new_window_when_a_robot_outruns_its_speed_bound()
     posthoc = collect(sim)["links"]
     assert len(posthoc) == 1 and posthoc["t_up_s"].iloc[0] == pytest.approx(1.0 + 90.0 / 3.8)
     _assert_same_links(_announced(sim), posthoc)
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+def test_the_live_levels_over_no_time_are_not_a_number():
+    """Asked at t = 0, the time averages have no time to average over: NaN, not a division
+    by zero."""
+    sim = build(load(None, ["world.n_robots=4", "duration_s=10"]))
+    levels = sim.live_topology().levels(0.0)
+    assert set(levels) == {"time_mean_components", "time_mean_largest_component", "time_mean_degree"}
+    assert all(math.isnan(v) for v in levels.values())
+
+
+def test_a_live_nodes_computed_attribute_cannot_be_set():
+    sim = build(load(None, ["world.n_robots=4", "duration_s=10"]))
+    node = sim.live_topology().graph.nodes[0]
+    for key in ("pos", "role", "leader"):
+        with pytest.raises(KeyError, match=f"node attribute '{key}' is computed from the run; it cannot be set"):
+            node[key] = 1
+    node["mine"] = 1
+    assert node["mine"] == 1

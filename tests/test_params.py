@@ -2,6 +2,9 @@
 or with --set is the same object, validated when made; derived defaults are derived
 wherever it is made; an unknown name is an error everywhere."""
 
+import enum
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 from netsim.protocols.clustering import rules_record
@@ -10,6 +13,7 @@ from netsim.protocols.stack import ClusteringParams
 from netsim import config as cfgmod
 from netsim.config import Config, ProtocolSection, WorldParams
 from netsim.errors import ConfigError
+from netsim.params import MAX_EVENTS_PER_RUN, Params, check_schedules, describe, param, plain, positive
 from netsim.plugins import resolve
 from netsim.radio.models import LOSS
 
@@ -78,3 +82,72 @@ def test_a_policy_name_is_checked_where_it_is_used_too():
         rules_record(3.0, 1.0, False, "nearest", "lowest")
     with pytest.raises(ConfigError):
         resolve(LOSS, "rayleigh", "channel.loss_model")
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+@pytest.mark.parametrize(
+    "tree, words",
+    [
+        ({"protocol": {"model": "aodv", "ttl_start": 256}}, "protocol.ttl_start = 256: must be in 1 .. 255"),
+        ({"protocol": {"model": "aodv", "ttl_start": 0}}, "protocol.ttl_start = 0: must be in 1 .. 255"),
+        ({"channel": {"max_frame_bytes": 2**31}}, f"channel.max_frame_bytes = {2**31}: must be in 1 .. {2**31 - 1}"),
+        # The rule and the key's meaning: not the speed of light's limit, which an infinity also breaks.
+        ({"mobility": {"speed_max_mps": float("inf")}}, "mobility.speed_max_mps = inf: must be a finite speed >= 0 "),
+        ({"channel": {"range_m": True}}, "channel.range_m = true: must be a number$"),
+        ({"channel": {"range_m": 10**400}}, "channel.range_m = 1000.*: is too large for a number$"),
+        ({"mobility": {"model": "trace", "trace_file": 5}}, "mobility.trace_file = 5: must be a string$"),
+        ({"world": {"n_robots": -3}}, r"^world.n_robots = -3: must be > 0 \(number of robots N\)$"),
+    ],
+)
+def test_a_value_out_of_its_keys_range_or_type_is_named_with_the_rule(tree, words):
+    with pytest.raises(ConfigError, match=words):
+        cfgmod.from_dict(tree)
+
+
+def test_the_widest_ttl_and_frame_are_accepted():
+    config = cfgmod.from_dict({"protocol": {"model": "aodv", "ttl_start": 1, "net_diameter": 255}})
+    assert (config.protocol.ttl_start, config.protocol.net_diameter) == (1, 255)
+    assert cfgmod.from_dict({"channel": {"max_frame_bytes": 2**31 - 1}}).channel.max_frame_bytes == 2**31 - 1
+
+
+def test_a_relative_file_key_is_made_absolute(tmp_path, monkeypatch):
+    """A run directory's config.toml finds the file from anywhere."""
+    monkeypatch.chdir(tmp_path)
+    config = cfgmod.from_dict({"mobility": {"model": "trace", "trace_file": "moves.tcl"}})
+    assert config.mobility.trace_file == str(tmp_path / "moves.tcl")
+
+
+@dataclass(frozen=True)
+class _Scheduled(Params):
+    section = "s"
+    rate_hz: float = param(1.0, positive, "events a second", schedules="run")
+    period_s: float = param(1.0, positive, "time between a robot's events", schedules="robot")
+    names: tuple = param(None, default_factory=lambda: ("a", "b"), kind=tuple, coerce=lambda key, value: tuple(value))
+
+
+def test_the_event_limit_is_the_most_events_allowed():
+    limit = float(MAX_EVENTS_PER_RUN)
+    check_schedules(_Scheduled(rate_hz=1.0), duration_s=limit, n_robots=1)
+    with pytest.raises(
+        ConfigError, match=r"^s.rate_hz = 2.0: the run would make 2e\+08 events .*; lower it, or lower duration_s$"
+    ):
+        check_schedules(_Scheduled(rate_hz=2.0), duration_s=limit, n_robots=1)
+    with pytest.raises(
+        ConfigError, match=r"^s.period_s = 0.5: 1 robots each would make .*; raise it, or lower duration_s or"
+    ):
+        check_schedules(_Scheduled(rate_hz=1e-9, period_s=0.5), duration_s=limit, n_robots=1)
+
+
+def test_a_keys_default_made_by_a_factory_is_described():
+    """`netsim config` shows a plugin's list default, not none."""
+    assert ("names", ("a", "b"), "", "") in describe(_Scheduled)
+
+
+class _Colour(enum.Enum):
+    RED = "red"
+    BLUE = "blue"
+
+
+def test_a_tuple_of_choices_is_written_as_a_list_of_names():
+    """Nested tuples too: TOML cannot write a choice's object."""
+    assert plain(((_Colour.RED, _Colour.BLUE),)) == [["red", "blue"]]

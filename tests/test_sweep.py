@@ -720,3 +720,144 @@ def test_a_sweeps_workers_end_quietly_when_the_pool_is_terminated():
 
     done = subprocess.run([sys.executable, "-c", POOL_ENDED_BY_TERMINATE], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stderr == "", done.stderr
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        ({"name": ".."}, "name = '..'"),
+        ({"name": "a\\b"}, r"name = 'a\\\\b'"),
+        ({"replications": True}, "replications = True"),
+        ({"tables": ["links", ["x"]]}, r"tables = \['links', \['x'\]\]: must be a list of table names"),
+        ({"base": [1, 2]}, r"\[base\] must be a table"),
+    ],
+)
+def test_a_sweep_files_top_level_values_are_checked(extra, words):
+    """A name that would leave the output folder, a count that is a boolean, a table list
+    holding a list (unhashable: a TypeError past this check), a [base] that is no table: each
+    one line naming it."""
+    tree = {"base": BASE, "grid": {"seed": [1]}, **extra}
+    with pytest.raises(NetsimInputError, match=f"^sweep file: {words}"):
+        sweepmod.parse(tree)
+
+
+@pytest.mark.parametrize(
+    "random, words",
+    [
+        ({"samples": 2, "seed": -1, "ranges": {"seed": [1, 3]}}, r"\[random\] seed = -1"),
+        ({"samples": 2, "sead": 1, "ranges": {"seed": [1, 3]}}, r"\[random\] unknown key\(s\) \['sead'\]"),
+        ({"samples": 2, "ranges": {"seed": [True, 3]}}, r"\[random.ranges\] seed = \[True, 3\]: must be \[low, high\]"),
+    ],
+)
+def test_a_random_sweeps_values_are_checked(random, words):
+    with pytest.raises(NetsimInputError, match=f"^sweep file: {words}"):
+        sweepmod.parse({"base": BASE, "random": random})
+
+
+def test_equal_random_bounds_fix_the_value():
+    sweep = sweepmod.parse(
+        {"base": BASE, "random": {"samples": 1, "ranges": {"channel.loss_probability": [0.25, 0.25]}}}
+    )
+    assert sweep.points == ({"channel.loss_probability": 0.25},)
+
+
+def test_the_run_limit_counts_points_and_replications(monkeypatch):
+    """Each limit is the largest count allowed, not one less; points times replications
+    is what is counted; a grid or a sample count past it is refused before its points are
+    made."""
+    monkeypatch.setattr(sweepmod, "MAX_RUNS", 4)
+    grid = {"seed": [1, 2]}
+    assert len(sweepmod.parse({"base": BASE, "grid": grid, "replications": 2}).points) == 2
+    with pytest.raises(NetsimInputError, match=r"^sweep file: 3 points x 2 replications: at most 4 runs"):
+        sweepmod.parse({"base": BASE, "grid": {"seed": [1, 2, 3]}, "replications": 2})
+    with pytest.raises(NetsimInputError, match=r"^sweep file: \[grid\] has 5 points; at most 4 runs"):
+        sweepmod.parse({"base": BASE, "grid": {"seed": [1, 2, 3, 4, 5]}})
+    with pytest.raises(NetsimInputError, match=r"^sweep file: \[random\] samples = 5: must be an integer from 1 to 4"):
+        sweepmod.parse({"base": BASE, "random": {"samples": 5, "ranges": {"channel.loss_probability": [0.0, 1.0]}}})
+
+
+def test_a_base_file_is_found_beside_the_sweep_file_and_base_overrides_it(tmp_path, monkeypatch):
+    """A relative base_file is read from the sweep file's folder, wherever the command is
+    run; the sweep's own [base] values win over the file's."""
+    folder = tmp_path / "study"
+    folder.mkdir()
+    (folder / "scenario.toml").write_text("duration_s = 5.0\n[world]\nn_robots = 4\nside_m = 200.0\n")
+    (folder / "sweep.toml").write_text(
+        'base_file = "scenario.toml"\n[base.world]\nn_robots = 6\n[grid]\n"seed" = [1]\n'
+    )
+    monkeypatch.chdir(tmp_path)
+    (run,) = sweepmod.load_file("study/sweep.toml").runs()
+    assert run.config["world"]["n_robots"] == 6 and run.config["world"]["side_m"] == 200.0
+
+
+def test_a_configuration_several_points_share_is_named_by_the_first(recwarn):
+    """The run of points that resolve to one configuration carries the first point's values
+    (those its failure or its row is reported under), not a later one's."""
+    sweep = sweepmod.parse(
+        {
+            "base": {**BASE, "duration_s": 5.0},
+            "grid": {"mobility.model": ["random_waypoint"], "mobility.alpha": [0.5, 0.75]},
+        }
+    )
+    (run,) = sweep.runs()
+    assert run.point == {"mobility.model": "random_waypoint", "mobility.alpha": 0.5}
+
+
+def test_a_random_sweep_may_leave_to_its_ranges_a_key_its_base_needs():
+    """A base refused alone (a least speed above the default top speed) is checked with the
+    low end of each range, which makes it whole."""
+    base = {**BASE, "mobility": {"speed_min_mps": 8.0}}
+    sweep = sweepmod.parse({"base": base, "random": {"samples": 2, "ranges": {"mobility.speed_max_mps": [10.0, 20.0]}}})
+    assert all(r.config["mobility"]["speed_min_mps"] == 8.0 for r in sweep.runs())
+
+
+def test_workers_zero_is_one_line_and_nothing_written(tmp_path, capsys):
+    """`--workers 0` was read as no count given (all cores)."""
+    f = tmp_path / "s.toml"
+    f.write_text('[grid]\n"seed" = [1]\n')
+    assert main(["sweep", str(f), "--out", str(tmp_path / "o"), "--workers", "0"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == ["netsim: error: --workers 0: must be at least 1"]
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_runs_table_holds_a_list_value_as_its_text(tmp_path):
+    """A list-valued key (the world's bounds) is one text cell of the runs table, as the
+    configuration writes it."""
+    sweep = sweepmod.parse({"base": {**BASE, "duration_s": 5.0}, "grid": {"seed": [1]}})
+    sweepmod.run_sweep(sweep, tmp_path, progress=False)
+    (bounds,) = sweepmod.load(tmp_path)["world.bounds_m"]
+    assert bounds == str(sweep.runs()[0].config["world"]["bounds_m"])
+
+
+def test_a_run_that_succeeds_on_retry_leaves_no_failure_behind(tmp_path, monkeypatch):
+    sweep = sweepmod.parse({"base": {**BASE, "duration_s": 5.0}, "grid": {"seed": [1]}})
+    real = sweepmod.execute_run
+    monkeypatch.setattr(sweepmod, "execute_run", lambda run, tables: 1 / 0)
+    assert len(sweepmod.run_sweep(sweep, tmp_path, progress=False).failed) == 1
+    assert list((tmp_path / "failed").glob("*.json"))
+    monkeypatch.setattr(sweepmod, "execute_run", real)
+    report = sweepmod.run_sweep(sweep, tmp_path, progress=False)
+    assert report.done == 1 and not report.failed
+    assert not list((tmp_path / "failed").glob("*.json"))
+
+
+def test_a_kept_table_keeps_its_column_types_when_some_runs_write_none(tmp_path):
+    """The empty tables of the runs whose models write none are left out of the frame:
+    mixed in, they turned its integer columns to floats."""
+    base = {**BASE, "duration_s": 5.0, "protocol": {"model": "ack"}}
+    sweep = sweepmod.parse(
+        {"name": "k", "tables": ["receptions"], "base": base, "grid": {"output.receptions": [False, True]}}
+    )
+    sweepmod.run_sweep(sweep, tmp_path, progress=False)
+    kept = sweepmod.load_table(tmp_path, "receptions")
+    (one,) = [
+        pd.read_parquet(f) for f in (tmp_path / "tables" / "receptions").glob("*.parquet") if len(pd.read_parquet(f))
+    ]
+    assert kept.dtypes.to_dict() == one.dtypes.to_dict()
+
+
+def test_aggregate_leaves_out_a_runs_missing_value():
+    df = pd.DataFrame({"v": [1, 1, 1], "m": [1.0, float("nan"), 3.0]})
+    agg = sweepmod.aggregate(df, ["v"], ["m"]).set_index("v")
+    assert agg.loc[1, "m_mean"] == 2.0 and agg.loc[1, "m_n"] == 2
