@@ -45,3 +45,52 @@ def test_relayed_message_takes_the_airtime_of_its_size_on_a_shared_medium():
 def test_relayed_message_without_a_medium_arrives_after_the_latency_whatever_its_size():
     """Without a shared medium the channel's latency alone delays a relayed message."""
     assert received_at(100, "none") == received_at(5000, "none") == [pytest.approx(1.01)]
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+def three_in_range():
+    """Three robots all within range of each other, no medium, 10 ms latency."""
+    config = cfgmod.from_dict(
+        {
+            "duration_s": 5.0,
+            "world": {"n_robots": 3, "side_m": 100.0, "placement": "centre", "centre_side_m": 10.0},
+            "channel": {"range_m": 40.0, "latency_s": 0.01},
+            "mobility": {"model": "external"},
+            "protocol": {"model": "none"},
+        }
+    )
+    return build(config)
+
+
+def test_relay_table_rows_name_each_message_its_sender_receiver_size_and_times_in_order_of_arrival():
+    sim = three_in_range()
+    relay = ChannelRelay(sim, ["chat"])
+    sim.run(until_s=1.0)
+    ids = [relay.send(0, "chat", "a", 100)]
+    sim.run(until_s=2.0)
+    ids.append(relay.send(2, "chat", "b", 300))
+    sim.run(until_s=3.0)
+    assert ids == [0, 1] and relay.sent == 2
+    rows = relay.frame()
+    got = list(rows[["msg_id", "src", "dst", "nbytes"]].itertuples(index=False, name=None))
+    assert got == [(0, 0, 1, 100), (0, 0, 2, 100), (1, 2, 0, 300), (1, 2, 1, 300)]
+    assert rows["t_sent_s"].tolist() == [1.0, 1.0, 2.0, 2.0]
+    assert rows["t_received_s"].tolist() == pytest.approx([1.01, 1.01, 2.01, 2.01])
+
+
+def test_relayed_receptions_are_taken_once():
+    sim = three_in_range()
+    relay = ChannelRelay(sim, ["chat"])
+    relay.send(1, "chat", "a", 10)
+    sim.run(until_s=1.0)
+    assert sorted(relay.take()) == [(0, "chat", "a"), (2, "chat", "a")]
+    assert relay.take() == []
+
+
+def test_a_relayed_topic_is_counted_as_a_frame_kind_of_its_own():
+    sim = three_in_range()
+    relay = ChannelRelay(sim, ["chat"])
+    relay.send(1, "chat", "a", 10)
+    sim.run(until_s=1.0)
+    counters = sim.channel.counters["relay/chat"]
+    assert counters.sent.tolist() == [0, 1, 0] and counters.received.tolist() == [1, 0, 1]
