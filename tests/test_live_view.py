@@ -189,3 +189,13 @@ def test_live_without_runtime_links_is_refused_before_anything_starts(tmp_path, 
     assert code == 2 and err.count("\n") == 1, err
     assert err.startswith("netsim: error: events.runtime_links = 'off': netsim run --live draws the links as they")
     assert not out.exists()
+
+
+def test_robots_without_known_roles_are_grey():
+    """A run without groups, or a protocol whose role labels are not the clustering
+    protocol's, draws every such robot grey, one colour a robot."""
+    from netsim.bridge.look import GREY, ROLE_RGBA, robot_rgba
+
+    assert robot_rgba(None, 3) == [GREY] * 3
+    groups = SimpleNamespace(role_names=("scout", "alpha"), role=[0, 1, 0])
+    assert robot_rgba(groups, 3) == [GREY, ROLE_RGBA["alpha"], GREY]
