@@ -109,3 +109,75 @@ def test_the_first_step_is_published_a_period_after_the_start_up_and_every_step_
     pacer.run(publish, lambda t_s: None)
     assert published == [10.5, 11.3, 11.8]
     assert pacer.lag.summary()["steps"] == 3 and pacer.lag.summary()["lag_max_s"] == 0.0
+
+
+# -- rules a mutation audit found no test for ------------------------------------------------
+def test_lag_summary_keeps_the_first_latest_step_the_mean_and_the_last():
+    """Steps 3 and 4 are done half a wall second late (step 2's and 3's publications cost
+    1.5 and 1 s at --rate 1): the largest lag is that of the first of them, the mean is over
+    every step, the last is step 4's."""
+    sim = _Sim()
+    sim.duration_s = 4.0
+    now = [0.0]
+    cost = {2.0: 1.5, 3.0: 1.0}
+
+    def wait(seconds: float) -> bool:
+        now[0] += seconds
+        return False
+
+    pacer = Pacer(sim, 1.0, 1.0, clock=lambda: now[0])
+    pacer._wait = wait  # type: ignore[method-assign]
+
+    def publish(t_s: float) -> None:
+        now[0] += cost.get(t_s, 0.0)
+
+    pacer.run(publish, lambda t_s: None)
+    assert pacer.lag.summary() == {
+        "lag_max_s": 0.5,
+        "lag_max_at_s": 3.0,
+        "lag_mean_s": 0.25,
+        "lag_last_s": 0.5,
+        "steps": 4,
+    }
+
+
+def test_a_run_that_keeps_up_has_its_largest_lag_at_the_first_step():
+    sim = _Sim()
+    sim.duration_s = 3.0
+    pacer = Pacer(sim, 1.0, 1e9, clock=lambda: 0.0)
+    pacer.run(lambda t_s: None, lambda t_s: None)
+    assert pacer.lag.summary()["lag_max_s"] == 0.0 and pacer.lag.summary()["lag_max_at_s"] == 1.0
+
+
+def test_the_last_step_ends_at_the_runs_end():
+    """A run of 2.5 s in steps of 1 s: its last step is half a period, published at 2.5."""
+    sim = _Sim()
+    sim.duration_s = 2.5
+    published: list[float] = []
+    Pacer(sim, 1.0, 1e9, clock=lambda: 0.0).run(published.append, lambda t_s: None)
+    assert published == [1.0, 2.0, 2.5] and sim.now == 2.5
+
+
+def test_commands_are_taken_at_the_start_and_each_step_but_not_at_the_end_or_once_stopped():
+    """Commands sent before the run are applied from its start; a step that ends the run,
+    at its end or by Ctrl-C, takes none: nothing would apply them, yet they would count."""
+    sim = _Sim()
+    sim.duration_s = 3.0
+    starts: list[float] = []
+    Pacer(sim, 1.0, 1e9, clock=lambda: 0.0).run(lambda t_s: None, starts.append)
+    assert starts == [0.0, 1.0, 2.0]
+
+    sim = _Sim()
+    calls = []
+
+    def clock() -> float:
+        calls.append(None)
+        if len(calls) == 2:
+            signal.raise_signal(signal.SIGINT)
+        return 0.0
+
+    pacer = Pacer(sim, 1.0, 2.0, clock=clock)
+    starts = []
+    with _stop_on_signals(pacer):
+        pacer.run(lambda t_s: None, starts.append)
+    assert starts == [0.0, 1.0] and sim.now == 2.0
