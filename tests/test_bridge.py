@@ -145,6 +145,7 @@ DOMAINS = {
     "bad_uri": 67,
     "burst": 68,
     "save": 69,
+    "node": 70,
 }
 
 
@@ -559,3 +560,57 @@ def test_the_highest_dds_domain_is_taken_and_a_boolean_is_no_domain():
     assert settings({"domain_id": DOMAIN_ID_MAX}).domain_id == DOMAIN_ID_MAX
     with pytest.raises(ConfigError, match=f"^bridge.domain_id = true: must be an integer from 0 to {DOMAIN_ID_MAX}$"):
         settings({"domain_id": True})
+
+
+def test_topics_are_ros_2s_under_rt():
+    from netsim.bridge.node import Node, dds_topic
+
+    assert dds_topic("/robot_0/odom") == "rt/robot_0/odom"
+    node = Node(DOMAINS["node"])
+    assert node.writer("/robot_0/odom", "nav_msgs/msg/Odometry").topic.name == "rt/robot_0/odom"
+
+
+def test_a_serialized_message_is_padded_to_four_bytes_as_the_writer_pads_it():
+    from netsim.bridge.messages import zero
+    from netsim.bridge.node import Node, serialized
+
+    writer = Node(DOMAINS["node"]).writer("/chat", "std_msgs/msg/String")
+    msg = zero("std_msgs/msg/String")
+    msg.data = "ab"  # 4 + 4 + 3 bytes
+    assert serialized(writer, msg) == msg.serialize(use_version_2=writer._use_version_2) + b"\0"
+    assert len(serialized(writer, msg)) == 12
+
+
+def test_a_template_field_whose_sentinel_is_found_twice_is_refused():
+    from netsim.bridge.messages import zero
+    from netsim.bridge.node import Node, Template
+
+    writer = Node(DOMAINS["node"]).writer("/v", "geometry_msgs/msg/Vector3")
+
+    def both(m, v):  # a setter that writes two fields: the sentinel cannot name one place
+        m.x = m.y = v
+
+    with pytest.raises(RuntimeError, match="^cannot place the field x in the message's bytes$"):
+        Template(writer, zero("geometry_msgs/msg/Vector3"), {"x": ("<d", both)})
+
+
+def test_clock_has_ros_2s_clock_qos_and_the_inbox_keeps_all():
+    from netsim.bridge.node import CLOCK_QOS, INBOX_QOS
+
+    assert Policy.Reliability.BestEffort in CLOCK_QOS and Policy.History.KeepLast(1) in CLOCK_QOS
+    assert Policy.History.KeepAll in INBOX_QOS
+
+
+def test_take_all_takes_every_sample_waiting_past_one_batch():
+    from netsim.bridge.messages import idl_type
+    from netsim.bridge.node import INBOX_QOS, Node, take_all
+
+    node = Node(DOMAINS["node"])
+    reader = node.reader("/robot_0/tx/chat", "std_msgs/msg/String")
+    writer = node.writer("/robot_0/tx/chat", "std_msgs/msg/String", qos=INBOX_QOS)
+    msg = idl_type("std_msgs/msg/String")
+    for k in range(100):
+        writer.write(msg(data=f"m{k}"))
+    assert [s.data for s in take_all(reader)] == [f"m{k}" for k in range(100)]
+    writer.dispose(msg(data="m0"))
+    assert take_all(reader) == []
