@@ -181,3 +181,23 @@ def test_commands_are_taken_at_the_start_and_each_step_but_not_at_the_end_or_onc
     with _stop_on_signals(pacer):
         pacer.run(lambda t_s: None, starts.append)
     assert starts == [0.0, 1.0] and sim.now == 2.0
+
+
+def test_sigterm_stops_the_session_as_ctrl_c_does_and_the_handlers_come_back_after():
+    """SIGTERM (a service manager's stop) ends a session as Ctrl-C does, tables kept; once
+    the session is saved, both signals are the command's own again."""
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    outside: list[int] = []
+    pacer = Pacer(_Sim(), 1.0, 1.0)
+    try:
+        # A handler of the test's own, so that a SIGTERM the session misses ends no process.
+        signal.signal(signal.SIGTERM, lambda signum, frame: outside.append(signum))
+        with _stop_on_signals(pacer):
+            signal.raise_signal(signal.SIGTERM)
+        assert pacer.stop and outside == []
+        signal.raise_signal(signal.SIGTERM)
+        assert outside == [signal.SIGTERM]
+    finally:
+        pacer._close()
+        for s, handler in before.items():
+            signal.signal(s, handler)
