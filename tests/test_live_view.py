@@ -199,3 +199,15 @@ def test_robots_without_known_roles_are_grey():
     assert robot_rgba(None, 3) == [GREY] * 3
     groups = SimpleNamespace(role_names=("scout", "alpha"), role=[0, 1, 0])
     assert robot_rgba(groups, 3) == [GREY, ROLE_RGBA["alpha"], GREY]
+
+
+def test_a_live_run_sends_the_scene_every_tenth_of_a_simulated_second(monkeypatch):
+    from netsim.bridge.live_view import LiveView
+    from netsim.tools.bridge import run_live
+    from tests.fixtures import make_config
+
+    sent: list[float] = []
+    monkeypatch.setattr(LiveView, "publish", lambda self, t_s: sent.append(t_s))
+    config = make_config(seed=1, duration_s=0.3, world={"n_robots": 3, "side_m": 50.0}, mobility={"model": "static"})
+    run_live(config, 0, SimpleNamespace(table=lambda name, frame: None))
+    assert sent == pytest.approx([0.1, 0.2, 0.3])
