@@ -146,6 +146,7 @@ DOMAINS = {
     "burst": 68,
     "save": 69,
     "node": 70,
+    "live": 71,
 }
 
 
@@ -614,3 +615,14 @@ def test_take_all_takes_every_sample_waiting_past_one_batch():
     assert [s.data for s in take_all(reader)] == [f"m{k}" for k in range(100)]
     writer.dispose(msg(data="m0"))
     assert take_all(reader) == []
+
+
+def test_a_bridge_with_a_live_view_sends_it_every_step(tmp_path, monkeypatch):
+    from netsim.bridge.live_view import LiveView
+    from netsim.tools.cli import main
+
+    sent: list[float] = []
+    monkeypatch.setattr(LiveView, "publish", lambda self, t_s: sent.append(t_s))
+    config = scenario(tmp_path, DOMAINS["live"], duration_s=0.5)
+    assert main(["bridge", str(config), "--out", str(tmp_path / "out"), "--quiet", "--rate", "1e3", "--live", "0"]) == 0
+    assert sent == pytest.approx([0.1, 0.2, 0.3, 0.4, 0.5])
