@@ -18,6 +18,20 @@ class _Sim:
         self.now = until_s
 
 
+def _ctrl_c_at_the_second_step():
+    """A wall clock that stands still and sends Ctrl-C at its second reading: the second
+    step's check, before its wait (the first reading is the schedule's start)."""
+    calls = []
+
+    def clock() -> float:
+        calls.append(None)
+        if len(calls) == 2:
+            signal.raise_signal(signal.SIGINT)
+        return 0.0
+
+    return clock
+
+
 def test_ctrl_c_ends_a_wait_for_the_wall_clock_at_once():
     """Each step is due half a wall second after the last (``--rate 2``, a clock that
     stands still); Ctrl-C, arriving as the second step is found early, ends the run there,
@@ -26,16 +40,7 @@ def test_ctrl_c_ends_a_wait_for_the_wall_clock_at_once():
     signal's handler; later the step was left unpublished, and the tables held an instant
     no node had seen.)"""
     sim = _Sim()
-    calls = []
-
-    def clock() -> float:
-        calls.append(None)
-        # The second step's check of the wall clock, before its wait (the first: the schedule's start).
-        if len(calls) == 2:
-            signal.raise_signal(signal.SIGINT)
-        return 0.0
-
-    pacer = Pacer(sim, 1.0, 2.0, clock=clock)
+    pacer = Pacer(sim, 1.0, 2.0, clock=_ctrl_c_at_the_second_step())
     published: list[float] = []
     with _stop_on_signals(pacer):
         pacer.run(published.append, lambda t_s: None)
@@ -168,15 +173,7 @@ def test_commands_are_taken_at_the_start_and_each_step_but_not_at_the_end_or_onc
     assert starts == [0.0, 1.0, 2.0]
 
     sim = _Sim()
-    calls = []
-
-    def clock() -> float:
-        calls.append(None)
-        if len(calls) == 2:
-            signal.raise_signal(signal.SIGINT)
-        return 0.0
-
-    pacer = Pacer(sim, 1.0, 2.0, clock=clock)
+    pacer = Pacer(sim, 1.0, 2.0, clock=_ctrl_c_at_the_second_step())
     starts = []
     with _stop_on_signals(pacer):
         pacer.run(lambda t_s: None, starts.append)
