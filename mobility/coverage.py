@@ -149,7 +149,7 @@ from netsim.compiled import load
 from netsim.config import MIN_RANGE_M, ConfigWarning
 from netsim.control import ControlLoop, ControlStep
 from netsim.errors import ConfigError
-from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable, in_motion, speeds_mps
+from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable, in_motion, row_starts, speeds_mps
 from netsim.groups import GroupView, in_a_group, leads_itself
 from netsim.machine import gib, machine_memory_bytes
 from netsim.params import Params, finite, non_negative, param, positive
@@ -439,7 +439,7 @@ def true_neighbours(pos: np.ndarray, leaders: np.ndarray, range_m: float) -> lis
     order of the leaders (the pairs in range, :func:`netsim.topology.geometric_pairs`)."""
     lp = pos[leaders]
     a, b, _ = geometric_pairs(lp, 2 * range_m, directed=True)
-    bounds = np.searchsorted(a, np.arange(len(lp) + 1)).tolist()
+    bounds = row_starts(a, len(lp)).tolist()
     return [lp[b[lo:hi]] for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 

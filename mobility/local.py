@@ -127,7 +127,7 @@ from netsim.mobility.spread import add_pulls, project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, fell_short, step_limit
 
 from netsim.compiled import filled, load, map_walker
-from netsim.geometry import beyond, distances_m, in_motion, speeds_mps
+from netsim.geometry import beyond, distances_m, in_motion, row_starts, speeds_mps
 from netsim.trajectory import points_on_legs
 from netsim.world.free_space import short_of_walls
 from netsim.world.maps import OccupancyMap
@@ -488,7 +488,7 @@ class Lists:
         """Every robot's list from now on: the robots it remembers (:meth:`Memory.known`)."""
         known = memory.known(now_s, release_s)
         robot, other = np.nonzero(known)
-        start = np.searchsorted(robot, np.arange(self.n + 1))
+        start = row_starts(robot, self.n)
         # The step of the list each robot holds of each other one now (-1: none).
         version = self._versions(memory.sent_s)
         # An Ack carries the lists its sender holds of the robots its list names, no others.

@@ -213,3 +213,14 @@ def drivable(velocity_mps: Any) -> np.ndarray:
     [True, False, False]
     """
     return speeds_mps(np.asarray(velocity_mps, dtype=float)) <= SPEED_OF_LIGHT_MPS
+
+
+def row_starts(rows: np.ndarray, n: int) -> np.ndarray:
+    """Where each of the rows ``0 .. n - 1`` begins in ``rows``, ascending ids of the rows
+    its items belong to (a table sorted by robot, pairs sorted by their first end), and
+    ``len(rows)`` after them: row ``i``'s items are ``starts[i]:starts[i + 1]``.
+
+    >>> row_starts(np.array([0, 0, 2, 2, 2]), 4).tolist()
+    [0, 2, 2, 5, 5]
+    """
+    return np.searchsorted(rows, np.arange(n + 1), "left")

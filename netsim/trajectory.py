@@ -9,7 +9,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from netsim.compiled import filled, load
-from netsim.geometry import distances_m, in_box
+from netsim.geometry import distances_m, in_box, row_starts
 
 # A robot put farther than this, times 1 m plus the size of both positions' coordinates, from where
 # it was has jumped (a placement, a trace's repeated instant, a border of a folded torus run):
@@ -71,8 +71,8 @@ class LegTable:
         # jump however short, as the run took it; a table without causes has none.
         self.logged_jump = legs["cause"].to_numpy() == "jump" if "cause" in legs.columns else np.zeros(k, bool)
         self.n = n
-        self.first = np.searchsorted(robots, np.arange(n), "left")
-        self.end = np.searchsorted(robots, np.arange(n), "right")
+        starts = row_starts(robots, n)
+        self.first, self.end = starts[:-1], starts[1:]
         if np.any(self.end == self.first):
             raise ValueError("every robot needs at least one leg (its initial position)")
         self.cur = self.first.copy()

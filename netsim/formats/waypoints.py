@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from netsim.errors import NetsimInputError
+from netsim.geometry import row_starts
 from netsim.trajectory import LegTable
 
 
@@ -48,7 +49,7 @@ class Waypoints:
 
     def initial_m(self) -> np.ndarray:
         """Each robot's first position, (n, 2)."""
-        first = np.searchsorted(self.robot, np.arange(self.n_robots))
+        first = row_starts(self.robot, self.n_robots)[:-1]
         return np.column_stack([self.x_m[first], self.y_m[first]])
 
     def commands(self) -> list[tuple[float, int, float, float, float, float]]:

@@ -42,7 +42,7 @@ import simpy
 
 from netsim.compiled import load
 from netsim.events import EventBus, LinkDown, LinkUp, notify
-from netsim.geometry import link_ranges_m, near_pairs
+from netsim.geometry import link_ranges_m, near_pairs, row_starts
 from netsim.links._kernels import PHASE_START, PHASE_STATE
 from netsim.scheduling import FIRST, LAST, advance_clock, kernel_queue, scheduled_event
 from netsim.state import RobotState
@@ -268,7 +268,7 @@ class RuntimeLinks:
         needs them in a window): pairs are in key order, so those with ``a = r`` are the
         range ``ptr_a[r] : ptr_a[r + 1]``; those with ``b = r`` are listed by ``by_b``."""
         n, ca, cb = self.state.n, self._ca, self._cb
-        self._ptr_a = np.searchsorted(ca, np.arange(n + 1))
+        self._ptr_a = row_starts(ca, n)
         # Any order within a robot will do; numpy sorts 16-bit integers by radix.
         self._by_b = np.argsort(cb.astype(np.uint16) if n <= 1 << 16 else cb, kind="stable")
         self._ptr_b = np.zeros(n + 1, np.int64)

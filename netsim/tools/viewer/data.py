@@ -35,6 +35,7 @@ import pandas as pd
 from netsim import config as cfgmod
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
+from netsim.geometry import row_starts
 from netsim.metrics import components_in_links_table
 from netsim.plugins import RoleLabels
 from netsim.tools import style
@@ -195,7 +196,7 @@ def _motion(run_dir: Path, n: int, blob: Blob) -> str:
     if legs is not None and len(legs):
         legs = legs.sort_values(["robot", "t_s"], kind="stable")
         robot = legs["robot"].to_numpy(np.int64)
-        first = np.searchsorted(robot, np.arange(n + 1), "left")
+        first = row_starts(robot, n)
         if np.any(first[1:] == first[:-1]):
             raise NetsimInputError(f"{run_dir}/legs.parquet: some robot has no leg")
         blob.add("legs_first", first, "<i4")
@@ -254,7 +255,7 @@ def _pack_neighbour_beliefs(run_dir: Path, nb: pd.DataFrame, times: np.ndarray, 
     )
     first = np.flatnonzero(start)
     last = np.r_[first[1:], len(k)][: len(first)] - 1
-    blob.add("nb_first", np.searchsorted(robot[first], np.arange(n + 1), "left"), "<i4")
+    blob.add("nb_first", row_starts(robot[first], n), "<i4")
     blob.add("nb_id", other[first], _small_uint(other))
     blob.add("nb_k0", k[first], _small_uint(k))
     blob.add("nb_k1", k[last], _small_uint(k))
