@@ -5,13 +5,15 @@ protocols (docs/routing.md).
 A random-waypoint team; ``--flows`` flows between fixed pairs (robot k to robot n-1-k) of
 ``--packet-bytes`` every ``--interval`` s from ``--warmup`` s (after the protocols have
 settled) to the end. Per protocol and maximum speed, over ``--reps`` replications: the
-packets' delivery ratio, their median latency, and control frames per robot per second
-(the clustering's Acks for backbone and oracle, which the backbone needs and the oracle
-does not: for it, none), each with a 95 % confidence interval (Student's t over the
-replications).
+packets' delivery ratio, their median latency, their paths' stretch (a delivered packet's
+hops over the shortest path's between its ends when it was sent, packets.parquet's
+``hops / shortest_hops``, averaged over the packets that had a path then), and control
+frames per robot per second (the clustering's Acks for backbone and oracle, which the
+backbone needs and the oracle does not: for it, none), each with a 95 % confidence
+interval (Student's t over the replications).
 
 Writes ``routing_compare.csv`` (one row per protocol and speed) and
-``routing_compare.png`` (the three figures against speed).
+``routing_compare.png`` (the four figures against speed).
 
     python experiments/routing_compare.py
     python experiments/routing_compare.py --speeds 1 5 10 --reps 5 --n 30
@@ -50,12 +52,15 @@ def ci95(values, within: tuple[float, float] = (-np.inf, np.inf)) -> tuple[float
 
 
 def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | None, n: int, duration_s: float):
-    """Per run: delivery ratio, median latency of the delivered packets, control frames per
-    robot per second."""
+    """Per run: delivery ratio, median latency of the delivered packets, their mean path
+    stretch (over those that had a path when sent), control frames per robot per second."""
     out = []
     for _, run in runs.iterrows():
         pk = packets[packets.run_id == run.run_id]
         got = pk[pk["delivered"]]
+        # A packet sent while its ends had no path may still arrive (it waited for a route,
+        # or the team moved): it has no stretch.
+        pathed = got[np.isfinite(got["shortest_hops"])]
         if control is not None:
             frames = float(control[control.run_id == run.run_id]["sent"].sum())
         else:
@@ -65,6 +70,7 @@ def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | N
                 "speed_mps": run["mobility.speed_max_mps"],
                 "delivery_ratio": len(got) / len(pk) if len(pk) else np.nan,
                 "latency_p50_s": float(got["latency_s"].median()) if len(got) else np.nan,
+                "stretch": float((pathed["hops"] / pathed["shortest_hops"]).mean()) if len(pathed) else np.nan,
                 "control_per_robot_per_s": frames / (n * duration_s),
             }
         )
@@ -138,6 +144,7 @@ def main(argv=None) -> None:
             for col, within in (
                 ("delivery_ratio", (0.0, 1.0)),
                 ("latency_p50_s", (0.0, np.inf)),
+                ("stretch", (0.0, np.inf)),
                 ("control_per_robot_per_s", (0.0, np.inf)),
             ):
                 row[col], row[f"{col}_ci_low"], row[f"{col}_ci_high"] = ci95(g[col], within)
@@ -151,13 +158,14 @@ def main(argv=None) -> None:
 
 
 def figure(table: pd.DataFrame):
-    """Delivery ratio, median latency and control frames against speed, a line per protocol."""
+    """Delivery ratio, median latency, path stretch and control frames against speed, a
+    line per protocol."""
     plt = pyplot()
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig, axes = plt.subplots(1, 4, figsize=(17, 3.8))
     for ax, col, label in zip(
         axes,
-        ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s"),
-        ("delivery ratio", "median latency, s", "control frames per robot per s"),
+        ("delivery_ratio", "latency_p50_s", "stretch", "control_per_robot_per_s"),
+        ("delivery ratio", "median latency, s", "path stretch (hops over shortest)", "control frames per robot per s"),
     ):
         for name, g in table.groupby("protocol", sort=False):
             low = (g[col] - g[f"{col}_ci_low"]).fillna(0)
@@ -172,6 +180,10 @@ def figure(table: pd.DataFrame):
         low, high = ax.get_ylim()
         if col == "delivery_ratio":
             ax.set_ylim(min(low, 0.9), 1.02)
+        elif col == "stretch":
+            # A path is seldom shorter than the shortest one when it was sent (only if the
+            # team moved while the packet waited): the axis starts at 1 unless one is.
+            ax.set_ylim(min(low, 1.0), max(high, 1.1))
         else:
             ax.set_ylim(0.0, 1.05 * high if high > 0 else 1.0)
         ax.ticklabel_format(axis="y", useOffset=False)

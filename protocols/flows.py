@@ -32,6 +32,7 @@ PACKETS_SCHEMA = {
     "t_delivered_s": "float64",
     "latency_s": "float64",
     "hops": "int64",
+    "shortest_hops": "float64",
     "frames_delivered": "int64",
     "t_dropped_s": "float64",
     "drop_robot": "int64",
@@ -60,6 +61,9 @@ PAIRS_FLOW = -1
 # on_outcome(msg_id, delivered, now, hops, robot, cause).
 Outcome = Callable[[int, bool, float, int, int, str], None]
 Send = Callable[[int, int, str, Outcome], int]
+# shortest_hops(msg_id) -> the hops of the shortest path from the message's source to its
+# destination on the true topology when it was sent (inf: none), as the protocol measured it.
+Shortest = Callable[[int], float]
 
 
 def frame_kind(nbytes: int) -> str:
@@ -70,10 +74,12 @@ def frame_kind(nbytes: int) -> str:
 class FlowTraffic:
     """Sends the flows' packets through ``send`` and keeps every packet's fate."""
 
-    def __init__(self, traffic: Traffic, env: simpy.Environment, frame_bytes: dict[str, int], send: Send):
+    def __init__(
+        self, traffic: Traffic, env: simpy.Environment, frame_bytes: dict[str, int], send: Send, shortest_hops: Shortest
+    ):
         self.flows: tuple[Flow, ...] = traffic.flows
         self.max_frame_bytes = traffic.max_frame_bytes
-        self.env, self.send = env, send
+        self.env, self.send, self.shortest_hops = env, send, shortest_hops
         self.frame_bytes = frame_bytes
         # The channel's kinds of the frames sent (frame_kind of each size).
         self.kinds: set[str] = set()
@@ -81,6 +87,8 @@ class FlowTraffic:
         self._packets: list[dict] = []
         # Per message id that ``send`` gave a frame: the flow and the packet it is of.
         self._packet_of: dict[int, tuple[int, int]] = {}
+        # Per packet, in order of sending: the message id of its first frame.
+        self._first_frame: list[int] = []
 
     def _sizes(self, nbytes: int) -> list[int]:
         """The frames' sizes of a packet of ``nbytes``, each size's kind made known to the
@@ -140,6 +148,7 @@ class FlowTraffic:
             "t_delivered_s": np.nan,
             "latency_s": np.nan,
             "hops": 0,
+            "shortest_hops": np.nan,
             "frames_delivered": 0,
             "t_dropped_s": np.nan,
             "drop_robot": -1,
@@ -148,8 +157,10 @@ class FlowTraffic:
         self._packets.append(row)
         # The row is the outcome's state: bound to it, no lookup by message id.
         told = self._teller(row)
-        for nbytes in sizes:
-            self._packet_of[self.send(flow.src, flow.dst, frame_kind(nbytes), told)] = (k, p)
+        mids = [self.send(flow.src, flow.dst, frame_kind(nbytes), told) for nbytes in sizes]
+        for mid in mids:
+            self._packet_of[mid] = (k, p)
+        self._first_frame.append(mids[0] if mids else -1)
 
     def packet_of(self, msg_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The flow and the packet (packets.parquet's) of each frame of ``msg_ids``."""
@@ -173,7 +184,12 @@ class FlowTraffic:
     def packets_frame(self) -> pd.DataFrame:
         """One row per packet sent (PACKETS_SCHEMA); a packet neither delivered nor dropped
         when the run ended is ``in_flight``; ``hops`` of a delivered packet is its longest
-        frame's path (0 if not delivered)."""
+        frame's path (0 if not delivered); ``shortest_hops`` the shortest path's when the
+        packet was sent, as the protocol measured it for its first frame."""
+        for row, mid in zip(self._packets, self._first_frame):
+            # Read at the end: the clustering's oracle measures a path sent at 0 once the
+            # channel's links are first solved.
+            row["shortest_hops"] = self.shortest_hops(mid) if mid >= 0 else np.nan
         df = pd.DataFrame(self._packets, columns=list(PACKETS_SCHEMA))
         df = df.astype(PACKETS_SCHEMA)
         pending = ~df["delivered"] & (df["drop_cause"] == "")

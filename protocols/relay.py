@@ -267,6 +267,10 @@ class Relay:
         self._outcomes[msg.id]["shortest_hops"] = float(self._hops_from(src)[msg.dst])
         self._forward_oracle(src, msg)
 
+    def shortest_hops(self, msg_id: int) -> float:
+        """The message's ``shortest_hops`` (messages.parquet's)."""
+        return self._outcomes[msg_id]["shortest_hops"]
+
     def _hops_from(self, node: int, towards: bool = False, links=None) -> np.ndarray:
         """:func:`hop_distances` now, over the channel's links (``links``: the tracked links
         up now, if already read)."""

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic, packet_delivery
-from netsim.protocols.relay import HOPS_SCHEMA
+from netsim.protocols.relay import HOPS_SCHEMA, hop_distances
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
 from netsim.events import MessageDelivered, MessageDropped
@@ -113,13 +113,20 @@ class Router:
         # Per reception of a data frame by its next hop: the frame's id, the hops it took
         # with this one, sender, receiver, when sent and when received (the hops table).
         self._hops: tuple[list, ...] = tuple([] for _ in HOPS_SCHEMA)
+        # Per data frame sent: the shortest path's hops from its source to its destination
+        # when it was sent, on the true topology (a unit disk's, or the disks of a radio's
+        # implied range, as the clustering's backbone measures them); the last search's
+        # source and time, and its distances, which a packet's other frames reuse.
+        self._shortest: dict[int, float] = {}
+        self._searched: tuple[float, int] = (np.nan, -1)
+        self._distances = np.empty(0)
         self.flows = None
         self.pairs = pairs if pairs is not None and pairs.message_rate_hz > 0 else None
         traffic = parts.traffic
         if traffic is None and self.pairs is not None:
             traffic = Traffic((), parts.max_frame_bytes)
         if traffic is not None:
-            self.flows = FlowTraffic(traffic, self.env, self.channel.frame_bytes, self.send)
+            self.flows = FlowTraffic(traffic, self.env, self.channel.frame_bytes, self.send, self._shortest.__getitem__)
         declare_roles(parts.trace)
         channel = self.channel
         self.trace.add_frame("acks", lambda: channel.frame("ack"))
@@ -155,7 +162,12 @@ class Router:
         self._told[mid] = on_outcome
         if kind not in self.channel.notify_empty:
             self.channel.notify_empty.add(kind)  # under a medium, a unicast nobody got is told
-        pkt = Packet(mid, src, dst, self.ttl, 0, kind, self.env.now, self.destination_xy(dst))
+        now = self.env.now
+        if self._searched != (now, src):
+            self._distances = hop_distances(self.state, now, src, index=self.channel.reach_lists)
+            self._searched = (now, src)
+        self._shortest[mid] = float(self._distances[dst])
+        pkt = Packet(mid, src, dst, self.ttl, 0, kind, now, self.destination_xy(dst))
         self.originate(src, pkt)
         return mid
 

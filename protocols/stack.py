@@ -122,7 +122,9 @@ class Stack(AckTiming):
         # The flows of traffic.flows, carried by the relay (None: none).
         self.flows = None
         if parts.traffic is not None:
-            self.flows = FlowTraffic(parts.traffic, self.env, self.channel.frame_bytes, self._send_flow_frame)
+            self.flows = FlowTraffic(
+                parts.traffic, self.env, self.channel.frame_bytes, self._send_flow_frame, self.relay.shortest_hops
+            )
         n = parts.state.n
         # Leader commands: each member keeps the latest command of its current leader.
         self.command: list[Command | None] = [None] * n

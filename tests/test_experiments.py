@@ -567,14 +567,16 @@ def test_routing_compare_draws_latencies_alike_flat(tmp_path):
             "speed_mps": [1.0, 5.0],
             "delivery_ratio": [1.0, 1.0 - 1e-15],
             "latency_p50_s": [0.0010000000000012221, 0.0009999999999994458],
+            "stretch": [1.25, 1.25 + 1e-15],
             "control_per_robot_per_s": [1.0, 1.0 + 1e-15],
         }
     )
-    for col in ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s"):
+    columns = ("delivery_ratio", "latency_p50_s", "stretch", "control_per_robot_per_s")
+    for col in columns:
         table[f"{col}_ci_low"] = table[f"{col}_ci_high"] = np.nan
     fig = module.figure(table)
     fig.canvas.draw()
-    for ax, col in zip(fig.axes, ("delivery_ratio", "latency_p50_s", "control_per_robot_per_s")):
+    for ax, col in zip(fig.axes, columns, strict=True):
         low, high = ax.get_ylim()
         assert table[col].max() - table[col].min() < 1e-6 * (high - low), col
         assert ax.yaxis.get_offset_text().get_text() == "", col
@@ -588,3 +590,26 @@ def test_link_lifetime_runs_a_speed_given_twice_once(tmp_path):
     assert run.returncode == 0, run.stderr[-2000:]
     table = pd.read_csv(tmp_path / "o" / "link_lifetime.csv")
     assert table["model"].tolist() == ["random_waypoint", "random_direction_torus"]
+
+
+def test_routing_compare_stretch_is_hops_over_shortest_of_packets_that_had_a_path():
+    """A run's path stretch is the mean of hops / shortest_hops over its delivered packets
+    that had a path when sent: one lost and one that arrived over a path formed later are
+    left out."""
+    from tests.fixtures import script
+
+    module = script("experiments/routing_compare.py")
+    runs = pd.DataFrame({"run_id": [0], "mobility.speed_max_mps": [5.0], "protocol.routing": ["aodv"]})
+    packets = pd.DataFrame(
+        {
+            "run_id": [0] * 4,
+            "delivered": [True, True, True, False],
+            "hops": [3, 2, 4, 0],
+            "shortest_hops": [2.0, 2.0, np.inf, 1.0],
+            "latency_s": [0.1, 0.2, 0.3, np.nan],
+        }
+    )
+    control = pd.DataFrame({"run_id": [0], "sent": [100]})
+    (row,) = module.per_run(runs, packets, control, 10, 20.0).to_dict("records")
+    assert row["stretch"] == pytest.approx(1.25)
+    assert row["delivery_ratio"] == pytest.approx(0.75) and row["control_per_robot_per_s"] == pytest.approx(0.5)

@@ -66,6 +66,9 @@ def test_flow_on_a_static_line_is_delivered_over_its_hops(tmp_path, routing):
     assert (packets["frames"] == 1).all()
     if routing == "oracle":
         assert (packets["hops"] == 4).all()
+    # The line's shortest path, as messages.parquet measures each frame's.
+    assert (packets["shortest_hops"] == 4.0).all()
+    assert (frames["messages"]["shortest_hops"] == 4.0).all()
     row = flows.iloc[0]
     assert row["packets_sent"] == 10 and row["packets_delivered"] == 10 and row["delivery_ratio"] == 1.0
     assert row["goodput_bps"] == pytest.approx(8000.0)
@@ -331,7 +334,7 @@ def _flow_traffic(send):
     from netsim.traffic import Traffic
 
     env = simpy.Environment()
-    return env, FlowTraffic(Traffic((), 1500), env, {}, send)
+    return env, FlowTraffic(Traffic((), 1500), env, {}, send, lambda _msg_id: np.nan)
 
 
 def test_a_packet_with_a_frame_lost_is_not_delivered_and_has_no_hops():

@@ -1,6 +1,7 @@
 """The messages between random pairs (``protocol.message_rate_hz``) under the routing
 protocols: the clustering's pairs, carried as packets of flow -1."""
 
+import numpy as np
 import pytest
 
 from netsim.errors import ConfigError
@@ -117,3 +118,55 @@ def test_routing_hops_list_every_frames_path_from_source_to_destination(tmp_path
             assert (chain["t_sent_s"].iloc[1:].to_numpy() >= chain["t_received_s"].iloc[:-1].to_numpy()).all()
             longest = max(longest, len(chain))
         assert longest == row["hops"]
+
+
+# Robot 1 starts far from the line between 0 and 2 (200 m apart, range 150 m) and joins it
+# at 5 s, at 1000 m/s: 0.4 s later the two are two hops apart.
+JOIN = """$node_(0) set X_ 100.0
+$node_(0) set Y_ 500.0
+$node_(1) set X_ 200.0
+$node_(1) set Y_ 900.0
+$node_(2) set X_ 300.0
+$node_(2) set Y_ 500.0
+$ns_ at 5.0 "$node_(1) setdest 200.0 500.0 1000.0"
+"""
+
+
+@pytest.mark.parametrize("model", ["aodv", "olsr", "greedy"])
+def test_routed_packets_shortest_hops_is_the_shortest_path_when_sent(tmp_path, model):
+    """Under a routing protocol each packet's ``shortest_hops`` is the shortest path from
+    its source to its destination on the true topology when it was sent: none (``inf``)
+    before robot 1 joins the two ends, 2 hops after, where those sent after took it
+    (packets.parquet's ``hops``; a packet sent before may wait for a route and take it too)."""
+    from tests.fixtures import flow_over_trace
+
+    flow = {"src": 0, "dst": 2, "start_s": 1.0, "stop_s": 12.0, "rate_bps": 4000.0, "packet_bytes": 500}
+    _sim, frames = flow_over_trace(tmp_path, JOIN, 3, flow, 12.0, 1, {"range_m": 150.0}, {"model": model})
+    packets = frames["packets"]
+    assert packets["t_sent_s"].tolist() == [float(t) for t in range(1, 12)]
+    before, after = packets[packets["t_sent_s"] < 5.0], packets[packets["t_sent_s"] > 5.4]
+    assert np.isinf(before["shortest_hops"]).all() and len(before) == 4
+    assert (after["shortest_hops"] == 2.0).all() and len(after) == 6
+    took = after[after["delivered"]]
+    assert len(took) >= 1 and (took["hops"] == 2).all(), after[["t_sent_s", "delivered", "drop_cause"]]
+
+
+def test_routed_packets_shortest_hops_on_a_grid_is_the_breadth_first_distance(tmp_path):
+    """On the static grid every random pair's packet has the hop distance of the unit-disk
+    graph between its ends (networkx's breadth-first search), which OLSR's routes, once
+    spread, take."""
+    import networkx as nx
+
+    frames = _run(tmp_path, {"model": "olsr", "message_rate_hz": 4.0}, 30.0)
+    packets = frames["packets"]
+    graph = nx.Graph()
+    graph.add_nodes_from(range(len(GRID)))
+    graph.add_edges_from(
+        (a, b) for a in range(len(GRID)) for b in range(a) if np.hypot(*np.subtract(GRID[a], GRID[b])) <= 120.0
+    )
+    hops = dict(nx.all_pairs_shortest_path_length(graph))
+    expected = [float(hops[s][d]) for s, d in zip(packets["src"], packets["dst"])]
+    assert len(packets) > 50 and packets["shortest_hops"].tolist() == expected
+    assert len(set(expected)) > 3
+    settled = packets[packets["delivered"] & (packets["t_sent_s"] > 15.0)]
+    assert len(settled) > 20 and (settled["hops"] == settled["shortest_hops"]).all()
