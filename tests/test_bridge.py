@@ -147,6 +147,7 @@ DOMAINS = {
     "save": 69,
     "node": 70,
     "live": 71,
+    "rate": 72,
 }
 
 
@@ -626,3 +627,24 @@ def test_a_bridge_with_a_live_view_sends_it_every_step(tmp_path, monkeypatch):
     config = scenario(tmp_path, DOMAINS["live"], duration_s=0.5)
     assert main(["bridge", str(config), "--out", str(tmp_path / "out"), "--quiet", "--rate", "1e3", "--live", "0"]) == 0
     assert sent == pytest.approx([0.1, 0.2, 0.3, 0.4, 0.5])
+
+
+def test_the_bridge_paces_the_run_at_the_rate_given(tmp_path, monkeypatch):
+    """``--rate R`` is the pacer's: R simulated seconds per wall second, as the summary
+    reports it (a bridge that paced at 1 whatever it was asked reported R all the same)."""
+    import netsim.tools.bridge
+    from netsim.bridge.loop import Pacer
+    from netsim.tools.cli import main
+
+    rates: list[float] = []
+
+    class Recorded(Pacer):
+        def __init__(self, sim, period_s, rate, *rest):
+            rates.append(rate)
+            super().__init__(sim, period_s, rate, *rest)
+
+    monkeypatch.setattr(netsim.tools.bridge, "Pacer", Recorded)
+    config = scenario(tmp_path, DOMAINS["rate"], duration_s=0.5)
+    assert main(["bridge", str(config), "--out", str(tmp_path / "out"), "--quiet", "--rate", "250"]) == 0
+    assert rates == [250.0]
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["bridge_rate"] == 250.0
