@@ -198,3 +198,19 @@ def test_sigterm_stops_the_session_as_ctrl_c_does_and_the_handlers_come_back_aft
         pacer._close()
         for s, handler in before.items():
             signal.signal(s, handler)
+
+
+def test_setting_stop_wakes_a_wait_for_the_wall_clock():
+    """Setting ``stop`` (Ctrl-C's handler does) makes the pipe a wait for the wall clock
+    watches readable, so that a wait already under way ends at once instead of sleeping out
+    the step; a pacer not stopped leaves it unreadable."""
+    import select
+
+    pacer = Pacer(_Sim(), 1.0, 1.0, clock=lambda: 0.0)
+    try:
+        assert select.select([pacer._wake_r], [], [], 0)[0] == []
+        pacer.stop = True
+        assert select.select([pacer._wake_r], [], [], 0)[0] == [pacer._wake_r]
+        assert pacer._wait(3600.0) is True
+    finally:
+        pacer._close()
