@@ -377,3 +377,18 @@ def test_a_plugin_path_missing_its_module_or_attribute_is_named_so(name):
     netsim's own file as if the user's code had failed)."""
     with pytest.raises(ConfigError, match=r"must be 'package.module:attr', both parts given$"):
         plugins.resolve(plugins.MOBILITY, name, "mobility.model")
+
+
+def test_a_controller_switched_on_by_its_section_is_refused_in_the_controllers_list(tmp_path, capsys):
+    """An installed controller with an ``enabled`` key of its own (coverage) named in
+    ``control.controllers`` is refused in one line that names the switch, exit 2, nothing
+    written: listed there too it would be built twice."""
+    from tests.fixtures import check_refused
+
+    check_refused(
+        tmp_path,
+        capsys,
+        ['control.controllers=["coverage"]'],
+        "control.controllers",
+        "is switched on by coverage.enabled = true, not listed here",
+    )
