@@ -392,3 +392,29 @@ def test_a_controller_switched_on_by_its_section_is_refused_in_the_controllers_l
         "control.controllers",
         "is switched on by coverage.enabled = true, not listed here",
     )
+
+
+def test_a_hook_with_a_section_of_its_own_is_refused(tmp_path, capsys, monkeypatch):
+    """A hook is built from no keys (events.hooks names it, nothing sets it): one that
+    declares a configuration section is refused in one line naming its place in the list,
+    exit 2, nothing written, not run with its keys silently at their defaults."""
+    from tests.fixtures import check_refused
+
+    (tmp_path / "sectioned_hook.py").write_text(
+        "from dataclasses import dataclass\n"
+        "from netsim.params import Params, param, positive\n"
+        "from netsim.plugins import PluginSpec\n"
+        "@dataclass(frozen=True)\n"
+        "class MyParams(Params):\n"
+        "    section = 'mine'\n"
+        "    every_s: float = param(1.0, positive, 's')\n"
+        "HOOK = PluginSpec(Params=MyParams, build=lambda params, parts: None)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    check_refused(
+        tmp_path,
+        capsys,
+        ['events.hooks=["link_breaks", "sectioned_hook:HOOK"]'],
+        "events.hooks[1]",
+        "a hook cannot own a configuration section",
+    )
