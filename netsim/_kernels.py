@@ -746,11 +746,13 @@ def longest_list(indptr):
 
 
 @jit(nogil=True)
-def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
+def hops_in_lists(pos, ranges, box, indptr, indices, source, towards, target):
     """Hops from ``source`` to every robot over the directed links where a sender reaches a
     receiver (``towards``: from every robot to ``source``), ``inf`` where there is no path: a
     breadth-first search over the neighbour lists of :meth:`netsim.radio.spatial.RangeIndex.lists`,
-    each link decided as :func:`reach_keys_in_lists` decides it."""
+    each link decided as :func:`reach_keys_in_lists` decides it. ``target`` >= 0: the search
+    ends once it has reached ``target``, whose hops are then final (of the others, only
+    those fewer; the rest may be left ``inf``)."""
     n = pos.shape[0]
     hops = np.full(n, np.inf)
     hops[source] = 0.0
@@ -774,6 +776,8 @@ def hops_in_lists(pos, ranges, box, indptr, indices, source, towards):
                     ddx, ddy, lim = pos[v, 0] - pos[u, 0], pos[v, 1] - pos[u, 1], ranges[u]
                 if reaches(ddx, ddy, lim, box):
                     hops[v] = level
+                    if v == target:
+                        return hops
                     reached[found] = v
                     found += 1
         frontier, reached = reached, frontier

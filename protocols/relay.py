@@ -80,7 +80,9 @@ class Outcome(NamedTuple):
     shortest_hops: float  # on the true topology at send time (inf: no path)
 
 
-def hop_distances(state, now: float, node: int, towards: bool = False, index=None, links=None) -> np.ndarray:
+def hop_distances(
+    state, now: float, node: int, towards: bool = False, index=None, links=None, target: int = -1
+) -> np.ndarray:
     """Hops from ``node`` to every robot over the true directed unit-disk links now
     (``towards=True``: from every robot to ``node``, a search on the reversed links), as
     floats, ``inf`` where there is no path: one compiled search
@@ -88,16 +90,17 @@ def hop_distances(state, now: float, node: int, towards: bool = False, index=Non
     (``index``: a unit disk), or, without one, over lists of the pairs within the largest
     range built for the search. ``links``: the links up now, arrays ``(a, b)``, as a radio
     decides them (shadowing, walls: no range circle gives them), searched instead, each both
-    ways."""
+    ways. ``target``: the one robot whose hops are wanted (the search ends there; the others'
+    are then not all final)."""
     kernels = load("netsim._kernels", state.n)
     if links is not None:
         indptr, indices = kernels.neighbour_lists(np.column_stack(links).astype(np.int64), state.n)
         # Every listed pair is a link: no range to test it by.
         everywhere = np.full(state.n, np.inf)
-        return kernels.hops_in_lists(np.zeros((state.n, 2)), everywhere, 0.0, indptr, indices, node, towards)
+        return kernels.hops_in_lists(np.zeros((state.n, 2)), everywhere, 0.0, indptr, indices, node, towards, target)
     pos, indptr, indices = reach_lists(state, now, index)
     side = state.side_m if state.torus else 0.0
-    return kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards)
+    return kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards, target)
 
 
 class Relay:
@@ -188,7 +191,7 @@ class Relay:
             "hops": 0,
             "latency_s": np.nan,
             "transmissions": 0,
-            "shortest_hops": float(self._hops_from(src)[dst]),
+            "shortest_hops": float(self._hops_from(src, target=dst)[dst]),
         }
         self._pending[mid] = 0
         if carried or payload is not None:
@@ -264,19 +267,19 @@ class Relay:
         return self._live is None or self._live.started
 
     def _first_oracle_hop(self, src: int, msg: Message) -> None:
-        self._outcomes[msg.id]["shortest_hops"] = float(self._hops_from(src)[msg.dst])
+        self._outcomes[msg.id]["shortest_hops"] = float(self._hops_from(src, target=msg.dst)[msg.dst])
         self._forward_oracle(src, msg)
 
     def shortest_hops(self, msg_id: int) -> float:
         """The message's ``shortest_hops`` (messages.parquet's)."""
         return self._outcomes[msg_id]["shortest_hops"]
 
-    def _hops_from(self, node: int, towards: bool = False, links=None) -> np.ndarray:
+    def _hops_from(self, node: int, towards: bool = False, links=None, target: int = -1) -> np.ndarray:
         """:func:`hop_distances` now, over the channel's links (``links``: the tracked links
-        up now, if already read)."""
+        up now, if already read); ``target``: the one robot whose hops are wanted."""
         if links is None and self._live is not None:
             links = self._live.up_pairs()
-        return hop_distances(self.state, self.env.now, node, towards, index=self._index, links=links)
+        return hop_distances(self.state, self.env.now, node, towards, self._index, links, target)
 
     # -- oracle shortest path ----------------------------------------------------------
     def _forward_oracle(self, holder: int, msg: Message) -> None:

@@ -116,10 +116,10 @@ class Router:
         # Per data frame sent: the shortest path's hops from its source to its destination
         # when it was sent, on the true topology (a unit disk's, or the disks of a radio's
         # implied range, as the clustering's backbone measures them); the last search's
-        # source and time, and its distances, which a packet's other frames reuse.
+        # time and ends, and its hops, which a packet's other frames reuse.
         self._shortest: dict[int, float] = {}
-        self._searched: tuple[float, int] = (np.nan, -1)
-        self._distances = np.empty(0)
+        self._searched: tuple[float, int, int] = (np.nan, -1, -1)
+        self._searched_hops = np.inf
         self.flows = None
         self.pairs = pairs if pairs is not None and pairs.message_rate_hz > 0 else None
         traffic = parts.traffic
@@ -163,10 +163,10 @@ class Router:
         if kind not in self.channel.notify_empty:
             self.channel.notify_empty.add(kind)  # under a medium, a unicast nobody got is told
         now = self.env.now
-        if self._searched != (now, src):
-            self._distances = hop_distances(self.state, now, src, index=self.channel.reach_lists)
-            self._searched = (now, src)
-        self._shortest[mid] = float(self._distances[dst])
+        if self._searched != (now, src, dst):
+            hops = hop_distances(self.state, now, src, index=self.channel.reach_lists, target=dst)
+            self._searched, self._searched_hops = (now, src, dst), float(hops[dst])
+        self._shortest[mid] = self._searched_hops
         pkt = Packet(mid, src, dst, self.ttl, 0, kind, now, self.destination_xy(dst))
         self.originate(src, pkt)
         return mid

@@ -502,7 +502,8 @@ def test_reach_keys_from_the_range_index_lists_equal_numpy(torus):
 def test_hops_from_the_range_index_lists_equal_numpy(torus):
     """Hop distances from a robot (and towards it) searched over the range index's lists are
     the numpy search's over every pair in reach: unequal ranges (one-way links), robots
-    out of reach of all (inf), moving robots with lists built earlier."""
+    out of reach of all (inf), moving robots with lists built earlier; a search for one
+    target gives its hops."""
     from netsim.protocols.relay import hop_distances
 
     from tests.oracles import protocols as protocols_oracle
@@ -521,6 +522,12 @@ def test_hops_from_the_range_index_lists_equal_numpy(torus):
             assert hop_distances(st, t, node, towards).tobytes() == want.tobytes()  # lists built here
             assert got.tobytes() == want.tobytes()
             finite += int(np.isfinite(got).sum())
+            # A search for one robot ends there with its hops, and leaves none beyond them.
+            for target in rng.integers(250, size=5).tolist():
+                one = hop_distances(st, t, node, towards, index=index, target=target)
+                assert one[target] == want[target]
+                assert (one[np.isfinite(one)] <= want[target]).all()
+                assert (one[np.isfinite(one)] == want[np.isfinite(one)]).all()
     assert 0 < finite < 40 * 2 * 250  # some paths, and some robots out of reach
 
 
