@@ -3,9 +3,11 @@ change that must not change behaviour (a refactor, a speed-up, a new model whose
 must reproduce today's runs).
 
 Each scenario is small (most have 30 robots and 60 simulated seconds) and the set covers every mobility
-model, placement, protocol, policy, loss model, propagation model (log-distance, shadowing,
-walls from the office and cave maps), coverage mode (spread and follow, exact and grid
-area) and controller, and every table (the replay's ``legs`` and ``hops`` included).
+model, placement, protocol (the clustering, and the aodv, olsr and greedy routing protocols
+with random pairs' messages and flows), policy, loss model, propagation model (log-distance,
+shadowing, walls from the office and cave maps), coverage mode (spread and follow, exact and
+grid area) and controller, and every table (the replay's ``legs`` and ``hops``, and the
+flows' ``packets`` and ``flows``, included).
 For each scenario the script runs it, converts every output table to Parquet in memory
 and records the SHA-256 of its bytes (with pandas' metadata: a changed dtype or column
 order changes the digest too). The run's wall time and the package versions are not part
@@ -56,6 +58,9 @@ OFFICE_LOCAL = COVERAGE + [
     "coverage.plan=local",
     "duration_s=60",
 ]
+
+# A flow across the team: packets of three frames every half second.
+FLOW = "{src = 0, dst = 29, start_s = 10.0, stop_s = 50.0, rate_bps = 64000.0, packet_bytes = 4000}"
 
 OFFICE = ["world.map=office", "world.side_m=200", "channel.range_m=40", "mobility.stationary_start=false"]
 
@@ -145,6 +150,13 @@ SCENARIOS: dict[str, list[str]] = {
     ],
     "cave_coverage": COVERAGE
     + ["world.map=cave", "world.side_m=200", "world.centre_side_m=60", "channel.range_m=30", "duration_s=40"],
+    # The routing protocols with random pairs' messages, and flows of packets of several
+    # frames under the clustering's relay and under AODV on a shared medium.
+    "aodv_pairs": ["protocol.model=aodv", "protocol.message_rate_hz=2"],
+    "olsr_pairs": ["protocol.model=olsr", "protocol.message_rate_hz=2"],
+    "greedy_pairs": ["protocol.model=greedy", "protocol.message_rate_hz=2"],
+    "clustering_flows": [f"traffic.flows=[{FLOW}]"],
+    "aodv_flows_csma": ["protocol.model=aodv", "channel.mac=csma", f"traffic.flows=[{FLOW}]"],
 }
 
 
