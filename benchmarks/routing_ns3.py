@@ -12,6 +12,15 @@ packet carries one or more). netsim's OLSR robots start at t = 0 like ns-3's nod
     python benchmarks/routing_ns3.py --ns3-python .ns3venv/bin/python
     python benchmarks/routing_ns3.py --only line --protocols aodv
     python benchmarks/routing_ns3.py --only mobile --trace team.ns2   # a trace of your own
+    python benchmarks/routing_ns3.py --only large                    # the speed of both
+
+Each side also times its run alone: netsim's ``Simulation.run`` and ns-3's
+``Simulator::Run`` (neither side's imports nor its building of the scenario), wall and CPU
+seconds, printed beside the figures with their ratio (ns-3's over netsim's: above 1, netsim
+is faster). ``large`` is a team of 100 on a square of 1,826 m (the mobile team's density),
+ten flows between robots k and 99 - k: a workload to time (its figures are compared as the
+others'). ``--mac csma`` runs netsim's side on its shared medium (CSMA/CA, as ns-3's
+802.11 is) instead of its collision-free channel.
 
 Each row runs netsim (this interpreter) and ns-3 (``--ns3-python``, this script with
 ``--side ns3``); the table says whether each figure is within its tolerance (TOLERANCE)
@@ -27,6 +36,7 @@ one per packet.
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -39,39 +49,51 @@ except ImportError:  # ns-3's own Python, where this script also runs (--side ns
     from argparse import ArgumentParser as Parser
 
 SCENARIOS = {
-    # name: (positions, range_m, src, dsts: a flow to each); positions None: the mobile
-    # team's trace.
-    "line": ([(50.0 + 100.0 * i, 500.0) for i in range(6)], 120.0, 0, (5,)),
-    "grid": ([(50.0 + 100.0 * i, 50.0 + 100.0 * j) for i in range(4) for j in range(4)], 120.0, 0, (15,)),
-    "mobile": (None, 250.0, 0, (3, 6, 9, 13)),
+    # name: (positions, or the name of a moving team of TEAMS; range_m; flows (src, dst)).
+    "line": ([(50.0 + 100.0 * i, 500.0) for i in range(6)], 120.0, ((0, 5),)),
+    "grid": ([(50.0 + 100.0 * i, 50.0 + 100.0 * j) for i in range(4) for j in range(4)], 120.0, ((0, 15),)),
+    "mobile": ("mobile", 250.0, ((0, 3), (0, 6), (0, 9), (0, 13))),
+    "large": ("large", 250.0, tuple((k, 99 - k) for k in range(10))),
 }
-# The mobile team: random waypoint, written once by `netsim scenario generate` (its seed is
-# --seed) and replayed by both.
+# The scenarios run unless --only names others: the comparison the docs quote.
+DEFAULT = ("line", "grid", "mobile")
+# The moving teams: random waypoint, written once by `netsim scenario generate` (its seed
+# is --seed) and replayed by both. The large team keeps the mobile one's density.
 MOBILE = {"n": 30, "side": 1000.0, "speed_min": 1.0, "speed_max": 5.0, "pause": 0.0}
+TEAMS = {"mobile": MOBILE, "large": {**MOBILE, "n": 100, "side": 1826.0}}
 # What may differ between the two: delivery ratio (absolute), mean hops (absolute), control
 # packets per second (relative).
 TOLERANCE = {"delivery_ratio": 0.05, "mean_hops": 0.25, "control_per_s": 0.30}
 FIGURES = ("delivery_ratio", "mean_hops", "control_per_s", "messages_per_s")
+# Each side's run alone (wall and CPU seconds), compared as a ratio.
+TIMES = ("run_s", "run_cpu_s")
 
 
-def write_trace(path: Path, args) -> None:
-    """The mobile team's ns-2 trace, as `netsim scenario generate` writes it."""
-    m = MOBILE
+def write_trace(path: Path, args, team: str = "mobile") -> None:
+    """A moving team's ns-2 trace (TEAMS), as `netsim scenario generate` writes it."""
+    m = TEAMS[team]
     netsim = Path(sys.executable).with_name("netsim")
     flags = [f"--n={m['n']}", f"--side={m['side']}", f"--speed-min={m['speed_min']}", f"--speed-max={m['speed_max']}"]
     flags += [f"--pause={m['pause']}", f"--duration={args.duration}", f"--seed={args.seed}", "-o", str(path)]
     subprocess.run([str(netsim), "scenario", "generate", *flags], check=True, capture_output=True)
 
 
+def trace_of(scenario: str, args) -> str:
+    """The ns-2 trace of a moving team's scenario: ``--trace`` for the mobile team."""
+    return args.trace if SCENARIOS[scenario][0] == "mobile" else args.traces[SCENARIOS[scenario][0]]
+
+
 def netsim_side(scenario: str, protocol: str, args) -> dict:
+    import time
+
     from netsim.config import from_dict
     from netsim.run import build, collect
 
-    xy, range_m, src, dsts = SCENARIOS[scenario]
+    xy, range_m, flows = SCENARIOS[scenario]
     with tempfile.TemporaryDirectory() as tmp:
-        if xy is None:
-            world = {"n_robots": MOBILE["n"], "side_m": MOBILE["side"]}
-            mobility = {"model": "trace", "trace_file": args.trace, "ns2_semantics": "ns3"}
+        if isinstance(xy, str):
+            world = {"n_robots": TEAMS[xy]["n"], "side_m": TEAMS[xy]["side"]}
+            mobility = {"model": "trace", "trace_file": trace_of(scenario, args), "ns2_semantics": "ns3"}
         else:
             path = Path(tmp) / "robots.csv"
             path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
@@ -84,7 +106,7 @@ def netsim_side(scenario: str, protocol: str, args) -> dict:
                 "duration_s": args.duration,
                 "world": world,
                 "mobility": mobility,
-                "channel": {"range_m": range_m},
+                "channel": {"range_m": range_m, "mac": getattr(args, "mac", "none")},
                 # OLSR's robots all start at t = 0, as ns-3's nodes do.
                 "protocol": {"model": protocol, **({"start_spread_s": 0.0} if protocol == "olsr" else {})},
                 "traffic": {
@@ -97,14 +119,16 @@ def netsim_side(scenario: str, protocol: str, args) -> dict:
                             "rate_bps": rate_bps,
                             "packet_bytes": args.packet_bytes,
                         }
-                        for dst in dsts
+                        for src, dst in flows
                     ]
                 },
                 "output": {"position_interval_s": 0.0},
             }
         )
         sim = build(config)
+        wall, cpu = time.perf_counter(), time.process_time()
         sim.run()
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         frames = collect(sim)
     packets = frames["packets"]
     got = packets[packets["delivered"]]
@@ -115,6 +139,8 @@ def netsim_side(scenario: str, protocol: str, args) -> dict:
         "mean_hops": float(got["hops"].mean()) if len(got) else float("nan"),
         "control_per_s": float(frames["control"]["sent"].sum()) / args.duration,
         "messages_per_s": float(frames["control"]["messages"].sum()) / args.duration,
+        "run_s": wall,
+        "run_cpu_s": cpu,
     }
 
 
@@ -189,16 +215,18 @@ void Install(NodeContainer nodes, uint32_t src, uint32_t dst, uint32_t size, dou
 
 
 def ns3_side(scenario: str, protocol: str, args) -> dict:
+    import time
+
     import cppyy
     from ns import ns
 
     cppyy.cppdef(NS3_CPP)
-    xy, range_m, src, dsts = SCENARIOS[scenario]
+    xy, range_m, flows = SCENARIOS[scenario]
     ns.RngSeedManager.SetSeed(args.seed)
     nodes = ns.NodeContainer()
-    if xy is None:
-        nodes.Create(MOBILE["n"])
-        ns.Ns2MobilityHelper(args.trace).Install()
+    if isinstance(xy, str):
+        nodes.Create(TEAMS[xy]["n"])
+        ns.Ns2MobilityHelper(trace_of(scenario, args)).Install()
     else:
         nodes.Create(len(xy))
         alloc = ns.CreateObject[ns.ListPositionAllocator]()
@@ -231,10 +259,12 @@ def ns3_side(scenario: str, protocol: str, args) -> dict:
     addresses.SetBase(ns.Ipv4Address("10.0.0.0"), ns.Ipv4Mask("255.255.255.0"))
     addresses.Assign(devices)
     cppyy.gbl.routecmp.Trace(port)
-    for dst in dsts:
+    for src, dst in flows:
         cppyy.gbl.routecmp.Install(nodes, src, dst, args.packet_bytes, args.interval, args.start, args.duration)
     ns.Simulator.Stop(ns.Seconds(args.duration))
+    wall, cpu = time.perf_counter(), time.process_time()
     ns.Simulator.Run()
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     g = cppyy.gbl.routecmp
     sent, recv = int(g.Sent()), int(g.Received())
     out = {
@@ -244,6 +274,8 @@ def ns3_side(scenario: str, protocol: str, args) -> dict:
         "mean_hops": int(g.HopSum()) / recv if recv else float("nan"),
         "control_per_s": int(g.Control()) / args.duration,
         "messages_per_s": (int(g.OlsrMessages()) if protocol == "olsr" else int(g.Control())) / args.duration,
+        "run_s": wall,
+        "run_cpu_s": cpu,
     }
     ns.Simulator.Destroy()
     return out
@@ -260,7 +292,7 @@ def main() -> int:
     p = Parser(description=__doc__.split("\n\n")[0])
     p.add_argument("--side", choices=["both", "netsim", "ns3"], default="both")
     p.add_argument("--ns3-python", default=".ns3venv/bin/python")
-    p.add_argument("--only", nargs="*", default=list(SCENARIOS))
+    p.add_argument("--only", nargs="*", default=list(DEFAULT), help=f"of {', '.join(SCENARIOS)}")
     p.add_argument("--protocols", nargs="*", default=["aodv", "olsr"])
     p.add_argument("--duration", type=float, default=100.0, help="simulated time, s")
     p.add_argument("--start", type=float, default=30.0, help="when the flow starts, s")
@@ -268,6 +300,8 @@ def main() -> int:
     p.add_argument("--packet-bytes", type=int, default=512)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--trace", default="", help="the mobile team's ns-2 trace (default: written anew)")
+    p.add_argument("--mac", choices=["none", "csma"], default="none", help="netsim's channel.mac")
+    p.add_argument("--traces", type=json.loads, default={}, help=argparse.SUPPRESS)
     args = p.parse_args()
     unknown = [name for name in args.only if name not in SCENARIOS]
     if unknown or not args.only:
@@ -290,12 +324,15 @@ def main() -> int:
             f"--ns3-python {args.ns3_python}: no such file (bash benchmarks/ns3_env.sh .ns3venv makes it;"
             " --side netsim --only NAME --protocols NAME runs netsim's side alone)"
         )
-    if "mobile" in args.only and not args.trace:
-        with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp:
+        if "mobile" in args.only and not args.trace:
             args.trace = str(Path(tmp) / "mobile.ns2")
             write_trace(Path(args.trace), args)
-            return compare(args)
-    return compare(args)
+        for team in TEAMS:
+            if team != "mobile" and team in args.only and team not in args.traces:
+                args.traces[team] = str(Path(tmp) / f"{team}.ns2")
+                write_trace(Path(args.traces[team]), args, team)
+        return compare(args)
 
 
 def compare(args) -> int:
@@ -312,6 +349,7 @@ def compare(args) -> int:
         f"--packet-bytes={args.packet_bytes}",
         f"--seed={args.seed}",
         f"--trace={args.trace}",
+        f"--traces={json.dumps(args.traces)}",
     ]
     ok = True
     print(f"{'scenario':8} {'protocol':8} {'figure':15} {'netsim':>9} {'ns-3':>9}  within")
@@ -325,6 +363,9 @@ def compare(args) -> int:
                 ok &= good is not False
                 verdict = "" if good is None else str(good)
                 print(f"{scenario:8} {protocol:8} {name:15} {ours[name]:9.3f} {theirs[name]:9.3f}  {verdict}")
+            for name in TIMES:
+                ratio = f"ns-3/netsim {theirs[name] / ours[name]:.2f}" if ours[name] > 0 else ""
+                print(f"{scenario:8} {protocol:8} {name:15} {ours[name]:9.3f} {theirs[name]:9.3f}  {ratio}")
     return 0 if ok else 1
 
 

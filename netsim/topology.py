@@ -34,6 +34,35 @@ def reach_lists(state: RobotState, now: float, index: Any = None) -> tuple[np.nd
     return pos, indptr, indices
 
 
+def hop_distances(
+    state: RobotState,
+    now: float,
+    node: int,
+    towards: bool = False,
+    index: Any = None,
+    links: tuple[np.ndarray, np.ndarray] | None = None,
+    target: int = -1,
+) -> np.ndarray:
+    """Hops from ``node`` to every robot over the true directed unit-disk links now
+    (``towards=True``: from every robot to ``node``, a search on the reversed links), as
+    floats, ``inf`` where there is no path: one compiled search
+    (:func:`netsim._kernels.hops_in_lists`) over the channel's range index's neighbour lists
+    (``index``: a unit disk), or, without one, over lists of the pairs within the largest
+    range built for the search. ``links``: the links up now, arrays ``(a, b)``, as a radio
+    decides them (shadowing, walls: no range circle gives them), searched instead, each both
+    ways. ``target``: the one robot whose hops are wanted: the search ends there, so every
+    finite entry is exact but an ``inf`` may be a robot it did not reach."""
+    kernels = load("netsim._kernels", state.n)
+    if links is not None:
+        indptr, indices = kernels.neighbour_lists(np.column_stack(links).astype(np.int64), state.n)
+        # Every listed pair is a link: no range to test it by.
+        everywhere = np.full(state.n, np.inf)
+        return kernels.hops_in_lists(np.zeros((state.n, 2)), everywhere, 0.0, indptr, indices, node, towards, target)
+    pos, indptr, indices = reach_lists(state, now, index)
+    side = state.side_m if state.torus else 0.0
+    return kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards, target)
+
+
 def geometric_pairs(
     positions_m: np.ndarray, range_m: float | np.ndarray, side_m: float | None = None, directed: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -56,6 +56,8 @@ FLOWS_SCHEMA = {
 IN_FLIGHT = "in_flight"
 # The flow of the messages between random pairs in the packets table.
 PAIRS_FLOW = -1
+# A packet's row's key for the message id of its first frame (not a column).
+FIRST_FRAME = "_first_frame"
 
 # send(src, dst, kind, on_outcome) -> message id: the protocol's relay.
 # on_outcome(msg_id, delivered, now, hops, robot, cause).
@@ -87,8 +89,6 @@ class FlowTraffic:
         self._packets: list[dict] = []
         # Per message id that ``send`` gave a frame: the flow and the packet it is of.
         self._packet_of: dict[int, tuple[int, int]] = {}
-        # Per packet, in order of sending: the message id of its first frame.
-        self._first_frame: list[int] = []
 
     def _sizes(self, nbytes: int) -> list[int]:
         """The frames' sizes of a packet of ``nbytes``, each size's kind made known to the
@@ -160,7 +160,8 @@ class FlowTraffic:
         mids = [self.send(flow.src, flow.dst, frame_kind(nbytes), told) for nbytes in sizes]
         for mid in mids:
             self._packet_of[mid] = (k, p)
-        self._first_frame.append(mids[0] if mids else -1)
+        # The row's own key, outside the table's columns.
+        row[FIRST_FRAME] = mids[0] if mids else -1
 
     def packet_of(self, msg_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The flow and the packet (packets.parquet's) of each frame of ``msg_ids``."""
@@ -186,9 +187,10 @@ class FlowTraffic:
         when the run ended is ``in_flight``; ``hops`` of a delivered packet is its longest
         frame's path (0 if not delivered); ``shortest_hops`` the shortest path's when the
         packet was sent, as the protocol measured it for its first frame."""
-        for row, mid in zip(self._packets, self._first_frame):
+        for row in self._packets:
             # Read at the end: the clustering's oracle measures a path sent at 0 once the
             # channel's links are first solved.
+            mid = row[FIRST_FRAME]
             row["shortest_hops"] = self.shortest_hops(mid) if mid >= 0 else np.nan
         df = pd.DataFrame(self._packets, columns=list(PACKETS_SCHEMA))
         df = df.astype(PACKETS_SCHEMA)

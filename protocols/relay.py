@@ -28,9 +28,10 @@ from netsim.compiled import load
 from netsim.cosim import Arrival
 from netsim.events import MessageDelivered, MessageDropped
 from netsim.plugins import Parts
+from netsim.radio.spatial import RangeIndex
 from netsim.rng import Streams
 from netsim.scheduling import LAST, scheduled_event
-from netsim.topology import reach_lists
+from netsim.topology import hop_distances
 
 
 class Routing(StrEnum):
@@ -80,27 +81,13 @@ class Outcome(NamedTuple):
     shortest_hops: float  # on the true topology at send time (inf: no path)
 
 
-def hop_distances(
-    state, now: float, node: int, towards: bool = False, index=None, links=None, target: int = -1
-) -> np.ndarray:
-    """Hops from ``node`` to every robot over the true directed unit-disk links now
-    (``towards=True``: from every robot to ``node``, a search on the reversed links), as
-    floats, ``inf`` where there is no path: one compiled search
-    (:func:`netsim._kernels.hops_in_lists`) over the channel's range index's neighbour lists
-    (``index``: a unit disk), or, without one, over lists of the pairs within the largest
-    range built for the search. ``links``: the links up now, arrays ``(a, b)``, as a radio
-    decides them (shadowing, walls: no range circle gives them), searched instead, each both
-    ways. ``target``: the one robot whose hops are wanted (the search ends there; the others'
-    are then not all final)."""
-    kernels = load("netsim._kernels", state.n)
-    if links is not None:
-        indptr, indices = kernels.neighbour_lists(np.column_stack(links).astype(np.int64), state.n)
-        # Every listed pair is a link: no range to test it by.
-        everywhere = np.full(state.n, np.inf)
-        return kernels.hops_in_lists(np.zeros((state.n, 2)), everywhere, 0.0, indptr, indices, node, towards, target)
-    pos, indptr, indices = reach_lists(state, now, index)
-    side = state.side_m if state.torus else 0.0
-    return kernels.hops_in_lists(pos, state.range_m, side, indptr, indices, node, towards, target)
+def shortest_paths_index(channel, state) -> RangeIndex:
+    """The range index a protocol's searches for shortest paths on the true topology use
+    (:func:`netsim.topology.hop_distances`): the channel's, whose lists hold every robot a
+    sender reaches, or, under a radio, one over the disks of its implied range, rebuilt only
+    as the robots move (a list of the pairs in range built for each search costs a run
+    more than the searches)."""
+    return channel.reach_lists or RangeIndex(state)
 
 
 class Relay:
@@ -139,14 +126,15 @@ class Relay:
         # gateways), loaded for the run's size.
         self.kernels = load("netsim.protocols._kernels", parts.state.n)
         self._roles = tuple(RoleArrays(self.roles.role, self.roles.leader))
-        # The channel's range index, whose neighbour lists the searches for shortest paths
-        # use (a unit disk only: a radio decides its links otherwise).
-        self._index = self.channel.reach_lists
+        # The range index whose neighbour lists the searches for shortest paths use: the
+        # channel's on a unit disk, else one of the implied range's disks (a radio decides
+        # its links otherwise).
+        self._index = shortest_paths_index(self.channel, parts.state)
         # Under a radio the oracle routes on the links as the channel decides them, tracked
         # during the run (links.parquet's), and measures the shortest paths on them. The
         # other routings measure them on the implied range's disks: tracking a radio's links
         # during the run costs a walled run more than the run itself.
-        oracle_on_a_radio = self.routing is Routing.ORACLE and self._index is None
+        oracle_on_a_radio = self.routing is Routing.ORACLE and self.channel.reach_lists is None
         self._live = parts.links() if oracle_on_a_radio and parts.links is not None else None
         # Messages sent from outside (sim.send): what each carries until it arrives, and
         # what has arrived at each robot.

@@ -19,12 +19,13 @@ import numpy as np
 import pandas as pd
 from netsim.protocols.ack import ACKS_SCHEMA
 from netsim.protocols.flows import FLOWS_SCHEMA, PACKETS_SCHEMA, FlowTraffic, packet_delivery
-from netsim.protocols.relay import HOPS_SCHEMA, hop_distances
+from netsim.protocols.relay import HOPS_SCHEMA, shortest_paths_index
 from netsim.protocols.roles import ROLES_SCHEMA, declare_roles
 
 from netsim.events import MessageDelivered, MessageDropped
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.plugins import Parts
+from netsim.topology import hop_distances
 from netsim.traffic import Traffic, frame_count, refuse_frames
 
 # The tables every routing protocol writes (the flows' when there are flows), and its
@@ -116,9 +117,11 @@ class Router:
         # Per data frame sent: the shortest path's hops from its source to its destination
         # when it was sent, on the true topology (a unit disk's, or the disks of a radio's
         # implied range, as the clustering's backbone measures them); the last search's
-        # time and ends, and its hops, which a packet's other frames reuse.
+        # time, jumps (a robot set down elsewhere at that instant changes the paths) and
+        # ends, and its hops, which a packet's other frames reuse.
         self._shortest: dict[int, float] = {}
-        self._searched: tuple[float, int, int] = (np.nan, -1, -1)
+        self._index = shortest_paths_index(self.channel, self.state)
+        self._searched: tuple[float, int, int, int] = (np.nan, -1, -1, -1)
         self._searched_hops = np.inf
         self.flows = None
         self.pairs = pairs if pairs is not None and pairs.message_rate_hz > 0 else None
@@ -163,9 +166,10 @@ class Router:
         if kind not in self.channel.notify_empty:
             self.channel.notify_empty.add(kind)  # under a medium, a unicast nobody got is told
         now = self.env.now
-        if self._searched != (now, src, dst):
-            hops = hop_distances(self.state, now, src, index=self.channel.reach_lists, target=dst)
-            self._searched, self._searched_hops = (now, src, dst), float(hops[dst])
+        searched = (now, self.state.jumps, src, dst)
+        if self._searched != searched:
+            hops = hop_distances(self.state, now, src, index=self._index, target=dst)
+            self._searched, self._searched_hops = searched, float(hops[dst])
         self._shortest[mid] = self._searched_hops
         pkt = Packet(mid, src, dst, self.ttl, 0, kind, now, self.destination_xy(dst))
         self.originate(src, pkt)

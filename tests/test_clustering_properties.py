@@ -224,11 +224,12 @@ def _hops_on_links_table(links, n: int, t: float, src: int, dst: int) -> float:
         return math.inf
 
 
-def office_team(duration_s: float, protocol: dict):
+def office_team(duration_s: float, protocol: dict, flows: tuple = ()):
     """12 static robots from a connected start on the office map, under log-distance
-    through its walls, with the clustering's ``protocol`` keys."""
+    through its walls, with the clustering's ``protocol`` keys (and ``flows``)."""
     return from_dict(
         {
+            **({"traffic": {"flows": list(flows)}} if flows else {}),
             "seed": 1,
             "duration_s": duration_s,
             "world": {"n_robots": 12, "map": "office", "bounds_m": "map", "placement": "connected"},
@@ -306,6 +307,25 @@ def test_an_oracle_message_sent_at_t0_under_a_radio_waits_for_the_links():
     msgs, links = (frame := collect(sim))["messages"], frame["links"]
     assert msgs.delivered.tolist() == [True]
     assert msgs.shortest_hops.iloc[0] == _hops_on_links_table(links, 12, 0.0, 0, 11) == msgs.hops.iloc[0]
+
+
+@pytest.mark.slow
+def test_an_oracle_packet_sent_at_t0_under_a_radio_has_the_shortest_path_of_the_links():
+    """A flow's packets of three frames from t = 0 through the office's walls: each packet's
+    shortest_hops is its first frame's (messages.parquet's), measured once the channel's
+    links are first solved, on them (links.parquet's): finite, not the ``inf`` of a
+    search before any link was solved."""
+    flow = {"src": 0, "dst": 11, "start_s": 0.0, "stop_s": 4.0, "rate_bps": 16000.0, "packet_bytes": 4000}
+    sim = build(office_team(5.0, {"routing": "oracle", "message_rate_hz": 0.0}, (flow,)))
+    sim.run()
+    frames = collect(sim)
+    packets, msgs, links = frames["packets"], frames["messages"], frames["links"]
+    assert len(packets) == 2 and (packets["frames"] == 3).all() and packets["t_sent_s"].iloc[0] == 0.0
+    truth = _hops_on_links_table(links, 12, 0.0, 0, 11)
+    assert math.isfinite(truth) and truth >= 2
+    assert packets["shortest_hops"].iloc[0] == truth
+    firsts = msgs.groupby("t_sent_s")["shortest_hops"].first()
+    assert packets["shortest_hops"].tolist() == firsts.loc[packets["t_sent_s"]].tolist()
 
 
 def test_strict_backbone_can_miss_what_distributed_gateways_reach():

@@ -504,8 +504,7 @@ def test_hops_from_the_range_index_lists_equal_numpy(torus):
     the numpy search's over every pair in reach: unequal ranges (one-way links), robots
     out of reach of all (inf), moving robots with lists built earlier; a search for one
     target gives its hops."""
-    from netsim.protocols.relay import hop_distances
-
+    from netsim.topology import hop_distances
     from tests.oracles import protocols as protocols_oracle
 
     rng = np.random.default_rng(33)

@@ -170,3 +170,34 @@ def test_routed_packets_shortest_hops_on_a_grid_is_the_breadth_first_distance(tm
     assert len(set(expected)) > 3
     settled = packets[packets["delivered"] & (packets["t_sent_s"] > 15.0)]
     assert len(settled) > 20 and (settled["hops"] == settled["shortest_hops"]).all()
+
+
+def test_a_routed_packets_shortest_hops_sees_a_jump_at_its_own_instant(tmp_path):
+    """Two packets from 0 to 2 sent at one instant, robot 1 set down between them at that
+    instant where it joins the two (a trace's jump): the first has no path, the second the
+    two hops the jump made (the search's reuse for a packet's frames must not carry a value
+    over a jump)."""
+    from netsim.traffic import Flow
+
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n100,500\n200,900\n300,500\n")
+    config = make_config(
+        seed=1,
+        duration_s=10.0,
+        world={"n_robots": 3, "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 150.0},
+        protocol={"model": "greedy", "message_rate_hz": 1.0},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run(until_s=5.0)
+    flows = sim.models["protocol"].flows
+    before = len(flows.packets_frame())
+    packet = Flow(0, 2, 5.0, 6.0, 4000.0, 500)
+    flows._send_packet(7, 0, packet, [500])
+    sim.state.set_leg(1, 5.0, (0.0, 0.0), start_m=(200.0, 500.0))
+    flows._send_packet(7, 1, packet, [500])
+    ours = flows.packets_frame().iloc[before:]
+    assert ours["flow"].tolist() == [7, 7] and ours["t_sent_s"].tolist() == [5.0, 5.0]
+    assert ours["shortest_hops"].tolist() == [np.inf, 2.0]

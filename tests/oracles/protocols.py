@@ -373,7 +373,7 @@ def sample_rows(table, now, symmetric, roles, heard):
 
 def hop_distances(state, now: float, node: int, towards: bool = False) -> np.ndarray:
     """Hops from ``node`` (or towards it) over every directed pair in reach, by a
-    breadth-first search in numpy (:func:`netsim.protocols.relay.hop_distances`'s oracle)."""
+    breadth-first search in numpy (:func:`netsim.topology.hop_distances`' oracle)."""
     from netsim.topology import geometric_pairs
 
     a, b, _ = geometric_pairs(state.positions_at(now), state.range_m, state.side_m if state.torus else None, True)
