@@ -38,3 +38,24 @@ def test_netsims_side_of_the_ns3_comparison_gives_the_quoted_figures(tmp_path):
         figures = (got["delivery_ratio"], got["mean_hops"], got["control_per_s"], got["messages_per_s"])
         shown = tuple(round(v, 3 if k == 0 else 2) for k, v in enumerate(figures))
         assert shown == want, (scenario, protocol, figures)
+
+
+@pytest.mark.slow
+def test_the_large_team_to_time_runs_netsims_side_and_times_its_run(tmp_path):
+    """The ``large`` workload: 100 robots replayed from their own trace, ten flows of a
+    packet a second from 30 s to 100 s (700 packets), and the run's wall and CPU seconds
+    among the figures, on netsim's collision-free channel and on its CSMA medium (where
+    frames collide, so fewer packets arrive)."""
+    module = script("benchmarks/routing_ns3.py")
+    args = argparse.Namespace(duration=100.0, start=30.0, interval=1.0, packet_bytes=512, seed=1, trace="")
+    args.traces = {"large": str(tmp_path / "large.ns2")}
+    module.write_trace(Path(args.traces["large"]), args, "large")
+    assert (tmp_path / "large.ns2").read_text().count("$node_(99) set X_") == 1
+    delivered = {}
+    for mac in ("none", "csma"):
+        args.mac = mac
+        got = module.netsim_side("large", "aodv", args)
+        assert got["sent"] == 700 and 0.5 < got["delivery_ratio"] <= 1.0
+        assert got["run_s"] > 0 and got["run_cpu_s"] > 0
+        delivered[mac] = got["delivery_ratio"]
+    assert delivered["csma"] < delivered["none"]
