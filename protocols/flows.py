@@ -209,12 +209,18 @@ class FlowTraffic:
 
 def packet_delivery(frames: Mapping[str, pd.DataFrame]) -> dict:
     """The summary's ``packet_delivery_ratio``: the packets of ``packets.parquet`` delivered
-    whole (a packet still in flight at the end counts as not delivered); nothing when no
-    packet was sent."""
+    whole (a packet still in flight at the end counts as not delivered); and its
+    ``packet_path_stretch``: the mean over the delivered packets that had a path when sent
+    of their hops over that path's (``hops / shortest_hops``; NaN if none had); nothing when
+    no packet was sent."""
     packets = frames.get("packets")
     if packets is None or not len(packets):
         return {}
-    return {"packet_delivery_ratio": float(packets["delivered"].mean())}
+    # A packet sent while its ends had no path may still arrive (it waited for a route, or
+    # the team moved): it has no stretch.
+    got = packets[packets["delivered"] & np.isfinite(packets["shortest_hops"])]
+    stretch = float((got["hops"] / got["shortest_hops"]).mean()) if len(got) else np.nan
+    return {"packet_delivery_ratio": float(packets["delivered"].mean()), "packet_path_stretch": stretch}
 
 
 def flows_table(flows: tuple[Flow, ...], packets: pd.DataFrame, end_s: float) -> pd.DataFrame:

@@ -142,7 +142,25 @@ def test_summary_packet_delivery_ratio_is_the_packets_delivered_whole(tmp_path, 
     packets = frames["packets"]
     assert 0 < summary["packet_delivery_ratio"] < 1
     assert summary["packet_delivery_ratio"] == packets["delivered"].sum() / len(packets)
-    assert "packet_delivery_ratio" not in run([])[1]
+    # The line's packets take its two hops when they arrive: a stretch of 1.
+    assert summary["packet_path_stretch"] == 1.0
+    assert "packet_delivery_ratio" not in run([])[1] and "packet_path_stretch" not in run([])[1]
+
+
+def test_summary_packet_path_stretch_is_hops_over_shortest_of_packets_that_had_a_path():
+    """The summary's packet_path_stretch: the mean of hops / shortest_hops over the packets
+    delivered that had a path when sent (one lost and one that arrived over a path formed
+    later are left out); NaN when no delivered packet had one."""
+    import pandas as pd
+    from netsim.protocols.flows import packet_delivery
+
+    packets = pd.DataFrame(
+        {"delivered": [True, True, True, False], "hops": [3, 2, 4, 0], "shortest_hops": [2.0, 2.0, np.inf, 1.0]}
+    )
+    figures = packet_delivery({"packets": packets})
+    assert figures == {"packet_delivery_ratio": 0.75, "packet_path_stretch": 1.25}
+    none = packet_delivery({"packets": packets.iloc[2:]})
+    assert np.isnan(none["packet_path_stretch"]) and none["packet_delivery_ratio"] == 0.5
 
 
 def test_packet_is_delivered_only_whole(tmp_path):
