@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from netsim.protocols.flows import packet_delivery
 
 from netsim.errors import NetsimInputError
 from netsim.tools import sweep as sweepmod
@@ -58,9 +59,8 @@ def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | N
     for _, run in runs.iterrows():
         pk = packets[packets.run_id == run.run_id]
         got = pk[pk["delivered"]]
-        # A packet sent while its ends had no path may still arrive (it waited for a route,
-        # or the team moved): it has no stretch.
-        pathed = got[np.isfinite(got["shortest_hops"])]
+        # The run's summary figures of its packets (netsim.protocols.flows.packet_delivery).
+        figures = packet_delivery({"packets": pk})
         if control is not None:
             frames = float(control[control.run_id == run.run_id]["sent"].sum())
         else:
@@ -68,9 +68,9 @@ def per_run(runs: pd.DataFrame, packets: pd.DataFrame, control: pd.DataFrame | N
         out.append(
             {
                 "speed_mps": run["mobility.speed_max_mps"],
-                "delivery_ratio": len(got) / len(pk) if len(pk) else np.nan,
+                "delivery_ratio": figures.get("packet_delivery_ratio", np.nan),
                 "latency_p50_s": float(got["latency_s"].median()) if len(got) else np.nan,
-                "stretch": float((pathed["hops"] / pathed["shortest_hops"]).mean()) if len(pathed) else np.nan,
+                "stretch": figures.get("packet_path_stretch", np.nan),
                 "control_per_robot_per_s": frames / (n * duration_s),
             }
         )
