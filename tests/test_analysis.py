@@ -141,3 +141,149 @@ def test_mean_wait_counts_the_waits_cut_by_the_end():
     mean, low, high = mean_acks_until_leader_loss(waited)
     assert low < 100.0 < high and high - low < 15.0
     assert waited.loc[waited["lost"], "acks"].mean() < 60.0
+
+
+def _links(run_id: int, durations: list[float], censored_end: list[bool]) -> pd.DataFrame:
+    """Links of one run, all up after its start, each lasting its duration."""
+    n = len(durations)
+    t_up = np.arange(n, dtype=float)
+    return pd.DataFrame(
+        {
+            "run_id": run_id,
+            "a": 0,
+            "b": np.arange(1, n + 1),
+            "t_up_s": t_up,
+            "t_down_s": t_up + np.asarray(durations, float),
+            "censored": censored_end,
+            "censored_start": False,
+            "censored_end": censored_end,
+        }
+    )
+
+
+def test_compare_lifetimes_summarises_each_combination_of_the_keys_in_order():
+    """One row per combination of the keys, sorted by them, each the lifetime summary of
+    the links of that combination's runs alone (replications pooled); a combination whose
+    runs saw no link has its row, without figures."""
+    from netsim.tools.analysis import compare_lifetimes
+
+    runs = pd.DataFrame({"run_id": [0, 1, 2, 3, 4], "speed": [2, 1, 2, 1, 2], "pause": [0, 0, 5, 5, 0]})
+    links = pd.concat(
+        [
+            _links(0, [3.0, 5.0, 9.0], [False, False, True]),
+            _links(1, [10.0, 12.0], [False, False]),
+            _links(2, [1.0, 2.0, 4.0, 8.0], [False, True, False, False]),
+            _links(4, [6.0, 7.0], [False, True]),
+        ],
+        ignore_index=True,
+    )
+    table = compare_lifetimes(runs, links, ["speed", "pause"])
+    assert table[["speed", "pause"]].values.tolist() == [[1, 0], [1, 5], [2, 0], [2, 5]]
+    expected = [
+        lifetime_summary(links[links["run_id"] == 1]),
+        None,
+        lifetime_summary(links[links["run_id"].isin([0, 4])]),
+        lifetime_summary(links[links["run_id"] == 2]),
+    ]
+    for row, want in zip(table.to_dict("records"), expected):
+        if want is None:
+            assert row["links"] == 0 and np.isnan(row["mean_s"]) and np.isnan(row["median_s"])
+        else:
+            assert {k: row[k] for k in want} == pytest.approx(want, nan_ok=True)
+
+
+def test_compare_lifetimes_of_a_sweep_that_kept_no_link_has_a_row_per_combination():
+    """A sweep none of whose runs kept a link (its links table read back empty, without
+    columns): every combination has its row, without figures."""
+    from netsim.tools.analysis import compare_lifetimes
+
+    runs = pd.DataFrame({"run_id": [0, 1], "speed": [2, 1]})
+    table = compare_lifetimes(runs, pd.DataFrame(), ["speed"])
+    assert table["speed"].tolist() == [1, 2] and table["links"].tolist() == [0, 0]
+    assert table["mean_s"].isna().all()
+
+
+def test_acks_waited_counts_from_the_first_joining_to_the_first_loss_after_it():
+    """Robot 1 joins at 10 s, loses its leader at 20.5 s, joins again at 30 s and loses it
+    at 45.5 s (tau 2.5 s, period 1 s, k = 2): its wait is the first, 8 + 2 Acks."""
+    from netsim.protocols.roles import LABELS
+
+    from netsim.tools.analysis import acks_waited
+
+    roles = pd.DataFrame(
+        {
+            "t_s": [10.0, 20.5, 30.0, 45.5],
+            "robot": [1, 1, 1, 1],
+            "role": [LABELS.member, LABELS.undecided, LABELS.member, LABELS.undecided],
+            "cause": ["", LABELS.leader_lost, "", LABELS.leader_lost],
+        }
+    )
+    waited = acks_waited(roles, 2.5, 1.0, LABELS, 100.0)
+    assert waited["acks"].tolist() == [10.0] and waited["lost"].tolist() == [True]
+
+
+def test_acks_waited_counts_whole_periods_despite_rounding():
+    """Times a whole number of periods apart that floating point puts just below it still
+    count that many Acks: a timeout 0.7 s after joining (tau 0.3 s, period 0.1 s: k = 3)
+    is 4 + 3 Acks, a wait 0.3 s long at the end 3."""
+    from netsim.protocols.roles import LABELS
+
+    from netsim.tools.analysis import acks_waited
+
+    roles = pd.DataFrame(
+        {
+            "t_s": [0.0, 0.7, 0.0],
+            "robot": [1, 1, 2],
+            "role": [LABELS.member, LABELS.undecided, LABELS.member],
+            "cause": ["", LABELS.leader_lost, ""],
+        }
+    )
+    assert (0.7 - 0.0 - 0.3) / 0.1 < 4 and (0.3 - 0.0) / 0.1 < 3  # the rounding in question
+    waited = acks_waited(roles, 0.3, 0.1, LABELS, 0.3)
+    assert waited["acks"].tolist() == [7.0, 3.0] and waited["lost"].tolist() == [True, False]
+
+
+def test_mean_wait_is_every_ack_waited_over_the_losses_with_an_exponential_interval():
+    """Waits of 10 and 20 Acks that ended and one of 30 still running: 60 Acks over 2
+    losses, a mean of 30, within 30 exp(-+z / sqrt(2)), z the two-sided 95 % normal quantile."""
+    from statistics import NormalDist
+
+    from netsim.tools.analysis import mean_acks_until_leader_loss
+
+    waited = pd.DataFrame({"acks": [10.0, 20.0, 30.0], "lost": [True, True, False]})
+    z = NormalDist().inv_cdf(0.975)
+    mean, low, high = mean_acks_until_leader_loss(waited)
+    assert (mean, low, high) == pytest.approx((30.0, 30.0 * np.exp(-z / np.sqrt(2)), 30.0 * np.exp(z / np.sqrt(2))))
+
+
+def test_mean_wait_without_a_loss_is_not_a_number():
+    from netsim.tools.analysis import mean_acks_until_leader_loss
+
+    waited = pd.DataFrame({"acks": [12.0, 30.0], "lost": [False, False]})
+    assert all(np.isnan(v) for v in mean_acks_until_leader_loss(waited))
+
+
+def test_torus_link_duration_mean_is_pi_squared_r_over_8_v():
+    """docs/validation.md item 6: pi^2 R / (8 v), here R = 100 m, v = 2 m/s."""
+    from netsim.tools.analysis import torus_link_duration_mean
+
+    assert torus_link_duration_mean(100.0, 2.0) == pytest.approx(np.pi**2 * 100.0 / 16.0)
+    assert torus_link_duration_mean(100.0, 2.0) == pytest.approx(61.685, abs=1e-3)
+
+
+def test_only_a_rule3_timeout_ends_a_wait_for_a_leader_loss():
+    """A member made undecided by another rule (its leader resigned) did not lose its leader
+    by timeout: no wait ended for it."""
+    from netsim.protocols.roles import LABELS
+
+    from netsim.tools.analysis import acks_waited
+
+    roles = pd.DataFrame(
+        {
+            "t_s": [10.0, 15.0],
+            "robot": [1, 1],
+            "role": [LABELS.member, LABELS.undecided],
+            "cause": ["rule2_join", "rule5_leader_resigned"],
+        }
+    )
+    assert acks_waited(roles, 2.5, 1.0, LABELS).empty

@@ -281,3 +281,82 @@ def test_set_legs_is_set_leg_for_each_robot():
     for name in ("origin_m", "velocity_mps", "t0_s", "odometer_m"):
         assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
     pd.testing.assert_frame_equal(a.legs(), b.legs(), check_exact=True)
+
+
+def test_unknown_robot_ids_are_named_as_the_docs_say():
+    """The first id that is no robot, and the ids there are (docs/cosim.md: ``robots: 12 is
+    no robot; ids are 0 to 9``); the id one past the last is no robot either."""
+    from netsim.cosim import robot_id, robot_ids
+
+    with pytest.raises(CommandError) as err:
+        robot_ids([3, 12, 15], 10)
+    assert str(err.value) == "robots: 12 is no robot; ids are 0 to 9"
+    with pytest.raises(CommandError, match=r"^robots: 10 is no robot; ids are 0 to 9$"):
+        robot_ids([10], 10)
+    with pytest.raises(CommandError, match=r"^robot = 10: no such robot; ids are 0 to 9$"):
+        robot_id(10, 10)
+    assert robot_id(9, 10) == 9 and robot_ids([9, 0], 10).tolist() == [9, 0]
+
+
+@pytest.mark.parametrize("robots", [[True], [[0, 1]], [0.0]], ids=["truth-value", "2-d", "float"])
+def test_robot_ids_that_are_not_a_list_of_integers_are_refused(robots):
+    """A truth value is not a robot id (True is not robot 1), nor a table of ids, nor a float."""
+    from netsim.cosim import robot_ids
+
+    with pytest.raises(CommandError, match=r"must be integer robot ids in \[0, 4\)$"):
+        robot_ids(robots, 4)
+
+
+def test_no_robot_ids_is_no_robot_to_drive():
+    """An empty sequence of ids is no robot (with its (0, 2) velocities), not a bad call."""
+    from netsim.cosim import robot_ids, velocities
+
+    ids = robot_ids([], 4)
+    assert ids.dtype == np.int64 and ids.shape == (0,)
+    assert velocities(np.empty((0, 2)), 0).shape == (0, 2)
+
+
+@pytest.mark.parametrize(
+    ("given", "k", "message"),
+    [
+        ([math.nan, 0.0], 1, "velocities_mps[0] = [nan, 0.0]: must be finite, m/s"),
+        ([[1.0, 0.0], [0.0, -math.inf], [math.nan, 1.0]], 3, "velocities_mps[1] = [0.0, -inf]: must be finite, m/s"),
+        ([[1.0, 0.0], [3e8, 0.0], [0.0, 4e8]], 3, "velocities_mps[1] = [300000000.0, 0.0]: faster than light"),
+        ([1.0, 0.0], 2, "velocities_mps has shape (2,): one row (vx, vy) per robot is (2, 2)"),
+        ([[1.0, 0.0, 0.0]], 1, "velocities_mps has shape (1, 3): one row (vx, vy) per robot is (1, 2)"),
+    ],
+    ids=["nan", "first-not-finite", "first-too-fast", "pair-for-two", "three-columns"],
+)
+def test_a_bad_velocity_is_named_by_its_first_row_and_what_is_wrong(given, k, message):
+    """A velocity that is not finite is said to be so (not faster than light), at the first
+    row that is; a pair stands for one robot only, and a row has two components."""
+    from netsim.cosim import velocities
+
+    with pytest.raises(CommandError) as err:
+        velocities(given, k)
+    assert str(err.value).startswith(message)
+
+
+@pytest.mark.parametrize("dtype", [np.uint64, np.int32, np.uint8])
+def test_robot_ids_of_any_integer_type_are_int64_ids(dtype):
+    """Ids given as any numpy integer type (unsigned 64-bit ones too, which numpy's counting
+    refuses) are the run's int64 ids."""
+    from netsim.cosim import robot_ids
+
+    ids = robot_ids(np.array([2, 0], dtype=dtype), 4)
+    assert ids.dtype == np.int64 and ids.tolist() == [2, 0]
+
+
+def test_what_a_protocol_does_not_keep_is_one_clear_error(tmp_path):
+    """Under a protocol without neighbour tables, sim.neighbours names it; under one that
+    relays no messages, sim.send names it, and sim.inbox is empty (of a robot there is:
+    an unknown one is refused all the same)."""
+    none = driven(tmp_path, [[100.0, 100.0], [105.0, 100.0]], protocol="none")
+    with pytest.raises(CommandError, match=r"^protocol.model = 'none' keeps no neighbour tables$"):
+        none.neighbours(0)
+    ack = driven(tmp_path, [[100.0, 100.0], [105.0, 100.0]], protocol="ack")
+    with pytest.raises(CommandError, match=r"^protocol.model = 'ack' relays no messages \(the clustering does\)$"):
+        ack.send(0, 1, "x")
+    assert ack.inbox(1) == []
+    with pytest.raises(CommandError, match=r"^robot = 2: no such robot; ids are 0 to 1$"):
+        ack.inbox(2)

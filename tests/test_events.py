@@ -457,6 +457,24 @@ def test_runtime_links_are_off_unless_someone_subscribes():
     assert sim.links is not None
 
 
+def test_link_events_asked_for_after_the_run_started_are_refused():
+    """Link events solved from the middle of a run would lack the links already up: once
+    the run has started without them, asking for them is one clear error."""
+    sim = _core(2, 10.0, 10.0)
+    sim.state.place([[0, 0], [5, 0]])
+    sim.run(5.0)
+    with pytest.raises(RuntimeError, match="^link events during the run must be asked for before it starts$"):
+        sim.link_events()
+    assert sim.links is None
+
+
+def test_link_events_are_refused_when_runtime_links_are_off():
+    sim = _core(2, 10.0, 10.0, runtime_links="off")
+    with pytest.raises(RuntimeError, match="^events.runtime_links = 'off': no link events during the run$"):
+        sim.link_events()
+    assert sim.links is None
+
+
 def test_runtime_links_off_refuses_link_subscribers():
     sim = _core(2, 10.0, 10.0, runtime_links="off")
     sim.state.place([[0, 0], [5, 0]])
@@ -1381,6 +1399,35 @@ def test_unsubscribing_what_is_not_subscribed_is_one_clear_error():
         sim.events.off("link_down", print)
 
 
+def test_a_run_with_progress_to_now_does_nothing_and_the_run_goes_on():
+    """Advancing to now in reported parts, as in one call, is allowed and moves nothing."""
+    sim = build(load(None, KEYS_15))
+    sim.run(until_s=4)
+    sim.run(until_s=4, progress=True, steps=3)
+    assert sim.now == 4
+    sim.run(until_s=10)
+    assert sim.now == 10
+
+
+def test_a_run_with_progress_advances_in_equal_parts_each_reported():
+    """``steps`` parts of equal length, from now to ``until_s``, the last ending exactly there."""
+    sim = build(load(None, KEYS_15))
+    sim.run(until_s=2)
+    ends = []
+    run = sim.env.run
+    sim.env.run = lambda until: (ends.append(until), run(until=until))[1]
+    sim.run(until_s=10, progress=True, steps=4)
+    assert ends == [4.0, 6.0, 8.0, 10]
+
+
+def test_the_models_of_a_run_cannot_be_changed_through_it():
+    """``sim.models`` is read-only: components get their collaborators when built."""
+    sim = build(load(None, KEYS_15))
+    assert "protocol" in sim.models
+    with pytest.raises(TypeError):
+        sim.models["protocol"] = None
+
+
 def test_a_live_topology_asked_for_after_the_run_started_is_refused_even_with_runtime_links_on():
     """It is built from the link events as they come: begun late it would lack every link
     already up (and give the summary wrong averages)."""
@@ -1390,7 +1437,7 @@ def test_a_live_topology_asked_for_after_the_run_started_is_refused_even_with_ru
         sim.live_topology()
 
 
-@pytest.mark.parametrize("steps", [0, -5, 2.5])
+@pytest.mark.parametrize("steps", [0, -5, 2.5, True])
 def test_run_with_progress_refuses_steps_below_one(steps):
     from netsim.cosim import CommandError
 

@@ -316,3 +316,238 @@ def test_figures_scenario_progress_is_named_netsim_figures(tmp_path, capsys):
     assert main(["figures", "--out", str(tmp_path / "f"), *[a for s in sets for a in ("--set", s)]]) == 0
     progress = [line for line in capsys.readouterr().err.splitlines() if "% (" in line]
     assert progress and all(line.startswith("netsim figures: ") for line in progress), progress
+
+
+def _made_run(sets, positions, roles=(), groups=None, links=None):
+    """A run as figures.read_run gives it, made by hand: the configuration of ``sets``,
+    ``positions`` rows (t_s, robot, x_m, y_m), ``roles`` rows (t_s, robot, role, leader, cause)."""
+    import pandas as pd
+
+    from netsim import config as cfgmod
+    from netsim.tools import figures
+
+    positions = pd.DataFrame(positions, columns=["t_s", "robot", "x_m", "y_m"])
+    roles = pd.DataFrame(list(roles), columns=["t_s", "robot", "role", "leader", "cause"])
+    return figures, figures.Run(cfgmod.load(None, sets), positions, roles, groups, links)
+
+
+def _standing(n, times, x_m=None):
+    """Position rows of ``n`` robots standing 10 m apart on y = 50 m at each of ``times``."""
+    x_m = [10.0 * (i + 1) for i in range(n)] if x_m is None else x_m
+    return [(t, i, x_m[i], 50.0) for t in times for i in range(n)]
+
+
+def test_a_snapshot_holds_the_roles_recorded_at_its_instant():
+    """The roles of a snapshot are each robot's last record at or before its sample,
+    records at the sample's very instant included; before a robot's first, it is undecided."""
+    roles = [(1.0, 0, "alpha", 0, "rule6_elected"), (1.0, 1, "beta", 0, "rule2_join"), (2.5, 1, "gamma", -1, "x")]
+    figures, run = _made_run(["world.n_robots=2", "world.side_m=100"], _standing(2, [0.0, 1.0, 2.0]), roles)
+    at_1 = figures.snapshot(run, 0.5)
+    assert at_1.t_s == 1.0
+    assert at_1.role.tolist() == ["alpha", "beta"] and at_1.leader.tolist() == [0, 0]
+    at_0 = figures.snapshot(run, 0.0)
+    assert at_0.role.tolist() == ["gamma", "gamma"] and at_0.leader.tolist() == [-1, -1]
+
+
+def test_a_snapshot_of_a_run_without_roles_has_plain_robots():
+    """Under a protocol that forms no groups every robot's role is "none", not undecided."""
+    figures, run = _made_run(["world.n_robots=2", "protocol.model=ack"], _standing(2, [0.0, 1.0]))
+    assert figures.snapshot(run, 1.0).role.tolist() == ["none", "none"]
+
+
+def test_a_snapshot_knows_each_gateways_other_group():
+    """Robot 1, a member of robot 0's group, also belongs to robot 2's: a gateway whose
+    other group is 2; the leaders are no gateway."""
+    import pandas as pd
+
+    groups = pd.DataFrame(
+        {"t_s": 1.0, "robot": [0, 1, 1, 2], "group": [0, 0, 2, 2], "primary": [True, True, False, True]}
+    )
+    roles = [(0.5, 0, "alpha", 0, ""), (0.5, 1, "beta", 0, ""), (0.5, 2, "alpha", 2, "")]
+    figures, run = _made_run(["world.n_robots=3"], _standing(3, [0.0, 1.0]), roles, groups=groups)
+    assert figures.snapshot(run, 1.0).other_group.tolist() == [-1, 2, -1]
+
+
+def test_links_drawn_are_those_up_at_the_instant_links_open_at_the_end_included():
+    """From links.parquet: the links up at the instant; at the run's end, those still up
+    then (drawn), not one that went down at that very instant."""
+    import pandas as pd
+
+    links = pd.DataFrame(
+        {
+            "a": [0, 0, 1],
+            "b": [1, 2, 2],
+            "t_up_s": [0.0, 0.0, 1.0],
+            "t_down_s": [2.0, 2.0, 2.0],
+            "censored": [True, False, True],
+            "censored_start": [False, False, False],
+            "censored_end": [True, False, True],
+        }
+    )
+    figures, run = _made_run(["world.n_robots=3"], _standing(3, [0.0, 1.0, 2.0]), links=links)
+    pairs = figures.links_at(run, figures.snapshot(run, 2.0))
+    assert [p.tolist() for p in pairs] == [[0, 1], [1, 2]]
+    pairs = figures.links_at(run, figures.snapshot(run, 1.0))
+    assert [p.tolist() for p in pairs] == [[0, 0, 1], [1, 2, 2]]
+
+
+def test_without_a_links_table_links_are_the_unit_disk_on_a_torus_and_none_under_shadowing():
+    """A run without links.parquet: on a 100 m torus two robots 4 m apart across the seam
+    (range 10 m) are linked; under shadowing no range says which pairs were, so none is drawn."""
+    sets = ["world.n_robots=2", "world.side_m=100", "channel.range_m=10"]
+    figures, run = _made_run([*sets, "world.torus=true"], _standing(2, [0.0], x_m=[1.0, 97.0]))
+    assert [p.tolist() for p in figures.links_at(run, figures.snapshot(run, 0.0))] == [[0], [1]]
+    shadowing = ["channel.propagation=log_distance", "channel.shadowing_sigma_db=6", "world.n_robots=2"]
+    figures, run = _made_run(shadowing, _standing(2, [0.0], x_m=[1.0, 2.0]))
+    assert [p.tolist() for p in figures.links_at(run, figures.snapshot(run, 0.0))] == [[], []]
+
+
+def test_undecided_robots_are_counted_at_each_instant_from_its_records_on():
+    """Undecided before a robot's first record, records at the instant itself counted; a
+    run whose roles table is empty has every robot undecided throughout."""
+    roles = [(1.0, 0, "alpha", 0, "rule6_elected"), (1.0, 1, "beta", 0, "rule2_join"), (2.5, 1, "gamma", -1, "x")]
+    figures, run = _made_run(["world.n_robots=3"], _standing(3, [0.0, 1.0, 2.0, 3.0]), roles)
+    assert figures.undecided_at(run, np.array([0.0, 0.5, 1.0, 2.0, 3.0])).tolist() == [3, 3, 1, 1, 2]
+    figures, run = _made_run(["world.n_robots=3"], _standing(3, [0.0, 1.0]))
+    assert figures.undecided_at(run, np.array([0.0, 1.0])).tolist() == [3, 3]
+    assert figures.groups_formed_s(run) == (0.0, 3)
+
+
+def test_a_gateway_to_the_group_of_robot_0_is_drawn_as_a_gateway():
+    """A member of robot 1's group that also belongs to group 0 (robot 0's id, as good a
+    group id as any) is drawn as a gateway, beside a plain member."""
+    from netsim.tools import figures
+
+    pos = np.array([[10.0, 50.0], [20.0, 50.0]])
+    snap = figures.Snapshot(0.0, pos, np.array(["beta", "beta"]), np.array([1, 1]), np.array([0, -1]))
+    plt = figures.pyplot()
+    fig, ax = plt.subplots()
+    figures.draw_deployment(ax, snap, {0: "red", 1: "blue"}, (np.empty(0, int), np.empty(0, int)))
+    labels = ax.get_legend_handles_labels()[1]
+    plt.close(fig)
+    assert style.ROLE_STYLE["gateway"]["label"] in labels and style.ROLE_STYLE["beta"]["label"] in labels
+
+
+def test_each_piece_of_a_path_cut_at_the_seam_has_its_robots_colour():
+    """On a torus a path crossing the seam is cut there and its step across drawn from both
+    sides: every piece, the two half steps included, in its own robot's colour."""
+    from netsim.tools import figures
+
+    crossing = np.array([[96.0, 50.0], [99.0, 50.0], [2.0, 50.0], [5.0, 50.0]])
+    standing = np.full((4, 2), 50.0)
+    pieces, colours = figures._path_pieces(np.stack([crossing, standing]), ["red", "blue"], 100.0)
+    assert len(pieces) == len(colours) == 5
+    assert colours == ["red"] * 4 + ["blue"]
+    np.testing.assert_array_equal(pieces[-1], standing)
+
+
+def test_paths_start_at_their_instant_and_are_framed_to_the_team_within_the_area():
+    """Fig. 7 starts every path at its first instant (the hollow markers there), frames the
+    team with a margin of one range but no more than 2 % beyond the area, and says so when
+    nobody moved."""
+    figures, run = _made_run(
+        ["world.n_robots=2", "world.side_m=100", "protocol.model=ack"],
+        [(t, i, x, 50.0) for t in (0.0, 1.0, 2.0) for i, x in enumerate((1.0, 99.0))],
+    )
+    end = figures.snapshot(run, 2.0)
+    plt = figures.pyplot()
+    fig, ax = plt.subplots()
+    note = figures.draw_paths(ax, run, 1.0, 2.0, end, {}, 10.0)
+    first = next(c for c in ax.collections if c.get_label() == "at 1 s")
+    xlim = ax.get_xlim()
+    plt.close(fig)
+    assert note == "nobody moved between 1 s and 2 s"
+    np.testing.assert_allclose(first.get_offsets(), [[1.0, 50.0], [99.0, 50.0]])
+    assert xlim == pytest.approx((-2.0, 102.0))
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """figures.draw without encoding PNGs: each figure's title and note, by file name."""
+    from pathlib import Path
+
+    from netsim.tools import figures
+
+    seen = {}
+
+    def save(fig, path, note):
+        seen[Path(path).name] = (fig.axes[0].get_title(), note)
+        figures.pyplot().close(fig)
+        Path(path).write_bytes(b"")
+        return figures.Drawn(path, note)
+
+    monkeypatch.setattr(figures, "_save", save)
+    return seen
+
+
+def _coverage_run(out, *sets):
+    base = ["world.n_robots=7", "world.side_m=200", "mobility.model=static", "duration_s=10"]
+    base += ["coverage.enabled=true", "coverage.start_s=4", "protocol.message_rate_hz=0"]
+    args = [a for s in [*base, *sets] for a in ("--set", s)]
+    assert main(["run", "--quiet", "--no-progress", "--out", str(out), *args]) == 0
+    return out
+
+
+def test_coverage_figures_start_when_control_does_and_draw_the_coverage_disks(tmp_path, drawn):
+    """Fig. 6 of a coverage run is drawn when control starts (coverage.start_s) and counts
+    the groups (leaders) then; Fig. 8's disks have coverage.radius_m."""
+    from netsim.tools import figures
+
+    run = _coverage_run(tmp_path / "run", "coverage.radius_m=30")
+    figures.draw(run, tmp_path / "f")
+    snap = figures.snapshot(figures.read_run(run), 4.0)
+    leaders, members = int((snap.role == "alpha").sum()), int((snap.role == "beta").sum())
+    assert leaders != members
+    assert drawn["fig6_initial_deployment.png"][0] == f"Fig. 6  Deployment at t = 4 s: 7 robots, {leaders} groups"
+    assert "(r = 30 m)" in drawn["fig8_final_deployment.png"][0]
+
+
+def test_coverage_disks_default_to_the_least_range(tmp_path, drawn):
+    from netsim.tools import figures
+
+    run = _coverage_run(tmp_path / "run", "channel.range_m=[80.0, 60.0, 80.0, 80.0, 80.0, 80.0, 80.0]")
+    figures.draw(run, tmp_path / "f")
+    assert "(r = 60 m)" in drawn["fig8_final_deployment.png"][0]
+
+
+def test_without_coverage_fig6_says_how_few_were_left_undecided(waypoint_run, tmp_path, drawn):
+    """When one robot never joins a group, Fig. 6 is drawn at the first sample with the
+    fewest undecided and says so (it does not claim every robot is in a group); the last
+    sample may be asked for."""
+    import shutil
+
+    import pandas as pd
+
+    from netsim.tools import figures
+
+    run = tmp_path / "run"
+    shutil.copytree(waypoint_run, run)
+    joined = [(5.0, i, "alpha" if i == 1 else "beta", 1, "") for i in range(1, 20)]
+    pd.DataFrame(joined, columns=["t_s", "robot", "role", "leader", "cause"]).to_parquet(run / "roles.parquet")
+    (fig6,) = [d for d in figures.draw(run, tmp_path / "f") if d.path.name.startswith("fig6")]
+    assert fig6.note == "drawn at t = 5 s, the first sample with the fewest robots undecided (1); see --at"
+    figures.draw(run, tmp_path / "g", at_s=40.0)
+    assert drawn["fig6_initial_deployment.png"][0].startswith("Fig. 6  Deployment at t = 40 s")
+
+
+@pytest.mark.parametrize(
+    ("sets", "remove", "said"),
+    [
+        ([], "roles.parquet", "not a run directory with positions (missing roles.parquet)"),
+        (["output.position_interval_s=0"], None, "positions were not sampled (output.position_interval_s = 0)"),
+    ],
+    ids=["no-roles", "unsampled"],
+)
+def test_figures_of_a_run_without_positions_or_roles_is_one_line(tmp_path, capsys, sets, remove, said):
+    """A run directory lacking roles.parquet, or whose positions were not sampled: one line
+    naming what is missing, exit 2, no figure written."""
+    run = tmp_path / "run"
+    args = [a for s in ["world.n_robots=3", "duration_s=5", *sets] for a in ("--set", s)]
+    assert main(["run", "--quiet", "--no-progress", "--out", str(run), *args]) == 0
+    if remove:
+        (run / remove).unlink()
+    capsys.readouterr()
+    assert main(["figures", str(run), "--out", str(tmp_path / "f")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"netsim: error: {run}: {said}"]
+    assert not (tmp_path / "f").exists()

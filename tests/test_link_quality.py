@@ -106,6 +106,22 @@ def test_bad_robot_id_is_a_one_line_error(robot):
     assert "\n" not in str(err.value) and repr(robot) in str(err.value)
 
 
+def test_neighbour_tables_without_received_power_are_a_one_line_error():
+    """A protocol whose tables keep no received power (a neighbour view without
+    ``link_quality``, as a user's protocol may be) is named, not a traceback."""
+    from tests.fixtures import static_core
+
+    class HeardOnly:
+        def heard(self, now):
+            return np.full((2, 1), -1), np.zeros((2, 1, 2)), np.zeros((2, 1))
+
+    sim = static_core([[0.0, 0.0], [5.0, 0.0]])
+    sim.neighbour_view = HeardOnly()
+    assert sim.neighbours(0).tolist() == []
+    with pytest.raises(CommandError, match="^protocol.model = 'none' keeps no received power in its neighbour tables$"):
+        sim.link_quality(0)
+
+
 def test_without_neighbour_tables_is_a_one_line_error():
     """A run whose protocol keeps no neighbour tables (protocol none) has no link quality:
     a one-line error naming the protocol."""

@@ -78,6 +78,13 @@ def test_a_plugin_robot_still_outside_at_the_end_is_refused_naming_it_and_the_ti
         execute(_config("RUNAWAY", "duration_s=600"))
 
 
+def test_a_plugin_robot_still_outside_at_the_end_is_refused_when_the_run_reports_progress():
+    """The end-of-run check holds for a run advanced in reported parts as for one in one call."""
+    sim = build(_config("RUNAWAY", "duration_s=600"))
+    with pytest.raises(MotionError, match=r"^robot 0 leaves the area \[0, 1000\] x \[0, 1000\] at t = 450 s"):
+        sim.run(progress=True, steps=4)
+
+
 def test_a_plugin_robot_that_comes_back_is_still_refused():
     """A leg that leaves the area is caught when the robot's next leg starts."""
     sim = build(_config("TURNS_LATE", "duration_s=600"))

@@ -813,6 +813,133 @@ def test_the_least_memory_grows_with_the_team_and_the_samples():
     assert sampled == ten + 10 * 10 * 32  # 10 samples (0..9 s) of 4 eight-byte columns
 
 
+def test_the_least_memory_of_an_unsampled_run_is_what_the_robots_state_allocates():
+    """Without positions samples the floor is the robots' state alone: the bytes a
+    RobotState of the team allocates (its complex views of origin and velocity share
+    their arrays' memory, counted once), as traced, to 1 %."""
+    import tracemalloc
+
+    from netsim.state import RobotState
+    from netsim.tools import preflight
+
+    n = 100_000
+    floor = preflight.least_memory_bytes(cfgmod.load(None, [f"world.n_robots={n}", "output.position_interval_s=0"]))
+    tracemalloc.start()
+    try:
+        state = RobotState(n, 1.0, 1.0)
+        allocated, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert state.n == n
+    assert floor == pytest.approx(allocated, rel=0.01)
+
+
+# A random waypoint scenario whose longest leg is 102 s (a 30 m x 40 m area's 50 m
+# diagonal at 0.5 m/s, and a 2 s pause): over 102,000 s each of its 3 robots changes
+# course at least 1,000 times, 3,000 rows of the leg log in all.
+LEGS = [
+    "world.bounds_m=[0, 0, 30, 40]",
+    "mobility.speed_min_mps=0.5",
+    "mobility.pause_s=2",
+    "world.n_robots=3",
+    "protocol.model=none",
+    "output.position_interval_s=0",
+]
+
+
+def test_course_changes_are_refused_exactly_beyond_the_memory():
+    """A random waypoint run is refused when its course changes (at least duration_s over
+    the longest leg, the diagonal at the least speed and a pause, per robot) cannot fit in
+    the memory; one that just fits is not."""
+    from netsim.errors import ConfigError
+    from netsim.tools import preflight
+
+    config = cfgmod.load(None, [*LEGS, "duration_s=102000"])
+    need = 3_000 * preflight.LEG_BYTES
+    preflight.check_legs_fit_in_memory(config, need)
+    with pytest.raises(ConfigError) as err:
+        preflight.check_legs_fit_in_memory(config, need - 1)
+    assert err.value.key == "duration_s"
+
+
+def test_course_changes_are_not_counted_without_a_least_speed_or_a_known_memory():
+    """No least speed (a leg may last forever) or a machine that does not tell its memory:
+    no refusal, whatever the duration; nor for a model other than random waypoint."""
+    from netsim.tools import preflight
+
+    long = "duration_s=1e15"
+    preflight.check_legs_fit_in_memory(cfgmod.load(None, [*LEGS, long, "mobility.speed_min_mps=0"]), 1)
+    preflight.check_legs_fit_in_memory(cfgmod.load(None, [*LEGS, long]), None)
+    preflight.check_legs_fit_in_memory(cfgmod.load(None, [*LEGS, long, "mobility.model=random_direction"]), 1)
+
+
+def test_the_course_changes_refusal_says_how_much_against_the_machines_memory():
+    """The refusal names duration_s, the course changes' GiB and the machine's, in that order."""
+    from netsim.errors import ConfigError
+    from netsim.tools import preflight
+
+    # 3 x 2^30 / 100 legs of 100 bytes: 3 GiB of course changes, against 1 GiB.
+    duration = 102 * 2**30 / 100
+    config = cfgmod.load(None, [*LEGS, f"duration_s={duration!r}"])
+    with pytest.raises(ConfigError) as err:
+        preflight.check_legs_fit_in_memory(config, 2**30)
+    assert str(err.value) == (
+        f"duration_s = {duration!r}: the scenario would hold at least 3.0 GiB of course changes, more than "
+        "this machine's 1.0 GiB of memory; shorten it"
+    )
+
+
+def test_a_team_is_refused_exactly_beyond_the_machines_memory(monkeypatch):
+    """The robots' state and positions that just fit in the machine's memory are run; a
+    byte more than it has is refused, naming world.n_robots."""
+    from netsim.errors import ConfigError
+    from netsim.tools import preflight
+
+    config = cfgmod.load(None, ["world.n_robots=50", "duration_s=9", "protocol.model=none"])
+    need = preflight.least_memory_bytes(config)
+    monkeypatch.setattr(preflight, "machine_memory_bytes", lambda: need)
+    preflight.check_run(config)
+    monkeypatch.setattr(preflight, "machine_memory_bytes", lambda: need - 1)
+    with pytest.raises(ConfigError) as err:
+        preflight.check_run(config)
+    assert err.value.key == "world.n_robots"
+
+
+@pytest.mark.parametrize(
+    ("sets", "held", "advice"),
+    [
+        (["output.position_interval_s=0"], "the robots' state", ""),
+        (
+            [],
+            "the robots' state and positions.parquet's rows",
+            ", or duration_s, or raise output.position_interval_s (0: no positions table)",
+        ),
+    ],
+    ids=["unsampled", "sampled"],
+)
+def test_a_team_past_the_memory_is_told_what_it_would_hold_and_what_to_lower(
+    tmp_path, capfd, monkeypatch, no_simulation, sets, held, advice
+):
+    """The refusal says what the floor holds (the positions' rows only when sampled), the
+    GiB it needs against the machine's, and what to lower (duration_s and the sampling
+    only when there are samples): one line, exit 2, nothing written."""
+    from netsim.machine import gib
+    from netsim.tools import preflight
+
+    n = 10_000_000
+    args = [f"world.n_robots={n}", "protocol.model=none", *sets]
+    need = preflight.least_memory_bytes(cfgmod.load(None, args))
+    monkeypatch.setattr(preflight, "machine_memory_bytes", lambda: 2**29)
+    monkeypatch.chdir(tmp_path)
+    before = tree(tmp_path)
+    line = refused(capfd, main(["run", *(a for s in args for a in ("--set", s))]), before, tmp_path)
+    assert gib(need) != "0.5"
+    assert line == (
+        f"netsim: error: world.n_robots = {n}: the run would hold at least {gib(need)} GiB ({held}, before any "
+        f"model's), more than this machine's 0.5 GiB of memory; lower it{advice}"
+    )
+
+
 def test_two_commands_never_write_one_directory_at_once(tmp_path):
     """While one command holds its output directory, a second one given it is refused in one
     line before any work (two bridges on one --out: the second silently replaced the
