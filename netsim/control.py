@@ -221,7 +221,9 @@ class ControlLoop:
         short_of_walls(self.occupancy, here, step.velocity_mps, self.period_s)
 
     def _apply(self, step: ControlStep, current: np.ndarray) -> None:
-        if self.occupancy is not None:
+        # Only where the loop drives the robots: a mobility model keeps its own robots off
+        # the walls, and a step the loop shortened would read as a controller's change.
+        if self.occupancy is not None and self.moved_by is None:
             self._keep_off_walls(step)
         changed = np.flatnonzero((step.velocity_mps != current).any(axis=1))
         if len(changed) == 0:

@@ -370,3 +370,27 @@ def test_on_a_map_a_step_is_kept_off_the_walls_from_where_the_robot_is_when_it_a
     end = sim.positions()
     assert office.is_free(end).all() and free_fraction(office, blocked[None], end)[0] == 1.0
     assert end[0, 0] > blocked[0]  # it did go east, up to the wall
+
+
+def test_a_controller_that_only_observes_runs_beside_a_mobility_model_on_a_map():
+    """Under random waypoint on the office map a controller that only looks (log_separation)
+    runs to the end: the loop keeps only the robots it drives off the walls, and a random
+    waypoint's leg it shortened was taken for the controller's change and refused."""
+    from netsim.config import load
+
+    config = load(
+        None,
+        [
+            "seed=1",
+            "world.n_robots=5",
+            "world.side_m=100",
+            "world.map=office",
+            "mobility.model=random_waypoint",
+            "mobility.stationary_start=false",
+            "protocol.model=none",
+            "duration_s=20",
+            'control.controllers=["log_separation"]',
+        ],
+    )
+    result = execute(config)
+    assert result.sim.now == 20.0 and len(result.frames["separation"]) >= 10
