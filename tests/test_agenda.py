@@ -12,7 +12,7 @@ from netsim.protocols.ack import AckBeacon, AckParams
 import netsim.radio.channel
 from netsim.agenda import Agenda
 from netsim.run import build, collect
-from netsim.scheduling import FIRST, NORMAL, URGENT, scheduled_event
+from netsim.scheduling import FIRST, LAST, NORMAL, URGENT, scheduled_event
 from tests.fixtures import clustering, make_config, static_core
 
 
@@ -100,6 +100,49 @@ def test_agenda_wakes_once_for_consecutive_entries():
     assert len(ran) == 110 and sorted(k for k in ran if k >= 0) == list(range(100))
     # Two: the one armed for 0.5 first stays queued after the one for 0 is armed.
     assert agenda.wakes_run == 2
+
+
+def test_an_agendas_length_is_its_entries_not_yet_run():
+    """``len(agenda)`` counts the entries still to run, wherever they wait (heap, queue or
+    calendar), and falls as they run."""
+    env = simpy.Environment()
+    agenda = Agenda(env)
+    ran: list[float] = []
+    agenda.at(1.0, URGENT, lambda: ran.append(env.now))
+    agenda.at_in_order(1.0, URGENT, lambda: ran.append(env.now))
+    agenda.ahead(2.0, NORMAL, lambda: ran.append(env.now))
+    agenda.ahead(3.0, NORMAL, lambda: ran.append(env.now))
+    lengths = [len(agenda)]
+    for until in (1.5, 2.5, 4.0):
+        env.run(until=until)
+        lengths.append(len(agenda))
+    assert lengths == [4, 2, 1, 0] and ran == [1.0, 1.0, 2.0, 3.0]
+
+
+def test_a_scheduled_event_is_normal_unless_told():
+    """``scheduled_event`` without a priority runs as a timeout does (NORMAL: after the
+    URGENT events of its instant, among the NORMAL ones in the order scheduled)."""
+    env = simpy.Environment()
+    log = []
+    env.timeout(1.0).callbacks.append(lambda _e: log.append("timeout"))
+    scheduled_event(env, 1.0, callback=lambda _e: log.append("default"))
+    scheduled_event(env, 1.0, URGENT, lambda _e: log.append("urgent"))
+    env.run()
+    assert log == ["urgent", "timeout", "default"]
+
+
+def test_an_event_at_last_runs_after_everything_else_of_its_instant():
+    """LAST (the runtime links' start at t = 0) comes after the NORMAL events of its instant,
+    those scheduled after it included; FIRST before the URGENT ones."""
+    env = simpy.Environment()
+    log = []
+    scheduled_event(env, 0.0, LAST, lambda _e: log.append("last"))
+    scheduled_event(env, 0.0, NORMAL, lambda _e: log.append("normal"))
+    env.timeout(0.0).callbacks.append(lambda _e: log.append("timeout"))
+    scheduled_event(env, 0.0, URGENT, lambda _e: log.append("urgent"))
+    scheduled_event(env, 0.0, FIRST, lambda _e: log.append("first"))
+    env.run()
+    assert log == ["first", "urgent", "normal", "timeout", "last"]
 
 
 def _deliveries(sim):

@@ -287,3 +287,118 @@ def test_only_a_rule3_timeout_ends_a_wait_for_a_leader_loss():
         }
     )
     assert acks_waited(roles, 2.5, 1.0, LABELS).empty
+
+
+# The durations of test_kaplan_meier_hand_computed_example: 1, 2, 2+, 3, 4+, 5.
+_D, _E = [1, 2, 2, 3, 4, 5], [1, 1, 0, 1, 0, 1]
+# Two-sided standard normal quantiles, written out (not computed as the module does).
+_Z = {0.95: 1.959963984540054, 0.8: 1.2815515655446004}
+
+
+def test_kaplan_meier_refuses_durations_and_observed_of_unequal_lengths():
+    with pytest.raises(ValueError, match="durations and observed must have the same length"):
+        kaplan_meier([1.0, 2.0, 3.0], [True, False])
+
+
+@pytest.mark.parametrize("level", [0.95, 0.8])
+def test_the_kaplan_meier_band_is_greenwoods_on_the_log_log_scale_at_the_level_asked(level):
+    """Greenwood's sums by hand (d / (n (n - d)) at each end: 1/30, + 1/20, + 1/6), the band
+    ``S ** exp(+-z se)`` with ``se = sqrt(greenwood) / |log S|`` and ``z`` the level's
+    two-sided normal quantile."""
+    km = kaplan_meier(_D, _E, level)
+    z = _Z[level]
+    for row, (s, g) in enumerate([(5 / 6, 1 / 30), (2 / 3, 1 / 30 + 1 / 20), (4 / 9, 1 / 30 + 1 / 20 + 1 / 6)]):
+        se = np.sqrt(g) / abs(np.log(s))
+        assert km["ci_low"][row] == pytest.approx(s ** np.exp(z * se), rel=1e-12)
+        assert km["ci_high"][row] == pytest.approx(s ** np.exp(-z * se), rel=1e-12)
+
+
+def test_where_the_survival_reaches_zero_its_band_is_zero():
+    """The last lifetime at risk ends at 5: the survival is 0 there, and so is its band,
+    both edges (the upper end of the median's interval is then that time)."""
+    km = kaplan_meier(_D, _E)
+    last = km.iloc[-1]
+    assert (last["survival"], last["ci_low"], last["ci_high"]) == (0.0, 0.0, 0.0)
+    assert median(km)[2] == 5.0
+
+
+@pytest.mark.parametrize("level", [0.95, 0.8])
+def test_the_restricted_means_interval_is_klein_and_moeschbergers(level):
+    """Variance: the sum over ends t_i of A_i ** 2 d_i / (n_i (n_i - d_i)), A_i the area under
+    the curve from t_i to the horizon (5 s: 43/18, 14/9, 8/9; the end at 5, n = d,
+    adds nothing); the interval is the mean plus and minus z times its root."""
+    km = kaplan_meier(_D, _E, level)
+    mean, lo, hi = restricted_mean(km, _D, _E, level=level)
+    areas = [5 / 6 + 2 / 3 + 8 / 9, 2 / 3 + 8 / 9, 8 / 9]
+    var = areas[0] ** 2 / 30 + areas[1] ** 2 / 20 + areas[2] ** 2 / 6
+    half = _Z[level] * np.sqrt(var)
+    assert mean - lo == pytest.approx(half, rel=1e-12) and hi - mean == pytest.approx(half, rel=1e-12)
+
+
+def test_the_median_is_the_first_time_the_survival_falls_to_one_half_or_below():
+    """Four lifetimes 1, 2, 3, 4, all ended: the survival is exactly 1/2 at 2, the median."""
+    assert median(kaplan_meier([1, 2, 3, 4], [1, 1, 1, 1]))[0] == 2.0
+
+
+def test_the_medians_interval_is_where_the_bands_edges_cross_one_half():
+    """The lower end of the median's interval is where the band's lower edge falls to one
+    half (first), the upper end where its upper edge does."""
+    d = np.random.default_rng(4).exponential(10.0, 300)
+    km = kaplan_meier(d, np.ones(300, bool))
+    med, lo, hi = median(km)
+    assert lo < med < hi
+    assert lo == km.loc[km["ci_low"] <= 0.5, "t_s"].iloc[0]
+    assert hi == km.loc[km["ci_high"] <= 0.5, "t_s"].iloc[0]
+
+
+def test_a_summary_of_links_none_of_which_ended_has_counts_and_no_figure():
+    """Links born during the run and all still up at its end: counted, all censored, and
+    no mean or median (the longest would otherwise pass for the mean)."""
+    links = pd.DataFrame(
+        {
+            "t_up_s": [1.0, 2.0, 0.0],
+            "t_down_s": [10.0, 10.0, 10.0],
+            "censored_start": [False, False, True],
+            "censored_end": [True, True, True],
+        }
+    )
+    s = lifetime_summary(links)
+    assert s["links"] == 2 and s["censored"] == 2
+    figures = ["mean_s", "mean_ci_low_s", "mean_ci_high_s", "median_s", "median_ci_low_s", "median_ci_high_s"]
+    assert all(np.isnan(s[f]) for f in figures)
+
+
+def test_the_lifetime_summary_is_the_links_kaplan_meier_figures_at_the_level_asked():
+    """``lifetime_summary(links, level)``: the links born during the run, those still up at
+    the end counted as censored, and the restricted mean and median of their Kaplan-Meier
+    curve with intervals at ``level``, each figure in its place."""
+    rng = np.random.default_rng(6)
+    up = rng.uniform(0.0, 50.0, 200)
+    down = up + rng.exponential(20.0, 200)
+    end = down > 80.0
+    links = pd.DataFrame(
+        {
+            "t_up_s": np.r_[0.0, up],
+            "t_down_s": np.r_[30.0, np.minimum(down, 80.0)],
+            "censored_start": np.r_[True, np.zeros(200, bool)],
+            "censored_end": np.r_[False, end],
+        }
+    )
+    d, e = np.minimum(down, 80.0) - up, ~end
+    km = kaplan_meier(d, e, 0.8)
+    mean, lo, hi = restricted_mean(km, d, e, level=0.8)
+    med, med_lo, med_hi = median(km)
+    assert 0 < end.sum() < 100  # censored and ended links count apart
+    assert lifetime_summary(links, 0.8) == {
+        "links": 200,
+        "censored": int(end.sum()),
+        "mean_s": mean,
+        "mean_ci_low_s": lo,
+        "mean_ci_high_s": hi,
+        "median_s": med,
+        "median_ci_low_s": med_lo,
+        "median_ci_high_s": med_hi,
+    }
+    assert lo < mean < hi and med_lo < med < med_hi
+    wider = lifetime_summary(links)
+    assert wider["mean_ci_low_s"] < lo and wider["median_ci_high_s"] >= med_hi

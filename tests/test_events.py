@@ -445,6 +445,30 @@ def test_the_bus_rejects_unknown_events_and_late_link_subscriptions():
     sim.events.on("course_change", print)  # any other event may be subscribed to at any time
 
 
+def test_subscribing_returns_the_subscriber():
+    """``on`` hands back the function it subscribed, so that it serves as a decorator."""
+    bus = EventBus()
+
+    def dropped(event):
+        pass
+
+    assert bus.on("drop", dropped) is dropped and bus.subscribers("drop") == [dropped]
+
+
+def test_with_link_events_solved_from_the_start_they_may_be_subscribed_to_mid_run():
+    """runtime_links = 'on' solves link events from t = 0: a subscriber to them added mid-run
+    is taken, and called from then on (robot 1, set moving at 5 s, leaves robot 0's range at
+    10 s)."""
+    sim = _core(2, 10.0, 20.0, runtime_links="on")
+    sim.state.place([[0, 0], [5, 0]])
+    sim.run(5.0)
+    sim.state.set_leg(1, 5.0, (1.0, 0.0))
+    seen: list = []
+    down = sim.events.on("link_down", lambda ev: seen.append((ev.t_s, ev.a, ev.b)))
+    sim.run()
+    assert down in sim.events.subscribers("link_down") and seen == [(pytest.approx(10.0), 0, 1)]
+
+
 def test_runtime_links_are_off_unless_someone_subscribes():
     sim = _core(2, 10.0, 10.0)
     sim.state.place([[0, 0], [5, 0]])

@@ -92,6 +92,38 @@ def test_unequal_ranges_make_one_way_links():
     assert geometric_edges(pos, [15.0, 5.0]) == []
 
 
+def test_a_directed_snapshot_has_an_edge_to_every_robot_within_the_senders_range():
+    """``snapshot(..., directed=True)`` is a DiGraph with i -> j when j is within i's range:
+    a one-way link appears once, in its direction, which the undirected snapshot leaves out."""
+    st = RobotState(3, 200.0, [15.0, 5.0, 5.0])
+    st.place(np.array([[0.0, 0.0], [10.0, 0.0], [100.0, 0.0]]))
+    g = snapshot(st, 0.0, directed=True)
+    assert g.is_directed()
+    assert list(g.edges(data="distance")) == [(0, 1, 10.0)]
+    assert snapshot(st, 0.0).number_of_edges() == 0
+
+
+def test_a_directed_snapshot_of_the_runs_links_holds_each_link_both_ways():
+    """The links of a solver are two-way: the directed snapshot given them has both i -> j
+    and j -> i for each, at the undirected snapshot's distance."""
+    sim = build(
+        make_config(
+            duration_s=5.0,
+            world={"n_robots": 12, "side_m": 200.0},
+            channel={"range_m": 80.0},
+            protocol={"model": "none"},
+        )
+    )
+    links = sim.link_events()
+    sim.run()
+    both = snapshot(sim.state, sim.now, directed=True, links=links)
+    one = snapshot(sim.state, sim.now, links=links)
+    assert both.is_directed() and one.number_of_edges() > 0
+    want = {(a, b, d) for a, b, d in one.edges(data="distance")}
+    want |= {(b, a, d) for a, b, d in want}
+    assert set(both.edges(data="distance")) == want
+
+
 def test_link_times_are_exact_for_crossing_robots():
     """Item 7: a link comes up and down at the roots of |dp + dv t| = R, to 1e-9 s."""
     # Robot 1 passes robot 0 at impact parameter 3 with speed 2: in range for |x| <= 4.

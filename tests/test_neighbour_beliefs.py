@@ -132,6 +132,31 @@ def test_samples_frame_is_every_sample_in_order(expected):
     assert early.equals(early_copy) and len(early) > 0
 
 
+def test_a_sample_larger_than_the_buffers_after_more_samples_than_expected_is_kept_whole():
+    """Past the samples expected, a sample of more rows than the buffers have left grows
+    them to hold it: every row is kept."""
+    from netsim.samples import Samples
+
+    samples = Samples(1)
+    sizes = [1, 100, 300, 10_000]
+    for k, m in enumerate(sizes):
+        samples.add(float(k), {"robot": np.arange(m)})
+    got = samples.frame()
+    assert got["t_s"].tolist() == [float(k) for k, m in enumerate(sizes) for _ in range(m)]
+    assert got["robot"].tolist() == [i for m in sizes for i in range(m)]
+
+
+def test_columns_of_objects_are_sampled_in_numpys_arrays():
+    """A column of Python objects (text) is held too, in numpy's own arrays (memory mapped
+    buffers cannot hold references)."""
+    from netsim.samples import Samples
+
+    samples = Samples(2)
+    samples.add(0.0, {"name": np.array(["a", "bb"], dtype=object)})
+    samples.add(1.0, {"name": np.array(["ccc"], dtype=object)})
+    assert samples.frame()["name"].tolist() == ["a", "bb", "ccc"]
+
+
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
 def test_sampled_buffers_are_not_shared_with_a_forked_process():
     """A process forked while a run's samples are held (a sweep's worker, say) writes its

@@ -2,6 +2,9 @@
 writes without declaring it is refused, one it declares and never writes is written empty,
 and its columns and their dtypes are the declared ones (docs/plugins.md)."""
 
+from typing import NamedTuple
+
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -159,3 +162,85 @@ def test_netsim_own_models_write_the_tables_they_declare(overrides):
     for name, frame in execute(cfg).frames.items():
         assert name in declared, name
         pd.testing.assert_frame_equal(conform(frame, declared[name], "netsim", name), frame)
+
+
+class _Row(NamedTuple):
+    t_s: float
+    n: int
+
+
+def test_a_table_two_models_register_is_owned_by_the_first():
+    """Messages about a table name the model that registered it first: a second model
+    writing the same table does not take it over."""
+    from netsim.trace import Trace
+
+    trace = Trace()
+    trace.written_by("events.hooks[0] = 'a:HOOK'").emit("shared", _Row(0.0, 1))
+    trace.written_by("events.hooks[1] = 'b:HOOK'").add_frame("shared", pd.DataFrame)
+    assert trace.owners == {"shared": "events.hooks[0] = 'a:HOOK'"}
+
+
+def test_a_table_a_model_only_declares_is_its_own():
+    """A table a user's model declares through the trace, written or not, is recorded as
+    that model's (so that one its plugin does not declare is refused); netsim's own
+    declarations are nobody's."""
+    from netsim.trace import Trace
+
+    trace = Trace()
+    trace.declare("netsims", _Row)
+    trace.written_by("events.hooks[0] = 'a:HOOK'").declare("mine", _Row)
+    assert trace.owners == {"mine": "events.hooks[0] = 'a:HOOK'"}
+    assert trace.names() == ["mine", "netsims"]
+
+
+def test_declaring_a_table_again_keeps_its_rows():
+    """A second declaration of a table (a second model of one kind, say) adds nothing and
+    loses none of the rows already recorded."""
+    from netsim.trace import Trace
+
+    trace = Trace()
+    trace.declare("counts", _Row)
+    trace.emit("counts", _Row(0.0, 3))
+    trace.declare("counts", _Row)
+    trace.emit("counts", _Row(1.0, 4))
+    assert trace.frame("counts").to_dict("list") == {"t_s": [0.0, 1.0], "n": [3, 4]}
+
+
+def test_only_text_held_as_objects_takes_the_text_dtype_as_read_back():
+    """A table with rows: a declared text column held as objects becomes pandas' text dtype,
+    as its Parquet file reads back; one held otherwise (categories, which Parquet keeps as
+    such) is left as it is."""
+    from netsim.trace import TEXT_DTYPE, as_read_back
+
+    frame = pd.DataFrame({"label": pd.Series(["a", "b"], dtype=object), "kind": pd.Categorical(["x", "y"])})
+    back = as_read_back(frame, {"label": "object", "kind": "object"})
+    assert back["label"].dtype == TEXT_DTYPE and back["label"].tolist() == ["a", "b"]
+    assert isinstance(back["kind"].dtype, pd.CategoricalDtype)
+
+
+def test_a_table_without_rows_is_held_to_its_declaration_too():
+    """Columns not declared, or of a dtype that does not cast safely, are refused in a table
+    without rows as in one with rows; only a frame with neither rows nor columns is the
+    declared empty table."""
+    from netsim.trace import conform
+
+    schema = {"t_s": "float64", "n": "int64"}
+    extra = pd.DataFrame({"t_s": pd.Series([], dtype=float), "n": pd.Series([], dtype=int), "x": []})
+    with pytest.raises(NetsimInputError, match=r"^me: table 'tbl' has other columns .*\(not declared x\)$"):
+        conform(extra, schema, "me", "tbl")
+    fractions = pd.DataFrame({"t_s": pd.Series([], dtype=float), "n": pd.Series([], dtype=float)})
+    with pytest.raises(NetsimInputError, match=r"column 'n' is written as float64, declared int64"):
+        conform(fractions, schema, "me", "tbl")
+    empty = conform(pd.DataFrame(), schema, "me", "tbl")
+    assert len(empty) == 0 and {c: str(t) for c, t in empty.dtypes.items()} == schema
+
+
+@pytest.mark.parametrize(("written", "declared"), [("int64", "int32"), ("float64", "float32"), ("int64", "uint64")])
+def test_a_column_narrower_in_its_declaration_is_refused(written, declared):
+    """A cast numpy counts unsafe within one kind of number (to fewer bits, or to unsigned)
+    could change values: refused, naming both dtypes."""
+    from netsim.trace import conform
+
+    frame = pd.DataFrame({"v": np.array([1, 2], dtype=written)})
+    with pytest.raises(NetsimInputError, match=rf"column 'v' is written as {written}, declared {declared}"):
+        conform(frame, {"v": declared}, "me", "tbl")

@@ -128,3 +128,40 @@ def test_every_sampled_table_names_the_same_instants(interval_s, duration_s, mul
     assert set(groups) <= set(expected)  # from the first sample with a group
     joined = frames["beliefs"].merge(frames["positions"], on=["t_s", "robot"])
     assert len(joined) == len(frames["beliefs"])
+
+
+@pytest.mark.parametrize("interval_s, end_s, count", [(0.05, 45.65000004565, 914), (0.05, 27.500000027500004, 552)])
+def test_sample_times_are_the_multiples_short_of_the_end_however_the_quotient_rounds(interval_s, end_s, count):
+    """The instants are every multiple of the interval short of the end by more than a
+    rounding error, then the end: ends where the quotient end / interval rounds one
+    multiple past that last one (45.65...) or one short of it (27.5...), as the products
+    place them; counted as made."""
+    from netsim.samples import sample_count, sample_times
+
+    times = sample_times(interval_s, end_s)
+    band = end_s - 1e-9 * end_s
+    assert len(times) == count == sample_count(interval_s, end_s)
+    assert times[:-1].tolist() == [k * interval_s for k in range(count - 1)] and times[-1] == end_s
+    assert times[-2] < band <= (count - 1) * interval_s
+
+
+def test_a_sample_within_a_rounding_error_of_the_end_is_the_end():
+    """The band is 1e-9 of the end (at least 1e-9 s), its edge included: 1e-4 s and 1e-3 s
+    (the edge) short of a run of 1e6 s are its end, 2e-3 s short is not; 1e-9 s short of a
+    run of 1 s is its end, 2e-9 s is not."""
+    from netsim.samples import ended_at
+
+    end = 1e6
+    assert ended_at([end - 1e-4], end) and ended_at([end - 1e-9 * end], end)
+    assert not ended_at([end - 2e-3], end) and not ended_at([], end)
+    assert ended_at([1.0 - 1e-9], 1.0) and not ended_at([1.0 - 2e-9], 1.0)
+
+
+def test_a_count_of_samples_past_any_float_is_still_a_number_to_refuse():
+    """An interval so small against the end that their quotient overflows counts as many
+    samples as an int can say (it counted one: a run past any memory let through)."""
+    import sys
+
+    from netsim.samples import sample_count
+
+    assert sample_count(1e-300, 1e300) == sys.maxsize

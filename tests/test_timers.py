@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 import simpy
 
 from netsim.scheduling import URGENT, scheduled_event
@@ -177,3 +178,63 @@ def test_a_restart_of_one_timer_twice_in_one_call_keeps_the_last_deadline():
         timers.restart(np.array([0, 0, 1]), np.array(deadlines))
         env.run(until=10)
         assert fired == expected
+
+
+@pytest.mark.parametrize("on_agenda", [False, True])
+def test_a_deadline_already_past_expires_at_once_at_the_present(on_agenda):
+    """A timer restarted to a deadline already gone runs out at once: at the instant of the
+    restart, the clock never set back to the deadline."""
+    from netsim.agenda import Agenda
+
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 1, lambda i, now: fired.append((i, now, env.now)), Agenda(env) if on_agenda else None)
+    env.timeout(5.0).callbacks.append(lambda _e: timers.restart(0, 3.0))
+    env.run(until=10)
+    assert fired == [(0, 5.0, 5.0)]
+
+
+@pytest.mark.parametrize("on_agenda", [False, True])
+def test_an_event_a_restart_superseded_never_runs_its_timer_out(on_agenda):
+    """Timer 0 is armed at 5 s, restarted to 1 s (armed again) and runs out there, then is
+    restarted to 5 s at 2 s; timer 1 was armed at 5 s in between. At 5 s timer 0's first
+    event, superseded, does nothing: timer 1 runs out first, then timer 0 by the event of
+    its last restart, as one kernel event per restart would order them."""
+    from netsim.agenda import Agenda
+
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 2, lambda i, now: fired.append((i, now)), Agenda(env) if on_agenda else None)
+    timers.restart(0, 5.0)
+    timers.restart(0, 1.0)
+    timers.restart(1, 5.0)
+    env.timeout(2.0).callbacks.append(lambda _e: timers.restart(0, 5.0))
+    env.run(until=10)
+    assert fired == [(0, 1.0), (1, 5.0), (0, 5.0)]
+
+
+def test_the_calendar_takes_an_entry_earlier_than_those_it_took_next():
+    """An entry pushed for a slice before the one being taken, after some of that one were
+    taken, comes next, then the rest of that slice, never again the entries already taken
+    (the order of a heap, whatever is pushed)."""
+    from netsim.agenda import Calendar
+
+    calendar = Calendar(0.05)
+    calendar.push((1.0, 0, 1))
+    calendar.push((1.01, 0, 2))
+    assert calendar.pop() == (1.0, 0, 1)
+    calendar.push((0.5, 0, 3))
+    assert [calendar.pop(), calendar.pop()] == [(0.5, 0, 3), (1.01, 0, 2)]
+    assert calendar.first() is None and len(calendar) == 0
+
+
+def test_timers_whose_deadlines_a_compiled_loop_wrote_run_out_once_armed():
+    """Deadlines written into ``deadline_s`` elsewhere (the clustering's compiled loop
+    renews members' timers there) run out at those instants once ``arm`` schedules them."""
+    env = simpy.Environment()
+    fired = []
+    timers = DeadlineTimers(env, 3, lambda i, now: fired.append((i, now)))
+    timers.deadline_s[[0, 2]] = [2.0, 1.0]
+    timers.arm(np.array([0, 2]))
+    env.run(until=10)
+    assert fired == [(2, 1.0), (0, 2.0)]
