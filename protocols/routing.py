@@ -11,6 +11,7 @@ size, so that they take airtime, collide and are lost like any other.
 
 from __future__ import annotations
 
+from array import array
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -114,12 +115,12 @@ class Router:
         # Per reception of a data frame by its next hop: the frame's id, the hops it took
         # with this one, sender, receiver, when sent and when received (the hops table).
         self._hops: tuple[list, ...] = tuple([] for _ in HOPS_SCHEMA)
-        # Per data frame sent: the shortest path's hops from its source to its destination
+        # Per data frame sent (frame ids count from 0), the shortest path's hops from its source to its destination
         # when it was sent, on the true topology (a unit disk's, or the disks of a radio's
         # implied range, as the clustering's backbone measures them); the last search's
         # time, jumps (a robot set down elsewhere at that instant changes the paths) and
         # ends, and its hops, which a packet's other frames reuse.
-        self._shortest: dict[int, float] = {}
+        self._shortest = array("d")
         self._index = shortest_paths_index(self.channel, self.state)
         self._searched: tuple[float, int, int, int] = (np.nan, -1, -1, -1)
         self._searched_hops = np.inf
@@ -170,7 +171,7 @@ class Router:
         if self._searched != searched:
             hops = hop_distances(self.state, now, src, index=self._index, target=dst)
             self._searched, self._searched_hops = searched, float(hops[dst])
-        self._shortest[mid] = self._searched_hops
+        self._shortest.append(self._searched_hops)
         pkt = Packet(mid, src, dst, self.ttl, 0, kind, now, self.destination_xy(dst))
         self.originate(src, pkt)
         return mid
