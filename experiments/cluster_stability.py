@@ -21,37 +21,13 @@ from pathlib import Path
 
 from netsim.tools import sweep as sweepmod
 from netsim.tools.args import Parser
-from netsim.tools.figures import pyplot
+from netsim.tools.sweep_figure import draw_aggregate
 
 METRICS = {
     "leaders_time_mean": "leaders (time-weighted mean)",
     "role_changes_per_robot_per_min": "role changes per robot per minute",
     "mean_leader_tenure_s": "mean leader tenure (s)",
 }
-
-
-def plot(agg, path: Path, title: str) -> None:
-    plt = pyplot()
-    fig, axes = plt.subplots(1, len(METRICS), figsize=(4.2 * len(METRICS), 3.6), constrained_layout=True)
-    for ax, (metric, label) in zip(axes, METRICS.items()):
-        for pause, g in agg.groupby("mobility.pause_s"):
-            g = g.sort_values("mobility.speed_max_mps")
-            err = [g[f"{metric}_mean"] - g[f"{metric}_ci_low"], g[f"{metric}_ci_high"] - g[f"{metric}_mean"]]
-            ax.errorbar(
-                g["mobility.speed_max_mps"],
-                g[f"{metric}_mean"],
-                yerr=err,
-                marker="o",
-                capsize=3,
-                label=f"pause {pause:g} s",
-            )
-        ax.set_xlabel("maximum speed (m/s)")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    axes[0].legend()
-    fig.suptitle(title)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def main(argv=None) -> None:
@@ -90,10 +66,15 @@ def main(argv=None) -> None:
         sweepmod.load(out / "sweep"), ["mobility.pause_s", "mobility.speed_max_mps"], list(METRICS)
     )
     agg.to_csv(out / "cluster_stability.csv", index=False)
-    plot(
+    draw_aggregate(
         agg,
+        "mobility.speed_max_mps",
+        "mobility.pause_s",
+        METRICS,
         out / "cluster_stability.png",
         f"{args.n} robots, range {args.range:g} m, {args.side:g} m square, {args.reps} replications, 95 % CI",
+        xlabel="maximum speed (m/s)",
+        series_label=lambda pause: f"pause {pause:g} s",
     )
     print(f"wrote {out / 'cluster_stability.csv'} and {out / 'cluster_stability.png'}")
 

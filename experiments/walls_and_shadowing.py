@@ -26,7 +26,7 @@ from pathlib import Path
 
 from netsim.tools import sweep as sweepmod
 from netsim.tools.args import Parser
-from netsim.tools.figures import pyplot
+from netsim.tools.sweep_figure import draw_aggregate
 
 METRICS = {
     "leaders_time_mean": "leaders (time-weighted mean)",
@@ -40,30 +40,6 @@ TX_POWER_DBM, REFERENCE_LOSS_DB, EXPONENT = 20.0, 40.0, 3.0  # the radio's defau
 def sensitivity_for(range_m: float) -> float:
     """The sensitivity whose implied range is ``range_m`` (reference distance 1 m)."""
     return TX_POWER_DBM - REFERENCE_LOSS_DB - 10.0 * EXPONENT * math.log10(range_m)
-
-
-def plot(agg, path: Path, title: str) -> None:
-    plt = pyplot()
-    fig, axes = plt.subplots(1, len(METRICS), figsize=(4.2 * len(METRICS), 3.6), constrained_layout=True)
-    for ax, (metric, label) in zip(axes, METRICS.items()):
-        for world_map, g in agg.groupby("world.map"):
-            g = g.sort_values("channel.shadowing_sigma_db")
-            err = [g[f"{metric}_mean"] - g[f"{metric}_ci_low"], g[f"{metric}_ci_high"] - g[f"{metric}_mean"]]
-            ax.errorbar(
-                g["channel.shadowing_sigma_db"],
-                g[f"{metric}_mean"],
-                yerr=err,
-                marker="o",
-                capsize=3,
-                label=f"{world_map} map" if world_map else "open space",
-            )
-        ax.set_xlabel("shadowing sigma (dB)")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    axes[0].legend()
-    fig.suptitle(title)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def main(argv=None) -> None:
@@ -102,10 +78,15 @@ def main(argv=None) -> None:
     runs["world.map"] = runs["world.map"].fillna("")
     agg = sweepmod.aggregate(runs, ["world.map", "channel.shadowing_sigma_db"], list(METRICS))
     agg.to_csv(out / "walls_and_shadowing.csv", index=False)
-    plot(
+    draw_aggregate(
         agg,
+        "channel.shadowing_sigma_db",
+        "world.map",
+        METRICS,
         out / "walls_and_shadowing.png",
         f"{args.n} robots, implied range {args.range:g} m, {args.side:g} m square, {args.reps} replications, 95 % CI",
+        xlabel="shadowing sigma (dB)",
+        series_label=lambda world_map: f"{world_map} map" if world_map else "open space",
     )
     print(f"wrote {out / 'walls_and_shadowing.csv'} and {out / 'walls_and_shadowing.png'}")
 
