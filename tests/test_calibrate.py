@@ -483,15 +483,15 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_log, case, extra, words):
     """Each kind of bad log or flag: `netsim: error: ...` on one line, exit status 2, and
-    the --out file is not written."""
+    neither the --out file nor the --plot figure is written."""
     path = write_csv(tmp_path, small_log, "good.csv") if case == "good" else bad_log(tmp_path, small_log, case)
-    out = tmp_path / "site.toml"
-    assert main(["calibrate", str(path), *extra, "--out", str(out)]) == 2
+    out, plot = tmp_path / "site.toml", tmp_path / "fit.png"
+    assert main(["calibrate", str(path), *extra, "--out", str(out), "--plot", str(plot)]) == 2
     captured = capsys.readouterr()
     err = captured.err.strip()
     assert err.startswith("netsim: error: ") and "\n" not in err, err
     assert words in err, err
-    assert not out.exists()
+    assert not out.exists() and not plot.exists()
     assert "[channel]" not in captured.out
 
 

@@ -62,6 +62,7 @@ class Calibration:
     unread_out_of_range: int = 0
     left_out: int = 0  # rows that tell nothing of the channel (never sent, ...)
     shadowing_draws: float | None = None  # independent draws of the shadowing (None: no travel)
+    design: cf.Design | None = None  # the rows fitted (for the figure, calibrate_figure)
 
     def channel(self) -> dict:
         """The ``[channel]`` keys, as ``netsim run`` reads them."""
@@ -454,6 +455,7 @@ def calibrate_frames(
         *_unread_above(frames, s),
         frames.left_out,
         draws,
+        design,
     )
     check_channel(result)
     # Warned only of a log that fits: a refused one is one line, the refusal's.
@@ -660,8 +662,15 @@ def command(args) -> int:
     )
     print(report(result, str(path)))
     text = toml_fragment(result, str(path))
+    plot = getattr(args, "plot", None)
+    if plot is not None:
+        from netsim.tools.calibrate_figure import draw_calibration
+
+        draw_calibration(result, plot, str(path))
     if args.out is None:
         print("\n" + text, end="")
+        if plot is not None:
+            print(f"wrote {plot}")
         return 0
     out = Path(args.out)
     tmp = out.with_name(f".{out.name}.tmp")
@@ -671,4 +680,6 @@ def command(args) -> int:
     finally:
         tmp.unlink(missing_ok=True)
     print(f"wrote {out} (run it: netsim run {out})")
+    if plot is not None:
+        print(f"wrote {plot}")
     return 0

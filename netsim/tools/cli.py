@@ -25,7 +25,7 @@
 ``netsim config [CONFIG] [--set KEY=VALUE ...]``
     Print the configuration (the built-in default, or CONFIG with the overrides), every
     key with its meaning, the sections of the controllers it names included.
-``netsim calibrate LOG [--sensitivity-dbm S] [--map MAP] [--out FILE.toml]``
+``netsim calibrate LOG [--sensitivity-dbm S] [--map MAP] [--out FILE.toml] [--plot FILE.png]``
     Fit the log-distance channel (reference loss, exponent, shadowing, wall loss) to a
     log of frames and write the ``[channel]`` fragment ``netsim run`` reads.
 
@@ -62,6 +62,7 @@ from netsim.tools.interrupt import (
 from netsim.tools.preflight import check_run
 
 EXIT_INPUT = 2
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # what netsim calibrate --plot writes
 
 # A disk or a quota that is full: the user's to fix, said in one line.
 FULL_DISK = (errno.ENOSPC, errno.EDQUOT)
@@ -452,6 +453,12 @@ def cmd_calibrate(args) -> int:
 
     if args.out is not None:
         check_out_file(args.out, "--out")
+    if args.plot is not None:
+        check_out_file(args.plot, "--plot")
+        if Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+            raise NetsimInputError(f"--plot {args.plot}: name a {', '.join(PLOT_SUFFIXES)} file")
+        if args.out is not None and Path(args.plot).resolve() == Path(args.out).resolve():
+            raise NetsimInputError(f"--plot {args.plot}: is the --out file too; give two paths")
     return calibrate.command(args)
 
 
@@ -619,6 +626,9 @@ def parser() -> argparse.ArgumentParser:
     )
     cal.add_argument("--map", help="occupancy map (map_server YAML, or office / cave) to fit the loss per wall")
     cal.add_argument("--out", help="TOML file to write, a new path (default: print the fragment)")
+    cal.add_argument(
+        "--plot", help="figure to write, a new .png, .svg or .pdf: the log's powers and share heard beside the fit"
+    )
     cal.add_argument(
         "--tx-power-dbm",
         type=float,
