@@ -111,3 +111,22 @@ def check_refused(tmp_path, capsys, overrides: list[str], key: str, words: str) 
     assert words in err
     assert "\n" not in err
     assert not out.exists()
+
+
+def keep_figures(monkeypatch, module) -> list:
+    """The figures ``module`` draws through its ``pyplot``, kept open to be read (its
+    ``close`` keeps them instead); the caller closes them."""
+    from netsim.tools.figures import pyplot
+
+    plt = pyplot()
+    kept: list = []
+
+    class Keep:
+        def __getattr__(self, name):
+            return getattr(plt, name)
+
+        def close(self, fig):
+            kept.append(fig)
+
+    monkeypatch.setattr(module, "pyplot", Keep)
+    return kept

@@ -10,6 +10,7 @@ from netsim.tools import calibrate_figure, figures
 from netsim.tools.calibrate import calibrate_frame
 from netsim.tools.cli import main
 from tests.calibration_logs import TRUTH, synth_log
+from tests.fixtures import keep_figures
 
 SMALL = {"n_robots": 8, "duration_s": 300.0, "step_s": 0.5}
 
@@ -26,21 +27,11 @@ def truncated():
 
 @pytest.fixture
 def drawn(monkeypatch):
-    """The figures draw_calibration makes, kept open to be read."""
-    plt = figures.pyplot()
-    kept = []
-
-    class Keep:
-        def __getattr__(self, name):
-            return getattr(plt, name)
-
-        def close(self, fig):
-            kept.append(fig)
-
-    monkeypatch.setattr(calibrate_figure, "pyplot", Keep)
+    """The figures calibrate_figure draws, kept open to be read."""
+    kept = keep_figures(monkeypatch, calibrate_figure)
     yield kept
     for fig in kept:
-        plt.close(fig)
+        figures.pyplot().close(fig)
 
 
 def _line(ax, label_start: str):

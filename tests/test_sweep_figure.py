@@ -4,25 +4,16 @@ import pytest
 
 from netsim.errors import NetsimInputError
 from netsim.tools import figures, sweep, sweep_figure
+from tests.fixtures import keep_figures
 
 
 @pytest.fixture
 def drawn(monkeypatch):
-    """The figures draw_aggregate makes, kept open to be read."""
-    plt = figures.pyplot()
-    kept = []
-
-    class Keep:
-        def __getattr__(self, name):
-            return getattr(plt, name)
-
-        def close(self, fig):
-            kept.append(fig)
-
-    monkeypatch.setattr(sweep_figure, "pyplot", Keep)
+    """The figures sweep_figure draws, kept open to be read."""
+    kept = keep_figures(monkeypatch, sweep_figure)
     yield kept
     for fig in kept:
-        plt.close(fig)
+        figures.pyplot().close(fig)
 
 
 def _runs() -> pd.DataFrame:
