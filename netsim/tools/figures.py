@@ -12,6 +12,8 @@
 - ``fig8_final_deployment.png``: the final deployment with every robot's coverage disk,
   and the covered fraction of the area (exact) beside the most a connected team can
   cover, ``min(1, U(N) / A)``.
+- ``fig_packets.png``, when the run wrote ``packets.parquet`` (flows, or a routing
+  protocol's messages): how routing carried them (:mod:`netsim.tools.packet_figure`).
 
 Colours and markers come from :mod:`netsim.tools.style`, as in the replay (``netsim view``):
 each group has one colour for the whole run, and groups that could touch never share one.
@@ -483,6 +485,14 @@ def draw(run_dir: str | Path, out_dir: str | Path | None = None, at_s: float | N
             note = "no coverage disks: the run had coverage.enabled = false"
         _legend_outside(ax)
         drawn.append(_save(fig, staged / "fig8_final_deployment.png", note))
+        packets = read_run_table(run_dir, "packets", n)
+        if packets is not None and len(packets):
+            from netsim.tools.packet_figure import draw_packets
+
+            fig, axes = plt.subplots(1, 4, figsize=(18, 4.4), constrained_layout=True)
+            draw_packets(axes, packets)
+            fig.suptitle(f"Packets of {n} robots under protocol.model = {config.protocol.model!r}")
+            drawn.append(_save(fig, staged / "fig_packets.png", ""))
         return _placed(drawn, out)
 
 
