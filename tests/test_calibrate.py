@@ -782,3 +782,36 @@ def test_thirty_steps_from_five_pairs_are_enough_to_try_the_decorrelation():
     result = fit_decorrelation(rng.normal(0.0, 4.0, len(cluster)), travel, cluster, np.ones(len(cluster), bool), 4.0)
     assert (result.steps, result.pairs) == (MIN_STEPS, MIN_STEP_PAIRS)
     assert "too few" not in result.reason
+
+
+def test_a_fragment_fitted_on_a_map_runs_on_that_map(tmp_path, capsys, monkeypatch):
+    """With --map the fragment carries the map (a file by its absolute path) and its whole
+    extent as the area: run as it is, the wall loss applies instead of being ignored."""
+    from netsim.tools.radio_checks import wall_test_map
+    from netsim.world.maps import save_map
+
+    m = wall_test_map()
+    save_map(tmp_path / "walls.yaml", m.occupied, m.free, m.resolution_m, (0.0, 0.0))
+    params = LogDistanceParams(
+        reference_loss_db=40.0, path_loss_exponent=3.0, shadowing_sigma_db=4.0, wall_loss_db=6.0, sensitivity_dbm=-80.0
+    )
+    log = synth_log(6, params, side_m=40.0, duration_s=100.0, step_s=0.5, occupancy=m)
+    write_csv(tmp_path, log)
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path)  # the map named relative to here, the fragment run from elsewhere
+    assert main(["calibrate", "log.csv", "--sensitivity-dbm", "-80", "--map", "walls.yaml", "--out", "site.toml"]) == 0
+    capsys.readouterr()
+    tree = tomllib.loads((tmp_path / "site.toml").read_text())
+    assert tree["world"] == {"map": str(tmp_path / "walls.yaml"), "bounds_m": "map"}
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    argv = ["run", "../site.toml", "--quiet", "--out", "run", "--set", "world.n_robots=4", "--set", "duration_s=2"]
+    assert main(argv) == 0
+    assert "ignored" not in capsys.readouterr().err
+    run_config = tomllib.loads((tmp_path / "elsewhere" / "run" / "config.toml").read_text())
+    assert run_config["channel"]["wall_loss_db"] == tree["channel"]["wall_loss_db"] > 0
+
+
+def test_a_fragment_fitted_without_a_map_has_no_world(tmp_path, capsys, small_log):
+    log, toml = write_csv(tmp_path, small_log), tmp_path / "site.toml"
+    assert main(["calibrate", str(log), "--sensitivity-dbm", "-80", "--out", str(toml)]) == 0
+    assert list(tomllib.loads(toml.read_text())) == ["channel"]

@@ -728,8 +728,8 @@ def test_netsim_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capfd, mon
         []
         if quiet
         else [
-            f"netsim run: compiling the simulator's loops, once for this version of "
-            f"netsim (cached in {tmp_path / 'cache'})..."
+            "netsim run: compiling the simulator's loops this run uses (each once for this version "
+            f"of netsim; other models' when a run first uses them; cached in {tmp_path / 'cache'})..."
         ]
     )
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import json
 import math
 import warnings
 from dataclasses import dataclass
@@ -601,15 +602,32 @@ def _printable(text: str) -> str:
     return "".join(ch if ch == "\t" or (ch >= " " and ch != "\x7f") else f"\\x{ord(ch):02x}" for ch in text)
 
 
-def toml_fragment(c: Calibration, where: str) -> str:
+def toml_fragment(c: Calibration, where: str, world_map: str | None = None) -> str:
+    """The ``[channel]`` keys fitted; with ``world_map`` (the map the walls were counted on)
+    a ``[world]`` on that map too, without which a run ignores the wall loss."""
     lines = [
         f"# netsim calibrate {_printable(where)}: {c.received + c.lost_unmeasured:,} frames the radio heard of "
         f"{c.pairs:,} pairs, {c.fit.likelihood} likelihood",
-        "[channel]",
     ]
+    if world_map is not None:
+        lines += [
+            "# wall_loss_db is a loss per wall of this map: a run without it ignores that key",
+            "[world]",
+            f"map = {json.dumps(world_map)}",
+            'bounds_m = "map"',
+        ]
+    lines.append("[channel]")
     for k, v in c.channel().items():
         lines.append(f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {float(v)!r}")
     return "\n".join(lines) + "\n"
+
+
+def fragment_map(given: str) -> str:
+    """How the fragment names ``--map``'s map: an example by its name, a file by its
+    absolute path (the fragment may be written, and run, elsewhere)."""
+    from netsim.world.maps import EXAMPLES
+
+    return given if given in EXAMPLES else str(Path(given).resolve())
 
 
 def check_channel(c: Calibration) -> None:
@@ -661,7 +679,7 @@ def command(args) -> int:
         frames, args.sensitivity_dbm, args.tx_power_dbm, args.reference_distance_m, walls, where=str(path)
     )
     print(report(result, str(path)))
-    text = toml_fragment(result, str(path))
+    text = toml_fragment(result, str(path), None if walls is None else fragment_map(args.map))
     plot = getattr(args, "plot", None)
     if plot is not None:
         from netsim.tools.calibrate_figure import draw_calibration

@@ -126,8 +126,8 @@ def say_when_compiling(command: str, enabled: bool) -> None:
 
     def tell(directory: Path) -> None:
         print(
-            f"{command}: compiling the simulator's loops, once for this version of netsim "
-            f"(cached in {directory.parent})...",
+            f"{command}: compiling the simulator's loops this run uses (each once for this version "
+            f"of netsim; other models' when a run first uses them; cached in {directory.parent})...",
             file=sys.stderr,
             flush=True,
         )
