@@ -861,3 +861,41 @@ def test_aggregate_leaves_out_a_runs_missing_value():
     df = pd.DataFrame({"v": [1, 1, 1], "m": [1.0, float("nan"), 3.0]})
     agg = sweepmod.aggregate(df, ["v"], ["m"]).set_index("v")
     assert agg.loc[1, "m_mean"] == 2.0 and agg.loc[1, "m_n"] == 2
+
+
+def test_loading_a_folder_that_holds_no_sweep_is_one_line(tmp_path):
+    """A mistyped or wrong folder is said to be one, not read as a sweep without runs."""
+    with pytest.raises(NetsimInputError, match=r"nothere: no such directory$"):
+        sweepmod.load(tmp_path / "nothere")
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "summary.json").write_text("{}")
+    for load in (sweepmod.load, lambda p: sweepmod.load_table(p, "links")):
+        with pytest.raises(NetsimInputError, match=r"run: holds no sweep \(netsim sweep writes sweep.json"):
+            load(tmp_path / "run")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(NetsimInputError, match=r"file: is not a directory$"):
+        sweepmod.load_table(tmp_path / "file", "links")
+
+
+def test_a_table_the_sweep_did_not_keep_is_one_line(tmp_path):
+    sweep = sweepmod.parse(
+        {"name": "t", "tables": ["links"], "base": {**BASE, "duration_s": 2.0}, "grid": {"seed": [1]}}
+    )
+    sweepmod.run_sweep(sweep, tmp_path, workers=1, progress=False)
+    assert len(sweepmod.load_table(tmp_path, "links"))
+    with pytest.raises(NetsimInputError, match=r"kept no table 'roles' \(kept: links; a sweep keeps the tables"):
+        sweepmod.load_table(tmp_path, "roles")
+
+
+def test_a_sweep_with_no_run_finished_loads_empty(tmp_path):
+    (tmp_path / "sweep.json").write_text('{"name": "t", "run_ids": []}')
+    assert sweepmod.load(tmp_path).empty and sweepmod.load_table(tmp_path, "links").empty
+
+
+def test_aggregate_names_a_column_the_runs_do_not_have():
+    runs = pd.DataFrame({"mobility.speed_max_mps": [1.0, 1.0], "mean_degree": [3.0, 4.0]})
+    assert sweepmod.aggregate(runs, ["mobility.speed_max_mps"], ["mean_degree"])["mean_degree_n"].tolist() == [2]
+    with pytest.raises(NetsimInputError, match=r"^no column 'mean_degre' among the runs' \(2 columns\)$"):
+        sweepmod.aggregate(runs, ["mobility.speed_max_mps"], ["mean_degre"])
+    with pytest.raises(NetsimInputError, match=r"^no column 'speed', 'x' among the runs' \(0 columns: no run\)$"):
+        sweepmod.aggregate(pd.DataFrame(), ["speed"], ["x"])

@@ -623,10 +623,23 @@ def _files(out_dir: Path, folder: Path) -> list[Path]:
     return [f for f in files if f.stem in wanted]
 
 
+def _sweep_dir(out_dir: str | Path) -> Path:
+    """``out_dir``, if a sweep ran there (else one line: a mistyped folder would read as a
+    sweep without runs, and fail later on a missing column)."""
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise NetsimInputError(f"{out}: {'is not a directory' if out.exists() else 'no such directory'}")
+    if not (out / "sweep.json").is_file() and not (out / "runs").is_dir():
+        raise NetsimInputError(f"{out}: holds no sweep (netsim sweep writes sweep.json and runs/ there)")
+    return out
+
+
 def load(out_dir: str | Path) -> pd.DataFrame:
     """Every finished run of the sweep last run in ``out_dir`` as one tidy frame, one row
-    per run, sorted by run id (not the runs of other sweeps the directory keeps)."""
-    files = _files(Path(out_dir), Path(out_dir) / "runs")
+    per run, sorted by run id (not the runs of other sweeps the directory keeps); empty
+    while no run has finished. A directory that holds no sweep is one line."""
+    out_dir = _sweep_dir(out_dir)
+    files = _files(out_dir, out_dir / "runs")
     if not files:
         return pd.DataFrame()
     return (
@@ -637,9 +650,16 @@ def load(out_dir: str | Path) -> pd.DataFrame:
 def load_table(out_dir: str | Path, table: str) -> pd.DataFrame:
     """A kept per-run table of every finished run of the sweep last run in ``out_dir``,
     with its ``run_id``. A run is finished once its row is in ``runs/`` (its tables are
-    written first): a table whose run was interrupted before its row is left out."""
-    out = Path(out_dir)
+    written first): a table whose run was interrupted before its row is left out. A table
+    the sweep does not keep (``tables`` in its file) is one line, once a run has finished."""
+    out = _sweep_dir(out_dir)
     finished = done_ids(out)
+    if finished and not (out / "tables" / table).is_dir():
+        kept = sorted(p.name for p in (out / "tables").iterdir() if p.is_dir()) if (out / "tables").is_dir() else []
+        raise NetsimInputError(
+            f"{out}: the sweep kept no table {table!r} (kept: {', '.join(kept) or 'none'}; "
+            "a sweep keeps the tables its file lists in tables = [...])"
+        )
     files = [f for f in _files(out, out / "tables" / table) if f.stem in finished]
     frames = [pd.read_parquet(f) for f in files]
     # A run whose models write no such table kept an empty one of its run_id alone.
@@ -665,6 +685,12 @@ def t_interval(values: npt.ArrayLike, level: float = 0.95) -> tuple[float, float
 def aggregate(df: pd.DataFrame, by: list[str], metrics: list[str], level: float = 0.95) -> pd.DataFrame:
     """Mean, standard deviation, count and Student-t confidence interval of each metric over
     the replications of each group."""
+    missing = [c for c in [*by, *metrics] if c not in df]
+    if missing:
+        raise NetsimInputError(
+            f"no column {', '.join(map(repr, missing))} among the runs' "
+            f"({len(df.columns)} columns{'' if len(df.columns) else ': no run'})"
+        )
     rows = []
     for key, g in df.groupby(by, sort=True):
         key = key if isinstance(key, tuple) else (key,)
