@@ -899,3 +899,27 @@ def test_aggregate_names_a_column_the_runs_do_not_have():
         sweepmod.aggregate(runs, ["mobility.speed_max_mps"], ["mean_degre"])
     with pytest.raises(NetsimInputError, match=r"^no column 'speed', 'x' among the runs' \(0 columns: no run\)$"):
         sweepmod.aggregate(pd.DataFrame(), ["speed"], ["x"])
+
+
+def test_a_connect_timeout_without_a_scheduler_is_refused(tmp_path, capsys):
+    """Local workers connect to nothing: a --connect-timeout there would be dropped unsaid."""
+    f = tmp_path / "s.toml"
+    f.write_text('[grid]\n"seed" = [1]\n')
+    assert main(["sweep", str(f), "--out", str(tmp_path / "o"), "--workers", "1", "--connect-timeout", "2"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "netsim: error: --connect-timeout 2: only with --scheduler (a Dask cluster's)"
+    ]
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_refused_default_folder_is_named_as_the_default_out(tmp_path, capsys, monkeypatch):
+    """Without --out the sweep's folder is sweep-out/NAME: a refusal names it so, not as
+    an --out the user never gave."""
+    monkeypatch.chdir(tmp_path)
+    Path("s.toml").write_text('name = "speed"\n[grid]\n"seed" = [1]\n')
+    Path("sweep-out/speed").mkdir(parents=True)
+    Path("sweep-out/speed/mine.txt").write_text("mine")
+    assert main(["sweep", "s.toml", "--workers", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("netsim: error: the default --out sweep-out/speed: the directory is not empty (mine.txt)")
+    assert sorted(p.name for p in Path("sweep-out/speed").iterdir()) == ["mine.txt"]

@@ -464,3 +464,19 @@ def test_a_seed_past_63_bits_is_refused_by_a_sweep_alone(tmp_path, capsys):
     args = ["run", "--quiet", "--no-progress", "--seed", str(2**63), "--out", str(run)]
     assert main([*args, "--set", "world.n_robots=3", "--set", "duration_s=2"]) == 0
     assert (run / "summary.json").is_file()
+
+
+@pytest.mark.parametrize(
+    "argv", [["--seed", "3", "run", "my.toml"], ["--out", "x", "sweep", "s.toml"], ["-o", "y", "run"]]
+)
+def test_an_option_before_the_command_is_said_to_go_after_it(tmp_path, monkeypatch, capsys, argv):
+    """`netsim --seed 3 run`: not "invalid choice: '3'", but where the option goes."""
+    monkeypatch.chdir(tmp_path)
+    assert status(argv) == 2
+    err = capsys.readouterr().err.strip()
+    command = argv[2]
+    assert err == (
+        f"netsim: error: {argv[0]} goes after the command: netsim {command} {argv[0]} ... "
+        "(netsim --help lists the options)"
+    )
+    assert list(tmp_path.iterdir()) == []

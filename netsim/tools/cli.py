@@ -340,6 +340,9 @@ def cmd_sweep(args) -> int:
     workers = args.workers or cores
     if args.connect_timeout is not None and not args.connect_timeout > 0:
         raise NetsimInputError(f"--connect-timeout {args.connect_timeout}: must be > 0 seconds")
+    if args.connect_timeout is not None and args.scheduler is None:
+        # Local workers connect to nothing: the timeout would be dropped unsaid.
+        raise NetsimInputError(f"--connect-timeout {args.connect_timeout:g}: only with --scheduler (a Dask cluster's)")
     try:
         report = sweepmod.run_sweep(
             sweep,
@@ -348,6 +351,7 @@ def cmd_sweep(args) -> int:
             scheduler=args.scheduler,
             progress=not args.no_progress,
             connect_timeout_s=args.connect_timeout or sweepmod.CONNECT_TIMEOUT_S,
+            option="--out" if args.out else "the default --out",
         )
     except BaseException as exc:
         # Every finished run is written as it ends, so an interrupted sweep did write.
@@ -650,8 +654,21 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     print(f"netsim: warning: {message}", file=sys.stderr)
 
 
+def _options_before_the_command(p: argparse.ArgumentParser, argv: list[str]) -> None:
+    """``netsim --seed 3 run ...``: argparse would take ``3`` for an unknown command; say
+    where the option goes instead (one line, exit 2)."""
+    if not argv or not argv[0].startswith("-") or argv[0] in ("-h", "--help", "--version"):
+        return
+    commands = next(a.choices for a in p._actions if isinstance(a, argparse._SubParsersAction))
+    command = next((a for a in argv if a in commands), None)
+    if command is not None:
+        p.error(f"{argv[0]} goes after the command: netsim {command} {argv[0]} ...")
+
+
 def main(argv=None) -> int:
-    args = parser().parse_args(argv)
+    p = parser()
+    _options_before_the_command(p, list(sys.argv[1:] if argv is None else argv))
+    args = p.parse_args(argv)
     warnings.showwarning = _one_line_warning
     try:
         return args.func(args)

@@ -451,10 +451,12 @@ def run_sweep(
     scheduler=None,
     progress: bool = True,
     connect_timeout_s: float = CONNECT_TIMEOUT_S,
+    option: str = "--out",
 ) -> Report:
     """Run every run of ``sweep`` not yet done in ``out_dir``; returns a report.
 
-    ``scheduler`` is the address of a running Dask scheduler or a ``distributed.Client``.
+    ``scheduler`` is the address of a running Dask scheduler or a ``distributed.Client``;
+    ``option``: how a refusal names ``out_dir`` (the option that gave it).
     Everything that can be checked is checked before anything is written: the runs, the
     output directory, the scheduler."""
     from netsim.progress import progress_bar
@@ -463,8 +465,8 @@ def run_sweep(
     check_workers(workers)
     runs = sweep.runs(here=scheduler is None)
     ids = [r.run_id for r in runs]
-    refuse_another_sweeps_dir(Path(out_dir), sweep.name)
-    with claim_dir(out_dir, "--out", kind="sweep", tables=sweep.tables) as out:
+    refuse_another_sweeps_dir(Path(out_dir), sweep.name, option)
+    with claim_dir(out_dir, option, kind="sweep", tables=sweep.tables) as out:
         client = connect(scheduler, connect_timeout_s) if isinstance(scheduler, str) else scheduler
         try:
             description = {
@@ -547,7 +549,7 @@ def _run_pool(todo: list[Run], tables, workers: int, account) -> None:
             account(todo[k], outcome)
 
 
-def refuse_another_sweeps_dir(out: Path, name: str) -> None:
+def refuse_another_sweeps_dir(out: Path, name: str, option: str = "--out") -> None:
     """A directory holding a sweep of another name is refused: run into it, this sweep's
     runs would hide that one's from :func:`load`. (A sweep of the same name, its points
     changed, is that sweep run again: :func:`load` gives its runs, and the others stay on
@@ -558,7 +560,7 @@ def refuse_another_sweeps_dir(out: Path, name: str) -> None:
     except (OSError, ValueError, AttributeError):
         return
     if isinstance(held, str) and held != name:
-        raise NetsimInputError(f"--out {out}: holds the sweep {held!r}, not {name!r}; give another directory")
+        raise NetsimInputError(f"{option} {out}: holds the sweep {held!r}, not {name!r}; give another directory")
 
 
 def _run_dask(todo: list[Run], tables, client, account) -> None:
