@@ -923,3 +923,17 @@ def test_a_refused_default_folder_is_named_as_the_default_out(tmp_path, capsys, 
     err = capsys.readouterr().err.strip()
     assert err.startswith("netsim: error: the default --out sweep-out/speed: the directory is not empty (mine.txt)")
     assert sorted(p.name for p in Path("sweep-out/speed").iterdir()) == ["mine.txt"]
+
+
+def test_whole_number_bounds_of_a_float_key_are_warned_of(recwarn):
+    """`"protocol.ack_period_s" = [1, 2]` draws 1 or 2 (an integer range), where a user
+    asking of a float key means U(1, 2): said, with the bounds that draw that; an integer
+    key's whole-number bounds are not."""
+    tree = {"base": BASE, "random": {"samples": 4, "ranges": {"protocol.ack_period_s": [1, 2]}}}
+    with pytest.warns(cfgmod.ConfigWarning, match=r"ack_period_s = \[1, 2\]: whole-number bounds draw whole numbers; "):
+        points = sweepmod.parse(tree).points
+    assert {p["protocol.ack_period_s"] for p in points} <= {1, 2}
+    tree["random"]["ranges"] = {"world.n_robots": [5, 9]}
+    tree["base"] = {**BASE, "world": {"side_m": 300.0}}
+    sweepmod.parse(tree)
+    assert not [w for w in recwarn if "whole-number" in str(w.message)]

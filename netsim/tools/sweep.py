@@ -42,6 +42,7 @@ import tomllib
 import traceback
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Set as AbstractSet
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -191,7 +192,11 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
         except (NetsimInputError, TypeError, ValueError):
             raise _err(f"[base] {exc}") from None
     known = set(cfgmod.all_keys(base_config))
-    points = _grid(tree["grid"], known) if "grid" in tree else _random(tree["random"], known)
+    if "grid" in tree:
+        points = _grid(tree["grid"], known)
+    else:
+        floats = {k for k, v in flatten(cfgmod.to_dict(base_config)).items() if isinstance(v, float)}
+        points = _random(tree["random"], known, floats)
     both = sorted(set(points[0]) & set(flatten(base))) if points else []
     if both:
         # Allowed (a scenario file's value under a swept key), but the base's value is never run.
@@ -267,7 +272,7 @@ def _grid(grid, known: set[str]) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
 
 
-def _random(spec, known: set[str]) -> list[dict]:
+def _random(spec, known: set[str], floats: AbstractSet[str] = frozenset()) -> list[dict]:
     if not isinstance(spec, dict):
         raise _err("[random] must be a table")
     unknown = set(spec) - {"samples", "seed", "ranges"}
@@ -297,6 +302,13 @@ def _random(spec, known: set[str]) -> list[dict]:
             if not -(2**63) <= lo <= hi < 2**63 - 1:
                 raise _err(f"[random.ranges] {key} = {bounds!r}: integers must lie within 64 bits")
             columns[key] = rng.integers(lo, hi + 1, samples).tolist()
+            if key in floats:
+                warnings.warn(
+                    f"[random.ranges] {key} = {bounds!r}: whole-number bounds draw whole numbers; "
+                    f"[{float(lo)!r}, {float(hi)!r}] draws uniformly between them",
+                    cfgmod.ConfigWarning,
+                    stacklevel=2,
+                )
         else:
             if not all(-1e308 <= b <= 1e308 for b in bounds) or not math.isfinite(hi - lo):
                 raise _err(f"[random.ranges] {key} = {bounds!r}: low and high must be finite (within ±1e308)")
