@@ -9,9 +9,11 @@ destination, or a robot with a fresh enough route, unicasts a route reply (RREP)
 which sets up the forward route. Routes carry destination sequence numbers (a route is
 replaced only by a fresher one, section 6.2) and lifetimes (ACTIVE_ROUTE_TIMEOUT, renewed
 by use). Neighbours are known from hello messages (RREPs with TTL 1, every
-HELLO_INTERVAL) and from the link layer (a unicast that does not get through); a broken
-link invalidates every route through it and a route error (RERR) goes to the robots that
-used them (precursors). No local repair, no gratuitous RREPs.
+HELLO_INTERVAL, skipped after a RREQ the robot broadcast) and from the link layer (a
+unicast that does not get through); a broken link invalidates every route through it and a
+route error (RERR) goes to the robots that used them (precursors). An intermediate robot
+that answers a RREQ also sends the destination a gratuitous RREP. No local repair, no
+RREP-ACK.
 
 The RFC's rules are plain functions (:func:`fresher`, :func:`ring_ttls`) and the routing
 table a small class (:class:`RouteTable`), each tested by name in tests/test_routing_aodv.py.
@@ -45,6 +47,18 @@ class AodvParams(RoutingParams):
     active_route_timeout_s: float = param(3.0, finite(positive), "ACTIVE_ROUTE_TIMEOUT: a route unused this long, s")
     hello: bool = param(True, None, "send hello messages (false: neighbours from the link layer alone)")
     hello_interval_s: float = param(1.0, finite(positive), "HELLO_INTERVAL, s", schedules="robot")
+    hello_deferred_by_broadcast: bool = param(
+        True,
+        None,
+        "a RREQ the robot broadcast since its last hello stands for it: the next hello comes an interval "
+        "after that RREQ (RFC 3561 6.9, as ns-3 does)",
+    )
+    gratuitous_reply: bool = param(
+        True,
+        None,
+        "RREQs ask an intermediate robot that answers to send the destination a gratuitous RREP too "
+        "(RFC 3561 6.6.3's G flag; ns-3's GratuitousReply)",
+    )
     allowed_hello_loss: int = param(2, positive, "ALLOWED_HELLO_LOSS: hellos missed before a link is broken")
     net_diameter: int = param(35, ttl_field, "NET_DIAMETER: the largest TTL of a RREQ, hops")
     node_traversal_time_s: float = param(0.04, finite(positive), "NODE_TRAVERSAL_TIME, s")
@@ -222,6 +236,7 @@ class Rreq(NamedTuple):
     orig_seq: int
     hops: int
     ttl: int
+    gratuitous: bool = False  # the G flag: an intermediate robot that answers tells the destination
 
 
 class Rrep(NamedTuple):
@@ -261,8 +276,11 @@ class Aodv(Router):
         # (orig, rreq_id) each robot has seen, until when it remembers it.
         self.seen: list[dict[tuple[int, int], float]] = [{} for _ in range(n)]
         self.discoveries: list[dict[int, Discovery]] = [{} for _ in range(n)]
-        # When each robot last heard each neighbour's hello (links from hellos).
+        # When each robot last heard each neighbour's hello or RREQ (links from hellos).
         self.hello_heard: list[dict[int, float]] = [{} for _ in range(n)]
+        # When each robot last broadcast a RREQ since its hello timer last ran (None: not
+        # since): that RREQ stands for the next hello.
+        self.last_rreq_s: list[float | None] = [None] * n
         # Every RREQ a source originated: (t_s, source, destination, ttl): the expanding ring.
         self.rreqs_originated: list[tuple[float, int, int, int]] = []
         self.control_kind("rreq", RREQ_BYTES)
@@ -289,11 +307,20 @@ class Aodv(Router):
     # -- hellos (section 6.9) -------------------------------------------------------------
     def _hello_tick(self, i: int) -> None:
         p = self.params
-        if self.state.alive[i]:
+        since = self.last_rreq_s[i]
+        self.last_rreq_s[i] = None
+        if since is None and self.state.alive[i]:
             lifetime = p.allowed_hello_loss * p.hello_interval_s
             self.control(i, Rrep(i, self.own_seq[i], i, 0, lifetime, True), self._on_hello, "hello")
-        # Hellos jittered by a quarter of the interval, as ns-3 does, so neighbours do not lock step.
-        self._later(p.hello_interval_s * (0.75 + 0.5 * float(self._rng.random())), self._hello_tick, i)
+        # Jittered by a quarter of the interval, so that neighbours do not lock step; a RREQ
+        # broadcast since the last tick stood for this hello, and the interval runs from it.
+        wait = p.hello_interval_s * (0.75 + 0.5 * float(self._rng.random()))
+        self._later(max(0.0, wait - (self.env.now - since if since is not None else 0.0)), self._hello_tick, i)
+
+    def _broadcast_rreq(self, i: int) -> None:
+        """``i`` broadcasts a RREQ now (originated or passed on): it stands for a hello."""
+        if self.params.hello_deferred_by_broadcast:
+            self.last_rreq_s[i] = self.env.now
 
     def _on_hello(self, sender: int, receivers: np.ndarray, hello: Rrep) -> None:
         now = self.env.now
@@ -378,8 +405,10 @@ class Aodv(Router):
             self.own_seq[src],
             0,
             ttl,
+            p.gratuitous_reply,
         )
         self.seen[src][(src, rreq.rreq_id)] = now + p.path_discovery_time_s
+        self._broadcast_rreq(src)
         self.rreqs_originated.append((now, src, dst, ttl))
         self.control(src, rreq, self._on_rreq, "rreq")
         if ttl < p.net_diameter:
@@ -404,6 +433,10 @@ class Aodv(Router):
         for r in receivers.tolist():
             table = self.tables[r]
             table.neighbour(sender, None, now + p.active_route_timeout_s)
+            if p.hello:
+                # A RREQ heard says the link is up as a hello does (section 6.9: any packet of
+                # the neighbour; ns-3 counts RREQs and hellos): a RREQ may stand for a hello.
+                self.hello_heard[r][sender] = now
             key = (rreq.orig, rreq.rreq_id)
             if self.seen[r].get(key, -1.0) >= now:
                 continue
@@ -433,6 +466,11 @@ class Aodv(Router):
                 fwd.precursors.add(sender)
                 back.precursors.add(fwd.next_hop)
                 self._send_rrep(r, Rrep(rreq.dst, fwd.seq, rreq.orig, fwd.hops, fwd.expires_s - now))
+                if rreq.gratuitous:
+                    # Section 6.6.3: the destination learns the route to the originator, as if
+                    # it had asked for it and this robot had answered.
+                    grat = Rrep(rreq.orig, back.seq, rreq.dst, back.hops, back.expires_s - now)
+                    self.control(r, grat, self._on_rrep, "rrep", dest=fwd.next_hop)
                 continue
             if rreq.ttl > 1:
                 dst_seq = rreq.dst_seq
@@ -440,6 +478,7 @@ class Aodv(Router):
                 if known is not None and known.valid_seq and seq_newer(known.seq, dst_seq):
                     dst_seq = known.seq
                 out = rreq._replace(hops=hops, ttl=rreq.ttl - 1, dst_seq=dst_seq)
+                self._broadcast_rreq(r)  # when it is decided, as ns-3 notes it, not after the jitter
                 self._later(self._jitter(), self._rebroadcast_rreq, r, out)
 
     def _rebroadcast_rreq(self, r: int, rreq: Rreq) -> None:

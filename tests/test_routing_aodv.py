@@ -490,3 +490,85 @@ def test_a_route_is_active_up_to_its_expiry_instant_included():
     t.offer(9, next_hop=1, hops=2, seq=1, valid_seq=True, expires_s=13.0)
     assert t.active(9, 13.0) is t.routes[9]
     assert t.active(9, 13.0 + 1e-9) is None and not t.routes[9].valid
+
+
+def _ticks(aodv):
+    """The hello ticks ``aodv`` schedules from now on, ``(delay_s, robot)`` each, kept
+    instead of put on the agenda; a hello's jitter drawn at its middle (one interval), a
+    passed-on RREQ's at none."""
+    ticks = []
+    aodv._later = lambda delay_s, fn, *args: ticks.append((delay_s, *args))
+    aodv._rng = type("Middle", (), {"random": staticmethod(lambda: 0.5), "uniform": staticmethod(lambda a, b: a)})()
+    return ticks
+
+
+def test_a_rreq_broadcast_since_the_last_hello_stands_for_the_next_one():
+    """RFC 3561 6.9 (as ns-3's HelloTimerExpire): a robot that broadcast a RREQ since its
+    hello timer last ran sends no hello at this tick, and its next tick comes one interval
+    after that RREQ; with no RREQ since, it sends the hello and waits an interval."""
+    from types import SimpleNamespace
+
+    from netsim.protocols.aodv import Rreq
+
+    aodv = _aodv()
+    sent, ticks = _sent(aodv), _ticks(aodv)
+    aodv.env = SimpleNamespace(now=0.4)  # a clock of its own: no other robot's tick runs
+    aodv._send_rreq(2, 3, type("D", (), {"ttls": [1], "retries_at_diameter": 0})())
+    assert aodv.last_rreq_s[2] == pytest.approx(0.4)
+    aodv.env.now = 1.0
+    ticks.clear()
+    aodv._hello_tick(2)
+    assert [k for _, _, k, _ in sent] == ["rreq"]  # no hello
+    assert ticks == [(pytest.approx(0.4), 2)]  # an interval after the RREQ at 0.4 s
+    aodv._hello_tick(2)
+    assert [k for _, _, k, _ in sent] == ["rreq", "hello"] and ticks[-1] == (pytest.approx(1.0), 2)
+    # A RREQ passed on counts too, and a RREQ heard keeps the link to its sender up.
+    aodv._later = lambda delay_s, fn, *args: None
+    aodv._on_rreq(0, np.array([1]), Rreq(0, 1, 3, 0, True, 1, 0, 5))
+    assert aodv.last_rreq_s[1] == pytest.approx(1.0) and aodv.hello_heard[1][0] == pytest.approx(1.0)
+
+
+def test_hellos_go_out_whatever_the_rreqs_when_not_deferred():
+    aodv = build(
+        make_config(world={"n_robots": 4}, protocol={"model": "aodv", "hello_deferred_by_broadcast": False})
+    ).models["protocol"]
+    sent = _sent(aodv)
+    _ticks(aodv)
+    aodv._send_rreq(2, 3, type("D", (), {"ttls": [1], "retries_at_diameter": 0})())
+    aodv._hello_tick(2)
+    assert [k for _, _, k, _ in sent] == ["rreq", "hello"] and aodv.last_rreq_s[2] is None
+
+
+def test_an_intermediate_robot_that_answers_sends_the_destination_a_gratuitous_rrep():
+    """RFC 3561 6.6.3: when the RREQ has the G flag, the robot that answers it from its own
+    route also unicasts the destination a RREP for the originator (the hops and lifetime of
+    its route back, the originator's sequence number), along its route to the destination."""
+    from netsim.protocols.aodv import Rrep, Rreq
+
+    for flag in (True, False):
+        aodv = _aodv()
+        aodv.tables[2].offer(3, next_hop=3, hops=1, seq=7, valid_seq=True, expires_s=10.0)
+        sent = _sent(aodv)
+        aodv._on_rreq(1, np.array([2]), Rreq(0, 1, 3, 7, False, 4, 1, 5, flag))
+        back = aodv.tables[2].routes[0]
+        answer = (2, Rrep(3, 7, 0, 1, 10.0), "rrep", 1)
+        gratuitous = (2, Rrep(0, 4, 3, 2, back.expires_s), "rrep", 3)
+        assert sent == ([answer, gratuitous] if flag else [answer]), flag
+
+
+def test_a_gratuitous_rrep_gives_the_destination_its_route_to_the_originator(tmp_path):
+    """On a line 0-1-2-3, robot 1 first finds 3; then 0 asks for 3 and 1 answers from its
+    route. With the G flag (ns-3's default) 3 learns the way back to 0 without asking;
+    without it 3 never heard of 0."""
+    line = [(100 * k, 500) for k in range(4)]
+    flows = [
+        {"src": 1, "dst": 3, "start_s": 1.0, "stop_s": 4.0, "rate_bps": 4096.0, "packet_bytes": 512},
+        {"src": 0, "dst": 3, "start_s": 5.0, "stop_s": 8.0, "rate_bps": 4096.0, "packet_bytes": 512},
+    ]
+    routes = {}
+    for flag in (True, False):
+        sim, frames = _run(tmp_path, line, flows, duration_s=9.0, gratuitous_reply=flag)
+        assert frames["packets"]["delivered"].all()
+        routes[flag] = sim.models["protocol"].tables[3].routes.get(0)
+    assert routes[True] is not None and (routes[True].next_hop, routes[True].hops) == (2, 3)
+    assert routes[False] is None
