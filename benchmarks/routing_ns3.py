@@ -42,9 +42,8 @@ node before the run, and ARP sends nothing. ``--ns3-arp dynamic`` is ns-3's own 
 broadcast requests (lost in collisions like any frame), at most 3 packets waiting per
 unresolved next hop, 3 retries a second apart, and an entry that failed them is dead for
 100 s (ArpCache's DeadTimeout): every packet routed to that neighbour meanwhile is dropped
-by ARP, with no word to the routing protocol. On the large team that costs ns-3's AODV
-about a tenth of its packets and its OLSR about a sixth (at seed 1: AODV 0.801 dynamic,
-0.889 static; OLSR 0.544 and 0.760).
+by ARP, with no word to the routing protocol (what that costs on the large team:
+docs/performance.md).
 """
 
 from __future__ import annotations

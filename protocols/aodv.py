@@ -434,8 +434,9 @@ class Aodv(Router):
             table = self.tables[r]
             table.neighbour(sender, None, now + p.active_route_timeout_s)
             if p.hello:
-                # A RREQ heard says the link is up as a hello does (section 6.9: any packet of
-                # the neighbour; ns-3 counts RREQs and hellos): a RREQ may stand for a hello.
+                # A RREQ heard says the link is up as a hello does, every copy of it (section
+                # 6.9: any packet of the neighbour), so a RREQ may stand for a hello. ns-3
+                # counts first copies alone, and the data a robot forwards besides.
                 self.hello_heard[r][sender] = now
             key = (rreq.orig, rreq.rreq_id)
             if self.seen[r].get(key, -1.0) >= now:
@@ -466,18 +467,20 @@ class Aodv(Router):
                 fwd.precursors.add(sender)
                 back.precursors.add(fwd.next_hop)
                 self._send_rrep(r, Rrep(rreq.dst, fwd.seq, rreq.orig, fwd.hops, fwd.expires_s - now))
-                if rreq.gratuitous:
+                if rreq.gratuitous and table.active(rreq.orig, now) is not None:
                     # Section 6.6.3: the destination learns the route to the originator, as if
                     # it had asked for it and this robot had answered.
                     grat = Rrep(rreq.orig, back.seq, rreq.dst, back.hops, back.expires_s - now)
                     self.control(r, grat, self._on_rrep, "rrep", dest=fwd.next_hop)
                 continue
             if rreq.ttl > 1:
-                dst_seq = rreq.dst_seq
+                dst_seq, unknown = rreq.dst_seq, rreq.unknown_seq
                 known = table.routes.get(rreq.dst)
-                if known is not None and known.valid_seq and seq_newer(known.seq, dst_seq):
-                    dst_seq = known.seq
-                out = rreq._replace(hops=hops, ttl=rreq.ttl - 1, dst_seq=dst_seq)
+                if known is not None and known.valid_seq and (unknown or seq_newer(known.seq, dst_seq)):
+                    # The number it knows, and the U flag cleared, so that the destination
+                    # takes it (section 6.6.1; ns-3's RecvRequest clears it too).
+                    dst_seq, unknown = known.seq, False
+                out = rreq._replace(hops=hops, ttl=rreq.ttl - 1, dst_seq=dst_seq, unknown_seq=unknown)
                 self._broadcast_rreq(r)  # when it is decided, as ns-3 notes it, not after the jitter
                 self._later(self._jitter(), self._rebroadcast_rreq, r, out)
 

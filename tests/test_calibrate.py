@@ -802,7 +802,7 @@ def test_a_fragment_fitted_on_a_map_runs_on_that_map(tmp_path, capsys, monkeypat
     assert main(["calibrate", "log.csv", "--sensitivity-dbm", "-80", "--map", "walls.yaml", "--out", "site.toml"]) == 0
     capsys.readouterr()
     tree = tomllib.loads((tmp_path / "site.toml").read_text())
-    assert tree["world"] == {"map": str(tmp_path / "walls.yaml"), "bounds_m": "map"}
+    assert tree["world"] == {"map": str((tmp_path / "walls.yaml").resolve()), "bounds_m": "map"}
     monkeypatch.chdir(tmp_path / "elsewhere")
     argv = ["run", "../site.toml", "--quiet", "--out", "run", "--set", "world.n_robots=4", "--set", "duration_s=2"]
     assert main(argv) == 0
@@ -815,3 +815,11 @@ def test_a_fragment_fitted_without_a_map_has_no_world(tmp_path, capsys, small_lo
     log, toml = write_csv(tmp_path, small_log), tmp_path / "site.toml"
     assert main(["calibrate", str(log), "--sensitivity-dbm", "-80", "--out", str(toml)]) == 0
     assert list(tomllib.loads(toml.read_text())) == ["channel"]
+
+
+def test_the_fragment_names_an_example_map_by_name_and_a_file_by_its_absolute_path(tmp_path, monkeypatch):
+    from netsim.tools.calibrate import fragment_map
+
+    monkeypatch.chdir(tmp_path)
+    assert fragment_map("office") == "office" and fragment_map("cave") == "cave"
+    assert fragment_map("maps/site.yaml") == str((tmp_path / "maps" / "site.yaml").resolve())

@@ -176,3 +176,11 @@ def test_plot_on_a_map_takes_the_walls_out_at_the_fitted_loss(tmp_path, drawn):
     assert walls.any() and c.fit.wall_loss_db.value > 0
     np.testing.assert_allclose(dots.get_offsets()[:, 1], want)
     assert ax.get_ylabel() == "received power, walls taken out (dBm)"
+
+
+@pytest.mark.parametrize("suffix, magic", [(".svg", b"<?xml"), (".pdf", b"%PDF")])
+def test_plot_writes_the_format_its_suffix_names(tmp_path, capsys, censored, suffix, magic):
+    log, plot = tmp_path / "log.csv", tmp_path / f"fit{suffix}"
+    censored.to_csv(log, index=False)
+    assert main(["calibrate", str(log), "--plot", str(plot)]) == 0
+    assert plot.read_bytes()[: len(magic)] == magic

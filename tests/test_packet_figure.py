@@ -75,3 +75,16 @@ def test_figures_of_a_routing_run_draw_its_packets(tmp_path, capsys):
     assert main(["figures", str(run), "--out", str(tmp_path / "f")]) == 0
     assert capsys.readouterr().out.splitlines()[-1] == f"wrote {tmp_path / 'f' / 'fig_packets.png'}"
     assert (tmp_path / "f" / "fig_packets.png").read_bytes()[:8] == PNG
+
+
+def test_latencies_of_zero_are_drawn_on_a_linear_scale():
+    """A channel without latency (`channel.latency_s = 0`) delivers in no time: a log
+    scale would have nothing to draw; a linear one shows them."""
+    plt = figures.pyplot()
+    for latency, scale in ((0.0, "linear"), (0.01, "log")):
+        fig, axes = plt.subplots(1, 4)
+        try:
+            packet_figure.draw_packets(axes, _packets(latency_s=[latency] * 3))
+            assert axes[1].get_xscale() == scale
+        finally:
+            plt.close(fig)

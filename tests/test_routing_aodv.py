@@ -572,3 +572,62 @@ def test_a_gratuitous_rrep_gives_the_destination_its_route_to_the_originator(tmp
         routes[flag] = sim.models["protocol"].tables[3].routes.get(0)
     assert routes[True] is not None and (routes[True].next_hop, routes[True].hops) == (2, 3)
     assert routes[False] is None
+
+
+def test_a_rreq_known_unknown_is_passed_on_with_the_number_the_robot_knows_and_u_cleared():
+    """RFC 3561 6.5 and 6.6.1 (ns-3's RecvRequest): a RREQ whose U flag says its
+    originator knows no number for the destination is passed on with the valid number the
+    robot knows and the flag cleared, so that the destination raises its own to it; left
+    set, a destination whose number a broken link made older than a relay's answered with
+    that older number, and the relay refused the route."""
+    from netsim.protocols.aodv import Route, Rreq
+
+    aodv = _aodv()
+    aodv.tables[2].routes[3] = Route(next_hop=3, hops=1, seq=9, valid_seq=True, expires_s=10.0, valid=False)
+    aodv._later = lambda _delay, fn, *args: fn(*args)
+    sent = _sent(aodv)
+    aodv._on_rreq(1, np.array([2]), Rreq(0, 1, 3, 0, True, 1, 1, 5))
+    ((_, out, _, _),) = sent
+    assert (out.dst_seq, out.unknown_seq) == (9, False)
+    aodv.own_seq[3] = 1
+    aodv._on_rreq(2, np.array([3]), out)
+    assert aodv.own_seq[3] == 9
+
+
+def test_every_copy_of_a_rreq_counts_as_a_hello():
+    """RFC 3561 6.9: a link is lost when no packet of the neighbour was heard for
+    ALLOWED_HELLO_LOSS hello intervals, hellos or otherwise: a copy of a RREQ a neighbour passes on keeps its
+    link up even when the robot had the RREQ already (a robot that broadcast it skips its
+    hello)."""
+    from types import SimpleNamespace
+
+    from netsim.protocols.aodv import Rreq
+
+    aodv = _aodv()
+    aodv._later = lambda _delay, fn, *args: None
+    rreq = Rreq(0, 1, 3, 0, True, 1, 0, 5)
+    aodv.env = SimpleNamespace(now=1.0)
+    aodv._on_rreq(0, np.array([1]), rreq)
+    aodv.env.now = 1.5
+    aodv._on_rreq(2, np.array([1]), rreq._replace(hops=1))
+    assert aodv.hello_heard[1] == {0: 1.0, 2: 1.5}
+    aodv.env.now = 3.2  # 1.7 s after 2's copy: within two intervals, not lost
+    assert not aodv._neighbour_lost(1, 2, 3.2) and aodv._neighbour_lost(1, 0, 3.2)
+
+
+def test_no_gratuitous_rrep_without_an_active_route_back():
+    """An intermediate robot whose route back to the originator is not active (a fresher
+    route through another neighbour, which the RREQ does not replace, has expired) sends
+    neither its answer nor a gratuitous RREP (whose lifetime would be that route's, already
+    past)."""
+    from types import SimpleNamespace
+
+    from netsim.protocols.aodv import Rreq
+
+    aodv = _aodv(5)
+    aodv.env = SimpleNamespace(now=5.0)
+    aodv.tables[2].offer(3, next_hop=3, hops=1, seq=7, valid_seq=True, expires_s=10.0)
+    aodv.tables[2].offer(0, next_hop=4, hops=2, seq=50, valid_seq=True, expires_s=1.0)
+    sent = _sent(aodv)
+    aodv._on_rreq(1, np.array([2]), Rreq(0, 1, 3, 7, False, 4, 1, 5, True))
+    assert sent == []

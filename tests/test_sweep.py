@@ -531,8 +531,10 @@ def test_a_stray_file_among_the_tables_does_not_stop_a_resume(tmp_path):
 def test_random_integer_points_drawn_twice_run_once():
     base = {**BASE, "world": {"side_m": 300.0}}  # n_robots swept: a base's would never run
     tree = {"base": base, "random": {"samples": 20, "seed": 1, "ranges": {"world.n_robots": [10, 100]}}}
+    sweep = sweepmod.parse(tree)  # said once every point is known valid: by runs()
     with pytest.warns(cfgmod.ConfigWarning, match=r"\[random\] 20 samples drew 19 distinct points; each is run once"):
-        points = sweepmod.parse(tree).points
+        sweep.runs()
+    points = sweep.points
     values = [p["world.n_robots"] for p in points]
     assert len(values) == len(set(values)) == 19
 
@@ -930,10 +932,24 @@ def test_whole_number_bounds_of_a_float_key_are_warned_of(recwarn):
     asking of a float key means U(1, 2): said, with the bounds that draw that; an integer
     key's whole-number bounds are not."""
     tree = {"base": BASE, "random": {"samples": 4, "ranges": {"protocol.ack_period_s": [1, 2]}}}
+    sweep = sweepmod.parse(tree)
     with pytest.warns(cfgmod.ConfigWarning, match=r"ack_period_s = \[1, 2\]: whole-number bounds draw whole numbers; "):
-        points = sweepmod.parse(tree).points
-    assert {p["protocol.ack_period_s"] for p in points} <= {1, 2}
-    tree["random"]["ranges"] = {"world.n_robots": [5, 9]}
-    tree["base"] = {**BASE, "world": {"side_m": 300.0}}
-    sweepmod.parse(tree)
+        sweep.runs()
+    assert {p["protocol.ack_period_s"] for p in sweep.points} <= {1, 2}
+    recwarn.clear()
+    for key, bounds, base in (
+        ("world.n_robots", [5, 9], {**BASE, "world": {"side_m": 300.0}}),
+        ("protocol.ack_period_s", [2, 2], BASE),
+    ):
+        sweepmod.parse({"base": base, "random": {"samples": 2, "ranges": {key: bounds}}}).runs()
     assert not [w for w in recwarn if "whole-number" in str(w.message)]
+
+
+def test_a_random_sweep_refused_says_one_line_and_nothing_else(tmp_path, capsys):
+    """A point refused after the file was read (a period of 0) is the command's only line:
+    the word on whole-number bounds, due only once every point is valid, is not said."""
+    f = tmp_path / "s.toml"
+    f.write_text('[random]\nsamples = 20\nseed = 1\n[random.ranges]\n"protocol.ack_period_s" = [0, 2]\n')
+    assert main(["sweep", str(f), "--out", str(tmp_path / "o"), "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("netsim: error: sweep point"), err

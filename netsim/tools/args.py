@@ -33,7 +33,8 @@ class Parser(argparse.ArgumentParser):
 
     def add_subparsers(self, **kwargs: Any) -> Any:
         kwargs.setdefault("parser_class", SubcommandParser)
-        return super().add_subparsers(**kwargs)
+        self.subcommands = super().add_subparsers(**kwargs)
+        return self.subcommands
 
 
 class SubcommandParser(Parser):

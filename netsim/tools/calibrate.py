@@ -613,7 +613,7 @@ def toml_fragment(c: Calibration, where: str, world_map: str | None = None) -> s
         lines += [
             "# wall_loss_db is a loss per wall of this map: a run without it ignores that key",
             "[world]",
-            f"map = {json.dumps(world_map)}",
+            f"map = {json.dumps(world_map, ensure_ascii=False)}",  # a TOML basic string too
             'bounds_m = "map"',
         ]
     lines.append("[channel]")

@@ -6,7 +6,7 @@ fitted to it.
   gave them; the frames sent but not received as ticks along the bottom; the fitted law
   with its band of two shadowing deviations; the least-squares line through the received
   frames alone (the naive fit the printout sets beside it); the sensitivity.
-- Right, when the log lists frames not received: the share of frames the radio heard at
+- Right, when the log lists frames the radio never heard: the share of frames the radio heard at
   each distance (with its 95 % Wilson interval) beside the share the fit predicts, the
   probability that the law plus shadowing clears the sensitivity, averaged over the same
   frames. A fit that bends the law to the survivors misses these points.

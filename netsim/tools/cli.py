@@ -15,8 +15,8 @@
     docs/validation.md); ``--only 21,22`` runs only the checks of those items.
 ``netsim figures [RUN_DIR] [--config FILE] [--set KEY=VALUE ...] [--out DIR] [--at T]``
     Draw the paper's Figs. 6-8 (deployment at T, every robot's path, final deployment with
-    every robot's coverage disk) from a run directory; without one, first run the built-in
-    coverage scenario (or FILE) into DIR.
+    every robot's coverage disk), and fig_packets.png for a run with packets, from a run
+    directory; without one, first run the built-in coverage scenario (or FILE) into DIR.
 ``netsim view RUN_DIR [--out FILE.html]``
     Write the replay of a run: one self-contained HTML file (default RUN_DIR/view.html).
 ``netsim export RUN_DIR --format bonnmotion|ns2|rosbag2 --out PATH``
@@ -492,7 +492,7 @@ def _port(text: str) -> int:
     return port
 
 
-def parser() -> argparse.ArgumentParser:
+def parser() -> Parser:
     from netsim import __version__
 
     p = Parser(prog="netsim", description="Discrete-event simulator of multi-robot ad-hoc networks.")
@@ -583,7 +583,10 @@ def parser() -> argparse.ArgumentParser:
     v.add_argument("--only", metavar="ITEMS", help="run only the checks of these items, e.g. 21,22")
     v.set_defaults(func=cmd_validate)
 
-    f = sub.add_parser("figures", help="draw the paper's Figs. 6-8 (runs the coverage scenario if no run given)")
+    f = sub.add_parser(
+        "figures",
+        help="draw the paper's Figs. 6-8, and a run's packets' figure (runs the coverage scenario if no run given)",
+    )
     f.add_argument("run_dir", nargs="?", help="a run's output directory (default: run the coverage scenario)")
     f.add_argument("--config", help="scenario file to run instead of the built-in coverage scenario")
     f.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a configuration value")
@@ -654,13 +657,12 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     print(f"netsim: warning: {message}", file=sys.stderr)
 
 
-def _options_before_the_command(p: argparse.ArgumentParser, argv: list[str]) -> None:
+def _options_before_the_command(p: Parser, argv: list[str]) -> None:
     """``netsim --seed 3 run ...``: argparse would take ``3`` for an unknown command; say
     where the option goes instead (one line, exit 2)."""
     if not argv or not argv[0].startswith("-") or argv[0] in ("-h", "--help", "--version"):
         return
-    commands = next(a.choices for a in p._actions if isinstance(a, argparse._SubParsersAction))
-    command = next((a for a in argv if a in commands), None)
+    command = next((a for a in argv if a in p.subcommands.choices), None)
     if command is not None:
         p.error(f"{argv[0]} goes after the command: netsim {command} {argv[0]} ...")
 

@@ -55,6 +55,7 @@ def not_delivered(packets: pd.DataFrame) -> pd.Series:
 def draw_packets(ax_row, packets: pd.DataFrame) -> None:
     """Draw the four panels on the four axes ``ax_row``."""
     share, latency, stretch, lost = ax_row
+    got_all = packets.loc[packets["delivered"].to_numpy(bool), "latency_s"].to_numpy(float)
     for label, p in _series(packets):
         t, so_far = delivered_so_far(p)
         share.step(t, so_far, where="post", label=label)
@@ -63,7 +64,9 @@ def draw_packets(ax_row, packets: pd.DataFrame) -> None:
             latency.step(got, np.arange(1, len(got) + 1) / len(got), where="post", label=label)
     share.set(xlabel="time sent (s)", ylabel="delivered, of the packets sent so far", ylim=(-0.02, 1.02))
     share.legend(fontsize="small")
-    latency.set(xlabel="latency (s)", ylabel="share of the delivered packets", xscale="log")
+    # A log scale spreads latencies over decades; a channel without latency gives zeros.
+    scale = "log" if len(got_all) and got_all.min() > 0 else "linear"
+    latency.set(xlabel="latency (s)", ylabel="share of the delivered packets", xscale=scale)
     extra = extra_hops(packets) if "shortest_hops" in packets else np.zeros(0, np.int64)
     if "shortest_hops" not in packets:
         stretch.set_title("the run wrote no shortest_hops (written before them)", fontsize="small")

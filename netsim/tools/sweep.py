@@ -81,6 +81,9 @@ class Sweep:
     tables: tuple[str, ...]
     base: dict
     points: tuple[dict, ...]
+    # What the sweep file's points deserve a word on, said by runs() once every point is
+    # valid: a refusal is then the command's one line.
+    notes: tuple[str, ...] = ()
 
     def runs(self, here: bool = True) -> list[Run]:
         """Every run, each point's configuration resolved and checked as ``netsim run``
@@ -108,6 +111,8 @@ class Sweep:
                 for rep in range(self.replications):
                     key = run_id(resolved, rep)
                     out[key] = Run(key, point, rep, resolved)
+        for note in self.notes:
+            warnings.warn(note, cfgmod.ConfigWarning, stacklevel=2)
         # The keys a point's model does not use: said once, not once per point.
         for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, cfgmod.ConfigWarning)):
             warnings.warn(message, cfgmod.ConfigWarning, stacklevel=2)
@@ -192,11 +197,12 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
         except (NetsimInputError, TypeError, ValueError):
             raise _err(f"[base] {exc}") from None
     known = set(cfgmod.all_keys(base_config))
+    notes: list[str] = []
     if "grid" in tree:
         points = _grid(tree["grid"], known)
     else:
         floats = {k for k, v in flatten(cfgmod.to_dict(base_config)).items() if isinstance(v, float)}
-        points = _random(tree["random"], known, floats)
+        points = _random(tree["random"], known, floats, notes)
     both = sorted(set(points[0]) & set(flatten(base))) if points else []
     if both:
         # Allowed (a scenario file's value under a swept key), but the base's value is never run.
@@ -211,7 +217,7 @@ def parse(tree: dict, where: Path | None = None) -> Sweep:
             raise _err(f"tables = {tables!r}: must be a list drawn from {sorted(writable)}")
     if len(points) * reps > MAX_RUNS:
         raise _err(f"{len(points):,} points x {reps:,} replications: at most {MAX_RUNS:,} runs in one sweep")
-    return Sweep(name, reps, tuple(tables), base, tuple(points))
+    return Sweep(name, reps, tuple(tables), base, tuple(points), tuple(notes))
 
 
 def known_tables(base: dict, points: Sequence[dict] = ()) -> set[str]:
@@ -272,7 +278,9 @@ def _grid(grid, known: set[str]) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
 
 
-def _random(spec, known: set[str], floats: AbstractSet[str] = frozenset()) -> list[dict]:
+def _random(spec, known: set[str], floats: AbstractSet[str], notes: list[str]) -> list[dict]:
+    """The points of ``[random]`` (``floats``: the keys of real numbers); what deserves a
+    word goes to ``notes``."""
     if not isinstance(spec, dict):
         raise _err("[random] must be a table")
     unknown = set(spec) - {"samples", "seed", "ranges"}
@@ -302,12 +310,10 @@ def _random(spec, known: set[str], floats: AbstractSet[str] = frozenset()) -> li
             if not -(2**63) <= lo <= hi < 2**63 - 1:
                 raise _err(f"[random.ranges] {key} = {bounds!r}: integers must lie within 64 bits")
             columns[key] = rng.integers(lo, hi + 1, samples).tolist()
-            if key in floats:
-                warnings.warn(
+            if key in floats and lo < hi:
+                notes.append(
                     f"[random.ranges] {key} = {bounds!r}: whole-number bounds draw whole numbers; "
-                    f"[{float(lo)!r}, {float(hi)!r}] draws uniformly between them",
-                    cfgmod.ConfigWarning,
-                    stacklevel=2,
+                    f"[{float(lo)!r}, {float(hi)!r}] draws uniformly between them"
                 )
         else:
             if not all(-1e308 <= b <= 1e308 for b in bounds) or not math.isfinite(hi - lo):
@@ -318,11 +324,9 @@ def _random(spec, known: set[str], floats: AbstractSet[str] = frozenset()) -> li
     # Integer ranges draw the same point again: one run of it (replications repeat runs).
     distinct = list({json.dumps(p, sort_keys=True): p for p in points}.values())
     if len(distinct) < samples:
-        warnings.warn(
+        notes.append(
             f"[random] {samples} samples drew {len(distinct)} distinct point{'s' if len(distinct) != 1 else ''};"
-            " each is run once",
-            cfgmod.ConfigWarning,
-            stacklevel=2,
+            " each is run once"
         )
     return distinct
 
