@@ -409,3 +409,115 @@ def test_a_flow_that_starts_at_the_runs_end_is_told():
     at_end = {**FLOW, "start_s": 20.0, "stop_s": 40.0}
     with pytest.warns(UserWarning, match=r"traffic.flows\[0\] starts at 20 s, at or after the run's end"):
         make_config(duration_s=20.0, world={"n_robots": 5}, traffic={"flows": [at_end]})
+
+
+def test_summary_packet_path_stretch_is_the_mean_not_the_median():
+    """docs/routing.md: packet_path_stretch is the *mean* of hops / shortest_hops over the
+    delivered packets that had a path: stretches 1, 1 and 2 give 4/3."""
+    import pandas as pd
+    from netsim.protocols.flows import packet_delivery
+
+    packets = pd.DataFrame({"delivered": [True, True, True], "hops": [2, 3, 4], "shortest_hops": [2.0, 3.0, 2.0]})
+    assert packet_delivery({"packets": packets})["packet_path_stretch"] == pytest.approx(4 / 3)
+
+
+def test_no_packet_sent_gives_no_delivery_figures():
+    """The summary's packet figures are over the packets sent: a packets table with no row
+    (a flow that starts after the run's end, random pairs that had no time to send) gives
+    neither packet_delivery_ratio nor packet_path_stretch, rather than a NaN ratio."""
+    import pandas as pd
+    from netsim.protocols.flows import PACKETS_SCHEMA, packet_delivery
+
+    empty = pd.DataFrame({c: [] for c in PACKETS_SCHEMA}).astype(PACKETS_SCHEMA)
+    assert packet_delivery({"packets": empty}) == {}
+
+
+def test_each_frame_of_a_packet_takes_the_channel_size_of_its_own_bytes():
+    """docs/routing.md: a packet of 4000 bytes travels as frames of 1500, 1500 and 1000
+    bytes, and on a shared medium each frame's airtime is its own size's: the channel knows
+    the flow's frame kinds by their own sizes, the last one's 1000 bytes, not 1500."""
+    flow = {**FLOW, "packet_bytes": 4000}
+    config = make_config(
+        seed=2,
+        duration_s=15.0,
+        world={"n_robots": 5, "side_m": 1000.0},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0, "mac": "csma"},
+        protocol={"model": "aodv"},
+        traffic={"flows": [flow]},
+        output={"position_interval_s": 0.0},
+    )
+    sizes = build(config).channel.frame_bytes
+    assert (sizes["flow_1500B"], sizes["flow_1000B"]) == (1500, 1000)
+
+
+@pytest.mark.parametrize(
+    "flow, words",
+    [
+        ({**FLOW, "start_s": -1.0}, "traffic.flows[0].start_s = -1.0: must be >= 0"),
+        ({**FLOW, "start_s": float("inf")}, "traffic.flows[0].start_s = inf: must be >= 0 and finite"),
+        ({**FLOW, "rate_bps": float("inf")}, "traffic.flows[0].rate_bps = inf: must be > 0 and finite"),
+        ({**FLOW, "dst": 0}, "traffic.flows[0].dst = 0: must differ from src"),
+        ({k: v for k, v in FLOW.items() if k != "rate_bps"}, "misses rate_bps"),
+    ],
+)
+def test_a_flow_from_before_0_to_itself_at_an_infinite_rate_or_incomplete_is_refused(flow, words):
+    """docs/routing.md: a negative start_s, a src equal to its dst, a rate that is not a
+    positive finite number (an infinite one would send packets 0 s apart), or a flow missing
+    one of its six keys is refused in one line naming the flow's key."""
+    with pytest.raises(ConfigError) as err:
+        make_config(world={"n_robots": 5}, traffic={"flows": [flow]})
+    assert words in str(err.value)
+
+
+def test_frame_count_is_the_number_of_frames_of_a_packet():
+    """A packet of an exact multiple of max_frame_bytes is that many full frames, with no
+    empty rest: the frame count the cap uses is fragment_bytes' length at every size."""
+    from netsim.traffic import frame_count
+
+    for size in (1, 1499, 1500, 1501, 3000, 4000, 4500, 30000):
+        assert frame_count(size, 1500) == len(fragment_bytes(size, 1500)), size
+    assert frame_count(3000, 1500) == 2
+
+
+@pytest.mark.parametrize("value", [5, {"src": 0}])
+def test_flows_that_are_not_a_list_are_refused(value):
+    """traffic.flows is a list of tables: anything else is refused naming the key, one line
+    (a number ended the run in a traceback)."""
+    with pytest.raises(ConfigError, match=r"^traffic.flows = .*: must be a list of flows"):
+        make_config(world={"n_robots": 5}, traffic={"flows": value})
+
+
+@pytest.mark.parametrize(
+    "flow, words",
+    [
+        ({**FLOW, "src": -1}, "traffic.flows[0].src = -1: must be a robot's id"),
+        ("a flow", "traffic.flows[0] = 'a flow': must be a table"),
+    ],
+)
+def test_a_flow_that_is_no_table_or_names_a_negative_id_is_refused(flow, words):
+    """A flow is a table of the six keys, naming robots by their ids (0 and up): anything
+    else is refused in one line naming it."""
+    with pytest.raises(ConfigError) as err:
+        make_config(world={"n_robots": 5}, traffic={"flows": [flow]})
+    assert words in str(err.value)
+
+
+def test_a_flow_of_exactly_the_frame_cap_in_the_run_is_accepted():
+    """The cap counts the frames sent *in the run*, before its end: a flow going on past the
+    run's end that sends exactly 100,000,000 one-byte packets (2^-20 s apart over 95.37 s)
+    before it is accepted; the packet due at the end itself is not counted."""
+    duration = 1e8 * 2.0**-20
+    flow = {"src": 0, "dst": 1, "start_s": 0.0, "stop_s": 200.0, "rate_bps": 8.0 * 2**20, "packet_bytes": 1}
+    make_config(duration_s=duration, world={"n_robots": 5}, traffic={"flows": [flow]})
+    with pytest.raises(ConfigError, match="would send 100,000,001 frames"):
+        make_config(duration_s=duration + 2.0**-20, world={"n_robots": 5}, traffic={"flows": [flow]})
+
+
+def test_an_oracle_packet_out_of_hops_is_dropped_at_the_robot_that_holds_it(tmp_path):
+    """docs/routing.md: a dropped packet says where (``drop_robot``, the robot that held it
+    last) and why: down a line of five robots under the oracle, a message_ttl of 3 leaves
+    every packet at robot 3, which received it on the third hop and may send it no further."""
+    packets = _line_run(tmp_path, [FLOW], protocol={"routing": "oracle", "message_ttl": 3})["packets"]
+    assert len(packets) == 10
+    assert (packets["drop_cause"] == "ttl").all() and (packets["drop_robot"] == 3).all()

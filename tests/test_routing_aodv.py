@@ -631,3 +631,210 @@ def test_no_gratuitous_rrep_without_an_active_route_back():
     sent = _sent(aodv)
     aodv._on_rreq(1, np.array([2]), Rreq(0, 1, 3, 7, False, 4, 1, 5, True))
     assert sent == []
+
+
+def test_an_offer_without_a_valid_sequence_number_never_replaces_a_valid_one():
+    """RFC 3561 6.2 (docs/routing.md): an offered route replaces a known one only if the known
+    has no valid sequence number, or the offer's is newer, or the same and shorter. An offer
+    with no valid number (a RREP's sender, a RREQ's previous hop) never replaces a route whose
+    number is valid, even a route numbered 0 and longer than the offer."""
+    t = RouteTable()
+    t.offer(9, next_hop=1, hops=3, seq=0, valid_seq=True, expires_s=100.0)
+    assert not fresher(t.routes[9], 0, False, 1)
+    assert not t.offer(9, 2, 1, 0, False, 100.0)
+    assert (t.routes[9].next_hop, t.routes[9].hops, t.routes[9].valid_seq) == (1, 3, True)
+
+
+def test_a_fresher_route_keeps_the_precursors_of_the_route_it_replaces():
+    """A route replaced by a fresher one (RFC 3561 6.2) keeps its precursor list: the robots
+    that send through this one still do, and the RERR of a later break of the new next hop
+    must reach them (6.11), as ns-3's entry, updated in place, keeps them."""
+    t = RouteTable()
+    t.offer(9, next_hop=1, hops=3, seq=10, valid_seq=True, expires_s=100.0)
+    t.routes[9].precursors.add(8)
+    assert t.offer(9, 2, 2, 11, True, 100.0)
+    assert t.routes[9].precursors == {8}
+    assert t.break_link(2, now=50.0, delete_period_s=15.0) == [(9, 12, {8})]
+
+
+def test_a_stale_offer_leaves_an_invalid_route_as_it_is():
+    """An offer older than the route the table holds changes nothing (RFC 3561 6.2): an
+    invalid route, kept for DELETE_PERIOD with the number its broken link raised, keeps that
+    number and that lifetime when the same path is offered again with its old number."""
+    t = RouteTable()
+    t.offer(9, next_hop=1, hops=2, seq=10, valid_seq=True, expires_s=100.0)
+    t.break_link(1, now=50.0, delete_period_s=15.0)
+    assert not t.offer(9, 1, 2, 10, True, 500.0)
+    r = t.routes[9]
+    assert (r.valid, r.seq, r.expires_s) == (False, 11, 65.0)
+
+
+def test_a_broken_link_names_only_the_routes_still_valid_through_it():
+    """RFC 3561 6.11 (i): a broken link's RERR lists the destinations of the *active* routes
+    through it; a route through it that is already invalid is not listed again, and its
+    sequence number is not raised a second time (nor its DELETE_PERIOD restarted)."""
+    t = RouteTable()
+    for dst in (3, 4):
+        t.offer(dst, next_hop=1, hops=2, seq=10, valid_seq=True, expires_s=100.0)
+    t.break_link(1, now=50.0, delete_period_s=15.0)
+    assert t.offer(4, 1, 2, 11, True, 100.0) and t.routes[4].valid
+    lost = t.break_link(1, now=60.0, delete_period_s=15.0)
+    assert [(d, s) for d, s, _ in lost] == [(4, 12)]
+    assert (t.routes[3].seq, t.routes[3].expires_s) == (11, 65.0)
+
+
+def test_aodv_hellos_are_sent_every_interval_jittered_by_a_quarter(tmp_path):
+    """docs/routing.md: hellos are broadcast every hello_interval_s, jittered by a quarter:
+    each robot's successive hellos are 0.75 to 1.25 intervals apart (and spread over that
+    range, so that neighbours do not lock step)."""
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{50 + 100 * i},500\n" for i in range(4)))
+    config = make_config(
+        seed=5,
+        duration_s=40.0,
+        world={"n_robots": 4, "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"model": "aodv"},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    aodv = sim.models["protocol"]
+    times: dict[int, list[float]] = {}
+    real = aodv.control
+
+    def control(sender, payload, deliver, kind, dest=-1, messages=1):
+        if kind == "hello":
+            times.setdefault(sender, []).append(aodv.env.now)
+        return real(sender, payload, deliver, kind, dest, messages)
+
+    aodv.control = control
+    sim.run()
+    gaps = np.concatenate([np.diff(t) for t in times.values()])
+    assert len(times) == 4 and len(gaps) > 100
+    assert gaps.min() >= 0.75 - 1e-9 and gaps.max() <= 1.25 + 1e-9, (gaps.min(), gaps.max())
+    assert gaps.max() - gaps.min() > 0.4
+
+
+def test_a_next_hop_is_lost_after_more_than_allowed_hello_loss_intervals_without_its_hello():
+    """RFC 3561 6.9: a neighbour not heard for more than ALLOWED_HELLO_LOSS * HELLO_INTERVAL
+    (2 s here) is a lost link: found when a packet would take a route through it, which it
+    invalidates (6.11). Exactly 2 s after its last hello it is still a neighbour."""
+    aodv = _aodv()
+    t = aodv.tables[0]
+    t.offer(1, next_hop=1, hops=1, seq=1, valid_seq=True, expires_s=100.0)
+    t.offer(3, next_hop=1, hops=2, seq=5, valid_seq=True, expires_s=100.0)
+    aodv.hello_heard[0][1] = 10.0
+    _sent(aodv)
+    assert aodv._route(0, 3, 12.0) is t.routes[3]
+    assert aodv._route(0, 3, 12.01) is None
+    assert not t.routes[3].valid and not t.routes[1].valid
+
+
+def test_a_link_broken_for_missed_hellos_is_not_broken_again_before_a_new_hello():
+    """A link found lost for missed hellos (RFC 3561 6.9, 6.11) is broken once: a fresher
+    route through that neighbour learnt afterwards (its RREP) is used, not thrown away at
+    once for the hellos already counted missed."""
+    aodv = _aodv()
+    t = aodv.tables[0]
+    t.offer(3, next_hop=1, hops=2, seq=5, valid_seq=True, expires_s=100.0)
+    aodv.hello_heard[0][1] = 10.0
+    _sent(aodv)
+    assert aodv._route(0, 3, 12.5) is None
+    assert t.offer(3, 1, 2, 7, True, 100.0)
+    assert aodv._route(0, 3, 12.6) is t.routes[3]
+
+
+def test_an_intermediate_robot_that_answers_notes_the_precursors_of_both_routes():
+    """RFC 3561 6.6.2: an intermediate robot answering a RREQ from its route puts the RREQ's
+    last hop in the precursor list of its forward route, and its next hop toward the
+    destination in the precursor list of the reverse route, so that a later break on either
+    side sends a RERR to the robots that use it."""
+    from netsim.protocols.aodv import Rreq
+
+    aodv = _aodv()
+    aodv.tables[2].offer(3, next_hop=3, hops=1, seq=7, valid_seq=True, expires_s=10.0)
+    _sent(aodv)
+    aodv._on_rreq(1, np.array([2]), Rreq(0, 1, 3, 7, False, 1, 1, 5))
+    assert aodv.tables[2].routes[3].precursors == {1}
+    assert aodv.tables[2].routes[0].precursors == {3}
+
+
+def test_a_robot_that_died_does_not_rebroadcast_a_rreq():
+    """A RREQ's rebroadcast waits a jitter; a robot that died meanwhile sends nothing (a dead
+    robot neither sends nor relays), one alive does."""
+    from netsim.protocols.aodv import Rreq
+
+    aodv = _aodv()
+    sent = _sent(aodv)
+    aodv.state.alive[2] = False
+    rreq = Rreq(0, 1, 3, 0, True, 1, 1, 5)
+    aodv._rebroadcast_rreq(2, rreq)
+    aodv._rebroadcast_rreq(1, rreq)
+    assert [sender for sender, _, _, _ in sent] == [1]
+
+
+def test_a_rrep_makes_the_route_to_its_previous_hop_and_renews_the_reverse_route():
+    """RFC 3561 6.7: a robot receiving a RREP makes a route to the robot it came from (one
+    hop, without a valid sequence number, ACTIVE_ROUTE_TIMEOUT long); passing it on, the
+    reverse route it uses lives max(existing, now + ACTIVE_ROUTE_TIMEOUT)."""
+    from netsim.protocols.aodv import Rrep
+
+    aodv = _aodv()
+    aodv.tables[1].offer(0, next_hop=0, hops=1, seq=1, valid_seq=True, expires_s=1.0)
+    _sent(aodv)
+    aodv._on_rrep(2, np.array([1]), Rrep(dst=3, dst_seq=5, orig=0, hops=1, lifetime_s=6.0))
+    prev = aodv.tables[1].routes[2]
+    assert (prev.next_hop, prev.hops, prev.valid, prev.valid_seq, prev.expires_s) == (2, 1, True, False, 3.0)
+    assert aodv.tables[1].routes[0].expires_s == 3.0
+
+
+def test_a_rerr_is_passed_on_to_the_precursors_of_the_routes_it_invalidates():
+    """RFC 3561 6.11 (iii), 6.12: a robot that receives a RERR from the next hop of its
+    routes invalidates them and sends a RERR of those destinations on to their precursors
+    (a unicast to a single one); destinations it does not route through the sender are not
+    passed on."""
+    from netsim.protocols.aodv import Rerr
+
+    aodv = _aodv()
+    t = aodv.tables[1]
+    t.offer(3, next_hop=2, hops=2, seq=10, valid_seq=True, expires_s=100.0)
+    t.routes[3].precursors.add(0)
+    sent = _sent(aodv)
+    aodv._on_rerr(2, np.array([1]), Rerr(((3, 12), (5, 4))))
+    assert sent == [(1, Rerr(((3, 12),)), "rerr_1", 0)]
+
+
+def test_a_forwarded_rreq_waits_a_jitter_of_up_to_jitter_s():
+    """docs/routing.md: a robot rebroadcasts a RREQ once, after U(0, jitter_s) (10 ms by
+    default: RFC 5148), so that neighbours that heard it together do not send together."""
+    from netsim.protocols.aodv import Rreq
+
+    aodv = _aodv()
+    delays: list[float] = []
+    aodv._later = lambda delay_s, fn, *args: delays.append(delay_s)
+    for k in range(40):
+        aodv._on_rreq(1, np.array([2]), Rreq(0, k + 1, 3, 0, True, 1, 1, 5))
+    assert len(delays) == 40 and all(0.0 <= d <= 0.01 for d in delays)
+    assert len(set(delays)) == 40
+
+
+def test_aodv_ttls_up_to_net_diameter_are_accepted():
+    """The TTLs must not *exceed* NET_DIAMETER: a first ring or a threshold equal to it is
+    accepted, and its discovery is NET_DIAMETER tried 1 + RREQ_RETRIES times."""
+    config = make_config(protocol={"model": "aodv", "ttl_start": 35, "ttl_threshold": 35})
+    assert (config.protocol.params.ttl_start, config.protocol.params.ttl_threshold) == (35, 35)
+    assert ring_ttls(AodvParams(ttl_start=35, ttl_threshold=35)) == [35, 35, 35]
+
+
+def test_aodv_sends_every_packet_buffered_during_discovery_once_the_route_is_found(tmp_path):
+    """A source buffers the packets that wait for a route (docs/routing.md) and sends them
+    all when the RREP arrives: ten packets 0.1 s apart toward a robot five hops away, seven
+    of them sent during the discovery's three rings, all delivered over the five hops, one
+    discovery for all."""
+    flow = {"src": 0, "dst": 5, "start_s": 10.0, "stop_s": 11.0, "rate_bps": 80000.0, "packet_bytes": 1000}
+    sim, frames = _run(tmp_path, [(50 + 100 * i, 500) for i in range(6)], [flow], duration_s=15.0)
+    packets = frames["packets"]
+    assert len(packets) == 10 and packets["delivered"].all(), packets[["t_sent_s", "drop_cause"]]
+    assert (packets["hops"] == 5).all()
+    assert [ttl for _, _, _, ttl in sim.models["protocol"].rreqs_originated] == [1, 3, 5]

@@ -260,3 +260,105 @@ def test_a_holder_that_hears_the_destination_sends_it_the_packet_straight():
     greedy.heard_xy[0, 2] = (7.0, 7.0)
     pkt = Packet(0, src=0, dst=1, ttl=64, hops=0, kind="data", t_sent_s=0.0, dst_xy=(7.0, 7.0))
     assert greedy.next_hop(0, pkt) == (1, "")
+
+
+def test_a_robot_that_died_beacons_no_more():
+    """A dead robot sends nothing: its beacon timer goes on, but no beacon leaves it; a live
+    robot's does."""
+    greedy = build(make_config(world={"n_robots": 3}, protocol={"model": "greedy"})).models["protocol"]
+    sent = []
+    greedy.control = lambda i, payload, deliver, kind, dest=-1, messages=1: sent.append((i, kind))
+    greedy.state.alive[1] = False
+    greedy._tick(1)
+    greedy._tick(0)
+    assert sent == [(0, "beacon")]
+
+
+def test_greedy_beacons_start_at_a_phase_of_their_own_then_every_period_jittered_both_ways(tmp_path):
+    """docs/routing.md: a robot beacons every beacon_period_s plus U(-beacon_jitter_s,
+    +beacon_jitter_s): successive beacons of a robot are 0.9 to 1.1 s apart by default, some
+    shorter than the period and some longer; each robot's first beacon is at a time of its
+    own within the first period (robots do not beacon in lock step)."""
+    xy = [(100 + 50 * i, 500) for i in range(4)]
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in xy))
+    config = make_config(
+        seed=4,
+        duration_s=30.0,
+        world={"n_robots": 4, "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"model": "greedy"},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    greedy = sim.models["protocol"]
+    times: dict[int, list[float]] = {}
+    real = greedy.control
+
+    def control(i, payload, deliver, kind, dest=-1, messages=1):
+        times.setdefault(i, []).append(greedy.env.now)
+        return real(i, payload, deliver, kind, dest, messages)
+
+    greedy.control = control
+    sim.run()
+    gaps = np.concatenate([np.diff(t) for t in times.values()])
+    assert len(gaps) > 100 and gaps.min() >= 0.9 - 1e-9 and gaps.max() <= 1.1 + 1e-9
+    assert gaps.min() < 0.95 and gaps.max() > 1.05
+    first = [t[0] for t in times.values()]
+    assert len(set(first)) == 4 and 0.0 <= min(first) and max(first) < 1.0
+
+
+@pytest.mark.parametrize(
+    "key, value, words",
+    [
+        ("beacon_jitter_s", 0.5, "protocol.beacon_jitter_s = 0.5: must be less than half"),
+        ("neighbour_timeout_s", 1.1, "protocol.neighbour_timeout_s = 1.1: must be greater than"),
+    ],
+)
+def test_greedy_parameter_at_the_limit_of_its_range_is_refused(key, value, words):
+    """The limits are strict: a jitter of exactly half the period (a beacon could follow the
+    previous one at once), and a timeout of exactly the longest gap between two beacons
+    (period + jitter: a neighbour whose every beacon arrives could still be forgotten), are
+    refused."""
+    with pytest.raises(ConfigError) as err:
+        make_config(protocol={"model": "greedy", key: value})
+    assert words in str(err.value)
+
+
+def test_greedy_defaults_are_the_documented_ones():
+    """docs/routing.md: beacons every 1 s, jittered by 0.1 s, of 24 bytes; a neighbour
+    forgotten after 3 periods; a packet may take 64 hops."""
+    from netsim.protocols.greedy import GreedyParams
+
+    p = GreedyParams()
+    assert (p.beacon_period_s, p.beacon_jitter_s, p.beacon_bytes, p.neighbour_timeout_s, p.hop_limit) == (
+        1.0,
+        0.1,
+        24,
+        3.0,
+        64,
+    )
+
+
+MOVED = """$node_(0) set X_ 100.0
+$node_(0) set Y_ 500.0
+$node_(1) set X_ 300.0
+$node_(1) set Y_ 500.0
+$node_(2) set X_ 600.0
+$node_(2) set Y_ 500.0
+$ns_ at 1.0 "$node_(0) setdest 500.0 500.0 40.0"
+"""
+
+
+def test_a_holder_compares_its_neighbours_with_where_it_is_now(tmp_path):
+    """The greedy rule's "strictly closer than the holder itself" is to the holder's position
+    at the instant it forwards: robot 0, moving at 40 m/s from 100 m since 1 s, is at 380 m
+    at 8 s, 220 m short of the destination at 600 m; its one neighbour, at 300 m, is
+    farther, so 0 is a local maximum (by where its leg puts it at 0 s, 540 m away, the
+    neighbour was closer and the packet went back and forth until its hop limit)."""
+    flow = {"src": 0, "dst": 2, "start_s": 8.0, "stop_s": 8.5, "rate_bps": 8000.0, "packet_bytes": 500}
+    _sim, frames = flow_over_trace(tmp_path, MOVED, 3, flow, 9.0, 1, {"range_m": 150.0}, {"model": "greedy"})
+    packets = frames["packets"]
+    assert len(packets) == 1
+    assert (packets["drop_cause"].iloc[0], packets["drop_robot"].iloc[0]) == ("local_maximum", 0)

@@ -317,3 +317,207 @@ def test_a_hello_lists_each_neighbour_once_under_its_link_code():
 
     hello = Hello(0, frozenset({1, 2, 3}), frozenset({1, 2}), frozenset({1}))
     assert message_bytes(hello) == 12 + 4 + 3 * (4 + 4)
+
+
+def test_mpr_ties_count_only_the_two_hop_neighbours_a_neighbour_reaches():
+    """RFC 3626 8.3.1: of neighbours covering as many uncovered two-hop neighbours, the MPR
+    is the one of greatest reachability D(y), its symmetric neighbours *excluding* the robot's
+    one-hop neighbours (not in N2), then the lowest id. Neighbour 3 hears three robots outside
+    N2 as well: they do not make it win the tie, so 1, then 2, are the MPRs."""
+    via = {1: {5, 6}, 2: {6, 7}, 3: {5, 7, 10, 11, 12}}
+    assert select_mprs(via, {5, 6, 7}) == {1, 2}
+
+
+def test_hello_and_tc_message_sizes_follow_rfc_3626():
+    """docs/routing.md (IPv4): a HELLO is its 12-byte message header, 4 bytes, and per link
+    code *present* a 4-byte header and 4 bytes an address (a lone robot's HELLO lists none: 16
+    bytes); a TC is 12 + 4 bytes and 4 per advertised neighbour."""
+    from netsim.protocols.olsr import Hello, Tc, tc_bytes
+
+    assert message_bytes(Hello(0, frozenset(), frozenset(), frozenset())) == 16
+    assert message_bytes(Hello(0, frozenset({1}), frozenset({1}), frozenset())) == 16 + 8
+    assert tc_bytes(0) == 16 and tc_bytes(3) == 28
+    assert message_bytes(Tc(0, 1, frozenset({1, 2, 3}), 255, 0)) == 28
+
+
+def test_a_packet_is_its_header_and_its_messages_an_oversized_message_alone():
+    """RFC 3626 3.4: a packet is a 4-byte header and its messages; messages leave in order
+    in as few packets as ``max_frame_bytes`` allows, and one larger than the limit goes alone
+    in a packet of its size, with no empty packet before it."""
+    from netsim.protocols.olsr import Hello, pack
+
+    small = Hello(0, frozenset({1}), frozenset({1}), frozenset())  # 24 bytes
+    big = Hello(0, frozenset(range(1, 40)), frozenset(), frozenset())  # 16 + 4 + 156 bytes
+    assert pack([small, small], 100) == [((small, small), 4 + 24 + 24)]
+    assert pack([big], 100) == [((big,), 4 + 176)]
+    assert pack([small, big, small], 100) == [((small,), 28), ((big,), 180), ((small,), 28)]
+
+
+class _Agenda:
+    """An agenda that keeps what it is asked to do: (delay, what, robot)."""
+
+    def __init__(self):
+        self.calls: list = []
+
+    def at(self, delay_s, _priority, fn, *args):
+        self.calls.append((delay_s, fn.__name__, *args))
+
+
+def test_the_first_message_queued_sets_the_packets_departure_within_maxjitter():
+    """RFC 3626 3.4, 18.3 (as ns-3): the first message a robot queues sets its packet's
+    departure after U(0, MAXJITTER = hello_interval_s / 4); the messages queued meanwhile wait
+    for that departure (no other is scheduled)."""
+    from types import SimpleNamespace
+
+    from netsim.protocols.olsr import Hello
+
+    olsr = _olsr()
+    agenda = _Agenda()
+    olsr.channel = SimpleNamespace(agenda=agenda)
+    hello = Hello(0, frozenset(), frozenset(), frozenset())
+    olsr.queue(0, hello)
+    olsr.queue(0, hello)
+    assert len(agenda.calls) == 1 and olsr.queued[0] == [hello, hello]
+    for _ in range(60):
+        olsr._leaving[1] = False
+        olsr.queue(1, hello)
+    delays = [d for d, *_ in agenda.calls]
+    assert all(0.0 <= d <= 2.0 / 4 for d in delays) and max(delays) - min(delays) > 0.3
+
+
+def test_a_robot_that_died_sends_none_of_its_queued_messages():
+    """A robot that died while its messages waited for their jitter sends nothing; its queue
+    is emptied."""
+    from netsim.protocols.olsr import Hello
+
+    olsr = _olsr()
+    sent = []
+    olsr.control = lambda i, batch, deliver, kind, dest=-1, messages=1: sent.append(i)
+    hello = Hello(0, frozenset(), frozenset(), frozenset())
+    olsr.queued[0], olsr.queued[1] = [hello], [hello]
+    olsr.state.alive[0] = False
+    olsr._send_queued(0)
+    olsr._send_queued(1)
+    assert sent == [1] and olsr.queued[0] == []
+
+
+def test_a_link_is_symmetric_up_to_its_expiry_instant_included():
+    """RFC 3626 8.1: a link is symmetric while L_SYM_time >= now: at its expiry instant still,
+    a moment later no longer."""
+    olsr = _olsr()
+    olsr.sym_until[0][1] = 10.0
+    assert olsr.symmetric(0, 10.0) == {1}
+    assert olsr.symmetric(0, 10.0 + 1e-9) == set()
+
+
+def test_a_hello_lists_only_the_neighbours_heard_within_the_hold_time():
+    """A robot's HELLO lists the neighbours it hears (RFC 3626 6.2: links not expired): one
+    last heard longer than NEIGHB_HOLD_TIME ago is not listed."""
+    olsr = _olsr()
+    queued = []
+    olsr.queue = lambda i, message: queued.append(message)
+    olsr.heard_until[0].update({1: 10.0, 2: -1.0})
+    olsr._hello_tick(0)
+    assert [m.heard for m in queued] == [frozenset({1})]
+
+
+def test_the_routing_table_follows_a_hello_heard_at_the_instant_it_was_computed():
+    """RFC 3626 section 10: the routing table is computed again when the link set changes;
+    a HELLO heard at the very instant the table was last computed changes it then."""
+    from netsim.protocols.olsr import Hello
+
+    olsr = _olsr()
+    olsr.sym_until[0][1] = 10.0
+    assert olsr.routes(0) == {1: 1}
+    olsr._on_hello(2, np.array([0]), Hello(2, frozenset({0}), frozenset({0}), frozenset()))
+    assert olsr.routes(0) == {1: 1, 2: 2}
+
+
+def test_the_routing_table_drops_the_links_that_expired_since_it_was_computed():
+    """The routing table holds at every instant the links unexpired then: a route over a
+    symmetric link is gone once the link's hold time has passed, with nothing heard since."""
+    from types import SimpleNamespace
+
+    olsr = _olsr()
+    olsr.env = SimpleNamespace(now=0.0)
+    olsr.sym_until[0][1] = 10.0
+    olsr.two_hop[0][1] = (frozenset({2}), 20.0)
+    assert olsr.routes(0) == {1: 1, 2: 1}
+    olsr.env.now = 11.0
+    assert olsr.routes(0) == {}
+
+
+def test_mprs_leave_out_expired_two_hop_tuples():
+    """RFC 3626 8.2: a two-hop tuple lives until its hold time; an expired one covers no
+    two-hop neighbour in the MPR selection."""
+    olsr = _olsr()
+    olsr.sym_until[0].update({1: 10.0, 2: 10.0})
+    olsr.two_hop[0].update({1: (frozenset({3}), -1.0), 2: (frozenset({4}), 10.0)})
+    olsr._select_mprs(0, 0.0)
+    assert olsr.mprs[0] == {2}
+
+
+def test_a_robot_no_neighbour_chose_as_mpr_floods_no_tc():
+    """docs/routing.md: a robot that some neighbours chose as MPR floods a TC every
+    tc_interval_s advertising them, with a new ANSN; one with no MPR selector (or only
+    expired ones) sends none."""
+    from netsim.protocols.olsr import Tc
+
+    olsr = _olsr()
+    queued = []
+    olsr.queue = lambda i, message: queued.append((i, message))
+    olsr.selectors[0][1] = -1.0
+    olsr._tc_tick(0)
+    assert queued == []
+    olsr.selectors[0][2] = 10.0
+    olsr._tc_tick(0)
+    assert queued == [(0, Tc(0, 1, frozenset({2}), 255, 0))]
+
+
+def test_olsr_routes_ties_between_first_hops_go_to_the_lowest_id():
+    """docs/routing.md: the routes are the shortest paths found breadth first, lowest ids
+    first: a robot two hops away through either of two neighbours goes through the lower."""
+    olsr = _olsr()
+    olsr.sym_until[0].update({1: 10.0, 2: 10.0})
+    olsr.two_hop[0].update({1: (frozenset({3}), 10.0), 2: (frozenset({3}), 10.0)})
+    assert olsr.routes(0)[3] == 1
+
+
+def _first_hellos(tmp_path, **protocol) -> list[float]:
+    """When each robot of the first eight of GRID queues its first HELLO, in a 3 s run."""
+    from netsim.protocols.olsr import Hello
+
+    first: dict[int, float] = {}
+
+    def watch(olsr):
+        queue = olsr.queue
+
+        def queued(i, message):
+            if isinstance(message, Hello):
+                first.setdefault(i, olsr.env.now)
+            queue(i, message)
+
+        olsr.queue = queued
+
+    _run(tmp_path, GRID[:8], [], duration_s=3.0, watch=watch, **protocol)
+    assert len(first) == 8, first
+    return list(first.values())
+
+
+def test_olsr_timers_start_at_a_time_of_each_robots_own(tmp_path):
+    """docs/routing.md: each robot's HELLO and TC timers start together at U(0,
+    start_spread_s) (default hello_interval_s, 2 s); with 0 every robot starts at t = 0."""
+    spread = _first_hellos(tmp_path)
+    assert len(set(spread)) == 8 and max(spread) <= 2.0 and max(spread) - min(spread) > 0.5, spread
+    assert set(_first_hellos(tmp_path, start_spread_s=0.0)) == {0.0}
+
+
+def test_olsr_hold_times_are_three_intervals():
+    """RFC 3626 18.3 (docs/routing.md): NEIGHB_HOLD_TIME is 3 HELLO intervals and
+    TOP_HOLD_TIME 3 TC intervals, derived from the intervals given."""
+    from netsim.protocols.olsr import OlsrParams
+
+    p = OlsrParams()
+    assert (p.neighb_hold_time_s, p.top_hold_time_s) == (6.0, 15.0)
+    q = OlsrParams(hello_interval_s=1.0, tc_interval_s=4.0)
+    assert (q.neighb_hold_time_s, q.top_hold_time_s) == (3.0, 12.0)

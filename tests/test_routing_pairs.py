@@ -201,3 +201,70 @@ def test_a_routed_packets_shortest_hops_sees_a_jump_at_its_own_instant(tmp_path)
     ours = flows.packets_frame().iloc[before:]
     assert ours["flow"].tolist() == [7, 7] and ours["t_sent_s"].tolist() == [5.0, 5.0]
     assert ours["shortest_hops"].tolist() == [np.inf, 2.0]
+
+
+def test_the_summary_counts_control_frames_and_the_messages_they_carry_apart(tmp_path):
+    """docs/routing.md: the summary's control_frames and control_messages (and their rates
+    over the run's duration) are the control table's frames and messages; under OLSR a frame
+    carries one or more messages, so that a ``hello+tc`` frame counts two at least, and
+    the messages outnumber the frames."""
+    from netsim.run import summarize
+
+    path = tmp_path / "robots.csv"
+    path.write_text("x_m,y_m\n" + "".join(f"{x},{y}\n" for x, y in GRID))
+    config = make_config(
+        seed=4,
+        duration_s=20.0,
+        world={"n_robots": len(GRID), "side_m": 1000.0, "placement": str(path)},
+        mobility={"model": "static"},
+        channel={"range_m": 120.0},
+        protocol={"model": "olsr"},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    summary = summarize(sim, frames, 0.0)
+    control = frames["control"].set_index("kind")
+    assert summary["control_frames"] == control["sent"].sum()
+    assert summary["control_messages"] == control["messages"].sum() > summary["control_frames"]
+    assert control.loc["hello+tc", "messages"] >= 2 * control.loc["hello+tc", "sent"] > 0
+    assert summary["control_frames_per_s"] == pytest.approx(summary["control_frames"] / 20.0)
+    assert summary["control_messages_per_s"] == pytest.approx(summary["control_messages"] / 20.0)
+
+
+def test_random_pairs_frames_in_the_run_are_capped_one_message_at_least():
+    """docs/routing.md: under a routing protocol the random pairs' messages are held to
+    100,000,000 frames in the run, a message of ``message_bytes`` counting its frames, and
+    one message at least however short the run: half a message expected in a 1 s run, of
+    150,000,000 frames, is refused naming protocol.message_bytes."""
+    huge = 150_000_000 * 1500
+    with pytest.raises(ConfigError, match="protocol.message_bytes"):
+        make_config(duration_s=1.0, protocol={"model": "aodv", "message_rate_hz": 0.5, "message_bytes": huge})
+    make_config(duration_s=1.0, protocol={"model": "aodv", "message_rate_hz": 0.5, "message_bytes": huge // 2})
+
+
+def test_routing_protocols_random_pairs_default_to_none_of_512_bytes():
+    """docs/routing.md: under a routing protocol protocol.message_rate_hz defaults to 0 (no
+    random pairs) and protocol.message_bytes to 512."""
+    for model in ("aodv", "olsr", "greedy"):
+        params = make_config(protocol={"model": model}).protocol.params
+        assert (params.message_rate_hz, params.message_bytes) == (0.0, 512), model
+
+
+@pytest.mark.parametrize("model", ["aodv", "greedy"])
+def test_a_team_of_one_robot_sends_no_random_pairs(model):
+    """A robot alone has no pair to send to: under a routing protocol with random pairs, a
+    team of one runs and sends no message (and draws none, as the clustering's relay)."""
+    config = make_config(
+        seed=4,
+        duration_s=10.0,
+        world={"n_robots": 1},
+        mobility={"model": "static"},
+        protocol={"model": model, "message_rate_hz": 5.0},
+        output={"position_interval_s": 0.0},
+    )
+    sim = build(config)
+    sim.run()
+    frames = collect(sim)
+    assert len(frames["packets"]) == 0
