@@ -430,18 +430,22 @@ class Aodv(Router):
 
     def _on_rreq(self, sender: int, receivers: np.ndarray, rreq: Rreq) -> None:
         now, p = self.env.now, self.params
+        # Most receptions of a flood are copies a robot already had: what each needs is
+        # looked up once, not per receiver.
+        tables, seen, key = self.tables, self.seen, (rreq.orig, rreq.rreq_id)
+        neighbour_until = now + p.active_route_timeout_s
+        # A RREQ heard says the link is up as a hello does, every copy of it (section 6.9: any
+        # packet of the neighbour), so a RREQ may stand for a hello. ns-3 counts first copies
+        # alone, and the data a robot forwards besides.
+        heard = self.hello_heard if p.hello else None
         for r in receivers.tolist():
-            table = self.tables[r]
-            table.neighbour(sender, None, now + p.active_route_timeout_s)
-            if p.hello:
-                # A RREQ heard says the link is up as a hello does, every copy of it (section
-                # 6.9: any packet of the neighbour), so a RREQ may stand for a hello. ns-3
-                # counts first copies alone, and the data a robot forwards besides.
-                self.hello_heard[r][sender] = now
-            key = (rreq.orig, rreq.rreq_id)
-            if self.seen[r].get(key, -1.0) >= now:
+            table = tables[r]
+            table.neighbour(sender, None, neighbour_until)
+            if heard is not None:
+                heard[r][sender] = now
+            if seen[r].get(key, -1.0) >= now:
                 continue
-            self.seen[r][key] = now + p.path_discovery_time_s
+            seen[r][key] = now + p.path_discovery_time_s
             hops = rreq.hops + 1
             lifetime = now + 2 * p.net_traversal_time_s - 2 * hops * p.node_traversal_time_s
             table.offer(rreq.orig, sender, hops, rreq.orig_seq, True, lifetime)
