@@ -89,6 +89,7 @@ def status(argv: list[str]) -> int:
         ("benchmarks/routing_ns3.py", ["--ns3-python", "no/such/python"], "--ns3-python no/such/python: no such file"),
         ("benchmarks/replay.py", ["--size", "12x", "--no-browser"], "--size '12x': WIDTHxHEIGHT"),
         ("benchmarks/routing_ns3.py", ["--side", "netsim"], "--side netsim runs one scenario and one protocol"),
+        ("benchmarks/routing_ns3.py", ["--ns3-arp", "none"], "argument --ns3-arp: invalid choice: 'none'"),
     ],
 )
 def test_a_benchmark_refuses_what_it_cannot_run_in_one_line(tmp_path, path, args, said):
