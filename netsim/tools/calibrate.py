@@ -16,6 +16,7 @@ import dataclasses
 import json
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -647,8 +648,9 @@ def _check_flag(flag: str, value: float | None, ok, allowed: str) -> None:
         raise NetsimInputError(f"{flag} {value:g}: {allowed}")
 
 
-def command(args) -> int:
-    """``netsim calibrate`` (:mod:`netsim.tools.cli` checks ``--out`` first)."""
+def command(args, draw: Callable[[Calibration, str, str], object] | None = None) -> int:
+    """``netsim calibrate`` (:mod:`netsim.tools.cli` checks ``--out`` and ``--plot`` first);
+    ``draw(calibration, path, log)`` draws ``--plot``'s figure."""
     _check_flag("--sensitivity-dbm", args.sensitivity_dbm, lambda v: -200 <= v <= 0, "must be in [-200, 0] dBm")
     _check_flag("--tx-power-dbm", args.tx_power_dbm, lambda v: -60 <= v <= 60, "must be in [-60, 60] dBm")
     _check_flag("--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be in (0, 1e6] m")
@@ -681,10 +683,8 @@ def command(args) -> int:
     print(report(result, str(path)))
     text = toml_fragment(result, str(path), None if walls is None else fragment_map(args.map))
     plot = getattr(args, "plot", None)
-    if plot is not None:
-        from netsim.tools.calibrate_figure import draw_calibration
-
-        draw_calibration(result, plot, str(path))
+    if plot is not None and draw is not None:
+        draw(result, plot, str(path))
     if args.out is None:
         print("\n" + text, end="")
         if plot is not None:

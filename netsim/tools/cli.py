@@ -463,6 +463,9 @@ def cmd_calibrate(args) -> int:
             raise NetsimInputError(f"--plot {args.plot}: name a {', '.join(PLOT_SUFFIXES)} file")
         if args.out is not None and Path(args.plot).resolve() == Path(args.out).resolve():
             raise NetsimInputError(f"--plot {args.plot}: is the --out file too; give two paths")
+        from netsim.tools.calibrate_figure import draw_calibration
+
+        return calibrate.command(args, draw_calibration)
     return calibrate.command(args)
 
 
