@@ -24,6 +24,7 @@ from scipy import stats
 
 from netsim.tools.calibrate import Calibration
 from netsim.tools.figures import pyplot
+from netsim.tools.output import write_atomically
 
 SHOWN = 20_000
 DISTANCE_BINS = 16
@@ -133,12 +134,9 @@ def draw_calibration(c: Calibration, path: str | Path, where: str) -> Path:
         right.legend(fontsize="small")
     fig.suptitle(f"netsim calibrate {where}: {c.frames:,} frames of {c.pairs:,} pairs", fontsize="medium")
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
     try:
-        fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".").lower())
-        tmp.replace(path)
+        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".").lower()))
     finally:
-        tmp.unlink(missing_ok=True)
         plt.close(fig)
     return path
 

@@ -11,6 +11,7 @@ import pandas as pd
 
 from netsim.errors import NetsimInputError
 from netsim.tools.figures import pyplot
+from netsim.tools.output import write_atomically
 
 
 def draw_aggregate(
@@ -48,6 +49,8 @@ def draw_aggregate(
     axes[0][0].legend()
     fig.suptitle(title)
     path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".").lower() or "png"))
+    finally:
+        plt.close(fig)
     return path
