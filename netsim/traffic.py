@@ -17,6 +17,8 @@ import warnings
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from netsim.errors import ConfigError
 from netsim.params import Params, coerce_value, param
 
@@ -186,3 +188,10 @@ def send_times(flow: Flow, end_s: float) -> list[float]:
     """
     step = flow.interval_s
     return [flow.start_s + k * step for k in range(packet_count(flow, end_s))]
+
+
+def pathed_deliveries(packets: Any) -> Any:
+    """The rows of a ``packets.parquet`` table a route's stretch is measured on: delivered,
+    with a path between their ends when sent (a packet sent with none may still arrive: it
+    waited for a route, or the team moved)."""
+    return packets[packets["delivered"].to_numpy(bool) & np.isfinite(packets["shortest_hops"].to_numpy(float))]

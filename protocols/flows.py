@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 import simpy
 
-from netsim.traffic import Flow, Traffic, fragment_bytes, send_times
+from netsim.traffic import Flow, Traffic, fragment_bytes, pathed_deliveries, send_times
 
 PACKETS_SCHEMA = {
     "flow": "int64",
@@ -216,9 +216,7 @@ def packet_delivery(frames: Mapping[str, pd.DataFrame]) -> dict:
     packets = frames.get("packets")
     if packets is None or not len(packets):
         return {}
-    # A packet sent while its ends had no path may still arrive (it waited for a route, or
-    # the team moved): it has no stretch.
-    got = packets[packets["delivered"] & np.isfinite(packets["shortest_hops"])]
+    got = pathed_deliveries(packets)
     stretch = float((got["hops"] / got["shortest_hops"]).mean()) if len(got) else np.nan
     return {"packet_delivery_ratio": float(packets["delivered"].mean()), "packet_path_stretch": stretch}
 

@@ -66,6 +66,13 @@ class Calibration:
     shadowing_draws: float | None = None  # independent draws of the shadowing (None: no travel)
     design: cf.Design | None = None  # the rows fitted (for the figure, calibrate_figure)
 
+    def law_dbm(self, fit: cf.ChannelFit, distance_m: np.ndarray) -> np.ndarray:
+        """The mean power ``fit`` gives at each distance, through no wall."""
+        n = len(distance_m)
+        walls = None if fit.wall_loss_db is None else np.zeros(n)
+        g = distance_term_db(distance_m, self.reference_distance_m)
+        return fit.mean_dbm(cf.Design(np.full(n, np.nan), g, walls, np.zeros(n, np.int64), self.tx_power_dbm))
+
     def channel(self) -> dict:
         """The ``[channel]`` keys, as ``netsim run`` reads them."""
         keys = {
@@ -381,6 +388,13 @@ def check_tx_power(power_dbm: np.ndarray, tx_power_dbm: float, where: str) -> No
         )
 
 
+def distance_term_db(distance_m: np.ndarray, reference_distance_m: float) -> np.ndarray:
+    """The law's distance term, ``10 log10(max(d, d0) / d0)``: its loss with exponent 1 and
+    none at ``d0``."""
+    term = LogDistanceParams(reference_distance_m=reference_distance_m, reference_loss_db=0.0, path_loss_exponent=1.0)
+    return term.path_loss_db(distance_m)
+
+
 def calibrate_frames(
     frames: Frames,
     sensitivity_dbm: float | None = None,
@@ -402,8 +416,7 @@ def calibrate_frames(
     given = sensitivity_dbm is not None
     s = float(sensitivity_dbm) if given else float(frames.power_dbm[seen].min())
     # The law's distance term, 10 log10(max(d, d0) / d0): its loss with exponent 1 and none at d0.
-    term = LogDistanceParams(reference_distance_m=reference_distance_m, reference_loss_db=0.0, path_loss_exponent=1.0)
-    g = term.path_loss_db(frames.distance_m)
+    g = distance_term_db(frames.distance_m, reference_distance_m)
     if np.ptp(g[seen]) < 1e-9:
         raise NetsimInputError(
             f"{where}: every received frame is at the same distance (or within "
@@ -650,7 +663,7 @@ def _check_flag(flag: str, value: float | None, ok, allowed: str) -> None:
 
 def command(args, draw: Callable[[Calibration, str, str], object] | None = None) -> int:
     """``netsim calibrate`` (:mod:`netsim.tools.cli` checks ``--out`` and ``--plot`` first);
-    ``draw(calibration, path, log)`` draws ``--plot``'s figure."""
+    ``draw(calibration, path, log)`` draws ``--plot``'s figure (given with ``--plot``)."""
     _check_flag("--sensitivity-dbm", args.sensitivity_dbm, lambda v: -200 <= v <= 0, "must be in [-200, 0] dBm")
     _check_flag("--tx-power-dbm", args.tx_power_dbm, lambda v: -60 <= v <= 60, "must be in [-60, 60] dBm")
     _check_flag("--reference-distance-m", args.reference_distance_m, lambda v: 0 < v <= 1e6, "must be in (0, 1e6] m")
@@ -682,13 +695,11 @@ def command(args, draw: Callable[[Calibration, str, str], object] | None = None)
     )
     print(report(result, str(path)))
     text = toml_fragment(result, str(path), None if walls is None else fragment_map(args.map))
-    plot = getattr(args, "plot", None)
-    if plot is not None and draw is not None:
-        draw(result, plot, str(path))
+    if draw is not None:
+        draw(result, args.plot, str(path))
+        print(f"wrote {args.plot}")
     if args.out is None:
         print("\n" + text, end="")
-        if plot is not None:
-            print(f"wrote {plot}")
         return 0
     out = Path(args.out)
     tmp = out.with_name(f".{out.name}.tmp")
@@ -698,6 +709,4 @@ def command(args, draw: Callable[[Calibration, str, str], object] | None = None)
     finally:
         tmp.unlink(missing_ok=True)
     print(f"wrote {out} (run it: netsim run {out})")
-    if plot is not None:
-        print(f"wrote {plot}")
     return 0

@@ -28,7 +28,6 @@ from netsim.tools.output import write_atomically
 
 SHOWN = 20_000
 DISTANCE_BINS = 16
-Z95 = float(stats.norm.ppf(0.975))
 
 
 def _shown(rows: np.ndarray) -> np.ndarray:
@@ -40,12 +39,21 @@ def _shown(rows: np.ndarray) -> np.ndarray:
 
 
 def wilson(heard: np.ndarray, total: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The 95 % Wilson score interval of ``heard / total``."""
+    """The 95 % Wilson score interval of ``heard / total`` (scipy's), per bin."""
+    ends = [stats.binomtest(int(k), int(n)).proportion_ci(0.95, method="wilson") for k, n in zip(heard, total)]
     p = heard / total
-    centre = (p + Z95**2 / (2 * total)) / (1 + Z95**2 / total)
-    half = Z95 / (1 + Z95**2 / total) * np.sqrt(p * (1 - p) / total + Z95**2 / (4 * total**2))
     # It holds the share; rounding at 0 or 1 must not leave the share outside.
-    return np.minimum(centre - half, p), np.maximum(centre + half, p)
+    return np.minimum([e.low for e in ends], p), np.maximum([e.high for e in ends], p)
+
+
+def _frames(c: Calibration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each fitted frame's distance (as the law reads it: ``max(d, d0)``), whether the
+    radio heard it (received, or lost after it heard it), and whether it was received."""
+    d = c.design
+    assert d is not None
+    distance = c.reference_distance_m * 10.0 ** (d.g_db / 10.0)
+    heard = d.received if d.above is None else d.received | d.above
+    return distance, heard, d.received
 
 
 def heard_by_distance(c: Calibration) -> dict[str, np.ndarray]:
@@ -53,12 +61,9 @@ def heard_by_distance(c: Calibration) -> dict[str, np.ndarray]:
     frame left out): the bin's median distance, its frames, those the radio heard
     (received, or lost after it heard them), their share's 95 % interval, and the share
     the fit predicts."""
-    d = c.design
-    assert d is not None
-    distance = c.reference_distance_m * 10.0 ** (d.g_db / 10.0)
-    heard = d.received | (np.zeros(len(distance), bool) if d.above is None else d.above)
+    distance, heard, _ = _frames(c)
     sigma = c.fit.shadowing_sigma_db.value
-    predicted = stats.norm.sf((c.sensitivity_dbm - c.fit.mean_dbm(d)) / sigma)
+    predicted = stats.norm.sf((c.sensitivity_dbm - c.fit.mean_dbm(c.design)) / sigma)
     log_d = np.log(distance)
     edges = np.linspace(log_d.min(), log_d.max(), DISTANCE_BINS + 1)  # a fit has frames at two distances
     which = np.clip(np.searchsorted(edges, log_d, side="right") - 1, 0, len(edges) - 2)
@@ -83,10 +88,8 @@ def draw_calibration(c: Calibration, path: str | Path, where: str) -> Path:
     suffix gives the format: .png, .svg or .pdf)."""
     d = c.design
     assert d is not None
-    d0 = c.reference_distance_m
-    distance = d0 * 10.0 ** (d.g_db / 10.0)
-    seen = d.received
-    failed = ~seen & (np.zeros(len(seen), bool) if d.above is None else ~d.above)
+    distance, heard, seen = _frames(c)
+    failed = ~heard
     fit, naive = c.fit, c.naive
     walls = d.walls is not None and fit.wall_loss_db is not None
     power = d.y_dbm + (fit.wall_loss_db.value * d.walls if walls else 0.0)  # type: ignore[union-attr,operator]
@@ -99,16 +102,12 @@ def draw_calibration(c: Calibration, path: str | Path, where: str) -> Path:
     dots = {"s": 3, "alpha": 0.25, "color": "C0", "lw": 0, "rasterized": True}
     ax.scatter(distance[shown], power[shown], label=f"received{note}", **dots)
     grid = np.geomspace(distance.min(), distance.max(), 200)
-    g = 10.0 * np.log10(grid / d0)
-
-    def law(f) -> np.ndarray:
-        return c.tx_power_dbm - f.reference_loss_db.value - f.path_loss_exponent.value * g
-
-    sigma = fit.shadowing_sigma_db.value
-    ax.plot(grid, law(fit), color="C3", lw=2, label=_named(f"fit ({fit.likelihood})", fit))
+    sigma, law = fit.shadowing_sigma_db.value, c.law_dbm(fit, grid)
+    ax.plot(grid, law, color="C3", lw=2, label=_named(f"fit ({fit.likelihood})", fit))
     band = {"color": "C3", "alpha": 0.12, "lw": 0, "label": "fit ± 2 sigma"}
-    ax.fill_between(grid, law(fit) - 2 * sigma, law(fit) + 2 * sigma, **band)
-    ax.plot(grid, law(naive), color="0.2", lw=1.2, ls="--", label=_named("least squares, received only", naive))
+    ax.fill_between(grid, law - 2 * sigma, law + 2 * sigma, **band)
+    naive_line = {"color": "0.2", "lw": 1.2, "ls": "--", "label": _named("least squares, received only", naive)}
+    ax.plot(grid, c.law_dbm(naive, grid), **naive_line)
     ax.axhline(c.sensitivity_dbm, color="C2", lw=1, ls=":", label=f"sensitivity {c.sensitivity_dbm:.4g} dBm")
     if failed.any():
         lost = _shown(failed)

@@ -21,6 +21,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import MaxNLocator
 
+from netsim.traffic import pathed_deliveries
+
 MOST_FLOWS = 8
 IN_FLIGHT = "in_flight"
 
@@ -42,7 +44,7 @@ def delivered_so_far(packets: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
 
 def extra_hops(packets: pd.DataFrame) -> np.ndarray:
     """``hops - shortest_hops`` of the delivered packets that had a path when sent."""
-    got = packets[packets["delivered"].to_numpy(bool) & np.isfinite(packets["shortest_hops"].to_numpy(float))]
+    got = pathed_deliveries(packets)
     return (got["hops"].to_numpy(float) - got["shortest_hops"].to_numpy(float)).astype(np.int64)
 
 
@@ -67,8 +69,8 @@ def draw_packets(ax_row, packets: pd.DataFrame) -> None:
     # A log scale spreads latencies over decades; a channel without latency gives zeros.
     scale = "log" if len(got_all) and got_all.min() > 0 else "linear"
     latency.set(xlabel="latency (s)", ylabel="share of the delivered packets", xscale=scale)
-    extra = extra_hops(packets) if "shortest_hops" in packets else np.zeros(0, np.int64)
-    if "shortest_hops" not in packets:
+    extra = extra_hops(packets) if "shortest_hops" in packets else None
+    if extra is None:
         stretch.set_title("the run wrote no shortest_hops (written before them)", fontsize="small")
     elif len(extra):
         counts = np.bincount(extra - extra.min())
