@@ -543,6 +543,16 @@ def test_out_refuses_an_existing_file(tmp_path, capsys, small_log):
     assert out.read_text() == "mine\n"
 
 
+@pytest.mark.parametrize("name", ["site.json", "site", "site.toml.bak"])
+def test_out_refuses_a_name_that_is_not_toml(tmp_path, capsys, small_log, name):
+    """The fragment is TOML: an --out of another suffix is refused, one line, nothing written."""
+    log, out = write_csv(tmp_path, small_log), tmp_path / name
+    assert main(["calibrate", str(log), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"netsim: error: --out {out}: name a .toml file (the fragment is TOML)"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [log.name]
+
+
 def test_received_row_without_power_is_refused(tmp_path, capsys, small_log):
     """A row marked received whose power is empty is bad input, not a lost frame."""
     log = small_log.copy()

@@ -115,22 +115,19 @@ def test_wilson_interval_closed_form():
 
 
 @pytest.mark.parametrize(
-    ("plot", "out", "words"),
+    ("plot", "words"),
     [
-        ("fit.txt", None, "--plot {plot}: name a .png, .svg, .pdf file"),
-        ("site.png", "site.png", "--plot {plot}: is the --out file too; give two paths"),
-        ("here.png", None, "--plot {plot}: exists already; give a new path"),
-        ("no/such/dir/fit.png", None, "--plot {plot}: the directory {parent} does not exist"),
+        ("fit.txt", "--plot {plot}: name a .png, .svg, .pdf file"),
+        ("here.png", "--plot {plot}: exists already; give a new path"),
+        ("no/such/dir/fit.png", "--plot {plot}: the directory {parent} does not exist"),
     ],
 )
-def test_a_bad_plot_path_is_one_line_exit_2_nothing_written(tmp_path, capsys, censored, plot, out, words):
+def test_a_bad_plot_path_is_one_line_exit_2_nothing_written(tmp_path, capsys, censored, plot, words):
     log = tmp_path / "log.csv"
     censored.to_csv(log, index=False)
     (tmp_path / "here.png").write_text("mine")
     plot_path = tmp_path / plot
-    argv = ["calibrate", str(log), "--plot", str(plot_path)]
-    argv += ["--out", str(tmp_path / out)] if out else []
-    assert main(argv) == 2
+    assert main(["calibrate", str(log), "--plot", str(plot_path)]) == 2
     captured = capsys.readouterr()
     err = captured.err.strip()
     assert err == "netsim: error: " + words.format(plot=plot_path, parent=plot_path.parent)

@@ -472,6 +472,19 @@ def test_set_with_a_space_for_the_equals_sign_gives_the_meant_form(tmp_path, cap
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("command", ["run", "bridge", "figures", "config"])
+def test_a_key_set_twice_is_refused(tmp_path, capsys, monkeypatch, command):
+    """`--set k=a ... --set k=b`: one value would lose without a word (the last won), so
+    the command is refused on one line naming both, exit 2, nothing written; equal values
+    too, and however the key is spaced."""
+    monkeypatch.chdir(tmp_path)
+    code = main([command, "--set", "world.n_robots=8", "--set", "duration_s=5", "--set", "world.n_robots =9"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0] == ("netsim: error: --set world.n_robots=8 and --set world.n_robots =9: give world.n_robots once")
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("seeds", [["--seed", "3", "--set", "seed=4"], ["--set", "seed = 3", "--seed", "3"]])
 def test_run_refuses_a_seed_given_twice(tmp_path, capsys, monkeypatch, seeds):
     """`--seed` and `--set seed=` together: one of them would be dropped without a word, so

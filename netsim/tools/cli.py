@@ -93,13 +93,22 @@ def summary_table(summary: dict) -> str:
 
 def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None:
     """``--set KEY VALUE`` (a space for the ``=``) leaves VALUE to be read as the command's
-    file or directory argument: when that names nothing, say what was meant."""
+    file or directory argument: when that names nothing, say what was meant. A key given
+    twice is refused."""
     bare = [o for o in overrides or [] if "=" not in o]
     if bare and positional is not None and not Path(positional).exists():
         key = bare[-1]
         raise NetsimInputError(
             f"--set {key} {positional}: --set takes KEY=VALUE; did you mean --set {key}={positional}?"
         )
+    # A key given twice is a slip (a value edited in one place of a long command line):
+    # neither value may silently lose.
+    first: dict[str, str] = {}
+    for given in overrides or []:
+        key = given.partition("=")[0].strip()
+        if key in first:
+            raise NetsimInputError(f"--set {first[key]} and --set {given}: give {key} once")
+        first[key] = given
 
 
 @contextmanager
@@ -457,12 +466,13 @@ def cmd_calibrate(args) -> int:
 
     if args.out is not None:
         check_out_file(args.out, "--out")
+        # The fragment is TOML whatever the name: another suffix would mislead the next reader.
+        if Path(args.out).suffix.lower() != ".toml":
+            raise NetsimInputError(f"--out {args.out}: name a .toml file (the fragment is TOML)")
     if args.plot is not None:
         check_out_file(args.plot, "--plot")
         if Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
             raise NetsimInputError(f"--plot {args.plot}: name a {', '.join(PLOT_SUFFIXES)} file")
-        if args.out is not None and Path(args.plot).resolve() == Path(args.out).resolve():
-            raise NetsimInputError(f"--plot {args.plot}: is the --out file too; give two paths")
         from netsim.tools.calibrate_figure import draw_calibration
 
         return calibrate.command(args, draw_calibration)
