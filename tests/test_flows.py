@@ -185,17 +185,17 @@ def test_packet_is_delivered_only_whole(tmp_path):
     assert packets.loc[packets["delivered"], "drop_cause"].isna().all()  # no cause, as receptions' cause
 
 
-def _three_robots_run(tmp_path, xy: str, flow: dict, routing: str, mac: str = "none"):
-    """The packets of ``flow`` among three static robots at ``xy`` (CSV rows)."""
-    path = tmp_path / "three.csv"
+def _static_run(tmp_path, xy: str, flow: dict, routing: str, mac: str = "none", protocol=None):
+    """The packets of ``flow`` among static robots at ``xy`` (CSV rows, one a robot)."""
+    path = tmp_path / "static.csv"
     path.write_text("x_m,y_m\n" + xy)
     config = make_config(
         seed=2,
         duration_s=20.0,
-        world={"n_robots": 3, "side_m": 1000.0, "placement": str(path)},
+        world={"n_robots": xy.count("\n"), "side_m": 1000.0, "placement": str(path)},
         mobility={"model": "static"},
         channel={"range_m": 120.0, "mac": mac},
-        protocol={"message_rate_hz": 0.0, "routing": routing},
+        protocol={"message_rate_hz": 0.0, "routing": routing, **(protocol or {})},
         traffic={"flows": [flow]},
         output={"position_interval_s": 0.0},
     )
@@ -207,7 +207,7 @@ def _three_robots_run(tmp_path, xy: str, flow: dict, routing: str, mac: str = "n
 def test_dropped_packet_says_where_and_why(tmp_path):
     """A packet that cannot reach its destination (a gap in the line) is dropped at the
     robot that held it, for want of a route (oracle routing)."""
-    packets = _three_robots_run(tmp_path, "100,500\n200,500\n600,500\n", {**FLOW, "dst": 2}, "oracle")
+    packets = _static_run(tmp_path, "100,500\n200,500\n600,500\n", {**FLOW, "dst": 2}, "oracle")
     assert not packets["delivered"].any()
     assert (packets["drop_cause"] == "no_route").all() and (packets["drop_robot"] == 0).all()
 
@@ -217,9 +217,22 @@ def test_a_flood_no_one_hears_is_dropped_by_no_one_robot(tmp_path, mac):
     """Backbone flooding from a source no robot hears: its packets die out as a flood does,
     drop_robot -1, with or without a shared medium."""
     flow = {**FLOW, "src": 2, "dst": 0}
-    packets = _three_robots_run(tmp_path, "100,500\n200,500\n900,900\n", flow, "backbone", mac)
+    packets = _static_run(tmp_path, "100,500\n200,500\n900,900\n", flow, "backbone", mac)
     assert len(packets) > 5 and not packets["delivered"].any()
     assert (packets["drop_cause"] == "died_out").all() and (packets["drop_robot"] == -1).all()
+
+
+def test_a_flood_whose_last_copies_reach_no_new_robot_dies_out_not_on_its_ttl(tmp_path):
+    """A flood ends on its hop limit (``ttl``) only when a copy at the limit reached a robot
+    that had not had it: three robots within range of each other and a destination no one
+    hears, message_ttl 2: the relayed copy (its last hop) reaches only robots that had the
+    message, so the flood died out; message_ttl 1 cuts it at the first receivers."""
+    triangle = "100,500\n150,500\n125,540\n900,900\n"
+    flow = {**FLOW, "dst": 3}
+    at_two = _static_run(tmp_path, triangle, flow, "backbone", protocol={"message_ttl": 2})
+    assert len(at_two) == 10 and (at_two["drop_cause"] == "died_out").all()
+    at_one = _static_run(tmp_path, triangle, flow, "backbone", protocol={"message_ttl": 1})
+    assert (at_one["drop_cause"] == "ttl").all()
 
 
 BAD_FLOWS = [
