@@ -7,12 +7,18 @@ import pytest
 
 from netsim.tools.cli import main
 
-SMALL = ["--set", "world.n_robots=25", "--set", "duration_s=60", "--set", "channel.loss_probability=0.1", "--quiet"]
+BASE = {"world.n_robots": "25", "duration_s": "60", "channel.loss_probability": "0.1"}
+SMALL = [*(a for key, value in BASE.items() for a in ("--set", f"{key}={value}")), "--quiet"]
 
 
 def _run(tmp_path, name, *extra):
+    """A run of :data:`BASE`, ``extra``'s ``--set`` in place of its own of the same key."""
     out = tmp_path / name
-    assert main(["run", "--out", str(out), *SMALL, *extra]) == 0
+    given = [extra[k + 1].partition("=") for k in range(len(extra) - 1) if extra[k] == "--set"]
+    sets = {**BASE, **{key: value for key, _, value in given}}
+    rest = [a for k, a in enumerate(extra) if a != "--set" and (k == 0 or extra[k - 1] != "--set")]
+    args = [a for key, value in sets.items() for a in ("--set", f"{key}={value}")]
+    assert main(["run", "--out", str(out), *args, "--quiet", *rest]) == 0
     return out
 
 

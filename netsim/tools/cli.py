@@ -94,21 +94,23 @@ def summary_table(summary: dict) -> str:
 def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None:
     """``--set KEY VALUE`` (a space for the ``=``) leaves VALUE to be read as the command's
     file or directory argument: when that names nothing, say what was meant. A key given
-    twice is refused."""
+    twice is warned of (the last is taken)."""
     bare = [o for o in overrides or [] if "=" not in o]
     if bare and positional is not None and not Path(positional).exists():
         key = bare[-1]
         raise NetsimInputError(
             f"--set {key} {positional}: --set takes KEY=VALUE; did you mean --set {key}={positional}?"
         )
-    # A key given twice is a slip (a value edited in one place of a long command line):
-    # neither value may silently lose.
-    first: dict[str, str] = {}
+    # A key given twice overrides itself, as a script's own --set after its base ones would;
+    # said, since it is as often a slip in a long command line.
+    earlier: dict[str, str] = {}
     for given in overrides or []:
         key = given.partition("=")[0].strip()
-        if key in first:
-            raise NetsimInputError(f"--set {first[key]} and --set {given}: give {key} once")
-        first[key] = given
+        if key in earlier:
+            warnings.warn(
+                f"--set {earlier[key]} and --set {given}: the last is taken", cfgmod.ConfigWarning, stacklevel=2
+            )
+        earlier[key] = given
 
 
 @contextmanager
