@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import math
 import re
 from pathlib import Path
 
@@ -373,17 +374,47 @@ def test_rosbag2_links_at_each_sample_are_the_links_up_then(run_dir, tmp_path):
     assert segments[end] == int(links.censored_end.sum()) > 0
 
 
-def _bag(path: Path, tracks: dict[str, list[tuple[float, float, float]]], msgtype: str) -> None:
+def _bag(
+    path: Path,
+    tracks: dict[str, list[tuple[float, float, float]]],
+    msgtype: str,
+    frames: dict[str, str] | None = None,
+    static: list[tuple[str, str, float, float, float]] = (),
+) -> None:
+    """A bag of ``tracks`` (per topic, poses ``(t, x, y)``) of type ``msgtype``, each topic's
+    headers in the frame ``frames[topic]`` (none by default), and the transforms
+    ``(parent, child, x, y, yaw)`` on /tf_static."""
     from rosbags.rosbag2 import Writer
 
     store = rosbag2._typestore()
     with Writer(path, version=8) as w:
+        if static:
+            conn = w.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+            transforms = []
+            for parent, child, x, y, yaw in static:
+                header = rosbag2._make(store, "std_msgs/msg/Header", frame_id=parent)
+                turn = rosbag2._make(store, "geometry_msgs/msg/Quaternion", z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+                shift = rosbag2._make(store, "geometry_msgs/msg/Vector3", x=x, y=y)
+                transform = rosbag2._make(store, "geometry_msgs/msg/Transform", translation=shift, rotation=turn)
+                transforms.append(
+                    rosbag2._make(
+                        store,
+                        "geometry_msgs/msg/TransformStamped",
+                        header=header,
+                        child_frame_id=child,
+                        transform=transform,
+                    )
+                )
+            msg = rosbag2._make(store, "tf2_msgs/msg/TFMessage", transforms=transforms)
+            w.write(conn, 0, store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
         for topic, poses in tracks.items():
             conn = w.add_connection(topic, msgtype, typestore=store)
             for t, x, y in poses:
                 point = rosbag2._make(store, "geometry_msgs/msg/Point", x=x, y=y)
                 pose = rosbag2._make(store, "geometry_msgs/msg/Pose", position=point)
-                header = rosbag2._make(store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, t))
+                header = rosbag2._make(
+                    store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, t), frame_id=(frames or {}).get(topic, "")
+                )
                 if msgtype == "nav_msgs/msg/Odometry":
                     cov = rosbag2._make(store, "geometry_msgs/msg/PoseWithCovariance", pose=pose)
                     msg = rosbag2._make(store, msgtype, header=header, pose=cov)
@@ -405,6 +436,57 @@ def test_rosbag2_odometry_times_count_from_the_first_stamp_and_late_robots_wait(
     assert np.allclose(wp.positions_at(0.0), [[0, 0], [5, 5]])
     assert np.allclose(wp.positions_at(5.0), [[5, 0], [5, 5]])
     assert np.allclose(wp.positions_at(10.0), [[10, 0], [5, 10]])
+
+
+ODOM_FRAMES = {"/robot_0/odom": "robot_0/odom", "/robot_1/odom": "/robot_1/odom"}
+ODOM_TRACKS = {"/robot_0/odom": [(0.0, 0, 0), (10.0, 1, 0)], "/robot_1/odom": [(0.0, 0, 0), (10.0, 1, 0)]}
+
+
+def test_a_bags_robots_in_frames_nothing_joins_are_refused(tmp_path):
+    """Each robot's odometry in its own frame, from its own origin, and no static transform
+    between them: placed as one frame the robots would stand on top of each other (they did,
+    silently), so the bag is refused in one line naming the frames."""
+    bag = tmp_path / "own_frames"
+    _bag(bag, ODOM_TRACKS, "nav_msgs/msg/Odometry", ODOM_FRAMES)
+    with pytest.raises(NetsimInputError) as err:
+        rosbag2.read(bag)
+    assert str(err.value) == (
+        f"{bag}: the robots' poses are in 2 frames ('robot_0/odom', 'robot_1/odom') that no transforms on "
+        "/tf_static join under one: netsim places every robot in one frame; record the poses in one frame "
+        "(such as map), or the static transforms from theirs to it"
+    )
+
+
+def test_a_bags_frames_joined_by_static_transforms_are_placed_in_their_common_frame(tmp_path):
+    """/tf_static joins the robots' odometry frames under map (robot 1's through a chain of
+    two, the slash of a frame's name aside): each pose is placed in map, ``R(yaw) p + t``."""
+    bag = tmp_path / "joined"
+    static = [
+        ("map", "robot_0/odom", 5.0, 0.0, 0.0),
+        ("map", "yard", 10.0, 0.0, math.pi / 2),
+        ("/yard", "robot_1/odom", 0.0, 2.0, 0.0),
+    ]
+    _bag(bag, ODOM_TRACKS, "nav_msgs/msg/Odometry", ODOM_FRAMES, static)
+    wp = rosbag2.read(bag)
+    assert np.allclose(wp.positions_at(0.0), [[5, 0], [8, 0]])
+    assert np.allclose(wp.positions_at(10.0), [[6, 0], [8, 1]])
+
+
+def test_a_robot_whose_poses_change_frame_is_refused(tmp_path):
+    """A robot's poses in two frames: one line naming them (each pose would be placed as if
+    in one)."""
+    from rosbags.rosbag2 import Writer
+
+    store = rosbag2._typestore()
+    two = tmp_path / "two"
+    with Writer(two, version=8) as w:
+        conn = w.add_connection("/robot_0/pose", "geometry_msgs/msg/PoseStamped", typestore=store)
+        for t, frame in ((0.0, "map"), (1.0, "odom")):
+            header = rosbag2._make(store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, t), frame_id=frame)
+            msg = rosbag2._make(store, "geometry_msgs/msg/PoseStamped", header=header)
+            w.write(conn, int(t * 1e9), store.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped"))
+    with pytest.raises(NetsimInputError, match=r"robot 0's poses are in several frames \('map', 'odom'\)$"):
+        rosbag2.read(two)
 
 
 def test_rosbag2_topics_key_chooses_each_robots_topic(tmp_path):

@@ -6,7 +6,11 @@ messages, one topic per robot: by default the topics ``/robot_<i>/...`` of those
 per robot), or the list ``mobility.topics`` (robot ``i`` follows ``topics[i]``). A robot
 follows its poses in straight lines between their header stamps; times count from the
 first stamp of all the robots' poses; a robot whose log starts later waits at its first
-pose (:mod:`netsim.formats.waypoints`). Orientation and height are ignored.
+pose (:mod:`netsim.formats.waypoints`). Orientation and height are ignored. The robots'
+poses must be in one frame (their headers' ``frame_id``), or in frames that transforms on
+``/tf_static`` join under one, in which they are then placed (in the plane: the
+transforms' translations and yaw): robots whose odometry starts each in its own frame at
+its own origin would otherwise be placed on top of each other.
 
 Out: a run as a bag (SQLite3, the storage every ROS 2 distribution reads), stamps the
 simulated time: ``geometry_msgs/msg/PoseStamped`` on ``/robot_<i>/pose`` for every sampled
@@ -21,6 +25,7 @@ frame ``map``.
 from __future__ import annotations
 
 import json
+import math
 import re
 import warnings
 from collections.abc import Iterator, Sequence
@@ -38,6 +43,7 @@ from netsim.stamps import ns, sec_nanosec
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
 _ROBOT_TOPIC = re.compile(r"^/robot_(\d+)/")
 FRAME = "map"
+TF_STATIC, TF_TYPE = "/tf_static", "tf2_msgs/msg/TFMessage"
 
 
 def _typestore() -> Any:
@@ -131,22 +137,27 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
         store = _typestore()
         conns = [c for c in reader.connections if c.topic in which]
         robots, stamps, xs, ys = [], [], [], []
+        frames: dict[int, set[str]] = {}
         for conn, _t, raw in _messages(reader, conns, source, ReaderError):
-            try:
-                msg = store.deserialize_cdr(raw, conn.msgtype)
-            except SerdeError as exc:
-                why = " ".join(str(exc).split())
-                raise NetsimInputError(
-                    f"{source}: a message on {conn.topic!r} is not a {conn.msgtype} ({why})"
-                ) from None
+            msg = _deserialized(store, raw, conn, source, SerdeError)
             pose = msg.pose.pose if conn.msgtype == "nav_msgs/msg/Odometry" else msg.pose
             stamp = msg.header.stamp
             robots.append(which[conn.topic])
             stamps.append(stamp.sec * 1_000_000_000 + stamp.nanosec)
             xs.append(pose.position.x)
             ys.append(pose.position.y)
+            frames.setdefault(which[conn.topic], set()).add(_frame(msg.header.frame_id))
+        placed = _into_one_frame(frames, reader, store, source, ReaderError, SerdeError)
     finally:
         reader.close()
+    if placed:
+        robot_of = np.array(robots, dtype=np.int64)
+        x, y = np.array(xs, dtype=float), np.array(ys, dtype=float)
+        for i, (tx, ty, yaw) in placed.items():
+            mine = robot_of == i
+            c, s = math.cos(yaw), math.sin(yaw)
+            x[mine], y[mine] = c * x[mine] - s * y[mine] + tx, s * x[mine] + c * y[mine] + ty
+        xs, ys = x.tolist(), y.tolist()
     posed = set(robots)
     silent = sorted((i, t) for t, i in which.items() if i not in posed)
     if silent:
@@ -160,6 +171,71 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
     if len(xs) and not np.isfinite(np.r_[xs, ys]).all():
         raise NetsimInputError(f"{source}: a pose has a non-finite position")
     return Waypoints.of(robots, t, xs, ys, source)
+
+
+def _deserialized(store: Any, raw: bytes, conn: Any, source: str, serde_error: type[Exception]) -> Any:
+    try:
+        return store.deserialize_cdr(raw, conn.msgtype)
+    except serde_error as exc:
+        why = " ".join(str(exc).split())
+        raise NetsimInputError(f"{source}: a message on {conn.topic!r} is not a {conn.msgtype} ({why})") from None
+
+
+def _frame(frame_id: str) -> str:
+    """A frame's name as tf2 compares them (a leading slash is not part of it)."""
+    return frame_id.lstrip("/")
+
+
+def _into_one_frame(
+    frames: dict[int, set[str]], reader: Any, store: Any, source: str, reader_error: type, serde_error: type
+) -> dict[int, tuple[float, float, float]]:
+    """Per robot, the planar transform ``(x, y, yaw)`` that takes its poses into the frame
+    all the robots share through ``/tf_static``; empty when they are in one frame already.
+    Poses in frames nothing joins are one line: placed as if in one frame, robots whose
+    odometry starts at their own origins would stand on top of each other."""
+    for i, names in sorted(frames.items()):
+        if len(names) > 1:
+            raise NetsimInputError(f"{source}: robot {i}'s poses are in several frames ({_frames_listed(names)})")
+    frame_of = {i: next(iter(names)) for i, names in frames.items()}
+    distinct = set(frame_of.values())
+    if len(distinct) <= 1:
+        return {}
+    conns = [c for c in reader.connections if c.topic == TF_STATIC and c.msgtype == TF_TYPE]
+    parent: dict[str, tuple[str, float, float, float]] = {}
+    # (The reader takes no connections to mean all of them.)
+    for conn, _t, raw in _messages(reader, conns, source, reader_error) if conns else ():
+        for tf in _deserialized(store, raw, conn, source, serde_error).transforms:
+            q, t = tf.transform.rotation, tf.transform.translation
+            yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+            parent[_frame(tf.child_frame_id)] = (_frame(tf.header.frame_id), t.x, t.y, yaw)
+    rooted = {name: _to_root(name, parent) for name in distinct}
+    if len({root for root, *_ in rooted.values()}) > 1:
+        raise NetsimInputError(
+            f"{source}: the robots' poses are in {len(distinct)} frames ({_frames_listed(distinct)}) that no "
+            f"transforms on {TF_STATIC} join under one: netsim places every robot in one frame; record the poses "
+            "in one frame (such as map), or the static transforms from theirs to it"
+        )
+    return {i: rooted[name][1:] for i, name in frame_of.items()}
+
+
+def _to_root(frame: str, parent: dict[str, tuple[str, float, float, float]]) -> tuple[str, float, float, float]:
+    """The frame at the top of ``frame``'s chain of static transforms, and the planar
+    transform ``(x, y, yaw)`` taking a point of ``frame`` into it (``p -> R(yaw) p + (x, y)``)."""
+    x = y = yaw = 0.0
+    seen = {frame}
+    while frame in parent:
+        up, tx, ty, turn = parent[frame]
+        if up in seen:  # a cycle of transforms has no top: its frames join nothing above them
+            break
+        c, s = math.cos(turn), math.sin(turn)
+        x, y, yaw = c * x - s * y + tx, s * x + c * y + ty, yaw + turn
+        seen.add(up)
+        frame = up
+    return frame, x, y, yaw
+
+
+def _frames_listed(names: set[str]) -> str:
+    return listed([repr(n) if n else "none given" for n in sorted(names)], 5)
 
 
 def _warn_of_stamps(robots: np.ndarray, stamps_ns: np.ndarray, source: str) -> None:
