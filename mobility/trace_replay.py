@@ -10,6 +10,7 @@ naming the robot, the time and the file's line, and nothing is simulated."""
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 from enum import StrEnum
@@ -104,8 +105,33 @@ def trace_format(params: TraceParams) -> TraceFormat:
     return TraceFormat.NS2
 
 
-def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) -> None:
-    """Every position of the trace lies in the world's area (``world.bounds_m``)."""
+def frame_holding(x_m: np.ndarray, y_m: np.ndarray) -> str:
+    """``world.bounds_m`` for positions spanning ``x_m``, ``y_m``: whole metres around them,
+    so that the text pasted holds them (rounded to fewer digits it could cut them), and a
+    metre across a trace that stays on one line."""
+    lo_x, lo_y = math.floor(float(np.min(x_m))), math.floor(float(np.min(y_m)))
+    hi_x = max(math.ceil(float(np.max(x_m))), lo_x + 1)
+    hi_y = max(math.ceil(float(np.max(y_m))), lo_y + 1)
+    return f"[{lo_x}, {lo_y}, {hi_x}, {hi_y}]"
+
+
+def replayed_span(scen: ns2.Scenario, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The x and y of every point the robots of ``scen`` reach up to ``duration_s``, wherever
+    that is: their legs' starts and where they stand at the end (a leg is straight)."""
+    st = RobotState(scen.n_robots, 1.0, 1.0)
+    st.place(scen.initial_m)
+    env = simpy.Environment(initial_time=0.0)
+    env.process(replay(env, st, scen))
+    env.run(until=duration_s)
+    legs = st.legs()
+    end = st.positions_at(duration_s)
+    return np.r_[legs["x_m"].to_numpy(), end[:, 0]], np.r_[legs["y_m"].to_numpy(), end[:, 1]]
+
+
+def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world, span=None) -> None:
+    """Every position of the trace lies in the world's area (``world.bounds_m``); ``span``
+    (a callable giving the x and y the motion reaches) for a frame to propose, when the
+    positions checked are not all the trace reaches."""
     x, y = x_m[~np.isnan(x_m)], y_m[~np.isnan(y_m)]
     area = world_bounds(world)
     # As the run checks its robots' motion: a position past a border by its rounding is on it.
@@ -115,19 +141,13 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world) ->
         side = world.side_m
         if len(xy) and xy.min() < -tol:
             # A square side can only grow to the right and up: a trace below 0 needs a frame.
-            # A frame needs some width: a trace that stays on one line gets a metre across it.
-            bounds = [
-                float(x.min()),
-                float(y.min()),
-                float(max(x.max(), x.min() + 1.0)),
-                float(max(y.max(), y.min() + 1.0)),
-            ]
+            reached = "them" if span is None else "them and the motion up to duration_s"
             raise ConfigError(
                 "world.side_m",
                 side,
                 f"gives the area [0, {side:g}]^2, and {params.trace_file} has coordinates below 0 (x from "
                 f"{x.min():g} to {x.max():g}, y from {y.min():g} to {y.max():g}): set world.bounds_m to a "
-                f"frame holding them (they span [{', '.join(f'{b:g}' for b in bounds)}])",
+                f"frame holding {reached}, such as {frame_holding(*(span() if span else (x, y)))}",
             )
         if len(xy) and xy.max() > side + tol:
             raise ConfigError(
@@ -175,8 +195,9 @@ def _read(params: TraceParams, fmt: TraceFormat, world) -> ns2.Scenario | Waypoi
         raise NetsimInputError(f"mobility.trace_file: {exc}{guessed}") from None
 
 
-def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
-    """The motion of ``params.trace_file``, checked against the world's size."""
+def load(params: TraceParams, world, duration_s: float) -> ns2.Scenario | Waypoints:
+    """The motion of ``params.trace_file``, checked against the world's size (an ns-2 file's
+    up to ``duration_s``, by :func:`check_motion`)."""
     fmt = trace_format(params)
     # The reader's warnings (lines skipped) are given once the file is taken: a file refused
     # is its one error line.
@@ -188,7 +209,7 @@ def load(params: TraceParams, world) -> ns2.Scenario | Waypoints:
             # Where the robots start; the motion after is checked as replayed, up to the run's
             # end (check_motion), not by where a setdest heads, which the run may never reach.
             xy = scen.initial_m.reshape(-1, 2)
-            _check_area(xy[:, 0], xy[:, 1], params, world)
+            _check_area(xy[:, 0], xy[:, 1], params, world, lambda: replayed_span(scen, duration_s))
         else:
             _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world)
     for w in caught:
@@ -209,7 +230,11 @@ def check_motion(scen: ns2.Scenario, params: TraceParams, world, duration_s: flo
         env.run(until=duration_s)
         st.check_until(duration_s)
     except MotionError as exc:
-        raise MotionError(f"mobility.trace_file: {exc}") from None
+        x, y = replayed_span(scen, duration_s)
+        inside = world_bounds(world).contains(np.c_[x, y], border_tolerance_m(world_bounds(world))).all()
+        # Out of the area (not into a wall): the frame that holds the whole replay.
+        frame = "" if inside else f"; world.bounds_m = {frame_holding(x, y)} holds its motion up to duration_s"
+        raise MotionError(f"mobility.trace_file: {exc}{frame}") from None
 
 
 def _warn_if_short(wp: Waypoints, params: TraceParams, duration_s: float) -> None:
@@ -270,7 +295,7 @@ def follow(env: simpy.Environment, st: RobotState, wp: Waypoints):
 
 
 def build(params: TraceParams, parts: Parts) -> None:
-    scen = load(params, parts.world)
+    scen = load(params, parts.world, parts.duration_s)
     if isinstance(scen, ns2.Scenario):
         check_motion(scen, params, parts.world, parts.duration_s)
     else:

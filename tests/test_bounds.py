@@ -517,21 +517,51 @@ def test_random_direction_stops_exactly_on_the_border_and_leaves_inward(pause_s)
 
 def test_a_trace_below_zero_on_the_default_square_names_world_bounds_m(tmp_path, capsys):
     """A trace recorded in a map's frame (coordinates below 0) on the default square: the
-    error says the square cannot hold it and names world.bounds_m with the least frame that
-    does; with those bounds the run goes ahead."""
+    error says the square cannot hold it and names world.bounds_m with a frame of whole
+    metres holding where the robots start and go up to duration_s (node 0's setdest takes
+    it to (30, 10)); pasted as printed, the run goes ahead."""
     trace = tmp_path / "frame.tcl"
     trace.write_text(
         "$node_(0) set X_ -10.5\n$node_(0) set Y_ 4.0\n$node_(1) set X_ 20.0\n$node_(1) set Y_ -3.25\n"
-        '$ns_ at 1.0 "$node_(0) setdest 0.0 2.0 2.0"\n'
+        '$ns_ at 1.0 "$node_(0) setdest 30.0 10.0 20.0"\n'
     )
     base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
     base += ["--set", "world.n_robots=2", "--set", "duration_s=5"]
     assert main([*base, "--out", str(tmp_path / "a")]) == 2
     err = capsys.readouterr().err.strip()
-    assert "has coordinates below 0" in err and "set world.bounds_m to a frame holding them" in err, err
-    assert "(they span [-10.5, -3.25, 20, 4])" in err, err
+    assert "has coordinates below 0" in err, err
+    assert err.endswith(
+        "set world.bounds_m to a frame holding them and the motion up to duration_s, such as [-11, -4, 30, 10]"
+    ), err
     assert not (tmp_path / "a").exists()
-    assert main([*base, "--set", "world.bounds_m=[-10.5, -3.25, 20, 4]", "--out", str(tmp_path / "b")]) == 0
+    assert main([*base, "--set", "world.bounds_m=[-11, -4, 30, 10]", "--out", str(tmp_path / "b")]) == 0
+
+
+def test_a_trace_that_leaves_the_bounds_names_the_frame_holding_its_motion(tmp_path, capsys):
+    """An ns-2 trace that starts inside world.bounds_m and moves out of it: the one line
+    names the robot and the time, and the frame (whole metres) holding the replay up to
+    duration_s; one that starts outside them, the whole trace's frame. Coordinates read to
+    fewer digits would cut them, so they are rounded outward: pasted, they hold the run."""
+    trace = tmp_path / "away.tcl"
+    trace.write_text(
+        "$node_(0) set X_ -10.5\n$node_(0) set Y_ 4.0\n$node_(1) set X_ 20.0\n$node_(1) set Y_ -3.25\n"
+        '$ns_ at 1.0 "$node_(0) setdest 30.123456789 10.0 20.0"\n'
+    )
+    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    base += ["--set", "world.n_robots=2", "--set", "duration_s=5"]
+    assert main([*base, "--set", "world.bounds_m=[-11, -4, 20, 4]", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "robot 0 leaves the area" in err and len(err.splitlines()) == 1, err
+    assert err.endswith("; world.bounds_m = [-11, -4, 31, 10] holds its motion up to duration_s"), err
+    assert not (tmp_path / "a").exists()
+    assert main([*base, "--set", "world.bounds_m=[-11, -4, 31, 10]", "--out", str(tmp_path / "b")]) == 0
+
+
+def test_a_frame_holding_positions_is_whole_metres_around_them():
+    from netsim.mobility.trace_replay import frame_holding
+
+    assert frame_holding(np.array([-5.13523, 44.5372]), np.array([-16.9728, 17.0515])) == "[-6, -17, 45, 18]"
+    assert frame_holding(np.array([2.0, 2.0]), np.array([-1.0, -1.0])) == "[2, -1, 3, 0]"  # a metre across
 
 
 # -- rules the mutation audit found unguarded ------------------------------------------------
