@@ -728,6 +728,11 @@ def test_bag_without_pose_topics_exits_2_one_line(tmp_path, capsys):
     [
         (["--format", "gpx"], "--format gpx"),
         (["--format", "bonnmotion", "--out", "x.txt"], "NAME.movements"),
+        (["--format", "ns2", "--out", "y.movements"], "an ns-2 file named .movements would be read as BonnMotion"),
+        (["--format", "ns2", "--out", "y.movements.gz"], "an ns-2 file named .movements would be read as BonnMotion"),
+        (["--format", "ns2", "--out", "y.tcl.gz"], "an ns-2 file is written as plain text; give a name without .gz"),
+        (["--format", "rosbag2", "--out", "z.mcap"], "a bag is a folder (its storage file inside it)"),
+        (["--format", "rosbag2", "--out", "z.db3"], "give the folder's name, without .db3"),
     ],
 )
 def test_export_bad_arguments_exit_2_one_line(run_dir, tmp_path, capsys, args, says):

@@ -138,8 +138,17 @@ def _unwritable_proc(d):
         (_unwritable_proc, "/proc/netsim-test/view.html", "cannot write in /proc"),
         (lambda d: None, "nd2/", "names a directory"),
         (lambda d: None, "nd2/.", "names a directory"),
+        (lambda d: None, "sub/a_view.png", "the replay is a web page; name a .html file"),
     ],
-    ids=["existing-directory", "under-a-file", "under-a-file-deeper", "unwritable-place", "new-directory", "dot"],
+    ids=[
+        "existing-directory",
+        "under-a-file",
+        "under-a-file-deeper",
+        "unwritable-place",
+        "new-directory",
+        "dot",
+        "not-html",
+    ],
 )
 def test_view_out_that_cannot_take_the_file_is_one_line(tmp_path, capfd, monkeypatch, small_run, make, out, words):
     """`netsim view RUN --out X` where X is a directory, lies under a file, or is in a place

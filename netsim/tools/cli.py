@@ -442,6 +442,8 @@ def cmd_view(args) -> int:
 
     if args.out is not None:
         check_out_file(args.out, "--out", make_parents=True)
+        if Path(args.out).suffix.lower() not in (".html", ".htm"):
+            raise NetsimInputError(f"--out {args.out}: the replay is a web page; name a .html file")
     elif Path(args.run_dir).is_dir():
         # The run's own replay (as `netsim run --view` writes it) is remade in place.
         check_out_file(Path(args.run_dir) / "view.html", "the replay", replace=True)

@@ -49,6 +49,18 @@ def check_out(out: Path, fmt: str) -> None:
         Path(probe).rmdir()
     except OSError as exc:
         raise NetsimInputError(f"--out {out}: cannot write in {parent} ({exc.strerror or exc})") from None
+    # A trace is read back by its name (mobility.trace_format = "auto"): a name another
+    # format's would be read as that one, or a compressed one that is not compressed.
+    if fmt == "ns2" and out.name.endswith((".movements", ".movements.gz")):
+        raise NetsimInputError(
+            f"--out {out}: an ns-2 file named .movements would be read as BonnMotion; give another name"
+        )
+    if fmt == "ns2" and out.suffix == ".gz":
+        raise NetsimInputError(f"--out {out}: an ns-2 file is written as plain text; give a name without .gz")
+    if fmt == "rosbag2" and out.suffix.lower() in (".mcap", ".db3", ".bag"):
+        raise NetsimInputError(
+            f"--out {out}: a bag is a folder (its storage file inside it); give the folder's name, without {out.suffix}"
+        )
     if fmt == "bonnmotion":
         from netsim.formats.bonnmotion import params_path
 
