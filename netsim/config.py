@@ -690,11 +690,15 @@ def _table(raw: Mapping, name: str) -> dict:
     return value
 
 
-def _unknown(key: str, value: Any, allowed: Iterable[str]) -> ConfigError:
+def _unknown(key: str, value: Any, allowed: Iterable[str], others: Iterable[str] = ()) -> ConfigError:
+    """An unknown key, with the keys ``allowed`` and those the section takes with another
+    model (``others``): a key of a model not chosen is taken, and ignored with a warning."""
     allowed = sorted(allowed)
-    return ConfigError(
-        key, value, f"unknown key{did_you_mean(key.rsplit('.', 1)[-1], allowed)}; allowed: " + ", ".join(allowed)
-    )
+    others = sorted(set(others) - set(allowed))
+    said = f"unknown key{did_you_mean(key.rsplit('.', 1)[-1], allowed + others)}; allowed: " + ", ".join(allowed)
+    if others:
+        said += "; with another model: " + ", ".join(others)
+    return ConfigError(key, value, said)
 
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
@@ -737,7 +741,7 @@ def _split(section: str, raw: dict, own: list[str], chosen: str, params_cls: typ
         elif key in others:
             ignored.append(key)
         else:
-            raise _unknown(f"{section}.{key}", value, own + mine)
+            raise _unknown(f"{section}.{key}", value, own + mine, others)
     if ignored:
         which = ", ".join(f"{section}.{k}" for k in ignored)
         warnings.warn(
@@ -798,7 +802,8 @@ def _channel_section(raw: dict) -> ChannelParams:
             continue
         other = [attr for attr in chosen if k in others[attr]]
         if not other:
-            raise _unknown(f"channel.{k}", v, own + [n for _, _, cls in chosen.values() for n in names(cls)])
+            mine_all = own + [n for _, _, cls in chosen.values() for n in names(cls)]
+            raise _unknown(f"channel.{k}", v, mine_all, [n for attr in chosen for n in others[attr]])
         ignored[other[0]].append(k)
     params = {attr: cls(**taken[attr]) for attr, (_, _, cls) in chosen.items()}
     propagation = plugins.resolve(PROPAGATION, chosen["radio"][1], "channel.propagation")

@@ -70,6 +70,8 @@ def test_a_routing_protocols_infinite_timing_is_refused(model, key):
         ("mobility.speed_maxx_mps=3", "unknown key (did you mean 'speed_max_mps'?); allowed: "),
         ("world.n_robot=3", "unknown key (did you mean 'n_robots'?); allowed: "),
         ("world.colour=3", "unknown key; allowed: "),
+        ("channel.shadowing_sigma=3", "unknown key (did you mean 'shadowing_sigma_db'?); allowed: "),
+        ("mobility.trace_fil=3", "unknown key (did you mean 'trace_file'?); allowed: "),
     ],
 )
 def test_a_misspelt_key_is_named_with_the_closest_key(override, said):
@@ -78,6 +80,25 @@ def test_a_misspelt_key_is_named_with_the_closest_key(override, said):
     with pytest.raises(ConfigError) as err:
         cfgmod.load(None, [override])
     assert said in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "override, mine, other",
+    [
+        ("channel.rangee_m=3", "range_m", "shadowing_sigma_db"),
+        ("mobility.speed_maxx=3", "speed_max_mps", "trace_file"),
+    ],
+)
+def test_an_unknown_key_lists_the_keys_of_the_other_models_apart(override, mine, other):
+    """The keys a section takes with another model (taken, and ignored with a warning,
+    under this one) are listed apart from the chosen model's: a user reading the list for
+    shadowing_sigma_db under the unit disk finds it (it was left out)."""
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, [override])
+    said = str(err.value)
+    allowed, _, others = said.partition("; with another model: ")
+    assert mine in allowed.split("allowed: ")[1].split(", ") and mine not in others.split(", ")
+    assert other in others.split(", ") and other not in allowed
 
 
 def test_a_truth_value_in_an_error_is_spelt_as_in_the_file():
