@@ -758,3 +758,20 @@ def test_in_turns_an_agent_whose_episode_is_over_steps_with_none():
     assert all(env.truncations.values())
     while env.agents:
         env.step(None)
+
+
+@pytest.mark.parametrize("library", ["gymnasium", "pettingzoo"])
+def test_the_environment_without_the_rl_extra_says_how_to_install_it(monkeypatch, library):
+    """Without a library of the extra `rl`, importing the environment says which library and
+    the install line, as the live commands say theirs (it was a bare ModuleNotFoundError)."""
+    import importlib
+    import sys
+
+    monkeypatch.delitem(sys.modules, "netsim.envs.coverage_v0")
+    monkeypatch.setitem(sys.modules, library, None)
+    with pytest.raises(ModuleNotFoundError) as err:
+        importlib.import_module("netsim.envs.coverage_v0")
+    assert str(err.value) == (
+        f"netsim.envs needs {library}, of the optional extra 'rl': pip install 'netsim-robots[rl]' "
+        "(in a clone: pip install -e '.[rl]')"
+    )
