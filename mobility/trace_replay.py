@@ -100,7 +100,7 @@ def trace_format(params: TraceParams) -> TraceFormat:
     name = params.trace_file
     if name.endswith((".movements", ".movements.gz")):
         return TraceFormat.BONNMOTION
-    if Path(name).is_dir():
+    if Path(name).is_dir() or name.endswith((".mcap", ".db3")):  # a bag, or a bag's storage file
         return TraceFormat.ROSBAG2
     return TraceFormat.NS2
 

@@ -472,6 +472,28 @@ def test_a_bags_frames_joined_by_static_transforms_are_placed_in_their_common_fr
     assert np.allclose(wp.positions_at(10.0), [[6, 0], [8, 1]])
 
 
+def test_a_bags_storage_file_named_for_the_bag_says_what_to_give(tmp_path):
+    """A bag's storage file given for the bag (its name says a bag: read as one) names the
+    folder to give; one alone, without the folder's metadata.yaml, says how to make it
+    (it was read as ns-2, then refused as no folder, and the hint led nowhere)."""
+    import shutil
+
+    from netsim.mobility.trace_replay import TraceFormat, TraceParams, trace_format
+
+    bag = tmp_path / "bag"
+    _bag(bag, {"/robot_0/pose": [(0.0, 1, 1)]}, "geometry_msgs/msg/PoseStamped")
+    (db3,) = bag.glob("*.db3")
+    assert trace_format(TraceParams(trace_file=str(db3))) is TraceFormat.ROSBAG2
+    assert trace_format(TraceParams(trace_file="field.mcap")) is TraceFormat.ROSBAG2
+    with pytest.raises(NetsimInputError) as err:
+        rosbag2.read(db3)
+    assert str(err.value) == f"{db3}: the storage file of a bag; give the bag's folder, {bag}"
+    alone = tmp_path / "alone.mcap"
+    shutil.copy(db3, alone)
+    with pytest.raises(NetsimInputError, match=r"a storage file alone, .* `ros2 bag reindex FOLDER` \(with `-s mcap`"):
+        rosbag2.read(alone)
+
+
 def test_a_robot_whose_poses_change_frame_is_refused(tmp_path):
     """A robot's poses in two frames: one line naming them (each pose would be placed as if
     in one)."""

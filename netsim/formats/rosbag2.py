@@ -122,6 +122,13 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
 
     path = Path(path)
     source = str(path)
+    if path.is_file() and path.suffix in (".mcap", ".db3"):
+        if (path.parent / "metadata.yaml").is_file():
+            raise NetsimInputError(f"{source}: the storage file of a bag; give the bag's folder, {path.parent}")
+        raise NetsimInputError(
+            f"{source}: a storage file alone, without the metadata.yaml of a rosbag2 folder; put it in a folder of "
+            "its own and run `ros2 bag reindex FOLDER` (with `-s mcap` for MCAP), which writes it"
+        )
     if not path.is_dir():
         raise NetsimInputError(f"{source!r}: not a rosbag2 folder (a folder with metadata.yaml)")
     if not (path / "metadata.yaml").is_file():
