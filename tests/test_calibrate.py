@@ -429,6 +429,7 @@ BAD_LOGS = {
     "semicolons": lambda g: ("semicolons.csv", g.to_csv(index=False, sep=";").encode()),
     "above_tx_power": _above_tx_power,
     "nearly_flat": _nearly_flat,
+    "milliwatts": lambda g: g.assign(rssi_dbm=10 ** (g["rssi_dbm"] / 10)),
 }
 
 
@@ -479,6 +480,8 @@ def bad_log(tmp_path, good: pd.DataFrame, case: str):
         ("above_tx_power", ["--sensitivity-dbm", "-75"], "were received below it"),
         ("above_tx_power", ["--tx-power-dbm", "-24"], "the fitted channel is not one netsim runs"),
         ("nearly_flat", ["--sensitivity-dbm", "-120"], "the radio's reach under its strongest shadowing"),
+        ("milliwatts", [], "every logged power is at or above 0 dBm (the weakest "),
+        ("milliwatts", [], "a log in mW, not dBm?"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, small_log, case, extra, words):

@@ -653,7 +653,13 @@ def check_channel(c: Calibration) -> None:
             warnings.simplefilter("ignore")
             from_dict({"channel": c.channel()})
     except NetsimInputError as exc:
-        raise NetsimInputError(f"the fitted channel is not one netsim runs: {exc}") from None
+        unit = ""
+        logged = c.design.y_dbm[~np.isnan(c.design.y_dbm)] if c.design is not None else np.empty(0)
+        if len(logged) and logged.min() >= 0.0:
+            # A receiver hears above 1 mW only metres from the sender: a whole log so is in
+            # another unit (mW or W), the likeliest cause of a fit out of bounds.
+            unit = f"; every logged power is at or above 0 dBm (the weakest {logged.min():g}): a log in mW, not dBm?"
+        raise NetsimInputError(f"the fitted channel is not one netsim runs: {exc}{unit}") from None
 
 
 def _check_flag(flag: str, value: float | None, ok, allowed: str) -> None:
