@@ -631,3 +631,31 @@ def test_a_start_point_is_read_as_x_then_y():
     from netsim.area import parse_start
 
     assert parse_start("world.start_m", [1, 2.5]) == (1.0, 2.5)
+
+
+def test_a_run_whose_map_moved_says_where_to_point_it(tmp_path, capsys):
+    """A run on a map keeps the map's path as it ran: moved to where that path is gone, a
+    command that reads the run says so in one line, with the two ways out (the map put
+    back, or world.map in the run's config.toml); edited so, the command goes ahead."""
+    from netsim.tools.cli import main
+
+    yaml = ros_map(tmp_path)
+    run = tmp_path / "run"
+    argv = ["run", "--quiet", "--out", str(run), "--set", f"world.map={yaml}", "--set", "world.bounds_m=map"]
+    assert main([*argv, "--set", "world.n_robots=3", "--set", "duration_s=5", "--set", "world.centre_side_m=5"]) == 0
+    moved = tmp_path / "elsewhere"
+    moved.mkdir()
+    for p in (yaml, yaml.with_suffix(".pgm")):
+        p.rename(moved / p.name)
+    capsys.readouterr()
+    assert main(["export", str(run), "--format", "ns2", "--out", str(tmp_path / "m.tcl")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"netsim: error: world.map = '{yaml}': ") and "\n" not in err, err
+    assert err.endswith(
+        f": the run's map, read from where it ran; copy the map there, or set world.map in {run / 'config.toml'} "
+        "to where it is now"
+    ), err
+    assert not (tmp_path / "m.tcl").exists()
+    config = run / "config.toml"
+    config.write_text(config.read_text().replace(str(yaml), str(moved / yaml.name)))
+    assert main(["export", str(run), "--format", "bonnmotion", "--out", str(tmp_path / "m.movements")]) == 0

@@ -35,7 +35,7 @@ import pandas as pd
 import tomli_w
 
 from netsim.config import Config, from_dict, to_dict
-from netsim.errors import NetsimInputError
+from netsim.errors import ConfigError, NetsimInputError
 from netsim.tools.interrupt import ignoring_interrupts, interrupted
 
 # The distributions named in a manifest, with the module each installs.
@@ -253,9 +253,22 @@ def load_run_config(run_dir: Path) -> Config:
     """The run's configuration (:func:`read_run_config`), checked and resolved, without
     the warnings a run gives of it: they were given when it ran, and a session ended early
     would be warned of what its shorter end leaves out (a flow that starts after it)."""
+    tree = read_run_config(run_dir)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return from_dict(read_run_config(run_dir))
+        try:
+            return from_dict(tree)
+        except ConfigError as exc:
+            world = tree.get("world") if isinstance(tree.get("world"), dict) else {}
+            if exc.key == "world.map" and world.get("map") == exc.value:
+                # A run moved to another machine: its map stayed behind, at the path it ran with.
+                raise ConfigError(
+                    exc.key,
+                    exc.value,
+                    f"{exc.allowed}: the run's map, read from where it ran; copy the map there, or set world.map in "
+                    f"{Path(run_dir) / 'config.toml'} to where it is now",
+                ) from None
+            raise
 
 
 def earlier_run_files(out: Path) -> list[Path]:
