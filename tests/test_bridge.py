@@ -148,6 +148,7 @@ DOMAINS = {
     "node": 70,
     "live": 71,
     "rate": 72,
+    "best_effort": 73,
 }
 
 
@@ -648,3 +649,30 @@ def test_the_bridge_paces_the_run_at_the_rate_given(tmp_path, monkeypatch):
     assert main(["bridge", str(config), "--out", str(tmp_path / "out"), "--quiet", "--rate", "250"]) == 0
     assert rates == [250.0]
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["bridge_rate"] == 250.0
+
+
+@pytest.mark.slow
+def test_a_best_effort_publisher_that_netsim_cannot_match_is_named_once():
+    """A node publishing /robot_1/cmd_vel best effort never matches netsim's reliable reader:
+    its commands never arrive, and the bridge said nothing. The node's reader now names the
+    topic, once (a reliable publisher beside it is not named); the bridge warns with it."""
+    from netsim.bridge.bridge import TWIST, unmatched_warning
+    from netsim.bridge.node import Node
+
+    node = Node(DOMAINS["best_effort"])
+    readers = [node.reader(f"/robot_{i}/cmd_vel", TWIST) for i in (0, 1)]
+    dp = DomainParticipant(DOMAINS["best_effort"])
+    writers = [  # kept: a writer no one holds is deleted
+        DataWriter(dp, Topic(dp, "rt/robot_0/cmd_vel", Twist), qos=RELIABLE),
+        DataWriter(dp, Topic(dp, "rt/robot_1/cmd_vel", Twist), qos=CLOCK_QOS),  # best effort
+    ]
+    named: list[str] = []
+    end = time.monotonic() + 30
+    while not named and time.monotonic() < end:  # discovery is asynchronous
+        named += node.unmatched()
+        time.sleep(0.02)
+    assert named == ["/robot_1/cmd_vel"] and len(writers) == len(readers) == 2
+    assert node.unmatched() == []
+    assert unmatched_warning("/robot_1/cmd_vel").startswith(
+        "/robot_1/cmd_vel: a node publishes it with a QoS netsim cannot match (best effort: netsim reads reliably)"
+    )

@@ -19,6 +19,7 @@ Robots have no heading: a Twist's ``linear.x`` and ``linear.y`` are the world fr
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -62,6 +63,13 @@ def _set(path: str) -> Any:
         setattr(message, leaf, value)
 
     return set_field
+
+
+def unmatched_warning(topic: str) -> str:
+    return (
+        f"{topic}: a node publishes it with a QoS netsim cannot match (best effort: netsim reads reliably), "
+        "so none of its messages is taken; publish it reliable, ROS 2's default"
+    )
 
 
 def odometry(writer: Any, robot: int) -> Template:
@@ -110,6 +118,8 @@ class RosBridge:
     # -- in ------------------------------------------------------------------------------
     def take(self, t_s: float) -> None:
         """Apply the commands and send the messages that came since the last call."""
+        for topic in self.node.unmatched():
+            warnings.warn(unmatched_warning(topic), stacklevel=2)
         robots, vel = [], []
         for i, reader in enumerate(self.cmd):
             got = take_all(reader)

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from cyclonedds._clayer import ddspy_write
-from cyclonedds.core import DDSException, Policy, Qos
+from cyclonedds.core import DDSException, Listener, Policy, Qos
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.internal import InvalidSample
 from cyclonedds.pub import DataWriter
@@ -58,6 +58,10 @@ class Node:
             text = f"{where}: Cyclone DDS cannot start on domain {domain_id} with it: {exc}"
             raise NetsimInputError(text) from None
         self._topics: dict[str, Topic] = {}
+        # Topics a node publishes with a QoS netsim's readers cannot match (appended on DDS's
+        # own thread): nothing of such a publisher arrives, so the bridge says so.
+        self._unmatched: list[str] = []
+        self._told: set[str] = set()
 
     def topic(self, name: str, msgtype: str) -> Topic:
         tp = self._topics.get(name)
@@ -69,7 +73,15 @@ class Node:
         return DataWriter(self.participant, self.topic(name, msgtype), qos=qos)
 
     def reader(self, name: str, msgtype: str, qos: Qos = INBOX_QOS) -> DataReader:
-        return DataReader(self.participant, self.topic(name, msgtype), qos=qos)
+        unmatched = Listener(on_requested_incompatible_qos=lambda _reader, _status: self._unmatched.append(name))
+        return DataReader(self.participant, self.topic(name, msgtype), qos=qos, listener=unmatched)
+
+    def unmatched(self) -> list[str]:
+        """The topics, not named before, that a node publishes with a QoS netsim's readers
+        cannot match (a best-effort publisher: netsim reads reliably)."""
+        new = [t for t in dict.fromkeys(self._unmatched[:]) if t not in self._told]
+        self._told.update(new)
+        return new
 
 
 def take_all(reader: DataReader) -> list[Any]:
