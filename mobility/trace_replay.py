@@ -167,6 +167,27 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world, sp
         )
 
 
+def _warn_of_wraps(wp: Waypoints, params: TraceParams, side_m: float) -> None:
+    """On a torus, say where a robot's next recorded pose, some time later, lies more than
+    half the square away on an axis: the trace is followed straight across the square
+    between them, where the robot likely wrapped about a border (a torus run's bag holds
+    sampled poses only). Not for waypoints, whose legs may be that long, and whose exports
+    write a wrap as a jump, two poses at one instant."""
+    same = wp.robot[1:] == wp.robot[:-1]
+    later = np.diff(wp.t_s) > 0
+    far = (np.abs(np.diff(wp.x_m)) > side_m / 2) | (np.abs(np.diff(wp.y_m)) > side_m / 2)
+    wraps = np.flatnonzero(same & later & far)
+    if len(wraps):
+        k = int(wraps[0])
+        warnings.warn(
+            f"mobility.trace_file: {params.trace_file}: {len(wraps):,} time(s) a robot's next pose lies more than "
+            f"half the square away (robot {int(wp.robot[k])} at t = {float(wp.t_s[k + 1]):g} s): on the torus it "
+            "goes straight across the square between them, where it likely wrapped about a border; replay a torus "
+            "run from its ns-2 or BonnMotion export",
+            stacklevel=3,
+        )
+
+
 def _check_count(n: int, params: TraceParams, world) -> None:
     if n != world.n_robots:
         nodes = f"{n} node{'s' if n != 1 else ''}"
@@ -212,6 +233,8 @@ def load(params: TraceParams, world, duration_s: float) -> ns2.Scenario | Waypoi
             _check_area(xy[:, 0], xy[:, 1], params, world, lambda: replayed_span(scen, duration_s))
         else:
             _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world)
+            if world.torus and fmt is TraceFormat.ROSBAG2:
+                _warn_of_wraps(scen, params, world.side_m)
     for w in caught:
         warnings.warn(w.message, w.category, stacklevel=2)
     return scen

@@ -139,6 +139,27 @@ def test_a_torus_runs_bag_export_says_a_trace_replay_of_it_crosses_the_square(tm
     assert len(err.splitlines()) == 1 and "replay a torus run from --format ns2 or bonnmotion" in err, err
 
 
+def test_a_torus_runs_bag_replayed_on_the_torus_says_where_it_crosses_the_square(tmp_path):
+    """Replayed on the torus, a bag of a torus run goes straight across the square between
+    two poses about a border; the replay says so, naming the first such robot and time
+    (the BonnMotion and ns-2 exports, whose jumps are two poses at one instant, say nothing:
+    the test below)."""
+    sets = ["world.torus=true", "world.n_robots=5", "duration_s=100", "world.side_m=200", "channel.range_m=60"]
+    sets += ["protocol.model=none", "mobility.model=random_direction", "mobility.speed_min_mps=3"]
+    sets += ["mobility.speed_max_mps=5", "mobility.turn_interval_s=40"]
+    run = tmp_path / "run"
+    assert main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(run)]) == 0
+    from netsim.tools.export import export
+
+    with pytest.warns(UserWarning, match="replay a torus run from --format ns2"):
+        export(run, "rosbag2", tmp_path / "bag")
+    replay = [s for s in sets if not s.startswith("mobility.")] + ["mobility.model=trace"]
+    with pytest.warns(
+        UserWarning, match=r"a robot's next pose lies more than half the square away \(robot \d+ at t = "
+    ):
+        _run([*replay, f"mobility.trace_file={tmp_path / 'bag'}"])
+
+
 @pytest.mark.parametrize("fmt, name", [("bonnmotion", "t.movements"), ("ns2", "t.ns2")])
 def test_export_of_a_torus_run_stays_in_the_square_and_replays_on_the_torus(tmp_path, fmt, name):
     """A torus run's legs run on past the borders; the formats know no torus, so the export
