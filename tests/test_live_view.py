@@ -211,3 +211,31 @@ def test_a_live_run_sends_the_scene_every_tenth_of_a_simulated_second(monkeypatc
     config = make_config(seed=1, duration_s=0.3, world={"n_robots": 3, "side_m": 50.0}, mobility={"model": "static"})
     run_live(config, 0, SimpleNamespace(table=lambda name, frame: None))
     assert sent == pytest.approx([0.1, 0.2, 0.3])
+
+
+@pytest.mark.slow
+def test_a_viewer_that_drops_its_connection_leaves_standard_error_clean(tmp_path):
+    """A client that goes without closing the WebSocket (a closed tab: its socket reset) is
+    no error of the run: the command's standard error holds its own lines only (the SDK's
+    "Error receiving from client ... Connection reset" was printed)."""
+    import contextlib
+    import socket
+
+    proc = subprocess.Popen(
+        [COMMAND, "run", "--live", "0", "--quiet", "--no-progress", "--out", str(tmp_path / "out")]
+        + ["--set", "duration_s=8", "--set", "world.n_robots=6", "--set", "world.side_m=100"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    port = live_port(proc)
+    # The client's own closing finds its socket gone: that is the point.
+    with contextlib.suppress(OSError):
+        with client.connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=30) as ws:
+            ws.recv(timeout=30)  # the server's hello: the connection is up
+            # Gone with a reset (SO_LINGER 0), no closing handshake.
+            ws.socket.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            ws.socket.close()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0
+    assert err.strip() == "", err

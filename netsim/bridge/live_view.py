@@ -20,6 +20,7 @@ A step is ``1 / bridge.odom_hz`` simulated seconds in ``netsim bridge``, 0.1 s i
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import foxglove
@@ -90,11 +91,18 @@ def _colour(rgba: tuple[float, float, float, float]) -> Color:
     return Color(r=r, g=g, b=b, a=a)
 
 
+# The Foxglove SDK's log (Python's logging) of what a connected client's socket does.
+CLIENT_LOG = "foxglove.websocket.connected_client"
+
+
 class LiveView:
     """The server and its channels, fed by the run's events and by :meth:`publish`."""
 
     def __init__(self, sim: Any, port: int, host: str = "127.0.0.1"):
         self.sim = sim
+        # A viewer that goes without closing its connection (a tab closed, a laptop asleep)
+        # is no fault of the run: the server's log of it is not shown.
+        logging.getLogger(CLIENT_LOG).setLevel(logging.CRITICAL)
         try:
             self.server = foxglove.start_server(
                 name="netsim", host=host, port=port, capabilities=[foxglove.Capability.Time]
