@@ -38,6 +38,34 @@ def test_passes_pettingzoo_parallel_api_test():
     parallel_api_test(coverage_v0.parallel_env(**SMALL), num_cycles=15)
 
 
+def test_passes_pettingzoo_state_test():
+    """state() and state_space pass PettingZoo's own state test, through the turn-based
+    wrapper and in parallel."""
+    from pettingzoo.test import state_test
+
+    state_test(coverage_v0.env(**SMALL), coverage_v0.parallel_env(**SMALL), num_cycles=10)
+
+
+def test_state_is_every_robots_own_observation_at_its_true_position():
+    """The state is each robot's own part of its observation (position, velocity, role
+    one-hot), robot after robot: the true positions, which no agent observes of another."""
+    env = coverage_v0.parallel_env(**SMALL)
+    with pytest.raises(RuntimeError, match=r"no episode yet: call reset\(\)"):
+        env.state()
+    obs, infos = env.reset(seed=4)
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        obs, _, _, _, infos = env.step({a: rng.uniform(-2.0, 2.0, 2) for a in env.agents})
+    own = 4 + len(env.role_names)
+    state = env.state()
+    assert state.dtype == np.float32 and env.state_space.contains(state)
+    rows = state.reshape(SMALL["n_robots"], own)
+    assert np.array_equal(rows, np.stack([obs[a][:own] for a in env.possible_agents]))
+    assert np.allclose(rows[:, :2], infos["robot_0"]["positions_m"], atol=1e-4)
+    assert rows[:, 4:].sum(axis=1).tolist() == [1.0] * SMALL["n_robots"]  # one role each
+    assert not np.array_equal(rows[:, 2:4], np.zeros((SMALL["n_robots"], 2)))  # they move
+
+
 def test_passes_pettingzoo_parallel_seed_test():
     """The environment passes PettingZoo's own seed test (same seed, same episode)."""
     parallel_seed_test(lambda: coverage_v0.parallel_env(**SMALL))

@@ -163,6 +163,10 @@ class CoverageEnv(ParallelEnv):
         self._observation_space = observation_space(
             self.area, p.speed_max_mps, len(self.role_names), p.max_neighbours, self.tau_s, self.power_bounds_dbm
         )
+        # The team's true state for a centralised critic (state()): each robot's own part of
+        # its observation (position, velocity, role), robot after robot.
+        own = observation_space(self.area, p.speed_max_mps, len(self.role_names), 0, self.tau_s)
+        self.state_space = spaces.Box(np.tile(own.low, p.n_robots), np.tile(own.high, p.n_robots), dtype=np.float32)
         # An action may reach the bound as either precision gives it: speed_max_mps, or the
         # action space's float32 bound (rounded up or down); it is then held to the former.
         self._high = np.maximum(self._action_space.high.astype(float), p.speed_max_mps)
@@ -379,16 +383,33 @@ class CoverageEnv(ParallelEnv):
         return np.array(robots, dtype=np.int64), v.reshape(-1, 2)
 
     # -- what agents see ------------------------------------------------------------------
+    def state(self) -> np.ndarray:
+        """The team's true state (``state_space``), for a critic trained with what no agent
+        sees: every robot's own part of its observation (position, velocity, role one-hot),
+        robot after robot, now."""
+        if self.sim is None:
+            raise RuntimeError("no episode yet: call reset()")
+        return self._own(self.sim.positions()).ravel()
+
+    def _own(self, pos: np.ndarray, width: int | None = None) -> np.ndarray:
+        """Each robot's own part of its observation, in the first columns of a zeroed
+        ``(n, width)`` array (``width`` None: that part alone)."""
+        sim = self.sim
+        assert sim is not None
+        n, roles = self.params.n_robots, len(self.role_names)
+        out = np.zeros((n, width or 4 + roles), dtype=np.float32)
+        out[:, 0:2] = pos
+        out[:, 2:4] = sim.state.velocity_mps
+        if sim.groups is not None:
+            out[np.arange(n), 4 + sim.groups.role] = 1.0
+        return out
+
     def _observations(self, pos: np.ndarray) -> dict[str, np.ndarray]:
         sim, p = self.sim, self.params
         assert sim is not None
-        n, k = p.n_robots, p.max_neighbours
-        out = np.zeros((n, self._obs_size), dtype=np.float32)
-        out[:, 0:2] = pos
-        out[:, 2:4] = sim.state.velocity_mps
+        k = p.max_neighbours
+        out = self._own(pos, self._obs_size)
         roles = len(self.role_names)
-        if sim.groups is not None:
-            out[np.arange(n), 4 + sim.groups.role] = 1.0
         if k and sim.neighbour_view is not None:
             ids, told, heard_s = sim.neighbour_view.heard(sim.now)
             self._measures.nearest_told(out, 4 + roles, pos, ids, told, heard_s, sim.now, k, self.tau_s)
