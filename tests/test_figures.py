@@ -1,9 +1,10 @@
 """``netsim figures`` on runs of any kind, and the shared colours of groups."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from netsim.tools import style
+from netsim.tools import figures, style
 from netsim.tools.cli import main
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -534,13 +535,17 @@ def test_without_coverage_fig6_says_how_few_were_left_undecided(waypoint_run, tm
     ("sets", "remove", "said"),
     [
         ([], "roles.parquet", "not a run directory with positions (missing roles.parquet)"),
-        (["output.position_interval_s=0"], None, "positions were not sampled (output.position_interval_s = 0)"),
+        (
+            ["output.position_interval_s=0"],
+            "legs.parquet",
+            "positions were not sampled (output.position_interval_s = 0) and legs.parquet is missing",
+        ),
     ],
     ids=["no-roles", "unsampled"],
 )
 def test_figures_of_a_run_without_positions_or_roles_is_one_line(tmp_path, capsys, sets, remove, said):
-    """A run directory lacking roles.parquet, or whose positions were not sampled: one line
-    naming what is missing, exit 2, no figure written."""
+    """A run directory lacking roles.parquet, or whose positions were not sampled and whose
+    legs are gone: one line naming what is missing, exit 2, no figure written."""
     run = tmp_path / "run"
     args = [a for s in ["world.n_robots=3", "duration_s=5", *sets] for a in ("--set", s)]
     assert main(["run", "--quiet", "--no-progress", "--out", str(run), *args]) == 0
@@ -551,3 +556,19 @@ def test_figures_of_a_run_without_positions_or_roles_is_one_line(tmp_path, capsy
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"netsim: error: {run}: {said}"]
     assert not (tmp_path / "f").exists()
+
+
+def test_figures_of_a_run_that_sampled_no_positions_sample_its_legs(tmp_path):
+    """A run with output.position_interval_s = 0 keeps its exact motion (legs.parquet): the
+    figures sample it at the default interval, the positions a sampled run of the same seed
+    wrote (they were refused)."""
+    base = ["world.n_robots=6", "duration_s=12"]
+    for name, sets in (("sampled", base), ("unsampled", [*base, "output.position_interval_s=0"])):
+        args = [a for s in sets for a in ("--set", s)]
+        assert main(["run", "--quiet", "--no-progress", "--out", str(tmp_path / name), *args]) == 0
+    want = pd.read_parquet(tmp_path / "sampled" / "positions.parquet")
+    got = figures.read_run(tmp_path / "unsampled").positions
+    assert len(got) == len(want) == 6 * 13
+    cols = ["t_s", "robot", "x_m", "y_m"]
+    assert np.allclose(got[cols].to_numpy(float), want[cols].to_numpy(float), atol=1e-9)
+    assert len(figures.draw(tmp_path / "unsampled", tmp_path / "f")) > 0

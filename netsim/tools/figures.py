@@ -38,7 +38,7 @@ import pandas as pd
 from netsim import config as cfgmod
 from netsim import metrics
 from netsim.area import Bounds
-from netsim.config import world_bounds
+from netsim.config import Config, world_bounds
 from netsim.errors import NetsimInputError
 from netsim.geometry import crosses_border, distances_m, link_segments_m
 from netsim.tools import style
@@ -91,8 +91,26 @@ def read_run(run_dir: Path) -> Run:
     roles = read_run_table(run_dir, "roles", n)
     assert positions is not None and roles is not None  # checked above
     if positions.empty:
-        raise NetsimInputError(f"{run_dir}: positions were not sampled (output.position_interval_s = 0)")
+        positions = _positions_from_legs(run_dir, config)
     return Run(config, positions, roles, read_run_table(run_dir, "groups", n), read_run_table(run_dir, "links", n))
+
+
+def _positions_from_legs(run_dir: Path, config: Config) -> pd.DataFrame:
+    """A run that sampled no positions (``output.position_interval_s = 0``): its robots'
+    exact motion (``legs.parquet``) sampled at the default interval, as a run would have."""
+    from netsim.config import OutputParams
+    from netsim.trajectory import sample_positions
+
+    n = config.world.n_robots
+    legs = read_run_table(run_dir, "legs", n)
+    if legs is None or legs.empty:
+        raise NetsimInputError(
+            f"{run_dir}: positions were not sampled (output.position_interval_s = 0) and legs.parquet is missing"
+        )
+    step = OutputParams().position_interval_s
+    times = np.arange(0.0, config.duration_s + step / 2, step)
+    times[-1] = min(times[-1], config.duration_s)
+    return sample_positions(legs, n, times, config.world.side_m, config.world.torus)
 
 
 def _sample_time(frame: pd.DataFrame, t: float) -> float:
