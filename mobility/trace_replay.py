@@ -128,10 +128,13 @@ def replayed_span(scen: ns2.Scenario, duration_s: float) -> tuple[np.ndarray, np
     return np.r_[legs["x_m"].to_numpy(), end[:, 0]], np.r_[legs["y_m"].to_numpy(), end[:, 1]]
 
 
-def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world, span=None) -> None:
+def _check_area(
+    x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world, span=None, stated: str | None = None
+) -> None:
     """Every position of the trace lies in the world's area (``world.bounds_m``); ``span``
     (a callable giving the x and y the motion reaches) for a frame to propose, when the
-    positions checked are not all the trace reaches."""
+    positions checked are not all the trace reaches; ``stated``, the area the file states
+    (a BonnMotion ``.params``), proposed first."""
     x, y = x_m[~np.isnan(x_m)], y_m[~np.isnan(y_m)]
     area = world_bounds(world)
     # As the run checks its robots' motion: a position past a border by its rounding is on it.
@@ -147,7 +150,12 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world, sp
                 side,
                 f"gives the area [0, {side:g}]^2, and {params.trace_file} has coordinates below 0 (x from "
                 f"{x.min():g} to {x.max():g}, y from {y.min():g} to {y.max():g}): set world.bounds_m to a "
-                f"frame holding {reached}, such as {frame_holding(*(span() if span else (x, y)))}",
+                f"frame holding {reached}, such as "
+                + (
+                    f"{stated} (the area its .params states)"
+                    if stated
+                    else frame_holding(*(span() if span else (x, y)))
+                ),
             )
         if len(xy) and xy.max() > side + tol:
             raise ConfigError(
@@ -165,6 +173,22 @@ def _check_area(x_m: np.ndarray, y_m: np.ndarray, params: TraceParams, world, sp
             f"does not contain the positions of {params.trace_file} (x from {x.min():g} to {x.max():g}, "
             f"y from {y.min():g} to {y.max():g})",
         )
+
+
+def _stated_area(params: TraceParams) -> str | None:
+    """The area a BonnMotion file's ``.params`` states when it reaches below 0 (``x_min``,
+    ``y_min`` and the size ``x``, ``y``, as netsim exports a map's frame), as
+    ``world.bounds_m`` takes it; None when it states none."""
+    from netsim.formats import bonnmotion
+
+    given = bonnmotion.read_params(bonnmotion.params_path(Path(params.trace_file)))
+    try:
+        x0, y0, w, h = (float(given[k]) for k in ("x_min", "y_min", "x", "y"))
+    except (KeyError, ValueError):
+        return None
+    if not all(map(math.isfinite, (x0, y0, w, h))) or w <= 0 or h <= 0:
+        return None
+    return f"[{x0!r}, {y0!r}, {x0 + w!r}, {y0 + h!r}]"
 
 
 def _warn_of_wraps(wp: Waypoints, params: TraceParams, side_m: float) -> None:
@@ -232,7 +256,8 @@ def load(params: TraceParams, world, duration_s: float) -> ns2.Scenario | Waypoi
             xy = scen.initial_m.reshape(-1, 2)
             _check_area(xy[:, 0], xy[:, 1], params, world, lambda: replayed_span(scen, duration_s))
         else:
-            _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world)
+            stated = _stated_area(params) if fmt is TraceFormat.BONNMOTION else None
+            _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world, stated=stated)
             if world.torus and fmt is TraceFormat.ROSBAG2:
                 _warn_of_wraps(scen, params, world.side_m)
     for w in caught:

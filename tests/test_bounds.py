@@ -659,3 +659,24 @@ def test_a_run_whose_map_moved_says_where_to_point_it(tmp_path, capsys):
     config = run / "config.toml"
     config.write_text(config.read_text().replace(str(yaml), str(moved / yaml.name)))
     assert main(["export", str(run), "--format", "bonnmotion", "--out", str(tmp_path / "m.movements")]) == 0
+
+
+def test_a_bonnmotion_export_in_a_maps_frame_proposes_the_area_its_params_state(tmp_path, capsys):
+    """The BonnMotion export of a run in a map's frame states the area in its .params
+    (x_min, y_min and the size): read back on the default square, the one line proposes
+    that area, exactly, and pasted the run goes ahead."""
+    from netsim.tools.cli import main
+
+    yaml = ros_map(tmp_path)
+    run = tmp_path / "run"
+    sets = [f"world.map={yaml}", "world.bounds_m=map", "world.n_robots=3", "duration_s=5", "world.centre_side_m=5"]
+    assert main(["run", "--quiet", "--out", str(run), *(a for s in sets for a in ("--set", s))]) == 0
+    trace = tmp_path / "m.movements"
+    assert main(["export", str(run), "--format", "bonnmotion", "--out", str(trace)]) == 0
+    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    base += ["--set", "world.n_robots=3", "--set", "duration_s=5"]
+    capsys.readouterr()
+    assert main([*base, "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("such as [-10.0, -20.0, 50.0, 20.0] (the area its .params states)"), err
+    assert main([*base, "--set", "world.bounds_m=[-10.0, -20.0, 50.0, 20.0]", "--out", str(tmp_path / "b")]) == 0
