@@ -20,14 +20,15 @@ from typing import Any
 import numpy as np
 import simpy
 
+from netsim.area import Bounds
 from netsim.config import world_bounds
 from netsim.errors import ConfigError, NetsimInputError
-from netsim.formats import ns2
+from netsim.formats import format_of_name, ns2
 from netsim.formats.waypoints import Waypoints
 from netsim.params import Params, each_once, file_path, param
 from netsim.plugins import Parts, PluginSpec
 from netsim.state import MotionError, RobotState, border_tolerance_m
-from netsim.trajectory import jumped
+from netsim.trajectory import LegTable, jumped
 
 
 class Ns2Semantics(StrEnum):
@@ -44,6 +45,10 @@ class TraceFormat(StrEnum):
     NS2 = "ns2"
     BONNMOTION = "bonnmotion"
     ROSBAG2 = "rosbag2"
+
+
+# How a file guessed to be of a format is said to have been read.
+READ_AS = {TraceFormat.NS2: "ns-2", TraceFormat.BONNMOTION: "BonnMotion", TraceFormat.ROSBAG2: "a bag"}
 
 
 def _topics(key: str, value: Any) -> tuple[str, ...]:
@@ -97,12 +102,10 @@ def trace_format(params: TraceParams) -> TraceFormat:
     """The format of the trace: the one set, or the one its name tells."""
     if params.trace_format is not TraceFormat.AUTO:
         return params.trace_format
-    name = params.trace_file
-    if name.endswith((".movements", ".movements.gz")):
-        return TraceFormat.BONNMOTION
-    if Path(name).is_dir() or name.endswith((".mcap", ".db3")):  # a bag, or a bag's storage file
-        return TraceFormat.ROSBAG2
-    return TraceFormat.NS2
+    by_name = format_of_name(params.trace_file)
+    if by_name == "ns2" and Path(params.trace_file).is_dir():
+        return TraceFormat.ROSBAG2  # a bag is a folder
+    return TraceFormat(by_name)
 
 
 def frame_holding(x_m: np.ndarray, y_m: np.ndarray) -> str:
@@ -116,16 +119,17 @@ def frame_holding(x_m: np.ndarray, y_m: np.ndarray) -> str:
 
 
 def replayed_span(scen: ns2.Scenario, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """The x and y of every point the robots of ``scen`` reach up to ``duration_s``, wherever
-    that is: their legs' starts and where they stand at the end (a leg is straight)."""
+    """The x and y of the ends of every leg the robots of ``scen`` take up to ``duration_s``,
+    wherever that is (a leg is straight: its ends hold it), a leg cut by a jump ending where
+    the robot jumped from."""
     st = RobotState(scen.n_robots, 1.0, 1.0)
     st.place(scen.initial_m)
     env = simpy.Environment(initial_time=0.0)
     env.process(replay(env, st, scen))
     env.run(until=duration_s)
-    legs = st.legs()
-    end = st.positions_at(duration_s)
-    return np.r_[legs["x_m"].to_numpy(), end[:, 0]], np.r_[legs["y_m"].to_numpy(), end[:, 1]]
+    table = LegTable(st.legs(), scen.n_robots)
+    _, ends, _ = table.ends(duration_s)
+    return np.r_[table.p[:, 0], ends[:, 0]], np.r_[table.p[:, 1], ends[:, 1]]
 
 
 def _check_area(
@@ -143,19 +147,20 @@ def _check_area(
         xy = np.concatenate([x, y])
         side = world.side_m
         if len(xy) and xy.min() < -tol:
-            # A square side can only grow to the right and up: a trace below 0 needs a frame.
-            reached = "them" if span is None else "them and the motion up to duration_s"
-            raise ConfigError(
-                "world.side_m",
-                side,
+            # A square side can only grow to the right and up: a trace below 0 needs a frame,
+            # which a torus (its square is [0, side]^2) cannot take.
+            below = (
                 f"gives the area [0, {side:g}]^2, and {params.trace_file} has coordinates below 0 (x from "
-                f"{x.min():g} to {x.max():g}, y from {y.min():g} to {y.max():g}): set world.bounds_m to a "
-                f"frame holding {reached}, such as "
-                + (
-                    f"{stated} (the area its .params states)"
-                    if stated
-                    else frame_holding(*(span() if span else (x, y)))
-                ),
+                f"{x.min():g} to {x.max():g}, y from {y.min():g} to {y.max():g})"
+            )
+            if world.torus:
+                raise ConfigError("world.side_m", side, f"{below}: a torus is that square; shift the trace into it")
+            reached = "them" if span is None else "them and the motion up to duration_s"
+            frame = (
+                f"{stated} (the area its .params states)" if stated else frame_holding(*(span() if span else (x, y)))
+            )
+            raise ConfigError(
+                "world.side_m", side, f"{below}: set world.bounds_m to a frame holding {reached}, such as {frame}"
             )
         if len(xy) and xy.max() > side + tol:
             raise ConfigError(
@@ -175,18 +180,18 @@ def _check_area(
         )
 
 
-def _stated_area(params: TraceParams) -> str | None:
-    """The area a BonnMotion file's ``.params`` states when it reaches below 0 (``x_min``,
-    ``y_min`` and the size ``x``, ``y``, as netsim exports a map's frame), as
-    ``world.bounds_m`` takes it; None when it states none."""
-    from netsim.formats import bonnmotion
-
-    given = bonnmotion.read_params(bonnmotion.params_path(Path(params.trace_file)))
+def _stated_area(given: dict[str, str], x_m: np.ndarray, y_m: np.ndarray) -> str | None:
+    """The area a BonnMotion file's ``.params`` (``given``) states when it reaches below 0
+    (``x_min``, ``y_min`` and the size ``x``, ``y``, as netsim exports a map's frame) and
+    holds the positions, as ``world.bounds_m`` takes it; None otherwise."""
     try:
         x0, y0, w, h = (float(given[k]) for k in ("x_min", "y_min", "x", "y"))
     except (KeyError, ValueError):
         return None
-    if not all(map(math.isfinite, (x0, y0, w, h))) or w <= 0 or h <= 0:
+    if not all(map(math.isfinite, (x0, y0, w, h))) or w <= 0 or h <= 0 or min(x0, y0) >= 0:
+        return None
+    stated = Bounds(x0, y0, x0 + w, y0 + h)
+    if not stated.contains(np.c_[x_m, y_m], border_tolerance_m(stated)).all():
         return None
     return f"[{x0!r}, {y0!r}, {x0 + w!r}, {y0 + h!r}]"
 
@@ -218,37 +223,39 @@ def _check_count(n: int, params: TraceParams, world) -> None:
         raise ConfigError("world.n_robots", world.n_robots, f"must equal the {nodes} of {params.trace_file}")
 
 
-def _read(params: TraceParams, fmt: TraceFormat, world) -> ns2.Scenario | Waypoints:
+def _read(params: TraceParams, fmt: TraceFormat, world) -> tuple[ns2.Scenario | Waypoints, dict[str, str]]:
+    """The trace, and what a BonnMotion file's ``.params`` says (empty for the others)."""
     try:
         if fmt is TraceFormat.NS2:
-            return ns2.read(params.trace_file, world.n_robots, params.ns2_semantics.value)
+            return ns2.read(params.trace_file, world.n_robots, params.ns2_semantics.value), {}
         if fmt is TraceFormat.BONNMOTION:
             from netsim.formats import bonnmotion
 
-            scen, _params = bonnmotion.read(params.trace_file)
-            return scen
+            return bonnmotion.read(params.trace_file)
         from netsim.formats import rosbag2
 
-        return rosbag2.read(params.trace_file, params.topics)
+        return rosbag2.read(params.trace_file, params.topics), {}
     except NetsimInputError as exc:
         guessed = ""
-        if params.trace_format is TraceFormat.AUTO and fmt is TraceFormat.NS2:
+        if params.trace_format is TraceFormat.AUTO and not Path(params.trace_file).is_dir():
+            others = " or ".join(repr(str(f)) for f in TraceFormat if f not in (TraceFormat.AUTO, fmt))
             guessed = (
-                " (read as ns-2, the format guessed from the name: set mobility.trace_format = "
-                "'bonnmotion' or 'rosbag2' for another)"
+                f" (read as {READ_AS[fmt]}, the format guessed from the name: set mobility.trace_format = "
+                f"{others} for another)"
             )
         raise NetsimInputError(f"mobility.trace_file: {exc}{guessed}") from None
 
 
-def load(params: TraceParams, world, duration_s: float) -> ns2.Scenario | Waypoints:
+def load(params: TraceParams, world, duration_s: float) -> tuple[ns2.Scenario | Waypoints, dict[str, str]]:
     """The motion of ``params.trace_file``, checked against the world's size (an ns-2 file's
-    up to ``duration_s``, by :func:`check_motion`)."""
+    up to ``duration_s``, by :func:`check_motion`), and what a BonnMotion file's ``.params``
+    says."""
     fmt = trace_format(params)
     # The reader's warnings (lines skipped) are given once the file is taken: a file refused
     # is its one error line.
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        scen = _read(params, fmt, world)
+        scen, given = _read(params, fmt, world)
         _check_count(scen.n_robots, params, world)
         if isinstance(scen, ns2.Scenario):
             # Where the robots start; the motion after is checked as replayed, up to the run's
@@ -256,13 +263,13 @@ def load(params: TraceParams, world, duration_s: float) -> ns2.Scenario | Waypoi
             xy = scen.initial_m.reshape(-1, 2)
             _check_area(xy[:, 0], xy[:, 1], params, world, lambda: replayed_span(scen, duration_s))
         else:
-            stated = _stated_area(params) if fmt is TraceFormat.BONNMOTION else None
-            _check_area(np.ravel(scen.x_m), np.ravel(scen.y_m), params, world, stated=stated)
+            x, y = np.ravel(scen.x_m), np.ravel(scen.y_m)
+            _check_area(x, y, params, world, stated=_stated_area(given, x, y))
             if world.torus and fmt is TraceFormat.ROSBAG2:
                 _warn_of_wraps(scen, params, world.side_m)
     for w in caught:
         warnings.warn(w.message, w.category, stacklevel=2)
-    return scen
+    return scen, given
 
 
 def check_motion(scen: ns2.Scenario, params: TraceParams, world, duration_s: float) -> None:
@@ -280,22 +287,25 @@ def check_motion(scen: ns2.Scenario, params: TraceParams, world, duration_s: flo
     except MotionError as exc:
         x, y = replayed_span(scen, duration_s)
         inside = world_bounds(world).contains(np.c_[x, y], border_tolerance_m(world_bounds(world))).all()
-        # Out of the area (not into a wall): the frame that holds the whole replay.
-        frame = "" if inside else f"; world.bounds_m = {frame_holding(x, y)} holds its motion up to duration_s"
+        # Out of the area: the frame that holds the whole replay, where world.bounds_m may
+        # be set to it (a torus is its square).
+        frame = ""
+        if not inside and not world.torus:
+            frame = f"; world.bounds_m = {frame_holding(x, y)} holds its motion up to duration_s"
         raise MotionError(f"mobility.trace_file: {exc}{frame}") from None
 
 
-def _warn_if_short(wp: Waypoints, params: TraceParams, duration_s: float) -> None:
-    """A recorded trace that ends before the run: the robots then stand still."""
+def _warn_if_short(wp: Waypoints, params: TraceParams, given: dict[str, str], duration_s: float) -> None:
+    """A recorded trace that ends before the run (its last pose, or the ``duration`` its
+    BonnMotion ``.params``, ``given``, states): the robots then stand still."""
     declared = ""
     end_s = float(wp.t_s.max())
-    if trace_format(params) is TraceFormat.BONNMOTION:
+    if "duration" in given:
         from netsim.formats import bonnmotion
 
-        path = bonnmotion.params_path(Path(params.trace_file))
-        given = bonnmotion.read_params(path).get("duration", "")
+        name = bonnmotion.params_path(Path(params.trace_file)).name
         try:
-            end_s, declared = float(given), f" (duration={given} in {path.name})"
+            end_s, declared = float(given["duration"]), f" (duration={given['duration']} in {name})"
         except ValueError:
             pass
     if end_s < duration_s:
@@ -343,11 +353,11 @@ def follow(env: simpy.Environment, st: RobotState, wp: Waypoints):
 
 
 def build(params: TraceParams, parts: Parts) -> None:
-    scen = load(params, parts.world, parts.duration_s)
+    scen, given = load(params, parts.world, parts.duration_s)
     if isinstance(scen, ns2.Scenario):
         check_motion(scen, params, parts.world, parts.duration_s)
     else:
-        _warn_if_short(scen, params, parts.duration_s)
+        _warn_if_short(scen, params, given, parts.duration_s)
     parts.state.place(scen.initial_m if isinstance(scen, ns2.Scenario) else scen.initial_m())
     proc = (
         replay(parts.env, parts.state, scen) if isinstance(scen, ns2.Scenario) else follow(parts.env, parts.state, scen)

@@ -680,3 +680,51 @@ def test_a_bonnmotion_export_in_a_maps_frame_proposes_the_area_its_params_state(
     err = capsys.readouterr().err.strip()
     assert err.endswith("such as [-10.0, -20.0, 50.0, 20.0] (the area its .params states)"), err
     assert main([*base, "--set", "world.bounds_m=[-10.0, -20.0, 50.0, 20.0]", "--out", str(tmp_path / "b")]) == 0
+
+
+def test_the_frame_proposed_for_an_ns2_trace_holds_where_a_jump_cut_a_leg(tmp_path, capsys):
+    """A leg cut by a jump ends where the robot jumped from, which neither a leg's start nor
+    the end of the run shows: node 0 heads east from (-10, 5) at 10 m/s and at t = 5 s,
+    at x = 40, jumps to x = -20. The frame proposed holds x = 40, and pasted, runs."""
+    from netsim.tools.cli import main
+
+    trace = tmp_path / "jump.tcl"
+    trace.write_text(
+        '$node_(0) set X_ -10.0\n$node_(0) set Y_ 5.0\n$ns_ at 0.0 "$node_(0) setdest 100.0 5.0 10.0"\n'
+        '$ns_ at 5.0 "$node_(0) set X_ -20.0"\n'
+    )
+    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    base += ["--set", "world.n_robots=1", "--set", "duration_s=10"]
+    assert main([*base, "--out", str(tmp_path / "a")]) == 2
+    assert capsys.readouterr().err.strip().endswith("such as [-20, 5, 40, 6]")
+    assert main([*base, "--set", "world.bounds_m=[-20, 5, 40, 6]", "--out", str(tmp_path / "b")]) == 0
+
+
+@pytest.mark.parametrize(
+    "params", ["x_min=-5\ny_min=-5\nx=10\ny=10\n", "x_min=0\ny_min=0\nx=1000\ny=1000\n"], ids=["too-small", "at-0"]
+)
+def test_a_params_area_that_cannot_hold_the_trace_is_not_proposed(tmp_path, capsys, params):
+    """A .params area is proposed only when it reaches below 0 and holds the positions;
+    otherwise the frame around the positions is."""
+    from netsim.tools.cli import main
+
+    trace = tmp_path / "m.movements"
+    trace.write_text("0.0 -20.0 1.0 10.0 -20.0 2.0\n")
+    (tmp_path / "m.params").write_text(params)
+    argv = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    argv += ["--set", "world.n_robots=1", "--set", "duration_s=5", "--out", str(tmp_path / "a")]
+    assert main(argv) == 2
+    assert capsys.readouterr().err.strip().endswith("such as [-20, 1, -19, 2]")
+
+
+def test_a_trace_below_zero_on_a_torus_is_told_to_shift_not_given_a_frame(tmp_path, capsys):
+    """A torus is the square [0, side]^2, which world.bounds_m cannot move: a trace below 0
+    is told to shift into it (a frame proposed there was refused in turn)."""
+    from netsim.tools.cli import main
+
+    trace = tmp_path / "below.tcl"
+    trace.write_text("$node_(0) set X_ -10.0\n$node_(0) set Y_ 5.0\n")
+    argv = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
+    argv += ["--set", "world.n_robots=1", "--set", "duration_s=5", "--set", "world.torus=true"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 2
+    assert capsys.readouterr().err.strip().endswith("a torus is that square; shift the trace into it")

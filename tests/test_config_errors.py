@@ -722,17 +722,20 @@ def test_a_wall_loss_without_a_map_is_warned_of(tmp_path):
         cfgmod.load(None, [*overrides, 'world.map="office"', 'world.bounds_m="map"', "world.n_robots=10"])
 
 
-@pytest.mark.parametrize("name", ["s.movements", "s.movements.gz"])
-def test_scenario_generate_refuses_a_bonnmotion_name(tmp_path, capsys, monkeypatch, name):
+@pytest.mark.parametrize(
+    "name, read_as", [("s.movements", "bonnmotion"), ("s.movements.gz", "bonnmotion"), ("s.db3", "rosbag2")]
+)
+def test_scenario_generate_refuses_a_name_read_back_as_another_format(tmp_path, capsys, monkeypatch, name, read_as):
     """`netsim scenario generate` writes ns-2; a file named .movements would be read back
-    as BonnMotion (and fail on its first line): refused in one line, exit 2, nothing written."""
+    as BonnMotion (and fail on its first line), one named .db3 as a bag's storage: refused
+    in one line, exit 2, nothing written."""
     monkeypatch.chdir(tmp_path)
     argv = ["scenario", "generate", "--n", "3", "--side", "100", "--speed-max", "2", "--duration", "5", "-o", name]
     assert main(argv) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert lines == [
-        f"netsim: error: -o {name}: writes ns-2, and a .movements name is read as BonnMotion; give another name "
-        "(netsim export --format bonnmotion writes BonnMotion from a run)"
+        f"netsim: error: -o {name}: writes ns-2, and a name so is read back as {read_as}; give another name "
+        "(netsim export writes a run in the other formats)"
     ]
     assert list(tmp_path.iterdir()) == []
 

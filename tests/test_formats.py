@@ -771,8 +771,9 @@ def test_bag_without_pose_topics_exits_2_one_line(tmp_path, capsys):
     [
         (["--format", "gpx"], "--format gpx"),
         (["--format", "bonnmotion", "--out", "x.txt"], "NAME.movements"),
-        (["--format", "ns2", "--out", "y.movements"], "an ns-2 file named .movements would be read as BonnMotion"),
-        (["--format", "ns2", "--out", "y.movements.gz"], "an ns-2 file named .movements would be read as BonnMotion"),
+        (["--format", "ns2", "--out", "y.movements"], "an ns-2 file named so would be read back as bonnmotion"),
+        (["--format", "ns2", "--out", "t.db3"], "an ns-2 file named so would be read back as rosbag2"),
+        (["--format", "ns2", "--out", "y.movements.gz"], "an ns-2 file named so would be read back as bonnmotion"),
         (["--format", "ns2", "--out", "y.tcl.gz"], "an ns-2 file is written as plain text; give a name without .gz"),
         (["--format", "rosbag2", "--out", "z.mcap"], "a bag is a folder (its storage file inside it)"),
         (["--format", "rosbag2", "--out", "z.db3"], "give the folder's name, without .db3"),
@@ -880,6 +881,30 @@ def test_waypoints_from_legs_reproduce_the_legs(run_dir):
     wp = waypoints.from_legs(legs, 8, 40.0)
     for t in (0.0, 3.3, 17.25, 40.0):
         assert np.allclose(wp.positions_at(t), _positions(legs, t, 8), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "name, read_as, others",
+    [
+        ("scenario.db3", "a bag", "'ns2' or 'bonnmotion'"),
+        ("scenario.movements", "BonnMotion", "'ns2' or 'rosbag2'"),
+        ("scenario.txt", "ns-2", "'bonnmotion' or 'rosbag2'"),
+    ],
+)
+def test_every_guessed_format_is_said_with_the_others_to_set(tmp_path, capsys, name, read_as, others):
+    """Whatever format a file's name made netsim read it as, a file that is not that format
+    says so, and names the other formats mobility.trace_format takes."""
+    path = tmp_path / name
+    path.write_text('$node_(0) set X_ 1.0\n$node_(0) set Y_ 1.0\n$ns_ at 1.0 "$node_(0) setdest 2.0 1.0 1.0"\n')
+    if name.endswith(".txt"):
+        path.write_text("0 10 10 5 20 10\n")  # BonnMotion's, read as ns-2
+    argv = ["run", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={path}"]
+    assert main([*argv, "--set", "world.n_robots=1", "--out", str(tmp_path / "out"), "--no-progress"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.endswith(
+        f" (read as {read_as}, the format guessed from the name: set mobility.trace_format = {others} for another)"
+    ), line
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_guessed_format_is_named_in_the_error(tmp_path, capsys):

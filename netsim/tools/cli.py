@@ -49,7 +49,7 @@ from pathlib import Path
 
 from netsim import config as cfgmod
 from netsim.errors import ConfigError, NetsimInputError
-from netsim.formats import ns2
+from netsim.formats import format_of_name, ns2
 from netsim.tools.args import Parser
 from netsim.tools.interrupt import (
     EXIT_INTERRUPTED,
@@ -268,11 +268,12 @@ def cmd_scenario_generate(args) -> int:
             config = cfgmod.from_dict(tree)
             check_run(config)
             check_out_file(args.output, "-o")
-            if out.name.endswith((".movements", ".movements.gz")):
-                # A trace is read by its name: this one would be read as BonnMotion.
+            read_as = format_of_name(out.name)
+            if read_as != "ns2":
+                # A trace is read back by its name: this one would be read as another format.
                 raise NetsimInputError(
-                    f"-o {out}: writes ns-2, and a .movements name is read as BonnMotion; give another name "
-                    "(netsim export --format bonnmotion writes BonnMotion from a run)"
+                    f"-o {out}: writes ns-2, and a name so is read back as {read_as}; give another name "
+                    "(netsim export writes a run in the other formats)"
                 )
             sim = build(config)
     except ConfigError as exc:
@@ -442,7 +443,7 @@ def cmd_view(args) -> int:
 
     if args.out is not None:
         check_out_file(args.out, "--out", make_parents=True)
-        if Path(args.out).suffix.lower() not in (".html", ".htm"):
+        if Path(args.out).suffix.lower() not in ("", ".html", ".htm"):  # a name of another kind of file
             raise NetsimInputError(f"--out {args.out}: the replay is a web page; name a .html file")
     elif Path(args.run_dir).is_dir():
         # The run's own replay (as `netsim run --view` writes it) is remade in place.

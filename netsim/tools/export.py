@@ -23,7 +23,7 @@ import pandas as pd
 
 from netsim.config import world_bounds
 from netsim.errors import NetsimInputError
-from netsim.formats import ns2
+from netsim.formats import format_of_name, ns2
 from netsim.tools.output import existing_dir, is_run_dir, load_run_config, names_a_directory, read_run_table
 
 FORMATS = ("bonnmotion", "ns2", "rosbag2")
@@ -51,10 +51,9 @@ def check_out(out: Path, fmt: str) -> None:
         raise NetsimInputError(f"--out {out}: cannot write in {parent} ({exc.strerror or exc})") from None
     # A trace is read back by its name (mobility.trace_format = "auto"): a name another
     # format's would be read as that one, or a compressed one that is not compressed.
-    if fmt == "ns2" and out.name.endswith((".movements", ".movements.gz")):
-        raise NetsimInputError(
-            f"--out {out}: an ns-2 file named .movements would be read as BonnMotion; give another name"
-        )
+    read_as = format_of_name(out.name)
+    if fmt == "ns2" and read_as != "ns2":
+        raise NetsimInputError(f"--out {out}: an ns-2 file named so would be read back as {read_as}; give another name")
     if fmt == "ns2" and out.suffix == ".gz":
         raise NetsimInputError(f"--out {out}: an ns-2 file is written as plain text; give a name without .gz")
     if fmt == "rosbag2" and out.suffix.lower() in (".mcap", ".db3", ".bag"):
@@ -64,7 +63,7 @@ def check_out(out: Path, fmt: str) -> None:
     if fmt == "bonnmotion":
         from netsim.formats.bonnmotion import params_path
 
-        if not out.name.endswith((".movements", ".movements.gz")):
+        if read_as != "bonnmotion":
             raise NetsimInputError(f"--out {out}: a BonnMotion file is named NAME.movements or NAME.movements.gz")
         params = params_path(out)
         if params.exists():
