@@ -932,13 +932,17 @@ def merge(base: dict, extra: dict) -> dict:
     return out
 
 
+def override_key(text: str) -> str:
+    """The key a ``--set`` names: ``"world.n_robots"`` of ``" world.n_robots = 8"``."""
+    return text.partition("=")[0].strip()
+
+
 def _check_override_path(raw: dict, text: str) -> None:
     """``--set a.b.c=v`` over a file where ``a`` (or ``a.b``) holds a value, not a table:
     the merge would drop that value without a word. A section of the configuration given a
     value in the file is the file's mistake; any other key is the ``--set``'s (it names a
     key as if it were a section)."""
-    key = text.partition("=")[0].strip()
-    parts = key.split(".")
+    parts = override_key(text).split(".")
     node: Any = raw
     for depth, part in enumerate(parts[:-1]):
         if not isinstance(node, dict) or part not in node:
@@ -961,8 +965,7 @@ def parse_override(text: str) -> dict:
     """
     if "=" not in text:
         raise ConfigError("--set", text, "must look like key=value or section.key=value")
-    key, _, raw = text.partition("=")
-    key = key.strip()
+    key, raw = override_key(text), text.partition("=")[2]
     if not key or any(not part for part in key.split(".")):
         raise ConfigError("--set", text, "must look like key=value or section.key=value")
     raw = raw.strip()

@@ -46,6 +46,15 @@ def not_a_file(path: str | os.PathLike) -> str:
     return "is not a regular file" if os.path.exists(path) else "no such file"
 
 
+def needs_extra(who: str, libraries: Iterable[str], extra: str) -> str:
+    """What ``who`` says when ``libraries`` of the optional extra ``extra`` (pyproject.toml)
+    are not installed: which, and the line that installs them."""
+    return (
+        f"{who} needs {' and '.join(libraries)}, of the optional extra {extra!r}: "
+        f"pip install 'netsim-robots[{extra}]' (in a clone: pip install -e '.[{extra}]')"
+    )
+
+
 def listed(items: Iterable[Any], most: int = 10) -> str:
     """At most ``most`` of ``items``, comma-separated, and how many more: a message names a
     few of many, not all."""

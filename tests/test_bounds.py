@@ -515,18 +515,27 @@ def test_random_direction_stops_exactly_on_the_border_and_leaves_inward(pause_s)
     assert (np.diff(t)[later] > 1e-6).all()
 
 
+def _trace_args(tmp_path, name: str, text: str, n_robots: int, duration_s: float) -> list[str]:
+    """``netsim run`` replaying ``text`` (a trace file written as ``name``), without --out."""
+    trace = tmp_path / name
+    trace.write_text(text)
+    sets = ["mobility.model=trace", f"mobility.trace_file={trace}", f"world.n_robots={n_robots}"]
+    return ["run", "--quiet", *(a for s in [*sets, f"duration_s={duration_s}"] for a in ("--set", s))]
+
+
+# Node 0 starts at (-10.5, 4), below 0, and at t = 1 s heads for (X, 10) at 20 m/s.
+BELOW_ZERO_NS2 = (
+    "$node_(0) set X_ -10.5\n$node_(0) set Y_ 4.0\n$node_(1) set X_ 20.0\n$node_(1) set Y_ -3.25\n"
+    '$ns_ at 1.0 "$node_(0) setdest {x} 10.0 20.0"\n'
+)
+
+
 def test_a_trace_below_zero_on_the_default_square_names_world_bounds_m(tmp_path, capsys):
     """A trace recorded in a map's frame (coordinates below 0) on the default square: the
     error says the square cannot hold it and names world.bounds_m with a frame of whole
     metres holding where the robots start and go up to duration_s (node 0's setdest takes
     it to (30, 10)); pasted as printed, the run goes ahead."""
-    trace = tmp_path / "frame.tcl"
-    trace.write_text(
-        "$node_(0) set X_ -10.5\n$node_(0) set Y_ 4.0\n$node_(1) set X_ 20.0\n$node_(1) set Y_ -3.25\n"
-        '$ns_ at 1.0 "$node_(0) setdest 30.0 10.0 20.0"\n'
-    )
-    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
-    base += ["--set", "world.n_robots=2", "--set", "duration_s=5"]
+    base = _trace_args(tmp_path, "frame.tcl", BELOW_ZERO_NS2.format(x="30.0"), 2, 5)
     assert main([*base, "--out", str(tmp_path / "a")]) == 2
     err = capsys.readouterr().err.strip()
     assert "has coordinates below 0" in err, err
@@ -542,13 +551,7 @@ def test_a_trace_that_leaves_the_bounds_names_the_frame_holding_its_motion(tmp_p
     names the robot and the time, and the frame (whole metres) holding the replay up to
     duration_s; one that starts outside them, the whole trace's frame. Coordinates read to
     fewer digits would cut them, so they are rounded outward: pasted, they hold the run."""
-    trace = tmp_path / "away.tcl"
-    trace.write_text(
-        "$node_(0) set X_ -10.5\n$node_(0) set Y_ 4.0\n$node_(1) set X_ 20.0\n$node_(1) set Y_ -3.25\n"
-        '$ns_ at 1.0 "$node_(0) setdest 30.123456789 10.0 20.0"\n'
-    )
-    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
-    base += ["--set", "world.n_robots=2", "--set", "duration_s=5"]
+    base = _trace_args(tmp_path, "away.tcl", BELOW_ZERO_NS2.format(x="30.123456789"), 2, 5)
     assert main([*base, "--set", "world.bounds_m=[-11, -4, 20, 4]", "--out", str(tmp_path / "a")]) == 2
     err = capsys.readouterr().err.strip()
     assert "robot 0 leaves the area" in err and len(err.splitlines()) == 1, err
@@ -656,6 +659,12 @@ def test_a_run_whose_map_moved_says_where_to_point_it(tmp_path, capsys):
         "to where it is now"
     ), err
     assert not (tmp_path / "m.tcl").exists()
+    # A map there but broken is its own fault, not a move: no advice to move it.
+    yaml.write_text("image: [unclosed\n")
+    assert main(["export", str(run), "--format", "ns2", "--out", str(tmp_path / "m.tcl")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"netsim: error: world.map = '{yaml}': ") and "copy the map" not in err, err
+    yaml.unlink()
     config = run / "config.toml"
     config.write_text(config.read_text().replace(str(yaml), str(moved / yaml.name)))
     assert main(["export", str(run), "--format", "bonnmotion", "--out", str(tmp_path / "m.movements")]) == 0
@@ -688,13 +697,11 @@ def test_the_frame_proposed_for_an_ns2_trace_holds_where_a_jump_cut_a_leg(tmp_pa
     at x = 40, jumps to x = -20. The frame proposed holds x = 40, and pasted, runs."""
     from netsim.tools.cli import main
 
-    trace = tmp_path / "jump.tcl"
-    trace.write_text(
+    jump = (
         '$node_(0) set X_ -10.0\n$node_(0) set Y_ 5.0\n$ns_ at 0.0 "$node_(0) setdest 100.0 5.0 10.0"\n'
         '$ns_ at 5.0 "$node_(0) set X_ -20.0"\n'
     )
-    base = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
-    base += ["--set", "world.n_robots=1", "--set", "duration_s=10"]
+    base = _trace_args(tmp_path, "jump.tcl", jump, 1, 10)
     assert main([*base, "--out", str(tmp_path / "a")]) == 2
     assert capsys.readouterr().err.strip().endswith("such as [-20, 5, 40, 6]")
     assert main([*base, "--set", "world.bounds_m=[-20, 5, 40, 6]", "--out", str(tmp_path / "b")]) == 0
@@ -708,23 +715,18 @@ def test_a_params_area_that_cannot_hold_the_trace_is_not_proposed(tmp_path, caps
     otherwise the frame around the positions is."""
     from netsim.tools.cli import main
 
-    trace = tmp_path / "m.movements"
-    trace.write_text("0.0 -20.0 1.0 10.0 -20.0 2.0\n")
     (tmp_path / "m.params").write_text(params)
-    argv = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
-    argv += ["--set", "world.n_robots=1", "--set", "duration_s=5", "--out", str(tmp_path / "a")]
-    assert main(argv) == 2
+    argv = _trace_args(tmp_path, "m.movements", "0.0 -20.0 1.0 10.0 -20.0 2.0\n", 1, 5)
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 2
     assert capsys.readouterr().err.strip().endswith("such as [-20, 1, -19, 2]")
 
 
 def test_a_trace_below_zero_on_a_torus_is_told_to_shift_not_given_a_frame(tmp_path, capsys):
     """A torus is the square [0, side]^2, which world.bounds_m cannot move: a trace below 0
-    is told to shift into it (a frame proposed there was refused in turn)."""
+    is told to shift into it, not given a frame the torus would refuse."""
     from netsim.tools.cli import main
 
-    trace = tmp_path / "below.tcl"
-    trace.write_text("$node_(0) set X_ -10.0\n$node_(0) set Y_ 5.0\n")
-    argv = ["run", "--quiet", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={trace}"]
-    argv += ["--set", "world.n_robots=1", "--set", "duration_s=5", "--set", "world.torus=true"]
+    argv = _trace_args(tmp_path, "below.tcl", "$node_(0) set X_ -10.0\n$node_(0) set Y_ 5.0\n", 1, 5)
+    argv += ["--set", "world.torus=true"]
     assert main([*argv, "--out", str(tmp_path / "a")]) == 2
     assert capsys.readouterr().err.strip().endswith("a torus is that square; shift the trace into it")

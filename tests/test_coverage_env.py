@@ -791,7 +791,7 @@ def test_in_turns_an_agent_whose_episode_is_over_steps_with_none():
 @pytest.mark.parametrize("library", ["gymnasium", "pettingzoo"])
 def test_the_environment_without_the_rl_extra_says_how_to_install_it(monkeypatch, library):
     """Without a library of the extra `rl`, importing the environment says which library and
-    the install line, as the live commands say theirs (it was a bare ModuleNotFoundError)."""
+    the install line, as the live commands say theirs."""
     import importlib
     import sys
 

@@ -732,34 +732,6 @@ def test_the_live_graph_equals_the_snapshot_on_a_torus_with_unequal_ranges():
     assert min(seen) > 10
 
 
-def test_a_random_pair_flood_nobody_hears_on_a_shared_medium_dies_out(tmp_path):
-    """Under a shared medium a flood ends when its last frame ends, heard or not: a robot out
-    of everyone's range sends random-pair messages, each dropped as ``died_out`` when its one
-    frame ends, none left in flight; the other two robots' messages between them arrive."""
-    path = tmp_path / "three.csv"
-    path.write_text("x_m,y_m\n100,500\n200,500\n900,900\n")
-    config = make_config(
-        seed=2,
-        duration_s=20.0,
-        world={"n_robots": 3, "side_m": 1000.0, "placement": str(path)},
-        mobility={"model": "static"},
-        channel={"range_m": 120.0, "mac": "aloha"},
-        protocol={"message_rate_hz": 1.0, "routing": "backbone"},
-        output={"position_interval_s": 0.0},
-    )
-    sim = build(config)
-    dropped = []
-    sim.events.on("message_dropped", dropped.append)
-    sim.run()
-    messages = collect(sim)["messages"].set_index("msg_id")
-    from_far = messages.index[messages["src"] == 2]
-    assert len(from_far) >= 3
-    causes = {e.msg_id: e.cause for e in dropped}
-    assert all(causes.get(m) == "died_out" for m in from_far)
-    between = messages[(messages["src"] < 2) & (messages["dst"] < 2)]
-    assert len(between) > 0 and between["delivered"].all()
-
-
 @pytest.mark.parametrize(
     "overrides",
     [

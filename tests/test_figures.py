@@ -558,17 +558,18 @@ def test_figures_of_a_run_without_positions_or_roles_is_one_line(tmp_path, capsy
     assert not (tmp_path / "f").exists()
 
 
-def test_figures_of_a_run_that_sampled_no_positions_sample_its_legs(tmp_path):
+@pytest.mark.parametrize("duration_s, samples", [(12.0, 13), (12.4, 14)])
+def test_figures_of_a_run_that_sampled_no_positions_sample_its_legs(tmp_path, duration_s, samples):
     """A run with output.position_interval_s = 0 keeps its exact motion (legs.parquet): the
     figures sample it at the default interval, the positions a sampled run of the same seed
-    wrote (they were refused)."""
-    base = ["world.n_robots=6", "duration_s=12"]
+    wrote, its end included."""
+    base = ["world.n_robots=6", f"duration_s={duration_s}"]
     for name, sets in (("sampled", base), ("unsampled", [*base, "output.position_interval_s=0"])):
         args = [a for s in sets for a in ("--set", s)]
         assert main(["run", "--quiet", "--no-progress", "--out", str(tmp_path / name), *args]) == 0
     want = pd.read_parquet(tmp_path / "sampled" / "positions.parquet")
     got = figures.read_run(tmp_path / "unsampled").positions
-    assert len(got) == len(want) == 6 * 13
+    assert len(got) == len(want) == 6 * samples
     cols = ["t_s", "robot", "x_m", "y_m"]
     assert np.allclose(got[cols].to_numpy(float), want[cols].to_numpy(float), atol=1e-9)
     assert len(figures.draw(tmp_path / "unsampled", tmp_path / "f")) > 0

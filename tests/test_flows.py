@@ -185,8 +185,9 @@ def test_packet_is_delivered_only_whole(tmp_path):
     assert packets.loc[packets["delivered"], "drop_cause"].isna().all()  # no cause, as receptions' cause
 
 
-def _static_run(tmp_path, xy: str, flow: dict, routing: str, mac: str = "none", protocol=None):
-    """The packets of ``flow`` among static robots at ``xy`` (CSV rows, one a robot)."""
+def _static_sim(tmp_path, xy: str, flows: list, routing: str, mac: str = "none", protocol=None):
+    """A run, built, of ``flows`` among static robots at ``xy`` (CSV rows, one a robot),
+    sending no random-pair message unless ``protocol`` says."""
     path = tmp_path / "static.csv"
     path.write_text("x_m,y_m\n" + xy)
     config = make_config(
@@ -196,12 +197,34 @@ def _static_run(tmp_path, xy: str, flow: dict, routing: str, mac: str = "none", 
         mobility={"model": "static"},
         channel={"range_m": 120.0, "mac": mac},
         protocol={"message_rate_hz": 0.0, "routing": routing, **(protocol or {})},
-        traffic={"flows": [flow]},
+        traffic={"flows": flows},
         output={"position_interval_s": 0.0},
     )
-    sim = build(config)
+    return build(config)
+
+
+def _static_run(tmp_path, xy: str, flow: dict, routing: str, mac: str = "none", protocol=None):
+    """The packets of ``flow`` among static robots at ``xy`` (CSV rows, one a robot)."""
+    sim = _static_sim(tmp_path, xy, [flow], routing, mac, protocol)
     sim.run()
     return collect(sim)["packets"]
+
+
+def test_a_random_pair_flood_nobody_hears_on_a_shared_medium_dies_out(tmp_path):
+    """Under a shared medium a flood ends when its last frame ends, heard or not: a robot out
+    of everyone's range sends random-pair messages, each dropped as ``died_out`` when its one
+    frame ends, none left in flight; the other two robots' messages between them arrive."""
+    sim = _static_sim(tmp_path, "100,500\n200,500\n900,900\n", [], "backbone", "aloha", {"message_rate_hz": 1.0})
+    dropped = []
+    sim.events.on("message_dropped", dropped.append)
+    sim.run()
+    messages = collect(sim)["messages"].set_index("msg_id")
+    from_far = messages.index[messages["src"] == 2]
+    assert len(from_far) >= 3
+    causes = {e.msg_id: e.cause for e in dropped}
+    assert all(causes.get(m) == "died_out" for m in from_far)
+    between = messages[(messages["src"] < 2) & (messages["dst"] < 2)]
+    assert len(between) > 0 and between["delivered"].all()
 
 
 def test_dropped_packet_says_where_and_why(tmp_path):

@@ -465,8 +465,8 @@ ODOM_TRACKS = {"/robot_0/odom": [(0.0, 0, 0), (10.0, 1, 0)], "/robot_1/odom": [(
 
 def test_a_bags_robots_in_frames_nothing_joins_are_refused(tmp_path):
     """Each robot's odometry in its own frame, from its own origin, and no static transform
-    between them: placed as one frame the robots would stand on top of each other (they did,
-    silently), so the bag is refused in one line naming the frames."""
+    between them: placed as one frame the robots would stand on top of each other, so the
+    bag is refused in one line naming the frames."""
     bag = tmp_path / "own_frames"
     _bag(bag, ODOM_TRACKS, "nav_msgs/msg/Odometry", ODOM_FRAMES)
     with pytest.raises(NetsimInputError) as err:
@@ -496,7 +496,7 @@ def test_a_bags_frames_joined_by_static_transforms_are_placed_in_their_common_fr
 def test_a_bags_storage_file_named_for_the_bag_says_what_to_give(tmp_path):
     """A bag's storage file given for the bag (its name says a bag: read as one) names the
     folder to give; one alone, without the folder's metadata.yaml, says how to make it
-    (it was read as ns-2, then refused as no folder, and the hint led nowhere)."""
+    (a bag is read from its folder)."""
     import shutil
 
     from netsim.mobility.trace_replay import TraceFormat, TraceParams, trace_format
@@ -513,6 +513,15 @@ def test_a_bags_storage_file_named_for_the_bag_says_what_to_give(tmp_path):
     shutil.copy(db3, alone)
     with pytest.raises(NetsimInputError, match=r"a storage file alone, .* `ros2 bag reindex FOLDER` \(with `-s mcap`"):
         rosbag2.read(alone)
+
+
+def test_robots_that_start_at_one_point_are_warned_of(tmp_path):
+    """Frames are told apart by name: two robots' odometry each from its own origin, in
+    frames both named odom, read as one frame; that they start at one point is said."""
+    bag = tmp_path / "one_name"
+    _bag(bag, ODOM_TRACKS, "nav_msgs/msg/Odometry", dict.fromkeys(ODOM_TRACKS, "odom"))
+    with pytest.warns(UserWarning, match=r"one_name: 2 robots start at \(0, 0\): odometry from each robot's own"):
+        rosbag2.read(bag)
 
 
 def test_a_robot_whose_poses_change_frame_is_refused(tmp_path):
@@ -556,9 +565,9 @@ def _mixed_bag(path: Path, pose_topics: list[str], string_topics: list[str]) -> 
 
     store = rosbag2._typestore()
     with Writer(path, version=8) as w:
-        for topic in pose_topics:
+        for k, topic in enumerate(pose_topics):
             conn = w.add_connection(topic, "geometry_msgs/msg/PoseStamped", typestore=store)
-            point = rosbag2._make(store, "geometry_msgs/msg/Point", x=1.0, y=1.0)
+            point = rosbag2._make(store, "geometry_msgs/msg/Point", x=1.0 + k, y=1.0)
             pose = rosbag2._make(store, "geometry_msgs/msg/Pose", position=point)
             header = rosbag2._make(store, "std_msgs/msg/Header", stamp=rosbag2._stamp(store, 0.0))
             msg = rosbag2._make(store, "geometry_msgs/msg/PoseStamped", header=header, pose=pose)

@@ -26,7 +26,7 @@ import numpy as np
 
 from netsim.bridge.look import LINK_RGBA, link_line_list, robot_diameter_m, robot_rgba
 from netsim.bridge.messages import idl_type, stamp, zero
-from netsim.bridge.node import CLOCK_QOS, Node, Template, serialized, take_all, write_bytes
+from netsim.bridge.node import CLOCK_QOS, QOS_POLICIES, Node, Template, serialized, take_all, write_bytes
 from netsim.bridge.relay import ChannelRelay
 from netsim.bridge.settings import BridgeSettings
 from netsim.config import world_bounds
@@ -65,11 +65,9 @@ def _set(path: str) -> Any:
     return set_field
 
 
-def unmatched_warning(topic: str) -> str:
-    return (
-        f"{topic}: a node publishes it with a QoS netsim cannot match (best effort: netsim reads reliably), "
-        "so none of its messages is taken; publish it reliable, ROS 2's default"
-    )
+def unmatched_warning(topic: str, policy_id: int) -> str:
+    why = QOS_POLICIES.get(policy_id, f"its QoS policy {policy_id}; publish it with ROS 2's default QoS")
+    return f"{topic}: a node publishes it with a QoS netsim cannot match, so none of its messages is taken ({why})"
 
 
 def odometry(writer: Any, robot: int) -> Template:
@@ -118,8 +116,8 @@ class RosBridge:
     # -- in ------------------------------------------------------------------------------
     def take(self, t_s: float) -> None:
         """Apply the commands and send the messages that came since the last call."""
-        for topic in self.node.unmatched():
-            warnings.warn(unmatched_warning(topic), stacklevel=2)
+        for topic, policy_id in self.node.unmatched():
+            warnings.warn(unmatched_warning(topic, policy_id), stacklevel=2)
         robots, vel = [], []
         for i, reader in enumerate(self.cmd):
             got = take_all(reader)

@@ -40,6 +40,14 @@ INBOX_QOS = Qos(
 )
 
 
+# The DDS ids (the specification's QosPolicyId) of the policies a writer can fail netsim's
+# readers on, and how a node fixes it.
+QOS_POLICIES = {
+    11: "best effort: netsim reads reliably; publish it reliable, ROS 2's default",
+    6: "exclusive ownership: netsim reads shared; publish it shared, ROS 2's default",
+}
+
+
 def dds_topic(name: str) -> str:
     """``/robot_0/odom`` -> ``rt/robot_0/odom``."""
     return "rt/" + name.lstrip("/")
@@ -60,7 +68,7 @@ class Node:
         self._topics: dict[str, Topic] = {}
         # Topics a node publishes with a QoS netsim's readers cannot match (appended on DDS's
         # own thread): nothing of such a publisher arrives, so the bridge says so.
-        self._unmatched: list[str] = []
+        self._unmatched: list[tuple[str, int]] = []
         self._told: set[str] = set()
 
     def topic(self, name: str, msgtype: str) -> Topic:
@@ -73,15 +81,17 @@ class Node:
         return DataWriter(self.participant, self.topic(name, msgtype), qos=qos)
 
     def reader(self, name: str, msgtype: str, qos: Qos = INBOX_QOS) -> DataReader:
-        unmatched = Listener(on_requested_incompatible_qos=lambda _reader, _status: self._unmatched.append(name))
+        unmatched = Listener(
+            on_requested_incompatible_qos=lambda _r, status: self._unmatched.append((name, status.last_policy_id))
+        )
         return DataReader(self.participant, self.topic(name, msgtype), qos=qos, listener=unmatched)
 
-    def unmatched(self) -> list[str]:
+    def unmatched(self) -> list[tuple[str, int]]:
         """The topics, not named before, that a node publishes with a QoS netsim's readers
-        cannot match (a best-effort publisher: netsim reads reliably)."""
-        new = [t for t in dict.fromkeys(self._unmatched[:]) if t not in self._told]
+        cannot match, each with the DDS id of the policy that did not (:data:`QOS_POLICIES`)."""
+        new = {t: policy for t, policy in self._unmatched[:] if t not in self._told}
         self._told.update(new)
-        return new
+        return list(new.items())
 
 
 def take_all(reader: DataReader) -> list[Any]:

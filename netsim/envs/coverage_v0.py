@@ -41,17 +41,15 @@ from typing import Any, cast
 
 import numpy as np
 
+from netsim.errors import needs_extra  # before the extra's imports, whose absence it words
+
 try:
     from gymnasium import spaces
     from pettingzoo import ParallelEnv
     from pettingzoo.utils.conversions import parallel_to_aec_wrapper
     from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 except ModuleNotFoundError as missing:  # the optional extra `rl` (pyproject.toml): say how to get it
-    raise ModuleNotFoundError(
-        f"netsim.envs needs {missing.name}, of the optional extra 'rl': pip install 'netsim-robots[rl]' "
-        "(in a clone: pip install -e '.[rl]')",
-        name=missing.name,
-    ) from None
+    raise ModuleNotFoundError(needs_extra("netsim.envs", [str(missing.name)], "rl"), name=missing.name) from None
 
 from netsim import config as cfgmod
 from netsim import metrics

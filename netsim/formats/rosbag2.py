@@ -10,7 +10,9 @@ pose (:mod:`netsim.formats.waypoints`). Orientation and height are ignored. The 
 poses must be in one frame (their headers' ``frame_id``), or in frames that transforms on
 ``/tf_static`` join under one, in which they are then placed (in the plane: the
 transforms' translations and yaw): robots whose odometry starts each in its own frame at
-its own origin would otherwise be placed on top of each other.
+its own origin would otherwise be placed on top of each other. Frames are told apart by
+name (a namespaced ``/<ns>/tf_static`` is not read): robots that start at one point are
+warned of.
 
 Out: a run as a bag (SQLite3, the storage every ROS 2 distribution reads), stamps the
 simulated time: ``geometry_msgs/msg/PoseStamped`` on ``/robot_<i>/pose`` for every sampled
@@ -160,10 +162,9 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
     if placed:
         robot_of = np.array(robots, dtype=np.int64)
         x, y = np.array(xs, dtype=float), np.array(ys, dtype=float)
-        for i, (tx, ty, yaw) in placed.items():
+        for i, transform in placed.items():
             mine = robot_of == i
-            c, s = math.cos(yaw), math.sin(yaw)
-            x[mine], y[mine] = c * x[mine] - s * y[mine] + tx, s * x[mine] + c * y[mine] + ty
+            x[mine], y[mine] = _placed(x[mine], y[mine], *transform)
         xs, ys = x.tolist(), y.tolist()
     posed = set(robots)
     silent = sorted((i, t) for t, i in which.items() if i not in posed)
@@ -177,7 +178,24 @@ def read(path: str | Path, topics: Sequence[str] = ()) -> Waypoints:
     t = (stamps_ns - stamps_ns.min()) / 1e9 if len(stamps_ns) else stamps_ns.astype(float)
     if len(xs) and not np.isfinite(np.r_[xs, ys]).all():
         raise NetsimInputError(f"{source}: a pose has a non-finite position")
-    return Waypoints.of(robots, t, xs, ys, source)
+    wp = Waypoints.of(robots, t, xs, ys, source)
+    _warn_of_shared_starts(wp.initial_m(), source)
+    return wp
+
+
+def _warn_of_shared_starts(start_m: np.ndarray, source: str) -> None:
+    """Say where two robots start at one point: frames are told apart by name, and robots
+    whose odometry each starts at its own origin in frames of one name (``odom`` in each
+    robot's namespace) read as one frame stand on top of each other."""
+    _, first, count = np.unique(np.round(start_m, 6), axis=0, return_index=True, return_counts=True)
+    if (count > 1).any():
+        k = int(np.flatnonzero(count > 1)[0])
+        x, y = start_m[first[k]]
+        warnings.warn(
+            f"{source}: {int(count[k])} robots start at ({x:g}, {y:g}): odometry from each robot's own origin, in "
+            "frames of one name? The frames are told apart by name: give the poses in one frame (such as map)",
+            stacklevel=3,
+        )
 
 
 def _deserialized(store: Any, raw: bytes, conn: Any, source: str, serde_error: type[Exception]) -> Any:
@@ -234,11 +252,17 @@ def _to_root(frame: str, parent: dict[str, tuple[str, float, float, float]]) -> 
         up, tx, ty, turn = parent[frame]
         if up in seen:  # a cycle of transforms has no top: its frames join nothing above them
             break
-        c, s = math.cos(turn), math.sin(turn)
-        x, y, yaw = c * x - s * y + tx, s * x + c * y + ty, yaw + turn
+        (x, y), yaw = _placed(x, y, tx, ty, turn), yaw + turn
         seen.add(up)
         frame = up
     return frame, x, y, yaw
+
+
+def _placed(x: Any, y: Any, tx: float, ty: float, yaw: float) -> tuple[Any, Any]:
+    """Points ``(x, y)`` of a frame placed in its parent by the planar transform ``(tx, ty,
+    yaw)``: ``R(yaw) p + (tx, ty)``."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * x - s * y + tx, s * x + c * y + ty
 
 
 def _frames_listed(names: set[str]) -> str:

@@ -21,7 +21,7 @@ import tomli_w
 
 from netsim.bridge.loop import Pacer
 from netsim.bridge.settings import BridgeSettings
-from netsim.errors import ConfigError, NetsimInputError
+from netsim.errors import ConfigError, NetsimInputError, needs_extra
 
 # Wall-clock steps of `netsim run --live`, s of simulated time.
 LIVE_STEP_S = 0.1
@@ -34,10 +34,7 @@ def check_extra(command: str, modules: tuple[str, ...]) -> None:
     optional extra ``ros`` it needs is not installed."""
     missing = [m for m in modules if importlib.util.find_spec(m) is None]
     if missing:
-        raise NetsimInputError(
-            f"{command} needs {' and '.join(missing)}, of the optional extra 'ros': "
-            "pip install 'netsim-robots[ros]' (in a clone: pip install -e '.[ros]')"
-        )
+        raise NetsimInputError(needs_extra(command, missing, "ros"))
 
 
 def check_links_on(config: Any, command: str) -> None:

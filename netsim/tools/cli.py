@@ -105,7 +105,7 @@ def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None
     # said, since it is as often a slip in a long command line.
     earlier: dict[str, str] = {}
     for given in overrides or []:
-        key = given.partition("=")[0].strip()
+        key = cfgmod.override_key(given)
         if key in earlier:
             warnings.warn(
                 f"--set {earlier[key]} and --set {given}: the last is taken", cfgmod.ConfigWarning, stacklevel=2
@@ -153,10 +153,12 @@ def cmd_run(args) -> int:
     check_set_pairs(args.set, args.config)
     overrides = list(args.set or [])
     if args.seed is not None:
-        # Two seeds on one command line: neither may silently lose.
+        # --seed is --set seed=, given last: a seed set too is overridden, as a key set twice is.
         for given in overrides:
-            if given.partition("=")[0].strip() == "seed":
-                raise NetsimInputError(f"--seed {args.seed} and --set {given}: give the seed once")
+            if cfgmod.override_key(given) == "seed":
+                warnings.warn(
+                    f"--set {given} and --seed {args.seed}: --seed is taken", cfgmod.ConfigWarning, stacklevel=2
+                )
         overrides.append(f"seed={args.seed}")
     config = cfgmod.load(args.config, overrides)
     check_run(config)

@@ -99,6 +99,7 @@ def _positions_from_legs(run_dir: Path, config: Config) -> pd.DataFrame:
     """A run that sampled no positions (``output.position_interval_s = 0``): its robots'
     exact motion (``legs.parquet``) sampled at the default interval, as a run would have."""
     from netsim.config import OutputParams
+    from netsim.samples import sample_times
     from netsim.trajectory import sample_positions
 
     n = config.world.n_robots
@@ -107,9 +108,7 @@ def _positions_from_legs(run_dir: Path, config: Config) -> pd.DataFrame:
         raise NetsimInputError(
             f"{run_dir}: positions were not sampled (output.position_interval_s = 0) and legs.parquet is missing"
         )
-    step = OutputParams().position_interval_s
-    times = np.arange(0.0, config.duration_s + step / 2, step)
-    times[-1] = min(times[-1], config.duration_s)
+    times = sample_times(OutputParams().position_interval_s, config.duration_s)
     return sample_positions(legs, n, times, config.world.side_m, config.world.torus)
 
 

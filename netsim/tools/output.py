@@ -260,7 +260,8 @@ def load_run_config(run_dir: Path) -> Config:
             return from_dict(tree)
         except ConfigError as exc:
             world = tree.get("world") if isinstance(tree.get("world"), dict) else {}
-            if exc.key == "world.map" and world.get("map") == exc.value:
+            gone = isinstance(exc.value, str) and not Path(exc.value).exists()
+            if exc.key == "world.map" and world.get("map") == exc.value and gone:
                 # A run moved to another machine: its map stayed behind, at the path it ran with.
                 raise ConfigError(
                     exc.key,
