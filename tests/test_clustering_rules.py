@@ -815,3 +815,69 @@ def test_rule5_after_a_mutual_yield_the_higher_id_stays_a_member_from_the_others
     assert r1.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"], r1
     assert min(t for t in leading if t > r0.t_s[2]) > deadline(r1.t_s[1], TAU)
     assert stack.role.tolist() == [LEADER, MEMBER] and stack.leader.tolist() == [0, 0]
+
+
+def test_a_command_is_taken_by_its_leaders_members_only():
+    """Leaders command their members, and only them (docs/model.md 4.3): member 2 of
+    leader 0 also hears leader 1, whose command reaches it and 1's own member 3; 3 takes
+    it, 2 does not."""
+    sim, stack, deliveries = scripted([[0, 0], [15, 0], [7, 0], [20, 0]], [0.1, 0.2, 1.6, 1.7])
+    sim.run(until_s=6.0)
+    assert stack.leader.tolist() == [0, 1, 0, 1] and stack.role[[2, 3]].tolist() == [MEMBER, MEMBER]
+    stack.send_command(1, "spread")
+    sim.run(until_s=7.0)
+    assert stack.command[3].payload == "spread"
+    assert stack.command[2] is None
+
+
+def test_a_member_takes_its_new_leaders_commands_whatever_their_numbers():
+    """A command is newer than the one a member holds when it comes from another leader, or
+    from the same one with a higher number: member 2 took leader 0's third command, then
+    joined leader 1 (0 left); 1's first command is its new leader's, and is taken."""
+    sim, stack, deliveries = scripted([[0, 0], [15, 0], [7, 0]], [0.1, 0.2, 1.6], join_before_election=True)
+    sim.run(until_s=6.0)
+    assert stack.leader[2] == 0
+    for payload in ("a", "b", "c"):
+        stack.send_command(0, payload)
+    move_away(sim, 0, 6.5)
+    sim.run(until_s=7.0)
+    assert (stack.command[2].leader, stack.command[2].seq, stack.command[2].payload) == (0, 3, "c")
+    sim.run(until_s=12.0)
+    assert stack.role[2] == MEMBER and stack.leader[2] == 1
+    stack.send_command(1, "spread")
+    sim.run(until_s=13.0)
+    assert (stack.command[2].leader, stack.command[2].seq, stack.command[2].payload) == (1, 1, "spread")
+
+
+def _told(stack, t_s, sender, receiver, role, x_m, y_m, seq):
+    """``receiver``'s table takes an Ack of ``sender`` at ``t_s`` saying ``role`` at (x, y)."""
+    from tests.oracles.protocols import ack_record
+
+    record = ack_record(seq, role, sender if role == LEADER else -1, x_m, y_m, 1)
+    stack.table.receive(t_s, sender, np.array([receiver]), record)
+
+
+def test_a_leader_knows_other_leaders_at_their_freshest_reported_position():
+    """heard_leaders: the other leaders a leader hears and those its live neighbours hear,
+    each at the position of the freshest report of it. Leader 0 heard leader 2 at 1 s (at
+    (1, 1)); its neighbour 1 heard 2 at 2 s (at (2, 2)): 0 knows 2 at (2, 2)."""
+    _, stack = clustering([[0, 0], [5, 0], [10, 0]], start=False)
+    _told(stack, 0.5, 1, 0, MEMBER, 5.0, 0.0, 1)
+    _told(stack, 1.0, 2, 0, LEADER, 1.0, 1.0, 1)
+    _told(stack, 2.0, 2, 1, LEADER, 2.0, 2.0, 2)
+    ids, xy = stack.heard_leaders(0, 2.5)
+    assert ids.tolist() == [2] and xy.tolist() == [[2.0, 2.0]]
+
+
+def test_a_robots_neighbourhood_reaches_two_hops_at_the_freshest_positions():
+    """neighbourhood: each robot knows the robots it hears and those they hear, at the
+    position of the latest Ack of each heard by anyone. 0 hears 1 and heard 2 at 1 s (at
+    (1, 1)); 1 hears 2 (at 2 s, at (2, 2)) and 3: 0 knows 3 through 1, and 2 at (2, 2)."""
+    _, stack = clustering([[0, 0], [5, 0], [10, 0], [15, 0]], start=False)
+    _told(stack, 0.5, 1, 0, MEMBER, 5.0, 0.0, 1)
+    _told(stack, 1.0, 2, 0, UNDECIDED, 1.0, 1.0, 1)
+    _told(stack, 2.0, 2, 1, UNDECIDED, 2.0, 2.0, 2)
+    _told(stack, 2.0, 3, 1, UNDECIDED, 15.0, 0.0, 1)
+    robot, other, xy = stack.neighbourhood(2.5)
+    known = {(r, o): tuple(p) for r, o, p in zip(robot.tolist(), other.tolist(), xy.tolist())}
+    assert (0, 3) in known and known[(0, 2)] == known[(1, 2)] == (2.0, 2.0)
