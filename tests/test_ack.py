@@ -122,6 +122,19 @@ def test_table_grows_beyond_its_initial_slots():
     assert table.live_ids(1.5, 0).tolist() == list(range(1, 40))
 
 
+def test_live_ids_are_ascending_whatever_the_slots_order():
+    """A row's live neighbours come ascending, not in the order their slots were taken:
+    robot 0 hears 5, then 2, then 4 (whose slot is the one 5 left when it expired)."""
+    table = NeighbourTable(6, tau_s=3.0, slots=2)
+    fields = ack_record(0, 0, -1, 0.0, 0.0, 1, heard=[0])
+    table.receive(0.0, 5, np.array([0]), fields)
+    table.receive(1.0, 2, np.array([0]), fields)
+    assert table.live_ids(1.5, 0).tolist() == [2, 5]
+    table.receive(3.5, 4, np.array([0]), fields)  # 5 expired: its slot, before 2's, is 4's
+    assert table.id[0].tolist() == [4, 2]
+    assert table.live_ids(3.5, 0).tolist() == [2, 4]
+
+
 def test_expired_slot_is_reused_and_live_since_restarts():
     table = NeighbourTable(3, tau_s=3.0, slots=1)
     fields = ack_record(0, 0, -1, 0.0, 0.0, 1, heard=[0])  # it lists robot 0
@@ -247,3 +260,37 @@ def test_reordered_acks_never_roll_tables_back():
     assert rolled_back == []  # ... and no table or listener went back
     assert beacon.stale_acks == overtaken
     assert beacon.summary({"acks": sim.channel.frame("ack")}, 40.0)["acks_overtaken"] == overtaken
+
+
+def test_acks_overtaken_counts_every_overtaken_ack_with_nobody_listening():
+    """The summary's acks_overtaken counts the receptions a table ignored as older than its
+    entry, also on the path of Acks nobody above the tables listens to (the Ack model
+    alone, where the table is all there is to update). Latency jitter of 2.5 periods
+    reorders Acks; no listener is added."""
+    cfg = make_config(
+        seed=4,
+        duration_s=20.0,
+        world={"n_robots": 3, "side_m": 1000.0},
+        mobility={"model": "static"},
+        channel={"range_m": 10.0, "latency_jitter_s": 2.5},
+        protocol={"model": "ack", "tau_s": 4.0},
+    )
+    sim = build(cfg)
+    sim.state.place(np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 5.0]]))
+    beacon = sim.models["protocol"]
+    assert not beacon.listeners and not beacon.leader_listeners
+    arrivals = []
+    deliver = beacon.deliver
+
+    def counting(sender, receivers, ack, power_dbm=None):
+        arrivals.extend((ack.seq, sender, r) for r in receivers.tolist())
+        deliver(sender, receivers, ack, power_dbm)
+
+    beacon.deliver = counting
+    sim.run()
+    newest, overtaken = {}, 0
+    for seq, s, r in arrivals:
+        overtaken += newest.get((r, s), 0) > seq
+        newest[(r, s)] = max(newest.get((r, s), 0), seq)
+    assert overtaken > 5
+    assert beacon.summary({"acks": sim.channel.frame("ack")}, 20.0)["acks_overtaken"] == overtaken

@@ -148,3 +148,29 @@ def test_the_protocol_declares_the_table_it_writes(model):
     assert schema == ACK_DELIVERY_SCHEMA
     frame = execute(cfg).frames["ack_delivery"]
     assert {c: str(t) for c, t in frame.dtypes.items()} == schema
+
+
+def test_on_a_shared_medium_the_ratio_counts_the_mediums_losses_as_lost():
+    """On a shared medium an Ack a receiver in range lost to a collision or to its own
+    transmission (half duplex) was lost on the way like one the loss model dropped: the
+    summary's ratio and each interval's count it among the receptions that could have
+    arrived. Six robots in range on ALOHA with Acks a tenth of a period long collide."""
+    sim = _static(
+        [[0.0, 0.0], [3.0, 0.0], [0.0, 3.0], [3.0, 3.0], [6.0, 0.0], [0.0, 6.0]],
+        duration=20.0,
+        mac="aloha",
+        data_rate_bps=5120.0,
+        preamble_s=0.0,
+    )
+    frames = _frames(sim)
+    acks = frames["acks"]
+    medium_lost = int(acks[["dropped_collision", "dropped_half_duplex"]].to_numpy().sum())
+    assert medium_lost > 0
+    received = int(acks["received"].sum())
+    lost = int(acks["dropped_loss"].sum()) + medium_lost
+    assert sim.models["protocol"].summary(frames, 20.0)["ack_delivery_ratio"] == received / (received + lost)
+    series = frames["ack_delivery"]
+    lost_by_interval = series[["dropped_loss", "dropped_collision", "dropped_half_duplex"]].sum(axis=1)
+    expected = series["received"] / (series["received"] + lost_by_interval)
+    np.testing.assert_array_equal(series["delivery_ratio"].to_numpy(), expected.to_numpy())
+    assert (series["delivery_ratio"] < 1).any()

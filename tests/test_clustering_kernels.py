@@ -505,6 +505,33 @@ def test_gateways_mean_counts_robots_in_two_groups_per_sample():
         assert gateways_mean(groups["t_s"].to_numpy(), groups["robot"].to_numpy(), len(times)) == expected
 
 
+def test_leader_statistics_are_the_role_changes_levels_and_tenures():
+    """The summary's leader figures from the roles table over a 60 s run: robot 0 leads
+    from 3 s to the end, robot 1 joins it, loses it, leads from 33 s and yields at 50 s.
+    The mean number of leaders weights each level by its time, (57 + 17) / 60; the role
+    changes leave out the rule1_start rows (5 changes of 2 robots in a minute); a tenure
+    still running at the end counts up to it (mean (57 + 17) / 2), one tenure complete.
+    A robot's first row is never read as the end of the previous robot's tenure."""
+    from netsim.protocols.stack import leader_statistics
+
+    rows = [
+        (0.0, 0, "gamma", -1, "rule1_start"),
+        (0.0, 1, "gamma", -1, "rule1_start"),
+        (3.0, 0, "alpha", 0, "rule4_no_leader"),
+        (4.0, 1, "beta", 0, "rule2_join"),
+        (30.0, 1, "gamma", -1, "rule3_leader_lost"),
+        (33.0, 1, "alpha", 1, "rule4_no_leader"),
+        (50.0, 1, "beta", 0, "rule5_merge_yield"),
+    ]
+    roles = pd.DataFrame(rows, columns=["t_s", "robot", "role", "leader", "cause"])
+    assert leader_statistics(roles, 2, 60.0) == {
+        "leaders_time_mean": pytest.approx(74.0 / 60.0, abs=1e-12),
+        "role_changes_per_robot_per_min": 2.5,
+        "mean_leader_tenure_s": 37.0,
+        "leader_tenures_complete": 1,
+    }
+
+
 def test_gateways_mean_of_a_run_counts_the_samples_before_the_groups_formed(tmp_path):
     """The first samples of a run come before any group: each counts 0 gateways."""
     from netsim.run import execute

@@ -440,6 +440,23 @@ def test_belief_vs_truth_is_per_direction():
     assert view[cols].values.tolist() == [[2, 1, 1, 0], [1, 0, 1, 0], [0, 0, 0, 0]]
 
 
+def test_with_no_message_sent_the_delivery_ratio_is_undefined():
+    """The summary's message_delivery_ratio is the share of the messages sent that arrived:
+    with none sent (message_rate_hz = 0) there is no share, NaN, not a ratio of 0."""
+    cfg = from_dict(
+        {
+            "duration_s": 10.0,
+            "world": {"n_robots": 3, "side_m": 100.0},
+            "protocol": {"model": "clustering", "message_rate_hz": 0.0},
+        }
+    )
+    sim = build(cfg)
+    sim.run()
+    frames = collect(sim)
+    summary = sim.models["protocol"].summary(frames, 10.0)
+    assert summary["messages"] == 0 and math.isnan(summary["message_delivery_ratio"])
+
+
 def test_run_outputs_for_clustering(tmp_path):
     cfg = from_dict(
         {

@@ -694,3 +694,190 @@ def test_roles_table_is_the_frame_of_its_records():
     assert len(later) > 5 and later.equals(expected) and got.dtypes.tolist() == expected.dtypes.tolist()
     stack.clustering._changes = ([], [], [], [], [])
     assert roles(sim).dtypes.tolist() == pd.DataFrame([], columns=list(RoleChange._fields)).dtypes.tolist()
+
+
+def test_rule5_a_leader_compares_the_group_size_it_announced_not_the_one_it_counts_now():
+    """Rule 5 compares what both leaders announced. Leaders 0 and 1 (alone each) stand in
+    range; robot 2 walks into 1's range (only) at t = 5 and joins it, and its Ack naming 1
+    reaches 1 before 1 checks the merge, but after 1's last Ack: both leaders announced a
+    group of 1, so the higher id (1) yields, on 0's first Ack after the merge delay.
+    Counting its members at that instant instead, 1 saw a larger group than it had
+    announced and kept the lead, and 0 yielded on 1's next Ack, which said 2."""
+    sim, stack, deliveries = scripted([[0, 0], [5, 0], [500, 0]], [0.1, 0.2, 2.5])
+
+    def arrive():
+        yield sim.env.timeout(5.0)
+        sim.state.set_leg(2, 5.0, (0.0, 0.0), start_m=(12.0, 0.0))
+
+    sim.env.process(arrive())
+    sim.run(until_s=10)
+    joined = records(sim, 2)
+    assert joined.cause.tolist()[0] == "rule2_join" and joined.leader[0] == 1
+    assert records(sim, 0).cause.tolist() == ["rule4_no_leader"]
+    r1 = records(sim, 1)
+    assert r1.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"], r1
+    # 2's Ack naming 1 reached 1 before the merge, after 1's last Ack before it.
+    named = min(t for t, s, r in deliveries if s == 2 and 1 in r)
+    last_ack = max(t for t, s, r in deliveries if s == 1 and t < r1.t_s[1])
+    assert last_ack < named < r1.t_s[1]
+
+
+def test_rule5_a_leader_that_takes_the_lead_back_does_not_resign():
+    """Rule 5: a leader that yielded owes a resign flag in its next Ack, but one that takes
+    the lead back on hearing the other's yield (the lower id, after a mutual yield) before
+    that Ack leads on: its next Ack says alpha without the flag. Leader 0 (alone) yields
+    to leader 1 (with member 2); before 0's next Ack, an Ack of 1 saying it joined 0 (its
+    yield on older news) arrives. Had the flag stayed set, 0's next Ack would say alpha
+    and resign at once, and its members would leave a leader that leads."""
+    from netsim.protocols._kernels import LEADER as LEADER_FIELD
+    from netsim.protocols._kernels import ROLE, SEQ
+
+    sim, stack, deliveries = scripted([[0, 0], [5, 0], [12, 0]], [0.1, 0.2, 1.7])
+    acks = []  # (arrival, Ack) of 0's Acks
+    stack.beacon.listeners.append(lambda now, ack, rec, hm: acks.append((now, ack)) if ack.sender == 0 else None)
+    heard_from_1 = []
+    stack.beacon.listeners.append(lambda now, ack, rec, hm: heard_from_1.append(ack) if ack.sender == 1 else None)
+    sim.run(until_s=6.5)
+    r0 = records(sim, 0)
+    assert r0.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"] and r0.leader[1] == 1, r0
+    yielded = r0.t_s[1]
+    assert not any(t > yielded for t, _ in acks)  # 0 has sent no Ack since it yielded
+    last = heard_from_1[-1]
+    record = last.record.copy()
+    record[SEQ], record[ROLE], record[LEADER_FIELD] = last.seq + 1, MEMBER, 0
+    stack.beacon.deliver(1, np.array([0]), last._replace(seq=last.seq + 1, role=MEMBER, leader=0, record=record))
+    r0 = records(sim, 0)
+    assert r0.cause.tolist()[-1] == "rule5_mutual_yield" and stack.role[0] == LEADER
+    sim.run(until_s=8.0)
+    ack = next(a for t, a in acks if t > yielded)
+    assert (ack.role, ack.resign) == (LEADER, False)
+
+
+def test_rule2_with_equal_ranges_the_first_ack_heard_is_over_a_two_way_link():
+    """With equal ranges hearing an Ack implies a two-way link (docs/model.md 4.1), even
+    before the leader has heard the robot: undecided robot 1 walks into leader 0's range
+    just after its own Ack and joins on 0's next Ack, which cannot list it yet. Asking
+    that Ack to list it, 1 waited for 0's Ack after its own next one, and led by rule 4
+    before it came."""
+    sim, stack, deliveries = scripted([[0, 0], [500, 0]], [0.1, 2.05])
+
+    def arrive():
+        yield sim.env.timeout(4.06)
+        sim.state.set_leg(1, sim.env.now, (0.0, 0.0), start_m=(5.0, 0.0))
+
+    sim.env.process(arrive())
+    acks = []  # 0's Acks as robot 1 hears them: (arrival, whether they list 1)
+    stack.beacon.listeners.append(
+        lambda now, ack, rec, hm: acks.append((now, 1 in ack.heard)) if ack.sender == 0 and 1 in rec else None
+    )
+    sim.run(until_s=8)
+    (first, listed), *_ = acks
+    assert not listed
+    joined = records(sim, 1)
+    assert joined.cause.tolist() == ["rule2_join"], joined
+    assert joined.t_s[0] == first and joined.leader[0] == 0
+
+
+def test_rule2_first_heard_joins_the_leader_whose_ack_came_first_of_those_it_knows():
+    """join_policy = "first_heard": robot 1, member of leader 3, also hears leaders 4 (9.5
+    m away) and 5 (7.3 m). Leader 3 leaves; 1 loses the election to 0 and joins the leader
+    whose Ack it hears first, 4, though it knows the nearer 5 as a leader too."""
+    pos = [[-6, 3], [0, 0], [0, 500], [-6, 0], [9.5, 0], [2, -7]]
+    sim, stack, deliveries = scripted(pos, [1.5, 1.6, 0.9, 0.1, 0.2, 0.3], join_policy="first_heard")
+    move_away(sim, 3, 10.0)
+    sim.run(until_s=14.0)
+    r1 = records(sim, 1)
+    assert r1.cause.tolist() == ["rule2_join", "rule3_leader_lost", "rule2_join"], r1
+    lost = r1.t_s[1]
+    assert stack.role[[4, 5]].tolist() == [LEADER, LEADER]
+    first = min((t, s) for t, s, r in deliveries if s in (4, 5) and 1 in r and t > lost)
+    assert first[1] == 4
+    assert (r1.t_s[2], r1.leader[2]) == first
+
+
+def test_rule5_after_a_mutual_yield_the_higher_id_stays_a_member_from_the_others_yield(monkeypatch):
+    """Both leaders yield on old news (forced, latency 1.7 s): 0 takes the lead back on
+    hearing 1's yield, and 1 stays its member. 1's timer then runs from the Ack that told
+    it of 0's yield (the link shown alive), not from 1's own yield: 0's first Ack leading
+    again reaches 1 more than tau after 1 yielded. A timer left to run from the yield
+    timed 1 out before it, and the two merged again."""
+    import netsim.protocols.clustering as clustering
+
+    monkeypatch.setattr(clustering, "merge_loser", lambda policy, me, other: me.id)
+    sim, stack, deliveries = scripted([[0, 0], [5, 0]], [0.5, 0.1], latency_s=1.7)
+    leading = []  # arrivals at 1 of 0's Acks that lead
+    stack.beacon.listeners.append(
+        lambda now, ack, rec, hm: leading.append(now) if ack.sender == 0 and ack.role == LEADER else None
+    )
+    sim.run(until_s=60)
+    r0, r1 = records(sim, 0), records(sim, 1)
+    assert r0.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield", "rule5_mutual_yield"], r0
+    assert r1.cause.tolist() == ["rule4_no_leader", "rule5_merge_yield"], r1
+    assert min(t for t in leading if t > r0.t_s[2]) > deadline(r1.t_s[1], TAU)
+    assert stack.role.tolist() == [LEADER, MEMBER] and stack.leader.tolist() == [0, 0]
+
+
+def test_a_command_is_taken_by_its_leaders_members_only():
+    """Leaders command their members, and only them (docs/model.md 4.3): member 2 of
+    leader 0 also hears leader 1, whose command reaches it and 1's own member 3; 3 takes
+    it, 2 does not."""
+    sim, stack, deliveries = scripted([[0, 0], [15, 0], [7, 0], [20, 0]], [0.1, 0.2, 1.6, 1.7])
+    sim.run(until_s=6.0)
+    assert stack.leader.tolist() == [0, 1, 0, 1] and stack.role[[2, 3]].tolist() == [MEMBER, MEMBER]
+    stack.send_command(1, "spread")
+    sim.run(until_s=7.0)
+    assert stack.command[3].payload == "spread"
+    assert stack.command[2] is None
+
+
+def test_a_member_takes_its_new_leaders_commands_whatever_their_numbers():
+    """A command is newer than the one a member holds when it comes from another leader, or
+    from the same one with a higher number: member 2 took leader 0's third command, then
+    joined leader 1 (0 left); 1's first command is its new leader's, and is taken."""
+    sim, stack, deliveries = scripted([[0, 0], [15, 0], [7, 0]], [0.1, 0.2, 1.6], join_before_election=True)
+    sim.run(until_s=6.0)
+    assert stack.leader[2] == 0
+    for payload in ("a", "b", "c"):
+        stack.send_command(0, payload)
+    move_away(sim, 0, 6.5)
+    sim.run(until_s=7.0)
+    assert (stack.command[2].leader, stack.command[2].seq, stack.command[2].payload) == (0, 3, "c")
+    sim.run(until_s=12.0)
+    assert stack.role[2] == MEMBER and stack.leader[2] == 1
+    stack.send_command(1, "spread")
+    sim.run(until_s=13.0)
+    assert (stack.command[2].leader, stack.command[2].seq, stack.command[2].payload) == (1, 1, "spread")
+
+
+def _told(stack, t_s, sender, receiver, role, x_m, y_m, seq):
+    """``receiver``'s table takes an Ack of ``sender`` at ``t_s`` saying ``role`` at (x, y)."""
+    from tests.oracles.protocols import ack_record
+
+    record = ack_record(seq, role, sender if role == LEADER else -1, x_m, y_m, 1)
+    stack.table.receive(t_s, sender, np.array([receiver]), record)
+
+
+def test_a_leader_knows_other_leaders_at_their_freshest_reported_position():
+    """heard_leaders: the other leaders a leader hears and those its live neighbours hear,
+    each at the position of the freshest report of it. Leader 0 heard leader 2 at 1 s (at
+    (1, 1)); its neighbour 1 heard 2 at 2 s (at (2, 2)): 0 knows 2 at (2, 2)."""
+    _, stack = clustering([[0, 0], [5, 0], [10, 0]], start=False)
+    _told(stack, 0.5, 1, 0, MEMBER, 5.0, 0.0, 1)
+    _told(stack, 1.0, 2, 0, LEADER, 1.0, 1.0, 1)
+    _told(stack, 2.0, 2, 1, LEADER, 2.0, 2.0, 2)
+    ids, xy = stack.heard_leaders(0, 2.5)
+    assert ids.tolist() == [2] and xy.tolist() == [[2.0, 2.0]]
+
+
+def test_a_robots_neighbourhood_reaches_two_hops_at_the_freshest_positions():
+    """neighbourhood: each robot knows the robots it hears and those they hear, at the
+    position of the latest Ack of each heard by anyone. 0 hears 1 and heard 2 at 1 s (at
+    (1, 1)); 1 hears 2 (at 2 s, at (2, 2)) and 3: 0 knows 3 through 1, and 2 at (2, 2)."""
+    _, stack = clustering([[0, 0], [5, 0], [10, 0], [15, 0]], start=False)
+    _told(stack, 0.5, 1, 0, MEMBER, 5.0, 0.0, 1)
+    _told(stack, 1.0, 2, 0, UNDECIDED, 1.0, 1.0, 1)
+    _told(stack, 2.0, 2, 1, UNDECIDED, 2.0, 2.0, 2)
+    _told(stack, 2.0, 3, 1, UNDECIDED, 15.0, 0.0, 1)
+    robot, other, xy = stack.neighbourhood(2.5)
+    known = {(r, o): tuple(p) for r, o, p in zip(robot.tolist(), other.tolist(), xy.tolist())}
+    assert (0, 3) in known and known[(0, 2)] == known[(1, 2)] == (2.0, 2.0)

@@ -269,6 +269,24 @@ def test_csma_freezes_the_backoff_and_resumes_it_after_difs(b_at, c_at, slots_le
     assert end_b - T == pytest.approx(end_c + DIFS + slots_left * SLOT, abs=1e-12)
 
 
+def test_csma_a_frame_queued_behind_the_head_frame_leaves_its_backoff_as_drawn():
+    """CSMA draws a backoff for a robot's head frame only: a frame queued while the head
+    frame counts down waits its turn and takes its own draw when the head frame leaves the
+    air. Robot 0 hands over A (backoff 5), then B two slots into A's countdown: A goes out
+    after DIFS and its 5 slots, B after A, DIFS and its own 3. A second draw for A when B
+    was queued restarted A's countdown."""
+    sim = _medium([0, 10], mac="csma")
+    sim.channel.mac.rng = draws = _Draws(5, 3, 3)
+    log = []
+    _send_at(sim, 0.0, 0, log)
+    _send_at(sim, DIFS + 2.5 * SLOT, 0, log)
+    sim.env.run()
+    (end_a, _, _), (end_b, _, _) = log
+    assert end_a == pytest.approx(DIFS + 5 * SLOT + T, abs=1e-12)
+    assert end_b == pytest.approx(end_a + DIFS + 3 * SLOT + T, abs=1e-12)
+    assert draws.slots == [3]  # two draws, one per frame
+
+
 def test_aloha_does_not_defer():
     """ALOHA transmits at once, busy medium or not."""
     sim = _medium([0, 10, 20])

@@ -236,3 +236,20 @@ def test_a_deadline_takes_the_instants_that_round_into_it_at_any_time_of_a_run(k
         d = kernels.deadline_after(t, 3.0)
         assert due < d <= due + max(1e-9, 2**-49 * due)
     assert kernels.deadline_after(-np.inf, 3.0) == -np.inf
+
+
+def test_a_slot_an_ack_may_still_continue_is_not_given_to_another_sender(kernels):
+    """At the instant of its expiry an entry is no longer live, but an Ack of its sender
+    arriving then still continues it (its history kept), so another sender's Ack of that
+    instant takes a free slot, not that one. Robot 0 heard 1 at ``last``; at ``last``'s
+    deadline, 2's Ack then 1's arrive: 1's entry keeps its live-since. Giving the expired
+    slot away made 1's Ack start a new entry, as if the link had broken."""
+    tau_s, now = 2.5, 10.0
+    last = _at(now, tau_s)
+    t = _table(kernels, 3, tau_s, 4)
+    t.receive(float(last), 1, np.array([0]), ack_record(1, 0, -1, 0.0, 0.0, 1))
+    t.receive(now, 2, np.array([0]), ack_record(1, 0, -1, 0.0, 0.0, 1))
+    t.receive(now, 1, np.array([0]), ack_record(2, 0, -1, 0.0, 0.0, 1))
+    assert sorted(t.id[0][t.id[0] >= 0].tolist()) == [1, 2]
+    assert t.live_since_s[0, t.entry(0, 1)] == last
+    assert t.live_since_s[0, t.entry(0, 2)] == now

@@ -57,6 +57,52 @@ def test_a_bad_value_is_refused_when_the_object_is_made():
 
 
 @pytest.mark.parametrize(
+    "refused, taken, key",
+    [
+        ({"ack_period_s": 2.0, "tau_s": 2.0}, {"ack_period_s": 2.0, "tau_s": 2.000001}, "protocol.tau_s"),
+        (
+            {"ack_period_s": 1.0, "ack_jitter_s": 0.5},
+            {"ack_period_s": 1.0, "ack_jitter_s": 0.499999},
+            "protocol.ack_jitter_s",
+        ),
+    ],
+)
+def test_the_ack_timings_bounds_are_strict_when_the_params_are_made(refused, taken, key):
+    """tau must exceed the Ack period, and the jitter stay below half of it, already when
+    the parameters are made (docs/model.md 4): a tau equal to the period, or a jitter of
+    exactly half, is refused; a hair inside either is taken."""
+    with pytest.raises(ConfigError) as err:
+        ClusteringParams(**refused)
+    assert err.value.key == key
+    ClusteringParams(**taken)
+
+
+@pytest.mark.parametrize(
+    "overrides, key, words",
+    [
+        # The longest gap between two Acks without loss, 1 + 0.25 + 0.5 s, is not enough.
+        (
+            ["protocol.ack_jitter_s=0.25", "channel.latency_jitter_s=0.5", "protocol.tau_s=1.75"],
+            "protocol.tau_s",
+            "= 1.75",
+        ),
+        # 64 bytes at 512 b/s without a preamble: an Ack occupies the air for exactly a period.
+        (
+            ["channel.mac='csma'", "channel.preamble_s=0", "channel.data_rate_bps=512", "protocol.ack_bytes=64"],
+            "channel.data_rate_bps",
+            "an airtime of 1 s: must be shorter than protocol.ack_period_s = 1",
+        ),
+    ],
+)
+def test_the_ack_timings_limits_against_the_channel_are_strict(overrides, key, words):
+    """tau must exceed the longest gap between two Acks without loss, and an Ack's airtime
+    on a shared medium must be shorter than the Ack period: equal to either is refused."""
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(None, overrides)
+    assert err.value.key == key and words in str(err.value)
+
+
+@pytest.mark.parametrize(
     "key, value",
     [
         ("protocol.join_policy", "neerest"),

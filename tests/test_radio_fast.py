@@ -296,6 +296,57 @@ def test_link_changes_equal_the_oracle(compiled, monkeypatch):
     assert 20 < len(touches) and touches.equals(want.touches())
 
 
+def _touched(recorder):
+    return [tuple(row) for row in recorder.touches()[["a", "b", "t_s"]].itertuples(index=False)]
+
+
+def test_a_link_record_that_knows_no_legs_touches_on_every_success_on_a_link_up():
+    """Without the robots' leg starts (``t0_s`` None) a success on a link already up is
+    always a touch (the pair may have left the reach since); a failure is none, nor is the
+    success that brings a link up."""
+    from netsim.radio.reception import LinkRecorder
+
+    recorder = LinkRecorder(3)
+    recorder.observe(1.0, 0, np.array([1, 2]), np.array([True, True]))
+    recorder.observe(2.0, 0, np.array([1, 2]), np.array([True, False]))
+    assert _touched(recorder) == [(0, 1, 2.0)]
+
+
+def test_on_a_torus_every_success_on_a_link_up_is_a_touch():
+    """A pair's distance on a torus is not convex in time: a link up may have left the reach
+    between two successes even when neither robot changed course, so every success on it is
+    a touch; in the plane only one after a leg's start is. The channel's record is made so
+    for a torus run."""
+    from netsim.radio.reception import Reception
+    from netsim.state import RobotState
+
+    touched = {}
+    for torus in (False, True):
+        st = RobotState(2, 400.0, 100.0, torus=torus)
+        st.place(np.array([[10.0, 10.0], [30.0, 10.0]]))
+        sh = PairShadowing(4.0, 30.0, np.random.default_rng(5), 0.0, n_robots=2)
+        reception = Reception(log_distance(LogDistanceParams(shadowing_sigma_db=4.0), sh), st, record=True)
+        for t in (1.0, 2.0, 3.0):
+            assert reception.decide(t, 0, np.array([1]), np.array([20.0])).tolist() == [True]
+        touched[torus] = _touched(reception.recorder)
+    assert touched == {False: [], True: [(0, 1, 2.0), (0, 1, 3.0)]}
+
+
+def test_a_unicasts_success_on_a_link_up_after_a_leg_started_is_a_touch():
+    """A decision on one pair alone (a unicast) touches its link as a broadcast's does: a
+    success on the link up after one of the two started a leg since the pair's last
+    decision; not one with no leg started since."""
+    from netsim.radio.reception import LinkRecorder
+
+    t0 = np.zeros(3)
+    recorder = LinkRecorder(3, t0)
+    recorder.observe(1.0, 0, np.array([1, 2]), np.array([True, True]))
+    recorder.observe_pair(2.0, 0, 1, True)
+    t0[1] = 2.5
+    recorder.observe_pair(3.0, 0, 1, True)
+    assert _touched(recorder) == [(0, 1, 3.0)]
+
+
 def test_the_early_drop_keeps_a_pair_the_whole_sum_would_hear():
     """One rule of early drop for the compiled pass and the chain term by term: a pair whose
     loss so far, plus the least the terms left can add, is the budget up to rounding stays;

@@ -114,6 +114,30 @@ def test_bad_parameters(args, key):
     assert err.value.key == key
 
 
+@pytest.mark.parametrize("step_m", [-1.0, math.nan, math.inf])
+def test_a_step_that_is_no_finite_number_at_least_zero_is_refused(step_m):
+    with pytest.raises(ConfigError) as err:
+        PairShadowing(4.0, 10.0, np.random.default_rng(0), step_m=step_m)
+    assert err.value.key == "channel.shadowing_step_m"
+
+
+class _Fives:
+    """A generator whose standard normals are all 5: every draw lies beyond the clip."""
+
+    def standard_normal(self, size):
+        return np.full(size, 5.0)
+
+
+@pytest.mark.parametrize("n_robots", [None, 4])
+def test_a_pairs_first_draw_is_stored_unclipped(n_robots):
+    """A pair seen for the first time is used clipped to 4 sigma, but its state keeps the
+    draw itself (5 sigma here), as every later update does, so that the process's dynamics
+    stay exact; with the pairs' slots made in advance (a small team) or not."""
+    sh = PairShadowing(2.0, 10.0, _Fives(), n_robots=n_robots)
+    assert sh.sample([0, 2], [1, 3], [0.0, 0.0]).tolist() == [8.0, 8.0]
+    assert sh.state([0, 2], [1, 3])[0].tolist() == [10.0, 10.0]
+
+
 @pytest.mark.parametrize("compiled", ["0", "1"])
 def test_updates_equal_the_oracle(compiled, monkeypatch):
     """Same seed, same batches (new pairs, both directions, repeated looks): the update's
