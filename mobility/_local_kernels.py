@@ -144,8 +144,10 @@ def swept_clear(walls, ax, ay, ea, bx, by, eb, shape, k):
     half_m = 0.0
     for m in range(k):
         half_m = max(half_m, np.hypot(shape[m, 0], shape[m, 1]))
+    if not (math.isfinite(ea) and math.isfinite(eb)):
+        return False  # a reach not known: no proof (and inf - inf, plain, would warn)
     per_f_m = np.hypot(bx - ax, by - ay) + half_m + abs(eb - ea)  # how fast a member's reach moves with f
-    if not math.isfinite(per_f_m + ax + ay + ea):
+    if not math.isfinite(per_f_m + ax + ay):
         return False  # nowhere known: no proof (and the walk would not end)
     if per_f_m == 0.0:
         disks = np.empty((k, 3))
