@@ -651,6 +651,13 @@ def test_walls_a_hull_of_unknown_extent_is_not_clear():
         walls, a, np.array([[np.inf, 0.0], [1.0, 0.0], [1.0, 0.0]]), b, np.array([0.1, 0.1, np.inf])
     )
     assert said.tolist() == [False, False, False]
+    # Plain, as NETSIM_COMPILED=0 runs it: the same answers, and no warning (infinite radii
+    # taken apart, inf - inf, warned).
+    plain = importlib.import_module("netsim.mobility._local_kernels")
+    out = np.empty(3, dtype=bool)
+    e = np.array([np.inf, 0.1, 0.1])
+    plain.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), e, e.copy(), out)
+    assert out.tolist() == [False, False, True]
 
 
 def test_walls_kernel_agrees_with_its_oracle(monkeypatch):
