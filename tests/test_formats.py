@@ -524,6 +524,20 @@ def test_robots_that_start_at_one_point_are_warned_of(tmp_path):
         rosbag2.read(bag)
 
 
+def test_static_transforms_that_go_round_a_cycle_are_refused(tmp_path):
+    """Transforms whose chain comes back to a frame have no top to place the robots in: one
+    line naming the cycle."""
+    bag = tmp_path / "cycle"
+    static = [("yard", "robot_0/odom", 1.0, 0.0, 0.0), ("robot_0/odom", "yard", 1.0, 0.0, 0.0)]
+    _bag(bag, ODOM_TRACKS, "nav_msgs/msg/Odometry", ODOM_FRAMES, static)
+    with pytest.raises(NetsimInputError) as err:
+        rosbag2.read(bag)
+    assert (
+        str(err.value)
+        == f"{bag}: the transforms on /tf_static go round a cycle ('robot_0/odom' -> 'yard' -> 'robot_0/odom')"
+    )
+
+
 def test_a_robot_whose_poses_change_frame_is_refused(tmp_path):
     """A robot's poses in two frames: one line naming them (each pose would be placed as if
     in one)."""

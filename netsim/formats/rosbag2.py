@@ -233,7 +233,7 @@ def _into_one_frame(
             q, t = tf.transform.rotation, tf.transform.translation
             yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
             parent[_frame(tf.child_frame_id)] = (_frame(tf.header.frame_id), t.x, t.y, yaw)
-    rooted = {name: _to_root(name, parent) for name in distinct}
+    rooted = {name: _to_root(name, parent, source) for name in sorted(distinct)}
     if len({root for root, *_ in rooted.values()}) > 1:
         raise NetsimInputError(
             f"{source}: the robots' poses are in {len(distinct)} frames ({_frames_listed(distinct)}) that no "
@@ -243,17 +243,21 @@ def _into_one_frame(
     return {i: rooted[name][1:] for i, name in frame_of.items()}
 
 
-def _to_root(frame: str, parent: dict[str, tuple[str, float, float, float]]) -> tuple[str, float, float, float]:
+def _to_root(
+    frame: str, parent: dict[str, tuple[str, float, float, float]], source: str
+) -> tuple[str, float, float, float]:
     """The frame at the top of ``frame``'s chain of static transforms, and the planar
-    transform ``(x, y, yaw)`` taking a point of ``frame`` into it (``p -> R(yaw) p + (x, y)``)."""
+    transform ``(x, y, yaw)`` taking a point of ``frame`` into it (``p -> R(yaw) p + (x, y)``).
+    A chain that comes back to a frame has no top: one line naming it."""
     x = y = yaw = 0.0
-    seen = {frame}
+    chain = [frame]
     while frame in parent:
         up, tx, ty, turn = parent[frame]
-        if up in seen:  # a cycle of transforms has no top: its frames join nothing above them
-            break
+        if up in chain:
+            loop = " -> ".join(repr(f) for f in [*chain[chain.index(up) :], up])
+            raise NetsimInputError(f"{source}: the transforms on {TF_STATIC} go round a cycle ({loop})")
         (x, y), yaw = _placed(x, y, tx, ty, turn), yaw + turn
-        seen.add(up)
+        chain.append(up)
         frame = up
     return frame, x, y, yaw
 
