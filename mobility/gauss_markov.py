@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import simpy
 
+from netsim._kernels import innovation_scale
 from netsim.area import Bounds, as_bounds, exit_times
 from netsim.errors import ConfigError
 from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable
@@ -104,8 +105,9 @@ def _clamped_legs(
 def noise_scale(alpha: float) -> float:
     """The factor of each update's Gaussian, ``sqrt(1 - alpha^2)``: it keeps the stationary
     standard deviations of speed and direction at ``speed_sigma_mps`` and
-    ``direction_sigma_rad`` whatever ``alpha``."""
-    return math.sqrt(max(0.0, 1.0 - alpha * alpha))
+    ``direction_sigma_rad`` whatever ``alpha`` (a probability). The process is the
+    shadowing's (AR(1)), so the scale is its rule, :func:`netsim._kernels.innovation_scale`."""
+    return innovation_scale(alpha)
 
 
 def gauss_markov_robot(
