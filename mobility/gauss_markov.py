@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import simpy
 
-from netsim._kernels import innovation_scale
 from netsim.area import Bounds, as_bounds, exit_times
+from netsim.compiled import load
 from netsim.errors import ConfigError
 from netsim.geometry import SPEED_OF_LIGHT_MPS, drivable
 from netsim.params import Params, finite, param, positive, probability, speed
@@ -107,7 +107,7 @@ def noise_scale(alpha: float) -> float:
     standard deviations of speed and direction at ``speed_sigma_mps`` and
     ``direction_sigma_rad`` whatever ``alpha`` (a probability). The process is the
     shadowing's (AR(1)), so the scale is its rule, :func:`netsim._kernels.innovation_scale`."""
-    return innovation_scale(alpha)
+    return float(load("netsim._kernels", 1).innovation_scale(alpha))
 
 
 def gauss_markov_robot(
