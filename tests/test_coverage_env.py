@@ -221,8 +221,8 @@ def test_bad_parameter_is_a_config_error():
     number."""
     with pytest.raises(ConfigError, match="coverage_v0.n_robots = 0"):
         coverage_v0.parallel_env(n_robots=0)
-    with pytest.raises(ConfigError, match="render_mode = 'human'"):
-        coverage_v0.parallel_env(render_mode="human")
+    with pytest.raises(ConfigError, match="render_mode = 'ansi': must be None, 'human' or 'rgb_array'"):
+        coverage_v0.parallel_env(render_mode="ansi")
     with pytest.raises(
         ConfigError, match=r"n_robot = 4: unknown key \(did you mean 'n_robots'\?\); allowed: .*n_robots"
     ):
@@ -298,6 +298,76 @@ def test_render_without_a_render_mode_warns():
     env.reset(seed=0)
     with pytest.warns(UserWarning, match="render_mode='rgb_array'"):
         assert env.render() is None
+
+
+def test_human_render_mode_without_a_window_says_so_once(monkeypatch):
+    """render_mode = "human" where matplotlib draws no window (Agg, as on a server): one
+    warning naming the backend and what to do, for the environment's life; render() returns
+    None, and reset() and step() go on."""
+    monkeypatch.setattr(coverage_v0, "shows_windows", lambda: False)
+    env = coverage_v0.parallel_env(**SMALL, render_mode="human")
+    with pytest.warns(UserWarning, match="render_mode='human' shows a window.*MPLBACKEND") as said:
+        env.reset(seed=0)
+        env.step({a: np.zeros(2, np.float32) for a in env.agents})
+        assert env.render() is None
+    assert len([w for w in said if "shows a window" in str(w.message)]) == 1
+
+
+def test_human_render_mode_shows_each_step_in_one_window(monkeypatch):
+    """render_mode = "human" with a window's backend: reset() and every step() show the
+    frame render_mode = "rgb_array" returns at the same instant, in one window that is
+    reopened only when the user closed it."""
+    import matplotlib.pyplot as plt
+
+    monkeypatch.setattr(coverage_v0, "shows_windows", lambda: True)
+    shown: list[np.ndarray] = []
+
+    def pause(_interval: float) -> None:
+        (figure,) = [plt.figure(n) for n in plt.get_fignums() if plt.figure(n).get_label() == "netsim coverage_v0"]
+        shown.append(np.asarray(figure.axes[0].images[0].get_array()).copy())
+
+    monkeypatch.setattr(plt, "pause", pause)
+    human = coverage_v0.parallel_env(**SMALL, render_mode="human")
+    frames = coverage_v0.parallel_env(**SMALL, render_mode="rgb_array")
+    expected = []
+    for env in (human, frames):
+        env.reset(seed=2)
+        if env is frames:
+            expected.append(env.render())
+        for k in range(2):
+            env.step({a: np.full(2, 0.5 - k, np.float32) for a in env.agents})
+            if env is frames:
+                expected.append(env.render())
+    assert len(shown) == 3
+    assert all(np.array_equal(s, e) for s, e in zip(shown, expected))
+    assert not np.array_equal(shown[0], shown[2])  # the team moved
+    assert human.render() is None
+    plt.close("all")  # the user closes the window: the next frame opens another
+    human.step({a: np.zeros(2, np.float32) for a in human.agents})
+    assert len(shown) == 5
+    human.close()
+    assert "netsim coverage_v0" not in [plt.figure(n).get_label() for n in plt.get_fignums()]
+
+
+@pytest.mark.parametrize(("backend", "window"), [("agg", False), ("pdf", False), ("TkAgg", True), ("QtAgg", True)])
+def test_a_window_is_shown_only_by_a_backend_that_has_one(monkeypatch, backend, window):
+    """Whether render_mode = "human" can show a window: matplotlib's interactive backends
+    (any case) have one, the ones that draw to a file or a buffer do not."""
+    from netsim.envs import drawing
+
+    monkeypatch.setattr(drawing, "matplotlib_backend", lambda: backend)
+    assert drawing.shows_windows() is window
+
+
+def test_passes_pettingzoo_render_test(monkeypatch):
+    """PettingZoo's render_test, which makes the environment in every mode it lists
+    ("human" included) and checks what render() returns in each."""
+    from pettingzoo.test import render_test
+
+    monkeypatch.setattr(coverage_v0, "shows_windows", lambda: False)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "render_mode='human' shows a window", UserWarning)
+        render_test(lambda render_mode: coverage_v0.env(**SMALL, render_mode=render_mode))
 
 
 def test_the_link_quality_recipe_warns_of_nothing(recwarn):

@@ -56,6 +56,7 @@ from netsim import metrics
 from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.cosim import CommandError, LinkQualityView, as_numbers
+from netsim.envs.drawing import Window, frame, matplotlib_backend, shows_windows
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.placement import check_placement
@@ -66,6 +67,7 @@ from netsim.topology import geometric_pairs
 
 FIELDS_PER_NEIGHBOUR = 4  # dx, dy, age, present
 FIELDS_PER_LINK = 3  # rx_power_dbm, age, present (link_quality)
+RENDER_MODES = ("human", "rgb_array")  # a window; frames returned
 
 
 @dataclass(frozen=True)
@@ -97,13 +99,14 @@ class CoverageEnv(ParallelEnv):
     :class:`~netsim.sim.Simulation`, to read anything else the network did; ``netsim``
     adds keys to its configuration (``{"channel": {"loss_model": ...}}``)."""
 
-    metadata = {"name": "coverage_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
+    metadata = {"name": "coverage_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
 
     def __init__(self, params: CoverageEnvParams, netsim: Mapping | None = None, render_mode: str | None = None):
-        if render_mode not in (None, "rgb_array"):
-            raise ConfigError("render_mode", render_mode, "must be None or 'rgb_array'")
+        if render_mode not in (None, *RENDER_MODES):
+            raise ConfigError("render_mode", render_mode, "must be None, 'human' or 'rgb_array'")
         self.params = p = params
         self.render_mode = render_mode
+        self._window: Window | None = None  # render_mode = "human": opened at the first frame
         if netsim is not None and not isinstance(netsim, Mapping):
             raise ConfigError("netsim", netsim, "must be a table of configuration keys (a dict)")
         if netsim is not None and "seed" in netsim:
@@ -280,6 +283,8 @@ class CoverageEnv(ParallelEnv):
         self.covered = self._covered(pos)
         self.components = self._components(pos)
         obs = self._observations(pos)
+        if self.render_mode == "human":
+            self.render()
         return obs, self._infos(pos)
 
     def _finish_instant(self) -> None:
@@ -338,6 +343,8 @@ class CoverageEnv(ParallelEnv):
         if done:
             self.agents = []
             self._live = set()
+        if self.render_mode == "human":
+            self.render()
         return obs, rewards, terminations, truncations, infos
 
     def checked_actions(self, actions: Mapping[str, Any] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -425,22 +432,42 @@ class CoverageEnv(ParallelEnv):
 
     # -- drawing --------------------------------------------------------------------------
     def render(self) -> np.ndarray | None:
-        """With ``render_mode = "rgb_array"``: the team now, as the figures draw a deployment
-        (netsim.tools.figures), an ``(H, W, 3)`` uint8 array."""
+        """The team now, as the figures draw a deployment (netsim.tools.figures): with
+        ``render_mode = "rgb_array"`` returned as an ``(H, W, 3)`` uint8 array; with
+        ``"human"`` shown in a window (which ``reset()`` and ``step()`` also update), None
+        returned."""
         if self.render_mode is None:
             warnings.warn(
-                "render() draws only in render_mode 'rgb_array': make the environment with render_mode='rgb_array'",
+                "render() draws only in render_mode 'rgb_array' or 'human': make the environment with"
+                " render_mode='rgb_array' (frames returned) or render_mode='human' (a window)",
                 stacklevel=2,
             )
             return None
         if self.sim is None:
             return None
-        from netsim.envs.drawing import frame
-
-        return frame(self.sim, self._links_up(self.sim.positions()), self.radius_m, self.range_m, self.covered)
+        if self.render_mode == "human" and not shows_windows():
+            if "no window" not in self._told:
+                self._told.add("no window")
+                warnings.warn(
+                    f"render_mode='human' shows a window, and matplotlib's backend ({matplotlib_backend()}) draws"
+                    " none: nothing is shown (set MPLBACKEND to a window's backend, e.g. TkAgg or QtAgg, or use"
+                    " render_mode='rgb_array')",
+                    stacklevel=2,
+                )
+            return None
+        image = frame(self.sim, self._links_up(self.sim.positions()), self.radius_m, self.range_m, self.covered)
+        if self.render_mode == "rgb_array":
+            return image
+        if self._window is None:
+            self._window = Window()
+        self._window.show(image)
+        return None
 
     def close(self) -> None:
         self.sim = None
+        if self._window is not None:
+            self._window.close()
+            self._window = None
 
 
 def observation_space(
@@ -523,7 +550,7 @@ def refused(config: cfgmod.Config, params: CoverageEnvParams) -> tuple[str, obje
 def parallel_env(render_mode: str | None = None, netsim: Mapping | None = None, **params: Any) -> CoverageEnv:
     """The environment, from the keys of :class:`CoverageEnvParams` (a bad value raises
     :class:`~netsim.errors.ConfigError` naming it); ``netsim`` adds keys to the runs'
-    configuration; ``render_mode``: None or ``"rgb_array"``."""
+    configuration; ``render_mode``: None, ``"human"`` (a window) or ``"rgb_array"``."""
     allowed = [f.name for f in dataclasses.fields(CoverageEnvParams)]
     for key, value in params.items():
         if key not in allowed:

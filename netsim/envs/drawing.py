@@ -52,3 +52,54 @@ def frame(
     canvas.draw()
     rgba = np.asarray(canvas.buffer_rgba())
     return rgba[:, :, :3].copy()
+
+
+def matplotlib_backend() -> str:
+    """The name of the backend matplotlib draws with (chosen now if not yet)."""
+    import matplotlib
+
+    return str(matplotlib.get_backend())
+
+
+def shows_windows() -> bool:
+    """Whether matplotlib's backend draws to a window (an interactive one: not Agg, PDF, ...)."""
+    try:
+        from matplotlib.backends import BackendFilter, backend_registry
+
+        drawn_only = backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE)
+    except ImportError:  # matplotlib before 3.9
+        from matplotlib.rcsetup import non_interactive_bk as drawn_only  # type: ignore[attr-defined,no-redef]
+    return matplotlib_backend().lower() not in drawn_only
+
+
+class Window:
+    """A window showing frames as they come (``render_mode = "human"``): opened at the first,
+    and again if the user closed it; each frame replaces the last."""
+
+    TITLE = "netsim coverage_v0"
+
+    def __init__(self) -> None:
+        self._figure: object = None
+        self._image: object = None
+
+    def show(self, image: np.ndarray) -> None:
+        import matplotlib.pyplot as plt
+
+        figure = self._figure
+        if figure is None or not plt.fignum_exists(figure.number):  # type: ignore[attr-defined]
+            height, width = image.shape[:2]
+            figure = self._figure = plt.figure(self.TITLE, figsize=(width / 100, height / 100), dpi=100)
+            axes = figure.add_axes((0.0, 0.0, 1.0, 1.0))
+            axes.set_axis_off()
+            self._image = axes.imshow(image)
+        else:
+            self._image.set_data(image)  # type: ignore[attr-defined]
+        # Lets the window's event loop draw the frame and answer the user meanwhile.
+        plt.pause(1e-3)
+
+    def close(self) -> None:
+        if self._figure is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._figure)  # type: ignore[arg-type]
+            self._figure = self._image = None
