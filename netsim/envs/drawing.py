@@ -3,9 +3,15 @@ colours, links, coverage disks, the area's border: netsim.tools.figures and styl
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from netsim.sim import Simulation
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+    from matplotlib.image import AxesImage
 
 
 def frame(
@@ -79,21 +85,21 @@ class Window:
     TITLE = "netsim coverage_v0"
 
     def __init__(self) -> None:
-        self._figure: object = None
-        self._image: object = None
+        self._figure: Figure | None = None
+        self._image: AxesImage | None = None
 
     def show(self, image: np.ndarray) -> None:
         import matplotlib.pyplot as plt
 
-        figure = self._figure
-        if figure is None or not plt.fignum_exists(figure.number):  # type: ignore[attr-defined]
+        figure, shown = self._figure, self._image
+        if figure is None or shown is None or not plt.fignum_exists(figure.number):
             height, width = image.shape[:2]
             figure = self._figure = plt.figure(self.TITLE, figsize=(width / 100, height / 100), dpi=100)
             axes = figure.add_axes((0.0, 0.0, 1.0, 1.0))
             axes.set_axis_off()
             self._image = axes.imshow(image)
         else:
-            self._image.set_data(image)  # type: ignore[attr-defined]
+            shown.set_data(image)
         # Lets the window's event loop draw the frame and answer the user meanwhile.
         plt.pause(1e-3)
 
@@ -101,5 +107,5 @@ class Window:
         if self._figure is not None:
             import matplotlib.pyplot as plt
 
-            plt.close(self._figure)  # type: ignore[arg-type]
+            plt.close(self._figure)
             self._figure = self._image = None
