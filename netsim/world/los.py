@@ -68,7 +68,9 @@ def _trace(
     """Walls crossed by each segment ``p[k] -> q[k]`` (and, with ``first``, the parameter in
     ``[0, 1]`` at which it first meets a blocked cell, ``inf`` if never); with ``snap``, ends
     within the vertex tolerance of a grid line put on it. Counting may stop past ``limit``
-    walls (the count is then ``limit + 1``, the first blocked point still exact)."""
+    walls (the count is then ``limit + 1``); with ``first`` it never stops early, since the
+    kernel walks a segment's crossings of one axis's grid lines before the other's, and the
+    first blocked point may lie among those a stopped walk skipped."""
     kernel = kernels_for("netsim.world._kernels").trace
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     q = np.asarray(q, dtype=float).reshape(-1, 2)
@@ -76,7 +78,8 @@ def _trace(
     walls = np.empty(len(p), dtype=np.int64)
     first_t = np.empty(len(p))
     h, w = blocked.shape
-    kernel((blocked.ravel(), h, w), placement, (p, q), VERTEX_TOLERANCE_CELLS, (walls, first_t), limit, snap)
+    stop = NO_LIMIT if first else limit
+    kernel((blocked.ravel(), h, w), placement, (p, q), VERTEX_TOLERANCE_CELLS, (walls, first_t), stop, snap)
     return (walls, first_t) if first else walls
 
 
