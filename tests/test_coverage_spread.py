@@ -166,17 +166,31 @@ def test_pulls_travel_along_taut_links():
     assert held[:, 0] == pytest.approx([0.0, 0.0, 0.0, 1.0])
 
 
-def test_a_pull_travels_a_long_taut_chain_in_one_step():
-    """The outer robot of a chain of twenty taut links pulls every robot of it in the same
-    step: the tension of a taut chain is not stopped after a few links, so a long branch
-    follows its tip instead of blocking it."""
-    n = 21
+def _pulled_along_taut_chain(n: int) -> np.ndarray:
+    """The wishes after pulls along a chain of ``n`` robots on taut links, the outer one
+    wishing to move outward."""
     pos = np.column_stack([99.0 * np.arange(n), np.zeros(n)])
     link = (np.arange(n - 1), np.arange(1, n), np.full(n - 1, 99.0))
     wish = np.zeros((n, 2))
     wish[-1, 0] = 1.0
-    out = pass_on_pulls(pos, wish, np.ones(n, bool), link, np.full(n - 1, 99.0), 1.0)
-    assert out[:, 0] == pytest.approx(np.ones(n))
+    return pass_on_pulls(pos, wish, np.ones(n, bool), link, np.full(n - 1, 99.0), 1.0)
+
+
+def test_a_pull_travels_a_long_taut_chain_in_one_step():
+    """The outer robot of a chain of twenty taut links pulls every robot of it in the same
+    step: the tension of a taut chain is not stopped after a few links, so a long branch
+    follows its tip instead of blocking it."""
+    out = _pulled_along_taut_chain(21)
+    assert out[:, 0] == pytest.approx(np.ones(21))
+
+
+def test_a_pull_travels_thirty_links_deep_and_no_farther():
+    """A pull passes along taut links up to thirty deep in one step, the longest branch
+    the plan expects, and stops there: the depth is the rule's, not an accident of the
+    chain's length."""
+    out = _pulled_along_taut_chain(32)
+    assert out[1:, 0] == pytest.approx(np.ones(31))
+    assert out[0, 0] == 0.0
 
 
 def test_leaders_know_their_two_hop_neighbourhood_from_acks(build_sim):

@@ -37,22 +37,6 @@ def test_a_robot_whose_kept_neighbour_holds_may_use_the_whole_link():
     assert not plan.held[1]
 
 
-def test_a_pull_travels_thirty_links_deep_and_no_farther():
-    """A pull passes along taut links up to thirty deep in one step, the longest branch
-    the plan expects, and stops there: the depth is the rule's, not an accident of the
-    chain's length."""
-    from netsim.mobility.spread import pass_on_pulls
-
-    n = 32
-    pos = np.column_stack([99.0 * np.arange(n), np.zeros(n)])
-    link = (np.arange(n - 1), np.arange(1, n), np.full(n - 1, 99.0))
-    wish = np.zeros((n, 2))
-    wish[-1, 0] = 1.0
-    out = pass_on_pulls(pos, wish, np.ones(n, bool), link, np.full(n - 1, 99.0), 1.0)
-    assert out[1:, 0] == pytest.approx(np.ones(n - 1))
-    assert out[0, 0] == 0.0
-
-
 def test_a_step_into_the_border_slides_along_it():
     """The wished end point is brought into the area by projection, not by cutting the
     step where it meets the border: a robot pushed obliquely into a border keeps the part
