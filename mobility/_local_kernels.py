@@ -273,26 +273,29 @@ def steps_through(walls, p, move, q, e, fall, margin_m, out):
 
 
 @jit(nogil=True)
-def largest_travel_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
+def largest_travel_m(leg_speed_mps, leg_from_s, leg_until_s, since_s, t0_s, speed_mps):
     """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
-    Ack carried from ``leg_from_s`` on (NaN: unknown), at the speed cap before
-    (one pair)."""
+    Ack carried from ``leg_from_s`` until ``leg_until_s`` (NaN: unknown), at the speed cap
+    before and after (after its leg it may have taken another, unheard of) (one pair)."""
     if not since_s > -math.inf:
         return math.inf
     if math.isnan(leg_speed_mps):
         return speed_mps * max(t0_s - since_s, 0.0)
     start = min(max(leg_from_s, since_s), t0_s)
-    return speed_mps * max(start - since_s, 0.0) + leg_speed_mps * max(t0_s - start, 0.0)
+    end = min(max(leg_until_s, start), t0_s)
+    before = speed_mps * max(start - since_s, 0.0)
+    return before + leg_speed_mps * max(end - start, 0.0) + speed_mps * max(t0_s - end, 0.0)
 
 
 @jit(nogil=True)
-def largest_travels_m(leg_speed_mps, leg_from_s, since_s, t0_s, speed_mps):
+def largest_travels_m(leg_speed_mps, leg_from_s, leg_until_s, since_s, t0_s, speed_mps):
     """:func:`largest_travel_m` of every ``(i, j)`` of the ``(n, m)`` arrays: robot ``j``'s
     leg as ``i`` knows it, since ``since_s[i, j]``."""
     out = np.empty(since_s.shape)
     for i in range(since_s.shape[0]):
         for j in range(since_s.shape[1]):
-            out[i, j] = largest_travel_m(leg_speed_mps[i, j], leg_from_s[i, j], since_s[i, j], t0_s, speed_mps)
+            leg = (leg_speed_mps[i, j], leg_from_s[i, j], leg_until_s[i, j])
+            out[i, j] = largest_travel_m(*leg, since_s[i, j], t0_s, speed_mps)
     return out
 
 
@@ -401,6 +404,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
     xy, sent_s, known, silent = memory.xy, memory.sent_s, memory.known, memory.silent
     x_db, measured_s = memory.x_db, memory.measured_s
     leg_speed, leg_from, leg_velocity = memory.leg_speed_mps, memory.leg_from_s, memory.leg_velocity_mps
+    leg_until = memory.leg_until_s
     which, start, other, listed_s = heard.which, heard.start, heard.other, heard.sent_s
     held, records_db = heard.held, heard.records_db
     # Without the lists' senders' lists (``held`` empty) the graph ends at the robots i remembers.
@@ -444,7 +448,7 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
             if known[i, j] and j != i:
                 node[k] = j
                 qx[k], qy[k] = xy[i, j, 0], xy[i, j, 1]
-                e[k] = largest_travel_m(np.nan, np.nan, sent_s[i, j], t0_s, speed_mps)
+                e[k] = largest_travel_m(np.nan, np.nan, np.nan, sent_s[i, j], t0_s, speed_mps)
                 k += 1
         m = k - 1
         if m < 2:
@@ -475,13 +479,13 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                     if beyond[b] and listed_s[p] > heard_s[b]:
                         heard_s[b] = listed_s[p]
                         qx[b], qy[b] = heard.xy[p, 0], heard.xy[p, 1]
-                        e[b] = largest_travel_m(np.nan, np.nan, listed_s[p], t0_s, speed_mps)
+                        e[b] = largest_travel_m(np.nan, np.nan, np.nan, listed_s[p], t0_s, speed_mps)
         if window_s > 0:
             for a in range(k):
                 u = node[a]
                 # Of a robot two hops out i knows no leg: the cap all along.
                 speed_u = np.nan if beyond[a] else leg_speed[i, u]
-                sweep[a] = largest_travel_m(speed_u, leg_from[i, u], opens_s, t0_s, speed_mps)
+                sweep[a] = largest_travel_m(speed_u, leg_from[i, u], leg_until[i, u], opens_s, t0_s, speed_mps)
                 # Its known leg, from leg_s[a] on; none: the leg "starts" at t0.
                 if math.isnan(speed_u):
                     leg_s[a], vx[a], vy[a], vs[a] = t0_s, 0.0, 0.0, 0.0
@@ -500,8 +504,8 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
             # depends on the pair's travel between the two instants, either way).
             j = node[b]
             s_ij = min(measured_s[i, j], opens_s) if window_s > 0 else measured_s[i, j]
-            travel = largest_travel_m(leg_speed[i, i], leg_from[i, i], s_ij, t0_s, speed_mps)
-            travel += largest_travel_m(leg_speed[i, j], leg_from[i, j], s_ij, t0_s, speed_mps)
+            travel = largest_travel_m(leg_speed[i, i], leg_from[i, i], leg_until[i, i], s_ij, t0_s, speed_mps)
+            travel += largest_travel_m(leg_speed[i, j], leg_from[i, j], leg_until[i, j], s_ij, t0_s, speed_mps)
             r = measured_range_m(x_db[i, j], s_ij, travel, fade)
             sure[0, b] = max(sure[0, b], r)
             sure[b, 0] = sure[0, b]
@@ -510,7 +514,8 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
             s = which[i, u]
             if s < 0:
                 continue
-            listed_lists(i, a, s, u, node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure)
+            args = (node, local, beyond, heard, leg_speed, leg_from, leg_until, rule, fade, certain, sure)
+            listed_lists(i, a, s, u, *args)
             if two_hops:
                 # The lists of the robots u's list names, as u held them at its snapshot s.
                 for p in range(start[s, u], start[s, u + 1]):
@@ -520,7 +525,6 @@ def let_go(pos, memory, heard, rule, walls, out, fade):
                     w = node[b]
                     h = held_list(heard, s, u, w)
                     if h >= 0:
-                        args = (node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure)
                         listed_lists(i, b, h, w, *args)
         if fade.on:
             # The records rule 1 orders by: the smaller id's, as a list i holds of it carries
@@ -642,7 +646,7 @@ def up_over_window(walls, a, b, ends, sure_m, opens_s, t0_s, speed_mps):
 
 
 @jit(nogil=True)
-def listed_lists(i, a, s, u, node, local, beyond, heard, leg_speed, leg_from, rule, fade, certain, sure):
+def listed_lists(i, a, s, u, node, local, beyond, heard, leg_speed, leg_from, leg_until, rule, fade, certain, sure):
     """What ``u`` (node ``a`` of robot ``i``'s graph) remembers at ``t0`` by its list of
     snapshot ``s``: ``certain[a, b]`` for each node ``b`` it names (still remembered then),
     and the range the shadowing it measured on ``b`` allows, ``sure[a, b]``, over the pair's
@@ -660,7 +664,7 @@ def listed_lists(i, a, s, u, node, local, beyond, heard, leg_speed, leg_from, ru
         travel = 0.0
         for c, robot in ((a, u), (b, listed)):
             speed_c = np.nan if beyond[c] else leg_speed[i, robot]
-            travel += largest_travel_m(speed_c, leg_from[i, robot], s_p, t0_s, speed_mps)
+            travel += largest_travel_m(speed_c, leg_from[i, robot], leg_until[i, robot], s_p, t0_s, speed_mps)
         r = measured_range_m(listed_x[p], s_p, travel, fade)
         sure[a, b] = max(sure[a, b], r)
         sure[b, a] = max(sure[b, a], r)

@@ -295,12 +295,15 @@ class Memory:
         # How far from ``q_j`` robot ``i`` answers for the link (:func:`leash_radius`); None:
         # the plan's range less its margin for every link.
         self.keep_m: np.ndarray | None = None
-        # The velocity with which ``i`` knows ``j`` moved from ``leg_from_s[i, j]`` until its
-        # next step (that of the latest Ack of ``j`` it heard, if sent on a leg; ``i``'s own on
-        # the diagonal), NaN: unknown (:func:`largest_travel_m`; rule 1 follows ``j`` back
-        # along it over its window, :meth:`at`'s uncertainty counting the cap after that step).
+        # The velocity with which ``i`` knows ``j`` moved from ``leg_from_s[i, j]`` until
+        # ``leg_until_s[i, j]``, its next step (that of the latest Ack of ``j`` it heard, if
+        # sent on a leg; ``i``'s own on the diagonal, until it steps again), NaN: unknown
+        # (:func:`largest_travel_m`, the cap after that step: ``j`` may be on a leg no Ack
+        # told of yet; rule 1 follows ``j`` back along it over its window, :meth:`at`'s
+        # uncertainty counting the cap after that step).
         self.leg_velocity_mps = np.full((n, n, 2), np.nan)
         self.leg_from_s = np.full((n, n), np.inf)
+        self.leg_until_s = np.full((n, n), np.inf)
 
     def hear(
         self,
@@ -334,6 +337,7 @@ class Memory:
             self.until_s[r, o] = sent
             self.leg_velocity_mps[r, o] = np.nan
             self.leg_from_s[r, o] = np.inf
+            self.leg_until_s[r, o] = np.inf
             return
         on_leg = sent >= leg_start_s[o]
         self.vel[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], 0.0)
@@ -341,10 +345,12 @@ class Memory:
         self.leg_velocity_mps[r, o] = np.where(on_leg[:, None], leg_velocity_mps[o], np.nan)
         # An Ack carries its sender's velocity and when its leg started.
         self.leg_from_s[r, o] = np.where(on_leg, leg_start_s[o], np.inf)
-        # Each robot knows its own leg: its velocity since the leg started.
+        self.leg_until_s[r, o] = np.where(on_leg, leg_until_s, np.inf)
+        # Each robot knows its own leg: its velocity since the leg started, until it steps.
         own = np.arange(len(self.sent_s))
         self.leg_velocity_mps[own, own] = leg_velocity_mps
         self.leg_from_s[own, own] = leg_start_s
+        self.leg_until_s[own, own] = np.inf
 
     @property
     def leg_speed_mps(self) -> np.ndarray:
@@ -376,37 +382,41 @@ class Memory:
             out.sent_s = np.where(heard, t0_s - error / speed_mps, -np.inf)
         out.until_s = out.sent_s.copy()
         out.x_db, out.margin_db, out.measured_s = self.x_db, self.margin_db, self.measured_s
-        out.leg_velocity_mps, out.leg_from_s = self.leg_velocity_mps, self.leg_from_s
+        out.leg_velocity_mps, out.leg_from_s, out.leg_until_s = self.leg_velocity_mps, self.leg_from_s, self.leg_until_s
         return out
 
     def travel_m(self, since_s: np.ndarray, t0_s: float, speed_mps: float) -> np.ndarray:
         """``(n, n)``: the farthest ``i`` knows ``j`` (itself on the diagonal) can have travelled
         from ``since_s[i, j]`` to ``t0_s`` (:func:`largest_travel_m`)."""
-        return largest_travel_m(self.leg_speed_mps, self.leg_from_s, since_s, t0_s, speed_mps)
+        return largest_travel_m(self.leg_speed_mps, self.leg_from_s, self.leg_until_s, since_s, t0_s, speed_mps)
 
 
 def largest_travel_m(
-    leg_speed_mps: np.ndarray, leg_from_s: np.ndarray, since_s: np.ndarray, t0_s: float, speed_mps: float
+    leg_speed_mps: np.ndarray,
+    leg_from_s: np.ndarray,
+    leg_until_s: np.ndarray,
+    since_s: np.ndarray,
+    t0_s: float,
+    speed_mps: float,
 ) -> np.ndarray:
     """The farthest a robot can have travelled from ``since_s`` to ``t0_s`` (``(n, m)``
-    arrays, ``leg_speed_mps`` and ``leg_from_s`` broadcast to its shape): at the speed its
-    Ack carried (its leg's, which holds from ``leg_from_s`` until the step at ``t0_s``)
-    where that is known, at the speed cap before it, and at the cap all along where no
-    speed is known (NaN) (:func:`netsim.mobility._local_kernels.largest_travel_m`)."""
+    arrays, the leg's broadcast to its shape): at the speed its Ack carried (its leg's,
+    which holds from ``leg_from_s`` until its next step, ``leg_until_s``) where that is
+    known, at the speed cap before and after it, and at the cap all along where no speed
+    is known (NaN) (:func:`netsim.mobility._local_kernels.largest_travel_m`)."""
     shape = np.shape(since_s)
     if np.size(since_s) == 0:
         return np.zeros(shape)
     since = np.ascontiguousarray(since_s, float).reshape(shape[0], -1)
-    speed = filled(leg_speed_mps, shape).reshape(since.shape)
-    start = filled(leg_from_s, shape).reshape(since.shape)
+    speed, start, end = (filled(v, shape).reshape(since.shape) for v in (leg_speed_mps, leg_from_s, leg_until_s))
     kernels = load("netsim.mobility._local_kernels", since.shape[0])
-    return kernels.largest_travels_m(speed, start, since, float(t0_s), float(speed_mps)).reshape(shape)
+    return kernels.largest_travels_m(speed, start, end, since, float(t0_s), float(speed_mps)).reshape(shape)
 
 
 def travel_at_cap_m(since_s: np.ndarray, t_s: float, speed_mps: float) -> np.ndarray:
     """:func:`largest_travel_m` of robots whose legs are not known: the cap all along, from
     ``since_s`` (any shape) to ``t_s``; what a robot answers for against another's motion."""
-    return largest_travel_m(np.nan, np.nan, since_s, t_s, speed_mps)
+    return largest_travel_m(np.nan, np.nan, np.nan, since_s, t_s, speed_mps)
 
 
 class Heard(NamedTuple):
@@ -638,6 +648,7 @@ def let_go(
         memory.leg_speed_mps,
         memory.leg_from_s,
         memory.leg_velocity_mps,
+        memory.leg_until_s,
     )
     kernels.let_go(pos, memories, heard, rule, walls, out, NO_FADE if fade is None else fade.rule)
     return out
@@ -655,6 +666,7 @@ class Remembered(NamedTuple):
     leg_speed_mps: np.ndarray  # (n, n): j's speed as i knows it (its own on the diagonal)
     leg_from_s: np.ndarray  # (n, n): when that leg started (largest_travel_m)
     leg_velocity_mps: np.ndarray  # (n, n, 2): that leg's velocity (NaN: unknown)
+    leg_until_s: np.ndarray  # (n, n): when that leg ends, j's next step (largest_travel_m)
 
 
 class DetourRule(NamedTuple):
@@ -1208,9 +1220,8 @@ class Fade:
         budget = np.minimum(self.fade_margin_db, margin_db)
         length = self.radio.effective_range_m(x0_db + budget, 0, self.n_robots)
         own = np.arange(len(since_s))
-        own_travel = largest_travel_m(
-            knows.leg_speed_mps[own, own][:, None], knows.leg_from_s[own, own][:, None], since_s, t0_s, speed
-        )
+        leg = (knows.leg_speed_mps, knows.leg_from_s, knows.leg_until_s)
+        own_travel = largest_travel_m(*(v[own, own][:, None] for v in leg), since_s, t0_s, speed)
         with np.errstate(invalid="ignore"):
             travel = fade_travel_m(budget, x0_db, self.sigma_db, self.decorrelation_m, self.n_robots)
             left = travel - own_travel - knows.travel_m(since_s, t0_s, speed)

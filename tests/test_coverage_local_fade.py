@@ -248,9 +248,9 @@ def test_travel_since_a_measurement_is_bounded_by_the_velocity_the_acks_carried(
     assert travel[0, 2] == pytest.approx(cap * 2.5)  # no velocity known: the cap all along
     since[0, 1] = T0 - 4.0  # before the leg robot 1's Ack told of: the cap
     assert m.travel_m(since, T0, cap)[0, 1] == pytest.approx(cap * 1.0)
-    want = largest_travel_m(m.leg_speed_mps, m.leg_from_s, since, T0, cap)
+    want = largest_travel_m(m.leg_speed_mps, m.leg_from_s, m.leg_until_s, since, T0, cap)
     for k in (kernels, compiled_copy("netsim.mobility._local_kernels")):
-        got = k.largest_travels_m(m.leg_speed_mps, m.leg_from_s, since, T0, cap)
+        got = k.largest_travels_m(m.leg_speed_mps, m.leg_from_s, m.leg_until_s, since, T0, cap)
         assert got.tolist() == want.tolist()
 
 
@@ -503,3 +503,19 @@ def test_lists_carry_the_records_of_an_epoch_read_a_delay_later():
         else:
             assert record == epoch * RECORD_EPOCH_STEPS  # measured at the epoch's first list
             assert (lo, hi) == (epoch * RECORD_EPOCH_STEPS, (epoch + 2) * RECORD_EPOCH_STEPS)
+
+
+def test_travel_after_a_known_leg_ends_is_at_the_cap():
+    """A neighbour's Ack tells the velocity of its leg only until its next step: from then
+    on it may be on a leg no Ack told of yet, so its travel since a measurement counts the
+    speed cap from that step on, as the plan's view of where it is does (Memory.at)."""
+    m = Memory(2)
+    held = np.zeros((2, 2))
+    m.hear(np.array([0]), np.array([1]), np.zeros((1, 2)), np.array([T0 - 0.5]), 0.0, held, np.full(2, T0 - 3.0), T0)
+    cap = 0.36
+    since = np.full((2, 2), T0 - 0.5)
+    assert m.travel_m(since, T0, cap)[0, 1] == 0.0  # within the leg it told of: it held
+    assert m.travel_m(since, T0 + 1.0, cap)[0, 1] == pytest.approx(cap * 1.0)
+    knows = m.at(T0 + 1.0, cap, 0.0)
+    assert knows.travel_m(since, T0 + 1.0, cap)[0, 1] == pytest.approx(cap * 1.0)
+    assert cap * (T0 + 1.0 - knows.sent_s[0, 1]) == pytest.approx(cap * 1.0)

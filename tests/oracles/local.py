@@ -237,6 +237,7 @@ def let_go(
             sweep = largest_travel_m(
                 np.where(np.arange(k) > m, np.nan, memory.leg_speed_mps[i, node]),
                 memory.leg_from_s[i, node],
+                memory.leg_until_s[i, node],
                 np.full(k, t0_s - window_s),
                 t0_s,
                 speed_mps,
@@ -317,25 +318,32 @@ def up_over_window(q, e, legs, a, b, t0_s, window_s, speed_mps, range_m, walls: 
 
 
 def largest_travel_m(
-    leg_speed_mps: np.ndarray, leg_from_s: np.ndarray, since_s: np.ndarray, t0_s: float, speed_mps: float
+    leg_speed_mps: np.ndarray,
+    leg_from_s: np.ndarray,
+    leg_until_s: np.ndarray,
+    since_s: np.ndarray,
+    t0_s: float,
+    speed_mps: float,
 ) -> np.ndarray:
     """The farthest a robot can have travelled from ``since_s`` to ``t0_s``: at the speed its
-    Ack carried (``leg_speed_mps``, its leg's, which holds from ``leg_from_s`` until the
-    step at ``t0_s``) where that is known, at the speed cap before it, and at the cap all
-    along where no speed is known (NaN). numpy's reading of
+    Ack carried (``leg_speed_mps``, its leg's, which holds from ``leg_from_s`` until its
+    next step, ``leg_until_s``) where that is known, at the speed cap before and after it,
+    and at the cap all along where no speed is known (NaN). numpy's reading of
     :func:`netsim.mobility._local_kernels.largest_travel_m`, element by element.
 
-    >>> speed, leg_from = np.array([0.0, 0.5, np.nan]), np.array([9.0, 9.5, np.inf])
-    >>> largest_travel_m(speed, leg_from, np.full(3, 8.0), 10.0, 1.0).tolist()
-    [1.0, 1.75, 2.0]
+    >>> speed, leg_from = np.array([0.0, 0.5, np.nan, 0.0]), np.array([9.0, 9.5, np.inf, 8.5])
+    >>> largest_travel_m(speed, leg_from, np.array([np.inf, np.inf, np.inf, 9.0]), np.full(4, 8.0), 10.0, 1.0).tolist()
+    [1.0, 1.75, 2.0, 1.5]
     """
     since = np.asarray(since_s, float)
     with np.errstate(invalid="ignore"):
         known = ~np.isnan(leg_speed_mps)
         start = np.clip(np.maximum(leg_from_s, since), None, t0_s)
+        end = np.clip(np.maximum(leg_until_s, start), None, t0_s)
+        on_leg = np.nan_to_num(leg_speed_mps) * np.maximum(end - start, 0.0)
         out = np.where(
             known,
-            speed_mps * np.maximum(start - since, 0.0) + np.nan_to_num(leg_speed_mps) * np.maximum(t0_s - start, 0.0),
+            speed_mps * np.maximum(start - since, 0.0) + on_leg + speed_mps * np.maximum(t0_s - end, 0.0),
             speed_mps * np.maximum(t0_s - since, 0.0),
         )
     return np.where(np.isfinite(since), out, np.inf)
