@@ -27,7 +27,7 @@ from netsim.mobility.steps import StepLimits
 
 from netsim.radio.propagation import LogDistanceParams
 from netsim.world.maps import OccupancyMap
-from tests.test_coverage_local_fade import heard_over_steps, record_margins
+from tests.test_coverage_local_fade import heard_over_steps, measured_pair, record_margins
 from tests.test_coverage_local_map import LIMITS as MAP_LIMITS
 from tests.test_coverage_local_map import ORIGIN, RES, floor_plan, heard_at
 
@@ -52,19 +52,6 @@ def all_heard(pos, sent):
 
 def fade() -> Fade:
     return Fade(RADIO, SIGMA, DCORR, FADE_DB, SURE, 1.0, 1.0, 3, FADE_SIGMAS)
-
-
-def measured_pair(distance_m: float, x_db: float, sent_s: float) -> Memory:
-    """Robots 0 and 1 ``distance_m`` apart, each having heard the other's Ack sent at
-    ``sent_s`` with the pair's shadowing ``x_db``, received at the power it gives."""
-    m = Memory(2)
-    m.xy[0, 1] = (distance_m, 0.0)
-    m.sent_s[0, 1] = m.sent_s[1, 0] = sent_s
-    m.measured_s[:] = m.sent_s
-    power = RADIO.tx_power_dbm - float(RADIO.path_loss_db(distance_m)) - x_db
-    m.x_db[0, 1] = m.x_db[1, 0] = x_db
-    m.margin_db[0, 1] = m.margin_db[1, 0] = power - RADIO.sensitivity_dbm
-    return m
 
 
 def ends_within_leashes(pos, plan, m, kept, limits=LIMITS):
