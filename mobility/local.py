@@ -297,10 +297,10 @@ class Memory:
         self.keep_m: np.ndarray | None = None
         # The velocity with which ``i`` knows ``j`` moved from ``leg_from_s[i, j]`` until
         # ``leg_until_s[i, j]``, its next step (that of the latest Ack of ``j`` it heard, if
-        # sent on a leg; ``i``'s own on the diagonal, until it steps again), NaN: unknown
-        # (:func:`largest_travel_m`, the cap after that step: ``j`` may be on a leg no Ack
-        # told of yet; rule 1 follows ``j`` back along it over its window, :meth:`at`'s
-        # uncertainty counting the cap after that step).
+        # sent on a leg; ``i``'s own on the diagonal, inf: it holds until ``i`` steps again),
+        # NaN: unknown. After that step ``j`` may be on a leg no Ack told of yet
+        # (:func:`largest_travel_m` counts the cap; rule 1 follows ``j`` back along the leg
+        # over its window, :meth:`at`'s uncertainty counting the cap after it).
         self.leg_velocity_mps = np.full((n, n, 2), np.nan)
         self.leg_from_s = np.full((n, n), np.inf)
         self.leg_until_s = np.full((n, n), np.inf)

@@ -315,44 +315,60 @@ def test_human_render_mode_without_a_window_says_so_once(monkeypatch):
 
 def test_human_render_mode_shows_each_step_in_one_window(monkeypatch):
     """render_mode = "human" with a window's backend: reset() and every step() show the
-    frame render_mode = "rgb_array" returns at the same instant, in one window that is
-    reopened only when the user closed it."""
+    frame render_mode = "rgb_array" returns at the same instant, in one window of the
+    environment's own (another environment opens another), reopened only when the user
+    closed it, closed by close()."""
     import matplotlib.pyplot as plt
 
     monkeypatch.setattr(coverage_v0, "shows_windows", lambda: True)
-    shown: list[np.ndarray] = []
+    opened: list[bool] = []
+    monkeypatch.setattr(plt, "show", lambda block=None: opened.append(block is False))
+    plt.close("all")
 
-    def pause(_interval: float) -> None:
-        (figure,) = [plt.figure(n) for n in plt.get_fignums() if plt.figure(n).get_label() == "netsim coverage_v0"]
-        shown.append(np.asarray(figure.axes[0].images[0].get_array()).copy())
+    def window() -> np.ndarray:
+        (number,) = plt.get_fignums()
+        return np.asarray(plt.figure(number).axes[0].images[0].get_array())
 
-    monkeypatch.setattr(plt, "pause", pause)
     human = coverage_v0.parallel_env(**SMALL, render_mode="human")
     frames = coverage_v0.parallel_env(**SMALL, render_mode="rgb_array")
-    expected = []
-    for env in (human, frames):
-        env.reset(seed=2)
-        if env is frames:
-            expected.append(env.render())
-        for k in range(2):
+    human.reset(seed=2)
+    frames.reset(seed=2)
+    shown, expected = [window().copy()], [frames.render()]
+    for k in range(2):
+        for env in (human, frames):
             env.step({a: np.full(2, 0.5 - k, np.float32) for a in env.agents})
-            if env is frames:
-                expected.append(env.render())
+        shown.append(window().copy())
+        expected.append(frames.render())
+    assert opened == [True]
     assert len(shown) == 3
     assert all(np.array_equal(s, e) for s, e in zip(shown, expected))
     assert not np.array_equal(shown[0], shown[2])  # the team moved
     assert human.render() is None
     plt.close("all")  # the user closes the window: the next frame opens another
     human.step({a: np.zeros(2, np.float32) for a in human.agents})
-    assert len(shown) == 5
+    assert len(plt.get_fignums()) == 1 and opened == [True, True]
+    other = coverage_v0.parallel_env(**SMALL, render_mode="human")
+    other.reset(seed=3)
+    assert len(plt.get_fignums()) == 2
     human.close()
-    assert "netsim coverage_v0" not in [plt.figure(n).get_label() for n in plt.get_fignums()]
+    other.close()
+    assert plt.get_fignums() == []
 
 
-@pytest.mark.parametrize(("backend", "window"), [("agg", False), ("pdf", False), ("TkAgg", True), ("QtAgg", True)])
+@pytest.mark.parametrize(
+    ("backend", "window"),
+    [
+        ("agg", False),
+        ("pdf", False),
+        ("module://matplotlib_inline.backend_inline", False),
+        ("TkAgg", True),
+        ("QtAgg", True),
+    ],
+)
 def test_a_window_is_shown_only_by_a_backend_that_has_one(monkeypatch, backend, window):
     """Whether render_mode = "human" can show a window: matplotlib's interactive backends
-    (any case) have one, the ones that draw to a file or a buffer do not."""
+    (any case) have one, the ones that draw to a file or a buffer do not, nor Jupyter's
+    inline backend (a picture printed a frame)."""
     from netsim.envs import drawing
 
     monkeypatch.setattr(drawing, "matplotlib_backend", lambda: backend)

@@ -162,6 +162,9 @@ def test_detour_kernel_over_a_window_agrees_with_its_oracle(monkeypatch):
             speed = V * np.where(rng.random(m.sent_s.shape) < 0.3, 0.0, rng.random(m.sent_s.shape))
             m.leg_velocity_mps[:] = (speed * np.stack([np.cos(heading), np.sin(heading)])).transpose(1, 2, 0)
             m.leg_from_s[:] = T0 - rng.uniform(0.0, 4.0, m.sent_s.shape)
+            # Some legs ended before t0 (no later Ack told of the next): the cap after them.
+            ended = rng.random(m.sent_s.shape) < 0.3
+            m.leg_until_s[:] = np.where(ended, np.minimum(T0 - rng.uniform(0.0, 2.0, ended.shape), T0), np.inf)
             legs_matter |= bool((let_go(pos, m, heard, T0, V, 10.0, RC, map_walls, window_s=3.0) != blind).any())
         for walls in (NO_WALLS, map_walls):
             want = oracle.let_go(pos, m, heard, T0, V, 10.0, RC, walls, 3.0)
@@ -270,6 +273,37 @@ def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windo
     held = heard_over_steps(m)
     assert let_go(pos, m, held, T0, v, 7.5, SURE, fade=f)[0, 1]
     assert not let_go(pos, m, held, T0, v, 7.5, SURE, fade=f, window_s=SILENCE.window_s)[0, 1]
+
+
+@pytest.mark.parametrize("compiled", ["0", "1"])
+def test_detour_a_measured_links_travel_counts_the_cap_after_the_known_leg_ended(monkeypatch, compiled):
+    """Rule 1 under shadowing with the release: robots whose Acks told of a leg on which they
+    held may have moved at the cap since that leg ended (their next step, of which no Ack
+    told), so a detour's measured links are certified over that travel: with the legs
+    holding through t0 robot 0 lets go of robot 1 through 2, with the legs ended a second
+    before the window it cannot."""
+    from tests.test_coverage_local_fade import SURE, fade, heard_over_steps, record_margins
+
+    monkeypatch.setenv("NETSIM_COMPILED", compiled)
+    f = fade()
+    pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])
+    n = 3
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), T0 - 0.2)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = m.measured_s[:] = sent
+    m.x_db[:] = 6.0
+    np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
+    m.leg_velocity_mps[:] = 0.0
+    m.leg_from_s[:] = T0 - 5.0
+    held = heard_over_steps(m)
+    window = SILENCE.window_s
+    assert let_go(pos, m, held, T0, f.speed_mps, 7.5, SURE, fade=f, window_s=window)[0, 1]
+    m.leg_until_s[:] = T0 - 4.0
+    np.fill_diagonal(m.leg_until_s, np.inf)
+    assert not let_go(pos, m, held, T0, f.speed_mps, 7.5, SURE, fade=f, window_s=window)[0, 1]
 
 
 @pytest.mark.parametrize("compiled", ["0", "1"])

@@ -68,19 +68,21 @@ def matplotlib_backend() -> str:
 
 
 def shows_windows() -> bool:
-    """Whether matplotlib's backend draws to a window (an interactive one: not Agg, PDF, ...)."""
+    """Whether matplotlib's backend draws to a window (an interactive one: not Agg, PDF, ...,
+    nor Jupyter's inline backend, which would print a picture a frame)."""
     try:
         from matplotlib.backends import BackendFilter, backend_registry
 
         drawn_only = backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE)
     except ImportError:  # matplotlib before 3.9
         from matplotlib.rcsetup import non_interactive_bk as drawn_only  # type: ignore[attr-defined,no-redef]
-    return matplotlib_backend().lower() not in drawn_only
+    backend = matplotlib_backend().lower()
+    return backend not in drawn_only and "inline" not in backend
 
 
 class Window:
-    """A window showing frames as they come (``render_mode = "human"``): opened at the first,
-    and again if the user closed it; each frame replaces the last."""
+    """A window showing frames as they come (``render_mode = "human"``): one per environment,
+    opened at the first frame, and again if the user closed it; each frame replaces the last."""
 
     TITLE = "netsim coverage_v0"
 
@@ -94,14 +96,20 @@ class Window:
         figure, shown = self._figure, self._image
         if figure is None or shown is None or not plt.fignum_exists(figure.number):
             height, width = image.shape[:2]
-            figure = self._figure = plt.figure(self.TITLE, figsize=(width / 100, height / 100), dpi=100)
+            # A figure of its own (a label would give another environment's window back).
+            figure = self._figure = plt.figure(figsize=(width / 100, height / 100), dpi=100)
+            if figure.canvas.manager is not None:
+                figure.canvas.manager.set_window_title(self.TITLE)
             axes = figure.add_axes((0.0, 0.0, 1.0, 1.0))
             axes.set_axis_off()
             self._image = axes.imshow(image)
+            plt.show(block=False)
         else:
             shown.set_data(image)
-        # Lets the window's event loop draw the frame and answer the user meanwhile.
-        plt.pause(1e-3)
+        # This figure's canvas, not pyplot's current figure (plt.pause's), which the user may
+        # have changed; its event loop runs a moment so that the window draws and answers.
+        figure.canvas.draw_idle()
+        figure.canvas.start_event_loop(1e-3)
 
     def close(self) -> None:
         if self._figure is not None:
