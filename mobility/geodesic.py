@@ -28,7 +28,7 @@ import numpy as np
 from netsim.mobility.forces import EXPANSION_CAP
 from netsim.mobility.steps import cap_length
 
-from netsim.compiled import load, map_walker
+from netsim.compiled import load
 from netsim.geometry import cell_centres_m, in_motion
 from netsim.world.free_space import free_fraction, legs_free, nearest_free_cells, short_of_walls
 
@@ -52,8 +52,9 @@ GUESS_FACTOR = 1.02
 GUESS_MARGIN_M = 0.5
 
 
-def _kernels():
-    return map_walker("netsim.mobility._geodesic_kernels")
+def _kernels(values: int):
+    """The geodesic kernels for a batch of ``values`` (:func:`netsim.compiled.load`)."""
+    return load("netsim.mobility._geodesic_kernels", None, values=values)
 
 
 class FreeGrid:
@@ -73,7 +74,7 @@ class FreeGrid:
         self.free = np.ascontiguousarray(free.reshape(self.h, k, self.w, k).all(axis=(1, 3)).ravel())
         self.cell_m = k * m.resolution_m
         self.origin_m = (float(m.origin_m[0]), float(m.origin_m[1]))
-        kern = _kernels()
+        kern = _kernels(len(self.free))
         self.moves = (kern.MOVES_X, kern.MOVES_Y)
         self.allowed = kern.allowed_moves(self.free, self.w, self.h, *self.moves)
         # What the searches toward the free space not yet covered work in, kept between them
@@ -144,7 +145,7 @@ class FreeGrid:
         if len(ok) == 0:
             # No target: the search would settle every cell for nothing.
             return direction, value
-        kern = _kernels()
+        kern = _kernels(len(ok))
         covered = np.ascontiguousarray(covered())
         cx, cy = x[ok], y[ok]
         targets = (cy * self.w + cx).astype(np.int64)

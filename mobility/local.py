@@ -126,7 +126,7 @@ from netsim.mobility.keep import FADE_SIGMAS, fade_travel_m
 from netsim.mobility.spread import add_pulls, project_into
 from netsim.mobility.steps import SAFETY, Plan, StepLimits, box_limit, cap_length, fell_short, step_limit
 
-from netsim.compiled import filled, load, map_walker
+from netsim.compiled import filled, load
 from netsim.geometry import beyond, distances_m, in_motion, row_starts, speeds_mps
 from netsim.trajectory import points_on_legs
 from netsim.world.free_space import short_of_walls
@@ -246,7 +246,7 @@ def clear_of_walls(
     if not walls.on or len(a) == 0:
         return np.ones(len(a), dtype=bool)
     out = np.empty(len(a), dtype=bool)
-    kernels = map_walker("netsim.mobility._local_kernels")
+    kernels = load("netsim.mobility._local_kernels", None, values=len(a))
     kernels.clear_many(walls, np.ascontiguousarray(a), np.ascontiguousarray(b), ea, eb, out)
     return out
 
@@ -270,7 +270,8 @@ def step_clear_of_walls(walls: Walls, p: np.ndarray, move: np.ndarray, q: np.nda
     if not walls.on or len(p) == 0:
         return np.ones(len(p), dtype=bool)
     out = np.empty(len(p), dtype=bool)
-    map_walker("netsim.mobility._local_kernels").steps_clear(walls, p, move, q, filled(e_m, (len(p),)), out)
+    kernels = load("netsim.mobility._local_kernels", None, values=len(p))
+    kernels.steps_clear(walls, p, move, q, filled(e_m, (len(p),)), out)
     return out
 
 
@@ -929,7 +930,8 @@ def through_walls(
     if len(p):
         rows = (np.ascontiguousarray(a, float) for a in (p, move, q))
         ends = (filled(x, (len(p),)) for x in (e_m, fall_m))
-        map_walker("netsim.mobility._local_kernels").steps_through(walls, *rows, *ends, float(limits.margin_m), out)
+        kernels = load("netsim.mobility._local_kernels", None, values=len(p))
+        kernels.steps_through(walls, *rows, *ends, float(limits.margin_m), out)
     return out
 
 

@@ -81,25 +81,19 @@ def load(module: str, n_robots: int | None, values: int | None = None) -> Module
     """The kernel module ``module`` as a run of ``n_robots`` robots (None: not known) calls
     it: its compiled copy when wanted (:func:`compiled_wanted`, or a module of
     :data:`WALKS_MAPS` unless ``NETSIM_COMPILED=0``) and numba is there, else the module in
-    plain Python (:func:`plain_copy`). ``values``: for a law called on a batch of values
-    whose caller may not know the team, the batch's length stands for an unknown size."""
+    plain Python (:func:`plain_copy`, whose kernels that walk a map run compiled all the
+    same). ``values``: for a law called on a batch of values whose caller may not know the
+    team (a map's walks among them), the batch's length stands for an unknown size. The
+    one place that decides: no call site chooses for itself."""
     size = values if n_robots is None and values is not None else n_robots
-    if module in WALKS_MAPS and n_robots is not None:
-        size = max(n_robots, SMALL_RUN_ROBOTS)
+    if module in WALKS_MAPS and size is not None:
+        size = max(size, SMALL_RUN_ROBOTS)
     if compiled_wanted(size):
         try:
             return compiled_copy(module)
         except ImportError:  # pragma: no cover  (numba is a dependency; plain Python is the fallback)
             pass
     return plain_copy(module)
-
-
-def map_walker(module: str) -> ModuleType:
-    """The kernel module ``module`` as code that walks a map calls it, whatever the team's
-    size: :func:`load` of a team too small to compile, so that the marks decide (the
-    kernels that walk a map, :func:`jit`'s ``walks`` and :data:`WALKS_MAPS`, compiled; the
-    others plain, as a small run calls them)."""
-    return load(module, 0)
 
 
 def plain_copy(module: str) -> ModuleType:

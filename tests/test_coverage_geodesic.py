@@ -27,7 +27,7 @@ def distance_field(grid: FreeGrid, sources, within, targets, out) -> None:
     """The search of ``FreeGrid.to_outside`` (the kernel ``search``), over the whole grid."""
     out[:] = np.inf
     none = np.empty(0)
-    kern = _kernels()
+    kern = _kernels(0)
     kern.search(
         grid.free, grid.allowed, grid.w, grid.h, np.asarray(sources, np.int64), grid.cell_m, *grid.moves,
         within, targets, out, kern.search_work(grid.w * grid.h), none, none, none,
@@ -41,7 +41,7 @@ def ascent(grid: FreeGrid, field: np.ndarray, points_m: np.ndarray):
     direction, value = np.zeros((len(x), 2)), np.full(len(x), np.inf)
     ok = np.flatnonzero(x >= 0)
     d, v = np.zeros((len(ok), 2)), np.empty(len(ok))
-    _kernels().ascent(grid.free, grid.w, grid.h, field, x[ok], y[ok], grid.cell_m, *grid.moves, d, v)
+    _kernels(0).ascent(grid.free, grid.w, grid.h, field, x[ok], y[ok], grid.cell_m, *grid.moves, d, v)
     direction[ok], value[ok] = d, v
     return direction, value
 
@@ -267,7 +267,7 @@ def test_the_push_to_the_uncovered_searches_near_the_robots_and_gives_the_whole_
 
     grid = FreeGrid(load_map("office", "world.map"), Bounds.square(200.0))
     rng = np.random.default_rng(5)
-    kern = _kernels()
+    kern = _kernels(0)
     calls: list[tuple[int, int]] = []  # (sources taken, the whole frontier)
 
     class Counting:
@@ -280,7 +280,7 @@ def test_the_push_to_the_uncovered_searches_near_the_robots_and_gives_the_whole_
             calls.append((len(out), len(kern.frontier(free, w, h, covered, mx, my, cx[:1], cy[:1], every))))
             return out
 
-    monkeypatch.setattr("netsim.mobility.geodesic._kernels", Counting)
+    monkeypatch.setattr("netsim.mobility.geodesic._kernels", lambda values: Counting())
     left_out = []  # whether a case's first search left sources out
     for case in range(7):
         walkers = np.array([100.0, 100.0]) + rng.uniform(-80.0, 80.0, (60, 2))
@@ -318,7 +318,7 @@ def test_a_search_with_no_free_target_puts_back_what_it_worked_in():
     """A search whose targets are all walls settles nothing and leaves its work as it found
     it: the next search from the same sources finds them."""
     grid = FreeGrid(room_with_a_door(), Bounds.square(SIDE_M))
-    kern = _kernels()
+    kern = _kernels(0)
     sources = np.flatnonzero(grid.free)[:3]
     wall = np.flatnonzero(~grid.free)[:1]
     none = np.empty(0)

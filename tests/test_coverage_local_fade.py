@@ -50,6 +50,21 @@ def record_margins(m: Memory, pos: np.ndarray, x_db: float | None = None) -> Non
     np.fill_diagonal(m.margin_db, np.nan)
 
 
+def measured_memory(pos: np.ndarray, x_db: float, sent_s: float) -> Memory:
+    """Robots at ``pos``, each having heard every other in an Ack sent at ``sent_s``, every
+    link measured at ``x_db``, with the margins that gives (:func:`record_margins`)."""
+    n = len(pos)
+    m = Memory(n)
+    m.xy[:] = pos[None, :, :]
+    sent = np.full((n, n), sent_s)
+    np.fill_diagonal(sent, -np.inf)
+    m.sent_s[:] = m.measured_s[:] = sent
+    m.x_db[:] = x_db
+    np.fill_diagonal(m.x_db, np.nan)
+    record_margins(m, pos)
+    return m
+
+
 def test_fade_keeps_a_link_as_far_as_its_measured_shadowing_allows():
     """A kept link with a measurement is answered for up to where its margin with the
     measured X is B = min(fade_margin_db, margin), less margin_m: the farther the worse the

@@ -253,21 +253,13 @@ def test_detour_a_measured_link_is_certified_over_the_pair_travel_from_the_windo
     measurement: two robots at the speed cap travel 0.14 m in the 0.2 s since their Acks,
     0.76 m over the window, enough for the shadowing's plausible change to shorten links
     of about 43 m measured at 6 dB below their length."""
-    from tests.test_coverage_local_fade import SURE, fade, heard_over_steps, record_margins
+    from tests.test_coverage_local_fade import SURE, fade, heard_over_steps, measured_memory
 
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     f = fade()
     v = f.speed_mps
     pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])
-    n = 3
-    m = Memory(n)
-    m.xy[:] = pos[None, :, :]
-    sent = np.full((n, n), T0 - 0.2)
-    np.fill_diagonal(sent, -np.inf)
-    m.sent_s[:] = m.measured_s[:] = sent
-    m.x_db[:] = 6.0
-    np.fill_diagonal(m.x_db, np.nan)
-    record_margins(m, pos)
+    m = measured_memory(pos, 6.0, T0 - 0.2)
     m.leg_velocity_mps[:] = (v, 0.0)  # every robot at the cap since before the window
     m.leg_from_s[:] = T0 - 5.0
     held = heard_over_steps(m)
@@ -282,20 +274,12 @@ def test_detour_a_measured_links_travel_counts_the_cap_after_the_known_leg_ended
     told), so a detour's measured links are certified over that travel: with the legs
     holding through t0 robot 0 lets go of robot 1 through 2, with the legs ended a second
     before the window it cannot."""
-    from tests.test_coverage_local_fade import SURE, fade, heard_over_steps, record_margins
+    from tests.test_coverage_local_fade import SURE, fade, heard_over_steps, measured_memory
 
     monkeypatch.setenv("NETSIM_COMPILED", compiled)
     f = fade()
     pos = np.array([[0.0, 0.0], [80.0, 0.0], [40.0, 15.0]])
-    n = 3
-    m = Memory(n)
-    m.xy[:] = pos[None, :, :]
-    sent = np.full((n, n), T0 - 0.2)
-    np.fill_diagonal(sent, -np.inf)
-    m.sent_s[:] = m.measured_s[:] = sent
-    m.x_db[:] = 6.0
-    np.fill_diagonal(m.x_db, np.nan)
-    record_margins(m, pos)
+    m = measured_memory(pos, 6.0, T0 - 0.2)
     m.leg_velocity_mps[:] = 0.0
     m.leg_from_s[:] = T0 - 5.0
     held = heard_over_steps(m)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from netsim.mobility.local import Lists, cut_for_walls, let_go, through_walls, turn_takers, wall_boxes, walls_of
 
-from netsim.compiled import map_walker
+from netsim.compiled import load
 from netsim.world.los import walls_crossed
 from netsim.world.maps import OccupancyMap, load_map
 from tests.oracles import local as oracle
@@ -27,7 +27,7 @@ def ranges(k: np.ndarray) -> np.ndarray:
 def boxes_met(walls, p, move, q, e) -> np.ndarray:
     """How many of the walls' boxes the hull of each step from ``p`` to ``p + move`` and
     the disk ``D(q, e)`` meets, as rule 5 counts them."""
-    kernel = map_walker("netsim.mobility._local_kernels").boxes_met
+    kernel = load("netsim.mobility._local_kernels", 0).boxes_met
     out = np.empty(len(p), np.int64)
     for k, (a, m, c, r) in enumerate(zip(p, move, q, np.broadcast_to(e, (len(p),)))):
         disks = np.array([[a[0], a[1], 0.0], [a[0] + m[0], a[1] + m[1], 0.0], [c[0], c[1], r]])

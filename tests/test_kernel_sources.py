@@ -160,8 +160,7 @@ def test_kernels_are_called_only_through_load():
 def loads_deciding_for_themselves(source: str) -> list[int]:
     """Lines of ``source`` that call ``load(module, None)`` without ``values``: a call site
     choosing the compiled copy whatever the team, beside the one place that decides
-    (:func:`netsim.compiled.load`; a map's walks go through ``map_walker``, where the
-    kernels' marks decide)."""
+    (:func:`netsim.compiled.load`, where the kernels' marks decide a map's walks)."""
     found = []
     for node in ast.walk(ast.parse(source)):
         if not (isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", "")) == "load"):
@@ -183,3 +182,21 @@ def test_no_call_site_decides_compiled_for_itself():
     sources = sorted(p for top in ("netsim", "protocols", "mobility") for p in (ROOT / top).rglob("*.py"))
     found = [f"{p.relative_to(ROOT)}:{line}" for p in sources for line in loads_deciding_for_themselves(p.read_text())]
     assert found == []
+
+
+def test_a_maps_walks_are_compiled_by_load_whatever_the_batch(monkeypatch):
+    """Code that walks a map asks netsim.compiled.load like any other, giving its batch's
+    length: the map's kernel modules come compiled at any length (their walks pay the
+    interpreter at every cell), a module with some walking kernels comes plain with those
+    compiled, and NETSIM_COMPILED=0 gives plain Python throughout."""
+    from netsim import compiled
+
+    monkeypatch.delenv("NETSIM_COMPILED", raising=False)
+    world = "netsim.world._kernels"
+    assert compiled.load(world, None, values=1) is compiled.compiled_copy(world)
+    assert compiled.load(world, 3) is compiled.compiled_copy(world)
+    local = compiled.load("netsim.mobility._local_kernels", None, values=1)
+    assert local is not compiled.compiled_copy("netsim.mobility._local_kernels")
+    assert not compiled.is_kernel(local.steps_clear)  # the walking kernel: compiled on its first call
+    monkeypatch.setenv("NETSIM_COMPILED", "0")
+    assert compiled.is_kernel(compiled.load(world, None, values=1000).trace)

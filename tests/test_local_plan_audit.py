@@ -27,7 +27,7 @@ from netsim.mobility.steps import StepLimits
 
 from netsim.radio.propagation import LogDistanceParams
 from netsim.world.maps import OccupancyMap
-from tests.test_coverage_local_fade import heard_over_steps, measured_pair, record_margins
+from tests.test_coverage_local_fade import heard_over_steps, measured_memory, measured_pair
 from tests.test_coverage_local_map import LIMITS as MAP_LIMITS
 from tests.test_coverage_local_map import ORIGIN, RES, floor_plan, heard_at
 
@@ -360,15 +360,7 @@ def measured_line(x_db: float = 6.0, at_m: float = 42.7):
     Returns the positions, the memory, what the robots hold and the rule."""
     f = fade()
     pos = np.array([[0.0, 0.0], [60.0, 0.0], [at_m, 0.0]])
-    n = 3
-    m = Memory(n)
-    m.xy[:] = pos[None, :, :]
-    sent = np.full((n, n), T0 - 0.2)
-    np.fill_diagonal(sent, -np.inf)
-    m.sent_s[:] = m.measured_s[:] = sent
-    m.x_db[:] = x_db
-    np.fill_diagonal(m.x_db, np.nan)
-    record_margins(m, pos)
+    m = measured_memory(pos, x_db, T0 - 0.2)
     m.leg_velocity_mps[:] = (f.speed_mps, 0.0)
     m.leg_from_s[:] = T0 - 5.0
     return pos, m, heard_over_steps(m), f

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from netsim.world.los import kernels_for, walls_crossed
+from netsim.compiled import load
+from netsim.world.los import walls_crossed
 from netsim.world.maps import OccupancyMap, load_map
 from netsim.world.sweep import map_grid, sweep_walls, vertex_index
 from tests.building_map import building_map
@@ -180,7 +181,7 @@ def test_sweep_limit_caps_the_count(building):
 def _candidates(occupancy, p0, vp, q0, vq, duration, prune):
     """Each pair's candidate instants (:func:`netsim.world._sweep_kernels.candidates`),
     sorted, with the walk over the map's vertices pruned or not."""
-    kernels = kernels_for("netsim.world._sweep_kernels")
+    kernels = load("netsim.world._sweep_kernels", 0)
     grid = map_grid(occupancy)
     origin, res = np.asarray(occupancy.origin_m, float), occupancy.resolution_m
     out = []

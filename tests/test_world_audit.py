@@ -7,7 +7,8 @@ draws with a clearance against the exact distance to every cell that is not free
 import numpy as np
 import pytest
 
-from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, kernels_for, line_of_sight, walls_crossed
+from netsim.compiled import load
+from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, line_of_sight, walls_crossed
 from netsim.world.maps import OccupancyMap
 from netsim.world.sweep import PairMotion, map_grid, sweep_walls
 
@@ -103,7 +104,7 @@ def test_sweep_rows_hold_their_count_throughout_on_random_maps(seed):
 
 
 def _link_chunks(occupancy, p0, vp, q0, vq, duration, radii):
-    kernels = kernels_for("netsim.world._sweep_kernels")
+    kernels = load("netsim.world._sweep_kernels", 0)
     motion = PairMotion(*(np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq)))
     return kernels.link_chunks(
         map_grid(occupancy), motion, np.asarray(duration, float), VERTEX_TOLERANCE_CELLS, np.asarray(radii, float)
@@ -137,7 +138,7 @@ def test_a_rows_first_chunk_unlike_the_state_before_changes_at_its_start_on_a_bo
     """Solved in blocks, a row whose first chunk starts in a state other than the one the
     previous block ended in changes at that chunk's start; a stretch's first chunk has no
     state before it."""
-    assemble = kernels_for("netsim.world._sweep_kernels").assemble
+    assemble = load("netsim.world._sweep_kernels", 0).assemble
     none_i, none_t, none_b = np.empty(0, np.int64), np.empty(0), np.empty(0, bool)
     chunk, t, up, start, end = assemble(
         np.array([True, True]), none_i, none_t, none_b, np.array([5.0, 7.0]), np.array([2]), np.array([False]), boundary
@@ -241,7 +242,7 @@ def _limited_traces(limit):
     blocked = rng.random((15, 15)) < 0.3
     p = rng.uniform(0.0, 7.5, (400, 2))
     q = rng.uniform(0.0, 7.5, (400, 2))
-    kernel = los.kernels_for("netsim.world._kernels").trace
+    kernel = load("netsim.world._kernels", 0).trace
     traces = []
     for stop in (los.NO_LIMIT, limit):
         out = (np.empty(len(p), np.int64), np.empty(len(p)))
@@ -319,7 +320,7 @@ def test_a_point_drawn_at_a_free_cells_far_edge_stays_in_a_free_cell():
     )
     assert not m.is_free(naive).all()
     out = np.empty((n, 2))
-    kernels_for("netsim.world._kernels").free_points(cells, _grid(m), draw_cell, draw_uv, out)
+    load("netsim.world._kernels", 0).free_points(cells, _grid(m), draw_cell, draw_uv, out)
     assert m.is_free(out).all()
 
 

@@ -36,9 +36,10 @@ from typing import NamedTuple
 import numpy as np
 
 from netsim.area import Bounds, as_bounds
+from netsim.compiled import load
 from netsim.errors import ConfigError
 from netsim.geometry import cell_centres_m, distances_m, in_motion, inside_margin_m
-from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, kernels_for, line_of_sight
+from netsim.world.los import VERTEX_TOLERANCE_CELLS, first_blocked, line_of_sight
 from netsim.world.maps import MAP_KEY, OccupancyMap, grid_coords
 
 
@@ -95,7 +96,7 @@ def draw_free(m: OccupancyMap, cells: FreeCells, rng: np.random.Generator, n: in
     draw_cell = rng.random(n)
     draw_uv = rng.random((n, 2))
     pos = np.empty((n, 2))
-    kernels_for("netsim.world._kernels").free_points(cells, _grid(m), draw_cell, draw_uv, pos)
+    load("netsim.world._kernels", None, values=n).free_points(cells, _grid(m), draw_cell, draw_uv, pos)
     return pos
 
 
@@ -290,7 +291,7 @@ def draw_destinations(
     k = len(here)
     out = np.empty((k, 2))
     todo = np.arange(k)
-    kernel = kernels_for("netsim.world._kernels").free_destinations
+    kernel = load("netsim.world._kernels", None, values=k).free_destinations
     tries = rounds = 0
     while len(todo) and tries < max_tries:
         if rounds >= max_rounds:

@@ -43,16 +43,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from netsim.compiled import map_walker
+from netsim.compiled import load
 from netsim.world._kernels import NO_LIMIT
 
 VERTEX_TOLERANCE_CELLS = 1e-9
-
-
-def kernels_for(module: str):
-    """The world's kernel module ``module`` (:func:`netsim.compiled.map_walker`: compiled at
-    any team size, :data:`netsim.compiled.WALKS_MAPS`)."""
-    return map_walker(module)
 
 
 def _trace(
@@ -71,9 +65,9 @@ def _trace(
     walls (the count is then ``limit + 1``); with ``first`` it never stops early, since the
     kernel walks a segment's crossings of one axis's grid lines before the other's, and the
     first blocked point may lie among those a stopped walk skipped."""
-    kernel = kernels_for("netsim.world._kernels").trace
     p = np.asarray(p, dtype=float).reshape(-1, 2)
     q = np.asarray(q, dtype=float).reshape(-1, 2)
+    kernel = load("netsim.world._kernels", None, values=len(p)).trace
     placement = (float(origin_m[0]), float(origin_m[1]), float(resolution_m))
     walls = np.empty(len(p), dtype=np.int64)
     first_t = np.empty(len(p))

@@ -49,9 +49,9 @@ import numpy as np
 
 from netsim.area import KEY as BOUNDS_KEY
 from netsim.area import Bounds, as_bounds
+from netsim.compiled import load
 from netsim.errors import ConfigError, not_a_file
 from netsim.geometry import cell_centres_m
-from netsim.world.los import kernels_for
 
 MAP_KEY = "world.map"
 REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
@@ -114,7 +114,7 @@ class OccupancyMap:
         i, j = np.empty(k, np.int64), np.empty(k, np.int64)
         h, w = self.shape
         flat = np.ascontiguousarray(self.free).reshape(-1)
-        kernels_for("netsim.world._kernels").map_cells(flat, h, w, u, v, on, free, i, j)
+        load("netsim.world._kernels", None, values=k).map_cells(flat, h, w, u, v, on, free, i, j)
         return on, free, i, j
 
     def cells(self, points_m) -> tuple[np.ndarray, np.ndarray]:
@@ -128,7 +128,7 @@ class OccupancyMap:
         u, v = self.to_grid(points_m)
         i, j = np.empty(len(u), np.int64), np.empty(len(u), np.int64)
         h, w = self.shape
-        kernels_for("netsim.world._kernels").clamped_cells(u, v, h, w, i, j)
+        load("netsim.world._kernels", None, values=len(u)).clamped_cells(u, v, h, w, i, j)
         return i, j
 
     def contains(self, points_m) -> np.ndarray:
@@ -191,7 +191,7 @@ def grid_coords(points_m, origin_m, cell_m: float) -> tuple[np.ndarray, np.ndarr
     p = np.ascontiguousarray(points_m, dtype=float).reshape(-1, 2)
     u, v = np.empty(len(p)), np.empty(len(p))
     ox, oy = float(origin_m[0]), float(origin_m[1])
-    kernels_for("netsim.world._kernels").grid_coords(p, ox, oy, float(cell_m), u, v)
+    load("netsim.world._kernels", None, values=len(p)).grid_coords(p, ox, oy, float(cell_m), u, v)
     return u, v
 
 

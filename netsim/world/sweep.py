@@ -42,9 +42,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from netsim.compiled import filled
+from netsim.compiled import filled, load
 from netsim.world._kernels import NO_LIMIT
-from netsim.world.los import VERTEX_TOLERANCE_CELLS, kernels_for
+from netsim.world.los import VERTEX_TOLERANCE_CELLS
 
 
 class Sweep(NamedTuple):
@@ -87,7 +87,7 @@ def vertex_index(blocked: np.ndarray) -> VertexIndex:
     cols = cols.astype(np.int64)
     changing_headings = np.zeros(len(cols), np.uint8)
     flat = np.ascontiguousarray(b).ravel()
-    headings = kernels_for("netsim.world._sweep_kernels").vertex_headings
+    headings = load("netsim.world._sweep_kernels", None, values=len(cols)).vertex_headings
     headings((flat, b.shape[0], b.shape[1]), row_ptr, cols, changing_headings)
     # Each heading's corners, in one array: heading b's rows are offset past those before it.
     has = (changing_headings[None, :] >> np.arange(4, dtype=np.uint8)[:, None]) & 1 == 1
@@ -178,10 +178,9 @@ def sweep_walls(
     ``blocked`` replaces the map's occupied cells; with ``limit``, counts above it are
     reported as ``limit + 1`` (enough to decide a link, and cheaper).
     """
-    sweep = kernels_for("netsim.world._sweep_kernels").sweep
-
     grid = map_grid(occupancy, blocked)
     p0, vp, q0, vq = (np.ascontiguousarray(np.asarray(a, float).reshape(-1, 2)) for a in (p0, vp, q0, vq))
+    sweep = load("netsim.world._sweep_kernels", None, values=len(p0)).sweep
     duration = filled(duration_s, (len(p0),))
     motion = PairMotion(p0, vp, q0, vq)
     limit = NO_LIMIT if limit is None else int(limit)
