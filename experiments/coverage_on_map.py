@@ -48,7 +48,7 @@ from netsim.tools.args import Parser
 from netsim.tools.cli import check_out_file
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
-from netsim.tools.sweep import process_pool, run_script
+from netsim.tools.sweep import pooled, run_script
 from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_settings
 
 MAP_RADIOS = [r for r in COVERAGE_RADIOS if r.startswith("office")]
@@ -92,6 +92,11 @@ def one(
         "radius_m": float(config.coverage.radius_m or min(config.ranges_m())),
         "map": config.world.map,
     }
+
+
+def told(run: dict) -> str:
+    """One finished run, as the progress bar tells it."""
+    return f"{run['radio']}, {run['plan']}, seed {run['seed']}: {run['final']:.3f} of the bound"
 
 
 def table(runs: pd.DataFrame) -> pd.DataFrame:
@@ -146,6 +151,7 @@ def main(argv=None) -> int:
     p.add_argument("--start-side", type=float, default=60.0, help="side of the start square, m (default 60)")
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run (default 600)")
     p.add_argument("--workers", type=int, default=2, help="runs at a time, one process each (default 2)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--csv", help="also write every run's row here")
     p.add_argument("--figure", help=f"also draw where the robots ended ({', '.join(FIGURE_SUFFIXES)})")
     args = p.parse_args(argv)
@@ -175,8 +181,9 @@ def main(argv=None) -> int:
         for plan in args.plans
         for seed in seeds
     ]
-    with process_pool(args.workers, len(jobs)) as pool:
-        runs = pd.DataFrame(pool.starmap(one, jobs))
+    name = Path(__file__).name
+    done = pooled(one, jobs, args.workers, name, not args.no_progress, star=True, describe=told)
+    runs = pd.DataFrame(list(done))
     out = table(runs)
     with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
         print(out.to_string(index=False))

@@ -94,7 +94,7 @@ from netsim.tools.args import Parser
 from netsim.tools.cli import check_out_file
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
-from netsim.tools.sweep import process_pool, run_script
+from netsim.tools.sweep import pooled, run_script
 from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
 
 NAME = Path(__file__).name
@@ -182,18 +182,23 @@ def write_csv(table: pd.DataFrame, path: str) -> None:
     write_atomically(Path(path), lambda tmp: table.to_csv(tmp, index=False))
 
 
+def told(run: dict) -> str:
+    """One finished run, as the progress bar tells it."""
+    return f"{run['plan']}, N = {run['N']}, seed {run['seed']}: {run['of bound']:.3f} of the bound"
+
+
 def run_jobs(one, jobs: list, args) -> pd.DataFrame:
-    """``one(job, duration)`` of every job over ``args.workers`` processes, each run printed
-    (and the CSV written again) as it finishes: a run cut short keeps what it has."""
+    """``one(job, duration)`` of every job over ``args.workers`` processes, the CSV written
+    again as each run finishes (a run cut short keeps what it has), with a progress bar."""
     done = []
-    with process_pool(args.workers, len(jobs)) as pool, ExitStack() as kept:
-        for run in pool.imap(partial(one, duration_s=args.duration), jobs):
+    runs = pooled(partial(one, duration_s=args.duration), jobs, args.workers, NAME, not args.no_progress, describe=told)
+    with ExitStack() as kept:
+        for run in runs:
             done.append(run)
             if args.csv:
                 write_csv(pd.DataFrame(done), args.csv)
                 if len(done) == 1:
                     kept.enter_context(kept_if_interrupted(f"{NAME}: interrupted; the runs finished are in {args.csv}"))
-            print(run, flush=True)
     return pd.DataFrame(done)
 
 
@@ -496,6 +501,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--no-radios", action="store_true", help="the unit disk rows only")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
     p.add_argument(
@@ -535,9 +541,8 @@ def main(argv=None) -> int:
         return main_shadowing(args)
     sizes = args.n or ([20, 60] if args.quick else [20, 60, 100, 200])
     rows = scenarios(sizes, not args.no_radios)
-    with process_pool(args.workers, len(rows)) as pool:
-        results = pool.starmap(one, [(row, args.seed, args.duration) for row in rows])
-    table = pd.DataFrame(results)
+    jobs = [(row, args.seed, args.duration) for row in rows]
+    table = pd.DataFrame(list(pooled(one, jobs, args.workers, NAME, not args.no_progress, star=True)))
     with pd.option_context("display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))
     failed = int((~table["pass"]).sum())

@@ -445,13 +445,33 @@ def test_ctrl_c_in_coverage_targets_is_one_line_saying_what_is_kept(tmp_path, ro
     """Ctrl-C in coverage_targets --shadowing --csv F: one line, exit 130 (a traceback),
     saying that F holds the runs finished, when one has."""
     patch = f"ROWS, INTERRUPT = {rows!r}, True\n{FAKE_POOL}"
-    args = ["--shadowing", "--seeds", "1", "--n", "5", "--csv", "runs.csv"]
+    args = ["--shadowing", "--seeds", "1", "--n", "5", "--csv", "runs.csv", "--no-progress"]
     run = _patched_script(tmp_path, patch, "coverage_targets.py", *args)
     assert (run.returncode, run.stderr) == (130, f"coverage_targets.py: interrupted; {said}\n")
     if rows:
         assert pd.read_csv(tmp_path / "runs.csv")["plan"].tolist() == ["global"]
     else:
         assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("quiet", [False, True])
+def test_coverage_targets_shows_its_runs_progress_on_stderr(tmp_path, quiet):
+    """Each finished run moves a progress bar on standard error (in a log: plain lines),
+    telling the latest run's plan, N, seed and fraction; ``--no-progress`` shows none.
+    Standard output holds the table alone."""
+    local = {**SHADOWING_ROW, "plan": "local", "of bound": 0.25}
+    patch = f"ROWS, INTERRUPT = {[SHADOWING_ROW, local]!r}, False\n{FAKE_POOL}"
+    args = ["--shadowing", "--seeds", "1", "--n", "5", *(["--no-progress"] if quiet else [])]
+    run = _patched_script(tmp_path, patch, "coverage_targets.py", *args)
+    assert run.returncode == 1, run.stderr
+    if quiet:
+        assert run.stderr == ""
+    else:
+        lines = run.stderr.splitlines()
+        assert lines[0].startswith("coverage_targets.py: 50% (1/2 runs), latest global, N = 5, seed 1: 0.500 of")
+        assert lines[-1].startswith("coverage_targets.py: 100% (2/2 runs), latest local, N = 5, seed 1: 0.250 of")
+    assert "{" not in run.stdout and "rows pass" in run.stdout
 
 
 @pytest.mark.slow
@@ -462,7 +482,7 @@ def test_ctrl_c_while_coverage_on_map_draws_says_the_table_is_kept(tmp_path):
     row |= {"final": 0.6, "split": False, "moved_m": 9.0, "settled_s": None, "final_xy": [[1.0, 2.0]], "radius_m": 9.0}
     row["map"] = "office"
     patch = f"ROWS, INTERRUPT = {[row]!r}, False\n{FAKE_POOL}\n{DRAWING_INTERRUPTED}"
-    args = ["--radios", "office, line of sight", "--plans", "global", "--seeds", "1", "--n", "5"]
+    args = ["--radios", "office, line of sight", "--plans", "global", "--seeds", "1", "--n", "5", "--no-progress"]
     run = _patched_script(tmp_path, patch, "coverage_on_map.py", *args, "--csv", "r.csv", "--figure", "f.png")
     said = "coverage_on_map.py: interrupted; every run's row is written in r.csv, the figure is not\n"
     assert (run.returncode, run.stderr) == (130, said)

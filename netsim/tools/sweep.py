@@ -45,6 +45,7 @@ from collections.abc import Callable, Iterator, Sequence
 from collections.abc import Set as AbstractSet
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -553,6 +554,34 @@ def process_pool(workers: int, jobs: int) -> Iterator[Any]:
         raise
     finally:
         pool.join()
+
+
+def _star(fn: Callable[..., Any], job: tuple) -> Any:
+    return fn(*job)
+
+
+def pooled(
+    fn: Callable[..., Any],
+    jobs: Sequence[Any],
+    workers: int,
+    desc: str,
+    progress: bool = True,
+    star: bool = False,
+    describe: Callable[[Any], str] | None = None,
+) -> Iterator[Any]:
+    """``fn(job)`` (``fn(*job)`` with ``star``) of every job on :func:`process_pool`, each
+    result yielded in the jobs' order as soon as it and those before it are done, with a
+    progress bar of runs on standard error (:func:`netsim.progress.progress_bar`; the
+    latest result told by ``describe(result)``)."""
+    from netsim.progress import progress_bar
+
+    call = partial(_star, fn) if star else fn
+    with process_pool(workers, len(jobs)) as pool, progress_bar(len(jobs), desc, "runs", progress, lines=10) as bar:
+        for result in pool.imap(call, jobs):
+            if describe is not None:
+                bar.set_postfix(latest=describe(result), refresh=False)
+            bar.update()
+            yield result
 
 
 def _run_pool(todo: list[Run], tables, workers: int, account) -> None:
