@@ -9,6 +9,7 @@ import pytest
 
 pytest.importorskip("pettingzoo")
 
+from matplotlib.backend_bases import FigureCanvasBase  # noqa: E402
 from pettingzoo.test import parallel_api_test, parallel_seed_test  # noqa: E402
 
 from netsim import _kernels as core_kernels  # noqa: E402
@@ -323,6 +324,8 @@ def test_human_render_mode_shows_each_step_in_one_window(monkeypatch):
     monkeypatch.setattr(coverage_v0, "shows_windows", lambda: True)
     opened: list[bool] = []
     monkeypatch.setattr(plt, "show", lambda block=None: opened.append(block is False))
+    # The window's wait between frames (real time) is not this test's: no waiting.
+    monkeypatch.setattr(FigureCanvasBase, "start_event_loop", lambda self, timeout=0: None)
     plt.close("all")
 
     def window() -> np.ndarray:
@@ -353,6 +356,61 @@ def test_human_render_mode_shows_each_step_in_one_window(monkeypatch):
     human.close()
     other.close()
     assert plt.get_fignums() == []
+
+
+def test_a_window_keeps_each_frame_on_screen_for_one_frame_time(monkeypatch):
+    """A window shows a frame no sooner than ``1 / fps`` after the last one (the wait runs
+    the window's event loop, so it answers meanwhile); a frame that comes later than that
+    shows at once, and so does the first."""
+    import matplotlib.pyplot as plt
+
+    from netsim.envs.drawing import Window
+
+    now = [0.0]
+    waits: list[float] = []
+
+    def event_loop(self, timeout=0):
+        waits.append(timeout)
+        now[0] += timeout
+
+    monkeypatch.setattr(FigureCanvasBase, "start_event_loop", event_loop)
+    monkeypatch.setattr(plt, "show", lambda block=None: None)
+    window = Window(clock=lambda: now[0])
+    image = np.zeros((20, 30, 3), np.uint8)
+    window.show(image, 2.0)
+    drawn = list(waits)
+    now[0] += 0.1
+    window.show(image, 2.0)  # 0.1 s after the first: waits the 0.4 s left
+    assert waits[len(drawn)] == pytest.approx(0.4)
+    shown = len(waits)
+    now[0] += 3.0
+    window.show(image, 2.0)  # later than a frame's time: no wait
+    assert waits[shown:] == drawn
+    window.close()
+
+
+def test_the_window_shows_the_team_in_real_time(monkeypatch):
+    """render_fps is a step per step_s (real time), in the environment's metadata, and the
+    window paces its frames by it, also once the user changed it there."""
+    asked: list[float] = []
+
+    class Recorded:
+        def show(self, image, fps):
+            asked.append(fps)
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(coverage_v0, "shows_windows", lambda: True)
+    monkeypatch.setattr(coverage_v0, "Window", Recorded)
+    env = coverage_v0.parallel_env(**SMALL, step_s=0.5, render_mode="human")
+    assert env.metadata["render_fps"] == 2.0
+    assert coverage_v0.parallel_env(**SMALL).metadata["render_fps"] == 1.0  # another's own
+    env.reset(seed=0)
+    env.metadata["render_fps"] = 10
+    env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    assert asked == [2.0, 10.0]
+    env.close()
 
 
 @pytest.mark.parametrize(

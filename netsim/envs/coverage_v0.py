@@ -106,6 +106,9 @@ class CoverageEnv(ParallelEnv):
             raise ConfigError("render_mode", render_mode, "must be None, 'human' or 'rgb_array'")
         self.params = p = params
         self.render_mode = render_mode
+        # A window shows the team in real time, a step per step_s (as Gymnasium's physics
+        # environments do); set env.metadata["render_fps"] to watch faster or slower.
+        self.metadata = {**CoverageEnv.metadata, "render_fps": 1.0 / p.step_s}
         self._window: Window | None = None  # render_mode = "human": opened at the first frame
         if netsim is not None and not isinstance(netsim, Mapping):
             raise ConfigError("netsim", netsim, "must be a table of configuration keys (a dict)")
@@ -460,7 +463,7 @@ class CoverageEnv(ParallelEnv):
             return image
         if self._window is None:
             self._window = Window()
-        self._window.show(image)
+        self._window.show(image, float(self.metadata["render_fps"]))
         return None
 
     def close(self) -> None:

@@ -3,6 +3,8 @@ colours, links, coverage disks, the area's border: netsim.tools.figures and styl
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -82,19 +84,28 @@ def shows_windows() -> bool:
 
 class Window:
     """A window showing frames as they come (``render_mode = "human"``): one per environment,
-    opened at the first frame, and again if the user closed it; each frame replaces the last."""
+    opened at the first frame, and again if the user closed it; each frame replaces the last,
+    no sooner than ``1 / fps`` after it was shown (``clock``: seconds, monotonic)."""
 
     TITLE = "netsim coverage_v0"
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._figure: Figure | None = None
         self._image: AxesImage | None = None
+        self._clock = clock
+        self._shown_s: float | None = None
 
-    def show(self, image: np.ndarray) -> None:
+    def show(self, image: np.ndarray, fps: float) -> None:
         import matplotlib.pyplot as plt
 
         figure, shown = self._figure, self._image
-        if figure is None or shown is None or not plt.fignum_exists(figure.number):
+        is_open = figure is not None and shown is not None and plt.fignum_exists(figure.number)
+        if is_open and self._shown_s is not None:
+            left = self._shown_s + 1.0 / fps - self._clock()
+            if left > 0:
+                # The last frame stays its time; the window answers meanwhile.
+                figure.canvas.start_event_loop(left)
+        if figure is None or shown is None or not is_open:
             height, width = image.shape[:2]
             # A figure of its own (a label would give another environment's window back).
             figure = self._figure = plt.figure(figsize=(width / 100, height / 100), dpi=100)
@@ -110,6 +121,7 @@ class Window:
         # have changed; its event loop runs a moment so that the window draws and answers.
         figure.canvas.draw_idle()
         figure.canvas.start_event_loop(1e-3)
+        self._shown_s = self._clock()
 
     def close(self) -> None:
         if self._figure is not None:
