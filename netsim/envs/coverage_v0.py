@@ -99,7 +99,7 @@ class CoverageEnv(ParallelEnv):
     :class:`~netsim.sim.Simulation`, to read anything else the network did; ``netsim``
     adds keys to its configuration (``{"channel": {"loss_model": ...}}``)."""
 
-    metadata = {"name": "coverage_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
+    metadata: dict[str, Any] = {"name": "coverage_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
 
     def __init__(self, params: CoverageEnvParams, netsim: Mapping | None = None, render_mode: str | None = None):
         if render_mode not in (None, *RENDER_MODES):
