@@ -386,6 +386,9 @@ def test_a_window_keeps_each_frame_on_screen_for_one_frame_time(monkeypatch):
     now[0] += 3.0
     window.show(image, 2.0)  # later than a frame's time: no wait
     assert waits[shown:] == drawn
+    shown = len(waits)
+    window.show(image, 0.0)  # no pacing asked: no wait (and no division by zero)
+    assert waits[shown:] == drawn
     window.close()
 
 

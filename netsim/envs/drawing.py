@@ -100,7 +100,8 @@ class Window:
 
         figure, shown = self._figure, self._image
         is_open = figure is not None and shown is not None and plt.fignum_exists(figure.number)
-        if figure is not None and is_open and self._shown_s is not None:
+        # A render_fps of 0 or less (or NaN): frames as they come.
+        if figure is not None and is_open and self._shown_s is not None and fps > 0:
             left = self._shown_s + 1.0 / fps - self._clock()
             if left > 0:
                 # The last frame stays its time; the window answers meanwhile.
