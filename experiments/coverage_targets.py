@@ -43,6 +43,13 @@ least 19 of 20 seeds (95 % of the seeds run).
 
     python experiments/coverage_targets.py --shadowing --set coverage.detour_sigmas=2
 
+``--figure FILE`` (``.png``, ``.svg``, ``.pdf``; with ``--shadowing``) also draws the runs:
+per N each seed's covered fraction of the bound for both plans, and the local plan's over
+the global plan's on the same seed against the 0.8 target, a seed whose real network grew
+marked.
+
+    python experiments/coverage_targets.py --shadowing --figure shadowing.png
+
 ``--why`` runs the local plan under 4 dB shadowing on one seed (``--seed``, each ``--n``)
 and prints where it loses to the global plan: per control step, how many robots moved,
 held by rule 3 (a kept link they cannot answer for, alone or by halves) or wished
@@ -82,7 +89,7 @@ import argparse
 import math
 import os
 import sys
-from contextlib import ExitStack
+from contextlib import ExitStack, nullcontext
 from functools import partial
 from pathlib import Path
 
@@ -202,6 +209,50 @@ def run_jobs(one, jobs: list, args) -> pd.DataFrame:
     return pd.DataFrame(done)
 
 
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def shadowing_figure(runs: pd.DataFrame, path: str) -> None:
+    """The ``--shadowing`` runs drawn (module notes): per N, each seed's covered fraction of
+    the bound by plan (left), and the local plan's over the global plan's (right), against
+    :data:`SHARE`; seeds where either plan's real network grew in red."""
+    import numpy as np
+
+    from netsim.tools.figures import pyplot
+
+    plt = pyplot()
+    fig, (cover, ratio) = plt.subplots(1, 2, figsize=(10, 4.2))
+    sizes = sorted(runs["N"].unique())
+    at_target = [""] * len(sizes)
+    for k, n in enumerate(sizes):
+        g = runs[runs["N"] == n]
+        both = g.pivot(index="seed", columns="plan", values="of bound")
+        grew = g.pivot(index="seed", columns="plan", values="grew").fillna(0).gt(0).any(axis=1)
+        spread = np.linspace(-0.15, 0.15, len(both)) if len(both) > 1 else np.zeros(1)
+        for dx, plan, colour in ((-0.2, "global", "tab:blue"), (0.2, "local", "tab:orange")):
+            if plan in both:
+                label = plan if k == 0 else None
+                cover.plot(k + dx + 0.5 * spread, both[plan], ".", color=colour, label=label)
+        if {"global", "local"} <= set(both):
+            share = both["local"] / both["global"]
+            ratio.plot(k + spread, share.where(~grew), ".", color="tab:orange")
+            split = "a network grew" if grew.any() else None
+            ratio.plot(k + spread, share.where(grew), "x", color="tab:red", label=split)
+            ratio.plot([k - 0.3, k + 0.3], [share.mean()] * 2, "-", color="black", lw=1)
+            at_target[k] = f"\n{int((share >= SHARE).sum())} of {len(share)} at {SHARE:g}"
+    ratio.axhline(SHARE, ls="--", color="grey", lw=1, label=f"target {SHARE:g}")
+    for ax, below in ((cover, [""] * len(sizes)), (ratio, at_target)):
+        ax.set_xticks(range(len(sizes)), [f"N = {n}{told}" for n, told in zip(sizes, below)])
+        ax.grid(axis="y", alpha=0.3)
+    cover.set(ylabel="covered fraction of the bound", title="each seed, by plan")
+    ratio.set(ylabel="local / global, same seed", title="local over global (bar: the mean)")
+    cover.legend(fontsize=8)
+    ratio.legend(fontsize=8)
+    fig.tight_layout()
+    write_atomically(Path(path), lambda tmp: fig.savefig(tmp, dpi=110, format=Path(path).suffix[1:].lower()))
+    plt.close(fig)
+
+
 def main_shadowing(args) -> int:
     sizes = args.n or SHADOWING_SIZES
     extra = tuple(args.set or ())
@@ -213,6 +264,10 @@ def main_shadowing(args) -> int:
         print(table.to_string(index=False))
     failed = int((~table["pass"]).sum())
     print(f"{len(table) - failed} of {len(table)} rows pass")
+    if args.figure:
+        line = f"{NAME}: interrupted; the runs are in {args.csv}, the figure is not"
+        with kept_if_interrupted(line) if args.csv else nullcontext():
+            shadowing_figure(runs, args.figure)
     return 1 if failed else 0
 
 
@@ -457,11 +512,17 @@ def check_options(args: argparse.Namespace) -> None:
         check_settings(args)
     if args.oracles and not args.bound:
         raise NetsimInputError("--oracles applies to --bound only")
-    if args.csv is not None:
-        if args.csv.endswith(("/", os.sep)):
-            raise NetsimInputError(f"--csv {args.csv}: names a directory; give the path of a file")
+    if args.figure is not None and (not args.shadowing or args.bound or args.why):
+        raise NetsimInputError("--figure applies to --shadowing runs only")
+    for option, path in (("--csv", args.csv), ("--figure", args.figure)):
+        if path is None:
+            continue
+        if path.endswith(("/", os.sep)):
+            raise NetsimInputError(f"{option} {path}: names a directory; give the path of a file")
         # Before any run: a file that cannot be written would lose them all.
-        check_out_file(Path(args.csv), "--csv", replace=True)
+        check_out_file(Path(path), option, replace=True)
+    if args.figure is not None and Path(args.figure).suffix.lower() not in FIGURE_SUFFIXES:
+        raise NetsimInputError(f"--figure {args.figure!r}: must end in one of {', '.join(FIGURE_SUFFIXES)}")
 
 
 def check_settings(args: argparse.Namespace) -> None:
@@ -502,6 +563,7 @@ def main(argv=None) -> int:
     p.add_argument("--no-radios", action="store_true", help="the unit disk rows only")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--figure", help=f"with --shadowing: also draw the runs ({', '.join(FIGURE_SUFFIXES)})")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
     p.add_argument(

@@ -288,6 +288,11 @@ TINY_CONGESTION += ["--reps", "1", "--workers", "1"]
         ("ack_congestion.py", ["--warmup", "40", "--duration", "40"], "--warmup 40: must be at least 0 and shorter"),
         ("ack_congestion.py", ["--warmup", "-5"], "--warmup -5: must be at least 0"),
         ("coverage_targets.py", ["--csv", "/nonexistent/f.csv"], "--csv /nonexistent/f.csv: the directory"),
+        ("coverage_targets.py", ["--figure", "f.png"], "--figure applies to --shadowing runs only"),
+        ("coverage_targets.py", ["--bound", "--shadowing", "--figure", "f.png"], "--figure applies to --shadowing"),
+        ("coverage_targets.py", ["--shadowing", "--figure", "f.gif"], "--figure 'f.gif': must end in one of .png"),
+        ("coverage_targets.py", ["--shadowing", "--figure", "/nonexistent/f.png"], "--figure /nonexistent/f.png: the"),
+        ("coverage_targets.py", ["--shadowing", "--figure", "sub/"], "--figure sub/: names a directory"),
         # Its placement file was written first, then the sweep refused.
         ("false_role_changes.py", ["--losses", "1.5"], "--losses 1.5: each a probability in [0, 1)"),
         ("false_role_changes.py", ["--pairs", "0"], "--pairs 0: at least 1"),
@@ -472,6 +477,24 @@ def test_coverage_targets_shows_its_runs_progress_on_stderr(tmp_path, quiet):
         assert lines[0].startswith("coverage_targets.py: 50% (1/2 runs), latest global, N = 5, seed 1: 0.500 of")
         assert lines[-1].startswith("coverage_targets.py: 100% (2/2 runs), latest local, N = 5, seed 1: 0.250 of")
     assert "{" not in run.stdout and "rows pass" in run.stdout
+
+
+@pytest.mark.slow
+def test_coverage_targets_draws_its_shadowing_runs(tmp_path):
+    """--shadowing --figure F draws the runs (each seed by plan; local over global against
+    the target) into F; Ctrl-C while it draws after --csv says the runs are kept and the
+    figure is not, and leaves no figure."""
+    local = {**SHADOWING_ROW, "plan": "local", "of bound": 0.25}
+    rows = f"ROWS, INTERRUPT = {[SHADOWING_ROW, local]!r}, False\n{FAKE_POOL}"
+    args = ["--shadowing", "--seeds", "1", "--n", "5", "--no-progress", "--figure", "f.png"]
+    run = _patched_script(tmp_path, rows, "coverage_targets.py", *args)
+    assert run.returncode == 1, run.stderr
+    assert (tmp_path / "f.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    (tmp_path / "f.png").unlink()
+    run = _patched_script(tmp_path, f"{rows}\n{DRAWING_INTERRUPTED}", "coverage_targets.py", *args, "--csv", "r.csv")
+    said = "coverage_targets.py: interrupted; the runs are in r.csv, the figure is not\n"
+    assert (run.returncode, run.stderr) == (130, said)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv"]
 
 
 @pytest.mark.slow
