@@ -21,6 +21,7 @@ table a small class (:class:`RouteTable`), each tested by name in tests/test_rou
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -83,6 +84,18 @@ class AodvParams(RoutingParams):
                     getattr(self, key),
                     f"must not exceed protocol.net_diameter = {self.net_diameter}",
                 )
+        most = most_rreq_retries(self.net_traversal_time_s)
+        if self.rreq_retries > most:
+            # A discovery lists its RREQs' TTLs when it starts (ring_ttls), and the last waits
+            # NET_TRAVERSAL_TIME x 2^RREQ_RETRIES: past this, that wait is no number (and the
+            # list no memory holds), a traceback at the run's first route discovery.
+            raise ConfigError(
+                "protocol.rreq_retries",
+                self.rreq_retries,
+                f"must be at most {most}: each retry waits twice as long as the one before, and the last "
+                f"one's wait, NET_TRAVERSAL_TIME = {self.net_traversal_time_s:g} s x 2^rreq_retries, must be "
+                "a finite number of seconds",
+            )
 
     @property
     def net_traversal_time_s(self) -> float:
@@ -107,6 +120,22 @@ class AodvParams(RoutingParams):
     def ring_traversal_time_s(self, ttl: int) -> float:
         """RING_TRAVERSAL_TIME = 2 NODE_TRAVERSAL_TIME (TTL_VALUE + TIMEOUT_BUFFER)."""
         return 2.0 * self.node_traversal_time_s * (ttl + self.timeout_buffer)
+
+
+def most_rreq_retries(net_traversal_time_s: float) -> int:
+    """The most RREQ_RETRIES whose last wait, ``net_traversal_time_s x 2^retries``, is a
+    finite float (the largest float is below 2^1024)."""
+    most = 1023
+    while most > 0 and not _finite_product(net_traversal_time_s, most):
+        most -= 1
+    return most
+
+
+def _finite_product(seconds: float, exponent: int) -> bool:
+    try:
+        return math.isfinite(seconds * 2**exponent)
+    except OverflowError:
+        return False
 
 
 def seq_newer(a: int, b: int) -> bool:

@@ -35,7 +35,7 @@ from netsim.protocols.roles import LABELS, LEADER, MEMBER, ROLE_NAMES, ROLES_SCH
 from netsim.compiled import cores, load, side_by_side
 from netsim.cosim import Arrival
 from netsim.errors import ConfigError
-from netsim.params import finite, non_negative, param, positive
+from netsim.params import finite, frame_size, non_negative, param, positive
 from netsim.plugins import Parts, PluginSpec
 from netsim.samples import Samples, ended_at
 from netsim.topology import reach_lists
@@ -93,8 +93,9 @@ class ClusteringParams(AckParams):
     message_rate_hz: float = param(
         0.2, finite(non_negative), "messages sent per second, network-wide (random pairs)", schedules="run"
     )
+    # One frame, whatever channel.max_frame_bytes: sized as the Ack's is (netsim.params.frame_size).
     message_bytes: int = param(
-        512, positive, "size of a message (and leader command) frame on a shared medium (channel.mac), bytes"
+        512, frame_size, "size of a message (and leader command) frame on a shared medium (channel.mac), bytes"
     )
 
 

@@ -466,6 +466,39 @@ def _cli(tmp_path, capsys, *args):
         ),
         (["--set", "channel.latency_s=1e308"], "channel.latency_s = 1e+308: must be shorter than duration_s"),
         (["--set", "coverage.radius_m=1e-300"], "coverage.radius_m = 1e-300: must be 0 (the range) or"),
+        # Accepted, a noise floor of 0 mW made every SINR inf (numpy's division warning on the way).
+        (
+            ["--set", "channel.mac=csma", "--set", "channel.propagation=log_distance"]
+            + ["--set", "channel.noise_floor_dbm=-1e300"],
+            "channel.noise_floor_dbm = -1e+300: must be at least -3000",
+        ),
+        # Accepted, these ended the run in a traceback: a window whose backoff's draw (0..cw)
+        # leaves the medium's 64-bit integers, and a RREQ list no memory holds (or whose last
+        # wait overflows).
+        (
+            ["--set", "channel.mac=csma", "--set", "channel.cw_min=9223372036854775807"]
+            + ["--set", "channel.cw_max=9223372036854775807"],
+            "channel.cw_min = 9223372036854775807: must be 2^k - 1 with 1 <= k <= 62",
+        ),
+        (
+            ["--set", "protocol.model=aodv", "--set", "protocol.message_rate_hz=2"]
+            + ["--set", "protocol.rreq_retries=4294967296"],
+            "protocol.rreq_retries = 4294967296: must be at most 1022",
+        ),
+        # Accepted, the clustering's message (one frame) held a shared medium for 2^63 bytes'
+        # airtime: a frame's size is at most 2^31 - 1 bytes, as an Ack's.
+        (
+            ["--set", "channel.mac=csma", "--set", "protocol.message_bytes=9223372036854775807"],
+            "protocol.message_bytes = 9223372036854775807: must be in 1 .. 2147483647",
+        ),
+        # A warning given while the input was checked, and then the refusal: the refusal alone.
+        (["--set", "duration_s=2", "--set", "duration_s=abc"], "duration_s = 'abc': must be a number"),
+        (["--set", "seed=3", "--seed", "-1"], "seed = -1: must be >= 0"),
+        (
+            ["--set", "channel.propagation=log_distance", "--set", "channel.range_m=100"]
+            + ["--set", "output.position_interval_s=1e-300"],
+            "world.n_robots = 50: the run would hold at least",
+        ),
     ],
 )
 # Warnings shown as the command shows them: one before the refusal would be a second line.
@@ -505,6 +538,20 @@ def test_a_key_set_twice_takes_the_last_and_says_so(tmp_path, capsys, monkeypatc
         "netsim: warning: --set world.n_robots=8 and --set world.n_robots =9: the last is taken"
     ]
     assert "n_robots = 9" in captured.out and "n_robots = 8" not in captured.out
+
+
+@pytest.mark.filterwarnings("always::UserWarning")
+@pytest.mark.parametrize("command", ["run", "figures", "config"])
+def test_a_key_set_twice_then_refused_is_the_refusal_alone(tmp_path, capsys, monkeypatch, command):
+    """The warning that a key was set twice waits for the input to pass its checks: a
+    refused command line is one line, its error (it was the warning, then the error)."""
+    monkeypatch.chdir(tmp_path)
+    code = main([command, "--set", "world.n_robots=8", "--set", "world.n_robots=0"])
+    assert code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "netsim: error: world.n_robots = 0: must be > 0 (number of robots N)"
+    ]
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.filterwarnings("always::UserWarning")

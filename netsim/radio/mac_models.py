@@ -18,10 +18,17 @@ from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.radio.models import MacModel
 
+# The largest contention window: the medium keeps each robot's window and backoff as 64-bit
+# integers, and draws a backoff on 0..cw (cw + 1 values); past 2^62 - 1 the window's doubling
+# (2 cw + 1) or that count leaves them (a traceback of the draw, midway through the run).
+MAX_CW_EXPONENT = 62
+
 
 def _contention_window(v: int) -> str | None:
     # 802.11's windows are 2^k - 1: doubling keeps that form, (cw + 1) * 2 - 1.
-    return None if v >= 1 and (v + 1) & v == 0 else "must be 2^k - 1 with k >= 1 (1, 3, 7, ..., 1023)"
+    if 1 <= v and (v + 1) & v == 0 and v.bit_length() <= MAX_CW_EXPONENT:
+        return None
+    return f"must be 2^k - 1 with 1 <= k <= {MAX_CW_EXPONENT} (1, 3, 7, ..., 1023)"
 
 
 # The longest CSMA interval: 802.11's are microseconds, a slow radio's (LoRa, acoustic)
@@ -65,7 +72,10 @@ LARGEST_DB = 3000.0
 
 
 def _in_mw(value: float) -> str | None:
-    # The medium adds powers in mW: a level whose 10^(dB / 10) no float holds cannot be one.
+    # The medium adds powers in mW: a level whose 10^(dB / 10) no float holds cannot be one,
+    # nor one whose 10^(dB / 10) is 0 (a noise floor of 0 mW: every SINR a division by zero).
+    if value < -LARGEST_DB:
+        return f"must be at least {-LARGEST_DB:g} (its linear value, 10^(v / 10), must be above 0)"
     if value <= LARGEST_DB:
         return None
     return f"must be at most {LARGEST_DB:g} (its linear value, 10^(v / 10), must be a number)"

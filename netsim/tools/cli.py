@@ -114,6 +114,18 @@ def check_set_pairs(overrides: list[str] | None, positional: str | None) -> None
 
 
 @contextmanager
+def told_once_checked() -> Iterator[None]:
+    """Warnings given while a command's input is checked (a key set twice, a key of another
+    model), held back until every check has passed: a refused input is one line, its error,
+    not warnings about a run that will not be (as :func:`netsim.config.from_dict` holds its
+    own)."""
+    with warnings.catch_warnings(record=True) as caught:
+        yield
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+@contextmanager
 def kept(out: Path, missing: str = "", results: str = "the run is") -> Iterator[None]:
     """Within, the ``results`` are in place in ``out``: a Ctrl-C, or a disk that fills, says
     they are kept (and what is ``missing``), not that nothing was written."""
@@ -150,23 +162,24 @@ def cmd_run(args) -> int:
     from netsim.run import execute
     from netsim.tools.output import RunWriter, claim_dir, manifest
 
-    check_set_pairs(args.set, args.config)
-    overrides = list(args.set or [])
-    if args.seed is not None:
-        # --seed is --set seed=, given last: a seed set too is overridden, as a key set twice is.
-        for given in overrides:
-            if cfgmod.override_key(given) == "seed":
-                warnings.warn(
-                    f"--set {given} and --seed {args.seed}: --seed is taken", cfgmod.ConfigWarning, stacklevel=2
-                )
-        overrides.append(f"seed={args.seed}")
-    config = cfgmod.load(args.config, overrides)
-    check_run(config)
-    if args.live is not None:
-        from netsim.tools.bridge import LIVE_VIEW, check_extra, check_links_on
+    with told_once_checked():
+        check_set_pairs(args.set, args.config)
+        overrides = list(args.set or [])
+        if args.seed is not None:
+            # --seed is --set seed=, given last: a seed set too is overridden, as a key set twice is.
+            for given in overrides:
+                if cfgmod.override_key(given) == "seed":
+                    warnings.warn(
+                        f"--set {given} and --seed {args.seed}: --seed is taken", cfgmod.ConfigWarning, stacklevel=2
+                    )
+            overrides.append(f"seed={args.seed}")
+        config = cfgmod.load(args.config, overrides)
+        check_run(config)
+        if args.live is not None:
+            from netsim.tools.bridge import LIVE_VIEW, check_extra, check_links_on
 
-        check_links_on(config, "netsim run --live")
-        check_extra("netsim run --live", (LIVE_VIEW,))
+            check_links_on(config, "netsim run --live")
+            check_extra("netsim run --live", (LIVE_VIEW,))
     say_when_compiling("netsim run", not args.quiet)
     with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
         # Each table is written as soon as it is made, while the next is made.
@@ -233,12 +246,13 @@ def cmd_bridge(args) -> int:
     from netsim.bridge.settings import check_rate, load
     from netsim.tools.bridge import DDS, LIVE_VIEW, bridge, check_extra, check_links_on
 
-    check_set_pairs(args.set, args.config)
-    rate = check_rate(args.rate)
-    config, settings = load(args.config, list(args.set or []))
-    check_run(config)
-    check_links_on(config, "netsim bridge")
-    check_extra("netsim bridge", (DDS,) if args.live is None else (DDS, LIVE_VIEW))
+    with told_once_checked():
+        check_set_pairs(args.set, args.config)
+        rate = check_rate(args.rate)
+        config, settings = load(args.config, list(args.set or []))
+        check_run(config)
+        check_links_on(config, "netsim bridge")
+        check_extra("netsim bridge", (DDS,) if args.live is None else (DDS, LIVE_VIEW))
     say_when_compiling("netsim bridge", not args.quiet)
     summary, out, written = bridge(args, config, settings, rate)
     if not args.quiet:
@@ -405,7 +419,9 @@ def cmd_figures(args) -> int:
     from netsim.tools import figures
     from netsim.tools.output import claim_dir, existing_dir, is_run_dir, manifest, write_run
 
-    check_set_pairs(args.set, args.run_dir)
+    with told_once_checked():
+        check_set_pairs(args.set, args.run_dir)
+        config = None if args.run_dir else _figures_scenario(args)
     if args.run_dir:
         if args.config or args.set:
             raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
@@ -415,13 +431,7 @@ def cmd_figures(args) -> int:
         with claim_dir(args.out or run_dir, "--out") as out:
             drawn = figures.draw(run_dir, out, at_s=args.at)
     else:
-        overrides = ([] if args.config else figures.COVERAGE_SCENARIO) + list(args.set or [])
-        config = cfgmod.load(args.config, overrides)
-        if args.at is not None and not 0 <= args.at <= config.duration_s:
-            raise NetsimInputError(
-                f"--at = {args.at:g}: must be a time between 0 and duration_s = {config.duration_s:g} s"
-            )
-        check_run(config)
+        assert config is not None
         say_when_compiling("netsim figures", not args.quiet)
         with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
             result = execute(config, progress=not args.quiet and not args.no_progress and "netsim figures")
@@ -438,6 +448,18 @@ def cmd_figures(args) -> int:
         for d in drawn if not args.quiet else []:
             print(f"wrote {d.path}" + (f" ({d.note})" if d.note else ""))
     return 0
+
+
+def _figures_scenario(args) -> cfgmod.Config:
+    """The scenario `netsim figures` runs (the coverage scenario, or --config's), checked."""
+    from netsim.tools import figures
+
+    overrides = ([] if args.config else figures.COVERAGE_SCENARIO) + list(args.set or [])
+    config = cfgmod.load(args.config, overrides)
+    if args.at is not None and not 0 <= args.at <= config.duration_s:
+        raise NetsimInputError(f"--at = {args.at:g}: must be a time between 0 and duration_s = {config.duration_s:g} s")
+    check_run(config)
+    return config
 
 
 def cmd_view(args) -> int:
@@ -489,12 +511,13 @@ def cmd_calibrate(args) -> int:
 def cmd_config(args) -> int:
     from netsim.bridge import settings as bridge_settings
 
-    check_set_pairs(args.set, args.config)
     config, bridge = None, None
-    if args.config or args.set:
-        # A bridge scenario's [bridge] table is checked as `netsim bridge` checks it, and
-        # shown after the run's keys.
-        config, bridge = bridge_settings.read(args.config, list(args.set or []))
+    with told_once_checked():
+        check_set_pairs(args.set, args.config)
+        if args.config or args.set:
+            # A bridge scenario's [bridge] table is checked as `netsim bridge` checks it, and
+            # shown after the run's keys.
+            config, bridge = bridge_settings.read(args.config, list(args.set or []))
     print(cfgmod.commented_toml(config) + bridge_settings.commented(bridge), end="")
     return 0
 
