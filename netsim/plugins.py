@@ -227,6 +227,11 @@ def _plugin(group: str, name: str) -> Any:
         kind = CHANNEL_GROUPS[group]
         if not all(hasattr(obj, m) for m in wanted):
             raise TypeError(f"is not a {kind.__name__} (an object with " + ", ".join(wanted) + ")")
+        for other_group, other in CHANNEL_GROUPS.items():
+            # Another kind's members can match (a loss model has Params and make too); its
+            # calls would not, midway through the build.
+            if other_group != group and isinstance(obj, other) and not isinstance(obj, kind):
+                raise TypeError(f"is a {other.__name__} (of {other_group}), not a {kind.__name__} (of {group})")
         if not isinstance(obj, kind):
             # An object with the members: the kind's defaults for those it lacks (tables, check).
             obj = kind(**{f.name: getattr(obj, f.name) for f in fields(kind) if hasattr(obj, f.name)})

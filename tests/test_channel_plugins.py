@@ -112,6 +112,24 @@ def test_a_user_model_that_does_not_load_is_one_line_exit_2(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("key", "name", "said"),
+    [
+        ("propagation", "netsim.radio.loss:BERNOULLI", "is a LossModel (of netsim.loss), not a PropagationModel"),
+        ("loss_model", "netsim.radio.propagation_models:UNIT_DISK", "is a PropagationModel (of netsim.propagation)"),
+    ],
+)
+def test_a_channel_model_of_another_kind_is_one_line_exit_2(tmp_path, key, name, said):
+    """A channel model named under another model's key (a loss model as the propagation) is
+    refused naming the key and both kinds, before anything is written (its calls failed
+    with a traceback midway through the build)."""
+    out = tmp_path / "o"
+    code, _, err = cli("run", *sets(*SMALL, f"channel.{key}={name}"), "--out", out, "--quiet")
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"channel.{key}" in err and said in err
+    assert not out.exists()
+
+
 def test_a_user_mac_sends_each_frame_in_its_senders_slot():
     """Under TDMA every frame goes on the air at the start of its sender's own slot: each
     delivery comes one latency after such a start, and every frame handed over is sent."""
