@@ -22,12 +22,14 @@ table a small class (:class:`RouteTable`), each tested by name in tests/test_rou
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 from netsim.protocols.routing import ROUTING_TABLES, Packet, Router, RoutingParams, check_pairs
 
+from netsim.config import ConfigWarning
 from netsim.errors import ConfigError
 from netsim.params import finite, non_negative, param, positive, ttl_field
 from netsim.plugins import Parts, PluginSpec
@@ -84,6 +86,18 @@ class AodvParams(RoutingParams):
                     getattr(self, key),
                     f"must not exceed protocol.net_diameter = {self.net_diameter}",
                 )
+        flood_s = self.net_diameter * self.jitter_s
+        if self.path_discovery_time_s < flood_s:
+            # A copy of a RREQ that reaches a robot after it forgot the RREQ is forwarded
+            # again, and so are that copy's copies: the flood need not end.
+            warnings.warn(
+                f"protocol.node_traversal_time_s = {self.node_traversal_time_s:g}: a robot remembers a RREQ for "
+                f"PATH_DISCOVERY_TIME = 4 x it x NET_DIAMETER = {self.path_discovery_time_s:g} s, less than a "
+                f"flood over NET_DIAMETER hops may take with protocol.jitter_s a hop ({flood_s:g} s): copies "
+                "arriving later are forwarded again, a broadcast storm that can slow the run to a crawl",
+                ConfigWarning,
+                stacklevel=2,
+            )
         most = most_rreq_retries(self.net_traversal_time_s)
         if self.rreq_retries > most:
             # A discovery lists its RREQs' TTLs when it starts (ring_ttls), and the last waits

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from netsim.protocols.aodv import AodvParams, Route, RouteTable, fresher, ring_ttls, seq_newer
 
+from netsim.config import ConfigWarning
 from netsim.errors import ConfigError
 from netsim.run import build, collect
 from tests.fixtures import flow_over_trace, make_config
@@ -132,6 +133,19 @@ def test_aodv_parameter_out_of_range_is_refused(key, value):
     is refused, naming the key at fault."""
     with pytest.raises(ConfigError, match=f"protocol.{key} = {value}:"):
         make_config(protocol={"model": "aodv", key: value})
+
+
+def test_a_rreq_forgotten_before_its_flood_ends_is_warned_of(recwarn):
+    """NODE_TRAVERSAL_TIME so short that PATH_DISCOVERY_TIME (how long a robot remembers a
+    RREQ) ends before a flood over NET_DIAMETER hops can, with the forwarding jitter a hop:
+    one warning naming the key and both times (the run storms, and seemed to hang); none at
+    RFC 3561's defaults, nor where PATH_DISCOVERY_TIME just covers the flood."""
+    with pytest.warns(ConfigWarning, match=r"protocol.node_traversal_time_s = 1e-05: .* = 0.0014 s, .* \(0.35 s\)"):
+        make_config(protocol={"model": "aodv", "node_traversal_time_s": 1e-5})
+    recwarn.clear()
+    make_config(protocol={"model": "aodv"})
+    make_config(protocol={"model": "aodv", "node_traversal_time_s": 0.0025, "jitter_s": 0.01})  # 0.35 s: covered
+    assert [str(w.message) for w in recwarn] == []
 
 
 BREAK = """$node_(0) set X_ 50.0
