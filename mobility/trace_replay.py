@@ -21,7 +21,7 @@ import numpy as np
 import simpy
 
 from netsim.area import Bounds
-from netsim.config import world_bounds
+from netsim.config import ConfigWarning, world_bounds
 from netsim.errors import ConfigError, NetsimInputError
 from netsim.formats import format_of_name, ns2
 from netsim.formats.waypoints import Waypoints
@@ -93,6 +93,18 @@ class TraceParams(Params):
     def check(self) -> None:
         if not self.trace_file:
             raise ConfigError("mobility.trace_file", self.trace_file, "must name a file when model = 'trace'")
+        fmt = trace_format(self)
+        # Keys of one format set for a trace of another: the user meant something the run ignores.
+        for key, given, reads, kind in (
+            ("topics", bool(self.topics), TraceFormat.ROSBAG2, "ROS 2 bags"),
+            ("ns2_semantics", self.ns2_semantics is not Ns2Semantics.NS2, TraceFormat.NS2, "ns-2 files"),
+        ):
+            if given and fmt is not reads:
+                warnings.warn(
+                    f"mobility.{key}: applies to {kind} only, and {self.trace_file} is read as {READ_AS[fmt]}; ignored",
+                    ConfigWarning,
+                    stacklevel=2,
+                )
 
     def inputs(self) -> dict[str, str]:
         return {"mobility.trace_file": self.trace_file}

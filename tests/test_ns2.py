@@ -290,6 +290,26 @@ def test_a_bad_ns2_semantics_is_one_line_exit_2(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize(
+    ("name", "key", "value", "said"),
+    [
+        ("s.tcl", "topics", ["/robot_0/odom", "/robot_1/odom"], "mobility.topics: applies to ROS 2 bags only"),
+        ("s.tcl", "ns2_semantics", "ns3", None),  # read: no warning
+        ("s.movements", "ns2_semantics", "ns3", "mobility.ns2_semantics: applies to ns-2 files only"),
+    ],
+)
+def test_a_key_of_another_traces_format_is_warned_of(tmp_path, recwarn, name, key, value, said):
+    """A trace format's own key set for a trace of another format (a bag's pose topics for an
+    ns-2 file, ns-3's reading for a BonnMotion file) does nothing: one warning naming the key,
+    the format the file is read as and that it is ignored; the format's own key, none."""
+    f = tmp_path / name
+    f.write_text(SETDEST_SAMPLE if name.endswith(".tcl") else "0 10 10 5 20 10\n0 30 10\n")
+    make_config(world={"n_robots": 2}, mobility={"model": "trace", "trace_file": str(f), key: value})
+    warned = [str(w.message) for w in recwarn]
+    read_as = "ns-2" if name.endswith(".tcl") else "BonnMotion"
+    assert warned == ([] if said is None else [f"{said}, and {f} is read as {read_as}; ignored"])
+
+
 OUT_OF_ORDER = """\
 $node_(0) set X_ 100.0
 $node_(0) set Y_ 100.0
