@@ -896,7 +896,9 @@ def test_course_changes_are_not_counted_without_a_least_speed_or_a_known_memory(
 
 
 def test_the_course_changes_refusal_says_how_much_against_the_machines_memory():
-    """The refusal names duration_s, the course changes' GiB and the machine's, in that order."""
+    """The refusal names duration_s, the course changes' GiB, how often a robot changes
+    course at least (the area crossed at the least speed, and the pause) and the machine's
+    memory, in that order, and what else lowers them."""
     from netsim.errors import ConfigError
     from netsim.tools import preflight
 
@@ -906,8 +908,10 @@ def test_the_course_changes_refusal_says_how_much_against_the_machines_memory():
     with pytest.raises(ConfigError) as err:
         preflight.check_legs_fit_in_memory(config, 2**30)
     assert str(err.value) == (
-        f"duration_s = {duration!r}: the scenario would hold at least 3.0 GiB of course changes, more than "
-        "this machine's 1.0 GiB of memory; shorten it"
+        f"duration_s = {duration!r}: the scenario would hold at least 3.0 GiB of course changes (a robot changes "
+        "course at least every 102 s, crossing the area at mobility.speed_min_mps and pausing mobility.pause_s), "
+        "more than this machine's 1.0 GiB of memory; shorten it, or enlarge the area, or raise the pause or lower "
+        "the least speed"
     )
 
 

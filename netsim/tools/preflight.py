@@ -55,8 +55,10 @@ def check_legs_fit_in_memory(config: cfgmod.Config, have: int | None) -> None:
         raise ConfigError(
             "duration_s",
             config.duration_s,
-            f"the scenario would hold at least {gib(int(legs * LEG_BYTES))} GiB of course changes, more than "
-            f"this machine's {gib(have)} GiB of memory; shorten it",
+            f"the scenario would hold at least {gib(int(legs * LEG_BYTES))} GiB of course changes (a robot changes "
+            f"course at least every {longest_s:.3g} s, crossing the area at mobility.speed_min_mps and pausing "
+            f"mobility.pause_s), more than this machine's {gib(have)} GiB of memory; shorten it, or enlarge the "
+            "area, or raise the pause or lower the least speed",
         )
 
 
