@@ -89,7 +89,7 @@ import argparse
 import math
 import os
 import sys
-from contextlib import ExitStack, nullcontext
+from contextlib import ExitStack, closing, nullcontext
 from functools import partial
 from pathlib import Path
 
@@ -199,7 +199,9 @@ def run_jobs(one, jobs: list, args) -> pd.DataFrame:
     again as each run finishes (a run cut short keeps what it has), with a progress bar."""
     done = []
     runs = pooled(partial(one, duration_s=args.duration), jobs, args.workers, NAME, not args.no_progress, describe=told)
-    with ExitStack() as kept:
+    # Closed on the way out: a Ctrl-C outside its loop (the CSV being written) would leave
+    # its workers and bar to the interpreter's exit, after the line that reports it.
+    with closing(runs), ExitStack() as kept:
         for run in runs:
             done.append(run)
             if args.csv:
