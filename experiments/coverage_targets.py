@@ -226,6 +226,7 @@ def shadowing_figure(runs: pd.DataFrame, path: str) -> None:
     fig, (cover, ratio) = plt.subplots(1, 2, figsize=(10, 4.2))
     sizes = sorted(runs["N"].unique())
     at_target = [""] * len(sizes)
+    told_grew = False
     for k, n in enumerate(sizes):
         g = runs[runs["N"] == n]
         both = g.pivot(index="seed", columns="plan", values="of bound")
@@ -238,7 +239,9 @@ def shadowing_figure(runs: pd.DataFrame, path: str) -> None:
         if {"global", "local"} <= set(both):
             share = both["local"] / both["global"]
             ratio.plot(k + spread, share.where(~grew), ".", color="tab:orange")
-            split = "a network grew" if grew.any() else None
+            # The legend tells the marker once, at the first N that has one.
+            split = "a network grew" if grew.any() and not told_grew else None
+            told_grew = told_grew or grew.any()
             ratio.plot(k + spread, share.where(grew), "x", color="tab:red", label=split)
             ratio.plot([k - 0.3, k + 0.3], [share.mean()] * 2, "-", color="black", lw=1)
             at_target[k] = f"\n{int((share >= SHARE).sum())} of {len(share)} at {SHARE:g}"
