@@ -89,7 +89,7 @@ import argparse
 import math
 import os
 import sys
-from contextlib import ExitStack, nullcontext
+from contextlib import ExitStack, closing, nullcontext
 from functools import partial
 from pathlib import Path
 
@@ -199,7 +199,9 @@ def run_jobs(one, jobs: list, args) -> pd.DataFrame:
     again as each run finishes (a run cut short keeps what it has), with a progress bar."""
     done = []
     runs = pooled(partial(one, duration_s=args.duration), jobs, args.workers, NAME, not args.no_progress, describe=told)
-    with ExitStack() as kept:
+    # Closed on the way out: a Ctrl-C outside its loop (the CSV being written) would leave
+    # its workers and bar to the interpreter's exit, after the line that reports it.
+    with closing(runs), ExitStack() as kept:
         for run in runs:
             done.append(run)
             if args.csv:
@@ -224,6 +226,7 @@ def shadowing_figure(runs: pd.DataFrame, path: str) -> None:
     fig, (cover, ratio) = plt.subplots(1, 2, figsize=(10, 4.2))
     sizes = sorted(runs["N"].unique())
     at_target = [""] * len(sizes)
+    told_grew = False
     for k, n in enumerate(sizes):
         g = runs[runs["N"] == n]
         both = g.pivot(index="seed", columns="plan", values="of bound")
@@ -236,7 +239,9 @@ def shadowing_figure(runs: pd.DataFrame, path: str) -> None:
         if {"global", "local"} <= set(both):
             share = both["local"] / both["global"]
             ratio.plot(k + spread, share.where(~grew), ".", color="tab:orange")
-            split = "a network grew" if grew.any() else None
+            # The legend tells the marker once, at the first N that has one.
+            split = "a network grew" if grew.any() and not told_grew else None
+            told_grew = told_grew or grew.any()
             ratio.plot(k + spread, share.where(grew), "x", color="tab:red", label=split)
             ratio.plot([k - 0.3, k + 0.3], [share.mean()] * 2, "-", color="black", lw=1)
             at_target[k] = f"\n{int((share >= SHARE).sum())} of {len(share)} at {SHARE:g}"

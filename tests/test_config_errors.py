@@ -540,6 +540,21 @@ def test_a_key_set_twice_takes_the_last_and_says_so(tmp_path, capsys, monkeypatc
     assert "n_robots = 9" in captured.out and "n_robots = 8" not in captured.out
 
 
+# Shown where the module that gave it is named, refused (the project's error::UserWarning) elsewhere.
+@pytest.mark.filterwarnings("default::UserWarning:netsim.tools.cli")
+def test_a_warning_held_back_while_checking_is_shown_as_its_filters_said(tmp_path, capsys, monkeypatch):
+    """A warning held back while the input is checked is shown as the filters decided where
+    it was given, a filter naming that module included (-W ACTION::CATEGORY:MODULE): given
+    again from its file's path it was matched a second time, against no module's name (here
+    an error::UserWarning, a traceback)."""
+    monkeypatch.chdir(tmp_path)
+    code = main(["config", "--set", "world.n_robots=8", "--set", "world.n_robots=9"])
+    assert code == 0
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "netsim: warning: --set world.n_robots=8 and --set world.n_robots=9: the last is taken"
+    ]
+
+
 @pytest.mark.filterwarnings("always::UserWarning")
 @pytest.mark.parametrize("command", ["run", "figures", "config"])
 def test_a_key_set_twice_then_refused_is_the_refusal_alone(tmp_path, capsys, monkeypatch, command):

@@ -416,6 +416,31 @@ def test_the_window_shows_the_team_in_real_time(monkeypatch):
     env.close()
 
 
+def test_the_turns_window_is_paced_by_the_turns_render_fps(monkeypatch):
+    """In the AEC API (env()) too, a render_fps set in env.metadata paces the window (the
+    conversion to turns kept a copy of the table, which the window never read)."""
+    asked: list[float] = []
+
+    class Recorded:
+        def show(self, image, fps):
+            asked.append(fps)
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(coverage_v0, "shows_windows", lambda: True)
+    monkeypatch.setattr(coverage_v0, "Window", Recorded)
+    env = coverage_v0.env(**SMALL, step_s=0.5, render_mode="human")
+    assert env.metadata["render_fps"] == 2.0
+    env.reset(seed=0)
+    env.metadata["render_fps"] = 10
+    for agent in env.agents[:]:
+        assert env.agent_selection == agent
+        env.step(np.zeros(2, np.float32))
+    assert asked == [2.0, 10.0]
+    env.close()
+
+
 @pytest.mark.parametrize(
     ("backend", "window"),
     [

@@ -570,6 +570,12 @@ class CoverageTurns(parallel_to_aec_wrapper):
     not kept, so the agent can give another. (The conversion alone keeps it and fails at the
     turn's last agent, at every step after.)"""
 
+    def __init__(self, parallel_env: CoverageEnv) -> None:
+        super().__init__(parallel_env)
+        # The environment's own table, not the conversion's copy of it: a render_fps set
+        # here paces its window too.
+        self.metadata = parallel_env.metadata
+
     def step(self, action: Any) -> None:
         agent = self.agent_selection
         if not (self.terminations[agent] or self.truncations[agent]):

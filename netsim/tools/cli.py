@@ -122,7 +122,9 @@ def told_once_checked() -> Iterator[None]:
     with warnings.catch_warnings(record=True) as caught:
         yield
     for w in caught:
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        # Shown, not given again: the filters passed it where it was given, and a second pass
+        # would match a filter's module against its file's path (-W default::...:netsim.x).
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno, w.file, w.line)
 
 
 @contextmanager
