@@ -35,7 +35,6 @@ titled with its radio, plan, seed and covered fraction of the bound at the end.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from contextlib import nullcontext
 from pathlib import Path
@@ -45,7 +44,7 @@ import pandas as pd
 
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
-from netsim.tools.cli import check_out_file
+from netsim.tools.cli import FIGURE_SUFFIXES, check_out_files
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
 from netsim.tools.sweep import pooled, run_script
@@ -53,7 +52,6 @@ from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_se
 
 MAP_RADIOS = [r for r in COVERAGE_RADIOS if r.startswith("office")]
 TARGET = 0.5
-FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
 
 
 def settings(
@@ -96,7 +94,7 @@ def one(
 
 def told(run: dict) -> str:
     """One finished run, as the progress bar tells it."""
-    return f"{run['radio']}, {run['plan']}, seed {run['seed']}: {run['final']:.3f} of the bound"
+    return f"{run['plan']} plan, {run['radio']}, seed {run['seed']}: {run['final']:.3f} of the bound"
 
 
 def table(runs: pd.DataFrame) -> pd.DataFrame:
@@ -165,15 +163,8 @@ def main(argv=None) -> int:
     for option, value in (("--start-side", args.start_side), ("--duration", args.duration)):
         if not value > 0:
             raise NetsimInputError(f"{option} {value:g}: must be positive")
-    for option, path in (("--csv", args.csv), ("--figure", args.figure)):
-        if path is None:
-            continue
-        if path.endswith(("/", os.sep)):
-            raise NetsimInputError(f"{option} {path}: names a directory; give the path of a file")
-        # Before any run: a file that cannot be written would lose them all.
-        check_out_file(Path(path), option, replace=True)
-    if args.figure is not None and Path(args.figure).suffix.lower() not in FIGURE_SUFFIXES:
-        raise NetsimInputError(f"--figure {args.figure!r}: must end in one of {', '.join(FIGURE_SUFFIXES)}")
+    # Before any run: a file that cannot be written would lose them all.
+    check_out_files({"--csv": args.csv, "--figure": args.figure}, figures=("--figure",))
     seeds = range(1, args.seeds + 1)
     jobs = [
         (radio, plan, args.n, seed, args.duration, args.start_side)

@@ -87,7 +87,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 from contextlib import ExitStack, closing, nullcontext
 from functools import partial
@@ -98,7 +97,7 @@ import pandas as pd
 from netsim.config import Config
 from netsim.errors import NetsimInputError
 from netsim.tools.args import Parser
-from netsim.tools.cli import check_out_file
+from netsim.tools.cli import FIGURE_SUFFIXES, check_out_files
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
 from netsim.tools.sweep import pooled, run_script
@@ -209,9 +208,6 @@ def run_jobs(one, jobs: list, args) -> pd.DataFrame:
                 if len(done) == 1:
                     kept.enter_context(kept_if_interrupted(f"{NAME}: interrupted; the runs finished are in {args.csv}"))
     return pd.DataFrame(done)
-
-
-FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
 
 
 def shadowing_figure(runs: pd.DataFrame, path: str) -> None:
@@ -519,15 +515,8 @@ def check_options(args: argparse.Namespace) -> None:
         raise NetsimInputError("--oracles applies to --bound only")
     if args.figure is not None and (not args.shadowing or args.bound or args.why):
         raise NetsimInputError("--figure applies to --shadowing runs only")
-    for option, path in (("--csv", args.csv), ("--figure", args.figure)):
-        if path is None:
-            continue
-        if path.endswith(("/", os.sep)):
-            raise NetsimInputError(f"{option} {path}: names a directory; give the path of a file")
-        # Before any run: a file that cannot be written would lose them all.
-        check_out_file(Path(path), option, replace=True)
-    if args.figure is not None and Path(args.figure).suffix.lower() not in FIGURE_SUFFIXES:
-        raise NetsimInputError(f"--figure {args.figure!r}: must end in one of {', '.join(FIGURE_SUFFIXES)}")
+    # Before any run: a file that cannot be written would lose them all.
+    check_out_files({"--csv": args.csv, "--figure": args.figure}, figures=("--figure",))
 
 
 def check_settings(args: argparse.Namespace) -> None:

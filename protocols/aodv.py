@@ -22,6 +22,7 @@ table a small class (:class:`RouteTable`), each tested by name in tests/test_rou
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -86,6 +87,26 @@ class AodvParams(RoutingParams):
                     getattr(self, key),
                     f"must not exceed protocol.net_diameter = {self.net_diameter}",
                 )
+        if not math.isfinite(self.path_discovery_time_s):
+            raise ConfigError(
+                "protocol.node_traversal_time_s",
+                self.node_traversal_time_s,
+                f"must be at most {sys.float_info.max / (4.0 * self.net_diameter):.6g}: PATH_DISCOVERY_TIME = 4 x it "
+                "x NET_DIAMETER, how long a robot remembers a RREQ, must be a finite number of seconds",
+            )
+        most = most_rreq_retries(self.net_traversal_time_s)
+        if self.rreq_retries > most:
+            # A discovery lists its RREQs' TTLs when it starts (ring_ttls), and the last waits
+            # NET_TRAVERSAL_TIME x 2^RREQ_RETRIES: past this, that wait is no number (and the
+            # list no memory holds), a traceback at the run's first route discovery.
+            raise ConfigError(
+                "protocol.rreq_retries",
+                self.rreq_retries,
+                f"must be at most {most} with protocol.node_traversal_time_s = {self.node_traversal_time_s:g}: "
+                "each retry waits twice as long as the one before, and the last "
+                f"one's wait, NET_TRAVERSAL_TIME = {self.net_traversal_time_s:g} s x 2^rreq_retries, must be "
+                "a finite number of seconds",
+            )
         flood_s = self.net_diameter * self.jitter_s
         if self.path_discovery_time_s < flood_s:
             # A copy of a RREQ that reaches a robot after it forgot the RREQ is forwarded
@@ -97,18 +118,6 @@ class AodvParams(RoutingParams):
                 "arriving later are forwarded again, a broadcast storm that can slow the run to a crawl",
                 ConfigWarning,
                 stacklevel=2,
-            )
-        most = most_rreq_retries(self.net_traversal_time_s)
-        if self.rreq_retries > most:
-            # A discovery lists its RREQs' TTLs when it starts (ring_ttls), and the last waits
-            # NET_TRAVERSAL_TIME x 2^RREQ_RETRIES: past this, that wait is no number (and the
-            # list no memory holds), a traceback at the run's first route discovery.
-            raise ConfigError(
-                "protocol.rreq_retries",
-                self.rreq_retries,
-                f"must be at most {most}: each retry waits twice as long as the one before, and the last "
-                f"one's wait, NET_TRAVERSAL_TIME = {self.net_traversal_time_s:g} s x 2^rreq_retries, must be "
-                "a finite number of seconds",
             )
 
     @property

@@ -117,7 +117,7 @@ def test_wilson_interval_closed_form():
 @pytest.mark.parametrize(
     ("plot", "words"),
     [
-        ("fit.txt", "--plot {plot}: name a .png, .svg, .pdf file"),
+        ("fit.txt", "--plot '{plot}': must end in one of .png, .svg, .pdf"),
         ("here.png", "--plot {plot}: exists already; give a new path"),
         ("no/such/dir/fit.png", "--plot {plot}: the directory {parent} does not exist"),
     ],

@@ -412,7 +412,9 @@ def test_the_window_shows_the_team_in_real_time(monkeypatch):
     env.reset(seed=0)
     env.metadata["render_fps"] = 10
     env.step({a: np.zeros(2, np.float32) for a in env.agents})
-    assert asked == [2.0, 10.0]
+    env.metadata["render_fps"] = None  # Gymnasium's "not declared": no wait
+    env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    assert asked == [2.0, 10.0, 0.0]
     env.close()
 
 

@@ -192,6 +192,8 @@ def test_coverage_on_map_refuses_bad_options_in_one_line(tmp_path):
         (["--csv", "."], "--csv .: is a directory"),
         (["--figure", "sub.png/"], "--figure sub.png/: names a directory"),
         (["--figure", "ended.gif"], "--figure 'ended.gif': must end in one of .png, .svg, .pdf"),
+        # The figure was written over the table.
+        (["--csv", "x.png", "--figure", "x.png"], "--csv and --figure name one file, x.png: give each its own"),
     )
     refused_in_one_line("coverage_on_map.py", cases, tmp_path)
 
@@ -293,6 +295,7 @@ TINY_CONGESTION += ["--reps", "1", "--workers", "1"]
         ("coverage_targets.py", ["--shadowing", "--figure", "f.gif"], "--figure 'f.gif': must end in one of .png"),
         ("coverage_targets.py", ["--shadowing", "--figure", "/nonexistent/f.png"], "--figure /nonexistent/f.png: the"),
         ("coverage_targets.py", ["--shadowing", "--figure", "sub/"], "--figure sub/: names a directory"),
+        ("coverage_targets.py", ["--shadowing", "--figure", "r.png", "--csv", "./r.png"], "--csv and --figure name"),
         # Its placement file was written first, then the sweep refused.
         ("false_role_changes.py", ["--losses", "1.5"], "--losses 1.5: each a probability in [0, 1)"),
         ("false_role_changes.py", ["--pairs", "0"], "--pairs 0: at least 1"),

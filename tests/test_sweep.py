@@ -953,3 +953,16 @@ def test_a_random_sweep_refused_says_one_line_and_nothing_else(tmp_path, capsys)
     assert main(["sweep", str(f), "--out", str(tmp_path / "o"), "--workers", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("netsim: error: sweep point"), err
+
+
+def test_pooled_runs_come_in_order_each_told_on_its_own_line_in_a_log(capsys):
+    """netsim.tools.sweep.pooled: every job's result, in the jobs' order, and where standard
+    error is a log one progress line per run, each telling that run's result (a bar of a few
+    lines left most runs untold); ``progress=False``, none."""
+    jobs = [(-k, k) for k in range(1, 13)]
+    got = list(sweepmod.pooled(max, jobs, 2, "t", star=True, describe=lambda r: f"r{r}"))
+    assert got == list(range(1, 13))
+    lines = capsys.readouterr().err.splitlines()
+    assert [line.split("latest ")[1].split(",")[0] for line in lines] == [f"r{k}" for k in range(1, 13)]
+    assert list(sweepmod.pooled(abs, [-1, -2], 1, "t", progress=False)) == [1, 2]
+    assert capsys.readouterr().err == ""

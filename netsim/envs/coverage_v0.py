@@ -34,6 +34,7 @@ cell centres; ``components`` those of the links the channel makes (those of
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -463,7 +464,9 @@ class CoverageEnv(ParallelEnv):
             return image
         if self._window is None:
             self._window = Window()
-        self._window.show(image, float(self.metadata["render_fps"]))
+        fps = self.metadata.get("render_fps")
+        # None (Gymnasium's "not declared") or anything but a number: frames as they come.
+        self._window.show(image, float(fps) if isinstance(fps, numbers.Real) else 0.0)
         return None
 
     def close(self) -> None:

@@ -83,9 +83,9 @@ def shows_windows() -> bool:
 
 
 class Window:
-    """A window showing frames as they come (``render_mode = "human"``): one per environment,
-    opened at the first frame, and again if the user closed it; each frame replaces the last,
-    no sooner than ``1 / fps`` after it was shown (``clock``: seconds, monotonic)."""
+    """The window of ``render_mode = "human"``: one per environment, opened at the first
+    frame, and again if the user closed it; each frame replaces the last, no sooner than
+    ``1 / fps`` after it was shown (``clock``: seconds, monotonic)."""
 
     TITLE = "netsim coverage_v0"
 

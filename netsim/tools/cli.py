@@ -43,7 +43,7 @@ import os
 import re
 import sys
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -62,7 +62,7 @@ from netsim.tools.interrupt import (
 from netsim.tools.preflight import check_run
 
 EXIT_INPUT = 2
-PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # what netsim calibrate --plot writes
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")  # what a command's figure may be written as
 
 # A disk or a quota that is full: the user's to fix, said in one line.
 FULL_DISK = (errno.ENOSPC, errno.EDQUOT)
@@ -315,6 +315,26 @@ def cmd_scenario_generate(args) -> int:
     return 0
 
 
+def check_out_files(named: Mapping[str, str | None], figures: Sequence[str] = (), replace: bool = True) -> None:
+    """Refuse, before any work, a command's output files (option -> path; None: not asked)
+    that could not be written (:func:`check_out_file`; an existing one replaced with
+    ``replace``), two options naming one file (the last written would replace the other),
+    and a figure's (the options ``figures``) whose name ends in no :data:`FIGURE_SUFFIXES`."""
+    given = {option: path for option, path in named.items() if path is not None}
+    for option, path in given.items():
+        check_out_file(path, option, replace=replace)
+    seen: dict[Path, str] = {}
+    for option, path in given.items():
+        resolved = Path(path).resolve()
+        if resolved in seen:
+            raise NetsimInputError(f"{seen[resolved]} and {option} name one file, {path}: give each its own")
+        seen[resolved] = option
+    for option in figures:
+        path = given.get(option)
+        if path is not None and Path(path).suffix.lower() not in FIGURE_SUFFIXES:
+            raise NetsimInputError(f"{option} {path!r}: must end in one of {', '.join(FIGURE_SUFFIXES)}")
+
+
 def check_out_file(path: str | Path, option: str, make_parents: bool = False, replace: bool = False) -> None:
     """Refuse, before any work, a file that could not be written: its directory must exist
     and be writable, and the path must not be a directory, nor (unless ``replace``, for a
@@ -501,9 +521,7 @@ def cmd_calibrate(args) -> int:
         if Path(args.out).suffix.lower() != ".toml":
             raise NetsimInputError(f"--out {args.out}: name a .toml file (the fragment is TOML)")
     if args.plot is not None:
-        check_out_file(args.plot, "--plot")
-        if Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
-            raise NetsimInputError(f"--plot {args.plot}: name a {', '.join(PLOT_SUFFIXES)} file")
+        check_out_files({"--plot": args.plot}, figures=("--plot",), replace=False)
         from netsim.tools.calibrate_figure import draw_calibration
 
         return calibrate.command(args, draw_calibration)

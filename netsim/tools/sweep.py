@@ -576,7 +576,9 @@ def pooled(
     from netsim.progress import progress_bar
 
     call = partial(_star, fn) if star else fn
-    with process_pool(workers, len(jobs)) as pool, progress_bar(len(jobs), desc, "runs", progress, lines=10) as bar:
+    # In a log, a line per run: each run's result is told.
+    lines = max(len(jobs), 1)
+    with process_pool(workers, len(jobs)) as pool, progress_bar(len(jobs), desc, "runs", progress, lines=lines) as bar:
         for result in pool.imap(call, jobs):
             if describe is not None:
                 bar.set_postfix(latest=describe(result), refresh=False)
