@@ -570,6 +570,27 @@ def test_a_key_set_twice_then_refused_is_the_refusal_alone(tmp_path, capsys, mon
 
 
 @pytest.mark.filterwarnings("always::UserWarning")
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        (["run", "--out", "afile"], "netsim: error: --out afile: is a file, not a directory"),
+        (["figures", "--out", "afile"], "netsim: error: --out afile: is a file, not a directory"),
+        (["figures", "."], "netsim: error: give either a run directory or a scenario (--config/--set), not both"),
+    ],
+)
+def test_a_key_set_twice_then_a_bad_out_is_the_refusal_alone(tmp_path, capsys, monkeypatch, args, said):
+    """The warning of a key set twice waits for the output directory to be claimed too (and
+    for netsim figures' choice of a run or a scenario): a refusal of either is one line (it
+    was the warning, then the error)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("mine")
+    code = main([*args, "--set", "duration_s=20", "--set", "duration_s=21"])
+    assert code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [said]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+@pytest.mark.filterwarnings("always::UserWarning")
 @pytest.mark.parametrize("seeds", [["--seed", "3", "--set", "seed=4"], ["--set", "seed = 4", "--seed", "3"]])
 def test_run_with_a_seed_given_twice_takes_seed_and_says_so(tmp_path, capsys, monkeypatch, seeds):
     """`--seed` and `--set seed=` together: --seed is --set seed= given last, so it is taken,

@@ -44,7 +44,7 @@ import re
 import sys
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from netsim import config as cfgmod
@@ -164,45 +164,48 @@ def cmd_run(args) -> int:
     from netsim.run import execute
     from netsim.tools.output import RunWriter, claim_dir, manifest
 
-    with told_once_checked():
-        check_set_pairs(args.set, args.config)
-        overrides = list(args.set or [])
-        if args.seed is not None:
-            # --seed is --set seed=, given last: a seed set too is overridden, as a key set twice is.
-            for given in overrides:
-                if cfgmod.override_key(given) == "seed":
-                    warnings.warn(
-                        f"--set {given} and --seed {args.seed}: --seed is taken", cfgmod.ConfigWarning, stacklevel=2
-                    )
-            overrides.append(f"seed={args.seed}")
-        config = cfgmod.load(args.config, overrides)
-        check_run(config)
-        if args.live is not None:
-            from netsim.tools.bridge import LIVE_VIEW, check_extra, check_links_on
+    with ExitStack() as claimed:
+        with told_once_checked():
+            check_set_pairs(args.set, args.config)
+            overrides = list(args.set or [])
+            if args.seed is not None:
+                # --seed is --set seed=, given last: a seed set too is overridden, as a key set twice is.
+                for given in overrides:
+                    if cfgmod.override_key(given) == "seed":
+                        warnings.warn(
+                            f"--set {given} and --seed {args.seed}: --seed is taken", cfgmod.ConfigWarning, stacklevel=2
+                        )
+                overrides.append(f"seed={args.seed}")
+            config = cfgmod.load(args.config, overrides)
+            check_run(config)
+            if args.live is not None:
+                from netsim.tools.bridge import LIVE_VIEW, check_extra, check_links_on
 
-            check_links_on(config, "netsim run --live")
-            check_extra("netsim run --live", (LIVE_VIEW,))
-    say_when_compiling("netsim run", not args.quiet)
-    with claim_dir(args.out, "--out", kind="run") as out, RunWriter(out, config) as writer:
-        # Each table is written as soon as it is made, while the next is made.
-        # What the build loaded (numba and its registries, when the run uses compiled loops)
-        # is frozen out of the collector's passes too (command()).
-        if args.live is not None:
-            from netsim.tools.bridge import run_live
+                check_links_on(config, "netsim run --live")
+                check_extra("netsim run --live", (LIVE_VIEW,))
+            # A directory that cannot take the results is refused before any warning is shown.
+            out = claimed.enter_context(claim_dir(args.out, "--out", kind="run"))
+        say_when_compiling("netsim run", not args.quiet)
+        with RunWriter(out, config) as writer:
+            # Each table is written as soon as it is made, while the next is made.
+            # What the build loaded (numba and its registries, when the run uses compiled loops)
+            # is frozen out of the collector's passes too (command()).
+            if args.live is not None:
+                from netsim.tools.bridge import run_live
 
-            result = run_live(config, args.live, writer)
-        else:
-            result = execute(
-                config, progress=not args.quiet and not args.no_progress, emit=writer.table, built=_freeze_if_own
+                result = run_live(config, args.live, writer)
+            else:
+                result = execute(
+                    config, progress=not args.quiet and not args.no_progress, emit=writer.table, built=_freeze_if_own
+                )
+            written = writer.finish(
+                result.summary, manifest(config, 0, result.wall_s, occupancy=result.sim.parts.occupancy)
             )
-        written = writer.finish(
-            result.summary, manifest(config, 0, result.wall_s, occupancy=result.sim.parts.occupancy)
-        )
-        if args.view:
-            from netsim.tools import viewer
+            if args.view:
+                from netsim.tools import viewer
 
-            with kept(out, "its view.html is not"):
-                written.append(viewer.write(out))
+                with kept(out, "its view.html is not"):
+                    written.append(viewer.write(out))
     with kept(out):
         if not args.quiet:
             n, duration = config.world.n_robots, config.duration_s
@@ -441,21 +444,24 @@ def cmd_figures(args) -> int:
     from netsim.tools import figures
     from netsim.tools.output import claim_dir, existing_dir, is_run_dir, manifest, write_run
 
-    with told_once_checked():
-        check_set_pairs(args.set, args.run_dir)
-        config = None if args.run_dir else _figures_scenario(args)
     if args.run_dir:
-        if args.config or args.set:
-            raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
+        with told_once_checked():
+            check_set_pairs(args.set, args.run_dir)
+            if args.config or args.set:
+                raise NetsimInputError("give either a run directory or a scenario (--config/--set), not both")
         run_dir = existing_dir(args.run_dir)
         if not (run_dir / "config.toml").is_file() and not is_run_dir(run_dir):
             raise NetsimInputError(f"{run_dir}: not a run directory (no config.toml or manifest.json)")
         with claim_dir(args.out or run_dir, "--out") as out:
             drawn = figures.draw(run_dir, out, at_s=args.at)
     else:
-        assert config is not None
-        say_when_compiling("netsim figures", not args.quiet)
-        with claim_dir(args.out or "netsim-figures", "--out", kind="run") as out:
+        with ExitStack() as claimed:
+            with told_once_checked():
+                check_set_pairs(args.set, args.run_dir)
+                config = _figures_scenario(args)
+                # A directory that cannot take the run is refused before any warning is shown.
+                out = claimed.enter_context(claim_dir(args.out or "netsim-figures", "--out", kind="run"))
+            say_when_compiling("netsim figures", not args.quiet)
             result = execute(config, progress=not args.quiet and not args.no_progress and "netsim figures")
             occupancy = result.sim.parts.occupancy
             write_run(
