@@ -392,9 +392,10 @@ def test_a_window_keeps_each_frame_on_screen_for_one_frame_time(monkeypatch):
     window.close()
 
 
-def test_the_window_shows_the_team_in_real_time(monkeypatch):
-    """render_fps is a step per step_s (real time), in the environment's metadata, and the
-    window paces its frames by it, also once the user changed it there."""
+@pytest.fixture
+def paces(monkeypatch) -> list[float]:
+    """The frame rates the environment's window is asked to keep, frame by frame (a window
+    that records them in place of drawing)."""
     asked: list[float] = []
 
     class Recorded:
@@ -406,6 +407,12 @@ def test_the_window_shows_the_team_in_real_time(monkeypatch):
 
     monkeypatch.setattr(coverage_v0, "shows_windows", lambda: True)
     monkeypatch.setattr(coverage_v0, "Window", Recorded)
+    return asked
+
+
+def test_the_window_shows_the_team_in_real_time(paces):
+    """render_fps is a step per step_s (real time), in the environment's metadata, and the
+    window paces its frames by it, also once the user changed it there."""
     env = coverage_v0.parallel_env(**SMALL, step_s=0.5, render_mode="human")
     assert env.metadata["render_fps"] == 2.0
     assert coverage_v0.parallel_env(**SMALL).metadata["render_fps"] == 1.0  # another's own
@@ -414,24 +421,13 @@ def test_the_window_shows_the_team_in_real_time(monkeypatch):
     env.step({a: np.zeros(2, np.float32) for a in env.agents})
     env.metadata["render_fps"] = None  # Gymnasium's "not declared": no wait
     env.step({a: np.zeros(2, np.float32) for a in env.agents})
-    assert asked == [2.0, 10.0, 0.0]
+    assert paces == [2.0, 10.0, 0.0]
     env.close()
 
 
-def test_the_turns_window_is_paced_by_the_turns_render_fps(monkeypatch):
+def test_the_turns_window_is_paced_by_the_turns_render_fps(paces):
     """In the AEC API (env()) too, a render_fps set in env.metadata paces the window (the
     conversion to turns kept a copy of the table, which the window never read)."""
-    asked: list[float] = []
-
-    class Recorded:
-        def show(self, image, fps):
-            asked.append(fps)
-
-        def close(self):
-            pass
-
-    monkeypatch.setattr(coverage_v0, "shows_windows", lambda: True)
-    monkeypatch.setattr(coverage_v0, "Window", Recorded)
     env = coverage_v0.env(**SMALL, step_s=0.5, render_mode="human")
     assert env.metadata["render_fps"] == 2.0
     env.reset(seed=0)
@@ -439,7 +435,7 @@ def test_the_turns_window_is_paced_by_the_turns_render_fps(monkeypatch):
     for agent in env.agents[:]:
         assert env.agent_selection == agent
         env.step(np.zeros(2, np.float32))
-    assert asked == [2.0, 10.0]
+    assert paces == [2.0, 10.0]
     env.close()
 
 
