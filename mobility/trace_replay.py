@@ -232,7 +232,9 @@ def _warn_of_wraps(wp: Waypoints, params: TraceParams, side_m: float) -> None:
 def _check_count(n: int, params: TraceParams, world) -> None:
     if n != world.n_robots:
         nodes = f"{n} node{'s' if n != 1 else ''}"
-        raise ConfigError("world.n_robots", world.n_robots, f"must equal the {nodes} of {params.trace_file}")
+        raise ConfigError(
+            "world.n_robots", world.n_robots, f"must equal the {nodes} of {params.trace_file}: set it to {n}"
+        )
 
 
 def _read(params: TraceParams, fmt: TraceFormat, world) -> tuple[ns2.Scenario | Waypoints, dict[str, str]]:

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 from netsim import plugins
 from netsim.area import KEY, MAX_COORDINATE_M, Bounds, OnTorus, area_side, parse_bounds, parse_start
-from netsim.errors import ConfigError, NetsimInputError, not_a_file
+from netsim.errors import ConfigError, NetsimInputError, did_you_mean, not_a_file
 from netsim.params import (
     NoParams,
     Params,
@@ -699,15 +699,6 @@ def _unknown(key: str, value: Any, allowed: Iterable[str], others: Iterable[str]
     if others:
         said += "; with another model: " + ", ".join(others)
     return ConfigError(key, value, said)
-
-
-def did_you_mean(name: str, known: Iterable[str]) -> str:
-    """`` (did you mean 'x'?)`` naming the known name closest to a misspelt ``name``, or
-    nothing where none is close."""
-    import difflib
-
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def _plain_section(cls: type[Params], raw: dict) -> Params:

@@ -73,3 +73,13 @@ def keyboard_interrupt_in(exc: BaseException | None) -> KeyboardInterrupt | None
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
     return None
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` naming the known name closest to a misspelt ``name`` (case
+    aside), or nothing where none is close."""
+    import difflib
+
+    by_fold = {k.casefold(): k for k in known}
+    close = difflib.get_close_matches(name.casefold(), list(by_fold), n=1, cutoff=0.75)
+    return f" (did you mean {by_fold[close[0]]!r}?)" if close else ""

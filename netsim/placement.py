@@ -18,7 +18,7 @@ import pandas as pd
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
 from netsim.config import NAMED_PLACEMENTS, ConfigWarning, world_bounds
-from netsim.errors import ConfigError
+from netsim.errors import ConfigError, did_you_mean
 from netsim.geometry import cell_centres_m, link_ranges_m
 from netsim.rng import Streams
 
@@ -67,7 +67,8 @@ def from_csv(path: str, n: int, area: float | Bounds) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         named = ", ".join(f'"{name}"' for name in NAMED_PLACEMENTS)
-        raise ConfigError(key, path, f"must be {named} or the path of an existing CSV file")
+        meant = did_you_mean(path, NAMED_PLACEMENTS)
+        raise ConfigError(key, path, f"must be {named} or the path of an existing CSV file{meant}")
     try:
         df = pd.read_csv(p)
     except Exception as exc:  # pandas raises several parser errors; all mean a bad file

@@ -949,3 +949,22 @@ def test_overrides_given_as_one_string_are_refused_as_such():
 def test_a_section_of_the_wrong_kind_made_in_python_is_refused():
     with pytest.raises(ConfigError, match=r"^world = 5: must be a WorldParams$"):
         cfgmod.Config(world=5)
+
+
+@pytest.mark.parametrize(
+    ("sets", "said"),
+    [
+        (["world.placement=center"], "or the path of an existing CSV file (did you mean 'centre'?)"),
+        (["world.map=ofice"], "(no such file) (did you mean 'office'?)"),
+        (["world.map=Cave"], "(no such file) (did you mean 'cave'?)"),
+        (["world.map=office"], ': set world.side_m to at most 200, or world.bounds_m = "map" for the whole map'),
+    ],
+)
+def test_a_misspelt_value_or_a_map_smaller_than_the_area_says_what_was_meant(tmp_path, capsys, sets, said):
+    """A placement or an example map's name misspelt (an American spelling, a capital) names
+    the one meant, as a misspelt key does; a map smaller than the area says which keys fit it
+    (each was refused without a word of what to set)."""
+    code = main(["run", "--quiet", *(a for s in sets for a in ("--set", s)), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].endswith(said), err
+    assert not (tmp_path / "o").exists()

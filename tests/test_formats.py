@@ -1049,7 +1049,7 @@ def test_a_refused_trace_is_its_one_error_line_without_the_readers_warnings(tmp_
     trace = tmp_path / "s.tcl"
     trace.write_text('$node_(1) set X_ 1\n$node_(1) set Y_ 1\n$ns_ at -1 "$node_(1) setdest 5 5 1"\n')
     code, err = _run_trace(tmp_path, capsys, trace, 5)
-    assert code == 2 and len(err) == 1 and "must equal the 2 nodes" in err[0], err
+    assert code == 2 and len(err) == 1 and err[0].endswith(f"must equal the 2 nodes of {trace}: set it to 2"), err
     assert not (tmp_path / "o").exists()
 
 

@@ -50,7 +50,7 @@ import numpy as np
 from netsim.area import KEY as BOUNDS_KEY
 from netsim.area import Bounds, as_bounds
 from netsim.compiled import load
-from netsim.errors import ConfigError, not_a_file
+from netsim.errors import ConfigError, did_you_mean, not_a_file
 from netsim.geometry import cell_centres_m
 
 MAP_KEY = "world.map"
@@ -170,7 +170,8 @@ class OccupancyMap:
                 raise ConfigError(
                     MAP_KEY,
                     name,
-                    f"covers {w_m:g} m x {h_m:g} m, smaller than the area ({side_m:g} m x {side_m:g} m, world.side_m)",
+                    f"covers {w_m:g} m x {h_m:g} m, smaller than the area ({side_m:g} m x {side_m:g} m, world.side_m):"
+                    f' set world.side_m to at most {min(w_m, h_m):g}, or world.bounds_m = "map" for the whole map',
                 )
             raise ConfigError(
                 MAP_KEY,
@@ -283,7 +284,8 @@ def load_map(value: str | Path, key: str = MAP_KEY) -> OccupancyMap:
         raise ConfigError(
             key,
             where,
-            f"must be the path of a map_server YAML file or one of {', '.join(EXAMPLES)} ({not_a_file(path)})",
+            f"must be the path of a map_server YAML file or one of {', '.join(EXAMPLES)} ({not_a_file(path)})"
+            + did_you_mean(path.name, EXAMPLES),
         )
     try:
         meta = yaml.safe_load(path.read_text())
