@@ -48,7 +48,7 @@ from netsim.tools.cli import FIGURE_SUFFIXES, check_out_files
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
 from netsim.tools.sweep import pooled, run_script
-from netsim.tools.validate import COVERAGE_RADIOS, coverage_outcome, coverage_settings
+from netsim.tools.validate import COVERAGE_DURATION_S, COVERAGE_RADIOS, coverage_outcome, coverage_settings, cut_short
 
 MAP_RADIOS = [r for r in COVERAGE_RADIOS if r.startswith("office")]
 TARGET = 0.5
@@ -147,7 +147,9 @@ def main(argv=None) -> int:
     p.add_argument("--radios", nargs="+", default=MAP_RADIOS, help=f"of {MAP_RADIOS}")
     p.add_argument("--plans", nargs="+", default=["global", "local"], help="of global, local")
     p.add_argument("--start-side", type=float, default=60.0, help="side of the start square, m (default 60)")
-    p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run (default 600)")
+    p.add_argument(
+        "--duration", type=float, default=COVERAGE_DURATION_S, help="simulated seconds per run (default 600)"
+    )
     p.add_argument("--workers", type=int, default=2, help="runs at a time, one process each (default 2)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--csv", help="also write every run's row here")
@@ -181,6 +183,8 @@ def main(argv=None) -> int:
     failed = int((~out["pass"]).sum())
     rule = f"every seed at {TARGET:g} of the free-area bound or more, none split"
     print(f"{len(out) - failed} of {len(out)} rows pass ({rule})")
+    if cut_short(args.duration):
+        print(cut_short(args.duration))
     # The files last, each whole or not at all: an interrupt says which are in place.
     if args.csv:
         rows = runs.drop(columns=["final_xy", "radius_m", "map"])

@@ -101,7 +101,14 @@ from netsim.tools.cli import FIGURE_SUFFIXES, check_out_files
 from netsim.tools.interrupt import kept_if_interrupted
 from netsim.tools.output import write_atomically
 from netsim.tools.sweep import pooled, run_script
-from netsim.tools.validate import COVERAGE_FLOOR, COVERAGE_RADIOS, coverage_run, coverage_settings
+from netsim.tools.validate import (
+    COVERAGE_DURATION_S,
+    COVERAGE_FLOOR,
+    COVERAGE_RADIOS,
+    coverage_run,
+    coverage_settings,
+    cut_short,
+)
 
 NAME = Path(__file__).name
 
@@ -265,6 +272,8 @@ def main_shadowing(args) -> int:
         print(table.to_string(index=False))
     failed = int((~table["pass"]).sum())
     print(f"{len(table) - failed} of {len(table)} rows pass")
+    if cut_short(args.duration):
+        print(cut_short(args.duration))
     if args.figure:
         line = f"{NAME}: interrupted; the runs are in {args.csv}, the figure is not"
         with kept_if_interrupted(line) if args.csv else nullcontext():
@@ -559,7 +568,7 @@ def main(argv=None) -> int:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--figure", help=f"with --shadowing: also draw the runs ({', '.join(FIGURE_SUFFIXES)})")
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per run")
+    p.add_argument("--duration", type=float, default=COVERAGE_DURATION_S, help="simulated seconds per run")
     p.add_argument(
         "--csv",
         help="also write the table here (with --shadowing, --bound: every run, as it ends; --why: a row per N)",
@@ -603,6 +612,8 @@ def main(argv=None) -> int:
         print(table.to_string(index=False))
     failed = int((~table["pass"]).sum())
     print(f"{len(table) - failed} of {len(table)} rows pass")
+    if cut_short(args.duration):
+        print(cut_short(args.duration))
     if args.csv:
         write_csv(table, args.csv)
     return 1 if failed else 0

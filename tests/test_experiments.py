@@ -532,6 +532,21 @@ def test_coverage_targets_shows_its_runs_progress_on_stderr(tmp_path, quiet):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("duration", ["120", "600"])
+def test_a_run_shorter_than_the_targets_says_its_verdicts_are_not_the_targets(tmp_path, duration):
+    """--duration below the targets' 600 s: after the table, a note that the teams were cut
+    while spreading, so the verdicts are not the targets' (a row passed or failed with no
+    word of it); at 600 s, none."""
+    local = {**SHADOWING_ROW, "plan": "local", "of bound": 0.25}
+    patch = f"ROWS, INTERRUPT = {[SHADOWING_ROW, local]!r}, False\n{FAKE_POOL}"
+    args = ["--shadowing", "--seeds", "1", "--n", "5", "--no-progress", "--duration", duration]
+    run = _patched_script(tmp_path, patch, "coverage_targets.py", *args)
+    assert run.returncode == 1, run.stderr
+    note = "note: --duration 120 s is shorter than the targets' 600 s: the teams were cut while spreading"
+    assert (note in run.stdout) is (duration == "120")
+
+
+@pytest.mark.slow
 def test_coverage_targets_draws_its_shadowing_runs(tmp_path):
     """--shadowing --figure F draws the runs (each seed by plan; local over global against
     the target) into F; Ctrl-C while it draws after --csv says the runs are kept and the
