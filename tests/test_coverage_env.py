@@ -301,6 +301,24 @@ def test_render_without_a_render_mode_warns():
         assert env.render() is None
 
 
+def test_human_render_mode_where_the_asked_backend_cannot_start_says_there_is_no_display(monkeypatch):
+    """MPLBACKEND asks for a window's backend on a machine with no display: matplotlib falls
+    back to Agg, and the warning says so, naming the backend asked for and the display (it
+    told the user to set MPLBACKEND, which they had), at the user's own reset() line."""
+    from netsim.envs import drawing
+
+    monkeypatch.setenv("MPLBACKEND", "TkAgg")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(drawing, "matplotlib_backend", lambda: "agg")
+    env = coverage_v0.parallel_env(**SMALL, render_mode="human")
+    with pytest.warns(UserWarning) as said:
+        env.reset(seed=0)
+    (w,) = [w for w in said if "shows a window" in str(w.message)]
+    assert "could not start the backend MPLBACKEND asks for (TkAgg): this machine has no display" in str(w.message)
+    assert "fell back to agg" in str(w.message) and w.filename == __file__
+
+
 def test_human_render_mode_without_a_window_says_so_once(monkeypatch):
     """render_mode = "human" where matplotlib draws no window (Agg, as on a server): one
     warning naming the backend and what to do, for the environment's life; render() returns

@@ -57,7 +57,7 @@ from netsim import metrics
 from netsim.area import Bounds
 from netsim.compiled import load
 from netsim.cosim import CommandError, LinkQualityView, as_numbers
-from netsim.envs.drawing import Window, frame, matplotlib_backend, shows_windows
+from netsim.envs.drawing import Window, frame, no_window_said, shows_windows
 from netsim.errors import ConfigError
 from netsim.params import Params, finite, non_negative, param, positive
 from netsim.placement import check_placement
@@ -288,7 +288,7 @@ class CoverageEnv(ParallelEnv):
         self.components = self._components(pos)
         obs = self._observations(pos)
         if self.render_mode == "human":
-            self.render()
+            self._draw(stacklevel=3)  # the warnings point at the caller's reset or step
         return obs, self._infos(pos)
 
     def _finish_instant(self) -> None:
@@ -348,7 +348,7 @@ class CoverageEnv(ParallelEnv):
             self.agents = []
             self._live = set()
         if self.render_mode == "human":
-            self.render()
+            self._draw(stacklevel=3)  # the warnings point at the caller's reset or step
         return obs, rewards, terminations, truncations, infos
 
     def checked_actions(self, actions: Mapping[str, Any] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -440,11 +440,15 @@ class CoverageEnv(ParallelEnv):
         ``render_mode = "rgb_array"`` returned as an ``(H, W, 3)`` uint8 array; with
         ``"human"`` shown in a window (which ``reset()`` and ``step()`` also update), None
         returned."""
+        return self._draw(stacklevel=3)
+
+    def _draw(self, stacklevel: int) -> np.ndarray | None:
+        """render(), its warnings given ``stacklevel`` frames up (the user's call)."""
         if self.render_mode is None:
             warnings.warn(
                 "render() draws only in render_mode 'rgb_array' or 'human': make the environment with"
                 " render_mode='rgb_array' (frames returned) or render_mode='human' (a window)",
-                stacklevel=2,
+                stacklevel=stacklevel,
             )
             return None
         if self.sim is None:
@@ -452,12 +456,7 @@ class CoverageEnv(ParallelEnv):
         if self.render_mode == "human" and not shows_windows():
             if "no window" not in self._told:
                 self._told.add("no window")
-                warnings.warn(
-                    f"render_mode='human' shows a window, and matplotlib's backend ({matplotlib_backend()}) draws"
-                    " none: nothing is shown (set MPLBACKEND to a window's backend, e.g. TkAgg or QtAgg, or use"
-                    " render_mode='rgb_array')",
-                    stacklevel=2,
-                )
+                warnings.warn(no_window_said(), stacklevel=stacklevel)
             return None
         image = frame(self.sim, self._links_up(self.sim.positions()), self.radius_m, self.range_m, self.covered)
         if self.render_mode == "rgb_array":

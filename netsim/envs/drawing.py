@@ -3,6 +3,7 @@ colours, links, coverage disks, the area's border: netsim.tools.figures and styl
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
@@ -63,8 +64,10 @@ def frame(
 
 
 def matplotlib_backend() -> str:
-    """The name of the backend matplotlib draws with (chosen now if not yet)."""
+    """The name of the backend matplotlib draws with (chosen now if not yet: pyplot starts
+    it, and falls back to one that draws no window where the one asked for cannot start)."""
     import matplotlib
+    import matplotlib.pyplot  # noqa: F401
 
     return str(matplotlib.get_backend())
 
@@ -80,6 +83,26 @@ def shows_windows() -> bool:
         from matplotlib.rcsetup import non_interactive_bk as drawn_only  # type: ignore[attr-defined,no-redef]
     backend = matplotlib_backend().lower()
     return backend not in drawn_only and "inline" not in backend
+
+
+def no_window_said() -> str:
+    """Why render_mode = "human" shows nothing here, and what to do: the backend draws no
+    window, or the one MPLBACKEND asks for could not start (no display) and matplotlib fell
+    back to one that draws none."""
+    backend = matplotlib_backend()
+    asked = os.environ.get("MPLBACKEND", "")
+    if asked and asked.lower() != backend.lower():
+        display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+        why = f", with DISPLAY = {display!r}" if display else ": this machine has no display (DISPLAY is not set)"
+        return (
+            f"render_mode='human' shows a window, and matplotlib could not start the backend MPLBACKEND asks for"
+            f" ({asked}){why}; it fell back to {backend}, which draws none: nothing is shown (use"
+            " render_mode='rgb_array', or run where a display is)"
+        )
+    return (
+        f"render_mode='human' shows a window, and matplotlib's backend ({backend}) draws none: nothing is shown"
+        " (set MPLBACKEND to a window's backend, e.g. TkAgg or QtAgg, or use render_mode='rgb_array')"
+    )
 
 
 class Window:
