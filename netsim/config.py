@@ -1097,6 +1097,12 @@ def commented_toml(config: Config | None = None) -> str:
                 out += [f"# {doc}", f"# default: {rule}; uncomment to fix it", f"# {line}"]
                 continue
             out += [f"# {doc}", line]
+            if key == "model" and isinstance(value, ModelSection) and names(type(value.params)):
+                # Left beside another model, they would be warned of at every run.
+                out += [
+                    f"# {v}'s own keys follow: with another model leave them out"
+                    f" (`netsim config --set {section}.model=NAME` writes that model's)"
+                ]
         others = [row for row in _other_models(section) if row[1] not in used]
         if others:
             what = (

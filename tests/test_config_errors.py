@@ -709,6 +709,21 @@ def test_printed_configuration_loads_back_unchanged(tmp_path):
     assert cfgmod.load(path) == c
 
 
+def test_printed_configuration_says_which_keys_are_the_chosen_models(tmp_path, recwarn):
+    """`netsim config` marks the keys a section's model reads as that model's own (a user
+    who named another model and left them was warned at every run, though the file had
+    written them as if anyone's); printed for another model, the file loads with no warning."""
+    text = cfgmod.commented_toml()
+    mobility = text.split("[mobility]")[1].split("[channel]")[0]
+    assert mobility.index('model = "random_waypoint"') < mobility.index("random_waypoint's own keys follow")
+    assert mobility.index("random_waypoint's own keys follow") < mobility.index("speed_min_mps = 0.5")
+    other = cfgmod.load(None, ["mobility.model=gauss_markov"])
+    (tmp_path / "g.toml").write_text(cfgmod.commented_toml(other))
+    assert "gauss_markov's own keys follow" in (tmp_path / "g.toml").read_text()
+    assert cfgmod.load(tmp_path / "g.toml") == other
+    assert [str(w.message) for w in recwarn] == []
+
+
 def test_a_configuration_error_crosses_a_process_pool_whole():
     """A ConfigError raised in a worker (a sweep's, an experiment's pool) is pickled back to
     the parent: it must come back as itself, key, value and message, not as a broken pool."""

@@ -101,7 +101,10 @@ def tables() -> str:
         "",
         "## Keys",
         "",
-        "The built-in configuration, every key (`netsim config` prints the same, as a file to edit):",
+        "The built-in configuration, every key (`netsim config` prints the same, as a file to edit): the"
+        " engine's, and those of the default models (random waypoint's speeds and pause, the clustering's"
+        " timings, ...); another model named in its section reads its own keys instead (below), and a key"
+        " of the default model left beside it is warned of and ignored:",
         "",
         "| key | default | meaning |",
         "| --- | --- | --- |",
