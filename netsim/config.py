@@ -990,8 +990,26 @@ def nest(dotted_key: str, value: Any) -> dict:
 
 
 def load(path: str | Path | None = None, overrides: Iterable[str] = ()) -> Config:
-    """Load a TOML file (or the built-in default scenario when ``path`` is None)."""
-    return from_dict(read_tree(path, overrides))
+    """Load a TOML file (or the built-in default scenario when ``path`` is None). An error
+    of a key the file sets, and no ``--set`` does, names the file."""
+    overrides = list(overrides) if not isinstance(overrides, (str, bytes)) else overrides
+    tree = read_tree(path, overrides)
+    try:
+        return from_dict(tree)
+    except ConfigError as exc:
+        if path is not None and _set_in(read_tree(path), exc.key) and not _set_in(read_tree(None, overrides), exc.key):
+            exc.source = str(path)
+        raise
+
+
+def _set_in(tree: dict, key: str) -> bool:
+    """Whether the dotted ``key`` is set in ``tree`` (a scenario's keys as read)."""
+    node: Any = tree
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
 
 
 def read_tree(path: str | Path | None = None, overrides: Iterable[str] = ()) -> dict:

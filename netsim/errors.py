@@ -25,6 +25,9 @@ class ConfigError(NetsimInputError):
     the file without reading code.
     """
 
+    # The file that set the key, where it is one (netsim.config.load), named first.
+    source: str = ""
+
     def __init__(self, key: str, value: object, allowed: str):
         self.key = key
         self.value = value
@@ -34,7 +37,8 @@ class ConfigError(NetsimInputError):
         super().__init__(key, value, allowed)
 
     def __str__(self) -> str:
-        return f"{setting(self.key, self.value)}: {self.allowed}"
+        where = f"{self.source}: " if self.source else ""
+        return f"{where}{setting(self.key, self.value)}: {self.allowed}"
 
 
 def not_a_file(path: str | os.PathLike) -> str:

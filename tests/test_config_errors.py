@@ -898,8 +898,24 @@ def test_a_section_given_a_value_is_one_line_and_nothing_written(tmp_path, capsy
     f.write_text("world = 5\n")
     code, err = _cli(tmp_path, capsys, str(f))
     assert code == 2
-    assert err.strip().splitlines() == ["netsim: error: world = 5: must be a table ([world])"]
+    assert err.strip().splitlines() == [f"netsim: error: {f}: world = 5: must be a table ([world])"]
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("sets", "named"),
+    [([], True), (["world.n_robot=3"], False), (["world.side_m=500"], True)],
+)
+def test_an_error_in_a_key_the_file_sets_names_the_file(tmp_path, sets, named):
+    """A bad key or value the scenario file sets (and no --set) names the file first, so the
+    user knows where to look; the same key given by --set does not (it is the command
+    line's)."""
+    f = tmp_path / "typo.toml"
+    f.write_text("duration_s = 5.0\n[world]\nn_robot = 30\n")
+    with pytest.raises(ConfigError) as err:
+        cfgmod.load(f, sets)
+    assert str(err.value).startswith(f"{f}: world.n_robot = ") is named
+    assert "unknown key (did you mean 'n_robots'?)" in str(err.value)
 
 
 def test_a_model_name_that_is_no_text_is_one_line_and_nothing_written(tmp_path, capsys):
