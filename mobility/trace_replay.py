@@ -257,6 +257,8 @@ def _read(params: TraceParams, fmt: TraceFormat, world) -> tuple[ns2.Scenario | 
                 f" (read as {READ_AS[fmt]}, the format guessed from the name: set mobility.trace_format = "
                 f"{others} for another)"
             )
+        elif params.trace_format is not TraceFormat.AUTO:
+            guessed = f" (read as {READ_AS[fmt]}, as mobility.trace_format = {str(params.trace_format)!r} asks)"
         raise NetsimInputError(f"mobility.trace_file: {exc}{guessed}") from None
 
 

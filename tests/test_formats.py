@@ -930,6 +930,19 @@ def test_every_guessed_format_is_said_with_the_others_to_set(tmp_path, capsys, n
     assert not (tmp_path / "out").exists()
 
 
+def test_a_format_set_is_named_in_the_error_of_a_file_not_in_it(tmp_path, capsys):
+    """An ns-2 file read as BonnMotion because mobility.trace_format says so: the error says
+    which format it was read as, and that the key asked it (it named a line and a word)."""
+    path = tmp_path / "scen.tcl"
+    path.write_text("$node_(0) set X_ 1.0\n$node_(0) set Y_ 1.0\n")
+    argv = ["run", "--set", "mobility.model=trace", "--set", f"mobility.trace_file={path}"]
+    argv += ["--set", "mobility.trace_format=bonnmotion", "--set", "world.n_robots=1"]
+    assert main([*argv, "--out", str(tmp_path / "out"), "--no-progress"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.endswith(" (read as BonnMotion, as mobility.trace_format = 'bonnmotion' asks)"), line
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_guessed_format_is_named_in_the_error(tmp_path, capsys):
     """A BonnMotion file not named .movements is read as ns-2 by guess: its error says the
     format was guessed and names mobility.trace_format."""
