@@ -66,6 +66,25 @@ def test_an_unknown_option_of_a_command_is_refused_in_the_commands_name(capsys, 
     assert err.rstrip().endswith(f"(netsim {command} --help lists the options)"), err
 
 
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["run", "--sed", "3"], "netsim run: error: unrecognized arguments: --sed (did you mean '--seed'?)"),
+        (
+            ["view", "r", "--outt=x.html"],
+            "netsim view: error: unrecognized arguments: --outt=x.html (did you mean '--out'?)",
+        ),
+        (["run", "--zzz"], "netsim run: error: unrecognized arguments: --zzz"),
+    ],
+)
+def test_a_misspelt_option_names_the_one_meant(capsys, argv, said):
+    """A misspelt option of a command names the option meant, as a misspelt key does; one
+    close to none, nothing more."""
+    assert status(argv) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line == f"{said} (netsim {argv[0]} --help lists the options)"
+
+
 @pytest.mark.parametrize("argv", [[], ["no-such-command"], ["scenario"]])
 def test_a_missing_or_unknown_command_is_one_line(capsys, argv):
     assert status(argv) == 2

@@ -13,6 +13,8 @@ import argparse
 import re
 from typing import Any, NoReturn
 
+from netsim.errors import did_you_mean
+
 # Every number a float option takes, with a minus: argparse's own test knows only "-80" and
 # "-.5", so "--sensitivity-dbm -8e1" or "-inf" read as an unknown option and left the
 # option without its value.
@@ -45,5 +47,8 @@ class SubcommandParser(Parser):
     def parse_known_args(self, args: Any = None, namespace: Any = None) -> tuple[Any, list[str]]:
         namespace, extras = super().parse_known_args(args, namespace)
         if extras:
-            self.error(f"unrecognized arguments: {' '.join(extras)}")
+            options = [o for o in self._option_string_actions if o.startswith("--")]
+            typed = [e.split("=", 1)[0] for e in extras if e.startswith("--")]
+            meant = next((m for m in (did_you_mean(t, options) for t in typed) if m), "")
+            self.error(f"unrecognized arguments: {' '.join(extras)}{meant}")
         return namespace, extras
