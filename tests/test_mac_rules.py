@@ -54,3 +54,18 @@ def test_received_power_takes_the_shadowing_clipped_as_the_decision_does(monkeyp
     assert np.array_equal(power_at(1e3), power_at(24.0))
     assert np.array_equal(power_at(-1e3), power_at(-24.0))
     assert not np.array_equal(power_at(24.0), power_at(0.0))
+
+
+def test_a_robot_senses_the_medium_idle_only_with_no_frame_on_the_air_and_none_of_its_own():
+    """The one rule of an idle medium (netsim.radio._mac_kernels.senses_idle), as the frame's
+    start, its end and a new contention all read it: idle iff no other sender's frame covers
+    the robot and it sends none itself."""
+    from netsim.compiled import load
+
+    cover = np.array([0, 1, 0, 2])
+    sending = np.array([False, False, True, True])
+    for kernels in (load("netsim.radio._mac_kernels", 1), load("netsim.radio._mac_kernels", 1000)):
+        out = np.empty(4, dtype=bool)
+        kernels.idle_among(cover, sending, np.arange(4), out)
+        assert out.tolist() == [True, False, False, False]
+        assert [bool(kernels.senses_idle(cover, sending, c)) for c in range(4)] == out.tolist()

@@ -61,13 +61,27 @@ def busy_through(busy_s, busy_since, c, now):
     return busy_s[c] + (now - busy_since[c])
 
 
+@jit(nogil=True, inline="always")
+def senses_idle(cover, transmitting, c):
+    """Robot ``c`` senses the medium idle: no other sender's frame on the air within its
+    interference range, and none of its own: the one rule of an idle medium."""
+    return cover[c] == 0 and not transmitting[c]
+
+
+@jit(nogil=True)
+def idle_among(cover, transmitting, robots, out):
+    """Whether each of ``robots`` senses the medium idle (:func:`senses_idle`), into ``out``."""
+    for k in range(len(robots)):
+        out[k] = senses_idle(cover, transmitting, robots[k])
+
+
 @jit(nogil=True)
 def busy_times(medium, now, out):
     """Each robot's time sensed busy through ``now`` (:func:`busy_through` while it senses
     a frame or sends one), into ``out``. ``medium``: :class:`MediumArrays`."""
     md = MediumArrays(*medium)
     for c in range(out.shape[0]):
-        if md.cover[c] > 0 or md.transmitting[c]:
+        if not senses_idle(md.cover, md.transmitting, c):
             out[c] = busy_through(md.busy_s, md.busy_since, c, now)
         else:
             out[c] = md.busy_s[c]
@@ -107,7 +121,7 @@ def end_frame(medium, frame, out):
     m = 0
     for k in range(len(disturbed) + 1):
         c = disturbed[k] if k < len(disturbed) else i
-        if cover[c] == 0 and not transmitting[c]:
+        if senses_idle(cover, transmitting, c):
             newly[m] = c
             m += 1
     for k in range(m):

@@ -198,7 +198,7 @@ class Csma:
     def contend(self, i: int) -> None:
         m = self.medium
         self.backoff[i] = m.rng.integers(self.cw[i] + 1)
-        if m.cover[i] == 0 and not m.transmitting[i]:
+        if m._kernels.senses_idle(m.cover, m.transmitting, i):
             self._count_down(np.array([i]), m.env.now)
 
     def started(self, i: int) -> None:
@@ -428,8 +428,9 @@ class Medium:
         frame.hd_start = self.transmitting[receivers]
         frame.col_start = self.cover[receivers] > 0
         frame.interferers = disturbed
-        was_idle = (self.cover[disturbed] == 0) & ~self.transmitting[disturbed]
-        sender_idle = self.cover[i] == 0
+        was_idle = np.empty(len(disturbed), dtype=bool)
+        self._kernels.idle_among(self.cover, self.transmitting, disturbed, was_idle)
+        sender_idle = self._kernels.senses_idle(self.cover, self.transmitting, i)
         self.cover[disturbed] += 1
         self.cover_seq[disturbed] = seq
         self.transmitting[i] = True
